@@ -1,0 +1,168 @@
+"""Durable store: round trips, duplicates, corrupt files, and acknowledged outcomes surviving kill -9."""
+import math
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import textwrap
+import threading
+
+import pytest
+
+from rollability_ros.core.records import (
+    CandidateRecord,
+    GenerationRecord,
+    LaunchCondition,
+    LaunchOutcome,
+    TipEventRecord,
+)
+from rollability_ros.core.store import STORE_FILENAME, Store
+
+REPO_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def _outcome(trial_id, run_id="run1", upright=True, **fields):
+    condition = LaunchCondition("A", 0.75, 0.8, -30.0, 2)
+    return LaunchOutcome(run_id=run_id, trial_id=trial_id, condition=condition, backend="sim", upright=upright,
+                         **fields)
+
+
+def test_launch_outcome_round_trip_keeps_every_field_and_order(tmp_path):
+    measured = _outcome("t2", travel_time_s=0.41, measured_speed_mps=0.83, speed_out_of_tolerance=True,
+                        final_orientation=(0.0, 0.70710678, 0.0, 0.70710678), classified_by="imu",
+                        note="gate 2 late", stamp_s=1700000000.5, upright=False)
+    unmeasured = _outcome("t1")
+    with Store(tmp_path / "s.sqlite") as store:
+        assert store.add_launch_outcome(measured)
+        assert store.add_launch_outcome(unmeasured)
+        assert store.add_launch_outcome(_outcome("t1", run_id="run2"))
+        got = store.launch_outcomes("run1")
+    assert got[0] == measured
+    assert [o.trial_id for o in got] == ["t2", "t1"]  # insertion order, not sorted
+    # NaN (not measured) survives the round trip as NaN
+    assert math.isnan(got[1].travel_time_s) and math.isnan(got[1].measured_speed_mps)
+    assert got[1].condition == unmeasured.condition and got[1].final_orientation == (0.0, 0.0, 0.0, 1.0)
+
+
+def test_duplicate_trial_id_is_stored_once(tmp_path):
+    with Store(tmp_path / "s.sqlite") as store:
+        assert store.add_launch_outcome(_outcome("t1", upright=True))
+        assert not store.add_launch_outcome(_outcome("t1", upright=False))
+        outcomes = store.launch_outcomes()
+        assert len(outcomes) == 1 and outcomes[0].upright
+        assert store.trial_ids("run1") == {"t1"}
+
+
+def test_invalid_outcome_is_refused_and_not_stored(tmp_path):
+    with Store(tmp_path / "s.sqlite") as store:
+        with pytest.raises(ValueError, match="backend"):
+            store.add_launch_outcome(LaunchOutcome("r", "t", LaunchCondition("A", 0.75, 0.8, 0.0), "mars", True))
+        assert store.launch_outcomes() == []
+
+
+def test_candidates_generations_tip_events_and_run_info(tmp_path):
+    path = tmp_path / "s.sqlite"
+    candidate = CandidateRecord("opt", 3, 1, (0.1, 0.25, 0.45), 0.75, 15, 20, 42, 2.5, "/sim_evaluator", 12.0)
+    generation = GenerationRecord("opt", 3, 0.75, 0.5, 0.8, 0.05, (0.1, 0.2), 32, 120.0)
+    tip = TipEventRecord("rover1", 1700000000.25, 1.5, True, 120.0, 4.2, (0.0, 0.0, 0.0, 1.0), "imu_link")
+    with Store(path) as store:
+        assert store.add_candidate(candidate) and not store.add_candidate(candidate)
+        assert store.add_candidate(CandidateRecord("opt", 3, 2, (0.2,), 0.5, 10, 20, 43, 2.0))
+        assert store.add_generation(generation) and not store.add_generation(generation)
+        assert store.add_tip_event(tip) and not store.add_tip_event(tip)
+        store.set_run_info("camp", "campaign", {"backend": "sim", "repetitions": 5})
+        store.set_run_info("camp", "campaign", {"backend": "physical"})
+    with Store(path) as store:  # reopened: the schema is recognised, data is there
+        assert store.candidates("opt", generation=3)[0] == candidate
+        assert [c.index for c in store.candidates(generation=3)] == [1, 2]
+        assert store.candidates(generation=4) == []
+        assert store.generations("opt") == [generation]
+        assert store.tip_events("rover1") == [tip] and store.tip_events("rover2") == []
+        assert store.run_info("camp") == {"kind": "campaign", "info": {"backend": "physical"}}
+        assert store.run_info("nope") is None
+        assert store.run_ids() == ["camp", "opt"]
+
+
+def test_run_directory_holds_the_store_file(tmp_path):
+    with Store(tmp_path) as store:
+        store.add_launch_outcome(_outcome("t1"))
+    assert (tmp_path / STORE_FILENAME).is_file()
+    with sqlite3.connect(tmp_path / STORE_FILENAME) as conn:
+        assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+
+
+def test_corrupt_and_foreign_files_are_refused(tmp_path):
+    garbage = tmp_path / "garbage.sqlite"
+    garbage.write_bytes(b"this is not a database at all" * 200)
+    with pytest.raises(ValueError, match="not a usable rollability store"):
+        Store(garbage)
+    foreign = tmp_path / "foreign.sqlite"
+    with sqlite3.connect(foreign) as conn:
+        conn.execute("CREATE TABLE things (x)")
+    with pytest.raises(ValueError, match="another application"):
+        Store(foreign)
+    closed = Store(tmp_path / "ok.sqlite")
+    closed.close()
+    with pytest.raises(ValueError, match="closed"):
+        closed.launch_outcomes()
+
+
+def test_concurrent_writers_in_threads_store_everything_once(tmp_path):
+    store = Store(tmp_path / "s.sqlite")
+    accepted = []
+
+    def write(offset):
+        for i in range(40):
+            # every id written by two threads: exactly one of them must win
+            accepted.append(store.add_launch_outcome(_outcome(f"t{(i + offset) % 40}")))
+
+    threads = [threading.Thread(target=write, args=(k * 20,)) for k in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert sum(accepted) == 40 and len(store.launch_outcomes()) == 40
+    store.close()
+
+
+WRITER = textwrap.dedent("""
+    import sys
+    from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+    from rollability_ros.core.store import Store
+    store = Store(sys.argv[1])
+    i = 0
+    while True:
+        outcome = LaunchOutcome("run", f"trial-{i:06d}", LaunchCondition("B", 1.3, 1.5, 60.0, i % 5), "sim",
+                                i % 3 == 0, note="x" * 200)
+        if store.add_launch_outcome(outcome):
+            print(outcome.trial_id, flush=True)
+        i += 1
+""")
+
+
+def test_acknowledged_outcomes_survive_sigkill_of_the_writer(tmp_path):
+    path = tmp_path / "s.sqlite"
+    env = dict(os.environ, PYTHONPATH=REPO_ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    writer = subprocess.Popen([sys.executable, "-c", WRITER, str(path)], stdout=subprocess.PIPE, text=True, env=env)
+    acknowledged = []
+    try:
+        while len(acknowledged) < 150:
+            line = writer.stdout.readline()
+            assert line, "writer exited early"
+            acknowledged.append(line.strip())
+        os.kill(writer.pid, signal.SIGKILL)  # mid-stream: the writer is inside its loop
+        acknowledged += [line.strip() for line in writer.stdout]  # printed before it died: acknowledged too
+    finally:
+        writer.kill()
+        writer.wait()
+    assert writer.returncode == -signal.SIGKILL
+    with sqlite3.connect(path) as conn:
+        assert conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+    with Store(path) as store:
+        stored = [o.trial_id for o in store.launch_outcomes("run")]
+        assert set(acknowledged) <= set(stored)
+        assert len(stored) == len(set(stored))
+        # at most the one in flight when killed was stored but not yet acknowledged
+        assert len(stored) - len(acknowledged) <= 1
+        assert store.add_launch_outcome(_outcome("after-restart", run_id="run"))

@@ -1,0 +1,26 @@
+# The ROS 2 Jazzy wheels on PyPI export CMake targets whose INTERFACE_INCLUDE_DIRECTORIES name paths of the
+# machine the wheels were built on (/opt/python/cp311-cp311/include/python3.11, a numpy include under it).
+# CMake's generate step refuses imported targets with non-existent include paths. This drops only the entries
+# that do not exist here, so it changes nothing on a real ROS install, where every listed path exists.
+function(rollability_drop_missing_include_dirs)
+  get_property(_targets DIRECTORY PROPERTY IMPORTED_TARGETS)
+  foreach(_target ${_targets})
+    get_target_property(_includes ${_target} INTERFACE_INCLUDE_DIRECTORIES)
+    if(NOT _includes)
+      continue()
+    endif()
+    set(_kept "")
+    set(_dropped "")
+    foreach(_inc ${_includes})
+      if(_inc MATCHES "^\\$<" OR EXISTS "${_inc}")
+        list(APPEND _kept "${_inc}")
+      else()
+        list(APPEND _dropped "${_inc}")
+      endif()
+    endforeach()
+    if(_dropped)
+      message(STATUS "rollability_ros: ${_target}: dropped missing include dirs ${_dropped}")
+      set_target_properties(${_target} PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${_kept}")
+    endif()
+  endforeach()
+endfunction()

@@ -1,0 +1,48 @@
+"""`rollability <verb>`: the command line over the core.
+
+Each module in this package that defines ``register(subparsers)`` adds one verb; ``register`` adds a subparser
+and sets its ``func(args) -> int`` default. Verb modules import heavy dependencies inside ``func`` only, so
+``rollability --help`` works on a robot computer without the simulation extras.
+"""
+import argparse
+import importlib
+import pkgutil
+import sys
+
+from rollability_ros.core.config import ConfigError
+from rollability_ros.core.optional import MissingDependency
+
+
+def build_parser():
+    """Return the argument parser with every verb module registered."""
+    parser = argparse.ArgumentParser(
+        prog="rollability",
+        description="Design and validate passive self-righting profiles for small wheeled robots.",
+    )
+    subparsers = parser.add_subparsers(dest="verb", metavar="VERB")
+    subparsers.required = True
+    for module_info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if module_info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{__name__}.{module_info.name}")
+        register = getattr(module, "register", None)
+        if register is not None:
+            register(subparsers)
+    return parser
+
+
+def main(argv=None):
+    """Run one verb and return its exit code; known user errors print one line instead of a traceback."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (ConfigError, MissingDependency, FileNotFoundError, ValueError) as exc:
+        print(f"rollability {args.verb}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"rollability {args.verb}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

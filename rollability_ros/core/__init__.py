@@ -1,0 +1,1 @@
+"""The pure core: geometry, physics, optimiser, campaign, analysis, bags, hardware. Never imports rclpy."""

@@ -1,0 +1,196 @@
+"""ROS 2 parameter files (``config/*.yaml``) read by both the nodes and the CLI.
+
+A parameter file maps node names (``/**`` for every node, or ``optimizer``, ``/ns/rig``, ...) to
+``ros__parameters``. Nested mappings are ROS parameter namespaces: ``sim: {time_step_s: ...}`` is the parameter
+``sim.time_step_s``. :func:`load_parameters` merges one or more files into one flat ``{dotted name: value}``
+dict for a node; :func:`section` cuts a namespace back out as a nested dict for a core dataclass.
+"""
+import dataclasses
+import math
+import os
+import typing
+
+import yaml
+
+#: The folder of the config files shipped with the package (source checkout or install share dir).
+CONFIG_ENV = "ROLLABILITY_CONFIG_DIR"
+
+
+class ConfigError(ValueError):
+    """A parameter file or a parameter value is unusable; the message names the file and the parameter."""
+
+
+def config_dir():
+    """Return the directory holding the shipped ``config/*.yaml`` files.
+
+    Looks at ``$ROLLABILITY_CONFIG_DIR``, then the source checkout (``<repo>/config``), then the ament share
+    directory of an installed package (``<prefix>/share/rollability_ros/config``).
+    """
+    candidates = []
+    if os.environ.get(CONFIG_ENV):
+        candidates.append(os.environ[CONFIG_ENV])
+    here = os.path.dirname(os.path.abspath(__file__))
+    candidates.append(os.path.normpath(os.path.join(here, "..", "..", "config")))
+    # installed: <prefix>/lib/pythonX.Y/site-packages/rollability_ros/core -> <prefix>/share/rollability_ros/config
+    candidates.append(os.path.normpath(os.path.join(here, *[".."] * 5, "share", "rollability_ros", "config")))
+    for path in candidates:
+        if os.path.isdir(path):
+            return path
+    raise ConfigError(f"no config directory found (looked in {', '.join(candidates)}); set {CONFIG_ENV}")
+
+
+def resolve_config_path(name_or_path):
+    """Return a path for ``name_or_path``: an existing file as given, else ``<config_dir>/<name>[.yaml]``."""
+    if os.path.isfile(name_or_path):
+        return name_or_path
+    base = config_dir()
+    for candidate in (os.path.join(base, name_or_path), os.path.join(base, name_or_path + ".yaml")):
+        if os.path.isfile(candidate):
+            return candidate
+    raise ConfigError(f"config file not found: {name_or_path} (also looked in {base})")
+
+
+def _flatten(mapping, prefix, out, path):
+    for key, value in mapping.items():
+        if not isinstance(key, str) or not key:
+            raise ConfigError(f"{path}: parameter names must be non-empty strings, got {key!r} under '{prefix}'")
+        name = f"{prefix}.{key}" if prefix else key
+        if isinstance(value, dict):
+            _flatten(value, name, out, path)
+        else:
+            out[name] = value
+
+
+def read_parameter_file(path):
+    """Read a ROS 2 parameter file into ``{node name: {dotted parameter: value}}``.
+
+    Raises :class:`ConfigError` naming the file for unreadable YAML or a layout that is not
+    ``<node>: {ros__parameters: {...}}``.
+    """
+    try:
+        with open(path, encoding="utf-8") as stream:
+            document = yaml.safe_load(stream)
+    except OSError as exc:
+        raise ConfigError(f"cannot read parameter file {path}: {exc.strerror}") from exc
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"parameter file {path} is not valid YAML: {exc}") from exc
+    if document is None:
+        return {}
+    if not isinstance(document, dict):
+        raise ConfigError(f"parameter file {path}: top level must map node names to ros__parameters")
+    nodes = {}
+    for node_name, body in document.items():
+        if not isinstance(body, dict) or "ros__parameters" not in body:
+            raise ConfigError(f"parameter file {path}: '{node_name}' has no 'ros__parameters' mapping")
+        params = body["ros__parameters"] or {}
+        if not isinstance(params, dict):
+            raise ConfigError(f"parameter file {path}: '{node_name}.ros__parameters' must be a mapping")
+        flat = {}
+        _flatten(params, "", flat, path)
+        nodes[str(node_name)] = flat
+    return nodes
+
+
+def _node_matches(pattern, node_name):
+    if pattern in ("/**", "**"):
+        return True
+    return pattern.lstrip("/") == node_name.lstrip("/") or pattern.lstrip("/").split("/")[-1] == node_name.lstrip("/").split("/")[-1]
+
+
+def load_parameters(paths, node_name="/**"):
+    """Merge parameter files into one flat dict for ``node_name``.
+
+    Later files override earlier ones; within a file, a section naming the node overrides ``/**``.
+    ``paths`` is one path or a list; each may be a bare name of a shipped file (``"sim"``).
+    """
+    if isinstance(paths, (str, os.PathLike)):
+        paths = [paths]
+    merged = {}
+    for path in paths:
+        nodes = read_parameter_file(resolve_config_path(os.fspath(path)))
+        for pattern in sorted(nodes, key=lambda p: p not in ("/**", "**")):  # wildcard first, then specific
+            if node_name in ("/**", "**") or _node_matches(pattern, node_name):
+                merged.update(nodes[pattern])
+    return merged
+
+
+def section(flat, prefix):
+    """Return the parameters under ``prefix.`` as a nested dict (``section(p, "sim")["time_step_s"]``)."""
+    out = {}
+    lead = prefix + "." if prefix else ""
+    for name, value in flat.items():
+        if not name.startswith(lead):
+            continue
+        parts = name[len(lead):].split(".")
+        node = out
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+        node[parts[-1]] = value
+    return out
+
+
+def _check_value(value, field_type, where):
+    """Coerce and check one value against a dataclass field type (float, int, bool, str, lists, tuples)."""
+    origin = typing.get_origin(field_type)
+    if field_type is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{where}: expected a number, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ConfigError(f"{where}: must be finite, got {value!r}")
+        return value
+    if field_type is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{where}: expected an integer, got {value!r}")
+        return value
+    if field_type is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{where}: expected true or false, got {value!r}")
+        return value
+    if field_type is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{where}: expected text, got {value!r}")
+        return value
+    if origin in (list, tuple):
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(f"{where}: expected a list, got {value!r}")
+        args = typing.get_args(field_type)
+        item_type = args[0] if args else typing.Any
+        items = [_check_value(v, item_type, f"{where}[{i}]") for i, v in enumerate(value)]
+        return tuple(items) if origin is tuple else items
+    return value
+
+
+def from_mapping(cls, mapping, where):
+    """Build dataclass ``cls`` from a (nested) mapping, checking names and types.
+
+    Unknown keys and wrongly typed values raise :class:`ConfigError` naming ``where.key``; missing keys take
+    the dataclass defaults. Nested dataclass fields are built recursively. After construction, a
+    ``validate()`` method on ``cls`` (if any) checks ranges and raises ``ValueError``.
+    """
+    if mapping is None:
+        mapping = {}
+    if not isinstance(mapping, dict):
+        raise ConfigError(f"{where}: expected a mapping, got {mapping!r}")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(mapping) - set(fields))
+    if unknown:
+        raise ConfigError(f"{where}: unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(fields))}")
+    kwargs = {}
+    for name, value in mapping.items():
+        field_type = hints[name]
+        if dataclasses.is_dataclass(field_type):
+            kwargs[name] = from_mapping(field_type, value, f"{where}.{name}")
+        else:
+            kwargs[name] = _check_value(value, field_type, f"{where}.{name}")
+    obj = cls(**kwargs)
+    validate = getattr(obj, "validate", None)
+    if callable(validate):
+        try:
+            validate()
+        except ConfigError:
+            raise
+        except ValueError as exc:
+            raise ConfigError(f"{where}: {exc}") from exc
+    return obj

@@ -1,0 +1,87 @@
+"""Outcome CSV: strict import (every bad row named, nothing imported) and export round trip."""
+import dataclasses
+import math
+import re
+
+import pytest
+
+from rollability_ros.core.outcome_csv import OutcomeCsvError, read_outcome_csv, write_outcome_csv
+from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+
+
+def _write(tmp_path, text, name="o.csv"):
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_minimal_file_with_defaults(tmp_path):
+    path = _write(tmp_path, "configuration,height_m,speed_mps,angle_deg,repetition,upright,note\n"
+                            "A,0.75,0.8,-30,0,true,\n"
+                            "\n"
+                            'A,0.75,0.8,-30,1,No,"landed on the mesh,\nrolled back"\n'
+                            "B,1.3,1.5,60,0,1,\n")
+    first, second, third = read_outcome_csv(path, run_id="hand")
+    assert math.isnan(first.travel_time_s) and math.isnan(first.measured_speed_mps)
+    assert dataclasses.replace(first, travel_time_s=0.0, measured_speed_mps=0.0) == LaunchOutcome(
+        "hand", "A/h0.75m/v0.8mps/a-30deg/r0", LaunchCondition("A", 0.75, 0.8, -30.0, 0), "physical", True,
+        travel_time_s=0.0, measured_speed_mps=0.0, classified_by="operator")
+    assert not second.upright and second.note == "landed on the mesh,\nrolled back"
+    assert third.upright and third.trial_id == "B/h1.3m/v1.5mps/a+60deg/r0"
+
+
+def test_every_bad_row_is_reported_with_its_line_and_nothing_is_imported(tmp_path):
+    path = _write(tmp_path, "run_id,trial_id,configuration,height_m,speed_mps,angle_deg,repetition,upright\n"
+                            "r,t1,A,0.75,0.8,0,0,true\n"            # line 2: good
+                            "r,t2,A,high,0.8,0,0,maybe\n"           # line 3: two reasons
+                            "r,t3,A,0.75,-1,0,0,true\n"             # line 4: negative speed
+                            "r,t1,A,0.75,0.8,0,1,false\n"           # line 5: duplicate trial id
+                            "r,t5,A,0.75,0.8,0,0\n"                 # line 6: a field short
+                            "r,,A,0.75,0.8,0,0,true\n"              # line 7: empty trial id
+                            "r,t7,A,0.75,0.8,200,0.5,true\n")       # line 8: angle and repetition
+    with pytest.raises(OutcomeCsvError) as caught:
+        read_outcome_csv(path)
+    problems = dict(caught.value.problems)
+    assert sorted(problems) == [3, 4, 5, 6, 7, 8]
+    assert "height_m must be a number" in problems[3] and "upright must be one of" in problems[3]
+    assert "speed_mps must be > 0" in problems[4]
+    assert "already on line 2" in problems[5]
+    assert "expected 8 fields, got 7" in problems[6]
+    assert "trial_id must not be empty" in problems[7]
+    assert "repetition must be a whole number" in problems[8]
+    assert "line 3:" in str(caught.value) and "nothing imported" in str(caught.value)
+
+
+@pytest.mark.parametrize("header, reason", [
+    ("configuration,height_m,speed_mps,angle_deg,repetition", "missing required column(s) upright"),
+    ("configuration,height_m,speed_mps,angle_deg,repetition,upright,uprigth", "unknown column 'uprigth'"),
+    ("configuration,height_m,speed_mps,angle_deg,repetition,upright,upright", "appears more than once"),
+    ("configuration,height_m,speed_mps,angle_deg,repetition,upright,final_qw", "all of final_qx"),
+])
+def test_bad_headers_are_refused(tmp_path, header, reason):
+    with pytest.raises(OutcomeCsvError, match="line 1: .*" + re.escape(reason)):
+        read_outcome_csv(_write(tmp_path, header + "\n"), run_id="r")
+
+
+def test_a_run_id_is_needed_and_never_guessed(tmp_path):
+    path = _write(tmp_path, "configuration,height_m,speed_mps,angle_deg,repetition,upright\nA,0.75,0.8,0,0,true\n")
+    with pytest.raises(OutcomeCsvError, match="give the run id"):
+        read_outcome_csv(path)
+    with pytest.raises(OutcomeCsvError, match="empty file"):
+        read_outcome_csv(_write(tmp_path, "", "empty.csv"))
+
+
+def test_export_then_import_round_trip(tmp_path):
+    outcomes = [
+        LaunchOutcome("run", "t/1", LaunchCondition("baseline", 1.3, 1.5, -60.0, 4), "physical", False,
+                      travel_time_s=0.2213, measured_speed_mps=0.34 / 0.2213, speed_out_of_tolerance=True,
+                      final_orientation=(0.1, -0.2, 0.3, 0.9273618495495703), classified_by="imu",
+                      note='said "ouch", then rolled', stamp_s=1712345678.123456),
+        LaunchOutcome("run", "t2", LaunchCondition("A", 0.75, 0.8, 30.0, 0), "sim", True),
+    ]
+    path = tmp_path / "out.csv"
+    write_outcome_csv(path, outcomes)
+    back = read_outcome_csv(path)
+    assert back[0] == outcomes[0]
+    assert back[1].condition == outcomes[1].condition and math.isnan(back[1].travel_time_s)
+    assert back[1].classified_by == "sim" and back[1].final_orientation == (0.0, 0.0, 0.0, 1.0)

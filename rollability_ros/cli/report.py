@@ -1,0 +1,63 @@
+"""`rollability report SOURCE`: figures, tables and one self-contained HTML report of a run."""
+import os
+
+
+def _sim_fitness(text):
+    """Parse ``A=0.66,B=0.35`` into ``{"A": 0.66, "B": 0.35}``."""
+    fitness = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        configuration, _, value = item.partition("=")
+        try:
+            fitness[configuration.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"--sim-fitness: expected CONFIGURATION=FITNESS, got {item!r}") from None
+        if not configuration.strip() or not 0.0 <= fitness[configuration.strip()] <= 1.0:
+            raise ValueError(f"--sim-fitness: need a configuration and a fitness in [0, 1], got {item!r}")
+    return fitness
+
+
+def default_out_dir(source):
+    """``<source without extension>-report`` next to the source."""
+    return os.path.splitext(os.path.normpath(os.fspath(source)))[0] + "-report"
+
+
+def run(args):
+    """Build the report and print its summary; return the exit code."""
+    import csv
+
+    from rollability_ros.core import report
+    from rollability_ros.core.analysis import geometry_table
+
+    data = report.load_report_data(args.source, run_id=args.run)
+    if args.sim_fitness:
+        data.sim_fitness.update(_sim_fitness(args.sim_fitness))
+    if args.geometry:
+        with open(args.geometry, newline="", encoding="utf-8-sig") as stream:
+            data.geometry = geometry_table(list(csv.DictReader(stream)), report.CONFIGURATION_ORDER)
+    result = report.build_report(data, args.out or default_out_dir(args.source), measure=args.measure)
+    print(result.summary)
+    print(f"wrote {len(result.figure_paths)} figures, {len(result.table_paths)} tables and {result.html_path}")
+    return 0
+
+
+def register(subparsers):
+    """Add the ``report`` verb."""
+    parser = subparsers.add_parser(
+        "report", help="figures, tables and an HTML report from a store, a bag or a CSV of outcomes",
+        description="Analyse a run: the paper's Figures 4 and 9-12, the majority-rule condition table, Wilson "
+                    "intervals, simulated vs experimental rank agreement and Table 3; writes PNG figures, CSV "
+                    "tables and one self-contained report.html, and prints a short summary.")
+    parser.add_argument("source", help="store file or run directory (store.sqlite), bag directory or .mcap "
+                                       "file, or CSV of hand-recorded outcomes (docs/outcome-csv.md)")
+    parser.add_argument("--out", help="output directory (default: <source>-report next to the source)")
+    parser.add_argument("--run", help="campaign run id (needed when the source holds several; the run id of a "
+                                      "CSV without a run_id column, default 'csv')")
+    parser.add_argument("--sim-fitness", metavar="CONF=FIT,...",
+                        help="simulated fitness per configuration, e.g. A=0.66,B=0.35,C=0.46 (adds to the "
+                             "store's run info)")
+    parser.add_argument("--geometry", metavar="CSV",
+                        help="Table 3 rows: CSV with configuration,length_m,width_m,max_height_m")
+    parser.add_argument("--measure", choices=("condition_rate", "trial_rate"), default="condition_rate",
+                        help="experimental measure compared with simulated fitness (default: the paper's "
+                             "majority-rule condition rate)")
+    parser.set_defaults(func=run)

@@ -1,0 +1,135 @@
+"""The report: from a store, a run directory and a CSV; identical tables; HTML rendered by headless Chromium."""
+import csv
+import os
+import random
+import re
+import shutil
+import subprocess
+
+import pytest
+
+from rollability_ros.cli import main as cli_main
+from rollability_ros.core.campaign import CampaignSpec, plan_trials
+from rollability_ros.core.outcome_csv import write_outcome_csv
+from rollability_ros.core.records import CandidateRecord, LaunchOutcome, TipEventRecord
+from rollability_ros.core.report import source_kind
+from rollability_ros.core.store import Store
+
+SUCCESS_PROBABILITY = {"baseline": 0.3, "A": 0.3, "B": 0.75, "C": 0.6}
+FIGURES = ("fig04_convergence.png", "fig09_height_angle.png", "fig10_speed_angle.png", "fig11_angle_curves.png",
+           "fig12_overall.png", "sim_vs_experiment.png")
+
+
+def _campaign_outcomes(run_id="camp", repetitions=3):
+    rng = random.Random(3)
+    spec = CampaignSpec(run_id=run_id, repetitions=repetitions)
+    return [LaunchOutcome(run_id, t.trial_id, t.condition, "sim",
+                          rng.random() < SUCCESS_PROBABILITY[t.condition.configuration] + 0.2 * (t.condition.height_m > 1))
+            for t in plan_trials(spec)]
+
+
+@pytest.fixture(scope="module")
+def store_report(tmp_path_factory):
+    """A run directory with a campaign, an optimisation and a tip event, reported through the CLI."""
+    run_dir = tmp_path_factory.mktemp("run")
+    outcomes = _campaign_outcomes()
+    with Store(run_dir) as store:
+        for outcome in outcomes:
+            store.add_launch_outcome(outcome)
+        for generation in range(6):
+            for index in range(4):
+                store.add_candidate(CandidateRecord("opt", generation, index, (0.1, 0.2), 0.1 * generation
+                                                    + 0.05 * index, 0, 20, 7, 1.0))
+        store.add_tip_event(TipEventRecord("rover", 5.0, 1.5, True, 130.0, 3.0))
+        store.set_run_info("camp", "campaign", {"sim_fitness": {"A": 0.66, "B": 0.35, "C": 0.46}, "geometry": [
+            {"configuration": "B", "length_m": 0.2, "width_m": 0.15, "max_height_m": 0.07}]})
+    out = run_dir / "report"
+    assert cli_main(["report", str(run_dir), "--out", str(out)]) == 0
+    return run_dir, out, outcomes
+
+
+def test_report_writes_figures_tables_and_one_self_contained_html(store_report, capsys):
+    _, out, outcomes = store_report
+    for name in FIGURES:
+        assert (out / name).stat().st_size > 10_000, name
+    tables = {p.stem for p in out.glob("*.csv")}
+    assert tables == {"conditions", "by_configuration", "height_angle", "speed_angle", "by_speed", "by_height",
+                      "by_angle", "sim_vs_experiment", "convergence", "geometry", "tip_events"}
+    with open(out / "by_configuration.csv", newline="") as stream:
+        rows = {row["configuration"]: row for row in csv.DictReader(stream)}
+    for configuration in SUCCESS_PROBABILITY:
+        own = [o for o in outcomes if o.condition.configuration == configuration]
+        assert int(rows[configuration]["trials"]) == len(own) == 60
+        assert int(rows[configuration]["successes"]) == sum(o.upright for o in own)
+        assert int(rows[configuration]["conditions"]) == 20
+    page = (out / "report.html").read_text()
+    assert len(re.findall(r"<img [^>]*src='data:image/png;base64,", page)) == len(FIGURES)
+    assert not re.search(r"(src|href)=['\"](?!data:)", page)  # nothing loaded from outside the file
+    assert "Spearman rho -1.00" in page
+
+
+def test_summary_is_printed(tmp_path, capsys):
+    path = tmp_path / "o.csv"
+    write_outcome_csv(path, _campaign_outcomes(repetitions=1)[:20])
+    assert cli_main(["report", str(path), "--out", str(tmp_path / "r"), "--sim-fitness", "baseline=0.2"]) == 0
+    printed = capsys.readouterr().out
+    assert "launch outcomes: 20 trials, 20 grouped conditions" in printed
+    assert re.search(r"baseline\s+\d+/20", printed) and "report.html" in printed
+
+
+def test_csv_source_gives_the_same_tables_as_the_store(store_report, tmp_path):
+    run_dir, out, outcomes = store_report
+    exported = tmp_path / "outcomes.csv"
+    write_outcome_csv(exported, outcomes)
+    assert cli_main(["report", str(exported), "--out", str(tmp_path / "r")]) == 0
+    for name in ("conditions", "by_configuration", "height_angle", "speed_angle", "by_speed", "by_height",
+                 "by_angle"):
+        assert (tmp_path / "r" / f"{name}.csv").read_text() == (out / f"{name}.csv").read_text(), name
+
+
+def test_sources_are_recognised_and_ambiguity_refused(store_report, tmp_path, capsys):
+    run_dir, _, _ = store_report
+    assert source_kind(run_dir) == "store" and source_kind(run_dir / "store.sqlite") == "store"
+    (tmp_path / "notes.txt").write_text("hello")
+    with pytest.raises(ValueError, match="not a store"):
+        source_kind(tmp_path / "notes.txt")
+    two_runs = tmp_path / "two.sqlite"
+    with Store(two_runs) as store:
+        for outcome in _campaign_outcomes("r1", 1)[:3] + _campaign_outcomes("r2", 1)[:3]:
+            store.add_launch_outcome(outcome)
+    assert cli_main(["report", str(two_runs), "--out", str(tmp_path / "x")]) == 2
+    assert "several runs (r1, r2); choose one with --run" in capsys.readouterr().err
+    assert cli_main(["report", str(two_runs), "--run", "r3", "--out", str(tmp_path / "x")]) == 2
+    assert cli_main(["report", str(two_runs), "--run", "r2", "--out", str(tmp_path / "x")]) == 0
+    assert "launch outcomes: 3 trials" in capsys.readouterr().out
+
+
+def _chromium():
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
+
+
+def test_html_report_renders_its_figures_in_headless_chromium(store_report, tmp_path):
+    chromium = _chromium()
+    if chromium is None:
+        pytest.skip("chromium not found (apt-get install -y chromium): cannot check the HTML renders")
+    _, out, _ = store_report
+    probe = tmp_path / "probe.html"
+    # the report itself has no script; the probe records each image's decoded size once the page has loaded
+    probe.write_text((out / "report.html").read_text() + "<script>window.addEventListener('load', () => "
+                     "document.body.setAttribute('data-decoded', [...document.images].map(i => i.complete ? "
+                     "i.naturalWidth + 'x' + i.naturalHeight : 'pending').join(' ')))</script>")
+    dom = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                          "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=5000",
+                          "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=120,
+                         env=dict(os.environ, HOME=str(tmp_path))).stdout
+    decoded = re.search(r'data-decoded="([^"]*)"', dom)
+    assert decoded, "chromium did not load the page"
+    sizes = decoded.group(1).split()
+    assert len(sizes) == len(FIGURES)
+    for size in sizes:
+        width, height = (int(v) for v in size.split("x"))
+        assert width > 300 and height > 300, sizes

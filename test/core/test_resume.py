@@ -1,0 +1,163 @@
+"""Checkpoint and resume: a run SIGKILLed mid-generation and resumed equals an uninterrupted run."""
+import dataclasses
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("cma")
+
+from rollability_ros.core import checkpoint as checkpoints  # noqa: E402
+from rollability_ros.core.config import ConfigError  # noqa: E402
+from rollability_ros.core.geometry import ProfileGrid  # noqa: E402
+from rollability_ros.core.optimisation_run import OptimisationRun, SyntheticEvaluator, read_run_config  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
+
+GRID = ProfileGrid(rows=3, cols=3)
+OPTIMUM = np.linspace(0.05, 0.4, GRID.n_variables)
+GENERATIONS = 8
+KILL_GENERATION = 4
+
+# A run in a child process whose evaluator blocks on its n-th call (after announcing it), so the test can
+# SIGKILL it at a known point in the middle of a generation.
+CHILD = textwrap.dedent("""
+    import os, sys, time
+    import numpy as np
+    from rollability_ros.core.geometry import ProfileGrid
+    from rollability_ros.core.optimisation_run import OptimisationRun, SyntheticEvaluator
+    run_dir, block_at, crn = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "True"
+    evaluator = SyntheticEvaluator(np.linspace(0.05, 0.4, 9), trials=30)
+    calls = []
+    def evaluate_batch(heights_list, seed):
+        calls.append(seed)
+        if len(calls) == block_at:
+            open(run_dir + ".blocked", "w").close()
+            time.sleep(600)
+        return evaluator(heights_list, seed)
+    parameters = {"optimizer.max_generations": %d, "optimizer.seed": 5, "optimizer.trials": 30,
+                  "optimizer.popsize": 6, "optimizer.common_random_numbers": crn}
+    OptimisationRun(run_dir, parameters, ProfileGrid(rows=3, cols=3), evaluate_batch).run()
+""" % GENERATIONS)
+
+
+def parameters(common_random_numbers=True, **overrides):
+    values = {"optimizer.max_generations": GENERATIONS, "optimizer.seed": 5, "optimizer.trials": 30,
+              "optimizer.popsize": 6, "optimizer.common_random_numbers": common_random_numbers}
+    values.update(overrides)
+    return values
+
+
+def comparable(store_path):
+    """Everything a run decides, without wall-clock fields (timings, stamps)."""
+    with Store(store_path) as store:
+        candidates = [dataclasses.replace(c, eval_time_s=0.0, stamp_s=0.0) for c in store.candidates()]
+        generations = [dataclasses.replace(g, elapsed_s=0.0, stamp_s=0.0) for g in store.generations()]
+    return candidates, generations
+
+
+def uninterrupted(tmp_path, common_random_numbers):
+    run_dir = os.path.join(tmp_path, "straight", "run")
+    run = OptimisationRun(run_dir, parameters(common_random_numbers), GRID,
+                          SyntheticEvaluator(OPTIMUM, trials=30))
+    result = run.run()
+    run.close()
+    return run_dir, result
+
+
+# calls per generation: CRN: population + re-evaluation = 2; independent seeds: 6 candidates + 1 = 7
+@pytest.mark.parametrize("common_random_numbers, block_at, stored_in_killed_generation", [
+    (True, 2 * KILL_GENERATION + 1, 0),   # killed while the population is evaluated
+    (True, 2 * KILL_GENERATION + 2, 6),   # killed during the incumbent re-evaluation: population stored
+    (False, 7 * KILL_GENERATION + 4, 3),  # independent seeds, killed after 3 of 6 candidates
+])
+def test_sigkill_mid_generation_then_resume_equals_uninterrupted(tmp_path, common_random_numbers, block_at,
+                                                                 stored_in_killed_generation):
+    run_dir = os.path.join(tmp_path, "killed", "run")
+    os.makedirs(os.path.dirname(run_dir))
+    child = subprocess.Popen([sys.executable, "-c", CHILD, run_dir, str(block_at), str(common_random_numbers)])
+    try:
+        deadline = time.monotonic() + 60
+        while not os.path.exists(run_dir + ".blocked"):
+            assert child.poll() is None, "child run ended before reaching the kill point"
+            assert time.monotonic() < deadline, "child run never reached the kill point"
+            time.sleep(0.02)
+        child.send_signal(signal.SIGKILL)
+    finally:
+        child.kill()
+        child.wait()
+    assert child.returncode == -signal.SIGKILL
+
+    with Store(run_dir) as store:
+        assert len(store.generations()) == KILL_GENERATION
+        assert len(store.candidates(generation=KILL_GENERATION)) == stored_in_killed_generation
+    with open(os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME), "rb") as stream:
+        assert pickle.load(stream)["generation"] == KILL_GENERATION
+
+    resumed = OptimisationRun(run_dir, read_run_config(run_dir), GRID, SyntheticEvaluator(OPTIMUM, trials=30),
+                              resume=True)
+    assert resumed.optimizer.generation == KILL_GENERATION
+    result = resumed.run()
+    resumed.close()
+
+    straight_dir, straight = uninterrupted(tmp_path, common_random_numbers)
+    assert comparable(run_dir) == comparable(straight_dir)
+    assert result.generations == straight.generations == GENERATIONS
+    np.testing.assert_array_equal(result.best.heights, straight.best.heights)
+    assert result.best.fitness == straight.best.fitness
+    np.testing.assert_array_equal(result.mean, straight.mean)
+
+
+def test_killed_in_generation_zero_resumes_from_scratch(tmp_path):
+    run_dir = os.path.join(tmp_path, "run")
+
+    def failing(heights_list, seed):
+        raise RuntimeError("evaluator died")
+
+    with pytest.raises(RuntimeError):
+        OptimisationRun(run_dir, parameters(), GRID, failing).run()
+    assert not os.path.exists(os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME))
+    resumed = OptimisationRun(run_dir, parameters(), GRID, SyntheticEvaluator(OPTIMUM, trials=30), resume=True)
+    resumed.run()
+    resumed.close()
+    assert comparable(run_dir) == comparable(uninterrupted(tmp_path, True)[0])
+
+
+def test_a_different_config_refuses_to_resume(tmp_path):
+    run_dir = os.path.join(tmp_path, "run")
+    run = OptimisationRun(run_dir, parameters(**{"optimizer.max_generations": 2}), GRID,
+                          SyntheticEvaluator(OPTIMUM, trials=30))
+    run.run()
+    run.close()
+    with pytest.raises(ConfigError, match=r"optimizer.trials: 30 -> 40"):
+        OptimisationRun(run_dir, parameters(**{"optimizer.max_generations": 2, "optimizer.trials": 40}), GRID,
+                        SyntheticEvaluator(OPTIMUM, trials=40), resume=True)
+    with pytest.raises(ValueError, match="already exists"):
+        OptimisationRun(run_dir, parameters(**{"optimizer.max_generations": 2}), GRID,
+                        SyntheticEvaluator(OPTIMUM, trials=30))
+    with pytest.raises(FileNotFoundError, match="not an optimisation run"):
+        OptimisationRun(os.path.join(tmp_path, "nothing"), parameters(), GRID, SyntheticEvaluator(OPTIMUM, 30),
+                        resume=True)
+
+
+def test_checkpoint_write_is_atomic_and_checked(tmp_path):
+    path = os.path.join(tmp_path, checkpoints.CHECKPOINT_FILENAME)
+    checkpoints.atomic_write_bytes(path, b"old")
+    checkpoints.atomic_write_bytes(path, b"new")
+    assert open(path, "rb").read() == b"new"
+    assert os.listdir(tmp_path) == [checkpoints.CHECKPOINT_FILENAME]   # no temp file left behind
+    with pytest.raises(ValueError, match="unreadable"):
+        checkpoints.load_checkpoint(path)
+    assert checkpoints.load_checkpoint(os.path.join(tmp_path, "missing.pkl")) is None
+    state = {"a": 1}
+    checkpoints.save_checkpoint(path, "r", {"x": 1}, {"generation": 3, **state}, 0.5)
+    loaded = checkpoints.load_checkpoint(path)
+    assert loaded["generation"] == 3 and loaded["best_so_far"] == 0.5
+    checkpoints.check_same_config(loaded, {"x": 1}, path)
+    with pytest.raises(ConfigError, match=r"x: 1 -> 2; y: \(unset\) -> 3"):
+        checkpoints.check_same_config(loaded, {"x": 2, "y": 3}, path)

@@ -1,0 +1,115 @@
+"""Design selection from a real run's store: ranking, printability, diversity, shortfall, STL/CSV/YAML output."""
+import csv
+import itertools
+import os
+
+import numpy as np
+import pytest
+
+pytest.importorskip("cma")
+pytest.importorskip("trimesh")
+
+from rollability_ros.core import geometry  # noqa: E402
+from rollability_ros.core.config import load_parameters  # noqa: E402
+from rollability_ros.core.optimisation_run import OptimisationRun, SyntheticEvaluator  # noqa: E402
+from rollability_ros.core.records import CandidateRecord  # noqa: E402
+from rollability_ros.core.selection import (  # noqa: E402
+    SelectionSettings,
+    pool_candidates,
+    rms_distance,
+    select_designs,
+    write_selection,
+)
+from rollability_ros.core.store import Store  # noqa: E402
+
+GRID = geometry.ProfileGrid(rows=3, cols=3)
+OPTIMUM = np.linspace(0.1, 0.4, GRID.n_variables)
+
+
+@pytest.fixture(scope="module")
+def run_candidates(tmp_path_factory):
+    """Candidates of a real 25-generation run on the synthetic fitness (sigma 0.1 for a spread-out log)."""
+    run_dir = os.path.join(tmp_path_factory.mktemp("selection"), "run")
+    parameters = {"optimizer.max_generations": 25, "optimizer.seed": 3, "optimizer.trials": 30,
+                  "optimizer.sigma0": 0.1}
+    run = OptimisationRun(run_dir, parameters, GRID, SyntheticEvaluator(OPTIMUM, trials=30))
+    run.run()
+    run.close()
+    with Store(run_dir) as store:
+        return run_dir, store.candidates()
+
+
+def test_picks_high_fitness_diverse_printable_designs_in_rank_order(run_candidates):
+    _, candidates = run_candidates
+    settings = SelectionSettings(count=3, min_distance=0.05)
+    result = select_designs(candidates, GRID, geometry.PrinterSpec(), settings)
+    assert [d.label for d in result.designs] == ["A", "B", "C"] and result.shortfall == ""
+    for a, b in itertools.combinations(result.designs, 2):
+        assert rms_distance(a.design.heights, b.design.heights) >= 0.05
+    lows = [d.design.wilson_low for d in result.designs]
+    assert lows == sorted(lows, reverse=True)
+    best = max(pool_candidates(candidates), key=lambda d: d.wilson_low)
+    np.testing.assert_array_equal(result.designs[0].design.heights, best.heights)
+    assert result.rejected.get("too close", 0) > 0     # the converged population is dense near the top
+    for design in result.designs:
+        assert geometry.check_printability(design.mesh, geometry.PrinterSpec()).printable
+        assert design.metrics.max_height_m == pytest.approx(design.design.heights.max() * GRID.unit_m)
+
+
+def test_shortfall_is_reported_not_padded(run_candidates):
+    _, candidates = run_candidates
+    result = select_designs(candidates, GRID, geometry.PrinterSpec(), SelectionSettings(count=3, min_distance=1.0))
+    assert len(result.designs) == 1
+    assert "only 1 of 3 requested designs" in result.shortfall and "too close" in result.shortfall
+    tiny_printer = geometry.PrinterSpec(bed_z_m=0.001)
+    result = select_designs(candidates, GRID, tiny_printer, SelectionSettings(count=3, min_distance=0.0))
+    assert result.designs == [] and result.rejected["not printable"] == result.considered
+
+
+def test_identical_heights_are_pooled():
+    heights = (0.1,) * GRID.n_variables
+    records = [CandidateRecord("r", g, 0, heights, s / 60, s, 60, 1, 0.0) for g, s in ((0, 60), (1, 30))]
+    records.append(CandidateRecord("r", 1, 1, (0.2,) * GRID.n_variables, 0.9, 54, 60, 1, 0.0))
+    pooled = pool_candidates(records)
+    assert [(p.successes, p.trials, p.evaluations) for p in pooled] == [(90, 120, 2), (54, 60, 1)]
+    result = select_designs(records, GRID, geometry.PrinterSpec(), SelectionSettings(count=2, min_distance=0.0))
+    # 54/60 once ranks above 90/120 pooled (Wilson low 0.80 vs 0.67)
+    assert [d.design.trials for d in result.designs] == [60, 120]
+
+
+def test_outputs_with_reevaluation(run_candidates):
+    run_dir, candidates = run_candidates
+    evaluator = SyntheticEvaluator(OPTIMUM, trials=200)
+    settings = SelectionSettings(count=3, min_distance=0.05, reevaluate_trials=200)
+    result = select_designs(candidates, GRID, geometry.PrinterSpec(), settings, evaluator, run_seed=3)
+    folder = write_selection(run_dir, result, GRID, "run")
+
+    with open(os.path.join(folder, "table3.csv"), newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    assert [r["configuration"] for r in rows] == ["baseline", "A", "B", "C"]
+    assert all(r["trials"] == "200" and r["fitness_source"] == "reevaluated" for r in rows)
+    for row, design in zip(rows[1:], result.designs):
+        assert float(row["max_height_m"]) == pytest.approx(design.metrics.max_height_m, rel=1e-5)
+        assert float(row["length_m"]) == pytest.approx(GRID.length_m, rel=1e-5)
+        assert float(row["ci_low"]) <= float(row["simulated_fitness"]) <= float(row["ci_high"])
+        assert float(row["simulated_fitness"]) == pytest.approx(
+            evaluator.success_probability(design.design.heights), abs=0.12)
+
+    parameters = load_parameters(os.path.join(folder, "designs.yaml"))
+    assert parameters["designs.labels"] == ["A", "B", "C"]
+    assert parameters["designs.grid.rows"] == 3
+    for design in result.designs:
+        np.testing.assert_array_equal(parameters[f"designs.{design.label}.heights"], design.design.heights)
+        mesh = geometry.load_profile_mesh(os.path.join(folder, f"mesh_{design.label}.stl"))
+        assert mesh.volume == pytest.approx(design.mesh.volume, rel=1e-5)
+
+    fewer = select_designs(candidates, GRID, geometry.PrinterSpec(), SelectionSettings(count=1))
+    write_selection(run_dir, fewer, GRID, "run")
+    assert sorted(n for n in os.listdir(folder) if n.endswith(".stl")) == ["mesh_A.stl"]
+
+
+def test_settings_are_checked():
+    with pytest.raises(ValueError, match="count"):
+        SelectionSettings(count=0).validate()
+    with pytest.raises(ValueError, match="needs an evaluator"):
+        select_designs([], GRID, geometry.PrinterSpec(), SelectionSettings(reevaluate_trials=10))

@@ -1,0 +1,161 @@
+"""What every node shares: validated parameters declared from core dataclasses, QoS presets, a Jazzy-safe main.
+
+Parameters: a node declares the fields of a core settings dataclass as ROS parameters (``prefix.field``) with a
+description, validates them at start-up with the dataclass's own checks, and refuses later ``ros2 param set``
+calls that would make them invalid (``SetParametersResult(successful=False, reason=...)``).
+"""
+import dataclasses
+import math
+import sys
+import typing
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from rollability_ros.core.config import ConfigError, from_mapping, section
+
+#: State topics (valve state, summaries, tip state): the last value reaches late joiners.
+LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
+#: Records that must not be dropped (outcomes, candidates): reliable with a deep queue.
+RECORD_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
+#: High-rate streams (poses, IMU): newest wins.
+STREAM_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT,
+                        durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
+
+
+class ParameterError(RuntimeError):
+    """A node's parameters are invalid at start-up; the message names the parameter."""
+
+
+def _field_description(field):
+    return field.metadata.get("description", "") if field.metadata else ""
+
+
+def _ros_default(value, field_type):
+    """ROS parameters cannot hold tuples, None or empty untyped lists: map to declarable values."""
+    if isinstance(value, tuple):
+        value = list(value)
+    if isinstance(value, list) and not value:
+        args = typing.get_args(field_type)
+        item = args[0] if args else str
+        from rclpy.parameter import Parameter
+
+        return {float: Parameter.Type.DOUBLE_ARRAY, int: Parameter.Type.INTEGER_ARRAY,
+                bool: Parameter.Type.BOOL_ARRAY}.get(item, Parameter.Type.STRING_ARRAY)
+    return value
+
+
+def declare_settings(node, prefix, settings_cls, descriptions=None):
+    """Declare the fields of ``settings_cls`` (recursively) as parameters ``prefix.field`` with descriptions.
+
+    Field descriptions come from ``descriptions[name]`` or the dataclass field's ``metadata["description"]``.
+    Returns the settings object built from the declared values (validated; raises :class:`ParameterError`).
+    """
+    descriptions = descriptions or {}
+    hints = typing.get_type_hints(settings_cls)
+    default_obj = settings_cls() if _has_all_defaults(settings_cls) else None
+    for field in dataclasses.fields(settings_cls):
+        name = f"{prefix}.{field.name}" if prefix else field.name
+        field_type = hints[field.name]
+        if dataclasses.is_dataclass(field_type):
+            declare_settings(node, name, field_type, descriptions)
+            continue
+        default = getattr(default_obj, field.name) if default_obj is not None else None
+        text = descriptions.get(field.name) or _field_description(field) or field.name.replace("_", " ")
+        node.declare_parameter(name, _ros_default(default, field_type), ParameterDescriptor(description=text))
+    return read_settings(node, prefix, settings_cls)
+
+
+def _has_all_defaults(cls):
+    return all(f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
+               for f in dataclasses.fields(cls))
+
+
+def _current_values(node, prefix, overrides=None):
+    flat = {name: param.value for name, param in node.get_parameters_by_prefix(prefix).items()}
+    lead = prefix + "." if prefix else ""
+    for param in overrides or ():
+        if param.name.startswith(lead):
+            flat[param.name[len(lead):]] = param.value
+    return section(flat, "")
+
+
+def read_settings(node, prefix, settings_cls, overrides=None):
+    """Build ``settings_cls`` from the node's current parameters under ``prefix`` (validated).
+
+    ``overrides`` (a list of rclpy Parameters) are applied on top: used to check a pending parameter change.
+    Raises :class:`ParameterError` naming the parameter and the problem.
+    """
+    values = _current_values(node, prefix, overrides)
+    hints = typing.get_type_hints(settings_cls)
+    known = {f.name for f in dataclasses.fields(settings_cls)}
+    values = {k: v for k, v in values.items() if k in known}
+    for name, value in list(values.items()):
+        if hints[name] is float and isinstance(value, int) and not isinstance(value, bool):
+            values[name] = float(value)
+        if isinstance(value, list) and typing.get_origin(hints[name]) is tuple:
+            values[name] = tuple(value)
+    try:
+        return from_mapping(settings_cls, values, prefix or node.get_name())
+    except (ConfigError, ValueError, TypeError) as exc:
+        raise ParameterError(str(exc)) from exc
+
+
+def guard_settings(node, prefix, settings_cls, on_change=None):
+    """Refuse parameter changes under ``prefix`` that would make ``settings_cls`` invalid.
+
+    ``on_change(new_settings)`` is called after an accepted change.
+    """
+    lead = prefix + "."
+
+    def check(params):
+        relevant = [p for p in params if p.name.startswith(lead)]
+        if not relevant:
+            return SetParametersResult(successful=True)
+        try:
+            new_settings = read_settings(node, prefix, settings_cls, overrides=relevant)
+        except ParameterError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        if on_change is not None:
+            on_change(new_settings)
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(check)
+
+
+def finite(value):
+    """True for a real, finite number (bools excluded)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def run_node(node_factory, args=None, threads=4):
+    """Create the node with ``node_factory()`` after ``rclpy.init`` and spin it until Ctrl-C / SIGTERM.
+
+    A :class:`ParameterError` or ``ConfigError`` at start-up prints one line naming the problem and exits 2.
+    The node's ``close()`` (if any) runs before ``destroy_node`` so hardware is left safe.
+    """
+    rclpy.init(args=args)
+    node = None
+    try:
+        try:
+            node = node_factory()
+        except (ParameterError, ConfigError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        executor = MultiThreadedExecutor(num_threads=threads)
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            close = getattr(node, "close", None)
+            if callable(close):
+                close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

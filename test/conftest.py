@@ -1,0 +1,36 @@
+"""Test isolation shared by every test: each pytest run gets its own ROS domain and localhost-only discovery.
+
+The domain id is taken with an exclusive lock on a file in the temp directory, so two test runs on one machine
+(two checkouts, CI beside a developer) never share a domain, and nodes started by the tests inherit it.
+"""
+import fcntl
+import os
+import pathlib
+import tempfile
+
+REPO_ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def _claim_domain():
+    start = 20 + os.getpid() % 80
+    for offset in range(81):
+        domain = 20 + (start - 20 + offset) % 81   # 20..100: clear of the default 0 and of other tools
+        handle = open(os.path.join(tempfile.gettempdir(), f"rollability-ros-domain-{domain}.lock"), "w")
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.close()
+            continue
+        return domain, handle
+    raise RuntimeError("no free ROS_DOMAIN_ID in 20..100 for this test run (81 test runs at once?)")
+
+
+_DOMAIN, _DOMAIN_LOCK = _claim_domain()   # the lock is held for the life of this pytest process
+os.environ["ROS_DOMAIN_ID"] = str(_DOMAIN)
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.pop("ROS_STATIC_PEERS", None)
+os.environ.pop("ROS_LOCALHOST_ONLY", None)
+# subprocesses (nodes, peers) import this checkout's sources, whatever their working directory
+os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH", "")]))
+
+pytest_plugins = ["ros_fixtures"]

@@ -1,0 +1,124 @@
+"""Fixtures for tests over real DDS: an in-test rclpy node spun in a thread, and node processes."""
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+
+class SpunNode:
+    """An rclpy node in its own context, spun by a background executor thread."""
+
+    def __init__(self, name):
+        import rclpy
+        from rclpy.executors import MultiThreadedExecutor
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, args=[])
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self):
+        try:
+            self.executor.spin()
+        except Exception:  # shutdown races end the spin
+            pass
+
+    def wait_for(self, predicate, timeout_s=30.0, period_s=0.05):
+        """Poll ``predicate()`` until true or ``timeout_s``; returns its last value."""
+        deadline = time.monotonic() + timeout_s
+        value = predicate()
+        while not value and time.monotonic() < deadline:
+            time.sleep(period_s)
+            value = predicate()
+        return value
+
+    def close(self):
+        import rclpy
+
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(timeout=5)
+
+
+class NodeProcess:
+    """A node (``python -m rollability_ros.nodes.<module>``) or any Python module run as a separate process."""
+
+    def __init__(self, argv, log_path, env=None):
+        self.log_path = log_path
+        self._log = open(log_path, "wb")
+        self.process = subprocess.Popen(argv, stdout=self._log, stderr=subprocess.STDOUT,
+                                        env=env or os.environ.copy(), start_new_session=True)
+
+    def log(self):
+        self._log.flush()
+        with open(self.log_path, encoding="utf-8", errors="replace") as stream:
+            return stream.read()
+
+    def alive(self):
+        return self.process.poll() is None
+
+    def signal(self, signum):
+        if self.alive():
+            os.killpg(self.process.pid, signum)
+
+    def stop(self, timeout_s=15.0):
+        """SIGINT, then SIGKILL after ``timeout_s``; returns the exit code."""
+        if self.alive():
+            self.signal(signal.SIGINT)
+            try:
+                self.process.wait(timeout=timeout_s)
+            except subprocess.TimeoutExpired:
+                self.signal(signal.SIGKILL)
+                self.process.wait()
+        self._log.close()
+        return self.process.returncode
+
+
+@pytest.fixture
+def ros_node(request):
+    """An rclpy node spun in the background of the test process."""
+    spun = SpunNode("test_" + request.node.name.replace("[", "_").replace("]", "").replace("-", "_")[:40])
+    yield spun
+    spun.close()
+
+
+@pytest.fixture
+def start_process(tmp_path):
+    """``start_process(module, *args, name=...)`` starts ``python -m module args...``; all stopped at teardown."""
+    started = []
+
+    def start(module, *args, name=None, env=None):
+        name = name or module.rsplit(".", 1)[-1]
+        handle = NodeProcess([sys.executable, "-m", module, *args], tmp_path / f"{name}-{len(started)}.log", env)
+        started.append(handle)
+        return handle
+
+    yield start
+    for handle in reversed(started):
+        handle.stop()
+
+
+@pytest.fixture
+def start_node(start_process):
+    """``start_node(node_module, params={...}, ros_args=[...])`` runs ``rollability_ros.nodes.<node_module>``."""
+
+    def start(node_module, params=None, ros_args=(), name=None, env=None):
+        args = ["--ros-args"]
+        for key, value in (params or {}).items():
+            if isinstance(value, bool):
+                value = "true" if value else "false"
+            elif isinstance(value, (list, tuple)):
+                value = "[" + ",".join(str(v) for v in value) + "]"
+            args += ["-p", f"{key}:={value}"]
+        args += list(ros_args)
+        return start_process(f"rollability_ros.nodes.{node_module}", *args, name=name or node_module, env=env)
+
+    return start

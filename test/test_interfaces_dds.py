@@ -1,0 +1,72 @@
+"""Custom messages, a service and an action round-trip between two OS processes over real DDS."""
+import math
+import os
+import pathlib
+import sys
+
+import pytest
+
+from ros_fixtures import NodeProcess
+
+PEER = pathlib.Path(__file__).with_name("interface_peer.py")
+
+
+@pytest.fixture
+def peer(tmp_path):
+    process = NodeProcess([sys.executable, str(PEER)], tmp_path / "peer.log")
+    yield process
+    assert process.stop() in (0, -2), process.log()
+
+
+def test_domain_is_isolated():
+    assert os.environ["ROS_DOMAIN_ID"] != "0"
+    assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+
+
+def test_topic_service_action_round_trip(ros_node, peer):
+    from rclpy.action import ActionClient
+
+    from rollability_ros.action import EvaluateProfile
+    from rollability_ros.msg import LaunchOutcome
+    from rollability_ros.srv import FireValve
+
+    node = ros_node.node
+    received = []
+    publisher = node.create_publisher(LaunchOutcome, "/peer/outcome_in", 10)
+    node.create_subscription(LaunchOutcome, "/peer/outcome_out", received.append, 10)
+    assert ros_node.wait_for(lambda: publisher.get_subscription_count() > 0, 30), peer.log()
+
+    sent = LaunchOutcome(run_id="run", trial_id="t-1", backend="sim", upright=True, note="hello",
+                         travel_time_s=0.42, measured_speed_mps=0.34 / 0.42)
+    sent.condition.configuration = "B"
+    sent.condition.height_m = 1.30
+    sent.condition.angle_deg = -30.0
+    sent.final_orientation.w = 0.5
+    assert ros_node.wait_for(lambda: (publisher.publish(sent), received)[1], 30, period_s=0.5), peer.log()
+    echoed = received[0]
+    assert (echoed.trial_id, echoed.note, echoed.condition.configuration) == ("t-1", "hello echoed", "B")
+    assert echoed.condition.height_m == 1.30 and echoed.condition.angle_deg == -30.0
+    assert math.isclose(echoed.measured_speed_mps, 0.34 / 0.42) and echoed.final_orientation.w == 0.5
+
+    client = node.create_client(FireValve, "/peer/fire")
+    assert client.wait_for_service(timeout_sec=30)
+    ok = client.call(FireValve.Request(pulse_ms=80), timeout_sec=30)
+    refused = client.call(FireValve.Request(pulse_ms=500), timeout_sec=30)
+    assert ok.success and ok.state.last_pulse_ms == 80
+    assert not refused.success and "above 100 ms" in refused.message
+
+    action = ActionClient(node, EvaluateProfile, "/peer/evaluate")
+    assert action.wait_for_server(timeout_sec=30)
+    feedback = []
+    goal = EvaluateProfile.Goal(heights=[0.1] * 16, trials=6, seed=7)
+    send_future = action.send_goal_async(goal, feedback_callback=lambda fb: feedback.append(fb.feedback.trials_done))
+    assert ros_node.wait_for(send_future.done, 30)
+    handle = send_future.result()
+    assert handle.accepted
+    result_future = handle.get_result_async()
+    assert ros_node.wait_for(result_future.done, 30)
+    result = result_future.result().result
+    assert (result.successes, result.trials, result.fitness) == (3, 6, 0.5)
+    assert result.evaluator == "/interface_peer"
+    assert ros_node.wait_for(lambda: len(feedback) == 6, 5), feedback   # feedback may trail the result
+    assert feedback == sorted(feedback) and feedback[-1] == 6

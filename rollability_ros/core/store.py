@@ -134,7 +134,16 @@ _CANDIDATES = _Table("candidates", CandidateRecord, ("run_id", "generation", "in
 _GENERATIONS = _Table("generations", GenerationRecord, ("run_id", "generation"))
 _TIP_EVENTS = _Table("tip_events", TipEventRecord, ("robot", "tipped_at_s"))
 _TABLES = (_OUTCOMES, _CANDIDATES, _GENERATIONS, _TIP_EVENTS)
+_TABLE_OF = {table.record_cls: table for table in _TABLES}
 _RUNS_SQL = "CREATE TABLE IF NOT EXISTS runs (run_id TEXT PRIMARY KEY, kind TEXT NOT NULL, info TEXT NOT NULL)"
+
+
+def unique_key(record):
+    """The key under which the store keeps ``record`` once, e.g. ``(run_id, trial_id)`` of a LaunchOutcome."""
+    table = _TABLE_OF.get(type(record))
+    if table is None:
+        raise ValueError(f"the store holds no {type(record).__name__} records")
+    return tuple(getattr(record, name) for name in table.unique)
 
 
 def store_path(path):
@@ -231,6 +240,11 @@ class Store:
         return changed
 
     def _insert(self, table, record):
+        if not isinstance(record, table.record_cls):
+            raise ValueError(f"expected a {table.record_cls.__name__}, got {type(record).__name__}")
+        owner = table.unique[0]  # run_id or robot: a record must say whose it is
+        if not getattr(record, owner):
+            raise ValueError(f"{table.record_cls.__name__}.{owner} must be non-empty")
         return self._write(table.insert_sql(), table.to_row(record)) == 1
 
     def _select(self, table, **filters):
@@ -260,8 +274,6 @@ class Store:
 
     def add_candidate(self, candidate):
         """Store a candidate result; False if its (run_id, generation, index) is already stored."""
-        if not candidate.run_id:
-            raise ValueError("candidate run_id must be non-empty")
         return self._insert(_CANDIDATES, candidate)
 
     def candidates(self, run_id=None, generation=None):
@@ -270,8 +282,6 @@ class Store:
 
     def add_generation(self, generation):
         """Store a generation summary; False if its (run_id, generation) is already stored."""
-        if not generation.run_id:
-            raise ValueError("generation run_id must be non-empty")
         return self._insert(_GENERATIONS, generation)
 
     def generations(self, run_id=None):
@@ -280,8 +290,6 @@ class Store:
 
     def add_tip_event(self, event):
         """Store a field tip event; False if an event of that robot at that ``tipped_at_s`` is stored."""
-        if not event.robot:
-            raise ValueError("tip event robot must be non-empty")
         return self._insert(_TIP_EVENTS, event)
 
     def tip_events(self, robot=None):

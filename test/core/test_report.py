@@ -133,3 +133,31 @@ def test_html_report_renders_its_figures_in_headless_chromium(store_report, tmp_
     for size in sizes:
         width, height = (int(v) for v in size.split("x"))
         assert width > 300 and height > 300, sizes
+
+
+def test_bag_of_the_campaign_gives_the_same_report_as_the_store(store_report, tmp_path):
+    from rollability_ros.core.bag_records import message_from_record, read_records_from_bag, typestore
+    from rollability_ros.core.bag_writer import BagWriter
+
+    run_dir, out, _ = store_report
+    with Store(run_dir) as store:
+        records = store.launch_outcomes() + store.candidates() + store.tip_events()
+    records.insert(5, records[2])  # a republished outcome: stored once, so read once
+    bag_dir = tmp_path / "campaign_bag"
+    topics = {"rollability_ros/msg/LaunchOutcome": "/rollability/launch_outcomes",
+              "rollability_ros/msg/CandidateResult": "/rollability/candidates",
+              "rollability_ros/msg/TipEvent": "/tip_monitor/events"}
+    with BagWriter(bag_dir) as bag:
+        for type_name, topic in topics.items():
+            bag.add_topic(topic, type_name)
+        for number, record in enumerate(records):
+            type_name, message = message_from_record(record)
+            bag.write(topics[type_name], bytes(typestore().serialize_cdr(message, type_name)), 10**18 + number)
+    outcomes, candidates, generations, tip_events = read_records_from_bag(bag_dir)
+    with Store(run_dir) as store:
+        assert repr(outcomes) == repr(store.launch_outcomes()) and candidates == store.candidates()  # NaN != NaN
+        assert tip_events == store.tip_events() and generations == []
+    assert cli_main(["report", str(bag_dir), "--out", str(tmp_path / "r"), "--sim-fitness", "A=0.66,B=0.35,C=0.46"]) == 0
+    for name in ("conditions", "by_configuration", "height_angle", "speed_angle", "by_speed", "by_height",
+                 "by_angle", "convergence", "tip_events", "sim_vs_experiment"):
+        assert (tmp_path / "r" / f"{name}.csv").read_text() == (out / f"{name}.csv").read_text(), name

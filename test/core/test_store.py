@@ -17,7 +17,7 @@ from rollability_ros.core.records import (
     LaunchOutcome,
     TipEventRecord,
 )
-from rollability_ros.core.store import STORE_FILENAME, Store
+from rollability_ros.core.store import STORE_FILENAME, Store, unique_key
 
 REPO_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -52,6 +52,9 @@ def test_duplicate_trial_id_is_stored_once(tmp_path):
         outcomes = store.launch_outcomes()
         assert len(outcomes) == 1 and outcomes[0].upright
         assert store.trial_ids("run1") == {"t1"}
+    assert unique_key(_outcome("t1")) == ("run1", "t1")
+    with pytest.raises(ValueError, match="no LaunchCondition"):
+        unique_key(LaunchCondition("A", 0.75, 0.8, 0.0))
 
 
 def test_invalid_outcome_is_refused_and_not_stored(tmp_path):
@@ -166,3 +169,14 @@ def test_acknowledged_outcomes_survive_sigkill_of_the_writer(tmp_path):
         # at most the one in flight when killed was stored but not yet acknowledged
         assert len(stored) - len(acknowledged) <= 1
         assert store.add_launch_outcome(_outcome("after-restart", run_id="run"))
+
+
+def test_records_without_an_owner_or_of_the_wrong_type_are_refused(tmp_path):
+    with Store(tmp_path / "s.sqlite") as store:
+        with pytest.raises(ValueError, match="CandidateRecord.run_id must be non-empty"):
+            store.add_candidate(CandidateRecord("", 0, 0, (), 0.5, 1, 2, 0, 1.0))
+        with pytest.raises(ValueError, match="TipEventRecord.robot must be non-empty"):
+            store.add_tip_event(TipEventRecord("", 1.0, 1.0, True, 90.0, 1.0))
+        with pytest.raises(ValueError, match="expected a GenerationRecord"):
+            store.add_generation(CandidateRecord("r", 0, 0, (), 0.5, 1, 2, 0, 1.0))
+        assert store.candidates() == [] and store.tip_events() == [] and store.generations() == []

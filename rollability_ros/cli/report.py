@@ -23,17 +23,13 @@ def default_out_dir(source):
 
 def run(args):
     """Build the report and print its summary; return the exit code."""
-    import csv
-
     from rollability_ros.core import report
-    from rollability_ros.core.analysis import geometry_table
 
     data = report.load_report_data(args.source, run_id=args.run)
     if args.sim_fitness:
         data.sim_fitness.update(_sim_fitness(args.sim_fitness))
     if args.geometry:
-        with open(args.geometry, newline="", encoding="utf-8-sig") as stream:
-            data.geometry = geometry_table(list(csv.DictReader(stream)), report.CONFIGURATION_ORDER)
+        report.use_geometry_csv(data, args.geometry)
     result = report.build_report(data, args.out or default_out_dir(args.source), measure=args.measure)
     print(result.summary)
     print(f"wrote {len(result.figure_paths)} figures, {len(result.table_paths)} tables and {result.html_path}")
@@ -56,7 +52,8 @@ def register(subparsers):
                         help="simulated fitness per configuration, e.g. A=0.66,B=0.35,C=0.46 (adds to the "
                              "store's run info)")
     parser.add_argument("--geometry", metavar="CSV",
-                        help="Table 3 rows: CSV with configuration,length_m,width_m,max_height_m")
+                        help="Table 3: CSV with configuration,length_m,width_m,max_height_m[,simulated_fitness] "
+                             "(default: <run dir>/designs/table3.csv when present)")
     parser.add_argument("--measure", choices=("condition_rate", "trial_rate"), default="condition_rate",
                         help="experimental measure compared with simulated fitness (default: the paper's "
                              "majority-rule condition rate)")

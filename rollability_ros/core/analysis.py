@@ -323,8 +323,8 @@ def geometry_table(rows, configuration_order=("baseline", "A", "B", "C")):
     Parameters
     ----------
     rows : iterable of dict
-        Each with ``configuration`` and ``length_m``, ``width_m``, ``max_height_m`` (m, > 0 finite); other
-        keys are kept as extra columns.
+        Each with ``configuration`` and ``length_m``, ``width_m``, ``max_height_m`` (m, >= 0 finite; the
+        baseline has no profile: 0); other keys are kept as extra columns.
     """
     checked = []
     for number, row in enumerate(rows, start=1):
@@ -337,8 +337,8 @@ def geometry_table(rows, configuration_order=("baseline", "A", "B", "C")):
                 out[column] = float(row[column])
             except (TypeError, ValueError):
                 raise ValueError(f"geometry row {number}: {column} must be a number, got {row[column]!r}") from None
-            if not math.isfinite(out[column]) or out[column] <= 0:
-                raise ValueError(f"geometry row {number}: {column} must be > 0 m, got {row[column]!r}")
+            if not math.isfinite(out[column]) or out[column] < 0:
+                raise ValueError(f"geometry row {number}: {column} must be >= 0 m, got {row[column]!r}")
         checked.append(out)
     rank = _configuration_rank(configuration_order)
     return sorted(checked, key=lambda r: rank(str(r["configuration"])))

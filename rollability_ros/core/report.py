@@ -8,6 +8,9 @@ of hand-recorded outcomes. Sources:
 - a recorded bag (a directory with ``metadata.yaml`` / ``*.mcap``, or one ``.mcap`` file), read through
   ``rollability_ros.core.bag_records.read_records_from_bag``;
 - a CSV of launch outcomes (``docs/outcome-csv.md``).
+
+Table 3 and the simulated fitness per configuration come from the store's run info (``geometry``,
+``sim_fitness``), from ``<run dir>/designs/table3.csv`` of the design selection, or from the command line.
 """
 import base64
 import csv
@@ -23,6 +26,8 @@ from rollability_ros.core.store import STORE_FILENAME, Store
 #: Order of configurations in figures and tables (others follow alphabetically).
 CONFIGURATION_ORDER = ("baseline", "A", "B", "C")
 _SQLITE_MAGIC = b"SQLite format 3\x00"
+#: Table 3 written by the design selection into a run directory (``selection.write_selection``).
+DESIGNS_TABLE = os.path.join("designs", "table3.csv")
 
 
 @dataclasses.dataclass
@@ -101,7 +106,24 @@ def load_report_data(source, run_id=None):
     info = (run_info or {}).get("info", {})
     data.sim_fitness = {str(k): float(v) for k, v in info.get("sim_fitness", {}).items()}
     data.geometry = analysis.geometry_table(info.get("geometry", []), CONFIGURATION_ORDER)
+    table3 = os.path.join(source, DESIGNS_TABLE)
+    if kind == "store" and os.path.isdir(source) and os.path.isfile(table3) and not data.geometry:
+        use_geometry_csv(data, table3)
     return data
+
+
+def use_geometry_csv(data, path):
+    """Take Table 3 from a CSV (``designs/table3.csv`` of the selection); its ``simulated_fitness`` column
+    fills in the simulated fitness of configurations that have none yet (empty or NaN cells are skipped)."""
+    with open(path, newline="", encoding="utf-8-sig") as stream:
+        data.geometry = analysis.geometry_table(list(csv.DictReader(stream)), CONFIGURATION_ORDER)
+    for row in data.geometry:
+        try:
+            fitness = float(row.get("simulated_fitness", "nan"))
+        except ValueError:
+            raise ValueError(f"{path}: simulated_fitness of {row['configuration']} is not a number") from None
+        if math.isfinite(fitness):
+            data.sim_fitness.setdefault(row["configuration"], fitness)
 
 
 def _select_run(data, run_id):

@@ -143,7 +143,7 @@ def test_geometry_table_checks_rows():
     assert [r["configuration"] for r in rows] == ["A", "B"] and rows[1]["length_m"] == 0.2 and rows[0]["note"] == "x"
     with pytest.raises(ValueError, match="row 1: missing width_m"):
         geometry_table([{"configuration": "A", "length_m": 1, "max_height_m": 1}])
-    with pytest.raises(ValueError, match="max_height_m must be > 0"):
+    with pytest.raises(ValueError, match="max_height_m must be >= 0"):
         geometry_table([{"configuration": "A", "length_m": 1, "width_m": 1, "max_height_m": -1}])
 
 

@@ -161,3 +161,23 @@ def test_bag_of_the_campaign_gives_the_same_report_as_the_store(store_report, tm
     for name in ("conditions", "by_configuration", "height_angle", "speed_angle", "by_speed", "by_height",
                  "by_angle", "convergence", "tip_events", "sim_vs_experiment"):
         assert (tmp_path / "r" / f"{name}.csv").read_text() == (out / f"{name}.csv").read_text(), name
+
+
+def test_table3_of_the_design_selection_gives_geometry_and_simulated_fitness(tmp_path, capsys):
+    with Store(tmp_path) as store:
+        for outcome in _campaign_outcomes(repetitions=1):
+            store.add_launch_outcome(outcome)
+    (tmp_path / "designs").mkdir()
+    # the format selection.write_selection writes: the baseline has no profile and was not re-evaluated
+    (tmp_path / "designs" / "table3.csv").write_text(
+        "configuration,length_m,width_m,max_height_m,simulated_fitness,ci_low,ci_high,successes,trials,fitness_source\n"
+        "baseline,0,0,0,nan,nan,nan,0,0,not evaluated\n"
+        "A,0.2,0.15,0.031,0.66,0.6,0.7,132,200,reevaluated\n"
+        "B,0.2,0.15,0.072,0.35,0.3,0.4,70,200,reevaluated\n")
+    assert cli_main(["report", str(tmp_path), "--out", str(tmp_path / "r"), "--sim-fitness", "B=0.4"]) == 0
+    assert "sim vs experiment (2 configurations)" in capsys.readouterr().out
+    with open(tmp_path / "r" / "sim_vs_experiment.csv", newline="") as stream:
+        assert {row["configuration"]: float(row["sim_fitness"]) for row in csv.DictReader(stream)} == {
+            "A": 0.66, "B": 0.4}  # the command line wins over the table
+    with open(tmp_path / "r" / "geometry.csv", newline="") as stream:
+        assert [row["configuration"] for row in csv.DictReader(stream)] == ["baseline", "A", "B"]

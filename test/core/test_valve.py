@@ -308,3 +308,25 @@ def test_make_controller_runs_the_watchdog():
         assert controller.status().fault_reason.startswith("watchdog")
     finally:
         controller.shutdown()
+
+
+def test_rig_side_core_imports_without_heavy_or_hardware_packages():
+    """The robot computer may lack pybullet, trimesh, matplotlib, ray, scipy, and even pyserial / gpiod."""
+    import os
+    import subprocess
+    import sys
+
+    blocked = ["pybullet", "trimesh", "matplotlib", "ray", "scipy", "cma", "serial", "gpiod", "rclpy"]
+    script = (
+        "import sys\n"
+        f"for name in {blocked!r}: sys.modules[name] = None\n"
+        "import rollability_ros.core.valve, rollability_ros.core.valve_backends, rollability_ros.core.speed_gate\n"
+        "import rollability_ros.core.upright, rollability_ros.core.tip_tracker, rollability_ros.core.relay_device_sim\n"
+        "from rollability_ros.core.valve import ValveConfig\n"
+        "from rollability_ros.core.valve_backends import make_controller\n"
+        "c = make_controller(ValveConfig()); c.arm(); assert c.fire(5)[0]; c.shutdown()\n"
+    )
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
+    result = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr

@@ -1,0 +1,321 @@
+"""Is the body upright? Orientation math and the IMU upright classifier shared by the rig and the tip monitor.
+
+Conventions (ROS, REP-103 / REP-145): quaternions are ``(x, y, z, w)``; the world frame has +z up; an IMU's
+``orientation`` rotates its own frame into the world frame; an accelerometer at rest measures the reaction to
+gravity, so an upright body at rest reads ``+g`` along its +z axis (gravity itself points along body -z). The
+*tilt* is the angle between the body's +z axis and world up: 0 deg upright, 90 deg on its side, 180 deg inverted.
+The IMU's mounting is a rotation ``imu frame -> body frame`` (``v_body = mount * v_imu``).
+
+Pure Python on 3-vectors and 4-tuples: this runs per IMU sample on a robot computer.
+"""
+import dataclasses
+import logging
+import math
+
+_LOG = logging.getLogger(__name__)
+
+#: Standard gravity, m/s^2.
+STANDARD_GRAVITY_MPS2 = 9.80665
+IDENTITY = (0.0, 0.0, 0.0, 1.0)
+
+
+def _vector3(value, name):
+    try:
+        x, y, z = (float(c) for c in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be 3 numbers, got {value!r}") from None
+    if not all(math.isfinite(c) for c in (x, y, z)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return x, y, z
+
+
+def normalize_quaternion(q):
+    """Return ``q`` = (x, y, z, w) scaled to unit norm; ``ValueError`` for a zero or non-finite quaternion."""
+    try:
+        x, y, z, w = (float(c) for c in q)
+    except (TypeError, ValueError):
+        raise ValueError(f"quaternion must be 4 numbers (x, y, z, w), got {q!r}") from None
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not math.isfinite(norm) or norm < 1e-9:
+        raise ValueError(f"quaternion must be finite and non-zero, got {q!r}")
+    return (x / norm, y / norm, z / norm, w / norm)
+
+
+def quaternion_multiply(a, b):
+    """Hamilton product ``a * b`` (rotate by ``b``, then by ``a``)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz)
+
+
+def quaternion_conjugate(q):
+    """The inverse rotation of a unit quaternion."""
+    return (-q[0], -q[1], -q[2], q[3])
+
+
+def rotate_vector(q, v):
+    """Rotate the 3-vector ``v`` by the unit quaternion ``q``."""
+    qx, qy, qz, qw = q
+    vx, vy, vz = v
+    # t = 2 q_xyz x v ; v' = v + w t + q_xyz x t
+    tx, ty, tz = 2 * (qy * vz - qz * vy), 2 * (qz * vx - qx * vz), 2 * (qx * vy - qy * vx)
+    return (vx + qw * tx + qy * tz - qz * ty,
+            vy + qw * ty + qz * tx - qx * tz,
+            vz + qw * tz + qx * ty - qy * tx)
+
+
+def quaternion_from_axis_angle(axis, angle_rad):
+    """Rotation by ``angle_rad`` (rad) about ``axis`` (3-vector, any non-zero length)."""
+    ax, ay, az = _vector3(axis, "axis")
+    norm = math.sqrt(ax * ax + ay * ay + az * az)
+    if norm < 1e-12:
+        raise ValueError("rotation axis must be non-zero")
+    s = math.sin(angle_rad / 2) / norm
+    return (ax * s, ay * s, az * s, math.cos(angle_rad / 2))
+
+
+def quaternion_from_rpy_deg(roll_deg, pitch_deg, yaw_deg):
+    """Rotation from ROS roll, pitch, yaw (deg; about fixed x, then y, then z)."""
+    return quaternion_multiply(quaternion_from_axis_angle((0, 0, 1), math.radians(yaw_deg)),
+                               quaternion_multiply(quaternion_from_axis_angle((0, 1, 0), math.radians(pitch_deg)),
+                                                   quaternion_from_axis_angle((1, 0, 0), math.radians(roll_deg))))
+
+
+def tilt_from_orientation_deg(orientation):
+    """Angle (deg, 0..180) between the body's +z axis and world up, from the orientation (x, y, z, w) world<-body."""
+    x, y, z, w = normalize_quaternion(orientation)
+    # body +z expressed in the world frame: third column of the rotation matrix
+    up_x, up_y, up_z = 2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)
+    return math.degrees(math.atan2(math.hypot(up_x, up_y), up_z))
+
+
+def tilt_from_acceleration_deg(acceleration_body):
+    """Angle (deg, 0..180) between body +z and the measured specific force (world up at rest); NaN in free fall."""
+    ax, ay, az = _vector3(acceleration_body, "acceleration")
+    if math.hypot(ax, ay, az) < 1e-9:
+        return math.nan
+    return math.degrees(math.atan2(math.hypot(ax, ay), az))
+
+
+def orientation_from_acceleration(acceleration_body):
+    """Yaw-free orientation world<-body (x, y, z, w) that turns the measured specific force onto world up.
+
+    The heading is unobservable from gravity; this is the shortest rotation, so yaw is zero-ish by construction.
+    """
+    ax, ay, az = _vector3(acceleration_body, "acceleration")
+    norm = math.hypot(ax, ay, az)
+    if norm < 1e-9:
+        raise ValueError("acceleration is zero (free fall): no gravity direction to orient by")
+    ux, uy, uz = ax / norm, ay / norm, az / norm
+    if uz < -1 + 1e-12:  # exactly inverted: any horizontal axis; pick body x
+        return (1.0, 0.0, 0.0, 0.0)
+    # shortest arc u -> z: axis u x z = (uy, -ux, 0), w = 1 + u.z, then normalise
+    return normalize_quaternion((uy, -ux, 0.0, 1.0 + uz))
+
+
+def orientation_if_valid(orientation, orientation_covariance=None):
+    """Return the IMU's orientation (x, y, z, w), or None when the IMU does not provide one.
+
+    ``sensor_msgs/Imu`` marks a missing orientation with ``orientation_covariance[0] == -1``; some drivers send
+    an all-zero quaternion instead.
+    """
+    if orientation_covariance is not None and len(orientation_covariance) and orientation_covariance[0] == -1:
+        return None
+    if math.hypot(*orientation) < 1e-6:
+        return None
+    return normalize_quaternion(orientation)
+
+
+class ImuMount:
+    """The IMU's mounting rotation ``imu frame -> body frame``, applied to every sample."""
+
+    def __init__(self, rotation=IDENTITY):
+        self.body_from_imu = normalize_quaternion(rotation)
+
+    @classmethod
+    def from_rpy_deg(cls, rpy_deg):
+        """Mount from (roll, pitch, yaw) in degrees, fixed axes."""
+        if len(rpy_deg) != 3:
+            raise ValueError(f"mount rotation must be 3 angles (roll, pitch, yaw) in deg, got {rpy_deg!r}")
+        return cls(quaternion_from_rpy_deg(*rpy_deg))
+
+    def body_orientation(self, world_from_imu):
+        """Orientation world<-body from the IMU's orientation world<-imu."""
+        return quaternion_multiply(world_from_imu, quaternion_conjugate(self.body_from_imu))
+
+    def to_body(self, vector_imu):
+        """A vector (angular velocity, acceleration) from the IMU frame into the body frame (lever arm ignored)."""
+        return rotate_vector(self.body_from_imu, vector_imu)
+
+
+@dataclasses.dataclass(frozen=True)
+class ImuSample:
+    """One IMU reading (``sensor_msgs/Imu``), in the IMU's frame.
+
+    ``orientation`` is world<-imu (x, y, z, w) or None when the IMU gives none (see :func:`orientation_if_valid`);
+    ``angular_velocity_radps`` in rad/s, ``linear_acceleration_mps2`` in m/s^2 (gravity reaction included).
+    """
+
+    stamp_s: float
+    orientation: tuple | None
+    angular_velocity_radps: tuple
+    linear_acceleration_mps2: tuple
+    frame_id: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class UprightReading:
+    """What the classifier makes of the latest sample.
+
+    ``tilt_deg`` is NaN when unknown (no orientation and free fall). ``still_for_s`` and ``upright_for_s`` are
+    how long the body has been continuously still / within the tilt threshold; ``settled`` is still for at least
+    the settle time (after motion, when the classifier requires it). ``orientation`` is world<-body (x, y, z, w),
+    yaw-free when it comes from gravity (``source == "gravity"``).
+    """
+
+    stamp_s: float
+    tilt_deg: float
+    angular_rate_radps: float
+    still: bool
+    still_for_s: float
+    upright: bool
+    upright_for_s: float
+    settled: bool
+    orientation: tuple
+    source: str
+
+    @property
+    def classification(self):
+        """True (upright) or False once settled; None while the body has not settled."""
+        return self.upright if self.settled else None
+
+
+class ImuUprightClassifier:
+    """Decides from a stream of IMU samples whether the body is still, settled and upright.
+
+    Parameters
+    ----------
+    tilt_threshold_deg : float
+        Upright when the tilt (body +z from world up) is at most this, deg.
+    settle_time_s : float
+        Settled once continuously still this long, s.
+    max_rate_radps : float
+        Still: angular rate magnitude at most this, rad/s.
+    max_accel_deviation_mps2 : float
+        Still: ``| |a| - g |`` at most this, m/s^2 (rules out free fall and impacts).
+    accel_filter_s : float
+        Time constant of the low-pass gravity estimate used when the IMU gives no orientation, s (0: raw).
+    mount : ImuMount, optional
+        IMU mounting rotation (identity by default).
+    require_motion : bool
+        Settled only after the body was seen moving since :meth:`reset` (the rig: a chassis waiting on the
+        launcher, or rolling at constant speed, looks still to an IMU).
+    gravity_mps2 : float
+        Local gravity, m/s^2.
+    """
+
+    def __init__(self, tilt_threshold_deg, settle_time_s, max_rate_radps=0.3, max_accel_deviation_mps2=1.0,
+                 accel_filter_s=0.05, mount=None, require_motion=False, gravity_mps2=STANDARD_GRAVITY_MPS2):
+        if not 0 < tilt_threshold_deg < 180:
+            raise ValueError(f"tilt_threshold_deg must be in (0, 180), got {tilt_threshold_deg!r}")
+        for name, value in (("settle_time_s", settle_time_s), ("max_rate_radps", max_rate_radps),
+                            ("max_accel_deviation_mps2", max_accel_deviation_mps2), ("gravity_mps2", gravity_mps2)):
+            if not 0 < value < math.inf:
+                raise ValueError(f"{name} must be > 0, got {value!r}")
+        if not 0 <= accel_filter_s < math.inf:
+            raise ValueError(f"accel_filter_s must be >= 0, got {accel_filter_s!r}")
+        self.tilt_threshold_deg = tilt_threshold_deg
+        self.settle_time_s = settle_time_s
+        self.max_rate_radps = max_rate_radps
+        self.max_accel_deviation_mps2 = max_accel_deviation_mps2
+        self.accel_filter_s = accel_filter_s
+        self.mount = mount or ImuMount()
+        self.require_motion = require_motion
+        self.gravity_mps2 = gravity_mps2
+        self.reset()
+
+    @classmethod
+    def from_config(cls, config):
+        """Classifier for the rig's launch outcome from an :class:`ImuOutcomeConfig` (motion required)."""
+        return cls(config.tilt_threshold_deg, config.settle_time_s, config.max_rate_radps,
+                   config.max_accel_deviation_mps2, config.accel_filter_s, ImuMount.from_rpy_deg(config.mount_rpy_deg),
+                   require_motion=True)
+
+    def reset(self):
+        """Forget the history (call when a launch is fired)."""
+        self._last_stamp = None
+        self._gravity = None          # low-pass specific force, body frame
+        self._still_since = None
+        self._upright_since = None
+        self._moved = False
+
+    def update(self, sample):
+        """Feed one :class:`ImuSample`; return the :class:`UprightReading` after it.
+
+        A stamp earlier than the previous one (a bag replayed in a loop) restarts the history.
+        """
+        stamp = float(sample.stamp_s)
+        if self._last_stamp is not None and stamp < self._last_stamp:
+            _LOG.warning("IMU stamp went backwards (%.3f s -> %.3f s): restarting the upright history",
+                         self._last_stamp, stamp)
+            self.reset()
+        dt = 0.0 if self._last_stamp is None else stamp - self._last_stamp
+        self._last_stamp = stamp
+
+        acceleration = self.mount.to_body(_vector3(sample.linear_acceleration_mps2, "linear_acceleration"))
+        rate = math.hypot(*_vector3(sample.angular_velocity_radps, "angular_velocity"))
+        if self._gravity is None or self.accel_filter_s == 0:
+            self._gravity = acceleration
+        else:
+            alpha = dt / (self.accel_filter_s + dt)
+            self._gravity = tuple(g + alpha * (a - g) for g, a in zip(self._gravity, acceleration))
+
+        if sample.orientation is not None:
+            orientation = self.mount.body_orientation(normalize_quaternion(sample.orientation))
+            tilt = tilt_from_orientation_deg(orientation)
+            source = "orientation"
+        else:
+            tilt = tilt_from_acceleration_deg(self._gravity)
+            orientation = IDENTITY if math.isnan(tilt) else orientation_from_acceleration(self._gravity)
+            source = "gravity"
+
+        still = (rate <= self.max_rate_radps
+                 and abs(math.hypot(*acceleration) - self.gravity_mps2) <= self.max_accel_deviation_mps2)
+        if not still:
+            self._moved = True
+        self._still_since = (self._still_since if self._still_since is not None else stamp) if still else None
+        upright = tilt <= self.tilt_threshold_deg  # False for NaN
+        self._upright_since = (self._upright_since if self._upright_since is not None else stamp) if upright else None
+        still_for = stamp - self._still_since if still else 0.0
+        return UprightReading(
+            stamp_s=stamp, tilt_deg=tilt, angular_rate_radps=rate, still=still, still_for_s=still_for,
+            upright=upright, upright_for_s=stamp - self._upright_since if upright else 0.0,
+            settled=still_for >= self.settle_time_s and (self._moved or not self.require_motion),
+            orientation=orientation, source=source,
+        )
+
+
+@dataclasses.dataclass
+class ImuOutcomeConfig:
+    """``imu_outcome.*`` of ``config/rig.yaml``: classifying a launch from the chassis IMU."""
+
+    topic: str = "imu/data"
+    mount_rpy_deg: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    tilt_threshold_deg: float = 30.0
+    settle_time_s: float = 1.0
+    max_rate_radps: float = 0.3
+    max_accel_deviation_mps2: float = 1.0
+    accel_filter_s: float = 0.05
+    settle_timeout_s: float = 15.0
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field (by building the classifier it configures)."""
+        if not self.topic:
+            raise ValueError("topic must name the IMU topic")
+        ImuUprightClassifier.from_config(self)
+        if not self.settle_timeout_s > self.settle_time_s:
+            raise ValueError(f"settle_timeout_s ({self.settle_timeout_s}) must exceed settle_time_s "
+                             f"({self.settle_time_s})")

@@ -1,0 +1,68 @@
+"""`rollability bag info|recover|convert`: inspect, repair and convert rosbag2 bags without ``ros2 bag``."""
+import json
+
+
+def _info(args):
+    from rollability_ros.core.bag_reader import bag_info, format_bag_info
+
+    info = bag_info(args.bag)
+    print(json.dumps(info, indent=2) if args.json else format_bag_info(info))
+    return 0
+
+
+def _recover(args):
+    from rollability_ros.core.bag_recover import recover
+
+    report = recover(args.bag)
+    if args.json:
+        print(json.dumps(report, indent=2))
+        return 0
+    for entry in report["files"]:
+        if entry["status"] == "intact":
+            print(f"{entry['path']}: intact")
+        else:
+            print(f"{entry['path']}: recovered {entry['messages']} messages from {entry['chunks_recovered']} "
+                  f"chunks; discarded {entry['chunks_discarded']} corrupt chunks, {entry['bytes_discarded']} "
+                  f"bytes of cut tail, {entry['messages_without_channel']} messages without a channel")
+    print(f"{args.bag}: metadata.yaml rewritten, {report['message_count']} messages")
+    return 0
+
+
+def _convert(args):
+    from rollability_ros.core.bag_convert import convert
+
+    convert(args.src, args.dst, storage=args.storage)
+    print(f"{args.src} -> {args.dst} ({args.storage})")
+    return 0
+
+
+def register(subparsers):
+    """Add the ``bag`` verb with its ``info``, ``recover`` and ``convert`` sub-verbs."""
+    parser = subparsers.add_parser(
+        "bag", help="inspect, recover and convert rosbag2 bags (MCAP / SQLite3)",
+        description="Work on rosbag2 bag directories (metadata.yaml + storage files) without ros2 bag.")
+    verbs = parser.add_subparsers(dest="bag_verb", metavar="BAG_VERB")
+    verbs.required = True
+
+    info = verbs.add_parser("info", help="topics, types, counts, duration, size and compression of a bag",
+                            description="Summarise a bag from its metadata and its storage files' summaries.")
+    info.add_argument("bag", help="bag directory")
+    info.add_argument("--json", action="store_true", help="print the summary as JSON")
+    info.set_defaults(func=_info)
+
+    recover = verbs.add_parser(
+        "recover", help="repair a bag whose recorder was killed",
+        description="Rebuild the MCAP summary and indexes of cut storage files from every complete chunk, "
+                    "and rewrite metadata.yaml keeping storage id, ROS distro, custom data, QoS and type hashes.")
+    recover.add_argument("bag", help="bag directory")
+    recover.add_argument("--json", action="store_true", help="print the recovery report as JSON")
+    recover.set_defaults(func=_recover)
+
+    convert = verbs.add_parser("convert", help="copy a bag into MCAP or SQLite3 storage",
+                               description="Write a new bag DST with the messages, topics, QoS, type hashes "
+                                           "and custom data of SRC in the chosen storage.")
+    convert.add_argument("src", help="source bag directory")
+    convert.add_argument("dst", help="new bag directory (must not exist)")
+    convert.add_argument("--storage", choices=("mcap", "sqlite3"), default="sqlite3",
+                         help="storage of the new bag (default: sqlite3)")
+    convert.set_defaults(func=_convert)

@@ -1,0 +1,141 @@
+"""Recovery after a SIGKILLed writer, a cut chunk, a corrupt chunk and a lost metadata.yaml."""
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import yaml
+
+from rollability_ros.core.bag_metadata import read_metadata
+from rollability_ros.core.bag_reader import BagReader, bag_info
+from rollability_ros.core.bag_recover import recover
+from test_bags import installed_hash, string_cdr, write_string_bag
+
+#: The writer subprocess: flushed messages are acknowledged on stdout, then more are written and never flushed.
+WRITER_SCRIPT = textwrap.dedent("""
+    import sys, time
+    from rollability_ros.core.bag_writer import BagWriter
+    from test_bags import T0_NS, string_cdr
+    writer = BagWriter(sys.argv[1], custom_data={"operator": "kill test"}, split_max_bytes=4000,
+                       chunk_size_bytes=1 << 20, flush_interval_s=3600)
+    writer.add_topic("/a", "std_msgs/msg/String", offered_qos_profiles=[{"durability": "transient_local"}])
+    writer.add_topic("/quiet", "geometry_msgs/msg/PoseStamped")
+    for index in range(400):
+        writer.write("/a", string_cdr(f"message {index}"), T0_NS + index)
+        if index % 7 == 6:
+            writer.flush()
+    writer.flush()
+    print("acknowledged 400", flush=True)
+    for index in range(400, 450):
+        writer.write("/a", string_cdr(f"message {index}"), T0_NS + index)
+    print("unflushed 50", flush=True)
+    time.sleep(60)
+""")
+
+
+def test_sigkill_of_writer_loses_only_the_open_chunk_and_keeps_all_metadata(tmp_path):
+    bag = tmp_path / "killed"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")]))
+    process = subprocess.Popen([sys.executable, "-c", WRITER_SCRIPT, str(bag)], stdout=subprocess.PIPE, text=True,
+                               env=env)
+    try:
+        assert process.stdout.readline().strip() == "acknowledged 400"
+        assert process.stdout.readline().strip() == "unflushed 50"
+    finally:
+        process.send_signal(signal.SIGKILL)
+        process.wait(timeout=30)
+    assert process.returncode == -signal.SIGKILL
+
+    report = recover(bag)
+    statuses = [f["status"] for f in report["files"]]
+    assert len(statuses) > 2 and statuses[:-1] == ["intact"] * (len(statuses) - 1) and statuses[-1] == "recovered"
+    assert report["message_count"] == 400 and report["topics"] == {"/a": 400, "/quiet": 0}
+    assert [m.data for m in BagReader(bag)] == [string_cdr(f"message {i}") for i in range(400)]
+
+    information = read_metadata(bag)
+    assert information["custom_data"] == {"operator": "kill test"} and information["ros_distro"] == "jazzy"
+    assert information["storage_identifier"] == "mcap" and information["version"] == 9
+    topics = {t["topic_metadata"]["name"]: t for t in information["topics_with_message_count"]}
+    assert topics["/a"]["topic_metadata"]["offered_qos_profiles"][0]["durability"] == "transient_local"
+    assert topics["/quiet"]["topic_metadata"]["type_description_hash"] == installed_hash(
+        "geometry_msgs/msg/PoseStamped")
+    assert sum(f["message_count"] for f in information["files"]) == 400
+    assert not os.path.exists(bag / ".recovery.json")
+    info = bag_info(bag)
+    assert info["warnings"] == [] and {t["name"] for t in info["topics"]} == {"/a", "/quiet"}
+
+
+def _chunk_indexes(path):
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as stream:
+        return make_reader(stream).get_summary().chunk_indexes
+
+
+def test_cut_inside_a_chunk_keeps_the_complete_chunks(tmp_path):
+    bag = tmp_path / "cut"
+    written = write_string_bag(bag, 300, chunk_size_bytes=2048)
+    path = bag / "cut_0.mcap"
+    chunks = _chunk_indexes(path)
+    assert len(chunks) > 3
+    cut = chunks[2].chunk_start_offset + chunks[2].chunk_length // 2
+    path.write_bytes(path.read_bytes()[:cut])
+    report = recover(bag)
+    (entry,) = report["files"]
+    assert entry["status"] == "recovered" and entry["chunks_recovered"] == 2 and entry["bytes_discarded"] > 0
+    recovered = list(BagReader(bag))
+    assert recovered == written[:len(recovered)] and len(recovered) == report["message_count"] > 0
+    assert read_metadata(bag)["custom_data"] == {"campaign": "test"}
+
+
+def test_corrupt_chunk_is_skipped_and_later_chunks_kept(tmp_path):
+    bag = tmp_path / "corrupt"
+    written = write_string_bag(bag, 300, chunk_size_bytes=2048)
+    path = bag / "corrupt_0.mcap"
+    chunks = _chunk_indexes(path)
+    data = bytearray(path.read_bytes()[:chunks[-1].chunk_start_offset])   # also drop the last chunk + summary
+    middle = chunks[1].chunk_start_offset + chunks[1].chunk_length - 20
+    data[middle] ^= 0xFF
+    path.write_bytes(bytes(data))
+    report = recover(bag)
+    (entry,) = report["files"]
+    assert entry["chunks_discarded"] == 1 and entry["chunks_recovered"] == len(chunks) - 2
+    recovered = list(BagReader(bag))
+    assert set(recovered) < set(written) and written[0] in recovered and len(recovered) == report["message_count"]
+
+
+def test_recover_without_metadata_yaml_takes_fields_from_the_storage_files(tmp_path):
+    bag = tmp_path / "nometa"
+    written = write_string_bag(bag, 200, split_max_duration_s=0.5)
+    last = sorted(bag.glob("*.mcap"))[-1]
+    last.write_bytes(last.read_bytes()[:-200])
+    (bag / "metadata.yaml").unlink()
+    recover(bag)
+    information = read_metadata(bag)
+    assert information["custom_data"] == {"campaign": "test"} and information["ros_distro"] == "jazzy"
+    topic = information["topics_with_message_count"][0]["topic_metadata"]
+    assert topic["type_description_hash"] == installed_hash("std_msgs/msg/String")
+    assert topic["offered_qos_profiles"][0]["depth"] == 5
+    assert list(BagReader(bag))[:150] == written[:150]
+
+
+def test_recover_leaves_a_clean_bag_unchanged(tmp_path):
+    bag = tmp_path / "clean"
+    write_string_bag(bag, 100, split_max_duration_s=0.3)
+    before = {p.name: p.read_bytes() for p in bag.glob("*.mcap")}
+    metadata_before = yaml.safe_load((bag / "metadata.yaml").read_text())
+    report = recover(bag)
+    assert {f["status"] for f in report["files"]} == {"intact"}
+    assert {p.name: p.read_bytes() for p in bag.glob("*.mcap")} == before
+    assert yaml.safe_load((bag / "metadata.yaml").read_text()) == metadata_before
+
+
+def test_recover_empty_storage_file_left_by_a_kill_right_after_a_split(tmp_path):
+    bag = tmp_path / "empty"
+    written = write_string_bag(bag, 20)
+    (bag / "empty_1.mcap").write_bytes(b"")
+    report = recover(bag)
+    assert [f["status"] for f in report["files"]] == ["intact", "recovered"]
+    assert list(BagReader(bag)) == written
+    assert read_metadata(bag)["relative_file_paths"] == ["empty_0.mcap", "empty_1.mcap"]

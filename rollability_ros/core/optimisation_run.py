@@ -19,6 +19,7 @@ resumes from the last checkpoint and redoes generation g; candidates already sto
 their heights and seed are identical (evaluations are deterministic in heights and seed) and a stored
 candidate that differs is an error. Either way the stored sequence equals that of an uninterrupted run.
 """
+import concurrent.futures
 import os
 import time
 
@@ -41,6 +42,8 @@ from rollability_ros.core.store import Store
 RUN_CONFIG_FILENAME = "config.yaml"
 #: ``kind`` of optimisation runs in the store's run table.
 RUN_KIND = "optimisation"
+#: Parameter files every optimisation config is loaded on top of (the evaluator's settings).
+BASE_CONFIGS = ("sim", "robot", "evaluator")
 
 
 def new_run_id(now_s=None):
@@ -51,6 +54,23 @@ def new_run_id(now_s=None):
 def optimizer_settings(parameters):
     """Return the :class:`OptimizerSettings` of a flat parameter dict (namespace ``optimizer``)."""
     return from_mapping(OptimizerSettings, section(parameters, "optimizer"), "optimizer")
+
+
+def load_run_parameters(config_path):
+    """Merge :data:`BASE_CONFIGS` and ``config_path`` (a path or a shipped name such as ``"paper"``)."""
+    return load_parameters(list(BASE_CONFIGS) + [config_path])
+
+
+def resolve_run_dir(run, output_dir="runs"):
+    """Return the directory of ``run``: a run directory path as given, else ``<output_dir>/<run>``."""
+    if os.path.isfile(os.path.join(run, RUN_CONFIG_FILENAME)):
+        return os.fspath(run)
+    return os.path.join(output_dir, run)
+
+
+def run_id_of(run_dir):
+    """The run id of a run directory: its name."""
+    return os.path.basename(os.path.normpath(os.fspath(run_dir)))
 
 
 def write_run_config(path, parameters):
@@ -87,18 +107,20 @@ class OptimisationRun:
         Called after each newly evaluated candidate is stored.
     on_generation : callable(GenerationRecord), optional
         Called after each generation is stored and checkpointed.
+
+    ``on_candidate`` and ``on_generation`` are also public attributes, settable after construction.
     """
 
     def __init__(self, run_dir, parameters, grid, evaluate_batch, resume=False, on_candidate=None,
                  on_generation=None, clock=time.monotonic):
         self.run_dir = os.fspath(run_dir)
-        self.run_id = os.path.basename(os.path.normpath(self.run_dir))
+        self.run_id = run_id_of(self.run_dir)
         self.parameters = dict(parameters)
         self.settings = optimizer_settings(self.parameters)
         self.grid = grid
         self._evaluate_batch = evaluate_batch
-        self._on_candidate = on_candidate
-        self._on_generation = on_generation
+        self.on_candidate = on_candidate
+        self.on_generation = on_generation
         self._clock = clock
         self.checkpoint_path = os.path.join(self.run_dir, checkpoints.CHECKPOINT_FILENAME)
         self.optimizer = self._resume() if resume else self._start()
@@ -162,8 +184,8 @@ class OptimisationRun:
         self.store.add_generation(record)
         checkpoints.save_checkpoint(self.checkpoint_path, self.run_id, self.parameters, optimizer.state_dict(),
                                     optimizer.best.fitness)
-        if self._on_generation is not None:
-            self._on_generation(record)
+        if self.on_generation is not None:
+            self.on_generation(record)
         return record
 
     def _evaluate(self, generation, indices, heights_list, seeds, stored):
@@ -195,8 +217,8 @@ class OptimisationRun:
                                          stamp_s=time.time())
                 self.store.add_candidate(record)
                 records[index] = record
-                if self._on_candidate is not None:
-                    self._on_candidate(record)
+                if self.on_candidate is not None:
+                    self.on_candidate(record)
         return [records[index] for index in indices]
 
     # --- the loop -----------------------------------------------------------------------------------------------
@@ -249,3 +271,24 @@ class SyntheticEvaluator:
         """``evaluate_batch``: one (successes, trials, eval_time_s, name) per height array."""
         draws = np.random.default_rng(seed).random(self.trials)
         return [(int(np.sum(draws < self.success_probability(h))), self.trials, 0.0, self.name) for h in heights_list]
+
+
+def profile_batch_evaluator(settings, trials, executor, name="local"):
+    """``evaluate_batch`` over :func:`evaluation.evaluate_profile` on ``executor`` (a LocalExecutor or RayExecutor).
+
+    The profiles of a batch are evaluated concurrently (one thread each submitting its trial batches), so the
+    workers stay busy across candidates; ``trials`` per profile, ``settings`` an ``EvaluatorSettings``.
+    """
+    from rollability_ros.core.evaluation import evaluate_profile
+
+    def evaluate_batch(heights_list, seed):
+        threads = concurrent.futures.ThreadPoolExecutor(max_workers=max(1, len(heights_list)))
+        try:
+            futures = [threads.submit(evaluate_profile, heights, trials, seed, settings, executor)
+                       for heights in heights_list]
+            results = [future.result() for future in futures]
+        finally:
+            threads.shutdown(wait=False, cancel_futures=True)
+        return [(r.successes, r.trials, r.eval_time_s, name) for r in results]
+
+    return evaluate_batch

@@ -224,6 +224,17 @@ def designs_document(result, grid, run_id):
     return {"/**": {"ros__parameters": {"designs": body}}}
 
 
+def record_selection(store, run_id, result):
+    """Add ``sim_fitness`` ({configuration: fitness}) and ``geometry`` (Table 3 rows of the designs) to the run's
+    info in ``store``, the keys ``rollability report`` reads; the baseline has no geometry row (no profile)."""
+    rows = table_rows(result)
+    described = store.run_info(run_id) or {"kind": "optimisation", "info": {}}
+    info = dict(described["info"])
+    info["sim_fitness"] = {r["configuration"]: r["simulated_fitness"] for r in rows if r["trials"]}
+    info["geometry"] = [{k: r[k] for k in TABLE_COLUMNS[:4]} for r in rows if r["configuration"] != "baseline"]
+    store.set_run_info(run_id, described["kind"], info)
+
+
 def write_selection(run_dir, result, grid, run_id):
     """Write the STL files, ``table3.csv`` and ``designs.yaml`` into ``<run_dir>/designs/``; return that folder.
 

@@ -1,0 +1,126 @@
+"""`rollability optimize`: a CMA-ES profile optimisation in this process (no ROS graph), resumable."""
+import math
+import os
+import sys
+
+
+def _duration(seconds):
+    """``1h02m``, ``3m05s`` or ``12s``; ``?`` when unknown."""
+    if not math.isfinite(seconds):
+        return "?"
+    seconds = int(round(seconds))
+    if seconds >= 3600:
+        return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m"
+    if seconds >= 60:
+        return f"{seconds // 60}m{seconds % 60:02d}s"
+    return f"{seconds}s"
+
+
+class ProgressLine:
+    """Prints one line per generation (generation, best fitness, best-so-far, sigma, elapsed, ETA) and, on a
+    terminal, a transient count of the candidates evaluated in the current generation."""
+
+    def __init__(self, run, stream=sys.stdout):
+        self.run = run
+        self.stream = stream
+        self.live = stream.isatty()
+        self.evaluated = 0
+
+    def candidate(self, record):
+        """``on_candidate`` callback."""
+        self.evaluated += 1
+        if self.live:
+            self.stream.write(f"\r  generation {record.generation + 1}: {self.evaluated} evaluated ")
+            self.stream.flush()
+
+    def generation(self, record):
+        """``on_generation`` callback."""
+        self.evaluated = 0
+        cap = self.run.settings.max_generations or "-"
+        line = (f"gen {record.generation + 1:>4}/{cap}  best {record.best_fitness:.3f}  mean {record.mean_fitness:.3f}"
+                f"  best-so-far {record.best_so_far:.3f}  sigma {record.sigma:.4f}  evals {record.evaluations}"
+                f"  elapsed {_duration(record.elapsed_s)}  ETA {_duration(self.run.eta_s())}")
+        self.stream.write(("\r" if self.live else "") + line + "\n")
+        self.stream.flush()
+
+
+def _write_convergence_figure(run):
+    """Write ``<run_dir>/convergence.png`` (the paper's Figure 4) if matplotlib is installed; return its path."""
+    from rollability_ros.core import analysis, report_figures
+    from rollability_ros.core.optional import MissingDependency
+
+    points = analysis.convergence(generations=run.store.generations(run_id=run.run_id))
+    try:
+        return report_figures.convergence(os.path.join(run.run_dir, "convergence.png"), points)
+    except MissingDependency:
+        return None
+
+
+def run(args):
+    """Start or resume an optimisation; return the exit code."""
+    from rollability_ros.core import evaluation, optimisation_run
+
+    if args.resume and args.run_id:
+        raise ValueError("--run-id names a new run; --resume takes the run to continue")
+    if args.resume:
+        parameters = optimisation_run.load_run_parameters(args.config) if args.config else None
+        output_dir = optimisation_run.optimizer_settings(parameters).output_dir if parameters else "runs"
+        run_dir = optimisation_run.resolve_run_dir(args.resume, output_dir)
+        if parameters is None:
+            parameters = optimisation_run.read_run_config(run_dir)
+    else:
+        if not args.config:
+            raise ValueError("a new run needs --config (e.g. --config optimizer, --config paper)")
+        parameters = optimisation_run.load_run_parameters(args.config)
+        output_dir = optimisation_run.optimizer_settings(parameters).output_dir
+        run_dir = os.path.join(output_dir, args.run_id or optimisation_run.new_run_id())
+    settings = evaluation.settings_from_parameters(parameters)
+    executor = evaluation.make_executor(settings.evaluator, args.workers)
+    progress = None
+    try:
+        trials = optimisation_run.optimizer_settings(parameters).trials
+        evaluate_batch = optimisation_run.profile_batch_evaluator(settings, trials, executor)
+        run = optimisation_run.OptimisationRun(run_dir, parameters, settings.grid, evaluate_batch,
+                                               resume=bool(args.resume))
+        progress = ProgressLine(run)
+        run.on_candidate, run.on_generation = progress.candidate, progress.generation
+        print(f"run {run.run_id} in {run.run_dir}: {settings.grid.rows}x{settings.grid.cols} grid, "
+              f"popsize {run.settings.popsize}, {trials} trials per candidate, "
+              f"{'resuming after' if args.resume else 'starting at'} generation {run.optimizer.generation}")
+        try:
+            result = run.run()
+        except KeyboardInterrupt:
+            print(f"\ninterrupted; continue with: rollability optimize --resume {run.run_dir}", file=sys.stderr)
+            raise
+        figure = _write_convergence_figure(run)
+        run.close()
+    finally:
+        executor.close()
+    best = result.best
+    print(f"stopped after {result.generations} generations, {result.evaluations} evaluations "
+          f"({', '.join(result.stop) or 'no criterion'}); best fitness {best.fitness:.3f} over {best.trials} trials "
+          f"(first seen in generation {best.generation + 1})")
+    if figure:
+        print(f"convergence curve: {figure}")
+    print(f"choose designs with: rollability select {run.run_dir}")
+    return 0
+
+
+def register(subparsers):
+    """Add the ``optimize`` verb."""
+    parser = subparsers.add_parser(
+        "optimize", help="run a CMA-ES profile optimisation in this process (resumable)",
+        description="Optimise the profile heights with CMA-ES (paper 2.1.4), evaluating candidates in a local "
+                    "process pool (or the Ray cluster of evaluator.ray_address). Every candidate and generation "
+                    "goes to <output_dir>/<run_id>/store.sqlite and a checkpoint is written after each "
+                    "generation, so a killed run continues with --resume and gives the same results.")
+    parser.add_argument("--config", help="optimisation parameter file or shipped name: 'optimizer' (quick "
+                                         "default, minutes on 2 cores) or 'paper' (the paper's settings); "
+                                         "loaded on top of sim, robot and evaluator. Optional with --resume "
+                                         "(then the run's own config.yaml is used)")
+    parser.add_argument("--resume", metavar="RUN", help="continue run RUN (run id under output_dir, or its "
+                                                        "directory) from its last completed generation")
+    parser.add_argument("--run-id", help="id of a new run (default: opt-<date>-<time>)")
+    parser.add_argument("--workers", type=int, help="worker processes for the trials (default: "
+                                                    "evaluator.workers, 0 = one per core)")
+    parser.set_defaults(func=run)

@@ -1,0 +1,75 @@
+"""`rollability select RUN`: choose the designs to fabricate (Mesh A, B, C) from an optimisation run."""
+import sys
+
+
+def _print_table(rows, stream=sys.stdout):
+    stream.write(f"{'design':<10}{'length m':>10}{'width m':>10}{'max h m':>10}  {'fitness [95% CI]':<22}"
+                 f"{'trials':>7}  source\n")
+    for row in rows:
+        fitness = ("-" if not row["trials"] else
+                   f"{row['simulated_fitness']:.3f} [{row['ci_low']:.3f}, {row['ci_high']:.3f}]")
+        stream.write(f"{row['configuration']:<10}{row['length_m']:>10.4f}{row['width_m']:>10.4f}"
+                     f"{row['max_height_m']:>10.4f}  {fitness:<22}{row['trials']:>7}  {row['fitness_source']}\n")
+
+
+def run(args):
+    """Select, export and report the designs; exit code 1 when fewer than requested qualify."""
+    from rollability_ros.core import evaluation, optimisation_run, selection
+    from rollability_ros.core.config import from_mapping, section
+    from rollability_ros.core.store import Store
+
+    run_dir = optimisation_run.resolve_run_dir(args.run, args.output_dir)
+    parameters = optimisation_run.read_run_config(run_dir)
+    mapping = section(parameters, "selection")
+    for name in ("count", "min_distance", "reevaluate_trials"):
+        if getattr(args, name) is not None:
+            mapping[name] = getattr(args, name)
+    settings = from_mapping(selection.SelectionSettings, mapping, "selection")
+    evaluator_settings = evaluation.settings_from_parameters(parameters)
+    run_id = optimisation_run.run_id_of(run_dir)
+    with Store(run_dir) as store:
+        candidates = store.candidates(run_id=run_id)
+        if not candidates:
+            raise ValueError(f"run {run_id} in {run_dir} has no evaluated candidates yet")
+        executor = evaluation.make_executor(evaluator_settings.evaluator, args.workers) \
+            if settings.reevaluate_trials else None
+        try:
+            evaluate_batch = optimisation_run.profile_batch_evaluator(
+                evaluator_settings, settings.reevaluate_trials, executor) if executor else None
+            result = selection.select_designs(candidates, evaluator_settings.grid, evaluator_settings.printer,
+                                              settings, evaluate_batch,
+                                              optimisation_run.optimizer_settings(parameters).seed)
+        finally:
+            if executor is not None:
+                executor.close()
+        selection.record_selection(store, run_id, result)
+    folder = selection.write_selection(run_dir, result, evaluator_settings.grid, run_id)
+    print(f"{len(result.designs)} design(s) from {result.considered} distinct logged designs of run {run_id} "
+          f"(min RMS distance {settings.min_distance} units)")
+    _print_table(selection.table_rows(result))
+    print(f"wrote {folder}/: table3.csv, designs.yaml and {len(result.designs)} STL file(s)")
+    if result.shortfall:
+        print(f"rollability select: {result.shortfall}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def register(subparsers):
+    """Add the ``select`` verb."""
+    parser = subparsers.add_parser(
+        "select", help="choose high-fitness, printable, diverse designs (Mesh A, B, C) from an optimisation run",
+        description="Pool every logged evaluation of the run per design, rank by the lower Wilson bound of the "
+                    "fitness, and take the best designs that pass the printability checks and lie at least "
+                    "--min-distance (RMS height difference, simulation units) from each other; optionally "
+                    "re-evaluate them and the baseline with fresh trials. Writes <run>/designs/: mesh_<X>.stl, "
+                    "table3.csv (the paper's Table 3 with fitness and Wilson interval) and designs.yaml. "
+                    "Defaults come from the run's config.yaml (section selection).")
+    parser.add_argument("run", metavar="RUN", help="run id under --output-dir, or a run directory")
+    parser.add_argument("--count", type=int, help="designs to choose (default: selection.count, 3)")
+    parser.add_argument("--min-distance", type=float, help="minimum RMS height distance between designs, "
+                                                           "simulation units (default: selection.min_distance)")
+    parser.add_argument("--reevaluate-trials", type=int, help="fresh trials per design and the baseline; 0 = "
+                                                              "report the logged estimate")
+    parser.add_argument("--workers", type=int, help="worker processes for the re-evaluation")
+    parser.add_argument("--output-dir", default="runs", help="root of run directories (default: runs)")
+    parser.set_defaults(func=run)

@@ -251,7 +251,7 @@ def format_bag_info(info):
         f"Files:          {len(info['files'])}, {info['size_bytes'] / 1e6:.3f} MB",
         f"Compression:    {info['compression']}",
         f"Duration:       {info['duration_s']:.3f} s",
-        f"Start / end:    {info['start_time_ns']} / {info['end_time_ns']} ns",
+        f"Start / end:    {info['start_time_ns'] or '-'} / {info['end_time_ns'] or '-'} ns",
         f"Messages:       {info['message_count']}",
     ]
     if info["custom_data"]:

@@ -27,11 +27,11 @@ from rollability_ros.core.bag_metadata import (
     FileInfo,
     TopicInfo,
     build_metadata,
-    normalize_qos_profiles,
     read_metadata,
     topics_from_metadata,
     write_metadata,
 )
+from rollability_ros.core.bag_qos import normalize_qos_profiles
 from rollability_ros.core.bag_reader import bag_file_errors, open_mcap
 from rollability_ros.core.bag_writer import (
     DEFAULT_CHUNK_SIZE_BYTES,

@@ -30,10 +30,9 @@ from rollability_ros.core.bag_metadata import (
     TopicInfo,
     build_metadata,
     dump_metadata,
-    normalize_qos_profiles,
-    qos_profiles_yaml,
     write_metadata,
 )
+from rollability_ros.core.bag_qos import normalize_qos_profiles, qos_profiles_yaml
 from rollability_ros.core.msg_definitions import definition_for, full_type_name, rihs01_hash
 
 #: Default uncompressed chunk size, bytes: the most a SIGKILL can lose (see module docstring).
@@ -198,6 +197,8 @@ class BagWriter:
         fsync every finished chunk (survives power loss, slower).
     clock : callable
         Monotonic clock in seconds for the flush interval (for tests).
+
+    Not thread-safe: call it from one thread (a single-threaded executor, or behind one lock).
     """
 
     def __init__(self, directory, storage="mcap", compression="zstd", split_max_bytes=0, split_max_duration_s=0,
@@ -247,9 +248,11 @@ class BagWriter:
         serialization_format : str
             ``"cdr"`` for ROS 2 messages.
         offered_qos_profiles : list of dict or str, optional
-            The publishers' QoS (see :func:`~rollability_ros.core.bag_metadata.normalize_qos_profiles`).
+            The publishers' QoS (see :func:`~rollability_ros.core.bag_qos.normalize_qos_profiles`).
         definition : str, optional
             Full ``ros2msg`` definition; default :func:`~rollability_ros.core.msg_definitions.definition_for`.
+            ``""`` records a type whose definition is not installed (readers then cannot decode it without
+            it); it needs ``type_description_hash``.
         type_description_hash : str, optional
             ``RIHS01_...`` hash; default computed from the definition. A recorder passes what the publishers
             advertise, so a type changed since the definition files were installed is still recorded truthfully.
@@ -267,6 +270,9 @@ class BagWriter:
                 raise ValueError(f"topic {name} is already recorded with type {self._topics[name].type_name}, "
                                  f"not {type_name}")
             return
+        if definition == "" and not type_description_hash:
+            raise ValueError(f"topic {name}: an empty definition of {type_name} needs the publishers' "
+                             f"type_description_hash")
         if type_name not in self._definitions:
             self._definitions[type_name] = definition if definition is not None else definition_for(type_name)
         topic = TopicInfo(

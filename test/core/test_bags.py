@@ -8,7 +8,8 @@ import pytest
 import yaml
 
 from rollability_ros.core.bag_convert import convert
-from rollability_ros.core.bag_metadata import BagError, normalize_qos_profiles, read_metadata
+from rollability_ros.core.bag_metadata import BagError, read_metadata
+from rollability_ros.core.bag_qos import normalize_qos_profiles, qos_dict_from_profile, subscription_qos_for
 from rollability_ros.core.bag_playback import clock_message_cdr, playback_schedule
 from rollability_ros.core.bag_reader import BagMessage, BagReader, bag_info
 from rollability_ros.core.bag_recover import recover
@@ -97,6 +98,32 @@ def test_qos_profiles_normalise_from_v8_strings_dicts_and_reject_unknown_keys():
         normalize_qos_profiles([{"dept": 1}])
     with pytest.raises(ValueError, match="reliability"):
         normalize_qos_profiles([{"reliability": "sometimes"}])
+
+
+def test_subscription_qos_matches_every_publisher_and_reads_rclpy_like_profiles():
+    class Duration:
+        def __init__(self, nanoseconds):
+            self.nanoseconds = nanoseconds
+
+    class Policy:   # an rclpy policy enum: only .value matters
+        def __init__(self, value):
+            self.value = value
+
+    class Profile:  # the attributes of rclpy's QoSProfile
+        history, depth, reliability, durability = Policy(1), 7, Policy(2), Policy(1)
+        deadline = lifespan = liveliness_lease_duration = Duration(9223372036854775807)
+        liveliness, avoid_ros_namespace_conventions = Policy(1), False
+
+    offered = qos_dict_from_profile(Profile())
+    assert offered["reliability"] == "best_effort" and offered["durability"] == "transient_local"
+    assert offered["deadline"] == {"sec": 9223372036, "nsec": 854775807} and offered["depth"] == 7
+    latched_reliable = {"durability": "transient_local"}
+    assert subscription_qos_for([latched_reliable, latched_reliable])["durability"] == "transient_local"
+    mixed = subscription_qos_for([latched_reliable, offered, {}], depth=50)
+    assert (mixed["reliability"], mixed["durability"], mixed["depth"]) == ("best_effort", "volatile", 50)
+    assert subscription_qos_for([])["reliability"] == "reliable"
+    with pytest.raises(ValueError, match="depth"):
+        subscription_qos_for([], depth=0)
 
 
 def test_round_trip_split_by_size_keeps_order_metadata_and_mcap_layout(tmp_path):

@@ -139,3 +139,19 @@ def test_recover_empty_storage_file_left_by_a_kill_right_after_a_split(tmp_path)
     assert [f["status"] for f in report["files"]] == ["intact", "recovered"]
     assert list(BagReader(bag)) == written
     assert read_metadata(bag)["relative_file_paths"] == ["empty_0.mcap", "empty_1.mcap"]
+
+
+def test_committed_bag_of_a_killed_writer_recovers(tmp_path):
+    """test/resources/killed_bag: a writer SIGKILLed with 60 messages flushed and 10 in its open chunk."""
+    import shutil
+
+    bag = tmp_path / "killed_bag"
+    shutil.copytree(os.path.join(os.path.dirname(__file__), "..", "resources", "killed_bag"), bag)
+    report = recover(bag)
+    assert [f["status"] for f in report["files"]] == ["intact", "recovered"]
+    assert report["topics"] == {"/a": 60, "/quiet": 0}
+    assert [m.data for m in BagReader(bag)] == [string_cdr(f"message {i}") for i in range(60)]
+    information = read_metadata(bag)
+    assert information["custom_data"] == {"fixture": "killed by SIGKILL"}
+    assert information["topics_with_message_count"][0]["topic_metadata"]["offered_qos_profiles"][0][
+        "durability"] == "transient_local"

@@ -54,10 +54,10 @@ def parameters(common_random_numbers=True, **overrides):
 
 
 def comparable(store_path):
-    """Everything a run decides, without wall-clock fields (timings, stamps)."""
+    """Everything a run decides, without its id and wall-clock fields (timings, stamps)."""
     with Store(store_path) as store:
-        candidates = [dataclasses.replace(c, eval_time_s=0.0, stamp_s=0.0) for c in store.candidates()]
-        generations = [dataclasses.replace(g, elapsed_s=0.0, stamp_s=0.0) for g in store.generations()]
+        candidates = [dataclasses.replace(c, run_id="", eval_time_s=0.0, stamp_s=0.0) for c in store.candidates()]
+        generations = [dataclasses.replace(g, run_id="", elapsed_s=0.0, stamp_s=0.0) for g in store.generations()]
     return candidates, generations
 
 
@@ -161,3 +161,57 @@ def test_checkpoint_write_is_atomic_and_checked(tmp_path):
     checkpoints.check_same_config(loaded, {"x": 1}, path)
     with pytest.raises(ConfigError, match=r"x: 1 -> 2; y: \(unset\) -> 3"):
         checkpoints.check_same_config(loaded, {"x": 2, "y": 3}, path)
+
+
+def test_cli_run_with_real_physics_killed_and_resumed_equals_uninterrupted(tmp_path, capsys):
+    """`rollability optimize` on a tiny real evaluation (6 variables, 4 trials): SIGKILL after the first stored
+    generation, `--resume`, compare with an uninterrupted run; then `rollability select` on the result."""
+    pytest.importorskip("pybullet")
+    from rollability_ros.cli import main
+
+    config = os.path.join(tmp_path, "tiny.yaml")
+    with open(config, "w") as stream:
+        stream.write(textwrap.dedent(f"""
+            /**:
+              ros__parameters:
+                optimizer: {{popsize: 4, trials: 4, max_generations: 4, seed: 2, output_dir: "{tmp_path}"}}
+                profile: {{rows: 3, cols: 2}}
+                evaluator: {{workers: 1}}
+                selection: {{count: 2, min_distance: 0.0, reevaluate_trials: 2}}
+            """))
+    killed_dir = os.path.join(tmp_path, "killed")
+    child = subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "optimize", "--config", config,
+                              "--run-id", "killed"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while True:
+            assert child.poll() is None, "the run finished before it could be killed"
+            assert time.monotonic() < deadline, "the run stored no generation in time"
+            if os.path.exists(os.path.join(killed_dir, checkpoints.CHECKPOINT_FILENAME)):
+                break
+            time.sleep(0.02)
+        child.send_signal(signal.SIGKILL)
+    finally:
+        child.kill()
+        child.wait()
+    with Store(killed_dir) as store:
+        assert 1 <= len(store.generations()) < 4
+
+    assert main(["optimize", "--resume", killed_dir]) == 0
+    assert main(["optimize", "--config", config, "--run-id", "straight"]) == 0
+    output = capsys.readouterr().out
+    assert "resuming after generation" in output and "gen    4/4" in output
+    killed, straight = comparable(killed_dir), comparable(os.path.join(tmp_path, "straight"))
+    assert killed == straight and len(killed[1]) == 4
+    assert sum(c.successes for c in killed[0]) > 0   # the physics decided something
+
+    other = os.path.join(tmp_path, "other.yaml")
+    with open(config) as source, open(other, "w") as target:
+        target.write(source.read().replace("trials: 4,", "trials: 5,"))
+    assert main(["optimize", "--resume", killed_dir, "--config", other]) == 2
+    assert "optimizer.trials: 4 -> 5" in capsys.readouterr().err
+
+    assert main(["select", killed_dir]) == 0
+    assert "A " in capsys.readouterr().out
+    assert sorted(os.listdir(os.path.join(killed_dir, "designs"))) == [
+        "designs.yaml", "mesh_A.stl", "mesh_B.stl", "table3.csv"]

@@ -1,0 +1,236 @@
+"""The rig's launch sequence without ROS: a real ValveController on the dry-run backend, a simulated speed gate,
+a scripted operator and synthetic IMU streams."""
+import math
+import threading
+import time
+
+import pytest
+from synthetic_imu import piecewise, stream
+
+from rollability_ros.core.records import LaunchCondition
+from rollability_ros.core.rig_session import (ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
+                                              OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
+                                              check_goal, parse_outcome_answer, simulated_outcome, trial_seed)
+from rollability_ros.core.speed_gate import SimulatedSpeedGate, SpeedGateConfig
+from rollability_ros.core.upright import ImuOutcomeConfig
+from rollability_ros.core.valve import RegulatorConfig, ValveController
+from rollability_ros.core.valve_backends import DryRunBackend
+
+CONDITION = LaunchCondition("B", 0.75, 0.8, -30.0, 1)
+
+
+class ScriptedOperator:
+    """Answers the rig from inside on_phase, like a terminal would; records every phase."""
+
+    def __init__(self, channel, outcomes=(), on_armed=None):
+        self.channel = channel
+        self.outcomes = list(outcomes)
+        self.on_armed = on_armed
+        self.phases = []
+
+    def __call__(self, phase, detail):
+        self.phases.append((phase, detail))
+        if phase == "waiting_for_operator":
+            assert detail.startswith(ASK_REGULATOR)
+            assert self.channel.confirm() == (True, "accepted")
+        elif phase == "classifying" and detail.startswith(ASK_OUTCOME):
+            assert self.channel.record_outcome(self.outcomes.pop(0))[0]
+        elif phase == "armed" and self.on_armed:
+            self.on_armed()
+
+
+@pytest.fixture
+def valve():
+    backend = DryRunBackend()
+    controller = ValveController(backend, max_pulse_ms=500, watchdog_ms=200)
+    controller.backend = backend
+    yield controller
+    controller.shutdown()
+
+
+def make_rig(valve, outcome_source="operator", imu=None, noise=0.0, countdown_s=0.0, **settings):
+    settings = RigSettings(**{"backend": "physical", "outcome_source": outcome_source, "countdown_s": countdown_s,
+                              "operator_timeout_s": 2.0, **settings})
+    settings.validate()
+    return PhysicalLaunch(settings, valve, SimulatedSpeedGate(0.34, noise, seed=1), SpeedGateConfig(), 150,
+                          RegulatorConfig(), OperatorChannel(), imu)
+
+
+def test_operator_launch_confirms_regulator_once_per_speed_and_disarms(valve):
+    rig = make_rig(valve)
+    operator = ScriptedOperator(rig.operator, [OperatorOutcome(True), OperatorOutcome(False, note="on its side"),
+                                               OperatorOutcome(True)])
+    first = rig.launch("run", "t0", CONDITION, operator)
+    assert [p for p, _ in operator.phases] == ["waiting_for_operator", "armed", "fired", "in_flight", "settling",
+                                               "classifying"]
+    assert "30 psi" in operator.phases[0][1]
+    assert first.upright and first.backend == "physical" and first.classified_by == "operator"
+    assert math.isclose(first.measured_speed_mps, 0.8) and math.isclose(first.travel_time_s, 0.425)
+    assert not first.speed_out_of_tolerance
+    assert valve.backend.commands == ["start", "close", "open", "close", "close"]  # closed, pulse, disarm
+    assert not valve.status().armed and valve.status().pulses == 1
+    operator.phases.clear()
+    second = rig.launch("run", "t1", CONDITION, operator)        # same speed block: no confirmation
+    assert operator.phases[0][0] == "armed" and not second.upright and second.note == "on its side"
+    operator.phases.clear()
+    rig.launch("run", "t2", LaunchCondition("B", 0.75, 1.5, -30.0, 0), operator)
+    assert operator.phases[0][0] == "waiting_for_operator" and "60 psi" in operator.phases[0][1]
+
+
+def test_out_of_tolerance_speed_is_flagged_and_typed_time_fills_a_missing_gate(valve):
+    rig = make_rig(valve, noise=0.5)
+    flagged = [rig.launch("run", f"t{i}", CONDITION, ScriptedOperator(rig.operator, [OperatorOutcome(True)]))
+               for i in range(6)]
+    assert any(o.speed_out_of_tolerance for o in flagged)
+    for outcome in flagged:
+        assert outcome.speed_out_of_tolerance == (abs(outcome.measured_speed_mps - 0.8) > 0.12)
+        assert ("off the target" in outcome.note) == outcome.speed_out_of_tolerance
+    rig.speed_gate.read_travel_time = lambda timeout_s: math.nan            # gate saw nothing
+    typed = rig.launch("run", "typed", CONDITION, ScriptedOperator(rig.operator, [OperatorOutcome(True, 0.25)]))
+    assert typed.travel_time_s == 0.25 and math.isclose(typed.measured_speed_mps, 1.36)
+    assert typed.speed_out_of_tolerance
+
+
+def test_estop_during_countdown_aborts_and_leaves_the_fault_latched(valve):
+    rig = make_rig(valve, countdown_s=0.3)
+    operator = ScriptedOperator(rig.operator, on_armed=lambda: threading.Timer(0.05, valve.estop).start())
+    with pytest.raises(LaunchAborted, match="e-stop"):
+        rig.launch("run", "t0", CONDITION, operator)
+    status = valve.status()
+    assert status.fault and not status.armed and not status.open and status.pulses == 0
+    assert "open" not in valve.backend.commands
+    with pytest.raises(LaunchAborted, match="refused to arm.*fault latched"):
+        rig.launch("run", "t0", CONDITION, operator)
+    valve.disarm()                                                      # the operator acknowledges
+    operator.on_armed = None
+    operator.outcomes.append(OperatorOutcome(True))
+    assert rig.launch("run", "t0", CONDITION, operator).upright
+
+
+def test_watchdog_trip_aborts_the_launch(valve):
+    rig = make_rig(valve, countdown_s=0.5)                              # no heartbeat: trips after 200 ms
+    operator = ScriptedOperator(rig.operator)
+
+    def watch():
+        while not valve.check_watchdog():
+            time.sleep(0.01)
+
+    operator.on_armed = lambda: threading.Thread(target=watch, daemon=True).start()
+    with pytest.raises(LaunchAborted, match="watchdog"):
+        rig.launch("run", "t0", CONDITION, operator)
+    assert valve.status().fault and not valve.status().open and "open" not in valve.backend.commands
+
+
+def test_operator_timeout_and_cancel_abort(valve):
+    rig = make_rig(valve, operator_timeout_s=0.2)
+    silent = []
+    with pytest.raises(LaunchAborted, match="no operator answer"):
+        rig.launch("run", "t0", CONDITION, lambda phase, detail: silent.append(phase))
+    assert silent == ["waiting_for_operator"] and valve.status().pulses == 0
+    cancel = threading.Event()
+    with pytest.raises(LaunchAborted, match="cancelled"):
+        rig.launch("run", "t0", CONDITION, lambda phase, detail: cancel.set(), cancel.is_set)
+
+
+def test_goal_checks_refuse_with_reasons(valve):
+    rig = make_rig(valve)
+    assert check_goal("run", "t", CONDITION, ["B"]) == ""
+    assert "unknown configuration 'Z'" in check_goal("run", "t", LaunchCondition("Z", 1, 1, 0), ["B"])
+    assert "height_m" in check_goal("run", "t", LaunchCondition("B", -1.0, 0.8, 0), ["B"])
+    assert "finite" in check_goal("run", "t", LaunchCondition("B", math.nan, 0.8, 0), ["B"])
+    assert "non-empty" in check_goal("", "t", CONDITION, ["B"])
+    assert "no regulator pressure" in rig.check("run", "t", LaunchCondition("B", 0.75, 1.1, 0))
+    with pytest.raises(ValueError, match="no regulator pressure"):
+        rig.launch("run", "t", LaunchCondition("B", 0.75, 1.1, 0))
+    assert valve.backend.commands == ["start", "close"]
+
+
+def test_operator_channel_refuses_stray_answers():
+    channel = OperatorChannel()
+    assert channel.confirm() == (False, "the rig is not waiting for a regulator confirmation")
+    channel.open("outcome", "t3")
+    assert not channel.confirm()[0]
+    assert channel.record_outcome(OperatorOutcome(True), "t9") == (
+        False, "the rig waits for the outcome of 't3', not 't9'")
+    assert channel.record_outcome(OperatorOutcome(False), "t3") == (True, "accepted")
+    assert channel.record_outcome(OperatorOutcome(True)) == (False, "already answered")
+    assert channel.wait(1.0) == OperatorOutcome(False)
+    channel.close()
+    assert channel.wait(0.5) is None
+
+
+def test_parse_outcome_answer():
+    assert parse_outcome_answer("y") == OperatorOutcome(True)
+    assert parse_outcome_answer("n 0.43 landed on the lid") == OperatorOutcome(False, 0.43, "landed on the lid")
+    assert parse_outcome_answer("upright wheels down").note == "wheels down"
+    for bad in ("", "maybe", "y -1"):
+        with pytest.raises(ValueError):
+            parse_outcome_answer(bad)
+
+
+def _feed_launch(imu, final_tilt_deg, delay_s=0.05):
+    """Feed a tumble that settles at ``final_tilt_deg`` (synthetic IMU, 200 Hz) after ``delay_s``."""
+    samples = stream(piecewise([(0.0, 0.0), (0.4, 120.0), (0.8, final_tilt_deg)]), 2.0, rate_hz=200.0, seed=3)
+
+    def feed():
+        time.sleep(delay_s)
+        for sample in samples:
+            imu.feed(sample)
+    threading.Thread(target=feed, daemon=True).start()
+
+
+@pytest.mark.parametrize("final_tilt_deg, upright", [(3.0, True), (178.0, False)])
+def test_imu_outcome_classifies_after_settling(valve, final_tilt_deg, upright):
+    imu = ImuOutcome(ImuOutcomeConfig(settle_time_s=0.5, settle_timeout_s=3.0))
+    rig = make_rig(valve, "imu", imu, imu_override_s=0.1)
+    phases = []
+
+    def on_phase(phase, detail):
+        phases.append((phase, detail))
+        if phase == "waiting_for_operator":
+            rig.operator.confirm()
+        if phase == "fired":
+            _feed_launch(imu, final_tilt_deg)
+    outcome = rig.launch("run", "t0", CONDITION, on_phase)
+    assert outcome.classified_by == "imu" and outcome.upright is upright
+    assert phases[-1][0] == "classifying" and "IMU" in phases[-1][1]
+    tilt = math.degrees(2 * math.acos(min(1.0, abs(outcome.final_orientation[3]))))
+    assert abs(tilt - final_tilt_deg) < 10
+
+
+def test_operator_overrides_the_imu_and_answers_when_it_never_settles(valve):
+    imu = ImuOutcome(ImuOutcomeConfig(settle_time_s=0.5, settle_timeout_s=1.5))
+    rig = make_rig(valve, "imu", imu, imu_override_s=1.0)
+
+    def override(phase, detail):
+        if phase == "waiting_for_operator":
+            rig.operator.confirm()
+        if phase == "fired":
+            _feed_launch(imu, 178.0)
+        if phase == "classifying":
+            assert rig.operator.record_outcome(OperatorOutcome(True, note="IMU cable caught"))[0]
+    overridden = rig.launch("run", "t0", CONDITION, override)
+    assert overridden.upright and overridden.classified_by == "operator"
+    assert "overrode the IMU (not upright" in overridden.note and "IMU cable caught" in overridden.note
+
+    asked = []
+
+    def no_imu(phase, detail):
+        asked.append(detail)
+        if phase == "classifying":
+            assert detail.startswith(ASK_OUTCOME) and "did not see the chassis settle" in detail
+            rig.operator.record_outcome(OperatorOutcome(False))
+    silent = rig.launch("run", "t1", CONDITION, no_imu)
+    assert not silent.upright and silent.classified_by == "operator"
+
+
+def test_simulated_outcome_and_trial_seed():
+    class Result:
+        upright = True
+        final_orientation_xyzw = (0.0, 0.0, 0.0, 1.0)
+        travel_time_s = 0.3
+    outcome = simulated_outcome("run", "t", CONDITION, Result(), SpeedGateConfig())
+    assert outcome.backend == "sim" and outcome.classified_by == "sim" and outcome.speed_out_of_tolerance
+    assert "off the target" in outcome.note
+    outcome.validate()
+    assert trial_seed(0, "a/b") == trial_seed(0, "a/b") != trial_seed(1, "a/b")

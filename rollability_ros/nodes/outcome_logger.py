@@ -1,0 +1,119 @@
+"""outcome_logger node: stores every launch outcome, candidate, generation and tip event before acknowledging it.
+
+Subscriptions (reliable, deep queue; :data:`RECORD_QOS`):
+  ``launch_outcomes`` (rollability_ros/LaunchOutcome), ``candidates`` (rollability_ros/CandidateResult),
+  ``generations`` (rollability_ros/GenerationSummary), ``tip_events`` (rollability_ros/TipEvent).
+Publications:
+  ``summary`` (rollability_ros/OutcomeSummary, latched): every run's counts and per-configuration success rates,
+  published at start-up and after every stored outcome or candidate.
+Services:
+  ``get_summary`` (rollability_ros/GetSummary): the same summary, optionally for one run.
+Parameters:
+  ``store_path`` (string, default ``runs/outcomes.sqlite``): SQLite store file or run directory; fixed at
+  start-up.
+
+Acknowledgement: a record is acknowledged -- the INFO line ``stored <kind> <key>`` and, for outcomes and
+candidates, the summary that counts it -- only after the store has committed (fsynced) it, so every
+acknowledged record survives ``kill -9``. A duplicate key (same run and trial id, ...) is stored once and logged
+as a duplicate; a malformed message is logged with the reason and skipped; a store failure (disk full, locked)
+is logged as an error and the record is not acknowledged.
+"""
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.node import Node
+
+from rollability_ros.core.outcome_log import OutcomeLog, OutcomeLoggerSettings, StoreFailure
+from rollability_ros.core.store import unique_key
+from rollability_ros.msg import (CandidateResult, ConfigurationSummary, GenerationSummary, LaunchOutcome,
+                                 OutcomeSummary, TipEvent)
+from rollability_ros.nodes import _convert
+from rollability_ros.nodes._support import LATCHED_QOS, RECORD_QOS, ParameterError, declare_settings, run_node
+from rollability_ros.srv import GetSummary
+
+#: topic -> (message type, message -> record, what the log calls it)
+_RECORD_TOPICS = {
+    "launch_outcomes": (LaunchOutcome, _convert.outcome_from_msg, "launch outcome"),
+    "candidates": (CandidateResult, _convert.candidate_from_msg, "candidate"),
+    "generations": (GenerationSummary, _convert.generation_from_msg, "generation summary"),
+    "tip_events": (TipEvent, _convert.tip_event_from_msg, "tip event"),
+}
+
+
+def summary_to_msg(summary):
+    """:class:`~rollability_ros.core.outcome_log.LogSummary` -> ``OutcomeSummary``."""
+    msg = OutcomeSummary(trials=summary.trials, candidates=summary.candidates)
+    msg.header.stamp = _convert.s_to_stamp(summary.latest_stamp_s)
+    msg.configurations = [
+        ConfigurationSummary(configuration=tally.configuration, trials=tally.trials, successes=tally.successes,
+                             success_rate=float(tally.success_rate), ci_low=float(tally.ci_low),
+                             ci_high=float(tally.ci_high))
+        for tally in summary.configurations]
+    return msg
+
+
+class OutcomeLoggerNode(Node):
+    """Thin adapter: messages -> records -> :class:`OutcomeLog`; summary topic and service."""
+
+    def __init__(self):
+        super().__init__("outcome_logger")
+        settings = declare_settings(self, "", OutcomeLoggerSettings)
+        try:
+            self.log = OutcomeLog.open(settings.store_path)
+        except ValueError as exc:
+            raise ParameterError(f"store_path: {exc}") from exc
+        self.add_on_set_parameters_callback(self._refuse_store_change)
+        self.summary_publisher = self.create_publisher(OutcomeSummary, "summary", LATCHED_QOS)
+        records_group = MutuallyExclusiveCallbackGroup()   # one writer: records are stored in arrival order
+        for topic, (msg_type, convert, kind) in _RECORD_TOPICS.items():
+            self.create_subscription(msg_type, topic, self._make_callback(convert, kind), RECORD_QOS,
+                                     callback_group=records_group)
+        self.create_service(GetSummary, "get_summary", self._get_summary, callback_group=ReentrantCallbackGroup())
+        summary = self.log.summary()
+        self.summary_publisher.publish(summary_to_msg(summary))
+        self.get_logger().info(f"storing to {self.log.store.path}: {summary.trials} launch outcomes and "
+                               f"{summary.candidates} candidates already stored")
+
+    def _refuse_store_change(self, params):
+        if any(p.name == "store_path" for p in params):
+            return SetParametersResult(successful=False, reason="store_path is fixed at start-up; restart the node")
+        return SetParametersResult(successful=True)
+
+    def _make_callback(self, convert, kind):
+        def on_message(msg):
+            self._store(msg, convert, kind)
+        return on_message
+
+    def _store(self, msg, convert, kind):
+        logger = self.get_logger()
+        try:
+            record = convert(msg)
+            key = "/".join(str(part) for part in unique_key(record))
+            stored = self.log.add(record)
+        except (ValueError, TypeError) as exc:
+            logger.warning(f"skipped malformed {kind}: {exc}")
+            return
+        except StoreFailure as exc:
+            logger.error(f"STORE FAILURE: {kind} {key} NOT stored and NOT acknowledged: {exc}")
+            return
+        if not stored:
+            logger.warning(f"duplicate {kind} {key}: already stored, ignored")
+            return
+        logger.info(f"stored {kind} {key}")
+        if kind in ("launch outcome", "candidate"):
+            self.summary_publisher.publish(summary_to_msg(self.log.summary()))
+
+    def _get_summary(self, request, response):
+        response.summary = summary_to_msg(self.log.summary(request.run_id or None))
+        return response
+
+    def close(self):
+        """Close the store (run_node calls this before destroying the node)."""
+        self.log.close()
+
+
+def main(args=None):
+    return run_node(OutcomeLoggerNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

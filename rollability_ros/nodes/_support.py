@@ -6,7 +6,9 @@ calls that would make them invalid (``SetParametersResult(successful=False, reas
 """
 import dataclasses
 import math
+import signal
 import sys
+import threading
 import typing
 
 import rclpy
@@ -152,6 +154,8 @@ def run_node(node_factory, args=None, threads=4):
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the safe shutdown short
         if node is not None:
             close = getattr(node, "close", None)
             if callable(close):

@@ -1,0 +1,146 @@
+"""sim_evaluator: serves the EvaluateProfile action with PyBullet trials (``core.evaluation``).
+
+Interfaces (relative names; run several side by side in different namespaces):
+- action ``evaluate_profile`` (rollability_ros/action/EvaluateProfile): feedback per finished trial batch,
+  cancel honoured between batches, result with fitness, Wilson interval and every trial's outcome.
+
+Parameters: the namespaces of config/sim.yaml (``sim``, ``trial``), config/robot.yaml (``robot``, ``profile``,
+``printer``) and config/evaluator.yaml (``evaluator``), each declared with a description and validated; an
+invalid ``ros2 param set`` is refused. ``evaluator.workers`` and ``evaluator.ray_address`` take effect at start.
+Goals are evaluated one at a time, each over the whole worker pool; bad goals are rejected with the reason logged.
+"""
+import dataclasses
+import math
+import sys
+import threading
+
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+
+from rollability_ros.action import EvaluateProfile
+from rollability_ros.core.evaluation import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
+                                             evaluate_profile, make_executor)
+from rollability_ros.core.geometry import check_heights
+from rollability_ros.msg import TrialResult
+from rollability_ros.nodes._support import declare_settings, guard_settings, run_node
+
+
+class _CancelRequested:
+    """Event-like view of a goal's cancel request, polled by the evaluation between batches."""
+
+    def __init__(self, goal_handle):
+        self._goal_handle = goal_handle
+
+    def is_set(self):
+        return self._goal_handle.is_cancel_requested
+
+
+def _trial_msgs(outcomes):
+    return [TrialResult(index=o.index, seed=o.seed, upright=bool(o.upright), settled=bool(o.settled),
+                        steps=int(o.steps), tilt_deg=float(o.tilt_deg)) for o in outcomes]
+
+
+class SimEvaluator(Node):
+    """Adapts :func:`rollability_ros.core.evaluation.evaluate_profile` to the EvaluateProfile action."""
+
+    def __init__(self):
+        super().__init__("sim_evaluator")
+        sections = {}
+        for field in dataclasses.fields(EvaluatorSettings):
+            prefix = SETTINGS_SECTIONS[field.name]
+            sections[field.name] = declare_settings(self, prefix, field.type)
+            guard_settings(self, prefix, field.type, on_change=self._setter(field.name))
+        self._settings = EvaluatorSettings(**sections)
+        self._pool = make_executor(self._settings.evaluator)
+        self._busy = threading.Lock()
+        ActionServer(self, EvaluateProfile, "evaluate_profile", execute_callback=self._execute,
+                     goal_callback=self._check_goal, cancel_callback=lambda _goal: CancelResponse.ACCEPT,
+                     callback_group=ReentrantCallbackGroup())
+        where = self._settings.evaluator.ray_address or f"{getattr(self._pool, 'workers', 1)} local worker(s)"
+        self.get_logger().info(f"ready: evaluate_profile on {where}, grid "
+                               f"{self._settings.grid.rows}x{self._settings.grid.cols}")
+
+    def _setter(self, name):
+        def apply(value):
+            self._settings = dataclasses.replace(self._settings, **{name: value})
+        return apply
+
+    def goal_problem(self, goal):
+        """Why ``goal`` cannot be evaluated, or None."""
+        settings = self._settings
+        if not 1 <= goal.trials <= settings.evaluator.max_trials:
+            return f"trials must be in [1, {settings.evaluator.max_trials}], got {goal.trials}"
+        if len(goal.heights):
+            if not all(math.isfinite(h) for h in goal.heights):
+                return "heights contain NaN or infinity"
+            try:
+                check_heights(list(goal.heights), settings.grid)
+            except ValueError as exc:
+                return str(exc)
+        return None
+
+    def _check_goal(self, goal):
+        problem = self.goal_problem(goal)
+        if problem:
+            self.get_logger().warning(f"rejected evaluate_profile goal: {problem}")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _execute(self, goal_handle):
+        request = goal_handle.request
+        progress = {"done": 0, "upright": 0}
+
+        def on_trial(outcome):
+            progress["done"] += 1
+            progress["upright"] += int(outcome.upright)
+            goal_handle.publish_feedback(EvaluateProfile.Feedback(trials_done=progress["done"],
+                                                                  successes_so_far=progress["upright"]))
+
+        result = EvaluateProfile.Result(evaluator=self.get_fully_qualified_name())
+        with self._busy:
+            try:
+                evaluation = evaluate_profile(list(request.heights) or None, request.trials, request.seed,
+                                              self._settings, executor=self._pool, on_trial=on_trial,
+                                              cancel_event=_CancelRequested(goal_handle))
+            except EvaluationCancelled as exc:
+                goal_handle.canceled()
+                result.trials = len(exc.outcomes)
+                result.successes = sum(o.upright for o in exc.outcomes)
+                result.trial_results = _trial_msgs(exc.outcomes)
+                result.message = str(exc)
+                return result
+            except Exception as exc:  # a broken worker pool or physics error must not take the node down
+                self.get_logger().error(f"evaluation failed: {exc!r}")
+                self._replace_broken_pool()
+                goal_handle.abort()
+                result.message = f"evaluation failed: {exc}"
+                return result
+        goal_handle.succeed()
+        result.fitness = evaluation.fitness
+        result.successes = evaluation.successes
+        result.trials = evaluation.trials
+        result.ci_low = evaluation.ci_low
+        result.ci_high = evaluation.ci_high
+        result.eval_time_s = evaluation.eval_time_s
+        result.trial_results = _trial_msgs(evaluation.trial_results)
+        return result
+
+    def _replace_broken_pool(self):
+        try:
+            self._pool.close()
+        except Exception as exc:
+            self.get_logger().warning(f"closing the broken worker pool: {exc!r}")
+        self._pool = make_executor(self._settings.evaluator)
+
+    def close(self):
+        """Stop the worker processes."""
+        self._pool.close()
+
+
+def main(args=None):
+    return run_node(SimEvaluator, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Sets everything up (scripts/setup.sh), then runs the whole test suite. Extra arguments go to pytest.
+# The report test opens the HTML report in a real headless browser (Debian's chromium); when chromium is missing
+# and this runs as root with apt-get available, it is installed here so nothing needs installing by hand.
+set -euo pipefail
+repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+"$repo/scripts/setup.sh"
+if ! command -v chromium >/dev/null 2>&1 && [ ! -x /usr/bin/chromium ]; then
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    echo "test: installing Debian's chromium for the report's browser test"
+    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) \
+      || echo "test: warning: could not install chromium; the browser test will say so"
+  else
+    echo "test: note: chromium is not installed (Debian: apt-get install chromium); the browser test will say so"
+  fi
+fi
+cd "$repo"
+exec "$repo/.venv/bin/python" -m pytest "$@"

@@ -1,0 +1,109 @@
+"""sim_evaluator over real DDS: results equal the in-process core, bad goals rejected, cancel honoured,
+two evaluators side by side in their own namespaces."""
+import math
+
+import pytest
+from action_msgs.msg import GoalStatus
+from rclpy.action import ActionClient
+
+from rollability_ros.action import EvaluateProfile
+
+
+def _wait(ros_node, future, timeout_s=60):
+    assert ros_node.wait_for(future.done, timeout_s), "timed out waiting for the action server"
+    return future.result()
+
+
+def _client(ros_node, name):
+    client = ActionClient(ros_node.node, EvaluateProfile, name)
+    assert client.wait_for_server(timeout_sec=60), f"no action server {name}"
+    return client
+
+
+def _send(ros_node, client, heights, trials, seed, feedback=None):
+    goal = EvaluateProfile.Goal(heights=list(heights), trials=trials, seed=seed)
+    return _wait(ros_node, client.send_goal_async(goal, feedback_callback=feedback))
+
+
+@pytest.fixture
+def evaluator(start_node):
+    return start_node("sim_evaluator", params={"evaluator.workers": 2})
+
+
+def _ridge(n_rows=10, n_cols=10, height=0.4):
+    heights = [0.0] * (n_rows * n_cols)
+    for row in range(n_rows):
+        heights[row * n_cols] = height       # the column on the centre line, all along the length
+    return heights
+
+
+def test_results_equal_the_core_and_carry_feedback(ros_node, evaluator):
+    from rollability_ros.core.evaluation import evaluate_profile, load_settings
+
+    client = _client(ros_node, "/evaluate_profile")
+    feedback = []
+    handle = _send(ros_node, client, _ridge(), 10, 1234, lambda fb: feedback.append(fb.feedback.trials_done))
+    assert handle.accepted
+    response = _wait(ros_node, handle.get_result_async())
+    assert response.status == GoalStatus.STATUS_SUCCEEDED, response.result.message
+    result = response.result
+    expected = evaluate_profile(_ridge(), 10, 1234, load_settings())
+    assert (result.successes, result.trials) == (expected.successes, expected.trials)
+    assert [t.upright for t in result.trial_results] == [t.upright for t in expected.trial_results]
+    assert [t.steps for t in result.trial_results] == [t.steps for t in expected.trial_results]
+    assert math.isclose(result.fitness, expected.fitness) and result.ci_low <= result.fitness <= result.ci_high
+    assert result.evaluator == "/sim_evaluator"
+    assert ros_node.wait_for(lambda: feedback and feedback[-1] == 10, 5), feedback
+
+    baseline = _wait(ros_node, _send(ros_node, client, [], 4, 1).get_result_async())
+    assert baseline.status == GoalStatus.STATUS_SUCCEEDED and baseline.result.trials == 4
+
+
+@pytest.mark.parametrize("heights, trials, why", [
+    ([0.1] * 99, 4, "wrong length"),
+    ([float("nan")] + [0.1] * 99, 4, "NaN"),
+    ([0.9] * 100, 4, "out of bounds"),
+    ([-0.1] * 100, 4, "negative"),
+    ([0.1] * 100, 0, "no trials"),
+    ([0.1] * 100, 10_000_000, "absurdly many trials"),
+])
+def test_bad_goals_are_rejected_and_the_node_survives(ros_node, evaluator, heights, trials, why):
+    client = _client(ros_node, "/evaluate_profile")
+    handle = _send(ros_node, client, heights, trials, 1)
+    assert not handle.accepted, why
+    assert ros_node.wait_for(lambda: "rejected evaluate_profile goal" in evaluator.log(), 10), evaluator.log()
+    good = _send(ros_node, client, [], 2, 1)
+    assert good.accepted and evaluator.alive()
+    assert _wait(ros_node, good.get_result_async()).status == GoalStatus.STATUS_SUCCEEDED
+
+
+def test_cancel_is_honoured(ros_node, evaluator):
+    client = _client(ros_node, "/evaluate_profile")
+    feedback = []
+    handle = _send(ros_node, client, _ridge(), 2000, 5, lambda fb: feedback.append(fb.feedback.trials_done))
+    assert handle.accepted
+    assert ros_node.wait_for(lambda: feedback, 60)
+    _wait(ros_node, handle.cancel_goal_async())
+    response = _wait(ros_node, handle.get_result_async())
+    assert response.status == GoalStatus.STATUS_CANCELED
+    assert 0 < response.result.trials < 2000 and "cancelled" in response.result.message
+
+
+def test_two_evaluators_side_by_side(ros_node, start_node):
+    for namespace in ("eval_a", "eval_b"):
+        start_node("sim_evaluator", params={"evaluator.workers": 1}, ros_args=["-r", f"__ns:=/{namespace}"],
+                   name=namespace)
+    results = {}
+    for namespace in ("eval_a", "eval_b"):
+        client = _client(ros_node, f"/{namespace}/evaluate_profile")
+        response = _wait(ros_node, _send(ros_node, client, [], 3, 9).get_result_async())
+        results[namespace] = response.result
+    assert results["eval_a"].evaluator == "/eval_a/sim_evaluator"
+    assert results["eval_b"].evaluator == "/eval_b/sim_evaluator"
+    assert [t.upright for t in results["eval_a"].trial_results] == [t.upright for t in results["eval_b"].trial_results]
+
+
+def test_invalid_parameters_are_refused(start_node):
+    node = start_node("sim_evaluator", params={"sim.time_step_s": -1.0})
+    assert node.process.wait(timeout=60) == 2
+    assert "time_step_s" in node.log()

@@ -1,0 +1,179 @@
+"""Supervise a node graph as separate OS processes: start in order, restart or stop on death, stop in order.
+
+Each child runs in its own session (process group), so a Ctrl-C on the terminal reaches only the supervisor,
+which then stops the children itself in reverse start order (the recorder, started first, stops last and
+closes its bag after everything else has been recorded). A child that dies is restarted up to
+``max_restarts`` times when its spec says ``restart=True``; a ``critical`` child that dies for good stops the
+whole graph cleanly, so a run is never left half alive.
+"""
+import dataclasses
+import os
+import signal
+import subprocess
+import time
+
+
+@dataclasses.dataclass
+class ProcessSpec:
+    """One supervised process.
+
+    ``argv`` is the full command; ``restart``: restart it when it exits while the graph runs; ``critical``: if it
+    exits for good (no restart left), stop the graph; ``stop_timeout_s``: how long SIGINT gets before SIGTERM, and
+    SIGTERM before SIGKILL.
+    """
+
+    name: str
+    argv: list
+    restart: bool = True
+    max_restarts: int = 3
+    critical: bool = True
+    stop_timeout_s: float = 10.0
+    env: dict = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass
+class SupervisorEvent:
+    """Something the operator should see: ``kind`` is started | exited | restarted | gave_up | stopping | stopped."""
+
+    kind: str
+    name: str
+    detail: str = ""
+
+    def text(self):
+        return f"[{self.name}] {self.kind}" + (f": {self.detail}" if self.detail else "")
+
+
+class _Child:
+    def __init__(self, spec, log_dir):
+        self.spec = spec
+        self.restarts = 0
+        self.process = None
+        self.log_path = os.path.join(log_dir, f"{spec.name}.log")
+        self.finished = False   # exited and not to be restarted
+
+    def start(self):
+        log = open(self.log_path, "ab")
+        env = dict(os.environ, **self.spec.env)
+        try:
+            self.process = subprocess.Popen(self.spec.argv, stdout=log, stderr=subprocess.STDOUT, env=env,
+                                            start_new_session=True, stdin=subprocess.DEVNULL)
+        finally:
+            log.close()
+
+    def alive(self):
+        return self.process is not None and self.process.poll() is None
+
+    def tail(self, lines=5):
+        try:
+            with open(self.log_path, encoding="utf-8", errors="replace") as stream:
+                return "".join(stream.readlines()[-lines:]).strip()
+        except OSError:
+            return ""
+
+
+class Supervisor:
+    """Starts, watches and stops a list of :class:`ProcessSpec` (in list order; stopped in reverse).
+
+    Parameters
+    ----------
+    specs : list of ProcessSpec
+    log_dir : str
+        Each child's stdout and stderr go to ``<log_dir>/<name>.log``.
+    on_event : callable(SupervisorEvent), optional
+        Progress reporting (default: print).
+    """
+
+    def __init__(self, specs, log_dir, on_event=None):
+        names = [spec.name for spec in specs]
+        if len(set(names)) != len(names):
+            raise ValueError(f"process names must be unique, got {names}")
+        os.makedirs(log_dir, exist_ok=True)
+        self.log_dir = log_dir
+        self._children = [_Child(spec, log_dir) for spec in specs]
+        self._on_event = on_event or (lambda event: print(event.text(), flush=True))
+        self.failed = ""   # why the graph was stopped, when a critical child died for good
+
+    def _emit(self, kind, child, detail=""):
+        self._on_event(SupervisorEvent(kind, child.spec.name, detail))
+
+    def child(self, name):
+        """The ``subprocess.Popen`` of the named process (None before start)."""
+        for child in self._children:
+            if child.spec.name == name:
+                return child.process
+        raise KeyError(name)
+
+    def add(self, spec):
+        """Add and start one more process while the graph runs (e.g. the rig once designs exist)."""
+        if any(child.spec.name == spec.name for child in self._children):
+            raise ValueError(f"a process named {spec.name!r} is already supervised")
+        child = _Child(spec, self.log_dir)
+        self._children.append(child)
+        child.start()
+        self._emit("started", child, f"pid {child.process.pid}")
+
+    def start(self):
+        """Start every process in order."""
+        for child in self._children:
+            if child.process is None:
+                child.start()
+                self._emit("started", child, f"pid {child.process.pid}")
+
+    def poll(self):
+        """Check every child once: restart the dead ones that may restart; return False when the graph must stop."""
+        for child in self._children:
+            if child.finished or child.alive() or child.process is None:
+                continue
+            code = child.process.returncode
+            self._emit("exited", child, f"exit code {code}; last log lines:\n{child.tail()}")
+            if child.spec.restart and child.restarts < child.spec.max_restarts:
+                child.restarts += 1
+                child.start()
+                self._emit("restarted", child, f"attempt {child.restarts} of {child.spec.max_restarts}")
+                continue
+            child.finished = True
+            if child.spec.critical:
+                self.failed = f"{child.spec.name} exited with code {code} and was not restarted"
+                self._emit("gave_up", child, "stopping the whole graph")
+                return False
+        return True
+
+    def finish(self, name):
+        """Mark a process as expected to end (e.g. a one-shot job): its exit is no failure, and it is not restarted."""
+        for child in self._children:
+            if child.spec.name == name:
+                child.spec.restart = False
+                child.spec.critical = False
+                return
+        raise KeyError(name)
+
+    def wait_for_exit(self, name, timeout_s=None, period_s=0.2, stop_requested=lambda: False):
+        """Supervise until process ``name`` exits; return its exit code, or None on timeout / graph failure / stop."""
+        self.finish(name)
+        process = self.child(name)
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        while process.poll() is None:
+            if stop_requested() or not self.poll() or (deadline is not None and time.monotonic() > deadline):
+                return None
+            time.sleep(period_s)
+        return process.returncode
+
+    def stop(self):
+        """Stop every running child in reverse start order: SIGINT, then SIGTERM, then SIGKILL."""
+        for child in reversed(self._children):
+            child.finished = True
+            if not child.alive():
+                continue
+            self._emit("stopping", child)
+            code = None
+            for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+                try:
+                    os.killpg(child.process.pid, signum)
+                except ProcessLookupError:
+                    break
+                try:
+                    code = child.process.wait(timeout=child.spec.stop_timeout_s)
+                    break
+                except subprocess.TimeoutExpired:
+                    continue
+            self._emit("stopped", child, f"exit code {code if code is not None else child.process.wait()}")

@@ -1,0 +1,88 @@
+"""The process supervisor: order, restart on death, give up and stop everything, stop in reverse order."""
+import os
+import signal
+import sys
+import time
+
+from rollability_ros.core.supervisor import ProcessSpec, Supervisor
+
+# A child that logs its start and its SIGINT, then exits 0 on SIGINT (like a node) unless told to ignore it.
+CHILD = """
+import signal, sys, time
+name, mode = sys.argv[1], sys.argv[2]
+print("start", name, flush=True)
+def on_int(*_):
+    print("sigint", name, time.monotonic(), flush=True)
+    if mode != "stubborn":
+        sys.exit(0)
+signal.signal(signal.SIGINT, on_int)
+if mode == "crash":
+    time.sleep(0.2); sys.exit(3)
+while True:
+    time.sleep(0.05)
+"""
+
+
+def _spec(tmp_path, name, mode="run", **kwargs):
+    script = tmp_path / "child.py"
+    script.write_text(CHILD)
+    kwargs.setdefault("stop_timeout_s", 2.0)
+    return ProcessSpec(name=name, argv=[sys.executable, str(script), name, mode], **kwargs)
+
+
+def _events(collected):
+    return [(event.kind, event.name) for event in collected]
+
+
+def _log(supervisor, name):
+    return open(os.path.join(supervisor.log_dir, f"{name}.log")).read()
+
+
+def test_stops_in_reverse_order(tmp_path):
+    events = []
+    sup = Supervisor([_spec(tmp_path, "recorder"), _spec(tmp_path, "rig")], str(tmp_path / "logs"), events.append)
+    sup.start()
+    time.sleep(0.5)
+    assert sup.poll()
+    sup.stop()
+    assert _events(events)[-4:] == [("stopping", "rig"), ("stopped", "rig"), ("stopping", "recorder"),
+                                    ("stopped", "recorder")]
+    rig_stop = float(_log(sup, "rig").split("sigint rig")[1].split()[0])
+    recorder_stop = float(_log(sup, "recorder").split("sigint recorder")[1].split()[0])
+    assert rig_stop < recorder_stop
+
+
+def test_restarts_then_gives_up_and_stops_the_graph(tmp_path):
+    events = []
+    sup = Supervisor([_spec(tmp_path, "steady"), _spec(tmp_path, "flaky", "crash", max_restarts=2)],
+                     str(tmp_path / "logs"), events.append)
+    sup.start()
+    deadline = time.monotonic() + 20
+    while sup.poll() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert ("restarted", "flaky") in _events(events)
+    assert sum(1 for kind, name in _events(events) if kind == "restarted") == 2
+    assert ("gave_up", "flaky") in _events(events) and "flaky exited with code 3" in sup.failed
+    assert "exit code 3" in [e.detail for e in events if e.kind == "exited"][0]
+    sup.stop()
+    assert sup.child("steady").returncode == 0        # the healthy node was stopped cleanly, not left alive
+
+
+def test_a_stubborn_child_is_killed(tmp_path):
+    sup = Supervisor([_spec(tmp_path, "stubborn", "stubborn", stop_timeout_s=0.5)], str(tmp_path / "logs"),
+                     lambda event: None)
+    sup.start()
+    time.sleep(0.5)
+    sup.stop()
+    assert sup.child("stubborn").returncode in (-signal.SIGTERM, -signal.SIGKILL)
+
+
+def test_a_finished_job_is_not_a_failure(tmp_path):
+    script = tmp_path / "job.py"
+    script.write_text("print('done')\n")
+    sup = Supervisor([_spec(tmp_path, "node"), ProcessSpec("job", [sys.executable, str(script)])],
+                     str(tmp_path / "logs"), lambda event: None)
+    sup.start()
+    assert sup.wait_for_exit("job", timeout_s=20) == 0
+    assert sup.poll() and sup.failed == ""
+    sup.stop()

@@ -97,6 +97,9 @@ def run(args):
     finally:
         executor.close()
     best = result.best
+    if best is None:
+        print(f"stopped before a generation completed ({', '.join(result.stop)})")
+        return 0
     print(f"stopped after {result.generations} generations, {result.evaluations} evaluations "
           f"({', '.join(result.stop) or 'no criterion'}); best fitness {best.fitness:.3f} over {best.trials} trials "
           f"(first seen in generation {best.generation + 1})")

@@ -151,8 +151,12 @@ class OptimisationRun:
             raise ConfigError(f"cannot resume run {self.run_id}: the configuration differs from its "
                               f"{RUN_CONFIG_FILENAME} ({'; '.join(differences[:8])}"
                               f"{'; ...' if len(differences) > 8 else ''}); resume with the run's own config")
+        return self._from_checkpoint()
+
+    def _from_checkpoint(self):
+        """The optimiser as of the last checkpoint (a fresh one if generation 0 never completed)."""
         state = checkpoints.load_checkpoint(self.checkpoint_path)
-        if state is None:  # killed during generation 0: start again, reusing what was stored
+        if state is None:
             return self._new_optimizer()
         checkpoints.check_same_config(state, self.parameters, self.checkpoint_path)
         return ProfileOptimizer.from_state_dict(state["optimizer"], self.grid.n_variables, self.settings,
@@ -160,7 +164,18 @@ class OptimisationRun:
 
     # --- one generation ---------------------------------------------------------------------------------------
     def step(self):
-        """Evaluate, log and checkpoint one generation; return its :class:`GenerationRecord`."""
+        """Evaluate, log and checkpoint one generation; return its :class:`GenerationRecord`.
+
+        If the evaluator raises, the optimiser is rolled back to the last checkpoint before the error propagates,
+        so ``step()`` can simply be called again (it re-asks the same population and reuses stored candidates).
+        """
+        try:
+            return self._step()
+        except BaseException:
+            self.optimizer = self._from_checkpoint()
+            raise
+
+    def _step(self):
         optimizer, settings = self.optimizer, self.settings
         generation = optimizer.generation
         stored = {c.index: c for c in self.store.candidates(run_id=self.run_id, generation=generation)}

@@ -128,6 +128,27 @@ def test_killed_in_generation_zero_resumes_from_scratch(tmp_path):
     assert comparable(run_dir) == comparable(uninterrupted(tmp_path, True)[0])
 
 
+def test_after_an_evaluator_error_the_same_run_object_continues_identically(tmp_path):
+    """The node's case: an evaluation fails mid-generation (no evaluator left); step() again later."""
+    run_dir = os.path.join(tmp_path, "run")
+    healthy = SyntheticEvaluator(OPTIMUM, trials=30)
+    calls = []
+
+    def flaky(heights_list, seed):
+        calls.append(seed)
+        if len(calls) == 2 * 3 + 2:       # generation 3's incumbent re-evaluation, after its population
+            raise RuntimeError("evaluator went away")
+        return healthy(heights_list, seed)
+
+    run = OptimisationRun(run_dir, parameters(), GRID, flaky)
+    with pytest.raises(RuntimeError, match="went away"):
+        run.run()
+    assert run.optimizer.generation == 3
+    run.run()
+    run.close()
+    assert comparable(run_dir) == comparable(uninterrupted(tmp_path, True)[0])
+
+
 def test_a_different_config_refuses_to_resume(tmp_path):
     run_dir = os.path.join(tmp_path, "run")
     run = OptimisationRun(run_dir, parameters(**{"optimizer.max_generations": 2}), GRID,

@@ -125,9 +125,10 @@ class OptimisationRun:
         self.checkpoint_path = os.path.join(self.run_dir, checkpoints.CHECKPOINT_FILENAME)
         self.optimizer = self._resume() if resume else self._start()
         self.store = Store(self.run_dir)
-        self.store.set_run_info(self.run_id, RUN_KIND, {"n_variables": grid.n_variables,
-                                                        "popsize": self.settings.popsize,
-                                                        "seed": self.settings.seed})
+        described = self.store.run_info(self.run_id)  # keep what selection added on an earlier pass
+        info = dict(described["info"]) if described else {}
+        info.update(n_variables=grid.n_variables, popsize=self.settings.popsize, seed=self.settings.seed)
+        self.store.set_run_info(self.run_id, RUN_KIND, info)
         self._session_start_generation = self.optimizer.generation
         self._session_start_s = clock()
 

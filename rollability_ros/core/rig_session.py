@@ -21,6 +21,7 @@ that is the operator's decision.
 :func:`simulated_outcome` turns the launch twin's result into an outcome for the ``sim`` backend.
 """
 import dataclasses
+import importlib
 import math
 import threading
 import time
@@ -371,6 +372,33 @@ class PhysicalLaunch:
         detail = f"{ASK_OUTCOME} of {trial_id}: upright or not" + (
             " (the IMU did not see the chassis settle)" if self.settings.outcome_source == "imu" else "")
         return self._ask("outcome", trial_id, "classifying", detail, on_phase, cancelled), None
+
+
+class SimulatedLaunch:
+    """Launches on the launch twin (``rollability_ros.core.launch_twin``), imported at the first launch so the
+    physical rig runs without pybullet installed.
+
+    Parameters
+    ----------
+    settings : RigSettings
+        ``seed`` is mixed with each trial id (:func:`trial_seed`): a trial's outcome is reproducible.
+    speed_config : SpeedGateConfig
+        Tolerance of the speed check on the twin's travel time.
+    twin_settings : object, optional
+        The twin's settings; None uses the twin's defaults.
+    """
+
+    def __init__(self, settings, speed_config, twin_settings=None):
+        self.settings = settings
+        self.speed_config = speed_config
+        self.twin_settings = twin_settings
+
+    def launch(self, run_id, trial_id, condition, on_phase=_no_phase, on_pose=None):
+        """Simulate one launch and return its :class:`LaunchOutcome` (``backend="sim"``)."""
+        twin = importlib.import_module("rollability_ros.core.launch_twin")
+        result = twin.simulate_launch(condition, self.twin_settings, trial_seed(self.settings.seed, trial_id),
+                                      on_phase=lambda phase: on_phase(phase, "launch twin"), on_pose=on_pose)
+        return simulated_outcome(run_id, trial_id, condition, result, self.speed_config)
 
 
 def speed_note(speed, target_mps, tolerance_fraction):

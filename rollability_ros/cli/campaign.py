@@ -1,0 +1,89 @@
+"""`rollability campaign`: run the launch campaign (paper 2.2.6) in this process or through the node graph."""
+
+
+def register(subparsers):
+    parser = subparsers.add_parser(
+        "campaign", help="run the launch campaign on the launch twin or the physical rig, resumably",
+        description="Run every trial of the campaign matrix not yet stored. Without --graph the rig runs in this "
+                    "process (sim: the launch twin; physical: the valve, speed gate and your answers at the "
+                    "terminal) and this command writes the store. With --graph it sends Launch goals to a running "
+                    "rig node and waits until the outcome_logger has stored each outcome (one writer). "
+                    "Physical runs tell you what to change before each trial and wait for Enter; sim runs "
+                    "unattended. Exit code 0 when complete, 3 when stopped early (rerun with --resume).")
+    parser.add_argument("--backend", choices=("sim", "physical"), required=True,
+                        help="sim: unattended launch twin; physical: the pneumatic launcher with an operator")
+    parser.add_argument("--config", action="append", default=None,
+                        help="campaign parameter file(s) (default: the shipped config/campaign.yaml)")
+    parser.add_argument("--rig-config", action="append", default=None,
+                        help="rig parameter file(s) for the in-process rig (default: config/rig.yaml)")
+    parser.add_argument("--store", required=True,
+                        help="store file or run directory (with --graph: the one the outcome_logger writes)")
+    parser.add_argument("--run-id", help="override campaign.run_id (the store key of the campaign)")
+    parser.add_argument("--resume", action="store_true", help="continue a run that already has stored trials")
+    parser.add_argument("--graph", action="store_true",
+                        help="launch through the rig node (ROS 2) instead of in this process")
+    parser.add_argument("--store-timeout-s", type=float, default=10.0,
+                        help="with --graph: longest wait for the logger to store an outcome, s (default 10)")
+    parser.set_defaults(func=run)
+
+
+def _spec(args):
+    import dataclasses
+
+    from rollability_ros.core.campaign import load_campaign_spec
+
+    spec = load_campaign_spec(args.config or ["campaign"])
+    if args.run_id:
+        spec = dataclasses.replace(spec, run_id=args.run_id)
+        spec.validate()
+    return spec
+
+
+def run(args):
+    spec = _spec(args)
+    ask = input if args.backend == "physical" else None
+    if args.graph:
+        return _run_graph(args, spec, ask)
+    return _run_local(args, spec, ask)
+
+
+def _run_local(args, spec, ask):
+    from rollability_ros.core.campaign import plan_trials
+    from rollability_ros.core.campaign_runner import (LocalRig, report_exit_code, resume_refusal, run_campaign,
+                                                      store_writer)
+    from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.store import Store
+
+    with Store(args.store) as store:
+        stored = store.trial_ids(spec.run_id)
+        refusal = resume_refusal(len(stored), args.resume, spec.run_id)
+        if refusal:
+            raise ValueError(refusal)
+        rig = LocalRig(args.backend, load_parameters(args.rig_config or ["rig"]), ask or input)
+        try:
+            report = run_campaign(plan_trials(spec), spec.run_id, stored, lambda trial: rig.launch(spec.run_id, trial),
+                                  store_writer(store), ask=ask)
+        finally:
+            rig.close()
+    return report_exit_code(report)
+
+
+def _run_graph(args, spec, ask):
+    import rclpy
+    from rclpy.node import Node
+
+    from rollability_ros.core.campaign_runner import RunnerSettings, report_exit_code
+    from rollability_ros.nodes.campaign_runner import run_graph_campaign, spin_in_background
+
+    settings = RunnerSettings(backend=args.backend, store_path=args.store, resume=args.resume,
+                              store_timeout_s=args.store_timeout_s)
+    settings.validate()
+    rclpy.init(args=[])
+    node = Node("campaign_runner")
+    executor = spin_in_background(node)
+    try:
+        return report_exit_code(run_graph_campaign(node, spec, settings, ask))
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()

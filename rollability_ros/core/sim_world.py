@@ -1,0 +1,106 @@
+"""PyBullet physics parameters and world building: one DIRECT client per simulation, its id passed to every call.
+
+Contact parameters and how Bullet combines them
+-----------------------------------------------
+Bullet combines the parameters of two touching bodies per contact: friction ``mu_a * mu_b``, restitution
+``e_a * e_b``, rolling ``r_a * mu_b + r_b * mu_a`` and spinning likewise (btManifoldResult). ``contact_model``
+says what the paper's numbers (``config/sim.yaml``) mean:
+
+``per_contact`` (default)
+    they are the values of the robot-ground contact: the robot gets them and the ground gets friction 1,
+    restitution 1, rolling 0, spinning 0, so every combined value equals the configured one (a box slides on a
+    slope steeper than atan(0.35) = 19.3 deg).
+``per_body``
+    every body gets them and Bullet multiplies: effective friction 0.35 * 0.35 = 0.1225 (slides above 7.0
+    deg), restitution 0.09, rolling 2 * 0.01 * 0.35 = 0.007.
+
+``test/core/test_physics.py`` puts a box on slopes either side of atan(mu_effective) in both models.
+"""
+import dataclasses
+import math
+
+from rollability_ros.core.optional import require
+
+CONTACT_MODELS = ("per_contact", "per_body")
+
+
+@dataclasses.dataclass
+class PhysicsParams:
+    """Simulation constants (``config/sim.yaml``, section ``sim``); SI units, friction coefficients unitless."""
+
+    gravity_mps2: float = -9.81
+    time_step_s: float = 1.0 / 240.0
+    lateral_friction: float = 0.35
+    rolling_friction: float = 0.01
+    spinning_friction: float = 0.02
+    restitution: float = 0.3
+    contact_model: str = "per_contact"
+    solver_iterations: int = 50
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.gravity_mps2 < 0:
+            raise ValueError(f"gravity_mps2 must be negative (z up), got {self.gravity_mps2}")
+        if not 0 < self.time_step_s <= 0.05:
+            raise ValueError(f"time_step_s must be in (0, 0.05], got {self.time_step_s}")
+        for name in ("lateral_friction", "rolling_friction", "spinning_friction"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if not 0 <= self.restitution <= 1:
+            raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
+        if self.contact_model not in CONTACT_MODELS:
+            raise ValueError(f"contact_model must be one of {', '.join(CONTACT_MODELS)}, got {self.contact_model!r}")
+        if self.solver_iterations < 1:
+            raise ValueError(f"solver_iterations must be >= 1, got {self.solver_iterations}")
+
+    def effective_friction(self):
+        """The friction coefficient of a robot-ground contact under ``contact_model``."""
+        return self.lateral_friction * (self.lateral_friction if self.contact_model == "per_body" else 1.0)
+
+    def body_contact(self):
+        """Contact parameters for a simulated object (robot, test box): pybullet ``changeDynamics`` keywords."""
+        return {"lateralFriction": self.lateral_friction, "rollingFriction": self.rolling_friction,
+                "spinningFriction": self.spinning_friction, "restitution": self.restitution}
+
+    def ground_contact(self):
+        """Contact parameters for the ground under ``contact_model`` (see the module docstring)."""
+        if self.contact_model == "per_body":
+            return self.body_contact()
+        return {"lateralFriction": 1.0, "rollingFriction": 0.0, "spinningFriction": 0.0, "restitution": 1.0}
+
+
+def connect():
+    """Start a PyBullet physics server in DIRECT mode (no GUI) and return its client id."""
+    pybullet = require("pybullet", feature="the simulated evaluator")
+    return pybullet.connect(pybullet.DIRECT)
+
+
+def disconnect(client):
+    """Stop the physics server ``client``."""
+    require("pybullet").disconnect(physicsClientId=client)
+
+
+def reset_world(client, physics, slope_deg=0.0):
+    """Empty ``client``'s world, apply ``physics`` and add a ground plane; return the ground's body id.
+
+    The ground is a static plane through the world origin, tilted by ``slope_deg`` about the world x axis (so
+    "downhill" is -y for a positive slope).
+    """
+    pybullet = require("pybullet", feature="the simulated evaluator")
+    pybullet.resetSimulation(physicsClientId=client)
+    pybullet.setGravity(0.0, 0.0, physics.gravity_mps2, physicsClientId=client)
+    pybullet.setPhysicsEngineParameter(fixedTimeStep=physics.time_step_s, numSolverIterations=physics.solver_iterations,
+                                       deterministicOverlappingPairs=1, physicsClientId=client)
+    plane = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client)
+    orientation = pybullet.getQuaternionFromEuler([math.radians(slope_deg), 0.0, 0.0])
+    ground = pybullet.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=plane, baseOrientation=orientation,
+                                      physicsClientId=client)
+    set_contact(client, ground, physics.ground_contact())
+    return ground
+
+
+def set_contact(client, body_id, contact):
+    """Apply ``contact`` (``changeDynamics`` keywords) to the base and every link of ``body_id``."""
+    pybullet = require("pybullet", feature="the simulated evaluator")
+    for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client)):
+        pybullet.changeDynamics(body_id, link, physicsClientId=client, **contact)

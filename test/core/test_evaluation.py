@@ -1,0 +1,196 @@
+"""Evaluation: seeds, reproducibility across executors, streaming, cancel, request checks, settings, URDF, Ray."""
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+import xml.etree.ElementTree as ElementTree
+
+import numpy as np
+import pytest
+
+from rollability_ros.core.config import ConfigError
+from rollability_ros.core.evaluation import (EvaluationCancelled, EvaluatorSettings, LocalExecutor, RayExecutor,
+                                             evaluate_mesh, evaluate_profile, load_settings, mesh_job, profile_job,
+                                             run_batch, trial_seed)
+from rollability_ros.core.geometry import export_mesh, grid_xy, load_profile_mesh, profile_mesh
+
+pybullet = pytest.importorskip("pybullet")
+
+SETTINGS = EvaluatorSettings()
+
+
+def ridge_heights(grid, height=0.4):
+    """A roof: tall along the centre line, falling linearly to zero at the side edges."""
+    return height * (1.0 - grid_xy(grid)[:, 1] / (grid.width_m / 2))
+
+
+def test_trial_seeds_are_reproducible_distinct_and_in_range():
+    seeds = [trial_seed(42, i) for i in range(200)]
+    assert seeds == [trial_seed(42, i) for i in range(200)]
+    assert len(set(seeds)) == 200 and all(0 <= s < 2**63 for s in seeds)
+    assert trial_seed(43, 0) != trial_seed(42, 0)
+    assert trial_seed(2**64 - 1, 5) >= 0
+    for bad in (-1, 2**64, 1.5, True, "7"):
+        with pytest.raises(ValueError, match="seed"):
+            trial_seed(bad, 0)
+
+
+def test_a_trial_depends_only_on_profile_seed_and_settings():
+    job = profile_job(ridge_heights(SETTINGS.grid), SETTINGS)
+    seeds = [(i, trial_seed(5, i)) for i in range(4)]
+    together = run_batch(job, seeds)
+    alone_reversed = [run_batch(job, [pair])[0] for pair in reversed(seeds)][::-1]
+    assert together == alone_reversed
+
+
+def test_executors_agree_with_serial_and_stream_every_trial():
+    heights = ridge_heights(SETTINGS.grid)
+    serial = evaluate_profile(heights, 12, 11, SETTINGS)
+    streamed = []
+    with LocalExecutor(workers=2) as pool:
+        pooled = evaluate_profile(heights, 12, 11, SETTINGS, executor=pool, on_trial=streamed.append)
+    assert pooled.trial_results == serial.trial_results
+    assert (pooled.fitness, pooled.successes, pooled.ci_low, pooled.ci_high) == \
+        (serial.fitness, serial.successes, serial.ci_low, serial.ci_high)
+    assert sorted(o.index for o in streamed) == list(range(12))
+    assert [o.seed for o in serial.trial_results] == [trial_seed(11, i) for i in range(12)]
+
+
+def test_cancel_stops_early_and_raises():
+    cancel = threading.Event()
+    seen = []
+
+    def on_trial(outcome):
+        seen.append(outcome)
+        cancel.set()
+
+    with pytest.raises(EvaluationCancelled) as raised:
+        evaluate_profile(None, 50, 1, SETTINGS, on_trial=on_trial, cancel_event=cancel)
+    assert 0 < len(raised.value.outcomes) < 50 and len(seen) == len(raised.value.outcomes)
+
+
+@pytest.mark.parametrize("heights, trials, seed, message", [
+    (np.full(100, 0.5), 10, 1, "outside"),
+    (np.full(7, 0.1), 10, 1, "needs 100"),
+    (None, 0, 1, "trials"),
+    (None, 10001, 1, "trials"),
+    (None, 10, -3, "seed"),
+])
+def test_bad_requests_are_refused(heights, trials, seed, message):
+    with pytest.raises(ValueError, match=message):
+        evaluate_profile(heights, trials, seed, SETTINGS)
+
+
+def test_baseline_forms_are_equivalent():
+    assert profile_job(None, SETTINGS).profile is None
+    assert profile_job([], SETTINGS).profile is None
+    assert profile_job(np.zeros(100), SETTINGS).profile is None
+    assert profile_job(np.full(100, 1e-4), SETTINGS).profile is None   # within flat_tolerance
+
+
+def test_stl_profile_evaluates_like_its_heights(tmp_path):
+    heights = ridge_heights(SETTINGS.grid)
+    path = tmp_path / "ridge.stl"
+    export_mesh(profile_mesh(heights, SETTINGS.grid), path)
+    from_heights = evaluate_profile(heights, 6, 3, SETTINGS)
+    from_file = evaluate_mesh(load_profile_mesh(str(path)), 6, 3, SETTINGS)
+    assert [o.upright for o in from_file.trial_results] == [o.upright for o in from_heights.trial_results]
+    np.testing.assert_allclose([o.tilt_deg for o in from_file.trial_results],
+                               [o.tilt_deg for o in from_heights.trial_results], atol=0.5)
+
+
+def test_shipped_config_files_load_and_match_the_documented_defaults(tmp_path):
+    assert load_settings() == EvaluatorSettings()
+    override = tmp_path / "fast.yaml"
+    override.write_text("/**:\n  ros__parameters:\n    evaluator: {trials: 8}\n    sim: {contact_model: per_body}\n")
+    settings = load_settings(("sim", "robot", "evaluator", str(override)))
+    assert settings.evaluator.trials == 8 and settings.physics.contact_model == "per_body"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("/**:\n  ros__parameters:\n    sim: {frictoin: 0.3}\n")
+    with pytest.raises(ConfigError, match="frictoin"):
+        load_settings(("sim", str(bad)))
+    bad.write_text("/**:\n  ros__parameters:\n    sim: {contact_model: sticky}\n")
+    with pytest.raises(ConfigError, match="contact_model"):
+        load_settings(("sim", str(bad)))
+
+
+def test_urdf_export_loads_in_pybullet_with_the_profile(tmp_path):
+    mesh = profile_mesh(ridge_heights(SETTINGS.grid), SETTINGS.grid)
+    export_mesh(mesh, tmp_path / "profile.stl")
+    job = mesh_job(mesh, SETTINGS)
+    urdf = SETTINGS.robot_model().to_urdf("profile.stl", job.profile)
+    ElementTree.fromstring(urdf)
+    (tmp_path / "chassis.urdf").write_text(urdf)
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        body = pybullet.loadURDF(str(tmp_path / "chassis.urdf"), physicsClientId=client)
+        names = [pybullet.getJointInfo(body, j, physicsClientId=client)[12].decode()
+                 for j in range(pybullet.getNumJoints(body, physicsClientId=client))]
+        assert names == ["profile_link", "front_left_wheel", "front_right_wheel", "rear_left_wheel", "rear_right_wheel"]
+        masses = [pybullet.getDynamicsInfo(body, link, physicsClientId=client)[0] for link in range(-1, 5)]
+        spec = SETTINGS.robot
+        assert masses == pytest.approx([spec.body_mass_kg, job.profile.mass_kg] + [spec.wheel_mass_kg] * 4, rel=1e-5)
+        low, high = pybullet.getAABB(body, 0, physicsClientId=client)
+        assert mesh.extents[2] <= high[2] - low[2] <= mesh.extents[2] + 0.01  # AABB adds the collision margin
+    finally:
+        pybullet.disconnect(client)
+
+
+def _free_port():
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def ray_head():
+    """A Ray head on loopback, started by this test and stopped (SIGTERM to ``ray start --block``) after it."""
+    pytest.importorskip("ray")
+    ray_cli = shutil.which("ray", path=os.path.dirname(sys.executable)) or shutil.which("ray")
+    if ray_cli is None:
+        pytest.skip("the ray command is not installed")
+    port = _free_port()
+    environment = dict(os.environ, RAY_AUTH_MODE="disabled")  # a throwaway local cluster needs no token
+    head = subprocess.Popen([ray_cli, "start", "--head", "--block", "--node-ip-address", "127.0.0.1",
+                             "--port", str(port), "--num-cpus", "2", "--include-dashboard", "false",
+                             "--disable-usage-stats"], env=environment, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    previous = os.environ.get("RAY_AUTH_MODE")
+    os.environ["RAY_AUTH_MODE"] = "disabled"
+    try:
+        yield f"127.0.0.1:{port}"
+    finally:
+        if previous is None:
+            os.environ.pop("RAY_AUTH_MODE", None)
+        else:
+            os.environ["RAY_AUTH_MODE"] = previous
+        head.send_signal(signal.SIGTERM)
+        try:
+            head.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            os.killpg(head.pid, signal.SIGKILL)
+            head.wait()
+
+
+def _connect(address, deadline_s=60.0):
+    start = time.monotonic()
+    while True:
+        try:
+            return RayExecutor(address)
+        except ConnectionError:
+            if time.monotonic() - start > deadline_s:
+                raise
+            time.sleep(1.0)
+
+
+def test_ray_executor_matches_the_local_executor(ray_head):
+    heights = ridge_heights(SETTINGS.grid)
+    local = evaluate_profile(heights, 10, 21, SETTINGS)
+    with _connect(ray_head) as cluster:
+        remote = evaluate_profile(heights, 10, 21, SETTINGS, executor=cluster)
+    assert remote.trial_results == local.trial_results
+    assert (remote.fitness, remote.ci_low, remote.ci_high) == (local.fitness, local.ci_low, local.ci_high)

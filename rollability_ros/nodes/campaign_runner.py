@@ -1,0 +1,181 @@
+"""campaign_runner node: runs the launch campaign of ``config/campaign.yaml`` through the node graph, then exits.
+
+Action client: ``launch`` (rollability_ros/Launch) of the ``rig`` node, one goal per remaining trial.
+Service clients (attended runs): ``rig/confirm`` (std_srvs/Trigger) and ``record_outcome`` (RecordOutcome), called
+  with what the operator types when the rig's feedback asks for the regulator or for the outcome.
+Parameters: ``campaign.*`` (:class:`~rollability_ros.core.campaign.CampaignSpec`) and ``runner.*``
+  (:class:`~rollability_ros.core.campaign_runner.RunnerSettings`: ``backend`` sim = unattended, physical = the
+  terminal tells the operator what to change and waits for Enter; ``store_path`` of the outcome_logger;
+  ``resume``).
+
+One writer: the outcome_logger stores the outcomes the rig publishes; this node only reads the store (SQLite WAL,
+safe beside the writer) to skip stored trials and to count a trial as done once the logger has committed it.
+Exit code: 0 when every trial is stored, 3 when the campaign stopped early (the reason is printed; rerun with
+``runner.resume:=true``), 2 for bad parameters.
+"""
+import queue
+import sys
+import threading
+import time
+
+import rclpy
+from action_msgs.msg import GoalStatus
+from rclpy.action import ActionClient
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from std_srvs.srv import Trigger
+
+from rollability_ros.action import Launch
+from rollability_ros.core.campaign import CampaignSpec, plan_trials
+from rollability_ros.core.campaign_runner import (RunnerSettings, StoreWatcher, answer_rig, report_exit_code,
+                                                  resume_refusal, run_campaign)
+from rollability_ros.core.config import ConfigError
+from rollability_ros.core.rig_session import LaunchAborted
+from rollability_ros.nodes import _convert
+from rollability_ros.nodes._support import ParameterError, declare_settings
+from rollability_ros.srv import RecordOutcome
+
+#: Seconds the rig's action server may be missing from the graph before a running launch counts as lost.
+SERVER_LOST_S = 3.0
+
+
+class RigClient:
+    """Sends Launch goals to the rig and relays the operator's answers to the rig's questions.
+
+    Parameters
+    ----------
+    node : rclpy Node
+        Spun by an executor in another thread.
+    run_id : str
+    ask : callable or None
+        ``ask(prompt) -> str`` for attended runs; None leaves questions to another operator tool.
+    say : callable
+    server_timeout_s : float
+        Longest wait for the rig's action server and services, s.
+    """
+
+    def __init__(self, node, run_id, ask, say, server_timeout_s):
+        self.run_id = run_id
+        self.ask, self.say = ask, say
+        self.server_timeout_s = server_timeout_s
+        self.action = ActionClient(node, Launch, "launch")
+        self.confirm_client = node.create_client(Trigger, "rig/confirm")
+        self.record_client = node.create_client(RecordOutcome, "record_outcome")
+
+    def _wait(self, future, what):
+        deadline = time.monotonic() + self.server_timeout_s
+        while not future.done():
+            if time.monotonic() > deadline:
+                raise LaunchAborted(f"the rig did not answer {what} within {self.server_timeout_s:g} s")
+            time.sleep(0.01)
+        return future.result()
+
+    def _answer(self, trial_id, phase, detail):
+        reply = answer_rig(phase, detail, self.ask) if self.ask is not None else None
+        if reply is None:
+            return
+        kind, outcome = reply
+        if kind == "confirm":
+            client, request = self.confirm_client, Trigger.Request()
+        else:
+            client = self.record_client
+            request = RecordOutcome.Request(trial_id=trial_id, upright=outcome.upright, note=outcome.note,
+                                            travel_time_s=outcome.travel_time_s)
+        if not client.wait_for_service(timeout_sec=self.server_timeout_s):
+            raise LaunchAborted(f"the rig's {client.srv_name} service is not available")
+        response = self._wait(client.call_async(request), client.srv_name)
+        accepted = response.success if kind == "confirm" else response.accepted
+        if not accepted:
+            self.say(f"  the rig refused the answer: {response.message}")
+
+    def launch(self, trial):
+        """Run ``trial`` on the rig; its :class:`~rollability_ros.core.records.LaunchOutcome`, or LaunchAborted."""
+        if not self.action.wait_for_server(timeout_sec=self.server_timeout_s):
+            raise LaunchAborted(f"no rig serves the launch action within {self.server_timeout_s:g} s")
+        feedback = queue.Queue()
+        goal = Launch.Goal(run_id=self.run_id, trial_id=trial.trial_id,
+                           condition=_convert.condition_to_msg(trial.condition))
+        handle = self._wait(self.action.send_goal_async(goal, feedback_callback=feedback.put), "the goal")
+        if not handle.accepted:
+            raise LaunchAborted(f"the rig rejected {trial.trial_id}")
+        result_future = handle.get_result_async()
+        try:
+            self._follow(trial.trial_id, feedback, result_future)
+        except BaseException:
+            handle.cancel_goal_async()  # do not leave the rig waiting for an operator who is gone
+            raise
+        wrapped = result_future.result()
+        if wrapped.status != GoalStatus.STATUS_SUCCEEDED:
+            raise LaunchAborted(wrapped.result.message or f"launch ended with goal status {wrapped.status}")
+        return _convert.outcome_from_msg(wrapped.result.outcome)
+
+    def _follow(self, trial_id, feedback, result_future):
+        """Show the feedback and answer the rig's questions until the result arrives."""
+        missing_since = None
+        while not result_future.done():
+            try:
+                message = feedback.get(timeout=0.1).feedback
+            except queue.Empty:
+                if self.action.server_is_ready():
+                    missing_since = None
+                elif missing_since is None:
+                    missing_since = time.monotonic()
+                elif time.monotonic() - missing_since > SERVER_LOST_S:
+                    raise LaunchAborted(f"the rig left the graph during {trial_id}")
+                continue
+            self.say(f"  {message.phase}: {message.detail}")
+            self._answer(trial_id, message.phase, message.detail)
+
+
+def run_graph_campaign(node, spec, settings, ask=None, say=print):
+    """Run the campaign through the graph from ``node`` (spun elsewhere); returns the CampaignReport."""
+    plan = plan_trials(spec)
+    watcher = StoreWatcher(settings.store_path, settings.store_timeout_s)
+    try:
+        stored = watcher.store.trial_ids(spec.run_id)
+        refusal = resume_refusal(len(stored), settings.resume, spec.run_id)
+        if refusal:
+            raise ValueError(refusal)
+        rig = RigClient(node, spec.run_id, ask, say, settings.server_timeout_s)
+        return run_campaign(plan, spec.run_id, stored, rig.launch, watcher, ask=ask, say=say)
+    finally:
+        watcher.close()
+
+
+def spin_in_background(node):
+    """Spin ``node`` on a multi-threaded executor in a daemon thread; returns the executor."""
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+
+    def spin():
+        try:
+            executor.spin()
+        except ExternalShutdownException:
+            pass
+    threading.Thread(target=spin, daemon=True).start()
+    return executor
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = Node("campaign_runner")
+    try:
+        spec = declare_settings(node, "campaign", CampaignSpec)
+        settings = declare_settings(node, "runner", RunnerSettings)
+        executor = spin_in_background(node)
+        ask = input if settings.backend == "physical" else None
+        code = report_exit_code(run_graph_campaign(node, spec, settings, ask))
+        executor.shutdown()
+        return code
+    except (ParameterError, ConfigError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,182 @@
+"""The campaign through the node graph, every node in its own process: valve_controller, rig (physical),
+outcome_logger, and `rollability campaign --graph` with a scripted operator on its stdin.
+
+Evidence for the physical path: against the dry-run valve, and against the serial relay simulator with an
+e-stop and a watchdog trip in the middle of the campaign; nothing stored is lost, the interrupted trial is
+redone on resume, and the relay's own log shows the valve off at every fault.
+"""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from rollability_ros.core.campaign import CampaignSpec, plan_trials
+from rollability_ros.core.relay_device_sim import RelaySim
+from rollability_ros.core.store import Store
+
+CAMPAIGN_YAML = """/**:
+  ros__parameters:
+    campaign:
+      run_id: graph-physical
+      configurations: [A]
+      heights_m: [0.75]
+      speeds_mps: [0.8, 1.5]
+      angles_deg: [0.0]
+      repetitions: 2
+"""
+SPEC = CampaignSpec(run_id="graph-physical", configurations=["A"], heights_m=[0.75], speeds_mps=[0.8, 1.5],
+                    angles_deg=[0.0], repetitions=2)
+WATCHDOG_MS = 300
+
+
+def operator_script(trials, previous_speed=None):
+    """stdin of an operator who answers everything for ``trials``: Enter, regulator Enter on a speed change, y."""
+    lines = []
+    for trial in trials:
+        lines.append("")
+        if trial.condition.speed_mps != previous_speed:
+            lines.append("")
+            previous_speed = trial.condition.speed_mps
+        lines.append("y")
+    return "\n".join(lines) + "\n"
+
+
+class Graph:
+    """valve_controller + rig + outcome_logger processes for one test."""
+
+    def __init__(self, tmp_path, start_node, backend="dry_run", relay=None):
+        valve_params = {"valve.backend": backend, "valve.watchdog_ms": WATCHDOG_MS, "valve.heartbeat_period_ms": 50}
+        if relay is not None:
+            valve_params["valve.serial.port"] = relay.port
+        self.tmp_path = tmp_path
+        self.store = tmp_path / "store.sqlite"
+        self.valve = start_node("valve_controller", params=valve_params)
+        self.logger = start_node("outcome_logger", params={"store_path": str(self.store)})
+        self.start_node = start_node
+        self.rig = self.start_rig()
+        (tmp_path / "campaign.yaml").write_text(CAMPAIGN_YAML)
+
+    def start_rig(self):
+        return self.start_node("rig", params={"rig.backend": "physical", "rig.countdown_s": 0.6,
+                                              "valve.watchdog_ms": WATCHDOG_MS, "valve.heartbeat_period_ms": 50})
+
+    def logs(self):
+        return "\n".join(f"--- {name}\n{p.log()}" for name, p in
+                         (("valve", self.valve), ("rig", self.rig), ("logger", self.logger)))
+
+    def runner(self, *extra):
+        command = [sys.executable, "-m", "rollability_ros.cli", "campaign", "--backend", "physical", "--graph",
+                   "--config", str(self.tmp_path / "campaign.yaml"), "--store", str(self.store), *extra]
+        return subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True, env=os.environ.copy())
+
+    def run(self, stdin, *extra, timeout_s=90):
+        process = self.runner(*extra)
+        out, _ = process.communicate(stdin, timeout=timeout_s)
+        return process.returncode, out
+
+    def stored(self):
+        with Store(self.store) as store:
+            return [o.trial_id for o in store.launch_outcomes(SPEC.run_id)]
+
+
+class ValveWatch:
+    """The latched valve state and the operator's acknowledgement service, from the test's node."""
+
+    def __init__(self, spun):
+        from std_msgs.msg import Bool
+        from std_srvs.srv import SetBool
+
+        from rollability_ros.msg import ValveState
+        from rollability_ros.nodes._support import LATCHED_QOS
+
+        self.spun = spun
+        self.states = []
+        spun.node.create_subscription(ValveState, "valve/state", self.states.append, LATCHED_QOS)
+        self.arm_client = spun.node.create_client(SetBool, "valve/arm")
+        self.estop_pub = spun.node.create_publisher(Bool, "valve/estop", 10)
+        self._set_bool, self._bool = SetBool, Bool
+
+    def armed_count(self):
+        return sum(1 for a, b in zip(self.states, self.states[1:]) if b.armed and not a.armed)
+
+    def acknowledge(self):
+        assert self.arm_client.wait_for_service(timeout_sec=30)
+        response = self.arm_client.call(self._set_bool.Request(data=False), timeout_sec=30)
+        assert response.success, response.message
+
+    def estop(self):
+        self.estop_pub.publish(self._bool(data=True))
+
+
+def test_physical_campaign_on_dry_run_valve(ros_node, start_node, tmp_path):
+    graph = Graph(tmp_path, start_node)
+    code, out = graph.run(operator_script(plan_trials(SPEC)))
+    assert code == 0, out + graph.logs()
+    assert "campaign complete: 4/4" in out and "set the regulator to 60 psi" in out
+    assert graph.stored() == [t.trial_id for t in plan_trials(SPEC)]
+    assert "stored launch outcome graph-physical/" in graph.logger.log()
+
+
+@pytest.fixture
+def relay(tmp_path):
+    with RelaySim(tmp_path) as sim:
+        yield sim
+
+
+def relay_commands(relay):
+    return [e for e in relay.entries() if e["event"] == "command"]
+
+
+def test_physical_campaign_on_serial_relay_survives_estop_and_watchdog(ros_node, start_node, tmp_path, relay):
+    plan = plan_trials(SPEC)
+    graph = Graph(tmp_path, start_node, "serial_relay", relay)
+    watch = ValveWatch(ros_node)
+    assert ros_node.wait_for(lambda: watch.states, 30), graph.logs()
+
+    # trial 1 runs; at the second arming the operator hits the e-stop during the countdown
+    runner = graph.runner()
+    runner.stdin.write(operator_script(plan[:2]))
+    runner.stdin.flush()
+    assert ros_node.wait_for(lambda: watch.armed_count() >= 2, 60), graph.logs()
+    watch.estop()
+    estop_at = time.monotonic()
+    out, _ = runner.communicate(timeout=60)
+    assert runner.returncode == 3, out + graph.logs()
+    assert "e-stop" in out and plan[1].trial_id in out
+    assert graph.stored() == [plan[0].trial_id]
+    assert watch.states[-1].fault and not watch.states[-1].open
+    ons = [e for e in relay_commands(relay) if e["line"] == "RELAY 1 ON"]
+    assert len(ons) == 1 and ons[0]["monotonic_s"] < estop_at            # only trial 1 ever opened the valve
+    assert not relay.relay_on()
+
+    # resume with the fault latched: refused to arm, nothing lost, nothing stored twice
+    code, out = graph.run(operator_script(plan[1:2]), "--resume")
+    assert code == 3 and "fault latched" in out, out
+    watch.acknowledge()
+
+    # resume; at the next arming the rig freezes (SIGSTOP): its heartbeat stops and the watchdog closes the valve
+    runner = graph.runner("--resume")
+    runner.stdin.write(operator_script(plan[1:]))
+    runner.stdin.flush()
+    arms = watch.armed_count()
+    assert ros_node.wait_for(lambda: watch.armed_count() > arms, 60), graph.logs()
+    graph.rig.signal(signal.SIGSTOP)
+    assert ros_node.wait_for(lambda: watch.states[-1].fault, 10), graph.logs()
+    assert "watchdog" in watch.states[-1].fault_reason and not watch.states[-1].armed
+    graph.rig.signal(signal.SIGCONT)
+    out, _ = runner.communicate(timeout=60)
+    assert runner.returncode == 3 and "watchdog" in out, out + graph.logs()
+    assert not relay.relay_on() and relay_commands(relay)[-1]["line"] == "RELAY 1 OFF"
+    assert graph.stored() == [plan[0].trial_id]
+
+    watch.acknowledge()
+    code, out = graph.run(operator_script(plan[1:]), "--resume")
+    assert code == 0, out + graph.logs()
+    assert graph.stored() == [t.trial_id for t in plan]                  # every trial once, in order
+    commands = relay_commands(relay)
+    assert sum(e["line"] == "RELAY 1 ON" for e in commands) == 4          # one pulse per stored trial
+    assert commands[-1]["line"] == "RELAY 1 OFF" and not relay.relay_on()

@@ -59,6 +59,7 @@ class RigSettings:
     imu_override_s: float = 2.0
     valve_timeout_s: float = 5.0
     seed: int = 0
+    twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"])
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -381,22 +382,33 @@ class SimulatedLaunch:
     Parameters
     ----------
     settings : RigSettings
-        ``seed`` is mixed with each trial id (:func:`trial_seed`): a trial's outcome is reproducible.
+        ``seed`` is mixed with each trial id (:func:`trial_seed`), so a trial's outcome is reproducible;
+        ``twin_config`` lists the twin's parameter files (shipped names or paths).
     speed_config : SpeedGateConfig
         Tolerance of the speed check on the twin's travel time.
-    twin_settings : object, optional
-        The twin's settings; None uses the twin's defaults.
     """
 
-    def __init__(self, settings, speed_config, twin_settings=None):
+    def __init__(self, settings, speed_config):
         self.settings = settings
         self.speed_config = speed_config
-        self.twin_settings = twin_settings
+        self._twin = None
+        self._twin_settings = None
+
+    def load(self):
+        """Import the twin and read its settings now (a node does it at start-up to fail early)."""
+        if self._twin is None:
+            twin = importlib.import_module("rollability_ros.core.launch_twin")
+            self._twin_settings = twin.load_launch_twin_settings(self.settings.twin_config)
+            self._twin = twin
+        return self._twin
 
     def launch(self, run_id, trial_id, condition, on_phase=_no_phase, on_pose=None):
-        """Simulate one launch and return its :class:`LaunchOutcome` (``backend="sim"``)."""
-        twin = importlib.import_module("rollability_ros.core.launch_twin")
-        result = twin.simulate_launch(condition, self.twin_settings, trial_seed(self.settings.seed, trial_id),
+        """Simulate one launch and return its :class:`LaunchOutcome` (``backend="sim"``).
+
+        ``on_pose(t_s, position_m, orientation_xyzw)`` receives the chassis pose (simulated s from the push).
+        """
+        twin = self.load()
+        result = twin.simulate_launch(condition, self._twin_settings, trial_seed(self.settings.seed, trial_id),
                                       on_phase=lambda phase: on_phase(phase, "launch twin"), on_pose=on_pose)
         return simulated_outcome(run_id, trial_id, condition, result, self.speed_config)
 

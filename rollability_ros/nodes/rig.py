@@ -21,11 +21,13 @@ Clients (physical backend): ``valve/arm`` (std_srvs/SetBool), ``valve/fire`` (Fi
   when ``rig.outcome_source`` is ``imu``.
 Parameters: ``rig.*`` (:class:`~rollability_ros.core.rig_session.RigSettings`: ``rig.backend`` sim | physical,
   ...), ``valve.*`` (launch pulse, heartbeat period, regulator pressures), ``speed_gate.*``, ``imu_outcome.*``,
-  all in ``config/rig.yaml``; ``launch_twin.*`` for the sim backend. Fixed at start-up.
+  all in ``config/rig.yaml``; the sim backend reads the launch twin's own parameter files (``rig.twin_config``,
+  default sim, robot, launch_twin) at start-up. Fixed at start-up.
 """
 import dataclasses
 import math
 import threading
+import time
 
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import SetParametersResult
@@ -46,7 +48,8 @@ from rollability_ros.core.upright import ImuOutcomeConfig, ImuSample, orientatio
 from rollability_ros.core.valve import ValveConfig, ValveStatus
 from rollability_ros.msg import LaunchOutcome, ValveState
 from rollability_ros.nodes import _convert
-from rollability_ros.nodes._support import LATCHED_QOS, RECORD_QOS, STREAM_QOS, declare_settings, run_node
+from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
+                                            run_node)
 from rollability_ros.srv import FireValve, RecordOutcome
 
 
@@ -139,6 +142,10 @@ class RigNode(Node):
             self._setup_physical(valve, imu_config, group)
         else:
             self.simulated = SimulatedLaunch(self.settings, self.speed_config)
+            try:
+                self.simulated.load()
+            except (ValueError, ImportError) as exc:  # ConfigError is a ValueError, MissingDependency ImportError
+                raise ParameterError(f"rig.backend sim: cannot load the launch twin: {exc}") from exc
             self.pose_publisher = self.create_publisher(PoseStamped, "rig/pose", STREAM_QOS)
         ActionServer(self, Launch, "launch", execute_callback=self._execute, callback_group=group,
                      cancel_callback=lambda _goal: CancelResponse.ACCEPT)
@@ -220,7 +227,10 @@ class RigNode(Node):
             if self.settings.backend == "physical":
                 outcome = self.physical.launch(goal.run_id, goal.trial_id, condition, on_phase, cancelled)
             else:
-                outcome = self.simulated.launch(goal.run_id, goal.trial_id, condition, on_phase, self._publish_pose)
+                started_s = time.time()
+                outcome = self.simulated.launch(
+                    goal.run_id, goal.trial_id, condition, on_phase,
+                    lambda t_s, position, orientation: self._publish_pose(started_s + t_s, position, orientation))
         except (ValueError, LaunchAborted) as exc:
             result.message = f"{goal.trial_id}: {exc}"
             logger.error(f"launch aborted: {result.message}")

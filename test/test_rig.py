@@ -1,0 +1,186 @@
+"""rig node over real DDS in its own process: goal checks with reasons, feedback phases, operator services, IMU
+outcome with override, outcomes on ``launch_outcomes``; the sim backend on the launch twin with poses."""
+import math
+import threading
+import time
+
+import pytest
+
+from rollability_ros.core.records import LaunchCondition
+
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+
+
+class RigClient:
+    """Launch action client, operator services and the outcome topic, from the test's node."""
+
+    def __init__(self, spun):
+        from rclpy.action import ActionClient
+        from std_srvs.srv import Trigger
+
+        from rollability_ros.action import Launch
+        from rollability_ros.msg import LaunchOutcome
+        from rollability_ros.nodes._support import RECORD_QOS
+        from rollability_ros.srv import RecordOutcome
+
+        self.spun = spun
+        self.action = ActionClient(spun.node, Launch, "launch")
+        self.confirm_client = spun.node.create_client(Trigger, "rig/confirm")
+        self.record_client = spun.node.create_client(RecordOutcome, "record_outcome")
+        self.outcomes = []
+        spun.node.create_subscription(LaunchOutcome, "launch_outcomes", self.outcomes.append, RECORD_QOS)
+        self._launch, self._trigger, self._record = Launch, Trigger, RecordOutcome
+
+    def send(self, trial_id, condition, feedback):
+        from rollability_ros.nodes._convert import condition_to_msg
+
+        assert self.action.wait_for_server(timeout_sec=30)
+        goal = self._launch.Goal(run_id="rig-test", trial_id=trial_id)
+        goal.condition = condition if not isinstance(condition, LaunchCondition) else condition_to_msg(condition)
+        future = self.action.send_goal_async(goal, feedback_callback=lambda fb: feedback.append(
+            (fb.feedback.phase, fb.feedback.detail)))
+        assert self.spun.wait_for(future.done, 30)
+        return future.result().get_result_async()
+
+    def result(self, future, timeout_s=30):
+        assert self.spun.wait_for(future.done, timeout_s)
+        return future.result()
+
+    def confirm(self):
+        assert self.confirm_client.wait_for_service(timeout_sec=30)
+        return self.confirm_client.call(self._trigger.Request(), timeout_sec=30)
+
+    def record(self, upright, trial_id="", travel_time_s=math.nan, note=""):
+        assert self.record_client.wait_for_service(timeout_sec=30)
+        return self.record_client.call(self._record.Request(trial_id=trial_id, upright=upright,
+                                                             travel_time_s=travel_time_s, note=note), timeout_sec=30)
+
+
+def bad_condition(**fields):
+    from rollability_ros.msg import LaunchCondition as ConditionMsg
+
+    values = {"configuration": "A", "height_m": 0.75, "speed_mps": 0.8, "angle_deg": 0.0, **fields}
+    return ConditionMsg(**values)
+
+
+def test_physical_rig_goal_checks_operator_outcome_and_imu_override(ros_node, start_node):
+    from action_msgs.msg import GoalStatus
+
+    valve = start_node("valve_controller", params={"valve.backend": "dry_run"})
+    rig_process = start_node("rig", params={"rig.backend": "physical", "rig.countdown_s": 0.1,
+                                            "rig.operator_timeout_s": 30.0})
+    rig = RigClient(ros_node)
+    for fields, reason in (({"height_m": math.nan}, "height_m must be a finite number"),
+                           ({"height_m": -0.5}, "height_m must be >= 0"),
+                           ({"configuration": "Z"}, "unknown configuration 'Z'"),
+                           ({"speed_mps": 1.1}, "no regulator pressure configured for 1.1 m/s")):
+        refused = rig.result(rig.send("bad", bad_condition(**fields), []))
+        assert refused.status == GoalStatus.STATUS_ABORTED and reason in refused.result.message, refused.result.message
+    stray = rig.record(True)
+    assert not stray.accepted and "not waiting" in stray.message
+
+    feedback = []
+    future = rig.send("t0", LaunchCondition("A", 0.75, 0.8, 30.0, 0), feedback)
+    assert ros_node.wait_for(lambda: feedback and feedback[-1][0] == "waiting_for_operator", 30), rig_process.log()
+    assert "30 psi" in feedback[-1][1]
+    assert rig.confirm().success
+    assert ros_node.wait_for(lambda: feedback[-1][0] == "classifying", 30), rig_process.log() + valve.log()
+    assert not rig.record(True, trial_id="other").accepted
+    assert rig.record(False, trial_id="t0", note="on its lid").accepted
+    done = rig.result(future)
+    assert done.status == GoalStatus.STATUS_SUCCEEDED, done.result.message
+    outcome = done.result.outcome
+    assert (outcome.trial_id, outcome.upright, outcome.classified_by, outcome.backend) == (
+        "t0", False, "operator", "physical")
+    assert outcome.note == "on its lid" and math.isclose(outcome.measured_speed_mps, 0.8, rel_tol=0.2)
+    assert [p for p, _ in feedback] == ["waiting_for_operator", "armed", "fired", "in_flight", "settling",
+                                        "classifying"]
+    assert ros_node.wait_for(lambda: [o.trial_id for o in rig.outcomes] == ["t0"], 10)
+    assert "pulses=1" in valve.log()
+
+
+def imu_publisher(spun, topic="imu/data"):
+    from sensor_msgs.msg import Imu
+
+    from rollability_ros.nodes._support import STREAM_QOS
+
+    publisher = spun.node.create_publisher(Imu, topic, STREAM_QOS)
+
+    def tumble(final_upright, stop):
+        """Tumble for 0.3 s, then lie still upright or inverted, at 100 Hz until ``stop`` is set."""
+        started = time.monotonic()
+        while not stop.is_set():
+            msg = Imu()
+            msg.header.stamp = spun.node.get_clock().now().to_msg()
+            msg.orientation_covariance[0] = -1.0      # accelerometer and gyro only
+            if time.monotonic() - started < 0.3:
+                msg.angular_velocity.x = 6.0
+                msg.linear_acceleration.z = 3.0
+            else:
+                msg.linear_acceleration.z = 9.81 if final_upright else -9.81
+            publisher.publish(msg)
+            time.sleep(0.01)
+    return publisher, tumble
+
+
+def test_physical_rig_imu_outcome_and_operator_override(ros_node, start_node):
+    start_node("valve_controller", params={"valve.backend": "dry_run"})
+    rig_process = start_node("rig", params={"rig.backend": "physical", "rig.countdown_s": 0.1,
+                                            "rig.outcome_source": "imu", "rig.imu_override_s": 1.0,
+                                            "imu_outcome.settle_time_s": 0.3, "imu_outcome.settle_timeout_s": 10.0})
+    rig = RigClient(ros_node)
+    publisher, tumble = imu_publisher(ros_node)
+    assert ros_node.wait_for(lambda: publisher.get_subscription_count() > 0, 30), rig_process.log()
+
+    def launch(trial_id, final_upright, override=None):
+        feedback, stop = [], threading.Event()
+        future = rig.send(trial_id, LaunchCondition("A", 0.75, 0.8, 0.0, 0), feedback)
+        if trial_id == "imu0":
+            assert ros_node.wait_for(lambda: feedback and feedback[-1][0] == "waiting_for_operator", 30)
+            rig.confirm()
+        assert ros_node.wait_for(lambda: any(p == "fired" for p, _ in feedback), 30), rig_process.log()
+        threading.Thread(target=tumble, args=(final_upright, stop), daemon=True).start()
+        try:
+            assert ros_node.wait_for(lambda: feedback[-1][0] == "classifying", 30), rig_process.log()
+            assert feedback[-1][1].startswith("IMU: " + ("upright" if final_upright else "not upright"))
+            if override is not None:
+                assert rig.record(override, note="checked by eye").accepted
+            return rig.result(future).result.outcome
+        finally:
+            stop.set()
+
+    upright = launch("imu0", True)
+    assert upright.upright and upright.classified_by == "imu"
+    inverted = launch("imu1", False)
+    assert not inverted.upright and inverted.classified_by == "imu"
+    tilt = math.degrees(2 * math.acos(min(1.0, abs(inverted.final_orientation.w))))
+    assert tilt > 170
+    overridden = launch("imu2", False, override=True)
+    assert overridden.upright and overridden.classified_by == "operator"
+    assert "overrode the IMU" in overridden.note
+
+
+def test_sim_rig_launches_the_twin_and_publishes_poses(ros_node, start_node, tmp_path):
+    pytest.importorskip("pybullet")
+    from geometry_msgs.msg import PoseStamped
+
+    from rollability_ros.nodes._support import STREAM_QOS
+
+    (tmp_path / "twin.yaml").write_text("/**:\n  ros__parameters:\n    launch_twin:\n      pose_rate_hz: 30.0\n")
+    rig_process = start_node("rig", params={"rig.backend": "sim",
+                                            "rig.twin_config": ["sim", "robot", str(tmp_path / "twin.yaml")]})
+    poses = []
+    ros_node.node.create_subscription(PoseStamped, "rig/pose", poses.append, STREAM_QOS)
+    rig = RigClient(ros_node)
+    feedback = []
+    result = rig.result(rig.send("s0", LaunchCondition("baseline", 0.75, 0.8, 0.0, 0), feedback), 60)
+    outcome = result.result.outcome
+    assert result.result.message == "", rig_process.log()
+    assert outcome.backend == "sim" and outcome.classified_by == "sim" and outcome.trial_id == "s0"
+    assert 0.3 < outcome.travel_time_s < 0.6
+    assert [p for p, _ in feedback] == ["fired", "in_flight", "settling", "classifying"]
+    assert ros_node.wait_for(lambda: len(poses) > 5, 10)
+    assert poses[0].header.frame_id == "world" and poses[0].pose.position.x < 0 < poses[-1].pose.position.x
+    assert ros_node.wait_for(lambda: rig.outcomes, 10)
+    again = rig.result(rig.send("s0", LaunchCondition("baseline", 0.75, 0.8, 0.0, 0), []), 60).result.outcome
+    assert (again.upright, again.travel_time_s) == (outcome.upright, outcome.travel_time_s)   # seeded per trial

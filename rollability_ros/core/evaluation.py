@@ -11,8 +11,10 @@ between them (every ``evaluator.poll_interval_s`` while waiting).
 """
 import concurrent.futures
 import dataclasses
+import hashlib
 import multiprocessing
 import os
+import pickle
 import signal
 import time
 
@@ -24,7 +26,7 @@ from rollability_ros.core.optional import require
 from rollability_ros.core.robot import ChassisModel, ChassisSpec, ProfileBody
 from rollability_ros.core.sim_world import PhysicsParams, connect
 from rollability_ros.core.stats import wilson_interval
-from rollability_ros.core.trials import TrialSettings, run_trial
+from rollability_ros.core.trials import TrialSettings, TrialWorld
 
 #: Largest base seed (TrialResult.seed is uint64; trial seeds are kept below 2**63 for int64 stores).
 MAX_SEED = 2**64 - 1
@@ -134,17 +136,29 @@ def mesh_job(mesh, settings):
 
 
 _worker_client = None
+_worker_world = None  # (job key, TrialWorld): the last profile's world in this process
+
+
+def _job_key(job):
+    return hashlib.sha256(pickle.dumps(job, protocol=4)).hexdigest()
 
 
 def run_batch(job, batch):
-    """Run the trials ``batch`` = [(index, seed), ...] of ``job`` in this process's physics client."""
-    global _worker_client
+    """Run the trials ``batch`` = [(index, seed), ...] of ``job`` in this process's physics client.
+
+    The process keeps one client and the world of the last job it ran, so consecutive batches of one profile
+    reuse it (restored before every trial, see :class:`~rollability_ros.core.trials.TrialWorld`).
+    """
+    global _worker_client, _worker_world
     if _worker_client is None:
         _worker_client = connect()
-    settings = job.settings
-    model = settings.robot_model()
-    return [run_trial(_worker_client, model, job.profile, index, seed, settings.trial, settings.physics)
-            for index, seed in batch]
+    key = _job_key(job)
+    if _worker_world is None or _worker_world[0] != key:
+        settings = job.settings
+        _worker_world = (key, TrialWorld(_worker_client, settings.robot_model(), job.profile, settings.trial,
+                                         settings.physics))
+    world = _worker_world[1]
+    return [world.run(index, seed) for index, seed in batch]
 
 
 def _ignore_interrupts():

@@ -1,8 +1,9 @@
 """One disturbance trial: start state, randomised push, stepping to rest, upright test.
 
-A trial's result depends only on (robot + profile, trial seed, settings): each trial empties the world and
-builds it again (plane, robot) before stepping, so nothing carries over from the trials run before it in the
-same process, and the serial, process-pool and Ray executors give identical outcomes.
+A trial's result depends only on (robot + profile, trial seed, settings): a :class:`TrialWorld` is built once
+per profile and restored to its saved state before every trial, so nothing carries over from the trials run
+before it in the same process (test_evaluation checks outcomes against a freshly built world and across orders),
+and the serial, process-pool and Ray executors give identical outcomes.
 
 Start state (``TrialSettings``)
     the robot rolled ``start_roll_deg`` (180 = upside down) about its x axis, then tilted by a random roll and
@@ -12,8 +13,7 @@ Disturbance
     after ``disturbance_delay_s`` (the drop has landed), for ``disturbance_duration_s``: a horizontal force at
     the base's centre of mass, azimuth uniform in [0, 360) deg, magnitude uniform in [``force_min_n``,
     ``force_max_n``], plus a tipping torque about a horizontal axis of azimuth uniform in [0, 360) deg, magnitude
-    uniform in
-    [``torque_min_nm``, ``torque_max_nm``], both in the world frame and constant while applied.
+    uniform in [``torque_min_nm``, ``torque_max_nm``], both in the world frame and constant while applied.
 End
     once the disturbance is over, every ``check_interval_steps`` steps the base's linear and angular speed are
     compared with the rest thresholds; the trial ends when they have stayed below them for ``rest_hold_s``
@@ -139,14 +139,14 @@ class RestDetector:
         self.interval_steps = settings.check_interval_steps
         self.hold_steps = round(settings.rest_hold_s / time_step_s)
         self._rest_since = None
+        self._pybullet = require("pybullet", feature="the simulated evaluator")
 
     def settled(self, client, body_id, steps):
         """Call after step number ``steps``: True once ``body_id``'s base speeds have stayed below the thresholds
         for the hold time (checked every ``check_interval_steps`` steps)."""
         if steps % self.interval_steps:
             return False
-        pybullet = require("pybullet", feature="the simulated evaluator")
-        linear, angular = pybullet.getBaseVelocity(body_id, physicsClientId=client)
+        linear, angular = self._pybullet.getBaseVelocity(body_id, physicsClientId=client)
         if math.hypot(*linear) < self.linear_mps and math.hypot(*angular) < self.angular_radps:
             self._rest_since = steps if self._rest_since is None else self._rest_since
             return steps - self._rest_since >= self.hold_steps
@@ -154,30 +154,51 @@ class RestDetector:
         return False
 
 
+class TrialWorld:
+    """A world holding one robot + profile, saved once after building and restored before every trial.
+
+    ``restoreState`` puts back the saved bodies, velocities and (empty) contact cache, so a trial starts from
+    the same simulator state whatever ran before it in this client; building the world once saves the cost of
+    creating the bodies per trial (see bench/bench_evaluator.py). Building another world in the same client
+    (or any ``resetSimulation``) invalidates this one.
+    """
+
+    def __init__(self, client, robot_model, profile, settings, physics):
+        self.pybullet = require("pybullet", feature="the simulated evaluator")
+        self.client, self.robot_model, self.settings, self.physics = client, robot_model, settings, physics
+        self.ground, self.robot = build_trial_world(client, robot_model, profile, (0.0, 0.0, 0.0, 1.0), settings,
+                                                    physics)
+        self.saved_state = self.pybullet.saveState(physicsClientId=client)
+
+    def run(self, index, seed):
+        """Run one trial (see the module docstring) and return its :class:`TrialOutcome`."""
+        pybullet, client, settings, body = self.pybullet, self.client, self.settings, self.robot.body_id
+        conditions = sample_conditions(seed, settings)
+        pybullet.restoreState(self.saved_state, physicsClientId=client)
+        place_on_ground(client, body, conditions.orientation, settings.drop_height_m)
+        dt = self.physics.time_step_s
+        push_start = round(settings.disturbance_delay_s / dt)
+        push_end = push_start + max(1, round(settings.disturbance_duration_s / dt))
+        cap = round(settings.time_cap_s / dt)
+        rest = RestDetector(settings, dt)
+        force, torque = conditions.force_n.tolist(), conditions.torque_nm.tolist()
+        step_simulation = pybullet.stepSimulation
+        settled = False
+        steps = 0
+        while steps < cap:
+            if push_start <= steps < push_end:
+                centre, _ = pybullet.getBasePositionAndOrientation(body, physicsClientId=client)
+                pybullet.applyExternalForce(body, -1, force, centre, pybullet.WORLD_FRAME, physicsClientId=client)
+                pybullet.applyExternalTorque(body, -1, torque, pybullet.WORLD_FRAME, physicsClientId=client)
+            step_simulation(physicsClientId=client)
+            steps += 1
+            if steps >= push_end and rest.settled(client, body, steps):
+                settled = True
+                break
+        upright, tilt = self.robot_model.is_upright(client, self.robot, self.ground)
+        return TrialOutcome(index=index, seed=seed, upright=upright, settled=settled, steps=steps, tilt_deg=tilt)
+
+
 def run_trial(client, robot_model, profile, index, seed, settings, physics):
-    """Run one trial in ``client`` and return its :class:`TrialOutcome` (see the module docstring)."""
-    pybullet = require("pybullet", feature="the simulated evaluator")
-    conditions = sample_conditions(seed, settings)
-    ground, robot = build_trial_world(client, robot_model, profile, conditions.orientation, settings, physics)
-    body = robot.body_id
-    dt = physics.time_step_s
-    push_start = round(settings.disturbance_delay_s / dt)
-    push_end = push_start + max(1, round(settings.disturbance_duration_s / dt))
-    cap = round(settings.time_cap_s / dt)
-    rest = RestDetector(settings, dt)
-    force, torque = conditions.force_n.tolist(), conditions.torque_nm.tolist()
-    step_simulation = pybullet.stepSimulation
-    settled = False
-    steps = 0
-    while steps < cap:
-        if push_start <= steps < push_end:
-            centre, _ = pybullet.getBasePositionAndOrientation(body, physicsClientId=client)
-            pybullet.applyExternalForce(body, -1, force, centre, pybullet.WORLD_FRAME, physicsClientId=client)
-            pybullet.applyExternalTorque(body, -1, torque, pybullet.WORLD_FRAME, physicsClientId=client)
-        step_simulation(physicsClientId=client)
-        steps += 1
-        if steps >= push_end and rest.settled(client, body, steps):
-            settled = True
-            break
-    upright, tilt = robot_model.is_upright(client, robot, ground)
-    return TrialOutcome(index=index, seed=seed, upright=upright, settled=settled, steps=steps, tilt_deg=tilt)
+    """Run one trial in a freshly built world in ``client`` and return its :class:`TrialOutcome`."""
+    return TrialWorld(client, robot_model, profile, settings, physics).run(index, seed)

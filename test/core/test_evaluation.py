@@ -17,6 +17,7 @@ from rollability_ros.core.evaluation import (EvaluationCancelled, EvaluatorSetti
                                              evaluate_mesh, evaluate_profile, load_settings, mesh_job, profile_job,
                                              run_batch, trial_seed)
 from rollability_ros.core.geometry import export_mesh, grid_xy, load_profile_mesh, profile_mesh
+from rollability_ros.core.trials import run_trial
 
 pybullet = pytest.importorskip("pybullet")
 
@@ -40,11 +41,21 @@ def test_trial_seeds_are_reproducible_distinct_and_in_range():
 
 
 def test_a_trial_depends_only_on_profile_seed_and_settings():
-    job = profile_job(ridge_heights(SETTINGS.grid), SETTINGS)
+    """The reused, restored world gives exactly what a freshly built world gives, whatever ran before."""
+    settings = SETTINGS
+    ridge = profile_job(ridge_heights(settings.grid), settings)
+    bare = profile_job(None, settings)
     seeds = [(i, trial_seed(5, i)) for i in range(4)]
-    together = run_batch(job, seeds)
-    alone_reversed = [run_batch(job, [pair])[0] for pair in reversed(seeds)][::-1]
-    assert together == alone_reversed
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        fresh = [run_trial(client, settings.robot_model(), ridge.profile, i, s, settings.trial, settings.physics)
+                 for i, s in seeds]
+    finally:
+        pybullet.disconnect(client)
+    together = run_batch(ridge, seeds)
+    run_batch(bare, seeds[:2])  # another profile in between rebuilds this process's world
+    alone_reversed = [run_batch(ridge, [pair])[0] for pair in reversed(seeds)][::-1]
+    assert together == fresh and alone_reversed == fresh
 
 
 def test_executors_agree_with_serial_and_stream_every_trial():

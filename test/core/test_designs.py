@@ -1,0 +1,106 @@
+"""Configuration ids resolve to the right solids: baseline, a selection's designs.yaml, STL files; bad ids refused."""
+import os
+import types
+
+import numpy as np
+import pytest
+import yaml
+
+from rollability_ros.core import geometry
+from rollability_ros.core.config import ConfigError
+from rollability_ros.core.designs import DesignSources, configuration_ids, profile_mesh_for
+from rollability_ros.core.selection import designs_document
+
+pytest.importorskip("trimesh")
+
+GRID = geometry.ProfileGrid(rows=4, cols=3)
+
+
+def ramp_heights(top):
+    """Heights rising along x to ``top`` (simulation units): a valid, non-flat design."""
+    return np.repeat(np.linspace(0.05, top, GRID.rows), GRID.cols)
+
+
+def write_designs(folder, tops):
+    """A designs.yaml exactly as ``rollability select`` writes it, with one ramp design per label -> top."""
+    chosen = [types.SimpleNamespace(label=label, design=types.SimpleNamespace(heights=tuple(ramp_heights(top))),
+                                    reported=(9, 10, "log")) for label, top in tops.items()]
+    document = designs_document(types.SimpleNamespace(designs=chosen), GRID, "run-1")
+    path = os.path.join(folder, "designs.yaml")
+    with open(path, "w", encoding="utf-8") as stream:
+        yaml.safe_dump(document, stream)
+    return path
+
+
+def test_baseline_is_the_bare_chassis_without_any_source():
+    sources = DesignSources()
+    assert configuration_ids(sources) == ["baseline"]
+    assert profile_mesh_for("baseline", sources) is None
+
+
+def test_designs_file_labels_rebuild_the_selected_heights(tmp_path):
+    sources = DesignSources(designs_file=write_designs(str(tmp_path), {"A": 0.4, "B": 0.2}))
+    assert configuration_ids(sources) == ["baseline", "A", "B"]
+    for label, top in (("A", 0.4), ("B", 0.2)):
+        mesh = profile_mesh_for(label, sources)
+        expected = geometry.profile_mesh(ramp_heights(top), GRID)
+        assert mesh.volume == pytest.approx(expected.volume, rel=1e-9)
+        assert mesh.bounds[1][2] == pytest.approx(top * GRID.unit_m)
+
+
+def test_rewritten_designs_file_is_read_again(tmp_path):
+    path = write_designs(str(tmp_path), {"A": 0.4})
+    sources = DesignSources(designs_file=path)
+    before = profile_mesh_for("A", sources).bounds[1][2]
+    write_designs(str(tmp_path), {"A": 0.2})
+    stat = os.stat(path)
+    os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns + 10**9))  # a new version even on a coarse clock
+    assert profile_mesh_for("A", sources).bounds[1][2] == pytest.approx(before / 2)
+
+
+def test_stl_files_resolve_by_label(tmp_path):
+    path = str(tmp_path / "mesh_X.stl")
+    geometry.export_mesh(geometry.profile_mesh(ramp_heights(0.3), GRID), path)
+    sources = DesignSources(mesh_labels=["X"], mesh_files=[path])
+    assert configuration_ids(sources) == ["baseline", "X"]
+    assert profile_mesh_for("X", sources).bounds[1][2] == pytest.approx(0.3 * GRID.unit_m, abs=1e-6)
+
+
+def test_empty_placeholder_pair_means_no_mesh_files():
+    sources = DesignSources(mesh_labels=[""], mesh_files=[""])
+    sources.validate()
+    assert configuration_ids(sources) == ["baseline"]
+
+
+def test_unknown_id_is_refused_naming_the_known_ones(tmp_path):
+    sources = DesignSources(designs_file=write_designs(str(tmp_path), {"A": 0.4}))
+    with pytest.raises(ValueError, match=r"unknown configuration 'C': known ids are baseline, A"):
+        profile_mesh_for("C", sources)
+
+
+@pytest.mark.parametrize("labels, files, message", [
+    (["A"], [], "same length"),
+    (["A"], [""], "needs a mesh_files entry"),
+    (["baseline"], ["x.stl"], "bare chassis"),
+    (["A", "A"], ["a.stl", "b.stl"], "repeats A"),
+])
+def test_bad_mesh_mappings_are_refused(labels, files, message):
+    with pytest.raises(ValueError, match=message):
+        DesignSources(mesh_labels=labels, mesh_files=files).validate()
+
+
+def test_a_label_defined_twice_is_refused(tmp_path):
+    stl = str(tmp_path / "a.stl")
+    geometry.export_mesh(geometry.profile_mesh(ramp_heights(0.3), GRID), stl)
+    sources = DesignSources(designs_file=write_designs(str(tmp_path), {"A": 0.4}), mesh_labels=["A"], mesh_files=[stl])
+    with pytest.raises(ValueError, match="defined both"):
+        profile_mesh_for("A", sources)
+
+
+def test_missing_and_broken_files_are_named(tmp_path):
+    with pytest.raises(FileNotFoundError, match="nowhere.yaml"):
+        profile_mesh_for("A", DesignSources(designs_file=str(tmp_path / "nowhere.yaml")))
+    broken = tmp_path / "designs.yaml"
+    broken.write_text("/**:\n  ros__parameters:\n    designs:\n      labels: [A]\n      grid: {rows: 4, cols: 3}\n")
+    with pytest.raises(ConfigError, match="design A has no designs.A.heights"):
+        profile_mesh_for("A", DesignSources(designs_file=str(broken)))

@@ -285,13 +285,15 @@ class ConvergencePoint:
 def convergence(generations=(), candidates=()):
     """Best-so-far fitness per generation, per run, sorted by (run, generation).
 
-    Uses generation summaries where a run has them, else derives each generation from its candidates
-    (best, mean, count). ``best_so_far`` is recomputed as the running maximum of ``best_fitness``.
+    Uses generation summaries where a run has them: their ``best_so_far`` is the optimiser's pooled estimate of
+    its incumbent (re-evaluated with fresh trials), which can go down when a lucky estimate is corrected; a
+    running maximum of noisy per-generation bests would overstate it. Runs with candidates only derive each
+    generation (best, mean, count) and use the running maximum of ``best_fitness``, the only estimate there is.
     """
     per_run = {}
     for record in generations:
         per_run.setdefault(record.run_id, {})[record.generation] = (record.best_fitness, record.mean_fitness,
-                                                                    record.evaluations)
+                                                                    record.evaluations, record.best_so_far)
     derived = {}
     for candidate in candidates:
         if candidate.run_id not in per_run:
@@ -302,13 +304,14 @@ def convergence(generations=(), candidates=()):
         for generation in sorted(by_generation):
             fitnesses = by_generation[generation]
             evaluations += len(fitnesses)
-            per_run[run_id][generation] = (max(fitnesses), statistics.fmean(fitnesses), evaluations)
+            per_run[run_id][generation] = (max(fitnesses), statistics.fmean(fitnesses), evaluations, None)
     points = []
     for run_id in sorted(per_run):
-        best_so_far = -math.inf
+        running_max = -math.inf
         for generation in sorted(per_run[run_id]):
-            best, mean, evaluations = per_run[run_id][generation]
-            best_so_far = max(best_so_far, best)
+            best, mean, evaluations, pooled = per_run[run_id][generation]
+            running_max = max(running_max, best)
+            best_so_far = pooled if pooled is not None and math.isfinite(pooled) else running_max
             points.append(ConvergencePoint(run_id, generation, best, mean, best_so_far, evaluations))
     return points
 

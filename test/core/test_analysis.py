@@ -126,13 +126,14 @@ def test_paper_discussion_ranks_are_reversed():
 
 
 def test_convergence_from_generations_or_candidates():
-    generations = [GenerationRecord("g", n, best, 0.1, 0.0, 0.1, (), 8 * (n + 1), 1.0)
-                   for n, best in ((1, 0.5), (0, 0.2), (2, 0.4))]
+    # the optimiser's pooled incumbent estimate (best_so_far) may fall when a lucky estimate is re-evaluated
+    generations = [GenerationRecord("g", n, best, 0.1, pooled, 0.1, (), 8 * (n + 1), 1.0)
+                   for n, best, pooled in ((1, 0.5, 0.45), (0, 0.2, 0.2), (2, 0.4, 0.42))]
     candidates = [CandidateRecord("c", gen, i, (), fit, 0, 10, 0, 1.0)
                   for gen, i, fit in ((0, 0, 0.3), (0, 1, 0.1), (1, 0, 0.2), (1, 1, 0.2))]
     points = convergence(generations, candidates + [CandidateRecord("g", 0, 0, (), 0.9, 0, 10, 0, 1.0)])
     assert [(p.run_id, p.generation, p.best_so_far) for p in points] == [
-        ("c", 0, 0.3), ("c", 1, 0.3), ("g", 0, 0.2), ("g", 1, 0.5), ("g", 2, 0.5)]
+        ("c", 0, 0.3), ("c", 1, 0.3), ("g", 0, 0.2), ("g", 1, 0.45), ("g", 2, 0.42)]
     assert points[0].mean_fitness == pytest.approx(0.2) and points[1].evaluations == 4
 
 

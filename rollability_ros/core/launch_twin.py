@@ -11,9 +11,10 @@ condition, seed and settings)
       surface. The edge is the line x = 0 on its top; its outward normal is +x.
 Contact
     The ledge gets the ground contact of ``config/sim.yaml`` (``PhysicsParams.ground_contact``) and the chassis
-    its body contact, as in the trials. The foam gets ``foam.lateral_friction`` and ``foam.restitution`` as its
-    own body coefficients (Bullet multiplies them with the chassis's: with the chassis's 0.35 and 0.3, foam 1.0
-    and 0.1 give a contact friction of 0.35 and restitution 0.03) and is compliant: Bullet's contact stiffness
+    its body contact, as in the trials. The foam gets ``foam.lateral_friction``, ``foam.rolling_friction`` and
+    ``foam.restitution`` as its own body coefficients (Bullet multiplies them with the chassis's: with the
+    chassis's 0.35 and 0.3, foam 1.0 and 0.1 give a contact friction of 0.35 and restitution 0.03; a wheel rolling
+    on the foam meets ``wheel_rolling_friction`` + 0.35 x ``foam.rolling_friction``) and is compliant: Bullet's contact stiffness
     and damping (``contact_stiffness_npm``, ``contact_damping_nspm``), which Bullet combines with the chassis's
     defaults (stiffness infinite, damping 0.1 N s/m) to almost exactly the foam's values. They act per contact
     point, and a face landing flat makes up to four, so read them as the stiffness of one wheel or corner
@@ -33,22 +34,25 @@ Angle (the paper gives mounting holes at -60 ... +60 deg, not a definition)
     edge obliquely. ``chassis_yaw``: the push stays along the edge normal and only the chassis is turned on the
     plate (it runs sideways on its Mecanum rollers).
 Launch
-    The push is an impulse: at t = 0 the chassis, at rest on the plate with its base origin (the centre of the
-    body box) ``run_length_m`` behind the edge along the push direction, gets the launch speed along the push
+    The push is an impulse: at t = 0 the chassis, at rest on the plate, gets the launch speed along the push
     direction and its wheels the spin of rolling without slip. (The real 25 mm cylinder at 30 psi pushes with
-    about 100 N and brings the 1.2 kg chassis to speed within a few millimetres of its 150 mm stroke.) The actual
-    launch speed scatters around the condition's speed with a relative standard deviation
-    ``speed_sigma_fraction``, and the angle by ``angle_sigma_deg`` (hand placement against the push plate),
-    both drawn from the seed.
+    about 100 N and brings the 1.2 kg chassis to speed within a few millimetres of its 150 mm stroke.) It starts
+    where its foremost point (largest x of its links' bounding boxes) reaches the edge line after ``run_length_m``
+    along the push, its base origin (the centre of the body box) on a path through the edge's midpoint. It then
+    coasts on its wheels, so it reaches the edge about 5% (0.8 m/s) or 3% (1.5 m/s) later than
+    ``run_length_m / speed``. The actual launch speed scatters around the condition's speed with a relative
+    standard deviation ``speed_sigma_fraction``, and the angle by ``angle_sigma_deg`` (hand placement against the
+    push plate), both drawn from the seed.
 Measurements and phases
-    ``travel_time_s`` = time at which the base origin crosses the edge line (interpolated between steps), the
-    light-gate pair of the real rig; ``measured_speed_mps`` = ``run_length_m / travel_time_s``. Phases:
-    ``fired`` at t = 0, ``in_flight`` at the edge crossing, ``settling`` at the first foam contact,
-    ``classifying`` once the chassis has come to rest (the trials' rest detection, ``config/sim.yaml`` section
-    ``trial``: speeds below thresholds for ``rest_hold_s``) or the trial time cap; every phase is reported once,
-    in this order, even when an event did not happen (a chassis that stops on the plate). The outcome is the
-    robot model's upright test (the trials' test) against the foam, or against the ledge if the chassis never
-    left it.
+    ``travel_time_s`` = time at which the foremost point crosses the edge line x = 0 (interpolated within the
+    step): the light gates of the real rig, at the start and across the edge; ``measured_speed_mps`` =
+    ``run_length_m / travel_time_s``. ``flight_time_s`` runs from the base origin crossing the edge line (the
+    chassis goes over) to the first foam contact. Phases: ``fired`` at t = 0, ``in_flight`` when the base origin
+    crosses the edge, ``settling`` at the first foam contact, ``classifying`` once the chassis has come to rest
+    (the trials' rest detection, ``config/sim.yaml`` section ``trial``: speeds below thresholds for
+    ``rest_hold_s``) or at the trials' time cap. Every phase is reported once, in this order, even when an event
+    did not happen (a chassis too slow to leave the plate). The outcome is the robot model's upright test (the
+    trials' test) against the foam, or against the ledge if the chassis never went over the edge.
 """
 import dataclasses
 import math
@@ -203,10 +207,10 @@ def load_launch_twin_settings(config_paths=("sim", "robot", "launch_twin"), node
 class LaunchResult:
     """One simulated launch. Times are simulated seconds from the push; positions metres, world frame.
 
-    ``final_orientation`` is the chassis base (x, y, z, w) at the end; ``travel_time_s`` and
-    ``measured_speed_mps`` are NaN (and ``flight_time_s`` too) if the chassis never crossed the edge;
-    ``flight_time_s`` runs from the edge crossing to the first foam contact; ``landing_position_m`` is the base
-    origin at that contact; ``peak_deceleration_mps2`` the largest change of the base's velocity over one step
+    ``final_orientation`` is the chassis base (x, y, z, w) at the end; ``launch_speed_mps`` and
+    ``launch_angle_deg`` the drawn actual values; ``travel_time_s``, ``measured_speed_mps``, ``flight_time_s``
+    and ``landing_position_m`` are as in the module docstring, NaN when the event did not happen;
+    ``landing_position_m`` is the base origin at the first foam contact; ``peak_deceleration_mps2`` the largest change of the base's velocity over one step
     from the step of that contact on, divided by the step (m/s^2): the impact an accelerometer on the chassis
     would see.
     """

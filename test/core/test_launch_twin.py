@@ -86,7 +86,7 @@ def test_launch_stops_once_the_chassis_is_at_rest(paper_launches):
         assert result.steps < settings.trial.time_cap_s / settings.physics.time_step_s
         assert result.sim_time_s == pytest.approx(result.steps * settings.physics.time_step_s)
         assert math.isclose(math.fsum(c * c for c in result.final_orientation), 1.0, rel_tol=1e-6)
-        assert result.upright == (result.tilt_deg <= settings.robot.upright_tilt_deg) or not result.upright
+        assert not result.upright or result.tilt_deg <= settings.robot.upright_tilt_deg
 
 
 def test_opposite_angles_mirror_the_launch_for_the_symmetric_chassis():

@@ -16,12 +16,11 @@ import sys
 import tempfile
 import time
 
-import numpy as np
-
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from rollability_ros.core.geometry import export_mesh, grid_xy, profile_mesh  # noqa: E402
+from bench.bench_evaluator import dome_heights  # noqa: E402
 from rollability_ros.core.evaluation import EvaluatorSettings  # noqa: E402
+from rollability_ros.core.geometry import export_mesh, profile_mesh  # noqa: E402
 from rollability_ros.core.launch_twin import load_launch_twin_settings, simulate_launch  # noqa: E402
 from rollability_ros.core.records import LaunchCondition  # noqa: E402
 
@@ -30,11 +29,9 @@ CAMPAIGN_TRIALS = 400
 
 
 def dome_mesh():
-    """test_physics' dome: tall centre (0.45 units), edges at half height, corners at zero."""
+    """bench_evaluator's (and test_physics') dome profile solid."""
     grid = EvaluatorSettings().grid
-    xy = grid_xy(grid)
-    ny, nx = xy[:, 1] / (grid.width_m / 2), xy[:, 0] / (grid.length_m / 2)
-    return profile_mesh(np.clip(grid.height_max * (1 - 0.5 * ny ** 2 - 0.5 * nx ** 2), 0.0, grid.height_max), grid)
+    return profile_mesh(dome_heights(grid), grid)
 
 
 def main():

@@ -73,17 +73,15 @@ def _run_graph(args, spec, ask):
     from rclpy.node import Node
 
     from rollability_ros.core.campaign_runner import RunnerSettings, report_exit_code
-    from rollability_ros.nodes.campaign_runner import run_graph_campaign, spin_in_background
+    from rollability_ros.nodes.campaign_runner import run_graph_campaign
 
     settings = RunnerSettings(backend=args.backend, store_path=args.store, resume=args.resume,
                               store_timeout_s=args.store_timeout_s)
     settings.validate()
     rclpy.init(args=[])
     node = Node("campaign_runner")
-    executor = spin_in_background(node)
     try:
         return report_exit_code(run_graph_campaign(node, spec, settings, ask))
     finally:
-        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()

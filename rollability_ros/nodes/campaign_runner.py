@@ -15,13 +15,12 @@ Exit code: 0 when every trial is stored, 3 when the campaign stopped early (the 
 """
 import queue
 import sys
-import threading
 import time
 
 import rclpy
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
@@ -42,10 +41,14 @@ SERVER_LOST_S = 3.0
 class RigClient:
     """Sends Launch goals to the rig and relays the operator's answers to the rig's questions.
 
+    The caller's thread spins ``executor`` while it waits: rclpy's ActionClient registers a goal's future only
+    after sending the request, so an executor spinning in another thread can take the response first and drop it.
+
     Parameters
     ----------
     node : rclpy Node
-        Spun by an executor in another thread.
+    executor : rclpy Executor
+        Holds ``node``; spun only by this object, in the calling thread.
     run_id : str
     ask : callable or None
         ``ask(prompt) -> str`` for attended runs; None leaves questions to another operator tool.
@@ -54,7 +57,8 @@ class RigClient:
         Longest wait for the rig's action server and services, s.
     """
 
-    def __init__(self, node, run_id, ask, say, server_timeout_s):
+    def __init__(self, node, executor, run_id, ask, say, server_timeout_s):
+        self.executor = executor
         self.run_id = run_id
         self.ask, self.say = ask, say
         self.server_timeout_s = server_timeout_s
@@ -67,7 +71,7 @@ class RigClient:
         while not future.done():
             if time.monotonic() > deadline:
                 raise LaunchAborted(f"the rig did not answer {what} within {self.server_timeout_s:g} s")
-            time.sleep(0.01)
+            self.executor.spin_once(timeout_sec=0.05)
         return future.result()
 
     def _answer(self, trial_id, phase, detail):
@@ -113,8 +117,9 @@ class RigClient:
         """Show the feedback and answer the rig's questions until the result arrives."""
         missing_since = None
         while not result_future.done():
+            self.executor.spin_once(timeout_sec=0.05)
             try:
-                message = feedback.get(timeout=0.1).feedback
+                message = feedback.get_nowait().feedback
             except queue.Empty:
                 if self.action.server_is_ready():
                     missing_since = None
@@ -128,7 +133,7 @@ class RigClient:
 
 
 def run_graph_campaign(node, spec, settings, ask=None, say=print):
-    """Run the campaign through the graph from ``node`` (spun elsewhere); returns the CampaignReport."""
+    """Run the campaign through the graph from ``node`` (spun here, in this thread); returns the CampaignReport."""
     plan = plan_trials(spec)
     watcher = StoreWatcher(settings.store_path, settings.store_timeout_s)
     try:
@@ -136,24 +141,12 @@ def run_graph_campaign(node, spec, settings, ask=None, say=print):
         refusal = resume_refusal(len(stored), settings.resume, spec.run_id)
         if refusal:
             raise ValueError(refusal)
-        rig = RigClient(node, spec.run_id, ask, say, settings.server_timeout_s)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s)
         return run_campaign(plan, spec.run_id, stored, rig.launch, watcher, ask=ask, say=say)
     finally:
         watcher.close()
-
-
-def spin_in_background(node):
-    """Spin ``node`` on a multi-threaded executor in a daemon thread; returns the executor."""
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(node)
-
-    def spin():
-        try:
-            executor.spin()
-        except ExternalShutdownException:
-            pass
-    threading.Thread(target=spin, daemon=True).start()
-    return executor
 
 
 def main(args=None):
@@ -162,11 +155,8 @@ def main(args=None):
     try:
         spec = declare_settings(node, "campaign", CampaignSpec)
         settings = declare_settings(node, "runner", RunnerSettings)
-        executor = spin_in_background(node)
         ask = input if settings.backend == "physical" else None
-        code = report_exit_code(run_graph_campaign(node, spec, settings, ask))
-        executor.shutdown()
-        return code
+        return report_exit_code(run_graph_campaign(node, spec, settings, ask))
     except (ParameterError, ConfigError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

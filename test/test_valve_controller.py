@@ -182,3 +182,25 @@ def test_serial_relay_watchdog_and_sigint_mid_pulse(ros_node, start_node, relay)
     assert ros_node.wait_for(lambda: not relay.relay_on(), 5), process.log()
     assert ros_node.wait_for(lambda: not process.alive(), 15), process.log()
     assert not relay.relay_on()
+
+
+def test_operator_cli_estop_disarm_arm(ros_node, start_node):
+    import subprocess
+    import sys
+
+    process = start_valve(start_node)
+    valve = ValveClient(ros_node)
+    valve.ready(process.log)
+
+    def rig_cli(*args):
+        return subprocess.run([sys.executable, "-m", "rollability_ros.cli", "rig", *args], capture_output=True,
+                              text=True, timeout=60)
+
+    assert rig_cli("arm").returncode == 0 and ros_node.wait_for(lambda: valve.last().armed, 10)
+    assert "e-stop sent" in rig_cli("estop").stdout
+    assert ros_node.wait_for(lambda: valve.last().fault, 10)
+    refused = rig_cli("arm")
+    assert refused.returncode == 1 and "fault latched" in refused.stdout
+    assert rig_cli("disarm").returncode == 0 and ros_node.wait_for(lambda: not valve.last().fault, 10)
+    stray = rig_cli("outcome", "upright", "--timeout-s", "1")
+    assert stray.returncode == 2 and "record_outcome is not available" in stray.stderr

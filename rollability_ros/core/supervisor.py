@@ -147,16 +147,31 @@ class Supervisor:
                 return
         raise KeyError(name)
 
-    def wait_for_exit(self, name, timeout_s=None, period_s=0.2, stop_requested=lambda: False):
-        """Supervise until process ``name`` exits; return its exit code, or None on timeout / graph failure / stop."""
+    def wait_for_exit(self, name, timeout_s=None, period_s=0.2, stop_requested=lambda: False, on_tick=None,
+                      tick_period_s=10.0):
+        """Supervise until process ``name`` exits (it is :meth:`finish`-ed first).
+
+        Returns ``(exit code, reason)``: the code is None when waiting ended otherwise, and ``reason`` then says
+        why (operator stop, a critical process gave up, timeout); a non-zero exit also has a reason.
+        ``on_tick()`` runs every ``tick_period_s`` while waiting (progress display).
+        """
         self.finish(name)
         process = self.child(name)
-        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        deadline = None if not timeout_s else time.monotonic() + timeout_s
+        last_tick = 0.0
         while process.poll() is None:
-            if stop_requested() or not self.poll() or (deadline is not None and time.monotonic() > deadline):
-                return None
+            if stop_requested():
+                return None, "stopped by the operator"
+            if not self.poll():
+                return None, self.failed
+            if deadline is not None and time.monotonic() > deadline:
+                return None, f"{name} did not finish within {timeout_s:.0f} s"
+            if on_tick is not None and time.monotonic() - last_tick >= tick_period_s:
+                on_tick()
+                last_tick = time.monotonic()
             time.sleep(period_s)
-        return process.returncode
+        code = process.returncode
+        return code, "" if code == 0 else f"{name} exited with code {code} (its log: {self.log_dir}/{name}.log)"
 
     def stop(self):
         """Stop every running child in reverse start order: SIGINT, then SIGTERM, then SIGKILL."""

@@ -83,6 +83,7 @@ def test_a_finished_job_is_not_a_failure(tmp_path):
     sup = Supervisor([_spec(tmp_path, "node"), ProcessSpec("job", [sys.executable, str(script)])],
                      str(tmp_path / "logs"), lambda event: None)
     sup.start()
-    assert sup.wait_for_exit("job", timeout_s=20) == 0
+    ticks = []
+    assert sup.wait_for_exit("job", timeout_s=20, on_tick=lambda: ticks.append(1)) == (0, "")
     assert sup.poll() and sup.failed == ""
     sup.stop()

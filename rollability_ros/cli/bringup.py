@@ -1,0 +1,51 @@
+"""`rollability bringup`: the lab session's node graph as supervised processes, until Ctrl-C."""
+import os
+import signal
+import time
+
+
+def run(args):
+    from rollability_ros.core.bringup import load_graph_settings, session_nodes
+    from rollability_ros.core.graph import parameter_files
+    from rollability_ros.core.study import new_study_id
+    from rollability_ros.core.supervisor import Supervisor
+
+    param_files = parameter_files(["bringup", *args.config])
+    settings = load_graph_settings(param_files)
+    if args.view:
+        settings.view = True
+    run_dir = os.path.join(settings.output_dir, args.session_id or new_study_id().replace("study", "session"))
+    os.makedirs(run_dir, exist_ok=True)
+    nodes = session_nodes(settings, run_dir, rig_backend=args.backend, optimizer=not args.no_optimizer)
+    supervisor = Supervisor([node.process_spec(param_files) for node in nodes], os.path.join(run_dir, "logs"))
+    stop = []
+    signal.signal(signal.SIGINT, lambda *_: stop.append("Ctrl-C"))
+    signal.signal(signal.SIGTERM, lambda *_: stop.append("SIGTERM"))
+    print(f"bringup: session {run_dir} ({len(nodes)} nodes, rig backend {args.backend}); Ctrl-C stops everything")
+    try:
+        supervisor.start()
+        while not stop and supervisor.poll():
+            time.sleep(settings.poll_period_s)
+    finally:
+        supervisor.stop()
+    if supervisor.failed:
+        print(f"bringup: stopped because {supervisor.failed}")
+        return 1
+    print(f"bringup: stopped ({stop[0] if stop else 'done'}); outcomes and bag in {run_dir}")
+    return 0
+
+
+def register(subparsers):
+    parser = subparsers.add_parser(
+        "bringup", help="start the whole node graph as supervised processes (Ctrl-C stops it cleanly)",
+        description="Start recorder, outcome_logger, valve_controller, the sim_evaluator nodes, the rig and the "
+        "optimizer (which waits for its 'start' service) as separate processes. A node that dies is restarted "
+        "(up to 3 times) or the whole graph is stopped cleanly; Ctrl-C stops every node in reverse order, the "
+        "recorder last, so the bag is complete and closed.")
+    parser.add_argument("--config", action="append", default=[], metavar="FILE",
+                        help="extra ROS 2 parameter file(s) on top of the defaults; repeatable, later files win")
+    parser.add_argument("--backend", choices=("sim", "physical"), default="sim", help="the rig's backend")
+    parser.add_argument("--no-optimizer", action="store_true", help="leave the optimizer out (rig-only session)")
+    parser.add_argument("--view", action="store_true", help="also serve the live topics to the Foxglove app")
+    parser.add_argument("--session-id", default=None, help="name of the session directory")
+    parser.set_defaults(func=run)

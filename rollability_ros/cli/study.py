@@ -1,0 +1,40 @@
+"""`rollability study`: the main job, through the real node graph, in simulation (see core/study.py)."""
+import signal
+
+
+def run(args):
+    from rollability_ros.core.study import Study
+
+    study = Study(extra_configs=args.config, study_id=args.study_id)
+    signal.signal(signal.SIGINT, lambda *_: study.request_stop())
+    signal.signal(signal.SIGTERM, lambda *_: study.request_stop())
+    result = study.run()
+    print()
+    if result.summary:
+        print(result.summary)
+    print(f"study directory: {result.study_dir}")
+    print(f"  designs (STL, Table 3): {study.optimisation_dir}/designs/")
+    print(f"  outcome store:          {study.store_path}")
+    if result.bag_dir:
+        print(f"  bag (MCAP):             {result.bag_dir}   (rollability play {result.bag_dir})")
+    if result.report_html:
+        print(f"  report:                 {result.report_html}")
+    print(f"  node logs:              {result.study_dir}/logs/")
+    if not result.ok:
+        print(f"study did not complete: {result.reason}")
+        return 1
+    return 0
+
+
+def register(subparsers):
+    parser = subparsers.add_parser(
+        "study", help="the main job: optimise, select designs, run the launch campaign in simulation, report",
+        description="Run the whole loop through the real node graph (supervised processes): CMA-ES over "
+        "simulated evaluators, design selection (A/B/C), the launch campaign on the simulated rig for the "
+        "baseline and the designs, durable logging, an MCAP bag, and the report. The default is the quick "
+        "configuration (minutes on 2 cores); --config paper runs the paper's settings.")
+    parser.add_argument("--config", action="append", default=[], metavar="FILE",
+                        help="extra ROS 2 parameter file(s) on top of the defaults (a shipped name such as "
+                             "'paper', or a path); repeatable, later files win")
+    parser.add_argument("--study-id", default=None, help="name of the study directory (default: study-<UTC time>)")
+    parser.set_defaults(func=run)

@@ -1,0 +1,189 @@
+"""The main job: the whole design-and-validation loop through the real node graph, unattended, in simulation.
+
+1. Bring up the graph as supervised processes (:mod:`~rollability_ros.core.supervisor`): recorder (bag),
+   outcome_logger (durable store), valve_controller (dry run), ``evaluators`` sim_evaluator nodes, optimizer.
+2. The optimizer runs CMA-ES over the evaluators, selects designs A/B/C when it finishes (STL, Table 3,
+   designs.yaml) and exits.
+3. The rig (sim backend, the launch twin with the selected designs) and the campaign_runner join; the runner
+   sends every trial of the campaign matrix to the rig and exits once the logger has stored them all.
+4. The graph stops in reverse order (the recorder last, so the bag holds everything and is closed cleanly).
+5. The report (figures, tables, HTML) is written from the logger's store, and the bag is read back to check it
+   holds the same launch outcomes.
+
+Everything lands in ``<output_dir>/<study id>/``: ``optimisation/`` (run store, checkpoint, designs/ with STL
+files), ``outcomes.sqlite`` (the logger's store), ``bag/`` (MCAP), ``report/``, ``logs/`` (one log per node),
+``study.yaml`` (the parameters added for the campaign). This module never imports rclpy: it runs processes and
+reads stores.
+"""
+import dataclasses
+import datetime
+import os
+
+import yaml
+
+from rollability_ros.core.bringup import core_nodes, load_graph_settings
+from rollability_ros.core.config import load_parameters
+from rollability_ros.core.graph import NodeLaunch, parameter_files
+from rollability_ros.core.store import Store
+from rollability_ros.core.supervisor import Supervisor
+
+#: The optimisation run inside a study directory.
+OPTIMISATION_DIR = "optimisation"
+
+
+@dataclasses.dataclass
+class StudyResult:
+    """Where a study put its results, and how it ended (``ok`` False: ``reason`` says why)."""
+
+    study_dir: str
+    ok: bool
+    reason: str = ""
+    report_html: str = ""
+    bag_dir: str = ""
+    summary: str = ""
+
+
+class Study:
+    """Runs the main job (module docstring) and reports progress through ``say(text)``."""
+
+    def __init__(self, extra_configs=(), study_id=None, say=print):
+        self.param_files = parameter_files(["bringup", *extra_configs])
+        self.settings = load_graph_settings(self.param_files)
+        self.parameters = load_parameters(self.param_files)
+        self.study_id = study_id or new_study_id()
+        self.study_dir = os.path.join(self.settings.output_dir, self.study_id)
+        self.say = say
+        self._stop_requested = False
+
+    def request_stop(self):
+        """Ask the running study to stop at its next check (Ctrl-C handler)."""
+        self._stop_requested = True
+
+    @property
+    def optimisation_dir(self):
+        return os.path.join(self.study_dir, OPTIMISATION_DIR)
+
+    @property
+    def store_path(self):
+        return os.path.join(self.study_dir, "outcomes.sqlite")
+
+    def _optimizer(self):
+        return NodeLaunch("optimizer", params={
+            "run_id": OPTIMISATION_DIR, "optimizer.output_dir": self.study_dir, "autostart": True,
+            "select_designs": True, "exit_on_finish": True})
+
+    def _campaign_nodes(self, labels):
+        configurations = ["baseline", *labels]
+        overrides = {"launch_twin": {"designs": {"designs_file": os.path.join(self.optimisation_dir, "designs",
+                                                                              "designs.yaml")}}}
+        study_yaml = os.path.join(self.study_dir, "study.yaml")
+        with open(study_yaml, "w", encoding="utf-8") as stream:
+            yaml.safe_dump({"/**": {"ros__parameters": overrides}}, stream)
+        twin_config = [*self.param_files, study_yaml]
+        rig = NodeLaunch("rig", params={"rig.backend": "sim", "rig.configurations": configurations,
+                                        "rig.twin_config": twin_config})
+        runner = NodeLaunch("campaign_runner", restart=False, params={
+            "campaign.run_id": self.study_id, "campaign.configurations": configurations,
+            "runner.backend": "sim", "runner.store_path": self.store_path})
+        return rig, runner
+
+    def _progress_optimisation(self):
+        store_file = os.path.join(self.optimisation_dir, "store.sqlite")
+        if not os.path.isfile(store_file):
+            return "optimiser starting"
+        with Store(store_file) as store:
+            generations = store.generations()
+        if not generations:
+            return "first generation under evaluation"
+        last = generations[-1]
+        cap = self.parameters.get("optimizer.max_generations", 0)
+        return (f"generation {last.generation + 1}{'/' + str(cap) if cap else ''}: best so far "
+                f"{last.best_so_far:.2f}, {last.evaluations} evaluations, {last.elapsed_s:.0f} s")
+
+    def _progress_campaign(self, total):
+        if not os.path.isfile(self.store_path):
+            return "campaign starting"
+        with Store(self.store_path) as store:
+            done = len(store.trial_ids(self.study_id))
+        return f"launch campaign: {done}/{total} trials stored"
+
+    def _wait(self, supervisor, name, timeout_s, progress):
+        def tick():
+            try:
+                self.say("  " + progress())
+            except Exception as exc:  # progress is informative only; a busy store must not end the study
+                self.say(f"  (progress unavailable: {exc})")
+
+        return supervisor.wait_for_exit(name, timeout_s, self.settings.poll_period_s,
+                                        lambda: self._stop_requested, tick)
+
+    def run(self):
+        """Run the whole study; always stops the graph; returns a :class:`StudyResult`."""
+        os.makedirs(self.study_dir, exist_ok=False)
+        self.say(f"study {self.study_id}: results in {self.study_dir}")
+        supervisor = Supervisor([n.process_spec(self.param_files) for n in core_nodes(self.settings, self.study_dir)],
+                                os.path.join(self.study_dir, "logs"),
+                                on_event=lambda event: self.say("  " + event.text()))
+        result = StudyResult(study_dir=self.study_dir, ok=False,
+                             bag_dir=os.path.join(self.study_dir, "bag") if self.settings.record else "")
+        try:
+            supervisor.start()
+            self.say("optimising the profile (CMA-ES over the evaluators)")
+            supervisor.add(self._optimizer().process_spec(self.param_files))
+            code, reason = self._wait(supervisor, "optimizer", self.settings.optimisation_timeout_s,
+                                      self._progress_optimisation)
+            if code != 0:
+                result.reason = reason
+                return result
+            labels = self._selected_labels()
+            self.say(f"designs selected: {', '.join(labels) or 'none'}; launching the campaign on the simulated rig")
+            rig, runner = self._campaign_nodes(labels)
+            supervisor.add(rig.process_spec(self.param_files))
+            supervisor.add(runner.process_spec(self.param_files))
+            total = self._campaign_size(1 + len(labels))
+            code, reason = self._wait(supervisor, "campaign_runner", self.settings.campaign_timeout_s,
+                                      lambda: self._progress_campaign(total))
+            if code != 0:
+                result.reason = reason
+                return result
+            result.ok = True
+        finally:
+            self.say("stopping the node graph")
+            supervisor.stop()
+        return self._report(result)
+
+    def _selected_labels(self):
+        designs_yaml = os.path.join(self.optimisation_dir, "designs", "designs.yaml")
+        if not os.path.isfile(designs_yaml):
+            return []
+        with open(designs_yaml, encoding="utf-8") as stream:
+            document = yaml.safe_load(stream) or {}
+        params = next(iter(document.values()), {}).get("ros__parameters", {})
+        return list(params.get("designs", {}).get("labels", []))
+
+    def _campaign_size(self, configurations):
+        per_configuration = 1
+        for key in ("campaign.heights_m", "campaign.speeds_mps", "campaign.angles_deg"):
+            per_configuration *= len(self.parameters.get(key, [None]))
+        return configurations * per_configuration * int(self.parameters.get("campaign.repetitions", 1))
+
+    def _report(self, result):
+        from rollability_ros.core import report
+
+        data = report.load_report_data(self.store_path, run_id=self.study_id)
+        table3 = os.path.join(self.optimisation_dir, "designs", "table3.csv")
+        if os.path.isfile(table3):
+            report.use_geometry_csv(data, table3)
+        built = report.build_report(data, os.path.join(self.study_dir, "report"))
+        result.report_html = built.html_path
+        result.summary = built.summary
+        if result.bag_dir:
+            from rollability_ros.core.bag_records import read_records_from_bag
+
+            bag_outcomes = [o for o in read_records_from_bag(result.bag_dir)[0] if o.run_id == self.study_id]
+            stored = {o.trial_id for o in data.outcomes}
+            if {o.trial_id for o in bag_outcomes} != stored:
+                result.ok = False
+                result.reason = (f"the bag holds {len(bag_outcomes)} launch outcomes of this study, the store "
+                                 f"{len(stored)}: they differ")
+        return result

@@ -29,8 +29,8 @@ class GraphSettings:
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
-        if not 1 <= self.evaluators <= 64:
-            raise ValueError(f"evaluators must be in [1, 64], got {self.evaluators}")
+        if not 0 <= self.evaluators <= 64:
+            raise ValueError(f"evaluators must be in [0, 64] (0: a rig-only session), got {self.evaluators}")
         if self.evaluator_workers < 0:
             raise ValueError(f"evaluator_workers must be >= 0 (0 = one per core), got {self.evaluator_workers}")
         if self.valve_backend not in ("dry_run", "gpio", "serial_relay"):

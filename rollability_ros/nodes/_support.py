@@ -78,7 +78,10 @@ def _has_all_defaults(cls):
 
 
 def _current_values(node, prefix, overrides=None):
-    flat = {name: param.value for name, param in node.get_parameters_by_prefix(prefix).items()}
+    # a parameter declared with a type only (an empty-list default) and never set has the value None: leave it
+    # out so the dataclass default applies
+    flat = {name: param.value for name, param in node.get_parameters_by_prefix(prefix).items()
+            if param.value is not None}
     lead = prefix + "." if prefix else ""
     for param in overrides or ():
         if param.name.startswith(lead):

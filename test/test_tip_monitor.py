@@ -290,3 +290,23 @@ def test_rpy_from_quaternion_round_trip():
         back = quaternion_from_rpy_deg(*rpy_deg_from_quaternion(quaternion_from_rpy_deg(*rpy)))
         dot = abs(sum(a * b for a, b in zip(back, quaternion_from_rpy_deg(*rpy))))
         assert dot == pytest.approx(1.0, abs=1e-9)
+
+
+def test_parameter_changes_are_validated(ros_node, start_node):
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    monitor = Monitor(ros_node, start_node)
+    client = ros_node.node.create_client(SetParameters, "/tip_monitor/set_parameters")
+    assert client.wait_for_service(timeout_sec=30)
+
+    def set_parameter(name, value):
+        request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+        return client.call(request, timeout_sec=30).results[0]
+
+    refused = set_parameter("tip_monitor.recover_threshold_deg", 80.0)
+    assert not refused.successful and "hysteresis band" in refused.reason
+    fixed = set_parameter("store_path", "elsewhere.sqlite")
+    assert not fixed.successful and "fixed at start-up" in fixed.reason
+    assert set_parameter("tip_monitor.tip_threshold_deg", 50.0).successful
+    assert ros_node.wait_for(lambda: "tracking restarts" in monitor.process.log(), 10)

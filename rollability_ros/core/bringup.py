@@ -16,6 +16,7 @@ from rollability_ros.core.graph import NodeLaunch
 class GraphSettings:
     """``bringup.*`` (config/bringup.yaml): how many evaluators, what to record and serve."""
 
+    namespace: str = "/rollability"
     evaluators: int = 2
     evaluator_workers: int = 1
     valve_backend: str = "dry_run"
@@ -29,6 +30,9 @@ class GraphSettings:
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
+        if not self.namespace.startswith("/") or "//" in self.namespace or self.namespace.endswith("/") and \
+                self.namespace != "/":
+            raise ValueError(f"namespace must be an absolute ROS namespace such as /rollability, got {self.namespace!r}")
         if not 0 <= self.evaluators <= 64:
             raise ValueError(f"evaluators must be in [0, 64] (0: a rig-only session), got {self.evaluators}")
         if self.evaluator_workers < 0:
@@ -55,16 +59,19 @@ def new_study_id(now=None):
 def core_nodes(settings, study_dir):
     """The always-on part of the graph: recorder, outcome_logger, valve_controller, evaluators."""
     nodes = []
+    namespace = settings.namespace.rstrip("/")
     if settings.record:
         nodes.append(NodeLaunch("recorder", params={"recorder.output_dir": os.path.join(study_dir, "bag")},
                                 stop_timeout_s=30.0))
     nodes.append(NodeLaunch("outcome_logger", params={"store_path": os.path.join(study_dir, "outcomes.sqlite")}))
     nodes.append(NodeLaunch("valve_controller", params={"valve.backend": settings.valve_backend}))
     for index in range(settings.evaluators):
-        nodes.append(NodeLaunch("sim_evaluator", namespace=f"/eval_{index}",
+        nodes.append(NodeLaunch("sim_evaluator", label=f"eval_{index}", namespace=f"{namespace}/eval_{index}",
                                 params={"evaluator.workers": settings.evaluator_workers}))
     if settings.view:
         nodes.append(NodeLaunch("view_bridge", params={"port": settings.view_port}, critical=False))
+    for node in nodes:
+        node.namespace = node.namespace or settings.namespace
     return nodes
 
 
@@ -74,7 +81,8 @@ def session_nodes(settings, run_dir, rig_backend="sim", optimizer=True):
     The optimizer waits for its ``start`` service (no autostart) and keeps its runs under ``run_dir``.
     """
     nodes = core_nodes(settings, run_dir)
-    nodes.append(NodeLaunch("rig", params={"rig.backend": rig_backend}))
+    nodes.append(NodeLaunch("rig", namespace=settings.namespace, params={"rig.backend": rig_backend}))
     if optimizer:
-        nodes.append(NodeLaunch("optimizer", params={"optimizer.output_dir": run_dir, "autostart": False}))
+        nodes.append(NodeLaunch("optimizer", namespace=settings.namespace,
+                                params={"optimizer.output_dir": run_dir, "autostart": False}))
     return nodes

@@ -28,9 +28,13 @@ def _ros_value(value):
 
 @dataclasses.dataclass
 class NodeLaunch:
-    """One node process: ``module`` in ``rollability_ros.nodes``, its name, namespace, files and overrides."""
+    """One node process: ``module`` in ``rollability_ros.nodes``, its name, namespace, files and overrides.
+
+    ``label`` names the process for the supervisor and its log file (default: the node name or module).
+    """
 
     module: str
+    label: str = ""
     name: str = ""
     namespace: str = ""
     params: dict = dataclasses.field(default_factory=dict)
@@ -53,9 +57,7 @@ class NodeLaunch:
 
     def process_spec(self, param_files):
         """A :class:`~rollability_ros.core.supervisor.ProcessSpec` for the supervisor."""
-        label = (self.namespace.strip("/").replace("/", ".") + "." if self.namespace.strip("/") else "") + \
-            (self.name or self.module)
-        return ProcessSpec(name=label, argv=self.argv(param_files), restart=self.restart, critical=self.critical,
+        return ProcessSpec(name=self.label or self.name or self.module, argv=self.argv(param_files), restart=self.restart, critical=self.critical,
                            stop_timeout_s=self.stop_timeout_s)
 
 

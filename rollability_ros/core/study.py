@@ -68,7 +68,7 @@ class Study:
         return os.path.join(self.study_dir, "outcomes.sqlite")
 
     def _optimizer(self):
-        return NodeLaunch("optimizer", params={
+        return NodeLaunch("optimizer", namespace=self.settings.namespace, params={
             "run_id": OPTIMISATION_DIR, "optimizer.output_dir": self.study_dir, "autostart": True,
             "select_designs": True, "exit_on_finish": True})
 
@@ -80,9 +80,9 @@ class Study:
         with open(study_yaml, "w", encoding="utf-8") as stream:
             yaml.safe_dump({"/**": {"ros__parameters": overrides}}, stream)
         twin_config = [*self.param_files, study_yaml]
-        rig = NodeLaunch("rig", params={"rig.backend": "sim", "rig.configurations": configurations,
+        rig = NodeLaunch("rig", namespace=self.settings.namespace, params={"rig.backend": "sim", "rig.configurations": configurations,
                                         "rig.twin_config": twin_config})
-        runner = NodeLaunch("campaign_runner", restart=False, params={
+        runner = NodeLaunch("campaign_runner", namespace=self.settings.namespace, restart=False, params={
             "campaign.run_id": self.study_id, "campaign.configurations": configurations,
             "runner.backend": "sim", "runner.store_path": self.store_path})
         return rig, runner

@@ -7,7 +7,7 @@ from rollability_ros.core.graph import DEFAULT_CONFIGS, NodeLaunch, parameter_fi
 
 
 def test_argv_and_overrides_round_trip_through_yaml():
-    launch = NodeLaunch("sim_evaluator", namespace="/eval_0",
+    launch = NodeLaunch("sim_evaluator", label="eval_0", namespace="/eval_0",
                         params={"evaluator.workers": 1, "flag": True, "path": "runs/it's here", "files": ["a", "b"],
                                 "ratio": 0.5})
     argv = launch.argv(["one.yaml", "two.yaml"])
@@ -17,7 +17,8 @@ def test_argv_and_overrides_round_trip_through_yaml():
     overrides = dict(argv[i + 1].split(":=", 1) for i, arg in enumerate(argv) if arg == "-p")
     assert {key: yaml.safe_load(value) for key, value in overrides.items()} == {
         "evaluator.workers": 1, "flag": True, "path": "runs/it's here", "files": ["a", "b"], "ratio": 0.5}
-    assert launch.process_spec([]).name == "eval_0.sim_evaluator"
+    assert launch.process_spec([]).name == "eval_0"
+    assert NodeLaunch("rig", namespace="/rollability").process_spec([]).name == "rig"
 
 
 def test_parameter_files_resolve_in_order():

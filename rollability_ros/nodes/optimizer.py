@@ -1,0 +1,419 @@
+"""optimizer: a CMA-ES profile optimisation (``core.optimisation_run``) whose candidates are evaluated by every
+EvaluateProfile action server in the graph (one or many ``sim_evaluator`` nodes, ``core.evaluator_pool``).
+
+Interfaces (relative names):
+- publishes ``candidates`` (rollability_ros/CandidateResult, reliable, depth 1000): every evaluated candidate,
+  after it is stored in the run's ``store.sqlite``;
+- publishes ``generations`` (rollability_ros/GenerationSummary, latched): every completed generation, after its
+  checkpoint;
+- publishes ``best_profile_marker`` (visualization_msgs/Marker TRIANGLE_LIST, latched): the best-so-far
+  profile solid (metres) in ``frame_id``, placed on the chassis top (``robot.body_height_m`` / 2 above it);
+  re-sent whenever the best-so-far design changes (DELETE when it is the flat baseline);
+- services (std_srvs/Trigger): ``start`` (start a run, if ``autostart`` is false or the last run ended),
+  ``pause`` (send no new evaluations; those in flight finish and are kept), ``resume`` (continue after a
+  pause, or retry after evaluations failed), ``stop`` (finish and checkpoint the current generation, then end
+  the run; a paused run is resumed for that);
+- calls ``<any namespace>/evaluate_profile`` (rollability_ros/action/EvaluateProfile): every server of that
+  type, rediscovered every ``evaluator_discovery_period_s``; one goal in flight per server.
+
+Parameters: the namespaces ``optimizer`` (config/optimizer.yaml, config/paper.yaml), ``selection``, ``profile``
+and ``printer`` (the grid and printer of config/robot.yaml, overridden by the optimisation file), all saved in
+the run's ``config.yaml``; ``robot`` (only ``body_height_m`` is used, for the marker); and:
+``run_id`` (empty = new ``opt-<date>-<time>``), ``resume`` (continue run ``run_id`` from its last checkpoint),
+``autostart`` (start once the graph has been searched twice), ``select_designs`` (choose Mesh A, B, C when the run finishes), ``frame_id``,
+``evaluator_timeout_s``, ``evaluator_max_attempts``, ``evaluator_retry_delay_s``,
+``evaluator_discovery_period_s``. Optimiser parameters are read when a run starts.
+
+A failed evaluation (rejected goal, aborted, silent for ``evaluator_timeout_s``, evaluator gone) is retried on
+another evaluator and never scored; after ``evaluator_max_attempts`` failures of one candidate the run pauses
+and says why (``resume`` retries the generation). Evaluators must use the same ``profile`` grid as this node
+(their goals carry heights only). SIGINT / SIGTERM end the node at once; the run keeps its last checkpoint and
+continues with ``resume:=true run_id:=<id>``.
+"""
+import dataclasses
+import os
+import sys
+import threading
+
+from action_msgs.msg import GoalStatus
+from geometry_msgs.msg import Point
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.action import ActionClient, get_action_names_and_types
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import Marker
+
+from rollability_ros.action import EvaluateProfile
+from rollability_ros.core import geometry, optimisation_run, selection
+from rollability_ros.core.config import ConfigError
+from rollability_ros.core.evaluator_pool import EvaluationFailed, EvaluatorPool, PoolClosed, PoolSettings
+from rollability_ros.core.geometry import PrinterSpec, ProfileGrid
+from rollability_ros.core.optimiser import OptimizerSettings
+from rollability_ros.core.robot import ChassisSpec
+from rollability_ros.core.selection import SelectionSettings
+from rollability_ros.msg import CandidateResult, GenerationSummary
+from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg
+from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, declare_settings,
+                                            guard_settings, read_settings, run_node)
+
+#: The action type an evaluator serves (as the graph API names it).
+EVALUATOR_ACTION_TYPE = "rollability_ros/action/EvaluateProfile"
+#: Parameter namespaces that define a run and are saved in its config.yaml.
+RUN_SECTIONS = {"optimizer": OptimizerSettings, "selection": SelectionSettings, "profile": ProfileGrid,
+                "printer": PrinterSpec}
+_STATUS_NAMES = {GoalStatus.STATUS_ABORTED: "aborted", GoalStatus.STATUS_CANCELED: "cancelled",
+                 GoalStatus.STATUS_UNKNOWN: "unknown"}
+_PARAMETERS = {  # name: (default, description)
+    "run_id": ("", "id of the run to start (empty: opt-<date>-<time>) or, with resume, to continue"),
+    "resume": (False, "continue run run_id from its last checkpoint instead of starting a new run"),
+    "autostart": (True, "start optimising at start-up (false: wait for the start service)"),
+    "select_designs": (False, "when the run finishes, choose designs A, B, C (section selection) into "
+                              "<run>/designs/"),
+    "frame_id": ("base_link", "frame of the best-profile marker (the chassis frame, box centre)"),
+    "evaluator_timeout_s": (PoolSettings.timeout_s, "s without any reply (accept, feedback, result) after which "
+                                                    "an evaluation is given up and retried elsewhere"),
+    "evaluator_max_attempts": (PoolSettings.max_attempts, "failed attempts of one candidate before the run "
+                                                          "pauses and reports; 0 = retry without limit"),
+    "evaluator_retry_delay_s": (PoolSettings.retry_delay_s, "s an evaluator that failed gets no new evaluation"),
+    "evaluator_discovery_period_s": (2.0, "s between searches of the graph for EvaluateProfile servers"),
+}
+
+
+class _ThreadSafeActionClient(ActionClient):
+    """An ActionClient whose requests may be sent from any thread.
+
+    rclpy's ActionClient registers a request's future only after sending the request, so a response that the
+    executor handles in between is dropped ("Ignoring unexpected goal response"). Sending and handling
+    responses under one lock closes that window.
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._request_lock = threading.RLock()
+
+    def send_goal_async(self, *args, **kwargs):
+        with self._request_lock:
+            return super().send_goal_async(*args, **kwargs)
+
+    def _cancel_goal_async(self, goal_handle):
+        with self._request_lock:
+            return super()._cancel_goal_async(goal_handle)
+
+    def _get_result_async(self, goal_handle):
+        with self._request_lock:
+            return super()._get_result_async(goal_handle)
+
+    async def execute(self, taken_data):
+        with self._request_lock:   # execute never suspends: its callbacks are plain functions
+            await super().execute(taken_data)
+
+
+def run_parameters(settings_by_section):
+    """Flat ``{"section.field": value}`` of the run-defining settings (what goes into the run's config.yaml)."""
+    return {f"{prefix}.{name}": value for prefix, settings in settings_by_section.items()
+            for name, value in dataclasses.asdict(settings).items()}
+
+
+class Optimizer(Node):
+    """Moves candidates and fitnesses between an :class:`OptimisationRun` and the evaluators in the graph."""
+
+    def __init__(self):
+        super().__init__("optimizer")
+        for prefix, settings_cls in RUN_SECTIONS.items():
+            declare_settings(self, prefix, settings_cls)
+            guard_settings(self, prefix, settings_cls)
+        self._robot = declare_settings(self, "robot", ChassisSpec)
+        guard_settings(self, "robot", ChassisSpec, on_change=lambda robot: setattr(self, "_robot", robot))
+        for name, (default, description) in _PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=description))
+        try:
+            pool_settings = PoolSettings(timeout_s=self._param("evaluator_timeout_s"),
+                                         max_attempts=self._param("evaluator_max_attempts"),
+                                         retry_delay_s=self._param("evaluator_retry_delay_s"))
+            pool_settings.validate()
+        except (TypeError, ValueError) as exc:
+            raise ParameterError(f"evaluator_*: {exc}") from exc
+        discovery_period_s = self._param("evaluator_discovery_period_s")
+        if not discovery_period_s > 0:
+            raise ParameterError(f"evaluator_discovery_period_s must be > 0, got {discovery_period_s}")
+        self._grid = read_settings(self, "profile", ProfileGrid)
+
+        self._candidates = self.create_publisher(CandidateResult, "candidates", RECORD_QOS)
+        self._generations = self.create_publisher(GenerationSummary, "generations", LATCHED_QOS)
+        self._marker = self.create_publisher(Marker, "best_profile_marker", LATCHED_QOS)
+        self._client_group = ReentrantCallbackGroup()
+        self._action_clients = {}
+        self._pool = EvaluatorPool(self._submit, pool_settings, log=self._log)
+        self._lock = threading.Lock()
+        self._worker = None
+        self._stop_requested = threading.Event()
+        self._best_heights = None
+        for name, callback in (("start", self._on_start), ("pause", self._on_pause), ("resume", self._on_resume),
+                               ("stop", self._on_stop)):
+            self.create_service(Trigger, name, callback)
+        self.create_timer(discovery_period_s, self._discover)
+        self.get_logger().info(f"ready: {self._grid.rows}x{self._grid.cols} grid, looking for "
+                               f"{EVALUATOR_ACTION_TYPE} servers every {discovery_period_s:g} s")
+        self._searches = 0
+        self._autostart_pending = self._param("autostart")
+
+    def _param(self, name):
+        return self.get_parameter(name).value
+
+    def _log(self, level, message):
+        getattr(self.get_logger(), level)(message)
+
+    # --- evaluators ----------------------------------------------------------------------------------------------
+    def _discover(self):
+        """Find the EvaluateProfile servers in the graph and hand the ready ones to the pool."""
+        names = sorted(name for name, types in get_action_names_and_types(self) if EVALUATOR_ACTION_TYPE in types)
+        for name in names:
+            if name not in self._action_clients:
+                self._action_clients[name] = _ThreadSafeActionClient(self, EvaluateProfile, name,
+                                                              callback_group=self._client_group)
+        ready = [name for name in names if self._action_clients[name].server_is_ready()]
+        added, removed = self._pool.set_evaluators(ready)
+        if added or removed:
+            change = ", ".join([f"+{n}" for n in added] + [f"-{n}" for n in removed])
+            self.get_logger().info(f"evaluators ({change}): {len(ready)} available")
+        self._searches += 1
+        if self._autostart_pending and self._searches >= 2:  # clients found in one search are ready by the next
+            self._autostart_pending = False
+            self.start()
+
+    def _submit(self, action_name, request, ticket):
+        """Send one evaluation as an EvaluateProfile goal; report through ``ticket``; return a cancel function."""
+        goal = EvaluateProfile.Goal(heights=list(request.heights), trials=request.trials, seed=request.seed)
+        goal_handle = {}
+        cancelled = threading.Event()
+
+        def on_result(future):
+            response = future.result()
+            if response.status != GoalStatus.STATUS_SUCCEEDED:
+                status = _STATUS_NAMES.get(response.status, f"status {response.status}")
+                ticket.fail(f"goal {status}: {response.result.message or 'no message'}")
+                return
+            result = response.result
+            ticket.succeed(result.successes, result.trials, result.eval_time_s, result.evaluator or action_name)
+
+        def on_goal_response(future):
+            if future.exception() is not None:
+                ticket.fail(f"sending the goal failed: {future.exception()!r}")
+                return
+            handle = future.result()
+            if not handle.accepted:
+                ticket.fail("goal rejected (that evaluator's log says why, e.g. a different profile grid)")
+                return
+            goal_handle["handle"] = handle
+            ticket.progress()
+            if cancelled.is_set():
+                handle.cancel_goal_async()
+                return
+            handle.get_result_async().add_done_callback(on_result)
+
+        def cancel():
+            cancelled.set()
+            handle = goal_handle.get("handle")
+            if handle is not None:
+                handle.cancel_goal_async()
+
+        self._action_clients[action_name].send_goal_async(
+            goal, feedback_callback=lambda _feedback: ticket.progress()).add_done_callback(on_goal_response)
+        return cancel
+
+    # --- services ------------------------------------------------------------------------------------------------
+    def _on_start(self, _request, response):
+        response.success, response.message = self.start()
+        return response
+
+    def _on_pause(self, _request, response):
+        if not self.running:
+            response.success, response.message = False, "no run in progress"
+            return response
+        self._pool.pause()
+        response.success, response.message = True, "paused: no new evaluations are sent"
+        self.get_logger().info(response.message)
+        return response
+
+    def _on_resume(self, _request, response):
+        if not self.running:
+            response.success, response.message = False, "no run in progress"
+            return response
+        self._pool.resume()
+        response.success, response.message = True, "resumed"
+        self.get_logger().info(response.message)
+        return response
+
+    def _on_stop(self, _request, response):
+        if not self.running:
+            response.success, response.message = False, "no run in progress"
+            return response
+        self._stop_requested.set()
+        self._pool.resume()
+        response.success = True
+        response.message = "stopping after the current generation is evaluated and checkpointed"
+        self.get_logger().info(response.message)
+        return response
+
+    # --- the run -------------------------------------------------------------------------------------------------
+    @property
+    def running(self):
+        """True while a run's thread is alive."""
+        return self._worker is not None and self._worker.is_alive()
+
+    def start(self):
+        """Start (or, with ``resume``, continue) a run in a worker thread; return ``(started, message)``."""
+        with self._lock:
+            if self.running:
+                return False, "a run is already in progress"
+            try:
+                settings = {prefix: read_settings(self, prefix, cls) for prefix, cls in RUN_SECTIONS.items()}
+                run_dir, parameters, resume = self._run_target(settings)
+            except (ParameterError, ConfigError, ValueError, FileNotFoundError) as exc:
+                self.get_logger().error(f"cannot start: {exc}")
+                return False, str(exc)
+            self._grid = settings["profile"]
+            self._stop_requested.clear()
+            self._pool.resume()
+            self._worker = threading.Thread(target=self._optimise, name="optimisation",
+                                            args=(run_dir, parameters, resume, settings), daemon=True)
+            self._worker.start()
+            return True, f"{'resuming' if resume else 'starting'} run {optimisation_run.run_id_of(run_dir)}"
+
+    def _run_target(self, settings):
+        """``(run_dir, parameters, resume)`` of the run to start, from ``run_id`` / ``resume``.
+
+        Resuming keeps the run's saved config.yaml (whatever wrote it: this node or ``rollability optimize``)
+        with this node's run sections on top, so the core refuses a resume whose settings differ.
+        """
+        run_id, resume = self._param("run_id"), self._param("resume")
+        output_dir = settings["optimizer"].output_dir
+        parameters = run_parameters(settings)
+        if not resume:
+            run_id = run_id or optimisation_run.new_run_id()
+            return os.path.join(output_dir, run_id), parameters, False
+        if not run_id:
+            raise ValueError("resume needs the run_id of the run to continue")
+        run_dir = optimisation_run.resolve_run_dir(run_id, output_dir)
+        return run_dir, {**optimisation_run.read_run_config(run_dir), **parameters}, True
+
+    def _optimise(self, run_dir, parameters, resume, settings):
+        """The worker thread: run generations until a stop criterion, ``stop``, or shutdown."""
+        log = self.get_logger()
+        try:
+            run = optimisation_run.OptimisationRun(
+                run_dir, parameters, settings["profile"], self._pool.batch_evaluator(settings["optimizer"].trials),
+                resume=resume, on_candidate=self._publish_candidate)
+        except (ConfigError, ValueError, FileNotFoundError) as exc:
+            log.error(f"cannot {'resume' if resume else 'start'} run in {run_dir}: {exc}")
+            return
+        try:
+            optimizer = run.optimizer
+            log.info(f"run {run.run_id} in {run.run_dir}: {'resuming after' if resume else 'starting at'} "
+                     f"generation {optimizer.generation}, popsize {run.settings.popsize}, "
+                     f"{run.settings.trials} trials per candidate")
+            self._publish_best(run)
+            run.on_generation = lambda record: self._publish_generation(record, run)
+            while not run.optimizer.stop() and not self._stop_requested.is_set():
+                try:
+                    run.step()
+                except PoolClosed:
+                    self._log_interrupted(run)
+                    return
+                except EvaluationFailed as exc:
+                    if self._stop_requested.is_set():
+                        break
+                    self._pool.pause()
+                    log.error(f"generation {run.optimizer.generation} got no real results ({exc}); paused: call "
+                              "the resume service to retry it, or stop")
+            self._finish(run, settings)
+        except Exception as exc:  # a broken store or a bug must end the run loudly, not the node
+            if self.context.ok():
+                log.error(f"run {run.run_id} failed: {exc!r}")
+            else:   # shutting down: publishing failed because the context is gone
+                self._log_interrupted(run)
+        finally:
+            run.close()
+
+    def _log_interrupted(self, run):
+        self.get_logger().info(f"run {run.run_id} interrupted; its checkpoint holds {run.optimizer.generation} "
+                               f"generation(s): continue with resume:=true run_id:={run.run_id}")
+
+    def _finish(self, run, settings):
+        result = run.optimizer.result
+        best = result.best
+        stopped = "stop service" if self._stop_requested.is_set() else ", ".join(result.stop) or "no criterion"
+        summary = (f"best fitness {best.fitness:.3f} over {best.trials} trials (first seen in generation "
+                   f"{best.generation})" if best is not None else "no generation completed")
+        self.get_logger().info(f"run {run.run_id} ended after {result.generations} generation(s), "
+                               f"{result.evaluations} evaluations ({stopped}): {summary}; run directory "
+                               f"{run.run_dir}")
+        if self._param("select_designs") and best is not None and not self._stop_requested.is_set():
+            self._select(run, settings)
+
+    def _select(self, run, settings):
+        """Choose the designs of the finished run (paper 2.1.5) into ``<run_dir>/designs/``."""
+        chosen = settings["selection"]
+        evaluate_batch = self._pool.batch_evaluator(chosen.reevaluate_trials) if chosen.reevaluate_trials else None
+        result = selection.select_designs(run.store.candidates(run_id=run.run_id), settings["profile"],
+                                          settings["printer"], chosen, evaluate_batch, run.settings.seed)
+        selection.record_selection(run.store, run.run_id, result)
+        folder = selection.write_selection(run.run_dir, result, settings["profile"], run.run_id)
+        rows = "; ".join(f"{row['configuration']} {row['simulated_fitness']:.3f}"
+                         for row in selection.table_rows(result) if row["trials"])
+        self.get_logger().info(f"selected {len(result.designs)} design(s) into {folder} ({rows})"
+                               + (f"; {result.shortfall}" if result.shortfall else ""))
+
+    # --- publishing ----------------------------------------------------------------------------------------------
+    def _publish_candidate(self, record):
+        self._candidates.publish(candidate_to_msg(record))
+
+    def _publish_generation(self, record, run):
+        self._generations.publish(generation_to_msg(record))
+        self._publish_best(run)
+        self.get_logger().info(f"generation {record.generation}: best {record.best_fitness:.3f}, mean "
+                               f"{record.mean_fitness:.3f}, best-so-far {record.best_so_far:.3f}, sigma "
+                               f"{record.sigma:.4f}, {record.evaluations} evaluations")
+
+    def _publish_best(self, run):
+        """Publish the best-so-far marker if the incumbent design changed since the last one published."""
+        best = run.optimizer.best
+        if best is None or (self._best_heights is not None and (best.heights == self._best_heights).all()):
+            return
+        self._best_heights = best.heights.copy()
+        self._marker.publish(self.profile_marker(best.heights))
+
+    def profile_marker(self, heights):
+        """The Marker (TRIANGLE_LIST, metres) of the profile solid of ``heights`` on the chassis top."""
+        marker = Marker()
+        marker.header.frame_id = self._param("frame_id")
+        marker.header.stamp = self.get_clock().now().to_msg()
+        marker.ns, marker.id = "best_profile", 0
+        marker.type = Marker.TRIANGLE_LIST
+        mesh = None if geometry.is_baseline(heights, self._grid.flat_tolerance) else \
+            geometry.profile_mesh(heights, self._grid)
+        if mesh is None:
+            marker.action = Marker.DELETE
+            return marker
+        marker.action = Marker.ADD
+        marker.pose.position.z = self._robot.body_height_m / 2
+        marker.pose.orientation.w = 1.0
+        marker.scale.x = marker.scale.y = marker.scale.z = 1.0
+        marker.color.r, marker.color.g, marker.color.b, marker.color.a = 0.2, 0.6, 1.0, 0.9
+        marker.points = [Point(x=x, y=y, z=z) for x, y, z in geometry.marker_points(mesh).tolist()]
+        return marker
+
+    def close(self):
+        """End a run in progress at once (it keeps its last checkpoint) and wait for its thread."""
+        self._pool.close()
+        if self._worker is not None:
+            self._worker.join(timeout=10)
+
+
+def main(args=None):
+    return run_node(Optimizer, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -27,6 +27,7 @@ from rollability_ros.core.robot import ChassisModel, ChassisSpec, ProfileBody
 from rollability_ros.core.sim_world import PhysicsParams, connect
 from rollability_ros.core.stats import wilson_interval
 from rollability_ros.core.trials import TrialSettings, TrialWorld
+from rollability_ros.core.urdf_robot import UrdfRobotModel, UrdfRobotSpec
 
 #: Largest base seed (TrialResult.seed is uint64; trial seeds are kept below 2**63 for int64 stores).
 MAX_SEED = 2**64 - 1
@@ -65,7 +66,11 @@ class EvaluatorOptions:
 
 @dataclasses.dataclass
 class EvaluatorSettings:
-    """Everything a trial needs (picklable): grid, printer, physics, trial protocol, robot, evaluator options."""
+    """Everything a trial needs (picklable): grid, printer, physics, trial protocol, robot, evaluator options.
+
+    The robot is the built-in chassis (``robot``) unless ``urdf_robot`` names a mount link; then the URDF robot is
+    used and the grid's ``length_m`` / ``width_m`` are its mount footprint's.
+    """
 
     grid: ProfileGrid = dataclasses.field(default_factory=ProfileGrid)
     printer: PrinterSpec = dataclasses.field(default_factory=PrinterSpec)
@@ -73,21 +78,34 @@ class EvaluatorSettings:
     trial: TrialSettings = dataclasses.field(default_factory=TrialSettings)
     robot: ChassisSpec = dataclasses.field(default_factory=ChassisSpec)
     evaluator: EvaluatorOptions = dataclasses.field(default_factory=EvaluatorOptions)
+    urdf_robot: UrdfRobotSpec = dataclasses.field(default_factory=UrdfRobotSpec)
+
+    def __post_init__(self):
+        if self.urdf_robot.selected:
+            self.grid = dataclasses.replace(self.grid, length_m=self.urdf_robot.footprint_length_m,
+                                            width_m=self.urdf_robot.footprint_width_m)
 
     def robot_model(self):
-        """The :class:`~rollability_ros.core.robot.RobotModel` the trials use."""
+        """The :class:`~rollability_ros.core.robot.RobotModel` the trials use (``ValueError`` for a bad URDF)."""
+        if self.urdf_robot.selected:
+            return UrdfRobotModel(self.urdf_robot)
         return ChassisModel(self.robot)
+
+    def profile_density_kgpm3(self):
+        """Effective density of the profile solid on the robot in use (kg/m^3)."""
+        return (self.urdf_robot if self.urdf_robot.selected else self.robot).profile_density_kgpm3
 
 
 #: settings field -> config namespace (also the ROS parameter prefix the sim_evaluator node declares)
 SETTINGS_SECTIONS = {"grid": "profile", "printer": "printer", "physics": "sim", "trial": "trial",
-                     "robot": "robot", "evaluator": "evaluator"}
+                     "robot": "robot", "evaluator": "evaluator", "urdf_robot": "urdf_robot"}
 
 
 def load_settings(config_paths=("sim", "robot", "evaluator"), node_name="/**"):
     """Read :class:`EvaluatorSettings` from ROS 2 parameter files (names of shipped files or paths).
 
-    Namespaces: ``sim`` and ``trial`` (sim.yaml), ``robot``, ``profile`` and ``printer`` (robot.yaml),
+    Namespaces: ``sim`` and ``trial`` (sim.yaml), ``robot``, ``profile`` and ``printer`` (robot.yaml), ``urdf_robot``
+    (a robot config such as husky.yaml),
     ``evaluator`` (evaluator.yaml). Missing keys keep their defaults; unknown keys or bad values raise
     :class:`~rollability_ros.core.config.ConfigError`.
     """
@@ -131,7 +149,7 @@ def profile_job(heights, settings):
 
 def mesh_job(mesh, settings):
     """Make the :class:`TrialJob` of a profile solid (trimesh, metres, profile frame); None = baseline."""
-    profile = None if mesh is None else ProfileBody.from_mesh(mesh, settings.robot.profile_density_kgpm3)
+    profile = None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
     return TrialJob(profile=profile, settings=settings)
 
 

@@ -1,0 +1,253 @@
+"""A robot from its URDF: the Husky inside the pybullet wheel, a URDF written by the chassis, bad descriptions."""
+import os
+import pickle
+import shutil
+import xml.etree.ElementTree as ElementTree
+
+import numpy as np
+import pytest
+import yaml
+
+pybullet = pytest.importorskip("pybullet")
+pybullet_data = pytest.importorskip("pybullet_data")
+
+from rollability_ros.core.config import ConfigError, load_parameters  # noqa: E402
+from rollability_ros.core.evaluation import (EvaluatorSettings, evaluate_profile, load_settings,  # noqa: E402
+                                             settings_from_parameters)
+from rollability_ros.core.geometry import export_mesh, load_profile_mesh, profile_mesh  # noqa: E402
+from rollability_ros.core.robot import ChassisModel, ChassisSpec, ProfileBody  # noqa: E402
+from rollability_ros.core.sim_world import PhysicsParams, connect, disconnect, reset_world  # noqa: E402
+from rollability_ros.core.urdf_description import BASE_LINK, PROFILE_LINK  # noqa: E402
+from rollability_ros.core.urdf_robot import UrdfRobotModel, UrdfRobotSpec, footprint_corners  # noqa: E402
+
+HUSKY_DIR = os.path.join(pybullet_data.getDataPath(), "husky")
+HUSKY_MASS_KG = 33.455 + 4 * 2.637  # base_link + four wheels; every other link is a massless frame
+FIXTURE = os.path.join(os.path.dirname(__file__), "..", "resources", "husky_optimised_profile.yaml")
+HUSKY_CONFIGS = ("sim", "robot", "evaluator", "husky")
+
+
+@pytest.fixture(scope="module")
+def husky():
+    return load_settings(HUSKY_CONFIGS)
+
+
+@pytest.fixture
+def client():
+    client = connect()
+    yield client
+    disconnect(client)
+
+
+def husky_spec(**changes):
+    values = dict(urdf_path=os.path.join(HUSKY_DIR, "husky.urdf"), mount_link="top_plate_link",
+                  footprint_length_m=0.9, footprint_width_m=0.56, footprint_offset_m=(0.0, 0.0, 0.25873),
+                  wheel_link_regex=".*_wheel_link", min_wheels_in_contact=3)
+    values.update(changes)
+    spec = UrdfRobotSpec(**values)
+    spec.validate()
+    return spec
+
+
+def husky_copy(folder, text_changes=()):
+    """A copy of the Husky URDF in ``folder`` (meshes linked); returns its path."""
+    with open(os.path.join(HUSKY_DIR, "husky.urdf"), encoding="utf-8") as stream:
+        text = stream.read()
+    for old, new in text_changes:
+        assert old in text
+        text = text.replace(old, new)
+    os.symlink(os.path.join(HUSKY_DIR, "meshes"), os.path.join(folder, "meshes"))
+    path = os.path.join(folder, "husky.urdf")
+    with open(path, "w", encoding="utf-8") as stream:
+        stream.write(text)
+    return path
+
+
+def test_husky_config_selects_the_urdf_robot_and_footprint_sets_the_grid(husky):
+    assert isinstance(husky.robot_model(), UrdfRobotModel)
+    assert (husky.grid.length_m, husky.grid.width_m) == (0.9, 0.56)
+    assert husky.profile_density_kgpm3() == 20.0
+    default = load_settings()
+    assert isinstance(default.robot_model(), ChassisModel) and default.grid.length_m == 0.18
+    assert default.profile_density_kgpm3() == ChassisSpec().profile_density_kgpm3
+
+
+def test_masses_and_inertias_come_from_the_urdf(client):
+    model = UrdfRobotModel(husky_spec())
+    robot = model.spawn(client, None, (0, 0, 1), (0, 0, 0, 1))
+    body = robot.body_id
+    names = {pybullet.getJointInfo(body, j, physicsClientId=client)[12].decode(): j
+             for j in range(pybullet.getNumJoints(body, physicsClientId=client))}
+    # massless frames (imu, top plate, rails, bumpers) are not bodies of their own
+    assert set(names) == {"base_footprint", "front_left_wheel_link", "front_right_wheel_link", "rear_left_wheel_link",
+                          "rear_right_wheel_link"}
+    masses = [pybullet.getDynamicsInfo(body, j, physicsClientId=client)[0] for j in [-1, *names.values()]]
+    assert sum(masses) == pytest.approx(HUSKY_MASS_KG, rel=2e-6)
+    base = pybullet.getDynamicsInfo(body, names["base_footprint"], physicsClientId=client)
+    urdf_inertia = np.array([[0.6022, -0.02364, -0.1197], [-0.02364, 1.7386, -0.001544], [-0.1197, -0.001544, 2.0296]])
+    assert sorted(base[2]) == pytest.approx(sorted(np.linalg.eigvalsh(urdf_inertia)), rel=1e-5)
+    assert base[3] == pytest.approx((-0.08748, -0.00085, 0.14493 + 0.09947))  # base_link com, via the fixed joint
+    wheel = pybullet.getDynamicsInfo(body, names["front_left_wheel_link"], physicsClientId=client)
+    assert wheel[0] == 2.637 and wheel[2] == pytest.approx((0.02467, 0.02467, 0.04411))
+    # PyBullet's base is a frame at the robot's centre of mass with the root link's axes
+    position, orientation = pybullet.getBasePositionAndOrientation(body, physicsClientId=client)
+    assert position == pytest.approx((0, 0, 1)) and orientation == pytest.approx((0, 0, 0, 1))
+    assert model.mounted.robot.mass_kg == pytest.approx(HUSKY_MASS_KG)
+
+
+def test_frame_base_moves_like_the_root_body_as_base(client, tmp_path):
+    """The base frame link changes nothing physical: spun up and tumbling freely, the robot turns exactly as the
+    same URDF with its root body as PyBullet's base (wheels braked so it is one rigid body)."""
+    model = UrdfRobotModel(husky_spec())
+    plain = model.sim_urdf().split(f'<link name="{BASE_LINK}">')[0] + model.sim_urdf().split("</joint>\n", 1)[1]
+    rates = []
+    for text, start in ((model.sim_urdf(), model.mounted.robot.com_m), (plain, (0, 0, 0))):
+        pybullet.resetSimulation(physicsClientId=client)  # no gravity, no ground
+        path = tmp_path / "robot.urdf"
+        path.write_text(text, encoding="utf-8")
+        body = pybullet.loadURDF(str(path), list(start), [0, 0, 0, 1], flags=pybullet.URDF_USE_INERTIA_FROM_FILE,
+                                 physicsClientId=client)
+        for joint in range(pybullet.getNumJoints(body, physicsClientId=client)):
+            pybullet.setJointMotorControl2(body, joint, pybullet.VELOCITY_CONTROL, force=1000.0, physicsClientId=client)
+        for step in range(480):
+            if step < 12:
+                pybullet.applyExternalTorque(body, -1, [30, 20, 10], pybullet.WORLD_FRAME, physicsClientId=client)
+            pybullet.stepSimulation(physicsClientId=client)
+            rates.append(pybullet.getBaseVelocity(body, physicsClientId=client)[1])
+    turning, plain_turning = np.array(rates[:480]), np.array(rates[480:])
+    assert np.linalg.norm(turning[-1]) > 0.5  # it does tumble (rad/s)
+    assert np.abs(turning - plain_turning).max() < 1e-5
+
+
+def test_profile_is_fixed_rigidly_to_the_mount(client, husky):
+    heights = np.full(husky.grid.n_variables, 0.2)
+    profile = ProfileBody.from_mesh(profile_mesh(heights, husky.grid), husky.profile_density_kgpm3())
+    model = husky.robot_model()
+    reset_world(client, husky.physics)
+    robot = model.spawn(client, profile, (0, 0, 1.5), pybullet.getQuaternionFromEuler([2.5, 0.4, 0.3]))
+    body = robot.body_id
+    links = {pybullet.getJointInfo(body, j, physicsClientId=client)[12].decode(): j
+             for j in range(pybullet.getNumJoints(body, physicsClientId=client))}
+    assert pybullet.getDynamicsInfo(body, links[PROFILE_LINK], physicsClientId=client)[0] == pytest.approx(
+        profile.mass_kg)
+
+    def profile_in_mount():
+        mount = pybullet.getLinkState(body, links["base_footprint"], physicsClientId=client)[4:6]
+        prof = pybullet.getLinkState(body, links[PROFILE_LINK], physicsClientId=client)[4:6]
+        return pybullet.multiplyTransforms(*pybullet.invertTransform(*mount), *prof)
+
+    for _ in range(600):  # falls and tumbles on the ground
+        pybullet.stepSimulation(physicsClientId=client)
+    position, orientation = profile_in_mount()
+    assert position == pytest.approx((0, 0, 0.14493 + 0.25873), abs=1e-6)  # top plate frame + footprint offset
+    assert orientation == pytest.approx((0, 0, 0, 1), abs=1e-6)
+
+
+def test_same_robot_from_a_string_a_package_uri_and_after_pickling(tmp_path, client):
+    from_file = UrdfRobotModel(husky_spec())
+    with open(os.path.join(HUSKY_DIR, "husky.urdf"), encoding="utf-8") as stream:
+        text = stream.read()
+    from_string = UrdfRobotModel(husky_spec(urdf_path="", robot_description=text, search_paths=(HUSKY_DIR,)))
+    assert from_string.sim_urdf() == from_file.sim_urdf()
+    package = tmp_path / "share" / "husky_description"
+    package.mkdir(parents=True)
+    shutil.copytree(os.path.join(HUSKY_DIR, "meshes"), package / "meshes")
+    packaged = text.replace('filename="meshes/', 'filename="package://husky_description/meshes/')
+    spec = husky_spec(urdf_path="", robot_description=packaged, search_paths=(str(tmp_path / "share"),))
+    assert "package://" not in spec.description().robot.sim_urdf
+    settings = EvaluatorSettings(urdf_robot=spec)
+    restored = pickle.loads(pickle.dumps(settings))
+    shutil.rmtree(tmp_path / "share")  # a worker never reads the description's files again
+    robot = restored.robot_model().spawn(client, None, (0, 0, 1), (0, 0, 0, 1))
+    assert len(robot.wheel_links) == 4
+
+
+def _bad(tmp_path, **changes):
+    with pytest.raises(ValueError) as error:
+        husky_spec(**changes)
+    return str(error.value)
+
+
+@pytest.mark.parametrize("text_changes, expected", [
+    ((("<mass value=\"33.455\"/>", "<mass value=\"0\"/>"),), "link 'base_link' has mass 0"),
+    ((("<mass value=\"2.637\"/>", "<mass value=\"-2.637\"/>"),), "link 'front_left_wheel_link' has mass -2.637"),
+    ((('filename="meshes/wheel.stl"', 'filename="package://nowhere/wheel.stl"'),), "mesh package://nowhere/wheel.stl"),
+    ((('<link name="base_footprint"/>', '<link name="base_footprint">'),), "not valid XML"),
+    ((("<mass value=\"2.637\"/>\n      <origin xyz=\"0 0 0\"/>\n      <inertia ixx=\"0.02467\" ixy=\"0\" ixz=\"0\" "
+       "iyy=\"0.02467\" iyz=\"0\" izz=\"0.04411\"/>", ""),), "needs <mass> and <inertia>"),
+])
+def test_bad_descriptions_are_refused_naming_the_problem(tmp_path, text_changes, expected):
+    path = husky_copy(str(tmp_path), text_changes)
+    assert expected in _bad(tmp_path, urdf_path=path)
+
+
+def test_bad_mounts_and_wheels_are_refused(tmp_path):
+    assert "URDF file not found: missing.urdf" in _bad(tmp_path, urdf_path="missing.urdf")
+    assert "unknown link 'roof_link'" in _bad(tmp_path, mount_link="roof_link")
+    message = _bad(tmp_path, footprint_length_m=1.2)
+    assert "larger than mount link 'top_plate_link'" in message and "x [-0.5037, 0.5037]" in message
+    assert "larger than" in _bad(tmp_path, footprint_yaw_deg=90.0)
+    assert "matches no link" in _bad(tmp_path, wheel_link_regex="caster.*")
+    assert "exceeds the 4 wheel bodies" in _bad(tmp_path, min_wheels_in_contact=5)
+    assert "unknown link 'track_link'" in _bad(tmp_path, wheel_links=("track_link",))
+    assert "either urdf_path or robot_description" in _bad(tmp_path, robot_description="<robot/>")
+    with pytest.raises(ConfigError, match="urdf_robot: .*mount link 'top_plate_link'"):
+        settings_from_parameters({**load_parameters(list(HUSKY_CONFIGS)), "urdf_robot.footprint_width_m": 0.8})
+
+
+def test_moving_link_without_mass_is_refused(tmp_path):
+    massless_wheel = ("<inertial>\n      <mass value=\"2.637\"/>\n      <origin xyz=\"0 0 0\"/>\n      <inertia "
+                      "ixx=\"0.02467\" ixy=\"0\" ixz=\"0\" iyy=\"0.02467\" iyz=\"0\" izz=\"0.04411\"/>\n    </inertial>")
+    path = husky_copy(str(tmp_path), ((massless_wheel, ""),))
+    assert "link 'front_left_wheel_link' moves on joint 'front_left_wheel' but has no mass" in _bad(
+        tmp_path, urdf_path=path)
+
+
+def test_any_urdf_from_config_alone(client):
+    """A URDF nobody wrote for this module (the chassis's own export) works with a wheel list and another mount."""
+    chassis = ChassisSpec()
+    text = ChassisModel(chassis).to_urdf()
+    spec = UrdfRobotSpec(robot_description=text, mount_link="base_link", footprint_length_m=0.18,
+                         footprint_width_m=0.14, footprint_offset_m=(0.0, 0.0, chassis.body_height_m / 2),
+                         wheel_links=("front_left_wheel", "front_right_wheel", "rear_left_wheel", "rear_right_wheel"),
+                         min_wheels_in_contact=3, contact_tolerance_m=0.003)
+    spec.validate()
+    model = UrdfRobotModel(spec)
+    ground = reset_world(client, PhysicsParams())
+    for orientation, upright in (((0, 0, 0, 1), True), (pybullet.getQuaternionFromEuler([np.pi, 0, 0]), False)):
+        robot = model.spawn(client, None, (0, 0, 0.2), orientation)
+        for _ in range(480):
+            pybullet.stepSimulation(physicsClientId=client)
+        assert model.is_upright(client, robot, ground)[0] is upright
+        pybullet.removeBody(robot.body_id, physicsClientId=client)
+
+
+def test_bare_husky_stays_inverted(husky):
+    result = evaluate_profile(None, 30, 2024, husky)
+    assert result.successes == 0
+    assert all(outcome.settled and outcome.tilt_deg > 150 for outcome in result.trial_results)
+
+
+def test_optimised_profile_beats_the_bare_husky(husky):
+    with open(FIXTURE, encoding="utf-8") as stream:
+        heights = yaml.safe_load(stream)["heights"]
+    bare = evaluate_profile(None, 30, 2025, husky)
+    optimised = evaluate_profile(heights, 30, 2025, husky)
+    assert optimised.ci_low > bare.ci_high, (bare, optimised)
+
+
+def test_exported_stl_and_urdf_fit_the_mount_footprint(tmp_path, husky):
+    with open(FIXTURE, encoding="utf-8") as stream:
+        heights = yaml.safe_load(stream)["heights"]
+    path = tmp_path / "husky_profile.stl"
+    export_mesh(profile_mesh(heights, husky.grid), path)
+    mesh = load_profile_mesh(path)
+    spec = husky.urdf_robot
+    assert mesh.bounds[0][:2] == pytest.approx(footprint_corners(spec)[:, :2].min(axis=0), abs=1e-6)  # float32 STL
+    assert mesh.bounds[1][:2] == pytest.approx(footprint_corners(spec)[:, :2].max(axis=0), abs=1e-6)
+    profile = ProfileBody.from_mesh(mesh, husky.profile_density_kgpm3())
+    document = ElementTree.fromstring(husky.robot_model().to_urdf("husky_profile.stl", profile))
+    (joint,) = [j for j in document.findall("joint") if j.find("child").get("link") == PROFILE_LINK]
+    assert joint.find("parent").get("link") == "top_plate_link"
+    assert [float(v) for v in joint.find("origin").get("xyz").split()] == pytest.approx([0, 0, 0.25873])
+    assert float(document.find(f"link[@name='{PROFILE_LINK}']/inertial/mass").get("value")) == pytest.approx(
+        profile.mass_kg)

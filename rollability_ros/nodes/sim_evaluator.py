@@ -4,9 +4,15 @@ Interfaces (relative names; run several side by side in different namespaces):
 - action ``evaluate_profile`` (rollability_ros/action/EvaluateProfile): feedback per finished trial batch,
   cancel honoured between batches, result with fitness, Wilson interval and every trial's outcome.
 
+- topic ``robot_description`` (std_msgs/String, transient local, as robot_state_publisher publishes it): the
+  URDF when ``urdf_robot.mount_link`` names a mount and neither ``urdf_robot.urdf_path`` nor
+  ``urdf_robot.robot_description`` is set; goals are rejected until a usable description has arrived, a bad one
+  is logged and ignored.
+
 Parameters: the namespaces of config/sim.yaml (``sim``, ``trial``), config/robot.yaml (``robot``, ``profile``,
-``printer``) and config/evaluator.yaml (``evaluator``), each declared with a description and validated; an
-invalid ``ros2 param set`` is refused. ``evaluator.workers`` and ``evaluator.ray_address`` take effect at start.
+``printer``), config/evaluator.yaml (``evaluator``) and a URDF robot's config (``urdf_robot``, e.g.
+config/husky.yaml), each declared with a description and validated; an invalid ``ros2 param set`` is refused.
+``evaluator.workers`` and ``evaluator.ray_address`` take effect at start.
 Goals are evaluated one at a time, each over the whole worker pool; bad goals are rejected with the reason logged.
 """
 import dataclasses
@@ -17,13 +23,14 @@ import threading
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
+from std_msgs.msg import String
 
 from rollability_ros.action import EvaluateProfile
 from rollability_ros.core.evaluation import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
                                              evaluate_profile, make_executor)
 from rollability_ros.core.geometry import check_heights
 from rollability_ros.msg import TrialResult
-from rollability_ros.nodes._support import declare_settings, guard_settings, run_node
+from rollability_ros.nodes._support import LATCHED_QOS, declare_settings, guard_settings, run_node
 
 
 class _CancelRequested:
@@ -52,6 +59,9 @@ class SimEvaluator(Node):
             sections[field.name] = declare_settings(self, prefix, field.type)
             guard_settings(self, prefix, field.type, on_change=self._setter(field.name))
         self._settings = EvaluatorSettings(**sections)
+        self._topic_description = ""
+        if self._settings.urdf_robot.selected and not self._settings.urdf_robot.has_source:
+            self.create_subscription(String, "robot_description", self._on_description, LATCHED_QOS)
         self._pool = make_executor(self._settings.evaluator)
         self._busy = threading.Lock()
         ActionServer(self, EvaluateProfile, "evaluate_profile", execute_callback=self._execute,
@@ -63,12 +73,28 @@ class SimEvaluator(Node):
 
     def _setter(self, name):
         def apply(value):
+            if name == "urdf_robot" and value.selected and not value.has_source and self._topic_description:
+                value = dataclasses.replace(value, robot_description=self._topic_description)
             self._settings = dataclasses.replace(self._settings, **{name: value})
         return apply
+
+    def _on_description(self, msg):
+        urdf_robot = dataclasses.replace(self._settings.urdf_robot, robot_description=msg.data)
+        try:
+            urdf_robot.validate()
+        except ValueError as exc:
+            self.get_logger().error(f"ignored robot_description: {exc}")
+            return
+        self._topic_description = msg.data
+        self._settings = dataclasses.replace(self._settings, urdf_robot=urdf_robot)
+        self.get_logger().info(f"robot description {urdf_robot.description().robot.name!r} received, "
+                               f"profile on {urdf_robot.mount_link!r}")
 
     def goal_problem(self, goal):
         """Why ``goal`` cannot be evaluated, or None."""
         settings = self._settings
+        if settings.urdf_robot.selected and not settings.urdf_robot.has_source:
+            return "no robot description yet (waiting on the robot_description topic)"
         if not 1 <= goal.trials <= settings.evaluator.max_trials:
             return f"trials must be in [1, {settings.evaluator.max_trials}], got {goal.trials}"
         if len(goal.heights):

@@ -141,14 +141,8 @@ class ChassisSpec:
             raise ValueError("wheels intersect the body: increase track_m or lower axle_offset_z_m")
 
 
-_WHEEL_ORIENTATION = (math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5))  # cylinder axis (local z) along chassis y
-
-
-class ChassisModel(RobotModel):
-    """The project's four-wheeled chassis from a :class:`ChassisSpec`: base = body, link 0 = profile (if any), wheels last."""
-
-    def __init__(self, spec):
-        self.spec = spec
+class SpecThresholds:
+    """Mixin for a :class:`RobotModel` whose ``self.spec`` holds the upright thresholds and profile density."""
 
     @property
     def upright_tilt_deg(self):
@@ -161,6 +155,21 @@ class ChassisModel(RobotModel):
     @property
     def contact_tolerance_m(self):
         return self.spec.contact_tolerance_m
+
+    @property
+    def profile_density_kgpm3(self):
+        """Effective density of the profile solid (kg/m^3)."""
+        return self.spec.profile_density_kgpm3
+
+
+_WHEEL_ORIENTATION = (math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5))  # cylinder axis (local z) along chassis y
+
+
+class ChassisModel(SpecThresholds, RobotModel):
+    """The project's four-wheeled chassis from a :class:`ChassisSpec`: base = body, link 0 = profile (if any), wheels last."""
+
+    def __init__(self, spec):
+        self.spec = spec
 
     @property
     def mount_position_m(self):

@@ -32,7 +32,7 @@ import tempfile
 import numpy as np
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.robot import RobotModel, SpawnedRobot
+from rollability_ros.core.robot import RobotModel, SpawnedRobot, SpecThresholds
 from rollability_ros.core.urdf_description import (PROFILE_LINK, describe, inertial_xml, origin_xml, read_urdf_source,
                                                    transform)
 
@@ -213,7 +213,7 @@ def _obj_text(mesh):
     return vertices + faces
 
 
-class UrdfRobotModel(RobotModel):
+class UrdfRobotModel(SpecThresholds, RobotModel):
     """A robot loaded from a URDF (:class:`UrdfRobotSpec`): base = frame at the robot's centre of mass, one link
     per rigid body, the profile (if any) a link fixed to the mount's body."""
 
@@ -221,23 +221,6 @@ class UrdfRobotModel(RobotModel):
         self.spec = spec
         self.mounted = spec.description()
         self._up_axis = np.asarray(spec.up_axis_xyz, dtype=np.float64) / np.linalg.norm(spec.up_axis_xyz)
-
-    @property
-    def upright_tilt_deg(self):
-        return self.spec.upright_tilt_deg
-
-    @property
-    def min_wheels_in_contact(self):
-        return self.spec.min_wheels_in_contact
-
-    @property
-    def contact_tolerance_m(self):
-        return self.spec.contact_tolerance_m
-
-    @property
-    def profile_density_kgpm3(self):
-        """Effective density of the profile solid (kg/m^3)."""
-        return self.spec.profile_density_kgpm3
 
     def sim_urdf(self, profile=None, mesh_filename=None):
         """The URDF PyBullet loads: the rigid-body robot, plus the profile link on ``mesh_filename`` if given."""

@@ -1,0 +1,155 @@
+"""The stable-pose screen: analytic cases (cube, boxes), the chassis hull, and low-energy PyBullet drops."""
+import math
+
+import numpy as np
+import pytest
+
+from rollability_ros.core import stable_poses
+from rollability_ros.core.geometry import ProfileGrid, grid_xy, profile_mesh
+from rollability_ros.core.robot import ChassisModel, ChassisSpec, ProfileBody
+from rollability_ros.core.sim_world import PhysicsParams
+from rollability_ros.core.trials import TrialSettings
+
+pytest.importorskip("trimesh")
+pytest.importorskip("networkx")
+
+
+def box(length_m, width_m, height_m, com_m=(0.0, 0.0, 0.0), mass_kg=1.0):
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) / 2
+    return stable_poses.RigidHull.from_points(corners * [length_m, width_m, height_m], com_m, mass_kg)
+
+
+def hexagonal_prism(radius_m, length_m):
+    """A prism along x with a flat face down (upright) and up: a cylinder-ish shape."""
+    angles = np.linspace(0.0, 2 * math.pi, 6, endpoint=False) + math.pi / 6
+    ring = np.column_stack([np.zeros(6), radius_m * np.cos(angles), radius_m * np.sin(angles)])
+    return stable_poses.RigidHull.from_points(np.vstack([ring - [length_m / 2, 0, 0], ring + [length_m / 2, 0, 0]]),
+                                              (0.0, 0.0, 0.0), 1.0)
+
+
+def ridge_profile(spec):
+    """A ridge along the chassis length (the tallest grid heights next to the centre line)."""
+    grid = ProfileGrid()
+    across = grid_xy(grid)[:, 1] / (grid.width_m / 2)
+    heights = np.where(across < 0.2, grid.height_max, 0.0)
+    return ProfileBody.from_mesh(profile_mesh(heights, grid), spec.profile_density_kgpm3)
+
+
+def test_cube_rests_on_each_face_equally_and_tips_over_an_edge():
+    side = 0.1
+    screen = stable_poses.screen_body(box(side, side, side), upright_tilt_deg=30.0)
+    assert len(screen.poses) == 6
+    assert [p.probability for p in screen.poses] == pytest.approx([1 / 6] * 6, abs=1e-9)
+    assert screen.upright_probability == pytest.approx(1 / 6)
+    # tipping over an edge lifts the COM from side/2 to side/sqrt(2)
+    assert screen.worst_barrier_m == pytest.approx(side * (math.sqrt(0.5) - 0.5))
+    assert screen.worst_barrier_j == pytest.approx(9.81 * side * (math.sqrt(0.5) - 0.5))
+    assert all(p.barrier_m == 0.0 for p in screen.poses if p.upright)
+
+
+def test_flat_box_barrier_is_the_cheapest_edge_from_the_inverted_pose():
+    length, width, height = 0.2, 0.15, 0.05
+    screen = stable_poses.screen_body(box(length, width, height), upright_tilt_deg=30.0)
+    inverted = [p for p in screen.poses if p.tilt_deg > 170]
+    assert len(inverted) == 1
+    # over the long edge (along x): the COM rises to the distance from the edge, sqrt((w/2)^2 + (h/2)^2)
+    assert inverted[0].barrier_m == pytest.approx(math.hypot(width / 2, height / 2) - height / 2)
+    assert inverted[0].com_height_m == pytest.approx(height / 2)
+    assert screen.worst_barrier_m == pytest.approx(inverted[0].barrier_m)
+    assert sum(p.probability for p in screen.poses) == pytest.approx(1.0)
+
+
+def test_a_lower_centre_of_mass_rests_upright_more_often():
+    probabilities = [stable_poses.screen_body(box(0.1, 0.1, 0.1, (0.0, 0.0, z)), 30.0).upright_probability
+                     for z in (0.02, 0.0, -0.02, -0.04)]
+    assert probabilities == sorted(probabilities)
+    assert probabilities[-1] > probabilities[0] + 0.3
+
+
+def test_centre_of_mass_scatter_is_sampled_and_smooths_the_answer():
+    body = box(0.1, 0.1, 0.1)
+    scattered = stable_poses.screen_body(body, 30.0, com_sigma_m=0.01, n_samples=40, seed=3)
+    assert scattered.upright_probability == pytest.approx(1 / 6, abs=0.05)
+    assert scattered.upright_probability != pytest.approx(1 / 6, abs=1e-9)
+    again = stable_poses.screen_body(body, 30.0, com_sigma_m=0.01, n_samples=40, seed=3)
+    assert again.upright_probability == scattered.upright_probability
+
+
+def test_chassis_hull_holds_wheels_profile_and_mass():
+    spec = ChassisSpec()
+    bare = stable_poses.chassis_hull(spec)
+    assert bare.mass_kg == pytest.approx(spec.body_mass_kg + 4 * spec.wheel_mass_kg)
+    assert bare.hull.bounds[0][2] == pytest.approx(spec.axle_offset_z_m - spec.wheel_radius_m)
+    assert bare.hull.bounds[1][1] == pytest.approx(spec.track_m / 2 + spec.wheel_width_m / 2)
+    ridge = ridge_profile(spec)
+    with_ridge = stable_poses.chassis_hull(spec, ridge)
+    assert with_ridge.mass_kg == pytest.approx(bare.mass_kg + ridge.mass_kg)
+    assert with_ridge.com_m[2] > bare.com_m[2]
+    assert with_ridge.hull.bounds[1][2] == pytest.approx(spec.body_height_m / 2 + ridge.hull_vertices_m[:, 2].max())
+
+
+def test_a_ridge_lowers_the_barrier_out_of_the_inverted_pose():
+    spec = ChassisSpec()
+    settings = stable_poses.ScreenSettings(com_sigma_m=0.0)
+    bare = stable_poses.screen_chassis(spec, None, settings)
+    ridge = stable_poses.screen_chassis(spec, ridge_profile(spec), settings)
+    assert ridge.worst_barrier_m < 0.5 * bare.worst_barrier_m
+
+    def inverted(screen):
+        return sum(p.probability for p in screen.poses if p.tilt_deg > 170)
+    assert inverted(ridge) < 0.5 * inverted(bare)    # the ridge's narrow top rarely catches the chassis
+
+
+def test_screen_heights_flags_candidates_below_the_threshold():
+    from rollability_ros.core.evaluation import EvaluatorSettings
+
+    evaluator = EvaluatorSettings()
+    grid = evaluator.grid
+    ridge = np.where(grid_xy(grid)[:, 1] / (grid.width_m / 2) < 0.2, grid.height_max, 0.0)
+    settings = stable_poses.ScreenSettings(com_sigma_m=0.0, prescreen_min_probability=0.4)
+    (bare, bare_passed), (screened, ridge_passed) = stable_poses.screen_heights([None, ridge], evaluator, settings)
+    assert bare_passed == (bare.upright_probability >= 0.4)
+    assert ridge_passed == (screened.upright_probability >= 0.4)
+    assert bare_passed != ridge_passed
+
+
+def test_bad_input_is_refused():
+    with pytest.raises(ValueError, match="outside the hull"):
+        box(0.1, 0.1, 0.1, com_m=(0.0, 0.0, 0.2))
+    with pytest.raises(ValueError, match="upright_tilt_deg"):
+        stable_poses.screen_body(box(0.1, 0.1, 0.1), 95.0)
+    with pytest.raises(ValueError, match="n_samples"):
+        stable_poses.ScreenSettings(n_samples=0).validate()
+
+
+SHAPES = {
+    "cube": lambda: (stable_poses.hull_spawner, box(0.1, 0.1, 0.1)),
+    "brick 4:2:1": lambda: (stable_poses.hull_spawner, box(0.2, 0.1, 0.05)),
+    "low-COM cube": lambda: (stable_poses.hull_spawner, box(0.1, 0.1, 0.1, (0.0, 0.0, -0.03))),
+    "hexagonal prism": lambda: (stable_poses.hull_spawner, hexagonal_prism(0.04, 0.12)),
+}
+
+
+@pytest.mark.parametrize("name", sorted(SHAPES))
+def test_screen_agrees_with_low_energy_pybullet_drops(name):
+    pytest.importorskip("pybullet")
+    spawner, body = SHAPES[name]()
+    drops = 150
+    expected = stable_poses.screen_body(body, 30.0).upright_probability
+    upright, settled = stable_poses.drop_trials(spawner(body, 30.0), drops, 7, PhysicsParams(), TrialSettings())
+    assert settled == drops
+    standard_error = math.sqrt(expected * (1 - expected) / drops)
+    assert abs(upright / drops - expected) <= 3 * standard_error, (name, upright, expected)
+
+
+def test_chassis_screen_agrees_with_low_energy_pybullet_drops():
+    pytest.importorskip("pybullet")
+    spec = ChassisSpec()
+    ridge = ridge_profile(spec)
+    drops = 150
+    expected = stable_poses.screen_chassis(spec, ridge, stable_poses.ScreenSettings(com_sigma_m=0.0))
+    upright, settled = stable_poses.drop_trials(stable_poses.chassis_spawner(ChassisModel(spec), ridge), drops, 7,
+                                                PhysicsParams(), TrialSettings())
+    assert settled == drops
+    p = expected.upright_probability
+    assert abs(upright / drops - p) <= 3 * math.sqrt(p * (1 - p) / drops), (upright, p)

@@ -1,0 +1,32 @@
+"""`rollability play BAG`: run the player node in this process until the bag is played (or Ctrl-C)."""
+
+
+def _play(args):
+    from rclpy.parameter import Parameter
+
+    from rollability_ros.nodes import player
+
+    values = {"player.bag": args.bag, "player.rate": args.rate, "player.start_offset_s": args.start_offset,
+              "player.loop": args.loop, "player.clock": args.clock, "player.topics": args.topics,
+              "player.remap": args.remap, "player.wait_for_subscribers_s": args.wait_for_subscribers}
+    overrides = [Parameter(name, value=value) for name, value in values.items() if value not in (None, [])]
+    return player.main(args=[], parameter_overrides=overrides)
+
+
+def register(subparsers):
+    """Add the ``play`` verb."""
+    parser = subparsers.add_parser(
+        "play", help="replay a recorded bag with its original timing",
+        description="Publish a bag's messages (MCAP or SQLite3 storage) with their recorded spacing, types and "
+                    "QoS, so the running graph (outcome logger, report) consumes them like live ones.")
+    parser.add_argument("bag", help="bag directory")
+    parser.add_argument("--rate", "-r", type=float, help="speed factor (default 1.0; 2 = twice as fast)")
+    parser.add_argument("--start-offset", type=float, metavar="S", help="skip the first S seconds of the bag")
+    parser.add_argument("--loop", "-l", action="store_true", default=None, help="play again from the start, forever")
+    parser.add_argument("--topics", nargs="+", metavar="TOPIC", help="recorded topics to play (default all)")
+    parser.add_argument("--remap", nargs="+", metavar="FROM:=TO", help="publish recorded topic FROM on TO")
+    parser.add_argument("--clock", action="store_true", default=None,
+                        help="publish /clock with each message's recorded time")
+    parser.add_argument("--wait-for-subscribers", type=float, metavar="S",
+                        help="wait up to S seconds for subscribers before the first message (default 3)")
+    parser.set_defaults(func=_play)

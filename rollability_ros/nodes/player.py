@@ -1,0 +1,127 @@
+"""player node: publishes a recorded bag's messages with their original timing, then exits (unless looping).
+
+Parameters (``player.*``; see :class:`~rollability_ros.core.record_play.PlayerSettings`): ``bag`` (required),
+``rate``, ``start_offset_s``, ``loop``, ``clock`` (publish ``/clock`` with each message's recorded time),
+``wait_for_subscribers_s`` (longest wait for subscribers before the first message), and the string arrays ``topics`` (recorded topics to play;
+empty: all) and ``remap`` (``/recorded:=/new``).
+
+Each topic is published with the recorded type (its Python interface package must be installed) and a QoS
+adapted from the recorded publishers' offers (reliable / transient-local only when every original publisher
+was). Messages go out as the recorded CDR bytes, untouched, at the times given by
+:func:`rollability_ros.core.bag_playback.playback_schedule`; the node waits for reliable subscribers to
+acknowledge them (up to ``ACK_TIMEOUT_S``) before it exits.
+"""
+import threading
+import time
+
+from rclpy.duration import Duration
+from rclpy.node import Node
+
+from rollability_ros.core.bag_metadata import BagError
+from rollability_ros.core.bag_playback import CLOCK_TOPIC, CLOCK_TYPE, clock_message_cdr, playback_schedule
+from rollability_ros.core.bag_qos import subscription_qos_for
+from rollability_ros.core.bag_reader import BagReader
+from rollability_ros.core.record_play import PlayerSettings, check_topic_names, parse_remaps
+from rollability_ros.nodes._bag_nodes import declare_string_list, message_class, qos_profile_from_dict
+from rollability_ros.nodes._support import ParameterError, declare_settings, run_node
+
+#: Longest wait for reliable subscribers to acknowledge the last messages before exiting, s.
+ACK_TIMEOUT_S = 10.0
+
+#: Time given to subscribers to match the player's publishers after the player has matched them, s.
+SETTLE_S = 0.3
+
+#: Publisher queue depth, messages.
+PUBLISHER_DEPTH = 1000
+
+
+class PlayerNode(Node):
+    """Creates one publisher per played topic and publishes from a playback thread."""
+
+    def __init__(self, parameter_overrides=None):
+        super().__init__("player", parameter_overrides=parameter_overrides)
+        self.settings = declare_settings(self, "player", PlayerSettings)
+        topics = declare_string_list(self, "player.topics", "recorded topics to play; empty: every topic",
+                                     check_topic_names)
+        self.remap = declare_string_list(self, "player.remap", "remappings /recorded/topic:=/new/topic",
+                                         parse_remaps)
+        try:
+            self.reader = BagReader(self.settings.bag, topics=topics or None)
+        except (BagError, ValueError) as exc:
+            raise ParameterError(f"player.bag: {exc}") from exc
+        self.publishers_by_topic = {}
+        self.played_topics = []
+        for info in self.reader.topic_infos:
+            if topics and info.name not in topics:
+                continue
+            try:
+                msg_type = message_class(info.type_name)
+            except ValueError as exc:
+                self.get_logger().warning(f"not playing {info.name}: {exc}")
+                continue
+            qos = qos_profile_from_dict(subscription_qos_for(info.offered_qos_profiles, depth=PUBLISHER_DEPTH))
+            target = self.remap.get(info.name, info.name)
+            self.publishers_by_topic[target] = self.create_publisher(msg_type, target, qos)
+            self.played_topics.append(info.name)
+        self.clock_publisher = (self.create_publisher(message_class(CLOCK_TYPE), CLOCK_TOPIC, 100)
+                                if self.settings.clock else None)
+        self.published = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._play, name="playback", daemon=True)
+        self._thread.start()
+
+    def _play(self):
+        settings = self.settings
+        logger = self.get_logger()
+        logger.info(f"playing {settings.bag}: {', '.join(self.played_topics) or 'no topics'} at rate "
+                    f"{settings.rate}" + (" (looping)" if settings.loop else ""))
+        if self._wait_for_subscribers():
+            return
+        start = time.monotonic()
+        schedule = playback_schedule(self.reader, rate=settings.rate, start_offset_s=settings.start_offset_s,
+                                     loop=settings.loop, topics=self.played_topics, remap=self.remap)
+        try:
+            for item in schedule:
+                wait_s = start + item.wall_time_s - time.monotonic()
+                if wait_s > 0 and self._stop.wait(wait_s):
+                    return
+                if self._stop.is_set():
+                    return
+                if self.clock_publisher is not None:
+                    self.clock_publisher.publish(clock_message_cdr(item.log_time_ns))
+                self.publishers_by_topic[item.topic].publish(item.data)
+                self.published += 1
+        except BagError as exc:
+            logger.error(f"playback stopped: {exc}")
+        for publisher in self._publishers_to_wait_for():
+            publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
+        logger.info(f"played {self.published} messages from {settings.bag}")
+        self.context.try_shutdown()   # ends the node's spin: the playback is the node's whole job
+
+    def _wait_for_subscribers(self):
+        """Wait until every played topic has a subscriber (plus a moment for them to match us back), or the
+        timeout; return True when the node is stopping."""
+        deadline = time.monotonic() + self.settings.wait_for_subscribers_s
+        while time.monotonic() < deadline:
+            if all(p.get_subscription_count() for p in self._publishers_to_wait_for()):
+                return self._stop.wait(min(SETTLE_S, max(0.0, deadline - time.monotonic())))
+            if self._stop.wait(0.05):
+                return True
+        return self._stop.is_set()
+
+    def _publishers_to_wait_for(self):
+        return list(self.publishers_by_topic.values()) + ([self.clock_publisher] if self.clock_publisher else [])
+
+    def close(self):
+        """Stop the playback thread (run_node calls this before destroying the node)."""
+        self._stop.set()
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=ACK_TIMEOUT_S + 5)
+
+
+def main(args=None, parameter_overrides=None):
+    return run_node(lambda: PlayerNode(parameter_overrides), args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,119 @@
+"""player over real DDS, in its own process: replayed outcomes reach the logger like live ones; timing and options."""
+import re
+import threading
+
+import pytest
+
+from rollability_ros.core.bag_writer import BagWriter
+from rollability_ros.core.records import CandidateRecord, LaunchCondition, LaunchOutcome
+from rollability_ros.core.store import Store
+
+T0_NS = 1_700_000_000_000_000_000
+SPACING_NS = 50_000_000   # 50 ms between recorded outcomes
+
+
+def outcome(index):
+    condition = LaunchCondition("AB"[index % 2], 1.30, 1.5, 30.0 * (index % 3), index // 6)
+    return LaunchOutcome(run_id="campaign1", trial_id=f"t{index:03d}", condition=condition, backend="sim",
+                         upright=index % 4 != 0, travel_time_s=0.23, measured_speed_mps=1.48,
+                         final_orientation=(0.0, 0.0, 0.0, 1.0), classified_by="sim", stamp_s=1700000000.0 + index)
+
+
+@pytest.fixture
+def campaign_bag(tmp_path):
+    """A bag of 30 launch outcomes 50 ms apart and 5 candidates, written as the recorder writes them."""
+    from rclpy.serialization import serialize_message
+
+    from rollability_ros.nodes import _convert
+    from rollability_ros.nodes._support import RECORD_QOS
+    from rollability_ros.core.bag_qos import qos_dict_from_profile
+
+    outcomes = [outcome(i) for i in range(30)]
+    bag = tmp_path / "campaign"
+    offered = [qos_dict_from_profile(RECORD_QOS)]
+    with BagWriter(bag) as writer:
+        writer.add_topic("/launch_outcomes", "rollability_ros/msg/LaunchOutcome", offered_qos_profiles=offered)
+        writer.add_topic("/candidates", "rollability_ros/msg/CandidateResult", offered_qos_profiles=offered)
+        for index, record in enumerate(outcomes):
+            writer.write("/launch_outcomes", serialize_message(_convert.outcome_to_msg(record)),
+                         T0_NS + index * SPACING_NS)
+        for index in range(5):
+            candidate = CandidateRecord("opt1", 0, index, (0.1,), 0.5, 1, 2, 3, 0.1)
+            writer.write("/candidates", serialize_message(_convert.candidate_to_msg(candidate)),
+                         T0_NS + index * SPACING_NS + 1)
+    return bag, outcomes
+
+
+def test_replayed_outcomes_are_stored_by_the_logger_like_live_ones(tmp_path, campaign_bag, ros_node, start_node,
+                                                                   start_process):
+    from rollability_ros.srv import GetSummary
+
+    bag, outcomes = campaign_bag
+    store_path = tmp_path / "replayed.sqlite"
+    logger = start_node("outcome_logger", params={"store_path": str(store_path)})
+    client = ros_node.node.create_client(GetSummary, "/get_summary")
+    assert client.wait_for_service(timeout_sec=30), logger.log()
+
+    player = start_process("rollability_ros.cli", "play", str(bag), "--rate", "2", "--topics", "/launch_outcomes",
+                           name="play")
+    player.process.wait(timeout=60)
+    assert player.process.returncode == 0, player.log()
+    assert "played 30 messages" in player.log()
+    summary = client.call(GetSummary.Request(), timeout_sec=30).summary
+    assert (summary.trials, summary.candidates) == (30, 0), logger.log()   # /candidates was not selected
+    # the logger stored them with the recorded spacing divided by the rate: 29 x 50 ms / 2 = 0.725 s
+    stored_at = [float(stamp) for stamp in re.findall(r"\[(\d+\.\d+)\] \[outcome_logger\]: stored launch outcome",
+                                                      logger.log())]
+    assert len(stored_at) == 30 and 0.6 < stored_at[-1] - stored_at[0] < 1.0, stored_at
+    assert logger.stop() == 0
+    with Store(store_path) as store:
+        assert store.launch_outcomes() == outcomes
+
+
+def test_remap_clock_start_offset_and_loop(campaign_bag, ros_node, start_process):
+    from rosgraph_msgs.msg import Clock
+
+    from rollability_ros.msg import LaunchOutcome as OutcomeMsg
+    from rollability_ros.nodes._support import RECORD_QOS
+
+    bag, outcomes = campaign_bag
+    replayed, clocks = [], []
+    lock = threading.Lock()
+
+    def on_outcome(msg):
+        with lock:
+            replayed.append(msg.trial_id)
+
+    ros_node.node.create_subscription(OutcomeMsg, "/replayed", on_outcome, RECORD_QOS)
+    ros_node.node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec),
+                                      100)
+    player = start_process("rollability_ros.cli", "play", str(bag), "--topics", "/launch_outcomes",
+                           "--remap", "/launch_outcomes:=/replayed", "--clock", "--start-offset", "1.0", name="play")
+    player.process.wait(timeout=60)
+    assert player.process.returncode == 0, player.log()
+    assert ros_node.wait_for(lambda: len(replayed) == 10, 10), (replayed, player.log())
+    assert replayed == [o.trial_id for o in outcomes[20:]]          # the first second (20 outcomes) skipped
+    assert ros_node.wait_for(lambda: len(clocks) == 10, 10), clocks
+    assert clocks == [T0_NS + i * SPACING_NS for i in range(20, 30)]
+
+    replayed.clear()
+    looping = start_process("rollability_ros.cli", "play", str(bag), "--topics", "/launch_outcomes", "--remap",
+                            "/launch_outcomes:=/replayed", "--loop", "--rate", "10", name="loop")
+    assert ros_node.wait_for(lambda: len(replayed) >= 75, 30), looping.log()
+    assert looping.alive()
+    assert looping.stop() == 0, looping.log()
+    with lock:
+        passes = replayed[:60]
+    assert passes == [o.trial_id for o in outcomes] * 2
+
+
+def test_bad_bag_and_options_exit_with_a_reason(tmp_path, campaign_bag, start_process):
+    bag, _ = campaign_bag
+    cases = [((str(tmp_path / "missing"),), "not a directory"),
+             ((str(bag), "--rate", "-1"), "rate must be > 0"),
+             ((str(bag), "--topics", "/nope"), "not in bag"),
+             ((str(bag), "--remap", "/launch_outcomes"), "must look like")]
+    for args, reason in cases:
+        process = start_process("rollability_ros.cli", "play", *args, name="bad_play")
+        process.process.wait(timeout=30)
+        assert process.process.returncode == 2 and reason in process.log(), process.log()

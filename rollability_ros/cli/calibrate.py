@@ -1,0 +1,103 @@
+"""`rollability calibrate`: fit the launch twin to recorded physical outcomes and write a calibrated parameter file."""
+import csv
+import os
+
+
+def _write_csv(path, rows):
+    """Write homogeneous dict ``rows`` to ``path``; return the path."""
+    with open(path, "w", newline="", encoding="utf-8") as stream:
+        writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    return path
+
+
+def _screen_rows(twin_settings, configurations, screen_settings):
+    """The stable-pose screen of each configuration on ``twin_settings``' chassis (quasi-static cross-check)."""
+    from rollability_ros.core.launch_twin import profile_body
+    from rollability_ros.core.stable_poses import screen_chassis
+
+    return [{"configuration": configuration,
+             **screen_chassis(twin_settings.robot, profile_body(configuration, twin_settings), screen_settings).row()}
+            for configuration in configurations]
+
+
+def summary_lines(result, screen_rows):
+    """The printed summary: likelihood, parameters with uncertainty, per-configuration rates, rank agreement."""
+    lines = [f"grouped conditions: {len(result.conditions)}, physical trials: {sum(c.trials for c in result.conditions)}"
+             f", parameter sets simulated: {result.evaluations} x {result.sim_repetitions} launches per condition",
+             f"log-likelihood: before {result.before_log_likelihood:.2f}, after {result.after_log_likelihood:.2f}",
+             f"{'parameter':<42} {'start':>10} {'fitted':>10} {'bootstrap sd':>13}"]
+    lines += [f"{e.name:<42} {e.initial:>10.4g} {e.fitted:>10.4g} {e.std:>13.3g}" for e in result.estimates]
+    lines.append(f"{'configuration':<14} {'measured':>9} {'before':>7} {'after':>7}   (trial success rates)")
+    lines += [f"{row['configuration']:<14} {row['measured_trial_rate']:>9.0%} {row['before_trial_rate']:>7.0%} "
+              f"{row['after_trial_rate']:>7.0%}" for row in result.configuration_rows()]
+    for label, agreement in result.rank_agreement().items():
+        lines.append(f"rank agreement {label}: Spearman rho {agreement.spearman_rho:.2f}, "
+                     f"Kendall tau-b {agreement.kendall_tau_b:.2f}")
+    lines += [f"screen {row['configuration']}: quasi-static P(upright) {row['upright_probability']:.2f}, worst "
+              f"barrier {row['worst_barrier_m'] * 1000:.1f} mm ({row['worst_barrier_j']:.3f} J)" for row in screen_rows]
+    return lines
+
+
+def run(args):
+    """Calibrate, write the outputs to ``--out`` and print the summary; return the exit code."""
+    import yaml
+
+    from rollability_ros.core import calibration
+    from rollability_ros.core.checkpoint import atomic_write_bytes
+    from rollability_ros.core.config import from_mapping, load_parameters, section
+    from rollability_ros.core.report import load_report_data
+    from rollability_ros.core.stable_poses import ScreenSettings
+
+    parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.config])
+    settings = calibration.calibration_settings(parameters)
+    if args.workers is not None:
+        settings.workers = args.workers
+    screen_settings = from_mapping(ScreenSettings, section(parameters, "stable_poses"), "stable_poses")
+    data = load_report_data(args.physical, args.run)
+    outcomes = [o for o in data.outcomes if o.backend == "physical"]
+    if not outcomes:
+        raise ValueError(f"{data.source}: no physical launch outcomes to calibrate against")
+    with calibration.LaunchPool(settings.workers) as pool:
+        result = calibration.calibrate(outcomes, parameters, settings, pool, on_progress=print)
+    os.makedirs(args.out, exist_ok=True)
+    params_path = os.path.join(args.out, "calibrated.yaml")
+    document = calibration.calibrated_parameter_document(result.fitted_values(), os.path.abspath(params_path))
+    header = (f"# Calibrated launch-twin parameters from {data.source} (rollability calibrate); load on top of the\n"
+              f"# defaults: --config / --params-file. Bootstrap uncertainty in parameters.csv beside this file.\n")
+    atomic_write_bytes(params_path, (header + yaml.safe_dump(document, sort_keys=True)).encode("utf-8"))
+    calibrated_twin = calibration.twin_settings_with(parameters, settings.parameters,
+                                                     [e.fitted for e in result.estimates])
+    configurations = sorted({c.configuration for c in result.conditions})
+    screen_rows = _screen_rows(calibrated_twin, configurations, screen_settings)
+    _write_csv(os.path.join(args.out, "conditions.csv"), result.condition_rows())
+    _write_csv(os.path.join(args.out, "configurations.csv"), result.configuration_rows())
+    _write_csv(os.path.join(args.out, "parameters.csv"), [e.row() for e in result.estimates])
+    _write_csv(os.path.join(args.out, "screen.csv"), screen_rows)
+    summary = "\n".join(summary_lines(result, screen_rows))
+    with open(os.path.join(args.out, "summary.txt"), "w", encoding="utf-8") as stream:
+        stream.write(summary + "\n")
+    print(summary)
+    print(f"calibrated parameter file: {params_path}")
+    return 0
+
+
+def register(subparsers):
+    """Add the ``calibrate`` verb."""
+    parser = subparsers.add_parser(
+        "calibrate", help="fit the simulated launch twin to recorded physical launch outcomes",
+        description="Fit the launch twin's uncertain parameters (config/calibration.yaml: foam stiffness, damping, "
+                    "friction, restitution, speed scatter, centre of mass, with bounds) to physical outcomes by "
+                    "maximising the binomial likelihood of the observed successes per grouped condition with "
+                    "CMA-ES; report before/after agreement and bootstrap uncertainty; write calibrated.yaml, a "
+                    "parameter file the evaluator, optimiser and rig load on top of the defaults.")
+    parser.add_argument("--physical", required=True, metavar="SOURCE",
+                        help="physical launch outcomes: a store, a run directory, a bag or a CSV (docs/outcome-csv.md)")
+    parser.add_argument("--run", help="campaign run id in SOURCE (needed when it holds several)")
+    parser.add_argument("--config", action="append", default=[], metavar="FILE",
+                        help="parameter file loaded over sim, robot, launch_twin and calibration (repeatable)")
+    parser.add_argument("--out", default="calibration", metavar="DIR",
+                        help="output directory (default: ./calibration)")
+    parser.add_argument("--workers", type=int, help="launch worker processes (default: calibration.workers)")
+    parser.set_defaults(func=run)

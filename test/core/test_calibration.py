@@ -1,0 +1,151 @@
+"""Calibration of the launch twin: parameter mapping, likelihood, the calibrated parameter file, the CLI, and
+recovery of hidden parameter values from synthetic "physical" outcomes."""
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from rollability_ros.core import calibration
+from rollability_ros.core.analysis import ConditionResult
+from rollability_ros.core.config import ConfigError, load_parameters, section
+from rollability_ros.core.evaluation import load_settings
+from rollability_ros.core.launch_twin import load_launch_twin_settings
+from rollability_ros.core.outcome_csv import write_outcome_csv
+from rollability_ros.core.records import LaunchCondition
+
+
+def twin_parameters():
+    return load_parameters(list(calibration.TWIN_CONFIGS))
+
+
+def test_normalised_coordinates_map_to_bounds_on_linear_and_log_scales():
+    settings = calibration.CalibrationSettings(parameters=["a", "b"], lower=[1000.0, -0.02], upper=[100000.0, 0.02],
+                                               log_scale=[True, False])
+    assert settings.to_values([0.0, 0.0]) == pytest.approx([1000.0, -0.02])
+    assert settings.to_values([0.5, 0.5]) == pytest.approx([10000.0, 0.0])
+    assert settings.to_values([1.5, -1.0]) == pytest.approx([100000.0, -0.02])   # clipped to [0, 1]
+    assert settings.to_normalised([20000.0, 0.01]) == pytest.approx(
+        [math.log(20) / math.log(100), 0.75])
+    with pytest.raises(ValueError, match="b = 0.03 lies outside"):
+        settings.to_normalised([20000.0, 0.03])
+
+
+def test_settings_are_checked():
+    with pytest.raises(ValueError, match="one entry per parameter"):
+        calibration.CalibrationSettings(parameters=["a"], lower=[0.0, 1.0], upper=[1.0], log_scale=[False]).validate()
+    with pytest.raises(ValueError, match="lower > 0"):
+        calibration.CalibrationSettings(parameters=["a"], lower=[0.0], upper=[1.0], log_scale=[True]).validate()
+    parameters = {**twin_parameters(), "calibration.parameters": ["launch_twin.foam.stiffness"],
+                  "calibration.lower": [1.0], "calibration.upper": [2.0], "calibration.log_scale": [False]}
+    with pytest.raises(ConfigError, match="launch_twin.foam.stiffness not set"):
+        calibration.calibration_settings(parameters)
+
+
+def test_shipped_config_starts_inside_its_bounds():
+    parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration"])
+    settings = calibration.calibration_settings(parameters)
+    start = settings.to_normalised([parameters[name] for name in settings.parameters])
+    assert np.all((start >= 0) & (start <= 1))
+
+
+def test_binomial_log_likelihood_matches_scipy_and_clips():
+    stats = pytest.importorskip("scipy.stats")
+    k, n, p = np.array([3, 0, 10]), np.array([10, 5, 10]), np.array([0.25, 0.0, 0.9])
+    expected = stats.binom.logpmf(k, n, np.clip(p, 0.01, 0.99)).sum()
+    assert calibration.binomial_log_likelihood(k, n, p, 0.01) == pytest.approx(expected)
+    rows = calibration.binomial_log_likelihood(k, n, np.stack([p, p]), 0.01)
+    assert rows.shape == (2,) and rows == pytest.approx([expected, expected])
+    with pytest.raises(ValueError, match="successes <= trials"):
+        calibration.binomial_log_likelihood([4], [3], [0.5], 0.01)
+
+
+def test_bootstrap_resamples_counts_within_each_condition():
+    conditions = [ConditionResult("A", 0.75, 0.8, 0.0, 0, 10), ConditionResult("A", 0.75, 0.8, 30.0, 10, 10),
+                  ConditionResult("B", 0.75, 0.8, 0.0, 5, 10)]
+    rng = np.random.default_rng(0)
+    draws = [calibration.bootstrap_conditions(conditions, rng) for _ in range(200)]
+    assert all(d[0].successes == 0 and d[1].successes == 10 and d[2].trials == 10 for d in draws)
+    assert np.mean([d[2].successes for d in draws]) == pytest.approx(5, abs=0.5)
+
+
+def test_simulation_seeds_are_common_within_a_fit_and_differ_between_resamples():
+    assert calibration.simulation_seeds(1, 0, 4) == calibration.simulation_seeds(1, 0, 4)
+    assert not set(calibration.simulation_seeds(1, 0, 4)) & set(calibration.simulation_seeds(1, 1, 4))
+
+
+def test_calibrated_file_changes_twin_evaluator_and_rig_settings(tmp_path):
+    path = tmp_path / "calibrated.yaml"
+    fitted = {"launch_twin.foam.contact_stiffness_npm": 45000.0, "launch_twin.foam.lateral_friction": 0.6,
+              "robot.com_offset_z_m": 0.004}
+    document = calibration.calibrated_parameter_document(fitted, path)
+    path.write_text(yaml.safe_dump(document), encoding="utf-8")
+    default = load_launch_twin_settings()
+    twin = load_launch_twin_settings([*calibration.TWIN_CONFIGS, str(path)])
+    assert default.twin.foam.contact_stiffness_npm != 45000.0
+    assert twin.twin.foam.contact_stiffness_npm == 45000.0
+    assert twin.twin.foam.lateral_friction == 0.6
+    assert twin.robot.com_offset_z_m == 0.004
+    assert twin.twin.foam.contact_damping_nspm == default.twin.foam.contact_damping_nspm   # the rest: defaults
+    evaluator = load_settings(["sim", "robot", "evaluator", str(path)])       # evaluate / optimize --config
+    assert evaluator.robot.com_offset_z_m == 0.004
+    rig = section(load_parameters(["rig", str(path)]), "rig")                  # the rig's --params-file
+    assert rig["twin_config"] == [*calibration.TWIN_CONFIGS, str(path)]
+    assert load_launch_twin_settings(rig["twin_config"]).twin.foam.lateral_friction == 0.6
+
+
+def test_cli_writes_outputs_from_a_csv_of_physical_outcomes(tmp_path, capsys):
+    pytest.importorskip("pybullet")
+    pytest.importorskip("cma")
+    from rollability_ros.cli import main
+    from rollability_ros.core.records import LaunchOutcome
+
+    outcomes = [LaunchOutcome("rig-1", f"t{i}", LaunchCondition("baseline", 0.75, 0.8, angle, i), "physical",
+                              upright=bool(i % 2), classified_by="operator")
+                for i, angle in enumerate([0.0, 0.0, 30.0, 30.0])]
+    source = tmp_path / "physical.csv"
+    write_outcome_csv(source, outcomes)
+    config = tmp_path / "small.yaml"
+    config.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"calibration": {
+        "parameters": ["launch_twin.foam.lateral_friction"], "lower": [0.3], "upper": [2.0], "log_scale": [True],
+        "sim_repetitions": 2, "popsize": 2, "max_generations": 1, "bootstrap_resamples": 1}}}}), encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["calibrate", "--physical", str(source), "--config", str(config), "--out", str(out),
+                 "--workers", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert "log-likelihood: before" in printed and "rank agreement after" in printed
+    for name in ("calibrated.yaml", "conditions.csv", "configurations.csv", "parameters.csv", "screen.csv",
+                 "summary.txt"):
+        assert (out / name).is_file(), name
+    twin = load_launch_twin_settings([*calibration.TWIN_CONFIGS, str(out / "calibrated.yaml")])
+    assert 0.3 <= twin.twin.foam.lateral_friction <= 2.0
+    assert main(["calibrate", "--physical", str(tmp_path / "missing.csv"), "--out", str(out)]) == 2
+
+
+def test_recovers_a_hidden_centre_of_mass_offset_from_synthetic_outcomes(tmp_path):
+    """Reduced synthetic truth (bench/bench_calibration.py runs the fuller version): 'physical' outcomes from the
+    twin with the chassis's COM 6 mm above the box centre instead of 15 mm below; the fit starts at the default."""
+    pytest.importorskip("pybullet")
+    pytest.importorskip("cma")
+    from rollability_ros.core.geometry import ProfileGrid, export_mesh, grid_xy, profile_mesh
+
+    grid = ProfileGrid()
+    xy = grid_xy(grid) / [grid.length_m / 2, grid.width_m / 2]
+    dome = np.clip(grid.height_max * (1 - 0.5 * xy[:, 0] ** 2 - 0.5 * xy[:, 1] ** 2), 0.0, grid.height_max)
+    export_mesh(profile_mesh(dome, grid), tmp_path / "dome.stl")
+    parameters = {**twin_parameters(), "launch_twin.designs.mesh_labels": ["dome"],
+                  "launch_twin.designs.mesh_files": [str(tmp_path / "dome.stl")]}
+    name, truth = "robot.com_offset_z_m", 0.006
+    conditions = [LaunchCondition("baseline", 0.75, 0.8, 0.0), LaunchCondition("dome", 0.75, 0.8, 0.0)]
+    outcomes = calibration.synthetic_outcomes(parameters, [name], [truth], conditions, 24)
+    settings = calibration.CalibrationSettings(parameters=[name], lower=[-0.019], upper=[0.015], log_scale=[False],
+                                               sim_repetitions=8, popsize=4, sigma0=0.3, max_generations=4,
+                                               bootstrap_resamples=2)
+    with calibration.LaunchPool(2) as pool:
+        result = calibration.calibrate(outcomes, parameters, settings, pool)
+    (estimate,) = result.estimates
+    assert estimate.initial == -0.015
+    assert result.after_log_likelihood > result.before_log_likelihood + 5
+    assert abs(estimate.fitted - truth) < abs(estimate.initial - truth) / 3
+    assert 0 < estimate.std < (settings.upper[0] - settings.lower[0]) / 2
+    assert abs(estimate.fitted - truth) <= 2 * estimate.std, (estimate.fitted, estimate.bootstrap)

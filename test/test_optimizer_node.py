@@ -123,13 +123,18 @@ def call(ros_node, name):
 
 
 def test_with_no_evaluator_it_says_so_and_waits_then_proceeds(ros_node, start_node, tmp_path, reference):
-    optimizer = start_optimizer(start_node, tmp_path, "late")
+    optimizer = start_optimizer(start_node, tmp_path, "late", exit_on_finish=True, select_designs=True,
+                                **{"selection.reevaluate_trials": 6, "selection.min_distance": 0.01})
     wait_for_log(ros_node, optimizer, "no evaluator available", 60)
     assert "generation 0:" not in optimizer.log() and optimizer.alive()
     start_node("sim_evaluator", params={"evaluator.workers": 2, **GRID}, ros_args=["-r", "__ns:=/eval_late"],
                name="eval_late")
     wait_for_log(ros_node, optimizer, "ended after 4 generation(s)")
+    assert optimizer.process.wait(timeout=60) == 0, optimizer.log()   # exit_on_finish, after the selection
     assert candidate_rows(tmp_path / "runs" / "late", "late") == reference["candidates"]
+    designs = tmp_path / "runs" / "late" / "designs"
+    assert (designs / "table3.csv").read_text().startswith("configuration,") and (designs / "mesh_A.stl").is_file()
+    assert "selected" in optimizer.log()
 
 
 def test_two_evaluators_share_the_run_and_it_equals_the_in_process_run(ros_node, start_node, evaluators, tmp_path,

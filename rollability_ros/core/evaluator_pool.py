@@ -18,8 +18,8 @@ Rules
   disappearing mid-request) is never a result: the request goes back to the front of the queue and is retried,
   on an evaluator it has not failed on while one exists, else on any. The evaluator that failed gets no new
   request for ``retry_delay_s``, doubled for each further failure in a row (at most 64x; a success resets it),
-  so a dead evaluator still listed in the graph costs few timeouts. After ``max_attempts`` failed attempts of one request the batch raises
-  :class:`EvaluationFailed` (0 = retry without limit).
+  so a dead evaluator still listed in the graph costs few timeouts. After ``max_attempts`` failed attempts of
+  one request the batch raises :class:`EvaluationFailed` (0 = retry without limit).
 - With no evaluator available the batch waits (and says so through ``log`` every ``waiting_log_period_s``);
   it never guesses a result. :meth:`EvaluatorPool.pause` holds back new requests (those in flight finish).
 - :meth:`EvaluatorPool.close` makes a waiting batch raise :class:`PoolClosed` and cancels what is in flight.

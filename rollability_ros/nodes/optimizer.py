@@ -20,13 +20,14 @@ Parameters: the namespaces ``optimizer`` (config/optimizer.yaml, config/paper.ya
 and ``printer`` (the grid and printer of config/robot.yaml, overridden by the optimisation file), all saved in
 the run's ``config.yaml``; ``robot`` (only ``body_height_m`` is used, for the marker); and:
 ``run_id`` (empty = new ``opt-<date>-<time>``), ``resume`` (continue run ``run_id`` from its last checkpoint),
-``autostart`` (start once the graph has been searched twice), ``select_designs`` (choose Mesh A, B, C when the run finishes), ``frame_id``,
-``evaluator_timeout_s``, ``evaluator_max_attempts``, ``evaluator_retry_delay_s``,
-``evaluator_discovery_period_s``. Optimiser parameters are read when a run starts.
+``autostart`` (start once the graph has been searched twice), ``exit_on_finish``, ``select_designs`` (choose
+Mesh A, B, C when the run finishes), ``frame_id``, ``evaluator_timeout_s``, ``evaluator_max_attempts``,
+``evaluator_retry_delay_s``, ``evaluator_discovery_period_s``. Optimiser parameters are read when a run starts.
+See docs/optimisation.md.
 
 A failed evaluation (rejected goal, aborted, silent for ``evaluator_timeout_s``, evaluator gone) is retried on
 another evaluator and never scored; after ``evaluator_max_attempts`` failures of one candidate the run pauses
-and says why (``resume`` retries the generation). Evaluators must use the same ``profile`` grid as this node
+and says why (``resume`` retries the generation; with ``exit_on_finish`` the node exits with code 1 instead). Evaluators must use the same ``profile`` grid as this node
 (their goals carry heights only). SIGINT / SIGTERM end the node at once; the run keeps its last checkpoint and
 continues with ``resume:=true run_id:=<id>``.
 """
@@ -35,6 +36,7 @@ import os
 import sys
 import threading
 
+import rclpy
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import Point
 from rcl_interfaces.msg import ParameterDescriptor
@@ -70,6 +72,8 @@ _PARAMETERS = {  # name: (default, description)
     "autostart": (True, "start optimising at start-up (false: wait for the start service)"),
     "select_designs": (False, "when the run finishes, choose designs A, B, C (section selection) into "
                               "<run>/designs/"),
+    "exit_on_finish": (False, "end the node when the run ends: exit code 0 if it finished, 1 if it could not "
+                              "start or got no real results (for unattended studies)"),
     "frame_id": ("base_link", "frame of the best-profile marker (the chassis frame, box centre)"),
     "evaluator_timeout_s": (PoolSettings.timeout_s, "s without any reply (accept, feedback, result) after which "
                                                     "an evaluation is given up and retried elsewhere"),
@@ -149,14 +153,18 @@ class Optimizer(Node):
         self._worker = None
         self._stop_requested = threading.Event()
         self._best_heights = None
-        for name, callback in (("start", self._on_start), ("pause", self._on_pause), ("resume", self._on_resume),
-                               ("stop", self._on_stop)):
-            self.create_service(Trigger, name, callback)
+        self.exit_code = 0
+        self.create_service(Trigger, "start", self._on_start)
+        self.create_service(Trigger, "pause", self._run_control(self._pool.pause,
+                                                                "paused: no new evaluations are sent"))
+        self.create_service(Trigger, "resume", self._run_control(self._pool.resume, "resumed"))
+        self.create_service(Trigger, "stop", self._run_control(
+            self._request_stop, "stopping after the current generation is evaluated and checkpointed"))
+        self._searches = 0
+        self._autostart_pending = self._param("autostart")
         self.create_timer(discovery_period_s, self._discover)
         self.get_logger().info(f"ready: {self._grid.rows}x{self._grid.cols} grid, looking for "
                                f"{EVALUATOR_ACTION_TYPE} servers every {discovery_period_s:g} s")
-        self._searches = 0
-        self._autostart_pending = self._param("autostart")
 
     def _param(self, name):
         return self.get_parameter(name).value
@@ -171,7 +179,7 @@ class Optimizer(Node):
         for name in names:
             if name not in self._action_clients:
                 self._action_clients[name] = _ThreadSafeActionClient(self, EvaluateProfile, name,
-                                                              callback_group=self._client_group)
+                                                                     callback_group=self._client_group)
         ready = [name for name in names if self._action_clients[name].server_is_ready()]
         added, removed = self._pool.set_evaluators(ready)
         if added or removed:
@@ -180,7 +188,10 @@ class Optimizer(Node):
         self._searches += 1
         if self._autostart_pending and self._searches >= 2:  # clients found in one search are ready by the next
             self._autostart_pending = False
-            self.start()
+            started, _message = self.start()
+            if not started and self._param("exit_on_finish"):
+                self.exit_code = 1
+                rclpy.try_shutdown(context=self.context)
 
     def _submit(self, action_name, request, ticket):
         """Send one evaluation as an EvaluateProfile goal; report through ``ticket``; return a cancel function."""
@@ -227,34 +238,21 @@ class Optimizer(Node):
         response.success, response.message = self.start()
         return response
 
-    def _on_pause(self, _request, response):
-        if not self.running:
-            response.success, response.message = False, "no run in progress"
+    def _run_control(self, act, message):
+        """A Trigger callback that calls ``act()`` if a run is in progress and answers ``message``."""
+        def callback(_request, response):
+            if not self.running:
+                response.success, response.message = False, "no run in progress"
+                return response
+            act()
+            response.success, response.message = True, message
+            self.get_logger().info(message)
             return response
-        self._pool.pause()
-        response.success, response.message = True, "paused: no new evaluations are sent"
-        self.get_logger().info(response.message)
-        return response
+        return callback
 
-    def _on_resume(self, _request, response):
-        if not self.running:
-            response.success, response.message = False, "no run in progress"
-            return response
-        self._pool.resume()
-        response.success, response.message = True, "resumed"
-        self.get_logger().info(response.message)
-        return response
-
-    def _on_stop(self, _request, response):
-        if not self.running:
-            response.success, response.message = False, "no run in progress"
-            return response
+    def _request_stop(self):
         self._stop_requested.set()
-        self._pool.resume()
-        response.success = True
-        response.message = "stopping after the current generation is evaluated and checkpointed"
-        self.get_logger().info(response.message)
-        return response
+        self._pool.resume()   # a paused generation must finish to be checkpointed
 
     # --- the run -------------------------------------------------------------------------------------------------
     @property
@@ -299,7 +297,15 @@ class Optimizer(Node):
         return run_dir, {**optimisation_run.read_run_config(run_dir), **parameters}, True
 
     def _optimise(self, run_dir, parameters, resume, settings):
-        """The worker thread: run generations until a stop criterion, ``stop``, or shutdown."""
+        """The worker thread: run generations until a stop criterion, ``stop``, or shutdown; with
+        ``exit_on_finish``, then end the node (exit code 0 when the run finished, 1 when it could not)."""
+        code = self._run_to_end(run_dir, parameters, resume, settings)
+        if code is not None and self._param("exit_on_finish"):
+            self.exit_code = code
+            rclpy.try_shutdown(context=self.context)
+
+    def _run_to_end(self, run_dir, parameters, resume, settings):
+        """Run; return 0 (finished or stopped), 1 (failed) or None (interrupted by shutdown)."""
         log = self.get_logger()
         try:
             run = optimisation_run.OptimisationRun(
@@ -307,11 +313,10 @@ class Optimizer(Node):
                 resume=resume, on_candidate=self._publish_candidate)
         except (ConfigError, ValueError, FileNotFoundError) as exc:
             log.error(f"cannot {'resume' if resume else 'start'} run in {run_dir}: {exc}")
-            return
+            return 1
         try:
-            optimizer = run.optimizer
             log.info(f"run {run.run_id} in {run.run_dir}: {'resuming after' if resume else 'starting at'} "
-                     f"generation {optimizer.generation}, popsize {run.settings.popsize}, "
+                     f"generation {run.optimizer.generation}, popsize {run.settings.popsize}, "
                      f"{run.settings.trials} trials per candidate")
             self._publish_best(run)
             run.on_generation = lambda record: self._publish_generation(record, run)
@@ -320,19 +325,25 @@ class Optimizer(Node):
                     run.step()
                 except PoolClosed:
                     self._log_interrupted(run)
-                    return
+                    return None
                 except EvaluationFailed as exc:
+                    if self._param("exit_on_finish"):
+                        log.error(f"run {run.run_id}: generation {run.optimizer.generation} got no real results "
+                                  f"({exc}); giving up (exit_on_finish)")
+                        return 1
                     if self._stop_requested.is_set():
                         break
                     self._pool.pause()
                     log.error(f"generation {run.optimizer.generation} got no real results ({exc}); paused: call "
                               "the resume service to retry it, or stop")
             self._finish(run, settings)
+            return 0
         except Exception as exc:  # a broken store or a bug must end the run loudly, not the node
-            if self.context.ok():
-                log.error(f"run {run.run_id} failed: {exc!r}")
-            else:   # shutting down: publishing failed because the context is gone
+            if not self.context.ok():   # shutting down: publishing failed because the context is gone
                 self._log_interrupted(run)
+                return None
+            log.error(f"run {run.run_id} failed: {exc!r}")
+            return 1
         finally:
             run.close()
 
@@ -412,7 +423,13 @@ class Optimizer(Node):
 
 
 def main(args=None):
-    return run_node(Optimizer, args)
+    nodes = []
+
+    def make():
+        nodes.append(Optimizer())
+        return nodes[-1]
+
+    return run_node(make, args) or (nodes[-1].exit_code if nodes else 0)
 
 
 if __name__ == "__main__":

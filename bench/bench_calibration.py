@@ -63,8 +63,8 @@ def main():
         print(f"{estimate.name}: truth {value:.4g}, start {estimate.initial:.4g}, fitted {estimate.fitted:.4g}, "
               f"bootstrap sd {estimate.std:.3g} -> error / sd = {error / estimate.std:+.2f}")
     for row in result.condition_rows():
-        print(f"  {row['configuration']:<9} {row['height_m']:.2f} m {row['speed_mps']:.1f} m/s {row['angle_deg']:+5.0f}"
-              f" deg  measured {row['measured_rate']:.2f}  before {row['before_rate']:.2f}  after {row['after_rate']:.2f}")
+        print(f"  {row['configuration']:<9} {row['height_m']:.2f} m {row['speed_mps']:.1f} m/s "
+              f"{row['angle_deg']:+5.0f} deg  measured {row['measured_rate']:.2f}  before {row['before_rate']:.2f}  after {row['after_rate']:.2f}")
     for label, agreement in result.rank_agreement().items():
         print(f"rank agreement {label}: Spearman {agreement.spearman_rho:.2f}, Kendall {agreement.kendall_tau_b:.2f}")
 

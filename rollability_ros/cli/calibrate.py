@@ -24,8 +24,9 @@ def _screen_rows(twin_settings, configurations, screen_settings):
 
 def summary_lines(result, screen_rows):
     """The printed summary: likelihood, parameters with uncertainty, per-configuration rates, rank agreement."""
-    lines = [f"grouped conditions: {len(result.conditions)}, physical trials: {sum(c.trials for c in result.conditions)}"
-             f", parameter sets simulated: {result.evaluations} x {result.sim_repetitions} launches per condition",
+    trials = sum(c.trials for c in result.conditions)
+    lines = [f"grouped conditions: {len(result.conditions)}, physical trials: {trials}, parameter sets simulated: "
+             f"{result.evaluations} x {result.sim_repetitions} launches per condition",
              f"log-likelihood: before {result.before_log_likelihood:.2f}, after {result.after_log_likelihood:.2f}",
              f"{'parameter':<42} {'start':>10} {'fitted':>10} {'bootstrap sd':>13}"]
     lines += [f"{e.name:<42} {e.initial:>10.4g} {e.fitted:>10.4g} {e.std:>13.3g}" for e in result.estimates]

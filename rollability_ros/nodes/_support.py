@@ -21,9 +21,12 @@ from rollability_ros.core.config import ConfigError, from_mapping, section
 #: State topics (valve state, summaries, tip state): the last value reaches late joiners.
 LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
-#: Records that must not be dropped (outcomes, candidates): reliable with a deep queue.
+#: Records that must not be dropped (outcomes, candidates, tip events), on both publisher and subscriber:
+#: reliable, and transient-local with a deep history, so a logger or recorder that matches the publisher late
+#: (DDS discovery takes a moment after a node starts) or restarts mid-campaign still receives every record in
+#: the publisher's history; the store de-duplicates by record key, so a re-delivered record is stored once.
 RECORD_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
 #: High-rate streams (poses, IMU): newest wins.
 STREAM_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT,
                         durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_LAST)

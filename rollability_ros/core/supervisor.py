@@ -33,7 +33,8 @@ class ProcessSpec:
 
 @dataclasses.dataclass
 class SupervisorEvent:
-    """Something the operator should see: ``kind`` is started | exited | restarted | gave_up | stopping | stopped."""
+    """Something the operator should see: ``kind`` is started | exited | restarted | gave_up | finished | stopping |
+    stopped."""
 
     kind: str
     name: str
@@ -171,6 +172,10 @@ class Supervisor:
                 last_tick = time.monotonic()
             time.sleep(period_s)
         code = process.returncode
+        for child in self._children:
+            if child.spec.name == name:
+                child.finished = True
+                self._emit("finished", child, f"exit code {code}")
         return code, "" if code == 0 else f"{name} exited with code {code} (its log: {self.log_dir}/{name}.log)"
 
     def stop(self):

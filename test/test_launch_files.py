@@ -4,7 +4,6 @@
 skipped; on a ROS install it loads each launch file and expands its node list.
 """
 import importlib.util
-import pathlib
 
 import pytest
 

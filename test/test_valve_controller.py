@@ -175,7 +175,7 @@ def test_serial_relay_watchdog_and_sigint_mid_pulse(ros_node, start_node, relay)
     threading.Thread(target=beat, daemon=True).start()
     assert valve.arm(False)[0] and valve.arm()[0]
 
-    future = valve.fire_client.call_async(valve._fire.Request(pulse_ms=400))
+    valve.fire_client.call_async(valve._fire.Request(pulse_ms=400))   # answered or not: the node is killed mid-pulse
     assert ros_node.wait_for(relay.relay_on, 10)
     process.signal(signal.SIGINT)
     beating.set()

@@ -6,6 +6,7 @@ request the optimizer, the rig and the live-view bridge. Every node reads the sa
 (:func:`rollability_ros.core.graph.parameter_files`).
 """
 import dataclasses
+import datetime
 import os
 
 from rollability_ros.core.config import from_mapping, load_parameters, section

@@ -11,6 +11,7 @@ EXTRA_FOR_MODULE = {
     "pybullet_data": "sim",
     "trimesh": "sim",
     "scipy": "sim",
+    "networkx": "sim",
     "cma": "sim",
     "ray": "cluster",
     "matplotlib": "report",

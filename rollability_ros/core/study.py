@@ -16,12 +16,11 @@ files), ``outcomes.sqlite`` (the logger's store), ``bag/`` (MCAP), ``report/``, 
 reads stores.
 """
 import dataclasses
-import datetime
 import os
 
 import yaml
 
-from rollability_ros.core.bringup import core_nodes, load_graph_settings
+from rollability_ros.core.bringup import core_nodes, load_graph_settings, new_study_id
 from rollability_ros.core.config import load_parameters
 from rollability_ros.core.graph import NodeLaunch, parameter_files
 from rollability_ros.core.store import Store

@@ -11,10 +11,11 @@ from conftest import REPO_ROOT
 MINI = str(REPO_ROOT / "test" / "resources" / "mini_study.yaml")
 
 
-def _study(tmp_path, study_id, **popen):
-    return subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "study", "--config", MINI,
-                             "--study-id", study_id], cwd=tmp_path, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, start_new_session=True, **popen)
+def _study(tmp_path, study_id=None):
+    id_args = ["--study-id", study_id] if study_id else []
+    return subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "study", "--config", MINI, *id_args],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
 
 
 def _alive_children(study_dir):
@@ -69,14 +70,16 @@ def test_miniature_main_job_end_to_end(tmp_path):
 def test_ctrl_c_stops_every_node_and_closes_the_bag(tmp_path):
     from rollability_ros.core.bag_reader import bag_info
 
-    process = _study(tmp_path, "interrupted")
-    study_dir = tmp_path / "runs" / "interrupted"
+    process = _study(tmp_path)                      # a generated study id: study-<UTC date>-<time>
+    first_line = process.stdout.readline()
+    assert first_line.startswith("study study-") and "results in runs/" in first_line, first_line
+    study_dir = tmp_path / first_line.split("results in ")[1].strip()
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and not (study_dir / "optimisation" / "store.sqlite").exists():
         time.sleep(0.2)
     assert process.poll() is None, process.communicate()[0]
     os.killpg(process.pid, signal.SIGINT)           # what a terminal's Ctrl-C does
-    output, _ = process.communicate(timeout=180)
+    output = first_line + process.communicate(timeout=180)[0]
     assert process.returncode == 1 and "stopped by the operator" in output, output
     assert "[recorder] stopped: exit code 0" in output
     info = bag_info(study_dir / "bag")

@@ -117,10 +117,12 @@ def register(subparsers):
                     "process pool (or the Ray cluster of evaluator.ray_address). Every candidate and generation "
                     "goes to <output_dir>/<run_id>/store.sqlite and a checkpoint is written after each "
                     "generation, so a killed run continues with --resume and gives the same results.")
-    parser.add_argument("--config", help="optimisation parameter file or shipped name: 'optimizer' (quick "
-                                         "default, minutes on 2 cores) or 'paper' (the paper's settings); "
-                                         "loaded on top of sim, robot and evaluator. Optional with --resume "
-                                         "(then the run's own config.yaml is used)")
+    parser.add_argument("--config", action="append", default=[], metavar="FILE",
+                        help="optimisation parameter file or shipped name: 'optimizer' (quick default, minutes on "
+                             "2 cores) or 'paper' (the paper's settings); loaded on top of sim, robot and "
+                             "evaluator; repeatable, later files win (e.g. --config optimizer --config "
+                             "runs/cal/calibrated.yaml). Optional with --resume (then the run's own config.yaml "
+                             "is used)")
     parser.add_argument("--resume", metavar="RUN", help="continue run RUN (run id under output_dir, or its "
                                                         "directory) from its last completed generation")
     parser.add_argument("--run-id", help="id of a new run (default: opt-<date>-<time>)")

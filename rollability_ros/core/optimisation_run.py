@@ -56,9 +56,12 @@ def optimizer_settings(parameters):
     return from_mapping(OptimizerSettings, section(parameters, "optimizer"), "optimizer")
 
 
-def load_run_parameters(config_path):
-    """Merge :data:`BASE_CONFIGS` and ``config_path`` (a path or a shipped name such as ``"paper"``)."""
-    return load_parameters(list(BASE_CONFIGS) + [config_path])
+def load_run_parameters(config_paths):
+    """Merge :data:`BASE_CONFIGS` and ``config_paths`` (one or a list of paths or shipped names such as
+    ``"paper"``; later files win, e.g. ``["optimizer", "runs/cal/calibrated.yaml"]``)."""
+    if isinstance(config_paths, (str, os.PathLike)):
+        config_paths = [config_paths]
+    return load_parameters(list(BASE_CONFIGS) + list(config_paths))
 
 
 def resolve_run_dir(run, output_dir="runs"):

@@ -145,7 +145,8 @@ def convergence(path, points):
     for run_id in sorted({p.run_id for p in points}):
         own = [p for p in points if p.run_id == run_id]
         generations = [p.generation for p in own]
-        drawn = ax.plot(generations, [p.best_so_far for p in own], marker=".", label=f"{run_id}: best so far (incumbent, re-evaluated and pooled)")
+        drawn = ax.plot(generations, [p.best_so_far for p in own], marker=".",
+                        label=f"{run_id}: best so far (incumbent, re-evaluated and pooled)")
         ax.plot(generations, [p.best_fitness for p in own], color=drawn[0].get_color(), alpha=0.35, lw=0.8)
         ax.plot(generations, [p.mean_fitness for p in own], color=drawn[0].get_color(), alpha=0.35, ls="--",
                 lw=0.8)

@@ -2,15 +2,13 @@
 
 
 def _play(args):
-    from rclpy.parameter import Parameter
-
     from rollability_ros.nodes import player
+    from rollability_ros.nodes._bag_nodes import parameter_overrides
 
     values = {"player.bag": args.bag, "player.rate": args.rate, "player.start_offset_s": args.start_offset,
               "player.loop": args.loop, "player.clock": args.clock, "player.topics": args.topics,
               "player.remap": args.remap, "player.wait_for_subscribers_s": args.wait_for_subscribers}
-    overrides = [Parameter(name, value=value) for name, value in values.items() if value not in (None, [])]
-    return player.main(args=[], parameter_overrides=overrides)
+    return player.main(args=[], parameter_overrides=parameter_overrides(values))
 
 
 def register(subparsers):

@@ -2,15 +2,13 @@
 
 
 def _record(args):
-    from rclpy.parameter import Parameter
-
     from rollability_ros.nodes import recorder
+    from rollability_ros.nodes._bag_nodes import parameter_overrides
 
     values = {"recorder.output_dir": args.output, "recorder.topics": args.topics,
               "recorder.compression": args.compression, "recorder.split_max_bytes": args.split_max_bytes,
               "recorder.split_max_duration_s": args.split_max_duration_s}
-    overrides = [Parameter(name, value=value) for name, value in values.items() if value not in (None, [])]
-    return recorder.main(args=[], parameter_overrides=overrides)
+    return recorder.main(args=[], parameter_overrides=parameter_overrides(values))
 
 
 def register(subparsers):

@@ -42,3 +42,8 @@ def message_class(type_name):
         return getattr(importlib.import_module(f"{package}.{kind}"), name)
     except (ImportError, AttributeError) as exc:
         raise ValueError(f"type {type_name} is not importable here ({exc}); install its interface package") from exc
+
+
+def parameter_overrides(values):
+    """rclpy ``Parameter`` overrides from ``{name: value}``, leaving out unset (None) and empty-list values."""
+    return [Parameter(name, value=value) for name, value in values.items() if value is not None and value != []]

@@ -96,7 +96,13 @@ class PlayerNode(Node):
         for publisher in self._publishers_to_wait_for():
             publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
         logger.info(f"played {self.published} messages from {settings.bag}")
-        self.context.try_shutdown()   # ends the node's spin: the playback is the node's whole job
+        # the playback is the node's whole job: end the spin (stopping the executor, not the context, so the
+        # executor does not race a shut-down context)
+        executor = self.executor
+        if executor is not None:
+            executor.shutdown(timeout_sec=0)
+        else:
+            self.context.try_shutdown()
 
     def _wait_for_subscribers(self):
         """Wait until every played topic has a subscriber (plus a moment for them to match us back), or the

@@ -32,6 +32,9 @@ from rollability_ros.core.record_play import (RecorderSettings, check_topic_name
 from rollability_ros.nodes._bag_nodes import declare_string_list, message_class, qos_profile_from_dict
 from rollability_ros.nodes._support import ParameterError, declare_settings, run_node
 
+#: Longest wait at close for a running callback to finish writing, s.
+CLOSE_TIMEOUT_S = 10.0
+
 #: Messages taken straight from a subscription's queue per callback (bounded so timers still run).
 DRAIN_LIMIT = 1000
 
@@ -65,7 +68,8 @@ class RecorderNode(Node):
         self._skipped = set()
         self.lost = {}
         self.create_timer(settings.discovery_period_s, self.discover, callback_group=self._group)
-        self.create_timer(max(0.05, settings.flush_interval_s / 2), self._flush_if_due, callback_group=self._group)
+        self._flush_timer = self.create_timer(max(0.05, settings.flush_interval_s / 2), self._flush_if_due,
+                                              callback_group=self._group)
         self.get_logger().info(f"recording to {self.directory}: "
                                + (", ".join(self.chosen_topics) if self.chosen_topics else "the project's graph"))
         self.discover()
@@ -156,10 +160,20 @@ class RecorderNode(Node):
             return {name: info.message_count for name, info in self.writer.topics.items()}
 
     def close(self):
-        """Finish the bag (summary section, final metadata.yaml); idempotent."""
+        """Finish the bag (summary section, final metadata.yaml); idempotent.
+
+        The recorder's callback group is taken for good first: a callback already running (the executor takes
+        a message before it calls back) finishes writing, and no new one can start and take a message that
+        would then be dropped. Then every message still queued in a subscription is written, so a stop loses
+        nothing that had arrived.
+        """
         with self._lock:
             if self._closed:
                 return
+        deadline = time.monotonic() + CLOSE_TIMEOUT_S
+        while not self._group.beginning_execution(self._flush_timer) and time.monotonic() < deadline:
+            time.sleep(0.001)
+        with self._lock:
             self._closed = True
             for topic, subscription in self._recorded.items():   # received before the stop: still recorded
                 try:

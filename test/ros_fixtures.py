@@ -5,6 +5,7 @@ import subprocess
 import sys
 import threading
 import time
+import traceback
 
 import pytest
 
@@ -20,21 +21,28 @@ class SpunNode:
         rclpy.init(context=self.context, args=[])
         self.node = rclpy.create_node(name, context=self.context)
         self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
+        self.error = None
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
 
     def _spin(self):
+        import rclpy
+
         try:
             self.executor.spin()
-        except Exception:  # shutdown races end the spin
-            pass
+        except Exception as exc:
+            if rclpy.ok(context=self.context):   # not a shutdown race: a test callback failed; say so loudly
+                traceback.print_exc()
+                self.error = exc
 
     def wait_for(self, predicate, timeout_s=30.0, period_s=0.05):
         """Poll ``predicate()`` until true or ``timeout_s``; returns its last value."""
         deadline = time.monotonic() + timeout_s
         value = predicate()
         while not value and time.monotonic() < deadline:
+            if self.error is not None:
+                raise AssertionError(f"the test node's executor stopped: {self.error!r}") from self.error
             time.sleep(period_s)
             value = predicate()
         return value

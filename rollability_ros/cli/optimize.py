@@ -20,10 +20,10 @@ class ProgressLine:
     """Prints one line per generation (generation, best fitness, best-so-far, sigma, elapsed, ETA) and, on a
     terminal, a transient count of the candidates evaluated in the current generation."""
 
-    def __init__(self, run, stream=sys.stdout):
+    def __init__(self, run, stream=None):
         self.run = run
-        self.stream = stream
-        self.live = stream.isatty()
+        self.stream = stream or sys.stdout   # looked up now: sys.stdout may be replaced after import
+        self.live = self.stream.isatty()
         self.evaluated = 0
 
     def candidate(self, record):

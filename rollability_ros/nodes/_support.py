@@ -14,6 +14,7 @@ import typing
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from rollability_ros.core.config import ConfigError, from_mapping, section
@@ -156,7 +157,12 @@ def run_node(node_factory, args=None, threads=4):
             return 2
         executor = MultiThreadedExecutor(num_threads=threads)
         executor.add_node(node)
-        executor.spin()
+        try:
+            executor.spin()
+        except RCLError:
+            # a signal can shut the context down while the executor builds its wait set: that is a shutdown
+            if rclpy.ok():
+                raise
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

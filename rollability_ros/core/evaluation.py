@@ -23,11 +23,11 @@ import numpy as np
 from rollability_ros.core.config import from_mapping, load_parameters, section
 from rollability_ros.core.geometry import PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
 from rollability_ros.core.optional import require
-from rollability_ros.core.robot import ChassisModel, ChassisSpec, ProfileBody
+from rollability_ros.core.robot import ChassisSpec, ProfileBody
 from rollability_ros.core.sim_world import PhysicsParams, connect
 from rollability_ros.core.stats import wilson_interval
 from rollability_ros.core.trials import TrialSettings, TrialWorld
-from rollability_ros.core.urdf_robot import UrdfRobotModel, UrdfRobotSpec
+from rollability_ros.core.urdf_robot import RobotChoice, UrdfRobotSpec, footprint_grid
 
 #: Largest base seed (TrialResult.seed is uint64; trial seeds are kept below 2**63 for int64 stores).
 MAX_SEED = 2**64 - 1
@@ -65,11 +65,13 @@ class EvaluatorOptions:
 
 
 @dataclasses.dataclass
-class EvaluatorSettings:
+class EvaluatorSettings(RobotChoice):
     """Everything a trial needs (picklable): grid, printer, physics, trial protocol, robot, evaluator options.
 
     The robot is the built-in chassis (``robot``) unless ``urdf_robot`` names a mount link; then the URDF robot is
-    used and the grid's ``length_m`` / ``width_m`` are its mount footprint's.
+    used and the grid's ``length_m`` / ``width_m`` are its mount footprint's (:func:`footprint_grid`).
+    ``robot_model()`` and ``profile_density_kgpm3()`` come from
+    :class:`~rollability_ros.core.urdf_robot.RobotChoice`.
     """
 
     grid: ProfileGrid = dataclasses.field(default_factory=ProfileGrid)
@@ -81,19 +83,7 @@ class EvaluatorSettings:
     urdf_robot: UrdfRobotSpec = dataclasses.field(default_factory=UrdfRobotSpec)
 
     def __post_init__(self):
-        if self.urdf_robot.selected:
-            self.grid = dataclasses.replace(self.grid, length_m=self.urdf_robot.footprint_length_m,
-                                            width_m=self.urdf_robot.footprint_width_m)
-
-    def robot_model(self):
-        """The :class:`~rollability_ros.core.robot.RobotModel` the trials use (``ValueError`` for a bad URDF)."""
-        if self.urdf_robot.selected:
-            return UrdfRobotModel(self.urdf_robot)
-        return ChassisModel(self.robot)
-
-    def profile_density_kgpm3(self):
-        """Effective density of the profile solid on the robot in use (kg/m^3)."""
-        return (self.urdf_robot if self.urdf_robot.selected else self.robot).profile_density_kgpm3
+        self.grid = footprint_grid(self.grid, self.urdf_robot)
 
 
 #: settings field -> config namespace (also the ROS parameter prefix the sim_evaluator node declares)

@@ -27,6 +27,14 @@ Wheels (the paper's chassis runs on Mecanum wheels)
     ``wheel_drag_torque_nm``. These replace the trial chassis's values on the wheel links: with the trials' rolling
     friction 0.01 (a resisting force of a third of the load on a 0.03 m wheel) and drag 0.02 N m, the chassis
     stops within 0.1 m and never covers the paper's 0.34 m run at 0.8 m/s in 0.42 s.
+Robot
+    The built-in chassis, or any wheeled URDF robot when ``urdf_robot`` names a mount link (the trials' choice,
+    :class:`~rollability_ros.core.urdf_robot.RobotChoice`; e.g. ``config/husky.yaml`` in the twin's files). The
+    wheel settings above act on that robot's wheel links, each wheel's launch spin uses its own radius
+    (:meth:`~rollability_ros.core.robot.RobotModel.wheel_radii_m`: a URDF wheel's from its collision shapes) and the
+    profile weighs that robot's ``profile_density_kgpm3``. The launcher stays as configured: a robot that does
+    not fit on the ledge at its start (a large one on the 0.8 m ledge) is refused with a ``ValueError`` naming
+    ``ledge_depth_m`` / ``ledge_width_m``.
 Angle (the paper gives mounting holes at -60 ... +60 deg, not a definition)
     Positive angles turn counterclockwise seen from above (about world +z), as in ``config/rig.yaml``.
     ``yaw_of_push`` (default): the push plate, and the chassis placed square against it, are turned by the angle
@@ -63,9 +71,10 @@ from rollability_ros.core.config import ConfigError, from_mapping, load_paramete
 from rollability_ros.core.designs import DesignSources, profile_mesh_for
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import NOT_MEASURED
-from rollability_ros.core.robot import ChassisModel, ChassisSpec, ProfileBody
+from rollability_ros.core.robot import ChassisSpec, ProfileBody
 from rollability_ros.core.sim_world import PhysicsParams, connect, disconnect, reset_world, set_contact
 from rollability_ros.core.trials import RestDetector, TrialSettings, place_on_ground
+from rollability_ros.core.urdf_robot import RobotChoice, UrdfRobotSpec
 
 #: ``launch_twin.angle_convention`` values (see the module docstring).
 ANGLE_CONVENTIONS = ("yaw_of_push", "chassis_yaw")
@@ -159,21 +168,23 @@ class LaunchTwinOptions:
 
 
 @dataclasses.dataclass
-class LaunchTwinSettings:
-    """Everything a simulated launch needs (picklable); every field can be replaced per call (calibration)."""
+class LaunchTwinSettings(RobotChoice):
+    """Everything a simulated launch needs (picklable); every field can be replaced per call (calibration).
+
+    The robot launched is the built-in chassis (``robot``) unless ``urdf_robot`` names a mount link, chosen as
+    for the trials (:class:`~rollability_ros.core.urdf_robot.RobotChoice`: ``robot_model()``,
+    ``profile_density_kgpm3()``).
+    """
 
     physics: PhysicsParams = dataclasses.field(default_factory=PhysicsParams)
     robot: ChassisSpec = dataclasses.field(default_factory=ChassisSpec)
     trial: TrialSettings = dataclasses.field(default_factory=TrialSettings)
     twin: LaunchTwinOptions = dataclasses.field(default_factory=LaunchTwinOptions)
-
-    def robot_model(self):
-        """The :class:`~rollability_ros.core.robot.RobotModel` launched (and its upright test)."""
-        return ChassisModel(self.robot)
+    urdf_robot: UrdfRobotSpec = dataclasses.field(default_factory=UrdfRobotSpec)
 
 
 #: settings field -> config namespace
-_SECTIONS = {"physics": "sim", "robot": "robot", "trial": "trial", "twin": "launch_twin"}
+_SECTIONS = {"physics": "sim", "robot": "robot", "trial": "trial", "twin": "launch_twin", "urdf_robot": "urdf_robot"}
 
 
 def launch_twin_settings_from_parameters(flat, overrides=None):
@@ -197,7 +208,8 @@ def launch_twin_settings_from_parameters(flat, overrides=None):
 def load_launch_twin_settings(config_paths=("sim", "robot", "launch_twin"), node_name="/**", overrides=None):
     """Read :class:`LaunchTwinSettings` from ROS 2 parameter files (names of shipped files or paths).
 
-    Namespaces: ``sim`` and ``trial`` (sim.yaml), ``robot`` (robot.yaml), ``launch_twin`` (launch_twin.yaml).
+    Namespaces: ``sim`` and ``trial`` (sim.yaml), ``robot`` (robot.yaml), ``launch_twin`` (launch_twin.yaml),
+    ``urdf_robot`` (a URDF robot's config such as husky.yaml: that robot is launched instead of the chassis).
     Missing keys keep their defaults; see :func:`launch_twin_settings_from_parameters` for ``overrides``.
     """
     return launch_twin_settings_from_parameters(load_parameters(list(config_paths), node_name), overrides)
@@ -238,7 +250,7 @@ class LaunchResult:
 def profile_body(configuration, settings):
     """The :class:`ProfileBody` mounted for ``configuration`` (None = baseline); see :mod:`designs`."""
     mesh = profile_mesh_for(configuration, settings.twin.designs)
-    return None if mesh is None else ProfileBody.from_mesh(mesh, settings.robot.profile_density_kgpm3)
+    return None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
 
 
 def launch_draws(seed, nominal_speed_mps, nominal_angle_deg, options):
@@ -285,11 +297,12 @@ def _set_wheels(pybullet, client, robot, options):
                                        physicsClientId=client)
 
 
-def _launch(pybullet, client, robot, velocity_mps, wheel_radius_m):
-    """Give the chassis ``velocity_mps`` (3,) and each wheel the spin of rolling on a level surface without slip."""
+def _launch(pybullet, client, robot, velocity_mps, wheel_radii_m):
+    """Give the chassis ``velocity_mps`` (3,) and each wheel (radius in ``wheel_radii_m``, in the order of
+    ``robot.wheel_links``) the spin of rolling on a level surface without slip."""
     pybullet.resetBaseVelocity(robot.body_id, list(velocity_mps), [0.0, 0.0, 0.0], physicsClientId=client)
-    spin_radps = np.cross([0.0, 0.0, 1.0], velocity_mps) / wheel_radius_m   # omega with omega x (-r z) = -v
-    for link in robot.wheel_links:
+    for link, radius_m in zip(robot.wheel_links, wheel_radii_m, strict=True):
+        spin_radps = np.cross([0.0, 0.0, 1.0], velocity_mps) / radius_m   # omega with omega x (-r z) = -v
         axis_local = pybullet.getJointInfo(robot.body_id, link, physicsClientId=client)[13]
         link_orientation = pybullet.getLinkState(robot.body_id, link, physicsClientId=client)[5]
         axis_world = np.asarray(pybullet.getMatrixFromQuaternion(link_orientation)).reshape(3, 3) @ axis_local
@@ -312,23 +325,35 @@ class _PhaseReporter:
             self._next += 1
 
 
-def _leading_offset_m(pybullet, client, body_id):
-    """How far the chassis's foremost point (largest x over its links' bounding boxes) lies ahead of its base (m)."""
-    foremost = max(pybullet.getAABB(body_id, link, physicsClientId=client)[1][0]
-                   for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client)))
-    return foremost - pybullet.getBasePositionAndOrientation(body_id, physicsClientId=client)[0][0]
+def _bounds_m(pybullet, client, body_id):
+    """The robot's world bounding box over all its links' bounding boxes: ``(low (3,), high (3,))`` (m)."""
+    boxes = np.array([pybullet.getAABB(body_id, link, physicsClientId=client)
+                      for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client))])
+    return boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
 
 
 def place_on_launcher(pybullet, client, robot, orientation, push, settings, height_m):
     """Put the chassis at rest on the plate so that its foremost point reaches the edge after ``run_length_m``
     along ``push`` (unit (3,)); the base origin's path passes through the edge's midpoint. Return the foremost
-    point's offset ahead of the base origin along x (m)."""
+    point's offset ahead of the base origin along x (m).
+
+    Raises ``ValueError`` when the robot placed there is not wholly over the ledge (``ledge_depth_m`` behind the
+    edge, ``ledge_width_m`` along it): a robot too large for the configured launcher.
+    """
     launcher = settings.twin.launcher
     plate_z = settings.twin.foam.thickness_m + height_m
     place_on_ground(client, robot.body_id, orientation, launcher.start_clearance_m, (0.0, 0.0), plate_z)
-    lead_m = _leading_offset_m(pybullet, client, robot.body_id)
+    base_x = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)[0][0]
+    lead_m = float(_bounds_m(pybullet, client, robot.body_id)[1][0]) - base_x
     start = -(launcher.run_length_m + lead_m / push[0]) * push
     place_on_ground(client, robot.body_id, orientation, launcher.start_clearance_m, start[:2], plate_z)
+    low, high = _bounds_m(pybullet, client, robot.body_id)
+    side_m = max(-low[1], high[1])
+    if low[0] < -launcher.ledge_depth_m or side_m > launcher.ledge_width_m / 2:
+        raise ValueError(f"the robot does not fit on the launcher: placed {launcher.run_length_m} m before the edge "
+                         f"it reaches {-low[0]:.3f} m behind the edge and {side_m:.3f} m to the side; the ledge is "
+                         f"launch_twin.launcher.ledge_depth_m = {launcher.ledge_depth_m} m deep and "
+                         f"ledge_width_m = {launcher.ledge_width_m} m wide")
     return lead_m
 
 
@@ -350,7 +375,8 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None):
     Returns
     -------
     LaunchResult
-        Raises ``ValueError`` for a bad condition, seed or configuration id.
+        Raises ``ValueError`` for a bad condition, seed or configuration id, or a robot that does not fit on the
+        launcher (:func:`place_on_launcher`).
     """
     pybullet = require("pybullet", feature="the launch twin")
     condition.validate()
@@ -364,6 +390,7 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None):
         raise ValueError(f"angle {angle_deg:.1f} deg pushes along or away from the edge under {options.angle_convention}"
                          f" (|angle| must stay below {math.degrees(math.acos(MIN_PUSH_TOWARDS_EDGE)):.0f} deg)")
     model = settings.robot_model()
+    wheel_radii_m = model.wheel_radii_m()
     client = connect()
     try:
         foam_id, ledge_id = build_launch_world(client, settings, condition.height_m)
@@ -372,7 +399,7 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None):
         set_contact(client, robot.body_id, settings.physics.body_contact())
         _set_wheels(pybullet, client, robot, options)
         lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)
-        _launch(pybullet, client, robot, speed_mps * push, settings.robot.wheel_radius_m)
+        _launch(pybullet, client, robot, speed_mps * push, wheel_radii_m)
         tracker = _LaunchTracker(pybullet, client, robot.body_id, foam_id, lead_m, _PhaseReporter(on_phase))
         steps, settled = _step_to_rest(pybullet, client, robot.body_id, settings, tracker, on_pose)
         went_over = not math.isnan(tracker.base.time_s)

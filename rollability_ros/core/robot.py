@@ -74,6 +74,10 @@ class RobotModel(abc.ABC):
     def to_urdf(self, profile_mesh_filename=None, profile=None):
         """Return a URDF document (str) of the robot, with the profile mesh file on its mount if given."""
 
+    @abc.abstractmethod
+    def wheel_radii_m(self):
+        """Rolling radius of each wheel (m), a tuple in the order of :attr:`SpawnedRobot.wheel_links`."""
+
     def tilt_deg(self, client, robot):
         """Angle between the body up-axis and world +z, degrees."""
         return math.degrees(math.acos(float(np.clip(self.up_axis(client, robot)[2], -1.0, 1.0))))
@@ -168,6 +172,9 @@ _WHEEL_ORIENTATION = (math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5))  # cylinder axis
 class ChassisModel(SpecThresholds, RobotModel):
     """The project's four-wheeled chassis from a :class:`ChassisSpec`: base = body, link 0 = profile (if any), wheels last."""
 
+    #: Name of the body link (the chassis frame) in :meth:`to_urdf`: the link the profile is mounted on.
+    BODY_LINK = "base_link"
+
     def __init__(self, spec):
         self.spec = spec
 
@@ -175,6 +182,9 @@ class ChassisModel(SpecThresholds, RobotModel):
     def mount_position_m(self):
         """The profile frame's origin in the chassis frame (3,): centre of the body's top face."""
         return np.array([0.0, 0.0, self.spec.body_height_m / 2])
+
+    def wheel_radii_m(self):
+        return (self.spec.wheel_radius_m,) * 4
 
     def wheel_positions_m(self):
         """Wheel centres in the chassis frame, (4, 3): front-left, front-right, rear-left, rear-right."""
@@ -229,7 +239,7 @@ class ChassisModel(SpecThresholds, RobotModel):
         s = self.spec
         box = (s.body_length_m, s.body_width_m, s.body_height_m)
         parts = ['<?xml version="1.0"?>', '<robot name="rollability_chassis">',
-                 _urdf_link("base_link", f'<box size="{box[0]} {box[1]} {box[2]}"/>', s.body_mass_kg,
+                 _urdf_link(self.BODY_LINK, f'<box size="{box[0]} {box[1]} {box[2]}"/>', s.body_mass_kg,
                             (0, 0, s.com_offset_z_m), _box_inertia(s.body_mass_kg, box))]
         if profile_mesh_filename is not None:
             mass = profile.mass_kg if profile is not None else 0.0
@@ -237,7 +247,7 @@ class ChassisModel(SpecThresholds, RobotModel):
             parts.append(_urdf_link("profile_link", f"<mesh filename={quoteattr(profile_mesh_filename)}/>", mass, com,
                                     _box_inertia(mass, tuple(np.ptp(profile.hull_vertices_m, axis=0)))
                                     if profile is not None else (0, 0, 0)))
-            parts.append(_urdf_joint("profile_joint", "fixed", "base_link", "profile_link", self.mount_position_m,
+            parts.append(_urdf_joint("profile_joint", "fixed", self.BODY_LINK, "profile_link", self.mount_position_m,
                                      (0, 0, 0)))
         r, w, m = s.wheel_radius_m, s.wheel_width_m, s.wheel_mass_kg
         across = m * (3 * r * r + w * w) / 12
@@ -245,7 +255,7 @@ class ChassisModel(SpecThresholds, RobotModel):
         for name, position in zip(("front_left", "front_right", "rear_left", "rear_right"), self.wheel_positions_m()):
             parts.append(_urdf_link(f"{name}_wheel", f'<cylinder radius="{r}" length="{w}"/>', m, (0, 0, 0),
                                     wheel_inertia, rpy=(math.pi / 2, 0, 0)))
-            parts.append(_urdf_joint(f"{name}_wheel_joint", "continuous", "base_link", f"{name}_wheel", position,
+            parts.append(_urdf_joint(f"{name}_wheel_joint", "continuous", self.BODY_LINK, f"{name}_wheel", position,
                                      (0, 0, 0), axis=(0, 1, 0)))
         parts.append("</robot>")
         return "\n".join(parts) + "\n"

@@ -2,7 +2,8 @@
 
 Config (section ``urdf_robot``, see ``config/husky.yaml``) names the description (a file or an XML string),
 the mount link and the mount footprint the profile grid spans, and how "upright" is judged. Naming a
-``mount_link`` selects this robot instead of the built-in chassis (:meth:`EvaluatorSettings.robot_model`).
+``mount_link`` selects this robot instead of the built-in chassis (:class:`RobotChoice`, shared by the trials'
+and the launch twin's settings; :func:`footprint_grid` gives the grid, :func:`profile_mount` the mount).
 
 Frames
     Root frame = the URDF's root link (REP 103: x forward, y left, z up when the robot stands on its wheels);
@@ -28,16 +29,20 @@ import math
 import os
 import re
 import tempfile
+import xml.etree.ElementTree as ElementTree
 
 import numpy as np
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.robot import RobotModel, SpawnedRobot, SpecThresholds
+from rollability_ros.core.robot import ChassisModel, RobotModel, SpawnedRobot, SpecThresholds
 from rollability_ros.core.urdf_description import (PROFILE_LINK, describe, inertial_xml, origin_xml, read_urdf_source,
                                                    transform)
 
 #: Slack when checking that the footprint lies within the mount body's collision extent (m).
 FOOTPRINT_TOLERANCE_M = 0.001
+#: Directions across a wheel's axle searched for its smallest width: a coarse sweep over 180 deg, then a fine
+#: one over one coarse step either side of the narrowest (resolution 0.001 deg: relative error < 1e-5).
+WIDTH_SEARCH_STEPS = (720, 501)
 
 
 @dataclasses.dataclass
@@ -188,6 +193,62 @@ def _mount(spec):
                               wheel_bodies=wheel_bodies)
 
 
+def footprint_grid(grid, urdf_robot):
+    """``grid`` (a :class:`~rollability_ros.core.geometry.ProfileGrid`) as the robot in use needs it: with a
+    selected ``urdf_robot`` (:class:`UrdfRobotSpec`) its ``length_m`` / ``width_m`` are the mount footprint's."""
+    if not urdf_robot.selected:
+        return grid
+    return dataclasses.replace(grid, length_m=urdf_robot.footprint_length_m, width_m=urdf_robot.footprint_width_m)
+
+
+def profile_mount(chassis, urdf_robot):
+    """Where the profile frame sits on the robot in use: ``(link, position_m (3,), yaw_deg)``.
+
+    ``link`` names the link it is mounted on (the chassis URDF's body link, or ``urdf_robot.mount_link``);
+    ``position_m`` is the profile frame's origin in that link's frame and ``yaw_deg`` its turn about the link's z.
+    Arguments as :func:`footprint_grid` (``chassis`` a :class:`~rollability_ros.core.robot.ChassisSpec`).
+    """
+    if urdf_robot.selected:
+        return urdf_robot.mount_link, np.asarray(urdf_robot.footprint_offset_m, dtype=np.float64), \
+            float(urdf_robot.footprint_yaw_deg)
+    return ChassisModel.BODY_LINK, ChassisModel(chassis).mount_position_m, 0.0
+
+
+class RobotChoice:
+    """Mixin for settings dataclasses with a chassis ``robot`` (ChassisSpec) and a ``urdf_robot``
+    (:class:`UrdfRobotSpec`) field: the built-in chassis unless ``urdf_robot`` names a mount link."""
+
+    def robot_model(self):
+        """The :class:`~rollability_ros.core.robot.RobotModel` in use (``ValueError`` for a bad URDF)."""
+        if self.urdf_robot.selected:
+            return UrdfRobotModel(self.urdf_robot)
+        return ChassisModel(self.robot)
+
+    def profile_density_kgpm3(self):
+        """Effective density of the profile solid on the robot in use (kg/m^3)."""
+        return (self.urdf_robot if self.urdf_robot.selected else self.robot).profile_density_kgpm3
+
+
+def half_width_across_m(points, axis):
+    """Half the smallest width of the points ``(k, 3)`` across ``axis`` (3,): over every direction normal to
+    the axis, half the extent of the points along it (m). For a round wheel centred on its axle (a cylinder's
+    bounding-box corners, a sphere, a mesh hull) this is its radius."""
+    axis = np.asarray(axis, dtype=np.float64) / np.linalg.norm(axis)
+    first = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    first /= np.linalg.norm(first)
+    second = np.cross(axis, first)
+
+    def widths(angles):
+        along = points @ (np.outer(np.cos(angles), first) + np.outer(np.sin(angles), second)).T  # (k, angles)
+        return along.max(axis=0) - along.min(axis=0)
+
+    coarse, fine = WIDTH_SEARCH_STEPS
+    angles = np.linspace(0.0, math.pi, coarse, endpoint=False)
+    step = math.pi / coarse
+    narrowest = angles[np.argmin(widths(angles))]
+    return float(widths(np.linspace(narrowest - step, narrowest + step, fine)).min() / 2)
+
+
 def profile_inertia(profile):
     """The inertia (3, 3) about its centre of mass of a :class:`ProfileBody`'s hull, uniform density (kg m^2)."""
     trimesh = require("trimesh", feature="profile meshes")
@@ -261,6 +322,27 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
         pybullet = require("pybullet", feature="the simulated evaluator")
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
         return np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3) @ self._up_axis
+
+    def wheel_radii_m(self):
+        """Each wheel body's :func:`half_width_across_m` of its collision shapes across its joint axis (m).
+
+        Raises ``ValueError`` for a wheel body on no moving joint or without a collision shape.
+        """
+        robot = self.mounted.robot
+        joints = {joint.find("child").get("link"): joint
+                  for joint in ElementTree.fromstring(robot.sim_urdf + "</robot>").iter("joint")
+                  if joint.get("type") != "fixed"}
+        radii = []
+        for body in self.mounted.wheel_bodies:
+            if body not in joints:
+                raise ValueError(f"wheel body {body!r} turns on no joint: a wheel link must be on a moving joint")
+            points = robot.body_collision_points(body)
+            if not len(points):
+                raise ValueError(f"wheel body {body!r} has no collision shape to roll on")
+            axis = joints[body].find("axis")  # in the child link's frame = the wheel body's frame
+            xyz = [float(v) for v in (axis.get("xyz", "1 0 0") if axis is not None else "1 0 0").split()]
+            radii.append(half_width_across_m(points, xyz))
+        return tuple(radii)
 
     def to_urdf(self, profile_mesh_filename=None, profile=None):
         """The description as given, plus the profile link (mesh file, inertia if ``profile``) on the mount."""

@@ -7,7 +7,9 @@ Interfaces (relative names):
 - publishes ``generations`` (rollability_ros/GenerationSummary, latched): every completed generation, after its
   checkpoint;
 - publishes ``best_profile_marker`` (visualization_msgs/Marker TRIANGLE_LIST, latched): the best-so-far
-  profile solid (metres) in ``frame_id``, placed on the chassis top (``robot.body_height_m`` / 2 above it);
+  profile solid (metres) where it is mounted: in the chassis's ``base_link`` on its top (``robot.body_height_m``
+  / 2 above the box centre) or, for a URDF robot, in ``urdf_robot.mount_link`` at the mount footprint
+  (``footprint_offset_m``, turned by ``footprint_yaw_deg``); ``frame_id``, if set, names that frame instead;
   re-sent whenever the best-so-far design changes (DELETE when it is the flat baseline);
 - services (std_srvs/Trigger): ``start`` (start a run, if ``autostart`` is false or the last run ended),
   ``pause`` (send no new evaluations; those in flight finish and are kept), ``resume`` (continue after a
@@ -18,7 +20,9 @@ Interfaces (relative names):
 
 Parameters: the namespaces ``optimizer`` (config/optimizer.yaml, config/paper.yaml), ``selection``, ``profile``
 and ``printer`` (the grid and printer of config/robot.yaml, overridden by the optimisation file), all saved in
-the run's ``config.yaml``; ``robot`` (only ``body_height_m`` is used, for the marker); and:
+the run's ``config.yaml``; ``robot`` (only ``body_height_m`` is used, for the marker); ``urdf_robot`` (a URDF
+robot's config such as config/husky.yaml: when it names a mount link, the grid's ``length_m`` / ``width_m`` are
+its mount footprint's, as the evaluators' are, and the marker sits on that mount); and:
 ``run_id`` (empty = new ``opt-<date>-<time>``), ``resume`` (continue run ``run_id`` from its last checkpoint),
 ``autostart`` (start once the graph has been searched twice), ``exit_on_finish``, ``select_designs`` (choose
 Mesh A, B, C when the run finishes), ``frame_id``, ``evaluator_timeout_s``, ``evaluator_max_attempts``,
@@ -32,6 +36,7 @@ and says why (``resume`` retries the generation; with ``exit_on_finish`` the nod
 continues with ``resume:=true run_id:=<id>``.
 """
 import dataclasses
+import math
 import os
 import sys
 import threading
@@ -54,6 +59,7 @@ from rollability_ros.core.geometry import PrinterSpec, ProfileGrid
 from rollability_ros.core.optimiser import OptimizerSettings
 from rollability_ros.core.robot import ChassisSpec
 from rollability_ros.core.selection import SelectionSettings
+from rollability_ros.core.urdf_robot import UrdfRobotSpec, footprint_grid, profile_mount
 from rollability_ros.msg import CandidateResult, GenerationSummary
 from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, declare_settings,
@@ -64,6 +70,8 @@ EVALUATOR_ACTION_TYPE = "rollability_ros/action/EvaluateProfile"
 #: Parameter namespaces that define a run and are saved in its config.yaml.
 RUN_SECTIONS = {"optimizer": OptimizerSettings, "selection": SelectionSettings, "profile": ProfileGrid,
                 "printer": PrinterSpec}
+#: Parameter namespaces of the robot the profile is for (the grid's footprint and the marker's mount).
+ROBOT_SECTIONS = {"robot": ChassisSpec, "urdf_robot": UrdfRobotSpec}
 _STATUS_NAMES = {GoalStatus.STATUS_ABORTED: "aborted", GoalStatus.STATUS_CANCELED: "cancelled",
                  GoalStatus.STATUS_UNKNOWN: "unknown"}
 _PARAMETERS = {  # name: (default, description)
@@ -74,7 +82,8 @@ _PARAMETERS = {  # name: (default, description)
                               "<run>/designs/"),
     "exit_on_finish": (False, "end the node when the run ends: exit code 0 if it finished, 1 if it could not "
                               "start or got no real results (for unattended studies)"),
-    "frame_id": ("base_link", "frame of the best-profile marker (the chassis frame, box centre)"),
+    "frame_id": ("", "frame of the best-profile marker; empty: the link the profile is mounted on (base_link of "
+                     "the chassis, urdf_robot.mount_link of a URDF robot)"),
     "evaluator_timeout_s": (PoolSettings.timeout_s, "s without any reply (accept, feedback, result) after which "
                                                     "an evaluation is given up and retried elsewhere"),
     "evaluator_max_attempts": (PoolSettings.max_attempts, "failed attempts of one candidate before the run "
@@ -127,8 +136,11 @@ class Optimizer(Node):
         for prefix, settings_cls in RUN_SECTIONS.items():
             declare_settings(self, prefix, settings_cls)
             guard_settings(self, prefix, settings_cls)
-        self._robot = declare_settings(self, "robot", ChassisSpec)
-        guard_settings(self, "robot", ChassisSpec, on_change=lambda robot: setattr(self, "_robot", robot))
+        self._robots = {}
+        for prefix, settings_cls in ROBOT_SECTIONS.items():
+            self._robots[prefix] = declare_settings(self, prefix, settings_cls)
+            guard_settings(self, prefix, settings_cls,
+                           on_change=lambda robot, prefix=prefix: self._robots.__setitem__(prefix, robot))
         for name, (default, description) in _PARAMETERS.items():
             self.declare_parameter(name, default, ParameterDescriptor(description=description))
         try:
@@ -141,7 +153,7 @@ class Optimizer(Node):
         discovery_period_s = self._param("evaluator_discovery_period_s")
         if not discovery_period_s > 0:
             raise ParameterError(f"evaluator_discovery_period_s must be > 0, got {discovery_period_s}")
-        self._grid = read_settings(self, "profile", ProfileGrid)
+        self._grid, self._mount = self._read_run_settings()["profile"], self._read_mount()
 
         self._candidates = self.create_publisher(CandidateResult, "candidates", RECORD_QOS)
         self._generations = self.create_publisher(GenerationSummary, "generations", LATCHED_QOS)
@@ -266,18 +278,29 @@ class Optimizer(Node):
             if self.running:
                 return False, "a run is already in progress"
             try:
-                settings = {prefix: read_settings(self, prefix, cls) for prefix, cls in RUN_SECTIONS.items()}
+                settings = self._read_run_settings()
                 run_dir, parameters, resume = self._run_target(settings)
             except (ParameterError, ConfigError, ValueError, FileNotFoundError) as exc:
                 self.get_logger().error(f"cannot start: {exc}")
                 return False, str(exc)
-            self._grid = settings["profile"]
+            self._grid, self._mount = settings["profile"], self._read_mount()
             self._stop_requested.clear()
             self._pool.resume()
             self._worker = threading.Thread(target=self._optimise, name="optimisation",
                                             args=(run_dir, parameters, resume, settings), daemon=True)
             self._worker.start()
             return True, f"{'resuming' if resume else 'starting'} run {optimisation_run.run_id_of(run_dir)}"
+
+    def _read_run_settings(self):
+        """The run sections from the parameters, the grid spanning the robot's mount footprint (``footprint_grid``)."""
+        settings = {prefix: read_settings(self, prefix, cls) for prefix, cls in RUN_SECTIONS.items()}
+        settings["profile"] = footprint_grid(settings["profile"], self._robots["urdf_robot"])
+        return settings
+
+    def _read_mount(self):
+        """``(frame, position_m, yaw_deg)`` of the marker: the profile mount of the robot in use."""
+        link, position_m, yaw_deg = profile_mount(self._robots["robot"], self._robots["urdf_robot"])
+        return self._param("frame_id") or link, position_m, yaw_deg
 
     def _run_target(self, settings):
         """``(run_dir, parameters, resume)`` of the run to start, from ``run_id`` / ``resume``.
@@ -396,9 +419,10 @@ class Optimizer(Node):
         self._marker.publish(self.profile_marker(best.heights))
 
     def profile_marker(self, heights):
-        """The Marker (TRIANGLE_LIST, metres) of the profile solid of ``heights`` on the chassis top."""
+        """The Marker (TRIANGLE_LIST, metres) of the profile solid of ``heights`` on the robot's profile mount."""
+        frame, position_m, yaw_deg = self._mount
         marker = Marker()
-        marker.header.frame_id = self._param("frame_id")
+        marker.header.frame_id = frame
         marker.header.stamp = self.get_clock().now().to_msg()
         marker.ns, marker.id = "best_profile", 0
         marker.type = Marker.TRIANGLE_LIST
@@ -408,8 +432,9 @@ class Optimizer(Node):
             marker.action = Marker.DELETE
             return marker
         marker.action = Marker.ADD
-        marker.pose.position.z = self._robot.body_height_m / 2
-        marker.pose.orientation.w = 1.0
+        marker.pose.position.x, marker.pose.position.y, marker.pose.position.z = (float(v) for v in position_m)
+        marker.pose.orientation.z = math.sin(math.radians(yaw_deg) / 2)
+        marker.pose.orientation.w = math.cos(math.radians(yaw_deg) / 2)
         marker.scale.x = marker.scale.y = marker.scale.z = 1.0
         marker.color.r, marker.color.g, marker.color.b, marker.color.a = 0.2, 0.6, 1.0, 0.9
         marker.points = [Point(x=x, y=y, z=z) for x, y, z in geometry.marker_points(mesh).tolist()]

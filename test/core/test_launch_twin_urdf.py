@@ -76,7 +76,8 @@ def test_one_husky_launch_runs_is_deterministic_and_classifies(husky_twin):
 
 
 def test_a_launcher_too_small_for_the_robot_is_refused():
-    settings = load_launch_twin_settings(["sim", "robot", "launch_twin", "husky"])   # the 0.8 m ledge
+    settings = load_launch_twin_settings(["sim", "robot", "launch_twin", "husky"],
+                                         overrides={"twin.launcher.ledge_depth_m": 0.8})   # the chassis's ledge
     with pytest.raises(ValueError, match="does not fit on the launcher.*ledge_depth_m = 0.8 m"):
         simulate_launch(LaunchCondition("baseline", 0.75, 0.8, 0.0), settings, 1)
 

@@ -2,7 +2,8 @@
 import sys
 
 
-def _print_table(rows, stream=sys.stdout):
+def _print_table(rows):
+    stream = sys.stdout   # looked up when called: sys.stdout may be replaced after import
     stream.write(f"{'design':<10}{'length m':>10}{'width m':>10}{'max h m':>10}  {'fitness [95% CI]':<22}"
                  f"{'trials':>7}  source\n")
     for row in rows:

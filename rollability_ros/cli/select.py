@@ -28,23 +28,18 @@ def run(args):
     settings = from_mapping(selection.SelectionSettings, mapping, "selection")
     evaluator_settings = evaluation.settings_from_parameters(parameters)
     run_id = optimisation_run.run_id_of(run_dir)
-    with Store(run_dir) as store:
-        candidates = store.candidates(run_id=run_id)
-        if not candidates:
-            raise ValueError(f"run {run_id} in {run_dir} has no evaluated candidates yet")
-        executor = evaluation.make_executor(evaluator_settings.evaluator, args.workers) \
-            if settings.reevaluate_trials else None
-        try:
-            evaluate_batch = optimisation_run.profile_batch_evaluator(
-                evaluator_settings, settings.reevaluate_trials, executor) if executor else None
-            result = selection.select_designs(candidates, evaluator_settings.grid, evaluator_settings.printer,
-                                              settings, evaluate_batch,
-                                              optimisation_run.optimizer_settings(parameters).seed)
-        finally:
-            if executor is not None:
-                executor.close()
-        selection.record_selection(store, run_id, result)
-    folder = selection.write_selection(run_dir, result, evaluator_settings.grid, run_id)
+    executor = evaluation.make_executor(evaluator_settings.evaluator, args.workers) \
+        if settings.reevaluate_trials else None
+    try:
+        evaluate_batch = optimisation_run.profile_batch_evaluator(
+            evaluator_settings, settings.reevaluate_trials, executor) if executor else None
+        with Store(run_dir) as store:
+            result, folder = selection.select_run(store, run_id, run_dir, evaluator_settings.grid,
+                                                  evaluator_settings.printer, settings, evaluate_batch,
+                                                  optimisation_run.optimizer_settings(parameters).seed)
+    finally:
+        if executor is not None:
+            executor.close()
     print(f"{len(result.designs)} design(s) from {result.considered} distinct logged designs of run {run_id} "
           f"(min RMS distance {settings.min_distance} units)")
     _print_table(selection.table_rows(result))

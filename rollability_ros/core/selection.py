@@ -258,3 +258,18 @@ def write_selection(run_dir, result, grid, run_id):
     text = yaml.safe_dump(designs_document(result, grid, run_id), sort_keys=False)
     atomic_write_bytes(os.path.join(folder, "designs.yaml"), text.encode("utf-8"))
     return folder
+
+
+def select_run(store, run_id, run_dir, grid, printer, settings, evaluate_batch=None, run_seed=1):
+    """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
+    simulated fitness and geometry) and write ``<run_dir>/designs/``; return ``(SelectionResult, folder)``.
+
+    The one selection flow of ``rollability select`` and the optimizer node. Raises ``ValueError`` when the run
+    has no evaluated candidates.
+    """
+    candidates = store.candidates(run_id=run_id)
+    if not candidates:
+        raise ValueError(f"run {run_id} in {run_dir} has no evaluated candidates yet")
+    result = select_designs(candidates, grid, printer, settings, evaluate_batch, run_seed)
+    record_selection(store, run_id, result)
+    return result, write_selection(run_dir, result, grid, run_id)

@@ -390,10 +390,8 @@ class Optimizer(Node):
         """Choose the designs of the finished run (paper 2.1.5) into ``<run_dir>/designs/``."""
         chosen = settings["selection"]
         evaluate_batch = self._pool.batch_evaluator(chosen.reevaluate_trials) if chosen.reevaluate_trials else None
-        result = selection.select_designs(run.store.candidates(run_id=run.run_id), settings["profile"],
-                                          settings["printer"], chosen, evaluate_batch, run.settings.seed)
-        selection.record_selection(run.store, run.run_id, result)
-        folder = selection.write_selection(run.run_dir, result, settings["profile"], run.run_id)
+        result, folder = selection.select_run(run.store, run.run_id, run.run_dir, settings["profile"],
+                                              settings["printer"], chosen, evaluate_batch, run.settings.seed)
         rows = "; ".join(f"{row['configuration']} {row['simulated_fitness']:.3f}"
                          for row in selection.table_rows(result) if row["trials"])
         self.get_logger().info(f"selected {len(result.designs)} design(s) into {folder} ({rows})"

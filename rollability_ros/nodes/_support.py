@@ -13,7 +13,7 @@ import typing
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -144,6 +144,9 @@ def finite(value):
 def run_node(node_factory, args=None, threads=4):
     """Create the node with ``node_factory()`` after ``rclpy.init`` and spin it until Ctrl-C / SIGTERM.
 
+    ``threads`` > 1 spins a multi-threaded executor (long callbacks do not block the node); ``threads=1`` a
+    single-threaded one, which keeps up with high-rate streams best (e.g. a 300 Hz IMU on a busy 2-core machine).
+
     A :class:`ParameterError` or ``ConfigError`` at start-up prints one line naming the problem and exits 2.
     The node's ``close()`` (if any) runs before ``destroy_node`` so hardware is left safe.
     """
@@ -155,7 +158,7 @@ def run_node(node_factory, args=None, threads=4):
         except (ParameterError, ConfigError) as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
-        executor = MultiThreadedExecutor(num_threads=threads)
+        executor = MultiThreadedExecutor(num_threads=threads) if threads > 1 else SingleThreadedExecutor()
         executor.add_node(node)
         try:
             executor.spin()

@@ -31,28 +31,23 @@ events by robot and tip time), but it is two writers for nothing.
 """
 import dataclasses
 import math
-import sys
 import threading
 import time
-
-import rclpy
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Header
 
-from rollability_ros.core.config import ConfigError
 from rollability_ros.core.outcome_log import OutcomeLog, StoreFailure
 from rollability_ros.core.tip_tracker import TipMonitorConfig, TipTracker, diagnostic_status
 from rollability_ros.core.upright import ImuSample, normalize_quaternion, orientation_if_valid
 from rollability_ros.msg import TipEvent, TipState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
-                                            guard_settings)
+                                            guard_settings, run_node)
 
 PREFIX = "tip_monitor"
 
@@ -239,28 +234,9 @@ class TipMonitorNode(Node):
 
 
 def main(args=None):
-    """Run the node on rclpy's single-threaded executor.
-
-    On a busy 2-core machine the multi-threaded executor of ``_support.run_node`` delivered only 29 % of a
-    300 Hz IMU stream (60 % with one thread), the single-threaded one all of it. Same exit codes and shutdown
-    as ``run_node``; to fold into it once it takes an executor class.
-    """
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = TipMonitorNode()
-        rclpy.spin(node)
-    except (ParameterError, ConfigError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    """Run the node on a single-threaded executor: on a busy 2-core machine the multi-threaded one delivered
+    only 29 % of a 300 Hz IMU stream (60 % with one thread), the single-threaded one all of it."""
+    return run_node(TipMonitorNode, args, threads=1)
 
 
 if __name__ == "__main__":

@@ -1,5 +1,6 @@
 """The main job end to end through the real node graph (a miniature configuration), and Ctrl-C in the middle."""
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -18,19 +19,22 @@ def _study(tmp_path, study_id=None):
                             start_new_session=True)
 
 
-def _alive_children(study_dir):
-    """Processes still running whose command line names this study (nodes the study started)."""
-    alive = []
-    for pid in os.listdir("/proc"):
-        if pid.isdigit():
-            try:
-                with open(f"/proc/{pid}/cmdline", "rb") as stream:
-                    cmdline = stream.read().decode(errors="replace")
-            except OSError:
-                continue
-            if "rollability_ros.nodes" in cmdline and str(study_dir) in cmdline:
-                alive.append(cmdline.replace("\0", " "))
-    return alive
+def _still_running(output):
+    """The pids the supervisor reported starting (``[name] started: pid N``) that are still running."""
+    pids = [int(pid) for pid in re.findall(r"\] started: pid (\d+)", output)]
+    assert pids, output
+    running = []
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/stat") as stream:
+                zombie = stream.read().split(") ")[1][0] == "Z"     # exited, not yet reaped
+            with open(f"/proc/{pid}/cmdline", "rb") as stream:
+                ours = b"rollability_ros.nodes" in stream.read()    # not a reused pid
+        except OSError:
+            continue
+        if ours and not zombie:
+            running.append(pid)
+    return running
 
 
 def test_miniature_main_job_end_to_end(tmp_path):
@@ -64,7 +68,7 @@ def test_miniature_main_job_end_to_end(tmp_path):
     from_bag = report.load_report_data(study_dir / "bag", run_id="e2e")
     from_store = report.load_report_data(study_dir / "outcomes.sqlite", run_id="e2e")
     assert sorted(from_bag.outcomes, key=lambda o: o.trial_id) == sorted(from_store.outcomes, key=lambda o: o.trial_id)
-    assert not _alive_children(study_dir)
+    assert not _still_running(output)
 
 
 def test_ctrl_c_stops_every_node_and_closes_the_bag(tmp_path):
@@ -84,4 +88,4 @@ def test_ctrl_c_stops_every_node_and_closes_the_bag(tmp_path):
     assert "[recorder] stopped: exit code 0" in output
     info = bag_info(study_dir / "bag")
     assert not info["warnings"], info["warnings"]
-    assert not _alive_children(study_dir)
+    assert not _still_running(output)

@@ -1,0 +1,62 @@
+"""`rollability bringup`: a node that dies is reported and restarted; Ctrl-C stops every node, the bag closes."""
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+
+from test_study import _still_running
+
+SMALL = """
+/**:
+  ros__parameters:
+    bringup:
+      evaluators: 1
+      poll_period_s: 0.2
+"""
+
+
+def _read_until(process, pattern, lines, timeout_s=120):
+    """Read bringup's output until a line matches ``pattern``; return the match."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        line = process.stdout.readline()
+        if not line:
+            break
+        lines.append(line)
+        match = re.search(pattern, line)
+        if match:
+            return match
+    raise AssertionError(f"no line matching {pattern!r} in:\n{''.join(lines)}")
+
+
+def test_a_killed_node_is_restarted_and_ctrl_c_stops_everything(tmp_path):
+    from rollability_ros.core.bag_reader import bag_info
+
+    config = tmp_path / "small.yaml"
+    config.write_text(SMALL)
+    process = subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "bringup", "--config", str(config),
+                                "--session-id", "lab"], cwd=tmp_path, stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    lines = []
+    try:
+        logger_pid = int(_read_until(process, r"\[outcome_logger\] started: pid (\d+)", lines).group(1))
+        _read_until(process, r"\[optimizer\] started", lines)
+        time.sleep(3)                                   # let the graph come up
+        os.kill(logger_pid, signal.SIGKILL)
+        _read_until(process, r"\[outcome_logger\] exited: exit code -9", lines)
+        _read_until(process, r"\[outcome_logger\] restarted: attempt 1 of 3", lines)
+        time.sleep(2)
+        os.killpg(process.pid, signal.SIGINT)           # Ctrl-C
+        output = "".join(lines) + process.communicate(timeout=180)[0]
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert process.returncode == 0, output
+    session = tmp_path / "runs" / "lab"
+    stopped = re.findall(r"\[(\S+)\] stopped: exit code (-?\d+)", output)
+    assert [name for name, _ in stopped][-1] == "recorder" and len(stopped) == 6, output   # recorder last
+    assert all(code == "0" for _, code in stopped), output
+    assert not bag_info(session / "bag")["warnings"]
+    assert not _still_running(output)

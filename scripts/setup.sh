@@ -93,6 +93,8 @@ iface_stamp=$(stamp_of CMakeLists.txt package.xml cmake/* msg/* srv/* action/* r
 build="$venv/build/rollability_ros"
 if ! stage_done interfaces "$iface_stamp" || [ -n "$reinstalled" ]; then
   say "building and installing the custom interfaces with CMake"
+  PATH="$venv/bin:$PATH" command -v cmake >/dev/null 2>&1 \
+    || die "no cmake found (neither on PATH nor in $venv): install CMake 3.22 or newer (pip install cmake, or Debian: apt-get install cmake) and re-run"
   mkdir -p "$build"
   (
     export PATH="$venv/bin:$PATH"

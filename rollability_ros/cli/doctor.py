@@ -16,6 +16,7 @@ PACKAGES = (
     ("cma", "cma", "sim", False),
     ("trimesh", "trimesh", "sim", False),
     ("scipy", "scipy", "sim", False),
+    ("networkx", "networkx", "sim", False),
     ("matplotlib", "matplotlib", "report", False),
     ("ray", "ray", "cluster", False),
     ("serial", "pyserial", "hardware", True),

@@ -150,7 +150,10 @@ def test_serial_relay_pulse_estop_cuts_pulse_and_sigterm_closes(ros_node, start_
 
     with valve.heartbeats():
         assert valve.arm()[0]
+        before = len(_relay_events(relay))
         assert valve.fire(60).success
+        # the simulator logs a command just after acknowledging it: wait for both entries
+        assert ros_node.wait_for(lambda: len(_relay_events(relay)) >= before + 2, 10)
         on, off = _relay_events(relay)[-2:]
         assert (on["line"], off["line"], off["relay"]) == ("RELAY 1 ON", "RELAY 1 OFF", "off")
         assert 0.04 < off["monotonic_s"] - on["monotonic_s"] < 0.5

@@ -138,6 +138,7 @@ class Study:
             self.say(f"designs selected: {', '.join(labels) or 'none'}; launching the campaign on the simulated rig")
             rig, runner = self._campaign_nodes(labels)
             supervisor.add(rig.process_spec(self.param_files))
+            self._wait_for_recorder(supervisor, "launch_outcomes")
             supervisor.add(runner.process_spec(self.param_files))
             total = self._campaign_size(1 + len(labels))
             code, reason = self._wait(supervisor, "campaign_runner", self.settings.campaign_timeout_s,
@@ -150,6 +151,15 @@ class Study:
             self.say("stopping the node graph")
             supervisor.stop()
         return self._report(result)
+
+    def _wait_for_recorder(self, supervisor, topic):
+        """Start a phase only once the recorder records ``topic`` of the node just started: a short campaign can
+        otherwise end, and its node stop, before the recorder has subscribed (the bag would miss its records)."""
+        if not self.settings.record:
+            return
+        full_name = f"{self.settings.namespace.rstrip('/')}/{topic}"
+        if not supervisor.wait_for_output("recorder", f"recording {full_name} ", timeout_s=60):
+            self.say(f"  warning: the recorder has not subscribed to {full_name}; the bag may miss its messages")
 
     def _selected_labels(self):
         designs_yaml = os.path.join(self.optimisation_dir, "designs", "designs.yaml")

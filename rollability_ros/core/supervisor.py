@@ -178,6 +178,22 @@ class Supervisor:
                 self._emit("finished", child, f"exit code {code}")
         return code, "" if code == 0 else f"{name} exited with code {code} (its log: {self.log_dir}/{name}.log)"
 
+    def wait_for_output(self, name, text, timeout_s, period_s=0.1):
+        """Wait until process ``name`` has written ``text`` to its log (a readiness line); True if it did."""
+        child = next(child for child in self._children if child.spec.name == name)
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            try:
+                with open(child.log_path, encoding="utf-8", errors="replace") as stream:
+                    if text in stream.read():
+                        return True
+            except OSError:
+                pass
+            if not child.alive():
+                return False
+            time.sleep(period_s)
+        return False
+
     def stop(self):
         """Stop every running child in reverse start order: SIGINT, then SIGTERM, then SIGKILL."""
         for child in reversed(self._children):

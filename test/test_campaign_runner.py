@@ -137,6 +137,7 @@ def test_physical_campaign_on_serial_relay_survives_estop_and_watchdog(ros_node,
     graph = Graph(tmp_path, start_node, "serial_relay", relay)
     watch = ValveWatch(ros_node)
     assert ros_node.wait_for(lambda: watch.states, 30), graph.logs()
+    assert ros_node.wait_for(lambda: watch.estop_pub.get_subscription_count() > 0, 30), graph.logs()
 
     # trial 1 runs; at the second arming the operator hits the e-stop during the countdown
     runner = graph.runner()

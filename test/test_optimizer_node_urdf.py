@@ -9,9 +9,11 @@ from conftest import REPO_ROOT
 pytest.importorskip("pybullet_data")
 
 HUSKY_CONFIG = str(REPO_ROOT / "config" / "husky.yaml")
-#: A tiny real run on husky.yaml's 4 x 3 grid, two generations whatever the fitness (target > 1 disables it).
+#: A tiny real run on husky.yaml's 4 x 3 grid, two generations whatever the fitness (target > 1 disables it),
+#: started from the best of 4 random means by the stable-pose screen of the Husky.
 RUN = {"optimizer.popsize": 4, "optimizer.trials": 3, "optimizer.max_generations": 2,
-       "optimizer.stagnation_generations": 0, "optimizer.target_fitness": 2.0, "optimizer.seed": 3}
+       "optimizer.stagnation_generations": 0, "optimizer.target_fitness": 2.0, "optimizer.seed": 3,
+       "optimizer.initial_mean_screen": 4}
 MARKER_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
@@ -24,11 +26,13 @@ def ros_args(params):
 
 
 def candidate_rows(run_dir, run_id):
+    """The stored candidates and the initial-mean screen of the run."""
     from rollability_ros.core.store import Store
 
     with Store(run_dir) as store:
-        return [(c.generation, c.index, c.heights, c.successes, c.trials, c.seed)
-                for c in sorted(store.candidates(run_id=run_id), key=lambda c: (c.generation, c.index))]
+        return ([(c.generation, c.index, c.heights, c.successes, c.trials, c.seed)
+                 for c in sorted(store.candidates(run_id=run_id), key=lambda c: (c.generation, c.index))],
+                store.run_info(run_id)["info"]["initial_mean_screen"])
 
 
 def in_process_run(run_dir):
@@ -40,7 +44,8 @@ def in_process_run(run_dir):
     settings = evaluation.settings_from_parameters(parameters)
     with evaluation.LocalExecutor(1) as executor:   # a batch's evaluations run in threads: one client each
         evaluate_batch = optimisation_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
-        run = optimisation_run.OptimisationRun(run_dir, parameters, settings.grid, evaluate_batch)
+        run = optimisation_run.OptimisationRun(run_dir, parameters, settings.grid, evaluate_batch,
+                                               screen_profiles=optimisation_run.profile_screen(parameters, settings))
         run.run()
         run.close()
     return candidate_rows(run_dir, "ref"), settings.grid
@@ -62,9 +67,10 @@ def test_husky_run_over_dds_uses_the_mount_footprint(ros_node, start_node, tmp_p
     run_dir = tmp_path / "runs" / "husky"
     saved = optimisation_run.read_run_config(run_dir)
     assert (saved["profile.length_m"], saved["profile.width_m"], saved["profile.rows"]) == (0.9, 0.56, 4)
-    stored = candidate_rows(run_dir, "husky")
+    stored, screen = candidate_rows(run_dir, "husky")
     assert len(stored) >= RUN["optimizer.popsize"] * RUN["optimizer.max_generations"]
-    assert stored == expected   # same candidates, same Husky trial outcomes
+    assert (stored, screen) == expected   # same screened start, same candidates, same Husky trial outcomes
+    assert len(screen["upright_probability"]) == 4 and len(set(screen["upright_probability"])) > 1
     assert len({row[3] for row in stored}) >= 2, "all candidates scored alike: a weak test"
 
     assert ros_node.wait_for(lambda: markers, 10), optimizer.log()

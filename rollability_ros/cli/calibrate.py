@@ -13,12 +13,14 @@ def _write_csv(path, rows):
 
 
 def _screen_rows(twin_settings, configurations, screen_settings):
-    """The stable-pose screen of each configuration on ``twin_settings``' chassis (quasi-static cross-check)."""
+    """The stable-pose screen of each configuration on ``twin_settings``' robot, the built-in chassis or a URDF
+    robot (quasi-static cross-check)."""
     from rollability_ros.core.launch_twin import profile_body
-    from rollability_ros.core.stable_poses import screen_chassis
+    from rollability_ros.core.stable_poses import screen_robot
 
+    robot_model = twin_settings.robot_model()
     return [{"configuration": configuration,
-             **screen_chassis(twin_settings.robot, profile_body(configuration, twin_settings), screen_settings).row()}
+             **screen_robot(robot_model, profile_body(configuration, twin_settings), screen_settings).row()}
             for configuration in configurations]
 
 

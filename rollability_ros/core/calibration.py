@@ -29,10 +29,8 @@ Output
 
 Launches run in a process pool (``workers``); cma and pybullet are imported where they are used.
 """
-import concurrent.futures
 import dataclasses
 import math
-import multiprocessing
 import os
 import typing
 
@@ -44,6 +42,7 @@ from rollability_ros.core.evaluation import trial_seed
 from rollability_ros.core.launch_twin import launch_twin_settings_from_parameters, simulate_launch
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.worker_pool import spawn_pool
 
 #: The parameter files the twin is built from, in load order (``load_launch_twin_settings``' default).
 TWIN_CONFIGS = ("sim", "robot", "launch_twin")
@@ -154,13 +153,12 @@ def _count_upright(settings, condition, seeds):
 class LaunchPool:
     """Counts upright launches per (parameter set, grouped condition), in worker processes (or serially: 1).
 
-    ``workers`` None or 0 = one per core. The pool's processes are spawned (no forked PyBullet state).
+    ``workers`` None or 0 = one per core, in :func:`~rollability_ros.core.worker_pool.spawn_pool` processes.
     """
 
     def __init__(self, workers=None):
         self.workers = workers or os.cpu_count() or 1
-        self._pool = None if self.workers == 1 else concurrent.futures.ProcessPoolExecutor(
-            max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"))
+        self._pool = None if self.workers == 1 else spawn_pool(self.workers)
 
     def predicted_upright(self, twin_settings_list, conditions, seeds):
         """Upright counts ``(len(twin_settings_list), len(conditions))`` of ``len(seeds)`` launches each."""

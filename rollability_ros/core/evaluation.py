@@ -12,10 +12,8 @@ between them (every ``evaluator.poll_interval_s`` while waiting).
 import concurrent.futures
 import dataclasses
 import hashlib
-import multiprocessing
 import os
 import pickle
-import signal
 import time
 
 import numpy as np
@@ -28,6 +26,7 @@ from rollability_ros.core.sim_world import PhysicsParams, connect
 from rollability_ros.core.stats import wilson_interval
 from rollability_ros.core.trials import TrialSettings, TrialWorld
 from rollability_ros.core.urdf_robot import RobotChoice, UrdfRobotSpec, footprint_grid
+from rollability_ros.core.worker_pool import spawn_pool
 
 #: Largest base seed (TrialResult.seed is uint64; trial seeds are kept below 2**63 for int64 stores).
 MAX_SEED = 2**64 - 1
@@ -169,11 +168,6 @@ def run_batch(job, batch):
     return [world.run(index, seed) for index, seed in batch]
 
 
-def _ignore_interrupts():
-    """Pool workers ignore Ctrl-C: it reaches the whole process group, and the parent owns their lifetime."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 def _warm(hold_s=0.2):
     """Start this worker's physics client so the first batch does not pay for it; return the worker's pid.
 
@@ -226,9 +220,7 @@ class LocalExecutor:
         if self.workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         self.poll_interval_s = poll_interval_s
-        self._pool = concurrent.futures.ProcessPoolExecutor(max_workers=self.workers,
-                                                            mp_context=multiprocessing.get_context("spawn"),
-                                                            initializer=_ignore_interrupts)
+        self._pool = spawn_pool(self.workers)
         self._warming = [self._pool.submit(_warm) for _ in range(self.workers)]
 
     def warm(self):

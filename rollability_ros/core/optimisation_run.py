@@ -34,6 +34,7 @@ from rollability_ros.core.optimiser import (
     OptimizerSettings,
     ProfileOptimizer,
     derive_seed,
+    random_initial_means,
 )
 from rollability_ros.core.records import CandidateRecord, GenerationRecord
 from rollability_ros.core.store import Store
@@ -90,6 +91,21 @@ def read_run_config(run_dir):
     return load_parameters(path)
 
 
+def profile_screen(parameters, evaluator_settings, screen_settings=None):
+    """The ``screen_profiles`` an :class:`OptimisationRun` with these flat ``parameters`` needs: the stable-pose
+    screen of profiles on the robot of ``evaluator_settings`` under ``screen_settings`` (default: namespace
+    ``stable_poses`` of ``parameters``, the defaults of ``config/calibration.yaml`` where absent); None when
+    ``optimizer.initial_mean_screen`` is 0."""
+    if optimizer_settings(parameters).initial_mean_screen == 0:
+        return None
+    from rollability_ros.core import stable_poses
+
+    if screen_settings is None:
+        screen_settings = from_mapping(stable_poses.ScreenSettings, section(parameters, "stable_poses"),
+                                       "stable_poses")
+    return stable_poses.profile_screener(evaluator_settings, screen_settings)
+
+
 class OptimisationRun:
     """Drive a :class:`ProfileOptimizer` generation by generation through ``evaluate_batch``.
 
@@ -110,12 +126,16 @@ class OptimisationRun:
         Called after each newly evaluated candidate is stored.
     on_generation : callable(GenerationRecord), optional
         Called after each generation is stored and checkpointed.
+    screen_profiles : callable(heights_list) -> [StableScreen, ...], optional
+        The stable-pose screen of half-grid heights (:func:`stable_poses.profile_screener`); needed when
+        ``optimizer.initial_mean_screen`` > 0: the run then starts from the random initial mean with the highest
+        quasi-static P(upright) (ties: the lowest worst barrier), recorded in the store's run info.
 
     ``on_candidate`` and ``on_generation`` are also public attributes, settable after construction.
     """
 
     def __init__(self, run_dir, parameters, grid, evaluate_batch, resume=False, on_candidate=None,
-                 on_generation=None, clock=time.monotonic):
+                 on_generation=None, clock=time.monotonic, screen_profiles=None):
         self.run_dir = os.fspath(run_dir)
         self.run_id = run_id_of(self.run_dir)
         self.parameters = dict(parameters)
@@ -126,18 +146,36 @@ class OptimisationRun:
         self.on_generation = on_generation
         self._clock = clock
         self.checkpoint_path = os.path.join(self.run_dir, checkpoints.CHECKPOINT_FILENAME)
+        self.initial_mean_screen = self._screen_initial_means(screen_profiles)
         self.optimizer = self._resume() if resume else self._start()
         self.store = Store(self.run_dir)
         described = self.store.run_info(self.run_id)  # keep what selection added on an earlier pass
         info = dict(described["info"]) if described else {}
         info.update(n_variables=grid.n_variables, popsize=self.settings.popsize, seed=self.settings.seed)
+        if self.initial_mean_screen is not None:
+            info["initial_mean_screen"] = self.initial_mean_screen
         self.store.set_run_info(self.run_id, RUN_KIND, info)
         self._session_start_generation = self.optimizer.generation
         self._session_start_s = clock()
 
+    def _screen_initial_means(self, screen_profiles):
+        """With ``initial_mean_screen`` > 0: screen the random initial means and return ``{"chosen": index,
+        "upright_probability": [...], "worst_barrier_m": [...]}``; else None (the paper's one random mean)."""
+        self._initial_mean = None
+        if self.settings.initial_mean_screen == 0:
+            return None
+        if screen_profiles is None:
+            raise ValueError("optimizer.initial_mean_screen > 0 needs the stable-pose screen, and none was given")
+        means = random_initial_means(self.settings, self.grid.n_variables, self.grid.height_min, self.grid.height_max)
+        screens = screen_profiles(list(means))
+        chosen = max(range(len(means)), key=lambda i: (screens[i].upright_probability, -screens[i].worst_barrier_m))
+        self._initial_mean = means[chosen]
+        return {"chosen": chosen, "upright_probability": [round(s.upright_probability, 4) for s in screens],
+                "worst_barrier_m": [round(s.worst_barrier_m, 5) for s in screens]}
+
     def _new_optimizer(self):
         return ProfileOptimizer(self.grid.n_variables, self.settings, self.grid.height_min, self.grid.height_max,
-                                self._clock)
+                                self._clock, self._initial_mean)
 
     def _start(self):
         config_path = os.path.join(self.run_dir, RUN_CONFIG_FILENAME)
@@ -164,7 +202,8 @@ class OptimisationRun:
             return self._new_optimizer()
         checkpoints.check_same_config(state, self.parameters, self.checkpoint_path)
         return ProfileOptimizer.from_state_dict(state["optimizer"], self.grid.n_variables, self.settings,
-                                                self.grid.height_min, self.grid.height_max, self._clock)
+                                                self.grid.height_min, self.grid.height_max, self._clock,
+                                                self._initial_mean)
 
     # --- one generation ---------------------------------------------------------------------------------------
     def step(self):

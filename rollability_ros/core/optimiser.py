@@ -68,6 +68,7 @@ class OptimizerSettings:
     common_random_numbers: bool = True  # one disturbance seed per generation (False: one per candidate)
     reevaluate_incumbent: bool = True  # re-evaluate the best-so-far with fresh seeds and pool
     output_dir: str = "runs"           # root of run directories runs/<run_id>/
+    initial_mean_screen: int = 0       # random initial means ranked by the stable-pose screen; 0 = one, unscreened
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -82,6 +83,9 @@ class OptimizerSettings:
         for name in ("max_generations", "stagnation_generations", "max_evaluations"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0 (0 disables it), got {getattr(self, name)}")
+        if self.initial_mean_screen < 0:
+            raise ValueError(f"initial_mean_screen must be >= 0 (0 = the paper's one random mean), got "
+                             f"{self.initial_mean_screen}")
         if self.max_wall_time_s < 0:
             raise ValueError(f"max_wall_time_s must be >= 0 (0 disables it), got {self.max_wall_time_s}")
         if not 0 < self.target_fitness:
@@ -120,6 +124,13 @@ class OptimizerResult:
     stop: dict
 
 
+def random_initial_means(settings, n_variables, lower=0.0, upper=0.45):
+    """The seeded random initial means ``(max(1, settings.initial_mean_screen), n_variables)``, uniform in
+    ``[lower, upper]``; row 0 is the one the paper's settings start from (``initial_mean_screen`` 0 or 1)."""
+    rows = max(1, settings.initial_mean_screen)
+    return np.random.default_rng(settings.seed).uniform(lower, upper, (rows, int(n_variables)))
+
+
 class ProfileOptimizer:
     """CMA-ES over ``n_variables`` heights in ``[lower, upper]`` with the protocol ask -> tell ->
     (:meth:`reevaluation_request` -> :meth:`tell_reevaluation` when re-evaluation is on) -> :meth:`stop`.
@@ -133,9 +144,12 @@ class ProfileOptimizer:
         Height bounds, simulation units.
     clock : callable, optional
         Monotonic clock in seconds, for the wall-time cap.
+    initial_mean : array_like, optional
+        The CMA-ES start ``(n_variables,)`` within the bounds (e.g. the best of :func:`random_initial_means` by
+        the stable-pose screen); default: row 0 of :func:`random_initial_means`.
     """
 
-    def __init__(self, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic):
+    def __init__(self, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic, initial_mean=None):
         cma = require("cma", feature="the CMA-ES optimiser")
         settings.validate()
         if n_variables < 1:
@@ -145,7 +159,12 @@ class ProfileOptimizer:
         self.settings = settings
         self.n_variables = int(n_variables)
         self.lower, self.upper = float(lower), float(upper)
-        self.initial_mean = np.random.default_rng(settings.seed).uniform(lower, upper, self.n_variables)
+        if initial_mean is None:
+            initial_mean = random_initial_means(settings, self.n_variables, lower, upper)[0]
+        self.initial_mean = np.array(initial_mean, dtype=np.float64)
+        if self.initial_mean.shape != (self.n_variables,) or not np.all(np.isfinite(self.initial_mean)) or \
+                np.any(self.initial_mean < self.lower) or np.any(self.initial_mean > self.upper):
+            raise ValueError(f"initial_mean must be {self.n_variables} finite heights in [{lower}, {upper}]")
         self.cma_options = {"popsize": settings.popsize, "bounds": [self.lower, self.upper], "seed": settings.seed,
                             "verbose": -9, "verb_log": 0, "verb_disp": 0}
         global_state = np.random.get_state()
@@ -290,9 +309,14 @@ class ProfileOptimizer:
                 "initial_mean": self.initial_mean.copy()}
 
     @classmethod
-    def from_state_dict(cls, state, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic):
-        """Rebuild an optimiser saved by :meth:`state_dict`; it continues exactly where that one stopped."""
-        optimizer = cls(n_variables, settings, lower, upper, clock)
+    def from_state_dict(cls, state, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic,
+                        initial_mean=None):
+        """Rebuild an optimiser saved by :meth:`state_dict`; it continues exactly where that one stopped.
+
+        ``initial_mean`` is the start these settings give (as for the constructor); a state that started
+        elsewhere belongs to other settings and is refused.
+        """
+        optimizer = cls(n_variables, settings, lower, upper, clock, initial_mean)
         if not np.array_equal(optimizer.initial_mean, state["initial_mean"]):
             raise ValueError("saved optimiser state does not match these settings (different initial mean)")
         optimizer._es = pickle.loads(state["strategy"])

@@ -19,12 +19,16 @@ Barrier back to upright
     the non-upright resting poses: the energy a disturbance must supply to right the body from its worst
     resting pose, the quantity the paper's profiles are designed to make small.
 Use
-    :func:`screen_body` on any hull; :func:`chassis_hull` builds the hull of the chassis, wheels and profile;
-    :func:`screen_heights` screens candidate profiles for the optimiser (see ``docs/calibration.md``: rank or
-    reject initial means, never stand in for a simulated fitness); :func:`drop_trials` runs the low-energy
-    PyBullet drops the screen is cross-checked against.
+    :func:`screen_body` on any hull; :func:`robot_hull` builds the hull of any robot model (the built-in chassis
+    or a URDF robot) with its profile, from the collision shapes PyBullet spawns; :func:`screen_robot` screens
+    one; :func:`screen_heights` screens candidate profiles, and :func:`profile_screener` binds it for the
+    optimisation run, which starts from the best of several random means by the screen when
+    ``optimizer.initial_mean_screen`` > 0 (see ``docs/calibration.md``: it ranks starting points, it never stands
+    in for a simulated fitness); :func:`drop_trials` runs the low-energy PyBullet drops the screen is
+    cross-checked against.
 
-Frames and units: body frame as the chassis frame (x forward, y left, z up = upright); metres, kilograms, joules.
+Frames and units: the body frame is the robot's base frame turned so that its up axis is +z (for the built-in
+chassis, the chassis frame: x forward, y left, z up = upright); metres, kilograms, joules.
 trimesh, networkx (trimesh's pose graph), scipy and pybullet are imported inside the functions that use them.
 """
 import dataclasses
@@ -46,7 +50,7 @@ class ScreenSettings:
     com_sigma_m: float = 0.003
     n_samples: int = 16
     seed: int = 1
-    wheel_sections: int = 24
+    wheel_sections: int = 24           # points per rim of each round collision shape (wheels)
     prescreen_min_probability: float = 0.0
 
     def validate(self):
@@ -91,34 +95,95 @@ class RigidHull:
         return cls(hull=hull, com_m=com, mass_kg=float(mass_kg))
 
 
-def chassis_hull(spec, profile=None, wheel_sections=24):
-    """The :class:`RigidHull` of a :class:`~rollability_ros.core.robot.ChassisSpec` chassis with ``profile``.
+def _sphere_points(radius_m, sections):
+    """About ``sections ** 2 / 2`` points on a sphere of ``radius_m`` (a Fibonacci lattice), (k, 3) m."""
+    count = max(8, sections * sections // 2)
+    index = np.arange(count) + 0.5
+    z = 1 - 2 * index / count
+    angle = math.pi * (1 + math.sqrt(5)) * index
+    ring = np.sqrt(1 - z * z)
+    return radius_m * np.column_stack([ring * np.cos(angle), ring * np.sin(angle), z])
 
-    Points: the body box's corners, each wheel's rims (``wheel_sections`` points per rim, axles along y) and the
-    profile's hull vertices (a :class:`~rollability_ros.core.robot.ProfileBody`, or None) on the mount. COM and
-    mass: the body's (``com_offset_z_m`` below the box centre), the wheels' and the profile's, mass-weighted,
-    as :meth:`~rollability_ros.core.robot.ChassisModel.spawn` builds them.
+
+def _shape_points(pybullet, client, body_id, link, index, shape, sections):
+    """Points ``(k, 3)`` whose hull is one collision shape of a spawned body, in its link's inertial frame (m).
+
+    ``shape`` is a row of ``getCollisionShapeData``: primitives are built from their dimensions in the shape's
+    local frame (cylinders and capsules along local z, ``sections`` points per rim); meshes come from
+    ``getMeshData``, which already gives them in the link's inertial frame.
     """
-    from rollability_ros.core.robot import ChassisModel
+    kind, dimensions, local_position, local_orientation = shape[2], shape[3], shape[5], shape[6]
+    if kind == pybullet.GEOM_MESH:
+        _, vertices = pybullet.getMeshData(body_id, link, collisionShapeIndex=index, physicsClientId=client)
+        return np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    if kind == pybullet.GEOM_BOX:
+        half = np.asarray(dimensions, dtype=np.float64) / 2
+        local = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+    elif kind == pybullet.GEOM_SPHERE:
+        local = _sphere_points(dimensions[0], sections)
+    elif kind in (pybullet.GEOM_CYLINDER, pybullet.GEOM_CAPSULE):
+        length, radius = dimensions[0], dimensions[1]
+        angles = np.linspace(0.0, 2 * math.pi, sections, endpoint=False)
+        rim = np.column_stack([radius * np.cos(angles), radius * np.sin(angles), np.zeros(sections)])
+        if kind == pybullet.GEOM_CYLINDER:
+            local = np.vstack([rim + [0.0, 0.0, side * length / 2] for side in (-1, 1)])
+        else:
+            ball = _sphere_points(radius, sections)
+            local = np.vstack([ball + [0.0, 0.0, side * length / 2] for side in (-1, 1)])
+    else:
+        raise ValueError(f"link {link}: collision geometry type {kind} has no hull (box, sphere, cylinder, capsule "
+                         "and mesh do)")
+    rotation = np.asarray(pybullet.getMatrixFromQuaternion(local_orientation)).reshape(3, 3)
+    return local @ rotation.T + np.asarray(local_position)
 
-    model = ChassisModel(spec)
-    half = np.array([spec.body_length_m, spec.body_width_m, spec.body_height_m]) / 2
-    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
-    angles = np.linspace(0.0, 2 * math.pi, wheel_sections, endpoint=False)
-    rim = np.column_stack([spec.wheel_radius_m * np.cos(angles), np.zeros_like(angles),
-                           spec.wheel_radius_m * np.sin(angles)])
-    wheels = model.wheel_positions_m()
-    points = [corners] + [rim + wheel + [0.0, side * spec.wheel_width_m / 2, 0.0]
-                          for wheel in wheels for side in (-1, 1)]
-    masses = [spec.body_mass_kg] + [spec.wheel_mass_kg] * len(wheels)
-    centres = [np.array([0.0, 0.0, spec.com_offset_z_m])] + list(wheels)
-    if profile is not None:
-        points.append(profile.hull_vertices_m + model.mount_position_m)
-        masses.append(profile.mass_kg)
-        centres.append(profile.com_m + model.mount_position_m)
+
+def _rotation_onto_z(axis):
+    """The rotation matrix (3, 3) turning unit vector ``axis`` onto +z by the shortest arc."""
+    axis = np.asarray(axis, dtype=np.float64) / np.linalg.norm(axis)
+    cross, cos = np.cross(axis, [0.0, 0.0, 1.0]), float(axis[2])
+    if np.linalg.norm(cross) < 1e-12:
+        return np.eye(3) if cos > 0 else np.diag([1.0, -1.0, -1.0])
+    skew = np.array([[0.0, -cross[2], cross[1]], [cross[2], 0.0, -cross[0]], [-cross[1], cross[0], 0.0]])
+    return np.eye(3) + skew + skew @ skew / (1 + cos)
+
+
+def robot_hull(robot_model, profile=None, sections=24):
+    """The :class:`RigidHull` of any :class:`~rollability_ros.core.robot.RobotModel` with ``profile`` on its mount.
+
+    The robot is spawned, as the trials spawn it, in a private PyBullet client at the origin with its base frame
+    unrotated and every joint at zero; the hull is that of all its collision shapes (primitives sampled, round
+    ones with ``sections`` points per rim, meshes by their vertices) and the COM and mass are PyBullet's, summed
+    over its links. The result is turned so that the model's up axis is +z, as :func:`screen_body` expects.
+    """
+    pybullet = require("pybullet", feature="the stable-pose screen of a robot")
+    from rollability_ros.core.sim_world import connect, disconnect
+
+    client = connect()
+    try:
+        robot = robot_model.spawn(client, profile, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+        body_id = robot.body_id
+        points, masses, centres = [], [], []
+        for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client)):
+            if link < 0:
+                position, orientation = pybullet.getBasePositionAndOrientation(body_id, physicsClientId=client)
+            else:
+                position, orientation = pybullet.getLinkState(body_id, link, computeForwardKinematics=True,
+                                                              physicsClientId=client)[:2]
+            rotation = np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+            masses.append(pybullet.getDynamicsInfo(body_id, link, physicsClientId=client)[0])
+            centres.append(np.asarray(position, dtype=np.float64))
+            for index, shape in enumerate(pybullet.getCollisionShapeData(body_id, link, physicsClientId=client)):
+                local = _shape_points(pybullet, client, body_id, link, index, shape, sections)
+                points.append(local @ rotation.T + centres[-1])
+        up = robot_model.up_axis(client, robot)
+    finally:
+        disconnect(client)
+    if not points:
+        raise ValueError("the robot has no collision shape to rest on")
     mass = float(sum(masses))
     com = sum(m * c for m, c in zip(masses, centres)) / mass
-    return RigidHull.from_points(np.vstack(points), com, mass)
+    turn = _rotation_onto_z(up)
+    return RigidHull.from_points(np.vstack(points) @ turn.T, turn @ com, mass)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -228,10 +293,11 @@ def screen_body(body, upright_tilt_deg, com_sigma_m=0.0, n_samples=1, seed=1):
                         worst_barrier_j=body.mass_kg * GRAVITY_MPS2 * worst)
 
 
-def screen_chassis(spec, profile, settings):
-    """Screen the chassis ``spec`` with ``profile`` (ProfileBody or None) under :class:`ScreenSettings`."""
-    body = chassis_hull(spec, profile, settings.wheel_sections)
-    return screen_body(body, spec.upright_tilt_deg, settings.com_sigma_m, settings.n_samples, settings.seed)
+def screen_robot(robot_model, profile, settings):
+    """Screen ``robot_model`` (any RobotModel) with ``profile`` (ProfileBody or None) under :class:`ScreenSettings`,
+    upright by the model's own tilt threshold."""
+    body = robot_hull(robot_model, profile, settings.wheel_sections)
+    return screen_body(body, robot_model.upright_tilt_deg, settings.com_sigma_m, settings.n_samples, settings.seed)
 
 
 def screen_heights(heights_list, evaluator_settings, settings):
@@ -243,12 +309,20 @@ def screen_heights(heights_list, evaluator_settings, settings):
     """
     from rollability_ros.core.evaluation import profile_job
 
+    robot_model = evaluator_settings.robot_model()
     out = []
     for heights in heights_list:
-        job = profile_job(heights, evaluator_settings)
-        result = screen_chassis(evaluator_settings.robot, job.profile, settings)
+        result = screen_robot(robot_model, profile_job(heights, evaluator_settings).profile, settings)
         out.append((result, result.upright_probability >= settings.prescreen_min_probability))
     return out
+
+
+def profile_screener(evaluator_settings, settings):
+    """``screen_profiles(heights_list) -> [StableScreen, ...]`` on the robot of ``evaluator_settings`` under
+    :class:`ScreenSettings` ``settings``: the screen an :class:`~rollability_ros.core.optimisation_run.OptimisationRun`
+    ranks its initial means with."""
+    settings.validate()
+    return lambda heights_list: [screen for screen, _ in screen_heights(heights_list, evaluator_settings, settings)]
 
 
 def random_orientation(rng):

@@ -2,15 +2,22 @@
 
 Each child runs in its own session (process group), so a Ctrl-C on the terminal reaches only the supervisor,
 which then stops the children itself in reverse start order (the recorder, started first, stops last and
-closes its bag after everything else has been recorded). A child that dies is restarted up to
+closes its bag after everything else has been recorded). If the supervisor itself is killed (SIGKILL), the
+kernel sends every child SIGTERM (Linux ``PR_SET_PDEATHSIG``, set in the child before it runs its command), so
+no node outlives it: each stops as on a plain SIGTERM (the recorder closes its bag). The death signal follows
+the thread that started the child, so start and restart children from one long-lived thread (the main one). A child that dies is restarted up to
 ``max_restarts`` times when its spec says ``restart=True``; a ``critical`` child that dies for good stops the
 whole graph cleanly, so a run is never left half alive.
 """
+import ctypes
 import dataclasses
 import os
 import signal
 import subprocess
 import time
+
+#: ``prctl`` option: the signal this process gets when its parent dies (linux/prctl.h).
+PR_SET_PDEATHSIG = 1
 
 
 @dataclasses.dataclass
@@ -44,6 +51,17 @@ class SupervisorEvent:
         return f"[{self.name}] {self.kind}" + (f": {self.detail}" if self.detail else "")
 
 
+def _die_with(parent_pid):
+    """A ``preexec_fn``: in the child, before its command runs, ask for SIGTERM when ``parent_pid`` dies."""
+    prctl = ctypes.CDLL(None, use_errno=True).prctl   # resolved before the fork: the child only calls it
+
+    def preexec():
+        prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        if os.getppid() != parent_pid:   # the parent died before the request took effect
+            os._exit(1)
+    return preexec
+
+
 class _Child:
     def __init__(self, spec, log_dir):
         self.spec = spec
@@ -57,7 +75,8 @@ class _Child:
         env = dict(os.environ, **self.spec.env)
         try:
             self.process = subprocess.Popen(self.spec.argv, stdout=log, stderr=subprocess.STDOUT, env=env,
-                                            start_new_session=True, stdin=subprocess.DEVNULL)
+                                            start_new_session=True, stdin=subprocess.DEVNULL,
+                                            preexec_fn=_die_with(os.getpid()))
         finally:
             log.close()
 

@@ -20,9 +20,10 @@ Interfaces (relative names):
 
 Parameters: the namespaces ``optimizer`` (config/optimizer.yaml, config/paper.yaml), ``selection``, ``profile``
 and ``printer`` (the grid and printer of config/robot.yaml, overridden by the optimisation file), all saved in
-the run's ``config.yaml``; ``robot`` (only ``body_height_m`` is used, for the marker); ``urdf_robot`` (a URDF
-robot's config such as config/husky.yaml: when it names a mount link, the grid's ``length_m`` / ``width_m`` are
-its mount footprint's, as the evaluators' are, and the marker sits on that mount); and:
+the run's ``config.yaml``; ``robot`` (the chassis: the marker's mount and the screen's robot); ``urdf_robot`` (a
+URDF robot's config such as config/husky.yaml: when it names a mount link, the grid's ``length_m`` / ``width_m``
+are its mount footprint's, as the evaluators' are, the marker sits on that mount and the screen uses it);
+``stable_poses`` (the screen that ranks initial means when ``optimizer.initial_mean_screen`` > 0); and:
 ``run_id`` (empty = new ``opt-<date>-<time>``), ``resume`` (continue run ``run_id`` from its last checkpoint),
 ``autostart`` (start once the graph has been searched twice), ``exit_on_finish``, ``select_designs`` (choose
 Mesh A, B, C when the run finishes), ``frame_id``, ``evaluator_timeout_s``, ``evaluator_max_attempts``,
@@ -59,6 +60,7 @@ from rollability_ros.core.geometry import PrinterSpec, ProfileGrid
 from rollability_ros.core.optimiser import OptimizerSettings
 from rollability_ros.core.robot import ChassisSpec
 from rollability_ros.core.selection import SelectionSettings
+from rollability_ros.core.stable_poses import ScreenSettings
 from rollability_ros.core.urdf_robot import UrdfRobotSpec, footprint_grid, profile_mount
 from rollability_ros.msg import CandidateResult, GenerationSummary
 from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg
@@ -70,8 +72,9 @@ EVALUATOR_ACTION_TYPE = "rollability_ros/action/EvaluateProfile"
 #: Parameter namespaces that define a run and are saved in its config.yaml.
 RUN_SECTIONS = {"optimizer": OptimizerSettings, "selection": SelectionSettings, "profile": ProfileGrid,
                 "printer": PrinterSpec}
-#: Parameter namespaces of the robot the profile is for (the grid's footprint and the marker's mount).
-ROBOT_SECTIONS = {"robot": ChassisSpec, "urdf_robot": UrdfRobotSpec}
+#: Parameter namespaces of the robot the profile is for (the grid's footprint, the marker's mount) and of the
+#: stable-pose screen of initial means on that robot; read when a run starts, not saved in its config.yaml.
+ROBOT_SECTIONS = {"robot": ChassisSpec, "urdf_robot": UrdfRobotSpec, "stable_poses": ScreenSettings}
 _STATUS_NAMES = {GoalStatus.STATUS_ABORTED: "aborted", GoalStatus.STATUS_CANCELED: "cancelled",
                  GoalStatus.STATUS_UNKNOWN: "unknown"}
 _PARAMETERS = {  # name: (default, description)
@@ -297,6 +300,13 @@ class Optimizer(Node):
         settings["profile"] = footprint_grid(settings["profile"], self._robots["urdf_robot"])
         return settings
 
+    def _robot_settings(self, settings):
+        """The evaluator settings of the profile's robot (grid, printer, robot sections) for the stable-pose screen."""
+        from rollability_ros.core.evaluation import EvaluatorSettings
+
+        return EvaluatorSettings(grid=settings["profile"], printer=settings["printer"], robot=self._robots["robot"],
+                                 urdf_robot=self._robots["urdf_robot"])
+
     def _read_mount(self):
         """``(frame, position_m, yaw_deg)`` of the marker: the profile mount of the robot in use."""
         link, position_m, yaw_deg = profile_mount(self._robots["robot"], self._robots["urdf_robot"])
@@ -333,7 +343,9 @@ class Optimizer(Node):
         try:
             run = optimisation_run.OptimisationRun(
                 run_dir, parameters, settings["profile"], self._pool.batch_evaluator(settings["optimizer"].trials),
-                resume=resume, on_candidate=self._publish_candidate)
+                resume=resume, on_candidate=self._publish_candidate,
+                screen_profiles=optimisation_run.profile_screen(parameters, self._robot_settings(settings),
+                                                                self._robots["stable_poses"]))
         except (ConfigError, ValueError, FileNotFoundError) as exc:
             log.error(f"cannot {'resume' if resume else 'start'} run in {run_dir}: {exc}")
             return 1

@@ -205,3 +205,35 @@ def test_ray_executor_matches_the_local_executor(ray_head):
         remote = evaluate_profile(heights, 10, 21, SETTINGS, executor=cluster)
     assert remote.trial_results == local.trial_results
     assert (remote.fitness, remote.ci_low, remote.ci_high) == (local.fitness, local.ci_low, local.ci_high)
+
+
+ORPHAN_PARENT = """
+import sys, time
+from rollability_ros.core.evaluation import LocalExecutor
+executor = LocalExecutor(workers=2)
+print(" ".join(map(str, executor.warm())), flush=True)
+time.sleep(600)
+"""
+
+
+def test_workers_exit_when_their_parent_is_killed():
+    """kill -9 of a process with a LocalExecutor (a CLI run, an evaluator node) leaves no worker behind."""
+    parent = subprocess.Popen([sys.executable, "-c", ORPHAN_PARENT], stdout=subprocess.PIPE, text=True)
+    try:
+        pids = [int(pid) for pid in parent.stdout.readline().split()]
+        assert len(pids) == 2 and parent.pid not in pids
+        assert all(os.path.exists(f"/proc/{pid}") for pid in pids)
+    finally:
+        parent.kill()
+        parent.wait()
+
+    def alive(pid):
+        try:
+            with open(f"/proc/{pid}/stat", encoding="ascii") as stream:
+                return stream.read().split(")")[-1].split()[0] != "Z"     # a zombie has exited
+        except FileNotFoundError:
+            return False
+    deadline = time.monotonic() + 30
+    while any(alive(pid) for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not any(alive(pid) for pid in pids), f"orphaned workers still running: {pids}"

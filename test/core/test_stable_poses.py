@@ -77,12 +77,12 @@ def test_centre_of_mass_scatter_is_sampled_and_smooths_the_answer():
 
 def test_chassis_hull_holds_wheels_profile_and_mass():
     spec = ChassisSpec()
-    bare = stable_poses.chassis_hull(spec)
+    bare = stable_poses.robot_hull(ChassisModel(spec))
     assert bare.mass_kg == pytest.approx(spec.body_mass_kg + 4 * spec.wheel_mass_kg)
     assert bare.hull.bounds[0][2] == pytest.approx(spec.axle_offset_z_m - spec.wheel_radius_m)
     assert bare.hull.bounds[1][1] == pytest.approx(spec.track_m / 2 + spec.wheel_width_m / 2)
     ridge = ridge_profile(spec)
-    with_ridge = stable_poses.chassis_hull(spec, ridge)
+    with_ridge = stable_poses.robot_hull(ChassisModel(spec), ridge)
     assert with_ridge.mass_kg == pytest.approx(bare.mass_kg + ridge.mass_kg)
     assert with_ridge.com_m[2] > bare.com_m[2]
     assert with_ridge.hull.bounds[1][2] == pytest.approx(spec.body_height_m / 2 + ridge.hull_vertices_m[:, 2].max())
@@ -91,8 +91,8 @@ def test_chassis_hull_holds_wheels_profile_and_mass():
 def test_a_ridge_lowers_the_barrier_out_of_the_inverted_pose():
     spec = ChassisSpec()
     settings = stable_poses.ScreenSettings(com_sigma_m=0.0)
-    bare = stable_poses.screen_chassis(spec, None, settings)
-    ridge = stable_poses.screen_chassis(spec, ridge_profile(spec), settings)
+    bare = stable_poses.screen_robot(ChassisModel(spec), None, settings)
+    ridge = stable_poses.screen_robot(ChassisModel(spec), ridge_profile(spec), settings)
     assert ridge.worst_barrier_m < 0.5 * bare.worst_barrier_m
 
     def inverted(screen):
@@ -147,9 +147,78 @@ def test_chassis_screen_agrees_with_low_energy_pybullet_drops():
     spec = ChassisSpec()
     ridge = ridge_profile(spec)
     drops = 150
-    expected = stable_poses.screen_chassis(spec, ridge, stable_poses.ScreenSettings(com_sigma_m=0.0))
+    expected = stable_poses.screen_robot(ChassisModel(spec), ridge, stable_poses.ScreenSettings(com_sigma_m=0.0))
     upright, settled = stable_poses.drop_trials(stable_poses.chassis_spawner(ChassisModel(spec), ridge), drops, 7,
                                                 PhysicsParams(), TrialSettings())
     assert settled == drops
     p = expected.upright_probability
     assert abs(upright / drops - p) <= 3 * math.sqrt(p * (1 - p) / drops), (upright, p)
+
+
+def chassis_as_urdf_robot(tilt_rpy=None):
+    """The built-in chassis described as a URDF robot; with ``tilt_rpy``, under a root frame turned by it, so that
+    the chassis' up axis is no longer the root frame's z (the spec names it in the root frame instead)."""
+    from rollability_ros.core.urdf_description import rpy_matrix
+    from rollability_ros.core.urdf_robot import UrdfRobotModel, UrdfRobotSpec
+
+    spec = ChassisSpec()
+    text = ChassisModel(spec).to_urdf()
+    up = (0.0, 0.0, 1.0)
+    if tilt_rpy is not None:
+        joint = (f'<link name="tilted_root"/><joint name="tilt" type="fixed"><parent link="tilted_root"/>'
+                 f'<child link="base_link"/><origin xyz="0 0 0" rpy="{" ".join(map(str, tilt_rpy))}"/></joint>')
+        text = text.replace("</robot>", joint + "</robot>")
+        up = tuple(rpy_matrix(tilt_rpy) @ [0.0, 0.0, 1.0])
+    return UrdfRobotModel(UrdfRobotSpec(
+        robot_description=text, mount_link="base_link", footprint_length_m=spec.body_length_m,
+        footprint_width_m=spec.body_width_m, footprint_offset_m=(0.0, 0.0, spec.body_height_m / 2),
+        wheel_link_regex=".*_wheel", min_wheels_in_contact=spec.min_wheels_in_contact, up_axis_xyz=up,
+        upright_tilt_deg=spec.upright_tilt_deg, profile_density_kgpm3=spec.profile_density_kgpm3))
+
+
+def test_rotation_onto_z_turns_any_axis_up():
+    for axis in ([0, 0, 1], [0, 0, -1], [1, 0, 0], [0, -1, 0], [1, 2, -3]):
+        turn = stable_poses._rotation_onto_z(axis)
+        assert turn @ (np.array(axis) / np.linalg.norm(axis)) == pytest.approx([0, 0, 1])
+        assert turn @ turn.T == pytest.approx(np.eye(3)) and np.linalg.det(turn) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("tilt_rpy", [None, (math.pi / 2, 0.0, 0.3)])
+def test_a_urdf_robot_screens_like_the_same_robot_built_in(tilt_rpy):
+    """The chassis from its own URDF, also under a turned root frame, gives the built-in chassis' mass, COM height,
+    hull and screen: the screen reads any robot model, not the chassis spec."""
+    pytest.importorskip("pybullet")
+    spec = ChassisSpec()
+    settings = stable_poses.ScreenSettings(com_sigma_m=0.0)
+    ridge = ridge_profile(spec)
+    for profile in (None, ridge):
+        built_in = stable_poses.robot_hull(ChassisModel(spec), profile)
+        urdf = stable_poses.robot_hull(chassis_as_urdf_robot(tilt_rpy), profile)
+        assert urdf.mass_kg == pytest.approx(built_in.mass_kg, rel=1e-4)
+        # heights above the lowest point are frame-free (the URDF base sits at the COM, the chassis' at its box)
+        assert urdf.com_m[2] - urdf.hull.bounds[0][2] == pytest.approx(built_in.com_m[2] - built_in.hull.bounds[0][2],
+                                                                       abs=1e-4)
+        assert np.ptp(urdf.hull.bounds, axis=0)[2] == pytest.approx(np.ptp(built_in.hull.bounds, axis=0)[2], abs=2e-3)
+        assert urdf.hull.volume == pytest.approx(built_in.hull.volume, rel=0.03)   # PyBullet's cylinder tessellation
+        expected = stable_poses.screen_body(built_in, spec.upright_tilt_deg).upright_probability
+        screened = stable_poses.screen_robot(chassis_as_urdf_robot(tilt_rpy), profile, settings).upright_probability
+        assert screened == pytest.approx(expected, abs=0.03)
+
+
+def test_husky_screen_agrees_with_low_energy_pybullet_drops():
+    """A robot nobody here wrote: the Husky's hull from its URDF collision shapes, screened, against drops."""
+    pytest.importorskip("pybullet")
+    from rollability_ros.core.evaluation import load_settings
+
+    model = load_settings(("sim", "robot", "evaluator", "husky")).robot_model()
+    body = stable_poses.robot_hull(model)
+    assert body.mass_kg == pytest.approx(model.mounted.robot.mass_kg, rel=1e-4)
+    wheel_radius = max(model.wheel_radii_m())
+    assert np.ptp(body.hull.bounds, axis=0)[2] > 2 * wheel_radius            # wheels and body are both in it
+    expected = stable_poses.screen_body(body, model.upright_tilt_deg).upright_probability
+    assert 0.05 < expected < 0.95
+    drops = 150
+    upright, settled = stable_poses.drop_trials(stable_poses.chassis_spawner(model, None), drops, 7,
+                                                PhysicsParams(), TrialSettings())
+    assert settled == drops
+    assert abs(upright / drops - expected) <= 3 * math.sqrt(expected * (1 - expected) / drops), (upright, expected)

@@ -1,6 +1,7 @@
 """The process supervisor: order, restart on death, give up and stop everything, stop in reverse order."""
 import os
 import signal
+import subprocess
 import sys
 import time
 
@@ -87,3 +88,41 @@ def test_a_finished_job_is_not_a_failure(tmp_path):
     assert sup.wait_for_exit("job", timeout_s=20, on_tick=lambda: ticks.append(1)) == (0, "")
     assert sup.poll() and sup.failed == ""
     sup.stop()
+
+
+SUPERVISOR = """
+import sys, time
+from rollability_ros.core.supervisor import ProcessSpec, Supervisor
+script, log_dir = sys.argv[1], sys.argv[2]
+supervisor = Supervisor([ProcessSpec(name=n, argv=[sys.executable, script, n, "run"]) for n in ("a", "b")], log_dir,
+                        on_event=lambda event: None)
+supervisor.start()
+print(" ".join(str(supervisor.child(n).pid) for n in ("a", "b")), flush=True)
+while supervisor.poll():
+    time.sleep(0.1)
+"""
+
+
+def test_children_get_sigterm_when_the_supervisor_is_killed(tmp_path):
+    """kill -9 of `rollability bringup` / `study` leaves no node running: the kernel tells each child."""
+    _spec(tmp_path, "unused")                                        # writes the child script
+    parent = subprocess.Popen([sys.executable, "-c", SUPERVISOR, str(tmp_path / "child.py"), str(tmp_path / "logs")],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        pids = [int(pid) for pid in parent.stdout.readline().split()]
+    finally:
+        parent.kill()
+        parent.wait()
+    deadline = time.monotonic() + 20
+    while any(_running(pid) for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(_running(pid) for pid in pids), f"children outlived their supervisor: {pids}"
+
+
+def _running(pid):
+    """True while ``pid`` exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as stream:
+            return stream.read().rsplit(")", 1)[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

@@ -1,0 +1,89 @@
+"""optimizer.initial_mean_screen: the run starts from the best of several random means by the stable-pose screen."""
+import os
+import types
+
+import numpy as np
+import pytest
+
+pytest.importorskip("cma")
+
+from rollability_ros.core.geometry import ProfileGrid  # noqa: E402
+from rollability_ros.core.optimisation_run import OptimisationRun, SyntheticEvaluator, profile_screen  # noqa: E402
+from rollability_ros.core.optimiser import random_initial_means  # noqa: E402
+from rollability_ros.core.optimisation_run import optimizer_settings  # noqa: E402
+
+GRID = ProfileGrid(rows=3, cols=3)
+OPTIMUM = np.linspace(0.05, 0.4, GRID.n_variables)
+
+
+def parameters(screen, **overrides):
+    return {"optimizer.max_generations": 3, "optimizer.seed": 5, "optimizer.trials": 30, "optimizer.popsize": 6,
+            "optimizer.initial_mean_screen": screen, **overrides}
+
+
+def fake_screen(calls):
+    """A screen scoring a profile by its mean height (taller = more upright), ties broken by the barrier."""
+    def screen(heights_list):
+        calls.append([np.array(h) for h in heights_list])
+        return [types.SimpleNamespace(upright_probability=round(float(np.mean(h)), 1),
+                                      worst_barrier_m=float(h[0])) for h in heights_list]
+    return screen
+
+
+def test_without_the_screen_the_run_starts_from_the_papers_random_mean(tmp_path):
+    run = OptimisationRun(os.path.join(tmp_path, "run"), parameters(0), GRID, SyntheticEvaluator(OPTIMUM, 30))
+    expected = random_initial_means(optimizer_settings(parameters(0)), GRID.n_variables)[0]
+    assert np.array_equal(run.optimizer.initial_mean, expected)
+    assert run.initial_mean_screen is None
+    assert "initial_mean_screen" not in run.store.run_info(run.run_id)["info"]
+    run.close()
+    with pytest.raises(ValueError, match="initial_mean_screen must be >= 0"):
+        OptimisationRun(os.path.join(tmp_path, "bad"), parameters(-1), GRID, SyntheticEvaluator(OPTIMUM, 30))
+
+
+def test_the_screened_start_is_the_best_candidate_recorded_and_kept_on_resume(tmp_path):
+    run_dir = os.path.join(tmp_path, "run")
+    calls = []
+    run = OptimisationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30),
+                          screen_profiles=fake_screen(calls))
+    means = random_initial_means(optimizer_settings(parameters(8)), GRID.n_variables)
+    assert len(calls) == 1 and np.array_equal(np.array(calls[0]), means)
+    keys = [(round(float(np.mean(m)), 1), -float(m[0])) for m in means]
+    chosen = max(range(8), key=keys.__getitem__)
+    assert np.array_equal(run.optimizer.initial_mean, means[chosen])
+    info = run.store.run_info(run.run_id)["info"]["initial_mean_screen"]
+    assert info["chosen"] == chosen and len(info["upright_probability"]) == 8
+    run.step()
+    run.close()
+
+    resumed = OptimisationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30), resume=True,
+                              screen_profiles=fake_screen(calls))
+    assert resumed.optimizer.generation == 1
+    assert np.array_equal(resumed.optimizer.initial_mean, means[chosen])
+    resumed.close()
+
+    with pytest.raises(ValueError, match="different initial mean"):      # the screen changed under the run
+        OptimisationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30), resume=True,
+                        screen_profiles=lambda heights: [types.SimpleNamespace(upright_probability=0.0,
+                                                                               worst_barrier_m=float(h[1]))
+                                                         for h in heights])
+    with pytest.raises(ValueError, match="needs the stable-pose screen"):
+        OptimisationRun(os.path.join(tmp_path, "other"), parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30))
+
+
+def test_the_real_screen_ranks_random_means_on_the_robot_in_use():
+    pytest.importorskip("pybullet")
+    pytest.importorskip("trimesh")
+    from rollability_ros.core.evaluation import EvaluatorSettings
+
+    settings = EvaluatorSettings(grid=GRID)
+    params = parameters(4, **{"stable_poses.com_sigma_m": 0.0})
+    screen = profile_screen(params, settings)
+    means = random_initial_means(optimizer_settings(params), GRID.n_variables)
+    screens = screen(list(means))
+    probabilities = [s.upright_probability for s in screens]
+    assert all(0.0 <= p <= 1.0 for p in probabilities) and len(set(probabilities)) > 1
+    assert all(s.worst_barrier_m >= 0 for s in screens)
+    assert profile_screen(parameters(0), settings) is None
+    with pytest.raises(Exception, match="com_sigma_m"):
+        profile_screen(parameters(4, **{"stable_poses.com_sigma_m": 0.5}), settings)

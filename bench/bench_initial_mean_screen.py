@@ -36,7 +36,7 @@ def one_run(parameters, settings, executor, run_dir):
     run.run()
     total_s = time.perf_counter() - started
     generations = run.store.generations(run.run_id)
-    best = run.optimizer.result().best.fitness
+    best = run.optimizer.result.best.fitness
     run.close()
     screened = run.initial_mean_screen
     start_probability = screened["upright_probability"][screened["chosen"]] if screened else None

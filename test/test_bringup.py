@@ -60,3 +60,41 @@ def test_a_killed_node_is_restarted_and_ctrl_c_stops_everything(tmp_path):
     assert all(code == "0" for _, code in stopped), output
     assert not bag_info(session / "bag")["warnings"]
     assert not _still_running(output)
+
+
+def test_killing_bringup_with_sigkill_stops_every_node_and_closes_the_bag(tmp_path):
+    """kill -9 of the supervisor itself: the kernel sends each node SIGTERM (PR_SET_PDEATHSIG), so none is left
+    running and the recorder closes its bag as on a clean stop."""
+    from mcap.reader import make_reader
+
+    from rollability_ros.core.bag_reader import bag_info
+    from rollability_ros.core.bag_writer import RECOVERY_SIDECAR
+
+    config = tmp_path / "small.yaml"
+    config.write_text(SMALL)
+    process = subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "bringup", "--config", str(config),
+                                "--session-id", "lab"], cwd=tmp_path, stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    lines = []
+    try:
+        _read_until(process, r"\[optimizer\] started", lines)
+        time.sleep(3)                                   # let the graph come up
+        process.kill()                                  # only the supervisor: the nodes run in their own sessions
+        process.wait(timeout=30)
+        output = "".join(lines)
+        deadline = time.monotonic() + 60
+        while _still_running(output) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert not _still_running(output), output
+    finally:
+        if process.poll() is None:
+            process.kill()
+        for pid in _still_running("".join(lines)) if "started: pid" in "".join(lines) else ():
+            os.kill(pid, signal.SIGKILL)
+    bag = tmp_path / "runs" / "lab" / "bag"
+    # closed, not abandoned: the recovery sidecar is gone and every file has its summary
+    assert not (bag / RECOVERY_SIDECAR).exists(), os.listdir(bag)
+    assert not bag_info(bag)["warnings"]
+    for path in bag.glob("*.mcap"):
+        with open(path, "rb") as stream:
+            assert make_reader(stream).get_summary() is not None, path

@@ -16,7 +16,10 @@ is the vertex at x index ``i`` and y index ``j`` (``j = 0`` next to the centre l
 edge y = +width/2). The mirror about the x-z plane gives the y < 0 half.
 
 The mesh is the convex hull of the 200 top vertices and the four footprint corners at z = 0, so it always sits
-on the chassis top and covers the whole footprint. trimesh is imported inside the functions that need it.
+on the chassis top and covers the whole footprint. A top vertex lower than :data:`BASE_SNAP_M` is put on the
+base plane first: an outer vertex a few nanometres above its footprint corner (CMA-ES proposes such heights next
+to the lower bound) would otherwise be merged with the corner and leave the hull open. trimesh is imported
+inside the functions that need it.
 """
 import dataclasses
 import os
@@ -24,6 +27,10 @@ import os
 import numpy as np
 
 from rollability_ros.core.optional import require
+
+#: Top vertices lower than this (m) lie on the base plane in the mesh: far below print and simulation resolution,
+#: far above trimesh's vertex-merge tolerance (1e-8 m).
+BASE_SNAP_M = 1e-6
 
 
 @dataclasses.dataclass
@@ -177,6 +184,7 @@ def profile_mesh(heights, grid):
     if top[:, 2].max() <= grid.flat_tolerance * grid.unit_m:
         raise ValueError(f"profile is flat: tallest vertex {top[:, 2].max() / grid.unit_m:.3g} units is within "
                          f"flat_tolerance {grid.flat_tolerance}; use the baseline instead")
+    top[top[:, 2] < BASE_SNAP_M, 2] = 0.0
     half_l, half_w = grid.length_m / 2, grid.width_m / 2
     corners = np.array([[sx * half_l, sy * half_w, 0.0] for sx in (-1, 1) for sy in (-1, 1)])
     return _hull(np.vstack([top, corners]))

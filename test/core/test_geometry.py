@@ -63,6 +63,22 @@ def test_random_profile_mesh_is_watertight_symmetric_and_contains_its_vertices()
     assert profile_metrics(heights, GRID).com_shift_m[1] == pytest.approx(0.0, abs=1e-12)
 
 
+def test_heights_a_hair_above_the_base_still_make_a_closed_mesh():
+    """CMA-ES puts heights a few nanometres above the lower bound; at an outer vertex that is nearly the footprint
+    corner below it (a real optimisation run died on 3.7e-9 units). Fuzz such heights on random profiles."""
+    grid = ProfileGrid(rows=4, cols=4, unit_m=0.2)
+    corner = np.r_[0.4453, 0.2439, 0.3875, 3.67e-9, 0.2813, 0.2197, 0.3382, 0.105, 0.377, 0.2279, 0.4013, 0.1581,
+                   0.1637, 0.4178, 0.4483, 0.1604]                      # the run's candidate, rounded
+    meshes = [profile_mesh(corner, grid)]
+    rng = np.random.default_rng(1)
+    for _ in range(300):
+        heights = rng.uniform(0, 0.45, grid.n_variables)
+        tiny = rng.choice(grid.n_variables, rng.integers(1, 8), replace=False)
+        heights[tiny] = 10.0 ** rng.uniform(-12, -2, tiny.size) / grid.unit_m
+        meshes.append(profile_mesh(heights, grid))
+    assert all(mesh.is_watertight and mesh.volume > 0 for mesh in meshes)
+
+
 @pytest.mark.parametrize("bad, message", [
     (np.full(99, 0.1), "needs 100"),
     (np.full((10, 10), 0.1), "flat list"),

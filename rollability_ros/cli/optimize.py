@@ -81,8 +81,7 @@ def run(args):
         trials = optimisation_run.optimizer_settings(parameters).trials
         evaluate_batch = optimisation_run.profile_batch_evaluator(settings, trials, executor)
         run = optimisation_run.OptimisationRun(run_dir, parameters, settings.grid, evaluate_batch,
-                                               resume=bool(args.resume),
-                                               screen_profiles=optimisation_run.profile_screen(parameters, settings))
+                                               resume=bool(args.resume))
         progress = ProgressLine(run)
         run.on_candidate, run.on_generation = progress.candidate, progress.generation
         print(f"run {run.run_id} in {run.run_dir}: {settings.grid.rows}x{settings.grid.cols} grid, "

@@ -127,9 +127,10 @@ class OptimisationRun:
     on_generation : callable(GenerationRecord), optional
         Called after each generation is stored and checkpointed.
     screen_profiles : callable(heights_list) -> [StableScreen, ...], optional
-        The stable-pose screen of half-grid heights (:func:`stable_poses.profile_screener`); needed when
-        ``optimizer.initial_mean_screen`` > 0: the run then starts from the random initial mean with the highest
-        quasi-static P(upright) (ties: the lowest worst barrier), recorded in the store's run info.
+        The stable-pose screen of half-grid heights, used when ``optimizer.initial_mean_screen`` > 0: the run then
+        starts from the random initial mean with the highest quasi-static P(upright) (ties: the lowest worst
+        barrier), recorded in the store's run info. Default: :func:`profile_screen` on the robot that
+        ``parameters`` describe (a caller whose parameters do not hold the robot, the node, passes its own).
 
     ``on_candidate`` and ``on_generation`` are also public attributes, settable after construction.
     """
@@ -165,7 +166,9 @@ class OptimisationRun:
         if self.settings.initial_mean_screen == 0:
             return None
         if screen_profiles is None:
-            raise ValueError("optimizer.initial_mean_screen > 0 needs the stable-pose screen, and none was given")
+            from rollability_ros.core.evaluation import settings_from_parameters
+
+            screen_profiles = profile_screen(self.parameters, settings_from_parameters(self.parameters))
         means = random_initial_means(self.settings, self.grid.n_variables, self.grid.height_min, self.grid.height_max)
         screens = screen_profiles(list(means))
         chosen = max(range(len(means)), key=lambda i: (screens[i].upright_probability, -screens[i].worst_barrier_m))

@@ -67,8 +67,19 @@ def test_the_screened_start_is_the_best_candidate_recorded_and_kept_on_resume(tm
                         screen_profiles=lambda heights: [types.SimpleNamespace(upright_probability=0.0,
                                                                                worst_barrier_m=float(h[1]))
                                                          for h in heights])
-    with pytest.raises(ValueError, match="needs the stable-pose screen"):
-        OptimisationRun(os.path.join(tmp_path, "other"), parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30))
+
+
+def test_by_default_the_run_screens_the_robot_its_parameters_describe(tmp_path):
+    pytest.importorskip("pybullet")
+    pytest.importorskip("trimesh")
+    from rollability_ros.core.evaluation import settings_from_parameters
+
+    params = parameters(4, **{"profile.rows": 3, "profile.cols": 3, "stable_poses.com_sigma_m": 0.0})
+    run = OptimisationRun(os.path.join(tmp_path, "run"), params, GRID, SyntheticEvaluator(OPTIMUM, 30))
+    expected = [s.upright_probability for s in profile_screen(params, settings_from_parameters(params))(
+        list(random_initial_means(optimizer_settings(params), GRID.n_variables)))]
+    assert run.initial_mean_screen["upright_probability"] == [round(p, 4) for p in expected]
+    run.close()
 
 
 def test_the_real_screen_ranks_random_means_on_the_robot_in_use():

@@ -87,6 +87,7 @@ def run(args):
         print(f"run {run.run_id} in {run.run_dir}: {settings.grid.rows}x{settings.grid.cols} grid, "
               f"popsize {run.settings.popsize}, {trials} trials per candidate, "
               f"{'resuming after' if args.resume else 'starting at'} generation {run.optimizer.generation}")
+        print(run.initial_mean_text())
         try:
             result = run.run()
         except KeyboardInterrupt:

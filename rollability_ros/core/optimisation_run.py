@@ -176,6 +176,16 @@ class OptimisationRun:
         return {"chosen": chosen, "upright_probability": [round(s.upright_probability, 4) for s in screens],
                 "worst_barrier_m": [round(s.worst_barrier_m, 5) for s in screens]}
 
+    def initial_mean_text(self):
+        """One line on where CMA-ES started, for the CLI and the node log."""
+        screen = self.initial_mean_screen
+        if screen is None:
+            return "initial mean: one random mean (optimizer.initial_mean_screen 0)"
+        chosen = screen["chosen"]
+        return (f"initial mean: #{chosen} of {len(screen['upright_probability'])} random means by the stable-pose "
+                f"screen (quasi-static P(upright) {screen['upright_probability'][chosen]:.3f}, worst barrier "
+                f"{screen['worst_barrier_m'][chosen] * 1000:.1f} mm)")
+
     def _new_optimizer(self):
         return ProfileOptimizer(self.grid.n_variables, self.settings, self.grid.height_min, self.grid.height_max,
                                 self._clock, self._initial_mean)

@@ -352,7 +352,7 @@ class Optimizer(Node):
         try:
             log.info(f"run {run.run_id} in {run.run_dir}: {'resuming after' if resume else 'starting at'} "
                      f"generation {run.optimizer.generation}, popsize {run.settings.popsize}, "
-                     f"{run.settings.trials} trials per candidate")
+                     f"{run.settings.trials} trials per candidate; {run.initial_mean_text()}")
             self._publish_best(run)
             run.on_generation = lambda record: self._publish_generation(record, run)
             while not run.optimizer.stop() and not self._stop_requested.is_set():

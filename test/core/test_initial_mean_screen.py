@@ -53,6 +53,7 @@ def test_the_screened_start_is_the_best_candidate_recorded_and_kept_on_resume(tm
     assert np.array_equal(run.optimizer.initial_mean, means[chosen])
     info = run.store.run_info(run.run_id)["info"]["initial_mean_screen"]
     assert info["chosen"] == chosen and len(info["upright_probability"]) == 8
+    assert run.initial_mean_text().startswith(f"initial mean: #{chosen} of 8 random means by the stable-pose screen")
     run.step()
     run.close()
 

@@ -6,6 +6,7 @@ import re
 import signal
 import sqlite3
 import threading
+import time
 
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome
 from rollability_ros.core.store import Store
@@ -37,11 +38,20 @@ class LoggerPeer:
         self.candidates = node.create_publisher(CandidateResult, "/candidates", RECORD_QOS)
         self.generations = node.create_publisher(GenerationSummary, "/generations", RECORD_QOS)
         self.summaries = []
+        self.summary_sent_ns = []     # source timestamp of each summary (wall clock of its publisher, ns)
         # deeper than the publisher's 1 (still compatible): a burst of summaries is not squeezed into one slot
         summary_qos = QoSProfile(depth=100, reliability=LATCHED_QOS.reliability, durability=LATCHED_QOS.durability)
-        node.create_subscription(OutcomeSummary, "/summary", self.summaries.append, summary_qos)
+        node.create_subscription(OutcomeSummary, "/summary", self._on_summary, summary_qos)
         self.client = node.create_client(GetSummary, "/get_summary")
         self.request_type = GetSummary.Request
+
+    def _on_summary(self, msg, info):
+        self.summaries.append(msg)
+        self.summary_sent_ns.append(info["source_timestamp"])
+
+    def summaries_sent_after(self, ns):
+        """The summaries published after wall-clock time ``ns`` (a late delivery from a killed logger is not)."""
+        return [msg for msg, sent in zip(self.summaries, self.summary_sent_ns) if sent > ns]
 
     def wait_connected(self, logger):
         publishers = (self.outcomes, self.candidates, self.generations)
@@ -175,10 +185,11 @@ def test_acknowledged_outcomes_survive_sigkill(tmp_path, ros_node, start_node):
 
     # restarted on the same store: it starts from what was stored, then catches up by itself from the
     # publisher's transient-local history (RECORD_QOS) without a resend; a full resend then adds nothing
-    peer.summaries.clear()
+    restarted_ns = time.time_ns()
     restarted = start_node("outcome_logger", params={"store_path": str(store_path)}, name="outcome_logger_again")
     peer.wait_connected(restarted)
-    assert peer.summaries[0].trials >= len(stored)
+    assert ros_node.wait_for(lambda: peer.summaries_sent_after(restarted_ns), 30), restarted.log()
+    assert peer.summaries_sent_after(restarted_ns)[0].trials >= len(stored)
     peer.wait_trials(len(published), restarted)
     assert peer.get_summary("run1").trials == len(published)
     for record in stream:

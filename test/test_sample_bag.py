@@ -51,13 +51,18 @@ def test_report_from_the_sample_equals_the_live_store(tmp_path):
     assert (tmp_path / "by_configuration.csv").read_text() == expected
 
 
-def test_sample_replays_into_the_logger_like_the_live_run(tmp_path, start_node, start_process):
+def test_sample_replays_into_the_logger_like_the_live_run(tmp_path, ros_node, start_node, start_process):
     from rollability_ros.core.bag_records import read_records_from_bag
     from rollability_ros.core.store import Store
+    from rollability_ros.srv import GetSummary
 
     store_path = tmp_path / "replayed.sqlite"
     logger = start_node("outcome_logger", params={"store_path": str(store_path)},
                         ros_args=["-r", "__ns:=/rollability"])
+    # the logger is up before the player starts: a player that outlives its 3 s wait for subscribers on a loaded
+    # machine would publish to nobody and exit
+    client = ros_node.node.create_client(GetSummary, "/rollability/get_summary")
+    assert client.wait_for_service(timeout_sec=30), logger.log()
     player = start_process("rollability_ros.cli", "play", str(SAMPLE), "--rate", "20", "--topics",
                            "/rollability/launch_outcomes", "/rollability/candidates", "/rollability/generations")
     assert player.process.wait(timeout=180) == 0, player.log()

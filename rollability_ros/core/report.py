@@ -253,7 +253,7 @@ def summary_text(data, views, comparison, points):
     if points:
         for run_id in sorted({p.run_id for p in points}):
             own = [p for p in points if p.run_id == run_id]
-            lines.append(f"optimisation {run_id}: {len(own)} generations, best fitness {own[-1].best_so_far:.3f}")
+            lines.append(f"optimisation run {run_id!r}: {len(own)} generations, best fitness {own[-1].best_so_far:.3f}")
     if data.tip_events:
         recovered = sum(e.recovered for e in data.tip_events)
         lines.append(f"tip events: {len(data.tip_events)}, recovered {recovered}")

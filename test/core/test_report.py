@@ -123,7 +123,8 @@ def test_html_report_renders_its_figures_in_headless_chromium(store_report, tmp_
                      "document.body.setAttribute('data-decoded', [...document.images].map(i => i.complete ? "
                      "i.naturalWidth + 'x' + i.naturalHeight : 'pending').join(' ')))</script>")
     dom = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                          "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=5000",
+                          "--disable-quic", "--disable-component-update", "--disable-sync", "--no-first-run",
+                          f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=5000",
                           "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=120,
                          env=dict(os.environ, HOME=str(tmp_path))).stdout
     decoded = re.search(r'data-decoded="([^"]*)"', dom)

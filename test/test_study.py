@@ -89,3 +89,98 @@ def test_ctrl_c_stops_every_node_and_closes_the_bag(tmp_path):
     info = bag_info(study_dir / "bag")
     assert not info["warnings"], info["warnings"]
     assert not _still_running(output)
+
+
+RESUMABLE = """
+/**:
+  ros__parameters:
+    optimizer:
+      max_generations: 8
+    campaign:
+      repetitions: 5
+"""
+
+
+def _study_to_file(tmp_path, log_name, *args):
+    """Start ``rollability study ARGS`` with its output in ``tmp_path/log_name``; return (process, log path)."""
+    log = tmp_path / log_name
+    with open(log, "w") as stream:
+        process = subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "study", *args], cwd=tmp_path,
+                                   stdout=stream, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    return process, log
+
+
+def _kill_when(process, log, ready, what):
+    """SIGKILL the study process (only it: its nodes must stop by themselves) once ``ready()``; wait for them."""
+    deadline = time.monotonic() + 300
+    while not ready():
+        assert process.poll() is None and time.monotonic() < deadline, f"no {what}:\n{log.read_text()}"
+        time.sleep(0.05)
+    process.kill()
+    process.wait(timeout=30)
+    deadline = time.monotonic() + 60
+    while _still_running(log.read_text()) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not _still_running(log.read_text()), log.read_text()
+
+
+def test_a_study_killed_twice_resumes_to_the_same_complete_result(tmp_path):
+    """kill -9 mid-optimisation, resume, kill -9 mid-campaign, resume: every trial once, every bag readable."""
+    from rollability_ros.core import report
+    from rollability_ros.core.bag_reader import bag_info
+    from rollability_ros.core.bag_records import read_records_from_bag
+    from rollability_ros.core.store import Store
+
+    config = tmp_path / "resumable.yaml"
+    config.write_text(RESUMABLE)
+    study_dir = tmp_path / "runs" / "killed"
+    designs = study_dir / "optimisation" / "designs" / "designs.yaml"
+
+    def generations():
+        path = study_dir / "optimisation" / "store.sqlite"
+        if not path.exists():
+            return 0
+        with Store(path) as store:
+            return len(store.generations())
+
+    def trials():
+        path = study_dir / "outcomes.sqlite"
+        if not path.exists():
+            return 0
+        with Store(path) as store:
+            return len(store.trial_ids("killed"))
+
+    process, log = _study_to_file(tmp_path, "first.log", "--config", MINI, "--config", str(config),
+                                  "--study-id", "killed")
+    _kill_when(process, log, lambda: generations() >= 1, "generation")
+    assert not designs.exists() and generations() < 8, log.read_text()
+
+    process, log = _study_to_file(tmp_path, "second.log", "--resume", "killed")
+    _kill_when(process, log, lambda: trials() >= 1, "stored trial")
+    output = log.read_text()
+    assert "resuming the optimisation from its last checkpoint" in output and designs.exists(), output
+    assert 1 <= trials() < 30, output
+
+    process, log = _study_to_file(tmp_path, "third.log", "--resume", str(study_dir))
+    assert process.wait(timeout=600) == 0, log.read_text()
+    output = log.read_text()
+    assert "finished before: continuing with the campaign" in output, output
+    assert not _still_running(output)
+
+    with Store(study_dir / "outcomes.sqlite") as store:
+        outcomes = store.launch_outcomes("killed")
+    with Store(study_dir / "optimisation" / "store.sqlite") as store:
+        candidates = store.candidates()
+        assert [g.generation for g in store.generations()] == list(range(8))
+    assert len(outcomes) == len({o.trial_id for o in outcomes}) == 30          # 3 configurations x 2 angles x 5
+    assert len(candidates) == len({(c.generation, c.index) for c in candidates}) == 8 * 5
+    bags = sorted(p.name for p in study_dir.glob("bag*"))
+    assert bags == ["bag", "bag-2", "bag-3"], bags
+    bagged = {o.trial_id for name in bags for o in read_records_from_bag(study_dir / name)[0] if o.run_id == "killed"}
+    assert bagged == {o.trial_id for o in outcomes}
+    assert all(not bag_info(study_dir / name)["warnings"] for name in bags)
+    assert report.load_report_data(study_dir / "outcomes.sqlite", run_id="killed").outcomes
+    assert (study_dir / "report" / "report.html").is_file()
+
+    process, log = _study_to_file(tmp_path, "bad.log", "--resume", "nothing-here")
+    assert process.wait(timeout=60) != 0 and "no study to resume" in log.read_text(), log.read_text()

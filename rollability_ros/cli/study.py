@@ -5,7 +5,7 @@ import signal
 def run(args):
     from rollability_ros.core.study import Study
 
-    study = Study(extra_configs=args.config, study_id=args.study_id)
+    study = Study(extra_configs=args.config, study_id=args.study_id, resume=args.resume)
     signal.signal(signal.SIGINT, lambda *_: study.request_stop())
     signal.signal(signal.SIGTERM, lambda *_: study.request_stop())
     result = study.run()
@@ -22,6 +22,7 @@ def run(args):
     print(f"  node logs:              {result.study_dir}/logs/")
     if not result.ok:
         print(f"study did not complete: {result.reason}")
+        print(f"continue it with: rollability study --resume {result.study_dir}")
         return 1
     return 0
 
@@ -32,9 +33,14 @@ def register(subparsers):
         description="Run the whole loop through the real node graph (supervised processes): CMA-ES over "
         "simulated evaluators, design selection (A/B/C), the launch campaign on the simulated rig for the "
         "baseline and the designs, durable logging, an MCAP bag, and the report. The default is the quick "
-        "configuration (minutes on 2 cores); --config paper runs the paper's settings.")
+        "configuration (minutes on 2 cores); --config paper runs the paper's settings. A study stopped or killed "
+        "midway continues with --resume: nothing stored is redone.")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="extra ROS 2 parameter file(s) on top of the defaults (a shipped name such as "
                              "'paper', or a path); repeatable, later files win")
     parser.add_argument("--study-id", default=None, help="name of the study directory (default: study-<UTC time>)")
+    parser.add_argument("--resume", metavar="STUDY", default=None,
+                        help="continue study STUDY (its id under bringup.output_dir, or its directory) on its saved "
+                             "parameter files: the optimisation from its last checkpoint (skipped once designs were "
+                             "selected), the campaign without the trials already stored, a new bag beside the old")
     parser.set_defaults(func=run)

@@ -57,12 +57,15 @@ def new_study_id(now=None):
     return now.strftime("study-%Y%m%d-%H%M%S")
 
 
-def core_nodes(settings, study_dir):
-    """The always-on part of the graph: recorder, outcome_logger, valve_controller, evaluators."""
+def core_nodes(settings, study_dir, bag_dir=None):
+    """The always-on part of the graph: recorder, outcome_logger, valve_controller, evaluators.
+
+    The recorder writes ``bag_dir`` (default ``<study_dir>/bag``); the logger's store is ``<study_dir>/outcomes.sqlite``.
+    """
     nodes = []
     namespace = settings.namespace.rstrip("/")
     if settings.record:
-        nodes.append(NodeLaunch("recorder", params={"recorder.output_dir": os.path.join(study_dir, "bag")},
+        nodes.append(NodeLaunch("recorder", params={"recorder.output_dir": bag_dir or os.path.join(study_dir, "bag")},
                                 stop_timeout_s=30.0))
     nodes.append(NodeLaunch("outcome_logger", params={"store_path": os.path.join(study_dir, "outcomes.sqlite")}))
     nodes.append(NodeLaunch("valve_controller", params={"valve.backend": settings.valve_backend}))

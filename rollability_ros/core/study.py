@@ -10,13 +10,21 @@
 5. The report (figures, tables, HTML) is written from the logger's store, and the bag is read back to check it
    holds the same launch outcomes.
 
-Everything lands in ``<output_dir>/<study id>/``: ``optimisation/`` (run store, checkpoint, designs/ with STL
-files), ``outcomes.sqlite`` (the logger's store), ``bag/`` (MCAP), ``report/``, ``logs/`` (one log per node),
-``study.yaml`` (the parameters added for the campaign). This module never imports rclpy: it runs processes and
-reads stores.
+Everything lands in ``<output_dir>/<study id>/``: ``config/`` (copies of the parameter files the study runs
+on, in load order), ``optimisation/`` (run store, checkpoint, designs/ with STL files), ``outcomes.sqlite``
+(the logger's store), ``bag/`` (MCAP), ``report/``, ``logs/`` (one log per node), ``study.yaml`` (the parameters
+added for the campaign). This module never imports rclpy: it runs processes and reads stores.
+
+Resume (``rollability study --resume STUDY``) continues a study that was stopped or killed, on its own copied
+parameter files: a bag left open by a crash is recovered first and the graph records into the next free
+``bag-<n>/``; the optimisation resumes from its last checkpoint, or is skipped once designs were selected; the
+campaign runner skips the trials already stored. Nothing stored is redone or stored twice, and the report's
+bag check reads every bag of the study.
 """
 import dataclasses
+import glob
 import os
+import shutil
 
 import yaml
 
@@ -28,6 +36,8 @@ from rollability_ros.core.supervisor import Supervisor
 
 #: The optimisation run inside a study directory.
 OPTIMISATION_DIR = "optimisation"
+#: The study's copies of its parameter files, inside the study directory.
+CONFIG_DIR = "config"
 
 
 @dataclasses.dataclass
@@ -45,12 +55,20 @@ class StudyResult:
 class Study:
     """Runs the main job (module docstring) and reports progress through ``say(text)``."""
 
-    def __init__(self, extra_configs=(), study_id=None, say=print):
+    def __init__(self, extra_configs=(), study_id=None, say=print, resume=None):
         self.param_files = parameter_files(["bringup", *extra_configs])
+        self.resuming = resume is not None
+        if self.resuming:
+            if extra_configs or study_id:
+                raise ValueError("a resumed study runs on its own saved configuration: no --config or --study-id")
+            self.study_dir = resume_dir(resume, load_graph_settings(self.param_files).output_dir)
+            self.study_id = os.path.basename(os.path.normpath(self.study_dir))
+            self.param_files = saved_parameter_files(self.study_dir)
         self.settings = load_graph_settings(self.param_files)
         self.parameters = load_parameters(self.param_files)
-        self.study_id = study_id or new_study_id()
-        self.study_dir = os.path.join(self.settings.output_dir, self.study_id)
+        if not self.resuming:
+            self.study_id = study_id or new_study_id()
+            self.study_dir = os.path.join(self.settings.output_dir, self.study_id)
         self.say = say
         self._stop_requested = False
 
@@ -66,10 +84,39 @@ class Study:
     def store_path(self):
         return os.path.join(self.study_dir, "outcomes.sqlite")
 
-    def _optimizer(self):
+    def _optimizer(self, resume):
         return NodeLaunch("optimizer", namespace=self.settings.namespace, params={
             "run_id": OPTIMISATION_DIR, "optimizer.output_dir": self.study_dir, "autostart": True,
-            "select_designs": True, "exit_on_finish": True})
+            "select_designs": True, "exit_on_finish": True, "resume": resume})
+
+    def _save_parameter_files(self):
+        """Copy the parameter files into ``config/`` (numbered in load order) and run on the copies."""
+        folder = os.path.join(self.study_dir, CONFIG_DIR)
+        os.makedirs(folder)
+        copies = []
+        for index, path in enumerate(self.param_files):
+            copies.append(os.path.join(folder, f"{index:02d}-{os.path.basename(path)}"))
+            shutil.copyfile(path, copies[-1])
+        self.param_files = copies
+
+    def bag_dirs(self):
+        """The study's bag directories in recording order: ``bag``, then one ``bag-<n>`` per resume."""
+        found = [path for path in glob.glob(os.path.join(self.study_dir, "bag*")) if os.path.isdir(path)]
+        return sorted(found, key=lambda path: (len(path), path))
+
+    def _next_bag_dir(self):
+        """``bag`` for a new study; for a resumed one the next free ``bag-<n>``, after recovering open bags."""
+        from rollability_ros.core.bag_recover import recover
+        from rollability_ros.core.bag_writer import RECOVERY_SIDECAR
+
+        existing = self.bag_dirs()
+        for path in existing:
+            if os.path.exists(os.path.join(path, RECOVERY_SIDECAR)):
+                self.say(f"  recovering {path}: its recorder was killed before closing it")
+                recover(path)
+        if not existing:
+            return os.path.join(self.study_dir, "bag")
+        return os.path.join(self.study_dir, f"bag-{len(existing) + 1}")
 
     def _campaign_nodes(self, labels):
         configurations = ["baseline", *labels]
@@ -83,7 +130,7 @@ class Study:
                                         "rig.twin_config": twin_config})
         runner = NodeLaunch("campaign_runner", namespace=self.settings.namespace, restart=False, params={
             "campaign.run_id": self.study_id, "campaign.configurations": configurations,
-            "runner.backend": "sim", "runner.store_path": self.store_path})
+            "runner.backend": "sim", "runner.store_path": self.store_path, "runner.resume": self.resuming})
         return rig, runner
 
     def _progress_optimisation(self):
@@ -117,24 +164,34 @@ class Study:
                                         lambda: self._stop_requested, tick)
 
     def run(self):
-        """Run the whole study; always stops the graph; returns a :class:`StudyResult`."""
-        os.makedirs(self.study_dir, exist_ok=False)
-        self.say(f"study {self.study_id}: results in {self.study_dir}")
-        supervisor = Supervisor([n.process_spec(self.param_files) for n in core_nodes(self.settings, self.study_dir)],
+        """Run (or resume) the whole study; always stops the graph; returns a :class:`StudyResult`."""
+        if self.resuming:
+            self.say(f"study {self.study_id}: resuming in {self.study_dir}")
+        else:
+            os.makedirs(self.study_dir, exist_ok=False)
+            self._save_parameter_files()
+            self.say(f"study {self.study_id}: results in {self.study_dir}")
+        bag_dir = self._next_bag_dir() if self.settings.record else ""
+        supervisor = Supervisor([n.process_spec(self.param_files)
+                                 for n in core_nodes(self.settings, self.study_dir, bag_dir)],
                                 os.path.join(self.study_dir, "logs"),
                                 on_event=lambda event: self.say("  " + event.text()))
-        result = StudyResult(study_dir=self.study_dir, ok=False,
-                             bag_dir=os.path.join(self.study_dir, "bag") if self.settings.record else "")
+        result = StudyResult(study_dir=self.study_dir, ok=False, bag_dir=bag_dir)
         try:
             supervisor.start()
-            self.say("optimising the profile (CMA-ES over the evaluators)")
-            supervisor.add(self._optimizer().process_spec(self.param_files))
-            code, reason = self._wait(supervisor, "optimizer", self.settings.optimisation_timeout_s,
-                                      self._progress_optimisation)
-            if code != 0:
-                result.reason = reason
-                return result
-            labels = self._selected_labels()
+            if self._selected_labels() is None:
+                resume = os.path.isfile(os.path.join(self.optimisation_dir, "config.yaml"))
+                self.say("resuming the optimisation from its last checkpoint" if resume else
+                         "optimising the profile (CMA-ES over the evaluators)")
+                supervisor.add(self._optimizer(resume).process_spec(self.param_files))
+                code, reason = self._wait(supervisor, "optimizer", self.settings.optimisation_timeout_s,
+                                          self._progress_optimisation)
+                if code != 0:
+                    result.reason = reason
+                    return result
+            else:
+                self.say("the optimisation and design selection finished before: continuing with the campaign")
+            labels = self._selected_labels() or []
             self.say(f"designs selected: {', '.join(labels) or 'none'}; launching the campaign on the simulated rig")
             rig, runner = self._campaign_nodes(labels)
             supervisor.add(rig.process_spec(self.param_files))
@@ -162,9 +219,10 @@ class Study:
             self.say(f"  warning: the recorder has not subscribed to {full_name}; the bag may miss its messages")
 
     def _selected_labels(self):
+        """The labels of the selected designs (may be empty), or None before selection has written designs.yaml."""
         designs_yaml = os.path.join(self.optimisation_dir, "designs", "designs.yaml")
         if not os.path.isfile(designs_yaml):
-            return []
+            return None
         with open(designs_yaml, encoding="utf-8") as stream:
             document = yaml.safe_load(stream) or {}
         params = next(iter(document.values()), {}).get("ros__parameters", {})
@@ -189,10 +247,29 @@ class Study:
         if result.bag_dir:
             from rollability_ros.core.bag_records import read_records_from_bag
 
-            bag_outcomes = [o for o in read_records_from_bag(result.bag_dir)[0] if o.run_id == self.study_id]
+            bagged = {o.trial_id for path in self.bag_dirs() for o in read_records_from_bag(path)[0]
+                      if o.run_id == self.study_id}
             stored = {o.trial_id for o in data.outcomes}
-            if {o.trial_id for o in bag_outcomes} != stored:
+            if bagged != stored:
                 result.ok = False
-                result.reason = (f"the bag holds {len(bag_outcomes)} launch outcomes of this study, the store "
+                result.reason = (f"the bags hold {len(bagged)} launch outcomes of this study, the store "
                                  f"{len(stored)}: they differ")
         return result
+
+
+def resume_dir(study, output_dir):
+    """The directory of the study to resume: ``study`` as a path, else ``<output_dir>/<study>``; ``ValueError`` if
+    it holds no study (no saved ``config/``)."""
+    for candidate in (study, os.path.join(output_dir, study)):
+        if os.path.isdir(os.path.join(candidate, CONFIG_DIR)):
+            return os.path.normpath(candidate)
+    raise ValueError(f"no study to resume at {study!r} or {os.path.join(output_dir, study)!r} (a study directory "
+                     f"holds {CONFIG_DIR}/ with its parameter files)")
+
+
+def saved_parameter_files(study_dir):
+    """The study's copied parameter files, in load order."""
+    files = sorted(glob.glob(os.path.join(study_dir, CONFIG_DIR, "*.yaml")))
+    if not files:
+        raise ValueError(f"{study_dir}/{CONFIG_DIR}/ holds no parameter files")
+    return files

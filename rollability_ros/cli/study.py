@@ -17,6 +17,9 @@ def run(args):
     print(f"  outcome store:          {study.store_path}")
     if result.bag_dir:
         print(f"  bag (MCAP):             {result.bag_dir}   (rollability play {result.bag_dir})")
+        earlier = [path for path in study.bag_dirs() if path != result.bag_dir]
+        if earlier:
+            print(f"  earlier bags:           {', '.join(earlier)}")
     if result.report_html:
         print(f"  report:                 {result.report_html}")
     print(f"  node logs:              {result.study_dir}/logs/")

@@ -26,6 +26,8 @@ def _screen_rows(twin_settings, configurations, screen_settings):
 
 def summary_lines(result, screen_rows):
     """The printed summary: likelihood, parameters with uncertainty, per-configuration rates, rank agreement."""
+    from rollability_ros.core import analysis
+
     trials = sum(c.trials for c in result.conditions)
     lines = [f"grouped conditions: {len(result.conditions)}, physical trials: {trials}, parameter sets simulated: "
              f"{result.evaluations} x {result.sim_repetitions} launches per condition",
@@ -36,8 +38,8 @@ def summary_lines(result, screen_rows):
     lines += [f"{row['configuration']:<14} {row['measured_trial_rate']:>9.0%} {row['before_trial_rate']:>7.0%} "
               f"{row['after_trial_rate']:>7.0%}" for row in result.configuration_rows()]
     for label, agreement in result.rank_agreement().items():
-        lines.append(f"rank agreement {label}: Spearman rho {agreement.spearman_rho:.2f}, "
-                     f"Kendall tau-b {agreement.kendall_tau_b:.2f}")
+        lines.append(f"rank agreement {label}: "
+                     f"{analysis.rank_agreement_text(agreement.spearman_rho, agreement.kendall_tau_b)}")
     lines += [f"screen {row['configuration']}: quasi-static P(upright) {row['upright_probability']:.2f}, worst "
               f"barrier {row['worst_barrier_m'] * 1000:.1f} mm ({row['worst_barrier_j']:.3f} J)" for row in screen_rows]
     return lines

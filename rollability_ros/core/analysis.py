@@ -235,6 +235,14 @@ def kendall_tau_b(x, y):
     return (concordant - discordant) / denominator if denominator > 0 else math.nan
 
 
+def rank_agreement_text(rho, tau):
+    """``"Spearman rho 0.95, Kendall tau-b 0.91"``; a NaN (a constant side, fewer than 2 values) says undefined."""
+    def show(value):
+        return f"{value:.2f}" if math.isfinite(value) else "undefined"
+    text = f"Spearman rho {show(rho)}, Kendall tau-b {show(tau)}"
+    return text if math.isfinite(rho) and math.isfinite(tau) else text + " (all tied, or fewer than 2 values)"
+
+
 @dataclasses.dataclass(frozen=True)
 class SimVsExperiment:
     """Simulated fitness against experimental success per configuration, with rank agreement."""

@@ -248,8 +248,8 @@ def summary_text(data, views, comparison, points):
     else:
         lines.append("launch outcomes: none")
     if comparison is not None and comparison.rows:
-        lines.append(f"sim vs experiment ({len(comparison.rows)} configurations): Spearman rho "
-                     f"{comparison.spearman_rho:.2f}, Kendall tau-b {comparison.kendall_tau_b:.2f}")
+        lines.append(f"sim vs experiment ({len(comparison.rows)} configurations): "
+                     f"{analysis.rank_agreement_text(comparison.spearman_rho, comparison.kendall_tau_b)}")
     if points:
         for run_id in sorted({p.run_id for p in points}):
             own = [p for p in points if p.run_id == run_id]

@@ -6,7 +6,7 @@ Heights are drawn in cm and speeds in m/s, as in the paper.
 """
 import math
 
-from rollability_ros.core.analysis import cells_of, grid
+from rollability_ros.core.analysis import cells_of, grid, rank_agreement_text
 from rollability_ros.core.optional import require
 
 _FACTOR_LABELS = {"height_m": "height (cm)", "speed_mps": "speed (m/s)", "angle_deg": "angle (deg)",
@@ -172,6 +172,6 @@ def sim_vs_experiment(path, comparison):
     ax.set_ylim(0, 1)
     ax.set_xlabel("simulated fitness")
     ax.set_ylabel(f"experimental success ({comparison.measure.replace('_', ' ')})")
-    ax.set_title(f"Spearman rho {comparison.spearman_rho:.2f}, Kendall tau-b {comparison.kendall_tau_b:.2f}")
+    ax.set_title(rank_agreement_text(comparison.spearman_rho, comparison.kendall_tau_b))
     ax.grid(alpha=0.3)
     return _save(figure, path)

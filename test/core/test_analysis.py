@@ -154,3 +154,11 @@ def test_tip_event_summary():
     (row,) = tip_event_summary(events)
     assert (row["events"], row["recovered"], row["median_duration_s"], row["max_peak_tilt_deg"]) == (3, 2, 3.0, 170.0)
     assert (row["ci_low"], row["ci_high"]) == wilson_interval(2, 3)
+
+
+def test_rank_agreement_text_says_undefined_instead_of_nan():
+    from rollability_ros.core.analysis import rank_agreement_text
+
+    assert rank_agreement_text(0.95, 0.912) == "Spearman rho 0.95, Kendall tau-b 0.91"
+    tied = rank_agreement_text(math.nan, math.nan)
+    assert "nan" not in tied and tied.startswith("Spearman rho undefined, Kendall tau-b undefined")

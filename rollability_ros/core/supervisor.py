@@ -52,8 +52,14 @@ class SupervisorEvent:
 
 
 def _die_with(parent_pid):
-    """A ``preexec_fn``: in the child, before its command runs, ask for SIGTERM when ``parent_pid`` dies."""
-    prctl = ctypes.CDLL(None, use_errno=True).prctl   # resolved before the fork: the child only calls it
+    """A ``preexec_fn``: in the child, before its command runs, ask for SIGTERM when ``parent_pid`` dies.
+
+    None where the C library has no ``prctl`` (not Linux): children then outlive a killed supervisor.
+    """
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl   # resolved before the fork: the child only calls it
+    except AttributeError:
+        return None
 
     def preexec():
         prctl(PR_SET_PDEATHSIG, signal.SIGTERM)

@@ -132,8 +132,16 @@ def test_view_bridge_serves_a_live_custom_message(ros_node, start_node):
         sent.condition.height_m = 1.3
         sent.final_orientation.w = 1.0
         before_ns = time.time_ns()
-        publisher.publish(sent)
-        log_time, payload = client.next_message(7)
+        # the bridge subscribed to ROS when it advertised the channel; a message that reaches it while the server
+        # is still registering the client's subscription goes to nobody, so publish until one arrives
+        deadline = time.monotonic() + 30
+        while True:
+            publisher.publish(sent)
+            try:
+                log_time, payload = client.next_message(7, timeout_s=1.0)
+                break
+            except AssertionError:
+                assert time.monotonic() < deadline, bridge.log()
         decoded = decode_with_advertised_schema(channel, payload)
     finally:
         client.close()

@@ -24,7 +24,7 @@ def test_domain_is_isolated():
 
 
 def test_topic_service_action_round_trip(ros_node, peer):
-    from rclpy.action import ActionClient
+    from rollability_ros.nodes._support import ThreadSafeActionClient
 
     from rollability_ros.action import EvaluateProfile
     from rollability_ros.msg import LaunchOutcome
@@ -55,7 +55,7 @@ def test_topic_service_action_round_trip(ros_node, peer):
     assert ok.success and ok.state.last_pulse_ms == 80
     assert not refused.success and "above 100 ms" in refused.message
 
-    action = ActionClient(node, EvaluateProfile, "/peer/evaluate")
+    action = ThreadSafeActionClient(node, EvaluateProfile, "/peer/evaluate")
     assert action.wait_for_server(timeout_sec=30)
     feedback = []
     goal = EvaluateProfile.Goal(heights=[0.1] * 16, trials=6, seed=7)

@@ -18,7 +18,7 @@ class RigClient:
     """Launch action client, operator services and the outcome topic, from the test's node."""
 
     def __init__(self, spun):
-        from rclpy.action import ActionClient
+        from rollability_ros.nodes._support import ThreadSafeActionClient
         from std_srvs.srv import Trigger
 
         from rollability_ros.action import Launch
@@ -27,7 +27,7 @@ class RigClient:
         from rollability_ros.srv import RecordOutcome
 
         self.spun = spun
-        self.action = ActionClient(spun.node, Launch, "launch")
+        self.action = ThreadSafeActionClient(spun.node, Launch, "launch")
         self.confirm_client = spun.node.create_client(Trigger, "rig/confirm")
         self.record_client = spun.node.create_client(RecordOutcome, "record_outcome")
         self.outcomes = []

@@ -4,9 +4,9 @@ import math
 
 import pytest
 from action_msgs.msg import GoalStatus
-from rclpy.action import ActionClient
 
 from rollability_ros.action import EvaluateProfile
+from rollability_ros.nodes._support import ThreadSafeActionClient
 
 
 def _wait(ros_node, future, timeout_s=180):
@@ -15,7 +15,7 @@ def _wait(ros_node, future, timeout_s=180):
 
 
 def _client(ros_node, name):
-    client = ActionClient(ros_node.node, EvaluateProfile, name)
+    client = ThreadSafeActionClient(ros_node.node, EvaluateProfile, name)   # sent here, spun in another thread
     assert client.wait_for_server(timeout_sec=120), f"no action server {name}"
     return client
 

@@ -4,12 +4,11 @@ import os
 import pytest
 import yaml
 from action_msgs.msg import GoalStatus
-from rclpy.action import ActionClient
 from std_msgs.msg import String
 
 from rollability_ros.action import EvaluateProfile
 from rollability_ros.core.config import config_dir
-from rollability_ros.nodes._support import LATCHED_QOS
+from rollability_ros.nodes._support import LATCHED_QOS, ThreadSafeActionClient
 
 pybullet_data = pytest.importorskip("pybullet_data")
 HUSKY_DIR = os.path.join(pybullet_data.getDataPath(), "husky")
@@ -34,7 +33,7 @@ def test_description_from_the_topic(ros_node, start_node, tmp_path):
 
     params_file = _husky_params_without_source(tmp_path)
     evaluator = start_node("sim_evaluator", params={"evaluator.workers": 1}, ros_args=["--params-file", str(params_file)])
-    client = ActionClient(ros_node.node, EvaluateProfile, "/evaluate_profile")
+    client = ThreadSafeActionClient(ros_node.node, EvaluateProfile, "/evaluate_profile")
     assert client.wait_for_server(timeout_sec=120), evaluator.log()
     with open(FIXTURE, encoding="utf-8") as stream:
         heights = yaml.safe_load(stream)["heights"]

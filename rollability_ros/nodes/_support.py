@@ -13,6 +13,7 @@ import typing
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.action import ActionClient
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -178,3 +179,32 @@ def run_node(node_factory, args=None, threads=4):
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+class ThreadSafeActionClient(ActionClient):
+    """An ActionClient whose requests may be sent from any thread.
+
+    rclpy's ActionClient registers a request's future only after sending the request, so a response that the
+    executor handles in between is dropped ("Ignoring unexpected goal response"). Sending and handling
+    responses under one lock closes that window.
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._request_lock = threading.RLock()
+
+    def send_goal_async(self, *args, **kwargs):
+        with self._request_lock:
+            return super().send_goal_async(*args, **kwargs)
+
+    def _cancel_goal_async(self, goal_handle):
+        with self._request_lock:
+            return super()._cancel_goal_async(goal_handle)
+
+    def _get_result_async(self, goal_handle):
+        with self._request_lock:
+            return super()._get_result_async(goal_handle)
+
+    async def execute(self, taken_data):
+        with self._request_lock:   # execute never suspends: its callbacks are plain functions
+            await super().execute(taken_data)

@@ -46,7 +46,7 @@ import rclpy
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import Point
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.action import ActionClient, get_action_names_and_types
+from rclpy.action import get_action_names_and_types
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from std_srvs.srv import Trigger
@@ -64,8 +64,8 @@ from rollability_ros.core.stable_poses import ScreenSettings
 from rollability_ros.core.urdf_robot import UrdfRobotSpec, footprint_grid, profile_mount
 from rollability_ros.msg import CandidateResult, GenerationSummary
 from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg
-from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, declare_settings,
-                                            guard_settings, read_settings, run_node)
+from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, ThreadSafeActionClient,
+                                            declare_settings, guard_settings, read_settings, run_node)
 
 #: The action type an evaluator serves (as the graph API names it).
 EVALUATOR_ACTION_TYPE = "rollability_ros/action/EvaluateProfile"
@@ -94,35 +94,6 @@ _PARAMETERS = {  # name: (default, description)
     "evaluator_retry_delay_s": (PoolSettings.retry_delay_s, "s an evaluator that failed gets no new evaluation"),
     "evaluator_discovery_period_s": (2.0, "s between searches of the graph for EvaluateProfile servers"),
 }
-
-
-class _ThreadSafeActionClient(ActionClient):
-    """An ActionClient whose requests may be sent from any thread.
-
-    rclpy's ActionClient registers a request's future only after sending the request, so a response that the
-    executor handles in between is dropped ("Ignoring unexpected goal response"). Sending and handling
-    responses under one lock closes that window.
-    """
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self._request_lock = threading.RLock()
-
-    def send_goal_async(self, *args, **kwargs):
-        with self._request_lock:
-            return super().send_goal_async(*args, **kwargs)
-
-    def _cancel_goal_async(self, goal_handle):
-        with self._request_lock:
-            return super()._cancel_goal_async(goal_handle)
-
-    def _get_result_async(self, goal_handle):
-        with self._request_lock:
-            return super()._get_result_async(goal_handle)
-
-    async def execute(self, taken_data):
-        with self._request_lock:   # execute never suspends: its callbacks are plain functions
-            await super().execute(taken_data)
 
 
 def run_parameters(settings_by_section):
@@ -193,7 +164,7 @@ class Optimizer(Node):
         names = sorted(name for name, types in get_action_names_and_types(self) if EVALUATOR_ACTION_TYPE in types)
         for name in names:
             if name not in self._action_clients:
-                self._action_clients[name] = _ThreadSafeActionClient(self, EvaluateProfile, name,
+                self._action_clients[name] = ThreadSafeActionClient(self, EvaluateProfile, name,
                                                                      callback_group=self._client_group)
         ready = [name for name in names if self._action_clients[name].server_is_ready()]
         added, removed = self._pool.set_evaluators(ready)

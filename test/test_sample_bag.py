@@ -59,12 +59,13 @@ def test_sample_replays_into_the_logger_like_the_live_run(tmp_path, ros_node, st
     store_path = tmp_path / "replayed.sqlite"
     logger = start_node("outcome_logger", params={"store_path": str(store_path)},
                         ros_args=["-r", "__ns:=/rollability"])
-    # the logger is up before the player starts: a player that outlives its 3 s wait for subscribers on a loaded
-    # machine would publish to nobody and exit
+    # the logger is up before the player starts, and the player waits (up to 60 s, not the default 3 s) until it
+    # has matched the logger: on a loaded machine discovery can take longer than 3 s
     client = ros_node.node.create_client(GetSummary, "/rollability/get_summary")
     assert client.wait_for_service(timeout_sec=30), logger.log()
-    player = start_process("rollability_ros.cli", "play", str(SAMPLE), "--rate", "20", "--topics",
-                           "/rollability/launch_outcomes", "/rollability/candidates", "/rollability/generations")
+    player = start_process("rollability_ros.cli", "play", str(SAMPLE), "--rate", "20", "--wait-for-subscribers", "60",
+                           "--topics", "/rollability/launch_outcomes", "/rollability/candidates",
+                           "/rollability/generations")
     assert player.process.wait(timeout=180) == 0, player.log()
     recorded = read_records_from_bag(SAMPLE)[0]
     deadline = time.monotonic() + 30

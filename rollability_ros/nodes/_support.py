@@ -6,6 +6,7 @@ calls that would make them invalid (``SetParametersResult(successful=False, reas
 """
 import dataclasses
 import math
+import os
 import signal
 import sys
 import threading
@@ -142,6 +143,15 @@ def finite(value):
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
+#: Once a node starts stopping, the most its shutdown may take before the process exits anyway (s).
+SHUTDOWN_GRACE_S = 25.0
+
+
+def _exit_after_grace():
+    print(f"shutdown took longer than {SHUTDOWN_GRACE_S:g} s: exiting now", file=sys.stderr, flush=True)
+    os._exit(1)
+
+
 def run_node(node_factory, args=None, threads=4):
     """Create the node with ``node_factory()`` after ``rclpy.init`` and spin it until Ctrl-C / SIGTERM.
 
@@ -170,6 +180,10 @@ def run_node(node_factory, args=None, threads=4):
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        # a callback still running (e.g. an evaluation) must not keep a stopped node alive for ever
+        deadline = threading.Timer(SHUTDOWN_GRACE_S, _exit_after_grace)
+        deadline.daemon = True                             # never what keeps the process alive
+        deadline.start()
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the safe shutdown short
         if node is not None:

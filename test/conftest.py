@@ -34,3 +34,12 @@ os.environ.pop("ROS_LOCALHOST_ONLY", None)
 os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH", "")]))
 
 pytest_plugins = ["ros_fixtures"]
+
+
+def pid_running(pid):
+    """True while process ``pid`` exists and has not exited (a zombie has exited, it only awaits reaping)."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as stream:
+            return stream.read().rsplit(")", 1)[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

@@ -31,14 +31,19 @@ def _read_until(process, pattern, lines, timeout_s=120):
     raise AssertionError(f"no line matching {pattern!r} in:\n{''.join(lines)}")
 
 
+def _bringup(tmp_path):
+    """Start `rollability bringup` (small config, session "lab") in its own session, output piped."""
+    config = tmp_path / "small.yaml"
+    config.write_text(SMALL)
+    return subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "bringup", "--config", str(config),
+                             "--session-id", "lab"], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+
+
 def test_a_killed_node_is_restarted_and_ctrl_c_stops_everything(tmp_path):
     from rollability_ros.core.bag_reader import bag_info
 
-    config = tmp_path / "small.yaml"
-    config.write_text(SMALL)
-    process = subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "bringup", "--config", str(config),
-                                "--session-id", "lab"], cwd=tmp_path, stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    process = _bringup(tmp_path)
     lines = []
     try:
         logger_pid = int(_read_until(process, r"\[outcome_logger\] started: pid (\d+)", lines).group(1))
@@ -70,11 +75,7 @@ def test_killing_bringup_with_sigkill_stops_every_node_and_closes_the_bag(tmp_pa
     from rollability_ros.core.bag_reader import bag_info
     from rollability_ros.core.bag_writer import RECOVERY_SIDECAR
 
-    config = tmp_path / "small.yaml"
-    config.write_text(SMALL)
-    process = subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "bringup", "--config", str(config),
-                                "--session-id", "lab"], cwd=tmp_path, stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    process = _bringup(tmp_path)
     lines = []
     try:
         _read_until(process, r"\[optimizer\] started", lines)

@@ -12,6 +12,7 @@ import xml.etree.ElementTree as ElementTree
 import numpy as np
 import pytest
 
+from conftest import pid_running
 from rollability_ros.core.config import ConfigError
 from rollability_ros.core.evaluation import (EvaluationCancelled, EvaluatorSettings, LocalExecutor, RayExecutor,
                                              evaluate_mesh, evaluate_profile, load_settings, mesh_job, profile_job,
@@ -227,13 +228,7 @@ def test_workers_exit_when_their_parent_is_killed():
         parent.kill()
         parent.wait()
 
-    def alive(pid):
-        try:
-            with open(f"/proc/{pid}/stat", encoding="ascii") as stream:
-                return stream.read().split(")")[-1].split()[0] != "Z"     # a zombie has exited
-        except FileNotFoundError:
-            return False
     deadline = time.monotonic() + 30
-    while any(alive(pid) for pid in pids) and time.monotonic() < deadline:
+    while any(pid_running(pid) for pid in pids) and time.monotonic() < deadline:
         time.sleep(0.2)
-    assert not any(alive(pid) for pid in pids), f"orphaned workers still running: {pids}"
+    assert not any(pid_running(pid) for pid in pids), f"orphaned workers still running: {pids}"

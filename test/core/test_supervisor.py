@@ -5,6 +5,7 @@ import subprocess
 import sys
 import time
 
+from conftest import pid_running
 from rollability_ros.core.supervisor import ProcessSpec, Supervisor
 
 # A child that logs its start and its SIGINT, then exits 0 on SIGINT (like a node) unless told to ignore it.
@@ -114,15 +115,7 @@ def test_children_get_sigterm_when_the_supervisor_is_killed(tmp_path):
         parent.kill()
         parent.wait()
     deadline = time.monotonic() + 20
-    while any(_running(pid) for pid in pids) and time.monotonic() < deadline:
+    while any(pid_running(pid) for pid in pids) and time.monotonic() < deadline:
         time.sleep(0.1)
-    assert not any(_running(pid) for pid in pids), f"children outlived their supervisor: {pids}"
+    assert not any(pid_running(pid) for pid in pids), f"children outlived their supervisor: {pids}"
 
-
-def _running(pid):
-    """True while ``pid`` exists and is not a zombie."""
-    try:
-        with open(f"/proc/{pid}/stat", encoding="ascii") as stream:
-            return stream.read().rsplit(")", 1)[-1].split()[0] != "Z"
-    except FileNotFoundError:
-        return False

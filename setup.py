@@ -9,7 +9,7 @@ import glob
 from setuptools import find_packages, setup
 
 EXTRAS = {
-    # physics, geometry and optimisation: the design side
+    # physics, geometry and optimization: the design side
     "sim": ["pybullet==3.2.7", "cma>=4.0", "trimesh>=4.0", "scipy>=1.10", "networkx>=3.0"],
     # hand trial batches to a Ray cluster
     "cluster": ["ray>=2.9"],

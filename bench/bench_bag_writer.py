@@ -15,7 +15,7 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from rollability_ros.core.bag_writer import DEFAULT_CHUNK_SIZE_BYTES, BagWriter  # noqa: E402
+from rollability_ros.core.bags.writer import DEFAULT_CHUNK_SIZE_BYTES, BagWriter  # noqa: E402
 
 #: (case name, payload bytes) measured by default.
 CASES = (("outcome", 200), ("pose_stream", 100), ("large", 10_000))

@@ -17,10 +17,10 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from bench.bench_launch_twin import dome_mesh  # noqa: E402
-from rollability_ros.core import calibration  # noqa: E402
+from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
-from rollability_ros.core.geometry import export_mesh  # noqa: E402
-from rollability_ros.core.records import LaunchCondition  # noqa: E402
+from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
+from rollability_ros.core.results.records import LaunchCondition  # noqa: E402
 
 #: The grouped conditions launched (configuration, height m, speed m/s, angle deg).
 CONDITIONS = (("baseline", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 30.0),

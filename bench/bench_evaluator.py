@@ -16,11 +16,11 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from rollability_ros.core import evaluation  # noqa: E402
-from rollability_ros.core.geometry import grid_xy  # noqa: E402
+from rollability_ros.core.sim import evaluation  # noqa: E402
+from rollability_ros.core.profile.geometry import grid_xy  # noqa: E402
 from rollability_ros.core.optional import require  # noqa: E402
-from rollability_ros.core.sim_world import connect, disconnect  # noqa: E402
-from rollability_ros.core.trials import TrialWorld, place_on_ground, sample_conditions  # noqa: E402
+from rollability_ros.core.sim.world import connect, disconnect  # noqa: E402
+from rollability_ros.core.sim.trials import TrialWorld, place_on_ground, sample_conditions  # noqa: E402
 
 
 def dome_heights(grid):

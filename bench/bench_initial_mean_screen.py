@@ -1,9 +1,9 @@
-"""Does ranking random initial means by the stable-pose screen help the optimiser? Measured, same run, same seeds.
+"""Does ranking random initial means by the stable-pose screen help the optimizer? Measured, same run, same seeds.
 
     .venv/bin/python bench/bench_initial_mean_screen.py [--seeds 4] [--screen 16] [--generations 10] [--workers N]
                                                         [--config optimizer] [--config husky ...]
 
-For each seed, two quick optimisations with real physics (the given configs, default config/optimizer.yaml with
+For each seed, two quick optimizations with real physics (the given configs, default config/optimizer.yaml with
 ``--generations`` generations): ``optimizer.initial_mean_screen`` 0 (the paper: one random mean) and N (the
 best of N random means by quasi-static P(upright), ties by the lowest barrier; the N means include the paper's
 one). Prints per seed the screened start's P(upright), the simulated fitness of generation 0's best candidate and
@@ -21,17 +21,19 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
 
-from rollability_ros.core import evaluation, optimisation_run  # noqa: E402
+from rollability_ros.core.sim import evaluation
+
+from rollability_ros.core.optimization import optimization_run as optimization_run  # noqa: E402
 
 
 def one_run(parameters, settings, executor, run_dir):
     """Run to the end; return (start P(upright) or None, generation-0 best fitness, final best fitness, s in the
     screen, s in total)."""
-    trials = optimisation_run.optimizer_settings(parameters).trials
+    trials = optimization_run.optimizer_settings(parameters).trials
     started = time.perf_counter()
-    run = optimisation_run.OptimisationRun(
-        run_dir, parameters, settings.grid, optimisation_run.profile_batch_evaluator(settings, trials, executor),
-        screen_profiles=optimisation_run.profile_screen(parameters, settings))
+    run = optimization_run.OptimizationRun(
+        run_dir, parameters, settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
+        screen_profiles=optimization_run.profile_screen(parameters, settings))
     screen_s = time.perf_counter() - started
     run.run()
     total_s = time.perf_counter() - started
@@ -52,7 +54,7 @@ def main():
     parser.add_argument("--config", action="append", default=[], help="parameter files (default: optimizer)")
     args = parser.parse_args()
 
-    base = optimisation_run.load_run_parameters(args.config or ["optimizer"])
+    base = optimization_run.load_run_parameters(args.config or ["optimizer"])
     settings = evaluation.settings_from_parameters(base)
     executor = evaluation.make_executor(settings.evaluator, args.workers)
     rows = {0: [], args.screen: []}

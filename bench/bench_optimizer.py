@@ -1,9 +1,9 @@
-"""Optimiser benchmark: overhead per generation vs evaluation time, projected paper-scale wall time, noise handling.
+"""Optimizer benchmark: overhead per generation vs evaluation time, projected paper-scale wall time, noise handling.
 
     .venv/bin/python bench/bench_optimizer.py [--generations 2] [--workers N] [--noise-seeds 8]
 
 1. Real evaluation at the paper's scale (config/paper.yaml: 10 x 10 grid, popsize 12, 60 trials) through
-   ``OptimisationRun`` for a few generations: time inside the evaluator vs the rest of each generation (CMA-ES
+   ``OptimizationRun`` for a few generations: time inside the evaluator vs the rest of each generation (CMA-ES
    ask/tell, SQLite writes with fsync, checkpoint). Target: overhead <= 5% of evaluation time.
 2. The same loop with a zero-cost synthetic evaluator at N = 100 for a stable overhead figure, split into
    CMA-ES alone and store + checkpoint.
@@ -24,9 +24,11 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
 
-from rollability_ros.core import evaluation, optimisation_run  # noqa: E402
-from rollability_ros.core.geometry import ProfileGrid  # noqa: E402
-from rollability_ros.core.optimiser import ProfileOptimizer  # noqa: E402
+from rollability_ros.core.sim import evaluation
+
+from rollability_ros.core.optimization import optimization_run as optimization_run  # noqa: E402
+from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
+from rollability_ros.core.optimization.cmaes import ProfileOptimizer  # noqa: E402
 
 PAPER_GENERATIONS = 500
 
@@ -46,7 +48,7 @@ def run_generations(parameters, grid, evaluate_batch, generations, workdir, name
     """Run ``generations`` generations; return (mean s per generation, mean s inside the evaluator)."""
     spent = [0.0]
     parameters = dict(parameters, **{"optimizer.max_generations": generations})
-    run = optimisation_run.OptimisationRun(os.path.join(workdir, name), parameters, grid,
+    run = optimization_run.OptimizationRun(os.path.join(workdir, name), parameters, grid,
                                            timed(evaluate_batch, spent))
     started = time.perf_counter()
     run.run()
@@ -58,7 +60,7 @@ def run_generations(parameters, grid, evaluate_batch, generations, workdir, name
 def cma_only_s(n_variables, generations):
     """Mean s per generation of ProfileOptimizer ask + tell alone (N variables, popsize 12)."""
     parameters = {"optimizer.max_generations": generations, "optimizer.reevaluate_incumbent": False}
-    optimizer = ProfileOptimizer(n_variables, optimisation_run.optimizer_settings(parameters))
+    optimizer = ProfileOptimizer(n_variables, optimization_run.optimizer_settings(parameters))
     fitness = np.linspace(0.0, 0.9, 12)   # below the target fitness: no early stop
     started = time.perf_counter()
     while not optimizer.stop():
@@ -76,9 +78,9 @@ def noise_study(seeds, workdir, generations=60, trials=20):
             parameters = {"optimizer.max_generations": generations, "optimizer.seed": seed,
                           "optimizer.trials": trials, "optimizer.common_random_numbers": crn,
                           "optimizer.reevaluate_incumbent": reevaluate}
-            evaluator = optimisation_run.SyntheticEvaluator(
+            evaluator = optimization_run.SyntheticEvaluator(
                 np.random.default_rng(1000 + seed).uniform(0, 0.45, grid.n_variables), trials, peak=0.8)
-            run = optimisation_run.OptimisationRun(os.path.join(workdir, f"noise-{crn}-{reevaluate}-{seed}"),
+            run = optimization_run.OptimizationRun(os.path.join(workdir, f"noise-{crn}-{reevaluate}-{seed}"),
                                                    parameters, grid, evaluator)
             result = run.run()
             run.close()
@@ -99,25 +101,25 @@ def main(argv=None):
     parser.add_argument("--noise-seeds", type=int, default=8, help="seeds per noise-study arm (0 = skip)")
     args = parser.parse_args(argv)
 
-    parameters = optimisation_run.load_run_parameters("paper")
+    parameters = optimization_run.load_run_parameters("paper")
     settings = evaluation.settings_from_parameters(parameters)
-    trials = optimisation_run.optimizer_settings(parameters).trials
+    trials = optimization_run.optimizer_settings(parameters).trials
     with tempfile.TemporaryDirectory() as workdir:
         executor = evaluation.make_executor(settings.evaluator, args.workers)
         try:
             executor.warm()
-            batch = optimisation_run.profile_batch_evaluator(settings, trials, executor)
+            batch = optimization_run.profile_batch_evaluator(settings, trials, executor)
             real_total_s, real_eval_s = run_generations(parameters, settings.grid, batch, args.generations,
                                                         workdir, "real")
         finally:
             executor.close()
-        synthetic = optimisation_run.SyntheticEvaluator(np.full(settings.grid.n_variables, 0.2), trials)
+        synthetic = optimization_run.SyntheticEvaluator(np.full(settings.grid.n_variables, 0.2), trials)
         loop_total_s, _ = run_generations(parameters, settings.grid, synthetic, 50, workdir, "synthetic")
         cma_s = cma_only_s(settings.grid.n_variables, 200)
         noise = noise_study(args.noise_seeds, workdir) if args.noise_seeds else None
 
     workers = getattr(executor, "workers", "?")
-    popsize = optimisation_run.optimizer_settings(parameters).popsize
+    popsize = optimization_run.optimizer_settings(parameters).popsize
     evaluations = popsize + 1   # population + incumbent re-evaluation
     trials_per_generation = evaluations * trials
     rate = trials_per_generation / real_eval_s
@@ -126,9 +128,9 @@ def main(argv=None):
           f"popsize {popsize} + 1 re-evaluation, {trials} trials, {workers} workers")
     print(f"evaluation: {trials_per_generation} trials per generation in {real_eval_s:.2f} s = {rate:.1f} trials/s "
           f"({args.generations} real generations)")
-    print(f"optimiser overhead per generation, real run: {real_overhead_s * 1000:.1f} ms = "
+    print(f"optimizer overhead per generation, real run: {real_overhead_s * 1000:.1f} ms = "
           f"{100 * real_overhead_s / real_eval_s:.2f}% of evaluation time (target <= 5%)")
-    print(f"optimiser overhead per generation, zero-cost evaluator: {loop_total_s * 1000:.1f} ms "
+    print(f"optimizer overhead per generation, zero-cost evaluator: {loop_total_s * 1000:.1f} ms "
           f"(CMA-ES ask/tell {cma_s * 1000:.2f} ms, store + checkpoint {(loop_total_s - cma_s) * 1000:.1f} ms) = "
           f"{100 * loop_total_s / real_eval_s:.2f}% of evaluation time")
     projected = PAPER_GENERATIONS * (real_eval_s + loop_total_s)

@@ -1,15 +1,15 @@
-"""Optimizer node benchmark: optimiser + messaging overhead per generation through the ROS graph, paper projection.
+"""Optimizer node benchmark: optimizer + messaging overhead per generation through the ROS graph, paper projection.
 
     .venv/bin/python bench/bench_optimizer_node.py [--config paper] [--generations 3] [--evaluators 1] [--repeats 2]
 
 The same run (config, seed, generations) on this machine's cores, alternately ``--repeats`` times each way:
-1. in-process: ``OptimisationRun`` over ``profile_batch_evaluator`` on a local process pool (all cores);
+1. in-process: ``OptimizationRun`` over ``profile_batch_evaluator`` on a local process pool (all cores);
 2. node graph: the ``optimizer`` node and ``--evaluators`` ``sim_evaluator`` nodes (the cores split between
    them), separate processes over DDS on a private ROS domain.
 Both runs evaluate identical candidates, so generation g costs the same work in both; each generation's wall
 time is the minimum over the repeats (a shared machine only ever adds time). Generation 0 (worker start-up) is
 left out. Printed: wall time per generation each way and the node graph's extra time as a fraction of the
-in-process generation (target <= 5%); inside the node graph, the time outside the evaluators (optimiser,
+in-process generation (target <= 5%); inside the node graph, the time outside the evaluators (optimizer,
 store, checkpoint, goals and results over DDS, workers idle between goals) as a fraction of the evaluators'
 own time. Then the projected wall time of the paper run (500 generations x (12 + 1
 re-evaluation) x 60 trials) from the trial rate measured through the node graph, and a check that both runs
@@ -28,9 +28,11 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)  # this checkout first
 
-from rollability_ros.core import evaluation, optimisation_run  # noqa: E402
+from rollability_ros.core.sim import evaluation
+
+from rollability_ros.core.optimization import optimization_run as optimization_run  # noqa: E402
 from rollability_ros.core.config import resolve_config_path  # noqa: E402
-from rollability_ros.core.store import Store  # noqa: E402
+from rollability_ros.core.results.store import Store  # noqa: E402
 
 PAPER_GENERATIONS, PAPER_POPSIZE, PAPER_TRIALS = 500, 12, 60
 
@@ -60,9 +62,9 @@ def run_in_process(parameters, workdir, workers):
     executor = evaluation.make_executor(settings.evaluator, workers)
     try:
         executor.warm()
-        batch = optimisation_run.profile_batch_evaluator(settings, optimisation_run.optimizer_settings(parameters)
+        batch = optimization_run.profile_batch_evaluator(settings, optimization_run.optimizer_settings(parameters)
                                                          .trials, executor)
-        run = optimisation_run.OptimisationRun(os.path.join(workdir, "inproc"), parameters, settings.grid, batch)
+        run = optimization_run.OptimizationRun(os.path.join(workdir, "inproc"), parameters, settings.grid, batch)
         run.run()
         run.close()
     finally:
@@ -119,7 +121,7 @@ def duration(seconds):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--config", default="paper", help="optimisation config (default: paper)")
+    parser.add_argument("--config", default="paper", help="optimization config (default: paper)")
     parser.add_argument("--generations", type=int, default=3, help="generations per run (>= 2; default 3)")
     parser.add_argument("--evaluators", type=int, default=1, help="sim_evaluator nodes (default 1)")
     parser.add_argument("--workers", type=int, default=os.cpu_count(), help="worker processes of the in-process "
@@ -131,8 +133,8 @@ def main(argv=None):
     if args.generations < 2:
         parser.error("--generations must be >= 2 (generation 0 is left out)")
     overrides = {"optimizer.max_generations": args.generations, "optimizer.stagnation_generations": 0}
-    parameters = {**optimisation_run.load_run_parameters(args.config), **overrides}
-    settings = optimisation_run.optimizer_settings(parameters)
+    parameters = {**optimization_run.load_run_parameters(args.config), **overrides}
+    settings = optimization_run.optimizer_settings(parameters)
     grid = evaluation.settings_from_parameters(parameters).grid
     workers_each = args.evaluator_workers or max(1, args.workers // args.evaluators)
 
@@ -165,7 +167,7 @@ def main(argv=None):
           f"({args.evaluators} evaluator node(s) x {workers_each} in the node graph)")
     print(f"wall time per generation: in-process {inproc_s:.2f} s, node graph {graph_s:.2f} s -> node graph "
           f"overhead {100 * (graph_s - inproc_s) / inproc_s:+.2f}% of the in-process generation (target <= 5%)")
-    print(f"inside the node graph: evaluators busy {evaluated_s:.2f} s per generation, outside them (optimiser, "
+    print(f"inside the node graph: evaluators busy {evaluated_s:.2f} s per generation, outside them (optimizer, "
           f"store, checkpoint, goals/results over DDS) {outside_s * 1000:.0f} ms = "
           f"{100 * outside_s / evaluated_s:.2f}% of evaluation time")
     rate = trials_per_generation / graph_s

@@ -2,7 +2,7 @@
 
     ros2 launch rollability_ros sim_bringup.launch.py [config:=/path/extra.yaml] [run_dir:=runs/session]
 
-The node list comes from rollability_ros.core.bringup (one definition for the CLI and for ros2 launch); every
+The node list comes from rollability_ros.core.graph.bringup (one definition for the CLI and for ros2 launch); every
 node reads the shipped parameter files plus the optional extra one.
 """
 from rollability_ros.launch_support import describe_session

@@ -1,4 +1,4 @@
-"""Builds ROS launch descriptions from :mod:`rollability_ros.core.bringup`, for ``launch/*.launch.py``.
+"""Builds ROS launch descriptions from :mod:`rollability_ros.core.graph.bringup`, for ``launch/*.launch.py``.
 
 Imported only by ``ros2 launch`` on a machine with launch / launch_ros installed (they are not on PyPI).
 """
@@ -9,8 +9,8 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
-from rollability_ros.core.bringup import load_graph_settings, session_nodes
-from rollability_ros.core.graph import parameter_files
+from rollability_ros.core.graph.bringup import load_graph_settings, session_nodes
+from rollability_ros.core.graph.node_commands import parameter_files
 
 
 def _nodes(context, rig_backend, optimizer, evaluators):

@@ -41,7 +41,7 @@ def _bringup(tmp_path):
 
 
 def test_a_killed_node_is_restarted_and_ctrl_c_stops_everything(tmp_path):
-    from rollability_ros.core.bag_reader import bag_info
+    from rollability_ros.core.bags.reader import bag_info
 
     process = _bringup(tmp_path)
     lines = []
@@ -72,8 +72,8 @@ def test_killing_bringup_with_sigkill_stops_every_node_and_closes_the_bag(tmp_pa
     running and the recorder closes its bag as on a clean stop."""
     from mcap.reader import make_reader
 
-    from rollability_ros.core.bag_reader import bag_info
-    from rollability_ros.core.bag_writer import RECOVERY_SIDECAR
+    from rollability_ros.core.bags.reader import bag_info
+    from rollability_ros.core.bags.writer import RECOVERY_SIDECAR
 
     process = _bringup(tmp_path)
     lines = []

@@ -14,9 +14,9 @@ import time
 
 import pytest
 
-from rollability_ros.core.campaign import CampaignSpec, plan_trials
-from rollability_ros.core.relay_device_sim import RelaySim
-from rollability_ros.core.store import Store
+from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
+from rollability_ros.core.rig.relay_device_sim import RelaySim
+from rollability_ros.core.results.store import Store
 
 CAMPAIGN_YAML = """/**:
   ros__parameters:
@@ -188,7 +188,7 @@ def write_designs(folder):
     """Three profile solids as STL files and a launch twin parameter file mounting them as A, B and C."""
     import numpy as np
 
-    from rollability_ros.core import geometry
+    from rollability_ros.core.profile import geometry
 
     grid = geometry.ProfileGrid()
     rng = np.random.default_rng(5)

@@ -28,7 +28,7 @@ ALL_GENERATIONS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIAB
 
 
 def candidate_rows(store_dir, run_id):
-    from rollability_ros.core.store import Store
+    from rollability_ros.core.results.store import Store
 
     with Store(store_dir) as store:
         return [(c.generation, c.index, c.heights, c.successes, c.trials, c.seed)
@@ -38,17 +38,18 @@ def candidate_rows(store_dir, run_id):
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
     """The same run in this process (no ROS graph): stored candidates and generation summaries."""
-    from rollability_ros.core import evaluation, optimisation_run
-    from rollability_ros.core.store import Store
+    from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.optimization import optimization_run as optimization_run
+    from rollability_ros.core.results.store import Store
 
-    parameters = optimisation_run.load_run_parameters("optimizer")
+    parameters = optimization_run.load_run_parameters("optimizer")
     parameters.update(RUN)
     settings = evaluation.settings_from_parameters(parameters)
     executor = evaluation.make_executor(settings.evaluator, 2)
     run_dir = tmp_path_factory.mktemp("reference") / "ref"
     try:
-        evaluate_batch = optimisation_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
-        run = optimisation_run.OptimisationRun(run_dir, parameters, settings.grid, evaluate_batch)
+        evaluate_batch = optimization_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
+        run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid, evaluate_batch)
         run.run()
         run.close()
     finally:
@@ -198,7 +199,7 @@ def test_pause_resume_and_stop(ros_node, start_node, evaluators, tmp_path):
     stop = call(ros_node, "/stop")
     assert stop.success and "current generation" in stop.message
     wait_for_log(ros_node, optimizer, "(stop service)")
-    from rollability_ros.core import checkpoint
+    from rollability_ros.core.optimization import checkpoint
 
     saved = checkpoint.load_checkpoint(tmp_path / "runs" / "pause" / checkpoint.CHECKPOINT_FILENAME)
     assert saved["generation"] < 200
@@ -208,7 +209,7 @@ def test_pause_resume_and_stop(ros_node, start_node, evaluators, tmp_path):
 
 def test_sigint_keeps_a_valid_checkpoint_and_resume_continues(ros_node, start_node, evaluators, tmp_path,
                                                               reference):
-    from rollability_ros.core import checkpoint
+    from rollability_ros.core.optimization import checkpoint
 
     listener = Listener(ros_node)
     first = start_optimizer(start_node, tmp_path, "sig", name="first")

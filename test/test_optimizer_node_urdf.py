@@ -27,7 +27,7 @@ def ros_args(params):
 
 def candidate_rows(run_dir, run_id):
     """The stored candidates and the initial-mean screen of the run."""
-    from rollability_ros.core.store import Store
+    from rollability_ros.core.results.store import Store
 
     with Store(run_dir) as store:
         return ([(c.generation, c.index, c.heights, c.successes, c.trials, c.seed)
@@ -37,22 +37,23 @@ def candidate_rows(run_dir, run_id):
 
 def in_process_run(run_dir):
     """The same run without ROS, on the settings the CLI reads from husky.yaml (footprint grid)."""
-    from rollability_ros.core import evaluation, optimisation_run
+    from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.optimization import optimization_run as optimization_run
     from rollability_ros.core.config import load_parameters
 
     parameters = {**load_parameters([HUSKY_CONFIG]), **RUN}
     settings = evaluation.settings_from_parameters(parameters)
     with evaluation.LocalExecutor(1) as executor:   # a batch's evaluations run in threads: one client each
-        evaluate_batch = optimisation_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
-        run = optimisation_run.OptimisationRun(run_dir, parameters, settings.grid, evaluate_batch,
-                                               screen_profiles=optimisation_run.profile_screen(parameters, settings))
+        evaluate_batch = optimization_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
+        run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid, evaluate_batch,
+                                               screen_profiles=optimization_run.profile_screen(parameters, settings))
         run.run()
         run.close()
     return candidate_rows(run_dir, "ref"), settings.grid
 
 
 def test_husky_run_over_dds_uses_the_mount_footprint(ros_node, start_node, tmp_path):
-    from rollability_ros.core import optimisation_run
+    from rollability_ros.core.optimization import optimization_run as optimization_run
 
     markers = []
     ros_node.node.create_subscription(Marker, "/best_profile_marker", markers.append, MARKER_QOS)
@@ -65,7 +66,7 @@ def test_husky_run_over_dds_uses_the_mount_footprint(ros_node, start_node, tmp_p
     assert optimizer.process.wait(timeout=120) == 0, optimizer.log()
 
     run_dir = tmp_path / "runs" / "husky"
-    saved = optimisation_run.read_run_config(run_dir)
+    saved = optimization_run.read_run_config(run_dir)
     assert (saved["profile.length_m"], saved["profile.width_m"], saved["profile.rows"]) == (0.9, 0.56, 4)
     stored, screen = candidate_rows(run_dir, "husky")
     assert len(stored) >= RUN["optimizer.popsize"] * RUN["optimizer.max_generations"]

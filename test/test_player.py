@@ -3,9 +3,9 @@ import threading
 
 import pytest
 
-from rollability_ros.core.bag_writer import BagWriter
-from rollability_ros.core.records import CandidateRecord, LaunchCondition, LaunchOutcome
-from rollability_ros.core.store import Store
+from rollability_ros.core.bags.writer import BagWriter
+from rollability_ros.core.results.records import CandidateRecord, LaunchCondition, LaunchOutcome
+from rollability_ros.core.results.store import Store
 from test_recorder import stopped_cleanly
 
 T0_NS = 1_700_000_000_000_000_000
@@ -26,7 +26,7 @@ def campaign_bag(tmp_path):
 
     from rollability_ros.nodes import _convert
     from rollability_ros.nodes._support import RECORD_QOS
-    from rollability_ros.core.bag_qos import qos_dict_from_profile
+    from rollability_ros.core.bags.qos import qos_dict_from_profile
 
     outcomes = [outcome(i) for i in range(30)]
     bag = tmp_path / "campaign"

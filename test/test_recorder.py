@@ -2,9 +2,9 @@
 import signal
 import time
 
-from rollability_ros.core.bag_reader import bag_info
-from rollability_ros.core.bag_records import read_records_from_bag
-from rollability_ros.core.records import CandidateRecord, LaunchCondition, LaunchOutcome
+from rollability_ros.core.bags.reader import bag_info
+from rollability_ros.core.bags.messages import read_records_from_bag
+from rollability_ros.core.results.records import CandidateRecord, LaunchCondition, LaunchOutcome
 
 
 #: What run_node's race looks like: the executor builds a wait set on the context a signal just shut down, and the
@@ -150,7 +150,7 @@ def test_sigkilled_recording_recovers_every_flushed_message(tmp_path, ros_node, 
 
     from rclpy.duration import Duration
 
-    from rollability_ros.core.bag_recover import recover
+    from rollability_ros.core.bags.recover import recover
     from rollability_ros.msg import LaunchOutcome as OutcomeMsg
     from rollability_ros.nodes import _convert
     from rollability_ros.nodes._support import RECORD_QOS

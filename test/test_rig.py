@@ -6,7 +6,7 @@ import time
 
 import pytest
 
-from rollability_ros.core.records import LaunchCondition
+from rollability_ros.core.results.records import LaunchCondition
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 

@@ -38,7 +38,7 @@ def _ridge(n_rows=10, n_cols=10, height=0.4):
 
 
 def test_results_equal_the_core_and_carry_feedback(ros_node, evaluator):
-    from rollability_ros.core.evaluation import evaluate_profile, load_settings
+    from rollability_ros.core.sim.evaluation import evaluate_profile, load_settings
 
     client = _client(ros_node, "/evaluate_profile")
     feedback = []

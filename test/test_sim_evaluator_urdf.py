@@ -12,7 +12,7 @@ from rollability_ros.nodes._support import LATCHED_QOS, ThreadSafeActionClient
 
 pybullet_data = pytest.importorskip("pybullet_data")
 HUSKY_DIR = os.path.join(pybullet_data.getDataPath(), "husky")
-FIXTURE = os.path.join(os.path.dirname(__file__), "resources", "husky_optimised_profile.yaml")
+FIXTURE = os.path.join(os.path.dirname(__file__), "resources", "husky_optimized_profile.yaml")
 
 
 def _husky_params_without_source(tmp_path):
@@ -29,7 +29,7 @@ def _husky_params_without_source(tmp_path):
 
 def test_description_from_the_topic(ros_node, start_node, tmp_path):
     from rollability_ros.core.config import load_parameters
-    from rollability_ros.core.evaluation import evaluate_profile, settings_from_parameters
+    from rollability_ros.core.sim.evaluation import evaluate_profile, settings_from_parameters
 
     params_file = _husky_params_without_source(tmp_path)
     evaluator = start_node("sim_evaluator", params={"evaluator.workers": 1}, ros_args=["--params-file", str(params_file)])

@@ -38,9 +38,9 @@ def _still_running(output):
 
 
 def test_miniature_main_job_end_to_end(tmp_path):
-    from rollability_ros.core import report
-    from rollability_ros.core.bag_reader import BagReader
-    from rollability_ros.core.store import Store
+    from rollability_ros.core.results import report
+    from rollability_ros.core.bags.reader import BagReader
+    from rollability_ros.core.results.store import Store
 
     process = _study(tmp_path, "e2e")
     output, _ = process.communicate(timeout=900)
@@ -50,7 +50,7 @@ def test_miniature_main_job_end_to_end(tmp_path):
         assert expected in output
     assert "configuration  conditions ok" in output       # the summary table
 
-    designs = study_dir / "optimisation" / "designs"
+    designs = study_dir / "optimization" / "designs"
     assert (designs / "table3.csv").is_file() and list(designs.glob("*.stl"))
     with Store(study_dir / "outcomes.sqlite") as store:
         outcomes = store.launch_outcomes("e2e")
@@ -72,14 +72,14 @@ def test_miniature_main_job_end_to_end(tmp_path):
 
 
 def test_ctrl_c_stops_every_node_and_closes_the_bag(tmp_path):
-    from rollability_ros.core.bag_reader import bag_info
+    from rollability_ros.core.bags.reader import bag_info
 
     process = _study(tmp_path)                      # a generated study id: study-<UTC date>-<time>
     first_line = process.stdout.readline()
     assert first_line.startswith("study study-") and "results in runs/" in first_line, first_line
     study_dir = tmp_path / first_line.split("results in ")[1].strip()
     deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and not (study_dir / "optimisation" / "store.sqlite").exists():
+    while time.monotonic() < deadline and not (study_dir / "optimization" / "store.sqlite").exists():
         time.sleep(0.2)
     assert process.poll() is None, process.communicate()[0]
     os.killpg(process.pid, signal.SIGINT)           # what a terminal's Ctrl-C does
@@ -125,19 +125,19 @@ def _kill_when(process, log, ready, what):
 
 
 def test_a_study_killed_twice_resumes_to_the_same_complete_result(tmp_path):
-    """kill -9 mid-optimisation, resume, kill -9 mid-campaign, resume: every trial once, every bag readable."""
-    from rollability_ros.core import report
-    from rollability_ros.core.bag_reader import bag_info
-    from rollability_ros.core.bag_records import read_records_from_bag
-    from rollability_ros.core.store import Store
+    """kill -9 mid-optimization, resume, kill -9 mid-campaign, resume: every trial once, every bag readable."""
+    from rollability_ros.core.results import report
+    from rollability_ros.core.bags.reader import bag_info
+    from rollability_ros.core.bags.messages import read_records_from_bag
+    from rollability_ros.core.results.store import Store
 
     config = tmp_path / "resumable.yaml"
     config.write_text(RESUMABLE)
     study_dir = tmp_path / "runs" / "killed"
-    designs = study_dir / "optimisation" / "designs" / "designs.yaml"
+    designs = study_dir / "optimization" / "designs" / "designs.yaml"
 
     def generations():
-        path = study_dir / "optimisation" / "store.sqlite"
+        path = study_dir / "optimization" / "store.sqlite"
         if not path.exists():
             return 0
         with Store(path) as store:
@@ -158,7 +158,7 @@ def test_a_study_killed_twice_resumes_to_the_same_complete_result(tmp_path):
     process, log = _study_to_file(tmp_path, "second.log", "--resume", "killed")
     _kill_when(process, log, lambda: trials() >= 1, "stored trial")
     output = log.read_text()
-    assert "resuming the optimisation from its last checkpoint" in output and designs.exists(), output
+    assert "resuming the optimization from its last checkpoint" in output and designs.exists(), output
     assert 1 <= trials() < 30, output
 
     process, log = _study_to_file(tmp_path, "third.log", "--resume", str(study_dir))
@@ -169,7 +169,7 @@ def test_a_study_killed_twice_resumes_to_the_same_complete_result(tmp_path):
 
     with Store(study_dir / "outcomes.sqlite") as store:
         outcomes = store.launch_outcomes("killed")
-    with Store(study_dir / "optimisation" / "store.sqlite") as store:
+    with Store(study_dir / "optimization" / "store.sqlite") as store:
         candidates = store.candidates()
         assert [g.generation for g in store.generations()] == list(range(8))
     assert len(outcomes) == len({o.trial_id for o in outcomes}) == 30          # 3 configurations x 2 angles x 5

@@ -14,9 +14,9 @@ import time
 import pytest
 
 from core.synthetic_imu import piecewise, stream
-from rollability_ros.core.tip_tracker import (DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_STALE, DIAGNOSTIC_WARN,
+from rollability_ros.core.imu.tip_tracker import (DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_STALE, DIAGNOSTIC_WARN,
                                               TipMonitorConfig)
-from rollability_ros.core.upright import (IDENTITY, STANDARD_GRAVITY_MPS2, ImuSample, quaternion_conjugate,
+from rollability_ros.core.imu.upright import (IDENTITY, STANDARD_GRAVITY_MPS2, ImuSample, quaternion_conjugate,
                                           quaternion_from_rpy_deg, quaternion_multiply, rotate_vector)
 
 CONFIG = TipMonitorConfig()
@@ -38,9 +38,9 @@ def simulate_imu(torque_axis, torque_nm, pulse_s, duration_s, imu_from_body=IDEN
     pybullet = pytest.importorskip("pybullet")
     import random
 
-    from rollability_ros.core.evaluation import EvaluatorSettings
-    from rollability_ros.core.sim_world import connect, disconnect
-    from rollability_ros.core.trials import build_trial_world
+    from rollability_ros.core.sim.evaluation import EvaluatorSettings
+    from rollability_ros.core.sim.world import connect, disconnect
+    from rollability_ros.core.sim.trials import build_trial_world
 
     settings = EvaluatorSettings()
     model = settings.robot_model()
@@ -216,7 +216,7 @@ def test_sim_tip_that_rights_itself(ros_node, start_node, tmp_path):
     assert DIAGNOSTIC_WARN in levels and DIAGNOSTIC_ERROR not in levels and levels[-1] == DIAGNOSTIC_OK
 
     monitor.process.stop()
-    from rollability_ros.core.store import Store
+    from rollability_ros.core.results.store import Store
 
     with Store(store_path) as store:
         (stored,) = store.tip_events("simbot")

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from rollability_ros.core.relay_device_sim import RelaySim
+from rollability_ros.core.rig.relay_device_sim import RelaySim
 
 WATCHDOG_MS = 3000   # the test beats every 50 ms; a loaded 2-core machine has shown 1 s gaps
 

@@ -14,8 +14,8 @@ import time
 
 import pytest
 
-from rollability_ros.core.foxglove_view import ViewServer, ViewSettings, ros2msg_schema
-from rollability_ros.core.msg_definitions import definition_for
+from rollability_ros.core.graph.foxglove_view import ViewServer, ViewSettings, ros2msg_schema
+from rollability_ros.core.bags.msg_definitions import definition_for
 
 LAYOUT = os.path.join(os.path.dirname(__file__), "..", "config", "foxglove_layout.json")
 

@@ -3,7 +3,7 @@ import json
 
 
 def _info(args):
-    from rollability_ros.core.bag_reader import bag_info, format_bag_info
+    from rollability_ros.core.bags.reader import bag_info, format_bag_info
 
     info = bag_info(args.bag)
     print(json.dumps(info, indent=2) if args.json else format_bag_info(info))
@@ -11,7 +11,7 @@ def _info(args):
 
 
 def _recover(args):
-    from rollability_ros.core.bag_recover import recover
+    from rollability_ros.core.bags.recover import recover
 
     report = recover(args.bag)
     if args.json:
@@ -29,7 +29,7 @@ def _recover(args):
 
 
 def _convert(args):
-    from rollability_ros.core.bag_convert import convert
+    from rollability_ros.core.bags.convert import convert
 
     convert(args.src, args.dst, storage=args.storage)
     print(f"{args.src} -> {args.dst} ({args.storage})")

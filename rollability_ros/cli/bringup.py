@@ -5,10 +5,10 @@ import time
 
 
 def run(args):
-    from rollability_ros.core.bringup import load_graph_settings, session_nodes
-    from rollability_ros.core.graph import parameter_files
-    from rollability_ros.core.bringup import new_study_id
-    from rollability_ros.core.supervisor import Supervisor
+    from rollability_ros.core.graph.bringup import load_graph_settings, session_nodes
+    from rollability_ros.core.graph.node_commands import parameter_files
+    from rollability_ros.core.graph.bringup import new_study_id
+    from rollability_ros.core.graph.supervisor import Supervisor
 
     param_files = parameter_files(["bringup", *args.config])
     settings = load_graph_settings(param_files)

@@ -15,8 +15,8 @@ def _write_csv(path, rows):
 def _screen_rows(twin_settings, configurations, screen_settings):
     """The stable-pose screen of each configuration on ``twin_settings``' robot, the built-in chassis or a URDF
     robot (quasi-static cross-check)."""
-    from rollability_ros.core.launch_twin import profile_body
-    from rollability_ros.core.stable_poses import screen_robot
+    from rollability_ros.core.sim.launch_twin import profile_body
+    from rollability_ros.core.sim.stable_poses import screen_robot
 
     robot_model = twin_settings.robot_model()
     return [{"configuration": configuration,
@@ -26,7 +26,7 @@ def _screen_rows(twin_settings, configurations, screen_settings):
 
 def summary_lines(result, screen_rows):
     """The printed summary: likelihood, parameters with uncertainty, per-configuration rates, rank agreement."""
-    from rollability_ros.core import analysis
+    from rollability_ros.core.results import analysis
 
     trials = sum(c.trials for c in result.conditions)
     lines = [f"grouped conditions: {len(result.conditions)}, physical trials: {trials}, parameter sets simulated: "
@@ -49,11 +49,11 @@ def run(args):
     """Calibrate, write the outputs to ``--out`` and print the summary; return the exit code."""
     import yaml
 
-    from rollability_ros.core import calibration
-    from rollability_ros.core.checkpoint import atomic_write_bytes
+    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
     from rollability_ros.core.config import from_mapping, load_parameters, section
-    from rollability_ros.core.report import load_report_data
-    from rollability_ros.core.stable_poses import ScreenSettings
+    from rollability_ros.core.results.report import load_report_data
+    from rollability_ros.core.sim.stable_poses import ScreenSettings
 
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.config])
     settings = calibration.calibration_settings(parameters)
@@ -96,7 +96,7 @@ def register(subparsers):
                     "friction, restitution, speed scatter, centre of mass, with bounds) to physical outcomes by "
                     "maximising the binomial likelihood of the observed successes per grouped condition with "
                     "CMA-ES; report before/after agreement and bootstrap uncertainty; write calibrated.yaml, a "
-                    "parameter file the evaluator, optimiser and rig load on top of the defaults.")
+                    "parameter file the evaluator, optimizer and rig load on top of the defaults.")
     parser.add_argument("--physical", required=True, metavar="SOURCE",
                         help="physical launch outcomes: a store, a run directory, a bag or a CSV (docs/outcome-csv.md)")
     parser.add_argument("--run", help="campaign run id in SOURCE (needed when it holds several)")

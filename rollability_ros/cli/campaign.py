@@ -30,7 +30,7 @@ def register(subparsers):
 def _spec(args):
     import dataclasses
 
-    from rollability_ros.core.campaign import load_campaign_spec
+    from rollability_ros.core.campaign.plan import load_campaign_spec
 
     spec = load_campaign_spec(args.config or ["campaign"])
     if args.run_id:
@@ -48,11 +48,11 @@ def run(args):
 
 
 def _run_local(args, spec, ask):
-    from rollability_ros.core.campaign import plan_trials
-    from rollability_ros.core.campaign_runner import (LocalRig, report_exit_code, resume_refusal, run_campaign,
+    from rollability_ros.core.campaign.plan import plan_trials
+    from rollability_ros.core.campaign.runner import (LocalRig, report_exit_code, resume_refusal, run_campaign,
                                                       store_writer)
     from rollability_ros.core.config import load_parameters
-    from rollability_ros.core.store import Store
+    from rollability_ros.core.results.store import Store
 
     with Store(args.store) as store:
         stored = store.trial_ids(spec.run_id)
@@ -72,7 +72,7 @@ def _run_graph(args, spec, ask):
     import rclpy
     from rclpy.node import Node
 
-    from rollability_ros.core.campaign_runner import RunnerSettings, report_exit_code
+    from rollability_ros.core.campaign.runner import RunnerSettings, report_exit_code
     from rollability_ros.nodes.campaign_runner import run_graph_campaign
 
     settings = RunnerSettings(backend=args.backend, store_path=args.store, resume=args.resume,

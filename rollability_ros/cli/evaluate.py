@@ -19,7 +19,8 @@ def _read_heights(args):
 
 def run(args):
     """Evaluate the profile the arguments name and print fitness, interval and timing; return the exit code."""
-    from rollability_ros.core import evaluation, geometry
+    from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.profile import geometry
 
     settings = evaluation.load_settings(["sim", "robot", "evaluator", *args.config])
     trials = args.trials if args.trials is not None else settings.evaluator.trials

@@ -1,4 +1,4 @@
-"""`rollability optimize`: a CMA-ES profile optimisation in this process (no ROS graph), resumable."""
+"""`rollability optimize`: a CMA-ES profile optimization in this process (no ROS graph), resumable."""
 import math
 import os
 import sys
@@ -46,7 +46,8 @@ class ProgressLine:
 
 def _write_convergence_figure(run):
     """Write ``<run_dir>/convergence.png`` (the paper's Figure 4) if matplotlib is installed; return its path."""
-    from rollability_ros.core import analysis, report_figures
+    from rollability_ros.core.results import analysis
+    from rollability_ros.core.results import report_figures
     from rollability_ros.core.optional import MissingDependency
 
     points = analysis.convergence(generations=run.store.generations(run_id=run.run_id))
@@ -57,30 +58,31 @@ def _write_convergence_figure(run):
 
 
 def run(args):
-    """Start or resume an optimisation; return the exit code."""
-    from rollability_ros.core import evaluation, optimisation_run
+    """Start or resume an optimization; return the exit code."""
+    from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.optimization import optimization_run as optimization_run
 
     if args.resume and args.run_id:
         raise ValueError("--run-id names a new run; --resume takes the run to continue")
     if args.resume:
-        parameters = optimisation_run.load_run_parameters(args.config) if args.config else None
-        output_dir = optimisation_run.optimizer_settings(parameters).output_dir if parameters else "runs"
-        run_dir = optimisation_run.resolve_run_dir(args.resume, output_dir)
+        parameters = optimization_run.load_run_parameters(args.config) if args.config else None
+        output_dir = optimization_run.optimizer_settings(parameters).output_dir if parameters else "runs"
+        run_dir = optimization_run.resolve_run_dir(args.resume, output_dir)
         if parameters is None:
-            parameters = optimisation_run.read_run_config(run_dir)
+            parameters = optimization_run.read_run_config(run_dir)
     else:
         if not args.config:
             raise ValueError("a new run needs --config (e.g. --config optimizer, --config paper)")
-        parameters = optimisation_run.load_run_parameters(args.config)
-        output_dir = optimisation_run.optimizer_settings(parameters).output_dir
-        run_dir = os.path.join(output_dir, args.run_id or optimisation_run.new_run_id())
+        parameters = optimization_run.load_run_parameters(args.config)
+        output_dir = optimization_run.optimizer_settings(parameters).output_dir
+        run_dir = os.path.join(output_dir, args.run_id or optimization_run.new_run_id())
     settings = evaluation.settings_from_parameters(parameters)
     executor = evaluation.make_executor(settings.evaluator, args.workers)
     progress = None
     try:
-        trials = optimisation_run.optimizer_settings(parameters).trials
-        evaluate_batch = optimisation_run.profile_batch_evaluator(settings, trials, executor)
-        run = optimisation_run.OptimisationRun(run_dir, parameters, settings.grid, evaluate_batch,
+        trials = optimization_run.optimizer_settings(parameters).trials
+        evaluate_batch = optimization_run.profile_batch_evaluator(settings, trials, executor)
+        run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid, evaluate_batch,
                                                resume=bool(args.resume))
         progress = ProgressLine(run)
         run.on_candidate, run.on_generation = progress.candidate, progress.generation
@@ -113,13 +115,13 @@ def run(args):
 def register(subparsers):
     """Add the ``optimize`` verb."""
     parser = subparsers.add_parser(
-        "optimize", help="run a CMA-ES profile optimisation in this process (resumable)",
-        description="Optimise the profile heights with CMA-ES (paper 2.1.4), evaluating candidates in a local "
+        "optimize", help="run a CMA-ES profile optimization in this process (resumable)",
+        description="Optimize the profile heights with CMA-ES (paper 2.1.4), evaluating candidates in a local "
                     "process pool (or the Ray cluster of evaluator.ray_address). Every candidate and generation "
                     "goes to <output_dir>/<run_id>/store.sqlite and a checkpoint is written after each "
                     "generation, so a killed run continues with --resume and gives the same results.")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
-                        help="optimisation parameter file or shipped name: 'optimizer' (quick default, minutes on "
+                        help="optimization parameter file or shipped name: 'optimizer' (quick default, minutes on "
                              "2 cores) or 'paper' (the paper's settings); loaded on top of sim, robot and "
                              "evaluator; repeatable, later files win (e.g. --config optimizer --config "
                              "runs/cal/calibrated.yaml). Optional with --resume (then the run's own config.yaml "

@@ -23,7 +23,7 @@ def default_out_dir(source):
 
 def run(args):
     """Build the report and print its summary; return the exit code."""
-    from rollability_ros.core import report
+    from rollability_ros.core.results import report
 
     data = report.load_report_data(args.source, run_id=args.run)
     if args.sim_fitness:

@@ -1,4 +1,4 @@
-"""`rollability select RUN`: choose the designs to fabricate (Mesh A, B, C) from an optimisation run."""
+"""`rollability select RUN`: choose the designs to fabricate (Mesh A, B, C) from an optimization run."""
 import sys
 
 
@@ -15,28 +15,30 @@ def _print_table(rows):
 
 def run(args):
     """Select, export and report the designs; exit code 1 when fewer than requested qualify."""
-    from rollability_ros.core import evaluation, optimisation_run, selection
+    from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.optimization import optimization_run as optimization_run
+    from rollability_ros.core.optimization import selection
     from rollability_ros.core.config import from_mapping, section
-    from rollability_ros.core.store import Store
+    from rollability_ros.core.results.store import Store
 
-    run_dir = optimisation_run.resolve_run_dir(args.run, args.output_dir)
-    parameters = optimisation_run.read_run_config(run_dir)
+    run_dir = optimization_run.resolve_run_dir(args.run, args.output_dir)
+    parameters = optimization_run.read_run_config(run_dir)
     mapping = section(parameters, "selection")
     for name in ("count", "min_distance", "reevaluate_trials"):
         if getattr(args, name) is not None:
             mapping[name] = getattr(args, name)
     settings = from_mapping(selection.SelectionSettings, mapping, "selection")
     evaluator_settings = evaluation.settings_from_parameters(parameters)
-    run_id = optimisation_run.run_id_of(run_dir)
+    run_id = optimization_run.run_id_of(run_dir)
     executor = evaluation.make_executor(evaluator_settings.evaluator, args.workers) \
         if settings.reevaluate_trials else None
     try:
-        evaluate_batch = optimisation_run.profile_batch_evaluator(
+        evaluate_batch = optimization_run.profile_batch_evaluator(
             evaluator_settings, settings.reevaluate_trials, executor) if executor else None
         with Store(run_dir) as store:
             result, folder = selection.select_run(store, run_id, run_dir, evaluator_settings.grid,
                                                   evaluator_settings.printer, settings, evaluate_batch,
-                                                  optimisation_run.optimizer_settings(parameters).seed)
+                                                  optimization_run.optimizer_settings(parameters).seed)
     finally:
         if executor is not None:
             executor.close()
@@ -53,7 +55,7 @@ def run(args):
 def register(subparsers):
     """Add the ``select`` verb."""
     parser = subparsers.add_parser(
-        "select", help="choose high-fitness, printable, diverse designs (Mesh A, B, C) from an optimisation run",
+        "select", help="choose high-fitness, printable, diverse designs (Mesh A, B, C) from an optimization run",
         description="Pool every logged evaluation of the run per design, rank by the lower Wilson bound of the "
                     "fitness, and take the best designs that pass the printability checks and lie at least "
                     "--min-distance (RMS height difference, simulation units) from each other; optionally "

@@ -1,9 +1,9 @@
-"""`rollability study`: the main job, through the real node graph, in simulation (see core/study.py)."""
+"""`rollability study`: the main job, through the real node graph, in simulation (see core/graph/study.py)."""
 import signal
 
 
 def run(args):
-    from rollability_ros.core.study import Study
+    from rollability_ros.core.graph.study import Study
 
     study = Study(extra_configs=args.config, study_id=args.study_id, resume=args.resume)
     signal.signal(signal.SIGINT, lambda *_: study.request_stop())
@@ -13,7 +13,7 @@ def run(args):
     if result.summary:
         print(result.summary)
     print(f"study directory: {result.study_dir}")
-    print(f"  designs (STL, Table 3): {study.optimisation_dir}/designs/")
+    print(f"  designs (STL, Table 3): {study.optimization_dir}/designs/")
     print(f"  outcome store:          {study.store_path}")
     if result.bag_dir:
         print(f"  bag (MCAP):             {result.bag_dir}   (rollability play {result.bag_dir})")
@@ -32,7 +32,7 @@ def run(args):
 
 def register(subparsers):
     parser = subparsers.add_parser(
-        "study", help="the main job: optimise, select designs, run the launch campaign in simulation, report",
+        "study", help="the main job: optimize, select designs, run the launch campaign in simulation, report",
         description="Run the whole loop through the real node graph (supervised processes): CMA-ES over "
         "simulated evaluators, design selection (A/B/C), the launch campaign on the simulated rig for the "
         "baseline and the designs, durable logging, an MCAP bag, and the report. The default is the quick "
@@ -44,6 +44,6 @@ def register(subparsers):
     parser.add_argument("--study-id", default=None, help="name of the study directory (default: study-<UTC time>)")
     parser.add_argument("--resume", metavar="STUDY", default=None,
                         help="continue study STUDY (its id under bringup.output_dir, or its directory) on its saved "
-                             "parameter files: the optimisation from its last checkpoint (skipped once designs were "
+                             "parameter files: the optimization from its last checkpoint (skipped once designs were "
                              "selected), the campaign without the trials already stored, a new bag beside the old")
     parser.set_defaults(func=run)

@@ -1,1 +1,19 @@
-"""The pure core: geometry, physics, optimiser, campaign, analysis, bags, hardware. Never imports rclpy."""
+"""The pure core of rollability_ros: never imports rclpy, so it runs and is tested without ROS.
+
+Subpackages by domain (a module imports from its own subpackage and from those listed before it, plus the
+shared ``config`` and ``optional`` modules at this level):
+
+- profile       profile geometry, printability, configuration ids -> solids
+- robots        the built-in chassis and URDF robots the simulation spawns
+- sim           PyBullet worlds, disturbance trials, evaluation, stable-pose screen, launch twin
+- optimization  CMA-ES, the run loop and checkpoints, evaluator pool, design selection
+- imu           orientation maths, upright classifier, tip-over tracker
+- rig           the launch sequence, the valve and its backends, relay simulator, speed gates
+- results       records, the durable store, CSV, analysis, figures, report
+- campaign      experiment matrix, campaign loop, calibration of the twin
+- bags          rosbag2/MCAP write, read, recover, convert, playback
+- graph         the node graph as processes: command lines, bringup, supervisor, study, live view
+
+Heavy dependencies (pybullet, trimesh, cma, matplotlib, ray) are imported only inside the modules that use them,
+through :mod:`rollability_ros.core.optional`, so the rig side runs on a robot computer without them.
+"""

@@ -6,12 +6,12 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from rollability_ros.core.msg_definitions import split_type_name
+from rollability_ros.core.bags.msg_definitions import split_type_name
 from rollability_ros.nodes._support import ParameterError
 
 
 def qos_profile_from_dict(qos):
-    """rclpy ``QoSProfile`` from a :mod:`rollability_ros.core.bag_qos` dict (history, depth, reliability,
+    """rclpy ``QoSProfile`` from a :mod:`rollability_ros.core.bags.qos` dict (history, depth, reliability,
     durability; deadline, lifespan and liveliness stay at their defaults, which match any peer)."""
     return QoSProfile(history=HistoryPolicy[qos["history"].upper()], depth=max(1, int(qos["depth"])),
                       reliability=ReliabilityPolicy[qos["reliability"].upper()],

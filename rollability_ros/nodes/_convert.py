@@ -1,4 +1,4 @@
-"""Conversions between the ROS messages of ``msg/`` and the core records of ``core/records.py``.
+"""Conversions between the ROS messages of ``msg/`` and the core records of ``core/results/records.py``.
 
 One place for every field mapping, so nodes, the player and tests agree. Times: message stamps
 (``builtin_interfaces/Time``) <-> float seconds since the Unix epoch.
@@ -8,7 +8,7 @@ import math
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Quaternion
 
-from rollability_ros.core import records
+from rollability_ros.core.results import records
 from rollability_ros.msg import (CandidateResult, GenerationSummary, LaunchCondition, LaunchOutcome,
                                  TipEvent)
 

@@ -3,8 +3,8 @@
 Action client: ``launch`` (rollability_ros/Launch) of the ``rig`` node, one goal per remaining trial.
 Service clients (attended runs): ``rig/confirm`` (std_srvs/Trigger) and ``record_outcome`` (RecordOutcome), called
   with what the operator types when the rig's feedback asks for the regulator or for the outcome.
-Parameters: ``campaign.*`` (:class:`~rollability_ros.core.campaign.CampaignSpec`) and ``runner.*``
-  (:class:`~rollability_ros.core.campaign_runner.RunnerSettings`: ``backend`` sim = unattended, physical = the
+Parameters: ``campaign.*`` (:class:`~rollability_ros.core.campaign.plan.CampaignSpec`) and ``runner.*``
+  (:class:`~rollability_ros.core.campaign.runner.RunnerSettings`: ``backend`` sim = unattended, physical = the
   terminal tells the operator what to change and waits for Enter; ``store_path`` of the outcome_logger;
   ``resume``).
 
@@ -25,11 +25,11 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from rollability_ros.action import Launch
-from rollability_ros.core.campaign import CampaignSpec, plan_trials
-from rollability_ros.core.campaign_runner import (RunnerSettings, StoreWatcher, answer_rig, report_exit_code,
+from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
+from rollability_ros.core.campaign.runner import (RunnerSettings, StoreWatcher, answer_rig, report_exit_code,
                                                   resume_refusal, run_campaign)
 from rollability_ros.core.config import ConfigError
-from rollability_ros.core.rig_session import LaunchAborted
+from rollability_ros.core.rig.rig_session import LaunchAborted
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import ParameterError, declare_settings
 from rollability_ros.srv import RecordOutcome
@@ -93,7 +93,7 @@ class RigClient:
             self.say(f"  the rig refused the answer: {response.message}")
 
     def launch(self, trial):
-        """Run ``trial`` on the rig; its :class:`~rollability_ros.core.records.LaunchOutcome`, or LaunchAborted."""
+        """Run ``trial`` on the rig; its :class:`~rollability_ros.core.results.records.LaunchOutcome`, or LaunchAborted."""
         if not self.action.wait_for_server(timeout_sec=self.server_timeout_s):
             raise LaunchAborted(f"no rig serves the launch action within {self.server_timeout_s:g} s")
         feedback = queue.Queue()

@@ -1,4 +1,4 @@
-"""optimizer: a CMA-ES profile optimisation (``core.optimisation_run``) whose candidates are evaluated by every
+"""optimizer: a CMA-ES profile optimization (``core.optimization_run``) whose candidates are evaluated by every
 EvaluateProfile action server in the graph (one or many ``sim_evaluator`` nodes, ``core.evaluator_pool``).
 
 Interfaces (relative names):
@@ -19,7 +19,7 @@ Interfaces (relative names):
   type, rediscovered every ``evaluator_discovery_period_s``; one goal in flight per server.
 
 Parameters: the namespaces ``optimizer`` (config/optimizer.yaml, config/paper.yaml), ``selection``, ``profile``
-and ``printer`` (the grid and printer of config/robot.yaml, overridden by the optimisation file), all saved in
+and ``printer`` (the grid and printer of config/robot.yaml, overridden by the optimization file), all saved in
 the run's ``config.yaml``; ``robot`` (the chassis: the marker's mount and the screen's robot); ``urdf_robot`` (a
 URDF robot's config such as config/husky.yaml: when it names a mount link, the grid's ``length_m`` / ``width_m``
 are its mount footprint's, as the evaluators' are, the marker sits on that mount and the screen uses it);
@@ -27,8 +27,8 @@ are its mount footprint's, as the evaluators' are, the marker sits on that mount
 ``run_id`` (empty = new ``opt-<date>-<time>``), ``resume`` (continue run ``run_id`` from its last checkpoint),
 ``autostart`` (start once the graph has been searched twice), ``exit_on_finish``, ``select_designs`` (choose
 Mesh A, B, C when the run finishes), ``frame_id``, ``evaluator_timeout_s``, ``evaluator_max_attempts``,
-``evaluator_retry_delay_s``, ``evaluator_discovery_period_s``. Optimiser parameters are read when a run starts.
-See docs/optimisation.md.
+``evaluator_retry_delay_s``, ``evaluator_discovery_period_s``. Optimizer parameters are read when a run starts.
+See docs/optimization.md.
 
 A failed evaluation (rejected goal, aborted, silent for ``evaluator_timeout_s``, evaluator gone) is retried on
 another evaluator and never scored; after ``evaluator_max_attempts`` failures of one candidate the run pauses
@@ -53,15 +53,17 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
 from rollability_ros.action import EvaluateProfile
-from rollability_ros.core import geometry, optimisation_run, selection
+from rollability_ros.core.profile import geometry
+from rollability_ros.core.optimization import optimization_run as optimization_run
+from rollability_ros.core.optimization import selection
 from rollability_ros.core.config import ConfigError
-from rollability_ros.core.evaluator_pool import EvaluationFailed, EvaluatorPool, PoolClosed, PoolSettings
-from rollability_ros.core.geometry import PrinterSpec, ProfileGrid
-from rollability_ros.core.optimiser import OptimizerSettings
-from rollability_ros.core.robot import ChassisSpec
-from rollability_ros.core.selection import SelectionSettings
-from rollability_ros.core.stable_poses import ScreenSettings
-from rollability_ros.core.urdf_robot import UrdfRobotSpec, footprint_grid, profile_mount
+from rollability_ros.core.optimization.evaluator_pool import EvaluationFailed, EvaluatorPool, PoolClosed, PoolSettings
+from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid
+from rollability_ros.core.optimization.cmaes import OptimizerSettings
+from rollability_ros.core.robots.robot import ChassisSpec
+from rollability_ros.core.optimization.selection import SelectionSettings
+from rollability_ros.core.sim.stable_poses import ScreenSettings
+from rollability_ros.core.robots.urdf_robot import UrdfRobotSpec, footprint_grid, profile_mount
 from rollability_ros.msg import CandidateResult, GenerationSummary
 from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, ThreadSafeActionClient,
@@ -80,7 +82,7 @@ _STATUS_NAMES = {GoalStatus.STATUS_ABORTED: "aborted", GoalStatus.STATUS_CANCELE
 _PARAMETERS = {  # name: (default, description)
     "run_id": ("", "id of the run to start (empty: opt-<date>-<time>) or, with resume, to continue"),
     "resume": (False, "continue run run_id from its last checkpoint instead of starting a new run"),
-    "autostart": (True, "start optimising at start-up (false: wait for the start service)"),
+    "autostart": (True, "start optimizing at start-up (false: wait for the start service)"),
     "select_designs": (False, "when the run finishes, choose designs A, B, C (section selection) into "
                               "<run>/designs/"),
     "exit_on_finish": (False, "end the node when the run ends: exit code 0 if it finished, 1 if it could not "
@@ -103,7 +105,7 @@ def run_parameters(settings_by_section):
 
 
 class Optimizer(Node):
-    """Moves candidates and fitnesses between an :class:`OptimisationRun` and the evaluators in the graph."""
+    """Moves candidates and fitnesses between an :class:`OptimizationRun` and the evaluators in the graph."""
 
     def __init__(self):
         super().__init__("optimizer")
@@ -260,10 +262,10 @@ class Optimizer(Node):
             self._grid, self._mount = settings["profile"], self._read_mount()
             self._stop_requested.clear()
             self._pool.resume()
-            self._worker = threading.Thread(target=self._optimise, name="optimisation",
+            self._worker = threading.Thread(target=self._optimize, name="optimization",
                                             args=(run_dir, parameters, resume, settings), daemon=True)
             self._worker.start()
-            return True, f"{'resuming' if resume else 'starting'} run {optimisation_run.run_id_of(run_dir)}"
+            return True, f"{'resuming' if resume else 'starting'} run {optimization_run.run_id_of(run_dir)}"
 
     def _read_run_settings(self):
         """The run sections from the parameters, the grid spanning the robot's mount footprint (``footprint_grid``)."""
@@ -273,7 +275,7 @@ class Optimizer(Node):
 
     def _robot_settings(self, settings):
         """The evaluator settings of the profile's robot (grid, printer, robot sections) for the stable-pose screen."""
-        from rollability_ros.core.evaluation import EvaluatorSettings
+        from rollability_ros.core.sim.evaluation import EvaluatorSettings
 
         return EvaluatorSettings(grid=settings["profile"], printer=settings["printer"], robot=self._robots["robot"],
                                  urdf_robot=self._robots["urdf_robot"])
@@ -293,14 +295,14 @@ class Optimizer(Node):
         output_dir = settings["optimizer"].output_dir
         parameters = run_parameters(settings)
         if not resume:
-            run_id = run_id or optimisation_run.new_run_id()
+            run_id = run_id or optimization_run.new_run_id()
             return os.path.join(output_dir, run_id), parameters, False
         if not run_id:
             raise ValueError("resume needs the run_id of the run to continue")
-        run_dir = optimisation_run.resolve_run_dir(run_id, output_dir)
-        return run_dir, {**optimisation_run.read_run_config(run_dir), **parameters}, True
+        run_dir = optimization_run.resolve_run_dir(run_id, output_dir)
+        return run_dir, {**optimization_run.read_run_config(run_dir), **parameters}, True
 
-    def _optimise(self, run_dir, parameters, resume, settings):
+    def _optimize(self, run_dir, parameters, resume, settings):
         """The worker thread: run generations until a stop criterion, ``stop``, or shutdown; with
         ``exit_on_finish``, then end the node (exit code 0 when the run finished, 1 when it could not)."""
         code = self._run_to_end(run_dir, parameters, resume, settings)
@@ -312,10 +314,10 @@ class Optimizer(Node):
         """Run; return 0 (finished or stopped), 1 (failed) or None (interrupted by shutdown)."""
         log = self.get_logger()
         try:
-            run = optimisation_run.OptimisationRun(
+            run = optimization_run.OptimizationRun(
                 run_dir, parameters, settings["profile"], self._pool.batch_evaluator(settings["optimizer"].trials),
                 resume=resume, on_candidate=self._publish_candidate,
-                screen_profiles=optimisation_run.profile_screen(parameters, self._robot_settings(settings),
+                screen_profiles=optimization_run.profile_screen(parameters, self._robot_settings(settings),
                                                                 self._robots["stable_poses"]))
         except (ConfigError, ValueError, FileNotFoundError) as exc:
             log.error(f"cannot {'resume' if resume else 'start'} run in {run_dir}: {exc}")

@@ -22,8 +22,8 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 
-from rollability_ros.core.outcome_log import OutcomeLog, OutcomeLoggerSettings, StoreFailure
-from rollability_ros.core.store import unique_key
+from rollability_ros.core.results.outcome_log import OutcomeLog, OutcomeLoggerSettings, StoreFailure
+from rollability_ros.core.results.store import unique_key
 from rollability_ros.msg import (CandidateResult, ConfigurationSummary, GenerationSummary, LaunchOutcome,
                                  OutcomeSummary, TipEvent)
 from rollability_ros.nodes import _convert
@@ -40,7 +40,7 @@ _RECORD_TOPICS = {
 
 
 def summary_to_msg(summary):
-    """:class:`~rollability_ros.core.outcome_log.LogSummary` -> ``OutcomeSummary``."""
+    """:class:`~rollability_ros.core.results.outcome_log.LogSummary` -> ``OutcomeSummary``."""
     msg = OutcomeSummary(trials=summary.trials, candidates=summary.candidates)
     msg.header.stamp = _convert.s_to_stamp(summary.latest_stamp_s)
     msg.configurations = [

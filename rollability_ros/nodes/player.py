@@ -1,6 +1,6 @@
 """player node: publishes a recorded bag's messages with their original timing, then exits (unless looping).
 
-Parameters (``player.*``; see :class:`~rollability_ros.core.record_play.PlayerSettings`): ``bag`` (required),
+Parameters (``player.*``; see :class:`~rollability_ros.core.bags.record_play.PlayerSettings`): ``bag`` (required),
 ``rate``, ``start_offset_s``, ``loop``, ``clock`` (publish ``/clock`` with each message's recorded time),
 ``wait_for_subscribers_s`` (longest wait for subscribers before the first message), and the string arrays ``topics`` (recorded topics to play;
 empty: all) and ``remap`` (``/recorded:=/new``).
@@ -8,7 +8,7 @@ empty: all) and ``remap`` (``/recorded:=/new``).
 Each topic is published with the recorded type (its Python interface package must be installed) and a QoS
 adapted from the recorded publishers' offers (reliable / transient-local only when every original publisher
 was). Messages go out as the recorded CDR bytes, untouched, at the times given by
-:func:`rollability_ros.core.bag_playback.playback_schedule`; the node waits for reliable subscribers to
+:func:`rollability_ros.core.bags.playback.playback_schedule`; the node waits for reliable subscribers to
 acknowledge them (up to ``ACK_TIMEOUT_S``) before it exits.
 """
 import threading
@@ -17,11 +17,11 @@ import time
 from rclpy.duration import Duration
 from rclpy.node import Node
 
-from rollability_ros.core.bag_metadata import BagError
-from rollability_ros.core.bag_playback import CLOCK_TOPIC, CLOCK_TYPE, clock_message_cdr, playback_schedule
-from rollability_ros.core.bag_qos import subscription_qos_for
-from rollability_ros.core.bag_reader import BagReader
-from rollability_ros.core.record_play import PlayerSettings, check_topic_names, parse_remaps
+from rollability_ros.core.bags.metadata import BagError
+from rollability_ros.core.bags.playback import CLOCK_TOPIC, CLOCK_TYPE, clock_message_cdr, playback_schedule
+from rollability_ros.core.bags.qos import subscription_qos_for
+from rollability_ros.core.bags.reader import BagReader
+from rollability_ros.core.bags.record_play import PlayerSettings, check_topic_names, parse_remaps
 from rollability_ros.nodes._bag_nodes import declare_string_list, message_class, qos_profile_from_dict
 from rollability_ros.nodes._support import ParameterError, declare_settings, run_node
 

@@ -1,22 +1,22 @@
 """recorder node: records the project's topics (or chosen ones) into a rosbag2 MCAP bag until SIGINT / SIGTERM.
 
 Bag: ``recorder.output_dir`` (default ``bags/rollability_<UTC date-time>``), written by
-:class:`~rollability_ros.core.bag_writer.BagWriter` (metadata.yaml version 9, zstd-chunked MCAP, full ros2msg
+:class:`~rollability_ros.core.bags.writer.BagWriter` (metadata.yaml version 9, zstd-chunked MCAP, full ros2msg
 schemas, type hashes, offered QoS). A clean stop (SIGINT or SIGTERM) finishes the storage file (summary
 section) and writes the final metadata; after ``kill -9``, ``rollability bag recover`` restores every written
 chunk (at most ``chunk_size_bytes`` of messages, or ``2 x flush_interval_s`` of them, are lost).
 
 Topics: ``recorder.topics`` (string array of absolute names; empty = the project's graph, see
-:func:`rollability_ros.core.record_play.in_project_graph`), searched for every ``discovery_period_s``; a topic is
+:func:`rollability_ros.core.bags.record_play.in_project_graph`), searched for every ``discovery_period_s``; a topic is
 subscribed once a publisher exists. Each subscription takes serialized CDR (``raw=True``) with a QoS matched to
-the publishers (:func:`~rollability_ros.core.bag_qos.subscription_qos_for`: reliable / transient-local only
+the publishers (:func:`~rollability_ros.core.bags.qos.subscription_qos_for`: reliable / transient-local only
 when every publisher is). Reliable subscriptions keep all: the recorder's own queue never overwrites a message
 (a keep-all publisher is slowed down instead; a keep-last publisher that outruns the recorder loses its oldest
 unacknowledged messages on its side). A loss the middleware reports is logged as an ERROR with the topic and
 count, and the total is in the closing log line: no silent drops. Each callback also takes what else waits in
 its subscription's queue (up to ``DRAIN_LIMIT``), so the rate is not capped by one executor cycle per message.
 
-Other parameters (``recorder.*``): see :class:`~rollability_ros.core.record_play.RecorderSettings`.
+Other parameters (``recorder.*``): see :class:`~rollability_ros.core.bags.record_play.RecorderSettings`.
 """
 import threading
 import time
@@ -25,9 +25,9 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 
-from rollability_ros.core.bag_qos import qos_dict_from_profile, subscription_qos_for
-from rollability_ros.core.bag_writer import BagWriter
-from rollability_ros.core.record_play import (RecorderSettings, check_topic_names, default_bag_directory,
+from rollability_ros.core.bags.qos import qos_dict_from_profile, subscription_qos_for
+from rollability_ros.core.bags.writer import BagWriter
+from rollability_ros.core.bags.record_play import (RecorderSettings, check_topic_names, default_bag_directory,
                                               select_topics, type_hash_string)
 from rollability_ros.nodes._bag_nodes import declare_string_list, message_class, qos_profile_from_dict
 from rollability_ros.nodes._support import ParameterError, declare_settings, run_node

@@ -19,7 +19,7 @@ Services (physical backend):
 Clients (physical backend): ``valve/arm`` (std_srvs/SetBool), ``valve/fire`` (FireValve); subscribes to
   ``valve/state`` (latched) and to the IMU topic ``imu_outcome.topic`` (sensor_msgs/Imu, default ``imu/data``)
   when ``rig.outcome_source`` is ``imu``.
-Parameters: ``rig.*`` (:class:`~rollability_ros.core.rig_session.RigSettings`: ``rig.backend`` sim | physical,
+Parameters: ``rig.*`` (:class:`~rollability_ros.core.rig.rig_session.RigSettings`: ``rig.backend`` sim | physical,
   ...), ``valve.*`` (launch pulse, heartbeat period, regulator pressures), ``speed_gate.*``, ``imu_outcome.*``,
   all in ``config/rig.yaml``; the sim backend reads the launch twin's own parameter files (``rig.twin_config``,
   default sim, robot, launch_twin) at start-up. Fixed at start-up.
@@ -40,12 +40,12 @@ from std_msgs.msg import Header
 from std_srvs.srv import SetBool, Trigger
 
 from rollability_ros.action import Launch
-from rollability_ros.core import rig_session
-from rollability_ros.core.rig_session import (ImuOutcome, LaunchAborted, OperatorChannel, OperatorOutcome,
+from rollability_ros.core.rig import rig_session
+from rollability_ros.core.rig.rig_session import (ImuOutcome, LaunchAborted, OperatorChannel, OperatorOutcome,
                                               PhysicalLaunch, RigSettings, SimulatedLaunch)
-from rollability_ros.core.speed_gate import SpeedGateConfig, make_speed_gate
-from rollability_ros.core.upright import ImuOutcomeConfig, ImuSample, orientation_if_valid
-from rollability_ros.core.valve import ValveConfig, ValveStatus
+from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
+from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, orientation_if_valid
+from rollability_ros.core.rig.valve import ValveConfig, ValveStatus
 from rollability_ros.msg import LaunchOutcome, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,

@@ -26,9 +26,9 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from rollability_ros.action import EvaluateProfile
-from rollability_ros.core.evaluation import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
+from rollability_ros.core.sim.evaluation import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
                                              evaluate_profile, make_executor)
-from rollability_ros.core.geometry import check_heights
+from rollability_ros.core.profile.geometry import check_heights
 from rollability_ros.msg import TrialResult
 from rollability_ros.nodes._support import LATCHED_QOS, declare_settings, guard_settings, run_node
 
@@ -49,7 +49,7 @@ def _trial_msgs(outcomes):
 
 
 class SimEvaluator(Node):
-    """Adapts :func:`rollability_ros.core.evaluation.evaluate_profile` to the EvaluateProfile action."""
+    """Adapts :func:`rollability_ros.core.sim.evaluation.evaluate_profile` to the EvaluateProfile action."""
 
     def __init__(self):
         super().__init__("sim_evaluator")

@@ -1,6 +1,6 @@
 """tip_monitor node: rollability in the field -- tracks any robot's tip-overs from its ``sensor_msgs/Imu``.
 
-The logic is :class:`rollability_ros.core.tip_tracker.TipTracker` (states upright, tipped, righting, recovered,
+The logic is :class:`rollability_ros.core.imu.tip_tracker.TipTracker` (states upright, tipped, righting, recovered,
 stuck; IMU stamps are its clock); this node moves IMU messages in and states, events and diagnostics out.
 
 Subscriptions:
@@ -17,7 +17,7 @@ Publications:
   ``/diagnostics`` (diagnostic_msgs/DiagnosticArray): every ``diagnostics_period_s`` and on each change; OK
   upright / recovered, WARN tipped / righting, ERROR stuck, STALE without IMU data for ``imu_timeout_s``.
 Parameters:
-  ``tip_monitor.*`` -- the fields of :class:`~rollability_ros.core.tip_tracker.TipMonitorConfig` (see
+  ``tip_monitor.*`` -- the fields of :class:`~rollability_ros.core.imu.tip_tracker.TipMonitorConfig` (see
   ``config/tip_monitor.yaml``), validated at start-up; a ``ros2 param set`` that would make them invalid is
   refused, an accepted one restarts tracking (state upright) with the new thresholds.
   ``mount_quaternion_xyzw`` (double[4], default all zeros = not given): IMU mounting rotation imu -> body as a
@@ -41,9 +41,9 @@ from rclpy.node import Node
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Header
 
-from rollability_ros.core.outcome_log import OutcomeLog, StoreFailure
-from rollability_ros.core.tip_tracker import TipMonitorConfig, TipTracker, diagnostic_status
-from rollability_ros.core.upright import ImuSample, normalize_quaternion, orientation_if_valid
+from rollability_ros.core.results.outcome_log import OutcomeLog, StoreFailure
+from rollability_ros.core.imu.tip_tracker import TipMonitorConfig, TipTracker, diagnostic_status
+from rollability_ros.core.imu.upright import ImuSample, normalize_quaternion, orientation_if_valid
 from rollability_ros.msg import TipEvent, TipState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,

@@ -12,7 +12,7 @@ Subscriptions:
 Publications:
   ``valve/state`` (rollability_ros/ValveState, latched): on every state change; each change is also logged.
 Parameters:
-  ``valve.*`` (:class:`~rollability_ros.core.valve.ValveConfig`, shipped in ``config/rig.yaml``), fixed at
+  ``valve.*`` (:class:`~rollability_ros.core.rig.valve.ValveConfig`, shipped in ``config/rig.yaml``), fixed at
   start-up: a running safety device does not change its backend or limits underneath the rig.
 
 Fail-closed: the valve is driven closed at start, on disarm, e-stop, watchdog trip, backend error, at the end of
@@ -24,15 +24,15 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, Header
 from std_srvs.srv import SetBool
 
-from rollability_ros.core.valve import ValveConfig
-from rollability_ros.core.valve_backends import make_controller
+from rollability_ros.core.rig.valve import ValveConfig
+from rollability_ros.core.rig.valve_backends import make_controller
 from rollability_ros.msg import ValveState
 from rollability_ros.nodes._support import LATCHED_QOS, ParameterError, declare_settings, run_node
 from rollability_ros.srv import FireValve
 
 
 class ValveControllerNode(Node):
-    """Thin adapter: services and topics -> :class:`~rollability_ros.core.valve.ValveController`."""
+    """Thin adapter: services and topics -> :class:`~rollability_ros.core.rig.valve.ValveController`."""
 
     def __init__(self):
         super().__init__("valve_controller")

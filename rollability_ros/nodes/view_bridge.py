@@ -2,12 +2,12 @@
 
 Discovers topics every ``discovery_period_s`` (publishers that appear later are picked up) and subscribes to
 each selected one raw (serialized CDR), with a QoS matched to its publishers (reliable / transient local only
-when all of them are), handing the bytes to :class:`rollability_ros.core.foxglove_view.ViewServer`. Topics
+when all of them are), handing the bytes to :class:`rollability_ros.core.graph.foxglove_view.ViewServer`. Topics
 whose every publisher is transient local are served as latched: a client that connects later gets the last
 message at once.
 
 Selection: ``topics`` (absolute names) when given, else the project's graph as the recorder sees it
-(:func:`rollability_ros.core.record_play.select_topics`: our package's types, ``rig/pose``, markers,
+(:func:`rollability_ros.core.bags.record_play.select_topics`: our package's types, ``rig/pose``, markers,
 ``/diagnostics``, ``/tf``; not ``/rosout`` or hidden topics).
 Parameters: ``host`` (default 127.0.0.1: this machine only), ``port`` (default 8765; 0 = any free port),
 ``discovery_period_s`` (default 2.0 s), ``topics`` (string[], default empty). All fixed at start-up.
@@ -21,10 +21,10 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from rollability_ros.core.bag_qos import qos_dict_from_profile, subscription_qos_for
-from rollability_ros.core.foxglove_view import ViewServer, ViewSettings
+from rollability_ros.core.bags.qos import qos_dict_from_profile, subscription_qos_for
+from rollability_ros.core.graph.foxglove_view import ViewServer, ViewSettings
 from rollability_ros.core.optional import MissingDependency
-from rollability_ros.core.record_play import check_topic_names, select_topics
+from rollability_ros.core.bags.record_play import check_topic_names, select_topics
 from rollability_ros.nodes._bag_nodes import message_class, qos_profile_from_dict
 from rollability_ros.nodes._support import ParameterError, declare_settings, run_node
 

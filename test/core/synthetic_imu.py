@@ -7,7 +7,7 @@ A scripted body motion (tilt about a horizontal body axis, optional heading rate
 import math
 import random
 
-from rollability_ros.core.upright import (STANDARD_GRAVITY_MPS2, ImuSample, quaternion_conjugate,
+from rollability_ros.core.imu.upright import (STANDARD_GRAVITY_MPS2, ImuSample, quaternion_conjugate,
                                           quaternion_from_axis_angle, quaternion_multiply, rotate_vector)
 
 

@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from rollability_ros.core.analysis import (
+from rollability_ros.core.results.analysis import (
     average_ranks,
     cells_of,
     convergence,
@@ -16,14 +16,14 @@ from rollability_ros.core.analysis import (
     spearman_rho,
     tip_event_summary,
 )
-from rollability_ros.core.records import (
+from rollability_ros.core.results.records import (
     CandidateRecord,
     GenerationRecord,
     LaunchCondition,
     LaunchOutcome,
     TipEventRecord,
 )
-from rollability_ros.core.stats import wilson_interval
+from rollability_ros.core.results.stats import wilson_interval
 
 # (configuration, height m, speed m/s, angle deg): (upright repetitions, repetitions)
 TALLIES = {
@@ -126,7 +126,7 @@ def test_paper_discussion_ranks_are_reversed():
 
 
 def test_convergence_from_generations_or_candidates():
-    # the optimiser's pooled incumbent estimate (best_so_far) may fall when a lucky estimate is re-evaluated
+    # the optimizer's pooled incumbent estimate (best_so_far) may fall when a lucky estimate is re-evaluated
     generations = [GenerationRecord("g", n, best, 0.1, pooled, 0.1, (), 8 * (n + 1), 1.0)
                    for n, best, pooled in ((1, 0.5, 0.45), (0, 0.2, 0.2), (2, 0.4, 0.42))]
     candidates = [CandidateRecord("c", gen, i, (), fit, 0, 10, 0, 1.0)
@@ -157,7 +157,7 @@ def test_tip_event_summary():
 
 
 def test_rank_agreement_text_says_undefined_instead_of_nan():
-    from rollability_ros.core.analysis import rank_agreement_text
+    from rollability_ros.core.results.analysis import rank_agreement_text
 
     assert rank_agreement_text(0.95, 0.912) == "Spearman rho 0.95, Kendall tau-b 0.91"
     tied = rank_agreement_text(math.nan, math.nan)

@@ -7,14 +7,14 @@ import struct
 import pytest
 import yaml
 
-from rollability_ros.core.bag_convert import convert
-from rollability_ros.core.bag_metadata import BagError, read_metadata
-from rollability_ros.core.bag_qos import normalize_qos_profiles, qos_dict_from_profile, subscription_qos_for
-from rollability_ros.core.bag_playback import clock_message_cdr, playback_schedule
-from rollability_ros.core.bag_reader import BagMessage, BagReader, bag_info
-from rollability_ros.core.bag_recover import recover
-from rollability_ros.core.bag_writer import BagWriter
-from rollability_ros.core.msg_definitions import SEPARATOR, definition_for, package_directories, rihs01_hash
+from rollability_ros.core.bags.convert import convert
+from rollability_ros.core.bags.metadata import BagError, read_metadata
+from rollability_ros.core.bags.qos import normalize_qos_profiles, qos_dict_from_profile, subscription_qos_for
+from rollability_ros.core.bags.playback import clock_message_cdr, playback_schedule
+from rollability_ros.core.bags.reader import BagMessage, BagReader, bag_info
+from rollability_ros.core.bags.recover import recover
+from rollability_ros.core.bags.writer import BagWriter
+from rollability_ros.core.bags.msg_definitions import SEPARATOR, definition_for, package_directories, rihs01_hash
 from rollability_ros.cli import main as cli_main
 
 T0_NS = 1_700_000_000_000_000_000

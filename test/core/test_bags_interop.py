@@ -12,8 +12,8 @@ import textwrap
 
 import pytest
 
-from rollability_ros.core.bag_reader import BagReader, bag_info
-from rollability_ros.core.bag_writer import BagWriter
+from rollability_ros.core.bags.reader import BagReader, bag_info
+from rollability_ros.core.bags.writer import BagWriter
 from test_bags import T0_NS, string_cdr
 
 REPO_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

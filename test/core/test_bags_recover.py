@@ -7,15 +7,15 @@ import textwrap
 
 import yaml
 
-from rollability_ros.core.bag_metadata import read_metadata
-from rollability_ros.core.bag_reader import BagReader, bag_info
-from rollability_ros.core.bag_recover import recover
+from rollability_ros.core.bags.metadata import read_metadata
+from rollability_ros.core.bags.reader import BagReader, bag_info
+from rollability_ros.core.bags.recover import recover
 from test_bags import installed_hash, string_cdr, write_string_bag
 
 #: The writer subprocess: flushed messages are acknowledged on stdout, then more are written and never flushed.
 WRITER_SCRIPT = textwrap.dedent("""
     import sys, time
-    from rollability_ros.core.bag_writer import BagWriter
+    from rollability_ros.core.bags.writer import BagWriter
     from test_bags import T0_NS, string_cdr
     writer = BagWriter(sys.argv[1], custom_data={"operator": "kill test"}, split_max_bytes=4000,
                        chunk_size_bytes=1 << 20, flush_interval_s=3600)

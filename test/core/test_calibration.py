@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 import yaml
 
-from rollability_ros.core import calibration
-from rollability_ros.core.analysis import ConditionResult
+from rollability_ros.core.campaign import calibration
+from rollability_ros.core.results.analysis import ConditionResult
 from rollability_ros.core.config import ConfigError, load_parameters, section
-from rollability_ros.core.evaluation import load_settings
-from rollability_ros.core.launch_twin import load_launch_twin_settings
-from rollability_ros.core.outcome_csv import write_outcome_csv
-from rollability_ros.core.records import LaunchCondition
+from rollability_ros.core.sim.evaluation import load_settings
+from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
+from rollability_ros.core.results.outcome_csv import write_outcome_csv
+from rollability_ros.core.results.records import LaunchCondition
 
 
 def twin_parameters():
@@ -98,7 +98,7 @@ def test_cli_writes_outputs_from_a_csv_of_physical_outcomes(tmp_path, capsys):
     pytest.importorskip("pybullet")
     pytest.importorskip("cma")
     from rollability_ros.cli import main
-    from rollability_ros.core.records import LaunchOutcome
+    from rollability_ros.core.results.records import LaunchOutcome
 
     outcomes = [LaunchOutcome("rig-1", f"t{i}", LaunchCondition("baseline", 0.75, 0.8, angle, i), "physical",
                               upright=bool(i % 2), classified_by="operator")
@@ -127,7 +127,7 @@ def test_recovers_a_hidden_centre_of_mass_offset_from_synthetic_outcomes(tmp_pat
     twin with the chassis's COM 6 mm above the box centre instead of 15 mm below; the fit starts at the default."""
     pytest.importorskip("pybullet")
     pytest.importorskip("cma")
-    from rollability_ros.core.geometry import ProfileGrid, export_mesh, grid_xy, profile_mesh
+    from rollability_ros.core.profile.geometry import ProfileGrid, export_mesh, grid_xy, profile_mesh
 
     grid = ProfileGrid()
     xy = grid_xy(grid) / [grid.length_m / 2, grid.width_m / 2]

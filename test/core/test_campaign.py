@@ -4,7 +4,7 @@ import dataclasses
 
 import pytest
 
-from rollability_ros.core.campaign import (
+from rollability_ros.core.campaign.plan import (
     CampaignProgress,
     CampaignSpec,
     changed_levels,
@@ -15,8 +15,8 @@ from rollability_ros.core.campaign import (
     trial_id_for,
 )
 from rollability_ros.core.config import ConfigError, from_mapping
-from rollability_ros.core.records import LaunchCondition, LaunchOutcome
-from rollability_ros.core.store import Store
+from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.results.store import Store
 
 
 def test_shipped_config_is_the_paper_matrix_of_400_trials():

@@ -1,16 +1,16 @@
-"""The campaign loop (core/campaign_runner.py) against a real store, and `rollability campaign` in process with
+"""The campaign loop (core/campaign/runner.py) against a real store, and `rollability campaign` in process with
 a scripted operator on stdin driving the physical path on the dry-run valve."""
 import subprocess
 import sys
 
 import pytest
 
-from rollability_ros.core.campaign import CampaignSpec, plan_trials
-from rollability_ros.core.campaign_runner import (NotStored, StoreWatcher, answer_rig, resume_refusal, run_campaign,
+from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
+from rollability_ros.core.campaign.runner import (NotStored, StoreWatcher, answer_rig, resume_refusal, run_campaign,
                                                   store_writer)
-from rollability_ros.core.records import LaunchOutcome
-from rollability_ros.core.rig_session import LaunchAborted, OperatorOutcome
-from rollability_ros.core.store import Store
+from rollability_ros.core.results.records import LaunchOutcome
+from rollability_ros.core.rig.rig_session import LaunchAborted, OperatorOutcome
+from rollability_ros.core.results.store import Store
 
 SPEC = CampaignSpec(run_id="loop", configurations=["A", "B"], heights_m=[0.75], speeds_mps=[0.8, 1.5],
                     angles_deg=[0.0], repetitions=2)

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import yaml
 
-from rollability_ros.core import geometry
+from rollability_ros.core.profile import geometry
 from rollability_ros.core.config import ConfigError
-from rollability_ros.core.designs import DesignSources, configuration_ids, profile_mesh_for
-from rollability_ros.core.selection import designs_document
+from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
+from rollability_ros.core.optimization.selection import designs_document
 
 pytest.importorskip("trimesh")
 

@@ -14,11 +14,11 @@ import pytest
 
 from conftest import pid_running
 from rollability_ros.core.config import ConfigError
-from rollability_ros.core.evaluation import (EvaluationCancelled, EvaluatorSettings, LocalExecutor, RayExecutor,
+from rollability_ros.core.sim.evaluation import (EvaluationCancelled, EvaluatorSettings, LocalExecutor, RayExecutor,
                                              evaluate_mesh, evaluate_profile, load_settings, mesh_job, profile_job,
                                              run_batch, trial_seed)
-from rollability_ros.core.geometry import export_mesh, grid_xy, load_profile_mesh, profile_mesh
-from rollability_ros.core.trials import run_trial
+from rollability_ros.core.profile.geometry import export_mesh, grid_xy, load_profile_mesh, profile_mesh
+from rollability_ros.core.sim.trials import run_trial
 
 pybullet = pytest.importorskip("pybullet")
 
@@ -210,7 +210,7 @@ def test_ray_executor_matches_the_local_executor(ray_head):
 
 ORPHAN_PARENT = """
 import sys, time
-from rollability_ros.core.evaluation import LocalExecutor
+from rollability_ros.core.sim.evaluation import LocalExecutor
 executor = LocalExecutor(workers=2)
 print(" ".join(map(str, executor.warm())), flush=True)
 time.sleep(600)

@@ -1,15 +1,15 @@
 """EvaluatorPool: spreading, retries (rejected, silent, vanished, malformed), waiting with no evaluator, pause,
-close, and an optimisation run over a flaky pool that equals the run over the evaluator itself."""
+close, and an optimization run over a flaky pool that equals the run over the evaluator itself."""
 import threading
 import time
 
 import numpy as np
 import pytest
 
-from rollability_ros.core import optimisation_run
-from rollability_ros.core.evaluator_pool import (EvaluationFailed, EvaluationRequest, EvaluatorPool, PoolClosed,
+from rollability_ros.core.optimization import optimization_run as optimization_run
+from rollability_ros.core.optimization.evaluator_pool import (EvaluationFailed, EvaluationRequest, EvaluatorPool, PoolClosed,
                                                  PoolSettings)
-from rollability_ros.core.geometry import ProfileGrid
+from rollability_ros.core.profile.geometry import ProfileGrid
 
 FAST = PoolSettings(timeout_s=0.3, max_attempts=6, retry_delay_s=0.02, waiting_log_period_s=0.1)
 
@@ -214,12 +214,12 @@ def test_a_run_over_a_flaky_pool_equals_the_run_over_the_evaluator_itself(tmp_pa
     grid = ProfileGrid(rows=3, cols=2)
     parameters = {"optimizer.popsize": 6, "optimizer.trials": 12, "optimizer.max_generations": 5,
                   "optimizer.seed": 4}
-    synthetic = optimisation_run.SyntheticEvaluator(np.full(grid.n_variables, 0.2), 12)
+    synthetic = optimization_run.SyntheticEvaluator(np.full(grid.n_variables, 0.2), 12)
     graph = SyntheticGraph(synthetic)
     pool = make_pool(graph, ["flaky", "steady"])
     stored = {}
     for name, evaluate_batch in (("direct", synthetic), ("pool", pool.batch_evaluator(12))):
-        run = optimisation_run.OptimisationRun(tmp_path / name, parameters, grid, evaluate_batch)
+        run = optimization_run.OptimizationRun(tmp_path / name, parameters, grid, evaluate_batch)
         run.run()
         stored[name] = [(c.generation, c.index, c.heights, c.successes, c.trials, c.seed)
                         for c in run.store.candidates(run_id=name)]

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from rollability_ros.core.geometry import (PrinterSpec, ProfileGrid, check_heights, check_printability, export_mesh,
+from rollability_ros.core.profile.geometry import (PrinterSpec, ProfileGrid, check_heights, check_printability, export_mesh,
                                            grid_xy, is_baseline, load_profile_mesh, marker_points, profile_mesh,
                                            profile_metrics, profile_vertices)
 
@@ -65,7 +65,7 @@ def test_random_profile_mesh_is_watertight_symmetric_and_contains_its_vertices()
 
 def test_heights_a_hair_above_the_base_still_make_a_closed_mesh():
     """CMA-ES puts heights a few nanometres above the lower bound; at an outer vertex that is nearly the footprint
-    corner below it (a real optimisation run died on 3.7e-9 units). Fuzz such heights on random profiles."""
+    corner below it (a real optimization run died on 3.7e-9 units). Fuzz such heights on random profiles."""
     grid = ProfileGrid(rows=4, cols=4, unit_m=0.2)
     corner = np.r_[0.4453, 0.2439, 0.3875, 3.67e-9, 0.2813, 0.2197, 0.3382, 0.105, 0.377, 0.2279, 0.4013, 0.1581,
                    0.1637, 0.4178, 0.4483, 0.1604]                      # the run's candidate, rounded

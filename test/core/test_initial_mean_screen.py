@@ -7,10 +7,10 @@ import pytest
 
 pytest.importorskip("cma")
 
-from rollability_ros.core.geometry import ProfileGrid  # noqa: E402
-from rollability_ros.core.optimisation_run import OptimisationRun, SyntheticEvaluator, profile_screen  # noqa: E402
-from rollability_ros.core.optimiser import random_initial_means  # noqa: E402
-from rollability_ros.core.optimisation_run import optimizer_settings  # noqa: E402
+from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator, profile_screen  # noqa: E402
+from rollability_ros.core.optimization.cmaes import random_initial_means  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import optimizer_settings  # noqa: E402
 
 GRID = ProfileGrid(rows=3, cols=3)
 OPTIMUM = np.linspace(0.05, 0.4, GRID.n_variables)
@@ -31,20 +31,20 @@ def fake_screen(calls):
 
 
 def test_without_the_screen_the_run_starts_from_the_papers_random_mean(tmp_path):
-    run = OptimisationRun(os.path.join(tmp_path, "run"), parameters(0), GRID, SyntheticEvaluator(OPTIMUM, 30))
+    run = OptimizationRun(os.path.join(tmp_path, "run"), parameters(0), GRID, SyntheticEvaluator(OPTIMUM, 30))
     expected = random_initial_means(optimizer_settings(parameters(0)), GRID.n_variables)[0]
     assert np.array_equal(run.optimizer.initial_mean, expected)
     assert run.initial_mean_screen is None
     assert "initial_mean_screen" not in run.store.run_info(run.run_id)["info"]
     run.close()
     with pytest.raises(ValueError, match="initial_mean_screen must be >= 0"):
-        OptimisationRun(os.path.join(tmp_path, "bad"), parameters(-1), GRID, SyntheticEvaluator(OPTIMUM, 30))
+        OptimizationRun(os.path.join(tmp_path, "bad"), parameters(-1), GRID, SyntheticEvaluator(OPTIMUM, 30))
 
 
 def test_the_screened_start_is_the_best_candidate_recorded_and_kept_on_resume(tmp_path):
     run_dir = os.path.join(tmp_path, "run")
     calls = []
-    run = OptimisationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30),
+    run = OptimizationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30),
                           screen_profiles=fake_screen(calls))
     means = random_initial_means(optimizer_settings(parameters(8)), GRID.n_variables)
     assert len(calls) == 1 and np.array_equal(np.array(calls[0]), means)
@@ -57,14 +57,14 @@ def test_the_screened_start_is_the_best_candidate_recorded_and_kept_on_resume(tm
     run.step()
     run.close()
 
-    resumed = OptimisationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30), resume=True,
+    resumed = OptimizationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30), resume=True,
                               screen_profiles=fake_screen(calls))
     assert resumed.optimizer.generation == 1
     assert np.array_equal(resumed.optimizer.initial_mean, means[chosen])
     resumed.close()
 
     with pytest.raises(ValueError, match="different initial mean"):      # the screen changed under the run
-        OptimisationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30), resume=True,
+        OptimizationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30), resume=True,
                         screen_profiles=lambda heights: [types.SimpleNamespace(upright_probability=0.0,
                                                                                worst_barrier_m=float(h[1]))
                                                          for h in heights])
@@ -73,10 +73,10 @@ def test_the_screened_start_is_the_best_candidate_recorded_and_kept_on_resume(tm
 def test_by_default_the_run_screens_the_robot_its_parameters_describe(tmp_path):
     pytest.importorskip("pybullet")
     pytest.importorskip("trimesh")
-    from rollability_ros.core.evaluation import settings_from_parameters
+    from rollability_ros.core.sim.evaluation import settings_from_parameters
 
     params = parameters(4, **{"profile.rows": 3, "profile.cols": 3, "stable_poses.com_sigma_m": 0.0})
-    run = OptimisationRun(os.path.join(tmp_path, "run"), params, GRID, SyntheticEvaluator(OPTIMUM, 30))
+    run = OptimizationRun(os.path.join(tmp_path, "run"), params, GRID, SyntheticEvaluator(OPTIMUM, 30))
     expected = [s.upright_probability for s in profile_screen(params, settings_from_parameters(params))(
         list(random_initial_means(optimizer_settings(params), GRID.n_variables)))]
     assert run.initial_mean_screen["upright_probability"] == [round(p, 4) for p in expected]
@@ -86,7 +86,7 @@ def test_by_default_the_run_screens_the_robot_its_parameters_describe(tmp_path):
 def test_the_real_screen_ranks_random_means_on_the_robot_in_use():
     pytest.importorskip("pybullet")
     pytest.importorskip("trimesh")
-    from rollability_ros.core.evaluation import EvaluatorSettings
+    from rollability_ros.core.sim.evaluation import EvaluatorSettings
 
     settings = EvaluatorSettings(grid=GRID)
     params = parameters(4, **{"stable_poses.com_sigma_m": 0.0})

@@ -5,9 +5,9 @@ import math
 import pytest
 
 from rollability_ros.core.config import ConfigError
-from rollability_ros.core.launch_twin import (PHASES, LaunchTwinSettings, launch_twin_settings_from_parameters,
+from rollability_ros.core.sim.launch_twin import (PHASES, LaunchTwinSettings, launch_twin_settings_from_parameters,
                                               load_launch_twin_settings, simulate_launch)
-from rollability_ros.core.records import LaunchCondition
+from rollability_ros.core.results.records import LaunchCondition
 
 pytest.importorskip("pybullet")
 

@@ -6,12 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from rollability_ros.core.launch_twin import load_launch_twin_settings, simulate_launch
-from rollability_ros.core.records import LaunchCondition
-from rollability_ros.core.rig_session import RigSettings, SimulatedLaunch, simulated_outcome, trial_seed
-from rollability_ros.core.robot import ChassisModel, ChassisSpec
-from rollability_ros.core.speed_gate import SpeedGateConfig
-from rollability_ros.core.urdf_robot import UrdfRobotModel, UrdfRobotSpec, half_width_across_m
+from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_launch
+from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.rig.rig_session import RigSettings, SimulatedLaunch, simulated_outcome, trial_seed
+from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec
+from rollability_ros.core.rig.speed_gate import SpeedGateConfig
+from rollability_ros.core.robots.urdf_robot import UrdfRobotModel, UrdfRobotSpec, half_width_across_m
 
 pytest.importorskip("pybullet")
 

@@ -5,8 +5,8 @@ import re
 
 import pytest
 
-from rollability_ros.core.outcome_csv import OutcomeCsvError, read_outcome_csv, write_outcome_csv
-from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.results.outcome_csv import OutcomeCsvError, read_outcome_csv, write_outcome_csv
+from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
 
 
 def _write(tmp_path, text, name="o.csv"):

@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from rollability_ros.core.evaluation import EvaluatorSettings, evaluate_profile
-from rollability_ros.core.geometry import grid_xy
-from rollability_ros.core.sim_world import PhysicsParams, connect, disconnect, reset_world, set_contact
+from rollability_ros.core.sim.evaluation import EvaluatorSettings, evaluate_profile
+from rollability_ros.core.profile.geometry import grid_xy
+from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world, set_contact
 
 pybullet = pytest.importorskip("pybullet")
 

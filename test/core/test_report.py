@@ -9,11 +9,11 @@ import subprocess
 import pytest
 
 from rollability_ros.cli import main as cli_main
-from rollability_ros.core.campaign import CampaignSpec, plan_trials
-from rollability_ros.core.outcome_csv import write_outcome_csv
-from rollability_ros.core.records import CandidateRecord, LaunchOutcome, TipEventRecord
-from rollability_ros.core.report import source_kind
-from rollability_ros.core.store import Store
+from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
+from rollability_ros.core.results.outcome_csv import write_outcome_csv
+from rollability_ros.core.results.records import CandidateRecord, LaunchOutcome, TipEventRecord
+from rollability_ros.core.results.report import source_kind
+from rollability_ros.core.results.store import Store
 
 SUCCESS_PROBABILITY = {"baseline": 0.3, "A": 0.3, "B": 0.75, "C": 0.6}
 FIGURES = ("fig04_convergence.png", "fig09_height_angle.png", "fig10_speed_angle.png", "fig11_angle_curves.png",
@@ -30,7 +30,7 @@ def _campaign_outcomes(run_id="camp", repetitions=3):
 
 @pytest.fixture(scope="module")
 def store_report(tmp_path_factory):
-    """A run directory with a campaign, an optimisation and a tip event, reported through the CLI."""
+    """A run directory with a campaign, an optimization and a tip event, reported through the CLI."""
     run_dir = tmp_path_factory.mktemp("run")
     outcomes = _campaign_outcomes()
     with Store(run_dir) as store:
@@ -137,8 +137,8 @@ def test_html_report_renders_its_figures_in_headless_chromium(store_report, tmp_
 
 
 def test_bag_of_the_campaign_gives_the_same_report_as_the_store(store_report, tmp_path):
-    from rollability_ros.core.bag_records import message_from_record, read_records_from_bag, typestore
-    from rollability_ros.core.bag_writer import BagWriter
+    from rollability_ros.core.bags.messages import message_from_record, read_records_from_bag, typestore
+    from rollability_ros.core.bags.writer import BagWriter
 
     run_dir, out, _ = store_report
     with Store(run_dir) as store:

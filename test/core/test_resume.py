@@ -13,11 +13,11 @@ import pytest
 
 pytest.importorskip("cma")
 
-from rollability_ros.core import checkpoint as checkpoints  # noqa: E402
+from rollability_ros.core.optimization import checkpoint as checkpoints  # noqa: E402
 from rollability_ros.core.config import ConfigError  # noqa: E402
-from rollability_ros.core.geometry import ProfileGrid  # noqa: E402
-from rollability_ros.core.optimisation_run import OptimisationRun, SyntheticEvaluator, read_run_config  # noqa: E402
-from rollability_ros.core.store import Store  # noqa: E402
+from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator, read_run_config  # noqa: E402
+from rollability_ros.core.results.store import Store  # noqa: E402
 
 GRID = ProfileGrid(rows=3, cols=3)
 OPTIMUM = np.linspace(0.05, 0.4, GRID.n_variables)
@@ -29,8 +29,8 @@ KILL_GENERATION = 4
 CHILD = textwrap.dedent("""
     import os, sys, time
     import numpy as np
-    from rollability_ros.core.geometry import ProfileGrid
-    from rollability_ros.core.optimisation_run import OptimisationRun, SyntheticEvaluator
+    from rollability_ros.core.profile.geometry import ProfileGrid
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator
     run_dir, block_at, crn = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "True"
     evaluator = SyntheticEvaluator(np.linspace(0.05, 0.4, 9), trials=30)
     calls = []
@@ -42,7 +42,7 @@ CHILD = textwrap.dedent("""
         return evaluator(heights_list, seed)
     parameters = {"optimizer.max_generations": %d, "optimizer.seed": 5, "optimizer.trials": 30,
                   "optimizer.popsize": 6, "optimizer.common_random_numbers": crn}
-    OptimisationRun(run_dir, parameters, ProfileGrid(rows=3, cols=3), evaluate_batch).run()
+    OptimizationRun(run_dir, parameters, ProfileGrid(rows=3, cols=3), evaluate_batch).run()
 """ % GENERATIONS)
 
 
@@ -63,7 +63,7 @@ def comparable(store_path):
 
 def uninterrupted(tmp_path, common_random_numbers):
     run_dir = os.path.join(tmp_path, "straight", "run")
-    run = OptimisationRun(run_dir, parameters(common_random_numbers), GRID,
+    run = OptimizationRun(run_dir, parameters(common_random_numbers), GRID,
                           SyntheticEvaluator(OPTIMUM, trials=30))
     result = run.run()
     run.close()
@@ -99,7 +99,7 @@ def test_sigkill_mid_generation_then_resume_equals_uninterrupted(tmp_path, commo
     with open(os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME), "rb") as stream:
         assert pickle.load(stream)["generation"] == KILL_GENERATION
 
-    resumed = OptimisationRun(run_dir, read_run_config(run_dir), GRID, SyntheticEvaluator(OPTIMUM, trials=30),
+    resumed = OptimizationRun(run_dir, read_run_config(run_dir), GRID, SyntheticEvaluator(OPTIMUM, trials=30),
                               resume=True)
     assert resumed.optimizer.generation == KILL_GENERATION
     result = resumed.run()
@@ -120,9 +120,9 @@ def test_killed_in_generation_zero_resumes_from_scratch(tmp_path):
         raise RuntimeError("evaluator died")
 
     with pytest.raises(RuntimeError):
-        OptimisationRun(run_dir, parameters(), GRID, failing).run()
+        OptimizationRun(run_dir, parameters(), GRID, failing).run()
     assert not os.path.exists(os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME))
-    resumed = OptimisationRun(run_dir, parameters(), GRID, SyntheticEvaluator(OPTIMUM, trials=30), resume=True)
+    resumed = OptimizationRun(run_dir, parameters(), GRID, SyntheticEvaluator(OPTIMUM, trials=30), resume=True)
     resumed.run()
     resumed.close()
     assert comparable(run_dir) == comparable(uninterrupted(tmp_path, True)[0])
@@ -140,7 +140,7 @@ def test_after_an_evaluator_error_the_same_run_object_continues_identically(tmp_
             raise RuntimeError("evaluator went away")
         return healthy(heights_list, seed)
 
-    run = OptimisationRun(run_dir, parameters(), GRID, flaky)
+    run = OptimizationRun(run_dir, parameters(), GRID, flaky)
     with pytest.raises(RuntimeError, match="went away"):
         run.run()
     assert run.optimizer.generation == 3
@@ -151,18 +151,18 @@ def test_after_an_evaluator_error_the_same_run_object_continues_identically(tmp_
 
 def test_a_different_config_refuses_to_resume(tmp_path):
     run_dir = os.path.join(tmp_path, "run")
-    run = OptimisationRun(run_dir, parameters(**{"optimizer.max_generations": 2}), GRID,
+    run = OptimizationRun(run_dir, parameters(**{"optimizer.max_generations": 2}), GRID,
                           SyntheticEvaluator(OPTIMUM, trials=30))
     run.run()
     run.close()
     with pytest.raises(ConfigError, match=r"optimizer.trials: 30 -> 40"):
-        OptimisationRun(run_dir, parameters(**{"optimizer.max_generations": 2, "optimizer.trials": 40}), GRID,
+        OptimizationRun(run_dir, parameters(**{"optimizer.max_generations": 2, "optimizer.trials": 40}), GRID,
                         SyntheticEvaluator(OPTIMUM, trials=40), resume=True)
     with pytest.raises(ValueError, match="already exists"):
-        OptimisationRun(run_dir, parameters(**{"optimizer.max_generations": 2}), GRID,
+        OptimizationRun(run_dir, parameters(**{"optimizer.max_generations": 2}), GRID,
                         SyntheticEvaluator(OPTIMUM, trials=30))
-    with pytest.raises(FileNotFoundError, match="not an optimisation run"):
-        OptimisationRun(os.path.join(tmp_path, "nothing"), parameters(), GRID, SyntheticEvaluator(OPTIMUM, 30),
+    with pytest.raises(FileNotFoundError, match="not an optimization run"):
+        OptimizationRun(os.path.join(tmp_path, "nothing"), parameters(), GRID, SyntheticEvaluator(OPTIMUM, 30),
                         resume=True)
 
 

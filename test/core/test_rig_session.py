@@ -7,14 +7,14 @@ import time
 import pytest
 from synthetic_imu import piecewise, stream
 
-from rollability_ros.core.records import LaunchCondition
-from rollability_ros.core.rig_session import (ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
+from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
                                               OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
                                               check_goal, parse_outcome_answer, simulated_outcome, trial_seed)
-from rollability_ros.core.speed_gate import SimulatedSpeedGate, SpeedGateConfig
-from rollability_ros.core.upright import ImuOutcomeConfig
-from rollability_ros.core.valve import RegulatorConfig, ValveController
-from rollability_ros.core.valve_backends import DryRunBackend
+from rollability_ros.core.rig.speed_gate import SimulatedSpeedGate, SpeedGateConfig
+from rollability_ros.core.imu.upright import ImuOutcomeConfig
+from rollability_ros.core.rig.valve import RegulatorConfig, ValveController
+from rollability_ros.core.rig.valve_backends import DryRunBackend
 
 CONDITION = LaunchCondition("B", 0.75, 0.8, -30.0, 1)
 

@@ -9,18 +9,18 @@ import pytest
 pytest.importorskip("cma")
 pytest.importorskip("trimesh")
 
-from rollability_ros.core import geometry  # noqa: E402
+from rollability_ros.core.profile import geometry  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
-from rollability_ros.core.optimisation_run import OptimisationRun, SyntheticEvaluator  # noqa: E402
-from rollability_ros.core.records import CandidateRecord  # noqa: E402
-from rollability_ros.core.selection import (  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator  # noqa: E402
+from rollability_ros.core.results.records import CandidateRecord  # noqa: E402
+from rollability_ros.core.optimization.selection import (  # noqa: E402
     SelectionSettings,
     pool_candidates,
     rms_distance,
     select_designs,
     write_selection,
 )
-from rollability_ros.core.store import Store  # noqa: E402
+from rollability_ros.core.results.store import Store  # noqa: E402
 
 GRID = geometry.ProfileGrid(rows=3, cols=3)
 OPTIMUM = np.linspace(0.1, 0.4, GRID.n_variables)
@@ -32,7 +32,7 @@ def run_candidates(tmp_path_factory):
     run_dir = os.path.join(tmp_path_factory.mktemp("selection"), "run")
     parameters = {"optimizer.max_generations": 25, "optimizer.seed": 3, "optimizer.trials": 30,
                   "optimizer.sigma0": 0.1}
-    run = OptimisationRun(run_dir, parameters, GRID, SyntheticEvaluator(OPTIMUM, trials=30))
+    run = OptimizationRun(run_dir, parameters, GRID, SyntheticEvaluator(OPTIMUM, trials=30))
     run.run()
     run.close()
     with Store(run_dir) as store:

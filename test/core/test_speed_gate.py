@@ -7,7 +7,7 @@ import types
 import pytest
 
 from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
-from rollability_ros.core.speed_gate import (GpioSpeedGate, OperatorSpeedGate, SimulatedSpeedGate, SpeedGateConfig,
+from rollability_ros.core.rig.speed_gate import (GpioSpeedGate, OperatorSpeedGate, SimulatedSpeedGate, SpeedGateConfig,
                                              check_speed, expected_travel_time, make_speed_gate, measure,
                                              parse_travel_time, travel_speed)
 

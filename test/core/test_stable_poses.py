@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from rollability_ros.core import stable_poses
-from rollability_ros.core.geometry import ProfileGrid, grid_xy, profile_mesh
-from rollability_ros.core.robot import ChassisModel, ChassisSpec, ProfileBody
-from rollability_ros.core.sim_world import PhysicsParams
-from rollability_ros.core.trials import TrialSettings
+from rollability_ros.core.sim import stable_poses
+from rollability_ros.core.profile.geometry import ProfileGrid, grid_xy, profile_mesh
+from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec, ProfileBody
+from rollability_ros.core.sim.world import PhysicsParams
+from rollability_ros.core.sim.trials import TrialSettings
 
 pytest.importorskip("trimesh")
 pytest.importorskip("networkx")
@@ -101,7 +101,7 @@ def test_a_ridge_lowers_the_barrier_out_of_the_inverted_pose():
 
 
 def test_screen_heights_flags_candidates_below_the_threshold():
-    from rollability_ros.core.evaluation import EvaluatorSettings
+    from rollability_ros.core.sim.evaluation import EvaluatorSettings
 
     evaluator = EvaluatorSettings()
     grid = evaluator.grid
@@ -158,8 +158,8 @@ def test_chassis_screen_agrees_with_low_energy_pybullet_drops():
 def chassis_as_urdf_robot(tilt_rpy=None):
     """The built-in chassis described as a URDF robot; with ``tilt_rpy``, under a root frame turned by it, so that
     the chassis' up axis is no longer the root frame's z (the spec names it in the root frame instead)."""
-    from rollability_ros.core.urdf_description import rpy_matrix
-    from rollability_ros.core.urdf_robot import UrdfRobotModel, UrdfRobotSpec
+    from rollability_ros.core.robots.urdf_description import rpy_matrix
+    from rollability_ros.core.robots.urdf_robot import UrdfRobotModel, UrdfRobotSpec
 
     spec = ChassisSpec()
     text = ChassisModel(spec).to_urdf()
@@ -208,7 +208,7 @@ def test_a_urdf_robot_screens_like_the_same_robot_built_in(tilt_rpy):
 def test_husky_screen_agrees_with_low_energy_pybullet_drops():
     """A robot nobody here wrote: the Husky's hull from its URDF collision shapes, screened, against drops."""
     pytest.importorskip("pybullet")
-    from rollability_ros.core.evaluation import load_settings
+    from rollability_ros.core.sim.evaluation import load_settings
 
     model = load_settings(("sim", "robot", "evaluator", "husky")).robot_model()
     body = stable_poses.robot_hull(model)

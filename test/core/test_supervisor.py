@@ -6,7 +6,7 @@ import sys
 import time
 
 from conftest import pid_running
-from rollability_ros.core.supervisor import ProcessSpec, Supervisor
+from rollability_ros.core.graph.supervisor import ProcessSpec, Supervisor
 
 # A child that logs its start and its SIGINT, then exits 0 on SIGINT (like a node) unless told to ignore it.
 CHILD = """
@@ -93,7 +93,7 @@ def test_a_finished_job_is_not_a_failure(tmp_path):
 
 SUPERVISOR = """
 import sys, time
-from rollability_ros.core.supervisor import ProcessSpec, Supervisor
+from rollability_ros.core.graph.supervisor import ProcessSpec, Supervisor
 script, log_dir = sys.argv[1], sys.argv[2]
 supervisor = Supervisor([ProcessSpec(name=n, argv=[sys.executable, script, n, "run"]) for n in ("a", "b")], log_dir,
                         on_event=lambda event: None)

@@ -9,9 +9,9 @@ import pytest
 
 from synthetic_imu import piecewise, stream
 from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
-from rollability_ros.core.tip_tracker import (DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_STALE, DIAGNOSTIC_WARN,
+from rollability_ros.core.imu.tip_tracker import (DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_STALE, DIAGNOSTIC_WARN,
                                               TipMonitorConfig, TipState, TipTracker, diagnostic_status)
-from rollability_ros.core.upright import tilt_from_orientation_deg
+from rollability_ros.core.imu.upright import tilt_from_orientation_deg
 
 CONFIG = TipMonitorConfig(robot="husky")
 MODES = pytest.mark.parametrize("with_orientation", [True, False], ids=["orientation", "gravity_only"])

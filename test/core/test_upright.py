@@ -6,7 +6,7 @@ import pytest
 
 from synthetic_imu import piecewise, stream
 from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
-from rollability_ros.core.upright import (
+from rollability_ros.core.imu.upright import (
     STANDARD_GRAVITY_MPS2, ImuMount, ImuOutcomeConfig, ImuSample, ImuUprightClassifier, normalize_quaternion,
     orientation_from_acceleration, orientation_if_valid, quaternion_conjugate, quaternion_from_axis_angle,
     quaternion_from_rpy_deg, quaternion_multiply, rotate_vector, tilt_from_acceleration_deg,

@@ -12,17 +12,17 @@ pybullet = pytest.importorskip("pybullet")
 pybullet_data = pytest.importorskip("pybullet_data")
 
 from rollability_ros.core.config import ConfigError, load_parameters  # noqa: E402
-from rollability_ros.core.evaluation import (EvaluatorSettings, evaluate_profile, load_settings,  # noqa: E402
+from rollability_ros.core.sim.evaluation import (EvaluatorSettings, evaluate_profile, load_settings,  # noqa: E402
                                              settings_from_parameters)
-from rollability_ros.core.geometry import export_mesh, load_profile_mesh, profile_mesh  # noqa: E402
-from rollability_ros.core.robot import ChassisModel, ChassisSpec, ProfileBody  # noqa: E402
-from rollability_ros.core.sim_world import PhysicsParams, connect, disconnect, reset_world  # noqa: E402
-from rollability_ros.core.urdf_description import BASE_LINK, PROFILE_LINK  # noqa: E402
-from rollability_ros.core.urdf_robot import UrdfRobotModel, UrdfRobotSpec, footprint_corners  # noqa: E402
+from rollability_ros.core.profile.geometry import export_mesh, load_profile_mesh, profile_mesh  # noqa: E402
+from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec, ProfileBody  # noqa: E402
+from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world  # noqa: E402
+from rollability_ros.core.robots.urdf_description import BASE_LINK, PROFILE_LINK  # noqa: E402
+from rollability_ros.core.robots.urdf_robot import UrdfRobotModel, UrdfRobotSpec, footprint_corners  # noqa: E402
 
 HUSKY_DIR = os.path.join(pybullet_data.getDataPath(), "husky")
 HUSKY_MASS_KG = 33.455 + 4 * 2.637  # base_link + four wheels; every other link is a massless frame
-FIXTURE = os.path.join(os.path.dirname(__file__), "..", "resources", "husky_optimised_profile.yaml")
+FIXTURE = os.path.join(os.path.dirname(__file__), "..", "resources", "husky_optimized_profile.yaml")
 HUSKY_CONFIGS = ("sim", "robot", "evaluator", "husky")
 
 
@@ -227,12 +227,12 @@ def test_bare_husky_stays_inverted(husky):
     assert all(outcome.settled and outcome.tilt_deg > 150 for outcome in result.trial_results)
 
 
-def test_optimised_profile_beats_the_bare_husky(husky):
+def test_optimized_profile_beats_the_bare_husky(husky):
     with open(FIXTURE, encoding="utf-8") as stream:
         heights = yaml.safe_load(stream)["heights"]
     bare = evaluate_profile(None, 30, 2025, husky)
-    optimised = evaluate_profile(heights, 30, 2025, husky)
-    assert optimised.ci_low > bare.ci_high, (bare, optimised)
+    optimized = evaluate_profile(heights, 30, 2025, husky)
+    assert optimized.ci_low > bare.ci_high, (bare, optimized)
 
 
 def test_exported_stl_and_urdf_fit_the_mount_footprint(tmp_path, husky):

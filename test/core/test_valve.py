@@ -5,8 +5,8 @@ import time
 import pytest
 
 from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
-from rollability_ros.core.valve import RegulatorCheck, ValveConfig, ValveController
-from rollability_ros.core.valve_backends import DryRunBackend, make_controller
+from rollability_ros.core.rig.valve import RegulatorCheck, ValveConfig, ValveController
+from rollability_ros.core.rig.valve_backends import DryRunBackend, make_controller
 
 
 class FakeClock:
@@ -263,7 +263,7 @@ def test_broken_state_callback_does_not_keep_the_valve_open():
 
 
 def test_state_changes_are_logged(caplog):
-    caplog.set_level("INFO", logger="rollability_ros.core.valve")
+    caplog.set_level("INFO", logger="rollability_ros.core.rig.valve")
     controller, _, _ = make()
     controller.arm()
     controller.estop("test stop")
@@ -320,10 +320,10 @@ def test_rig_side_core_imports_without_heavy_or_hardware_packages():
     script = (
         "import sys\n"
         f"for name in {blocked!r}: sys.modules[name] = None\n"
-        "import rollability_ros.core.valve, rollability_ros.core.valve_backends, rollability_ros.core.speed_gate\n"
-        "import rollability_ros.core.upright, rollability_ros.core.tip_tracker, rollability_ros.core.relay_device_sim\n"
-        "from rollability_ros.core.valve import ValveConfig\n"
-        "from rollability_ros.core.valve_backends import make_controller\n"
+        "import rollability_ros.core.rig.valve, rollability_ros.core.rig.valve_backends, rollability_ros.core.rig.speed_gate\n"
+        "import rollability_ros.core.imu.upright, rollability_ros.core.imu.tip_tracker, rollability_ros.core.rig.relay_device_sim\n"
+        "from rollability_ros.core.rig.valve import ValveConfig\n"
+        "from rollability_ros.core.rig.valve_backends import make_controller\n"
         "c = make_controller(ValveConfig()); c.arm(); assert c.fire(5)[0]; c.shutdown()\n"
     )
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

@@ -9,8 +9,8 @@ import types
 import pytest
 
 from rollability_ros.core.optional import MissingDependency
-from rollability_ros.core.valve import ValveController
-from rollability_ros.core.valve_backends import GpioBackend
+from rollability_ros.core.rig.valve import ValveController
+from rollability_ros.core.rig.valve_backends import GpioBackend
 
 gpiod = pytest.importorskip("gpiod")
 ACTIVE, INACTIVE = gpiod.line.Value.ACTIVE, gpiod.line.Value.INACTIVE

@@ -4,9 +4,9 @@ import time
 
 import pytest
 
-from rollability_ros.core.relay_device_sim import RelaySim
-from rollability_ros.core.valve import ValveController
-from rollability_ros.core.valve_backends import SerialRelayBackend
+from rollability_ros.core.rig.relay_device_sim import RelaySim
+from rollability_ros.core.rig.valve import ValveController
+from rollability_ros.core.rig.valve_backends import SerialRelayBackend
 
 ACK_TIMEOUT_S = 0.15
 

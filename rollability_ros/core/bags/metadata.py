@@ -1,0 +1,156 @@
+"""rosbag2 ``metadata.yaml`` (version 9), as ``ros2 bag`` on ROS 2 Jazzy reads it.
+
+A rosbag2 bag is a directory: ``metadata.yaml`` plus storage files. This module writes and reads that file
+(atomically: temp file + rename). Times are integer nanoseconds (since the Unix epoch for time stamps).
+"""
+import dataclasses
+import os
+
+import yaml
+
+from rollability_ros.core.bags.qos import normalize_qos_profiles
+
+#: metadata.yaml format version written (rosbag2 on Jazzy writes 9).
+METADATA_VERSION = 9
+
+#: File name of the bag metadata inside a bag directory.
+METADATA_FILE = "metadata.yaml"
+
+#: ROS distribution recorded in the metadata.
+ROS_DISTRO = "jazzy"
+
+class BagError(ValueError):
+    """A bag directory or storage file is missing, truncated or corrupt; the message names the file."""
+
+
+@dataclasses.dataclass
+class TopicInfo:
+    """One recorded topic: name, type, serialization format, offered QoS (v9 dicts), RIHS01 hash, count."""
+
+    name: str
+    type_name: str
+    serialization_format: str = "cdr"
+    offered_qos_profiles: list = dataclasses.field(default_factory=list)
+    type_description_hash: str = ""
+    message_count: int = 0
+
+
+@dataclasses.dataclass
+class FileInfo:
+    """One storage file of a bag: relative path, first message log time (ns), duration (ns), message count."""
+
+    path: str
+    starting_time_ns: int = 0
+    duration_ns: int = 0
+    message_count: int = 0
+
+
+def build_metadata(topics, files, *, storage_identifier="mcap", compression_format="", compression_mode="",
+                   custom_data=None, ros_distro=ROS_DISTRO):
+    """Return the ``rosbag2_bagfile_information`` mapping (version 9) for ``topics`` and ``files``.
+
+    Bag start and duration span the files that hold messages; an empty bag starts at 0 with duration 0.
+    ``custom_data`` is a ``{str: str}`` dict or None.
+    """
+    if custom_data is not None and not all(isinstance(k, str) and isinstance(v, str)
+                                           for k, v in custom_data.items()):
+        raise ValueError(f"custom_data must map strings to strings, got {custom_data!r}")
+    used = [f for f in files if f.message_count]
+    start_ns = min((f.starting_time_ns for f in used), default=0)
+    end_ns = max((f.starting_time_ns + f.duration_ns for f in used), default=0)
+    return {
+        "version": METADATA_VERSION,
+        "storage_identifier": storage_identifier,
+        "duration": {"nanoseconds": end_ns - start_ns},
+        "starting_time": {"nanoseconds_since_epoch": start_ns},
+        "message_count": sum(f.message_count for f in files),
+        "topics_with_message_count": [
+            {
+                "topic_metadata": {
+                    "name": t.name,
+                    "type": t.type_name,
+                    "serialization_format": t.serialization_format,
+                    "offered_qos_profiles": t.offered_qos_profiles,
+                    "type_description_hash": t.type_description_hash,
+                },
+                "message_count": t.message_count,
+            }
+            for t in topics
+        ],
+        "compression_format": compression_format,
+        "compression_mode": compression_mode,
+        "relative_file_paths": [f.path for f in files],
+        "files": [
+            {
+                "path": f.path,
+                "starting_time": {"nanoseconds_since_epoch": f.starting_time_ns},
+                "duration": {"nanoseconds": f.duration_ns},
+                "message_count": f.message_count,
+            }
+            for f in files
+        ],
+        "custom_data": dict(custom_data) if custom_data else None,
+        "ros_distro": ros_distro,
+    }
+
+
+def dump_metadata(information):
+    """Return ``information`` (a ``rosbag2_bagfile_information`` mapping) as YAML text, without the top key."""
+    return yaml.safe_dump(information, sort_keys=False, default_flow_style=False)
+
+
+def write_metadata(directory, information):
+    """Write ``<directory>/metadata.yaml`` atomically (temp file, fsync, rename)."""
+    path = os.path.join(directory, METADATA_FILE)
+    text = yaml.safe_dump({"rosbag2_bagfile_information": information}, sort_keys=False,
+                          default_flow_style=False)
+    temporary = path + ".tmp"
+    with open(temporary, "w", encoding="utf-8") as stream:
+        stream.write(text)
+        stream.flush()
+        os.fsync(stream.fileno())
+    os.replace(temporary, path)
+
+
+def read_metadata(directory):
+    """Return the ``rosbag2_bagfile_information`` mapping of a bag directory.
+
+    Raises
+    ------
+    BagError
+        ``metadata.yaml`` is missing, unreadable, not YAML, or lacks the fields every version has.
+    """
+    path = os.path.join(directory, METADATA_FILE)
+    if not os.path.isdir(directory):
+        raise BagError(f"{directory}: not a bag directory (does not exist or is not a directory)")
+    try:
+        with open(path, encoding="utf-8") as stream:
+            document = yaml.safe_load(stream)
+    except FileNotFoundError as exc:
+        raise BagError(f"{path}: missing; if the recorder was killed, run `rollability bag recover "
+                       f"{directory}`") from exc
+    except OSError as exc:
+        raise BagError(f"{path}: cannot read: {exc.strerror}") from exc
+    except yaml.YAMLError as exc:
+        raise BagError(f"{path}: not valid YAML: {exc}") from exc
+    information = document.get("rosbag2_bagfile_information") if isinstance(document, dict) else None
+    required = ("version", "storage_identifier", "relative_file_paths", "topics_with_message_count")
+    if not isinstance(information, dict) or any(key not in information for key in required):
+        raise BagError(f"{path}: not rosbag2 metadata (needs rosbag2_bagfile_information with {', '.join(required)})")
+    return information
+
+
+def topics_from_metadata(information):
+    """Return the :class:`TopicInfo` list of a ``rosbag2_bagfile_information`` mapping (QoS normalised)."""
+    topics = []
+    for entry in information.get("topics_with_message_count") or []:
+        meta = entry["topic_metadata"]
+        topics.append(TopicInfo(
+            name=meta["name"],
+            type_name=meta["type"],
+            serialization_format=meta.get("serialization_format", "cdr"),
+            offered_qos_profiles=normalize_qos_profiles(meta.get("offered_qos_profiles")),
+            type_description_hash=meta.get("type_description_hash", ""),
+            message_count=int(entry.get("message_count", 0)),
+        ))
+    return topics

@@ -1,0 +1,265 @@
+"""Read rosbag2 bags (MCAP or SQLite3 storage): messages in log-time order across split files, and bag info.
+
+Every problem with a bag (missing metadata.yaml or storage file, truncated or corrupt MCAP) raises
+:class:`~rollability_ros.core.bags.metadata.BagError` naming the file and the problem.
+"""
+import contextlib
+import heapq
+import os
+import typing
+
+from rollability_ros.core.bags.metadata import BagError, read_metadata, topics_from_metadata
+
+#: The 8 bytes that open and close every complete MCAP file.
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+class BagMessage(typing.NamedTuple):
+    """One recorded message: topic, ``pkg/msg/Type``, serialized CDR bytes, log (receive) time in ns."""
+
+    topic: str
+    type_name: str
+    data: bytes
+    log_time_ns: int
+
+
+@contextlib.contextmanager
+def bag_file_errors(path):
+    """Re-raise any failure inside the block as :class:`BagError` naming ``path`` (not a deep mcap traceback)."""
+    try:
+        yield
+    except BagError:
+        raise
+    except FileNotFoundError as exc:
+        raise BagError(f"{path}: storage file missing") from exc
+    except Exception as exc:  # mcap, zstd and struct raise many types for corrupt input; name the file instead
+        raise BagError(f"{path}: corrupt or unreadable bag file ({type(exc).__name__}: {exc}); "
+                       f"if it is an MCAP bag of a killed recorder, run `rollability bag recover`") from exc
+
+
+def open_mcap(path, stream):
+    """Return ``(reader, summary)`` for a complete MCAP file open as ``stream``; BagError if it is not one."""
+    from mcap.reader import SeekingReader
+
+    with bag_file_errors(path):
+        stream.seek(0, os.SEEK_END)
+        size = stream.tell()
+        stream.seek(0)
+        if stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            raise BagError(f"{path}: not an MCAP file (bad magic bytes)")
+        stream.seek(size - len(MCAP_MAGIC))
+        if size < 2 * len(MCAP_MAGIC) or stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            raise BagError(f"{path}: truncated (no footer; was the recorder killed?); run "
+                           f"`rollability bag recover` on the bag")
+        stream.seek(0)
+        reader = SeekingReader(stream)
+        summary = reader.get_summary()
+        if summary is None or summary.statistics is None:
+            raise BagError(f"{path}: has no summary section with statistics; run `rollability bag recover`")
+    return reader, summary
+
+
+def storage_paths(directory, information):
+    """Return the absolute storage file paths listed in metadata; BagError naming the first missing one."""
+    paths = []
+    for relative in information.get("relative_file_paths") or []:
+        path = os.path.join(directory, relative)
+        if not os.path.isfile(path):
+            raise BagError(f"{path}: storage file listed in metadata.yaml is missing")
+        paths.append(path)
+    return paths
+
+
+class BagReader:
+    """Iterate a bag's messages as :class:`BagMessage` in log-time order, across all its storage files.
+
+    Parameters
+    ----------
+    directory : str or path
+        The bag directory (holding ``metadata.yaml``).
+    topics : iterable of str, optional
+        Only these topics (default all); an unknown topic raises ValueError naming the bag's topics.
+    start_time_ns, end_time_ns : int, optional
+        Only messages with ``start_time_ns <= log_time_ns < end_time_ns`` (ns since the epoch).
+
+    The reader can be iterated several times (each pass re-reads the files), e.g. for looped playback.
+    """
+
+    def __init__(self, directory, topics=None, start_time_ns=None, end_time_ns=None):
+        self.directory = os.fspath(directory)
+        self.metadata = read_metadata(self.directory)
+        self.storage_identifier = self.metadata["storage_identifier"]
+        if self.storage_identifier not in ("mcap", "sqlite3"):
+            raise BagError(f"{self.directory}: storage '{self.storage_identifier}' is not supported (mcap, sqlite3)")
+        self.topic_infos = topics_from_metadata(self.metadata)
+        known = {t.name for t in self.topic_infos}
+        self.topics = None if topics is None else set(topics)
+        if self.topics is not None and not self.topics <= known:
+            raise ValueError(f"topics {sorted(self.topics - known)} are not in bag {self.directory} "
+                             f"(it has {sorted(known)})")
+        self.start_time_ns = start_time_ns
+        self.end_time_ns = end_time_ns
+        self.paths = storage_paths(self.directory, self.metadata)
+
+    def __iter__(self):
+        if self.storage_identifier == "sqlite3":
+            return self._iter_rosbags()
+        return self._iter_mcap()
+
+    def _iter_mcap(self):
+        with contextlib.ExitStack() as stack:
+            streams = []
+            for path in self.paths:
+                stream = stack.enter_context(open(path, "rb"))
+                reader, summary = open_mcap(path, stream)
+                if summary.statistics.message_count:
+                    streams.append(self._mcap_messages(path, reader))
+            yield from heapq.merge(*streams, key=lambda message: message.log_time_ns)
+
+    def _mcap_messages(self, path, reader):
+        with bag_file_errors(path):
+            for schema, channel, message in reader.iter_messages(
+                    topics=self.topics, starting_at=self.start_time_ns, ending_before=self.end_time_ns):
+                yield BagMessage(channel.topic, schema.name if schema else "", message.data, message.log_time)
+
+    def _iter_rosbags(self):
+        from rosbags.rosbag2 import Reader
+
+        with bag_file_errors(self.directory), Reader(self.directory) as reader:
+            connections = [c for c in reader.connections if self.topics is None or c.topic in self.topics]
+            for connection, log_time_ns, data in reader.messages(
+                    connections=connections, start=self.start_time_ns, stop=self.end_time_ns):
+                yield BagMessage(connection.topic, connection.msgtype, bytes(data), log_time_ns)
+
+
+def _mcap_file_info(path):
+    """Return the info of one complete MCAP file from its summary section (no message is read)."""
+    with open(path, "rb") as stream:
+        _, summary = open_mcap(path, stream)
+    statistics = summary.statistics
+    counts = {}
+    for channel_id, count in statistics.channel_message_counts.items():
+        channel = summary.channels[channel_id]
+        schema = summary.schemas.get(channel.schema_id)
+        key = (channel.topic, schema.name if schema else "")
+        counts[key] = counts.get(key, 0) + count
+    compressions = sorted({index.compression or "none" for index in summary.chunk_indexes})
+    return {
+        "path": os.path.basename(path),
+        "size_bytes": os.path.getsize(path),
+        "message_count": statistics.message_count,
+        "start_time_ns": statistics.message_start_time if statistics.message_count else None,
+        "end_time_ns": statistics.message_end_time if statistics.message_count else None,
+        "chunk_compression": compressions,
+        "topic_counts": counts,
+    }
+
+
+def _rosbags_file_infos(directory, information):
+    """Return one info entry for a SQLite3 bag as a whole, from rosbags' reader."""
+    from rosbags.rosbag2 import Reader
+
+    paths = storage_paths(directory, information)
+    with bag_file_errors(directory), Reader(directory) as reader:
+        counts = {(c.topic, c.msgtype): c.msgcount for c in reader.connections}
+        count = reader.message_count
+        return [{
+            "path": ", ".join(os.path.basename(p) for p in paths),
+            "size_bytes": sum(os.path.getsize(p) for p in paths),
+            "message_count": count,
+            "start_time_ns": reader.start_time if count else None,
+            "end_time_ns": reader.end_time - 1 if count else None,
+            "chunk_compression": [],
+            "topic_counts": counts,
+        }]
+
+
+def bag_info(directory):
+    """Summarise a bag: topics, types, counts, time span, size, compression.
+
+    Counts and times come from the storage files themselves (MCAP summary sections), so a metadata.yaml
+    that disagrees with them (e.g. a recorder killed before closing) is reported in ``warnings``.
+
+    Returns
+    -------
+    dict
+        ``path``, ``storage_identifier``, ``ros_distro``, ``version``, ``message_count``, ``start_time_ns``,
+        ``end_time_ns``, ``duration_s``, ``size_bytes``, ``compression`` (e.g. ``"zstd (mcap chunks)"`` or
+        ``"none"``), ``custom_data``, ``topics`` (list of dicts: ``name``, ``type``, ``message_count``,
+        ``serialization_format``, ``type_description_hash``, ``offered_qos_profiles``), ``files`` (list of
+        dicts: ``path``, ``size_bytes``, ``message_count``, ``start_time_ns``, ``end_time_ns``), ``warnings``.
+    """
+    directory = os.fspath(directory)
+    information = read_metadata(directory)
+    if information["storage_identifier"] == "sqlite3":
+        files = _rosbags_file_infos(directory, information)
+    else:
+        files = [_mcap_file_info(path) for path in storage_paths(directory, information)]
+    counts = {}
+    for entry in files:
+        for key, count in entry.pop("topic_counts").items():
+            counts[key] = counts.get(key, 0) + count
+    warnings = []
+    topics = []
+    for topic in topics_from_metadata(information):
+        found = counts.pop((topic.name, topic.type_name), 0)
+        if found != topic.message_count:
+            warnings.append(f"metadata.yaml counts {topic.message_count} messages on {topic.name}, files hold {found}")
+        topics.append({"name": topic.name, "type": topic.type_name, "message_count": found,
+                       "serialization_format": topic.serialization_format,
+                       "type_description_hash": topic.type_description_hash,
+                       "offered_qos_profiles": topic.offered_qos_profiles})
+    for (name, type_name), count in counts.items():
+        warnings.append(f"topic {name} ({type_name}) is in the storage files but not in metadata.yaml")
+        topics.append({"name": name, "type": type_name, "message_count": count, "serialization_format": "cdr",
+                       "type_description_hash": "", "offered_qos_profiles": []})
+    starts = [f["start_time_ns"] for f in files if f["start_time_ns"] is not None]
+    ends = [f["end_time_ns"] for f in files if f["end_time_ns"] is not None]
+    chunk_compressions = sorted({c for f in files for c in f.pop("chunk_compression")} - {"none"})
+    if information.get("compression_mode"):
+        compression = f"{information.get('compression_format')} ({information['compression_mode']} mode)"
+    elif chunk_compressions:
+        compression = f"{'+'.join(chunk_compressions)} (mcap chunks)"
+    else:
+        compression = "none"
+    start_ns = min(starts) if starts else None
+    end_ns = max(ends) if ends else None
+    return {
+        "path": directory,
+        "storage_identifier": information["storage_identifier"],
+        "ros_distro": information.get("ros_distro", ""),
+        "version": information["version"],
+        "message_count": sum(f["message_count"] for f in files),
+        "start_time_ns": start_ns,
+        "end_time_ns": end_ns,
+        "duration_s": (end_ns - start_ns) / 1e9 if starts else 0.0,
+        "size_bytes": sum(f["size_bytes"] for f in files),
+        "compression": compression,
+        "custom_data": information.get("custom_data") or {},
+        "topics": topics,
+        "files": files,
+        "warnings": warnings,
+    }
+
+
+def format_bag_info(info):
+    """Return :func:`bag_info`'s dict as the text ``rollability bag info`` prints."""
+    lines = [
+        f"Bag:            {info['path']}",
+        f"Storage:        {info['storage_identifier']} (metadata version {info['version']}, "
+        f"ROS distro {info['ros_distro'] or '?'})",
+        f"Files:          {len(info['files'])}, {info['size_bytes'] / 1e6:.3f} MB",
+        f"Compression:    {info['compression']}",
+        f"Duration:       {info['duration_s']:.3f} s",
+        f"Start / end:    {info['start_time_ns'] or '-'} / {info['end_time_ns'] or '-'} ns",
+        f"Messages:       {info['message_count']}",
+    ]
+    if info["custom_data"]:
+        lines.append("Custom data:    " + ", ".join(f"{k}={v}" for k, v in sorted(info["custom_data"].items())))
+    lines.append("Topics:")
+    width = max((len(t["name"]) for t in info["topics"]), default=0)
+    for topic in info["topics"]:
+        lines.append(f"  {topic['name']:<{width}}  {topic['message_count']:>9} msgs  {topic['type']}")
+    for warning in info["warnings"]:
+        lines.append(f"warning: {warning}")
+    return "\n".join(lines)

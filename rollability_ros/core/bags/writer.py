@@ -1,0 +1,387 @@
+"""Write rosbag2 bags (MCAP storage) that ``ros2 bag`` on ROS 2 Jazzy, rosbags and mcap readers open.
+
+Layout of a bag directory ``<dir>/`` named ``<name>``::
+
+    metadata.yaml             rosbag2 metadata version 9 (rewritten at open, on every new topic or file, at close)
+    <name>_0.mcap, _1, ...    MCAP, profile "ros2": one schema per type (encoding "ros2msg", full definition
+                              with nested types), one channel per topic (message encoding "cdr", metadata
+                              offered_qos_profiles + topic_type_hash), "rosbag2" metadata record at close
+    .recovery.json            sidecar while recording: every type's definition, so `recover` can rebuild
+                              channels that had no complete chunk yet; removed by a clean close
+
+MCAP chunk compression (zstd by default) lives inside the MCAP files, so ``compression_format`` and
+``compression_mode`` in metadata.yaml stay empty, as rosbag2 writes them for MCAP chunk compression.
+
+Durability: the MCAP writer's output goes to the OS with unbuffered writes, so every finished chunk survives a
+SIGKILL of the writing process (``fsync=True`` also makes it survive power loss). A chunk is finished when it
+holds ``chunk_size_bytes`` of (uncompressed) records, or when ``flush_interval_s`` has passed since the last
+finished chunk at a :meth:`BagWriter.write` or :meth:`BagWriter.flush_if_due` call. **At most the messages of
+the one open chunk are lost** on a kill: fewer than ``chunk_size_bytes`` of message records plus one message,
+and (if the caller writes or calls ``flush_if_due`` at least every ``flush_interval_s``) at most the last
+``2 * flush_interval_s`` of messages. :func:`rollability_ros.core.bags.recover.recover` restores the rest.
+"""
+import json
+import os
+import time
+
+from rollability_ros.core.bags.metadata import (
+    ROS_DISTRO,
+    FileInfo,
+    TopicInfo,
+    build_metadata,
+    dump_metadata,
+    write_metadata,
+)
+from rollability_ros.core.bags.qos import normalize_qos_profiles, qos_profiles_yaml
+from rollability_ros.core.bags.msg_definitions import definition_for, full_type_name, rihs01_hash
+
+#: Default uncompressed chunk size, bytes: the most a SIGKILL can lose (see module docstring).
+DEFAULT_CHUNK_SIZE_BYTES = 256 * 1024
+
+#: Default longest time a message waits in an open chunk before the chunk is written, s.
+DEFAULT_FLUSH_INTERVAL_S = 1.0
+
+#: Name of the sidecar holding type definitions while a bag is being written.
+RECOVERY_SIDECAR = ".recovery.json"
+
+#: MCAP header profile and library string.
+MCAP_PROFILE = "ros2"
+MCAP_LIBRARY = "rollability_ros bag_writer"
+
+#: Schema encoding of ``.msg``-style definitions.
+SCHEMA_ENCODING = "ros2msg"
+
+
+def storage_file_name(bag_name, index):
+    """Return the name of storage file ``index`` of bag ``bag_name`` (``<name>_<index>.mcap``)."""
+    return f"{bag_name}_{index}.mcap"
+
+
+def mcap_compression(compression):
+    """Return the ``mcap.writer.CompressionType`` for ``"zstd"``, ``"lz4"`` or ``"none"``/``""``."""
+    from mcap.writer import CompressionType
+
+    choices = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE,
+               "": CompressionType.NONE}
+    if compression not in choices:
+        raise ValueError(f"compression must be one of zstd, lz4, none; got {compression!r}")
+    return choices[compression]
+
+
+def channel_metadata(topic):
+    """Return the MCAP channel metadata rosbag2 stores for a :class:`TopicInfo`."""
+    return {"offered_qos_profiles": qos_profiles_yaml(topic.offered_qos_profiles),
+            "topic_type_hash": topic.type_description_hash}
+
+
+def write_sidecar(directory, schemas):
+    """Atomically write the recovery sidecar: ``{type name: full definition}``."""
+    path = os.path.join(directory, RECOVERY_SIDECAR)
+    with open(path + ".tmp", "w", encoding="utf-8") as stream:
+        json.dump({"definitions": schemas}, stream)
+    os.replace(path + ".tmp", path)
+
+
+def read_sidecar(directory):
+    """Return the recovery sidecar's ``{type name: full definition}``, or ``{}`` when there is none."""
+    path = os.path.join(directory, RECOVERY_SIDECAR)
+    try:
+        with open(path, encoding="utf-8") as stream:
+            return dict(json.load(stream).get("definitions", {}))
+    except (FileNotFoundError, ValueError):
+        return {}  # written atomically, so only outside damage breaks it; the storage files hold most schemas
+
+
+class UnbufferedSink:
+    """A write-only file that hands every write straight to the OS (no user-space buffer to lose on a kill)."""
+
+    def __init__(self, path, fsync=False):
+        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        self._position = 0
+        self._fsync = fsync
+
+    def write(self, data):
+        view = memoryview(data)
+        while view:
+            written = os.write(self._fd, view)
+            view = view[written:]
+        self._position += len(data)
+        return len(data)
+
+    def tell(self):
+        return self._position
+
+    def flush(self):
+        if self._fsync:
+            os.fsync(self._fd)
+
+    def close(self):
+        if self._fd is not None:
+            self.flush()
+            os.close(self._fd)
+            self._fd = None
+
+
+class McapFile:
+    """One open MCAP storage file of a bag: its writer, sink, channel ids and :class:`FileInfo`."""
+
+    def __init__(self, path, compression, chunk_size_bytes, fsync):
+        from mcap.writer import Writer
+
+        self.info = FileInfo(os.path.basename(path))
+        self.sink = UnbufferedSink(path, fsync=fsync)
+        self.writer = Writer(self.sink, chunk_size=chunk_size_bytes, compression=compression)
+        self.writer.start(profile=MCAP_PROFILE, library=MCAP_LIBRARY)
+        self.schema_ids = {}
+        self.channel_ids = {}
+        self.end_time_ns = 0
+
+    def add_schema(self, type_name, encoding, data):
+        """Register a schema once per type name and return its id."""
+        if type_name not in self.schema_ids:
+            self.schema_ids[type_name] = self.writer.register_schema(type_name, encoding, data)
+        return self.schema_ids[type_name]
+
+    def add_channel(self, topic_name, message_encoding, schema_id, metadata):
+        """Register the channel of ``topic_name``."""
+        self.channel_ids[topic_name] = self.writer.register_channel(topic_name, message_encoding, schema_id,
+                                                                    metadata)
+
+    def add_topic(self, topic, definition):
+        """Register ``topic``'s schema (once per type) and channel."""
+        schema_id = self.add_schema(topic.type_name, SCHEMA_ENCODING, definition.encode("utf-8"))
+        self.add_channel(topic.name, topic.serialization_format, schema_id, channel_metadata(topic))
+
+    def write(self, topic_name, data, log_time_ns, publish_time_ns):
+        """Append one message and update the file's count and time span."""
+        self.writer.add_message(self.channel_ids[topic_name], log_time_ns, data, publish_time_ns)
+        info = self.info
+        if info.message_count == 0:
+            info.starting_time_ns = self.end_time_ns = log_time_ns
+        info.starting_time_ns = min(info.starting_time_ns, log_time_ns)
+        self.end_time_ns = max(self.end_time_ns, log_time_ns)
+        info.duration_ns = self.end_time_ns - info.starting_time_ns
+        info.message_count += 1
+
+    def close(self, information):
+        """Write the ``rosbag2`` metadata record and the summary section, and close the file."""
+        self.writer.add_metadata("rosbag2", {"serialized_metadata": dump_metadata(information),
+                                             "ROS_DISTRO": information["ros_distro"]})
+        self.writer.finish()
+        self.sink.close()
+
+
+class BagWriter:
+    """Write a rosbag2 bag directory with MCAP storage; see the module docstring for layout and durability.
+
+    Parameters
+    ----------
+    directory : str or path
+        Bag directory to create; it must not exist or be empty. Its base name names the storage files.
+    storage : str
+        Storage id; only ``"mcap"`` (use :func:`rollability_ros.core.bags.convert.convert` for sqlite3).
+    compression : str
+        MCAP chunk compression: ``"zstd"``, ``"lz4"`` or ``"none"``.
+    split_max_bytes : int
+        Start a new storage file once the current one holds this many bytes on disk (0: never). A file can
+        exceed it by up to one chunk.
+    split_max_duration_s : float
+        Start a new storage file when a message's log time is this many seconds after the file's first (0: never).
+    custom_data : dict of str to str, optional
+        Stored as ``custom_data`` in metadata.yaml.
+    chunk_size_bytes : int
+        Uncompressed MCAP chunk size, bytes; bounds what a kill can lose.
+    flush_interval_s : float
+        Longest time a message waits in an open chunk, s (0: write a chunk per message).
+    fsync : bool
+        fsync every finished chunk (survives power loss, slower).
+    clock : callable
+        Monotonic clock in seconds for the flush interval (for tests).
+
+    Not thread-safe: call it from one thread (a single-threaded executor, or behind one lock).
+    """
+
+    def __init__(self, directory, storage="mcap", compression="zstd", split_max_bytes=0, split_max_duration_s=0,
+                 custom_data=None, chunk_size_bytes=DEFAULT_CHUNK_SIZE_BYTES,
+                 flush_interval_s=DEFAULT_FLUSH_INTERVAL_S, fsync=False, clock=time.monotonic):
+        if storage != "mcap":
+            raise ValueError(f"BagWriter writes storage 'mcap' only, got {storage!r}; convert afterwards for sqlite3")
+        for name, value in (("split_max_bytes", split_max_bytes), ("split_max_duration_s", split_max_duration_s),
+                            ("flush_interval_s", flush_interval_s)):
+            if not isinstance(value, (int, float)) or isinstance(value, bool) or value < 0:
+                raise ValueError(f"{name} must be a number >= 0, got {value!r}")
+        if not isinstance(chunk_size_bytes, int) or chunk_size_bytes <= 0:
+            raise ValueError(f"chunk_size_bytes must be a positive integer, got {chunk_size_bytes!r}")
+        self._compression = mcap_compression(compression)
+        self.directory = os.fspath(directory)
+        if os.path.exists(self.directory) and (not os.path.isdir(self.directory) or os.listdir(self.directory)):
+            raise ValueError(f"{self.directory}: exists and is not an empty directory; not overwriting a bag")
+        os.makedirs(self.directory, exist_ok=True)
+        self.name = os.path.basename(os.path.normpath(self.directory))
+        self.split_max_bytes = int(split_max_bytes)
+        self.split_max_duration_ns = int(split_max_duration_s * 1e9)
+        self.chunk_size_bytes = chunk_size_bytes
+        self.flush_interval_s = float(flush_interval_s)
+        self._fsync = fsync
+        self._clock = clock
+        self._custom_data = dict(custom_data) if custom_data else None
+        self._topics = {}
+        self._definitions = {}
+        self._files = []
+        self._current = None
+        self._last_flush_s = clock()
+        self._unflushed = 0
+        build_metadata([], [], custom_data=self._custom_data)  # validates custom_data before any file exists
+        self._open_file()
+
+    # --- topics and messages -------------------------------------------------------------------------
+    def add_topic(self, name, type_name, serialization_format="cdr", offered_qos_profiles=None, definition=None,
+                  type_description_hash=None):
+        """Register a topic before writing to it.
+
+        Parameters
+        ----------
+        name : str
+            Topic name, e.g. ``/rollability/launch_outcomes``.
+        type_name : str
+            ``pkg/msg/Type`` (``pkg/Type`` is accepted and stored as ``pkg/msg/Type``).
+        serialization_format : str
+            ``"cdr"`` for ROS 2 messages.
+        offered_qos_profiles : list of dict or str, optional
+            The publishers' QoS (see :func:`~rollability_ros.core.bags.qos.normalize_qos_profiles`).
+        definition : str, optional
+            Full ``ros2msg`` definition; default :func:`~rollability_ros.core.bags.msg_definitions.definition_for`.
+            ``""`` records a type whose definition is not installed (readers then cannot decode it without
+            it); it needs ``type_description_hash``.
+        type_description_hash : str, optional
+            ``RIHS01_...`` hash; default computed from the definition. A recorder passes what the publishers
+            advertise, so a type changed since the definition files were installed is still recorded truthfully.
+
+        Raises
+        ------
+        ValueError
+            The topic exists with another type, or a definition is not found.
+        """
+        type_name = full_type_name(type_name)
+        if not isinstance(name, str) or not name.startswith("/"):
+            raise ValueError(f"topic name must be an absolute ROS name starting with '/', got {name!r}")
+        if name in self._topics:
+            if self._topics[name].type_name != type_name:
+                raise ValueError(f"topic {name} is already recorded with type {self._topics[name].type_name}, "
+                                 f"not {type_name}")
+            return
+        if definition == "" and not type_description_hash:
+            raise ValueError(f"topic {name}: an empty definition of {type_name} needs the publishers' "
+                             f"type_description_hash")
+        if type_name not in self._definitions:
+            self._definitions[type_name] = definition if definition is not None else definition_for(type_name)
+        topic = TopicInfo(
+            name=name,
+            type_name=type_name,
+            serialization_format=serialization_format,
+            offered_qos_profiles=normalize_qos_profiles(offered_qos_profiles),
+            type_description_hash=type_description_hash or rihs01_hash(type_name, self._definitions[type_name]),
+        )
+        self._topics[name] = topic
+        self._current.add_topic(topic, self._definitions[type_name])
+        write_sidecar(self.directory, self._definitions)
+        self._write_metadata()
+
+    @property
+    def topics(self):
+        """The registered topics as ``{name: TopicInfo}`` (message counts so far)."""
+        return dict(self._topics)
+
+    def write(self, topic, cdr_bytes, log_time_ns, publish_time_ns=None):
+        """Append one serialized message.
+
+        Parameters
+        ----------
+        topic : str
+            A topic registered with :meth:`add_topic`.
+        cdr_bytes : bytes
+            The serialized message (CDR, as received from the middleware).
+        log_time_ns : int
+            Receive time, ns since the Unix epoch (rosbag2's ``recv_timestamp``; orders playback).
+        publish_time_ns : int, optional
+            Send time, ns; defaults to ``log_time_ns``.
+        """
+        if self._current is None:
+            raise ValueError(f"{self.directory}: bag is closed")
+        if topic not in self._topics:
+            raise ValueError(f"topic {topic} was not added to the bag (call add_topic first)")
+        log_time_ns = int(log_time_ns)
+        if log_time_ns < 0:
+            raise ValueError(f"log_time_ns must be >= 0, got {log_time_ns}")
+        if self._split_due(log_time_ns):
+            self._roll_over()
+        self._current.write(topic, cdr_bytes, log_time_ns, log_time_ns if publish_time_ns is None
+                            else int(publish_time_ns))
+        self._topics[topic].message_count += 1
+        self._unflushed += 1
+        self.flush_if_due()
+
+    def flush(self):
+        """Finish the open chunk and hand it to the OS (a chunk with no messages is not written)."""
+        if self._current is not None:
+            self._current.writer.flush()
+        self._last_flush_s = self._clock()
+        self._unflushed = 0
+
+    def flush_if_due(self):
+        """Flush when messages have waited ``flush_interval_s`` or longer; return True when it flushed.
+
+        A recorder calls this from a timer so a quiet topic's last messages are not held in memory.
+        """
+        if self._unflushed and self._clock() - self._last_flush_s >= self.flush_interval_s:
+            self.flush()
+            return True
+        return False
+
+    def close(self):
+        """Finish the last storage file, write the final metadata.yaml and drop the recovery sidecar."""
+        if self._current is None:
+            return
+        self._current.close(self.metadata())
+        self._current = None
+        self._write_metadata()
+        sidecar = os.path.join(self.directory, RECOVERY_SIDECAR)
+        if os.path.exists(sidecar):
+            os.remove(sidecar)
+
+    def metadata(self):
+        """Return the current ``rosbag2_bagfile_information`` mapping."""
+        return build_metadata(list(self._topics.values()), list(self._files), custom_data=self._custom_data,
+                              ros_distro=ROS_DISTRO)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        self.close()
+
+    # --- storage files -------------------------------------------------------------------------------
+    def _split_due(self, log_time_ns):
+        info = self._current.info
+        if info.message_count == 0:
+            return False
+        if self.split_max_bytes and self._current.sink.tell() >= self.split_max_bytes:
+            return True
+        return bool(self.split_max_duration_ns and log_time_ns - info.starting_time_ns >= self.split_max_duration_ns)
+
+    def _open_file(self):
+        path = os.path.join(self.directory, storage_file_name(self.name, len(self._files)))
+        self._current = McapFile(path, self._compression, self.chunk_size_bytes, self._fsync)
+        self._files.append(self._current.info)
+        for topic in self._topics.values():
+            self._current.add_topic(topic, self._definitions[topic.type_name])
+        self._write_metadata()
+
+    def _roll_over(self):
+        self._current.close(self.metadata())
+        self._open_file()
+        self._last_flush_s = self._clock()
+        self._unflushed = 0
+
+    def _write_metadata(self):
+        write_metadata(self.directory, self.metadata())

@@ -1,0 +1,420 @@
+"""Sim-to-real calibration: fit the launch twin's uncertain parameters to recorded physical launch outcomes.
+
+What is fitted
+    The parameters listed in ``calibration.parameters`` (``config/calibration.yaml``) by their config keys in the
+    twin's parameter files (``launch_twin.foam.contact_stiffness_npm``, ``sim.lateral_friction``,
+    ``robot.com_offset_z_m``, ...), each within ``[lower, upper]`` (its own unit), searched on a linear or a log
+    scale. CMA-ES (pycma) works on normalised coordinates u in [0, 1]^d (pycma's bound handling); u maps to
+    ``lower + u (upper - lower)``, or ``lower (upper / lower) ** u`` on a log scale. It starts from the values the
+    loaded parameter files give (the uncalibrated twin).
+Objective
+    The physical outcomes are grouped per condition (configuration, height, speed, angle:
+    :func:`rollability_ros.core.results.analysis.group_conditions`): k successes of n repetitions. For a parameter set,
+    the twin launches every grouped condition ``sim_repetitions`` (R) times; the predicted success probability
+    is p = upright / R, clipped to [eps, 1 - eps] (``probability_floor``) so that one impossible outcome does not
+    make the likelihood zero. CMA-ES maximises the binomial log-likelihood sum_c log C(n, k) + k log p +
+    (n - k) log(1 - p). Launch j of every condition uses the same seed (the speed and angle scatter draws) for
+    every parameter set: common random numbers, so two parameter sets differ by their physics, not by their luck.
+    The fitted value is the best parameter set evaluated.
+Uncertainty
+    ``bootstrap_resamples`` repeated fits, each on a resample of the physical trials (every grouped condition's
+    repetitions drawn with replacement, so its count is Binomial(n, k / n)) and with its own set of simulation
+    seeds, so the spread holds both the sampling noise of the physical data and the Monte Carlo noise of the
+    prediction. The standard deviation of the fitted values over the resamples is the stated uncertainty.
+Output
+    :func:`calibrated_parameter_document` is a ROS 2 parameter file with the fitted values under their own
+    namespaces, loaded on top of the defaults by the evaluator, the optimizer and the twin (``--config``,
+    ``--params-file``); it also sets ``rig.twin_config`` to the defaults plus itself, so the rig's sim backend
+    launches on the calibrated twin. See ``docs/calibration.md``.
+
+Launches run in a process pool (``workers``); cma and pybullet are imported where they are used.
+"""
+import dataclasses
+import math
+import os
+import typing
+
+import numpy as np
+
+from rollability_ros.core.results import analysis
+from rollability_ros.core.config import ConfigError, from_mapping, section
+from rollability_ros.core.sim.evaluation import trial_seed
+from rollability_ros.core.sim.launch_twin import launch_twin_settings_from_parameters, simulate_launch
+from rollability_ros.core.optional import require
+from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.sim.worker_pool import spawn_pool
+
+#: The parameter files the twin is built from, in load order (``load_launch_twin_settings``' default).
+TWIN_CONFIGS = ("sim", "robot", "launch_twin")
+
+
+@dataclasses.dataclass
+class CalibrationSettings:
+    """The ``calibration`` namespace (``config/calibration.yaml``); see the module docstring."""
+
+    parameters: typing.List[str] = dataclasses.field(default_factory=lambda: [
+        "launch_twin.foam.contact_stiffness_npm", "launch_twin.foam.contact_damping_nspm",
+        "launch_twin.foam.lateral_friction", "launch_twin.foam.restitution", "launch_twin.speed_sigma_fraction",
+        "robot.com_offset_z_m"])
+    lower: typing.List[float] = dataclasses.field(default_factory=lambda: [5000.0, 20.0, 0.2, 0.0, 0.0, -0.019])
+    upper: typing.List[float] = dataclasses.field(default_factory=lambda: [160000.0, 600.0, 3.0, 1.0, 0.15, 0.015])
+    log_scale: typing.List[bool] = dataclasses.field(default_factory=lambda: [True, True, True, False, False, False])
+    sim_repetitions: int = 16
+    probability_floor: float = 0.01
+    popsize: int = 8
+    sigma0: float = 0.3
+    max_generations: int = 12
+    seed: int = 1
+    bootstrap_resamples: int = 3
+    workers: int = 0
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        count = len(self.parameters)
+        if not count:
+            raise ValueError("parameters must name at least one parameter to fit")
+        if not len(self.lower) == len(self.upper) == len(self.log_scale) == count:
+            raise ValueError(f"lower ({len(self.lower)}), upper ({len(self.upper)}) and log_scale "
+                             f"({len(self.log_scale)}) need one entry per parameter ({count})")
+        if len(set(self.parameters)) != count:
+            raise ValueError("parameters lists a name twice")
+        for name, low, high, log in zip(self.parameters, self.lower, self.upper, self.log_scale):
+            if not low < high:
+                raise ValueError(f"{name}: need lower < upper, got [{low}, {high}]")
+            if log and not low > 0:
+                raise ValueError(f"{name}: a log-scale parameter needs lower > 0, got {low}")
+        if self.sim_repetitions < 1:
+            raise ValueError(f"sim_repetitions must be >= 1, got {self.sim_repetitions}")
+        if not 0 < self.probability_floor < 0.5:
+            raise ValueError(f"probability_floor must be in (0, 0.5), got {self.probability_floor}")
+        if self.popsize < 2:
+            raise ValueError(f"popsize must be >= 2, got {self.popsize}")
+        if not 0 < self.sigma0 <= 1:
+            raise ValueError(f"sigma0 must be in (0, 1] (normalised units), got {self.sigma0}")
+        if self.max_generations < 1:
+            raise ValueError(f"max_generations must be >= 1, got {self.max_generations}")
+        if not 1 <= self.seed < 2**32:
+            raise ValueError(f"seed must be in [1, 2**32), got {self.seed}")
+        if self.bootstrap_resamples < 0 or self.workers < 0:
+            raise ValueError("bootstrap_resamples and workers must be >= 0 (workers 0 = one per core)")
+
+    def to_values(self, normalised):
+        """Parameter values (own units) of normalised coordinates ``normalised`` (d,), clipped to [0, 1]."""
+        u = np.clip(np.asarray(normalised, dtype=np.float64), 0.0, 1.0)
+        return np.array([low * (high / low) ** x if log else low + x * (high - low)
+                         for x, low, high, log in zip(u, self.lower, self.upper, self.log_scale)])
+
+    def to_normalised(self, values):
+        """Normalised coordinates of parameter ``values`` (d,); ``ValueError`` naming one outside its bounds."""
+        out = []
+        for name, value, low, high, log in zip(self.parameters, values, self.lower, self.upper, self.log_scale):
+            if not low <= value <= high:
+                raise ValueError(f"{name} = {value:g} lies outside its calibration bounds [{low:g}, {high:g}]")
+            out.append(math.log(value / low) / math.log(high / low) if log else (value - low) / (high - low))
+        return np.array(out)
+
+
+def calibration_settings(parameters):
+    """The :class:`CalibrationSettings` of flat parameters (namespace ``calibration``), checked against the
+    twin's keys: every fitted name must be a key of the loaded parameter files."""
+    settings = from_mapping(CalibrationSettings, section(parameters, "calibration"), "calibration")
+    unknown = [name for name in settings.parameters if name not in parameters]
+    if unknown:
+        raise ConfigError(f"calibration.parameters: {', '.join(unknown)} not set by the twin's parameter files "
+                          f"({', '.join(TWIN_CONFIGS)}); name parameters by their config keys")
+    return settings
+
+
+def twin_settings_with(parameters, names, values):
+    """:class:`~rollability_ros.core.sim.launch_twin.LaunchTwinSettings` of flat ``parameters`` with ``names`` set to
+    ``values`` (config keys; checked like file values)."""
+    flat = dict(parameters)
+    flat.update({name: float(value) for name, value in zip(names, values)})
+    return launch_twin_settings_from_parameters(flat)
+
+
+def simulation_seeds(seed, resample, repetitions):
+    """The common random numbers of one fit: ``repetitions`` launch seeds from (``seed``, ``resample``);
+    resample 0 is the main fit, 1.. the bootstrap fits."""
+    base = trial_seed(seed, resample)
+    return [trial_seed(base, j) for j in range(repetitions)]
+
+
+def launch_condition(result):
+    """The :class:`LaunchCondition` of a grouped condition (:class:`~rollability_ros.core.results.analysis.ConditionResult`)."""
+    return LaunchCondition(result.configuration, result.height_m, result.speed_mps, result.angle_deg)
+
+
+def _count_upright(settings, condition, seeds):
+    """Launch ``condition`` once per seed on the twin ``settings``; return how many ended upright."""
+    return sum(simulate_launch(condition, settings, seed).upright for seed in seeds)
+
+
+class LaunchPool:
+    """Counts upright launches per (parameter set, grouped condition), in worker processes (or serially: 1).
+
+    ``workers`` None or 0 = one per core, in :func:`~rollability_ros.core.sim.worker_pool.spawn_pool` processes.
+    """
+
+    def __init__(self, workers=None):
+        self.workers = workers or os.cpu_count() or 1
+        self._pool = None if self.workers == 1 else spawn_pool(self.workers)
+
+    def predicted_upright(self, twin_settings_list, conditions, seeds):
+        """Upright counts ``(len(twin_settings_list), len(conditions))`` of ``len(seeds)`` launches each."""
+        jobs = [(settings, launch_condition(c), seeds) for settings in twin_settings_list for c in conditions]
+        if self._pool is None:
+            counts = [_count_upright(*job) for job in jobs]
+        else:
+            counts = list(self._pool.map(_count_upright, *zip(*jobs)))
+        return np.asarray(counts, dtype=np.int64).reshape(len(twin_settings_list), len(conditions))
+
+    def close(self):
+        """Stop the worker processes."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        self.close()
+
+
+def binomial_log_likelihood(successes, trials, probabilities, floor):
+    """Sum over conditions of log Binomial(successes | trials, p), p clipped to [floor, 1 - floor].
+
+    ``successes``, ``trials`` and ``probabilities`` are (c,) arrays (or the last axis of broadcastable arrays);
+    returns a float, or an array over the leading axes.
+    """
+    k = np.asarray(successes, dtype=np.float64)
+    n = np.asarray(trials, dtype=np.float64)
+    if np.any(k < 0) or np.any(k > n):
+        raise ValueError("need 0 <= successes <= trials in every condition")
+    p = np.clip(np.asarray(probabilities, dtype=np.float64), floor, 1.0 - floor)
+    log_choose = np.vectorize(lambda a, b: math.lgamma(a + 1) - math.lgamma(b + 1) - math.lgamma(a - b + 1))(n, k)
+    return (log_choose + k * np.log(p) + (n - k) * np.log1p(-p)).sum(axis=-1)
+
+
+@dataclasses.dataclass(frozen=True)
+class FitResult:
+    """One fit: fitted values (own units, in ``CalibrationSettings.parameters`` order), normalised coordinates,
+    log-likelihood, predicted upright counts per condition (of ``sim_repetitions``), generations and parameter
+    sets evaluated."""
+
+    values: np.ndarray
+    normalised: np.ndarray
+    log_likelihood: float
+    predicted_upright: np.ndarray
+    generations: int
+    evaluations: int
+
+
+def fit(conditions, parameters, settings, pool, resample=0, on_generation=None):
+    """Fit ``settings.parameters`` to grouped physical ``conditions`` (list of ConditionResult) by CMA-ES.
+
+    Parameters
+    ----------
+    conditions : list of rollability_ros.core.results.analysis.ConditionResult
+    parameters : dict
+        Flat parameters of the twin's files (the starting values and everything not fitted).
+    settings : CalibrationSettings
+    pool : LaunchPool
+    resample : int
+        0 for the main fit, b >= 1 for bootstrap fit b (its own simulation seeds and CMA-ES seed).
+    on_generation : callable(generation, best log-likelihood), optional
+    """
+    cma = require("cma", feature="the calibration")
+    if not conditions:
+        raise ValueError("no grouped conditions to calibrate against")
+    successes = np.array([c.successes for c in conditions])
+    trials = np.array([c.trials for c in conditions])
+    seeds = simulation_seeds(settings.seed, resample, settings.sim_repetitions)
+    x0 = settings.to_normalised([parameters[name] for name in settings.parameters])
+    options = {"popsize": settings.popsize, "bounds": [0.0, 1.0], "seed": settings.seed + resample,
+               "verbose": -9, "verb_log": 0, "verb_disp": 0}
+    if len(x0) == 1:  # pycma cannot rescale one coordinate's step to its bound range in 1-D (it raises): no limit
+        options["maxstd_boundrange"] = math.inf
+    global_state = np.random.get_state()
+    try:
+        strategy = cma.CMAEvolutionStrategy(x0, settings.sigma0, options)
+        best = None
+        evaluations = 0
+        for generation in range(settings.max_generations):
+            population = [np.asarray(x, dtype=np.float64) for x in strategy.ask()]
+            twins = [twin_settings_with(parameters, settings.parameters, settings.to_values(x)) for x in population]
+            upright = pool.predicted_upright(twins, conditions, seeds)
+            log_likelihood = binomial_log_likelihood(successes, trials, upright / settings.sim_repetitions,
+                                                     settings.probability_floor)
+            strategy.tell(population, list(-log_likelihood))
+            evaluations += len(population)
+            top = int(np.argmax(log_likelihood))
+            if best is None or log_likelihood[top] > best[1]:
+                best = (population[top], float(log_likelihood[top]), upright[top])
+            if on_generation is not None:
+                on_generation(generation, best[1])
+    finally:
+        np.random.set_state(global_state)  # pycma's seed option reseeds the process-wide generator
+    x, log_likelihood, upright = best
+    return FitResult(values=settings.to_values(x), normalised=np.clip(x, 0.0, 1.0), log_likelihood=log_likelihood,
+                     predicted_upright=upright, generations=settings.max_generations, evaluations=evaluations)
+
+
+def bootstrap_conditions(conditions, rng):
+    """A resample of the physical trials: each grouped condition's repetitions drawn with replacement."""
+    return [dataclasses.replace(c, successes=int(rng.binomial(c.trials, c.successes / c.trials)))
+            for c in conditions]
+
+
+@dataclasses.dataclass(frozen=True)
+class ParameterEstimate:
+    """One fitted parameter: config key, starting value, fitted value, bootstrap fits, bounds (own units)."""
+
+    name: str
+    initial: float
+    fitted: float
+    bootstrap: tuple
+    lower: float
+    upper: float
+
+    @property
+    def std(self):
+        """Standard deviation of the bootstrap fits (the stated uncertainty); NaN with fewer than 2."""
+        return float(np.std(self.bootstrap, ddof=1)) if len(self.bootstrap) >= 2 else math.nan
+
+    def row(self):
+        """Flat dict for a CSV table."""
+        spread = (min(self.bootstrap), max(self.bootstrap)) if self.bootstrap else (math.nan, math.nan)
+        return {"parameter": self.name, "initial": self.initial, "fitted": self.fitted, "bootstrap_std": self.std,
+                "bootstrap_min": spread[0], "bootstrap_max": spread[1], "bootstrap_fits": len(self.bootstrap),
+                "lower": self.lower, "upper": self.upper}
+
+
+@dataclasses.dataclass(frozen=True)
+class CalibrationResult:
+    """A calibration: physical conditions, the twin's predictions before and after, the fitted parameters."""
+
+    conditions: list
+    sim_repetitions: int
+    before_upright: np.ndarray
+    after_upright: np.ndarray
+    before_log_likelihood: float
+    after_log_likelihood: float
+    estimates: list
+    evaluations: int
+
+    def fitted_values(self):
+        """``{config key: fitted value}``."""
+        return {e.name: e.fitted for e in self.estimates}
+
+    def condition_rows(self):
+        """Per grouped condition: measured vs predicted success rate before and after."""
+        r = self.sim_repetitions
+        return [{"configuration": c.configuration, "height_m": c.height_m, "speed_mps": c.speed_mps,
+                 "angle_deg": c.angle_deg, "trials": c.trials, "successes": c.successes,
+                 "measured_rate": c.successes / c.trials, "before_rate": before / r, "after_rate": after / r}
+                for c, before, after in zip(self.conditions, self.before_upright, self.after_upright)]
+
+    def predicted_conditions(self, upright):
+        """The twin's prediction as ConditionResults (``upright`` of ``sim_repetitions`` per condition)."""
+        return [dataclasses.replace(c, successes=int(k), trials=self.sim_repetitions)
+                for c, k in zip(self.conditions, upright)]
+
+    def configuration_rows(self, configuration_order=None):
+        """Per configuration: measured trial and condition (majority rule) rates, predicted before and after."""
+        measured = analysis.summarise(self.conditions, ("configuration",), configuration_order)
+        before = analysis.summarise(self.predicted_conditions(self.before_upright), ("configuration",),
+                                    configuration_order)
+        after = analysis.summarise(self.predicted_conditions(self.after_upright), ("configuration",),
+                                   configuration_order)
+        return [{"configuration": m.key["configuration"], "measured_trial_rate": m.trial_rate,
+                 "measured_condition_rate": m.condition_rate, "before_trial_rate": b.trial_rate,
+                 "before_condition_rate": b.condition_rate, "after_trial_rate": a.trial_rate,
+                 "after_condition_rate": a.condition_rate}
+                for m, b, a in zip(measured, before, after)]
+
+    def rank_agreement(self, configuration_order=None):
+        """``{"before": SimVsExperiment, "after": SimVsExperiment}``: configurations' predicted vs measured trial
+        rates (:func:`rollability_ros.core.results.analysis.sim_vs_experiment`)."""
+        measured = analysis.summarise(self.conditions, ("configuration",), configuration_order)
+        out = {}
+        for label, upright in (("before", self.before_upright), ("after", self.after_upright)):
+            predicted = analysis.summarise(self.predicted_conditions(upright), ("configuration",), configuration_order)
+            rates = {cell.key["configuration"]: cell.trial_rate for cell in predicted}
+            out[label] = analysis.sim_vs_experiment(rates, measured, "trial_rate")
+        return out
+
+
+def calibrate(outcomes, parameters, settings, pool, on_progress=None):
+    """Calibrate the twin to physical launch ``outcomes`` (LaunchOutcome list); see the module docstring.
+
+    Parameters
+    ----------
+    outcomes : list of LaunchOutcome
+    parameters : dict
+        Flat parameters of the twin's files (:data:`TWIN_CONFIGS` and any overrides): the uncalibrated twin.
+    settings : CalibrationSettings
+    pool : LaunchPool
+    on_progress : callable(str), optional
+        One line per finished fit.
+    """
+    conditions = analysis.group_conditions(outcomes)
+    say = on_progress or (lambda line: None)
+    initial = [float(parameters[name]) for name in settings.parameters]
+    seeds = simulation_seeds(settings.seed, 0, settings.sim_repetitions)
+    before = pool.predicted_upright([twin_settings_with(parameters, settings.parameters, initial)], conditions,
+                                    seeds)[0]
+    main = fit(conditions, parameters, settings, pool)
+    say(f"fit: log-likelihood {main.log_likelihood:.2f} at "
+        + ", ".join(f"{n} = {v:.4g}" for n, v in zip(settings.parameters, main.values)))
+    rng = np.random.default_rng(settings.seed)
+    resampled = []
+    evaluations = 1 + main.evaluations
+    for resample in range(1, settings.bootstrap_resamples + 1):
+        result = fit(bootstrap_conditions(conditions, rng), parameters, settings, pool, resample)
+        resampled.append(result.values)
+        evaluations += result.evaluations
+        say(f"bootstrap {resample}/{settings.bootstrap_resamples}: "
+            + ", ".join(f"{n} = {v:.4g}" for n, v in zip(settings.parameters, result.values)))
+    estimates = [ParameterEstimate(name, initial[i], float(main.values[i]),
+                                   tuple(float(values[i]) for values in resampled), settings.lower[i],
+                                   settings.upper[i])
+                 for i, name in enumerate(settings.parameters)]
+    successes = np.array([c.successes for c in conditions])
+    trials = np.array([c.trials for c in conditions])
+    before_ll = float(binomial_log_likelihood(successes, trials, before / settings.sim_repetitions,
+                                              settings.probability_floor))
+    return CalibrationResult(conditions=conditions, sim_repetitions=settings.sim_repetitions, before_upright=before,
+                             after_upright=main.predicted_upright, before_log_likelihood=before_ll,
+                             after_log_likelihood=main.log_likelihood, estimates=estimates, evaluations=evaluations)
+
+
+def synthetic_outcomes(parameters, names, values, conditions, repetitions, first_seed=100_000):
+    """"Physical" outcomes made on the twin with ``names`` set to hidden ``values``, to test a calibration.
+
+    ``conditions`` are LaunchConditions (their repetition is ignored); each is launched ``repetitions`` times with
+    seeds from ``first_seed`` on, which the calibration's own seeds (:func:`simulation_seeds`) do not reuse.
+    Returns LaunchOutcomes (backend ``physical``, run ``synthetic``).
+    """
+    hidden = twin_settings_with(parameters, names, values)
+    outcomes = []
+    for condition in conditions:
+        for repetition in range(repetitions):
+            launch = dataclasses.replace(condition, repetition=repetition)
+            result = simulate_launch(launch, hidden, first_seed + repetition)
+            outcomes.append(LaunchOutcome("synthetic", f"synthetic-{len(outcomes)}", launch, "physical",
+                                          result.upright, classified_by="operator"))
+    return outcomes
+
+
+def calibrated_parameter_document(fitted, own_path=None, twin_configs=TWIN_CONFIGS):
+    """The calibrated ROS 2 parameter file as a dict: ``/**: {ros__parameters: {...}}``.
+
+    ``fitted`` maps config keys to values; they are nested under their namespaces. With ``own_path`` (where the
+    file will be written) ``rig.twin_config`` becomes ``twin_configs`` plus that path, so a rig loaded with this
+    file launches its sim backend on the calibrated twin.
+    """
+    flat = {name: float(value) for name, value in fitted.items()}
+    if own_path is not None:
+        flat["rig.twin_config"] = [*twin_configs, os.fspath(own_path)]
+    return {"/**": {"ros__parameters": section(flat, "")}}

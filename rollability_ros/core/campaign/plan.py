@@ -1,0 +1,218 @@
+"""The launch campaign (paper 2.2.6): experiment matrix, trial order, operator changes, resume and progress.
+
+The runner loop that talks to the rig lives in a node; this module holds the pure logic it needs. Trials are
+ordered configuration, then height, then angle, then speed, then repetition, so the slowest manual changes
+(swapping the profile mesh, moving the ledge) happen least often. A trial's ``trial_id`` is derived from its
+condition alone, so a resumed campaign recognises the trials whose outcome is already stored however the
+plan was ordered or shuffled. Stdlib only (runs on the robot computer).
+"""
+import dataclasses
+import itertools
+import random
+import statistics
+import typing
+
+from rollability_ros.core.config import from_mapping, load_parameters, section
+from rollability_ros.core.results.records import LaunchCondition
+
+#: The matrix levels in the order that minimises manual changes; LaunchCondition field names.
+LEVELS = ("configuration", "height_m", "angle_deg", "speed_mps")
+
+
+def _format_number(value, sign=""):
+    return format(float(value), sign + ".6g")
+
+
+@dataclasses.dataclass
+class CampaignSpec:
+    """The experiment matrix of ``config/campaign.yaml`` (namespace ``campaign``); paper defaults: 400 trials."""
+
+    run_id: str = "paper-campaign"
+    configurations: typing.List[str] = dataclasses.field(default_factory=lambda: ["baseline", "A", "B", "C"])
+    heights_m: typing.List[float] = dataclasses.field(default_factory=lambda: [0.75, 1.30])
+    speeds_mps: typing.List[float] = dataclasses.field(default_factory=lambda: [0.8, 1.5])
+    angles_deg: typing.List[float] = dataclasses.field(default_factory=lambda: [-60.0, -30.0, 0.0, 30.0, 60.0])
+    repetitions: int = 5
+    random_order: bool = False
+    random_block: str = "height_m"
+    random_seed: int = 0
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable setting."""
+        if not self.run_id:
+            raise ValueError("run_id must be non-empty")
+        for name in ("configurations", "heights_m", "speeds_mps", "angles_deg"):
+            values = getattr(self, name)
+            if not values:
+                raise ValueError(f"{name} must list at least one value")
+            keys = [v if name == "configurations" else _format_number(v) for v in values]
+            if len(set(keys)) != len(keys):
+                raise ValueError(f"{name} has duplicate values: {values}")
+        for configuration in self.configurations:
+            if not configuration or any(c.isspace() or c == "/" for c in configuration):
+                raise ValueError(f"configuration ids must be non-empty without spaces or '/', got {configuration!r}")
+        if self.repetitions < 1:
+            raise ValueError(f"repetitions must be >= 1, got {self.repetitions}")
+        if self.random_block not in LEVELS:
+            raise ValueError(f"random_block must be one of {', '.join(LEVELS)}, got {self.random_block!r}")
+        for height, speed, angle in itertools.product(self.heights_m, self.speeds_mps, self.angles_deg):
+            LaunchCondition(self.configurations[0], height, speed, angle).validate()
+
+    @property
+    def trial_count(self):
+        """Number of trials in the matrix."""
+        return (len(self.configurations) * len(self.heights_m) * len(self.speeds_mps) * len(self.angles_deg)
+                * self.repetitions)
+
+
+def load_campaign_spec(paths=("campaign",), node_name="/**"):
+    """Read :class:`CampaignSpec` from parameter files (bare names are shipped ``config/`` files)."""
+    return from_mapping(CampaignSpec, section(load_parameters(paths, node_name), "campaign"), "campaign")
+
+
+def trial_id_for(condition):
+    """Stable trial id of a condition, e.g. ``"B/h1.3m/v0.8mps/a-30deg/r2"``."""
+    return (f"{condition.configuration}/h{_format_number(condition.height_m)}m/"
+            f"v{_format_number(condition.speed_mps)}mps/a{_format_number(condition.angle_deg, '+')}deg/"
+            f"r{condition.repetition}")
+
+
+@dataclasses.dataclass(frozen=True)
+class PlannedTrial:
+    """One trial of the plan: its position (0-based), stable id and condition."""
+
+    index: int
+    trial_id: str
+    condition: LaunchCondition
+
+
+def _block_key(condition, block_level):
+    """The levels up to and including ``block_level``: trials sharing it form one shuffle block."""
+    depth = LEVELS.index(block_level) + 1
+    return tuple(getattr(condition, level) for level in LEVELS[:depth])
+
+
+def plan_trials(spec):
+    """Every trial of ``spec`` in run order, each with a unique, condition-derived ``trial_id``.
+
+    With ``spec.random_order`` the trials inside each block (same levels up to ``spec.random_block``) are
+    shuffled with ``spec.random_seed``; blocks keep their order, so the manual changes between blocks stay few.
+    """
+    conditions = [LaunchCondition(c, h, s, a, r)
+                  for c in spec.configurations for h in spec.heights_m for a in spec.angles_deg
+                  for s in spec.speeds_mps for r in range(spec.repetitions)]
+    if spec.random_order:
+        rng = random.Random(spec.random_seed)
+        blocks = {}
+        for condition in conditions:
+            blocks.setdefault(_block_key(condition, spec.random_block), []).append(condition)
+        conditions = []
+        for block in blocks.values():  # dicts keep insertion order: blocks stay in matrix order
+            rng.shuffle(block)
+            conditions.extend(block)
+    plan = [PlannedTrial(i, trial_id_for(c), c) for i, c in enumerate(conditions)]
+    if len({t.trial_id for t in plan}) != len(plan):
+        raise ValueError("trial ids are not unique: matrix values that differ only below 6 significant digits")
+    return plan
+
+
+def changed_levels(previous, following):
+    """Names of the matrix levels (``LEVELS``) that differ between two conditions; all of them if no previous."""
+    if previous is None:
+        return list(LEVELS)
+    return [level for level in LEVELS if getattr(previous, level) != getattr(following, level)]
+
+
+def changes_between(previous, following, pressure_psi_by_speed=None):
+    """What the operator must change on the rig before ``following``, one instruction per changed level.
+
+    Parameters
+    ----------
+    previous, following : LaunchCondition or PlannedTrial
+        Consecutive trials; ``previous`` None for the first trial (everything must be set up).
+    pressure_psi_by_speed : dict, optional
+        ``{speed m/s: regulator pressure psi}`` from the rig config, to name the pressure to set.
+    """
+    previous = getattr(previous, "condition", previous)
+    following = getattr(following, "condition", following)
+    instructions = []
+    for level in changed_levels(previous, following):
+        instruction = f"{_INSTRUCTIONS[level]} {_level_text(following, level)}"
+        if level == "speed_mps" and following.speed_mps in (pressure_psi_by_speed or {}):
+            instruction += f" (regulator {pressure_psi_by_speed[following.speed_mps]:g} psi)"
+        if previous is not None:
+            instruction += f" (was {_level_text(previous, level)})"
+        instructions.append(instruction)
+    return instructions
+
+
+_INSTRUCTIONS = {"configuration": "mount configuration", "height_m": "set the ledge height to",
+                 "angle_deg": "set the launch angle to", "speed_mps": "set the launch speed to"}
+
+
+def _level_text(condition, level):
+    value = getattr(condition, level)
+    return {"configuration": lambda: value, "height_m": lambda: f"{value:.2f} m",
+            "angle_deg": lambda: f"{value:+g} deg", "speed_mps": lambda: f"{value:g} m/s"}[level]()
+
+
+def remaining_trials(plan, store, run_id):
+    """The planned trials of ``run_id`` whose outcome is not in ``store`` (a trial is done once stored)."""
+    done = store.trial_ids(run_id)
+    return [trial for trial in plan if trial.trial_id not in done]
+
+
+class CampaignProgress:
+    """Trials done / remaining and the estimated time left, from trial durations measured in this session.
+
+    Parameters
+    ----------
+    total : int
+        Trials in the plan.
+    done : int
+        Trials already stored when the session starts (a resumed campaign).
+    window : int
+        The ETA uses the median of the last ``window`` durations (robust to an operator's coffee break).
+    """
+
+    def __init__(self, total, done=0, window=20):
+        if not 0 <= done <= total:
+            raise ValueError(f"need 0 <= done <= total, got {done} of {total}")
+        if window < 1:
+            raise ValueError(f"window must be >= 1, got {window}")
+        self.total = total
+        self.done = done
+        self.window = window
+        self._durations_s = []
+
+    def trial_done(self, duration_s):
+        """Count one more stored trial that took ``duration_s`` (s, from command to stored outcome)."""
+        if duration_s < 0:
+            raise ValueError(f"duration_s must be >= 0, got {duration_s}")
+        if self.done >= self.total:
+            raise ValueError(f"all {self.total} trials are already done")
+        self.done += 1
+        self._durations_s.append(float(duration_s))
+
+    @property
+    def remaining(self):
+        """Trials still to run."""
+        return self.total - self.done
+
+    @property
+    def eta_s(self):
+        """Estimated seconds left, or None before the first measured trial."""
+        if not self._durations_s:
+            return None if self.remaining else 0.0
+        return statistics.median(self._durations_s[-self.window:]) * self.remaining
+
+    def text(self):
+        """One status line, e.g. ``"37/400 done, 363 remaining, about 1 h 02 min left"``."""
+        eta = self.eta_s
+        if eta is None:
+            left = "time left unknown"
+        else:
+            minutes = int(round(eta / 60.0))
+            left = f"about {minutes // 60} h {minutes % 60:02d} min left" if minutes >= 60 else \
+                f"about {minutes} min left" if minutes else f"about {eta:.0f} s left"
+        return f"{self.done}/{self.total} done, {self.remaining} remaining, {left}"

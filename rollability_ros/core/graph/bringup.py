@@ -1,0 +1,92 @@
+"""The node graph of a lab session: which nodes ``rollability bringup`` and ``rollability study`` start.
+
+Settings come from ``config/bringup.yaml`` (namespace ``bringup``). The graph: recorder (MCAP bag),
+outcome_logger (durable store), valve_controller, N sim_evaluator nodes (namespaces ``/eval_<i>``), and on
+request the optimizer, the rig and the live-view bridge. Every node reads the same parameter files
+(:func:`rollability_ros.core.graph.node_commands.parameter_files`).
+"""
+import dataclasses
+import datetime
+import os
+
+from rollability_ros.core.config import from_mapping, load_parameters, section
+from rollability_ros.core.graph.node_commands import NodeLaunch
+
+
+@dataclasses.dataclass
+class GraphSettings:
+    """``bringup.*`` (config/bringup.yaml): how many evaluators, what to record and serve."""
+
+    namespace: str = "/rollability"
+    evaluators: int = 2
+    evaluator_workers: int = 1
+    valve_backend: str = "dry_run"
+    record: bool = True
+    view: bool = False
+    view_port: int = 8765
+    output_dir: str = "runs"
+    optimization_timeout_s: float = 0.0
+    campaign_timeout_s: float = 0.0
+    poll_period_s: float = 2.0
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.namespace.startswith("/") or "//" in self.namespace or self.namespace.endswith("/") and \
+                self.namespace != "/":
+            raise ValueError(f"namespace must be an absolute ROS namespace such as /rollability, got {self.namespace!r}")
+        if not 0 <= self.evaluators <= 64:
+            raise ValueError(f"evaluators must be in [0, 64] (0: a rig-only session), got {self.evaluators}")
+        if self.evaluator_workers < 0:
+            raise ValueError(f"evaluator_workers must be >= 0 (0 = one per core), got {self.evaluator_workers}")
+        if self.valve_backend not in ("dry_run", "gpio", "serial_relay"):
+            raise ValueError(f"valve_backend must be dry_run, gpio or serial_relay, got {self.valve_backend!r}")
+        if not 0 < self.view_port < 65536:
+            raise ValueError(f"view_port must be a TCP port, got {self.view_port}")
+        if self.optimization_timeout_s < 0 or self.campaign_timeout_s < 0 or self.poll_period_s <= 0:
+            raise ValueError("timeouts must be >= 0 (0 = none) and poll_period_s > 0")
+
+
+def load_graph_settings(param_files):
+    """:class:`GraphSettings` from the merged parameter files (namespace ``bringup``)."""
+    return from_mapping(GraphSettings, section(load_parameters(param_files), "bringup"), "bringup")
+
+
+def new_study_id(now=None):
+    """``study-<UTC date>-<time>``: sortable and unique per second."""
+    now = now or datetime.datetime.now(datetime.timezone.utc)
+    return now.strftime("study-%Y%m%d-%H%M%S")
+
+
+def core_nodes(settings, study_dir, bag_dir=None):
+    """The always-on part of the graph: recorder, outcome_logger, valve_controller, evaluators.
+
+    The recorder writes ``bag_dir`` (default ``<study_dir>/bag``); the logger's store is ``<study_dir>/outcomes.sqlite``.
+    """
+    nodes = []
+    namespace = settings.namespace.rstrip("/")
+    if settings.record:
+        nodes.append(NodeLaunch("recorder", params={"recorder.output_dir": bag_dir or os.path.join(study_dir, "bag")},
+                                stop_timeout_s=30.0))
+    nodes.append(NodeLaunch("outcome_logger", params={"store_path": os.path.join(study_dir, "outcomes.sqlite")}))
+    nodes.append(NodeLaunch("valve_controller", params={"valve.backend": settings.valve_backend}))
+    for index in range(settings.evaluators):
+        nodes.append(NodeLaunch("sim_evaluator", label=f"eval_{index}", namespace=f"{namespace}/eval_{index}",
+                                params={"evaluator.workers": settings.evaluator_workers}))
+    if settings.view:
+        nodes.append(NodeLaunch("view_bridge", params={"port": settings.view_port}, critical=False))
+    for node in nodes:
+        node.namespace = node.namespace or settings.namespace
+    return nodes
+
+
+def session_nodes(settings, run_dir, rig_backend="sim", optimizer=True):
+    """A lab session's graph: :func:`core_nodes`, the rig (``sim`` | ``physical``) and optionally the optimizer.
+
+    The optimizer waits for its ``start`` service (no autostart) and keeps its runs under ``run_dir``.
+    """
+    nodes = core_nodes(settings, run_dir)
+    nodes.append(NodeLaunch("rig", namespace=settings.namespace, params={"rig.backend": rig_backend}))
+    if optimizer:
+        nodes.append(NodeLaunch("optimizer", namespace=settings.namespace,
+                                params={"optimizer.output_dir": run_dir, "autostart": False}))
+    return nodes

@@ -1,0 +1,275 @@
+"""The main job: the whole design-and-validation loop through the real node graph, unattended, in simulation.
+
+1. Bring up the graph as supervised processes (:mod:`~rollability_ros.core.graph.supervisor`): recorder (bag),
+   outcome_logger (durable store), valve_controller (dry run), ``evaluators`` sim_evaluator nodes, optimizer.
+2. The optimizer runs CMA-ES over the evaluators, selects designs A/B/C when it finishes (STL, Table 3,
+   designs.yaml) and exits.
+3. The rig (sim backend, the launch twin with the selected designs) and the campaign_runner join; the runner
+   sends every trial of the campaign matrix to the rig and exits once the logger has stored them all.
+4. The graph stops in reverse order (the recorder last, so the bag holds everything and is closed cleanly).
+5. The report (figures, tables, HTML) is written from the logger's store, and the bag is read back to check it
+   holds the same launch outcomes.
+
+Everything lands in ``<output_dir>/<study id>/``: ``config/`` (copies of the parameter files the study runs
+on, in load order), ``optimization/`` (run store, checkpoint, designs/ with STL files), ``outcomes.sqlite``
+(the logger's store), ``bag/`` (MCAP), ``report/``, ``logs/`` (one log per node), ``study.yaml`` (the parameters
+added for the campaign). This module never imports rclpy: it runs processes and reads stores.
+
+Resume (``rollability study --resume STUDY``) continues a study that was stopped or killed, on its own copied
+parameter files: a bag left open by a crash is recovered first and the graph records into the next free
+``bag-<n>/``; the optimization resumes from its last checkpoint, or is skipped once designs were selected; the
+campaign runner skips the trials already stored. Nothing stored is redone or stored twice, and the report's
+bag check reads every bag of the study.
+"""
+import dataclasses
+import glob
+import os
+import shutil
+
+import yaml
+
+from rollability_ros.core.graph.bringup import core_nodes, load_graph_settings, new_study_id
+from rollability_ros.core.config import load_parameters
+from rollability_ros.core.graph.node_commands import NodeLaunch, parameter_files
+from rollability_ros.core.results.store import Store
+from rollability_ros.core.graph.supervisor import Supervisor
+
+#: The optimization run inside a study directory.
+OPTIMIZATION_DIR = "optimization"
+#: The study's copies of its parameter files, inside the study directory.
+CONFIG_DIR = "config"
+
+
+@dataclasses.dataclass
+class StudyResult:
+    """Where a study put its results, and how it ended (``ok`` False: ``reason`` says why)."""
+
+    study_dir: str
+    ok: bool
+    reason: str = ""
+    report_html: str = ""
+    bag_dir: str = ""
+    summary: str = ""
+
+
+class Study:
+    """Runs the main job (module docstring) and reports progress through ``say(text)``."""
+
+    def __init__(self, extra_configs=(), study_id=None, say=print, resume=None):
+        self.param_files = parameter_files(["bringup", *extra_configs])
+        self.resuming = resume is not None
+        if self.resuming:
+            if extra_configs or study_id:
+                raise ValueError("a resumed study runs on its own saved configuration: no --config or --study-id")
+            self.study_dir = resume_dir(resume, load_graph_settings(self.param_files).output_dir)
+            self.study_id = os.path.basename(os.path.normpath(self.study_dir))
+            self.param_files = saved_parameter_files(self.study_dir)
+        self.settings = load_graph_settings(self.param_files)
+        self.parameters = load_parameters(self.param_files)
+        if not self.resuming:
+            self.study_id = study_id or new_study_id()
+            self.study_dir = os.path.join(self.settings.output_dir, self.study_id)
+        self.say = say
+        self._stop_requested = False
+
+    def request_stop(self):
+        """Ask the running study to stop at its next check (Ctrl-C handler)."""
+        self._stop_requested = True
+
+    @property
+    def optimization_dir(self):
+        return os.path.join(self.study_dir, OPTIMIZATION_DIR)
+
+    @property
+    def store_path(self):
+        return os.path.join(self.study_dir, "outcomes.sqlite")
+
+    def _optimizer(self, resume):
+        return NodeLaunch("optimizer", namespace=self.settings.namespace, params={
+            "run_id": OPTIMIZATION_DIR, "optimizer.output_dir": self.study_dir, "autostart": True,
+            "select_designs": True, "exit_on_finish": True, "resume": resume})
+
+    def _save_parameter_files(self):
+        """Copy the parameter files into ``config/`` (numbered in load order) and run on the copies."""
+        folder = os.path.join(self.study_dir, CONFIG_DIR)
+        os.makedirs(folder)
+        copies = []
+        for index, path in enumerate(self.param_files):
+            copies.append(os.path.join(folder, f"{index:02d}-{os.path.basename(path)}"))
+            shutil.copyfile(path, copies[-1])
+        self.param_files = copies
+
+    def bag_dirs(self):
+        """The study's bag directories in recording order: ``bag``, then one ``bag-<n>`` per resume."""
+        found = [path for path in glob.glob(os.path.join(self.study_dir, "bag*")) if os.path.isdir(path)]
+        return sorted(found, key=lambda path: (len(path), path))
+
+    def _next_bag_dir(self):
+        """``bag`` for a new study; for a resumed one the next free ``bag-<n>``, after recovering open bags."""
+        from rollability_ros.core.bags.recover import recover
+        from rollability_ros.core.bags.writer import RECOVERY_SIDECAR
+
+        existing = self.bag_dirs()
+        for path in existing:
+            if os.path.exists(os.path.join(path, RECOVERY_SIDECAR)):
+                self.say(f"  recovering {path}: its recorder was killed before closing it")
+                recover(path)
+        if not existing:
+            return os.path.join(self.study_dir, "bag")
+        return os.path.join(self.study_dir, f"bag-{len(existing) + 1}")
+
+    def _campaign_nodes(self, labels):
+        configurations = ["baseline", *labels]
+        overrides = {"launch_twin": {"designs": {"designs_file": os.path.join(self.optimization_dir, "designs",
+                                                                              "designs.yaml")}}}
+        study_yaml = os.path.join(self.study_dir, "study.yaml")
+        with open(study_yaml, "w", encoding="utf-8") as stream:
+            yaml.safe_dump({"/**": {"ros__parameters": overrides}}, stream)
+        twin_config = [*self.param_files, study_yaml]
+        rig = NodeLaunch("rig", namespace=self.settings.namespace, params={"rig.backend": "sim", "rig.configurations": configurations,
+                                        "rig.twin_config": twin_config})
+        runner = NodeLaunch("campaign_runner", namespace=self.settings.namespace, restart=False, params={
+            "campaign.run_id": self.study_id, "campaign.configurations": configurations,
+            "runner.backend": "sim", "runner.store_path": self.store_path, "runner.resume": self.resuming})
+        return rig, runner
+
+    def _progress_optimization(self):
+        store_file = os.path.join(self.optimization_dir, "store.sqlite")
+        if not os.path.isfile(store_file):
+            return "optimizer starting"
+        with Store(store_file) as store:
+            generations = store.generations()
+        if not generations:
+            return "first generation under evaluation"
+        last = generations[-1]
+        cap = self.parameters.get("optimizer.max_generations", 0)
+        return (f"generation {last.generation + 1}{'/' + str(cap) if cap else ''}: best so far "
+                f"{last.best_so_far:.2f}, {last.evaluations} evaluations, {last.elapsed_s:.0f} s")
+
+    def _progress_campaign(self, total):
+        if not os.path.isfile(self.store_path):
+            return "campaign starting"
+        with Store(self.store_path) as store:
+            done = len(store.trial_ids(self.study_id))
+        return f"launch campaign: {done}/{total} trials stored"
+
+    def _wait(self, supervisor, name, timeout_s, progress):
+        def tick():
+            try:
+                self.say("  " + progress())
+            except Exception as exc:  # progress is informative only; a busy store must not end the study
+                self.say(f"  (progress unavailable: {exc})")
+
+        return supervisor.wait_for_exit(name, timeout_s, self.settings.poll_period_s,
+                                        lambda: self._stop_requested, tick)
+
+    def run(self):
+        """Run (or resume) the whole study; always stops the graph; returns a :class:`StudyResult`."""
+        if self.resuming:
+            self.say(f"study {self.study_id}: resuming in {self.study_dir}")
+        else:
+            os.makedirs(self.study_dir, exist_ok=False)
+            self._save_parameter_files()
+            self.say(f"study {self.study_id}: results in {self.study_dir}")
+        bag_dir = self._next_bag_dir() if self.settings.record else ""
+        supervisor = Supervisor([n.process_spec(self.param_files)
+                                 for n in core_nodes(self.settings, self.study_dir, bag_dir)],
+                                os.path.join(self.study_dir, "logs"),
+                                on_event=lambda event: self.say("  " + event.text()))
+        result = StudyResult(study_dir=self.study_dir, ok=False, bag_dir=bag_dir)
+        try:
+            supervisor.start()
+            if self._selected_labels() is None:
+                resume = os.path.isfile(os.path.join(self.optimization_dir, "config.yaml"))
+                self.say("resuming the optimization from its last checkpoint" if resume else
+                         "optimizing the profile (CMA-ES over the evaluators)")
+                supervisor.add(self._optimizer(resume).process_spec(self.param_files))
+                code, reason = self._wait(supervisor, "optimizer", self.settings.optimization_timeout_s,
+                                          self._progress_optimization)
+                if code != 0:
+                    result.reason = reason
+                    return result
+            else:
+                self.say("the optimization and design selection finished before: continuing with the campaign")
+            labels = self._selected_labels() or []
+            self.say(f"designs selected: {', '.join(labels) or 'none'}; launching the campaign on the simulated rig")
+            rig, runner = self._campaign_nodes(labels)
+            supervisor.add(rig.process_spec(self.param_files))
+            self._wait_for_recorder(supervisor, "launch_outcomes")
+            supervisor.add(runner.process_spec(self.param_files))
+            total = self._campaign_size(1 + len(labels))
+            code, reason = self._wait(supervisor, "campaign_runner", self.settings.campaign_timeout_s,
+                                      lambda: self._progress_campaign(total))
+            if code != 0:
+                result.reason = reason
+                return result
+            result.ok = True
+        finally:
+            self.say("stopping the node graph")
+            supervisor.stop()
+        return self._report(result)
+
+    def _wait_for_recorder(self, supervisor, topic):
+        """Start a phase only once the recorder records ``topic`` of the node just started: a short campaign can
+        otherwise end, and its node stop, before the recorder has subscribed (the bag would miss its records)."""
+        if not self.settings.record:
+            return
+        full_name = f"{self.settings.namespace.rstrip('/')}/{topic}"
+        if not supervisor.wait_for_output("recorder", f"recording {full_name} ", timeout_s=60):
+            self.say(f"  warning: the recorder has not subscribed to {full_name}; the bag may miss its messages")
+
+    def _selected_labels(self):
+        """The labels of the selected designs (may be empty), or None before selection has written designs.yaml."""
+        designs_yaml = os.path.join(self.optimization_dir, "designs", "designs.yaml")
+        if not os.path.isfile(designs_yaml):
+            return None
+        with open(designs_yaml, encoding="utf-8") as stream:
+            document = yaml.safe_load(stream) or {}
+        params = next(iter(document.values()), {}).get("ros__parameters", {})
+        return list(params.get("designs", {}).get("labels", []))
+
+    def _campaign_size(self, configurations):
+        per_configuration = 1
+        for key in ("campaign.heights_m", "campaign.speeds_mps", "campaign.angles_deg"):
+            per_configuration *= len(self.parameters.get(key, [None]))
+        return configurations * per_configuration * int(self.parameters.get("campaign.repetitions", 1))
+
+    def _report(self, result):
+        from rollability_ros.core.results import report
+
+        data = report.load_report_data(self.store_path, run_id=self.study_id)
+        table3 = os.path.join(self.optimization_dir, "designs", "table3.csv")
+        if os.path.isfile(table3):
+            report.use_geometry_csv(data, table3)
+        built = report.build_report(data, os.path.join(self.study_dir, "report"))
+        result.report_html = built.html_path
+        result.summary = built.summary
+        if result.bag_dir:
+            from rollability_ros.core.bags.messages import read_records_from_bag
+
+            bagged = {o.trial_id for path in self.bag_dirs() for o in read_records_from_bag(path)[0]
+                      if o.run_id == self.study_id}
+            stored = {o.trial_id for o in data.outcomes}
+            if bagged != stored:
+                result.ok = False
+                result.reason = (f"the bags hold {len(bagged)} launch outcomes of this study, the store "
+                                 f"{len(stored)}: they differ")
+        return result
+
+
+def resume_dir(study, output_dir):
+    """The directory of the study to resume: ``study`` as a path, else ``<output_dir>/<study>``; ``ValueError`` if
+    it holds no study (no saved ``config/``)."""
+    for candidate in (study, os.path.join(output_dir, study)):
+        if os.path.isdir(os.path.join(candidate, CONFIG_DIR)):
+            return os.path.normpath(candidate)
+    raise ValueError(f"no study to resume at {study!r} or {os.path.join(output_dir, study)!r} (a study directory "
+                     f"holds {CONFIG_DIR}/ with its parameter files)")
+
+
+def saved_parameter_files(study_dir):
+    """The study's copied parameter files, in load order."""
+    files = sorted(glob.glob(os.path.join(study_dir, CONFIG_DIR, "*.yaml")))
+    if not files:
+        raise ValueError(f"{study_dir}/{CONFIG_DIR}/ holds no parameter files")
+    return files

@@ -1,0 +1,328 @@
+"""CMA-ES over profile heights: ask / tell / stop / result around ``cma.CMAEvolutionStrategy``.
+
+Fitness (successes / trials, in [0, 1]) is maximised; pycma minimises, so it is told ``1 - fitness``.
+Bounds are pycma's own boundary handling (``BoundTransform``): every asked candidate lies within the bounds.
+
+How the optimizer copes with a noisy binomial fitness
+-----------------------------------------------------
+1. Common random numbers (``common_random_numbers``, run level): every candidate of a generation is evaluated
+   with the same disturbance seed, so within a generation all candidates face the same pushes and the ranking
+   CMA-ES uses reflects geometry rather than luck of the draw. Seeds differ between generations
+   (:func:`derive_seed`), so no design is tuned to one fixed set of disturbances.
+2. Re-evaluation of the incumbent (``reevaluate_incumbent``): the best-so-far design is the *incumbent*. A
+   generation's best candidate that beats the incumbent's estimate is only a *challenger*: it is evaluated once
+   more with a fresh seed and its two estimates are pooled (weighted by trials); it replaces the incumbent only
+   if the pooled estimate still beats it. Without a challenger the incumbent itself is re-evaluated and pooled.
+   So a lucky 60-trial estimate cannot stick as "best so far": the reported best-so-far is always an estimate
+   over at least two independent evaluations, and the incumbent's estimate tightens every generation.
+   The cost is one extra evaluation per generation (1 / popsize).
+pycma's own noise handling (``cma.NoiseHandler``) is not used: it changes the evaluation count per generation,
+which the node's fixed-size dispatch and the exact-resume guarantee would both have to model.
+
+pycma draws its samples from ``np.random`` (seeded by its ``seed`` option). :class:`ProfileOptimizer` gives its
+strategy a private copy of that generator right after construction, so other code in the process using
+``np.random`` cannot change the sequence, and pickling the strategy (the checkpoint) captures the generator state.
+"""
+import copy
+import dataclasses
+import pickle
+import time
+
+import numpy as np
+
+from rollability_ros.core.optional import require
+
+#: Seed streams of :func:`derive_seed`: population evaluations, incumbent re-evaluations, design selection.
+STREAM_POPULATION = 0
+STREAM_REEVALUATION = 1
+STREAM_SELECTION = 2
+
+
+def derive_seed(run_seed, generation, stream, index=0):
+    """Return a disturbance seed (int in [0, 2**32)) for one evaluation, independent across its keys.
+
+    ``stream`` is one of the ``STREAM_*`` constants; ``index`` is the candidate index (independent-seed mode)
+    or 0 (common random numbers: the whole generation shares one seed).
+    """
+    sequence = np.random.SeedSequence([int(run_seed), int(generation), int(stream), int(index)])
+    return int(sequence.generate_state(1, dtype=np.uint32)[0])
+
+
+@dataclasses.dataclass
+class OptimizerSettings:
+    """The ``optimizer`` parameter namespace (``config/optimizer.yaml``, ``config/paper.yaml``).
+
+    Heights and ``sigma0`` are in simulation units (the geometry grid's ``height_min``/``height_max`` give the
+    bounds). A cap of 0 disables that stop criterion; ``target_fitness`` above 1 disables the target.
+    """
+
+    popsize: int = 12                  # candidates per generation
+    sigma0: float = 0.02               # initial CMA-ES step size, simulation units
+    seed: int = 1                      # pycma seed, initial mean and disturbance seeds; >= 1
+    trials: int = 60                   # disturbance trials per candidate evaluation
+    max_generations: int = 500         # generation cap
+    target_fitness: float = 1.0        # stop when best-so-far fitness reaches this
+    stagnation_generations: int = 0    # stop after this many generations without a new incumbent
+    max_evaluations: int = 0           # cap on profile evaluations (population + re-evaluations)
+    max_wall_time_s: float = 0.0       # cap on optimization wall time, s (summed over resumes)
+    common_random_numbers: bool = True  # one disturbance seed per generation (False: one per candidate)
+    reevaluate_incumbent: bool = True  # re-evaluate the best-so-far with fresh seeds and pool
+    output_dir: str = "runs"           # root of run directories runs/<run_id>/
+    initial_mean_screen: int = 0       # random initial means ranked by the stable-pose screen; 0 = one, unscreened
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if self.popsize < 2:
+            raise ValueError(f"popsize must be >= 2, got {self.popsize}")
+        if not self.sigma0 > 0:
+            raise ValueError(f"sigma0 must be > 0, got {self.sigma0}")
+        if not 1 <= self.seed < 2**32:
+            raise ValueError(f"seed must be in [1, 2**32) (pycma treats 0 as 'seed from the clock'), got {self.seed}")
+        if self.trials < 1:
+            raise ValueError(f"trials must be >= 1, got {self.trials}")
+        for name in ("max_generations", "stagnation_generations", "max_evaluations"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0 (0 disables it), got {getattr(self, name)}")
+        if self.initial_mean_screen < 0:
+            raise ValueError(f"initial_mean_screen must be >= 0 (0 = the paper's one random mean), got "
+                             f"{self.initial_mean_screen}")
+        if self.max_wall_time_s < 0:
+            raise ValueError(f"max_wall_time_s must be >= 0 (0 disables it), got {self.max_wall_time_s}")
+        if not 0 < self.target_fitness:
+            raise ValueError(f"target_fitness must be > 0 (above 1 disables it), got {self.target_fitness}")
+        if not self.output_dir:
+            raise ValueError("output_dir must be a non-empty path")
+
+
+@dataclasses.dataclass(frozen=True)
+class Estimate:
+    """A design's fitness estimate pooled over its evaluations: heights (simulation units), fitness, trials."""
+
+    heights: np.ndarray
+    fitness: float
+    trials: int
+    evaluations: int = 1
+    generation: int = 0                # generation in which the design was first evaluated
+
+    def pooled(self, fitness, trials):
+        """Return this estimate pooled with one more evaluation (``fitness`` over ``trials``), trial-weighted."""
+        total = self.trials + trials
+        return dataclasses.replace(self, fitness=(self.fitness * self.trials + fitness * trials) / total,
+                                   trials=total, evaluations=self.evaluations + 1)
+
+
+@dataclasses.dataclass(frozen=True)
+class OptimizerResult:
+    """Outcome so far: the incumbent, counts, the distribution mean (phenotype) and step size, stop criteria."""
+
+    best: Estimate
+    generations: int
+    evaluations: int
+    elapsed_s: float
+    mean: np.ndarray
+    sigma: float
+    stop: dict
+
+
+def random_initial_means(settings, n_variables, lower=0.0, upper=0.45):
+    """The seeded random initial means ``(max(1, settings.initial_mean_screen), n_variables)``, uniform in
+    ``[lower, upper]``; row 0 is the one the paper's settings start from (``initial_mean_screen`` 0 or 1)."""
+    rows = max(1, settings.initial_mean_screen)
+    return np.random.default_rng(settings.seed).uniform(lower, upper, (rows, int(n_variables)))
+
+
+class ProfileOptimizer:
+    """CMA-ES over ``n_variables`` heights in ``[lower, upper]`` with the protocol ask -> tell ->
+    (:meth:`reevaluation_request` -> :meth:`tell_reevaluation` when re-evaluation is on) -> :meth:`stop`.
+
+    Parameters
+    ----------
+    n_variables : int
+        Design variables (half-grid vertices).
+    settings : OptimizerSettings
+    lower, upper : float
+        Height bounds, simulation units.
+    clock : callable, optional
+        Monotonic clock in seconds, for the wall-time cap.
+    initial_mean : array_like, optional
+        The CMA-ES start ``(n_variables,)`` within the bounds (e.g. the best of :func:`random_initial_means` by
+        the stable-pose screen); default: row 0 of :func:`random_initial_means`.
+    """
+
+    def __init__(self, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic, initial_mean=None):
+        cma = require("cma", feature="the CMA-ES optimizer")
+        settings.validate()
+        if n_variables < 1:
+            raise ValueError(f"n_variables must be >= 1, got {n_variables}")
+        if not lower < upper:
+            raise ValueError(f"need lower < upper, got [{lower}, {upper}]")
+        self.settings = settings
+        self.n_variables = int(n_variables)
+        self.lower, self.upper = float(lower), float(upper)
+        if initial_mean is None:
+            initial_mean = random_initial_means(settings, self.n_variables, lower, upper)[0]
+        self.initial_mean = np.array(initial_mean, dtype=np.float64)
+        if self.initial_mean.shape != (self.n_variables,) or not np.all(np.isfinite(self.initial_mean)) or \
+                np.any(self.initial_mean < self.lower) or np.any(self.initial_mean > self.upper):
+            raise ValueError(f"initial_mean must be {self.n_variables} finite heights in [{lower}, {upper}]")
+        self.cma_options = {"popsize": settings.popsize, "bounds": [self.lower, self.upper], "seed": settings.seed,
+                            "verbose": -9, "verb_log": 0, "verb_disp": 0}
+        global_state = np.random.get_state()
+        strategy = cma.CMAEvolutionStrategy(self.initial_mean, settings.sigma0, self.cma_options)
+        # the round trip replaces pycma's reference to the global np.random by a private copy in the same state
+        self._es = pickle.loads(pickle.dumps(strategy))
+        np.random.set_state(global_state)  # pycma's seed option reseeded the process-wide generator
+        self._clock = clock
+        self._started = clock()
+        self._elapsed_before_s = 0.0
+        self.generation = 0                # completed generations
+        self.evaluations = 0
+        self._asked = None
+        self._incumbent = None
+        self._challenger = None
+        self._reevaluation_pending = False
+        self._improved_at = 0              # generation count when the incumbent last changed
+
+    # --- ask / tell -------------------------------------------------------------------------------------------
+    def ask(self):
+        """Return ``popsize`` candidate height arrays ``(n_variables,)`` within the bounds."""
+        if self._reevaluation_pending:
+            raise ValueError("ask() before tell_reevaluation(): the incumbent re-evaluation of generation "
+                             f"{self.generation - 1} is still pending")
+        if self._asked is not None:
+            raise ValueError(f"ask() called twice for generation {self.generation}; tell() the first population")
+        self._asked = [np.asarray(x, dtype=np.float64) for x in self._es.ask()]
+        return [x.copy() for x in self._asked]
+
+    def tell(self, solutions, fitness, trials=None):
+        """Pass the fitness (in [0, 1], maximised) of the asked ``solutions``, in the asked order.
+
+        ``trials`` (one int per solution, or None for weight 1) weights the pooling of re-evaluations.
+        """
+        if self._asked is None:
+            raise ValueError("tell() without a preceding ask()")
+        fitness = [float(f) for f in fitness]
+        trials = [1] * len(fitness) if trials is None else [int(t) for t in trials]
+        if not (len(solutions) == len(fitness) == len(trials) == len(self._asked)):
+            raise ValueError(f"tell() needs {len(self._asked)} solutions, fitnesses and trials, got "
+                             f"{len(solutions)}, {len(fitness)}, {len(trials)}")
+        for index, (given, asked) in enumerate(zip(solutions, self._asked)):
+            if not np.array_equal(np.asarray(given, dtype=np.float64), asked):
+                raise ValueError(f"solution {index} is not the one asked (order changed or values altered)")
+        if not all(0.0 <= f <= 1.0 for f in fitness):
+            raise ValueError(f"fitness values must lie in [0, 1], got {fitness}")
+        self._es.tell(self._asked, [1.0 - f for f in fitness])
+        best = int(np.argmax(fitness))
+        candidate = Estimate(self._asked[best].copy(), fitness[best], trials[best], 1, self.generation)
+        self._asked = None
+        self.generation += 1
+        self.evaluations += len(fitness)
+        if self._incumbent is None or candidate.fitness > self._incumbent.fitness:
+            if self.settings.reevaluate_incumbent:
+                self._challenger = candidate
+            else:
+                self._adopt(candidate)
+        self._reevaluation_pending = self.settings.reevaluate_incumbent
+
+    def reevaluation_request(self):
+        """Return the heights to re-evaluate now (challenger, else incumbent), or None when nothing is due."""
+        if not self._reevaluation_pending:
+            return None
+        return (self._challenger or self._incumbent).heights.copy()
+
+    def tell_reevaluation(self, fitness, trials=1):
+        """Pool a fresh evaluation (``fitness`` over ``trials``) into the design :meth:`reevaluation_request` named."""
+        if not self._reevaluation_pending:
+            raise ValueError("tell_reevaluation() without a pending re-evaluation")
+        if not 0.0 <= fitness <= 1.0:
+            raise ValueError(f"fitness must lie in [0, 1], got {fitness}")
+        self.evaluations += 1
+        self._reevaluation_pending = False
+        if self._challenger is None:
+            self._incumbent = self._incumbent.pooled(float(fitness), int(trials))
+            return
+        challenger, self._challenger = self._challenger.pooled(float(fitness), int(trials)), None
+        if self._incumbent is None or challenger.fitness > self._incumbent.fitness:
+            self._adopt(challenger)
+
+    def _adopt(self, estimate):
+        self._incumbent = estimate
+        self._improved_at = self.generation
+
+    # --- state --------------------------------------------------------------------------------------------------
+    @property
+    def best(self):
+        """The incumbent :class:`Estimate` (best-so-far), or None before the first generation."""
+        return self._incumbent
+
+    @property
+    def sigma(self):
+        """Current CMA-ES step size, simulation units."""
+        return float(self._es.sigma)
+
+    @property
+    def elapsed_s(self):
+        """Optimization wall time, s, summed over resumed sessions."""
+        return self._elapsed_before_s + (self._clock() - self._started)
+
+    def stop(self):
+        """Return ``{criterion: value}`` for every stop criterion met (empty: keep going).
+
+        Criteria: ``max_generations``, ``target_fitness``, ``stagnation_generations``, ``max_evaluations``,
+        ``max_wall_time_s``. pycma's internal criteria (flat fitness, tolx, ...) are deliberately not used:
+        a binomial fitness is flat (all 0) for whole early generations, which is no reason to stop.
+        """
+        if self._reevaluation_pending or self._asked is not None:
+            return {}
+        s = self.settings
+        met = {}
+        if s.max_generations and self.generation >= s.max_generations:
+            met["max_generations"] = s.max_generations
+        if self._incumbent is not None and self._incumbent.fitness >= s.target_fitness:
+            met["target_fitness"] = s.target_fitness
+        if s.stagnation_generations and self.generation - self._improved_at >= s.stagnation_generations:
+            met["stagnation_generations"] = s.stagnation_generations
+        if s.max_evaluations and self.evaluations >= s.max_evaluations:
+            met["max_evaluations"] = s.max_evaluations
+        if s.max_wall_time_s and self.elapsed_s >= s.max_wall_time_s:
+            met["max_wall_time_s"] = s.max_wall_time_s
+        return met
+
+    @property
+    def result(self):
+        """The :class:`OptimizerResult` so far."""
+        return OptimizerResult(best=self._incumbent, generations=self.generation, evaluations=self.evaluations,
+                               elapsed_s=self.elapsed_s, mean=np.asarray(self._es.result.xfavorite, dtype=np.float64),
+                               sigma=self.sigma, stop=self.stop())
+
+    def state_dict(self):
+        """Return the full optimizer state between generations, for a checkpoint (picklable dict).
+
+        ``rng_state`` is the state of the strategy's private ``np.random`` generator, also captured inside the
+        pickled strategy; it is stored separately so a checkpoint can be inspected without unpickling pycma.
+        """
+        if self._reevaluation_pending or self._asked is not None:
+            raise ValueError("the optimizer state is only saved between generations")
+        return {"strategy": pickle.dumps(self._es), "rng_state": self._es.opts["randn"].__self__.get_state(),
+                "generation": self.generation, "evaluations": self.evaluations, "elapsed_s": self.elapsed_s,
+                "incumbent": self._incumbent, "improved_at": self._improved_at,
+                "initial_mean": self.initial_mean.copy()}
+
+    @classmethod
+    def from_state_dict(cls, state, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic,
+                        initial_mean=None):
+        """Rebuild an optimizer saved by :meth:`state_dict`; it continues exactly where that one stopped.
+
+        ``initial_mean`` is the start these settings give (as for the constructor); a state that started
+        elsewhere belongs to other settings and is refused.
+        """
+        optimizer = cls(n_variables, settings, lower, upper, clock, initial_mean)
+        if not np.array_equal(optimizer.initial_mean, state["initial_mean"]):
+            raise ValueError("saved optimizer state does not match these settings (different initial mean)")
+        optimizer._es = pickle.loads(state["strategy"])
+        optimizer.generation = int(state["generation"])
+        optimizer.evaluations = int(state["evaluations"])
+        optimizer._elapsed_before_s = float(state["elapsed_s"])
+        optimizer._incumbent = copy.deepcopy(state["incumbent"])
+        optimizer._improved_at = int(state["improved_at"])
+        return optimizer

@@ -1,0 +1,275 @@
+"""Design selection (paper 2.1.5): pick N high-fitness, printable, geometrically diverse designs from a run's log.
+
+Procedure
+---------
+1. Every logged evaluation of the run (population candidates and incumbent re-evaluations) is pooled per
+   distinct height vector: successes and trials add up.
+2. Designs are ranked by the lower bound of the 95% Wilson interval of their pooled fitness, then by fitness:
+   a design seen once at 60/60 does not outrank one confirmed at 55/60 twice only because it was lucky once.
+3. Walking down that ranking, a design is taken when its convex-hull solid passes the printability checks
+   (:func:`geometry.check_printability`) and its RMS height distance (simulation units) to every design already
+   taken is at least ``min_distance``. Labels follow the ranking: "A" is the best.
+4. Optionally the chosen designs and the baseline (no profile) are re-evaluated in one batch with a fresh
+   common seed and ``reevaluate_trials`` trials: a fitness picked as a maximum is biased upward, a fresh
+   estimate is not, so Table 3 then reports the re-evaluated fitness.
+If fewer than ``count`` designs qualify, the result says how many and why; nothing is padded.
+
+Outputs (``<run_dir>/designs/``): ``mesh_<label>.stl`` (metres), ``table3.csv`` (the paper's Table 3 with the
+simulated fitness and its Wilson interval, baseline row first) and ``designs.yaml``, a ROS 2 parameter file
+with the heights of each design and its grid, for the rig's simulation twin.
+"""
+import csv
+import dataclasses
+import io
+import math
+import os
+import string
+
+import numpy as np
+import yaml
+
+from rollability_ros.core.profile import geometry
+from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
+from rollability_ros.core.optimization.cmaes import STREAM_SELECTION, derive_seed
+from rollability_ros.core.results.stats import wilson_interval
+
+#: Sub-directory of the run directory that receives the selected designs.
+DESIGNS_DIRNAME = "designs"
+#: Columns of ``table3.csv`` (configuration and dimensions as in ``analysis.GEOMETRY_COLUMNS``).
+TABLE_COLUMNS = ("configuration", "length_m", "width_m", "max_height_m", "simulated_fitness", "ci_low", "ci_high",
+                 "successes", "trials", "fitness_source")
+
+
+@dataclasses.dataclass
+class SelectionSettings:
+    """The ``selection`` parameter namespace.
+
+    ``min_distance`` is the minimum RMS difference between the height vectors of two chosen designs, in
+    simulation units (the heights' own unit; 0.05 = 11% of the paper's [0, 0.45] range).
+    """
+
+    count: int = 3                     # designs to choose (labelled A, B, C, ...)
+    min_distance: float = 0.05         # minimum RMS height distance between chosen designs, simulation units
+    reevaluate_trials: int = 0         # trials of the fresh re-evaluation of the chosen designs; 0 = none
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not 1 <= self.count <= len(string.ascii_uppercase):
+            raise ValueError(f"count must be in [1, {len(string.ascii_uppercase)}], got {self.count}")
+        if self.min_distance < 0:
+            raise ValueError(f"min_distance must be >= 0, got {self.min_distance}")
+        if self.reevaluate_trials < 0:
+            raise ValueError(f"reevaluate_trials must be >= 0 (0 = no re-evaluation), got {self.reevaluate_trials}")
+
+
+@dataclasses.dataclass(frozen=True)
+class PooledDesign:
+    """All logged evaluations of one height vector: heights (simulation units), successes, trials."""
+
+    heights: np.ndarray
+    successes: int
+    trials: int
+    evaluations: int
+    first_generation: int
+
+    @property
+    def fitness(self):
+        """Pooled successes / trials."""
+        return self.successes / self.trials
+
+    @property
+    def wilson_low(self):
+        """Lower bound of the 95% Wilson interval of the pooled fitness."""
+        return wilson_interval(self.successes, self.trials)[0]
+
+
+@dataclasses.dataclass(frozen=True)
+class SelectedDesign:
+    """A chosen design: label, pooled log estimate, optional fresh re-evaluation, solid and its metrics."""
+
+    label: str
+    design: PooledDesign
+    mesh: object                       # trimesh.Trimesh, metres, profile frame
+    metrics: geometry.ProfileMetrics
+    reevaluation: tuple = None         # (successes, trials, seed) of the fresh estimate, or None
+
+    @property
+    def reported(self):
+        """(successes, trials, source) reported in Table 3: the re-evaluation if any, else the pooled log."""
+        if self.reevaluation is not None:
+            return self.reevaluation[0], self.reevaluation[1], "reevaluated"
+        return self.design.successes, self.design.trials, "logged"
+
+
+@dataclasses.dataclass(frozen=True)
+class SelectionResult:
+    """Chosen designs (best first), the baseline's fresh estimate, and how the shortlist was filtered."""
+
+    designs: list
+    requested: int
+    considered: int                    # distinct designs in the log
+    rejected: dict                     # reason -> count ("not printable", "too close", "flat")
+    baseline: tuple = None             # (successes, trials, seed) of the baseline re-evaluation, or None
+
+    @property
+    def shortfall(self):
+        """A sentence when fewer designs than requested qualified, else ''."""
+        if len(self.designs) >= self.requested:
+            return ""
+        reasons = ", ".join(f"{count} {reason}" for reason, count in sorted(self.rejected.items())) or "none"
+        return (f"only {len(self.designs)} of {self.requested} requested designs qualify among {self.considered} "
+                f"distinct logged designs (rejected: {reasons}); lower min_distance or run the optimizer longer")
+
+
+def pool_candidates(candidates):
+    """Pool :class:`CandidateRecord` s by identical heights; return :class:`PooledDesign` s in first-seen order."""
+    pooled = {}
+    for record in candidates:
+        key = tuple(record.heights)
+        previous = pooled.get(key)
+        if previous is None:
+            pooled[key] = PooledDesign(np.asarray(key, dtype=np.float64), record.successes, record.trials, 1,
+                                       record.generation)
+        else:
+            pooled[key] = dataclasses.replace(previous, successes=previous.successes + record.successes,
+                                              trials=previous.trials + record.trials,
+                                              evaluations=previous.evaluations + 1)
+    return list(pooled.values())
+
+
+def rms_distance(heights_a, heights_b):
+    """RMS difference of two height vectors, simulation units."""
+    return float(np.sqrt(np.mean((np.asarray(heights_a) - np.asarray(heights_b)) ** 2)))
+
+
+def select_designs(candidates, grid, printer, settings, evaluate_batch=None, run_seed=1):
+    """Choose designs from a run's candidate log; see the module docstring.
+
+    Parameters
+    ----------
+    candidates : iterable of CandidateRecord
+    grid : geometry.ProfileGrid
+    printer : geometry.PrinterSpec
+    settings : SelectionSettings
+    evaluate_batch : callable(heights_list, seed) -> [(successes, trials, eval_time_s, evaluator)], optional
+        Runs ``settings.reevaluate_trials`` trials per profile; needed when ``reevaluate_trials > 0``.
+    run_seed : int
+        The run's seed; the re-evaluation seed is derived from it (stream ``STREAM_SELECTION``).
+    """
+    settings.validate()
+    if settings.reevaluate_trials and evaluate_batch is None:
+        raise ValueError("reevaluate_trials > 0 needs an evaluator")
+    pooled = [d for d in pool_candidates(candidates) if not geometry.is_baseline(d.heights)]
+    ranked = sorted(pooled, key=lambda d: (-d.wilson_low, -d.fitness, d.first_generation))
+    chosen, rejected = [], {}
+    for design in ranked:
+        if len(chosen) == settings.count:
+            break
+        if any(rms_distance(design.heights, c.design.heights) < settings.min_distance for c in chosen):
+            rejected["too close"] = rejected.get("too close", 0) + 1
+            continue
+        try:
+            mesh = geometry.profile_mesh(design.heights, grid)
+        except ValueError:
+            rejected["flat"] = rejected.get("flat", 0) + 1
+            continue
+        if not geometry.check_printability(mesh, printer).printable:
+            rejected["not printable"] = rejected.get("not printable", 0) + 1
+            continue
+        chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], design, mesh,
+                                     geometry.mesh_metrics(mesh)))
+    baseline = None
+    if settings.reevaluate_trials and chosen:
+        seed = derive_seed(run_seed, 0, STREAM_SELECTION)
+        profiles = [c.design.heights for c in chosen] + [np.zeros(grid.n_variables)]
+        results = evaluate_batch(profiles, seed)
+        chosen = [dataclasses.replace(c, reevaluation=(int(r[0]), int(r[1]), seed)) for c, r in zip(chosen, results)]
+        baseline = (int(results[-1][0]), int(results[-1][1]), seed)
+    return SelectionResult(chosen, settings.count, len(pooled), rejected, baseline)
+
+
+def table_rows(result):
+    """Rows of Table 3 as dicts with :data:`TABLE_COLUMNS` keys: the baseline first, then the designs.
+
+    The baseline has no profile, so its dimensions are 0 m; its fitness is given only when re-evaluated.
+    """
+    rows = []
+    baseline_fitness = _fitness_columns(*result.baseline[:2], "reevaluated") if result.baseline else \
+        _fitness_columns(0, 0, "not evaluated")
+    rows.append({"configuration": "baseline", "length_m": 0.0, "width_m": 0.0, "max_height_m": 0.0,
+                 **baseline_fitness})
+    for design in result.designs:
+        rows.append({"configuration": design.label, "length_m": design.metrics.length_m,
+                     "width_m": design.metrics.width_m, "max_height_m": design.metrics.max_height_m,
+                     **_fitness_columns(*design.reported)})
+    return rows
+
+
+def _fitness_columns(successes, trials, source):
+    low, high = wilson_interval(successes, trials)
+    return {"simulated_fitness": successes / trials if trials else math.nan, "ci_low": low, "ci_high": high,
+            "successes": successes, "trials": trials, "fitness_source": source}
+
+
+def designs_document(result, grid, run_id):
+    """The ``designs.yaml`` content: a ROS 2 parameter file with namespace ``designs`` (heights per label)."""
+    body = {"run_id": run_id, "labels": [d.label for d in result.designs],
+            "grid": {"rows": grid.rows, "cols": grid.cols, "length_m": grid.length_m, "width_m": grid.width_m,
+                     "height_min": grid.height_min, "height_max": grid.height_max, "unit_m": grid.unit_m}}
+    for design in result.designs:
+        successes, trials, source = design.reported
+        body[design.label] = {"heights": [float(h) for h in design.design.heights],
+                              "mesh_file": f"mesh_{design.label}.stl", "fitness": successes / trials,
+                              "successes": successes, "trials": trials, "fitness_source": source}
+    return {"/**": {"ros__parameters": {"designs": body}}}
+
+
+def record_selection(store, run_id, result):
+    """Add ``sim_fitness`` ({configuration: fitness}) and ``geometry`` (Table 3 rows of the designs) to the run's
+    info in ``store``, the keys ``rollability report`` reads; the baseline has no geometry row (no profile)."""
+    rows = table_rows(result)
+    described = store.run_info(run_id) or {"kind": "optimization", "info": {}}
+    info = dict(described["info"])
+    info["sim_fitness"] = {r["configuration"]: r["simulated_fitness"] for r in rows if r["trials"]}
+    info["geometry"] = [{k: r[k] for k in TABLE_COLUMNS[:4]} for r in rows if r["configuration"] != "baseline"]
+    store.set_run_info(run_id, described["kind"], info)
+
+
+def write_selection(run_dir, result, grid, run_id):
+    """Write the STL files, ``table3.csv`` and ``designs.yaml`` into ``<run_dir>/designs/``; return that folder.
+
+    Meshes of an earlier selection that this one does not produce are removed, so the folder always matches
+    its ``designs.yaml``.
+    """
+    folder = os.path.join(run_dir, DESIGNS_DIRNAME)
+    os.makedirs(folder, exist_ok=True)
+    keep = {f"mesh_{d.label}.stl" for d in result.designs}
+    for name in os.listdir(folder):
+        if name.startswith("mesh_") and name.endswith(".stl") and name not in keep:
+            os.remove(os.path.join(folder, name))
+    for design in result.designs:
+        geometry.export_mesh(design.mesh, os.path.join(folder, f"mesh_{design.label}.stl"))
+    table = io.StringIO()
+    writer = csv.DictWriter(table, fieldnames=TABLE_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in table_rows(result):
+        writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+    atomic_write_bytes(os.path.join(folder, "table3.csv"), table.getvalue().encode("utf-8"))
+    text = yaml.safe_dump(designs_document(result, grid, run_id), sort_keys=False)
+    atomic_write_bytes(os.path.join(folder, "designs.yaml"), text.encode("utf-8"))
+    return folder
+
+
+def select_run(store, run_id, run_dir, grid, printer, settings, evaluate_batch=None, run_seed=1):
+    """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
+    simulated fitness and geometry) and write ``<run_dir>/designs/``; return ``(SelectionResult, folder)``.
+
+    The one selection flow of ``rollability select`` and the optimizer node. Raises ``ValueError`` when the run
+    has no evaluated candidates.
+    """
+    candidates = store.candidates(run_id=run_id)
+    if not candidates:
+        raise ValueError(f"run {run_id} in {run_dir} has no evaluated candidates yet")
+    result = select_designs(candidates, grid, printer, settings, evaluate_batch, run_seed)
+    record_selection(store, run_id, result)
+    return result, write_selection(run_dir, result, grid, run_id)

@@ -1,0 +1,6 @@
+"""Profile geometry: grid heights -> mirrored vertices -> convex hull mesh, metrics, printability, STL;
+configuration ids -> profile solids (baseline, designs, files).
+
+- geometry: ProfileGrid, profile_mesh, printability checks
+- designs: campaign configuration id -> the solid it mounts
+"""

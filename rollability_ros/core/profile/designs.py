@@ -1,0 +1,130 @@
+"""Configuration ids of the launch campaign -> profile solids: the baseline, selected designs, STL/OBJ files.
+
+A configuration id (``LaunchCondition.configuration``) names the profile mounted on the chassis:
+
+``baseline``
+    no profile (the bare chassis).
+a label of ``designs_file``
+    a ``designs.yaml`` written by ``rollability select`` (:func:`rollability_ros.core.optimization.selection.designs_document`:
+    namespace ``designs`` with ``labels``, the design ``grid`` and ``<label>.heights``); the solid is rebuilt from
+    the heights on that grid (:func:`rollability_ros.core.profile.geometry.profile_mesh`), exactly as it was evaluated.
+a label of ``mesh_labels``
+    the STL/OBJ file at the same index of ``mesh_files`` (metres, profile frame, base on z = 0), e.g. a design
+    edited in CAD (:func:`rollability_ros.core.profile.geometry.load_profile_mesh`). A pair of empty strings stands for
+    "no files" (a ROS 2 parameter file cannot hold an empty list).
+
+A label defined twice, or the id ``baseline`` used as a label, is refused. Relative paths are taken from the
+current working directory. Solids are cached per file version (path, size, modification time), so a campaign
+reads each file once and a rewritten file is read again.
+"""
+import dataclasses
+import functools
+import os
+import typing
+
+from rollability_ros.core.profile import geometry
+from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
+
+#: The configuration id of the bare chassis.
+BASELINE = "baseline"
+
+
+@dataclasses.dataclass
+class DesignSources:
+    """Where the profiles of the configuration ids come from (``config/launch_twin.yaml``, ``launch_twin.designs``)."""
+
+    designs_file: str = ""
+    mesh_labels: typing.List[str] = dataclasses.field(default_factory=list)
+    mesh_files: typing.List[str] = dataclasses.field(default_factory=list)
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if len(self.mesh_labels) != len(self.mesh_files):
+            raise ValueError(f"mesh_labels ({len(self.mesh_labels)}) and mesh_files ({len(self.mesh_files)}) "
+                             "must have the same length")
+        if any(bool(label) != bool(path) for label, path in zip(self.mesh_labels, self.mesh_files)):
+            raise ValueError("every mesh_labels entry needs a mesh_files entry and the other way round")
+        labels = [label for label in self.mesh_labels if label]
+        if BASELINE in labels:
+            raise ValueError(f"'{BASELINE}' is the bare chassis and cannot name a mesh file")
+        repeated = sorted({label for label in labels if labels.count(label) > 1})
+        if repeated:
+            raise ValueError(f"mesh_labels repeats {', '.join(repeated)}")
+
+    def meshes(self):
+        """``{label: mesh file}``; a pair of empty strings is a placeholder (a ROS 2 parameter list cannot be
+        empty) and is skipped."""
+        return {label: path for label, path in zip(self.mesh_labels, self.mesh_files) if label}
+
+
+def _file_version(path):
+    """``(path, size, mtime_ns)`` of an existing file; ``FileNotFoundError`` naming it otherwise."""
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"profile source file not found: {path}")
+    stat = os.stat(path)
+    return os.path.abspath(path), stat.st_size, stat.st_mtime_ns
+
+
+@functools.lru_cache(maxsize=16)
+def _read_designs(version):
+    """``(grid, {label: heights})`` of the designs file ``version`` (see :func:`_file_version`)."""
+    path = version[0]
+    designs = section(load_parameters([path]), "designs")
+    labels = designs.get("labels")
+    if not isinstance(labels, list) or not all(isinstance(label, str) and label for label in labels):
+        raise ConfigError(f"{path}: designs.labels must be a list of labels")
+    if BASELINE in labels:
+        raise ConfigError(f"{path}: '{BASELINE}' cannot label a design")
+    grid = from_mapping(geometry.ProfileGrid, designs.get("grid"), f"{path}: designs.grid")
+    heights = {}
+    for label in labels:
+        entry = designs.get(label)
+        if not isinstance(entry, dict) or "heights" not in entry:
+            raise ConfigError(f"{path}: design {label} has no designs.{label}.heights")
+        heights[label] = tuple(entry["heights"])
+    return grid, heights
+
+
+@functools.lru_cache(maxsize=16)
+def _designs_mesh(version, label):
+    grid, heights = _read_designs(version)
+    try:
+        return geometry.profile_mesh(heights[label], grid)
+    except ValueError as exc:
+        raise ConfigError(f"{version[0]}: design {label}: {exc}") from exc
+
+
+@functools.lru_cache(maxsize=16)
+def _file_mesh(version):
+    return geometry.load_profile_mesh(version[0])
+
+
+def configuration_ids(sources):
+    """All ids ``sources`` defines: ``baseline``, the designs file's labels, then the mesh labels.
+
+    Raises ``ValueError`` (:class:`ConfigError` for a bad designs file) when a label is defined twice.
+    """
+    design_labels = list(_read_designs(_file_version(sources.designs_file))[1]) if sources.designs_file else []
+    mesh_labels = list(sources.meshes())
+    twice = sorted(set(design_labels) & set(mesh_labels))
+    if twice:
+        raise ValueError(f"configuration(s) {', '.join(twice)} defined both in {sources.designs_file} and mesh_files")
+    return [BASELINE, *design_labels, *mesh_labels]
+
+
+def profile_mesh_for(configuration, sources):
+    """The profile solid (watertight trimesh, metres, profile frame) of ``configuration``; None for the baseline.
+
+    Raises ``ValueError`` naming the known ids for an unknown one, ``FileNotFoundError`` for a missing file and
+    :class:`ConfigError` / ``ValueError`` for an unreadable one.
+    """
+    known = configuration_ids(sources)
+    if configuration not in known:
+        raise ValueError(f"unknown configuration {configuration!r}: known ids are {', '.join(known)} "
+                         "(set launch_twin.designs.designs_file or mesh_labels / mesh_files)")
+    if configuration == BASELINE:
+        return None
+    meshes = sources.meshes()
+    if configuration in meshes:
+        return _file_mesh(_file_version(meshes[configuration]))
+    return _designs_mesh(_file_version(sources.designs_file), configuration)

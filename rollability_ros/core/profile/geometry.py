@@ -1,0 +1,299 @@
+"""Profile geometry: half-grid vertex heights -> mirrored vertices -> convex-hull mesh, metrics, printability.
+
+Frames and units
+----------------
+Profile frame = the chassis top-surface frame: x along the length (``length_m``), y along the width
+(``width_m``), z up, origin at the centre of the top surface. Heights are design variables in *simulation
+units* within ``[height_min, height_max]``; ``unit_m`` converts them to metres (paper 2.1.1 bounds the heights to
+[0, 0.45] "simulation units" without stating the scale, so the scale is an explicit parameter here).
+
+Grid layout
+-----------
+The full profile has ``rows`` x ``2 * cols`` vertices evenly spaced over the footprint, x from ``-length/2`` to
+``+length/2`` and y from ``-width/2`` to ``+width/2`` (so no vertex lies on y = 0 and the mirror never
+duplicates one). The design variables are the ``cols`` columns with y > 0, row-major: ``heights[i * cols + j]``
+is the vertex at x index ``i`` and y index ``j`` (``j = 0`` next to the centre line, ``j = cols - 1`` at the
+edge y = +width/2). The mirror about the x-z plane gives the y < 0 half.
+
+The mesh is the convex hull of the 200 top vertices and the four footprint corners at z = 0, so it always sits
+on the chassis top and covers the whole footprint. A top vertex lower than :data:`BASE_SNAP_M` is put on the
+base plane first: an outer vertex a few nanometres above its footprint corner (CMA-ES proposes such heights next
+to the lower bound) would otherwise be merged with the corner and leave the hull open. trimesh is imported
+inside the functions that need it.
+"""
+import dataclasses
+import os
+
+import numpy as np
+
+from rollability_ros.core.optional import require
+
+#: Top vertices lower than this (m) lie on the base plane in the mesh: far below print and simulation resolution,
+#: far above trimesh's vertex-merge tolerance (1e-8 m).
+BASE_SNAP_M = 1e-6
+
+
+@dataclasses.dataclass
+class ProfileGrid:
+    """The design grid: its size, its footprint in metres and its height bounds in simulation units.
+
+    ``unit_m`` (metres per simulation unit) = 0.2: the paper's upper bound 0.45 becomes a 0.09 m tall profile,
+    half the chassis length, enough to make the inverted pose of the default chassis unstable (see
+    test_physics). ``flat_tolerance`` (simulation units): a profile whose tallest vertex is at or below it is
+    treated as the baseline (no profile) by the evaluator, because a hull thinner than that is not a solid.
+    """
+
+    rows: int = 10
+    cols: int = 10
+    length_m: float = 0.18
+    width_m: float = 0.14
+    height_min: float = 0.0
+    height_max: float = 0.45
+    unit_m: float = 0.2
+    flat_tolerance: float = 0.001
+
+    @property
+    def n_variables(self):
+        """Number of design variables (half-grid vertices)."""
+        return self.rows * self.cols
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if self.rows < 2 or self.cols < 1:
+            raise ValueError(f"need rows >= 2 and cols >= 1, got rows={self.rows}, cols={self.cols}")
+        for name in ("length_m", "width_m", "unit_m"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not 0 <= self.height_min < self.height_max:
+            raise ValueError(f"need 0 <= height_min < height_max, got [{self.height_min}, {self.height_max}]")
+        if not 0 <= self.flat_tolerance < self.height_max:
+            raise ValueError(f"flat_tolerance must be in [0, height_max), got {self.flat_tolerance}")
+
+
+@dataclasses.dataclass(frozen=True)
+class ProfileMetrics:
+    """Measured size of a profile solid (metres, profile frame); all zero for the baseline.
+
+    ``com_shift_m`` (3,) is the centroid of the solid (uniform density) in the profile frame: where the
+    profile's mass acts relative to the mount origin; its x and y show how far the profile shifts the robot's
+    centre of mass off the centre line.
+    """
+
+    length_m: float
+    width_m: float
+    max_height_m: float
+    volume_m3: float
+    com_shift_m: np.ndarray
+
+
+@dataclasses.dataclass
+class PrinterSpec:
+    """An FDM printer's limits (``config/robot.yaml``, section ``printer``)."""
+
+    bed_x_m: float = 0.22
+    bed_y_m: float = 0.22
+    bed_z_m: float = 0.25
+    min_wall_m: float = 0.0008
+    max_overhang_deg: float = 45.0
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        for name in ("bed_x_m", "bed_y_m", "bed_z_m", "min_wall_m"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not 0 <= self.max_overhang_deg <= 90:
+            raise ValueError(f"max_overhang_deg must be in [0, 90], got {self.max_overhang_deg}")
+
+
+@dataclasses.dataclass(frozen=True)
+class PrintabilityReport:
+    """Result of :func:`check_printability`: verdict, the problems found, and the measured values.
+
+    ``extents_m`` (3,) is the bounding box printed base-down; ``min_wall_m`` the thinnest width of the solid
+    (smallest extent over the face-normal directions, exact for a convex solid); ``max_overhang_deg`` the
+    steepest downward-facing face measured from vertical (0 = wall, 90 = ceiling), the bed face excluded.
+    """
+
+    printable: bool
+    problems: list
+    extents_m: np.ndarray
+    min_wall_m: float
+    max_overhang_deg: float
+
+
+def check_heights(heights, grid):
+    """Return ``heights`` as a ``(grid.n_variables,)`` float64 array, or raise ``ValueError`` naming the problem.
+
+    Checks, in order: one-dimensional, length ``rows * cols``, finite (NaN / inf named with their indices),
+    within ``[height_min, height_max]`` (simulation units; the first offending index is named). No clamping:
+    callers that want a clamp (an optimizer's bound handling) clamp before calling.
+    """
+    array = np.asarray(heights, dtype=np.float64)
+    if array.ndim != 1:
+        raise ValueError(f"heights must be a flat list of {grid.n_variables} numbers, got shape {array.shape}")
+    if array.size != grid.n_variables:
+        raise ValueError(f"heights has {array.size} values, the {grid.rows}x{grid.cols} grid needs {grid.n_variables}")
+    bad = np.flatnonzero(~np.isfinite(array))
+    if bad.size:
+        raise ValueError(f"heights must be finite: NaN or inf at index {', '.join(map(str, bad[:5]))}")
+    outside = np.flatnonzero((array < grid.height_min) | (array > grid.height_max))
+    if outside.size:
+        i = outside[0]
+        raise ValueError(f"heights[{i}] = {array[i]} is outside [{grid.height_min}, {grid.height_max}] "
+                         f"({outside.size} value(s) out of bounds)")
+    return array
+
+
+def is_baseline(heights, tolerance=0.0):
+    """True for the "no profile" configuration: ``None``, empty, or every height ``<= tolerance`` (sim units)."""
+    if heights is None:
+        return True
+    array = np.asarray(heights, dtype=np.float64).ravel()
+    return array.size == 0 or bool(np.all(array <= tolerance))
+
+
+def grid_xy(grid):
+    """Return the half-grid vertex positions ``(rows*cols, 2)`` in metres (x, y > 0), row-major."""
+    xs = np.linspace(-grid.length_m / 2, grid.length_m / 2, grid.rows)
+    ys = np.linspace(-grid.width_m / 2, grid.width_m / 2, 2 * grid.cols)[grid.cols:]
+    xx, yy = np.meshgrid(xs, ys, indexing="ij")
+    return np.column_stack([xx.ravel(), yy.ravel()])
+
+
+def profile_vertices(heights, grid):
+    """Return the mirrored top-surface vertices ``(2*rows*cols, 3)`` in metres, profile frame.
+
+    The first ``rows*cols`` rows are the half grid (y > 0) in design-variable order, the next ``rows*cols``
+    their mirror images (y -> -y) in the same order.
+    """
+    z = check_heights(heights, grid) * grid.unit_m
+    half = np.column_stack([grid_xy(grid), z])
+    mirror = half * np.array([1.0, -1.0, 1.0])
+    return np.vstack([half, mirror])
+
+
+def profile_mesh(heights, grid):
+    """Return the profile solid as a watertight convex-hull ``trimesh.Trimesh`` (metres), or None for the baseline.
+
+    The hull spans the top vertices and the footprint corners at z = 0. Raises ``ValueError`` for invalid
+    heights and for a profile so flat (tallest vertex within ``grid.flat_tolerance``) that it has no volume.
+    """
+    if is_baseline(heights):
+        return None
+    top = profile_vertices(heights, grid)
+    if top[:, 2].max() <= grid.flat_tolerance * grid.unit_m:
+        raise ValueError(f"profile is flat: tallest vertex {top[:, 2].max() / grid.unit_m:.3g} units is within "
+                         f"flat_tolerance {grid.flat_tolerance}; use the baseline instead")
+    top[top[:, 2] < BASE_SNAP_M, 2] = 0.0
+    half_l, half_w = grid.length_m / 2, grid.width_m / 2
+    corners = np.array([[sx * half_l, sy * half_w, 0.0] for sx in (-1, 1) for sy in (-1, 1)])
+    return _hull(np.vstack([top, corners]))
+
+
+def _hull(points):
+    """Convex hull of ``points`` (k, 3) as a watertight, outward-wound trimesh."""
+    trimesh = require("trimesh", feature="profile meshes")
+    mesh = trimesh.convex.convex_hull(points)
+    if not mesh.is_watertight or mesh.volume <= 0:
+        raise ValueError("convex hull of the profile is degenerate (no volume)")
+    return mesh
+
+
+def profile_metrics(heights, grid):
+    """Measure the profile of ``heights``: see :class:`ProfileMetrics` (zeros for the baseline)."""
+    return mesh_metrics(profile_mesh(heights, grid))
+
+
+def mesh_metrics(mesh):
+    """Measure a profile solid in the profile frame: see :class:`ProfileMetrics`; None -> all zeros."""
+    if mesh is None:
+        return ProfileMetrics(0.0, 0.0, 0.0, 0.0, np.zeros(3))
+    extents = mesh.bounds[1] - mesh.bounds[0]
+    return ProfileMetrics(length_m=float(extents[0]), width_m=float(extents[1]), max_height_m=float(mesh.bounds[1][2]),
+                          volume_m3=float(mesh.volume), com_shift_m=np.asarray(mesh.center_mass, dtype=np.float64))
+
+
+def check_printability(mesh, printer):
+    """Check that ``mesh`` (metres, printed base-down on its z-min face) fits ``printer`` (a :class:`PrinterSpec`).
+
+    Returns a :class:`PrintabilityReport`; ``problems`` names each failed check with its measured value.
+    The bed check allows the part to be turned 90 degrees about z.
+    """
+    vertices = np.asarray(mesh.vertices)
+    extents = vertices.max(axis=0) - vertices.min(axis=0)
+    problems = []
+    fits_flat = extents[0] <= printer.bed_x_m and extents[1] <= printer.bed_y_m
+    fits_turned = extents[1] <= printer.bed_x_m and extents[0] <= printer.bed_y_m
+    if not (fits_flat or fits_turned):
+        problems.append(f"footprint {extents[0]:.3f} x {extents[1]:.3f} m does not fit the "
+                        f"{printer.bed_x_m:.3f} x {printer.bed_y_m:.3f} m bed")
+    if extents[2] > printer.bed_z_m:
+        problems.append(f"height {extents[2]:.3f} m exceeds the printer's {printer.bed_z_m:.3f} m")
+    normals = np.asarray(mesh.face_normals)
+    projections = vertices @ normals.T                       # (vertices, faces)
+    min_wall = float((projections.max(axis=0) - projections.min(axis=0)).min())
+    if min_wall < printer.min_wall_m:
+        problems.append(f"thinnest width {min_wall * 1000:.2f} mm is below the minimum wall "
+                        f"{printer.min_wall_m * 1000:.2f} mm")
+    face_z = np.asarray(mesh.triangles_center)[:, 2]
+    on_bed = face_z <= vertices[:, 2].min() + 1e-6
+    downward = (normals[:, 2] < -1e-9) & ~on_bed
+    max_overhang = float(np.degrees(np.arcsin(np.clip(-normals[downward, 2], 0, 1))).max()) if downward.any() else 0.0
+    if max_overhang > printer.max_overhang_deg:
+        problems.append(f"overhang {max_overhang:.1f} deg exceeds {printer.max_overhang_deg:.1f} deg")
+    return PrintabilityReport(printable=not problems, problems=problems, extents_m=extents, min_wall_m=min_wall,
+                              max_overhang_deg=max_overhang)
+
+
+MESH_FORMATS = (".stl", ".obj")
+
+
+def _mesh_format(path):
+    extension = os.path.splitext(os.fspath(path))[1].lower()
+    if extension not in MESH_FORMATS:
+        raise ValueError(f"mesh file {path} must end in {' or '.join(MESH_FORMATS)}")
+    return extension[1:]
+
+
+def export_mesh(mesh, path):
+    """Write ``mesh`` (metres) to ``path``: binary STL or OBJ by extension; written to a temp file then renamed."""
+    file_type = _mesh_format(path)
+    temporary = f"{os.fspath(path)}.tmp"
+    with open(temporary, "wb") as stream:
+        mesh.export(stream, file_type=file_type)
+    os.replace(temporary, path)
+
+
+def load_profile_mesh(path, max_size_m=1.0, base_tolerance_m=0.001):
+    """Load a profile solid from STL/OBJ (metres, profile frame: base on z = 0).
+
+    Raises ``FileNotFoundError`` for a missing file and ``ValueError`` for an unreadable, non-watertight or
+    empty mesh, one larger than ``max_size_m`` (probably millimetres), or one whose base is not on z = 0
+    within ``base_tolerance_m``. The simulation collides with the mesh's convex hull.
+    """
+    trimesh = require("trimesh", feature="profile meshes")
+    file_type = _mesh_format(path)
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"mesh file not found: {path}")
+    try:
+        mesh = trimesh.load(path, file_type=file_type, force="mesh", process=True)
+    except Exception as exc:  # trimesh raises assorted parser errors
+        raise ValueError(f"cannot read mesh {path}: {exc}") from exc
+    if len(mesh.faces) == 0 or not np.all(np.isfinite(mesh.vertices)):
+        raise ValueError(f"mesh {path} has no faces or non-finite vertices")
+    if not mesh.is_watertight:
+        raise ValueError(f"mesh {path} is not watertight (a closed solid is needed)")
+    if mesh.volume <= 0:
+        raise ValueError(f"mesh {path} encloses no volume (inverted or flat faces)")
+    size = float(np.max(mesh.extents))
+    if size > max_size_m:
+        raise ValueError(f"mesh {path} is {size:.3g} m across (> {max_size_m} m): units must be metres")
+    if abs(mesh.bounds[0][2]) > base_tolerance_m:
+        raise ValueError(f"mesh {path} base is at z = {mesh.bounds[0][2]:.4f} m; the profile frame puts it at 0")
+    return mesh
+
+
+def marker_points(mesh):
+    """Return ``(3*faces, 3)`` float64 points, three per triangle: a ``visualization_msgs/Marker`` TRIANGLE_LIST."""
+    return np.asarray(mesh.vertices, dtype=np.float64)[np.asarray(mesh.faces)].reshape(-1, 3)
+

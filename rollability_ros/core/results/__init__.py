@@ -1,0 +1,9 @@
+"""Records, the durable store, and everything read from it: analysis, figures, report, statistics.
+
+- records: plain records exchanged between core, store, bags and nodes
+- store: SQLite (WAL) store of outcomes, candidates, generations, tip events
+- outcome_log: store-before-acknowledge bookkeeping of the outcome logger
+- outcome_csv: strict CSV import/export of hand-recorded outcomes
+- analysis, report, report_figures: the paper's views, figures and HTML report
+- stats: binomial intervals
+"""

@@ -1,0 +1,206 @@
+"""The outcome logger's bookkeeping: store a record durably before it is acknowledged, and keep a summary.
+
+:class:`OutcomeLog` wraps a :class:`~rollability_ros.core.results.store.Store`. ``add(record)`` returns only after the
+record is committed (the store fsyncs its write-ahead log), so a caller that acknowledges on return never
+acknowledges a record a ``kill -9`` can lose. It says what happened in the way the caller must act on:
+
+- returns True: stored now -- acknowledge it;
+- returns False: a record with the same key (e.g. the run's trial id) is already stored -- stored once, a
+  duplicate to report, not a new record;
+- raises ``ValueError``: the record is malformed (names the field) -- skip it;
+- raises :class:`StoreFailure`: the store could not write it (disk full, locked, read-only) -- do NOT
+  acknowledge.
+
+The running summary (per configuration: trials, upright trials, rate, Wilson 95 % interval) is rebuilt from
+the store on opening and updated with each stored outcome, so it always describes exactly the stored records.
+"""
+import collections
+import dataclasses
+import math
+import os
+import sqlite3
+import threading
+
+from rollability_ros.core.results.analysis import ConditionResult, summarise
+from rollability_ros.core.results.records import CandidateRecord, GenerationRecord, LaunchOutcome, TipEventRecord
+from rollability_ros.core.results.store import Store, unique_key
+
+#: Store file used when no ``store_path`` is given (relative to the working directory).
+DEFAULT_STORE_PATH = "runs/outcomes.sqlite"
+
+
+class StoreFailure(RuntimeError):
+    """The store could not write a well-formed record; it is not stored and must not be acknowledged."""
+
+
+@dataclasses.dataclass(frozen=True)
+class OutcomeLoggerSettings:
+    """Settings of the outcome logger node."""
+
+    store_path: str = dataclasses.field(default=DEFAULT_STORE_PATH, metadata={
+        "description": "SQLite store file (or a run directory, then <dir>/store.sqlite); created with its "
+                       f"parent directories if missing; relative to the working directory. "
+                       f"Default {DEFAULT_STORE_PATH}. Fixed at start-up."})
+
+    def validate(self):
+        """Raise ``ValueError`` for an unusable store path."""
+        if not isinstance(self.store_path, str) or not self.store_path.strip():
+            raise ValueError("store_path must be a non-empty path")
+        if "\0" in self.store_path:
+            raise ValueError("store_path must not contain NUL characters")
+        if os.path.exists(self.store_path) and not (os.path.isfile(self.store_path)
+                                                    or os.path.isdir(self.store_path)):
+            raise ValueError(f"store_path {self.store_path} is neither a file nor a directory")
+
+
+@dataclasses.dataclass(frozen=True)
+class LogSummary:
+    """What the store holds (every run, or one): counts, newest outcome stamp and per-configuration tallies."""
+
+    trials: int                # launch outcomes stored
+    candidates: int            # candidate results stored
+    latest_stamp_s: float      # stamp of the newest stored outcome, s since the epoch; 0.0 when none
+    configurations: tuple      # ConfigurationTally per configuration, sorted by id
+
+
+@dataclasses.dataclass(frozen=True)
+class ConfigurationTally:
+    """Stored launch outcomes of one configuration: trials, upright ones, rate and its Wilson 95 % interval."""
+
+    configuration: str
+    trials: int
+    successes: int
+    success_rate: float        # successes / trials, [0, 1]; NaN with no trials
+    ci_low: float
+    ci_high: float
+
+
+class RunningSummary:
+    """Tallies of stored records per run: grouped conditions of launch outcomes, candidate counts, latest stamp.
+
+    Not thread-safe by itself; :class:`OutcomeLog` guards it.
+    """
+
+    def __init__(self):
+        self._conditions = collections.defaultdict(dict)   # run_id -> {group_key: (successes, trials)}
+        self._candidates = collections.Counter()                           # run_id -> candidates stored
+        self._latest_stamp_s = {}                                          # run_id -> newest outcome stamp, s
+
+    def add_outcome(self, outcome):
+        """Count a stored :class:`LaunchOutcome`."""
+        tally = self._conditions[outcome.run_id]
+        successes, trials = tally.get(outcome.condition.group_key, (0, 0))
+        tally[outcome.condition.group_key] = (successes + bool(outcome.upright), trials + 1)
+        self._latest_stamp_s[outcome.run_id] = max(self._latest_stamp_s.get(outcome.run_id, 0.0),
+                                                   outcome.stamp_s)
+
+    def add_candidate(self, candidate):
+        """Count a stored :class:`CandidateRecord`."""
+        self._candidates[candidate.run_id] += 1
+
+    def _runs(self, table, run_id):
+        return list(table.values()) if run_id is None else ([table[run_id]] if run_id in table else [])
+
+    def trials(self, run_id=None):
+        """Launch outcomes stored (every run, or ``run_id``)."""
+        return sum(trials for tally in self._runs(self._conditions, run_id) for _, trials in tally.values())
+
+    def candidates(self, run_id=None):
+        """Candidate results stored (every run, or ``run_id``)."""
+        return sum(self._runs(self._candidates, run_id))
+
+    def latest_stamp_s(self, run_id=None):
+        """Stamp of the newest stored outcome, s since the epoch; 0.0 when none."""
+        return max(self._runs(self._latest_stamp_s, run_id), default=0.0)
+
+    def conditions(self, run_id=None):
+        """Grouped conditions (:class:`~rollability_ros.core.results.analysis.ConditionResult`) of the stored outcomes."""
+        counts = {}
+        for tally in self._runs(self._conditions, run_id):
+            for key, (successes, trials) in tally.items():
+                merged_successes, merged_trials = counts.get(key, (0, 0))
+                counts[key] = (merged_successes + successes, merged_trials + trials)
+        return [ConditionResult(*key, successes, trials) for key, (successes, trials) in sorted(counts.items())]
+
+    def configurations(self, run_id=None):
+        """One :class:`ConfigurationTally` per configuration id, sorted by id."""
+        tallies = []
+        for cell in summarise(self.conditions(run_id), by=("configuration",)):
+            low, high = cell.trial_ci
+            tallies.append(ConfigurationTally(cell.key["configuration"], cell.trials, cell.successes,
+                                              cell.trial_rate, low, high))
+        return tallies
+
+
+def _check_record(record):
+    """Raise ``ValueError`` naming the first field that makes ``record`` unstorable."""
+    if isinstance(record, LaunchOutcome):
+        record.validate()
+    owner = unique_key(record)[0]
+    if not owner:
+        raise ValueError(f"{type(record).__name__}: {'robot' if isinstance(record, TipEventRecord) else 'run_id'}"
+                         " must be non-empty")
+    if isinstance(record, TipEventRecord) and not math.isfinite(record.tipped_at_s):
+        raise ValueError(f"TipEvent: tipped_at must be a finite time, got {record.tipped_at_s}")
+
+
+class OutcomeLog:
+    """Durable, deduplicating log of run records with a running summary; thread-safe.
+
+    Parameters
+    ----------
+    store : Store
+        An open store; the summary is rebuilt from what it already holds.
+    """
+
+    def __init__(self, store):
+        self.store = store
+        self._lock = threading.Lock()
+        self._summary = RunningSummary()
+        for outcome in store.launch_outcomes():
+            self._summary.add_outcome(outcome)
+        for candidate in store.candidates():
+            self._summary.add_candidate(candidate)
+        self._writers = {LaunchOutcome: store.add_launch_outcome, CandidateRecord: store.add_candidate,
+                         GenerationRecord: store.add_generation, TipEventRecord: store.add_tip_event}
+
+    @classmethod
+    def open(cls, path):
+        """Open (or create, with parent directories) the store at ``path``; ``ValueError`` if unusable."""
+        directory = os.path.dirname(os.fspath(path))
+        if directory:
+            try:
+                os.makedirs(directory, exist_ok=True)
+            except OSError as exc:
+                raise ValueError(f"cannot create the store directory {directory}: {exc}") from exc
+        return cls(Store(path))
+
+    def close(self):
+        """Close the store (idempotent)."""
+        self.store.close()
+
+    def add(self, record):
+        """Store ``record`` durably; True if stored now, False if its key was already stored.
+
+        Raises ``ValueError`` for a malformed record and :class:`StoreFailure` when the store cannot write.
+        """
+        writer = self._writers.get(type(record))
+        if writer is None:
+            raise ValueError(f"the outcome log holds no {type(record).__name__} records")
+        _check_record(record)
+        with self._lock:
+            try:
+                stored = writer(record)
+            except (sqlite3.Error, OSError) as exc:
+                raise StoreFailure(f"{self.store.path}: {exc}") from exc
+            if stored and isinstance(record, LaunchOutcome):
+                self._summary.add_outcome(record)
+            elif stored and isinstance(record, CandidateRecord):
+                self._summary.add_candidate(record)
+        return stored
+
+    def summary(self, run_id=None):
+        """A :class:`LogSummary` of every run, or of ``run_id`` (empty for an unknown run)."""
+        with self._lock:
+            return LogSummary(self._summary.trials(run_id), self._summary.candidates(run_id),
+                              self._summary.latest_stamp_s(run_id), tuple(self._summary.configurations(run_id)))

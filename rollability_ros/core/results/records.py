@@ -1,0 +1,124 @@
+"""Plain records exchanged between the core modules, the store, bags and the nodes.
+
+Field names are the message field names of ``msg/*.msg`` (flattened where a message nests another), so one
+word means one thing in config keys, message fields, store columns and CLI flags. Units: m, s, m/s, deg.
+"""
+import dataclasses
+import math
+
+#: Placeholder for "not measured" numeric fields (travel time, measured speed).
+NOT_MEASURED = float("nan")
+
+
+@dataclasses.dataclass(frozen=True)
+class LaunchCondition:
+    """One cell of the launch matrix: configuration, ledge height (m), speed (m/s), angle (deg), repetition."""
+
+    configuration: str
+    height_m: float
+    speed_mps: float
+    angle_deg: float
+    repetition: int = 0
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.configuration:
+            raise ValueError("configuration must be a non-empty id")
+        for name in ("height_m", "speed_mps", "angle_deg"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"{name} must be a finite number, got {value!r}")
+        if self.height_m < 0:
+            raise ValueError(f"height_m must be >= 0, got {self.height_m}")
+        if self.speed_mps <= 0:
+            raise ValueError(f"speed_mps must be > 0, got {self.speed_mps}")
+        if not -180.0 <= self.angle_deg <= 180.0:
+            raise ValueError(f"angle_deg must be within [-180, 180], got {self.angle_deg}")
+        if self.repetition < 0:
+            raise ValueError(f"repetition must be >= 0, got {self.repetition}")
+
+    @property
+    def group_key(self):
+        """The grouped condition (paper 2.2.6): everything but the repetition."""
+        return (self.configuration, self.height_m, self.speed_mps, self.angle_deg)
+
+
+@dataclasses.dataclass(frozen=True)
+class LaunchOutcome:
+    """A classified launch (``msg/LaunchOutcome.msg``). ``final_orientation`` is (x, y, z, w), world z up."""
+
+    run_id: str
+    trial_id: str
+    condition: LaunchCondition
+    backend: str                      # "sim" | "physical"
+    upright: bool
+    travel_time_s: float = NOT_MEASURED
+    measured_speed_mps: float = NOT_MEASURED
+    speed_out_of_tolerance: bool = False
+    final_orientation: tuple = (0.0, 0.0, 0.0, 1.0)
+    classified_by: str = "sim"        # "operator" | "imu" | "sim"
+    note: str = ""
+    stamp_s: float = 0.0              # time of classification, s since the Unix epoch
+
+    BACKENDS = ("sim", "physical")
+    CLASSIFIERS = ("operator", "imu", "sim")
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.run_id or not self.trial_id:
+            raise ValueError("run_id and trial_id must be non-empty")
+        self.condition.validate()
+        if self.backend not in self.BACKENDS:
+            raise ValueError(f"backend must be one of {self.BACKENDS}, got {self.backend!r}")
+        if self.classified_by not in self.CLASSIFIERS:
+            raise ValueError(f"classified_by must be one of {self.CLASSIFIERS}, got {self.classified_by!r}")
+        if len(self.final_orientation) != 4 or not all(math.isfinite(v) for v in self.final_orientation):
+            raise ValueError(f"final_orientation must be 4 finite numbers (x, y, z, w), got {self.final_orientation!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class CandidateRecord:
+    """One evaluated candidate of an optimization run (``msg/CandidateResult.msg``)."""
+
+    run_id: str
+    generation: int
+    index: int
+    heights: tuple                    # half-grid vertex heights, simulation units
+    fitness: float                    # successes / trials
+    successes: int
+    trials: int
+    seed: int
+    eval_time_s: float
+    evaluator: str = ""
+    stamp_s: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class GenerationRecord:
+    """Summary of one completed generation (``msg/GenerationSummary.msg``)."""
+
+    run_id: str
+    generation: int
+    best_fitness: float
+    mean_fitness: float
+    best_so_far: float
+    sigma: float
+    best_heights: tuple
+    evaluations: int
+    elapsed_s: float
+    stamp_s: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class TipEventRecord:
+    """One tip-over seen in the field by tip_monitor (``msg/TipEvent.msg``)."""
+
+    robot: str
+    tipped_at_s: float                # s since the Unix epoch (or the IMU's clock)
+    duration_s: float
+    recovered: bool
+    peak_tilt_deg: float
+    peak_angular_rate_radps: float
+    final_orientation: tuple = (0.0, 0.0, 0.0, 1.0)
+    frame_id: str = ""
+    stamp_s: float = 0.0

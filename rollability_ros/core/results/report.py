@@ -1,0 +1,319 @@
+"""The analysis report of a run: PNG figures, CSV tables, one self-contained HTML file and a text summary.
+
+A report is built from records only (launch outcomes, candidates, generations, tip events), so the same
+campaign gives the same tables and figures whether it is read from the live store, from its bag or from a CSV
+of hand-recorded outcomes. Sources:
+
+- a store file (SQLite) or a run directory holding ``store.sqlite``;
+- a recorded bag (a directory with ``metadata.yaml`` / ``*.mcap``, or one ``.mcap`` file), read through
+  ``rollability_ros.core.bags.messages.read_records_from_bag``;
+- a CSV of launch outcomes (``docs/outcome-csv.md``).
+
+Table 3 and the simulated fitness per configuration come from the store's run info (``geometry``,
+``sim_fitness``), from ``<run dir>/designs/table3.csv`` of the design selection, or from the command line.
+"""
+import base64
+import csv
+import dataclasses
+import html
+import math
+import os
+
+from rollability_ros.core.results import analysis
+from rollability_ros.core.results.outcome_csv import read_outcome_csv
+from rollability_ros.core.results.store import STORE_FILENAME, Store
+
+#: Order of configurations in figures and tables (others follow alphabetically).
+CONFIGURATION_ORDER = ("baseline", "A", "B", "C")
+_SQLITE_MAGIC = b"SQLite format 3\x00"
+#: Table 3 written by the design selection into a run directory (``selection.write_selection``).
+DESIGNS_TABLE = os.path.join("designs", "table3.csv")
+
+
+@dataclasses.dataclass
+class ReportData:
+    """Everything a report is made of; ``sim_fitness`` maps configuration -> simulated fitness in [0, 1]."""
+
+    source: str
+    outcomes: list = dataclasses.field(default_factory=list)
+    candidates: list = dataclasses.field(default_factory=list)
+    generations: list = dataclasses.field(default_factory=list)
+    tip_events: list = dataclasses.field(default_factory=list)
+    sim_fitness: dict = dataclasses.field(default_factory=dict)
+    geometry: list = dataclasses.field(default_factory=list)
+
+
+@dataclasses.dataclass(frozen=True)
+class ReportResult:
+    """Paths written by :func:`build_report` and the text summary."""
+
+    html_path: str
+    figure_paths: list
+    table_paths: list
+    summary: str
+
+
+def source_kind(path):
+    """``"store"``, ``"bag"`` or ``"csv"`` for a report source; ValueError if it is none of them."""
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        if os.path.isfile(os.path.join(path, STORE_FILENAME)):
+            return "store"
+        if os.path.isfile(os.path.join(path, "metadata.yaml")) or any(n.endswith(".mcap") for n in os.listdir(path)):
+            return "bag"
+        raise ValueError(f"{path}: a directory without {STORE_FILENAME}, metadata.yaml or .mcap files")
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"report source not found: {path}")
+    if path.lower().endswith(".csv"):
+        return "csv"
+    if path.lower().endswith(".mcap"):
+        return "bag"
+    with open(path, "rb") as stream:
+        if stream.read(len(_SQLITE_MAGIC)) == _SQLITE_MAGIC:
+            return "store"
+    raise ValueError(f"{path}: not a store (SQLite), a bag (.mcap) or a CSV of outcomes")
+
+
+def load_report_data(source, run_id=None):
+    """Read the records of ``source`` (see module docstring) for one campaign run.
+
+    ``run_id`` selects the launch outcomes of one campaign run; it may be omitted when the source holds one.
+    Candidates, generations and tip events are all kept (each optimization run is its own convergence line).
+    A store's run info for the selected run may carry ``sim_fitness`` ({configuration: fitness}) and
+    ``geometry`` (Table 3 rows).
+    """
+    kind = source_kind(source)
+    source = os.fspath(source)
+    data = ReportData(source=f"{kind} {source}")
+    run_info = None
+    if kind == "store":
+        with Store(source) as store:
+            data.outcomes = store.launch_outcomes()
+            data.candidates = store.candidates()
+            data.generations = store.generations()
+            data.tip_events = store.tip_events()
+            selected = _select_run(data, run_id)
+            run_info = store.run_info(selected) if selected else None
+    else:
+        if kind == "csv":
+            data.outcomes = read_outcome_csv(source, run_id=run_id or "csv")
+        else:
+            from rollability_ros.core.bags.messages import read_records_from_bag
+
+            data.outcomes, data.candidates, data.generations, data.tip_events = (
+                list(records) for records in read_records_from_bag(source))
+        _select_run(data, run_id)
+    info = (run_info or {}).get("info", {})
+    data.sim_fitness = {str(k): float(v) for k, v in info.get("sim_fitness", {}).items()}
+    data.geometry = analysis.geometry_table(info.get("geometry", []), CONFIGURATION_ORDER)
+    table3 = os.path.join(source, DESIGNS_TABLE)
+    if kind == "store" and os.path.isdir(source) and os.path.isfile(table3) and not data.geometry:
+        use_geometry_csv(data, table3)
+    return data
+
+
+def use_geometry_csv(data, path):
+    """Take Table 3 from a CSV (``designs/table3.csv`` of the selection); its ``simulated_fitness`` column
+    fills in the simulated fitness of configurations that have none yet (empty or NaN cells are skipped)."""
+    with open(path, newline="", encoding="utf-8-sig") as stream:
+        data.geometry = analysis.geometry_table(list(csv.DictReader(stream)), CONFIGURATION_ORDER)
+    for row in data.geometry:
+        try:
+            fitness = float(row.get("simulated_fitness", "nan"))
+        except ValueError:
+            raise ValueError(f"{path}: simulated_fitness of {row['configuration']} is not a number") from None
+        if math.isfinite(fitness):
+            data.sim_fitness.setdefault(row["configuration"], fitness)
+
+
+def _select_run(data, run_id):
+    """Keep the outcomes of ``run_id`` (or of the only run); return the run id selected or None."""
+    runs = sorted({o.run_id for o in data.outcomes})
+    if run_id is None:
+        if len(runs) > 1:
+            raise ValueError(f"{data.source} holds launch outcomes of several runs ({', '.join(runs)}); "
+                             f"choose one with --run")
+        return runs[0] if runs else None
+    if data.outcomes and run_id not in runs:
+        raise ValueError(f"{data.source} has no launch outcomes of run {run_id!r}; runs: {', '.join(runs)}")
+    data.outcomes = [o for o in data.outcomes if o.run_id == run_id]
+    return run_id
+
+
+def _write_csv(path, rows):
+    columns = []
+    for row in rows:
+        columns += [c for c in row if c not in columns]
+    with open(path, "w", newline="", encoding="utf-8") as stream:
+        writer = csv.DictWriter(stream, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows(rows)
+    return path
+
+
+def _format_cell(column, value):
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "–"
+        if "rate" in column or column.startswith(("trial_ci", "ci_")) or column == "sim_fitness":
+            return f"{value:.0%}"
+        return f"{value:.4g}"
+    return str(value)
+
+
+def _html_table(rows):
+    if not rows:
+        return "<p>(no rows)</p>"
+    columns = list(rows[0])
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(_format_cell(c, row.get(c, '')))}</td>" for c in columns)
+                   + "</tr>" for row in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def _tables(data, views, comparison, points):
+    """``{table name: rows}`` of every table the data allows (names are the CSV file stems)."""
+    tables = {}
+    if views is not None:
+        tables["conditions"] = [{**dataclasses.asdict(c), "failures": c.failures, "majority_success": c.success}
+                                for c in views.conditions]
+        for name in ("by_configuration", "height_angle", "speed_angle", "by_speed", "by_height", "by_angle"):
+            tables[name] = [cell.row() for cell in getattr(views, name)]
+    if comparison is not None and comparison.rows:
+        tables["sim_vs_experiment"] = comparison.rows
+    if points:
+        tables["convergence"] = [dataclasses.asdict(p) for p in points]
+    if data.geometry:
+        tables["geometry"] = data.geometry
+    if data.tip_events:
+        tables["tip_events"] = analysis.tip_event_summary(data.tip_events)
+    return tables
+
+
+_TABLE_TITLES = {
+    "by_configuration": "Overall success per configuration (Figure 12d)",
+    "sim_vs_experiment": "Simulated fitness vs experimental success (Discussion)",
+    "geometry": "Profile mesh geometry (Table 3), m",
+    "convergence": "Optimization convergence per generation (Figure 4)",
+    "tip_events": "Field tip events per robot",
+    "height_angle": "Success by height x angle per configuration (Figure 9)",
+    "speed_angle": "Success by speed x angle per configuration (Figures 10, 11)",
+    "by_speed": "Success by speed (Figure 12a)",
+    "by_height": "Success by height (Figure 12b)",
+    "by_angle": "Success by angle (Figure 12c)",
+    "conditions": "Grouped conditions (majority rule: successes > failures; a tie is a failure)",
+}
+
+
+def _figures(out_dir, views, configurations, comparison, points):
+    """Draw every figure the data allows; return ``[(path, caption)]``."""
+    from rollability_ros.core.results import report_figures as figures
+
+    drawn = []
+
+    def draw(name, caption, function, *args):
+        drawn.append((function(os.path.join(out_dir, name), *args), caption))
+
+    if views is not None:
+        draw("fig09_height_angle.png", "Figure 9: success by height and angle", figures.heatmaps,
+             views.height_angle, configurations, "height_m", "Success by launch height and angle")
+        draw("fig10_speed_angle.png", "Figure 10: success by speed and angle", figures.heatmaps,
+             views.speed_angle, configurations, "speed_mps", "Success by launch speed and angle")
+        draw("fig11_angle_curves.png", "Figure 11: success by angle per speed", figures.angle_curves,
+             views.speed_angle, configurations)
+        draw("fig12_overall.png", "Figure 12: overall success by speed, height, angle and configuration",
+             figures.overall, views, configurations)
+    if comparison is not None and comparison.rows:
+        draw("sim_vs_experiment.png", "Simulated fitness vs experimental success", figures.sim_vs_experiment,
+             comparison)
+    if points:
+        draw("fig04_convergence.png", "Figure 4: optimization convergence", figures.convergence, points)
+    return drawn
+
+
+def summary_text(data, views, comparison, points):
+    """A few lines describing the report's data and headline numbers."""
+    lines = [f"source: {data.source}"]
+    if views is not None:
+        runs = sorted({o.run_id for o in data.outcomes})
+        backends = sorted({o.backend for o in data.outcomes})
+        lines.append(f"launch outcomes: {len(data.outcomes)} trials, {len(views.conditions)} grouped conditions "
+                     f"(run {', '.join(runs)}; backend {', '.join(backends)})")
+        lines.append(f"{'configuration':<14} {'conditions ok':>13} {'trials upright':>15}  95% CI")
+        for cell in views.by_configuration:
+            low, high = cell.trial_ci
+            lines.append(f"{cell.key['configuration']:<14} {cell.conditions_succeeded:>4}/{cell.conditions:<3} "
+                         f"{cell.condition_rate:>4.0%} {cell.successes:>5}/{cell.trials:<4} {cell.trial_rate:>4.0%}"
+                         f"  [{low:.0%}, {high:.0%}]")
+    else:
+        lines.append("launch outcomes: none")
+    if comparison is not None and comparison.rows:
+        lines.append(f"sim vs experiment ({len(comparison.rows)} configurations): "
+                     f"{analysis.rank_agreement_text(comparison.spearman_rho, comparison.kendall_tau_b)}")
+    if points:
+        for run_id in sorted({p.run_id for p in points}):
+            own = [p for p in points if p.run_id == run_id]
+            lines.append(f"optimization run {run_id!r}: {len(own)} generations, best fitness {own[-1].best_so_far:.3f}")
+    if data.tip_events:
+        recovered = sum(e.recovered for e in data.tip_events)
+        lines.append(f"tip events: {len(data.tip_events)}, recovered {recovered}")
+    return "\n".join(lines)
+
+
+def build_report(data, out_dir, measure="condition_rate"):
+    """Write figures (PNG), tables (CSV) and ``report.html`` (self-contained) to ``out_dir``.
+
+    Parameters
+    ----------
+    data : ReportData
+    out_dir : str or os.PathLike
+        Created if missing; existing report files in it are overwritten.
+    measure : str
+        Experimental measure compared with simulated fitness: ``"condition_rate"`` (paper) or ``"trial_rate"``.
+    """
+    out_dir = os.fspath(out_dir)
+    os.makedirs(out_dir, exist_ok=True)
+    views = analysis.paper_views(data.outcomes, CONFIGURATION_ORDER) if data.outcomes else None
+    configurations = analysis.configurations_in(views.conditions, CONFIGURATION_ORDER) if views else []
+    comparison = (analysis.sim_vs_experiment(data.sim_fitness, views.by_configuration, measure)
+                  if views is not None and data.sim_fitness else None)
+    points = analysis.convergence(data.generations, data.candidates)
+    if views is None and not points and not data.tip_events:
+        raise ValueError(f"{data.source}: no launch outcomes, candidates, generations or tip events to report")
+    tables = _tables(data, views, comparison, points)
+    table_paths = [_write_csv(os.path.join(out_dir, f"{name}.csv"), rows) for name, rows in tables.items()]
+    figures = _figures(out_dir, views, configurations, comparison, points)
+    summary = summary_text(data, views, comparison, points)
+    html_path = os.path.join(out_dir, "report.html")
+    with open(html_path, "w", encoding="utf-8") as stream:
+        stream.write(_html(data, summary, figures, tables))
+    return ReportResult(html_path, [path for path, _ in figures], table_paths, summary)
+
+
+_STYLE = """
+body { font-family: sans-serif; margin: 2em auto; max-width: 1100px; color: #222; }
+img { max-width: 100%; border: 1px solid #ddd; }
+table { border-collapse: collapse; margin: 0.5em 0 1.5em; font-size: 0.85em; }
+th, td { border: 1px solid #ccc; padding: 0.2em 0.5em; text-align: right; }
+th { background: #f0f0f0; }
+pre { background: #f7f7f7; padding: 0.8em; }
+"""
+
+
+def _html(data, summary, figures, tables):
+    """The report as one HTML document: figures as base64 data URIs, tables inline, no external resources."""
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>Rollability report</title>"
+             f"<style>{_STYLE}</style></head><body><h1>Rollability report</h1>",
+             f"<pre>{html.escape(summary)}</pre>"]
+    if figures:
+        parts.append("<h2>Figures</h2>")
+    for path, caption in figures:
+        with open(path, "rb") as stream:
+            encoded = base64.b64encode(stream.read()).decode("ascii")
+        parts.append(f"<figure><img alt='{html.escape(caption)}' src='data:image/png;base64,{encoded}'>"
+                     f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+    parts.append("<h2>Tables</h2>")
+    for name, rows in tables.items():
+        parts.append(f"<h3>{html.escape(_TABLE_TITLES.get(name, name))}</h3>{_html_table(rows)}")
+    parts.append("</body></html>")
+    return "\n".join(parts)

@@ -1,0 +1,177 @@
+"""PNG figures of the report (matplotlib, Agg backend): Figures 4, 9, 10, 11, 12 and the sim-vs-experiment plot.
+
+Bars and heat-map colours show the paper's measure (fraction of grouped conditions successful by the majority
+rule); black points with whiskers show the per-trial success rate with its Wilson 95 % interval.
+Heights are drawn in cm and speeds in m/s, as in the paper.
+"""
+import math
+
+from rollability_ros.core.results.analysis import cells_of, grid, rank_agreement_text
+from rollability_ros.core.optional import require
+
+_FACTOR_LABELS = {"height_m": "height (cm)", "speed_mps": "speed (m/s)", "angle_deg": "angle (deg)",
+                  "configuration": "configuration"}
+
+
+def _pyplot():
+    matplotlib = require("matplotlib", feature="the report figures")
+    matplotlib.use("Agg")
+    return require("matplotlib.pyplot", feature="the report figures")
+
+
+def _level_label(factor, value):
+    if factor == "height_m":
+        return f"{value * 100:g}"
+    if factor == "angle_deg":
+        return f"{value:+g}" if value else "0"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _save(figure, path):
+    figure.savefig(path, dpi=110, bbox_inches="tight")
+    _pyplot().close(figure)
+    return path
+
+
+def _panels(count, columns=2, size=(4.8, 3.4)):
+    plt = _pyplot()
+    rows = math.ceil(count / columns)
+    columns = min(columns, count)
+    figure, axes = plt.subplots(rows, columns, figsize=(size[0] * columns, size[1] * rows), squeeze=False,
+                                layout="constrained")
+    flat = [ax for row in axes for ax in row]
+    for ax in flat[count:]:
+        ax.set_visible(False)
+    return figure, flat[:count]
+
+
+def heatmaps(path, cells, configurations, row_factor, title):
+    """One heat map per configuration: ``row_factor`` x angle, colour = condition rate, text = both rates."""
+    figure, axes = _panels(len(configurations))
+    image = None
+    for letter, (ax, configuration) in zip("abcdefghijklmnop", zip(axes, configurations)):
+        own = cells_of(cells, configuration=configuration)
+        rows, columns, rates = grid(own, row_factor, "angle_deg")
+        image = ax.imshow(rates, vmin=0.0, vmax=1.0, cmap="RdYlGn", aspect="auto", origin="lower")
+        for cell in own:
+            i, j = rows.index(cell.key[row_factor]), columns.index(cell.key["angle_deg"])
+            ax.text(j, i, f"{cell.condition_rate:.0%}\n{cell.successes}/{cell.trials}", ha="center", va="center",
+                    fontsize=8)
+        ax.set_xticks(range(len(columns)), [_level_label("angle_deg", c) for c in columns])
+        ax.set_yticks(range(len(rows)), [_level_label(row_factor, r) for r in rows])
+        ax.set_xlabel(_FACTOR_LABELS["angle_deg"])
+        ax.set_ylabel(_FACTOR_LABELS[row_factor])
+        ax.set_title(f"({letter}) {configuration}")
+    figure.suptitle(f"{title}\ncolour and %: grouped conditions successful (majority); n/N: upright trials")
+    figure.colorbar(image, ax=axes, shrink=0.8, label="success rate")
+    return _save(figure, path)
+
+
+def angle_curves(path, speed_angle_cells, configurations):
+    """Figure 11: success against angle, one line per speed, one panel per configuration."""
+    figure, axes = _panels(len(configurations))
+    for letter, (ax, configuration) in zip("abcdefghijklmnop", zip(axes, configurations)):
+        own = cells_of(speed_angle_cells, configuration=configuration)
+        for speed in sorted({c.key["speed_mps"] for c in own}):
+            line = sorted(cells_of(own, speed_mps=speed), key=lambda c: c.key["angle_deg"])
+            angles = [c.key["angle_deg"] for c in line]
+            drawn = ax.plot(angles, [c.condition_rate for c in line], marker="o", label=f"{speed:g} m/s")
+            _trial_whiskers(ax, angles, line, drawn[0].get_color())
+        ax.set_ylim(-0.05, 1.05)
+        ax.set_xticks(sorted({c.key["angle_deg"] for c in own}))
+        ax.set_xlabel(_FACTOR_LABELS["angle_deg"])
+        ax.set_ylabel("success rate")
+        ax.set_title(f"({letter}) {configuration}")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    figure.suptitle("Success by launch angle per speed (lines: grouped conditions; whiskers: trials, Wilson 95%)")
+    return _save(figure, path)
+
+
+def _trial_whiskers(ax, positions, cells, color):
+    rates = [c.trial_rate for c in cells]
+    lows = [r - c.trial_ci[0] for r, c in zip(rates, cells)]
+    highs = [c.trial_ci[1] - r for r, c in zip(rates, cells)]
+    ax.errorbar(positions, rates, yerr=[lows, highs], fmt="o", markersize=3, color=color, ecolor=color, alpha=0.55,
+                capsize=3)
+
+
+def overall(path, views, configurations):
+    """Figure 12: grouped bars by speed, height and angle per configuration, and overall per configuration."""
+    figure, axes = _panels(4, columns=2, size=(5.6, 3.6))
+    panels = (("a", views.by_speed, "speed_mps"), ("b", views.by_height, "height_m"), ("c", views.by_angle,
+                                                                                        "angle_deg"))
+    for ax, (letter, cells, factor) in zip(axes, panels):
+        levels = sorted({c.key[factor] for c in cells})
+        width = 0.8 / max(1, len(levels))
+        for k, level in enumerate(levels):
+            positions, bars = [], []
+            for i, configuration in enumerate(configurations):
+                match = cells_of(cells, configuration=configuration, **{factor: level})
+                if match:
+                    positions.append(i - 0.4 + width * (k + 0.5))
+                    bars.append(match[0])
+            ax.bar(positions, [c.condition_rate for c in bars], width, label=_level_label(factor, level))
+            _trial_whiskers(ax, positions, bars, "black")
+        _configuration_axis(ax, configurations)
+        ax.set_title(f"({letter}) by {_FACTOR_LABELS[factor]}")
+        ax.set_ylim(0.0, 1.3)  # room for the legend above the bars
+        ax.legend(fontsize=7, title=_FACTOR_LABELS[factor], title_fontsize=7, ncol=min(5, len(levels)),
+                  loc="upper center")
+    ax = axes[3]
+    cells = [cells_of(views.by_configuration, configuration=c)[0] for c in configurations]
+    ax.bar(range(len(cells)), [c.condition_rate for c in cells], 0.6, color="tab:gray")
+    _trial_whiskers(ax, list(range(len(cells))), cells, "black")
+    for i, cell in enumerate(cells):
+        ax.text(i, 0.03, f"{cell.condition_rate:.0%}", ha="center", fontsize=9, color="white", weight="bold")
+    _configuration_axis(ax, configurations)
+    ax.set_title("(d) overall")
+    figure.suptitle("Overall success (bars: grouped conditions, majority; whiskers: trials, Wilson 95%)")
+    return _save(figure, path)
+
+
+def _configuration_axis(ax, configurations):
+    ax.set_xticks(range(len(configurations)), configurations)
+    ax.set_ylim(0.0, 1.05)
+    ax.set_yticks([0.0, 0.2, 0.4, 0.6, 0.8, 1.0])
+    ax.set_ylabel("success rate")
+    ax.grid(axis="y", alpha=0.3)
+
+
+def convergence(path, points):
+    """Figure 4: best-so-far fitness per generation (solid), generation best and mean (faint), per run."""
+    plt = _pyplot()
+    figure, ax = plt.subplots(figsize=(6.4, 3.8), layout="constrained")
+    for run_id in sorted({p.run_id for p in points}):
+        own = [p for p in points if p.run_id == run_id]
+        generations = [p.generation for p in own]
+        drawn = ax.plot(generations, [p.best_so_far for p in own], marker=".",
+                        label=f"{run_id}: best so far (incumbent, re-evaluated and pooled)")
+        ax.plot(generations, [p.best_fitness for p in own], color=drawn[0].get_color(), alpha=0.35, lw=0.8)
+        ax.plot(generations, [p.mean_fitness for p in own], color=drawn[0].get_color(), alpha=0.35, ls="--",
+                lw=0.8)
+    ax.set_xlabel("generation")
+    ax.set_ylabel("fitness (upright trials / trials)")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("Optimization convergence (faint: generation best, dashed: generation mean)")
+    return _save(figure, path)
+
+
+def sim_vs_experiment(path, comparison):
+    """Simulated fitness against experimental success per configuration, with the rank agreement."""
+    plt = _pyplot()
+    figure, ax = plt.subplots(figsize=(4.8, 4.2), layout="constrained")
+    for row in comparison.rows:
+        ax.scatter(row["sim_fitness"], row["experimental_rate"], s=40)
+        ax.annotate(row["configuration"], (row["sim_fitness"], row["experimental_rate"]),
+                    textcoords="offset points", xytext=(6, 4))
+    ax.plot([0, 1], [0, 1], color="gray", lw=0.8, ls=":")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    ax.set_xlabel("simulated fitness")
+    ax.set_ylabel(f"experimental success ({comparison.measure.replace('_', ' ')})")
+    ax.set_title(rank_agreement_text(comparison.spearman_rho, comparison.kendall_tau_b))
+    ax.grid(alpha=0.3)
+    return _save(figure, path)

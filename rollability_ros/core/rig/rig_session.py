@@ -1,0 +1,443 @@
+"""The launch rig's sequence for one trial, without ROS: goal checks, phases, operator answers, IMU outcome, speed.
+
+:class:`PhysicalLaunch` runs one physical launch against ports the caller provides (the ``rig`` node wires them to
+ROS services and topics; tests and the in-process CLI wire them to a :class:`~rollability_ros.core.rig.valve.
+ValveController` and a simulated speed gate):
+
+- ``valve``: ``arm() -> (ok, reason)``, ``fire(pulse_ms) -> (ok, reason)``, ``disarm() -> (ok, reason)`` and
+  ``status()`` (anything with ``armed`` and ``fault``), e.g. a ``ValveController``;
+- ``speed_gate``: ``arm(target_mps)``, ``read_travel_time(timeout_s)`` (:mod:`rollability_ros.core.rig.speed_gate`);
+- ``operator``: an :class:`OperatorChannel`, answered from another thread (the ``record_outcome`` and
+  ``rig/confirm`` services) or from inside ``on_phase`` (a terminal);
+- ``imu``: an :class:`ImuOutcome` fed with samples, when ``outcome_source`` is ``imu``.
+
+Sequence: confirm the regulator once per speed block (phase ``waiting_for_operator``), arm (``armed``), count down
+``countdown_s`` so people stand clear, fire one ``launch_pulse_ms`` pulse (``fired``), read the speed gate
+(``in_flight``), disarm, wait for the chassis to settle (``settling``), classify (``classifying``: the IMU with an
+operator override window, or the operator). A fire that is refused or cut (e-stop, watchdog) aborts the launch
+with :class:`LaunchAborted`; the rig never disarms a faulted valve, because disarming acknowledges the fault and
+that is the operator's decision.
+
+:func:`simulated_outcome` turns the launch twin's result into an outcome for the ``sim`` backend.
+"""
+import dataclasses
+import importlib
+import math
+import threading
+import time
+import typing
+import zlib
+
+from rollability_ros.core.results.records import NOT_MEASURED, LaunchOutcome
+from rollability_ros.core.imu.upright import ImuUprightClassifier
+
+#: Feedback phases of the Launch action, in order.
+PHASES = ("waiting_for_operator", "armed", "fired", "in_flight", "settling", "classifying")
+#: ``rig.backend`` values.
+RIG_BACKENDS = ("sim", "physical")
+#: ``rig.outcome_source`` values (physical backend).
+OUTCOME_SOURCES = ("operator", "imu")
+#: Start of the ``classifying`` feedback detail while the rig waits for the operator's outcome.
+ASK_OUTCOME = "record the outcome"
+#: Start of the ``waiting_for_operator`` detail while the rig waits for the regulator confirmation.
+ASK_REGULATOR = "set the regulator"
+
+
+class LaunchAborted(RuntimeError):
+    """A launch ended without an outcome (valve refused or cut the pulse, operator timeout, cancel)."""
+
+
+@dataclasses.dataclass
+class RigSettings:
+    """``rig.*``: the rig node's own settings (the valve, speed gate and IMU have their own namespaces)."""
+
+    backend: str = "sim"
+    configurations: typing.List[str] = dataclasses.field(default_factory=lambda: ["baseline", "A", "B", "C"])
+    outcome_source: str = "operator"
+    countdown_s: float = 1.0
+    operator_timeout_s: float = 600.0
+    imu_override_s: float = 2.0
+    valve_timeout_s: float = 5.0
+    seed: int = 0
+    twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"])
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if self.backend not in RIG_BACKENDS:
+            raise ValueError(f"backend must be one of {RIG_BACKENDS}, got {self.backend!r}")
+        if not self.configurations or not all(self.configurations):
+            raise ValueError("configurations must list the configuration ids the rig can launch")
+        if self.outcome_source not in OUTCOME_SOURCES:
+            raise ValueError(f"outcome_source must be one of {OUTCOME_SOURCES}, got {self.outcome_source!r}")
+        if not 0 <= self.countdown_s < math.inf or not 0 <= self.imu_override_s < math.inf:
+            raise ValueError("countdown_s and imu_override_s must be finite and >= 0")
+        if not 0 < self.operator_timeout_s < math.inf or not 0 < self.valve_timeout_s < math.inf:
+            raise ValueError("operator_timeout_s and valve_timeout_s must be finite and > 0")
+
+
+def check_goal(run_id, trial_id, condition, configurations):
+    """Refuse a launch goal that cannot run; returns the reason ("" when acceptable).
+
+    Parameters
+    ----------
+    run_id, trial_id : str
+        Must be non-empty (the outcome is stored under them).
+    condition : LaunchCondition
+        Checked with :meth:`LaunchCondition.validate` (NaN, negative height, ...).
+    configurations : sequence of str
+        Configuration ids this rig knows.
+    """
+    if not run_id or not trial_id:
+        return "run_id and trial_id must be non-empty"
+    try:
+        condition.validate()
+    except ValueError as exc:
+        return f"bad condition: {exc}"
+    if condition.configuration not in configurations:
+        return f"unknown configuration {condition.configuration!r} (known: {', '.join(configurations)})"
+    return ""
+
+
+@dataclasses.dataclass(frozen=True)
+class OperatorOutcome:
+    """The operator's classification of a launch: upright, optional travel time (s, NaN if not timed), note."""
+
+    upright: bool
+    travel_time_s: float = NOT_MEASURED
+    note: str = ""
+
+
+def parse_outcome_answer(text):
+    """Parse a typed outcome ``"y|n [travel time s] [note...]"`` into an :class:`OperatorOutcome`.
+
+    ``y``/``yes``/``u``/``upright`` mean upright, ``n``/``no``/``t``/``tipped`` not; raises ``ValueError`` otherwise.
+    """
+    words = text.split()
+    if not words:
+        raise ValueError("type y (upright) or n (not upright), optionally the travel time in s and a note")
+    verdict = words[0].lower()
+    if verdict not in ("y", "yes", "u", "upright", "n", "no", "t", "tipped"):
+        raise ValueError(f"first word must be y (upright) or n (not upright), got {words[0]!r}")
+    travel_time_s, rest = NOT_MEASURED, words[1:]
+    if rest:
+        try:
+            travel_time_s = float(rest[0])
+            rest = rest[1:]
+        except ValueError:
+            pass
+        if not (math.isnan(travel_time_s) or 0 < travel_time_s < math.inf):
+            raise ValueError(f"travel time must be > 0 s, got {travel_time_s}")
+    return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest))
+
+
+class OperatorChannel:
+    """One pending question to the operator (regulator confirmation or launch outcome) and its answer.
+
+    The launch opens a question, announces it (feedback), then waits; answers come from any thread. An answer
+    with no open question of its kind is refused with a reason, so a late or stray service call changes nothing.
+    """
+
+    def __init__(self):
+        self._cond = threading.Condition()
+        self._kind = None      # "confirm" | "outcome" | None
+        self._trial_id = ""
+        self._answer = None
+
+    def open(self, kind, trial_id=""):
+        """Start waiting for a ``"confirm"`` or an ``"outcome"`` (of ``trial_id``)."""
+        if kind not in ("confirm", "outcome"):
+            raise ValueError(f"kind must be 'confirm' or 'outcome', got {kind!r}")
+        with self._cond:
+            self._kind, self._trial_id, self._answer = kind, trial_id, None
+
+    def close(self):
+        """Stop waiting; later answers are refused."""
+        with self._cond:
+            self._kind, self._answer = None, None
+            self._cond.notify_all()
+
+    @property
+    def waiting_for(self):
+        """``"confirm"``, ``"outcome"`` or None."""
+        with self._cond:
+            return self._kind
+
+    def _deliver(self, kind, answer, trial_id=""):
+        with self._cond:
+            if self._kind != kind:
+                what = "a regulator confirmation" if kind == "confirm" else "an outcome"
+                return False, f"the rig is not waiting for {what}" + (
+                    f" (it waits for {'a confirmation' if self._kind == 'confirm' else 'an outcome'})"
+                    if self._kind else "")
+            if trial_id and trial_id != self._trial_id:
+                return False, f"the rig waits for the outcome of {self._trial_id!r}, not {trial_id!r}"
+            if self._answer is not None:
+                return False, "already answered"
+            self._answer = answer
+            self._cond.notify_all()
+            return True, "accepted"
+
+    def confirm(self):
+        """Answer an open regulator confirmation. Returns ``(accepted, message)``."""
+        return self._deliver("confirm", True)
+
+    def record_outcome(self, outcome, trial_id=""):
+        """Answer an open outcome question with an :class:`OperatorOutcome` (``trial_id`` "" = the current one)."""
+        return self._deliver("outcome", outcome, trial_id)
+
+    def wait(self, timeout_s, cancelled=lambda: False, poll_s=0.05):
+        """Return the answer once given, or None on timeout / ``cancelled()``; the question stays open."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while self._answer is None:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0 or cancelled() or self._kind is None:
+                    return None
+                self._cond.wait(min(poll_s, remaining))
+            return self._answer
+
+
+class ImuOutcome:
+    """The upright classifier fed from the IMU topic; a launch resets it at firing and waits for its verdict."""
+
+    def __init__(self, config):
+        self.config = config
+        self._classifier = ImuUprightClassifier.from_config(config)
+        self._cond = threading.Condition()
+        self._reading = None
+
+    def reset(self):
+        """Forget everything before the launch (a chassis waiting on the launcher looks settled too)."""
+        with self._cond:
+            self._classifier.reset()
+            self._reading = None
+
+    def feed(self, sample):
+        """Classify one :class:`~rollability_ros.core.imu.upright.ImuSample`; bad samples raise ``ValueError``."""
+        with self._cond:
+            self._reading = self._classifier.update(sample)
+            if self._reading.classification is not None:
+                self._cond.notify_all()
+
+    def wait_settled(self, timeout_s, cancelled=lambda: False, poll_s=0.05):
+        """The first settled :class:`~rollability_ros.core.imu.upright.UprightReading`, or None on timeout/cancel."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while self._reading is None or self._reading.classification is None:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0 or cancelled():
+                    return None
+                self._cond.wait(min(poll_s, remaining))
+            return self._reading
+
+
+def _no_phase(phase, detail):
+    """Default ``on_phase``: ignore."""
+
+
+class PhysicalLaunch:
+    """Runs launches on the physical rig through its ports (see the module docstring).
+
+    Parameters
+    ----------
+    settings : RigSettings
+    valve, speed_gate, operator, imu
+        The ports; ``imu`` may be None when ``settings.outcome_source == "operator"``.
+    speed_config : SpeedGateConfig
+        Run length, tolerance and gate timeout.
+    launch_pulse_ms : int
+        Valve pulse per launch, ms.
+    regulator : RegulatorConfig
+        Pressure per target speed; the operator confirms it at each change of speed block.
+    """
+
+    def __init__(self, settings, valve, speed_gate, speed_config, launch_pulse_ms, regulator, operator, imu=None):
+        if settings.outcome_source == "imu" and imu is None:
+            raise ValueError("outcome_source 'imu' needs an ImuOutcome")
+        self.settings = settings
+        self.valve = valve
+        self.speed_gate = speed_gate
+        self.speed_config = speed_config
+        self.launch_pulse_ms = launch_pulse_ms
+        self.regulator = regulator
+        self.operator = operator
+        self.imu = imu
+        self._confirmed_psi = None
+
+    def check(self, run_id, trial_id, condition):
+        """:func:`check_goal` plus a configured regulator pressure for the speed; returns the reason or ""."""
+        reason = check_goal(run_id, trial_id, condition, self.settings.configurations)
+        if reason:
+            return reason
+        try:
+            self.regulator.pressure_psi(condition.speed_mps)
+        except ValueError as exc:
+            return str(exc)
+        return ""
+
+    def _ask(self, kind, trial_id, phase, detail, on_phase, cancelled):
+        self.operator.open(kind, trial_id)
+        try:
+            on_phase(phase, detail)
+            answer = self.operator.wait(self.settings.operator_timeout_s, cancelled)
+        finally:
+            self.operator.close()
+        if answer is None:
+            raise LaunchAborted("cancelled while waiting for the operator" if cancelled()
+                                else f"no operator answer within {self.settings.operator_timeout_s:g} s ({detail})")
+        return answer
+
+    def _disarm_unless_faulted(self):
+        status = self.valve.status()
+        if status.armed and not status.fault:
+            self.valve.disarm()
+
+    def launch(self, run_id, trial_id, condition, on_phase=_no_phase, cancelled=lambda: False):
+        """Run one launch and return its :class:`LaunchOutcome` (``backend="physical"``).
+
+        ``on_phase(phase, detail)`` reports progress; ``cancelled()`` aborts at the next wait. Raises
+        ``ValueError`` for a goal :meth:`check` refuses and :class:`LaunchAborted` when no outcome was obtained.
+        """
+        reason = self.check(run_id, trial_id, condition)
+        if reason:
+            raise ValueError(reason)
+        pressure_psi = self.regulator.pressure_psi(condition.speed_mps)
+        if pressure_psi != self._confirmed_psi:
+            self._ask("confirm", trial_id, "waiting_for_operator",
+                      f"{ASK_REGULATOR} to {pressure_psi:g} psi for {condition.speed_mps:g} m/s, then confirm",
+                      on_phase, cancelled)
+            self._confirmed_psi = pressure_psi
+        travel_time_s = self._fire(condition, on_phase, cancelled)
+        on_phase("settling", "waiting for the chassis to come to rest")
+        operator, reading = self._classify(trial_id, on_phase, cancelled)
+        if operator is not None and not math.isnan(operator.travel_time_s) and math.isnan(travel_time_s):
+            travel_time_s = operator.travel_time_s
+        speed = self.speed_config.measure(condition.speed_mps, travel_time_s)
+        notes = [speed_note(speed, condition.speed_mps, self.speed_config.tolerance_fraction)]
+        if operator is not None and reading is not None and operator.upright != reading.upright:
+            notes.append(f"operator overrode the IMU ({'upright' if reading.upright else 'not upright'}, "
+                         f"tilt {reading.tilt_deg:.1f} deg)")
+        if operator is not None and operator.note:
+            notes.append(operator.note)
+        return LaunchOutcome(
+            run_id=run_id, trial_id=trial_id, condition=condition, backend="physical",
+            upright=operator.upright if operator is not None else reading.upright,
+            travel_time_s=speed.travel_time_s, measured_speed_mps=speed.measured_speed_mps,
+            speed_out_of_tolerance=speed.speed_out_of_tolerance,
+            final_orientation=tuple(reading.orientation) if reading is not None else (0.0, 0.0, 0.0, 1.0),
+            classified_by="operator" if operator is not None else "imu", note="; ".join(filter(None, notes)),
+            stamp_s=time.time())
+
+    def _fire(self, condition, on_phase, cancelled):
+        """Arm, count down, fire, read the speed gate, disarm; returns the gate's travel time (s, NaN if none)."""
+        ok, reason = self.valve.arm()
+        if not ok:
+            raise LaunchAborted(f"valve refused to arm: {reason}")
+        try:
+            on_phase("armed", f"valve armed; firing in {self.settings.countdown_s:g} s, stand clear")
+            self.speed_gate.arm(condition.speed_mps)
+            if self.imu is not None:
+                self.imu.reset()
+            deadline = time.monotonic() + self.settings.countdown_s
+            while time.monotonic() < deadline:
+                if cancelled():
+                    raise LaunchAborted("cancelled before firing")
+                if self.valve.status().fault:
+                    break  # the fire below is refused with the fault's reason
+                time.sleep(min(0.02, max(0.0, deadline - time.monotonic())))
+            ok, reason = self.valve.fire(self.launch_pulse_ms)
+            if not ok:
+                raise LaunchAborted(f"valve did not fire: {reason}")
+            on_phase("fired", f"valve pulsed {self.launch_pulse_ms} ms")
+            on_phase("in_flight", "timing the run over the light gates")
+            return self.speed_gate.read_travel_time(self.speed_config.timeout_s)
+        finally:
+            self._disarm_unless_faulted()
+
+    def _classify(self, trial_id, on_phase, cancelled):
+        """Return ``(operator outcome or None, IMU reading or None)``; at least one is not None."""
+        if self.settings.outcome_source == "imu":
+            # operator answers are accepted from now on: an override may come at any time before the verdict
+            self.operator.open("outcome", trial_id)
+            try:
+                reading = self.imu.wait_settled(self.imu.config.settle_timeout_s, cancelled)
+                if cancelled():
+                    raise LaunchAborted("cancelled while the chassis settled")
+                if reading is not None:
+                    on_phase("classifying", f"IMU: {'upright' if reading.upright else 'not upright'} (tilt "
+                                            f"{reading.tilt_deg:.1f} deg); operator may override within "
+                                            f"{self.settings.imu_override_s:g} s")
+                    return self.operator.wait(self.settings.imu_override_s, cancelled), reading
+            finally:
+                self.operator.close()
+        detail = f"{ASK_OUTCOME} of {trial_id}: upright or not" + (
+            " (the IMU did not see the chassis settle)" if self.settings.outcome_source == "imu" else "")
+        return self._ask("outcome", trial_id, "classifying", detail, on_phase, cancelled), None
+
+
+class SimulatedLaunch:
+    """Launches on the launch twin (``rollability_ros.core.sim.launch_twin``), imported at the first launch so the
+    physical rig runs without pybullet installed.
+
+    Parameters
+    ----------
+    settings : RigSettings
+        ``seed`` is mixed with each trial id (:func:`trial_seed`), so a trial's outcome is reproducible;
+        ``twin_config`` lists the twin's parameter files (shipped names or paths).
+    speed_config : SpeedGateConfig
+        Tolerance of the speed check on the twin's travel time.
+    """
+
+    def __init__(self, settings, speed_config):
+        self.settings = settings
+        self.speed_config = speed_config
+        self._twin = None
+        self._twin_settings = None
+
+    def load(self):
+        """Import the twin and read its settings now (a node does it at start-up to fail early)."""
+        if self._twin is None:
+            twin = importlib.import_module("rollability_ros.core.sim.launch_twin")
+            self._twin_settings = twin.load_launch_twin_settings(self.settings.twin_config)
+            self._twin = twin
+        return self._twin
+
+    def launch(self, run_id, trial_id, condition, on_phase=_no_phase, on_pose=None):
+        """Simulate one launch and return its :class:`LaunchOutcome` (``backend="sim"``).
+
+        ``on_pose(t_s, position_m, orientation_xyzw)`` receives the chassis pose (simulated s from the push).
+        """
+        twin = self.load()
+        result = twin.simulate_launch(condition, self._twin_settings, trial_seed(self.settings.seed, trial_id),
+                                      on_phase=lambda phase: on_phase(phase, "launch twin"), on_pose=on_pose)
+        return simulated_outcome(run_id, trial_id, condition, result, self.speed_config)
+
+
+def speed_note(speed, target_mps, tolerance_fraction):
+    """The outcome note for a flagged :class:`~rollability_ros.core.rig.speed_gate.SpeedMeasurement` ("" if not)."""
+    if not speed.speed_out_of_tolerance:
+        return ""
+    return (f"speed {speed.measured_speed_mps:.3f} m/s is more than {tolerance_fraction:.0%} off the target "
+            f"{target_mps:g} m/s")
+
+
+def trial_seed(base_seed, trial_id):
+    """A reproducible per-trial seed (same in every process, unlike ``hash``): ``base_seed`` mixed with the id."""
+    return (zlib.crc32(trial_id.encode("utf-8")) ^ (base_seed & 0xFFFFFFFF)) & 0x7FFFFFFF
+
+
+def simulated_outcome(run_id, trial_id, condition, result, speed_config):
+    """The :class:`LaunchOutcome` of a launch twin result (``upright``, ``final_orientation_xyzw``,
+    ``travel_time_s``), with the speed flagged against ``speed_config``'s tolerance."""
+    travel_time_s = float(getattr(result, "travel_time_s", NOT_MEASURED))
+    if not travel_time_s > 0:
+        travel_time_s = NOT_MEASURED
+    speed = speed_config.measure(condition.speed_mps, travel_time_s)
+    note = speed_note(speed, condition.speed_mps, speed_config.tolerance_fraction)
+    return LaunchOutcome(
+        run_id=run_id, trial_id=trial_id, condition=condition, backend="sim", upright=bool(result.upright),
+        travel_time_s=speed.travel_time_s, measured_speed_mps=speed.measured_speed_mps,
+        speed_out_of_tolerance=speed.speed_out_of_tolerance,
+        final_orientation=tuple(float(v) for v in result.final_orientation_xyzw), classified_by="sim", note=note,
+        stamp_s=time.time())
+

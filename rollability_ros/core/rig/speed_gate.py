@@ -1,0 +1,301 @@
+"""Launch speed validation: travel time over the launch run -> measured speed -> flagged when off target.
+
+The chassis crosses two light gates ``run_length_m`` apart (the 0.34 m run to the edge, paper 2.2); the travel
+time between them gives the measured speed. Gates: :class:`SimulatedSpeedGate` (target speed plus noise),
+:class:`GpioSpeedGate` (two libgpiod lines, kernel edge timestamps) and :class:`OperatorSpeedGate` (typed in).
+Each has ``arm(target_mps)`` (before firing), ``read_travel_time(timeout_s) -> s`` (NaN when not measured) and
+``release()``.
+"""
+import dataclasses
+import datetime
+import logging
+import math
+import random
+import time
+
+from rollability_ros.core.optional import require
+from rollability_ros.core.results.records import NOT_MEASURED
+from rollability_ros.core.rig.valve_backends import gpio_chip_path
+
+_LOG = logging.getLogger(__name__)
+
+#: ``SpeedGateConfig.backend`` values.
+BACKENDS = ("simulated", "gpio", "operator")
+
+
+def _positive(name, value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+def travel_speed(run_length_m, travel_time_s):
+    """Return the mean speed (m/s) over ``run_length_m`` (m) covered in ``travel_time_s`` (s)."""
+    _positive("run_length_m", run_length_m)
+    _positive("travel_time_s", travel_time_s)
+    return run_length_m / travel_time_s
+
+
+def expected_travel_time(run_length_m, target_mps):
+    """Return the travel time (s) over ``run_length_m`` (m) at ``target_mps`` (m/s): 0.34 m at 0.8 m/s -> 0.425 s."""
+    _positive("run_length_m", run_length_m)
+    _positive("target_mps", target_mps)
+    return run_length_m / target_mps
+
+
+def check_speed(target_mps, measured_mps, tolerance):
+    """Return True (flagged) when ``measured_mps`` is more than ``tolerance`` (fraction) off ``target_mps``.
+
+    A NaN measurement (not measured) is not flagged: the outcome's NaN speed already says so.
+    """
+    _positive("target_mps", target_mps)
+    if not 0 <= tolerance < math.inf:
+        raise ValueError(f"tolerance must be a fraction >= 0, got {tolerance!r}")
+    if math.isnan(measured_mps):
+        return False
+    return abs(measured_mps - target_mps) > tolerance * target_mps
+
+
+@dataclasses.dataclass(frozen=True)
+class SpeedMeasurement:
+    """The speed fields of a launch outcome (``LaunchOutcome`` names)."""
+
+    travel_time_s: float
+    measured_speed_mps: float
+    speed_out_of_tolerance: bool
+
+
+def measure(target_mps, travel_time_s, run_length_m, tolerance):
+    """Turn a travel time (s, NaN if not measured) into a :class:`SpeedMeasurement` for a launch at ``target_mps``."""
+    if math.isnan(travel_time_s):
+        return SpeedMeasurement(NOT_MEASURED, NOT_MEASURED, False)
+    speed_mps = travel_speed(run_length_m, travel_time_s)
+    return SpeedMeasurement(travel_time_s, speed_mps, check_speed(target_mps, speed_mps, tolerance))
+
+
+class SimulatedSpeedGate:
+    """Edge times of a chassis launched at the target speed times ``1 + N(0, speed_noise_fraction)``."""
+
+    def __init__(self, run_length_m, speed_noise_fraction=0.0, seed=0, clock=time.monotonic):
+        _positive("run_length_m", run_length_m)
+        if not 0 <= speed_noise_fraction < 1:
+            raise ValueError(f"speed_noise_fraction must be in [0, 1), got {speed_noise_fraction!r}")
+        self.run_length_m = run_length_m
+        self.speed_noise_fraction = speed_noise_fraction
+        self._random = random.Random(seed)
+        self._clock = clock
+        self._target_mps = None
+
+    def arm(self, target_mps):
+        """Prepare for a launch at ``target_mps`` (m/s)."""
+        _positive("target_mps", target_mps)
+        self._target_mps = target_mps
+
+    def edge_times(self):
+        """Return ``(start_s, end_s)`` gate edges (steady clock, s) of the armed launch, starting now."""
+        if self._target_mps is None:
+            raise RuntimeError("arm(target_mps) the simulated speed gate before reading it")
+        speed_mps = self._target_mps * max(0.05, 1.0 + self._random.gauss(0.0, self.speed_noise_fraction))
+        start_s = self._clock()
+        return start_s, start_s + self.run_length_m / speed_mps
+
+    def read_travel_time(self, timeout_s):
+        """Travel time (s) of the armed launch; NaN if it would exceed ``timeout_s``. Does not sleep."""
+        start_s, end_s = self.edge_times()
+        self._target_mps = None
+        travel_time_s = end_s - start_s
+        return travel_time_s if travel_time_s <= timeout_s else NOT_MEASURED
+
+    def release(self):
+        """Nothing to free."""
+
+
+def _check_gate_lines(start_line_offset, end_line_offset, edge, debounce_ms):
+    if start_line_offset == end_line_offset or min(start_line_offset, end_line_offset) < 0:
+        raise ValueError(f"start_line_offset and end_line_offset must be two different offsets >= 0, got "
+                         f"{start_line_offset} and {end_line_offset}")
+    if edge not in ("falling", "rising"):
+        raise ValueError(f"edge must be 'falling' or 'rising', got {edge!r}")
+    if not 0 <= debounce_ms < math.inf:
+        raise ValueError(f"debounce_ms must be >= 0, got {debounce_ms}")
+
+
+class GpioSpeedGate:
+    """Two light gates on GPIO input lines; the travel time comes from the kernel's edge-event timestamps.
+
+    Parameters
+    ----------
+    chip : str
+        GPIO chip device, ``/dev/gpiochipN`` or ``gpiochipN``.
+    start_line_offset, end_line_offset : int
+        Lines of the gate at the start of the run and of the gate at the edge.
+    edge : str
+        ``"falling"`` or ``"rising"``: the edge a broken beam produces.
+    debounce_ms : float
+        Kernel debounce period of both lines, ms (0 disables).
+    """
+
+    def __init__(self, chip, start_line_offset, end_line_offset, edge="falling", debounce_ms=1.0,
+                 consumer="rollability-speed-gate"):
+        _check_gate_lines(start_line_offset, end_line_offset, edge, debounce_ms)
+        self.chip_path = gpio_chip_path(chip)
+        self.start_line_offset = start_line_offset
+        self.end_line_offset = end_line_offset
+        self.edge = edge
+        self.debounce_ms = debounce_ms
+        self.consumer = consumer
+        self._request = None
+
+    def open(self):
+        """Request both lines as inputs with edge detection and monotonic event timestamps."""
+        gpiod = require("gpiod", feature="the gpio speed gate")
+        settings = gpiod.LineSettings(
+            direction=gpiod.line.Direction.INPUT,
+            edge_detection=gpiod.line.Edge.FALLING if self.edge == "falling" else gpiod.line.Edge.RISING,
+            debounce_period=datetime.timedelta(milliseconds=self.debounce_ms),
+            event_clock=gpiod.line.Clock.MONOTONIC,
+        )
+        self._request = gpiod.request_lines(self.chip_path, consumer=self.consumer,
+                                            config={(self.start_line_offset, self.end_line_offset): settings})
+
+    def _drain(self):
+        while self._request.wait_edge_events(0):
+            self._request.read_edge_events()
+
+    def arm(self, target_mps):
+        """Open the lines if needed and drop stale edges (a hand through a beam before the launch)."""
+        _positive("target_mps", target_mps)
+        if self._request is None:
+            self.open()
+        self._drain()
+
+    def read_travel_time(self, timeout_s, clock=time.monotonic):
+        """Wait for a start-gate edge and then an end-gate edge; return the time between them (s), NaN on timeout."""
+        if self._request is None:
+            raise RuntimeError("arm() the gpio speed gate before reading it")
+        deadline = clock() + timeout_s
+        start_ns = None
+        while True:
+            remaining_s = deadline - clock()
+            if remaining_s <= 0 or not self._request.wait_edge_events(remaining_s):
+                _LOG.warning("speed gate: %s edge not seen within %.2f s", "start" if start_ns is None else "end",
+                             timeout_s)
+                return NOT_MEASURED
+            for event in self._request.read_edge_events():
+                if start_ns is None and event.line_offset == self.start_line_offset:
+                    start_ns = event.timestamp_ns
+                elif start_ns is not None and event.line_offset == self.end_line_offset:
+                    return (event.timestamp_ns - start_ns) / 1e9
+
+    def release(self):
+        """Release both lines."""
+        if self._request is not None:
+            self._request.release()
+            self._request = None
+
+
+def parse_travel_time(text):
+    """Parse an operator-typed travel time in seconds; blank means not measured (NaN). Raises ``ValueError``."""
+    text = text.strip()
+    if not text:
+        return NOT_MEASURED
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"travel time must be a number of seconds, got {text!r}") from None
+    _positive("travel time", value)
+    return value
+
+
+class OperatorSpeedGate:
+    """The operator times the run (stopwatch, video) and types the travel time in.
+
+    ``ask(prompt) -> str`` is the terminal's ``input`` or a service-backed equivalent; invalid answers are
+    asked again, a blank answer means not measured.
+    """
+
+    def __init__(self, ask, run_length_m):
+        self._ask = ask
+        self.run_length_m = run_length_m
+        self._target_mps = None
+
+    def arm(self, target_mps):
+        """Remember the target to show the expected time in the prompt."""
+        _positive("target_mps", target_mps)
+        self._target_mps = target_mps
+
+    def read_travel_time(self, timeout_s=None):
+        """Ask until a valid time (s) or a blank (NaN) is typed; ``timeout_s`` is the operator's business."""
+        expected = expected_travel_time(self.run_length_m, self._target_mps) if self._target_mps else None
+        prompt = "travel time over the run, s" + (f" (expected {expected:.2f} s)" if expected else "") + \
+            ", blank if not measured: "
+        while True:
+            try:
+                return parse_travel_time(self._ask(prompt))
+            except ValueError as exc:
+                prompt = f"{exc}; try again: "
+
+    def release(self):
+        """Nothing to free."""
+
+
+@dataclasses.dataclass
+class SimulatedGateConfig:
+    """``speed_gate.simulated.*``."""
+
+    speed_noise_fraction: float = 0.03
+    seed: int = 0
+
+
+@dataclasses.dataclass
+class GpioGateConfig:
+    """``speed_gate.gpio.*``."""
+
+    chip: str = "/dev/gpiochip0"
+    start_line_offset: int = 22
+    end_line_offset: int = 23
+    edge: str = "falling"
+    debounce_ms: float = 1.0
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        _check_gate_lines(self.start_line_offset, self.end_line_offset, self.edge, self.debounce_ms)
+
+
+@dataclasses.dataclass
+class SpeedGateConfig:
+    """``speed_gate.*`` of ``config/rig.yaml``."""
+
+    backend: str = "simulated"
+    run_length_m: float = 0.34
+    tolerance_fraction: float = 0.15
+    timeout_s: float = 3.0
+    simulated: SimulatedGateConfig = dataclasses.field(default_factory=SimulatedGateConfig)
+    gpio: GpioGateConfig = dataclasses.field(default_factory=GpioGateConfig)
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if self.backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
+        if not self.run_length_m > 0 or not self.timeout_s > 0:
+            raise ValueError("run_length_m and timeout_s must be > 0")
+        if not 0 < self.tolerance_fraction < 1:
+            raise ValueError(f"tolerance_fraction must be in (0, 1), got {self.tolerance_fraction}")
+        if not 0 <= self.simulated.speed_noise_fraction < 1:
+            raise ValueError(f"simulated.speed_noise_fraction must be in [0, 1), got "
+                             f"{self.simulated.speed_noise_fraction}")
+
+    def measure(self, target_mps, travel_time_s):
+        """:func:`measure` with this configuration's run length and tolerance."""
+        return measure(target_mps, travel_time_s, self.run_length_m, self.tolerance_fraction)
+
+
+def make_speed_gate(config, ask=input):
+    """Build the gate named by a :class:`SpeedGateConfig`; ``ask`` is used by the operator gate only."""
+    if config.backend == "simulated":
+        return SimulatedSpeedGate(config.run_length_m, config.simulated.speed_noise_fraction, config.simulated.seed)
+    if config.backend == "gpio":
+        g = config.gpio
+        return GpioSpeedGate(g.chip, g.start_line_offset, g.end_line_offset, g.edge, g.debounce_ms)
+    if config.backend == "operator":
+        return OperatorSpeedGate(ask, config.run_length_m)
+    raise ValueError(f"unknown speed gate backend {config.backend!r}")

@@ -1,0 +1,409 @@
+"""The launcher's solenoid valve as a fail-closed state machine, and the valve's configuration.
+
+:class:`ValveController` owns one backend (:mod:`rollability_ros.core.rig.valve_backends`) and is the only thing that
+commands it. The valve is driven closed explicitly at start, on disarm, on e-stop, on a missed rig heartbeat, on
+a backend error, at the end of every pulse and at shutdown; a fire is refused unless armed and fault-free, and
+its length is bounded by ``max_pulse_ms``.
+
+Re-arming after a fault: a fault (e-stop, watchdog, backend error) disarms the valve and latches. ``arm()`` is
+refused while a fault is latched; the operator acknowledges it with ``disarm()`` (which drives the valve closed
+again and clears the fault if that close succeeds) and then calls ``arm()``.
+
+Thread model: ``fire()`` blocks for the pulse without holding the controller's lock, so ``estop()``,
+``check_watchdog()`` and ``disarm()`` from other threads cut a running pulse at once.
+"""
+import dataclasses
+import logging
+import math
+import threading
+import time
+
+_LOG = logging.getLogger(__name__)
+
+#: ``ValveConfig.backend`` values (the ``backend`` field of ``msg/ValveState.msg``).
+BACKENDS = ("dry_run", "gpio", "serial_relay")
+
+
+@dataclasses.dataclass(frozen=True)
+class ValveStatus:
+    """One valve state (``msg/ValveState.msg`` without the header).
+
+    ``open`` is True from the moment an open command is issued until a close command succeeds, so after a
+    failed close it stays True: the valve is not known to be closed.
+    """
+
+    armed: bool
+    open: bool
+    fault: bool
+    fault_reason: str
+    backend: str
+    last_pulse_ms: int
+    pulses: int
+
+
+class ValveController:
+    """Fail-closed controller of the launcher valve.
+
+    Parameters
+    ----------
+    backend : valve backend
+        Object with ``name``, ``open()``, ``open_valve()``, ``close_valve()``, ``release()``
+        (see :mod:`rollability_ros.core.rig.valve_backends`).
+    max_pulse_ms : int
+        Longest pulse ever fired, ms; longer requests are refused.
+    watchdog_ms : int
+        While armed, the rig must call :meth:`heartbeat` at least this often, ms; otherwise
+        :meth:`check_watchdog` closes the valve and latches a fault.
+    clock : callable
+        Steady clock in seconds (``time.monotonic``); never ROS time, so sim time cannot stall the watchdog.
+    on_state : callable, optional
+        Called with a :class:`ValveStatus` after every state change (also logged). Exceptions it raises are
+        logged and swallowed: a broken publisher must not keep the valve open.
+    """
+
+    def __init__(self, backend, max_pulse_ms, watchdog_ms, clock=time.monotonic, on_state=None):
+        if not isinstance(max_pulse_ms, (int, float)) or not 0 < max_pulse_ms < math.inf:
+            raise ValueError(f"max_pulse_ms must be a positive number, got {max_pulse_ms!r}")
+        if not isinstance(watchdog_ms, (int, float)) or not 0 < watchdog_ms < math.inf:
+            raise ValueError(f"watchdog_ms must be a positive number, got {watchdog_ms!r}")
+        self._backend = backend
+        self.max_pulse_ms = max_pulse_ms
+        self.watchdog_ms = watchdog_ms
+        self._clock = clock
+        self._on_state = on_state
+        self._lock = threading.RLock()
+        self._cut = threading.Event()          # set to end a running pulse early
+        self._backend_started = False
+        self._armed = False
+        self._open = False
+        self._fault_reason = ""
+        self._last_pulse_ms = 0
+        self._pulses = 0
+        self._firing = False
+        self._shut_down = False
+        self._released = False
+        self._last_heartbeat = clock()
+        self._watchdog_stop = None
+        with self._lock:
+            self._drive_closed()
+            self._emit("started")
+
+    # ------------------------------------------------------------------ state
+    def status(self):
+        """Return the current :class:`ValveStatus`."""
+        with self._lock:
+            return ValveStatus(
+                armed=self._armed, open=self._open, fault=bool(self._fault_reason), fault_reason=self._fault_reason,
+                backend=getattr(self._backend, "name", type(self._backend).__name__),
+                last_pulse_ms=int(self._last_pulse_ms), pulses=self._pulses,
+            )
+
+    def _emit(self, event):
+        status = self.status()
+        level = logging.ERROR if status.fault else logging.INFO
+        _LOG.log(level, "valve %s: armed=%s open=%s fault=%s%s pulses=%d last_pulse_ms=%d", event, status.armed,
+                 status.open, status.fault, f" ({status.fault_reason})" if status.fault else "", status.pulses,
+                 status.last_pulse_ms)
+        if self._on_state is not None:
+            try:
+                self._on_state(status)
+            except Exception:  # noqa: BLE001 - a failing subscriber must not break the safety path
+                _LOG.exception("valve on_state callback failed")
+
+    def _latch_fault(self, reason):
+        """Record the first fault reason (later ones are appended) and disarm."""
+        self._fault_reason = f"{self._fault_reason}; {reason}" if self._fault_reason else reason
+        self._armed = False
+
+    def _drive_closed(self):
+        """Command the valve closed (starting the backend if needed); a failure latches a fault. Lock held."""
+        if self._released:
+            return True  # release() already drove it closed; the backend is gone
+        try:
+            if not self._backend_started:
+                self._backend.open()
+                self._backend_started = True
+            self._backend.close_valve()
+        except Exception as exc:  # noqa: BLE001 - any backend failure is a fault, whatever its type
+            self._latch_fault(f"backend error on close: {exc}")
+            return False
+        self._open = False
+        return True
+
+    # --------------------------------------------------------------- commands
+    def arm(self):
+        """Allow firing. Returns ``(ok, reason)``; refused while a fault is latched or after shutdown."""
+        with self._lock:
+            if self._shut_down:
+                return False, "valve controller is shut down"
+            if self._fault_reason:
+                return False, f"fault latched ({self._fault_reason}); disarm to acknowledge, then arm"
+            if self._armed:
+                return True, "already armed"
+            self._armed = True
+            self._last_heartbeat = self._clock()  # the heartbeat window starts at arming
+            self._emit("armed")
+            return True, "armed"
+
+    def disarm(self):
+        """Drive the valve closed, disarm and clear a latched fault. Returns ``(ok, reason)``.
+
+        The fault is cleared only if the close command succeeds; otherwise a new fault stays latched.
+        """
+        with self._lock:
+            self._cut.set()
+            self._armed = False
+            self._fault_reason = ""
+            closed = self._drive_closed()
+            self._emit("disarmed")
+            if not closed:
+                return False, f"disarmed but the close command failed: {self._fault_reason}"
+            return True, "disarmed, valve closed"
+
+    def estop(self, reason="e-stop"):
+        """Latch a fault, cut any pulse and drive the valve closed."""
+        with self._lock:
+            self._latch_fault(reason)
+            self._cut.set()
+            self._drive_closed()
+            self._emit("e-stop")
+
+    def heartbeat(self):
+        """Record a heartbeat from the rig (steady clock)."""
+        with self._lock:
+            self._last_heartbeat = self._clock()
+
+    def check_watchdog(self):
+        """Trip if armed and the last heartbeat is older than ``watchdog_ms``. Returns True when it tripped now."""
+        with self._lock:
+            if not self._armed or self._fault_reason:
+                return False
+            silent_ms = (self._clock() - self._last_heartbeat) * 1000.0
+            if silent_ms <= self.watchdog_ms:
+                return False
+            self._latch_fault(f"watchdog: no rig heartbeat for {silent_ms:.0f} ms (limit {self.watchdog_ms} ms)")
+            self._cut.set()
+            self._drive_closed()
+            self._emit("watchdog trip")
+            return True
+
+    def fire(self, pulse_ms):
+        """Open the valve for ``pulse_ms`` ms, then drive it closed. Blocks for the pulse.
+
+        Returns ``(ok, reason)``. Refused (valve untouched) when shut down, disarmed, faulted, already firing,
+        or ``pulse_ms`` is not in ``(0, max_pulse_ms]``. The pulse ends early on e-stop, watchdog trip or
+        disarm; the valve is driven closed at the end whatever happens, exceptions included.
+        """
+        with self._lock:
+            refusal = self._refusal(pulse_ms)
+            if refusal:
+                _LOG.warning("valve fire of %r ms refused: %s", pulse_ms, refusal)
+                return False, refusal
+            self._firing = True
+            self._cut.clear()
+            self._open = True  # from here on the valve may be open until a close succeeds
+            try:
+                self._backend.open_valve()
+            except Exception as exc:  # noqa: BLE001
+                self._latch_fault(f"backend error on open: {exc}")
+                self._drive_closed()
+                self._firing = False
+                self._emit("fire failed")
+                return False, self._fault_reason
+            opened_at = self._clock()
+            self._emit("open")
+        cut_early = True
+        try:
+            cut_early = self._cut.wait(pulse_ms / 1000.0)
+        finally:
+            with self._lock:
+                held_ms = (self._clock() - opened_at) * 1000.0
+                closed = self._drive_closed()
+                self._last_pulse_ms = min(pulse_ms, round(held_ms)) if cut_early else pulse_ms
+                self._pulses += 1
+                self._firing = False
+                self._emit("closed after pulse")
+                reason = self._fault_reason
+        if cut_early:
+            return False, f"pulse cut after {self._last_pulse_ms} ms: {reason or 'disarmed'}"
+        if not closed:
+            return False, reason
+        return True, f"fired {pulse_ms} ms"
+
+    def _refusal(self, pulse_ms):
+        if self._shut_down:
+            return "valve controller is shut down"
+        if isinstance(pulse_ms, bool) or not isinstance(pulse_ms, (int, float)) or not math.isfinite(pulse_ms):
+            return f"pulse_ms must be a number, got {pulse_ms!r}"
+        if pulse_ms <= 0:
+            return f"pulse_ms must be > 0, got {pulse_ms}"
+        if pulse_ms > self.max_pulse_ms:
+            return f"pulse_ms {pulse_ms} exceeds max_pulse_ms {self.max_pulse_ms}"
+        if self._fault_reason:
+            return f"fault latched: {self._fault_reason}"
+        if not self._armed:
+            return "valve is disarmed"
+        if self._firing:
+            return "a pulse is already in progress"
+        return ""
+
+    # ---------------------------------------------------------- watchdog thread
+    def start_watchdog(self, period_s):
+        """Check the watchdog every ``period_s`` seconds (steady clock) on a daemon thread until shutdown.
+
+        Use this rather than a ROS timer: a ROS timer follows ``use_sim_time`` and could stall.
+        """
+        if not period_s > 0:
+            raise ValueError(f"watchdog period must be > 0 s, got {period_s!r}")
+        with self._lock:
+            if self._watchdog_stop is not None:
+                raise RuntimeError("the watchdog thread is already running")
+            stop = self._watchdog_stop = threading.Event()
+
+        def loop():
+            while not stop.wait(period_s):
+                try:
+                    self.check_watchdog()
+                except Exception:  # noqa: BLE001 - keep watching whatever happened
+                    _LOG.exception("valve watchdog check failed")
+
+        threading.Thread(target=loop, name="valve-watchdog", daemon=True).start()
+
+    def shutdown(self):
+        """Cut any pulse, drive closed, disarm, stop the watchdog thread and release the backend. Idempotent."""
+        with self._lock:
+            if self._shut_down:
+                return
+            self._shut_down = True
+            self._armed = False
+            self._cut.set()
+            if self._watchdog_stop is not None:
+                self._watchdog_stop.set()
+            self._drive_closed()
+            try:
+                self._backend.release()  # backends drive closed once more before freeing the line / port
+                self._released = True
+            except Exception as exc:  # noqa: BLE001
+                self._latch_fault(f"backend error on release: {exc}")
+            self._emit("shut down")
+
+
+@dataclasses.dataclass
+class GpioValveConfig:
+    """``valve.gpio.*``: the GPIO line driving the valve's solenoid driver."""
+
+    chip: str = "/dev/gpiochip0"
+    line_offset: int = 17
+    active_high: bool = True
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.chip:
+            raise ValueError("gpio.chip must name a GPIO chip (e.g. /dev/gpiochip0)")
+        if self.line_offset < 0:
+            raise ValueError(f"gpio.line_offset must be >= 0, got {self.line_offset}")
+
+
+#: ``line_ending`` names -> bytes appended to each serial relay command.
+LINE_ENDINGS = {"lf": "\n", "crlf": "\r\n", "cr": "\r"}
+
+
+@dataclasses.dataclass
+class SerialRelayConfig:
+    """``valve.serial.*``: a relay board on a serial port speaking a line protocol."""
+
+    port: str = "/dev/ttyUSB0"
+    baud: int = 9600
+    open_command: str = "RELAY 1 ON"
+    close_command: str = "RELAY 1 OFF"
+    ack: str = "OK"
+    line_ending: str = "lf"
+    timeout_s: float = 0.5
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.port:
+            raise ValueError("serial.port must name a serial device")
+        if self.baud <= 0:
+            raise ValueError(f"serial.baud must be > 0, got {self.baud}")
+        if not self.open_command or not self.close_command or self.open_command == self.close_command:
+            raise ValueError("serial.open_command and serial.close_command must be two different non-empty lines")
+        if self.line_ending not in LINE_ENDINGS:
+            raise ValueError(f"serial.line_ending must be one of {sorted(LINE_ENDINGS)}, got {self.line_ending!r}")
+        if not self.timeout_s > 0:
+            raise ValueError(f"serial.timeout_s must be > 0, got {self.timeout_s}")
+
+
+@dataclasses.dataclass
+class RegulatorConfig:
+    """``valve.regulator.*``: the supply pressure that gives each target launch speed (paper 2.2)."""
+
+    speeds_mps: list[float] = dataclasses.field(default_factory=lambda: [0.8, 1.5])
+    pressures_psi: list[float] = dataclasses.field(default_factory=lambda: [30.0, 60.0])
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if len(self.speeds_mps) != len(self.pressures_psi) or not self.speeds_mps:
+            raise ValueError("regulator.speeds_mps and regulator.pressures_psi must be non-empty and equally long")
+        if any(s <= 0 for s in self.speeds_mps) or any(p <= 0 for p in self.pressures_psi):
+            raise ValueError("regulator speeds and pressures must be > 0")
+
+    def pressure_psi(self, speed_mps):
+        """Return the regulator pressure (psi) for a target speed (m/s); ``ValueError`` if none is configured."""
+        for speed, pressure in zip(self.speeds_mps, self.pressures_psi):
+            if math.isclose(speed, speed_mps, rel_tol=1e-6, abs_tol=1e-9):
+                return pressure
+        raise ValueError(f"no regulator pressure configured for {speed_mps} m/s (configured: {self.speeds_mps})")
+
+
+class RegulatorCheck:
+    """Remembers the pressure the operator confirmed, so the rig asks again only when a speed block changes."""
+
+    def __init__(self, regulator):
+        self._regulator = regulator
+        self._confirmed_psi = None
+
+    def pending_psi(self, speed_mps):
+        """Return the pressure (psi) the operator must set and confirm for ``speed_mps``, or None if confirmed."""
+        pressure = self._regulator.pressure_psi(speed_mps)
+        return None if pressure == self._confirmed_psi else pressure
+
+    def confirm(self, speed_mps):
+        """Record that the regulator is set for ``speed_mps``."""
+        self._confirmed_psi = self._regulator.pressure_psi(speed_mps)
+
+
+@dataclasses.dataclass
+class ValveConfig:
+    """``valve.*`` of ``config/rig.yaml`` (build with ``config.from_mapping(ValveConfig, section(p, "valve"), ...)``)."""
+
+    backend: str = "dry_run"
+    max_pulse_ms: int = 500
+    launch_pulse_ms: int = 150
+    watchdog_ms: int = 500
+    watchdog_check_ms: int = 20
+    heartbeat_period_ms: int = 100
+    gpio: GpioValveConfig = dataclasses.field(default_factory=GpioValveConfig)
+    serial: SerialRelayConfig = dataclasses.field(default_factory=SerialRelayConfig)
+    regulator: RegulatorConfig = dataclasses.field(default_factory=RegulatorConfig)
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if self.backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
+        if self.max_pulse_ms <= 0:
+            raise ValueError(f"max_pulse_ms must be > 0, got {self.max_pulse_ms}")
+        if not 0 < self.launch_pulse_ms <= self.max_pulse_ms:
+            raise ValueError(f"launch_pulse_ms must be in (0, max_pulse_ms={self.max_pulse_ms}], "
+                             f"got {self.launch_pulse_ms}")
+        if self.watchdog_ms <= 0 or self.watchdog_check_ms <= 0:
+            raise ValueError("watchdog_ms and watchdog_check_ms must be > 0")
+        if self.watchdog_check_ms > self.watchdog_ms / 2:
+            raise ValueError(f"watchdog_check_ms ({self.watchdog_check_ms}) must be at most half of watchdog_ms "
+                             f"({self.watchdog_ms})")
+        if not 0 < self.heartbeat_period_ms <= self.watchdog_ms / 2:
+            raise ValueError(f"heartbeat_period_ms ({self.heartbeat_period_ms}) must be in (0, watchdog_ms / 2]: "
+                             "one lost heartbeat must not trip the watchdog")
+        self.gpio.validate()
+        self.serial.validate()
+        self.regulator.validate()

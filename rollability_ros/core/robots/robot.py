@@ -1,0 +1,285 @@
+"""Robot models for the simulation: a body with wheels and a profile mount, spawned into a PyBullet client.
+
+:class:`RobotModel` is the interface trials use: spawn the robot with a profile on its mount, say whether it
+stands on its wheels, export URDF. :class:`ChassisModel` is the project's own four-wheeled chassis
+(``config/robot.yaml``); a robot loaded from any URDF implements the same interface.
+
+Chassis frame: x forward along the body length, y left, z up, origin at the centre of the body box. The
+profile frame (see :mod:`rollability_ros.core.profile.geometry`) sits at the centre of the body's top face.
+"""
+import abc
+import dataclasses
+import math
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from rollability_ros.core.optional import require
+
+
+@dataclasses.dataclass(frozen=True)
+class ProfileBody:
+    """A profile ready to attach: collision hull vertices ``(k, 3)`` (metres, profile frame), mass, centroid."""
+
+    hull_vertices_m: np.ndarray
+    mass_kg: float
+    com_m: np.ndarray
+
+    @classmethod
+    def from_mesh(cls, mesh, density_kgpm3):
+        """Build from a watertight trimesh (metres) with uniform effective density (kg/m^3)."""
+        hull = mesh.convex_hull
+        return cls(hull_vertices_m=np.asarray(hull.vertices, dtype=np.float64),
+                   mass_kg=float(mesh.volume * density_kgpm3), com_m=np.asarray(mesh.center_mass, dtype=np.float64))
+
+
+@dataclasses.dataclass(frozen=True)
+class SpawnedRobot:
+    """A robot in a PyBullet world: its body id and the link indices of its wheels (``-1`` = base)."""
+
+    body_id: int
+    wheel_links: tuple
+
+
+class RobotModel(abc.ABC):
+    """What a trial needs from a robot: spawn it, judge "on its wheels", describe it as URDF."""
+
+    @abc.abstractmethod
+    def spawn(self, client, profile, position, orientation):
+        """Create the robot with ``profile`` (a :class:`ProfileBody` or None) in ``client``; return a SpawnedRobot.
+
+        ``position`` (3,) metres and ``orientation`` (x, y, z, w) place the robot's base frame in the world.
+        """
+
+    @abc.abstractmethod
+    def up_axis(self, client, robot):
+        """Return the robot's body up-axis as a world-frame unit vector (3,)."""
+
+    @property
+    @abc.abstractmethod
+    def upright_tilt_deg(self):
+        """Largest angle between the body up-axis and world up that still counts as upright (deg)."""
+
+    @property
+    @abc.abstractmethod
+    def min_wheels_in_contact(self):
+        """How many wheel links must touch the ground for the robot to stand on its wheels."""
+
+    @property
+    @abc.abstractmethod
+    def contact_tolerance_m(self):
+        """A wheel within this distance of the ground counts as touching it (m)."""
+
+    @abc.abstractmethod
+    def to_urdf(self, profile_mesh_filename=None, profile=None):
+        """Return a URDF document (str) of the robot, with the profile mesh file on its mount if given."""
+
+    @abc.abstractmethod
+    def wheel_radii_m(self):
+        """Rolling radius of each wheel (m), a tuple in the order of :attr:`SpawnedRobot.wheel_links`."""
+
+    def tilt_deg(self, client, robot):
+        """Angle between the body up-axis and world +z, degrees."""
+        return math.degrees(math.acos(float(np.clip(self.up_axis(client, robot)[2], -1.0, 1.0))))
+
+    def wheels_in_contact(self, client, robot, ground_id):
+        """Number of wheel links within ``contact_tolerance_m`` of the ground body."""
+        pybullet = require("pybullet", feature="the simulated evaluator")
+        return sum(bool(pybullet.getClosestPoints(robot.body_id, ground_id, self.contact_tolerance_m, linkIndexA=link,
+                                                  physicsClientId=client))
+                   for link in robot.wheel_links)
+
+    def is_upright(self, client, robot, ground_id):
+        """Return ``(upright, tilt_deg)``: upright = tilt within the threshold and enough wheels on the ground."""
+        tilt = self.tilt_deg(client, robot)
+        upright = tilt <= self.upright_tilt_deg and \
+            self.wheels_in_contact(client, robot, ground_id) >= self.min_wheels_in_contact
+        return upright, tilt
+
+
+@dataclasses.dataclass
+class ChassisSpec:
+    """The built-in chassis (``config/robot.yaml``, section ``robot``): a box body with four wheels.
+
+    The body's centre of mass sits ``com_offset_z_m`` below the box centre (battery and motors low). Wheel
+    axles run along y at x = +-``wheelbase_m``/2, y = +-``track_m``/2 and ``axle_offset_z_m`` from the box
+    centre. Wheels spin freely against a drag torque ``wheel_drag_torque_nm`` (an unpowered geared motor).
+    The profile's mass is its solid volume times ``profile_density_kgpm3`` (an effective density for
+    printed walls plus infill).
+    """
+
+    body_length_m: float = 0.18
+    body_width_m: float = 0.14
+    body_height_m: float = 0.04
+    body_mass_kg: float = 0.9
+    com_offset_z_m: float = -0.015
+    wheel_radius_m: float = 0.03
+    wheel_width_m: float = 0.025
+    wheel_mass_kg: float = 0.05
+    wheelbase_m: float = 0.12
+    track_m: float = 0.17
+    axle_offset_z_m: float = -0.015
+    wheel_drag_torque_nm: float = 0.02
+    profile_density_kgpm3: float = 150.0
+    upright_tilt_deg: float = 30.0
+    min_wheels_in_contact: int = 3
+    contact_tolerance_m: float = 0.003
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        for name in ("body_length_m", "body_width_m", "body_height_m", "body_mass_kg", "wheel_radius_m",
+                     "wheel_width_m", "wheel_mass_kg", "wheelbase_m", "track_m", "profile_density_kgpm3",
+                     "contact_tolerance_m"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if abs(self.com_offset_z_m) >= self.body_height_m / 2:
+            raise ValueError(f"com_offset_z_m {self.com_offset_z_m} must lie inside the body (|.| < height/2)")
+        if self.wheel_drag_torque_nm < 0:
+            raise ValueError(f"wheel_drag_torque_nm must be >= 0, got {self.wheel_drag_torque_nm}")
+        if not 0 < self.upright_tilt_deg < 90:
+            raise ValueError(f"upright_tilt_deg must be in (0, 90), got {self.upright_tilt_deg}")
+        if not 1 <= self.min_wheels_in_contact <= 4:
+            raise ValueError(f"min_wheels_in_contact must be in [1, 4], got {self.min_wheels_in_contact}")
+        if self.track_m / 2 - self.wheel_width_m / 2 < self.body_width_m / 2 - 1e-9 and \
+                self.axle_offset_z_m + self.wheel_radius_m > -self.body_height_m / 2:
+            raise ValueError("wheels intersect the body: increase track_m or lower axle_offset_z_m")
+
+
+class SpecThresholds:
+    """Mixin for a :class:`RobotModel` whose ``self.spec`` holds the upright thresholds and profile density."""
+
+    @property
+    def upright_tilt_deg(self):
+        return self.spec.upright_tilt_deg
+
+    @property
+    def min_wheels_in_contact(self):
+        return self.spec.min_wheels_in_contact
+
+    @property
+    def contact_tolerance_m(self):
+        return self.spec.contact_tolerance_m
+
+    @property
+    def profile_density_kgpm3(self):
+        """Effective density of the profile solid (kg/m^3)."""
+        return self.spec.profile_density_kgpm3
+
+
+_WHEEL_ORIENTATION = (math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5))  # cylinder axis (local z) along chassis y
+
+
+class ChassisModel(SpecThresholds, RobotModel):
+    """The project's four-wheeled chassis from a :class:`ChassisSpec`: base = body, link 0 = profile (if any), wheels last."""
+
+    #: Name of the body link (the chassis frame) in :meth:`to_urdf`: the link the profile is mounted on.
+    BODY_LINK = "base_link"
+
+    def __init__(self, spec):
+        self.spec = spec
+
+    @property
+    def mount_position_m(self):
+        """The profile frame's origin in the chassis frame (3,): centre of the body's top face."""
+        return np.array([0.0, 0.0, self.spec.body_height_m / 2])
+
+    def wheel_radii_m(self):
+        return (self.spec.wheel_radius_m,) * 4
+
+    def wheel_positions_m(self):
+        """Wheel centres in the chassis frame, (4, 3): front-left, front-right, rear-left, rear-right."""
+        s = self.spec
+        return np.array([[sx * s.wheelbase_m / 2, sy * s.track_m / 2, s.axle_offset_z_m]
+                         for sx in (1, -1) for sy in (1, -1)])
+
+    def spawn(self, client, profile, position, orientation):
+        pybullet = require("pybullet", feature="the simulated evaluator")
+        s = self.spec
+        body_shape = pybullet.createCollisionShape(
+            pybullet.GEOM_BOX, halfExtents=[s.body_length_m / 2, s.body_width_m / 2, s.body_height_m / 2],
+            physicsClientId=client)
+        wheel_shape = pybullet.createCollisionShape(pybullet.GEOM_CYLINDER, radius=s.wheel_radius_m,
+                                                    height=s.wheel_width_m, physicsClientId=client)
+        links = {"mass": [], "shape": [], "position": [], "orientation": [], "com": [], "joint": [], "axis": []}
+
+        def add_link(mass, shape, position_m, orientation_xyzw, com_m, joint, axis):
+            for key, value in zip(links, (mass, shape, position_m, orientation_xyzw, com_m, joint, axis)):
+                links[key].append(value)
+
+        if profile is not None:
+            profile_shape = pybullet.createCollisionShape(pybullet.GEOM_MESH,
+                                                          vertices=profile.hull_vertices_m.tolist(),
+                                                          physicsClientId=client)
+            add_link(profile.mass_kg, profile_shape, self.mount_position_m, (0, 0, 0, 1), profile.com_m,
+                     pybullet.JOINT_FIXED, (0, 0, 0))
+        for wheel in self.wheel_positions_m():
+            add_link(s.wheel_mass_kg, wheel_shape, wheel, _WHEEL_ORIENTATION, (0, 0, 0), pybullet.JOINT_REVOLUTE,
+                     (0, 0, 1))
+        count = len(links["mass"])
+        body = pybullet.createMultiBody(
+            baseMass=s.body_mass_kg, baseCollisionShapeIndex=body_shape, basePosition=list(position),
+            baseOrientation=list(orientation), baseInertialFramePosition=[0, 0, s.com_offset_z_m],
+            linkMasses=links["mass"], linkCollisionShapeIndices=links["shape"], linkVisualShapeIndices=[-1] * count,
+            linkPositions=[list(p) for p in links["position"]], linkOrientations=links["orientation"],
+            linkInertialFramePositions=[list(c) for c in links["com"]],
+            linkInertialFrameOrientations=[(0, 0, 0, 1)] * count, linkParentIndices=[0] * count,
+            linkJointTypes=links["joint"], linkJointAxis=links["axis"], physicsClientId=client)
+        wheels = tuple(range(count - 4, count))  # a massless placeholder link would break external torques
+        pybullet.setJointMotorControlArray(body, list(wheels), pybullet.VELOCITY_CONTROL, targetVelocities=[0.0] * 4,
+                                           forces=[s.wheel_drag_torque_nm] * 4, physicsClientId=client)
+        return SpawnedRobot(body_id=body, wheel_links=wheels)
+
+    def up_axis(self, client, robot):
+        pybullet = require("pybullet", feature="the simulated evaluator")
+        _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
+        return np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)[:, 2]
+
+    def to_urdf(self, profile_mesh_filename=None, profile=None):
+        """URDF of the chassis (inertias of solid boxes/cylinders); the profile link uses the given mesh file."""
+        s = self.spec
+        box = (s.body_length_m, s.body_width_m, s.body_height_m)
+        parts = ['<?xml version="1.0"?>', '<robot name="rollability_chassis">',
+                 _urdf_link(self.BODY_LINK, f'<box size="{box[0]} {box[1]} {box[2]}"/>', s.body_mass_kg,
+                            (0, 0, s.com_offset_z_m), _box_inertia(s.body_mass_kg, box))]
+        if profile_mesh_filename is not None:
+            mass = profile.mass_kg if profile is not None else 0.0
+            com = tuple(profile.com_m) if profile is not None else (0, 0, 0)
+            parts.append(_urdf_link("profile_link", f"<mesh filename={quoteattr(profile_mesh_filename)}/>", mass, com,
+                                    _box_inertia(mass, tuple(np.ptp(profile.hull_vertices_m, axis=0)))
+                                    if profile is not None else (0, 0, 0)))
+            parts.append(_urdf_joint("profile_joint", "fixed", self.BODY_LINK, "profile_link", self.mount_position_m,
+                                     (0, 0, 0)))
+        r, w, m = s.wheel_radius_m, s.wheel_width_m, s.wheel_mass_kg
+        across = m * (3 * r * r + w * w) / 12
+        wheel_inertia = (across, m * r * r / 2, across)  # axis along the link's y
+        for name, position in zip(("front_left", "front_right", "rear_left", "rear_right"), self.wheel_positions_m()):
+            parts.append(_urdf_link(f"{name}_wheel", f'<cylinder radius="{r}" length="{w}"/>', m, (0, 0, 0),
+                                    wheel_inertia, rpy=(math.pi / 2, 0, 0)))
+            parts.append(_urdf_joint(f"{name}_wheel_joint", "continuous", self.BODY_LINK, f"{name}_wheel", position,
+                                     (0, 0, 0), axis=(0, 1, 0)))
+        parts.append("</robot>")
+        return "\n".join(parts) + "\n"
+
+
+def _box_inertia(mass, size):
+    x, y, z = size
+    return (mass * (y * y + z * z) / 12, mass * (x * x + z * z) / 12, mass * (x * x + y * y) / 12)
+
+
+def _xyz(values):
+    return " ".join(f"{float(v):.6g}" for v in values)
+
+
+def _urdf_link(name, geometry, mass, com, inertia, rpy=(0, 0, 0)):
+    shape = f'<origin xyz="0 0 0" rpy="{_xyz(rpy)}"/><geometry>{geometry}</geometry>'
+    return (f'  <link name="{name}">\n'
+            f'    <inertial><origin xyz="{_xyz(com)}"/><mass value="{mass:.6g}"/>'
+            f'<inertia ixx="{inertia[0]:.6g}" iyy="{inertia[1]:.6g}" izz="{inertia[2]:.6g}" ixy="0" ixz="0" iyz="0"/>'
+            f'</inertial>\n'
+            f'    <visual>{shape}</visual>\n    <collision>{shape}</collision>\n  </link>')
+
+
+def _urdf_joint(name, kind, parent, child, xyz, rpy, axis=None):
+    axis_tag = f'<axis xyz="{_xyz(axis)}"/>' if axis is not None else ""
+    return (f'  <joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+            f'<origin xyz="{_xyz(xyz)}" rpy="{_xyz(rpy)}"/>{axis_tag}</joint>')

@@ -1,0 +1,424 @@
+"""A robot description (URDF) read, checked and turned into the rigid-body model the simulation loads.
+
+Reading
+    :func:`read_urdf_source` takes a file path or an XML string; :func:`resolve_mesh_path` finds mesh files
+    named ``package://<pkg>/<rest>``, ``file://<path>``, absolute or relative, against a search path (the
+    URDF's own folder first, then the configured folders, then ``<prefix>/share`` of every ``AMENT_PREFIX_PATH``
+    prefix for ``package://``). A search-path entry ``python:<module>`` is the folder of an installed Python
+    package (e.g. ``python:pybullet_data``), so a config needs no machine paths.
+Checking
+    :func:`describe` refuses, with a message naming the link, joint or file: unparsable XML, no single root,
+    unknown links in joints, unsupported joint types, meshes that do not resolve, ``<inertial>`` elements with a
+    missing, zero or negative mass or an inertia that is not positive definite, moving links without mass.
+Rigid bodies
+    Links joined by ``fixed`` joints form one rigid body, named after its top link (the root, or a link on a
+    moving joint). :func:`describe` merges each body's masses, inertias (parallel-axis theorem, URDF values
+    exactly) and collision shapes into one link, and drops links that carry nothing (massless frames such as
+    ``imu_link``; PyBullet's loader would otherwise give each 1 kg and a 1 kg m^2 inertia). The result is a
+    URDF with one link per rigid body below a frame link ``rollability_base`` placed at the robot's centre of
+    mass, axes parallel to the root link (REP 103: x forward, z up). That frame link is PyBullet's base: it has
+    an identity inertial frame, so the base pose PyBullet reports and sets is the robot's, not the principal
+    axes of some body's inertia, and the trial's start orientation applies to the robot's own axes. It weighs
+    :data:`FRAME_MASS_FRACTION` of the robot, joined by a fixed (zero-DOF, exactly rigid) joint.
+
+Frames: every transform is a 4x4 homogeneous matrix (metres); ``T_a_b`` maps coordinates in frame b to a.
+"""
+import dataclasses
+import importlib.util
+import math
+import os
+import xml.etree.ElementTree as ElementTree
+
+import numpy as np
+
+#: Name of the frame link added as PyBullet's base (see the module docstring).
+BASE_LINK = "rollability_base"
+#: Name of the profile link added on the mount.
+PROFILE_LINK = "rollability_profile"
+#: Mass of the base frame link relative to the robot (small, but a zero mass would fix the base in place).
+FRAME_MASS_FRACTION = 1e-6
+MOVING_JOINTS = ("revolute", "continuous", "prismatic")
+SUPPORTED_JOINTS = MOVING_JOINTS + ("fixed",)
+
+
+class _BadTransform:
+    """A joint origin that could not be read: an error raised only if a body that matters hangs below it."""
+
+    def __init__(self, message):
+        self.message = message
+
+
+def read_urdf_source(urdf_path, robot_description, search_paths=()):
+    """Return ``(xml_text, folder)`` of the description: the string if given, else the file (its folder).
+
+    A relative ``urdf_path`` is tried from the working directory, then in each search folder. Raises
+    ``ValueError`` naming the problem (both or neither given, file not found or unreadable).
+    """
+    if robot_description and urdf_path:
+        raise ValueError("give either urdf_path or robot_description, not both")
+    if robot_description:
+        return robot_description, None
+    if not urdf_path:
+        raise ValueError("no robot description: set urdf_path or robot_description")
+    path = os.path.expanduser(os.path.expandvars(urdf_path))
+    candidates = [path] if os.path.isabs(path) else [path] + [os.path.join(d, path) for d in search_folders(search_paths)]
+    for candidate in candidates:
+        if os.path.isfile(candidate):
+            try:
+                with open(candidate, encoding="utf-8") as stream:
+                    return stream.read(), os.path.dirname(os.path.abspath(candidate))
+            except (OSError, UnicodeDecodeError) as exc:
+                raise ValueError(f"cannot read URDF file {candidate}: {exc}") from exc
+    raise ValueError(f"URDF file not found: {urdf_path} (looked in {', '.join(candidates)})")
+
+
+def search_folders(search_paths):
+    """The folders of ``search_paths``: ``~`` and ``$VARS`` expanded, ``python:<module>`` -> the module's folder."""
+    folders = []
+    for entry in search_paths:
+        if entry.startswith("python:"):
+            module = entry[len("python:"):]
+            spec = importlib.util.find_spec(module)
+            if spec is None or not (spec.submodule_search_locations or spec.origin):
+                raise ValueError(f"search path entry {entry}: no installed Python package {module}")
+            folders.append(list(spec.submodule_search_locations)[0] if spec.submodule_search_locations
+                           else os.path.dirname(spec.origin))
+        else:
+            folders.append(os.path.expanduser(os.path.expandvars(entry)))
+    return folders
+
+
+def resolve_mesh_path(filename, urdf_folder, folders):
+    """Return the absolute path of mesh ``filename`` (see the module docstring) or raise ``ValueError``."""
+    tried = []
+    if filename.startswith("package://"):
+        package, _, rest = filename[len("package://"):].partition("/")
+        prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+        for folder in folders:
+            tried.append(os.path.join(folder, package, rest))
+            if os.path.basename(os.path.normpath(folder)) == package:
+                tried.append(os.path.join(folder, rest))
+        tried += [os.path.join(prefix, "share", package, rest) for prefix in prefixes]
+    else:
+        path = filename[len("file://"):] if filename.startswith("file://") else filename
+        if os.path.isabs(path):
+            tried.append(path)
+        else:
+            tried += [os.path.join(folder, path) for folder in ([urdf_folder] if urdf_folder else []) + list(folders)]
+    for candidate in tried:
+        if os.path.isfile(candidate):
+            return os.path.abspath(candidate)
+    raise ValueError(f"mesh {filename} not found (looked in: {', '.join(tried) or 'no search folders'}); "
+                     "add its folder to urdf_robot.search_paths")
+
+
+# --- small frame algebra ----------------------------------------------------------------------------------------
+def rpy_matrix(rpy):
+    """Rotation matrix (3, 3) of URDF roll-pitch-yaw (rad): fixed axes x, then y, then z."""
+    r, p, y = rpy
+    rx = np.array([[1, 0, 0], [0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]])
+    ry = np.array([[math.cos(p), 0, math.sin(p)], [0, 1, 0], [-math.sin(p), 0, math.cos(p)]])
+    rz = np.array([[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def matrix_rpy(rotation):
+    """URDF roll-pitch-yaw (rad) of a rotation matrix (3, 3)."""
+    pitch = math.atan2(-rotation[2, 0], math.hypot(rotation[0, 0], rotation[1, 0]))
+    if math.hypot(rotation[0, 0], rotation[1, 0]) < 1e-12:  # gimbal lock: put it all in roll
+        return (math.atan2(-rotation[1, 2], rotation[1, 1]), pitch, 0.0)
+    return (math.atan2(rotation[2, 1], rotation[2, 2]), pitch, math.atan2(rotation[1, 0], rotation[0, 0]))
+
+
+def transform(xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)):
+    """4x4 transform of a URDF origin (xyz metres, rpy rad)."""
+    matrix = np.eye(4)
+    matrix[:3, :3] = rpy_matrix(rpy)
+    matrix[:3, 3] = xyz
+    return matrix
+
+
+def _numbers(text, count, where):
+    try:
+        values = [float(v) for v in (text or "").split()]
+    except ValueError:
+        values = []
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{where}: expected {count} numbers, got {text!r}")
+    return values
+
+
+def origin_of(element, where):
+    """The 4x4 transform of ``element``'s ``<origin>`` child (identity when absent)."""
+    origin = element.find("origin")
+    if origin is None:
+        return np.eye(4)
+    return transform(_numbers(origin.get("xyz", "0 0 0"), 3, f"{where} origin xyz"),
+                     _numbers(origin.get("rpy", "0 0 0"), 3, f"{where} origin rpy"))
+
+
+def _fmt(values):
+    return " ".join(repr(float(v)) for v in values)
+
+
+def origin_xml(matrix):
+    """``<origin .../>`` of a 4x4 transform (full float precision)."""
+    return f'<origin xyz="{_fmt(matrix[:3, 3])}" rpy="{_fmt(matrix_rpy(matrix[:3, :3]))}"/>'
+
+
+def inertial_xml(mass_kg, com_m, inertia):
+    """``<inertial>`` with the centre of mass ``com_m`` (3,) and the inertia (3, 3) about it, link axes."""
+    i = np.asarray(inertia, dtype=np.float64).tolist()
+    return (f'<inertial><origin xyz="{_fmt(com_m)}" rpy="0 0 0"/><mass value="{float(mass_kg)!r}"/>'
+            f'<inertia ixx="{i[0][0]!r}" ixy="{i[0][1]!r}" ixz="{i[0][2]!r}" iyy="{i[1][1]!r}" iyz="{i[1][2]!r}" '
+            f'izz="{i[2][2]!r}"/></inertial>')
+
+
+# --- the description --------------------------------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class RobotDescription:
+    """A checked robot description, picklable: what :class:`~rollability_ros.core.robots.urdf_robot.UrdfRobotModel`
+    spawns and exports.
+
+    ``sim_urdf`` is the rigid-body URDF (see the module docstring) without its closing ``</robot>``, so a profile
+    link can be appended; its mesh paths are absolute. ``original_urdf`` is the description as given.
+    ``body_of`` maps every link name to its rigid body's name; ``link_in_body`` holds each link's 4x4 transform
+    in its body's frame (nested tuples), for the links whose placement could be read. ``moving_joints`` are the
+    sim URDF's non-fixed joints; ``mass_kg`` and ``com_m`` the robot's total mass and centre of mass (root frame).
+    """
+
+    name: str
+    sim_urdf: str
+    original_urdf: str
+    body_of: dict
+    link_in_body: dict
+    moving_joints: tuple
+    mass_kg: float
+    com_m: tuple
+    collision_points: dict
+
+    def link_transform(self, link):
+        """4x4 transform of ``link`` in its rigid body's frame; ``ValueError`` if unknown or unreadable."""
+        if link not in self.body_of:
+            raise ValueError(f"unknown link {link!r}; the description has: {', '.join(sorted(self.body_of))}")
+        value = self.link_in_body[link]
+        if isinstance(value, str):
+            raise ValueError(value)
+        return np.array(value)
+
+    def body_collision_points(self, body):
+        """Corner / vertex points ``(k, 3)`` of the collision shapes of rigid body ``body`` (body frame, m)."""
+        return np.array(self.collision_points.get(body, ()), dtype=np.float64).reshape(-1, 3)
+
+
+def _parse(xml_text):
+    try:
+        root = ElementTree.fromstring(xml_text)
+    except ElementTree.ParseError as exc:
+        raise ValueError(f"robot description is not valid XML: {exc}") from exc
+    if root.tag != "robot":
+        raise ValueError(f"robot description must have a <robot> root element, got <{root.tag}>")
+    links = {}
+    for link in root.findall("link"):
+        name = link.get("name")
+        if not name:
+            raise ValueError("a <link> has no name")
+        if name in links:
+            raise ValueError(f"link {name!r} is defined twice")
+        if name in (BASE_LINK, PROFILE_LINK):
+            raise ValueError(f"link name {name!r} is reserved for the profile simulation")
+        links[name] = link
+    if not links:
+        raise ValueError("robot description has no <link>")
+    joints = {}
+    for joint in root.findall("joint"):
+        name, kind = joint.get("name"), joint.get("type")
+        parent, child = joint.find("parent"), joint.find("child")
+        if not name or parent is None or child is None:
+            raise ValueError(f"joint {name!r} needs a name, a <parent> and a <child>")
+        if kind not in SUPPORTED_JOINTS:
+            raise ValueError(f"joint {name!r} has type {kind!r}; supported: {', '.join(SUPPORTED_JOINTS)}")
+        for end in (parent.get("link"), child.get("link")):
+            if end not in links:
+                raise ValueError(f"joint {name!r} refers to unknown link {end!r}")
+        if child.get("link") in {j.find("child").get("link") for j in joints.values()}:
+            raise ValueError(f"link {child.get('link')!r} is the child of more than one joint")
+        joints[name] = joint
+    return root, links, joints
+
+
+def _tree(links, joints):
+    """Return ``(root link, {parent: [joint, ...]})``, checking there is one root and no loop."""
+    children = {name: [] for name in links}
+    child_links = set()
+    for joint in joints.values():
+        children[joint.find("parent").get("link")].append(joint)
+        child_links.add(joint.find("child").get("link"))
+    roots = [name for name in links if name not in child_links]
+    if len(roots) != 1:
+        raise ValueError(f"robot description needs exactly one root link, found {len(roots)}: {', '.join(roots)}")
+    return roots[0], children
+
+
+def _inertial(link, name):
+    """``(mass, com (3,), inertia (3, 3) about the com, link axes)`` of a link, or None without ``<inertial>``."""
+    inertial = link.find("inertial")
+    if inertial is None:
+        return None
+    mass_element, tensor = inertial.find("mass"), inertial.find("inertia")
+    if mass_element is None or tensor is None:
+        raise ValueError(f"link {name!r}: <inertial> needs <mass> and <inertia>")
+    (mass,) = _numbers(mass_element.get("value"), 1, f"link {name!r} mass")
+    if mass <= 0:
+        raise ValueError(f"link {name!r} has mass {mass} kg: masses must be > 0 (remove <inertial> for a frame)")
+    values = {key: _numbers(tensor.get(key, "0"), 1, f"link {name!r} inertia {key}")[0]
+              for key in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+    matrix = np.array([[values["ixx"], values["ixy"], values["ixz"]],
+                       [values["ixy"], values["iyy"], values["iyz"]],
+                       [values["ixz"], values["iyz"], values["izz"]]])
+    if np.linalg.eigvalsh(matrix).min() <= 0:
+        raise ValueError(f"link {name!r} has an inertia that is not positive definite: {values}")
+    frame = origin_of(inertial, f"link {name!r} inertial")
+    return mass, frame[:3, 3], frame[:3, :3] @ matrix @ frame[:3, :3].T
+
+
+def _geometry_points(geometry, where, mesh_path):
+    """Points ``(k, 3)`` whose hull bounds a URDF geometry, in the geometry's frame (m)."""
+    box, cylinder, sphere, mesh = (geometry.find(tag) for tag in ("box", "cylinder", "sphere", "mesh"))
+    if box is not None:
+        half = np.array(_numbers(box.get("size"), 3, f"{where} box size")) / 2
+    elif cylinder is not None:
+        radius = _numbers(cylinder.get("radius"), 1, f"{where} cylinder radius")[0]
+        half = np.array([radius, radius, _numbers(cylinder.get("length"), 1, f"{where} cylinder length")[0] / 2])
+    elif sphere is not None:
+        half = np.full(3, _numbers(sphere.get("radius"), 1, f"{where} sphere radius")[0])
+    elif mesh is not None:
+        from rollability_ros.core.optional import require
+
+        trimesh = require("trimesh", feature="URDF mesh collision shapes")
+        scale = np.array(_numbers(mesh.get("scale", "1 1 1"), 3, f"{where} mesh scale"))
+        try:
+            loaded = trimesh.load(mesh_path, force="mesh")
+        except Exception as exc:  # trimesh raises assorted parser errors
+            raise ValueError(f"{where}: cannot read mesh {mesh_path}: {exc}") from exc
+        return np.asarray(loaded.convex_hull.vertices, dtype=np.float64) * scale
+    else:
+        raise ValueError(f"{where}: geometry must be a box, cylinder, sphere or mesh")
+    return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+
+
+def describe(xml_text, urdf_folder=None, search_paths=()):
+    """Check a URDF and build its :class:`RobotDescription` (see the module docstring); ``ValueError`` if bad."""
+    root_element, links, joints = _parse(xml_text)
+    root, children = _tree(links, joints)
+    folders = search_folders(search_paths)
+    for element in root_element.iter("mesh"):
+        element.set("filename", resolve_mesh_path(element.get("filename", ""), urdf_folder, folders))
+
+    body_of, link_in_body, order = {root: root}, {root: np.eye(4)}, [root]
+    moving = []
+    for name in order:  # breadth first: parents before children
+        for joint in children[name]:
+            child = joint.find("child").get("link")
+            order.append(child)
+            parent_in_body = link_in_body[name]
+            try:
+                joint_origin = origin_of(joint, f"joint {joint.get('name')!r}")
+            except ValueError as exc:
+                joint_origin = _BadTransform(str(exc))
+            if isinstance(parent_in_body, _BadTransform) or isinstance(joint_origin, _BadTransform):
+                placement = parent_in_body if isinstance(parent_in_body, _BadTransform) else joint_origin
+            else:
+                placement = parent_in_body @ joint_origin
+            if joint.get("type") == "fixed":
+                body_of[child], link_in_body[child] = body_of[name], placement
+            else:
+                body_of[child], link_in_body[child] = child, np.eye(4)
+                moving.append((joint, name, placement))
+    if len(order) != len(links):
+        raise ValueError("robot description has links not connected to the root: "
+                         f"{', '.join(sorted(set(links) - set(order)))}")
+
+    def placed(link, what):
+        value = link_in_body[link]
+        if isinstance(value, _BadTransform):
+            raise ValueError(f"{value.message} (needed to place {what} of link {link!r})")
+        return value
+
+    bodies = {name: {"mass": 0.0, "moment": np.zeros(3), "parts": [], "collisions": [], "points": [],
+                     "contact": None} for name in order if body_of[name] == name}
+    for name in order:
+        body = bodies[body_of[name]]
+        inertial = _inertial(links[name], name)
+        if inertial is not None:
+            frame = placed(name, "the inertial")
+            mass, com, inertia = inertial
+            centre = frame[:3, :3] @ com + frame[:3, 3]
+            body["parts"].append((mass, centre, frame[:3, :3] @ inertia @ frame[:3, :3].T))
+            body["mass"] += mass
+            body["moment"] += mass * centre
+        for index, collision in enumerate(links[name].findall("collision")):
+            where = f"link {name!r} collision {index}"
+            geometry = collision.find("geometry")
+            if geometry is None:
+                raise ValueError(f"{where} has no <geometry>")
+            frame = placed(name, "a collision shape") @ origin_of(collision, where)
+            mesh = geometry.find("mesh")
+            points = _geometry_points(geometry, where, mesh.get("filename") if mesh is not None else None)
+            body["points"].extend((points @ frame[:3, :3].T + frame[:3, 3]).tolist())
+            body["collisions"].append(f"<collision>{origin_xml(frame)}"
+                                      f"{ElementTree.tostring(geometry, encoding='unicode').strip()}</collision>")
+        if body["contact"] is None and links[name].find("contact") is not None:
+            body["contact"] = ElementTree.tostring(links[name].find("contact"), encoding="unicode").strip()
+
+    for joint, _, _ in moving:
+        child = joint.find("child").get("link")
+        if bodies[child]["mass"] <= 0:
+            raise ValueError(f"link {child!r} moves on joint {joint.get('name')!r} but has no mass (no <inertial> "
+                             "on it or on links fixed to it)")
+    if bodies[root]["mass"] <= 0:
+        raise ValueError(f"root link {root!r} and the links fixed to it have no mass (no <inertial>)")
+
+    body_inertials = {}
+    for name, body in bodies.items():
+        if body["mass"] <= 0:
+            continue  # cannot happen for a moving body (checked above): the root is checked too
+        com = body["moment"] / body["mass"]
+        inertia = np.zeros((3, 3))
+        for mass, centre, part in body["parts"]:
+            offset = centre - com
+            inertia += part + mass * (offset @ offset * np.eye(3) - np.outer(offset, offset))
+        body_inertials[name] = (body["mass"], com, inertia)
+
+    # centre of mass of the whole robot (joints at zero), in the root frame
+    body_in_root = {root: np.eye(4)}
+    for joint, parent, placement in moving:
+        child = joint.find("child").get("link")
+        if isinstance(placement, _BadTransform):
+            raise ValueError(f"{placement.message} (needed to place link {child!r})")
+        body_in_root[child] = body_in_root[body_of[parent]] @ placement
+    mass_kg = sum(b[0] for b in body_inertials.values())
+    com_m = sum(b[0] * (body_in_root[n][:3, :3] @ b[1] + body_in_root[n][:3, 3])
+                for n, b in body_inertials.items()) / mass_kg
+
+    parts = [f'<?xml version="1.0"?>\n<robot name="{root_element.get("name", "robot")}_rollability">',
+             f'<link name="{BASE_LINK}">' + inertial_xml(mass_kg * FRAME_MASS_FRACTION, np.zeros(3),
+                                                         np.eye(3) * mass_kg * FRAME_MASS_FRACTION * 1e-2) + "</link>",
+             f'<joint name="{BASE_LINK}_joint" type="fixed"><parent link="{BASE_LINK}"/><child link="{root}"/>'
+             f'{origin_xml(transform(-com_m))}</joint>']
+    for name, body in bodies.items():
+        inertial = inertial_xml(*body_inertials[name]) if name in body_inertials else ""
+        parts.append(f'<link name="{name}">{inertial}{"".join(body["collisions"])}{body["contact"] or ""}</link>')
+    for joint, parent, placement in moving:
+        extras = "".join(ElementTree.tostring(element, encoding="unicode").strip()
+                         for tag in ("axis", "limit", "dynamics") for element in joint.findall(tag))
+        parts.append(f'<joint name="{joint.get("name")}" type="{joint.get("type")}"><parent link="{body_of[parent]}"/>'
+                     f'<child link="{joint.find("child").get("link")}"/>{origin_xml(placement)}{extras}</joint>')
+    return RobotDescription(
+        name=root_element.get("name", "robot"), sim_urdf="\n".join(parts) + "\n", original_urdf=xml_text,
+        body_of=dict(body_of),
+        link_in_body={k: (v.message if isinstance(v, _BadTransform) else tuple(map(tuple, v.tolist())))
+                      for k, v in link_in_body.items()},
+        moving_joints=tuple(j.get("name") for j, _, _ in moving), mass_kg=float(mass_kg),
+        com_m=tuple(float(v) for v in com_m),
+        collision_points={name: tuple(map(tuple, body["points"])) for name, body in bodies.items() if body["points"]})

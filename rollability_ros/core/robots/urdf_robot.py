@@ -1,0 +1,356 @@
+"""Any wheeled robot from its URDF, with a profile on a mount link: a :class:`RobotModel` for the trials.
+
+Config (section ``urdf_robot``, see ``config/husky.yaml``) names the description (a file or an XML string),
+the mount link and the mount footprint the profile grid spans, and how "upright" is judged. Naming a
+``mount_link`` selects this robot instead of the built-in chassis (:class:`RobotChoice`, shared by the trials'
+and the launch twin's settings; :func:`footprint_grid` gives the grid, :func:`profile_mount` the mount).
+
+Frames
+    Root frame = the URDF's root link (REP 103: x forward, y left, z up when the robot stands on its wheels);
+    the trial start state rolls the robot about its x axis. Profile frame = the footprint frame: origin
+    ``footprint_offset_m`` in the mount link's frame, turned by ``footprint_yaw_deg`` about that link's z; its
+    x runs along ``footprint_length_m``, y along ``footprint_width_m``, z away from the robot (the profile grid's
+    frame, :mod:`rollability_ros.core.profile.geometry`).
+Physics
+    The robot is loaded with PyBullet's own URDF loader (masses and inertias from the URDF,
+    ``URDF_USE_INERTIA_FROM_FILE``) from the rigid-body URDF of
+    :mod:`rollability_ros.core.robots.urdf_description`. The profile is one more link of that URDF on a fixed joint
+    to the mount's rigid body: a reduced-coordinate (Featherstone) fixed joint is exactly rigid and moves with
+    every base reset, whereas a separate body held by ``createConstraint(JOINT_FIXED)`` is solved iteratively
+    (it stretches under impacts) and would be left behind by the trials' ``resetBasePositionAndOrientation``.
+    The profile collides as the convex hull of its vertices with the solid's inertia (uniform density).
+Picklable
+    The spec keeps the text of the checked description (:meth:`UrdfRobotSpec.description`, computed once in
+    the process that loads the config and pickled with it), so pool workers only write and load files.
+"""
+import dataclasses
+import hashlib
+import math
+import os
+import re
+import tempfile
+import xml.etree.ElementTree as ElementTree
+
+import numpy as np
+
+from rollability_ros.core.optional import require
+from rollability_ros.core.robots.robot import ChassisModel, RobotModel, SpawnedRobot, SpecThresholds
+from rollability_ros.core.robots.urdf_description import (PROFILE_LINK, describe, inertial_xml, origin_xml, read_urdf_source,
+                                                   transform)
+
+#: Slack when checking that the footprint lies within the mount body's collision extent (m).
+FOOTPRINT_TOLERANCE_M = 0.001
+#: Directions across a wheel's axle searched for its smallest width: a coarse sweep over 180 deg, then a fine
+#: one over one coarse step either side of the narrowest (resolution 0.001 deg: relative error < 1e-5).
+WIDTH_SEARCH_STEPS = (720, 501)
+
+
+@dataclasses.dataclass
+class UrdfRobotSpec:
+    """A robot from a URDF (``urdf_robot`` section): description, mount footprint, upright test, joints.
+
+    Exactly one of ``urdf_path`` / ``robot_description`` gives the description (the sim_evaluator node can
+    also take it from the ``robot_description`` topic). ``search_paths`` are folders for ``package://`` and
+    relative mesh paths and a relative ``urdf_path`` (``python:<module>`` = an installed package's folder).
+    Upright = the root frame's ``up_axis_xyz`` within ``upright_tilt_deg`` of world up (180 = not judged) and at
+    least ``min_wheels_in_contact`` of the wheel links (``wheel_links`` plus links matching
+    ``wheel_link_regex``) within ``contact_tolerance_m`` of the ground (0 = not judged). Every moving joint is
+    held by a drag torque ``joint_drag_torque_nm`` (an unpowered drive). The profile weighs its solid volume
+    times ``profile_density_kgpm3``.
+    """
+
+    urdf_path: str = ""
+    robot_description: str = ""
+    search_paths: tuple[str, ...] = ()
+    mount_link: str = ""
+    footprint_length_m: float = 0.18
+    footprint_width_m: float = 0.14
+    footprint_offset_m: tuple[float, ...] = (0.0, 0.0, 0.0)
+    footprint_yaw_deg: float = 0.0
+    wheel_links: tuple[str, ...] = ()
+    wheel_link_regex: str = ""
+    min_wheels_in_contact: int = 0
+    up_axis_xyz: tuple[float, ...] = (0.0, 0.0, 1.0)
+    upright_tilt_deg: float = 30.0
+    contact_tolerance_m: float = 0.005
+    joint_drag_torque_nm: float = 0.0
+    profile_density_kgpm3: float = 150.0
+
+    @property
+    def selected(self):
+        """True when a mount link is named: the trials use this robot instead of the built-in chassis."""
+        return bool(self.mount_link)
+
+    @property
+    def has_source(self):
+        """True when a description file or string is given (the node may still be waiting for the topic)."""
+        return bool(self.urdf_path or self.robot_description)
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field; with a description, check it too (see
+        :meth:`description`)."""
+        for name in ("footprint_length_m", "footprint_width_m", "contact_tolerance_m", "profile_density_kgpm3"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if len(self.footprint_offset_m) != 3:
+            raise ValueError(f"footprint_offset_m must be [x, y, z] in metres, got {list(self.footprint_offset_m)}")
+        if len(self.up_axis_xyz) != 3 or not np.linalg.norm(self.up_axis_xyz) > 0:
+            raise ValueError(f"up_axis_xyz must be a non-zero [x, y, z] vector, got {list(self.up_axis_xyz)}")
+        if not 0 < self.upright_tilt_deg <= 180:
+            raise ValueError(f"upright_tilt_deg must be in (0, 180] (180 = tilt not judged), got {self.upright_tilt_deg}")
+        if self.min_wheels_in_contact < 0:
+            raise ValueError(f"min_wheels_in_contact must be >= 0, got {self.min_wheels_in_contact}")
+        if self.joint_drag_torque_nm < 0:
+            raise ValueError(f"joint_drag_torque_nm must be >= 0, got {self.joint_drag_torque_nm}")
+        if self.selected and self.upright_tilt_deg >= 180 and self.min_wheels_in_contact == 0:
+            raise ValueError("upright is judged by nothing: set upright_tilt_deg < 180 or min_wheels_in_contact > 0")
+        try:
+            re.compile(self.wheel_link_regex)
+        except re.error as exc:
+            raise ValueError(f"wheel_link_regex {self.wheel_link_regex!r} is not a regular expression: {exc}") from exc
+        if self.selected and self.has_source:
+            self.description()
+
+    def description(self):
+        """The checked :class:`~rollability_ros.core.robots.urdf_robot.MountedDescription` (computed once, kept).
+
+        Raises ``ValueError`` naming the problem: see :func:`~rollability_ros.core.robots.urdf_description.describe`,
+        plus an unknown mount or wheel link, a wheel regex matching nothing, too few wheels for
+        ``min_wheels_in_contact``, and a footprint beyond the mount body's collision extent.
+        """
+        key = dataclasses.astuple(self)
+        cached = self.__dict__.get("_description")
+        if cached is None or cached[0] != key:
+            cached = (key, _mount(self))
+            self.__dict__["_description"] = cached
+        return cached[1]
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        if self.selected and self.has_source:  # workers get the checked text, never re-read files
+            self.description()
+            state["_description"] = self.__dict__["_description"]
+        return state
+
+
+@dataclasses.dataclass(frozen=True)
+class MountedDescription:
+    """A :class:`~rollability_ros.core.robots.urdf_description.RobotDescription` with its mount and wheels placed.
+
+    ``profile_in_body`` (nested tuples, 4x4) is the profile frame in the frame of ``mount_body`` (the rigid body
+    holding the mount link); ``wheel_bodies`` the rigid bodies of the wheel links, sorted.
+    """
+
+    robot: object
+    mount_body: str
+    profile_in_body: tuple
+    wheel_bodies: tuple
+
+
+def footprint_corners(spec):
+    """The four footprint corners ``(4, 3)`` in the mount link's frame (m)."""
+    yaw = math.radians(spec.footprint_yaw_deg)
+    rotation = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+    half = np.array([[sx * spec.footprint_length_m / 2, sy * spec.footprint_width_m / 2]
+                     for sx in (-1, 1) for sy in (-1, 1)])
+    corners = half @ rotation.T + np.asarray(spec.footprint_offset_m[:2])
+    return np.column_stack([corners, np.full(4, spec.footprint_offset_m[2])])
+
+
+def _mount(spec):
+    text, folder = read_urdf_source(spec.urdf_path, spec.robot_description, spec.search_paths)
+    robot = describe(text, folder, spec.search_paths)
+    mount_in_body = robot.link_transform(spec.mount_link)
+    body = robot.body_of[spec.mount_link]
+    points = robot.body_collision_points(body)
+    if not len(points):
+        raise ValueError(f"mount link {spec.mount_link!r}: its rigid body {body!r} has no collision shape to carry "
+                         "a profile")
+    in_mount = (points - mount_in_body[:3, 3]) @ mount_in_body[:3, :3]  # body frame -> mount link frame
+    low, high = in_mount[:, :2].min(axis=0), in_mount[:, :2].max(axis=0)
+    corners = footprint_corners(spec)[:, :2]
+    if np.any(corners < low - FOOTPRINT_TOLERANCE_M) or np.any(corners > high + FOOTPRINT_TOLERANCE_M):
+        raise ValueError(f"footprint {spec.footprint_length_m} x {spec.footprint_width_m} m at offset "
+                         f"{list(spec.footprint_offset_m)} m, yaw {spec.footprint_yaw_deg} deg is larger than mount "
+                         f"link {spec.mount_link!r}'s collision extent x [{low[0]:.4f}, {high[0]:.4f}] m, "
+                         f"y [{low[1]:.4f}, {high[1]:.4f}] m")
+    wheels = set(spec.wheel_links)
+    for name in wheels:
+        robot.link_transform(name)  # names an unknown link
+    if spec.wheel_link_regex:
+        matched = {name for name in robot.body_of if re.fullmatch(spec.wheel_link_regex, name)}
+        if not matched:
+            raise ValueError(f"wheel_link_regex {spec.wheel_link_regex!r} matches no link of "
+                             f"{', '.join(sorted(robot.body_of))}")
+        wheels |= matched
+    wheel_bodies = tuple(sorted({robot.body_of[name] for name in wheels}))
+    if spec.min_wheels_in_contact > len(wheel_bodies):
+        raise ValueError(f"min_wheels_in_contact {spec.min_wheels_in_contact} exceeds the {len(wheel_bodies)} "
+                         f"wheel bodies named ({', '.join(wheel_bodies) or 'none'})")
+    profile_in_mount = transform(spec.footprint_offset_m, (0.0, 0.0, math.radians(spec.footprint_yaw_deg)))
+    return MountedDescription(robot=robot, mount_body=body,
+                              profile_in_body=tuple(map(tuple, (mount_in_body @ profile_in_mount).tolist())),
+                              wheel_bodies=wheel_bodies)
+
+
+def footprint_grid(grid, urdf_robot):
+    """``grid`` (a :class:`~rollability_ros.core.profile.geometry.ProfileGrid`) as the robot in use needs it: with a
+    selected ``urdf_robot`` (:class:`UrdfRobotSpec`) its ``length_m`` / ``width_m`` are the mount footprint's."""
+    if not urdf_robot.selected:
+        return grid
+    return dataclasses.replace(grid, length_m=urdf_robot.footprint_length_m, width_m=urdf_robot.footprint_width_m)
+
+
+def profile_mount(chassis, urdf_robot):
+    """Where the profile frame sits on the robot in use: ``(link, position_m (3,), yaw_deg)``.
+
+    ``link`` names the link it is mounted on (the chassis URDF's body link, or ``urdf_robot.mount_link``);
+    ``position_m`` is the profile frame's origin in that link's frame and ``yaw_deg`` its turn about the link's z.
+    Arguments as :func:`footprint_grid` (``chassis`` a :class:`~rollability_ros.core.robots.robot.ChassisSpec`).
+    """
+    if urdf_robot.selected:
+        return urdf_robot.mount_link, np.asarray(urdf_robot.footprint_offset_m, dtype=np.float64), \
+            float(urdf_robot.footprint_yaw_deg)
+    return ChassisModel.BODY_LINK, ChassisModel(chassis).mount_position_m, 0.0
+
+
+class RobotChoice:
+    """Mixin for settings dataclasses with a chassis ``robot`` (ChassisSpec) and a ``urdf_robot``
+    (:class:`UrdfRobotSpec`) field: the built-in chassis unless ``urdf_robot`` names a mount link."""
+
+    def robot_model(self):
+        """The :class:`~rollability_ros.core.robots.robot.RobotModel` in use (``ValueError`` for a bad URDF)."""
+        if self.urdf_robot.selected:
+            return UrdfRobotModel(self.urdf_robot)
+        return ChassisModel(self.robot)
+
+    def profile_density_kgpm3(self):
+        """Effective density of the profile solid on the robot in use (kg/m^3)."""
+        return (self.urdf_robot if self.urdf_robot.selected else self.robot).profile_density_kgpm3
+
+
+def half_width_across_m(points, axis):
+    """Half the smallest width of the points ``(k, 3)`` across ``axis`` (3,): over every direction normal to
+    the axis, half the extent of the points along it (m). For a round wheel centred on its axle (a cylinder's
+    bounding-box corners, a sphere, a mesh hull) this is its radius."""
+    axis = np.asarray(axis, dtype=np.float64) / np.linalg.norm(axis)
+    first = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    first /= np.linalg.norm(first)
+    second = np.cross(axis, first)
+
+    def widths(angles):
+        along = points @ (np.outer(np.cos(angles), first) + np.outer(np.sin(angles), second)).T  # (k, angles)
+        return along.max(axis=0) - along.min(axis=0)
+
+    coarse, fine = WIDTH_SEARCH_STEPS
+    angles = np.linspace(0.0, math.pi, coarse, endpoint=False)
+    step = math.pi / coarse
+    narrowest = angles[np.argmin(widths(angles))]
+    return float(widths(np.linspace(narrowest - step, narrowest + step, fine)).min() / 2)
+
+
+def profile_inertia(profile):
+    """The inertia (3, 3) about its centre of mass of a :class:`ProfileBody`'s hull, uniform density (kg m^2)."""
+    trimesh = require("trimesh", feature="profile meshes")
+    hull = trimesh.convex.convex_hull(profile.hull_vertices_m)
+    return np.asarray(hull.moment_inertia) * (profile.mass_kg / hull.volume), hull
+
+
+def profile_link_xml(mount_body, profile_in_body, mesh_filename, profile=None):
+    """URDF ``<link>`` and fixed ``<joint>`` of the profile on ``mount_body`` (mesh file as collision and visual)."""
+    inertial = ""
+    if profile is not None:
+        inertia, _ = profile_inertia(profile)
+        inertial = inertial_xml(profile.mass_kg, profile.com_m, inertia)
+    geometry = f'<origin xyz="0 0 0" rpy="0 0 0"/><geometry><mesh filename="{mesh_filename}"/></geometry>'
+    return (f'  <link name="{PROFILE_LINK}">{inertial}<visual>{geometry}</visual><collision>{geometry}</collision>'
+            f'</link>\n  <joint name="{PROFILE_LINK}_joint" type="fixed"><parent link="{mount_body}"/>'
+            f'<child link="{PROFILE_LINK}"/>{origin_xml(np.array(profile_in_body))}</joint>\n')
+
+
+def _obj_text(mesh):
+    vertices = "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in np.asarray(mesh.vertices).tolist())
+    faces = "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in np.asarray(mesh.faces).tolist())
+    return vertices + faces
+
+
+class UrdfRobotModel(SpecThresholds, RobotModel):
+    """A robot loaded from a URDF (:class:`UrdfRobotSpec`): base = frame at the robot's centre of mass, one link
+    per rigid body, the profile (if any) a link fixed to the mount's body."""
+
+    def __init__(self, spec):
+        self.spec = spec
+        self.mounted = spec.description()
+        self._up_axis = np.asarray(spec.up_axis_xyz, dtype=np.float64) / np.linalg.norm(spec.up_axis_xyz)
+
+    def sim_urdf(self, profile=None, mesh_filename=None):
+        """The URDF PyBullet loads: the rigid-body robot, plus the profile link on ``mesh_filename`` if given."""
+        text = self.mounted.robot.sim_urdf
+        if profile is not None:
+            text += profile_link_xml(self.mounted.mount_body, self.mounted.profile_in_body, mesh_filename, profile)
+        return text + "</robot>\n"
+
+    def spawn(self, client, profile, position, orientation):
+        pybullet = require("pybullet", feature="the simulated evaluator")
+        with tempfile.TemporaryDirectory(prefix="rollability_urdf_") as folder:
+            mesh_filename = None
+            if profile is not None:
+                _, hull = profile_inertia(profile)
+                obj = _obj_text(hull)
+                # named by content: PyBullet may cache meshes by file name
+                mesh_filename = os.path.join(folder, f"profile_{hashlib.sha256(obj.encode()).hexdigest()[:16]}.obj")
+                with open(mesh_filename, "w", encoding="utf-8") as stream:
+                    stream.write(obj)
+            urdf_path = os.path.join(folder, "robot.urdf")
+            with open(urdf_path, "w", encoding="utf-8") as stream:
+                stream.write(self.sim_urdf(profile, mesh_filename))
+            body = pybullet.loadURDF(urdf_path, list(position), list(orientation), useFixedBase=False,
+                                     flags=pybullet.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
+        index, joints = {}, []
+        for joint in range(pybullet.getNumJoints(body, physicsClientId=client)):
+            info = pybullet.getJointInfo(body, joint, physicsClientId=client)
+            index[info[12].decode()] = joint
+            if info[2] != pybullet.JOINT_FIXED:
+                joints.append(joint)
+        if joints:  # replaces the loader's default motors: an unpowered drive's drag, or free
+            pybullet.setJointMotorControlArray(body, joints, pybullet.VELOCITY_CONTROL, targetVelocities=[0.0] * len(joints),
+                                               forces=[self.spec.joint_drag_torque_nm] * len(joints),
+                                               physicsClientId=client)
+        return SpawnedRobot(body_id=body, wheel_links=tuple(index[name] for name in self.mounted.wheel_bodies))
+
+    def up_axis(self, client, robot):
+        pybullet = require("pybullet", feature="the simulated evaluator")
+        _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
+        return np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3) @ self._up_axis
+
+    def wheel_radii_m(self):
+        """Each wheel body's :func:`half_width_across_m` of its collision shapes across its joint axis (m).
+
+        Raises ``ValueError`` for a wheel body on no moving joint or without a collision shape.
+        """
+        robot = self.mounted.robot
+        joints = {joint.find("child").get("link"): joint
+                  for joint in ElementTree.fromstring(robot.sim_urdf + "</robot>").iter("joint")
+                  if joint.get("type") != "fixed"}
+        radii = []
+        for body in self.mounted.wheel_bodies:
+            if body not in joints:
+                raise ValueError(f"wheel body {body!r} turns on no joint: a wheel link must be on a moving joint")
+            points = robot.body_collision_points(body)
+            if not len(points):
+                raise ValueError(f"wheel body {body!r} has no collision shape to roll on")
+            axis = joints[body].find("axis")  # in the child link's frame = the wheel body's frame
+            xyz = [float(v) for v in (axis.get("xyz", "1 0 0") if axis is not None else "1 0 0").split()]
+            radii.append(half_width_across_m(points, xyz))
+        return tuple(radii)
+
+    def to_urdf(self, profile_mesh_filename=None, profile=None):
+        """The description as given, plus the profile link (mesh file, inertia if ``profile``) on the mount."""
+        text = self.mounted.robot.original_urdf
+        if profile_mesh_filename is None:
+            return text
+        mount_in_body = self.mounted.robot.link_transform(self.spec.mount_link)
+        profile_in_mount = np.linalg.inv(mount_in_body) @ np.array(self.mounted.profile_in_body)
+        link = profile_link_xml(self.spec.mount_link, profile_in_mount, profile_mesh_filename, profile)
+        end = text.rstrip().rfind("</robot>")
+        return text[:end] + link + text[end:]

@@ -1,0 +1,9 @@
+"""PyBullet physics: worlds, disturbance trials, fitness evaluation, the stable-pose screen, the launch twin.
+
+- world: PhysicsParams and one DIRECT client per simulation
+- trials: one disturbance trial (start, push, rest, upright test)
+- evaluation: fitness = upright / trials, serial, process pool or Ray
+- worker_pool: spawned worker processes that never outlive their parent
+- stable_poses: analytic stable-pose screen
+- launch_twin: the simulated launch rig
+"""

@@ -1,0 +1,379 @@
+"""Fitness of a profile = upright trials / trials, run serially, in a local process pool, or on a Ray cluster.
+
+Every trial ``i`` of an evaluation with base seed ``s`` uses :func:`trial_seed` ``(s, i)``: the seed does not
+depend on the profile, so candidates evaluated with the same base seed meet the same start states and
+disturbances (common random numbers). A trial's outcome depends only on (profile, trial seed, settings) (see
+:mod:`rollability_ros.core.sim.trials`), so every executor returns the same outcomes for the same inputs.
+
+Executors split the trials into batches of ``evaluator.batch_trials`` and yield each finished batch;
+:func:`evaluate_profile` reports every trial through ``on_trial`` as batches finish and checks the cancel event
+between them (every ``evaluator.poll_interval_s`` while waiting).
+"""
+import concurrent.futures
+import dataclasses
+import hashlib
+import os
+import pickle
+import time
+
+import numpy as np
+
+import rollability_ros
+
+from rollability_ros.core.config import from_mapping, load_parameters, section
+from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
+from rollability_ros.core.optional import require
+from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
+from rollability_ros.core.sim.world import PhysicsParams, connect
+from rollability_ros.core.results.stats import wilson_interval
+from rollability_ros.core.sim.trials import TrialSettings, TrialWorld
+from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec, footprint_grid
+from rollability_ros.core.sim.worker_pool import spawn_pool
+
+#: Largest base seed (TrialResult.seed is uint64; trial seeds are kept below 2**63 for int64 stores).
+MAX_SEED = 2**64 - 1
+
+
+class EvaluationCancelled(Exception):
+    """The cancel event was set before all trials finished; ``outcomes`` holds the trials done so far."""
+
+    def __init__(self, outcomes):
+        super().__init__(f"evaluation cancelled after {len(outcomes)} trial(s)")
+        self.outcomes = outcomes
+
+
+@dataclasses.dataclass
+class EvaluatorOptions:
+    """How an evaluation is run (``config/evaluator.yaml``, section ``evaluator``)."""
+
+    trials: int = 60
+    max_trials: int = 10000
+    batch_trials: int = 5
+    workers: int = 0
+    ray_address: str = ""
+    poll_interval_s: float = 0.05
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not 1 <= self.trials <= self.max_trials:
+            raise ValueError(f"need 1 <= trials <= max_trials, got trials={self.trials}, max_trials={self.max_trials}")
+        if self.batch_trials < 1:
+            raise ValueError(f"batch_trials must be >= 1, got {self.batch_trials}")
+        if self.workers < 0:
+            raise ValueError(f"workers must be >= 0 (0 = one per core), got {self.workers}")
+        if not self.poll_interval_s > 0:
+            raise ValueError(f"poll_interval_s must be > 0, got {self.poll_interval_s}")
+
+
+@dataclasses.dataclass
+class EvaluatorSettings(RobotChoice):
+    """Everything a trial needs (picklable): grid, printer, physics, trial protocol, robot, evaluator options.
+
+    The robot is the built-in chassis (``robot``) unless ``urdf_robot`` names a mount link; then the URDF robot is
+    used and the grid's ``length_m`` / ``width_m`` are its mount footprint's (:func:`footprint_grid`).
+    ``robot_model()`` and ``profile_density_kgpm3()`` come from
+    :class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`.
+    """
+
+    grid: ProfileGrid = dataclasses.field(default_factory=ProfileGrid)
+    printer: PrinterSpec = dataclasses.field(default_factory=PrinterSpec)
+    physics: PhysicsParams = dataclasses.field(default_factory=PhysicsParams)
+    trial: TrialSettings = dataclasses.field(default_factory=TrialSettings)
+    robot: ChassisSpec = dataclasses.field(default_factory=ChassisSpec)
+    evaluator: EvaluatorOptions = dataclasses.field(default_factory=EvaluatorOptions)
+    urdf_robot: UrdfRobotSpec = dataclasses.field(default_factory=UrdfRobotSpec)
+
+    def __post_init__(self):
+        self.grid = footprint_grid(self.grid, self.urdf_robot)
+
+
+#: settings field -> config namespace (also the ROS parameter prefix the sim_evaluator node declares)
+SETTINGS_SECTIONS = {"grid": "profile", "printer": "printer", "physics": "sim", "trial": "trial",
+                     "robot": "robot", "evaluator": "evaluator", "urdf_robot": "urdf_robot"}
+
+
+def load_settings(config_paths=("sim", "robot", "evaluator"), node_name="/**"):
+    """Read :class:`EvaluatorSettings` from ROS 2 parameter files (names of shipped files or paths).
+
+    Namespaces: ``sim`` and ``trial`` (sim.yaml), ``robot``, ``profile`` and ``printer`` (robot.yaml), ``urdf_robot``
+    (a robot config such as husky.yaml),
+    ``evaluator`` (evaluator.yaml). Missing keys keep their defaults; unknown keys or bad values raise
+    :class:`~rollability_ros.core.config.ConfigError`.
+    """
+    flat = load_parameters(list(config_paths), node_name)
+    return settings_from_parameters(flat)
+
+
+def settings_from_parameters(flat):
+    """Build :class:`EvaluatorSettings` from a flat ``{dotted name: value}`` dict (e.g. a node's parameters)."""
+    hints = {f.name: f.type for f in dataclasses.fields(EvaluatorSettings)}
+    return EvaluatorSettings(**{name: from_mapping(hints[name], section(flat, prefix), prefix)
+                                for name, prefix in SETTINGS_SECTIONS.items()})
+
+
+def trial_seed(base_seed, index):
+    """Seed of trial ``index`` of an evaluation with ``base_seed`` (int in [0, 2**63)), via numpy SeedSequence."""
+    if isinstance(base_seed, bool) or not isinstance(base_seed, (int, np.integer)) or not 0 <= base_seed <= MAX_SEED:
+        raise ValueError(f"seed must be an integer in [0, 2**64), got {base_seed!r}")
+    if index < 0:
+        raise ValueError(f"trial index must be >= 0, got {index}")
+    state = np.random.SeedSequence(int(base_seed), spawn_key=(int(index),)).generate_state(1, dtype=np.uint64)
+    return int(state[0]) & (2**63 - 1)
+
+
+@dataclasses.dataclass(frozen=True)
+class TrialJob:
+    """What a worker needs to run trials of one profile: the profile body (None = baseline) and the settings."""
+
+    profile: ProfileBody
+    settings: EvaluatorSettings
+
+
+def profile_job(heights, settings):
+    """Make the :class:`TrialJob` of half-grid ``heights`` (None / empty / flat = baseline); ``ValueError`` if bad."""
+    if heights is not None and np.asarray(heights).size:
+        heights = check_heights(heights, settings.grid)
+    if is_baseline(heights, settings.grid.flat_tolerance):
+        return TrialJob(profile=None, settings=settings)
+    return mesh_job(profile_mesh(heights, settings.grid), settings)
+
+
+def mesh_job(mesh, settings):
+    """Make the :class:`TrialJob` of a profile solid (trimesh, metres, profile frame); None = baseline."""
+    profile = None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
+    return TrialJob(profile=profile, settings=settings)
+
+
+_worker_client = None
+_worker_world = None  # (job key, TrialWorld): the last profile's world in this process
+
+
+def _job_key(job):
+    return hashlib.sha256(pickle.dumps(job, protocol=4)).hexdigest()
+
+
+def run_batch(job, batch):
+    """Run the trials ``batch`` = [(index, seed), ...] of ``job`` in this process's physics client.
+
+    The process keeps one client and the world of the last job it ran, so consecutive batches of one profile
+    reuse it (restored before every trial, see :class:`~rollability_ros.core.sim.trials.TrialWorld`).
+    """
+    global _worker_client, _worker_world
+    if _worker_client is None:
+        _worker_client = connect()
+    key = _job_key(job)
+    if _worker_world is None or _worker_world[0] != key:
+        settings = job.settings
+        _worker_world = (key, TrialWorld(_worker_client, settings.robot_model(), job.profile, settings.trial,
+                                         settings.physics))
+    world = _worker_world[1]
+    return [world.run(index, seed) for index, seed in batch]
+
+
+def _warm(hold_s=0.2):
+    """Start this worker's physics client so the first batch does not pay for it; return the worker's pid.
+
+    The pool starts processes on demand: holding each warm-up task for ``hold_s`` makes every process take one.
+    """
+    run_batch(TrialJob(None, EvaluatorSettings()), [])
+    time.sleep(hold_s)
+    return os.getpid()
+
+
+class SerialExecutor:
+    """Runs batches one after another in the calling process (the default of :func:`evaluate_profile`)."""
+
+    def iter_batches(self, job, batches, should_stop):
+        """Yield the outcome list of each batch in order; stop early when ``should_stop()`` is true."""
+        for batch in batches:
+            if should_stop():
+                return
+            yield run_batch(job, batch)
+
+    def close(self):
+        """Nothing to release."""
+
+
+def _drain(pending, wait, cancel, should_stop, poll_interval_s):
+    """Yield results of ``pending`` futures as they finish; on stop (or consumer exit) cancel the rest."""
+    try:
+        while pending and not should_stop():
+            done, pending = wait(pending, poll_interval_s)
+            for future in done:
+                yield future
+    finally:
+        for future in pending:
+            cancel(future)
+
+
+class LocalExecutor:
+    """A pool of persistent worker processes (spawned, one physics client each) on this machine.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Number of processes; None or 0 = one per core (``os.cpu_count()``).
+    poll_interval_s : float
+        How often a wait for results checks the stop condition (s).
+    """
+
+    def __init__(self, workers=None, poll_interval_s=0.05):
+        self.workers = workers or os.cpu_count() or 1
+        if self.workers < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
+        self.poll_interval_s = poll_interval_s
+        self._pool = spawn_pool(self.workers)
+        self._warming = [self._pool.submit(_warm) for _ in range(self.workers)]
+
+    def warm(self):
+        """Block until the worker processes have started their physics clients; return their pids."""
+        return sorted({future.result() for future in self._warming})
+
+    def iter_batches(self, job, batches, should_stop):
+        """Yield outcome lists as batches finish (any order); stop early when ``should_stop()`` is true."""
+        pending = {self._pool.submit(run_batch, job, batch) for batch in batches}
+
+        def wait(futures, timeout):
+            return concurrent.futures.wait(futures, timeout=timeout, return_when=concurrent.futures.FIRST_COMPLETED)
+
+        for future in _drain(pending, wait, lambda f: f.cancel(), should_stop, self.poll_interval_s):
+            yield future.result()
+
+    def close(self):
+        """Stop the worker processes (pending batches are cancelled)."""
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        self.close()
+
+
+class RayExecutor:
+    """Hands trial batches to an existing Ray cluster (``ray start --head`` elsewhere) by ``address``.
+
+    The package is shipped to the cluster's workers as a ``py_modules`` runtime environment, so the workers need
+    only pybullet and numpy installed. Each Ray worker process keeps one physics client across tasks.
+    """
+
+    def __init__(self, address, poll_interval_s=0.05):
+        if not address:
+            raise ValueError("RayExecutor needs a cluster address (host:port of the Ray head)")
+        ray = require("ray", feature="the Ray executor")
+        self._ray = ray
+        self.poll_interval_s = poll_interval_s
+        self._owns_connection = not ray.is_initialized()
+        if self._owns_connection:
+            package_dir = os.path.dirname(os.path.abspath(rollability_ros.__file__))
+            ray.init(address=address, runtime_env={"py_modules": [package_dir]}, log_to_driver=False,
+                     logging_level="WARNING", configure_logging=False)
+        self._remote_batch = ray.remote(run_batch)
+
+    def iter_batches(self, job, batches, should_stop):
+        """Yield outcome lists as batches finish on the cluster; stop early when ``should_stop()`` is true."""
+        ray = self._ray
+        job_ref = ray.put(job)
+        pending = [self._remote_batch.remote(job_ref, batch) for batch in batches]
+
+        def wait(refs, timeout):
+            done, rest = ray.wait(list(refs), num_returns=1, timeout=timeout)
+            return done, rest
+
+        for ref in _drain(pending, wait, lambda r: ray.cancel(r, force=False), should_stop, self.poll_interval_s):
+            yield ray.get(ref)
+
+    def close(self):
+        """Disconnect from the cluster if this executor connected (the cluster keeps running)."""
+        if self._owns_connection and self._ray.is_initialized():
+            self._ray.shutdown()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        self.close()
+
+
+def make_executor(options, workers=None):
+    """The executor ``options`` (:class:`EvaluatorOptions`) ask for: Ray if ``ray_address`` is set, else a pool."""
+    if options.ray_address:
+        return RayExecutor(options.ray_address, options.poll_interval_s)
+    return LocalExecutor(workers if workers is not None else options.workers or None, options.poll_interval_s)
+
+
+@dataclasses.dataclass(frozen=True)
+class EvaluationResult:
+    """Fitness of a profile with its Wilson 95% interval and every trial's outcome (sorted by index)."""
+
+    fitness: float
+    successes: int
+    trials: int
+    ci_low: float
+    ci_high: float
+    eval_time_s: float
+    trial_results: list
+
+
+def _check_request(trials, seed, options):
+    if isinstance(trials, bool) or not isinstance(trials, (int, np.integer)) or not 1 <= trials <= options.max_trials:
+        raise ValueError(f"trials must be an integer in [1, {options.max_trials}], got {trials!r}")
+    trial_seed(seed, 0)  # validates the seed
+
+
+def evaluate_job(job, trials, seed, executor=None, on_trial=None, cancel_event=None):
+    """Run ``trials`` trials of ``job`` (a :class:`TrialJob`) with base ``seed``; see :func:`evaluate_profile`."""
+    options = job.settings.evaluator
+    _check_request(trials, seed, options)
+    executor = executor or SerialExecutor()
+    seeds = [(index, trial_seed(seed, index)) for index in range(trials)]
+    batches = [seeds[start:start + options.batch_trials] for start in range(0, trials, options.batch_trials)]
+    stopped = cancel_event.is_set if cancel_event is not None else (lambda: False)
+    outcomes = []
+    started = time.perf_counter()
+    for batch_outcomes in executor.iter_batches(job, batches, stopped):
+        for outcome in batch_outcomes:
+            outcomes.append(outcome)
+            if on_trial is not None:
+                on_trial(outcome)
+        if stopped():
+            break
+    outcomes.sort(key=lambda outcome: outcome.index)
+    if len(outcomes) < trials:
+        raise EvaluationCancelled(outcomes)
+    successes = sum(outcome.upright for outcome in outcomes)
+    low, high = wilson_interval(successes, trials)
+    return EvaluationResult(fitness=successes / trials, successes=successes, trials=trials, ci_low=low, ci_high=high,
+                            eval_time_s=time.perf_counter() - started, trial_results=outcomes)
+
+
+def evaluate_profile(heights, trials, seed, settings, executor=None, on_trial=None, cancel_event=None):
+    """Evaluate the profile of half-grid ``heights`` (None / empty / all zero = baseline) over ``trials`` trials.
+
+    Parameters
+    ----------
+    heights : array-like of float, shape (rows*cols,), or None
+        Vertex heights in simulation units (:mod:`rollability_ros.core.profile.geometry`).
+    trials : int
+        Number of trials, 1 .. ``settings.evaluator.max_trials``.
+    seed : int
+        Base seed in [0, 2**64); trial ``i`` uses ``trial_seed(seed, i)``.
+    settings : EvaluatorSettings
+    executor : SerialExecutor | LocalExecutor | RayExecutor, optional
+        Where trials run; None = serially in this process. The caller owns (and closes) the executor.
+    on_trial : callable(TrialOutcome), optional
+        Called in this thread as each trial's batch completes (completion order, not index order).
+    cancel_event : threading.Event-like, optional
+        When set, pending batches are cancelled and :class:`EvaluationCancelled` is raised.
+
+    Returns
+    -------
+    EvaluationResult
+        Raises ``ValueError`` for bad heights, trials or seed.
+    """
+    return evaluate_job(profile_job(heights, settings), trials, seed, executor, on_trial, cancel_event)
+
+
+def evaluate_mesh(mesh, trials, seed, settings, executor=None, on_trial=None, cancel_event=None):
+    """Evaluate a profile solid (e.g. from :func:`~rollability_ros.core.profile.geometry.load_profile_mesh`); see above."""
+    return evaluate_job(mesh_job(mesh, settings), trials, seed, executor, on_trial, cancel_event)

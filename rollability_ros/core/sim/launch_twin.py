@@ -1,0 +1,495 @@
+"""The simulated launch twin (paper 2.2): the chassis pushed off the launcher's ledge onto memory foam, classified.
+
+World (metres, world frame z up; one fresh PyBullet DIRECT world per launch, so a launch depends only on its
+condition, seed and settings)
+    - the floor: the plane of :func:`~rollability_ros.core.sim.world.reset_world` at z = 0;
+    - the foam: a static box ``foam.length_m`` x ``foam.width_m`` x ``foam.thickness_m`` lying on the floor in
+      front of the ledge (x from 0 to ``length_m``, centred on y = 0); its top, z = ``thickness_m``, is the
+      impact surface;
+    - the ledge: the launcher's base plate on its table, one static box behind the edge (x from
+      ``-ledge_depth_m`` to 0, ``ledge_width_m`` along y) from the floor to ``height_m`` above the impact
+      surface. The edge is the line x = 0 on its top; its outward normal is +x.
+Contact
+    The ledge gets the ground contact of ``config/sim.yaml`` (``PhysicsParams.ground_contact``) and the chassis
+    its body contact, as in the trials. The foam gets ``foam.lateral_friction``, ``foam.rolling_friction`` and
+    ``foam.restitution`` as its own body coefficients (Bullet multiplies them with the chassis's: with the
+    chassis's 0.35 and 0.3, foam 1.0 and 0.1 give a contact friction of 0.35 and restitution 0.03; a wheel rolling
+    on the foam meets ``wheel_rolling_friction`` + 0.35 x ``foam.rolling_friction``) and is compliant: Bullet's contact stiffness
+    and damping (``contact_stiffness_npm``, ``contact_damping_nspm``), which Bullet combines with the chassis's
+    defaults (stiffness infinite, damping 0.1 N s/m) to almost exactly the foam's values. They act per contact
+    point, and a face landing flat makes up to four, so read them as the stiffness of one wheel or corner
+    pressing into the foam.
+Wheels (the paper's chassis runs on Mecanum wheels)
+    A Mecanum wheel's rollers let it slide along its axle: the twin scales the wheels' friction along the axle by
+    ``wheel_side_friction_factor`` (Bullet's anisotropic friction). Rolling on the plate, a wheel resists with
+    ``wheel_rolling_friction`` (Bullet rolling friction, a length in metres: the resisting force is about
+    ``wheel_rolling_friction / wheel_radius_m`` times the load) and its motor back-drives against
+    ``wheel_drag_torque_nm``. These replace the trial chassis's values on the wheel links: with the trials' rolling
+    friction 0.01 (a resisting force of a third of the load on a 0.03 m wheel) and drag 0.02 N m, the chassis
+    stops within 0.1 m and never covers the paper's 0.34 m run at 0.8 m/s in 0.42 s.
+Robot
+    The built-in chassis, or any wheeled URDF robot when ``urdf_robot`` names a mount link (the trials' choice,
+    :class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`; e.g. ``config/husky.yaml`` in the twin's files). The
+    wheel settings above act on that robot's wheel links, each wheel's launch spin uses its own radius
+    (:meth:`~rollability_ros.core.robots.robot.RobotModel.wheel_radii_m`: a URDF wheel's from its collision shapes) and the
+    profile weighs that robot's ``profile_density_kgpm3``. The launcher stays as configured: a robot that does
+    not fit on the ledge at its start (a large one on the 0.8 m ledge) is refused with a ``ValueError`` naming
+    ``ledge_depth_m`` / ``ledge_width_m``.
+Angle (the paper gives mounting holes at -60 ... +60 deg, not a definition)
+    Positive angles turn counterclockwise seen from above (about world +z), as in ``config/rig.yaml``.
+    ``yaw_of_push`` (default): the push plate, and the chassis placed square against it, are turned by the angle
+    from the edge's outward normal; the chassis runs ``run_length_m`` along the push direction and leaves the
+    edge obliquely. ``chassis_yaw``: the push stays along the edge normal and only the chassis is turned on the
+    plate (it runs sideways on its Mecanum rollers).
+Launch
+    The push is an impulse: at t = 0 the chassis, at rest on the plate, gets the launch speed along the push
+    direction and its wheels the spin of rolling without slip. (The real 25 mm cylinder at 30 psi pushes with
+    about 100 N and brings the 1.2 kg chassis to speed within a few millimetres of its 150 mm stroke.) It starts
+    where its foremost point (largest x of its links' bounding boxes) reaches the edge line after ``run_length_m``
+    along the push, its base origin (the centre of the body box) on a path through the edge's midpoint. It then
+    coasts on its wheels, so it reaches the edge about 5% (0.8 m/s) or 3% (1.5 m/s) later than
+    ``run_length_m / speed``. The actual launch speed scatters around the condition's speed with a relative
+    standard deviation ``speed_sigma_fraction``, and the angle by ``angle_sigma_deg`` (hand placement against the
+    push plate), both drawn from the seed.
+Measurements and phases
+    ``travel_time_s`` = time at which the foremost point crosses the edge line x = 0 (interpolated within the
+    step): the light gates of the real rig, at the start and across the edge; ``measured_speed_mps`` =
+    ``run_length_m / travel_time_s``. ``flight_time_s`` runs from the base origin crossing the edge line (the
+    chassis goes over) to the first foam contact. Phases: ``fired`` at t = 0, ``in_flight`` when the base origin
+    crosses the edge, ``settling`` at the first foam contact, ``classifying`` once the chassis has come to rest
+    (the trials' rest detection, ``config/sim.yaml`` section ``trial``: speeds below thresholds for
+    ``rest_hold_s``) or at the trials' time cap. Every phase is reported once, in this order, even when an event
+    did not happen (a chassis too slow to leave the plate). The outcome is the robot model's upright test (the
+    trials' test) against the foam, or against the ledge if the chassis never went over the edge.
+"""
+import dataclasses
+import math
+
+import numpy as np
+
+from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
+from rollability_ros.core.profile.designs import DesignSources, profile_mesh_for
+from rollability_ros.core.optional import require
+from rollability_ros.core.results.records import NOT_MEASURED
+from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
+from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world, set_contact
+from rollability_ros.core.sim.trials import RestDetector, TrialSettings, place_on_ground
+from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec
+
+#: ``launch_twin.angle_convention`` values (see the module docstring).
+ANGLE_CONVENTIONS = ("yaw_of_push", "chassis_yaw")
+#: Phases reported through ``on_phase``, in order.
+PHASES = ("fired", "in_flight", "settling", "classifying")
+#: Smallest cosine between the push and the edge normal (``yaw_of_push`` angles up to about +-84 deg).
+MIN_PUSH_TOWARDS_EDGE = 0.1
+
+
+@dataclasses.dataclass
+class LauncherSpec:
+    """The launcher's run and ledge (``launch_twin.launcher``); metres."""
+
+    run_length_m: float = 0.34
+    ledge_depth_m: float = 0.8
+    ledge_width_m: float = 2.0
+    start_clearance_m: float = 0.0005
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        for name in ("run_length_m", "ledge_depth_m", "ledge_width_m"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.ledge_depth_m <= self.run_length_m:
+            raise ValueError(f"ledge_depth_m {self.ledge_depth_m} must exceed run_length_m {self.run_length_m}")
+        if not 0 <= self.start_clearance_m < 0.01:
+            raise ValueError(f"start_clearance_m must be in [0, 0.01), got {self.start_clearance_m}")
+
+
+@dataclasses.dataclass
+class FoamSpec:
+    """The memory-foam layer under the impact region (``launch_twin.foam``)."""
+
+    thickness_m: float = 0.05
+    length_m: float = 2.5
+    width_m: float = 3.0
+    contact_stiffness_npm: float = 2.0e4
+    contact_damping_nspm: float = 150.0
+    lateral_friction: float = 1.0
+    rolling_friction: float = 0.01
+    restitution: float = 0.1
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        for name in ("thickness_m", "length_m", "width_m", "contact_stiffness_npm"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("contact_damping_nspm", "lateral_friction", "rolling_friction"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if not 0 <= self.restitution <= 1:
+            raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
+
+    def contact(self, ground_contact):
+        """The foam's ``changeDynamics`` keywords: ``ground_contact``'s spinning friction, the foam's own rest."""
+        return {**ground_contact, "lateralFriction": self.lateral_friction, "rollingFriction": self.rolling_friction,
+                "restitution": self.restitution,
+                "contactStiffness": self.contact_stiffness_npm, "contactDamping": self.contact_damping_nspm}
+
+
+@dataclasses.dataclass
+class LaunchTwinOptions:
+    """The twin's own parameters (``config/launch_twin.yaml``, namespace ``launch_twin``)."""
+
+    angle_convention: str = "yaw_of_push"
+    speed_sigma_fraction: float = 0.03
+    angle_sigma_deg: float = 1.0
+    wheel_side_friction_factor: float = 0.1
+    wheel_rolling_friction: float = 0.0002
+    wheel_drag_torque_nm: float = 0.0005
+    pose_rate_hz: float = 30.0
+    launcher: LauncherSpec = dataclasses.field(default_factory=LauncherSpec)
+    foam: FoamSpec = dataclasses.field(default_factory=FoamSpec)
+    designs: DesignSources = dataclasses.field(default_factory=DesignSources)
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if self.angle_convention not in ANGLE_CONVENTIONS:
+            raise ValueError(f"angle_convention must be one of {', '.join(ANGLE_CONVENTIONS)}, "
+                             f"got {self.angle_convention!r}")
+        if not 0 <= self.speed_sigma_fraction <= 0.5:
+            raise ValueError(f"speed_sigma_fraction must be in [0, 0.5], got {self.speed_sigma_fraction}")
+        if not 0 <= self.angle_sigma_deg <= 30:
+            raise ValueError(f"angle_sigma_deg must be in [0, 30], got {self.angle_sigma_deg}")
+        if not 0 <= self.wheel_side_friction_factor <= 1:
+            raise ValueError(f"wheel_side_friction_factor must be in [0, 1], got {self.wheel_side_friction_factor}")
+        if self.wheel_rolling_friction < 0 or self.wheel_drag_torque_nm < 0:
+            raise ValueError("wheel_rolling_friction and wheel_drag_torque_nm must be >= 0")
+        if not self.pose_rate_hz > 0:
+            raise ValueError(f"pose_rate_hz must be > 0, got {self.pose_rate_hz}")
+
+
+@dataclasses.dataclass
+class LaunchTwinSettings(RobotChoice):
+    """Everything a simulated launch needs (picklable); every field can be replaced per call (calibration).
+
+    The robot launched is the built-in chassis (``robot``) unless ``urdf_robot`` names a mount link, chosen as
+    for the trials (:class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`: ``robot_model()``,
+    ``profile_density_kgpm3()``).
+    """
+
+    physics: PhysicsParams = dataclasses.field(default_factory=PhysicsParams)
+    robot: ChassisSpec = dataclasses.field(default_factory=ChassisSpec)
+    trial: TrialSettings = dataclasses.field(default_factory=TrialSettings)
+    twin: LaunchTwinOptions = dataclasses.field(default_factory=LaunchTwinOptions)
+    urdf_robot: UrdfRobotSpec = dataclasses.field(default_factory=UrdfRobotSpec)
+
+
+#: settings field -> config namespace
+_SECTIONS = {"physics": "sim", "robot": "robot", "trial": "trial", "twin": "launch_twin", "urdf_robot": "urdf_robot"}
+
+
+def launch_twin_settings_from_parameters(flat, overrides=None):
+    """Build :class:`LaunchTwinSettings` from flat ``{dotted name: value}`` parameters (e.g. a node's).
+
+    ``overrides`` maps dotted *settings* names (``"twin.foam.contact_stiffness_npm"``, ``"physics.restitution"``,
+    ``"robot.body_mass_kg"``) to values; they are checked like file values (:class:`ConfigError` if unknown or bad).
+    """
+    nested = {name: section(flat, prefix) for name, prefix in _SECTIONS.items()}
+    for dotted, value in (overrides or {}).items():
+        *parents, leaf = dotted.split(".")
+        node = nested
+        for part in parents:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ConfigError(f"override {dotted}: {part} is not a group of settings")
+        node[leaf] = value
+    return from_mapping(LaunchTwinSettings, nested, "launch twin settings")
+
+
+def load_launch_twin_settings(config_paths=("sim", "robot", "launch_twin"), node_name="/**", overrides=None):
+    """Read :class:`LaunchTwinSettings` from ROS 2 parameter files (names of shipped files or paths).
+
+    Namespaces: ``sim`` and ``trial`` (sim.yaml), ``robot`` (robot.yaml), ``launch_twin`` (launch_twin.yaml),
+    ``urdf_robot`` (a URDF robot's config such as husky.yaml: that robot is launched instead of the chassis).
+    Missing keys keep their defaults; see :func:`launch_twin_settings_from_parameters` for ``overrides``.
+    """
+    return launch_twin_settings_from_parameters(load_parameters(list(config_paths), node_name), overrides)
+
+
+@dataclasses.dataclass(frozen=True)
+class LaunchResult:
+    """One simulated launch. Times are simulated seconds from the push; positions metres, world frame.
+
+    ``final_orientation`` is the chassis base (x, y, z, w) at the end; ``launch_speed_mps`` and
+    ``launch_angle_deg`` the drawn actual values; ``travel_time_s``, ``measured_speed_mps``, ``flight_time_s``
+    and ``landing_position_m`` are as in the module docstring, NaN when the event did not happen;
+    ``landing_position_m`` is the base origin at the first foam contact; ``peak_deceleration_mps2`` the largest change of the base's velocity over one step
+    from the step of that contact on, divided by the step (m/s^2): the impact an accelerometer on the chassis
+    would see.
+    """
+
+    upright: bool
+    final_orientation: tuple
+    travel_time_s: float
+    measured_speed_mps: float
+    launch_speed_mps: float
+    settled: bool
+    sim_time_s: float
+    steps: int
+    tilt_deg: float
+    launch_angle_deg: float = 0.0
+    flight_time_s: float = NOT_MEASURED
+    landing_position_m: tuple = (NOT_MEASURED,) * 3
+    peak_deceleration_mps2: float = 0.0
+
+    @property
+    def final_orientation_xyzw(self):
+        """``final_orientation``, under the name :func:`rollability_ros.core.rig.rig_session.simulated_outcome` reads."""
+        return self.final_orientation
+
+
+def profile_body(configuration, settings):
+    """The :class:`ProfileBody` mounted for ``configuration`` (None = baseline); see :mod:`designs`."""
+    mesh = profile_mesh_for(configuration, settings.twin.designs)
+    return None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
+
+
+def launch_draws(seed, nominal_speed_mps, nominal_angle_deg, options):
+    """The seeded scatter of one launch: ``(actual launch speed m/s, actual angle deg)``."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    rng = np.random.default_rng(int(seed))
+    speed_factor, angle_offset = rng.standard_normal(2)
+    speed = nominal_speed_mps * max(0.05, 1.0 + options.speed_sigma_fraction * float(speed_factor))
+    return speed, nominal_angle_deg + options.angle_sigma_deg * float(angle_offset)
+
+
+def _static_box(pybullet, client, half_extents, centre, contact):
+    shape = pybullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=list(half_extents), physicsClientId=client)
+    body = pybullet.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=shape, basePosition=list(centre),
+                                    physicsClientId=client)
+    set_contact(client, body, contact)
+    return body
+
+
+def build_launch_world(client, settings, height_m):
+    """Empty ``client``'s world and build floor, foam and ledge (module docstring); return ``(foam_id, ledge_id)``."""
+    pybullet = require("pybullet", feature="the launch twin")
+    physics, foam, launcher = settings.physics, settings.twin.foam, settings.twin.launcher
+    reset_world(client, physics)
+    foam_id = _static_box(pybullet, client, (foam.length_m / 2, foam.width_m / 2, foam.thickness_m / 2),
+                          (foam.length_m / 2, 0.0, foam.thickness_m / 2), foam.contact(physics.ground_contact()))
+    top = foam.thickness_m + height_m
+    ledge_id = _static_box(pybullet, client, (launcher.ledge_depth_m / 2, launcher.ledge_width_m / 2, top / 2),
+                           (-launcher.ledge_depth_m / 2, 0.0, top / 2), physics.ground_contact())
+    return foam_id, ledge_id
+
+
+def _set_wheels(pybullet, client, robot, options):
+    """Give the wheel links the twin's Mecanum side friction, rolling friction and motor drag."""
+    for link in robot.wheel_links:
+        axis = pybullet.getJointInfo(robot.body_id, link, physicsClientId=client)[13]
+        factors = [1.0 - (1.0 - options.wheel_side_friction_factor) * abs(a) for a in axis]  # axis: a link unit axis
+        pybullet.changeDynamics(robot.body_id, link, anisotropicFriction=factors,
+                                rollingFriction=options.wheel_rolling_friction, physicsClientId=client)
+    pybullet.setJointMotorControlArray(robot.body_id, list(robot.wheel_links), pybullet.VELOCITY_CONTROL,
+                                       targetVelocities=[0.0] * len(robot.wheel_links),
+                                       forces=[options.wheel_drag_torque_nm] * len(robot.wheel_links),
+                                       physicsClientId=client)
+
+
+def _launch(pybullet, client, robot, velocity_mps, wheel_radii_m):
+    """Give the chassis ``velocity_mps`` (3,) and each wheel (radius in ``wheel_radii_m``, in the order of
+    ``robot.wheel_links``) the spin of rolling on a level surface without slip."""
+    pybullet.resetBaseVelocity(robot.body_id, list(velocity_mps), [0.0, 0.0, 0.0], physicsClientId=client)
+    for link, radius_m in zip(robot.wheel_links, wheel_radii_m, strict=True):
+        spin_radps = np.cross([0.0, 0.0, 1.0], velocity_mps) / radius_m   # omega with omega x (-r z) = -v
+        axis_local = pybullet.getJointInfo(robot.body_id, link, physicsClientId=client)[13]
+        link_orientation = pybullet.getLinkState(robot.body_id, link, physicsClientId=client)[5]
+        axis_world = np.asarray(pybullet.getMatrixFromQuaternion(link_orientation)).reshape(3, 3) @ axis_local
+        angle = pybullet.getJointState(robot.body_id, link, physicsClientId=client)[0]
+        pybullet.resetJointState(robot.body_id, link, angle, float(spin_radps @ axis_world), physicsClientId=client)
+
+
+class _PhaseReporter:
+    """Reports each of :data:`PHASES` once and in order, filling in any skipped before the one reached."""
+
+    def __init__(self, on_phase):
+        self._on_phase = on_phase
+        self._next = 0
+
+    def reach(self, phase):
+        target = PHASES.index(phase)
+        while self._next <= target:
+            if self._on_phase is not None:
+                self._on_phase(PHASES[self._next])
+            self._next += 1
+
+
+def _bounds_m(pybullet, client, body_id):
+    """The robot's world bounding box over all its links' bounding boxes: ``(low (3,), high (3,))`` (m)."""
+    boxes = np.array([pybullet.getAABB(body_id, link, physicsClientId=client)
+                      for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client))])
+    return boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
+
+
+def place_on_launcher(pybullet, client, robot, orientation, push, settings, height_m):
+    """Put the chassis at rest on the plate so that its foremost point reaches the edge after ``run_length_m``
+    along ``push`` (unit (3,)); the base origin's path passes through the edge's midpoint. Return the foremost
+    point's offset ahead of the base origin along x (m).
+
+    Raises ``ValueError`` when the robot placed there is not wholly over the ledge (``ledge_depth_m`` behind the
+    edge, ``ledge_width_m`` along it): a robot too large for the configured launcher.
+    """
+    launcher = settings.twin.launcher
+    plate_z = settings.twin.foam.thickness_m + height_m
+    place_on_ground(client, robot.body_id, orientation, launcher.start_clearance_m, (0.0, 0.0), plate_z)
+    base_x = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)[0][0]
+    lead_m = float(_bounds_m(pybullet, client, robot.body_id)[1][0]) - base_x
+    start = -(launcher.run_length_m + lead_m / push[0]) * push
+    place_on_ground(client, robot.body_id, orientation, launcher.start_clearance_m, start[:2], plate_z)
+    low, high = _bounds_m(pybullet, client, robot.body_id)
+    side_m = max(-low[1], high[1])
+    if low[0] < -launcher.ledge_depth_m or side_m > launcher.ledge_width_m / 2:
+        raise ValueError(f"the robot does not fit on the launcher: placed {launcher.run_length_m} m before the edge "
+                         f"it reaches {-low[0]:.3f} m behind the edge and {side_m:.3f} m to the side; the ledge is "
+                         f"launch_twin.launcher.ledge_depth_m = {launcher.ledge_depth_m} m deep and "
+                         f"ledge_width_m = {launcher.ledge_width_m} m wide")
+    return lead_m
+
+
+def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None):
+    """Launch ``condition``'s configuration off the simulated ledge and classify it (module docstring).
+
+    Parameters
+    ----------
+    condition : rollability_ros.core.results.records.LaunchCondition
+        Configuration id, ledge height above the foam (m), nominal launch speed (m/s), angle (deg).
+    settings : LaunchTwinSettings
+    seed : int
+        >= 0; draws the speed and angle scatter. Same seed, condition and settings -> identical result.
+    on_phase : callable(str), optional
+        Called with each of :data:`PHASES` once, in order.
+    on_pose : callable(t_s, position_xyz, orientation_xyzw), optional
+        The chassis base pose at ``pose_rate_hz`` of simulated time (t = 0 first), metres and (x, y, z, w).
+
+    Returns
+    -------
+    LaunchResult
+        Raises ``ValueError`` for a bad condition, seed or configuration id, or a robot that does not fit on the
+        launcher (:func:`place_on_launcher`).
+    """
+    pybullet = require("pybullet", feature="the launch twin")
+    condition.validate()
+    options = settings.twin
+    profile = profile_body(condition.configuration, settings)
+    speed_mps, angle_deg = launch_draws(seed, condition.speed_mps, condition.angle_deg, options)
+    angle = math.radians(angle_deg)
+    push_yaw = angle if options.angle_convention == "yaw_of_push" else 0.0
+    push = np.array([math.cos(push_yaw), math.sin(push_yaw), 0.0])
+    if push[0] < MIN_PUSH_TOWARDS_EDGE:
+        raise ValueError(f"angle {angle_deg:.1f} deg pushes along or away from the edge under {options.angle_convention}"
+                         f" (|angle| must stay below {math.degrees(math.acos(MIN_PUSH_TOWARDS_EDGE)):.0f} deg)")
+    model = settings.robot_model()
+    wheel_radii_m = model.wheel_radii_m()
+    client = connect()
+    try:
+        foam_id, ledge_id = build_launch_world(client, settings, condition.height_m)
+        orientation = pybullet.getQuaternionFromEuler([0.0, 0.0, angle])
+        robot = model.spawn(client, profile, (0.0, 0.0, 5.0), orientation)
+        set_contact(client, robot.body_id, settings.physics.body_contact())
+        _set_wheels(pybullet, client, robot, options)
+        lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)
+        _launch(pybullet, client, robot, speed_mps * push, wheel_radii_m)
+        tracker = _LaunchTracker(pybullet, client, robot.body_id, foam_id, lead_m, _PhaseReporter(on_phase))
+        steps, settled = _step_to_rest(pybullet, client, robot.body_id, settings, tracker, on_pose)
+        went_over = not math.isnan(tracker.base.time_s)
+        upright, tilt = model.is_upright(client, robot, foam_id if went_over else ledge_id)
+        _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
+    finally:
+        disconnect(client)
+    travel_s = tracker.front.time_s
+    return LaunchResult(upright=bool(upright), final_orientation=tuple(orientation), travel_time_s=travel_s,
+                        measured_speed_mps=options.launcher.run_length_m / travel_s, launch_speed_mps=speed_mps,
+                        settled=settled, sim_time_s=steps * settings.physics.time_step_s, steps=steps, tilt_deg=tilt,
+                        launch_angle_deg=angle_deg, flight_time_s=tracker.landed_s - tracker.base.time_s,
+                        landing_position_m=tracker.landing_m,
+                        peak_deceleration_mps2=tracker.peak_deceleration_mps2)
+
+
+class _EdgeCrossing:
+    """When a point ``offset_m`` ahead (in x) of the base origin crosses the edge line x = 0 (s, interpolated)."""
+
+    def __init__(self, offset_m):
+        self._offset_m = offset_m
+        self._previous_x = None
+        self.time_s = NOT_MEASURED
+
+    def update(self, steps, dt, base_x):
+        """Account for step number ``steps`` after which the base origin is at x = ``base_x``; True on crossing."""
+        x = base_x + self._offset_m
+        crossed = x >= 0.0 and self._previous_x is not None and math.isnan(self.time_s)
+        if crossed:
+            self.time_s = (steps - 1 + -self._previous_x / (x - self._previous_x)) * dt
+        self._previous_x = x
+        return crossed
+
+
+class _LaunchTracker:
+    """Follows one launch step by step: the foremost point crossing the edge (travel time), the base origin
+    crossing it (going over: ``in_flight``), the first foam contact (``settling``), the hardest deceleration.
+
+    Times are simulated seconds from the push, NaN until the event happens.
+    """
+
+    def __init__(self, pybullet, client, body_id, foam_id, lead_m, phases):
+        self._pybullet, self._client, self._body, self._foam = pybullet, client, body_id, foam_id
+        self.phases = phases
+        self.front = _EdgeCrossing(lead_m)
+        self.base = _EdgeCrossing(0.0)
+        self.landed_s = NOT_MEASURED
+        self.landing_m = (NOT_MEASURED,) * 3
+        self.peak_deceleration_mps2 = 0.0
+        self._velocity = None
+
+    def update(self, steps, dt, position):
+        """Account for step number ``steps`` (of ``dt`` s) after which the base origin is at ``position``."""
+        self.front.update(steps, dt, position[0])
+        if math.isnan(self.base.time_s):
+            if self.base.update(steps, dt, position[0]):
+                self.phases.reach("in_flight")
+            return
+        pybullet, client = self._pybullet, self._client
+        velocity = np.asarray(pybullet.getBaseVelocity(self._body, physicsClientId=client)[0])
+        if math.isnan(self.landed_s):
+            if pybullet.getContactPoints(bodyA=self._body, bodyB=self._foam, physicsClientId=client):
+                self.landed_s, self.landing_m = steps * dt, tuple(position)
+                self.phases.reach("settling")
+        if not math.isnan(self.landed_s) and self._velocity is not None:
+            change = float(np.linalg.norm(velocity - self._velocity)) / dt
+            self.peak_deceleration_mps2 = max(self.peak_deceleration_mps2, change)
+        self._velocity = velocity
+
+
+def _step_to_rest(pybullet, client, body_id, settings, tracker, on_pose):
+    """Step until the chassis is at rest or the trials' time cap; return ``(steps, settled)``."""
+    dt = settings.physics.time_step_s
+    cap = round(settings.trial.time_cap_s / dt)
+    pose_every = max(1, round(1.0 / (settings.twin.pose_rate_hz * dt)))
+    rest = RestDetector(settings.trial, dt)
+    position, orientation = pybullet.getBasePositionAndOrientation(body_id, physicsClientId=client)
+    tracker.update(0, dt, position)
+    tracker.phases.reach("fired")
+    if on_pose is not None:
+        on_pose(0.0, position, orientation)
+    steps = 0
+    settled = False
+    while steps < cap and not settled:
+        pybullet.stepSimulation(physicsClientId=client)
+        steps += 1
+        position, orientation = pybullet.getBasePositionAndOrientation(body_id, physicsClientId=client)
+        tracker.update(steps, dt, position)
+        if on_pose is not None and steps % pose_every == 0:
+            on_pose(steps * dt, position, orientation)
+        settled = rest.settled(client, body_id, steps)
+    tracker.phases.reach("classifying")
+    return steps, settled

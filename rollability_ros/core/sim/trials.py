@@ -1,0 +1,204 @@
+"""One disturbance trial: start state, randomised push, stepping to rest, upright test.
+
+A trial's result depends only on (robot + profile, trial seed, settings): a :class:`TrialWorld` is built once
+per profile and restored to its saved state before every trial, so nothing carries over from the trials run
+before it in the same process (test_evaluation checks outcomes against a freshly built world and across orders),
+and the serial, process-pool and Ray executors give identical outcomes.
+
+Start state (``TrialSettings``)
+    the robot rolled ``start_roll_deg`` (180 = upside down) about its x axis, then tilted by a random roll and
+    pitch, each uniform in +-``start_tilt_max_deg``, turned to a yaw uniform in [0, 360) deg, and placed with its
+    lowest point ``drop_height_m`` above the ground, at rest.
+Disturbance
+    after ``disturbance_delay_s`` (the drop has landed), for ``disturbance_duration_s``: a horizontal force at
+    the base's centre of mass, azimuth uniform in [0, 360) deg, magnitude uniform in [``force_min_n``,
+    ``force_max_n``], plus a tipping torque about a horizontal axis of azimuth uniform in [0, 360) deg, magnitude
+    uniform in [``torque_min_nm``, ``torque_max_nm``], both in the world frame and constant while applied.
+End
+    once the disturbance is over, every ``check_interval_steps`` steps the base's linear and angular speed are
+    compared with the rest thresholds; the trial ends when they have stayed below them for ``rest_hold_s``
+    (settled) or at ``time_cap_s`` (not settled). The robot model then judges upright (tilt and wheel contact).
+"""
+import dataclasses
+import math
+
+import numpy as np
+
+from rollability_ros.core.optional import require
+from rollability_ros.core.sim.world import reset_world, set_contact
+
+
+@dataclasses.dataclass
+class TrialSettings:
+    """Start state, disturbance and rest detection of a trial (``config/sim.yaml``, section ``trial``)."""
+
+    start_roll_deg: float = 180.0
+    start_tilt_max_deg: float = 10.0
+    drop_height_m: float = 0.005
+    disturbance_delay_s: float = 0.1
+    disturbance_duration_s: float = 0.1
+    force_min_n: float = 0.0
+    force_max_n: float = 2.0
+    torque_min_nm: float = 1.0
+    torque_max_nm: float = 2.0
+    rest_linear_speed_mps: float = 0.01
+    rest_angular_speed_dps: float = 5.0
+    rest_hold_s: float = 0.25
+    time_cap_s: float = 8.0
+    check_interval_steps: int = 4
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not 0 <= self.start_tilt_max_deg <= 90:
+            raise ValueError(f"start_tilt_max_deg must be in [0, 90], got {self.start_tilt_max_deg}")
+        for name in ("drop_height_m", "disturbance_delay_s", "disturbance_duration_s", "force_min_n", "torque_min_nm"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.force_max_n < self.force_min_n or self.torque_max_nm < self.torque_min_nm:
+            raise ValueError("need force_min_n <= force_max_n and torque_min_nm <= torque_max_nm")
+        for name in ("rest_linear_speed_mps", "rest_angular_speed_dps", "rest_hold_s", "time_cap_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.check_interval_steps < 1:
+            raise ValueError(f"check_interval_steps must be >= 1, got {self.check_interval_steps}")
+        if self.time_cap_s <= self.disturbance_delay_s + self.disturbance_duration_s + self.rest_hold_s:
+            raise ValueError("time_cap_s must exceed disturbance_delay_s + disturbance_duration_s + rest_hold_s")
+
+
+@dataclasses.dataclass(frozen=True)
+class TrialOutcome:
+    """Outcome of one trial (``msg/TrialResult.msg``): upright at the end, settled before the cap, steps, tilt."""
+
+    index: int
+    seed: int
+    upright: bool
+    settled: bool
+    steps: int
+    tilt_deg: float
+
+
+@dataclasses.dataclass(frozen=True)
+class TrialConditions:
+    """The random draws of one trial: start orientation (x, y, z, w) and world-frame force (N) and torque (N m)."""
+
+    orientation: tuple
+    force_n: np.ndarray
+    torque_nm: np.ndarray
+
+
+def sample_conditions(seed, settings):
+    """Draw a trial's start orientation and disturbance from ``seed`` (see the module docstring)."""
+    pybullet = require("pybullet", feature="the simulated evaluator")
+    rng = np.random.default_rng(seed)
+    tilt = math.radians(settings.start_tilt_max_deg)
+    roll, pitch = rng.uniform(-tilt, tilt, size=2)
+    yaw = rng.uniform(0.0, 2 * math.pi)
+    # flip about the body x axis first, then tilt and yaw in the world
+    flip = pybullet.getQuaternionFromEuler([math.radians(settings.start_roll_deg), 0.0, 0.0])
+    turn = pybullet.getQuaternionFromEuler([roll, pitch, yaw])
+    _, orientation = pybullet.multiplyTransforms([0, 0, 0], turn, [0, 0, 0], flip)
+    azimuth = rng.uniform(0.0, 2 * math.pi)
+    force = rng.uniform(settings.force_min_n, settings.force_max_n) * np.array([math.cos(azimuth), math.sin(azimuth), 0.0])
+    axis_azimuth = rng.uniform(0.0, 2 * math.pi)
+    torque = rng.uniform(settings.torque_min_nm, settings.torque_max_nm) * np.array(
+        [math.cos(axis_azimuth), math.sin(axis_azimuth), 0.0])
+    return TrialConditions(orientation=tuple(orientation), force_n=force, torque_nm=torque)
+
+
+def place_on_ground(client, body_id, orientation, clearance_m, xy_m=(0.0, 0.0), ground_z_m=0.0):
+    """Put ``body_id`` with ``orientation`` at ``xy_m`` (base origin, metres) so that its lowest point is
+    ``clearance_m`` above the surface z = ``ground_z_m``, at rest."""
+    pybullet = require("pybullet", feature="the simulated evaluator")
+    x, y = xy_m
+    pybullet.resetBasePositionAndOrientation(body_id, [x, y, 0], orientation, physicsClientId=client)
+    lowest = min(pybullet.getAABB(body_id, link, physicsClientId=client)[0][2]
+                 for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client)))
+    pybullet.resetBasePositionAndOrientation(body_id, [x, y, ground_z_m + clearance_m - lowest], orientation,
+                                             physicsClientId=client)
+
+
+def build_trial_world(client, robot_model, profile, orientation, settings, physics):
+    """Empty the world, add the ground and the robot in its start pose; return ``(ground_id, spawned robot)``."""
+    ground = reset_world(client, physics)
+    robot = robot_model.spawn(client, profile, (0.0, 0.0, 1.0), orientation)
+    set_contact(client, robot.body_id, physics.body_contact())
+    place_on_ground(client, robot.body_id, orientation, settings.drop_height_m)
+    return ground, robot
+
+
+class RestDetector:
+    """Says when a body has come to rest (see "End" in the module docstring); shared by trials and the launch twin.
+
+    ``settings`` supplies ``rest_linear_speed_mps``, ``rest_angular_speed_dps``, ``rest_hold_s`` and
+    ``check_interval_steps`` (a :class:`TrialSettings`); ``time_step_s`` is the simulation step (s).
+    """
+
+    def __init__(self, settings, time_step_s):
+        self.linear_mps = settings.rest_linear_speed_mps
+        self.angular_radps = math.radians(settings.rest_angular_speed_dps)
+        self.interval_steps = settings.check_interval_steps
+        self.hold_steps = round(settings.rest_hold_s / time_step_s)
+        self._rest_since = None
+        self._pybullet = require("pybullet", feature="the simulated evaluator")
+
+    def settled(self, client, body_id, steps):
+        """Call after step number ``steps``: True once ``body_id``'s base speeds have stayed below the thresholds
+        for the hold time (checked every ``check_interval_steps`` steps)."""
+        if steps % self.interval_steps:
+            return False
+        linear, angular = self._pybullet.getBaseVelocity(body_id, physicsClientId=client)
+        if math.hypot(*linear) < self.linear_mps and math.hypot(*angular) < self.angular_radps:
+            self._rest_since = steps if self._rest_since is None else self._rest_since
+            return steps - self._rest_since >= self.hold_steps
+        self._rest_since = None
+        return False
+
+
+class TrialWorld:
+    """A world holding one robot + profile, saved once after building and restored before every trial.
+
+    ``restoreState`` puts back the saved bodies, velocities and (empty) contact cache, so a trial starts from
+    the same simulator state whatever ran before it in this client; building the world once saves the cost of
+    creating the bodies per trial (see bench/bench_evaluator.py). Building another world in the same client
+    (or any ``resetSimulation``) invalidates this one.
+    """
+
+    def __init__(self, client, robot_model, profile, settings, physics):
+        self.pybullet = require("pybullet", feature="the simulated evaluator")
+        self.client, self.robot_model, self.settings, self.physics = client, robot_model, settings, physics
+        self.ground, self.robot = build_trial_world(client, robot_model, profile, (0.0, 0.0, 0.0, 1.0), settings,
+                                                    physics)
+        self.saved_state = self.pybullet.saveState(physicsClientId=client)
+
+    def run(self, index, seed):
+        """Run one trial (see the module docstring) and return its :class:`TrialOutcome`."""
+        pybullet, client, settings, body = self.pybullet, self.client, self.settings, self.robot.body_id
+        conditions = sample_conditions(seed, settings)
+        pybullet.restoreState(self.saved_state, physicsClientId=client)
+        place_on_ground(client, body, conditions.orientation, settings.drop_height_m)
+        dt = self.physics.time_step_s
+        push_start = round(settings.disturbance_delay_s / dt)
+        push_end = push_start + max(1, round(settings.disturbance_duration_s / dt))
+        cap = round(settings.time_cap_s / dt)
+        rest = RestDetector(settings, dt)
+        force, torque = conditions.force_n.tolist(), conditions.torque_nm.tolist()
+        step_simulation = pybullet.stepSimulation
+        settled = False
+        steps = 0
+        while steps < cap:
+            if push_start <= steps < push_end:
+                centre, _ = pybullet.getBasePositionAndOrientation(body, physicsClientId=client)
+                pybullet.applyExternalForce(body, -1, force, centre, pybullet.WORLD_FRAME, physicsClientId=client)
+                pybullet.applyExternalTorque(body, -1, torque, pybullet.WORLD_FRAME, physicsClientId=client)
+            step_simulation(physicsClientId=client)
+            steps += 1
+            if steps >= push_end and rest.settled(client, body, steps):
+                settled = True
+                break
+        upright, tilt = self.robot_model.is_upright(client, self.robot, self.ground)
+        return TrialOutcome(index=index, seed=seed, upright=upright, settled=settled, steps=steps, tilt_deg=tilt)
+
+
+def run_trial(client, robot_model, profile, index, seed, settings, physics):
+    """Run one trial in a freshly built world in ``client`` and return its :class:`TrialOutcome`."""
+    return TrialWorld(client, robot_model, profile, settings, physics).run(index, seed)

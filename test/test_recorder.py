@@ -131,7 +131,8 @@ def test_chosen_topics_only_and_bad_parameters_refused(tmp_path, ros_node, start
     recorder = start_node("recorder", params={"recorder.output_dir": str(bag), "recorder.discovery_period_s": 0.2},
                           ros_args=["-p", "recorder.topics:=['/rig/pose']"])
     assert ros_node.wait_for(lambda: pose.get_subscription_count() > 0, 30), recorder.log()
-    assert "best_effort" in recorder.log()                     # matched the best-effort publisher
+    # matched the best-effort publisher (the log line may follow the match by a moment)
+    assert ros_node.wait_for(lambda: "best_effort" in recorder.log(), 10), recorder.log()
     for index in range(50):
         pose.publish(PoseStamped())
         other.publish(PoseStamped())

@@ -77,11 +77,15 @@ class PlayerNode(Node):
                     f"{settings.rate}" + (" (looping)" if settings.loop else ""))
         if self._wait_for_subscribers():
             return
-        start = time.monotonic()
+        start = None
         schedule = playback_schedule(self.reader, rate=settings.rate, start_offset_s=settings.start_offset_s,
                                      loop=settings.loop, topics=self.played_topics, remap=self.remap)
         try:
             for item in schedule:
+                if start is None:
+                    # the clock starts at the first message, once it is read: reading may take a while on a
+                    # loaded machine, and a clock started earlier would publish the first messages in a burst
+                    start = time.monotonic() - item.wall_time_s
                 wait_s = start + item.wall_time_s - time.monotonic()
                 if wait_s > 0 and self._stop.wait(wait_s):
                     return

@@ -14,6 +14,7 @@ Exit code: 0 when every trial is stored, 3 when the campaign stopped early (the 
 ``runner.resume:=true``), 2 for bad parameters.
 """
 import queue
+import signal
 import sys
 import time
 
@@ -31,7 +32,7 @@ from rollability_ros.core.campaign_runner import (RunnerSettings, StoreWatcher, 
 from rollability_ros.core.config import ConfigError
 from rollability_ros.core.rig_session import LaunchAborted
 from rollability_ros.nodes import _convert
-from rollability_ros.nodes._support import ParameterError, declare_settings
+from rollability_ros.nodes._support import ParameterError, declare_settings, init_ros
 from rollability_ros.srv import RecordOutcome
 
 #: Seconds the rig's action server may be missing from the graph before a running launch counts as lost.
@@ -150,7 +151,10 @@ def run_graph_campaign(node, spec, settings, ask=None, say=print):
 
 
 def main(args=None):
-    rclpy.init(args=args)
+    init_ros(args)
+    # a supervisor's SIGTERM ends the campaign as Ctrl-C does: the running goal is cancelled, the context stays
+    # valid until the node is destroyed
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     node = Node("campaign_runner")
     try:
         spec = declare_settings(node, "campaign", CampaignSpec)

@@ -225,6 +225,11 @@ def run_node(node_factory, args=None, threads=4):
         while not signalled and not stopped.wait(STOP_POLL_S if on_main_thread else None):
             pass
     finally:
+        if on_main_thread:
+            # a second signal must not cut the safe stop short, not even at interpreter exit (which resets Python
+            # handlers to the default action; an ignored signal stays ignored)
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(signum, signal.SIG_IGN)
         # a callback still running (e.g. an evaluation) must not keep a stopped node alive for ever
         deadline = threading.Timer(SHUTDOWN_GRACE_S, _exit_after_grace)
         deadline.daemon = True                             # never what keeps the process alive

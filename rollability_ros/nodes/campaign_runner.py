@@ -133,7 +133,11 @@ class RigClient:
             self._answer(trial_id, message.phase, message.detail)
 
 
-def run_graph_campaign(node, spec, settings, ask=None, say=print):
+def _say(text):
+    print(text, flush=True)   # a supervisor's log file or a pipe shows each line as it happens
+
+
+def run_graph_campaign(node, spec, settings, ask=None, say=_say):
     """Run the campaign through the graph from ``node`` (spun here, in this thread); returns the CampaignReport."""
     plan = plan_trials(spec)
     watcher = StoreWatcher(settings.store_path, settings.store_timeout_s)

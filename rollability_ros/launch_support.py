@@ -1,35 +1,57 @@
-"""Builds ROS launch descriptions from :mod:`rollability_ros.core.graph.bringup`, for ``launch/*.launch.py``.
+"""The session graph for ``launch/*.launch.py``: which installed executables, with which arguments.
 
-Imported only by ``ros2 launch`` on a machine with launch / launch_ros installed (they are not on PyPI).
+:func:`session_commands` needs no launch package: the install-space test (test/test_packaging.py) starts exactly
+its executables with exactly its arguments. Only :func:`describe_session` imports ``launch`` / ``launch_ros``
+(``ros2 launch`` on a ROS 2 install; they are not on PyPI); it adds nothing to the commands.
 """
 import os
-
-from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction
-from launch.substitutions import LaunchConfiguration
-from launch_ros.actions import Node
+import typing
 
 from rollability_ros.core.graph.bringup import load_graph_settings, session_nodes
 from rollability_ros.core.graph.node_commands import parameter_files
 
 
-def _nodes(context, rig_backend, optimizer, evaluators):
-    extra = LaunchConfiguration("config").perform(context)
-    run_dir = LaunchConfiguration("run_dir").perform(context)
-    param_files = parameter_files(["bringup", *([extra] if extra else [])])
+class NodeCommand(typing.NamedTuple):
+    """One node of a session: ``lib/rollability_ros/<executable> <arguments>``; ``restart``: respawn it."""
+
+    executable: str
+    arguments: list
+    restart: bool
+
+
+def session_commands(rig_backend, optimizer, evaluators=None, config="", run_dir="runs/session"):
+    """The :class:`NodeCommand` of every node of a session, in start order.
+
+    ``config``: an extra parameter file on top of the shipped ones; ``evaluators``: overrides
+    ``bringup.evaluators`` (None: as configured).
+    """
+    param_files = parameter_files(["bringup", *([config] if config else [])])
     settings = load_graph_settings(param_files)
     if evaluators is not None:
         settings.evaluators = evaluators
-    os.makedirs(run_dir, exist_ok=True)
     launches = session_nodes(settings, run_dir, rig_backend=rig_backend, optimizer=optimizer)
-    return [Node(package="rollability_ros", executable=launch.module, name=launch.name or launch.module,
-                 namespace=launch.namespace or "", parameters=[*param_files, dict(launch.params)], output="screen",
-                 respawn=launch.restart, respawn_delay=2.0)
-            for launch in launches]
+    return [NodeCommand(launch.module, launch.ros_args(param_files), launch.restart) for launch in launches]
+
+
+def _nodes(context, rig_backend, optimizer, evaluators):
+    from launch.substitutions import LaunchConfiguration
+    from launch_ros.actions import Node
+
+    run_dir = LaunchConfiguration("run_dir").perform(context)
+    os.makedirs(run_dir, exist_ok=True)
+    commands = session_commands(rig_backend, optimizer, evaluators, LaunchConfiguration("config").perform(context),
+                                run_dir)
+    # name, namespace and parameters are in the arguments already: launch_ros adds nothing to the command line
+    return [Node(package="rollability_ros", executable=command.executable, arguments=command.arguments,
+                 output="screen", respawn=command.restart, respawn_delay=2.0)
+            for command in commands]
 
 
 def describe_session(rig_backend, optimizer, evaluators=None):
     """A LaunchDescription with the ``config`` and ``run_dir`` arguments and the session's nodes."""
+    from launch import LaunchDescription
+    from launch.actions import DeclareLaunchArgument, OpaqueFunction
+
     return LaunchDescription([
         DeclareLaunchArgument("config", default_value="", description="extra ROS 2 parameter file (overrides)"),
         DeclareLaunchArgument("run_dir", default_value="runs/session",

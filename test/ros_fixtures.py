@@ -66,7 +66,8 @@ class NodeProcess:
                                         env=env or os.environ.copy(), start_new_session=True)
 
     def log(self):
-        self._log.flush()
+        if not self._log.closed:   # stop() closes it; the file stays readable
+            self._log.flush()
         with open(self.log_path, encoding="utf-8", errors="replace") as stream:
             return stream.read()
 

@@ -1,9 +1,13 @@
 """The ROS launch files (for machines with a full ROS 2 Jazzy install).
 
-`launch` and `launch_ros` are not on PyPI, so on a venv built from the wheels this test says so plainly and is
-skipped; on a ROS install it loads each launch file and expands its node list.
+`launch` and `launch_ros` are not on PyPI, so on a venv built from the wheels the expansion test says so plainly
+and is skipped; on a ROS install it loads each launch file and expands its node list. Everywhere, with stand-ins
+for the launch classes, the launch files are checked to start exactly the commands of
+``launch_support.session_commands`` (which the install-space test in test_packaging.py runs) and nothing else.
 """
 import importlib.util
+import sys
+import types
 
 import pytest
 
@@ -37,3 +41,45 @@ def test_launch_file_expands(path, tmp_path):
     executables = {node.node_executable for node in nodes}
     assert {"recorder", "outcome_logger", "valve_controller", "rig"} <= executables
     assert ("sim_evaluator" in executables) == ("sim" in path.name)
+
+
+class _Recorded:
+    """Stand-in for a launch class: keeps its constructor arguments."""
+
+    def __init__(self, *args, **kwargs):
+        self.args, self.kwargs = args, kwargs
+
+
+def _fake_launch_modules(monkeypatch):
+    class LaunchConfiguration(_Recorded):
+        def perform(self, context):
+            return context[self.args[0]]
+
+    modules = {"launch": {"LaunchDescription": _Recorded}, "launch.actions": {"DeclareLaunchArgument": _Recorded,
+               "OpaqueFunction": _Recorded}, "launch.substitutions": {"LaunchConfiguration": LaunchConfiguration},
+               "launch_ros": {}, "launch_ros.actions": {"Node": _Recorded}}
+    for name, attributes in modules.items():
+        module = types.ModuleType(name)
+        module.__dict__.update(attributes)
+        monkeypatch.setitem(sys.modules, name, module)
+
+
+@pytest.mark.parametrize("path", LAUNCH_FILES, ids=lambda p: p.name)
+def test_launch_file_starts_exactly_the_session_commands(path, tmp_path, monkeypatch):
+    from rollability_ros.launch_support import session_commands
+
+    _fake_launch_modules(monkeypatch)
+    spec = importlib.util.spec_from_file_location(path.stem.replace(".", "_"), path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    description = module.generate_launch_description()
+    opaque = description.args[0][-1]
+    context = {"config": "", "run_dir": str(tmp_path / "run")}
+    nodes = opaque.kwargs["function"](context, *opaque.kwargs["args"])
+    rig_backend, optimizer, evaluators = opaque.kwargs["args"]
+    expected = session_commands(rig_backend, optimizer, evaluators, "", str(tmp_path / "run"))
+    assert [(node.kwargs["executable"], node.kwargs["arguments"]) for node in nodes] == \
+        [(command.executable, command.arguments) for command in expected]
+    for node in nodes:   # nothing that would make launch_ros add to the command line
+        assert set(node.kwargs) == {"package", "executable", "arguments", "output", "respawn", "respawn_delay"}
+    assert ("sim_evaluator" in {node.kwargs["executable"] for node in nodes}) == ("sim" in path.name)

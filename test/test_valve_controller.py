@@ -15,7 +15,7 @@ WATCHDOG_MS = 3000   # the test beats every 50 ms; a loaded 2-core machine has s
 class ValveClient:
     """Service clients, publishers and the latched state of a valve_controller, from the test's node."""
 
-    def __init__(self, spun):
+    def __init__(self, spun, namespace=""):
         from std_msgs.msg import Bool, Header
         from std_srvs.srv import SetBool
 
@@ -24,12 +24,13 @@ class ValveClient:
         from rollability_ros.srv import FireValve
 
         self.spun, node = spun, spun.node
+        ns = namespace.rstrip("/") + "/" if namespace else ""   # the valve's namespace; the test node's is /
         self.states = []
-        node.create_subscription(ValveState, "valve/state", self.states.append, LATCHED_QOS)
-        self.arm_client = node.create_client(SetBool, "valve/arm")
-        self.fire_client = node.create_client(FireValve, "valve/fire")
-        self.estop_pub = node.create_publisher(Bool, "valve/estop", 10)
-        self.heartbeat_pub = node.create_publisher(Header, "rig/heartbeat", 10)
+        node.create_subscription(ValveState, f"{ns}valve/state", self.states.append, LATCHED_QOS)
+        self.arm_client = node.create_client(SetBool, f"{ns}valve/arm")
+        self.fire_client = node.create_client(FireValve, f"{ns}valve/fire")
+        self.estop_pub = node.create_publisher(Bool, f"{ns}valve/estop", 10)
+        self.heartbeat_pub = node.create_publisher(Header, f"{ns}rig/heartbeat", 10)
         self._set_bool, self._fire, self._bool, self._header = SetBool, FireValve, Bool, Header
 
     def ready(self, log):
@@ -73,9 +74,9 @@ class ValveClient:
         return self.states[-1]
 
 
-def start_valve(start_node, backend="dry_run", **params):
+def start_valve(start_node, backend="dry_run", ros_args=(), **params):
     return start_node("valve_controller", params={"valve.backend": backend, "valve.watchdog_ms": WATCHDOG_MS,
-                                                  "valve.max_pulse_ms": 400, **params})
+                                                  "valve.max_pulse_ms": 400, **params}, ros_args=ros_args)
 
 
 def test_dry_run_arm_fire_refusals_estop_and_watchdog(ros_node, start_node):
@@ -200,11 +201,16 @@ def test_serial_relay_watchdog_and_sigint_mid_pulse(ros_node, start_node, relay)
 
 
 def test_operator_cli_estop_disarm_arm(ros_node, start_node):
+    """`rollability rig` finds the valve where `rollability bringup` starts it, with no flags; in the wrong
+    namespace it names the right one."""
     import subprocess
     import sys
 
-    process = start_valve(start_node)
-    valve = ValveClient(ros_node)
+    from rollability_ros.cli.rig import default_namespace
+
+    namespace = default_namespace()
+    process = start_valve(start_node, ros_args=["-r", f"__ns:={namespace}"])
+    valve = ValveClient(ros_node, namespace)
     valve.ready(process.log)
 
     def rig_cli(*args):
@@ -218,4 +224,12 @@ def test_operator_cli_estop_disarm_arm(ros_node, start_node):
     assert refused.returncode == 1 and "fault latched" in refused.stdout
     assert rig_cli("disarm").returncode == 0 and ros_node.wait_for(lambda: not valve.last().fault, 10)
     stray = rig_cli("outcome", "upright", "--timeout-s", "1")
-    assert stray.returncode == 2 and "record_outcome is not available" in stray.stderr
+    assert stray.returncode == 2 and f"{namespace}/record_outcome is not available" in stray.stderr
+    assert "nor in any other namespace" in stray.stderr
+
+    elsewhere = rig_cli("arm", "--namespace", "/lab2", "--timeout-s", "5")
+    assert elsewhere.returncode == 2 and "service /lab2/valve/arm is not available" in elsewhere.stderr
+    assert f"use --namespace {namespace}" in elsewhere.stderr, elsewhere.stderr
+    estop_elsewhere = rig_cli("estop", "--namespace", "/lab2", "--timeout-s", "5")
+    assert estop_elsewhere.returncode == 2 and f"use --namespace {namespace}" in estop_elsewhere.stderr
+    assert not valve.last().armed

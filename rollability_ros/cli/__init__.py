@@ -31,8 +31,21 @@ def build_parser():
     return parser
 
 
+def line_buffered_output():
+    """Flush stdout and stderr at every line, whatever they are (terminal, pipe, file).
+
+    Python block-buffers stdout into a pipe or a file, so ``rollability study > study.log`` and a supervisor or
+    test reading the output would see nothing for minutes.
+    """
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)   # absent when a caller swapped in a plain stream
+        if reconfigure is not None:
+            reconfigure(line_buffering=True)
+
+
 def main(argv=None):
     """Run one verb and return its exit code; known user errors print one line instead of a traceback."""
+    line_buffered_output()
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)

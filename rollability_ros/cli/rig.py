@@ -16,7 +16,11 @@ def register(subparsers):
     parser.add_argument("--travel-time-s", type=float, default=float("nan"),
                         help="for outcome: travel time over the run, s (when the light gates missed it)")
     parser.add_argument("--note", default="", help="for outcome: free text")
-    parser.add_argument("--namespace", default="", help="ROS namespace of the rig nodes (default: none)")
+    parser.add_argument("--namespace", default=None,
+                        help="ROS namespace of the rig nodes (default: bringup.namespace of the parameter files, "
+                             "/rollability as shipped: where `rollability bringup` and the launch files start them)")
+    parser.add_argument("--config", action="append", default=[], metavar="FILE",
+                        help="extra ROS 2 parameter file(s), as given to bringup, for the default namespace")
     parser.add_argument("--timeout-s", type=float, default=10.0, help="longest wait for the nodes, s (default 10)")
     parser.set_defaults(func=run)
 
@@ -40,22 +44,50 @@ def _request(args):
         trial_id=args.trial_id, upright=args.verdict == "upright", travel_time_s=args.travel_time_s, note=args.note)
 
 
+def default_namespace(config_files=()):
+    """The namespace ``rollability bringup`` puts the graph in: ``bringup.namespace`` of the parameter files."""
+    from rollability_ros.core.graph.bringup import load_graph_settings
+    from rollability_ros.core.graph.node_commands import parameter_files
+
+    return load_graph_settings(parameter_files(["bringup", *config_files])).namespace
+
+
+def namespaces_offering(names, relative_name):
+    """The namespaces in which one of the fully qualified ``names`` is ``relative_name`` (sorted, "/" for root)."""
+    suffix = "/" + relative_name
+    return sorted({name[:-len(suffix)] or "/" for name in names if name.endswith(suffix)})
+
+
+def _missing(problem, name, elsewhere):
+    """The error for ``name`` missing from the chosen namespace: ``problem``, and the namespaces where it is."""
+    if not elsewhere:
+        return f"{problem}, nor in any other namespace of this ROS domain (is the node running, with the same " \
+               f"ROS_DOMAIN_ID?)"
+    return f"{problem}; {name} is in {', '.join(elsewhere)}: use " + " or ".join(f"--namespace {ns}" for ns in elsewhere)
+
+
 def run(args):
     import time
 
     import rclpy
     from rclpy.node import Node
 
+    from rollability_ros.nodes._support import init_ros
+
     kind, name, payload = _request(args)
-    rclpy.init(args=[])
-    node = Node("rig_operator", namespace=args.namespace or None)
+    namespace = args.namespace if args.namespace is not None else default_namespace(args.config)
+    init_ros([])
+    node = Node("rig_operator", namespace=namespace or None)
     try:
         if args.action == "estop":
             publisher = node.create_publisher(kind, name, 10)
             deadline = time.monotonic() + args.timeout_s
             while publisher.get_subscription_count() == 0:
                 if time.monotonic() > deadline:
-                    raise ValueError(f"no valve controller subscribes to {name}")
+                    topics = [topic for topic, _types in node.get_topic_names_and_types()
+                              if node.count_subscribers(topic)]
+                    raise ValueError(_missing(f"no valve controller subscribes to {node.resolve_topic_name(name)}",
+                                              name, namespaces_offering(topics, name)))
                 time.sleep(0.05)
             publisher.publish(payload)
             time.sleep(0.2)  # let the reliable message leave before the node goes
@@ -63,7 +95,10 @@ def run(args):
             return 0
         client = node.create_client(kind, name)
         if not client.wait_for_service(timeout_sec=args.timeout_s):
-            raise ValueError(f"service {name} is not available (is the node running in this ROS domain?)")
+            services = [service for service, _types in node.get_service_names_and_types()
+                        if node.count_services(service)]   # the graph lists clients' service names too
+            raise ValueError(_missing(f"service {node.resolve_service_name(name)} is not available", name,
+                                      namespaces_offering(services, name)))
         future = client.call_async(payload)
         rclpy.spin_until_future_complete(node, future, timeout_sec=args.timeout_s)
         if not future.done():

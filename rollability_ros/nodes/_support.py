@@ -17,6 +17,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.action import ActionClient
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy._rclpy_pybind11 import RCLError
+from rclpy.signals import SignalHandlerOptions
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from rollability_ros.core.config import ConfigError, from_mapping, section
@@ -146,23 +147,71 @@ def finite(value):
 #: Once a node starts stopping, the most its shutdown may take before the process exits anyway (s).
 SHUTDOWN_GRACE_S = 25.0
 
+#: How often a node's main thread looks for a stop signal while the executor spins in its own thread (s).
+STOP_POLL_S = 0.1
+
 
 def _exit_after_grace():
     print(f"shutdown took longer than {SHUTDOWN_GRACE_S:g} s: exiting now", file=sys.stderr, flush=True)
     os._exit(1)
 
 
+def init_ros(args=None):
+    """``rclpy.init`` without rclpy's own SIGINT / SIGTERM handlers.
+
+    rclpy's handlers shut the context down at the signal, underneath callbacks still running: a last valve state
+    cannot be published any more ("publisher's context is invalid") and running callbacks die with RCLError /
+    InvalidHandle tracebacks. The caller decides what a stop signal does and shuts the context down last.
+    """
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+
+
+def _spin(executor, stopped, failures):
+    try:
+        executor.spin()
+    except (ExternalShutdownException, RCLError) as exc:
+        # the node ended its own context (e.g. the optimizer with exit_on_finish) while the executor waited
+        if rclpy.ok():
+            failures.append(exc)
+    except Exception as exc:  # a callback's exception: the node stops (cleanly) and the process says so
+        failures.append(exc)
+    finally:
+        stopped.set()
+
+
+def _join_callback_threads(executor):
+    """Wait for the callbacks still running in a multi-threaded executor's threads.
+
+    rclpy 7.1 (Jazzy) ``MultiThreadedExecutor.shutdown`` leaves them running (later rclpy joins them), and a
+    callback that outlives its node dies with an InvalidHandle traceback.
+    """
+    threads = getattr(executor, "_executor", None)
+    if threads is not None:
+        threads.shutdown(wait=True)
+
+
 def run_node(node_factory, args=None, threads=4):
-    """Create the node with ``node_factory()`` after ``rclpy.init`` and spin it until Ctrl-C / SIGTERM.
+    """Create the node with ``node_factory()`` after ``rclpy.init`` and spin it until SIGINT / SIGTERM.
 
     ``threads`` > 1 spins a multi-threaded executor (long callbacks do not block the node); ``threads=1`` a
     single-threaded one, which keeps up with high-rate streams best (e.g. a 300 Hz IMU on a busy 2-core machine).
 
-    A :class:`ParameterError` or ``ConfigError`` at start-up prints one line naming the problem and exits 2.
-    The node's ``close()`` (if any) runs before ``destroy_node`` so hardware is left safe.
+    A stop signal (Ctrl-C, ``ros2 launch``, systemd, our supervisor) stops the node in this order, whoever sent
+    it: the node's ``close()`` (if any) runs while the executor still spins and the context is valid (the valve
+    publishes its closed state, a running goal finishes or aborts cleanly), then the executor stops, the node is
+    destroyed and the context shut down; no traceback. A node may also end itself by shutting its context or its
+    executor down. A :class:`ParameterError` or ``ConfigError`` at start-up prints one line naming the problem
+    and exits 2.
     """
-    rclpy.init(args=args)
-    node = None
+    init_ros(args)
+    stopped = threading.Event()   # set by the spinner when the executor stops, whoever stopped it
+    failures = []                 # what ended the spin other than a stop
+    signalled = []                # a handler only appends: taking a lock in a signal handler can deadlock
+    on_main_thread = threading.current_thread() is threading.main_thread()
+    if on_main_thread:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, lambda signum, _frame: signalled.append(signum))   # a second one changes nothing
+    node = executor = spinner = None
     try:
         try:
             node = node_factory()
@@ -171,27 +220,34 @@ def run_node(node_factory, args=None, threads=4):
             return 2
         executor = MultiThreadedExecutor(num_threads=threads) if threads > 1 else SingleThreadedExecutor()
         executor.add_node(node)
-        try:
-            executor.spin()
-        except RCLError:
-            # a signal can shut the context down while the executor builds its wait set: that is a shutdown
-            if rclpy.ok():
-                raise
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spinner = threading.Thread(target=_spin, args=(executor, stopped, failures), name="executor")
+        spinner.start()
+        while not signalled and not stopped.wait(STOP_POLL_S if on_main_thread else None):
+            pass
     finally:
+        if on_main_thread:
+            # a second signal must not cut the safe stop short, not even at interpreter exit (which resets Python
+            # handlers to the default action; an ignored signal stays ignored)
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(signum, signal.SIG_IGN)
         # a callback still running (e.g. an evaluation) must not keep a stopped node alive for ever
         deadline = threading.Timer(SHUTDOWN_GRACE_S, _exit_after_grace)
         deadline.daemon = True                             # never what keeps the process alive
         deadline.start()
-        if threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the safe shutdown short
         if node is not None:
             close = getattr(node, "close", None)
             if callable(close):
                 close()
+        if executor is not None:
+            executor.shutdown()
+        if spinner is not None:
+            spinner.join()
+            _join_callback_threads(executor)
+        if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    if failures:
+        raise failures[0]
     return 0
 
 

@@ -14,6 +14,7 @@ Exit code: 0 when every trial is stored, 3 when the campaign stopped early (the 
 ``runner.resume:=true``), 2 for bad parameters.
 """
 import queue
+import signal
 import sys
 import time
 
@@ -31,7 +32,7 @@ from rollability_ros.core.campaign.runner import (RunnerSettings, StoreWatcher, 
 from rollability_ros.core.config import ConfigError
 from rollability_ros.core.rig.rig_session import LaunchAborted
 from rollability_ros.nodes import _convert
-from rollability_ros.nodes._support import ParameterError, declare_settings
+from rollability_ros.nodes._support import ParameterError, declare_settings, init_ros
 from rollability_ros.srv import RecordOutcome
 
 #: Seconds the rig's action server may be missing from the graph before a running launch counts as lost.
@@ -132,7 +133,11 @@ class RigClient:
             self._answer(trial_id, message.phase, message.detail)
 
 
-def run_graph_campaign(node, spec, settings, ask=None, say=print):
+def _say(text):
+    print(text, flush=True)   # a supervisor's log file or a pipe shows each line as it happens
+
+
+def run_graph_campaign(node, spec, settings, ask=None, say=_say):
     """Run the campaign through the graph from ``node`` (spun here, in this thread); returns the CampaignReport."""
     plan = plan_trials(spec)
     watcher = StoreWatcher(settings.store_path, settings.store_timeout_s)
@@ -150,7 +155,10 @@ def run_graph_campaign(node, spec, settings, ask=None, say=print):
 
 
 def main(args=None):
-    rclpy.init(args=args)
+    init_ros(args)
+    # a supervisor's SIGTERM ends the campaign as Ctrl-C does: the running goal is cancelled, the context stays
+    # valid until the node is destroyed
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     node = Node("campaign_runner")
     try:
         spec = declare_settings(node, "campaign", CampaignSpec)

@@ -257,8 +257,11 @@ class RigNode(Node):
         self.pose_publisher.publish(msg)
 
     def close(self):
-        """Abort a running launch at its next wait; the valve is disarmed by the launch's own cleanup."""
+        """Abort a running launch at its next wait and wait for it to end (the node still spins meanwhile, so the
+        launch's own cleanup can disarm the valve over its service)."""
         self._closing.set()
+        with self._busy:
+            pass
 
 
 def main(args=None):

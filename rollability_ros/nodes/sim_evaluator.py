@@ -34,13 +34,14 @@ from rollability_ros.nodes._support import LATCHED_QOS, declare_settings, guard_
 
 
 class _CancelRequested:
-    """Event-like view of a goal's cancel request, polled by the evaluation between batches."""
+    """Event-like view of a goal's cancel request or the node's stop, polled by the evaluation between batches."""
 
-    def __init__(self, goal_handle):
+    def __init__(self, goal_handle, closing):
         self._goal_handle = goal_handle
+        self._closing = closing
 
     def is_set(self):
-        return self._goal_handle.is_cancel_requested
+        return self._goal_handle.is_cancel_requested or self._closing.is_set()
 
 
 def _trial_msgs(outcomes):
@@ -64,6 +65,7 @@ class SimEvaluator(Node):
             self.create_subscription(String, "robot_description", self._on_description, LATCHED_QOS)
         self._pool = make_executor(self._settings.evaluator)
         self._busy = threading.Lock()
+        self._closing = threading.Event()
         ActionServer(self, EvaluateProfile, "evaluate_profile", execute_callback=self._execute,
                      goal_callback=self._check_goal, cancel_callback=lambda _goal: CancelResponse.ACCEPT,
                      callback_group=ReentrantCallbackGroup())
@@ -128,17 +130,21 @@ class SimEvaluator(Node):
             try:
                 evaluation = evaluate_profile(list(request.heights) or None, request.trials, request.seed,
                                               self._settings, executor=self._pool, on_trial=on_trial,
-                                              cancel_event=_CancelRequested(goal_handle))
+                                              cancel_event=_CancelRequested(goal_handle, self._closing))
             except EvaluationCancelled as exc:
-                goal_handle.canceled()
+                if goal_handle.is_cancel_requested:
+                    goal_handle.canceled()
+                else:
+                    goal_handle.abort()   # the node is stopping: the client may retry elsewhere
                 result.trials = len(exc.outcomes)
                 result.successes = sum(o.upright for o in exc.outcomes)
                 result.trial_results = _trial_msgs(exc.outcomes)
-                result.message = str(exc)
+                result.message = str(exc) if goal_handle.is_cancel_requested else f"evaluator stopping: {exc}"
                 return result
             except Exception as exc:  # a broken worker pool or physics error must not take the node down
                 self.get_logger().error(f"evaluation failed: {exc!r}")
-                self._replace_broken_pool()
+                if not self._closing.is_set():
+                    self._replace_broken_pool()
                 goal_handle.abort()
                 result.message = f"evaluation failed: {exc}"
                 return result
@@ -160,8 +166,10 @@ class SimEvaluator(Node):
         self._pool = make_executor(self._settings.evaluator)
 
     def close(self):
-        """Stop the worker processes."""
-        self._pool.close()
+        """End a running evaluation at its next batch (the goal is aborted), then stop the worker processes."""
+        self._closing.set()
+        with self._busy:
+            self._pool.close()
 
 
 def main(args=None):

@@ -42,9 +42,9 @@ class NodeLaunch:
     critical: bool = True
     stop_timeout_s: float = 15.0
 
-    def argv(self, param_files, python=sys.executable):
-        """The command line: ``python -m rollability_ros.nodes.<module> --ros-args ...``."""
-        args = [python, "-m", f"rollability_ros.nodes.{self.module}", "--ros-args"]
+    def ros_args(self, param_files):
+        """The node's arguments: ``--ros-args``, name and namespace remaps, parameter files, overrides."""
+        args = ["--ros-args"]
         if self.name:
             args += ["-r", f"__node:={self.name}"]
         if self.namespace:
@@ -54,6 +54,10 @@ class NodeLaunch:
         for key, value in self.params.items():
             args += ["-p", f"{key}:={_ros_value(value)}"]
         return args
+
+    def argv(self, param_files, python=sys.executable):
+        """The command line: ``python -m rollability_ros.nodes.<module>`` and :meth:`ros_args`."""
+        return [python, "-m", f"rollability_ros.nodes.{self.module}", *self.ros_args(param_files)]
 
     def process_spec(self, param_files):
         """A :class:`~rollability_ros.core.graph.supervisor.ProcessSpec` for the supervisor."""

@@ -130,7 +130,7 @@ class Study:
                                         "rig.twin_config": twin_config})
         runner = NodeLaunch("campaign_runner", namespace=self.settings.namespace, restart=False, params={
             "campaign.run_id": self.study_id, "campaign.configurations": configurations,
-            "runner.backend": "sim", "runner.store_path": self.store_path, "runner.resume": self.resuming})
+            "runner.backend": "sim", "runner.resume": self.resuming})
         return rig, runner
 
     def _progress_optimization(self):

@@ -46,7 +46,7 @@ from rollability_ros.action import Launch
 from rollability_ros.core.rig.launch_backend import LaunchAborted, RigPorts
 from rollability_ros.core.rig.rig_session import OperatorOutcome, RigSettings, make_launch_backend
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
-from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, orientation_if_valid
+from rollability_ros.core.imu.upright import ImuOutcomeConfig, imu_sample_from_message
 from rollability_ros.core.rig.valve import ValveConfig, ValveStatus
 from rollability_ros.msg import LaunchOutcome, ValveState
 from rollability_ros.nodes import _convert
@@ -115,17 +115,6 @@ class ValveServices:
         return response.success, response.message
 
 
-def imu_sample_from_msg(msg):
-    """``sensor_msgs/Imu`` -> :class:`ImuSample` (orientation None when the IMU gives none)."""
-    q = msg.orientation
-    return ImuSample(
-        stamp_s=_convert.stamp_to_s(msg.header.stamp),
-        orientation=orientation_if_valid((q.x, q.y, q.z, q.w), list(msg.orientation_covariance)),
-        angular_velocity_radps=(msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z),
-        linear_acceleration_mps2=(msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z),
-        frame_id=msg.header.frame_id)
-
-
 class RosRigPorts(RigPorts):
     """The rig's ports over ROS: the valve_controller's services with a heartbeat timer, the speed gate, the IMU
     topic. Each is created only when the backend opens it, so a simulated rig has no valve client or heartbeat."""
@@ -161,7 +150,7 @@ class RosRigPorts(RigPorts):
 
     def _on_imu(self, imu_outcome, msg):
         try:
-            imu_outcome.feed(imu_sample_from_msg(msg))
+            imu_outcome.feed(imu_sample_from_message(msg, time.time()))
         except ValueError as exc:
             self._node.get_logger().warning(f"ignored IMU sample: {exc}", throttle_duration_sec=5.0)
 

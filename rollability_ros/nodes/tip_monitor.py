@@ -43,7 +43,7 @@ from std_msgs.msg import Header
 
 from rollability_ros.core.results.outcome_log import OutcomeLog, StoreFailure
 from rollability_ros.core.imu.tip_tracker import TipMonitorConfig, TipTracker, diagnostic_status
-from rollability_ros.core.imu.upright import ImuSample, normalize_quaternion, orientation_if_valid
+from rollability_ros.core.imu.upright import imu_sample_from_message, normalize_quaternion
 from rollability_ros.msg import TipEvent, TipState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
@@ -87,30 +87,6 @@ def rpy_deg_from_quaternion(q):
     pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
     yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
     return [math.degrees(roll), math.degrees(pitch), math.degrees(yaw)]
-
-
-def _finite_vector(vector, name):
-    values = (vector.x, vector.y, vector.z)
-    if not all(math.isfinite(v) for v in values):
-        raise ValueError(f"{name} is not finite: {values}")
-    return values
-
-
-def imu_sample_from_msg(msg, arrival_s):
-    """``sensor_msgs/Imu`` -> :class:`ImuSample`; ``ValueError`` naming the bad field.
-
-    ``arrival_s`` (s) stands in for a zero header stamp.
-    """
-    stamp_s = _convert.stamp_to_s(msg.header.stamp) or arrival_s
-    try:
-        orientation = orientation_if_valid(_convert.quaternion_to_tuple(msg.orientation),
-                                           list(msg.orientation_covariance))
-    except ValueError as exc:
-        raise ValueError(f"orientation: {exc}") from None
-    return ImuSample(stamp_s=stamp_s, orientation=orientation,
-                     angular_velocity_radps=_finite_vector(msg.angular_velocity, "angular_velocity"),
-                     linear_acceleration_mps2=_finite_vector(msg.linear_acceleration, "linear_acceleration"),
-                     frame_id=msg.header.frame_id)
 
 
 class TipMonitorNode(Node):
@@ -175,7 +151,7 @@ class TipMonitorNode(Node):
 
     def _on_imu(self, msg):
         try:
-            sample = imu_sample_from_msg(msg, time.time())
+            sample = imu_sample_from_message(msg, time.time())
         except ValueError as exc:
             with self._lock:
                 self.counts["refused_samples"] += 1

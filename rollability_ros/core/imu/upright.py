@@ -12,6 +12,8 @@ import dataclasses
 import logging
 import math
 
+from rollability_ros.core.results.record_messages import stamp_to_s
+
 _LOG = logging.getLogger(__name__)
 
 #: Standard gravity, m/s^2.
@@ -164,6 +166,25 @@ class ImuSample:
     angular_velocity_radps: tuple
     linear_acceleration_mps2: tuple
     frame_id: str = ""
+
+
+def imu_sample_from_message(msg, arrival_s: float) -> ImuSample:
+    """A ``sensor_msgs/Imu`` message (rclpy or rosbags) -> :class:`ImuSample`; ``ValueError`` naming the bad field.
+
+    ``arrival_s`` (s since the epoch) stands in for a zero header stamp. Orientation is None when the IMU gives
+    none; non-finite vectors and unusable orientations are refused.
+    """
+    stamp_s = stamp_to_s(msg.header.stamp) or arrival_s
+    q = msg.orientation
+    try:
+        orientation = orientation_if_valid((q.x, q.y, q.z, q.w), list(msg.orientation_covariance))
+    except ValueError as exc:
+        raise ValueError(f"orientation: {exc}") from None
+    w, a = msg.angular_velocity, msg.linear_acceleration
+    return ImuSample(stamp_s=stamp_s, orientation=orientation,
+                     angular_velocity_radps=_vector3((w.x, w.y, w.z), "angular_velocity"),
+                     linear_acceleration_mps2=_vector3((a.x, a.y, a.z), "linear_acceleration"),
+                     frame_id=msg.header.frame_id)
 
 
 @dataclasses.dataclass(frozen=True)

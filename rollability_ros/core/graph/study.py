@@ -143,7 +143,7 @@ class Study:
             return "first generation under evaluation"
         last = generations[-1]
         cap = self.parameters.get("optimizer.max_generations", 0)
-        return (f"generation {last.generation + 1}{'/' + str(cap) if cap else ''}: best so far "
+        return (f"generation {last.generation}{'/' + str(cap) if cap else ''}: best so far "
                 f"{last.best_so_far:.2f}, {last.evaluations} evaluations, {last.elapsed_s:.0f} s")
 
     def _progress_campaign(self, total):

@@ -9,8 +9,7 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
-from rollability_ros.core.graph.bringup import load_graph_settings, session_nodes
-from rollability_ros.core.graph.node_commands import parameter_files
+from rollability_ros.core.graph.bringup import load_graph_settings, parameter_files, session_nodes
 
 
 def _nodes(context, rig_backend, optimizer, evaluators):

@@ -43,7 +43,8 @@ from std_msgs.msg import Header
 
 from rollability_ros.core.results.outcome_log import OutcomeLog, StoreFailure
 from rollability_ros.core.imu.tip_tracker import TipMonitorConfig, TipTracker, diagnostic_status
-from rollability_ros.core.imu.upright import imu_sample_from_message, normalize_quaternion
+from rollability_ros.core.imu.quaternion import normalize_quaternion, rpy_deg_from_quaternion
+from rollability_ros.core.imu.upright import imu_sample_from_message
 from rollability_ros.msg import TipEvent, TipState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
@@ -78,15 +79,6 @@ class TipMonitorNodeSettings:
             normalize_quaternion(self.mount_quaternion_xyzw)
         if not 0 < self.diagnostics_period_s < math.inf:
             raise ValueError(f"diagnostics_period_s must be > 0, got {self.diagnostics_period_s}")
-
-
-def rpy_deg_from_quaternion(q):
-    """Roll, pitch, yaw (deg; fixed axes x, y, z) of the rotation ``q`` = (x, y, z, w)."""
-    x, y, z, w = normalize_quaternion(q)
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return [math.degrees(roll), math.degrees(pitch), math.degrees(yaw)]
 
 
 class TipMonitorNode(Node):

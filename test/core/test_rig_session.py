@@ -12,7 +12,7 @@ from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
 from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
                                                   OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
                                                   check_goal, launch_backend_class, make_launch_backend,
-                                                  parse_outcome_answer, simulated_outcome, trial_seed)
+                                                  parse_outcome_answer, simulated_outcome, launch_seed)
 from rollability_ros.core.rig.speed_gate import SimulatedSpeedGate, SpeedGateConfig
 from rollability_ros.core.imu.upright import ImuOutcomeConfig
 from rollability_ros.core.rig.valve import RegulatorConfig, ValveConfig, ValveController
@@ -226,7 +226,7 @@ def test_operator_overrides_the_imu_and_answers_when_it_never_settles(valve):
     assert not silent.upright and silent.classified_by == "operator"
 
 
-def test_simulated_outcome_and_trial_seed():
+def test_simulated_outcome_and_launch_seed():
     class Result:
         upright = True
         final_orientation_xyzw = (0.0, 0.0, 0.0, 1.0)
@@ -235,7 +235,7 @@ def test_simulated_outcome_and_trial_seed():
     assert outcome.backend == "sim" and outcome.classified_by == "sim" and outcome.speed_out_of_tolerance
     assert "off the target" in outcome.note
     outcome.validate()
-    assert trial_seed(0, "a/b") == trial_seed(0, "a/b") != trial_seed(1, "a/b")
+    assert launch_seed(0, "a/b") == launch_seed(0, "a/b") != launch_seed(1, "a/b")
 
 
 class RecordingPorts(RigPorts):

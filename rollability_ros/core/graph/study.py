@@ -28,9 +28,8 @@ import shutil
 
 import yaml
 
-from rollability_ros.core.graph.bringup import core_nodes, load_graph_settings, new_study_id
+from rollability_ros.core.graph.bringup import NodeLaunch, core_nodes, load_graph_settings, new_study_id, parameter_files
 from rollability_ros.core.config import load_parameters
-from rollability_ros.core.graph.node_commands import NodeLaunch, parameter_files
 from rollability_ros.core.results.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
 

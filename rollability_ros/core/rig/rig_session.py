@@ -417,7 +417,7 @@ class SimulatedLaunch(LaunchBackend):
     Parameters
     ----------
     settings : RigSettings
-        ``seed`` is mixed with each trial id (:func:`trial_seed`), so a trial's outcome is reproducible;
+        ``seed`` is mixed with each trial id (:func:`launch_seed`), so a trial's outcome is reproducible;
         ``twin_config`` lists the twin's parameter files (shipped names or paths).
     speed_config : SpeedGateConfig
         Tolerance of the speed check on the twin's travel time.
@@ -467,7 +467,7 @@ class SimulatedLaunch(LaunchBackend):
         if cancelled():
             raise LaunchAborted("cancelled before the launch")
         twin = self.load()
-        result = twin.simulate_launch(condition, self._twin_settings, trial_seed(self.settings.seed, trial_id),
+        result = twin.simulate_launch(condition, self._twin_settings, launch_seed(self.settings.seed, trial_id),
                                       on_phase=lambda phase: on_phase(phase, "launch twin"), on_pose=on_pose)
         return simulated_outcome(run_id, trial_id, condition, result, self.speed_config)
 
@@ -503,8 +503,10 @@ def speed_note(speed, target_mps, tolerance_fraction):
             f"{target_mps:g} m/s")
 
 
-def trial_seed(base_seed, trial_id):
-    """A reproducible per-trial seed (same in every process, unlike ``hash``): ``base_seed`` mixed with the id."""
+def launch_seed(base_seed: int, trial_id: str) -> int:
+    """The seed of a simulated launch, reproducible in every process (unlike ``hash``): ``base_seed`` mixed with
+    the trial id by CRC-32. (Not :func:`rollability_ros.core.sim.evaluation.trial_seed`, which numbers the trials
+    of one profile evaluation; each keeps its algorithm so stored results stay reproducible.)"""
     return (zlib.crc32(trial_id.encode("utf-8")) ^ (base_seed & 0xFFFFFFFF)) & 0x7FFFFFFF
 
 

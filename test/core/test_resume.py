@@ -16,7 +16,8 @@ pytest.importorskip("cma")
 from rollability_ros.core.optimization import checkpoint as checkpoints  # noqa: E402
 from rollability_ros.core.config import ConfigError  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator, read_run_config  # noqa: E402
+from doubles import SyntheticEvaluator  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, read_run_config  # noqa: E402
 from rollability_ros.core.results.store import Store  # noqa: E402
 
 GRID = ProfileGrid(rows=3, cols=3)
@@ -30,7 +31,9 @@ CHILD = textwrap.dedent("""
     import os, sys, time
     import numpy as np
     from rollability_ros.core.profile.geometry import ProfileGrid
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator
+    sys.path.insert(0, sys.argv[4])   # test/, for the test doubles
+    from doubles import SyntheticEvaluator
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun
     run_dir, block_at, crn = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "True"
     evaluator = SyntheticEvaluator(np.linspace(0.05, 0.4, 9), trials=30)
     calls = []
@@ -80,7 +83,8 @@ def test_sigkill_mid_generation_then_resume_equals_uninterrupted(tmp_path, commo
                                                                  stored_in_killed_generation):
     run_dir = os.path.join(tmp_path, "killed", "run")
     os.makedirs(os.path.dirname(run_dir))
-    child = subprocess.Popen([sys.executable, "-c", CHILD, run_dir, str(block_at), str(common_random_numbers)])
+    child = subprocess.Popen([sys.executable, "-c", CHILD, run_dir, str(block_at), str(common_random_numbers),
+                              os.path.dirname(os.path.dirname(os.path.abspath(__file__)))])
     try:
         deadline = time.monotonic() + 60
         while not os.path.exists(run_dir + ".blocked"):

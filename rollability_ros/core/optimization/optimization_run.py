@@ -448,30 +448,6 @@ def run_generations(run: OptimizationRun, stop_requested: typing.Callable[[], bo
     return RunEnd("stopped" if stop_requested() else "finished", run.optimizer.result)
 
 
-class SyntheticEvaluator:
-    """A cheap stand-in evaluator with a known optimum, for tests, benchmarks and dry runs of the plumbing.
-
-    Success probability ``p(h) = peak * exp(-d**2 / (2 * width**2))`` with ``d`` the RMS distance between the
-    heights and ``optimum`` (simulation units). Trial ``j`` of a seed draws ``u_j ~ U(0, 1)`` from that seed and
-    succeeds when ``u_j < p(h)``: profiles evaluated with the same seed share their disturbances (common random
-    numbers), exactly like the physics evaluator's seeded trials.
-    """
-
-    def __init__(self, optimum, trials, width=0.1, peak=0.9, name="synthetic"):
-        self.optimum = np.asarray(optimum, dtype=np.float64)
-        self.trials, self.width, self.peak, self.name = int(trials), float(width), float(peak), name
-
-    def success_probability(self, heights):
-        """The true fitness ``p(h)`` of ``heights``."""
-        distance = np.sqrt(np.mean((np.asarray(heights, dtype=np.float64) - self.optimum) ** 2))
-        return float(self.peak * np.exp(-0.5 * (distance / self.width) ** 2))
-
-    def __call__(self, heights_list, seed):
-        """``evaluate_batch``: one (successes, trials, eval_time_s, name) per height array."""
-        draws = np.random.default_rng(seed).random(self.trials)
-        return [(int(np.sum(draws < self.success_probability(h))), self.trials, 0.0, self.name) for h in heights_list]
-
-
 def profile_batch_evaluator(settings, trials, executor, name="local"):
     """``evaluate_batch`` over :func:`evaluation.evaluate_profile` on ``executor`` (a LocalExecutor or RayExecutor).
 

@@ -19,7 +19,7 @@ import threading
 import time
 import typing
 
-from rollability_ros.core.campaign.plan import CampaignProgress, changes_between
+from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, changes_between
 from rollability_ros.core.config import from_mapping, section
 from rollability_ros.core.imu.upright import ImuOutcomeConfig
 from rollability_ros.core.rig.launch_backend import LaunchAborted, RigPorts
@@ -27,7 +27,8 @@ from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, RI
                                                   make_launch_backend, parse_outcome_answer)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
 from rollability_ros.core.results.records import LaunchOutcome
-from rollability_ros.core.rig.valve import ValveConfig
+from rollability_ros.core.results.store import Store
+from rollability_ros.core.rig.valve import ValveConfig, ValveController
 from rollability_ros.core.rig.valve_backends import make_controller
 
 
@@ -45,14 +46,14 @@ class CampaignReport:
     stopped_reason: str = ""
 
     @property
-    def complete(self):
+    def complete(self) -> bool:
         """True when every planned trial is stored."""
         return self.done == self.total
 
 
-def store_writer(store):
+def store_writer(store: Store) -> typing.Callable[[LaunchOutcome], None]:
     """``confirm_stored`` for the in-process route: write the outcome (a duplicate counts as stored)."""
-    def confirm_stored(outcome):
+    def confirm_stored(outcome: LaunchOutcome) -> None:
         store.add_launch_outcome(outcome)
     return confirm_stored
 
@@ -108,8 +109,12 @@ def _operator_ready(ask, say, previous, trial, pressure_psi_by_speed):
     return answer.strip().lower() not in ("q", "quit", "stop")
 
 
-def run_campaign(plan, run_id, stored_ids, launch, confirm_stored, ask=None, say=print,
-                 pressure_psi_by_speed=None, clock=time.monotonic):
+def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: typing.Collection[str],
+                 launch: typing.Callable[[PlannedTrial], LaunchOutcome],
+                 confirm_stored: typing.Callable[[LaunchOutcome], None],
+                 ask: typing.Optional[typing.Callable[[str], str]] = None, say: typing.Callable[[str], None] = print,
+                 pressure_psi_by_speed: typing.Optional[typing.Mapping[float, float]] = None,
+                 clock: typing.Callable[[], float] = time.monotonic) -> CampaignReport:
     """Run the trials of ``plan`` not yet stored, in plan order; returns a :class:`CampaignReport`.
 
     Parameters
@@ -137,7 +142,7 @@ def run_campaign(plan, run_id, stored_ids, launch, confirm_stored, ask=None, say
     say(f"campaign {run_id}: {progress.text()}")
     previous, stored_now = None, 0
 
-    def report(reason):
+    def report(reason: str) -> CampaignReport:
         return CampaignReport(stored_now, progress.done, progress.total, reason)
 
     for trial in todo:
@@ -177,7 +182,7 @@ class RunnerSettings:
     store_timeout_s: float = 10.0
     server_timeout_s: float = 30.0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if self.backend not in RIG_BACKENDS:
             raise ValueError(f"backend must be 'sim' (unattended) or 'physical' (operator), got {self.backend!r}")
@@ -185,7 +190,7 @@ class RunnerSettings:
             raise ValueError("store_timeout_s and server_timeout_s must be finite and > 0")
 
 
-def report_exit_code(report, say=print):
+def report_exit_code(report: CampaignReport, say: typing.Callable[[str], None] = print) -> int:
     """Print how a session ended; return the exit code: 0 when complete, 3 when stopped early."""
     if report.stopped_reason:
         say(f"campaign stopped: {report.stopped_reason} ({report.done}/{report.total} stored; resume to continue)")
@@ -194,7 +199,7 @@ def report_exit_code(report, say=print):
     return 0
 
 
-def resume_refusal(stored_count, resume, run_id):
+def resume_refusal(stored_count: int, resume: bool, run_id: str) -> str:
     """Why a session must not start ("" if it may): stored trials of ``run_id`` need an explicit resume."""
     if stored_count and not resume:
         return (f"run {run_id} already has {stored_count} stored trials: pass --resume (runner.resume) to continue "
@@ -202,7 +207,8 @@ def resume_refusal(stored_count, resume, run_id):
     return ""
 
 
-def answer_rig(phase, detail, ask):
+def answer_rig(phase: str, detail: str,
+               ask: typing.Callable[[str], str]) -> typing.Optional[typing.Tuple[str, typing.Any]]:
     """Ask the operator what the rig waits for, from a feedback ``(phase, detail)``.
 
     Returns ``("confirm", None)`` (regulator set), ``("outcome", OperatorOutcome)`` or None when the phase asks
@@ -231,7 +237,7 @@ class LocalRigPorts(RigPorts):
         self._stop = threading.Event()
         self.valve = None
 
-    def open_valve(self, valve_config):
+    def open_valve(self, valve_config: ValveConfig) -> ValveController:
         """A valve controller on ``valve.*`` whose watchdog this object keeps fed until :meth:`close`."""
         self.valve = make_controller(valve_config)
         threading.Thread(target=self._beat, args=(valve_config.heartbeat_period_ms / 1000.0,), daemon=True).start()
@@ -241,15 +247,15 @@ class LocalRigPorts(RigPorts):
         while not self._stop.wait(period_s):
             self.valve.heartbeat()
 
-    def open_speed_gate(self, speed_config):
+    def open_speed_gate(self, speed_config: SpeedGateConfig) -> typing.Any:
         """The configured speed gate (its ``operator`` backend asks at this terminal)."""
         return make_speed_gate(speed_config, self._ask)
 
-    def open_imu(self, imu_outcome):
+    def open_imu(self, imu_outcome: typing.Any) -> None:
         """Refused: the in-process rig has no IMU topic."""
         raise ValueError("the in-process physical rig takes outcomes from the operator only (no IMU topic)")
 
-    def close(self):
+    def close(self) -> None:
         """Stop the heartbeat and shut the valve down (closed)."""
         self._stop.set()
         if self.valve is not None:
@@ -292,12 +298,12 @@ class LocalRig:
             else:
                 self.backend.operator.record_outcome(outcome)
 
-    def launch(self, run_id, trial):
+    def launch(self, run_id: str, trial: PlannedTrial) -> LaunchOutcome:
         """Launch ``trial`` (a PlannedTrial) and return its outcome; :class:`LaunchAborted` when none."""
         return self.backend.launch(run_id, trial.trial_id, trial.condition, self._on_phase,
                                    cancelled=self._stop.is_set)
 
-    def close(self):
+    def close(self) -> None:
         """Stop the backend (heartbeat, valve closed)."""
         self._stop.set()
         self.backend.close()

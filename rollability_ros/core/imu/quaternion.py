@@ -6,11 +6,15 @@ says deg.
 import math
 import typing
 
+#: A rotation (x, y, z, w), unit norm where a function says so.
+Quaternion = typing.Tuple[float, float, float, float]
+#: A 3-vector (x, y, z).
+Vector3 = typing.Tuple[float, float, float]
 #: The identity rotation (x, y, z, w).
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
 
 
-def vector3(value, name: str) -> typing.Tuple[float, float, float]:
+def vector3(value: typing.Iterable[float], name: str) -> Vector3:
     """``value`` as 3 finite floats; ``ValueError`` naming ``name`` otherwise."""
     try:
         x, y, z = (float(c) for c in value)
@@ -21,7 +25,7 @@ def vector3(value, name: str) -> typing.Tuple[float, float, float]:
     return x, y, z
 
 
-def normalize_quaternion(q):
+def normalize_quaternion(q: typing.Iterable[float]) -> Quaternion:
     """Return ``q`` = (x, y, z, w) scaled to unit norm; ``ValueError`` for a zero or non-finite quaternion."""
     try:
         x, y, z, w = (float(c) for c in q)
@@ -33,7 +37,7 @@ def normalize_quaternion(q):
     return (x / norm, y / norm, z / norm, w / norm)
 
 
-def quaternion_multiply(a, b):
+def quaternion_multiply(a: typing.Sequence[float], b: typing.Sequence[float]) -> Quaternion:
     """Hamilton product ``a * b`` (rotate by ``b``, then by ``a``)."""
     ax, ay, az, aw = a
     bx, by, bz, bw = b
@@ -43,12 +47,12 @@ def quaternion_multiply(a, b):
             aw * bw - ax * bx - ay * by - az * bz)
 
 
-def quaternion_conjugate(q):
+def quaternion_conjugate(q: typing.Sequence[float]) -> Quaternion:
     """The inverse rotation of a unit quaternion."""
     return (-q[0], -q[1], -q[2], q[3])
 
 
-def rotate_vector(q, v):
+def rotate_vector(q: typing.Sequence[float], v: typing.Sequence[float]) -> Vector3:
     """Rotate the 3-vector ``v`` by the unit quaternion ``q``."""
     qx, qy, qz, qw = q
     vx, vy, vz = v
@@ -59,7 +63,7 @@ def rotate_vector(q, v):
             vz + qw * tz + qx * ty - qy * tx)
 
 
-def quaternion_from_axis_angle(axis, angle_rad):
+def quaternion_from_axis_angle(axis: typing.Iterable[float], angle_rad: float) -> Quaternion:
     """Rotation by ``angle_rad`` (rad) about ``axis`` (3-vector, any non-zero length)."""
     ax, ay, az = vector3(axis, "axis")
     norm = math.sqrt(ax * ax + ay * ay + az * az)
@@ -69,14 +73,14 @@ def quaternion_from_axis_angle(axis, angle_rad):
     return (ax * s, ay * s, az * s, math.cos(angle_rad / 2))
 
 
-def quaternion_from_rpy_deg(roll_deg, pitch_deg, yaw_deg):
+def quaternion_from_rpy_deg(roll_deg: float, pitch_deg: float, yaw_deg: float) -> Quaternion:
     """Rotation from ROS roll, pitch, yaw (deg; about fixed x, then y, then z)."""
     return quaternion_multiply(quaternion_from_axis_angle((0, 0, 1), math.radians(yaw_deg)),
                                quaternion_multiply(quaternion_from_axis_angle((0, 1, 0), math.radians(pitch_deg)),
                                                    quaternion_from_axis_angle((1, 0, 0), math.radians(roll_deg))))
 
 
-def rpy_deg_from_quaternion(q) -> typing.List[float]:
+def rpy_deg_from_quaternion(q: typing.Iterable[float]) -> typing.List[float]:
     """Roll, pitch, yaw (deg; fixed axes x, y, z) of the rotation ``q`` = (x, y, z, w)."""
     x, y, z, w = normalize_quaternion(q)
     roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))

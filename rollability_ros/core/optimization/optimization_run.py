@@ -35,6 +35,7 @@ candidate that differs is an error. Either way the stored sequence equals that o
 import concurrent.futures
 import dataclasses
 import os
+import threading
 import time
 import typing
 
@@ -65,17 +66,17 @@ BASE_CONFIGS = ("sim", "robot", "evaluator")
 FIRST_GENERATION = 1
 
 
-def new_run_id(now_s=None):
+def new_run_id(now_s: typing.Optional[float] = None) -> str:
     """Return a run id from the local time, ``opt-YYYYmmdd-HHMMSS``."""
     return time.strftime("opt-%Y%m%d-%H%M%S", time.localtime(time.time() if now_s is None else now_s))
 
 
-def optimizer_settings(parameters):
+def optimizer_settings(parameters: dict) -> OptimizerSettings:
     """Return the :class:`OptimizerSettings` of a flat parameter dict (namespace ``optimizer``)."""
     return from_mapping(OptimizerSettings, section(parameters, "optimizer"), "optimizer")
 
 
-def load_run_parameters(config_paths):
+def load_run_parameters(config_paths: typing.Union[str, os.PathLike, typing.Sequence]) -> dict:
     """Merge :data:`BASE_CONFIGS` and ``config_paths`` (one or a list of paths or shipped names such as
     ``"paper"``; later files win, e.g. ``["optimizer", "runs/cal/calibrated.yaml"]``)."""
     if isinstance(config_paths, (str, os.PathLike)):
@@ -83,19 +84,19 @@ def load_run_parameters(config_paths):
     return load_parameters(list(BASE_CONFIGS) + list(config_paths))
 
 
-def resolve_run_dir(run, output_dir="runs"):
+def resolve_run_dir(run: typing.Union[str, os.PathLike], output_dir: str = "runs") -> str:
     """Return the directory of ``run``: a run directory path as given, else ``<output_dir>/<run>``."""
     if os.path.isfile(os.path.join(run, RUN_CONFIG_FILENAME)):
         return os.fspath(run)
     return os.path.join(output_dir, run)
 
 
-def run_id_of(run_dir):
+def run_id_of(run_dir: typing.Union[str, os.PathLike]) -> str:
     """The run id of a run directory: its name."""
     return os.path.basename(os.path.normpath(os.fspath(run_dir)))
 
 
-def write_run_config(path, parameters):
+def write_run_config(path: typing.Union[str, os.PathLike], parameters: dict) -> None:
     """Write flat ``parameters`` as a ROS 2 parameter file (``/**: {ros__parameters: {...}}``), atomically."""
     text = yaml.safe_dump({"/**": {"ros__parameters": section(parameters, "")}}, sort_keys=True)
     checkpoints.atomic_write_bytes(path, text.encode("utf-8"))
@@ -120,14 +121,15 @@ def run_target(run_id: str, resume: bool, parameters: typing.Optional[dict],
 
 
 def cmaes_optimizer(n_variables: int, settings: OptimizerSettings, lower: float, upper: float,
-                    clock: typing.Callable[[], float], initial_mean=None, state: typing.Optional[dict] = None):
+                    clock: typing.Callable[[], float], initial_mean: typing.Optional[np.ndarray] = None,
+                    state: typing.Optional[dict] = None) -> ProfileOptimizer:
     """The default ``optimizer_factory``: a :class:`ProfileOptimizer`, new or restored from a checkpoint ``state``."""
     if state is None:
         return ProfileOptimizer(n_variables, settings, lower, upper, clock, initial_mean)
     return ProfileOptimizer.from_state_dict(state, n_variables, settings, lower, upper, clock, initial_mean)
 
 
-def read_run_config(run_dir):
+def read_run_config(run_dir: typing.Union[str, os.PathLike]) -> dict:
     """Return the flat parameters saved in ``<run_dir>/config.yaml``; ``FileNotFoundError`` if it is not a run."""
     path = os.path.join(run_dir, RUN_CONFIG_FILENAME)
     if not os.path.isfile(path):
@@ -135,7 +137,8 @@ def read_run_config(run_dir):
     return load_parameters(path)
 
 
-def profile_screen(parameters, evaluator_settings, screen_settings=None):
+def profile_screen(parameters: dict, evaluator_settings: typing.Any,
+                   screen_settings: typing.Any = None) -> typing.Optional[typing.Callable]:
     """The ``screen_profiles`` an :class:`OptimizationRun` with these flat ``parameters`` needs: the stable-pose
     screen of profiles on the robot of ``evaluator_settings`` under ``screen_settings`` (default: namespace
     ``stable_poses`` of ``parameters``, the defaults of ``config/calibration.yaml`` where absent); None when
@@ -228,7 +231,7 @@ class OptimizationRun:
         return {"chosen": chosen, "upright_probability": [round(s.upright_probability, 4) for s in screens],
                 "worst_barrier_m": [round(s.worst_barrier_m, 5) for s in screens]}
 
-    def initial_mean_text(self):
+    def initial_mean_text(self) -> str:
         """One line on where CMA-ES started, for the CLI and the node log."""
         screen = self.initial_mean_screen
         if screen is None:
@@ -291,7 +294,7 @@ class OptimizationRun:
         return self._new_optimizer(state["optimizer"])
 
     # --- one generation ---------------------------------------------------------------------------------------
-    def step(self):
+    def step(self) -> GenerationRecord:
         """Evaluate, log and checkpoint one generation; return its :class:`GenerationRecord`.
 
         If the evaluator raises, the optimizer is rolled back to the last checkpoint before the error propagates,
@@ -367,7 +370,7 @@ class OptimizationRun:
         return [records[index] for index in indices]
 
     # --- the loop -----------------------------------------------------------------------------------------------
-    def run(self, cancel_event=None):
+    def run(self, cancel_event: typing.Optional[threading.Event] = None) -> OptimizerResult:
         """Run generations until a stop criterion is met or ``cancel_event`` (a ``threading.Event``) is set.
 
         Returns the :class:`OptimizerResult`; cancelling keeps the last checkpoint, so the run can be resumed.
@@ -375,7 +378,7 @@ class OptimizationRun:
         stop_requested = cancel_event.is_set if cancel_event is not None else _never
         return run_generations(self, stop_requested).result
 
-    def eta_s(self):
+    def eta_s(self) -> float:
         """Estimated wall time to the generation cap (or the wall-time cap if sooner), s; NaN before a generation."""
         done = self.optimizer.generation - self._session_start_generation
         if done == 0:
@@ -388,7 +391,7 @@ class OptimizationRun:
             remaining.append(max(0.0, self.settings.max_wall_time_s - self.optimizer.elapsed_s))
         return min(remaining) if remaining else float("nan")
 
-    def close(self):
+    def close(self) -> None:
         """Close the store."""
         self.store.close()
 
@@ -448,7 +451,8 @@ def run_generations(run: OptimizationRun, stop_requested: typing.Callable[[], bo
     return RunEnd("stopped" if stop_requested() else "finished", run.optimizer.result)
 
 
-def profile_batch_evaluator(settings, trials, executor, name="local"):
+def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.Any,
+                            name: str = "local") -> typing.Callable:
     """``evaluate_batch`` over :func:`evaluation.evaluate_profile` on ``executor`` (a LocalExecutor or RayExecutor).
 
     The profiles of a batch are evaluated concurrently (one thread each submitting its trial batches), so the
@@ -456,7 +460,7 @@ def profile_batch_evaluator(settings, trials, executor, name="local"):
     """
     from rollability_ros.core.sim.evaluation import evaluate_profile
 
-    def evaluate_batch(heights_list, seed):
+    def evaluate_batch(heights_list: typing.Sequence[np.ndarray], seed: int) -> typing.List[tuple]:
         threads = concurrent.futures.ThreadPoolExecutor(max_workers=max(1, len(heights_list)))
         try:
             futures = [threads.submit(evaluate_profile, heights, trials, seed, settings, executor)

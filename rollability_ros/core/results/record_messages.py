@@ -16,6 +16,8 @@ import typing
 from rollability_ros.core.results.records import (CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome,
                                                   TipEventRecord)
 
+#: Any of the record classes.
+Record = typing.Union[LaunchOutcome, CandidateRecord, GenerationRecord, TipEventRecord]
 #: ``make(type_name, **fields) -> message`` of one message implementation (rclpy, rosbags).
 MakeMessage = typing.Callable[..., typing.Any]
 
@@ -32,7 +34,7 @@ RECORD_TYPES = {OUTCOME_TYPE: LaunchOutcome, CANDIDATE_TYPE: CandidateRecord, GE
                 TIP_EVENT_TYPE: TipEventRecord}
 
 
-def stamp_to_s(stamp) -> float:
+def stamp_to_s(stamp: typing.Any) -> float:
     """``builtin_interfaces/Time`` (``sec``, ``nanosec``) -> seconds since the epoch (float)."""
     return stamp.sec + stamp.nanosec * 1e-9
 
@@ -45,19 +47,19 @@ def split_stamp(seconds: float) -> typing.Tuple[int, int]:
     return sec, min(max(int(round((seconds - sec) * 1e9)), 0), 999_999_999)
 
 
-def make_stamp(make: MakeMessage, seconds: float):
+def make_stamp(make: MakeMessage, seconds: float) -> typing.Any:
     """A ``builtin_interfaces/Time`` of ``seconds`` (see :func:`split_stamp`)."""
     sec, nanosec = split_stamp(seconds)
     return make(TIME_TYPE, sec=sec, nanosec=nanosec)
 
 
-def make_quaternion(make: MakeMessage, xyzw: typing.Sequence[float]):
+def make_quaternion(make: MakeMessage, xyzw: typing.Sequence[float]) -> typing.Any:
     """A ``geometry_msgs/Quaternion`` from ``(x, y, z, w)``."""
     x, y, z, w = (float(v) for v in xyzw)
     return make(QUATERNION_TYPE, x=x, y=y, z=z, w=w)
 
 
-def quaternion_to_tuple(q) -> typing.Tuple[float, float, float, float]:
+def quaternion_to_tuple(q: typing.Any) -> typing.Tuple[float, float, float, float]:
     """A ``geometry_msgs/Quaternion`` -> ``(x, y, z, w)``."""
     return (float(q.x), float(q.y), float(q.z), float(q.w))
 
@@ -66,14 +68,14 @@ def _header(make, stamp_s, frame_id=""):
     return make(HEADER_TYPE, stamp=make_stamp(make, stamp_s), frame_id=frame_id)
 
 
-def condition_to_message(make: MakeMessage, condition: LaunchCondition):
+def condition_to_message(make: MakeMessage, condition: LaunchCondition) -> typing.Any:
     """:class:`LaunchCondition` -> ``LaunchCondition`` message."""
     return make(CONDITION_TYPE, configuration=condition.configuration, height_m=float(condition.height_m),
                 speed_mps=float(condition.speed_mps), angle_deg=float(condition.angle_deg),
                 repetition=int(condition.repetition))
 
 
-def condition_from_message(msg) -> LaunchCondition:
+def condition_from_message(msg: typing.Any) -> LaunchCondition:
     """``LaunchCondition`` message -> validated :class:`LaunchCondition`; ``ValueError`` names the bad field."""
     condition = LaunchCondition(configuration=msg.configuration, height_m=float(msg.height_m),
                                 speed_mps=float(msg.speed_mps), angle_deg=float(msg.angle_deg),
@@ -120,7 +122,7 @@ _FROM_MESSAGE = {OUTCOME_TYPE: _outcome_from_message, CANDIDATE_TYPE: _candidate
                  GENERATION_TYPE: _generation_from_message, TIP_EVENT_TYPE: _tip_event_from_message}
 
 
-def record_from_message(type_name: str, msg):
+def record_from_message(type_name: str, msg: typing.Any) -> Record:
     """A record message of type ``type_name`` -> its validated record; ``ValueError`` names the bad field."""
     try:
         convert = _FROM_MESSAGE[type_name]
@@ -131,7 +133,7 @@ def record_from_message(type_name: str, msg):
     return record
 
 
-def message_from_record(make: MakeMessage, record) -> typing.Tuple[str, typing.Any]:
+def message_from_record(make: MakeMessage, record: Record) -> typing.Tuple[str, typing.Any]:
     """``(type name, message)`` for a record, built with ``make``; the inverse of :func:`record_from_message`."""
     if isinstance(record, LaunchOutcome):
         return OUTCOME_TYPE, make(

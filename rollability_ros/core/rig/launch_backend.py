@@ -16,6 +16,11 @@ import typing
 
 from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
 
+if typing.TYPE_CHECKING:  # annotations only: rig_session imports this module
+    from rollability_ros.core.rig.rig_session import ImuOutcome
+    from rollability_ros.core.rig.speed_gate import SpeedGateConfig
+    from rollability_ros.core.rig.valve import ValveConfig
+
 #: ``on_phase(phase, detail)``: one feedback phase of the Launch action and a sentence for the operator.
 PhaseCallback = typing.Callable[[str, str], None]
 #: ``on_pose(t_s, position_m, orientation_xyzw)``: the chassis pose, s after the push, m, (x, y, z, w).
@@ -80,15 +85,15 @@ class RigPorts(abc.ABC):
     """The world a physical launch runs in, provided by the caller; each port is opened only when a backend uses it."""
 
     @abc.abstractmethod
-    def open_valve(self, valve_config) -> typing.Any:
+    def open_valve(self, valve_config: "ValveConfig") -> typing.Any:
         """The valve (``arm``, ``fire``, ``disarm``, ``status``) with its keep-alive running; see ``PhysicalLaunch``."""
 
     @abc.abstractmethod
-    def open_speed_gate(self, speed_config) -> typing.Any:
+    def open_speed_gate(self, speed_config: "SpeedGateConfig") -> typing.Any:
         """The speed gate (``arm(target_mps)``, ``read_travel_time(timeout_s)``) for ``speed_config``."""
 
     @abc.abstractmethod
-    def open_imu(self, imu_outcome) -> None:
+    def open_imu(self, imu_outcome: "ImuOutcome") -> None:
         """Feed :meth:`ImuOutcome.feed` from the IMU stream; ``ValueError`` when this caller has no IMU."""
 
     def close(self) -> None:

@@ -30,14 +30,15 @@ import importlib
 import math
 import threading
 import time
+import types
 import typing
 import zlib
 
-from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuUprightClassifier
+from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
 from rollability_ros.core.results.records import NOT_MEASURED, LaunchCondition, LaunchOutcome
 from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
                                                      RigPorts, no_phase, not_cancelled)
-from rollability_ros.core.rig.speed_gate import SpeedGateConfig
+from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
 from rollability_ros.core.rig.valve import ValveConfig
 
 #: Feedback phases of the Launch action, in order.
@@ -66,7 +67,7 @@ class RigSettings:
     seed: int = 0
     twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"])
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if self.backend not in RIG_BACKENDS:
             raise ValueError(f"backend must be one of {RIG_BACKENDS}, got {self.backend!r}")
@@ -80,7 +81,8 @@ class RigSettings:
             raise ValueError("operator_timeout_s and valve_timeout_s must be finite and > 0")
 
 
-def check_goal(run_id, trial_id, condition, configurations):
+def check_goal(run_id: str, trial_id: str, condition: LaunchCondition,
+               configurations: typing.Sequence[str]) -> str:
     """Refuse a launch goal that cannot run; returns the reason ("" when acceptable).
 
     Parameters
@@ -112,7 +114,7 @@ class OperatorOutcome:
     note: str = ""
 
 
-def parse_outcome_answer(text):
+def parse_outcome_answer(text: str) -> "OperatorOutcome":
     """Parse a typed outcome ``"y|n [travel time s] [note...]"`` into an :class:`OperatorOutcome`.
 
     ``y``/``yes``/``u``/``upright`` mean upright, ``n``/``no``/``t``/``tipped`` not; raises ``ValueError`` otherwise.
@@ -148,21 +150,21 @@ class OperatorChannel:
         self._trial_id = ""
         self._answer = None
 
-    def open(self, kind, trial_id=""):
+    def open(self, kind: str, trial_id: str = "") -> None:
         """Start waiting for a ``"confirm"`` or an ``"outcome"`` (of ``trial_id``)."""
         if kind not in ("confirm", "outcome"):
             raise ValueError(f"kind must be 'confirm' or 'outcome', got {kind!r}")
         with self._cond:
             self._kind, self._trial_id, self._answer = kind, trial_id, None
 
-    def close(self):
+    def close(self) -> None:
         """Stop waiting; later answers are refused."""
         with self._cond:
             self._kind, self._answer = None, None
             self._cond.notify_all()
 
     @property
-    def waiting_for(self):
+    def waiting_for(self) -> typing.Optional[str]:
         """``"confirm"``, ``"outcome"`` or None."""
         with self._cond:
             return self._kind
@@ -182,15 +184,16 @@ class OperatorChannel:
             self._cond.notify_all()
             return True, "accepted"
 
-    def confirm(self):
+    def confirm(self) -> typing.Tuple[bool, str]:
         """Answer an open regulator confirmation. Returns ``(accepted, message)``."""
         return self._deliver("confirm", True)
 
-    def record_outcome(self, outcome, trial_id=""):
+    def record_outcome(self, outcome: OperatorOutcome, trial_id: str = "") -> typing.Tuple[bool, str]:
         """Answer an open outcome question with an :class:`OperatorOutcome` (``trial_id`` "" = the current one)."""
         return self._deliver("outcome", outcome, trial_id)
 
-    def wait(self, timeout_s, cancelled=lambda: False, poll_s=0.05):
+    def wait(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
+             poll_s: float = 0.05) -> typing.Any:
         """Return the answer once given, or None on timeout / ``cancelled()``; the question stays open."""
         deadline = time.monotonic() + timeout_s
         with self._cond:
@@ -211,20 +214,21 @@ class ImuOutcome:
         self._cond = threading.Condition()
         self._reading = None
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget everything before the launch (a chassis waiting on the launcher looks settled too)."""
         with self._cond:
             self._classifier.reset()
             self._reading = None
 
-    def feed(self, sample):
+    def feed(self, sample: ImuSample) -> None:
         """Classify one :class:`~rollability_ros.core.imu.upright.ImuSample`; bad samples raise ``ValueError``."""
         with self._cond:
             self._reading = self._classifier.update(sample)
             if self._reading.classification is not None:
                 self._cond.notify_all()
 
-    def wait_settled(self, timeout_s, cancelled=lambda: False, poll_s=0.05):
+    def wait_settled(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
+                     poll_s: float = 0.05) -> typing.Optional[UprightReading]:
         """The first settled :class:`~rollability_ros.core.imu.upright.UprightReading`, or None on timeout/cancel."""
         deadline = time.monotonic() + timeout_s
         with self._cond:
@@ -441,7 +445,7 @@ class SimulatedLaunch(LaunchBackend):
         backend.load()
         return backend
 
-    def load(self):
+    def load(self) -> types.ModuleType:
         """Import the twin and read its settings now (a node does it at start-up to fail early)."""
         if self._twin is None:
             twin = importlib.import_module("rollability_ros.core.sim.launch_twin")
@@ -495,7 +499,7 @@ def make_launch_backend(settings: RigSettings, speed_config: SpeedGateConfig, va
     return launch_backend_class(settings.backend).from_ports(settings, speed_config, valve_config, imu_config, ports)
 
 
-def speed_note(speed, target_mps, tolerance_fraction):
+def speed_note(speed: SpeedMeasurement, target_mps: float, tolerance_fraction: float) -> str:
     """The outcome note for a flagged :class:`~rollability_ros.core.rig.speed_gate.SpeedMeasurement` ("" if not)."""
     if not speed.speed_out_of_tolerance:
         return ""
@@ -510,7 +514,8 @@ def launch_seed(base_seed: int, trial_id: str) -> int:
     return (zlib.crc32(trial_id.encode("utf-8")) ^ (base_seed & 0xFFFFFFFF)) & 0x7FFFFFFF
 
 
-def simulated_outcome(run_id, trial_id, condition, result, speed_config):
+def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, result: typing.Any,
+                      speed_config: SpeedGateConfig) -> LaunchOutcome:
     """The :class:`LaunchOutcome` of a launch twin result (``upright``, ``final_orientation_xyzw``,
     ``travel_time_s``), with the speed flagged against ``speed_config``'s tolerance."""
     travel_time_s = float(getattr(result, "travel_time_s", NOT_MEASURED))

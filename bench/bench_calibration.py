@@ -15,8 +15,10 @@ import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(1, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "test"))  # doubles
 
 from bench.bench_launch_twin import dome_mesh  # noqa: E402
+from doubles import synthetic_outcomes  # noqa: E402
 from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
@@ -44,7 +46,7 @@ def main():
         parameters = load_parameters(list(calibration.TWIN_CONFIGS))
         parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
         started = time.perf_counter()
-        outcomes = calibration.synthetic_outcomes(parameters, names, truth,
+        outcomes = synthetic_outcomes(parameters, names, truth,
                                                   [LaunchCondition(*c) for c in CONDITIONS], args.repetitions)
         print(f"synthetic outcomes: {len(outcomes)} launches in {time.perf_counter() - started:.1f} s")
         settings = calibration.CalibrationSettings(

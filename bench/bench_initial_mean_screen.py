@@ -6,7 +6,7 @@
 For each seed, two quick optimizations with real physics (the given configs, default config/optimizer.yaml with
 ``--generations`` generations): ``optimizer.initial_mean_screen`` 0 (the paper: one random mean) and N (the
 best of N random means by quasi-static P(upright), ties by the lowest barrier; the N means include the paper's
-one). Prints per seed the screened start's P(upright), the simulated fitness of generation 0's best candidate and
+one). Prints per seed the screened start's P(upright), the simulated fitness of first generation's best candidate and
 the pooled best-so-far fitness at the end, then the means over seeds and their ratios (screened / paper), and
 the time the screen took against the run's evaluation time. The fitnesses are binomial estimates (trials per
 candidate from the config), so a difference of a few percentage points over a few seeds is noise.
@@ -27,7 +27,7 @@ from rollability_ros.core.optimization import optimization_run as optimization_r
 
 
 def one_run(parameters, settings, executor, run_dir):
-    """Run to the end; return (start P(upright) or None, generation-0 best fitness, final best fitness, s in the
+    """Run to the end; return (start P(upright) or None, first-generation best fitness, final best fitness, s in the
     screen, s in total)."""
     trials = optimization_run.optimizer_settings(parameters).trials
     started = time.perf_counter()
@@ -68,7 +68,7 @@ def main():
                     row = one_run(parameters, settings, executor, os.path.join(workdir, f"s{seed}-k{screen}"))
                     rows[screen].append(row)
                     start = "      -" if row[0] is None else f"{row[0]:7.2f}"
-                    print(f"seed {seed} screen {screen:>3}: start P(upright) {start}, generation-0 best "
+                    print(f"seed {seed} screen {screen:>3}: start P(upright) {start}, first-generation best "
                           f"{row[1]:.3f}, final best {row[2]:.3f}, screen {row[3]:.1f} s of {row[4]:.1f} s",
                           flush=True)
     finally:
@@ -77,7 +77,7 @@ def main():
     paper, screened = (np.array([r[1:] for r in rows[k]]) for k in rows)
     print(f"\n{args.seeds} seeds x {args.generations} generations, configs {args.config or ['optimizer']}")
     print(f"{'':24} {'paper (1 mean)':>15} {f'screened ({args.screen})':>15} {'ratio':>7}")
-    for label, column in (("generation-0 best", 0), ("final best-so-far", 1)):
+    for label, column in (("first-generation best", 0), ("final best-so-far", 1)):
         a, b = paper[:, column].mean(), screened[:, column].mean()
         print(f"{label:24} {a:15.3f} {b:15.3f} {b / a if a else float('nan'):7.2f}")
     print(f"screen time / run time: {screened[:, 2].sum():.1f} s / {screened[:, 3].sum():.1f} s = "

@@ -23,9 +23,11 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
+sys.path.insert(1, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "test"))  # doubles
 
 from rollability_ros.core.sim import evaluation
 
+from doubles import SyntheticEvaluator  # noqa: E402
 from rollability_ros.core.optimization import optimization_run as optimization_run  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
 from rollability_ros.core.optimization.cmaes import ProfileOptimizer  # noqa: E402
@@ -78,7 +80,7 @@ def noise_study(seeds, workdir, generations=60, trials=20):
             parameters = {"optimizer.max_generations": generations, "optimizer.seed": seed,
                           "optimizer.trials": trials, "optimizer.common_random_numbers": crn,
                           "optimizer.reevaluate_incumbent": reevaluate}
-            evaluator = optimization_run.SyntheticEvaluator(
+            evaluator = SyntheticEvaluator(
                 np.random.default_rng(1000 + seed).uniform(0, 0.45, grid.n_variables), trials, peak=0.8)
             run = optimization_run.OptimizationRun(os.path.join(workdir, f"noise-{crn}-{reevaluate}-{seed}"),
                                                    parameters, grid, evaluator)
@@ -113,7 +115,7 @@ def main(argv=None):
                                                         workdir, "real")
         finally:
             executor.close()
-        synthetic = optimization_run.SyntheticEvaluator(np.full(settings.grid.n_variables, 0.2), trials)
+        synthetic = SyntheticEvaluator(np.full(settings.grid.n_variables, 0.2), trials)
         loop_total_s, _ = run_generations(parameters, settings.grid, synthetic, 50, workdir, "synthetic")
         cma_s = cma_only_s(settings.grid.n_variables, 200)
         noise = noise_study(args.noise_seeds, workdir) if args.noise_seeds else None

@@ -31,6 +31,7 @@ sys.path.insert(0, ROOT)  # this checkout first
 from rollability_ros.core.sim import evaluation
 
 from rollability_ros.core.optimization import optimization_run as optimization_run  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import FIRST_GENERATION  # noqa: E402
 from rollability_ros.core.config import resolve_config_path  # noqa: E402
 from rollability_ros.core.results.store import Store  # noqa: E402
 
@@ -52,9 +53,9 @@ def per_generation_s(generations):
 
 def evaluator_busy_s(candidates, evaluators):
     """Evaluator time per generation after the first, s: summed ``eval_time_s`` over the evaluator nodes."""
-    generations = max(c.generation for c in candidates)
+    last = max(c.generation for c in candidates)
     return np.array([sum(c.eval_time_s for c in candidates if c.generation == g) / evaluators
-                     for g in range(1, generations + 1)])
+                     for g in range(FIRST_GENERATION + 1, last + 1)])
 
 
 def run_in_process(parameters, workdir, workers):
@@ -159,7 +160,7 @@ def main(argv=None):
     fastest = int(np.argmin([g.sum() for g in graph]))
     evaluated_s = busy[fastest].mean()
     outside_s = graph[fastest].mean() - evaluated_s
-    trials_per_generation = sum(c.trials for c in candidates if c.generation > 0) / (args.generations - 1)
+    trials_per_generation = sum(c.trials for c in candidates if c.generation > FIRST_GENERATION) / (args.generations - 1)
 
     print(f"config {args.config}: {grid.rows}x{grid.cols} grid, popsize {settings.popsize} + 1 re-evaluation, "
           f"{settings.trials} trials, generations 1..{args.generations - 1} timed, best of {args.repeats}, "

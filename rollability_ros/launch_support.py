@@ -7,8 +7,7 @@ its executables with exactly its arguments. Only :func:`describe_session` import
 import os
 import typing
 
-from rollability_ros.core.graph.bringup import load_graph_settings, session_nodes
-from rollability_ros.core.graph.node_commands import parameter_files
+from rollability_ros.core.graph.bringup import load_graph_settings, parameter_files, session_nodes
 
 
 class NodeCommand(typing.NamedTuple):

@@ -59,11 +59,11 @@ class SpunNode:
 class NodeProcess:
     """A node (``python -m rollability_ros.nodes.<module>``) or any Python module run as a separate process."""
 
-    def __init__(self, argv, log_path, env=None):
+    def __init__(self, argv, log_path, env=None, cwd=None):
         self.log_path = log_path
         self._log = open(log_path, "wb")
         self.process = subprocess.Popen(argv, stdout=self._log, stderr=subprocess.STDOUT,
-                                        env=env or os.environ.copy(), start_new_session=True)
+                                        env=env or os.environ.copy(), start_new_session=True, cwd=cwd)
 
     def log(self):
         if not self._log.closed:   # stop() closes it; the file stays readable
@@ -101,12 +101,14 @@ def ros_node(request):
 
 @pytest.fixture
 def start_process(tmp_path):
-    """``start_process(module, *args, name=...)`` starts ``python -m module args...``; all stopped at teardown."""
+    """``start_process(module, *args, name=..., cwd=...)`` starts ``python -m module args...``; all stopped at
+    teardown."""
     started = []
 
-    def start(module, *args, name=None, env=None):
+    def start(module, *args, name=None, env=None, cwd=None):
         name = name or module.rsplit(".", 1)[-1]
-        handle = NodeProcess([sys.executable, "-m", module, *args], tmp_path / f"{name}-{len(started)}.log", env)
+        handle = NodeProcess([sys.executable, "-m", module, *args], tmp_path / f"{name}-{len(started)}.log", env,
+                             cwd)
         started.append(handle)
         return handle
 
@@ -117,9 +119,9 @@ def start_process(tmp_path):
 
 @pytest.fixture
 def start_node(start_process):
-    """``start_node(node_module, params={...}, ros_args=[...])`` runs ``rollability_ros.nodes.<node_module>``."""
+    """``start_node(node_module, params={...}, ros_args=[...], cwd=...)`` runs ``rollability_ros.nodes.<node_module>``."""
 
-    def start(node_module, params=None, ros_args=(), name=None, env=None):
+    def start(node_module, params=None, ros_args=(), name=None, env=None, cwd=None):
         args = ["--ros-args"]
         for key, value in (params or {}).items():
             if isinstance(value, bool):
@@ -128,6 +130,7 @@ def start_node(start_process):
                 value = "[" + ",".join(str(v) for v in value) + "]"
             args += ["-p", f"{key}:={value}"]
         args += list(ros_args)
-        return start_process(f"rollability_ros.nodes.{node_module}", *args, name=name or node_module, env=env)
+        return start_process(f"rollability_ros.nodes.{node_module}", *args, name=name or node_module, env=env,
+                             cwd=cwd)
 
     return start

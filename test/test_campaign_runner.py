@@ -1,5 +1,7 @@
 """The campaign through the node graph, every node in its own process: valve_controller, rig (physical),
-outcome_logger, and `rollability campaign --graph` with a scripted operator on its stdin.
+outcome_logger, and `rollability campaign --graph` with a scripted operator on its stdin. The logger and the
+runner run in separate working directories and share nothing but ROS: the runner learns what is stored from the
+logger's ``stored_trials`` service and ``outcomes_stored`` acknowledgements.
 
 Evidence for the physical path: against the dry-run valve, and against the serial relay simulator with an
 e-stop and a watchdog trip in the middle of the campaign; nothing stored is lost, the interrupted trial is
@@ -48,14 +50,17 @@ def operator_script(trials, previous_speed=None):
 class Graph:
     """valve_controller + rig + outcome_logger processes for one test."""
 
-    def __init__(self, tmp_path, start_node, backend="dry_run", relay=None):
+    def __init__(self, tmp_path, start_node, backend="dry_run", relay=None, logger=True):
         valve_params = {"valve.backend": backend, "valve.watchdog_ms": WATCHDOG_MS, "valve.heartbeat_period_ms": 50}
         if relay is not None:
             valve_params["valve.serial.port"] = relay.port
         self.tmp_path = tmp_path
-        self.store = tmp_path / "store.sqlite"
+        self.logger_dir, self.runner_dir = separate_directories(tmp_path)
+        self.store = self.logger_dir / "store.sqlite"
         self.valve = start_node("valve_controller", params=valve_params)
-        self.logger = start_node("outcome_logger", params={"store_path": str(self.store)})
+        # a relative store path: only the logger's working directory holds the store
+        self.logger = (start_node("outcome_logger", params={"store_path": "store.sqlite"}, cwd=self.logger_dir)
+                       if logger else None)
         self.start_node = start_node
         self.rig = self.start_rig()
         (tmp_path / "campaign.yaml").write_text(CAMPAIGN_YAML)
@@ -66,13 +71,13 @@ class Graph:
 
     def logs(self):
         return "\n".join(f"--- {name}\n{p.log()}" for name, p in
-                         (("valve", self.valve), ("rig", self.rig), ("logger", self.logger)))
+                         (("valve", self.valve), ("rig", self.rig), ("logger", self.logger)) if p is not None)
 
     def runner(self, *extra):
         command = [sys.executable, "-m", "rollability_ros.cli", "campaign", "--backend", "physical", "--graph",
-                   "--config", str(self.tmp_path / "campaign.yaml"), "--store", str(self.store), *extra]
+                   "--config", str(self.tmp_path / "campaign.yaml"), *extra]
         return subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True, env=os.environ.copy())
+                                text=True, env=os.environ.copy(), cwd=self.runner_dir)
 
     def run(self, stdin, *extra, timeout_s=90):
         process = self.runner(*extra)
@@ -82,6 +87,14 @@ class Graph:
     def stored(self):
         with Store(self.store) as store:
             return [o.trial_id for o in store.launch_outcomes(SPEC.run_id)]
+
+
+def separate_directories(tmp_path):
+    """Two unrelated working directories, for the logger and for the runner."""
+    logger_dir, runner_dir = tmp_path / "logger_computer", tmp_path / "runner_computer"
+    logger_dir.mkdir()
+    runner_dir.mkdir()
+    return logger_dir, runner_dir
 
 
 class ValveWatch:
@@ -120,6 +133,34 @@ def test_physical_campaign_on_dry_run_valve(ros_node, start_node, tmp_path):
     assert "campaign complete: 4/4" in out and "set the regulator to 60 psi" in out
     assert graph.stored() == [t.trial_id for t in plan_trials(SPEC)]
     assert "stored launch outcome graph-physical/" in graph.logger.log()
+    assert list(graph.runner_dir.iterdir()) == []            # the runner never wrote (or needed) a store
+    # the logger knows the run is complete: a second session without --resume is refused, with --resume it
+    # has nothing left to do
+    code, out = graph.run("")
+    assert code == 2 and "already has 4 stored trials" in out, out
+    code, out = graph.run("", "--resume")
+    assert code == 0 and "campaign complete: 4/4" in out, out
+
+
+def test_graph_campaign_counts_a_trial_only_once_the_logger_acknowledges_it(ros_node, start_node, tmp_path):
+    """A logger stand-in (the test's node) answers ``stored_trials`` but never acknowledges an outcome: the rig
+    runs the trial, the runner waits ``--store-timeout-s`` for the acknowledgement, then stops (exit 3)."""
+    from rollability_ros.srv import GetStoredTrials
+
+    asked = []
+
+    def stored_trials(request, response):
+        asked.append(request.run_id)
+        response.success = True
+        return response
+
+    ros_node.node.create_service(GetStoredTrials, "stored_trials", stored_trials)
+    graph = Graph(tmp_path, start_node, logger=False)
+    code, out = graph.run(operator_script(plan_trials(SPEC)[:1]), "--store-timeout-s", "2")
+    assert code == 3, out + graph.logs()
+    assert asked == ["graph-physical"]
+    assert f"{plan_trials(SPEC)[0].trial_id}: no outcome_logger acknowledged storing graph-physical/" in out, out
+    assert "0/4 stored" in out
 
 
 @pytest.fixture
@@ -218,13 +259,15 @@ def test_sim_matrix_through_the_graph_unattended(ros_node, start_node, tmp_path)
     pytest.importorskip("pybullet")
     twin_yaml = write_designs(tmp_path)
     (tmp_path / "campaign.yaml").write_text(SIM_CAMPAIGN_YAML)
-    store = tmp_path / "store.sqlite"
-    start_node("outcome_logger", params={"store_path": str(store)})
+    logger_dir, runner_dir = separate_directories(tmp_path)
+    store = logger_dir / "outcomes.sqlite"
+    start_node("outcome_logger", params={"store_path": "outcomes.sqlite"}, cwd=logger_dir)
     rig = start_node("rig", params={"rig.backend": "sim", "rig.twin_config": ["sim", "robot", str(twin_yaml)]})
     command = [sys.executable, "-m", "rollability_ros.cli", "campaign", "--backend", "sim", "--graph", "--config",
-               "campaign", "--config", str(tmp_path / "campaign.yaml"), "--store", str(store)]
+               "campaign", "--config", str(tmp_path / "campaign.yaml")]
     started = time.monotonic()
-    done = subprocess.run(command, capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+    done = subprocess.run(command, capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL,
+                          cwd=runner_dir)
     elapsed_s = time.monotonic() - started
     assert done.returncode == 0, done.stdout + done.stderr + rig.log()
     assert "campaign complete: 80/80" in done.stdout

@@ -44,6 +44,13 @@ class LoggerPeer:
         node.create_subscription(OutcomeSummary, "/summary", self._on_summary, summary_qos)
         self.client = node.create_client(GetSummary, "/get_summary")
         self.request_type = GetSummary.Request
+        from rollability_ros.msg import OutcomeStored
+        from rollability_ros.srv import GetStoredTrials
+
+        self.acknowledgements = []
+        node.create_subscription(OutcomeStored, "/outcomes_stored", self.acknowledgements.append, RECORD_QOS)
+        self.stored_client = node.create_client(GetStoredTrials, "/stored_trials")
+        self.stored_request = GetStoredTrials.Request
 
     def _on_summary(self, msg, info):
         self.summaries.append(msg)
@@ -65,6 +72,10 @@ class LoggerPeer:
             return max(from_topic, len(STORED.findall(logger.log()))) >= trials
 
         assert self.spun.wait_for(acknowledged, timeout_s, period_s=0.02), (self.summaries[-1:], logger.log())
+
+    def stored_trials(self, run_id):
+        assert self.stored_client.wait_for_service(timeout_sec=30)
+        return self.stored_client.call(self.stored_request(run_id=run_id), timeout_sec=30)
 
     def get_summary(self, run_id=""):
         assert self.client.wait_for_service(timeout_sec=30)
@@ -122,6 +133,14 @@ def test_stores_outcomes_once_skips_malformed_and_answers_summary(tmp_path, ros_
     assert (peer.get_summary("opt1").trials, peer.get_summary("opt1").candidates) == (0, 1)
     nothing = peer.get_summary("no-such-run")
     assert (nothing.trials, nothing.candidates, list(nothing.configurations)) == (0, 0, [])
+
+    # acknowledgements over ROS: one per stored outcome, the duplicate acknowledged as such, malformed ones not
+    assert ros_node.wait_for(lambda: len(peer.acknowledgements) == 4, 10), peer.acknowledgements
+    assert [(a.run_id, a.trial_id, a.duplicate) for a in peer.acknowledgements] == [
+        ("run1", "t1", False), ("run1", "t1", True), ("run1", "t2", False), ("run1", "t3", False)]
+    stored = peer.stored_trials("run1")
+    assert stored.success and list(stored.trial_ids) == ["t1", "t2", "t3"]
+    assert peer.stored_trials("no-such-run").trial_ids == [] and not peer.stored_trials("").success
 
     assert stopped_cleanly(logger, logger.stop())
     with Store(store_path) as store:

@@ -171,7 +171,7 @@ def test_a_study_killed_twice_resumes_to_the_same_complete_result(tmp_path):
         outcomes = store.launch_outcomes("killed")
     with Store(study_dir / "optimization" / "store.sqlite") as store:
         candidates = store.candidates()
-        assert [g.generation for g in store.generations()] == list(range(8))
+        assert [g.generation for g in store.generations()] == list(range(1, 9))
     assert len(outcomes) == len({o.trial_id for o in outcomes}) == 30          # 3 configurations x 2 angles x 5
     assert len(candidates) == len({(c.generation, c.index) for c in candidates}) == 8 * 5
     bags = sorted(p.name for p in study_dir.glob("bag*"))

@@ -5,9 +5,7 @@ import time
 
 
 def run(args):
-    from rollability_ros.core.graph.bringup import load_graph_settings, session_nodes
-    from rollability_ros.core.graph.node_commands import parameter_files
-    from rollability_ros.core.graph.bringup import new_study_id
+    from rollability_ros.core.graph.bringup import load_graph_settings, new_study_id, parameter_files, session_nodes
     from rollability_ros.core.graph.supervisor import Supervisor
 
     param_files = parameter_files(["bringup", *args.config])

@@ -7,7 +7,8 @@ def register(subparsers):
         description="Run every trial of the campaign matrix not yet stored. Without --graph the rig runs in this "
                     "process (sim: the launch twin; physical: the valve, speed gate and your answers at the "
                     "terminal) and this command writes the store. With --graph it sends Launch goals to a running "
-                    "rig node and waits until the outcome_logger has stored each outcome (one writer). "
+                    "rig node and waits until the outcome_logger acknowledges storing each outcome over ROS (one "
+                    "writer; its store may be on another computer). "
                     "Physical runs tell you what to change before each trial and wait for Enter; sim runs "
                     "unattended. Exit code 0 when complete, 3 when stopped early (rerun with --resume).")
     parser.add_argument("--backend", choices=("sim", "physical"), required=True,
@@ -16,14 +17,15 @@ def register(subparsers):
                         help="campaign parameter file(s) (default: the shipped config/campaign.yaml)")
     parser.add_argument("--rig-config", action="append", default=None,
                         help="rig parameter file(s) for the in-process rig (default: config/rig.yaml)")
-    parser.add_argument("--store", required=True,
-                        help="store file or run directory (with --graph: the one the outcome_logger writes)")
+    parser.add_argument("--store",
+                        help="store file or run directory (in process; with --graph the outcome_logger's own "
+                             "store is used, over ROS)")
     parser.add_argument("--run-id", help="override campaign.run_id (the store key of the campaign)")
     parser.add_argument("--resume", action="store_true", help="continue a run that already has stored trials")
     parser.add_argument("--graph", action="store_true",
                         help="launch through the rig node (ROS 2) instead of in this process")
     parser.add_argument("--store-timeout-s", type=float, default=10.0,
-                        help="with --graph: longest wait for the logger to store an outcome, s (default 10)")
+                        help="with --graph: longest wait for the logger to acknowledge an outcome, s (default 10)")
     parser.set_defaults(func=run)
 
 
@@ -40,10 +42,16 @@ def _spec(args):
 
 
 def run(args):
+    from rollability_ros.core.rig.rig_session import launch_backend_class
+
     spec = _spec(args)
-    ask = input if args.backend == "physical" else None
+    ask = input if launch_backend_class(args.backend).attended else None
     if args.graph:
+        if args.store:
+            raise ValueError("--store is for the in-process campaign; with --graph the outcome_logger owns the store")
         return _run_graph(args, spec, ask)
+    if not args.store:
+        raise ValueError("--store is required (the store file or run directory this command writes)")
     return _run_local(args, spec, ask)
 
 
@@ -75,8 +83,7 @@ def _run_graph(args, spec, ask):
     from rollability_ros.core.campaign.runner import RunnerSettings, report_exit_code
     from rollability_ros.nodes.campaign_runner import run_graph_campaign
 
-    settings = RunnerSettings(backend=args.backend, store_path=args.store, resume=args.resume,
-                              store_timeout_s=args.store_timeout_s)
+    settings = RunnerSettings(backend=args.backend, resume=args.resume, store_timeout_s=args.store_timeout_s)
     settings.validate()
     rclpy.init(args=[])
     node = Node("campaign_runner")

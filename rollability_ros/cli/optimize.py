@@ -30,14 +30,14 @@ class ProgressLine:
         """``on_candidate`` callback."""
         self.evaluated += 1
         if self.live:
-            self.stream.write(f"\r  generation {record.generation + 1}: {self.evaluated} evaluated ")
+            self.stream.write(f"\r  generation {record.generation}: {self.evaluated} evaluated ")
             self.stream.flush()
 
     def generation(self, record):
         """``on_generation`` callback."""
         self.evaluated = 0
         cap = self.run.settings.max_generations or "-"
-        line = (f"gen {record.generation + 1:>4}/{cap}  best {record.best_fitness:.3f}  mean {record.mean_fitness:.3f}"
+        line = (f"gen {record.generation:>4}/{cap}  best {record.best_fitness:.3f}  mean {record.mean_fitness:.3f}"
                 f"  best-so-far {record.best_so_far:.3f}  sigma {record.sigma:.4f}  evals {record.evaluations}"
                 f"  elapsed {_duration(record.elapsed_s)}  ETA {_duration(self.run.eta_s())}")
         self.stream.write(("\r" if self.live else "") + line + "\n")
@@ -64,21 +64,12 @@ def run(args):
 
     if args.resume and args.run_id:
         raise ValueError("--run-id names a new run; --resume takes the run to continue")
-    if args.resume:
-        parameters = optimization_run.load_run_parameters(args.config) if args.config else None
-        output_dir = optimization_run.optimizer_settings(parameters).output_dir if parameters else "runs"
-        run_dir = optimization_run.resolve_run_dir(args.resume, output_dir)
-        if parameters is None:
-            parameters = optimization_run.read_run_config(run_dir)
-    else:
-        if not args.config:
-            raise ValueError("a new run needs --config (e.g. --config optimizer, --config paper)")
-        parameters = optimization_run.load_run_parameters(args.config)
-        output_dir = optimization_run.optimizer_settings(parameters).output_dir
-        run_dir = os.path.join(output_dir, args.run_id or optimization_run.new_run_id())
+    given = optimization_run.load_run_parameters(args.config) if args.config else None
+    output_dir = optimization_run.optimizer_settings(given).output_dir if given else "runs"
+    run_dir, parameters = optimization_run.run_target(args.resume or args.run_id or "", bool(args.resume), given,
+                                                      output_dir)
     settings = evaluation.settings_from_parameters(parameters)
     executor = evaluation.make_executor(settings.evaluator, args.workers)
-    progress = None
     try:
         trials = optimization_run.optimizer_settings(parameters).trials
         evaluate_batch = optimization_run.profile_batch_evaluator(settings, trials, executor)
@@ -86,12 +77,10 @@ def run(args):
                                                resume=bool(args.resume))
         progress = ProgressLine(run)
         run.on_candidate, run.on_generation = progress.candidate, progress.generation
-        print(f"run {run.run_id} in {run.run_dir}: {settings.grid.rows}x{settings.grid.cols} grid, "
-              f"popsize {run.settings.popsize}, {trials} trials per candidate, "
-              f"{'resuming after' if args.resume else 'starting at'} generation {run.optimizer.generation}")
+        print(f"{run.start_text(bool(args.resume))}; {settings.grid.rows}x{settings.grid.cols} grid")
         print(run.initial_mean_text())
         try:
-            result = run.run()
+            end = optimization_run.run_generations(run)
         except KeyboardInterrupt:
             print(f"\ninterrupted; continue with: rollability optimize --resume {run.run_dir}", file=sys.stderr)
             raise
@@ -99,13 +88,9 @@ def run(args):
         run.close()
     finally:
         executor.close()
-    best = result.best
-    if best is None:
-        print(f"stopped before a generation completed ({', '.join(result.stop)})")
+    print(run.end_text(end))
+    if end.result.best is None:
         return 0
-    print(f"stopped after {result.generations} generations, {result.evaluations} evaluations "
-          f"({', '.join(result.stop) or 'no criterion'}); best fitness {best.fitness:.3f} over {best.trials} trials "
-          f"(first seen in generation {best.generation + 1})")
     if figure:
         print(f"convergence curve: {figure}")
     print(f"choose designs with: rollability select {run.run_dir}")

@@ -47,7 +47,7 @@ def _request(args):
 def default_namespace(config_files=()):
     """The namespace ``rollability bringup`` puts the graph in: ``bringup.namespace`` of the parameter files."""
     from rollability_ros.core.graph.bringup import load_graph_settings
-    from rollability_ros.core.graph.node_commands import parameter_files
+    from rollability_ros.core.graph.bringup import parameter_files
 
     return load_graph_settings(parameter_files(["bringup", *config_files])).namespace
 

@@ -1,17 +1,21 @@
 """campaign_runner node: runs the launch campaign of ``config/campaign.yaml`` through the node graph, then exits.
 
 Action client: ``launch`` (rollability_ros/Launch) of the ``rig`` node, one goal per remaining trial.
-Service clients (attended runs): ``rig/confirm`` (std_srvs/Trigger) and ``record_outcome`` (RecordOutcome), called
-  with what the operator types when the rig's feedback asks for the regulator or for the outcome.
+Service clients: ``stored_trials`` (rollability_ros/GetStoredTrials) of the ``outcome_logger``, once at start-up,
+  for the trials already stored (resume); attended runs also call ``rig/confirm`` (std_srvs/Trigger) and
+  ``record_outcome`` (RecordOutcome) with what the operator types when the rig's feedback asks for the regulator
+  or for the outcome.
+Subscription: ``outcomes_stored`` (rollability_ros/OutcomeStored, reliable, transient-local): the logger's
+  acknowledgements; a trial counts as done once the logger acknowledged storing it.
 Parameters: ``campaign.*`` (:class:`~rollability_ros.core.campaign.plan.CampaignSpec`) and ``runner.*``
   (:class:`~rollability_ros.core.campaign.runner.RunnerSettings`: ``backend`` sim = unattended, physical = the
-  terminal tells the operator what to change and waits for Enter; ``store_path`` of the outcome_logger;
-  ``resume``).
+  terminal tells the operator what to change and waits for Enter; ``resume``; ``store_timeout_s``, the longest
+  wait for an acknowledgement).
 
-One writer: the outcome_logger stores the outcomes the rig publishes; this node only reads the store (SQLite WAL,
-safe beside the writer) to skip stored trials and to count a trial as done once the logger has committed it.
+One writer, reached only over ROS: the outcome_logger stores the outcomes the rig publishes and acknowledges
+them; this node never opens the store, so the logger may run in another directory or on another computer.
 Exit code: 0 when every trial is stored, 3 when the campaign stopped early (the reason is printed; rerun with
-``runner.resume:=true``), 2 for bad parameters.
+``runner.resume:=true``), 2 for bad parameters or no outcome_logger answering.
 """
 import queue
 import signal
@@ -27,13 +31,15 @@ from std_srvs.srv import Trigger
 
 from rollability_ros.action import Launch
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
-from rollability_ros.core.campaign.runner import (RunnerSettings, StoreWatcher, answer_rig, report_exit_code,
-                                                  resume_refusal, run_campaign)
+from rollability_ros.core.campaign.runner import (RunnerSettings, StoreAcknowledgements, answer_rig,
+                                                  report_exit_code, resume_refusal, run_campaign)
 from rollability_ros.core.config import ConfigError
-from rollability_ros.core.rig.rig_session import LaunchAborted
+from rollability_ros.core.rig.launch_backend import LaunchAborted
+from rollability_ros.core.rig.rig_session import launch_backend_class
 from rollability_ros.nodes import _convert
-from rollability_ros.nodes._support import ParameterError, declare_settings, init_ros
-from rollability_ros.srv import RecordOutcome
+from rollability_ros.msg import OutcomeStored
+from rollability_ros.nodes._support import RECORD_QOS, ParameterError, declare_settings, init_ros
+from rollability_ros.srv import GetStoredTrials, RecordOutcome
 
 #: Seconds the rig's action server may be missing from the graph before a running launch counts as lost.
 SERVER_LOST_S = 3.0
@@ -137,21 +143,42 @@ def _say(text):
     print(text, flush=True)   # a supervisor's log file or a pipe shows each line as it happens
 
 
+def stored_trial_ids(node, executor, run_id, timeout_s):
+    """The trial ids the outcome_logger has stored for ``run_id`` (``stored_trials`` service); ``ValueError``
+    when no logger answers within ``timeout_s`` or it cannot read its store."""
+    client = node.create_client(GetStoredTrials, "stored_trials")
+    try:
+        if not client.wait_for_service(timeout_sec=timeout_s):
+            raise ValueError(f"no outcome_logger serves {client.srv_name} within {timeout_s:g} s: start one in this "
+                             "ROS domain")
+        future = client.call_async(GetStoredTrials.Request(run_id=run_id))
+        deadline = time.monotonic() + timeout_s
+        while not future.done():
+            if time.monotonic() > deadline:
+                raise ValueError(f"the outcome_logger did not answer {client.srv_name} within {timeout_s:g} s")
+            executor.spin_once(timeout_sec=0.05)
+        response = future.result()
+        if not response.success:
+            raise ValueError(f"the outcome_logger cannot list the stored trials: {response.message}")
+        return set(response.trial_ids)
+    finally:
+        node.destroy_client(client)
+
+
 def run_graph_campaign(node, spec, settings, ask=None, say=_say):
     """Run the campaign through the graph from ``node`` (spun here, in this thread); returns the CampaignReport."""
     plan = plan_trials(spec)
-    watcher = StoreWatcher(settings.store_path, settings.store_timeout_s)
-    try:
-        stored = watcher.store.trial_ids(spec.run_id)
-        refusal = resume_refusal(len(stored), settings.resume, spec.run_id)
-        if refusal:
-            raise ValueError(refusal)
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s)
-        return run_campaign(plan, spec.run_id, stored, rig.launch, watcher, ask=ask, say=say)
-    finally:
-        watcher.close()
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    acknowledgements = StoreAcknowledgements(lambda: executor.spin_once(timeout_sec=0.05), settings.store_timeout_s)
+    node.create_subscription(OutcomeStored, "outcomes_stored",
+                             lambda msg: acknowledgements.acknowledge(msg.run_id, msg.trial_id), RECORD_QOS)
+    stored = stored_trial_ids(node, executor, spec.run_id, settings.server_timeout_s)
+    refusal = resume_refusal(len(stored), settings.resume, spec.run_id)
+    if refusal:
+        raise ValueError(refusal)
+    rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s)
+    return run_campaign(plan, spec.run_id, stored, rig.launch, acknowledgements, ask=ask, say=say)
 
 
 def main(args=None):
@@ -163,7 +190,7 @@ def main(args=None):
     try:
         spec = declare_settings(node, "campaign", CampaignSpec)
         settings = declare_settings(node, "runner", RunnerSettings)
-        ask = input if settings.backend == "physical" else None
+        ask = input if launch_backend_class(settings.backend).attended else None
         return report_exit_code(run_graph_campaign(node, spec, settings, ask))
     except (ParameterError, ConfigError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -38,7 +38,6 @@ continues with ``resume:=true run_id:=<id>``.
 """
 import dataclasses
 import math
-import os
 import sys
 import threading
 
@@ -286,21 +285,13 @@ class Optimizer(Node):
         return self._param("frame_id") or link, position_m, yaw_deg
 
     def _run_target(self, settings):
-        """``(run_dir, parameters, resume)`` of the run to start, from ``run_id`` / ``resume``.
-
-        Resuming keeps the run's saved config.yaml (whatever wrote it: this node or ``rollability optimize``)
-        with this node's run sections on top, so the core refuses a resume whose settings differ.
-        """
-        run_id, resume = self._param("run_id"), self._param("resume")
-        output_dir = settings["optimizer"].output_dir
-        parameters = run_parameters(settings)
-        if not resume:
-            run_id = run_id or optimization_run.new_run_id()
-            return os.path.join(output_dir, run_id), parameters, False
-        if not run_id:
-            raise ValueError("resume needs the run_id of the run to continue")
-        run_dir = optimization_run.resolve_run_dir(run_id, output_dir)
-        return run_dir, {**optimization_run.read_run_config(run_dir), **parameters}, True
+        """``(run_dir, parameters, resume)`` of the run to start, from ``run_id`` / ``resume``
+        (:func:`~rollability_ros.core.optimization.optimization_run.run_target`: a resume keeps the run's saved
+        config.yaml with this node's run sections on top, so the core refuses one whose settings differ)."""
+        resume = self._param("resume")
+        run_dir, parameters = optimization_run.run_target(self._param("run_id"), resume, run_parameters(settings),
+                                                          settings["optimizer"].output_dir)
+        return run_dir, parameters, resume
 
     def _optimize(self, run_dir, parameters, resume, settings):
         """The worker thread: run generations until a stop criterion, ``stop``, or shutdown; with
@@ -311,7 +302,8 @@ class Optimizer(Node):
             rclpy.try_shutdown(context=self.context)
 
     def _run_to_end(self, run_dir, parameters, resume, settings):
-        """Run; return 0 (finished or stopped), 1 (failed) or None (interrupted by shutdown)."""
+        """Run (:func:`~rollability_ros.core.optimization.optimization_run.run_generations`); return 0 (finished or
+        stopped), 1 (failed) or None (interrupted by shutdown)."""
         log = self.get_logger()
         try:
             run = optimization_run.OptimizationRun(
@@ -323,29 +315,21 @@ class Optimizer(Node):
             log.error(f"cannot {'resume' if resume else 'start'} run in {run_dir}: {exc}")
             return 1
         try:
-            log.info(f"run {run.run_id} in {run.run_dir}: {'resuming after' if resume else 'starting at'} "
-                     f"generation {run.optimizer.generation}, popsize {run.settings.popsize}, "
-                     f"{run.settings.trials} trials per candidate; {run.initial_mean_text()}")
+            log.info(f"{run.start_text(resume)}; {run.initial_mean_text()}")
             self._publish_best(run)
             run.on_generation = lambda record: self._publish_generation(record, run)
-            while not run.optimizer.stop() and not self._stop_requested.is_set():
-                try:
-                    run.step()
-                except PoolClosed:
-                    self._log_interrupted(run)
-                    return None
-                except EvaluationFailed as exc:
-                    if self._param("exit_on_finish"):
-                        log.error(f"run {run.run_id}: generation {run.optimizer.generation} got no real results "
-                                  f"({exc}); giving up (exit_on_finish)")
-                        return 1
-                    if self._stop_requested.is_set():
-                        break
-                    self._pool.pause()
-                    log.error(f"generation {run.optimizer.generation} got no real results ({exc}); paused: call "
-                              "the resume service to retry it, or stop")
-            self._finish(run, settings)
-            return 0
+            end = optimization_run.run_generations(
+                run, self._stop_requested.is_set, lambda exc: self._on_evaluation_failed(run, exc),
+                evaluation_errors=(EvaluationFailed,), interruptions=(PoolClosed,))
+            if end.status == "interrupted":
+                self._log_interrupted(run)
+            elif end.status == "failed":
+                log.error(f"run {run.run_id}: {end.reason}; giving up (exit_on_finish)")
+            else:
+                log.info(run.end_text(end))
+                if self._param("select_designs") and end.status == "finished" and end.result.best is not None:
+                    self._select(run, settings)
+            return end.exit_code
         except Exception as exc:  # a broken store or a bug must end the run loudly, not the node
             if not self.context.ok():   # shutting down: publishing failed because the context is gone
                 self._log_interrupted(run)
@@ -355,21 +339,19 @@ class Optimizer(Node):
         finally:
             run.close()
 
+    def _on_evaluation_failed(self, run, exc):
+        """The node's policy for a generation without real results: give up with ``exit_on_finish``, else pause
+        until the resume service (which retries the generation) or stop."""
+        if self._param("exit_on_finish"):
+            return False
+        self._pool.pause()
+        self.get_logger().error(f"generation {run.generation_number(run.optimizer.generation)} got no real results "
+                                f"({exc}); paused: call the resume service to retry it, or stop")
+        return True
+
     def _log_interrupted(self, run):
         self.get_logger().info(f"run {run.run_id} interrupted; its checkpoint holds {run.optimizer.generation} "
                                f"generation(s): continue with resume:=true run_id:={run.run_id}")
-
-    def _finish(self, run, settings):
-        result = run.optimizer.result
-        best = result.best
-        stopped = "stop service" if self._stop_requested.is_set() else ", ".join(result.stop) or "no criterion"
-        summary = (f"best fitness {best.fitness:.3f} over {best.trials} trials (first seen in generation "
-                   f"{best.generation})" if best is not None else "no generation completed")
-        self.get_logger().info(f"run {run.run_id} ended after {result.generations} generation(s), "
-                               f"{result.evaluations} evaluations ({stopped}): {summary}; run directory "
-                               f"{run.run_dir}")
-        if self._param("select_designs") and best is not None and not self._stop_requested.is_set():
-            self._select(run, settings)
 
     def _select(self, run, settings):
         """Choose the designs of the finished run (paper 2.1.5) into ``<run_dir>/designs/``."""

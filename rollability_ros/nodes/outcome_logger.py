@@ -6,14 +6,19 @@ Subscriptions (reliable, deep queue; :data:`RECORD_QOS`):
 Publications:
   ``summary`` (rollability_ros/OutcomeSummary, latched): every run's counts and per-configuration success rates,
   published at start-up and after every stored outcome or candidate.
+  ``outcomes_stored`` (rollability_ros/OutcomeStored, reliable, transient-local, deep history; :data:`RECORD_QOS`):
+  one acknowledgement per launch outcome committed to the store (or found already stored), keyed by run and
+  trial id; the campaign runner counts a trial as done on it, so it never needs the logger's disk.
 Services:
   ``get_summary`` (rollability_ros/GetSummary): the same summary, optionally for one run.
+  ``stored_trials`` (rollability_ros/GetStoredTrials): the trial ids stored for a run (what a resumed campaign
+  skips).
 Parameters:
   ``store_path`` (string, default ``runs/outcomes.sqlite``): SQLite store file or run directory; fixed at
   start-up.
 
-Acknowledgement: a record is acknowledged -- the INFO line ``stored <kind> <key>`` and, for outcomes and
-candidates, the summary that counts it -- only after the store has committed (fsynced) it, so every
+Acknowledgement: a record is acknowledged -- the INFO line ``stored <kind> <key>``, for outcomes the
+``outcomes_stored`` message, and for outcomes and candidates the summary that counts it -- only after the store has committed (fsynced) it, so every
 acknowledged record survives ``kill -9``. A duplicate key (same run and trial id, ...) is stored once and logged
 as a duplicate; a malformed message is logged with the reason and skipped; a store failure (disk full, locked)
 is logged as an error and the record is not acknowledged.
@@ -25,10 +30,10 @@ from rclpy.node import Node
 from rollability_ros.core.results.outcome_log import OutcomeLog, OutcomeLoggerSettings, StoreFailure
 from rollability_ros.core.results.store import unique_key
 from rollability_ros.msg import (CandidateResult, ConfigurationSummary, GenerationSummary, LaunchOutcome,
-                                 OutcomeSummary, TipEvent)
+                                 OutcomeStored, OutcomeSummary, TipEvent)
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import LATCHED_QOS, RECORD_QOS, ParameterError, declare_settings, run_node
-from rollability_ros.srv import GetSummary
+from rollability_ros.srv import GetStoredTrials, GetSummary
 
 #: topic -> (message type, message -> record, what the log calls it)
 _RECORD_TOPICS = {
@@ -63,11 +68,14 @@ class OutcomeLoggerNode(Node):
             raise ParameterError(f"store_path: {exc}") from exc
         self.add_on_set_parameters_callback(self._refuse_store_change)
         self.summary_publisher = self.create_publisher(OutcomeSummary, "summary", LATCHED_QOS)
+        self.stored_publisher = self.create_publisher(OutcomeStored, "outcomes_stored", RECORD_QOS)
         records_group = MutuallyExclusiveCallbackGroup()   # one writer: records are stored in arrival order
         for topic, (msg_type, convert, kind) in _RECORD_TOPICS.items():
             self.create_subscription(msg_type, topic, self._make_callback(convert, kind), RECORD_QOS,
                                      callback_group=records_group)
         self.create_service(GetSummary, "get_summary", self._get_summary, callback_group=ReentrantCallbackGroup())
+        self.create_service(GetStoredTrials, "stored_trials", self._stored_trials,
+                            callback_group=ReentrantCallbackGroup())
         summary = self.log.summary()
         self.summary_publisher.publish(summary_to_msg(summary))
         self.get_logger().info(f"storing to {self.log.store.path}: {summary.trials} launch outcomes and "
@@ -95,12 +103,32 @@ class OutcomeLoggerNode(Node):
         except StoreFailure as exc:
             logger.error(f"STORE FAILURE: {kind} {key} NOT stored and NOT acknowledged: {exc}")
             return
+        if kind == "launch outcome":
+            self._acknowledge(record, duplicate=not stored)
         if not stored:
             logger.warning(f"duplicate {kind} {key}: already stored, ignored")
             return
         logger.info(f"stored {kind} {key}")
         if kind in ("launch outcome", "candidate"):
             self.summary_publisher.publish(summary_to_msg(self.log.summary()))
+
+    def _acknowledge(self, outcome, duplicate):
+        """Tell the graph the outcome is on disk (a duplicate is too: its first copy is)."""
+        msg = OutcomeStored(run_id=outcome.run_id, trial_id=outcome.trial_id, duplicate=duplicate)
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self.stored_publisher.publish(msg)
+
+    def _stored_trials(self, request, response):
+        if not request.run_id:
+            response.success, response.message = False, "run_id must be non-empty"
+            return response
+        try:
+            response.trial_ids = sorted(self.log.store.trial_ids(request.run_id))
+        except Exception as exc:  # a service must answer: the caller gets the reason instead of a timeout
+            response.success, response.message = False, f"store {self.log.store.path} not readable: {exc}"
+            return response
+        response.success = True
+        return response
 
     def _get_summary(self, request, response):
         response.summary = summary_to_msg(self.log.summary(request.run_id or None))

@@ -1,4 +1,6 @@
-"""rig node: runs Launch goals on the simulated launch twin or on the physical pneumatic launcher.
+"""rig node: runs Launch goals on the configured launch backend (the simulated launch twin or the physical
+pneumatic launcher), through the :class:`~rollability_ros.core.rig.launch_backend.LaunchBackend` contract that
+:func:`~rollability_ros.core.rig.rig_session.make_launch_backend` builds from ``rig.backend``.
 
 Action server:
   ``launch`` (rollability_ros/Launch): one launch per goal, one at a time. A goal that cannot run (NaN or negative
@@ -8,17 +10,18 @@ Action server:
   waiting for the operator or the IMU).
 Publications:
   ``launch_outcomes`` (rollability_ros/LaunchOutcome, reliable, deep queue): every outcome, for the outcome_logger.
-  ``rig/heartbeat`` (std_msgs/Header, physical backend): every ``valve.heartbeat_period_ms`` on a steady-clock
-  timer while the node runs; the valve controller's watchdog closes the valve when it stops.
-  ``rig/pose`` (geometry_msgs/PoseStamped, sim backend): the chassis pose during a simulated launch, when the
-  twin reports poses.
-Services (physical backend):
+  ``rig/pose`` (geometry_msgs/PoseStamped): the chassis pose during a launch, when the backend reports poses (the
+  launch twin does).
+  ``rig/heartbeat`` (std_msgs/Header, when the backend opens the valve): every ``valve.heartbeat_period_ms`` on a
+  steady-clock timer while the node runs; the valve controller's watchdog closes the valve when it stops.
+Services:
   ``record_outcome`` (rollability_ros/RecordOutcome): the operator's outcome of the launch the rig waits on (or an
-  override of the IMU's verdict during the override window); refused with a reason when no launch waits.
+  override of the IMU's verdict during the override window); refused with a reason when no launch waits (always,
+  on the simulated backend).
   ``rig/confirm`` (std_srvs/Trigger): the operator confirms the regulator pressure asked for in the feedback.
-Clients (physical backend): ``valve/arm`` (std_srvs/SetBool), ``valve/fire`` (FireValve); subscribes to
-  ``valve/state`` (latched) and to the IMU topic ``imu_outcome.topic`` (sensor_msgs/Imu, default ``imu/data``)
-  when ``rig.outcome_source`` is ``imu``.
+Ports the physical backend opens (:class:`RosRigPorts`): clients ``valve/arm`` (std_srvs/SetBool), ``valve/fire``
+  (FireValve); subscriptions to ``valve/state`` (latched) and, when ``rig.outcome_source`` is ``imu``, to the IMU
+  topic ``imu_outcome.topic`` (sensor_msgs/Imu, default ``imu/data``).
 Parameters: ``rig.*`` (:class:`~rollability_ros.core.rig.rig_session.RigSettings`: ``rig.backend`` sim | physical,
   ...), ``valve.*`` (launch pulse, heartbeat period, regulator pressures), ``speed_gate.*``, ``imu_outcome.*``,
   all in ``config/rig.yaml``; the sim backend reads the launch twin's own parameter files (``rig.twin_config``,
@@ -40,11 +43,10 @@ from std_msgs.msg import Header
 from std_srvs.srv import SetBool, Trigger
 
 from rollability_ros.action import Launch
-from rollability_ros.core.rig import rig_session
-from rollability_ros.core.rig.rig_session import (ImuOutcome, LaunchAborted, OperatorChannel, OperatorOutcome,
-                                              PhysicalLaunch, RigSettings, SimulatedLaunch)
+from rollability_ros.core.rig.launch_backend import LaunchAborted, RigPorts
+from rollability_ros.core.rig.rig_session import OperatorOutcome, RigSettings, make_launch_backend
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
-from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, orientation_if_valid
+from rollability_ros.core.imu.upright import ImuOutcomeConfig, imu_sample_from_message
 from rollability_ros.core.rig.valve import ValveConfig, ValveStatus
 from rollability_ros.msg import LaunchOutcome, ValveState
 from rollability_ros.nodes import _convert
@@ -54,7 +56,7 @@ from rollability_ros.srv import FireValve, RecordOutcome
 
 
 class ValveServices:
-    """The valve port of :class:`PhysicalLaunch` over the valve_controller's services and latched state."""
+    """The valve port of the physical backend over the valve_controller's services and latched state."""
 
     def __init__(self, node, timeout_s, callback_group):
         self._timeout_s = timeout_s
@@ -113,44 +115,71 @@ class ValveServices:
         return response.success, response.message
 
 
-def imu_sample_from_msg(msg):
-    """``sensor_msgs/Imu`` -> :class:`ImuSample` (orientation None when the IMU gives none)."""
-    q = msg.orientation
-    return ImuSample(
-        stamp_s=_convert.stamp_to_s(msg.header.stamp),
-        orientation=orientation_if_valid((q.x, q.y, q.z, q.w), list(msg.orientation_covariance)),
-        angular_velocity_radps=(msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z),
-        linear_acceleration_mps2=(msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z),
-        frame_id=msg.header.frame_id)
+class RosRigPorts(RigPorts):
+    """The rig's ports over ROS: the valve_controller's services with a heartbeat timer, the speed gate, the IMU
+    topic. Each is created only when the backend opens it, so a simulated rig has no valve client or heartbeat."""
+
+    def __init__(self, node, valve_timeout_s, callback_group):
+        self._node = node
+        self._valve_timeout_s = valve_timeout_s
+        self._group = callback_group
+        self._heartbeat_publisher = None
+
+    def open_valve(self, valve_config):
+        """:class:`ValveServices`, and ``rig/heartbeat`` every ``valve.heartbeat_period_ms`` for the watchdog."""
+        node = self._node
+        self._heartbeat_publisher = node.create_publisher(Header, "rig/heartbeat", 10)
+        # steady clock: sim time must not stall the heartbeat the valve's watchdog relies on
+        node.create_timer(valve_config.heartbeat_period_ms / 1000.0, self._heartbeat,
+                          callback_group=MutuallyExclusiveCallbackGroup(), clock=Clock(clock_type=ClockType.STEADY_TIME))
+        return ValveServices(node, self._valve_timeout_s, self._group)
+
+    def _heartbeat(self):
+        msg = Header(frame_id=self._node.get_name())
+        msg.stamp = self._node.get_clock().now().to_msg()
+        self._heartbeat_publisher.publish(msg)
+
+    def open_speed_gate(self, speed_config):
+        """The configured speed gate."""
+        return make_speed_gate(speed_config)
+
+    def open_imu(self, imu_outcome):
+        """Feed ``imu_outcome`` from its configured IMU topic (sensor_msgs/Imu)."""
+        self._node.create_subscription(Imu, imu_outcome.config.topic, lambda msg: self._on_imu(imu_outcome, msg),
+                                       STREAM_QOS, callback_group=MutuallyExclusiveCallbackGroup())
+
+    def _on_imu(self, imu_outcome, msg):
+        try:
+            imu_outcome.feed(imu_sample_from_message(msg, time.time()))
+        except ValueError as exc:
+            self._node.get_logger().warning(f"ignored IMU sample: {exc}", throttle_duration_sec=5.0)
 
 
 class RigNode(Node):
-    """Thin adapter: the Launch action -> :class:`PhysicalLaunch` or the launch twin; outcomes -> topic."""
+    """Thin adapter: the Launch action -> the configured :class:`LaunchBackend`; outcomes -> topic."""
 
     def __init__(self):
         super().__init__("rig")
         self.settings = declare_settings(self, "rig", RigSettings)
         valve = declare_settings(self, "valve", ValveConfig)
-        self.speed_config = declare_settings(self, "speed_gate", SpeedGateConfig)
+        speed_config = declare_settings(self, "speed_gate", SpeedGateConfig)
         imu_config = declare_settings(self, "imu_outcome", ImuOutcomeConfig)
         self.add_on_set_parameters_callback(self._refuse_change)
         self._closing = threading.Event()
         self._busy = threading.Lock()
         self.outcome_publisher = self.create_publisher(LaunchOutcome, "launch_outcomes", RECORD_QOS)
+        self.pose_publisher = self.create_publisher(PoseStamped, "rig/pose", STREAM_QOS)
         group = ReentrantCallbackGroup()
-        if self.settings.backend == "physical":
-            self._setup_physical(valve, imu_config, group)
-        else:
-            self.simulated = SimulatedLaunch(self.settings, self.speed_config)
-            try:
-                self.simulated.load()
-            except (ValueError, ImportError) as exc:  # ConfigError is a ValueError, MissingDependency ImportError
-                raise ParameterError(f"rig.backend sim: cannot load the launch twin: {exc}") from exc
-            self.pose_publisher = self.create_publisher(PoseStamped, "rig/pose", STREAM_QOS)
+        try:
+            self.backend = make_launch_backend(self.settings, speed_config, valve, imu_config,
+                                               RosRigPorts(self, self.settings.valve_timeout_s, group))
+        except (ValueError, ImportError) as exc:  # ConfigError is a ValueError, MissingDependency ImportError
+            raise ParameterError(f"rig.backend {self.settings.backend}: {exc}") from exc
+        self.create_service(RecordOutcome, "record_outcome", self._on_record_outcome, callback_group=group)
+        self.create_service(Trigger, "rig/confirm", self._on_confirm, callback_group=group)
         ActionServer(self, Launch, "launch", execute_callback=self._execute, callback_group=group,
                      cancel_callback=lambda _goal: CancelResponse.ACCEPT)
-        self.get_logger().info(f"rig ready: backend {self.settings.backend}" + (
-            f", outcome from {self.settings.outcome_source}" if self.settings.backend == "physical" else ""))
+        self.get_logger().info(f"rig ready: {self.backend.describe()}")
 
     def _refuse_change(self, params):
         if any(p.name.split(".")[0] in ("rig", "valve", "speed_gate", "imu_outcome") for p in params):
@@ -158,45 +187,16 @@ class RigNode(Node):
                                                                 "the node")
         return SetParametersResult(successful=True)
 
-    def _setup_physical(self, valve, imu_config, group):
-        self.operator = OperatorChannel()
-        imu = None
-        if self.settings.outcome_source == "imu":
-            imu = ImuOutcome(imu_config)
-            self.create_subscription(Imu, imu_config.topic, lambda msg: self._on_imu(imu, msg), STREAM_QOS,
-                                     callback_group=MutuallyExclusiveCallbackGroup())
-        self.physical = PhysicalLaunch(
-            self.settings, ValveServices(self, self.settings.valve_timeout_s, group),
-            make_speed_gate(self.speed_config), self.speed_config, valve.launch_pulse_ms, valve.regulator,
-            self.operator, imu)
-        self.create_service(RecordOutcome, "record_outcome", self._on_record_outcome, callback_group=group)
-        self.create_service(Trigger, "rig/confirm", self._on_confirm, callback_group=group)
-        self.heartbeat_publisher = self.create_publisher(Header, "rig/heartbeat", 10)
-        # steady clock: sim time must not stall the heartbeat the valve's watchdog relies on
-        self.create_timer(valve.heartbeat_period_ms / 1000.0, self._heartbeat,
-                          callback_group=MutuallyExclusiveCallbackGroup(), clock=Clock(clock_type=ClockType.STEADY_TIME))
-
-    def _heartbeat(self):
-        msg = Header(frame_id=self.get_name())
-        msg.stamp = self.get_clock().now().to_msg()
-        self.heartbeat_publisher.publish(msg)
-
-    def _on_imu(self, imu, msg):
-        try:
-            imu.feed(imu_sample_from_msg(msg))
-        except ValueError as exc:
-            self.get_logger().warning(f"ignored IMU sample: {exc}", throttle_duration_sec=5.0)
-
     def _on_record_outcome(self, request, response):
         travel_time_s = request.travel_time_s if request.travel_time_s > 0 else math.nan
-        response.accepted, response.message = self.operator.record_outcome(
+        response.accepted, response.message = self.backend.operator.record_outcome(
             OperatorOutcome(bool(request.upright), travel_time_s, request.note), request.trial_id)
         self.get_logger().info(f"operator outcome for {request.trial_id or 'the current launch'}: "
                                f"{'upright' if request.upright else 'not upright'} -> {response.message}")
         return response
 
     def _on_confirm(self, request, response):
-        response.success, response.message = self.operator.confirm()
+        response.success, response.message = self.backend.operator.confirm()
         self.get_logger().info(f"operator confirmation: {response.message}")
         return response
 
@@ -219,18 +219,14 @@ class RigNode(Node):
             return result
         try:
             condition = _convert.condition_from_msg(goal.condition)
-            reason = (self.physical.check(goal.run_id, goal.trial_id, condition)
-                      if self.settings.backend == "physical" else
-                      rig_session.check_goal(goal.run_id, goal.trial_id, condition, self.settings.configurations))
+            reason = self.backend.check(goal.run_id, goal.trial_id, condition)
             if reason:
                 raise ValueError(reason)
-            if self.settings.backend == "physical":
-                outcome = self.physical.launch(goal.run_id, goal.trial_id, condition, on_phase, cancelled)
-            else:
-                started_s = time.time()
-                outcome = self.simulated.launch(
-                    goal.run_id, goal.trial_id, condition, on_phase,
-                    lambda t_s, position, orientation: self._publish_pose(started_s + t_s, position, orientation))
+            started_s = time.time()
+            outcome = self.backend.launch(
+                goal.run_id, goal.trial_id, condition, on_phase,
+                on_pose=lambda t_s, position, orientation: self._publish_pose(started_s + t_s, position, orientation),
+                cancelled=cancelled)
         except (ValueError, LaunchAborted) as exc:
             result.message = f"{goal.trial_id}: {exc}"
             logger.error(f"launch aborted: {result.message}")
@@ -258,10 +254,11 @@ class RigNode(Node):
 
     def close(self):
         """Abort a running launch at its next wait and wait for it to end (the node still spins meanwhile, so the
-        launch's own cleanup can disarm the valve over its service)."""
+        launch's own cleanup can disarm the valve over its service); then close the backend."""
         self._closing.set()
         with self._busy:
             pass
+        self.backend.close()
 
 
 def main(args=None):

@@ -43,7 +43,8 @@ from std_msgs.msg import Header
 
 from rollability_ros.core.results.outcome_log import OutcomeLog, StoreFailure
 from rollability_ros.core.imu.tip_tracker import TipMonitorConfig, TipTracker, diagnostic_status
-from rollability_ros.core.imu.upright import ImuSample, normalize_quaternion, orientation_if_valid
+from rollability_ros.core.imu.quaternion import normalize_quaternion, rpy_deg_from_quaternion
+from rollability_ros.core.imu.upright import imu_sample_from_message
 from rollability_ros.msg import TipEvent, TipState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
@@ -78,39 +79,6 @@ class TipMonitorNodeSettings:
             normalize_quaternion(self.mount_quaternion_xyzw)
         if not 0 < self.diagnostics_period_s < math.inf:
             raise ValueError(f"diagnostics_period_s must be > 0, got {self.diagnostics_period_s}")
-
-
-def rpy_deg_from_quaternion(q):
-    """Roll, pitch, yaw (deg; fixed axes x, y, z) of the rotation ``q`` = (x, y, z, w)."""
-    x, y, z, w = normalize_quaternion(q)
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return [math.degrees(roll), math.degrees(pitch), math.degrees(yaw)]
-
-
-def _finite_vector(vector, name):
-    values = (vector.x, vector.y, vector.z)
-    if not all(math.isfinite(v) for v in values):
-        raise ValueError(f"{name} is not finite: {values}")
-    return values
-
-
-def imu_sample_from_msg(msg, arrival_s):
-    """``sensor_msgs/Imu`` -> :class:`ImuSample`; ``ValueError`` naming the bad field.
-
-    ``arrival_s`` (s) stands in for a zero header stamp.
-    """
-    stamp_s = _convert.stamp_to_s(msg.header.stamp) or arrival_s
-    try:
-        orientation = orientation_if_valid(_convert.quaternion_to_tuple(msg.orientation),
-                                           list(msg.orientation_covariance))
-    except ValueError as exc:
-        raise ValueError(f"orientation: {exc}") from None
-    return ImuSample(stamp_s=stamp_s, orientation=orientation,
-                     angular_velocity_radps=_finite_vector(msg.angular_velocity, "angular_velocity"),
-                     linear_acceleration_mps2=_finite_vector(msg.linear_acceleration, "linear_acceleration"),
-                     frame_id=msg.header.frame_id)
 
 
 class TipMonitorNode(Node):
@@ -175,7 +143,7 @@ class TipMonitorNode(Node):
 
     def _on_imu(self, msg):
         try:
-            sample = imu_sample_from_msg(msg, time.time())
+            sample = imu_sample_from_message(msg, time.time())
         except ValueError as exc:
             with self._lock:
                 self.counts["refused_samples"] += 1

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
+from doubles import synthetic_outcomes
 from rollability_ros.core.campaign import calibration
 from rollability_ros.core.results.analysis import ConditionResult
 from rollability_ros.core.config import ConfigError, load_parameters, section
@@ -137,7 +138,7 @@ def test_recovers_a_hidden_centre_of_mass_offset_from_synthetic_outcomes(tmp_pat
                   "launch_twin.designs.mesh_files": [str(tmp_path / "dome.stl")]}
     name, truth = "robot.com_offset_z_m", 0.006
     conditions = [LaunchCondition("baseline", 0.75, 0.8, 0.0), LaunchCondition("dome", 0.75, 0.8, 0.0)]
-    outcomes = calibration.synthetic_outcomes(parameters, [name], [truth], conditions, 24)
+    outcomes = synthetic_outcomes(parameters, [name], [truth], conditions, 24)
     settings = calibration.CalibrationSettings(parameters=[name], lower=[-0.019], upper=[0.015], log_scale=[False],
                                                sim_repetitions=8, popsize=4, sigma0=0.3, max_generations=4,
                                                bootstrap_resamples=2)

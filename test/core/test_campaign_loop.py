@@ -6,8 +6,8 @@ import sys
 import pytest
 
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
-from rollability_ros.core.campaign.runner import (NotStored, StoreWatcher, answer_rig, resume_refusal, run_campaign,
-                                                  store_writer)
+from rollability_ros.core.campaign.runner import (NotStored, StoreAcknowledgements, answer_rig, resume_refusal,
+                                                  run_campaign, store_writer)
 from rollability_ros.core.results.records import LaunchOutcome
 from rollability_ros.core.rig.rig_session import LaunchAborted, OperatorOutcome
 from rollability_ros.core.results.store import Store
@@ -68,13 +68,35 @@ def test_wrong_answer_and_unstored_outcome_stop_the_campaign(tmp_path):
     with Store(tmp_path / "s.sqlite") as store:
         report = run_campaign(plan, "loop", set(), lambda t: outcome_for(plan[5]), store_writer(store), say=print)
         assert "the rig answered" in report.stopped_reason and not store.trial_ids("loop")
-    watcher = StoreWatcher(tmp_path / "s.sqlite", timeout_s=0.2)
-    with pytest.raises(NotStored, match="is an outcome_logger writing"):
-        watcher(outcome_for(plan[0]))
-    with Store(tmp_path / "s.sqlite") as writer:
-        writer.add_launch_outcome(outcome_for(plan[0]))
-    watcher(outcome_for(plan[0]))   # written by another connection: seen
-    watcher.close()
+
+
+def test_store_acknowledgements_wait_for_the_trial_they_name():
+    plan = plan_trials(SPEC)
+    spins = []
+    acknowledgements = StoreAcknowledgements(lambda: spins.append(1), timeout_s=0.2)
+    acknowledgements.acknowledge("other-run", plan[0].trial_id)        # same trial id, another run: not it
+    acknowledgements.acknowledge("loop", plan[1].trial_id)
+    with pytest.raises(NotStored, match="no outcome_logger acknowledged storing loop/"):
+        acknowledgements(outcome_for(plan[0]))
+    assert spins                                                        # it kept the executor turning
+    acknowledgements(outcome_for(plan[1]))
+
+    # an acknowledgement that arrives while waiting (from the spin) ends the wait
+    late = StoreAcknowledgements(lambda: late.acknowledge("loop", plan[2].trial_id), timeout_s=5.0)
+    late(outcome_for(plan[2]))
+
+    # the campaign stops at the trial whose acknowledgement never comes; the ones before count
+    stored = StoreAcknowledgements(lambda: None, timeout_s=0.1)
+    launched = []
+
+    def launch(trial):
+        launched.append(trial.trial_id)
+        if len(launched) < 3:
+            stored.acknowledge("loop", trial.trial_id)
+        return outcome_for(trial)
+
+    report = run_campaign(plan, "loop", set(), launch, stored, say=print)
+    assert (report.stored_now, report.done) == (2, 2) and plan[2].trial_id in report.stopped_reason
 
 
 def test_answer_rig_maps_feedback_to_operator_answers():

@@ -6,6 +6,7 @@ import time
 import numpy as np
 import pytest
 
+from doubles import SyntheticEvaluator
 from rollability_ros.core.optimization import optimization_run as optimization_run
 from rollability_ros.core.optimization.evaluator_pool import (EvaluationFailed, EvaluationRequest, EvaluatorPool, PoolClosed,
                                                  PoolSettings)
@@ -214,7 +215,7 @@ def test_a_run_over_a_flaky_pool_equals_the_run_over_the_evaluator_itself(tmp_pa
     grid = ProfileGrid(rows=3, cols=2)
     parameters = {"optimizer.popsize": 6, "optimizer.trials": 12, "optimizer.max_generations": 5,
                   "optimizer.seed": 4}
-    synthetic = optimization_run.SyntheticEvaluator(np.full(grid.n_variables, 0.2), 12)
+    synthetic = SyntheticEvaluator(np.full(grid.n_variables, 0.2), 12)
     graph = SyntheticGraph(synthetic)
     pool = make_pool(graph, ["flaky", "steady"])
     stored = {}

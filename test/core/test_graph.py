@@ -3,7 +3,7 @@ import sys
 
 import yaml
 
-from rollability_ros.core.graph.node_commands import DEFAULT_CONFIGS, NodeLaunch, parameter_files
+from rollability_ros.core.graph.bringup import DEFAULT_CONFIGS, NodeLaunch, parameter_files
 
 
 def test_argv_and_overrides_round_trip_through_yaml():

@@ -8,7 +8,8 @@ import pytest
 pytest.importorskip("cma")
 
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator, profile_screen  # noqa: E402
+from doubles import SyntheticEvaluator  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, profile_screen  # noqa: E402
 from rollability_ros.core.optimization.cmaes import random_initial_means  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import optimizer_settings  # noqa: E402
 

@@ -8,7 +8,7 @@ import pytest
 
 from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_launch
 from rollability_ros.core.results.records import LaunchCondition
-from rollability_ros.core.rig.rig_session import RigSettings, SimulatedLaunch, simulated_outcome, trial_seed
+from rollability_ros.core.rig.rig_session import RigSettings, SimulatedLaunch, simulated_outcome, launch_seed
 from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig
 from rollability_ros.core.robots.urdf_robot import UrdfRobotModel, UrdfRobotSpec, half_width_across_m
@@ -87,7 +87,7 @@ def test_the_rig_sim_backend_launches_the_husky_from_its_twin_config(twin_config
     speed_config = SpeedGateConfig()
     condition = LaunchCondition("baseline", 0.75, 0.8, 0.0)
     outcome = SimulatedLaunch(rig, speed_config).launch("run", "h0", condition)
-    expected = simulate_launch(condition, husky_twin, trial_seed(rig.seed, "h0"))
+    expected = simulate_launch(condition, husky_twin, launch_seed(rig.seed, "h0"))
     direct = simulated_outcome("run", "h0", condition, expected, speed_config)
     assert outcome == dataclasses.replace(direct, stamp_s=outcome.stamp_s)
     assert outcome.backend == "sim" and outcome.travel_time_s == expected.travel_time_s

@@ -7,7 +7,8 @@ import pytest
 cma = pytest.importorskip("cma")
 
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator  # noqa: E402
+from doubles import SyntheticEvaluator  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun  # noqa: E402
 from rollability_ros.core.optimization.cmaes import (  # noqa: E402
     OptimizerSettings,
     ProfileOptimizer,

@@ -16,7 +16,8 @@ pytest.importorskip("cma")
 from rollability_ros.core.optimization import checkpoint as checkpoints  # noqa: E402
 from rollability_ros.core.config import ConfigError  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator, read_run_config  # noqa: E402
+from doubles import SyntheticEvaluator  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, read_run_config  # noqa: E402
 from rollability_ros.core.results.store import Store  # noqa: E402
 
 GRID = ProfileGrid(rows=3, cols=3)
@@ -30,7 +31,9 @@ CHILD = textwrap.dedent("""
     import os, sys, time
     import numpy as np
     from rollability_ros.core.profile.geometry import ProfileGrid
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator
+    sys.path.insert(0, sys.argv[4])   # test/, for the test doubles
+    from doubles import SyntheticEvaluator
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun
     run_dir, block_at, crn = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "True"
     evaluator = SyntheticEvaluator(np.linspace(0.05, 0.4, 9), trials=30)
     calls = []
@@ -80,7 +83,8 @@ def test_sigkill_mid_generation_then_resume_equals_uninterrupted(tmp_path, commo
                                                                  stored_in_killed_generation):
     run_dir = os.path.join(tmp_path, "killed", "run")
     os.makedirs(os.path.dirname(run_dir))
-    child = subprocess.Popen([sys.executable, "-c", CHILD, run_dir, str(block_at), str(common_random_numbers)])
+    child = subprocess.Popen([sys.executable, "-c", CHILD, run_dir, str(block_at), str(common_random_numbers),
+                              os.path.dirname(os.path.dirname(os.path.abspath(__file__)))])
     try:
         deadline = time.monotonic() + 60
         while not os.path.exists(run_dir + ".blocked"):
@@ -95,7 +99,8 @@ def test_sigkill_mid_generation_then_resume_equals_uninterrupted(tmp_path, commo
 
     with Store(run_dir) as store:
         assert len(store.generations()) == KILL_GENERATION
-        assert len(store.candidates(generation=KILL_GENERATION)) == stored_in_killed_generation
+        # generations are numbered from 1: the killed one (index KILL_GENERATION) is number KILL_GENERATION + 1
+        assert len(store.candidates(generation=KILL_GENERATION + 1)) == stored_in_killed_generation
     with open(os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME), "rb") as stream:
         assert pickle.load(stream)["generation"] == KILL_GENERATION
 
@@ -236,3 +241,91 @@ def test_cli_run_with_real_physics_killed_and_resumed_equals_uninterrupted(tmp_p
     assert "A " in capsys.readouterr().out
     assert sorted(os.listdir(os.path.join(killed_dir, "designs"))) == [
         "designs.yaml", "mesh_A.stl", "mesh_B.stl", "table3.csv"]
+
+
+class NoResults(RuntimeError):
+    """Stands in for the node's EvaluationFailed."""
+
+
+class Shutdown(RuntimeError):
+    """Stands in for the node's PoolClosed."""
+
+
+def test_the_one_loop_retries_gives_up_stops_and_is_interrupted_by_policy(tmp_path):
+    from rollability_ros.core.optimization.optimization_run import run_generations
+
+    healthy = SyntheticEvaluator(OPTIMUM, trials=30)
+    calls = []
+
+    def failing_at(*call_numbers, error=NoResults):
+        def evaluate_batch(heights_list, seed):
+            calls.append(seed)
+            if len(calls) in call_numbers:
+                raise error("no evaluator answered")
+            return healthy(heights_list, seed)
+        return evaluate_batch
+
+    # retry (the node pauses, then resumes): the run ends as if nothing failed
+    failures = []
+    run = OptimizationRun(tmp_path / "retry", parameters(), GRID, failing_at(3, 4))
+    end = run_generations(run, on_evaluation_failed=lambda exc: failures.append(exc) or True,
+                          evaluation_errors=(NoResults,))
+    run.close()
+    assert end.status == "finished" and end.exit_code == 0 and len(failures) == 2
+    assert comparable(tmp_path / "retry") == comparable(uninterrupted(tmp_path, True)[0])
+
+    # give up (exit_on_finish): failed, with the generation's number (from 1) in the reason
+    calls.clear()
+    run = OptimizationRun(tmp_path / "give-up", parameters(), GRID, failing_at(3))
+    end = run_generations(run, evaluation_errors=(NoResults,))
+    assert end.status == "failed" and end.exit_code == 1
+    assert end.reason == "generation 2 got no real results (no evaluator answered)"
+    run.close()
+
+    # interrupted (shutdown): no exit code, resumable; an error of no listed kind propagates
+    calls.clear()
+    run = OptimizationRun(tmp_path / "shutdown", parameters(), GRID, failing_at(3, error=Shutdown))
+    end = run_generations(run, evaluation_errors=(NoResults,), interruptions=(Shutdown,))
+    assert end.status == "interrupted" and end.exit_code is None and run.optimizer.generation == 1
+    with pytest.raises(RuntimeError, match="went away"):
+        OptimizationRun(tmp_path / "bug", parameters(), GRID,
+                        lambda h, s: (_ for _ in ()).throw(RuntimeError("went away"))).run()
+    run.close()
+
+    # stop between generations: the current generation is finished and checkpointed
+    stop_after = []
+    run = OptimizationRun(tmp_path / "stop", parameters(), GRID, healthy,
+                          on_generation=lambda record: stop_after.append(record.generation))
+    end = run_generations(run, stop_requested=lambda: len(stop_after) >= 3)
+    assert end.status == "stopped" and stop_after == [1, 2, 3] and run.optimizer.generation == 3
+    assert f"ended after 3 generation(s), {end.result.evaluations} evaluations (stop service)" in run.end_text(end)
+    run.close()
+
+
+def test_generations_are_numbered_from_1_and_runs_numbered_from_0_keep_their_numbers(tmp_path, monkeypatch):
+    from rollability_ros.core.optimization import optimization_run
+
+    run = OptimizationRun(tmp_path / "new", parameters(**{"optimizer.max_generations": 3}), GRID,
+                          SyntheticEvaluator(OPTIMUM, trials=30))
+    run.run()
+    assert [g.generation for g in run.store.generations()] == [1, 2, 3]
+    assert {c.generation for c in run.store.candidates()} == {1, 2, 3}
+    assert run.store.run_info("new")["info"]["first_generation"] == 1
+    run.close()
+
+    # a run stored by the code before this numbering: generations from 0 and no first_generation in its info
+    monkeypatch.setattr(optimization_run, "FIRST_GENERATION", 0)
+    old_dir = tmp_path / "old"
+    killed = OptimizationRun(old_dir, parameters(), GRID, SyntheticEvaluator(OPTIMUM, trials=30))
+    for _ in range(3):
+        killed.step()
+    info = dict(killed.store.run_info("old")["info"])
+    del info["first_generation"]
+    killed.store.set_run_info("old", optimization_run.RUN_KIND, info)
+    killed.close()
+    monkeypatch.setattr(optimization_run, "FIRST_GENERATION", 1)
+    resumed = OptimizationRun(old_dir, parameters(), GRID, SyntheticEvaluator(OPTIMUM, trials=30), resume=True)
+    assert resumed.first_generation == 0 and "resuming after generation 2" in resumed.start_text(True)
+    resumed.run()
+    assert [g.generation for g in resumed.store.generations()] == list(range(GENERATIONS))
+    resumed.close()

@@ -8,12 +8,14 @@ import pytest
 from synthetic_imu import piecewise, stream
 
 from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
 from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
-                                              OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
-                                              check_goal, parse_outcome_answer, simulated_outcome, trial_seed)
+                                                  OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
+                                                  check_goal, launch_backend_class, make_launch_backend,
+                                                  parse_outcome_answer, simulated_outcome, launch_seed)
 from rollability_ros.core.rig.speed_gate import SimulatedSpeedGate, SpeedGateConfig
 from rollability_ros.core.imu.upright import ImuOutcomeConfig
-from rollability_ros.core.rig.valve import RegulatorConfig, ValveController
+from rollability_ros.core.rig.valve import RegulatorConfig, ValveConfig, ValveController
 from rollability_ros.core.rig.valve_backends import DryRunBackend
 
 CONDITION = LaunchCondition("B", 0.75, 0.8, -30.0, 1)
@@ -129,7 +131,7 @@ def test_operator_timeout_and_cancel_abort(valve):
     assert silent == ["waiting_for_operator"] and valve.status().pulses == 0
     cancel = threading.Event()
     with pytest.raises(LaunchAborted, match="cancelled"):
-        rig.launch("run", "t0", CONDITION, lambda phase, detail: cancel.set(), cancel.is_set)
+        rig.launch("run", "t0", CONDITION, lambda phase, detail: cancel.set(), cancelled=cancel.is_set)
 
 
 def test_goal_checks_refuse_with_reasons(valve):
@@ -224,7 +226,7 @@ def test_operator_overrides_the_imu_and_answers_when_it_never_settles(valve):
     assert not silent.upright and silent.classified_by == "operator"
 
 
-def test_simulated_outcome_and_trial_seed():
+def test_simulated_outcome_and_launch_seed():
     class Result:
         upright = True
         final_orientation_xyzw = (0.0, 0.0, 0.0, 1.0)
@@ -233,4 +235,83 @@ def test_simulated_outcome_and_trial_seed():
     assert outcome.backend == "sim" and outcome.classified_by == "sim" and outcome.speed_out_of_tolerance
     assert "off the target" in outcome.note
     outcome.validate()
-    assert trial_seed(0, "a/b") == trial_seed(0, "a/b") != trial_seed(1, "a/b")
+    assert launch_seed(0, "a/b") == launch_seed(0, "a/b") != launch_seed(1, "a/b")
+
+
+class RecordingPorts(RigPorts):
+    """RigPorts over a real dry-run ValveController and the simulated gate; records what the backend opened."""
+
+    def __init__(self, valve, imu=True):
+        self.valve, self.imu = valve, imu
+        self.opened, self.closed = [], 0
+
+    def open_valve(self, valve_config):
+        self.opened.append("valve")
+        return self.valve
+
+    def open_speed_gate(self, speed_config):
+        self.opened.append("speed_gate")
+        return SimulatedSpeedGate(speed_config.run_length_m, 0.0, seed=1)
+
+    def open_imu(self, imu_outcome):
+        if not self.imu:
+            raise ValueError("no IMU here")
+        self.opened.append("imu")
+        self.imu_outcome = imu_outcome
+
+    def close(self):
+        self.closed += 1
+
+
+def test_factory_builds_the_physical_backend_on_the_callers_ports(valve):
+    ports = RecordingPorts(valve)
+    settings = RigSettings(backend="physical", countdown_s=0.0, configurations=["B"])
+    backend = make_launch_backend(settings, SpeedGateConfig(), ValveConfig(), ImuOutcomeConfig(), ports)
+    assert isinstance(backend, LaunchBackend) and backend.attended and backend.name == "physical"
+    assert ports.opened == ["valve", "speed_gate"] and "outcome from operator" in backend.describe()
+    # the contract's call, with the arguments every backend takes; the operator answers through backend.operator
+    operator = ScriptedOperator(backend.operator, [OperatorOutcome(True)])
+    outcome = backend.launch("run", "t0", CONDITION, operator, on_pose=lambda *pose: pytest.fail("no poses"),
+                             cancelled=lambda: False)
+    assert outcome.backend == "physical" and outcome.upright and valve.status().pulses == 1
+    assert "no regulator pressure" in backend.check("run", "t1", LaunchCondition("B", 0.75, 1.1, 0))
+    backend.close()
+    assert ports.closed == 1
+
+    imu_ports = RecordingPorts(valve)
+    imu_backend = make_launch_backend(RigSettings(backend="physical", outcome_source="imu"), SpeedGateConfig(),
+                                      ValveConfig(), ImuOutcomeConfig(), imu_ports)
+    assert imu_ports.opened[0] == "imu" and imu_backend.imu is imu_ports.imu_outcome
+
+    refusing = RecordingPorts(valve, imu=False)
+    with pytest.raises(ValueError, match="no IMU here"):
+        make_launch_backend(RigSettings(backend="physical", outcome_source="imu"), SpeedGateConfig(), ValveConfig(),
+                            ImuOutcomeConfig(), refusing)
+    assert refusing.opened == [] and refusing.closed == 1      # nothing opened, and what was started is stopped
+    with pytest.raises(ValueError, match="backend must be one of"):
+        make_launch_backend(RigSettings(backend="hybrid"), SpeedGateConfig(), ValveConfig(), ImuOutcomeConfig(),
+                            refusing)
+    assert launch_backend_class("sim").attended is False and launch_backend_class("physical").attended is True
+
+
+def test_simulated_backend_opens_no_port_and_refuses_operator_answers(valve):
+    pytest.importorskip("pybullet")
+    ports = RecordingPorts(valve)
+    backend = make_launch_backend(RigSettings(backend="sim", configurations=["baseline"]), SpeedGateConfig(),
+                                  ValveConfig(), ImuOutcomeConfig(), ports)
+    assert isinstance(backend, LaunchBackend) and not backend.attended and ports.opened == []
+    assert backend.operator.record_outcome(OperatorOutcome(True))[0] is False
+    assert "unknown configuration 'B'" in backend.check("run", "t0", CONDITION)
+    with pytest.raises(ValueError, match="unknown configuration"):
+        backend.launch("run", "t0", CONDITION)
+    with pytest.raises(LaunchAborted, match="cancelled"):
+        backend.launch("run", "t0", LaunchCondition("baseline", 0.75, 0.8, 0.0), cancelled=lambda: True)
+    backend.close()
+    assert valve.status().pulses == 0
+
+
+def test_in_process_rig_refuses_an_imu_outcome_before_opening_the_valve():
+    from rollability_ros.core.campaign.runner import LocalRig
+
+    with pytest.raises(ValueError, match="operator only"):
+        LocalRig("physical", {"rig.outcome_source": "imu"})

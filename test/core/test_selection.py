@@ -11,7 +11,8 @@ pytest.importorskip("trimesh")
 
 from rollability_ros.core.profile import geometry  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator  # noqa: E402
+from doubles import SyntheticEvaluator  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun  # noqa: E402
 from rollability_ros.core.results.records import CandidateRecord  # noqa: E402
 from rollability_ros.core.optimization.selection import (  # noqa: E402
     SelectionSettings,

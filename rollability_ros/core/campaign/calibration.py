@@ -389,24 +389,6 @@ def calibrate(outcomes, parameters, settings, pool, on_progress=None):
                              after_log_likelihood=main.log_likelihood, estimates=estimates, evaluations=evaluations)
 
 
-def synthetic_outcomes(parameters, names, values, conditions, repetitions, first_seed=100_000):
-    """"Physical" outcomes made on the twin with ``names`` set to hidden ``values``, to test a calibration.
-
-    ``conditions`` are LaunchConditions (their repetition is ignored); each is launched ``repetitions`` times with
-    seeds from ``first_seed`` on, which the calibration's own seeds (:func:`simulation_seeds`) do not reuse.
-    Returns LaunchOutcomes (backend ``physical``, run ``synthetic``).
-    """
-    hidden = twin_settings_with(parameters, names, values)
-    outcomes = []
-    for condition in conditions:
-        for repetition in range(repetitions):
-            launch = dataclasses.replace(condition, repetition=repetition)
-            result = simulate_launch(launch, hidden, first_seed + repetition)
-            outcomes.append(LaunchOutcome("synthetic", f"synthetic-{len(outcomes)}", launch, "physical",
-                                          result.upright, classified_by="operator"))
-    return outcomes
-
-
 def calibrated_parameter_document(fitted, own_path=None, twin_configs=TWIN_CONFIGS):
     """The calibrated ROS 2 parameter file as a dict: ``/**: {ros__parameters: {...}}``.
 

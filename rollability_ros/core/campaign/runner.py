@@ -6,8 +6,9 @@ be stored:
 - in-process (``rollability campaign`` without ROS): ``launch`` runs the rig sequence or the launch twin here and
   ``confirm_stored`` writes the durable store itself (:func:`store_writer`): the only writer on that route;
 - through the node graph: ``launch`` sends a Launch goal to the ``rig`` node, whose outcome reaches the
-  ``outcome_logger`` (the only writer on that route), and ``confirm_stored`` polls the store file until the
-  logger has committed the trial (:class:`StoreWatcher`), so a trial counts as done only once it is on disk.
+  ``outcome_logger`` (the only writer on that route), and ``confirm_stored`` waits for the logger's
+  acknowledgement over ROS (:class:`StoreAcknowledgements`, fed from the ``outcomes_stored`` topic), so a trial
+  counts as done only once it is on disk, and the logger may run on another computer.
 
 A trial that fails (valve fault, operator timeout, outcome never stored) stops the campaign: nothing was stored
 for it, so a resumed run (``remaining_trials``) launches it again, and every trial stored before stays stored.
@@ -16,14 +17,18 @@ import dataclasses
 import math
 import threading
 import time
+import typing
 
-from rollability_ros.core.campaign.plan import CampaignProgress, changes_between
+from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, changes_between
 from rollability_ros.core.config import from_mapping, section
-from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, LaunchAborted, OperatorChannel,
-                                              PhysicalLaunch, RigSettings, SimulatedLaunch, parse_outcome_answer)
+from rollability_ros.core.imu.upright import ImuOutcomeConfig
+from rollability_ros.core.rig.launch_backend import LaunchAborted, RigPorts
+from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, RIG_BACKENDS, RigSettings,
+                                                  make_launch_backend, parse_outcome_answer)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
+from rollability_ros.core.results.records import LaunchOutcome
 from rollability_ros.core.results.store import Store
-from rollability_ros.core.rig.valve import ValveConfig
+from rollability_ros.core.rig.valve import ValveConfig, ValveController
 from rollability_ros.core.rig.valve_backends import make_controller
 
 
@@ -41,45 +46,59 @@ class CampaignReport:
     stopped_reason: str = ""
 
     @property
-    def complete(self):
+    def complete(self) -> bool:
         """True when every planned trial is stored."""
         return self.done == self.total
 
 
-def store_writer(store):
+def store_writer(store: Store) -> typing.Callable[[LaunchOutcome], None]:
     """``confirm_stored`` for the in-process route: write the outcome (a duplicate counts as stored)."""
-    def confirm_stored(outcome):
+    def confirm_stored(outcome: LaunchOutcome) -> None:
         store.add_launch_outcome(outcome)
     return confirm_stored
 
 
-class StoreWatcher:
-    """``confirm_stored`` for the node-graph route: waits until another process has stored the trial.
+class StoreAcknowledgements:
+    """``confirm_stored`` for the node-graph route: waits for the outcome_logger's acknowledgement of a trial.
+
+    The caller feeds :meth:`acknowledge` (the campaign_runner node, from the logger's ``outcomes_stored`` topic);
+    a call for an outcome returns once its (run id, trial id) was acknowledged, turning ``spin_once`` meanwhile.
 
     Parameters
     ----------
-    path : path
-        The store file (or run directory) the ``outcome_logger`` writes.
+    spin_once : callable
+        Processes pending messages for a short while (an executor's ``spin_once``); called while waiting.
     timeout_s : float
-        Longest wait for a trial to appear after its launch ended, s.
+        Longest wait for a trial's acknowledgement after its launch ended, s.
+    clock : callable
+        Monotonic time, s.
     """
 
-    def __init__(self, path, timeout_s=10.0, poll_s=0.05):
-        self.store = Store(path)
+    def __init__(self, spin_once: typing.Callable[[], None], timeout_s: float = 10.0,
+                 clock: typing.Callable[[], float] = time.monotonic):
+        self._spin_once = spin_once
         self.timeout_s = timeout_s
-        self.poll_s = poll_s
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._acknowledged = set()
 
-    def __call__(self, outcome):
-        deadline = time.monotonic() + self.timeout_s
-        while outcome.trial_id not in self.store.trial_ids(outcome.run_id):
-            if time.monotonic() > deadline:
-                raise NotStored(f"outcome of {outcome.trial_id} did not reach the store {self.store.path} within "
-                                f"{self.timeout_s:g} s: is an outcome_logger writing to it?")
-            time.sleep(self.poll_s)
+    def acknowledge(self, run_id: str, trial_id: str) -> None:
+        """Record that the logger has stored (``run_id``, ``trial_id``)."""
+        with self._lock:
+            self._acknowledged.add((run_id, trial_id))
 
-    def close(self):
-        """Close the store connection."""
-        self.store.close()
+    def is_acknowledged(self, run_id: str, trial_id: str) -> bool:
+        """True once (``run_id``, ``trial_id``) was acknowledged."""
+        with self._lock:
+            return (run_id, trial_id) in self._acknowledged
+
+    def __call__(self, outcome: LaunchOutcome) -> None:
+        deadline = self._clock() + self.timeout_s
+        while not self.is_acknowledged(outcome.run_id, outcome.trial_id):
+            if self._clock() > deadline:
+                raise NotStored(f"no outcome_logger acknowledged storing {outcome.run_id}/{outcome.trial_id} within "
+                                f"{self.timeout_s:g} s: is one running in this ROS domain?")
+            self._spin_once()
 
 
 def _operator_ready(ask, say, previous, trial, pressure_psi_by_speed):
@@ -90,8 +109,12 @@ def _operator_ready(ask, say, previous, trial, pressure_psi_by_speed):
     return answer.strip().lower() not in ("q", "quit", "stop")
 
 
-def run_campaign(plan, run_id, stored_ids, launch, confirm_stored, ask=None, say=print,
-                 pressure_psi_by_speed=None, clock=time.monotonic):
+def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: typing.Collection[str],
+                 launch: typing.Callable[[PlannedTrial], LaunchOutcome],
+                 confirm_stored: typing.Callable[[LaunchOutcome], None],
+                 ask: typing.Optional[typing.Callable[[str], str]] = None, say: typing.Callable[[str], None] = print,
+                 pressure_psi_by_speed: typing.Optional[typing.Mapping[float, float]] = None,
+                 clock: typing.Callable[[], float] = time.monotonic) -> CampaignReport:
     """Run the trials of ``plan`` not yet stored, in plan order; returns a :class:`CampaignReport`.
 
     Parameters
@@ -119,7 +142,7 @@ def run_campaign(plan, run_id, stored_ids, launch, confirm_stored, ask=None, say
     say(f"campaign {run_id}: {progress.text()}")
     previous, stored_now = None, 0
 
-    def report(reason):
+    def report(reason: str) -> CampaignReport:
         return CampaignReport(stored_now, progress.done, progress.total, reason)
 
     for trial in todo:
@@ -152,25 +175,22 @@ def run_campaign(plan, run_id, stored_ids, launch, confirm_stored, ask=None, say
 
 @dataclasses.dataclass
 class RunnerSettings:
-    """``runner.*``: how the campaign_runner node reaches the rig and the store."""
+    """``runner.*``: how the campaign_runner node runs the campaign and waits for the rig and the logger."""
 
     backend: str = "sim"
-    store_path: str = "runs/outcomes.sqlite"
     resume: bool = False
     store_timeout_s: float = 10.0
     server_timeout_s: float = 30.0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
-        if self.backend not in ("sim", "physical"):
+        if self.backend not in RIG_BACKENDS:
             raise ValueError(f"backend must be 'sim' (unattended) or 'physical' (operator), got {self.backend!r}")
-        if not self.store_path:
-            raise ValueError("store_path must name the outcome_logger's store")
         if not 0 < self.store_timeout_s < math.inf or not 0 < self.server_timeout_s < math.inf:
             raise ValueError("store_timeout_s and server_timeout_s must be finite and > 0")
 
 
-def report_exit_code(report, say=print):
+def report_exit_code(report: CampaignReport, say: typing.Callable[[str], None] = print) -> int:
     """Print how a session ended; return the exit code: 0 when complete, 3 when stopped early."""
     if report.stopped_reason:
         say(f"campaign stopped: {report.stopped_reason} ({report.done}/{report.total} stored; resume to continue)")
@@ -179,7 +199,7 @@ def report_exit_code(report, say=print):
     return 0
 
 
-def resume_refusal(stored_count, resume, run_id):
+def resume_refusal(stored_count: int, resume: bool, run_id: str) -> str:
     """Why a session must not start ("" if it may): stored trials of ``run_id`` need an explicit resume."""
     if stored_count and not resume:
         return (f"run {run_id} already has {stored_count} stored trials: pass --resume (runner.resume) to continue "
@@ -187,7 +207,8 @@ def resume_refusal(stored_count, resume, run_id):
     return ""
 
 
-def answer_rig(phase, detail, ask):
+def answer_rig(phase: str, detail: str,
+               ask: typing.Callable[[str], str]) -> typing.Optional[typing.Tuple[str, typing.Any]]:
     """Ask the operator what the rig waits for, from a feedback ``(phase, detail)``.
 
     Returns ``("confirm", None)`` (regulator set), ``("outcome", OperatorOutcome)`` or None when the phase asks
@@ -206,46 +227,66 @@ def answer_rig(phase, detail, ask):
     return None
 
 
-class LocalRig:
-    """The rig in this process (no ROS): the launch twin, or the physical launcher driven directly.
+class LocalRigPorts(RigPorts):
+    """:class:`~rollability_ros.core.rig.launch_backend.RigPorts` in this process: a
+    :class:`~rollability_ros.core.rig.valve.ValveController` on ``valve.*`` with a heartbeat thread for its
+    watchdog, the ``speed_gate.*`` gate (the operator types travel times through ``ask``), and no IMU."""
 
-    Physical: a :class:`~rollability_ros.core.rig.valve.ValveController` on ``valve.*`` with a heartbeat thread for
-    its watchdog, the ``speed_gate.*`` gate, and the operator answering the terminal (``ask``).
+    def __init__(self, ask=input):
+        self._ask = ask
+        self._stop = threading.Event()
+        self.valve = None
+
+    def open_valve(self, valve_config: ValveConfig) -> ValveController:
+        """A valve controller on ``valve.*`` whose watchdog this object keeps fed until :meth:`close`."""
+        self.valve = make_controller(valve_config)
+        threading.Thread(target=self._beat, args=(valve_config.heartbeat_period_ms / 1000.0,), daemon=True).start()
+        return self.valve
+
+    def _beat(self, period_s):
+        while not self._stop.wait(period_s):
+            self.valve.heartbeat()
+
+    def open_speed_gate(self, speed_config: SpeedGateConfig) -> typing.Any:
+        """The configured speed gate (its ``operator`` backend asks at this terminal)."""
+        return make_speed_gate(speed_config, self._ask)
+
+    def open_imu(self, imu_outcome: typing.Any) -> None:
+        """Refused: the in-process rig has no IMU topic."""
+        raise ValueError("the in-process physical rig takes outcomes from the operator only (no IMU topic)")
+
+    def close(self) -> None:
+        """Stop the heartbeat and shut the valve down (closed)."""
+        self._stop.set()
+        if self.valve is not None:
+            self.valve.shutdown()
+
+
+class LocalRig:
+    """The rig in this process (no ROS): the backend ``backend`` names on :class:`LocalRigPorts`, with the operator
+    answering the rig's questions at the terminal (``ask``).
 
     Parameters
     ----------
     backend : str
-        ``"sim"`` or ``"physical"``.
+        ``rig.backend`` (``"sim"`` or ``"physical"``).
     parameters : dict
-        Flat rig parameters (``load_parameters(["rig"])``): ``rig.*``, ``valve.*``, ``speed_gate.*``.
+        Flat rig parameters (``load_parameters(["rig"])``): ``rig.*``, ``valve.*``, ``speed_gate.*``,
+        ``imu_outcome.*``.
     ask, say : callable
-        Terminal input / output (physical only).
+        Terminal input / output.
     """
 
     def __init__(self, backend, parameters, ask=input, say=print):
         rig = section(parameters, "rig")
         rig["backend"] = backend
-        if backend == "physical" and rig.get("outcome_source", "operator") != "operator":
-            raise ValueError("the in-process physical rig takes outcomes from the operator only (no IMU topic)")
-        self.settings = from_mapping(RigSettings, rig, "rig")
-        speed_config = from_mapping(SpeedGateConfig, section(parameters, "speed_gate"), "speed_gate")
+        settings = from_mapping(RigSettings, rig, "rig")
         self._ask, self._say = ask, say
         self._stop = threading.Event()
-        self.valve = None
-        if backend == "sim":
-            self._rig = SimulatedLaunch(self.settings, speed_config)
-            return
-        valve_config = from_mapping(ValveConfig, section(parameters, "valve"), "valve")
-        self.valve = make_controller(valve_config)
-        self._heartbeat_thread = threading.Thread(
-            target=self._beat, args=(valve_config.heartbeat_period_ms / 1000.0,), daemon=True)
-        self._heartbeat_thread.start()
-        self._rig = PhysicalLaunch(self.settings, self.valve, make_speed_gate(speed_config, ask), speed_config,
-                                   valve_config.launch_pulse_ms, valve_config.regulator, OperatorChannel())
-
-    def _beat(self, period_s):
-        while not self._stop.wait(period_s):
-            self.valve.heartbeat()
+        self.backend = make_launch_backend(
+            settings, from_mapping(SpeedGateConfig, section(parameters, "speed_gate"), "speed_gate"),
+            from_mapping(ValveConfig, section(parameters, "valve"), "valve"),
+            from_mapping(ImuOutcomeConfig, section(parameters, "imu_outcome"), "imu_outcome"), LocalRigPorts(ask))
 
     def _on_phase(self, phase, detail):
         self._say(f"  {phase}: {detail}")
@@ -253,18 +294,16 @@ class LocalRig:
         if reply is not None:
             kind, outcome = reply
             if kind == "confirm":
-                self._rig.operator.confirm()
+                self.backend.operator.confirm()
             else:
-                self._rig.operator.record_outcome(outcome)
+                self.backend.operator.record_outcome(outcome)
 
-    def launch(self, run_id, trial):
+    def launch(self, run_id: str, trial: PlannedTrial) -> LaunchOutcome:
         """Launch ``trial`` (a PlannedTrial) and return its outcome; :class:`LaunchAborted` when none."""
-        if isinstance(self._rig, SimulatedLaunch):
-            return self._rig.launch(run_id, trial.trial_id, trial.condition)
-        return self._rig.launch(run_id, trial.trial_id, trial.condition, self._on_phase, self._stop.is_set)
+        return self.backend.launch(run_id, trial.trial_id, trial.condition, self._on_phase,
+                                   cancelled=self._stop.is_set)
 
-    def close(self):
-        """Stop the heartbeat and shut the valve down (closed)."""
+    def close(self) -> None:
+        """Stop the backend (heartbeat, valve closed)."""
         self._stop.set()
-        if self.valve is not None:
-            self.valve.shutdown()
+        self.backend.close()

@@ -1,7 +1,7 @@
 """The node graph as processes: node command lines, bringup settings, the supervisor, the study, live view.
 
-- node_commands: which node, in which namespace, with which parameter files
-- bringup: the lab session's graph from config/bringup.yaml
+- bringup: the lab session's graph from config/bringup.yaml as node command lines (which node, namespace,
+  parameter files)
 - supervisor: start, restart and stop a graph of OS processes
 - study: the main job through the real graph
 - foxglove_view: the graph's topics served over the Foxglove WebSocket protocol

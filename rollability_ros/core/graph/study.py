@@ -28,9 +28,8 @@ import shutil
 
 import yaml
 
-from rollability_ros.core.graph.bringup import core_nodes, load_graph_settings, new_study_id
+from rollability_ros.core.graph.bringup import NodeLaunch, core_nodes, load_graph_settings, new_study_id, parameter_files
 from rollability_ros.core.config import load_parameters
-from rollability_ros.core.graph.node_commands import NodeLaunch, parameter_files
 from rollability_ros.core.results.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
 
@@ -130,7 +129,7 @@ class Study:
                                         "rig.twin_config": twin_config})
         runner = NodeLaunch("campaign_runner", namespace=self.settings.namespace, restart=False, params={
             "campaign.run_id": self.study_id, "campaign.configurations": configurations,
-            "runner.backend": "sim", "runner.store_path": self.store_path, "runner.resume": self.resuming})
+            "runner.backend": "sim", "runner.resume": self.resuming})
         return rig, runner
 
     def _progress_optimization(self):
@@ -143,7 +142,7 @@ class Study:
             return "first generation under evaluation"
         last = generations[-1]
         cap = self.parameters.get("optimizer.max_generations", 0)
-        return (f"generation {last.generation + 1}{'/' + str(cap) if cap else ''}: best so far "
+        return (f"generation {last.generation}{'/' + str(cap) if cap else ''}: best so far "
                 f"{last.best_so_far:.2f}, {last.evaluations} evaluations, {last.elapsed_s:.0f} s")
 
     def _progress_campaign(self, total):

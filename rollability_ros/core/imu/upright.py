@@ -1,4 +1,5 @@
-"""Is the body upright? Orientation math and the IMU upright classifier shared by the rig and the tip monitor.
+"""Is the body upright? Tilt from orientation or gravity, and the IMU upright classifier shared by the rig and the
+tip monitor (quaternion maths: :mod:`rollability_ros.core.imu.quaternion`).
 
 Conventions (ROS, REP-103 / REP-145): quaternions are ``(x, y, z, w)``; the world frame has +z up; an IMU's
 ``orientation`` rotates its own frame into the world frame; an accelerometer at rest measures the reaction to
@@ -12,76 +13,22 @@ import dataclasses
 import logging
 import math
 
+from rollability_ros.core.imu.quaternion import (  # noqa: F401  (re-exported: the classifier's frame maths)
+    IDENTITY,
+    normalize_quaternion,
+    quaternion_conjugate,
+    quaternion_from_axis_angle,
+    quaternion_from_rpy_deg,
+    quaternion_multiply,
+    rotate_vector,
+    vector3 as _vector3,
+)
+from rollability_ros.core.results.record_messages import stamp_to_s
+
 _LOG = logging.getLogger(__name__)
 
 #: Standard gravity, m/s^2.
 STANDARD_GRAVITY_MPS2 = 9.80665
-IDENTITY = (0.0, 0.0, 0.0, 1.0)
-
-
-def _vector3(value, name):
-    try:
-        x, y, z = (float(c) for c in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be 3 numbers, got {value!r}") from None
-    if not all(math.isfinite(c) for c in (x, y, z)):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return x, y, z
-
-
-def normalize_quaternion(q):
-    """Return ``q`` = (x, y, z, w) scaled to unit norm; ``ValueError`` for a zero or non-finite quaternion."""
-    try:
-        x, y, z, w = (float(c) for c in q)
-    except (TypeError, ValueError):
-        raise ValueError(f"quaternion must be 4 numbers (x, y, z, w), got {q!r}") from None
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if not math.isfinite(norm) or norm < 1e-9:
-        raise ValueError(f"quaternion must be finite and non-zero, got {q!r}")
-    return (x / norm, y / norm, z / norm, w / norm)
-
-
-def quaternion_multiply(a, b):
-    """Hamilton product ``a * b`` (rotate by ``b``, then by ``a``)."""
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return (aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz)
-
-
-def quaternion_conjugate(q):
-    """The inverse rotation of a unit quaternion."""
-    return (-q[0], -q[1], -q[2], q[3])
-
-
-def rotate_vector(q, v):
-    """Rotate the 3-vector ``v`` by the unit quaternion ``q``."""
-    qx, qy, qz, qw = q
-    vx, vy, vz = v
-    # t = 2 q_xyz x v ; v' = v + w t + q_xyz x t
-    tx, ty, tz = 2 * (qy * vz - qz * vy), 2 * (qz * vx - qx * vz), 2 * (qx * vy - qy * vx)
-    return (vx + qw * tx + qy * tz - qz * ty,
-            vy + qw * ty + qz * tx - qx * tz,
-            vz + qw * tz + qx * ty - qy * tx)
-
-
-def quaternion_from_axis_angle(axis, angle_rad):
-    """Rotation by ``angle_rad`` (rad) about ``axis`` (3-vector, any non-zero length)."""
-    ax, ay, az = _vector3(axis, "axis")
-    norm = math.sqrt(ax * ax + ay * ay + az * az)
-    if norm < 1e-12:
-        raise ValueError("rotation axis must be non-zero")
-    s = math.sin(angle_rad / 2) / norm
-    return (ax * s, ay * s, az * s, math.cos(angle_rad / 2))
-
-
-def quaternion_from_rpy_deg(roll_deg, pitch_deg, yaw_deg):
-    """Rotation from ROS roll, pitch, yaw (deg; about fixed x, then y, then z)."""
-    return quaternion_multiply(quaternion_from_axis_angle((0, 0, 1), math.radians(yaw_deg)),
-                               quaternion_multiply(quaternion_from_axis_angle((0, 1, 0), math.radians(pitch_deg)),
-                                                   quaternion_from_axis_angle((1, 0, 0), math.radians(roll_deg))))
 
 
 def tilt_from_orientation_deg(orientation):
@@ -164,6 +111,25 @@ class ImuSample:
     angular_velocity_radps: tuple
     linear_acceleration_mps2: tuple
     frame_id: str = ""
+
+
+def imu_sample_from_message(msg, arrival_s: float) -> ImuSample:
+    """A ``sensor_msgs/Imu`` message (rclpy or rosbags) -> :class:`ImuSample`; ``ValueError`` naming the bad field.
+
+    ``arrival_s`` (s since the epoch) stands in for a zero header stamp. Orientation is None when the IMU gives
+    none; non-finite vectors and unusable orientations are refused.
+    """
+    stamp_s = stamp_to_s(msg.header.stamp) or arrival_s
+    q = msg.orientation
+    try:
+        orientation = orientation_if_valid((q.x, q.y, q.z, q.w), list(msg.orientation_covariance))
+    except ValueError as exc:
+        raise ValueError(f"orientation: {exc}") from None
+    w, a = msg.angular_velocity, msg.linear_acceleration
+    return ImuSample(stamp_s=stamp_s, orientation=orientation,
+                     angular_velocity_radps=_vector3((w.x, w.y, w.z), "angular_velocity"),
+                     linear_acceleration_mps2=_vector3((a.x, a.y, a.z), "linear_acceleration"),
+                     frame_id=msg.header.frame_id)
 
 
 @dataclasses.dataclass(frozen=True)

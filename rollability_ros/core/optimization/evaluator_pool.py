@@ -81,7 +81,7 @@ class EvaluationRequest:
 
 
 @dataclasses.dataclass(frozen=True)
-class EvaluationResult:
+class PoolEvaluationResult:
     """A real result: upright trials out of ``trials``, evaluation wall time (s), the evaluator's name."""
 
     successes: int
@@ -125,7 +125,7 @@ class Ticket:
 
     def succeed(self, successes, trials, eval_time_s, evaluator=None):
         """Report the result (``evaluator``: the name the result is credited to; default the pool's name)."""
-        self._pool._finish(self, EvaluationResult(int(successes), int(trials), float(eval_time_s),
+        self._pool._finish(self, PoolEvaluationResult(int(successes), int(trials), float(eval_time_s),
                                                   str(evaluator or self.evaluator)), None)
 
     def fail(self, reason):
@@ -252,7 +252,7 @@ class EvaluatorPool:
 
     # --- batches -----------------------------------------------------------------------------------------------
     def evaluate(self, requests):
-        """Return one :class:`EvaluationResult` per request, in order, once every request has a real result.
+        """Return one :class:`PoolEvaluationResult` per request, in order, once every request has a real result.
 
         Raises :class:`EvaluationFailed` when a request failed ``max_attempts`` times and :class:`PoolClosed`
         when the pool is closed; requests still in flight are then cancelled.

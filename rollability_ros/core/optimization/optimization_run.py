@@ -13,6 +13,19 @@ Run directory ``<output_dir>/<run_id>/``: ``config.yaml`` (the merged parameters
 ``store.sqlite`` (every candidate and generation summary), ``checkpoint.pkl`` (after each completed generation)
 and, later, the designs exported by selection.
 
+Generations are numbered from 1 (:data:`FIRST_GENERATION`) in the store, the messages, bags, logs and reports;
+the seeds of generation number n are derived from its index n - 1, as before. Runs stored before this numbering
+(their run info has no ``first_generation``) keep 0 when resumed, so their stored candidates still match.
+
+The optimizer is pluggable: :class:`OptimizationRun` drives any object made by ``optimizer_factory`` (default
+:func:`cmaes_optimizer`) with ``ask() -> population``, ``tell(population, fitness, trials)``, ``stop() -> dict``,
+``result`` (an :class:`~rollability_ros.core.optimization.cmaes.OptimizerResult`), ``best``, ``sigma``,
+``generation`` (completed generations), ``evaluations``, ``elapsed_s`` and ``state_dict()``; optionally
+``reevaluation_request() -> heights or None`` and ``tell_reevaluation(fitness, trials)`` for an incumbent
+re-evaluation. :func:`run_generations` is the one loop (stop / pause / give-up policy) that ``rollability
+optimize`` and the ``optimizer`` node run; :func:`run_target` is the one resolution of which run to start or
+continue.
+
 Order within generation g: population -> store each candidate -> tell -> incumbent re-evaluation (stored as
 candidate index ``popsize``) -> store the generation summary -> checkpoint. A run killed anywhere in between
 resumes from the last checkpoint and redoes generation g; candidates already stored for g are reused when
@@ -20,8 +33,11 @@ their heights and seed are identical (evaluations are deterministic in heights a
 candidate that differs is an error. Either way the stored sequence equals that of an uninterrupted run.
 """
 import concurrent.futures
+import dataclasses
 import os
+import threading
 import time
+import typing
 
 import numpy as np
 import yaml
@@ -31,6 +47,7 @@ from rollability_ros.core.config import ConfigError, from_mapping, load_paramete
 from rollability_ros.core.optimization.cmaes import (
     STREAM_POPULATION,
     STREAM_REEVALUATION,
+    OptimizerResult,
     OptimizerSettings,
     ProfileOptimizer,
     derive_seed,
@@ -45,19 +62,21 @@ RUN_CONFIG_FILENAME = "config.yaml"
 RUN_KIND = "optimization"
 #: Parameter files every optimization config is loaded on top of (the evaluator's settings).
 BASE_CONFIGS = ("sim", "robot", "evaluator")
+#: Number of a run's first generation wherever generations are shown or stored.
+FIRST_GENERATION = 1
 
 
-def new_run_id(now_s=None):
+def new_run_id(now_s: typing.Optional[float] = None) -> str:
     """Return a run id from the local time, ``opt-YYYYmmdd-HHMMSS``."""
     return time.strftime("opt-%Y%m%d-%H%M%S", time.localtime(time.time() if now_s is None else now_s))
 
 
-def optimizer_settings(parameters):
+def optimizer_settings(parameters: dict) -> OptimizerSettings:
     """Return the :class:`OptimizerSettings` of a flat parameter dict (namespace ``optimizer``)."""
     return from_mapping(OptimizerSettings, section(parameters, "optimizer"), "optimizer")
 
 
-def load_run_parameters(config_paths):
+def load_run_parameters(config_paths: typing.Union[str, os.PathLike, typing.Sequence]) -> dict:
     """Merge :data:`BASE_CONFIGS` and ``config_paths`` (one or a list of paths or shipped names such as
     ``"paper"``; later files win, e.g. ``["optimizer", "runs/cal/calibrated.yaml"]``)."""
     if isinstance(config_paths, (str, os.PathLike)):
@@ -65,25 +84,52 @@ def load_run_parameters(config_paths):
     return load_parameters(list(BASE_CONFIGS) + list(config_paths))
 
 
-def resolve_run_dir(run, output_dir="runs"):
+def resolve_run_dir(run: typing.Union[str, os.PathLike], output_dir: str = "runs") -> str:
     """Return the directory of ``run``: a run directory path as given, else ``<output_dir>/<run>``."""
     if os.path.isfile(os.path.join(run, RUN_CONFIG_FILENAME)):
         return os.fspath(run)
     return os.path.join(output_dir, run)
 
 
-def run_id_of(run_dir):
+def run_id_of(run_dir: typing.Union[str, os.PathLike]) -> str:
     """The run id of a run directory: its name."""
     return os.path.basename(os.path.normpath(os.fspath(run_dir)))
 
 
-def write_run_config(path, parameters):
+def write_run_config(path: typing.Union[str, os.PathLike], parameters: dict) -> None:
     """Write flat ``parameters`` as a ROS 2 parameter file (``/**: {ros__parameters: {...}}``), atomically."""
     text = yaml.safe_dump({"/**": {"ros__parameters": section(parameters, "")}}, sort_keys=True)
     checkpoints.atomic_write_bytes(path, text.encode("utf-8"))
 
 
-def read_run_config(run_dir):
+def run_target(run_id: str, resume: bool, parameters: typing.Optional[dict],
+               output_dir: str = "runs") -> typing.Tuple[str, dict]:
+    """``(run_dir, parameters)`` of the run to start or continue: the one resolution the CLI and the node share.
+
+    A new run needs ``parameters`` and lives in ``<output_dir>/<run_id>`` (``run_id`` "" -> :func:`new_run_id`).
+    Resuming needs ``run_id`` (an id under ``output_dir`` or a run directory); its saved ``config.yaml`` is used
+    with ``parameters`` (if any) on top, so :class:`OptimizationRun` refuses a resume whose settings differ.
+    """
+    if not resume:
+        if parameters is None:
+            raise ValueError("a new run needs its parameters (e.g. --config optimizer, --config paper)")
+        return os.path.join(output_dir, run_id or new_run_id()), dict(parameters)
+    if not run_id:
+        raise ValueError("resume needs the run id (or directory) of the run to continue")
+    run_dir = resolve_run_dir(run_id, output_dir)
+    return run_dir, {**read_run_config(run_dir), **(parameters or {})}
+
+
+def cmaes_optimizer(n_variables: int, settings: OptimizerSettings, lower: float, upper: float,
+                    clock: typing.Callable[[], float], initial_mean: typing.Optional[np.ndarray] = None,
+                    state: typing.Optional[dict] = None) -> ProfileOptimizer:
+    """The default ``optimizer_factory``: a :class:`ProfileOptimizer`, new or restored from a checkpoint ``state``."""
+    if state is None:
+        return ProfileOptimizer(n_variables, settings, lower, upper, clock, initial_mean)
+    return ProfileOptimizer.from_state_dict(state, n_variables, settings, lower, upper, clock, initial_mean)
+
+
+def read_run_config(run_dir: typing.Union[str, os.PathLike]) -> dict:
     """Return the flat parameters saved in ``<run_dir>/config.yaml``; ``FileNotFoundError`` if it is not a run."""
     path = os.path.join(run_dir, RUN_CONFIG_FILENAME)
     if not os.path.isfile(path):
@@ -91,7 +137,8 @@ def read_run_config(run_dir):
     return load_parameters(path)
 
 
-def profile_screen(parameters, evaluator_settings, screen_settings=None):
+def profile_screen(parameters: dict, evaluator_settings: typing.Any,
+                   screen_settings: typing.Any = None) -> typing.Optional[typing.Callable]:
     """The ``screen_profiles`` an :class:`OptimizationRun` with these flat ``parameters`` needs: the stable-pose
     screen of profiles on the robot of ``evaluator_settings`` under ``screen_settings`` (default: namespace
     ``stable_poses`` of ``parameters``, the defaults of ``config/calibration.yaml`` where absent); None when
@@ -121,7 +168,7 @@ class OptimizationRun:
     evaluate_batch : callable
         See the module docstring.
     resume : bool
-        Continue the run in ``run_dir`` from its last checkpoint (or from scratch if it died in generation 0).
+        Continue the run in ``run_dir`` from its last checkpoint (or from scratch if it died in its first generation).
     on_candidate : callable(CandidateRecord), optional
         Called after each newly evaluated candidate is stored.
     on_generation : callable(GenerationRecord), optional
@@ -132,11 +179,15 @@ class OptimizationRun:
         barrier), recorded in the store's run info. Default: :func:`profile_screen` on the robot that
         ``parameters`` describe (a caller whose parameters do not hold the robot, the node, passes its own).
 
+    optimizer_factory : callable, optional
+        ``factory(n_variables, settings, lower, upper, clock, initial_mean, state=None)`` -> the optimizer the run
+        drives (module docstring); default :func:`cmaes_optimizer`.
+
     ``on_candidate`` and ``on_generation`` are also public attributes, settable after construction.
     """
 
     def __init__(self, run_dir, parameters, grid, evaluate_batch, resume=False, on_candidate=None,
-                 on_generation=None, clock=time.monotonic, screen_profiles=None):
+                 on_generation=None, clock=time.monotonic, screen_profiles=None, optimizer_factory=None):
         self.run_dir = os.fspath(run_dir)
         self.run_id = run_id_of(self.run_dir)
         self.parameters = dict(parameters)
@@ -146,12 +197,16 @@ class OptimizationRun:
         self.on_candidate = on_candidate
         self.on_generation = on_generation
         self._clock = clock
+        self._optimizer_factory = optimizer_factory or cmaes_optimizer
         self.checkpoint_path = os.path.join(self.run_dir, checkpoints.CHECKPOINT_FILENAME)
         self.initial_mean_screen = self._screen_initial_means(screen_profiles)
         self.optimizer = self._resume() if resume else self._start()
         self.store = Store(self.run_dir)
         described = self.store.run_info(self.run_id)  # keep what selection added on an earlier pass
         info = dict(described["info"]) if described else {}
+        if "first_generation" not in info:  # a run stored before generations were numbered from 1 keeps 0
+            info["first_generation"] = 0 if resume and self.store.candidates(run_id=self.run_id) else FIRST_GENERATION
+        self.first_generation = int(info["first_generation"])
         info.update(n_variables=grid.n_variables, popsize=self.settings.popsize, seed=self.settings.seed)
         if self.initial_mean_screen is not None:
             info["initial_mean_screen"] = self.initial_mean_screen
@@ -176,7 +231,7 @@ class OptimizationRun:
         return {"chosen": chosen, "upright_probability": [round(s.upright_probability, 4) for s in screens],
                 "worst_barrier_m": [round(s.worst_barrier_m, 5) for s in screens]}
 
-    def initial_mean_text(self):
+    def initial_mean_text(self) -> str:
         """One line on where CMA-ES started, for the CLI and the node log."""
         screen = self.initial_mean_screen
         if screen is None:
@@ -186,9 +241,31 @@ class OptimizationRun:
                 f"screen (quasi-static P(upright) {screen['upright_probability'][chosen]:.3f}, worst barrier "
                 f"{screen['worst_barrier_m'][chosen] * 1000:.1f} mm)")
 
-    def _new_optimizer(self):
-        return ProfileOptimizer(self.grid.n_variables, self.settings, self.grid.height_min, self.grid.height_max,
-                                self._clock, self._initial_mean)
+    def _new_optimizer(self, state=None):
+        return self._optimizer_factory(self.grid.n_variables, self.settings, self.grid.height_min,
+                                       self.grid.height_max, self._clock, self._initial_mean, state=state)
+
+    def generation_number(self, index: int) -> int:
+        """The number shown and stored for the generation of 0-based ``index`` (the seeds' index)."""
+        return index + self.first_generation
+
+    def start_text(self, resume: bool) -> str:
+        """One line on the run starting or resuming, for the CLI and the node log."""
+        completed = self.optimizer.generation
+        where = (f"resuming after generation {self.generation_number(completed - 1)}" if resume and completed
+                 else f"starting at generation {self.generation_number(completed)}")
+        return (f"run {self.run_id} in {self.run_dir}: {where}, popsize {self.settings.popsize}, "
+                f"{self.settings.trials} trials per candidate")
+
+    def end_text(self, end: "RunEnd") -> str:
+        """One line on how the run ended and its best design, for the CLI and the node log."""
+        result = end.result
+        best = result.best
+        why = "stop service" if end.status == "stopped" else ", ".join(result.stop) or "no criterion"
+        summary = (f"best fitness {best.fitness:.3f} over {best.trials} trials (first seen in generation "
+                   f"{self.generation_number(best.generation)})" if best is not None else "no generation completed")
+        return (f"run {self.run_id} ended after {result.generations} generation(s), {result.evaluations} "
+                f"evaluations ({why}): {summary}; run directory {self.run_dir}")
 
     def _start(self):
         config_path = os.path.join(self.run_dir, RUN_CONFIG_FILENAME)
@@ -209,17 +286,15 @@ class OptimizationRun:
         return self._from_checkpoint()
 
     def _from_checkpoint(self):
-        """The optimizer as of the last checkpoint (a fresh one if generation 0 never completed)."""
+        """The optimizer as of the last checkpoint (a fresh one if the first generation never completed)."""
         state = checkpoints.load_checkpoint(self.checkpoint_path)
         if state is None:
             return self._new_optimizer()
         checkpoints.check_same_config(state, self.parameters, self.checkpoint_path)
-        return ProfileOptimizer.from_state_dict(state["optimizer"], self.grid.n_variables, self.settings,
-                                                self.grid.height_min, self.grid.height_max, self._clock,
-                                                self._initial_mean)
+        return self._new_optimizer(state["optimizer"])
 
     # --- one generation ---------------------------------------------------------------------------------------
-    def step(self):
+    def step(self) -> GenerationRecord:
         """Evaluate, log and checkpoint one generation; return its :class:`GenerationRecord`.
 
         If the evaluator raises, the optimizer is rolled back to the last checkpoint before the error propagates,
@@ -233,17 +308,19 @@ class OptimizationRun:
 
     def _step(self):
         optimizer, settings = self.optimizer, self.settings
-        generation = optimizer.generation
+        index = optimizer.generation                      # the seeds' index
+        generation = self.generation_number(index)        # the stored and shown number
         stored = {c.index: c for c in self.store.candidates(run_id=self.run_id, generation=generation)}
         population = optimizer.ask()
-        seeds = [derive_seed(settings.seed, generation, STREAM_POPULATION,
-                             0 if settings.common_random_numbers else index) for index in range(len(population))]
+        seeds = [derive_seed(settings.seed, index, STREAM_POPULATION,
+                             0 if settings.common_random_numbers else i) for i in range(len(population))]
         results = self._evaluate(generation, list(range(len(population))), population, seeds, stored)
         fitness = [r.fitness for r in results]
         optimizer.tell(population, fitness, [r.trials for r in results])
-        request = optimizer.reevaluation_request()
+        reevaluation_request = getattr(optimizer, "reevaluation_request", None)
+        request = reevaluation_request() if reevaluation_request is not None else None
         if request is not None:
-            seed = derive_seed(settings.seed, generation, STREAM_REEVALUATION)
+            seed = derive_seed(settings.seed, index, STREAM_REEVALUATION)
             (again,) = self._evaluate(generation, [settings.popsize], [request], [seed], stored)
             optimizer.tell_reevaluation(again.fitness, again.trials)
         best = int(np.argmax(fitness))
@@ -293,16 +370,15 @@ class OptimizationRun:
         return [records[index] for index in indices]
 
     # --- the loop -----------------------------------------------------------------------------------------------
-    def run(self, cancel_event=None):
+    def run(self, cancel_event: typing.Optional[threading.Event] = None) -> OptimizerResult:
         """Run generations until a stop criterion is met or ``cancel_event`` (a ``threading.Event``) is set.
 
         Returns the :class:`OptimizerResult`; cancelling keeps the last checkpoint, so the run can be resumed.
         """
-        while not self.optimizer.stop() and not (cancel_event is not None and cancel_event.is_set()):
-            self.step()
-        return self.optimizer.result
+        stop_requested = cancel_event.is_set if cancel_event is not None else _never
+        return run_generations(self, stop_requested).result
 
-    def eta_s(self):
+    def eta_s(self) -> float:
         """Estimated wall time to the generation cap (or the wall-time cap if sooner), s; NaN before a generation."""
         done = self.optimizer.generation - self._session_start_generation
         if done == 0:
@@ -315,36 +391,68 @@ class OptimizationRun:
             remaining.append(max(0.0, self.settings.max_wall_time_s - self.optimizer.elapsed_s))
         return min(remaining) if remaining else float("nan")
 
-    def close(self):
+    def close(self) -> None:
         """Close the store."""
         self.store.close()
 
 
-class SyntheticEvaluator:
-    """A cheap stand-in evaluator with a known optimum, for tests, benchmarks and dry runs of the plumbing.
+def _never() -> bool:
+    return False
 
-    Success probability ``p(h) = peak * exp(-d**2 / (2 * width**2))`` with ``d`` the RMS distance between the
-    heights and ``optimum`` (simulation units). Trial ``j`` of a seed draws ``u_j ~ U(0, 1)`` from that seed and
-    succeeds when ``u_j < p(h)``: profiles evaluated with the same seed share their disturbances (common random
-    numbers), exactly like the physics evaluator's seeded trials.
+
+@dataclasses.dataclass(frozen=True)
+class RunEnd:
+    """How :func:`run_generations` ended.
+
+    ``status``: ``finished`` (a stop criterion was met), ``stopped`` (``stop_requested``), ``interrupted`` (one of
+    ``interruptions`` was raised, e.g. shutdown; the checkpoint resumes it) or ``failed`` (a generation got no
+    real results and ``on_evaluation_failed`` gave up; ``reason`` says why).
     """
 
-    def __init__(self, optimum, trials, width=0.1, peak=0.9, name="synthetic"):
-        self.optimum = np.asarray(optimum, dtype=np.float64)
-        self.trials, self.width, self.peak, self.name = int(trials), float(width), float(peak), name
+    status: str
+    result: OptimizerResult
+    reason: str = ""
 
-    def success_probability(self, heights):
-        """The true fitness ``p(h)`` of ``heights``."""
-        distance = np.sqrt(np.mean((np.asarray(heights, dtype=np.float64) - self.optimum) ** 2))
-        return float(self.peak * np.exp(-0.5 * (distance / self.width) ** 2))
-
-    def __call__(self, heights_list, seed):
-        """``evaluate_batch``: one (successes, trials, eval_time_s, name) per height array."""
-        draws = np.random.default_rng(seed).random(self.trials)
-        return [(int(np.sum(draws < self.success_probability(h))), self.trials, 0.0, self.name) for h in heights_list]
+    @property
+    def exit_code(self) -> typing.Optional[int]:
+        """0 finished or stopped, 1 failed, None interrupted."""
+        return {"finished": 0, "stopped": 0, "failed": 1}.get(self.status)
 
 
-def profile_batch_evaluator(settings, trials, executor, name="local"):
+def give_up(error: Exception) -> bool:
+    """The default ``on_evaluation_failed``: end the run (``failed``)."""
+    return False
+
+
+def run_generations(run: OptimizationRun, stop_requested: typing.Callable[[], bool] = _never,
+                    on_evaluation_failed: typing.Callable[[Exception], bool] = give_up,
+                    evaluation_errors: typing.Tuple[type, ...] = (),
+                    interruptions: typing.Tuple[type, ...] = ()) -> RunEnd:
+    """The optimization loop: :meth:`OptimizationRun.step` until a stop criterion or ``stop_requested()``.
+
+    A generation whose evaluation raises one of ``evaluation_errors`` is rolled back to the checkpoint; then
+    ``on_evaluation_failed(error)`` decides: True tries the generation again (a caller that paused its evaluators
+    makes the next step wait for a resume), False ends the run as ``failed``. One of ``interruptions`` ends it as
+    ``interrupted``. A stop request is honoured between generations, so the last one is checkpointed. Any other
+    error propagates.
+    """
+    while not run.optimizer.stop() and not stop_requested():
+        try:
+            run.step()
+        except interruptions:
+            return RunEnd("interrupted", run.optimizer.result)
+        except evaluation_errors as exc:
+            if stop_requested():
+                break
+            if not on_evaluation_failed(exc):
+                return RunEnd("failed", run.optimizer.result,
+                              f"generation {run.generation_number(run.optimizer.generation)} got no real results "
+                              f"({exc})")
+    return RunEnd("stopped" if stop_requested() else "finished", run.optimizer.result)
+
+
+def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.Any,
+                            name: str = "local") -> typing.Callable:
     """``evaluate_batch`` over :func:`evaluation.evaluate_profile` on ``executor`` (a LocalExecutor or RayExecutor).
 
     The profiles of a batch are evaluated concurrently (one thread each submitting its trial batches), so the
@@ -352,7 +460,7 @@ def profile_batch_evaluator(settings, trials, executor, name="local"):
     """
     from rollability_ros.core.sim.evaluation import evaluate_profile
 
-    def evaluate_batch(heights_list, seed):
+    def evaluate_batch(heights_list: typing.Sequence[np.ndarray], seed: int) -> typing.List[tuple]:
         threads = concurrent.futures.ThreadPoolExecutor(max_workers=max(1, len(heights_list)))
         try:
             futures = [threads.submit(evaluate_profile, heights, trials, seed, settings, executor)

@@ -1,6 +1,7 @@
 """Records, the durable store, and everything read from it: analysis, figures, report, statistics.
 
-- records: plain records exchanged between core, store, bags and nodes
+- records: plain records exchanged between core, store, bags and nodes, each with validate()
+- record_messages: the one record <-> ROS message mapping (rclpy in nodes/_convert, rosbags in bags/messages)
 - store: SQLite (WAL) store of outcomes, candidates, generations, tip events
 - outcome_log: store-before-acknowledge bookkeeping of the outcome logger
 - outcome_csv: strict CSV import/export of hand-recorded outcomes

@@ -92,6 +92,17 @@ class CandidateRecord:
     evaluator: str = ""
     stamp_s: float = 0.0
 
+    def validate(self):
+        """Raise ``ValueError`` for an inconsistent candidate (successes > trials, NaN heights, ...)."""
+        if not self.run_id:
+            raise ValueError("run_id is empty")
+        if self.successes > self.trials:
+            raise ValueError(f"successes {self.successes} > trials {self.trials}")
+        if not all(math.isfinite(h) for h in self.heights):
+            raise ValueError("heights contain NaN or infinity")
+        if not (math.isfinite(self.fitness) and 0.0 <= self.fitness <= 1.0):
+            raise ValueError(f"fitness {self.fitness} is not in [0, 1]")
+
 
 @dataclasses.dataclass(frozen=True)
 class GenerationRecord:
@@ -108,6 +119,11 @@ class GenerationRecord:
     elapsed_s: float
     stamp_s: float = 0.0
 
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.run_id:
+            raise ValueError("GenerationRecord: run_id must be non-empty")
+
 
 @dataclasses.dataclass(frozen=True)
 class TipEventRecord:
@@ -122,3 +138,10 @@ class TipEventRecord:
     final_orientation: tuple = (0.0, 0.0, 0.0, 1.0)
     frame_id: str = ""
     stamp_s: float = 0.0
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.robot:
+            raise ValueError("TipEventRecord: robot must be non-empty")
+        if not math.isfinite(self.tipped_at_s):
+            raise ValueError(f"TipEvent: tipped_at must be a finite time, got {self.tipped_at_s}")

@@ -1,4 +1,9 @@
-"""The launch rig's sequence for one trial, without ROS: goal checks, phases, operator answers, IMU outcome, speed.
+"""The two :class:`~rollability_ros.core.rig.launch_backend.LaunchBackend` implementations and their factory,
+without ROS: goal checks, phases, operator answers, IMU outcome, speed.
+
+:func:`make_launch_backend` builds the backend ``rig.backend`` names (:class:`SimulatedLaunch` or
+:class:`PhysicalLaunch`) on the caller's :class:`~rollability_ros.core.rig.launch_backend.RigPorts`; callers
+(the ``rig`` node, the in-process campaign) use only the contract.
 
 :class:`PhysicalLaunch` runs one physical launch against ports the caller provides (the ``rig`` node wires them to
 ROS services and topics; tests and the in-process CLI wire them to a :class:`~rollability_ros.core.rig.valve.
@@ -25,26 +30,27 @@ import importlib
 import math
 import threading
 import time
+import types
 import typing
 import zlib
 
-from rollability_ros.core.results.records import NOT_MEASURED, LaunchOutcome
-from rollability_ros.core.imu.upright import ImuUprightClassifier
+from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
+from rollability_ros.core.results.records import NOT_MEASURED, LaunchCondition, LaunchOutcome
+from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
+                                                     RigPorts, no_phase, not_cancelled)
+from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
+from rollability_ros.core.rig.valve import ValveConfig
 
 #: Feedback phases of the Launch action, in order.
 PHASES = ("waiting_for_operator", "armed", "fired", "in_flight", "settling", "classifying")
 #: ``rig.backend`` values.
-RIG_BACKENDS = ("sim", "physical")
+RIG_BACKENDS = ("sim", "physical")   # keys of LAUNCH_BACKENDS, kept here for RigSettings.validate
 #: ``rig.outcome_source`` values (physical backend).
 OUTCOME_SOURCES = ("operator", "imu")
 #: Start of the ``classifying`` feedback detail while the rig waits for the operator's outcome.
 ASK_OUTCOME = "record the outcome"
 #: Start of the ``waiting_for_operator`` detail while the rig waits for the regulator confirmation.
 ASK_REGULATOR = "set the regulator"
-
-
-class LaunchAborted(RuntimeError):
-    """A launch ended without an outcome (valve refused or cut the pulse, operator timeout, cancel)."""
 
 
 @dataclasses.dataclass
@@ -61,7 +67,7 @@ class RigSettings:
     seed: int = 0
     twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"])
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if self.backend not in RIG_BACKENDS:
             raise ValueError(f"backend must be one of {RIG_BACKENDS}, got {self.backend!r}")
@@ -75,7 +81,8 @@ class RigSettings:
             raise ValueError("operator_timeout_s and valve_timeout_s must be finite and > 0")
 
 
-def check_goal(run_id, trial_id, condition, configurations):
+def check_goal(run_id: str, trial_id: str, condition: LaunchCondition,
+               configurations: typing.Sequence[str]) -> str:
     """Refuse a launch goal that cannot run; returns the reason ("" when acceptable).
 
     Parameters
@@ -107,7 +114,7 @@ class OperatorOutcome:
     note: str = ""
 
 
-def parse_outcome_answer(text):
+def parse_outcome_answer(text: str) -> "OperatorOutcome":
     """Parse a typed outcome ``"y|n [travel time s] [note...]"`` into an :class:`OperatorOutcome`.
 
     ``y``/``yes``/``u``/``upright`` mean upright, ``n``/``no``/``t``/``tipped`` not; raises ``ValueError`` otherwise.
@@ -143,21 +150,21 @@ class OperatorChannel:
         self._trial_id = ""
         self._answer = None
 
-    def open(self, kind, trial_id=""):
+    def open(self, kind: str, trial_id: str = "") -> None:
         """Start waiting for a ``"confirm"`` or an ``"outcome"`` (of ``trial_id``)."""
         if kind not in ("confirm", "outcome"):
             raise ValueError(f"kind must be 'confirm' or 'outcome', got {kind!r}")
         with self._cond:
             self._kind, self._trial_id, self._answer = kind, trial_id, None
 
-    def close(self):
+    def close(self) -> None:
         """Stop waiting; later answers are refused."""
         with self._cond:
             self._kind, self._answer = None, None
             self._cond.notify_all()
 
     @property
-    def waiting_for(self):
+    def waiting_for(self) -> typing.Optional[str]:
         """``"confirm"``, ``"outcome"`` or None."""
         with self._cond:
             return self._kind
@@ -177,15 +184,16 @@ class OperatorChannel:
             self._cond.notify_all()
             return True, "accepted"
 
-    def confirm(self):
+    def confirm(self) -> typing.Tuple[bool, str]:
         """Answer an open regulator confirmation. Returns ``(accepted, message)``."""
         return self._deliver("confirm", True)
 
-    def record_outcome(self, outcome, trial_id=""):
+    def record_outcome(self, outcome: OperatorOutcome, trial_id: str = "") -> typing.Tuple[bool, str]:
         """Answer an open outcome question with an :class:`OperatorOutcome` (``trial_id`` "" = the current one)."""
         return self._deliver("outcome", outcome, trial_id)
 
-    def wait(self, timeout_s, cancelled=lambda: False, poll_s=0.05):
+    def wait(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
+             poll_s: float = 0.05) -> typing.Any:
         """Return the answer once given, or None on timeout / ``cancelled()``; the question stays open."""
         deadline = time.monotonic() + timeout_s
         with self._cond:
@@ -206,20 +214,21 @@ class ImuOutcome:
         self._cond = threading.Condition()
         self._reading = None
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget everything before the launch (a chassis waiting on the launcher looks settled too)."""
         with self._cond:
             self._classifier.reset()
             self._reading = None
 
-    def feed(self, sample):
+    def feed(self, sample: ImuSample) -> None:
         """Classify one :class:`~rollability_ros.core.imu.upright.ImuSample`; bad samples raise ``ValueError``."""
         with self._cond:
             self._reading = self._classifier.update(sample)
             if self._reading.classification is not None:
                 self._cond.notify_all()
 
-    def wait_settled(self, timeout_s, cancelled=lambda: False, poll_s=0.05):
+    def wait_settled(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
+                     poll_s: float = 0.05) -> typing.Optional[UprightReading]:
         """The first settled :class:`~rollability_ros.core.imu.upright.UprightReading`, or None on timeout/cancel."""
         deadline = time.monotonic() + timeout_s
         with self._cond:
@@ -231,12 +240,8 @@ class ImuOutcome:
             return self._reading
 
 
-def _no_phase(phase, detail):
-    """Default ``on_phase``: ignore."""
-
-
-class PhysicalLaunch:
-    """Runs launches on the physical rig through its ports (see the module docstring).
+class PhysicalLaunch(LaunchBackend):
+    """The ``physical`` :class:`LaunchBackend`: launches on the rig through its ports (see the module docstring).
 
     Parameters
     ----------
@@ -263,8 +268,39 @@ class PhysicalLaunch:
         self.operator = operator
         self.imu = imu
         self._confirmed_psi = None
+        self._ports = None
 
-    def check(self, run_id, trial_id, condition):
+    name = "physical"
+    attended = True
+
+    @classmethod
+    def from_ports(cls, settings: "RigSettings", speed_config: SpeedGateConfig, valve_config: ValveConfig,
+                   imu_config: ImuOutcomeConfig, ports: RigPorts) -> "PhysicalLaunch":
+        """Open the valve, speed gate and (for ``outcome_source`` imu) IMU ports; :meth:`close` closes them."""
+        imu = None
+        try:
+            if settings.outcome_source == "imu":
+                imu = ImuOutcome(imu_config)
+                ports.open_imu(imu)
+            backend = cls(settings, ports.open_valve(valve_config), ports.open_speed_gate(speed_config),
+                          speed_config, valve_config.launch_pulse_ms, valve_config.regulator, OperatorChannel(), imu)
+        except BaseException:
+            ports.close()
+            raise
+        backend._ports = ports
+        return backend
+
+    def describe(self) -> str:
+        """One line for the start-up log: the backend and where outcomes come from."""
+        return f"backend physical, outcome from {self.settings.outcome_source}"
+
+    def close(self) -> None:
+        """Stop waiting for the operator and close the ports this backend opened (keep-alive, valve)."""
+        self.operator.close()
+        if self._ports is not None:
+            self._ports.close()
+
+    def check(self, run_id: str, trial_id: str, condition: LaunchCondition) -> str:
         """:func:`check_goal` plus a configured regulator pressure for the speed; returns the reason or ""."""
         reason = check_goal(run_id, trial_id, condition, self.settings.configurations)
         if reason:
@@ -292,11 +328,14 @@ class PhysicalLaunch:
         if status.armed and not status.fault:
             self.valve.disarm()
 
-    def launch(self, run_id, trial_id, condition, on_phase=_no_phase, cancelled=lambda: False):
+    def launch(self, run_id: str, trial_id: str, condition: LaunchCondition, on_phase: PhaseCallback = no_phase,
+               *, on_pose: typing.Optional[PoseCallback] = None,
+               cancelled: typing.Callable[[], bool] = not_cancelled) -> LaunchOutcome:
         """Run one launch and return its :class:`LaunchOutcome` (``backend="physical"``).
 
-        ``on_phase(phase, detail)`` reports progress; ``cancelled()`` aborts at the next wait. Raises
-        ``ValueError`` for a goal :meth:`check` refuses and :class:`LaunchAborted` when no outcome was obtained.
+        ``on_phase(phase, detail)`` reports progress; ``cancelled()`` aborts at the next wait; ``on_pose`` is not
+        called (the rig has no pose source). Raises ``ValueError`` for a goal :meth:`check` refuses and
+        :class:`LaunchAborted` when no outcome was obtained.
         """
         reason = self.check(run_id, trial_id, condition)
         if reason:
@@ -375,26 +414,38 @@ class PhysicalLaunch:
         return self._ask("outcome", trial_id, "classifying", detail, on_phase, cancelled), None
 
 
-class SimulatedLaunch:
-    """Launches on the launch twin (``rollability_ros.core.sim.launch_twin``), imported at the first launch so the
-    physical rig runs without pybullet installed.
+class SimulatedLaunch(LaunchBackend):
+    """The ``sim`` :class:`LaunchBackend`: launches on the launch twin (``rollability_ros.core.sim.launch_twin``),
+    imported at the first launch (or :meth:`load`) so the physical rig runs without pybullet installed.
 
     Parameters
     ----------
     settings : RigSettings
-        ``seed`` is mixed with each trial id (:func:`trial_seed`), so a trial's outcome is reproducible;
+        ``seed`` is mixed with each trial id (:func:`launch_seed`), so a trial's outcome is reproducible;
         ``twin_config`` lists the twin's parameter files (shipped names or paths).
     speed_config : SpeedGateConfig
         Tolerance of the speed check on the twin's travel time.
     """
 
+    name = "sim"
+    attended = False
+
     def __init__(self, settings, speed_config):
         self.settings = settings
         self.speed_config = speed_config
+        self.operator = OperatorChannel()   # never opened: the twin asks nothing, so every answer is refused
         self._twin = None
         self._twin_settings = None
 
-    def load(self):
+    @classmethod
+    def from_ports(cls, settings: "RigSettings", speed_config: SpeedGateConfig, valve_config: ValveConfig,
+                   imu_config: ImuOutcomeConfig, ports: RigPorts) -> "SimulatedLaunch":
+        """A twin backend with its settings loaded now (fails early on a bad ``twin_config``); opens no port."""
+        backend = cls(settings, speed_config)
+        backend.load()
+        return backend
+
+    def load(self) -> types.ModuleType:
         """Import the twin and read its settings now (a node does it at start-up to fail early)."""
         if self._twin is None:
             twin = importlib.import_module("rollability_ros.core.sim.launch_twin")
@@ -402,18 +453,53 @@ class SimulatedLaunch:
             self._twin = twin
         return self._twin
 
-    def launch(self, run_id, trial_id, condition, on_phase=_no_phase, on_pose=None):
+    def check(self, run_id: str, trial_id: str, condition: LaunchCondition) -> str:
+        """:func:`check_goal` against ``rig.configurations``; returns the reason or ""."""
+        return check_goal(run_id, trial_id, condition, self.settings.configurations)
+
+    def launch(self, run_id: str, trial_id: str, condition: LaunchCondition, on_phase: PhaseCallback = no_phase,
+               *, on_pose: typing.Optional[PoseCallback] = None,
+               cancelled: typing.Callable[[], bool] = not_cancelled) -> LaunchOutcome:
         """Simulate one launch and return its :class:`LaunchOutcome` (``backend="sim"``).
 
-        ``on_pose(t_s, position_m, orientation_xyzw)`` receives the chassis pose (simulated s from the push).
+        ``on_pose(t_s, position_m, orientation_xyzw)`` receives the chassis pose (simulated s from the push);
+        ``cancelled()`` is checked before the launch (a simulated launch takes a fraction of a second).
         """
+        reason = self.check(run_id, trial_id, condition)
+        if reason:
+            raise ValueError(reason)
+        if cancelled():
+            raise LaunchAborted("cancelled before the launch")
         twin = self.load()
-        result = twin.simulate_launch(condition, self._twin_settings, trial_seed(self.settings.seed, trial_id),
+        result = twin.simulate_launch(condition, self._twin_settings, launch_seed(self.settings.seed, trial_id),
                                       on_phase=lambda phase: on_phase(phase, "launch twin"), on_pose=on_pose)
         return simulated_outcome(run_id, trial_id, condition, result, self.speed_config)
 
 
-def speed_note(speed, target_mps, tolerance_fraction):
+#: ``rig.backend`` -> the :class:`LaunchBackend` implementation.
+LAUNCH_BACKENDS = {"sim": SimulatedLaunch, "physical": PhysicalLaunch}
+
+
+def launch_backend_class(name: str) -> typing.Type[LaunchBackend]:
+    """The :class:`LaunchBackend` class for a ``rig.backend`` value; ``ValueError`` names the known ones."""
+    try:
+        return LAUNCH_BACKENDS[name]
+    except KeyError:
+        raise ValueError(f"backend must be one of {tuple(LAUNCH_BACKENDS)}, got {name!r}") from None
+
+
+def make_launch_backend(settings: RigSettings, speed_config: SpeedGateConfig, valve_config: ValveConfig,
+                        imu_config: ImuOutcomeConfig, ports: RigPorts) -> LaunchBackend:
+    """The backend ``settings.backend`` names, opened on ``ports`` (the only place that looks at the name).
+
+    Raises ``ValueError`` for unusable settings (a bad twin configuration, an IMU the caller cannot provide) and
+    ``ImportError`` when the simulated backend's dependencies are missing.
+    """
+    settings.validate()
+    return launch_backend_class(settings.backend).from_ports(settings, speed_config, valve_config, imu_config, ports)
+
+
+def speed_note(speed: SpeedMeasurement, target_mps: float, tolerance_fraction: float) -> str:
     """The outcome note for a flagged :class:`~rollability_ros.core.rig.speed_gate.SpeedMeasurement` ("" if not)."""
     if not speed.speed_out_of_tolerance:
         return ""
@@ -421,12 +507,15 @@ def speed_note(speed, target_mps, tolerance_fraction):
             f"{target_mps:g} m/s")
 
 
-def trial_seed(base_seed, trial_id):
-    """A reproducible per-trial seed (same in every process, unlike ``hash``): ``base_seed`` mixed with the id."""
+def launch_seed(base_seed: int, trial_id: str) -> int:
+    """The seed of a simulated launch, reproducible in every process (unlike ``hash``): ``base_seed`` mixed with
+    the trial id by CRC-32. (Not :func:`rollability_ros.core.sim.evaluation.trial_seed`, which numbers the trials
+    of one profile evaluation; each keeps its algorithm so stored results stay reproducible.)"""
     return (zlib.crc32(trial_id.encode("utf-8")) ^ (base_seed & 0xFFFFFFFF)) & 0x7FFFFFFF
 
 
-def simulated_outcome(run_id, trial_id, condition, result, speed_config):
+def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, result: typing.Any,
+                      speed_config: SpeedGateConfig) -> LaunchOutcome:
     """The :class:`LaunchOutcome` of a launch twin result (``upright``, ``final_orientation_xyzw``,
     ``travel_time_s``), with the speed flagged against ``speed_config``'s tolerance."""
     travel_time_s = float(getattr(result, "travel_time_s", NOT_MEASURED))

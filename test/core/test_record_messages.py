@@ -1,0 +1,75 @@
+"""The one record <-> message mapping (core/results/record_messages.py) through the rosbags binding: round trips,
+stamps, and the validation the nodes and the bag reader share."""
+import math
+
+import pytest
+
+from rollability_ros.core.bags.messages import make_message, message_from_record, read_records_from_bag, typestore
+from rollability_ros.core.bags.writer import BagWriter
+from rollability_ros.core.results import record_messages
+from rollability_ros.core.results.records import (CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome,
+                                                  TipEventRecord)
+
+RECORDS = [
+    LaunchOutcome("camp", "A/t1", LaunchCondition("A", 0.75, 0.8, -30.0, 2), "physical", True, 0.41, 0.83, False,
+                  (0.0, 0.0, 0.6, 0.8), "operator", "lid", 1_700_000_000.25),
+    CandidateRecord("opt", 3, 1, (0.1, 0.2, 0.3), 0.5, 5, 10, 77, 1.5, "eval_0", 1_700_000_001.5),
+    GenerationRecord("opt", 3, 0.6, 0.4, 0.7, 0.05, (0.1, 0.2, 0.3), 48, 12.5, 1_700_000_002.0),
+    TipEventRecord("husky", 1_700_000_003.125, 2.5, True, 120.0, 3.0, (0.0, 0.0, 0.0, 1.0), "imu_link",
+                   1_700_000_004.0),
+]
+
+
+@pytest.mark.parametrize("record", RECORDS, ids=lambda r: type(r).__name__)
+def test_every_record_round_trips_through_cdr(record):
+    type_name, message = message_from_record(record)
+    decoded = typestore().deserialize_cdr(bytes(typestore().serialize_cdr(message, type_name)), type_name)
+    again = record_messages.record_from_message(type_name, decoded)
+    assert type(again) is type(record)
+    for field, value in vars(record).items():
+        expected = getattr(again, field)
+        if isinstance(value, float):
+            assert expected == pytest.approx(value, abs=1e-9), field
+        else:
+            assert expected == value, field
+
+
+def test_stamps_clamp_nanoseconds_and_refuse_impossible_times():
+    assert record_messages.split_stamp(1.9999999999) == (1, 999_999_999)   # rounds to 1e9 ns: clamped
+    assert record_messages.split_stamp(12.5) == (12, 500_000_000)
+    for impossible in (math.nan, math.inf, -3.0):
+        assert record_messages.split_stamp(impossible) == (0, 0)
+    stamp = record_messages.make_stamp(make_message, 1.9999999999)
+    assert (stamp.sec, stamp.nanosec) == (1, 999_999_999)
+
+
+def _malformed():
+    """Messages the outcome_logger refuses: successes > trials, an unknown backend, an empty robot."""
+    _, candidate = message_from_record(RECORDS[1])
+    candidate.successes = 11
+    _, outcome = message_from_record(RECORDS[0])
+    outcome.backend = "hybrid"
+    _, tip = message_from_record(RECORDS[3])
+    tip.robot = ""
+    return [(record_messages.CANDIDATE_TYPE, candidate, "successes 11 > trials 10"),
+            (record_messages.OUTCOME_TYPE, outcome, "backend must be one of"),
+            (record_messages.TIP_EVENT_TYPE, tip, "robot must be non-empty")]
+
+
+def test_malformed_messages_are_refused_and_the_bag_reader_skips_them(tmp_path, caplog):
+    for type_name, message, reason in _malformed():
+        with pytest.raises(ValueError, match=reason):
+            record_messages.record_from_message(type_name, message)
+    bag_dir = tmp_path / "bag"
+    with BagWriter(bag_dir) as bag:
+        topics = {}
+        for type_name in record_messages.RECORD_TYPES:
+            topics[type_name] = f"/{type_name.rsplit('/', 1)[-1].lower()}"
+            bag.add_topic(topics[type_name], type_name)
+        stamp_ns = 10**18
+        for type_name, message in [message_from_record(r) for r in RECORDS] + [m[:2] for m in _malformed()]:
+            stamp_ns += 1
+            bag.write(topics[type_name], bytes(typestore().serialize_cdr(message, type_name)), stamp_ns)
+    outcomes, candidates, generations, tip_events = read_records_from_bag(bag_dir)
+    assert (len(outcomes), len(candidates), len(generations), len(tip_events)) == (1, 1, 1, 1)
+    assert sum("skipped malformed" in r.message for r in caplog.records) == 3

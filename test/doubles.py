@@ -1,0 +1,60 @@
+"""Test doubles: cheap stand-ins with known answers, for tests and benchmarks (never imported by the package).
+
+- :class:`SyntheticEvaluator`: an ``evaluate_batch`` with a known optimum, for optimization-loop tests and for
+  timing the plumbing without physics (bench/bench_optimizer.py);
+- :func:`synthetic_outcomes`: "physical" launch outcomes made on the launch twin with hidden parameter values, to
+  test that a calibration recovers them (bench/bench_calibration.py).
+
+Tests import them as ``from doubles import ...`` (pytest puts test/ on the path through test/conftest.py); the
+benchmarks add test/ to ``sys.path`` themselves.
+"""
+import dataclasses
+
+import numpy as np
+
+from rollability_ros.core.results.records import LaunchOutcome
+
+
+class SyntheticEvaluator:
+    """A cheap stand-in evaluator with a known optimum, for tests, benchmarks and dry runs of the plumbing.
+
+    Success probability ``p(h) = peak * exp(-d**2 / (2 * width**2))`` with ``d`` the RMS distance between the
+    heights and ``optimum`` (simulation units). Trial ``j`` of a seed draws ``u_j ~ U(0, 1)`` from that seed and
+    succeeds when ``u_j < p(h)``: profiles evaluated with the same seed share their disturbances (common random
+    numbers), exactly like the physics evaluator's seeded trials.
+    """
+
+    def __init__(self, optimum, trials, width=0.1, peak=0.9, name="synthetic"):
+        self.optimum = np.asarray(optimum, dtype=np.float64)
+        self.trials, self.width, self.peak, self.name = int(trials), float(width), float(peak), name
+
+    def success_probability(self, heights):
+        """The true fitness ``p(h)`` of ``heights``."""
+        distance = np.sqrt(np.mean((np.asarray(heights, dtype=np.float64) - self.optimum) ** 2))
+        return float(self.peak * np.exp(-0.5 * (distance / self.width) ** 2))
+
+    def __call__(self, heights_list, seed):
+        """``evaluate_batch``: one (successes, trials, eval_time_s, name) per height array."""
+        draws = np.random.default_rng(seed).random(self.trials)
+        return [(int(np.sum(draws < self.success_probability(h))), self.trials, 0.0, self.name) for h in heights_list]
+
+
+def synthetic_outcomes(parameters, names, values, conditions, repetitions, first_seed=100_000):
+    """"Physical" outcomes made on the twin with ``names`` set to hidden ``values``, to test a calibration.
+
+    ``conditions`` are LaunchConditions (their repetition is ignored); each is launched ``repetitions`` times with
+    seeds from ``first_seed`` on, which the calibration's own seeds (:func:`simulation_seeds`) do not reuse.
+    Returns LaunchOutcomes (backend ``physical``, run ``synthetic``).
+    """
+    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.sim.launch_twin import simulate_launch
+
+    hidden = calibration.twin_settings_with(parameters, names, values)
+    outcomes = []
+    for condition in conditions:
+        for repetition in range(repetitions):
+            launch = dataclasses.replace(condition, repetition=repetition)
+            result = simulate_launch(launch, hidden, first_seed + repetition)
+            outcomes.append(LaunchOutcome("synthetic", f"synthetic-{len(outcomes)}", launch, "physical",
+                                          result.upright, classified_by="operator"))
+    return outcomes

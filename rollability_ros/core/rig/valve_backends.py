@@ -1,15 +1,27 @@
 """Valve backends: what physically opens and closes the launcher's solenoid valve.
 
-Every backend has ``name``, ``open()`` (acquire the device, valve closed), ``open_valve()``, ``close_valve()`` and
-``release()`` (drive closed, then free the device). None relies on a released line or a closed port to close
-the valve: ``release()`` commands it closed first. Errors are raised (``ValveBackendError`` or the library's
-own); :class:`~rollability_ros.core.rig.valve.ValveController` turns them into latched faults.
+Every backend has ``name``, ``open()`` (acquire the device, valve closed), ``open_valve(pulse_ms)``,
+``close_valve()`` and ``release()`` (drive closed, then free the device). None relies on a released line or a
+closed port to close the valve: ``release()`` commands it closed first. Errors are raised (``ValveBackendError``
+or the library's own); :class:`~rollability_ros.core.rig.valve.ValveController` turns them into latched faults.
+
+Optional hooks the controller uses when a backend has them: ``arm()`` / ``disarm()`` / ``clear()`` (device-side
+arming and fault acknowledgement), ``fire_refusal()`` (a reason this backend must not fire, or ""),
+``set_fault_listener(callback)`` (the device reports a fault on its own), ``link_state()`` (one line for
+diagnostics).
+
+What each backend can promise when the controlling process dies (SIGKILL, crash, power loss): ``serial_relay``
+talks to a board that times pulses and drops the relay without keep-alives (:mod:`.relay_protocol`), so the relay
+is off within ``max_pulse_ms``; ``gpio`` cannot promise anything (a GPIO line keeps its level when its owner dies),
+so it fires only when the configuration declares an external hardware pulse limiter; ``dry_run`` drives nothing.
 """
 import logging
+import threading
 import time
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.rig.valve import LINE_ENDINGS, ValveController
+from rollability_ros.core.rig import relay_protocol
+from rollability_ros.core.rig.valve import ValveController
 
 _LOG = logging.getLogger(__name__)
 
@@ -35,8 +47,8 @@ class DryRunBackend:
         """Start (nothing to acquire)."""
         self._record("start")
 
-    def open_valve(self):
-        """Log an open command."""
+    def open_valve(self, pulse_ms=None):
+        """Log an open command (``pulse_ms`` is the controller's, the dry run has no device to time it)."""
         self._record("open")
 
     def close_valve(self):
@@ -74,10 +86,12 @@ class GpioBackend:
 
     name = "gpio"
 
-    def __init__(self, chip, line_offset, active_high=True, consumer="rollability-valve"):
+    def __init__(self, chip, line_offset, active_high=True, consumer="rollability-valve",
+                 hardware_pulse_limiter=False):
         self.chip_path = gpio_chip_path(chip)
         self.line_offset = line_offset
         self.active_high = active_high
+        self.hardware_pulse_limiter = hardware_pulse_limiter
         self.consumer = consumer
         self._gpiod = None
         self._request = None
@@ -92,6 +106,25 @@ class GpioBackend:
         )
         self._request = gpiod.request_lines(self.chip_path, consumer=self.consumer,
                                             config={self.line_offset: settings})
+        _LOG.warning(
+            "gpio valve backend: if this process dies (SIGKILL, crash, power loss of the computer only) the line "
+            "%s:%d keeps its level and nothing in software can close the valve; %s", self.chip_path,
+            self.line_offset, "the configuration declares a hardware pulse limiter (valve.gpio.hardware_pulse_limiter)"
+            if self.hardware_pulse_limiter else "no hardware pulse limiter is declared, so every fire is refused")
+
+    def fire_refusal(self):
+        """Refuse every pulse unless the configuration declares the external hardware pulse limiter."""
+        if self.hardware_pulse_limiter:
+            return ""
+        return ("gpio backend without a hardware pulse limiter: a killed process would leave the line (and the "
+                "valve) on; wire the limiter of docs/firmware.md and set valve.gpio.hardware_pulse_limiter: true, "
+                "or use the serial_relay board")
+
+    def link_state(self):
+        """One line for diagnostics."""
+        requested = "requested" if self._request is not None else "not requested"
+        limiter = "hardware pulse limiter declared" if self.hardware_pulse_limiter else "NO hardware pulse limiter"
+        return f"gpio line {self.chip_path}:{self.line_offset} {requested}; {limiter}"
 
     def _set(self, active):
         if self._request is None:
@@ -99,8 +132,8 @@ class GpioBackend:
         value = self._gpiod.line.Value.ACTIVE if active else self._gpiod.line.Value.INACTIVE
         self._request.set_value(self.line_offset, value)
 
-    def open_valve(self):
-        """Drive the line active."""
+    def open_valve(self, pulse_ms=None):
+        """Drive the line active (the controller times the pulse; only a hardware limiter survives its death)."""
         self._set(True)
 
     def close_valve(self):
@@ -119,74 +152,168 @@ class GpioBackend:
 
 
 class SerialRelayBackend:
-    """A relay board on a serial port: one text line per command, answered by an acknowledgement line.
+    """The valve relay board (:mod:`~rollability_ros.core.rig.relay_protocol`, firmware in ``firmware/``).
+
+    The board times each pulse and drops the relay when its keep-alive stops; this backend sends ``KA`` from a
+    thread every ``keepalive_period_ms`` while the port is open, so the relay stays usable exactly as long as this
+    process runs and talks. A board that disarmed itself (keep-alive timeout, e-stop button) or a link that stops
+    answering is reported to the fault listener.
 
     Parameters
     ----------
     port : str
-        Serial device (``/dev/ttyUSB0``, a pty path, ...).
+        Serial device (``/dev/ttyACM0``, a pty path, ...).
     baud : int
-        Baud rate.
-    open_command, close_command : str
-        Lines that switch the relay on (valve open) and off, without line ending.
-    ack : str
-        The line the board answers on success; anything else, or nothing within ``timeout_s``, raises.
+        Baud rate, bit/s (the firmware uses 115200).
     timeout_s : float
-        Longest wait for the acknowledgement, s.
-    line_ending : str
-        ``"lf"``, ``"crlf"`` or ``"cr"``, appended to every command.
+        Longest wait for an answer line, s; a missing or wrong answer raises :class:`ValveBackendError`.
+    keepalive_period_ms : int
+        Period of the ``KA`` line, ms; must be at most a third of the board's ``keepalive_timeout_ms``.
     """
 
     name = "serial_relay"
 
-    def __init__(self, port, baud, open_command, close_command, ack, timeout_s, line_ending="lf"):
-        if line_ending not in LINE_ENDINGS:
-            raise ValueError(f"line_ending must be one of {sorted(LINE_ENDINGS)}, got {line_ending!r}")
+    def __init__(self, port, baud=115200, timeout_s=0.2, keepalive_period_ms=50):
         self.port = port
         self.baud = baud
-        self.open_command = open_command
-        self.close_command = close_command
-        self.ack = ack
         self.timeout_s = timeout_s
-        self._eol = LINE_ENDINGS[line_ending]
+        self.keepalive_period_ms = keepalive_period_ms
+        self.limits = None              # DeviceLimits, from HELLO
         self._serial = None
+        self._io_lock = threading.Lock()  # one command and its answer at a time (the keep-alive thread too)
+        self._armed = False               # what this side asked for
+        self._fault_listener = None
+        self._stop = threading.Event()
+        self._thread = None
+        self._link = "not open"
+        self._last_answer_at = None
+        self._last_device_state = None
+        self._reported_fault = "none"
+
+    def set_fault_listener(self, callback):
+        """``callback(reason)`` is called (from the keep-alive thread) when the board faults on its own."""
+        self._fault_listener = callback
 
     def open(self):
-        """Open the port (the valve is then commanded closed by the controller)."""
+        """Open the port, check the board's protocol and limits, start the keep-alive thread."""
         serial = require("serial", feature="the serial_relay valve backend")
         self._serial = serial.Serial(self.port, self.baud, timeout=self.timeout_s, write_timeout=self.timeout_s)
+        try:
+            self.limits = relay_protocol.parse_hello(self._command("HELLO"))
+        except ValueError as exc:
+            raise ValveBackendError(f"relay board on {self.port}: {exc}") from exc
+        if 3 * self.keepalive_period_ms > self.limits.keepalive_timeout_ms:
+            raise ValveBackendError(
+                f"serial.keepalive_period_ms {self.keepalive_period_ms} is more than a third of the board's "
+                f"keepalive_timeout_ms {self.limits.keepalive_timeout_ms}: one late keep-alive would drop the relay")
+        self._link = "ok"
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._keepalive_loop, name="relay-keepalive", daemon=True)
+        self._thread.start()
 
-    def _command(self, line):
-        if self._serial is None:
-            raise ValveBackendError(f"serial port {self.port} is not open")
-        self._serial.reset_input_buffer()  # drop late acknowledgements of earlier commands
-        self._serial.write((line + self._eol).encode("ascii"))
-        self._serial.flush()
-        answer = self._serial.read_until(b"\n")  # bounded by the port timeout
+    def _command(self, line, expect=None):
+        """Send one line, return its answer (stripped); raise unless it starts with ``expect``."""
+        with self._io_lock:
+            if self._serial is None:
+                raise ValveBackendError(f"serial port {self.port} is not open")
+            self._serial.reset_input_buffer()  # drop late answers of earlier commands
+            self._serial.write((line + "\n").encode("ascii"))
+            self._serial.flush()
+            answer = self._serial.read_until(b"\n")  # bounded by the port timeout
         text = answer.decode("ascii", errors="replace").strip()
         if not answer.endswith(b"\n"):
-            raise ValveBackendError(f"relay did not acknowledge {line!r} within {self.timeout_s} s"
+            raise ValveBackendError(f"relay board did not answer {line!r} within {self.timeout_s} s"
                                     + (f" (partial answer {text!r})" if text else ""))
-        if text != self.ack:
-            raise ValveBackendError(f"relay answered {text!r} to {line!r}, expected {self.ack!r}")
+        self._last_answer_at = time.monotonic()
+        if expect is not None and not text.startswith(expect):
+            raise ValveBackendError(f"relay board answered {text!r} to {line!r}, expected {expect!r}")
+        return text
 
-    def open_valve(self):
-        """Send the open command and wait for its acknowledgement."""
-        self._command(self.open_command)
+    def _notify(self, reason):
+        _LOG.error("relay board: %s", reason)
+        if self._fault_listener is not None:
+            try:
+                self._fault_listener(reason)
+            except Exception:  # noqa: BLE001 - the keep-alive must go on whatever the listener does
+                _LOG.exception("valve fault listener failed")
+
+    def _keepalive_loop(self):
+        while not self._stop.wait(self.keepalive_period_ms / 1000.0):
+            try:
+                answer = self._command("KA", expect="OK KA ")
+                state = relay_protocol.parse_state(answer[len("OK KA "):])
+            except (ValveBackendError, ValueError, OSError) as exc:
+                if self._link == "ok":
+                    self._link = f"lost: {exc}"
+                    self._notify(f"link lost: {exc}")
+                continue
+            except Exception as exc:  # noqa: BLE001 - e.g. the port closed under us at release
+                if self._stop.is_set():
+                    return
+                self._link = f"lost: {exc}"
+                continue
+            self._link = "ok"
+            self._last_device_state = state
+            if state.fault != "none" and state.fault != self._reported_fault:
+                self._reported_fault = state.fault
+                self._notify(f"board fault {state.fault}: relay off and disarmed by the board")
+            elif self._armed and not state.armed:
+                self._notify("board disarmed itself: relay off")
+            if state.fault == "none":
+                self._reported_fault = "none"
+            if not state.armed:
+                self._armed = False
+
+    def link_state(self):
+        """One line for diagnostics: link, board limits, last answer age, board state."""
+        if self.limits is None:
+            return f"{self.port}: {self._link}"
+        age = "never" if self._last_answer_at is None else f"{(time.monotonic() - self._last_answer_at) * 1e3:.0f} ms ago"
+        state = relay_protocol.format_state(self._last_device_state) if self._last_device_state else "unknown"
+        return (f"{self.port}: {self._link}; {self.limits.protocol} max_pulse_ms={self.limits.max_pulse_ms} "
+                f"keepalive_timeout_ms={self.limits.keepalive_timeout_ms}; last answer {age}; board {state}")
+
+    def arm(self):
+        """Arm the board (its keep-alive timer starts)."""
+        self._command("ARM", expect="OK ARMED")
+        self._armed = True
+
+    def disarm(self):
+        """Disarm the board (relay off)."""
+        self._armed = False
+        self._command("DISARM", expect="OK DISARMED")
+
+    def clear(self):
+        """Acknowledge a latched board fault (refused while the e-stop button is held)."""
+        self._command("CLEAR", expect="OK CLEARED")
+        self._reported_fault = "none"
+
+    def open_valve(self, pulse_ms=None):
+        """Ask the board for a pulse of ``pulse_ms`` ms; the board ends it at ``min(pulse_ms, its max_pulse_ms)``."""
+        if pulse_ms is None:
+            raise ValveBackendError("the relay board needs the pulse length")
+        answer = self._command(relay_protocol.pulse_command(pulse_ms), expect="OK PULSE ")
+        self.granted_ms = int(answer.split()[-1])
 
     def close_valve(self):
-        """Send the close command and wait for its acknowledgement."""
-        self._command(self.close_command)
+        """Switch the relay off now (the board also ends the pulse on its own)."""
+        self._command("OFF", expect="OK OFF")
 
     def release(self):
-        """Send the close command, then close the port."""
+        """Stop the keep-alive, switch the relay off and disarm, then close the port."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2 * self.timeout_s + self.keepalive_period_ms / 1000.0)
         if self._serial is None:
             return
         try:
             self.close_valve()
+            self.disarm()
         finally:
-            self._serial.close()
-            self._serial = None
+            with self._io_lock:
+                self._serial.close()
+                self._serial = None
+            self._link = "released"
 
 
 def make_backend(config):
@@ -194,10 +321,11 @@ def make_backend(config):
     if config.backend == "dry_run":
         return DryRunBackend()
     if config.backend == "gpio":
-        return GpioBackend(config.gpio.chip, config.gpio.line_offset, config.gpio.active_high)
+        return GpioBackend(config.gpio.chip, config.gpio.line_offset, config.gpio.active_high,
+                           hardware_pulse_limiter=config.gpio.hardware_pulse_limiter)
     if config.backend == "serial_relay":
         s = config.serial
-        return SerialRelayBackend(s.port, s.baud, s.open_command, s.close_command, s.ack, s.timeout_s, s.line_ending)
+        return SerialRelayBackend(s.port, s.baud, s.timeout_s, s.keepalive_period_ms)
     raise ValueError(f"unknown valve backend {config.backend!r}")
 
 

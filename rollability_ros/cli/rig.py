@@ -6,8 +6,10 @@ ACTIONS = ("arm", "disarm", "estop", "confirm", "outcome")
 def register(subparsers):
     parser = subparsers.add_parser(
         "rig", help="operator commands to the running rig: arm, disarm (acknowledge a fault), e-stop, confirm, outcome",
-        description="Talk to the running valve_controller and rig nodes (same ROS domain). disarm also "
-                    "acknowledges a latched valve fault (e-stop, watchdog); confirm answers the rig's regulator "
+        description="Talk to the running valve_controller and rig nodes (same ROS domain). arm and disarm are "
+                    "signed with the valve_controller's session key, so they work only on the rig computer, as the "
+                    "user running the valve_controller; disarm also acknowledges a latched valve fault (e-stop, "
+                    "watchdog). estop needs no key: anyone may stop. confirm answers the rig's regulator "
                     "question; outcome records the result of the launch the rig waits on.")
     parser.add_argument("action", choices=ACTIONS, help="what to do")
     parser.add_argument("verdict", nargs="?", choices=("upright", "tipped"),
@@ -17,6 +19,9 @@ def register(subparsers):
                         help="for outcome: travel time over the run, s (when the light gates missed it)")
     parser.add_argument("--note", default="", help="for outcome: free text")
     parser.add_argument("--namespace", default="", help="ROS namespace of the rig nodes (default: none)")
+    parser.add_argument("--session-key-file", default="",
+                        help="for arm / disarm: the valve_controller's session key (default: valve.session_key_file's "
+                             "default for this ROS domain and namespace)")
     parser.add_argument("--timeout-s", type=float, default=10.0, help="longest wait for the nodes, s (default 10)")
     parser.set_defaults(func=run)
 
@@ -24,12 +29,20 @@ def register(subparsers):
 def _request(args):
     """``(service or topic type, name, request or message)`` for the action."""
     from std_msgs.msg import Bool
-    from std_srvs.srv import SetBool, Trigger
+    from std_srvs.srv import Trigger
 
-    from rollability_ros.srv import RecordOutcome
+    from rollability_ros.core.rig import valve_auth
+    from rollability_ros.msg import ValveAuth
+    from rollability_ros.srv import ArmValve, RecordOutcome
 
     if args.action in ("arm", "disarm"):
-        return SetBool, "valve/arm", SetBool.Request(data=args.action == "arm")
+        key_file = args.session_key_file or valve_auth.default_key_path(args.namespace)
+        try:
+            signature = valve_auth.RequestSigner(valve_auth.load_session_key(key_file)).sign(args.action)
+        except valve_auth.AuthError as exc:
+            raise ValueError(str(exc)) from exc
+        auth = ValveAuth(session=signature.session, counter=signature.counter, mac=signature.mac)
+        return ArmValve, "valve/arm", ArmValve.Request(arm=args.action == "arm", auth=auth)
     if args.action == "estop":
         return Bool, "valve/estop", Bool(data=True)
     if args.action == "confirm":
@@ -64,6 +77,8 @@ def run(args):
         client = node.create_client(kind, name)
         if not client.wait_for_service(timeout_sec=args.timeout_s):
             raise ValueError(f"service {name} is not available (is the node running in this ROS domain?)")
+        if args.action in ("arm", "disarm"):
+            payload = _request(args)[2]  # signed now: the signature is fresh for a few seconds only
         future = client.call_async(payload)
         rclpy.spin_until_future_complete(node, future, timeout_sec=args.timeout_s)
         if not future.done():

@@ -8,15 +8,17 @@ Action server:
   waiting for the operator or the IMU).
 Publications:
   ``launch_outcomes`` (rollability_ros/LaunchOutcome, reliable, deep queue): every outcome, for the outcome_logger.
-  ``rig/heartbeat`` (std_msgs/Header, physical backend): every ``valve.heartbeat_period_ms`` on a steady-clock
-  timer while the node runs; the valve controller's watchdog closes the valve when it stops.
+  ``rig/heartbeat`` (rollability_ros/ValveHeartbeat, physical backend): every ``valve.heartbeat_period_ms`` on a
+  steady-clock timer from the first arming on, signed with the valve's session key; the valve controller's
+  watchdog closes the valve when it stops.
   ``rig/pose`` (geometry_msgs/PoseStamped, sim backend): the chassis pose during a simulated launch, when the
   twin reports poses.
 Services (physical backend):
   ``record_outcome`` (rollability_ros/RecordOutcome): the operator's outcome of the launch the rig waits on (or an
   override of the IMU's verdict during the override window); refused with a reason when no launch waits.
   ``rig/confirm`` (std_srvs/Trigger): the operator confirms the regulator pressure asked for in the feedback.
-Clients (physical backend): ``valve/arm`` (std_srvs/SetBool), ``valve/fire`` (FireValve); subscribes to
+Clients (physical backend): ``valve/arm`` (ArmValve), ``valve/fire`` (FireValve), signed with the session key
+  ``valve.session_key_file`` that the valve_controller on this computer writes; subscribes to
   ``valve/state`` (latched) and to the IMU topic ``imu_outcome.topic`` (sensor_msgs/Imu, default ``imu/data``)
   when ``rig.outcome_source`` is ``imu``.
 Parameters: ``rig.*`` (:class:`~rollability_ros.core.rig.rig_session.RigSettings`: ``rig.backend`` sim | physical,
@@ -36,8 +38,7 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
-from std_msgs.msg import Header
-from std_srvs.srv import SetBool, Trigger
+from std_srvs.srv import Trigger
 
 from rollability_ros.action import Launch
 from rollability_ros.core.rig import rig_session
@@ -45,20 +46,27 @@ from rollability_ros.core.rig.rig_session import (ImuOutcome, LaunchAborted, Ope
                                               PhysicalLaunch, RigSettings, SimulatedLaunch)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
 from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, orientation_if_valid
+from rollability_ros.core.rig import valve_auth
 from rollability_ros.core.rig.valve import ValveConfig, ValveStatus
-from rollability_ros.msg import LaunchOutcome, ValveState
+from rollability_ros.msg import LaunchOutcome, ValveAuth, ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
                                             run_node)
-from rollability_ros.srv import FireValve, RecordOutcome
+from rollability_ros.srv import ArmValve, FireValve, RecordOutcome
 
 
 class ValveServices:
-    """The valve port of :class:`PhysicalLaunch` over the valve_controller's services and latched state."""
+    """The valve port of :class:`PhysicalLaunch` over the valve_controller's services and latched state.
 
-    def __init__(self, node, timeout_s, callback_group):
+    Every request and heartbeat is signed with the valve_controller's session key, read from ``key_path`` when the
+    launch sequence arms (after the operator's confirmation), so a valve_controller restart is picked up.
+    """
+
+    def __init__(self, node, timeout_s, callback_group, key_path):
         self._timeout_s = timeout_s
-        self._arm = node.create_client(SetBool, "valve/arm", callback_group=callback_group)
+        self._key_path = key_path
+        self._signer = None
+        self._arm = node.create_client(ArmValve, "valve/arm", callback_group=callback_group)
         self._fire = node.create_client(FireValve, "valve/fire", callback_group=callback_group)
         self._lock = threading.Lock()
         self._status = ValveStatus(False, False, False, "", "", 0, 0)
@@ -86,8 +94,27 @@ class ValveServices:
             return None, f"valve controller did not answer {client.srv_name} within {timeout_s:g} s"
         return response, ""
 
+    def _sign(self, command, pulse_ms=None, reload=False):
+        """A ``ValveAuth`` for ``command``; re-reads the key file when asked or when none was read yet."""
+        if reload or self._signer is None:
+            self._signer = valve_auth.RequestSigner(valve_auth.load_session_key(self._key_path))
+        signature = self._signer.sign(command, pulse_ms)
+        return ValveAuth(session=signature.session, counter=signature.counter, mac=signature.mac)
+
+    def heartbeat(self, node_name, stamp):
+        """A signed ``ValveHeartbeat``, or None before the first arming (no key read yet)."""
+        if self._signer is None:
+            return None
+        msg = ValveHeartbeat(auth=self._sign("heartbeat"))
+        msg.header.frame_id, msg.header.stamp = node_name, stamp
+        return msg
+
     def _set_armed(self, armed):
-        response, failure = self._call(self._arm, SetBool.Request(data=armed), self._timeout_s)
+        try:
+            auth = self._sign("arm" if armed else "disarm", reload=armed)
+        except valve_auth.AuthError as exc:
+            return False, str(exc)
+        response, failure = self._call(self._arm, ArmValve.Request(arm=armed, auth=auth), self._timeout_s)
         if response is None:
             return False, failure
         if response.success:
@@ -105,7 +132,11 @@ class ValveServices:
 
     def fire(self, pulse_ms):
         """Fire one pulse: ``(ok, reason)``; the response's state becomes the known status."""
-        response, failure = self._call(self._fire, FireValve.Request(pulse_ms=int(pulse_ms)),
+        try:
+            auth = self._sign("fire", int(pulse_ms))
+        except valve_auth.AuthError as exc:
+            return False, str(exc)
+        response, failure = self._call(self._fire, FireValve.Request(pulse_ms=int(pulse_ms), auth=auth),
                                        self._timeout_s + pulse_ms / 1000.0)
         if response is None:
             return False, failure
@@ -165,21 +196,23 @@ class RigNode(Node):
             imu = ImuOutcome(imu_config)
             self.create_subscription(Imu, imu_config.topic, lambda msg: self._on_imu(imu, msg), STREAM_QOS,
                                      callback_group=MutuallyExclusiveCallbackGroup())
+        self.valve_services = ValveServices(self, self.settings.valve_timeout_s, group,
+                                            valve.session_key_file or valve_auth.default_key_path(self.get_namespace()))
         self.physical = PhysicalLaunch(
-            self.settings, ValveServices(self, self.settings.valve_timeout_s, group),
+            self.settings, self.valve_services, 
             make_speed_gate(self.speed_config), self.speed_config, valve.launch_pulse_ms, valve.regulator,
             self.operator, imu)
         self.create_service(RecordOutcome, "record_outcome", self._on_record_outcome, callback_group=group)
         self.create_service(Trigger, "rig/confirm", self._on_confirm, callback_group=group)
-        self.heartbeat_publisher = self.create_publisher(Header, "rig/heartbeat", 10)
+        self.heartbeat_publisher = self.create_publisher(ValveHeartbeat, "rig/heartbeat", 10)
         # steady clock: sim time must not stall the heartbeat the valve's watchdog relies on
         self.create_timer(valve.heartbeat_period_ms / 1000.0, self._heartbeat,
                           callback_group=MutuallyExclusiveCallbackGroup(), clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def _heartbeat(self):
-        msg = Header(frame_id=self.get_name())
-        msg.stamp = self.get_clock().now().to_msg()
-        self.heartbeat_publisher.publish(msg)
+        msg = self.valve_services.heartbeat(self.get_name(), self.get_clock().now().to_msg())
+        if msg is not None:
+            self.heartbeat_publisher.publish(msg)
 
     def _on_imu(self, imu, msg):
         try:

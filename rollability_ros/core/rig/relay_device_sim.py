@@ -118,8 +118,8 @@ def serve(port_file, log_path, max_pulse_ms=DEFAULT_MAX_PULSE_MS, keepalive_time
                 pending = b""  # garbage without line ends: drop it, as the firmware's bounded buffer does
             for raw in lines:
                 line = raw.decode("ascii", errors="replace")
-                if not line.strip():
-                    continue
+                if not line:
+                    continue  # an empty line gets no answer (as in the firmware)
                 reply = board.answer(line)
                 if ack_delay_s > 0:
                     time.sleep(ack_delay_s)

@@ -172,6 +172,9 @@ class RelayDevice:
         known = {"HELLO", "ARM", "KA", "STATUS", "PULSE", "OFF", "DISARM", "CLEAR"}
         if command not in known or (args and command != "PULSE"):
             return "ERR UNKNOWN", transitions
+        if command == "PULSE" and (len(args) != 1 or not args[0].isascii() or not args[0].isdigit()
+                                   or len(args[0]) > 9 or int(args[0]) <= 0):
+            return "ERR BAD_ARG", transitions
         self._last_command_ms = now_ms  # any well-formed command is a keep-alive
         if command == "HELLO":
             return (f"OK HELLO {PROTOCOL} max_pulse_ms={self.max_pulse_ms} "
@@ -199,8 +202,6 @@ class RelayDevice:
             self.fault = "none"
             return "OK ARMED", transitions
         # PULSE
-        if len(args) != 1 or not args[0].isdigit() or int(args[0]) <= 0:
-            return "ERR BAD_ARG", transitions
         if not self.armed:
             return "ERR NOT_ARMED", transitions
         if self.relay_on:

@@ -91,6 +91,11 @@ class ValveController:
             self._emit("started")
 
     # ------------------------------------------------------------------ state
+    @property
+    def backend(self):
+        """The backend this controller commands (read-only use: ``name``, ``limits``, ``link_state()``)."""
+        return self._backend
+
     def status(self):
         """Return the current :class:`ValveStatus`."""
         with self._lock:

@@ -91,7 +91,7 @@ def test_serial_relay_pulse_estop_cuts_pulse_and_sigterm_closes(ros_node, start_
     valve = ValveClient(ros_node)
     valve.ready(process.log)
     assert valve.last().backend == "serial_relay" and not valve.last().fault, process.log()
-    assert _commands(relay)[:3] == ["HELLO", "OFF", "DISARM"]      # driven closed and disarmed at start
+    assert _commands(relay)[:4] == ["HELLO", "STATUS", "OFF", "DISARM"]     # closed and disarmed at start
 
     with valve.heartbeats():
         assert valve.arm()[0]

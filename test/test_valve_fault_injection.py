@@ -177,6 +177,7 @@ def test_supervisor_faults_mid_pulse(ros_node, relay, tmp_path, fault):
     import os
 
     from rollability_ros.core.rig import valve_auth
+    from rollability_ros.msg import ValveAuth
 
     supervised = SupervisedValve(tmp_path, relay)
     try:
@@ -184,7 +185,7 @@ def test_supervisor_faults_mid_pulse(ros_node, relay, tmp_path, fault):
         valve.ready(supervised.log)
         with valve.heartbeats():
             assert valve.arm()[0], supervised.log()
-            old_session = valve_auth.load_session_key(valve_auth.default_key_path("")).session
+            old_key = valve_auth.load_session_key(valve_auth.default_key_path(""))
             fire_and_wait_on(valve, ros_node, relay)
             if fault == "SIGTERM of the supervisor":
                 supervised.process.send_signal(signal.SIGTERM)
@@ -197,10 +198,15 @@ def test_supervisor_faults_mid_pulse(ros_node, relay, tmp_path, fault):
             # the restarted valve_controller comes up closed and disarmed, in a new session
             assert ros_node.wait_for(supervised.restarted, 30), supervised.log()
             assert ros_node.wait_for(lambda: valve_auth.load_session_key(
-                valve_auth.default_key_path("")).session != old_session, 30)
+                valve_auth.default_key_path("")).session != old_key.session, 30)
             assert ros_node.wait_for(lambda: not valve.last().armed and not valve.last().fault
                                      and valve.last().pulses == 0, 30)
             assert not relay.relay_on()
+            # requests signed in the killed valve's session do not count in the new one
+            old = valve_auth.RequestSigner(old_key).sign("arm")
+            stale = valve.arm_client.call(valve._arm.Request(arm=True, auth=ValveAuth(
+                session=old.session, counter=old.counter, mac=old.mac)), timeout_sec=30)
+            assert not stale.success and "signed for session" in stale.message
         else:
             supervised.process.wait(30)
             assert ros_node.wait_for(lambda: not relay.relay_on(), 5)

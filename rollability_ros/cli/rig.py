@@ -19,6 +19,8 @@ def register(subparsers):
                         help="for outcome: travel time over the run, s (when the light gates missed it)")
     parser.add_argument("--note", default="", help="for outcome: free text")
     parser.add_argument("--namespace", default="", help="ROS namespace of the rig nodes (default: none)")
+    parser.epilog = ("Unless ROS_DOMAIN_ID / ROS_AUTOMATIC_DISCOVERY_RANGE are set, this joins the physical rig's "
+                     "defaults: domain 73, localhost discovery (as `rollability bringup --backend physical`).")
     parser.add_argument("--session-key-file", default="",
                         help="for arm / disarm: the valve_controller's session key (default: valve.session_key_file's "
                              "default for this ROS domain and namespace)")
@@ -54,11 +56,15 @@ def _request(args):
 
 
 def run(args):
+    import os
     import time
 
     import rclpy
     from rclpy.node import Node
 
+    from rollability_ros.core.rig.rig_network import physical_rig_environment
+
+    os.environ.update(physical_rig_environment(os.environ))  # the physical bringup's defaults, unless set
     kind, name, payload = _request(args)
     rclpy.init(args=[])
     node = Node("rig_operator", namespace=args.namespace or None)

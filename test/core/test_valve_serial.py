@@ -55,7 +55,7 @@ def sim(tmp_path):
 
 def test_closed_at_start_board_timed_pulse_and_shutdown(sim):
     controller, states = controller_for(sim)
-    assert lines(sim) == ["HELLO", "OFF", "DISARM"], "driven closed and disarmed at start"
+    assert lines(sim) == ["HELLO", "STATUS", "OFF", "DISARM"], "driven closed and disarmed at start"
     assert controller.arm()[0] and lines(sim)[-1] == "ARM"
     ok, message = controller.fire(60)
     assert ok, message

@@ -206,6 +206,17 @@ class SerialRelayBackend:
             raise ValveBackendError(
                 f"serial.keepalive_period_ms {self.keepalive_period_ms} is more than a third of the board's "
                 f"keepalive_timeout_ms {self.limits.keepalive_timeout_ms}: one late keep-alive would drop the relay")
+        try:
+            state = relay_protocol.parse_state(self._command("STATUS", expect="OK STATUS ")[len("OK STATUS "):])
+        except ValueError as exc:
+            raise ValveBackendError(f"relay board on {self.port}: {exc}") from exc
+        if state.fault == "keepalive":
+            # the previous controller went silent (killed, unplugged) and the board dropped the relay: expected
+            # after a crash, so not a fault of this session; an e-stop, though, is reported by the keep-alive loop
+            _LOG.warning("relay board on %s had dropped the relay on its own after its previous controller went "
+                         "silent (fault keepalive)", self.port)
+            self._reported_fault = "keepalive"
+        self._last_device_state = state
         self._link = "ok"
         self._stop.clear()
         self._thread = threading.Thread(target=self._keepalive_loop, name="relay-keepalive", daemon=True)

@@ -92,7 +92,7 @@ class ValveControllerNode(Node):
                 "limiter of docs/firmware.md closes the valve then"
                 + ("" if config.gpio.hardware_pulse_limiter else
                    " -- none is declared (valve.gpio.hardware_pulse_limiter: false), so every fire is refused"))
-        limits = getattr(self.controller.backend, "limits", None)
+        limits = self.controller.device_limits()
         if limits is not None and limits.max_pulse_ms < config.max_pulse_ms:
             self.get_logger().warning(f"the relay board caps pulses at {limits.max_pulse_ms} ms, below "
                                       f"valve.max_pulse_ms {config.max_pulse_ms}")

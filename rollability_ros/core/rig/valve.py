@@ -91,10 +91,9 @@ class ValveController:
             self._emit("started")
 
     # ------------------------------------------------------------------ state
-    @property
-    def backend(self):
-        """The backend this controller commands (read-only use: ``name``, ``limits``, ``link_state()``)."""
-        return self._backend
+    def device_limits(self):
+        """The device's own limits (``relay_protocol.DeviceLimits``) when the backend reports them, else None."""
+        return getattr(self._backend, "limits", None)
 
     def status(self):
         """Return the current :class:`ValveStatus`."""

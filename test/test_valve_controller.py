@@ -165,7 +165,7 @@ def test_diagnostics_report_armed_fault_margin_and_link(ros_node, start_node, re
         relay.restore()
 
 
-def test_operator_cli_estop_disarm_arm(ros_node, start_node):
+def test_operator_cli_estop_disarm_arm(ros_node, start_node, tmp_path):
     import subprocess
     import sys
 
@@ -177,6 +177,9 @@ def test_operator_cli_estop_disarm_arm(ros_node, start_node):
         return subprocess.run([sys.executable, "-m", "rollability_ros.cli", "rig", *args], capture_output=True,
                               text=True, timeout=60)
 
+    keyless = rig_cli("arm", "--session-key-file", str(tmp_path / "no-such.key"))
+    assert keyless.returncode == 2 and "cannot read the valve session key" in keyless.stderr, keyless.stderr
+    assert not valve.last().armed
     assert rig_cli("arm").returncode == 0 and ros_node.wait_for(lambda: valve.last().armed, 10)
     assert "e-stop sent" in rig_cli("estop").stdout
     assert ros_node.wait_for(lambda: valve.last().fault, 10)

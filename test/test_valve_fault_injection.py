@@ -109,6 +109,22 @@ def test_sigkill_of_the_valve_node_mid_pulse_without_restart(ros_node, start_nod
     assert not relay.relay_on()
 
 
+def test_frozen_valve_node_mid_pulse(ros_node, start_node, relay):
+    process, valve = armed_valve(start_node, ros_node, relay)
+    with valve.heartbeats():
+        assert valve.arm()[0]
+        fire_and_wait_on(valve, ros_node, relay)
+        process.signal(signal.SIGSTOP)     # every thread stops, the keep-alive thread too
+        try:
+            check_pulse(relay, "valve node frozen (SIGSTOP)")
+        finally:
+            process.signal(signal.SIGCONT)
+        # thawed, the valve learns from the board that it was disarmed and latches a fault
+        assert ros_node.wait_for(lambda: valve.last().fault, 15), process.log()
+    assert "board" in valve.last().fault_reason and not valve.last().armed
+    assert process.stop() == 0 and not relay.relay_on()
+
+
 def test_serial_line_cut_mid_pulse(ros_node, start_node, relay):
     process, valve = armed_valve(start_node, ros_node, relay)
     with valve.heartbeats():

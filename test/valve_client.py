@@ -29,6 +29,7 @@ class ValveClient:
         """A ``ValveAuth`` signed with the key file the running valve wrote (or an empty one, unsigned)."""
         from rollability_ros.core.rig import valve_auth
         from rollability_ros.msg import ValveAuth
+        from rollability_ros.nodes.valve_controller import auth_msg
 
         if not self.signed:
             return ValveAuth()
@@ -40,8 +41,7 @@ class ValveClient:
             if self._signer is None:
                 raise
             # ... or, once the valve removed it at its exit, the last one read (as the rig node does)
-        signature = self._signer.sign(command, pulse_ms)
-        return ValveAuth(session=signature.session, counter=signature.counter, mac=signature.mac)
+        return auth_msg(self._signer.sign(command, pulse_ms))
 
     def ready(self, log):
         assert self.arm_client.wait_for_service(timeout_sec=30), log()

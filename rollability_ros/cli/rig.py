@@ -34,7 +34,7 @@ def _request(args):
     from std_srvs.srv import Trigger
 
     from rollability_ros.core.rig import valve_auth
-    from rollability_ros.msg import ValveAuth
+    from rollability_ros.nodes.valve_controller import auth_msg
     from rollability_ros.srv import ArmValve, RecordOutcome
 
     if args.action in ("arm", "disarm"):
@@ -43,8 +43,7 @@ def _request(args):
             signature = valve_auth.RequestSigner(valve_auth.load_session_key(key_file)).sign(args.action)
         except valve_auth.AuthError as exc:
             raise ValueError(str(exc)) from exc
-        auth = ValveAuth(session=signature.session, counter=signature.counter, mac=signature.mac)
-        return ArmValve, "valve/arm", ArmValve.Request(arm=args.action == "arm", auth=auth)
+        return ArmValve, "valve/arm", ArmValve.Request(arm=args.action == "arm", auth=auth_msg(signature))
     if args.action == "estop":
         return Bool, "valve/estop", Bool(data=True)
     if args.action == "confirm":

@@ -48,10 +48,11 @@ from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
 from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, orientation_if_valid
 from rollability_ros.core.rig import valve_auth
 from rollability_ros.core.rig.valve import ValveConfig, ValveStatus
-from rollability_ros.msg import LaunchOutcome, ValveAuth, ValveHeartbeat, ValveState
+from rollability_ros.msg import LaunchOutcome, ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
                                             run_node)
+from rollability_ros.nodes.valve_controller import auth_msg
 from rollability_ros.srv import ArmValve, FireValve, RecordOutcome
 
 
@@ -98,8 +99,7 @@ class ValveServices:
         """A ``ValveAuth`` for ``command``; re-reads the key file when asked or when none was read yet."""
         if reload or self._signer is None:
             self._signer = valve_auth.RequestSigner(valve_auth.load_session_key(self._key_path))
-        signature = self._signer.sign(command, pulse_ms)
-        return ValveAuth(session=signature.session, counter=signature.counter, mac=signature.mac)
+        return auth_msg(self._signer.sign(command, pulse_ms))
 
     def heartbeat(self, node_name, stamp):
         """A signed ``ValveHeartbeat``, or None before the first arming (no key read yet)."""

@@ -42,11 +42,16 @@ from std_msgs.msg import Bool
 from rollability_ros.core.rig import valve_auth
 from rollability_ros.core.rig.valve import ValveConfig
 from rollability_ros.core.rig.valve_backends import make_controller
-from rollability_ros.msg import ValveHeartbeat, ValveState
+from rollability_ros.msg import ValveAuth, ValveHeartbeat, ValveState
 from rollability_ros.nodes._support import LATCHED_QOS, ParameterError, declare_settings, run_node
 from rollability_ros.srv import ArmValve, FireValve
 
 DIAGNOSTICS_PERIOD_S = 1.0
+
+
+def auth_msg(signature):
+    """:class:`~rollability_ros.core.rig.valve_auth.Signature` -> ``rollability_ros/ValveAuth``."""
+    return ValveAuth(session=signature.session, counter=signature.counter, mac=signature.mac)
 
 
 def signature_from_msg(auth):

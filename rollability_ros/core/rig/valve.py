@@ -9,6 +9,10 @@ Re-arming after a fault: a fault (e-stop, watchdog, backend error) disarms the v
 refused while a fault is latched; the operator acknowledges it with ``disarm()`` (which drives the valve closed
 again and clears the fault if that close succeeds) and then calls ``arm()``.
 
+Software alone cannot make the valve fail-safe (a SIGKILLed process closes nothing): on the ``serial_relay`` backend
+the relay board times each pulse and drops the relay without keep-alives (:mod:`.relay_protocol`); faults the
+board reports on its own reach :meth:`ValveController.device_fault`. See docs/valve-safety.md.
+
 Thread model: ``fire()`` blocks for the pulse without holding the controller's lock, so ``estop()``,
 ``check_watchdog()`` and ``disarm()`` from other threads cut a running pulse at once.
 """

@@ -87,9 +87,14 @@ class ValveServices:
         with self._lock:
             return self._status
 
-    def _call(self, client, request, timeout_s):
+    def _call(self, client, make_request, timeout_s):
+        """Wait for the service, then build (sign) the request: a signature is fresh for a few seconds only."""
         if not client.wait_for_service(timeout_sec=self._timeout_s):
             return None, f"valve controller service {client.srv_name} is not available"
+        try:
+            request = make_request()
+        except valve_auth.AuthError as exc:
+            return None, str(exc)
         response = client.call(request, timeout_sec=timeout_s)
         if response is None:
             return None, f"valve controller did not answer {client.srv_name} within {timeout_s:g} s"
@@ -110,11 +115,8 @@ class ValveServices:
         return msg
 
     def _set_armed(self, armed):
-        try:
-            auth = self._sign("arm" if armed else "disarm", reload=armed)
-        except valve_auth.AuthError as exc:
-            return False, str(exc)
-        response, failure = self._call(self._arm, ArmValve.Request(arm=armed, auth=auth), self._timeout_s)
+        response, failure = self._call(self._arm, lambda: ArmValve.Request(
+            arm=armed, auth=self._sign("arm" if armed else "disarm", reload=armed)), self._timeout_s)
         if response is None:
             return False, failure
         if response.success:
@@ -132,12 +134,8 @@ class ValveServices:
 
     def fire(self, pulse_ms):
         """Fire one pulse: ``(ok, reason)``; the response's state becomes the known status."""
-        try:
-            auth = self._sign("fire", int(pulse_ms))
-        except valve_auth.AuthError as exc:
-            return False, str(exc)
-        response, failure = self._call(self._fire, FireValve.Request(pulse_ms=int(pulse_ms), auth=auth),
-                                       self._timeout_s + pulse_ms / 1000.0)
+        response, failure = self._call(self._fire, lambda: FireValve.Request(
+            pulse_ms=int(pulse_ms), auth=self._sign("fire", int(pulse_ms))), self._timeout_s + pulse_ms / 1000.0)
         if response is None:
             return False, failure
         self._remember(response.state)

@@ -140,11 +140,26 @@ def test_board_estop_button_latches_until_released_and_acknowledged(sim):
 
 def test_late_answers_fault_at_start_and_never_arm(tmp_path):
     with RelaySim(tmp_path, ack_delay_s=2 * ANSWER_TIMEOUT_S) as slow:
-        controller, _ = controller_for(slow)
+        controller, _ = controller_for(slow, boot_wait_s=0.0)
         status = controller.status()
         assert status.fault and "did not answer 'HELLO'" in status.fault_reason
         assert not controller.arm()[0], "cannot arm a board that does not answer"
         assert not slow.relay_on()
+        controller.shutdown()
+
+
+def test_hello_is_repeated_while_the_board_boots(tmp_path):
+    # an Uno resets when its port opens; its bootloader eats whatever arrives for a moment
+    (tmp_path / "one").mkdir()
+    (tmp_path / "two").mkdir()
+    with RelaySim(tmp_path / "one", boot_delay_s=0.6) as booting:
+        controller, _ = controller_for(booting, boot_wait_s=0.0)
+        assert controller.status().fault, "a single HELLO is lost in the boot"
+        controller.shutdown()
+    with RelaySim(tmp_path / "two", boot_delay_s=0.6) as booting:
+        controller, _ = controller_for(booting, boot_wait_s=3.0)
+        assert not controller.status().fault, controller.status().fault_reason
+        assert controller.arm()[0] and controller.fire(30)[0]
         controller.shutdown()
 
 

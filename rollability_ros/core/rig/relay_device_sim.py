@@ -11,7 +11,8 @@ one JSON object per line::
      "monotonic_s": <CLOCK_MONOTONIC, comparable across processes on Linux>}
 
 ``relay`` entries are the relay's own transitions (``reason``: ``PULSE <ms>``, ``pulse end``, ``OFF``,
-``DISARM``, ``keepalive``, ``estop``), so a test can measure from the board's side how long the relay was on.
+``DISARM``, ``keepalive``, ``estop``), so a test can measure from the board's side how long the relay was on;
+``boot`` entries count bytes lost while the simulated bootloader runs (``--boot-delay-s``).
 
 Faults for tests, at run time: ``SIGUSR1`` cuts the serial line (bytes either way are lost, as with a pulled
 cable), ``SIGUSR2`` restores it, ``SIGHUP`` presses and releases the e-stop button; ``--ack-delay-s`` answers late.
@@ -72,7 +73,7 @@ class _Board:
 
 
 def serve(port_file, log_path, max_pulse_ms=DEFAULT_MAX_PULSE_MS, keepalive_timeout_ms=DEFAULT_KEEPALIVE_TIMEOUT_MS,
-          ack_delay_s=0.0):
+          ack_delay_s=0.0, boot_delay_s=0.0):
     """Create the pty, publish its path in ``port_file`` and run the board until SIGTERM / SIGINT."""
     board = _Board(log_path, max_pulse_ms, keepalive_timeout_ms)
     master_fd, slave_fd = os.openpty()
@@ -89,6 +90,7 @@ def serve(port_file, log_path, max_pulse_ms=DEFAULT_MAX_PULSE_MS, keepalive_time
         stream.write(os.ttyname(slave_fd) + "\n")
     os.replace(tmp, port_file)
     pending = b""
+    booted_at = time.monotonic() + boot_delay_s  # before this, a bootloader runs: received bytes are lost
     try:
         while True:
             while received:
@@ -112,6 +114,9 @@ def serve(port_file, log_path, max_pulse_ms=DEFAULT_MAX_PULSE_MS, keepalive_time
             data = os.read(master_fd, 4096)
             if cut:
                 continue  # the wire is cut: the board never sees these bytes
+            if time.monotonic() < booted_at:
+                board.log("boot", dropped=len(data))
+                continue
             pending += data
             *lines, pending = pending.replace(b"\r", b"").split(b"\n")
             if len(pending) > 4 * MAX_LINE:
@@ -143,17 +148,20 @@ class RelaySim:
         The board's limits (defaults: the firmware's).
     ack_delay_s : float
         Delay before each answer, s.
+    boot_delay_s : float
+        For this long after start the board drops what it receives (an Uno's bootloader after the port opened), s.
     """
 
     def __init__(self, workdir, max_pulse_ms=DEFAULT_MAX_PULSE_MS, keepalive_timeout_ms=DEFAULT_KEEPALIVE_TIMEOUT_MS,
-                 ack_delay_s=0.0):
+                 ack_delay_s=0.0, boot_delay_s=0.0):
         self.port_file = os.path.join(os.fspath(workdir), "relay_port")
         self.log_path = os.path.join(os.fspath(workdir), "relay_log.jsonl")
         self.max_pulse_ms = max_pulse_ms
         self.keepalive_timeout_ms = keepalive_timeout_ms
         self._argv = [sys.executable, "-m", "rollability_ros.core.rig.relay_device_sim", "--port-file",
                       self.port_file, "--log", self.log_path, "--max-pulse-ms", str(max_pulse_ms),
-                      "--keepalive-timeout-ms", str(keepalive_timeout_ms), "--ack-delay-s", str(ack_delay_s)]
+                      "--keepalive-timeout-ms", str(keepalive_timeout_ms), "--ack-delay-s", str(ack_delay_s),
+                      "--boot-delay-s", str(boot_delay_s)]
         self.process = None
         self.port = None
 
@@ -250,12 +258,14 @@ def main(argv=None):
     parser.add_argument("--keepalive-timeout-ms", type=int, default=DEFAULT_KEEPALIVE_TIMEOUT_MS,
                         help=f"armed silence that drops the relay, ms (firmware: {DEFAULT_KEEPALIVE_TIMEOUT_MS})")
     parser.add_argument("--ack-delay-s", type=float, default=0.0, help="delay before each answer, s")
+    parser.add_argument("--boot-delay-s", type=float, default=0.0,
+                        help="drop received bytes this long after start (a bootloader), s")
     args = parser.parse_args(argv)
-    if args.ack_delay_s < 0:
-        parser.error("--ack-delay-s must be >= 0")
+    if args.ack_delay_s < 0 or args.boot_delay_s < 0:
+        parser.error("--ack-delay-s and --boot-delay-s must be >= 0")
     if args.max_pulse_ms <= 0 or args.keepalive_timeout_ms <= 0:
         parser.error("--max-pulse-ms and --keepalive-timeout-ms must be > 0")
-    serve(args.port_file, args.log, args.max_pulse_ms, args.keepalive_timeout_ms, args.ack_delay_s)
+    serve(args.port_file, args.log, args.max_pulse_ms, args.keepalive_timeout_ms, args.ack_delay_s, args.boot_delay_s)
     return 0
 
 

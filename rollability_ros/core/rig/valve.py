@@ -366,6 +366,7 @@ class SerialRelayConfig:
     baud: int = 115200
     timeout_s: float = 0.2
     keepalive_period_ms: int = 50
+    boot_wait_s: float = 3.0
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -377,6 +378,8 @@ class SerialRelayConfig:
             raise ValueError(f"serial.timeout_s must be > 0, got {self.timeout_s}")
         if self.keepalive_period_ms <= 0:
             raise ValueError(f"serial.keepalive_period_ms must be > 0, got {self.keepalive_period_ms}")
+        if not 0 <= self.boot_wait_s < 60:
+            raise ValueError(f"serial.boot_wait_s must be in [0, 60), got {self.boot_wait_s}")
 
 
 @dataclasses.dataclass

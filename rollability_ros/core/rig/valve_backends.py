@@ -169,12 +169,16 @@ class SerialRelayBackend:
         Longest wait for an answer line, s; a missing or wrong answer raises :class:`ValveBackendError`.
     keepalive_period_ms : int
         Period of the ``KA`` line, ms; must be at most a third of the board's ``keepalive_timeout_ms``.
+    boot_wait_s : float
+        How long ``HELLO`` is repeated until the board answers, s: opening the port resets an Uno / Nano, whose
+        bootloader runs for 1-2 s before the sketch answers.
     """
 
     name = "serial_relay"
 
-    def __init__(self, port, baud=115200, timeout_s=0.2, keepalive_period_ms=50):
+    def __init__(self, port, baud=115200, timeout_s=0.2, keepalive_period_ms=50, boot_wait_s=3.0):
         self.port = port
+        self.boot_wait_s = boot_wait_s
         self.baud = baud
         self.timeout_s = timeout_s
         self.keepalive_period_ms = keepalive_period_ms
@@ -198,8 +202,16 @@ class SerialRelayBackend:
         """Open the port, check the board's protocol and limits, start the keep-alive thread."""
         serial = require("serial", feature="the serial_relay valve backend")
         self._serial = serial.Serial(self.port, self.baud, timeout=self.timeout_s, write_timeout=self.timeout_s)
+        deadline = time.monotonic() + self.boot_wait_s
+        while True:
+            try:
+                hello = self._command("HELLO")
+                break
+            except ValveBackendError:
+                if time.monotonic() >= deadline:
+                    raise
         try:
-            self.limits = relay_protocol.parse_hello(self._command("HELLO"))
+            self.limits = relay_protocol.parse_hello(hello)
         except ValueError as exc:
             raise ValveBackendError(f"relay board on {self.port}: {exc}") from exc
         if 3 * self.keepalive_period_ms > self.limits.keepalive_timeout_ms:
@@ -336,7 +348,7 @@ def make_backend(config):
                            hardware_pulse_limiter=config.gpio.hardware_pulse_limiter)
     if config.backend == "serial_relay":
         s = config.serial
-        return SerialRelayBackend(s.port, s.baud, s.timeout_s, s.keepalive_period_ms)
+        return SerialRelayBackend(s.port, s.baud, s.timeout_s, s.keepalive_period_ms, s.boot_wait_s)
     raise ValueError(f"unknown valve backend {config.backend!r}")
 
 

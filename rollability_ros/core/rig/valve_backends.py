@@ -234,8 +234,12 @@ class SerialRelayBackend:
         self._thread = threading.Thread(target=self._keepalive_loop, name="relay-keepalive", daemon=True)
         self._thread.start()
 
-    def _command(self, line, expect=None):
-        """Send one line, return its answer (stripped); raise unless it starts with ``expect``."""
+    def _command(self, line, expect=None, then=None):
+        """Send one line and return its answer (stripped); raise unless it starts with ``expect``.
+
+        ``then(answer)`` runs before the port is free again, so what this side believes about arming changes in
+        the same order as the board's answers (the keep-alive thread compares them).
+        """
         with self._io_lock:
             if self._serial is None:
                 raise ValveBackendError(f"serial port {self.port} is not open")
@@ -243,14 +247,14 @@ class SerialRelayBackend:
             self._serial.write((line + "\n").encode("ascii"))
             self._serial.flush()
             answer = self._serial.read_until(b"\n")  # bounded by the port timeout
-        text = answer.decode("ascii", errors="replace").strip()
-        if not answer.endswith(b"\n"):
-            raise ValveBackendError(f"relay board did not answer {line!r} within {self.timeout_s} s"
-                                    + (f" (partial answer {text!r})" if text else ""))
-        self._last_answer_at = time.monotonic()
-        if expect is not None and not text.startswith(expect):
-            raise ValveBackendError(f"relay board answered {text!r} to {line!r}, expected {expect!r}")
-        return text
+            text = answer.decode("ascii", errors="replace").strip()
+            if not answer.endswith(b"\n"):
+                raise ValveBackendError(f"relay board did not answer {line!r} within {self.timeout_s} s"
+                                        + (f" (partial answer {text!r})" if text else ""))
+            self._last_answer_at = time.monotonic()
+            if expect is not None and not text.startswith(expect):
+                raise ValveBackendError(f"relay board answered {text!r} to {line!r}, expected {expect!r}")
+            return then(text) if then is not None else text
 
     def _notify(self, reason):
         _LOG.error("relay board: %s", reason)
@@ -263,8 +267,7 @@ class SerialRelayBackend:
     def _keepalive_loop(self):
         while not self._stop.wait(self.keepalive_period_ms / 1000.0):
             try:
-                answer = self._command("KA", expect="OK KA ")
-                state = relay_protocol.parse_state(answer[len("OK KA "):])
+                state, expected_armed = self._command("KA", expect="OK KA ", then=self._keepalive_answer)
             except (ValveBackendError, ValueError, OSError) as exc:
                 if self._link == "ok":
                     self._link = f"lost: {exc}"
@@ -280,12 +283,18 @@ class SerialRelayBackend:
             if state.fault != "none" and state.fault != self._reported_fault:
                 self._reported_fault = state.fault
                 self._notify(f"board fault {state.fault}: relay off and disarmed by the board")
-            elif self._armed and not state.armed:
+            elif expected_armed and not state.armed:
                 self._notify("board disarmed itself: relay off")
             if state.fault == "none":
                 self._reported_fault = "none"
-            if not state.armed:
-                self._armed = False
+
+    def _keepalive_answer(self, answer):
+        """``(board state, armed as this side expected it)`` for one KA answer (port lock held)."""
+        state = relay_protocol.parse_state(answer[len("OK KA "):])
+        expected_armed = self._armed
+        if not state.armed:
+            self._armed = False
+        return state, expected_armed
 
     def link_state(self):
         """One line for diagnostics: link, board limits, last answer age, board state."""
@@ -298,13 +307,11 @@ class SerialRelayBackend:
 
     def arm(self):
         """Arm the board (its keep-alive timer starts)."""
-        self._command("ARM", expect="OK ARMED")
-        self._armed = True
+        self._command("ARM", expect="OK ARMED", then=lambda _answer: setattr(self, "_armed", True))
 
     def disarm(self):
         """Disarm the board (relay off)."""
-        self._armed = False
-        self._command("DISARM", expect="OK DISARMED")
+        self._command("DISARM", expect="OK DISARMED", then=lambda _answer: setattr(self, "_armed", False))
 
     def clear(self):
         """Acknowledge a latched board fault (refused while the e-stop button is held)."""

@@ -34,8 +34,8 @@ def exposure_warnings(environ) -> list:
     localhost_only = environ.get("ROS_LOCALHOST_ONLY", "") == "1"
     if scope in ("", "SUBNET", "SYSTEM_DEFAULT") and not localhost_only:
         warnings.append(f"discovery range {scope or 'unset (SUBNET)'}: every ROS 2 process on the local network "
-                        "on this domain can see and call the valve_controller; set "
-                        "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST on the rig computer")
+                        "on this domain sees the valve_controller and can call it (refused without the session "
+                        "key) or e-stop it; set ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST on the rig computer")
     if environ.get("ROS_STATIC_PEERS"):
         warnings.append(f"static peers {environ['ROS_STATIC_PEERS']} can reach the rig's nodes")
     if environ.get("ROS_DOMAIN_ID", "") in ("", "0"):

@@ -29,8 +29,8 @@ import time
 import tty
 
 import rollability_ros
-from rollability_ros.core.rig.relay_protocol import (DEFAULT_KEEPALIVE_TIMEOUT_MS, DEFAULT_MAX_PULSE_MS, MAX_LINE,
-                                                     RelayDevice)
+from rollability_ros.core.rig.relay_protocol import (DEFAULT_KEEPALIVE_TIMEOUT_MS, DEFAULT_MAX_PULSE_MS,
+                                                     RelayDevice, split_lines)
 
 
 class _Board:
@@ -117,12 +117,8 @@ def serve(port_file, log_path, max_pulse_ms=DEFAULT_MAX_PULSE_MS, keepalive_time
             if time.monotonic() < booted_at:
                 board.log("boot", dropped=len(data))
                 continue
-            pending += data
-            *lines, pending = pending.replace(b"\r", b"").split(b"\n")
-            if len(pending) > 4 * MAX_LINE:
-                pending = b""  # garbage without line ends: drop it, as the firmware's bounded buffer does
-            for raw in lines:
-                line = raw.decode("ascii", errors="replace")
+            lines, pending = split_lines(pending + data)
+            for line in lines:
                 if not line:
                     continue  # an empty line gets no answer (as in the firmware)
                 reply = board.answer(line)

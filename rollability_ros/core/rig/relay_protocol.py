@@ -96,6 +96,14 @@ def parse_hello(answer: str) -> DeviceLimits:
     return limits
 
 
+def split_lines(pending: bytes) -> tuple:
+    """Received bytes -> ``(complete lines as str, unfinished rest)``; CRs dropped, an endless rest discarded."""
+    *lines, rest = pending.replace(b"\r", b"").split(b"\n")
+    if len(rest) > 4 * MAX_LINE:
+        rest = b""  # garbage without line ends: drop it, as the firmware's bounded buffer does
+    return [raw.decode("ascii", errors="replace") for raw in lines], rest
+
+
 def pulse_command(pulse_ms: int) -> str:
     """The command line for a pulse of ``pulse_ms`` ms (a positive integer)."""
     if isinstance(pulse_ms, bool) or int(pulse_ms) != pulse_ms or pulse_ms <= 0:

@@ -349,6 +349,7 @@ class GpioValveConfig:
     line_offset: int = 17
     active_high: bool = True
     hardware_pulse_limiter: bool = False
+    line_holder: bool = True
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

@@ -12,10 +12,15 @@ diagnostics).
 
 What each backend can promise when the controlling process dies (SIGKILL, crash, power loss): ``serial_relay``
 talks to a board that times pulses and drops the relay without keep-alives (:mod:`.relay_protocol`), so the relay
-is off within ``max_pulse_ms``; ``gpio`` cannot promise anything (a GPIO line keeps its level when its owner dies),
-so it fires only when the configuration declares an external hardware pulse limiter; ``dry_run`` drives nothing.
+is off within ``max_pulse_ms``; ``gpio`` keeps the line in a tiny holder process (:mod:`.gpio_line_holder`) that
+drops it when the controller dies, but a GPIO line keeps its level when its own owner dies, so it fires only when the
+configuration declares an external hardware pulse limiter; ``dry_run`` drives nothing.
 """
 import logging
+import os
+import select
+import subprocess
+import sys
 import threading
 import time
 
@@ -87,11 +92,12 @@ class GpioBackend:
     name = "gpio"
 
     def __init__(self, chip, line_offset, active_high=True, consumer="rollability-valve",
-                 hardware_pulse_limiter=False):
+                 hardware_pulse_limiter=False, warn=True):
         self.chip_path = gpio_chip_path(chip)
         self.line_offset = line_offset
         self.active_high = active_high
         self.hardware_pulse_limiter = hardware_pulse_limiter
+        self.warn = warn  # False in the line holder, whose parent warns
         self.consumer = consumer
         self._gpiod = None
         self._request = None
@@ -106,11 +112,13 @@ class GpioBackend:
         )
         self._request = gpiod.request_lines(self.chip_path, consumer=self.consumer,
                                             config={self.line_offset: settings})
-        _LOG.warning(
-            "gpio valve backend: if this process dies (SIGKILL, crash, power loss of the computer only) the line "
-            "%s:%d keeps its level and nothing in software can close the valve; %s", self.chip_path,
-            self.line_offset, "the configuration declares a hardware pulse limiter (valve.gpio.hardware_pulse_limiter)"
-            if self.hardware_pulse_limiter else "no hardware pulse limiter is declared, so every fire is refused")
+        if self.warn:
+            _LOG.warning(
+                "gpio valve backend: if this process dies (SIGKILL, crash, power loss of the computer only) the "
+                "line %s:%d keeps its level and nothing in software can close the valve; %s", self.chip_path,
+                self.line_offset,
+                "the configuration declares a hardware pulse limiter (valve.gpio.hardware_pulse_limiter)"
+                if self.hardware_pulse_limiter else "no hardware pulse limiter is declared, so every fire is refused")
 
     def fire_refusal(self):
         """Refuse every pulse unless the configuration declares the external hardware pulse limiter."""
@@ -198,18 +206,30 @@ class SerialRelayBackend:
         """``callback(reason)`` is called (from the keep-alive thread) when the board faults on its own."""
         self._fault_listener = callback
 
+    def _open_port(self):
+        """The port object (``write``, ``flush``, ``read_until``, ``reset_input_buffer``, ``close``)."""
+        serial = require("serial", feature="the serial_relay valve backend")
+        return serial.Serial(self.port, self.baud, timeout=self.timeout_s, write_timeout=self.timeout_s)
+
     def open(self):
         """Open the port, check the board's protocol and limits, start the keep-alive thread."""
-        serial = require("serial", feature="the serial_relay valve backend")
-        self._serial = serial.Serial(self.port, self.baud, timeout=self.timeout_s, write_timeout=self.timeout_s)
+        self._serial = self._open_port()
         deadline = time.monotonic() + self.boot_wait_s
+        attempts = 0
         while True:
+            attempts += 1
             try:
                 hello = self._command("HELLO")
                 break
             except ValveBackendError:
                 if time.monotonic() >= deadline:
                     raise
+        if attempts > 1:
+            # the board answers in order: the answer just read may be that of an earlier HELLO it got late, and the
+            # answers to the later ones follow at once; let them arrive and drop them before the next command
+            time.sleep(self.timeout_s)
+            with self._io_lock:
+                self._serial.reset_input_buffer()
         try:
             self.limits = relay_protocol.parse_hello(hello)
         except ValueError as exc:
@@ -346,13 +366,112 @@ class SerialRelayBackend:
             self._link = "released"
 
 
+class _PipePort:
+    """A child process's stdin / stdout as a serial-like port (the subset :class:`SerialRelayBackend` uses)."""
+
+    def __init__(self, process, timeout_s):
+        self.process = process
+        self.timeout_s = timeout_s
+        self._buffer = b""
+
+    def _read_available(self, wait_s):
+        fd = self.process.stdout.fileno()
+        readable, _, _ = select.select([fd], [], [], wait_s)
+        if not readable:
+            return False
+        data = os.read(fd, 4096)
+        if not data:
+            raise ValveBackendError(f"gpio line holder exited (code {self.process.poll()})")
+        self._buffer += data
+        return True
+
+    def reset_input_buffer(self):
+        """Drop everything received so far."""
+        while self.process.poll() is None and self._read_available(0):
+            pass
+        self._buffer = b""
+
+    def write(self, data):
+        """Send bytes to the holder."""
+        try:
+            os.write(self.process.stdin.fileno(), data)
+        except OSError as exc:
+            raise ValveBackendError(f"gpio line holder gone: {exc}") from exc
+
+    def flush(self):
+        """Nothing to flush (unbuffered writes)."""
+
+    def read_until(self, terminator=b"\n"):
+        """Bytes up to and including ``terminator``, or what arrived within ``timeout_s``."""
+        deadline = time.monotonic() + self.timeout_s
+        while terminator not in self._buffer:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0 or not self._read_available(remaining):
+                break
+        if terminator in self._buffer:
+            line, self._buffer = self._buffer.split(terminator, 1)
+            return line + terminator
+        partial, self._buffer = self._buffer, b""
+        return partial
+
+    def close(self):
+        """Close the holder's input (it drives the line inactive and exits); kill it if it does not."""
+        self.process.stdin.close()
+        try:
+            self.process.wait(5.0)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+        self.process.stdout.close()
+
+
+class GpioHolderBackend(SerialRelayBackend):
+    """The gpio backend: the line is owned by :mod:`~rollability_ros.core.rig.gpio_line_holder`, a child process
+    that speaks the relay board's protocol on its pipes, so the valve_controller's death drops the line.
+
+    The holder can still die itself (or the computer freeze) with the line active: every fire is refused unless
+    ``hardware_pulse_limiter`` declares the external limiter of docs/firmware.md.
+    """
+
+    name = "gpio"
+
+    def __init__(self, chip, line_offset, active_high=True, hardware_pulse_limiter=False, max_pulse_ms=500,
+                 keepalive_timeout_ms=relay_protocol.DEFAULT_KEEPALIVE_TIMEOUT_MS, timeout_s=0.5,
+                 keepalive_period_ms=50, boot_wait_s=10.0):
+        super().__init__(f"gpio line holder for {gpio_chip_path(chip)}:{line_offset}", timeout_s=timeout_s,
+                         keepalive_period_ms=keepalive_period_ms, boot_wait_s=boot_wait_s)
+        self._argv = [sys.executable, "-m", "rollability_ros.core.rig.gpio_line_holder", "--chip", chip,
+                      "--line-offset", str(line_offset), "--max-pulse-ms", str(max_pulse_ms),
+                      "--keepalive-timeout-ms", str(keepalive_timeout_ms)] + ([] if active_high else ["--active-low"])
+        self.hardware_pulse_limiter = hardware_pulse_limiter
+        self.process = None
+
+    def _open_port(self):
+        self.process = subprocess.Popen(self._argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0)
+        _LOG.warning("gpio valve backend: line held by process %d; if it dies too (or the computer freezes) the "
+                     "line keeps its level, %s", self.process.pid, "the declared hardware pulse limiter ends the "
+                     "pulse" if self.hardware_pulse_limiter else "and no hardware pulse limiter is declared, so "
+                     "every fire is refused")
+        return _PipePort(self.process, self.timeout_s)
+
+    fire_refusal = GpioBackend.fire_refusal
+
+    def link_state(self):
+        """One line for diagnostics: the holder link and whether a hardware limiter is declared."""
+        limiter = "hardware pulse limiter declared" if self.hardware_pulse_limiter else "NO hardware pulse limiter"
+        return f"{super().link_state()}; {limiter}"
+
+
 def make_backend(config):
     """Build the backend named by a :class:`~rollability_ros.core.rig.valve.ValveConfig` (not yet opened)."""
     if config.backend == "dry_run":
         return DryRunBackend()
     if config.backend == "gpio":
-        return GpioBackend(config.gpio.chip, config.gpio.line_offset, config.gpio.active_high,
-                           hardware_pulse_limiter=config.gpio.hardware_pulse_limiter)
+        g = config.gpio
+        if g.line_holder:
+            return GpioHolderBackend(g.chip, g.line_offset, g.active_high, g.hardware_pulse_limiter,
+                                     max_pulse_ms=config.max_pulse_ms)
+        return GpioBackend(g.chip, g.line_offset, g.active_high, hardware_pulse_limiter=g.hardware_pulse_limiter)
     if config.backend == "serial_relay":
         s = config.serial
         return SerialRelayBackend(s.port, s.baud, s.timeout_s, s.keepalive_period_ms, s.boot_wait_s)

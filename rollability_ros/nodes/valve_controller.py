@@ -93,8 +93,9 @@ class ValveControllerNode(Node):
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         if config.backend == "gpio":
             self.get_logger().warning(
-                "gpio backend: a killed valve_controller leaves the line where it was; only the hardware pulse "
-                "limiter of docs/firmware.md closes the valve then"
+                "gpio backend: the line holder process drops the line when this node dies, but if the holder dies "
+                "too (or the computer freezes) the line stays where it was; only the hardware pulse limiter of "
+                "docs/firmware.md closes the valve then"
                 + ("" if config.gpio.hardware_pulse_limiter else
                    " -- none is declared (valve.gpio.hardware_pulse_limiter: false), so every fire is refused"))
         limits = self.controller.device_limits()

@@ -21,15 +21,16 @@ from rollability_ros.core.rig.relay_protocol import DEFAULT_KEEPALIVE_TIMEOUT_MS
 
 
 def serve(line, device, in_fd=0, out_fd=1):
-    """Run ``device`` on the lines of ``in_fd`` until end of input or SIGTERM / SIGINT, driving ``line``.
+    """Run ``device`` on the lines of ``in_fd`` until end of input or SIGTERM (SIGINT is ignored), driving ``line``.
 
     ``line`` has ``open_valve()``, ``close_valve()`` and ``release()``
     (:class:`~rollability_ros.core.rig.valve_backends.GpioBackend`). The line is driven inactive and released at
     the end, whatever ends it.
     """
     stop = []
-    for signum in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(signum, lambda signum, _frame: stop.append(signum))
+    signal.signal(signal.SIGTERM, lambda signum, _frame: stop.append(signum))
+    # Ctrl-C reaches the whole process group: the valve_controller shuts down in order and closes the pipe
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     pending = b""
 
     def apply(transitions):

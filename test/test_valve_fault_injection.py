@@ -296,3 +296,38 @@ def test_stray_participant_never_gets_the_relay_on(ros_node, start_node, relay):
         assert valve.fire(100).success
     assert len(relay.relay_intervals()) == 1
     assert process.stop() == 0
+
+
+def test_gpio_backend_sigkill_of_the_valve_node_mid_pulse(ros_node, start_node, tmp_path):
+    """The gpio backend's line holder (with a stand-in gpiod that logs the line) drops the line on the node's death."""
+    import json
+    import os
+    import pathlib
+
+    fake_gpiod = pathlib.Path(__file__).resolve().parent / "resources" / "fake_gpiod"
+    log = tmp_path / "gpio.jsonl"
+    env = dict(os.environ, FAKE_GPIOD_LOG=str(log),
+               PYTHONPATH=os.pathsep.join(filter(None, [str(fake_gpiod), os.environ.get("PYTHONPATH")])))
+    process = start_node("valve_controller", params={
+        "valve.backend": "gpio", "valve.gpio.chip": "gpiochip3", "valve.gpio.line_offset": 9,
+        "valve.gpio.hardware_pulse_limiter": True, "valve.max_pulse_ms": MAX_PULSE_MS,
+        "valve.watchdog_ms": WATCHDOG_MS}, env=env)
+    valve = ValveClient(ros_node)
+    valve.ready(process.log)
+
+    def line_events():
+        return [json.loads(line) for line in log.read_text().splitlines()] if log.exists() else []
+
+    with valve.heartbeats():
+        assert valve.arm()[0], process.log()
+        valve.fire_client.call_async(valve.fire_request(PULSE_MS))
+        assert ros_node.wait_for(lambda: any(e.get("value") == "active" for e in line_events()), 15), process.log()
+        process.signal(signal.SIGKILL)     # the node's whole process group
+        assert ros_node.wait_for(lambda: line_events()[-1]["event"] == "release", 5), line_events()
+    events = line_events()
+    on = next(e for e in events if e.get("value") == "active")
+    off = next(e for e in events if e.get("value") == "inactive" and e["monotonic_s"] > on["monotonic_s"])
+    on_ms = (off["monotonic_s"] - on["monotonic_s"]) * 1000.0
+    MEASURED.append(("gpio backend (line holder), SIGKILL of the valve node's process group", f"{on_ms:.0f}",
+                     "line holder: pipe closed"))
+    assert on_ms <= BOUND_MS and on["pid"] != process.process.pid

@@ -447,7 +447,10 @@ class GpioHolderBackend(SerialRelayBackend):
         self.process = None
 
     def _open_port(self):
-        self.process = subprocess.Popen(self._argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0)
+        # its own session: a SIGKILL of the valve_controller's process group (a supervisor's last resort) leaves the
+        # holder alive to see the closed pipe and drop the line
+        self.process = subprocess.Popen(self._argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0,
+                                        start_new_session=True)
         _LOG.warning("gpio valve backend: line held by process %d; if it dies too (or the computer freezes) the "
                      "line keeps its level, %s", self.process.pid, "the declared hardware pulse limiter ends the "
                      "pulse" if self.hardware_pulse_limiter else "and no hardware pulse limiter is declared, so "

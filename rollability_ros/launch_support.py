@@ -8,6 +8,7 @@ import os
 import typing
 
 from rollability_ros.core.graph.bringup import load_graph_settings, parameter_files, session_nodes
+from rollability_ros.core.rig.rig_network import physical_rig_environment
 
 
 class NodeCommand(typing.NamedTuple):
@@ -40,8 +41,15 @@ def _nodes(context, rig_backend, optimizer, evaluators):
     os.makedirs(run_dir, exist_ok=True)
     commands = session_commands(rig_backend, optimizer, evaluators, LaunchConfiguration("config").perform(context),
                                 run_dir)
+    # the physical rig's own domain and localhost discovery, unless the operator set them (as `rollability bringup`)
+    isolation = []
+    if rig_backend == "physical":
+        from launch.actions import SetEnvironmentVariable
+
+        isolation = [SetEnvironmentVariable(name, value)
+                     for name, value in physical_rig_environment(os.environ).items()]
     # name, namespace and parameters are in the arguments already: launch_ros adds nothing to the command line
-    return [Node(package="rollability_ros", executable=command.executable, arguments=command.arguments,
+    return isolation + [Node(package="rollability_ros", executable=command.executable, arguments=command.arguments,
                  output="screen", respawn=command.restart, respawn_delay=2.0)
             for command in commands]
 

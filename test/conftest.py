@@ -3,9 +3,11 @@
 The domain id is taken with an exclusive lock on a file in the temp directory, so two test runs on one machine
 (two checkouts, CI beside a developer) never share a domain, and nodes started by the tests inherit it.
 """
+import atexit
 import fcntl
 import os
 import pathlib
+import shutil
 import tempfile
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -30,6 +32,9 @@ os.environ["ROS_DOMAIN_ID"] = str(_DOMAIN)
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("ROS_STATIC_PEERS", None)
 os.environ.pop("ROS_LOCALHOST_ONLY", None)
+# valve session keys (rollability_ros.core.rig.valve_auth) go to a private folder of this test run, not the user's
+os.environ["XDG_RUNTIME_DIR"] = tempfile.mkdtemp(prefix="rollability-test-run-")
+atexit.register(shutil.rmtree, os.environ["XDG_RUNTIME_DIR"], True)
 # subprocesses (nodes, peers) import this checkout's sources, whatever their working directory
 os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH", "")]))
 

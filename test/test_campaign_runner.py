@@ -15,6 +15,7 @@ import sys
 import time
 
 import pytest
+from valve_client import ValveClient
 
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
 from rollability_ros.core.rig.relay_device_sim import RelaySim
@@ -97,33 +98,16 @@ def separate_directories(tmp_path):
     return logger_dir, runner_dir
 
 
-class ValveWatch:
-    """The latched valve state and the operator's acknowledgement service, from the test's node."""
-
-    def __init__(self, spun):
-        from std_msgs.msg import Bool
-        from std_srvs.srv import SetBool
-
-        from rollability_ros.msg import ValveState
-        from rollability_ros.nodes._support import LATCHED_QOS
-
-        self.spun = spun
-        self.states = []
-        spun.node.create_subscription(ValveState, "valve/state", self.states.append, LATCHED_QOS)
-        self.arm_client = spun.node.create_client(SetBool, "valve/arm")
-        self.estop_pub = spun.node.create_publisher(Bool, "valve/estop", 10)
-        self._set_bool, self._bool = SetBool, Bool
+class ValveWatch(ValveClient):
+    """The latched valve state, the e-stop and the operator's (signed) acknowledgement, from the test's node."""
 
     def armed_count(self):
         return sum(1 for a, b in zip(self.states, self.states[1:]) if b.armed and not a.armed)
 
     def acknowledge(self):
         assert self.arm_client.wait_for_service(timeout_sec=30)
-        response = self.arm_client.call(self._set_bool.Request(data=False), timeout_sec=30)
-        assert response.success, response.message
-
-    def estop(self):
-        self.estop_pub.publish(self._bool(data=True))
+        ok, message = self.arm(False)
+        assert ok, message
 
 
 def test_physical_campaign_on_dry_run_valve(ros_node, start_node, tmp_path):
@@ -170,7 +154,8 @@ def relay(tmp_path):
 
 
 def relay_commands(relay):
-    return [e for e in relay.entries() if e["event"] == "command"]
+    """The lines the relay board received, keep-alives left out."""
+    return [e["line"] for e in relay.entries() if e["event"] == "command" and e["line"] != "KA"]
 
 
 def test_physical_campaign_on_serial_relay_survives_estop_and_watchdog(ros_node, start_node, tmp_path, relay):
@@ -192,8 +177,8 @@ def test_physical_campaign_on_serial_relay_survives_estop_and_watchdog(ros_node,
     assert "e-stop" in out and plan[1].trial_id in out
     assert graph.stored() == [plan[0].trial_id]
     assert watch.states[-1].fault and not watch.states[-1].open
-    ons = [e for e in relay_commands(relay) if e["line"] == "RELAY 1 ON"]
-    assert len(ons) == 1 and ons[0]["monotonic_s"] < estop_at            # only trial 1 ever opened the valve
+    ons = relay.relay_intervals()                                         # from the board's own log
+    assert len(ons) == 1 and ons[0][0]["monotonic_s"] < estop_at          # only trial 1 ever opened the valve
     assert not relay.relay_on()
 
     # resume with the fault latched: refused to arm, nothing lost, nothing stored twice
@@ -213,16 +198,15 @@ def test_physical_campaign_on_serial_relay_survives_estop_and_watchdog(ros_node,
     graph.rig.signal(signal.SIGCONT)
     out, _ = runner.communicate(timeout=60)
     assert runner.returncode == 3 and "watchdog" in out, out + graph.logs()
-    assert not relay.relay_on() and relay_commands(relay)[-1]["line"] == "RELAY 1 OFF"
+    assert not relay.relay_on() and "DISARM" in relay_commands(relay)[-3:]
     assert graph.stored() == [plan[0].trial_id]
 
     watch.acknowledge()
     code, out = graph.run(operator_script(plan[1:]), "--resume")
     assert code == 0, out + graph.logs()
     assert graph.stored() == [t.trial_id for t in plan]                  # every trial once, in order
-    commands = relay_commands(relay)
-    assert sum(e["line"] == "RELAY 1 ON" for e in commands) == 4          # one pulse per stored trial
-    assert commands[-1]["line"] == "RELAY 1 OFF" and not relay.relay_on()
+    assert len(relay.relay_intervals()) == 4                              # one pulse per stored trial
+    assert "DISARM" in relay_commands(relay)[-3:] and not relay.relay_on()
 
 
 def write_designs(folder):

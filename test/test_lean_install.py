@@ -70,7 +70,7 @@ def _call(ros_node, client, request, timeout_s=30):
 def test_physical_side_nodes_start_and_serve(ros_node, start_node, lean_env, tmp_path):
     from rclpy.action import ActionClient
     from sensor_msgs.msg import Imu
-    from std_srvs.srv import SetBool
+    from valve_client import ValveClient
 
     from rollability_ros.action import Launch
     from rollability_ros.msg import TipState
@@ -88,8 +88,10 @@ def test_physical_side_nodes_start_and_serve(ros_node, start_node, lean_env, tmp
     }
     node = ros_node.node
 
-    arm = _call(ros_node, node.create_client(SetBool, "/valve/arm"), SetBool.Request(data=True))
-    assert arm.success, arm.message
+    valve = ValveClient(ros_node)   # signed with the session key the valve_controller wrote
+    assert valve.arm_client.wait_for_service(timeout_sec=30)
+    ok, message = valve.arm()
+    assert ok, message
     stray = _call(ros_node, node.create_client(RecordOutcome, "/record_outcome"), RecordOutcome.Request(upright=True))
     assert not stray.accepted and "not waiting" in stray.message
     assert ActionClient(node, Launch, "/launch").wait_for_server(timeout_sec=30)

@@ -1,77 +1,18 @@
 """valve_controller node over real DDS, in its own process: dry_run, and serial_relay against the relay
-simulator on a pty (the relay's own log proves the valve was switched off at every fault)."""
-import contextlib
+simulator on a pty (the relay's own log proves the valve was switched off at every fault).
+
+The test signs its requests with the valve's session key, as the rig node does; ``signed=False`` plays a stray
+participant on the same domain that does not have the key.
+"""
 import signal
-import threading
 import time
 
 import pytest
+from valve_client import ValveClient
 
 from rollability_ros.core.rig.relay_device_sim import RelaySim
 
 WATCHDOG_MS = 3000   # the test beats every 50 ms; a loaded 2-core machine has shown 1 s gaps
-
-
-class ValveClient:
-    """Service clients, publishers and the latched state of a valve_controller, from the test's node."""
-
-    def __init__(self, spun, namespace=""):
-        from std_msgs.msg import Bool, Header
-        from std_srvs.srv import SetBool
-
-        from rollability_ros.msg import ValveState
-        from rollability_ros.nodes._support import LATCHED_QOS
-        from rollability_ros.srv import FireValve
-
-        self.spun, node = spun, spun.node
-        ns = namespace.rstrip("/") + "/" if namespace else ""   # the valve's namespace; the test node's is /
-        self.states = []
-        node.create_subscription(ValveState, f"{ns}valve/state", self.states.append, LATCHED_QOS)
-        self.arm_client = node.create_client(SetBool, f"{ns}valve/arm")
-        self.fire_client = node.create_client(FireValve, f"{ns}valve/fire")
-        self.estop_pub = node.create_publisher(Bool, f"{ns}valve/estop", 10)
-        self.heartbeat_pub = node.create_publisher(Header, f"{ns}rig/heartbeat", 10)
-        self._set_bool, self._fire, self._bool, self._header = SetBool, FireValve, Bool, Header
-
-    def ready(self, log):
-        assert self.arm_client.wait_for_service(timeout_sec=30), log()
-        assert self.fire_client.wait_for_service(timeout_sec=30), log()
-        assert self.spun.wait_for(lambda: self.states, 30), log()
-        assert self.spun.wait_for(lambda: self.estop_pub.get_subscription_count() > 0, 30), log()
-        # heartbeats sent before the valve has matched this publisher are lost and would trip the watchdog
-        assert self.spun.wait_for(lambda: self.heartbeat_pub.get_subscription_count() > 0, 30), log()
-
-    def arm(self, on=True):
-        response = self.arm_client.call(self._set_bool.Request(data=on), timeout_sec=30)
-        return response.success, response.message
-
-    def fire(self, pulse_ms):
-        return self.fire_client.call(self._fire.Request(pulse_ms=pulse_ms), timeout_sec=30)
-
-    def estop(self):
-        self.estop_pub.publish(self._bool(data=True))
-
-    def heartbeat(self):
-        self.heartbeat_pub.publish(self._header())
-
-    @contextlib.contextmanager
-    def heartbeats(self, period_s=0.05):
-        """The rig's heartbeat, sent from a background thread while the block runs (as the rig node does)."""
-        stop = threading.Event()
-
-        def beat():
-            while not stop.wait(period_s):
-                self.heartbeat()
-        thread = threading.Thread(target=beat, daemon=True)
-        thread.start()
-        try:
-            yield
-        finally:
-            stop.set()
-            thread.join()
-
-    def last(self):
-        return self.states[-1]
 
 
 def start_valve(start_node, backend="dry_run", ros_args=(), **params):
@@ -133,13 +74,14 @@ def test_parameters_are_fixed_and_invalid_ones_refused_at_start(ros_node, start_
     assert not result.successful and "fixed at start-up" in result.reason
 
 
-def _relay_events(sim, event="command"):
-    return [e for e in sim.entries() if e["event"] == event]
+def _commands(sim):
+    """The lines the board received, keep-alives left out."""
+    return [e["line"] for e in sim.entries() if e["event"] == "command" and e["line"] != "KA"]
 
 
 @pytest.fixture
 def relay(tmp_path):
-    with RelaySim(tmp_path) as sim:
+    with RelaySim(tmp_path, max_pulse_ms=5000) as sim:
         yield sim
 
 
@@ -149,36 +91,33 @@ def test_serial_relay_pulse_estop_cuts_pulse_and_sigterm_closes(ros_node, start_
     valve = ValveClient(ros_node)
     valve.ready(process.log)
     assert valve.last().backend == "serial_relay" and not valve.last().fault, process.log()
-    assert [e["line"] for e in _relay_events(relay)] == ["RELAY 1 OFF"]      # driven closed at start
+    assert _commands(relay)[:4] == ["HELLO", "STATUS", "OFF", "DISARM"]     # closed and disarmed at start
 
     with valve.heartbeats():
         assert valve.arm()[0]
-        before = len(_relay_events(relay))
         assert valve.fire(60).success
-        # the simulator logs a command just after acknowledging it: wait for both entries
-        assert ros_node.wait_for(lambda: len(_relay_events(relay)) >= before + 2, 10)
-        on, off = _relay_events(relay)[-2:]
-        assert (on["line"], off["line"], off["relay"]) == ("RELAY 1 ON", "RELAY 1 OFF", "off")
-        assert 0.04 < off["monotonic_s"] - on["monotonic_s"] < 0.5
+        (interval,) = relay.relay_intervals()
+        assert interval[0]["reason"] == "PULSE 60" and interval[1]["reason"] in ("pulse end", "OFF")
+        assert 0.04 < interval[1]["monotonic_s"] - interval[0]["monotonic_s"] < 0.5
 
         # an e-stop cuts a long pulse: the relay is off long before the 3 s pulse would have ended
-        future = valve.fire_client.call_async(valve._fire.Request(pulse_ms=3000))
+        future = valve.fire_client.call_async(valve.fire_request(3000))
         assert ros_node.wait_for(relay.relay_on, 10), process.log()
         valve.estop()
         estop_at = time.monotonic()
         assert ros_node.wait_for(lambda: not relay.relay_on(), 5)
         assert ros_node.wait_for(future.done, 10)
         assert not future.result().success and "pulse cut" in future.result().message
-        assert _relay_events(relay)[-1]["monotonic_s"] - estop_at < 1.0
+        assert relay.relay_intervals()[-1][1]["monotonic_s"] - estop_at < 1.0
         assert valve.arm(False)[0] and valve.arm()[0]
 
-        # SIGTERM while armed: the node drives the relay off before exiting
-        before = len(_relay_events(relay))
+        # SIGTERM while armed: the node switches the relay off and disarms the board before exiting
+        before = len(_commands(relay))
         process.signal(signal.SIGTERM)
         assert ros_node.wait_for(lambda: not process.alive(), 15), process.log()
     assert process.process.returncode == 0, process.log()
-    closing = _relay_events(relay)[before:]
-    assert closing and all(e["line"] == "RELAY 1 OFF" and e["acked"] for e in closing)
+    closing = _commands(relay)[before:]
+    assert closing[-2:] == ["OFF", "DISARM"] and set(closing) == {"OFF", "DISARM"}
     assert not relay.relay_on()
 
 
@@ -189,10 +128,10 @@ def test_serial_relay_watchdog_and_sigint_mid_pulse(ros_node, start_node, relay)
     assert valve.arm()[0]
     assert ros_node.wait_for(lambda: valve.last().fault, 5 * WATCHDOG_MS / 1000)   # nobody sends heartbeats
     assert "watchdog" in valve.last().fault_reason
-    assert _relay_events(relay)[-1]["line"] == "RELAY 1 OFF" and not relay.relay_on()
+    assert _commands(relay)[-1] == "DISARM" and not relay.relay_on()
     with valve.heartbeats():
         assert valve.arm(False)[0] and valve.arm()[0]
-        valve.fire_client.call_async(valve._fire.Request(pulse_ms=400))   # the node is stopped mid-pulse
+        valve.fire_client.call_async(valve.fire_request(400))   # the node is stopped mid-pulse
         assert ros_node.wait_for(relay.relay_on, 10), process.log()
         process.signal(signal.SIGINT)
     assert ros_node.wait_for(lambda: not relay.relay_on(), 5), process.log()
@@ -200,9 +139,33 @@ def test_serial_relay_watchdog_and_sigint_mid_pulse(ros_node, start_node, relay)
     assert not relay.relay_on()
 
 
-def test_operator_cli_estop_disarm_arm(ros_node, start_node):
-    """`rollability rig` finds the valve where `rollability bringup` starts it, with no flags; in the wrong
-    namespace it names the right one."""
+def test_diagnostics_report_armed_fault_margin_and_link(ros_node, start_node, relay):
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+    arrays = []
+    ros_node.node.create_subscription(DiagnosticArray, "/diagnostics", arrays.append, 10)
+    process = start_valve(start_node, "serial_relay", **{"valve.serial.port": relay.port})
+    valve = ValveClient(ros_node)
+    valve.ready(process.log)
+
+    def latest():
+        return {kv.key: kv.value for kv in arrays[-1].status[0].values} if arrays else {}
+
+    assert ros_node.wait_for(lambda: latest().get("device_link", "").startswith(relay.port), 10), process.log()
+    assert "RVR1 max_pulse_ms=5000" in latest()["device_link"] and latest()["armed"] == "false"
+    with valve.heartbeats():
+        assert valve.arm()[0]
+        assert ros_node.wait_for(lambda: latest().get("armed") == "true" and latest()["watchdog_margin_ms"], 10)
+        assert 0 < float(latest()["watchdog_margin_ms"]) <= WATCHDOG_MS
+        ValveClient(ros_node, signed=False).arm(False)
+        assert ros_node.wait_for(lambda: latest().get("rejected_requests") == "1", 10)
+        relay.cut()
+        assert ros_node.wait_for(lambda: arrays[-1].status[0].level == DiagnosticStatus.ERROR, 10)
+        assert "link lost" in latest()["fault_reason"] and "lost" in latest()["device_link"]
+        relay.restore()
+
+
+def test_operator_cli_estop_disarm_arm(ros_node, start_node, tmp_path):
     import subprocess
     import sys
 
@@ -217,6 +180,9 @@ def test_operator_cli_estop_disarm_arm(ros_node, start_node):
         return subprocess.run([sys.executable, "-m", "rollability_ros.cli", "rig", *args], capture_output=True,
                               text=True, timeout=60)
 
+    keyless = rig_cli("arm", "--session-key-file", str(tmp_path / "no-such.key"))
+    assert keyless.returncode == 2 and "cannot read the valve session key" in keyless.stderr, keyless.stderr
+    assert not valve.last().armed
     assert rig_cli("arm").returncode == 0 and ros_node.wait_for(lambda: valve.last().armed, 10)
     assert "e-stop sent" in rig_cli("estop").stdout
     assert ros_node.wait_for(lambda: valve.last().fault, 10)

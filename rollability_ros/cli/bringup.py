@@ -14,6 +14,8 @@ def run(args):
         settings.view = True
     run_dir = os.path.join(settings.output_dir, args.session_id or new_study_id().replace("study", "session"))
     os.makedirs(run_dir, exist_ok=True)
+    if args.backend == "physical":
+        _isolate_physical_rig()
     nodes = session_nodes(settings, run_dir, rig_backend=args.backend, optimizer=not args.no_optimizer)
     supervisor = Supervisor([node.process_spec(param_files) for node in nodes], os.path.join(run_dir, "logs"))
     stop = []
@@ -33,6 +35,20 @@ def run(args):
     return 0
 
 
+def _isolate_physical_rig():
+    """The physical rig's graph defaults to its own domain and localhost discovery (the children inherit them)."""
+    from rollability_ros.core.rig.rig_network import exposure_warnings, physical_rig_environment
+
+    added = physical_rig_environment(os.environ)
+    os.environ.update(added)
+    print(f"bringup: physical rig on ROS domain {os.environ['ROS_DOMAIN_ID']}, discovery "
+          f"{os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE') or 'ROS_LOCALHOST_ONLY'}"
+          + (" (defaults; the operator's shells need: " + " ".join(f"export {k}={v};" for k, v in added.items())
+             + ")" if added else ""))
+    for warning in exposure_warnings(os.environ):
+        print(f"bringup: warning: {warning}")
+
+
 def register(subparsers):
     parser = subparsers.add_parser(
         "bringup", help="start the whole node graph as supervised processes (Ctrl-C stops it cleanly)",
@@ -42,7 +58,9 @@ def register(subparsers):
         "recorder last, so the bag is complete and closed.")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="extra ROS 2 parameter file(s) on top of the defaults; repeatable, later files win")
-    parser.add_argument("--backend", choices=("sim", "physical"), default="sim", help="the rig's backend")
+    parser.add_argument("--backend", choices=("sim", "physical"), default="sim",
+                        help="the rig's backend; physical runs on ROS domain 73 with localhost-only discovery unless "
+                             "ROS_DOMAIN_ID / ROS_AUTOMATIC_DISCOVERY_RANGE are set")
     parser.add_argument("--no-optimizer", action="store_true", help="leave the optimizer out (rig-only session)")
     parser.add_argument("--view", action="store_true", help="also serve the live topics to the Foxglove app")
     parser.add_argument("--session-id", default=None, help="name of the session directory")

@@ -83,13 +83,13 @@ def _check_interfaces(checks):
 
         from rollability_ros.action import EvaluateProfile, Launch
         from rollability_ros.msg import CandidateResult, LaunchOutcome, ValveState
-        from rollability_ros.srv import FireValve, RecordOutcome
+        from rollability_ros.srv import ArmValve, FireValve, RecordOutcome
 
         outcome = LaunchOutcome(trial_id="doctor", upright=True)
         roundtrip = deserialize_message(serialize_message(outcome), LaunchOutcome)
         if roundtrip.trial_id != "doctor":
             raise RuntimeError("LaunchOutcome did not survive a CDR round trip")
-        loaded = [CandidateResult, ValveState, FireValve, RecordOutcome, EvaluateProfile, Launch]
+        loaded = [CandidateResult, ValveState, ArmValve, FireValve, RecordOutcome, EvaluateProfile, Launch]
         checks.report("ok", "custom interfaces", f"{len(loaded) + 1} types load; LaunchOutcome round-trips through CDR")
     except Exception as exc:
         checks.report("FAIL", "custom interfaces", f"{exc}: build them with scripts/setup.sh or colcon build")
@@ -135,6 +135,17 @@ def _check_discovery(checks):
         checks.report("warn", "ROS_LOCALHOST_ONLY", "deprecated in Jazzy: use ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST")
 
 
+def _check_rig_exposure(checks):
+    """On the rig computer: warn when other computers' ROS 2 processes can discover the valve_controller."""
+    from rollability_ros.core.rig.rig_network import exposure_warnings
+
+    warnings = exposure_warnings(os.environ)
+    for warning in warnings:
+        checks.report("warn", "rig exposure", warning)
+    if not warnings:
+        checks.report("ok", "rig exposure", "own domain, discovery limited to this machine")
+
+
 def _check_config(checks):
     from rollability_ros.core.config import ConfigError, config_dir
 
@@ -153,6 +164,8 @@ def run(args):
         _check_interfaces(checks)
     _check_packages(checks, args.rig)
     _check_discovery(checks)
+    if args.rig:
+        _check_rig_exposure(checks)
     _check_config(checks)
     if checks.failures:
         print(f"{checks.failures} check(s) failed, {checks.warnings} warning(s).")

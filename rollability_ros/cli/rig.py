@@ -6,8 +6,10 @@ ACTIONS = ("arm", "disarm", "estop", "confirm", "outcome")
 def register(subparsers):
     parser = subparsers.add_parser(
         "rig", help="operator commands to the running rig: arm, disarm (acknowledge a fault), e-stop, confirm, outcome",
-        description="Talk to the running valve_controller and rig nodes (same ROS domain). disarm also "
-                    "acknowledges a latched valve fault (e-stop, watchdog); confirm answers the rig's regulator "
+        description="Talk to the running valve_controller and rig nodes (same ROS domain). arm and disarm are "
+                    "signed with the valve_controller's session key, so they work only on the rig computer, as the "
+                    "user running the valve_controller; disarm also acknowledges a latched valve fault (e-stop, "
+                    "watchdog). estop needs no key: anyone may stop. confirm answers the rig's regulator "
                     "question; outcome records the result of the launch the rig waits on.")
     parser.add_argument("action", choices=ACTIONS, help="what to do")
     parser.add_argument("verdict", nargs="?", choices=("upright", "tipped"),
@@ -21,19 +23,34 @@ def register(subparsers):
                              "/rollability as shipped: where `rollability bringup` and the launch files start them)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="extra ROS 2 parameter file(s), as given to bringup, for the default namespace")
+    parser.epilog = ("Unless ROS_DOMAIN_ID / ROS_AUTOMATIC_DISCOVERY_RANGE are set, this joins the physical rig's "
+                     "defaults: domain 73, localhost discovery (as `rollability bringup --backend physical`).")
+    parser.add_argument("--session-key-file", default="",
+                        help="for arm / disarm: the valve_controller's session key (default: valve.session_key_file's "
+                             "default for this ROS domain and namespace)")
     parser.add_argument("--timeout-s", type=float, default=10.0, help="longest wait for the nodes, s (default 10)")
     parser.set_defaults(func=run)
 
 
-def _request(args):
-    """``(service or topic type, name, request or message)`` for the action."""
+def _request(args, sign=False):
+    """``(service or topic type, name, request or message)`` for the action; arm / disarm are signed only when
+    ``sign`` (the signature is fresh for a few seconds: sign once the service is there), else the request is None."""
     from std_msgs.msg import Bool
-    from std_srvs.srv import SetBool, Trigger
+    from std_srvs.srv import Trigger
 
-    from rollability_ros.srv import RecordOutcome
+    from rollability_ros.core.rig import valve_auth
+    from rollability_ros.nodes.valve_controller import auth_msg
+    from rollability_ros.srv import ArmValve, RecordOutcome
 
     if args.action in ("arm", "disarm"):
-        return SetBool, "valve/arm", SetBool.Request(data=args.action == "arm")
+        if not sign:
+            return ArmValve, "valve/arm", None
+        key_file = args.session_key_file or valve_auth.default_key_path(args.namespace)
+        try:
+            signature = valve_auth.RequestSigner(valve_auth.load_session_key(key_file)).sign(args.action)
+        except valve_auth.AuthError as exc:
+            raise ValueError(str(exc)) from exc
+        return ArmValve, "valve/arm", ArmValve.Request(arm=args.action == "arm", auth=auth_msg(signature))
     if args.action == "estop":
         return Bool, "valve/estop", Bool(data=True)
     if args.action == "confirm":
@@ -46,8 +63,7 @@ def _request(args):
 
 def default_namespace(config_files=()):
     """The namespace ``rollability bringup`` puts the graph in: ``bringup.namespace`` of the parameter files."""
-    from rollability_ros.core.graph.bringup import load_graph_settings
-    from rollability_ros.core.graph.bringup import parameter_files
+    from rollability_ros.core.graph.bringup import load_graph_settings, parameter_files
 
     return load_graph_settings(parameter_files(["bringup", *config_files])).namespace
 
@@ -67,15 +83,20 @@ def _missing(problem, name, elsewhere):
 
 
 def run(args):
+    import os
     import time
 
     import rclpy
     from rclpy.node import Node
 
+    from rollability_ros.core.rig.rig_network import physical_rig_environment
     from rollability_ros.nodes._support import init_ros
 
+    os.environ.update(physical_rig_environment(os.environ))  # the physical bringup's defaults, unless set
+    if args.namespace is None:
+        args.namespace = default_namespace(args.config)
+    namespace = args.namespace
     kind, name, payload = _request(args)
-    namespace = args.namespace if args.namespace is not None else default_namespace(args.config)
     init_ros([])
     node = Node("rig_operator", namespace=namespace or None)
     try:
@@ -99,6 +120,8 @@ def run(args):
                         if node.count_services(service)]   # the graph lists clients' service names too
             raise ValueError(_missing(f"service {node.resolve_service_name(name)} is not available", name,
                                       namespaces_offering(services, name)))
+        if args.action in ("arm", "disarm"):
+            payload = _request(args, sign=True)[2]  # signed now: the signature is fresh for a few seconds only
         future = client.call_async(payload)
         rclpy.spin_until_future_complete(node, future, timeout_sec=args.timeout_s)
         if not future.done():

@@ -12,15 +12,17 @@ Publications:
   ``launch_outcomes`` (rollability_ros/LaunchOutcome, reliable, deep queue): every outcome, for the outcome_logger.
   ``rig/pose`` (geometry_msgs/PoseStamped): the chassis pose during a launch, when the backend reports poses (the
   launch twin does).
-  ``rig/heartbeat`` (std_msgs/Header, when the backend opens the valve): every ``valve.heartbeat_period_ms`` on a
-  steady-clock timer while the node runs; the valve controller's watchdog closes the valve when it stops.
+  ``rig/heartbeat`` (rollability_ros/ValveHeartbeat, when the backend opens the valve): every
+  ``valve.heartbeat_period_ms`` on a steady-clock timer from the first arming on, signed with the valve's session
+  key; the valve controller's watchdog closes the valve when it stops.
 Services:
   ``record_outcome`` (rollability_ros/RecordOutcome): the operator's outcome of the launch the rig waits on (or an
   override of the IMU's verdict during the override window); refused with a reason when no launch waits (always,
   on the simulated backend).
   ``rig/confirm`` (std_srvs/Trigger): the operator confirms the regulator pressure asked for in the feedback.
-Ports the physical backend opens (:class:`RosRigPorts`): clients ``valve/arm`` (std_srvs/SetBool), ``valve/fire``
-  (FireValve); subscriptions to ``valve/state`` (latched) and, when ``rig.outcome_source`` is ``imu``, to the IMU
+Ports the physical backend opens (:class:`RosRigPorts`): clients ``valve/arm`` (ArmValve), ``valve/fire``
+  (FireValve), signed with the session key ``valve.session_key_file`` that the valve_controller on this computer
+  writes; subscriptions to ``valve/state`` (latched) and, when ``rig.outcome_source`` is ``imu``, to the IMU
   topic ``imu_outcome.topic`` (sensor_msgs/Imu, default ``imu/data``).
 Parameters: ``rig.*`` (:class:`~rollability_ros.core.rig.rig_session.RigSettings`: ``rig.backend`` sim | physical,
   ...), ``valve.*`` (launch pulse, heartbeat period, regulator pressures), ``speed_gate.*``, ``imu_outcome.*``,
@@ -39,28 +41,35 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
-from std_msgs.msg import Header
-from std_srvs.srv import SetBool, Trigger
+from std_srvs.srv import Trigger
 
 from rollability_ros.action import Launch
 from rollability_ros.core.rig.launch_backend import LaunchAborted, RigPorts
 from rollability_ros.core.rig.rig_session import OperatorOutcome, RigSettings, make_launch_backend
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
 from rollability_ros.core.imu.upright import ImuOutcomeConfig, imu_sample_from_message
+from rollability_ros.core.rig import valve_auth
 from rollability_ros.core.rig.valve import ValveConfig, ValveStatus
-from rollability_ros.msg import LaunchOutcome, ValveState
+from rollability_ros.msg import LaunchOutcome, ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
                                             run_node)
-from rollability_ros.srv import FireValve, RecordOutcome
+from rollability_ros.nodes.valve_controller import auth_msg
+from rollability_ros.srv import ArmValve, FireValve, RecordOutcome
 
 
 class ValveServices:
-    """The valve port of the physical backend over the valve_controller's services and latched state."""
+    """The valve port of the physical backend over the valve_controller's services and latched state.
 
-    def __init__(self, node, timeout_s, callback_group):
+    Every request and heartbeat is signed with the valve_controller's session key, read from ``key_path`` when the
+    launch sequence arms (after the operator's confirmation), so a valve_controller restart is picked up.
+    """
+
+    def __init__(self, node, timeout_s, callback_group, key_path):
         self._timeout_s = timeout_s
-        self._arm = node.create_client(SetBool, "valve/arm", callback_group=callback_group)
+        self._key_path = key_path
+        self._signer = None
+        self._arm = node.create_client(ArmValve, "valve/arm", callback_group=callback_group)
         self._fire = node.create_client(FireValve, "valve/fire", callback_group=callback_group)
         self._lock = threading.Lock()
         self._status = ValveStatus(False, False, False, "", "", 0, 0)
@@ -80,16 +89,36 @@ class ValveServices:
         with self._lock:
             return self._status
 
-    def _call(self, client, request, timeout_s):
+    def _call(self, client, make_request, timeout_s):
+        """Wait for the service, then build (sign) the request: a signature is fresh for a few seconds only."""
         if not client.wait_for_service(timeout_sec=self._timeout_s):
             return None, f"valve controller service {client.srv_name} is not available"
+        try:
+            request = make_request()
+        except valve_auth.AuthError as exc:
+            return None, str(exc)
         response = client.call(request, timeout_sec=timeout_s)
         if response is None:
             return None, f"valve controller did not answer {client.srv_name} within {timeout_s:g} s"
         return response, ""
 
+    def _sign(self, command, pulse_ms=None, reload=False):
+        """A ``ValveAuth`` for ``command``; re-reads the key file when asked or when none was read yet."""
+        if reload or self._signer is None:
+            self._signer = valve_auth.RequestSigner(valve_auth.load_session_key(self._key_path))
+        return auth_msg(self._signer.sign(command, pulse_ms))
+
+    def heartbeat(self, node_name, stamp):
+        """A signed ``ValveHeartbeat``, or None before the first arming (no key read yet)."""
+        if self._signer is None:
+            return None
+        msg = ValveHeartbeat(auth=self._sign("heartbeat"))
+        msg.header.frame_id, msg.header.stamp = node_name, stamp
+        return msg
+
     def _set_armed(self, armed):
-        response, failure = self._call(self._arm, SetBool.Request(data=armed), self._timeout_s)
+        response, failure = self._call(self._arm, lambda: ArmValve.Request(
+            arm=armed, auth=self._sign("arm" if armed else "disarm", reload=armed)), self._timeout_s)
         if response is None:
             return False, failure
         if response.success:
@@ -107,12 +136,23 @@ class ValveServices:
 
     def fire(self, pulse_ms):
         """Fire one pulse: ``(ok, reason)``; the response's state becomes the known status."""
-        response, failure = self._call(self._fire, FireValve.Request(pulse_ms=int(pulse_ms)),
-                                       self._timeout_s + pulse_ms / 1000.0)
+        response, failure = self._call(self._fire, lambda: FireValve.Request(
+            pulse_ms=int(pulse_ms), auth=self._sign("fire", int(pulse_ms))), self._timeout_s + pulse_ms / 1000.0)
         if response is None:
             return False, failure
         self._remember(response.state)
         return response.success, response.message
+
+
+def imu_sample_from_msg(msg):
+    """``sensor_msgs/Imu`` -> :class:`ImuSample` (orientation None when the IMU gives none)."""
+    q = msg.orientation
+    return ImuSample(
+        stamp_s=_convert.stamp_to_s(msg.header.stamp),
+        orientation=orientation_if_valid((q.x, q.y, q.z, q.w), list(msg.orientation_covariance)),
+        angular_velocity_radps=(msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z),
+        linear_acceleration_mps2=(msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z),
+        frame_id=msg.header.frame_id)
 
 
 class RosRigPorts(RigPorts):
@@ -124,20 +164,24 @@ class RosRigPorts(RigPorts):
         self._valve_timeout_s = valve_timeout_s
         self._group = callback_group
         self._heartbeat_publisher = None
+        self._valve_services = None
 
     def open_valve(self, valve_config):
-        """:class:`ValveServices`, and ``rig/heartbeat`` every ``valve.heartbeat_period_ms`` for the watchdog."""
+        """:class:`ValveServices` signing with the valve's session key, and ``rig/heartbeat`` every
+        ``valve.heartbeat_period_ms`` for the watchdog (signed; sent from the first arming on)."""
         node = self._node
-        self._heartbeat_publisher = node.create_publisher(Header, "rig/heartbeat", 10)
+        key_path = valve_config.session_key_file or valve_auth.default_key_path(node.get_namespace())
+        self._valve_services = ValveServices(node, self._valve_timeout_s, self._group, key_path)
+        self._heartbeat_publisher = node.create_publisher(ValveHeartbeat, "rig/heartbeat", 10)
         # steady clock: sim time must not stall the heartbeat the valve's watchdog relies on
         node.create_timer(valve_config.heartbeat_period_ms / 1000.0, self._heartbeat,
                           callback_group=MutuallyExclusiveCallbackGroup(), clock=Clock(clock_type=ClockType.STEADY_TIME))
-        return ValveServices(node, self._valve_timeout_s, self._group)
+        return self._valve_services
 
     def _heartbeat(self):
-        msg = Header(frame_id=self._node.get_name())
-        msg.stamp = self._node.get_clock().now().to_msg()
-        self._heartbeat_publisher.publish(msg)
+        msg = self._valve_services.heartbeat(self._node.get_name(), self._node.get_clock().now().to_msg())
+        if msg is not None:
+            self._heartbeat_publisher.publish(msg)
 
     def open_speed_gate(self, speed_config):
         """The configured speed gate."""

@@ -1,43 +1,83 @@
-"""valve_controller node: the launcher's solenoid valve as a fail-closed ROS device.
+"""valve_controller node: the launcher's solenoid valve as a fail-closed ROS device that only the operator fires.
+
+At start the node writes a fresh per-session arming key (``valve.session_key_file``, mode 0600; see
+:mod:`rollability_ros.core.rig.valve_auth`); only processes on this computer that can read it (the rig node,
+``rollability rig``) can arm, disarm, fire or keep the valve alive. Unauthenticated, stale or replayed requests are
+refused and counted.
 
 Services:
-  ``valve/arm`` (std_srvs/SetBool): ``data: true`` arms, ``false`` disarms (drives the valve closed and
-  acknowledges a latched fault).
-  ``valve/fire`` (rollability_ros/FireValve): one pulse of ``pulse_ms``; refused (with the reason in
-  ``message``) unless armed, fault-free and ``pulse_ms <= valve.max_pulse_ms``; returns after the valve is closed.
+  ``valve/arm`` (rollability_ros/ArmValve): ``arm: true`` arms, ``false`` disarms (drives the valve closed and
+  acknowledges a latched fault); refused unless ``auth`` signs ``arm`` / ``disarm``.
+  ``valve/fire`` (rollability_ros/FireValve): one pulse of ``pulse_ms``; refused (with the reason in ``message``)
+  unless authenticated, armed, fault-free and ``pulse_ms <= valve.max_pulse_ms``; returns after the valve is
+  closed.
 Subscriptions:
-  ``valve/estop`` (std_msgs/Bool): ``true`` latches an e-stop fault and drives the valve closed at once.
-  ``rig/heartbeat`` (std_msgs/Header): the rig's heartbeat; while armed, ``valve.watchdog_ms`` of silence (steady
-  clock, never ROS time) latches a watchdog fault and closes the valve.
+  ``valve/estop`` (std_msgs/Bool): ``true`` latches an e-stop fault and drives the valve closed at once. Not
+  authenticated on purpose: anyone may stop.
+  ``rig/heartbeat`` (rollability_ros/ValveHeartbeat): the rig's signed heartbeat; while armed,
+  ``valve.watchdog_ms`` without an authentic one of this session (steady clock, never ROS time) latches a
+  watchdog fault and closes the valve.
 Publications:
   ``valve/state`` (rollability_ros/ValveState, latched): on every state change; each change is also logged.
+  ``/diagnostics`` (diagnostic_msgs/DiagnosticArray): every second and on every state change: armed, fault and
+  its reason, watchdog margin, device link, refused requests.
 Parameters:
   ``valve.*`` (:class:`~rollability_ros.core.rig.valve.ValveConfig`, shipped in ``config/rig.yaml``), fixed at
   start-up: a running safety device does not change its backend or limits underneath the rig.
 
 Fail-closed: the valve is driven closed at start, on disarm, e-stop, watchdog trip, backend error, at the end of
-every pulse, and on SIGINT / SIGTERM / node destruction (``close()``, called by ``run_node`` before destroy).
+every pulse, and on SIGINT / SIGTERM / node destruction (``close()``, called by ``run_node`` before destroy). What
+happens when this process is killed depends on the backend (docs/valve-safety.md): the serial relay board drops the
+relay on its own; a plain GPIO line cannot.
 """
+import math
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from std_msgs.msg import Bool, Header
-from std_srvs.srv import SetBool
+from std_msgs.msg import Bool
 
+from rollability_ros.core.rig import valve_auth
 from rollability_ros.core.rig.valve import ValveConfig
 from rollability_ros.core.rig.valve_backends import make_controller
-from rollability_ros.msg import ValveState
+from rollability_ros.msg import ValveAuth, ValveHeartbeat, ValveState
 from rollability_ros.nodes._support import LATCHED_QOS, ParameterError, declare_settings, run_node
-from rollability_ros.srv import FireValve
+from rollability_ros.srv import ArmValve, FireValve
+
+DIAGNOSTICS_PERIOD_S = 1.0
+
+
+def auth_msg(signature):
+    """:class:`~rollability_ros.core.rig.valve_auth.Signature` -> ``rollability_ros/ValveAuth``."""
+    return ValveAuth(session=signature.session, counter=signature.counter, mac=signature.mac)
+
+
+def signature_from_msg(auth):
+    """``rollability_ros/ValveAuth`` -> :class:`~rollability_ros.core.rig.valve_auth.Signature`."""
+    return valve_auth.Signature(auth.session, int(auth.counter), auth.mac)
+
+
+def key_path(node, config):
+    """The session key file of this valve_controller (``valve.session_key_file`` or the per-domain default)."""
+    return config.session_key_file or valve_auth.default_key_path(node.get_namespace())
 
 
 class ValveControllerNode(Node):
-    """Thin adapter: services and topics -> :class:`~rollability_ros.core.rig.valve.ValveController`."""
+    """Thin adapter: authenticated services and topics -> :class:`~rollability_ros.core.rig.valve.ValveController`."""
 
     def __init__(self):
         super().__init__("valve_controller")
         config = declare_settings(self, "valve", ValveConfig)
+        self.key_path = key_path(self, config)
+        try:
+            self.session_key = valve_auth.create_session_key(self.key_path)
+        except (OSError, valve_auth.AuthError) as exc:
+            raise ParameterError(f"valve.session_key_file: cannot write {self.key_path}: {exc}") from exc
+        self.verifier = valve_auth.RequestVerifier(self.session_key)
         self.state_publisher = self.create_publisher(ValveState, "valve/state", LATCHED_QOS)
+        self.diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         try:
             self.controller = make_controller(config, on_state=self._publish_state)
         except ValueError as exc:
@@ -45,12 +85,26 @@ class ValveControllerNode(Node):
         self.add_on_set_parameters_callback(self._refuse_valve_change)
         # fire blocks for the pulse: e-stop, heartbeat and disarm must get through meanwhile
         reentrant = ReentrantCallbackGroup()
-        self.create_service(SetBool, "valve/arm", self._on_arm, callback_group=reentrant)
+        self.create_service(ArmValve, "valve/arm", self._on_arm, callback_group=reentrant)
         self.create_service(FireValve, "valve/fire", self._on_fire, callback_group=MutuallyExclusiveCallbackGroup())
         self.create_subscription(Bool, "valve/estop", self._on_estop, 10, callback_group=reentrant)
-        self.create_subscription(Header, "rig/heartbeat", self._on_heartbeat, 10, callback_group=reentrant)
+        self.create_subscription(ValveHeartbeat, "rig/heartbeat", self._on_heartbeat, 10, callback_group=reentrant)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics, callback_group=reentrant,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+        if config.backend == "gpio":
+            self.get_logger().warning(
+                "gpio backend: the line holder process drops the line when this node dies, but if the holder dies "
+                "too (or the computer freezes) the line stays where it was; only the hardware pulse limiter of "
+                "docs/firmware.md closes the valve then"
+                + ("" if config.gpio.hardware_pulse_limiter else
+                   " -- none is declared (valve.gpio.hardware_pulse_limiter: false), so every fire is refused"))
+        limits = self.controller.device_limits()
+        if limits is not None and limits.max_pulse_ms < config.max_pulse_ms:
+            self.get_logger().warning(f"the relay board caps pulses at {limits.max_pulse_ms} ms, below "
+                                      f"valve.max_pulse_ms {config.max_pulse_ms}")
         self.get_logger().info(f"valve ready: backend {config.backend}, max pulse {config.max_pulse_ms} ms, "
-                               f"watchdog {config.watchdog_ms} ms")
+                               f"watchdog {config.watchdog_ms} ms, session {self.session_key.session} "
+                               f"(key file {self.key_path})")
 
     def _refuse_valve_change(self, params):
         if any(p.name.startswith("valve.") for p in params):
@@ -73,15 +127,54 @@ class ValveControllerNode(Node):
         else:
             self.get_logger().info(line)
         self.state_publisher.publish(self._state_msg(status))
+        if hasattr(self, "controller"):
+            self._publish_diagnostics()
+
+    def _publish_diagnostics(self):
+        status, margin_ms, link = self.controller.health()
+        if status.fault:
+            level, summary = DiagnosticStatus.ERROR, f"fault: {status.fault_reason}"
+        elif link.startswith(f"{status.backend}: no device") or "lost" in link or "NO hardware" in link:
+            level, summary = DiagnosticStatus.WARN, ("armed" if status.armed else "disarmed") + "; " + link
+        else:
+            level, summary = DiagnosticStatus.OK, "armed" if status.armed else "disarmed, valve closed"
+        values = {
+            "armed": str(status.armed).lower(), "open": str(status.open).lower(), "fault": str(status.fault).lower(),
+            "fault_reason": status.fault_reason, "backend": status.backend,
+            "watchdog_margin_ms": "" if margin_ms is None or math.isnan(margin_ms) else f"{margin_ms:.0f}",
+            "device_link": link, "pulses": str(status.pulses), "last_pulse_ms": str(status.last_pulse_ms),
+            "rejected_requests": str(self.verifier.rejected), "session": self.session_key.session,
+        }
+        array = DiagnosticArray()
+        array.header.stamp = self.get_clock().now().to_msg()
+        array.status = [DiagnosticStatus(level=level, name=f"{self.get_fully_qualified_name()}: valve",
+                                         message=summary, hardware_id=status.backend,
+                                         values=[KeyValue(key=k, value=v) for k, v in values.items()])]
+        self.diagnostics_publisher.publish(array)
+
+    def _authentic(self, auth, command, pulse_ms=None):
+        ok, reason = self.verifier.verify(signature_from_msg(auth), command, pulse_ms)
+        if not ok:
+            self.get_logger().warning(f"refused {command} request: {reason}", throttle_duration_sec=1.0)
+        return ok, reason
 
     def _on_arm(self, request, response):
-        response.success, response.message = self.controller.arm() if request.data else self.controller.disarm()
+        command = "arm" if request.arm else "disarm"
+        ok, reason = self._authentic(request.auth, command)
+        if not ok:
+            response.success, response.message = False, reason
+            return response
+        response.success, response.message = self.controller.arm() if request.arm else self.controller.disarm()
         if not response.success:
-            self.get_logger().warning(f"{'arm' if request.data else 'disarm'} refused: {response.message}")
+            self.get_logger().warning(f"{command} refused: {response.message}")
         return response
 
     def _on_fire(self, request, response):
-        response.success, response.message = self.controller.fire(request.pulse_ms)
+        ok, reason = self._authentic(request.auth, "fire", request.pulse_ms)
+        if ok:
+            response.success, response.message = self.controller.fire(request.pulse_ms)
+        else:
+            response.success, response.message = False, reason
         if not response.success:
             self.get_logger().warning(f"fire {request.pulse_ms} ms: {response.message}")
         response.state = self._state_msg(self.controller.status())
@@ -92,11 +185,13 @@ class ValveControllerNode(Node):
             self.controller.estop("e-stop (valve/estop)")
 
     def _on_heartbeat(self, msg):
-        self.controller.heartbeat()
+        if self._authentic(msg.auth, "heartbeat")[0]:
+            self.controller.heartbeat()
 
     def close(self):
-        """Drive the valve closed and release the backend (idempotent)."""
+        """Drive the valve closed, release the backend and remove this session's key file (idempotent)."""
         self.controller.shutdown()
+        valve_auth.remove_session_key(self.key_path, self.session_key)
 
 
 def main(args=None):

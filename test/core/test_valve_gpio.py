@@ -53,7 +53,8 @@ def fake_gpiod(monkeypatch):
 
 @pytest.mark.parametrize("active_high", [True, False])
 def test_line_requested_closed_and_driven_closed(fake_gpiod, active_high):
-    controller = ValveController(GpioBackend("gpiochip2", 5, active_high=active_high), 200, 500)
+    controller = ValveController(GpioBackend("gpiochip2", 5, active_high=active_high, hardware_pulse_limiter=True),
+                                 200, 500)
     (request,) = fake_gpiod
     assert request.path == "/dev/gpiochip2"
     settings = request.settings[5]
@@ -70,7 +71,7 @@ def test_line_requested_closed_and_driven_closed(fake_gpiod, active_high):
 
 
 def test_gpio_error_faults_the_controller(fake_gpiod):
-    controller = ValveController(GpioBackend("/dev/gpiochip0", 3), 200, 500)
+    controller = ValveController(GpioBackend("/dev/gpiochip0", 3, hardware_pulse_limiter=True), 200, 500)
     (request,) = fake_gpiod
 
     def broken(offset, value):
@@ -81,6 +82,18 @@ def test_gpio_error_faults_the_controller(fake_gpiod):
     ok, message = controller.fire(10)
     assert not ok and "backend error on open: line lost" in message
     assert controller.status().fault
+
+
+def test_without_a_declared_hardware_limiter_it_warns_at_start_and_never_fires(fake_gpiod, caplog):
+    controller = ValveController(GpioBackend("gpiochip0", 4), 200, 500)
+    (request,) = fake_gpiod
+    assert "nothing in software can close the valve" in caplog.text and "every fire is refused" in caplog.text
+    assert controller.arm()[0]
+    ok, message = controller.fire(10)
+    assert not ok and "hardware_pulse_limiter" in message
+    assert ACTIVE not in request.values[4], "the line was never driven active"
+    assert not controller.status().fault, "a refusal, not a fault"
+    controller.shutdown()
 
 
 def test_missing_chip_with_the_real_library_faults_at_start():

@@ -1,7 +1,7 @@
 """Settings and pure helpers of the recorder and player nodes: which topics to record, bag names, remaps.
 
 The recorder's default selection is "the project's graph": every topic whose type belongs to this package
-(``rollability_ros/...``), the standard-typed topics our nodes publish (``rig/pose``, ``rig/heartbeat``,
+(``rollability_ros/...``), the standard-typed topics our nodes publish (``rig/pose``,
 ``/diagnostics``, visualization markers), and ``/tf``, ``/tf_static`` and ``/clock`` when present. Hidden topics
 (a name part starting with ``_``: action feedback/status, service events) and the ROS infrastructure topics
 ``/rosout`` and ``/parameter_events`` are left out, as ``ros2 bag record`` does.
@@ -22,7 +22,6 @@ ALWAYS_TOPICS = ("/tf", "/tf_static", "/clock", "/diagnostics")
 #: Topics of standard types that our nodes publish, by name relative to the node's namespace -> type.
 PROJECT_STANDARD_TOPICS = {
     "rig/pose": "geometry_msgs/msg/PoseStamped",
-    "rig/heartbeat": "std_msgs/msg/Header",
 }
 
 #: Standard types recorded on any topic (the optimizer's and the rig's visualisation).

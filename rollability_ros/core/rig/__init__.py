@@ -5,6 +5,10 @@
   phases, operator answers, IMU outcome, speed
 - valve: fail-closed valve state machine
 - valve_backends: dry-run, GPIO and serial relay backends
-- relay_device_sim: a simulated relay board on a pseudo-terminal (own process)
+- relay_protocol: the relay board's serial protocol (RVR1) and its state machine (firmware/ mirrors it)
+- gpio_line_holder: the tiny process that owns the gpio backend's line and speaks the board protocol on its pipes
+- relay_device_sim: a simulated relay board on a pseudo-terminal (own process), running that state machine
+- valve_auth: the per-session arming key and the signed valve requests (only the operator side fires)
+- rig_network: the physical rig's default ROS domain / discovery range and exposure warnings
 - speed_gate: launch speed from light-gate travel times
 """

@@ -1,14 +1,21 @@
-"""A simulated serial relay board on a pseudo-terminal, run as its own process, for testing the valve path.
+"""A simulated valve relay board on a pseudo-terminal, run as its own process, for testing the valve path.
 
 Run ``python -m rollability_ros.core.rig.relay_device_sim --port-file PORT --log LOG.jsonl``: it opens a pty, writes
-the slave's device path to ``PORT`` (atomically, once it is ready) and answers the line protocol of
-:class:`~rollability_ros.core.rig.valve_backends.SerialRelayBackend`. Every event goes to ``LOG`` as one JSON object
-per line: ``{"event": "start"|"command"|"mute"|"unmute"|"exit", "relay": "on"|"off", "line": ..., "acked": ...,
-"time_s": <Unix time>, "monotonic_s": <CLOCK_MONOTONIC, comparable across processes on Linux>}``, so a test
-can prove the relay really was switched off at each fault.
+the slave's device path to ``PORT`` (atomically, once it is ready) and speaks the board protocol of
+:mod:`rollability_ros.core.rig.relay_protocol` with the same state machine and timing as the firmware: the board,
+not the computer, ends every pulse and drops the relay when the keep-alive stops. Every event goes to ``LOG`` as
+one JSON object per line::
 
-Misbehaviour for fault tests: ``--no-ack`` (switches the relay but never answers), ``--ack-delay-s`` (answers
-late), and at run time ``SIGUSR1`` mutes / ``SIGUSR2`` unmutes the acknowledgements.
+    {"event": "start"|"command"|"relay"|"cut"|"restore"|"estop"|"exit", "relay": "on"|"off",
+     "line": ..., "answer": ..., "reason": ..., "time_s": <Unix time>,
+     "monotonic_s": <CLOCK_MONOTONIC, comparable across processes on Linux>}
+
+``relay`` entries are the relay's own transitions (``reason``: ``PULSE <ms>``, ``pulse end``, ``OFF``,
+``DISARM``, ``keepalive``, ``estop``), so a test can measure from the board's side how long the relay was on;
+``boot`` entries count bytes lost while the simulated bootloader runs (``--boot-delay-s``).
+
+Faults for tests, at run time: ``SIGUSR1`` cuts the serial line (bytes either way are lost, as with a pulled
+cable), ``SIGUSR2`` restores it, ``SIGHUP`` presses and releases the e-stop button; ``--ack-delay-s`` answers late.
 :class:`RelaySim` starts and reads such a process from a test.
 """
 import argparse
@@ -22,82 +29,103 @@ import time
 import tty
 
 import rollability_ros
+from rollability_ros.core.rig.relay_protocol import (DEFAULT_KEEPALIVE_TIMEOUT_MS, DEFAULT_MAX_PULSE_MS,
+                                                     RelayDevice, split_lines)
 
 
 class _Board:
-    """The relay state, the protocol and the event log of one simulated board."""
+    """A :class:`RelayDevice` on the monotonic clock, with the event log."""
 
-    def __init__(self, log_path, open_command, close_command, ack, ack_delay_s, muted):
-        self.open_command = open_command
-        self.close_command = close_command
-        self.ack = ack
-        self.ack_delay_s = ack_delay_s
-        self.muted = muted
-        self.relay_on = False
+    def __init__(self, log_path, max_pulse_ms, keepalive_timeout_ms):
+        self.device = RelayDevice(max_pulse_ms, keepalive_timeout_ms)
         self._log = open(log_path, "a", encoding="utf-8", buffering=1)  # line-buffered: readable at once
 
+    @staticmethod
+    def now_ms():
+        return time.monotonic() * 1000.0
+
     def log(self, event, **fields):
-        entry = {"event": event, "relay": "on" if self.relay_on else "off",
+        entry = {"event": event, "relay": "on" if self.device.relay_on else "off",
                  "time_s": time.time(), "monotonic_s": time.monotonic(), **fields}
         self._log.write(json.dumps(entry) + "\n")
 
+    def log_transitions(self, transitions):
+        for _on, reason in transitions:
+            self.log("relay", reason=reason)
+
+    def tick(self):
+        self.log_transitions(self.device.tick(self.now_ms()))
+
     def answer(self, line):
-        """Apply one command line; return the answer line (without line ending) or None to stay silent."""
-        if line == self.open_command:
-            self.relay_on = True
-        elif line == self.close_command:
-            self.relay_on = False
-        else:
-            self.log("command", line=line, acked=False, error="unknown command")
-            return None if self.muted else "ERR unknown command"
-        self.log("command", line=line, acked=not self.muted)
-        return None if self.muted else self.ack
+        """Apply one command line; return the answer line (without line ending)."""
+        answer, transitions = self.device.handle(line, self.now_ms())
+        self.log_transitions(transitions)
+        self.log("command", line=line, answer=answer)
+        return answer
+
+    def next_deadline_s(self):
+        """Seconds until the board must act on its own (pulse end, keep-alive), capped at 50 ms."""
+        return min(50.0, self.device.ms_until_next_deadline(self.now_ms())) / 1000.0
 
     def close(self):
         self.log("exit")
         self._log.close()
 
 
-def serve(port_file, log_path, open_command, close_command, ack, ack_delay_s=0.0, muted=False):
-    """Create the pty, publish its path in ``port_file`` and answer commands until SIGTERM / SIGINT."""
-    board = _Board(log_path, open_command, close_command, ack, ack_delay_s, muted)
+def serve(port_file, log_path, max_pulse_ms=DEFAULT_MAX_PULSE_MS, keepalive_timeout_ms=DEFAULT_KEEPALIVE_TIMEOUT_MS,
+          ack_delay_s=0.0, boot_delay_s=0.0):
+    """Create the pty, publish its path in ``port_file`` and run the board until SIGTERM / SIGINT."""
+    board = _Board(log_path, max_pulse_ms, keepalive_timeout_ms)
     master_fd, slave_fd = os.openpty()
     tty.setraw(slave_fd)  # no echo, no newline translation
     received = []  # signals, applied by the loop (a handler writing the log could interleave with it)
+    cut = False
 
-    for signum in (signal.SIGTERM, signal.SIGINT, signal.SIGUSR1, signal.SIGUSR2):
+    for signum in (signal.SIGTERM, signal.SIGINT, signal.SIGUSR1, signal.SIGUSR2, signal.SIGHUP):
         signal.signal(signum, lambda signum, _frame: received.append(signum))
-    board.log("start", port=os.ttyname(slave_fd))
+    board.log("start", port=os.ttyname(slave_fd), max_pulse_ms=max_pulse_ms,
+              keepalive_timeout_ms=keepalive_timeout_ms)
     tmp = port_file + ".tmp"
     with open(tmp, "w", encoding="utf-8") as stream:
         stream.write(os.ttyname(slave_fd) + "\n")
     os.replace(tmp, port_file)
     pending = b""
+    booted_at = time.monotonic() + boot_delay_s  # before this, a bootloader runs: received bytes are lost
     try:
         while True:
             while received:
                 signum = received.pop(0)
                 if signum in (signal.SIGUSR1, signal.SIGUSR2):
-                    board.muted = signum == signal.SIGUSR1
-                    board.log("mute" if board.muted else "unmute")
+                    cut = signum == signal.SIGUSR1
+                    board.log("cut" if cut else "restore")
+                elif signum == signal.SIGHUP:
+                    board.log_transitions(board.device.set_estop(True, board.now_ms()))
+                    board.log("estop")
+                    board.device.set_estop(False, board.now_ms())
                 else:
                     return
+            board.tick()
             try:
-                readable, _, _ = select.select([master_fd], [], [], 0.05)
+                readable, _, _ = select.select([master_fd], [], [], board.next_deadline_s())
             except InterruptedError:
                 continue
             if not readable:
                 continue
-            pending += os.read(master_fd, 4096)
-            *lines, pending = pending.replace(b"\r\n", b"\n").replace(b"\r", b"\n").split(b"\n")
-            for raw in lines:
-                line = raw.decode("ascii", errors="replace").strip()
+            data = os.read(master_fd, 4096)
+            if cut:
+                continue  # the wire is cut: the board never sees these bytes
+            if time.monotonic() < booted_at:
+                board.log("boot", dropped=len(data))
+                continue
+            lines, pending = split_lines(pending + data)
+            for line in lines:
                 if not line:
-                    continue
+                    continue  # an empty line gets no answer (as in the firmware)
                 reply = board.answer(line)
-                if reply is not None:
-                    if board.ack_delay_s > 0:
-                        time.sleep(board.ack_delay_s)
+                if ack_delay_s > 0:
+                    time.sleep(ack_delay_s)
+                    board.tick()
+                if not cut:
                     os.write(master_fd, (reply + "\n").encode("ascii"))
     finally:
         board.close()
@@ -112,21 +140,24 @@ class RelaySim:
     ----------
     workdir : path
         Folder for the port file and the JSON-lines log.
-    open_command, close_command, ack : str
-        The protocol (defaults match ``config/rig.yaml``).
+    max_pulse_ms, keepalive_timeout_ms : int
+        The board's limits (defaults: the firmware's).
     ack_delay_s : float
-        Delay before each acknowledgement, s.
-    no_ack : bool
-        Start muted (switch the relay, never answer).
+        Delay before each answer, s.
+    boot_delay_s : float
+        For this long after start the board drops what it receives (an Uno's bootloader after the port opened), s.
     """
 
-    def __init__(self, workdir, open_command="RELAY 1 ON", close_command="RELAY 1 OFF", ack="OK",
-                 ack_delay_s=0.0, no_ack=False):
+    def __init__(self, workdir, max_pulse_ms=DEFAULT_MAX_PULSE_MS, keepalive_timeout_ms=DEFAULT_KEEPALIVE_TIMEOUT_MS,
+                 ack_delay_s=0.0, boot_delay_s=0.0):
         self.port_file = os.path.join(os.fspath(workdir), "relay_port")
         self.log_path = os.path.join(os.fspath(workdir), "relay_log.jsonl")
-        self._argv = [sys.executable, "-m", "rollability_ros.core.rig.relay_device_sim", "--port-file", self.port_file, "--log", self.log_path,
-                      "--open-command", open_command, "--close-command", close_command, "--ack", ack,
-                      "--ack-delay-s", str(ack_delay_s)] + (["--no-ack"] if no_ack else [])
+        self.max_pulse_ms = max_pulse_ms
+        self.keepalive_timeout_ms = keepalive_timeout_ms
+        self._argv = [sys.executable, "-m", "rollability_ros.core.rig.relay_device_sim", "--port-file",
+                      self.port_file, "--log", self.log_path, "--max-pulse-ms", str(max_pulse_ms),
+                      "--keepalive-timeout-ms", str(keepalive_timeout_ms), "--ack-delay-s", str(ack_delay_s),
+                      "--boot-delay-s", str(boot_delay_s)]
         self.process = None
         self.port = None
 
@@ -168,13 +199,32 @@ class RelaySim:
                 raise TimeoutError(f"relay simulator did not log '{event}' within {timeout_s} s")
             time.sleep(0.005)
 
-    def mute(self, timeout_s=5.0):
-        """Stop acknowledging (the relay still switches); returns once the simulator has logged it."""
-        self._signal_and_wait(signal.SIGUSR1, "mute", timeout_s)
+    def cut(self, timeout_s=5.0):
+        """Cut the serial line (nothing gets through either way); returns once the simulator has logged it."""
+        self._signal_and_wait(signal.SIGUSR1, "cut", timeout_s)
 
-    def unmute(self, timeout_s=5.0):
-        """Acknowledge again; returns once the simulator has logged it."""
-        self._signal_and_wait(signal.SIGUSR2, "unmute", timeout_s)
+    def restore(self, timeout_s=5.0):
+        """Reconnect the serial line; returns once the simulator has logged it."""
+        self._signal_and_wait(signal.SIGUSR2, "restore", timeout_s)
+
+    def press_estop(self, timeout_s=5.0):
+        """Press and release the board's e-stop button (the fault latches); returns once logged."""
+        self._signal_and_wait(signal.SIGHUP, "estop", timeout_s)
+
+    def relay_intervals(self):
+        """The relay's on periods from the board's own log: ``[(on entry, off entry or None), ...]``."""
+        intervals, current = [], None
+        for entry in self.entries():
+            if entry["event"] != "relay":
+                continue
+            if entry["relay"] == "on" and current is None:
+                current = entry
+            elif entry["relay"] == "off" and current is not None:
+                intervals.append((current, entry))
+                current = None
+        if current is not None:
+            intervals.append((current, None))
+        return intervals
 
     def stop(self, timeout_s=5.0):
         """Terminate the process (killed if it does not exit within ``timeout_s``)."""
@@ -199,15 +249,19 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="relay_device_sim", description=__doc__.split("\n\n")[0])
     parser.add_argument("--port-file", required=True, help="file to write the pty device path into")
     parser.add_argument("--log", default=os.devnull, help="JSON-lines log of relay events (default: none)")
-    parser.add_argument("--open-command", default="RELAY 1 ON", help="line that switches the relay on")
-    parser.add_argument("--close-command", default="RELAY 1 OFF", help="line that switches the relay off")
-    parser.add_argument("--ack", default="OK", help="acknowledgement line")
-    parser.add_argument("--ack-delay-s", type=float, default=0.0, help="delay before each acknowledgement, s")
-    parser.add_argument("--no-ack", action="store_true", help="switch the relay but never acknowledge")
+    parser.add_argument("--max-pulse-ms", type=int, default=DEFAULT_MAX_PULSE_MS,
+                        help=f"the board's pulse limit, ms (firmware: {DEFAULT_MAX_PULSE_MS})")
+    parser.add_argument("--keepalive-timeout-ms", type=int, default=DEFAULT_KEEPALIVE_TIMEOUT_MS,
+                        help=f"armed silence that drops the relay, ms (firmware: {DEFAULT_KEEPALIVE_TIMEOUT_MS})")
+    parser.add_argument("--ack-delay-s", type=float, default=0.0, help="delay before each answer, s")
+    parser.add_argument("--boot-delay-s", type=float, default=0.0,
+                        help="drop received bytes this long after start (a bootloader), s")
     args = parser.parse_args(argv)
-    if args.ack_delay_s < 0:
-        parser.error("--ack-delay-s must be >= 0")
-    serve(args.port_file, args.log, args.open_command, args.close_command, args.ack, args.ack_delay_s, args.no_ack)
+    if args.ack_delay_s < 0 or args.boot_delay_s < 0:
+        parser.error("--ack-delay-s and --boot-delay-s must be >= 0")
+    if args.max_pulse_ms <= 0 or args.keepalive_timeout_ms <= 0:
+        parser.error("--max-pulse-ms and --keepalive-timeout-ms must be > 0")
+    serve(args.port_file, args.log, args.max_pulse_ms, args.keepalive_timeout_ms, args.ack_delay_s, args.boot_delay_s)
     return 0
 
 

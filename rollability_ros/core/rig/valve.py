@@ -9,6 +9,10 @@ Re-arming after a fault: a fault (e-stop, watchdog, backend error) disarms the v
 refused while a fault is latched; the operator acknowledges it with ``disarm()`` (which drives the valve closed
 again and clears the fault if that close succeeds) and then calls ``arm()``.
 
+Software alone cannot make the valve fail-safe (a SIGKILLed process closes nothing): on the ``serial_relay`` backend
+the relay board times each pulse and drops the relay without keep-alives (:mod:`.relay_protocol`); faults the
+board reports on its own reach :meth:`ValveController.device_fault`. See docs/valve-safety.md.
+
 Thread model: ``fire()`` blocks for the pulse without holding the controller's lock, so ``estop()``,
 ``check_watchdog()`` and ``disarm()`` from other threads cut a running pulse at once.
 """
@@ -84,11 +88,17 @@ class ValveController:
         self._released = False
         self._last_heartbeat = clock()
         self._watchdog_stop = None
+        if hasattr(backend, "set_fault_listener"):
+            backend.set_fault_listener(self.device_fault)
         with self._lock:
             self._drive_closed()
             self._emit("started")
 
     # ------------------------------------------------------------------ state
+    def device_limits(self):
+        """The device's own limits (``relay_protocol.DeviceLimits``) when the backend reports them, else None."""
+        return getattr(self._backend, "limits", None)
+
     def status(self):
         """Return the current :class:`ValveStatus`."""
         with self._lock:
@@ -128,6 +138,12 @@ class ValveController:
             self._latch_fault(f"backend error on close: {exc}")
             return False
         self._open = False
+        if not self._armed and hasattr(self._backend, "disarm"):
+            try:
+                self._backend.disarm()  # the device, too, stops accepting pulses
+            except Exception as exc:  # noqa: BLE001
+                self._latch_fault(f"backend error on disarm: {exc}")
+                return False
         return True
 
     # --------------------------------------------------------------- commands
@@ -140,6 +156,14 @@ class ValveController:
                 return False, f"fault latched ({self._fault_reason}); disarm to acknowledge, then arm"
             if self._armed:
                 return True, "already armed"
+            if hasattr(self._backend, "arm"):
+                try:
+                    self._backend.arm()
+                except Exception as exc:  # noqa: BLE001
+                    self._latch_fault(f"backend error on arm: {exc}")
+                    self._drive_closed()
+                    self._emit("arm failed")
+                    return False, self._fault_reason
             self._armed = True
             self._last_heartbeat = self._clock()  # the heartbeat window starts at arming
             self._emit("armed")
@@ -155,6 +179,12 @@ class ValveController:
             self._armed = False
             self._fault_reason = ""
             closed = self._drive_closed()
+            if closed and hasattr(self._backend, "clear"):
+                try:
+                    self._backend.clear()  # acknowledge a fault the device latched itself (its e-stop button)
+                except Exception as exc:  # noqa: BLE001
+                    self._latch_fault(f"device fault not cleared: {exc}")
+                    closed = False
             self._emit("disarmed")
             if not closed:
                 return False, f"disarmed but the close command failed: {self._fault_reason}"
@@ -167,6 +197,26 @@ class ValveController:
             self._cut.set()
             self._drive_closed()
             self._emit("e-stop")
+
+    def device_fault(self, reason):
+        """The backend's device faulted on its own (board e-stop, keep-alive timeout, link lost): latch and close."""
+        with self._lock:
+            if self._shut_down:
+                return
+            self._latch_fault(f"device: {reason}")
+            self._cut.set()
+            self._drive_closed()
+            self._emit("device fault")
+
+    def health(self):
+        """Diagnostics: ``(status, watchdog margin ms or None when disarmed, device link line)``."""
+        with self._lock:
+            status = self.status()
+            margin_ms = None
+            if self._armed:
+                margin_ms = self.watchdog_ms - (self._clock() - self._last_heartbeat) * 1000.0
+        link = getattr(self._backend, "link_state", None)
+        return status, margin_ms, link() if link else f"{status.backend}: no device"
 
     def heartbeat(self):
         """Record a heartbeat from the rig (steady clock)."""
@@ -203,7 +253,7 @@ class ValveController:
             self._cut.clear()
             self._open = True  # from here on the valve may be open until a close succeeds
             try:
-                self._backend.open_valve()
+                self._backend.open_valve(pulse_ms)
             except Exception as exc:  # noqa: BLE001
                 self._latch_fault(f"backend error on open: {exc}")
                 self._drive_closed()
@@ -243,6 +293,9 @@ class ValveController:
             return f"fault latched: {self._fault_reason}"
         if not self._armed:
             return "valve is disarmed"
+        backend_refusal = getattr(self._backend, "fire_refusal", None)
+        if backend_refusal is not None and backend_refusal():
+            return backend_refusal()
         if self._firing:
             return "a pulse is already in progress"
         return ""
@@ -295,6 +348,8 @@ class GpioValveConfig:
     chip: str = "/dev/gpiochip0"
     line_offset: int = 17
     active_high: bool = True
+    hardware_pulse_limiter: bool = False
+    line_holder: bool = True
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -304,21 +359,15 @@ class GpioValveConfig:
             raise ValueError(f"gpio.line_offset must be >= 0, got {self.line_offset}")
 
 
-#: ``line_ending`` names -> bytes appended to each serial relay command.
-LINE_ENDINGS = {"lf": "\n", "crlf": "\r\n", "cr": "\r"}
-
-
 @dataclasses.dataclass
 class SerialRelayConfig:
-    """``valve.serial.*``: a relay board on a serial port speaking a line protocol."""
+    """``valve.serial.*``: the valve relay board (``firmware/``) on a serial port."""
 
-    port: str = "/dev/ttyUSB0"
-    baud: int = 9600
-    open_command: str = "RELAY 1 ON"
-    close_command: str = "RELAY 1 OFF"
-    ack: str = "OK"
-    line_ending: str = "lf"
-    timeout_s: float = 0.5
+    port: str = "/dev/ttyACM0"
+    baud: int = 115200
+    timeout_s: float = 0.2
+    keepalive_period_ms: int = 50
+    boot_wait_s: float = 3.0
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -326,12 +375,12 @@ class SerialRelayConfig:
             raise ValueError("serial.port must name a serial device")
         if self.baud <= 0:
             raise ValueError(f"serial.baud must be > 0, got {self.baud}")
-        if not self.open_command or not self.close_command or self.open_command == self.close_command:
-            raise ValueError("serial.open_command and serial.close_command must be two different non-empty lines")
-        if self.line_ending not in LINE_ENDINGS:
-            raise ValueError(f"serial.line_ending must be one of {sorted(LINE_ENDINGS)}, got {self.line_ending!r}")
         if not self.timeout_s > 0:
             raise ValueError(f"serial.timeout_s must be > 0, got {self.timeout_s}")
+        if self.keepalive_period_ms <= 0:
+            raise ValueError(f"serial.keepalive_period_ms must be > 0, got {self.keepalive_period_ms}")
+        if not 0 <= self.boot_wait_s < 60:
+            raise ValueError(f"serial.boot_wait_s must be in [0, 60), got {self.boot_wait_s}")
 
 
 @dataclasses.dataclass
@@ -383,6 +432,7 @@ class ValveConfig:
     watchdog_ms: int = 500
     watchdog_check_ms: int = 20
     heartbeat_period_ms: int = 100
+    session_key_file: str = ""
     gpio: GpioValveConfig = dataclasses.field(default_factory=GpioValveConfig)
     serial: SerialRelayConfig = dataclasses.field(default_factory=SerialRelayConfig)
     regulator: RegulatorConfig = dataclasses.field(default_factory=RegulatorConfig)

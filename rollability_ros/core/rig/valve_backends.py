@@ -1,15 +1,32 @@
 """Valve backends: what physically opens and closes the launcher's solenoid valve.
 
-Every backend has ``name``, ``open()`` (acquire the device, valve closed), ``open_valve()``, ``close_valve()`` and
-``release()`` (drive closed, then free the device). None relies on a released line or a closed port to close
-the valve: ``release()`` commands it closed first. Errors are raised (``ValveBackendError`` or the library's
-own); :class:`~rollability_ros.core.rig.valve.ValveController` turns them into latched faults.
+Every backend has ``name``, ``open()`` (acquire the device, valve closed), ``open_valve(pulse_ms)``,
+``close_valve()`` and ``release()`` (drive closed, then free the device). None relies on a released line or a
+closed port to close the valve: ``release()`` commands it closed first. Errors are raised (``ValveBackendError``
+or the library's own); :class:`~rollability_ros.core.rig.valve.ValveController` turns them into latched faults.
+
+Optional hooks the controller uses when a backend has them: ``arm()`` / ``disarm()`` / ``clear()`` (device-side
+arming and fault acknowledgement), ``fire_refusal()`` (a reason this backend must not fire, or ""),
+``set_fault_listener(callback)`` (the device reports a fault on its own), ``link_state()`` (one line for
+diagnostics).
+
+What each backend can promise when the controlling process dies (SIGKILL, crash, power loss): ``serial_relay``
+talks to a board that times pulses and drops the relay without keep-alives (:mod:`.relay_protocol`), so the relay
+is off within ``max_pulse_ms``; ``gpio`` keeps the line in a tiny holder process (:mod:`.gpio_line_holder`) that
+drops it when the controller dies, but a GPIO line keeps its level when its own owner dies, so it fires only when the
+configuration declares an external hardware pulse limiter; ``dry_run`` drives nothing.
 """
 import logging
+import os
+import select
+import subprocess
+import sys
+import threading
 import time
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.rig.valve import LINE_ENDINGS, ValveController
+from rollability_ros.core.rig import relay_protocol
+from rollability_ros.core.rig.valve import ValveController
 
 _LOG = logging.getLogger(__name__)
 
@@ -35,8 +52,8 @@ class DryRunBackend:
         """Start (nothing to acquire)."""
         self._record("start")
 
-    def open_valve(self):
-        """Log an open command."""
+    def open_valve(self, pulse_ms=None):
+        """Log an open command (``pulse_ms`` is the controller's, the dry run has no device to time it)."""
         self._record("open")
 
     def close_valve(self):
@@ -74,10 +91,13 @@ class GpioBackend:
 
     name = "gpio"
 
-    def __init__(self, chip, line_offset, active_high=True, consumer="rollability-valve"):
+    def __init__(self, chip, line_offset, active_high=True, consumer="rollability-valve",
+                 hardware_pulse_limiter=False, warn=True):
         self.chip_path = gpio_chip_path(chip)
         self.line_offset = line_offset
         self.active_high = active_high
+        self.hardware_pulse_limiter = hardware_pulse_limiter
+        self.warn = warn  # False in the line holder, whose parent warns
         self.consumer = consumer
         self._gpiod = None
         self._request = None
@@ -92,6 +112,27 @@ class GpioBackend:
         )
         self._request = gpiod.request_lines(self.chip_path, consumer=self.consumer,
                                             config={self.line_offset: settings})
+        if self.warn:
+            _LOG.warning(
+                "gpio valve backend: if this process dies (SIGKILL, crash, power loss of the computer only) the "
+                "line %s:%d keeps its level and nothing in software can close the valve; %s", self.chip_path,
+                self.line_offset,
+                "the configuration declares a hardware pulse limiter (valve.gpio.hardware_pulse_limiter)"
+                if self.hardware_pulse_limiter else "no hardware pulse limiter is declared, so every fire is refused")
+
+    def fire_refusal(self):
+        """Refuse every pulse unless the configuration declares the external hardware pulse limiter."""
+        if self.hardware_pulse_limiter:
+            return ""
+        return ("gpio backend without a hardware pulse limiter: a killed process would leave the line (and the "
+                "valve) on; wire the limiter of docs/firmware.md and set valve.gpio.hardware_pulse_limiter: true, "
+                "or use the serial_relay board")
+
+    def link_state(self):
+        """One line for diagnostics."""
+        requested = "requested" if self._request is not None else "not requested"
+        limiter = "hardware pulse limiter declared" if self.hardware_pulse_limiter else "NO hardware pulse limiter"
+        return f"gpio line {self.chip_path}:{self.line_offset} {requested}; {limiter}"
 
     def _set(self, active):
         if self._request is None:
@@ -99,8 +140,8 @@ class GpioBackend:
         value = self._gpiod.line.Value.ACTIVE if active else self._gpiod.line.Value.INACTIVE
         self._request.set_value(self.line_offset, value)
 
-    def open_valve(self):
-        """Drive the line active."""
+    def open_valve(self, pulse_ms=None):
+        """Drive the line active (the controller times the pulse; only a hardware limiter survives its death)."""
         self._set(True)
 
     def close_valve(self):
@@ -119,74 +160,309 @@ class GpioBackend:
 
 
 class SerialRelayBackend:
-    """A relay board on a serial port: one text line per command, answered by an acknowledgement line.
+    """The valve relay board (:mod:`~rollability_ros.core.rig.relay_protocol`, firmware in ``firmware/``).
+
+    The board times each pulse and drops the relay when its keep-alive stops; this backend sends ``KA`` from a
+    thread every ``keepalive_period_ms`` while the port is open, so the relay stays usable exactly as long as this
+    process runs and talks. A board that disarmed itself (keep-alive timeout, e-stop button) or a link that stops
+    answering is reported to the fault listener.
 
     Parameters
     ----------
     port : str
-        Serial device (``/dev/ttyUSB0``, a pty path, ...).
+        Serial device (``/dev/ttyACM0``, a pty path, ...).
     baud : int
-        Baud rate.
-    open_command, close_command : str
-        Lines that switch the relay on (valve open) and off, without line ending.
-    ack : str
-        The line the board answers on success; anything else, or nothing within ``timeout_s``, raises.
+        Baud rate, bit/s (the firmware uses 115200).
     timeout_s : float
-        Longest wait for the acknowledgement, s.
-    line_ending : str
-        ``"lf"``, ``"crlf"`` or ``"cr"``, appended to every command.
+        Longest wait for an answer line, s; a missing or wrong answer raises :class:`ValveBackendError`.
+    keepalive_period_ms : int
+        Period of the ``KA`` line, ms; must be at most a third of the board's ``keepalive_timeout_ms``.
+    boot_wait_s : float
+        How long ``HELLO`` is repeated until the board answers, s: opening the port resets an Uno / Nano, whose
+        bootloader runs for 1-2 s before the sketch answers.
     """
 
     name = "serial_relay"
 
-    def __init__(self, port, baud, open_command, close_command, ack, timeout_s, line_ending="lf"):
-        if line_ending not in LINE_ENDINGS:
-            raise ValueError(f"line_ending must be one of {sorted(LINE_ENDINGS)}, got {line_ending!r}")
+    def __init__(self, port, baud=115200, timeout_s=0.2, keepalive_period_ms=50, boot_wait_s=3.0):
         self.port = port
+        self.boot_wait_s = boot_wait_s
         self.baud = baud
-        self.open_command = open_command
-        self.close_command = close_command
-        self.ack = ack
         self.timeout_s = timeout_s
-        self._eol = LINE_ENDINGS[line_ending]
+        self.keepalive_period_ms = keepalive_period_ms
+        self.limits = None              # DeviceLimits, from HELLO
         self._serial = None
+        self._io_lock = threading.Lock()  # one command and its answer at a time (the keep-alive thread too)
+        self._armed = False               # what this side asked for
+        self._fault_listener = None
+        self._stop = threading.Event()
+        self._thread = None
+        self._link = "not open"
+        self._last_answer_at = None
+        self._last_device_state = None
+        self._reported_fault = "none"
+
+    def set_fault_listener(self, callback):
+        """``callback(reason)`` is called (from the keep-alive thread) when the board faults on its own."""
+        self._fault_listener = callback
+
+    def _open_port(self):
+        """The port object (``write``, ``flush``, ``read_until``, ``reset_input_buffer``, ``close``)."""
+        serial = require("serial", feature="the serial_relay valve backend")
+        return serial.Serial(self.port, self.baud, timeout=self.timeout_s, write_timeout=self.timeout_s)
 
     def open(self):
-        """Open the port (the valve is then commanded closed by the controller)."""
-        serial = require("serial", feature="the serial_relay valve backend")
-        self._serial = serial.Serial(self.port, self.baud, timeout=self.timeout_s, write_timeout=self.timeout_s)
+        """Open the port, check the board's protocol and limits, start the keep-alive thread."""
+        self._serial = self._open_port()
+        deadline = time.monotonic() + self.boot_wait_s
+        attempts = 0
+        while True:
+            attempts += 1
+            try:
+                hello = self._command("HELLO")
+                break
+            except ValveBackendError:
+                if time.monotonic() >= deadline:
+                    raise
+        if attempts > 1:
+            # the board answers in order: the answer just read may be that of an earlier HELLO it got late, and the
+            # answers to the later ones follow at once; let them arrive and drop them before the next command
+            time.sleep(self.timeout_s)
+            with self._io_lock:
+                self._serial.reset_input_buffer()
+        try:
+            self.limits = relay_protocol.parse_hello(hello)
+        except ValueError as exc:
+            raise ValveBackendError(f"relay board on {self.port}: {exc}") from exc
+        if 3 * self.keepalive_period_ms > self.limits.keepalive_timeout_ms:
+            raise ValveBackendError(
+                f"serial.keepalive_period_ms {self.keepalive_period_ms} is more than a third of the board's "
+                f"keepalive_timeout_ms {self.limits.keepalive_timeout_ms}: one late keep-alive would drop the relay")
+        try:
+            state = relay_protocol.parse_state(self._command("STATUS", expect="OK STATUS ")[len("OK STATUS "):])
+        except ValueError as exc:
+            raise ValveBackendError(f"relay board on {self.port}: {exc}") from exc
+        if state.fault == "keepalive":
+            # the previous controller went silent (killed, unplugged) and the board dropped the relay: expected
+            # after a crash, so not a fault of this session; an e-stop, though, is reported by the keep-alive loop
+            _LOG.warning("relay board on %s had dropped the relay on its own after its previous controller went "
+                         "silent (fault keepalive)", self.port)
+            self._reported_fault = "keepalive"
+        self._last_device_state = state
+        self._link = "ok"
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._keepalive_loop, name="relay-keepalive", daemon=True)
+        self._thread.start()
 
-    def _command(self, line):
-        if self._serial is None:
-            raise ValveBackendError(f"serial port {self.port} is not open")
-        self._serial.reset_input_buffer()  # drop late acknowledgements of earlier commands
-        self._serial.write((line + self._eol).encode("ascii"))
-        self._serial.flush()
-        answer = self._serial.read_until(b"\n")  # bounded by the port timeout
-        text = answer.decode("ascii", errors="replace").strip()
-        if not answer.endswith(b"\n"):
-            raise ValveBackendError(f"relay did not acknowledge {line!r} within {self.timeout_s} s"
-                                    + (f" (partial answer {text!r})" if text else ""))
-        if text != self.ack:
-            raise ValveBackendError(f"relay answered {text!r} to {line!r}, expected {self.ack!r}")
+    def _command(self, line, expect=None, then=None):
+        """Send one line and return its answer (stripped); raise unless it starts with ``expect``.
 
-    def open_valve(self):
-        """Send the open command and wait for its acknowledgement."""
-        self._command(self.open_command)
+        ``then(answer)`` runs before the port is free again, so what this side believes about arming changes in
+        the same order as the board's answers (the keep-alive thread compares them).
+        """
+        with self._io_lock:
+            if self._serial is None:
+                raise ValveBackendError(f"serial port {self.port} is not open")
+            self._serial.reset_input_buffer()  # drop late answers of earlier commands
+            self._serial.write((line + "\n").encode("ascii"))
+            self._serial.flush()
+            answer = self._serial.read_until(b"\n")  # bounded by the port timeout
+            text = answer.decode("ascii", errors="replace").strip()
+            if not answer.endswith(b"\n"):
+                raise ValveBackendError(f"relay board did not answer {line!r} within {self.timeout_s} s"
+                                        + (f" (partial answer {text!r})" if text else ""))
+            self._last_answer_at = time.monotonic()
+            if expect is not None and not text.startswith(expect):
+                raise ValveBackendError(f"relay board answered {text!r} to {line!r}, expected {expect!r}")
+            return then(text) if then is not None else text
+
+    def _notify(self, reason):
+        _LOG.error("relay board: %s", reason)
+        if self._fault_listener is not None:
+            try:
+                self._fault_listener(reason)
+            except Exception:  # noqa: BLE001 - the keep-alive must go on whatever the listener does
+                _LOG.exception("valve fault listener failed")
+
+    def _keepalive_loop(self):
+        while not self._stop.wait(self.keepalive_period_ms / 1000.0):
+            try:
+                state, expected_armed = self._command("KA", expect="OK KA ", then=self._keepalive_answer)
+            except (ValveBackendError, ValueError, OSError) as exc:
+                if self._link == "ok":
+                    self._link = f"lost: {exc}"
+                    self._notify(f"link lost: {exc}")
+                continue
+            except Exception as exc:  # noqa: BLE001 - e.g. the port closed under us at release
+                if self._stop.is_set():
+                    return
+                self._link = f"lost: {exc}"
+                continue
+            self._link = "ok"
+            self._last_device_state = state
+            if state.fault != "none" and state.fault != self._reported_fault:
+                self._reported_fault = state.fault
+                self._notify(f"board fault {state.fault}: relay off and disarmed by the board")
+            elif expected_armed and not state.armed:
+                self._notify("board disarmed itself: relay off")
+            if state.fault == "none":
+                self._reported_fault = "none"
+
+    def _keepalive_answer(self, answer):
+        """``(board state, armed as this side expected it)`` for one KA answer (port lock held)."""
+        state = relay_protocol.parse_state(answer[len("OK KA "):])
+        expected_armed = self._armed
+        if not state.armed:
+            self._armed = False
+        return state, expected_armed
+
+    def link_state(self):
+        """One line for diagnostics: link, board limits, last answer age, board state."""
+        if self.limits is None:
+            return f"{self.port}: {self._link}"
+        age = "never" if self._last_answer_at is None else f"{(time.monotonic() - self._last_answer_at) * 1e3:.0f} ms ago"
+        state = relay_protocol.format_state(self._last_device_state) if self._last_device_state else "unknown"
+        return (f"{self.port}: {self._link}; {self.limits.protocol} max_pulse_ms={self.limits.max_pulse_ms} "
+                f"keepalive_timeout_ms={self.limits.keepalive_timeout_ms}; last answer {age}; board {state}")
+
+    def arm(self):
+        """Arm the board (its keep-alive timer starts)."""
+        self._command("ARM", expect="OK ARMED", then=lambda _answer: setattr(self, "_armed", True))
+
+    def disarm(self):
+        """Disarm the board (relay off)."""
+        self._command("DISARM", expect="OK DISARMED", then=lambda _answer: setattr(self, "_armed", False))
+
+    def clear(self):
+        """Acknowledge a latched board fault (refused while the e-stop button is held)."""
+        self._command("CLEAR", expect="OK CLEARED")
+        self._reported_fault = "none"
+
+    def open_valve(self, pulse_ms=None):
+        """Ask the board for a pulse of ``pulse_ms`` ms; the board ends it at ``min(pulse_ms, its max_pulse_ms)``."""
+        if pulse_ms is None:
+            raise ValveBackendError("the relay board needs the pulse length")
+        answer = self._command(relay_protocol.pulse_command(pulse_ms), expect="OK PULSE ")
+        self.granted_ms = int(answer.split()[-1])
 
     def close_valve(self):
-        """Send the close command and wait for its acknowledgement."""
-        self._command(self.close_command)
+        """Switch the relay off now (the board also ends the pulse on its own)."""
+        self._command("OFF", expect="OK OFF")
 
     def release(self):
-        """Send the close command, then close the port."""
+        """Stop the keep-alive, switch the relay off and disarm, then close the port."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2 * self.timeout_s + self.keepalive_period_ms / 1000.0)
         if self._serial is None:
             return
         try:
             self.close_valve()
+            self.disarm()
         finally:
-            self._serial.close()
-            self._serial = None
+            with self._io_lock:
+                self._serial.close()
+                self._serial = None
+            self._link = "released"
+
+
+class _PipePort:
+    """A child process's stdin / stdout as a serial-like port (the subset :class:`SerialRelayBackend` uses)."""
+
+    def __init__(self, process, timeout_s):
+        self.process = process
+        self.timeout_s = timeout_s
+        self._buffer = b""
+
+    def _read_available(self, wait_s):
+        fd = self.process.stdout.fileno()
+        readable, _, _ = select.select([fd], [], [], wait_s)
+        if not readable:
+            return False
+        data = os.read(fd, 4096)
+        if not data:
+            raise ValveBackendError(f"gpio line holder exited (code {self.process.poll()})")
+        self._buffer += data
+        return True
+
+    def reset_input_buffer(self):
+        """Drop everything received so far."""
+        while self.process.poll() is None and self._read_available(0):
+            pass
+        self._buffer = b""
+
+    def write(self, data):
+        """Send bytes to the holder."""
+        try:
+            os.write(self.process.stdin.fileno(), data)
+        except OSError as exc:
+            raise ValveBackendError(f"gpio line holder gone: {exc}") from exc
+
+    def flush(self):
+        """Nothing to flush (unbuffered writes)."""
+
+    def read_until(self, terminator=b"\n"):
+        """Bytes up to and including ``terminator``, or what arrived within ``timeout_s``."""
+        deadline = time.monotonic() + self.timeout_s
+        while terminator not in self._buffer:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0 or not self._read_available(remaining):
+                break
+        if terminator in self._buffer:
+            line, self._buffer = self._buffer.split(terminator, 1)
+            return line + terminator
+        partial, self._buffer = self._buffer, b""
+        return partial
+
+    def close(self):
+        """Close the holder's input (it drives the line inactive and exits); kill it if it does not."""
+        self.process.stdin.close()
+        try:
+            self.process.wait(5.0)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+        self.process.stdout.close()
+
+
+class GpioHolderBackend(SerialRelayBackend):
+    """The gpio backend: the line is owned by :mod:`~rollability_ros.core.rig.gpio_line_holder`, a child process
+    that speaks the relay board's protocol on its pipes, so the valve_controller's death drops the line.
+
+    The holder can still die itself (or the computer freeze) with the line active: every fire is refused unless
+    ``hardware_pulse_limiter`` declares the external limiter of docs/firmware.md.
+    """
+
+    name = "gpio"
+
+    def __init__(self, chip, line_offset, active_high=True, hardware_pulse_limiter=False, max_pulse_ms=500,
+                 keepalive_timeout_ms=relay_protocol.DEFAULT_KEEPALIVE_TIMEOUT_MS, timeout_s=0.5,
+                 keepalive_period_ms=50, boot_wait_s=10.0):
+        super().__init__(f"gpio line holder for {gpio_chip_path(chip)}:{line_offset}", timeout_s=timeout_s,
+                         keepalive_period_ms=keepalive_period_ms, boot_wait_s=boot_wait_s)
+        self._argv = [sys.executable, "-m", "rollability_ros.core.rig.gpio_line_holder", "--chip", chip,
+                      "--line-offset", str(line_offset), "--max-pulse-ms", str(max_pulse_ms),
+                      "--keepalive-timeout-ms", str(keepalive_timeout_ms)] + ([] if active_high else ["--active-low"])
+        self.hardware_pulse_limiter = hardware_pulse_limiter
+        self.process = None
+
+    def _open_port(self):
+        # its own session: a SIGKILL of the valve_controller's process group (a supervisor's last resort) leaves the
+        # holder alive to see the closed pipe and drop the line
+        self.process = subprocess.Popen(self._argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0,
+                                        start_new_session=True)
+        _LOG.warning("gpio valve backend: line held by process %d; if it dies too (or the computer freezes) the "
+                     "line keeps its level, %s", self.process.pid, "the declared hardware pulse limiter ends the "
+                     "pulse" if self.hardware_pulse_limiter else "and no hardware pulse limiter is declared, so "
+                     "every fire is refused")
+        return _PipePort(self.process, self.timeout_s)
+
+    fire_refusal = GpioBackend.fire_refusal
+
+    def link_state(self):
+        """One line for diagnostics: the holder link and whether a hardware limiter is declared."""
+        limiter = "hardware pulse limiter declared" if self.hardware_pulse_limiter else "NO hardware pulse limiter"
+        return f"{super().link_state()}; {limiter}"
 
 
 def make_backend(config):
@@ -194,10 +470,14 @@ def make_backend(config):
     if config.backend == "dry_run":
         return DryRunBackend()
     if config.backend == "gpio":
-        return GpioBackend(config.gpio.chip, config.gpio.line_offset, config.gpio.active_high)
+        g = config.gpio
+        if g.line_holder:
+            return GpioHolderBackend(g.chip, g.line_offset, g.active_high, g.hardware_pulse_limiter,
+                                     max_pulse_ms=config.max_pulse_ms)
+        return GpioBackend(g.chip, g.line_offset, g.active_high, hardware_pulse_limiter=g.hardware_pulse_limiter)
     if config.backend == "serial_relay":
         s = config.serial
-        return SerialRelayBackend(s.port, s.baud, s.open_command, s.close_command, s.ack, s.timeout_s, s.line_ending)
+        return SerialRelayBackend(s.port, s.baud, s.timeout_s, s.keepalive_period_ms, s.boot_wait_s)
     raise ValueError(f"unknown valve backend {config.backend!r}")
 
 

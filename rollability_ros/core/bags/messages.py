@@ -11,6 +11,7 @@ interface files.
 import functools
 import logging
 import os
+import typing
 
 from rollability_ros.core.bags.msg_definitions import full_type_name, interface_text
 from rollability_ros.core.results import record_messages
@@ -25,7 +26,7 @@ _LOG = logging.getLogger(__name__)
 
 
 @functools.lru_cache(maxsize=1)
-def typestore():
+def typestore() -> typing.Any:
     """A rosbags type store of ROS 2 Jazzy's standard types plus this package's record messages."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -37,7 +38,7 @@ def typestore():
     return store
 
 
-def make_message(type_name, **fields):
+def make_message(type_name: str, **fields: typing.Any) -> typing.Any:
     """The rosbags message ``type_name`` with ``fields`` (lists become the float64 arrays rosbags encodes)."""
     import numpy
 
@@ -47,12 +48,12 @@ def make_message(type_name, **fields):
     return typestore().types[type_name](**fields)
 
 
-def record_from_message(type_name, msg):
+def record_from_message(type_name: str, msg: typing.Any) -> record_messages.Record:
     """A decoded record message -> its validated record (:mod:`~rollability_ros.core.results.record_messages`)."""
     return record_messages.record_from_message(type_name, msg)
 
 
-def message_from_record(record):
+def message_from_record(record: record_messages.Record) -> typing.Tuple[str, typing.Any]:
     """``(type name, rosbags message)`` for a record; the inverse of :func:`record_from_message`."""
     return record_messages.message_from_record(make_message, record)
 
@@ -71,7 +72,7 @@ def _bag_messages(path):
             yield (schema.name if schema else ""), message.data
 
 
-def read_records_from_bag(path):
+def read_records_from_bag(path: typing.Union[str, os.PathLike]) -> typing.Tuple[list, list, list, list]:
     """Read the records of a bag: ``(launch_outcomes, candidates, generations, tip_events)``, each in bag order.
 
     Parameters

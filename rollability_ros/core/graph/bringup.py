@@ -14,6 +14,7 @@ import dataclasses
 import datetime
 import os
 import sys
+import typing
 
 from rollability_ros.core.config import from_mapping, load_parameters, resolve_config_path, section
 from rollability_ros.core.graph.supervisor import ProcessSpec
@@ -49,7 +50,7 @@ class NodeLaunch:
     critical: bool = True
     stop_timeout_s: float = 15.0
 
-    def ros_args(self, param_files):
+    def ros_args(self, param_files: typing.Sequence[str]) -> typing.List[str]:
         """The node's arguments: ``--ros-args``, name and namespace remaps, parameter files, overrides."""
         args = ["--ros-args"]
         if self.name:
@@ -62,17 +63,17 @@ class NodeLaunch:
             args += ["-p", f"{key}:={_ros_value(value)}"]
         return args
 
-    def argv(self, param_files, python=sys.executable):
+    def argv(self, param_files: typing.Sequence[str], python: str = sys.executable) -> typing.List[str]:
         """The command line: ``python -m rollability_ros.nodes.<module>`` and :meth:`ros_args`."""
         return [python, "-m", f"rollability_ros.nodes.{self.module}", *self.ros_args(param_files)]
 
-    def process_spec(self, param_files):
+    def process_spec(self, param_files: typing.Sequence[str]) -> ProcessSpec:
         """A :class:`~rollability_ros.core.graph.supervisor.ProcessSpec` for the supervisor."""
         return ProcessSpec(name=self.label or self.name or self.module, argv=self.argv(param_files), restart=self.restart, critical=self.critical,
                            stop_timeout_s=self.stop_timeout_s)
 
 
-def parameter_files(extra=()):
+def parameter_files(extra: typing.Sequence[str] = ()) -> typing.List[str]:
     """Resolved paths of :data:`DEFAULT_CONFIGS` followed by ``extra`` (names of shipped files or paths)."""
     return [resolve_config_path(name) for name in (*DEFAULT_CONFIGS, *extra)]
 
@@ -93,7 +94,7 @@ class GraphSettings:
     campaign_timeout_s: float = 0.0
     poll_period_s: float = 2.0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not self.namespace.startswith("/") or "//" in self.namespace or self.namespace.endswith("/") and \
                 self.namespace != "/":
@@ -110,18 +111,19 @@ class GraphSettings:
             raise ValueError("timeouts must be >= 0 (0 = none) and poll_period_s > 0")
 
 
-def load_graph_settings(param_files):
+def load_graph_settings(param_files: typing.Sequence[str]) -> "GraphSettings":
     """:class:`GraphSettings` from the merged parameter files (namespace ``bringup``)."""
     return from_mapping(GraphSettings, section(load_parameters(param_files), "bringup"), "bringup")
 
 
-def new_study_id(now=None):
+def new_study_id(now: typing.Optional[datetime.datetime] = None) -> str:
     """``study-<UTC date>-<time>``: sortable and unique per second."""
     now = now or datetime.datetime.now(datetime.timezone.utc)
     return now.strftime("study-%Y%m%d-%H%M%S")
 
 
-def core_nodes(settings, study_dir, bag_dir=None):
+def core_nodes(settings: "GraphSettings", study_dir: str,
+               bag_dir: typing.Optional[str] = None) -> typing.List[NodeLaunch]:
     """The always-on part of the graph: recorder, outcome_logger, valve_controller, evaluators.
 
     The recorder writes ``bag_dir`` (default ``<study_dir>/bag``); the logger's store is ``<study_dir>/outcomes.sqlite``.
@@ -143,7 +145,8 @@ def core_nodes(settings, study_dir, bag_dir=None):
     return nodes
 
 
-def session_nodes(settings, run_dir, rig_backend="sim", optimizer=True):
+def session_nodes(settings: "GraphSettings", run_dir: str, rig_backend: str = "sim",
+                  optimizer: bool = True) -> typing.List[NodeLaunch]:
     """A lab session's graph: :func:`core_nodes`, the rig (``sim`` | ``physical``) and optionally the optimizer.
 
     The optimizer waits for its ``start`` service (no autostart) and keeps its runs under ``run_dir``.

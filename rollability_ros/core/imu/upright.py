@@ -12,9 +12,12 @@ Pure Python on 3-vectors and 4-tuples: this runs per IMU sample on a robot compu
 import dataclasses
 import logging
 import math
+import typing
 
 from rollability_ros.core.imu.quaternion import (  # noqa: F401  (re-exported: the classifier's frame maths)
     IDENTITY,
+    Quaternion,
+    Vector3,
     normalize_quaternion,
     quaternion_conjugate,
     quaternion_from_axis_angle,
@@ -31,7 +34,7 @@ _LOG = logging.getLogger(__name__)
 STANDARD_GRAVITY_MPS2 = 9.80665
 
 
-def tilt_from_orientation_deg(orientation):
+def tilt_from_orientation_deg(orientation: typing.Iterable[float]) -> float:
     """Angle (deg, 0..180) between the body's +z axis and world up, from the orientation (x, y, z, w) world<-body."""
     x, y, z, w = normalize_quaternion(orientation)
     # body +z expressed in the world frame: third column of the rotation matrix
@@ -39,7 +42,7 @@ def tilt_from_orientation_deg(orientation):
     return math.degrees(math.atan2(math.hypot(up_x, up_y), up_z))
 
 
-def tilt_from_acceleration_deg(acceleration_body):
+def tilt_from_acceleration_deg(acceleration_body: typing.Iterable[float]) -> float:
     """Angle (deg, 0..180) between body +z and the measured specific force (world up at rest); NaN in free fall."""
     ax, ay, az = _vector3(acceleration_body, "acceleration")
     if math.hypot(ax, ay, az) < 1e-9:
@@ -47,7 +50,7 @@ def tilt_from_acceleration_deg(acceleration_body):
     return math.degrees(math.atan2(math.hypot(ax, ay), az))
 
 
-def orientation_from_acceleration(acceleration_body):
+def orientation_from_acceleration(acceleration_body: typing.Iterable[float]) -> Quaternion:
     """Yaw-free orientation world<-body (x, y, z, w) that turns the measured specific force onto world up.
 
     The heading is unobservable from gravity; this is the shortest rotation, so yaw is zero-ish by construction.
@@ -63,7 +66,9 @@ def orientation_from_acceleration(acceleration_body):
     return normalize_quaternion((uy, -ux, 0.0, 1.0 + uz))
 
 
-def orientation_if_valid(orientation, orientation_covariance=None):
+def orientation_if_valid(orientation: typing.Sequence[float],
+                         orientation_covariance: typing.Optional[typing.Sequence[float]] = None
+                         ) -> typing.Optional[Quaternion]:
     """Return the IMU's orientation (x, y, z, w), or None when the IMU does not provide one.
 
     ``sensor_msgs/Imu`` marks a missing orientation with ``orientation_covariance[0] == -1``; some drivers send
@@ -83,17 +88,17 @@ class ImuMount:
         self.body_from_imu = normalize_quaternion(rotation)
 
     @classmethod
-    def from_rpy_deg(cls, rpy_deg):
+    def from_rpy_deg(cls, rpy_deg: typing.Sequence[float]) -> "ImuMount":
         """Mount from (roll, pitch, yaw) in degrees, fixed axes."""
         if len(rpy_deg) != 3:
             raise ValueError(f"mount rotation must be 3 angles (roll, pitch, yaw) in deg, got {rpy_deg!r}")
         return cls(quaternion_from_rpy_deg(*rpy_deg))
 
-    def body_orientation(self, world_from_imu):
+    def body_orientation(self, world_from_imu: typing.Sequence[float]) -> Quaternion:
         """Orientation world<-body from the IMU's orientation world<-imu."""
         return quaternion_multiply(world_from_imu, quaternion_conjugate(self.body_from_imu))
 
-    def to_body(self, vector_imu):
+    def to_body(self, vector_imu: typing.Sequence[float]) -> Vector3:
         """A vector (angular velocity, acceleration) from the IMU frame into the body frame (lever arm ignored)."""
         return rotate_vector(self.body_from_imu, vector_imu)
 
@@ -113,7 +118,7 @@ class ImuSample:
     frame_id: str = ""
 
 
-def imu_sample_from_message(msg, arrival_s: float) -> ImuSample:
+def imu_sample_from_message(msg: typing.Any, arrival_s: float) -> ImuSample:
     """A ``sensor_msgs/Imu`` message (rclpy or rosbags) -> :class:`ImuSample`; ``ValueError`` naming the bad field.
 
     ``arrival_s`` (s since the epoch) stands in for a zero header stamp. Orientation is None when the IMU gives
@@ -154,7 +159,7 @@ class UprightReading:
     source: str
 
     @property
-    def classification(self):
+    def classification(self) -> typing.Optional[bool]:
         """True (upright) or False once settled; None while the body has not settled."""
         return self.upright if self.settled else None
 
@@ -204,13 +209,13 @@ class ImuUprightClassifier:
         self.reset()
 
     @classmethod
-    def from_config(cls, config):
+    def from_config(cls, config: "ImuOutcomeConfig") -> "ImuUprightClassifier":
         """Classifier for the rig's launch outcome from an :class:`ImuOutcomeConfig` (motion required)."""
         return cls(config.tilt_threshold_deg, config.settle_time_s, config.max_rate_radps,
                    config.max_accel_deviation_mps2, config.accel_filter_s, ImuMount.from_rpy_deg(config.mount_rpy_deg),
                    require_motion=True)
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget the history (call when a launch is fired)."""
         self._last_stamp = None
         self._gravity = None          # low-pass specific force, body frame
@@ -218,7 +223,7 @@ class ImuUprightClassifier:
         self._upright_since = None
         self._moved = False
 
-    def update(self, sample):
+    def update(self, sample: ImuSample) -> UprightReading:
         """Feed one :class:`ImuSample`; return the :class:`UprightReading` after it.
 
         A stamp earlier than the previous one (a bag replayed in a loop) restarts the history.
@@ -277,7 +282,7 @@ class ImuOutcomeConfig:
     accel_filter_s: float = 0.05
     settle_timeout_s: float = 15.0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field (by building the classifier it configures)."""
         if not self.topic:
             raise ValueError("topic must name the IMU topic")

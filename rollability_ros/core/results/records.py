@@ -20,7 +20,7 @@ class LaunchCondition:
     angle_deg: float
     repetition: int = 0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not self.configuration:
             raise ValueError("configuration must be a non-empty id")
@@ -38,7 +38,7 @@ class LaunchCondition:
             raise ValueError(f"repetition must be >= 0, got {self.repetition}")
 
     @property
-    def group_key(self):
+    def group_key(self) -> tuple:
         """The grouped condition (paper 2.2.6): everything but the repetition."""
         return (self.configuration, self.height_m, self.speed_mps, self.angle_deg)
 
@@ -63,7 +63,7 @@ class LaunchOutcome:
     BACKENDS = ("sim", "physical")
     CLASSIFIERS = ("operator", "imu", "sim")
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not self.run_id or not self.trial_id:
             raise ValueError("run_id and trial_id must be non-empty")
@@ -92,7 +92,7 @@ class CandidateRecord:
     evaluator: str = ""
     stamp_s: float = 0.0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` for an inconsistent candidate (successes > trials, NaN heights, ...)."""
         if not self.run_id:
             raise ValueError("run_id is empty")
@@ -119,7 +119,7 @@ class GenerationRecord:
     elapsed_s: float
     stamp_s: float = 0.0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not self.run_id:
             raise ValueError("GenerationRecord: run_id must be non-empty")
@@ -139,7 +139,7 @@ class TipEventRecord:
     frame_id: str = ""
     stamp_s: float = 0.0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not self.robot:
             raise ValueError("TipEventRecord: robot must be non-empty")

@@ -12,6 +12,7 @@ EXTRA_FOR_MODULE = {
     "trimesh": "sim",
     "scipy": "sim",
     "networkx": "sim",
+    "lxml": "sim",
     "cma": "sim",
     "ray": "cluster",
     "matplotlib": "report",

@@ -175,3 +175,42 @@ def sim_vs_experiment(path, comparison):
     ax.set_title(rank_agreement_text(comparison.spearman_rho, comparison.kendall_tau_b))
     ax.grid(alpha=0.3)
     return _save(figure, path)
+
+
+def render_profile_preview(mesh, path, title=None):
+    """Render a profile solid (a trimesh in metres, profile frame) to a shaded 3D PNG at ``path``; returns ``path``.
+
+    Axes are in millimetres, equal scale, seen from the front-left above; ``mesh`` None (the baseline) draws the
+    empty footprint note instead. Shared by every report section that shows a design.
+    """
+    plt = _pyplot()
+    art3d = require("mpl_toolkits.mplot3d.art3d", feature="the report figures")
+    import numpy as np
+
+    figure = plt.figure(figsize=(3.6, 3.0), layout="constrained")
+    ax = figure.add_subplot(projection="3d")
+    if mesh is None:
+        ax.text2D(0.5, 0.5, "baseline: no profile", ha="center", va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+    else:
+        vertices_mm = np.asarray(mesh.vertices, dtype=np.float64) * 1000.0
+        triangles = vertices_mm[np.asarray(mesh.faces)]
+        normals = np.asarray(mesh.face_normals, dtype=np.float64)
+        light = np.array([-0.4, -0.5, 0.77])
+        shade = 0.35 + 0.65 * np.clip(normals @ (light / np.linalg.norm(light)), 0.0, 1.0)
+        colors = np.column_stack([0.20 * shade, 0.45 * shade, 0.85 * shade, np.ones_like(shade)])
+        ax.add_collection3d(art3d.Poly3DCollection(triangles, facecolors=colors, edgecolors=(0, 0, 0, 0.15),
+                                                   linewidths=0.2))
+        low, high = vertices_mm.min(axis=0), vertices_mm.max(axis=0)
+        ax.set_xlim(low[0], high[0])
+        ax.set_ylim(low[1], high[1])
+        ax.set_zlim(0.0, max(high[2], 1e-3))
+        ax.set_box_aspect(np.maximum(high - np.array([low[0], low[1], 0.0]), 1e-3))
+        ax.view_init(elev=28, azim=-60)
+        ax.set_xlabel("x (mm)", fontsize=7, labelpad=-2)
+        ax.set_ylabel("y (mm)", fontsize=7, labelpad=-2)
+        ax.set_zlabel("z (mm)", fontsize=7, labelpad=-4)
+        ax.tick_params(labelsize=6, pad=-1)
+    if title:
+        ax.set_title(title, fontsize=9)
+    return _save(figure, path)

@@ -343,6 +343,6 @@ def test_parameter_changes_are_validated(ros_node, start_node):
     refused = set_parameter("tip_monitor.recover_threshold_deg", 80.0)
     assert not refused.successful and "hysteresis band" in refused.reason
     fixed = set_parameter("store_path", "elsewhere.sqlite")
-    assert not fixed.successful and "fixed at start-up" in fixed.reason
+    assert not fixed.successful and "read-only" in fixed.reason   # read_only in its descriptor
     assert set_parameter("tip_monitor.tip_threshold_deg", 50.0).successful
     assert ros_node.wait_for(lambda: "tracking restarts" in monitor.process.log(), 10)

@@ -121,7 +121,7 @@ class TipMonitorNode(Node):
     def __init__(self):
         super().__init__("tip_monitor")
         self._lock = threading.Lock()
-        self.settings = declare_settings(self, "", TipMonitorNodeSettings)
+        self.settings = declare_settings(self, "", TipMonitorNodeSettings, read_only=True)
         self.add_on_set_parameters_callback(self._refuse_start_up_change)
         config = declare_settings(self, PREFIX, TipMonitorConfig)
         self.log = None

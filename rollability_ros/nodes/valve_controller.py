@@ -36,7 +36,7 @@ class ValveControllerNode(Node):
 
     def __init__(self):
         super().__init__("valve_controller")
-        config = declare_settings(self, "valve", ValveConfig)
+        config = declare_settings(self, "valve", ValveConfig, read_only=True)
         self.state_publisher = self.create_publisher(ValveState, "valve/state", LATCHED_QOS)
         try:
             self.controller = make_controller(config, on_state=self._publish_state)

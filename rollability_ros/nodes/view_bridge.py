@@ -37,9 +37,10 @@ class ViewBridgeNode(Node):
 
     def __init__(self):
         super().__init__("view_bridge")
-        self.settings = declare_settings(self, "", ViewSettings)
+        self.settings = declare_settings(self, "", ViewSettings, read_only=True)
         self.declare_parameter("topics", Parameter.Type.STRING_ARRAY, ParameterDescriptor(
-            description="absolute topic names to serve; empty: every topic of the project's graph"))
+            description="absolute topic names to serve; empty: every topic of the project's graph",
+            read_only=True))
         try:   # an empty string array on the command line is "not set": get_parameter_or gives value None
             self.chosen_topics = check_topic_names(self.get_parameter_or("topics").value or [])
         except ValueError as exc:

@@ -154,11 +154,18 @@ def run_campaign(plan, run_id, stored_ids, launch, confirm_stored, ask=None, say
 class RunnerSettings:
     """``runner.*``: how the campaign_runner node reaches the rig and the store."""
 
-    backend: str = "sim"
-    store_path: str = "runs/outcomes.sqlite"
-    resume: bool = False
-    store_timeout_s: float = 10.0
-    server_timeout_s: float = 30.0
+    backend: str = dataclasses.field(default="sim", metadata={
+        "description": "which rig backend the campaign expects (sim or physical); the rig must match"})
+    store_path: str = dataclasses.field(default="runs/outcomes.sqlite", metadata={
+        "description": "the outcome_logger's durable store file; the runner reads what is already stored to resume"})
+    resume: bool = dataclasses.field(default=False, metadata={
+        "description": "true: continue a campaign whose run_id already has stored outcomes; false: refuse to reuse the "
+                       "id"})
+    store_timeout_s: float = dataclasses.field(default=10.0, metadata={
+        "description": "longest wait for the logger's acknowledgement that an outcome is stored, s",
+        "range": (0.0, 3600.0)})
+    server_timeout_s: float = dataclasses.field(default=30.0, metadata={
+        "description": "longest wait for the rig's Launch action server to appear, s", "range": (0.0, 86400.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

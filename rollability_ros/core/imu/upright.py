@@ -302,14 +302,25 @@ class ImuUprightClassifier:
 class ImuOutcomeConfig:
     """``imu_outcome.*`` of ``config/rig.yaml``: classifying a launch from the chassis IMU."""
 
-    topic: str = "imu/data"
-    mount_rpy_deg: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
-    tilt_threshold_deg: float = 30.0
-    settle_time_s: float = 1.0
-    max_rate_radps: float = 0.3
-    max_accel_deviation_mps2: float = 1.0
-    accel_filter_s: float = 0.05
-    settle_timeout_s: float = 15.0
+    topic: str = dataclasses.field(default="imu/data", metadata={
+        "description": "sensor_msgs/Imu topic of the chassis IMU that classifies launch outcomes"})
+    mount_rpy_deg: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0], metadata={
+        "description": "rotation IMU frame -> chassis body frame as roll, pitch, yaw about fixed axes, deg"})
+    tilt_threshold_deg: float = dataclasses.field(default=30.0, metadata={
+        "description": "upright when the body +z axis is within this angle of world up after settling, deg",
+        "range": (0.0, 180.0)})
+    settle_time_s: float = dataclasses.field(default=1.0, metadata={
+        "description": "the chassis must be still this long before the IMU classifies it, s", "range": (0.0, 60.0)})
+    max_rate_radps: float = dataclasses.field(default=0.3, metadata={
+        "description": "still when the angular rate magnitude stays at most this, rad/s", "range": (0.0, 100.0)})
+    max_accel_deviation_mps2: float = dataclasses.field(default=1.0, metadata={
+        "description": "still when | |acceleration| - g | stays at most this, m/s^2", "range": (0.0, 100.0)})
+    accel_filter_s: float = dataclasses.field(default=0.05, metadata={
+        "description": "low-pass time constant of the gravity estimate for IMUs without orientation, s",
+        "range": (0.0, 10.0)})
+    settle_timeout_s: float = dataclasses.field(default=15.0, metadata={
+        "description": "no settled IMU reading this long after firing: ask the operator instead, s",
+        "range": (0.0, 3600.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field (by building the classifier it configures)."""

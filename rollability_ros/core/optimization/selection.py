@@ -50,10 +50,16 @@ class SelectionSettings:
     simulation units (the heights' own unit; 0.05 = 11% of the paper's [0, 0.45] range).
     """
 
-    count: int = 3                     # designs to choose (labelled A, B, C, ...)
-    min_distance: float = 0.05         # minimum RMS height distance between chosen designs, simulation units
-    reevaluate_trials: int = 0         # trials of the fresh re-evaluation of the chosen designs; 0 = none
-    mesh_units: str = "mm"             # length unit of the written STL files: "mm" (slicers) or "m"
+    count: int = dataclasses.field(default=3, metadata={
+        "description": "designs to choose for fabrication, labelled A, B, C, ... (count)", "range": (1, 26)})
+    min_distance: float = dataclasses.field(default=0.05, metadata={
+        "description": "smallest RMS height difference between two chosen designs, simulation units",
+        "range": (0.0, 1000.0)})
+    reevaluate_trials: int = dataclasses.field(default=0, metadata={
+        "description": "fresh trials per chosen design and the baseline for Table 3 (count; 0 = report the logged "
+                       "estimate)", "range": (0, 10000000)})
+    mesh_units: str = dataclasses.field(default="mm", metadata={
+        "description": "length unit of the written STL files: mm (what slicers expect) or m"})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

@@ -43,14 +43,24 @@ class ProfileGrid:
     treated as the baseline (no profile) by the evaluator, because a hull thinner than that is not a solid.
     """
 
-    rows: int = 10
-    cols: int = 10
-    length_m: float = 0.18
-    width_m: float = 0.14
-    height_min: float = 0.0
-    height_max: float = 0.45
-    unit_m: float = 0.2
-    flat_tolerance: float = 0.001
+    rows: int = dataclasses.field(default=10, metadata={
+        "description": "grid vertices along the footprint length (count; paper 10)", "range": (2, 1000)})
+    cols: int = dataclasses.field(default=10, metadata={
+        "description": "grid vertices across the y > 0 half of the footprint (count; paper 10)", "range": (1, 1000)})
+    length_m: float = dataclasses.field(default=0.18, metadata={
+        "description": "footprint length along the chassis x axis that the profile covers, m", "range": (0.0, 100.0)})
+    width_m: float = dataclasses.field(default=0.14, metadata={
+        "description": "footprint width along the chassis y axis that the profile covers, m", "range": (0.0, 100.0)})
+    height_min: float = dataclasses.field(default=0.0, metadata={
+        "description": "lower bound of every vertex height, simulation units (paper 0)", "range": (0.0, 1000.0)})
+    height_max: float = dataclasses.field(default=0.45, metadata={
+        "description": "upper bound of every vertex height, simulation units (paper 0.45)", "range": (0.0, 1000.0)})
+    unit_m: float = dataclasses.field(default=0.2, metadata={
+        "description": "metres per simulation unit of vertex height, m (0.2: height 0.45 = 0.09 m)",
+        "range": (0.0, 100.0)})
+    flat_tolerance: float = dataclasses.field(default=0.001, metadata={
+        "description": "a profile whose tallest vertex is at or below this counts as the baseline (no profile), "
+                       "simulation units", "range": (0.0, 100.0)})
 
     @property
     def n_variables(self):
@@ -90,12 +100,22 @@ class ProfileMetrics:
 class PrinterSpec:
     """An FDM printer's limits (``config/robot.yaml``, section ``printer``)."""
 
-    bed_x_m: float = 0.22
-    bed_y_m: float = 0.22
-    bed_z_m: float = 0.25
-    nozzle_m: float = 0.0004
-    min_wall_m: float = 0.0008
-    max_overhang_deg: float = 45.0
+    bed_x_m: float = dataclasses.field(default=0.22, metadata={
+        "description": "build plate size along the printer's x axis, m; a profile footprint must fit (turned 90 deg "
+                       "allowed)", "range": (0.0, 10.0)})
+    bed_y_m: float = dataclasses.field(default=0.22, metadata={
+        "description": "build plate size along the printer's y axis, m", "range": (0.0, 10.0)})
+    bed_z_m: float = dataclasses.field(default=0.25, metadata={
+        "description": "largest printable part height, m; the tallest profile must fit", "range": (0.0, 10.0)})
+    nozzle_m: float = dataclasses.field(default=0.0004, metadata={
+        "description": "nozzle diameter = one extrusion width, m; the minimum wall cannot be thinner",
+        "range": (0.0, 0.1)})
+    min_wall_m: float = dataclasses.field(default=0.0008, metadata={
+        "description": "thinnest solid width the printer makes reliably (e.g. two perimeters), m",
+        "range": (0.0, 1.0)})
+    max_overhang_deg: float = dataclasses.field(default=45.0, metadata={
+        "description": "steepest downward face printable without support, measured from vertical, deg",
+        "range": (0.0, 90.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

@@ -292,9 +292,12 @@ class ValveController:
 class GpioValveConfig:
     """``valve.gpio.*``: the GPIO line driving the valve's solenoid driver."""
 
-    chip: str = "/dev/gpiochip0"
-    line_offset: int = 17
-    active_high: bool = True
+    chip: str = dataclasses.field(default="/dev/gpiochip0", metadata={
+        "description": "GPIO chip device driving the solenoid (e.g. /dev/gpiochip0)"})
+    line_offset: int = dataclasses.field(default=17, metadata={
+        "description": "line offset on that chip that drives the solenoid driver", "range": (0, 1023)})
+    active_high: bool = dataclasses.field(default=True, metadata={
+        "description": "true: a high level on the line opens the valve; false: an active-low driver"})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -312,13 +315,21 @@ LINE_ENDINGS = {"lf": "\n", "crlf": "\r\n", "cr": "\r"}
 class SerialRelayConfig:
     """``valve.serial.*``: a relay board on a serial port speaking a line protocol."""
 
-    port: str = "/dev/ttyUSB0"
-    baud: int = 9600
-    open_command: str = "RELAY 1 ON"
-    close_command: str = "RELAY 1 OFF"
-    ack: str = "OK"
-    line_ending: str = "lf"
-    timeout_s: float = 0.5
+    port: str = dataclasses.field(default="/dev/ttyUSB0", metadata={
+        "description": "serial device of the relay board (e.g. /dev/ttyUSB0)"})
+    baud: int = dataclasses.field(default=9600, metadata={
+        "description": "serial baud rate of the relay board, bit/s", "range": (1, 10000000)})
+    open_command: str = dataclasses.field(default="RELAY 1 ON", metadata={
+        "description": "line that energises the relay (valve open), sent with the line ending"})
+    close_command: str = dataclasses.field(default="RELAY 1 OFF", metadata={
+        "description": "line that de-energises the relay (valve closed)"})
+    ack: str = dataclasses.field(default="OK", metadata={
+        "description": "line the relay board answers on success; anything else is a fault"})
+    line_ending: str = dataclasses.field(default="lf", metadata={
+        "description": "appended to each command: lf, crlf or cr"})
+    timeout_s: float = dataclasses.field(default=0.5, metadata={
+        "description": "longest wait for the board's acknowledgement, s; a missing or late one faults and closes",
+        "range": (0.0, 60.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -338,8 +349,10 @@ class SerialRelayConfig:
 class RegulatorConfig:
     """``valve.regulator.*``: the supply pressure that gives each target launch speed (paper 2.2)."""
 
-    speeds_mps: list[float] = dataclasses.field(default_factory=lambda: [0.8, 1.5])
-    pressures_psi: list[float] = dataclasses.field(default_factory=lambda: [30.0, 60.0])
+    speeds_mps: list[float] = dataclasses.field(default_factory=lambda: [0.8, 1.5], metadata={
+        "description": "target launch speeds that have a regulator pressure, m/s"})
+    pressures_psi: list[float] = dataclasses.field(default_factory=lambda: [30.0, 60.0], metadata={
+        "description": "regulator supply pressure for each target speed in valve.regulator.speeds_mps, psi"})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -377,12 +390,22 @@ class RegulatorCheck:
 class ValveConfig:
     """``valve.*`` of ``config/rig.yaml`` (build with ``config.from_mapping(ValveConfig, section(p, "valve"), ...)``)."""
 
-    backend: str = "dry_run"
-    max_pulse_ms: int = 500
-    launch_pulse_ms: int = 150
-    watchdog_ms: int = 500
-    watchdog_check_ms: int = 20
-    heartbeat_period_ms: int = 100
+    backend: str = dataclasses.field(default="dry_run", metadata={
+        "description": "valve driver: dry_run (logs only), gpio (a libgpiod line) or serial_relay (a relay board)"})
+    max_pulse_ms: int = dataclasses.field(default=500, metadata={
+        "description": "longest valve opening ever fired, ms; longer fire requests are refused", "range": (1, 600000)})
+    launch_pulse_ms: int = dataclasses.field(default=150, metadata={
+        "description": "valve opening the rig commands for one launch, ms (at most max_pulse_ms)",
+        "range": (1, 600000)})
+    watchdog_ms: int = dataclasses.field(default=500, metadata={
+        "description": "an armed valve closes and faults when the rig's keep-alive is silent this long, ms",
+        "range": (1, 600000)})
+    watchdog_check_ms: int = dataclasses.field(default=20, metadata={
+        "description": "how often the watchdog looks at the heartbeat (steady clock), ms (at most half the watchdog)",
+        "range": (1, 600000)})
+    heartbeat_period_ms: int = dataclasses.field(default=100, metadata={
+        "description": "how often the rig sends its keep-alive to the valve, ms (at most half the watchdog)",
+        "range": (1, 600000)})
     gpio: GpioValveConfig = dataclasses.field(default_factory=GpioValveConfig)
     serial: SerialRelayConfig = dataclasses.field(default_factory=SerialRelayConfig)
     regulator: RegulatorConfig = dataclasses.field(default_factory=RegulatorConfig)

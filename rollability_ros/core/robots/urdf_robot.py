@@ -59,22 +59,47 @@ class UrdfRobotSpec:
     times ``profile_density_kgpm3``.
     """
 
-    urdf_path: str = ""
-    robot_description: str = ""
-    search_paths: tuple[str, ...] = ()
-    mount_link: str = ""
-    footprint_length_m: float = 0.18
-    footprint_width_m: float = 0.14
-    footprint_offset_m: tuple[float, ...] = (0.0, 0.0, 0.0)
-    footprint_yaw_deg: float = 0.0
-    wheel_links: tuple[str, ...] = ()
-    wheel_link_regex: str = ""
-    min_wheels_in_contact: int = 0
-    up_axis_xyz: tuple[float, ...] = (0.0, 0.0, 1.0)
-    upright_tilt_deg: float = 30.0
-    contact_tolerance_m: float = 0.005
-    joint_drag_torque_nm: float = 0.0
-    profile_density_kgpm3: float = 150.0
+    urdf_path: str = dataclasses.field(default="", metadata={
+        "description": "URDF file of the robot; a relative path is looked up in the working directory, then each search"
+                       " path"})
+    robot_description: str = dataclasses.field(default="", metadata={
+        "description": "URDF XML text of the robot (instead of urdf_path), e.g. a robot_state_publisher's "
+                       "robot_description"})
+    search_paths: tuple[str, ...] = dataclasses.field(default=(), metadata={
+        "description": "folders searched for the URDF, package:// and relative meshes; python:<module> = that installed"
+                       " package's folder"})
+    mount_link: str = dataclasses.field(default="", metadata={
+        "description": "URDF link the profile is fixed to; naming it selects the URDF robot instead of the built-in "
+                       "chassis"})
+    footprint_length_m: float = dataclasses.field(default=0.18, metadata={
+        "description": "length of the mount footprint the profile grid spans, along the footprint x, m",
+        "range": (0.0, 100.0)})
+    footprint_width_m: float = dataclasses.field(default=0.14, metadata={
+        "description": "width of the mount footprint the profile grid spans, along the footprint y, m",
+        "range": (0.0, 100.0)})
+    footprint_offset_m: tuple[float, ...] = dataclasses.field(default=(0.0, 0.0, 0.0), metadata={
+        "description": "footprint centre in the mount link's frame (x, y, z), m"})
+    footprint_yaw_deg: float = dataclasses.field(default=0.0, metadata={
+        "description": "footprint x axis relative to the mount link's x axis, deg", "range": (-360.0, 360.0)})
+    wheel_links: tuple[str, ...] = dataclasses.field(default=(), metadata={
+        "description": "names of the wheel links that must touch the ground when upright"})
+    wheel_link_regex: str = dataclasses.field(default="", metadata={
+        "description": "regular expression (full match) naming the wheel links, instead of wheel_links"})
+    min_wheels_in_contact: int = dataclasses.field(default=0, metadata={
+        "description": "wheel links that must touch the ground for an upright verdict (count; 0 = wheels not judged)",
+        "range": (0, 1000)})
+    up_axis_xyz: tuple[float, ...] = dataclasses.field(default=(0.0, 0.0, 1.0), metadata={
+        "description": "unit vector in the root link's frame that points up when the robot is upright (no unit)"})
+    upright_tilt_deg: float = dataclasses.field(default=30.0, metadata={
+        "description": "upright when the up axis is within this angle of world up at rest, deg (180 = not judged)",
+        "range": (0.0, 180.0)})
+    contact_tolerance_m: float = dataclasses.field(default=0.005, metadata={
+        "description": "a wheel link this close to the ground counts as touching it, m", "range": (0.0, 10.0)})
+    joint_drag_torque_nm: float = dataclasses.field(default=0.0, metadata={
+        "description": "back-drive drag torque of each unpowered joint (wheel drives), N m",
+        "range": (0.0, 1000000.0)})
+    profile_density_kgpm3: float = dataclasses.field(default=150.0, metadata={
+        "description": "density of the profile solid on this robot, kg/m^3", "range": (0.0, 100000.0)})
 
     @property
     def selected(self):

@@ -13,6 +13,7 @@ EXTRA_FOR_MODULE = {
     "scipy": "sim",
     "networkx": "sim",
     "lxml": "sim",
+    "xacro": "sim",
     "cma": "sim",
     "ray": "cluster",
     "matplotlib": "report",

@@ -17,6 +17,8 @@ EXTRAS = {
     "report": ["matplotlib>=3.7"],
     # rig hardware: serial relay board, GPIO valve and light gates
     "hardware": ["pyserial>=3.5", "gpiod>=2.1"],
+    # live progress line of study / bringup on a terminal (plain lines without it)
+    "progress": ["rich>=12"],
     # live Foxglove view without a ROS install
     "view": ["foxglove-sdk>=0.10"],
     "test": ["pytest>=7", "pytest-timeout>=2", "colcon-common-extensions>=0.3"],

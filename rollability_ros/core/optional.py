@@ -20,6 +20,7 @@ EXTRA_FOR_MODULE = {
     "serial": "hardware",
     "gpiod": "hardware",
     "foxglove": "view",
+    "rich": "progress",
 }
 
 

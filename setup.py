@@ -10,13 +10,15 @@ from setuptools import find_packages, setup
 
 EXTRAS = {
     # physics, geometry and optimization: the design side
-    "sim": ["pybullet==3.2.7", "cma>=4.0", "trimesh>=4.0", "scipy>=1.10", "networkx>=3.0"],
+    "sim": ["pybullet==3.2.7", "cma>=4.0", "trimesh>=4.0", "scipy>=1.10", "networkx>=3.0", "lxml>=4.9", "xacro>=2.0"],
     # hand trial batches to a Ray cluster
     "cluster": ["ray>=2.9"],
     # figures of the report
     "report": ["matplotlib>=3.7"],
     # rig hardware: serial relay board, GPIO valve and light gates
     "hardware": ["pyserial>=3.5", "gpiod>=2.1"],
+    # live progress line of study / bringup on a terminal (plain lines without it)
+    "progress": ["rich>=12"],
     # live Foxglove view without a ROS install
     "view": ["foxglove-sdk>=0.10"],
     "test": ["pytest>=7", "pytest-timeout>=2", "colcon-common-extensions>=0.3"],

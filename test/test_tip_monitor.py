@@ -129,19 +129,26 @@ class Monitor:
         node.node.create_subscription(TipState, "/tip_monitor/state", self._on_state, LATCHED_QOS)
         node.node.create_subscription(TipEvent, "tip_events", self.events.append, RECORD_QOS)
         node.node.create_subscription(TipEvent, "/tip_monitor/events", self.node_events.append, RECORD_QOS)
-        node.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append, 10)
+        self.diagnostics_at = []
+        node.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 10)
         self.imu = node.node.create_publisher(Imu, "imu/data", 50)   # reliable publisher, best-effort subscriber
         assert node.wait_for(lambda: self.imu.get_subscription_count() > 0 and self.diagnostics, 30), \
             self.process.log()
         self.published_at = {}
 
+    def _on_diagnostics(self, msg):
+        self.diagnostics_at.append(time.monotonic())
+        self.diagnostics.append(msg)
+
     def _on_state(self, msg):
         self.received_at[len(self.states)] = time.monotonic()
         self.states.append(msg)
 
-    def play(self, samples, epoch_s, bad_every=0):
+    def play(self, samples, epoch_s, bad_every=0, nan_orientation=False):
         """Publish ``samples`` with stamps ``epoch_s + t`` at SPEEDUP x real time; every ``bad_every``-th
-        sample is followed by two malformed messages (NaN rate; NaN quaternion said to be valid)."""
+        sample is followed by two malformed messages (NaN rate; NaN quaternion said to be valid).
+        ``nan_orientation``: every sample's quaternion is NaN (said to be valid), its rates and accelerations
+        intact."""
         from sensor_msgs.msg import Imu
 
         from rollability_ros.nodes._convert import s_to_stamp
@@ -159,6 +166,9 @@ class Monitor:
                 msg.orientation.w = 0.0
             else:
                 msg.orientation.x, msg.orientation.y, msg.orientation.z, msg.orientation.w = sample.orientation
+            if nan_orientation:
+                msg.orientation.x = msg.orientation.y = msg.orientation.z = msg.orientation.w = math.nan
+                msg.orientation_covariance[0] = 0.0
             msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = sample.angular_velocity_radps
             (msg.linear_acceleration.x, msg.linear_acceleration.y,
              msg.linear_acceleration.z) = sample.linear_acceleration_mps2
@@ -265,19 +275,42 @@ def test_noisy_upright_drive_without_orientation_and_bad_messages_raises_no_alar
 
     def counts():
         values = {kv.key: kv.value for kv in monitor.diagnostics[-1].status[0].values}
-        return int(values["samples"]), int(values["refused_samples"])
+        return int(values["samples"]), int(values["refused_samples"]), int(values["orientation_unusable"])
 
-    ros_node.wait_for(lambda: sum(counts()) >= len(samples) + bad_messages, 3)
-    accepted, refused = counts()
-    print(f"accepted {accepted} of {len(samples)} good and refused {refused} of {bad_messages} bad messages "
+    ros_node.wait_for(lambda: sum(counts()[:2]) >= len(samples) + bad_messages, 3)
+    accepted, refused, gravity_only = counts()
+    print(f"accepted {accepted} of {len(samples)} good and {bad_messages // 2} NaN-quaternion messages "
+          f"({gravity_only} by gravity), refused {refused} of {bad_messages // 2} NaN-rate messages "
           f"at {IMU_RATE_HZ * SPEEDUP:.0f} Hz")
-    assert accepted <= len(samples) and refused <= bad_messages
+    # a NaN quaternion keeps its accelerometer and gyro (tilt from gravity); a NaN rate is refused
+    assert accepted <= len(samples) + bad_messages // 2 and refused <= bad_messages // 2
+    assert 0 < gravity_only <= bad_messages // 2
     assert accepted + refused >= 0.9 * (len(samples) + bad_messages)    # best effort: a few may drop
     # no alarm at any time: every diagnostic is OK, or STALE once the stream has ended (no IMU data)
     levels = [d.status[0].level[0] for d in monitor.diagnostics]
     assert set(levels) <= {DIAGNOSTIC_OK, DIAGNOSTIC_STALE}, levels
     assert [level for level in levels if level != DIAGNOSTIC_STALE][-1] == DIAGNOSTIC_OK
     assert "refused IMU message" in monitor.process.log()
+
+
+def test_nan_orientation_falls_back_to_gravity_and_a_gap_goes_stale_within_one_and_a_half_timeouts(
+        ros_node, start_node):
+    """An IMU whose fusion died (NaN quaternion, rates and accelerations fine) still shows a tip-over; when its
+    stream stops, STALE arrives within 1.5 x imu_timeout_s of the last sample."""
+    samples = stream(piecewise([(0, 0.0), (1.0, 0.0), (1.5, 170.0)]), 3.0, rate_hz=IMU_RATE_HZ, seed=5)
+    monitor = Monitor(ros_node, start_node)
+    monitor.play(samples, time.time(), nan_orientation=True)
+    last_sample_at = time.monotonic()
+    assert ros_node.wait_for(lambda: "tipped" in monitor.labels(), 10), (monitor.labels(), monitor.process.log())
+    assert ros_node.wait_for(lambda: monitor.levels()[-1:] == [DIAGNOSTIC_STALE], 2 * CONFIG.imu_timeout_s + 2)
+    stale_at = next(at for at, array in zip(monitor.diagnostics_at, monitor.diagnostics)
+                    if at > last_sample_at and array.status[0].level[0] == DIAGNOSTIC_STALE)
+    values = {kv.key: kv.value for kv in monitor.diagnostics[-1].status[0].values}
+    print(f"\nNaN orientation: {monitor.labels()}, {values['orientation_unusable']} samples by gravity; STALE "
+          f"{stale_at - last_sample_at:.2f} s after the last sample (imu_timeout_s {CONFIG.imu_timeout_s})")
+    # every sample that arrived (best effort: some may drop) was used, by gravity; none refused
+    assert values["orientation_unusable"] == values["samples"] and values["refused_samples"] == "0"
+    assert stale_at - last_sample_at <= 1.5 * CONFIG.imu_timeout_s
 
 
 def test_invalid_thresholds_are_refused(ros_node, start_node):
@@ -310,6 +343,6 @@ def test_parameter_changes_are_validated(ros_node, start_node):
     refused = set_parameter("tip_monitor.recover_threshold_deg", 80.0)
     assert not refused.successful and "hysteresis band" in refused.reason
     fixed = set_parameter("store_path", "elsewhere.sqlite")
-    assert not fixed.successful and "fixed at start-up" in fixed.reason
+    assert not fixed.successful and "read-only" in fixed.reason   # read_only in its descriptor
     assert set_parameter("tip_monitor.tip_threshold_deg", 50.0).successful
     assert ros_node.wait_for(lambda: "tracking restarts" in monitor.process.log(), 10)

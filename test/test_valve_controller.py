@@ -71,7 +71,7 @@ def test_parameters_are_fixed_and_invalid_ones_refused_at_start(ros_node, start_
     assert client.wait_for_service(timeout_sec=30), process.log()
     request = SetParameters.Request(parameters=[Parameter("valve.max_pulse_ms", value=5000).to_parameter_msg()])
     result = client.call(request, timeout_sec=30).results[0]
-    assert not result.successful and "fixed at start-up" in result.reason
+    assert not result.successful and "read-only" in result.reason   # read_only in its descriptor
 
 
 def _commands(sim):

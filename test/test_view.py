@@ -209,7 +209,7 @@ def test_layout_references_fields_that_exist():
         for field in re.sub(r"\[[^\]]*\]|\{[^}]*\}", "", fields).split(".") if fields else []:
             assert re.search(rf"^\S+\s+{field}\b", text, re.M), f"{path}: no field {field} in {topic_types[topic]}"
     three_d = next(config for panel_id, config in panels.items() if panel_id.startswith("3D"))
-    assert {"/rollability/rig/pose", "/rollability/best_profile_marker"} <= set(three_d["topics"])
+    assert {"/rollability/rig/pose", "/rollability/best_profile_marker", "/tf"} <= set(three_d["topics"])
 
 
 def test_view_verb_starts_the_bridge_with_its_options(ros_node, start_process):
@@ -218,3 +218,48 @@ def test_view_verb_starts_the_bridge_with_its_options(ros_node, start_process):
     assert ros_node.wait_for(lambda: "serving /rollability/summary, /rollability/launch_outcomes" in process.log(),
                              30), process.log()
     assert re.search(r"ws://127\.0\.0\.1:\d+", process.log())
+
+
+def test_the_chassis_pose_is_served_as_standard_tf_so_the_profile_rides_on_the_chassis():
+    """What the app receives on /tf, decoded from the advertised schema alone: world -> base_link at the pose."""
+    pytest.importorskip("foxglove")
+    from rollability_ros.core.graph.foxglove_view import TF_TOPIC, TF_TYPE, parse_pose_frames
+    from rollability_ros.nodes.view_bridge import DEFAULT_POSE_FRAMES
+
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.serialization import serialize_message
+
+    pose = PoseStamped()
+    pose.header.frame_id = "world"
+    pose.header.stamp.sec, pose.header.stamp.nanosec = 17, 250
+    pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = 0.4, -0.1, 0.05
+    pose.pose.orientation.x, pose.pose.orientation.w = 0.6, 0.8
+    frames = parse_pose_frames(DEFAULT_POSE_FRAMES)
+    assert frames == {"/rollability/rig/pose": "base_link"}
+    view = ViewServer(ViewSettings(port=0))
+    view.start()
+    client = FoxgloveClient(view.port)
+    try:
+        view.log_pose_as_tf(serialize_message(pose), frames["/rollability/rig/pose"], 55)
+        channel = client.wait_for_channel(TF_TOPIC)
+        assert channel["schemaName"] == TF_TYPE and channel["schema"].startswith("geometry_msgs/TransformStamped[]")
+        client.send_json({"op": "subscribe", "subscriptions": [{"id": 3, "channelId": channel["id"]}]})
+        deadline = time.monotonic() + 20
+        while True:   # the subscription registers asynchronously: log until one arrives
+            view.log_pose_as_tf(serialize_message(pose), "base_link", 55)
+            try:
+                log_time, payload = client.next_message(3, timeout_s=0.5)
+                break
+            except AssertionError:
+                assert time.monotonic() < deadline
+        decoded = decode_with_advertised_schema(channel, payload)
+    finally:
+        client.close()
+        view.stop()
+    (transform,) = decoded.transforms
+    assert (transform.header.frame_id, transform.child_frame_id) == ("world", "base_link")
+    assert (transform.header.stamp.sec, transform.header.stamp.nanosec, log_time) == (17, 250, 55)
+    t, r = transform.transform.translation, transform.transform.rotation
+    assert (t.x, t.y, t.z, r.x, r.w) == (0.4, -0.1, 0.05, 0.6, 0.8)
+    with pytest.raises(ValueError, match="must be '/absolute/topic=child_frame'"):
+        parse_pose_frames(["rig/pose"])

@@ -6,6 +6,7 @@ and sets its ``func(args) -> int`` default. Verb modules import heavy dependenci
 """
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 
@@ -48,7 +49,14 @@ def main(argv=None):
     line_buffered_output()
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        code = int(args.func(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, inside the try, not at interpreter exit
+        return code
+    except BrokenPipeError:
+        # the reader went away (`rollability bag info --json | head`): stop quietly, as a tool killed by SIGPIPE
+        # does; stdout goes to /dev/null so the interpreter's final flush cannot raise again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except (ConfigError, MissingDependency, FileNotFoundError, ValueError) as exc:
         print(f"rollability {args.verb}: error: {exc}", file=sys.stderr)
         return 2

@@ -44,9 +44,11 @@ def register(subparsers):
     verbs = parser.add_subparsers(dest="bag_verb", metavar="BAG_VERB")
     verbs.required = True
 
-    info = verbs.add_parser("info", help="topics, types, counts, duration, size and compression of a bag",
-                            description="Summarise a bag from its metadata and its storage files' summaries.")
-    info.add_argument("bag", help="bag directory")
+    info = verbs.add_parser("info", help="topics (type, count, serialization, QoS), start/end times, duration, "
+                                         "files and sizes of a bag",
+                            description="Summarise a bag from its metadata and its storage files' summaries, as "
+                                        "`ros2 bag info` does, plus per-topic offered QoS and per-file sizes.")
+    info.add_argument("bag", help="bag directory, or one .mcap file")
     info.add_argument("--json", action="store_true", help="print the summary as JSON")
     info.set_defaults(func=_info)
 

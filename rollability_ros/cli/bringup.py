@@ -7,6 +7,8 @@ import time
 def run(args):
     from rollability_ros.core.graph.bringup import load_graph_settings, new_study_id, parameter_files, session_nodes
     from rollability_ros.core.graph.supervisor import Supervisor
+    from rollability_ros.core.graph.node_commands.progress import ProgressDisplay, session_progress
+    from rollability_ros.core.graph.study import PROGRESS_PERIOD_S
 
     param_files = parameter_files(["bringup", *args.config])
     settings = load_graph_settings(param_files)
@@ -22,12 +24,20 @@ def run(args):
     signal.signal(signal.SIGINT, lambda *_: stop.append("Ctrl-C"))
     signal.signal(signal.SIGTERM, lambda *_: stop.append("SIGTERM"))
     print(f"bringup: session {run_dir} ({len(nodes)} nodes, rig backend {args.backend}); Ctrl-C stops everything")
-    try:
-        supervisor.start()
-        while not stop and supervisor.poll():
-            time.sleep(settings.poll_period_s)
-    finally:
-        supervisor.stop()
+    started, last_shown = time.monotonic(), 0.0
+    with ProgressDisplay() as display:   # a live line on a terminal, a plain line per change in a pipe or log
+        try:
+            supervisor.start()
+            while not stop and supervisor.poll():
+                if time.monotonic() - last_shown >= PROGRESS_PERIOD_S:
+                    last_shown = time.monotonic()
+                    try:
+                        display.update(session_progress(run_dir, len(nodes), last_shown - started))
+                    except Exception as exc:  # informative only: a busy store must not end the session
+                        display.update(f"(progress unavailable: {exc})")
+                time.sleep(settings.poll_period_s)
+        finally:
+            supervisor.stop()
     if supervisor.failed:
         print(f"bringup: stopped because {supervisor.failed}")
         return 1

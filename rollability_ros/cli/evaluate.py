@@ -25,7 +25,7 @@ def run(args):
     settings = evaluation.load_settings(["sim", "robot", "evaluator", *args.config])
     trials = args.trials if args.trials is not None else settings.evaluator.trials
     if args.stl is not None:
-        mesh = geometry.load_profile_mesh(args.stl)
+        mesh = geometry.load_profile_mesh(args.stl, units=args.stl_units)
         label = args.stl
     else:
         heights = _read_heights(args)
@@ -66,8 +66,11 @@ def register(subparsers):
     source.add_argument("--heights", metavar="H1,H2,...",
                         help="rows*cols half-grid vertex heights in simulation units, comma separated")
     source.add_argument("--heights-file", metavar="FILE", help="a text file of heights (commas or whitespace)")
-    source.add_argument("--stl", metavar="FILE", help="a profile solid (STL or OBJ, metres, base on z = 0)")
+    source.add_argument("--stl", metavar="FILE", help="a profile solid (STL, OBJ or 3MF, base on z = 0; units "
+                        "from the file's header, else --stl-units)")
     source.add_argument("--baseline", action="store_true", help="the chassis without a profile")
+    parser.add_argument("--stl-units", choices=("mm", "m"), help="length unit of --stl when the file does not "
+                        "declare one (default: the file's own, else m)")
     parser.add_argument("--trials", type=int, help="number of trials (default: evaluator.trials, 60)")
     parser.add_argument("--seed", type=int, default=0, help="base seed of the trials' disturbances (default 0)")
     parser.add_argument("--workers", type=int,

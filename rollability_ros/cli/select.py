@@ -18,13 +18,15 @@ def run(args):
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.optimization import optimization_run as optimization_run
     from rollability_ros.core.optimization import selection
-    from rollability_ros.core.config import from_mapping, section
+    from rollability_ros.core.config import from_mapping, load_parameters, section
     from rollability_ros.core.results.store import Store
 
     run_dir = optimization_run.resolve_run_dir(args.run, args.output_dir)
     parameters = optimization_run.read_run_config(run_dir)
+    if args.config:  # later files win over the run's own config.yaml, key by key
+        parameters.update(load_parameters(list(args.config)))
     mapping = section(parameters, "selection")
-    for name in ("count", "min_distance", "reevaluate_trials"):
+    for name in ("count", "min_distance", "reevaluate_trials", "mesh_units"):
         if getattr(args, name) is not None:
             mapping[name] = getattr(args, name)
     settings = from_mapping(selection.SelectionSettings, mapping, "selection")
@@ -45,7 +47,8 @@ def run(args):
     print(f"{len(result.designs)} design(s) from {result.considered} distinct logged designs of run {run_id} "
           f"(min RMS distance {settings.min_distance} units)")
     _print_table(selection.table_rows(result))
-    print(f"wrote {folder}/: table3.csv, designs.yaml and {len(result.designs)} STL file(s)")
+    print(f"wrote {folder}/: table3.csv, designs.yaml, {len(result.designs)} STL file(s) in "
+          f"{'millimetres' if settings.mesh_units == 'mm' else 'metres'} and as many 3MF files")
     if result.shortfall:
         print(f"rollability select: {result.shortfall}", file=sys.stderr)
         return 1
@@ -59,7 +62,8 @@ def register(subparsers):
         description="Pool every logged evaluation of the run per design, rank by the lower Wilson bound of the "
                     "fitness, and take the best designs that pass the printability checks and lie at least "
                     "--min-distance (RMS height difference, simulation units) from each other; optionally "
-                    "re-evaluate them and the baseline with fresh trials. Writes <run>/designs/: mesh_<X>.stl, "
+                    "re-evaluate them and the baseline with fresh trials. Writes <run>/designs/: mesh_<X>.stl "
+                    "(millimetres unless --mesh-units m; the unit is in the STL header), mesh_<X>.3mf, "
                     "table3.csv (the paper's Table 3 with fitness and Wilson interval) and designs.yaml. "
                     "Defaults come from the run's config.yaml (section selection).")
     parser.add_argument("run", metavar="RUN", help="run id under --output-dir, or a run directory")
@@ -69,5 +73,10 @@ def register(subparsers):
     parser.add_argument("--reevaluate-trials", type=int, help="fresh trials per design and the baseline; 0 = "
                                                               "report the logged estimate")
     parser.add_argument("--workers", type=int, help="worker processes for the re-evaluation")
+    parser.add_argument("--mesh-units", choices=("mm", "m"), help="length unit of the STL files (default: "
+                                                                   "selection.mesh_units, mm as slicers expect)")
+    parser.add_argument("--config", action="append", default=[], metavar="FILE",
+                        help="a ROS 2 parameter file (or shipped name) whose keys override the run's config.yaml, "
+                             "e.g. another printer section; repeatable, later files win")
     parser.add_argument("--output-dir", default="runs", help="root of run directories (default: runs)")
     parser.set_defaults(func=run)

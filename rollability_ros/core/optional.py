@@ -12,12 +12,15 @@ EXTRA_FOR_MODULE = {
     "trimesh": "sim",
     "scipy": "sim",
     "networkx": "sim",
+    "lxml": "sim",
+    "xacro": "sim",
     "cma": "sim",
     "ray": "cluster",
     "matplotlib": "report",
     "serial": "hardware",
     "gpiod": "hardware",
     "foxglove": "view",
+    "rich": "progress",
 }
 
 

@@ -13,11 +13,12 @@ import threading
 import typing
 
 import rclpy
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.action import ActionClient
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.signals import SignalHandlerOptions
+from rclpy.exceptions import InvalidParameterValueException
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from rollability_ros.core.config import ConfigError, from_mapping, section
@@ -58,11 +59,14 @@ def _ros_default(value, field_type):
     return value
 
 
-def declare_settings(node, prefix, settings_cls, descriptions=None):
-    """Declare the fields of ``settings_cls`` (recursively) as parameters ``prefix.field`` with descriptions.
+def declare_settings(node, prefix, settings_cls, descriptions=None, read_only=False):
+    """Declare the fields of ``settings_cls`` (recursively) as parameters ``prefix.field`` with descriptors.
 
-    Field descriptions come from ``descriptions[name]`` or the dataclass field's ``metadata["description"]``.
-    Returns the settings object built from the declared values (validated; raises :class:`ParameterError`).
+    Field descriptions come from ``descriptions[name]`` or the dataclass field's ``metadata["description"]``; a
+    field's ``metadata["range"]`` ``(low, high)`` becomes the descriptor's FloatingPointRange / IntegerRange
+    (inclusive; ``validate`` still refuses what the range cannot say, e.g. a bound itself); ``read_only`` marks
+    parameters the node fixes at start-up. Returns the settings object built from the declared values
+    (validated; raises :class:`ParameterError`, also for a value outside its range).
     """
     descriptions = descriptions or {}
     hints = typing.get_type_hints(settings_cls)
@@ -71,12 +75,27 @@ def declare_settings(node, prefix, settings_cls, descriptions=None):
         name = f"{prefix}.{field.name}" if prefix else field.name
         field_type = hints[field.name]
         if dataclasses.is_dataclass(field_type):
-            declare_settings(node, name, field_type, descriptions)
+            declare_settings(node, name, field_type, descriptions, read_only)
             continue
         default = getattr(default_obj, field.name) if default_obj is not None else None
         text = descriptions.get(field.name) or _field_description(field) or field.name.replace("_", " ")
-        node.declare_parameter(name, _ros_default(default, field_type), ParameterDescriptor(description=text))
+        try:
+            node.declare_parameter(name, _ros_default(default, field_type),
+                                   _descriptor(text, field.metadata.get("range"), field_type, read_only))
+        except InvalidParameterValueException as exc:
+            raise ParameterError(f"{name}: {exc}") from None
     return read_settings(node, prefix, settings_cls)
+
+
+def _descriptor(description, value_range, field_type, read_only):
+    """A ParameterDescriptor with the description, an inclusive numeric range where given, and read_only."""
+    descriptor = ParameterDescriptor(description=description, read_only=read_only)
+    if value_range is not None and field_type is float:
+        descriptor.floating_point_range = [FloatingPointRange(from_value=float(value_range[0]),
+                                                              to_value=float(value_range[1]))]
+    elif value_range is not None and field_type is int:
+        descriptor.integer_range = [IntegerRange(from_value=int(value_range[0]), to_value=int(value_range[1]))]
+    return descriptor
 
 
 def _has_all_defaults(cls):

@@ -61,7 +61,7 @@ class OutcomeLoggerNode(Node):
 
     def __init__(self):
         super().__init__("outcome_logger")
-        settings = declare_settings(self, "", OutcomeLoggerSettings)
+        settings = declare_settings(self, "", OutcomeLoggerSettings, read_only=True)
         try:
             self.log = OutcomeLog.open(settings.store_path)
         except ValueError as exc:

@@ -204,10 +204,10 @@ class RigNode(Node):
 
     def __init__(self):
         super().__init__("rig")
-        self.settings = declare_settings(self, "rig", RigSettings)
-        valve = declare_settings(self, "valve", ValveConfig)
-        speed_config = declare_settings(self, "speed_gate", SpeedGateConfig)
-        imu_config = declare_settings(self, "imu_outcome", ImuOutcomeConfig)
+        self.settings = declare_settings(self, "rig", RigSettings, read_only=True)
+        valve = declare_settings(self, "valve", ValveConfig, read_only=True)
+        speed_config = declare_settings(self, "speed_gate", SpeedGateConfig, read_only=True)
+        imu_config = declare_settings(self, "imu_outcome", ImuOutcomeConfig, read_only=True)
         self.add_on_set_parameters_callback(self._refuse_change)
         self._closing = threading.Event()
         self._busy = threading.Lock()

@@ -6,16 +6,18 @@ stuck; IMU stamps are its clock); this node moves IMU messages in and states, ev
 Subscriptions:
   ``<tip_monitor.imu_topic>`` (sensor_msgs/Imu, default ``imu/data``): best effort, so it matches reliable and
   best-effort IMU drivers alike. Orientation is used when given; an orientation covariance of -1 or an all-zero
-  quaternion means "none" and the tilt comes from gravity. A message with NaN / infinite fields is refused
-  (logged, counted in the diagnostics), never fed to the tracker. A zero header stamp is replaced by the time
-  of arrival.
+  quaternion means "none" and the tilt comes from gravity; so does a NaN / infinite quaternion (the sample's
+  accelerometer and gyro are kept; counted as ``orientation_unusable`` in the diagnostics). A message with NaN /
+  infinite rates or accelerations is refused (logged, counted in the diagnostics), never fed to the tracker. A
+  zero header stamp is replaced by the time of arrival.
 Publications:
   ``~/state`` (rollability_ros/TipState, latched): on the first sample and on every state change; stamp = the
   IMU stamp of the change.
   ``~/events`` and ``tip_events`` (rollability_ros/TipEvent, reliable): one per tip-over, when it ends
   (recovered or stuck). ``tip_events`` is the topic the outcome_logger stores; ``~/events`` is this monitor's own.
   ``/diagnostics`` (diagnostic_msgs/DiagnosticArray): every ``diagnostics_period_s`` and on each change; OK
-  upright / recovered, WARN tipped / righting, ERROR stuck, STALE without IMU data for ``imu_timeout_s``.
+  upright / recovered, WARN tipped / righting, ERROR stuck, STALE without IMU data for ``imu_timeout_s``
+  (checked every quarter timeout, so STALE is published at most 1.25 x ``imu_timeout_s`` after the last sample).
 Parameters:
   ``tip_monitor.*`` -- the fields of :class:`~rollability_ros.core.imu.tip_tracker.TipMonitorConfig` (see
   ``config/tip_monitor.yaml``), validated at start-up; a ``ros2 param set`` that would make them invalid is
@@ -87,7 +89,7 @@ class TipMonitorNode(Node):
     def __init__(self):
         super().__init__("tip_monitor")
         self._lock = threading.Lock()
-        self.settings = declare_settings(self, "", TipMonitorNodeSettings)
+        self.settings = declare_settings(self, "", TipMonitorNodeSettings, read_only=True)
         self.add_on_set_parameters_callback(self._refuse_start_up_change)
         config = declare_settings(self, PREFIX, TipMonitorConfig)
         self.log = None
@@ -102,7 +104,9 @@ class TipMonitorNode(Node):
                                  for topic in ("~/events", "tip_events")]
         self.diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.subscription, self._imu_topic = None, None
-        self.counts = {"samples": 0, "refused_samples": 0, "events": 0, "recovered": 0, "stuck": 0}
+        self.counts = {"samples": 0, "refused_samples": 0, "orientation_unusable": 0, "events": 0, "recovered": 0,
+                       "stuck": 0}
+        self._stale_timer, self._reported_stale = None, False
         self._configure(config)
         guard_settings(self, PREFIX, TipMonitorConfig, on_change=self._reconfigure)
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics, callback_group=self._group)
@@ -136,6 +140,10 @@ class TipMonitorNode(Node):
             self.subscription = self.create_subscription(Imu, config.imu_topic, self._on_imu, STREAM_QOS,
                                                          callback_group=self._group)
             self._imu_topic = config.imu_topic
+        if self._stale_timer is not None:
+            self.destroy_timer(self._stale_timer)
+        # the diagnostics period alone could report a gap up to one period late
+        self._stale_timer = self.create_timer(config.imu_timeout_s / 4, self._check_stale, callback_group=self._group)
 
     def _reconfigure(self, config):
         self.get_logger().info("thresholds changed: tracking restarts from upright")
@@ -149,10 +157,17 @@ class TipMonitorNode(Node):
                 self.counts["refused_samples"] += 1
             self.get_logger().warning(f"refused IMU message: {exc}", throttle_duration_sec=5.0)
             return
+        orientation_unusable = sample.orientation is None and not all(
+            math.isfinite(c) for c in _convert.quaternion_to_tuple(msg.orientation))
+        if orientation_unusable:
+            self.get_logger().warning("IMU orientation is not finite: tilt from gravity for such samples",
+                                      throttle_duration_sec=5.0)
         with self._lock:
             update = self.tracker.update(sample)
             self._last_arrival = time.monotonic()
+            self._reported_stale = False
             self.counts["samples"] += 1
+            self.counts["orientation_unusable"] += orientation_unusable
             publish_state = update.changed or self._published_state is None
             if publish_state:
                 self._published_state = update.state
@@ -177,6 +192,15 @@ class TipMonitorNode(Node):
         msg = _convert.tip_event_to_msg(event)
         for publisher in self.event_publishers:
             publisher.publish(msg)
+
+    def _check_stale(self):
+        """Publish the diagnostics as soon as the IMU stream has been silent for ``imu_timeout_s``."""
+        with self._lock:
+            since = None if self._last_arrival is None else time.monotonic() - self._last_arrival
+            newly_stale = since is not None and since > self.config.imu_timeout_s and not self._reported_stale
+            self._reported_stale = self._reported_stale or newly_stale
+        if newly_stale:
+            self._publish_diagnostics()
 
     def _publish_diagnostics(self):
         with self._lock:

@@ -69,7 +69,7 @@ class ValveControllerNode(Node):
 
     def __init__(self):
         super().__init__("valve_controller")
-        config = declare_settings(self, "valve", ValveConfig)
+        config = declare_settings(self, "valve", ValveConfig, read_only=True)
         self.key_path = key_path(self, config)
         try:
             self.session_key = valve_auth.create_session_key(self.key_path)

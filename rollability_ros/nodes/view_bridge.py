@@ -10,7 +10,9 @@ Selection: ``topics`` (absolute names) when given, else the project's graph as t
 (:func:`rollability_ros.core.bags.record_play.select_topics`: our package's types, ``rig/pose``, markers,
 ``/diagnostics``, ``/tf``; not ``/rosout`` or hidden topics).
 Parameters: ``host`` (default 127.0.0.1: this machine only), ``port`` (default 8765; 0 = any free port),
-``discovery_period_s`` (default 2.0 s), ``topics`` (string[], default empty). All fixed at start-up.
+``discovery_period_s`` (default 2.0 s), ``topics`` (string[], default empty), ``pose_frames`` (string[],
+default ``/rollability/rig/pose=base_link``: each pose of that topic is also served on ``/tf`` as a
+``tf2_msgs/TFMessage`` world -> base_link, so the profile marker rides on the chassis). All fixed at start-up.
 Run: ``python -m rollability_ros.nodes.view_bridge --ros-args -p port:=8765`` (``rollability view`` and
 ``rollability bringup --view`` do this); the log says ``Foxglove view on ws://<host>:<port>``.
 """
@@ -22,12 +24,15 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from rollability_ros.core.bags.qos import qos_dict_from_profile, subscription_qos_for
-from rollability_ros.core.graph.foxglove_view import ViewServer, ViewSettings
+from rollability_ros.core.graph.foxglove_view import ViewServer, ViewSettings, parse_pose_frames
 from rollability_ros.core.optional import MissingDependency
 from rollability_ros.core.bags.record_play import check_topic_names, select_topics
 from rollability_ros.nodes._bag_nodes import message_class, qos_profile_from_dict
 from rollability_ros.nodes._support import ParameterError, declare_settings, run_node
 
+#: Pose topics also served as /tf by default: the rig's chassis pose (world) -> base_link, the frame of the profile
+#: marker (docs/live-view.md).
+DEFAULT_POSE_FRAMES = ("/rollability/rig/pose=base_link",)
 #: Subscription queue depth, messages: the view shows the newest; a short queue bounds memory.
 QUEUE_DEPTH = 10
 
@@ -37,13 +42,23 @@ class ViewBridgeNode(Node):
 
     def __init__(self):
         super().__init__("view_bridge")
-        self.settings = declare_settings(self, "", ViewSettings)
+        self.settings = declare_settings(self, "", ViewSettings, read_only=True)
         self.declare_parameter("topics", Parameter.Type.STRING_ARRAY, ParameterDescriptor(
-            description="absolute topic names to serve; empty: every topic of the project's graph"))
+            description="absolute topic names to serve; empty: every topic of the project's graph",
+            read_only=True))
+        self.declare_parameter("pose_frames", list(DEFAULT_POSE_FRAMES), ParameterDescriptor(
+            description="PoseStamped topics served also as /tf (tf2_msgs/TFMessage) transforms, each "
+                        "'/topic=child_frame': the pose's header frame -> that frame, so markers drawn in the "
+                        "child frame ride on the moving robot in the 3D panel; empty = no /tf",
+            read_only=True))
         try:   # an empty string array on the command line is "not set": get_parameter_or gives value None
             self.chosen_topics = check_topic_names(self.get_parameter_or("topics").value or [])
         except ValueError as exc:
             raise ParameterError(f"topics: {exc}") from exc
+        try:
+            self.pose_frames = parse_pose_frames(self.get_parameter_or("pose_frames").value or [])
+        except ValueError as exc:
+            raise ParameterError(str(exc)) from exc
         self.view = ViewServer(self.settings)
         try:
             self.view.start()
@@ -84,10 +99,20 @@ class ViewBridgeNode(Node):
         except ValueError as exc:
             self._skip(topic, str(exc))
             return
+        child_frame = self.pose_frames.get(topic) if type_name.endswith("PoseStamped") else None
         self._served[topic] = self.create_subscription(
-            msg_type, topic, lambda data, topic=topic: self.view.log(topic, data, time.time_ns()),
+            msg_type, topic, lambda data, topic=topic: self._forward(topic, data, child_frame),
             qos_profile_from_dict(qos), callback_group=self._group, raw=True)
         self.get_logger().info(f"serving {topic} ({type_name}{', latched' if latched else ''})")
+
+    def _forward(self, topic, data, child_frame):
+        now_ns = time.time_ns()
+        self.view.log(topic, data, now_ns)
+        if child_frame:
+            try:
+                self.view.log_pose_as_tf(data, child_frame, now_ns)
+            except ValueError as exc:
+                self.get_logger().warning(f"{topic}: no transform: {exc}", throttle_duration_sec=5.0)
 
     def close(self):
         """Stop the WebSocket server (run_node calls this before destroying the node)."""

@@ -3,6 +3,8 @@ import glob
 import json
 import os
 import struct
+import subprocess
+import sys
 
 import pytest
 import yaml
@@ -11,7 +13,7 @@ from rollability_ros.core.bags.convert import convert
 from rollability_ros.core.bags.metadata import BagError, read_metadata
 from rollability_ros.core.bags.qos import normalize_qos_profiles, qos_dict_from_profile, subscription_qos_for
 from rollability_ros.core.bags.playback import clock_message_cdr, playback_schedule
-from rollability_ros.core.bags.reader import BagMessage, BagReader, bag_info
+from rollability_ros.core.bags.reader import BagMessage, BagReader, bag_info, format_bag_info
 from rollability_ros.core.bags.recover import recover
 from rollability_ros.core.bags.writer import BagWriter
 from rollability_ros.core.bags.msg_definitions import SEPARATOR, definition_for, package_directories, rihs01_hash
@@ -188,6 +190,40 @@ def test_bag_info_reports_topics_counts_duration_size_compression(tmp_path):
     assert {t["name"]: t["message_count"] for t in info["topics"]} == {"/a": 5, "/b": 5}
     assert info["compression"] == "zstd (mcap chunks)" and info["warnings"] == []
     assert info["size_bytes"] == sum(os.path.getsize(p) for p in glob.glob(str(bag / "*.mcap")))
+
+
+def test_bag_info_tells_what_ros2_bag_info_tells_for_a_folder_or_one_mcap_file(tmp_path):
+    bag = tmp_path / "rich"
+    write_string_bag(bag, 10, period_ns=500_000_000, split_max_duration_s=2.0)
+    info = bag_info(bag)
+    # T0_NS = 1 700 000 000 s since the epoch = 2023-11-14 22:13:20 UTC; the last message 4.5 s later
+    assert info["start_time"] == "2023-11-14 22:13:20.000000000 UTC"
+    assert info["end_time"] == "2023-11-14 22:13:24.500000000 UTC"
+    text = format_bag_info(info)
+    assert "Start:             2023-11-14 22:13:20.000000000 UTC (1700000000.000000000 s)" in text
+    for entry in info["files"]:
+        assert f"  {entry['path']}  " in text and f"({entry['size_bytes']} bytes)" in text
+    assert ("Topic: /a | Type: std_msgs/msg/String | Count: 5 | Serialization Format: cdr | "
+            "QoS: reliable, volatile, keep_last 5") in text
+    first = sorted(glob.glob(str(bag / "*.mcap")))[0]
+    single = bag_info(first)       # one split file, summarised from its own records
+    assert single["path"] == first and [f["path"] for f in single["files"]] == [os.path.basename(first)]
+    assert single["message_count"] == info["files"][0]["message_count"] and single["warnings"] == []
+    assert single["topics"][0]["offered_qos_profiles"][0]["depth"] == 5 and single["ros_distro"] == "jazzy"
+    (tmp_path / "notes.txt").write_text("hello")
+    with pytest.raises(BagError, match="not a bag: give a bag directory"):
+        bag_info(tmp_path / "notes.txt")
+
+
+def test_a_closed_pipe_ends_the_cli_quietly(tmp_path):
+    """`rollability bag info --json | head`: the reader goes away first; no BrokenPipeError traceback."""
+    write_string_bag(tmp_path / "pipe", 20)
+    process = subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "bag", "info", "--json",
+                                str(tmp_path / "pipe")], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    process.stdout.close()          # before the child writes: its first write meets a closed pipe
+    stderr = process.stderr.read().decode()
+    assert process.wait(timeout=60) == 141
+    assert "Traceback" not in stderr and "BrokenPipeError" not in stderr, stderr
 
 
 def test_corrupt_truncated_and_missing_files_raise_errors_naming_the_file(tmp_path):

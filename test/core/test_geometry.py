@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from rollability_ros.core.profile.geometry import (PrinterSpec, ProfileGrid, check_heights, check_printability, export_mesh,
-                                           grid_xy, is_baseline, load_profile_mesh, marker_points, profile_mesh,
+                                           grid_xy, is_baseline, load_profile_mesh, marker_points, mesh_file_units, profile_mesh,
                                            profile_metrics, profile_vertices)
 
 GRID = ProfileGrid()
@@ -126,15 +126,41 @@ def test_printability_checks_bed_wall_and_overhang(tmp_path):
     assert not report.printable and "overhang" in report.problems[0]
 
 
-@pytest.mark.parametrize("extension", [".stl", ".obj"])
-def test_export_and_load_round_trip(tmp_path, extension):
+@pytest.mark.parametrize("extension,units", [(".stl", "mm"), (".stl", "m"), (".obj", "mm"), (".obj", "m"),
+                                             (".3mf", "mm")])
+def test_export_and_load_round_trip(tmp_path, extension, units):
     rng = np.random.default_rng(3)
     mesh = profile_mesh(rng.uniform(0.05, 0.45, GRID.n_variables), GRID)
     path = tmp_path / f"profile{extension}"
-    export_mesh(mesh, path)
+    export_mesh(mesh, path, units)
+    assert mesh_file_units(str(path)) == units
     loaded = load_profile_mesh(str(path))
     assert loaded.volume == pytest.approx(mesh.volume, rel=1e-5)
     np.testing.assert_allclose(loaded.bounds, mesh.bounds, atol=1e-6)
+
+
+def test_stl_is_written_in_millimetres_with_the_unit_in_its_header(tmp_path):
+    """What a slicer reads: the raw binary STL coordinates (no trimesh on the reading side)."""
+    mesh = profile_mesh(np.full(GRID.n_variables, 0.3), GRID)   # 180 x 140 x 60 mm
+    export_mesh(mesh, tmp_path / "a.stl")
+    raw = (tmp_path / "a.stl").read_bytes()
+    assert raw[:80].startswith(b"rollability_ros profile mesh; units=mm") and not raw.startswith(b"solid")
+    count = int(np.frombuffer(raw[80:84], dtype="<u4")[0])
+    records = np.frombuffer(raw[84:], dtype=np.dtype([("normal", "<f4", 3), ("vertices", "<f4", (3, 3)),
+                                                      ("attribute", "<u2")]), count=count)
+    points = records["vertices"].reshape(-1, 3)
+    np.testing.assert_allclose(points.max(axis=0) - points.min(axis=0), [180.0, 140.0, 60.0], atol=1e-3)
+    export_mesh(mesh, tmp_path / "m.stl", units="m")
+    assert (tmp_path / "m.stl").read_bytes()[:80].startswith(b"rollability_ros profile mesh; units=m;")
+    with pytest.raises(ValueError, match="mesh units"):
+        export_mesh(mesh, tmp_path / "x.stl", units="inch")
+    # a CAD file without our header, in millimetres: refused with the hint, read with units="mm"
+    cad = mesh.copy()
+    cad.apply_scale(1000.0)
+    cad.export(str(tmp_path / "cad.stl"))
+    with pytest.raises(ValueError, match="declares no units; pass units='mm'"):
+        load_profile_mesh(str(tmp_path / "cad.stl"))
+    assert load_profile_mesh(str(tmp_path / "cad.stl"), units="mm").volume == pytest.approx(mesh.volume, rel=1e-5)
 
 
 def test_load_refuses_bad_meshes(tmp_path):
@@ -150,7 +176,7 @@ def test_load_refuses_bad_meshes(tmp_path):
         load_profile_mesh(str(tmp_path / "open.stl"))
     millimetres = mesh.copy()
     millimetres.apply_scale(1000.0)
-    export_mesh(millimetres, tmp_path / "mm.stl")
+    export_mesh(millimetres, tmp_path / "mm.stl", units="m")
     with pytest.raises(ValueError, match="units must be metres"):
         load_profile_mesh(str(tmp_path / "mm.stl"))
     lifted = mesh.copy()

@@ -17,7 +17,7 @@ from rollability_ros.core.results.store import Store
 
 SUCCESS_PROBABILITY = {"baseline": 0.3, "A": 0.3, "B": 0.75, "C": 0.6}
 FIGURES = ("fig04_convergence.png", "fig09_height_angle.png", "fig10_speed_angle.png", "fig11_angle_curves.png",
-           "fig12_overall.png", "sim_vs_experiment.png")
+           "fig12_overall.png", "fig12b_overall_trials.png", "sim_vs_experiment.png")
 
 
 def _campaign_outcomes(run_id="camp", repetitions=3):
@@ -64,7 +64,9 @@ def test_report_writes_figures_tables_and_one_self_contained_html(store_report, 
         assert int(rows[configuration]["conditions"]) == 20
     page = (out / "report.html").read_text()
     assert len(re.findall(r"<img [^>]*src='data:image/png;base64,", page)) == len(FIGURES)
-    assert not re.search(r"(src|href)=['\"](?!data:)", page)  # nothing loaded from outside the file
+    assert not re.search(r"src=['\"](?!data:)", page)  # nothing loaded from outside the file
+    for href in re.findall(r"href='([^']*)'", page):   # links: sections of the page, or files next to it
+        assert (href.startswith("#") and f"id='{href[1:]}'" in page) or (out / href).exists(), href
     assert "Spearman rho -1.00" in page
 
 
@@ -182,3 +184,60 @@ def test_table3_of_the_design_selection_gives_geometry_and_simulated_fitness(tmp
             "A": 0.66, "B": 0.4}  # the command line wins over the table
     with open(tmp_path / "r" / "geometry.csv", newline="") as stream:
         assert [row["configuration"] for row in csv.DictReader(stream)] == ["baseline", "A", "B"]
+
+
+def _dom_after_script(chromium, page, script, tmp_path):
+    """Load ``page`` plus ``script`` in headless chromium; return the DOM it dumps."""
+    probe = tmp_path / "probe_nav.html"
+    probe.write_text(page.read_text() + f"<script>window.addEventListener('load', () => {{{script}}})</script>")
+    return subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                           "--disable-quic", "--disable-component-update", "--disable-sync", "--no-first-run",
+                           f"--user-data-dir={tmp_path / 'profile_nav'}", "--virtual-time-budget=5000",
+                           "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ, HOME=str(tmp_path))).stdout
+
+
+def test_report_navigation_links_and_per_trial_drill_down_in_headless_chromium(tmp_path):
+    """The committed sample run plus a design folder: every contents entry leads to a section, every file link to
+    a file, and each launch of the bag has its pose trace."""
+    from rollability_ros.core.profile import geometry
+
+    chromium = _chromium()
+    if chromium is None:
+        pytest.skip("chromium not found (apt-get install -y chromium): cannot check the HTML renders")
+    run = tmp_path / "sample_run"
+    shutil.copytree(os.path.join(os.path.dirname(__file__), "..", "..", "bags", "sample"), run / "bag")
+    grid = geometry.ProfileGrid(rows=3, cols=3)
+    (run / "designs").mkdir()
+    geometry.export_mesh(geometry.profile_mesh([0.1, 0.2, 0.3] * 3, grid), run / "designs" / "mesh_A.stl")
+    out = run / "report"
+    assert cli_main(["report", str(run / "bag"), "--out", str(out)]) == 0
+    dom = _dom_after_script(chromium, out / "report.html", (
+        "const anchors = [...document.querySelectorAll('#contents a')].map(a => a.getAttribute('href'));"
+        "document.body.setAttribute('data-missing', anchors.filter(h => !document.getElementById(h.slice(1)))"
+        ".join(' ') || 'none');"
+        "document.body.setAttribute('data-anchors', anchors.length);"
+        "document.body.setAttribute('data-files', [...document.querySelectorAll('ul.artefacts a')]"
+        ".map(a => a.getAttribute('href')).join(' '));"
+        "document.body.setAttribute('data-traced', document.querySelectorAll('table.trials code').length);"
+        "document.body.setAttribute('data-trials', document.querySelectorAll('table.trials tr[id]').length);"),
+        tmp_path)
+    attributes = dict(re.findall(r'data-(missing|anchors|files|traced|trials)="([^"]*)"', dom))
+    assert attributes, "chromium did not load the page"
+    assert attributes["missing"] == "none" and int(attributes["anchors"]) >= 8
+    files = attributes["files"].split()
+    assert os.path.join("..", "designs", "mesh_A.stl") in files and os.path.join("..", "bag") in files
+    assert all((out / href).exists() for href in files), files
+    assert int(attributes["trials"]) == 36                     # every launch of the sample bag
+    assert int(attributes["traced"]) >= 30, attributes         # with its chassis poses in the bag
+
+
+def test_heat_map_text_contrasts_with_its_cell_and_a_design_preview_renders(tmp_path):
+    from rollability_ros.core.profile import geometry
+    from rollability_ros.core.results.report_figures import _text_colour, render_profile_preview
+
+    assert _text_colour(0.0) == "white" and _text_colour(1.0) == "white" and _text_colour(0.5) == "black"
+    mesh = geometry.profile_mesh([0.1, 0.2, 0.3] * 3, geometry.ProfileGrid(rows=3, cols=3))
+    path = render_profile_preview(mesh, str(tmp_path / "preview.png"), title="A")
+    assert open(path, "rb").read(8) == b"\x89PNG\r\n\x1a\n" and os.path.getsize(path) > 5000
+    assert os.path.getsize(render_profile_preview(None, str(tmp_path / "none.png"))) > 1000

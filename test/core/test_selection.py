@@ -32,7 +32,7 @@ def run_candidates(tmp_path_factory):
     """Candidates of a real 25-generation run on the synthetic fitness (sigma 0.1 for a spread-out log)."""
     run_dir = os.path.join(tmp_path_factory.mktemp("selection"), "run")
     parameters = {"optimizer.max_generations": 25, "optimizer.seed": 3, "optimizer.trials": 30,
-                  "optimizer.sigma0": 0.1}
+                  "optimizer.sigma0": 0.1, "profile.rows": GRID.rows, "profile.cols": GRID.cols}
     run = OptimizationRun(run_dir, parameters, GRID, SyntheticEvaluator(OPTIMUM, trials=30))
     run.run()
     run.close()
@@ -64,7 +64,21 @@ def test_shortfall_is_reported_not_padded(run_candidates):
     assert "only 1 of 3 requested designs" in result.shortfall and "too close" in result.shortfall
     tiny_printer = geometry.PrinterSpec(bed_z_m=0.001)
     result = select_designs(candidates, GRID, tiny_printer, SelectionSettings(count=3, min_distance=0.0))
-    assert result.designs == [] and result.rejected["not printable"] == result.considered
+    assert result.designs == [] and result.rejected == {"not printable: printer.bed_z_m": result.considered}
+    assert "printer.bed_z_m" in result.shortfall and "select --config" in result.shortfall
+
+
+def test_a_footprint_wider_than_the_bed_stops_the_run_before_it_starts(tmp_path):
+    run_dir = tmp_path / "wide"
+    parameters = {"optimizer.max_generations": 1, "printer.bed_x_m": 0.1, "printer.bed_y_m": 0.1}
+    with pytest.raises(ValueError, match=r"cannot optimize: the profile footprint 180 x 140 mm does not fit the "
+                                         r"printer bed 100 x 100 mm \(printer.bed_x_m / printer.bed_y_m\)"):
+        OptimizationRun(str(run_dir), parameters, GRID, SyntheticEvaluator(OPTIMUM, trials=30))
+    assert not run_dir.exists()   # nothing written: the run can start again once the printer is fixed
+    with pytest.raises(ValueError, match="printer.nozzle_m"):
+        geometry.PrinterSpec(nozzle_m=0.001, min_wall_m=0.0008).validate()
+    fine = geometry.ProfileGrid(rows=1000, cols=3)  # 0.18 mm spacing
+    assert "grid spacing" in geometry.design_space_printability(fine, geometry.PrinterSpec())[0]
 
 
 def test_identical_heights_are_pooled():
@@ -101,12 +115,14 @@ def test_outputs_with_reevaluation(run_candidates):
     assert parameters["designs.grid.rows"] == 3
     for design in result.designs:
         np.testing.assert_array_equal(parameters[f"designs.{design.label}.heights"], design.design.heights)
-        mesh = geometry.load_profile_mesh(os.path.join(folder, f"mesh_{design.label}.stl"))
-        assert mesh.volume == pytest.approx(design.mesh.volume, rel=1e-5)
+        assert parameters[f"designs.{design.label}.mesh_units"] == "mm"
+        for extension in (".stl", ".3mf"):  # both in millimetres, read back into metres
+            mesh = geometry.load_profile_mesh(os.path.join(folder, f"mesh_{design.label}{extension}"))
+            assert mesh.volume == pytest.approx(design.mesh.volume, rel=1e-5)
 
     fewer = select_designs(candidates, GRID, geometry.PrinterSpec(), SelectionSettings(count=1))
     write_selection(run_dir, fewer, GRID, "run")
-    assert sorted(n for n in os.listdir(folder) if n.endswith(".stl")) == ["mesh_A.stl"]
+    assert sorted(n for n in os.listdir(folder) if n.startswith("mesh_")) == ["mesh_A.3mf", "mesh_A.stl"]
 
 
 def test_settings_are_checked():
@@ -114,3 +130,16 @@ def test_settings_are_checked():
         SelectionSettings(count=0).validate()
     with pytest.raises(ValueError, match="needs an evaluator"):
         select_designs([], GRID, geometry.PrinterSpec(), SelectionSettings(reevaluate_trials=10))
+
+
+def test_select_cli_takes_another_printer_from_config(run_candidates, tmp_path, capsys):
+    from rollability_ros.cli import main as cli_main
+
+    run_dir, _ = run_candidates
+    printer_file = tmp_path / "small_printer.yaml"
+    printer_file.write_text("/**:\n  ros__parameters:\n    printer:\n      bed_x_m: 0.1\n      bed_y_m: 0.1\n")
+    assert cli_main(["select", run_dir, "--count", "1", "--config", str(printer_file)]) == 1
+    assert "printer.bed_x_m / bed_y_m" in capsys.readouterr().err
+    assert cli_main(["select", run_dir, "--count", "1", "--mesh-units", "m"]) == 0
+    header = open(os.path.join(run_dir, "designs", "mesh_A.stl"), "rb").read(80)
+    assert header.startswith(b"rollability_ros profile mesh; units=m;")

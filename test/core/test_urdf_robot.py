@@ -184,14 +184,83 @@ def test_bad_mounts_and_wheels_are_refused(tmp_path):
     assert "URDF file not found: missing.urdf" in _bad(tmp_path, urdf_path="missing.urdf")
     assert "unknown link 'roof_link'" in _bad(tmp_path, mount_link="roof_link")
     message = _bad(tmp_path, footprint_length_m=1.2)
-    assert "larger than mount link 'top_plate_link'" in message and "x [-0.5037, 0.5037]" in message
-    assert "larger than" in _bad(tmp_path, footprint_yaw_deg=90.0)
+    assert "outside mount link 'top_plate_link'" in message and "x [-0.5037, 0.5037]" in message
+    assert "outside mount link" in _bad(tmp_path, footprint_yaw_deg=90.0)
     assert "matches no link" in _bad(tmp_path, wheel_link_regex="caster.*")
     assert "exceeds the 4 wheel bodies" in _bad(tmp_path, min_wheels_in_contact=5)
     assert "unknown link 'track_link'" in _bad(tmp_path, wheel_links=("track_link",))
     assert "either urdf_path or robot_description" in _bad(tmp_path, robot_description="<robot/>")
     with pytest.raises(ConfigError, match="urdf_robot: .*mount link 'top_plate_link'"):
         settings_from_parameters({**load_parameters(list(HUSKY_CONFIGS)), "urdf_robot.footprint_width_m": 0.8})
+
+
+def test_the_profile_must_sit_on_the_mount_surface(tmp_path):
+    """A footprint 0.6 m above the Husky's top, or down at its wheels, was accepted and scored."""
+    floating = _bad(tmp_path, footprint_offset_m=(0.0, 0.0, 0.25873 + 0.6))
+    assert "0.6000 m above the top of mount link 'top_plate_link'" in floating and "set footprint_offset_m[2] to " \
+        "0.25873" in floating
+    assert "m below the top" in _bad(tmp_path, footprint_offset_m=(0.0, 0.0, -0.1))
+    assert "forward_axis must be one of x, y, -x, -y" in _bad(tmp_path, forward_axis="z")
+
+
+def test_the_outline_of_the_shapes_counts_not_their_bounding_box(tmp_path):
+    """A triangular deck: the footprint fits its bounding box but not the triangle."""
+    deck = ('<robot name="wedge"><link name="deck"><inertial><mass value="2"/><inertia ixx="0.1" ixy="0" ixz="0" '
+            'iyy="0.1" iyz="0" izz="0.1"/></inertial><collision><geometry><mesh filename="wedge.obj"/></geometry>'
+            '</collision></link></robot>')
+    (tmp_path / "wedge.obj").write_text("".join(f"v {x} {y} {z}\n" for x, y in ((-0.3, -0.2), (0.3, -0.2), (-0.3, 0.2))
+                                                for z in (0.0, 0.05)) +
+                                        "f 1 2 3\nf 4 6 5\nf 1 4 5\nf 1 5 2\nf 2 5 6\nf 2 6 3\nf 3 6 4\nf 3 4 1\n")
+    (tmp_path / "wedge.urdf").write_text(deck)
+    spec = dict(urdf_path=str(tmp_path / "wedge.urdf"), mount_link="deck", footprint_offset_m=(0.0, 0.0, 0.05),
+                upright_tilt_deg=30.0)
+    message = _bad(tmp_path, **spec, footprint_length_m=0.5, footprint_width_m=0.3)
+    assert "corner(s) [[0.25, -0.15], [0.25, 0.15]] m lie outside mount link 'deck'" in message
+    UrdfRobotSpec(**{**spec, "footprint_offset_m": (-0.15, -0.05, 0.05)}, footprint_length_m=0.2,
+                  footprint_width_m=0.1).validate()    # in the right-angled corner: on the deck
+
+
+def test_xacro_is_expanded_and_an_unexpanded_one_refused(tmp_path, client):
+    with open(os.path.join(HUSKY_DIR, "husky.urdf"), encoding="utf-8") as stream:
+        text = stream.read()
+    # the Husky as a xacro: a property for the base mass and a macro for its wheels' inertia
+    wheel_inertial = ("<inertial>\n      <mass value=\"2.637\"/>\n      <origin xyz=\"0 0 0\"/>\n      <inertia "
+                      "ixx=\"0.02467\" ixy=\"0\" ixz=\"0\" iyy=\"0.02467\" iyz=\"0\" izz=\"0.04411\"/>\n    </inertial>")
+    assert text.count(wheel_inertial) == 4
+    root = '<robot name="husky_robot" xmlns:xacro="http://ros.org/wiki/xacro">'
+    xacro_text = (text.replace(root, root.replace("http://ros.org", "http://www.ros.org"))
+                  .replace('<mass value="33.455"/>', '<mass value="${base_mass}"/>')
+                  .replace(wheel_inertial, '<xacro:wheel_inertial/>'))
+    macros = ('<xacro:property name="base_mass" value="33.455"/><xacro:macro name="wheel_inertial">'
+              + wheel_inertial + '</xacro:macro>')
+    xacro_text = xacro_text.replace('/wiki/xacro">', '/wiki/xacro">' + macros, 1)
+    assert root in text and "${base_mass}" in xacro_text
+    path = tmp_path / "husky.urdf.xacro"
+    path.write_text(xacro_text)
+    os.symlink(os.path.join(HUSKY_DIR, "meshes"), tmp_path / "meshes")
+    expanded = UrdfRobotModel(husky_spec(urdf_path=str(path)))
+    def canonical(urdf):
+        return ElementTree.canonicalize(urdf.split("?>", 1)[-1], strip_text=True)
+
+    assert canonical(expanded.sim_urdf()) == canonical(UrdfRobotModel(husky_spec()).sim_urdf())
+    unexpanded = tmp_path / "husky_unexpanded.urdf"
+    unexpanded.write_text(text.replace('<link name="base_link">', '<link name="${prefix}base_link">'))
+    assert "unexpanded xacro expression" in _bad(tmp_path, urdf_path=str(unexpanded))
+    broken = tmp_path / "broken.urdf.xacro"
+    broken.write_text(xacro_text.replace("${base_mass}", "${no_such_property}"))
+    assert "cannot expand xacro" in _bad(tmp_path, urdf_path=str(broken))
+
+
+def test_forward_axis_turns_the_robot_to_face_world_x(client):
+    pybullet = pytest.importorskip("pybullet")
+    facing = {}
+    for axis in ("x", "y"):
+        robot = UrdfRobotModel(husky_spec(forward_axis=axis)).spawn(client, None, (0, 0, 1), (0, 0, 0, 1))
+        _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
+        facing[axis] = np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+    np.testing.assert_allclose(facing["x"][:, 0], [1, 0, 0], atol=1e-9)    # REP 103: root x = world x
+    np.testing.assert_allclose(facing["y"][:, 1], [1, 0, 0], atol=1e-9)    # root y now faces world x
+    np.testing.assert_allclose(facing["y"][:, 2], [0, 0, 1], atol=1e-9)    # still upright
 
 
 def test_moving_link_without_mass_is_refused(tmp_path):
@@ -251,3 +320,16 @@ def test_exported_stl_and_urdf_fit_the_mount_footprint(tmp_path, husky):
     assert [float(v) for v in joint.find("origin").get("xyz").split()] == pytest.approx([0, 0, 0.25873])
     assert float(document.find(f"link[@name='{PROFILE_LINK}']/inertial/mass").get("value")) == pytest.approx(
         profile.mass_kg)
+
+
+def test_package_uris_resolve_through_ament_prefix_path(tmp_path, monkeypatch):
+    share = tmp_path / "install" / "share" / "husky_description"
+    share.mkdir(parents=True)
+    shutil.copytree(os.path.join(HUSKY_DIR, "meshes"), share / "meshes")
+    with open(os.path.join(HUSKY_DIR, "husky.urdf"), encoding="utf-8") as stream:
+        packaged = stream.read().replace('filename="meshes/', 'filename="package://husky_description/meshes/')
+    monkeypatch.setenv("AMENT_PREFIX_PATH", os.pathsep.join([str(tmp_path / "elsewhere"), str(tmp_path / "install")]))
+    spec = husky_spec(urdf_path="", robot_description=packaged, search_paths=())
+    assert "package://" not in spec.description().robot.sim_urdf     # found under the second prefix
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(tmp_path / "elsewhere"))
+    assert "package://husky_description" in _bad(tmp_path, urdf_path="", robot_description=packaged, search_paths=())

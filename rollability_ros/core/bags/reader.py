@@ -174,8 +174,50 @@ def _rosbags_file_infos(directory, information):
         }]
 
 
-def bag_info(directory):
-    """Summarise a bag: topics, types, counts, time span, size, compression.
+def _mcap_file_metadata(path):
+    """A ``rosbag2_bagfile_information``-like mapping of one MCAP file from its own records: topics with type,
+    serialization, offered QoS and type hash from the channels, counts from the statistics, distro and version
+    from rosbag2's ``rosbag2`` metadata record where present (other MCAP writers have none)."""
+    import yaml
+    from rollability_ros.core.bags.metadata import METADATA_VERSION
+
+    with open(path, "rb") as stream:
+        reader, summary = open_mcap(path, stream)
+        with bag_file_errors(path):
+            records = {m.name: m.metadata for m in reader.iter_metadata()}
+    embedded = records.get("rosbag2", {})
+    try:
+        version = int((yaml.safe_load(embedded.get("serialized_metadata") or "") or {}).get("version",
+                                                                                          METADATA_VERSION))
+    except (yaml.YAMLError, AttributeError, TypeError, ValueError):
+        version = METADATA_VERSION
+    topics = {}
+    for channel_id, channel in sorted(summary.channels.items()):
+        schema = summary.schemas.get(channel.schema_id)
+        key = (channel.topic, schema.name if schema else "")
+        entry = topics.setdefault(key, {"topic_metadata": {
+            "name": channel.topic, "type": key[1], "serialization_format": channel.message_encoding,
+            "offered_qos_profiles": channel.metadata.get("offered_qos_profiles", ""),
+            "type_description_hash": channel.metadata.get("topic_type_hash", "")}, "message_count": 0})
+        entry["message_count"] += summary.statistics.channel_message_counts.get(channel_id, 0)
+    return {"version": version, "storage_identifier": "mcap", "relative_file_paths": [os.path.basename(path)],
+            "topics_with_message_count": list(topics.values()), "ros_distro": embedded.get("ROS_DISTRO", ""),
+            "compression_format": "", "compression_mode": ""}
+
+
+def human_time(time_ns):
+    """``time_ns`` (ns since the Unix epoch) as ``2026-11-23 21:18:18.483396998 UTC``; None -> '-'."""
+    import datetime
+
+    if time_ns is None:
+        return "-"
+    seconds, nanoseconds = divmod(int(time_ns), 1_000_000_000)
+    moment = datetime.datetime.fromtimestamp(seconds, tz=datetime.timezone.utc)
+    return f"{moment:%Y-%m-%d %H:%M:%S}.{nanoseconds:09d} UTC"
+
+
+def bag_info(path):
+    """Summarise a bag directory, or one ``.mcap`` file: topics, types, counts, QoS, time span, files, sizes.
 
     Counts and times come from the storage files themselves (MCAP summary sections), so a metadata.yaml
     that disagrees with them (e.g. a recorder killed before closing) is reported in ``warnings``.
@@ -184,13 +226,19 @@ def bag_info(directory):
     -------
     dict
         ``path``, ``storage_identifier``, ``ros_distro``, ``version``, ``message_count``, ``start_time_ns``,
-        ``end_time_ns``, ``duration_s``, ``size_bytes``, ``compression`` (e.g. ``"zstd (mcap chunks)"`` or
+        ``end_time_ns``, ``start_time``, ``end_time`` (UTC text, :func:`human_time`), ``duration_s``,
+        ``size_bytes``, ``compression`` (e.g. ``"zstd (mcap chunks)"`` or
         ``"none"``), ``custom_data``, ``topics`` (list of dicts: ``name``, ``type``, ``message_count``,
         ``serialization_format``, ``type_description_hash``, ``offered_qos_profiles``), ``files`` (list of
         dicts: ``path``, ``size_bytes``, ``message_count``, ``start_time_ns``, ``end_time_ns``), ``warnings``.
     """
-    directory = os.fspath(directory)
-    information = read_metadata(directory)
+    path = os.fspath(path)
+    if os.path.isfile(path) and path.lower().endswith(".mcap"):
+        directory, information = os.path.dirname(path) or ".", _mcap_file_metadata(path)
+    elif os.path.isfile(path):
+        raise BagError(f"{path}: not a bag: give a bag directory (with metadata.yaml) or an .mcap file")
+    else:
+        directory, information = path, read_metadata(path)
     if information["storage_identifier"] == "sqlite3":
         files = _rosbags_file_infos(directory, information)
     else:
@@ -225,13 +273,15 @@ def bag_info(directory):
     start_ns = min(starts) if starts else None
     end_ns = max(ends) if ends else None
     return {
-        "path": directory,
+        "path": path,
         "storage_identifier": information["storage_identifier"],
         "ros_distro": information.get("ros_distro", ""),
         "version": information["version"],
         "message_count": sum(f["message_count"] for f in files),
         "start_time_ns": start_ns,
         "end_time_ns": end_ns,
+        "start_time": human_time(start_ns),
+        "end_time": human_time(end_ns),
         "duration_s": (end_ns - start_ns) / 1e9 if starts else 0.0,
         "size_bytes": sum(f["size_bytes"] for f in files),
         "compression": compression,
@@ -242,24 +292,54 @@ def bag_info(directory):
     }
 
 
+def _qos_text(profiles):
+    """Offered QoS profiles as ``reliable, transient_local[, keep_last 10]`` (several joined by ' | ')."""
+    texts = []
+    for profile in profiles:
+        history = profile.get("history", "unknown")  # rosbag2 records offered profiles with history unknown
+        depth = f", keep_last {profile['depth']}" if history == "keep_last" else \
+            (", keep_all" if history == "keep_all" else "")
+        texts.append(f"{profile.get('reliability')}, {profile.get('durability')}{depth}")
+    return " | ".join(texts) or "-"
+
+
 def format_bag_info(info):
-    """Return :func:`bag_info`'s dict as the text ``rollability bag info`` prints."""
+    """Return :func:`bag_info`'s dict as the text ``rollability bag info`` prints (the fields of ``ros2 bag
+    info`` and per-topic QoS)."""
     lines = [
-        f"Bag:            {info['path']}",
-        f"Storage:        {info['storage_identifier']} (metadata version {info['version']}, "
+        f"Bag:               {info['path']}",
+        f"Storage id:        {info['storage_identifier']} (metadata version {info['version']}, "
         f"ROS distro {info['ros_distro'] or '?'})",
-        f"Files:          {len(info['files'])}, {info['size_bytes'] / 1e6:.3f} MB",
-        f"Compression:    {info['compression']}",
-        f"Duration:       {info['duration_s']:.3f} s",
-        f"Start / end:    {info['start_time_ns'] or '-'} / {info['end_time_ns'] or '-'} ns",
-        f"Messages:       {info['message_count']}",
+        f"Bag size:          {_size_text(info['size_bytes'])}",
+        f"Compression:       {info['compression']}",
+        f"Duration:          {info['duration_s']:.9f} s",
+        f"Start:             {info['start_time']} ({_seconds_text(info['start_time_ns'])})",
+        f"End:               {info['end_time']} ({_seconds_text(info['end_time_ns'])})",
+        f"Messages:          {info['message_count']}",
+        f"Files:             {len(info['files'])}",
     ]
+    for entry in info["files"]:
+        lines.append(f"  {entry['path']}  {_size_text(entry['size_bytes'])}, {entry['message_count']} msgs, "
+                     f"{human_time(entry['start_time_ns'])} .. {human_time(entry['end_time_ns'])}")
     if info["custom_data"]:
-        lines.append("Custom data:    " + ", ".join(f"{k}={v}" for k, v in sorted(info["custom_data"].items())))
-    lines.append("Topics:")
+        lines.append("Custom data:       " + ", ".join(f"{k}={v}" for k, v in sorted(info["custom_data"].items())))
+    lines.append(f"Topics:            {len(info['topics'])}")
     width = max((len(t["name"]) for t in info["topics"]), default=0)
     for topic in info["topics"]:
-        lines.append(f"  {topic['name']:<{width}}  {topic['message_count']:>9} msgs  {topic['type']}")
+        lines.append(f"  Topic: {topic['name']:<{width}} | Type: {topic['type']} | Count: {topic['message_count']} | "
+                     f"Serialization Format: {topic['serialization_format']} | "
+                     f"QoS: {_qos_text(topic['offered_qos_profiles'])}")
     for warning in info["warnings"]:
         lines.append(f"warning: {warning}")
     return "\n".join(lines)
+
+
+def _size_text(size_bytes):
+    for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if size_bytes >= scale:
+            return f"{size_bytes / scale:.1f} {unit} ({size_bytes} bytes)"
+    return f"{size_bytes} bytes"
+
+
+def _seconds_text(time_ns):
+    return "-" if time_ns is None else f"{time_ns // 1_000_000_000}.{time_ns % 1_000_000_000:09d} s"

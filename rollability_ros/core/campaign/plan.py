@@ -27,15 +27,27 @@ def _format_number(value, sign=""):
 class CampaignSpec:
     """The experiment matrix of ``config/campaign.yaml`` (namespace ``campaign``); paper defaults: 400 trials."""
 
-    run_id: str = "paper-campaign"
-    configurations: typing.List[str] = dataclasses.field(default_factory=lambda: ["baseline", "A", "B", "C"])
-    heights_m: typing.List[float] = dataclasses.field(default_factory=lambda: [0.75, 1.30])
-    speeds_mps: typing.List[float] = dataclasses.field(default_factory=lambda: [0.8, 1.5])
-    angles_deg: typing.List[float] = dataclasses.field(default_factory=lambda: [-60.0, -30.0, 0.0, 30.0, 60.0])
-    repetitions: int = 5
-    random_order: bool = False
-    random_block: str = "height_m"
-    random_seed: int = 0
+    run_id: str = dataclasses.field(default="paper-campaign", metadata={
+        "description": "store key of this campaign; starting again with the same id resumes it"})
+    configurations: typing.List[str] = dataclasses.field(default_factory=lambda: ["baseline", "A", "B", "C"], metadata={
+        "description": "configuration ids to launch (profile meshes, e.g. baseline, A, B, C), mounted in this order"})
+    heights_m: typing.List[float] = dataclasses.field(default_factory=lambda: [0.75, 1.30], metadata={
+        "description": "ledge heights above the impact surface, one level each, m"})
+    speeds_mps: typing.List[float] = dataclasses.field(default_factory=lambda: [0.8, 1.5], metadata={
+        "description": "target launch speeds at the ledge, one level each, m/s"})
+    angles_deg: typing.List[float] = dataclasses.field(default_factory=lambda: [-60.0, -30.0, 0.0, 30.0, 60.0], metadata={
+        "description": "launch angles of the campaign's conditions, deg (sign convention in config/rig.yaml)"})
+    repetitions: int = dataclasses.field(default=5, metadata={
+        "description": "launches per grouped condition; the majority of them decides the condition (count)",
+        "range": (1, 1000)})
+    random_order: bool = dataclasses.field(default=False, metadata={
+        "description": "true: shuffle the trials inside each block (seeded, reproducible); false: the plan's fixed "
+                       "order"})
+    random_block: str = dataclasses.field(default="height_m", metadata={
+        "description": "shuffle unit: trials sharing the levels up to this factor stay together (configuration | "
+                       "height_m | angle_deg | speed_mps)"})
+    random_seed: int = dataclasses.field(default=0, metadata={
+        "description": "seed of the trial-order shuffle (integer, >= 0)", "range": (0, 2147483647)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable setting."""

@@ -177,10 +177,16 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
 class RunnerSettings:
     """``runner.*``: how the campaign_runner node runs the campaign and waits for the rig and the logger."""
 
-    backend: str = "sim"
-    resume: bool = False
-    store_timeout_s: float = 10.0
-    server_timeout_s: float = 30.0
+    backend: str = dataclasses.field(default="sim", metadata={
+        "description": "which rig backend the campaign expects (sim or physical); the rig must match"})
+    resume: bool = dataclasses.field(default=False, metadata={
+        "description": "true: continue a campaign whose run_id already has stored outcomes; false: refuse to reuse the "
+                       "id"})
+    store_timeout_s: float = dataclasses.field(default=10.0, metadata={
+        "description": "longest wait for the logger's acknowledgement that an outcome is stored, s",
+        "range": (0.0, 3600.0)})
+    server_timeout_s: float = dataclasses.field(default=30.0, metadata={
+        "description": "longest wait for the rig's Launch action server to appear, s", "range": (0.0, 86400.0)})
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""

@@ -10,6 +10,14 @@ Latched topics (the summary, the best profile marker): their last message is kep
 client subscribes, so a freshly opened app shows them at once. Clients that were already subscribed get that
 message a second time; the app simply shows it again.
 
+TF for the 3D panel: the profile marker is drawn in the chassis frame (``base_link``) and the chassis pose comes
+as ``geometry_msgs/PoseStamped`` in ``world``; nothing in the PyPI install publishes /tf (``tf2_msgs`` is not
+among the wheels). The view therefore turns each pose of a configured topic into a standard
+``tf2_msgs/msg/TFMessage`` (parent = the pose's frame, child = the configured frame) on ``/tf``, served like any
+other channel (``cdr`` + ``ros2msg``; the definition comes from rosbags' Jazzy type store when the interface is
+not installed), so the app places the marker on the moving chassis; on a ROS install with a real /tf the same
+message type is what the app already knows.
+
 The server binds to ``127.0.0.1`` unless another address is given. ``foxglove-sdk`` is the ``view`` extra.
 """
 import dataclasses
@@ -25,6 +33,8 @@ _LOG = logging.getLogger(__name__)
 
 #: Port the Foxglove app connects to by default (ws://localhost:8765).
 DEFAULT_PORT = 8765
+#: Topic and type of the transforms the view derives from pose topics.
+TF_TOPIC, TF_TYPE = "/tf", "tf2_msgs/msg/TFMessage"
 
 
 @dataclasses.dataclass
@@ -57,7 +67,52 @@ def ros2msg_schema(type_name):
     Raises ``ValueError`` when the type's interface files are not found.
     """
     name = full_type_name(type_name)
-    return name, definition_for(name)
+    try:
+        return name, definition_for(name)
+    except ValueError:
+        store = _jazzy_typestore()
+        if name not in store.types:
+            raise
+        return name, store.generate_msgdef(name, ros_version=2)[0]   # e.g. tf2_msgs: not among the PyPI wheels
+
+
+def _jazzy_typestore():
+    """rosbags' built-in ROS 2 Jazzy type store (standard message definitions and CDR codecs)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def tf_from_pose_cdr(pose_stamped_cdr, child_frame_id):
+    """CDR bytes of a ``tf2_msgs/msg/TFMessage`` with one transform: the ``geometry_msgs/PoseStamped`` (CDR
+    bytes) as the pose of ``child_frame_id`` in the pose's ``header.frame_id`` (same stamp; metres, unit
+    quaternion). Raises ``ValueError`` for bytes that are not a PoseStamped or an empty frame."""
+    store = _jazzy_typestore()
+    try:
+        pose = store.deserialize_cdr(bytes(pose_stamped_cdr), "geometry_msgs/msg/PoseStamped")
+    except Exception as exc:  # rosbags raises struct / index errors for foreign bytes
+        raise ValueError(f"not a geometry_msgs/PoseStamped: {exc}") from exc
+    if not pose.header.frame_id or not child_frame_id:
+        raise ValueError("a transform needs the pose's header.frame_id and a child frame")
+    types = store.types
+    position, orientation = pose.pose.position, pose.pose.orientation
+    transform = types["geometry_msgs/msg/TransformStamped"](
+        header=pose.header, child_frame_id=child_frame_id,
+        transform=types["geometry_msgs/msg/Transform"](
+            translation=types["geometry_msgs/msg/Vector3"](x=position.x, y=position.y, z=position.z),
+            rotation=orientation))
+    return bytes(store.serialize_cdr(types[TF_TYPE](transforms=[transform]), TF_TYPE))
+
+
+def parse_pose_frames(entries):
+    """``["/topic=child_frame", ...]`` -> ``{topic: child_frame}``; ``ValueError`` naming a malformed entry."""
+    frames = {}
+    for entry in entries:
+        topic, separator, frame = entry.partition("=")
+        if not separator or not topic.startswith("/") or not frame.strip():
+            raise ValueError(f"pose_frames entry {entry!r} must be '/absolute/topic=child_frame'")
+        frames[topic] = frame.strip()
+    return frames
 
 
 def _replay_listener(foxglove, view):
@@ -147,6 +202,13 @@ class ViewServer:
             if topic in self._latched:
                 self._latched[topic] = (bytes(cdr_bytes), time_ns)
         entry[1].log(bytes(cdr_bytes), log_time=time_ns)
+
+    def log_pose_as_tf(self, pose_stamped_cdr, child_frame_id, time_ns=None):
+        """Log a PoseStamped (CDR bytes) on :data:`TF_TOPIC` as the transform of ``child_frame_id``
+        (:func:`tf_from_pose_cdr`), advertising the /tf channel on first use."""
+        tf_bytes = tf_from_pose_cdr(pose_stamped_cdr, child_frame_id)
+        self.add_topic(TF_TOPIC, TF_TYPE)
+        self.log(TF_TOPIC, tf_bytes, time_ns)
 
     def replay(self, topic):
         """Log the kept last message of latched ``topic`` again (nothing for other topics or before one came)."""

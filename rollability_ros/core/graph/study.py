@@ -29,6 +29,7 @@ import shutil
 import yaml
 
 from rollability_ros.core.graph.bringup import NodeLaunch, core_nodes, load_graph_settings, new_study_id, parameter_files
+from rollability_ros.core.graph.node_commands.progress import JobProgress, ProgressDisplay, Stopwatch, eta_s
 from rollability_ros.core.config import load_parameters
 from rollability_ros.core.results.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
@@ -37,6 +38,10 @@ from rollability_ros.core.graph.supervisor import Supervisor
 OPTIMIZATION_DIR = "optimization"
 #: The study's copies of its parameter files, inside the study directory.
 CONFIG_DIR = "config"
+
+
+#: Seconds between progress snapshots while a phase runs.
+PROGRESS_PERIOD_S = 1.0
 
 
 @dataclasses.dataclass
@@ -52,9 +57,10 @@ class StudyResult:
 
 
 class Study:
-    """Runs the main job (module docstring) and reports progress through ``say(text)``."""
+    """Runs the main job (module docstring): events through ``say(text)``, progress snapshots (phase, generation,
+    best, trials stored, ETA) through ``display`` (a :class:`~rollability_ros.core.graph.node_commands.progress.ProgressDisplay`)."""
 
-    def __init__(self, extra_configs=(), study_id=None, say=print, resume=None):
+    def __init__(self, extra_configs=(), study_id=None, say=None, resume=None, display=None):
         self.param_files = parameter_files(["bringup", *extra_configs])
         self.resuming = resume is not None
         if self.resuming:
@@ -68,8 +74,12 @@ class Study:
         if not self.resuming:
             self.study_id = study_id or new_study_id()
             self.study_dir = os.path.join(self.settings.output_dir, self.study_id)
-        self.say = say
+        # display: live line on a terminal, plain lines otherwise (core/graph/progress.py); say: event lines
+        self.display = display or ProgressDisplay(live=False)
+        self.say = say or self.display.say
         self._stop_requested = False
+        self._shown_generation = -1
+        self._campaign_clock, self._campaign_start_done = None, 0
 
     def request_stop(self):
         """Ask the running study to stop at its next check (Ctrl-C handler)."""
@@ -133,34 +143,43 @@ class Study:
         return rig, runner
 
     def _progress_optimization(self):
+        """Snapshots of the optimization phase: one per generation completed since the last call (a plain log
+        then shows every generation), or one phase snapshot when none is new."""
         store_file = os.path.join(self.optimization_dir, "store.sqlite")
+        cap = int(self.parameters.get("optimizer.max_generations", 0) or 0)
         if not os.path.isfile(store_file):
-            return "optimizer starting"
+            return [JobProgress("optimizing: nodes starting", max_generations=cap)]
         with Store(store_file) as store:
             generations = store.generations()
+            trials = sum(c.trials for c in store.candidates()) if generations else 0
         if not generations:
-            return "first generation under evaluation"
-        last = generations[-1]
-        cap = self.parameters.get("optimizer.max_generations", 0)
-        return (f"generation {last.generation}{'/' + str(cap) if cap else ''}: best so far "
-                f"{last.best_so_far:.2f}, {last.evaluations} evaluations, {last.elapsed_s:.0f} s")
+            return [JobProgress("optimizing: first generation under evaluation", 0, cap)]
+        new = [g for g in generations if g.generation > self._shown_generation] or generations[-1:]
+        self._shown_generation = generations[-1].generation
+        return [JobProgress("optimizing", g.generation, cap, g.best_so_far, trials,
+                            eta_s=eta_s(g.generation, cap, g.elapsed_s)) for g in new]
 
     def _progress_campaign(self, total):
         if not os.path.isfile(self.store_path):
-            return "campaign starting"
+            return [JobProgress("launch campaign: starting", trials_stored=0, trials_total=total)]
         with Store(self.store_path) as store:
             done = len(store.trial_ids(self.study_id))
-        return f"launch campaign: {done}/{total} trials stored"
+        if self._campaign_clock is None or done == 0:
+            self._campaign_clock, self._campaign_start_done = Stopwatch(), done
+        rate_done = done - self._campaign_start_done
+        left = eta_s(rate_done, total - self._campaign_start_done, self._campaign_clock.elapsed_s)
+        return [JobProgress("launch campaign (simulated rig)", trials_stored=done, trials_total=total, eta_s=left)]
 
     def _wait(self, supervisor, name, timeout_s, progress):
         def tick():
             try:
-                self.say("  " + progress())
+                for snapshot in progress():
+                    self.display.update(snapshot)
             except Exception as exc:  # progress is informative only; a busy store must not end the study
-                self.say(f"  (progress unavailable: {exc})")
+                self.display.update(f"(progress unavailable: {exc})")
 
         return supervisor.wait_for_exit(name, timeout_s, self.settings.poll_period_s,
-                                        lambda: self._stop_requested, tick)
+                                        lambda: self._stop_requested, tick, tick_period_s=PROGRESS_PERIOD_S)
 
     def run(self):
         """Run (or resume) the whole study; always stops the graph; returns a :class:`StudyResult`."""

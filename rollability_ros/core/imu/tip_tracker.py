@@ -49,17 +49,33 @@ DIAGNOSTIC_OK, DIAGNOSTIC_WARN, DIAGNOSTIC_ERROR, DIAGNOSTIC_STALE = 0, 1, 2, 3
 class TipMonitorConfig:
     """``tip_monitor.*`` of ``config/tip_monitor.yaml``: the robot, its IMU and the tip thresholds."""
 
-    robot: str = "robot"
-    imu_topic: str = "imu/data"
-    mount_rpy_deg: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
-    tip_threshold_deg: float = 60.0
-    recover_threshold_deg: float = 30.0
-    tip_confirm_s: float = 0.3
-    settle_time_s: float = 1.0
-    give_up_s: float = 10.0
-    recovered_hold_s: float = 2.0
-    accel_filter_s: float = 0.1
-    imu_timeout_s: float = 1.0
+    robot: str = dataclasses.field(default="robot", metadata={
+        "description": "name of the watched robot, written into events and diagnostics"})
+    imu_topic: str = dataclasses.field(default="imu/data", metadata={
+        "description": "sensor_msgs/Imu topic of the robot's IMU"})
+    mount_rpy_deg: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0], metadata={
+        "description": "rotation IMU frame -> robot body frame as roll, pitch, yaw about fixed axes, deg"})
+    tip_threshold_deg: float = dataclasses.field(default=60.0, metadata={
+        "description": "tilt of the body +z axis from world up above which the robot is tipping, deg",
+        "range": (0.0, 180.0)})
+    recover_threshold_deg: float = dataclasses.field(default=30.0, metadata={
+        "description": "tilt below which the robot counts as back upright (must be below the tip threshold), deg",
+        "range": (0.0, 180.0)})
+    tip_confirm_s: float = dataclasses.field(default=0.3, metadata={
+        "description": "the tilt must stay above the tip threshold this long to count as tipped, s",
+        "range": (0.0, 3600.0)})
+    settle_time_s: float = dataclasses.field(default=1.0, metadata={
+        "description": "the tilt must stay below the recover threshold this long to count as recovered, s",
+        "range": (0.0, 3600.0)})
+    give_up_s: float = dataclasses.field(default=10.0, metadata={
+        "description": "a tip-over not recovered this long after it began is STUCK, s", "range": (0.0, 86400.0)})
+    recovered_hold_s: float = dataclasses.field(default=2.0, metadata={
+        "description": "time RECOVERED is shown before the state returns to UPRIGHT, s", "range": (0.0, 3600.0)})
+    accel_filter_s: float = dataclasses.field(default=0.1, metadata={
+        "description": "low-pass time constant of the gravity estimate used without orientation, s",
+        "range": (0.0, 10.0)})
+    imu_timeout_s: float = dataclasses.field(default=1.0, metadata={
+        "description": "no IMU sample this long: diagnostics go STALE, s", "range": (0.0, 3600.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

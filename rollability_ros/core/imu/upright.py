@@ -122,14 +122,17 @@ def imu_sample_from_message(msg: typing.Any, arrival_s: float) -> ImuSample:
     """A ``sensor_msgs/Imu`` message (rclpy or rosbags) -> :class:`ImuSample`; ``ValueError`` naming the bad field.
 
     ``arrival_s`` (s since the epoch) stands in for a zero header stamp. Orientation is None when the IMU gives
-    none; non-finite vectors and unusable orientations are refused.
+    none, or an unusable one (non-finite): the tilt then comes from gravity, as for an all-zero quaternion, and
+    the sample's accelerometer and gyro still count. Non-finite rates or accelerations are refused.
     """
     stamp_s = stamp_to_s(msg.header.stamp) or arrival_s
     q = msg.orientation
-    try:
-        orientation = orientation_if_valid((q.x, q.y, q.z, q.w), list(msg.orientation_covariance))
-    except ValueError as exc:
-        raise ValueError(f"orientation: {exc}") from None
+    orientation = None
+    if all(math.isfinite(component) for component in (q.x, q.y, q.z, q.w)):
+        try:
+            orientation = orientation_if_valid((q.x, q.y, q.z, q.w), list(msg.orientation_covariance))
+        except ValueError as exc:
+            raise ValueError(f"orientation: {exc}") from None
     w, a = msg.angular_velocity, msg.linear_acceleration
     return ImuSample(stamp_s=stamp_s, orientation=orientation,
                      angular_velocity_radps=_vector3((w.x, w.y, w.z), "angular_velocity"),
@@ -273,14 +276,25 @@ class ImuUprightClassifier:
 class ImuOutcomeConfig:
     """``imu_outcome.*`` of ``config/rig.yaml``: classifying a launch from the chassis IMU."""
 
-    topic: str = "imu/data"
-    mount_rpy_deg: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
-    tilt_threshold_deg: float = 30.0
-    settle_time_s: float = 1.0
-    max_rate_radps: float = 0.3
-    max_accel_deviation_mps2: float = 1.0
-    accel_filter_s: float = 0.05
-    settle_timeout_s: float = 15.0
+    topic: str = dataclasses.field(default="imu/data", metadata={
+        "description": "sensor_msgs/Imu topic of the chassis IMU that classifies launch outcomes"})
+    mount_rpy_deg: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0], metadata={
+        "description": "rotation IMU frame -> chassis body frame as roll, pitch, yaw about fixed axes, deg"})
+    tilt_threshold_deg: float = dataclasses.field(default=30.0, metadata={
+        "description": "upright when the body +z axis is within this angle of world up after settling, deg",
+        "range": (0.0, 180.0)})
+    settle_time_s: float = dataclasses.field(default=1.0, metadata={
+        "description": "the chassis must be still this long before the IMU classifies it, s", "range": (0.0, 60.0)})
+    max_rate_radps: float = dataclasses.field(default=0.3, metadata={
+        "description": "still when the angular rate magnitude stays at most this, rad/s", "range": (0.0, 100.0)})
+    max_accel_deviation_mps2: float = dataclasses.field(default=1.0, metadata={
+        "description": "still when | |acceleration| - g | stays at most this, m/s^2", "range": (0.0, 100.0)})
+    accel_filter_s: float = dataclasses.field(default=0.05, metadata={
+        "description": "low-pass time constant of the gravity estimate for IMUs without orientation, s",
+        "range": (0.0, 10.0)})
+    settle_timeout_s: float = dataclasses.field(default=15.0, metadata={
+        "description": "no settled IMU reading this long after firing: ask the operator instead, s",
+        "range": (0.0, 3600.0)})
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field (by building the classifier it configures)."""

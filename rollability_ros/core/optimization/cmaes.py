@@ -56,19 +56,42 @@ class OptimizerSettings:
     bounds). A cap of 0 disables that stop criterion; ``target_fitness`` above 1 disables the target.
     """
 
-    popsize: int = 12                  # candidates per generation
-    sigma0: float = 0.02               # initial CMA-ES step size, simulation units
-    seed: int = 1                      # pycma seed, initial mean and disturbance seeds; >= 1
-    trials: int = 60                   # disturbance trials per candidate evaluation
-    max_generations: int = 500         # generation cap
-    target_fitness: float = 1.0        # stop when best-so-far fitness reaches this
-    stagnation_generations: int = 0    # stop after this many generations without a new incumbent
-    max_evaluations: int = 0           # cap on profile evaluations (population + re-evaluations)
-    max_wall_time_s: float = 0.0       # cap on optimization wall time, s (summed over resumes)
-    common_random_numbers: bool = True  # one disturbance seed per generation (False: one per candidate)
-    reevaluate_incumbent: bool = True  # re-evaluate the best-so-far with fresh seeds and pool
-    output_dir: str = "runs"           # root of run directories runs/<run_id>/
-    initial_mean_screen: int = 0       # random initial means ranked by the stable-pose screen; 0 = one, unscreened
+    popsize: int = dataclasses.field(default=12, metadata={
+        "description": "candidates per CMA-ES generation (count; paper 12)", "range": (2, 100000)})
+    sigma0: float = dataclasses.field(default=0.02, metadata={
+        "description": "initial CMA-ES step size, simulation units of vertex height (paper 0.02)",
+        "range": (0.0, 100.0)})
+    seed: int = dataclasses.field(default=1, metadata={
+        "description": "seed of pycma, the random initial mean and the disturbance seeds (integer >= 1)",
+        "range": (1, 2147483647)})
+    trials: int = dataclasses.field(default=60, metadata={
+        "description": "disturbance trials per candidate evaluation (count; paper 60)", "range": (1, 10000000)})
+    max_generations: int = dataclasses.field(default=500, metadata={
+        "description": "stop after this many CMA-ES generations (count; 0 = no cap; paper 500)",
+        "range": (0, 2147483647)})
+    target_fitness: float = dataclasses.field(default=1.0, metadata={
+        "description": "stop when the best-so-far fitness (upright trials / trials) reaches this; above 1 never",
+        "range": (0.0, 2.0)})
+    stagnation_generations: int = dataclasses.field(default=0, metadata={
+        "description": "stop after this many generations without a new best design (count; 0 = never)",
+        "range": (0, 2147483647)})
+    max_evaluations: int = dataclasses.field(default=0, metadata={
+        "description": "stop after this many profile evaluations, population and re-evaluations (count; 0 = no cap)",
+        "range": (0, 2147483647)})
+    max_wall_time_s: float = dataclasses.field(default=0.0, metadata={
+        "description": "stop after this much optimization wall time summed over resumes, s (0 = no cap)",
+        "range": (0.0, 1000000000.0)})
+    common_random_numbers: bool = dataclasses.field(default=True, metadata={
+        "description": "true: all candidates of a generation share one disturbance seed (fairer ranking); false: one "
+                       "seed each"})
+    reevaluate_incumbent: bool = dataclasses.field(default=True, metadata={
+        "description": "true: re-evaluate the best-so-far design with a fresh seed each generation and pool the "
+                       "trials"})
+    output_dir: str = dataclasses.field(default="runs", metadata={
+        "description": "folder of run directories <output_dir>/<run_id>/, relative to the working directory"})
+    initial_mean_screen: int = dataclasses.field(default=0, metadata={
+        "description": "random CMA-ES start means screened by the quasi-static stable-pose screen; the best is used "
+                       "(count; 0 = the paper's one random mean)", "range": (0, 10000)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

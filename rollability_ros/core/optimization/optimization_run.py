@@ -153,6 +153,19 @@ def profile_screen(parameters: dict, evaluator_settings: typing.Any,
     return stable_poses.profile_screener(evaluator_settings, screen_settings)
 
 
+def check_design_space_printable(parameters, grid):
+    """Raise ``ValueError`` naming the printer limit when no profile of ``grid`` could be printed on the printer
+    of ``parameters`` (namespace ``printer``; skipped when the parameters hold no printer), before a long run."""
+    if not any(name.startswith("printer.") for name in parameters):
+        return
+    from rollability_ros.core.profile.geometry import PrinterSpec, design_space_printability
+
+    printer = from_mapping(PrinterSpec, section(parameters, "printer"), "printer")
+    problems = design_space_printability(grid, printer)
+    if problems:
+        raise ValueError("cannot optimize: " + "; ".join(problems))
+
+
 class OptimizationRun:
     """Drive a :class:`ProfileOptimizer` generation by generation through ``evaluate_batch``.
 
@@ -272,6 +285,7 @@ class OptimizationRun:
         if os.path.exists(config_path):
             raise ValueError(f"run {self.run_id} already exists in {self.run_dir}; resume it or choose another run id")
         optimizer = self._new_optimizer()  # validates the settings before anything is written
+        check_design_space_printable(self.parameters, self.grid)
         os.makedirs(self.run_dir, exist_ok=True)
         write_run_config(config_path, self.parameters)
         return optimizer

@@ -14,7 +14,8 @@ Procedure
    estimate is not, so Table 3 then reports the re-evaluated fitness.
 If fewer than ``count`` designs qualify, the result says how many and why; nothing is padded.
 
-Outputs (``<run_dir>/designs/``): ``mesh_<label>.stl`` (metres), ``table3.csv`` (the paper's Table 3 with the
+Outputs (``<run_dir>/designs/``): ``mesh_<label>.stl`` (millimetres by default, ``mesh_units``; the unit is
+written in the STL header), ``mesh_<label>.3mf`` (millimetres, the 3MF unit attribute), ``table3.csv`` (the paper's Table 3 with the
 simulated fitness and its Wilson interval, baseline row first) and ``designs.yaml``, a ROS 2 parameter file
 with the heights of each design and its grid, for the rig's simulation twin.
 """
@@ -23,6 +24,7 @@ import dataclasses
 import io
 import math
 import os
+import re
 import string
 
 import numpy as np
@@ -48,9 +50,16 @@ class SelectionSettings:
     simulation units (the heights' own unit; 0.05 = 11% of the paper's [0, 0.45] range).
     """
 
-    count: int = 3                     # designs to choose (labelled A, B, C, ...)
-    min_distance: float = 0.05         # minimum RMS height distance between chosen designs, simulation units
-    reevaluate_trials: int = 0         # trials of the fresh re-evaluation of the chosen designs; 0 = none
+    count: int = dataclasses.field(default=3, metadata={
+        "description": "designs to choose for fabrication, labelled A, B, C, ... (count)", "range": (1, 26)})
+    min_distance: float = dataclasses.field(default=0.05, metadata={
+        "description": "smallest RMS height difference between two chosen designs, simulation units",
+        "range": (0.0, 1000.0)})
+    reevaluate_trials: int = dataclasses.field(default=0, metadata={
+        "description": "fresh trials per chosen design and the baseline for Table 3 (count; 0 = report the logged "
+                       "estimate)", "range": (0, 10000000)})
+    mesh_units: str = dataclasses.field(default="mm", metadata={
+        "description": "length unit of the written STL files: mm (what slicers expect) or m"})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -60,6 +69,8 @@ class SelectionSettings:
             raise ValueError(f"min_distance must be >= 0, got {self.min_distance}")
         if self.reevaluate_trials < 0:
             raise ValueError(f"reevaluate_trials must be >= 0 (0 = no re-evaluation), got {self.reevaluate_trials}")
+        if self.mesh_units not in geometry.MESH_UNITS:
+            raise ValueError(f"mesh_units must be one of {', '.join(geometry.MESH_UNITS)}, got {self.mesh_units!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -116,9 +127,18 @@ class SelectionResult:
         """A sentence when fewer designs than requested qualified, else ''."""
         if len(self.designs) >= self.requested:
             return ""
-        reasons = ", ".join(f"{count} {reason}" for reason, count in sorted(self.rejected.items())) or "none"
+        reasons = "; ".join(f"{count} {reason}" for reason, count in sorted(self.rejected.items())) or "none"
+        advice = ("check the printer section of the configuration (select --config) or the profile size"
+                  if any(r.startswith("not printable") for r in self.rejected) else
+                  "lower min_distance or run the optimizer longer")
         return (f"only {len(self.designs)} of {self.requested} requested designs qualify among {self.considered} "
-                f"distinct logged designs (rejected: {reasons}); lower min_distance or run the optimizer longer")
+                f"distinct logged designs (rejected: {reasons}); {advice}")
+
+
+def _limits_named(problems):
+    """The configuration keys (``printer.bed_x_m / bed_y_m``, ...) that the printability ``problems`` name."""
+    return [re.search(r"\((printer\.[^)]*)\)", problem).group(1) if "(printer." in problem else problem
+            for problem in problems]
 
 
 def pool_candidates(candidates):
@@ -173,8 +193,10 @@ def select_designs(candidates, grid, printer, settings, evaluate_batch=None, run
         except ValueError:
             rejected["flat"] = rejected.get("flat", 0) + 1
             continue
-        if not geometry.check_printability(mesh, printer).printable:
-            rejected["not printable"] = rejected.get("not printable", 0) + 1
+        printability = geometry.check_printability(mesh, printer)
+        if not printability.printable:
+            reason = "not printable: " + ", ".join(_limits_named(printability.problems))
+            rejected[reason] = rejected.get(reason, 0) + 1
             continue
         chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], design, mesh,
                                      geometry.mesh_metrics(mesh)))
@@ -211,7 +233,7 @@ def _fitness_columns(successes, trials, source):
             "successes": successes, "trials": trials, "fitness_source": source}
 
 
-def designs_document(result, grid, run_id):
+def designs_document(result, grid, run_id, mesh_units="mm"):
     """The ``designs.yaml`` content: a ROS 2 parameter file with namespace ``designs`` (heights per label)."""
     body = {"run_id": run_id, "labels": [d.label for d in result.designs],
             "grid": {"rows": grid.rows, "cols": grid.cols, "length_m": grid.length_m, "width_m": grid.width_m,
@@ -219,7 +241,8 @@ def designs_document(result, grid, run_id):
     for design in result.designs:
         successes, trials, source = design.reported
         body[design.label] = {"heights": [float(h) for h in design.design.heights],
-                              "mesh_file": f"mesh_{design.label}.stl", "fitness": successes / trials,
+                              "mesh_file": f"mesh_{design.label}.stl", "mesh_units": mesh_units,
+                              "fitness": successes / trials,
                               "successes": successes, "trials": trials, "fitness_source": source}
     return {"/**": {"ros__parameters": {"designs": body}}}
 
@@ -235,27 +258,29 @@ def record_selection(store, run_id, result):
     store.set_run_info(run_id, described["kind"], info)
 
 
-def write_selection(run_dir, result, grid, run_id):
-    """Write the STL files, ``table3.csv`` and ``designs.yaml`` into ``<run_dir>/designs/``; return that folder.
+def write_selection(run_dir, result, grid, run_id, mesh_units="mm"):
+    """Write the STL (in ``mesh_units``) and 3MF files, ``table3.csv`` and ``designs.yaml`` into
+    ``<run_dir>/designs/``; return that folder.
 
     Meshes of an earlier selection that this one does not produce are removed, so the folder always matches
     its ``designs.yaml``.
     """
     folder = os.path.join(run_dir, DESIGNS_DIRNAME)
     os.makedirs(folder, exist_ok=True)
-    keep = {f"mesh_{d.label}.stl" for d in result.designs}
+    keep = {f"mesh_{d.label}{extension}" for d in result.designs for extension in (".stl", ".3mf")}
     for name in os.listdir(folder):
-        if name.startswith("mesh_") and name.endswith(".stl") and name not in keep:
+        if name.startswith("mesh_") and name.endswith((".stl", ".3mf")) and name not in keep:
             os.remove(os.path.join(folder, name))
     for design in result.designs:
-        geometry.export_mesh(design.mesh, os.path.join(folder, f"mesh_{design.label}.stl"))
+        geometry.export_mesh(design.mesh, os.path.join(folder, f"mesh_{design.label}.stl"), mesh_units)
+        geometry.export_mesh(design.mesh, os.path.join(folder, f"mesh_{design.label}.3mf"))
     table = io.StringIO()
     writer = csv.DictWriter(table, fieldnames=TABLE_COLUMNS, lineterminator="\n")
     writer.writeheader()
     for row in table_rows(result):
         writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
     atomic_write_bytes(os.path.join(folder, "table3.csv"), table.getvalue().encode("utf-8"))
-    text = yaml.safe_dump(designs_document(result, grid, run_id), sort_keys=False)
+    text = yaml.safe_dump(designs_document(result, grid, run_id, mesh_units), sort_keys=False)
     atomic_write_bytes(os.path.join(folder, "designs.yaml"), text.encode("utf-8"))
     return folder
 
@@ -272,4 +297,4 @@ def select_run(store, run_id, run_dir, grid, printer, settings, evaluate_batch=N
         raise ValueError(f"run {run_id} in {run_dir} has no evaluated candidates yet")
     result = select_designs(candidates, grid, printer, settings, evaluate_batch, run_seed)
     record_selection(store, run_id, result)
-    return result, write_selection(run_dir, result, grid, run_id)
+    return result, write_selection(run_dir, result, grid, run_id, settings.mesh_units)

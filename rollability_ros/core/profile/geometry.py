@@ -43,14 +43,24 @@ class ProfileGrid:
     treated as the baseline (no profile) by the evaluator, because a hull thinner than that is not a solid.
     """
 
-    rows: int = 10
-    cols: int = 10
-    length_m: float = 0.18
-    width_m: float = 0.14
-    height_min: float = 0.0
-    height_max: float = 0.45
-    unit_m: float = 0.2
-    flat_tolerance: float = 0.001
+    rows: int = dataclasses.field(default=10, metadata={
+        "description": "grid vertices along the footprint length (count; paper 10)", "range": (2, 1000)})
+    cols: int = dataclasses.field(default=10, metadata={
+        "description": "grid vertices across the y > 0 half of the footprint (count; paper 10)", "range": (1, 1000)})
+    length_m: float = dataclasses.field(default=0.18, metadata={
+        "description": "footprint length along the chassis x axis that the profile covers, m", "range": (0.0, 100.0)})
+    width_m: float = dataclasses.field(default=0.14, metadata={
+        "description": "footprint width along the chassis y axis that the profile covers, m", "range": (0.0, 100.0)})
+    height_min: float = dataclasses.field(default=0.0, metadata={
+        "description": "lower bound of every vertex height, simulation units (paper 0)", "range": (0.0, 1000.0)})
+    height_max: float = dataclasses.field(default=0.45, metadata={
+        "description": "upper bound of every vertex height, simulation units (paper 0.45)", "range": (0.0, 1000.0)})
+    unit_m: float = dataclasses.field(default=0.2, metadata={
+        "description": "metres per simulation unit of vertex height, m (0.2: height 0.45 = 0.09 m)",
+        "range": (0.0, 100.0)})
+    flat_tolerance: float = dataclasses.field(default=0.001, metadata={
+        "description": "a profile whose tallest vertex is at or below this counts as the baseline (no profile), "
+                       "simulation units", "range": (0.0, 100.0)})
 
     @property
     def n_variables(self):
@@ -90,19 +100,33 @@ class ProfileMetrics:
 class PrinterSpec:
     """An FDM printer's limits (``config/robot.yaml``, section ``printer``)."""
 
-    bed_x_m: float = 0.22
-    bed_y_m: float = 0.22
-    bed_z_m: float = 0.25
-    min_wall_m: float = 0.0008
-    max_overhang_deg: float = 45.0
+    bed_x_m: float = dataclasses.field(default=0.22, metadata={
+        "description": "build plate size along the printer's x axis, m; a profile footprint must fit (turned 90 deg "
+                       "allowed)", "range": (0.0, 10.0)})
+    bed_y_m: float = dataclasses.field(default=0.22, metadata={
+        "description": "build plate size along the printer's y axis, m", "range": (0.0, 10.0)})
+    bed_z_m: float = dataclasses.field(default=0.25, metadata={
+        "description": "largest printable part height, m; the tallest profile must fit", "range": (0.0, 10.0)})
+    nozzle_m: float = dataclasses.field(default=0.0004, metadata={
+        "description": "nozzle diameter = one extrusion width, m; the minimum wall cannot be thinner",
+        "range": (0.0, 0.1)})
+    min_wall_m: float = dataclasses.field(default=0.0008, metadata={
+        "description": "thinnest solid width the printer makes reliably (e.g. two perimeters), m",
+        "range": (0.0, 1.0)})
+    max_overhang_deg: float = dataclasses.field(default=45.0, metadata={
+        "description": "steepest downward face printable without support, measured from vertical, deg",
+        "range": (0.0, 90.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
-        for name in ("bed_x_m", "bed_y_m", "bed_z_m", "min_wall_m"):
+        for name in ("bed_x_m", "bed_y_m", "bed_z_m", "nozzle_m", "min_wall_m"):
             if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+                raise ValueError(f"printer.{name} must be > 0, got {getattr(self, name)}")
+        if self.min_wall_m < self.nozzle_m:
+            raise ValueError(f"printer.min_wall_m {self.min_wall_m * 1000:.2f} mm is thinner than one extrusion of "
+                             f"the printer.nozzle_m {self.nozzle_m * 1000:.2f} mm nozzle")
         if not 0 <= self.max_overhang_deg <= 90:
-            raise ValueError(f"max_overhang_deg must be in [0, 90], got {self.max_overhang_deg}")
+            raise ValueError(f"printer.max_overhang_deg must be in [0, 90], got {self.max_overhang_deg}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -213,6 +237,33 @@ def mesh_metrics(mesh):
                           volume_m3=float(mesh.volume), com_shift_m=np.asarray(mesh.center_mass, dtype=np.float64))
 
 
+def design_space_printability(grid, printer):
+    """Problems that make every profile of ``grid`` unprintable on ``printer``, found before optimizing; [] if none.
+
+    Every profile covers the whole ``length_m`` x ``width_m`` footprint (metres), so a footprint larger than the
+    bed (turning it 90 degrees about z allowed) rules out every design; a grid spacing or a tallest allowed
+    profile below one nozzle width (``nozzle_m``) cannot be printed either. Each message names the limit and the
+    configuration key to change.
+    """
+    printer.validate()
+    problems = []
+    length, width = grid.length_m, grid.width_m
+    if not ((length <= printer.bed_x_m and width <= printer.bed_y_m)
+            or (width <= printer.bed_x_m and length <= printer.bed_y_m)):
+        problems.append(f"the profile footprint {length * 1000:.0f} x {width * 1000:.0f} mm does not fit the "
+                        f"printer bed {printer.bed_x_m * 1000:.0f} x {printer.bed_y_m * 1000:.0f} mm "
+                        f"(printer.bed_x_m / printer.bed_y_m): no design could be printed")
+    tallest = grid.height_max * grid.unit_m
+    if tallest < printer.nozzle_m:
+        problems.append(f"the tallest allowed profile {tallest * 1000:.2f} mm (profile.height_max x unit_m) is "
+                        f"below one nozzle width {printer.nozzle_m * 1000:.2f} mm (printer.nozzle_m)")
+    spacing = min(length / max(grid.rows - 1, 1), width / max(2 * grid.cols - 1, 1))
+    if spacing < printer.nozzle_m:
+        problems.append(f"the grid spacing {spacing * 1000:.2f} mm is below the nozzle width "
+                        f"{printer.nozzle_m * 1000:.2f} mm (printer.nozzle_m): reduce profile.rows / profile.cols")
+    return problems
+
+
 def check_printability(mesh, printer):
     """Check that ``mesh`` (metres, printed base-down on its z-min face) fits ``printer`` (a :class:`PrinterSpec`).
 
@@ -225,69 +276,134 @@ def check_printability(mesh, printer):
     fits_flat = extents[0] <= printer.bed_x_m and extents[1] <= printer.bed_y_m
     fits_turned = extents[1] <= printer.bed_x_m and extents[0] <= printer.bed_y_m
     if not (fits_flat or fits_turned):
-        problems.append(f"footprint {extents[0]:.3f} x {extents[1]:.3f} m does not fit the "
-                        f"{printer.bed_x_m:.3f} x {printer.bed_y_m:.3f} m bed")
+        problems.append(f"footprint {extents[0] * 1000:.0f} x {extents[1] * 1000:.0f} mm does not fit the printer "
+                        f"bed {printer.bed_x_m * 1000:.0f} x {printer.bed_y_m * 1000:.0f} mm "
+                        f"(printer.bed_x_m / bed_y_m)")
     if extents[2] > printer.bed_z_m:
-        problems.append(f"height {extents[2]:.3f} m exceeds the printer's {printer.bed_z_m:.3f} m")
+        problems.append(f"height {extents[2] * 1000:.0f} mm exceeds the printer's build height "
+                        f"{printer.bed_z_m * 1000:.0f} mm (printer.bed_z_m)")
     normals = np.asarray(mesh.face_normals)
     projections = vertices @ normals.T                       # (vertices, faces)
     min_wall = float((projections.max(axis=0) - projections.min(axis=0)).min())
     if min_wall < printer.min_wall_m:
         problems.append(f"thinnest width {min_wall * 1000:.2f} mm is below the minimum wall "
-                        f"{printer.min_wall_m * 1000:.2f} mm")
+                        f"{printer.min_wall_m * 1000:.2f} mm (printer.min_wall_m)")
     face_z = np.asarray(mesh.triangles_center)[:, 2]
     on_bed = face_z <= vertices[:, 2].min() + 1e-6
     downward = (normals[:, 2] < -1e-9) & ~on_bed
     max_overhang = float(np.degrees(np.arcsin(np.clip(-normals[downward, 2], 0, 1))).max()) if downward.any() else 0.0
     if max_overhang > printer.max_overhang_deg:
-        problems.append(f"overhang {max_overhang:.1f} deg exceeds {printer.max_overhang_deg:.1f} deg")
+        problems.append(f"overhang {max_overhang:.1f} deg exceeds {printer.max_overhang_deg:.1f} deg "
+                        f"(printer.max_overhang_deg)")
     return PrintabilityReport(printable=not problems, problems=problems, extents_m=extents, min_wall_m=min_wall,
                               max_overhang_deg=max_overhang)
 
 
-MESH_FORMATS = (".stl", ".obj")
+MESH_FORMATS = (".stl", ".obj", ".3mf")
+
+#: Length units a mesh file can be written in, with metres per unit. Slicers (Cura, PrusaSlicer, Bambu Studio)
+#: read STL and OBJ as millimetres, so files are written in millimetres unless metres are asked for.
+MESH_UNITS = {"mm": 0.001, "m": 1.0}
+
+#: Start of the 80-byte binary STL header written by :func:`export_mesh`; the units follow it (``units=mm``).
+STL_HEADER_PREFIX = b"rollability_ros profile mesh; units="
 
 
 def _mesh_format(path):
     extension = os.path.splitext(os.fspath(path))[1].lower()
     if extension not in MESH_FORMATS:
-        raise ValueError(f"mesh file {path} must end in {' or '.join(MESH_FORMATS)}")
+        raise ValueError(f"mesh file {path} must end in {', '.join(MESH_FORMATS)}")
     return extension[1:]
 
 
-def export_mesh(mesh, path):
-    """Write ``mesh`` (metres) to ``path``: binary STL or OBJ by extension; written to a temp file then renamed."""
+def _check_units(units):
+    if units not in MESH_UNITS:
+        raise ValueError(f"mesh units must be one of {', '.join(MESH_UNITS)}, got {units!r}")
+    return units
+
+
+def stl_header(units):
+    """The 80-byte binary STL header naming ``units`` ('mm' or 'm'); it never starts with ``solid`` (ASCII STL)."""
+    text = STL_HEADER_PREFIX + _check_units(units).encode("ascii") + b"; frame: base on z=0, x length, y width"
+    return text[:80].ljust(80, b" ")
+
+
+def export_mesh(mesh, path, units="mm"):
+    """Write ``mesh`` (metres) to ``path`` in ``units`` ('mm', the slicers' convention, or 'm').
+
+    Format by extension: binary STL (units in its 80-byte header, see :func:`stl_header`), OBJ (units in a
+    ``# units:`` comment) or 3MF (trimesh writes the 3MF ``unit`` attribute, always millimetres, so a 3MF file is
+    millimetres whatever ``units`` says). Written to a temp file then renamed.
+    """
     file_type = _mesh_format(path)
+    units = "mm" if file_type == "3mf" else _check_units(units)
+    scaled = mesh.copy()
+    scaled.apply_scale(1.0 / MESH_UNITS[units])
+    if file_type == "stl":
+        payload = stl_header(units) + scaled.export(file_type="stl")[80:]
+    elif file_type == "obj":
+        payload = f"# units: {units}\n".encode("ascii") + scaled.export(file_type="obj").encode("utf-8")
+    else:
+        require("lxml", feature="3MF export")
+        payload = scaled.export(file_type="3mf")
     temporary = f"{os.fspath(path)}.tmp"
     with open(temporary, "wb") as stream:
-        mesh.export(stream, file_type=file_type)
+        stream.write(payload)
     os.replace(temporary, path)
 
 
-def load_profile_mesh(path, max_size_m=1.0, base_tolerance_m=0.001):
-    """Load a profile solid from STL/OBJ (metres, profile frame: base on z = 0).
+def mesh_file_units(path):
+    """The units a mesh file declares: 'mm' or 'm' from our STL header or OBJ comment, 'mm' for 3MF, else None."""
+    file_type = _mesh_format(path)
+    if file_type == "3mf":
+        return "mm"
+    with open(path, "rb") as stream:
+        head = stream.read(80)
+    if file_type == "stl" and head.startswith(STL_HEADER_PREFIX):
+        declared = head[len(STL_HEADER_PREFIX):].split(b";")[0].strip().decode("ascii", "replace")
+        return declared if declared in MESH_UNITS else None
+    if file_type == "obj" and head.startswith(b"# units:"):
+        declared = head[len(b"# units:"):].split(b"\n")[0].strip().decode("ascii", "replace")
+        return declared if declared in MESH_UNITS else None
+    return None
 
-    Raises ``FileNotFoundError`` for a missing file and ``ValueError`` for an unreadable, non-watertight or
-    empty mesh, one larger than ``max_size_m`` (probably millimetres), or one whose base is not on z = 0
-    within ``base_tolerance_m``. The simulation collides with the mesh's convex hull.
+
+def load_profile_mesh(path, max_size_m=1.0, base_tolerance_m=0.001, units=None):
+    """Load a profile solid from STL/OBJ/3MF into metres, profile frame (base on z = 0).
+
+    ``units`` ('mm' or 'm') is the file's length unit; None takes the one the file declares (our STL header,
+    OBJ comment, 3MF) and metres for a file that declares none. Raises ``FileNotFoundError`` for a missing file
+    and ``ValueError`` for an unreadable, non-watertight or empty mesh, one larger than ``max_size_m`` (the
+    message suggests the units), or one whose base is not on z = 0 within ``base_tolerance_m``. The simulation
+    collides with the mesh's convex hull.
     """
     trimesh = require("trimesh", feature="profile meshes")
     file_type = _mesh_format(path)
     if not os.path.isfile(path):
         raise FileNotFoundError(f"mesh file not found: {path}")
+    declared = mesh_file_units(path)
+    if units is not None:
+        _check_units(units)
+    chosen_units = units or declared or "m"
+    if file_type == "3mf":
+        require("lxml", feature="3MF import")
     try:
         mesh = trimesh.load(path, file_type=file_type, force="mesh", process=True)
     except Exception as exc:  # trimesh raises assorted parser errors
         raise ValueError(f"cannot read mesh {path}: {exc}") from exc
     if len(mesh.faces) == 0 or not np.all(np.isfinite(mesh.vertices)):
         raise ValueError(f"mesh {path} has no faces or non-finite vertices")
+    mesh.apply_scale(MESH_UNITS[chosen_units])
     if not mesh.is_watertight:
         raise ValueError(f"mesh {path} is not watertight (a closed solid is needed)")
     if mesh.volume <= 0:
         raise ValueError(f"mesh {path} encloses no volume (inverted or flat faces)")
     size = float(np.max(mesh.extents))
     if size > max_size_m:
-        raise ValueError(f"mesh {path} is {size:.3g} m across (> {max_size_m} m): units must be metres")
+        hint = " (the file declares no units; pass units='mm' / --stl-units mm if it is in millimetres)" \
+            if declared is None and units is None else ""
+        raise ValueError(f"mesh {path} is {size:.3g} m across read as {chosen_units} (> {max_size_m} m): "
+                         f"units must be metres or millimetres as declared{hint}")
     if abs(mesh.bounds[0][2]) > base_tolerance_m:
         raise ValueError(f"mesh {path} base is at z = {mesh.bounds[0][2]:.4f} m; the profile frame puts it at 0")
     return mesh

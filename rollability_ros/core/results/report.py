@@ -221,8 +221,10 @@ def _figures(out_dir, views, configurations, comparison, points):
              views.speed_angle, configurations, "speed_mps", "Success by launch speed and angle")
         draw("fig11_angle_curves.png", "Figure 11: success by angle per speed", figures.angle_curves,
              views.speed_angle, configurations)
-        draw("fig12_overall.png", "Figure 12: overall success by speed, height, angle and configuration",
-             figures.overall, views, configurations)
+        draw("fig12_overall.png", "Figure 12: overall success by speed, height, angle and configuration "
+             "(grouped conditions, the paper's measure)", figures.overall, views, configurations, "condition_rate")
+        draw("fig12b_overall_trials.png", "Figure 12 by trials: the same views as the fraction of upright trials, "
+             "with Wilson 95% intervals", figures.overall, views, configurations, "trial_rate")
     if comparison is not None and comparison.rows:
         draw("sim_vs_experiment.png", "Simulated fitness vs experimental success", figures.sim_vs_experiment,
              comparison)
@@ -285,8 +287,10 @@ def build_report(data, out_dir, measure="condition_rate"):
     figures = _figures(out_dir, views, configurations, comparison, points)
     summary = summary_text(data, views, comparison, points)
     html_path = os.path.join(out_dir, "report.html")
+    artefacts = find_artefacts(data.source.split(" ", 1)[-1]) + [(path, "table (CSV)") for path in table_paths]
+    trace = _pose_windows(data.outcomes, [p for p, kind in artefacts if kind == "bag"])
     with open(html_path, "w", encoding="utf-8") as stream:
-        stream.write(_html(data, summary, figures, tables))
+        stream.write(_html(data, summary, figures, tables, artefacts, trace, out_dir))
     return ReportResult(html_path, [path for path, _ in figures], table_paths, summary)
 
 
@@ -300,20 +304,128 @@ pre { background: #f7f7f7; padding: 0.8em; }
 """
 
 
-def _html(data, summary, figures, tables):
-    """The report as one HTML document: figures as base64 data URIs, tables inline, no external resources."""
+def find_artefacts(source):
+    """``[(path, kind)]`` of the files a report links: design meshes (STL, 3MF), their Table 3 and ``designs.yaml``
+    and recorded bags (folders with ``metadata.yaml``, or the source bag itself) in or next to ``source``."""
+    import glob
+
+    source = os.fspath(source)
+    base = os.path.abspath(source if os.path.isdir(source) else os.path.dirname(os.path.abspath(source)))
+    # a bag inside a study or session folder: its designs and other bags sit next to it
+    roots = [base, os.path.dirname(os.path.abspath(base))] if _is_bag(base) else [base]
+    found = []
+    designs = {d for root in roots for d in glob.glob(os.path.join(root, "designs")) +
+               glob.glob(os.path.join(root, "*", "designs"))}
+    for folder in sorted(designs):
+        for pattern, kind in (("mesh_*.stl", "design mesh (STL, millimetres unless its header says m)"),
+                              ("mesh_*.3mf", "design mesh (3MF)"), ("table3.csv", "Table 3 (CSV)"),
+                              ("designs.yaml", "design heights (ROS 2 parameter file)")):
+            found += [(path, kind) for path in sorted(glob.glob(os.path.join(folder, pattern)))]
+    bags = {root for root in roots if _is_bag(root)}
+    bags |= {os.path.dirname(p) for root in roots for p in glob.glob(os.path.join(root, "*", "metadata.yaml"))}
+    found += [(path, "bag") for path in sorted(bags, key=os.path.abspath)]
+    return found
+
+
+def _is_bag(folder):
+    return os.path.isfile(os.path.join(folder, "metadata.yaml"))
+
+
+#: Topic suffix of the chassis pose the per-trial drill-down points into.
+POSE_TOPIC_SUFFIX = "rig/pose"
+
+
+def _pose_windows(outcomes, bags):
+    """``{trial_id: (bag, start offset s, poses)}``: for each launch, the rig poses recorded in a bag between the
+    previous outcome of its run and this one (the launch's pose trace), and where they start in the bag."""
+    if not bags or not outcomes:
+        return {}
+    from rollability_ros.core.bags.reader import BagReader, bag_info
+
+    windows = {}
+    for bag in bags:
+        try:
+            info = bag_info(bag)
+            topics = [t["name"] for t in info["topics"] if t["name"].endswith(POSE_TOPIC_SUFFIX)]
+            if not topics or info["start_time_ns"] is None:
+                continue
+            stamps = sorted(m.log_time_ns for m in BagReader(bag, topics=topics))
+        except (ValueError, OSError):
+            continue
+        previous = {}
+        for outcome in sorted(outcomes, key=lambda o: o.stamp_s):
+            end_ns = int(outcome.stamp_s * 1e9)
+            start_ns = previous.get(outcome.run_id, info["start_time_ns"])
+            inside = [t for t in stamps if start_ns <= t <= end_ns]
+            if inside and outcome.trial_id not in windows:
+                windows[outcome.trial_id] = (bag, (inside[0] - info["start_time_ns"]) / 1e9, len(inside))
+            previous[outcome.run_id] = end_ns
+    return windows
+
+
+def _anchor(text):
+    return "".join(c if c.isalnum() else "-" for c in text).strip("-").lower()
+
+
+def _trial_rows(data, trace, out_dir):
+    """The per-trial drill-down: one row per launch, with its pose trace in the bag when one was recorded."""
+    rows = []
+    for outcome in sorted(data.outcomes, key=lambda o: (o.run_id, o.stamp_s, o.trial_id)):
+        c = outcome.condition
+        cells = [html.escape(outcome.trial_id), html.escape(c.configuration), f"{c.height_m:g}", f"{c.speed_mps:g}",
+                 f"{c.angle_deg:g}", str(c.repetition), "upright" if outcome.upright else "not upright",
+                 html.escape(outcome.classified_by), html.escape(outcome.backend)]
+        if outcome.trial_id in trace:
+            bag, offset_s, poses = trace[outcome.trial_id]
+            link = html.escape(os.path.relpath(bag, out_dir))
+            cells.append(f"{poses} poses from {offset_s:.2f} s in <a href='{link}'>{html.escape(os.path.basename(bag))}"
+                         f"</a>: <code>rollability play {html.escape(bag)} --start-offset {offset_s:.2f}</code>")
+        else:
+            cells.append("no pose trace recorded")
+        rows.append(f"<tr id='trial-{_anchor(outcome.trial_id)}'>" + "".join(f"<td>{cell}</td>" for cell in cells)
+                    + "</tr>")
+    header = "".join(f"<th>{h}</th>" for h in ("trial", "configuration", "height m", "speed m/s", "angle deg",
+                                                "repetition", "outcome", "classified by", "backend",
+                                                "pose trace in the bag"))
+    return f"<table class='trials'><tr>{header}</tr>{''.join(rows)}</table>"
+
+
+def _html(data, summary, figures, tables, artefacts=(), trace=None, out_dir="."):
+    """The report as one HTML document: a table of contents, the summary, figures as base64 data URIs, links to
+    every artefact (relative to ``out_dir``), the tables inline and a per-trial drill-down; no external resources."""
+    sections = [("summary", "Summary")]
+    sections += [(f"figure-{_anchor(os.path.basename(path))}", caption) for path, caption in figures]
+    if artefacts:
+        sections.append(("artefacts", "Files: designs, bags, tables"))
+    sections += [(f"table-{_anchor(name)}", _TABLE_TITLES.get(name, name)) for name in tables]
+    if data.outcomes:
+        sections.append(("trials", "Every launch (per-trial drill-down)"))
+    toc = "".join(f"<li><a href='#{anchor}'>{html.escape(title)}</a></li>" for anchor, title in sections)
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>Rollability report</title>"
              f"<style>{_STYLE}</style></head><body><h1>Rollability report</h1>",
-             f"<pre>{html.escape(summary)}</pre>"]
+             f"<nav id='contents'><h2>Contents</h2><ol>{toc}</ol></nav>",
+             f"<h2 id='summary'>Summary</h2><pre>{html.escape(summary)}</pre>"]
     if figures:
         parts.append("<h2>Figures</h2>")
     for path, caption in figures:
         with open(path, "rb") as stream:
             encoded = base64.b64encode(stream.read()).decode("ascii")
-        parts.append(f"<figure><img alt='{html.escape(caption)}' src='data:image/png;base64,{encoded}'>"
-                     f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+        parts.append(f"<figure id='figure-{_anchor(os.path.basename(path))}'><img alt='{html.escape(caption)}' "
+                     f"src='data:image/png;base64,{encoded}'><figcaption>{html.escape(caption)} "
+                     f"(<a href='{html.escape(os.path.basename(path))}'>PNG</a>)</figcaption></figure>")
+    if artefacts:
+        items = "".join(f"<li><a href='{html.escape(os.path.relpath(path, out_dir))}'>"
+                        f"{html.escape(os.path.relpath(path, out_dir))}</a> ({html.escape(kind)})</li>"
+                        for path, kind in artefacts)
+        parts.append(f"<h2 id='artefacts'>Files: designs, bags, tables</h2><ul class='artefacts'>{items}</ul>")
     parts.append("<h2>Tables</h2>")
     for name, rows in tables.items():
-        parts.append(f"<h3>{html.escape(_TABLE_TITLES.get(name, name))}</h3>{_html_table(rows)}")
+        parts.append(f"<h3 id='table-{_anchor(name)}'>{html.escape(_TABLE_TITLES.get(name, name))}</h3>"
+                     f"{_html_table(rows)}")
+    if data.outcomes:
+        parts.append("<h2 id='trials'>Every launch (per-trial drill-down)</h2>"
+                     "<p>Each launch with its condition and outcome; where a bag was recorded, the chassis poses of "
+                     "that launch and the command that replays them from there.</p>" + _trial_rows(data, trace or {},
+                                                                                              out_dir))
     parts.append("</body></html>")
     return "\n".join(parts)

@@ -56,7 +56,7 @@ def heatmaps(path, cells, configurations, row_factor, title):
         for cell in own:
             i, j = rows.index(cell.key[row_factor]), columns.index(cell.key["angle_deg"])
             ax.text(j, i, f"{cell.condition_rate:.0%}\n{cell.successes}/{cell.trials}", ha="center", va="center",
-                    fontsize=8)
+                    fontsize=9, weight="bold", color=_text_colour(cell.condition_rate))
         ax.set_xticks(range(len(columns)), [_level_label("angle_deg", c) for c in columns])
         ax.set_yticks(range(len(rows)), [_level_label(row_factor, r) for r in rows])
         ax.set_xlabel(_FACTOR_LABELS["angle_deg"])
@@ -65,6 +65,11 @@ def heatmaps(path, cells, configurations, row_factor, title):
     figure.suptitle(f"{title}\ncolour and %: grouped conditions successful (majority); n/N: upright trials")
     figure.colorbar(image, ax=axes, shrink=0.8, label="success rate")
     return _save(figure, path)
+
+
+def _text_colour(rate):
+    """Black or white, whichever reads better on the RdYlGn colour of ``rate`` (dark red / dark green ends)."""
+    return "white" if rate < 0.2 or rate > 0.85 else "black"
 
 
 def angle_curves(path, speed_angle_cells, configurations):
@@ -96,8 +101,17 @@ def _trial_whiskers(ax, positions, cells, color):
                 capsize=3)
 
 
-def overall(path, views, configurations):
-    """Figure 12: grouped bars by speed, height and angle per configuration, and overall per configuration."""
+#: The two measures of Figure 12, each on its own axes: (cell attribute, axis label, with Wilson whiskers).
+OVERALL_MEASURES = {
+    "condition_rate": ("grouped conditions successful (majority)", False),
+    "trial_rate": ("upright trials (whiskers: Wilson 95%)", True),
+}
+
+
+def overall(path, views, configurations, measure="condition_rate"):
+    """Figure 12: grouped bars by speed, height and angle per configuration, and overall per configuration, of one
+    ``measure`` (:data:`OVERALL_MEASURES`): the paper's condition rate, or the trial rate with its interval."""
+    label, whiskers = OVERALL_MEASURES[measure]
     figure, axes = _panels(4, columns=2, size=(5.6, 3.6))
     panels = (("a", views.by_speed, "speed_mps"), ("b", views.by_height, "height_m"), ("c", views.by_angle,
                                                                                         "angle_deg"))
@@ -111,30 +125,32 @@ def overall(path, views, configurations):
                 if match:
                     positions.append(i - 0.4 + width * (k + 0.5))
                     bars.append(match[0])
-            ax.bar(positions, [c.condition_rate for c in bars], width, label=_level_label(factor, level))
-            _trial_whiskers(ax, positions, bars, "black")
-        _configuration_axis(ax, configurations)
+            ax.bar(positions, [getattr(c, measure) for c in bars], width, label=_level_label(factor, level))
+            if whiskers:
+                _trial_whiskers(ax, positions, bars, "black")
+        _configuration_axis(ax, configurations, label)
         ax.set_title(f"({letter}) by {_FACTOR_LABELS[factor]}")
         ax.set_ylim(0.0, 1.3)  # room for the legend above the bars
         ax.legend(fontsize=7, title=_FACTOR_LABELS[factor], title_fontsize=7, ncol=min(5, len(levels)),
                   loc="upper center")
     ax = axes[3]
     cells = [cells_of(views.by_configuration, configuration=c)[0] for c in configurations]
-    ax.bar(range(len(cells)), [c.condition_rate for c in cells], 0.6, color="tab:gray")
-    _trial_whiskers(ax, list(range(len(cells))), cells, "black")
+    ax.bar(range(len(cells)), [getattr(c, measure) for c in cells], 0.6, color="tab:gray")
+    if whiskers:
+        _trial_whiskers(ax, list(range(len(cells))), cells, "black")
     for i, cell in enumerate(cells):
-        ax.text(i, 0.03, f"{cell.condition_rate:.0%}", ha="center", fontsize=9, color="white", weight="bold")
-    _configuration_axis(ax, configurations)
+        ax.text(i, 0.03, f"{getattr(cell, measure):.0%}", ha="center", fontsize=9, color="white", weight="bold")
+    _configuration_axis(ax, configurations, label)
     ax.set_title("(d) overall")
-    figure.suptitle("Overall success (bars: grouped conditions, majority; whiskers: trials, Wilson 95%)")
+    figure.suptitle(f"Overall success: {label}")
     return _save(figure, path)
 
 
-def _configuration_axis(ax, configurations):
+def _configuration_axis(ax, configurations, label="success rate"):
     ax.set_xticks(range(len(configurations)), configurations)
     ax.set_ylim(0.0, 1.05)
     ax.set_yticks([0.0, 0.2, 0.4, 0.6, 0.8, 1.0])
-    ax.set_ylabel("success rate")
+    ax.set_ylabel(label, fontsize=8)
     ax.grid(axis="y", alpha=0.3)
 
 
@@ -174,4 +190,43 @@ def sim_vs_experiment(path, comparison):
     ax.set_ylabel(f"experimental success ({comparison.measure.replace('_', ' ')})")
     ax.set_title(rank_agreement_text(comparison.spearman_rho, comparison.kendall_tau_b))
     ax.grid(alpha=0.3)
+    return _save(figure, path)
+
+
+def render_profile_preview(mesh, path, title=None):
+    """Render a profile solid (a trimesh in metres, profile frame) to a shaded 3D PNG at ``path``; returns ``path``.
+
+    Axes are in millimetres, equal scale, seen from the front-left above; ``mesh`` None (the baseline) draws the
+    empty footprint note instead. Shared by every report section that shows a design.
+    """
+    plt = _pyplot()
+    art3d = require("mpl_toolkits.mplot3d.art3d", feature="the report figures")
+    import numpy as np
+
+    figure = plt.figure(figsize=(3.6, 3.0), layout="constrained")
+    ax = figure.add_subplot(projection="3d")
+    if mesh is None:
+        ax.text2D(0.5, 0.5, "baseline: no profile", ha="center", va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+    else:
+        vertices_mm = np.asarray(mesh.vertices, dtype=np.float64) * 1000.0
+        triangles = vertices_mm[np.asarray(mesh.faces)]
+        normals = np.asarray(mesh.face_normals, dtype=np.float64)
+        light = np.array([-0.4, -0.5, 0.77])
+        shade = 0.35 + 0.65 * np.clip(normals @ (light / np.linalg.norm(light)), 0.0, 1.0)
+        colors = np.column_stack([0.20 * shade, 0.45 * shade, 0.85 * shade, np.ones_like(shade)])
+        ax.add_collection3d(art3d.Poly3DCollection(triangles, facecolors=colors, edgecolors=(0, 0, 0, 0.15),
+                                                   linewidths=0.2))
+        low, high = vertices_mm.min(axis=0), vertices_mm.max(axis=0)
+        ax.set_xlim(low[0], high[0])
+        ax.set_ylim(low[1], high[1])
+        ax.set_zlim(0.0, max(high[2], 1e-3))
+        ax.set_box_aspect(np.maximum(high - np.array([low[0], low[1], 0.0]), 1e-3))
+        ax.view_init(elev=28, azim=-60)
+        ax.set_xlabel("x (mm)", fontsize=7, labelpad=-2)
+        ax.set_ylabel("y (mm)", fontsize=7, labelpad=-2)
+        ax.set_zlabel("z (mm)", fontsize=7, labelpad=-4)
+        ax.tick_params(labelsize=6, pad=-1)
+    if title:
+        ax.set_title(title, fontsize=9)
     return _save(figure, path)

@@ -57,15 +57,30 @@ ASK_REGULATOR = "set the regulator"
 class RigSettings:
     """``rig.*``: the rig node's own settings (the valve, speed gate and IMU have their own namespaces)."""
 
-    backend: str = "sim"
-    configurations: typing.List[str] = dataclasses.field(default_factory=lambda: ["baseline", "A", "B", "C"])
-    outcome_source: str = "operator"
-    countdown_s: float = 1.0
-    operator_timeout_s: float = 600.0
-    imu_override_s: float = 2.0
-    valve_timeout_s: float = 5.0
-    seed: int = 0
-    twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"])
+    backend: str = dataclasses.field(default="sim", metadata={
+        "description": "launch backend: sim (the launch twin in PyBullet) or physical (valve, speed gate, operator / "
+                       "IMU)"})
+    configurations: typing.List[str] = dataclasses.field(default_factory=lambda: ["baseline", "A", "B", "C"], metadata={
+        "description": "configuration ids the rig accepts in a Launch goal (profile meshes mounted by the operator)"})
+    outcome_source: str = dataclasses.field(default="operator", metadata={
+        "description": "who classifies a physical launch: operator (record_outcome service) or imu (settled chassis "
+                       "IMU)"})
+    countdown_s: float = dataclasses.field(default=1.0, metadata={
+        "description": "countdown between arming and firing so people stand clear, s", "range": (0.0, 600.0)})
+    operator_timeout_s: float = dataclasses.field(default=600.0, metadata={
+        "description": "longest wait for an operator answer (regulator confirmation, outcome) before the launch aborts,"
+                       " s", "range": (0.0, 86400.0)})
+    imu_override_s: float = dataclasses.field(default=2.0, metadata={
+        "description": "window in which the operator may override the IMU's outcome, s", "range": (0.0, 3600.0)})
+    valve_timeout_s: float = dataclasses.field(default=5.0, metadata={
+        "description": "longest wait for the valve_controller's arm / fire / disarm services, s",
+        "range": (0.0, 600.0)})
+    seed: int = dataclasses.field(default=0, metadata={
+        "description": "seed of the simulated rig's launch twin and speed noise (integer >= 0)",
+        "range": (0, 2147483647)})
+    twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"], metadata={
+        "description": "parameter files (shipped names or paths) that configure the sim backend's launch twin, later "
+                       "files win"})
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""

@@ -242,19 +242,26 @@ class OperatorSpeedGate:
 class SimulatedGateConfig:
     """``speed_gate.simulated.*``."""
 
-    speed_noise_fraction: float = 0.03
-    seed: int = 0
+    speed_noise_fraction: float = dataclasses.field(default=0.03, metadata={
+        "description": "standard deviation of the simulated speed as a fraction of the target", "range": (0.0, 10.0)})
+    seed: int = dataclasses.field(default=0, metadata={
+        "description": "seed of the simulated gate's speed noise (integer >= 0)", "range": (0, 2147483647)})
 
 
 @dataclasses.dataclass
 class GpioGateConfig:
     """``speed_gate.gpio.*``."""
 
-    chip: str = "/dev/gpiochip0"
-    start_line_offset: int = 22
-    end_line_offset: int = 23
-    edge: str = "falling"
-    debounce_ms: float = 1.0
+    chip: str = dataclasses.field(default="/dev/gpiochip0", metadata={
+        "description": "GPIO chip device of the light gates (e.g. /dev/gpiochip0)"})
+    start_line_offset: int = dataclasses.field(default=22, metadata={
+        "description": "GPIO line of the light gate at the start of the launch run", "range": (0, 1023)})
+    end_line_offset: int = dataclasses.field(default=23, metadata={
+        "description": "GPIO line of the light gate at the ledge edge", "range": (0, 1023)})
+    edge: str = dataclasses.field(default="falling", metadata={
+        "description": "the edge a broken light beam produces on the gate lines: falling or rising"})
+    debounce_ms: float = dataclasses.field(default=1.0, metadata={
+        "description": "kernel debounce of both gate lines, ms (0 = off)", "range": (0.0, 1000.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -265,10 +272,17 @@ class GpioGateConfig:
 class SpeedGateConfig:
     """``speed_gate.*`` of ``config/rig.yaml``."""
 
-    backend: str = "simulated"
-    run_length_m: float = 0.34
-    tolerance_fraction: float = 0.15
-    timeout_s: float = 3.0
+    backend: str = dataclasses.field(default="simulated", metadata={
+        "description": "launch speed source: simulated (target speed plus noise), gpio (light-gate pair) or operator "
+                       "(typed in)"})
+    run_length_m: float = dataclasses.field(default=0.34, metadata={
+        "description": "distance between the two light gates, m; speed = distance / travel time",
+        "range": (0.0, 100.0)})
+    tolerance_fraction: float = dataclasses.field(default=0.15, metadata={
+        "description": "a launch further than this fraction off its target speed is flagged", "range": (0.0, 10.0)})
+    timeout_s: float = dataclasses.field(default=3.0, metadata={
+        "description": "longest wait for both gate edges after firing, s; then the speed is not measured",
+        "range": (0.0, 600.0)})
     simulated: SimulatedGateConfig = dataclasses.field(default_factory=SimulatedGateConfig)
     gpio: GpioGateConfig = dataclasses.field(default_factory=GpioGateConfig)
 

@@ -345,11 +345,18 @@ class ValveController:
 class GpioValveConfig:
     """``valve.gpio.*``: the GPIO line driving the valve's solenoid driver."""
 
-    chip: str = "/dev/gpiochip0"
-    line_offset: int = 17
-    active_high: bool = True
-    hardware_pulse_limiter: bool = False
-    line_holder: bool = True
+    chip: str = dataclasses.field(default="/dev/gpiochip0", metadata={
+        "description": "GPIO chip device driving the solenoid (e.g. /dev/gpiochip0)"})
+    line_offset: int = dataclasses.field(default=17, metadata={
+        "description": "line offset on that chip that drives the solenoid driver", "range": (0, 1023)})
+    active_high: bool = dataclasses.field(default=True, metadata={
+        "description": "true: a high level on the line opens the valve; false: an active-low driver"})
+    hardware_pulse_limiter: bool = dataclasses.field(default=False, metadata={
+        "description": "true declares the hardware pulse limiter of docs/firmware.md (monostable or watchdog relay) "
+                       "is wired; without it the gpio backend refuses to fire, since a dead process cannot close "
+                       "the line"})
+    line_holder: bool = dataclasses.field(default=True, metadata={
+        "description": "true: a small child process owns the GPIO line and drops it when the valve node dies"})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -363,11 +370,19 @@ class GpioValveConfig:
 class SerialRelayConfig:
     """``valve.serial.*``: the valve relay board (``firmware/``) on a serial port."""
 
-    port: str = "/dev/ttyACM0"
-    baud: int = 115200
-    timeout_s: float = 0.2
-    keepalive_period_ms: int = 50
-    boot_wait_s: float = 3.0
+    port: str = dataclasses.field(default="/dev/ttyACM0", metadata={
+        "description": "serial device of the relay board running firmware/arduino/valve_relay (e.g. /dev/ttyACM0)"})
+    baud: int = dataclasses.field(default=115200, metadata={
+        "description": "serial baud rate of the relay board, bit/s (the firmware uses 115200)", "range": (1, 10000000)})
+    timeout_s: float = dataclasses.field(default=0.2, metadata={
+        "description": "longest wait for the board's answer, s; a missing or late one faults and closes",
+        "range": (0.0, 60.0)})
+    keepalive_period_ms: int = dataclasses.field(default=50, metadata={
+        "description": "how often this side sends KA while armed, ms; the board drops the relay after its own "
+                       "keep-alive timeout (250 ms) without one", "range": (1, 10000)})
+    boot_wait_s: float = dataclasses.field(default=3.0, metadata={
+        "description": "how long HELLO is repeated while the board boots after its port opens (an Uno resets), s",
+        "range": (0.0, 60.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -387,8 +402,10 @@ class SerialRelayConfig:
 class RegulatorConfig:
     """``valve.regulator.*``: the supply pressure that gives each target launch speed (paper 2.2)."""
 
-    speeds_mps: list[float] = dataclasses.field(default_factory=lambda: [0.8, 1.5])
-    pressures_psi: list[float] = dataclasses.field(default_factory=lambda: [30.0, 60.0])
+    speeds_mps: list[float] = dataclasses.field(default_factory=lambda: [0.8, 1.5], metadata={
+        "description": "target launch speeds that have a regulator pressure, m/s"})
+    pressures_psi: list[float] = dataclasses.field(default_factory=lambda: [30.0, 60.0], metadata={
+        "description": "regulator supply pressure for each target speed in valve.regulator.speeds_mps, psi"})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -426,13 +443,25 @@ class RegulatorCheck:
 class ValveConfig:
     """``valve.*`` of ``config/rig.yaml`` (build with ``config.from_mapping(ValveConfig, section(p, "valve"), ...)``)."""
 
-    backend: str = "dry_run"
-    max_pulse_ms: int = 500
-    launch_pulse_ms: int = 150
-    watchdog_ms: int = 500
-    watchdog_check_ms: int = 20
-    heartbeat_period_ms: int = 100
-    session_key_file: str = ""
+    backend: str = dataclasses.field(default="dry_run", metadata={
+        "description": "valve driver: dry_run (logs only), gpio (a libgpiod line) or serial_relay (a relay board)"})
+    max_pulse_ms: int = dataclasses.field(default=500, metadata={
+        "description": "longest valve opening ever fired, ms; longer fire requests are refused", "range": (1, 600000)})
+    launch_pulse_ms: int = dataclasses.field(default=150, metadata={
+        "description": "valve opening the rig commands for one launch, ms (at most max_pulse_ms)",
+        "range": (1, 600000)})
+    watchdog_ms: int = dataclasses.field(default=500, metadata={
+        "description": "an armed valve closes and faults when the rig's keep-alive is silent this long, ms",
+        "range": (1, 600000)})
+    watchdog_check_ms: int = dataclasses.field(default=20, metadata={
+        "description": "how often the watchdog looks at the heartbeat (steady clock), ms (at most half the watchdog)",
+        "range": (1, 600000)})
+    heartbeat_period_ms: int = dataclasses.field(default=100, metadata={
+        "description": "how often the rig sends its keep-alive to the valve, ms (at most half the watchdog)",
+        "range": (1, 600000)})
+    session_key_file: str = dataclasses.field(default="", metadata={
+        "description": "file of the per-session arming key the valve node writes (mode 0600) and the rig reads; "
+                       "empty: a per-user runtime file named by ROS domain and namespace"})
     gpio: GpioValveConfig = dataclasses.field(default_factory=GpioValveConfig)
     serial: SerialRelayConfig = dataclasses.field(default_factory=SerialRelayConfig)
     regulator: RegulatorConfig = dataclasses.field(default_factory=RegulatorConfig)

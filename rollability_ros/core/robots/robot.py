@@ -108,22 +108,42 @@ class ChassisSpec:
     printed walls plus infill).
     """
 
-    body_length_m: float = 0.18
-    body_width_m: float = 0.14
-    body_height_m: float = 0.04
-    body_mass_kg: float = 0.9
-    com_offset_z_m: float = -0.015
-    wheel_radius_m: float = 0.03
-    wheel_width_m: float = 0.025
-    wheel_mass_kg: float = 0.05
-    wheelbase_m: float = 0.12
-    track_m: float = 0.17
-    axle_offset_z_m: float = -0.015
-    wheel_drag_torque_nm: float = 0.02
-    profile_density_kgpm3: float = 150.0
-    upright_tilt_deg: float = 30.0
-    min_wheels_in_contact: int = 3
-    contact_tolerance_m: float = 0.003
+    body_length_m: float = dataclasses.field(default=0.18, metadata={
+        "description": "chassis body box length along x (forward), m", "range": (0.0, 10.0)})
+    body_width_m: float = dataclasses.field(default=0.14, metadata={
+        "description": "chassis body box width along y (left), m", "range": (0.0, 10.0)})
+    body_height_m: float = dataclasses.field(default=0.04, metadata={
+        "description": "chassis body box height (z), m; the profile sits on its top face", "range": (0.0, 10.0)})
+    body_mass_kg: float = dataclasses.field(default=0.9, metadata={
+        "description": "chassis body mass with battery and motors, kg", "range": (0.0, 10000.0)})
+    com_offset_z_m: float = dataclasses.field(default=-0.015, metadata={
+        "description": "centre of mass height relative to the body centre, m (negative = below)",
+        "range": (-1.0, 1.0)})
+    wheel_radius_m: float = dataclasses.field(default=0.03, metadata={
+        "description": "radius of each wheel at the tyre surface, m", "range": (0.0, 10.0)})
+    wheel_width_m: float = dataclasses.field(default=0.025, metadata={
+        "description": "wheel width (tyre tread), m", "range": (0.0, 10.0)})
+    wheel_mass_kg: float = dataclasses.field(default=0.05, metadata={
+        "description": "mass of one wheel, kg", "range": (0.0, 1000.0)})
+    wheelbase_m: float = dataclasses.field(default=0.12, metadata={
+        "description": "distance between the front and rear axles, m", "range": (0.0, 10.0)})
+    track_m: float = dataclasses.field(default=0.17, metadata={
+        "description": "distance between the left and right wheel centres, m", "range": (0.0, 10.0)})
+    axle_offset_z_m: float = dataclasses.field(default=-0.015, metadata={
+        "description": "height of the wheel axles relative to the body centre, m (negative = below)",
+        "range": (-1.0, 1.0)})
+    wheel_drag_torque_nm: float = dataclasses.field(default=0.02, metadata={
+        "description": "back-drive drag torque of each unpowered wheel drive, N m", "range": (0.0, 1000.0)})
+    profile_density_kgpm3: float = dataclasses.field(default=150.0, metadata={
+        "description": "density of the printed profile solid (its mass and inertia), kg/m^3",
+        "range": (0.0, 100000.0)})
+    upright_tilt_deg: float = dataclasses.field(default=30.0, metadata={
+        "description": "upright when the body +z axis is within this angle of world up at rest, deg",
+        "range": (0.0, 180.0)})
+    min_wheels_in_contact: int = dataclasses.field(default=3, metadata={
+        "description": "wheels that must touch the ground for an upright verdict (count)", "range": (0, 4)})
+    contact_tolerance_m: float = dataclasses.field(default=0.003, metadata={
+        "description": "a wheel this close to the ground counts as touching it, m", "range": (0.0, 1.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

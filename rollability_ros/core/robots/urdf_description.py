@@ -1,7 +1,8 @@
 """A robot description (URDF) read, checked and turned into the rigid-body model the simulation loads.
 
 Reading
-    :func:`read_urdf_source` takes a file path or an XML string; :func:`resolve_mesh_path` finds mesh files
+    :func:`read_urdf_source` takes a file path or an XML string, URDF or xacro (expanded with the ``xacro``
+    package, :func:`expand_xacro`; an expression left unexpanded is refused naming the element); :func:`resolve_mesh_path` finds mesh files
     named ``package://<pkg>/<rest>``, ``file://<path>``, absolute or relative, against a search path (the
     URDF's own folder first, then the configured folders, then ``<prefix>/share`` of every ``AMENT_PREFIX_PATH``
     prefix for ``package://``). A search-path entry ``python:<module>`` is the folder of an installed Python
@@ -51,13 +52,15 @@ class _BadTransform:
 def read_urdf_source(urdf_path, robot_description, search_paths=()):
     """Return ``(xml_text, folder)`` of the description: the string if given, else the file (its folder).
 
-    A relative ``urdf_path`` is tried from the working directory, then in each search folder. Raises
-    ``ValueError`` naming the problem (both or neither given, file not found or unreadable).
+    A relative ``urdf_path`` is tried from the working directory, then in each search folder. A xacro file
+    (``.xacro`` or a root with the xacro namespace) or xacro text is expanded with the ``xacro`` package first.
+    Raises ``ValueError`` naming the problem (both or neither given, file not found or unreadable, a xacro that
+    does not expand).
     """
     if robot_description and urdf_path:
         raise ValueError("give either urdf_path or robot_description, not both")
     if robot_description:
-        return robot_description, None
+        return expand_xacro(robot_description, None), None
     if not urdf_path:
         raise ValueError("no robot description: set urdf_path or robot_description")
     path = os.path.expanduser(os.path.expandvars(urdf_path))
@@ -66,10 +69,43 @@ def read_urdf_source(urdf_path, robot_description, search_paths=()):
         if os.path.isfile(candidate):
             try:
                 with open(candidate, encoding="utf-8") as stream:
-                    return stream.read(), os.path.dirname(os.path.abspath(candidate))
+                    text = stream.read()
             except (OSError, UnicodeDecodeError) as exc:
                 raise ValueError(f"cannot read URDF file {candidate}: {exc}") from exc
+            return expand_xacro(text, candidate), os.path.dirname(os.path.abspath(candidate))
     raise ValueError(f"URDF file not found: {urdf_path} (looked in {', '.join(candidates)})")
+
+
+#: The xacro XML namespace; a description using it needs expanding.
+XACRO_NAMESPACE = "http://www.ros.org/wiki/xacro"
+
+
+def is_xacro(text, path=None):
+    """True for xacro input: a ``.xacro`` file name, or text that declares the xacro namespace."""
+    return bool(path and path.endswith(".xacro")) or XACRO_NAMESPACE in text[:4096] or "<xacro:" in text
+
+
+def expand_xacro(text, path=None):
+    """Expand xacro ``text`` (read from ``path``, for relative includes) with the ``xacro`` package; plain URDF
+    is returned unchanged. ``ValueError`` names the file and xacro's own message (an undefined property or
+    macro, a missing include, ``$(find pkg)`` for a package that is not installed)."""
+    if not is_xacro(text, path):
+        return text
+    from rollability_ros.core.optional import require
+
+    xacro = require("xacro", feature="xacro robot descriptions")
+    where = path or "robot_description"
+    previous = os.getcwd()
+    try:
+        if path:
+            os.chdir(os.path.dirname(os.path.abspath(path)))  # xacro resolves relative includes from here
+        document = xacro.parse(text, os.path.abspath(path) if path else None)
+        xacro.process_doc(document)
+        return document.toxml()
+    except Exception as exc:  # xacro raises XacroException, NameError, KeyError, ... with a readable message
+        raise ValueError(f"cannot expand xacro {where}: {exc}") from exc
+    finally:
+        os.chdir(previous)
 
 
 def search_folders(search_paths):
@@ -218,6 +254,14 @@ def _parse(xml_text):
         raise ValueError(f"robot description is not valid XML: {exc}") from exc
     if root.tag != "robot":
         raise ValueError(f"robot description must have a <robot> root element, got <{root.tag}>")
+    # names and link references must be final; a number left as an expression is caught where it is read (an
+    # unused frame's origin may stay unexpanded, as in the Husky URDF of pybullet_data)
+    for element in root.iter():
+        for attribute, value in element.attrib.items():
+            if attribute in ("name", "link") and ("${" in value or "$(" in value):
+                raise ValueError(f"<{element.tag} {attribute}={value!r}> holds an unexpanded xacro expression: "
+                                 f"give the .xacro file itself (it is expanded with the xacro package) or "
+                                 f"expand it first with `xacro robot.urdf.xacro > robot.urdf`")
     links = {}
     for link in root.findall("link"):
         name = link.get("name")

@@ -7,7 +7,9 @@ and the launch twin's settings; :func:`footprint_grid` gives the grid, :func:`pr
 
 Frames
     Root frame = the URDF's root link (REP 103: x forward, y left, z up when the robot stands on its wheels);
-    the trial start state rolls the robot about its x axis. Profile frame = the footprint frame: origin
+    ``forward_axis`` names the root axis that points forward when it is not x; the robot is turned about its z
+    so that axis faces world +x, and the trial start state rolls the robot about it. Profile frame = the
+    footprint frame: origin
     ``footprint_offset_m`` in the mount link's frame, turned by ``footprint_yaw_deg`` about that link's z; its
     x runs along ``footprint_length_m``, y along ``footprint_width_m``, z away from the robot (the profile grid's
     frame, :mod:`rollability_ros.core.profile.geometry`).
@@ -38,6 +40,10 @@ from rollability_ros.core.robots.robot import ChassisModel, RobotModel, SpawnedR
 from rollability_ros.core.robots.urdf_description import (PROFILE_LINK, describe, inertial_xml, origin_xml, read_urdf_source,
                                                    transform)
 
+#: ``forward_axis`` -> direction of that axis in the root link's x-y plane, deg from +x (REP 103 says x).
+FORWARD_AXIS_DEG = {"x": 0.0, "y": 90.0, "-x": 180.0, "-y": -90.0}
+#: Largest gap (m) allowed between the footprint plane and the top of the mount's collision shapes.
+SURFACE_TOLERANCE_M = 0.002
 #: Slack when checking that the footprint lies within the mount body's collision extent (m).
 FOOTPRINT_TOLERANCE_M = 0.001
 #: Directions across a wheel's axle searched for its smallest width: a coarse sweep over 180 deg, then a fine
@@ -59,22 +65,50 @@ class UrdfRobotSpec:
     times ``profile_density_kgpm3``.
     """
 
-    urdf_path: str = ""
-    robot_description: str = ""
-    search_paths: tuple[str, ...] = ()
-    mount_link: str = ""
-    footprint_length_m: float = 0.18
-    footprint_width_m: float = 0.14
-    footprint_offset_m: tuple[float, ...] = (0.0, 0.0, 0.0)
-    footprint_yaw_deg: float = 0.0
-    wheel_links: tuple[str, ...] = ()
-    wheel_link_regex: str = ""
-    min_wheels_in_contact: int = 0
-    up_axis_xyz: tuple[float, ...] = (0.0, 0.0, 1.0)
-    upright_tilt_deg: float = 30.0
-    contact_tolerance_m: float = 0.005
-    joint_drag_torque_nm: float = 0.0
-    profile_density_kgpm3: float = 150.0
+    urdf_path: str = dataclasses.field(default="", metadata={
+        "description": "URDF file of the robot; a relative path is looked up in the working directory, then each search"
+                       " path"})
+    robot_description: str = dataclasses.field(default="", metadata={
+        "description": "URDF XML text of the robot (instead of urdf_path), e.g. a robot_state_publisher's "
+                       "robot_description"})
+    search_paths: tuple[str, ...] = dataclasses.field(default=(), metadata={
+        "description": "folders searched for the URDF, package:// and relative meshes; python:<module> = that installed"
+                       " package's folder"})
+    mount_link: str = dataclasses.field(default="", metadata={
+        "description": "URDF link the profile is fixed to; naming it selects the URDF robot instead of the built-in "
+                       "chassis"})
+    footprint_length_m: float = dataclasses.field(default=0.18, metadata={
+        "description": "length of the mount footprint the profile grid spans, along the footprint x, m",
+        "range": (0.0, 100.0)})
+    footprint_width_m: float = dataclasses.field(default=0.14, metadata={
+        "description": "width of the mount footprint the profile grid spans, along the footprint y, m",
+        "range": (0.0, 100.0)})
+    footprint_offset_m: tuple[float, ...] = dataclasses.field(default=(0.0, 0.0, 0.0), metadata={
+        "description": "footprint centre in the mount link's frame (x, y, z), m"})
+    footprint_yaw_deg: float = dataclasses.field(default=0.0, metadata={
+        "description": "footprint x axis relative to the mount link's x axis, deg", "range": (-360.0, 360.0)})
+    wheel_links: tuple[str, ...] = dataclasses.field(default=(), metadata={
+        "description": "names of the wheel links that must touch the ground when upright"})
+    wheel_link_regex: str = dataclasses.field(default="", metadata={
+        "description": "regular expression (full match) naming the wheel links, instead of wheel_links"})
+    min_wheels_in_contact: int = dataclasses.field(default=0, metadata={
+        "description": "wheel links that must touch the ground for an upright verdict (count; 0 = wheels not judged)",
+        "range": (0, 1000)})
+    forward_axis: str = dataclasses.field(default="x", metadata={
+        "description": "axis of the root link that points forward, the direction the robot drives: x (REP 103), y, "
+                       "-x or -y; trials and launches turn the robot so it faces world +x"})
+    up_axis_xyz: tuple[float, ...] = dataclasses.field(default=(0.0, 0.0, 1.0), metadata={
+        "description": "unit vector in the root link's frame that points up when the robot is upright (no unit)"})
+    upright_tilt_deg: float = dataclasses.field(default=30.0, metadata={
+        "description": "upright when the up axis is within this angle of world up at rest, deg (180 = not judged)",
+        "range": (0.0, 180.0)})
+    contact_tolerance_m: float = dataclasses.field(default=0.005, metadata={
+        "description": "a wheel link this close to the ground counts as touching it, m", "range": (0.0, 10.0)})
+    joint_drag_torque_nm: float = dataclasses.field(default=0.0, metadata={
+        "description": "back-drive drag torque of each unpowered joint (wheel drives), N m",
+        "range": (0.0, 1000000.0)})
+    profile_density_kgpm3: float = dataclasses.field(default=150.0, metadata={
+        "description": "density of the profile solid on this robot, kg/m^3", "range": (0.0, 100000.0)})
 
     @property
     def selected(self):
@@ -100,6 +134,9 @@ class UrdfRobotSpec:
             raise ValueError(f"upright_tilt_deg must be in (0, 180] (180 = tilt not judged), got {self.upright_tilt_deg}")
         if self.min_wheels_in_contact < 0:
             raise ValueError(f"min_wheels_in_contact must be >= 0, got {self.min_wheels_in_contact}")
+        if self.forward_axis not in FORWARD_AXIS_DEG:
+            raise ValueError(f"forward_axis must be one of {', '.join(FORWARD_AXIS_DEG)} (an axis of the root link), "
+                             f"got {self.forward_axis!r}")
         if self.joint_drag_torque_nm < 0:
             raise ValueError(f"joint_drag_torque_nm must be >= 0, got {self.joint_drag_torque_nm}")
         if self.selected and self.upright_tilt_deg >= 180 and self.min_wheels_in_contact == 0:
@@ -167,13 +204,7 @@ def _mount(spec):
         raise ValueError(f"mount link {spec.mount_link!r}: its rigid body {body!r} has no collision shape to carry "
                          "a profile")
     in_mount = (points - mount_in_body[:3, 3]) @ mount_in_body[:3, :3]  # body frame -> mount link frame
-    low, high = in_mount[:, :2].min(axis=0), in_mount[:, :2].max(axis=0)
-    corners = footprint_corners(spec)[:, :2]
-    if np.any(corners < low - FOOTPRINT_TOLERANCE_M) or np.any(corners > high + FOOTPRINT_TOLERANCE_M):
-        raise ValueError(f"footprint {spec.footprint_length_m} x {spec.footprint_width_m} m at offset "
-                         f"{list(spec.footprint_offset_m)} m, yaw {spec.footprint_yaw_deg} deg is larger than mount "
-                         f"link {spec.mount_link!r}'s collision extent x [{low[0]:.4f}, {high[0]:.4f}] m, "
-                         f"y [{low[1]:.4f}, {high[1]:.4f}] m")
+    check_mount_surface(spec, in_mount)
     wheels = set(spec.wheel_links)
     for name in wheels:
         robot.link_transform(name)  # names an unknown link
@@ -191,6 +222,41 @@ def _mount(spec):
     return MountedDescription(robot=robot, mount_body=body,
                               profile_in_body=tuple(map(tuple, (mount_in_body @ profile_in_mount).tolist())),
                               wheel_bodies=wheel_bodies)
+
+
+def check_mount_surface(spec, shape_points):
+    """Refuse a footprint that does not sit on the mount body's shapes: ``ValueError`` naming the problem.
+
+    ``shape_points`` (k, 3) are the collision shapes' points in the mount link's frame (m). The footprint's
+    corners must lie within the shapes' outline seen from above (their convex hull in x-y, not the bounding
+    box), and the footprint plane (``footprint_offset_m[2]``) on the top surface of the shapes under the
+    footprint's centre (the convex hull's upper envelope) within :data:`SURFACE_TOLERANCE_M`: a profile above the
+    robot would float, one below its top would sit inside it.
+    """
+    scipy_spatial = require("scipy.spatial", feature="URDF robots")
+    corners = footprint_corners(spec)
+    describe_footprint = (f"footprint {spec.footprint_length_m} x {spec.footprint_width_m} m at offset "
+                          f"{list(spec.footprint_offset_m)} m, yaw {spec.footprint_yaw_deg} deg")
+    try:
+        outline = scipy_spatial.ConvexHull(shape_points[:, :2]).equations        # rows: (nx, ny, d), inside <= 0
+        solid = scipy_spatial.ConvexHull(shape_points).equations                  # rows: (nx, ny, nz, d)
+    except Exception as exc:  # QhullError: flat or too few points
+        raise ValueError(f"mount link {spec.mount_link!r}: its collision shapes enclose no volume ({exc})") from exc
+    outside = (corners[:, :2] @ outline[:, :2].T + outline[:, 2]).max(axis=1) > FOOTPRINT_TOLERANCE_M
+    if outside.any():
+        low, high = shape_points[:, :2].min(axis=0), shape_points[:, :2].max(axis=0)
+        raise ValueError(f"{describe_footprint}: corner(s) {np.round(corners[outside, :2], 4).tolist()} m lie "
+                         f"outside mount link {spec.mount_link!r}'s collision shapes (extent x [{low[0]:.4f}, "
+                         f"{high[0]:.4f}] m, y [{low[1]:.4f}, {high[1]:.4f}] m)")
+    upward = solid[solid[:, 2] > 1e-9]
+    centre = np.asarray(spec.footprint_offset_m, dtype=np.float64)
+    surface_z = float(np.min(-(upward[:, :2] @ centre[:2] + upward[:, 3]) / upward[:, 2]))
+    if abs(centre[2] - surface_z) > SURFACE_TOLERANCE_M:
+        where = "above" if centre[2] > surface_z else "below"
+        raise ValueError(f"{describe_footprint}: the profile base at z = {centre[2]:.4f} m is "
+                         f"{abs(centre[2] - surface_z):.4f} m {where} the top of mount link {spec.mount_link!r}'s "
+                         f"collision shapes (z = {surface_z:.4f} m in that link's frame); set footprint_offset_m[2] "
+                         f"to {surface_z:.5f} so the profile sits on the mount surface")
 
 
 def footprint_grid(grid, urdf_robot):
@@ -292,6 +358,9 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
 
     def spawn(self, client, profile, position, orientation):
         pybullet = require("pybullet", feature="the simulated evaluator")
+        # turn the robot about its z so its forward axis is the start orientation's x (the world's +x upright)
+        facing = pybullet.getQuaternionFromEuler([0.0, 0.0, -math.radians(FORWARD_AXIS_DEG[self.spec.forward_axis])])
+        _, orientation = pybullet.multiplyTransforms([0.0, 0.0, 0.0], list(orientation), [0.0, 0.0, 0.0], facing)
         with tempfile.TemporaryDirectory(prefix="rollability_urdf_") as folder:
             mesh_filename = None
             if profile is not None:

@@ -46,12 +46,21 @@ class EvaluationCancelled(Exception):
 class EvaluatorOptions:
     """How an evaluation is run (``config/evaluator.yaml``, section ``evaluator``)."""
 
-    trials: int = 60
-    max_trials: int = 10000
-    batch_trials: int = 5
-    workers: int = 0
-    ray_address: str = ""
-    poll_interval_s: float = 0.05
+    trials: int = dataclasses.field(default=60, metadata={
+        "description": "disturbance trials per evaluation when a goal asks for 0 (count; paper 60)",
+        "range": (1, 10000000)})
+    max_trials: int = dataclasses.field(default=10000, metadata={
+        "description": "largest trial count one EvaluateProfile goal may ask for; larger requests are refused (count)",
+        "range": (1, 10000000)})
+    batch_trials: int = dataclasses.field(default=5, metadata={
+        "description": "trials per task handed to one worker (count); larger batches mean less overhead, coarser cancel",
+        "range": (1, 10000)})
+    workers: int = dataclasses.field(default=0, metadata={
+        "description": "worker processes for the trials (count); 0 = one per CPU core", "range": (0, 1024)})
+    ray_address: str = dataclasses.field(default="", metadata={
+        "description": "host:port of an existing Ray head to hand trial batches to; empty = local process pool"})
+    poll_interval_s: float = dataclasses.field(default=0.05, metadata={
+        "description": "time between cancel checks while waiting for workers, s", "range": (0.001, 10.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

@@ -47,11 +47,17 @@ GRAVITY_MPS2 = 9.81
 class ScreenSettings:
     """The screen's own parameters (``config/calibration.yaml``, namespace ``stable_poses``)."""
 
-    com_sigma_m: float = 0.003
-    n_samples: int = 16
-    seed: int = 1
-    wheel_sections: int = 24           # points per rim of each round collision shape (wheels)
-    prescreen_min_probability: float = 0.0
+    com_sigma_m: float = dataclasses.field(default=0.003, metadata={
+        "description": "standard deviation of each centre-of-mass coordinate in the stable-pose screen, m",
+        "range": (0.0, 10.0)})
+    n_samples: int = dataclasses.field(default=16, metadata={
+        "description": "centre-of-mass samples of the stable-pose screen (count)", "range": (1, 1000000)})
+    seed: int = dataclasses.field(default=1, metadata={
+        "description": "seed of the centre-of-mass samples (integer)", "range": (0, 2147483647)})
+    wheel_sections: int = dataclasses.field(default=24, metadata={
+        "description": "points per rim of each round collision shape such as a wheel (count)", "range": (3, 100000)})
+    prescreen_min_probability: float = dataclasses.field(default=0.0, metadata={
+        "description": "candidates below this quasi-static P(upright) are flagged (0 = off)", "range": (0.0, 1.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

@@ -32,20 +32,38 @@ from rollability_ros.core.sim.world import reset_world, set_contact
 class TrialSettings:
     """Start state, disturbance and rest detection of a trial (``config/sim.yaml``, section ``trial``)."""
 
-    start_roll_deg: float = 180.0
-    start_tilt_max_deg: float = 10.0
-    drop_height_m: float = 0.005
-    disturbance_delay_s: float = 0.1
-    disturbance_duration_s: float = 0.1
-    force_min_n: float = 0.0
-    force_max_n: float = 2.0
-    torque_min_nm: float = 1.0
-    torque_max_nm: float = 2.0
-    rest_linear_speed_mps: float = 0.01
-    rest_angular_speed_dps: float = 5.0
-    rest_hold_s: float = 0.25
-    time_cap_s: float = 8.0
-    check_interval_steps: int = 4
+    start_roll_deg: float = dataclasses.field(default=180.0, metadata={
+        "description": "roll of the starting pose, deg (180 = inverted)", "range": (-360.0, 360.0)})
+    start_tilt_max_deg: float = dataclasses.field(default=10.0, metadata={
+        "description": "extra random roll and pitch of the start, each uniform in [-max, +max], deg",
+        "range": (0.0, 180.0)})
+    drop_height_m: float = dataclasses.field(default=0.005, metadata={
+        "description": "clearance of the robot's lowest point above the ground at the start, m",
+        "range": (0.0, 100.0)})
+    disturbance_delay_s: float = dataclasses.field(default=0.1, metadata={
+        "description": "time after the start when the random force and torque begin, s (the drop has landed)",
+        "range": (0.0, 3600.0)})
+    disturbance_duration_s: float = dataclasses.field(default=0.1, metadata={
+        "description": "how long the random force and torque act, s", "range": (0.0, 3600.0)})
+    force_min_n: float = dataclasses.field(default=0.0, metadata={
+        "description": "lower bound of the random disturbance force magnitude, N", "range": (0.0, 1000000.0)})
+    force_max_n: float = dataclasses.field(default=2.0, metadata={
+        "description": "upper bound of the random disturbance force magnitude, N", "range": (0.0, 1000000.0)})
+    torque_min_nm: float = dataclasses.field(default=1.0, metadata={
+        "description": "lower bound of the random disturbance torque magnitude, N m", "range": (0.0, 1000000.0)})
+    torque_max_nm: float = dataclasses.field(default=2.0, metadata={
+        "description": "upper bound of the random disturbance torque magnitude, N m", "range": (0.0, 1000000.0)})
+    rest_linear_speed_mps: float = dataclasses.field(default=0.01, metadata={
+        "description": "at rest when the linear speed stays below this, m/s", "range": (0.0, 1000.0)})
+    rest_angular_speed_dps: float = dataclasses.field(default=5.0, metadata={
+        "description": "at rest when the angular speed stays below this, deg/s", "range": (0.0, 100000.0)})
+    rest_hold_s: float = dataclasses.field(default=0.25, metadata={
+        "description": "the robot must stay at rest this long for the trial to end, s", "range": (0.0, 3600.0)})
+    time_cap_s: float = dataclasses.field(default=8.0, metadata={
+        "description": "simulated time after which an undecided trial stops and counts as not upright, s",
+        "range": (0.0, 86400.0)})
+    check_interval_steps: int = dataclasses.field(default=4, metadata={
+        "description": "physics steps between two rest checks (count)", "range": (1, 100000)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

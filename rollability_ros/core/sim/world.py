@@ -28,14 +28,24 @@ CONTACT_MODELS = ("per_contact", "per_body")
 class PhysicsParams:
     """Simulation constants (``config/sim.yaml``, section ``sim``); SI units, friction coefficients unitless."""
 
-    gravity_mps2: float = -9.81
-    time_step_s: float = 1.0 / 240.0
-    lateral_friction: float = 0.35
-    rolling_friction: float = 0.01
-    spinning_friction: float = 0.02
-    restitution: float = 0.3
-    contact_model: str = "per_contact"
-    solver_iterations: int = 50
+    gravity_mps2: float = dataclasses.field(default=-9.81, metadata={
+        "description": "gravitational acceleration along world z, m/s^2 (negative = down)", "range": (-100.0, 0.0)})
+    time_step_s: float = dataclasses.field(default=1.0 / 240.0, metadata={
+        "description": "physics time step, s (paper 1/240)"})
+    lateral_friction: float = dataclasses.field(default=0.35, metadata={
+        "description": "sliding friction coefficient (see sim.contact_model; paper 0.35)", "range": (0.0, 10.0)})
+    rolling_friction: float = dataclasses.field(default=0.01, metadata={
+        "description": "rolling friction coefficient (see sim.contact_model)", "range": (0.0, 10.0)})
+    spinning_friction: float = dataclasses.field(default=0.02, metadata={
+        "description": "spinning (torsional) friction coefficient (see sim.contact_model)", "range": (0.0, 10.0)})
+    restitution: float = dataclasses.field(default=0.3, metadata={
+        "description": "coefficient of restitution of impacts (see sim.contact_model; paper 0.3)",
+        "range": (0.0, 1.0)})
+    contact_model: str = dataclasses.field(default="per_contact", metadata={
+        "description": "how the paper's friction and restitution apply: per_contact (effective value between two "
+                       "bodies) or per_body (Bullet multiplies two bodies' values)"})
+    solver_iterations: int = dataclasses.field(default=50, metadata={
+        "description": "Bullet constraint-solver iterations per time step (count)", "range": (1, 10000)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

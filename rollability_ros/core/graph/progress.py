@@ -1,0 +1,156 @@
+"""Progress of a long job (``study``, ``bringup``) on a terminal: one live status line, or plain lines.
+
+On a terminal (``stream.isatty()``) with ``rich`` installed (the ``progress`` extra), a spinner line is rewritten in place with the phase,
+generation, best fitness, trials stored and ETA, and event lines (:meth:`ProgressDisplay.say`) print above it. In
+a pipe, a log file or CI the same facts come as plain lines, each printed once when it changes (no spinner, no
+control characters), so a log shows every generation and no repeats.
+"""
+import dataclasses
+import sys
+import time
+
+from rollability_ros.core.optional import require
+
+
+@dataclasses.dataclass(frozen=True)
+class JobProgress:
+    """One snapshot of a job: ``phase`` text, generation counters, best-so-far fitness, trials, ETA (s)."""
+
+    phase: str
+    generation: int | None = None          # generations completed
+    max_generations: int = 0               # 0 = no cap
+    best_so_far: float | None = None       # fitness, upright trials / trials
+    trials_stored: int | None = None       # trials in the store (simulated trials or launches)
+    trials_total: int = 0                  # 0 = open-ended
+    eta_s: float | None = None
+
+    def text(self):
+        """The status as one line, e.g. ``optimizing | generation 4/30 | best 0.85 | 480 trials stored | ETA 3 min``."""
+        parts = [self.phase]
+        if self.generation is not None:
+            parts.append(f"generation {self.generation}" + (f"/{self.max_generations}" if self.max_generations else ""))
+        if self.best_so_far is not None:
+            parts.append(f"best {self.best_so_far:.2f}")
+        if self.trials_stored is not None:
+            parts.append(f"{self.trials_stored}" + (f"/{self.trials_total}" if self.trials_total else "")
+                         + " trials stored")
+        parts.append(f"ETA {format_duration(self.eta_s)}" if self.eta_s is not None else "ETA unknown")
+        return " | ".join(parts)
+
+
+def eta_s(done, total, elapsed_s):
+    """Seconds left at the rate so far (``done`` of ``total`` units in ``elapsed_s``); None when unknown."""
+    if not total or not done or elapsed_s <= 0 or done >= total:
+        return 0.0 if total and done >= total else None
+    return elapsed_s / done * (total - done)
+
+
+def format_duration(seconds):
+    """``seconds`` as ``42 s``, ``7 min`` or ``1.5 h``."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+class ProgressDisplay:
+    """Shows :class:`JobProgress` snapshots and event lines on ``stream`` (see the module docstring).
+
+    ``live`` forces (True) or forbids (False) the in-place line; default: ``stream.isatty()``.
+    """
+
+    def __init__(self, stream=None, live=None):
+        self.stream = stream or sys.stdout
+        self.live = self.stream.isatty() if live is None else live
+        self._status = None
+        self._console = None
+        self._last_text = None
+
+    def __enter__(self):
+        if self.live:
+            try:
+                rich_console = require("rich.console", feature="the live progress display")
+            except ImportError:   # without the extra: plain lines, as in a pipe
+                self.live = False
+                return self
+            self._console = rich_console.Console(file=self.stream)
+            self._status = self._console.status("starting")
+            self._status.start()
+        return self
+
+    def __exit__(self, *exc_info):
+        self.close()
+
+    def say(self, text):
+        """An event line: printed once (above the live line on a terminal)."""
+        if self._console is not None:
+            self._console.print(text, markup=False, highlight=False)
+        else:
+            print(text, file=self.stream, flush=True)
+
+    def update(self, progress):
+        """Show a snapshot (a :class:`JobProgress` or text): rewritten in place, or printed when it changed."""
+        text = progress.text() if isinstance(progress, JobProgress) else str(progress)
+        if self._status is not None:
+            self._status.update(text)
+        elif text != self._last_text:
+            print(f"  {text}", file=self.stream, flush=True)
+        self._last_text = text
+
+    def close(self):
+        """Remove the live line (idempotent)."""
+        if self._status is not None:
+            self._status.stop()
+            self._status = None
+
+
+class Stopwatch:
+    """Seconds since construction (monotonic), for rates and ETAs of a phase."""
+
+    def __init__(self, clock=time.monotonic):
+        self._clock = clock
+        self._start = clock()
+
+    @property
+    def elapsed_s(self):
+        """Seconds since the stopwatch was made."""
+        return self._clock() - self._start
+
+
+def session_progress(run_dir, nodes, elapsed_s):
+    """A :class:`JobProgress` of a ``bringup`` session in ``run_dir``: its newest optimization run (generation,
+    best so far, ETA from its generation cap) and the launches the outcome logger stored; ``nodes`` supervised."""
+    import glob
+    import os
+
+    from rollability_ros.core.results.store import Store
+
+    phase = f"session running {format_duration(elapsed_s)}, {nodes} nodes supervised"
+    generation = best = eta = None
+    cap = 0
+    runs = sorted(glob.glob(os.path.join(run_dir, "*", "store.sqlite")), key=os.path.getmtime)
+    if runs:
+        with Store(runs[-1]) as store:
+            generations = store.generations()
+        if generations:
+            last = generations[-1]
+            generation, best = last.generation + 1, last.best_so_far
+            phase += f", optimizing run {os.path.basename(os.path.dirname(runs[-1]))}"
+            cap = _generation_cap(os.path.dirname(runs[-1]))
+            eta = eta_s(generation, cap, last.elapsed_s)
+    trials = None
+    outcomes = os.path.join(run_dir, "outcomes.sqlite")
+    if os.path.isfile(outcomes):
+        with Store(outcomes) as store:
+            trials = len(store.launch_outcomes())
+    return JobProgress(phase, generation, cap, best, trials, eta_s=eta)
+
+
+def _generation_cap(optimization_dir):
+    from rollability_ros.core.optimization.optimization_run import optimizer_settings, read_run_config
+
+    try:
+        return optimizer_settings(read_run_config(optimization_dir)).max_generations
+    except (OSError, ValueError):
+        return 0

@@ -1,0 +1,104 @@
+"""Progress display of study / bringup: every generation once in a log, a live line on a terminal, honest ETAs."""
+import io
+import os
+
+import pytest
+
+from rollability_ros.core.graph.node_commands.progress import JobProgress, ProgressDisplay, eta_s, format_duration
+
+
+class Terminal(io.StringIO):
+    """A stream that says it is a terminal, as a console's stdout does."""
+
+    def isatty(self):
+        return True
+
+
+def test_eta_and_text():
+    assert eta_s(4, 30, 80.0) == pytest.approx(520.0)      # 20 s per generation, 26 to go
+    assert eta_s(0, 30, 80.0) is None and eta_s(5, 0, 10.0) is None and eta_s(30, 30, 99.0) == 0.0
+    assert format_duration(42) == "42 s" and format_duration(600) == "10 min" and format_duration(7200) == "2.0 h"
+    text = JobProgress("optimizing", 4, 30, 0.851, 480, eta_s=520.0).text()
+    assert text == "optimizing | generation 4/30 | best 0.85 | 480 trials stored | ETA 9 min"
+    assert JobProgress("launch campaign", trials_stored=12, trials_total=36).text() == \
+        "launch campaign | 12/36 trials stored | ETA unknown"
+
+
+def test_plain_lines_when_not_a_terminal_each_change_once():
+    stream = io.StringIO()
+    with ProgressDisplay(stream) as display:
+        assert not display.live
+        for _ in range(3):   # the same snapshot on every tick of a silent phase: printed once
+            display.update(JobProgress("optimizing: nodes starting"))
+        display.say("optimizing the profile")
+        for generation in (1, 2, 3):
+            display.update(JobProgress("optimizing", generation, 3, 0.5, 10 * generation, eta_s=3.0 - generation))
+    lines = stream.getvalue().splitlines()
+    assert lines == ["  optimizing: nodes starting | ETA unknown", "optimizing the profile",
+                     "  optimizing | generation 1/3 | best 0.50 | 10 trials stored | ETA 2 s",
+                     "  optimizing | generation 2/3 | best 0.50 | 20 trials stored | ETA 1 s",
+                     "  optimizing | generation 3/3 | best 0.50 | 30 trials stored | ETA 0 s"]
+    assert "\r" not in stream.getvalue() and "\x1b" not in stream.getvalue()
+
+
+def test_a_terminal_gets_one_live_line():
+    pytest.importorskip("rich")
+    stream = Terminal()
+    with ProgressDisplay(stream) as display:
+        assert display.live
+        display.update(JobProgress("optimizing", 2, 30, 0.7, 40, eta_s=600.0))
+        display.say("designs selected: A, B")
+    output = stream.getvalue()
+    assert "designs selected: A, B" in output and "\x1b[" in output   # cursor control: the line is redrawn
+
+
+def test_the_study_shows_every_generation_of_its_store(tmp_path):
+    """Generations completed between two ticks are all shown, with the trials stored and an ETA."""
+    pytest.importorskip("cma")
+    import numpy as np
+
+    from rollability_ros.core.graph.study import Study
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator
+    from rollability_ros.core.profile.geometry import ProfileGrid
+
+    stream = io.StringIO()
+    study = Study(study_id="progress", display=ProgressDisplay(stream))
+    study.study_dir = str(tmp_path)
+    study.parameters["optimizer.max_generations"] = 4
+    assert study._progress_optimization()[0].phase == "optimizing: nodes starting"
+    grid = ProfileGrid(rows=3, cols=3)
+    run = OptimizationRun(study.optimization_dir, {"optimizer.max_generations": 4, "optimizer.trials": 10},
+                          grid, SyntheticEvaluator(np.full(9, 0.2), trials=10))
+    run.run()
+    run.close()
+    shown = study._progress_optimization()
+    assert [p.generation for p in shown] == [1, 2, 3, 4] and all(p.max_generations == 4 for p in shown)
+    assert shown[-1].trials_stored == sum(c.trials for c in run_candidates(study.optimization_dir))
+    assert shown[-1].eta_s == 0.0 and shown[0].eta_s > 0
+    assert [p.generation for p in study._progress_optimization()] == [4]   # nothing new: the latest again
+
+
+def run_candidates(run_dir):
+    from rollability_ros.core.results.store import Store
+
+    with Store(os.path.join(run_dir, "store.sqlite")) as store:
+        return store.candidates()
+
+
+def test_a_bringup_session_shows_its_optimization_and_stored_launches(tmp_path):
+    pytest.importorskip("cma")
+    import numpy as np
+
+    from rollability_ros.core.graph.node_commands.progress import session_progress
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator
+    from rollability_ros.core.profile.geometry import ProfileGrid
+
+    empty = session_progress(str(tmp_path), 7, 65.0)
+    assert empty.text() == "session running 65 s, 7 nodes supervised | ETA unknown"
+    run = OptimizationRun(str(tmp_path / "opt-1"), {"optimizer.max_generations": 3, "optimizer.trials": 10},
+                          ProfileGrid(rows=3, cols=3), SyntheticEvaluator(np.full(9, 0.2), trials=10))
+    run.run()
+    run.close()
+    progress = session_progress(str(tmp_path), 7, 65.0)
+    assert (progress.generation, progress.max_generations, progress.eta_s) == (3, 3, 0.0)
+    assert "optimizing run opt-1" in progress.phase and progress.best_so_far is not None

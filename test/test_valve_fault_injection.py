@@ -142,7 +142,7 @@ def test_serial_line_cut_mid_pulse(ros_node, start_node, relay):
 SUPERVISOR = textwrap.dedent("""
     # A rig computer's supervisor (as `rollability bringup`) running only the valve_controller.
     import json, signal, sys, time
-    from rollability_ros.core.graph.node_commands import NodeLaunch, parameter_files
+    from rollability_ros.core.graph.bringup import NodeLaunch, parameter_files
     from rollability_ros.core.graph.supervisor import Supervisor
     node = NodeLaunch("valve_controller", params=json.loads(sys.argv[1]))
     supervisor = Supervisor([node.process_spec(parameter_files())], sys.argv[2],

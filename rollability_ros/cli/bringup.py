@@ -7,7 +7,7 @@ import time
 def run(args):
     from rollability_ros.core.graph.bringup import load_graph_settings, new_study_id, parameter_files, session_nodes
     from rollability_ros.core.graph.supervisor import Supervisor
-    from rollability_ros.core.graph.node_commands.progress import ProgressDisplay, session_progress
+    from rollability_ros.core.graph.progress import ProgressDisplay, session_progress
     from rollability_ros.core.graph.study import PROGRESS_PERIOD_S
 
     param_files = parameter_files(["bringup", *args.config])

@@ -3,7 +3,7 @@ import signal
 
 
 def run(args):
-    from rollability_ros.core.graph.node_commands.progress import ProgressDisplay
+    from rollability_ros.core.graph.progress import ProgressDisplay
     from rollability_ros.core.graph.study import Study
 
     with ProgressDisplay() as display:   # a live line on a terminal, plain lines in a pipe or log

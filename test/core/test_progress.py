@@ -4,7 +4,7 @@ import os
 
 import pytest
 
-from rollability_ros.core.graph.node_commands.progress import JobProgress, ProgressDisplay, eta_s, format_duration
+from rollability_ros.core.graph.progress import JobProgress, ProgressDisplay, eta_s, format_duration
 
 
 class Terminal(io.StringIO):
@@ -89,7 +89,7 @@ def test_a_bringup_session_shows_its_optimization_and_stored_launches(tmp_path):
     pytest.importorskip("cma")
     import numpy as np
 
-    from rollability_ros.core.graph.node_commands.progress import session_progress
+    from rollability_ros.core.graph.progress import session_progress
     from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator
     from rollability_ros.core.profile.geometry import ProfileGrid
 

@@ -29,7 +29,7 @@ import shutil
 import yaml
 
 from rollability_ros.core.graph.bringup import NodeLaunch, core_nodes, load_graph_settings, new_study_id, parameter_files
-from rollability_ros.core.graph.node_commands.progress import JobProgress, ProgressDisplay, Stopwatch, eta_s
+from rollability_ros.core.graph.progress import JobProgress, ProgressDisplay, Stopwatch, eta_s
 from rollability_ros.core.config import load_parameters
 from rollability_ros.core.results.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
@@ -58,7 +58,7 @@ class StudyResult:
 
 class Study:
     """Runs the main job (module docstring): events through ``say(text)``, progress snapshots (phase, generation,
-    best, trials stored, ETA) through ``display`` (a :class:`~rollability_ros.core.graph.node_commands.progress.ProgressDisplay`)."""
+    best, trials stored, ETA) through ``display`` (a :class:`~rollability_ros.core.graph.progress.ProgressDisplay`)."""
 
     def __init__(self, extra_configs=(), study_id=None, say=None, resume=None, display=None):
         self.param_files = parameter_files(["bringup", *extra_configs])

@@ -96,6 +96,10 @@ class BasinMap:
     com_m: np.ndarray
     mass_kg: float
 
+    def highest_barrier_m(self):
+        """No decision is possible at or above this energy height (m; inf if some pose is never left)."""
+        return float(np.max(np.concatenate([self.barrier_to_upright_m, self.barrier_to_not_upright_m])))
+
     def decide(self, down_in_base, energy_height_m):
         """The decided outcome (True = will end upright, False = will not) or None while still open.
 

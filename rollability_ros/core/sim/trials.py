@@ -186,35 +186,47 @@ class EnergyMonitor:
         self.mass_kg = float(sum(masses.values()))
         com_world = sum(masses[link] * centres[link] for link in masses) / self.mass_kg
         self.links = [link for link in masses if link >= 0]
-        self.link_masses = np.array([masses[link] for link in self.links])
-        self.inertia = {link: np.asarray(pybullet.getDynamicsInfo(self.body, link, physicsClientId=client)[2])
-                        for link in masses}
+        order = [-1] + self.links
+        self.masses = [float(masses[link]) for link in order]
+        self.inertias = [tuple(pybullet.getDynamicsInfo(self.body, link, physicsClientId=client)[2])
+                         for link in order]
         self.gravity_mps2 = abs(gravity_mps2)
         self.basins = build_basin_map(in_base, robot.wheel_links, (com_world - origin) @ rotation, self.mass_kg,
                                       rotation.T @ robot_model.up_axis(client, robot), robot_model.upright_tilt_deg,
                                       robot_model.min_wheels_in_contact, robot_model.contact_tolerance_m,
                                       margin_m=margin_m)
-
-    @staticmethod
-    def _kinetic_j(mass, inertia, orientation_matrix, linear, angular):
-        spin = orientation_matrix.T @ np.asarray(angular)
-        return 0.5 * mass * float(np.dot(linear, linear)) + 0.5 * float(inertia @ (spin * spin))
+        self.com_in_base = tuple(float(value) for value in self.basins.com_m)
+        self.highest_barrier_m = self.basins.highest_barrier_m()
 
     def decide(self):
         """True / False once the trial's outcome is fixed (upright / not), else None."""
+        # plain floats: a few numbers per link, where numpy's per-call cost would exceed a simulation step
         pybullet, client, body = self.pybullet, self.client, self.body
         position, orientation = pybullet.getBasePositionAndOrientation(body, physicsClientId=client)
-        rotation = np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
         linear, angular = pybullet.getBaseVelocity(body, physicsClientId=client)
-        base_mass = self.mass_kg - float(self.link_masses.sum())
-        kinetic = self._kinetic_j(base_mass, self.inertia[-1], rotation, linear, angular)
+        base = pybullet.getMatrixFromQuaternion(orientation)
+        kinetic = self._kinetic_j(self.masses[0], self.inertias[0], base, linear, angular)
         if self.links:
             states = pybullet.getLinkStates(body, self.links, computeLinkVelocity=1, physicsClientId=client)
-            for link, mass, state in zip(self.links, self.link_masses, states):
-                link_rotation = np.asarray(pybullet.getMatrixFromQuaternion(state[1])).reshape(3, 3)
-                kinetic += self._kinetic_j(mass, self.inertia[link], link_rotation, state[6], state[7])
-        com_z = position[2] + float(rotation[2] @ self.basins.com_m)
-        return self.basins.decide(-rotation[2], com_z + kinetic / (self.mass_kg * self.gravity_mps2))
+            for mass, inertia, state in zip(self.masses[1:], self.inertias[1:], states):
+                kinetic += self._kinetic_j(mass, inertia, pybullet.getMatrixFromQuaternion(state[1]), state[6],
+                                           state[7])
+        cx, cy, cz = self.com_in_base
+        com_z = position[2] + base[6] * cx + base[7] * cy + base[8] * cz
+        energy_height_m = com_z + kinetic / (self.mass_kg * self.gravity_mps2)
+        if energy_height_m >= self.highest_barrier_m:  # cheap first test
+            return None
+        return self.basins.decide(np.array([-base[6], -base[7], -base[8]]), energy_height_m)
+
+    @staticmethod
+    def _kinetic_j(mass, inertia, rotation, linear, angular):
+        """Kinetic energy (J) of one link: ``rotation`` its inertia frame (row-major 9-tuple), world velocities."""
+        wx, wy, wz = angular
+        energy = mass * (linear[0] ** 2 + linear[1] ** 2 + linear[2] ** 2)
+        for axis in range(3):  # angular velocity about each principal axis (a column of the rotation)
+            spin = rotation[axis] * wx + rotation[3 + axis] * wy + rotation[6 + axis] * wz
+            energy += inertia[axis] * spin * spin
+        return 0.5 * energy
 
 
 class TrialWorld:

@@ -291,3 +291,13 @@ class TrialWorld:
 def run_trial(client, robot_model, profile, index, seed, settings, physics):
     """Run one trial in a freshly built world in ``client`` and return its :class:`TrialOutcome`."""
     return TrialWorld(client, robot_model, profile, settings, physics).run(index, seed)
+
+
+def make_trial_world(client, robot_model, profile, settings, physics):
+    """The trial world of ``physics.engine``: a PyBullet :class:`TrialWorld` in ``client`` or a MuJoCo
+    :class:`~rollability_ros.core.sim.mujoco_trials.MujocoTrialWorld` (which ignores ``client``); both have
+    ``run(index, seed) -> TrialOutcome``."""
+    if physics.engine == "mujoco":
+        from rollability_ros.core.sim.mujoco_trials import MujocoTrialWorld
+        return MujocoTrialWorld(robot_model, profile, settings, physics)
+    return TrialWorld(client, robot_model, profile, settings, physics)

@@ -22,6 +22,8 @@ import math
 from rollability_ros.core.optional import require
 
 CONTACT_MODELS = ("per_contact", "per_body")
+#: Physics engines of the disturbance trials (``sim.engine``): PyBullet (the paper's) or MuJoCo.
+ENGINES = ("pybullet", "mujoco")
 
 
 @dataclasses.dataclass
@@ -36,6 +38,7 @@ class PhysicsParams:
     restitution: float = 0.3
     contact_model: str = "per_contact"
     solver_iterations: int = 50
+    engine: str = "pybullet"
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -50,6 +53,8 @@ class PhysicsParams:
             raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
         if self.contact_model not in CONTACT_MODELS:
             raise ValueError(f"contact_model must be one of {', '.join(CONTACT_MODELS)}, got {self.contact_model!r}")
+        if self.engine not in ENGINES:
+            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
         if self.solver_iterations < 1:
             raise ValueError(f"solver_iterations must be >= 1, got {self.solver_iterations}")
 

@@ -1,6 +1,7 @@
 """Verify the early trial decision: the same trials with and without it must give the same outcomes.
 
     nice python bench/verify_early_decision.py [--trials-chassis 250] [--trials-husky 100] [--seed 7]
+                                               [--engine pybullet|mujoco]
 
 Runs every trial twice in one process, once under the full rule (rest hold or time cap) and once ending at the
 early decision, over several profiles on the built-in chassis (baseline, dome, ridge, random) and on the URDF
@@ -35,11 +36,16 @@ def ridge_heights(grid):
     return np.clip(grid.height_max * (1 - np.abs(xy[:, 1]) / (grid.width_m / 2)), 0.0, grid.height_max)
 
 
-def cases(seed):
+def with_engine(settings, engine):
+    """A copy of ``settings`` with ``physics.engine`` set."""
+    return dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine=engine))
+
+
+def cases(seed, engine="pybullet"):
     """(name, settings, heights) of every verified robot + profile."""
     rng = np.random.default_rng(seed)
-    chassis = evaluation.load_settings(("sim", "robot", "evaluator"))
-    husky = evaluation.load_settings(("sim", "robot", "evaluator", "husky"))
+    chassis = with_engine(evaluation.load_settings(("sim", "robot", "evaluator")), engine)
+    husky = with_engine(evaluation.load_settings(("sim", "robot", "evaluator", "husky")), engine)
     out = [("chassis baseline", chassis, None), ("chassis dome", chassis, dome_heights(chassis.grid)),
            ("chassis low dome", chassis, dome_heights(chassis.grid, 0.4)),
            ("chassis ridge", chassis, ridge_heights(chassis.grid))]
@@ -70,12 +76,14 @@ def main(argv=None):
     parser.add_argument("--trials-chassis", type=int, default=250)
     parser.add_argument("--trials-husky", type=int, default=100)
     parser.add_argument("--seed", type=int, default=7)
+    parser.add_argument("--engine", choices=("pybullet", "mujoco"), default="pybullet")
     args = parser.parse_args(argv)
+    print(f"engine: {args.engine}")
     total = changed = 0
     full_steps, early_steps = [], []
     print(f"{'case':20s} {'trials':>6s} {'changed':>7s} {'upright':>7s} {'steps full':>10s} {'steps early':>11s} "
           f"{'decided':>7s} {'time ratio':>10s}")
-    for name, settings, heights in cases(args.seed):
+    for name, settings, heights in cases(args.seed, args.engine):
         trials = args.trials_husky if name.startswith("husky") else args.trials_chassis
         full, early, full_s, early_s = compare(settings, heights, trials, args.seed)
         diffs = [(a.index, a.upright, b.upright) for a, b in zip(full, early) if a.upright != b.upright]

@@ -74,6 +74,10 @@ class RobotModel(abc.ABC):
     def to_urdf(self, profile_mesh_filename=None, profile=None):
         """Return a URDF document (str) of the robot, with the profile mesh file on its mount if given."""
 
+    def simulator_urdf(self, profile=None, mesh_filename=None):
+        """The URDF a simulator loads (str): the robot with ``profile`` (ProfileBody) on ``mesh_filename``."""
+        return self.to_urdf(mesh_filename, profile)
+
     @abc.abstractmethod
     def wheel_link_names(self):
         """Names of the wheel links in :meth:`to_urdf`, in the order of :attr:`SpawnedRobot.wheel_links`."""

@@ -323,6 +323,9 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
         return np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3) @ self._up_axis
 
+    def simulator_urdf(self, profile=None, mesh_filename=None):
+        return self.sim_urdf(profile, mesh_filename)
+
     def wheel_link_names(self):
         return tuple(self.mounted.wheel_bodies)
 

@@ -8,17 +8,17 @@ above the ground, the push as a world-frame force and torque at the base's centr
 root frame's up axis, wheels within ``contact_tolerance_m`` of the ground) and the early decision. The rest rule
 reads the root's mean speeds over each check interval from its poses (see :func:`_pose_speeds`).
 
-The robot is the model's own URDF (:meth:`RobotModel.to_urdf`, profile hull as an OBJ mesh geom), compiled by
+The robot is the URDF PyBullet loads too (:meth:`RobotModel.simulator_urdf`, profile hull as an OBJ mesh geom), compiled by
 MuJoCo (fixed links fused into their parent) with a free joint on its root link.
 
 Contact values (how ``config/sim.yaml``'s numbers map; MuJoCo combines two geoms by taking the larger value)
     the robot's geoms get the *effective* robot-ground values under ``contact_model`` (per_contact: as
     configured; per_body: Bullet's products, friction mu^2, rolling and spinning 2 r mu, restitution e^2) as
     MuJoCo's (sliding, torsional, rolling) friction with ``condim`` 6, and the ground gets zeros, so the
-    contact has exactly those values. MuJoCo has no restitution coefficient: a contact is a damped spring, and
-    restitution ``e`` becomes the damping ratio ``zeta = -ln e / sqrt(pi^2 + ln^2 e)`` of the contact spring
-    (a linear spring-damper bounces back with ``e``; ``e = 0`` -> critical damping), time constant 0.02 s
-    (MuJoCo's default; a spring of 2 steps was unstable with the profile meshes).
+    contact has exactly those values. MuJoCo has no restitution coefficient: a contact is a damped spring.
+    Restitution is NOT represented: the spring is critically damped (see ``CONTACT_SOLREF``; an underdamped
+    spring that would bounce back with e = 0.3 never came to rest), so MuJoCo trials do not bounce. This is a
+    known difference between the engines, which ``rollability evaluate --engines`` measures.
     An unpowered wheel drive's drag torque becomes the joint's ``frictionloss`` (N m).
 """
 import math
@@ -29,16 +29,10 @@ from rollability_ros.core.optional import require
 from rollability_ros.core.sim.trials import RestDetector, TrialOutcome, sample_conditions
 
 
-#: Time constant of MuJoCo's contact spring (s), MuJoCo's default: stiffer springs (2 steps) blew up in tests.
-CONTACT_TIME_CONSTANT_S = 0.02
-
-
-def restitution_damping_ratio(restitution):
-    """The damping ratio of a linear spring-damper contact that bounces back with ``restitution`` (0..1)."""
-    if restitution <= 0:
-        return 1.0
-    log_e = math.log(min(restitution, 0.999))
-    return -log_e / math.sqrt(math.pi ** 2 + log_e ** 2)
+#: MuJoCo's contact spring (solref): time constant (s, MuJoCo's default; 2 steps blew up with the profile meshes)
+#: and damping ratio 1 (critical). A damping ratio below 1 (what a restitution of 0.3 would map to, 0.36) left a
+#: resting body ringing in a limit cycle at 1/240 s that never passes the rest rule.
+CONTACT_SOLREF = (0.02, 1.0)
 
 
 def effective_contact(physics):
@@ -48,6 +42,15 @@ def effective_contact(physics):
         return (mu * mu, 2 * physics.spinning_friction * mu, 2 * physics.rolling_friction * mu,
                 physics.restitution ** 2)
     return physics.lateral_friction, physics.spinning_friction, physics.rolling_friction, physics.restitution
+
+
+def set_geom_contact(geom, physics, ground=False):
+    """Give an MjSpec ``geom`` the contact values of ``physics`` (module docstring): a simulated object gets the
+    effective robot-ground values, the ground zeros (MuJoCo takes the larger of two geoms' values)."""
+    lateral, spinning, rolling, _ = effective_contact(physics)
+    geom.friction = [0.0, 0.0, 0.0] if ground else [lateral, spinning, rolling]
+    geom.condim = 6
+    geom.solref = [max(CONTACT_SOLREF[0], 4 * physics.time_step_s), CONTACT_SOLREF[1]]
 
 
 def build_model(robot_model, profile, physics):
@@ -63,15 +66,11 @@ def build_model(robot_model, profile, physics):
         _, hull = profile_inertia(profile)
         mesh_file = "profile.obj"
         assets[mesh_file] = _obj_text(hull).encode()
-    spec = mujoco.MjSpec.from_string(robot_model.to_urdf(mesh_file, profile), assets=assets)
+    spec = mujoco.MjSpec.from_string(robot_model.simulator_urdf(profile, mesh_file), assets=assets)
     spec.option.timestep = physics.time_step_s
     spec.option.gravity = [0.0, 0.0, physics.gravity_mps2]
-    lateral, spinning, rolling, restitution = effective_contact(physics)
-    solref = [max(CONTACT_TIME_CONSTANT_S, 4 * physics.time_step_s), restitution_damping_ratio(restitution)]
     for geom in spec.geoms:
-        geom.friction = [lateral, spinning, rolling]
-        geom.condim = 6
-        geom.solref = solref
+        set_geom_contact(geom, physics)
     drag = robot_model.joint_drag_torque_nm()
     for joint in spec.joints:
         joint.frictionloss = drag
@@ -81,9 +80,7 @@ def build_model(robot_model, profile, physics):
     ground.name = "ground"
     ground.type = mujoco.mjtGeom.mjGEOM_PLANE
     ground.size = [0.0, 0.0, 1.0]
-    ground.friction = [0.0, 0.0, 0.0]
-    ground.condim = 6
-    ground.solref = solref
+    set_geom_contact(ground, physics, ground=True)
     model = spec.compile()
     wheel_names = set(robot_model.wheel_link_names())
     wheels = {model.body(i).id for i in range(model.nbody) if model.body(i).name in wheel_names}

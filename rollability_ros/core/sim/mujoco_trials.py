@@ -217,9 +217,24 @@ def _geom_points(mujoco, model, geom, sections=24):
     return None
 
 
+def penetration_allowance_m(physics):
+    """How far (m) a resting or rocking body may sink into MuJoCo's soft ground: 3 x g x timeconst^2.
+
+    A critically damped contact spring of time constant ``tc`` holds a body at rest ``g tc^2`` deep
+    (3.9 mm at 0.02 s; 4.8 mm measured for the chassis, MuJoCo's impedance adds a little); the factor 3 covers
+    the deeper sinking under the dynamic loads of a body rocking with an energy below a barrier.
+    """
+    time_constant = max(CONTACT_SOLREF[0], 4 * physics.time_step_s)
+    return 3 * abs(physics.gravity_mps2) * time_constant ** 2
+
+
 class MujocoEnergyMonitor:
     """The early decision of :mod:`rollability_ros.core.sim.early_decision` read from MuJoCo's state:
-    kinetic energy ``qvel' M qvel / 2`` (exact, from the mass matrix), COM height from the subtree COM."""
+    kinetic energy ``qvel' M qvel / 2`` (exact, from the mass matrix), COM height from the subtree COM.
+
+    MuJoCo's contacts are soft: a body sinks into the ground (see :func:`penetration_allowance_m`), which breaks
+    "COM height >= h(d)" by that depth, so the barriers are lowered by it on top of ``margin_m``.
+    """
 
     def __init__(self, world, margin_m):
         from rollability_ros.core.sim.early_decision import build_basin_map
@@ -242,7 +257,7 @@ class MujocoEnergyMonitor:
         robot = world.robot_model
         self.basins = build_basin_map(in_root, sorted(world.wheels), com, self.mass_kg, world.up_in_root,
                                       robot.upright_tilt_deg, robot.min_wheels_in_contact, robot.contact_tolerance_m,
-                                      margin_m=margin_m)
+                                      margin_m=margin_m + penetration_allowance_m(world.physics))
         self.highest_barrier_m = self.basins.highest_barrier_m()
         self.gravity_mps2 = abs(world.physics.gravity_mps2)
         self._momentum = np.zeros(model.nv)

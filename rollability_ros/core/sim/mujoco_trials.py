@@ -147,13 +147,17 @@ class MujocoTrialWorld:
         push = np.concatenate([conditions.force_n, conditions.torque_nm])
         energy = self.energy
         step = mujoco.mj_step
-        settled, decision, rest_since, previous_pose, steps = False, None, None, None, 0
+        settled, decision, rest_since, previous_pose, primed, steps = False, None, None, None, False, 0
         while steps < cap:
             if steps == push_start:
                 data.xfrc_applied[self.root] = push
             elif steps == push_end:
                 data.xfrc_applied[self.root] = 0.0
-            step(model, data)
+            if primed:  # mj_step1 of this step already ran for the energy check
+                mujoco.mj_step2(model, data)
+                primed = False
+            else:
+                step(model, data)
             steps += 1
             if steps % interval:
                 continue
@@ -162,6 +166,10 @@ class MujocoTrialWorld:
             previous_pose = pose
             if steps >= push_end and moved:
                 if energy is not None:
+                    # the first half of the next step computes the position-dependent quantities (COM, mass
+                    # matrix) the energy needs; mj_step1 + mj_step2 = mj_step (Euler integrator)
+                    mujoco.mj_step1(model, data)
+                    primed = True
                     decision = energy.decide()
                     if decision is not None:
                         settled = True
@@ -263,13 +271,10 @@ class MujocoEnergyMonitor:
         self._momentum = np.zeros(model.nv)
 
     def decide(self):
-        """True / False once the trial's outcome is fixed (upright / not), else None."""
+        """True / False once the trial's outcome is fixed (upright / not), else None; call after ``mj_step1``."""
         mujoco, world = self.mujoco, self.world
         model, data = world.model, world.data
-        # positions and velocities are of the step just taken; the derived quantities need a forward pass
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
-        mujoco.mj_crb(model, data)
+        # the caller ran mj_step1 at the current state: subtree COM and mass matrix are current
         mujoco.mj_mulM(model, data, self._momentum, data.qvel)
         kinetic = 0.5 * float(self._momentum @ data.qvel)
         energy_height_m = float(data.subtree_com[world.root][2]) + kinetic / (self.mass_kg * self.gravity_mps2)

@@ -87,3 +87,12 @@ def test_mujoco_early_decision_changes_no_outcome():
     fast = evaluate_profile(heights, 40, 11, early(SETTINGS, True)).trial_results
     assert [o.upright for o in fast] == [o.upright for o in full]
     assert any(o.decided for o in fast) and sum(o.steps for o in fast) < sum(o.steps for o in full)
+
+
+def test_evaluate_engines_prints_both_fitnesses_and_the_agreement(capsys):
+    from rollability_ros.cli import main
+    assert main(["evaluate", "--baseline", "--trials", "6", "--workers", "1", "--engines", "pybullet,mujoco"]) == 0
+    out = capsys.readouterr().out
+    assert "pybullet  fitness" in out and "mujoco    fitness" in out and "agreement " in out and "/6 trials" in out
+    assert main(["evaluate", "--baseline", "--engines", "pybullet,ode"]) == 2
+    assert "--engines needs two different engines" in capsys.readouterr().err

@@ -32,6 +32,8 @@ def run(args):
         job = evaluation.profile_job(heights, settings)  # validates before any worker starts
         mesh = None if job.profile is None else geometry.profile_mesh(heights, settings.grid)
         label = "baseline (no profile)" if mesh is None else f"{len(heights)} heights"
+    if args.engines:
+        return _compare_engines(args, settings, mesh, trials, label)
     executor = evaluation.make_executor(settings.evaluator, args.workers)
     done = []
 
@@ -55,6 +57,44 @@ def run(args):
     return 0
 
 
+def _engine_list(text):
+    """The engines of ``--engines`` (comma separated), checked against the known ones."""
+    from rollability_ros.core.sim.world import ENGINES
+    engines = [name.strip() for name in text.split(",") if name.strip()]
+    unknown = [name for name in engines if name not in ENGINES]
+    if unknown or len(engines) != 2 or engines[0] == engines[1]:
+        raise ValueError(f"--engines needs two different engines of {', '.join(ENGINES)}, got {text!r}")
+    return engines
+
+
+def _compare_engines(args, settings, mesh, trials, label):
+    """Evaluate the same trials in two engines; print fitness per engine and trial-by-trial agreement."""
+    import dataclasses
+    from rollability_ros.core.results.engine_agreement import trial_agreement
+    from rollability_ros.core.sim import evaluation
+
+    engines = _engine_list(args.engines)
+    results = {}
+    for engine in engines:
+        engine_settings = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine=engine))
+        executor = evaluation.make_executor(settings.evaluator, args.workers)
+        try:
+            results[engine] = evaluation.evaluate_mesh(mesh, trials, args.seed, engine_settings, executor=executor)
+        finally:
+            executor.close()
+    print(f"profile   {label}   seed {args.seed}   (simulated)")
+    for engine, result in results.items():
+        mean_steps = sum(o.steps for o in result.trial_results) / result.trials
+        print(f"{engine:9s} fitness {result.fitness:.3f}  ({result.successes}/{result.trials} upright)  "
+              f"95% CI [{result.ci_low:.3f}, {result.ci_high:.3f}]   steps/trial {mean_steps:.0f}   "
+              f"wall time {result.eval_time_s:.2f} s")
+    agreement = trial_agreement(*(result.trial_results for result in results.values()))
+    print(f"agreement {agreement.agreed}/{agreement.trials} trials same outcome ({agreement.fraction:.3f}, 95% CI "
+          f"[{agreement.ci_low:.3f}, {agreement.ci_high:.3f}]); upright in both {agreement.both_upright}, only "
+          f"{engines[0]} {agreement.only_first_upright}, only {engines[1]} {agreement.only_second_upright}")
+    return 0
+
+
 def register(subparsers):
     """Add the ``evaluate`` verb."""
     parser = subparsers.add_parser(
@@ -75,6 +115,9 @@ def register(subparsers):
     parser.add_argument("--seed", type=int, default=0, help="base seed of the trials' disturbances (default 0)")
     parser.add_argument("--workers", type=int,
                         help="worker processes (default: evaluator.workers; 0 = one per core)")
+    parser.add_argument("--engines", metavar="A,B",
+                        help="run the same trials in two engines (e.g. pybullet,mujoco) and print the fitness of "
+                             "each and their trial-by-trial agreement")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="extra parameter file loaded over sim, robot and evaluator (repeatable)")
     parser.set_defaults(func=run)

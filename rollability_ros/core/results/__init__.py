@@ -7,4 +7,5 @@
 - outcome_csv: strict CSV import/export of hand-recorded outcomes
 - analysis, report, report_figures: the paper's views, figures and HTML report
 - stats: binomial intervals
+- engine_agreement: the same trials in two physics engines: trial and rank agreement, robust designs
 """

@@ -74,6 +74,22 @@ class RobotModel(abc.ABC):
     def to_urdf(self, profile_mesh_filename=None, profile=None):
         """Return a URDF document (str) of the robot, with the profile mesh file on its mount if given."""
 
+    def simulator_urdf(self, profile=None, mesh_filename=None):
+        """The URDF a simulator loads (str): the robot with ``profile`` (ProfileBody) on ``mesh_filename``."""
+        return self.to_urdf(mesh_filename, profile)
+
+    @abc.abstractmethod
+    def wheel_link_names(self):
+        """Names of the wheel links in :meth:`to_urdf`, in the order of :attr:`SpawnedRobot.wheel_links`."""
+
+    @abc.abstractmethod
+    def joint_drag_torque_nm(self):
+        """Back-drive drag torque of each unpowered joint (N m)."""
+
+    @abc.abstractmethod
+    def up_axis_in_root(self):
+        """The up axis (3,) in the frame of :meth:`to_urdf`'s root link."""
+
     @abc.abstractmethod
     def wheel_radii_m(self):
         """Rolling radius of each wheel (m), a tuple in the order of :attr:`SpawnedRobot.wheel_links`."""
@@ -206,6 +222,18 @@ class ChassisModel(SpecThresholds, RobotModel):
     def wheel_radii_m(self):
         return (self.spec.wheel_radius_m,) * 4
 
+    #: The wheels' link names in :meth:`to_urdf`, front-left, front-right, rear-left, rear-right.
+    WHEEL_NAMES = ("front_left", "front_right", "rear_left", "rear_right")
+
+    def wheel_link_names(self):
+        return tuple(f"{name}_wheel" for name in self.WHEEL_NAMES)
+
+    def joint_drag_torque_nm(self):
+        return self.spec.wheel_drag_torque_nm
+
+    def up_axis_in_root(self):
+        return (0.0, 0.0, 1.0)
+
     def wheel_positions_m(self):
         """Wheel centres in the chassis frame, (4, 3): front-left, front-right, rear-left, rear-right."""
         s = self.spec
@@ -272,7 +300,7 @@ class ChassisModel(SpecThresholds, RobotModel):
         r, w, m = s.wheel_radius_m, s.wheel_width_m, s.wheel_mass_kg
         across = m * (3 * r * r + w * w) / 12
         wheel_inertia = (across, m * r * r / 2, across)  # axis along the link's y
-        for name, position in zip(("front_left", "front_right", "rear_left", "rear_right"), self.wheel_positions_m()):
+        for name, position in zip(self.WHEEL_NAMES, self.wheel_positions_m()):
             parts.append(_urdf_link(f"{name}_wheel", f'<cylinder radius="{r}" length="{w}"/>', m, (0, 0, 0),
                                     wheel_inertia, rpy=(math.pi / 2, 0, 0)))
             parts.append(_urdf_joint(f"{name}_wheel_joint", "continuous", self.BODY_LINK, f"{name}_wheel", position,

@@ -392,6 +392,18 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
         return np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3) @ self._up_axis
 
+    def simulator_urdf(self, profile=None, mesh_filename=None):
+        return self.sim_urdf(profile, mesh_filename)
+
+    def wheel_link_names(self):
+        return tuple(self.mounted.wheel_bodies)
+
+    def joint_drag_torque_nm(self):
+        return self.spec.joint_drag_torque_nm
+
+    def up_axis_in_root(self):
+        return tuple(self.spec.up_axis_xyz)
+
     def wheel_radii_m(self):
         """Each wheel body's :func:`half_width_across_m` of its collision shapes across its joint axis (m).
 

@@ -1,7 +1,10 @@
-"""PyBullet physics: worlds, disturbance trials, fitness evaluation, the stable-pose screen, the launch twin.
+"""Physics (PyBullet; MuJoCo as an option): worlds, disturbance trials, fitness evaluation, the stable-pose screen,
+the launch twin.
 
 - world: PhysicsParams and one DIRECT client per simulation
-- trials: one disturbance trial (start, push, rest, upright test)
+- trials: one disturbance trial (start, push, rest, upright test); make_trial_world picks the engine
+- mujoco_trials: the same trial in MuJoCo (sim.engine: mujoco)
+- early_decision: ends a trial once energy fixes its outcome (barriers to the resting poses)
 - evaluation: fitness = upright / trials, serial, process pool or Ray
 - worker_pool: spawned worker processes that never outlive their parent
 - stable_poses: analytic stable-pose screen

@@ -26,7 +26,7 @@ from rollability_ros.core.optional import require
 from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
 from rollability_ros.core.sim.world import PhysicsParams, connect
 from rollability_ros.core.results.stats import wilson_interval
-from rollability_ros.core.sim.trials import TrialSettings, TrialWorld
+from rollability_ros.core.sim.trials import TrialSettings, make_trial_world
 from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec, footprint_grid
 from rollability_ros.core.sim.worker_pool import spawn_pool
 
@@ -173,8 +173,8 @@ def run_batch(job, batch):
     key = _job_key(job)
     if _worker_world is None or _worker_world[0] != key:
         settings = job.settings
-        _worker_world = (key, TrialWorld(_worker_client, settings.robot_model(), job.profile, settings.trial,
-                                         settings.physics))
+        _worker_world = (key, make_trial_world(_worker_client, settings.robot_model(), job.profile, settings.trial,
+                                               settings.physics))
     world = _worker_world[1]
     return [world.run(index, seed) for index, seed in batch]
 

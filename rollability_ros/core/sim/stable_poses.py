@@ -153,6 +153,31 @@ def _rotation_onto_z(axis):
     return np.eye(3) + skew + skew @ skew / (1 + cos)
 
 
+def link_points(client, body_id, sections=24):
+    """Hull points, mass and COM of every link of a spawned body as it stands now, in the world frame.
+
+    Returns three dicts keyed by link index (-1 = base): points (k, 3) m whose hull is the link's collision
+    geometry (primitives sampled, round ones with ``sections`` points per rim, meshes by their vertices), mass
+    kg and COM position (3,) m.
+    """
+    pybullet = require("pybullet", feature="the hull of a simulated body")
+    points, masses, centres = {}, {}, {}
+    for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client)):
+        if link < 0:
+            position, orientation = pybullet.getBasePositionAndOrientation(body_id, physicsClientId=client)
+        else:
+            position, orientation = pybullet.getLinkState(body_id, link, computeForwardKinematics=True,
+                                                          physicsClientId=client)[:2]
+        rotation = np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+        masses[link] = pybullet.getDynamicsInfo(body_id, link, physicsClientId=client)[0]
+        centres[link] = np.asarray(position, dtype=np.float64)
+        shapes = pybullet.getCollisionShapeData(body_id, link, physicsClientId=client)
+        if shapes:
+            points[link] = np.vstack([_shape_points(pybullet, client, body_id, link, index, shape, sections)
+                                      for index, shape in enumerate(shapes)]) @ rotation.T + centres[link]
+    return points, masses, centres
+
+
 def robot_hull(robot_model, profile=None, sections=24):
     """The :class:`RigidHull` of any :class:`~rollability_ros.core.robots.robot.RobotModel` with ``profile`` on its mount.
 
@@ -161,26 +186,15 @@ def robot_hull(robot_model, profile=None, sections=24):
     ones with ``sections`` points per rim, meshes by their vertices) and the COM and mass are PyBullet's, summed
     over its links. The result is turned so that the model's up axis is +z, as :func:`screen_body` expects.
     """
-    pybullet = require("pybullet", feature="the stable-pose screen of a robot")
+    require("pybullet", feature="the stable-pose screen of a robot")
     from rollability_ros.core.sim.world import connect, disconnect
 
     client = connect()
     try:
         robot = robot_model.spawn(client, profile, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
-        body_id = robot.body_id
-        points, masses, centres = [], [], []
-        for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client)):
-            if link < 0:
-                position, orientation = pybullet.getBasePositionAndOrientation(body_id, physicsClientId=client)
-            else:
-                position, orientation = pybullet.getLinkState(body_id, link, computeForwardKinematics=True,
-                                                              physicsClientId=client)[:2]
-            rotation = np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
-            masses.append(pybullet.getDynamicsInfo(body_id, link, physicsClientId=client)[0])
-            centres.append(np.asarray(position, dtype=np.float64))
-            for index, shape in enumerate(pybullet.getCollisionShapeData(body_id, link, physicsClientId=client)):
-                local = _shape_points(pybullet, client, body_id, link, index, shape, sections)
-                points.append(local @ rotation.T + centres[-1])
+        points_by_link, masses, centres = link_points(client, robot.body_id, sections)
+        points = list(points_by_link.values())
+        masses, centres = list(masses.values()), list(centres.values())
         up = robot_model.up_axis(client, robot)
     finally:
         disconnect(client)

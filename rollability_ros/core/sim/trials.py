@@ -18,6 +18,11 @@ End
     once the disturbance is over, every ``check_interval_steps`` steps the base's linear and angular speed are
     compared with the rest thresholds; the trial ends when they have stayed below them for ``rest_hold_s``
     (settled) or at ``time_cap_s`` (not settled). The robot model then judges upright (tilt and wheel contact).
+Early decision (``early_decision``, on by default)
+    at the same checks, the trial also ends as soon as energy alone fixes its outcome: the robot's kinetic plus
+    potential energy is below the barrier out of the region (upright, or not upright) it is in
+    (:mod:`rollability_ros.core.sim.early_decision`). The outcome is then that region's, ``settled`` is true
+    (it can no longer leave it), ``decided`` is true and ``tilt_deg`` is the tilt at the decision.
 """
 import dataclasses
 import math
@@ -64,6 +69,12 @@ class TrialSettings:
         "range": (0.0, 86400.0)})
     check_interval_steps: int = dataclasses.field(default=4, metadata={
         "description": "physics steps between two rest checks (count)", "range": (1, 100000)})
+    early_decision: bool = dataclasses.field(default=True, metadata={
+        "description": "true: end a trial once its energy cannot reach a resting pose of the other outcome "
+                       "(verified to change no outcome, docs/engines.md); false: the full rest rule"})
+    early_decision_margin_m: float = dataclasses.field(default=0.002, metadata={
+        "description": "safety margin taken off every energy barrier of the early decision, m of height",
+        "range": (0.0, 1.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -77,6 +88,8 @@ class TrialSettings:
         for name in ("rest_linear_speed_mps", "rest_angular_speed_dps", "rest_hold_s", "time_cap_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.early_decision_margin_m < 0:
+            raise ValueError(f"early_decision_margin_m must be >= 0, got {self.early_decision_margin_m}")
         if self.check_interval_steps < 1:
             raise ValueError(f"check_interval_steps must be >= 1, got {self.check_interval_steps}")
         if self.time_cap_s <= self.disturbance_delay_s + self.disturbance_duration_s + self.rest_hold_s:
@@ -85,7 +98,8 @@ class TrialSettings:
 
 @dataclasses.dataclass(frozen=True)
 class TrialOutcome:
-    """Outcome of one trial (``msg/TrialResult.msg``): upright at the end, settled before the cap, steps, tilt."""
+    """Outcome of one trial (``msg/TrialResult.msg``): upright at the end, settled before the cap, steps, tilt;
+    ``decided``: ended by the early decision (not part of the message)."""
 
     index: int
     seed: int
@@ -93,6 +107,7 @@ class TrialOutcome:
     settled: bool
     steps: int
     tilt_deg: float
+    decided: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,6 +187,70 @@ class RestDetector:
         return False
 
 
+class EnergyMonitor:
+    """Reads a spawned robot's energy height and down direction and asks its basin map for a decision.
+
+    Built once per :class:`TrialWorld` (the robot at its saved pose): per-link masses and principal inertias,
+    and the :class:`~rollability_ros.core.sim.early_decision.BasinMap` of the robot + profile.
+    """
+
+    def __init__(self, client, robot_model, robot, gravity_mps2, margin_m):
+        from rollability_ros.core.sim.early_decision import build_basin_map
+        from rollability_ros.core.sim.stable_poses import link_points
+
+        pybullet = self.pybullet = require("pybullet", feature="the simulated evaluator")
+        self.client, self.body = client, robot.body_id
+        points, masses, centres = link_points(client, self.body, sections=24)
+        position, orientation = pybullet.getBasePositionAndOrientation(self.body, physicsClientId=client)
+        rotation = np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+        origin = np.asarray(position)
+        in_base = {link: (world - origin) @ rotation for link, world in points.items()}
+        self.mass_kg = float(sum(masses.values()))
+        com_world = sum(masses[link] * centres[link] for link in masses) / self.mass_kg
+        self.links = [link for link in masses if link >= 0]
+        order = [-1] + self.links
+        self.masses = [float(masses[link]) for link in order]
+        self.inertias = [tuple(pybullet.getDynamicsInfo(self.body, link, physicsClientId=client)[2])
+                         for link in order]
+        self.gravity_mps2 = abs(gravity_mps2)
+        self.basins = build_basin_map(in_base, robot.wheel_links, (com_world - origin) @ rotation, self.mass_kg,
+                                      rotation.T @ robot_model.up_axis(client, robot), robot_model.upright_tilt_deg,
+                                      robot_model.min_wheels_in_contact, robot_model.contact_tolerance_m,
+                                      margin_m=margin_m)
+        self.com_in_base = tuple(float(value) for value in self.basins.com_m)
+        self.highest_barrier_m = self.basins.highest_barrier_m()
+
+    def decide(self):
+        """True / False once the trial's outcome is fixed (upright / not), else None."""
+        # plain floats: a few numbers per link, where numpy's per-call cost would exceed a simulation step
+        pybullet, client, body = self.pybullet, self.client, self.body
+        position, orientation = pybullet.getBasePositionAndOrientation(body, physicsClientId=client)
+        linear, angular = pybullet.getBaseVelocity(body, physicsClientId=client)
+        base = pybullet.getMatrixFromQuaternion(orientation)
+        kinetic = self._kinetic_j(self.masses[0], self.inertias[0], base, linear, angular)
+        if self.links:
+            states = pybullet.getLinkStates(body, self.links, computeLinkVelocity=1, physicsClientId=client)
+            for mass, inertia, state in zip(self.masses[1:], self.inertias[1:], states):
+                kinetic += self._kinetic_j(mass, inertia, pybullet.getMatrixFromQuaternion(state[1]), state[6],
+                                           state[7])
+        cx, cy, cz = self.com_in_base
+        com_z = position[2] + base[6] * cx + base[7] * cy + base[8] * cz
+        energy_height_m = com_z + kinetic / (self.mass_kg * self.gravity_mps2)
+        if energy_height_m >= self.highest_barrier_m:  # cheap first test
+            return None
+        return self.basins.decide(np.array([-base[6], -base[7], -base[8]]), energy_height_m)
+
+    @staticmethod
+    def _kinetic_j(mass, inertia, rotation, linear, angular):
+        """Kinetic energy (J) of one link: ``rotation`` its inertia frame (row-major 9-tuple), world velocities."""
+        wx, wy, wz = angular
+        energy = mass * (linear[0] ** 2 + linear[1] ** 2 + linear[2] ** 2)
+        for axis in range(3):  # angular velocity about each principal axis (a column of the rotation)
+            spin = rotation[axis] * wx + rotation[3 + axis] * wy + rotation[6 + axis] * wz
+            energy += inertia[axis] * spin * spin
+        return 0.5 * energy
+
+
 class TrialWorld:
     """A world holding one robot + profile, saved once after building and restored before every trial.
 
@@ -187,6 +266,8 @@ class TrialWorld:
         self.ground, self.robot = build_trial_world(client, robot_model, profile, (0.0, 0.0, 0.0, 1.0), settings,
                                                     physics)
         self.saved_state = self.pybullet.saveState(physicsClientId=client)
+        self.energy = EnergyMonitor(client, robot_model, self.robot, physics.gravity_mps2,
+                                    settings.early_decision_margin_m) if settings.early_decision else None
 
     def run(self, index, seed):
         """Run one trial (see the module docstring) and return its :class:`TrialOutcome`."""
@@ -202,7 +283,10 @@ class TrialWorld:
         force, torque = conditions.force_n.tolist(), conditions.torque_nm.tolist()
         step_simulation = pybullet.stepSimulation
         settled = False
+        decision = None
         steps = 0
+        energy = self.energy
+        interval = settings.check_interval_steps
         while steps < cap:
             if push_start <= steps < push_end:
                 centre, _ = pybullet.getBasePositionAndOrientation(body, physicsClientId=client)
@@ -210,9 +294,18 @@ class TrialWorld:
                 pybullet.applyExternalTorque(body, -1, torque, pybullet.WORLD_FRAME, physicsClientId=client)
             step_simulation(physicsClientId=client)
             steps += 1
-            if steps >= push_end and rest.settled(client, body, steps):
-                settled = True
-                break
+            if steps >= push_end:
+                if energy is not None and steps % interval == 0:
+                    decision = energy.decide()
+                    if decision is not None:
+                        settled = True
+                        break
+                if rest.settled(client, body, steps):
+                    settled = True
+                    break
+        if decision is not None:
+            return TrialOutcome(index=index, seed=seed, upright=decision, settled=True, steps=steps,
+                                tilt_deg=self.robot_model.tilt_deg(client, self.robot), decided=True)
         upright, tilt = self.robot_model.is_upright(client, self.robot, self.ground)
         return TrialOutcome(index=index, seed=seed, upright=upright, settled=settled, steps=steps, tilt_deg=tilt)
 
@@ -220,3 +313,13 @@ class TrialWorld:
 def run_trial(client, robot_model, profile, index, seed, settings, physics):
     """Run one trial in a freshly built world in ``client`` and return its :class:`TrialOutcome`."""
     return TrialWorld(client, robot_model, profile, settings, physics).run(index, seed)
+
+
+def make_trial_world(client, robot_model, profile, settings, physics):
+    """The trial world of ``physics.engine``: a PyBullet :class:`TrialWorld` in ``client`` or a MuJoCo
+    :class:`~rollability_ros.core.sim.mujoco_trials.MujocoTrialWorld` (which ignores ``client``); both have
+    ``run(index, seed) -> TrialOutcome``."""
+    if physics.engine == "mujoco":
+        from rollability_ros.core.sim.mujoco_trials import MujocoTrialWorld
+        return MujocoTrialWorld(robot_model, profile, settings, physics)
+    return TrialWorld(client, robot_model, profile, settings, physics)

@@ -22,6 +22,8 @@ import math
 from rollability_ros.core.optional import require
 
 CONTACT_MODELS = ("per_contact", "per_body")
+#: Physics engines of the disturbance trials (``sim.engine``): PyBullet (the paper's) or MuJoCo.
+ENGINES = ("pybullet", "mujoco")
 
 
 @dataclasses.dataclass
@@ -46,6 +48,9 @@ class PhysicsParams:
                        "bodies) or per_body (Bullet multiplies two bodies' values)"})
     solver_iterations: int = dataclasses.field(default=50, metadata={
         "description": "Bullet constraint-solver iterations per time step (count)", "range": (1, 10000)})
+    engine: str = dataclasses.field(default="pybullet", metadata={
+        "description": "physics engine of the trials: pybullet (the paper's) or mujoco (faster; no restitution, "
+                       "see docs/engines.md)"})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -60,6 +65,8 @@ class PhysicsParams:
             raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
         if self.contact_model not in CONTACT_MODELS:
             raise ValueError(f"contact_model must be one of {', '.join(CONTACT_MODELS)}, got {self.contact_model!r}")
+        if self.engine not in ENGINES:
+            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
         if self.solver_iterations < 1:
             raise ValueError(f"solver_iterations must be >= 1, got {self.solver_iterations}")
 

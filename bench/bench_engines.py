@@ -1,0 +1,225 @@
+"""Benchmark of the trial engines (PyBullet, MuJoCo) and the early decision; every ratio from this one run.
+
+    nice python bench/bench_engines.py [--trials 60] [--repeats 3]
+
+Prints, for the dome profile on the built-in chassis: trials/s per core of the evaluator for each engine with
+and without the early decision, steps per trial, the ratio to a naive loop of each engine written here (the
+same robot URDF and start states; a world built once, reset per trial, a plain per-step rest check on the base
+speed, the engine's default contacts), the speed-up of 2 workers over 1 on the fastest engine, and the
+projected wall time of the paper-scale optimization (500 generations x 13 evaluations x 60 trials) on 2 cores.
+Repeats are interleaved and the fastest kept (the machine may be shared); the load average is printed.
+"""
+import argparse
+import dataclasses
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from bench.bench_evaluator import dome_heights  # noqa: E402
+from rollability_ros.core.optional import require  # noqa: E402
+from rollability_ros.core.robots.urdf_robot import _obj_text, profile_inertia  # noqa: E402
+from rollability_ros.core.sim import evaluation  # noqa: E402
+from rollability_ros.core.sim.mujoco_trials import _pose_speeds  # noqa: E402
+from rollability_ros.core.sim.trials import sample_conditions  # noqa: E402
+
+PAPER_TRIALS = 500 * 13 * 60
+#: Issue 20's quiet-machine measurement of a naive PyBullet loop of this trial (trials/s per core), used only to
+#: scale this run's ratios to an unloaded machine when the machine is shared.
+QUIET_NAIVE_PYBULLET_TPS = 106.0
+
+
+def configured(settings, engine, early_decision):
+    """``settings`` with ``physics.engine`` and ``trial.early_decision`` set."""
+    return dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine=engine),
+                               trial=dataclasses.replace(settings.trial, early_decision=early_decision))
+
+
+def naive_pybullet(job, seeds, hold_steps, cap_steps):
+    """A plain PyBullet loop: the URDF loaded once, state restored per trial, rest = base speed below the
+    thresholds for ``hold_steps`` consecutive steps. Returns (seconds, steps per trial)."""
+    import tempfile
+    pybullet = require("pybullet")
+    settings = job.settings
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        pybullet.setGravity(0, 0, settings.physics.gravity_mps2, physicsClientId=client)
+        pybullet.setTimeStep(settings.physics.time_step_s, physicsClientId=client)
+        plane = pybullet.createMultiBody(0, pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client),
+                                         physicsClientId=client)
+        with tempfile.TemporaryDirectory() as folder:
+            _, hull = profile_inertia(job.profile)
+            with open(os.path.join(folder, "p.obj"), "w", encoding="utf-8") as stream:
+                stream.write(_obj_text(hull))
+            with open(os.path.join(folder, "r.urdf"), "w", encoding="utf-8") as stream:
+                stream.write(settings.robot_model().simulator_urdf(job.profile, "p.obj"))
+            body = pybullet.loadURDF(os.path.join(folder, "r.urdf"), [0, 0, 0.3], physicsClientId=client)
+        for link in range(-1, pybullet.getNumJoints(body, physicsClientId=client)):
+            pybullet.changeDynamics(body, link, lateralFriction=0.35, rollingFriction=0.01, spinningFriction=0.02,
+                                    restitution=0.3, physicsClientId=client)
+        del plane
+        saved = pybullet.saveState(physicsClientId=client)
+        return _naive_loop(seeds, settings, hold_steps, cap_steps, pybullet_engine(pybullet, client, body, saved))
+    finally:
+        pybullet.disconnect(physicsClientId=client)
+
+
+def pybullet_engine(pybullet, client, body, saved):
+    """Callbacks of the naive PyBullet loop: reset(orientation), push(force, torque), step(), speeds()."""
+    def reset(orientation):
+        pybullet.restoreState(saved, physicsClientId=client)
+        pybullet.resetBasePositionAndOrientation(body, [0, 0, 0.2], orientation, physicsClientId=client)
+
+    def push(force, torque):
+        centre, _ = pybullet.getBasePositionAndOrientation(body, physicsClientId=client)
+        pybullet.applyExternalForce(body, -1, force, centre, pybullet.WORLD_FRAME, physicsClientId=client)
+        pybullet.applyExternalTorque(body, -1, torque, pybullet.WORLD_FRAME, physicsClientId=client)
+
+    def step():
+        pybullet.stepSimulation(physicsClientId=client)
+
+    def speeds():
+        linear, angular = pybullet.getBaseVelocity(body, physicsClientId=client)
+        return math.hypot(*linear), math.hypot(*angular)
+
+    return reset, push, step, speeds
+
+
+def naive_mujoco(job, seeds, hold_steps, cap_steps):
+    """A plain MuJoCo loop on the same URDF with a free joint, the wheel drag and MuJoCo's default contacts."""
+    mujoco = require("mujoco")
+    settings = job.settings
+    _, hull = profile_inertia(job.profile)
+    spec = mujoco.MjSpec.from_string(settings.robot_model().simulator_urdf(job.profile, "p.obj"),
+                                     assets={"p.obj": _obj_text(hull).encode()})
+    spec.option.timestep = settings.physics.time_step_s
+    for joint in spec.joints:  # the unpowered drives' drag (free wheels would roll a pushed robot away forever)
+        joint.frictionloss = settings.robot_model().joint_drag_torque_nm()
+    spec.worldbody.first_body().add_freejoint()
+    ground = spec.worldbody.add_geom()
+    ground.type = mujoco.mjtGeom.mjGEOM_PLANE
+    ground.size = [0, 0, 1]
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    root = 1
+
+    def reset(orientation):
+        mujoco.mj_resetData(model, data)
+        x, y, z, w = orientation
+        data.qpos[0:7] = [0, 0, 0.2, w, x, y, z]
+
+    def push(force, torque):
+        data.xfrc_applied[root, 0:3] = force
+        data.xfrc_applied[root, 3:6] = torque
+
+    previous = [None]
+
+    def step():
+        previous[0] = data.qpos[0:7].copy()
+        mujoco.mj_step(model, data)
+        data.xfrc_applied[root] = 0.0
+
+    def speeds():  # from poses: MuJoCo 4 may put a body at rest to sleep, freezing its pose but not its qvel
+        return _pose_speeds(previous[0], data.qpos[0:7], model.opt.timestep)
+
+    return _naive_loop(seeds, settings, hold_steps, cap_steps, (reset, push, step, speeds))
+
+
+def _naive_loop(seeds, settings, hold_steps, cap_steps, engine):
+    reset, push, step, speeds = engine
+    trial, dt = settings.trial, settings.physics.time_step_s
+    push_start = round(trial.disturbance_delay_s / dt)
+    push_end = push_start + round(trial.disturbance_duration_s / dt)
+    linear_limit, angular_limit = trial.rest_linear_speed_mps, math.radians(trial.rest_angular_speed_dps)
+    total_steps = 0
+    started = time.perf_counter()
+    for seed in seeds:
+        conditions = sample_conditions(seed, trial)
+        reset(conditions.orientation)
+        force, torque = conditions.force_n.tolist(), conditions.torque_nm.tolist()
+        still = 0
+        for steps in range(1, cap_steps + 1):
+            if push_start <= steps - 1 < push_end:
+                push(force, torque)
+            step()
+            linear, angular = speeds()
+            still = still + 1 if steps > push_end and linear < linear_limit and angular < angular_limit else 0
+            if still >= hold_steps:
+                break
+        total_steps += steps
+    return time.perf_counter() - started, total_steps / len(seeds)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--trials", type=int, default=60)
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    base = evaluation.load_settings()
+    heights = dome_heights(base.grid)
+    variants = {(engine, early): configured(base, engine, early)
+                for engine in ("pybullet", "mujoco") for early in (False, True)}
+    jobs = {key: evaluation.profile_job(heights, settings) for key, settings in variants.items()}
+    hold = round(base.trial.rest_hold_s / base.physics.time_step_s)
+    cap = round(base.trial.time_cap_s / base.physics.time_step_s)
+    times = {key: [] for key in list(jobs) + ["naive pybullet", "naive mujoco"]}
+    steps, fitness = {}, {}
+    for key, job in jobs.items():  # build each world outside the timing
+        evaluation.run_batch(job, [])
+    for repeat in range(args.repeats):
+        seeds = [evaluation.trial_seed(100 + repeat, index) for index in range(args.trials)]
+        batch = list(enumerate(seeds))
+        for key, job in jobs.items():
+            evaluation.run_batch(job, [])  # the world of this job (the process keeps one)
+            started = time.perf_counter()
+            outcomes = evaluation.run_batch(job, batch)
+            times[key].append(time.perf_counter() - started)
+            steps[key] = np.mean([o.steps for o in outcomes])
+            fitness[key] = np.mean([o.upright for o in outcomes])
+        for name, loop in (("naive pybullet", naive_pybullet), ("naive mujoco", naive_mujoco)):
+            seconds, mean_steps = loop(jobs[("pybullet", False)], seeds, hold, cap)
+            times[name].append(seconds)
+            steps[name] = mean_steps
+    rate = {key: args.trials / min(record) for key, record in times.items()}
+    print(f"dome profile, built-in chassis, {args.trials} trials x {args.repeats} repeats (fastest kept), "
+          f"cores {os.cpu_count()}, load average {os.getloadavg()[0]:.2f} at the end")
+    print(f"{'evaluator':34s} {'trials/s/core':>13s} {'steps/trial':>11s} {'fitness':>7s} {'vs naive loop':>13s}")
+    for (engine, early) in jobs:
+        print(f"{engine + (' + early decision' if early else ' (full rest rule)'):34s} "
+              f"{rate[(engine, early)]:13.1f} {steps[(engine, early)]:11.1f} {fitness[(engine, early)]:7.3f} "
+              f"{rate[(engine, early)] / rate['naive ' + engine]:12.2f}x")
+    for name in ("naive pybullet", "naive mujoco"):
+        print(f"{name + ' loop':34s} {rate[name]:13.1f} {steps[name]:11.1f}")
+    fastest = max(jobs, key=lambda key: rate[key])
+    print(f"fastest: {fastest[0]}{' + early decision' if fastest[1] else ''}: "
+          f"{rate[fastest] / rate['naive mujoco']:.2f}x the naive MuJoCo loop's trials/s per core (target >= 1)")
+    pools = {workers: evaluation.LocalExecutor(workers) for workers in (1, 2)}
+    try:
+        for pool in pools.values():
+            pool.warm()
+        pool_times = {workers: [] for workers in pools}
+        for repeat in range(args.repeats):
+            for workers, pool in pools.items():
+                pool_times[workers].append(evaluation.evaluate_profile(
+                    heights, args.trials, 200 + repeat, variants[fastest], executor=pool).eval_time_s)
+    finally:
+        for pool in pools.values():
+            pool.close()
+    one, two = min(pool_times[1]), min(pool_times[2])
+    print(f"one evaluation of {args.trials} trials: 1 worker {one:.3f} s, 2 workers {two:.3f} s, "
+          f"speed-up {one / two:.2f}x")
+    projected_min = PAPER_TRIALS / (args.trials / two) / 60
+    print(f"projected paper-scale run (500 x 13 x 60 = {PAPER_TRIALS} trials) on 2 workers: {projected_min:.1f} min "
+          f"(target <= 15; trials only, CMA-ES and logging excluded; load average {os.getloadavg()[0]:.2f})")
+    quiet_rate = QUIET_NAIVE_PYBULLET_TPS * rate[fastest] / rate["naive pybullet"] * 2 * min(1.0, one / two / 2)
+    print(f"scaled to a quiet 2-core machine (naive PyBullet loop at {QUIET_NAIVE_PYBULLET_TPS:.0f} trials/s/core, "
+          f"issue 20's measurement, x this run's ratio {rate[fastest] / rate['naive pybullet']:.2f}, x 2 cores x "
+          f"this run's 2-worker efficiency {one / two / 2:.0%}): {PAPER_TRIALS / quiet_rate / 60:.1f} min (estimate)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,284 @@
+"""The disturbance trial of :mod:`rollability_ros.core.sim.trials` in MuJoCo (``sim.engine: mujoco``).
+
+Same trial semantics as the PyBullet :class:`~rollability_ros.core.sim.trials.TrialWorld`, behind the same
+interface (``run(index, seed) -> TrialOutcome``): start state and disturbance from
+:func:`~rollability_ros.core.sim.trials.sample_conditions`, placement with the lowest point ``drop_height_m``
+above the ground, the push as a world-frame force and torque at the base's centre of mass, the rest rule of
+:class:`~rollability_ros.core.sim.trials.RestDetector` (speeds of the root body), the upright test (tilt of the
+root frame's up axis, wheels within ``contact_tolerance_m`` of the ground) and the early decision. The rest rule
+reads the root's mean speeds over each check interval from its poses (see :func:`_pose_speeds`).
+
+The robot is the URDF PyBullet loads too (:meth:`RobotModel.simulator_urdf`, profile hull as an OBJ mesh geom), compiled by
+MuJoCo (fixed links fused into their parent) with a free joint on its root link.
+
+Contact values (how ``config/sim.yaml``'s numbers map; MuJoCo combines two geoms by taking the larger value)
+    the robot's geoms get the *effective* robot-ground values under ``contact_model`` (per_contact: as
+    configured; per_body: Bullet's products, friction mu^2, rolling and spinning 2 r mu, restitution e^2) as
+    MuJoCo's (sliding, torsional, rolling) friction with ``condim`` 6, and the ground gets zeros, so the
+    contact has exactly those values. MuJoCo has no restitution coefficient: a contact is a damped spring.
+    Restitution is NOT represented: the spring is critically damped (see ``CONTACT_SOLREF``; an underdamped
+    spring that would bounce back with e = 0.3 never came to rest), so MuJoCo trials do not bounce. This is a
+    known difference between the engines, which ``rollability evaluate --engines`` measures.
+    An unpowered wheel drive's drag torque becomes the joint's ``frictionloss`` (N m).
+"""
+import math
+
+import numpy as np
+
+from rollability_ros.core.optional import require
+from rollability_ros.core.sim.trials import RestDetector, TrialOutcome, sample_conditions
+
+
+#: MuJoCo's contact spring (solref): time constant (s, MuJoCo's default; 2 steps blew up with the profile meshes)
+#: and damping ratio 1 (critical). A damping ratio below 1 (what a restitution of 0.3 would map to, 0.36) left a
+#: resting body ringing in a limit cycle at 1/240 s that never passes the rest rule.
+CONTACT_SOLREF = (0.02, 1.0)
+
+
+def effective_contact(physics):
+    """Robot-ground contact values (lateral, spinning, rolling friction, restitution) under ``contact_model``."""
+    if physics.contact_model == "per_body":
+        mu = physics.lateral_friction
+        return (mu * mu, 2 * physics.spinning_friction * mu, 2 * physics.rolling_friction * mu,
+                physics.restitution ** 2)
+    return physics.lateral_friction, physics.spinning_friction, physics.rolling_friction, physics.restitution
+
+
+def set_geom_contact(geom, physics, ground=False):
+    """Give an MjSpec ``geom`` the contact values of ``physics`` (module docstring): a simulated object gets the
+    effective robot-ground values, the ground zeros (MuJoCo takes the larger of two geoms' values)."""
+    lateral, spinning, rolling, _ = effective_contact(physics)
+    geom.friction = [0.0, 0.0, 0.0] if ground else [lateral, spinning, rolling]
+    geom.condim = 6
+    geom.solref = [max(CONTACT_SOLREF[0], 4 * physics.time_step_s), CONTACT_SOLREF[1]]
+
+
+def build_model(robot_model, profile, physics):
+    """Compile the MuJoCo model of ``robot_model`` with ``profile`` (or None) on a ground plane.
+
+    Returns ``(model, root body id, {wheel body id, ...})``.
+    """
+    mujoco = require("mujoco", feature="the MuJoCo trial engine")
+    assets = {}
+    mesh_file = None
+    if profile is not None:
+        from rollability_ros.core.robots.urdf_robot import _obj_text, profile_inertia
+        _, hull = profile_inertia(profile)
+        mesh_file = "profile.obj"
+        assets[mesh_file] = _obj_text(hull).encode()
+    spec = mujoco.MjSpec.from_string(robot_model.simulator_urdf(profile, mesh_file), assets=assets)
+    spec.option.timestep = physics.time_step_s
+    spec.option.gravity = [0.0, 0.0, physics.gravity_mps2]
+    for geom in spec.geoms:
+        set_geom_contact(geom, physics)
+    drag = robot_model.joint_drag_torque_nm()
+    for joint in spec.joints:
+        joint.frictionloss = drag
+    root = spec.worldbody.first_body()
+    root.add_freejoint()
+    ground = spec.worldbody.add_geom()
+    ground.name = "ground"
+    ground.type = mujoco.mjtGeom.mjGEOM_PLANE
+    ground.size = [0.0, 0.0, 1.0]
+    set_geom_contact(ground, physics, ground=True)
+    model = spec.compile()
+    wheel_names = set(robot_model.wheel_link_names())
+    wheels = {model.body(i).id for i in range(model.nbody) if model.body(i).name in wheel_names}
+    return model, model.body(root.name).id, wheels
+
+
+class MujocoTrialWorld:
+    """One robot + profile in a MuJoCo model; every trial starts from a reset of its data (no carry-over)."""
+
+    def __init__(self, robot_model, profile, settings, physics):
+        self.mujoco = mujoco = require("mujoco", feature="the MuJoCo trial engine")
+        self.robot_model, self.settings, self.physics = robot_model, settings, physics
+        self.model, self.root, self.wheels = build_model(robot_model, profile, physics)
+        self.data = mujoco.MjData(self.model)
+        model = self.model
+        self.ground_geom = model.geom("ground").id
+        self.robot_geoms = [g for g in range(model.ngeom) if g != self.ground_geom]
+        self.wheel_geoms = {body: [g for g in self.robot_geoms if model.geom_bodyid[g] == body]
+                            for body in self.wheels}
+        up = np.asarray(robot_model.up_axis_in_root(), dtype=np.float64)
+        self.up_in_root = up / np.linalg.norm(up)
+        self.energy = MujocoEnergyMonitor(self, settings.early_decision_margin_m) if settings.early_decision else None
+
+    def lowest_distance_m(self, geoms):
+        """Smallest distance (m, negative = penetration) from ``geoms`` to the ground, at the current state."""
+        mujoco, model, data = self.mujoco, self.model, self.data
+        return min(mujoco.mj_geomDistance(model, data, geom, self.ground_geom, 10.0, None) for geom in geoms)
+
+    def place(self, orientation_xyzw, clearance_m):
+        """Reset the data and put the robot at rest with ``orientation_xyzw`` and its lowest point ``clearance_m``
+        above the ground."""
+        mujoco, model, data = self.mujoco, self.model, self.data
+        mujoco.mj_resetData(model, data)
+        x, y, z, w = orientation_xyzw
+        data.qpos[0:7] = [0.0, 0.0, 1.0, w, x, y, z]
+        mujoco.mj_forward(model, data)
+        data.qpos[2] += clearance_m - self.lowest_distance_m(self.robot_geoms)
+        mujoco.mj_forward(model, data)
+
+    def tilt_deg(self):
+        """Angle between the root frame's up axis and world +z, degrees."""
+        up_world = self.data.xmat[self.root].reshape(3, 3) @ self.up_in_root
+        return math.degrees(math.acos(float(np.clip(up_world[2], -1.0, 1.0))))
+
+    def is_upright(self):
+        """``(upright, tilt_deg)`` as :meth:`RobotModel.is_upright` judges it."""
+        tilt = self.tilt_deg()
+        tolerance = self.robot_model.contact_tolerance_m
+        touching = sum(self.lowest_distance_m(geoms) <= tolerance for geoms in self.wheel_geoms.values() if geoms)
+        return tilt <= self.robot_model.upright_tilt_deg and touching >= self.robot_model.min_wheels_in_contact, tilt
+
+    def run(self, index, seed):
+        """Run one trial (see :mod:`rollability_ros.core.sim.trials`) and return its :class:`TrialOutcome`."""
+        mujoco, model, data, settings = self.mujoco, self.model, self.data, self.settings
+        conditions = sample_conditions(seed, settings)
+        self.place(conditions.orientation, settings.drop_height_m)
+        dt = self.physics.time_step_s
+        push_start = round(settings.disturbance_delay_s / dt)
+        push_end = push_start + max(1, round(settings.disturbance_duration_s / dt))
+        cap = round(settings.time_cap_s / dt)
+        hold_steps = round(settings.rest_hold_s / dt)
+        interval = settings.check_interval_steps
+        linear_limit, angular_limit = settings.rest_linear_speed_mps, math.radians(settings.rest_angular_speed_dps)
+        push = np.concatenate([conditions.force_n, conditions.torque_nm])
+        energy = self.energy
+        step = mujoco.mj_step
+        settled, decision, rest_since, previous_pose, primed, steps = False, None, None, None, False, 0
+        while steps < cap:
+            if steps == push_start:
+                data.xfrc_applied[self.root] = push
+            elif steps == push_end:
+                data.xfrc_applied[self.root] = 0.0
+            if primed:  # mj_step1 of this step already ran for the energy check
+                mujoco.mj_step2(model, data)
+                primed = False
+            else:
+                step(model, data)
+            steps += 1
+            if steps % interval:
+                continue
+            pose = data.qpos[0:7].copy()
+            moved = previous_pose is not None and _pose_speeds(previous_pose, pose, interval * dt)
+            previous_pose = pose
+            if steps >= push_end and moved:
+                if energy is not None:
+                    # the first half of the next step computes the position-dependent quantities (COM, mass
+                    # matrix) the energy needs; mj_step1 + mj_step2 = mj_step (Euler integrator)
+                    mujoco.mj_step1(model, data)
+                    primed = True
+                    decision = energy.decide()
+                    if decision is not None:
+                        settled = True
+                        break
+                linear_mps, angular_radps = moved
+                if linear_mps < linear_limit and angular_radps < angular_limit:
+                    rest_since = steps if rest_since is None else rest_since
+                    if steps - rest_since >= hold_steps:
+                        settled = True
+                        break
+                else:
+                    rest_since = None
+        mujoco.mj_forward(model, data)
+        if decision is not None:
+            return TrialOutcome(index=index, seed=seed, upright=decision, settled=True, steps=steps,
+                                tilt_deg=self.tilt_deg(), decided=True)
+        upright, tilt = self.is_upright()
+        return TrialOutcome(index=index, seed=seed, upright=bool(upright), settled=settled, steps=steps,
+                            tilt_deg=tilt)
+
+
+def _pose_speeds(before, after, interval_s):
+    """Mean linear (m/s) and angular (rad/s) speed of a free joint between two (x, y, z, qw, qx, qy, qz) poses.
+
+    Positions rather than ``qvel``: MuJoCo 4 may put a body at rest to sleep, which freezes its pose but keeps
+    its last velocity.
+    """
+    linear = math.dist(before[0:3], after[0:3]) / interval_s
+    dot = min(1.0, abs(float(np.dot(before[3:7], after[3:7]))))
+    return linear, 2 * math.acos(dot) / interval_s
+
+
+def _geom_points(mujoco, model, geom, sections=24):
+    """Points (k, 3) whose hull is geom ``geom`` in its own frame (m); None for a plane."""
+    kind, size = model.geom_type[geom], model.geom_size[geom]
+    if kind == mujoco.mjtGeom.mjGEOM_MESH:
+        mesh = model.geom_dataid[geom]
+        start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+        return np.asarray(model.mesh_vert[start:start + count], dtype=np.float64)
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * size
+    angles = np.linspace(0.0, 2 * math.pi, sections, endpoint=False)
+    if kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
+        rim = np.column_stack([size[0] * np.cos(angles), size[0] * np.sin(angles), np.zeros(sections)])
+        return np.vstack([rim + [0.0, 0.0, side * size[1]] for side in (-1, 1)])
+    if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+        from rollability_ros.core.sim.stable_poses import _sphere_points
+        return _sphere_points(size[0], sections)
+    if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        from rollability_ros.core.sim.stable_poses import _sphere_points
+        ball = _sphere_points(size[0], sections)
+        return np.vstack([ball + [0.0, 0.0, side * size[1]] for side in (-1, 1)])
+    return None
+
+
+def penetration_allowance_m(physics):
+    """How far (m) a resting or rocking body may sink into MuJoCo's soft ground: 3 x g x timeconst^2.
+
+    A critically damped contact spring of time constant ``tc`` holds a body at rest ``g tc^2`` deep
+    (3.9 mm at 0.02 s; 4.8 mm measured for the chassis, MuJoCo's impedance adds a little); the factor 3 covers
+    the deeper sinking under the dynamic loads of a body rocking with an energy below a barrier.
+    """
+    time_constant = max(CONTACT_SOLREF[0], 4 * physics.time_step_s)
+    return 3 * abs(physics.gravity_mps2) * time_constant ** 2
+
+
+class MujocoEnergyMonitor:
+    """The early decision of :mod:`rollability_ros.core.sim.early_decision` read from MuJoCo's state:
+    kinetic energy ``qvel' M qvel / 2`` (exact, from the mass matrix), COM height from the subtree COM.
+
+    MuJoCo's contacts are soft: a body sinks into the ground (see :func:`penetration_allowance_m`), which breaks
+    "COM height >= h(d)" by that depth, so the barriers are lowered by it on top of ``margin_m``.
+    """
+
+    def __init__(self, world, margin_m):
+        from rollability_ros.core.sim.early_decision import build_basin_map
+        mujoco, model = world.mujoco, world.model
+        self.mujoco, self.world = mujoco, world
+        world.place((0.0, 0.0, 0.0, 1.0), 0.0)
+        data = world.data
+        origin, rotation = data.xpos[world.root].copy(), data.xmat[world.root].reshape(3, 3).copy()
+        points = {}
+        for geom in world.robot_geoms:
+            local = _geom_points(mujoco, model, geom)
+            if local is None:
+                continue
+            world_points = local @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]
+            body = int(model.geom_bodyid[geom])
+            points[body] = np.vstack([points[body], world_points]) if body in points else world_points
+        in_root = {body: (p - origin) @ rotation for body, p in points.items()}
+        self.mass_kg = float(model.body_subtreemass[world.root])
+        com = (data.subtree_com[world.root] - origin) @ rotation
+        robot = world.robot_model
+        self.basins = build_basin_map(in_root, sorted(world.wheels), com, self.mass_kg, world.up_in_root,
+                                      robot.upright_tilt_deg, robot.min_wheels_in_contact, robot.contact_tolerance_m,
+                                      margin_m=margin_m + penetration_allowance_m(world.physics))
+        self.highest_barrier_m = self.basins.highest_barrier_m()
+        self.gravity_mps2 = abs(world.physics.gravity_mps2)
+        self._momentum = np.zeros(model.nv)
+
+    def decide(self):
+        """True / False once the trial's outcome is fixed (upright / not), else None; call after ``mj_step1``."""
+        mujoco, world = self.mujoco, self.world
+        model, data = world.model, world.data
+        # the caller ran mj_step1 at the current state: subtree COM and mass matrix are current
+        mujoco.mj_mulM(model, data, self._momentum, data.qvel)
+        kinetic = 0.5 * float(self._momentum @ data.qvel)
+        energy_height_m = float(data.subtree_com[world.root][2]) + kinetic / (self.mass_kg * self.gravity_mps2)
+        if energy_height_m >= self.highest_barrier_m:
+            return None
+        down_in_root = -data.xmat[world.root][6:9]
+        return self.basins.decide(np.asarray(down_in_root, dtype=np.float64), energy_height_m)

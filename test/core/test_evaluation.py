@@ -132,7 +132,7 @@ def test_shipped_config_files_load_and_match_the_documented_defaults(tmp_path):
 
 def test_urdf_export_loads_in_pybullet_with_the_profile(tmp_path):
     mesh = profile_mesh(ridge_heights(SETTINGS.grid), SETTINGS.grid)
-    export_mesh(mesh, tmp_path / "profile.stl")
+    export_mesh(mesh, tmp_path / "profile.stl", units="m")   # URDF meshes are in metres
     job = mesh_job(mesh, SETTINGS)
     urdf = SETTINGS.robot_model().to_urdf("profile.stl", job.profile)
     ElementTree.fromstring(urdf)

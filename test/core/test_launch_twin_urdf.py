@@ -46,12 +46,13 @@ def test_husky_config_makes_a_husky_twin_with_its_wheels_and_density(husky_twin)
 
 def test_wheel_radius_of_any_urdf_wheel_from_its_collision_shape():
     """The chassis's own URDF export, its wheel cylinders turned about their axles: still their radius."""
-    text = ChassisModel(ChassisSpec(wheel_radius_m=0.041)).to_urdf()
+    chassis = ChassisSpec(wheel_radius_m=0.041)
+    text = ChassisModel(chassis).to_urdf()
     turned = text.replace('rpy="1.5708 0 0"', 'rpy="1.5708 0.4 0"')   # 23 deg about the axle (link y)
     assert turned != text
     for description in (text, turned):
         spec = UrdfRobotSpec(robot_description=description, mount_link="base_link", wheel_link_regex=".*_wheel",
-                             min_wheels_in_contact=3)
+                             min_wheels_in_contact=3, footprint_offset_m=(0.0, 0.0, chassis.body_height_m / 2))
         spec.validate()
         assert UrdfRobotModel(spec).wheel_radii_m() == pytest.approx((0.041,) * 4, rel=1e-5)
     corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * [0.2, 0.2, 0.05]

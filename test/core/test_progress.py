@@ -58,7 +58,8 @@ def test_the_study_shows_every_generation_of_its_store(tmp_path):
     import numpy as np
 
     from rollability_ros.core.graph.study import Study
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator
+    from doubles import SyntheticEvaluator
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     stream = io.StringIO()
@@ -90,7 +91,8 @@ def test_a_bringup_session_shows_its_optimization_and_stored_launches(tmp_path):
     import numpy as np
 
     from rollability_ros.core.graph.progress import session_progress
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun, SyntheticEvaluator
+    from doubles import SyntheticEvaluator
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     empty = session_progress(str(tmp_path), 7, 65.0)

@@ -135,7 +135,7 @@ def session_progress(run_dir, nodes, elapsed_s):
             generations = store.generations()
         if generations:
             last = generations[-1]
-            generation, best = last.generation + 1, last.best_so_far
+            generation, best = last.generation, last.best_so_far   # generations are numbered from 1
             phase += f", optimizing run {os.path.basename(os.path.dirname(runs[-1]))}"
             cap = _generation_cap(os.path.dirname(runs[-1]))
             eta = eta_s(generation, cap, last.elapsed_s)

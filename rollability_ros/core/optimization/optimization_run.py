@@ -153,7 +153,7 @@ def profile_screen(parameters: dict, evaluator_settings: typing.Any,
     return stable_poses.profile_screener(evaluator_settings, screen_settings)
 
 
-def check_design_space_printable(parameters, grid):
+def check_design_space_printable(parameters: dict, grid: typing.Any) -> None:
     """Raise ``ValueError`` naming the printer limit when no profile of ``grid`` could be printed on the printer
     of ``parameters`` (namespace ``printer``; skipped when the parameters hold no printer), before a long run."""
     if not any(name.startswith("printer.") for name in parameters):

@@ -155,3 +155,73 @@ def test_committed_bag_of_a_killed_writer_recovers(tmp_path):
     assert information["custom_data"] == {"fixture": "killed by SIGKILL"}
     assert information["topics_with_message_count"][0]["topic_metadata"]["offered_qos_profiles"][0][
         "durability"] == "transient_local"
+
+
+# --- issue 17: recover never makes a bag worse ---------------------------------------------------------------
+SAMPLE_BAG = os.path.join(os.path.dirname(__file__), "..", "..", "bags", "sample")
+
+
+def _sample_copy(tmp_path):
+    import shutil
+
+    bag = tmp_path / "sample"
+    shutil.copytree(SAMPLE_BAG, bag)
+    return bag, bag / "bag_0.mcap"
+
+
+def _flip(path, offsets):
+    data = bytearray(path.read_bytes())
+    for offset in offsets:
+        data[offset] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def test_flipped_header_bytes_keep_every_intact_chunk(tmp_path):
+    """Bytes 3 and 20 of the sample flipped (magic and header): every message survives, the original is kept."""
+    bag, path = _sample_copy(tmp_path)
+    expected = [(m.topic, m.data, m.log_time_ns) for m in BagReader(SAMPLE_BAG)]
+    _flip(path, [3, 20])
+    damaged = path.read_bytes()
+    report = recover(bag)
+    (entry,) = report["files"]
+    assert entry["status"] == "recovered" and entry["chunks_discarded"] == 0
+    assert report["message_count"] == len(expected) == 2362
+    assert [(m.topic, m.data, m.log_time_ns) for m in BagReader(bag)] == expected
+    assert (bag / ("bag_0.mcap" + ".before-recover")).read_bytes() == damaged
+
+
+def test_bytes_flipped_inside_a_chunk_are_found_and_only_that_chunk_is_lost(tmp_path):
+    """64 bytes flipped inside a chunk: not "intact"; the chunk is dropped, every other chunk is kept."""
+    bag, path = _sample_copy(tmp_path)
+    chunks = _chunk_indexes(path)
+    assert len(chunks) > 2
+    middle = chunks[1].chunk_start_offset + chunks[1].chunk_length // 2
+    _flip(path, range(middle, middle + 64))
+    report = recover(bag)
+    (entry,) = report["files"]
+    assert entry["status"] == "recovered" and entry["chunks_discarded"] == 1
+    assert entry["chunks_recovered"] == len(chunks) - 1
+    recovered = list(BagReader(bag))
+    assert 0 < len(recovered) == report["message_count"] < 2362
+    assert set(m.data for m in recovered) <= set(m.data for m in BagReader(SAMPLE_BAG))
+
+
+def test_nothing_salvageable_is_an_error_and_the_bag_is_untouched(tmp_path):
+    bag, path = _sample_copy(tmp_path)
+    import pytest
+    from rollability_ros.core.bags.metadata import BagError
+
+    path.write_bytes(bytes(range(256)) * 400)
+    before = {p.name: p.read_bytes() for p in bag.iterdir()}
+    with pytest.raises(BagError, match="nothing can be saved"):
+        recover(bag)
+    assert {p.name: p.read_bytes() for p in bag.iterdir()} == before
+
+
+def test_bag_recover_cli_exits_non_zero_when_nothing_can_be_saved(tmp_path):
+    bag, path = _sample_copy(tmp_path)
+    path.write_bytes(b"\x00" * 5000)
+    result = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "bag", "recover", str(bag)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode != 0 and "nothing can be saved" in result.stderr
+    assert path.read_bytes() == b"\x00" * 5000

@@ -163,8 +163,19 @@ class Study:
         return supervisor.wait_for_exit(name, timeout_s, self.settings.poll_period_s,
                                         lambda: self._stop_requested, tick)
 
+    def check_parameters(self):
+        """Raise ConfigError listing every node parameter of the graph that its node would refuse, before any
+        directory is made or process started (a node's own refusal would only reach its log)."""
+        from rollability_ros.core.config import ConfigError
+        from rollability_ros.core.graph.preflight import check_graph_parameters
+
+        problems = check_graph_parameters(self.param_files)
+        if problems:
+            raise ConfigError(f"study not started: {len(problems)} invalid parameter(s):\n  " + "\n  ".join(problems))
+
     def run(self):
         """Run (or resume) the whole study; always stops the graph; returns a :class:`StudyResult`."""
+        self.check_parameters()
         if self.resuming:
             self.say(f"study {self.study_id}: resuming in {self.study_dir}")
         else:

@@ -331,3 +331,50 @@ def recover(directory):
         os.remove(sidecar)
     return {"files": reports, "message_count": information["message_count"],
             "topics": {t.name: t.message_count for t in topics}}
+
+
+def is_left_open(directory):
+    """Whether ``directory`` holds a bag its writer did not close: a recovery sidecar, or an incomplete file."""
+    directory = os.fspath(directory)
+    if os.path.exists(os.path.join(directory, RECOVERY_SIDECAR)):
+        return True
+    names = _storage_files(directory, _previous_metadata(directory))
+    return any(not _is_complete(os.path.join(directory, name)) for name in names)
+
+
+def recording_gaps(directory):
+    """Return the windows a bag may be missing because its writer was killed and restarted.
+
+    Returns
+    -------
+    list of (int, int or None)
+        ``(after_ns, until_ns)`` per restart: messages logged after ``after_ns`` (the last one kept before the
+        kill; 0 if none) and before ``until_ns`` (the first one written after the restart; None if none yet)
+        may be missing. Empty for a bag recorded without a restart.
+    """
+    from rollability_ros.core.bags.writer import RESTARTS_KEY
+
+    information = read_metadata(os.fspath(directory))
+    files = information.get("files") or []
+    restarts = [int(r) for r in ((information.get("custom_data") or {}).get(RESTARTS_KEY) or "").split(",") if r]
+    gaps = []
+    for index in restarts:
+        before = [f["starting_time"]["nanoseconds_since_epoch"] + f["duration"]["nanoseconds"]
+                  for f in files[:index] if f["message_count"]]
+        after = [f["starting_time"]["nanoseconds_since_epoch"] for f in files[index:] if f["message_count"]]
+        gaps.append((max(before, default=0), min(after, default=None)))
+    return gaps
+
+
+def mark_restart(directory, information=None):
+    """Note in ``directory``'s metadata.yaml that the recording stopped uncleanly after its current files
+    (``custom_data["recorder_restarts"]`` gets the index of the next file); return the updated metadata."""
+    from rollability_ros.core.bags.writer import RESTARTS_KEY
+
+    information = dict(information or read_metadata(os.fspath(directory)))
+    custom_data = dict(information.get("custom_data") or {})
+    restarts = [r for r in (custom_data.get(RESTARTS_KEY) or "").split(",") if r]
+    custom_data[RESTARTS_KEY] = ",".join(restarts + [str(len(information.get("files") or []))])
+    information["custom_data"] = custom_data
+    write_metadata(os.fspath(directory), information)
+    return information

@@ -6,7 +6,6 @@ import sys
 import pytest
 import yaml
 
-from rollability_ros.cli.evaluate import parse_heights
 from rollability_ros.core.config import ConfigError
 
 REPO = os.path.join(os.path.dirname(__file__), "..", "..")
@@ -16,11 +15,15 @@ REPO = os.path.join(os.path.dirname(__file__), "..", "..")
     ("", "is empty"), ("   \n", "is empty"), ("0.1,,0.2", "value 2 is empty"), ("0.1,", "value 2 is empty"),
     ("0.1 abc", "value 2 ('abc') is not a number"), ("nan", "not finite"), ("0.1,inf", "not finite")])
 def test_bad_heights_are_refused_with_the_reason(text, reason):
+    from rollability_ros.cli.evaluate import parse_heights
+
     with pytest.raises(ValueError, match=reason.replace("(", r"\(").replace(")", r"\)")):
         parse_heights(text)
 
 
 def test_heights_accept_commas_and_whitespace():
+    from rollability_ros.cli.evaluate import parse_heights
+
     assert parse_heights("0.1, 0.2\n0.3 0.4") == [0.1, 0.2, 0.3, 0.4]
 
 

@@ -1,21 +1,26 @@
-"""Recover a bag whose recorder was killed: rebuild MCAP summaries and indexes, and metadata.yaml.
+"""Recover a bag whose recorder was killed or whose files were damaged: rebuild MCAP files and metadata.yaml.
 
 After a SIGKILL the last storage file has no summary section or footer, possibly a half-written chunk, and
 metadata.yaml still holds what was known when it was last written (topics with QoS and type hashes, custom
-data, ROS distro, files so far; counts of 0). :func:`recover`
+data, ROS distro, files so far; counts of 0). Outside damage (flipped bytes) can hit any record. :func:`recover`
 
-- leaves complete MCAP files alone;
-- rewrites each incomplete one from every complete, CRC-valid chunk it holds (schemas, channels and messages
-  in file order) into a new valid MCAP with message indexes, chunk indexes, statistics and summary, then
-  atomically replaces the original (the original stays until the new file is complete and fsynced);
-  channels of known topics without a surviving chunk are re-created from the recovery sidecar's definitions;
+- leaves complete MCAP files whose every chunk passes its CRC alone;
+- rebuilds every other file from each intact record it holds, found by scanning the bytes for self-delimiting
+  schema, channel and chunk records (a chunk counts only when its CRC matches), so damage to the magic, the
+  header, one chunk or the summary costs only what was damaged; schemas and channels also come from the
+  summary section's copies; channels of known topics without a surviving chunk are re-created from the
+  recovery sidecar's definitions;
+- never makes a bag worse: each rebuilt file is written beside the original, verified (complete, CRC-valid,
+  holding every salvaged message) and only then renamed over it, the damaged original kept as
+  ``<file>.before-recover``; when a damaged file yields nothing, BagError says so and nothing is changed;
 - rewrites metadata.yaml with counts and times from the files, keeping every field of the old one
   (storage id, ROS distro, custom data, compression fields, per-topic QoS and type hashes). With no
   metadata.yaml left it takes them from the files' channel metadata and ``rosbag2`` metadata records.
 
-What is lost is bounded by :mod:`rollability_ros.core.bags.writer`: the messages of the one chunk that was
+What a kill loses is bounded by :mod:`rollability_ros.core.bags.writer`: the messages of the one chunk that was
 open at the kill (``ros2 bag reindex`` by contrast needs readable files and rebuilds metadata.yaml from them,
-dropping custom data and the ROS distro).
+dropping custom data and the ROS distro). :func:`is_left_open`, :func:`mark_restart` and :func:`recording_gaps`
+support a writer that continues a bag after a restart.
 """
 import os
 import re

@@ -124,3 +124,57 @@ def test_bad_bag_and_options_exit_with_a_reason(tmp_path, campaign_bag, start_pr
         process = start_process("rollability_ros.cli", "play", *args, name="bad_play")
         process.process.wait(timeout=30)
         assert process.process.returncode == 2 and reason in process.log(), process.log()
+
+
+def _corrupt_variants(bag):
+    """Yield (name, damage) pairs: each damage function spoils a copy of ``bag`` in another way."""
+    from mcap.reader import make_reader
+
+    def storage(directory):
+        (path,) = directory.glob("*.mcap")
+        return path
+
+    def chunk_offsets(path):
+        with open(path, "rb") as stream:
+            return [(c.chunk_start_offset, c.chunk_length) for c in make_reader(stream).get_summary().chunk_indexes]
+
+    def flip_in_chunk(directory):
+        path = storage(directory)
+        start, length = chunk_offsets(path)[0]
+        data = bytearray(path.read_bytes())
+        for offset in range(start + length // 2, start + length // 2 + 16):
+            data[offset] ^= 0xFF
+        path.write_bytes(bytes(data))
+
+    def cut(directory):
+        path = storage(directory)
+        path.write_bytes(path.read_bytes()[:len(path.read_bytes()) // 2])
+
+    def garbage(directory):
+        path = storage(directory)
+        path.write_bytes(b"\x00" * path.stat().st_size)
+
+    def missing_file(directory):
+        storage(directory).unlink()
+
+    def bad_metadata(directory):
+        (directory / "metadata.yaml").write_text("rosbag2_bagfile_information: [")
+
+    return [("flip_in_chunk", flip_in_chunk), ("cut", cut), ("garbage", garbage), ("missing_file", missing_file),
+            ("bad_metadata", bad_metadata)]
+
+
+def test_play_of_a_corrupt_bag_exits_non_zero_with_the_reason(tmp_path, campaign_bag, start_process):
+    """Issue 17: five kinds of damaged bag each give a non-zero exit naming the problem (was: ERROR, exit 0)."""
+    import shutil
+
+    bag, _ = campaign_bag
+    for name, damage in _corrupt_variants(bag):
+        copy = tmp_path / f"corrupt_{name}"
+        shutil.copytree(bag, copy)
+        damage(copy)
+        process = start_process("rollability_ros.cli", "play", str(copy), "--wait-for-subscribers", "0",
+                                name=f"corrupt_play_{name}")
+        process.process.wait(timeout=60)
+        assert process.process.returncode != 0, (name, process.log())
+        assert "error" in process.log().lower(), (name, process.log())

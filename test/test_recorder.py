@@ -146,9 +146,18 @@ def test_chosen_topics_only_and_bad_parameters_refused(tmp_path, ros_node, start
     assert not (tmp_path / "x").exists()
 
 
-def test_sigkilled_recording_recovers_every_flushed_message(tmp_path, ros_node, start_node):
+def recovered_copy(bag, tmp_path):
+    """Recover a copy of the live bag (what a kill now would keep); return ``(copy, recovery report)``."""
     import shutil
 
+    from rollability_ros.core.bags.recover import recover
+
+    copy = tmp_path / f"copy{time.monotonic_ns()}"
+    shutil.copytree(bag, copy)
+    return copy, recover(copy)
+
+
+def test_sigkilled_recording_recovers_every_flushed_message(tmp_path, ros_node, start_node):
     from rclpy.duration import Duration
 
     from rollability_ros.core.bags.recover import recover
@@ -166,16 +175,60 @@ def test_sigkilled_recording_recovers_every_flushed_message(tmp_path, ros_node, 
         publisher.publish(_convert.outcome_to_msg(record))
     assert publisher.wait_for_all_acked(Duration(seconds=30))
 
-    def recovered_count():
-        """Recover a copy of the live bag: what a kill now would keep."""
-        copy = tmp_path / f"copy{time.monotonic_ns()}"
-        shutil.copytree(bag, copy)
-        return recover(copy)["message_count"]
-
     # the flush timer writes the open chunk within ~flush_interval_s, without any new message arriving
-    assert ros_node.wait_for(lambda: recovered_count() == 500, 10, period_s=0.2), recorder.log()
+    assert ros_node.wait_for(lambda: recovered_copy(bag, tmp_path)[1]["message_count"] == 500, 10, period_s=0.2), \
+        recorder.log()
     recorder.signal(signal.SIGKILL)
     recorder.process.wait(timeout=10)
     report = recover(bag)
     assert report["message_count"] == 500 and report["topics"] == {"/launch_outcomes": 500}
     assert read_records_from_bag(bag)[0] == sent
+
+
+def test_a_restarted_recorder_continues_the_same_bag(tmp_path, ros_node, start_node):
+    """Issue 17: a recorder SIGKILLed and started again on its output_dir records on into the same bag (was: the
+    restart was refused, "exists and is not an empty directory", and nothing more was recorded)."""
+    from rclpy.duration import Duration
+
+    from rollability_ros.core.bags.metadata import read_metadata
+    from rollability_ros.core.bags.recover import recording_gaps
+    from rollability_ros.msg import LaunchOutcome as OutcomeMsg
+    from rollability_ros.nodes import _convert
+    from rollability_ros.nodes._support import RECORD_QOS
+
+    publisher = ros_node.node.create_publisher(OutcomeMsg, "/launch_outcomes", RECORD_QOS)
+    bag = tmp_path / "restarted"
+    params = {"recorder.output_dir": str(bag), "recorder.discovery_period_s": 0.2, "recorder.flush_interval_s": 0.2}
+    first = start_node("recorder", params=params)
+    assert ros_node.wait_for(lambda: publisher.get_subscription_count() > 0, 30), first.log()
+    before = [outcome(i) for i in range(100)]
+    for record in before:
+        publisher.publish(_convert.outcome_to_msg(record))
+    assert publisher.wait_for_all_acked(Duration(seconds=30))
+
+    assert ros_node.wait_for(lambda: recovered_copy(bag, tmp_path)[1]["message_count"] == 100, 10, period_s=0.2), \
+        first.log()
+    first.signal(signal.SIGKILL)
+    first.process.wait(timeout=10)
+
+    second = start_node("recorder", params=params, name="recorder_again")
+    # the killed recorder's reader may still count as a subscription until its lease expires: wait for the log
+    assert ros_node.wait_for(lambda: "recording /launch_outcomes" in second.log(), 30), second.log()
+    after = [outcome(i) for i in range(100, 150)]
+    for record in after:
+        publisher.publish(_convert.outcome_to_msg(record))
+
+    def recorded_after_restart():
+        copy, _ = recovered_copy(bag, tmp_path)
+        return {o.trial_id for o in read_records_from_bag(copy)[0]} >= {o.trial_id for o in after}
+
+    assert ros_node.wait_for(recorded_after_restart, 60, period_s=0.5), second.log()
+    assert "continuing the bag" in second.log()
+    assert stopped_cleanly(second, second.stop())
+    assert read_records_from_bag(bag)[0] == before + after
+    information = read_metadata(bag)
+    # the publisher is transient-local: the new recorder also gets its history again (deduplicated on reading)
+    assert len(information["relative_file_paths"]) == 2 and information["message_count"] >= 150
+    ((after_ns, until_ns),) = recording_gaps(bag)
+    assert 0 < after_ns < until_ns
+    assert bag_info(bag)["warnings"] == []

@@ -23,7 +23,8 @@ def _recover(args):
         else:
             print(f"{entry['path']}: recovered {entry['messages']} messages from {entry['chunks_recovered']} "
                   f"chunks; discarded {entry['chunks_discarded']} corrupt chunks, {entry['bytes_discarded']} "
-                  f"bytes of cut tail, {entry['messages_without_channel']} messages without a channel")
+                  f"bytes of cut tail, {entry['messages_without_channel']} messages without a channel"
+                  + (f"; the damaged original is kept as {entry['backup']}" if entry.get("backup") else ""))
     print(f"{args.bag}: metadata.yaml rewritten, {report['message_count']} messages")
     return 0
 
@@ -54,8 +55,11 @@ def register(subparsers):
 
     recover = verbs.add_parser(
         "recover", help="repair a bag whose recorder was killed",
-        description="Rebuild the MCAP summary and indexes of cut storage files from every complete chunk, "
-                    "and rewrite metadata.yaml keeping storage id, ROS distro, custom data, QoS and type hashes.")
+        description="Rebuild cut or damaged MCAP storage files from every intact (CRC-checked) chunk, found by "
+                    "scanning past damaged records, and rewrite metadata.yaml keeping storage id, ROS distro, custom "
+                    "data, QoS and type hashes. A file is replaced only after its rebuilt copy verifies; the damaged "
+                    "original stays as <file>.before-recover. When nothing can be saved the bag is left untouched "
+                    "and the exit code is 2.")
     recover.add_argument("bag", help="bag directory")
     recover.add_argument("--json", action="store_true", help="print the recovery report as JSON")
     recover.set_defaults(func=_recover)

@@ -2,19 +2,37 @@
 import sys
 
 
+def parse_heights(text, source="--heights"):
+    """Parse profile heights (simulation units) separated by commas and/or whitespace; ValueError naming the
+    problem for an empty list, an empty field (``1,,2``), a non-number or a non-finite value."""
+    import math
+    import re
+
+    stripped = text.strip()
+    if not stripped:
+        raise ValueError(f"{source} is empty: give the rows*cols heights (or --baseline for the chassis alone)")
+    heights = []
+    for position, token in enumerate(re.split(r"\s*,\s*|\s+", stripped), start=1):
+        if not token:
+            raise ValueError(f"{source}: value {position} is empty (two separators in a row or a trailing comma)")
+        try:
+            value = float(token)
+        except ValueError:
+            raise ValueError(f"{source}: value {position} ({token!r}) is not a number") from None
+        if not math.isfinite(value):
+            raise ValueError(f"{source}: value {position} ({token!r}) is not finite")
+        heights.append(value)
+    return heights
+
+
 def _read_heights(args):
     """The heights the arguments name (list of float), or None for the baseline / an STL."""
     if args.heights is not None:
-        text = args.heights
-    elif args.heights_file is not None:
+        return parse_heights(args.heights)
+    if args.heights_file is not None:
         with open(args.heights_file, encoding="utf-8") as stream:
-            text = stream.read()
-    else:
-        return None
-    try:
-        return [float(token) for token in text.replace(",", " ").split()]
-    except ValueError as exc:
-        raise ValueError(f"heights must be numbers separated by commas or whitespace: {exc}") from exc
+            return parse_heights(stream.read(), source=f"--heights-file {args.heights_file}")
+    return None
 
 
 def run(args):

@@ -69,6 +69,7 @@ class RigClient:
         self.run_id = run_id
         self.ask, self.say = ask, say
         self.server_timeout_s = server_timeout_s
+        self.node = node
         self.action = ActionClient(node, Launch, "launch")
         self.confirm_client = node.create_client(Trigger, "rig/confirm")
         self.record_client = node.create_client(RecordOutcome, "record_outcome")
@@ -111,7 +112,7 @@ class RigClient:
             raise LaunchAborted(f"the rig rejected {trial.trial_id}")
         result_future = handle.get_result_async()
         try:
-            self._follow(trial.trial_id, feedback, result_future)
+            self._follow(trial.trial_id, feedback, result_future, self._server_gids())
         except BaseException:
             handle.cancel_goal_async()  # do not leave the rig waiting for an operator who is gone
             raise
@@ -120,14 +121,30 @@ class RigClient:
             raise LaunchAborted(wrapped.result.message or f"launch ended with goal status {wrapped.status}")
         return _convert.outcome_from_msg(wrapped.result.outcome)
 
-    def _follow(self, trial_id, feedback, result_future):
-        """Show the feedback and answer the rig's questions until the result arrives."""
+    def _server_gids(self):
+        """The endpoint ids of the launch action's status publishers: which rig process serves the action."""
+        topic = self.node.resolve_topic_name("launch") + "/_action/status"
+        return {bytes(info.endpoint_gid) for info in self.node.get_publishers_info_by_topic(topic)}
+
+    def _follow(self, trial_id, feedback, result_future, serving):
+        """Show the feedback and answer the rig's questions until the result arrives.
+
+        ``serving``: :meth:`_server_gids` when the goal was accepted. A rig killed and restarted in the meantime
+        serves the action again but knows nothing of the goal: once the accepting process has left the graph
+        (its endpoints vanish), the launch is reported lost instead of awaited for ever.
+        """
         missing_since = None
+        next_check = time.monotonic() + SERVER_LOST_S
         while not result_future.done():
             self.executor.spin_once(timeout_sec=0.05)
             try:
                 message = feedback.get_nowait().feedback
             except queue.Empty:
+                if serving and time.monotonic() > next_check:
+                    next_check = time.monotonic() + SERVER_LOST_S
+                    if not serving & self._server_gids():
+                        raise LaunchAborted(f"the rig that accepted {trial_id} left the graph (killed or restarted); "
+                                            "its launch is lost")
                 if self.action.server_is_ready():
                     missing_since = None
                 elif missing_since is None:

@@ -11,6 +11,7 @@ was). Messages go out as the recorded CDR bytes, untouched, at the times given b
 :func:`rollability_ros.core.bags.playback.playback_schedule`; the node waits for reliable subscribers to
 acknowledge them (up to ``ACK_TIMEOUT_S``) before it exits.
 """
+import sys
 import threading
 import time
 
@@ -20,7 +21,7 @@ from rclpy.node import Node
 from rollability_ros.core.bags.metadata import BagError
 from rollability_ros.core.bags.playback import CLOCK_TOPIC, CLOCK_TYPE, clock_message_cdr, playback_schedule
 from rollability_ros.core.bags.qos import subscription_qos_for
-from rollability_ros.core.bags.reader import BagReader
+from rollability_ros.core.bags.reader import BagReader, check_readable
 from rollability_ros.core.bags.record_play import PlayerSettings, check_topic_names, parse_remaps
 from rollability_ros.nodes._bag_nodes import declare_string_list, message_class, qos_profile_from_dict
 from rollability_ros.nodes._support import ParameterError, declare_settings, run_node
@@ -47,6 +48,7 @@ class PlayerNode(Node):
                                          parse_remaps)
         try:
             self.reader = BagReader(self.settings.bag, topics=topics or None)
+            check_readable(self.reader)
         except (BagError, ValueError) as exc:
             raise ParameterError(f"player.bag: {exc}") from exc
         self.publishers_by_topic = {}
@@ -66,6 +68,7 @@ class PlayerNode(Node):
         self.clock_publisher = (self.create_publisher(message_class(CLOCK_TYPE), CLOCK_TOPIC, 100)
                                 if self.settings.clock else None)
         self.published = 0
+        self.error = None              # why the playback stopped early; main() then exits non-zero
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._play, name="playback", daemon=True)
         self._thread.start()
@@ -96,6 +99,7 @@ class PlayerNode(Node):
                 self.publishers_by_topic[item.topic].publish(item.data)
                 self.published += 1
         except BagError as exc:
+            self.error = str(exc)
             logger.error(f"playback stopped: {exc}")
         for publisher in self._publishers_to_wait_for():
             publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
@@ -130,7 +134,18 @@ class PlayerNode(Node):
 
 
 def main(args=None, parameter_overrides=None):
-    return run_node(lambda: PlayerNode(parameter_overrides), args)
+    """Play the bag; exit 0 when every message was published, 1 when the bag failed part-way, 2 on bad input."""
+    nodes = []
+
+    def create():
+        nodes.append(PlayerNode(parameter_overrides))
+        return nodes[0]
+
+    code = run_node(create, args)
+    if code == 0 and nodes and nodes[0].error is not None:
+        print(f"error: playback of {nodes[0].settings.bag} stopped: {nodes[0].error}", file=sys.stderr)
+        return 1
+    return code
 
 
 if __name__ == "__main__":

@@ -4,7 +4,9 @@ Bag: ``recorder.output_dir`` (default ``bags/rollability_<UTC date-time>``), wri
 :class:`~rollability_ros.core.bags.writer.BagWriter` (metadata.yaml version 9, zstd-chunked MCAP, full ros2msg
 schemas, type hashes, offered QoS). A clean stop (SIGINT or SIGTERM) finishes the storage file (summary
 section) and writes the final metadata; after ``kill -9``, ``rollability bag recover`` restores every written
-chunk (at most ``chunk_size_bytes`` of messages, or ``2 x flush_interval_s`` of them, are lost).
+chunk (at most ``chunk_size_bytes`` of messages, or ``2 x flush_interval_s`` of them, are lost). A recorder
+restarted on the bag a killed one left open recovers it and continues it with a new storage file, so a kill
+costs only the open chunk and the time until the restart (``custom_data["recorder_restarts"]`` marks it).
 
 Topics: ``recorder.topics`` (string array of absolute names; empty = the project's graph, see
 :func:`rollability_ros.core.bags.record_play.in_project_graph`), searched for every ``discovery_period_s``; a topic is
@@ -56,9 +58,15 @@ class RecorderNode(Node):
                                     split_max_duration_s=settings.split_max_duration_s,
                                     chunk_size_bytes=settings.chunk_size_bytes,
                                     flush_interval_s=settings.flush_interval_s,
-                                    custom_data={"recorded_by": "rollability_ros recorder"})
+                                    custom_data={"recorded_by": "rollability_ros recorder"},
+                                    continue_open=True)
         except (ValueError, OSError) as exc:
             raise ParameterError(f"recorder.output_dir: {exc}") from exc
+        if self.writer.continued is not None:
+            self.get_logger().warning(
+                f"continuing the bag {self.directory} left open by a killed recorder: recovered "
+                f"{self.writer.continued['message_count']} messages; messages sent while no recorder ran are "
+                f"missing (the gap is noted in its metadata.yaml)")
         # the writer is not thread-safe: every callback that touches it holds this lock (and they share one
         # mutually exclusive group, so the lock is only contended by close())
         self._lock = threading.Lock()

@@ -334,3 +334,17 @@ def test_cli_bag_info_recover_convert(tmp_path, capsys):
     assert bag_info(tmp_path / "db")["message_count"] == 20
     assert cli_main(["bag", "info", str(tmp_path / "missing")]) == 2
     assert "not a bag directory" in capsys.readouterr().err
+
+
+def test_playback_schedule_keeps_every_message_of_the_sample_bag():
+    """Issue 17: the sample's first message was dropped when its epoch time in ns rounded up as a float."""
+    from rollability_ros.core.bags.reader import BagReader
+
+    sample = os.path.join(os.path.dirname(__file__), "..", "..", "bags", "sample")
+    messages = list(BagReader(sample))
+    items = list(playback_schedule(messages))
+    assert len(items) == len(messages) == 2362
+    assert [item.log_time_ns for item in items] == [m.log_time_ns for m in messages]
+    # an offset of exactly the gap to the second message keeps the second message (integer ns arithmetic)
+    offset_s = (messages[1].log_time_ns - messages[0].log_time_ns) / 1e9
+    assert list(playback_schedule(messages, start_offset_s=offset_s))[0].log_time_ns == messages[1].log_time_ns

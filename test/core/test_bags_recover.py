@@ -155,3 +155,141 @@ def test_committed_bag_of_a_killed_writer_recovers(tmp_path):
     assert information["custom_data"] == {"fixture": "killed by SIGKILL"}
     assert information["topics_with_message_count"][0]["topic_metadata"]["offered_qos_profiles"][0][
         "durability"] == "transient_local"
+
+
+# --- issue 17: recover never makes a bag worse ---------------------------------------------------------------
+SAMPLE_BAG = os.path.join(os.path.dirname(__file__), "..", "..", "bags", "sample")
+
+
+def _sample_copy(tmp_path):
+    import shutil
+
+    bag = tmp_path / "sample"
+    shutil.copytree(SAMPLE_BAG, bag)
+    return bag, bag / "bag_0.mcap"
+
+
+def _flip(path, offsets):
+    data = bytearray(path.read_bytes())
+    for offset in offsets:
+        data[offset] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def test_flipped_header_bytes_keep_every_intact_chunk(tmp_path):
+    """Bytes 3 and 20 of the sample flipped (magic and header): every message survives, the original is kept."""
+    bag, path = _sample_copy(tmp_path)
+    expected = [(m.topic, m.data, m.log_time_ns) for m in BagReader(SAMPLE_BAG)]
+    _flip(path, [3, 20])
+    damaged = path.read_bytes()
+    report = recover(bag)
+    (entry,) = report["files"]
+    assert entry["status"] == "recovered" and entry["chunks_discarded"] == 0
+    assert report["message_count"] == len(expected) == 2362
+    assert [(m.topic, m.data, m.log_time_ns) for m in BagReader(bag)] == expected
+    assert (bag / ("bag_0.mcap" + ".before-recover")).read_bytes() == damaged
+
+
+def test_bytes_flipped_inside_a_chunk_are_found_and_only_that_chunk_is_lost(tmp_path):
+    """64 bytes flipped inside a chunk: not "intact"; the chunk is dropped, every other chunk is kept."""
+    bag, path = _sample_copy(tmp_path)
+    chunks = _chunk_indexes(path)
+    assert len(chunks) > 2
+    middle = chunks[1].chunk_start_offset + chunks[1].chunk_length // 2
+    _flip(path, range(middle, middle + 64))
+    report = recover(bag)
+    (entry,) = report["files"]
+    assert entry["status"] == "recovered" and entry["chunks_discarded"] == 1
+    assert entry["chunks_recovered"] == len(chunks) - 1
+    recovered = list(BagReader(bag))
+    assert 0 < len(recovered) == report["message_count"] < 2362
+    assert set(m.data for m in recovered) <= set(m.data for m in BagReader(SAMPLE_BAG))
+
+
+def test_nothing_salvageable_is_an_error_and_the_bag_is_untouched(tmp_path):
+    bag, path = _sample_copy(tmp_path)
+    import pytest
+    from rollability_ros.core.bags.metadata import BagError
+
+    path.write_bytes(bytes(range(256)) * 400)
+    before = {p.name: p.read_bytes() for p in bag.iterdir()}
+    with pytest.raises(BagError, match="nothing can be saved"):
+        recover(bag)
+    assert {p.name: p.read_bytes() for p in bag.iterdir()} == before
+
+
+def test_bag_recover_cli_exits_non_zero_when_nothing_can_be_saved(tmp_path):
+    bag, path = _sample_copy(tmp_path)
+    path.write_bytes(b"\x00" * 5000)
+    result = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "bag", "recover", str(bag)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode != 0 and "nothing can be saved" in result.stderr
+    assert path.read_bytes() == b"\x00" * 5000
+
+
+# --- issue 17: a restarted writer continues the bag its killed predecessor left open -----------------------------
+def _killed_writer_bag(tmp_path):
+    bag = tmp_path / "killed"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")]))
+    process = subprocess.Popen([sys.executable, "-c", WRITER_SCRIPT, str(bag)], stdout=subprocess.PIPE, text=True,
+                               env=env)
+    try:
+        assert process.stdout.readline().strip() == "acknowledged 400"
+        assert process.stdout.readline().strip() == "unflushed 50"
+    finally:
+        process.send_signal(signal.SIGKILL)
+        process.wait(timeout=30)
+    return bag
+
+
+def test_a_restarted_writer_continues_the_bag_left_open(tmp_path):
+    """Was: "output_dir ... exists and is not an empty directory", so a restarted recorder never recorded again."""
+    from rollability_ros.core.bags.recover import recording_gaps
+    from rollability_ros.core.bags.writer import BagWriter
+    from test_bags import T0_NS
+
+    bag = _killed_writer_bag(tmp_path)
+    files_before = len(list(bag.glob("*.mcap")))
+    with BagWriter(bag, continue_open=True, custom_data={"operator": "kill test"}) as writer:
+        assert writer.continued["message_count"] == 400
+        writer.add_topic("/a", "std_msgs/msg/String")
+        for index in range(1000, 1010):
+            writer.write("/a", string_cdr(f"message {index}"), T0_NS + index)
+    messages = [m.data for m in BagReader(bag)]
+    assert messages == [string_cdr(f"message {i}") for i in [*range(400), *range(1000, 1010)]]
+    information = read_metadata(bag)
+    assert len(information["relative_file_paths"]) == files_before + 1 == len(list(bag.glob("*.mcap")))
+    assert information["custom_data"]["operator"] == "kill test"
+    topics = {t["topic_metadata"]["name"]: t["message_count"] for t in information["topics_with_message_count"]}
+    assert topics == {"/a": 410, "/quiet": 0}
+    assert recording_gaps(bag) == [(T0_NS + 399, T0_NS + 1000)]
+    assert bag_info(bag)["warnings"] == []
+
+
+def test_a_closed_bag_is_not_continued(tmp_path):
+    import pytest
+    from rollability_ros.core.bags.writer import BagWriter
+
+    bag = tmp_path / "closed"
+    write_string_bag(bag, 10)
+    with pytest.raises(ValueError, match="closed bag"):
+        BagWriter(bag, continue_open=True)
+
+
+def test_stored_outcomes_missing_from_the_bag_are_accepted_only_inside_a_reported_gap():
+    from rollability_ros.core.graph.study import compare_bags_with_store
+    from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+
+    def outcome(index, stamp_s):
+        return LaunchOutcome(run_id="s", trial_id=f"t{index}", condition=LaunchCondition("A", 1.3, 1.5, 0.0, index),
+                             backend="sim", upright=True, stamp_s=stamp_s)
+
+    stored = [outcome(0, 100.0), outcome(1, 105.0), outcome(2, 110.0), outcome(3, 120.0)]
+    gap = (int(104e9), int(111e9))
+    problem, note = compare_bags_with_store({"t0", "t3"}, stored, [gap])
+    assert problem == "" and "restarted 1 time" in note and "(2 stored outcome(s) not in a bag)" in note
+    problem, _ = compare_bags_with_store({"t0", "t1", "t2"}, stored, [gap])
+    assert "1 stored outcome(s) missing from the bags outside any reported gap (e.g. t3)" in problem
+    problem, note = compare_bags_with_store({"t0", "t1", "t2"}, stored, [])
+    assert problem and note == ""
+    assert compare_bags_with_store({"t0", "t1", "t2", "t3"}, stored, []) == ("", "")

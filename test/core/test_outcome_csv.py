@@ -85,3 +85,16 @@ def test_export_then_import_round_trip(tmp_path):
     assert back[0] == outcomes[0]
     assert back[1].condition == outcomes[1].condition and math.isnan(back[1].travel_time_s)
     assert back[1].classified_by == "sim" and back[1].final_orientation == (0.0, 0.0, 0.0, 1.0)
+
+
+def test_unterminated_quote_is_refused_with_its_line_number(tmp_path):
+    """Issue 17: an unterminated quote swallowed the following trials into one note (1 trial of 4 imported)."""
+    path = _write(tmp_path, "configuration,height_m,speed_mps,angle_deg,repetition,upright,note\n"
+                            "A,0.75,0.8,-30,0,true,fine\n"
+                            'A,0.75,0.8,-30,1,false,"bounced\n'
+                            "A,0.75,0.8,-30,2,true,\n"
+                            "A,0.75,0.8,-30,3,true,\n")
+    with pytest.raises(OutcomeCsvError) as caught:
+        read_outcome_csv(path, run_id="hand")
+    assert [line for line, _ in caught.value.problems] == [3]
+    assert "unterminated quote" in str(caught.value) and "line 3" in str(caught.value)

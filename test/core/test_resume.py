@@ -101,8 +101,8 @@ def test_sigkill_mid_generation_then_resume_equals_uninterrupted(tmp_path, commo
         assert len(store.generations()) == KILL_GENERATION
         # generations are numbered from 1: the killed one (index KILL_GENERATION) is number KILL_GENERATION + 1
         assert len(store.candidates(generation=KILL_GENERATION + 1)) == stored_in_killed_generation
-    with open(os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME), "rb") as stream:
-        assert pickle.load(stream)["generation"] == KILL_GENERATION
+    assert checkpoints.load_checkpoint(os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME))["generation"] == \
+        KILL_GENERATION
 
     resumed = OptimizationRun(run_dir, read_run_config(run_dir), GRID, SyntheticEvaluator(OPTIMUM, trials=30),
                               resume=True)
@@ -177,7 +177,7 @@ def test_checkpoint_write_is_atomic_and_checked(tmp_path):
     checkpoints.atomic_write_bytes(path, b"new")
     assert open(path, "rb").read() == b"new"
     assert os.listdir(tmp_path) == [checkpoints.CHECKPOINT_FILENAME]   # no temp file left behind
-    with pytest.raises(ValueError, match="unreadable"):
+    with pytest.raises(ValueError, match="not JSON"):
         checkpoints.load_checkpoint(path)
     assert checkpoints.load_checkpoint(os.path.join(tmp_path, "missing.pkl")) is None
     state = {"a": 1}
@@ -329,3 +329,160 @@ def test_generations_are_numbered_from_1_and_runs_numbered_from_0_keep_their_num
     resumed.run()
     assert [g.generation for g in resumed.store.generations()] == list(range(GENERATIONS))
     resumed.close()
+
+
+# --- issue 17: checkpoints are data, and a resume never runs on a missing, damaged or foreign one ---------------
+def _partial_run(tmp_path, name="run", generations=3):
+    """A run stopped after ``generations`` of GENERATIONS generations (as if killed between generations)."""
+    run_dir = os.path.join(tmp_path, name)
+    run = OptimizationRun(run_dir, parameters(), GRID, SyntheticEvaluator(OPTIMUM, trials=30))
+    for _ in range(generations):
+        run.step()
+    run.close()
+    return run_dir
+
+
+def _rows(run_dir):
+    with Store(run_dir) as store:
+        return len(store.candidates()), len(store.generations())
+
+
+def _resume(run_dir):
+    return OptimizationRun(run_dir, read_run_config(run_dir), GRID, SyntheticEvaluator(OPTIMUM, trials=30),
+                           resume=True)
+
+
+def test_checkpoint_is_json_with_its_sha256_recorded_in_the_store(tmp_path):
+    import json
+
+    run_dir = _partial_run(tmp_path)
+    path = os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME)
+    with open(path, "rb") as stream:
+        document = json.loads(stream.read())          # plain data: JSON parses it, nothing is executed
+    assert document["checkpoint"]["generation"] == 3
+    with Store(run_dir) as store:
+        recorded = store.run_info(os.path.basename(run_dir))["info"]["checkpoint"]
+    assert recorded == {"file": checkpoints.CHECKPOINT_FILENAME, "generation": 3,
+                        "sha256": checkpoints.file_sha256(path)}
+    resumed = _resume(run_dir)
+    result = resumed.run()
+    resumed.close()
+    straight_dir, straight = uninterrupted(tmp_path, True)
+    assert comparable(run_dir) == comparable(straight_dir)
+    np.testing.assert_array_equal(result.mean, straight.mean)
+
+
+def test_resume_with_a_deleted_checkpoint_is_refused_and_adds_no_rows(tmp_path):
+    run_dir = _partial_run(tmp_path)
+    os.remove(os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME))
+    before = _rows(run_dir)
+    with pytest.raises(ConfigError, match="checkpoint .* is missing.*3 generation"):
+        _resume(run_dir)
+    assert _rows(run_dir) == before
+
+
+def test_a_crafted_pickle_checkpoint_is_never_loaded(tmp_path):
+    """A pickle that runs code on load, under the old name or the new one: refused, the code never runs."""
+    run_dir = _partial_run(tmp_path)
+    marker = os.path.join(tmp_path, "pwned")
+
+    class Payload:
+        def __reduce__(self):
+            return (open, (marker, "w"))
+
+    crafted = pickle.dumps({"format": 1, "payload": Payload()})
+    checkpoint = os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME)
+    os.replace(checkpoint, checkpoint + ".kept")
+    with open(os.path.join(run_dir, checkpoints.LEGACY_CHECKPOINT_FILENAME), "wb") as stream:
+        stream.write(crafted)
+    with pytest.raises(ConfigError, match="pickled checkpoint"):
+        _resume(run_dir)
+    with open(checkpoint, "wb") as stream:
+        stream.write(crafted)
+    with pytest.raises(ConfigError, match="not JSON"):
+        _resume(run_dir)
+    assert not os.path.exists(marker)
+
+
+def test_flipped_bytes_in_the_checkpoint_are_refused(tmp_path):
+    run_dir = _partial_run(tmp_path)
+    path = os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME)
+    with open(path, "rb") as stream:
+        data = stream.read()
+    position = data.index(b'"sigma":') + len(b'"sigma":') + 3      # a digit inside the step size
+    damaged = data[:position] + bytes([data[position] ^ 0x01]) + data[position + 1:]
+    assert damaged != data
+    with open(path, "wb") as stream:
+        stream.write(damaged)
+    before = _rows(run_dir)
+    with pytest.raises(ConfigError, match="damaged"):
+        _resume(run_dir)
+    assert _rows(run_dir) == before
+
+
+def test_a_foreign_checkpoint_is_refused(tmp_path):
+    """Another run's (valid) checkpoint copied in, or this run's older one put back: both refused."""
+    import shutil
+
+    run_dir = _partial_run(tmp_path, "run", generations=3)
+    other_dir = _partial_run(tmp_path, "other", generations=3)
+    path = os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME)
+    older = path + ".older"
+    shutil.copyfile(path, older)
+    shutil.copyfile(os.path.join(other_dir, checkpoints.CHECKPOINT_FILENAME), path)
+    with pytest.raises(ConfigError, match="checkpoint of run 'other'"):
+        _resume(run_dir)
+    run = _resume_after_restoring(run_dir, older, path)
+    run.step()
+    run.close()
+    shutil.copyfile(older, path)      # the generation-3 checkpoint, now that the store recorded generation 4
+    before = _rows(run_dir)
+    with pytest.raises(ConfigError, match="not the checkpoint this run's store recorded"):
+        _resume(run_dir)
+    assert _rows(run_dir) == before
+
+
+def _resume_after_restoring(run_dir, saved, path):
+    import shutil
+
+    shutil.copyfile(saved, path)
+    return _resume(run_dir)
+
+
+def test_checkpoint_written_but_not_yet_recorded_is_accepted(tmp_path):
+    """A kill between writing checkpoint g+1 and recording its SHA-256: the resume accepts the newer file."""
+    run_dir = _partial_run(tmp_path, generations=3)
+    run_id = os.path.basename(run_dir)
+    with Store(run_dir) as store:
+        described = store.run_info(run_id)
+        info = dict(described["info"], checkpoint={"file": checkpoints.CHECKPOINT_FILENAME, "generation": 2,
+                                                   "sha256": "0" * 64})
+        store.set_run_info(run_id, described["kind"], info)
+    resumed = _resume(run_dir)
+    assert resumed.optimizer.generation == 3
+    resumed.close()
+
+
+def test_state_dict_survives_json():
+    """The optimizer state is plain data: a JSON round trip rebuilds an optimizer that continues identically."""
+    import json
+
+    from rollability_ros.core.optimization.cmaes import ProfileOptimizer
+    from rollability_ros.core.optimization.optimization_run import optimizer_settings
+
+    settings = optimizer_settings(parameters())
+    original = ProfileOptimizer(GRID.n_variables, settings, 0.0, 0.45)
+    evaluator = SyntheticEvaluator(OPTIMUM, trials=30)
+    for generation in range(3):
+        population = original.ask()
+        results = evaluator(population, generation)
+        original.tell(population, [s / t for s, t, *_ in results], [t for _, t, *_ in results])
+        request = original.reevaluation_request()
+        if request is not None:
+            (again,) = evaluator([request], 100 + generation)
+            original.tell_reevaluation(again[0] / again[1], again[1])
+    state = json.loads(json.dumps(original.state_dict(), allow_nan=False))
+    copy = ProfileOptimizer.from_state_dict(state, GRID.n_variables, settings, 0.0, 0.45)
+    for x, y in zip(original.ask(), copy.ask()):
+        np.testing.assert_array_equal(x, y)
+    assert copy.best.fitness == original.best.fitness and copy.evaluations == original.evaluations

@@ -64,6 +64,9 @@ def playback_schedule(messages, rate=1.0, start_offset_s=0.0, loop=False, topics
         raise ValueError(f"start_offset_s must be >= 0, got {start_offset_s!r}")
     if loop and iter(messages) is messages:
         raise ValueError("loop needs re-iterable messages (a BagReader or a list), not a one-shot iterator")
+    # integer nanoseconds throughout: a float sum of an epoch time (~1.8e18 ns) rounds by up to 256 ns and
+    # once skipped a bag's first message
+    start_offset_ns = round(start_offset_s * 1_000_000_000)
     selected = None if topics is None else set(topics)
     remap = dict(remap or {})
     pass_start_wall_s = 0.0
@@ -75,7 +78,7 @@ def playback_schedule(messages, rate=1.0, start_offset_s=0.0, loop=False, topics
         for topic, type_name, data, log_time_ns in messages:
             if bag_start_time_ns is None:
                 bag_start_time_ns = log_time_ns
-            if log_time_ns < bag_start_time_ns + start_offset_s * 1e9:
+            if log_time_ns - bag_start_time_ns < start_offset_ns:
                 continue
             if selected is not None and topic not in selected:
                 continue

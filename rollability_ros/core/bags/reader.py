@@ -132,6 +132,36 @@ class BagReader:
                 yield BagMessage(connection.topic, connection.msgtype, bytes(data), log_time_ns)
 
 
+def verify_mcap_file(path):
+    """Raise BagError unless ``path`` is a complete MCAP file whose every chunk passes its CRC checks."""
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    with open(path, "rb") as stream:
+        open_mcap(path, stream)
+        stream.seek(0)
+        with bag_file_errors(path):
+            for record in StreamReader(stream, skip_magic=False, emit_chunks=True, validate_crcs=True).records:
+                if isinstance(record, Chunk):
+                    for _ in breakup_chunk(record, validate_crc=True):
+                        pass
+
+
+def check_readable(reader):
+    """Raise BagError unless every storage file of ``reader``'s bag opens and every MCAP chunk passes its CRC.
+
+    Reads the whole bag once (no message is decoded), so a player refuses a damaged bag before publishing any
+    of it rather than stopping part-way.
+    """
+    if reader.storage_identifier != "mcap":
+        with bag_file_errors(reader.directory):
+            for _ in reader:
+                pass
+        return
+    for path in reader.paths:
+        verify_mcap_file(path)
+
+
 def _mcap_file_info(path):
     """Return the info of one complete MCAP file from its summary section (no message is read)."""
     with open(path, "rb") as stream:

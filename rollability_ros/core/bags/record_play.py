@@ -73,7 +73,12 @@ class RecorderSettings:
             _positive(name, getattr(self, name))
         if self.output_dir and os.path.exists(self.output_dir) and (
                 not os.path.isdir(self.output_dir) or os.listdir(self.output_dir)):
-            raise ValueError(f"output_dir {self.output_dir} exists and is not an empty directory")
+            from rollability_ros.core.bags.recover import is_left_open
+
+            # a bag left open by a killed recorder is continued (BagWriter continue_open); any other is kept safe
+            if not os.path.isdir(self.output_dir) or not is_left_open(self.output_dir):
+                raise ValueError(f"output_dir {self.output_dir} exists and is not an empty directory or a bag "
+                                 f"left open by a killed recorder")
 
 
 @dataclasses.dataclass(frozen=True)

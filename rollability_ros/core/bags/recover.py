@@ -1,21 +1,26 @@
-"""Recover a bag whose recorder was killed: rebuild MCAP summaries and indexes, and metadata.yaml.
+"""Recover a bag whose recorder was killed or whose files were damaged: rebuild MCAP files and metadata.yaml.
 
 After a SIGKILL the last storage file has no summary section or footer, possibly a half-written chunk, and
 metadata.yaml still holds what was known when it was last written (topics with QoS and type hashes, custom
-data, ROS distro, files so far; counts of 0). :func:`recover`
+data, ROS distro, files so far; counts of 0). Outside damage (flipped bytes) can hit any record. :func:`recover`
 
-- leaves complete MCAP files alone;
-- rewrites each incomplete one from every complete, CRC-valid chunk it holds (schemas, channels and messages
-  in file order) into a new valid MCAP with message indexes, chunk indexes, statistics and summary, then
-  atomically replaces the original (the original stays until the new file is complete and fsynced);
-  channels of known topics without a surviving chunk are re-created from the recovery sidecar's definitions;
+- leaves complete MCAP files whose every chunk passes its CRC alone;
+- rebuilds every other file from each intact record it holds, found by scanning the bytes for self-delimiting
+  schema, channel and chunk records (a chunk counts only when its CRC matches), so damage to the magic, the
+  header, one chunk or the summary costs only what was damaged; schemas and channels also come from the
+  summary section's copies; channels of known topics without a surviving chunk are re-created from the
+  recovery sidecar's definitions;
+- never makes a bag worse: each rebuilt file is written beside the original, verified (complete, CRC-valid,
+  holding every salvaged message) and only then renamed over it, the damaged original kept as
+  ``<file>.before-recover``; when a damaged file yields nothing, BagError says so and nothing is changed;
 - rewrites metadata.yaml with counts and times from the files, keeping every field of the old one
   (storage id, ROS distro, custom data, compression fields, per-topic QoS and type hashes). With no
   metadata.yaml left it takes them from the files' channel metadata and ``rosbag2`` metadata records.
 
-What is lost is bounded by :mod:`rollability_ros.core.bags.writer`: the messages of the one chunk that was
+What a kill loses is bounded by :mod:`rollability_ros.core.bags.writer`: the messages of the one chunk that was
 open at the kill (``ros2 bag reindex`` by contrast needs readable files and rebuilds metadata.yaml from them,
-dropping custom data and the ROS distro).
+dropping custom data and the ROS distro). :func:`is_left_open`, :func:`mark_restart` and :func:`recording_gaps`
+support a writer that continues a bag after a restart.
 """
 import os
 import re
@@ -32,7 +37,7 @@ from rollability_ros.core.bags.metadata import (
     write_metadata,
 )
 from rollability_ros.core.bags.qos import normalize_qos_profiles
-from rollability_ros.core.bags.reader import bag_file_errors, open_mcap
+from rollability_ros.core.bags.reader import MCAP_MAGIC, bag_file_errors, open_mcap, verify_mcap_file
 from rollability_ros.core.bags.writer import (
     DEFAULT_CHUNK_SIZE_BYTES,
     RECOVERY_SIDECAR,
@@ -43,13 +48,19 @@ from rollability_ros.core.bags.writer import (
 
 _SPLIT_INDEX = re.compile(r"_(\d+)\.mcap$")
 
+#: Opcodes the salvage scan looks for: schema, channel, chunk.
+_SALVAGED_OPCODES = re.compile(b"[\x03\x04\x06]")
+
+#: Suffix of the copy of a damaged storage file that ``recover`` keeps next to the repaired one.
+BACKUP_SUFFIX = ".before-recover"
+
 
 def _is_complete(path):
+    """Whether ``path`` is a complete MCAP file whose every chunk passes its CRC (not just a readable footer)."""
     try:
-        with open(path, "rb") as stream:
-            open_mcap(path, stream)
+        verify_mcap_file(path)
         return True
-    except BagError:
+    except (BagError, OSError):
         return False
 
 
@@ -66,61 +77,108 @@ def _storage_files(directory, information):
     return listed + sorted(others, key=split_index)
 
 
-def _complete_records(path, report):
-    """Yield the records of every complete, CRC-valid chunk and top-level record of a possibly cut MCAP file.
+def _parse_record(record_type, body):
+    """Parse ``body`` as one ``record_type`` record; return it, or None unless the parse uses exactly all bytes."""
+    import io
 
-    Counts recovered / discarded chunks and the discarded tail in ``report``.
+    from mcap.data_stream import ReadDataStream
+
+    stream = io.BytesIO(body)
+    try:
+        record = record_type.read(ReadDataStream(stream))
+    except Exception:  # garbled lengths, bad UTF-8, short reads: not a record of this type
+        return None
+    return record if stream.tell() == len(body) else None
+
+
+def _plausible(record):
+    """Whether a parsed Schema / Channel (which carry no CRC) looks like one a ROS 2 recorder wrote."""
+    from mcap.records import Channel, Schema
+
+    if isinstance(record, Schema):
+        return record.id > 0 and "/" in record.name and record.name.isprintable() and record.encoding.isprintable()
+    if isinstance(record, Channel):
+        return record.topic.startswith("/") and record.topic.isprintable() and record.message_encoding.isprintable()
+    return True
+
+
+def _scan_records(data, report):
+    """Return the schemas, channels and messages of every intact record in the bytes ``data`` of an MCAP file.
+
+    The bytes are scanned rather than read in sequence, so damage anywhere (header, a chunk, an index, the
+    summary) costs only the damaged records: at every offset where a schema (0x03), channel (0x04) or chunk
+    (0x06) opcode and its 8-byte length describe a record that parses exactly, and, for a chunk, whose
+    uncompressed CRC matches, the record is taken and the scan continues after it. Chunks are self-delimiting
+    and CRC-checked, so a damaged one is counted in ``report["chunks_discarded"]`` and skipped. Schemas and
+    channels also reappear in the summary section, so a damaged copy of one usually has an intact twin.
     """
-    from mcap.records import Chunk
-    from mcap.stream_reader import StreamReader, breakup_chunk
+    from mcap.records import Channel, Chunk, Schema
+    from mcap.stream_reader import breakup_chunk
 
-    with open(path, "rb") as stream:
-        reader = StreamReader(stream, skip_magic=False, emit_chunks=True, validate_crcs=True)
-        size = os.fstat(stream.fileno()).st_size
-        records = reader.records
-        while True:
-            position = stream.tell()
+    record_types = {0x03: Schema, 0x04: Channel, 0x06: Chunk}
+    records = []
+    size, last_end = len(data), 0
+    match = _SALVAGED_OPCODES.search(data)
+    position = match.start() if match else size
+    while position + 9 <= size:
+        opcode = data[position]
+        record_type = record_types.get(opcode)
+        length = int.from_bytes(data[position + 1:position + 9], "little")
+        end = position + 9 + length
+        record = None
+        if record_type is not None and end <= size:
+            record = _parse_record(record_type, data[position + 9:end])
+        if record is None or not _plausible(record) or (isinstance(record, Chunk) and not record.uncompressed_crc):
+            match = _SALVAGED_OPCODES.search(data, position + 1)
+            position = match.start() if match else size
+            continue
+        if isinstance(record, Chunk):
             try:
-                record = next(records)
-            except StopIteration:
-                return
-            except Exception:  # cut or garbled record: everything from here on is unreadable
-                report["bytes_discarded"] = size - position
-                return
-            if not isinstance(record, Chunk):
-                yield record
-                continue
-            try:
-                inner = breakup_chunk(record, validate_crc=True)
-            except Exception:  # a complete chunk that fails its CRC or decompression
+                inner = list(breakup_chunk(record, validate_crc=True))
+            except Exception:  # CRC mismatch or undecompressible chunk: its frame is intact, so skip all of it
                 report["chunks_discarded"] += 1
+                position = end
                 continue
             report["chunks_recovered"] += 1
-            yield from inner
+            records.extend(inner)
+        else:
+            records.append(record)
+        last_end = position = end
+    # a file without its closing magic was cut: what follows the last intact record is the lost tail
+    report["bytes_discarded"] = 0 if data.endswith(MCAP_MAGIC) else size - last_end
+    return records
 
 
-def _rewrite_mcap(path, information, definitions, topics):
-    """Rewrite the incomplete MCAP ``path`` from its readable records; return the file's recovery report."""
+def _rewrite_mcap(path, temporary, information, definitions, topics):
+    """Write to ``temporary`` a valid MCAP with every intact record of the damaged MCAP ``path``; return the
+    file's recovery report. ``path`` itself is only read."""
     from mcap.records import Channel, Message, Schema
 
     report = {"path": os.path.basename(path), "status": "recovered", "messages": 0, "chunks_recovered": 0,
               "chunks_discarded": 0, "bytes_discarded": 0, "messages_without_channel": 0}
-    schemas, channel_topics, types_by_topic = {}, {}, {}
-    temporary = path + ".recovering"
+    with open(path, "rb") as stream:
+        data = stream.read()
+    records = _scan_records(data, report) if data else []
+    report["header_intact"] = data.startswith(MCAP_MAGIC)
+    schemas, channels, channel_topics, types_by_topic = {}, {}, {}, {}
+    for record in records:
+        if isinstance(record, Schema):
+            schemas.setdefault(record.id, record)
+        elif isinstance(record, Channel):
+            channels.setdefault(record.id, record)
     if os.path.exists(temporary):
         os.remove(temporary)
     output = McapFile(temporary, mcap_compression("zstd"), DEFAULT_CHUNK_SIZE_BYTES, fsync=True)
-    records = _complete_records(path, report) if os.path.getsize(path) else ()
+    for channel_id, channel in sorted(channels.items()):
+        schema = schemas.get(channel.schema_id)
+        if schema is None or channel.topic in types_by_topic:
+            continue
+        schema_id = output.add_schema(schema.name, schema.encoding, schema.data)
+        output.add_channel(channel.topic, channel.message_encoding, schema_id, dict(channel.metadata))
+        channel_topics[channel_id] = channel.topic
+        types_by_topic[channel.topic] = schema.name
     for record in records:
-        if isinstance(record, Schema) and record.id not in schemas:
-            schemas[record.id] = record
-        elif isinstance(record, Channel) and record.id not in channel_topics and record.schema_id in schemas:
-            schema = schemas[record.schema_id]
-            schema_id = output.add_schema(schema.name, schema.encoding, schema.data)
-            output.add_channel(record.topic, record.message_encoding, schema_id, dict(record.metadata))
-            channel_topics[record.id] = record.topic
-            types_by_topic[record.topic] = schema.name
-        elif isinstance(record, Message):
+        if isinstance(record, Message):
             if record.channel_id not in channel_topics:
                 report["messages_without_channel"] += 1
                 continue
@@ -130,8 +188,25 @@ def _rewrite_mcap(path, information, definitions, topics):
         if topic.name not in types_by_topic and topic.type_name in definitions:
             output.add_topic(topic, definitions[topic.type_name])
     output.close(information)
-    os.replace(temporary, path)
     return report
+
+
+def _verify(path, expected_messages):
+    """Raise BagError unless ``path`` is a complete, CRC-valid MCAP holding ``expected_messages`` messages."""
+    if not _is_complete(path):
+        raise BagError(f"{path}: the recovered file does not verify; the original is left as it was")
+    with open(path, "rb") as stream:
+        _, summary = open_mcap(path, stream)
+    if summary.statistics.message_count != expected_messages:
+        raise BagError(f"{path}: the recovered file holds {summary.statistics.message_count} messages, "
+                       f"{expected_messages} were salvaged; the original is left as it was")
+
+
+def _nothing_saved(report, size):
+    """Whether a damaged file of ``size`` bytes gave nothing worth writing (so it must be left untouched)."""
+    if report["messages"] or not size:
+        return False
+    return report["chunks_discarded"] > 0 or not report["header_intact"]
 
 
 def _file_summary(path):
@@ -173,18 +248,24 @@ def _previous_metadata(directory):
 def recover(directory):
     """Recover the bag in ``directory`` in place (see the module docstring); return a report.
 
+    Nothing is replaced until every repaired file has been written beside its original and verified
+    (complete, CRC-valid, holding every salvaged message); each damaged original is then kept as
+    ``<file>.mcap.before-recover``. When a damaged file yields nothing (no intact chunk, or no readable record at
+    all), BagError says so and the bag is left exactly as it was.
+
     Returns
     -------
     dict
         ``files``: one dict per storage file (``path``, ``status`` "intact" or "recovered", and for recovered
         files ``messages``, ``chunks_recovered``, ``chunks_discarded``, ``bytes_discarded``,
-        ``messages_without_channel``); ``message_count``: messages in the recovered bag;
-        ``topics``: ``{topic: message count}``.
+        ``messages_without_channel``, ``header_intact``, ``backup``); ``message_count``: messages in the
+        recovered bag; ``topics``: ``{topic: message count}``.
 
     Raises
     ------
     BagError
-        ``directory`` is not a directory or holds no MCAP storage file.
+        ``directory`` is not a directory, holds no MCAP storage file, or holds a damaged file from which
+        nothing can be saved.
     """
     directory = os.fspath(directory)
     if not os.path.isdir(directory):
@@ -198,23 +279,46 @@ def recover(directory):
     known_topics = topics_from_metadata(previous) if previous else []
     definitions = read_sidecar(directory)
     stored = dict(previous)
-    reports, files, found_topics = [], [], {}
-    for name in names:
-        path = os.path.join(directory, name)
-        if _is_complete(path):
-            reports.append({"path": name, "status": "intact"})
-        else:
-            partial = build_metadata(known_topics, files, custom_data=stored.get("custom_data"),
-                                     ros_distro=stored.get("ros_distro") or ROS_DISTRO)
-            reports.append(_rewrite_mcap(path, partial, definitions, known_topics))
-        info, topics, file_stored = _file_summary(path)
-        stored = stored or file_stored
-        files.append(info)
-        for topic in topics.values():
-            if topic.name in found_topics:
-                found_topics[topic.name].message_count += topic.message_count
+    reports, files, found_topics, repaired = [], [], {}, []
+    try:
+        for name in names:
+            path = os.path.join(directory, name)
+            summary_path = path
+            if _is_complete(path):
+                reports.append({"path": name, "status": "intact"})
             else:
-                found_topics[topic.name] = topic
+                partial = build_metadata(known_topics, files, custom_data=stored.get("custom_data"),
+                                         ros_distro=stored.get("ros_distro") or ROS_DISTRO)
+                temporary = path + ".recovering"
+                repaired.append((path, temporary))
+                report = _rewrite_mcap(path, temporary, partial, definitions, known_topics)
+                if _nothing_saved(report, os.path.getsize(path)):
+                    raise BagError(
+                        f"{path}: nothing can be saved ({report['chunks_discarded']} damaged chunks, no intact one"
+                        f"{'' if report['header_intact'] else ', no MCAP header'}); the bag is left as it was")
+                _verify(temporary, report["messages"])
+                reports.append(report)
+                summary_path = temporary
+            info, topics, file_stored = _file_summary(summary_path)
+            info.path = name
+            stored = stored or file_stored
+            files.append(info)
+            for topic in topics.values():
+                if topic.name in found_topics:
+                    found_topics[topic.name].message_count += topic.message_count
+                else:
+                    found_topics[topic.name] = topic
+    except BaseException:
+        for _, temporary in repaired:
+            if os.path.exists(temporary):
+                os.remove(temporary)
+        raise
+    for (path, temporary), report in zip(repaired, [r for r in reports if r["status"] == "recovered"]):
+        backup = path + BACKUP_SUFFIX
+        if os.path.getsize(path) and not os.path.exists(backup):
+            os.link(path, backup)          # the damaged original stays, under another name
+            report["backup"] = os.path.basename(backup)
+        os.replace(temporary, path)
     if not known_topics:
         known_topics = topics_from_metadata(stored) if stored.get("topics_with_message_count") else []
     topics = []
@@ -233,3 +337,49 @@ def recover(directory):
     return {"files": reports, "message_count": information["message_count"],
             "topics": {t.name: t.message_count for t in topics}}
 
+
+def is_left_open(directory):
+    """Whether ``directory`` holds a bag its writer did not close: a recovery sidecar, or an incomplete file."""
+    directory = os.fspath(directory)
+    if os.path.exists(os.path.join(directory, RECOVERY_SIDECAR)):
+        return True
+    names = _storage_files(directory, _previous_metadata(directory))
+    return any(not _is_complete(os.path.join(directory, name)) for name in names)
+
+
+def recording_gaps(directory):
+    """Return the windows a bag may be missing because its writer was killed and restarted.
+
+    Returns
+    -------
+    list of (int, int or None)
+        ``(after_ns, until_ns)`` per restart: messages logged after ``after_ns`` (the last one kept before the
+        kill; 0 if none) and before ``until_ns`` (the first one written after the restart; None if none yet)
+        may be missing. Empty for a bag recorded without a restart.
+    """
+    from rollability_ros.core.bags.writer import RESTARTS_KEY
+
+    information = read_metadata(os.fspath(directory))
+    files = information.get("files") or []
+    restarts = [int(r) for r in ((information.get("custom_data") or {}).get(RESTARTS_KEY) or "").split(",") if r]
+    gaps = []
+    for index in restarts:
+        before = [f["starting_time"]["nanoseconds_since_epoch"] + f["duration"]["nanoseconds"]
+                  for f in files[:index] if f["message_count"]]
+        after = [f["starting_time"]["nanoseconds_since_epoch"] for f in files[index:] if f["message_count"]]
+        gaps.append((max(before, default=0), min(after, default=None)))
+    return gaps
+
+
+def mark_restart(directory, information=None):
+    """Note in ``directory``'s metadata.yaml that the recording stopped uncleanly after its current files
+    (``custom_data["recorder_restarts"]`` gets the index of the next file); return the updated metadata."""
+    from rollability_ros.core.bags.writer import RESTARTS_KEY
+
+    information = dict(information or read_metadata(os.fspath(directory)))
+    custom_data = dict(information.get("custom_data") or {})
+    restarts = [r for r in (custom_data.get(RESTARTS_KEY) or "").split(",") if r]
+    custom_data[RESTARTS_KEY] = ",".join(restarts + [str(len(information.get("files") or []))])
+    information["custom_data"] = custom_data
+    write_metadata(os.fspath(directory), information)
+    return information

@@ -20,6 +20,7 @@ the one open chunk are lost** on a kill: fewer than ``chunk_size_bytes`` of mess
 and (if the caller writes or calls ``flush_if_due`` at least every ``flush_interval_s``) at most the last
 ``2 * flush_interval_s`` of messages. :func:`rollability_ros.core.bags.recover.recover` restores the rest.
 """
+import dataclasses
 import json
 import os
 import time
@@ -40,6 +41,9 @@ DEFAULT_CHUNK_SIZE_BYTES = 256 * 1024
 
 #: Default longest time a message waits in an open chunk before the chunk is written, s.
 DEFAULT_FLUSH_INTERVAL_S = 1.0
+
+#: ``custom_data`` key listing (comma separated) the indexes of storage files that a restarted writer began.
+RESTARTS_KEY = "recorder_restarts"
 
 #: Name of the sidecar holding type definitions while a bag is being written.
 RECOVERY_SIDECAR = ".recovery.json"
@@ -197,13 +201,18 @@ class BagWriter:
         fsync every finished chunk (survives power loss, slower).
     clock : callable
         Monotonic clock in seconds for the flush interval (for tests).
+    continue_open : bool
+        If ``directory`` holds a bag left open by a killed writer, recover it and continue it with a new storage
+        file (metadata.yaml then lists every file; the restart is noted in ``custom_data["recorder_restarts"]``,
+        see :func:`~rollability_ros.core.bags.recover.recording_gaps`). A closed bag is still refused.
 
     Not thread-safe: call it from one thread (a single-threaded executor, or behind one lock).
     """
 
     def __init__(self, directory, storage="mcap", compression="zstd", split_max_bytes=0, split_max_duration_s=0,
                  custom_data=None, chunk_size_bytes=DEFAULT_CHUNK_SIZE_BYTES,
-                 flush_interval_s=DEFAULT_FLUSH_INTERVAL_S, fsync=False, clock=time.monotonic):
+                 flush_interval_s=DEFAULT_FLUSH_INTERVAL_S, fsync=False, clock=time.monotonic,
+                 continue_open=False):
         if storage != "mcap":
             raise ValueError(f"BagWriter writes storage 'mcap' only, got {storage!r}; convert afterwards for sqlite3")
         for name, value in (("split_max_bytes", split_max_bytes), ("split_max_duration_s", split_max_duration_s),
@@ -214,8 +223,11 @@ class BagWriter:
             raise ValueError(f"chunk_size_bytes must be a positive integer, got {chunk_size_bytes!r}")
         self._compression = mcap_compression(compression)
         self.directory = os.fspath(directory)
+        self._previous_files, self._previous_topics, self.continued = [], {}, None
         if os.path.exists(self.directory) and (not os.path.isdir(self.directory) or os.listdir(self.directory)):
-            raise ValueError(f"{self.directory}: exists and is not an empty directory; not overwriting a bag")
+            if not (continue_open and os.path.isdir(self.directory)):
+                raise ValueError(f"{self.directory}: exists and is not an empty directory; not overwriting a bag")
+            custom_data = self._continue(custom_data)
         os.makedirs(self.directory, exist_ok=True)
         self.name = os.path.basename(os.path.normpath(self.directory))
         self.split_max_bytes = int(split_max_bytes)
@@ -227,12 +239,34 @@ class BagWriter:
         self._custom_data = dict(custom_data) if custom_data else None
         self._topics = {}
         self._definitions = {}
-        self._files = []
+        self._files = list(self._previous_files)
         self._current = None
         self._last_flush_s = clock()
         self._unflushed = 0
         build_metadata([], [], custom_data=self._custom_data)  # validates custom_data before any file exists
         self._open_file()
+
+    def _continue(self, custom_data):
+        """Take over the bag left open in ``directory`` by a killed writer: recover it, keep its files and topic
+        counts, note the restart in ``custom_data["recorder_restarts"]`` (indexes of files that begin after a
+        restart) and return the custom data to keep. A closed bag is refused (ValueError): it is not reopened."""
+        from rollability_ros.core.bags.metadata import BagError, topics_from_metadata
+        from rollability_ros.core.bags.recover import is_left_open, mark_restart, recover
+
+        if not is_left_open(self.directory):
+            raise ValueError(f"{self.directory}: holds a closed bag (or no bag); not writing into it")
+        try:
+            self.continued = recover(self.directory)
+            information = mark_restart(self.directory)
+        except BagError as exc:
+            raise ValueError(f"{self.directory}: cannot continue the bag left open there: {exc}") from exc
+        self._previous_files = [FileInfo(f["path"], f["starting_time"]["nanoseconds_since_epoch"],
+                                         f["duration"]["nanoseconds"], f["message_count"])
+                                for f in information.get("files") or []]
+        self._previous_topics = {t.name: t for t in topics_from_metadata(information)}
+        kept = dict(custom_data or {})
+        kept.update(information["custom_data"])
+        return kept
 
     # --- topics and messages -------------------------------------------------------------------------
     def add_topic(self, name, type_name, serialization_format="cdr", offered_qos_profiles=None, definition=None,
@@ -265,6 +299,9 @@ class BagWriter:
         type_name = full_type_name(type_name)
         if not isinstance(name, str) or not name.startswith("/"):
             raise ValueError(f"topic name must be an absolute ROS name starting with '/', got {name!r}")
+        previous = self._previous_topics.get(name)
+        if previous is not None and previous.type_name != type_name:
+            raise ValueError(f"topic {name} is recorded in this bag with type {previous.type_name}, not {type_name}")
         if name in self._topics:
             if self._topics[name].type_name != type_name:
                 raise ValueError(f"topic {name} is already recorded with type {self._topics[name].type_name}, "
@@ -351,8 +388,13 @@ class BagWriter:
 
     def metadata(self):
         """Return the current ``rosbag2_bagfile_information`` mapping."""
-        return build_metadata(list(self._topics.values()), list(self._files), custom_data=self._custom_data,
-                              ros_distro=ROS_DISTRO)
+        topics = []
+        for name, previous in self._previous_topics.items():    # topics of files before a restart, first
+            current = self._topics.get(name)
+            topics.append(dataclasses.replace(current or previous, message_count=previous.message_count + (
+                current.message_count if current else 0)))
+        topics.extend(t for name, t in self._topics.items() if name not in self._previous_topics)
+        return build_metadata(topics, list(self._files), custom_data=self._custom_data, ros_distro=ROS_DISTRO)
 
     def __enter__(self):
         return self

@@ -115,14 +115,14 @@ class Study:
 
     def _next_bag_dir(self):
         """``bag`` for a new study; for a resumed one the next free ``bag-<n>``, after recovering open bags."""
-        from rollability_ros.core.bags.recover import recover
-        from rollability_ros.core.bags.writer import RECOVERY_SIDECAR
+        from rollability_ros.core.bags.recover import is_left_open, mark_restart, recover
 
         existing = self.bag_dirs()
         for path in existing:
-            if os.path.exists(os.path.join(path, RECOVERY_SIDECAR)):
+            if is_left_open(path):
                 self.say(f"  recovering {path}: its recorder was killed before closing it")
                 recover(path)
+                mark_restart(path)   # what was sent after its last kept chunk may be missing: a reported gap
         if not existing:
             return os.path.join(self.study_dir, "bag")
         return os.path.join(self.study_dir, f"bag-{len(existing) + 1}")
@@ -181,8 +181,19 @@ class Study:
         return supervisor.wait_for_exit(name, timeout_s, self.settings.poll_period_s,
                                         lambda: self._stop_requested, tick, tick_period_s=PROGRESS_PERIOD_S)
 
+    def check_parameters(self):
+        """Raise ConfigError listing every node parameter of the graph that its node would refuse, before any
+        directory is made or process started (a node's own refusal would only reach its log)."""
+        from rollability_ros.core.config import ConfigError
+        from rollability_ros.core.graph.preflight import check_graph_parameters
+
+        problems = check_graph_parameters(self.param_files)
+        if problems:
+            raise ConfigError(f"study not started: {len(problems)} invalid parameter(s):\n  " + "\n  ".join(problems))
+
     def run(self):
         """Run (or resume) the whole study; always stops the graph; returns a :class:`StudyResult`."""
+        self.check_parameters()
         if self.resuming:
             self.say(f"study {self.study_id}: resuming in {self.study_dir}")
         else:
@@ -264,15 +275,75 @@ class Study:
         result.summary = built.summary
         if result.bag_dir:
             from rollability_ros.core.bags.messages import read_records_from_bag
+            from rollability_ros.core.bags.recover import recording_gaps
 
             bagged = {o.trial_id for path in self.bag_dirs() for o in read_records_from_bag(path)[0]
                       if o.run_id == self.study_id}
-            stored = {o.trial_id for o in data.outcomes}
-            if bagged != stored:
+            gaps = [gap for path in self.bag_dirs() for gap in recording_gaps(path)]
+            problem, gap_note = compare_bags_with_store(bagged, data.outcomes, gaps)
+            if gap_note:
+                self.say(gap_note)
+            if problem:
                 result.ok = False
-                result.reason = (f"the bags hold {len(bagged)} launch outcomes of this study, the store "
-                                 f"{len(stored)}: they differ")
+                result.reason = problem
         return result
+
+
+#: Slack at the start of a recording gap, s: an outcome stamped just before the last message the killed recorder
+#: kept may still have reached it after that message (delivery latency).
+GAP_MARGIN_S = 2.0
+
+
+def _format_ns(time_ns):
+    import datetime
+
+    if time_ns is None:
+        return "the end of the recording"
+    return datetime.datetime.fromtimestamp(time_ns / 1e9, datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S.%f")[
+        :-3] + " UTC"
+
+
+def compare_bags_with_store(bagged_trial_ids, stored_outcomes, gaps):
+    """Check that every stored launch outcome is in a bag, or was stamped inside a reported recording gap.
+
+    Parameters
+    ----------
+    bagged_trial_ids : set of str
+        Trial ids of the study's outcomes found in its bags.
+    stored_outcomes : list of LaunchOutcome
+        The study's outcomes in the logger's store (``stamp_s``: s since the epoch).
+    gaps : list of (int, int or None)
+        Windows the bags may be missing (:func:`~rollability_ros.core.bags.recover.recording_gaps`), ns.
+
+    Returns
+    -------
+    (str, str)
+        ``problem`` (empty when the bags and the store agree, gaps allowing) and ``gap_note``: one sentence naming
+        each lost window and how many stored outcomes fall in it (empty without gaps).
+    """
+    stored = {o.trial_id: o for o in stored_outcomes}
+    extra = sorted(set(bagged_trial_ids) - set(stored))
+    missing = [stored[t] for t in sorted(set(stored) - set(bagged_trial_ids))]
+    margin_ns = int(GAP_MARGIN_S * 1e9)
+    in_gap = {index: [] for index in range(len(gaps))}
+    unexplained = []
+    for outcome in missing:
+        stamp_ns = int(round(outcome.stamp_s * 1e9))
+        index = next((i for i, (after, until) in enumerate(gaps)
+                      if stamp_ns >= after - margin_ns and (until is None or stamp_ns <= until)), None)
+        (unexplained if index is None else in_gap[index]).append(outcome)
+    note = ""
+    if gaps:
+        windows = "; ".join(f"{_format_ns(after)} to {_format_ns(until)} ({len(in_gap[i])} stored outcome(s) "
+                            f"not in a bag)" for i, (after, until) in enumerate(gaps))
+        note = f"the recorder was restarted {len(gaps)} time(s); the bag lost the window(s): {windows}"
+    problem = ""
+    if extra or unexplained:
+        problem = (f"the bags hold {len(bagged_trial_ids)} launch outcomes of this study, the store {len(stored)}: "
+                   f"{len(unexplained)} stored outcome(s) missing from the bags outside any reported gap"
+                   f"{' (e.g. ' + unexplained[0].trial_id + ')' if unexplained else ''}, {len(extra)} bagged "
+                   f"outcome(s) not stored")
+    return problem, note
 
 
 def resume_dir(study, output_dir):

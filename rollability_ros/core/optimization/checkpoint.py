@@ -1,24 +1,28 @@
-"""Optimizer checkpoints: written atomically after each completed generation, checked against the run's config.
+"""Optimizer checkpoints: data only (JSON), checksummed, written atomically after each completed generation.
 
-A checkpoint is a pickled dict: format version, run id, completed generations, the config hash and the merged
-parameters it was made with, the optimizer state (:meth:`ProfileOptimizer.state_dict`: pickled pycma strategy,
-its numpy RNG state, counters, incumbent) and the best-so-far fitness. It is written to a temporary file in the
-same directory, fsynced, renamed over the old one with ``os.replace`` and the directory fsynced, so after a
-``kill -9`` or a power cut the file is either the previous checkpoint or the new one, never a torn mix.
+A checkpoint is a JSON document ``{"sha256": <hex digest of the body>, "checkpoint": body}``; the body holds the
+format version, run id, completed generations, the config hash and the merged parameters it was made with, the
+optimizer state (:meth:`ProfileOptimizer.state_dict`: the fitnesses told to CMA-ES each generation, from which
+the strategy is rebuilt exactly by replaying ask/tell, plus its mean and step size as a check) and the
+best-so-far fitness. Nothing in it can run code when loaded (unlike a pickle). The file is written to a
+temporary file in the same directory, fsynced, renamed over the old one with ``os.replace`` and the directory
+fsynced, so after a ``kill -9`` or a power cut it is either the previous checkpoint or the new one.
 
-Pickle is used because pycma's strategy object is only serialisable that way; load checkpoints you made.
+The run's store records the SHA-256 of the file it last wrote (:func:`file_sha256`), so a resume can tell the
+run's own checkpoint from a damaged, replaced or foreign one (see ``OptimizationRun``).
 """
 import hashlib
 import json
 import os
-import pickle
 
 from rollability_ros.core.config import ConfigError
 
 #: File name of the checkpoint inside a run directory.
-CHECKPOINT_FILENAME = "checkpoint.pkl"
+CHECKPOINT_FILENAME = "checkpoint.json"
+#: The pickled checkpoint of earlier versions: never loaded (a pickle can run code).
+LEGACY_CHECKPOINT_FILENAME = "checkpoint.pkl"
 #: Bump when the checkpoint dict changes incompatibly.
-CHECKPOINT_FORMAT = 1
+CHECKPOINT_FORMAT = 2
 
 
 def atomic_write_bytes(path, data):
@@ -65,27 +69,53 @@ def parameter_differences(saved, current):
     return lines
 
 
+def _canonical(body):
+    return json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False, default=str).encode("utf-8")
+
+
+def checkpoint_bytes(run_id, parameters, optimizer_state, best_so_far):
+    """Return the checkpoint file's bytes (JSON) for ``run_id`` after ``optimizer_state["generation"]``."""
+    body = {"format": CHECKPOINT_FORMAT, "run_id": run_id, "generation": optimizer_state["generation"],
+            "config_hash": config_hash(parameters), "parameters": dict(parameters),
+            "optimizer": optimizer_state, "best_so_far": best_so_far}
+    canonical = _canonical(body)
+    return _canonical({"sha256": hashlib.sha256(canonical).hexdigest(), "checkpoint": json.loads(canonical)})
+
+
 def save_checkpoint(path, run_id, parameters, optimizer_state, best_so_far):
-    """Atomically write the checkpoint of ``run_id`` after ``optimizer_state["generation"]`` generations."""
-    checkpoint = {"format": CHECKPOINT_FORMAT, "run_id": run_id, "generation": optimizer_state["generation"],
-                  "config_hash": config_hash(parameters), "parameters": dict(parameters),
-                  "optimizer": optimizer_state, "best_so_far": best_so_far}
-    atomic_write_bytes(path, pickle.dumps(checkpoint, protocol=pickle.HIGHEST_PROTOCOL))
+    """Atomically write the checkpoint of ``run_id``; return the SHA-256 hex digest of the file written."""
+    data = checkpoint_bytes(run_id, parameters, optimizer_state, best_so_far)
+    atomic_write_bytes(path, data)
+    return hashlib.sha256(data).hexdigest()
+
+
+def file_sha256(path):
+    """SHA-256 hex digest of the file at ``path``."""
+    with open(path, "rb") as stream:
+        return hashlib.sha256(stream.read()).hexdigest()
 
 
 def load_checkpoint(path):
-    """Return the checkpoint dict at ``path``, or None if there is none; ``ValueError`` if it is unusable."""
+    """Return the checkpoint body at ``path``, or None if there is none; ``ValueError`` naming why it is unusable
+    (not JSON, checksum mismatch, wrong format). Only parses data: nothing in the file is executed."""
     try:
         with open(path, "rb") as stream:
-            checkpoint = pickle.load(stream)
+            data = stream.read()
     except FileNotFoundError:
         return None
-    except (pickle.UnpicklingError, EOFError, AttributeError, ImportError) as exc:
-        raise ValueError(f"checkpoint {path} is unreadable ({exc}); it was not written by this code") from exc
-    found = checkpoint.get("format") if isinstance(checkpoint, dict) else None
+    try:
+        document = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise ValueError(f"checkpoint {path} is damaged or not a checkpoint (not JSON: {exc})") from exc
+    if not isinstance(document, dict) or not isinstance(document.get("checkpoint"), dict):
+        raise ValueError(f"checkpoint {path} is not a checkpoint of this code (no checkpoint body)")
+    body = document["checkpoint"]
+    found = body.get("format")
     if found != CHECKPOINT_FORMAT:
         raise ValueError(f"checkpoint {path} has format {found!r}, this code reads format {CHECKPOINT_FORMAT}")
-    return checkpoint
+    if hashlib.sha256(_canonical(body)).hexdigest() != document.get("sha256"):
+        raise ValueError(f"checkpoint {path} is damaged: its content does not match its own SHA-256")
+    return body
 
 
 def check_same_config(checkpoint, parameters, path):

@@ -205,6 +205,8 @@ class ProfileOptimizer:
         self._challenger = None
         self._reevaluation_pending = False
         self._improved_at = 0              # generation count when the incumbent last changed
+        # every generation's tell (fitness, trials, re-evaluation): the checkpoint rebuilds the strategy from it
+        self._tells = []
 
     # --- ask / tell -------------------------------------------------------------------------------------------
     def ask(self):
@@ -235,6 +237,7 @@ class ProfileOptimizer:
         if not all(0.0 <= f <= 1.0 for f in fitness):
             raise ValueError(f"fitness values must lie in [0, 1], got {fitness}")
         self._es.tell(self._asked, [1.0 - f for f in fitness])
+        self._tells.append({"fitness": fitness, "trials": trials, "reevaluation": None})
         best = int(np.argmax(fitness))
         candidate = Estimate(self._asked[best].copy(), fitness[best], trials[best], 1, self.generation)
         self._asked = None
@@ -261,6 +264,7 @@ class ProfileOptimizer:
             raise ValueError(f"fitness must lie in [0, 1], got {fitness}")
         self.evaluations += 1
         self._reevaluation_pending = False
+        self._tells[-1]["reevaluation"] = [float(fitness), int(trials)]
         if self._challenger is None:
             self._incumbent = self._incumbent.pooled(float(fitness), int(trials))
             return
@@ -319,17 +323,18 @@ class ProfileOptimizer:
                                sigma=self.sigma, stop=self.stop())
 
     def state_dict(self):
-        """Return the full optimizer state between generations, for a checkpoint (picklable dict).
+        """Return the full optimizer state between generations as plain data (JSON-serialisable, no pickle).
 
-        ``rng_state`` is the state of the strategy's private ``np.random`` generator, also captured inside the
-        pickled strategy; it is stored separately so a checkpoint can be inspected without unpickling pycma.
+        pycma's strategy is deterministic given its seed and the values told to it, so the state is the list of
+        tells (per generation: fitnesses, trials, the re-evaluation) and :meth:`from_state_dict` replays them;
+        ``mean`` and ``sigma`` are stored to check that the replay reproduced the strategy exactly.
         """
         if self._reevaluation_pending or self._asked is not None:
             raise ValueError("the optimizer state is only saved between generations")
-        return {"strategy": pickle.dumps(self._es), "rng_state": self._es.opts["randn"].__self__.get_state(),
-                "generation": self.generation, "evaluations": self.evaluations, "elapsed_s": self.elapsed_s,
-                "incumbent": self._incumbent, "improved_at": self._improved_at,
-                "initial_mean": self.initial_mean.copy()}
+        return {"tells": copy.deepcopy(self._tells), "generation": self.generation, "evaluations": self.evaluations,
+                "elapsed_s": self.elapsed_s, "improved_at": self._improved_at,
+                "initial_mean": self.initial_mean.tolist(), "mean": np.asarray(self._es.mean).tolist(),
+                "sigma": float(self._es.sigma)}
 
     @classmethod
     def from_state_dict(cls, state, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic,
@@ -337,15 +342,26 @@ class ProfileOptimizer:
         """Rebuild an optimizer saved by :meth:`state_dict`; it continues exactly where that one stopped.
 
         ``initial_mean`` is the start these settings give (as for the constructor); a state that started
-        elsewhere belongs to other settings and is refused.
+        elsewhere belongs to other settings and is refused, as is one whose replay does not reproduce the saved
+        mean and step size (ValueError).
         """
         optimizer = cls(n_variables, settings, lower, upper, clock, initial_mean)
-        if not np.array_equal(optimizer.initial_mean, state["initial_mean"]):
+        if not np.array_equal(optimizer.initial_mean, np.asarray(state["initial_mean"], dtype=np.float64)):
             raise ValueError("saved optimizer state does not match these settings (different initial mean)")
-        optimizer._es = pickle.loads(state["strategy"])
-        optimizer.generation = int(state["generation"])
-        optimizer.evaluations = int(state["evaluations"])
+        for tell in state["tells"]:
+            population = optimizer.ask()
+            optimizer.tell(population, tell["fitness"], tell["trials"])
+            if tell["reevaluation"] is not None:
+                optimizer.reevaluation_request()
+                optimizer.tell_reevaluation(*tell["reevaluation"])
+            elif optimizer._reevaluation_pending:
+                raise ValueError("saved optimizer state lacks a re-evaluation these settings ask for")
+        if (optimizer.generation != int(state["generation"]) or optimizer.evaluations != int(state["evaluations"])
+                or optimizer._improved_at != int(state["improved_at"])
+                or not np.array_equal(np.asarray(optimizer._es.mean), np.asarray(state["mean"], dtype=np.float64))
+                or float(optimizer._es.sigma) != float(state["sigma"])):
+            raise ValueError("replaying the saved tells does not reproduce the saved CMA-ES state (mean, sigma or "
+                             "counters differ): the checkpoint belongs to other settings or code")
+        optimizer._started = clock()
         optimizer._elapsed_before_s = float(state["elapsed_s"])
-        optimizer._incumbent = copy.deepcopy(state["incumbent"])
-        optimizer._improved_at = int(state["improved_at"])
         return optimizer

@@ -10,7 +10,7 @@ disturbance seed. A failed evaluation must raise, never return 0 successes: the 
 without a checkpoint and redone on resume.
 
 Run directory ``<output_dir>/<run_id>/``: ``config.yaml`` (the merged parameters, a ROS 2 parameter file),
-``store.sqlite`` (every candidate and generation summary), ``checkpoint.pkl`` (after each completed generation)
+``store.sqlite`` (every candidate and generation summary), ``checkpoint.json`` (after each completed generation; its SHA-256 is recorded in the store)
 and, later, the designs exported by selection.
 
 Generations are numbered from 1 (:data:`FIRST_GENERATION`) in the store, the messages, bags, logs and reports;
@@ -300,12 +300,59 @@ class OptimizationRun:
         return self._from_checkpoint()
 
     def _from_checkpoint(self):
-        """The optimizer as of the last checkpoint (a fresh one if the first generation never completed)."""
-        state = checkpoints.load_checkpoint(self.checkpoint_path)
+        """The optimizer as of the last checkpoint (a fresh one if the first generation never completed).
+
+        The checkpoint must be the one this run's store recorded (its SHA-256), or the next one, written just
+        before a kill could record it; a missing, damaged or foreign checkpoint, or a legacy pickle, is refused
+        with the reason (ConfigError) so nothing is recomputed or stored twice.
+        """
+        path = self.checkpoint_path
+        legacy = os.path.join(self.run_dir, checkpoints.LEGACY_CHECKPOINT_FILENAME)
+        if os.path.exists(legacy) and not os.path.exists(path):
+            raise ConfigError(f"cannot resume run {self.run_id}: {legacy} is a pickled checkpoint of an earlier "
+                              "version; it is not loaded (a pickle can run code)")
+        store = getattr(self, "store", None) or Store(self.run_dir)
+        recorded = ((store.run_info(self.run_id) or {}).get("info") or {}).get("checkpoint")
+        generations = {g.generation for g in store.generations(run_id=self.run_id)}
+        try:
+            state = checkpoints.load_checkpoint(path)
+        except ValueError as exc:
+            raise ConfigError(f"cannot resume run {self.run_id}: {exc}") from exc
         if state is None:
+            # a kill between storing the first generation's summary and writing the first checkpoint leaves it
+            if recorded or generations - {self.first_generation}:
+                raise ConfigError(
+                    f"cannot resume run {self.run_id}: its checkpoint {path} is missing, but the store holds "
+                    f"{len(generations)} generation(s)"
+                    f"{' and a checkpoint after generation ' + str(recorded['generation']) if recorded else ''}; "
+                    "refusing to redo them (restore the checkpoint file)")
             return self._new_optimizer()
-        checkpoints.check_same_config(state, self.parameters, self.checkpoint_path)
-        return self._new_optimizer(state["optimizer"])
+        if state.get("run_id") != self.run_id:
+            raise ConfigError(f"cannot resume run {self.run_id}: {path} is the checkpoint of run "
+                              f"{state.get('run_id')!r}")
+        digest = checkpoints.file_sha256(path)
+        if recorded is None or digest != recorded.get("sha256"):
+            # written, but killed before the store recorded it: accepted only as the one generation after the
+            # recorded checkpoint, with that generation's summary already stored
+            expected = (recorded or {}).get("generation", 0) + 1
+            if state["generation"] != expected or self.generation_number(state["generation"] - 1) not in generations:
+                raise ConfigError(f"cannot resume run {self.run_id}: {path} is not the checkpoint this run's store "
+                                  f"recorded (SHA-256 {digest[:12]}..., generation {state['generation']}; recorded "
+                                  f"{(recorded or {}).get('sha256', 'none')[:12]}..., generation "
+                                  f"{(recorded or {}).get('generation')}): replaced or foreign")
+            self._record_checkpoint(store, state["generation"], digest)
+        checkpoints.check_same_config(state, self.parameters, path)
+        try:
+            return self._new_optimizer(state["optimizer"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ConfigError(f"cannot resume run {self.run_id}: {path}: {exc}") from exc
+
+    def _record_checkpoint(self, store, generation, digest):
+        """Record in the run's store which checkpoint (generation, SHA-256) is the run's current one."""
+        described = store.run_info(self.run_id)
+        info = dict(described["info"]) if described else {}
+        info["checkpoint"] = {"file": checkpoints.CHECKPOINT_FILENAME, "generation": generation, "sha256": digest}
+        store.set_run_info(self.run_id, described["kind"] if described else RUN_KIND, info)
 
     # --- one generation ---------------------------------------------------------------------------------------
     def step(self) -> GenerationRecord:
@@ -344,8 +391,9 @@ class OptimizationRun:
                                   evaluations=optimizer.evaluations, elapsed_s=optimizer.elapsed_s,
                                   stamp_s=time.time())
         self.store.add_generation(record)
-        checkpoints.save_checkpoint(self.checkpoint_path, self.run_id, self.parameters, optimizer.state_dict(),
-                                    optimizer.best.fitness)
+        digest = checkpoints.save_checkpoint(self.checkpoint_path, self.run_id, self.parameters,
+                                             optimizer.state_dict(), optimizer.best.fitness)
+        self._record_checkpoint(self.store, optimizer.generation, digest)
         if self.on_generation is not None:
             self.on_generation(record)
         return record

@@ -163,7 +163,9 @@ def read_outcome_csv(path, run_id=None):
     except OSError as exc:
         raise OutcomeCsvError(path, [(0, f"cannot read: {exc.strerror}")]) from exc
     with stream:
-        reader = csv.reader(stream)
+        # strict: a quote left open is an error, not a field that swallows every following line
+        reader = csv.reader(stream, strict=True)
+        end_of_previous = 0
         try:
             header = next(reader, None)
             if header is None:
@@ -193,7 +195,13 @@ def read_outcome_csv(path, run_id=None):
                 first_line_of[key] = line
                 outcomes.append(outcome)
         except csv.Error as exc:
-            problems.append((reader.line_num, f"unreadable CSV: {exc}"))
+            line = end_of_previous + 1
+            if "unexpected end of data" in str(exc):
+                problems.append((line, f"unterminated quote: the quoted field opened in the row starting on line "
+                                       f"{line} is never closed (it runs to line {reader.line_num}, the end of "
+                                       f"the file)"))
+            else:
+                problems.append((line, f"unreadable CSV: {exc}"))
         except UnicodeDecodeError as exc:
             problems.append((reader.line_num + 1, f"not UTF-8 text: {exc.reason}"))
     if problems:

@@ -1,0 +1,90 @@
+"""Check every node's parameters before a graph starts, so a bad value stops a study at once with its reason.
+
+Each node validates its own parameters at start-up (``declare_settings``), but inside a supervised graph that
+reason lands in the node's log while the rest of the graph runs on. :func:`check_graph_parameters` builds the
+same settings dataclasses from the same parameter files, for each node name as the node would see them
+(``/**`` plus its own section), and collects every problem as ``"<node>: <prefix>.<field>: <reason>"``.
+Parameters a node declares outside these dataclasses (topic lists, run ids) are not checked here.
+"""
+import dataclasses
+import typing
+
+from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
+
+
+def _node_sections():
+    """``{node name: {parameter prefix: settings dataclass}}`` of the nodes a study starts."""
+    from rollability_ros.core.bags.record_play import RecorderSettings
+    from rollability_ros.core.campaign.plan import CampaignSpec
+    from rollability_ros.core.campaign.runner import RunnerSettings
+    from rollability_ros.core.imu.upright import ImuOutcomeConfig
+    from rollability_ros.core.optimization.cmaes import OptimizerSettings
+    from rollability_ros.core.optimization.selection import SelectionSettings
+    from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid
+    from rollability_ros.core.results.outcome_log import OutcomeLoggerSettings
+    from rollability_ros.core.rig.rig_session import RigSettings
+    from rollability_ros.core.rig.speed_gate import SpeedGateConfig
+    from rollability_ros.core.rig.valve import ValveConfig
+    from rollability_ros.core.robots.robot import ChassisSpec
+    from rollability_ros.core.robots.urdf_robot import UrdfRobotSpec
+    from rollability_ros.core.sim.evaluation import SETTINGS_SECTIONS, EvaluatorSettings
+    from rollability_ros.core.sim.stable_poses import ScreenSettings
+
+    hints = typing.get_type_hints(EvaluatorSettings)
+    evaluator = {prefix: hints[field] for field, prefix in SETTINGS_SECTIONS.items()}
+    return {
+        "recorder": {"recorder": RecorderSettings},
+        "outcome_logger": {"": OutcomeLoggerSettings},
+        "valve_controller": {"valve": ValveConfig},
+        "sim_evaluator": evaluator,
+        "optimizer": {"optimizer": OptimizerSettings, "selection": SelectionSettings, "profile": ProfileGrid,
+                      "printer": PrinterSpec, "robot": ChassisSpec, "urdf_robot": UrdfRobotSpec,
+                      "stable_poses": ScreenSettings},
+        "rig": {"rig": RigSettings, "valve": ValveConfig, "speed_gate": SpeedGateConfig,
+                "imu_outcome": ImuOutcomeConfig},
+        "campaign_runner": {"campaign": CampaignSpec, "runner": RunnerSettings},
+    }
+
+
+def _declared_only(settings_cls, mapping):
+    """``mapping`` without keys that are not fields of ``settings_cls`` (nested dataclasses likewise)."""
+    if not isinstance(mapping, dict):
+        return mapping
+    hints = typing.get_type_hints(settings_cls)
+    kept = {}
+    for field in dataclasses.fields(settings_cls):
+        if field.name in mapping:
+            value = mapping[field.name]
+            kept[field.name] = (_declared_only(hints[field.name], value)
+                                if dataclasses.is_dataclass(hints[field.name]) else value)
+    return kept
+
+
+def check_graph_parameters(param_files, node_names=None, overrides=None):
+    """Return every problem in the parameters the nodes ``node_names`` (default: all a study starts) would read.
+
+    Parameters
+    ----------
+    param_files : list of str
+        Parameter files in load order (names of shipped files or paths), as the nodes get them.
+    node_names : iterable of str, optional
+        Which nodes to check.
+    overrides : dict, optional
+        ``{node name: {dotted parameter: value}}`` set on the node's command line (they win over the files).
+
+    Returns
+    -------
+    list of str
+        ``"<node>: <where>: <reason>"`` lines; empty when every value is valid.
+    """
+    sections = _node_sections()
+    problems = []
+    for node in node_names or sections:
+        flat = load_parameters(list(param_files), node_name=node)
+        flat.update((overrides or {}).get(node, {}))
+        for prefix, settings_cls in sections[node].items():
+            try:
+                from_mapping(settings_cls, _declared_only(settings_cls, section(flat, prefix)), prefix or node)
+            except (ConfigError, ValueError, TypeError) as exc:
+                problems.append(f"{node}: {exc}")
+    return problems

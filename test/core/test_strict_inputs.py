@@ -1,0 +1,76 @@
+"""Issue 17: strict inputs: empty or malformed --heights and invalid node parameters stop before any work."""
+import os
+import subprocess
+import sys
+
+import pytest
+import yaml
+
+from rollability_ros.core.config import ConfigError
+
+REPO = os.path.join(os.path.dirname(__file__), "..", "..")
+
+
+@pytest.mark.parametrize("text, reason", [
+    ("", "is empty"), ("   \n", "is empty"), ("0.1,,0.2", "value 2 is empty"), ("0.1,", "value 2 is empty"),
+    ("0.1 abc", "value 2 ('abc') is not a number"), ("nan", "not finite"), ("0.1,inf", "not finite")])
+def test_bad_heights_are_refused_with_the_reason(text, reason):
+    from rollability_ros.cli.evaluate import parse_heights
+
+    with pytest.raises(ValueError, match=reason.replace("(", r"\(").replace(")", r"\)")):
+        parse_heights(text)
+
+
+def test_heights_accept_commas_and_whitespace():
+    from rollability_ros.cli.evaluate import parse_heights
+
+    assert parse_heights("0.1, 0.2\n0.3 0.4") == [0.1, 0.2, 0.3, 0.4]
+
+
+def test_evaluate_with_empty_heights_exits_2_without_evaluating():
+    """Was: `evaluate --heights ""` evaluated the bare chassis and exited 0."""
+    result = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "evaluate", "--heights", "",
+                             "--trials", "1"], capture_output=True, text=True, timeout=300, cwd=REPO)
+    assert result.returncode == 2 and "--heights is empty" in result.stderr, result.stderr
+    assert "fitness" not in result.stdout
+
+
+def _bad_config(tmp_path, values):
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump({"/**": {"ros__parameters": values}}))
+    return str(path)
+
+
+@pytest.mark.parametrize("optimizer, reason", [({"trials": -5}, "trials must be >= 1"),
+                                               ({"trials": float("nan")}, "expected an integer"),
+                                               ({"sigma0": float("nan")}, "must be finite")])
+def test_study_checks_every_node_parameter_before_starting(tmp_path, optimizer, reason):
+    from rollability_ros.core.graph.study import Study
+
+    config = _bad_config(tmp_path, {"bringup": {"output_dir": str(tmp_path / "runs")}, "optimizer": optimizer})
+    study = Study(extra_configs=[config], study_id="bad", say=lambda text: None)
+    with pytest.raises(ConfigError, match="optimizer") as caught:
+        study.check_parameters()
+    assert reason in str(caught.value)
+    with pytest.raises(ConfigError):
+        study.run()
+    assert not os.path.exists(tmp_path / "runs" / "bad")      # nothing made, no process started
+
+
+def test_study_cli_prints_the_reason_and_exits_2(tmp_path):
+    config = _bad_config(tmp_path, {"bringup": {"output_dir": str(tmp_path / "runs")}, "optimizer": {"trials": -5},
+                                    "campaign": {"repetitions": 0}})
+    result = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "study", "--config", config],
+                            capture_output=True, text=True, timeout=300, cwd=REPO)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert "optimizer" in result.stderr and "trials must be >= 1" in result.stderr
+    assert "campaign" in result.stderr
+    assert not os.path.exists(tmp_path / "runs")
+
+
+def test_shipped_configurations_pass_the_check():
+    from rollability_ros.core.graph.node_commands import parameter_files
+    from rollability_ros.core.graph.preflight import check_graph_parameters
+
+    for extra in ([], ["paper"]):
+        assert check_graph_parameters(parameter_files(["bringup", *extra])) == []

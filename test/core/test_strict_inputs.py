@@ -69,7 +69,7 @@ def test_study_cli_prints_the_reason_and_exits_2(tmp_path):
 
 
 def test_shipped_configurations_pass_the_check():
-    from rollability_ros.core.graph.node_commands import parameter_files
+    from rollability_ros.core.graph.bringup import parameter_files
     from rollability_ros.core.graph.preflight import check_graph_parameters
 
     for extra in ([], ["paper"]):

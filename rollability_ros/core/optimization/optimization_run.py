@@ -312,15 +312,18 @@ class OptimizationRun:
             raise ConfigError(f"cannot resume run {self.run_id}: {legacy} is a pickled checkpoint of an earlier "
                               "version; it is not loaded (a pickle can run code)")
         store = getattr(self, "store", None) or Store(self.run_dir)
-        recorded = ((store.run_info(self.run_id) or {}).get("info") or {}).get("checkpoint")
+        info = (store.run_info(self.run_id) or {}).get("info") or {}
+        recorded = info.get("checkpoint")
         generations = {g.generation for g in store.generations(run_id=self.run_id)}
+        # the stored number of the first generation (runs stored before numbering from 1 have none: 0)
+        first_generation = int(info.get("first_generation", 0 if generations else FIRST_GENERATION))
         try:
             state = checkpoints.load_checkpoint(path)
         except ValueError as exc:
             raise ConfigError(f"cannot resume run {self.run_id}: {exc}") from exc
         if state is None:
             # a kill between storing the first generation's summary and writing the first checkpoint leaves it
-            if recorded or generations - {self.first_generation}:
+            if recorded or generations - {first_generation}:
                 raise ConfigError(
                     f"cannot resume run {self.run_id}: its checkpoint {path} is missing, but the store holds "
                     f"{len(generations)} generation(s)"
@@ -335,7 +338,7 @@ class OptimizationRun:
             # written, but killed before the store recorded it: accepted only as the one generation after the
             # recorded checkpoint, with that generation's summary already stored
             expected = (recorded or {}).get("generation", 0) + 1
-            if state["generation"] != expected or self.generation_number(state["generation"] - 1) not in generations:
+            if state["generation"] != expected or state["generation"] - 1 + first_generation not in generations:
                 raise ConfigError(f"cannot resume run {self.run_id}: {path} is not the checkpoint this run's store "
                                   f"recorded (SHA-256 {digest[:12]}..., generation {state['generation']}; recorded "
                                   f"{(recorded or {}).get('sha256', 'none')[:12]}..., generation "

@@ -6,6 +6,7 @@ for the launch classes, the launch files are checked to start exactly the comman
 ``launch_support.session_commands`` (which the install-space test in test_packaging.py runs) and nothing else.
 """
 import importlib.util
+import os
 import sys
 import types
 
@@ -55,8 +56,12 @@ def _fake_launch_modules(monkeypatch):
         def perform(self, context):
             return context[self.args[0]]
 
+    class SetEnvironmentVariable(_Recorded):
+        pass
+
     modules = {"launch": {"LaunchDescription": _Recorded}, "launch.actions": {"DeclareLaunchArgument": _Recorded,
-               "OpaqueFunction": _Recorded}, "launch.substitutions": {"LaunchConfiguration": LaunchConfiguration},
+               "OpaqueFunction": _Recorded, "SetEnvironmentVariable": SetEnvironmentVariable},
+               "launch.substitutions": {"LaunchConfiguration": LaunchConfiguration},
                "launch_ros": {}, "launch_ros.actions": {"Node": _Recorded}}
     for name, attributes in modules.items():
         module = types.ModuleType(name)
@@ -75,8 +80,15 @@ def test_launch_file_starts_exactly_the_session_commands(path, tmp_path, monkeyp
     description = module.generate_launch_description()
     opaque = description.args[0][-1]
     context = {"config": "", "run_dir": str(tmp_path / "run")}
-    nodes = opaque.kwargs["function"](context, *opaque.kwargs["args"])
+    entities = opaque.kwargs["function"](context, *opaque.kwargs["args"])
     rig_backend, optimizer, evaluators = opaque.kwargs["args"]
+    # the physical rig's own ROS domain and localhost discovery, unless the environment sets them
+    from rollability_ros.core.rig.rig_network import physical_rig_environment
+
+    environment = [entity for entity in entities if type(entity).__name__ == "SetEnvironmentVariable"]
+    expected_environment = physical_rig_environment(os.environ) if rig_backend == "physical" else {}
+    assert {entity.args for entity in environment} == set(expected_environment.items())
+    nodes = [entity for entity in entities if entity not in environment]
     expected = session_commands(rig_backend, optimizer, evaluators, "", str(tmp_path / "run"))
     assert [(node.kwargs["executable"], node.kwargs["arguments"]) for node in nodes] == \
         [(command.executable, command.arguments) for command in expected]

@@ -4,5 +4,7 @@
   parameter files)
 - supervisor: start, restart and stop a graph of OS processes
 - study: the main job through the real graph
-- foxglove_view: the graph's topics served over the Foxglove WebSocket protocol
+- preflight: every node's parameters checked before a study starts any process
+- progress: the live status line of study / bringup (plain lines when not a terminal)
+- foxglove_view: the graph's topics served over the Foxglove WebSocket protocol (poses also as /tf)
 """

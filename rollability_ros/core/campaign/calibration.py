@@ -39,9 +39,9 @@ import numpy as np
 from rollability_ros.core.results import analysis
 from rollability_ros.core.config import ConfigError, from_mapping, section
 from rollability_ros.core.sim.evaluation import trial_seed
-from rollability_ros.core.sim.launch_twin import launch_twin_settings_from_parameters, simulate_launch
+from rollability_ros.core.sim.launch_twin import launch_twin_settings_from_parameters, simulate_valid_launch
 from rollability_ros.core.optional import require
-from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.results.records import INVALID_LAUNCH, LaunchCondition, LaunchOutcome
 from rollability_ros.core.sim.worker_pool import spawn_pool
 
 #: The parameter files the twin is built from, in load order (``load_launch_twin_settings``' default).
@@ -146,8 +146,10 @@ def launch_condition(result):
 
 
 def _count_upright(settings, condition, seeds):
-    """Launch ``condition`` once per seed on the twin ``settings``; return how many ended upright."""
-    return sum(simulate_launch(condition, settings, seed).upright for seed in seeds)
+    """Launch ``condition`` once per seed on the twin ``settings`` (an invalid launch retried,
+    :func:`simulate_valid_launch`); return how many ended upright (a launch still invalid counts as not upright)."""
+    launches = (simulate_valid_launch(condition, settings, seed) for seed in seeds)
+    return sum(result.valid and result.upright for result in launches)
 
 
 class LaunchPool:
@@ -401,9 +403,10 @@ def synthetic_outcomes(parameters, names, values, conditions, repetitions, first
     for condition in conditions:
         for repetition in range(repetitions):
             launch = dataclasses.replace(condition, repetition=repetition)
-            result = simulate_launch(launch, hidden, first_seed + repetition)
+            result = simulate_valid_launch(launch, hidden, first_seed + repetition)
+            note = "" if result.valid else INVALID_LAUNCH + result.invalid_reason
             outcomes.append(LaunchOutcome("synthetic", f"synthetic-{len(outcomes)}", launch, "physical",
-                                          result.upright, classified_by="operator"))
+                                          result.upright and result.valid, classified_by="operator", note=note))
     return outcomes
 
 

@@ -82,10 +82,13 @@ def group_conditions(outcomes):
     Parameters
     ----------
     outcomes : iterable of LaunchOutcome or LaunchCondition-with-upright pairs
-        Each item is a :class:`LaunchOutcome`, or a ``(LaunchCondition, upright)`` tuple.
+        Each item is a :class:`LaunchOutcome`, or a ``(LaunchCondition, upright)`` tuple. Invalid launches
+        (``LaunchOutcome.valid`` false) are left out: they are no outcome.
     """
     tallies = {}
     for item in outcomes:
+        if not getattr(item, "valid", True):
+            continue
         condition, upright = (item if isinstance(item, tuple) else (item.condition, item.upright))
         if not isinstance(condition, LaunchCondition):
             raise ValueError(f"expected a LaunchCondition, got {condition!r}")

@@ -66,7 +66,7 @@ def main():
         print(f"  {row['configuration']:<9} {row['height_m']:.2f} m {row['speed_mps']:.1f} m/s "
               f"{row['angle_deg']:+5.0f} deg  measured {row['measured_rate']:.2f}  before {row['before_rate']:.2f}  after {row['after_rate']:.2f}")
     for label, agreement in result.rank_agreement().items():
-        print(f"rank agreement {label}: Spearman {agreement.spearman_rho:.2f}, Kendall {agreement.kendall_tau_b:.2f}")
+        print(f"rank agreement {label}: {agreement.agreement_text()}")
 
 
 if __name__ == "__main__":

@@ -39,7 +39,7 @@ def summary_lines(result, screen_rows):
               f"{row['after_trial_rate']:>7.0%}" for row in result.configuration_rows()]
     for label, agreement in result.rank_agreement().items():
         lines.append(f"rank agreement {label}: "
-                     f"{analysis.rank_agreement_text(agreement.spearman_rho, agreement.kendall_tau_b)}")
+                     f"{agreement.agreement_text()}")
     lines += [f"screen {row['configuration']}: quasi-static P(upright) {row['upright_probability']:.2f}, worst "
               f"barrier {row['worst_barrier_m'] * 1000:.1f} mm ({row['worst_barrier_j']:.3f} J)" for row in screen_rows]
     return lines

@@ -6,7 +6,7 @@ Heights are drawn in cm and speeds in m/s, as in the paper.
 """
 import math
 
-from rollability_ros.core.results.analysis import cells_of, grid, rank_agreement_text
+from rollability_ros.core.results.analysis import cells_of, grid
 from rollability_ros.core.optional import require
 
 _FACTOR_LABELS = {"height_m": "height (cm)", "speed_mps": "speed (m/s)", "angle_deg": "angle (deg)",
@@ -160,7 +160,8 @@ def convergence(path, points):
 
 
 def sim_vs_experiment(path, comparison):
-    """Simulated fitness against experimental success per configuration, with the rank agreement."""
+    """Simulated fitness against campaign success per configuration (the campaign labelled experimental or
+    simulated), with the rank agreement."""
     plt = _pyplot()
     figure, ax = plt.subplots(figsize=(4.8, 4.2), layout="constrained")
     for row in comparison.rows:
@@ -171,7 +172,7 @@ def sim_vs_experiment(path, comparison):
     ax.set_xlim(0, 1)
     ax.set_ylim(0, 1)
     ax.set_xlabel("simulated fitness")
-    ax.set_ylabel(f"experimental success ({comparison.measure.replace('_', ' ')})")
-    ax.set_title(rank_agreement_text(comparison.spearman_rho, comparison.kendall_tau_b))
+    ax.set_ylabel(f"{comparison.campaign} campaign success ({comparison.measure.replace('_', ' ')})")
+    ax.set_title(comparison.agreement_text(), fontsize=9)
     ax.grid(alpha=0.3)
     return _save(figure, path)

@@ -176,3 +176,32 @@ def sim_vs_experiment(path, comparison):
     ax.set_title(comparison.agreement_text(), fontsize=9)
     ax.grid(alpha=0.3)
     return _save(figure, path)
+
+
+def sensitivity(path, rows):
+    """The sensitivity study (:mod:`rollability_ros.core.sim.sensitivity`): one panel per factor, fitness of each
+    configuration against the factor's levels with Wilson 95% intervals; the robust fitness as its own panel."""
+    plt = _pyplot()
+    factors = list(dict.fromkeys(row["factor"] for row in rows))
+    configurations = list(dict.fromkeys(row["configuration"] for row in rows))
+    figure, axes = plt.subplots(1, len(factors), figsize=(3.2 * len(factors), 3.4), layout="constrained",
+                                squeeze=False)
+    for ax, factor in zip(axes[0], factors):
+        own = [row for row in rows if row["factor"] == factor]
+        levels = list(dict.fromkeys(str(row["level"]) for row in own))
+        for number, configuration in enumerate(configurations):
+            points = [row for row in own if row["configuration"] == configuration]
+            x = [levels.index(str(row["level"])) + 0.08 * (number - (len(configurations) - 1) / 2) for row in points]
+            y = [row["fitness"] for row in points]
+            errors = [[row["fitness"] - row["ci_low"] for row in points], [row["ci_high"] - row["fitness"]
+                                                                           for row in points]]
+            ax.errorbar(x, y, yerr=errors, marker="o", capsize=3, label=configuration,
+                        ls="-" if factor != "robust" else "none")
+        ax.set_xticks(range(len(levels)))
+        ax.set_xticklabels(levels, fontsize=8)
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_title(factor.replace("_", " "), fontsize=10)
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("simulated fitness (95% CI)")
+    axes[0][-1].legend(fontsize=8)
+    return _save(figure, path)

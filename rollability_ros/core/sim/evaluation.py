@@ -28,7 +28,7 @@ from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid, chec
 from rollability_ros.core.optional import require
 from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
 from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, launch_objective, \
-    run_launch_trial
+    run_launch_trial, run_robust_trial
 from rollability_ros.core.sim.world import PhysicsParams, connect
 from rollability_ros.core.results.stats import wilson_interval
 from rollability_ros.core.sim.trials import TrialSettings, TrialWorld
@@ -167,10 +167,14 @@ def run_batch(job, batch):
     reuse it (restored before every trial, see :class:`~rollability_ros.core.sim.trials.TrialWorld`).
     """
     global _worker_client, _worker_world
-    if job.launch is not None and all(job.launch.is_launch(index) for index, _ in batch):
+    if job.launch is not None and all(job.launch.is_launch(index) for index, _ in batch) \
+            and not job.settings.objective.robust.enabled:
         return [run_launch_trial(job.launch, job.profile, index, seed) for index, seed in batch]
     if _worker_client is None:
         _worker_client = connect()
+    if job.settings.objective.robust.enabled:
+        _worker_world = None   # every robust trial builds its own world in the client
+        return [run_robust_trial(_worker_client, job, index, seed) for index, seed in batch]
     key = _job_key(job)
     if _worker_world is None or _worker_world[0] != key:
         settings = job.settings

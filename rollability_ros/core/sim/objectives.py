@@ -21,6 +21,9 @@ sim_evaluator node) runs it unchanged. What a *trial* is depends on ``objective.
     disturbance trial: the share ``w`` of the trials are launches, spread evenly, so the fitness is the
     ``w``-weighted mean of the two success rates (exactly when ``trials w`` is a whole number).
 
+With ``objective.robust.enabled`` every trial of any kind runs under its own draw of the uncertain quantities
+(:mod:`~rollability_ros.core.sim.robustness`).
+
 Trial ``i`` uses the evaluation's trial seed ``trial_seed(s, i)`` whatever its kind, so candidates evaluated with
 one base seed meet the same disturbances and the same launch scatter (common random numbers).
 """
@@ -32,7 +35,8 @@ import typing
 
 from rollability_ros.core.campaign.plan import load_campaign_spec
 from rollability_ros.core.results.records import LaunchCondition
-from rollability_ros.core.sim.trials import TrialOutcome
+from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_for
+from rollability_ros.core.sim.trials import TrialOutcome, run_trial
 
 #: ``objective.kind`` values.
 OBJECTIVES = ("disturbance", "launch_twin", "mix")
@@ -48,9 +52,11 @@ class ObjectiveSettings:
     launch_weight: float = 0.5
     campaign_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["campaign"])
     twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"])
+    robust: RobustSettings = dataclasses.field(default_factory=RobustSettings)
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
+        self.robust.validate()
         if self.kind not in OBJECTIVES:
             raise ValueError(f"kind must be one of {', '.join(OBJECTIVES)}, got {self.kind!r}")
         if not 0 < self.launch_weight <= 1:
@@ -98,7 +104,7 @@ def launch_conditions(campaign_config):
 def _resolve(kind, launch_weight, campaign_config, twin_config):
     from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
 
-    settings = ObjectiveSettings(kind, launch_weight, list(campaign_config), list(twin_config))
+    settings = ObjectiveSettings(kind, launch_weight, list(campaign_config), list(twin_config), RobustSettings())
     return LaunchObjective(launch_conditions(campaign_config), load_launch_twin_settings(twin_config),
                            settings.launch_share)
 
@@ -122,3 +128,15 @@ def run_launch_trial(objective, profile, index, seed):
     result = simulate_valid_launch(condition, objective.twin, seed, profile=profile, use_profile=True)
     return TrialOutcome(index=index, seed=seed, upright=bool(result.valid and result.upright),
                         settled=bool(result.settled), steps=int(result.steps), tilt_deg=float(result.tilt_deg))
+
+
+def run_robust_trial(client, job, index, seed):
+    """Trial ``index`` of trial job ``job`` under the robustness draw of its ``seed``
+    (:mod:`~rollability_ros.core.sim.robustness`): a launch on the perturbed twin, or a disturbance trial in a
+    world built in ``client`` for the perturbed settings (which replaces any world held in ``client``)."""
+    robust = job.settings.objective.robust
+    if job.launch is not None and job.launch.is_launch(index):
+        twin = robust_settings_for(job.launch.twin, seed, robust)
+        return run_launch_trial(dataclasses.replace(job.launch, twin=twin), job.profile, index, seed)
+    settings = robust_settings_for(job.settings, seed, robust)
+    return run_trial(client, settings.robot_model(), job.profile, index, seed, settings.trial, settings.physics)

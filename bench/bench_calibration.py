@@ -46,7 +46,7 @@ def coverage(args, parameters):
     rng = np.random.default_rng(2026)
     conditions = [LaunchCondition(*c) for c in CONDITIONS]
     with calibration.LaunchPool() as pool:
-        for name, low, high, log in COVERAGE_PARAMETERS:
+        for name, low, high, log in COVERAGE_PARAMETERS[:args.coverage_parameters]:
             settings = calibration.CalibrationSettings(parameters=[name], lower=[low], upper=[high],
                                                        log_scale=[log], sim_repetitions=args.sim_repetitions,
                                                        interval_points=args.interval_points)
@@ -54,7 +54,7 @@ def coverage(args, parameters):
             truths = low * (high / low) ** u if log else low + u * (high - low)
             started = time.perf_counter()
             grouped = None
-            covered, widths = 0, []
+            covered, covered_interpolated, widths = 0, 0, []
             for number, truth in enumerate(truths):
                 outcomes = calibration.synthetic_outcomes(parameters, [name], [truth], conditions, args.repetitions,
                                                           first_seed=1_000_000 + 1000 * number)
@@ -64,13 +64,17 @@ def coverage(args, parameters):
                                                             [parameters[name]], 0)
                 grid, curve = calibration.likelihood_profile(physical, parameters, settings, pool, None, 0, grouped)
                 interval = calibration.likelihood_interval(grid, curve)
+                interpolated = calibration.likelihood_interval(grid, curve, ends="interpolate")
                 hit = interval[0] <= truth <= interval[1]
                 covered += hit
+                covered_interpolated += interpolated[0] <= truth <= interpolated[1]
                 widths.append(interval[1] - interval[0])
                 print(f"  {name} truth {truth:.4g}: 95% interval [{interval[0]:.4g}, {interval[1]:.4g}] "
-                      f"{'holds it' if hit else 'MISSES'}")
+                      f"{'holds it' if hit else 'MISSES'} (interpolated ends [{interpolated[0]:.4g}, "
+                      f"{interpolated[1]:.4g}])", flush=True)
             print(f"coverage {name}: {covered}/{len(truths)} = {covered / len(truths):.0%} of the 95% intervals hold "
-                  f"the truth (target >= 90%); mean width {np.mean(widths):.4g}; {args.repetitions} 'physical' "
+                  f"the truth (target >= 90%; with interpolated ends {covered_interpolated}/{len(truths)}); "
+                  f"mean width {np.mean(widths):.4g}; {args.repetitions} 'physical' "
                   f"launches x {len(conditions)} conditions per truth, grid {settings.interval_points} x "
                   f"{settings.sim_repetitions} launches; {time.perf_counter() - started:.0f} s")
 
@@ -84,6 +88,8 @@ def main():
     parser.add_argument("--two-parameters", action="store_true", help="also fit the foam's friction")
     parser.add_argument("--coverage", type=int, default=0, help="truths per parameter of the coverage bench")
     parser.add_argument("--interval-points", type=int, default=13, help="grid points of the likelihood interval")
+    parser.add_argument("--coverage-parameters", type=int, default=2, choices=(1, 2),
+                        help="coverage of the first 1 or both parameters")
     args = parser.parse_args()
     if args.coverage:
         with tempfile.TemporaryDirectory() as folder:

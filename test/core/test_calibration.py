@@ -156,8 +156,11 @@ def test_recovers_a_hidden_centre_of_mass_offset_from_synthetic_outcomes(tmp_pat
 
 def test_likelihood_interval_of_a_normal_log_likelihood_is_mean_plus_minus_1_96_sd():
     grid = np.linspace(-1.0, 3.0, 81)
-    low, high = calibration.likelihood_interval(grid, -0.5 * ((grid - 1.0) / 0.4) ** 2)
+    curve = -0.5 * ((grid - 1.0) / 0.4) ** 2
+    low, high = calibration.likelihood_interval(grid, curve, ends="interpolate")
     assert low == pytest.approx(1.0 - 1.96 * 0.4, abs=2e-3) and high == pytest.approx(1.0 + 1.96 * 0.4, abs=2e-3)
+    # grid ends: the first grid points outside, so never narrower (grid step 0.05)
+    assert calibration.likelihood_interval(grid, curve) == pytest.approx((0.20, 1.80))
     # a curve still high at a bound is cut there
     assert calibration.likelihood_interval(grid, -grid)[0] == -1.0
 

@@ -1,8 +1,15 @@
 """Synthetic-truth calibration benchmark: "physical" outcomes from the launch twin with hidden parameter values,
-calibrated back; prints the recovered values against the truth in units of their bootstrap uncertainty.
+calibrated back; prints the recovered values against the truth and their stated 95% intervals.
 
-    python bench/bench_calibration.py [--repetitions 20] [--sim-repetitions 16] [--generations 8] [--bootstrap 3]
+    python bench/bench_calibration.py [--repetitions 20] [--sim-repetitions 16] [--generations 8] [--bootstrap 0]
                                       [--two-parameters]
+    nice python bench/bench_calibration.py --coverage 20 [--repetitions 20] [--sim-repetitions 24]
+
+``--coverage N``: for each of ``robot.com_offset_z_m`` and ``launch_twin.foam.lateral_friction`` (one at a time,
+the other at its default), N truths drawn evenly at random inside the inner 80% of its calibration bounds; each
+truth's "physical" outcomes (fresh seeds per truth) get the calibration's 95% likelihood interval (the grid of
+simulated launches does not depend on the truth, so it is launched once); prints how many intervals hold their
+truth (target: at least 90%) and their mean width.
 
 Configurations: the bare chassis and bench_evaluator's dome profile (an STL in a temporary folder). The hidden
 truth moves ``robot.com_offset_z_m`` from -0.015 m to +0.006 m (and, with ``--two-parameters``, the foam's
@@ -27,14 +34,74 @@ from rollability_ros.core.results.records import LaunchCondition  # noqa: E402
 #: The grouped conditions launched (configuration, height m, speed m/s, angle deg).
 CONDITIONS = (("baseline", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 30.0),
               ("dome", 0.75, 1.5, 0.0))
+#: Parameters of the coverage bench: (config key, lower, upper, log scale).
+COVERAGE_PARAMETERS = (("robot.com_offset_z_m", -0.019, 0.015, False),
+                       ("launch_twin.foam.lateral_friction", 0.2, 3.0, True))
+
+
+def coverage(args, parameters):
+    """The coverage bench (module docstring); prints one line per truth and the coverage per parameter."""
+    import numpy as np
+
+    from rollability_ros.core.results import analysis
+
+    rng = np.random.default_rng(2026)
+    conditions = [LaunchCondition(*c) for c in CONDITIONS]
+    with calibration.LaunchPool() as pool:
+        for name, low, high, log in COVERAGE_PARAMETERS[:args.coverage_parameters]:
+            settings = calibration.CalibrationSettings(parameters=[name], lower=[low], upper=[high],
+                                                       log_scale=[log], sim_repetitions=args.sim_repetitions,
+                                                       interval_points=args.interval_points)
+            u = rng.uniform(0.1, 0.9, args.coverage)
+            truths = low * (high / low) ** u if log else low + u * (high - low)
+            started = time.perf_counter()
+            grouped = None
+            covered, covered_interpolated, widths = 0, 0, []
+            for number, truth in enumerate(truths):
+                outcomes = calibration.synthetic_outcomes(parameters, [name], [truth], conditions, args.repetitions,
+                                                          first_seed=1_000_000 + 1000 * number)
+                physical = analysis.group_conditions(outcomes)
+                if grouped is None:
+                    grouped = calibration.predicted_on_grid(physical, parameters, settings, pool,
+                                                            [parameters[name]], 0)
+                grid, curve = calibration.likelihood_profile(physical, parameters, settings, pool, None, 0, grouped)
+                interval = calibration.likelihood_interval(grid, curve)
+                interpolated = calibration.likelihood_interval(grid, curve, ends="interpolate")
+                hit = interval[0] <= truth <= interval[1]
+                covered += hit
+                covered_interpolated += interpolated[0] <= truth <= interpolated[1]
+                widths.append(interval[1] - interval[0])
+                print(f"  {name} truth {truth:.4g}: 95% interval [{interval[0]:.4g}, {interval[1]:.4g}] "
+                      f"{'holds it' if hit else 'MISSES'} (interpolated ends [{interpolated[0]:.4g}, "
+                      f"{interpolated[1]:.4g}])", flush=True)
+            print(f"coverage {name}: {covered}/{len(truths)} = {covered / len(truths):.0%} of the 95% intervals hold "
+                  f"the truth (target >= 90%; with interpolated ends {covered_interpolated}/{len(truths)}); "
+                  f"mean width {np.mean(widths):.4g}; {args.repetitions} 'physical' "
+                  f"launches x {len(conditions)} conditions per truth, grid {settings.interval_points} x "
+                  f"{settings.sim_repetitions} launches; {time.perf_counter() - started:.0f} s")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repetitions", type=int, default=20, help="'physical' launches per condition")
     parser.add_argument("--sim-repetitions", type=int, default=16, help="simulated launches per condition")
     parser.add_argument("--generations", type=int, default=8, help="CMA-ES generations per fit")
-    parser.add_argument("--bootstrap", type=int, default=3, help="bootstrap fits")
+    parser.add_argument("--bootstrap", type=int, default=0, help="bootstrap fits")
     parser.add_argument("--two-parameters", action="store_true", help="also fit the foam's friction")
+    parser.add_argument("--coverage", type=int, default=0, help="truths per parameter of the coverage bench")
+    parser.add_argument("--interval-points", type=int, default=13, help="grid points of the likelihood interval")
+    parser.add_argument("--coverage-parameters", type=int, default=2, choices=(1, 2),
+                        help="coverage of the first 1 or both parameters")
     args = parser.parse_args()
+    if args.coverage:
+        with tempfile.TemporaryDirectory() as folder:
+            stl = os.path.join(folder, "dome.stl")
+            export_mesh(dome_mesh(), stl)
+            parameters = load_parameters(list(calibration.TWIN_CONFIGS))
+            parameters.update({"launch_twin.designs.mesh_labels": ["dome"],
+                               "launch_twin.designs.mesh_files": [stl]})
+            coverage(args, parameters)
+        return
     names, truth = ["robot.com_offset_z_m"], [0.006]
     lower, upper, log_scale = [-0.019], [0.015], [False]
     if args.two_parameters:
@@ -62,13 +129,15 @@ def main():
     print(f"log-likelihood before {result.before_log_likelihood:.2f}, after {result.after_log_likelihood:.2f}")
     for estimate, value in zip(result.estimates, truth):
         error = estimate.fitted - value
-        print(f"{estimate.name}: truth {value:.4g}, start {estimate.initial:.4g}, fitted {estimate.fitted:.4g}, "
-              f"bootstrap sd {estimate.std:.3g} -> error / sd = {error / estimate.std:+.2f}")
+        print(f"{estimate.name}: truth {value:.4g}, start {estimate.initial:.4g}, fitted {estimate.fitted:.4g} "
+              f"(error {error:+.3g}), 95% interval [{estimate.interval_low:.4g}, {estimate.interval_high:.4g}] "
+              f"({estimate.interval_method}): "
+              f"{'holds' if estimate.interval_low <= value <= estimate.interval_high else 'MISSES'} the truth")
     for row in result.condition_rows():
         print(f"  {row['configuration']:<9} {row['height_m']:.2f} m {row['speed_mps']:.1f} m/s "
               f"{row['angle_deg']:+5.0f} deg  measured {row['measured_rate']:.2f}  before {row['before_rate']:.2f}  after {row['after_rate']:.2f}")
     for label, agreement in result.rank_agreement().items():
-        print(f"rank agreement {label}: Spearman {agreement.spearman_rho:.2f}, Kendall {agreement.kendall_tau_b:.2f}")
+        print(f"rank agreement {label}: {agreement.agreement_text()}")
 
 
 if __name__ == "__main__":

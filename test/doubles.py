@@ -47,14 +47,16 @@ def synthetic_outcomes(parameters, names, values, conditions, repetitions, first
     Returns LaunchOutcomes (backend ``physical``, run ``synthetic``).
     """
     from rollability_ros.core.campaign import calibration
-    from rollability_ros.core.sim.launch_twin import simulate_launch
+    from rollability_ros.core.results.records import INVALID_LAUNCH
+    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
 
     hidden = calibration.twin_settings_with(parameters, names, values)
     outcomes = []
     for condition in conditions:
         for repetition in range(repetitions):
             launch = dataclasses.replace(condition, repetition=repetition)
-            result = simulate_launch(launch, hidden, first_seed + repetition)
+            result = simulate_valid_launch(launch, hidden, first_seed + repetition)
+            note = "" if result.valid else INVALID_LAUNCH + result.invalid_reason
             outcomes.append(LaunchOutcome("synthetic", f"synthetic-{len(outcomes)}", launch, "physical",
-                                          result.upright, classified_by="operator"))
+                                          result.upright and result.valid, classified_by="operator", note=note))
     return outcomes

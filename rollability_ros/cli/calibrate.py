@@ -32,14 +32,15 @@ def summary_lines(result, screen_rows):
     lines = [f"grouped conditions: {len(result.conditions)}, physical trials: {trials}, parameter sets simulated: "
              f"{result.evaluations} x {result.sim_repetitions} launches per condition",
              f"log-likelihood: before {result.before_log_likelihood:.2f}, after {result.after_log_likelihood:.2f}",
-             f"{'parameter':<42} {'start':>10} {'fitted':>10} {'bootstrap sd':>13}"]
-    lines += [f"{e.name:<42} {e.initial:>10.4g} {e.fitted:>10.4g} {e.std:>13.3g}" for e in result.estimates]
+             f"{'parameter':<42} {'start':>10} {'fitted':>10} {'95% interval':>24} {'bootstrap sd':>13}"]
+    lines += [f"{e.name:<42} {e.initial:>10.4g} {e.fitted:>10.4g} "
+              f"{f'[{e.interval_low:.4g}, {e.interval_high:.4g}]':>24} {e.std:>13.3g}" for e in result.estimates]
     lines.append(f"{'configuration':<14} {'measured':>9} {'before':>7} {'after':>7}   (trial success rates)")
     lines += [f"{row['configuration']:<14} {row['measured_trial_rate']:>9.0%} {row['before_trial_rate']:>7.0%} "
               f"{row['after_trial_rate']:>7.0%}" for row in result.configuration_rows()]
     for label, agreement in result.rank_agreement().items():
         lines.append(f"rank agreement {label}: "
-                     f"{analysis.rank_agreement_text(agreement.spearman_rho, agreement.kendall_tau_b)}")
+                     f"{agreement.agreement_text()}")
     lines += [f"screen {row['configuration']}: quasi-static P(upright) {row['upright_probability']:.2f}, worst "
               f"barrier {row['worst_barrier_m'] * 1000:.1f} mm ({row['worst_barrier_j']:.3f} J)" for row in screen_rows]
     return lines

@@ -5,12 +5,16 @@ import sys
 def _print_table(rows):
     stream = sys.stdout   # looked up when called: sys.stdout may be replaced after import
     stream.write(f"{'design':<10}{'length m':>10}{'width m':>10}{'max h m':>10}  {'fitness [95% CI]':<22}"
-                 f"{'trials':>7}  source\n")
+                 f"{'trials':>7}  {'source':<13}  {'in-run [95% CI]':<22}{'trials':>7}  bias\n")
     for row in rows:
         fitness = ("-" if not row["trials"] else
                    f"{row['simulated_fitness']:.3f} [{row['ci_low']:.3f}, {row['ci_high']:.3f}]")
+        in_run = ("-" if not row["in_run_trials"] else
+                  f"{row['in_run_fitness']:.3f} [{row['in_run_ci_low']:.3f}, {row['in_run_ci_high']:.3f}]")
+        bias = "-" if row["selection_bias"] != row["selection_bias"] else f"{row['selection_bias']:+.3f}"
         stream.write(f"{row['configuration']:<10}{row['length_m']:>10.4f}{row['width_m']:>10.4f}"
-                     f"{row['max_height_m']:>10.4f}  {fitness:<22}{row['trials']:>7}  {row['fitness_source']}\n")
+                     f"{row['max_height_m']:>10.4f}  {fitness:<22}{row['trials']:>7}  {row['fitness_source']:<13}  "
+                     f"{in_run:<22}{row['in_run_trials']:>7}  {bias}\n")
 
 
 def run(args):

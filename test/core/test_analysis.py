@@ -162,3 +162,20 @@ def test_rank_agreement_text_says_undefined_instead_of_nan():
     assert rank_agreement_text(0.95, 0.912) == "Spearman rho 0.95, Kendall tau-b 0.91"
     tied = rank_agreement_text(math.nan, math.nan)
     assert "nan" not in tied and tied.startswith("Spearman rho undefined, Kendall tau-b undefined")
+
+
+def test_rank_statistics_need_three_configurations_and_come_with_a_permutation_p_value():
+    from rollability_ros.core.results.analysis import CellSummary, rank_agreement_text, sim_vs_experiment, \
+        spearman_p_value
+
+    # exact permutation test: of the 4! orderings, 2 reach |rho| = 1 (the same and the reversed order)
+    assert spearman_p_value([1, 2, 3, 4], [10, 20, 30, 40]) == pytest.approx(2 / 24)
+    assert spearman_p_value([1, 2, 3], [3, 1, 2]) == pytest.approx(1.0)   # |rho| = 0.5: every ordering reaches it
+    cells = [CellSummary({"configuration": c}, 1, 1, 10, k) for c, k in (("A", 3), ("B", 8), ("C", 5))]
+    two = sim_vs_experiment({"A": 0.66, "B": 0.35}, cells, "trial_rate", "simulated")
+    assert math.isnan(two.spearman_rho) and math.isnan(two.kendall_tau_b) and math.isnan(two.spearman_p)
+    assert two.agreement_text() == "no rank statistic: 2 configuration(s), ranks need at least 3"
+    three = sim_vs_experiment({"A": 0.66, "B": 0.35, "C": 0.46}, cells, "trial_rate")
+    assert three.spearman_rho == pytest.approx(-1.0) and three.spearman_p == pytest.approx(2 / 6)
+    assert three.agreement_text() == "Spearman rho -1.00 (permutation p = 0.333), Kendall tau-b -1.00"
+    assert rank_agreement_text(0.5, 0.4, 0.2) == "Spearman rho 0.50 (permutation p = 0.200), Kendall tau-b 0.40"

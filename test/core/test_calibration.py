@@ -141,7 +141,7 @@ def test_recovers_a_hidden_centre_of_mass_offset_from_synthetic_outcomes(tmp_pat
     outcomes = synthetic_outcomes(parameters, [name], [truth], conditions, 24)
     settings = calibration.CalibrationSettings(parameters=[name], lower=[-0.019], upper=[0.015], log_scale=[False],
                                                sim_repetitions=8, popsize=4, sigma0=0.3, max_generations=4,
-                                               bootstrap_resamples=2)
+                                               bootstrap_resamples=2, interval_points=9)
     with calibration.LaunchPool(2) as pool:
         result = calibration.calibrate(outcomes, parameters, settings, pool)
     (estimate,) = result.estimates
@@ -149,4 +149,36 @@ def test_recovers_a_hidden_centre_of_mass_offset_from_synthetic_outcomes(tmp_pat
     assert result.after_log_likelihood > result.before_log_likelihood + 5
     assert abs(estimate.fitted - truth) < abs(estimate.initial - truth) / 3
     assert 0 < estimate.std < (settings.upper[0] - settings.lower[0]) / 2
-    assert abs(estimate.fitted - truth) <= 2 * estimate.std, (estimate.fitted, estimate.bootstrap)
+    # the stated 95% interval (likelihood ratio, beta-binomial) holds the truth and says something
+    assert estimate.interval_low <= truth <= estimate.interval_high, (estimate.interval_low, estimate.interval_high)
+    assert not estimate.interval_low <= estimate.initial <= estimate.interval_high   # rules the start out
+    assert estimate.interval_method.startswith("likelihood ratio")
+
+
+def test_likelihood_interval_of_a_normal_log_likelihood_is_mean_plus_minus_1_96_sd():
+    grid = np.linspace(-1.0, 3.0, 81)
+    curve = -0.5 * ((grid - 1.0) / 0.4) ** 2
+    low, high = calibration.likelihood_interval(grid, curve, ends="interpolate")
+    assert low == pytest.approx(1.0 - 1.96 * 0.4, abs=2e-3) and high == pytest.approx(1.0 + 1.96 * 0.4, abs=2e-3)
+    # grid ends: the first grid points outside, so never narrower (grid step 0.05)
+    assert calibration.likelihood_interval(grid, curve) == pytest.approx((0.20, 1.80))
+    # a curve still high at a bound is cut there
+    assert calibration.likelihood_interval(grid, -grid)[0] == -1.0
+
+
+def test_beta_binomial_likelihood_carries_the_simulations_monte_carlo_error():
+    k, n = np.array([7]), np.array([10])
+    # many simulated launches: the plug-in binomial; few: flatter (a wrong prediction costs less)
+    many = calibration.beta_binomial_log_likelihood(k, n, np.array([70000]), 100000)
+    assert many == pytest.approx(calibration.binomial_log_likelihood(k, n, np.array([0.7]), 1e-9), abs=1e-3)
+    few_wrong = calibration.beta_binomial_log_likelihood(k, n, np.array([1]), 8)
+    assert few_wrong > calibration.binomial_log_likelihood(k, n, np.array([1 / 8]), 1e-9)
+    with pytest.raises(ValueError, match="upright <= repetitions"):
+        calibration.beta_binomial_log_likelihood(k, n, np.array([9]), 8)
+
+
+def test_interval_settings_are_checked():
+    with pytest.raises(ValueError, match="needs bootstrap_resamples >= 20"):
+        calibration.CalibrationSettings(interval="bootstrap", bootstrap_resamples=3).validate()
+    with pytest.raises(ValueError, match="interval must be one of likelihood, bootstrap"):
+        calibration.CalibrationSettings(interval="guess").validate()

@@ -5,9 +5,12 @@ import math
 import pytest
 
 from rollability_ros.core.config import ConfigError
-from rollability_ros.core.sim.launch_twin import (PHASES, LaunchTwinSettings, launch_twin_settings_from_parameters,
-                                              load_launch_twin_settings, simulate_launch)
+from rollability_ros.core.results.analysis import group_conditions
 from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.rig.rig_session import simulated_outcome
+from rollability_ros.core.rig.speed_gate import SpeedGateConfig
+from rollability_ros.core.sim.launch_twin import (PHASES, LaunchTwinSettings, launch_twin_settings_from_parameters,
+                                              load_launch_twin_settings, simulate_launch, simulate_valid_launch)
 
 pytest.importorskip("pybullet")
 
@@ -52,8 +55,8 @@ def test_travel_time_over_the_run_matches_the_paper(paper_launches, speed_mps):
     _, result, _, _ = results[speed_mps]
     expected_s = 0.34 / speed_mps                      # paper 2.2.5: 0.42 s and 0.22 s
     assert result.launch_speed_mps == speed_mps
-    # the chassis coasts on its wheels, so it arrives a little late; well inside the rig's 15% speed tolerance
-    assert expected_s <= result.travel_time_s < 1.08 * expected_s
+    # the plate ramps up to speed in plate.ramp_s, so the chassis arrives a little late; inside the 5% the rig needs
+    assert expected_s <= result.travel_time_s < 1.05 * expected_s
     assert result.measured_speed_mps == pytest.approx(0.34 / result.travel_time_s)
 
 
@@ -98,7 +101,7 @@ def test_opposite_angles_mirror_the_launch_for_the_symmetric_chassis():
     assert left.travel_time_s == pytest.approx(right.travel_time_s, abs=1e-4)
     assert left.flight_time_s == pytest.approx(right.flight_time_s, abs=2 * settings.physics.time_step_s)
     straight = launch(settings, angle_deg=0.0)
-    assert abs(straight.landing_position_m[1]) < 0.01 and straight.landing_position_m[0] > lx + 0.01
+    assert abs(straight.landing_position_m[1]) < 0.01 and straight.landing_position_m[0] > lx
 
 
 def start_direction_deg(poses):
@@ -122,8 +125,10 @@ def test_angle_convention_changes_the_launch():
     (oblique, oblique_poses), (turned, turned_poses) = runs["yaw_of_push"], runs["chassis_yaw"]
     assert start_yaw_deg(oblique_poses) == pytest.approx(30.0) and start_yaw_deg(turned_poses) == pytest.approx(30.0)
     assert start_direction_deg(oblique_poses) == pytest.approx(30.0, abs=0.5)   # runs along its push, obliquely
-    assert start_direction_deg(turned_poses) == pytest.approx(0.0, abs=0.5)     # pushed along the edge normal
-    assert turned.travel_time_s > oblique.travel_time_s + 0.01   # its wheels slide sideways: slower
+    # pushed along the edge normal; the plate meets the turned chassis on a corner, so it veers a little
+    assert start_direction_deg(turned_poses) == pytest.approx(0.0, abs=10.0)
+    # the plate drives both to the edge, the turned one (pushed on a corner, veering) a little later
+    assert oblique.travel_time_s < turned.travel_time_s < 1.1 * oblique.travel_time_s
 
 
 def test_foam_stiffness_changes_the_impact():
@@ -144,12 +149,56 @@ def test_bare_chassis_at_low_speed_and_height_lands_on_its_wheels_mostly():
     assert sum(upright) >= 3, upright
 
 
-def test_chassis_too_slow_to_reach_the_edge_is_classified_on_the_plate():
+#: A drive with drag (caster wheels, stiff motors): the trial chassis's rolling friction and motor drag, 40 times
+#: the twin's; coasting, this chassis stops within about 0.1 m.
+DRAG = {"wheel_rolling_friction": 0.01, "wheel_drag_torque_nm": 0.02}
+
+
+@pytest.mark.parametrize("speed_mps,angle_deg", [(0.8, 0.0), (1.5, -60.0), (0.8, 30.0)])
+def test_plate_drives_a_chassis_with_drag_off_the_edge_at_the_launch_speed(speed_mps, angle_deg):
+    result = launch(exact_settings(**DRAG), height_m=0.75, speed_mps=speed_mps, angle_deg=angle_deg)
+    assert result.valid, result.invalid_reason
+    assert result.edge_speed_mps == pytest.approx(speed_mps, rel=0.05)
+    assert result.measured_speed_mps == pytest.approx(speed_mps, rel=0.05)   # what the rig's gate reads
+    # without the plate's drive (a push too weak to matter: the former one-off impulse) the same chassis is slow
+    coasting = launch(exact_settings(**DRAG, **{"plate.max_force_n": 1e-3}), speed_mps=speed_mps, angle_deg=angle_deg)
+    assert not coasting.edge_speed_mps > 0.9 * speed_mps
+
+
+def test_chassis_that_never_leaves_the_ledge_is_an_invalid_launch():
     phases = []
-    result = launch(exact_settings(), speed_mps=0.05, on_phase=phases.append)
+    settings = exact_settings(**DRAG, **{"plate.max_force_n": 1e-3}, max_attempts=2)
+    result = launch(settings, speed_mps=0.3, on_phase=phases.append)
     assert math.isnan(result.travel_time_s) and math.isnan(result.measured_speed_mps)
-    assert result.settled and result.upright
+    assert result.settled and not result.valid and result.invalid_reason == "did not leave the ledge"
     assert phases == list(PHASES)
+    retried = simulate_valid_launch(LaunchCondition("baseline", 0.75, 0.3, 0.0), settings, 0)
+    assert retried.attempts == 2 and not retried.valid
+    outcome = simulated_outcome("run", "t1", LaunchCondition("baseline", 0.75, 0.3, 0.0), retried, SpeedGateConfig())
+    assert not outcome.valid and not outcome.upright
+    assert outcome.note == "invalid launch: did not leave the ledge (2 attempts)"
+    valid = dataclasses.replace(outcome, trial_id="t2", note="", upright=True)
+    assert [(c.successes, c.trials) for c in group_conditions([outcome, valid])] == [(1, 1)]
+
+
+def test_landing_off_the_foam_is_an_invalid_launch():
+    result = launch(exact_settings(**{"foam.length_m": 0.05}), height_m=0.75, speed_mps=1.5)
+    assert result.invalid_reason.startswith("landed outside the foam")
+    assert launch(exact_settings(), height_m=0.75, speed_mps=1.5).valid
+
+
+def test_plate_yaw_bias_and_wheel_friction_break_the_mirror_symmetry():
+    """The paper's rig is not symmetric in the angle (Mesh A: 100% at -60 deg, ~50% at +60 deg); the twin's
+    asymmetry parameters make it so, and do nothing at their neutral values."""
+    def mirror_gap_m(settings):
+        left, right = launch(settings, angle_deg=30.0), launch(settings, angle_deg=-30.0)
+        return abs(left.landing_position_m[1] + right.landing_position_m[1])
+
+    neutral_m = mirror_gap_m(exact_settings())
+    assert neutral_m < 5e-4
+    assert mirror_gap_m(exact_settings(**{"plate.yaw_bias_deg": 10.0, "plate.offset_m": 0.03})) > 0.01
+    # the wheels roll along the push, so their friction matters little until the landing: a smaller, real gap
+    assert mirror_gap_m(exact_settings(wheel_friction_left_factor=0.3)) > max(2e-3, 10 * neutral_m)
 
 
 def test_unknown_configuration_is_refused():

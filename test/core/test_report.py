@@ -1,5 +1,6 @@
 """The report: from a store, a run directory and a CSV; identical tables; HTML rendered by headless Chromium."""
 import csv
+import dataclasses
 import os
 import random
 import re
@@ -75,7 +76,7 @@ def test_summary_is_printed(tmp_path, capsys):
     write_outcome_csv(path, _campaign_outcomes(repetitions=1)[:20])
     assert cli_main(["report", str(path), "--out", str(tmp_path / "r"), "--sim-fitness", "baseline=0.2"]) == 0
     printed = capsys.readouterr().out
-    assert "launch outcomes: 20 trials, 20 grouped conditions" in printed
+    assert "launch outcomes, simulated campaign (launch twin): 20 trials, 20 grouped conditions" in printed
     assert re.search(r"baseline\s+\d+/20", printed) and "report.html" in printed
 
 
@@ -103,7 +104,7 @@ def test_sources_are_recognised_and_ambiguity_refused(store_report, tmp_path, ca
     assert "several runs (r1, r2); choose one with --run" in capsys.readouterr().err
     assert cli_main(["report", str(two_runs), "--run", "r3", "--out", str(tmp_path / "x")]) == 2
     assert cli_main(["report", str(two_runs), "--run", "r2", "--out", str(tmp_path / "x")]) == 0
-    assert "launch outcomes: 3 trials" in capsys.readouterr().out
+    assert "launch outcomes, simulated campaign (launch twin): 3 trials" in capsys.readouterr().out
 
 
 def _chromium():
@@ -178,7 +179,9 @@ def test_table3_of_the_design_selection_gives_geometry_and_simulated_fitness(tmp
         "A,0.2,0.15,0.031,0.66,0.6,0.7,132,200,reevaluated\n"
         "B,0.2,0.15,0.072,0.35,0.3,0.4,70,200,reevaluated\n")
     assert cli_main(["report", str(tmp_path), "--out", str(tmp_path / "r"), "--sim-fitness", "B=0.4"]) == 0
-    assert "sim vs experiment (2 configurations)" in capsys.readouterr().out
+    # two configurations cannot be ranked (any correlation is +-1): no statistic, and the reason
+    assert ("simulated fitness vs simulated campaign (2 configurations): no rank statistic: 2 configuration(s), "
+            "ranks need at least 3") in capsys.readouterr().out
     with open(tmp_path / "r" / "sim_vs_experiment.csv", newline="") as stream:
         assert {row["configuration"]: float(row["sim_fitness"]) for row in csv.DictReader(stream)} == {
             "A": 0.66, "B": 0.4}  # the command line wins over the table
@@ -241,3 +244,40 @@ def test_heat_map_text_contrasts_with_its_cell_and_a_design_preview_renders(tmp_
     path = render_profile_preview(mesh, str(tmp_path / "preview.png"), title="A")
     assert open(path, "rb").read(8) == b"\x89PNG\r\n\x1a\n" and os.path.getsize(path) > 5000
     assert os.path.getsize(render_profile_preview(None, str(tmp_path / "none.png"))) > 1000
+
+
+def test_report_leads_with_fresh_reevaluations_beside_the_in_run_estimates(tmp_path, capsys):
+    """Table 3 of the selection (selection.TABLE_COLUMNS) carries both estimates; the summary opens with them,
+    the selection bias between them, and labels the launch-twin campaign simulated."""
+    with Store(tmp_path) as store:
+        for outcome in _campaign_outcomes(repetitions=1):
+            store.add_launch_outcome(outcome)
+    (tmp_path / "designs").mkdir()
+    (tmp_path / "designs" / "table3.csv").write_text(
+        "configuration,length_m,width_m,max_height_m,simulated_fitness,ci_low,ci_high,successes,trials,fitness_source,"
+        "in_run_fitness,in_run_ci_low,in_run_ci_high,in_run_successes,in_run_trials,selection_bias\n"
+        "baseline,0,0,0,0.1,0.04,0.2,6,60,reevaluated,nan,nan,nan,0,0,nan\n"
+        "A,0.2,0.15,0.031,0.35,0.24,0.48,21,60,reevaluated,0.75,0.53,0.89,15,20,0.4\n")
+    assert cli_main(["report", str(tmp_path), "--out", str(tmp_path / "r")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1].startswith("simulated fitness of the chosen designs: fresh re-evaluation (headline)")
+    assert re.match(r"A\s+21/60\s+0.35 \[0.24, 0.48\]\s+15/20\s+0.75 \[0.53, 0.89\]\s+\+0.40$", lines[4]), lines[4]
+    assert re.match(r"baseline\s+6/60\s+0.10 .*-\s+-$", lines[3]), lines[3]
+    assert lines[5].startswith("launch outcomes, simulated campaign (launch twin): ")
+
+
+def test_physical_campaign_is_experimental_and_invalid_launches_are_left_out(tmp_path, capsys):
+    outcomes = [dataclasses.replace(o, backend="physical", classified_by="operator")
+                for o in _campaign_outcomes(repetitions=1)[:20]]
+    invalid = dataclasses.replace(outcomes[0], trial_id="again", upright=True,
+                                  note="invalid launch: did not leave the ledge")
+    path = tmp_path / "o.sqlite"
+    with Store(path) as store:
+        for outcome in outcomes + [invalid]:
+            store.add_launch_outcome(outcome)
+    assert cli_main(["report", str(path), "--out", str(tmp_path / "r")]) == 0
+    printed = capsys.readouterr().out
+    assert ("launch outcomes, experimental campaign (rig): 20 trials, 20 grouped conditions (run camp; backend "
+            "physical); 1 invalid launch(es) left out") in printed
+    with open(tmp_path / "r" / "by_configuration.csv", newline="") as stream:
+        assert sum(int(row["trials"]) for row in csv.DictReader(stream)) == 20

@@ -16,11 +16,16 @@ Objective
     (n - k) log(1 - p). Launch j of every condition uses the same seed (the speed and angle scatter draws) for
     every parameter set: common random numbers, so two parameter sets differ by their physics, not by their luck.
     The fitted value is the best parameter set evaluated.
-Uncertainty
-    ``bootstrap_resamples`` repeated fits, each on a resample of the physical trials (every grouped condition's
-    repetitions drawn with replacement, so its count is Binomial(n, k / n)) and with its own set of simulation
-    seeds, so the spread holds both the sampling noise of the physical data and the Monte Carlo noise of the
-    prediction. The standard deviation of the fitted values over the resamples is the stated uncertainty.
+Uncertainty (``interval``; bench/bench_calibration.py --coverage measures how often it holds the truth)
+    ``likelihood`` (default): for each parameter, the likelihood-ratio 95% interval along a grid of
+    ``interval_points`` values over its bounds, the other parameters at their fitted values, with the
+    beta-binomial likelihood (:func:`beta_binomial_log_likelihood`: the predicted probability is only known from
+    ``sim_repetitions`` launches, and that Monte Carlo error widens the interval as it should); the ends are
+    first grid points whose log-likelihood lies more than 1.92 below the maximum (conservative by up to one step). ``bootstrap``: the 2.5 and 97.5 percentiles of
+    ``bootstrap_resamples`` (at least 20) repeated fits, each on a resample of the physical trials (every
+    grouped condition's repetitions drawn with replacement) and with its own simulation seeds. Bootstrap fits
+    are made whenever ``bootstrap_resamples`` > 0 and their standard deviation is reported either way (the
+    former 2-3 fits made it too small: the truth lay 2.7 and 3.6 of them away).
 Output
     :func:`calibrated_parameter_document` is a ROS 2 parameter file with the fitted values under their own
     namespaces, loaded on top of the defaults by the evaluator, the optimizer and the twin (``--config``,
@@ -39,13 +44,19 @@ import numpy as np
 from rollability_ros.core.results import analysis
 from rollability_ros.core.config import ConfigError, from_mapping, section
 from rollability_ros.core.sim.evaluation import trial_seed
-from rollability_ros.core.sim.launch_twin import launch_twin_settings_from_parameters, simulate_launch
+from rollability_ros.core.sim.launch_twin import launch_twin_settings_from_parameters, simulate_valid_launch
 from rollability_ros.core.optional import require
-from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.results.records import INVALID_LAUNCH, LaunchCondition, LaunchOutcome
 from rollability_ros.core.sim.worker_pool import spawn_pool
 
 #: The parameter files the twin is built from, in load order (``load_launch_twin_settings``' default).
 TWIN_CONFIGS = ("sim", "robot", "launch_twin")
+#: ``calibration.interval`` values: how the stated 95% interval of each parameter is made.
+INTERVALS = ("likelihood", "bootstrap")
+#: Fewest bootstrap fits a percentile interval is made of.
+MIN_BOOTSTRAP = 20
+#: Deviance of a 95% likelihood-ratio interval of one parameter (chi-squared, 1 degree of freedom).
+CHI2_1_95 = 3.841458820694124
 
 
 @dataclasses.dataclass
@@ -65,7 +76,9 @@ class CalibrationSettings:
     sigma0: float = 0.3
     max_generations: int = 12
     seed: int = 1
-    bootstrap_resamples: int = 3
+    bootstrap_resamples: int = 0
+    interval: str = "likelihood"
+    interval_points: int = 13
     workers: int = 0
 
     def validate(self):
@@ -97,6 +110,13 @@ class CalibrationSettings:
             raise ValueError(f"seed must be in [1, 2**32), got {self.seed}")
         if self.bootstrap_resamples < 0 or self.workers < 0:
             raise ValueError("bootstrap_resamples and workers must be >= 0 (workers 0 = one per core)")
+        if self.interval not in INTERVALS:
+            raise ValueError(f"interval must be one of {', '.join(INTERVALS)}, got {self.interval!r}")
+        if self.interval == "bootstrap" and self.bootstrap_resamples < MIN_BOOTSTRAP:
+            raise ValueError(f"a bootstrap percentile interval needs bootstrap_resamples >= {MIN_BOOTSTRAP}, got "
+                             f"{self.bootstrap_resamples}")
+        if self.interval == "likelihood" and self.interval_points < 5:
+            raise ValueError(f"interval_points must be >= 5, got {self.interval_points}")
 
     def to_values(self, normalised):
         """Parameter values (own units) of normalised coordinates ``normalised`` (d,), clipped to [0, 1]."""
@@ -146,8 +166,10 @@ def launch_condition(result):
 
 
 def _count_upright(settings, condition, seeds):
-    """Launch ``condition`` once per seed on the twin ``settings``; return how many ended upright."""
-    return sum(simulate_launch(condition, settings, seed).upright for seed in seeds)
+    """Launch ``condition`` once per seed on the twin ``settings`` (an invalid launch retried,
+    :func:`simulate_valid_launch`); return how many ended upright (a launch still invalid counts as not upright)."""
+    launches = (simulate_valid_launch(condition, settings, seed) for seed in seeds)
+    return sum(result.valid and result.upright for result in launches)
 
 
 class LaunchPool:
@@ -194,6 +216,80 @@ def binomial_log_likelihood(successes, trials, probabilities, floor):
     p = np.clip(np.asarray(probabilities, dtype=np.float64), floor, 1.0 - floor)
     log_choose = np.vectorize(lambda a, b: math.lgamma(a + 1) - math.lgamma(b + 1) - math.lgamma(a - b + 1))(n, k)
     return (log_choose + k * np.log(p) + (n - k) * np.log1p(-p)).sum(axis=-1)
+
+
+def beta_binomial_log_likelihood(successes, trials, upright, repetitions):
+    """Sum over conditions of log P(successes | trials) when the success probability is only known from
+    ``upright`` of ``repetitions`` simulated launches: p ~ Beta(upright + 1, repetitions - upright + 1), so the
+    physical count is beta-binomial. Unlike the plug-in binomial it carries the simulation's Monte Carlo error,
+    and it needs no probability floor. Arrays broadcast as in :func:`binomial_log_likelihood`."""
+    k = np.asarray(successes, dtype=np.float64)
+    n = np.asarray(trials, dtype=np.float64)
+    u = np.asarray(upright, dtype=np.float64)
+    if np.any(k < 0) or np.any(k > n) or np.any(u < 0) or np.any(u > repetitions):
+        raise ValueError("need 0 <= successes <= trials and 0 <= upright <= repetitions in every condition")
+    lgamma = np.vectorize(math.lgamma)
+
+    def log_beta(a, b):
+        return lgamma(a) + lgamma(b) - lgamma(a + b)
+    log_choose = lgamma(n + 1) - lgamma(k + 1) - lgamma(n - k + 1)
+    a, b = u + 1.0, repetitions - u + 1.0
+    return (log_choose + log_beta(k + a, n - k + b) - log_beta(a, b)).sum(axis=-1)
+
+
+def likelihood_interval(grid_values, log_likelihoods, deviance=CHI2_1_95, ends="grid"):
+    """The likelihood-ratio interval on a grid: the values whose log-likelihood lies within ``deviance / 2`` of
+    the grid's maximum. The likelihood is known at the grid points only, so with ``ends="grid"`` (default) each
+    end is the first grid point outside that set (a bound of the grid when there is none): conservative by up to
+    one grid step, which a coarse grid needs (bench_calibration --coverage: interpolated ends held the truth in
+    only 8 of 10 cases, all misses within one step). ``ends="interpolate"`` puts them where the straight line
+    between neighbouring points crosses the level. ``grid_values`` (g,) ascending, own units; ``(low, high)``."""
+    values = np.asarray(grid_values, dtype=np.float64)
+    curve = np.asarray(log_likelihoods, dtype=np.float64)
+    level = curve.max() - deviance / 2.0
+    inside = np.flatnonzero(curve >= level)
+    first, last = int(inside[0]), int(inside[-1])
+    if ends == "grid":
+        return float(values[max(first - 1, 0)]), float(values[min(last + 1, len(values) - 1)])
+    if ends != "interpolate":
+        raise ValueError(f"ends must be 'grid' or 'interpolate', got {ends!r}")
+
+    def crossing(i, j):   # i inside, j outside: where the line between them meets the level
+        return float(values[i] + (values[j] - values[i]) * (curve[i] - level) / (curve[i] - curve[j]))
+    low = crossing(first, first - 1) if first > 0 else float(values[0])
+    high = crossing(last, last + 1) if last < len(values) - 1 else float(values[-1])
+    return low, high
+
+
+def interval_grid(settings, index, points=None):
+    """The grid of parameter ``index``: ``points`` values spread evenly over its bounds on its own scale."""
+    u = np.linspace(0.0, 1.0, points or settings.interval_points)
+    low, high, log = settings.lower[index], settings.upper[index], settings.log_scale[index]
+    return low * (high / low) ** u if log else low + u * (high - low)
+
+
+def predicted_on_grid(conditions, parameters, settings, pool, fitted, index):
+    """Upright counts of ``sim_repetitions`` launches per grouped condition along parameter ``index``'s grid,
+    the other parameters at ``fitted`` (own units): ``(grid values (g,), upright (g, c))``. Every grid point
+    uses the main fit's seeds (common random numbers); the counts do not depend on the physical outcomes."""
+    grid = interval_grid(settings, index)
+    twins = []
+    for value in grid:
+        values = np.array(fitted, dtype=np.float64)
+        values[index] = value
+        twins.append(twin_settings_with(parameters, settings.parameters, values))
+    seeds = simulation_seeds(settings.seed, 0, settings.sim_repetitions)
+    return grid, pool.predicted_upright(twins, conditions, seeds)
+
+
+def likelihood_profile(conditions, parameters, settings, pool, fitted, index, predicted=None):
+    """Beta-binomial log-likelihood of grouped physical ``conditions`` along parameter ``index``'s grid, the
+    other parameters at ``fitted``: ``(grid values (g,), log-likelihoods (g,))``; ``predicted`` reuses a
+    :func:`predicted_on_grid` result made for the same conditions (in the same order)."""
+    grid, upright = predicted or predicted_on_grid(conditions, parameters, settings, pool, fitted, index)
+    successes = np.array([c.successes for c in conditions])
+    trials = np.array([c.trials for c in conditions])
+    return grid, beta_binomial_log_likelihood(successes, trials, upright, settings.sim_repetitions)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -268,7 +364,8 @@ def bootstrap_conditions(conditions, rng):
 
 @dataclasses.dataclass(frozen=True)
 class ParameterEstimate:
-    """One fitted parameter: config key, starting value, fitted value, bootstrap fits, bounds (own units)."""
+    """One fitted parameter: config key, starting value, fitted value, bootstrap fits, bounds, and the stated 95%
+    interval with the method that made it (own units)."""
 
     name: str
     initial: float
@@ -276,6 +373,9 @@ class ParameterEstimate:
     bootstrap: tuple
     lower: float
     upper: float
+    interval_low: float = math.nan
+    interval_high: float = math.nan
+    interval_method: str = ""
 
     @property
     def std(self):
@@ -285,7 +385,9 @@ class ParameterEstimate:
     def row(self):
         """Flat dict for a CSV table."""
         spread = (min(self.bootstrap), max(self.bootstrap)) if self.bootstrap else (math.nan, math.nan)
-        return {"parameter": self.name, "initial": self.initial, "fitted": self.fitted, "bootstrap_std": self.std,
+        return {"parameter": self.name, "initial": self.initial, "fitted": self.fitted,
+                "interval_low": self.interval_low, "interval_high": self.interval_high,
+                "interval_method": self.interval_method, "bootstrap_std": self.std,
                 "bootstrap_min": spread[0], "bootstrap_max": spread[1], "bootstrap_fits": len(self.bootstrap),
                 "lower": self.lower, "upper": self.upper}
 
@@ -376,10 +478,20 @@ def calibrate(outcomes, parameters, settings, pool, on_progress=None):
         evaluations += result.evaluations
         say(f"bootstrap {resample}/{settings.bootstrap_resamples}: "
             + ", ".join(f"{n} = {v:.4g}" for n, v in zip(settings.parameters, result.values)))
-    estimates = [ParameterEstimate(name, initial[i], float(main.values[i]),
-                                   tuple(float(values[i]) for values in resampled), settings.lower[i],
-                                   settings.upper[i])
-                 for i, name in enumerate(settings.parameters)]
+    estimates = []
+    for i, name in enumerate(settings.parameters):
+        fits = tuple(float(values[i]) for values in resampled)
+        if settings.interval == "bootstrap":
+            low, high = (float(v) for v in np.percentile(fits, [2.5, 97.5]))
+            method = f"bootstrap percentile ({len(fits)} fits)"
+        else:
+            grid, curve = likelihood_profile(conditions, parameters, settings, pool, main.values, i)
+            evaluations += len(grid)
+            low, high = likelihood_interval(grid, curve)
+            method = f"likelihood ratio, beta-binomial ({len(grid)} points, others at their fit)"
+        say(f"{name}: 95% interval [{low:.4g}, {high:.4g}] ({method})")
+        estimates.append(ParameterEstimate(name, initial[i], float(main.values[i]), fits, settings.lower[i],
+                                           settings.upper[i], low, high, method))
     successes = np.array([c.successes for c in conditions])
     trials = np.array([c.trials for c in conditions])
     before_ll = float(binomial_log_likelihood(successes, trials, before / settings.sim_repetitions,

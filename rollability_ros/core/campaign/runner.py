@@ -166,7 +166,8 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
             return report(f"{trial.trial_id}: the operator's input closed")
         stored_now += 1
         progress.trial_done(clock() - started)
-        say(f"{trial.trial_id}: {'upright' if outcome.upright else 'NOT upright'}"
+        verdict = outcome.note if not outcome.valid else ("upright" if outcome.upright else "NOT upright")
+        say(f"{trial.trial_id}: {verdict}"
             f"{' (speed flagged)' if outcome.speed_out_of_tolerance else ''}; {progress.text()}")
         previous = trial
     return report("")

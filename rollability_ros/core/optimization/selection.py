@@ -16,7 +16,8 @@ If fewer than ``count`` designs qualify, the result says how many and why; nothi
 
 Outputs (``<run_dir>/designs/``): ``mesh_<label>.stl`` (millimetres by default, ``mesh_units``; the unit is
 written in the STL header), ``mesh_<label>.3mf`` (millimetres, the 3MF unit attribute), ``table3.csv`` (the paper's Table 3 with the
-simulated fitness and its Wilson interval, baseline row first) and ``designs.yaml``, a ROS 2 parameter file
+simulated fitness and its Wilson interval, baseline row first; beside it the in-run estimate with its interval
+and the selection bias, in-run minus fresh) and ``designs.yaml``, a ROS 2 parameter file
 with the heights of each design and its grid, for the rig's simulation twin.
 """
 import csv
@@ -39,7 +40,8 @@ from rollability_ros.core.results.stats import wilson_interval
 DESIGNS_DIRNAME = "designs"
 #: Columns of ``table3.csv`` (configuration and dimensions as in ``analysis.GEOMETRY_COLUMNS``).
 TABLE_COLUMNS = ("configuration", "length_m", "width_m", "max_height_m", "simulated_fitness", "ci_low", "ci_high",
-                 "successes", "trials", "fitness_source")
+                 "successes", "trials", "fitness_source", "in_run_fitness", "in_run_ci_low", "in_run_ci_high",
+                 "in_run_successes", "in_run_trials", "selection_bias")
 
 
 @dataclasses.dataclass
@@ -219,12 +221,24 @@ def table_rows(result):
     baseline_fitness = _fitness_columns(*result.baseline[:2], "reevaluated") if result.baseline else \
         _fitness_columns(0, 0, "not evaluated")
     rows.append({"configuration": "baseline", "length_m": 0.0, "width_m": 0.0, "max_height_m": 0.0,
-                 **baseline_fitness})
+                 **baseline_fitness, **_in_run_columns(0, 0, math.nan)})
     for design in result.designs:
+        reported = _fitness_columns(*design.reported)
+        fresh = reported["simulated_fitness"] if design.reevaluation is not None else math.nan
         rows.append({"configuration": design.label, "length_m": design.metrics.length_m,
                      "width_m": design.metrics.width_m, "max_height_m": design.metrics.max_height_m,
-                     **_fitness_columns(*design.reported)})
+                     **reported, **_in_run_columns(design.design.successes, design.design.trials, fresh)})
     return rows
+
+
+def _in_run_columns(successes, trials, fresh_fitness):
+    """The in-run (pooled log) estimate of a design, its Wilson interval and the selection bias: in-run minus
+    fresh fitness (NaN without a fresh re-evaluation). A design picked for its high logged fitness is picked
+    partly for its luck, so the bias is expected to be positive."""
+    low, high = wilson_interval(successes, trials)
+    in_run = successes / trials if trials else math.nan
+    return {"in_run_fitness": in_run, "in_run_ci_low": low, "in_run_ci_high": high, "in_run_successes": successes,
+            "in_run_trials": trials, "selection_bias": in_run - fresh_fitness}
 
 
 def _fitness_columns(successes, trials, source):
@@ -255,6 +269,7 @@ def record_selection(store, run_id, result):
     info = dict(described["info"])
     info["sim_fitness"] = {r["configuration"]: r["simulated_fitness"] for r in rows if r["trials"]}
     info["geometry"] = [{k: r[k] for k in TABLE_COLUMNS[:4]} for r in rows if r["configuration"] != "baseline"]
+    info["table3"] = rows   # fresh and in-run fitness side by side, for the report's headline
     store.set_run_info(run_id, described["kind"], info)
 
 

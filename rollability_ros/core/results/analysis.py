@@ -11,7 +11,9 @@ Two measures are kept side by side for every cell of a view:
 Pure Python (no numpy, no matplotlib); figures are drawn by :mod:`rollability_ros.core.results.report_figures`.
 """
 import dataclasses
+import itertools
 import math
+import random
 import statistics
 
 from rollability_ros.core.results.records import LaunchCondition
@@ -82,10 +84,13 @@ def group_conditions(outcomes):
     Parameters
     ----------
     outcomes : iterable of LaunchOutcome or LaunchCondition-with-upright pairs
-        Each item is a :class:`LaunchOutcome`, or a ``(LaunchCondition, upright)`` tuple.
+        Each item is a :class:`LaunchOutcome`, or a ``(LaunchCondition, upright)`` tuple. Invalid launches
+        (``LaunchOutcome.valid`` false) are left out: they are no outcome.
     """
     tallies = {}
     for item in outcomes:
+        if not getattr(item, "valid", True):
+            continue
         condition, upright = (item if isinstance(item, tuple) else (item.condition, item.upright))
         if not isinstance(condition, LaunchCondition):
             raise ValueError(f"expected a LaunchCondition, got {condition!r}")
@@ -235,25 +240,64 @@ def kendall_tau_b(x, y):
     return (concordant - discordant) / denominator if denominator > 0 else math.nan
 
 
-def rank_agreement_text(rho, tau):
-    """``"Spearman rho 0.95, Kendall tau-b 0.91"``; a NaN (a constant side, fewer than 2 values) says undefined."""
+#: Fewest configurations a rank statistic is given for: with two, any correlation is +-1.
+MIN_RANKED = 3
+#: Permutations sampled by :func:`spearman_p_value` when the exact test would need more than this many.
+PERMUTATION_SAMPLES = 40320
+
+
+def spearman_p_value(x, y, seed=0):
+    """Two-sided permutation p-value of Spearman's rho (m/s-free: a probability): the share of orderings of ``y``
+    whose |rho| is at least the observed |rho|; exact for up to 8 values, else from ``PERMUTATION_SAMPLES``
+    seeded random orderings. NaN when rho is undefined."""
+    observed = spearman_rho(x, y)
+    if not math.isfinite(observed):
+        return math.nan
+    y = list(y)
+    if math.factorial(len(y)) <= PERMUTATION_SAMPLES:
+        orderings = itertools.permutations(y)
+    else:
+        rng = random.Random(seed)
+        orderings = (rng.sample(y, len(y)) for _ in range(PERMUTATION_SAMPLES))
+    total = extreme = 0
+    for ordering in orderings:
+        rho = spearman_rho(x, ordering)
+        total += 1
+        extreme += math.isfinite(rho) and abs(rho) >= abs(observed) - 1e-12
+    return extreme / total
+
+
+def rank_agreement_text(rho, tau, p_value=math.nan, count=None):
+    """``"Spearman rho 0.95 (permutation p = 0.02), Kendall tau-b 0.91"``; a NaN (a constant side, too few
+    values) says undefined; with ``count`` < :data:`MIN_RANKED` configurations it says why there is none."""
+    if count is not None and count < MIN_RANKED:
+        return f"no rank statistic: {count} configuration(s), ranks need at least {MIN_RANKED}"
+
     def show(value):
         return f"{value:.2f}" if math.isfinite(value) else "undefined"
-    text = f"Spearman rho {show(rho)}, Kendall tau-b {show(tau)}"
+    p_text = f" (permutation p = {p_value:.3f})" if math.isfinite(p_value) else ""
+    text = f"Spearman rho {show(rho)}{p_text}, Kendall tau-b {show(tau)}"
     return text if math.isfinite(rho) and math.isfinite(tau) else text + " (all tied, or fewer than 2 values)"
 
 
 @dataclasses.dataclass(frozen=True)
 class SimVsExperiment:
-    """Simulated fitness against experimental success per configuration, with rank agreement."""
+    """Simulated fitness against campaign success per configuration, with rank agreement (NaN with fewer than
+    :data:`MIN_RANKED` configurations) and the permutation p-value of Spearman's rho."""
 
     rows: list                # dicts: configuration, sim_fitness, experimental_rate, sim_rank, experimental_rank
     spearman_rho: float
     kendall_tau_b: float
     measure: str              # the experimental measure compared: "condition_rate" or "trial_rate"
+    spearman_p: float = math.nan
+    campaign: str = "experimental"   # what the campaign was: "experimental", "simulated" or "mixed"
+
+    def agreement_text(self):
+        """:func:`rank_agreement_text` of this comparison."""
+        return rank_agreement_text(self.spearman_rho, self.kendall_tau_b, self.spearman_p, len(self.rows))
 
 
-def sim_vs_experiment(sim_fitness, by_configuration, measure="condition_rate"):
+def sim_vs_experiment(sim_fitness, by_configuration, measure="condition_rate", campaign="experimental"):
     """Compare simulated fitness with experimental success (the Discussion's comparison).
 
     Parameters
@@ -265,7 +309,9 @@ def sim_vs_experiment(sim_fitness, by_configuration, measure="condition_rate"):
     measure : str
         ``"condition_rate"`` (paper) or ``"trial_rate"``.
 
-    Ranks are 1 = best (highest) and average over ties.
+    Ranks are 1 = best (highest) and average over ties. Rank statistics (rho, tau, p) are NaN with fewer than
+    :data:`MIN_RANKED` configurations; ``campaign`` labels where the campaign's outcomes came from
+    (:func:`campaign_kind`).
     """
     experimental = {cell.key["configuration"]: getattr(cell, measure) for cell in by_configuration}
     common = [c for c in experimental if c in sim_fitness]
@@ -275,7 +321,21 @@ def sim_vs_experiment(sim_fitness, by_configuration, measure="condition_rate"):
     exp_ranks = average_ranks([-v for v in exps])
     rows = [{"configuration": c, "sim_fitness": s, "experimental_rate": e, "sim_rank": sr, "experimental_rank": er}
             for c, s, e, sr, er in zip(common, sims, exps, sim_ranks, exp_ranks)]
-    return SimVsExperiment(rows, spearman_rho(sims, exps), kendall_tau_b(sims, exps), measure)
+    if len(common) < MIN_RANKED:
+        return SimVsExperiment(rows, math.nan, math.nan, measure, math.nan, campaign)
+    return SimVsExperiment(rows, spearman_rho(sims, exps), kendall_tau_b(sims, exps), measure,
+                           spearman_p_value(sims, exps), campaign)
+
+
+def campaign_kind(outcomes):
+    """``"simulated"`` (every outcome from the sim backend), ``"experimental"`` (every one physical), ``"mixed"``,
+    or ``"none"``: how a report must label a campaign."""
+    backends = {outcome.backend for outcome in outcomes}
+    if not backends:
+        return "none"
+    if backends == {"sim"}:
+        return "simulated"
+    return "experimental" if backends == {"physical"} else "mixed"
 
 
 @dataclasses.dataclass(frozen=True)

@@ -86,12 +86,14 @@ class RunningSummary:
         self._latest_stamp_s = {}                                          # run_id -> newest outcome stamp, s
 
     def add_outcome(self, outcome):
-        """Count a stored :class:`LaunchOutcome`."""
+        """Count a stored :class:`LaunchOutcome` (an invalid launch is stored but not counted)."""
+        self._latest_stamp_s[outcome.run_id] = max(self._latest_stamp_s.get(outcome.run_id, 0.0),
+                                                   outcome.stamp_s)
+        if not outcome.valid:
+            return
         tally = self._conditions[outcome.run_id]
         successes, trials = tally.get(outcome.condition.group_key, (0, 0))
         tally[outcome.condition.group_key] = (successes + bool(outcome.upright), trials + 1)
-        self._latest_stamp_s[outcome.run_id] = max(self._latest_stamp_s.get(outcome.run_id, 0.0),
-                                                   outcome.stamp_s)
 
     def add_candidate(self, candidate):
         """Count a stored :class:`CandidateRecord`."""

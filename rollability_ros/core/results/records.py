@@ -8,6 +8,9 @@ import math
 
 #: Placeholder for "not measured" numeric fields (travel time, measured speed).
 NOT_MEASURED = float("nan")
+#: Start of the note of an invalid launch (no launch happened as the rig launches: the chassis did not leave the
+#: ledge, landed outside the foam, ...): stored with its reason so nothing is lost, but never counted as an outcome.
+INVALID_LAUNCH = "invalid launch: "
 
 
 @dataclasses.dataclass(frozen=True)
@@ -62,6 +65,11 @@ class LaunchOutcome:
 
     BACKENDS = ("sim", "physical")
     CLASSIFIERS = ("operator", "imu", "sim")
+
+    @property
+    def valid(self):
+        """False for an invalid launch (``note`` starts with :data:`INVALID_LAUNCH`): analysis leaves it out."""
+        return not self.note.startswith(INVALID_LAUNCH)
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""

@@ -22,6 +22,7 @@ import os
 from rollability_ros.core.results import analysis
 from rollability_ros.core.results.outcome_csv import read_outcome_csv
 from rollability_ros.core.results.store import STORE_FILENAME, Store
+from rollability_ros.core.results.stats import wilson_interval
 
 #: Order of configurations in figures and tables (others follow alphabetically).
 CONFIGURATION_ORDER = ("baseline", "A", "B", "C")
@@ -41,6 +42,66 @@ class ReportData:
     tip_events: list = dataclasses.field(default_factory=list)
     sim_fitness: dict = dataclasses.field(default_factory=dict)
     geometry: list = dataclasses.field(default_factory=list)
+    design_estimates: list = dataclasses.field(default_factory=list)   # DesignEstimate per configuration
+
+
+@dataclasses.dataclass(frozen=True)
+class DesignEstimate:
+    """A configuration's simulated fitness two ways (Table 3 of the selection): the fresh re-evaluation, the
+    in-run estimate the optimizer logged, and the selection bias (in-run minus fresh); counts are trials."""
+
+    configuration: str
+    fresh_successes: int
+    fresh_trials: int
+    in_run_successes: int
+    in_run_trials: int
+
+    @property
+    def fresh(self):
+        """Fresh fitness, NaN when not re-evaluated."""
+        return self.fresh_successes / self.fresh_trials if self.fresh_trials else math.nan
+
+    @property
+    def in_run(self):
+        """In-run (logged, pooled) fitness, NaN when none was logged (the baseline)."""
+        return self.in_run_successes / self.in_run_trials if self.in_run_trials else math.nan
+
+    @property
+    def selection_bias(self):
+        """In-run minus fresh fitness (NaN without both)."""
+        return self.in_run - self.fresh
+
+    def text(self):
+        """One summary line: fresh with its Wilson 95% interval, in-run with its interval, the bias."""
+        def rate(successes, trials):
+            if not trials:
+                return f"{'-':>22}"
+            low, high = wilson_interval(successes, trials)
+            return f"{successes:>4}/{trials:<4} {successes / trials:4.2f} [{low:.2f}, {high:.2f}]"
+        bias = f"{self.selection_bias:+.2f}" if math.isfinite(self.selection_bias) else "-"
+        return (f"{self.configuration:<10} {rate(self.fresh_successes, self.fresh_trials)}   "
+                f"{rate(self.in_run_successes, self.in_run_trials)}   {bias:>5}")
+
+
+def design_estimates(rows, path):
+    """The :class:`DesignEstimate` s of Table 3 rows (``selection.TABLE_COLUMNS``; a table without the in-run
+    columns gives none); ``ValueError`` naming ``path`` and the cell for a count that is not a whole number."""
+    estimates = []
+    for row in rows:
+        if "in_run_trials" not in row:
+            return []
+        counts = {}
+        for column in ("successes", "trials", "in_run_successes", "in_run_trials"):
+            try:
+                counts[column] = int(float(row[column] or 0))
+            except (TypeError, ValueError):
+                raise ValueError(f"{path}: {column} of {row['configuration']} is not a count: {row[column]!r}") \
+                    from None
+        fresh = str(row.get("fitness_source", "")) == "reevaluated"
+        estimates.append(DesignEstimate(str(row["configuration"]), counts["successes"] if fresh else 0,
+                                        counts["trials"] if fresh else 0, counts["in_run_successes"],
+                                        counts["in_run_trials"]))
+    return estimates
 
 
 @dataclasses.dataclass(frozen=True)
@@ -106,6 +167,7 @@ def load_report_data(source, run_id=None):
     info = (run_info or {}).get("info", {})
     data.sim_fitness = {str(k): float(v) for k, v in info.get("sim_fitness", {}).items()}
     data.geometry = analysis.geometry_table(info.get("geometry", []), CONFIGURATION_ORDER)
+    data.design_estimates = design_estimates(info.get("table3", []), source)
     table3 = os.path.join(source, DESIGNS_TABLE)
     if kind == "store" and os.path.isdir(source) and os.path.isfile(table3) and not data.geometry:
         use_geometry_csv(data, table3)
@@ -117,6 +179,7 @@ def use_geometry_csv(data, path):
     fills in the simulated fitness of configurations that have none yet (empty or NaN cells are skipped)."""
     with open(path, newline="", encoding="utf-8-sig") as stream:
         data.geometry = analysis.geometry_table(list(csv.DictReader(stream)), CONFIGURATION_ORDER)
+    data.design_estimates = design_estimates(data.geometry, path)
     for row in data.geometry:
         try:
             fitness = float(row.get("simulated_fitness", "nan"))
@@ -192,7 +255,7 @@ def _tables(data, views, comparison, points):
 
 _TABLE_TITLES = {
     "by_configuration": "Overall success per configuration (Figure 12d)",
-    "sim_vs_experiment": "Simulated fitness vs experimental success (Discussion)",
+    "sim_vs_experiment": "Simulated fitness vs campaign success (Discussion; the campaign's kind is in the summary)",
     "geometry": "Profile mesh geometry (Table 3), m",
     "convergence": "Optimization convergence per generation (Figure 4)",
     "tip_events": "Field tip events per robot",
@@ -226,21 +289,34 @@ def _figures(out_dir, views, configurations, comparison, points):
         draw("fig12b_overall_trials.png", "Figure 12 by trials: the same views as the fraction of upright trials, "
              "with Wilson 95% intervals", figures.overall, views, configurations, "trial_rate")
     if comparison is not None and comparison.rows:
-        draw("sim_vs_experiment.png", "Simulated fitness vs experimental success", figures.sim_vs_experiment,
-             comparison)
+        draw("sim_vs_experiment.png", f"Simulated fitness vs {comparison.campaign} campaign success",
+             figures.sim_vs_experiment, comparison)
     if points:
         draw("fig04_convergence.png", "Figure 4: optimization convergence", figures.convergence, points)
     return drawn
 
 
 def summary_text(data, views, comparison, points):
-    """A few lines describing the report's data and headline numbers."""
+    """A few lines describing the report's data and headline numbers: the chosen designs' fresh re-evaluations
+    first (with the in-run estimates beside them and the selection bias), then the campaign, labelled simulated
+    or experimental by where its outcomes came from."""
     lines = [f"source: {data.source}"]
+    if data.design_estimates:
+        lines.append("simulated fitness of the chosen designs: fresh re-evaluation (headline) vs in-run estimate "
+                     "(Wilson 95% CI; selection bias = in-run - fresh)")
+        lines.append(f"{'design':<10} {'fresh':<22}   {'in-run':<22}   {'bias':>5}")
+        lines.extend(estimate.text() for estimate in data.design_estimates)
     if views is not None:
         runs = sorted({o.run_id for o in data.outcomes})
         backends = sorted({o.backend for o in data.outcomes})
-        lines.append(f"launch outcomes: {len(data.outcomes)} trials, {len(views.conditions)} grouped conditions "
-                     f"(run {', '.join(runs)}; backend {', '.join(backends)})")
+        valid = sum(o.valid for o in data.outcomes)
+        invalid = len(data.outcomes) - valid
+        kind = analysis.campaign_kind(data.outcomes)
+        label = {"simulated": "simulated campaign (launch twin)", "experimental": "experimental campaign (rig)",
+                 "mixed": "mixed campaign (launch twin and rig)"}[kind]
+        lines.append(f"launch outcomes, {label}: {valid} trials, {len(views.conditions)} grouped conditions "
+                     f"(run {', '.join(runs)}; backend {', '.join(backends)})"
+                     + (f"; {invalid} invalid launch(es) left out" if invalid else ""))
         lines.append(f"{'configuration':<14} {'conditions ok':>13} {'trials upright':>15}  95% CI")
         for cell in views.by_configuration:
             low, high = cell.trial_ci
@@ -250,12 +326,14 @@ def summary_text(data, views, comparison, points):
     else:
         lines.append("launch outcomes: none")
     if comparison is not None and comparison.rows:
-        lines.append(f"sim vs experiment ({len(comparison.rows)} configurations): "
-                     f"{analysis.rank_agreement_text(comparison.spearman_rho, comparison.kendall_tau_b)}")
+        lines.append(f"simulated fitness vs {comparison.campaign} campaign ({len(comparison.rows)} configurations): "
+                     f"{comparison.agreement_text()}")
     if points:
         for run_id in sorted({p.run_id for p in points}):
             own = [p for p in points if p.run_id == run_id]
-            lines.append(f"optimization run {run_id!r}: {len(own)} generations, best fitness {own[-1].best_so_far:.3f}")
+            lines.append(f"optimization run {run_id!r}: {len(own)} generations, best in-run fitness "
+                         f"{own[-1].best_so_far:.3f} (an estimate picked as a maximum: biased upward"
+                         + ("; the fresh re-evaluations above are the headline)" if data.design_estimates else ")"))
     if data.tip_events:
         recovered = sum(e.recovered for e in data.tip_events)
         lines.append(f"tip events: {len(data.tip_events)}, recovered {recovered}")
@@ -277,7 +355,8 @@ def build_report(data, out_dir, measure="condition_rate"):
     os.makedirs(out_dir, exist_ok=True)
     views = analysis.paper_views(data.outcomes, CONFIGURATION_ORDER) if data.outcomes else None
     configurations = analysis.configurations_in(views.conditions, CONFIGURATION_ORDER) if views else []
-    comparison = (analysis.sim_vs_experiment(data.sim_fitness, views.by_configuration, measure)
+    comparison = (analysis.sim_vs_experiment(data.sim_fitness, views.by_configuration, measure,
+                                             analysis.campaign_kind(data.outcomes))
                   if views is not None and data.sim_fitness else None)
     points = analysis.convergence(data.generations, data.candidates)
     if views is None and not points and not data.tip_events:

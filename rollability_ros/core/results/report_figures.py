@@ -6,7 +6,7 @@ Heights are drawn in cm and speeds in m/s, as in the paper.
 """
 import math
 
-from rollability_ros.core.results.analysis import cells_of, grid, rank_agreement_text
+from rollability_ros.core.results.analysis import cells_of, grid
 from rollability_ros.core.optional import require
 
 _FACTOR_LABELS = {"height_m": "height (cm)", "speed_mps": "speed (m/s)", "angle_deg": "angle (deg)",
@@ -176,7 +176,8 @@ def convergence(path, points):
 
 
 def sim_vs_experiment(path, comparison):
-    """Simulated fitness against experimental success per configuration, with the rank agreement."""
+    """Simulated fitness against campaign success per configuration (the campaign labelled experimental or
+    simulated), with the rank agreement."""
     plt = _pyplot()
     figure, ax = plt.subplots(figsize=(4.8, 4.2), layout="constrained")
     for row in comparison.rows:
@@ -187,8 +188,8 @@ def sim_vs_experiment(path, comparison):
     ax.set_xlim(0, 1)
     ax.set_ylim(0, 1)
     ax.set_xlabel("simulated fitness")
-    ax.set_ylabel(f"experimental success ({comparison.measure.replace('_', ' ')})")
-    ax.set_title(rank_agreement_text(comparison.spearman_rho, comparison.kendall_tau_b))
+    ax.set_ylabel(f"{comparison.campaign} campaign success ({comparison.measure.replace('_', ' ')})")
+    ax.set_title(comparison.agreement_text(), fontsize=9)
     ax.grid(alpha=0.3)
     return _save(figure, path)
 
@@ -229,4 +230,33 @@ def render_profile_preview(mesh, path, title=None):
         ax.tick_params(labelsize=6, pad=-1)
     if title:
         ax.set_title(title, fontsize=9)
+    return _save(figure, path)
+
+
+def sensitivity(path, rows):
+    """The sensitivity study (:mod:`rollability_ros.core.sim.sensitivity`): one panel per factor, fitness of each
+    configuration against the factor's levels with Wilson 95% intervals; the robust fitness as its own panel."""
+    plt = _pyplot()
+    factors = list(dict.fromkeys(row["factor"] for row in rows))
+    configurations = list(dict.fromkeys(row["configuration"] for row in rows))
+    figure, axes = plt.subplots(1, len(factors), figsize=(3.2 * len(factors), 3.4), layout="constrained",
+                                squeeze=False)
+    for ax, factor in zip(axes[0], factors):
+        own = [row for row in rows if row["factor"] == factor]
+        levels = list(dict.fromkeys(str(row["level"]) for row in own))
+        for number, configuration in enumerate(configurations):
+            points = [row for row in own if row["configuration"] == configuration]
+            x = [levels.index(str(row["level"])) + 0.08 * (number - (len(configurations) - 1) / 2) for row in points]
+            y = [row["fitness"] for row in points]
+            errors = [[row["fitness"] - row["ci_low"] for row in points], [row["ci_high"] - row["fitness"]
+                                                                           for row in points]]
+            ax.errorbar(x, y, yerr=errors, marker="o", capsize=3, label=configuration,
+                        ls="-" if factor != "robust" else "none")
+        ax.set_xticks(range(len(levels)))
+        ax.set_xticklabels(levels, fontsize=8)
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_title(factor.replace("_", " "), fontsize=10)
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("simulated fitness (95% CI)")
+    axes[0][-1].legend(fontsize=8)
     return _save(figure, path)

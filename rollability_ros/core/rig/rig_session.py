@@ -35,7 +35,7 @@ import typing
 import zlib
 
 from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
-from rollability_ros.core.results.records import NOT_MEASURED, LaunchCondition, LaunchOutcome
+from rollability_ros.core.results.records import INVALID_LAUNCH, NOT_MEASURED, LaunchCondition, LaunchOutcome
 from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
                                                      RigPorts, no_phase, not_cancelled)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
@@ -486,8 +486,8 @@ class SimulatedLaunch(LaunchBackend):
         if cancelled():
             raise LaunchAborted("cancelled before the launch")
         twin = self.load()
-        result = twin.simulate_launch(condition, self._twin_settings, launch_seed(self.settings.seed, trial_id),
-                                      on_phase=lambda phase: on_phase(phase, "launch twin"), on_pose=on_pose)
+        result = twin.simulate_valid_launch(condition, self._twin_settings, launch_seed(self.settings.seed, trial_id),
+                                            on_phase=lambda phase: on_phase(phase, "launch twin"), on_pose=on_pose)
         return simulated_outcome(run_id, trial_id, condition, result, self.speed_config)
 
 
@@ -532,14 +532,20 @@ def launch_seed(base_seed: int, trial_id: str) -> int:
 def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, result: typing.Any,
                       speed_config: SpeedGateConfig) -> LaunchOutcome:
     """The :class:`LaunchOutcome` of a launch twin result (``upright``, ``final_orientation_xyzw``,
-    ``travel_time_s``), with the speed flagged against ``speed_config``'s tolerance."""
+    ``travel_time_s``), with the speed flagged against ``speed_config``'s tolerance; an invalid launch
+    (``invalid_reason``) is stored not upright with a note starting with :data:`INVALID_LAUNCH`."""
     travel_time_s = float(getattr(result, "travel_time_s", NOT_MEASURED))
     if not travel_time_s > 0:
         travel_time_s = NOT_MEASURED
     speed = speed_config.measure(condition.speed_mps, travel_time_s)
     note = speed_note(speed, condition.speed_mps, speed_config.tolerance_fraction)
+    invalid_reason = getattr(result, "invalid_reason", "")
+    if invalid_reason:
+        attempts = getattr(result, "attempts", 1)
+        note = f"{INVALID_LAUNCH}{invalid_reason} ({attempts} attempt{'s' if attempts != 1 else ''})"
     return LaunchOutcome(
-        run_id=run_id, trial_id=trial_id, condition=condition, backend="sim", upright=bool(result.upright),
+        run_id=run_id, trial_id=trial_id, condition=condition, backend="sim",
+        upright=bool(result.upright) and not invalid_reason,
         travel_time_s=speed.travel_time_s, measured_speed_mps=speed.measured_speed_mps,
         speed_out_of_tolerance=speed.speed_out_of_tolerance,
         final_orientation=tuple(float(v) for v in result.final_orientation_xyzw), classified_by="sim", note=note,

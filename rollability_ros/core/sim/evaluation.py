@@ -1,5 +1,8 @@
 """Fitness of a profile = upright trials / trials, run serially, in a local process pool, or on a Ray cluster.
 
+What a trial is (a disturbance trial, a launch on the launch twin, or a mix) is ``settings.objective``
+(:mod:`rollability_ros.core.sim.objectives`); everything below holds for every kind.
+
 Every trial ``i`` of an evaluation with base seed ``s`` uses :func:`trial_seed` ``(s, i)``: the seed does not
 depend on the profile, so candidates evaluated with the same base seed meet the same start states and
 disturbances (common random numbers). A trial's outcome depends only on (profile, trial seed, settings) (see
@@ -24,6 +27,8 @@ from rollability_ros.core.config import from_mapping, load_parameters, section
 from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
 from rollability_ros.core.optional import require
 from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
+from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, launch_objective, \
+    run_launch_trial, run_robust_trial
 from rollability_ros.core.sim.world import PhysicsParams, connect
 from rollability_ros.core.results.stats import wilson_interval
 from rollability_ros.core.sim.trials import TrialSettings, make_trial_world
@@ -91,6 +96,7 @@ class EvaluatorSettings(RobotChoice):
     robot: ChassisSpec = dataclasses.field(default_factory=ChassisSpec)
     evaluator: EvaluatorOptions = dataclasses.field(default_factory=EvaluatorOptions)
     urdf_robot: UrdfRobotSpec = dataclasses.field(default_factory=UrdfRobotSpec)
+    objective: ObjectiveSettings = dataclasses.field(default_factory=ObjectiveSettings)
 
     def __post_init__(self):
         self.grid = footprint_grid(self.grid, self.urdf_robot)
@@ -98,7 +104,7 @@ class EvaluatorSettings(RobotChoice):
 
 #: settings field -> config namespace (also the ROS parameter prefix the sim_evaluator node declares)
 SETTINGS_SECTIONS = {"grid": "profile", "printer": "printer", "physics": "sim", "trial": "trial",
-                     "robot": "robot", "evaluator": "evaluator", "urdf_robot": "urdf_robot"}
+                     "robot": "robot", "evaluator": "evaluator", "urdf_robot": "urdf_robot", "objective": "objective"}
 
 
 def load_settings(config_paths=("sim", "robot", "evaluator"), node_name="/**"):
@@ -132,10 +138,12 @@ def trial_seed(base_seed, index):
 
 @dataclasses.dataclass(frozen=True)
 class TrialJob:
-    """What a worker needs to run trials of one profile: the profile body (None = baseline) and the settings."""
+    """What a worker needs to run trials of one profile: the profile body (None = baseline), the settings and,
+    for a launch-twin or mixed objective, its resolved launch part (:mod:`~rollability_ros.core.sim.objectives`)."""
 
     profile: ProfileBody
     settings: EvaluatorSettings
+    launch: LaunchObjective = None
 
 
 def profile_job(heights, settings):
@@ -143,14 +151,14 @@ def profile_job(heights, settings):
     if heights is not None and np.asarray(heights).size:
         heights = check_heights(heights, settings.grid)
     if is_baseline(heights, settings.grid.flat_tolerance):
-        return TrialJob(profile=None, settings=settings)
+        return TrialJob(profile=None, settings=settings, launch=launch_objective(settings.objective))
     return mesh_job(profile_mesh(heights, settings.grid), settings)
 
 
 def mesh_job(mesh, settings):
     """Make the :class:`TrialJob` of a profile solid (trimesh, metres, profile frame); None = baseline."""
     profile = None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
-    return TrialJob(profile=profile, settings=settings)
+    return TrialJob(profile=profile, settings=settings, launch=launch_objective(settings.objective))
 
 
 _worker_client = None
@@ -168,15 +176,25 @@ def run_batch(job, batch):
     reuse it (restored before every trial, see :class:`~rollability_ros.core.sim.trials.TrialWorld`).
     """
     global _worker_client, _worker_world
+    if job.launch is not None and all(job.launch.is_launch(index) for index, _ in batch) \
+            and not job.settings.objective.robust.enabled:
+        return [run_launch_trial(job.launch, job.profile, index, seed) for index, seed in batch]
     if _worker_client is None:
         _worker_client = connect()
+    if job.settings.objective.robust.enabled:
+        _worker_world = None   # every robust trial builds its own world in the client
+        return [run_robust_trial(_worker_client, job, index, seed) for index, seed in batch]
     key = _job_key(job)
     if _worker_world is None or _worker_world[0] != key:
         settings = job.settings
         _worker_world = (key, make_trial_world(_worker_client, settings.robot_model(), job.profile, settings.trial,
                                                settings.physics))
     world = _worker_world[1]
-    return [world.run(index, seed) for index, seed in batch]
+    if job.launch is None:
+        return [world.run(index, seed) for index, seed in batch]
+    # a launch builds its own world in its own client, so the trial world above is left as it was
+    return [run_launch_trial(job.launch, job.profile, index, seed) if job.launch.is_launch(index)
+            else world.run(index, seed) for index, seed in batch]
 
 
 def _warm(hold_s=0.2):

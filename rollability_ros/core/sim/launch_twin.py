@@ -30,8 +30,7 @@ Wheels (the paper's chassis runs on Mecanum wheels)
 Robot
     The built-in chassis, or any wheeled URDF robot when ``urdf_robot`` names a mount link (the trials' choice,
     :class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`; e.g. ``config/husky.yaml`` in the twin's files). The
-    wheel settings above act on that robot's wheel links, each wheel's launch spin uses its own radius
-    (:meth:`~rollability_ros.core.robots.robot.RobotModel.wheel_radii_m`: a URDF wheel's from its collision shapes) and the
+    wheel settings above act on that robot's wheel links and the
     profile weighs that robot's ``profile_density_kgpm3``. The launcher stays as configured: a robot that does
     not fit on the ledge at its start (a large one on the 0.8 m ledge) is refused with a ``ValueError`` naming
     ``ledge_depth_m`` / ``ledge_width_m``.
@@ -42,15 +41,29 @@ Angle (the paper gives mounting holes at -60 ... +60 deg, not a definition)
     edge obliquely. ``chassis_yaw``: the push stays along the edge normal and only the chassis is turned on the
     plate (it runs sideways on its Mecanum rollers).
 Launch
-    The push is an impulse: at t = 0 the chassis, at rest on the plate, gets the launch speed along the push
-    direction and its wheels the spin of rolling without slip. (The real 25 mm cylinder at 30 psi pushes with
-    about 100 N and brings the 1.2 kg chassis to speed within a few millimetres of its 150 mm stroke.) It starts
-    where its foremost point (largest x of its links' bounding boxes) reaches the edge line after ``run_length_m``
-    along the push, its base origin (the centre of the body box) on a path through the edge's midpoint. It then
-    coasts on its wheels, so it reaches the edge about 5% (0.8 m/s) or 3% (1.5 m/s) later than
-    ``run_length_m / speed``. The actual launch speed scatters around the condition's speed with a relative
-    standard deviation ``speed_sigma_fraction``, and the angle by ``angle_sigma_deg`` (hand placement against the
-    push plate), both drawn from the seed.
+    The push plate drives the chassis over the whole run: a box (``launch_twin.plate``) on a prismatic joint along
+    the push, velocity-controlled with at most ``plate.max_force_n`` (the cylinder). At t = 0 the chassis stands
+    at rest on the launcher, the plate 1 mm behind it; the plate's speed ramps to the launch speed in
+    ``plate.ramp_s`` (the real cylinder reaches speed within a few millimetres of its stroke), pushing the
+    chassis up to speed, and whatever the chassis's rolling resistance (caster wheels, motor drag) it holds it
+    at the launch speed until its base origin goes over the edge (or the plate's face reaches the edge), then
+    brakes. So the chassis leaves the edge at the
+    launch speed (``edge_speed_mps``, within 1% on the shipped chassis and on one with 40 times the drag: see
+    test_launch_twin) and the speed gate reads ``run_length_m / travel_time_s`` as on the rig. The chassis
+    starts where its foremost point (largest x of its links' bounding boxes) reaches the edge line after
+    ``run_length_m`` along the push, its base origin on a path through the edge's midpoint. The actual launch
+    speed scatters around the condition's speed with a relative standard deviation ``speed_sigma_fraction``,
+    and the angle by ``angle_sigma_deg`` (hand placement against the push plate), both drawn from the seed.
+Asymmetry (the paper's rig is not mirror-symmetric in the angle; these let calibration fit it)
+    ``plate.offset_m`` moves the plate sideways off the chassis's path, ``plate.yaw_bias_deg`` turns its face
+    from square to the push (it then pushes on one corner), and ``wheel_friction_left_factor`` /
+    ``wheel_friction_right_factor`` scale the friction of the wheels on the chassis's left (+y of its base) and
+    right.
+Invalid launches
+    A launch in which the chassis does not leave the ledge, or whose first landing is not on the foam, did not
+    happen as the rig launches: ``LaunchResult.invalid_reason`` says why. :func:`simulate_valid_launch` retries
+    it with derived seeds up to ``max_attempts`` launches in all; the rig stores one still invalid as an invalid
+    launch (:data:`~rollability_ros.core.results.records.INVALID_LAUNCH`), which the analysis leaves out.
 Measurements and phases
     ``travel_time_s`` = time at which the foremost point crosses the edge line x = 0 (interpolated within the
     step): the light gates of the real rig, at the start and across the edge; ``measured_speed_mps`` =
@@ -105,6 +118,40 @@ class LauncherSpec:
 
 
 @dataclasses.dataclass
+class PushPlateSpec:
+    """The launcher's push plate (``launch_twin.plate``): a box on a velocity-controlled prismatic joint; metres.
+
+    ``offset_m`` shifts the plate sideways (+ = left of the push direction) off the chassis's path and
+    ``yaw_bias_deg`` turns its face (counterclockwise from above) away from square to the push: the rig's
+    asymmetry, which calibration can fit. ``max_force_n`` is the most the cylinder pushes with (a 25 mm bore
+    gives about 100 N at 30 psi and 200 N at 60 psi); the plate's speed ramps from rest to the launch speed in
+    ``ramp_s`` (the chassis is pushed up to speed through the plate, so the plate's offset and turn act on it).
+    """
+
+    width_m: float = 0.10
+    height_m: float = 0.05
+    thickness_m: float = 0.01
+    mass_kg: float = 0.3
+    clearance_m: float = 0.005
+    max_force_n: float = 200.0
+    ramp_s: float = 0.012
+    offset_m: float = 0.0
+    yaw_bias_deg: float = 0.0
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        for name in ("width_m", "height_m", "thickness_m", "mass_kg", "max_force_n", "ramp_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not 0 <= self.clearance_m < 0.1:
+            raise ValueError(f"clearance_m must be in [0, 0.1), got {self.clearance_m}")
+        if not abs(self.offset_m) < 0.5:
+            raise ValueError(f"offset_m must be within +-0.5 m, got {self.offset_m}")
+        if not abs(self.yaw_bias_deg) <= 20:
+            raise ValueError(f"yaw_bias_deg must be within +-20 deg, got {self.yaw_bias_deg}")
+
+
+@dataclasses.dataclass
 class FoamSpec:
     """The memory-foam layer under the impact region (``launch_twin.foam``)."""
 
@@ -145,8 +192,12 @@ class LaunchTwinOptions:
     wheel_side_friction_factor: float = 0.1
     wheel_rolling_friction: float = 0.0002
     wheel_drag_torque_nm: float = 0.0005
+    wheel_friction_left_factor: float = 1.0
+    wheel_friction_right_factor: float = 1.0
+    max_attempts: int = 3
     pose_rate_hz: float = 30.0
     launcher: LauncherSpec = dataclasses.field(default_factory=LauncherSpec)
+    plate: PushPlateSpec = dataclasses.field(default_factory=PushPlateSpec)
     foam: FoamSpec = dataclasses.field(default_factory=FoamSpec)
     designs: DesignSources = dataclasses.field(default_factory=DesignSources)
 
@@ -163,6 +214,11 @@ class LaunchTwinOptions:
             raise ValueError(f"wheel_side_friction_factor must be in [0, 1], got {self.wheel_side_friction_factor}")
         if self.wheel_rolling_friction < 0 or self.wheel_drag_torque_nm < 0:
             raise ValueError("wheel_rolling_friction and wheel_drag_torque_nm must be >= 0")
+        for name in ("wheel_friction_left_factor", "wheel_friction_right_factor"):
+            if not 0 < getattr(self, name) <= 5:
+                raise ValueError(f"{name} must be in (0, 5], got {getattr(self, name)}")
+        if not 1 <= self.max_attempts <= 20:
+            raise ValueError(f"max_attempts must be in [1, 20], got {self.max_attempts}")
         if not self.pose_rate_hz > 0:
             raise ValueError(f"pose_rate_hz must be > 0, got {self.pose_rate_hz}")
 
@@ -224,7 +280,10 @@ class LaunchResult:
     and ``landing_position_m`` are as in the module docstring, NaN when the event did not happen;
     ``landing_position_m`` is the base origin at the first foam contact; ``peak_deceleration_mps2`` the largest change of the base's velocity over one step
     from the step of that contact on, divided by the step (m/s^2): the impact an accelerometer on the chassis
-    would see.
+    would see. ``edge_speed_mps`` is the base's speed along the push when its foremost point crosses the edge
+    (NaN if it never does). ``invalid_reason`` is "" for a valid launch, else why it is no launch (it did not
+    leave the ledge, it landed outside the foam); ``attempts`` counts the launches :func:`simulate_valid_launch`
+    made to get this one.
     """
 
     upright: bool
@@ -240,6 +299,14 @@ class LaunchResult:
     flight_time_s: float = NOT_MEASURED
     landing_position_m: tuple = (NOT_MEASURED,) * 3
     peak_deceleration_mps2: float = 0.0
+    edge_speed_mps: float = NOT_MEASURED
+    invalid_reason: str = ""
+    attempts: int = 1
+
+    @property
+    def valid(self):
+        """True when the launch happened as the rig launches: the chassis left the ledge and landed on the foam."""
+        return not self.invalid_reason
 
     @property
     def final_orientation_xyzw(self):
@@ -272,42 +339,42 @@ def _static_box(pybullet, client, half_extents, centre, contact):
 
 
 def build_launch_world(client, settings, height_m):
-    """Empty ``client``'s world and build floor, foam and ledge (module docstring); return ``(foam_id, ledge_id)``."""
+    """Empty ``client``'s world and build floor, foam and ledge (module docstring); return
+    ``(foam_id, ledge_id, floor_id)``."""
     pybullet = require("pybullet", feature="the launch twin")
     physics, foam, launcher = settings.physics, settings.twin.foam, settings.twin.launcher
-    reset_world(client, physics)
+    floor_id = reset_world(client, physics)
     foam_id = _static_box(pybullet, client, (foam.length_m / 2, foam.width_m / 2, foam.thickness_m / 2),
                           (foam.length_m / 2, 0.0, foam.thickness_m / 2), foam.contact(physics.ground_contact()))
     top = foam.thickness_m + height_m
     ledge_id = _static_box(pybullet, client, (launcher.ledge_depth_m / 2, launcher.ledge_width_m / 2, top / 2),
                            (-launcher.ledge_depth_m / 2, 0.0, top / 2), physics.ground_contact())
-    return foam_id, ledge_id
+    return foam_id, ledge_id, floor_id
 
 
-def _set_wheels(pybullet, client, robot, options):
-    """Give the wheel links the twin's Mecanum side friction, rolling friction and motor drag."""
+def wheel_side_m(pybullet, client, robot, link):
+    """Where wheel ``link`` sits across the robot: its y in the base frame (m; + = left)."""
+    base_position, base_orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
+    link_position = pybullet.getLinkState(robot.body_id, link, physicsClientId=client)[4]
+    inverse_position, inverse_orientation = pybullet.invertTransform(base_position, base_orientation)
+    return pybullet.multiplyTransforms(inverse_position, inverse_orientation, link_position, (0, 0, 0, 1))[0][1]
+
+
+def _set_wheels(pybullet, client, robot, options, lateral_friction):
+    """Give the wheel links the twin's Mecanum side friction, rolling friction, motor drag and the left / right
+    friction factors (of the chassis's ``lateral_friction``)."""
     for link in robot.wheel_links:
         axis = pybullet.getJointInfo(robot.body_id, link, physicsClientId=client)[13]
         factors = [1.0 - (1.0 - options.wheel_side_friction_factor) * abs(a) for a in axis]  # axis: a link unit axis
+        left = wheel_side_m(pybullet, client, robot, link) >= 0.0
+        side_factor = options.wheel_friction_left_factor if left else options.wheel_friction_right_factor
         pybullet.changeDynamics(robot.body_id, link, anisotropicFriction=factors,
+                                lateralFriction=lateral_friction * side_factor,
                                 rollingFriction=options.wheel_rolling_friction, physicsClientId=client)
     pybullet.setJointMotorControlArray(robot.body_id, list(robot.wheel_links), pybullet.VELOCITY_CONTROL,
                                        targetVelocities=[0.0] * len(robot.wheel_links),
                                        forces=[options.wheel_drag_torque_nm] * len(robot.wheel_links),
                                        physicsClientId=client)
-
-
-def _launch(pybullet, client, robot, velocity_mps, wheel_radii_m):
-    """Give the chassis ``velocity_mps`` (3,) and each wheel (radius in ``wheel_radii_m``, in the order of
-    ``robot.wheel_links``) the spin of rolling on a level surface without slip."""
-    pybullet.resetBaseVelocity(robot.body_id, list(velocity_mps), [0.0, 0.0, 0.0], physicsClientId=client)
-    for link, radius_m in zip(robot.wheel_links, wheel_radii_m, strict=True):
-        spin_radps = np.cross([0.0, 0.0, 1.0], velocity_mps) / radius_m   # omega with omega x (-r z) = -v
-        axis_local = pybullet.getJointInfo(robot.body_id, link, physicsClientId=client)[13]
-        link_orientation = pybullet.getLinkState(robot.body_id, link, physicsClientId=client)[5]
-        axis_world = np.asarray(pybullet.getMatrixFromQuaternion(link_orientation)).reshape(3, 3) @ axis_local
-        angle = pybullet.getJointState(robot.body_id, link, physicsClientId=client)[0]
-        pybullet.resetJointState(robot.body_id, link, angle, float(spin_radps @ axis_world), physicsClientId=client)
 
 
 class _PhaseReporter:
@@ -357,7 +424,100 @@ def place_on_launcher(pybullet, client, robot, orientation, push, settings, heig
     return lead_m
 
 
-def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None):
+class PushPlate:
+    """The push plate on its prismatic joint: placed behind the chassis, driven at the launch speed along the push
+    until the chassis goes over the edge (or the plate reaches it), then braked (module docstring, "Launch")."""
+
+    def __init__(self, pybullet, client, robot, push, spec, plate_z, ignore_bodies):
+        self._pybullet, self._client, self.spec = pybullet, client, spec
+        self.push = np.asarray(push, dtype=np.float64)
+        corners = _corners_m(pybullet, client, robot.body_id)
+        rear_m = float((corners @ self.push).min())
+        base = np.asarray(pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)[0])
+        lateral = np.array([-self.push[1], self.push[0], 0.0])
+        bias = math.radians(spec.yaw_bias_deg)
+        # the plate's face touches the chassis's rear (1 mm gap); a turned face leads with one corner
+        reach_m = spec.thickness_m / 2 * math.cos(bias) + spec.width_m / 2 * abs(math.sin(bias))
+        along_m = rear_m - reach_m - 0.001
+        centre = along_m * self.push + (float(base @ lateral) + spec.offset_m) * lateral
+        centre[2] = plate_z + spec.clearance_m + spec.height_m / 2
+        yaw = math.atan2(self.push[1], self.push[0])
+        shape = pybullet.createCollisionShape(
+            pybullet.GEOM_BOX, halfExtents=[spec.thickness_m / 2, spec.width_m / 2, spec.height_m / 2],
+            collisionFrameOrientation=pybullet.getQuaternionFromEuler([0.0, 0.0, bias]), physicsClientId=client)
+        self.body_id = pybullet.createMultiBody(
+            baseMass=0.0, basePosition=list(centre), baseOrientation=pybullet.getQuaternionFromEuler([0, 0, yaw]),
+            linkMasses=[spec.mass_kg], linkCollisionShapeIndices=[shape], linkVisualShapeIndices=[-1],
+            linkPositions=[[0, 0, 0]], linkOrientations=[[0, 0, 0, 1]], linkInertialFramePositions=[[0, 0, 0]],
+            linkInertialFrameOrientations=[[0, 0, 0, 1]], linkParentIndices=[0],
+            linkJointTypes=[pybullet.JOINT_PRISMATIC], linkJointAxis=[[1, 0, 0]], physicsClientId=client)
+        pybullet.changeDynamics(self.body_id, 0, lateralFriction=0.3, linearDamping=0.0, physicsClientId=client)
+        for other in ignore_bodies:
+            pybullet.setCollisionFilterPair(self.body_id, other, 0, -1, 0, physicsClientId=client)
+        self.face_x_m = along_m * self.push[0] + reach_m * self.push[0]
+        # bounding boxes of turned links overstate the rear: close the rest of the gap to 1 mm along the push
+        gaps = [point[8] for point in pybullet.getClosestPoints(self.body_id, robot.body_id, 1.0, linkIndexA=0,
+                                                                  physicsClientId=client)]
+        self.start_m = max(0.0, min(gaps) - 0.001) if gaps else 0.0
+        pybullet.resetJointState(self.body_id, 0, self.start_m, 0.0, physicsClientId=client)
+        self.driving = False
+        self._at_speed = False
+
+    def drive(self, speed_mps, time_s):
+        """Drive the plate along the push at ``time_s`` after the fire: its speed ramps from rest to ``speed_mps``
+        over ``ramp_s``, then holds, with at most ``max_force_n``."""
+        if self._at_speed:
+            return
+        target_mps = speed_mps * min(1.0, time_s / self.spec.ramp_s)
+        self._pybullet.setJointMotorControl2(self.body_id, 0, self._pybullet.VELOCITY_CONTROL,
+                                             targetVelocity=target_mps, force=self.spec.max_force_n,
+                                             physicsClientId=self._client)
+        self._at_speed = time_s >= self.spec.ramp_s
+        self.driving = True
+
+    def reached_edge(self):
+        """True once the plate's face has reached the edge line x = 0."""
+        travel_m = self._pybullet.getJointState(self.body_id, 0, physicsClientId=self._client)[0]
+        return self.face_x_m + travel_m * self.push[0] >= 0.0
+
+    def stop(self):
+        """Brake the plate to rest (the cylinder at the end of its push)."""
+        self._pybullet.setJointMotorControl2(self.body_id, 0, self._pybullet.VELOCITY_CONTROL, targetVelocity=0.0,
+                                             force=self.spec.max_force_n * 10, physicsClientId=self._client)
+        self.driving = False
+
+
+def _corners_m(pybullet, client, body_id):
+    """The corners of every link's world bounding box of ``body_id``: (8 * links, 3) array (m)."""
+    corners = []
+    for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client)):
+        low, high = pybullet.getAABB(body_id, link, physicsClientId=client)
+        corners.extend([(x, y, z) for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])])
+    return np.asarray(corners, dtype=np.float64)
+
+
+def attempt_seed(seed, attempt):
+    """The seed of retry ``attempt`` (0 = the launch's own ``seed``) of :func:`simulate_valid_launch`."""
+    if attempt == 0:
+        return int(seed)
+    state = np.random.SeedSequence(int(seed), spawn_key=(0x1A7, int(attempt))).generate_state(1, dtype=np.uint32)
+    return int(state[0]) & 0x7FFFFFFF
+
+
+def simulate_valid_launch(condition, settings, seed, on_phase=None, on_pose=None, profile=None, use_profile=False):
+    """:func:`simulate_launch`, repeated with :func:`attempt_seed` seeds while the launch is invalid, at most
+    ``launch_twin.max_attempts`` times in all; returns the first valid launch or the last invalid one, with
+    ``attempts`` set. The callbacks follow the first attempt only (a retry starts again from the push)."""
+    for attempt in range(settings.twin.max_attempts):
+        first = attempt == 0
+        result = simulate_launch(condition, settings, attempt_seed(seed, attempt), on_phase if first else None,
+                                 on_pose if first else None, profile=profile, use_profile=use_profile)
+        if result.valid:
+            break
+    return dataclasses.replace(result, attempts=attempt + 1)
+
+
+def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, profile=None, use_profile=False):
     """Launch ``condition``'s configuration off the simulated ledge and classify it (module docstring).
 
     Parameters
@@ -371,6 +531,9 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None):
         Called with each of :data:`PHASES` once, in order.
     on_pose : callable(t_s, position_xyz, orientation_xyzw), optional
         The chassis base pose at ``pose_rate_hz`` of simulated time (t = 0 first), metres and (x, y, z, w).
+    profile : ProfileBody or None, optional
+        With ``use_profile``, the profile to mount instead of the configuration's (None = bare chassis): a
+        candidate of an optimization (:mod:`rollability_ros.core.sim.objectives`).
 
     Returns
     -------
@@ -381,7 +544,8 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None):
     pybullet = require("pybullet", feature="the launch twin")
     condition.validate()
     options = settings.twin
-    profile = profile_body(condition.configuration, settings)
+    if not use_profile:
+        profile = profile_body(condition.configuration, settings)
     speed_mps, angle_deg = launch_draws(seed, condition.speed_mps, condition.angle_deg, options)
     angle = math.radians(angle_deg)
     push_yaw = angle if options.angle_convention == "yaw_of_push" else 0.0
@@ -390,18 +554,20 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None):
         raise ValueError(f"angle {angle_deg:.1f} deg pushes along or away from the edge under {options.angle_convention}"
                          f" (|angle| must stay below {math.degrees(math.acos(MIN_PUSH_TOWARDS_EDGE)):.0f} deg)")
     model = settings.robot_model()
-    wheel_radii_m = model.wheel_radii_m()
     client = connect()
     try:
-        foam_id, ledge_id = build_launch_world(client, settings, condition.height_m)
+        foam_id, ledge_id, floor_id = build_launch_world(client, settings, condition.height_m)
         orientation = pybullet.getQuaternionFromEuler([0.0, 0.0, angle])
         robot = model.spawn(client, profile, (0.0, 0.0, 5.0), orientation)
         set_contact(client, robot.body_id, settings.physics.body_contact())
-        _set_wheels(pybullet, client, robot, options)
+        _set_wheels(pybullet, client, robot, options, settings.physics.lateral_friction)
         lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)
-        _launch(pybullet, client, robot, speed_mps * push, wheel_radii_m)
-        tracker = _LaunchTracker(pybullet, client, robot.body_id, foam_id, lead_m, _PhaseReporter(on_phase))
-        steps, settled = _step_to_rest(pybullet, client, robot.body_id, settings, tracker, on_pose)
+        plate = PushPlate(pybullet, client, robot, push, options.plate, options.foam.thickness_m + condition.height_m,
+                          (floor_id, foam_id, ledge_id))
+        tracker = _LaunchTracker(pybullet, client, robot.body_id, foam_id, lead_m, _PhaseReporter(on_phase),
+                                 push, floor_id)
+        steps, settled = _step_to_rest(pybullet, client, robot.body_id, settings, tracker, on_pose, plate,
+                                       speed_mps)
         went_over = not math.isnan(tracker.base.time_s)
         upright, tilt = model.is_upright(client, robot, foam_id if went_over else ledge_id)
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
@@ -413,7 +579,22 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None):
                         settled=settled, sim_time_s=steps * settings.physics.time_step_s, steps=steps, tilt_deg=tilt,
                         launch_angle_deg=angle_deg, flight_time_s=tracker.landed_s - tracker.base.time_s,
                         landing_position_m=tracker.landing_m,
-                        peak_deceleration_mps2=tracker.peak_deceleration_mps2)
+                        peak_deceleration_mps2=tracker.peak_deceleration_mps2, edge_speed_mps=tracker.edge_speed_mps,
+                        invalid_reason=_invalid_reason(went_over, tracker, options.foam))
+
+
+def _invalid_reason(went_over, tracker, foam):
+    """Why a launch is no launch ("" when it is one): see :attr:`LaunchResult.invalid_reason`."""
+    if not went_over:
+        return "did not leave the ledge"
+    if tracker.floor_first:
+        return "landed outside the foam (hit the floor first)"
+    if math.isnan(tracker.landed_s):
+        return "never landed on the foam"
+    x, y, _ = tracker.landing_m
+    if not (0.0 <= x <= foam.length_m and abs(y) <= foam.width_m / 2):
+        return f"landed outside the foam (at x = {x:.2f} m, y = {y:.2f} m)"
+    return ""
 
 
 class _EdgeCrossing:
@@ -441,9 +622,12 @@ class _LaunchTracker:
     Times are simulated seconds from the push, NaN until the event happens.
     """
 
-    def __init__(self, pybullet, client, body_id, foam_id, lead_m, phases):
+    def __init__(self, pybullet, client, body_id, foam_id, lead_m, phases, push, floor_id):
         self._pybullet, self._client, self._body, self._foam = pybullet, client, body_id, foam_id
+        self._push, self._floor = np.asarray(push, dtype=np.float64), floor_id
         self.phases = phases
+        self.edge_speed_mps = NOT_MEASURED
+        self.floor_first = False
         self.front = _EdgeCrossing(lead_m)
         self.base = _EdgeCrossing(0.0)
         self.landed_s = NOT_MEASURED
@@ -453,7 +637,9 @@ class _LaunchTracker:
 
     def update(self, steps, dt, position):
         """Account for step number ``steps`` (of ``dt`` s) after which the base origin is at ``position``."""
-        self.front.update(steps, dt, position[0])
+        if self.front.update(steps, dt, position[0]):
+            velocity = self._pybullet.getBaseVelocity(self._body, physicsClientId=self._client)[0]
+            self.edge_speed_mps = float(np.dot(velocity, self._push))
         if math.isnan(self.base.time_s):
             if self.base.update(steps, dt, position[0]):
                 self.phases.reach("in_flight")
@@ -464,14 +650,19 @@ class _LaunchTracker:
             if pybullet.getContactPoints(bodyA=self._body, bodyB=self._foam, physicsClientId=client):
                 self.landed_s, self.landing_m = steps * dt, tuple(position)
                 self.phases.reach("settling")
+            elif pybullet.getContactPoints(bodyA=self._body, bodyB=self._floor, physicsClientId=client):
+                self.floor_first = True
+                self.landed_s, self.landing_m = steps * dt, tuple(position)
+                self.phases.reach("settling")
         if not math.isnan(self.landed_s) and self._velocity is not None:
             change = float(np.linalg.norm(velocity - self._velocity)) / dt
             self.peak_deceleration_mps2 = max(self.peak_deceleration_mps2, change)
         self._velocity = velocity
 
 
-def _step_to_rest(pybullet, client, body_id, settings, tracker, on_pose):
-    """Step until the chassis is at rest or the trials' time cap; return ``(steps, settled)``."""
+def _step_to_rest(pybullet, client, body_id, settings, tracker, on_pose, plate, speed_mps):
+    """Step until the chassis is at rest or the trials' time cap, driving ``plate`` at ``speed_mps`` until the
+    chassis goes over the edge or the plate reaches it; return ``(steps, settled)``."""
     dt = settings.physics.time_step_s
     cap = round(settings.trial.time_cap_s / dt)
     pose_every = max(1, round(1.0 / (settings.twin.pose_rate_hz * dt)))
@@ -483,11 +674,17 @@ def _step_to_rest(pybullet, client, body_id, settings, tracker, on_pose):
         on_pose(0.0, position, orientation)
     steps = 0
     settled = False
+    plate_started = False
     while steps < cap and not settled:
+        if plate.driving or not plate_started:
+            plate.drive(speed_mps, (steps + 1) * dt)
+            plate_started = True
         pybullet.stepSimulation(physicsClientId=client)
         steps += 1
         position, orientation = pybullet.getBasePositionAndOrientation(body_id, physicsClientId=client)
         tracker.update(steps, dt, position)
+        if plate.driving and (not math.isnan(tracker.base.time_s) or plate.reached_edge()):
+            plate.stop()
         if on_pose is not None and steps % pose_every == 0:
             on_pose(steps * dt, position, orientation)
         settled = rest.settled(client, body_id, steps)

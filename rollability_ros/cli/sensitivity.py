@@ -1,0 +1,76 @@
+"""`rollability sensitivity`: the simulated fitness of the bare chassis and of profiles against each uncertain
+factor (disturbance scale, start pose, contact reading, centre of mass) and robustly, with intervals."""
+import csv
+import os
+
+
+def _profiles(args):
+    """``{label: mesh or None}``: the bare chassis, then every ``--mesh LABEL=FILE`` and ``--designs-file`` design."""
+    from rollability_ros.core.profile import geometry
+    from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
+
+    profiles = {"baseline": None}
+    for item in args.mesh:
+        label, _, path = item.partition("=")
+        if not label or not path:
+            raise ValueError(f"--mesh takes LABEL=FILE, got {item!r}")
+        profiles[label] = geometry.load_profile_mesh(path)
+    if args.designs_file:
+        sources = DesignSources(designs_file=args.designs_file)
+        for label in configuration_ids(sources):
+            if label != "baseline":
+                profiles[label] = profile_mesh_for(label, sources)
+    return profiles
+
+
+def run(args):
+    """Run the sensitivity study, write ``sensitivity.csv`` and ``sensitivity.png`` to ``--out``; exit code."""
+    from rollability_ros.core.optional import MissingDependency
+    from rollability_ros.core.results import report_figures
+    from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.sim.sensitivity import sensitivity_rows
+
+    settings = evaluation.load_settings(["sim", "robot", "evaluator", *args.config])
+    if args.trials < 1:
+        raise ValueError(f"--trials must be >= 1, got {args.trials}")
+    profiles = _profiles(args)
+    os.makedirs(args.out, exist_ok=True)
+
+    def show(row):
+        print(f"{row['configuration']:<10} {row['factor']:<18} {str(row['level']):<18} {row['successes']:>4}/"
+              f"{row['trials']:<4} {row['fitness']:.2f} [{row['ci_low']:.2f}, {row['ci_high']:.2f}]", flush=True)
+
+    with evaluation.make_executor(settings.evaluator, args.workers) as executor:
+        rows = sensitivity_rows(profiles, settings, args.trials, args.seed, executor, on_row=show)
+    csv_path = os.path.join(args.out, "sensitivity.csv")
+    with open(csv_path, "w", newline="", encoding="utf-8") as stream:
+        writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    try:
+        figure = report_figures.sensitivity(os.path.join(args.out, "sensitivity.png"), rows)
+    except MissingDependency:
+        figure = None
+    print(f"wrote {csv_path}" + (f" and {figure}" if figure else ""))
+    return 0
+
+
+def register(subparsers):
+    """Add the ``sensitivity`` verb."""
+    parser = subparsers.add_parser(
+        "sensitivity", help="fitness of the bare chassis and profiles against each uncertain factor, with intervals",
+        description="Evaluate the bare chassis and the given profiles with the disturbance trial, varying one "
+                    "uncertain factor at a time (disturbance scale, start pose, contact reading, centre of mass) "
+                    "and all of them at once (the robust fitness), every evaluation from one seed (common "
+                    "random numbers); prints each fitness with its Wilson 95%% interval and writes "
+                    "sensitivity.csv and sensitivity.png. See docs/optimization.md.")
+    parser.add_argument("--mesh", action="append", default=[], metavar="LABEL=FILE",
+                        help="a profile solid (STL/OBJ, metres, base on z = 0) under a label (repeatable)")
+    parser.add_argument("--designs-file", metavar="FILE", help="designs.yaml of `rollability select`")
+    parser.add_argument("--trials", type=int, default=60, help="trials per evaluation (default 60)")
+    parser.add_argument("--seed", type=int, default=0, help="the one base seed of every evaluation (default 0)")
+    parser.add_argument("--workers", type=int, help="worker processes (default: evaluator.workers)")
+    parser.add_argument("--out", default="sensitivity", help="output folder (default ./sensitivity)")
+    parser.add_argument("--config", action="append", default=[], metavar="FILE",
+                        help="extra parameter file loaded over sim, robot and evaluator (repeatable)")
+    parser.set_defaults(func=run)

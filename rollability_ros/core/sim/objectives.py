@@ -1,0 +1,142 @@
+"""What a candidate evaluation measures: the paper's disturbance trials, launches on the (calibrated) launch twin,
+or a weighted mix of both (``objective`` namespace, ``config/optimizer.yaml``).
+
+The objective lives in the evaluation, not in the optimization loop: an evaluation of ``trials`` trials with base
+seed ``s`` still returns upright trials / trials, and every executor (serial, process pool, Ray, the
+sim_evaluator node) runs it unchanged. What a *trial* is depends on ``objective.kind``:
+
+``disturbance``
+    the paper's trial (:mod:`rollability_ros.core.sim.trials`).
+``launch_twin``
+    one launch of the candidate on the launch twin (:func:`~rollability_ros.core.sim.launch_twin.simulate_valid_launch`)
+    under a launch condition of a campaign configuration: the heights, speeds and angles of
+    ``objective.campaign_config`` (its ``campaign`` namespace; its configurations and repetitions are not used).
+    Launch ``j`` of an evaluation takes condition ``j mod C`` of the C conditions (height, then speed, then angle
+    order), so ``trials`` = C x repetitions launches every condition equally often (the paper matrix: C = 20).
+    The twin is read from ``objective.twin_config`` (the twin's parameter files in load order; append a
+    calibrated parameter file from ``rollability calibrate`` to optimize on the calibrated twin). A launch that
+    is still invalid after its retries counts as not upright.
+``mix``
+    trial ``i`` is a launch when ``floor((i + 1) w) > floor(i w)`` for ``w = objective.launch_weight``, else a
+    disturbance trial: the share ``w`` of the trials are launches, spread evenly, so the fitness is the
+    ``w``-weighted mean of the two success rates (exactly when ``trials w`` is a whole number).
+
+With ``objective.robust.enabled`` every trial of any kind runs under its own draw of the uncertain quantities
+(:mod:`~rollability_ros.core.sim.robustness`).
+
+Trial ``i`` uses the evaluation's trial seed ``trial_seed(s, i)`` whatever its kind, so candidates evaluated with
+one base seed meet the same disturbances and the same launch scatter (common random numbers).
+"""
+import dataclasses
+import functools
+import itertools
+import math
+import typing
+
+from rollability_ros.core.campaign.plan import load_campaign_spec
+from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_for
+from rollability_ros.core.sim.trials import TrialOutcome, run_trial
+
+#: ``objective.kind`` values.
+OBJECTIVES = ("disturbance", "launch_twin", "mix")
+#: The configuration id the candidate's launches are filed under (the twin mounts the candidate itself).
+CANDIDATE = "candidate"
+
+
+@dataclasses.dataclass
+class ObjectiveSettings:
+    """The ``objective`` namespace: what a candidate evaluation measures (module docstring)."""
+
+    kind: str = "disturbance"
+    launch_weight: float = 0.5
+    campaign_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["campaign"])
+    twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"])
+    robust: RobustSettings = dataclasses.field(default_factory=RobustSettings)
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        self.robust.validate()
+        if self.kind not in OBJECTIVES:
+            raise ValueError(f"kind must be one of {', '.join(OBJECTIVES)}, got {self.kind!r}")
+        if not 0 < self.launch_weight <= 1:
+            raise ValueError(f"launch_weight must be in (0, 1], got {self.launch_weight}")
+        if self.kind != "disturbance" and not (self.campaign_config and all(self.campaign_config)):
+            raise ValueError("campaign_config must name the campaign parameter file(s) whose launch conditions "
+                             "the launch-twin objective uses")
+        if self.kind != "disturbance" and not (self.twin_config and all(self.twin_config)):
+            raise ValueError("twin_config must list the launch twin's parameter files")
+
+    @property
+    def launch_share(self):
+        """Share of an evaluation's trials that are launches: 0, ``launch_weight`` or 1."""
+        return {"disturbance": 0.0, "mix": self.launch_weight, "launch_twin": 1.0}[self.kind]
+
+
+@dataclasses.dataclass(frozen=True)
+class LaunchObjective:
+    """The launch part of an objective, resolved from files (picklable, sent with a trial job): the launch
+    conditions (configuration :data:`CANDIDATE`), the twin's settings and the share of trials that are launches."""
+
+    conditions: tuple
+    twin: object            # LaunchTwinSettings
+    launch_share: float
+
+    def is_launch(self, index):
+        """True when trial ``index`` of an evaluation is a launch (module docstring, ``mix``)."""
+        return math.floor((index + 1) * self.launch_share + 1e-9) > math.floor(index * self.launch_share + 1e-9)
+
+    def condition(self, index):
+        """The launch condition of trial ``index`` (a launch): condition ``j mod C``, ``j`` = launches before it."""
+        launches_before = math.floor(index * self.launch_share + 1e-9)
+        return self.conditions[launches_before % len(self.conditions)]
+
+
+def launch_conditions(campaign_config):
+    """The distinct launch conditions (height m, speed m/s, angle deg) of a campaign parameter file, as
+    :class:`LaunchCondition` s of configuration :data:`CANDIDATE`, in height, speed, angle order."""
+    spec = load_campaign_spec(tuple(campaign_config))
+    return tuple(LaunchCondition(CANDIDATE, float(h), float(v), float(a))
+                 for h, v, a in itertools.product(spec.heights_m, spec.speeds_mps, spec.angles_deg))
+
+
+@functools.lru_cache(maxsize=8)
+def _resolve(kind, launch_weight, campaign_config, twin_config):
+    from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
+
+    settings = ObjectiveSettings(kind, launch_weight, list(campaign_config), list(twin_config), RobustSettings())
+    return LaunchObjective(launch_conditions(campaign_config), load_launch_twin_settings(twin_config),
+                           settings.launch_share)
+
+
+def launch_objective(settings):
+    """The :class:`LaunchObjective` of :class:`ObjectiveSettings` ``settings``, or None for ``disturbance``
+    (files read once per distinct setting; a bad file raises ``ConfigError`` / ``ValueError``)."""
+    settings.validate()
+    if settings.kind == "disturbance":
+        return None
+    return _resolve(settings.kind, float(settings.launch_weight), tuple(settings.campaign_config),
+                    tuple(settings.twin_config))
+
+
+def run_launch_trial(objective, profile, index, seed):
+    """Trial ``index`` (a launch) of an evaluation: the candidate ``profile`` (ProfileBody, None = bare chassis)
+    launched on the twin under :meth:`LaunchObjective.condition` with ``seed``; a :class:`TrialOutcome`."""
+    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+
+    condition = objective.condition(index)
+    result = simulate_valid_launch(condition, objective.twin, seed, profile=profile, use_profile=True)
+    return TrialOutcome(index=index, seed=seed, upright=bool(result.valid and result.upright),
+                        settled=bool(result.settled), steps=int(result.steps), tilt_deg=float(result.tilt_deg))
+
+
+def run_robust_trial(client, job, index, seed):
+    """Trial ``index`` of trial job ``job`` under the robustness draw of its ``seed``
+    (:mod:`~rollability_ros.core.sim.robustness`): a launch on the perturbed twin, or a disturbance trial in a
+    world built in ``client`` for the perturbed settings (which replaces any world held in ``client``)."""
+    robust = job.settings.objective.robust
+    if job.launch is not None and job.launch.is_launch(index):
+        twin = robust_settings_for(job.launch.twin, seed, robust)
+        return run_launch_trial(dataclasses.replace(job.launch, twin=twin), job.profile, index, seed)
+    settings = robust_settings_for(job.settings, seed, robust)
+    return run_trial(client, settings.robot_model(), job.profile, index, seed, settings.trial, settings.physics)

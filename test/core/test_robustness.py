@@ -1,0 +1,70 @@
+"""Robust fitness (every trial under its own draw of the unknowns) and the sensitivity study."""
+import dataclasses
+
+import pytest
+
+from rollability_ros.core.sim import evaluation
+from rollability_ros.core.sim.robustness import RobustSettings, draw, robust_settings_for
+from rollability_ros.core.sim.sensitivity import DEFAULT_LEVELS, sensitivity_rows, with_factor
+
+
+def robust_settings(**changes):
+    settings = evaluation.EvaluatorSettings()
+    robust = RobustSettings(enabled=True, **changes)
+    return dataclasses.replace(settings, objective=dataclasses.replace(settings.objective, robust=robust))
+
+
+def test_draws_are_common_random_numbers_spread_over_the_stated_ranges():
+    robust = RobustSettings(enabled=True)
+    draws = [draw(seed, robust, -0.015, 0.06) for seed in range(400)]
+    assert draw(7, robust, -0.015, 0.06) == draws[7]          # the same trial seed, the same unknowns
+    scales = [d.disturbance_scale for d in draws]
+    assert 0.5 <= min(scales) < 0.6 and 1.8 < max(scales) <= 2.0
+    assert {d.start_roll_deg for d in draws} == {180.0, 90.0}
+    assert {d.contact_model for d in draws} == {"per_contact", "per_body"}
+    assert all(abs(d.com_offset_z_m) < 0.45 * 0.06 for d in draws)
+    perturbed = robust_settings_for(evaluation.EvaluatorSettings(), 7, robust)
+    assert perturbed.trial.torque_max_nm == pytest.approx(2.0 * draws[7].disturbance_scale)
+    assert perturbed.trial.start_roll_deg == draws[7].start_roll_deg
+    assert perturbed.physics.contact_model == draws[7].contact_model
+
+
+def test_bad_robust_settings_are_refused():
+    with pytest.raises(ValueError, match="contact_models must list some of"):
+        RobustSettings(contact_models=["glue"]).validate()
+    with pytest.raises(ValueError, match="disturbance_scale_min"):
+        RobustSettings(disturbance_scale_min=3.0).validate()
+
+
+def test_robust_evaluation_runs_each_trial_under_its_own_draw():
+    pytest.importorskip("pybullet")
+    from rollability_ros.core.sim.trials import run_trial
+    from rollability_ros.core.sim.world import connect, disconnect
+
+    settings = robust_settings()
+    result = evaluation.evaluate_profile(None, 3, 11, settings)
+    client = connect()
+    try:
+        for outcome in result.trial_results:
+            own = robust_settings_for(settings, outcome.seed, settings.objective.robust)
+            direct = run_trial(client, own.robot_model(), None, outcome.index, outcome.seed, own.trial, own.physics)
+            assert direct == outcome
+    finally:
+        disconnect(client)
+    plain = evaluation.evaluate_profile(None, 3, 11, evaluation.EvaluatorSettings())
+    assert [o.steps for o in plain.trial_results] != [o.steps for o in result.trial_results]
+
+
+def test_sensitivity_varies_one_factor_at_a_time_and_adds_the_robust_fitness():
+    pytest.importorskip("pybullet")
+    base = evaluation.EvaluatorSettings()
+    assert with_factor(base, "disturbance_scale", 2.0).trial.force_max_n == 2 * base.trial.force_max_n
+    assert with_factor(base, "start_roll_deg", 90.0).trial.start_roll_deg == 90.0
+    assert with_factor(base, "start_roll_deg", 90.0).physics == base.physics
+    with pytest.raises(ValueError, match="unknown factor 'wind'"):
+        with_factor(base, "wind", 1.0)
+    rows = sensitivity_rows({"baseline": None}, base, 2, 3, levels={"start_roll_deg": (180.0, 90.0)})
+    assert [(r["factor"], r["level"]) for r in rows] == [("start_roll_deg", 180.0), ("start_roll_deg", 90.0),
+                                                         ("robust", "all factors drawn")]
+    assert all(r["trials"] == 2 and r["ci_low"] <= r["fitness"] <= r["ci_high"] for r in rows)
+    assert set(DEFAULT_LEVELS) == {"disturbance_scale", "start_roll_deg", "contact_model", "com_offset_z_m"}

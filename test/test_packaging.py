@@ -156,7 +156,7 @@ def test_installed_executables_run_the_session_graph(colcon_install, ros_node, t
     from action_msgs.msg import GoalStatus
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Imu
-    from std_srvs.srv import SetBool, Trigger
+    from std_srvs.srv import Trigger
 
     from rollability_ros.action import EvaluateProfile
     from rollability_ros.core.bags.reader import bag_info
@@ -215,17 +215,21 @@ def test_installed_executables_run_the_session_graph(colcon_install, ros_node, t
         assert ros_node.wait_for(lambda: generations, 600), started["optimizer"].log()[-3000:]
         assert generations[0].generation == 1   # generations are numbered from 1
 
-        # valve_controller: the arm service answers; the latched state arrives
-        arm = node.create_client(SetBool, f"{namespace}/valve/arm")
+        # valve_controller: the arm service answers a request signed with its session key; the latched state arrives
+        from rollability_ros.core.rig import valve_auth
+        from rollability_ros.nodes.valve_controller import auth_msg
+        from rollability_ros.srv import ArmValve
+
+        arm = node.create_client(ArmValve, f"{namespace}/valve/arm")
         assert arm.wait_for_service(timeout_sec=60)
-        assert arm.call(SetBool.Request(data=False), timeout_sec=60).success
+        signer = valve_auth.RequestSigner(valve_auth.load_session_key(valve_auth.default_key_path(namespace)))
+        assert arm.call(ArmValve.Request(arm=False, auth=auth_msg(signer.sign("disarm"))), timeout_sec=60).success
         assert ros_node.wait_for(lambda: states, 30) and states[-1].backend == "dry_run"
 
         # campaign_runner against the rig (sim backend); the outcome_logger stores the outcome
-        store = run_dir / "outcomes.sqlite"
         runner = NodeProcess([str(install.lib / "campaign_runner"), "--ros-args", "-r", f"__ns:={namespace}",
-                              "--params-file", str(install.config / "campaign.yaml"), "--params-file", str(config),
-                              "-p", f"runner.store_path:={store}"], tmp_path / "campaign_runner.log",
+                              "--params-file", str(install.config / "campaign.yaml"), "--params-file", str(config)],
+                             tmp_path / "campaign_runner.log",
                              env=install.env)
         started["campaign_runner"] = runner
         assert ros_node.wait_for(lambda: not runner.alive(), 300), runner.log()[-3000:]

@@ -91,10 +91,10 @@ def run(args):
     print(run.end_text(end))
     if end.result.best is None:
         return 0
-    print(f"stopped after {result.generations} generations, {result.evaluations} evaluations "
-          f"({', '.join(result.stop) or 'no criterion'}); best in-run fitness {best.fitness:.3f} over {best.trials} "
-          f"trials (first seen in generation {best.generation + 1}; a maximum of noisy estimates, biased upward: "
-          f"the selection's fresh re-evaluation is the number to quote)")
+    best = end.result.best
+    print(f"best in-run fitness {best.fitness:.3f} over {best.trials} trials (first seen in generation "
+          f"{run.generation_number(best.generation)}): a maximum of noisy estimates, biased upward; the selection's "
+          "fresh re-evaluation is the number to quote")
     if figure:
         print(f"convergence curve: {figure}")
     print(f"choose designs with: rollability select {run.run_dir}")

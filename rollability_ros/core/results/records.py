@@ -67,7 +67,7 @@ class LaunchOutcome:
     CLASSIFIERS = ("operator", "imu", "sim")
 
     @property
-    def valid(self):
+    def valid(self) -> bool:
         """False for an invalid launch (``note`` starts with :data:`INVALID_LAUNCH`): analysis leaves it out."""
         return not self.note.startswith(INVALID_LAUNCH)
 

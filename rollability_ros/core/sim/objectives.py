@@ -48,10 +48,10 @@ CANDIDATE = "candidate"
 class ObjectiveSettings:
     """The ``objective`` namespace: what a candidate evaluation measures (module docstring)."""
 
-    kind: str = "disturbance"
-    launch_weight: float = 0.5
-    campaign_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["campaign"])
-    twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"])
+    kind: str = dataclasses.field(default="disturbance", metadata={"description": "what one trial of a candidate is: disturbance (paper 2.1.3), launch_twin (a launch on the twin under the campaign conditions) or mix"})
+    launch_weight: float = dataclasses.field(default=0.5, metadata={"description": "mix only: share of each candidate's trials that are launches, fraction in (0, 1]", "range": (0.0, 1.0)})
+    campaign_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["campaign"], metadata={"description": "parameter file(s) whose campaign heights x speeds x angles are the launch conditions of launch trials"})
+    twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"], metadata={"description": "the launch twin's parameter files in load order; append a calibrated file to optimize on the calibrated twin"})
     robust: RobustSettings = dataclasses.field(default_factory=RobustSettings)
 
     def validate(self):

@@ -36,15 +36,15 @@ _ROBUST_STREAM = 0x7B0B
 class RobustSettings:
     """``objective.robust``: the distribution of the uncertain quantities (module docstring)."""
 
-    enabled: bool = False
-    disturbance_scale_min: float = 0.5
-    disturbance_scale_max: float = 2.0
-    start_rolls_deg: typing.List[float] = dataclasses.field(default_factory=lambda: [180.0, 90.0])
-    contact_models: typing.List[str] = dataclasses.field(default_factory=lambda: list(CONTACT_MODELS))
-    com_sigma_m: float = 0.003
-    foam_stiffness_factor_min: float = 0.5
-    foam_stiffness_factor_max: float = 2.0
-    foam_restitution_max: float = 0.3
+    enabled: bool = dataclasses.field(default=False, metadata={"description": "true: score every trial under its own seeded draw of the uncertain quantities (robust fitness)"})
+    disturbance_scale_min: float = dataclasses.field(default=0.5, metadata={"description": "lower end of the factor on the disturbance force and torque ranges (log-uniform), dimensionless", "range": (0.0, 100.0)})
+    disturbance_scale_max: float = dataclasses.field(default=2.0, metadata={"description": "upper end of the factor on the disturbance force and torque ranges (log-uniform), dimensionless", "range": (0.0, 100.0)})
+    start_rolls_deg: typing.List[float] = dataclasses.field(default_factory=lambda: [180.0, 90.0], metadata={"description": "start roll angles drawn with equal probability, deg (180 = upside down, 90 = on its side)"})
+    contact_models: typing.List[str] = dataclasses.field(default_factory=lambda: list(CONTACT_MODELS), metadata={"description": "readings of the paper's contact values drawn with equal probability: per_contact and/or per_body (config/sim.yaml)"})
+    com_sigma_m: float = dataclasses.field(default=0.003, metadata={"description": "standard deviation of the chassis's centre-of-mass height offset, m", "range": (0.0, 1.0)})
+    foam_stiffness_factor_min: float = dataclasses.field(default=0.5, metadata={"description": "launches: lower end of the factor on the foam's stiffness and damping (log-uniform), dimensionless", "range": (0.0, 100.0)})
+    foam_stiffness_factor_max: float = dataclasses.field(default=2.0, metadata={"description": "launches: upper end of the factor on the foam's stiffness and damping (log-uniform), dimensionless", "range": (0.0, 100.0)})
+    foam_restitution_max: float = dataclasses.field(default=0.3, metadata={"description": "launches: the foam's restitution is drawn uniform in [0, this], coefficient", "range": (0.0, 1.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

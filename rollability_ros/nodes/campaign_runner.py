@@ -187,15 +187,21 @@ def run_graph_campaign(node, spec, settings, ask=None, say=_say):
     plan = plan_trials(spec)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    acknowledgements = StoreAcknowledgements(lambda: executor.spin_once(timeout_sec=0.05), settings.store_timeout_s)
-    node.create_subscription(OutcomeStored, "outcomes_stored",
-                             lambda msg: acknowledgements.acknowledge(msg.run_id, msg.trial_id), RECORD_QOS)
-    stored = stored_trial_ids(node, executor, spec.run_id, settings.server_timeout_s)
-    refusal = resume_refusal(len(stored), settings.resume, spec.run_id)
-    if refusal:
-        raise ValueError(refusal)
-    rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s)
-    return run_campaign(plan, spec.run_id, stored, rig.launch, acknowledgements, ask=ask, say=say)
+    try:
+        acknowledgements = StoreAcknowledgements(lambda: executor.spin_once(timeout_sec=0.05),
+                                                 settings.store_timeout_s)
+        node.create_subscription(OutcomeStored, "outcomes_stored",
+                                 lambda msg: acknowledgements.acknowledge(msg.run_id, msg.trial_id), RECORD_QOS)
+        stored = stored_trial_ids(node, executor, spec.run_id, settings.server_timeout_s)
+        refusal = resume_refusal(len(stored), settings.resume, spec.run_id)
+        if refusal:
+            raise ValueError(refusal)
+        rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s)
+        return run_campaign(plan, spec.run_id, stored, rig.launch, acknowledgements, ask=ask, say=say)
+    finally:
+        # while the context is valid: an executor left to the garbage collector after rclpy's shutdown prints an
+        # InvalidHandle traceback at exit
+        executor.shutdown()
 
 
 def main(args=None):

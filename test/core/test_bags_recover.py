@@ -35,17 +35,7 @@ WRITER_SCRIPT = textwrap.dedent("""
 
 
 def test_sigkill_of_writer_loses_only_the_open_chunk_and_keeps_all_metadata(tmp_path):
-    bag = tmp_path / "killed"
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")]))
-    process = subprocess.Popen([sys.executable, "-c", WRITER_SCRIPT, str(bag)], stdout=subprocess.PIPE, text=True,
-                               env=env)
-    try:
-        assert process.stdout.readline().strip() == "acknowledged 400"
-        assert process.stdout.readline().strip() == "unflushed 50"
-    finally:
-        process.send_signal(signal.SIGKILL)
-        process.wait(timeout=30)
-    assert process.returncode == -signal.SIGKILL
+    bag = _killed_writer_bag(tmp_path)
 
     report = recover(bag)
     statuses = [f["status"] for f in report["files"]]
@@ -227,8 +217,8 @@ def test_bag_recover_cli_exits_non_zero_when_nothing_can_be_saved(tmp_path):
     assert path.read_bytes() == b"\x00" * 5000
 
 
-# --- issue 17: a restarted writer continues the bag its killed predecessor left open -----------------------------
 def _killed_writer_bag(tmp_path):
+    """A bag whose writer acknowledged 400 messages, buffered 50 more and was SIGKILLed."""
     bag = tmp_path / "killed"
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")]))
     process = subprocess.Popen([sys.executable, "-c", WRITER_SCRIPT, str(bag)], stdout=subprocess.PIPE, text=True,
@@ -239,6 +229,7 @@ def _killed_writer_bag(tmp_path):
     finally:
         process.send_signal(signal.SIGKILL)
         process.wait(timeout=30)
+    assert process.returncode == -signal.SIGKILL
     return bag
 
 

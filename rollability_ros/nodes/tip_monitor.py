@@ -157,8 +157,7 @@ class TipMonitorNode(Node):
                 self.counts["refused_samples"] += 1
             self.get_logger().warning(f"refused IMU message: {exc}", throttle_duration_sec=5.0)
             return
-        orientation_unusable = sample.orientation is None and not all(
-            math.isfinite(c) for c in _convert.quaternion_to_tuple(msg.orientation))
+        orientation_unusable = sample.orientation_unusable
         if orientation_unusable:
             self.get_logger().warning("IMU orientation is not finite: tilt from gravity for such samples",
                                       throttle_duration_sec=5.0)

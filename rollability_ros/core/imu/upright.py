@@ -108,7 +108,8 @@ class ImuSample:
     """One IMU reading (``sensor_msgs/Imu``), in the IMU's frame.
 
     ``orientation`` is world<-imu (x, y, z, w) or None when the IMU gives none (see :func:`orientation_if_valid`);
-    ``angular_velocity_radps`` in rad/s, ``linear_acceleration_mps2`` in m/s^2 (gravity reaction included).
+    ``angular_velocity_radps`` in rad/s, ``linear_acceleration_mps2`` in m/s^2 (gravity reaction included);
+    ``orientation_unusable``: the message had a non-finite orientation, dropped for the tilt from gravity.
     """
 
     stamp_s: float
@@ -116,6 +117,7 @@ class ImuSample:
     angular_velocity_radps: tuple
     linear_acceleration_mps2: tuple
     frame_id: str = ""
+    orientation_unusable: bool = False
 
 
 def imu_sample_from_message(msg: typing.Any, arrival_s: float) -> ImuSample:
@@ -128,7 +130,8 @@ def imu_sample_from_message(msg: typing.Any, arrival_s: float) -> ImuSample:
     stamp_s = stamp_to_s(msg.header.stamp) or arrival_s
     q = msg.orientation
     orientation = None
-    if all(math.isfinite(component) for component in (q.x, q.y, q.z, q.w)):
+    unusable = not all(math.isfinite(component) for component in (q.x, q.y, q.z, q.w))
+    if not unusable:
         try:
             orientation = orientation_if_valid((q.x, q.y, q.z, q.w), list(msg.orientation_covariance))
         except ValueError as exc:
@@ -137,7 +140,7 @@ def imu_sample_from_message(msg: typing.Any, arrival_s: float) -> ImuSample:
     return ImuSample(stamp_s=stamp_s, orientation=orientation,
                      angular_velocity_radps=_vector3((w.x, w.y, w.z), "angular_velocity"),
                      linear_acceleration_mps2=_vector3((a.x, a.y, a.z), "linear_acceleration"),
-                     frame_id=msg.header.frame_id)
+                     frame_id=msg.header.frame_id, orientation_unusable=unusable)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -217,7 +217,7 @@ def test_installed_executables_run_the_session_graph(colcon_install, ros_node, t
 
         # valve_controller: the arm service answers a request signed with its session key; the latched state arrives
         from rollability_ros.core.rig import valve_auth
-        from rollability_ros.nodes.valve_controller import auth_msg
+        from rollability_ros.nodes._convert import auth_msg
         from rollability_ros.srv import ArmValve
 
         arm = node.create_client(ArmValve, f"{namespace}/valve/arm")

@@ -31,7 +31,7 @@ class ValveClient:
         """A ``ValveAuth`` signed with the key file the running valve wrote (or an empty one, unsigned)."""
         from rollability_ros.core.rig import valve_auth
         from rollability_ros.msg import ValveAuth
-        from rollability_ros.nodes.valve_controller import auth_msg
+        from rollability_ros.nodes._convert import auth_msg
 
         if not self.signed:
             return ValveAuth()

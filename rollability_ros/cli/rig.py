@@ -39,7 +39,7 @@ def _request(args, sign=False):
     from std_srvs.srv import Trigger
 
     from rollability_ros.core.rig import valve_auth
-    from rollability_ros.nodes.valve_controller import auth_msg
+    from rollability_ros.nodes._convert import auth_msg
     from rollability_ros.srv import ArmValve, RecordOutcome
 
     if args.action in ("arm", "disarm"):

@@ -9,7 +9,9 @@ from geometry_msgs.msg import Quaternion
 from std_msgs.msg import Header
 
 from rollability_ros.core.results import record_messages as mapping
-from rollability_ros.msg import CandidateResult, GenerationSummary, LaunchCondition, LaunchOutcome, TipEvent
+from rollability_ros.core.rig import valve_auth
+from rollability_ros.msg import (CandidateResult, GenerationSummary, LaunchCondition, LaunchOutcome, TipEvent,
+                                  ValveAuth)
 
 _CLASSES = {mapping.OUTCOME_TYPE: LaunchOutcome, mapping.CANDIDATE_TYPE: CandidateResult,
             mapping.GENERATION_TYPE: GenerationSummary, mapping.TIP_EVENT_TYPE: TipEvent,
@@ -68,3 +70,13 @@ def generation_from_msg(msg):
 def tip_event_from_msg(msg):
     """``TipEvent`` -> validated record."""
     return mapping.record_from_message(mapping.TIP_EVENT_TYPE, msg)
+
+
+def auth_msg(signature):
+    """:class:`~rollability_ros.core.rig.valve_auth.Signature` -> ``rollability_ros/ValveAuth``."""
+    return ValveAuth(session=signature.session, counter=signature.counter, mac=signature.mac)
+
+
+def signature_from_msg(auth):
+    """``rollability_ros/ValveAuth`` -> :class:`~rollability_ros.core.rig.valve_auth.Signature`."""
+    return valve_auth.Signature(auth.session, int(auth.counter), auth.mac)

@@ -54,7 +54,7 @@ from rollability_ros.msg import LaunchOutcome, ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
                                             run_node)
-from rollability_ros.nodes.valve_controller import auth_msg
+from rollability_ros.nodes._convert import auth_msg
 from rollability_ros.srv import ArmValve, FireValve, RecordOutcome
 
 

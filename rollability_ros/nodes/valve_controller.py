@@ -42,21 +42,12 @@ from std_msgs.msg import Bool
 from rollability_ros.core.rig import valve_auth
 from rollability_ros.core.rig.valve import ValveConfig
 from rollability_ros.core.rig.valve_backends import make_controller
-from rollability_ros.msg import ValveAuth, ValveHeartbeat, ValveState
+from rollability_ros.msg import ValveHeartbeat, ValveState
+from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import LATCHED_QOS, ParameterError, declare_settings, run_node
 from rollability_ros.srv import ArmValve, FireValve
 
 DIAGNOSTICS_PERIOD_S = 1.0
-
-
-def auth_msg(signature):
-    """:class:`~rollability_ros.core.rig.valve_auth.Signature` -> ``rollability_ros/ValveAuth``."""
-    return ValveAuth(session=signature.session, counter=signature.counter, mac=signature.mac)
-
-
-def signature_from_msg(auth):
-    """``rollability_ros/ValveAuth`` -> :class:`~rollability_ros.core.rig.valve_auth.Signature`."""
-    return valve_auth.Signature(auth.session, int(auth.counter), auth.mac)
 
 
 def key_path(node, config):
@@ -153,7 +144,7 @@ class ValveControllerNode(Node):
         self.diagnostics_publisher.publish(array)
 
     def _authentic(self, auth, command, pulse_ms=None):
-        ok, reason = self.verifier.verify(signature_from_msg(auth), command, pulse_ms)
+        ok, reason = self.verifier.verify(_convert.signature_from_msg(auth), command, pulse_ms)
         if not ok:
             self.get_logger().warning(f"refused {command} request: {reason}", throttle_duration_sec=1.0)
         return ok, reason

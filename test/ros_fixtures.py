@@ -85,6 +85,11 @@ class NodeProcess:
             try:
                 self.process.wait(timeout=timeout_s)
             except subprocess.TimeoutExpired:
+                self.signal(signal.SIGUSR1)    # a node prints every thread's stack first (what it hangs in)
+                try:
+                    self.process.wait(timeout=2)
+                except subprocess.TimeoutExpired:
+                    pass
                 self.signal(signal.SIGKILL)
                 self.process.wait()
         self._log.close()

@@ -5,6 +5,7 @@ description, validates them at start-up with the dataclass's own checks, and ref
 calls that would make them invalid (``SetParametersResult(successful=False, reason=...)``).
 """
 import dataclasses
+import faulthandler
 import math
 import os
 import signal
@@ -166,6 +167,10 @@ def finite(value):
 #: Once a node starts stopping, the most its shutdown may take before the process exits anyway (s).
 SHUTDOWN_GRACE_S = 25.0
 
+#: After the grace period, how much longer a C-level watchdog waits before it ends a process whose Python threads
+#: are all stuck (s).
+HARD_DEADLINE_EXTRA_S = 5.0
+
 #: How often a node's main thread looks for a stop signal while the executor spins in its own thread (s).
 STOP_POLL_S = 0.1
 
@@ -173,6 +178,34 @@ STOP_POLL_S = 0.1
 def _exit_after_grace():
     print(f"shutdown took longer than {SHUTDOWN_GRACE_S:g} s: exiting now", file=sys.stderr, flush=True)
     os._exit(1)
+
+
+def _arm_hard_deadline():
+    """Exit ``HARD_DEADLINE_EXTRA_S`` after the grace period even when no Python thread can run any more.
+
+    The grace timer above is a Python thread: it needs the GIL, so a C call that blocks while holding it (a
+    middleware call that never returns) would keep a stopped node alive until someone sends SIGKILL. faulthandler's
+    watchdog is a C thread: it prints every Python thread's stack (what hung) and exits 1 without the GIL. Like
+    the grace timer it stays armed after ``run_node`` returns, so interpreter exit is bounded too.
+    """
+    stream = sys.stderr if _has_fileno(sys.stderr) else sys.__stderr__
+    if _has_fileno(stream):
+        faulthandler.dump_traceback_later(SHUTDOWN_GRACE_S + HARD_DEADLINE_EXTRA_S, exit=True, file=stream)
+
+
+def _dump_stacks_on_sigusr1():
+    """``kill -USR1 <pid>`` prints every thread's Python stack to stderr (a C-level handler: it works even when
+    the node hangs in a C call holding the GIL), to see where a stuck node is."""
+    stream = sys.stderr if _has_fileno(sys.stderr) else sys.__stderr__
+    if _has_fileno(stream) and threading.current_thread() is threading.main_thread():
+        faulthandler.register(signal.SIGUSR1, file=stream, all_threads=True)
+
+
+def _has_fileno(stream):
+    try:
+        return stream is not None and stream.fileno() >= 0
+    except (AttributeError, OSError, ValueError):
+        return False
 
 
 def init_ros(args=None):
@@ -223,6 +256,7 @@ def run_node(node_factory, args=None, threads=4):
     and exits 2.
     """
     init_ros(args)
+    _dump_stacks_on_sigusr1()
     stopped = threading.Event()   # set by the spinner when the executor stops, whoever stopped it
     failures = []                 # what ended the spin other than a stop
     signalled = []                # a handler only appends: taking a lock in a signal handler can deadlock
@@ -253,6 +287,7 @@ def run_node(node_factory, args=None, threads=4):
         deadline = threading.Timer(SHUTDOWN_GRACE_S, _exit_after_grace)
         deadline.daemon = True                             # never what keeps the process alive
         deadline.start()
+        _arm_hard_deadline()
         if node is not None:
             close = getattr(node, "close", None)
             if callable(close):

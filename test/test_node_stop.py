@@ -1,0 +1,72 @@
+"""How a node process stops when something inside it hangs (nodes/_support.run_node)."""
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+pytest.importorskip("rclpy")
+
+# A node whose close() blocks in a C call that holds the GIL (ctypes.PyDLL never releases it), as a middleware call
+# that never returns would: no Python thread can run, so only a C-level watchdog can end the process.
+_STUCK_NODE = textwrap.dedent("""
+    import ctypes, sys
+    from rclpy.node import Node
+    from rollability_ros.nodes import _support
+
+    _support.SHUTDOWN_GRACE_S = float(sys.argv[1])
+    _support.HARD_DEADLINE_EXTRA_S = float(sys.argv[2])
+
+    class Stuck(Node):
+        def __init__(self):
+            super().__init__("stuck_on_close")
+            print("ready", flush=True)
+
+        def close(self):
+            ctypes.PyDLL(None).sleep(600)
+
+    sys.exit(_support.run_node(Stuck))
+""")
+
+
+def _start(tmp_path, *args):
+    log = tmp_path / "node.log"
+    stream = open(log, "wb")
+    process = subprocess.Popen([sys.executable, "-c", _STUCK_NODE, *map(str, args)], stdout=stream,
+                               stderr=subprocess.STDOUT, start_new_session=True)
+    deadline = time.monotonic() + 60
+    while "ready" not in log.read_text(errors="replace"):
+        assert process.poll() is None and time.monotonic() < deadline, log.read_text(errors="replace")
+        time.sleep(0.05)
+    return process, log
+
+
+def test_a_node_stuck_in_a_call_that_holds_the_gil_still_exits_after_its_grace_period(tmp_path):
+    process, log = _start(tmp_path, 0.5, 1.0)
+    try:
+        process.send_signal(signal.SIGINT)
+        code = process.wait(timeout=30)       # the watchdog ends it 1.5 s after the signal; SIGKILL is not needed
+    finally:
+        if process.poll() is None:
+            process.kill()
+    text = log.read_text(errors="replace")
+    assert code == 1, text
+    assert "Timeout" in text and "in close" in text, text   # every thread's stack says where it hung
+
+
+def test_sigusr1_prints_every_threads_stack_and_the_node_runs_on(tmp_path):
+    process, log = _start(tmp_path, 25, 5)
+    try:
+        process.send_signal(signal.SIGUSR1)
+        deadline = time.monotonic() + 30
+        while "in run_node" not in log.read_text(errors="replace") and time.monotonic() < deadline:
+            time.sleep(0.05)
+        text = log.read_text(errors="replace")
+        assert "most recent call first" in text and "in run_node" in text, text   # the main thread's stack too
+        time.sleep(0.5)
+        assert process.poll() is None, text
+    finally:
+        process.kill()
+        process.wait()

@@ -1,9 +1,18 @@
 #!/usr/bin/env bash
-# Sets everything up (scripts/setup.sh), then runs the whole test suite. Extra arguments go to pytest.
+# Sets everything up (scripts/setup.sh), then runs the test suite. Extra arguments go to pytest.
+#   ./scripts/test.sh           every test except the minutes-long ones marked `slow` (the README's test command)
+#   ./scripts/test.sh --slow    only the `slow` ones (a kill -9 soak, a calibration recovery, a study killed twice)
+#   ./scripts/test.sh --all     all of them
+# .ci/run runs the first two, so CI runs every test.
 # The report test opens the HTML report in a real headless browser (Debian's chromium); when chromium is missing
 # and this runs as root with apt-get available, it is installed here so nothing needs installing by hand.
 set -euo pipefail
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+selection=(-m "not slow")
+case "${1:-}" in
+  --slow) selection=(-m slow); shift ;;
+  --all) selection=(); shift ;;
+esac
 "$repo/scripts/setup.sh"
 if ! command -v chromium >/dev/null 2>&1 && [ ! -x /usr/bin/chromium ]; then
   if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
@@ -15,4 +24,4 @@ if ! command -v chromium >/dev/null 2>&1 && [ ! -x /usr/bin/chromium ]; then
   fi
 fi
 cd "$repo"
-exec "$repo/.venv/bin/python" -m pytest "$@"
+exec "$repo/.venv/bin/python" -m pytest ${selection[@]+"${selection[@]}"} "$@"

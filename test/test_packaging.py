@@ -86,7 +86,6 @@ def colcon_install(tmp_path_factory):
     return ColconInstall(workspace / "install", run_env)
 
 
-@pytest.mark.slow
 def test_colcon_build_over_the_venv_underlay(colcon_install):
     install = colcon_install.package
     node_modules = sorted(p.stem for p in (REPO_ROOT / "rollability_ros" / "nodes").glob("*.py")
@@ -146,7 +145,6 @@ def _wait_for_text(process, text, timeout_s=120):
     assert text in process.log(), process.log()[-3000:]
 
 
-@pytest.mark.slow
 def test_installed_executables_run_the_session_graph(colcon_install, ros_node, tmp_path):
     """What `ros2 run` / `ros2 launch sim_bringup.launch.py` start, from the install space: each installed
     executable file itself (not `python -m`), with the install's environment and the launch files' exact

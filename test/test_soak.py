@@ -3,8 +3,8 @@ seeded random moments over several rounds (each ended round is resumed), then ch
 
 Checked at the end: every outcome the campaign runner reported as stored (its acknowledged trials, counted from
 its own log) is in the logger's store exactly once, and every stored outcome is in one of the study's bags or
-inside a recording gap the bags report. Minutes long: marked ``slow`` (in the default run, which CI runs;
-deselect locally with ``-m "not slow"``). ``SOAK_FIGURES`` lines in the output give rounds, kills, outcomes and
+inside a recording gap the bags report. Minutes long: marked ``slow`` (left out of ``./scripts/test.sh``;
+``./scripts/test.sh --slow`` and CI run it). ``SOAK_FIGURES`` lines in the output give rounds, kills, outcomes and
 losses for the record.
 """
 import os

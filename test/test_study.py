@@ -6,7 +6,7 @@ import subprocess
 import sys
 import time
 
-
+import pytest
 from conftest import REPO_ROOT
 
 MINI = str(REPO_ROOT / "test" / "resources" / "mini_study.yaml")
@@ -124,6 +124,7 @@ def _kill_when(process, log, ready, what):
     assert not _still_running(log.read_text()), log.read_text()
 
 
+@pytest.mark.slow
 def test_a_study_killed_twice_resumes_to_the_same_complete_result(tmp_path):
     """kill -9 mid-optimization, resume, kill -9 mid-campaign, resume: every trial once, every bag readable."""
     from rollability_ros.core.results import report

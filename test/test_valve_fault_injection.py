@@ -288,7 +288,13 @@ def test_stray_participant_never_gets_the_relay_on(ros_node, start_node, relay):
             calls = int(stray.stdout.split("stray: ")[1].split(" calls")[0])
             assert calls >= 9, stray.stdout
             assert not relay.relay_intervals(), f"the stray process got the relay on ({phase})"
-            assert valve.last().armed == phase.startswith("armed"), "the stray could neither arm nor disarm"
+            last = valve.last()
+            if phase.startswith("armed") and not last.armed:
+                # on a starved machine the board may miss the computer's keep-alive and disarm itself: fail-safe,
+                # and not the stray's doing (every stray request was refused: " 0 succeeded" above)
+                assert last.fault and "fault keepalive" in last.fault_reason, ("the stray disarmed the valve", last)
+            else:
+                assert last.armed == phase.startswith("armed"), ("the stray could arm or disarm", last)
         MEASURED.append(("stray participant: unsigned / forged / replayed heartbeats, arm, fire, disarm "
                          f"({calls} calls per phase)", "never on", "-"))
         # an e-stop latched by the operator cannot be cleared by the stray's disarm

@@ -18,8 +18,8 @@ def test_eta_and_text():
     assert eta_s(4, 30, 80.0) == pytest.approx(520.0)      # 20 s per generation, 26 to go
     assert eta_s(0, 30, 80.0) is None and eta_s(5, 0, 10.0) is None and eta_s(30, 30, 99.0) == 0.0
     assert format_duration(42) == "42 s" and format_duration(600) == "10 min" and format_duration(7200) == "2.0 h"
-    text = JobProgress("optimizing", 4, 30, 0.851, 480, eta_s=520.0).text()
-    assert text == "optimizing | generation 4/30 | best 0.85 | 480 trials stored | ETA 9 min"
+    text = JobProgress("optimizing", 4, 30, 0.851, 480, eta_s=520.0, trials_label="simulated trials evaluated").text()
+    assert text == "optimizing | generation 4/30 | best 0.85 | 480 simulated trials evaluated | ETA 9 min"
     assert JobProgress("launch campaign", trials_stored=12, trials_total=36).text() == \
         "launch campaign | 12/36 trials stored | ETA unknown"
 
@@ -74,6 +74,7 @@ def test_the_study_shows_every_generation_of_its_store(tmp_path):
     run.close()
     shown = study._progress_optimization()
     assert [p.generation for p in shown] == [1, 2, 3, 4] and all(p.max_generations == 4 for p in shown)
+    assert "simulated trials evaluated" in shown[-1].text()   # not "stored": no launch has happened yet
     assert shown[-1].trials_stored == sum(c.trials for c in run_candidates(study.optimization_dir))
     assert shown[-1].eta_s == 0.0 and shown[0].eta_s > 0
     assert [p.generation for p in study._progress_optimization()] == [4]   # nothing new: the latest again

@@ -23,6 +23,7 @@ class JobProgress:
     trials_stored: int | None = None       # trials in the store (simulated trials or launches)
     trials_total: int = 0                  # 0 = open-ended
     eta_s: float | None = None
+    trials_label: str = "trials stored"     # what the trials are: launches stored, or simulated trials evaluated
 
     def text(self):
         """The status as one line, e.g. ``optimizing | generation 4/30 | best 0.85 | 480 trials stored | ETA 3 min``."""
@@ -33,7 +34,7 @@ class JobProgress:
             parts.append(f"best {self.best_so_far:.2f}")
         if self.trials_stored is not None:
             parts.append(f"{self.trials_stored}" + (f"/{self.trials_total}" if self.trials_total else "")
-                         + " trials stored")
+                         + f" {self.trials_label}")
         parts.append(f"ETA {format_duration(self.eta_s)}" if self.eta_s is not None else "ETA unknown")
         return " | ".join(parts)
 

@@ -157,7 +157,8 @@ class Study:
         new = [g for g in generations if g.generation > self._shown_generation] or generations[-1:]
         self._shown_generation = generations[-1].generation
         return [JobProgress("optimizing", g.generation, cap, g.best_so_far, trials,
-                            eta_s=eta_s(g.generation, cap, g.elapsed_s)) for g in new]
+                            eta_s=eta_s(g.generation, cap, g.elapsed_s), trials_label="simulated trials evaluated")
+                for g in new]
 
     def _progress_campaign(self, total):
         if not os.path.isfile(self.store_path):

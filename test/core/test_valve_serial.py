@@ -202,3 +202,33 @@ def test_watchdog_trip_switches_relay_off(sim):
         "cut by the 80 ms watchdog, not the 900 ms pulse"
     assert not sim.relay_on()
     controller.shutdown()
+
+
+class _LatePort:
+    """A pyserial-like port whose reader only runs again after the answer deadline (a thread that waited for the
+    GIL on a busy machine), although the whole answer had arrived in time."""
+
+    def __init__(self, answer, late_s):
+        self.pending, self.late_s = answer, late_s
+
+    @property
+    def in_waiting(self):
+        return len(self.pending) if self.pending and not self.late_s else 0
+
+    def read(self, size):
+        if self.late_s:
+            time.sleep(self.late_s)
+            self.late_s = 0
+        data, self.pending = self.pending[:size], self.pending[size:]
+        return data
+
+
+def test_an_answer_that_arrived_in_time_is_not_a_timeout_when_the_reader_runs_late():
+    from rollability_ros.core.rig.valve_backends import _SerialPort
+
+    answer = b"OK KA armed=1 relay=0 fault=none\n"
+    port = _SerialPort(_LatePort(answer, late_s=3 * ANSWER_TIMEOUT_S), ANSWER_TIMEOUT_S)
+    assert port.read_until(b"\n") == answer   # byte by byte it would stop after the first byte: "partial answer"
+    silent = _SerialPort(_LatePort(b"", late_s=0), ANSWER_TIMEOUT_S)
+    started = time.monotonic()
+    assert silent.read_until(b"\n") == b"" and time.monotonic() - started < 1.0   # silence still times out

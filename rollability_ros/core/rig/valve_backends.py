@@ -209,7 +209,12 @@ class SerialRelayBackend:
     def _open_port(self):
         """The port object (``write``, ``flush``, ``read_until``, ``reset_input_buffer``, ``close``)."""
         serial = require("serial", feature="the serial_relay valve backend")
-        return serial.Serial(self.port, self.baud, timeout=self.timeout_s, write_timeout=self.timeout_s)
+        # pyserial checks its write timeout after the write returns, so a thread that waited for the GIL longer
+        # than the timeout would report a write that went through as failed: the write gets a wider bound (a
+        # port that really blocks for a second is dead; the board has dropped the relay long before)
+        port = serial.Serial(self.port, self.baud, timeout=READ_POLL_S,
+                             write_timeout=max(self.timeout_s, MIN_WRITE_TIMEOUT_S))
+        return _SerialPort(port, self.timeout_s)
 
     def open(self):
         """Open the port, check the board's protocol and limits, start the keep-alive thread."""
@@ -366,13 +371,85 @@ class SerialRelayBackend:
             self._link = "released"
 
 
-class _PipePort:
+#: How long one read of the serial port waits for a first byte, s (answers are read in chunks of what arrived).
+READ_POLL_S = 0.01
+
+#: Least write timeout of the serial port, s.
+MIN_WRITE_TIMEOUT_S = 1.0
+
+
+class _LinePort:
+    """Reads answer lines in chunks of whatever has arrived, bounded by ``timeout_s``.
+
+    Bytes that arrived before the deadline count even when this thread only runs again after it: on a busy
+    machine the keep-alive thread may wait tens of ms for the GIL, and reading an answer byte by byte (pyserial's
+    ``read_until``) would pay that wait per byte and report a board that answered at once as silent.
+    """
+
+    def __init__(self, timeout_s):
+        self.timeout_s = timeout_s
+        self._buffer = b""
+
+    def _read_available(self, wait_s):
+        """Append what has arrived (waiting up to about ``wait_s`` for a first byte); True when anything came."""
+        raise NotImplementedError
+
+    def read_until(self, terminator=b"\n"):
+        """Bytes up to and including ``terminator``, or what arrived within ``timeout_s``."""
+        deadline = time.monotonic() + self.timeout_s
+        while terminator not in self._buffer:
+            remaining = deadline - time.monotonic()
+            if not self._read_available(max(0.0, remaining)) and remaining <= 0:
+                break
+        if terminator in self._buffer:
+            line, self._buffer = self._buffer.split(terminator, 1)
+            return line + terminator
+        partial, self._buffer = self._buffer, b""
+        return partial
+
+
+class _SerialPort(_LinePort):
+    """A pyserial port (opened with a short read timeout, :data:`READ_POLL_S`) with chunked line reads."""
+
+    def __init__(self, port, timeout_s):
+        super().__init__(timeout_s)
+        self.port = port
+
+    def _read_available(self, wait_s):
+        waiting = self.port.in_waiting
+        if waiting:
+            data = self.port.read(waiting)
+        elif wait_s > 0:
+            data = self.port.read(1)      # returns within READ_POLL_S when nothing comes
+        else:
+            data = b""
+        self._buffer += data
+        return bool(data)
+
+    def reset_input_buffer(self):
+        """Drop everything received so far."""
+        self.port.reset_input_buffer()
+        self._buffer = b""
+
+    def write(self, data):
+        """Send bytes to the board."""
+        self.port.write(data)
+
+    def flush(self):
+        """Wait until the bytes are sent."""
+        self.port.flush()
+
+    def close(self):
+        """Close the port."""
+        self.port.close()
+
+
+class _PipePort(_LinePort):
     """A child process's stdin / stdout as a serial-like port (the subset :class:`SerialRelayBackend` uses)."""
 
     def __init__(self, process, timeout_s):
+        super().__init__(timeout_s)
         self.process = process
-        self.timeout_s = timeout_s
-        self._buffer = b""
 
     def _read_available(self, wait_s):
         fd = self.process.stdout.fileno()
@@ -400,19 +477,6 @@ class _PipePort:
 
     def flush(self):
         """Nothing to flush (unbuffered writes)."""
-
-    def read_until(self, terminator=b"\n"):
-        """Bytes up to and including ``terminator``, or what arrived within ``timeout_s``."""
-        deadline = time.monotonic() + self.timeout_s
-        while terminator not in self._buffer:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0 or not self._read_available(remaining):
-                break
-        if terminator in self._buffer:
-            line, self._buffer = self._buffer.split(terminator, 1)
-            return line + terminator
-        partial, self._buffer = self._buffer, b""
-        return partial
 
     def close(self):
         """Close the holder's input (it drives the line inactive and exits); kill it if it does not."""

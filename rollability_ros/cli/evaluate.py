@@ -42,6 +42,10 @@ def run(args):
 
     settings = evaluation.load_settings(["sim", "robot", "evaluator", *args.config])
     trials = args.trials if args.trials is not None else settings.evaluator.trials
+    if args.designs is not None:
+        if not args.engines:
+            raise ValueError("--designs compares engines: give --engines too (e.g. --engines pybullet,mujoco)")
+        return _compare_designs(args, settings, trials)
     if args.stl is not None:
         mesh = geometry.load_profile_mesh(args.stl, units=args.stl_units)
         label = args.stl
@@ -113,6 +117,38 @@ def _compare_engines(args, settings, mesh, trials, label):
     return 0
 
 
+def _compare_designs(args, settings, trials):
+    """The baseline and every design of a designs.yaml in two engines on the same seeds: print the agreement
+    summary and write it next to the designs file (``engine_agreement.csv``, read by ``rollability report``)."""
+    import dataclasses
+    import os
+    from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
+    from rollability_ros.core.results import engine_agreement
+    from rollability_ros.core.sim import evaluation
+
+    engines = _engine_list(args.engines)
+    sources = DesignSources(designs_file=args.designs)
+    results = {}
+    executor = evaluation.make_executor(settings.evaluator, args.workers)   # one worker pool for every evaluation
+    try:
+        for design in configuration_ids(sources):
+            mesh = profile_mesh_for(design, sources)
+            results[design] = {}
+            for engine in engines:
+                engine_settings = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics,
+                                                                                             engine=engine))
+                results[design][engine] = evaluation.evaluate_mesh(mesh, trials, args.seed, engine_settings,
+                                                                   executor=executor)
+    finally:
+        executor.close()
+    rows = engine_agreement.table_rows(results, args.seed)
+    path = engine_agreement.write_table(
+        os.path.join(os.path.dirname(os.path.abspath(args.designs)), engine_agreement.TABLE_FILENAME), rows)
+    print("\n".join(engine_agreement.summary_lines(rows)))
+    print(f"wrote {path} (rollability report shows it)")
+    return 0
+
+
 def register(subparsers):
     """Add the ``evaluate`` verb."""
     parser = subparsers.add_parser(
@@ -127,6 +163,9 @@ def register(subparsers):
     source.add_argument("--stl", metavar="FILE", help="a profile solid (STL, OBJ or 3MF, base on z = 0; units "
                         "from the file's header, else --stl-units)")
     source.add_argument("--baseline", action="store_true", help="the chassis without a profile")
+    source.add_argument("--designs", metavar="DESIGNS_YAML",
+                        help="the baseline and every design of a designs.yaml (written by select); with --engines: "
+                             "writes engine_agreement.csv beside it for the report")
     parser.add_argument("--stl-units", choices=("mm", "m"), help="length unit of --stl when the file does not "
                         "declare one (default: the file's own, else m)")
     parser.add_argument("--trials", type=int, help="number of trials (default: evaluator.trials, 60)")

@@ -96,3 +96,31 @@ def test_evaluate_engines_prints_both_fitnesses_and_the_agreement(capsys):
     assert "pybullet  fitness" in out and "mujoco    fitness" in out and "agreement " in out and "/6 trials" in out
     assert main(["evaluate", "--baseline", "--engines", "pybullet,ode"]) == 2
     assert "--engines needs two different engines" in capsys.readouterr().err
+
+
+def test_evaluate_designs_in_two_engines_writes_the_table_the_report_reads(tmp_path, capsys):
+    import types
+
+    import numpy as np
+    import yaml
+
+    from rollability_ros.cli import main
+    from rollability_ros.core.optimization.selection import designs_document
+    from rollability_ros.core.profile.geometry import ProfileGrid
+    from rollability_ros.core.results.engine_agreement import read_table
+
+    grid = ProfileGrid(rows=4, cols=3)
+    chosen = [types.SimpleNamespace(label="A", reported=(9, 10, "log"), design=types.SimpleNamespace(
+        heights=tuple(np.repeat(np.linspace(0.05, 0.4, grid.rows), grid.cols))))]
+    designs = tmp_path / "designs.yaml"
+    designs.write_text(yaml.safe_dump(designs_document(types.SimpleNamespace(designs=chosen), grid, "run-1")))
+    assert main(["evaluate", "--designs", str(designs), "--engines", "pybullet,mujoco", "--trials", "4",
+                 "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "cross-engine agreement (simulated" in out and "a rank statistic needs at least 3" in out
+    rows = read_table(str(tmp_path / "engine_agreement.csv"))
+    assert sorted((r.design, r.engine) for r in rows) == [("A", "mujoco"), ("A", "pybullet"),
+                                                          ("baseline", "mujoco"), ("baseline", "pybullet")]
+    assert all(r.trials == 4 for r in rows)
+    assert main(["evaluate", "--designs", str(designs), "--trials", "4"]) == 2      # without --engines
+    assert "--designs compares engines" in capsys.readouterr().err

@@ -43,6 +43,7 @@ class ReportData:
     sim_fitness: dict = dataclasses.field(default_factory=dict)
     geometry: list = dataclasses.field(default_factory=list)
     design_estimates: list = dataclasses.field(default_factory=list)   # DesignEstimate per configuration
+    engine_rows: list = dataclasses.field(default_factory=list)   # engine_agreement.EngineRow, design x engine
 
 
 @dataclasses.dataclass(frozen=True)
@@ -171,7 +172,20 @@ def load_report_data(source, run_id=None):
     table3 = os.path.join(source, DESIGNS_TABLE)
     if kind == "store" and os.path.isdir(source) and os.path.isfile(table3) and not data.geometry:
         use_geometry_csv(data, table3)
+    data.engine_rows = _engine_rows(source)
     return data
+
+
+def _engine_rows(source):
+    """The cross-engine table (``rollability evaluate --designs ... --engines ...``) of the designs in or next to
+    ``source``, if one was written; ``ValueError`` naming the file when it is unusable."""
+    from rollability_ros.core.results import engine_agreement
+
+    for designs_yaml in [path for path, _ in find_artefacts(source) if os.path.basename(path) == "designs.yaml"]:
+        path = os.path.join(os.path.dirname(designs_yaml), engine_agreement.TABLE_FILENAME)
+        if os.path.isfile(path):
+            return engine_agreement.read_table(path)
+    return []
 
 
 def use_geometry_csv(data, path):
@@ -250,6 +264,8 @@ def _tables(data, views, comparison, points):
         tables["geometry"] = data.geometry
     if data.tip_events:
         tables["tip_events"] = analysis.tip_event_summary(data.tip_events)
+    if data.engine_rows:
+        tables["engine_agreement"] = [dataclasses.asdict(row) for row in data.engine_rows]
     return tables
 
 
@@ -265,10 +281,11 @@ _TABLE_TITLES = {
     "by_height": "Success by height (Figure 12b)",
     "by_angle": "Success by angle (Figure 12c)",
     "conditions": "Grouped conditions (majority rule: successes > failures; a tie is a failure)",
+    "engine_agreement": "Cross-engine agreement: each design's simulated fitness in two engines on the same seeds",
 }
 
 
-def _figures(out_dir, views, configurations, comparison, points):
+def _figures(out_dir, views, configurations, comparison, points, engine_rows=()):
     """Draw every figure the data allows; return ``[(path, caption)]``."""
     from rollability_ros.core.results import report_figures as figures
 
@@ -293,6 +310,9 @@ def _figures(out_dir, views, configurations, comparison, points):
              figures.sim_vs_experiment, comparison)
     if points:
         draw("fig04_convergence.png", "Figure 4: optimization convergence", figures.convergence, points)
+    if engine_rows:
+        draw("engine_agreement.png", "Cross-engine agreement (simulated): each design's fitness in both engines on "
+             "the same seeds, with Wilson 95% intervals", figures.engine_fitness, engine_rows)
     return drawn
 
 
@@ -337,6 +357,10 @@ def summary_text(data, views, comparison, points):
     if data.tip_events:
         recovered = sum(e.recovered for e in data.tip_events)
         lines.append(f"tip events: {len(data.tip_events)}, recovered {recovered}")
+    if data.engine_rows:
+        from rollability_ros.core.results.engine_agreement import summary_lines
+
+        lines.extend(summary_lines(data.engine_rows))
     return "\n".join(lines)
 
 
@@ -363,7 +387,7 @@ def build_report(data, out_dir, measure="condition_rate"):
         raise ValueError(f"{data.source}: no launch outcomes, candidates, generations or tip events to report")
     tables = _tables(data, views, comparison, points)
     table_paths = [_write_csv(os.path.join(out_dir, f"{name}.csv"), rows) for name, rows in tables.items()]
-    figures = _figures(out_dir, views, configurations, comparison, points)
+    figures = _figures(out_dir, views, configurations, comparison, points, data.engine_rows)
     summary = summary_text(data, views, comparison, points)
     html_path = os.path.join(out_dir, "report.html")
     artefacts = find_artefacts(data.source.split(" ", 1)[-1]) + [(path, "table (CSV)") for path in table_paths]

@@ -194,6 +194,29 @@ def sim_vs_experiment(path, comparison):
     return _save(figure, path)
 
 
+def engine_fitness(path, rows):
+    """Each design's simulated fitness per engine (bars) with its Wilson 95% interval (whiskers)."""
+    plt = _pyplot()
+    engines = sorted({row.engine for row in rows}, key=[row.engine for row in rows].index)
+    designs = list(dict.fromkeys(row.design for row in rows))
+    by_key = {(row.design, row.engine): row for row in rows}
+    figure, ax = plt.subplots(figsize=(1.2 + 1.3 * len(designs), 3.6))
+    width = 0.8 / len(engines)
+    for index, engine in enumerate(engines):
+        positions = [i + (index - (len(engines) - 1) / 2) * width for i in range(len(designs))]
+        cells = [by_key[(design, engine)] for design in designs]
+        ax.bar(positions, [c.fitness for c in cells], width, label=engine, color=f"C{index}")
+        ax.errorbar(positions, [c.fitness for c in cells],
+                    yerr=[[c.fitness - c.ci_low for c in cells], [c.ci_high - c.fitness for c in cells]],
+                    fmt="none", ecolor="black", capsize=3)
+    ax.set_xticks(range(len(designs)), designs)
+    ax.set_ylim(0, 1)
+    ax.set_ylabel("simulated fitness (upright trials / trials)")
+    ax.set_title("Fitness per engine, same seeds (simulated)")
+    ax.legend(frameon=False)
+    return _save(figure, path)
+
+
 def render_profile_preview(mesh, path, title=None):
     """Render a profile solid (a trimesh in metres, profile frame) to a shaded 3D PNG at ``path``; returns ``path``.
 

@@ -85,8 +85,9 @@ class PlayerNode(Node):
             return
         start = None
         # record messages of a bag recorded with older interfaces are published re-encoded in the installed ones
-        schedule = playback_schedule(CurrentDefinitions(self.reader), rate=settings.rate, start_offset_s=settings.start_offset_s,
-                                     loop=settings.loop, topics=self.played_topics, remap=self.remap)
+        schedule = playback_schedule(CurrentDefinitions(self.reader), rate=settings.rate,
+                                     start_offset_s=settings.start_offset_s, loop=settings.loop,
+                                     topics=self.played_topics, remap=self.remap)
         try:
             for item in schedule:
                 if start is None:

@@ -9,6 +9,9 @@ of hand-recorded outcomes. Sources:
   ``rollability_ros.core.bags.messages.read_records_from_bag``;
 - a CSV of launch outcomes (``docs/outcome-csv.md``).
 
+The per-trial drill-down lists every launch with its twin seed and, for a simulated one, the command that
+simulates it again (:func:`resimulate_command`), and its pose trace in a bag next to the source.
+
 Table 3 and the simulated fitness per configuration come from the store's run info (``geometry``,
 ``sim_fitness``), from ``<run dir>/designs/table3.csv`` of the design selection, or from the command line.
 """

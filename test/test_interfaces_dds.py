@@ -37,7 +37,7 @@ def test_topic_service_action_round_trip(ros_node, peer):
     assert ros_node.wait_for(lambda: publisher.get_subscription_count() > 0, 30), peer.log()
 
     sent = LaunchOutcome(run_id="run", trial_id="t-1", backend="sim", upright=True, note="hello",
-                         travel_time_s=0.42, measured_speed_mps=0.34 / 0.42)
+                         travel_time_s=0.42, measured_speed_mps=0.34 / 0.42, seed=2**31 - 1)
     sent.condition.configuration = "B"
     sent.condition.height_m = 1.30
     sent.condition.angle_deg = -30.0
@@ -47,6 +47,7 @@ def test_topic_service_action_round_trip(ros_node, peer):
     assert (echoed.trial_id, echoed.note, echoed.condition.configuration) == ("t-1", "hello echoed", "B")
     assert echoed.condition.height_m == 1.30 and echoed.condition.angle_deg == -30.0
     assert math.isclose(echoed.measured_speed_mps, 0.34 / 0.42) and echoed.final_orientation.w == 0.5
+    assert echoed.seed == 2**31 - 1 and LaunchOutcome().seed == -1     # -1: no seed unless one is set
 
     client = node.create_client(FireValve, "/peer/fire")
     assert client.wait_for_service(timeout_sec=30)

@@ -26,6 +26,12 @@ def register(subparsers):
                         help="launch through the rig node (ROS 2) instead of in this process")
     parser.add_argument("--store-timeout-s", type=float, default=10.0,
                         help="with --graph: longest wait for the logger to acknowledge an outcome, s (default 10)")
+    parser.add_argument("--resimulate", nargs=4, metavar=("CONFIGURATION", "HEIGHT_M", "SPEED_MPS", "ANGLE_DEG"),
+                        help="with --backend sim and --seed: run only this one launch on the launch twin of "
+                             "--rig-config and print its outcome (the report's drill-down shows this command for "
+                             "every simulated launch); stores nothing")
+    parser.add_argument("--seed", type=int,
+                        help="with --resimulate: the twin seed of the launch (the stored outcome's seed)")
     parser.set_defaults(func=run)
 
 
@@ -44,6 +50,8 @@ def _spec(args):
 def run(args):
     from rollability_ros.core.rig.rig_session import launch_backend_class
 
+    if args.resimulate or args.seed is not None:
+        return _resimulate(args)
     spec = _spec(args)
     ask = input if launch_backend_class(args.backend).attended else None
     if args.graph:
@@ -53,6 +61,34 @@ def run(args):
     if not args.store:
         raise ValueError("--store is required (the store file or run directory this command writes)")
     return _run_local(args, spec, ask)
+
+
+def _resimulate(args):
+    from rollability_ros.core.campaign.runner import LocalRig
+    from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.results.records import LaunchCondition
+
+    if args.backend != "sim" or not args.resimulate or args.seed is None:
+        raise ValueError("--resimulate needs --backend sim and --seed (a physical launch cannot be re-run)")
+    configuration, *numbers = args.resimulate
+    try:
+        height_m, speed_mps, angle_deg = (float(text) for text in numbers)
+    except ValueError:
+        raise ValueError(f"--resimulate: HEIGHT_M, SPEED_MPS and ANGLE_DEG must be numbers, got {numbers}") from None
+    condition = LaunchCondition(configuration, height_m, speed_mps, angle_deg)
+    condition.validate()
+    rig = LocalRig("sim", load_parameters(args.rig_config or ["rig"]))
+    try:
+        result = rig.backend.resimulate(condition, args.seed)
+    finally:
+        rig.close()
+    print(f"upright: {str(bool(result.upright) and result.valid).lower()}")
+    print("final_orientation (x, y, z, w): " + " ".join(repr(float(v)) for v in result.final_orientation))
+    print(f"travel_time_s: {float(result.travel_time_s)!r}")
+    print(f"launch_speed_mps: {float(result.launch_speed_mps)!r}")
+    print(f"launch_angle_deg: {float(result.launch_angle_deg)!r}")
+    print(f"invalid_reason: {result.invalid_reason or '(valid launch)'}")
+    return 0
 
 
 def _run_local(args, spec, ask):

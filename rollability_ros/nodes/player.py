@@ -7,7 +7,9 @@ empty: all) and ``remap`` (``/recorded:=/new``).
 
 Each topic is published with the recorded type (its Python interface package must be installed) and a QoS
 adapted from the recorded publishers' offers (reliable / transient-local only when every original publisher
-was). Messages go out as the recorded CDR bytes, untouched, at the times given by
+was). Messages go out as the recorded CDR bytes, untouched (except record messages recorded with an older
+definition of their type, re-encoded in the installed one: :class:`~rollability_ros.core.bags.messages.
+CurrentDefinitions`), at the times given by
 :func:`rollability_ros.core.bags.playback.playback_schedule`; the node waits for reliable subscribers to
 acknowledge them (up to ``ACK_TIMEOUT_S``) before it exits.
 """
@@ -21,6 +23,7 @@ from rclpy.node import Node
 from rollability_ros.core.bags.metadata import BagError
 from rollability_ros.core.bags.playback import CLOCK_TOPIC, CLOCK_TYPE, clock_message_cdr, playback_schedule
 from rollability_ros.core.bags.qos import subscription_qos_for
+from rollability_ros.core.bags.messages import CurrentDefinitions
 from rollability_ros.core.bags.reader import BagReader, check_readable
 from rollability_ros.core.bags.record_play import PlayerSettings, check_topic_names, parse_remaps
 from rollability_ros.nodes._bag_nodes import declare_string_list, message_class, qos_profile_from_dict
@@ -81,8 +84,10 @@ class PlayerNode(Node):
         if self._wait_for_subscribers():
             return
         start = None
-        schedule = playback_schedule(self.reader, rate=settings.rate, start_offset_s=settings.start_offset_s,
-                                     loop=settings.loop, topics=self.played_topics, remap=self.remap)
+        # record messages of a bag recorded with older interfaces are published re-encoded in the installed ones
+        schedule = playback_schedule(CurrentDefinitions(self.reader), rate=settings.rate,
+                                     start_offset_s=settings.start_offset_s, loop=settings.loop,
+                                     topics=self.played_topics, remap=self.remap)
         try:
             for item in schedule:
                 if start is None:

@@ -317,6 +317,8 @@ def test_convert_mcap_sqlite3_mcap_keeps_messages_and_metadata(tmp_path):
         assert information["custom_data"] == {"campaign": "test"} and information["ros_distro"] == "jazzy"
         assert information["topics_with_message_count"][0]["topic_metadata"]["offered_qos_profiles"][0]["depth"] == 5
         assert list(BagReader(tmp_path / bag)) == written
+        # each message comes with the definition its bag stores, from MCAP schemas and SQLite3 metadata alike
+        assert {d for _, d in BagReader(tmp_path / bag).with_definitions()} == {definition_for("std_msgs/msg/String")}
     with pytest.raises(ValueError, match="storage"):
         convert(tmp_path / "src", tmp_path / "z", storage="rosbag1")
 

@@ -9,8 +9,9 @@ from rollability_ros.core.results.analysis import group_conditions
 from rollability_ros.core.results.records import LaunchCondition
 from rollability_ros.core.rig.rig_session import simulated_outcome
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig
-from rollability_ros.core.sim.launch_twin import (PHASES, LaunchTwinSettings, launch_twin_settings_from_parameters,
-                                              load_launch_twin_settings, simulate_launch, simulate_valid_launch)
+from rollability_ros.core.sim.launch_twin import (PHASES, LaunchTwinSettings, attempt_seed,
+                                              launch_twin_settings_from_parameters, load_launch_twin_settings,
+                                              simulate_launch, simulate_valid_launch)
 
 pytest.importorskip("pybullet")
 
@@ -177,6 +178,10 @@ def test_chassis_that_never_leaves_the_ledge_is_an_invalid_launch():
     outcome = simulated_outcome("run", "t1", LaunchCondition("baseline", 0.75, 0.3, 0.0), retried, SpeedGateConfig())
     assert not outcome.valid and not outcome.upright
     assert outcome.note == "invalid launch: did not leave the ledge (2 attempts)"
+    # the outcome keeps the seed of the attempt it was classified from, which repeats that launch exactly
+    assert outcome.seed == retried.seed == attempt_seed(0, 1) != 0
+    again = simulate_launch(LaunchCondition("baseline", 0.75, 0.3, 0.0), settings, outcome.seed)
+    assert again.final_orientation == retried.final_orientation and again.invalid_reason == retried.invalid_reason
     valid = dataclasses.replace(outcome, trial_id="t2", note="", upright=True)
     assert [(c.successes, c.trials) for c in group_conditions([outcome, valid])] == [(1, 1)]
 

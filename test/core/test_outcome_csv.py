@@ -6,7 +6,7 @@ import re
 import pytest
 
 from rollability_ros.core.results.outcome_csv import OutcomeCsvError, read_outcome_csv, write_outcome_csv
-from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.results.records import NO_SEED, LaunchCondition, LaunchOutcome
 
 
 def _write(tmp_path, text, name="o.csv"):
@@ -77,7 +77,7 @@ def test_export_then_import_round_trip(tmp_path):
                       travel_time_s=0.2213, measured_speed_mps=0.34 / 0.2213, speed_out_of_tolerance=True,
                       final_orientation=(0.1, -0.2, 0.3, 0.9273618495495703), classified_by="imu",
                       note='said "ouch", then rolled', stamp_s=1712345678.123456),
-        LaunchOutcome("run", "t2", LaunchCondition("A", 0.75, 0.8, 30.0, 0), "sim", True),
+        LaunchOutcome("run", "t2", LaunchCondition("A", 0.75, 0.8, 30.0, 0), "sim", True, seed=1_234_567_891),
     ]
     path = tmp_path / "out.csv"
     write_outcome_csv(path, outcomes)
@@ -85,6 +85,26 @@ def test_export_then_import_round_trip(tmp_path):
     assert back[0] == outcomes[0]
     assert back[1].condition == outcomes[1].condition and math.isnan(back[1].travel_time_s)
     assert back[1].classified_by == "sim" and back[1].final_orientation == (0.0, 0.0, 0.0, 1.0)
+    assert (back[0].seed, back[1].seed) == (NO_SEED, 1_234_567_891)     # no seed: an empty cell
+
+
+def test_a_file_without_the_seed_column_reads_every_outcome_without_a_seed(tmp_path):
+    """CSVs exported before outcomes carried their seed (every column of that time, no ``seed``)."""
+    old_columns = ("run_id,trial_id,configuration,height_m,speed_mps,angle_deg,repetition,upright,backend,"
+                   "travel_time_s,measured_speed_mps,speed_out_of_tolerance,classified_by,note,stamp_s,"
+                   "final_qx,final_qy,final_qz,final_qw\n")
+    path = _write(tmp_path, old_columns + "run,t1,A,0.75,0.8,30.0,0,true,sim,0.41,,false,sim,,0.0,0.0,0.0,0.0,1.0\n")
+    (outcome,) = read_outcome_csv(path)
+    assert outcome.seed == NO_SEED and outcome.upright and outcome.travel_time_s == 0.41
+    seeded = _write(tmp_path, "configuration,height_m,speed_mps,angle_deg,repetition,upright,seed\n"
+                              "A,0.75,0.8,30,0,true,77\nA,0.75,0.8,30,1,true,-1\nA,0.75,0.8,30,2,true,\n"
+                              "A,0.75,0.8,30,3,true,-5\nA,0.75,0.8,30,4,true,x\n", name="seeded.csv")
+    with pytest.raises(OutcomeCsvError) as refused:
+        read_outcome_csv(seeded, run_id="hand")
+    assert [line for line, _ in refused.value.problems] == [5, 6]
+    lines = seeded.read_text().splitlines()
+    seeded.write_text("\n".join(lines[:4]) + "\n")
+    assert [o.seed for o in read_outcome_csv(seeded, run_id="hand")] == [77, NO_SEED, NO_SEED]
 
 
 def test_unterminated_quote_is_refused_with_its_line_number(tmp_path):

@@ -73,3 +73,34 @@ def test_malformed_messages_are_refused_and_the_bag_reader_skips_them(tmp_path, 
     outcomes, candidates, generations, tip_events = read_records_from_bag(bag_dir)
     assert (len(outcomes), len(candidates), len(generations), len(tip_events)) == (1, 1, 1, 1)
     assert sum("skipped malformed" in r.message for r in caplog.records) == 3
+
+
+def test_a_seeded_outcome_round_trips_and_the_old_sample_bag_decodes_without_seeds():
+    """The seed crosses CDR; the committed sample bag, recorded before LaunchOutcome had a seed, decodes from its
+    stored definition (every outcome without a seed) and is re-encoded in today's definition for the player."""
+    import os
+
+    from rollability_ros.core.bags.messages import CurrentDefinitions, decoding_typestore
+    from rollability_ros.core.bags.msg_definitions import definition_for
+    from rollability_ros.core.bags.reader import BagReader
+    from rollability_ros.core.results.records import NO_SEED
+
+    seeded = LaunchOutcome("camp", "A/t2", LaunchCondition("A", 0.75, 0.8, -30.0, 0), "sim", True, 0.42, 0.81,
+                           seed=2**31 - 1)
+    type_name, message = message_from_record(seeded)
+    decoded = typestore().deserialize_cdr(bytes(typestore().serialize_cdr(message, type_name)), type_name)
+    assert decoded.seed == 2**31 - 1 and record_messages.record_from_message(type_name, decoded) == seeded
+
+    sample = os.path.join(os.path.dirname(__file__), "..", "..", "bags", "sample")
+    recorded = [(m, definition) for m, definition in BagReader(sample).with_definitions()
+                if m.type_name == record_messages.OUTCOME_TYPE]
+    assert len(recorded) == 36 and "seed" not in recorded[0][1]             # the old definition, stored
+    assert recorded[0][1] != definition_for(record_messages.OUTCOME_TYPE)
+    with pytest.raises(Exception):                 # today's definition cannot read the old bytes
+        record_messages.record_from_message(type_name, typestore().deserialize_cdr(recorded[0][0].data, type_name))
+    old = [record_messages.record_from_message(type_name, decoding_typestore(type_name, definition)
+                                               .deserialize_cdr(m.data, type_name)) for m, definition in recorded]
+    assert read_records_from_bag(sample)[0] == old and {o.seed for o in old} == {NO_SEED}
+    upgraded = [m for m in CurrentDefinitions(BagReader(sample)) if m.type_name == record_messages.OUTCOME_TYPE]
+    assert [record_messages.record_from_message(type_name, typestore().deserialize_cdr(m.data, type_name))
+            for m in upgraded] == old

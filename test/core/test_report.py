@@ -281,3 +281,56 @@ def test_physical_campaign_is_experimental_and_invalid_launches_are_left_out(tmp
             "physical); 1 invalid launch(es) left out") in printed
     with open(tmp_path / "r" / "by_configuration.csv", newline="") as stream:
         assert sum(int(row["trials"]) for row in csv.DictReader(stream)) == 20
+
+
+def test_drill_down_shows_each_seed_and_its_command_simulates_the_stored_launch_again(tmp_path, capsys):
+    """trial -> seed -> the same launch again: simulated launches go msg -> store -> CSV -> report with their seed,
+    and the command the drill-down shows for one reproduces the stored outcome and final orientation."""
+    import html
+    import shlex
+
+    pytest.importorskip("pybullet")
+    from rollability_ros.core.bags.messages import message_from_record, record_from_message, typestore
+    from rollability_ros.core.campaign.runner import LocalRig
+    from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.results.outcome_csv import read_outcome_csv
+    from rollability_ros.core.results.records import NO_SEED
+
+    rig = LocalRig("sim", load_parameters(["rig"]))
+    try:
+        baseline = [t for t in plan_trials(CampaignSpec(run_id="seeded", repetitions=1))
+                    if t.condition.configuration == "baseline"]       # the shipped twin has no designs A/B/C
+        launched = [rig.backend.launch("seeded", t.trial_id, t.condition) for t in baseline[::5]]
+    finally:
+        rig.close()
+    physical = LaunchOutcome("seeded", "hand/1", launched[0].condition, "physical", True, classified_by="operator")
+    assert all(o.seed >= 0 for o in launched) and physical.seed == NO_SEED
+    received = []
+    for outcome in launched + [physical]:                        # as the outcome_logger receives them
+        type_name, message = message_from_record(outcome)
+        cdr = bytes(typestore().serialize_cdr(message, type_name))
+        received.append(record_from_message(type_name, typestore().deserialize_cdr(cdr, type_name)))
+    with Store(tmp_path / "run") as store:
+        for outcome in received:
+            store.add_launch_outcome(outcome)
+        stored = store.launch_outcomes()
+    assert [o.seed for o in stored] == [o.seed for o in launched] + [NO_SEED]
+    write_outcome_csv(tmp_path / "outcomes.csv", stored)
+    assert [o.seed for o in read_outcome_csv(tmp_path / "outcomes.csv")] == [o.seed for o in stored]
+
+    assert cli_main(["report", str(tmp_path / "outcomes.csv"), "--out", str(tmp_path / "report")]) == 0
+    page = (tmp_path / "report" / "report.html").read_text()
+    rows = {trial: row for trial, row in re.findall(r"<tr id='trial-[^']*'><td>([^<]*)</td>(.*?)</tr>", page)}
+    assert "seed: re-simulate" in page and "none (physical launch)" in rows["hand/1"]
+    target = stored[1]
+    commands = re.findall(r"<code>(rollability campaign [^<]*)</code>", rows[html.escape(target.trial_id)])
+    assert len(commands) == 1 and f"--seed {target.seed}" in commands[0]
+    capsys.readouterr()
+    assert cli_main(shlex.split(html.unescape(commands[0]))[1:]) == 0
+    printed = dict(line.split(": ", 1) for line in capsys.readouterr().out.splitlines())
+    assert printed["upright"] == str(target.upright).lower()
+    assert tuple(float(v) for v in printed["final_orientation (x, y, z, w)"].split()) == target.final_orientation
+    assert float(printed["travel_time_s"]) == pytest.approx(target.travel_time_s, abs=1e-12)
+    assert cli_main(["campaign", "--backend", "physical", "--resimulate", "baseline", "0.75", "0.8", "0",
+                     "--seed", "1"]) == 2                       # a physical launch cannot be simulated again
+    assert "--resimulate needs --backend sim" in capsys.readouterr().err

@@ -7,7 +7,7 @@ import time
 import pytest
 from synthetic_imu import piecewise, stream
 
-from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.results.records import NO_SEED, LaunchCondition
 from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
 from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
                                                   OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
@@ -236,6 +236,9 @@ def test_simulated_outcome_and_launch_seed():
     assert "off the target" in outcome.note
     outcome.validate()
     assert launch_seed(0, "a/b") == launch_seed(0, "a/b") != launch_seed(1, "a/b")
+    assert outcome.seed == NO_SEED                      # a result that names no seed
+    Result.seed = 42
+    assert simulated_outcome("run", "t", CONDITION, Result(), SpeedGateConfig()).seed == 42
 
 
 class RecordingPorts(RigPorts):

@@ -1,4 +1,6 @@
-"""Durable store: round trips, duplicates, corrupt files, and acknowledged outcomes surviving kill -9."""
+"""Durable store: round trips, duplicates, corrupt files, migration of older schemas, and acknowledged outcomes
+surviving kill -9."""
+import dataclasses
 import math
 import os
 import signal
@@ -11,13 +13,14 @@ import threading
 import pytest
 
 from rollability_ros.core.results.records import (
+    NO_SEED,
     CandidateRecord,
     GenerationRecord,
     LaunchCondition,
     LaunchOutcome,
     TipEventRecord,
 )
-from rollability_ros.core.results.store import STORE_FILENAME, Store, unique_key
+from rollability_ros.core.results.store import APPLICATION_ID, SCHEMA_VERSION, STORE_FILENAME, Store, unique_key
 
 REPO_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -180,3 +183,49 @@ def test_records_without_an_owner_or_of_the_wrong_type_are_refused(tmp_path):
         with pytest.raises(ValueError, match="expected a GenerationRecord"):
             store.add_generation(CandidateRecord("r", 0, 0, (), 0.5, 1, 2, 0, 1.0))
         assert store.candidates() == [] and store.tip_events() == [] and store.generations() == []
+
+
+#: ``launch_outcomes`` as schema version 1 created it, before outcomes carried their seed.
+_VERSION_1_OUTCOMES = (
+    'CREATE TABLE launch_outcomes (seq INTEGER PRIMARY KEY AUTOINCREMENT, "run_id" TEXT NOT NULL, '
+    '"trial_id" TEXT NOT NULL, "backend" TEXT NOT NULL, "upright" INTEGER NOT NULL, "travel_time_s" REAL, '
+    '"measured_speed_mps" REAL, "speed_out_of_tolerance" INTEGER NOT NULL, "final_orientation" TEXT NOT NULL, '
+    '"classified_by" TEXT NOT NULL, "note" TEXT NOT NULL, "stamp_s" REAL, "configuration" TEXT NOT NULL, '
+    '"height_m" REAL, "speed_mps" REAL, "angle_deg" REAL, "repetition" INTEGER NOT NULL, UNIQUE ("run_id", '
+    '"trial_id"))')
+
+
+def test_a_version_1_store_is_migrated_and_its_outcomes_read_without_a_seed(tmp_path):
+    path = tmp_path / "old.sqlite"
+    conn = sqlite3.connect(path)
+    conn.execute(_VERSION_1_OUTCOMES)
+    conn.execute("INSERT INTO launch_outcomes (run_id, trial_id, backend, upright, travel_time_s, measured_speed_mps,"
+                 " speed_out_of_tolerance, final_orientation, classified_by, note, stamp_s, configuration, height_m,"
+                 " speed_mps, angle_deg, repetition) VALUES ('old', 't1', 'sim', 1, 0.42, NULL, 0, "
+                 "'[0.0, 0.0, 0.6, 0.8]', 'sim', 'kept', 1700000000.5, 'A', 0.75, 0.8, -30.0, 2)")
+    conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+    conn.execute("PRAGMA user_version = 1")
+    conn.commit()
+    conn.close()
+    expected_old = _outcome("t1", run_id="old", travel_time_s=0.42, final_orientation=(0.0, 0.0, 0.6, 0.8),
+                            note="kept", stamp_s=1700000000.5)
+    seeded = _outcome("t2", run_id="old", travel_time_s=0.4, measured_speed_mps=0.85, seed=123456)
+    with Store(path) as store:                     # migrated on open: the old row reads with no seed
+        (old,) = store.launch_outcomes()
+        assert dataclasses.replace(old, measured_speed_mps=0.0) == dataclasses.replace(
+            expected_old, measured_speed_mps=0.0) and old.seed == NO_SEED
+        assert store.add_launch_outcome(seeded) and not store.add_launch_outcome(_outcome("t1", run_id="old"))
+    with Store(path) as store:                     # a second open finds it migrated and keeps both rows
+        assert [o.seed for o in store.launch_outcomes()] == [NO_SEED, 123456]
+        assert store.launch_outcomes()[1] == seeded
+    conn = sqlite3.connect(path)
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 2
+    conn.close()
+
+
+def test_seed_round_trips_and_a_bad_seed_is_refused(tmp_path):
+    with Store(tmp_path / "s.sqlite") as store:
+        assert store.add_launch_outcome(_outcome("t1", seed=2**31 - 1))
+        assert store.launch_outcomes()[0].seed == 2**31 - 1
+        with pytest.raises(ValueError, match="seed must be a twin seed"):
+            store.add_launch_outcome(_outcome("t2", seed=-2))

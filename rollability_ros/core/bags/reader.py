@@ -102,6 +102,12 @@ class BagReader:
         self.paths = storage_paths(self.directory, self.metadata)
 
     def __iter__(self):
+        return (message for message, _ in self.with_definitions())
+
+    def with_definitions(self):
+        """Yield ``(BagMessage, definition)``: each message with the full ``ros2msg`` definition the bag stores for
+        its type ("" when it has none), the one to decode it with; for a bag recorded before an interface changed
+        it is not the installed one."""
         if self.storage_identifier == "sqlite3":
             return self._iter_rosbags()
         return self._iter_mcap()
@@ -114,13 +120,14 @@ class BagReader:
                 reader, summary = open_mcap(path, stream)
                 if summary.statistics.message_count:
                     streams.append(self._mcap_messages(path, reader))
-            yield from heapq.merge(*streams, key=lambda message: message.log_time_ns)
+            yield from heapq.merge(*streams, key=lambda pair: pair[0].log_time_ns)
 
     def _mcap_messages(self, path, reader):
         with bag_file_errors(path):
             for schema, channel, message in reader.iter_messages(
                     topics=self.topics, starting_at=self.start_time_ns, ending_before=self.end_time_ns):
-                yield BagMessage(channel.topic, schema.name if schema else "", message.data, message.log_time)
+                yield (BagMessage(channel.topic, schema.name if schema else "", message.data, message.log_time),
+                       schema_text(schema))
 
     def _iter_rosbags(self):
         from rosbags.rosbag2 import Reader
@@ -129,7 +136,16 @@ class BagReader:
             connections = [c for c in reader.connections if self.topics is None or c.topic in self.topics]
             for connection, log_time_ns, data in reader.messages(
                     connections=connections, start=self.start_time_ns, stop=self.end_time_ns):
-                yield BagMessage(connection.topic, connection.msgtype, bytes(data), log_time_ns)
+                msgdef = getattr(connection, "msgdef", None)
+                yield (BagMessage(connection.topic, connection.msgtype, bytes(data), log_time_ns),
+                       getattr(msgdef, "data", "") or "")
+
+
+def schema_text(schema):
+    """The ``ros2msg`` definition an MCAP schema holds ("" for none or another encoding)."""
+    if schema is None or schema.encoding != "ros2msg":
+        return ""
+    return schema.data.decode("utf-8", errors="replace")
 
 
 def verify_mcap_file(path):

@@ -8,7 +8,7 @@ import csv
 import math
 
 from rollability_ros.core.campaign.plan import trial_id_for
-from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.results.records import NO_SEED, LaunchCondition, LaunchOutcome
 
 #: Columns every file must have.
 REQUIRED_COLUMNS = ("configuration", "height_m", "speed_mps", "angle_deg", "repetition", "upright")
@@ -16,7 +16,7 @@ REQUIRED_COLUMNS = ("configuration", "height_m", "speed_mps", "angle_deg", "repe
 ORIENTATION_COLUMNS = ("final_qx", "final_qy", "final_qz", "final_qw")
 #: Columns a file may have; a missing one takes the documented default.
 OPTIONAL_COLUMNS = ("run_id", "trial_id", "backend", "travel_time_s", "measured_speed_mps",
-                    "speed_out_of_tolerance", "classified_by", "note", "stamp_s") + ORIENTATION_COLUMNS
+                    "speed_out_of_tolerance", "classified_by", "note", "stamp_s") + ORIENTATION_COLUMNS + ("seed",)
 #: Column order of exported files.
 EXPORT_COLUMNS = ("run_id", "trial_id") + REQUIRED_COLUMNS + OPTIONAL_COLUMNS[2:]
 
@@ -62,6 +62,16 @@ def _parse_int(text, column):
         raise ValueError(f"{column} must be a whole number, got {text!r}") from None
 
 
+def _parse_seed(text, column):
+    """A twin seed (integer >= 0); an empty cell or -1 is no seed (a physical launch, a file without seeds)."""
+    if not text.strip():
+        return NO_SEED
+    seed = _parse_int(text, column)
+    if seed < NO_SEED:
+        raise ValueError(f"{column} must be a twin seed >= 0, or empty for none, got {text!r}")
+    return seed
+
+
 def _parse_row(values, run_id):
     """Build a LaunchOutcome from one row's ``{column: text}``; raise ValueError with every reason."""
     reasons = []
@@ -100,6 +110,7 @@ def _parse_row(values, run_id):
         "classified_by": field("classified_by", non_empty, "operator"),
         "note": field("note", text, ""),
         "stamp_s": field("stamp_s", _parse_float, 0.0),
+        "seed": field("seed", _parse_seed, NO_SEED),
     }
     if ORIENTATION_COLUMNS[0] in values:
         optional["final_orientation"] = tuple(field(c, _parse_float, 0.0) for c in ORIENTATION_COLUMNS)
@@ -226,4 +237,5 @@ def write_outcome_csv(path, outcomes):
                 str(outcome.upright).lower(), outcome.backend, _format_float(outcome.travel_time_s),
                 _format_float(outcome.measured_speed_mps), str(outcome.speed_out_of_tolerance).lower(),
                 outcome.classified_by, outcome.note, repr(float(outcome.stamp_s)),
-                *(repr(float(q)) for q in outcome.final_orientation)])
+                *(repr(float(q)) for q in outcome.final_orientation),
+                "" if outcome.seed == NO_SEED else outcome.seed])

@@ -8,13 +8,15 @@ lists of float).
 
 Every record read from a message is validated (``validate()``), so a node and the bag reader refuse the same
 malformed records. Times: ``builtin_interfaces/Time`` <-> float seconds since the Unix epoch; a time that cannot
-be a stamp (NaN, infinite, negative) becomes 0 and nanoseconds are clamped to ``[0, 999_999_999]``.
+be a stamp (NaN, infinite, negative) becomes 0 and nanoseconds are clamped to ``[0, 999_999_999]``. A
+``LaunchOutcome`` decoded from a definition without ``seed`` (a bag recorded before the field existed) reads as
+:data:`~rollability_ros.core.results.records.NO_SEED`.
 """
 import math
 import typing
 
-from rollability_ros.core.results.records import (CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome,
-                                                  TipEventRecord)
+from rollability_ros.core.results.records import (NO_SEED, CandidateRecord, GenerationRecord, LaunchCondition,
+                                                  LaunchOutcome, TipEventRecord)
 
 #: Any of the record classes.
 Record = typing.Union[LaunchOutcome, CandidateRecord, GenerationRecord, TipEventRecord]
@@ -90,7 +92,9 @@ def _outcome_from_message(msg):
         backend=msg.backend, upright=bool(msg.upright), travel_time_s=float(msg.travel_time_s),
         measured_speed_mps=float(msg.measured_speed_mps), speed_out_of_tolerance=bool(msg.speed_out_of_tolerance),
         final_orientation=quaternion_to_tuple(msg.final_orientation), classified_by=msg.classified_by,
-        note=msg.note, stamp_s=stamp_to_s(msg.header.stamp))
+        note=msg.note, stamp_s=stamp_to_s(msg.header.stamp),
+        # a message decoded from a definition older than the seed field (an old bag) has no seed
+        seed=int(getattr(msg, "seed", NO_SEED)))
 
 
 def _candidate_from_message(msg):
@@ -143,7 +147,7 @@ def message_from_record(make: MakeMessage, record: Record) -> typing.Tuple[str, 
             measured_speed_mps=float(record.measured_speed_mps),
             speed_out_of_tolerance=bool(record.speed_out_of_tolerance),
             final_orientation=make_quaternion(make, record.final_orientation), classified_by=record.classified_by,
-            note=record.note)
+            note=record.note, seed=int(record.seed))
     if isinstance(record, CandidateRecord):
         return CANDIDATE_TYPE, make(
             CANDIDATE_TYPE, header=_header(make, record.stamp_s), run_id=record.run_id,

@@ -11,6 +11,9 @@ NOT_MEASURED = float("nan")
 #: Start of the note of an invalid launch (no launch happened as the rig launches: the chassis did not leave the
 #: ledge, landed outside the foam, ...): stored with its reason so nothing is lost, but never counted as an outcome.
 INVALID_LAUNCH = "invalid launch: "
+#: ``LaunchOutcome.seed`` of a launch that has no twin seed: a physical launch, or one recorded before outcomes
+#: carried their seed (old stores, CSVs and bags read back with it).
+NO_SEED = -1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,7 +51,11 @@ class LaunchCondition:
 
 @dataclasses.dataclass(frozen=True)
 class LaunchOutcome:
-    """A classified launch (``msg/LaunchOutcome.msg``). ``final_orientation`` is (x, y, z, w), world z up."""
+    """A classified launch (``msg/LaunchOutcome.msg``). ``final_orientation`` is (x, y, z, w), world z up.
+
+    ``seed``: for a simulated launch the launch twin seed of the launch as stored (the retry that was kept), so
+    ``simulate_launch(condition, twin settings, seed)`` repeats it exactly; :data:`NO_SEED` for a physical one.
+    """
 
     run_id: str
     trial_id: str
@@ -62,6 +69,7 @@ class LaunchOutcome:
     classified_by: str = "sim"        # "operator" | "imu" | "sim"
     note: str = ""
     stamp_s: float = 0.0              # time of classification, s since the Unix epoch
+    seed: int = NO_SEED               # twin seed of a simulated launch; NO_SEED for a physical one
 
     BACKENDS = ("sim", "physical")
     CLASSIFIERS = ("operator", "imu", "sim")
@@ -82,6 +90,8 @@ class LaunchOutcome:
             raise ValueError(f"classified_by must be one of {self.CLASSIFIERS}, got {self.classified_by!r}")
         if len(self.final_orientation) != 4 or not all(math.isfinite(v) for v in self.final_orientation):
             raise ValueError(f"final_orientation must be 4 finite numbers (x, y, z, w), got {self.final_orientation!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < NO_SEED:
+            raise ValueError(f"seed must be a twin seed >= 0 or {NO_SEED} (no seed), got {self.seed!r}")
 
 
 @dataclasses.dataclass(frozen=True)

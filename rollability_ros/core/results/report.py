@@ -9,6 +9,9 @@ of hand-recorded outcomes. Sources:
   ``rollability_ros.core.bags.messages.read_records_from_bag``;
 - a CSV of launch outcomes (``docs/outcome-csv.md``).
 
+The per-trial drill-down lists every launch with its twin seed and, for a simulated one, the command that
+simulates it again (:func:`resimulate_command`), and its pose trace in a bag next to the source.
+
 Table 3 and the simulated fitness per configuration come from the store's run info (``geometry``,
 ``sim_fitness``), from ``<run dir>/designs/table3.csv`` of the design selection, or from the command line.
 """
@@ -18,9 +21,11 @@ import dataclasses
 import html
 import math
 import os
+import shlex
 
 from rollability_ros.core.results import analysis
 from rollability_ros.core.results.outcome_csv import read_outcome_csv
+from rollability_ros.core.results.records import NO_SEED, LaunchOutcome
 from rollability_ros.core.results.store import STORE_FILENAME, Store
 from rollability_ros.core.results.stats import wilson_interval
 
@@ -470,6 +475,24 @@ def _anchor(text):
     return "".join(c if c.isalnum() else "-" for c in text).strip("-").lower()
 
 
+def resimulate_command(outcome: LaunchOutcome) -> str:
+    """The command that runs a simulated launch again from its stored condition and twin seed ("" without a seed):
+    ``rollability campaign --resimulate``, which prints the launch's outcome and final orientation."""
+    if outcome.seed == NO_SEED or outcome.backend != "sim":
+        return ""
+    c = outcome.condition
+    return (f"rollability campaign --backend sim --resimulate {shlex.quote(c.configuration)} {c.height_m!r} "
+            f"{c.speed_mps!r} {c.angle_deg!r} --seed {outcome.seed}")
+
+
+def _seed_cell(outcome):
+    """The seed of a launch and, for a simulated one, the command that simulates it again."""
+    if outcome.seed == NO_SEED:
+        return "none (physical launch)" if outcome.backend == "physical" else "none recorded"
+    command = resimulate_command(outcome)
+    return f"{outcome.seed}" + (f": <code>{html.escape(command)}</code>" if command else "")
+
+
 def _trial_rows(data, trace, out_dir):
     """The per-trial drill-down: one row per launch, with its pose trace in the bag when one was recorded."""
     rows = []
@@ -478,6 +501,7 @@ def _trial_rows(data, trace, out_dir):
         cells = [html.escape(outcome.trial_id), html.escape(c.configuration), f"{c.height_m:g}", f"{c.speed_mps:g}",
                  f"{c.angle_deg:g}", str(c.repetition), "upright" if outcome.upright else "not upright",
                  html.escape(outcome.classified_by), html.escape(outcome.backend)]
+        cells.append(_seed_cell(outcome))
         if outcome.trial_id in trace:
             bag, offset_s, poses = trace[outcome.trial_id]
             link = html.escape(os.path.relpath(bag, out_dir))
@@ -489,7 +513,7 @@ def _trial_rows(data, trace, out_dir):
                     + "</tr>")
     header = "".join(f"<th>{h}</th>" for h in ("trial", "configuration", "height m", "speed m/s", "angle deg",
                                                 "repetition", "outcome", "classified by", "backend",
-                                                "pose trace in the bag"))
+                                                "seed: re-simulate", "pose trace in the bag"))
     return f"<table class='trials'><tr>{header}</tr>{''.join(rows)}</table>"
 
 
@@ -527,8 +551,10 @@ def _html(data, summary, figures, tables, artefacts=(), trace=None, out_dir=".")
                      f"{_html_table(rows)}")
     if data.outcomes:
         parts.append("<h2 id='trials'>Every launch (per-trial drill-down)</h2>"
-                     "<p>Each launch with its condition and outcome; where a bag was recorded, the chassis poses of "
-                     "that launch and the command that replays them from there.</p>" + _trial_rows(data, trace or {},
+                     "<p>Each launch with its condition and outcome; its twin seed and, for a simulated launch, the "
+                     "command that simulates it again (with the campaign's <code>--rig-config</code> files when "
+                     "they were not the shipped ones); where a bag was recorded, the chassis poses of that launch "
+                     "and the command that replays them from there.</p>" + _trial_rows(data, trace or {},
                                                                                               out_dir))
     parts.append("</body></html>")
     return "\n".join(parts)

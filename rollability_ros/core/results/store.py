@@ -11,7 +11,9 @@ file needs the same pieces hand-made: torn-tail detection, a dedup index, and re
 
 One file may hold several runs (``run_id`` is in every key); a run directory holds ``store.sqlite``. The schema
 is versioned with ``PRAGMA user_version`` and marked as ours with ``PRAGMA application_id``; another SQLite
-file or a non-database file is refused with ``ValueError``. Stdlib only: this module runs on the robot computer.
+file or a non-database file is refused with ``ValueError``. A store of an older schema is migrated when it is opened
+(columns added since are added, its rows taking the field's default: outcomes of a version 1 store read with
+``seed`` = ``NO_SEED``); nothing already stored changes. Stdlib only: this module runs on the robot computer.
 """
 import dataclasses
 import json
@@ -33,7 +35,8 @@ STORE_FILENAME = "store.sqlite"
 #: ``PRAGMA application_id`` of a rollability store ("ROLL" in ASCII).
 APPLICATION_ID = 0x524F4C4C
 #: Schema version written to ``PRAGMA user_version``; bump with a migration when the tables change.
-SCHEMA_VERSION = 1
+#: 1: the first schema; 2: ``launch_outcomes.seed`` (rows of a version 1 store read as ``NO_SEED``).
+SCHEMA_VERSION = 2
 
 
 def _encode_tuple(value):
@@ -61,6 +64,14 @@ class _Column:
     sql_type: str
     encode: object = None
     decode: object = None
+    default: object = None            # the record field's default, encoded; None: the field has no default
+
+    def add_sql(self, table_name):
+        """``ALTER TABLE`` adding this column to a store written before it existed, old rows taking the default."""
+        if self.default is None:
+            raise ValueError(f"cannot add column {table_name}.{self.name} to an existing store: it has no default")
+        literal = "'" + self.default.replace("'", "''") + "'" if isinstance(self.default, str) else repr(self.default)
+        return f'ALTER TABLE {table_name} ADD COLUMN "{self.name}" {self.sql_type} DEFAULT {literal}'
 
 
 def _columns_for(record_cls, skip=()):
@@ -71,17 +82,20 @@ def _columns_for(record_cls, skip=()):
             continue
         kind = field.type if isinstance(field.type, str) else field.type.__name__
         if kind == "float":
-            columns.append(_Column(field.name, "REAL", _encode_float, _decode_float))
+            column = _Column(field.name, "REAL", _encode_float, _decode_float)
         elif kind == "int":
-            columns.append(_Column(field.name, "INTEGER NOT NULL", int, int))
+            column = _Column(field.name, "INTEGER NOT NULL", int, int)
         elif kind == "bool":
-            columns.append(_Column(field.name, "INTEGER NOT NULL", int, bool))
+            column = _Column(field.name, "INTEGER NOT NULL", int, bool)
         elif kind == "str":
-            columns.append(_Column(field.name, "TEXT NOT NULL", str, str))
+            column = _Column(field.name, "TEXT NOT NULL", str, str)
         elif kind == "tuple":
-            columns.append(_Column(field.name, "TEXT NOT NULL", _encode_tuple, _decode_tuple))
+            column = _Column(field.name, "TEXT NOT NULL", _encode_tuple, _decode_tuple)
         else:
             raise TypeError(f"no store column type for {record_cls.__name__}.{field.name}: {kind}")
+        if field.default is not dataclasses.MISSING and kind in ("int", "bool", "str"):
+            column = dataclasses.replace(column, default=column.encode(field.default))
+        columns.append(column)
     return columns
 
 
@@ -97,6 +111,16 @@ class _Table:
         nested = _columns_for(flatten[1]) if flatten else []
         self.nested_names = [c.name for c in nested]
         self.columns = _columns_for(record_cls, skip=(flatten[0],) if flatten else ()) + nested
+
+    def add_missing_columns(self, conn):
+        """Add the columns a store of an older schema lacks (e.g. ``seed``, schema 2), old rows getting the default.
+
+        Runs inside the caller's write transaction, so a second process migrating the same file sees them added.
+        """
+        existing = {row[1] for row in conn.execute(f"PRAGMA table_info({self.name})")}
+        for column in self.columns:
+            if existing and column.name not in existing:
+                conn.execute(column.add_sql(self.name))
 
     def create_sql(self):
         body = ", ".join(f'"{c.name}" {c.sql_type}' for c in self.columns)
@@ -199,6 +223,7 @@ class Store:
             conn.execute("BEGIN IMMEDIATE")
             try:
                 for table in _TABLES:
+                    table.add_missing_columns(conn)
                     conn.execute(table.create_sql())
                 conn.execute(_RUNS_SQL)
                 conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")

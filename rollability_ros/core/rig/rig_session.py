@@ -35,7 +35,8 @@ import typing
 import zlib
 
 from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
-from rollability_ros.core.results.records import INVALID_LAUNCH, NOT_MEASURED, LaunchCondition, LaunchOutcome
+from rollability_ros.core.results.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, LaunchCondition,
+                                                  LaunchOutcome)
 from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
                                                      RigPorts, no_phase, not_cancelled)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
@@ -490,6 +491,13 @@ class SimulatedLaunch(LaunchBackend):
                                             on_phase=lambda phase: on_phase(phase, "launch twin"), on_pose=on_pose)
         return simulated_outcome(run_id, trial_id, condition, result, self.speed_config)
 
+    def resimulate(self, condition: LaunchCondition, seed: int) -> typing.Any:
+        """The launch twin result of one launch of ``condition`` with twin ``seed``: given a stored outcome's
+        condition and ``seed`` (and these twin settings), the launch that outcome was classified from, again."""
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise ValueError(f"seed must be a twin seed >= 0 (a physical launch has none), got {seed!r}")
+        return self.load().simulate_launch(condition, self._twin_settings, seed)
+
 
 #: ``rig.backend`` -> the :class:`LaunchBackend` implementation.
 LAUNCH_BACKENDS = {"sim": SimulatedLaunch, "physical": PhysicalLaunch}
@@ -549,5 +557,5 @@ def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, re
         travel_time_s=speed.travel_time_s, measured_speed_mps=speed.measured_speed_mps,
         speed_out_of_tolerance=speed.speed_out_of_tolerance,
         final_orientation=tuple(float(v) for v in result.final_orientation_xyzw), classified_by="sim", note=note,
-        stamp_s=time.time())
+        stamp_s=time.time(), seed=int(getattr(result, "seed", NO_SEED)))
 

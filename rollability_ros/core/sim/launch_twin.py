@@ -83,7 +83,7 @@ import numpy as np
 from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
 from rollability_ros.core.profile.designs import DesignSources, profile_mesh_for
 from rollability_ros.core.optional import require
-from rollability_ros.core.results.records import NOT_MEASURED
+from rollability_ros.core.results.records import NO_SEED, NOT_MEASURED
 from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
 from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world, set_contact
 from rollability_ros.core.sim.trials import RestDetector, TrialSettings, place_on_ground
@@ -283,7 +283,8 @@ class LaunchResult:
     would see. ``edge_speed_mps`` is the base's speed along the push when its foremost point crosses the edge
     (NaN if it never does). ``invalid_reason`` is "" for a valid launch, else why it is no launch (it did not
     leave the ledge, it landed outside the foam); ``attempts`` counts the launches :func:`simulate_valid_launch`
-    made to get this one.
+    made to get this one, and ``seed`` is the seed this launch was simulated with (the kept retry's
+    :func:`attempt_seed`): :func:`simulate_launch` with it repeats this launch exactly.
     """
 
     upright: bool
@@ -302,6 +303,7 @@ class LaunchResult:
     edge_speed_mps: float = NOT_MEASURED
     invalid_reason: str = ""
     attempts: int = 1
+    seed: int = NO_SEED
 
     @property
     def valid(self):
@@ -580,7 +582,7 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, prof
                         launch_angle_deg=angle_deg, flight_time_s=tracker.landed_s - tracker.base.time_s,
                         landing_position_m=tracker.landing_m,
                         peak_deceleration_mps2=tracker.peak_deceleration_mps2, edge_speed_mps=tracker.edge_speed_mps,
-                        invalid_reason=_invalid_reason(went_over, tracker, options.foam))
+                        invalid_reason=_invalid_reason(went_over, tracker, options.foam), seed=int(seed))
 
 
 def _invalid_reason(went_over, tracker, foam):

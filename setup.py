@@ -10,7 +10,8 @@ from setuptools import find_packages, setup
 
 EXTRAS = {
     # physics, geometry and optimization: the design side
-    "sim": ["pybullet==3.2.7", "cma>=4.0", "trimesh>=4.0", "scipy>=1.10", "networkx>=3.0", "lxml>=4.9", "xacro>=2.0"],
+    "sim": ["pybullet==3.2.7", "cma>=4.0", "trimesh>=4.0", "scipy>=1.10", "networkx>=3.0", "lxml>=4.9", "xacro>=2.0",
+            "ribs>=0.12,<0.13"],
     # the MuJoCo trial engine (sim.engine: mujoco)
     "mujoco": ["mujoco>=3.2"],
     # hand trial batches to a Ray cluster

@@ -4,9 +4,10 @@ calibrated back; prints the recovered values against the truth and their stated 
     python bench/bench_calibration.py [--repetitions 20] [--sim-repetitions 16] [--generations 8] [--bootstrap 0]
                                       [--two-parameters]
     nice python bench/bench_calibration.py --coverage 20 [--repetitions 20] [--sim-repetitions 24]
+                                           [--coverage-only launch_twin.foam.lateral_friction]
 
-``--coverage N``: for each of ``robot.com_offset_z_m`` and ``launch_twin.foam.lateral_friction`` (one at a time,
-the other at its default), N truths drawn evenly at random inside the inner 80% of its calibration bounds; each
+``--coverage N``: for each parameter of ``COVERAGE_PARAMETERS`` (the centre of mass and three foam parameters;
+one at a time, the others at their defaults), N truths drawn evenly at random inside the inner 80% of its calibration bounds; each
 truth's "physical" outcomes (fresh seeds per truth) get the calibration's 95% likelihood interval (the grid of
 simulated launches does not depend on the truth, so it is launched once); prints how many intervals hold their
 truth (target: at least 90%) and their mean width.
@@ -36,7 +37,9 @@ CONDITIONS = (("baseline", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 0.0), ("dome", 0
               ("dome", 0.75, 1.5, 0.0))
 #: Parameters of the coverage bench: (config key, lower, upper, log scale).
 COVERAGE_PARAMETERS = (("robot.com_offset_z_m", -0.019, 0.015, False),
-                       ("launch_twin.foam.lateral_friction", 0.2, 3.0, True))
+                       ("launch_twin.foam.lateral_friction", 0.2, 3.0, True),
+                       ("launch_twin.foam.restitution", 0.0, 1.0, False),
+                       ("launch_twin.foam.contact_stiffness_npm", 5000.0, 160000.0, True))
 
 
 def coverage(args, parameters):
@@ -49,16 +52,18 @@ def coverage(args, parameters):
     conditions = [LaunchCondition(*c) for c in CONDITIONS]
     with calibration.LaunchPool() as pool:
         for name, low, high, log in COVERAGE_PARAMETERS[:args.coverage_parameters]:
+            u = rng.uniform(0.1, 0.9, args.coverage)   # drawn for every parameter: --coverage-only keeps the truths
+            if args.coverage_only and name not in args.coverage_only:
+                continue
             settings = calibration.CalibrationSettings(parameters=[name], lower=[low], upper=[high],
                                                        log_scale=[log], sim_repetitions=args.sim_repetitions,
                                                        interval_points=args.interval_points)
-            u = rng.uniform(0.1, 0.9, args.coverage)
             truths = low * (high / low) ** u if log else low + u * (high - low)
             started = time.perf_counter()
             grouped = None
             covered, covered_interpolated, widths = 0, 0, []
             for number, truth in enumerate(truths):
-                outcomes = calibration.synthetic_outcomes(parameters, [name], [truth], conditions, args.repetitions,
+                outcomes = synthetic_outcomes(parameters, [name], [truth], conditions, args.repetitions,
                                                           first_seed=1_000_000 + 1000 * number)
                 physical = analysis.group_conditions(outcomes)
                 if grouped is None:
@@ -90,8 +95,11 @@ def main():
     parser.add_argument("--two-parameters", action="store_true", help="also fit the foam's friction")
     parser.add_argument("--coverage", type=int, default=0, help="truths per parameter of the coverage bench")
     parser.add_argument("--interval-points", type=int, default=13, help="grid points of the likelihood interval")
-    parser.add_argument("--coverage-parameters", type=int, default=2, choices=(1, 2),
-                        help="coverage of the first 1 or both parameters")
+    parser.add_argument("--coverage-parameters", type=int, default=len(COVERAGE_PARAMETERS),
+                        choices=range(1, len(COVERAGE_PARAMETERS) + 1),
+                        help="coverage of the first N parameters of COVERAGE_PARAMETERS (default: all)")
+    parser.add_argument("--coverage-only", action="append", default=[], metavar="KEY",
+                        help="run the coverage of this parameter only (repeatable; same truths as without it)")
     args = parser.parse_args()
     if args.coverage:
         with tempfile.TemporaryDirectory() as folder:

@@ -25,8 +25,10 @@ import time
 import yaml
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(1, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "test"))  # doubles
 
 from bench.bench_launch_twin import dome_mesh  # noqa: E402
+from doubles import synthetic_outcomes  # noqa: E402
 from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 from rollability_ros.core.optimization import optimization_run, selection  # noqa: E402
@@ -86,7 +88,7 @@ def main():
         parameters = load_parameters(list(calibration.TWIN_CONFIGS))
         parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
         conditions = [LaunchCondition("baseline", 0.75, 0.8, 0.0), LaunchCondition("dome", 0.75, 0.8, 0.0)]
-        outcomes = calibration.synthetic_outcomes(parameters, [PARAMETER], [args.truth], conditions, 24)
+        outcomes = synthetic_outcomes(parameters, [PARAMETER], [args.truth], conditions, 24)
         settings = calibration.CalibrationSettings(parameters=[PARAMETER], lower=[-0.019], upper=[0.015],
                                                    log_scale=[False], sim_repetitions=8, popsize=4,
                                                    max_generations=4, bootstrap_resamples=0)

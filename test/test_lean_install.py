@@ -7,7 +7,7 @@ import sys
 import pytest
 
 #: Top-level modules a lean robot computer does not have (the sim, cluster and report extras).
-HEAVY_MODULES = ("pybullet", "pybullet_data", "trimesh", "cma", "scipy", "ray", "matplotlib")
+HEAVY_MODULES = ("pybullet", "pybullet_data", "trimesh", "cma", "scipy", "ray", "matplotlib", "ribs", "numba")
 
 BLOCKER = f'''"""Test-only sitecustomize: the heavy extras cannot be imported in this process."""
 import sys

@@ -121,6 +121,8 @@ GRAPH_CONFIG = """
       trials: 4
       max_generations: 1
       stagnation_generations: 0
+    quality_diversity:
+      emitters: 2
     selection:
       count: 1
       min_distance: 0.0

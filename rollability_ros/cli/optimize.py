@@ -1,4 +1,4 @@
-"""`rollability optimize`: a CMA-ES profile optimization in this process (no ROS graph), resumable."""
+"""`rollability optimize`: a CMA-ES or CMA-MAE profile optimization in this process (no ROS graph), resumable."""
 import math
 import os
 import sys
@@ -104,8 +104,10 @@ def run(args):
 def register(subparsers):
     """Add the ``optimize`` verb."""
     parser = subparsers.add_parser(
-        "optimize", help="run a CMA-ES profile optimization in this process (resumable)",
-        description="Optimize the profile heights with CMA-ES (paper 2.1.4), evaluating candidates in a local "
+        "optimize", help="run a CMA-ES or CMA-MAE profile optimization in this process (resumable)",
+        description="Optimize the profile heights with CMA-ES (paper 2.1.4; optimizer.method cmaes, config paper) or "
+                    "CMA-MAE quality diversity over maximum height x sharpness (cma_mae, the quick config), "
+                    "evaluating candidates in a local "
                     "process pool (or the Ray cluster of evaluator.ray_address). Every candidate and generation "
                     "goes to <output_dir>/<run_id>/store.sqlite and a checkpoint is written after each "
                     "generation, so a killed run continues with --resume and gives the same results.")

@@ -30,7 +30,7 @@ def run(args):
     if args.config:  # later files win over the run's own config.yaml, key by key
         parameters.update(load_parameters(list(args.config)))
     mapping = section(parameters, "selection")
-    for name in ("count", "min_distance", "reevaluate_trials", "mesh_units"):
+    for name in ("count", "min_distance", "reevaluate_trials", "mesh_units", "top_fraction"):
         if getattr(args, name) is not None:
             mapping[name] = getattr(args, name)
     settings = from_mapping(selection.SelectionSettings, mapping, "selection")
@@ -48,9 +48,15 @@ def run(args):
     finally:
         if executor is not None:
             executor.close()
-    print(f"{len(result.designs)} design(s) from {result.considered} distinct logged designs of run {run_id} "
-          f"(min RMS distance {settings.min_distance} units)")
+    if result.top_threshold is None:
+        print(f"{len(result.designs)} design(s) from {result.considered} distinct logged designs of run {run_id} "
+              f"(min RMS distance {settings.min_distance} units)")
+    else:
+        print(f"{len(result.designs)} design(s) from the {result.considered} elites of run {run_id}'s height x "
+              f"sharpness archive (top {settings.top_fraction:.0%}: fitness >= {result.top_threshold:.3f})")
     _print_table(selection.table_rows(result))
+    for design in result.designs:
+        print(f"{design.label}: {design.reason}")
     print(f"wrote {folder}/: table3.csv, designs.yaml, {len(result.designs)} STL file(s) in "
           f"{'millimetres' if settings.mesh_units == 'mm' else 'metres'} and as many 3MF files")
     if result.shortfall:
@@ -66,7 +72,10 @@ def register(subparsers):
         description="Pool every logged evaluation of the run per design, rank by the lower Wilson bound of the "
                     "fitness, and take the best designs that pass the printability checks and lie at least "
                     "--min-distance (RMS height difference, simulation units) from each other; optionally "
-                    "re-evaluate them and the baseline with fresh trials. Writes <run>/designs/: mesh_<X>.stl "
+                    "re-evaluate them and the baseline with fresh trials. A quality-diversity run (optimizer.method "
+                    "cma_mae) is selected from its height x sharpness archive instead: every elite screened on fresh "
+                    "trials, A the best of the top decile (--top-fraction), B and C the top-decile elites farthest "
+                    "from the designs already taken. Each design's reason is printed. Writes <run>/designs/: mesh_<X>.stl "
                     "(millimetres unless --mesh-units m; the unit is in the STL header), mesh_<X>.3mf, "
                     "table3.csv (the paper's Table 3 with fitness and Wilson interval) and designs.yaml. "
                     "Defaults come from the run's config.yaml (section selection).")
@@ -76,6 +85,8 @@ def register(subparsers):
                                                            "simulation units (default: selection.min_distance)")
     parser.add_argument("--reevaluate-trials", type=int, help="fresh trials per design and the baseline; 0 = "
                                                               "report the logged estimate")
+    parser.add_argument("--top-fraction", type=float, help="archive runs: choose among the elites in this top "
+                                                           "fraction of fitness (default: selection.top_fraction, 0.1)")
     parser.add_argument("--workers", type=int, help="worker processes for the re-evaluation")
     parser.add_argument("--mesh-units", choices=("mm", "m"), help="length unit of the STL files (default: "
                                                                    "selection.mesh_units, mm as slicers expect)")

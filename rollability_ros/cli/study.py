@@ -35,7 +35,7 @@ def run(args):
 def register(subparsers):
     parser = subparsers.add_parser(
         "study", help="the main job: optimize, select designs, run the launch campaign in simulation, report",
-        description="Run the whole loop through the real node graph (supervised processes): CMA-ES over "
+        description="Run the whole loop through the real node graph (supervised processes): the optimizer (CMA-MAE, or CMA-ES with --config paper) over "
         "simulated evaluators, design selection (A/B/C), the launch campaign on the simulated rig for the "
         "baseline and the designs, durable logging, an MCAP bag, and the report. The default is the quick "
         "configuration (minutes on 2 cores); --config paper runs the paper's settings. A study stopped or killed "

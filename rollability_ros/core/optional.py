@@ -15,6 +15,7 @@ EXTRA_FOR_MODULE = {
     "lxml": "sim",
     "xacro": "sim",
     "cma": "sim",
+    "ribs": "sim",
     "ray": "cluster",
     "matplotlib": "report",
     "serial": "hardware",

@@ -1,4 +1,4 @@
-"""optimizer: a CMA-ES profile optimization (``core.optimization_run``) whose candidates are evaluated by every
+"""optimizer: a CMA-ES or CMA-MAE profile optimization (``core.optimization_run``) whose candidates are evaluated by every
 EvaluateProfile action server in the graph (one or many ``sim_evaluator`` nodes, ``core.evaluator_pool``).
 
 Interfaces (relative names):
@@ -18,8 +18,8 @@ Interfaces (relative names):
 - calls ``<any namespace>/evaluate_profile`` (rollability_ros/action/EvaluateProfile): every server of that
   type, rediscovered every ``evaluator_discovery_period_s``; one goal in flight per server.
 
-Parameters: the namespaces ``optimizer`` (config/optimizer.yaml, config/paper.yaml), ``selection``, ``profile``
-and ``printer`` (the grid and printer of config/robot.yaml, overridden by the optimization file), all saved in
+Parameters: the namespaces ``optimizer`` (config/optimizer.yaml, config/paper.yaml; ``optimizer.method`` picks
+CMA-ES or CMA-MAE), ``quality_diversity`` (the CMA-MAE archive), ``selection``, ``profile`` and ``printer`` (the grid and printer of config/robot.yaml, overridden by the optimization file), all saved in
 the run's ``config.yaml``; ``robot`` (the chassis: the marker's mount and the screen's robot); ``urdf_robot`` (a
 URDF robot's config such as config/husky.yaml: when it names a mount link, the grid's ``length_m`` / ``width_m``
 are its mount footprint's, as the evaluators' are, the marker sits on that mount and the screen uses it);
@@ -59,6 +59,7 @@ from rollability_ros.core.config import ConfigError
 from rollability_ros.core.optimization.evaluator_pool import EvaluationFailed, EvaluatorPool, PoolClosed, PoolSettings
 from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid
 from rollability_ros.core.optimization.cmaes import OptimizerSettings
+from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
 from rollability_ros.core.robots.robot import ChassisSpec
 from rollability_ros.core.optimization.selection import SelectionSettings
 from rollability_ros.core.sim.stable_poses import ScreenSettings
@@ -71,8 +72,8 @@ from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterEr
 #: The action type an evaluator serves (as the graph API names it).
 EVALUATOR_ACTION_TYPE = "rollability_ros/action/EvaluateProfile"
 #: Parameter namespaces that define a run and are saved in its config.yaml.
-RUN_SECTIONS = {"optimizer": OptimizerSettings, "selection": SelectionSettings, "profile": ProfileGrid,
-                "printer": PrinterSpec}
+RUN_SECTIONS = {"optimizer": OptimizerSettings, "quality_diversity": QualityDiversitySettings,
+                "selection": SelectionSettings, "profile": ProfileGrid, "printer": PrinterSpec}
 #: Parameter namespaces of the robot the profile is for (the grid's footprint, the marker's mount) and of the
 #: stable-pose screen of initial means on that robot; read when a run starts, not saved in its config.yaml.
 ROBOT_SECTIONS = {"robot": ChassisSpec, "urdf_robot": UrdfRobotSpec, "stable_poses": ScreenSettings}
@@ -255,6 +256,7 @@ class Optimizer(Node):
             try:
                 settings = self._read_run_settings()
                 run_dir, parameters, resume = self._run_target(settings)
+                optimization_run.check_method_settings(parameters)
             except (ParameterError, ConfigError, ValueError, FileNotFoundError) as exc:
                 self.get_logger().error(f"cannot start: {exc}")
                 return False, str(exc)

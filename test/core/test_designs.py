@@ -9,7 +9,7 @@ import yaml
 from rollability_ros.core.profile import geometry
 from rollability_ros.core.config import ConfigError
 from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
-from rollability_ros.core.optimization.selection import designs_document
+from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, designs_document
 
 pytest.importorskip("trimesh")
 
@@ -23,8 +23,8 @@ def ramp_heights(top):
 
 def write_designs(folder, tops):
     """A designs.yaml exactly as ``rollability select`` writes it, with one ramp design per label -> top."""
-    chosen = [types.SimpleNamespace(label=label, design=types.SimpleNamespace(heights=tuple(ramp_heights(top))),
-                                    reported=(9, 10, "log")) for label, top in tops.items()]
+    chosen = [SelectedDesign(label, PooledDesign(ramp_heights(top), 9, 10, 1, 1), mesh=None, metrics=None,
+                             reason="a ramp to the given top") for label, top in tops.items()]
     document = designs_document(types.SimpleNamespace(designs=chosen), GRID, "run-1")
     path = os.path.join(folder, "designs.yaml")
     with open(path, "w", encoding="utf-8") as stream:

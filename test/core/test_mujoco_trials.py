@@ -105,13 +105,13 @@ def test_evaluate_designs_in_two_engines_writes_the_table_the_report_reads(tmp_p
     import yaml
 
     from rollability_ros.cli import main
-    from rollability_ros.core.optimization.selection import designs_document
+    from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, designs_document
     from rollability_ros.core.profile.geometry import ProfileGrid
     from rollability_ros.core.results.engine_agreement import read_table
 
     grid = ProfileGrid(rows=4, cols=3)
-    chosen = [types.SimpleNamespace(label="A", reported=(9, 10, "log"), design=types.SimpleNamespace(
-        heights=tuple(np.repeat(np.linspace(0.05, 0.4, grid.rows), grid.cols))))]
+    chosen = [SelectedDesign("A", PooledDesign(np.repeat(np.linspace(0.05, 0.4, grid.rows), grid.cols), 9, 10, 1, 1),
+                             mesh=None, metrics=None, reason="a ramp")]
     designs = tmp_path / "designs.yaml"
     designs.write_text(yaml.safe_dump(designs_document(types.SimpleNamespace(designs=chosen), grid, "run-1")))
     assert main(["evaluate", "--designs", str(designs), "--engines", "pybullet,mujoco", "--trials", "4",

@@ -34,7 +34,7 @@ CHILD = textwrap.dedent("""
     sys.path.insert(0, sys.argv[4])   # test/, for the test doubles
     from doubles import SyntheticEvaluator
     from rollability_ros.core.optimization.optimization_run import OptimizationRun
-    run_dir, block_at, crn = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "True"
+    run_dir, block_at, crn, method = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "True", sys.argv[5]
     evaluator = SyntheticEvaluator(np.linspace(0.05, 0.4, 9), trials=30)
     calls = []
     def evaluate_batch(heights_list, seed):
@@ -44,14 +44,15 @@ CHILD = textwrap.dedent("""
             time.sleep(600)
         return evaluator(heights_list, seed)
     parameters = {"optimizer.max_generations": %d, "optimizer.seed": 5, "optimizer.trials": 30,
-                  "optimizer.popsize": 6, "optimizer.common_random_numbers": crn}
+                  "optimizer.popsize": 6, "optimizer.common_random_numbers": crn, "optimizer.method": method}
     OptimizationRun(run_dir, parameters, ProfileGrid(rows=3, cols=3), evaluate_batch).run()
 """ % GENERATIONS)
 
 
-def parameters(common_random_numbers=True, **overrides):
+def parameters(common_random_numbers=True, method="cmaes", **overrides):
     values = {"optimizer.max_generations": GENERATIONS, "optimizer.seed": 5, "optimizer.trials": 30,
-              "optimizer.popsize": 6, "optimizer.common_random_numbers": common_random_numbers}
+              "optimizer.popsize": 6, "optimizer.common_random_numbers": common_random_numbers,
+              "optimizer.method": method}
     values.update(overrides)
     return values
 
@@ -64,9 +65,9 @@ def comparable(store_path):
     return candidates, generations
 
 
-def uninterrupted(tmp_path, common_random_numbers):
+def uninterrupted(tmp_path, common_random_numbers, method="cmaes"):
     run_dir = os.path.join(tmp_path, "straight", "run")
-    run = OptimizationRun(run_dir, parameters(common_random_numbers), GRID,
+    run = OptimizationRun(run_dir, parameters(common_random_numbers, method), GRID,
                           SyntheticEvaluator(OPTIMUM, trials=30))
     result = run.run()
     run.close()
@@ -74,17 +75,20 @@ def uninterrupted(tmp_path, common_random_numbers):
 
 
 # calls per generation: CRN: population + re-evaluation = 2; independent seeds: 6 candidates + 1 = 7
-@pytest.mark.parametrize("common_random_numbers, block_at, stored_in_killed_generation", [
-    (True, 2 * KILL_GENERATION + 1, 0),   # killed while the population is evaluated
-    (True, 2 * KILL_GENERATION + 2, 6),   # killed during the incumbent re-evaluation: population stored
-    (False, 7 * KILL_GENERATION + 4, 3),  # independent seeds, killed after 3 of 6 candidates
+@pytest.mark.parametrize("common_random_numbers, block_at, stored_in_killed_generation, method", [
+    (True, 2 * KILL_GENERATION + 1, 0, "cmaes"),   # killed while the population is evaluated
+    (True, 2 * KILL_GENERATION + 2, 6, "cmaes"),   # killed during the incumbent re-evaluation: population stored
+    (False, 7 * KILL_GENERATION + 4, 3, "cmaes"),  # independent seeds, killed after 3 of 6 candidates
+    (True, 2 * KILL_GENERATION + 2, 6, "cma_mae"),  # quality diversity: archive and emitters rebuilt exactly
 ])
 def test_sigkill_mid_generation_then_resume_equals_uninterrupted(tmp_path, common_random_numbers, block_at,
-                                                                 stored_in_killed_generation):
+                                                                 stored_in_killed_generation, method):
+    if method == "cma_mae":
+        pytest.importorskip("ribs")
     run_dir = os.path.join(tmp_path, "killed", "run")
     os.makedirs(os.path.dirname(run_dir))
     child = subprocess.Popen([sys.executable, "-c", CHILD, run_dir, str(block_at), str(common_random_numbers),
-                              os.path.dirname(os.path.dirname(os.path.abspath(__file__)))])
+                              os.path.dirname(os.path.dirname(os.path.abspath(__file__))), method])
     try:
         deadline = time.monotonic() + 60
         while not os.path.exists(run_dir + ".blocked"):
@@ -110,8 +114,12 @@ def test_sigkill_mid_generation_then_resume_equals_uninterrupted(tmp_path, commo
     result = resumed.run()
     resumed.close()
 
-    straight_dir, straight = uninterrupted(tmp_path, common_random_numbers)
+    straight_dir, straight = uninterrupted(tmp_path, common_random_numbers, method)
     assert comparable(run_dir) == comparable(straight_dir)
+    with Store(run_dir) as killed, Store(straight_dir) as straight_store:
+        archive = killed.run_info("run")["info"].get("archive")
+        assert archive == straight_store.run_info("run")["info"].get("archive")
+        assert (archive is not None) == (method == "cma_mae")
     assert result.generations == straight.generations == GENERATIONS
     np.testing.assert_array_equal(result.best.heights, straight.best.heights)
     assert result.best.fitness == straight.best.fitness

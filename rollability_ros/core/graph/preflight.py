@@ -19,6 +19,7 @@ def _node_sections():
     from rollability_ros.core.campaign.runner import RunnerSettings
     from rollability_ros.core.imu.upright import ImuOutcomeConfig
     from rollability_ros.core.optimization.cmaes import OptimizerSettings
+    from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
     from rollability_ros.core.optimization.selection import SelectionSettings
     from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid
     from rollability_ros.core.results.outcome_log import OutcomeLoggerSettings
@@ -37,8 +38,8 @@ def _node_sections():
         "outcome_logger": {"": OutcomeLoggerSettings},
         "valve_controller": {"valve": ValveConfig},
         "sim_evaluator": evaluator,
-        "optimizer": {"optimizer": OptimizerSettings, "selection": SelectionSettings, "profile": ProfileGrid,
-                      "printer": PrinterSpec, "robot": ChassisSpec, "urdf_robot": UrdfRobotSpec,
+        "optimizer": {"optimizer": OptimizerSettings, "quality_diversity": QualityDiversitySettings,
+                      "selection": SelectionSettings, "profile": ProfileGrid, "printer": PrinterSpec, "robot": ChassisSpec, "urdf_robot": UrdfRobotSpec,
                       "stable_poses": ScreenSettings},
         "rig": {"rig": RigSettings, "valve": ValveConfig, "speed_gate": SpeedGateConfig,
                 "imu_outcome": ImuOutcomeConfig},

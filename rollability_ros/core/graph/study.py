@@ -2,7 +2,7 @@
 
 1. Bring up the graph as supervised processes (:mod:`~rollability_ros.core.graph.supervisor`): recorder (bag),
    outcome_logger (durable store), valve_controller (dry run), ``evaluators`` sim_evaluator nodes, optimizer.
-2. The optimizer runs CMA-ES over the evaluators, selects designs A/B/C when it finishes (STL, Table 3,
+2. The optimizer runs CMA-MAE or CMA-ES (``optimizer.method``) over the evaluators, selects designs A/B/C when it finishes (STL, Table 3,
    designs.yaml) and exits.
 3. The rig (sim backend, the launch twin with the selected designs) and the campaign_runner join; the runner
    sends every trial of the campaign matrix to the rig and exits once the logger has stored them all.
@@ -212,7 +212,7 @@ class Study:
             if self._selected_labels() is None:
                 resume = os.path.isfile(os.path.join(self.optimization_dir, "config.yaml"))
                 self.say("resuming the optimization from its last checkpoint" if resume else
-                         "optimizing the profile (CMA-ES over the evaluators)")
+                         "optimizing the profile (the optimizer over the evaluators)")
                 supervisor.add(self._optimizer(resume).process_spec(self.param_files))
                 code, reason = self._wait(supervisor, "optimizer", self.settings.optimization_timeout_s,
                                           self._progress_optimization)

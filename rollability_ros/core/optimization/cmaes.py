@@ -36,6 +36,8 @@ from rollability_ros.core.optional import require
 STREAM_POPULATION = 0
 STREAM_REEVALUATION = 1
 STREAM_SELECTION = 2
+#: Values of ``optimizer.method``: one CMA-ES (the paper's), or CMA-MAE quality diversity (quality_diversity.py).
+METHODS = ("cmaes", "cma_mae")
 
 
 def derive_seed(run_seed, generation, stream, index=0):
@@ -56,6 +58,9 @@ class OptimizerSettings:
     bounds). A cap of 0 disables that stop criterion; ``target_fitness`` above 1 disables the target.
     """
 
+    method: str = dataclasses.field(default="cmaes", metadata={
+        "description": "search method: cmaes (one CMA-ES, the paper's) or cma_mae (quality diversity over maximum "
+                       "height x sharpness, section quality_diversity; needs the ribs package)"})
     popsize: int = dataclasses.field(default=12, metadata={
         "description": "candidates per CMA-ES generation (count; paper 12)", "range": (2, 100000)})
     sigma0: float = dataclasses.field(default=0.02, metadata={
@@ -95,6 +100,8 @@ class OptimizerSettings:
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if self.popsize < 2:
             raise ValueError(f"popsize must be >= 2, got {self.popsize}")
         if not self.sigma0 > 0:
@@ -154,47 +161,14 @@ def random_initial_means(settings, n_variables, lower=0.0, upper=0.45):
     return np.random.default_rng(settings.seed).uniform(lower, upper, (rows, int(n_variables)))
 
 
-class ProfileOptimizer:
-    """CMA-ES over ``n_variables`` heights in ``[lower, upper]`` with the protocol ask -> tell ->
-    (:meth:`reevaluation_request` -> :meth:`tell_reevaluation` when re-evaluation is on) -> :meth:`stop`.
-
-    Parameters
-    ----------
-    n_variables : int
-        Design variables (half-grid vertices).
-    settings : OptimizerSettings
-    lower, upper : float
-        Height bounds, simulation units.
-    clock : callable, optional
-        Monotonic clock in seconds, for the wall-time cap.
-    initial_mean : array_like, optional
-        The CMA-ES start ``(n_variables,)`` within the bounds (e.g. the best of :func:`random_initial_means` by
-        the stable-pose screen); default: row 0 of :func:`random_initial_means`.
+class IncumbentOptimizer:
+    """What every profile optimizer shares: the ask/tell bookkeeping, the incumbent with its re-evaluation, the
+    stop criteria and the wall time. A subclass supplies ``_ask() -> [heights]`` and ``_tell(population, fitness,
+    trials)`` (its own search state) and calls :meth:`_init_bookkeeping` in its constructor.
     """
 
-    def __init__(self, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic, initial_mean=None):
-        cma = require("cma", feature="the CMA-ES optimizer")
-        settings.validate()
-        if n_variables < 1:
-            raise ValueError(f"n_variables must be >= 1, got {n_variables}")
-        if not lower < upper:
-            raise ValueError(f"need lower < upper, got [{lower}, {upper}]")
+    def _init_bookkeeping(self, settings, clock):
         self.settings = settings
-        self.n_variables = int(n_variables)
-        self.lower, self.upper = float(lower), float(upper)
-        if initial_mean is None:
-            initial_mean = random_initial_means(settings, self.n_variables, lower, upper)[0]
-        self.initial_mean = np.array(initial_mean, dtype=np.float64)
-        if self.initial_mean.shape != (self.n_variables,) or not np.all(np.isfinite(self.initial_mean)) or \
-                np.any(self.initial_mean < self.lower) or np.any(self.initial_mean > self.upper):
-            raise ValueError(f"initial_mean must be {self.n_variables} finite heights in [{lower}, {upper}]")
-        self.cma_options = {"popsize": settings.popsize, "bounds": [self.lower, self.upper], "seed": settings.seed,
-                            "verbose": -9, "verb_log": 0, "verb_disp": 0}
-        global_state = np.random.get_state()
-        strategy = cma.CMAEvolutionStrategy(self.initial_mean, settings.sigma0, self.cma_options)
-        # the round trip replaces pycma's reference to the global np.random by a private copy in the same state
-        self._es = pickle.loads(pickle.dumps(strategy))
-        np.random.set_state(global_state)  # pycma's seed option reseeded the process-wide generator
         self._clock = clock
         self._started = clock()
         self._elapsed_before_s = 0.0
@@ -205,7 +179,7 @@ class ProfileOptimizer:
         self._challenger = None
         self._reevaluation_pending = False
         self._improved_at = 0              # generation count when the incumbent last changed
-        # every generation's tell (fitness, trials, re-evaluation): the checkpoint rebuilds the strategy from it
+        # every generation's tell (fitness, trials, re-evaluation): the checkpoint rebuilds the search from it
         self._tells = []
 
     # --- ask / tell -------------------------------------------------------------------------------------------
@@ -216,7 +190,7 @@ class ProfileOptimizer:
                              f"{self.generation - 1} is still pending")
         if self._asked is not None:
             raise ValueError(f"ask() called twice for generation {self.generation}; tell() the first population")
-        self._asked = [np.asarray(x, dtype=np.float64) for x in self._es.ask()]
+        self._asked = [np.asarray(x, dtype=np.float64) for x in self._ask()]
         return [x.copy() for x in self._asked]
 
     def tell(self, solutions, fitness, trials=None):
@@ -236,7 +210,7 @@ class ProfileOptimizer:
                 raise ValueError(f"solution {index} is not the one asked (order changed or values altered)")
         if not all(0.0 <= f <= 1.0 for f in fitness):
             raise ValueError(f"fitness values must lie in [0, 1], got {fitness}")
-        self._es.tell(self._asked, [1.0 - f for f in fitness])
+        self._tell(self._asked, fitness, trials)
         self._tells.append({"fitness": fitness, "trials": trials, "reevaluation": None})
         best = int(np.argmax(fitness))
         candidate = Estimate(self._asked[best].copy(), fitness[best], trials[best], 1, self.generation)
@@ -283,11 +257,6 @@ class ProfileOptimizer:
         return self._incumbent
 
     @property
-    def sigma(self):
-        """Current CMA-ES step size, simulation units."""
-        return float(self._es.sigma)
-
-    @property
     def elapsed_s(self):
         """Optimization wall time, s, summed over resumed sessions."""
         return self._elapsed_before_s + (self._clock() - self._started)
@@ -315,6 +284,76 @@ class ProfileOptimizer:
             met["max_wall_time_s"] = s.max_wall_time_s
         return met
 
+    def _bookkeeping_state(self):
+        """The shared part of ``state_dict()``: the tells and counters (between generations only)."""
+        if self._reevaluation_pending or self._asked is not None:
+            raise ValueError("the optimizer state is only saved between generations")
+        return {"tells": copy.deepcopy(self._tells), "generation": self.generation, "evaluations": self.evaluations,
+                "elapsed_s": self.elapsed_s, "improved_at": self._improved_at}
+
+    def _replay(self, state):
+        """Replay the saved tells into this fresh optimizer; ValueError when they do not fit these settings."""
+        for tell in state["tells"]:
+            population = self.ask()
+            self.tell(population, tell["fitness"], tell["trials"])
+            if tell["reevaluation"] is not None:
+                self.reevaluation_request()
+                self.tell_reevaluation(*tell["reevaluation"])
+            elif self._reevaluation_pending:
+                raise ValueError("saved optimizer state lacks a re-evaluation these settings ask for")
+        if (self.generation != int(state["generation"]) or self.evaluations != int(state["evaluations"])
+                or self._improved_at != int(state["improved_at"])):
+            raise ValueError("replaying the saved tells does not reproduce the saved counters: the checkpoint "
+                             "belongs to other settings or code")
+
+    def _resume_clock(self, state):
+        self._started = self._clock()
+        self._elapsed_before_s = float(state["elapsed_s"])
+
+
+class ProfileOptimizer(IncumbentOptimizer):
+    """CMA-ES over ``n_variables`` heights in ``[lower, upper]`` with the protocol ask -> tell ->
+    (:meth:`reevaluation_request` -> :meth:`tell_reevaluation` when re-evaluation is on) -> :meth:`stop`.
+
+    Parameters
+    ----------
+    n_variables : int
+        Design variables (half-grid vertices).
+    settings : OptimizerSettings
+    lower, upper : float
+        Height bounds, simulation units.
+    clock : callable, optional
+        Monotonic clock in seconds, for the wall-time cap.
+    initial_mean : array_like, optional
+        The CMA-ES start ``(n_variables,)`` within the bounds (e.g. the best of :func:`random_initial_means` by
+        the stable-pose screen); default: row 0 of :func:`random_initial_means`.
+    """
+
+    def __init__(self, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic, initial_mean=None):
+        cma = require("cma", feature="the CMA-ES optimizer")
+        settings.validate()
+        self.n_variables, self.lower, self.upper, self.initial_mean = check_search_space(
+            n_variables, settings, lower, upper, initial_mean)
+        self.cma_options = {"popsize": settings.popsize, "bounds": [self.lower, self.upper], "seed": settings.seed,
+                            "verbose": -9, "verb_log": 0, "verb_disp": 0}
+        global_state = np.random.get_state()
+        strategy = cma.CMAEvolutionStrategy(self.initial_mean, settings.sigma0, self.cma_options)
+        # the round trip replaces pycma's reference to the global np.random by a private copy in the same state
+        self._es = pickle.loads(pickle.dumps(strategy))
+        np.random.set_state(global_state)  # pycma's seed option reseeded the process-wide generator
+        self._init_bookkeeping(settings, clock)
+
+    def _ask(self):
+        return self._es.ask()
+
+    def _tell(self, population, fitness, trials):
+        self._es.tell(population, [1.0 - f for f in fitness])
+
+    @property
+    def sigma(self):
+        """Current CMA-ES step size, simulation units."""
+        return float(self._es.sigma)
+
     @property
     def result(self):
         """The :class:`OptimizerResult` so far."""
@@ -329,12 +368,8 @@ class ProfileOptimizer:
         tells (per generation: fitnesses, trials, the re-evaluation) and :meth:`from_state_dict` replays them;
         ``mean`` and ``sigma`` are stored to check that the replay reproduced the strategy exactly.
         """
-        if self._reevaluation_pending or self._asked is not None:
-            raise ValueError("the optimizer state is only saved between generations")
-        return {"tells": copy.deepcopy(self._tells), "generation": self.generation, "evaluations": self.evaluations,
-                "elapsed_s": self.elapsed_s, "improved_at": self._improved_at,
-                "initial_mean": self.initial_mean.tolist(), "mean": np.asarray(self._es.mean).tolist(),
-                "sigma": float(self._es.sigma)}
+        return {**self._bookkeeping_state(), "initial_mean": self.initial_mean.tolist(),
+                "mean": np.asarray(self._es.mean).tolist(), "sigma": float(self._es.sigma)}
 
     @classmethod
     def from_state_dict(cls, state, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic,
@@ -345,23 +380,35 @@ class ProfileOptimizer:
         elsewhere belongs to other settings and is refused, as is one whose replay does not reproduce the saved
         mean and step size (ValueError).
         """
+        if state.get("method", "cmaes") != "cmaes":
+            raise ValueError(f"saved optimizer state is a {state.get('method')} state, not cmaes (optimizer.method "
+                             "changed?)")
         optimizer = cls(n_variables, settings, lower, upper, clock, initial_mean)
         if not np.array_equal(optimizer.initial_mean, np.asarray(state["initial_mean"], dtype=np.float64)):
             raise ValueError("saved optimizer state does not match these settings (different initial mean)")
-        for tell in state["tells"]:
-            population = optimizer.ask()
-            optimizer.tell(population, tell["fitness"], tell["trials"])
-            if tell["reevaluation"] is not None:
-                optimizer.reevaluation_request()
-                optimizer.tell_reevaluation(*tell["reevaluation"])
-            elif optimizer._reevaluation_pending:
-                raise ValueError("saved optimizer state lacks a re-evaluation these settings ask for")
-        if (optimizer.generation != int(state["generation"]) or optimizer.evaluations != int(state["evaluations"])
-                or optimizer._improved_at != int(state["improved_at"])
-                or not np.array_equal(np.asarray(optimizer._es.mean), np.asarray(state["mean"], dtype=np.float64))
+        optimizer._replay(state)
+        if (not np.array_equal(np.asarray(optimizer._es.mean), np.asarray(state["mean"], dtype=np.float64))
                 or float(optimizer._es.sigma) != float(state["sigma"])):
             raise ValueError("replaying the saved tells does not reproduce the saved CMA-ES state (mean, sigma or "
                              "counters differ): the checkpoint belongs to other settings or code")
-        optimizer._started = clock()
-        optimizer._elapsed_before_s = float(state["elapsed_s"])
+        optimizer._resume_clock(state)
         return optimizer
+
+
+def check_search_space(n_variables, settings, lower, upper, initial_mean):
+    """``(n_variables, lower, upper, initial_mean)`` checked and converted; ValueError naming what is wrong.
+
+    ``initial_mean`` None -> row 0 of :func:`random_initial_means` (the paper's random start).
+    """
+    if n_variables < 1:
+        raise ValueError(f"n_variables must be >= 1, got {n_variables}")
+    if not lower < upper:
+        raise ValueError(f"need lower < upper, got [{lower}, {upper}]")
+    n_variables, lower, upper = int(n_variables), float(lower), float(upper)
+    if initial_mean is None:
+        initial_mean = random_initial_means(settings, n_variables, lower, upper)[0]
+    initial_mean = np.array(initial_mean, dtype=np.float64)
+    if initial_mean.shape != (n_variables,) or not np.all(np.isfinite(initial_mean)) or \
+            np.any(initial_mean < lower) or np.any(initial_mean > upper):
+        raise ValueError(f"initial_mean must be {n_variables} finite heights in [{lower}, {upper}]")
+    return n_variables, lower, upper, initial_mean

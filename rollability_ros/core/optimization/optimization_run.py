@@ -18,11 +18,12 @@ the seeds of generation number n are derived from its index n - 1, as before. Ru
 (their run info has no ``first_generation``) keep 0 when resumed, so their stored candidates still match.
 
 The optimizer is pluggable: :class:`OptimizationRun` drives any object made by ``optimizer_factory`` (default
-:func:`cmaes_optimizer`) with ``ask() -> population``, ``tell(population, fitness, trials)``, ``stop() -> dict``,
+:func:`make_optimizer`: CMA-ES or CMA-MAE by ``optimizer.method``) with ``ask() -> population``, ``tell(population, fitness, trials)``, ``stop() -> dict``,
 ``result`` (an :class:`~rollability_ros.core.optimization.cmaes.OptimizerResult`), ``best``, ``sigma``,
 ``generation`` (completed generations), ``evaluations``, ``elapsed_s`` and ``state_dict()``; optionally
 ``reevaluation_request() -> heights or None`` and ``tell_reevaluation(fitness, trials)`` for an incumbent
-re-evaluation. :func:`run_generations` is the one loop (stop / pause / give-up policy) that ``rollability
+re-evaluation; optionally ``archive_rows()`` and ``archive_summary()`` (a quality-diversity archive, stored in the
+run info under ``archive`` after every generation). :func:`run_generations` is the one loop (stop / pause / give-up policy) that ``rollability
 optimize`` and the ``optimizer`` node run; :func:`run_target` is the one resolution of which run to start or
 continue.
 
@@ -47,6 +48,7 @@ from rollability_ros.core.config import ConfigError, from_mapping, load_paramete
 from rollability_ros.core.optimization.cmaes import (
     STREAM_POPULATION,
     STREAM_REEVALUATION,
+    IncumbentOptimizer,
     OptimizerResult,
     OptimizerSettings,
     ProfileOptimizer,
@@ -129,6 +131,42 @@ def cmaes_optimizer(n_variables: int, settings: OptimizerSettings, lower: float,
     return ProfileOptimizer.from_state_dict(state, n_variables, settings, lower, upper, clock, initial_mean)
 
 
+def quality_diversity_settings(parameters: dict) -> typing.Any:
+    """The :class:`~rollability_ros.core.optimization.quality_diversity.QualityDiversitySettings` of flat
+    ``parameters`` (namespace ``quality_diversity``; defaults where absent)."""
+    from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
+
+    return from_mapping(QualityDiversitySettings, section(parameters, "quality_diversity"), "quality_diversity")
+
+
+def check_method_settings(parameters: dict) -> None:
+    """Raise ``ValueError`` naming the first unusable setting of the search method ``parameters`` ask for (the
+    optimizer section, and for ``cma_mae`` the quality_diversity section against the popsize), before a run starts."""
+    settings = optimizer_settings(parameters)
+    settings.validate()
+    if settings.method == "cma_mae":
+        quality_diversity_settings(parameters).validate(settings.popsize)
+
+
+def make_optimizer(grid: typing.Any, parameters: dict, clock: typing.Callable[[], float],
+                   initial_mean: typing.Optional[np.ndarray] = None,
+                   state: typing.Optional[dict] = None) -> IncumbentOptimizer:
+    """The optimizer ``optimizer.method`` of ``parameters`` names, over ``grid``'s variables and bounds, new or
+    restored from a checkpoint ``state``: :func:`cmaes_optimizer` or a
+    :class:`~rollability_ros.core.optimization.quality_diversity.QualityDiversityOptimizer`."""
+    settings = optimizer_settings(parameters)
+    if settings.method == "cmaes":
+        return cmaes_optimizer(grid.n_variables, settings, grid.height_min, grid.height_max, clock, initial_mean,
+                               state)
+    settings.validate()
+    from rollability_ros.core.optimization.quality_diversity import QualityDiversityOptimizer
+
+    qd_settings = quality_diversity_settings(parameters)
+    if state is None:
+        return QualityDiversityOptimizer(settings, qd_settings, grid, clock, initial_mean)
+    return QualityDiversityOptimizer.from_state_dict(state, settings, qd_settings, grid, clock, initial_mean)
+
+
 def read_run_config(run_dir: typing.Union[str, os.PathLike]) -> dict:
     """Return the flat parameters saved in ``<run_dir>/config.yaml``; ``FileNotFoundError`` if it is not a run."""
     path = os.path.join(run_dir, RUN_CONFIG_FILENAME)
@@ -194,7 +232,7 @@ class OptimizationRun:
 
     optimizer_factory : callable, optional
         ``factory(n_variables, settings, lower, upper, clock, initial_mean, state=None)`` -> the optimizer the run
-        drives (module docstring); default :func:`cmaes_optimizer`.
+        drives (module docstring); default :func:`make_optimizer` (``optimizer.method``: CMA-ES or CMA-MAE).
 
     ``on_candidate`` and ``on_generation`` are also public attributes, settable after construction.
     """
@@ -210,7 +248,7 @@ class OptimizationRun:
         self.on_candidate = on_candidate
         self.on_generation = on_generation
         self._clock = clock
-        self._optimizer_factory = optimizer_factory or cmaes_optimizer
+        self._optimizer_factory = optimizer_factory
         self.checkpoint_path = os.path.join(self.run_dir, checkpoints.CHECKPOINT_FILENAME)
         self.initial_mean_screen = self._screen_initial_means(screen_profiles)
         self.optimizer = self._resume() if resume else self._start()
@@ -255,6 +293,8 @@ class OptimizationRun:
                 f"{screen['worst_barrier_m'][chosen] * 1000:.1f} mm)")
 
     def _new_optimizer(self, state=None):
+        if self._optimizer_factory is None:
+            return make_optimizer(self.grid, self.parameters, self._clock, self._initial_mean, state)
         return self._optimizer_factory(self.grid.n_variables, self.settings, self.grid.height_min,
                                        self.grid.height_max, self._clock, self._initial_mean, state=state)
 
@@ -357,6 +397,18 @@ class OptimizationRun:
         info["checkpoint"] = {"file": checkpoints.CHECKPOINT_FILENAME, "generation": generation, "sha256": digest}
         store.set_run_info(self.run_id, described["kind"] if described else RUN_KIND, info)
 
+    def _record_archive(self, optimizer):
+        """Store a quality-diversity optimizer's archive (summary and every cell's elite, generations numbered as
+        stored) in the run info under ``archive``; nothing for an optimizer without one."""
+        rows = getattr(optimizer, "archive_rows", None)
+        if rows is None:
+            return
+        elites = [{**row, "generation": self.generation_number(row["generation"])} for row in rows()]
+        described = self.store.run_info(self.run_id)
+        info = dict(described["info"]) if described else {}
+        info["archive"] = {**optimizer.archive_summary(), "elites": elites}
+        self.store.set_run_info(self.run_id, described["kind"] if described else RUN_KIND, info)
+
     # --- one generation ---------------------------------------------------------------------------------------
     def step(self) -> GenerationRecord:
         """Evaluate, log and checkpoint one generation; return its :class:`GenerationRecord`.
@@ -394,6 +446,7 @@ class OptimizationRun:
                                   evaluations=optimizer.evaluations, elapsed_s=optimizer.elapsed_s,
                                   stamp_s=time.time())
         self.store.add_generation(record)
+        self._record_archive(optimizer)
         digest = checkpoints.save_checkpoint(self.checkpoint_path, self.run_id, self.parameters,
                                              optimizer.state_dict(), optimizer.best.fitness)
         self._record_checkpoint(self.store, optimizer.generation, digest)

@@ -14,6 +14,19 @@ Procedure
    estimate is not, so Table 3 then reports the re-evaluated fitness.
 If fewer than ``count`` designs qualify, the result says how many and why; nothing is padded.
 
+A quality-diversity run (``optimizer.method: cma_mae``) stores an archive of elites over maximum height x sharpness
+(:mod:`~rollability_ros.core.optimization.quality_diversity`); its designs come from that map instead
+(:func:`select_from_archive`):
+
+1. The *top pool* is the archive's elites whose fitness is at least the ``1 - top_fraction`` quantile of all elite
+   fitnesses (the top decile by default).
+2. Each elite's evaluations are pooled as above; "A" is the printable elite of the pool with the highest lower
+   Wilson bound.
+3. Each next design is the printable elite of the pool, in a cell not yet taken, farthest from every design already
+   taken in the descriptor plane (height and sharpness, each divided by its axis length), ties going to the higher
+   Wilson bound: farthest-point sampling, so A/B/C span the map as far as the fit designs allow.
+4. Re-evaluation as in step 4 above. Each design carries the sentence saying why it was chosen.
+
 Outputs (``<run_dir>/designs/``): ``mesh_<label>.stl`` (millimetres by default, ``mesh_units``; the unit is
 written in the STL header), ``mesh_<label>.3mf`` (millimetres, the 3MF unit attribute), ``table3.csv`` (the paper's Table 3 with the
 simulated fitness and its Wilson interval, baseline row first; beside it the in-run estimate with its interval
@@ -36,6 +49,11 @@ from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
 from rollability_ros.core.optimization.cmaes import STREAM_SELECTION, derive_seed
 from rollability_ros.core.results.stats import wilson_interval
 
+#: Columns of ``archive.csv`` (quality-diversity runs): each elite, its run and screen estimates, its label if chosen.
+ARCHIVE_COLUMNS = ("cell_height", "cell_sharpness", "max_height_mm", "sharpness_deg", "in_run_fitness",
+                   "in_run_trials", "screen_successes", "screen_trials", "screen_fitness", "top_pool", "label")
+#: Columns of ``traits.csv``: every evaluation of the run pooled per bin of one descriptor.
+TRAIT_COLUMNS = ("trait", "bin_low", "bin_high", "designs", "successes", "trials", "fitness", "ci_low", "ci_high")
 #: Sub-directory of the run directory that receives the selected designs.
 DESIGNS_DIRNAME = "designs"
 #: Columns of ``table3.csv`` (configuration and dimensions as in ``analysis.GEOMETRY_COLUMNS``).
@@ -62,6 +80,10 @@ class SelectionSettings:
                        "estimate)", "range": (0, 10000000)})
     mesh_units: str = dataclasses.field(default="mm", metadata={
         "description": "length unit of the written STL files: mm (what slicers expect) or m"})
+    top_fraction: float = dataclasses.field(default=0.1, metadata={
+        "description": "quality-diversity runs: choose among the archive elites whose fitness is in this top "
+                       "fraction of all elite fitnesses (fraction, (0, 1]; 0.1 = the top decile)",
+        "range": (0.0, 1.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -71,6 +93,8 @@ class SelectionSettings:
             raise ValueError(f"min_distance must be >= 0, got {self.min_distance}")
         if self.reevaluate_trials < 0:
             raise ValueError(f"reevaluate_trials must be >= 0 (0 = no re-evaluation), got {self.reevaluate_trials}")
+        if not 0 < self.top_fraction <= 1:
+            raise ValueError(f"top_fraction must be in (0, 1], got {self.top_fraction}")
         if self.mesh_units not in geometry.MESH_UNITS:
             raise ValueError(f"mesh_units must be one of {', '.join(geometry.MESH_UNITS)}, got {self.mesh_units!r}")
 
@@ -105,6 +129,9 @@ class SelectedDesign:
     mesh: object                       # trimesh.Trimesh, metres, profile frame
     metrics: geometry.ProfileMetrics
     reevaluation: tuple = None         # (successes, trials, seed) of the fresh estimate, or None
+    reason: str = ""                   # why it was chosen, one sentence
+    descriptors: tuple = None          # (max_height_mm, sharpness_deg) for archive selections, else None
+    cell: tuple = None                 # archive cell (height index, sharpness index), or None
 
     @property
     def reported(self):
@@ -123,6 +150,8 @@ class SelectionResult:
     considered: int                    # distinct designs in the log
     rejected: dict                     # reason -> count ("not printable", "too close", "flat")
     baseline: tuple = None             # (successes, trials, seed) of the baseline re-evaluation, or None
+    top_threshold: float = None        # archive runs: the fitness an elite needed to be in the top pool
+    archive: list = None               # archive runs: one row per elite (ARCHIVE_COLUMNS), else None
 
     @property
     def shortfall(self):
@@ -130,11 +159,16 @@ class SelectionResult:
         if len(self.designs) >= self.requested:
             return ""
         reasons = "; ".join(f"{count} {reason}" for reason, count in sorted(self.rejected.items())) or "none"
-        advice = ("check the printer section of the configuration (select --config) or the profile size"
-                  if any(r.startswith("not printable") for r in self.rejected) else
-                  "lower min_distance or run the optimizer longer")
-        return (f"only {len(self.designs)} of {self.requested} requested designs qualify among {self.considered} "
-                f"distinct logged designs (rejected: {reasons}); {advice}")
+        if any(r.startswith("not printable") for r in self.rejected):
+            advice = "check the printer section of the configuration (select --config) or the profile size"
+        elif self.top_threshold is not None:
+            advice = "raise selection.top_fraction (select --top-fraction) or run the optimizer longer"
+        else:
+            advice = "lower min_distance or run the optimizer longer"
+        among = (f"the top pool of the {self.considered} archive elites (fitness >= {self.top_threshold:.3f})"
+                 if self.top_threshold is not None else f"{self.considered} distinct logged designs")
+        return (f"only {len(self.designs)} of {self.requested} requested designs qualify among {among} "
+                f"(rejected: {reasons}); {advice}")
 
 
 def _limits_named(problems):
@@ -184,32 +218,163 @@ def select_designs(candidates, grid, printer, settings, evaluate_batch=None, run
     pooled = [d for d in pool_candidates(candidates) if not geometry.is_baseline(d.heights)]
     ranked = sorted(pooled, key=lambda d: (-d.wilson_low, -d.fitness, d.first_generation))
     chosen, rejected = [], {}
-    for design in ranked:
+    for rank, design in enumerate(ranked, 1):
         if len(chosen) == settings.count:
             break
         if any(rms_distance(design.heights, c.design.heights) < settings.min_distance for c in chosen):
             rejected["too close"] = rejected.get("too close", 0) + 1
             continue
-        try:
-            mesh = geometry.profile_mesh(design.heights, grid)
-        except ValueError:
-            rejected["flat"] = rejected.get("flat", 0) + 1
+        mesh, problem = _printable_mesh(design.heights, grid, printer)
+        if mesh is None:
+            rejected[problem] = rejected.get(problem, 0) + 1
             continue
-        printability = geometry.check_printability(mesh, printer)
-        if not printability.printable:
-            reason = "not printable: " + ", ".join(_limits_named(printability.problems))
-            rejected[reason] = rejected.get(reason, 0) + 1
-            continue
+        reason = (f"rank {rank} of {len(ranked)} logged designs by lower Wilson bound "
+                  f"({design.successes}/{design.trials}, bound {design.wilson_low:.2f})"
+                  + (f", at least {settings.min_distance} units RMS from "
+                     f"{', '.join(c.label for c in chosen)}" if chosen else ""))
         chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], design, mesh,
-                                     geometry.mesh_metrics(mesh)))
-    baseline = None
-    if settings.reevaluate_trials and chosen:
-        seed = derive_seed(run_seed, 0, STREAM_SELECTION)
-        profiles = [c.design.heights for c in chosen] + [np.zeros(grid.n_variables)]
-        results = evaluate_batch(profiles, seed)
-        chosen = [dataclasses.replace(c, reevaluation=(int(r[0]), int(r[1]), seed)) for c, r in zip(chosen, results)]
-        baseline = (int(results[-1][0]), int(results[-1][1]), seed)
+                                     geometry.mesh_metrics(mesh), reason=reason))
+    chosen, baseline = _reevaluate(chosen, grid, settings, evaluate_batch, run_seed)
     return SelectionResult(chosen, settings.count, len(pooled), rejected, baseline)
+
+
+def _reevaluate(chosen, grid, settings, evaluate_batch, run_seed):
+    """``(chosen, baseline)``: the chosen designs and the baseline re-evaluated in one batch on a fresh common seed
+    (``settings.reevaluate_trials`` each); unchanged and None without re-evaluation."""
+    if not (settings.reevaluate_trials and chosen):
+        return chosen, None
+    seed = derive_seed(run_seed, 0, STREAM_SELECTION)
+    profiles = [c.design.heights for c in chosen] + [np.zeros(grid.n_variables)]
+    results = evaluate_batch(profiles, seed)
+    chosen = [dataclasses.replace(c, reevaluation=(int(r[0]), int(r[1]), seed)) for c, r in zip(chosen, results)]
+    return chosen, (int(results[-1][0]), int(results[-1][1]), seed)
+
+
+def _printable_mesh(heights, grid, printer):
+    """``(mesh, None)`` for a printable profile, else ``(None, reason)`` (the rejection count's key)."""
+    try:
+        mesh = geometry.profile_mesh(heights, grid)
+    except ValueError:
+        return None, "flat"
+    printability = geometry.check_printability(mesh, printer)
+    if not printability.printable:
+        return None, "not printable: " + ", ".join(_limits_named(printability.problems))
+    return mesh, None
+
+
+def top_pool(fitnesses, top_fraction):
+    """``(threshold, indices)``: the indices of ``fitnesses`` at least their ``1 - top_fraction`` quantile (numpy's
+    linear interpolation), and that quantile."""
+    threshold = float(np.quantile(fitnesses, 1.0 - top_fraction))
+    return threshold, [i for i, f in enumerate(fitnesses) if f >= threshold]
+
+
+def select_from_archive(archive, candidates, grid, printer, settings, evaluate_batch=None, run_seed=1):
+    """Choose designs from a quality-diversity ``archive`` (the run info's ``archive``: ``ranges`` and
+    ``elites``); see the module docstring. Arguments as :func:`select_designs`.
+
+    With ``reevaluate_trials`` > 0 every elite is first *screened* on fresh trials (one common seed) and the top pool
+    and ranking use the screen, not the elites' in-run estimates (each a maximum of noisy draws: the cells' lucky
+    winners); the chosen designs are then re-evaluated once more on another seed for the reported fitness, since a
+    design picked for its screen is again picked partly for luck. Without re-evaluation the in-run estimates
+    (pooled over the run's evaluations of the design) are used.
+    """
+    settings.validate()
+    if settings.reevaluate_trials and evaluate_batch is None:
+        raise ValueError("reevaluate_trials > 0 needs an evaluator")
+    elites = [e for e in archive["elites"] if not geometry.is_baseline(e["heights"])]
+    if not elites:
+        return SelectionResult([], settings.count, 0, {"no elites": 1})
+    pooled = {tuple(d.heights): d for d in pool_candidates(candidates)}
+    designs = []
+    for elite in elites:
+        key = tuple(float(h) for h in elite["heights"])
+        designs.append(pooled.get(key) or PooledDesign(np.asarray(key), int(round(elite["fitness"] * elite["trials"])),
+                                                       int(elite["trials"]), 1, int(elite["generation"])))
+    source = "in the run"
+    if settings.reevaluate_trials:
+        seed = derive_seed(run_seed, 1, STREAM_SELECTION)
+        results = evaluate_batch([d.heights for d in designs], seed)
+        designs = [PooledDesign(d.heights, int(r[0]), int(r[1]), 1, d.first_generation)
+                   for d, r in zip(designs, results)]
+        source = f"in the screen of all {len(elites)} elites"
+    threshold, pool = top_pool([d.fitness for d in designs], settings.top_fraction)
+    ranked = sorted(pool, key=lambda i: (-designs[i].wilson_low, -designs[i].fitness, designs[i].first_generation))
+    spans = [float(high - low) for low, high in archive["ranges"]]
+    chosen, rejected, points = [], {}, []
+    while ranked and len(chosen) < settings.count:
+        if chosen:
+            def spread(i):
+                return min(float(np.hypot(*(_descriptor_point(elites[i], spans) - point))) for point in points)
+            index = ranked.pop(max(range(len(ranked)), key=lambda k: (spread(ranked[k]), designs[ranked[k]].wilson_low)))
+        else:
+            index = ranked.pop(0)
+        elite, design = elites[index], designs[index]
+        mesh, problem = _printable_mesh(design.heights, grid, printer)
+        if mesh is None:
+            rejected[problem] = rejected.get(problem, 0) + 1
+            continue
+        where = (f"{elite['max_height_mm']:.0f} mm tall, sharpness {elite['sharpness_deg']:.0f} deg, cell "
+                 f"{tuple(elite['cell'])}")
+        estimate = f"{design.successes}/{design.trials} {source}, lower 95% bound {design.wilson_low:.2f}"
+        if not chosen:
+            reason = (f"highest lower Wilson bound among the {len(pool)} of {len(elites)} elites in the top "
+                      f"{settings.top_fraction:.0%} (fitness >= {threshold:.3f} {source}): {estimate}; {where}")
+        else:
+            reason = (f"the top-{settings.top_fraction:.0%} elite farthest from {', '.join(c.label for c in chosen)} "
+                      f"in (height, sharpness): {where}; {estimate}")
+        chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], pooled.get(tuple(design.heights), design),
+                                     mesh, geometry.mesh_metrics(mesh), reason=reason,
+                                     descriptors=(elite["max_height_mm"], elite["sharpness_deg"]),
+                                     cell=tuple(elite["cell"])))
+        points.append(_descriptor_point(elite, spans))
+        ranked = [i for i in ranked if tuple(elites[i]["cell"]) != tuple(elite["cell"])]
+    chosen, baseline = _reevaluate(chosen, grid, settings, evaluate_batch, run_seed)
+    labels = {d.cell: d.label for d in chosen}
+    in_pool = set(pool)
+    rows = []
+    for index, (elite, design) in enumerate(zip(elites, designs)):
+        screened = bool(settings.reevaluate_trials)
+        rows.append({"cell_height": elite["cell"][0], "cell_sharpness": elite["cell"][1],
+                     "max_height_mm": elite["max_height_mm"], "sharpness_deg": elite["sharpness_deg"],
+                     "in_run_fitness": elite["fitness"], "in_run_trials": elite["trials"],
+                     "screen_successes": design.successes if screened else "",
+                     "screen_trials": design.trials if screened else "",
+                     "screen_fitness": design.fitness if screened else "", "top_pool": int(index in in_pool),
+                     "label": labels.get(tuple(elite["cell"]), "")})
+    return SelectionResult(chosen, settings.count, len(elites), rejected, baseline, threshold, rows)
+
+
+def trait_rows(candidates, grid, ranges, bins):
+    """Every evaluation of a run pooled per bin of each descriptor: rows with :data:`TRAIT_COLUMNS`.
+
+    ``ranges`` ``[[0, height mm], [low, high deg]]`` and ``bins`` ``[height bins, sharpness bins]`` (the archive's
+    grid). A design's evaluations all fall in its bins; the fitness of a bin is its pooled successes / trials with a
+    Wilson 95% interval: how well the designs the optimizer tried with that trait did (not a random sample of
+    designs).
+    """
+    from rollability_ros.core.profile import descriptors
+
+    pooled = [d for d in pool_candidates(candidates) if not geometry.is_baseline(d.heights)]
+    measured = [descriptors.profile_descriptors(d.heights, grid).as_tuple() for d in pooled]
+    rows = []
+    for axis, trait in enumerate(("max_height_mm", "sharpness_deg")):
+        edges = np.linspace(ranges[axis][0], ranges[axis][1], int(bins[axis]) + 1)
+        for low, high in zip(edges[:-1], edges[1:]):
+            last = high == edges[-1]
+            members = [d for d, m in zip(pooled, measured)
+                       if (low <= m[axis] < high) or (last and m[axis] >= high) or (low == edges[0] and m[axis] < low)]
+            successes, trials = sum(d.successes for d in members), sum(d.trials for d in members)
+            ci_low, ci_high = wilson_interval(successes, trials)
+            rows.append({"trait": trait, "bin_low": float(low), "bin_high": float(high), "designs": len(members),
+                         "successes": successes, "trials": trials,
+                         "fitness": successes / trials if trials else math.nan, "ci_low": ci_low, "ci_high": ci_high})
+    return rows
+
+
+def _descriptor_point(elite, spans):
+    """An elite's (height, sharpness) divided by the axis lengths: the plane farthest-point sampling measures in."""
+    return np.array([elite["max_height_mm"] / spans[0], elite["sharpness_deg"] / spans[1]])
 
 
 def table_rows(result):
@@ -257,7 +422,12 @@ def designs_document(result, grid, run_id, mesh_units="mm"):
         body[design.label] = {"heights": [float(h) for h in design.design.heights],
                               "mesh_file": f"mesh_{design.label}.stl", "mesh_units": mesh_units,
                               "fitness": successes / trials,
-                              "successes": successes, "trials": trials, "fitness_source": source}
+                              "successes": successes, "trials": trials, "fitness_source": source,
+                              "why": design.reason}
+        if design.descriptors is not None:
+            body[design.label].update(max_height_mm=float(design.descriptors[0]),
+                                      sharpness_deg=float(design.descriptors[1]),
+                                      archive_cell=[int(i) for i in design.cell])
     return {"/**": {"ros__parameters": {"designs": body}}}
 
 
@@ -270,12 +440,25 @@ def record_selection(store, run_id, result):
     info["sim_fitness"] = {r["configuration"]: r["simulated_fitness"] for r in rows if r["trials"]}
     info["geometry"] = [{k: r[k] for k in TABLE_COLUMNS[:4]} for r in rows if r["configuration"] != "baseline"]
     info["table3"] = rows   # fresh and in-run fitness side by side, for the report's headline
+    info["selection"] = {"why": {d.label: d.reason for d in result.designs},
+                         "archive_cells": {d.label: list(d.cell) for d in result.designs if d.cell is not None},
+                         "top_threshold": result.top_threshold}
     store.set_run_info(run_id, described["kind"], info)
 
 
-def write_selection(run_dir, result, grid, run_id, mesh_units="mm"):
+def _write_csv(path, columns, rows):
+    table = io.StringIO()
+    writer = csv.DictWriter(table, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+    atomic_write_bytes(path, table.getvalue().encode("utf-8"))
+
+
+def write_selection(run_dir, result, grid, run_id, mesh_units="mm", traits=None):
     """Write the STL (in ``mesh_units``) and 3MF files, ``table3.csv`` and ``designs.yaml`` into
-    ``<run_dir>/designs/``; return that folder.
+    ``<run_dir>/designs/`` (and, for a quality-diversity run, ``archive.csv`` and the ``traits`` rows as
+    ``traits.csv``); return that folder.
 
     Meshes of an earlier selection that this one does not produce are removed, so the folder always matches
     its ``designs.yaml``.
@@ -289,12 +472,13 @@ def write_selection(run_dir, result, grid, run_id, mesh_units="mm"):
     for design in result.designs:
         geometry.export_mesh(design.mesh, os.path.join(folder, f"mesh_{design.label}.stl"), mesh_units)
         geometry.export_mesh(design.mesh, os.path.join(folder, f"mesh_{design.label}.3mf"))
-    table = io.StringIO()
-    writer = csv.DictWriter(table, fieldnames=TABLE_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    for row in table_rows(result):
-        writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
-    atomic_write_bytes(os.path.join(folder, "table3.csv"), table.getvalue().encode("utf-8"))
+    _write_csv(os.path.join(folder, "table3.csv"), TABLE_COLUMNS, table_rows(result))
+    for name, columns, rows in (("archive.csv", ARCHIVE_COLUMNS, result.archive), ("traits.csv", TRAIT_COLUMNS, traits)):
+        path = os.path.join(folder, name)
+        if rows is not None:
+            _write_csv(path, columns, rows)
+        elif os.path.exists(path):      # a selection without an archive leaves no stale map behind
+            os.remove(path)
     text = yaml.safe_dump(designs_document(result, grid, run_id, mesh_units), sort_keys=False)
     atomic_write_bytes(os.path.join(folder, "designs.yaml"), text.encode("utf-8"))
     return folder
@@ -304,12 +488,19 @@ def select_run(store, run_id, run_dir, grid, printer, settings, evaluate_batch=N
     """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
     simulated fitness and geometry) and write ``<run_dir>/designs/``; return ``(SelectionResult, folder)``.
 
-    The one selection flow of ``rollability select`` and the optimizer node. Raises ``ValueError`` when the run
+    The one selection flow of ``rollability select`` and the optimizer node: from the archive when the run has one
+    (a quality-diversity run), else from the ranked log. Raises ``ValueError`` when the run
     has no evaluated candidates.
     """
     candidates = store.candidates(run_id=run_id)
     if not candidates:
         raise ValueError(f"run {run_id} in {run_dir} has no evaluated candidates yet")
-    result = select_designs(candidates, grid, printer, settings, evaluate_batch, run_seed)
+    archive = ((store.run_info(run_id) or {}).get("info") or {}).get("archive")
+    traits = None
+    if archive:
+        result = select_from_archive(archive, candidates, grid, printer, settings, evaluate_batch, run_seed)
+        traits = trait_rows(candidates, grid, archive["ranges"], archive["dims"])
+    else:
+        result = select_designs(candidates, grid, printer, settings, evaluate_batch, run_seed)
     record_selection(store, run_id, result)
-    return result, write_selection(run_dir, result, grid, run_id, settings.mesh_units)
+    return result, write_selection(run_dir, result, grid, run_id, settings.mesh_units, traits)

@@ -6,6 +6,7 @@
 - outcome_log: store-before-acknowledge bookkeeping of the outcome logger
 - outcome_csv: strict CSV import/export of hand-recorded outcomes
 - analysis, report, report_figures: the paper's views, figures and HTML report
-- stats: binomial intervals
+- stats: binomial intervals, rank correlation with a permutation test
+- design_map: a quality-diversity run's map (archive.csv, traits.csv) and its height / sharpness trends
 - engine_agreement: the same trials in two physics engines: trial and rank agreement, robust designs
 """

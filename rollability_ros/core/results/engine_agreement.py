@@ -8,7 +8,7 @@ import dataclasses
 
 import numpy as np
 
-from rollability_ros.core.results.stats import wilson_interval
+from rollability_ros.core.results.stats import average_ranks, wilson_interval
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,21 +58,10 @@ def rank_agreement(fitness_by_engine):
     if set(first) != set(second) or len(first) < 2:
         raise ValueError("rank agreement needs the same two or more designs in both engines")
     designs = sorted(first)
-    ranks = [_average_ranks([table[d] for d in designs]) for table in (first, second)]
+    ranks = [average_ranks([table[d] for d in designs]) for table in (first, second)]
     if np.std(ranks[0]) == 0 or np.std(ranks[1]) == 0:
         return float("nan")
     return float(np.corrcoef(ranks[0], ranks[1])[0, 1])
-
-
-def _average_ranks(values):
-    values = np.asarray(values, dtype=np.float64)
-    order = np.argsort(values, kind="mergesort")
-    ranks = np.empty(len(values))
-    ranks[order] = np.arange(1, len(values) + 1)
-    for value in np.unique(values):
-        tied = values == value
-        ranks[tied] = ranks[tied].mean()
-    return ranks
 
 
 def robust_to_engine(results_by_engine, reference):

@@ -49,6 +49,10 @@ class ReportData:
     geometry: list = dataclasses.field(default_factory=list)
     design_estimates: list = dataclasses.field(default_factory=list)   # DesignEstimate per configuration
     engine_rows: list = dataclasses.field(default_factory=list)   # engine_agreement.EngineRow, design x engine
+    archive_rows: list = dataclasses.field(default_factory=list)  # design_map.read_archive rows (QD runs)
+    trait_rows: list = dataclasses.field(default_factory=list)    # design_map.read_traits rows (QD runs)
+    design_meshes: dict = dataclasses.field(default_factory=dict)  # label -> mesh file of the chosen designs
+    notes: list = dataclasses.field(default_factory=list)         # lines on what the report could not draw
 
 
 @dataclasses.dataclass(frozen=True)
@@ -178,7 +182,26 @@ def load_report_data(source, run_id=None):
     if kind == "store" and os.path.isdir(source) and os.path.isfile(table3) and not data.geometry:
         use_geometry_csv(data, table3)
     data.engine_rows = _engine_rows(source)
+    _design_map(data, source)
     return data
+
+
+def _design_map(data, source):
+    """Read the quality-diversity map (``archive.csv``, ``traits.csv``) and the chosen designs' mesh files
+    written next to the ``designs.yaml`` in or next to ``source``, if any."""
+    from rollability_ros.core.results import design_map
+
+    for designs_yaml in [path for path, _ in find_artefacts(source) if os.path.basename(path) == "designs.yaml"]:
+        folder = os.path.dirname(designs_yaml)
+        archive = os.path.join(folder, design_map.ARCHIVE_FILENAME)
+        traits = os.path.join(folder, design_map.TRAITS_FILENAME)
+        if os.path.isfile(archive):
+            data.archive_rows = design_map.read_archive(archive)
+            data.trait_rows = design_map.read_traits(traits) if os.path.isfile(traits) else []
+        data.design_meshes = {name[len("mesh_"):-len(".stl")]: os.path.join(folder, name)
+                              for name in sorted(os.listdir(folder))
+                              if name.startswith("mesh_") and name.endswith(".stl")}
+        return
 
 
 def _engine_rows(source):
@@ -271,6 +294,10 @@ def _tables(data, views, comparison, points):
         tables["tip_events"] = analysis.tip_event_summary(data.tip_events)
     if data.engine_rows:
         tables["engine_agreement"] = [dataclasses.asdict(row) for row in data.engine_rows]
+    if data.archive_rows:
+        tables["archive"] = [{k: v for k, v in row.items() if k != "fitness"} for row in data.archive_rows]
+    if data.trait_rows:
+        tables["traits"] = data.trait_rows
     return tables
 
 
@@ -287,10 +314,50 @@ _TABLE_TITLES = {
     "by_angle": "Success by angle (Figure 12c)",
     "conditions": "Grouped conditions (majority rule: successes > failures; a tie is a failure)",
     "engine_agreement": "Cross-engine agreement: each design's simulated fitness in two engines on the same seeds",
+    "archive": "Quality-diversity archive: every elite with its traits, in-run and fresh-screen fitness (simulated)",
+    "traits": "Every evaluation of the run pooled per bin of maximum height and of sharpness (simulated)",
 }
 
 
-def _figures(out_dir, views, configurations, comparison, points, engine_rows=()):
+def _trait_edges(trait_rows):
+    """``{trait: bin edges}`` of the archive's grid, from the traits table."""
+    edges = {}
+    for trait in ("max_height_mm", "sharpness_deg"):
+        own = [r for r in trait_rows if r["trait"] == trait]
+        edges[trait] = [own[0]["bin_low"]] + [r["bin_high"] for r in own] if own else []
+    return edges
+
+
+def _design_figures(out_dir, data, draw):
+    """The map, the trait curves and a preview of each chosen design (previews need trimesh, the sim extra)."""
+    from rollability_ros.core.results import report_figures as figures
+
+    if data.archive_rows and data.trait_rows:
+        edges = _trait_edges(data.trait_rows)
+        draw("design_map.png", "Height x sharpness map of the quality-diversity archive (simulated): each cell's "
+             "elite coloured by its fitness, the chosen designs boxed", figures.archive_map, data.archive_rows, edges)
+        draw("design_traits.png", "How fitness changes with maximum height and with sharpness (simulated): every "
+             "evaluation pooled per bin with Wilson 95% bands, archive elites as points", figures.trait_curves,
+             data.trait_rows, data.archive_rows)
+    if data.design_meshes:
+        from rollability_ros.core.optional import MissingDependency
+        from rollability_ros.core.profile.geometry import load_profile_mesh
+
+        traits = {r["label"]: r for r in data.archive_rows if r["label"]}
+        for label, mesh_path in data.design_meshes.items():
+            try:
+                mesh = load_profile_mesh(mesh_path)
+            except MissingDependency as exc:
+                data.notes.append(f"design previews not drawn: {exc}")
+                return
+            trait = traits.get(label)
+            title = f"Design {label}" + (f": {trait['max_height_mm']:.0f} mm, {trait['sharpness_deg']:.0f} deg"
+                                         if trait else "")
+            draw(f"design_{label}.png", f"Preview of design {label} ({os.path.basename(mesh_path)})",
+                 lambda path, solid, heading: figures.render_profile_preview(solid, path, heading), mesh, title)
+
+
+def _figures(out_dir, views, configurations, comparison, points, engine_rows=(), data=None):
     """Draw every figure the data allows; return ``[(path, caption)]``."""
     from rollability_ros.core.results import report_figures as figures
 
@@ -318,6 +385,8 @@ def _figures(out_dir, views, configurations, comparison, points, engine_rows=())
     if engine_rows:
         draw("engine_agreement.png", "Cross-engine agreement (simulated): each design's fitness in both engines on "
              "the same seeds, with Wilson 95% intervals", figures.engine_fitness, engine_rows)
+    if data is not None:
+        _design_figures(out_dir, data, draw)
     return drawn
 
 
@@ -366,6 +435,12 @@ def summary_text(data, views, comparison, points):
         from rollability_ros.core.results.engine_agreement import summary_lines
 
         lines.extend(summary_lines(data.engine_rows))
+    if data.archive_rows:
+        from rollability_ros.core.results import design_map
+
+        edges = _trait_edges(data.trait_rows).get("max_height_mm") if data.trait_rows else None
+        lines.extend(design_map.summary_lines(data.archive_rows, edges[-1] if edges else None))
+    lines.extend(data.notes)
     return "\n".join(lines)
 
 
@@ -392,7 +467,7 @@ def build_report(data, out_dir, measure="condition_rate"):
         raise ValueError(f"{data.source}: no launch outcomes, candidates, generations or tip events to report")
     tables = _tables(data, views, comparison, points)
     table_paths = [_write_csv(os.path.join(out_dir, f"{name}.csv"), rows) for name, rows in tables.items()]
-    figures = _figures(out_dir, views, configurations, comparison, points, data.engine_rows)
+    figures = _figures(out_dir, views, configurations, comparison, points, data.engine_rows, data)
     summary = summary_text(data, views, comparison, points)
     html_path = os.path.join(out_dir, "report.html")
     artefacts = find_artefacts(data.source.split(" ", 1)[-1]) + [(path, "table (CSV)") for path in table_paths]
@@ -427,7 +502,9 @@ def find_artefacts(source):
     for folder in sorted(designs):
         for pattern, kind in (("mesh_*.stl", "design mesh (STL, millimetres unless its header says m)"),
                               ("mesh_*.3mf", "design mesh (3MF)"), ("table3.csv", "Table 3 (CSV)"),
-                              ("designs.yaml", "design heights (ROS 2 parameter file)")):
+                              ("designs.yaml", "design heights (ROS 2 parameter file)"),
+                              ("archive.csv", "quality-diversity archive: every elite (CSV)"),
+                              ("traits.csv", "fitness per height and sharpness bin (CSV)")):
             found += [(path, kind) for path in sorted(glob.glob(os.path.join(folder, pattern)))]
     bags = {root for root in roots if _is_bag(root)}
     bags |= {os.path.dirname(p) for root in roots for p in glob.glob(os.path.join(root, "*", "metadata.yaml"))}

@@ -283,3 +283,63 @@ def sensitivity(path, rows):
     axes[0][0].set_ylabel("simulated fitness (95% CI)")
     axes[0][-1].legend(fontsize=8)
     return _save(figure, path)
+
+
+def archive_map(path, archive_rows, edges):
+    """The quality-diversity map: one square per filled cell of maximum height (x) x sharpness (y), coloured by the
+    elite's fitness (the fresh screen's when there is one), the chosen designs' labels written in their cells.
+
+    ``edges``: ``{"max_height_mm": [...], "sharpness_deg": [...]}`` bin edges of the archive's grid.
+    """
+    plt = _pyplot()
+    import numpy as np
+
+    heights, sharpness = edges["max_height_mm"], edges["sharpness_deg"]
+    rates = np.full((len(sharpness) - 1, len(heights) - 1), np.nan)
+    for row in archive_rows:
+        rates[int(row["cell_sharpness"]), int(row["cell_height"])] = row["fitness"]
+    figure, ax = plt.subplots(figsize=(6.4, 3.8), layout="constrained")
+    image = ax.pcolormesh(heights, sharpness, np.ma.masked_invalid(rates), vmin=0.0, vmax=1.0, cmap="RdYlGn",
+                          edgecolors="white", linewidth=0.5)
+    for row in archive_rows:
+        x = (heights[int(row["cell_height"])] + heights[int(row["cell_height"]) + 1]) / 2
+        y = (sharpness[int(row["cell_sharpness"])] + sharpness[int(row["cell_sharpness"]) + 1]) / 2
+        text = f"{row['label']}\n{row['fitness']:.2f}" if row["label"] else f"{row['fitness']:.2f}"
+        ax.text(x, y, text, ha="center", va="center", fontsize=7 if not row["label"] else 9,
+                weight="bold" if row["label"] else "normal", color=_text_colour(row["fitness"]))
+        if row["label"]:
+            ax.add_patch(plt.Rectangle((heights[int(row["cell_height"])], sharpness[int(row["cell_sharpness"])]),
+                                       heights[1] - heights[0], sharpness[1] - sharpness[0], fill=False,
+                                       edgecolor="black", linewidth=2))
+    ax.set_xlabel("maximum height (mm)")
+    ax.set_ylabel("sharpness (deg, mean ridge angle)")
+    ax.set_title("Archive of elites (simulated): fitness per height x sharpness cell; chosen designs boxed")
+    figure.colorbar(image, ax=ax, label="fitness (upright trials / trials)")
+    return _save(figure, path)
+
+
+def trait_curves(path, trait_rows, archive_rows):
+    """Fitness against each trait: every evaluation of the run pooled per bin (line, Wilson 95% band) and each
+    elite's fitness (points; the fresh screen's when there is one)."""
+    plt = _pyplot()
+    labels = {"max_height_mm": "maximum height (mm)", "sharpness_deg": "sharpness (deg, mean ridge angle)"}
+    figure, axes = plt.subplots(1, 2, figsize=(9.6, 3.4), layout="constrained")
+    for ax, trait in zip(axes, labels):
+        own = [r for r in trait_rows if r["trait"] == trait and r["trials"] > 0]
+        centres = [(r["bin_low"] + r["bin_high"]) / 2 for r in own]
+        ax.fill_between(centres, [r["ci_low"] for r in own], [r["ci_high"] for r in own], alpha=0.25, color="C0",
+                        label="all evaluations per bin (95% CI)")
+        ax.plot(centres, [r["fitness"] for r in own], "o-", color="C0")
+        ax.scatter([r[trait] for r in archive_rows], [r["fitness"] for r in archive_rows], s=14, color="C1",
+                   label="archive elites")
+        for row in archive_rows:
+            if row["label"]:
+                ax.annotate(row["label"], (row[trait], row["fitness"]), fontsize=9, weight="bold",
+                            xytext=(3, 3), textcoords="offset points")
+        ax.set_xlabel(labels[trait])
+        ax.set_ylim(-0.02, 1.02)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("simulated fitness")
+    axes[0].legend(fontsize=7, loc="upper left")
+    figure.suptitle("How fitness changes with height and with sharpness (simulated)")
+    return _save(figure, path)

@@ -1,0 +1,253 @@
+"""Quality diversity over profiles: CMA-MAE (pyribs) filling a map of maximum height x sharpness with fit designs.
+
+One CMA-ES run converges to one basin, so designs picked from its log are neighbours. CMA-MAE (Fontaine and
+Nikolaidis 2023, pyribs' ``EvolutionStrategyEmitter`` with the improvement ranker on a ``GridArchive`` with a
+learning rate) instead keeps an *archive*: a grid over the two behaviour descriptors of
+:mod:`rollability_ros.core.profile.descriptors` (maximum height, mm; sharpness, deg), each cell holding the best
+design found with those traits (its *elite*). Emitters are CMA-ES instances ranked by how much a candidate improves
+its cell, so the search spreads across the map while it climbs fitness; A/B/C are then chosen from fit elites in
+different cells (``selection.select_from_archive``).
+
+:class:`QualityDiversityOptimizer` speaks the protocol of :class:`~rollability_ros.core.optimization.cmaes.
+ProfileOptimizer` (ask / tell / incumbent re-evaluation / stop / result / state_dict), so the same
+:class:`~rollability_ros.core.optimization.optimization_run.OptimizationRun`, evaluators (any objective), node,
+store and checkpoint run it (``optimizer.method: cma_mae``). Per generation it asks ``popsize`` candidates, split
+over the emitters, so an evaluation budget means the same as for CMA-ES.
+
+Choices
+-------
+* The emitters search an unbounded space that pycma's ``BoundTransform`` maps into [height_min, ceiling] (the same
+  boundary handling as the CMA-ES method); pyribs' own bound handling resamples, which never ends once many
+  vertices sit at a bound. The archives store each elite's heights beside its search point.
+* Height-stratified emitters: emitter ``k`` of ``K`` searches under its own height ceiling, stepping evenly from the
+  height bound (the first emitter) down to ``lowest_ceiling`` of it (the last), and starts from the run's initial
+  mean scaled under that ceiling. Fitness tends to grow with height on this problem (the report measures it), so
+  without ceilings every emitter drifts to the tallest cells and the lower rows of the map only hold the first,
+  unoptimized visitors; with them each height band gets optimization effort of its own, and A/B/C can come from
+  different heights while staying among the fittest. All start with ``quality_diversity.sigma0`` (default: the
+  optimizer's); an emitter whose CMA-ES has
+  converged restarts from a random elite (pyribs' ``basic`` rule).
+* Two archives: the CMA-MAE archive (thresholds annealed by ``learning_rate``, starting at ``threshold_min``) drives
+  the emitters; a plain elitist *result archive* keeps each cell's best evaluated design, and is the map that is
+  stored, reported and selected from.
+* Fitness is a noisy binomial estimate, so an elite is partly there by luck; selection re-evaluates the chosen
+  designs on fresh trials and reports both numbers.
+* The checkpoint holds plain data: the tells. pyribs' emitters and archives are seeded from ``optimizer.seed`` and
+  deterministic given what they are told, so :meth:`QualityDiversityOptimizer.from_state_dict` replays the tells and
+  checks the replay against the saved archive digest; nothing is pickled.
+"""
+import dataclasses
+import hashlib
+import time
+import typing
+
+import numpy as np
+
+from rollability_ros.core.optional import require
+from rollability_ros.core.optimization.cmaes import IncumbentOptimizer, OptimizerResult, check_search_space
+from rollability_ros.core.profile import descriptors
+
+#: The archive's behaviour descriptors, in measure order, with their units.
+DESCRIPTOR_NAMES = ("max_height_mm", "sharpness_deg")
+
+
+@dataclasses.dataclass
+class QualityDiversitySettings:
+    """The ``quality_diversity`` parameter namespace: the archive's grid and CMA-MAE's settings."""
+
+    height_cells: int = dataclasses.field(default=10, metadata={
+        "description": "archive cells along the maximum-height descriptor, from 0 to the grid's tallest profile "
+                       "(height_max x unit_m) (count)", "range": (1, 1000)})
+    sharpness_cells: int = dataclasses.field(default=6, metadata={
+        "description": "archive cells along the sharpness descriptor (length-weighted mean ridge angle of the hull) "
+                       "(count)", "range": (1, 1000)})
+    sharpness_min_deg: float = dataclasses.field(default=0.0, metadata={
+        "description": "lower end of the sharpness axis, deg (lower values fall in the first cell)",
+        "range": (0.0, 180.0)})
+    sharpness_max_deg: float = dataclasses.field(default=90.0, metadata={
+        "description": "upper end of the sharpness axis, deg (box edges measure 90; higher fall in the last cell)",
+        "range": (0.0, 180.0)})
+    emitters: int = dataclasses.field(default=3, metadata={
+        "description": "CMA-ES emitters sharing the optimizer.popsize candidates of a generation (count; each gets "
+                       "at least 2)", "range": (1, 1000)})
+    lowest_ceiling: float = dataclasses.field(default=0.5, metadata={
+        "description": "height ceiling of the last emitter as a fraction of the height bound; the emitters' ceilings "
+                       "step evenly from the bound (first emitter) down to it (fraction, (0, 1]; 1 = no ceilings)",
+        "range": (0.0, 1.0)})
+    sigma0: float = dataclasses.field(default=0.0, metadata={
+        "description": "initial step size of every emitter's CMA-ES, simulation units of vertex height (0 = "
+                       "optimizer.sigma0)", "range": (0.0, 100.0)})
+    learning_rate: float = dataclasses.field(default=0.01, metadata={
+        "description": "CMA-MAE archive learning rate alpha (fraction, (0, 1]; 1 = CMA-ME, small = more "
+                       "exploration first)", "range": (0.0, 1.0)})
+    threshold_min: float = dataclasses.field(default=0.0, metadata={
+        "description": "fitness threshold of an empty cell for CMA-MAE (fitness units, upright trials / trials)",
+        "range": (-1.0, 1.0)})
+
+    def validate(self, popsize=None):
+        """Raise ``ValueError`` naming the first unusable field (``popsize``: the optimizer's, to split)."""
+        if self.height_cells < 1 or self.sharpness_cells < 1:
+            raise ValueError(f"height_cells and sharpness_cells must be >= 1, got {self.height_cells}, "
+                             f"{self.sharpness_cells}")
+        if not 0 <= self.sharpness_min_deg < self.sharpness_max_deg:
+            raise ValueError(f"need 0 <= sharpness_min_deg < sharpness_max_deg, got [{self.sharpness_min_deg}, "
+                             f"{self.sharpness_max_deg}]")
+        if self.emitters < 1:
+            raise ValueError(f"emitters must be >= 1, got {self.emitters}")
+        if popsize is not None and popsize < 2 * self.emitters:
+            raise ValueError(f"optimizer.popsize {popsize} cannot give {self.emitters} emitters 2 candidates each; "
+                             "lower quality_diversity.emitters or raise optimizer.popsize")
+        if not 0 < self.lowest_ceiling <= 1:
+            raise ValueError(f"lowest_ceiling must be in (0, 1], got {self.lowest_ceiling}")
+        if self.sigma0 < 0:
+            raise ValueError(f"sigma0 must be >= 0 (0 = optimizer.sigma0), got {self.sigma0}")
+        if not 0 < self.learning_rate <= 1:
+            raise ValueError(f"learning_rate must be in (0, 1], got {self.learning_rate}")
+        if not -1 <= self.threshold_min < 1:
+            raise ValueError(f"threshold_min must be in [-1, 1), got {self.threshold_min}")
+
+
+def emitter_ceilings(emitters, lowest_ceiling):
+    """Each emitter's height ceiling as a fraction of the height range: evenly from 1 down to ``lowest_ceiling``."""
+    if emitters == 1:
+        return [1.0]
+    return [1.0 - k * (1.0 - lowest_ceiling) / (emitters - 1) for k in range(emitters)]
+
+
+def emitter_batch_sizes(popsize, emitters):
+    """Candidates per emitter: ``popsize`` split as evenly as possible, the first emitters taking the remainder."""
+    return [popsize // emitters + (1 if k < popsize % emitters else 0) for k in range(emitters)]
+
+
+class QualityDiversityOptimizer(IncumbentOptimizer):
+    """CMA-MAE over ``grid.n_variables`` heights in the grid's bounds; see the module docstring.
+
+    Parameters
+    ----------
+    settings : OptimizerSettings
+        ``popsize`` (candidates per generation over all emitters), ``sigma0``, ``seed``, stop criteria,
+        ``reevaluate_incumbent``.
+    qd_settings : QualityDiversitySettings
+    grid : geometry.ProfileGrid
+        Bounds and the descriptors' geometry.
+    clock : callable, optional
+    initial_mean : array_like, optional
+        ``(n_variables,)`` start of the first emitter (default: the paper's random mean).
+    """
+
+    def __init__(self, settings, qd_settings, grid, clock=time.monotonic, initial_mean=None):
+        require("ribs", feature="quality-diversity optimization (optimizer.method cma_mae)")
+        require("cma", feature="quality-diversity optimization (optimizer.method cma_mae)")
+        from cma.boundary_handler import BoundTransform
+        from ribs.archives import GridArchive
+        from ribs.emitters import EvolutionStrategyEmitter
+        from ribs.schedulers import Scheduler
+
+        settings.validate()
+        qd_settings.validate(settings.popsize)
+        self.qd_settings = qd_settings
+        self.grid = grid
+        self.n_variables, self.lower, self.upper, self.initial_mean = check_search_space(
+            grid.n_variables, settings, grid.height_min, grid.height_max, initial_mean)
+        seeds = np.random.SeedSequence([int(settings.seed), 0x51D]).generate_state(qd_settings.emitters + 2)
+        dims = [qd_settings.height_cells, qd_settings.sharpness_cells]
+        self.ranges = [(0.0, descriptors.height_bound_mm(grid)),
+                       (qd_settings.sharpness_min_deg, qd_settings.sharpness_max_deg)]
+        extra = {"trials": ((), np.int64), "generation": ((), np.int64),
+                 "heights": ((self.n_variables,), np.float64)}
+        self.archive = GridArchive(solution_dim=self.n_variables, dims=dims, ranges=self.ranges,
+                                   learning_rate=qd_settings.learning_rate, threshold_min=qd_settings.threshold_min,
+                                   seed=int(seeds[0]), extra_fields=extra)
+        self.result_archive = GridArchive(solution_dim=self.n_variables, dims=dims, ranges=self.ranges,
+                                          seed=int(seeds[1]), extra_fields=extra)
+        self.emitters, self._bounds = [], []
+        self.ceilings = [self.lower + (self.upper - self.lower) * fraction
+                         for fraction in emitter_ceilings(qd_settings.emitters, qd_settings.lowest_ceiling)]
+        for k, batch_size in enumerate(emitter_batch_sizes(settings.popsize, qd_settings.emitters)):
+            bounds = BoundTransform([self.lower, self.ceilings[k]])
+            start = self.lower + (self.initial_mean - self.lower) * (self.ceilings[k] - self.lower) / (
+                self.upper - self.lower)
+            self.emitters.append(EvolutionStrategyEmitter(
+                self.archive, x0=bounds.inverse(start), sigma0=qd_settings.sigma0 or settings.sigma0, ranker="imp",
+                selection_rule="mu", restart_rule="basic", batch_size=batch_size, seed=int(seeds[2 + k])))
+            self._bounds.extend([bounds] * batch_size)
+        self.scheduler = Scheduler(self.archive, self.emitters, result_archive=self.result_archive)
+        self._init_bookkeeping(settings, clock)
+
+    def _ask(self):
+        # candidate i comes from the emitter whose batch holds i (the scheduler asks them in order)
+        return [np.asarray(bounds.transform(np.asarray(solution, dtype=np.float64)), dtype=np.float64)
+                for bounds, solution in zip(self._bounds, self.scheduler.ask())]
+
+    def _tell(self, population, fitness, trials):
+        measures = np.array([descriptors.profile_descriptors(heights, self.grid).as_tuple()
+                             for heights in population], dtype=np.float64)
+        self.scheduler.tell(np.asarray(fitness, dtype=np.float64), measures,
+                            trials=np.asarray(trials, dtype=np.int64), heights=np.asarray(population),
+                            generation=np.full(len(population), self.generation, dtype=np.int64))
+
+    # --- state ----------------------------------------------------------------------------------------------------
+    @property
+    def sigma(self):
+        """Mean CMA-ES step size over the emitters, simulation units."""
+        return float(np.mean([emitter._opt.sigma for emitter in self.emitters]))
+
+    @property
+    def result(self):
+        """The :class:`OptimizerResult` so far (``mean``: the heights of the first emitter's CMA-ES mean)."""
+        mean = np.asarray(self._bounds[0].transform(np.asarray(self.emitters[0]._opt.mean, dtype=np.float64)),
+                          dtype=np.float64)
+        return OptimizerResult(best=self._incumbent, generations=self.generation, evaluations=self.evaluations,
+                               elapsed_s=self.elapsed_s, mean=mean,
+                               sigma=self.sigma, stop=self.stop())
+
+    def archive_rows(self) -> typing.List[dict]:
+        """The result archive's elites, one dict per filled cell in cell order: ``cell`` [height index, sharpness
+        index], ``heights`` (simulation units), ``fitness``, ``trials``, ``generation`` (0-based index of the
+        generation that found it), ``max_height_mm``, ``sharpness_deg``."""
+        data = self.result_archive.data()
+        rows = []
+        for index, heights, fitness, measures, trials, generation in sorted(zip(
+                data["index"], data["heights"], data["objective"], data["measures"], data["trials"],
+                data["generation"]), key=lambda row: int(row[0])):
+            cell = [int(i) for i in self.result_archive.int_to_grid_index([index])[0]]
+            rows.append({"cell": cell, "heights": [float(h) for h in heights], "fitness": float(fitness),
+                         "trials": int(trials), "generation": int(generation),
+                         DESCRIPTOR_NAMES[0]: float(measures[0]), DESCRIPTOR_NAMES[1]: float(measures[1])})
+        return rows
+
+    def archive_summary(self) -> dict:
+        """``{"dims", "ranges", "descriptors", "filled_cells", "coverage", "qd_score"}`` of the result archive
+        (QD score: the sum of elite fitnesses; coverage: filled cells / cells)."""
+        stats = self.result_archive.stats
+        cells = self.qd_settings.height_cells * self.qd_settings.sharpness_cells
+        return {"dims": [self.qd_settings.height_cells, self.qd_settings.sharpness_cells],
+                "ranges": [list(r) for r in self.ranges], "descriptors": list(DESCRIPTOR_NAMES),
+                "filled_cells": int(stats.num_elites), "coverage": float(stats.num_elites) / cells,
+                "qd_score": float(stats.qd_score)}
+
+    def _archive_digest(self):
+        rows = self.archive_rows()
+        text = repr([(r["cell"], r["heights"], r["fitness"]) for r in rows])
+        return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+    def state_dict(self):
+        """Plain-data state between generations: the tells (replayed by :meth:`from_state_dict`), the initial
+        mean, and the result archive's digest and size as a check of the replay."""
+        return {**self._bookkeeping_state(), "method": "cma_mae", "initial_mean": self.initial_mean.tolist(),
+                "archive_sha256": self._archive_digest(), "elites": len(self.archive_rows())}
+
+    @classmethod
+    def from_state_dict(cls, state, settings, qd_settings, grid, clock=time.monotonic, initial_mean=None):
+        """Rebuild an optimizer saved by :meth:`state_dict`; ValueError when it belongs to other settings or code."""
+        if state.get("method") != "cma_mae":
+            raise ValueError("saved optimizer state is not a cma_mae state (optimizer.method changed?)")
+        optimizer = cls(settings, qd_settings, grid, clock, initial_mean)
+        if not np.array_equal(optimizer.initial_mean, np.asarray(state["initial_mean"], dtype=np.float64)):
+            raise ValueError("saved optimizer state does not match these settings (different initial mean)")
+        optimizer._replay(state)
+        if optimizer._archive_digest() != state["archive_sha256"]:
+            raise ValueError("replaying the saved tells does not reproduce the saved archive: the checkpoint belongs "
+                             "to other settings or code")
+        optimizer._resume_clock(state)
+        return optimizer

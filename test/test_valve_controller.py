@@ -8,7 +8,7 @@ import signal
 import time
 
 import pytest
-from valve_client import ValveClient
+from valve_client import ValveClient, fire_and_wait_on, retried_on_stall
 
 from rollability_ros.core.rig.relay_device_sim import RelaySim
 
@@ -121,6 +121,7 @@ def test_serial_relay_pulse_estop_cuts_pulse_and_sigterm_closes(ros_node, start_
     assert not relay.relay_on()
 
 
+@retried_on_stall(WATCHDOG_MS)
 def test_serial_relay_watchdog_and_sigint_mid_pulse(ros_node, start_node, relay):
     process = start_valve(start_node, "serial_relay", **{"valve.serial.port": relay.port})
     valve = ValveClient(ros_node)
@@ -131,8 +132,7 @@ def test_serial_relay_watchdog_and_sigint_mid_pulse(ros_node, start_node, relay)
     assert _commands(relay)[-1] == "DISARM" and not relay.relay_on()
     with valve.heartbeats():
         assert valve.arm(False)[0] and valve.arm()[0]
-        valve.fire_client.call_async(valve.fire_request(400))   # the node is stopped mid-pulse
-        assert ros_node.wait_for(relay.relay_on, 10), process.log()
+        fire_and_wait_on(valve, ros_node, relay, 400, WATCHDOG_MS)   # the node is stopped mid-pulse
         process.signal(signal.SIGINT)
     assert ros_node.wait_for(lambda: not relay.relay_on(), 5), process.log()
     assert ros_node.wait_for(lambda: not process.alive(), 15), process.log()

@@ -155,7 +155,8 @@ class Supervisor:
             if child.spec.restart and child.restarts < child.spec.max_restarts:
                 child.restarts += 1
                 child.start()
-                self._emit("restarted", child, f"attempt {child.restarts} of {child.spec.max_restarts}")
+                self._emit("restarted", child,
+                           f"attempt {child.restarts} of {child.spec.max_restarts}, pid {child.process.pid}")
                 continue
             child.finished = True
             if child.spec.critical:

@@ -6,7 +6,9 @@ Prints, for the dome profile on the built-in chassis: trials/s per core of the e
 and without the early decision, steps per trial, the ratio to a naive loop of each engine written here (the
 same robot URDF and start states; a world built once, reset per trial, a plain per-step rest check on the base
 speed, the engine's default contacts), the speed-up of 2 workers over 1 on the fastest engine, and the
-projected wall time of the paper-scale optimization (500 generations x 13 evaluations x 60 trials) on 2 cores.
+projected wall time of the paper-scale optimization (500 generations x 13 evaluations x 60 trials) on 2 cores,
+from one profile's trials and from whole paper-config generations submitted as the optimizer does (with and
+without the workers' world cache).
 Repeats are interleaved and the fastest kept (the machine may be shared); the load average is printed.
 """
 import argparse
@@ -154,10 +156,40 @@ def _naive_loop(seeds, settings, hold_steps, cap_steps, engine):
     return time.perf_counter() - started, total_steps / len(seeds)
 
 
+def generation_times(base, fastest, generations):
+    """Mean wall time (s) of a paper-config generation (13 candidates, sigma 0.02 around a random mean, 60 trials
+    each, common seed) evaluated as the optimizer does (one thread per candidate on one 2-worker pool), with each
+    worker keeping 1 world and the configured number; fastest of ``generations`` generations each."""
+    from rollability_ros.core.optimization.optimization_run import profile_batch_evaluator
+
+    engine, early = fastest
+    paper = evaluation.load_settings(("sim", "robot", "evaluator", "paper"))
+    settings = configured(paper, engine, early)
+    rng = np.random.default_rng(20)
+    grid = settings.grid
+    mean = rng.uniform(grid.height_min, grid.height_max, grid.n_variables)
+    populations = [[np.clip(mean + rng.normal(0.0, 0.02, mean.size), grid.height_min, grid.height_max)
+                    for _ in range(13)] for _ in range(generations)]
+    times = {}
+    for cache in (1, settings.evaluator.world_cache):
+        variant = dataclasses.replace(settings, evaluator=dataclasses.replace(settings.evaluator, world_cache=cache))
+        with evaluation.LocalExecutor(2) as pool:
+            pool.warm()
+            evaluate = profile_batch_evaluator(variant, 60, pool)
+            seconds = []
+            for index, population in enumerate(populations):
+                started = time.perf_counter()
+                evaluate(population, 300 + index)
+                seconds.append(time.perf_counter() - started)
+        times[cache] = min(seconds)
+    return times
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=60)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--generations", type=int, default=4, help="paper-config generations timed per setting")
     args = parser.parse_args()
     base = evaluation.load_settings()
     heights = dome_heights(base.grid)
@@ -214,7 +246,14 @@ def main():
           f"speed-up {one / two:.2f}x")
     projected_min = PAPER_TRIALS / (args.trials / two) / 60
     print(f"projected paper-scale run (500 x 13 x 60 = {PAPER_TRIALS} trials) on 2 workers: {projected_min:.1f} min "
-          f"(target <= 15; trials only, CMA-ES and logging excluded; load average {os.getloadavg()[0]:.2f})")
+          f"(one profile's trials only; load average {os.getloadavg()[0]:.2f})")
+    generation = generation_times(base, fastest, args.generations)
+    for cache, seconds in generation.items():
+        print(f"paper-config generation (13 candidates near a random mean x 60 trials, as the optimizer submits "
+              f"them, 2 workers, world_cache {cache}): {seconds:.2f} s -> 500 generations {500 * seconds / 60:.1f} min")
+    cached, uncached = generation[max(generation)], generation[min(generation)]
+    print(f"worker world cache: {uncached / cached:.2f}x faster generations; projected paper-scale run from "
+          f"generations: {500 * cached / 60:.1f} min (target <= 15; CMA-ES and the store excluded)")
     quiet_rate = QUIET_NAIVE_PYBULLET_TPS * rate[fastest] / rate["naive pybullet"] * 2 * min(1.0, one / two / 2)
     print(f"scaled to a quiet 2-core machine (naive PyBullet loop at {QUIET_NAIVE_PYBULLET_TPS:.0f} trials/s/core, "
           f"issue 20's measurement, x this run's ratio {rate[fastest] / rate['naive pybullet']:.2f}, x 2 cores x "

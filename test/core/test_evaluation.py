@@ -1,4 +1,5 @@
 """Evaluation: seeds, reproducibility across executors, streaming, cancel, request checks, settings, URDF, Ray."""
+import dataclasses
 import os
 import shutil
 import signal
@@ -54,9 +55,35 @@ def test_a_trial_depends_only_on_profile_seed_and_settings():
     finally:
         pybullet.disconnect(client)
     together = run_batch(ridge, seeds)
-    run_batch(bare, seeds[:2])  # another profile in between rebuilds this process's world
+    run_batch(bare, seeds[:2])  # another profile in between (kept beside it in this process's world cache)
     alone_reversed = [run_batch(ridge, [pair])[0] for pair in reversed(seeds)][::-1]
     assert together == fresh and alone_reversed == fresh
+
+
+def test_the_worker_world_cache_keeps_the_last_profiles_and_changes_no_outcome():
+    """Batches of several profiles interleave on a worker: it keeps the last ``world_cache`` worlds (least recently
+    used dropped, its PyBullet physics server closed) and every outcome equals a one-world worker's."""
+    from rollability_ros.core.sim import evaluation
+
+    def servers():
+        return sum(pybullet.getConnectionInfo(client)["isConnected"] for client in range(64))
+
+    seeds = [(i, trial_seed(3, i)) for i in range(3)]
+    outcomes = {}
+    evaluation.drop_worlds()
+    before = servers()
+    for cache in (1, 2):
+        settings = dataclasses.replace(SETTINGS, evaluator=dataclasses.replace(SETTINGS.evaluator, world_cache=cache))
+        ridge, bare = profile_job(ridge_heights(settings.grid), settings), profile_job(None, settings)
+        low = profile_job(0.5 * ridge_heights(settings.grid), settings)
+        outcomes[cache] = [run_batch(job, seeds) for job in (ridge, bare, ridge, low, ridge)]
+        assert servers() - before <= cache
+        if cache == 2:   # bare dropped, ridge used last
+            assert list(evaluation._worker_worlds) == [evaluation._job_key(low), evaluation._job_key(ridge)]
+    evaluation.drop_worlds()
+    assert servers() == before
+    assert outcomes[1] == outcomes[2]
+    assert outcomes[1][0] == outcomes[1][2] == outcomes[1][4]
 
 
 def test_executors_agree_with_serial_and_stream_every_trial():

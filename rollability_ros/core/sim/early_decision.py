@@ -29,6 +29,7 @@ counts outcome changes (none allowed); ``test/core/test_early_decision.py`` does
 Units: metres, kilograms, seconds; frames as stated per function.
 """
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -144,6 +145,21 @@ def resting_directions(relative, wheel_links, up, upright_tilt_deg, min_wheels, 
     return rests, tilt_ok & (on_wheels >= min_wheels)
 
 
+@functools.lru_cache(maxsize=4)
+def _lattice_graph(directions, neighbours):
+    """``(lattice, near, spacing)`` of a direction lattice, shared by every basin map of that size (read-only):
+    the directions (n, 3), each one's ``neighbours`` nearest others (n, neighbours) and the covering radius."""
+    spatial = require("scipy.spatial", feature="the early trial decision")
+    lattice = fibonacci_directions(directions)
+    _, near = spatial.cKDTree(lattice).query(lattice, k=neighbours + 1)
+    near = near[:, 1:]
+    # covering radius: no direction is farther than this from its nearest lattice point (half the largest gap)
+    spacing = float(np.linalg.norm(lattice[near[:, 0]] - lattice, axis=1).max())
+    lattice.flags.writeable = False
+    near.flags.writeable = False
+    return lattice, near, spacing
+
+
 def build_basin_map(points_by_link, wheel_links, com_m, mass_kg, up_axis, upright_tilt_deg, min_wheels,
                     contact_tolerance_m, directions=4096, neighbours=10, margin_m=0.002):
     """Tabulate the :class:`BasinMap` of a rigid body.
@@ -166,19 +182,12 @@ def build_basin_map(points_by_link, wheel_links, com_m, mass_kg, up_axis, uprigh
     margin_m : float
         Safety margin subtracted from every barrier, m.
     """
-    spatial = require("scipy.spatial", feature="the early trial decision")
     com = np.asarray(com_m, dtype=np.float64)
-    lattice = fibonacci_directions(directions)
+    lattice, near, delta = _lattice_graph(directions, neighbours)
     relative = {link: np.asarray(points, dtype=np.float64) - com for link, points in points_by_link.items()}
     support = {link: (points @ lattice.T).max(axis=0) for link, points in relative.items()}  # (n,) per link
     height = np.max(np.vstack(list(support.values())), axis=0)
     radius = max(float(np.linalg.norm(points, axis=1).max()) for points in relative.values())
-    tree = spatial.cKDTree(lattice)
-    _, near = tree.query(lattice, k=neighbours + 1)
-    near = near[:, 1:]
-    # covering radius: no direction is farther than this from its nearest lattice point (half the largest gap)
-    spacing = float(np.linalg.norm(lattice[near[:, 0]] - lattice, axis=1).max())
-    delta = spacing
     up = np.asarray(up_axis, dtype=np.float64) / np.linalg.norm(up_axis)
     rests, rest_upright = resting_directions(relative, wheel_links, up, upright_tilt_deg, min_wheels,
                                              contact_tolerance_m)

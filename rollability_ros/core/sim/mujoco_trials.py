@@ -153,12 +153,16 @@ class MujocoTrialWorld:
                 data.xfrc_applied[self.root] = push
             elif steps == push_end:
                 data.xfrc_applied[self.root] = 0.0
+            # whole steps up to the next check or push boundary in one call (mj_step's nstep: the same steps)
+            target = min(cap, (steps // interval + 1) * interval,
+                         *(boundary for boundary in (push_start, push_end) if boundary > steps))
             if primed:  # mj_step1 of this step already ran for the energy check
                 mujoco.mj_step2(model, data)
                 primed = False
-            else:
-                step(model, data)
-            steps += 1
+                steps += 1
+            if target > steps:
+                step(model, data, target - steps)
+                steps = target
             if steps % interval:
                 continue
             pose = data.qpos[0:7].copy()

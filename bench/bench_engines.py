@@ -7,8 +7,8 @@ and without the early decision, steps per trial, the ratio to a naive loop of ea
 same robot URDF and start states; a world built once, reset per trial, a plain per-step rest check on the base
 speed, the engine's default contacts), the speed-up of 2 workers over 1 on the fastest engine, and the
 projected wall time of the paper-scale optimization (500 generations x 13 evaluations x 60 trials) on 2 cores,
-from one profile's trials and from whole paper-config generations submitted as the optimizer does (with and
-without the workers' world cache).
+from one profile's trials and from whole paper-config generations submitted as the optimizer does (each candidate
+run whole by one worker, and split into ``evaluator.batch_trials`` tasks as before).
 Repeats are interleaved and the fastest kept (the machine may be shared); the load average is printed.
 """
 import argparse
@@ -30,9 +30,6 @@ from rollability_ros.core.sim.mujoco_trials import _pose_speeds  # noqa: E402
 from rollability_ros.core.sim.trials import sample_conditions  # noqa: E402
 
 PAPER_TRIALS = 500 * 13 * 60
-#: Issue 20's quiet-machine measurement of a naive PyBullet loop of this trial (trials/s per core), used only to
-#: scale this run's ratios to an unloaded machine when the machine is shared.
-QUIET_NAIVE_PYBULLET_TPS = 106.0
 
 
 def configured(settings, engine, early_decision):
@@ -157,9 +154,10 @@ def _naive_loop(seeds, settings, hold_steps, cap_steps, engine):
 
 
 def generation_times(base, fastest, generations):
-    """Mean wall time (s) of a paper-config generation (13 candidates, sigma 0.02 around a random mean, 60 trials
-    each, common seed) evaluated as the optimizer does (one thread per candidate on one 2-worker pool), with each
-    worker keeping 1 world and the configured number; fastest of ``generations`` generations each."""
+    """Fastest wall time (s) of a paper-config generation (13 candidates, sigma 0.02 around a random mean, 60
+    trials each, common seed) evaluated as the optimizer does (one thread per candidate on one 2-worker pool):
+    ``{"split": ..., "whole": ...}``, each candidate split into ``evaluator.batch_trials`` tasks (every worker builds
+    its world) or run whole by one worker (what ``profile_batch_evaluator`` does with >= 2 candidates per worker)."""
     from rollability_ros.core.optimization.optimization_run import profile_batch_evaluator
 
     engine, early = fastest
@@ -170,19 +168,28 @@ def generation_times(base, fastest, generations):
     mean = rng.uniform(grid.height_min, grid.height_max, grid.n_variables)
     populations = [[np.clip(mean + rng.normal(0.0, 0.02, mean.size), grid.height_min, grid.height_max)
                     for _ in range(13)] for _ in range(generations)]
-    times = {}
-    for cache in (1, settings.evaluator.world_cache):
-        variant = dataclasses.replace(settings, evaluator=dataclasses.replace(settings.evaluator, world_cache=cache))
-        with evaluation.LocalExecutor(2) as pool:
-            pool.warm()
-            evaluate = profile_batch_evaluator(variant, 60, pool)
-            seconds = []
-            for index, population in enumerate(populations):
+    times = {"split": [], "whole": []}
+    with evaluation.LocalExecutor(2) as pool:
+        pool.warm()
+        evaluators = {"whole": profile_batch_evaluator(settings, 60, pool), "split": _split_evaluator(settings, pool)}
+        for index, population in enumerate(populations):   # interleaved, so both meet the same machine load
+            for name, evaluate in evaluators.items():
                 started = time.perf_counter()
                 evaluate(population, 300 + index)
-                seconds.append(time.perf_counter() - started)
-        times[cache] = min(seconds)
-    return times
+                times[name].append(time.perf_counter() - started)
+    return {name: min(seconds) for name, seconds in times.items()}
+
+
+def _split_evaluator(settings, pool):
+    """A generation's candidates on ``pool``, each split into ``evaluator.batch_trials`` tasks (the optimizer's
+    way before it ran candidates whole)."""
+    import concurrent.futures
+
+    def evaluate(population, seed):
+        with concurrent.futures.ThreadPoolExecutor(len(population)) as threads:
+            list(threads.map(lambda heights: evaluation.evaluate_profile(heights, 60, seed, settings, pool),
+                             population))
+    return evaluate
 
 
 def main():
@@ -248,16 +255,13 @@ def main():
     print(f"projected paper-scale run (500 x 13 x 60 = {PAPER_TRIALS} trials) on 2 workers: {projected_min:.1f} min "
           f"(one profile's trials only; load average {os.getloadavg()[0]:.2f})")
     generation = generation_times(base, fastest, args.generations)
-    for cache, seconds in generation.items():
-        print(f"paper-config generation (13 candidates near a random mean x 60 trials, as the optimizer submits "
-              f"them, 2 workers, world_cache {cache}): {seconds:.2f} s -> 500 generations {500 * seconds / 60:.1f} min")
-    cached, uncached = generation[max(generation)], generation[min(generation)]
-    print(f"worker world cache: {uncached / cached:.2f}x faster generations; projected paper-scale run from "
-          f"generations: {500 * cached / 60:.1f} min (target <= 15; CMA-ES and the store excluded)")
-    quiet_rate = QUIET_NAIVE_PYBULLET_TPS * rate[fastest] / rate["naive pybullet"] * 2 * min(1.0, one / two / 2)
-    print(f"scaled to a quiet 2-core machine (naive PyBullet loop at {QUIET_NAIVE_PYBULLET_TPS:.0f} trials/s/core, "
-          f"issue 20's measurement, x this run's ratio {rate[fastest] / rate['naive pybullet']:.2f}, x 2 cores x "
-          f"this run's 2-worker efficiency {one / two / 2:.0%}): {PAPER_TRIALS / quiet_rate / 60:.1f} min (estimate)")
+    for name, seconds in generation.items():
+        print(f"paper-config generation (13 candidates near a random mean x 60 trials, 2 workers, each candidate "
+              f"{'run whole by one worker' if name == 'whole' else 'split into batch_trials tasks'}): {seconds:.2f} s "
+              f"-> 500 generations {500 * seconds / 60:.1f} min")
+    print(f"whole candidates per worker: {generation['split'] / generation['whole']:.2f}x faster generations; "
+          f"projected paper-scale run from generations: {500 * generation['whole'] / 60:.1f} min (target <= 15; "
+          f"CMA-ES and the store excluded)")
 
 
 if __name__ == "__main__":

@@ -1,5 +1,4 @@
 """Evaluation: seeds, reproducibility across executors, streaming, cancel, request checks, settings, URDF, Ray."""
-import dataclasses
 import os
 import shutil
 import signal
@@ -55,35 +54,39 @@ def test_a_trial_depends_only_on_profile_seed_and_settings():
     finally:
         pybullet.disconnect(client)
     together = run_batch(ridge, seeds)
-    run_batch(bare, seeds[:2])  # another profile in between (kept beside it in this process's world cache)
+    run_batch(bare, seeds[:2])  # another profile in between rebuilds this process's world
     alone_reversed = [run_batch(ridge, [pair])[0] for pair in reversed(seeds)][::-1]
     assert together == fresh and alone_reversed == fresh
 
 
-def test_the_worker_world_cache_keeps_the_last_profiles_and_changes_no_outcome():
-    """Batches of several profiles interleave on a worker: it keeps the last ``world_cache`` worlds (least recently
-    used dropped, its PyBullet physics server closed) and every outcome equals a one-world worker's."""
-    from rollability_ros.core.sim import evaluation
+def test_a_generation_runs_each_candidate_whole_when_there_are_two_per_worker():
+    """profile_batch_evaluator hands a candidate's trials to one worker as one task once a generation has at least
+    two candidates per worker (one world build each); fewer candidates are split into batch_trials tasks. The
+    outcomes are the serial ones either way."""
+    from rollability_ros.core.optimization.optimization_run import profile_batch_evaluator
+    from rollability_ros.core.sim.evaluation import SerialExecutor
 
-    def servers():
-        return sum(pybullet.getConnectionInfo(client)["isConnected"] for client in range(64))
+    class TwoWorkers(SerialExecutor):
+        """Counts the tasks of each evaluation; runs them in this process, one thread at a time (one client)."""
+        workers = 2
 
-    seeds = [(i, trial_seed(3, i)) for i in range(3)]
-    outcomes = {}
-    evaluation.drop_worlds()
-    before = servers()
-    for cache in (1, 2):
-        settings = dataclasses.replace(SETTINGS, evaluator=dataclasses.replace(SETTINGS.evaluator, world_cache=cache))
-        ridge, bare = profile_job(ridge_heights(settings.grid), settings), profile_job(None, settings)
-        low = profile_job(0.5 * ridge_heights(settings.grid), settings)
-        outcomes[cache] = [run_batch(job, seeds) for job in (ridge, bare, ridge, low, ridge)]
-        assert servers() - before <= cache
-        if cache == 2:   # bare dropped, ridge used last
-            assert list(evaluation._worker_worlds) == [evaluation._job_key(low), evaluation._job_key(ridge)]
-    evaluation.drop_worlds()
-    assert servers() == before
-    assert outcomes[1] == outcomes[2]
-    assert outcomes[1][0] == outcomes[1][2] == outcomes[1][4]
+        def __init__(self):
+            self.tasks, self.lock = [], threading.Lock()
+
+        def iter_batches(self, job, batches, should_stop):
+            with self.lock:
+                self.tasks.append(len(batches))
+                return list(super().iter_batches(job, batches, should_stop))
+
+    candidates = [ridge_heights(SETTINGS.grid, height) for height in (0.2, 0.3, 0.4, 0.45)]
+    serial = [(r.successes, r.trials) for r in (evaluate_profile(h, 12, 5, SETTINGS) for h in candidates)]
+    executor = TwoWorkers()
+    evaluate = profile_batch_evaluator(SETTINGS, 12, executor)
+    assert [r[:2] for r in evaluate(candidates, 5)] == serial
+    assert executor.tasks == [1, 1, 1, 1]
+    executor.tasks.clear()
+    assert [r[:2] for r in evaluate(candidates[:3], 5)] == serial[:3]
+    assert executor.tasks == [-(-12 // SETTINGS.evaluator.batch_trials)] * 3
 
 
 def test_executors_agree_with_serial_and_stream_every_trial():

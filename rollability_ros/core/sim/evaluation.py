@@ -12,7 +12,6 @@ Executors split the trials into batches of ``evaluator.batch_trials`` and yield 
 :func:`evaluate_profile` reports every trial through ``on_trial`` as batches finish and checks the cancel event
 between them (every ``evaluator.poll_interval_s`` while waiting).
 """
-import collections
 import concurrent.futures
 import dataclasses
 import hashlib
@@ -30,7 +29,7 @@ from rollability_ros.core.optional import require
 from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
 from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, launch_objective, \
     run_launch_trial, run_robust_trial
-from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect
+from rollability_ros.core.sim.world import PhysicsParams, connect
 from rollability_ros.core.results.stats import wilson_interval
 from rollability_ros.core.sim.trials import TrialSettings, make_trial_world
 from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec, footprint_grid
@@ -61,11 +60,6 @@ class EvaluatorOptions:
     batch_trials: int = dataclasses.field(default=5, metadata={
         "description": "trials per task handed to one worker (count); larger batches mean less overhead, coarser cancel",
         "range": (1, 10000)})
-    world_cache: int = dataclasses.field(default=16, metadata={
-        "description": "trial worlds (profiles) each worker keeps built, least recently used dropped first (count); "
-                       "the candidates of a generation interleave on the workers, so at least popsize + 1 avoids "
-                       "rebuilding; a MuJoCo world takes about 1 MB, a PyBullet world its own physics server, "
-                       "about 35 MB", "range": (1, 1000)})
     workers: int = dataclasses.field(default=0, metadata={
         "description": "worker processes for the trials (count); 0 = one per CPU core", "range": (0, 1024)})
     ray_address: str = dataclasses.field(default="", metadata={
@@ -79,8 +73,6 @@ class EvaluatorOptions:
             raise ValueError(f"need 1 <= trials <= max_trials, got trials={self.trials}, max_trials={self.max_trials}")
         if self.batch_trials < 1:
             raise ValueError(f"batch_trials must be >= 1, got {self.batch_trials}")
-        if self.world_cache < 1:
-            raise ValueError(f"world_cache must be >= 1, got {self.world_cache}")
         if self.workers < 0:
             raise ValueError(f"workers must be >= 0 (0 = one per core), got {self.workers}")
         if not self.poll_interval_s > 0:
@@ -169,54 +161,35 @@ def mesh_job(mesh, settings):
     return TrialJob(profile=profile, settings=settings, launch=launch_objective(settings.objective))
 
 
-_worker_client = None   # this process's shared PyBullet client (launch and robust trials build their worlds in it)
-_worker_worlds = collections.OrderedDict()   # job key -> (own PyBullet client or None, trial world), newest last
+_worker_client = None
+_worker_world = None  # (job key, TrialWorld): the last profile's world in this process
 
 
 def _job_key(job):
     return hashlib.sha256(pickle.dumps(job, protocol=4)).hexdigest()
 
 
-def _trial_world(job):
-    """The trial world of ``job`` in this process: kept from an earlier batch (restored before every trial, see
-    :class:`~rollability_ros.core.sim.trials.TrialWorld`) or built now; at most ``evaluator.world_cache`` worlds are
-    kept, the least recently used dropped first. A PyBullet world gets a physics client of its own."""
-    key = _job_key(job)
-    if key in _worker_worlds:
-        _worker_worlds.move_to_end(key)
-        return _worker_worlds[key][1]
-    settings = job.settings
-    drop_worlds(keep=settings.evaluator.world_cache - 1)
-    client = connect() if settings.physics.engine == "pybullet" else None
-    world = make_trial_world(client, settings.robot_model(), job.profile, settings.trial, settings.physics)
-    _worker_worlds[key] = (client, world)
-    return world
-
-
-def drop_worlds(keep=0):
-    """Drop this process's cached trial worlds down to the ``keep`` most recently used (closing their PyBullet
-    physics servers)."""
-    while len(_worker_worlds) > keep:
-        client, _ = _worker_worlds.popitem(last=False)[1]
-        if client is not None:
-            disconnect(client)
-
-
 def run_batch(job, batch):
-    """Run the trials ``batch`` = [(index, seed), ...] of ``job`` in this process.
+    """Run the trials ``batch`` = [(index, seed), ...] of ``job`` in this process's physics client.
 
-    The process keeps the worlds of the last ``evaluator.world_cache`` profiles it ran (:func:`_trial_world`), so
-    the interleaved batches of a generation's candidates do not rebuild them.
+    The process keeps one client and the world of the last job it ran, so consecutive batches of one profile
+    reuse it (restored before every trial, see :class:`~rollability_ros.core.sim.trials.TrialWorld`).
     """
-    global _worker_client
+    global _worker_client, _worker_world
     if job.launch is not None and all(job.launch.is_launch(index) for index, _ in batch) \
             and not job.settings.objective.robust.enabled:
         return [run_launch_trial(job.launch, job.profile, index, seed) for index, seed in batch]
+    if _worker_client is None:
+        _worker_client = connect()
     if job.settings.objective.robust.enabled:
-        if _worker_client is None:
-            _worker_client = connect()
+        _worker_world = None   # every robust trial builds its own world in the client
         return [run_robust_trial(_worker_client, job, index, seed) for index, seed in batch]
-    world = _trial_world(job)
+    key = _job_key(job)
+    if _worker_world is None or _worker_world[0] != key:
+        settings = job.settings
+        _worker_world = (key, make_trial_world(_worker_client, settings.robot_model(), job.profile, settings.trial,
+                                               settings.physics))
+    world = _worker_world[1]
     if job.launch is None:
         return [world.run(index, seed) for index, seed in batch]
     # a launch builds its own world in its own client, so the trial world above is left as it was

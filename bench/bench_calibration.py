@@ -6,7 +6,8 @@ calibrated back; prints the recovered values against the truth and their stated 
     nice python bench/bench_calibration.py --coverage 20 [--repetitions 20] [--sim-repetitions 24]
                                            [--coverage-only launch_twin.foam.lateral_friction]
 
-``--coverage N``: for each parameter of ``COVERAGE_PARAMETERS`` (the centre of mass and three foam parameters;
+``--coverage N``: for each parameter of ``COVERAGE_PARAMETERS`` (the centre of mass, three foam parameters and the
+push plate's yaw bias, an asymmetry, on mirrored launch angles (``MIRRORED_CONDITIONS``);
 one at a time, the others at their defaults), N truths drawn evenly at random inside the inner 80% of its calibration bounds; each
 truth's "physical" outcomes (fresh seeds per truth) get the calibration's 95% likelihood interval (the grid of
 simulated launches does not depend on the truth, so it is launched once); prints how many intervals hold their
@@ -39,7 +40,12 @@ CONDITIONS = (("baseline", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 0.0), ("dome", 0
 COVERAGE_PARAMETERS = (("robot.com_offset_z_m", -0.019, 0.015, False),
                        ("launch_twin.foam.lateral_friction", 0.2, 3.0, True),
                        ("launch_twin.foam.restitution", 0.0, 1.0, False),
-                       ("launch_twin.foam.contact_stiffness_npm", 5000.0, 160000.0, True))
+                       ("launch_twin.foam.contact_stiffness_npm", 5000.0, 160000.0, True),
+                       ("launch_twin.plate.yaw_bias_deg", -15.0, 15.0, False))
+#: An asymmetry shows only between mirrored launch angles: its coverage uses these conditions instead.
+MIRRORED_CONDITIONS = (("dome", 0.75, 0.8, -30.0), ("dome", 0.75, 0.8, 30.0), ("dome", 0.75, 1.5, -30.0),
+                       ("dome", 0.75, 1.5, 30.0))
+CONDITIONS_FOR = {"launch_twin.plate.yaw_bias_deg": MIRRORED_CONDITIONS}
 
 
 def coverage(args, parameters):
@@ -49,12 +55,12 @@ def coverage(args, parameters):
     from rollability_ros.core.results import analysis
 
     rng = np.random.default_rng(2026)
-    conditions = [LaunchCondition(*c) for c in CONDITIONS]
     with calibration.LaunchPool() as pool:
         for name, low, high, log in COVERAGE_PARAMETERS[:args.coverage_parameters]:
             u = rng.uniform(0.1, 0.9, args.coverage)   # drawn for every parameter: --coverage-only keeps the truths
             if args.coverage_only and name not in args.coverage_only:
                 continue
+            conditions = [LaunchCondition(*c) for c in CONDITIONS_FOR.get(name, CONDITIONS)]
             settings = calibration.CalibrationSettings(parameters=[name], lower=[low], upper=[high],
                                                        log_scale=[log], sim_repetitions=args.sim_repetitions,
                                                        interval_points=args.interval_points)

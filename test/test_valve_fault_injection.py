@@ -301,7 +301,7 @@ def test_stray_participant_never_gets_the_relay_on(ros_node, start_node, relay):
         for phase in ("disarmed", "armed by the operator"):
             if phase.startswith("armed"):
                 armed, message = valve.arm()
-                if not armed and ("link lost" in message or "keepalive" in message):
+                if not armed and any(reason in message for reason in ("link lost", "keepalive", "did not answer")):
                     # the stray's load starved the board or this valve past a serial timeout in phase 1: a latched
                     # link fault (fail-safe, docs/valve-safety.md); the operator acknowledges it and arms
                     assert valve.arm(False)[0], process.log()
@@ -327,16 +327,21 @@ def test_stray_participant_never_gets_the_relay_on(ros_node, start_node, relay):
         assert ros_node.wait_for(lambda: valve.last().fault, 10)
         stray = subprocess.run([sys.executable, "-c", STRAY, "2"], capture_output=True, text=True, timeout=120)
         assert " 0 succeeded" in stray.stdout and valve.last().fault, stray.stdout
-        # the operator side still works; a board that dropped its arming because the valve node, starved on a
-        # loaded machine, missed a keep-alive (fail-safe, logged by the board as fault=keepalive) is armed again
+        # the operator side still works. On a loaded 2-core machine the stray's traffic can starve the valve node
+        # or the board simulator past a serial answer or keep-alive timeout: a fail-safe (latched fault, board
+        # disarmed), never a pulse; only such a fault allows another attempt
+        fail_safe = ("did not answer", "link lost", "keepalive", "NOT_ARMED")
         for _ in range(3):
-            mark = len(relay.entries())
-            assert valve.arm(False)[0] and valve.arm()[0]
-            fired = valve.fire(100)
-            board_dropped = any("fault=keepalive" in e.get("answer", "") for e in relay.entries()[mark:])
-            if fired.success or not board_dropped:
+            ok, message = valve.arm(False)
+            if ok:
+                ok, message = valve.arm()
+            if ok:
+                fired = valve.fire(100)
+                ok, message = fired.success, fired.message
+            if ok:
                 break
-        assert fired.success, fired.message
+            assert any(reason in message for reason in fail_safe), message + process.log()
+        assert ok, message
     assert len(relay.relay_intervals()) == 1
     assert process.stop() == 0
 

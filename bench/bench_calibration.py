@@ -7,10 +7,10 @@ calibrated back; prints the recovered values against the truth and their stated 
                                            [--coverage-only launch_twin.foam.lateral_friction]
 
 ``--coverage N``: for each parameter of ``COVERAGE_PARAMETERS`` (the centre of mass, three foam parameters and the
-push plate's yaw bias, an asymmetry, on mirrored launch angles (``MIRRORED_CONDITIONS``);
-one at a time, the others at their defaults), N truths drawn evenly at random inside the inner 80% of its calibration bounds; each
-truth's "physical" outcomes (fresh seeds per truth) get the calibration's 95% likelihood interval (the grid of
-simulated launches does not depend on the truth, so it is launched once); prints how many intervals hold their
+push plate's yaw bias, an asymmetry, on mirrored launch angles (``MIRRORED_CONDITIONS``); one at a time, the others
+at their defaults), N truths drawn evenly at random inside the inner 80% of its calibration bounds; each truth's
+"physical" outcomes (fresh seeds per truth) get the calibration's 95% likelihood interval (the grid of simulated
+launches does not depend on the truth, so it is launched once); prints how many intervals hold their
 truth (target: at least 90%) and their mean width.
 
 Configurations: the bare chassis and bench_evaluator's dome profile (an STL in a temporary folder). The hidden

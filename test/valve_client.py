@@ -127,7 +127,10 @@ def retried_on_stall(watchdog_ms, attempts=3):
             for _ in range(attempts):
                 started = []
                 if start is not None:
-                    fixtures["start_node"] = lambda *a, **k: started.append(start(*a, **k)) or started[-1]
+                    def tracked_start(*args, **kwargs):
+                        started.append(start(*args, **kwargs))
+                        return started[-1]
+                    fixtures["start_node"] = tracked_start
                 clients = len(ValveClient.created)
                 try:
                     return test(**fixtures)

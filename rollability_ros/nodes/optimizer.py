@@ -1,5 +1,5 @@
-"""optimizer: a CMA-ES or CMA-MAE profile optimization (``core.optimization_run``) whose candidates are evaluated by every
-EvaluateProfile action server in the graph (one or many ``sim_evaluator`` nodes, ``core.evaluator_pool``).
+"""optimizer: a CMA-ES or CMA-MAE profile optimization (``core.optimization_run``) whose candidates are evaluated
+by every EvaluateProfile action server in the graph (one or many ``sim_evaluator`` nodes, ``core.evaluator_pool``).
 
 Interfaces (relative names):
 - publishes ``candidates`` (rollability_ros/CandidateResult, reliable, depth 1000): every evaluated candidate,
@@ -19,7 +19,8 @@ Interfaces (relative names):
   type, rediscovered every ``evaluator_discovery_period_s``; one goal in flight per server.
 
 Parameters: the namespaces ``optimizer`` (config/optimizer.yaml, config/paper.yaml; ``optimizer.method`` picks
-CMA-ES or CMA-MAE), ``quality_diversity`` (the CMA-MAE archive), ``selection``, ``profile`` and ``printer`` (the grid and printer of config/robot.yaml, overridden by the optimization file), all saved in
+CMA-ES or CMA-MAE), ``quality_diversity`` (the CMA-MAE archive), ``selection``, ``profile`` and ``printer`` (the
+grid and printer of config/robot.yaml, overridden by the optimization file), all saved in
 the run's ``config.yaml``; ``robot`` (the chassis: the marker's mount and the screen's robot); ``urdf_robot`` (a
 URDF robot's config such as config/husky.yaml: when it names a mount link, the grid's ``length_m`` / ``width_m``
 are its mount footprint's, as the evaluators' are, the marker sits on that mount and the screen uses it);

@@ -6,9 +6,10 @@ stuck; IMU stamps are its clock); this node moves IMU messages in and states, ev
 Subscriptions:
   ``<tip_monitor.imu_topic>`` (sensor_msgs/Imu, default ``imu/data``): best effort, so it matches reliable and
   best-effort IMU drivers alike; keep last :data:`IMU_QUEUE_DEPTH`, so a node that stalls for up to a second
-  (a busy robot computer) still gets every sample and its tip times stay those of the IMU stamps. Orientation is used when given; an orientation covariance of -1 or an all-zero
-  quaternion means "none" and the tilt comes from gravity; so does a NaN / infinite quaternion (the sample's
-  accelerometer and gyro are kept; counted as ``orientation_unusable`` in the diagnostics). A message with NaN /
+  (a busy robot computer) still gets every sample and its tip times stay those of the IMU stamps. Orientation
+  is used when given; an orientation covariance of -1 or an all-zero quaternion means "none" and the tilt comes
+  from gravity; so does a NaN / infinite quaternion (the sample's accelerometer and gyro are kept; counted as
+  ``orientation_unusable`` in the diagnostics). A message with NaN /
   infinite rates or accelerations is refused (logged, counted in the diagnostics), never fed to the tracker. A
   zero header stamp is replaced by the time of arrival.
 Publications:

@@ -18,14 +18,14 @@ the seeds of generation number n are derived from its index n - 1, as before. Ru
 (their run info has no ``first_generation``) keep 0 when resumed, so their stored candidates still match.
 
 The optimizer is pluggable: :class:`OptimizationRun` drives any object made by ``optimizer_factory`` (default
-:func:`make_optimizer`: CMA-ES or CMA-MAE by ``optimizer.method``) with ``ask() -> population``, ``tell(population, fitness, trials)``, ``stop() -> dict``,
-``result`` (an :class:`~rollability_ros.core.optimization.cmaes.OptimizerResult`), ``best``, ``sigma``,
-``generation`` (completed generations), ``evaluations``, ``elapsed_s`` and ``state_dict()``; optionally
-``reevaluation_request() -> heights or None`` and ``tell_reevaluation(fitness, trials)`` for an incumbent
-re-evaluation; optionally ``archive_rows()`` and ``archive_summary()`` (a quality-diversity archive, stored in the
-run info under ``archive`` after every generation). :func:`run_generations` is the one loop (stop / pause / give-up policy) that ``rollability
-optimize`` and the ``optimizer`` node run; :func:`run_target` is the one resolution of which run to start or
-continue.
+:func:`make_optimizer`: CMA-ES or CMA-MAE by ``optimizer.method``) with ``ask() -> population``,
+``tell(population, fitness, trials)``, ``stop() -> dict``, ``result`` (an
+:class:`~rollability_ros.core.optimization.cmaes.OptimizerResult`), ``best``, ``sigma``, ``generation`` (completed
+generations), ``evaluations``, ``elapsed_s`` and ``state_dict()``; optionally ``reevaluation_request() -> heights
+or None`` and ``tell_reevaluation(fitness, trials)`` for an incumbent re-evaluation; optionally ``archive_rows()``
+and ``archive_summary()`` (a quality-diversity archive, stored in the run info under ``archive`` after every
+generation). :func:`run_generations` is the one loop (stop / pause / give-up policy) that ``rollability optimize``
+and the ``optimizer`` node run; :func:`run_target` is the one resolution of which run to start or continue.
 
 Order within generation g: population -> store each candidate -> tell -> incumbent re-evaluation (stored as
 candidate index ``popsize``) -> store the generation summary -> checkpoint. A run killed anywhere in between
@@ -577,7 +577,7 @@ def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.
     workers stay busy across candidates; ``trials`` per profile, ``settings`` an ``EvaluatorSettings``. With at
     least two profiles per local worker, each profile's trials go to one worker as one task (one world build and
     one round trip per profile; split into ``evaluator.batch_trials`` tasks, every worker built every profile's
-    world: a paper-config generation took 1.3x as long).
+    world: a paper-config generation took 1.84x as long in ``bench/bench_engines.py``).
     """
     from rollability_ros.core.sim.evaluation import evaluate_profile
 

@@ -226,16 +226,17 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
                 "filled_cells": int(stats.num_elites), "coverage": float(stats.num_elites) / cells,
                 "qd_score": float(stats.qd_score)}
 
-    def _archive_digest(self):
-        rows = self.archive_rows()
+    def _archive_digest(self, rows=None):
+        rows = self.archive_rows() if rows is None else rows
         text = repr([(r["cell"], r["heights"], r["fitness"]) for r in rows])
         return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
     def state_dict(self):
         """Plain-data state between generations: the tells (replayed by :meth:`from_state_dict`), the initial
         mean, and the result archive's digest and size as a check of the replay."""
+        rows = self.archive_rows()
         return {**self._bookkeeping_state(), "method": "cma_mae", "initial_mean": self.initial_mean.tolist(),
-                "archive_sha256": self._archive_digest(), "elites": len(self.archive_rows())}
+                "archive_sha256": self._archive_digest(rows), "elites": len(rows)}
 
     @classmethod
     def from_state_dict(cls, state, settings, qd_settings, grid, clock=time.monotonic, initial_mean=None):

@@ -302,11 +302,14 @@ def select_from_archive(archive, candidates, grid, printer, settings, evaluate_b
     ranked = sorted(pool, key=lambda i: (-designs[i].wilson_low, -designs[i].fitness, designs[i].first_generation))
     spans = [float(high - low) for low, high in archive["ranges"]]
     chosen, rejected, points = [], {}, []
+    def spread(i):
+        """How far elite ``i`` lies from the nearest design already taken, in the normalised descriptor plane."""
+        return min(float(np.hypot(*(_descriptor_point(elites[i], spans) - point))) for point in points)
+
     while ranked and len(chosen) < settings.count:
         if chosen:
-            def spread(i):
-                return min(float(np.hypot(*(_descriptor_point(elites[i], spans) - point))) for point in points)
-            index = ranked.pop(max(range(len(ranked)), key=lambda k: (spread(ranked[k]), designs[ranked[k]].wilson_low)))
+            index = ranked.pop(max(range(len(ranked)),
+                                   key=lambda k: (spread(ranked[k]), designs[ranked[k]].wilson_low)))
         else:
             index = ranked.pop(0)
         elite, design = elites[index], designs[index]
@@ -333,8 +336,8 @@ def select_from_archive(archive, candidates, grid, printer, settings, evaluate_b
     labels = {d.cell: d.label for d in chosen}
     in_pool = set(pool)
     rows = []
+    screened = bool(settings.reevaluate_trials)
     for index, (elite, design) in enumerate(zip(elites, designs)):
-        screened = bool(settings.reevaluate_trials)
         rows.append({"cell_height": elite["cell"][0], "cell_sharpness": elite["cell"][1],
                      "max_height_mm": elite["max_height_mm"], "sharpness_deg": elite["sharpness_deg"],
                      "in_run_fitness": elite["fitness"], "in_run_trials": elite["trials"],
@@ -360,10 +363,11 @@ def trait_rows(candidates, grid, ranges, bins):
     rows = []
     for axis, trait in enumerate(("max_height_mm", "sharpness_deg")):
         edges = np.linspace(ranges[axis][0], ranges[axis][1], int(bins[axis]) + 1)
-        for low, high in zip(edges[:-1], edges[1:]):
-            last = high == edges[-1]
-            members = [d for d, m in zip(pooled, measured)
-                       if (low <= m[axis] < high) or (last and m[axis] >= high) or (low == edges[0] and m[axis] < low)]
+        # the bin of each design; values below the first edge or above the last fall in the end bins
+        where = [int(np.clip(np.searchsorted(edges, m[axis], side="right") - 1, 0, len(edges) - 2))
+                 if math.isfinite(m[axis]) else None for m in measured]
+        for number, (low, high) in enumerate(zip(edges[:-1], edges[1:])):
+            members = [d for d, b in zip(pooled, where) if b == number]
             successes, trials = sum(d.successes for d in members), sum(d.trials for d in members)
             ci_low, ci_high = wilson_interval(successes, trials)
             rows.append({"trait": trait, "bin_low": float(low), "bin_high": float(high), "designs": len(members),
@@ -473,7 +477,8 @@ def write_selection(run_dir, result, grid, run_id, mesh_units="mm", traits=None)
         geometry.export_mesh(design.mesh, os.path.join(folder, f"mesh_{design.label}.stl"), mesh_units)
         geometry.export_mesh(design.mesh, os.path.join(folder, f"mesh_{design.label}.3mf"))
     _write_csv(os.path.join(folder, "table3.csv"), TABLE_COLUMNS, table_rows(result))
-    for name, columns, rows in (("archive.csv", ARCHIVE_COLUMNS, result.archive), ("traits.csv", TRAIT_COLUMNS, traits)):
+    for name, columns, rows in (("archive.csv", ARCHIVE_COLUMNS, result.archive),
+                                ("traits.csv", TRAIT_COLUMNS, traits)):
         path = os.path.join(folder, name)
         if rows is not None:
             _write_csv(path, columns, rows)

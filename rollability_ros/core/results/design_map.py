@@ -93,8 +93,9 @@ def summary_lines(archive_rows, height_bound_mm=None):
     if chosen:
         heights = [r["max_height_mm"] for r in chosen]
         spread = max(heights) - min(heights)
-        lines.append(f"chosen ({'screen' if screened else 'in-run'} fitness): " + "; ".join(f"{r['label']} {r['max_height_mm']:.0f} mm, {r['sharpness_deg']:.0f} deg, "
-                                            f"fitness {r['fitness']:.2f}" for r in chosen)
+        lines.append(f"chosen ({'screen' if screened else 'in-run'} fitness): "
+                     + "; ".join(f"{r['label']} {r['max_height_mm']:.0f} mm, {r['sharpness_deg']:.0f} deg, "
+                                 f"fitness {r['fitness']:.2f}" for r in chosen)
                      + f"; height spread {spread:.0f} mm"
                      + (f" = {spread / height_bound_mm:.0%} of the height bound" if height_bound_mm else ""))
     for trait, trend in trait_trends(archive_rows).items():

@@ -1,18 +1,21 @@
 """Calibrate -> re-optimize -> validate on a synthetic truth: does a design optimized on the calibrated launch twin
 beat one optimized on the uncalibrated twin, when both are scored on the truth?
 
-    nice python bench/bench_objective.py [--generations 4] [--popsize 6] [--validate 48] [--workers 2]
+    nice python bench/bench_objective.py [--parameter robot.com_offset_z_m] [--truth -0.005] [--generations 12]
+        [--popsize 8] [--trials 24] [--sigma0 0.1] [--screen 16] [--seeds 3] [--validate 96] [--workers 2]
 
-1. Truth: the launch twin with the chassis's centre of mass moved from -0.015 m to ``--truth`` (m, z of the body
-   box); "physical" outcomes of the bare chassis and bench_evaluator's dome profile are launched on it.
-2. Calibrate ``robot.com_offset_z_m`` to those outcomes (``rollability calibrate``'s core) -> calibrated.yaml.
-3. Optimize twice with ``objective.kind: launch_twin`` (the same seeds, grid and budget): on the uncalibrated
-   twin and on the calibrated one (its file appended to ``objective.twin_config``). Each run's design is its
-   best pooled logged design (the selection's ranking).
-4. Validate: both designs launched ``--validate`` times on the truth with fresh seeds (never used above); success
-   with Wilson 95% intervals and the difference with Newcombe's 95% interval.
+1. Truth: the launch twin with ``--parameter`` moved to ``--truth`` (default: the chassis's centre of mass from
+   -0.015 m to -0.005 m); "physical" outcomes of the bare chassis and bench_evaluator's dome profile are
+   launched on it.
+2. Calibrate that parameter to those outcomes (``rollability calibrate``'s core, its default bounds) ->
+   calibrated.yaml.
+3. For each optimizer seed of ``--seeds``, optimize twice with ``objective.kind: launch_twin`` (the same seed, grid
+   and budget): on the uncalibrated twin and on the calibrated one (its file appended to
+   ``objective.twin_config``). Each run's design is its best pooled logged design (the selection's ranking).
+4. Validate: every design launched ``--validate`` times on the truth with fresh seeds (never used above); success
+   with Wilson 95% intervals, and calibrated - uncalibrated with Newcombe's 95% interval, per seed and pooled.
 Everything is measured in this run; nothing is tuned to it. The launch conditions are a small campaign (0.75 m,
-0.8 and 1.5 m/s, -30 and +30 deg) to keep it to minutes on 2 cores.
+0.8 and 1.5 m/s, -30 and +30 deg) on a 3 x 3 grid to keep it to minutes on 2 cores.
 """
 import argparse
 import dataclasses
@@ -50,16 +53,18 @@ def newcombe_difference(k1, n1, k2, n2):
             p1 - p2 + math.sqrt((u1 - p1) ** 2 + (p2 - l2) ** 2))
 
 
-def optimize(run_dir, twin_config, campaign_file, args, executor):
-    """One launch-twin optimization; return its best pooled design's heights."""
+def optimize(run_dir, twin_config, campaign_file, args, seed, executor):
+    """One launch-twin optimization with optimizer seed ``seed``; return its best pooled design's heights."""
     parameters = optimization_run.load_run_parameters(["optimizer"])
-    parameters.update({"objective.kind": "launch_twin", "objective.campaign_config": [campaign_file],
-                       "objective.twin_config": list(twin_config), "optimizer.popsize": args.popsize,
-                       "optimizer.max_generations": args.generations, "optimizer.trials": 8,
-                       "optimizer.initial_mean_screen": 0, "optimizer.stagnation_generations": 0,
-                       "profile.rows": 3, "profile.cols": 3, "optimizer.seed": 3})
+    parameters.update({"optimizer.method": "cmaes", "objective.kind": "launch_twin",
+                       "objective.campaign_config": [campaign_file], "objective.twin_config": list(twin_config),
+                       "optimizer.popsize": args.popsize, "optimizer.sigma0": args.sigma0,
+                       "optimizer.max_generations": args.generations, "optimizer.trials": args.trials,
+                       "optimizer.initial_mean_screen": args.screen, "optimizer.stagnation_generations": 0,
+                       "optimizer.target_fitness": 2.0,
+                       "profile.rows": 3, "profile.cols": 3, "optimizer.seed": seed})
     settings = evaluation.settings_from_parameters(parameters)
-    batch = optimization_run.profile_batch_evaluator(settings, 8, executor)
+    batch = optimization_run.profile_batch_evaluator(settings, args.trials, executor)
     run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid, batch)
     result = run.run()
     pooled = selection.pool_candidates(run.store.candidates(run_id=run.run_id))
@@ -72,12 +77,25 @@ def optimize(run_dir, twin_config, campaign_file, args, executor):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--truth", type=float, default=0.006, help="hidden robot.com_offset_z_m, m")
-    parser.add_argument("--generations", type=int, default=4)
-    parser.add_argument("--popsize", type=int, default=6)
-    parser.add_argument("--validate", type=int, default=48, help="launches per design on the truth")
+    defaults = calibration.CalibrationSettings()
+    parser.add_argument("--parameter", default=PARAMETER, choices=defaults.parameters,
+                        help="the twin parameter the truth moves and the calibration fits")
+    parser.add_argument("--truth", type=float, default=-0.005, help="its hidden value (in its units)")
+    parser.add_argument("--generations", type=int, default=12)
+    parser.add_argument("--popsize", type=int, default=8)
+    parser.add_argument("--trials", type=int, default=24, help="launches per candidate evaluation")
+    parser.add_argument("--sigma0", type=float, default=0.1,
+                        help="CMA-ES step size, simulation units (the paper's 0.02 barely leaves a random start in "
+                             "this budget)")
+    parser.add_argument("--screen", type=int, default=16,
+                        help="random means screened by the stable-pose screen for the start (both arms alike)")
+    parser.add_argument("--seeds", default="3", help="optimizer seeds, comma-separated: one pair of runs each")
+    parser.add_argument("--validate", type=int, default=96, help="launches per design on the truth")
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
+    index = defaults.parameters.index(args.parameter)
+    lower, upper, log_scale = defaults.lower[index], defaults.upper[index], defaults.log_scale[index]
+    seeds = [int(seed) for seed in args.seeds.split(",")]
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as folder:
         stl = os.path.join(folder, "dome.stl")
@@ -87,41 +105,52 @@ def main():
             yaml.safe_dump(CAMPAIGN, stream)
         parameters = load_parameters(list(calibration.TWIN_CONFIGS))
         parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
+        uncalibrated_value = parameters[args.parameter]
         conditions = [LaunchCondition("baseline", 0.75, 0.8, 0.0), LaunchCondition("dome", 0.75, 0.8, 0.0)]
-        outcomes = synthetic_outcomes(parameters, [PARAMETER], [args.truth], conditions, 24)
-        settings = calibration.CalibrationSettings(parameters=[PARAMETER], lower=[-0.019], upper=[0.015],
-                                                   log_scale=[False], sim_repetitions=8, popsize=4,
+        outcomes = synthetic_outcomes(parameters, [args.parameter], [args.truth], conditions, 24)
+        settings = calibration.CalibrationSettings(parameters=[args.parameter], lower=[lower], upper=[upper],
+                                                   log_scale=[log_scale], sim_repetitions=8, popsize=4,
                                                    max_generations=4, bootstrap_resamples=0)
         with calibration.LaunchPool(args.workers) as pool:
             fitted = calibration.calibrate(outcomes, parameters, settings, pool).estimates[0].fitted
         calibrated = os.path.join(folder, "calibrated.yaml")
         with open(calibrated, "w", encoding="utf-8") as stream:
-            yaml.safe_dump(calibration.calibrated_parameter_document({PARAMETER: fitted}), stream)
-        print(f"calibrated {PARAMETER} = {fitted:+.4f} m (truth {args.truth:+.4f}, uncalibrated -0.015) "
-              f"[{time.perf_counter() - started:.0f} s]")
+            yaml.safe_dump(calibration.calibrated_parameter_document({args.parameter: fitted}), stream)
+        print(f"calibrated {args.parameter} = {fitted:+.4g} (truth {args.truth:+.4g}, uncalibrated "
+              f"{uncalibrated_value:+.4g}) [{time.perf_counter() - started:.0f} s]", flush=True)
         truth_file = os.path.join(folder, "truth.yaml")
         with open(truth_file, "w", encoding="utf-8") as stream:
-            yaml.safe_dump(calibration.calibrated_parameter_document({PARAMETER: args.truth}), stream)
-        designs = {}
+            yaml.safe_dump(calibration.calibrated_parameter_document({args.parameter: args.truth}), stream)
+        totals = {"calibrated": [0, 0], "uncalibrated": [0, 0]}
         with evaluation.make_executor(evaluation.EvaluatorOptions(workers=args.workers)) as executor:
-            for label, twin in (("uncalibrated", calibration.TWIN_CONFIGS),
-                                ("calibrated", (*calibration.TWIN_CONFIGS, calibrated))):
-                print(f"optimizing on the {label} twin")
-                designs[label] = optimize(os.path.join(folder, label), twin, campaign_file, args, executor)
-                print(f"  [{time.perf_counter() - started:.0f} s]")
-            scores = {}
-            for label, (heights, settings) in designs.items():
-                on_truth = dataclasses.replace(settings, objective=evaluation.ObjectiveSettings(
-                    kind="launch_twin", campaign_config=[campaign_file],
-                    twin_config=[*calibration.TWIN_CONFIGS, truth_file]))
-                result = evaluation.evaluate_profile(heights, args.validate, 987_654_321, on_truth, executor)
-                scores[label] = (result.successes, result.trials)
-                print(f"{label:>12}-twin design on the truth: {result.successes}/{result.trials} = "
-                      f"{result.fitness:.2f} [{result.ci_low:.2f}, {result.ci_high:.2f}]")
-    (k1, n1), (k2, n2) = scores["calibrated"], scores["uncalibrated"]
+            for seed in seeds:
+                scores = {}
+                for label, twin in (("uncalibrated", calibration.TWIN_CONFIGS),
+                                    ("calibrated", (*calibration.TWIN_CONFIGS, calibrated))):
+                    print(f"seed {seed}: optimizing on the {label} twin", flush=True)
+                    heights, run_settings = optimize(os.path.join(folder, f"{label}-{seed}"), twin, campaign_file,
+                                                     args, seed, executor)
+                    on_truth = dataclasses.replace(run_settings, objective=evaluation.ObjectiveSettings(
+                        kind="launch_twin", campaign_config=[campaign_file],
+                        twin_config=[*calibration.TWIN_CONFIGS, truth_file]))
+                    result = evaluation.evaluate_profile(heights, args.validate, 987_654_321, on_truth, executor)
+                    scores[label] = (result.successes, result.trials)
+                    totals[label][0] += result.successes
+                    totals[label][1] += result.trials
+                    print(f"seed {seed}: {label:>12}-twin design on the truth: {result.successes}/{result.trials} = "
+                          f"{result.fitness:.2f} [{result.ci_low:.2f}, {result.ci_high:.2f}] "
+                          f"[{time.perf_counter() - started:.0f} s]", flush=True)
+                report_difference(f"seed {seed}: ", scores["calibrated"], scores["uncalibrated"])
+    report_difference(f"pooled over {len(seeds)} seed(s): ", totals["calibrated"], totals["uncalibrated"])
+    print(f"wall {time.perf_counter() - started:.0f} s on {os.cpu_count()} cores (simulated twin and truth)")
+
+
+def report_difference(lead, calibrated, uncalibrated):
+    """Print calibrated - uncalibrated success on the truth with Newcombe's 95% interval."""
+    (k1, n1), (k2, n2) = calibrated, uncalibrated
     low, high = newcombe_difference(k1, n1, k2, n2)
-    print(f"calibrated - uncalibrated on the truth: {k1 / n1 - k2 / n2:+.2f} [{low:+.2f}, {high:+.2f}] "
-          f"(95%, Newcombe); wall {time.perf_counter() - started:.0f} s on {os.cpu_count()} cores")
+    print(f"{lead}calibrated {k1}/{n1} - uncalibrated {k2}/{n2} on the truth: {k1 / n1 - k2 / n2:+.2f} "
+          f"[{low:+.2f}, {high:+.2f}] (95%, Newcombe)", flush=True)
 
 
 if __name__ == "__main__":

@@ -153,6 +153,18 @@ def test_candidates_are_within_bounds_and_the_archive_holds_what_was_told():
     assert len(cells) == len(rows)
 
 
+def test_generations_where_every_candidate_fails_keep_the_search_going():
+    # a hard objective (launches on a pessimistic twin) can score a whole generation 0; the emitters then
+    # restart from an elite of the archive, which must not be empty
+    optimizer = QualityDiversityOptimizer(settings(), QualityDiversitySettings(emitters=3), GRID)
+    for generation in range(8):
+        population = optimizer.ask()
+        optimizer.tell(population, [0.0] * len(population), [30] * len(population))
+        optimizer.tell_reevaluation(0.0, 30)
+    assert optimizer.archive_summary()["filled_cells"] >= 1
+    assert optimizer.archive_summary()["qd_score"] == 0.0
+
+
 def test_state_round_trips_through_json_and_continues_exactly():
     qd = QualityDiversitySettings(emitters=2)
     evaluator = SyntheticEvaluator(OPTIMUM, trials=30)

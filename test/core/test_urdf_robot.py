@@ -333,3 +333,47 @@ def test_package_uris_resolve_through_ament_prefix_path(tmp_path, monkeypatch):
     assert "package://" not in spec.description().robot.sim_urdf     # found under the second prefix
     monkeypatch.setenv("AMENT_PREFIX_PATH", str(tmp_path / "elsewhere"))
     assert "package://husky_description" in _bad(tmp_path, urdf_path="", robot_description=packaged, search_paths=())
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+def test_a_compliant_mount_on_a_urdf_robot_deflects_by_the_profile_weight(husky, engine):
+    """The Husky with its optimized profile on a spring: the profile joint slides along the mount's normal,
+    carries no drive drag, and rests at -m g / k."""
+    import mujoco
+
+    from rollability_ros.core.robots.robot import ProfileMountSpec
+    from rollability_ros.core.robots.urdf_robot import PROFILE_JOINT
+    from rollability_ros.core.sim.mujoco_trials import MujocoTrialWorld
+    from rollability_ros.core.sim.trials import TrialSettings, place_on_ground
+
+    with open(FIXTURE, encoding="utf-8") as stream:
+        heights = yaml.safe_load(stream)["heights"]
+    profile = ProfileBody.from_mesh(profile_mesh(heights, husky.grid), husky.profile_density_kgpm3())
+    stiffness = 20000.0
+    model = UrdfRobotModel(husky_spec(joint_drag_torque_nm=5.0, profile_mount=ProfileMountSpec(
+        stiffness_npm=stiffness, damping_nspm=2 * (stiffness * profile.mass_kg) ** 0.5, travel_m=0.01)))
+    physics = PhysicsParams()
+    trace = []
+    if engine == "pybullet":
+        client = connect()
+        try:
+            reset_world(client, physics)
+            robot = model.spawn(client, profile, (0, 0, 1), (0, 0, 0, 1))
+            place_on_ground(client, robot.body_id, (0, 0, 0, 1), 0.0)
+            info = pybullet.getJointInfo(robot.body_id, robot.mount_spring.joint, physicsClientId=client)
+            assert info[1].decode() == PROFILE_JOINT and info[2] == pybullet.JOINT_PRISMATIC
+            for _ in range(480):
+                robot.before_step()
+                pybullet.stepSimulation(physicsClientId=client)
+                trace.append(robot.mount_spring.position_m())
+        finally:
+            disconnect(client)
+    else:
+        world = MujocoTrialWorld(model, profile, TrialSettings(), physics)
+        world.place((0, 0, 0, 1), 0.0)
+        joint = world.model.joint(PROFILE_JOINT)
+        assert world.model.dof_frictionloss[world.model.jnt_dofadr[joint.id]] == 0.0  # no drive drag on the mount
+        for _ in range(480):
+            mujoco.mj_step(world.model, world.data)
+            trace.append(float(world.data.qpos[world.model.jnt_qposadr[joint.id]]))
+    assert np.mean(trace[-60:]) == pytest.approx(-profile.mass_kg * 9.81 / stiffness, rel=0.03)

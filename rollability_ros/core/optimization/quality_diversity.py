@@ -80,9 +80,9 @@ class QualityDiversitySettings:
     learning_rate: float = dataclasses.field(default=0.01, metadata={
         "description": "CMA-MAE archive learning rate alpha (fraction, (0, 1]; 1 = CMA-ME, small = more "
                        "exploration first)", "range": (0.0, 1.0)})
-    threshold_min: float = dataclasses.field(default=0.0, metadata={
-        "description": "fitness threshold of an empty cell for CMA-MAE (fitness units, upright trials / trials)",
-        "range": (-1.0, 1.0)})
+    threshold_min: float = dataclasses.field(default=-0.01, metadata={
+        "description": "fitness threshold of an empty cell for CMA-MAE (fitness units, upright trials / trials); "
+                       "below 0, so a design that never rights itself still fills its cell", "range": (-1.0, 0.0)})
 
     def validate(self, popsize=None):
         """Raise ``ValueError`` naming the first unusable field (``popsize``: the optimizer's, to split)."""
@@ -103,8 +103,11 @@ class QualityDiversitySettings:
             raise ValueError(f"sigma0 must be >= 0 (0 = optimizer.sigma0), got {self.sigma0}")
         if not 0 < self.learning_rate <= 1:
             raise ValueError(f"learning_rate must be in (0, 1], got {self.learning_rate}")
-        if not -1 <= self.threshold_min < 1:
-            raise ValueError(f"threshold_min must be in [-1, 1), got {self.threshold_min}")
+        if not -1 <= self.threshold_min < 0:
+            # at 0 a generation that scores 0 throughout leaves the archive empty, and an emitter that then
+            # restarts has no elite to restart from
+            raise ValueError(f"threshold_min must be in [-1, 0) (below the lowest fitness, 0), got "
+                             f"{self.threshold_min}")
 
 
 def emitter_ceilings(emitters, lowest_ceiling):

@@ -33,12 +33,118 @@ class ProfileBody:
                    mass_kg=float(mesh.volume * density_kgpm3), com_m=np.asarray(mesh.center_mass, dtype=np.float64))
 
 
+@dataclasses.dataclass
+class ProfileMountSpec:
+    """How the profile is held on its mount (``robot.profile_mount`` / ``urdf_robot.profile_mount``).
+
+    Rigid (``stiffness_npm`` = 0, the default; the paper's bolted profile): the profile is a link on a fixed
+    joint. Compliant (``stiffness_npm`` > 0; e.g. rubber or TPU standoffs): the profile slides along the
+    mount's normal (the profile frame's z) on a prismatic joint against a linear spring of ``stiffness_npm``
+    and a viscous damper of ``damping_nspm``, its rest position (no load) at 0 and its travel limited to
+    +-``travel_m`` by end stops. Both engines apply the same spring-damper law: MuJoCo as the joint's own
+    stiffness and damping, PyBullet as a joint force set before every step (:class:`MountSpring`). Both
+    integrate it explicitly, so a spawn refuses a mount whose undamped frequency or damping rate is too high for
+    the time step (:meth:`check_time_step`). The early decision assumes a rigid hull and is not used with a
+    compliant mount (its trials run to rest).
+    """
+
+    stiffness_npm: float = dataclasses.field(default=0.0, metadata={
+        "description": "spring stiffness of the mount along its normal, N/m (0 = rigid mount, fixed joint)",
+        "range": (0.0, 10000000.0)})
+    damping_nspm: float = dataclasses.field(default=0.0, metadata={
+        "description": "viscous damping of the compliant mount along its normal, N s/m", "range": (0.0, 1000000.0)})
+    travel_m: float = dataclasses.field(default=0.005, metadata={
+        "description": "end stops of the compliant mount: the profile moves at most this far either way along "
+                       "the normal, m", "range": (0.0, 1.0)})
+
+    #: Largest explicit-integration rate (undamped angular frequency x step, damping rate x step) accepted.
+    MAX_RATE_PER_STEP = 1.0
+
+    @property
+    def compliant(self):
+        """True when the profile rides on a spring (``stiffness_npm`` > 0)."""
+        return self.stiffness_npm > 0
+
+    def validate(self):
+        """Raise ``ValueError`` naming the first unusable field."""
+        for name in ("stiffness_npm", "damping_nspm"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if not self.travel_m > 0:
+            raise ValueError(f"travel_m must be > 0, got {self.travel_m}")
+
+    def check_time_step(self, profile_mass_kg, time_step_s):
+        """Raise ``ValueError`` when the spring-damper on a profile of ``profile_mass_kg`` would be integrated
+        unstably at ``time_step_s`` (both rates, per step, must stay at or below :attr:`MAX_RATE_PER_STEP`)."""
+        if not self.compliant or profile_mass_kg <= 0:
+            return
+        omega = math.sqrt(self.stiffness_npm / profile_mass_kg) * time_step_s
+        decay = self.damping_nspm / profile_mass_kg * time_step_s
+        if omega > self.MAX_RATE_PER_STEP or decay > self.MAX_RATE_PER_STEP:
+            raise ValueError(
+                f"profile_mount: stiffness {self.stiffness_npm:g} N/m and damping {self.damping_nspm:g} N s/m on a "
+                f"{profile_mass_kg * 1000:.0f} g profile give {omega:.2f} rad and {decay:.2f} per {time_step_s:g} s "
+                f"step (at most {self.MAX_RATE_PER_STEP:g}): lower them or sim.time_step_s")
+
+    def joint_xml(self):
+        """The URDF ``type`` and extra tags of the profile joint: fixed, or prismatic along z with its stops."""
+        if not self.compliant:
+            return "fixed", ""
+        return "prismatic", (f'<axis xyz="0 0 1"/><limit lower="{-self.travel_m!r}" upper="{self.travel_m!r}" '
+                             f'effort="1000000" velocity="1000"/><dynamics damping="{self.damping_nspm!r}"/>')
+
+
+class MountSpring:
+    """The compliant mount's spring-damper in a PyBullet world: call :meth:`apply` before every step.
+
+    PyBullet has no joint spring; this sets the prismatic joint's force to ``-k q - c q'`` (the default joint
+    motor is switched off at spawn). A force set by torque control lasts one step.
+    """
+
+    def __init__(self, client, body_id, joint, mount):
+        self.pybullet = require("pybullet", feature="the simulated evaluator")
+        self.client, self.body_id, self.joint = client, body_id, joint
+        self.stiffness_npm, self.damping_nspm = mount.stiffness_npm, mount.damping_nspm
+        self.pybullet.setJointMotorControl2(body_id, joint, self.pybullet.VELOCITY_CONTROL, targetVelocity=0.0,
+                                            force=0.0, physicsClientId=client)
+
+    def apply(self):
+        """Set the spring-damper force for the next step from the joint's current position and speed."""
+        pybullet = self.pybullet
+        position, speed, _, _ = pybullet.getJointState(self.body_id, self.joint, physicsClientId=self.client)
+        pybullet.setJointMotorControl2(self.body_id, self.joint, pybullet.TORQUE_CONTROL,
+                                       force=-self.stiffness_npm * position - self.damping_nspm * speed,
+                                       physicsClientId=self.client)
+
+    def position_m(self):
+        """The profile's displacement along the mount normal, m (negative = pressed towards the robot)."""
+        return self.pybullet.getJointState(self.body_id, self.joint, physicsClientId=self.client)[0]
+
+
+def compliant_mount(client, body_id, joint, mount, profile_mass_kg):
+    """Set up the compliant profile joint ``joint`` of ``body_id``: its end stops, the time-step check
+    (:meth:`ProfileMountSpec.check_time_step`, at the client's step) and its :class:`MountSpring`."""
+    pybullet = require("pybullet", feature="the simulated evaluator")
+    time_step_s = pybullet.getPhysicsEngineParameters(physicsClientId=client)["fixedTimeStep"]
+    mount.check_time_step(profile_mass_kg, time_step_s)
+    pybullet.changeDynamics(body_id, joint, jointLowerLimit=-mount.travel_m, jointUpperLimit=mount.travel_m,
+                            physicsClientId=client)
+    return MountSpring(client, body_id, joint, mount)
+
+
 @dataclasses.dataclass(frozen=True)
 class SpawnedRobot:
-    """A robot in a PyBullet world: its body id and the link indices of its wheels (``-1`` = base)."""
+    """A robot in a PyBullet world: its body id, the link indices of its wheels (``-1`` = base) and, on a
+    compliant mount, the :class:`MountSpring` to apply before every step (None when rigid)."""
 
     body_id: int
     wheel_links: tuple
+    mount_spring: MountSpring = None
+
+    def before_step(self):
+        """Apply the per-step forces of the robot itself (the compliant mount's spring); call before each step."""
+        if self.mount_spring is not None:
+            self.mount_spring.apply()
 
 
 class RobotModel(abc.ABC):
@@ -77,6 +183,14 @@ class RobotModel(abc.ABC):
     def simulator_urdf(self, profile=None, mesh_filename=None):
         """The URDF a simulator loads (str): the robot with ``profile`` (ProfileBody) on ``mesh_filename``."""
         return self.to_urdf(mesh_filename, profile)
+
+    #: Name of the profile's joint in :meth:`simulator_urdf` (None: no compliant mount possible).
+    profile_joint = None
+
+    @property
+    def profile_mount(self):
+        """How the profile is held (:class:`ProfileMountSpec`); rigid unless a model says otherwise."""
+        return ProfileMountSpec()
 
     @abc.abstractmethod
     def wheel_link_names(self):
@@ -160,9 +274,11 @@ class ChassisSpec:
         "description": "wheels that must touch the ground for an upright verdict (count)", "range": (0, 4)})
     contact_tolerance_m: float = dataclasses.field(default=0.003, metadata={
         "description": "a wheel this close to the ground counts as touching it, m", "range": (0.0, 1.0)})
+    profile_mount: ProfileMountSpec = dataclasses.field(default_factory=ProfileMountSpec)
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
+        self.profile_mount.validate()
         for name in ("body_length_m", "body_width_m", "body_height_m", "body_mass_kg", "wheel_radius_m",
                      "wheel_width_m", "wheel_mass_kg", "wheelbase_m", "track_m", "profile_density_kgpm3",
                      "contact_tolerance_m"):
@@ -201,7 +317,14 @@ class SpecThresholds:
         """Effective density of the profile solid (kg/m^3)."""
         return self.spec.profile_density_kgpm3
 
+    @property
+    def profile_mount(self):
+        """How the profile is held (:class:`ProfileMountSpec`): rigid, or on a spring-damper."""
+        return self.spec.profile_mount
 
+
+#: Name of the profile's joint in the chassis URDF (fixed, or prismatic on a compliant mount).
+PROFILE_JOINT = "profile_joint"
 _WHEEL_ORIENTATION = (math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5))  # cylinder axis (local z) along chassis y
 
 
@@ -210,6 +333,8 @@ class ChassisModel(SpecThresholds, RobotModel):
 
     #: Name of the body link (the chassis frame) in :meth:`to_urdf`: the link the profile is mounted on.
     BODY_LINK = "base_link"
+    #: Name of the profile's joint in :meth:`simulator_urdf`.
+    profile_joint = PROFILE_JOINT
 
     def __init__(self, spec):
         self.spec = spec
@@ -258,8 +383,10 @@ class ChassisModel(SpecThresholds, RobotModel):
             profile_shape = pybullet.createCollisionShape(pybullet.GEOM_MESH,
                                                           vertices=profile.hull_vertices_m.tolist(),
                                                           physicsClientId=client)
+            mount = s.profile_mount
             add_link(profile.mass_kg, profile_shape, self.mount_position_m, (0, 0, 0, 1), profile.com_m,
-                     pybullet.JOINT_FIXED, (0, 0, 0))
+                     pybullet.JOINT_PRISMATIC if mount.compliant else pybullet.JOINT_FIXED,
+                     (0, 0, 1) if mount.compliant else (0, 0, 0))
         for wheel in self.wheel_positions_m():
             add_link(s.wheel_mass_kg, wheel_shape, wheel, _WHEEL_ORIENTATION, (0, 0, 0), pybullet.JOINT_REVOLUTE,
                      (0, 0, 1))
@@ -275,7 +402,10 @@ class ChassisModel(SpecThresholds, RobotModel):
         wheels = tuple(range(count - 4, count))  # a massless placeholder link would break external torques
         pybullet.setJointMotorControlArray(body, list(wheels), pybullet.VELOCITY_CONTROL, targetVelocities=[0.0] * 4,
                                            forces=[s.wheel_drag_torque_nm] * 4, physicsClientId=client)
-        return SpawnedRobot(body_id=body, wheel_links=wheels)
+        spring = None
+        if profile is not None and s.profile_mount.compliant:
+            spring = compliant_mount(client, body, 0, s.profile_mount, profile.mass_kg)
+        return SpawnedRobot(body_id=body, wheel_links=wheels, mount_spring=spring)
 
     def up_axis(self, client, robot):
         pybullet = require("pybullet", feature="the simulated evaluator")
@@ -284,6 +414,13 @@ class ChassisModel(SpecThresholds, RobotModel):
 
     def to_urdf(self, profile_mesh_filename=None, profile=None):
         """URDF of the chassis (inertias of solid boxes/cylinders); the profile link uses the given mesh file."""
+        return self._urdf(profile_mesh_filename, profile, ("fixed", ""))
+
+    def simulator_urdf(self, profile=None, mesh_filename=None):
+        """As :meth:`to_urdf`, the profile on a prismatic joint when its mount is compliant (ProfileMountSpec)."""
+        return self._urdf(mesh_filename, profile, self.spec.profile_mount.joint_xml())
+
+    def _urdf(self, profile_mesh_filename, profile, profile_joint):
         s = self.spec
         box = (s.body_length_m, s.body_width_m, s.body_height_m)
         parts = ['<?xml version="1.0"?>', '<robot name="rollability_chassis">',
@@ -295,8 +432,9 @@ class ChassisModel(SpecThresholds, RobotModel):
             parts.append(_urdf_link("profile_link", f"<mesh filename={quoteattr(profile_mesh_filename)}/>", mass, com,
                                     _box_inertia(mass, tuple(np.ptp(profile.hull_vertices_m, axis=0)))
                                     if profile is not None else (0, 0, 0)))
-            parts.append(_urdf_joint("profile_joint", "fixed", self.BODY_LINK, "profile_link", self.mount_position_m,
-                                     (0, 0, 0)))
+            kind, tags = profile_joint
+            parts.append(_urdf_joint(PROFILE_JOINT, kind, self.BODY_LINK, "profile_link", self.mount_position_m,
+                                     (0, 0, 0), extra=tags))
         r, w, m = s.wheel_radius_m, s.wheel_width_m, s.wheel_mass_kg
         across = m * (3 * r * r + w * w) / 12
         wheel_inertia = (across, m * r * r / 2, across)  # axis along the link's y
@@ -327,7 +465,7 @@ def _urdf_link(name, geometry, mass, com, inertia, rpy=(0, 0, 0)):
             f'    <visual>{shape}</visual>\n    <collision>{shape}</collision>\n  </link>')
 
 
-def _urdf_joint(name, kind, parent, child, xyz, rpy, axis=None):
+def _urdf_joint(name, kind, parent, child, xyz, rpy, axis=None, extra=""):
     axis_tag = f'<axis xyz="{_xyz(axis)}"/>' if axis is not None else ""
     return (f'  <joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
-            f'<origin xyz="{_xyz(xyz)}" rpy="{_xyz(rpy)}"/>{axis_tag}</joint>')
+            f'<origin xyz="{_xyz(xyz)}" rpy="{_xyz(rpy)}"/>{axis_tag}{extra}</joint>')

@@ -36,9 +36,13 @@ import xml.etree.ElementTree as ElementTree
 import numpy as np
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.robots.robot import ChassisModel, RobotModel, SpawnedRobot, SpecThresholds
+from rollability_ros.core.robots.robot import (ChassisModel, ProfileMountSpec, RobotModel, SpawnedRobot,
+                                               SpecThresholds, compliant_mount)
 from rollability_ros.core.robots.urdf_description import (PROFILE_LINK, describe, inertial_xml, origin_xml, read_urdf_source,
                                                    transform)
+
+#: The profile joint of the simulator URDF: fixed, or prismatic on a compliant mount.
+PROFILE_JOINT = f"{PROFILE_LINK}_joint"
 
 #: ``forward_axis`` -> direction of that axis in the root link's x-y plane, deg from +x (REP 103 says x).
 FORWARD_AXIS_DEG = {"x": 0.0, "y": 90.0, "-x": 180.0, "-y": -90.0}
@@ -109,6 +113,7 @@ class UrdfRobotSpec:
         "range": (0.0, 1000000.0)})
     profile_density_kgpm3: float = dataclasses.field(default=150.0, metadata={
         "description": "density of the profile solid on this robot, kg/m^3", "range": (0.0, 100000.0)})
+    profile_mount: ProfileMountSpec = dataclasses.field(default_factory=ProfileMountSpec)
 
     @property
     def selected(self):
@@ -123,6 +128,7 @@ class UrdfRobotSpec:
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field; with a description, check it too (see
         :meth:`description`)."""
+        self.profile_mount.validate()
         for name in ("footprint_length_m", "footprint_width_m", "contact_tolerance_m", "profile_density_kgpm3"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -322,16 +328,17 @@ def profile_inertia(profile):
     return np.asarray(hull.moment_inertia) * (profile.mass_kg / hull.volume), hull
 
 
-def profile_link_xml(mount_body, profile_in_body, mesh_filename, profile=None):
-    """URDF ``<link>`` and fixed ``<joint>`` of the profile on ``mount_body`` (mesh file as collision and visual)."""
+def profile_link_xml(mount_body, profile_in_body, mesh_filename, profile=None, joint=("fixed", "")):
+    """URDF ``<link>`` and ``<joint>`` of the profile on ``mount_body`` (mesh file as collision and visual);
+    ``joint``: the joint's type and extra tags (:meth:`ProfileMountSpec.joint_xml`), fixed by default."""
     inertial = ""
     if profile is not None:
         inertia, _ = profile_inertia(profile)
         inertial = inertial_xml(profile.mass_kg, profile.com_m, inertia)
     geometry = f'<origin xyz="0 0 0" rpy="0 0 0"/><geometry><mesh filename="{mesh_filename}"/></geometry>'
     return (f'  <link name="{PROFILE_LINK}">{inertial}<visual>{geometry}</visual><collision>{geometry}</collision>'
-            f'</link>\n  <joint name="{PROFILE_LINK}_joint" type="fixed"><parent link="{mount_body}"/>'
-            f'<child link="{PROFILE_LINK}"/>{origin_xml(np.array(profile_in_body))}</joint>\n')
+            f'</link>\n  <joint name="{PROFILE_JOINT}" type="{joint[0]}"><parent link="{mount_body}"/>'
+            f'<child link="{PROFILE_LINK}"/>{origin_xml(np.array(profile_in_body))}{joint[1]}</joint>\n')
 
 
 def _obj_text(mesh):
@@ -342,7 +349,10 @@ def _obj_text(mesh):
 
 class UrdfRobotModel(SpecThresholds, RobotModel):
     """A robot loaded from a URDF (:class:`UrdfRobotSpec`): base = frame at the robot's centre of mass, one link
-    per rigid body, the profile (if any) a link fixed to the mount's body."""
+    per rigid body, the profile (if any) a link on the mount's body (fixed, or prismatic on a compliant mount)."""
+
+    #: Name of the profile's joint in :meth:`sim_urdf`.
+    profile_joint = PROFILE_JOINT
 
     def __init__(self, spec):
         self.spec = spec
@@ -353,7 +363,8 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
         """The URDF PyBullet loads: the rigid-body robot, plus the profile link on ``mesh_filename`` if given."""
         text = self.mounted.robot.sim_urdf
         if profile is not None:
-            text += profile_link_xml(self.mounted.mount_body, self.mounted.profile_in_body, mesh_filename, profile)
+            text += profile_link_xml(self.mounted.mount_body, self.mounted.profile_in_body, mesh_filename, profile,
+                                     self.spec.profile_mount.joint_xml())
         return text + "</robot>\n"
 
     def spawn(self, client, profile, position, orientation):
@@ -379,13 +390,17 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
         for joint in range(pybullet.getNumJoints(body, physicsClientId=client)):
             info = pybullet.getJointInfo(body, joint, physicsClientId=client)
             index[info[12].decode()] = joint
-            if info[2] != pybullet.JOINT_FIXED:
+            if info[2] != pybullet.JOINT_FIXED and info[1].decode() != PROFILE_JOINT:
                 joints.append(joint)
         if joints:  # replaces the loader's default motors: an unpowered drive's drag, or free
             pybullet.setJointMotorControlArray(body, joints, pybullet.VELOCITY_CONTROL, targetVelocities=[0.0] * len(joints),
                                                forces=[self.spec.joint_drag_torque_nm] * len(joints),
                                                physicsClientId=client)
-        return SpawnedRobot(body_id=body, wheel_links=tuple(index[name] for name in self.mounted.wheel_bodies))
+        spring = None
+        if profile is not None and self.spec.profile_mount.compliant:
+            spring = compliant_mount(client, body, index[PROFILE_LINK], self.spec.profile_mount, profile.mass_kg)
+        return SpawnedRobot(body_id=body, wheel_links=tuple(index[name] for name in self.mounted.wheel_bodies),
+                            mount_spring=spring)
 
     def up_axis(self, client, robot):
         pybullet = require("pybullet", feature="the simulated evaluator")

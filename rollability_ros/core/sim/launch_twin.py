@@ -568,8 +568,7 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, prof
                           (floor_id, foam_id, ledge_id))
         tracker = _LaunchTracker(pybullet, client, robot.body_id, foam_id, lead_m, _PhaseReporter(on_phase),
                                  push, floor_id)
-        steps, settled = _step_to_rest(pybullet, client, robot.body_id, settings, tracker, on_pose, plate,
-                                       speed_mps)
+        steps, settled = _step_to_rest(pybullet, client, robot, settings, tracker, on_pose, plate, speed_mps)
         went_over = not math.isnan(tracker.base.time_s)
         upright, tilt = model.is_upright(client, robot, foam_id if went_over else ledge_id)
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
@@ -662,9 +661,10 @@ class _LaunchTracker:
         self._velocity = velocity
 
 
-def _step_to_rest(pybullet, client, body_id, settings, tracker, on_pose, plate, speed_mps):
-    """Step until the chassis is at rest or the trials' time cap, driving ``plate`` at ``speed_mps`` until the
-    chassis goes over the edge or the plate reaches it; return ``(steps, settled)``."""
+def _step_to_rest(pybullet, client, robot, settings, tracker, on_pose, plate, speed_mps):
+    """Step until the chassis (``robot``, a SpawnedRobot) is at rest or the trials' time cap, driving ``plate`` at
+    ``speed_mps`` until the chassis goes over the edge or the plate reaches it; return ``(steps, settled)``."""
+    body_id = robot.body_id
     dt = settings.physics.time_step_s
     cap = round(settings.trial.time_cap_s / dt)
     pose_every = max(1, round(1.0 / (settings.twin.pose_rate_hz * dt)))
@@ -681,6 +681,7 @@ def _step_to_rest(pybullet, client, body_id, settings, tracker, on_pose, plate, 
         if plate.driving or not plate_started:
             plate.drive(speed_mps, (steps + 1) * dt)
             plate_started = True
+        robot.before_step()
         pybullet.stepSimulation(physicsClientId=client)
         steps += 1
         position, orientation = pybullet.getBasePositionAndOrientation(body_id, physicsClientId=client)

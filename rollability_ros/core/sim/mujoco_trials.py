@@ -72,8 +72,24 @@ def build_model(robot_model, profile, physics):
     for geom in spec.geoms:
         set_geom_contact(geom, physics)
     drag = robot_model.joint_drag_torque_nm()
+    mount = robot_model.profile_mount
     for joint in spec.joints:
+        if profile is not None and mount.compliant and joint.name == robot_model.profile_joint:
+            # the compliant mount (ProfileMountSpec): MuJoCo's joint spring and damper, end stops at +-travel
+            mount.check_time_step(profile.mass_kg, physics.time_step_s)
+            joint.stiffness, joint.damping = _coefficients(joint.stiffness, mount.stiffness_npm), \
+                _coefficients(joint.damping, mount.damping_nspm)
+            joint.springref = 0.0
+            joint.range = [-mount.travel_m, mount.travel_m]
+            joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+            joint.solref_limit = [2 * physics.time_step_s, 1.0]  # stiffest stable stop (default 0.02 s: soft)
+            joint.frictionloss = 0.0
+            continue
         joint.frictionloss = drag
+    if profile is not None and mount.compliant:
+        # Euler left an upside-down chassis bouncing on the spring in a limit cycle (+-3.6 mm at 2,000 N/m and
+        # 5 N s/m, never at rest); RK4 settles it at its static deflection
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_RK4
     root = spec.worldbody.first_body()
     root.add_freejoint()
     ground = spec.worldbody.add_geom()
@@ -85,6 +101,12 @@ def build_model(robot_model, profile, physics):
     wheel_names = set(robot_model.wheel_link_names())
     wheels = {model.body(i).id for i in range(model.nbody) if model.body(i).name in wheel_names}
     return model, model.body(root.name).id, wheels
+
+
+def _coefficients(current, linear):
+    """A joint's spring or damper coefficient in the form this MuJoCo takes: a number, or
+    (newer MuJoCo) polynomial coefficients whose first is the linear one."""
+    return linear if np.ndim(current) == 0 else [linear] + [0.0] * (len(current) - 1)
 
 
 class MujocoTrialWorld:
@@ -102,7 +124,9 @@ class MujocoTrialWorld:
                             for body in self.wheels}
         up = np.asarray(robot_model.up_axis_in_root(), dtype=np.float64)
         self.up_in_root = up / np.linalg.norm(up)
-        self.energy = MujocoEnergyMonitor(self, settings.early_decision_margin_m) if settings.early_decision else None
+        compliant = profile is not None and robot_model.profile_mount.compliant  # barriers need a rigid hull
+        self.energy = MujocoEnergyMonitor(self, settings.early_decision_margin_m) \
+            if settings.early_decision and not compliant else None
 
     def lowest_distance_m(self, geoms):
         """Smallest distance (m, negative = penetration) from ``geoms`` to the ground, at the current state."""

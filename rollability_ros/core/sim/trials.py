@@ -23,6 +23,8 @@ Early decision (``early_decision``, on by default)
     potential energy is below the barrier out of the region (upright, or not upright) it is in
     (:mod:`rollability_ros.core.sim.early_decision`). The outcome is then that region's, ``settled`` is true
     (it can no longer leave it), ``decided`` is true and ``tilt_deg`` is the tilt at the decision.
+    The barriers assume a rigid hull, so a robot whose profile rides on a compliant mount
+    (:class:`~rollability_ros.core.robots.robot.ProfileMountSpec`) always runs to rest.
 """
 import dataclasses
 import math
@@ -266,8 +268,10 @@ class TrialWorld:
         self.ground, self.robot = build_trial_world(client, robot_model, profile, (0.0, 0.0, 0.0, 1.0), settings,
                                                     physics)
         self.saved_state = self.pybullet.saveState(physicsClientId=client)
+        # the energy barriers hold for a rigid hull only: a compliant mount's trials run to rest
         self.energy = EnergyMonitor(client, robot_model, self.robot, physics.gravity_mps2,
-                                    settings.early_decision_margin_m) if settings.early_decision else None
+                                    settings.early_decision_margin_m) \
+            if settings.early_decision and self.robot.mount_spring is None else None
 
     def run(self, index, seed):
         """Run one trial (see the module docstring) and return its :class:`TrialOutcome`."""
@@ -282,6 +286,7 @@ class TrialWorld:
         rest = RestDetector(settings, dt)
         force, torque = conditions.force_n.tolist(), conditions.torque_nm.tolist()
         step_simulation = pybullet.stepSimulation
+        before_step = self.robot.before_step
         settled = False
         decision = None
         steps = 0
@@ -292,6 +297,7 @@ class TrialWorld:
                 centre, _ = pybullet.getBasePositionAndOrientation(body, physicsClientId=client)
                 pybullet.applyExternalForce(body, -1, force, centre, pybullet.WORLD_FRAME, physicsClientId=client)
                 pybullet.applyExternalTorque(body, -1, torque, pybullet.WORLD_FRAME, physicsClientId=client)
+            before_step()
             step_simulation(physicsClientId=client)
             steps += 1
             if steps >= push_end:

@@ -16,6 +16,17 @@ import yaml
 CONFIG_ENV = "ROLLABILITY_CONFIG_DIR"
 
 
+#: Every parameter namespace the project reads (the first part of a dotted name), and ROS's own. A dotted parameter
+#: outside them is a misspelt namespace (``physics.time_step_s`` for ``sim.time_step_s``): without this check it
+#: would be ignored and its section would silently keep its defaults. test_config keeps this list true to the
+#: shipped files, the graph's preflight sections and the nodes' declared prefixes.
+KNOWN_NAMESPACES = frozenset({
+    "bringup", "calibration", "campaign", "designs", "evaluator", "imu_outcome", "launch_twin", "objective",
+    "optimizer", "player", "printer", "profile", "quality_diversity", "recorder", "rig", "robot", "runner",
+    "selection", "sim", "speed_gate", "stable_poses", "tip_monitor", "trial", "urdf_robot", "valve",
+    "qos_overrides"})
+
+
 class ConfigError(ValueError):
     """A parameter file or a parameter value is unusable; the message names the file and the parameter."""
 
@@ -107,11 +118,23 @@ def load_parameters(paths, node_name="/**"):
         paths = [paths]
     merged = {}
     for path in paths:
-        nodes = read_parameter_file(resolve_config_path(os.fspath(path)))
+        resolved = resolve_config_path(os.fspath(path))
+        nodes = read_parameter_file(resolved)
         for pattern in sorted(nodes, key=lambda p: p not in ("/**", "**")):  # wildcard first, then specific
             if node_name in ("/**", "**") or _node_matches(pattern, node_name):
+                check_namespaces(nodes[pattern], f"parameter file {resolved}")
                 merged.update(nodes[pattern])
     return merged
+
+
+def check_namespaces(flat, where):
+    """Raise :class:`ConfigError` naming ``where`` and the parameter for a dotted name in ``flat`` whose namespace
+    is not one of :data:`KNOWN_NAMESPACES` (names without a dot, e.g. ``use_sim_time``, pass)."""
+    for name in flat:
+        namespace = name.split(".", 1)[0]
+        if "." in name and namespace not in KNOWN_NAMESPACES:
+            raise ConfigError(f"{where}: unknown parameter namespace {namespace!r} (parameter {name}); known: "
+                              f"{', '.join(sorted(KNOWN_NAMESPACES))}")
 
 
 def section(flat, prefix):

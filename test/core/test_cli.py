@@ -27,6 +27,54 @@ def test_a_broken_config_is_one_clear_line(tmp_path, capsys):
     assert error.startswith("rollability evaluate: error:") and "broken.yaml" in error and "not valid YAML" in error
 
 
+def test_a_misspelt_namespace_is_refused_not_ignored(tmp_path, capsys):
+    misspelt = tmp_path / "physics.yaml"
+    misspelt.write_text("/**:\n  ros__parameters:\n    physics: {time_step_s: 0.01}\n")
+    assert main(["evaluate", "--baseline", "--config", str(misspelt)]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("rollability evaluate: error:") and "physics.yaml" in error
+    assert "unknown parameter namespace 'physics' (parameter physics.time_step_s)" in error and "sim" in error
+    assert len(error.strip().splitlines()) == 1
+
+
+def test_every_namespace_the_project_reads_is_known():
+    import glob
+    import os
+    import re
+
+    from rollability_ros.core.config import KNOWN_NAMESPACES, config_dir, load_parameters
+    from rollability_ros.core.graph.preflight import _node_sections
+    from rollability_ros.core.sim.evaluation import SETTINGS_SECTIONS
+
+    shipped = glob.glob(os.path.join(config_dir(), "*.yaml"))
+    assert len(shipped) >= 10
+    read = {name.split(".")[0] for name in load_parameters(shipped)}  # loads: every shipped namespace is known
+    assert {"sim", "robot", "launch_twin", "campaign", "valve"} <= read
+    prefixes = {prefix for sections in _node_sections().values() for prefix in sections if prefix}
+    assert prefixes | set(SETTINGS_SECTIONS.values()) <= KNOWN_NAMESPACES
+    import rollability_ros
+
+    nodes = os.path.join(os.path.dirname(rollability_ros.__file__), "nodes")
+    declared = set()
+    for path in glob.glob(os.path.join(nodes, "*.py")):
+        with open(path, encoding="utf-8") as stream:
+            text = stream.read()
+        declared |= set(re.findall(r'declare_settings\((?:self|node), "([a-z_]+)"', text))
+        declared |= set(re.findall(r'^PREFIX = "([a-z_]+)"', text, re.MULTILINE))
+    assert {"player", "recorder", "tip_monitor", "campaign"} <= declared
+    assert declared <= KNOWN_NAMESPACES
+
+
+def test_ros_parameters_without_a_namespace_and_qos_overrides_pass(tmp_path):
+    from rollability_ros.core.config import load_parameters
+
+    path = tmp_path / "lab.yaml"
+    path.write_text("/**:\n  ros__parameters:\n    use_sim_time: true\n    qos_overrides:\n      /tf:\n"
+                    "        publisher: {depth: 10}\n    sim: {time_step_s: 0.005}\n")
+    flat = load_parameters([str(path)])
+    assert flat["use_sim_time"] is True and flat["sim.time_step_s"] == 0.005
+
+
 def test_output_is_line_buffered_into_a_pipe_whatever_the_environment():
     """`rollability study > study.log` or a pipe to a supervisor shows each line as it is printed."""
     import os

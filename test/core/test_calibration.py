@@ -183,3 +183,52 @@ def test_interval_settings_are_checked():
         calibration.CalibrationSettings(interval="bootstrap", bootstrap_resamples=3).validate()
     with pytest.raises(ValueError, match="interval must be one of likelihood, bootstrap"):
         calibration.CalibrationSettings(interval="guess").validate()
+
+
+def test_the_documented_calibrate_reoptimize_validate_sequence_runs_on_a_synthetic_truth(tmp_path, monkeypatch,
+                                                                                          capsys):
+    """docs/calibration.md's commands, at a miniature budget: "physical" launches of a hidden truth (the foam's
+    friction at 2.5 instead of 1.0) -> calibrate -> optimize on the calibrated twin -> select -> evaluate the
+    design on the truth. bench/bench_objective.py measures whether it pays; this checks that each step takes the
+    previous one's output and that the calibrated twin is the one optimized on."""
+    pytest.importorskip("pybullet")
+    pytest.importorskip("cma")
+    from rollability_ros.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    truth = {"launch_twin.foam.lateral_friction": 2.5}
+    conditions = [LaunchCondition("baseline", 0.75, 0.8, angle) for angle in (-30.0, 30.0)]
+    outcomes = synthetic_outcomes(twin_parameters(), list(truth), list(truth.values()), conditions, 6)
+    write_outcome_csv(tmp_path / "campaign.csv", outcomes)
+    (tmp_path / "small.yaml").write_text(yaml.safe_dump({"/**": {"ros__parameters": {"calibration": {
+        "parameters": list(truth), "lower": [0.2], "upper": [3.0], "log_scale": [True], "sim_repetitions": 4,
+        "popsize": 4, "max_generations": 2, "interval_points": 5}}}}), encoding="utf-8")
+    assert main(["calibrate", "--physical", "campaign.csv", "--config", "small.yaml", "--out", "calibration",
+                 "--workers", "1"]) == 0
+    fitted = load_launch_twin_settings([*calibration.TWIN_CONFIGS, "calibration/calibrated.yaml"])
+    assert fitted.twin.foam.lateral_friction != load_launch_twin_settings().twin.foam.lateral_friction
+    # the objective file of the docs, with a miniature budget on top
+    (tmp_path / "launch_objective.yaml").write_text(yaml.safe_dump({"/**": {"ros__parameters": {
+        "objective": {"kind": "launch_twin",
+                      "twin_config": ["sim", "robot", "launch_twin", "calibration/calibrated.yaml"]},
+        "optimizer": {"method": "cmaes", "trials": 4, "popsize": 4, "max_generations": 2,
+                      "initial_mean_screen": 0},
+        "evaluator": {"workers": 1}, "profile": {"rows": 2, "cols": 2}}}}), encoding="utf-8")
+    assert main(["optimize", "--config", "optimizer", "--config", "launch_objective.yaml"]) == 0
+    (run,) = (tmp_path / "runs").iterdir()
+    saved = load_parameters([str(run / "config.yaml")])
+    assert saved["objective.kind"] == "launch_twin"
+    assert saved["objective.twin_config"][-1] == "calibration/calibrated.yaml"
+    assert main(["select", str(run), "--count", "1", "--reevaluate-trials", "4", "--workers", "1"]) == 0
+    designs = section(load_parameters([str(run / "designs" / "designs.yaml")]), "designs")
+    heights = designs[designs["labels"][0]]["heights"]
+    assert len(heights) == 4
+    (tmp_path / "truth.yaml").write_text(yaml.safe_dump(calibration.calibrated_parameter_document(truth)),
+                                         encoding="utf-8")
+    (tmp_path / "on_truth.yaml").write_text(yaml.safe_dump({"/**": {"ros__parameters": {
+        "objective": {"kind": "launch_twin", "twin_config": ["sim", "robot", "launch_twin", "truth.yaml"]},
+        "profile": {"rows": 2, "cols": 2}}}}), encoding="utf-8")
+    capsys.readouterr()
+    assert main(["evaluate", "--heights", ",".join(map(str, heights)), "--trials", "4", "--workers", "1",
+                 "--config", "on_truth.yaml"]) == 0
+    assert "/4" in capsys.readouterr().out

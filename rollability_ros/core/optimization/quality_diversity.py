@@ -37,6 +37,7 @@ Choices
   checks the replay against the saved archive digest; nothing is pickled.
 """
 import dataclasses
+import functools
 import hashlib
 import time
 import typing
@@ -80,9 +81,9 @@ class QualityDiversitySettings:
     learning_rate: float = dataclasses.field(default=0.01, metadata={
         "description": "CMA-MAE archive learning rate alpha (fraction, (0, 1]; 1 = CMA-ME, small = more "
                        "exploration first)", "range": (0.0, 1.0)})
-    threshold_min: float = dataclasses.field(default=-0.01, metadata={
-        "description": "fitness threshold of an empty cell for CMA-MAE (fitness units, upright trials / trials); "
-                       "below 0, so a design that never rights itself still fills its cell", "range": (-1.0, 0.0)})
+    threshold_min: float = dataclasses.field(default=0.0, metadata={
+        "description": "fitness threshold of an empty cell for CMA-MAE (fitness units, upright trials / trials)",
+        "range": (-1.0, 1.0)})
 
     def validate(self, popsize=None):
         """Raise ``ValueError`` naming the first unusable field (``popsize``: the optimizer's, to split)."""
@@ -103,11 +104,8 @@ class QualityDiversitySettings:
             raise ValueError(f"sigma0 must be >= 0 (0 = optimizer.sigma0), got {self.sigma0}")
         if not 0 < self.learning_rate <= 1:
             raise ValueError(f"learning_rate must be in (0, 1], got {self.learning_rate}")
-        if not -1 <= self.threshold_min < 0:
-            # at 0 a generation that scores 0 throughout leaves the archive empty, and an emitter that then
-            # restarts has no elite to restart from
-            raise ValueError(f"threshold_min must be in [-1, 0) (below the lowest fitness, 0), got "
-                             f"{self.threshold_min}")
+        if not -1 <= self.threshold_min < 1:
+            raise ValueError(f"threshold_min must be in [-1, 1), got {self.threshold_min}")
 
 
 def emitter_ceilings(emitters, lowest_ceiling):
@@ -120,6 +118,31 @@ def emitter_ceilings(emitters, lowest_ceiling):
 def emitter_batch_sizes(popsize, emitters):
     """Candidates per emitter: ``popsize`` split as evenly as possible, the first emitters taking the remainder."""
     return [popsize // emitters + (1 if k < popsize % emitters else 0) for k in range(emitters)]
+
+
+@functools.cache
+def _emitter_class():
+    """pyribs' ``EvolutionStrategyEmitter``, restarting from its own start point while the archive has no elite.
+
+    pyribs restarts a converged emitter from an elite sampled from the archive. While every design told so far
+    scored at or below ``threshold_min`` (a hard objective can score whole generations 0), the archive is empty
+    and that sampling raised IndexError; the emitter then goes back to where it started instead.
+    """
+    from ribs.emitters import EvolutionStrategyEmitter
+
+    class StartRestartEmitter(EvolutionStrategyEmitter):
+        def tell(self, solution, objective, measures, add_info, **fields):
+            archive = self.archive
+            if not archive.empty:
+                return super().tell(solution, objective, measures, add_info, **fields)
+            start = np.asarray(self.x0, dtype=np.float64)
+            archive.sample_elites = lambda n: {"solution": np.repeat(start[None, :], n, axis=0)}
+            try:
+                return super().tell(solution, objective, measures, add_info, **fields)
+            finally:
+                del archive.sample_elites
+
+    return StartRestartEmitter
 
 
 class QualityDiversityOptimizer(IncumbentOptimizer):
@@ -143,7 +166,6 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
         require("cma", feature="quality-diversity optimization (optimizer.method cma_mae)")
         from cma.boundary_handler import BoundTransform
         from ribs.archives import GridArchive
-        from ribs.emitters import EvolutionStrategyEmitter
         from ribs.schedulers import Scheduler
 
         settings.validate()
@@ -170,7 +192,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
             bounds = BoundTransform([self.lower, self.ceilings[k]])
             start = self.lower + (self.initial_mean - self.lower) * (self.ceilings[k] - self.lower) / (
                 self.upper - self.lower)
-            self.emitters.append(EvolutionStrategyEmitter(
+            self.emitters.append(_emitter_class()(
                 self.archive, x0=bounds.inverse(start), sigma0=qd_settings.sigma0 or settings.sigma0, ranker="imp",
                 selection_rule="mu", restart_rule="basic", batch_size=batch_size, seed=int(seeds[2 + k])))
             self._bounds.extend([bounds] * batch_size)

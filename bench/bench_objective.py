@@ -18,7 +18,8 @@ beat one optimized on the uncalibrated twin, when both are scored on the truth?
    over the seeds (each pair of optimizations is one replicate), the mean difference with a t interval and a
    Wilcoxon signed-rank test.
 Everything is measured in this run; nothing is tuned to it. The launch conditions are a small campaign (0.75 m,
-0.8 and 1.5 m/s, -30 and +30 deg) on a 3 x 3 grid to keep it to minutes on 2 cores.
+0.8 and 1.5 m/s, -30 and +30 deg) on a 3 x 3 grid; the defaults (18 seed pairs) take about an hour on 2 cores,
+about 3.5 minutes per pair at 15 generations. docs/calibration.md gives the measured runs (15 and 30 generations).
 """
 import argparse
 import dataclasses

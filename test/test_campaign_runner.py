@@ -201,8 +201,16 @@ def test_physical_campaign_on_serial_relay_survives_estop_and_watchdog(ros_node,
     assert not relay.relay_on() and "DISARM" in relay_commands(relay)[-3:]
     assert graph.stored() == [plan[0].trial_id]
 
-    watch.acknowledge()
-    code, out = graph.run(operator_script(plan[1:]), "--resume")
+    # the rest runs. On a loaded 2-core machine a stalled valve node or board simulator can miss the board's
+    # keep-alive or a serial answer: a fail-safe (board disarmed, fault latched, no pulse, the campaign stops with
+    # what it stored); only such a fault allows another resume (at most 3 in all)
+    fail_safe = ("fault keepalive", "link lost", "did not answer")
+    for _ in range(3):
+        watch.acknowledge()
+        stored = graph.stored()
+        code, out = graph.run(operator_script([t for t in plan if t.trial_id not in stored]), "--resume")
+        if code == 0 or not any(reason in out for reason in fail_safe):
+            break
     assert code == 0, out + graph.logs()
     assert graph.stored() == [t.trial_id for t in plan]                  # every trial once, in order
     assert len(relay.relay_intervals()) == 4                              # one pulse per stored trial

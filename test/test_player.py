@@ -60,17 +60,25 @@ def test_replayed_outcomes_are_stored_by_the_logger_like_live_ones(tmp_path, cam
     ros_node.node.create_subscription(OutcomeMsg, "/launch_outcomes",
                                       lambda msg, info: sent_ns.append(info["source_timestamp"]), RECORD_QOS)
 
-    player = start_process("rollability_ros.cli", "play", str(bag), "--rate", "2", "--topics", "/launch_outcomes",
-                           name="play")
-    player.process.wait(timeout=60)
-    assert player.process.returncode == 0, player.log()
-    assert "played 30 messages" in player.log()
-    summary = client.call(GetSummary.Request(), timeout_sec=30).summary
-    assert (summary.trials, summary.candidates) == (30, 0), logger.log()   # /candidates was not selected
+    for attempt in range(3):
+        sent_ns.clear()
+        player = start_process("rollability_ros.cli", "play", str(bag), "--rate", "2", "--topics",
+                               "/launch_outcomes", name=f"play{attempt}")
+        player.process.wait(timeout=60)
+        assert player.process.returncode == 0, player.log()
+        assert "played 30 messages" in player.log()
+        if attempt == 0:
+            summary = client.call(GetSummary.Request(), timeout_sec=30).summary
+            assert (summary.trials, summary.candidates) == (30, 0), logger.log()   # /candidates was not selected
+        # the player starts once every played topic has a subscriber (the logger); on a loaded 2-core machine this
+        # test's own observer may match it only after the volatile messages went out: then play again (the
+        # logger's count above is already checked)
+        if ros_node.wait_for(lambda: len(sent_ns) == 30, 10):
+            break
     # the player published them with the recorded spacing divided by the rate: 29 x 50 ms / 2 = 0.725 s from the
     # first to the last (never sooner; a starved player may be late). Timed where they were sent: a consumer
     # starved of CPU would see them bunched.
-    assert ros_node.wait_for(lambda: len(sent_ns) == 30, 10), sent_ns
+    assert len(sent_ns) == 30, sent_ns
     assert 0.7 <= (max(sent_ns) - min(sent_ns)) / 1e9 < 1.4, sent_ns            # rate 1 would take 1.45 s
     assert stopped_cleanly(logger, logger.stop())
     with Store(store_path) as store:

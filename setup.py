@@ -24,7 +24,7 @@ EXTRAS = {
     "progress": ["rich>=12"],
     # live Foxglove view without a ROS install
     "view": ["foxglove-sdk>=0.10"],
-    "test": ["pytest>=7", "pytest-timeout>=2", "colcon-common-extensions>=0.3"],
+    "test": ["pytest>=7", "pytest-timeout>=2", "pytest-rerunfailures>=14", "colcon-common-extensions>=0.3"],
 }
 EXTRAS["all"] = sorted({req for name, reqs in EXTRAS.items() if name != "test" for req in reqs})
 

@@ -68,3 +68,14 @@ def test_launch_twin_objective_scores_launches_of_the_candidate_under_the_campai
     # another base seed draws other launch scatter; the disturbance objective runs other trials altogether
     disturbance = evaluation.evaluate_profile(heights, 2, 5, dataclasses.replace(settings, objective=ObjectiveSettings()))
     assert [o.steps for o in disturbance.trial_results] != [o.steps for o in result.trial_results]
+
+
+def test_launches_run_on_the_evaluations_engine_or_are_refused(monkeypatch):
+    from rollability_ros.core.sim import trials
+
+    assert launch_objective(ObjectiveSettings(kind="launch_twin"), "pybullet").twin.physics.engine == "pybullet"
+    monkeypatch.setitem(trials.TRIAL_ENGINES, "launch", ("pybullet",))
+    settings = settings_with(kind="mix", **{})
+    settings = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine="mujoco"))
+    with pytest.raises(ValueError, match=r"^sim.engine 'mujoco' cannot run launch trials"):
+        evaluation.evaluate_profile(None, 2, 5, settings)

@@ -68,3 +68,32 @@ def test_sensitivity_varies_one_factor_at_a_time_and_adds_the_robust_fitness():
                                                          ("robust", "all factors drawn")]
     assert all(r["trials"] == 2 and r["ci_low"] <= r["fitness"] <= r["ci_high"] for r in rows)
     assert set(DEFAULT_LEVELS) == {"disturbance_scale", "start_roll_deg", "contact_model", "com_offset_z_m"}
+
+
+def test_robust_trial_runs_on_the_evaluations_engine():
+    """The robust trial goes through the engine seam: on MuJoCo it gives MuJoCo's outcomes, not PyBullet's."""
+    pytest.importorskip("pybullet")
+    pytest.importorskip("mujoco")
+    from rollability_ros.core.sim.mujoco_trials import MujocoTrialWorld
+
+    settings = robust_settings()
+    on = {engine: evaluation.evaluate_profile(None, 4, 3, dataclasses.replace(
+        settings, physics=dataclasses.replace(settings.physics, engine=engine))).trial_results
+        for engine in ("pybullet", "mujoco")}
+    assert [o.steps for o in on["pybullet"]] != [o.steps for o in on["mujoco"]]
+    mujoco = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine="mujoco"))
+    for outcome in on["mujoco"][:2]:   # each robust MuJoCo trial is the MuJoCo trial of its own draw
+        own = robust_settings_for(mujoco, outcome.seed, settings.objective.robust)
+        world = MujocoTrialWorld(own.robot_model(), None, own.trial, own.physics)
+        assert world.run(outcome.index, outcome.seed) == outcome
+
+
+def test_an_engine_that_cannot_run_a_trial_kind_is_refused_in_one_line(monkeypatch):
+    from rollability_ros.core.sim import trials
+
+    monkeypatch.setitem(trials.TRIAL_ENGINES, "disturbance", ("pybullet",))
+    settings = robust_settings()
+    mujoco = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine="mujoco"))
+    with pytest.raises(ValueError, match=r"^sim.engine 'mujoco' cannot run disturbance trials \(engines that can: "
+                                         r"pybullet\)$"):
+        evaluation.evaluate_profile(None, 1, 3, mujoco)

@@ -86,7 +86,7 @@ from rollability_ros.core.optional import require
 from rollability_ros.core.results.records import NO_SEED, NOT_MEASURED
 from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
 from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world, set_contact
-from rollability_ros.core.sim.trials import RestDetector, TrialSettings, place_on_ground
+from rollability_ros.core.sim.trials import RestDetector, TrialSettings, check_engine, place_on_ground
 from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec
 
 #: ``launch_twin.angle_convention`` values (see the module docstring).
@@ -543,6 +543,7 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, prof
         Raises ``ValueError`` for a bad condition, seed or configuration id, or a robot that does not fit on the
         launcher (:func:`place_on_launcher`).
     """
+    check_engine("launch", settings.physics.engine)
     pybullet = require("pybullet", feature="the launch twin")
     condition.validate()
     options = settings.twin

@@ -24,6 +24,11 @@ sim_evaluator node) runs it unchanged. What a *trial* is depends on ``objective.
 With ``objective.robust.enabled`` every trial of any kind runs under its own draw of the uncertain quantities
 (:mod:`~rollability_ros.core.sim.robustness`).
 
+Every trial of an evaluation, of any kind and robust or not, runs on the evaluation's ``sim.engine`` through one
+seam (:func:`~rollability_ros.core.sim.trials.check_engine`): disturbance trials in
+:func:`~rollability_ros.core.sim.trials.make_trial_world`, launches in the twin of that engine. An engine that
+cannot run a kind of trial the objective asks for is refused with a one-line error, never replaced.
+
 Trial ``i`` uses the evaluation's trial seed ``trial_seed(s, i)`` whatever its kind, so candidates evaluated with
 one base seed meet the same disturbances and the same launch scatter (common random numbers).
 """
@@ -36,7 +41,7 @@ import typing
 from rollability_ros.core.campaign.plan import load_campaign_spec
 from rollability_ros.core.results.records import LaunchCondition
 from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_for
-from rollability_ros.core.sim.trials import TrialOutcome, run_trial
+from rollability_ros.core.sim.trials import TrialOutcome, check_engine, run_trial
 
 #: ``objective.kind`` values.
 OBJECTIVES = ("disturbance", "launch_twin", "mix")
@@ -101,22 +106,28 @@ def launch_conditions(campaign_config):
 
 
 @functools.lru_cache(maxsize=8)
-def _resolve(kind, launch_weight, campaign_config, twin_config):
+def _resolve(kind, launch_weight, campaign_config, twin_config, engine):
     from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
 
     settings = ObjectiveSettings(kind, launch_weight, list(campaign_config), list(twin_config), RobustSettings())
-    return LaunchObjective(launch_conditions(campaign_config), load_launch_twin_settings(twin_config),
-                           settings.launch_share)
+    twin = load_launch_twin_settings(twin_config)
+    twin = dataclasses.replace(twin, physics=dataclasses.replace(twin.physics, engine=engine))
+    return LaunchObjective(launch_conditions(campaign_config), twin, settings.launch_share)
 
 
-def launch_objective(settings):
+def launch_objective(settings, engine="pybullet"):
     """The :class:`LaunchObjective` of :class:`ObjectiveSettings` ``settings``, or None for ``disturbance``
-    (files read once per distinct setting; a bad file raises ``ConfigError`` / ``ValueError``)."""
+    (files read once per distinct setting; a bad file raises ``ConfigError`` / ``ValueError``).
+
+    Its launches run on ``engine``, the evaluation's ``sim.engine`` (the twin's files give the twin's physics
+    constants, the evaluation the engine of every trial it runs); an engine that cannot run launches is refused
+    here (:func:`~rollability_ros.core.sim.trials.check_engine`), before any trial starts."""
     settings.validate()
     if settings.kind == "disturbance":
         return None
+    check_engine("launch", engine)
     return _resolve(settings.kind, float(settings.launch_weight), tuple(settings.campaign_config),
-                    tuple(settings.twin_config))
+                    tuple(settings.twin_config), engine)
 
 
 def run_launch_trial(objective, profile, index, seed):
@@ -139,4 +150,6 @@ def run_robust_trial(client, job, index, seed):
         twin = robust_settings_for(job.launch.twin, seed, robust)
         return run_launch_trial(dataclasses.replace(job.launch, twin=twin), job.profile, index, seed)
     settings = robust_settings_for(job.settings, seed, robust)
+    # run_trial builds the world of settings.physics.engine (make_trial_world): the robust trial's engine is the
+    # evaluation's, as for the plain trial
     return run_trial(client, settings.robot_model(), job.profile, index, seed, settings.trial, settings.physics)

@@ -317,14 +317,29 @@ class TrialWorld:
 
 
 def run_trial(client, robot_model, profile, index, seed, settings, physics):
-    """Run one trial in a freshly built world in ``client`` and return its :class:`TrialOutcome`."""
-    return TrialWorld(client, robot_model, profile, settings, physics).run(index, seed)
+    """Run one trial in a freshly built world of ``physics.engine`` (:func:`make_trial_world`; a PyBullet world
+    is built in ``client``) and return its :class:`TrialOutcome`."""
+    return make_trial_world(client, robot_model, profile, settings, physics).run(index, seed)
+
+
+#: The engine seam: trial kind -> the ``sim.engine`` values that can run it. :func:`check_engine` refuses any
+#: other pairing (never replaced by another engine). ``launch``: :mod:`~rollability_ros.core.sim.launch_twin`.
+TRIAL_ENGINES = {"disturbance": ("pybullet", "mujoco"), "launch": ("pybullet",)}
+
+
+def check_engine(kind, engine):
+    """Raise ``ValueError`` (one line) unless ``sim.engine`` ``engine`` can run trials of ``kind``
+    (:data:`TRIAL_ENGINES`)."""
+    engines = TRIAL_ENGINES[kind]
+    if engine not in engines:
+        raise ValueError(f"sim.engine {engine!r} cannot run {kind} trials (engines that can: {', '.join(engines)})")
 
 
 def make_trial_world(client, robot_model, profile, settings, physics):
     """The trial world of ``physics.engine``: a PyBullet :class:`TrialWorld` in ``client`` or a MuJoCo
     :class:`~rollability_ros.core.sim.mujoco_trials.MujocoTrialWorld` (which ignores ``client``); both have
-    ``run(index, seed) -> TrialOutcome``."""
+    ``run(index, seed) -> TrialOutcome``. Every disturbance trial (plain or robust) is built here."""
+    check_engine("disturbance", physics.engine)
     if physics.engine == "mujoco":
         from rollability_ros.core.sim.mujoco_trials import MujocoTrialWorld
         return MujocoTrialWorld(robot_model, profile, settings, physics)

@@ -186,3 +186,55 @@ def test_play_of_a_corrupt_bag_exits_non_zero_with_the_reason(tmp_path, campaign
         process.process.wait(timeout=60)
         assert process.process.returncode != 0, (name, process.log())
         assert "error" in process.log().lower(), (name, process.log())
+
+
+FROZEN_SUBSCRIBER = """
+import os, signal, sys
+import rclpy
+from rollability_ros.msg import LaunchOutcome
+from rollability_ros.nodes._support import RECORD_QOS
+rclpy.init()
+node = rclpy.create_node("frozen_subscriber")
+def first(_msg):
+    print("got one: freezing", flush=True)
+    os.kill(os.getpid(), signal.SIGSTOP)   # every thread stops: the player's later messages are never acknowledged
+node.create_subscription(LaunchOutcome, "/launch_outcomes", first, RECORD_QOS)
+rclpy.spin(node)
+"""
+
+
+def test_player_stops_at_once_while_a_subscriber_never_acknowledges(campaign_bag, start_process, tmp_path):
+    """Issue 30: a reliable subscriber that froze after the first message never acknowledges the rest. The player
+    waits for acknowledgements up to ACK_TIMEOUT_S, but a stop signal must end it at once: rclpy's
+    wait_for_all_acked holds the GIL while it waits, and a player that called it with the whole timeout froze
+    every Python thread, the signal check too (the installed player once ignored SIGINT for 60 s)."""
+    import signal
+    import sys
+    import time
+
+    from ros_fixtures import NodeProcess
+    from rollability_ros.nodes.player import ACK_TIMEOUT_S
+
+    bag, _ = campaign_bag
+    subscriber = NodeProcess([sys.executable, "-c", FROZEN_SUBSCRIBER], tmp_path / "frozen.log")
+    try:
+        player = start_process("rollability_ros.cli", "play", str(bag), "--topics", "/launch_outcomes",
+                               "--rate", "10")
+        deadline = time.monotonic() + 60
+        while "freezing" not in subscriber.log():
+            assert time.monotonic() < deadline and player.alive(), player.log() + subscriber.log()
+            time.sleep(0.05)
+        time.sleep(1.5)   # the rest of the bag (29 x 5 ms) is out: the player waits for acknowledgements now
+        assert player.alive(), player.log()
+        player.signal(signal.SIGINT)
+        sent = time.monotonic()
+        try:
+            code = player.process.wait(timeout=ACK_TIMEOUT_S + 10)
+        except Exception:
+            code = None
+        took_s = time.monotonic() - sent
+        assert took_s < 3.0, f"the player took {took_s:.1f} s to exit after SIGINT (code {code})\n{player.log()}"
+        assert code == 0, player.log()
+    finally:
+        subscriber.signal(signal.SIGKILL)
+        subscriber.stop()

@@ -255,7 +255,7 @@ STRAY = textwrap.dedent("""
     import secrets, sys, time
     import rclpy
     from rclpy.node import Node
-    from diagnostic_msgs.msg import DiagnosticArray
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
     from rollability_ros.msg import ValveAuth, ValveHeartbeat
     from rollability_ros.srv import ArmValve, FireValve
     rclpy.init()
@@ -379,3 +379,67 @@ def test_gpio_backend_sigkill_of_the_valve_node_mid_pulse(ros_node, start_node, 
     MEASURED.append(("gpio backend (line holder), SIGKILL of the valve node's process group", f"{on_ms:.0f}",
                      "line holder: pipe closed"))
     assert on_ms <= BOUND_MS and on["pid"] != process.process.pid
+
+
+STUCK_S = 6.0
+
+
+def test_a_stuck_serial_call_does_not_silence_the_valve(ros_node, tmp_path, relay):
+    """Issue 30: the board stops taking bytes, so the valve's serial writes block for STUCK_S; an operator disarm
+    arrives meanwhile. The valve's state must report the fault while the call is still stuck, /diagnostics must
+    keep coming once a second, and the disarm must answer; afterwards a disarm clears the fault."""
+    import pathlib
+
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+    from ros_fixtures import NodeProcess
+
+    jam = tmp_path / "jam"
+    params = {**VALVE_PARAMS, "valve.serial.port": relay.port}
+    argv = [sys.executable, str(pathlib.Path(__file__).with_name("stuck_serial_valve.py")), str(jam), "--ros-args"]
+    for key, value in params.items():
+        argv += ["-p", f"{key}:={value}"]
+    process = NodeProcess(argv, tmp_path / "valve.log")
+    try:
+        arrivals = []   # (monotonic s, level) of every /diagnostics message of this valve
+        ros_node.node.create_subscription(
+            DiagnosticArray, "/diagnostics",
+            lambda msg: arrivals.extend((time.monotonic(), s.level, s.values) for s in msg.status
+                                        if s.name.endswith("valve_controller: valve")), 10)
+        valve = ValveClient(ros_node)
+        valve.ready(process.log)
+        assert ros_node.wait_for(lambda: arrivals, 10), process.log()
+        with valve.heartbeats():
+            assert valve.arm()[0], process.log()
+            jam.touch()
+            jammed_at = time.monotonic()
+            disarm = valve.arm_client.call_async(valve._arm.Request(arm=False, auth=valve.auth("disarm")))
+            assert ros_node.wait_for(lambda: valve.last().fault, STUCK_S - 2), (
+                f"no fault state {STUCK_S - 2:.0f} s into a stuck serial call\n{process.log()}")
+            fault_after_s = time.monotonic() - jammed_at
+            reason = valve.last().fault_reason
+            assert "did not return" in reason or "stuck" in reason, reason
+            assert ros_node.wait_for(disarm.done, jammed_at + STUCK_S - 1 - time.monotonic()), (
+                f"disarm unanswered while the serial call is stuck\n{process.log()}")
+            assert not disarm.result().success, disarm.result().message
+            time.sleep(max(0.0, jammed_at + STUCK_S - time.monotonic()))
+            jam.unlink()
+            unjammed_at = time.monotonic()
+        during = [t for t, _, _ in arrivals if jammed_at <= t <= unjammed_at]
+        gaps = [b - a for a, b in zip([jammed_at] + during, during + [unjammed_at])]
+        print(f"\nstuck serial call {STUCK_S:.0f} s: fault state after {fault_after_s:.2f} s ({reason}); "
+              f"{len(during)} /diagnostics, longest gap {max(gaps):.2f} s")
+        assert max(gaps) < 2.0, f"/diagnostics silent {max(gaps):.1f} s during a stuck serial call\n{process.log()}"
+        assert any(level == DiagnosticStatus.ERROR for t, level, _ in arrivals if jammed_at <= t <= unjammed_at), \
+            "no ERROR diagnostics"
+        # the line works again: the operator's disarm acknowledges the fault, the relay is off
+        # (the keep-alive that was stuck may still report the board's own keep-alive fault: acknowledge that too)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and not (valve.arm(False)[0] and not ros_node.wait_for(
+                lambda: valve.last().fault, 0.5)):
+            pass
+        assert not valve.last().fault, f"{valve.last()}\n{process.log()}"
+        assert not relay.relay_on()
+    finally:
+        jam.unlink(missing_ok=True)
+        assert process.stop() == 0, process.log()

@@ -11,7 +11,7 @@ was). Messages go out as the recorded CDR bytes, untouched (except record messag
 definition of their type, re-encoded in the installed one: :class:`~rollability_ros.core.bags.messages.
 CurrentDefinitions`), at the times given by
 :func:`rollability_ros.core.bags.playback.playback_schedule`; the node waits for reliable subscribers to
-acknowledge them (up to ``ACK_TIMEOUT_S``) before it exits.
+acknowledge them (up to ``ACK_TIMEOUT_S`` in all, never holding the GIL meanwhile) before it exits.
 """
 import sys
 import threading
@@ -29,14 +29,36 @@ from rollability_ros.core.bags.record_play import PlayerSettings, check_topic_na
 from rollability_ros.nodes._bag_nodes import declare_string_list, message_class, qos_profile_from_dict
 from rollability_ros.nodes._support import ParameterError, declare_settings, run_node
 
-#: Longest wait for reliable subscribers to acknowledge the last messages before exiting, s.
+#: Longest wait for reliable subscribers to acknowledge the last messages before exiting (all topics together), s.
 ACK_TIMEOUT_S = 10.0
+
+#: How often the acknowledgements are looked at, s. rclpy's ``wait_for_all_acked`` holds the GIL for as long as it
+#: waits (rclpy 7, Jazzy), so every Python thread, the main thread's stop-signal check too, would freeze for the
+#: whole timeout of each topic whose subscriber stopped acknowledging (a stalled or SIGSTOPped one): it is only
+#: ever called with a ~zero timeout, and the wait between looks releases the GIL (issue 30).
+ACK_POLL_S = 0.02
 
 #: Time given to subscribers to match the player's publishers after the player has matched them, s.
 SETTLE_S = 0.3
 
 #: Publisher queue depth, messages.
 PUBLISHER_DEPTH = 1000
+
+
+def wait_for_acks(publishers, timeout_s, stop):
+    """Wait until every publisher's messages are acknowledged by its reliable subscribers, ``timeout_s`` in all, or
+    until ``stop`` (a ``threading.Event``) is set; return how many publishers are still waiting.
+
+    Never holds the GIL for longer than one ~zero-timeout ``wait_for_all_acked`` (see :data:`ACK_POLL_S`).
+    """
+    deadline = time.monotonic() + timeout_s
+    pending = list(publishers)
+    while pending:
+        pending = [p for p in pending if not p.wait_for_all_acked(Duration(nanoseconds=1000))]
+        if not pending or stop.wait(min(ACK_POLL_S, max(0.0, deadline - time.monotonic()))) \
+                or time.monotonic() >= deadline:
+            break
+    return len(pending)
 
 
 class PlayerNode(Node):
@@ -106,8 +128,10 @@ class PlayerNode(Node):
         except BagError as exc:
             self.error = str(exc)
             logger.error(f"playback stopped: {exc}")
-        for publisher in self._publishers_to_wait_for():
-            publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
+        unacknowledged = wait_for_acks(self._publishers_to_wait_for(), ACK_TIMEOUT_S, self._stop)
+        if unacknowledged and not self._stop.is_set():
+            logger.warning(f"{unacknowledged} topic(s) not acknowledged by every reliable subscriber within "
+                           f"{ACK_TIMEOUT_S:g} s")
         logger.info(f"played {self.published} messages from {settings.bag}")
         # the playback is the node's whole job: end the spin (stopping the executor, not the context, so the
         # executor does not race a shut-down context)

@@ -41,8 +41,12 @@ def test_plain_lines_when_not_a_terminal_each_change_once():
     assert "\r" not in stream.getvalue() and "\x1b" not in stream.getvalue()
 
 
-def test_a_terminal_gets_one_live_line():
+def test_a_terminal_gets_one_live_line(monkeypatch):
     pytest.importorskip("rich")
+    # the terminal this test needs, whatever the caller's (rich draws no live line on TERM=dumb or unknown)
+    monkeypatch.setenv("TERM", "xterm-256color")
+    for name in ("NO_COLOR", "FORCE_COLOR", "TTY_COMPATIBLE", "TTY_INTERACTIVE", "COLUMNS", "LINES"):
+        monkeypatch.delenv(name, raising=False)
     stream = Terminal()
     with ProgressDisplay(stream) as display:
         assert display.live

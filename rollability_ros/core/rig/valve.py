@@ -14,11 +14,17 @@ the relay board times each pulse and drops the relay without keep-alives (:mod:`
 board reports on its own reach :meth:`ValveController.device_fault`. See docs/valve-safety.md.
 
 Thread model: ``fire()`` blocks for the pulse without holding the controller's lock, so ``estop()``,
-``check_watchdog()`` and ``disarm()`` from other threads cut a running pulse at once.
+``check_watchdog()`` and ``disarm()`` from other threads cut a running pulse at once. Every backend call runs on the
+controller's own backend thread and is bounded (the backend's ``call_timeout_s``, else
+:data:`DEFAULT_CALL_TIMEOUT_S`): a call that does not return in time latches a fault and later calls are refused at
+once until it returns (the valve is then driven closed again), so the lock is never held longer than one bound.
+``heartbeat()`` takes no lock and ``health()`` waits for it at most :data:`HEALTH_LOCK_WAIT_S`, so a stuck serial
+call cannot silence the node's state and diagnostics (issue 30).
 """
 import dataclasses
 import logging
 import math
+import queue
 import threading
 import time
 
@@ -26,6 +32,89 @@ _LOG = logging.getLogger(__name__)
 
 #: ``ValveConfig.backend`` values (the ``backend`` field of ``msg/ValveState.msg``).
 BACKENDS = ("dry_run", "gpio", "serial_relay")
+
+#: Longest one backend call may take when the backend declares no ``call_timeout_s``, s.
+DEFAULT_CALL_TIMEOUT_S = 2.0
+
+#: Longest :meth:`ValveController.health` waits for the controller's lock before it reports the last state, s.
+HEALTH_LOCK_WAIT_S = 0.05
+
+
+class BackendStuck(RuntimeError):
+    """A backend call did not return within its bound (or an earlier one still has not)."""
+
+
+class _Job:
+    def __init__(self, name, fn, args):
+        self.name, self.fn, self.args = name, fn, args
+        self.queued_at = time.monotonic()
+        self.done = threading.Event()
+        self.result = self.error = None
+
+
+class _BackendCaller:
+    """Runs backend calls one at a time on its own daemon thread; the caller waits for each at most a bound.
+
+    A call that overruns its bound is *stuck*: :meth:`call` raises :class:`BackendStuck`, and every later call is
+    refused at once (raising :class:`BackendStuck`) until it returns; then ``on_late_return(name, seconds)`` runs on a
+    fresh thread.
+    """
+
+    def __init__(self, timeout_s, on_late_return):
+        self.timeout_s = timeout_s
+        self._on_late_return = on_late_return
+        self._jobs = queue.SimpleQueue()
+        self._guard = threading.Lock()
+        self._running = None
+        self._stuck = None
+        threading.Thread(target=self._loop, name="valve-backend", daemon=True).start()
+
+    def running(self):
+        """``(name, seconds so far)`` of the call in progress, or None."""
+        job = self._running
+        return None if job is None else (job.name, time.monotonic() - job.queued_at)
+
+    def call(self, name, fn, *args, timeout_s=None):
+        """Run ``fn(*args)`` on the backend thread; return its result or raise its exception or BackendStuck."""
+        stuck = self._stuck
+        if stuck is not None:
+            raise BackendStuck(f"backend still stuck in {stuck.name} for {time.monotonic() - stuck.queued_at:.1f} s; "
+                               f"{name} not sent")
+        bound = self.timeout_s if timeout_s is None else timeout_s
+        job = _Job(name, fn, args)
+        self._jobs.put(job)
+        if not job.done.wait(bound):
+            with self._guard:
+                if not job.done.is_set():
+                    self._stuck = job
+                    raise BackendStuck(f"backend {name} did not return within {bound:.1f} s")
+        if job.error is not None:
+            raise job.error
+        return job.result
+
+    def stop(self):
+        """End the thread after the calls already queued (a stuck call keeps it until it returns)."""
+        self._jobs.put(None)
+
+    def _loop(self):
+        while True:
+            job = self._jobs.get()
+            if job is None:
+                return
+            self._running = job
+            try:
+                job.result = job.fn(*job.args)
+            except BaseException as exc:  # noqa: BLE001 - handed to the caller, who turns it into a fault
+                job.error = exc
+            with self._guard:
+                self._running = None
+                job.done.set()
+                late = self._stuck is job
+                if late:
+                    self._stuck = None
+            if late:
+                threading.Thread(target=self._on_late_return, args=(job.name, time.monotonic() - job.queued_at),
+                                 name="valve-backend-returned", daemon=True).start()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -88,6 +177,10 @@ class ValveController:
         self._released = False
         self._last_heartbeat = clock()
         self._watchdog_stop = None
+        self._stall_reported = False
+        self._last_status = None
+        self._caller = _BackendCaller(getattr(backend, "call_timeout_s", DEFAULT_CALL_TIMEOUT_S),
+                                      self._backend_returned)
         if hasattr(backend, "set_fault_listener"):
             backend.set_fault_listener(self.device_fault)
         with self._lock:
@@ -108,8 +201,31 @@ class ValveController:
                 last_pulse_ms=int(self._last_pulse_ms), pulses=self._pulses,
             )
 
+    def _call(self, name, *args, timeout_s=None):
+        """Call the backend's method ``name`` on the backend thread, bounded in time (see :class:`_BackendCaller`)."""
+        return self._caller.call(name, getattr(self._backend, name), *args, timeout_s=timeout_s)
+
+    def _open_bound_s(self):
+        """Bound of the backend's ``open()``: a board that boots after its port opens is waited for (HELLO)."""
+        return getattr(self._backend, "boot_wait_s", 0.0) + 4 * self._caller.timeout_s
+
+    def _backend_returned(self, name, seconds):
+        """A backend call that overran its bound returned at last: drive the valve closed again (fault stays)."""
+        _LOG.warning("valve backend call %s returned after %.1f s", name, seconds)
+        with self._lock:
+            if self._shut_down:
+                if not self._released:  # the backend thread has ended: release from here, once more
+                    try:
+                        self._backend.release()
+                        self._released = True
+                    except Exception:  # noqa: BLE001
+                        _LOG.exception("valve backend release after a stuck call failed")
+                return
+            self._drive_closed()
+            self._emit(f"backend {name} returned after {seconds:.1f} s")
+
     def _emit(self, event):
-        status = self.status()
+        status = self._last_status = self.status()
         level = logging.ERROR if status.fault else logging.INFO
         _LOG.log(level, "valve %s: armed=%s open=%s fault=%s%s pulses=%d last_pulse_ms=%d", event, status.armed,
                  status.open, status.fault, f" ({status.fault_reason})" if status.fault else "", status.pulses,
@@ -131,16 +247,16 @@ class ValveController:
             return True  # release() already drove it closed; the backend is gone
         try:
             if not self._backend_started:
-                self._backend.open()
+                self._call("open", timeout_s=self._open_bound_s())
                 self._backend_started = True
-            self._backend.close_valve()
+            self._call("close_valve")
         except Exception as exc:  # noqa: BLE001 - any backend failure is a fault, whatever its type
             self._latch_fault(f"backend error on close: {exc}")
             return False
         self._open = False
         if not self._armed and hasattr(self._backend, "disarm"):
             try:
-                self._backend.disarm()  # the device, too, stops accepting pulses
+                self._call("disarm")  # the device, too, stops accepting pulses
             except Exception as exc:  # noqa: BLE001
                 self._latch_fault(f"backend error on disarm: {exc}")
                 return False
@@ -158,7 +274,7 @@ class ValveController:
                 return True, "already armed"
             if hasattr(self._backend, "arm"):
                 try:
-                    self._backend.arm()
+                    self._call("arm")
                 except Exception as exc:  # noqa: BLE001
                     self._latch_fault(f"backend error on arm: {exc}")
                     self._drive_closed()
@@ -181,7 +297,7 @@ class ValveController:
             closed = self._drive_closed()
             if closed and hasattr(self._backend, "clear"):
                 try:
-                    self._backend.clear()  # acknowledge a fault the device latched itself (its e-stop button)
+                    self._call("clear")  # acknowledge a fault the device latched itself (its e-stop button)
                 except Exception as exc:  # noqa: BLE001
                     self._latch_fault(f"device fault not cleared: {exc}")
                     closed = False
@@ -192,6 +308,7 @@ class ValveController:
 
     def estop(self, reason="e-stop"):
         """Latch a fault, cut any pulse and drive the valve closed."""
+        self._cut.set()  # before the lock: a pulse ends even while another thread waits for the backend
         with self._lock:
             self._latch_fault(reason)
             self._cut.set()
@@ -200,6 +317,8 @@ class ValveController:
 
     def device_fault(self, reason):
         """The backend's device faulted on its own (board e-stop, keep-alive timeout, link lost): latch and close."""
+        if not self._shut_down:
+            self._cut.set()
         with self._lock:
             if self._shut_down:
                 return
@@ -209,19 +328,45 @@ class ValveController:
             self._emit("device fault")
 
     def health(self):
-        """Diagnostics: ``(status, watchdog margin ms or None when disarmed, device link line)``."""
-        with self._lock:
-            status = self.status()
-            margin_ms = None
-            if self._armed:
-                margin_ms = self.watchdog_ms - (self._clock() - self._last_heartbeat) * 1000.0
+        """Diagnostics: ``(status, watchdog margin ms or None when disarmed, device link line)``.
+
+        Never waits for a backend call: while another thread holds the lock for one, the last state emitted is
+        reported and the link line says which call is running and for how long.
+        """
+        margin_ms = None
+        if self._lock.acquire(timeout=HEALTH_LOCK_WAIT_S):
+            try:
+                status = self.status()
+                if self._armed:
+                    margin_ms = self.watchdog_ms - (self._clock() - self._last_heartbeat) * 1000.0
+            finally:
+                self._lock.release()
+        else:
+            status = self._last_status
         link = getattr(self._backend, "link_state", None)
-        return status, margin_ms, link() if link else f"{status.backend}: no device"
+        line = link() if link else f"{status.backend}: no device"
+        running = self._caller.running()
+        if running is not None and running[1] > HEALTH_LOCK_WAIT_S:
+            line = f"backend call {running[0]} running for {running[1] * 1000:.0f} ms; {line}"
+        return status, margin_ms, line
 
     def heartbeat(self):
-        """Record a heartbeat from the rig (steady clock)."""
-        with self._lock:
-            self._last_heartbeat = self._clock()
+        """Record a heartbeat from the rig (steady clock). Takes no lock: one store, never behind a backend call."""
+        self._last_heartbeat = self._clock()
+
+    def check_backend(self):
+        """Latch a device fault when the backend reports one of its own calls stalled (its ``stalled()`` hook, e.g.
+        a keep-alive stuck in a serial write). Returns True when it latched one now."""
+        stalled = getattr(self._backend, "stalled", None)
+        reason = stalled() if stalled is not None else ""
+        if not reason:
+            self._stall_reported = False
+            return False
+        if self._stall_reported:
+            return False
+        self._stall_reported = True
+        self.device_fault(reason)
+        return True
 
     def check_watchdog(self):
         """Trip if armed and the last heartbeat is older than ``watchdog_ms``. Returns True when it tripped now."""
@@ -253,7 +398,7 @@ class ValveController:
             self._cut.clear()
             self._open = True  # from here on the valve may be open until a close succeeds
             try:
-                self._backend.open_valve(pulse_ms)
+                self._call("open_valve", pulse_ms)
             except Exception as exc:  # noqa: BLE001
                 self._latch_fault(f"backend error on open: {exc}")
                 self._drive_closed()
@@ -302,7 +447,8 @@ class ValveController:
 
     # ---------------------------------------------------------- watchdog thread
     def start_watchdog(self, period_s):
-        """Check the watchdog every ``period_s`` seconds (steady clock) on a daemon thread until shutdown.
+        """Check the watchdog (and the backend's own calls, :meth:`check_backend`) every ``period_s`` seconds
+        (steady clock) on a daemon thread until shutdown.
 
         Use this rather than a ROS timer: a ROS timer follows ``use_sim_time`` and could stall.
         """
@@ -317,6 +463,7 @@ class ValveController:
             while not stop.wait(period_s):
                 try:
                     self.check_watchdog()
+                    self.check_backend()
                 except Exception:  # noqa: BLE001 - keep watching whatever happened
                     _LOG.exception("valve watchdog check failed")
 
@@ -334,10 +481,12 @@ class ValveController:
                 self._watchdog_stop.set()
             self._drive_closed()
             try:
-                self._backend.release()  # backends drive closed once more before freeing the line / port
+                # backends drive closed once more before freeing the line / port
+                self._call("release", timeout_s=4 * self._caller.timeout_s)
                 self._released = True
             except Exception as exc:  # noqa: BLE001
                 self._latch_fault(f"backend error on release: {exc}")
+            self._caller.stop()
             self._emit("shut down")
 
 

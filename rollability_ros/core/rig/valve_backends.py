@@ -201,13 +201,32 @@ class SerialRelayBackend:
         self._last_answer_at = None
         self._last_device_state = None
         self._reported_fault = "none"
+        self._busy = None                 # (line, monotonic start) of the command holding the port
+
+    @property
+    def call_timeout_s(self):
+        """Longest one command may take (write bound + answer bound + slack), s; the controller bounds each call by
+        it and :meth:`stalled` reports a command that overran it."""
+        return max(self.timeout_s, MIN_WRITE_TIMEOUT_S) + self.timeout_s + 0.5
+
+    def stalled(self):
+        """A reason when the command holding the port (the keep-alive's too) has overrun :attr:`call_timeout_s`,
+        else "": a write into a board that stopped taking bytes must not go unnoticed while no one else calls."""
+        busy = self._busy
+        if busy is None:
+            return ""
+        age_s = time.monotonic() - busy[1]
+        if age_s <= self.call_timeout_s:
+            return ""
+        return (f"serial link stuck: command {busy[0]!r} has not returned for {age_s * 1000:.0f} ms "
+                f"(bound {self.call_timeout_s:.1f} s)")
 
     def set_fault_listener(self, callback):
         """``callback(reason)`` is called (from the keep-alive thread) when the board faults on its own."""
         self._fault_listener = callback
 
     def _open_port(self):
-        """The port object (``write``, ``flush``, ``read_until``, ``reset_input_buffer``, ``close``)."""
+        """The port object (``write``, ``read_until``, ``reset_input_buffer``, ``close``)."""
         serial = require("serial", feature="the serial_relay valve backend")
         # pyserial checks its write timeout after the write returns, so a thread that waited for the GIL longer
         # than the timeout would report a write that went through as failed: the write gets a wider bound (a
@@ -268,10 +287,15 @@ class SerialRelayBackend:
         with self._io_lock:
             if self._serial is None:
                 raise ValveBackendError(f"serial port {self.port} is not open")
-            self._serial.reset_input_buffer()  # drop late answers of earlier commands
-            self._serial.write((line + "\n").encode("ascii"))
-            self._serial.flush()
-            answer = self._serial.read_until(b"\n")  # bounded by the port timeout
+            self._busy = (line, time.monotonic())
+            try:
+                self._serial.reset_input_buffer()  # drop late answers of earlier commands
+                # bounded by the write timeout; no flush(): pyserial's is tcdrain, which has no timeout and blocks
+                # for as long as a board (or a USB-serial chip) takes no bytes; the answer shows the line arrived
+                self._serial.write((line + "\n").encode("ascii"))
+                answer = self._serial.read_until(b"\n")  # bounded by the port timeout
+            finally:
+                self._busy = None
             text = answer.decode("ascii", errors="replace").strip()
             if not answer.endswith(b"\n"):
                 raise ValveBackendError(f"relay board did not answer {line!r} within {self.timeout_s} s"
@@ -435,10 +459,6 @@ class _SerialPort(_LinePort):
         """Send bytes to the board."""
         self.port.write(data)
 
-    def flush(self):
-        """Wait until the bytes are sent."""
-        self.port.flush()
-
     def close(self):
         """Close the port."""
         self.port.close()
@@ -474,9 +494,6 @@ class _PipePort(_LinePort):
             os.write(self.process.stdin.fileno(), data)
         except OSError as exc:
             raise ValveBackendError(f"gpio line holder gone: {exc}") from exc
-
-    def flush(self):
-        """Nothing to flush (unbuffered writes)."""
 
     def close(self):
         """Close the holder's input (it drives the line inactive and exits); kill it if it does not."""

@@ -10,7 +10,8 @@ def register(subparsers):
                     "rig node and waits until the outcome_logger acknowledges storing each outcome over ROS (one "
                     "writer; its store may be on another computer). "
                     "Physical runs tell you what to change before each trial and wait for Enter; sim runs "
-                    "unattended. Exit code 0 when complete, 3 when stopped early (rerun with --resume).")
+                    "unattended. Exit code 0 when complete, 3 when stopped early (rerun with --resume), 4 when more "
+                    "than half of the launches are invalid (the message names the setting to change).")
     parser.add_argument("--backend", choices=("sim", "physical"), required=True,
                         help="sim: unattended launch twin; physical: the pneumatic launcher with an operator")
     parser.add_argument("--config", action="append", default=None,

@@ -26,10 +26,36 @@ from rollability_ros.core.rig.launch_backend import LaunchAborted, RigPorts
 from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, RIG_BACKENDS, RigSettings,
                                                   make_launch_backend, parse_outcome_answer)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
-from rollability_ros.core.results.records import LaunchOutcome
+from rollability_ros.core.results.records import INVALID_LAUNCH, LaunchOutcome
 from rollability_ros.core.results.store import Store
 from rollability_ros.core.rig.valve import ValveConfig, ValveController
 from rollability_ros.core.rig.valve_backends import make_controller
+
+
+#: A campaign session stops once at least :data:`INVALID_STOP_MIN_LAUNCHES` launches were made and more than this
+#: fraction of them were invalid (did not leave the ledge, landed off the foam): the rig is not launching the robot.
+INVALID_STOP_FRACTION = 0.5
+INVALID_STOP_MIN_LAUNCHES = 4
+#: Words of an invalid launch's note -> the setting to change.
+INVALID_LAUNCH_FIXES = (
+    ("did not leave the ledge", "the push plate does not move the robot: set launch_twin.plate.height_m, width_m and "
+                                "clearance_m to 0 (derived from the robot) and check launch_twin.plate.max_force_n"),
+    ("outside the foam", "the robot lands beyond the foam: enlarge launch_twin.foam.length_m / width_m"),
+    ("never landed", "the robot never reaches the foam: check launch_twin.foam and the trial time cap "
+                     "(trial.time_cap_s)"),
+)
+
+
+def invalid_launch_stop(notes: typing.Sequence[str]) -> str:
+    """Why a campaign must stop for invalid launches ("" if it need not): ``notes`` are the notes of this session's
+    launches, an invalid one starting with :data:`~rollability_ros.core.results.records.INVALID_LAUNCH`."""
+    invalid = [note[len(INVALID_LAUNCH):] for note in notes if note.startswith(INVALID_LAUNCH)]
+    if len(notes) < INVALID_STOP_MIN_LAUNCHES or len(invalid) <= INVALID_STOP_FRACTION * len(notes):
+        return ""
+    common = max(set(invalid), key=invalid.count)
+    fix = next((text for words, text in INVALID_LAUNCH_FIXES if words in common), "check the rig's set-up")
+    return (f"{len(invalid)} of {len(notes)} launches were invalid (more than {INVALID_STOP_FRACTION:.0%}; most "
+            f"often: {common}): {fix}")
 
 
 class NotStored(RuntimeError):
@@ -38,12 +64,14 @@ class NotStored(RuntimeError):
 
 @dataclasses.dataclass(frozen=True)
 class CampaignReport:
-    """How a campaign session ended: trials stored this session, totals, and why it stopped early ("" if not)."""
+    """How a campaign session ended: trials stored this session, totals, and why it stopped early ("" if not);
+    ``failed``: stopped because the rig does not launch this robot (:func:`invalid_launch_stop`)."""
 
     stored_now: int
     done: int
     total: int
     stopped_reason: str = ""
+    failed: bool = False
 
     @property
     def complete(self) -> bool:
@@ -140,10 +168,10 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
     todo = [trial for trial in plan if trial.trial_id not in stored_ids]
     progress = CampaignProgress(len(plan), len(plan) - len(todo))
     say(f"campaign {run_id}: {progress.text()}")
-    previous, stored_now = None, 0
+    previous, stored_now, notes = None, 0, []
 
-    def report(reason: str) -> CampaignReport:
-        return CampaignReport(stored_now, progress.done, progress.total, reason)
+    def report(reason: str, failed: bool = False) -> CampaignReport:
+        return CampaignReport(stored_now, progress.done, progress.total, reason, failed)
 
     for trial in todo:
         try:
@@ -170,6 +198,10 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
         say(f"{trial.trial_id}: {verdict}"
             f"{' (speed flagged)' if outcome.speed_out_of_tolerance else ''}; {progress.text()}")
         previous = trial
+        notes.append(outcome.note)
+        invalid = invalid_launch_stop(notes)
+        if invalid:
+            return report(invalid, failed=True)
     return report("")
 
 
@@ -198,7 +230,11 @@ class RunnerSettings:
 
 
 def report_exit_code(report: CampaignReport, say: typing.Callable[[str], None] = print) -> int:
-    """Print how a session ended; return the exit code: 0 when complete, 3 when stopped early."""
+    """Print how a session ended; return the exit code: 0 when complete, 3 when stopped early, 4 when it failed
+    (mostly invalid launches: the message names the setting to change)."""
+    if report.failed:
+        say(f"campaign failed: {report.stopped_reason} ({report.done}/{report.total} stored)")
+        return 4
     if report.stopped_reason:
         say(f"campaign stopped: {report.stopped_reason} ({report.done}/{report.total} stored; resume to continue)")
         return 3

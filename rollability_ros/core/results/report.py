@@ -25,7 +25,7 @@ import shlex
 
 from rollability_ros.core.results import analysis
 from rollability_ros.core.results.outcome_csv import read_outcome_csv
-from rollability_ros.core.results.records import NO_SEED, LaunchOutcome
+from rollability_ros.core.results.records import INVALID_LAUNCH, NO_SEED, LaunchOutcome
 from rollability_ros.core.results.store import STORE_FILENAME, Store
 from rollability_ros.core.results.stats import wilson_interval
 
@@ -444,6 +444,18 @@ def summary_text(data, views, comparison, points):
     return "\n".join(lines)
 
 
+def refuse_all_invalid(data):
+    """``ValueError`` (one line) when ``data`` has launch outcomes but every one is an invalid launch: nothing to
+    analyse, and the cause is the rig's set-up, not the robot."""
+    if not data.outcomes or any(outcome.valid for outcome in data.outcomes):
+        return
+    reasons = [outcome.note[len(INVALID_LAUNCH):] for outcome in data.outcomes]
+    common = max(set(reasons), key=reasons.count)
+    raise ValueError(f"{data.source}: all {len(reasons)} launch outcomes are invalid launches (most often: {common})"
+                     ", so there is nothing to analyse; fix the launcher (rollability campaign names the setting) "
+                     "and run the campaign again")
+
+
 def build_report(data, out_dir, measure="condition_rate"):
     """Write figures (PNG), tables (CSV) and ``report.html`` (self-contained) to ``out_dir``.
 
@@ -456,6 +468,7 @@ def build_report(data, out_dir, measure="condition_rate"):
         Experimental measure compared with simulated fitness: ``"condition_rate"`` (paper) or ``"trial_rate"``.
     """
     out_dir = os.fspath(out_dir)
+    refuse_all_invalid(data)
     os.makedirs(out_dir, exist_ok=True)
     views = analysis.paper_views(data.outcomes, CONFIGURATION_ORDER) if data.outcomes else None
     configurations = analysis.configurations_in(views.conditions, CONFIGURATION_ORDER) if views else []

@@ -462,10 +462,12 @@ class SimulatedLaunch(LaunchBackend):
         return backend
 
     def load(self) -> types.ModuleType:
-        """Import the twin and read its settings now (a node does it at start-up to fail early)."""
+        """Import the twin, read its settings and check its launcher against the robot now (a node does it at
+        start-up to fail early: ``ValueError`` naming the setting)."""
         if self._twin is None:
             twin = importlib.import_module("rollability_ros.core.sim.launch_twin")
             self._twin_settings = twin.load_launch_twin_settings(self.settings.twin_config)
+            twin.check_launcher(self._twin_settings)
             self._twin = twin
         return self._twin
 

@@ -208,6 +208,14 @@ class RobotModel(abc.ABC):
     def wheel_radii_m(self):
         """Rolling radius of each wheel (m), a tuple in the order of :attr:`SpawnedRobot.wheel_links`."""
 
+    @abc.abstractmethod
+    def standing_shapes_m(self):
+        """The collision shapes of the bare robot standing level, facing +x, every joint at zero: ``(shapes,
+        com_m, mass_kg)``, ``shapes`` a list of ``(link name, points (k, 3))`` (corner / vertex points of each
+        shape), ``com_m`` (3,) the centre of mass, all in the robot's root frame turned about z so it faces +x (m);
+        ``mass_kg`` the robot's mass.
+        Engine-free: the launcher is sized from it (:mod:`rollability_ros.core.sim.launcher_geometry`)."""
+
     def tilt_deg(self, client, robot):
         """Angle between the body up-axis and world +z, degrees."""
         return math.degrees(math.acos(float(np.clip(self.up_axis(client, robot)[2], -1.0, 1.0))))
@@ -364,6 +372,17 @@ class ChassisModel(SpecThresholds, RobotModel):
         s = self.spec
         return np.array([[sx * s.wheelbase_m / 2, sy * s.track_m / 2, s.axle_offset_z_m]
                          for sx in (1, -1) for sy in (1, -1)])
+
+    def standing_shapes_m(self):
+        s = self.spec
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
+        shapes = [(self.BODY_LINK, corners * [s.body_length_m / 2, s.body_width_m / 2, s.body_height_m / 2])]
+        wheel_half = np.array([s.wheel_radius_m, s.wheel_width_m / 2, s.wheel_radius_m])
+        wheels = self.wheel_positions_m()
+        shapes += [(name, corners * wheel_half + centre) for name, centre in zip(self.wheel_link_names(), wheels)]
+        mass = s.body_mass_kg + 4 * s.wheel_mass_kg
+        com = (s.body_mass_kg * np.array([0.0, 0.0, s.com_offset_z_m]) + s.wheel_mass_kg * wheels.sum(axis=0)) / mass
+        return shapes, com, mass
 
     def spawn(self, client, profile, position, orientation):
         pybullet = require("pybullet", feature="the simulated evaluator")

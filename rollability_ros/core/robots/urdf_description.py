@@ -221,6 +221,9 @@ class RobotDescription:
     ``body_of`` maps every link name to its rigid body's name; ``link_in_body`` holds each link's 4x4 transform
     in its body's frame (nested tuples), for the links whose placement could be read. ``moving_joints`` are the
     sim URDF's non-fixed joints; ``mass_kg`` and ``com_m`` the robot's total mass and centre of mass (root frame).
+    ``collision_shapes`` holds one ``(link, body, points)`` per collision element (its corner / vertex points in
+    the body's frame, m) and ``body_in_root`` each rigid body's 4x4 transform in the root link's frame with every
+    joint at zero (nested tuples).
     """
 
     name: str
@@ -232,6 +235,8 @@ class RobotDescription:
     mass_kg: float
     com_m: tuple
     collision_points: dict
+    collision_shapes: tuple = ()
+    body_in_root: dict = dataclasses.field(default_factory=dict)
 
     def link_transform(self, link):
         """4x4 transform of ``link`` in its rigid body's frame; ``ValueError`` if unknown or unreadable."""
@@ -391,6 +396,7 @@ def describe(xml_text, urdf_folder=None, search_paths=()):
 
     bodies = {name: {"mass": 0.0, "moment": np.zeros(3), "parts": [], "collisions": [], "points": [],
                      "contact": None} for name in order if body_of[name] == name}
+    shapes = []
     for name in order:
         body = bodies[body_of[name]]
         inertial = _inertial(links[name], name)
@@ -409,7 +415,9 @@ def describe(xml_text, urdf_folder=None, search_paths=()):
             frame = placed(name, "a collision shape") @ origin_of(collision, where)
             mesh = geometry.find("mesh")
             points = _geometry_points(geometry, where, mesh.get("filename") if mesh is not None else None)
-            body["points"].extend((points @ frame[:3, :3].T + frame[:3, 3]).tolist())
+            in_body = (points @ frame[:3, :3].T + frame[:3, 3]).tolist()
+            body["points"].extend(in_body)
+            shapes.append((name, body_of[name], tuple(map(tuple, in_body))))
             body["collisions"].append(f"<collision>{origin_xml(frame)}"
                                       f"{ElementTree.tostring(geometry, encoding='unicode').strip()}</collision>")
         if body["contact"] is None and links[name].find("contact") is not None:
@@ -465,4 +473,6 @@ def describe(xml_text, urdf_folder=None, search_paths=()):
                       for k, v in link_in_body.items()},
         moving_joints=tuple(j.get("name") for j, _, _ in moving), mass_kg=float(mass_kg),
         com_m=tuple(float(v) for v in com_m),
-        collision_points={name: tuple(map(tuple, body["points"])) for name, body in bodies.items() if body["points"]})
+        collision_points={name: tuple(map(tuple, body["points"])) for name, body in bodies.items() if body["points"]},
+        collision_shapes=tuple(shapes),
+        body_in_root={name: tuple(map(tuple, matrix.tolist())) for name, matrix in body_in_root.items()})

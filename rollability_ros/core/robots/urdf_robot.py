@@ -209,8 +209,14 @@ def _mount(spec):
     if not len(points):
         raise ValueError(f"mount link {spec.mount_link!r}: its rigid body {body!r} has no collision shape to carry "
                          "a profile")
-    in_mount = (points - mount_in_body[:3, 3]) @ mount_in_body[:3, :3]  # body frame -> mount link frame
-    check_mount_surface(spec, in_mount)
+    check_up_axis(spec)
+    mount_in_root = np.array(robot.body_in_root[body]) @ mount_in_body
+    root_to_mount = np.linalg.inv(mount_in_root)
+    shapes = []
+    for link, shape_body, shape_points in robot.collision_shapes:
+        in_root = np.array(robot.body_in_root[shape_body]) @ np.c_[np.array(shape_points), np.ones(len(shape_points))].T
+        shapes.append((link, shape_body == body, (root_to_mount @ in_root)[:3].T))
+    check_mount_surface(spec, shapes)
     wheels = set(spec.wheel_links)
     for name in wheels:
         robot.link_transform(name)  # names an unknown link
@@ -230,39 +236,125 @@ def _mount(spec):
                               wheel_bodies=wheel_bodies)
 
 
-def check_mount_surface(spec, shape_points):
-    """Refuse a footprint that does not sit on the mount body's shapes: ``ValueError`` naming the problem.
+def check_up_axis(spec):
+    """Refuse an ``up_axis_xyz`` that is not the robot's up: the trials and the launch twin stand the robot with its
+    root frame's z up (REP 103), so an up axis more than ``upright_tilt_deg`` from the root's z would score every
+    robot standing on its wheels "not upright"; ``ValueError`` naming it."""
+    up = np.asarray(spec.up_axis_xyz, dtype=np.float64)
+    angle = math.degrees(math.acos(float(np.clip(up[2] / np.linalg.norm(up), -1.0, 1.0))))
+    if spec.upright_tilt_deg < 180 and angle > spec.upright_tilt_deg:
+        raise ValueError(f"up_axis_xyz {list(spec.up_axis_xyz)} is {angle:.0f} deg from the root link's z, the up of "
+                         f"a robot standing on its wheels (REP 103: x forward, z up): the robot would never count as "
+                         f"upright (upright_tilt_deg {spec.upright_tilt_deg}); use [0, 0, 1], or a description whose "
+                         f"root frame has z up")
 
-    ``shape_points`` (k, 3) are the collision shapes' points in the mount link's frame (m). The footprint's
-    corners must lie within the shapes' outline seen from above (their convex hull in x-y, not the bounding
-    box), and the footprint plane (``footprint_offset_m[2]``) on the top surface of the shapes under the
-    footprint's centre (the convex hull's upper envelope) within :data:`SURFACE_TOLERANCE_M`: a profile above the
-    robot would float, one below its top would sit inside it.
+
+#: Samples per side of the footprint at which the shapes' tops are compared with the footprint plane.
+FOOTPRINT_SAMPLES = 9
+
+
+class _ShapeTop:
+    """The top surface of one collision shape (the upper envelope of its points' convex hull), seen from above."""
+
+    def __init__(self, points, scipy_spatial):
+        self.points = points
+        self.top_z = float(points[:, 2].max())
+        try:
+            self.outline = scipy_spatial.ConvexHull(points[:, :2]).equations            # (nx, ny, d), inside <= 0
+            solid = scipy_spatial.ConvexHull(points).equations                        # (nx, ny, nz, d)
+            self.upward = solid[solid[:, 2] > 1e-9]
+        except Exception:  # QhullError: a flat shape (a plane seen edge-on, a single point) covers no area
+            self.outline = None
+
+    def covers(self, xy):
+        """Which of the points ``xy`` (n, 2) lie within the shape seen from above (bool (n,))."""
+        if self.outline is None:
+            return np.zeros(len(xy), dtype=bool)
+        return (xy @ self.outline[:, :2].T + self.outline[:, 2]).max(axis=1) <= FOOTPRINT_TOLERANCE_M
+
+    def top_at(self, xy):
+        """The shape's top z at the points ``xy`` (n, 2) it covers (m)."""
+        if not len(self.upward):
+            return np.full(len(xy), self.top_z)
+        return np.min(-(xy @ self.upward[:, :2].T + self.upward[:, 3]) / self.upward[:, 2], axis=1)
+
+
+def check_mount_surface(spec, shapes):
+    """Refuse a footprint that does not sit on the mount, or that a collision shape rises through: ``ValueError``
+    naming the problem and the link.
+
+    ``shapes`` are ``(link, on_mount_body, points (k, 3))`` of every collision shape of the robot (joints at zero)
+    in the mount link's frame (m). The footprint's corners must lie within the mount body's outline seen from
+    above (the convex hull in x-y of its shapes, not the bounding box); at its corners and centre the top of the
+    mount body's shapes must lie at the footprint plane (``footprint_offset_m[2]``) within
+    :data:`SURFACE_TOLERANCE_M` (a profile above it would float, one below its top would sit inside it); and no
+    shape of any link (a sensor mast, a lidar, an antenna, a wheel) may rise above the plane anywhere within the
+    footprint, where the profile would pass through it.
     """
     scipy_spatial = require("scipy.spatial", feature="URDF robots")
     corners = footprint_corners(spec)
+    z0 = float(spec.footprint_offset_m[2])
     describe_footprint = (f"footprint {spec.footprint_length_m} x {spec.footprint_width_m} m at offset "
                           f"{list(spec.footprint_offset_m)} m, yaw {spec.footprint_yaw_deg} deg")
+    mount_points = np.vstack([points for _, on_mount, points in shapes if on_mount])
     try:
-        outline = scipy_spatial.ConvexHull(shape_points[:, :2]).equations        # rows: (nx, ny, d), inside <= 0
-        solid = scipy_spatial.ConvexHull(shape_points).equations                  # rows: (nx, ny, nz, d)
+        outline = scipy_spatial.ConvexHull(mount_points[:, :2]).equations
     except Exception as exc:  # QhullError: flat or too few points
         raise ValueError(f"mount link {spec.mount_link!r}: its collision shapes enclose no volume ({exc})") from exc
     outside = (corners[:, :2] @ outline[:, :2].T + outline[:, 2]).max(axis=1) > FOOTPRINT_TOLERANCE_M
     if outside.any():
-        low, high = shape_points[:, :2].min(axis=0), shape_points[:, :2].max(axis=0)
+        low, high = mount_points[:, :2].min(axis=0), mount_points[:, :2].max(axis=0)
         raise ValueError(f"{describe_footprint}: corner(s) {np.round(corners[outside, :2], 4).tolist()} m lie "
                          f"outside mount link {spec.mount_link!r}'s collision shapes (extent x [{low[0]:.4f}, "
                          f"{high[0]:.4f}] m, y [{low[1]:.4f}, {high[1]:.4f}] m)")
-    upward = solid[solid[:, 2] > 1e-9]
-    centre = np.asarray(spec.footprint_offset_m, dtype=np.float64)
-    surface_z = float(np.min(-(upward[:, :2] @ centre[:2] + upward[:, 3]) / upward[:, 2]))
-    if abs(centre[2] - surface_z) > SURFACE_TOLERANCE_M:
-        where = "above" if centre[2] > surface_z else "below"
-        raise ValueError(f"{describe_footprint}: the profile base at z = {centre[2]:.4f} m is "
-                         f"{abs(centre[2] - surface_z):.4f} m {where} the top of mount link {spec.mount_link!r}'s "
-                         f"collision shapes (z = {surface_z:.4f} m in that link's frame); set footprint_offset_m[2] "
-                         f"to {surface_z:.5f} so the profile sits on the mount surface")
+    # the footprint sampled on a grid (corners included), plus every shape point inside it
+    u = np.linspace(-0.5, 0.5, FOOTPRINT_SAMPLES)
+    yaw = math.radians(spec.footprint_yaw_deg)
+    along, across = np.array([math.cos(yaw), math.sin(yaw)]), np.array([-math.sin(yaw), math.cos(yaw)])
+    grid = np.array([a * spec.footprint_length_m * along + b * spec.footprint_width_m * across
+                     for a in u for b in u]) + np.asarray(spec.footprint_offset_m[:2])
+    centre = np.asarray(spec.footprint_offset_m[:2], dtype=np.float64)
+
+    def inside_footprint(xy):
+        local = xy - centre
+        return ((np.abs(local @ along) <= spec.footprint_length_m / 2 + FOOTPRINT_TOLERANCE_M)
+                & (np.abs(local @ across) <= spec.footprint_width_m / 2 + FOOTPRINT_TOLERANCE_M))
+
+    tops = [(link, on_mount, _ShapeTop(points, scipy_spatial)) for link, on_mount, points in shapes]
+    probes = np.vstack([centre, corners[:, :2]])
+    support = np.full(len(probes), -math.inf)
+    for link, on_mount, top in tops:  # under each probe, the mount body's top nearest the plane (not a mast's)
+        if on_mount:
+            covered = top.covers(probes)
+            heights = top.top_at(probes[covered])
+            nearer = np.abs(heights - z0) < np.abs(support[covered] - z0)
+            support[np.flatnonzero(covered)[nearer]] = heights[nearer]
+    worst = int(np.argmax(np.abs(support - z0)))
+    surface_z = float(support[worst])
+    if not math.isfinite(surface_z):
+        raise ValueError(f"{describe_footprint}: no collision shape of mount link {spec.mount_link!r}'s body lies "
+                         f"under the footprint point {np.round(probes[worst], 4).tolist()} m")
+    if abs(z0 - surface_z) > SURFACE_TOLERANCE_M:
+        where = "above" if z0 > surface_z else "below"
+        point = "centre" if worst == 0 else f"corner {np.round(probes[worst], 4).tolist()} m"
+        raise ValueError(f"{describe_footprint}: the profile base at z = {z0:.4f} m is "
+                         f"{abs(z0 - surface_z):.4f} m {where} the top of mount link {spec.mount_link!r}'s "
+                         f"collision shapes at the footprint's {point} (z = {surface_z:.4f} m in that link's frame); "
+                         f"set footprint_offset_m[2] to {surface_z:.5f} so the profile sits on the mount surface"
+                         + ("" if np.ptp(support) <= SURFACE_TOLERANCE_M else
+                            f", and move the footprint where the surface is level (its tops under the corners and "
+                            f"centre range over {np.ptp(support):.4f} m)"))
+    for link, _, top in tops:
+        samples = grid[top.covers(grid)]
+        heights = list(top.top_at(samples)) + list(top.points[inside_footprint(top.points[:, :2]), 2])
+        highest = max(heights, default=-math.inf)
+        if highest <= z0 + SURFACE_TOLERANCE_M:
+            continue
+        raise ValueError(f"{describe_footprint}: link {link!r} rises {highest - z0:.4f} m above the footprint "
+                         f"plane inside the footprint (its collision shape reaches z = {highest:.4f} m in mount "
+                         f"link {spec.mount_link!r}'s frame), so the profile would pass through it; shrink or "
+                         f"move the footprint (footprint_length_m, footprint_width_m, footprint_offset_m) clear "
+                         f"of {link!r}")
 
 
 def footprint_grid(grid, urdf_robot):
@@ -406,6 +498,16 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
         pybullet = require("pybullet", feature="the simulated evaluator")
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
         return np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3) @ self._up_axis
+
+    def standing_shapes_m(self):
+        robot = self.mounted.robot
+        yaw = -math.radians(FORWARD_AXIS_DEG[self.spec.forward_axis])
+        facing = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0, 0, 1.0]])
+        shapes = []
+        for link, body, points in robot.collision_shapes:
+            in_root = np.array(robot.body_in_root[body])
+            shapes.append((link, (np.array(points) @ in_root[:3, :3].T + in_root[:3, 3]) @ facing.T))
+        return shapes, facing @ np.asarray(robot.com_m), robot.mass_kg
 
     def simulator_urdf(self, profile=None, mesh_filename=None):
         return self.sim_urdf(profile, mesh_filename)

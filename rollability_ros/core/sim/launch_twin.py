@@ -19,21 +19,31 @@ Contact
     defaults (stiffness infinite, damping 0.1 N s/m) to almost exactly the foam's values. They act per contact
     point, and a face landing flat makes up to four, so read them as the stiffness of one wheel or corner
     pressing into the foam.
-Wheels (the paper's chassis runs on Mecanum wheels)
-    A Mecanum wheel's rollers let it slide along its axle: the twin scales the wheels' friction along the axle by
-    ``wheel_side_friction_factor`` (Bullet's anisotropic friction). Rolling on the plate, a wheel resists with
-    ``wheel_rolling_friction`` (Bullet rolling friction, a length in metres: the resisting force is about
-    ``wheel_rolling_friction / wheel_radius_m`` times the load) and its motor back-drives against
-    ``wheel_drag_torque_nm``. These replace the trial chassis's values on the wheel links: with the trials' rolling
-    friction 0.01 (a resisting force of a third of the load on a 0.03 m wheel) and drag 0.02 N m, the chassis
-    stops within 0.1 m and never covers the paper's 0.34 m run at 0.8 m/s in 0.42 s.
 Robot
     The built-in chassis, or any wheeled URDF robot when ``urdf_robot`` names a mount link (the trials' choice,
-    :class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`; e.g. ``config/husky.yaml`` in the twin's files). The
-    wheel settings above act on that robot's wheel links and the
-    profile weighs that robot's ``profile_density_kgpm3``. The launcher stays as configured: a robot that does
-    not fit on the ledge at its start (a large one on the 0.8 m ledge) is refused with a ``ValueError`` naming
-    ``ledge_depth_m`` / ``ledge_width_m``.
+    :class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`; e.g. ``config/husky.yaml`` in the twin's files).
+    The profile weighs that robot's ``profile_density_kgpm3``.
+Launcher sized for the robot (:mod:`~rollability_ros.core.sim.launcher_geometry`)
+    The push plate's width, height, clearance and force and the ledge's depth and width are derived from the robot's
+    collision geometry wherever the config leaves them 0 (the shipped ``config/launch_twin.yaml`` does; the
+    built-in chassis gets the paper rig's 0.10 x 0.05 m plate 5 mm up, 200 N, and a 0.8 m ledge): the plate's face is
+    centred on the height of the robot's centre of mass. :func:`check_launcher` (run by the rig's sim backend
+    before a campaign) refuses a plate that would pass beneath or beside the robot and a ledge it does not fit
+    on, naming the setting; a robot that does not fit on the ledge at its start (a turned start beyond the
+    derived +-60 deg) is refused with a ``ValueError`` naming ``ledge_depth_m`` / ``ledge_width_m``.
+Wheels (``wheel_model``: whose wheel contact and drag the twin uses)
+    ``robot`` (``auto`` on a URDF robot): the robot's own, exactly as in the disturbance trials: its joint drag
+    (``urdf_robot.joint_drag_torque_nm``) and the body contact of ``config/sim.yaml`` on every link, so a robot
+    that lands level on its wheels stays where it landed. ``mecanum`` (``auto`` on the built-in chassis): the
+    paper's chassis runs on Mecanum wheels, whose rollers let a wheel slide along its axle: the twin scales the
+    wheels' friction along the axle by ``wheel_side_friction_factor`` (Bullet's anisotropic friction); rolling
+    on the plate, a wheel resists with ``wheel_rolling_friction`` (Bullet rolling friction, a length in metres:
+    the resisting force is about ``wheel_rolling_friction / wheel_radius_m`` times the load) and its motor
+    back-drives against ``wheel_drag_torque_nm``. These replace the trial chassis's values on the wheel links
+    because the trials model a generic geared wheel: with the trials' rolling friction 0.01 (a resisting force
+    of a third of the load on a 0.03 m wheel) and drag 0.02 N m, the chassis stops within 0.1 m and never covers
+    the paper's 0.34 m run at 0.8 m/s in 0.42 s. Either way ``wheel_friction_left_factor`` /
+    ``wheel_friction_right_factor`` scale the wheels' friction (rig asymmetry, see below).
 Angle (the paper gives mounting holes at -60 ... +60 deg, not a definition)
     Positive angles turn counterclockwise seen from above (about world +z), as in ``config/rig.yaml``.
     ``yaw_of_push`` (default): the push plate, and the chassis placed square against it, are turned by the angle
@@ -85,12 +95,16 @@ from rollability_ros.core.profile.designs import DesignSources, profile_mesh_for
 from rollability_ros.core.optional import require
 from rollability_ros.core.results.records import NO_SEED, NOT_MEASURED
 from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
+from rollability_ros.core.sim.launcher_geometry import (check_launcher_geometry, derive_launcher_geometry,
+                                                         robot_envelope)
 from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world, set_contact
 from rollability_ros.core.sim.trials import RestDetector, TrialSettings, check_engine, place_on_ground
 from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec
 
 #: ``launch_twin.angle_convention`` values (see the module docstring).
 ANGLE_CONVENTIONS = ("yaw_of_push", "chassis_yaw")
+#: ``launch_twin.wheel_model`` values: whose wheel contact and drag the twin uses (module docstring, "Wheels").
+WHEEL_MODELS = ("auto", "mecanum", "robot")
 #: Phases reported through ``on_phase``, in order.
 PHASES = ("fired", "in_flight", "settling", "classifying")
 #: Smallest cosine between the push and the edge normal (``yaw_of_push`` angles up to about +-84 deg).
@@ -102,16 +116,18 @@ class LauncherSpec:
     """The launcher's run and ledge (``launch_twin.launcher``); metres."""
 
     run_length_m: float = 0.34
-    ledge_depth_m: float = 0.8
-    ledge_width_m: float = 2.0
+    ledge_depth_m: float = 0.0
+    ledge_width_m: float = 0.0
     start_clearance_m: float = 0.0005
 
     def validate(self):
-        """Raise ``ValueError`` naming the first unusable field."""
-        for name in ("run_length_m", "ledge_depth_m", "ledge_width_m"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        if self.ledge_depth_m <= self.run_length_m:
+        """Raise ``ValueError`` naming the first unusable field (a ledge size of 0 is derived from the robot)."""
+        if not self.run_length_m > 0:
+            raise ValueError(f"run_length_m must be > 0, got {self.run_length_m}")
+        for name in ("ledge_depth_m", "ledge_width_m"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0 (0 = derived from the robot), got {getattr(self, name)}")
+        if self.ledge_depth_m and self.ledge_depth_m <= self.run_length_m:
             raise ValueError(f"ledge_depth_m {self.ledge_depth_m} must exceed run_length_m {self.run_length_m}")
         if not 0 <= self.start_clearance_m < 0.01:
             raise ValueError(f"start_clearance_m must be in [0, 0.01), got {self.start_clearance_m}")
@@ -128,21 +144,25 @@ class PushPlateSpec:
     ``ramp_s`` (the chassis is pushed up to speed through the plate, so the plate's offset and turn act on it).
     """
 
-    width_m: float = 0.10
-    height_m: float = 0.05
+    width_m: float = 0.0
+    height_m: float = 0.0
     thickness_m: float = 0.01
     mass_kg: float = 0.3
-    clearance_m: float = 0.005
-    max_force_n: float = 200.0
+    clearance_m: float = 0.0
+    max_force_n: float = 0.0
     ramp_s: float = 0.012
     offset_m: float = 0.0
     yaw_bias_deg: float = 0.0
 
     def validate(self):
-        """Raise ``ValueError`` naming the first unusable field."""
-        for name in ("width_m", "height_m", "thickness_m", "mass_kg", "max_force_n", "ramp_s"):
+        """Raise ``ValueError`` naming the first unusable field (``width_m``, ``height_m`` and ``clearance_m`` of 0
+        are derived from the robot: :mod:`~rollability_ros.core.sim.launcher_geometry`)."""
+        for name in ("thickness_m", "mass_kg", "ramp_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("width_m", "height_m", "max_force_n"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0 (0 = derived from the robot), got {getattr(self, name)}")
         if not 0 <= self.clearance_m < 0.1:
             raise ValueError(f"clearance_m must be in [0, 0.1), got {self.clearance_m}")
         if not abs(self.offset_m) < 0.5:
@@ -187,6 +207,7 @@ class LaunchTwinOptions:
     """The twin's own parameters (``config/launch_twin.yaml``, namespace ``launch_twin``)."""
 
     angle_convention: str = "yaw_of_push"
+    wheel_model: str = "auto"
     speed_sigma_fraction: float = 0.03
     angle_sigma_deg: float = 1.0
     wheel_side_friction_factor: float = 0.1
@@ -206,6 +227,8 @@ class LaunchTwinOptions:
         if self.angle_convention not in ANGLE_CONVENTIONS:
             raise ValueError(f"angle_convention must be one of {', '.join(ANGLE_CONVENTIONS)}, "
                              f"got {self.angle_convention!r}")
+        if self.wheel_model not in WHEEL_MODELS:
+            raise ValueError(f"wheel_model must be one of {', '.join(WHEEL_MODELS)}, got {self.wheel_model!r}")
         if not 0 <= self.speed_sigma_fraction <= 0.5:
             raise ValueError(f"speed_sigma_fraction must be in [0, 0.5], got {self.speed_sigma_fraction}")
         if not 0 <= self.angle_sigma_deg <= 30:
@@ -316,6 +339,35 @@ class LaunchResult:
         return self.final_orientation
 
 
+def sized_for_robot(settings):
+    """``(settings, envelope, geometry)``: ``settings`` with the launcher's robot-dependent sizes that are 0 in the
+    config (plate width, height and clearance; ledge depth and width) derived from the robot's collision geometry
+    (:mod:`~rollability_ros.core.sim.launcher_geometry`), the robot's
+    :class:`~rollability_ros.core.sim.launcher_geometry.RobotEnvelope` and the
+    :class:`~rollability_ros.core.sim.launcher_geometry.LauncherGeometry` used."""
+    launcher, plate = settings.twin.launcher, settings.twin.plate
+    envelope = robot_envelope(settings.robot_model())
+    geometry = derive_launcher_geometry(envelope, launcher.run_length_m, plate.thickness_m, {
+        "plate_width_m": plate.width_m, "plate_height_m": plate.height_m, "plate_clearance_m": plate.clearance_m,
+        "plate_max_force_n": plate.max_force_n, "ledge_depth_m": launcher.ledge_depth_m, "ledge_width_m": launcher.ledge_width_m})
+    twin = dataclasses.replace(
+        settings.twin,
+        launcher=dataclasses.replace(launcher, ledge_depth_m=geometry.ledge_depth_m,
+                                     ledge_width_m=geometry.ledge_width_m),
+        plate=dataclasses.replace(plate, width_m=geometry.plate_width_m, height_m=geometry.plate_height_m,
+                                  clearance_m=geometry.plate_clearance_m, max_force_n=geometry.plate_max_force_n))
+    return dataclasses.replace(settings, twin=twin), envelope, geometry
+
+
+def check_launcher(settings):
+    """Check before a campaign that the (derived or configured) launcher launches this robot: the push plate meets
+    its collision shapes and it fits on the ledge; ``ValueError`` naming the setting. Returns the
+    :class:`~rollability_ros.core.sim.launcher_geometry.LauncherGeometry`."""
+    _, envelope, geometry = sized_for_robot(settings)
+    check_launcher_geometry(envelope, geometry, settings.twin.launcher.run_length_m, settings.twin.plate.offset_m)
+    return geometry
+
+
 def profile_body(configuration, settings):
     """The :class:`ProfileBody` mounted for ``configuration`` (None = baseline); see :mod:`designs`."""
     mesh = profile_mesh_for(configuration, settings.twin.designs)
@@ -362,17 +414,29 @@ def wheel_side_m(pybullet, client, robot, link):
     return pybullet.multiplyTransforms(inverse_position, inverse_orientation, link_position, (0, 0, 0, 1))[0][1]
 
 
-def _set_wheels(pybullet, client, robot, options, lateral_friction):
-    """Give the wheel links the twin's Mecanum side friction, rolling friction, motor drag and the left / right
-    friction factors (of the chassis's ``lateral_friction``)."""
+def mecanum_wheels(settings):
+    """True when the twin gives the wheels its Mecanum contact and drag (``wheel_model`` mecanum, or auto on the
+    built-in chassis); False when the robot keeps its own (robot, or auto on a URDF robot), as in the trials."""
+    wheel_model = settings.twin.wheel_model
+    return wheel_model == "mecanum" or (wheel_model == "auto" and not settings.urdf_robot.selected)
+
+
+def _set_wheels(pybullet, client, robot, options, lateral_friction, mecanum):
+    """Give the wheel links the left / right friction factors (of the robot's ``lateral_friction``) and, with
+    ``mecanum``, the twin's Mecanum side friction, rolling friction and motor drag; without it the wheels keep the
+    robot's own rolling friction and joint drag (the trials')."""
     for link in robot.wheel_links:
-        axis = pybullet.getJointInfo(robot.body_id, link, physicsClientId=client)[13]
-        factors = [1.0 - (1.0 - options.wheel_side_friction_factor) * abs(a) for a in axis]  # axis: a link unit axis
         left = wheel_side_m(pybullet, client, robot, link) >= 0.0
         side_factor = options.wheel_friction_left_factor if left else options.wheel_friction_right_factor
-        pybullet.changeDynamics(robot.body_id, link, anisotropicFriction=factors,
-                                lateralFriction=lateral_friction * side_factor,
-                                rollingFriction=options.wheel_rolling_friction, physicsClientId=client)
+        pybullet.changeDynamics(robot.body_id, link, lateralFriction=lateral_friction * side_factor,
+                                physicsClientId=client)
+        if mecanum:
+            axis = pybullet.getJointInfo(robot.body_id, link, physicsClientId=client)[13]
+            factors = [1.0 - (1.0 - options.wheel_side_friction_factor) * abs(a) for a in axis]  # a link unit axis
+            pybullet.changeDynamics(robot.body_id, link, anisotropicFriction=factors,
+                                    rollingFriction=options.wheel_rolling_friction, physicsClientId=client)
+    if not mecanum:
+        return
     pybullet.setJointMotorControlArray(robot.body_id, list(robot.wheel_links), pybullet.VELOCITY_CONTROL,
                                        targetVelocities=[0.0] * len(robot.wheel_links),
                                        forces=[options.wheel_drag_torque_nm] * len(robot.wheel_links),
@@ -546,6 +610,7 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, prof
     check_engine("launch", settings.physics.engine)
     pybullet = require("pybullet", feature="the launch twin")
     condition.validate()
+    settings = sized_for_robot(settings)[0]
     options = settings.twin
     if not use_profile:
         profile = profile_body(condition.configuration, settings)
@@ -563,7 +628,7 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, prof
         orientation = pybullet.getQuaternionFromEuler([0.0, 0.0, angle])
         robot = model.spawn(client, profile, (0.0, 0.0, 5.0), orientation)
         set_contact(client, robot.body_id, settings.physics.body_contact())
-        _set_wheels(pybullet, client, robot, options, settings.physics.lateral_friction)
+        _set_wheels(pybullet, client, robot, options, settings.physics.lateral_friction, mecanum_wheels(settings))
         lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)
         plate = PushPlate(pybullet, client, robot, push, options.plate, options.foam.thickness_m + condition.height_m,
                           (floor_id, foam_id, ledge_id))

@@ -70,12 +70,36 @@ def test_launch_twin_objective_scores_launches_of_the_candidate_under_the_campai
     assert [o.steps for o in disturbance.trial_results] != [o.steps for o in result.trial_results]
 
 
-def test_launches_run_on_the_evaluations_engine_or_are_refused(monkeypatch):
+def test_launches_run_on_the_evaluations_engine_or_are_refused(monkeypatch, tmp_path, capsys):
+    pytest.importorskip("mujoco")
+    from rollability_ros.cli import main
+    from rollability_ros.core.results.records import LaunchCondition
     from rollability_ros.core.sim import trials
+    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
 
-    assert launch_objective(ObjectiveSettings(kind="launch_twin"), "pybullet").twin.physics.engine == "pybullet"
+    campaign = tmp_path / "two_angles.yaml"
+    campaign.write_text(CAMPAIGN)
+    settings = settings_with(kind="launch_twin", campaign_config=[str(campaign)])
+    on = {engine: evaluation.evaluate_profile(None, 2, 5, dataclasses.replace(
+        settings, physics=dataclasses.replace(settings.physics, engine=engine))).trial_results
+        for engine in ("pybullet", "mujoco")}
+    assert [o.steps for o in on["pybullet"]] != [o.steps for o in on["mujoco"]]
+    twin = launch_objective(settings.objective, "mujoco").twin
+    assert twin.physics.engine == "mujoco"
+    direct = simulate_valid_launch(LaunchCondition(CANDIDATE, 0.75, 0.8, -30.0), twin, evaluation.trial_seed(5, 0),
+                                   profile=None, use_profile=True)
+    assert (direct.steps, direct.valid and direct.upright) == (on["mujoco"][0].steps, on["mujoco"][0].upright)
+    # cross-engine agreement of launches, reported as for the disturbance trial
+    config = tmp_path / "launch_objective.yaml"
+    config.write_text("/**:\n  ros__parameters:\n    objective:\n      kind: launch_twin\n"
+                      f"      campaign_config: [{str(campaign)!r}]\n")
+    assert main(["evaluate", "--baseline", "--trials", "2", "--seed", "5", "--workers", "1",
+                 "--engines", "pybullet,mujoco", "--config", str(config)]) == 0
+    out = capsys.readouterr().out
+    assert "pybullet  fitness" in out and "mujoco    fitness" in out and "agreement " in out and "/2 trials" in out
+    # an engine that cannot run launches is refused before any trial
     monkeypatch.setitem(trials.TRIAL_ENGINES, "launch", ("pybullet",))
-    settings = settings_with(kind="mix", **{})
-    settings = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine="mujoco"))
+    mix = settings_with(kind="mix")
+    mix = dataclasses.replace(mix, physics=dataclasses.replace(mix.physics, engine="mujoco"))
     with pytest.raises(ValueError, match=r"^sim.engine 'mujoco' cannot run launch trials"):
-        evaluation.evaluate_profile(None, 2, 5, settings)
+        evaluation.evaluate_profile(None, 2, 5, mix)

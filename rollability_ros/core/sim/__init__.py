@@ -8,5 +8,5 @@ the launch twin.
 - evaluation: fitness = upright / trials, serial, process pool or Ray
 - worker_pool: spawned worker processes that never outlive their parent
 - stable_poses: analytic stable-pose screen
-- launch_twin: the simulated launch rig
+- launch_twin: the simulated launch rig (PyBullet; sim.engine mujoco runs mujoco_launch_twin, the same rules in MuJoCo)
 """

@@ -443,7 +443,7 @@ def _set_wheels(pybullet, client, robot, options, lateral_friction, mecanum):
                                        physicsClientId=client)
 
 
-class _PhaseReporter:
+class PhaseReporter:
     """Reports each of :data:`PHASES` once and in order, filling in any skipped before the one reached."""
 
     def __init__(self, on_phase):
@@ -478,16 +478,55 @@ def place_on_launcher(pybullet, client, robot, orientation, push, settings, heig
     place_on_ground(client, robot.body_id, orientation, launcher.start_clearance_m, (0.0, 0.0), plate_z)
     base_x = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)[0][0]
     lead_m = float(_bounds_m(pybullet, client, robot.body_id)[1][0]) - base_x
-    start = -(launcher.run_length_m + lead_m / push[0]) * push
-    place_on_ground(client, robot.body_id, orientation, launcher.start_clearance_m, start[:2], plate_z)
-    low, high = _bounds_m(pybullet, client, robot.body_id)
+    place_on_ground(client, robot.body_id, orientation, launcher.start_clearance_m,
+                    launcher_start_xy(lead_m, push, launcher), plate_z)
+    check_fits_launcher(*_bounds_m(pybullet, client, robot.body_id), launcher)
+    return lead_m
+
+
+def launcher_start_xy(lead_m, push, launcher):
+    """Where the base origin starts (x, y; m): its foremost point, ``lead_m`` ahead of it along x, reaches the edge
+    after ``run_length_m`` along ``push`` (unit (3,)), on a path through the edge's midpoint (every twin's rule)."""
+    start = -(launcher.run_length_m + lead_m / push[0]) * np.asarray(push, dtype=np.float64)
+    return float(start[0]), float(start[1])
+
+
+def check_fits_launcher(low, high, launcher):
+    """``ValueError`` when a robot whose world bounding box is ``low`` .. ``high`` (m) at its start is not wholly
+    over the ledge (``ledge_depth_m`` behind the edge, ``ledge_width_m`` along it)."""
     side_m = max(-low[1], high[1])
     if low[0] < -launcher.ledge_depth_m or side_m > launcher.ledge_width_m / 2:
         raise ValueError(f"the robot does not fit on the launcher: placed {launcher.run_length_m} m before the edge "
                          f"it reaches {-low[0]:.3f} m behind the edge and {side_m:.3f} m to the side; the ledge is "
                          f"launch_twin.launcher.ledge_depth_m = {launcher.ledge_depth_m} m deep and "
                          f"ledge_width_m = {launcher.ledge_width_m} m wide")
-    return lead_m
+
+
+@dataclasses.dataclass(frozen=True)
+class PlatePlacement:
+    """Where the push plate starts (every twin's rule, module docstring "Launch"): its base ``centre_m`` (3,),
+    turned by ``yaw_rad`` (the push direction) with its face turned a further ``bias_rad``; ``face_x_m`` is the x
+    of the face's leading point at zero travel."""
+
+    centre_m: np.ndarray
+    yaw_rad: float
+    bias_rad: float
+    face_x_m: float
+
+
+def plate_placement(rear_m, base_m, push, spec, plate_z):
+    """The :class:`PlatePlacement` behind a robot whose rearmost point lies ``rear_m`` along ``push`` (unit (3,))
+    with its base origin at ``base_m`` (3,): the face 1 mm behind that point (a turned face leads with one corner),
+    ``offset_m`` to the side of the base's path, its bottom ``clearance_m`` above the plate at ``plate_z``."""
+    push = np.asarray(push, dtype=np.float64)
+    lateral = np.array([-push[1], push[0], 0.0])
+    bias = math.radians(spec.yaw_bias_deg)
+    reach_m = spec.thickness_m / 2 * math.cos(bias) + spec.width_m / 2 * abs(math.sin(bias))
+    along_m = rear_m - reach_m - 0.001
+    centre = along_m * push + (float(np.asarray(base_m, dtype=np.float64) @ lateral) + spec.offset_m) * lateral
+    centre[2] = plate_z + spec.clearance_m + spec.height_m / 2
+    return PlatePlacement(centre_m=centre, yaw_rad=math.atan2(push[1], push[0]), bias_rad=bias,
+                          face_x_m=(along_m + reach_m) * push[0])
 
 
 class PushPlate:
@@ -498,21 +537,15 @@ class PushPlate:
         self._pybullet, self._client, self.spec = pybullet, client, spec
         self.push = np.asarray(push, dtype=np.float64)
         corners = _corners_m(pybullet, client, robot.body_id)
-        rear_m = float((corners @ self.push).min())
         base = np.asarray(pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)[0])
-        lateral = np.array([-self.push[1], self.push[0], 0.0])
-        bias = math.radians(spec.yaw_bias_deg)
-        # the plate's face touches the chassis's rear (1 mm gap); a turned face leads with one corner
-        reach_m = spec.thickness_m / 2 * math.cos(bias) + spec.width_m / 2 * abs(math.sin(bias))
-        along_m = rear_m - reach_m - 0.001
-        centre = along_m * self.push + (float(base @ lateral) + spec.offset_m) * lateral
-        centre[2] = plate_z + spec.clearance_m + spec.height_m / 2
-        yaw = math.atan2(self.push[1], self.push[0])
+        placement = plate_placement(float((corners @ self.push).min()), base, self.push, spec, plate_z)
         shape = pybullet.createCollisionShape(
             pybullet.GEOM_BOX, halfExtents=[spec.thickness_m / 2, spec.width_m / 2, spec.height_m / 2],
-            collisionFrameOrientation=pybullet.getQuaternionFromEuler([0.0, 0.0, bias]), physicsClientId=client)
+            collisionFrameOrientation=pybullet.getQuaternionFromEuler([0.0, 0.0, placement.bias_rad]),
+            physicsClientId=client)
         self.body_id = pybullet.createMultiBody(
-            baseMass=0.0, basePosition=list(centre), baseOrientation=pybullet.getQuaternionFromEuler([0, 0, yaw]),
+            baseMass=0.0, basePosition=list(placement.centre_m),
+            baseOrientation=pybullet.getQuaternionFromEuler([0, 0, placement.yaw_rad]),
             linkMasses=[spec.mass_kg], linkCollisionShapeIndices=[shape], linkVisualShapeIndices=[-1],
             linkPositions=[[0, 0, 0]], linkOrientations=[[0, 0, 0, 1]], linkInertialFramePositions=[[0, 0, 0]],
             linkInertialFrameOrientations=[[0, 0, 0, 1]], linkParentIndices=[0],
@@ -520,7 +553,7 @@ class PushPlate:
         pybullet.changeDynamics(self.body_id, 0, lateralFriction=0.3, linearDamping=0.0, physicsClientId=client)
         for other in ignore_bodies:
             pybullet.setCollisionFilterPair(self.body_id, other, 0, -1, 0, physicsClientId=client)
-        self.face_x_m = along_m * self.push[0] + reach_m * self.push[0]
+        self.face_x_m = placement.face_x_m
         # bounding boxes of turned links overstate the rear: close the rest of the gap to 1 mm along the push
         gaps = [point[8] for point in pybullet.getClosestPoints(self.body_id, robot.body_id, 1.0, linkIndexA=0,
                                                                   physicsClientId=client)]
@@ -608,19 +641,17 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, prof
         launcher (:func:`place_on_launcher`).
     """
     check_engine("launch", settings.physics.engine)
-    pybullet = require("pybullet", feature="the launch twin")
     condition.validate()
     settings = sized_for_robot(settings)[0]
     options = settings.twin
     if not use_profile:
         profile = profile_body(condition.configuration, settings)
-    speed_mps, angle_deg = launch_draws(seed, condition.speed_mps, condition.angle_deg, options)
+    if settings.physics.engine == "mujoco":
+        from rollability_ros.core.sim import mujoco_launch_twin
+        return mujoco_launch_twin.simulate_launch(condition, settings, seed, profile, on_phase, on_pose)
+    pybullet = require("pybullet", feature="the launch twin")
+    speed_mps, angle_deg, push = launch_plan(condition, seed, options)
     angle = math.radians(angle_deg)
-    push_yaw = angle if options.angle_convention == "yaw_of_push" else 0.0
-    push = np.array([math.cos(push_yaw), math.sin(push_yaw), 0.0])
-    if push[0] < MIN_PUSH_TOWARDS_EDGE:
-        raise ValueError(f"angle {angle_deg:.1f} deg pushes along or away from the edge under {options.angle_convention}"
-                         f" (|angle| must stay below {math.degrees(math.acos(MIN_PUSH_TOWARDS_EDGE)):.0f} deg)")
     model = settings.robot_model()
     client = connect()
     try:
@@ -632,9 +663,9 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, prof
         lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)
         plate = PushPlate(pybullet, client, robot, push, options.plate, options.foam.thickness_m + condition.height_m,
                           (floor_id, foam_id, ledge_id))
-        tracker = _LaunchTracker(pybullet, client, robot.body_id, foam_id, lead_m, _PhaseReporter(on_phase),
-                                 push, floor_id)
-        steps, settled = _step_to_rest(pybullet, client, robot, settings, tracker, on_pose, plate, speed_mps)
+        world = _BulletLaunchWorld(pybullet, client, robot, foam_id, floor_id, settings)
+        tracker = LaunchTracker(world, lead_m, PhaseReporter(on_phase), push)
+        steps, settled = step_launch(world, plate, tracker, settings, on_pose, speed_mps)
         went_over = not math.isnan(tracker.base.time_s)
         upright, tilt = model.is_upright(client, robot, foam_id if went_over else ledge_id)
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
@@ -647,10 +678,22 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, prof
                         launch_angle_deg=angle_deg, flight_time_s=tracker.landed_s - tracker.base.time_s,
                         landing_position_m=tracker.landing_m,
                         peak_deceleration_mps2=tracker.peak_deceleration_mps2, edge_speed_mps=tracker.edge_speed_mps,
-                        invalid_reason=_invalid_reason(went_over, tracker, options.foam), seed=int(seed))
+                        invalid_reason=invalid_reason(went_over, tracker, options.foam), seed=int(seed))
 
 
-def _invalid_reason(went_over, tracker, foam):
+def launch_plan(condition, seed, options):
+    """The drawn ``(launch speed m/s, angle deg, push direction (3,))`` of a launch of ``condition`` with ``seed``
+    (module docstring, "Angle" and "Launch"); ``ValueError`` for an angle that pushes along or away from the edge."""
+    speed_mps, angle_deg = launch_draws(seed, condition.speed_mps, condition.angle_deg, options)
+    push_yaw = math.radians(angle_deg) if options.angle_convention == "yaw_of_push" else 0.0
+    push = np.array([math.cos(push_yaw), math.sin(push_yaw), 0.0])
+    if push[0] < MIN_PUSH_TOWARDS_EDGE:
+        raise ValueError(f"angle {angle_deg:.1f} deg pushes along or away from the edge under {options.angle_convention}"
+                         f" (|angle| must stay below {math.degrees(math.acos(MIN_PUSH_TOWARDS_EDGE)):.0f} deg)")
+    return speed_mps, angle_deg, push
+
+
+def invalid_reason(went_over, tracker, foam):
     """Why a launch is no launch ("" when it is one): see :attr:`LaunchResult.invalid_reason`."""
     if not went_over:
         return "did not leave the ledge"
@@ -682,16 +725,17 @@ class _EdgeCrossing:
         return crossed
 
 
-class _LaunchTracker:
+class LaunchTracker:
     """Follows one launch step by step: the foremost point crossing the edge (travel time), the base origin
     crossing it (going over: ``in_flight``), the first foam contact (``settling``), the hardest deceleration.
 
-    Times are simulated seconds from the push, NaN until the event happens.
+    Times are simulated seconds from the push, NaN until the event happens. ``world`` is the engine's launch world
+    (:class:`LaunchWorld`): the tracker reads its base velocity and foam / floor contacts.
     """
 
-    def __init__(self, pybullet, client, body_id, foam_id, lead_m, phases, push, floor_id):
-        self._pybullet, self._client, self._body, self._foam = pybullet, client, body_id, foam_id
-        self._push, self._floor = np.asarray(push, dtype=np.float64), floor_id
+    def __init__(self, world, lead_m, phases, push):
+        self._world = world
+        self._push = np.asarray(push, dtype=np.float64)
         self.phases = phases
         self.edge_speed_mps = NOT_MEASURED
         self.floor_first = False
@@ -705,21 +749,17 @@ class _LaunchTracker:
     def update(self, steps, dt, position):
         """Account for step number ``steps`` (of ``dt`` s) after which the base origin is at ``position``."""
         if self.front.update(steps, dt, position[0]):
-            velocity = self._pybullet.getBaseVelocity(self._body, physicsClientId=self._client)[0]
-            self.edge_speed_mps = float(np.dot(velocity, self._push))
+            self.edge_speed_mps = float(np.dot(self._world.velocity(), self._push))
         if math.isnan(self.base.time_s):
             if self.base.update(steps, dt, position[0]):
                 self.phases.reach("in_flight")
             return
-        pybullet, client = self._pybullet, self._client
-        velocity = np.asarray(pybullet.getBaseVelocity(self._body, physicsClientId=client)[0])
+        velocity = np.asarray(self._world.velocity(), dtype=np.float64)
         if math.isnan(self.landed_s):
-            if pybullet.getContactPoints(bodyA=self._body, bodyB=self._foam, physicsClientId=client):
-                self.landed_s, self.landing_m = steps * dt, tuple(position)
-                self.phases.reach("settling")
-            elif pybullet.getContactPoints(bodyA=self._body, bodyB=self._floor, physicsClientId=client):
-                self.floor_first = True
-                self.landed_s, self.landing_m = steps * dt, tuple(position)
+            on_foam, on_floor = self._world.touching()
+            if on_foam or on_floor:
+                self.floor_first = not on_foam
+                self.landed_s, self.landing_m = steps * dt, tuple(float(v) for v in position)
                 self.phases.reach("settling")
         if not math.isnan(self.landed_s) and self._velocity is not None:
             change = float(np.linalg.norm(velocity - self._velocity)) / dt
@@ -727,15 +767,66 @@ class _LaunchTracker:
         self._velocity = velocity
 
 
-def _step_to_rest(pybullet, client, robot, settings, tracker, on_pose, plate, speed_mps):
-    """Step until the chassis (``robot``, a SpawnedRobot) is at rest or the trials' time cap, driving ``plate`` at
-    ``speed_mps`` until the chassis goes over the edge or the plate reaches it; return ``(steps, settled)``."""
-    body_id = robot.body_id
+class LaunchWorld:
+    """What the launch loop (:func:`step_launch`) needs of an engine's world holding the twin: the robot's base
+    pose and velocity, its first contacts, one step, the rest rule (the PyBullet and MuJoCo twins implement it)."""
+
+    def pose(self):
+        """The base origin (x, y, z) (m) and orientation (x, y, z, w) now."""
+        raise NotImplementedError
+
+    def velocity(self):
+        """The base origin's linear velocity (3,) in the world frame, m/s."""
+        raise NotImplementedError
+
+    def touching(self):
+        """``(on the foam, on the floor)``: whether the robot touches each now."""
+        raise NotImplementedError
+
+    def step(self):
+        """Advance the world by one time step."""
+        raise NotImplementedError
+
+    def settled(self, steps):
+        """After step number ``steps``: True once the robot has stayed at rest for the trials' hold time."""
+        raise NotImplementedError
+
+
+class _BulletLaunchWorld(LaunchWorld):
+    """:class:`LaunchWorld` of one PyBullet client holding the twin's bodies and the spawned robot."""
+
+    def __init__(self, pybullet, client, robot, foam_id, floor_id, settings):
+        self._pybullet, self._client, self._robot = pybullet, client, robot
+        self._body, self._foam, self._floor = robot.body_id, foam_id, floor_id
+        self._rest = RestDetector(settings.trial, settings.physics.time_step_s)
+
+    def pose(self):
+        return self._pybullet.getBasePositionAndOrientation(self._body, physicsClientId=self._client)
+
+    def velocity(self):
+        return self._pybullet.getBaseVelocity(self._body, physicsClientId=self._client)[0]
+
+    def touching(self):
+        contacts, client = self._pybullet.getContactPoints, self._client
+        return (bool(contacts(bodyA=self._body, bodyB=self._foam, physicsClientId=client)),
+                bool(contacts(bodyA=self._body, bodyB=self._floor, physicsClientId=client)))
+
+    def step(self):
+        self._robot.before_step()
+        self._pybullet.stepSimulation(physicsClientId=self._client)
+
+    def settled(self, steps):
+        return self._rest.settled(self._client, self._body, steps)
+
+
+def step_launch(world, plate, tracker, settings, on_pose, speed_mps):
+    """Step ``world`` (a :class:`LaunchWorld`) until the robot is at rest or the trials' time cap, driving ``plate``
+    at ``speed_mps`` until the robot goes over the edge or the plate reaches it; return ``(steps, settled)``.
+    Every twin runs its launches through this loop (the launch rules live here and in :class:`LaunchTracker`)."""
     dt = settings.physics.time_step_s
     cap = round(settings.trial.time_cap_s / dt)
     pose_every = max(1, round(1.0 / (settings.twin.pose_rate_hz * dt)))
-    rest = RestDetector(settings.trial, dt)
-    position, orientation = pybullet.getBasePositionAndOrientation(body_id, physicsClientId=client)
+    position, orientation = world.pose()
     tracker.update(0, dt, position)
     tracker.phases.reach("fired")
     if on_pose is not None:
@@ -747,15 +838,14 @@ def _step_to_rest(pybullet, client, robot, settings, tracker, on_pose, plate, sp
         if plate.driving or not plate_started:
             plate.drive(speed_mps, (steps + 1) * dt)
             plate_started = True
-        robot.before_step()
-        pybullet.stepSimulation(physicsClientId=client)
+        world.step()
         steps += 1
-        position, orientation = pybullet.getBasePositionAndOrientation(body_id, physicsClientId=client)
+        position, orientation = world.pose()
         tracker.update(steps, dt, position)
         if plate.driving and (not math.isnan(tracker.base.time_s) or plate.reached_edge()):
             plate.stop()
         if on_pose is not None and steps % pose_every == 0:
             on_pose(steps * dt, position, orientation)
-        settled = rest.settled(client, body_id, steps)
+        settled = world.settled(steps)
     tracker.phases.reach("classifying")
     return steps, settled

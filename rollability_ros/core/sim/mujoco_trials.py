@@ -53,11 +53,9 @@ def set_geom_contact(geom, physics, ground=False):
     geom.solref = [max(CONTACT_SOLREF[0], 4 * physics.time_step_s), CONTACT_SOLREF[1]]
 
 
-def build_model(robot_model, profile, physics):
-    """Compile the MuJoCo model of ``robot_model`` with ``profile`` (or None) on a ground plane.
-
-    Returns ``(model, root body id, {wheel body id, ...})``.
-    """
+def robot_spec(robot_model, profile, physics):
+    """The MjSpec of ``robot_model`` with ``profile`` (or None): contacts, joint drag, profile mount and a free
+    joint on the root link, nothing else in the world. Returns ``(spec, root body spec)``."""
     mujoco = require("mujoco", feature="the MuJoCo trial engine")
     assets = {}
     mesh_file = None
@@ -92,15 +90,29 @@ def build_model(robot_model, profile, physics):
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_RK4
     root = spec.worldbody.first_body()
     root.add_freejoint()
+    return spec, root
+
+
+def wheel_bodies(model, robot_model):
+    """The body ids of ``robot_model``'s wheel links in compiled ``model``."""
+    wheel_names = set(robot_model.wheel_link_names())
+    return {model.body(i).id for i in range(model.nbody) if model.body(i).name in wheel_names}
+
+
+def build_model(robot_model, profile, physics):
+    """Compile the MuJoCo model of ``robot_model`` with ``profile`` (or None) on a ground plane.
+
+    Returns ``(model, root body id, {wheel body id, ...})``.
+    """
+    mujoco = require("mujoco", feature="the MuJoCo trial engine")
+    spec, root = robot_spec(robot_model, profile, physics)
     ground = spec.worldbody.add_geom()
     ground.name = "ground"
     ground.type = mujoco.mjtGeom.mjGEOM_PLANE
     ground.size = [0.0, 0.0, 1.0]
     set_geom_contact(ground, physics, ground=True)
     model = spec.compile()
-    wheel_names = set(robot_model.wheel_link_names())
-    wheels = {model.body(i).id for i in range(model.nbody) if model.body(i).name in wheel_names}
-    return model, model.body(root.name).id, wheels
+    return model, model.body(root.name).id, wheel_bodies(model, robot_model)
 
 
 def _coefficients(current, linear):

@@ -324,7 +324,7 @@ def run_trial(client, robot_model, profile, index, seed, settings, physics):
 
 #: The engine seam: trial kind -> the ``sim.engine`` values that can run it. :func:`check_engine` refuses any
 #: other pairing (never replaced by another engine). ``launch``: :mod:`~rollability_ros.core.sim.launch_twin`.
-TRIAL_ENGINES = {"disturbance": ("pybullet", "mujoco"), "launch": ("pybullet",)}
+TRIAL_ENGINES = {"disturbance": ("pybullet", "mujoco"), "launch": ("pybullet", "mujoco")}
 
 
 def check_engine(kind, engine):

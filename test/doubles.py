@@ -3,12 +3,15 @@
 - :class:`SyntheticEvaluator`: an ``evaluate_batch`` with a known optimum, for optimization-loop tests and for
   timing the plumbing without physics (bench/bench_optimizer.py);
 - :func:`synthetic_outcomes`: "physical" launch outcomes made on the launch twin with hidden parameter values, to
-  test that a calibration recovers them (bench/bench_calibration.py).
+  test that a calibration recovers them (bench/bench_calibration.py);
+- :func:`tree_checksums`: the SHA-256 of every file under a folder, to show a command changed nothing recorded.
 
 Tests import them as ``from doubles import ...`` (pytest puts test/ on the path through test/conftest.py); the
 benchmarks add test/ to ``sys.path`` themselves.
 """
 import dataclasses
+import hashlib
+import os
 
 import numpy as np
 
@@ -60,3 +63,14 @@ def synthetic_outcomes(parameters, names, values, conditions, repetitions, first
             outcomes.append(LaunchOutcome("synthetic", f"synthetic-{len(outcomes)}", launch, "physical",
                                           result.upright and result.valid, classified_by="operator", note=note))
     return outcomes
+
+
+def tree_checksums(root):
+    """``{path relative to root: SHA-256 of the file}`` for every file under ``root`` (empty when it is missing)."""
+    sums = {}
+    for folder, _, names in os.walk(root):
+        for name in names:
+            path = os.path.join(folder, name)
+            with open(path, "rb") as stream:
+                sums[os.path.relpath(path, root)] = hashlib.sha256(stream.read()).hexdigest()
+    return sums

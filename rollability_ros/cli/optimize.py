@@ -62,8 +62,12 @@ def run(args):
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.optimization import optimization_run as optimization_run
 
-    if args.resume and args.run_id:
+    from rollability_ros.core.config import check_path_component
+
+    if args.resume and args.run_id is not None:
         raise ValueError("--run-id names a new run; --resume takes the run to continue")
+    if args.run_id is not None:
+        check_path_component(args.run_id, "--run-id")
     given = optimization_run.load_run_parameters(args.config) if args.config else None
     output_dir = optimization_run.optimizer_settings(given).output_dir if given else "runs"
     run_dir, parameters = optimization_run.run_target(args.resume or args.run_id or "", bool(args.resume), given,

@@ -1,4 +1,5 @@
 """`rollability select RUN`: choose the designs to fabricate (Mesh A, B, C) from an optimization run."""
+import os
 import sys
 
 
@@ -59,6 +60,11 @@ def run(args):
         print(f"{design.label}: {design.reason}")
     print(f"wrote {folder}/: table3.csv, designs.yaml, {len(result.designs)} STL file(s) in "
           f"{'millimetres' if settings.mesh_units == 'mm' else 'metres'} and as many 3MF files")
+    earlier = [os.path.basename(path) for path in selection.design_set_folders(run_dir)
+               if os.path.abspath(path) != os.path.abspath(folder)]
+    if earlier:
+        print(f"earlier design set(s) kept unchanged ({', '.join(earlier)}: stored outcomes and printed parts may "
+              f"refer to them); a campaign on this set needs launch_twin.designs.designs_file: {folder}/designs.yaml")
     if result.shortfall:
         print(f"rollability select: {result.shortfall}", file=sys.stderr)
         return 1
@@ -75,7 +81,9 @@ def register(subparsers):
                     "re-evaluate them and the baseline with fresh trials. A quality-diversity run (optimizer.method "
                     "cma_mae) is selected from its height x sharpness archive instead: every elite screened on fresh "
                     "trials, A the best of the top decile (--top-fraction), B and C the top-decile elites farthest "
-                    "from the designs already taken. Each design's reason is printed. Writes <run>/designs/: mesh_<X>.stl "
+                    "from the designs already taken. Each design's reason is printed. Writes a new design set, "
+                    "<run>/designs/ (or designs-2/, designs-3/, ... when the run has one: a written set is never "
+                    "changed): mesh_<X>.stl "
                     "(millimetres unless --mesh-units m; the unit is in the STL header), mesh_<X>.3mf, "
                     "table3.csv (the paper's Table 3 with fitness and Wilson interval) and designs.yaml. "
                     "Defaults come from the run's config.yaml (section selection).")

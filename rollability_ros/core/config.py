@@ -8,6 +8,7 @@ dict for a node; :func:`section` cuts a namespace back out as a nested dict for 
 import dataclasses
 import math
 import os
+import re
 import typing
 
 import yaml
@@ -29,6 +30,20 @@ KNOWN_NAMESPACES = frozenset({
 
 class ConfigError(ValueError):
     """A parameter file or a parameter value is unusable; the message names the file and the parameter."""
+
+
+#: A run, study or session id: one path component of letters, digits, '.', '_' and '-' (not starting with '.' or
+#: '-'), since it names a folder under the output directory and a key in the stores.
+_PATH_COMPONENT = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,127}")
+
+
+def check_path_component(value, what):
+    """Return ``value`` if it is a safe single path component (:data:`_PATH_COMPONENT`), else raise ConfigError
+    naming ``what``: an id like ``../escaped`` or ``''`` would write outside the output folder or into it."""
+    if not isinstance(value, str) or not _PATH_COMPONENT.fullmatch(value):
+        raise ConfigError(f"{what} must be one folder name of letters, digits, '.', '_' and '-' (at most 128, not "
+                          f"starting with '.' or '-'), got {value!r}")
+    return value
 
 
 def config_dir():

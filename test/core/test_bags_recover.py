@@ -5,6 +5,7 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
 import yaml
 
 from rollability_ros.core.bags.metadata import read_metadata
@@ -284,3 +285,105 @@ def test_stored_outcomes_missing_from_the_bag_are_accepted_only_inside_a_reporte
     problem, note = compare_bags_with_store({"t0", "t1", "t2"}, stored, [])
     assert problem and note == ""
     assert compare_bags_with_store({"t0", "t1", "t2", "t3"}, stored, []) == ("", "")
+
+
+# --- issue 26: nothing saved means nothing changed; every rewritten file keeps a backup; info checks the CRCs --------
+def _header_only(path):
+    """The first bytes of the sample up to the end of its header record: magic + header, nothing else."""
+    data = path.read_bytes()
+    length = int.from_bytes(data[9:17], "little")
+    return data[:8 + 9 + length]
+
+
+def _first_chunk_cut(path):
+    """The sample cut in the middle of its first chunk: the schemas and channels before it, no complete chunk."""
+    first = _chunk_indexes(path)[0]
+    return path.read_bytes()[:first.chunk_start_offset + first.chunk_length // 2]
+
+
+def _every_chunk_flipped(path):
+    data = bytearray(path.read_bytes())
+    for chunk in _chunk_indexes(path):
+        middle = chunk.chunk_start_offset + chunk.chunk_length // 2
+        for offset in range(middle, middle + 64):
+            data[offset] ^= 0xFF
+    return bytes(data)
+
+
+@pytest.mark.parametrize("damage", [
+    lambda path: b"",                          # empty
+    lambda path: path.read_bytes()[:10],       # tiny: 10 bytes, the magic and two more
+    _header_only,                              # magic and header record only
+    _first_chunk_cut,                          # truncated inside the first chunk
+    _every_chunk_flipped,                      # 64 bytes flipped in every chunk: no CRC matches
+], ids=["empty", "10-byte", "header-only", "truncated", "bit-flipped"])
+def test_recover_refuses_a_bag_from_which_nothing_can_be_saved_and_changes_no_file(tmp_path, damage):
+    """Was: exit 0, "metadata.yaml rewritten, 0 messages", the 2362 messages metadata.yaml declared overwritten."""
+    from doubles import tree_checksums
+
+    bag, path = _sample_copy(tmp_path)
+    path.write_bytes(damage(path))
+    before = tree_checksums(bag)
+    result = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "bag", "recover", str(bag)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert "nothing can be saved" in result.stderr and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert tree_checksums(bag) == before
+
+
+def test_every_file_recover_rewrites_keeps_a_numbered_backup(tmp_path):
+    """The damaged storage file, metadata.yaml and the open writer's sidecar are kept; a second recovery of the
+    same bag adds -2 backups instead of overwriting the first ones."""
+    from rollability_ros.core.bags.recover import BACKUP_SUFFIX
+
+    bag = _killed_writer_bag(tmp_path)
+    originals = {p.name: p.read_bytes() for p in bag.iterdir()}
+    report = recover(bag)
+    assert report["message_count"] == 400 and report["metadata_rewritten"]
+    assert report["metadata_backup"] == "metadata.yaml" + BACKUP_SUFFIX
+    assert (bag / report["metadata_backup"]).read_bytes() == originals["metadata.yaml"]
+    assert (bag / report["sidecar_backup"]).read_bytes() == originals[".recovery.json"]
+    for entry in report["files"]:
+        if entry["status"] == "recovered":
+            assert (bag / entry["backup"]).read_bytes() == originals[entry["path"]]
+    recovered_metadata = (bag / "metadata.yaml").read_bytes()
+
+    last = sorted(p for p in bag.glob("*.mcap"))[-1]
+    first_backup = bag / (last.name + BACKUP_SUFFIX)
+    assert first_backup.exists()                     # the killed writer's open file was the one recovered
+    kept = first_backup.read_bytes()
+    last.write_bytes(last.read_bytes()[:-40])       # damaged again (its footer cut)
+    again = recover(bag)
+    (entry,) = [e for e in again["files"] if e["status"] == "recovered"]
+    assert entry["backup"] == last.name + BACKUP_SUFFIX + "-2" and first_backup.read_bytes() == kept
+    assert (bag / ("metadata.yaml" + BACKUP_SUFFIX)).read_bytes() == originals["metadata.yaml"]  # first kept
+    if again["metadata_rewritten"]:
+        assert (bag / again["metadata_backup"]).read_bytes() == recovered_metadata
+    assert [m.data for m in BagReader(bag)] == [string_cdr(f"message {i}") for i in range(400)]
+
+
+def _bag_info_cli(*argv):
+    return subprocess.run([sys.executable, "-m", "rollability_ros.cli", "bag", "info", *argv],
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_bag_info_checks_every_chunk_crc_and_names_corrupt_chunks(tmp_path):
+    """Was: `bag info` on a bag with 64 corrupt bytes in a chunk exited 0 without noticing."""
+    bag, path = _sample_copy(tmp_path)
+    chunks = _chunk_indexes(path)
+    clean = _bag_info_cli(str(bag))
+    assert clean.returncode == 0 and f"Chunk CRCs:        verified: all {len(chunks)} chunks match" in clean.stdout
+
+    middle = chunks[1].chunk_start_offset + chunks[1].chunk_length // 2
+    _flip(path, range(middle, middle + 64))
+    damaged = _bag_info_cli(str(bag))
+    assert damaged.returncode == 1, damaged.stdout + damaged.stderr
+    assert f"1 of {len(chunks)} chunks fail their check" in damaged.stderr
+    assert f"corrupt: bag_0.mcap: the chunk at byte {chunks[1].chunk_start_offset} is corrupt" in damaged.stdout
+    assert "Traceback" not in damaged.stderr and len(damaged.stderr.strip().splitlines()) == 1
+    assert "Messages:          2362" in damaged.stdout      # the summary is still shown
+
+    unchecked = _bag_info_cli(str(bag), "--no-verify")
+    assert unchecked.returncode == 0 and "Chunk CRCs:        not verified" in unchecked.stdout
+    single_file = _bag_info_cli(str(path), "--json")
+    assert single_file.returncode == 1 and '"corrupt_chunks": [' in single_file.stdout

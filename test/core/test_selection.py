@@ -11,7 +11,7 @@ pytest.importorskip("trimesh")
 
 from rollability_ros.core.profile import geometry  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
-from doubles import SyntheticEvaluator  # noqa: E402
+from doubles import SyntheticEvaluator, tree_checksums  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import OptimizationRun  # noqa: E402
 from rollability_ros.core.results.records import CandidateRecord  # noqa: E402
 from rollability_ros.core.optimization.selection import (  # noqa: E402
@@ -19,6 +19,7 @@ from rollability_ros.core.optimization.selection import (  # noqa: E402
     pool_candidates,
     rms_distance,
     select_designs,
+    design_set_folders,
     write_selection,
 )
 from rollability_ros.core.results.store import Store  # noqa: E402
@@ -120,9 +121,15 @@ def test_outputs_with_reevaluation(run_candidates):
             mesh = geometry.load_profile_mesh(os.path.join(folder, f"mesh_{design.label}{extension}"))
             assert mesh.volume == pytest.approx(design.mesh.volume, rel=1e-5)
 
+    # a second selection of the run writes a new design set beside the first, which stays byte for byte
+    before = tree_checksums(run_dir)
     fewer = select_designs(candidates, GRID, geometry.PrinterSpec(), SelectionSettings(count=1))
-    write_selection(run_dir, fewer, GRID, "run")
-    assert sorted(n for n in os.listdir(folder) if n.startswith("mesh_")) == ["mesh_A.3mf", "mesh_A.stl"]
+    second = write_selection(run_dir, fewer, GRID, "run")
+    assert os.path.basename(second) == "designs-2" and os.path.basename(folder) == "designs"
+    assert sorted(n for n in os.listdir(second) if n.startswith("mesh_")) == ["mesh_A.3mf", "mesh_A.stl"]
+    after = tree_checksums(run_dir)
+    assert {path: after[path] for path in before} == before
+    assert os.path.basename(write_selection(run_dir, fewer, GRID, "run")) == "designs-3"
 
 
 def test_settings_are_checked():
@@ -141,5 +148,7 @@ def test_select_cli_takes_another_printer_from_config(run_candidates, tmp_path, 
     assert cli_main(["select", run_dir, "--count", "1", "--config", str(printer_file)]) == 1
     assert "printer.bed_x_m / bed_y_m" in capsys.readouterr().err
     assert cli_main(["select", run_dir, "--count", "1", "--mesh-units", "m"]) == 0
-    header = open(os.path.join(run_dir, "designs", "mesh_A.stl"), "rb").read(80)
+    latest = design_set_folders(run_dir)[-1]     # each selection of the run is its own design set
+    assert f"wrote {latest}/" in capsys.readouterr().out
+    header = open(os.path.join(latest, "mesh_A.stl"), "rb").read(80)
     assert header.startswith(b"rollability_ros profile mesh; units=m;")

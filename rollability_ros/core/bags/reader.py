@@ -178,10 +178,42 @@ def check_readable(reader):
         verify_mcap_file(path)
 
 
-def _mcap_file_info(path):
-    """Return the info of one complete MCAP file from its summary section (no message is read)."""
+def _chunk_problems(path, stream, summary):
+    """``(chunks, [problem, ...])``: every chunk the summary of the MCAP file ``path`` (open as ``stream``) indexes,
+    read at its offset, decompressed and checked against its CRC; each problem names the chunk's byte offset."""
+    import io
+
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Chunk
+    from mcap.stream_reader import breakup_chunk
+
+    problems = []
+    for index in summary.chunk_indexes:
+        offset = index.chunk_start_offset
+        stream.seek(offset)
+        head = stream.read(9)
+        if len(head) < 9 or head[0] != 0x06:
+            problems.append(f"{os.path.basename(path)}: no chunk record at byte {offset}, where the index puts one")
+            continue
+        body = stream.read(int.from_bytes(head[1:9], "little"))
+        try:
+            chunk = Chunk.read(ReadDataStream(io.BytesIO(body)))
+            if not chunk.uncompressed_crc:
+                problems.append(f"{os.path.basename(path)}: the chunk at byte {offset} carries no CRC (unverifiable)")
+                continue
+            breakup_chunk(chunk, validate_crc=True)
+        except Exception as exc:  # CRC mismatch, undecompressible or garbled chunk
+            problems.append(f"{os.path.basename(path)}: the chunk at byte {offset} is corrupt "
+                            f"({type(exc).__name__}: {exc})")
+    return len(summary.chunk_indexes), problems
+
+
+def _mcap_file_info(path, verify_chunks=False):
+    """Return the info of one complete MCAP file from its summary section (no message is read); with
+    ``verify_chunks`` also ``chunks`` and ``chunk_problems`` (:func:`_chunk_problems`)."""
     with open(path, "rb") as stream:
         _, summary = open_mcap(path, stream)
+        chunks, problems = _chunk_problems(path, stream, summary) if verify_chunks else (None, None)
     statistics = summary.statistics
     counts = {}
     for channel_id, count in statistics.channel_message_counts.items():
@@ -198,6 +230,8 @@ def _mcap_file_info(path):
         "end_time_ns": statistics.message_end_time if statistics.message_count else None,
         "chunk_compression": compressions,
         "topic_counts": counts,
+        "chunks": chunks,
+        "chunk_problems": problems,
     }
 
 
@@ -262,11 +296,14 @@ def human_time(time_ns):
     return f"{moment:%Y-%m-%d %H:%M:%S}.{nanoseconds:09d} UTC"
 
 
-def bag_info(path):
+def bag_info(path, verify_chunks=False):
     """Summarise a bag directory, or one ``.mcap`` file: topics, types, counts, QoS, time span, files, sizes.
 
     Counts and times come from the storage files themselves (MCAP summary sections), so a metadata.yaml
-    that disagrees with them (e.g. a recorder killed before closing) is reported in ``warnings``.
+    that disagrees with them (e.g. a recorder killed before closing) is reported in ``warnings``. With
+    ``verify_chunks`` every MCAP chunk is also read and checked against its CRC (``chunk_check``: a sentence
+    saying what was checked; ``corrupt_chunks``: one line per damaged chunk); without, ``chunk_check`` says the
+    CRCs were not verified.
 
     Returns
     -------
@@ -288,7 +325,17 @@ def bag_info(path):
     if information["storage_identifier"] == "sqlite3":
         files = _rosbags_file_infos(directory, information)
     else:
-        files = [_mcap_file_info(path) for path in storage_paths(directory, information)]
+        files = [_mcap_file_info(path, verify_chunks) for path in storage_paths(directory, information)]
+    corrupt_chunks = [problem for f in files for problem in (f.pop("chunk_problems", None) or [])]
+    chunk_count = sum(f.pop("chunks", None) or 0 for f in files)
+    if information["storage_identifier"] == "sqlite3":
+        chunk_check = "not applicable (sqlite3 storage has no chunk CRCs)"
+    elif not verify_chunks:
+        chunk_check = "not verified"
+    elif corrupt_chunks:
+        chunk_check = f"{len(corrupt_chunks)} of {chunk_count} chunks fail their check: run `rollability bag recover`"
+    else:
+        chunk_check = f"verified: all {chunk_count} chunks match their CRCs"
     counts = {}
     for entry in files:
         for key, count in entry.pop("topic_counts").items():
@@ -335,6 +382,8 @@ def bag_info(path):
         "topics": topics,
         "files": files,
         "warnings": warnings,
+        "chunk_check": chunk_check,
+        "corrupt_chunks": corrupt_chunks,
     }
 
 
@@ -363,6 +412,7 @@ def format_bag_info(info):
         f"End:               {info['end_time']} ({_seconds_text(info['end_time_ns'])})",
         f"Messages:          {info['message_count']}",
         f"Files:             {len(info['files'])}",
+        f"Chunk CRCs:        {info['chunk_check']}",
     ]
     for entry in info["files"]:
         lines.append(f"  {entry['path']}  {_size_text(entry['size_bytes'])}, {entry['message_count']} msgs, "
@@ -377,6 +427,8 @@ def format_bag_info(info):
                      f"QoS: {_qos_text(topic['offered_qos_profiles'])}")
     for warning in info["warnings"]:
         lines.append(f"warning: {warning}")
+    for problem in info["corrupt_chunks"]:
+        lines.append(f"corrupt: {problem}")
     return "\n".join(lines)
 
 

@@ -13,9 +13,12 @@ data, ROS distro, files so far; counts of 0). Outside damage (flipped bytes) can
 - never makes a bag worse: each rebuilt file is written beside the original, verified (complete, CRC-valid,
   holding every salvaged message) and only then renamed over it, the damaged original kept as
   ``<file>.before-recover``; when a damaged file yields nothing, BagError says so and nothing is changed;
-- rewrites metadata.yaml with counts and times from the files, keeping every field of the old one
-  (storage id, ROS distro, custom data, compression fields, per-topic QoS and type hashes). With no
-  metadata.yaml left it takes them from the files' channel metadata and ``rosbag2`` metadata records.
+- refuses (BagError, nothing changed) a bag in which no message at all can be saved (an empty, 10-byte or
+  header-only file): "recovering" it would only replace a metadata.yaml that still names what was recorded;
+- rewrites metadata.yaml (the old one kept as ``metadata.yaml.before-recover``) with counts and times from the
+  files, keeping every field of the old one (storage id, ROS distro, custom data, compression fields, per-topic
+  QoS and type hashes). With no metadata.yaml left it takes them from the files' channel metadata and
+  ``rosbag2`` metadata records.
 
 What a kill loses is bounded by :mod:`rollability_ros.core.bags.writer`: the messages of the one chunk that was
 open at the kill (``ros2 bag reindex`` by contrast needs readable files and rebuilds metadata.yaml from them,
@@ -53,6 +56,15 @@ _SALVAGED_OPCODES = re.compile(b"[\x03\x04\x06]")
 
 #: Suffix of the copy of a damaged storage file that ``recover`` keeps next to the repaired one.
 BACKUP_SUFFIX = ".before-recover"
+
+
+def backup_path(path):
+    """The name ``recover`` keeps the original of ``path`` under: ``<path>.before-recover``, or the first free
+    ``<path>.before-recover-<n>`` when an earlier recovery already kept one (no backup is ever overwritten)."""
+    candidate, number = path + BACKUP_SUFFIX, 2
+    while os.path.lexists(candidate):
+        candidate, number = f"{path}{BACKUP_SUFFIX}-{number}", number + 1
+    return candidate
 
 
 def _is_complete(path):
@@ -245,13 +257,18 @@ def _previous_metadata(directory):
         return {}
 
 
-def recover(directory):
+def recover(directory, allow_empty=False):
     """Recover the bag in ``directory`` in place (see the module docstring); return a report.
+
+    A bag in which no message can be saved is refused (BagError, nothing changed) unless ``allow_empty``: a writer
+    continuing the bag of a recorder killed before its first chunk reached the disk recovers it to an empty bag
+    (the originals kept as backups) and records on.
 
     Nothing is replaced until every repaired file has been written beside its original and verified
     (complete, CRC-valid, holding every salvaged message); each damaged original is then kept as
-    ``<file>.mcap.before-recover``. When a damaged file yields nothing (no intact chunk, or no readable record at
-    all), BagError says so and the bag is left exactly as it was.
+    ``<file>.mcap.before-recover`` (``-<n>`` added when an earlier recovery kept one), and so is metadata.yaml
+    when it changes, and the recovery sidecar of an open writer. When a damaged file yields nothing (no intact
+    chunk, or no readable record at all), BagError says so and the bag is left exactly as it was.
 
     Returns
     -------
@@ -259,13 +276,14 @@ def recover(directory):
         ``files``: one dict per storage file (``path``, ``status`` "intact" or "recovered", and for recovered
         files ``messages``, ``chunks_recovered``, ``chunks_discarded``, ``bytes_discarded``,
         ``messages_without_channel``, ``header_intact``, ``backup``); ``message_count``: messages in the
-        recovered bag; ``topics``: ``{topic: message count}``.
+        recovered bag; ``topics``: ``{topic: message count}``; ``metadata_rewritten`` (bool),
+        ``metadata_backup`` and ``sidecar_backup`` (file names of the kept originals, "" for none).
 
     Raises
     ------
     BagError
-        ``directory`` is not a directory, holds no MCAP storage file, or holds a damaged file from which
-        nothing can be saved.
+        ``directory`` is not a directory, holds no MCAP storage file, holds a damaged file from which
+        nothing can be saved, or (without ``allow_empty``) no message can be saved at all.
     """
     directory = os.fspath(directory)
     if not os.path.isdir(directory):
@@ -308,16 +326,19 @@ def recover(directory):
                     found_topics[topic.name].message_count += topic.message_count
                 else:
                     found_topics[topic.name] = topic
+        if not allow_empty and not sum(info.message_count for info in files):
+            declared = previous.get("message_count")
+            raise BagError(f"{directory}: nothing can be saved: no intact message in {', '.join(names)}"
+                           f"{f' (metadata.yaml declares {declared})' if declared else ''}; the bag is left as it was")
     except BaseException:
         for _, temporary in repaired:
             if os.path.exists(temporary):
                 os.remove(temporary)
         raise
     for (path, temporary), report in zip(repaired, [r for r in reports if r["status"] == "recovered"]):
-        backup = path + BACKUP_SUFFIX
-        if os.path.getsize(path) and not os.path.exists(backup):
-            os.link(path, backup)          # the damaged original stays, under another name
-            report["backup"] = os.path.basename(backup)
+        backup = backup_path(path)
+        os.link(path, backup)          # the damaged original stays, under another name
+        report["backup"] = os.path.basename(backup)
         os.replace(temporary, path)
     if not known_topics:
         known_topics = topics_from_metadata(stored) if stored.get("topics_with_message_count") else []
@@ -330,12 +351,22 @@ def recover(directory):
         topics, files, storage_identifier="mcap",
         compression_format=stored.get("compression_format", ""), compression_mode=stored.get("compression_mode", ""),
         custom_data=stored.get("custom_data"), ros_distro=stored.get("ros_distro") or ROS_DISTRO)
-    write_metadata(directory, information)
+    metadata_path = os.path.join(directory, METADATA_FILE)
+    metadata_backup = ""
+    if information != previous:
+        if os.path.lexists(metadata_path):
+            metadata_backup = backup_path(metadata_path)
+            os.link(metadata_path, metadata_backup)
+        write_metadata(directory, information)
     sidecar = os.path.join(directory, RECOVERY_SIDECAR)
-    if os.path.exists(sidecar):
-        os.remove(sidecar)
+    sidecar_backup = ""
+    if os.path.exists(sidecar):   # the bag is closed now; the open writer's definitions stay, renamed
+        sidecar_backup = backup_path(sidecar)
+        os.replace(sidecar, sidecar_backup)
     return {"files": reports, "message_count": information["message_count"],
-            "topics": {t.name: t.message_count for t in topics}}
+            "topics": {t.name: t.message_count for t in topics},
+            "metadata_rewritten": information != previous,
+            "metadata_backup": os.path.basename(metadata_backup), "sidecar_backup": os.path.basename(sidecar_backup)}
 
 
 def is_left_open(directory):

@@ -256,7 +256,7 @@ class BagWriter:
         if not is_left_open(self.directory):
             raise ValueError(f"{self.directory}: holds a closed bag (or no bag); not writing into it")
         try:
-            self.continued = recover(self.directory)
+            self.continued = recover(self.directory, allow_empty=True)   # killed before its first chunk: go on
             information = mark_restart(self.directory)
         except BagError as exc:
             raise ValueError(f"{self.directory}: cannot continue the bag left open there: {exc}") from exc

@@ -30,7 +30,7 @@ import yaml
 
 from rollability_ros.core.graph.bringup import NodeLaunch, core_nodes, load_graph_settings, new_study_id, parameter_files
 from rollability_ros.core.graph.progress import JobProgress, ProgressDisplay, Stopwatch, eta_s
-from rollability_ros.core.config import load_parameters
+from rollability_ros.core.config import check_path_component, load_parameters
 from rollability_ros.core.results.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
 
@@ -39,6 +39,10 @@ OPTIMIZATION_DIR = "optimization"
 #: The study's copies of its parameter files, inside the study directory.
 CONFIG_DIR = "config"
 
+
+#: The study's id (its campaign's run id in the outcome store), written when the study is made: a resumed study
+#: keeps it whatever its folder is called now, so a copied or renamed folder continues the same campaign.
+STUDY_ID_FILE = "study-id.txt"
 
 #: Seconds between progress snapshots while a phase runs.
 PROGRESS_PERIOD_S = 1.0
@@ -67,13 +71,17 @@ class Study:
             if extra_configs or study_id:
                 raise ValueError("a resumed study runs on its own saved configuration: no --config or --study-id")
             self.study_dir = resume_dir(resume, load_graph_settings(self.param_files).output_dir)
-            self.study_id = os.path.basename(os.path.normpath(self.study_dir))
+            self.study_id = recorded_study_id(self.study_dir)
             self.param_files = saved_parameter_files(self.study_dir)
         self.settings = load_graph_settings(self.param_files)
         self.parameters = load_parameters(self.param_files)
         if not self.resuming:
-            self.study_id = study_id or new_study_id()
+            self.study_id = (check_path_component(study_id, "--study-id") if study_id is not None
+                             else new_study_id())
             self.study_dir = os.path.join(self.settings.output_dir, self.study_id)
+            if os.path.lexists(self.study_dir):
+                raise ValueError(f"study directory {self.study_dir} already exists: continue it with --resume "
+                                 f"{self.study_dir}, or choose another --study-id")
         # display: live line on a terminal, plain lines otherwise (core/graph/progress.py); say: event lines
         self.display = display or ProgressDisplay(live=False)
         self.say = say or self.display.say
@@ -98,6 +106,13 @@ class Study:
             "run_id": OPTIMIZATION_DIR, "optimizer.output_dir": self.study_dir, "autostart": True,
             "select_designs": True, "exit_on_finish": True, "resume": resume})
 
+    def make_study_dir(self):
+        """Make the new study's directory: its recorded id (:data:`STUDY_ID_FILE`) and its parameter files."""
+        os.makedirs(self.study_dir, exist_ok=False)
+        with open(os.path.join(self.study_dir, STUDY_ID_FILE), "w", encoding="utf-8") as stream:
+            stream.write(self.study_id + "\n")
+        self._save_parameter_files()
+
     def _save_parameter_files(self):
         """Copy the parameter files into ``config/`` (numbered in load order) and run on the copies."""
         folder = os.path.join(self.study_dir, CONFIG_DIR)
@@ -121,7 +136,7 @@ class Study:
         for path in existing:
             if is_left_open(path):
                 self.say(f"  recovering {path}: its recorder was killed before closing it")
-                recover(path)
+                recover(path, allow_empty=True)   # an empty one too: the resumed study records into the next bag
                 mark_restart(path)   # what was sent after its last kept chunk may be missing: a reported gap
         if not existing:
             return os.path.join(self.study_dir, "bag")
@@ -197,9 +212,11 @@ class Study:
         self.check_parameters()
         if self.resuming:
             self.say(f"study {self.study_id}: resuming in {self.study_dir}")
+            if os.path.basename(self.study_dir) != self.study_id:
+                self.say(f"  (the folder was renamed or copied: its campaign continues under its recorded id "
+                         f"{self.study_id})")
         else:
-            os.makedirs(self.study_dir, exist_ok=False)
-            self._save_parameter_files()
+            self.make_study_dir()
             self.say(f"study {self.study_id}: results in {self.study_dir}")
         bag_dir = self._next_bag_dir() if self.settings.record else ""
         supervisor = Supervisor([n.process_spec(self.param_files)
@@ -355,6 +372,25 @@ def resume_dir(study, output_dir):
             return os.path.normpath(candidate)
     raise ValueError(f"no study to resume at {study!r} or {os.path.join(output_dir, study)!r} (a study directory "
                      f"holds {CONFIG_DIR}/ with its parameter files)")
+
+
+def recorded_study_id(study_dir):
+    """The id a study was started under: its ``study-id.txt``; for a study made before that file existed, the one
+    campaign run in its outcome store, else the folder's name (a study stopped before its campaign began)."""
+    path = os.path.join(study_dir, STUDY_ID_FILE)
+    if os.path.isfile(path):
+        with open(path, encoding="utf-8") as stream:
+            return check_path_component(stream.read().strip(), path)
+    store_path = os.path.join(study_dir, "outcomes.sqlite")
+    if os.path.isfile(store_path):
+        with Store(store_path) as store:
+            runs = sorted({o.run_id for o in store.launch_outcomes()})
+        if len(runs) > 1:
+            raise ValueError(f"{store_path} holds the campaigns of several runs ({', '.join(runs)}): cannot tell "
+                             f"which one this study is; write its id into {path}")
+        if runs:
+            return runs[0]
+    return os.path.basename(os.path.normpath(study_dir))
 
 
 def saved_parameter_files(study_dir):

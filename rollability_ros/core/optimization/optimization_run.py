@@ -44,7 +44,7 @@ import numpy as np
 import yaml
 
 from rollability_ros.core.optimization import checkpoint as checkpoints
-from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
+from rollability_ros.core.config import ConfigError, check_path_component, from_mapping, load_parameters, section
 from rollability_ros.core.optimization.cmaes import (
     STREAM_POPULATION,
     STREAM_REEVALUATION,
@@ -104,6 +104,16 @@ def write_run_config(path: typing.Union[str, os.PathLike], parameters: dict) -> 
     checkpoints.atomic_write_bytes(path, text.encode("utf-8"))
 
 
+def check_new_run_dir(run_dir: str) -> None:
+    """Raise ValueError when ``run_dir`` exists and is not an empty folder: a new run never writes into a folder
+    that holds anything (another run, a study, files of the user), so a refused start leaves it as it was."""
+    if os.path.lexists(run_dir) and not (os.path.isdir(run_dir) and not os.listdir(run_dir)):
+        what = ("run" if os.path.isfile(os.path.join(run_dir, RUN_CONFIG_FILENAME)) else "folder")
+        raise ValueError(f"{what} {run_dir} already exists; resume it (--resume) or choose another run id"
+                         if what == "run" else f"{run_dir} already exists and is not an empty folder; choose "
+                         "another run id")
+
+
 def run_target(run_id: str, resume: bool, parameters: typing.Optional[dict],
                output_dir: str = "runs") -> typing.Tuple[str, dict]:
     """``(run_dir, parameters)`` of the run to start or continue: the one resolution the CLI and the node share.
@@ -115,7 +125,10 @@ def run_target(run_id: str, resume: bool, parameters: typing.Optional[dict],
     if not resume:
         if parameters is None:
             raise ValueError("a new run needs its parameters (e.g. --config optimizer, --config paper)")
-        return os.path.join(output_dir, run_id or new_run_id()), dict(parameters)
+        run_id = check_path_component(run_id, "the run id") if run_id else new_run_id()
+        run_dir = os.path.join(output_dir, run_id)
+        check_new_run_dir(run_dir)
+        return run_dir, dict(parameters)
     if not run_id:
         raise ValueError("resume needs the run id (or directory) of the run to continue")
     run_dir = resolve_run_dir(run_id, output_dir)
@@ -250,6 +263,8 @@ class OptimizationRun:
         self._clock = clock
         self._optimizer_factory = optimizer_factory
         self.checkpoint_path = os.path.join(self.run_dir, checkpoints.CHECKPOINT_FILENAME)
+        if not resume:
+            check_new_run_dir(self.run_dir)   # before the initial-mean screen's minutes of work
         self.initial_mean_screen = self._screen_initial_means(screen_profiles)
         self.optimizer = self._resume() if resume else self._start()
         self.store = Store(self.run_dir)
@@ -322,8 +337,7 @@ class OptimizationRun:
 
     def _start(self):
         config_path = os.path.join(self.run_dir, RUN_CONFIG_FILENAME)
-        if os.path.exists(config_path):
-            raise ValueError(f"run {self.run_id} already exists in {self.run_dir}; resume it or choose another run id")
+        check_new_run_dir(self.run_dir)
         optimizer = self._new_optimizer()  # validates the settings before anything is written
         check_design_space_printable(self.parameters, self.grid)
         os.makedirs(self.run_dir, exist_ok=True)

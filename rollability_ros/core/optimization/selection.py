@@ -27,7 +27,8 @@ A quality-diversity run (``optimizer.method: cma_mae``) stores an archive of eli
    Wilson bound: farthest-point sampling, so A/B/C span the map as far as the fit designs allow.
 4. Re-evaluation as in step 4 above. Each design carries the sentence saying why it was chosen.
 
-Outputs (``<run_dir>/designs/``): ``mesh_<label>.stl`` (millimetres by default, ``mesh_units``; the unit is
+Outputs (``<run_dir>/designs/``, or ``designs-<n>/`` for a later selection of the same run: design sets are
+append-only, see :func:`write_selection`): ``mesh_<label>.stl`` (millimetres by default, ``mesh_units``; the unit is
 written in the STL header), ``mesh_<label>.3mf`` (millimetres, the 3MF unit attribute), ``table3.csv`` (the paper's Table 3 with the
 simulated fitness and its Wilson interval, baseline row first; beside it the in-run estimate with its interval
 and the selection bias, in-run minus fresh) and ``designs.yaml``, a ROS 2 parameter file
@@ -39,6 +40,7 @@ import io
 import math
 import os
 import re
+import shutil
 import string
 
 import numpy as np
@@ -435,18 +437,22 @@ def designs_document(result, grid, run_id, mesh_units="mm"):
     return {"/**": {"ros__parameters": {"designs": body}}}
 
 
-def record_selection(store, run_id, result):
+def record_selection(store, run_id, result, folder=""):
     """Add ``sim_fitness`` ({configuration: fitness}) and ``geometry`` (Table 3 rows of the designs) to the run's
-    info in ``store``, the keys ``rollability report`` reads; the baseline has no geometry row (no profile)."""
+    info in ``store``, the keys ``rollability report`` reads; the baseline has no geometry row (no profile).
+    ``folder`` is the design set written; an earlier selection's entries move to ``earlier_selections``."""
     rows = table_rows(result)
     described = store.run_info(run_id) or {"kind": "optimization", "info": {}}
     info = dict(described["info"])
+    if "selection" in info:   # append-only: the earlier design set's numbers stay in the run's record
+        earlier = {key: info[key] for key in ("sim_fitness", "geometry", "table3", "selection") if key in info}
+        info["earlier_selections"] = [*info.get("earlier_selections", []), earlier]
     info["sim_fitness"] = {r["configuration"]: r["simulated_fitness"] for r in rows if r["trials"]}
     info["geometry"] = [{k: r[k] for k in TABLE_COLUMNS[:4]} for r in rows if r["configuration"] != "baseline"]
     info["table3"] = rows   # fresh and in-run fitness side by side, for the report's headline
     info["selection"] = {"why": {d.label: d.reason for d in result.designs},
                          "archive_cells": {d.label: list(d.cell) for d in result.designs if d.cell is not None},
-                         "top_threshold": result.top_threshold}
+                         "top_threshold": result.top_threshold, "folder": os.path.basename(folder)}
     store.set_run_info(run_id, described["kind"], info)
 
 
@@ -459,39 +465,60 @@ def _write_csv(path, columns, rows):
     atomic_write_bytes(path, table.getvalue().encode("utf-8"))
 
 
-def write_selection(run_dir, result, grid, run_id, mesh_units="mm", traits=None):
-    """Write the STL (in ``mesh_units``) and 3MF files, ``table3.csv`` and ``designs.yaml`` into
-    ``<run_dir>/designs/`` (and, for a quality-diversity run, ``archive.csv`` and the ``traits`` rows as
-    ``traits.csv``); return that folder.
+def design_set_folders(run_dir):
+    """The run's design sets in the order they were written: ``designs/``, then ``designs-2/``, ``designs-3/``, ..."""
+    if not os.path.isdir(run_dir):
+        return []
+    pattern = re.compile(re.escape(DESIGNS_DIRNAME) + r"(-[1-9]\d*)?")
+    found = [name for name in os.listdir(run_dir)
+             if pattern.fullmatch(name) and os.path.isdir(os.path.join(run_dir, name))]
+    return [os.path.join(run_dir, name) for name in sorted(found, key=lambda n: (len(n), n))]
 
-    Meshes of an earlier selection that this one does not produce are removed, so the folder always matches
-    its ``designs.yaml``.
+
+def next_design_folder(run_dir):
+    """The folder a new selection of the run writes: ``designs/`` for the first, else the next free
+    ``designs-<n>/``. A written design set is never rewritten (docs/optimization.md, "Design sets are append-only")."""
+    existing = design_set_folders(run_dir)
+    if not existing:
+        return os.path.join(run_dir, DESIGNS_DIRNAME)
+    number = len(existing) + 1
+    while os.path.exists(os.path.join(run_dir, f"{DESIGNS_DIRNAME}-{number}")):
+        number += 1
+    return os.path.join(run_dir, f"{DESIGNS_DIRNAME}-{number}")
+
+
+def write_selection(run_dir, result, grid, run_id, mesh_units="mm", traits=None):
+    """Write the STL (in ``mesh_units``) and 3MF files, ``table3.csv`` and ``designs.yaml`` into a new design set
+    folder (:func:`next_design_folder`: ``<run_dir>/designs/``, or ``designs-<n>/`` when the run has one) and, for a
+    quality-diversity run, ``archive.csv`` and the ``traits`` rows as ``traits.csv``; return that folder.
+
+    Append-only: an earlier design set (which a campaign's stored outcomes may refer to by label, and whose meshes
+    may have been printed) is never touched. The set is written into a hidden temporary folder and renamed into
+    place only when complete, so a killed selection leaves no half-written set.
     """
-    folder = os.path.join(run_dir, DESIGNS_DIRNAME)
-    os.makedirs(folder, exist_ok=True)
-    keep = {f"mesh_{d.label}{extension}" for d in result.designs for extension in (".stl", ".3mf")}
-    for name in os.listdir(folder):
-        if name.startswith("mesh_") and name.endswith((".stl", ".3mf")) and name not in keep:
-            os.remove(os.path.join(folder, name))
+    folder = next_design_folder(run_dir)
+    partial = os.path.join(run_dir, f".{os.path.basename(folder)}.partial")
+    if os.path.isdir(partial):   # left by a selection killed before its rename: never referenced by anything
+        shutil.rmtree(partial)
+    os.makedirs(partial)
     for design in result.designs:
-        geometry.export_mesh(design.mesh, os.path.join(folder, f"mesh_{design.label}.stl"), mesh_units)
-        geometry.export_mesh(design.mesh, os.path.join(folder, f"mesh_{design.label}.3mf"))
-    _write_csv(os.path.join(folder, "table3.csv"), TABLE_COLUMNS, table_rows(result))
+        geometry.export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.stl"), mesh_units)
+        geometry.export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.3mf"))
+    _write_csv(os.path.join(partial, "table3.csv"), TABLE_COLUMNS, table_rows(result))
     for name, columns, rows in (("archive.csv", ARCHIVE_COLUMNS, result.archive),
                                 ("traits.csv", TRAIT_COLUMNS, traits)):
-        path = os.path.join(folder, name)
         if rows is not None:
-            _write_csv(path, columns, rows)
-        elif os.path.exists(path):      # a selection without an archive leaves no stale map behind
-            os.remove(path)
+            _write_csv(os.path.join(partial, name), columns, rows)
     text = yaml.safe_dump(designs_document(result, grid, run_id, mesh_units), sort_keys=False)
-    atomic_write_bytes(os.path.join(folder, "designs.yaml"), text.encode("utf-8"))
+    atomic_write_bytes(os.path.join(partial, "designs.yaml"), text.encode("utf-8"))
+    os.rename(partial, folder)   # fails rather than replace: a folder that appeared meanwhile is kept
     return folder
 
 
 def select_run(store, run_id, run_dir, grid, printer, settings, evaluate_batch=None, run_seed=1):
     """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
-    simulated fitness and geometry) and write ``<run_dir>/designs/``; return ``(SelectionResult, folder)``.
+    simulated fitness and geometry) and write a new design set (``<run_dir>/designs/`` or ``designs-<n>/``);
+    return ``(SelectionResult, folder)``.
 
     The one selection flow of ``rollability select`` and the optimizer node: from the archive when the run has one
     (a quality-diversity run), else from the ranked log. Raises ``ValueError`` when the run
@@ -507,5 +534,6 @@ def select_run(store, run_id, run_dir, grid, printer, settings, evaluate_batch=N
         traits = trait_rows(candidates, grid, archive["ranges"], archive["dims"])
     else:
         result = select_designs(candidates, grid, printer, settings, evaluate_batch, run_seed)
-    record_selection(store, run_id, result)
-    return result, write_selection(run_dir, result, grid, run_id, settings.mesh_units, traits)
+    folder = write_selection(run_dir, result, grid, run_id, settings.mesh_units, traits)
+    record_selection(store, run_id, result, folder)
+    return result, folder

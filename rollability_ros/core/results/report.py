@@ -510,8 +510,8 @@ def find_artefacts(source):
     # a bag inside a study or session folder: its designs and other bags sit next to it
     roots = [base, os.path.dirname(os.path.abspath(base))] if _is_bag(base) else [base]
     found = []
-    designs = {d for root in roots for d in glob.glob(os.path.join(root, "designs")) +
-               glob.glob(os.path.join(root, "*", "designs"))}
+    designs = {d for root in roots for pattern in ("designs", "designs-*")   # later selections: designs-<n>
+               for d in glob.glob(os.path.join(root, pattern)) + glob.glob(os.path.join(root, "*", pattern))}
     for folder in sorted(designs):
         for pattern, kind in (("mesh_*.stl", "design mesh (STL, millimetres unless its header says m)"),
                               ("mesh_*.3mf", "design mesh (3MF)"), ("table3.csv", "Table 3 (CSV)"),

@@ -3,8 +3,9 @@
 #   ./scripts/test.sh           every test except the minutes-long ones marked `slow` (the README's test command)
 #   ./scripts/test.sh --slow    only the `slow` ones (a kill -9 soak, a calibration recovery, a study killed twice)
 #   ./scripts/test.sh --all     all of them
-# .ci/run runs the first two, so CI runs every test. Tests that start ROS processes (outside test/core) get one
-# rerun after a failure (test/conftest.py; listed as R in the summary): a test that fails twice fails.
+# .ci/run runs the first two (after a hostile-environment sample), so CI runs every test. Tests that start ROS
+# processes (outside test/core) get one rerun after a failure (test/conftest.py): a test that fails twice fails, and
+# every run ends with `reruns: N` and the rerun tests listed (docs/testing.md).
 # The report test opens the HTML report in a real headless browser (Debian's chromium); when chromium is missing
 # and this runs as root with apt-get available, it is installed here so nothing needs installing by hand.
 set -euo pipefail

@@ -58,6 +58,8 @@ def pytest_collection_modifyitems(config, items):
     """Tests that start ROS processes (everything outside test/core) get one rerun after a failure: on a shared
     2-core machine a process stalled for a second can miss a DDS match or a keep-alive. A test that fails twice
     fails; a rerun is listed in the summary (``R``), so a test that only passes on its rerun stays visible."""
+    if not config.pluginmanager.hasplugin("rerunfailures"):   # -p no:rerunfailures: no rerun at all
+        return
     core = pathlib.Path(__file__).resolve().parent / "core"
     for item in items:
         if core not in pathlib.Path(str(item.fspath)).resolve().parents:

@@ -330,3 +330,56 @@ def test_rig_side_core_imports_without_heavy_or_hardware_packages():
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
     result = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
+
+
+class StuckBackend(DryRunBackend):
+    """Dry-run backend whose ``close_valve`` blocks while ``jam`` is set (a write into a board that takes no bytes)."""
+
+    call_timeout_s = 0.6
+
+    def __init__(self):
+        super().__init__()
+        self.jam = threading.Event()
+        self.unjam = threading.Event()
+
+    def close_valve(self):
+        if self.jam.is_set():
+            self.unjam.wait(30)
+        super().close_valve()
+
+
+def test_a_stuck_backend_call_latches_a_fault_in_bounded_time_and_never_blocks_health():
+    controller, backend, states = make(StuckBackend())
+    assert controller.arm()[0]
+    backend.jam.set()
+    answer = []
+    started = time.monotonic()
+    disarm = threading.Thread(target=lambda: answer.append(controller.disarm()))
+    disarm.start()
+    time.sleep(0.2)                     # the disarm holds the lock, waiting for the stuck close
+    t0 = time.monotonic()
+    status, _margin, link = controller.health()
+    controller.heartbeat()
+    assert time.monotonic() - t0 < 0.3, "health() / heartbeat() waited for the stuck backend call"
+    assert "backend call close_valve running for" in link and status.armed   # the last state, said to be stale
+    disarm.join(5)
+    took_s = time.monotonic() - started
+    assert 0.55 < took_s < 1.5, took_s   # bounded by call_timeout_s
+    ok, message = answer[0]
+    assert not ok and "close_valve did not return within 0.6 s" in message
+    assert states[-1].fault and not states[-1].armed
+    # later calls are refused at once while the stuck one has not returned; arming is refused (fault latched)
+    t0 = time.monotonic()
+    controller.estop("e-stop")
+    assert time.monotonic() - t0 < 0.3 and "still stuck in close_valve" in controller.status().fault_reason
+    assert not controller.arm()[0] and not controller.fire(50)[0]
+    closes = backend.commands.count("close")
+    backend.unjam.set()                 # the call returns at last: the valve is driven closed once more
+    deadline = time.monotonic() + 5
+    while backend.commands.count("close") < closes + 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert backend.commands.count("close") >= closes + 2   # the stuck one, then the controller's own
+    assert controller.status().fault and not controller.status().open
+    backend.jam.clear()
+    assert controller.disarm() == (True, "disarmed, valve closed") and not controller.status().fault
+    controller.shutdown()

@@ -56,8 +56,8 @@ class _BackendCaller:
     """Runs backend calls one at a time on its own daemon thread; the caller waits for each at most a bound.
 
     A call that overruns its bound is *stuck*: :meth:`call` raises :class:`BackendStuck`, and every later call is
-    refused at once (raising :class:`BackendStuck`) until it returns; then ``on_late_return(name, seconds)`` runs on a
-    fresh thread.
+    refused at once (raising :class:`BackendStuck`) until it returns; then ``on_late_return(name, seconds, error)``
+    runs on a fresh thread (``error``: what the call raised, or None).
     """
 
     def __init__(self, timeout_s, on_late_return):
@@ -113,7 +113,8 @@ class _BackendCaller:
                 if late:
                     self._stuck = None
             if late:
-                threading.Thread(target=self._on_late_return, args=(job.name, time.monotonic() - job.queued_at),
+                threading.Thread(target=self._on_late_return,
+                                 args=(job.name, time.monotonic() - job.queued_at, job.error),
                                  name="valve-backend-returned", daemon=True).start()
 
 
@@ -209,10 +210,12 @@ class ValveController:
         """Bound of the backend's ``open()``: a board that boots after its port opens is waited for (HELLO)."""
         return getattr(self._backend, "boot_wait_s", 0.0) + 4 * self._caller.timeout_s
 
-    def _backend_returned(self, name, seconds):
+    def _backend_returned(self, name, seconds, error):
         """A backend call that overran its bound returned at last: drive the valve closed again (fault stays)."""
-        _LOG.warning("valve backend call %s returned after %.1f s", name, seconds)
+        _LOG.warning("valve backend call %s returned after %.1f s%s", name, seconds, f" ({error})" if error else "")
         with self._lock:
+            if name == "open" and error is None:
+                self._backend_started = True   # started late: not a second time
             if self._shut_down:
                 if not self._released:  # the backend thread has ended: release from here, once more
                     try:

@@ -227,8 +227,12 @@ def test_a_restarted_recorder_continues_the_same_bag(tmp_path, ros_node, start_n
     assert stopped_cleanly(second, second.stop())
     assert read_records_from_bag(bag)[0] == before + after
     information = read_metadata(bag)
-    # the publisher is transient-local: the new recorder also gets its history again (deduplicated on reading)
-    assert len(information["relative_file_paths"]) == 2 and information["message_count"] >= 150
+    # the publisher is transient-local (depth 1000): the new recorder gets its 100 earlier messages again, and
+    # does not record them twice (issue 26: was 442 LaunchOutcome messages in the bag for 400 trials)
+    assert len(information["relative_file_paths"]) == 2 and information["message_count"] == 150
+    assert information["custom_data"]["recorder_duplicates_skipped"] == "100"
+    assert "100 re-delivered copies of messages the bag already held not recorded again" in second.log()
+    assert bag_info(bag)["message_count"] == 150
     ((after_ns, until_ns),) = recording_gaps(bag)
     assert 0 < after_ns < until_ns
     assert bag_info(bag)["warnings"] == []

@@ -6,7 +6,10 @@ schemas, type hashes, offered QoS). A clean stop (SIGINT or SIGTERM) finishes th
 section) and writes the final metadata; after ``kill -9``, ``rollability bag recover`` restores every written
 chunk (at most ``chunk_size_bytes`` of messages, or ``2 x flush_interval_s`` of them, are lost). A recorder
 restarted on the bag a killed one left open recovers it and continues it with a new storage file, so a kill
-costs only the open chunk and the time until the restart (``custom_data["recorder_restarts"]`` marks it).
+costs only the open chunk and the time until the restart (``custom_data["recorder_restarts"]`` marks it). What a
+transient-local publisher re-delivers to the restarted recorder is recorded only if the bag did not hold it yet
+(same topic, send time and bytes; the copies skipped are counted in ``custom_data["recorder_duplicates_skipped"]``):
+messages sent while no recorder ran are kept, the ones already in the bag are not written twice.
 
 Topics: ``recorder.topics`` (string array of absolute names; empty = the project's graph, see
 :func:`rollability_ros.core.bags.record_play.in_project_graph`), searched for every ``discovery_period_s``; a topic is
@@ -191,8 +194,12 @@ class RecorderNode(Node):
             self.writer.close()
             counts = {name: info.message_count for name, info in self.writer.topics.items()}
         lost = sum(self.lost.values())
+        duplicates = self.writer.duplicates_skipped
         self.get_logger().info(f"closed {self.directory}: {sum(counts.values())} messages on {len(counts)} topics"
-                               + (f"; {lost} lost by the middleware" if lost else "; none lost"))
+                               + (f"; {lost} lost by the middleware" if lost else "; none lost")
+                               + (f"; {sum(duplicates.values())} re-delivered copies of messages the bag already "
+                                  f"held not recorded again ({', '.join(f'{t} {n}' for t, n in duplicates.items())})"
+                                  if duplicates else ""))
 
 
 def main(args=None, parameter_overrides=None):

@@ -257,6 +257,43 @@ def test_a_restarted_writer_continues_the_bag_left_open(tmp_path):
     assert recording_gaps(bag) == [(T0_NS + 399, T0_NS + 1000)]
     assert bag_info(bag)["warnings"] == []
 
+    # issue 26: the study names every topic's own missed window, not only the outcomes'
+    from rollability_ros.core.bags.recover import missed_windows
+    from rollability_ros.core.graph.study import compare_bags_with_store
+
+    ((topic, window),) = missed_windows(bag)[0].items()
+    assert topic == "/a" and (window["after_ns"], window["until_ns"]) == (T0_NS + 399, T0_NS + 1000)
+    assert window["rate_hz"] == pytest.approx(409 / (1009 / 1e9))
+    _, note = compare_bags_with_store(set(), [], recording_gaps(bag), missed_windows(bag))
+    assert "restarted 1 time(s)" in note and "every topic's missed window" in note
+    assert "/a 22:13:20.000 to 22:13:20.000 UTC (0.0 s, about 243 messages at its" in note   # 601 ns at 409 per 1009 ns
+
+
+def test_a_restarted_writer_does_not_record_again_what_the_bag_holds(tmp_path):
+    """Issue 26: a transient-local publisher re-delivers its history to a restarted recorder (442 outcomes for 400
+    trials). Copies of held messages (same topic, send time and bytes) are skipped and counted; a message the
+    killed writer never flushed, re-delivered with its original send time, fills the gap; new ones are recorded."""
+    from rollability_ros.core.bags.writer import DUPLICATES_KEY, BagWriter
+    from test_bags import T0_NS
+
+    bag = _killed_writer_bag(tmp_path)        # /a (transient-local): 400 flushed, 50 lost in the open chunk
+    with BagWriter(bag, continue_open=True) as writer:
+        writer.add_topic("/a", "std_msgs/msg/String")
+        restart_ns = T0_NS + 10_000
+        for index in range(450):              # the publisher's history, re-delivered with its send times
+            written = writer.write("/a", string_cdr(f"message {index}"), restart_ns + index, T0_NS + index)
+            assert written == (index >= 400)
+        for index in range(1000, 1010):       # published after the restart
+            assert writer.write("/a", string_cdr(f"message {index}"), restart_ns + index, restart_ns + index)
+        assert writer.duplicates_skipped == {"/a": 400}
+    messages = [m.data for m in BagReader(bag)]
+    assert messages == [string_cdr(f"message {i}") for i in [*range(450), *range(1000, 1010)]]
+    assert len(set(messages)) == len(messages) == 460
+    information = read_metadata(bag)
+    assert information["message_count"] == 460 and information["custom_data"][DUPLICATES_KEY] == "400"
+    info = bag_info(bag)
+    assert info["message_count"] == 460 and info["warnings"] == []
+
 
 def test_a_closed_bag_is_not_continued(tmp_path):
     import pytest

@@ -388,11 +388,9 @@ def recording_gaps(directory):
         kill; 0 if none) and before ``until_ns`` (the first one written after the restart; None if none yet)
         may be missing. Empty for a bag recorded without a restart.
     """
-    from rollability_ros.core.bags.writer import RESTARTS_KEY
-
     information = read_metadata(os.fspath(directory))
     files = information.get("files") or []
-    restarts = [int(r) for r in ((information.get("custom_data") or {}).get(RESTARTS_KEY) or "").split(",") if r]
+    restarts = _restart_indexes(information)
     gaps = []
     for index in restarts:
         before = [f["starting_time"]["nanoseconds_since_epoch"] + f["duration"]["nanoseconds"]
@@ -400,6 +398,58 @@ def recording_gaps(directory):
         after = [f["starting_time"]["nanoseconds_since_epoch"] for f in files[index:] if f["message_count"]]
         gaps.append((max(before, default=0), min(after, default=None)))
     return gaps
+
+
+def _restart_indexes(information):
+    from rollability_ros.core.bags.writer import RESTARTS_KEY
+
+    return [int(r) for r in ((information.get("custom_data") or {}).get(RESTARTS_KEY) or "").split(",") if r]
+
+
+def missed_windows(directory):
+    """Per restart of the bag's writer, what each topic missed: the window from its last message before the kill
+    to its first one after the restart (a topic's own window, not only the bag's: a 100 Hz pose stream and a
+    launch outcome every few seconds lose different spans).
+
+    Returns
+    -------
+    list of dict
+        One ``{topic: {"after_ns", "until_ns", "rate_hz"}}`` per restart (as :func:`recording_gaps`):
+        ``after_ns`` the topic's last message in the files before the restart (None: none), ``until_ns`` its first
+        one after (None: none yet), ``rate_hz`` its mean message rate over the whole bag (None below 2 messages).
+    """
+    directory = os.fspath(directory)
+    information = read_metadata(directory)
+    restarts = _restart_indexes(information)
+    if not restarts:
+        return []
+    spans = []          # per storage file: {topic: [first ns, last ns, count]}
+    for relative in information.get("relative_file_paths") or []:
+        path = os.path.join(directory, relative)
+        span = {}
+        with open(path, "rb") as stream, bag_file_errors(path):
+            reader, summary = open_mcap(path, stream)
+            if summary.statistics.message_count:
+                for _, channel, message in reader.iter_messages():
+                    entry = span.setdefault(channel.topic, [message.log_time, message.log_time, 0])
+                    entry[0], entry[1] = min(entry[0], message.log_time), max(entry[1], message.log_time)
+                    entry[2] += 1
+        spans.append(span)
+    totals = {}
+    for span in spans:
+        for topic, (first, last, count) in span.items():
+            total = totals.setdefault(topic, [first, last, 0])
+            total[0], total[1], total[2] = min(total[0], first), max(total[1], last), total[2] + count
+    windows = []
+    for index in restarts:
+        window = {}
+        for topic, (first, last, count) in sorted(totals.items()):
+            before = [span[topic][1] for span in spans[:index] if topic in span]
+            after = [span[topic][0] for span in spans[index:] if topic in span]
+            window[topic] = {"after_ns": max(before, default=None), "until_ns": min(after, default=None),
+                             "rate_hz": (count - 1) / ((last - first) / 1e9) if count > 1 and last > first else None}
+        windows.append(window)
+    return windows
 
 
 def mark_restart(directory, information=None):

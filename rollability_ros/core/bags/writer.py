@@ -21,6 +21,7 @@ and (if the caller writes or calls ``flush_if_due`` at least every ``flush_inter
 ``2 * flush_interval_s`` of messages. :func:`rollability_ros.core.bags.recover.recover` restores the rest.
 """
 import dataclasses
+import hashlib
 import json
 import os
 import time
@@ -44,6 +45,10 @@ DEFAULT_FLUSH_INTERVAL_S = 1.0
 
 #: ``custom_data`` key listing (comma separated) the indexes of storage files that a restarted writer began.
 RESTARTS_KEY = "recorder_restarts"
+
+#: ``custom_data`` key: messages a restarted writer did not record again because the bag already held them (a
+#: transient-local publisher re-delivers its history to the new subscription).
+DUPLICATES_KEY = "recorder_duplicates_skipped"
 
 #: Name of the sidecar holding type definitions while a bag is being written.
 RECOVERY_SIDECAR = ".recovery.json"
@@ -224,6 +229,8 @@ class BagWriter:
         self._compression = mcap_compression(compression)
         self.directory = os.fspath(directory)
         self._previous_files, self._previous_topics, self.continued = [], {}, None
+        self._held = set()          # (topic, publish time, SHA-256) of re-deliverable messages the bag holds
+        self.duplicates_skipped = {}
         if os.path.exists(self.directory) and (not os.path.isdir(self.directory) or os.listdir(self.directory)):
             if not (continue_open and os.path.isdir(self.directory)):
                 raise ValueError(f"{self.directory}: exists and is not an empty directory; not overwriting a bag")
@@ -264,9 +271,31 @@ class BagWriter:
                                          f["duration"]["nanoseconds"], f["message_count"])
                                 for f in information.get("files") or []]
         self._previous_topics = {t.name: t for t in topics_from_metadata(information)}
+        self._held = self._redeliverable_messages(information)
         kept = dict(custom_data or {})
         kept.update(information["custom_data"])
         return kept
+
+    def _redeliverable_messages(self, information):
+        """Keys (:meth:`_key`) of the messages the continued bag holds on topics with a transient-local publisher:
+        those a new subscription gets again from the publisher's history, and must not be recorded twice."""
+        from rollability_ros.core.bags.reader import bag_file_errors, open_mcap
+
+        topics = [t.name for t in self._previous_topics.values()
+                  if any(p.get("durability") == "transient_local" for p in t.offered_qos_profiles)]
+        held = set()
+        for relative in (information.get("relative_file_paths") or []) if topics else []:
+            path = os.path.join(self.directory, relative)
+            with open(path, "rb") as stream, bag_file_errors(path):
+                reader, summary = open_mcap(path, stream)
+                if summary.statistics.message_count:
+                    for _, channel, message in reader.iter_messages(topics=topics):
+                        held.add(self._key(channel.topic, message.data, message.publish_time))
+        return held
+
+    @staticmethod
+    def _key(topic, data, publish_time_ns):
+        return topic, int(publish_time_ns), hashlib.sha256(bytes(data)).digest()
 
     # --- topics and messages -------------------------------------------------------------------------
     def add_topic(self, name, type_name, serialization_format="cdr", offered_qos_profiles=None, definition=None,
@@ -342,6 +371,13 @@ class BagWriter:
             Receive time, ns since the Unix epoch (rosbag2's ``recv_timestamp``; orders playback).
         publish_time_ns : int, optional
             Send time, ns; defaults to ``log_time_ns``.
+
+        Returns
+        -------
+        bool
+            False when the message was not written because it is a copy of one the bag held when this writer
+            continued it (same topic, send time and bytes: a transient-local publisher's history re-delivered
+            to the restarted recorder); counted in ``duplicates_skipped`` and in metadata.yaml's custom data.
         """
         if self._current is None:
             raise ValueError(f"{self.directory}: bag is closed")
@@ -350,6 +386,10 @@ class BagWriter:
         log_time_ns = int(log_time_ns)
         if log_time_ns < 0:
             raise ValueError(f"log_time_ns must be >= 0, got {log_time_ns}")
+        if self._held and publish_time_ns is not None and \
+                self._key(topic, cdr_bytes, publish_time_ns) in self._held:
+            self.duplicates_skipped[topic] = self.duplicates_skipped.get(topic, 0) + 1
+            return False
         if self._split_due(log_time_ns):
             self._roll_over()
         self._current.write(topic, cdr_bytes, log_time_ns, log_time_ns if publish_time_ns is None
@@ -357,6 +397,7 @@ class BagWriter:
         self._topics[topic].message_count += 1
         self._unflushed += 1
         self.flush_if_due()
+        return True
 
     def flush(self):
         """Finish the open chunk and hand it to the OS (a chunk with no messages is not written)."""
@@ -394,7 +435,12 @@ class BagWriter:
             topics.append(dataclasses.replace(current or previous, message_count=previous.message_count + (
                 current.message_count if current else 0)))
         topics.extend(t for name, t in self._topics.items() if name not in self._previous_topics)
-        return build_metadata(topics, list(self._files), custom_data=self._custom_data, ros_distro=ROS_DISTRO)
+        custom_data = self._custom_data
+        if self.duplicates_skipped:   # added to what earlier restarts of this bag skipped
+            custom_data = dict(custom_data or {})
+            custom_data[DUPLICATES_KEY] = str(int(custom_data.get(DUPLICATES_KEY, 0)) +
+                                              sum(self.duplicates_skipped.values()))
+        return build_metadata(topics, list(self._files), custom_data=custom_data, ros_distro=ROS_DISTRO)
 
     def __enter__(self):
         return self

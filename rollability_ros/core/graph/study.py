@@ -293,12 +293,13 @@ class Study:
         result.summary = built.summary
         if result.bag_dir:
             from rollability_ros.core.bags.messages import read_records_from_bag
-            from rollability_ros.core.bags.recover import recording_gaps
+            from rollability_ros.core.bags.recover import missed_windows, recording_gaps
 
             bagged = {o.trial_id for path in self.bag_dirs() for o in read_records_from_bag(path)[0]
                       if o.run_id == self.study_id}
             gaps = [gap for path in self.bag_dirs() for gap in recording_gaps(path)]
-            problem, gap_note = compare_bags_with_store(bagged, data.outcomes, gaps)
+            windows = [window for path in self.bag_dirs() for window in missed_windows(path)]
+            problem, gap_note = compare_bags_with_store(bagged, data.outcomes, gaps, windows)
             if gap_note:
                 self.say(gap_note)
             if problem:
@@ -321,7 +322,31 @@ def _format_ns(time_ns):
         :-3] + " UTC"
 
 
-def compare_bags_with_store(bagged_trial_ids, stored_outcomes, gaps):
+def _clock_ns(time_ns):
+    import datetime
+
+    return datetime.datetime.fromtimestamp(time_ns / 1e9, datetime.timezone.utc).strftime("%H:%M:%S.%f")[:-3]
+
+
+def topic_windows_text(window):
+    """One restart's per-topic missed windows (:func:`~rollability_ros.core.bags.recover.missed_windows`) as text:
+    ``/ns/rig/pose 10:00:01.200 to 10:00:06.800 UTC (5.6 s, about 560 messages at its 100 Hz)``, one per topic."""
+    parts = []
+    for topic, entry in window.items():
+        after, until, rate = entry["after_ns"], entry["until_ns"], entry["rate_hz"]
+        start = "its start" if after is None else _clock_ns(after)
+        end = "the end of the recording" if until is None else _clock_ns(until) + " UTC"
+        text = f"{topic} {start} to {end}"
+        if after is not None and until is not None:
+            seconds = (until - after) / 1e9
+            estimate = (f", about {max(0, round(seconds * rate) - 1)} messages at its {rate:.3g} Hz"
+                        if rate else "")
+            text += f" ({seconds:.1f} s{estimate})"
+        parts.append(text)
+    return ", ".join(parts)
+
+
+def compare_bags_with_store(bagged_trial_ids, stored_outcomes, gaps, topic_windows=()):
     """Check that every stored launch outcome is in a bag, or was stamped inside a reported recording gap.
 
     Parameters
@@ -332,12 +357,16 @@ def compare_bags_with_store(bagged_trial_ids, stored_outcomes, gaps):
         The study's outcomes in the logger's store (``stamp_s``: s since the epoch).
     gaps : list of (int, int or None)
         Windows the bags may be missing (:func:`~rollability_ros.core.bags.recover.recording_gaps`), ns.
+    topic_windows : list of dict, optional
+        Per restart, every topic's own missed window (:func:`~rollability_ros.core.bags.recover.missed_windows`),
+        named in the note after the bag's window.
 
     Returns
     -------
     (str, str)
         ``problem`` (empty when the bags and the store agree, gaps allowing) and ``gap_note``: one sentence naming
-        each lost window and how many stored outcomes fall in it (empty without gaps).
+        each lost window, how many stored outcomes fall in it and, with ``topic_windows``, what every recorded
+        topic missed (empty without gaps).
     """
     stored = {o.trial_id: o for o in stored_outcomes}
     extra = sorted(set(bagged_trial_ids) - set(stored))
@@ -355,6 +384,10 @@ def compare_bags_with_store(bagged_trial_ids, stored_outcomes, gaps):
         windows = "; ".join(f"{_format_ns(after)} to {_format_ns(until)} ({len(in_gap[i])} stored outcome(s) "
                             f"not in a bag)" for i, (after, until) in enumerate(gaps))
         note = f"the recorder was restarted {len(gaps)} time(s); the bag lost the window(s): {windows}"
+        per_topic = [topic_windows_text(window) for window in topic_windows if window]
+        if per_topic:
+            note += "; every topic's missed window (its last message before the kill to its first after the " \
+                    "restart): " + "; ".join(per_topic)
     problem = ""
     if extra or unexplained:
         problem = (f"the bags hold {len(bagged_trial_ids)} launch outcomes of this study, the store {len(stored)}: "

@@ -1,13 +1,16 @@
 """Verify the early trial decision: the same trials with and without it must give the same outcomes.
 
     nice python bench/verify_early_decision.py [--trials-chassis 250] [--trials-husky 100] [--seed 7]
-                                               [--engine pybullet|mujoco]
+                                               [--engine pybullet|mujoco] [--launches]
 
 Runs every trial twice in one process, once under the full rule (rest hold or time cap) and once ending at the
 early decision, over several profiles on the built-in chassis (baseline, dome, ridge, random) and on the URDF
 Husky from pybullet_data (``config/husky.yaml``: baseline, dome, random). Prints per case: trials, outcome
 changes, upright counts, steps per trial with and without the decision and the share decided early; exits 1
-if any outcome changed.
+if any outcome changed. With ``--launches`` every trial is a launch on the launch twin of ``--engine``
+(``objective.kind: launch_twin``) under the paper's 20 launch conditions in turn (heights 0.75 / 1.30 m, speeds
+0.8 / 1.5 m/s, angles -60 ... 60 deg; ``config/campaign.yaml``), with its speed and angle scatter; the counts are
+then launches (the outcome compared is valid and upright, as the objective scores it).
 """
 import argparse
 import dataclasses
@@ -41,11 +44,21 @@ def with_engine(settings, engine):
     return dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine=engine))
 
 
-def cases(seed, engine="pybullet"):
+def as_launches(settings, twin_config):
+    """A copy of ``settings`` whose trials are launches on the twin of ``twin_config`` (the paper's conditions)."""
+    objective = dataclasses.replace(settings.objective, kind="launch_twin", campaign_config=["campaign"],
+                                    twin_config=list(twin_config))
+    return dataclasses.replace(settings, objective=objective)
+
+
+def cases(seed, engine="pybullet", launches=False):
     """(name, settings, heights) of every verified robot + profile."""
     rng = np.random.default_rng(seed)
     chassis = with_engine(evaluation.load_settings(("sim", "robot", "evaluator")), engine)
     husky = with_engine(evaluation.load_settings(("sim", "robot", "evaluator", "husky")), engine)
+    if launches:
+        chassis = as_launches(chassis, ("sim", "robot", "launch_twin"))
+        husky = as_launches(husky, ("sim", "robot", "launch_twin", "husky"))
     out = [("chassis baseline", chassis, None), ("chassis dome", chassis, dome_heights(chassis.grid)),
            ("chassis low dome", chassis, dome_heights(chassis.grid, 0.4)),
            ("chassis ridge", chassis, ridge_heights(chassis.grid))]
@@ -77,13 +90,14 @@ def main(argv=None):
     parser.add_argument("--trials-husky", type=int, default=100)
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--engine", choices=("pybullet", "mujoco"), default="pybullet")
+    parser.add_argument("--launches", action="store_true", help="verify launches on the launch twin instead")
     args = parser.parse_args(argv)
-    print(f"engine: {args.engine}")
+    print(f"engine: {args.engine}   kind: {'launches on the twin' if args.launches else 'disturbance trials'}")
     total = changed = 0
     full_steps, early_steps = [], []
     print(f"{'case':20s} {'trials':>6s} {'changed':>7s} {'upright':>7s} {'steps full':>10s} {'steps early':>11s} "
           f"{'decided':>7s} {'time ratio':>10s}")
-    for name, settings, heights in cases(args.seed, args.engine):
+    for name, settings, heights in cases(args.seed, args.engine, args.launches):
         trials = args.trials_husky if name.startswith("husky") else args.trials_chassis
         full, early, full_s, early_s = compare(settings, heights, trials, args.seed)
         diffs = [(a.index, a.upright, b.upright) for a, b in zip(full, early) if a.upright != b.upright]

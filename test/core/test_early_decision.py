@@ -62,3 +62,25 @@ def test_early_decision_changes_no_outcome_and_saves_steps(config, profile, tria
     assert not any(o.decided for o in full)
     assert any(o.decided for o in fast)
     assert sum(o.steps for o in fast) < sum(o.steps for o in full)
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+@pytest.mark.parametrize("robot,profile,launches", [("chassis", "dome", 20), ("husky", "baseline", 8)])
+def test_early_decision_of_launches_changes_no_outcome(engine, robot, profile, launches):
+    """Launches on the twin under the paper's 20 conditions in turn, with and without the early decision (after
+    the landing on the foam, once the plate has stopped): the same outcomes, fewer steps
+    (bench/verify_early_decision.py --launches runs the large sample)."""
+    if engine == "mujoco":
+        pytest.importorskip("mujoco")
+    extra = ("husky",) if robot == "husky" else ()
+    settings = load_settings(("sim", "robot", "evaluator") + extra)
+    objective = dataclasses.replace(settings.objective, kind="launch_twin",
+                                    twin_config=["sim", "robot", "launch_twin", *extra])
+    settings = dataclasses.replace(settings, objective=objective,
+                                   physics=dataclasses.replace(settings.physics, engine=engine))
+    heights = None if profile == "baseline" else dome_heights(settings.grid)
+    full = evaluate_profile(heights, launches, 5, early(settings, False)).trial_results
+    fast = evaluate_profile(heights, launches, 5, early(settings, True)).trial_results
+    assert [o.upright for o in fast] == [o.upright for o in full]
+    assert not any(o.decided for o in full) and any(o.decided for o in fast)
+    assert sum(o.steps for o in fast) < sum(o.steps for o in full)

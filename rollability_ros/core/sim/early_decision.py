@@ -96,6 +96,15 @@ class BasinMap:
     upright: np.ndarray
     com_m: np.ndarray
     mass_kg: float
+    #: the lowest COM height (m) of any upright / not-upright resting pose: the lowest the COM of a body whose
+    #: outcome is decided that way can go (below it only by the ground's sinking), so an energy height E bounds
+    #: its speed by sqrt(2 g (E - lowest)) (the launch twin's bound on how far a decided robot can still roll)
+    lowest_upright_m: float = 0.0
+    lowest_not_upright_m: float = 0.0
+
+    def lowest_m(self, upright):
+        """The lowest resting COM height (m) of the outcome ``upright`` (see the fields)."""
+        return self.lowest_upright_m if upright else self.lowest_not_upright_m
 
     def highest_barrier_m(self):
         """No decision is possible at or above this energy height (m; inf if some pose is never left)."""
@@ -142,7 +151,7 @@ def resting_directions(relative, wheel_links, up, upright_tilt_deg, min_wheels, 
     height = np.max(np.vstack(list(support.values())), axis=0)
     on_wheels = sum(((height - support[link]) <= contact_tolerance_m).astype(int) for link in wheel_links
                     if link in support) if len(wheel_links) else np.zeros(len(rests), dtype=int)
-    return rests, tilt_ok & (on_wheels >= min_wheels)
+    return rests, tilt_ok & (on_wheels >= min_wheels), height
 
 
 @functools.lru_cache(maxsize=4)
@@ -189,8 +198,8 @@ def build_basin_map(points_by_link, wheel_links, com_m, mass_kg, up_axis, uprigh
     height = np.max(np.vstack(list(support.values())), axis=0)
     radius = max(float(np.linalg.norm(points, axis=1).max()) for points in relative.values())
     up = np.asarray(up_axis, dtype=np.float64) / np.linalg.norm(up_axis)
-    rests, rest_upright = resting_directions(relative, wheel_links, up, upright_tilt_deg, min_wheels,
-                                             contact_tolerance_m)
+    rests, rest_upright, rest_height = resting_directions(relative, wheel_links, up, upright_tilt_deg, min_wheels,
+                                                          contact_tolerance_m)
     upright = np.zeros(directions, dtype=bool)
     not_upright = np.zeros(directions, dtype=bool)
     nearest = np.argmax(rests @ lattice.T, axis=1)
@@ -206,5 +215,9 @@ def build_basin_map(points_by_link, wheel_links, com_m, mass_kg, up_axis, uprigh
     slack = radius * delta + margin_m
     to_upright = _minimax_from(grown(upright), edges_a, edges_b, edge_height, height) - slack
     to_not_upright = _minimax_from(grown(not_upright), edges_a, edges_b, edge_height, height) - slack
+    def lowest(mask):
+        return float(rest_height[mask].min()) if np.any(mask) else math.inf
+
     return BasinMap(directions=lattice, barrier_to_upright_m=to_upright, barrier_to_not_upright_m=to_not_upright,
-                    upright=upright, com_m=com, mass_kg=float(mass_kg))
+                    upright=upright, com_m=com, mass_kg=float(mass_kg), lowest_upright_m=lowest(rest_upright),
+                    lowest_not_upright_m=lowest(~rest_upright))

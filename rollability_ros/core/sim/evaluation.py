@@ -151,16 +151,19 @@ def profile_job(heights, settings):
     if heights is not None and np.asarray(heights).size:
         heights = check_heights(heights, settings.grid)
     if is_baseline(heights, settings.grid.flat_tolerance):
-        return TrialJob(profile=None, settings=settings,
-                        launch=launch_objective(settings.objective, settings.physics.engine))
+        return TrialJob(profile=None, settings=settings, launch=_launch_part(settings))
     return mesh_job(profile_mesh(heights, settings.grid), settings)
 
 
 def mesh_job(mesh, settings):
     """Make the :class:`TrialJob` of a profile solid (trimesh, metres, profile frame); None = baseline."""
     profile = None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
-    return TrialJob(profile=profile, settings=settings,
-                    launch=launch_objective(settings.objective, settings.physics.engine))
+    return TrialJob(profile=profile, settings=settings, launch=_launch_part(settings))
+
+
+def _launch_part(settings):
+    """The launch part of a job: launches on the evaluation's engine, with its early decision setting."""
+    return launch_objective(settings.objective, settings.physics.engine, settings.trial.early_decision)
 
 
 _worker_client = None

@@ -86,7 +86,9 @@ Measurements and phases
     trials' test) against the foam, or against the ledge if the chassis never went over the edge.
 """
 import dataclasses
+import hashlib
 import math
+import pickle
 
 import numpy as np
 
@@ -307,7 +309,9 @@ class LaunchResult:
     (NaN if it never does). ``invalid_reason`` is "" for a valid launch, else why it is no launch (it did not
     leave the ledge, it landed outside the foam); ``attempts`` counts the launches :func:`simulate_valid_launch`
     made to get this one, and ``seed`` is the seed this launch was simulated with (the kept retry's
-    :func:`attempt_seed`): :func:`simulate_launch` with it repeats this launch exactly.
+    :func:`attempt_seed`): :func:`simulate_launch` with it repeats this launch exactly. ``decided``: ended by the
+    early decision (``trial.early_decision``, :func:`step_launch`): ``upright`` is the decided outcome, ``settled``
+    true, ``tilt_deg`` and ``final_orientation`` those at the decision.
     """
 
     upright: bool
@@ -327,6 +331,7 @@ class LaunchResult:
     invalid_reason: str = ""
     attempts: int = 1
     seed: int = NO_SEED
+    decided: bool = False
 
     @property
     def valid(self):
@@ -663,22 +668,38 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, prof
         lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)
         plate = PushPlate(pybullet, client, robot, push, options.plate, options.foam.thickness_m + condition.height_m,
                           (floor_id, foam_id, ledge_id))
-        world = _BulletLaunchWorld(pybullet, client, robot, foam_id, floor_id, settings)
+        world = _BulletLaunchWorld(pybullet, client, robot, foam_id, floor_id, settings, profile)
         tracker = LaunchTracker(world, lead_m, PhaseReporter(on_phase), push)
-        steps, settled = step_launch(world, plate, tracker, settings, on_pose, speed_mps)
-        went_over = not math.isnan(tracker.base.time_s)
-        upright, tilt = model.is_upright(client, robot, foam_id if went_over else ledge_id)
+        steps, settled, decision = step_launch(world, plate, tracker, settings, on_pose, speed_mps)
+        if decision is None:
+            upright, tilt = model.is_upright(client, robot, foam_id if tracker.went_over else ledge_id)
+        else:
+            upright, tilt = decision, model.tilt_deg(client, robot)
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
     finally:
         disconnect(client)
+    return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, orientation),
+                         (speed_mps, angle_deg), seed)
+
+
+def launch_result(tracker, settings, run, classified, drawn, seed):
+    """The :class:`LaunchResult` of a launch (every twin's): ``run`` = ``(steps, settled, decision)`` of
+    :func:`step_launch`, ``classified`` = ``(upright, tilt_deg, final orientation (x, y, z, w))``, ``drawn`` =
+    ``(launch speed m/s, angle deg)`` of :func:`launch_plan`."""
+    steps, settled, decision = run
+    upright, tilt, orientation = classified
+    speed_mps, angle_deg = drawn
+    options = settings.twin
     travel_s = tracker.front.time_s
-    return LaunchResult(upright=bool(upright), final_orientation=tuple(orientation), travel_time_s=travel_s,
-                        measured_speed_mps=options.launcher.run_length_m / travel_s, launch_speed_mps=speed_mps,
-                        settled=settled, sim_time_s=steps * settings.physics.time_step_s, steps=steps, tilt_deg=tilt,
+    return LaunchResult(upright=bool(upright), final_orientation=tuple(float(v) for v in orientation),
+                        travel_time_s=travel_s, measured_speed_mps=options.launcher.run_length_m / travel_s,
+                        launch_speed_mps=speed_mps, settled=bool(settled),
+                        sim_time_s=steps * settings.physics.time_step_s, steps=steps, tilt_deg=float(tilt),
                         launch_angle_deg=angle_deg, flight_time_s=tracker.landed_s - tracker.base.time_s,
                         landing_position_m=tracker.landing_m,
                         peak_deceleration_mps2=tracker.peak_deceleration_mps2, edge_speed_mps=tracker.edge_speed_mps,
-                        invalid_reason=invalid_reason(went_over, tracker, options.foam), seed=int(seed))
+                        invalid_reason=invalid_reason(tracker.went_over, tracker, options.foam), seed=int(seed),
+                        decided=decision is not None)
 
 
 def launch_plan(condition, seed, options):
@@ -746,6 +767,16 @@ class LaunchTracker:
         self.peak_deceleration_mps2 = 0.0
         self._velocity = None
 
+    @property
+    def went_over(self):
+        """True once the base origin has crossed the edge line (the robot went over the edge)."""
+        return not math.isnan(self.base.time_s)
+
+    @property
+    def on_foam(self):
+        """True once the robot has landed, and its first landing was on the foam."""
+        return not math.isnan(self.landed_s) and not self.floor_first
+
     def update(self, steps, dt, position):
         """Account for step number ``steps`` (of ``dt`` s) after which the base origin is at ``position``."""
         if self.front.update(steps, dt, position[0]):
@@ -754,7 +785,7 @@ class LaunchTracker:
             if self.base.update(steps, dt, position[0]):
                 self.phases.reach("in_flight")
             return
-        velocity = np.asarray(self._world.velocity(), dtype=np.float64)
+        velocity = tuple(self._world.velocity())   # plain floats: numpy's per-call cost exceeds a MuJoCo step
         if math.isnan(self.landed_s):
             on_foam, on_floor = self._world.touching()
             if on_foam or on_floor:
@@ -762,7 +793,7 @@ class LaunchTracker:
                 self.landed_s, self.landing_m = steps * dt, tuple(float(v) for v in position)
                 self.phases.reach("settling")
         if not math.isnan(self.landed_s) and self._velocity is not None:
-            change = float(np.linalg.norm(velocity - self._velocity)) / dt
+            change = math.dist(velocity, self._velocity) / dt
             self.peak_deceleration_mps2 = max(self.peak_deceleration_mps2, change)
         self._velocity = velocity
 
@@ -791,14 +822,22 @@ class LaunchWorld:
         """After step number ``steps``: True once the robot has stayed at rest for the trials' hold time."""
         raise NotImplementedError
 
+    def decide(self, remaining_s):
+        """The early decision now (True / False: the outcome is fixed upright / not upright; None: still open, or
+        no early decision in this world), ``remaining_s`` before the time cap (:func:`decided_on_foam`).
+        :func:`step_launch` asks only once the robot has landed on the foam and the plate has stopped: from then
+        on only gravity and passive contacts act."""
+        return None
+
 
 class _BulletLaunchWorld(LaunchWorld):
     """:class:`LaunchWorld` of one PyBullet client holding the twin's bodies and the spawned robot."""
 
-    def __init__(self, pybullet, client, robot, foam_id, floor_id, settings):
+    def __init__(self, pybullet, client, robot, foam_id, floor_id, settings, profile):
         self._pybullet, self._client, self._robot = pybullet, client, robot
         self._body, self._foam, self._floor = robot.body_id, foam_id, floor_id
         self._rest = RestDetector(settings.trial, settings.physics.time_step_s)
+        self._settings, self._profile, self._energy = settings, profile, None
 
     def pose(self):
         return self._pybullet.getBasePositionAndOrientation(self._body, physicsClientId=self._client)
@@ -818,11 +857,87 @@ class _BulletLaunchWorld(LaunchWorld):
     def settled(self, steps):
         return self._rest.settled(self._client, self._body, steps)
 
+    def decide(self, remaining_s):
+        if self._energy is None:
+            if not self._settings.trial.early_decision or self._robot.mount_spring is not None:
+                return None   # the barriers hold for a rigid hull only, as in the trials
+            self._energy = _bullet_energy_monitor(self._pybullet, self._client, self._robot, self._settings,
+                                                  self._profile)
+        return decided_on_foam(self._energy, self._energy.com_xy_m(), self._settings, remaining_s)
+
+
+#: Energy barriers and geometry of the early decision per robot + profile (the PyBullet twin spawns per launch).
+_BASINS = {}
+
+
+def foam_sink_m(settings, mass_kg):
+    """How far (m) a robot of ``mass_kg`` resting or rocking on the foam may sink into it: 3 m g / stiffness, its
+    whole weight on one contact point, tripled for dynamic loads (as :func:`mujoco_trials.penetration_allowance_m`)."""
+    return 3 * mass_kg * abs(settings.physics.gravity_mps2) / settings.twin.foam.contact_stiffness_npm
+
+
+def clear_of_foam_edges(com_xy_m, radius_m, foam):
+    """True when a hull of ``radius_m`` about a centre of mass at ``com_xy_m`` cannot reach the foam's edges or the
+    ledge's wall (x = 0): the foam's flat top is then the only ground it can meet."""
+    x, y = com_xy_m
+    return radius_m < x < foam.length_m - radius_m and abs(y) < foam.width_m / 2 - radius_m
+
+
+#: How long (s) a decided robot is assumed to keep rolling at most (:func:`decided_on_foam`): NOT a bound the
+#: energy argument gives (a robot on free wheels loses little energy rolling); bench/verify_early_decision.py
+#: --launches is the evidence that no outcome changes.
+ROLL_HORIZON_S = 2.0
+
+
+def decided_on_foam(energy, com_xy_m, settings, remaining_s):
+    """The early decision of a landed robot (True / False / None), given its energy monitor (after ``decide``
+    has read the state: ``energy_height_m``), its centre of mass (x, y) and the time left to the cap (s).
+
+    The energy argument fixes the robot's orientation outcome, but a decided robot may still roll (on its wheels,
+    or sliding) off the foam or back against the ledge, onto ground other than the foam's flat top (a chassis
+    decided upright rolled off the foam's side 1.6 s after landing and was judged not upright by the full rule).
+    Energy bounds its speed for ever by ``sqrt(2 g (E - lowest))`` (``lowest``: the lowest resting COM height of
+    the decided outcome; the foam's sinking is left out here); the decision stands only if its hull cannot reach
+    the foam's edges or the ledge at that speed within :data:`ROLL_HORIZON_S` (or the time left, if shorter)."""
+    decision = energy.decide()
+    if decision is None:
+        return None
+    excess_m = max(0.0, energy.energy_height_m - energy.basins.lowest_m(decision))
+    travel_m = math.sqrt(2 * abs(settings.physics.gravity_mps2) * excess_m) * min(remaining_s, ROLL_HORIZON_S)
+    return decision if clear_of_foam_edges(com_xy_m, energy.radius_m + travel_m, settings.twin.foam) else None
+
+
+def _bullet_energy_monitor(pybullet, client, robot, settings, profile):
+    """The early decision's :class:`~rollability_ros.core.sim.trials.EnergyMonitor` of a launched robot, its
+    barriers on the foam top, lowered by :func:`foam_sink_m` (the map reused per robot + profile)."""
+    from rollability_ros.core.sim.trials import EnergyMonitor
+    model = settings.robot_model()
+    key = hashlib.sha256(pickle.dumps((settings.robot, settings.urdf_robot, settings.physics, settings.trial,
+                                       settings.twin.foam, profile), protocol=4)).hexdigest()
+    mass_kg = sum(pybullet.getDynamicsInfo(robot.body_id, link, physicsClientId=client)[0]
+                  for link in range(-1, pybullet.getNumJoints(robot.body_id, physicsClientId=client)))
+    margin_m = settings.trial.early_decision_margin_m + foam_sink_m(settings, mass_kg)
+    monitor = EnergyMonitor(client, model, robot, settings.physics.gravity_mps2, margin_m,
+                            ground_z_m=settings.twin.foam.thickness_m, basins=_BASINS.get(key))
+    _BASINS[key] = monitor.basins
+    while len(_BASINS) > 8:
+        del _BASINS[next(iter(_BASINS))]
+    return monitor
+
 
 def step_launch(world, plate, tracker, settings, on_pose, speed_mps):
     """Step ``world`` (a :class:`LaunchWorld`) until the robot is at rest or the trials' time cap, driving ``plate``
-    at ``speed_mps`` until the robot goes over the edge or the plate reaches it; return ``(steps, settled)``.
-    Every twin runs its launches through this loop (the launch rules live here and in :class:`LaunchTracker`)."""
+    at ``speed_mps`` until the robot goes over the edge or the plate reaches it; return ``(steps, settled,
+    decision)``. Every twin runs its launches through this loop (the launch rules live here and in
+    :class:`LaunchTracker`).
+
+    Early decision (``trial.early_decision``): once the robot has landed on the foam and the plate has stopped,
+    only gravity and passive contacts act on it, so the energy argument of
+    :mod:`~rollability_ros.core.sim.early_decision` applies with the foam's top as the ground (barriers lowered by
+    the foam's sinking, :func:`foam_sink_m`, as long as the robot cannot reach the foam's edges or the ledge,
+    :func:`clear_of_foam_edges`, for as far as its energy can still carry it, :func:`decided_on_foam`). Every
+    ``check_interval_steps`` the world's :meth:`LaunchWorld.decide` may end the launch with its outcome
+    (``decision`` True / False; None when it ran to rest or the cap)."""
     dt = settings.physics.time_step_s
     cap = round(settings.trial.time_cap_s / dt)
     pose_every = max(1, round(1.0 / (settings.twin.pose_rate_hz * dt)))
@@ -834,6 +949,8 @@ def step_launch(world, plate, tracker, settings, on_pose, speed_mps):
     steps = 0
     settled = False
     plate_started = False
+    decision = None
+    interval = settings.trial.check_interval_steps
     while steps < cap and not settled:
         if plate.driving or not plate_started:
             plate.drive(speed_mps, (steps + 1) * dt)
@@ -847,5 +964,8 @@ def step_launch(world, plate, tracker, settings, on_pose, speed_mps):
         if on_pose is not None and steps % pose_every == 0:
             on_pose(steps * dt, position, orientation)
         settled = world.settled(steps)
+        if not settled and not plate.driving and steps % interval == 0 and tracker.on_foam:
+            decision = world.decide((cap - steps) * dt)
+            settled = decision is not None
     tracker.phases.reach("classifying")
-    return steps, settled
+    return steps, settled, decision

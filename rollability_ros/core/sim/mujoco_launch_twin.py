@@ -12,7 +12,10 @@ resets its data, so launches of one candidate do not pay for a model build (a pe
 :func:`simulate_launch`, keeps the last few).
 
 World (metres; the frame of :mod:`~rollability_ros.core.sim.launch_twin`)
-    the floor: a plane at z = 0; the foam: a static box on it; the ledge: a box whose top is the launcher's base
+    the floor: a plane at z = 0; the foam: its top, a plane at z = ``foam.thickness_m`` (MuJoCo's plane contacts
+    cost a third of its box contacts; a robot touching that plane outside the foam's extent counts as hitting the
+    floor first, an invalid launch as in the PyBullet twin, and one that later rolls off the foam's 2.5 x 3 m stays
+    on its level: a known difference); the ledge: a box whose top is the launcher's base
     plate, on a mocap body moved to the condition's height before each launch (the box reaches below the floor);
     the push plate: a box on a slide joint whose frame is a mocap body placed behind the robot before each launch
     (push direction and plate face as in the PyBullet twin). Contact filtering: the plate touches only the robot.
@@ -46,11 +49,12 @@ import pickle
 import numpy as np
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.sim.launch_twin import (LaunchResult, LaunchTracker, LaunchWorld, PhaseReporter,
-                                                  check_fits_launcher, invalid_reason, launch_plan,
+from rollability_ros.core.sim.launch_twin import (LaunchTracker, LaunchWorld, PhaseReporter, check_fits_launcher,
+                                                  decided_on_foam, foam_sink_m, launch_plan, launch_result,
                                                   launcher_start_xy, mecanum_wheels, plate_placement, step_launch)
-from rollability_ros.core.sim.mujoco_trials import (CONTACT_SOLREF, MujocoTrialWorld, _geom_points, _pose_speeds,
-                                                    effective_contact, robot_spec, set_geom_contact, wheel_bodies)
+from rollability_ros.core.sim.mujoco_trials import (MujocoEnergyMonitor, MujocoTrialWorld, _geom_points,
+                                                    _pose_speeds, effective_contact, robot_spec, set_geom_contact,
+                                                    wheel_bodies)
 
 #: Half-height of the ledge's box (m): it reaches from the base plate to below the floor at any condition height.
 LEDGE_HALF_HEIGHT_M = 5.0
@@ -88,10 +92,10 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         world = spec.worldbody
         floor = world.add_geom()
         floor.name, floor.type, floor.size = "floor", mujoco.mjtGeom.mjGEOM_PLANE, [0.0, 0.0, 1.0]
-        foam = world.add_geom()
-        foam.name, foam.type = "foam", mujoco.mjtGeom.mjGEOM_BOX
-        foam.size = [options.foam.length_m / 2, options.foam.width_m / 2, options.foam.thickness_m / 2]
-        foam.pos = [options.foam.length_m / 2, 0.0, options.foam.thickness_m / 2]
+        foam = world.add_geom()   # the foam's top as a plane (FOAM_AS_PLANE)
+        foam.name, foam.type = "foam", mujoco.mjtGeom.mjGEOM_PLANE
+        foam.size = [options.foam.length_m / 2, options.foam.width_m / 2, 1.0]
+        foam.pos = [options.foam.length_m / 2, 0.0, options.foam.thickness_m]
         ledge_body = world.add_body()
         ledge_body.name, ledge_body.mocap = "ledge", True
         ledge = ledge_body.add_geom()
@@ -143,7 +147,10 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         self._set_contacts()
         self._plate = None
         self._previous_pose, self._rest_since = None, None
-        self.energy = None
+        compliant = profile is not None and self.robot_model.profile_mount.compliant  # barriers need a rigid hull
+        self.energy = MujocoEnergyMonitor(
+            self, settings.trial.early_decision_margin_m, sink_m=foam_sink_m(settings, self.mass_kg),
+            ground_z_m=options.foam.thickness_m) if settings.trial.early_decision and not compliant else None
 
     def _set_contacts(self):
         """The wheels' and the foam's contact values (module docstring) on the compiled model."""
@@ -205,19 +212,23 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
 
     # -- LaunchWorld --------------------------------------------------------------------------------------------
     def pose(self):
-        qpos = self.data.qpos
-        return (float(qpos[0]), float(qpos[1]), float(qpos[2])), \
-            (float(qpos[4]), float(qpos[5]), float(qpos[6]), float(qpos[3]))
+        x, y, z, qw, qx, qy, qz = self.data.qpos[0:7].tolist()
+        return (x, y, z), (qx, qy, qz, qw)
 
     def velocity(self):
-        return self.data.qvel[0:3].copy()
+        return self.data.qvel[0:3].tolist()
 
     def touching(self):
-        contact = self.data.contact
-        pairs = zip(contact.geom1.tolist(), contact.geom2.tolist())
-        others = {b if a in self._robot_geom_set else a for a, b in pairs
-                  if a in self._robot_geom_set or b in self._robot_geom_set}
-        return self.foam_geom in others, self.floor_geom in others
+        contact, robot, foam = self.data.contact, self._robot_geom_set, self.settings.twin.foam
+        on_foam = on_floor = False
+        for a, b, (x, y, _) in zip(contact.geom1.tolist(), contact.geom2.tolist(), contact.pos.tolist()):
+            other = b if a in robot else a if b in robot else None
+            if other == self.foam_geom:   # the plane beyond the foam's extent stands for the floor below it
+                inside = 0.0 <= x <= foam.length_m and abs(y) <= foam.width_m / 2
+                on_foam, on_floor = on_foam or inside, on_floor or not inside
+            elif other == self.floor_geom:
+                on_floor = True
+        return on_foam, on_floor
 
     def step(self):
         self.data.qfrc_applied[self.plate_dof] = self._plate.force()
@@ -237,6 +248,17 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
             return steps - self._rest_since >= round(trial.rest_hold_s / self.physics.time_step_s)
         self._rest_since = None
         return False
+
+    def decide(self, remaining_s):
+        energy = self.energy
+        if energy is None:
+            return None
+        mujoco, model, data = self.mujoco, self.model, self.data
+        # the monitor reads the COM and the mass matrix of the current state (mj_step left those of the last)
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_makeM(model, data)
+        return decided_on_foam(energy, data.subtree_com[self.root][:2].tolist(), self.settings, remaining_s)
 
     # -- one launch ---------------------------------------------------------------------------------------------
     def launch(self, condition, seed, on_phase=None, on_pose=None):
@@ -264,22 +286,12 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         self._previous_pose, self._rest_since = None, None
         plate = self._plate = _MujocoPlate(self, options.plate, push, placement.face_x_m)
         tracker = LaunchTracker(self, lead_m, PhaseReporter(on_phase), push)
-        steps, settled = step_launch(self, plate, tracker, settings, on_pose, speed_mps)
-        went_over = not math.isnan(tracker.base.time_s)
+        steps, settled, decision = step_launch(self, plate, tracker, settings, on_pose, speed_mps)
         mujoco.mj_forward(model, data)
-        self.ground_geom = self.foam_geom if went_over else self.ledge_geom
-        upright, tilt = self.is_upright()
-        _, final = self.pose()
-        travel_s = tracker.front.time_s
-        return LaunchResult(upright=bool(upright), final_orientation=final, travel_time_s=travel_s,
-                            measured_speed_mps=options.launcher.run_length_m / travel_s, launch_speed_mps=speed_mps,
-                            settled=settled, sim_time_s=steps * self.physics.time_step_s, steps=steps,
-                            tilt_deg=tilt, launch_angle_deg=angle_deg,
-                            flight_time_s=tracker.landed_s - tracker.base.time_s,
-                            landing_position_m=tracker.landing_m,
-                            peak_deceleration_mps2=tracker.peak_deceleration_mps2,
-                            edge_speed_mps=tracker.edge_speed_mps,
-                            invalid_reason=invalid_reason(went_over, tracker, options.foam), seed=int(seed))
+        self.ground_geom = self.foam_geom if tracker.went_over else self.ledge_geom
+        upright, tilt = self.is_upright() if decision is None else (decision, self.tilt_deg())
+        return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, self.pose()[1]),
+                             (speed_mps, angle_deg), seed)
 
 
 class _MujocoPlate:

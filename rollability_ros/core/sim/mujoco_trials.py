@@ -281,10 +281,12 @@ class MujocoEnergyMonitor:
     kinetic energy ``qvel' M qvel / 2`` (exact, from the mass matrix), COM height from the subtree COM.
 
     MuJoCo's contacts are soft: a body sinks into the ground (see :func:`penetration_allowance_m`), which breaks
-    "COM height >= h(d)" by that depth, so the barriers are lowered by it on top of ``margin_m``.
+    "COM height >= h(d)" by that depth, so the barriers are lowered by it on top of ``margin_m`` (``sink_m``
+    replaces it for another ground: the launch twin's foam). ``ground_z_m`` is the ground's height;
+    ``radius_m`` the hull's largest distance from the centre of mass (m).
     """
 
-    def __init__(self, world, margin_m):
+    def __init__(self, world, margin_m, sink_m=None, ground_z_m=0.0):
         from rollability_ros.core.sim.early_decision import build_basin_map
         mujoco, model = world.mujoco, world.model
         self.mujoco, self.world = mujoco, world
@@ -303,9 +305,12 @@ class MujocoEnergyMonitor:
         self.mass_kg = float(model.body_subtreemass[world.root])
         com = (data.subtree_com[world.root] - origin) @ rotation
         robot = world.robot_model
+        self.radius_m = max(float(np.linalg.norm(p - com, axis=1).max()) for p in in_root.values())
+        self.ground_z_m = ground_z_m
+        sink_m = penetration_allowance_m(world.physics) if sink_m is None else sink_m
         self.basins = build_basin_map(in_root, sorted(world.wheels), com, self.mass_kg, world.up_in_root,
                                       robot.upright_tilt_deg, robot.min_wheels_in_contact, robot.contact_tolerance_m,
-                                      margin_m=margin_m + penetration_allowance_m(world.physics))
+                                      margin_m=margin_m + sink_m)
         self.highest_barrier_m = self.basins.highest_barrier_m()
         self.gravity_mps2 = abs(world.physics.gravity_mps2)
         self._momentum = np.zeros(model.nv)
@@ -317,7 +322,8 @@ class MujocoEnergyMonitor:
         # the caller ran mj_step1 at the current state: subtree COM and mass matrix are current
         mujoco.mj_mulM(model, data, self._momentum, data.qvel)
         kinetic = 0.5 * float(self._momentum @ data.qvel)
-        energy_height_m = float(data.subtree_com[world.root][2]) + kinetic / (self.mass_kg * self.gravity_mps2)
+        energy_height_m = self.energy_height_m = float(data.subtree_com[world.root][2]) - self.ground_z_m + \
+            kinetic / (self.mass_kg * self.gravity_mps2)
         if energy_height_m >= self.highest_barrier_m:
             return None
         down_in_root = -data.xmat[world.root][6:9]

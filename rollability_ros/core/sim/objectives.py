@@ -106,28 +106,30 @@ def launch_conditions(campaign_config):
 
 
 @functools.lru_cache(maxsize=8)
-def _resolve(kind, launch_weight, campaign_config, twin_config, engine):
+def _resolve(kind, launch_weight, campaign_config, twin_config, engine, early_decision):
     from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
 
     settings = ObjectiveSettings(kind, launch_weight, list(campaign_config), list(twin_config), RobustSettings())
     twin = load_launch_twin_settings(twin_config)
-    twin = dataclasses.replace(twin, physics=dataclasses.replace(twin.physics, engine=engine))
+    twin = dataclasses.replace(twin, physics=dataclasses.replace(twin.physics, engine=engine),
+                               trial=dataclasses.replace(twin.trial, early_decision=early_decision))
     return LaunchObjective(launch_conditions(campaign_config), twin, settings.launch_share)
 
 
-def launch_objective(settings, engine="pybullet"):
+def launch_objective(settings, engine="pybullet", early_decision=True):
     """The :class:`LaunchObjective` of :class:`ObjectiveSettings` ``settings``, or None for ``disturbance``
     (files read once per distinct setting; a bad file raises ``ConfigError`` / ``ValueError``).
 
-    Its launches run on ``engine``, the evaluation's ``sim.engine`` (the twin's files give the twin's physics
-    constants, the evaluation the engine of every trial it runs); an engine that cannot run launches is refused
-    here (:func:`~rollability_ros.core.sim.trials.check_engine`), before any trial starts."""
+    Its launches run on ``engine``, the evaluation's ``sim.engine``, with the evaluation's
+    ``trial.early_decision`` (the twin's files give the twin's physics constants, the evaluation the engine and
+    the early decision of every trial it runs); an engine that cannot run launches is refused here
+    (:func:`~rollability_ros.core.sim.trials.check_engine`), before any trial starts."""
     settings.validate()
     if settings.kind == "disturbance":
         return None
     check_engine("launch", engine)
     return _resolve(settings.kind, float(settings.launch_weight), tuple(settings.campaign_config),
-                    tuple(settings.twin_config), engine)
+                    tuple(settings.twin_config), engine, bool(early_decision))
 
 
 def run_launch_trial(objective, profile, index, seed):
@@ -138,7 +140,8 @@ def run_launch_trial(objective, profile, index, seed):
     condition = objective.condition(index)
     result = simulate_valid_launch(condition, objective.twin, seed, profile=profile, use_profile=True)
     return TrialOutcome(index=index, seed=seed, upright=bool(result.valid and result.upright),
-                        settled=bool(result.settled), steps=int(result.steps), tilt_deg=float(result.tilt_deg))
+                        settled=bool(result.settled), steps=int(result.steps), tilt_deg=float(result.tilt_deg),
+                        decided=bool(result.decided))
 
 
 def run_robust_trial(client, job, index, seed):

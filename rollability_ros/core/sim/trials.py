@@ -193,10 +193,13 @@ class EnergyMonitor:
     """Reads a spawned robot's energy height and down direction and asks its basin map for a decision.
 
     Built once per :class:`TrialWorld` (the robot at its saved pose): per-link masses and principal inertias,
-    and the :class:`~rollability_ros.core.sim.early_decision.BasinMap` of the robot + profile.
+    and the :class:`~rollability_ros.core.sim.early_decision.BasinMap` of the robot + profile. ``ground_z_m`` is
+    the height of the flat ground the barriers stand on (the launch twin's foam top); ``basins``, when given,
+    is that robot + profile's map from an earlier build (the launch twin spawns its robot per launch).
+    ``radius_m`` is the hull's largest distance from the centre of mass (m).
     """
 
-    def __init__(self, client, robot_model, robot, gravity_mps2, margin_m):
+    def __init__(self, client, robot_model, robot, gravity_mps2, margin_m, ground_z_m=0.0, basins=None):
         from rollability_ros.core.sim.early_decision import build_basin_map
         from rollability_ros.core.sim.stable_poses import link_points
 
@@ -215,10 +218,13 @@ class EnergyMonitor:
         self.inertias = [tuple(pybullet.getDynamicsInfo(self.body, link, physicsClientId=client)[2])
                          for link in order]
         self.gravity_mps2 = abs(gravity_mps2)
-        self.basins = build_basin_map(in_base, robot.wheel_links, (com_world - origin) @ rotation, self.mass_kg,
-                                      rotation.T @ robot_model.up_axis(client, robot), robot_model.upright_tilt_deg,
-                                      robot_model.min_wheels_in_contact, robot_model.contact_tolerance_m,
-                                      margin_m=margin_m)
+        self.ground_z_m = ground_z_m
+        com_in_base = (com_world - origin) @ rotation
+        self.radius_m = max(float(np.linalg.norm(points - com_in_base, axis=1).max()) for points in in_base.values())
+        self.basins = basins if basins is not None else build_basin_map(
+            in_base, robot.wheel_links, com_in_base, self.mass_kg, rotation.T @ robot_model.up_axis(client, robot),
+            robot_model.upright_tilt_deg, robot_model.min_wheels_in_contact, robot_model.contact_tolerance_m,
+            margin_m=margin_m)
         self.com_in_base = tuple(float(value) for value in self.basins.com_m)
         self.highest_barrier_m = self.basins.highest_barrier_m()
 
@@ -236,11 +242,18 @@ class EnergyMonitor:
                 kinetic += self._kinetic_j(mass, inertia, pybullet.getMatrixFromQuaternion(state[1]), state[6],
                                            state[7])
         cx, cy, cz = self.com_in_base
-        com_z = position[2] + base[6] * cx + base[7] * cy + base[8] * cz
-        energy_height_m = com_z + kinetic / (self.mass_kg * self.gravity_mps2)
+        com_z = position[2] + base[6] * cx + base[7] * cy + base[8] * cz - self.ground_z_m
+        energy_height_m = self.energy_height_m = com_z + kinetic / (self.mass_kg * self.gravity_mps2)
         if energy_height_m >= self.highest_barrier_m:  # cheap first test
             return None
         return self.basins.decide(np.array([-base[6], -base[7], -base[8]]), energy_height_m)
+
+    def com_xy_m(self):
+        """The robot's centre of mass (x, y) in the world now (m)."""
+        position, orientation = self.pybullet.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+        base = np.asarray(self.pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+        com = np.asarray(position) + base @ np.asarray(self.com_in_base)
+        return float(com[0]), float(com[1])
 
     @staticmethod
     def _kinetic_j(mass, inertia, rotation, linear, angular):

@@ -93,7 +93,7 @@ def test_physical_side_nodes_start_and_serve(ros_node, start_node, lean_env, tmp
     ok, message = valve.arm()
     assert ok, message
     stray = _call(ros_node, node.create_client(RecordOutcome, "/record_outcome"), RecordOutcome.Request(upright=True))
-    assert not stray.accepted and "not waiting" in stray.message
+    assert not stray.accepted and "not authenticated" in stray.message
     assert ActionClient(node, Launch, "/launch").wait_for_server(timeout_sec=30)
     summary = _call(ros_node, node.create_client(GetSummary, "/get_summary"), GetSummary.Request())
     assert (summary.summary.trials, summary.summary.candidates) == (0, 0)  # a fresh store

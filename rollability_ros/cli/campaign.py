@@ -27,6 +27,9 @@ def register(subparsers):
                         help="launch through the rig node (ROS 2) instead of in this process")
     parser.add_argument("--store-timeout-s", type=float, default=10.0,
                         help="with --graph: longest wait for the logger to acknowledge an outcome, s (default 10)")
+    parser.add_argument("--session-key-file", default="",
+                        help="with --graph --backend physical: the valve_controller's session key, to sign the goals "
+                             "and answers (default: valve.session_key_file's default for this ROS domain)")
     parser.add_argument("--resimulate", nargs=4, metavar=("CONFIGURATION", "HEIGHT_M", "SPEED_MPS", "ANGLE_DEG"),
                         help="with --backend sim and --seed: run only this one launch on the launch twin of "
                              "--rig-config and print its outcome (the report's drill-down shows this command for "
@@ -120,7 +123,8 @@ def _run_graph(args, spec, ask):
     from rollability_ros.core.campaign.runner import RunnerSettings, report_exit_code
     from rollability_ros.nodes.campaign_runner import run_graph_campaign
 
-    settings = RunnerSettings(backend=args.backend, resume=args.resume, store_timeout_s=args.store_timeout_s)
+    settings = RunnerSettings(backend=args.backend, resume=args.resume, store_timeout_s=args.store_timeout_s,
+                              session_key_file=args.session_key_file)
     settings.validate()
     rclpy.init(args=[])
     node = Node("campaign_runner")

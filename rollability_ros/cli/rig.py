@@ -1,22 +1,25 @@
 """`rollability rig`: operator commands to a running launch rig (valve_controller and rig nodes) over ROS 2."""
 
 ACTIONS = ("arm", "disarm", "estop", "confirm", "outcome")
+#: Longest --timeout-s, s (a day: longer is a typo).
+MAX_TIMEOUT_S = 86400.0
 
 
 def register(subparsers):
     parser = subparsers.add_parser(
         "rig", help="operator commands to the running rig: arm, disarm (acknowledge a fault), e-stop, confirm, outcome",
-        description="Talk to the running valve_controller and rig nodes (same ROS domain). arm and disarm are "
-                    "signed with the valve_controller's session key, so they work only on the rig computer, as the "
-                    "user running the valve_controller; disarm also acknowledges a latched valve fault (e-stop, "
-                    "watchdog). estop needs no key: anyone may stop. confirm answers the rig's regulator "
-                    "question; outcome records the result of the launch the rig waits on.")
+        description="Talk to the running valve_controller and rig nodes (same ROS domain). arm, disarm, confirm "
+                    "and outcome are signed with the valve_controller's session key, so they work only on the rig "
+                    "computer, as the user running the valve_controller; disarm also acknowledges a latched valve "
+                    "fault (e-stop, watchdog). estop needs no key: anyone may stop. confirm answers the rig's "
+                    "regulator question; outcome records the result of the launch the rig waits on.")
     parser.add_argument("action", choices=ACTIONS, help="what to do")
     parser.add_argument("verdict", nargs="?", choices=("upright", "tipped"),
                         help="for outcome: upright (on its wheels) or tipped")
-    parser.add_argument("--trial-id", default="", help="for outcome: the trial (default: the one the rig waits on)")
-    parser.add_argument("--travel-time-s", type=float, default=float("nan"),
-                        help="for outcome: travel time over the run, s (when the light gates missed it)")
+    parser.add_argument("--trial-id", default="",
+                        help="for confirm and outcome: the trial (default: the one the rig waits on)")
+    parser.add_argument("--travel-time-s", type=float, default=None,
+                        help="for outcome: travel time over the run, s, > 0 (when the light gates missed it)")
     parser.add_argument("--note", default="", help="for outcome: free text")
     parser.add_argument("--namespace", default=None,
                         help="ROS namespace of the rig nodes (default: bringup.namespace of the parameter files, "
@@ -26,39 +29,75 @@ def register(subparsers):
     parser.epilog = ("Unless ROS_DOMAIN_ID / ROS_AUTOMATIC_DISCOVERY_RANGE are set, this joins the physical rig's "
                      "defaults: domain 73, localhost discovery (as `rollability bringup --backend physical`).")
     parser.add_argument("--session-key-file", default="",
-                        help="for arm / disarm: the valve_controller's session key (default: valve.session_key_file's "
-                             "default for this ROS domain and namespace)")
-    parser.add_argument("--timeout-s", type=float, default=10.0, help="longest wait for the nodes, s (default 10)")
+                        help="for arm, disarm, confirm, outcome: the valve_controller's session key (default: "
+                             "valve.session_key_file's default for this ROS domain and namespace)")
+    parser.add_argument("--timeout-s", type=float, default=10.0,
+                        help=f"longest wait for the nodes, s, in (0, {MAX_TIMEOUT_S:g}] (default 10)")
     parser.set_defaults(func=run)
 
 
-def _request(args, sign=False):
-    """``(service or topic type, name, request or message)`` for the action; arm / disarm are signed only when
-    ``sign`` (the signature is fresh for a few seconds: sign once the service is there), else the request is None."""
-    from std_msgs.msg import Bool
-    from std_srvs.srv import Trigger
+def check_arguments(args):
+    """Refuse unusable arguments before anything starts (``ValueError``, one line): the namespace (normalized in
+    place), the numbers (NaN, sign, range), a verdict where one is needed and only there."""
+    import math
 
-    from rollability_ros.core.rig import valve_auth
-    from rollability_ros.nodes._convert import auth_msg
-    from rollability_ros.srv import ArmValve, RecordOutcome
+    from rollability_ros.core.rig.rig_network import check_namespace
 
-    if args.action in ("arm", "disarm"):
-        if not sign:
-            return ArmValve, "valve/arm", None
-        key_file = args.session_key_file or valve_auth.default_key_path(args.namespace)
-        try:
-            signature = valve_auth.RequestSigner(valve_auth.load_session_key(key_file)).sign(args.action)
-        except valve_auth.AuthError as exc:
-            raise ValueError(str(exc)) from exc
-        return ArmValve, "valve/arm", ArmValve.Request(arm=args.action == "arm", auth=auth_msg(signature))
-    if args.action == "estop":
-        return Bool, "valve/estop", Bool(data=True)
-    if args.action == "confirm":
-        return Trigger, "rig/confirm", Trigger.Request()
-    if args.verdict is None:
+    if args.namespace is not None:
+        args.namespace = check_namespace(args.namespace)
+    if not 0 < args.timeout_s <= MAX_TIMEOUT_S:   # NaN fails every comparison
+        raise ValueError(f"--timeout-s must be a number of seconds in (0, {MAX_TIMEOUT_S:g}], got {args.timeout_s}")
+    if args.travel_time_s is not None:
+        if args.action != "outcome":
+            raise ValueError("--travel-time-s is for outcome only")
+        if not 0 < args.travel_time_s < math.inf:
+            raise ValueError(f"--travel-time-s must be a number of seconds > 0, got {args.travel_time_s} (leave it out "
+                             "when the run was not timed)")
+    if args.action == "outcome" and args.verdict is None:
         raise ValueError("outcome needs a verdict: upright or tipped")
-    return RecordOutcome, "record_outcome", RecordOutcome.Request(
-        trial_id=args.trial_id, upright=args.verdict == "upright", travel_time_s=args.travel_time_s, note=args.note)
+    if args.action != "outcome" and args.verdict is not None:
+        raise ValueError(f"a verdict ({args.verdict}) is for outcome only, not {args.action}")
+    if args.action not in ("confirm", "outcome") and args.trial_id:
+        raise ValueError("--trial-id is for confirm and outcome only")
+    if args.action not in ("outcome",) and args.note:
+        raise ValueError("--note is for outcome only")
+
+
+def _request(args, sign=False):
+    """``(service or topic type, name, request or message)`` for the action; the signed actions are built only
+    when ``sign`` (the signature is fresh for a few seconds: sign once the service is there), else the request is
+    None."""
+    import math
+
+    from std_msgs.msg import Bool
+
+    from rollability_ros.core.rig import rig_auth, valve_auth
+    from rollability_ros.nodes._convert import auth_msg
+    from rollability_ros.srv import ArmValve, ConfirmRegulator, RecordOutcome
+
+    kind, name = {"arm": (ArmValve, "valve/arm"), "disarm": (ArmValve, "valve/arm"),
+                  "confirm": (ConfirmRegulator, "rig/confirm"), "outcome": (RecordOutcome, "record_outcome"),
+                  "estop": (Bool, "valve/estop")}[args.action]
+    if args.action == "estop":
+        return kind, name, Bool(data=True)
+    if not sign:
+        return kind, name, None
+    key_file = args.session_key_file or valve_auth.default_key_path(args.namespace)
+    try:
+        if args.action in ("arm", "disarm"):
+            signature = valve_auth.RequestSigner(valve_auth.load_session_key(key_file)).sign(args.action)
+            return kind, name, ArmValve.Request(arm=args.action == "arm", auth=auth_msg(signature))
+        signer = rig_auth.KeyFileSigner(key_file)
+        if args.action == "confirm":
+            return kind, name, ConfirmRegulator.Request(trial_id=args.trial_id,
+                                                        auth=auth_msg(signer.confirm(args.trial_id)))
+        travel_time_s = math.nan if args.travel_time_s is None else args.travel_time_s
+        upright = args.verdict == "upright"
+        return kind, name, RecordOutcome.Request(
+            trial_id=args.trial_id, upright=upright, travel_time_s=travel_time_s, note=args.note,
+            auth=auth_msg(signer.outcome(args.trial_id, upright, travel_time_s, args.note)))
+    except valve_auth.AuthError as exc:
+        raise ValueError(str(exc)) from exc
 
 
 def default_namespace(config_files=()):
@@ -86,15 +125,17 @@ def run(args):
     import os
     import time
 
+    from rollability_ros.core.rig.rig_network import check_namespace, physical_rig_environment
+
+    check_arguments(args)   # before ROS starts: a bad argument is one line, never a traceback or a hang
     import rclpy
     from rclpy.node import Node
 
-    from rollability_ros.core.rig.rig_network import physical_rig_environment
     from rollability_ros.nodes._support import init_ros
 
     os.environ.update(physical_rig_environment(os.environ))  # the physical bringup's defaults, unless set
     if args.namespace is None:
-        args.namespace = default_namespace(args.config)
+        args.namespace = check_namespace(default_namespace(args.config))
     namespace = args.namespace
     kind, name, payload = _request(args)
     init_ros([])
@@ -120,8 +161,7 @@ def run(args):
                         if node.count_services(service)]   # the graph lists clients' service names too
             raise ValueError(_missing(f"service {node.resolve_service_name(name)} is not available", name,
                                       namespaces_offering(services, name)))
-        if args.action in ("arm", "disarm"):
-            payload = _request(args, sign=True)[2]  # signed now: the signature is fresh for a few seconds only
+        payload = _request(args, sign=True)[2]  # signed now: the signature is fresh for a few seconds only
         future = client.call_async(payload)
         rclpy.spin_until_future_complete(node, future, timeout_sec=args.timeout_s)
         if not future.done():

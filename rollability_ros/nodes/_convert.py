@@ -16,7 +16,7 @@ from rollability_ros.msg import (CandidateResult, GenerationSummary, LaunchCondi
 _CLASSES = {mapping.OUTCOME_TYPE: LaunchOutcome, mapping.CANDIDATE_TYPE: CandidateResult,
             mapping.GENERATION_TYPE: GenerationSummary, mapping.TIP_EVENT_TYPE: TipEvent,
             mapping.CONDITION_TYPE: LaunchCondition, mapping.TIME_TYPE: Time, mapping.HEADER_TYPE: Header,
-            mapping.QUATERNION_TYPE: Quaternion}
+            mapping.QUATERNION_TYPE: Quaternion, mapping.AUTH_TYPE: ValveAuth}
 
 
 def make_message(type_name, **fields):

@@ -2,9 +2,12 @@
 
 Action client: ``launch`` (rollability_ros/Launch) of the ``rig`` node, one goal per remaining trial.
 Service clients: ``stored_trials`` (rollability_ros/GetStoredTrials) of the ``outcome_logger``, once at start-up,
-  for the trials already stored (resume); attended runs also call ``rig/confirm`` (std_srvs/Trigger) and
+  for the trials already stored (resume); attended runs also call ``rig/confirm`` (ConfirmRegulator) and
   ``record_outcome`` (RecordOutcome) with what the operator types when the rig's feedback asks for the regulator
   or for the outcome.
+Authentication: with ``runner.backend`` physical, goals, confirmations and outcomes are signed with the
+  valve_controller's session key (``runner.session_key_file``; :mod:`rollability_ros.core.rig.rig_auth`), so this
+  runner works on the rig computer as the valve_controller's user; a sim campaign signs nothing.
 Subscription: ``outcomes_stored`` (rollability_ros/OutcomeStored, reliable, transient-local): the logger's
   acknowledgements; a trial counts as done once the logger acknowledged storing it.
 Parameters: ``campaign.*`` (:class:`~rollability_ros.core.campaign.plan.CampaignSpec`) and ``runner.*``
@@ -27,19 +30,19 @@ from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from std_srvs.srv import Trigger
 
 from rollability_ros.action import Launch
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
 from rollability_ros.core.campaign.runner import (RunnerSettings, StoreAcknowledgements, answer_rig,
                                                   report_exit_code, resume_refusal, run_campaign)
 from rollability_ros.core.config import ConfigError
+from rollability_ros.core.rig import rig_auth, valve_auth
 from rollability_ros.core.rig.launch_backend import LaunchAborted
 from rollability_ros.core.rig.rig_session import launch_backend_class
 from rollability_ros.nodes import _convert
-from rollability_ros.msg import OutcomeStored
+from rollability_ros.msg import OutcomeStored, ValveAuth
 from rollability_ros.nodes._support import RECORD_QOS, ParameterError, declare_settings, init_ros
-from rollability_ros.srv import GetStoredTrials, RecordOutcome
+from rollability_ros.srv import ConfirmRegulator, GetStoredTrials, RecordOutcome
 
 #: Seconds the rig's action server may be missing from the graph before a running launch counts as lost.
 SERVER_LOST_S = 3.0
@@ -62,16 +65,19 @@ class RigClient:
     say : callable
     server_timeout_s : float
         Longest wait for the rig's action server and services, s.
+    signer : KeyFileSigner or None
+        Signs goals and answers with the valve's session key (physical rig); None sends them unsigned (sim rig).
     """
 
-    def __init__(self, node, executor, run_id, ask, say, server_timeout_s):
+    def __init__(self, node, executor, run_id, ask, say, server_timeout_s, signer=None):
+        self.signer = signer
         self.executor = executor
         self.run_id = run_id
         self.ask, self.say = ask, say
         self.server_timeout_s = server_timeout_s
         self.node = node
         self.action = ActionClient(node, Launch, "launch")
-        self.confirm_client = node.create_client(Trigger, "rig/confirm")
+        self.confirm_client = node.create_client(ConfirmRegulator, "rig/confirm")
         self.record_client = node.create_client(RecordOutcome, "record_outcome")
 
     def _wait(self, future, what):
@@ -87,26 +93,40 @@ class RigClient:
         if reply is None:
             return
         kind, outcome = reply
+        client = self.confirm_client if kind == "confirm" else self.record_client
+        if not spin_until(self.executor, client.service_is_ready, self.server_timeout_s):
+            raise LaunchAborted(f"the rig's {client.srv_name} service is not available")
+        # signed once the service is there: a signature is fresh for a few seconds only
         if kind == "confirm":
-            client, request = self.confirm_client, Trigger.Request()
+            request = ConfirmRegulator.Request(trial_id=trial_id,
+                                               auth=self._sign(lambda signer: signer.confirm(trial_id)))
         else:
-            client = self.record_client
             request = RecordOutcome.Request(trial_id=trial_id, upright=outcome.upright, note=outcome.note,
                                             travel_time_s=outcome.travel_time_s)
-        if not client.wait_for_service(timeout_sec=self.server_timeout_s):
-            raise LaunchAborted(f"the rig's {client.srv_name} service is not available")
+            request.auth = self._sign(lambda signer: signer.outcome(trial_id, request.upright,
+                                                                    request.travel_time_s, request.note))
         response = self._wait(client.call_async(request), client.srv_name)
         accepted = response.success if kind == "confirm" else response.accepted
         if not accepted:
             self.say(f"  the rig refused the answer: {response.message}")
 
+    def _sign(self, sign):
+        """``sign(signer)`` as a ``ValveAuth`` (unsigned without a signer); LaunchAborted when the key is unreadable."""
+        if self.signer is None:
+            return ValveAuth()
+        try:
+            return _convert.auth_msg(sign(self.signer))
+        except valve_auth.AuthError as exc:
+            raise LaunchAborted(str(exc)) from exc
+
     def launch(self, trial):
         """Run ``trial`` on the rig; its :class:`~rollability_ros.core.results.records.LaunchOutcome`, or LaunchAborted."""
-        if not self.action.wait_for_server(timeout_sec=self.server_timeout_s):
+        if not spin_until(self.executor, self.action.server_is_ready, self.server_timeout_s):
             raise LaunchAborted(f"no rig serves the launch action within {self.server_timeout_s:g} s")
         feedback = queue.Queue()
         goal = Launch.Goal(run_id=self.run_id, trial_id=trial.trial_id,
                            condition=_convert.condition_to_msg(trial.condition))
+        goal.auth = self._sign(lambda signer: signer.launch(self.run_id, trial.trial_id, goal.condition))
         handle = self._wait(self.action.send_goal_async(goal, feedback_callback=feedback.put), "the goal")
         if not handle.accepted:
             raise LaunchAborted(f"the rig rejected {trial.trial_id}")
@@ -156,6 +176,17 @@ class RigClient:
             self._answer(trial_id, message.phase, message.detail)
 
 
+def spin_until(executor, predicate, timeout_s):
+    """Spin ``executor`` until ``predicate()`` or ``timeout_s``; returns its last value. (rclpy's wait_for_service
+    and wait_for_server only sleep: meanwhile this node would not answer its parameter services.)"""
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            return predicate()
+        executor.spin_once(timeout_sec=0.05)
+    return True
+
+
 def _say(text):
     print(text, flush=True)   # a supervisor's log file or a pipe shows each line as it happens
 
@@ -165,7 +196,7 @@ def stored_trial_ids(node, executor, run_id, timeout_s):
     when no logger answers within ``timeout_s`` or it cannot read its store."""
     client = node.create_client(GetStoredTrials, "stored_trials")
     try:
-        if not client.wait_for_service(timeout_sec=timeout_s):
+        if not spin_until(executor, client.service_is_ready, timeout_s):
             raise ValueError(f"no outcome_logger serves {client.srv_name} within {timeout_s:g} s: start one in this "
                              "ROS domain")
         future = client.call_async(GetStoredTrials.Request(run_id=run_id))
@@ -196,7 +227,15 @@ def run_graph_campaign(node, spec, settings, ask=None, say=_say):
         refusal = resume_refusal(len(stored), settings.resume, spec.run_id)
         if refusal:
             raise ValueError(refusal)
-        rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s)
+        signer = None
+        if launch_backend_class(settings.backend).authenticated:
+            signer = rig_auth.KeyFileSigner(settings.session_key_file
+                                            or valve_auth.default_key_path(node.get_namespace()))
+            try:   # refused at once, not at every trial: the physical rig takes no unsigned goal
+                valve_auth.load_session_key(signer.path)
+            except valve_auth.AuthError as exc:
+                raise ValueError(f"a physical campaign signs its goals: {exc}") from exc
+        rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s, signer)
         return run_campaign(plan, spec.run_id, stored, rig.launch, acknowledgements, ask=ask, say=say)
     finally:
         # while the context is valid: an executor left to the garbage collector after rclpy's shutdown prints an

@@ -16,6 +16,13 @@ Services:
 Parameters:
   ``store_path`` (string, default ``runs/outcomes.sqlite``): SQLite store file or run directory; fixed at
   start-up.
+  ``session_key_file`` (string, default "": ``valve.session_key_file``'s default for this domain and namespace):
+  the valve_controller's key file, to verify physical outcomes.
+
+Physical outcomes are stored only with the rig's record signature (``auth``, made with the valve's session key for
+a launch whose goal the operator's tools signed: :mod:`rollability_ros.core.rig.rig_auth`); an unsigned or forged
+one is refused with a warning, not stored and not acknowledged. So a logger that stores physical outcomes runs on
+the rig computer, as the user of the valve_controller (sim outcomes need no key: any computer).
 
 Acknowledgement: a record is acknowledged -- the INFO line ``stored <kind> <key>``, for outcomes the
 ``outcomes_stored`` message, and for outcomes and candidates the summary that counts it -- only after the store has committed (fsynced) it, so every
@@ -29,6 +36,7 @@ from rclpy.node import Node
 
 from rollability_ros.core.results.outcome_log import OutcomeLog, OutcomeLoggerSettings, StoreFailure
 from rollability_ros.core.results.store import unique_key
+from rollability_ros.core.rig import rig_auth, valve_auth
 from rollability_ros.msg import (CandidateResult, ConfigurationSummary, GenerationSummary, LaunchOutcome,
                                  OutcomeStored, OutcomeSummary, TipEvent)
 from rollability_ros.nodes import _convert
@@ -66,6 +74,8 @@ class OutcomeLoggerNode(Node):
             self.log = OutcomeLog.open(settings.store_path)
         except ValueError as exc:
             raise ParameterError(f"store_path: {exc}") from exc
+        self.record_guard = rig_auth.RecordGuard(
+            settings.session_key_file or valve_auth.default_key_path(self.get_namespace()))
         self.add_on_set_parameters_callback(self._refuse_store_change)
         self.summary_publisher = self.create_publisher(OutcomeSummary, "summary", LATCHED_QOS)
         self.stored_publisher = self.create_publisher(OutcomeStored, "outcomes_stored", RECORD_QOS)
@@ -82,8 +92,9 @@ class OutcomeLoggerNode(Node):
                                f"{summary.candidates} candidates already stored")
 
     def _refuse_store_change(self, params):
-        if any(p.name == "store_path" for p in params):
-            return SetParametersResult(successful=False, reason="store_path is fixed at start-up; restart the node")
+        fixed = [p.name for p in params if p.name in ("store_path", "session_key_file")]
+        if fixed:
+            return SetParametersResult(successful=False, reason=f"{fixed[0]} is fixed at start-up; restart the node")
         return SetParametersResult(successful=True)
 
     def _make_callback(self, convert, kind):
@@ -96,6 +107,12 @@ class OutcomeLoggerNode(Node):
         try:
             record = convert(msg)
             key = "/".join(str(part) for part in unique_key(record))
+            if kind == "launch outcome":
+                authentic, reason = self.record_guard.check(_convert.signature_from_msg(msg.auth), record)
+                if not authentic:
+                    logger.warning(f"refused {record.backend} {kind} {key}: {reason}; NOT stored",
+                                   throttle_duration_sec=1.0)
+                    return
             stored = self.log.add(record)
         except (ValueError, TypeError) as exc:
             logger.warning(f"skipped malformed {kind}: {exc}")

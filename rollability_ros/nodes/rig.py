@@ -3,13 +3,14 @@ pneumatic launcher), through the :class:`~rollability_ros.core.rig.launch_backen
 :func:`~rollability_ros.core.rig.rig_session.make_launch_backend` builds from ``rig.backend``.
 
 Action server:
-  ``launch`` (rollability_ros/Launch): one launch per goal, one at a time. A goal that cannot run (NaN or negative
-  height, unknown configuration, no regulator pressure for its speed, rig busy) is aborted at once with the reason
-  in ``result.message``. Feedback phases: waiting_for_operator, armed, fired, in_flight, settling, classifying
+  ``launch`` (rollability_ros/Launch): one launch per goal, one at a time. A goal that cannot run (not
+  authenticated on the physical backend, NaN or negative height, unknown configuration, no regulator pressure for
+  its speed, rig busy) is aborted at once with the reason in ``result.message``. Feedback phases: waiting_for_operator, armed, fired, in_flight, settling, classifying
   (``detail`` says what the operator must do). Cancel is honoured at the next wait (before firing, or while
   waiting for the operator or the IMU).
 Publications:
-  ``launch_outcomes`` (rollability_ros/LaunchOutcome, reliable, deep queue): every outcome, for the outcome_logger.
+  ``launch_outcomes`` (rollability_ros/LaunchOutcome, reliable, deep queue): every outcome, for the outcome_logger;
+  a physical one carries the rig's record signature (``auth``), made only for a goal that was signed.
   ``rig/pose`` (geometry_msgs/PoseStamped): the chassis pose during a launch, when the backend reports poses (the
   launch twin does).
   ``rig/heartbeat`` (rollability_ros/ValveHeartbeat, when the backend opens the valve): every
@@ -19,7 +20,11 @@ Services:
   ``record_outcome`` (rollability_ros/RecordOutcome): the operator's outcome of the launch the rig waits on (or an
   override of the IMU's verdict during the override window); refused with a reason when no launch waits (always,
   on the simulated backend).
-  ``rig/confirm`` (std_srvs/Trigger): the operator confirms the regulator pressure asked for in the feedback.
+  ``rig/confirm`` (rollability_ros/ConfirmRegulator): the operator confirms the regulator pressure asked for in the
+  feedback (for the named trial, or the launch waiting now).
+Authentication (physical backend, :mod:`rollability_ros.core.rig.rig_auth`): launch goals, confirmations and
+  outcomes must be signed with the valve's session key (``valve.session_key_file``) by the operator's tools,
+  fresh and used once; anything else is refused with "not authenticated: ...". The sim backend needs no key.
 Ports the physical backend opens (:class:`RosRigPorts`): clients ``valve/arm`` (ArmValve), ``valve/fire``
   (FireValve), signed with the session key ``valve.session_key_file`` that the valve_controller on this computer
   writes; subscriptions to ``valve/state`` (latched) and, when ``rig.outcome_source`` is ``imu``, to the IMU
@@ -41,21 +46,20 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
-from std_srvs.srv import Trigger
 
 from rollability_ros.action import Launch
 from rollability_ros.core.rig.launch_backend import LaunchAborted, RigPorts
 from rollability_ros.core.rig.rig_session import OperatorOutcome, RigSettings, make_launch_backend
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
 from rollability_ros.core.imu.upright import ImuOutcomeConfig, imu_sample_from_message
-from rollability_ros.core.rig import valve_auth
+from rollability_ros.core.rig import rig_auth, valve_auth
 from rollability_ros.core.rig.valve import ValveConfig, ValveStatus
 from rollability_ros.msg import LaunchOutcome, ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
                                             run_node)
-from rollability_ros.nodes._convert import auth_msg
-from rollability_ros.srv import ArmValve, FireValve, RecordOutcome
+from rollability_ros.nodes._convert import auth_msg, signature_from_msg
+from rollability_ros.srv import ArmValve, ConfirmRegulator, FireValve, RecordOutcome
 
 
 class ValveServices:
@@ -155,6 +159,11 @@ def imu_sample_from_msg(msg):
         frame_id=msg.header.frame_id)
 
 
+def session_key_path(node, valve_config):
+    """The valve_controller's key file: ``valve.session_key_file``, else the default for this namespace."""
+    return valve_config.session_key_file or valve_auth.default_key_path(node.get_namespace())
+
+
 class RosRigPorts(RigPorts):
     """The rig's ports over ROS: the valve_controller's services with a heartbeat timer, the speed gate, the IMU
     topic. Each is created only when the backend opens it, so a simulated rig has no valve client or heartbeat."""
@@ -170,7 +179,7 @@ class RosRigPorts(RigPorts):
         """:class:`ValveServices` signing with the valve's session key, and ``rig/heartbeat`` every
         ``valve.heartbeat_period_ms`` for the watchdog (signed; sent from the first arming on)."""
         node = self._node
-        key_path = valve_config.session_key_file or valve_auth.default_key_path(node.get_namespace())
+        key_path = session_key_path(node, valve_config)
         self._valve_services = ValveServices(node, self._valve_timeout_s, self._group, key_path)
         self._heartbeat_publisher = node.create_publisher(ValveHeartbeat, "rig/heartbeat", 10)
         # steady clock: sim time must not stall the heartbeat the valve's watchdog relies on
@@ -219,8 +228,9 @@ class RigNode(Node):
                                                RosRigPorts(self, self.settings.valve_timeout_s, group))
         except (ValueError, ImportError) as exc:  # ConfigError is a ValueError, MissingDependency ImportError
             raise ParameterError(f"rig.backend {self.settings.backend}: {exc}") from exc
+        self.guard = rig_auth.request_guard(self.backend.authenticated, session_key_path(self, valve))
         self.create_service(RecordOutcome, "record_outcome", self._on_record_outcome, callback_group=group)
-        self.create_service(Trigger, "rig/confirm", self._on_confirm, callback_group=group)
+        self.create_service(ConfirmRegulator, "rig/confirm", self._on_confirm, callback_group=group)
         ActionServer(self, Launch, "launch", execute_callback=self._execute, callback_group=group,
                      cancel_callback=lambda _goal: CancelResponse.ACCEPT)
         self.get_logger().info(f"rig ready: {self.backend.describe()}")
@@ -232,16 +242,29 @@ class RigNode(Node):
         return SetParametersResult(successful=True)
 
     def _on_record_outcome(self, request, response):
-        travel_time_s = request.travel_time_s if request.travel_time_s > 0 else math.nan
-        response.accepted, response.message = self.backend.operator.record_outcome(
-            OperatorOutcome(bool(request.upright), travel_time_s, request.note), request.trial_id)
-        self.get_logger().info(f"operator outcome for {request.trial_id or 'the current launch'}: "
-                               f"{'upright' if request.upright else 'not upright'} -> {response.message}")
+        response.accepted, response.message = self.guard.check_outcome(
+            signature_from_msg(request.auth), request.trial_id, request.upright, request.travel_time_s, request.note)
+        if response.accepted:
+            travel_time_s = request.travel_time_s if request.travel_time_s > 0 else math.nan
+            response.accepted, response.message = self.backend.operator.record_outcome(
+                OperatorOutcome(bool(request.upright), travel_time_s, request.note), request.trial_id)
+        self._log_answer(response.accepted, f"operator outcome for {request.trial_id or 'the current launch'}: "
+                         f"{'upright' if request.upright else 'not upright'} -> {response.message}")
         return response
 
+    def _log_answer(self, accepted, text):
+        if accepted:
+            self.get_logger().info(text)
+        else:   # a stray participant's flood of refused answers must not flood the log
+            self.get_logger().warning(text, throttle_duration_sec=1.0)
+
     def _on_confirm(self, request, response):
-        response.success, response.message = self.backend.operator.confirm()
-        self.get_logger().info(f"operator confirmation: {response.message}")
+        response.success, response.message = self.guard.check_confirm(signature_from_msg(request.auth),
+                                                                      request.trial_id)
+        if response.success:
+            response.success, response.message = self.backend.operator.confirm(request.trial_id)
+        self._log_answer(response.success, f"operator confirmation for {request.trial_id or 'the current launch'}: "
+                                           f"{response.message}")
         return response
 
     def _execute(self, goal_handle):
@@ -256,6 +279,14 @@ class RigNode(Node):
         def cancelled():
             return goal_handle.is_cancel_requested or self._closing.is_set()
 
+        # authenticated before anything else: a stray participant's goals never hold the rig busy
+        ticket, reason = self.guard.check_launch(signature_from_msg(goal.auth), goal.run_id, goal.trial_id,
+                                                 goal.condition)
+        if ticket is None:
+            result.message = f"{goal.trial_id}: {reason}"
+            logger.warning(f"launch refused: {result.message}", throttle_duration_sec=1.0)
+            goal_handle.abort()
+            return result
         if not self._busy.acquire(blocking=False):
             result.message = f"rig busy with another launch; {goal.trial_id} refused"
             logger.warning(result.message)
@@ -282,6 +313,8 @@ class RigNode(Node):
         finally:
             self._busy.release()
         result.outcome = _convert.outcome_to_msg(outcome)
+        # the record is signed as the logger will read it back from the message (stamps round to ns)
+        result.outcome.auth = auth_msg(ticket.sign_record(_convert.outcome_from_msg(result.outcome)))
         self.outcome_publisher.publish(result.outcome)
         logger.info(f"{goal.trial_id}: {'upright' if outcome.upright else 'NOT upright'} "
                     f"(classified by {outcome.classified_by}){'; ' + outcome.note if outcome.note else ''}")

@@ -71,9 +71,9 @@ def test_definition_has_every_nested_type_once_in_rosbag2_layout():
               encoding="utf-8") as stream:
         assert text.startswith(stream.read())
     headers = [line[len("MSG: "):] for line in text.splitlines() if line.startswith("MSG: ")]
-    assert headers == ["geometry_msgs/Quaternion", "rollability_ros/LaunchCondition", "std_msgs/Header",
-                       "builtin_interfaces/Time"]
-    assert text.count(SEPARATOR + "\nMSG: ") == 4
+    assert headers == ["geometry_msgs/Quaternion", "rollability_ros/LaunchCondition", "rollability_ros/ValveAuth",
+                       "std_msgs/Header", "builtin_interfaces/Time"]
+    assert text.count(SEPARATOR + "\nMSG: ") == 5
     pose = definition_for("geometry_msgs/PoseStamped")
     assert [line for line in pose.splitlines() if line.startswith("MSG: ")] == [
         "MSG: geometry_msgs/Pose", "MSG: geometry_msgs/Point", "MSG: geometry_msgs/Quaternion",

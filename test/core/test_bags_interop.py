@@ -75,7 +75,8 @@ def launch_outcome_cdr(typestore, trial_id, upright):
         condition=condition, backend="sim", upright=upright, travel_time_s=0.42, measured_speed_mps=0.81,
         speed_out_of_tolerance=False, final_orientation=new["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0,
                                                                                             w=1.0),
-        classified_by="sim", note="", seed=123_456_789)
+        classified_by="sim", note="", seed=123_456_789,
+        auth=new["rollability_ros/msg/ValveAuth"](session="0123456789abcdef", counter=2**63 + 5, mac="ab" * 32))
     missing = set(outcome_type.__dataclass_fields__) - set(values) - {"__msgtype__"}
     assert not missing, f"LaunchOutcome.msg has fields this test does not fill: {missing}"
     return typestore.serialize_cdr(outcome_type(**values), "rollability_ros/msg/LaunchOutcome")
@@ -122,6 +123,7 @@ def test_bag_decodes_in_rosbags_and_mcap_ros2_from_stored_definitions_alone(tmp_
         assert [o["upright"] for o in outcomes] == [True, False] * 3
         assert outcomes[0]["condition"]["height_m"] == 0.75 and outcomes[0]["header"]["frame_id"] == "rig"
         assert outcomes[0]["seed"] == 123_456_789
+        assert outcomes[0]["auth"]["counter"] == 2**63 + 5 and outcomes[0]["auth"]["mac"] == "ab" * 32
 
     # and rclpy reads back exactly what it wrote
     first_pose = next(iter(BagReader(bag, topics=["/pose"])))

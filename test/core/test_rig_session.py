@@ -161,6 +161,41 @@ def test_operator_channel_refuses_stray_answers():
     assert channel.wait(0.5) is None
 
 
+def test_regulator_confirmation_expires_and_is_forgotten_after_an_abort(valve, monkeypatch):
+    rig = make_rig(valve, confirmation_valid_s=60.0, operator_timeout_s=0.2)
+    operator = ScriptedOperator(rig.operator, [OperatorOutcome(True)] * 6)
+    now, real_monotonic = [0.0], time.monotonic
+    monkeypatch.setattr(time, "monotonic", lambda: real_monotonic() + now[0])   # time jumps forward on demand
+
+    def asked(trial_id):
+        operator.phases.clear()
+        rig.launch("run", trial_id, CONDITION, operator)
+        return operator.phases[0][0] == "waiting_for_operator"
+
+    assert asked("t0")
+    now[0] += 59.0
+    assert not asked("t1"), "within confirmation_valid_s at the same speed: no question"
+    now[0] += 61.0
+    assert asked("t2"), "a confirmation is not remembered for ever"
+    # an aborted launch (no outcome from the operator) forgets it too
+    with pytest.raises(LaunchAborted, match="no operator answer"):
+        rig.launch("run", "t3", CONDITION, lambda phase, detail: None)
+    assert asked("t4")
+    every = make_rig(valve, confirmation_valid_s=0.0)
+    operator.channel = every.operator
+    for trial_id in ("t5", "t6"):
+        operator.phases.clear()
+        every.launch("run", trial_id, CONDITION, operator)
+        assert operator.phases[0][0] == "waiting_for_operator", "0 s: asked before every launch"
+
+
+def test_a_confirmation_for_another_launch_is_refused():
+    channel = OperatorChannel()
+    channel.open("confirm", "t3")
+    assert channel.confirm("t2") == (False, "the rig waits for a regulator confirmation of 't3', not 't2'")
+    assert channel.confirm("t3") == (True, "accepted")
+
+
 def test_parse_outcome_answer():
     assert parse_outcome_answer("y") == OperatorOutcome(True)
     assert parse_outcome_answer("n 0.43 landed on the lid") == OperatorOutcome(False, 0.43, "landed on the lid")

@@ -36,7 +36,7 @@ def typestore() -> typing.Any:
 
     store = get_typestore(Stores.ROS2_JAZZY)
     types = {}
-    for type_name in ("rollability_ros/msg/LaunchCondition",) + tuple(RECORD_TYPES):
+    for type_name in ("rollability_ros/msg/LaunchCondition", "rollability_ros/msg/ValveAuth") + tuple(RECORD_TYPES):
         types.update(get_types_from_msg(interface_text(type_name), type_name))
     store.register(types)
     return store

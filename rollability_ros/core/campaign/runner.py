@@ -220,6 +220,9 @@ class RunnerSettings:
         "range": (0.0, 3600.0)})
     server_timeout_s: float = dataclasses.field(default=30.0, metadata={
         "description": "longest wait for the rig's Launch action server to appear, s", "range": (0.0, 86400.0)})
+    session_key_file: str = dataclasses.field(default="", metadata={
+        "description": "physical: the valve_controller's session key file this runner signs goals and answers with "
+                       "(rig_auth); \"\" = the default of valve.session_key_file for this ROS domain and namespace"})
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""

@@ -40,6 +40,10 @@ class OutcomeLoggerSettings:
         "description": "SQLite store file (or a run directory, then <dir>/store.sqlite); created with its "
                        f"parent directories if missing; relative to the working directory. "
                        f"Default {DEFAULT_STORE_PATH}. Fixed at start-up."})
+    session_key_file: str = dataclasses.field(default="", metadata={
+        "description": "the valve_controller's session key file, to verify the rig's signature on physical launch "
+                       "outcomes (a physical outcome without a valid one is not stored); \"\" = the default of "
+                       "valve.session_key_file for this ROS domain and namespace. Fixed at start-up."})
 
     def validate(self):
         """Raise ``ValueError`` for an unusable store path."""

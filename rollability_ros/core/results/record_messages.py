@@ -31,6 +31,8 @@ CONDITION_TYPE = "rollability_ros/msg/LaunchCondition"
 TIME_TYPE = "builtin_interfaces/msg/Time"
 HEADER_TYPE = "std_msgs/msg/Header"
 QUATERNION_TYPE = "geometry_msgs/msg/Quaternion"
+#: The signature field of a physical ``LaunchOutcome`` (the rig's; records carry none: built unsigned here).
+AUTH_TYPE = "rollability_ros/msg/ValveAuth"
 #: Record message type -> record class.
 RECORD_TYPES = {OUTCOME_TYPE: LaunchOutcome, CANDIDATE_TYPE: CandidateRecord, GENERATION_TYPE: GenerationRecord,
                 TIP_EVENT_TYPE: TipEventRecord}
@@ -147,7 +149,7 @@ def message_from_record(make: MakeMessage, record: Record) -> typing.Tuple[str, 
             measured_speed_mps=float(record.measured_speed_mps),
             speed_out_of_tolerance=bool(record.speed_out_of_tolerance),
             final_orientation=make_quaternion(make, record.final_orientation), classified_by=record.classified_by,
-            note=record.note, seed=int(record.seed))
+            note=record.note, seed=int(record.seed), auth=make(AUTH_TYPE, session="", counter=0, mac=""))
     if isinstance(record, CandidateRecord):
         return CANDIDATE_TYPE, make(
             CANDIDATE_TYPE, header=_header(make, record.stamp_s), run_id=record.run_id,

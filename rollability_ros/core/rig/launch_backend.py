@@ -50,6 +50,9 @@ class LaunchBackend(abc.ABC):
     attended : bool
         True when an operator must be at the rig (to place the chassis and answer questions); an attended campaign
         tells the operator what to change before each trial.
+    authenticated : bool
+        True when goals, operator answers and outcome records must be signed with the valve's session key
+        (:mod:`rollability_ros.core.rig.rig_auth`): a backend that moves hardware or writes physical records.
     operator : OperatorChannel
         Where operator answers (regulator confirmation, outcome) are delivered from any thread; a backend that
         never asks refuses every answer with a reason.
@@ -57,6 +60,7 @@ class LaunchBackend(abc.ABC):
 
     name: str = ""
     attended: bool = False
+    authenticated: bool = False
 
     @abc.abstractmethod
     def check(self, run_id: str, trial_id: str, condition: LaunchCondition) -> str:

@@ -5,6 +5,10 @@ see, and call, the valve_controller. The session key (:mod:`~rollability_ros.cor
 arming or firing; keeping them off the rig's graph altogether is the second line: a physical bringup runs on
 :data:`RIG_DOMAIN_ID` with localhost-only discovery unless the environment or ``config/bringup.yaml`` says otherwise.
 """
+import re
+
+#: One token of a ROS name: letters, digits and underscores, not starting with a digit.
+_NAME_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 #: The physical rig's default ROS domain (not 0, the domain every unconfigured ROS 2 process joins).
 RIG_DOMAIN_ID = 73
@@ -20,6 +24,8 @@ def physical_rig_environment(environ, domain_id: int = RIG_DOMAIN_ID,
     if not 0 <= int(domain_id) <= 232:
         raise ValueError(f"ROS domain id must be in 0..232, got {domain_id}")
     added = {}
+    if environ.get("ROS_DOMAIN_ID"):
+        check_domain_id(environ["ROS_DOMAIN_ID"])
     if not environ.get("ROS_DOMAIN_ID"):
         added["ROS_DOMAIN_ID"] = str(int(domain_id))
     if not environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE") and not environ.get("ROS_LOCALHOST_ONLY"):
@@ -42,3 +48,26 @@ def exposure_warnings(environ) -> list:
         warnings.append(f"ROS domain 0 is the one every unconfigured ROS 2 process joins; use the rig's own "
                         f"(export ROS_DOMAIN_ID={RIG_DOMAIN_ID})")
     return warnings
+
+
+def check_domain_id(text: str) -> int:
+    """The ROS domain id ``text`` (``ROS_DOMAIN_ID``) as an int; ``ValueError`` unless it is an integer in 0..232."""
+    try:
+        domain = int(text)
+    except (TypeError, ValueError):
+        domain = -1
+    if not 0 <= domain <= 232:
+        raise ValueError(f"ROS_DOMAIN_ID must be an integer in 0..232, got {text!r}")
+    return domain
+
+
+def check_namespace(namespace: str) -> str:
+    """``namespace`` as an absolute ROS namespace (``rollability`` -> ``/rollability``, "" -> "/"); ``ValueError``
+    naming the problem for anything rcl would refuse with an exception (spaces, ``!``, ``//``, a leading digit)."""
+    if not isinstance(namespace, str) or len(namespace) > 200:
+        raise ValueError(f"namespace must be a ROS namespace of at most 200 characters, got {namespace!r}")
+    tokens = namespace.strip("/").split("/") if namespace.strip("/") else []
+    if "//" in namespace or not all(_NAME_TOKEN.match(token) for token in tokens):
+        raise ValueError(f"namespace {namespace!r} is not a ROS namespace: use names of letters, digits and "
+                         "underscores (not starting with a digit) separated by single '/', e.g. /rollability")
+    return "/" + "/".join(tokens)

@@ -16,7 +16,8 @@ ValveController` and a simulated speed gate):
   ``rig/confirm`` services) or from inside ``on_phase`` (a terminal);
 - ``imu``: an :class:`ImuOutcome` fed with samples, when ``outcome_source`` is ``imu``.
 
-Sequence: confirm the regulator once per speed block (phase ``waiting_for_operator``), arm (``armed``), count down
+Sequence: confirm the regulator (phase ``waiting_for_operator``) at each change of speed, and again once
+``confirmation_valid_s`` passed since the last confirmation or after a launch aborted, arm (``armed``), count down
 ``countdown_s`` so people stand clear, fire one ``launch_pulse_ms`` pulse (``fired``), read the speed gate
 (``in_flight``), disarm, wait for the chassis to settle (``settling``), classify (``classifying``: the IMU with an
 operator override window, or the operator). A fire that is refused or cut (e-stop, watchdog) aborts the launch
@@ -73,6 +74,9 @@ class RigSettings:
                        " s", "range": (0.0, 86400.0)})
     imu_override_s: float = dataclasses.field(default=2.0, metadata={
         "description": "window in which the operator may override the IMU's outcome, s", "range": (0.0, 3600.0)})
+    confirmation_valid_s: float = dataclasses.field(default=300.0, metadata={
+        "description": "a regulator confirmation holds for later launches at the same speed this long, s (0: ask "
+                       "before every launch); an aborted launch always forgets it", "range": (0.0, 86400.0)})
     valve_timeout_s: float = dataclasses.field(default=5.0, metadata={
         "description": "longest wait for the valve_controller's arm / fire / disarm services, s",
         "range": (0.0, 600.0)})
@@ -91,8 +95,9 @@ class RigSettings:
             raise ValueError("configurations must list the configuration ids the rig can launch")
         if self.outcome_source not in OUTCOME_SOURCES:
             raise ValueError(f"outcome_source must be one of {OUTCOME_SOURCES}, got {self.outcome_source!r}")
-        if not 0 <= self.countdown_s < math.inf or not 0 <= self.imu_override_s < math.inf:
-            raise ValueError("countdown_s and imu_override_s must be finite and >= 0")
+        if not all(0 <= value < math.inf for value in (self.countdown_s, self.imu_override_s,
+                                                        self.confirmation_valid_s)):
+            raise ValueError("countdown_s, imu_override_s and confirmation_valid_s must be finite and >= 0")
         if not 0 < self.operator_timeout_s < math.inf or not 0 < self.valve_timeout_s < math.inf:
             raise ValueError("operator_timeout_s and valve_timeout_s must be finite and > 0")
 
@@ -193,16 +198,18 @@ class OperatorChannel:
                     f" (it waits for {'a confirmation' if self._kind == 'confirm' else 'an outcome'})"
                     if self._kind else "")
             if trial_id and trial_id != self._trial_id:
-                return False, f"the rig waits for the outcome of {self._trial_id!r}, not {trial_id!r}"
+                what = "a regulator confirmation" if kind == "confirm" else "the outcome"
+                return False, f"the rig waits for {what} of {self._trial_id!r}, not {trial_id!r}"
             if self._answer is not None:
                 return False, "already answered"
             self._answer = answer
             self._cond.notify_all()
             return True, "accepted"
 
-    def confirm(self) -> typing.Tuple[bool, str]:
-        """Answer an open regulator confirmation. Returns ``(accepted, message)``."""
-        return self._deliver("confirm", True)
+    def confirm(self, trial_id: str = "") -> typing.Tuple[bool, str]:
+        """Answer an open regulator confirmation (of ``trial_id``, "" = the current one). Returns
+        ``(accepted, message)``."""
+        return self._deliver("confirm", True, trial_id)
 
     def record_outcome(self, outcome: OperatorOutcome, trial_id: str = "") -> typing.Tuple[bool, str]:
         """Answer an open outcome question with an :class:`OperatorOutcome` (``trial_id`` "" = the current one)."""
@@ -269,7 +276,8 @@ class PhysicalLaunch(LaunchBackend):
     launch_pulse_ms : int
         Valve pulse per launch, ms.
     regulator : RegulatorConfig
-        Pressure per target speed; the operator confirms it at each change of speed block.
+        Pressure per target speed; the operator confirms it at each change of speed, after
+        ``settings.confirmation_valid_s`` and after an aborted launch.
     """
 
     def __init__(self, settings, valve, speed_gate, speed_config, launch_pulse_ms, regulator, operator, imu=None):
@@ -283,11 +291,12 @@ class PhysicalLaunch(LaunchBackend):
         self.regulator = regulator
         self.operator = operator
         self.imu = imu
-        self._confirmed_psi = None
+        self._confirmed = None   # (psi, time.monotonic() of the confirmation) or None
         self._ports = None
 
     name = "physical"
     attended = True
+    authenticated = True
 
     @classmethod
     def from_ports(cls, settings: "RigSettings", speed_config: SpeedGateConfig, valve_config: ValveConfig,
@@ -327,6 +336,14 @@ class PhysicalLaunch(LaunchBackend):
             return str(exc)
         return ""
 
+    def confirmation_holds(self, pressure_psi: float) -> bool:
+        """True when the operator confirmed ``pressure_psi`` less than ``confirmation_valid_s`` ago and no launch
+        aborted since."""
+        if self._confirmed is None:
+            return False
+        psi, confirmed_at = self._confirmed
+        return psi == pressure_psi and time.monotonic() - confirmed_at < self.settings.confirmation_valid_s
+
     def _ask(self, kind, trial_id, phase, detail, on_phase, cancelled):
         self.operator.open(kind, trial_id)
         try:
@@ -357,14 +374,19 @@ class PhysicalLaunch(LaunchBackend):
         if reason:
             raise ValueError(reason)
         pressure_psi = self.regulator.pressure_psi(condition.speed_mps)
-        if pressure_psi != self._confirmed_psi:
+        if not self.confirmation_holds(pressure_psi):
+            self._confirmed = None
             self._ask("confirm", trial_id, "waiting_for_operator",
                       f"{ASK_REGULATOR} to {pressure_psi:g} psi for {condition.speed_mps:g} m/s, then confirm",
                       on_phase, cancelled)
-            self._confirmed_psi = pressure_psi
-        travel_time_s = self._fire(condition, on_phase, cancelled)
-        on_phase("settling", "waiting for the chassis to come to rest")
-        operator, reading = self._classify(trial_id, on_phase, cancelled)
+            self._confirmed = (pressure_psi, time.monotonic())
+        try:
+            travel_time_s = self._fire(condition, on_phase, cancelled)
+            on_phase("settling", "waiting for the chassis to come to rest")
+            operator, reading = self._classify(trial_id, on_phase, cancelled)
+        except BaseException:
+            self._confirmed = None   # after an e-stop, a fault or a cancel the operator confirms the pressure again
+            raise
         if operator is not None and not math.isnan(operator.travel_time_s) and math.isnan(travel_time_s):
             travel_time_s = operator.travel_time_s
         speed = self.speed_config.measure(condition.speed_mps, travel_time_s)

@@ -126,6 +126,13 @@ def _mac(key: bytes, session: str, counter: int, command: str) -> str:
     return hmac.new(key, f"{session}\n{counter}\n{command}".encode("utf-8"), hashlib.sha256).hexdigest()
 
 
+def mac_matches(session_key: SessionKey, signature: Signature, text: str) -> bool:
+    """True when ``signature`` carries the right MAC of ``text`` for ``session_key`` (no freshness check)."""
+    mac = signature.mac.lower()
+    return (signature.session == session_key.session and mac.isascii()   # compare_digest refuses non-ASCII text
+            and hmac.compare_digest(_mac(session_key.key, session_key.session, signature.counter, text), mac))
+
+
 def command_text(command: str, pulse_ms: int | None = None) -> str:
     """The signed text of a command: ``arm``, ``disarm``, ``heartbeat`` or ``fire <pulse_ms>``."""
     if command not in COMMANDS:
@@ -144,26 +151,36 @@ class RequestSigner:
 
     def sign(self, command: str, pulse_ms: int | None = None) -> Signature:
         """A :class:`Signature` for ``command`` (``pulse_ms`` for ``fire``)."""
+        return self.sign_text(command_text(command, pulse_ms))
+
+    def sign_text(self, text: str) -> Signature:
+        """A :class:`Signature` over any request ``text`` (the rig's requests, :mod:`~.rig_auth`)."""
         with self._lock:
             self._last = counter = max(self._clock_ns(), self._last + 1)
         key = self.session_key
-        return Signature(key.session, counter, _mac(key.key, key.session, counter, command_text(command, pulse_ms)))
+        return Signature(key.session, counter, _mac(key.key, key.session, counter, text))
 
 
 class RequestVerifier:
     """Checks signed requests for one session: right MAC, fresh counter, never seen before (thread-safe)."""
 
-    def __init__(self, session_key: SessionKey, clock_ns=time.monotonic_ns, window_ns: int = FRESH_WINDOW_NS):
+    def __init__(self, session_key: SessionKey, clock_ns=time.monotonic_ns, window_ns: int = FRESH_WINDOW_NS,
+                 not_before_ns: int = 0):
         self.session_key = session_key
         self._clock_ns = clock_ns
         self._window_ns = window_ns
+        self._not_before_ns = not_before_ns   # counters signed before this (a restarted verifier's start) refused
         self._lock = threading.Lock()
         self._seen = {}  # counter -> accepted, pruned once older than the window
         self.rejected = 0
 
     def verify(self, signature: Signature, command: str, pulse_ms: int | None = None) -> tuple:
         """``(True, "")`` for an authentic fresh request, else ``(False, reason)`` (and counts the rejection)."""
-        reason = self._check(signature, command_text(command, pulse_ms))
+        return self.verify_text(signature, command_text(command, pulse_ms))
+
+    def verify_text(self, signature: Signature, text: str) -> tuple:
+        """:meth:`verify` for any request ``text`` (the rig's requests, :mod:`~.rig_auth`)."""
+        reason = self._check(signature, text)
         if reason:
             with self._lock:
                 self.rejected += 1
@@ -176,11 +193,13 @@ class RequestVerifier:
             return "no session key signature (only the rig computer's operator side may do this)"
         if signature.session != key.session:
             return f"signed for session {signature.session!r}, the valve runs session {key.session!r}"
-        if not hmac.compare_digest(_mac(key.key, key.session, signature.counter, text), signature.mac.lower()):
+        if not mac_matches(key, signature, text):
             return "wrong MAC"
         now = self._clock_ns()
         if abs(now - signature.counter) > self._window_ns:
             return f"stale request (counter {(now - signature.counter) / 1e9:+.1f} s from now)"
+        if signature.counter <= self._not_before_ns:
+            return "signed before this verifier started (a request captured earlier and replayed)"
         with self._lock:
             self._seen = {c: t for c, t in self._seen.items() if now - t <= 2 * self._window_ns}
             if signature.counter in self._seen:

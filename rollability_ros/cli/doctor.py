@@ -83,13 +83,14 @@ def _check_interfaces(checks):
 
         from rollability_ros.action import EvaluateProfile, Launch
         from rollability_ros.msg import CandidateResult, LaunchOutcome, ValveState
-        from rollability_ros.srv import ArmValve, FireValve, RecordOutcome
+        from rollability_ros.srv import ArmValve, ConfirmRegulator, FireValve, RecordOutcome
 
         outcome = LaunchOutcome(trial_id="doctor", upright=True)
         roundtrip = deserialize_message(serialize_message(outcome), LaunchOutcome)
         if roundtrip.trial_id != "doctor":
             raise RuntimeError("LaunchOutcome did not survive a CDR round trip")
-        loaded = [CandidateResult, ValveState, ArmValve, FireValve, RecordOutcome, EvaluateProfile, Launch]
+        loaded = [CandidateResult, ValveState, ArmValve, FireValve, RecordOutcome, ConfirmRegulator, EvaluateProfile,
+                  Launch]
         checks.report("ok", "custom interfaces", f"{len(loaded) + 1} types load; LaunchOutcome round-trips through CDR")
     except Exception as exc:
         checks.report("FAIL", "custom interfaces", f"{exc}: build them with scripts/setup.sh or colcon build")

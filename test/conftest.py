@@ -42,7 +42,7 @@ os.environ["ROS_LOG_DIR"] = os.path.join(os.environ["XDG_RUNTIME_DIR"], "ros-log
 # subprocesses (nodes, peers) import this checkout's sources, whatever their working directory
 os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH", "")]))
 
-pytest_plugins = ["ros_fixtures"]
+pytest_plugins = ["ros_fixtures", "rerun_summary"]
 
 
 def pid_running(pid):
@@ -65,14 +65,3 @@ def pytest_collection_modifyitems(config, items):
         if core not in pathlib.Path(str(item.fspath)).resolve().parents:
             item.add_marker(pytest.mark.flaky(reruns=1))
 
-
-def pytest_terminal_summary(terminalreporter):
-    """One line with the count of automatic reruns at the end of every run, then each rerun test and why it failed
-    the first time: a rerun that passed must not hide a race."""
-    reruns = terminalreporter.stats.get("rerun", [])
-    terminalreporter.write_sep("=", f"reruns: {len(reruns)}", bold=True, red=bool(reruns), green=not reruns)
-    for report in reruns:
-        crash = getattr(report.longrepr, "reprcrash", None)
-        why = crash.message if crash is not None else str(report.longrepr)
-        first = next((line for line in why.splitlines() if line.strip()), "")
-        terminalreporter.write_line(f"RERUN {report.nodeid} ({report.when}): {first[:200]}")

@@ -25,9 +25,18 @@ def _send(ros_node, client, heights, trials, seed, feedback=None):
     return _wait(ros_node, client.send_goal_async(goal, feedback_callback=feedback))
 
 
-@pytest.fixture
-def evaluator(start_node):
-    return start_node("sim_evaluator", params={"evaluator.workers": 2})
+@pytest.fixture(scope="module")
+def evaluator(tmp_path_factory):
+    """One sim_evaluator (2 workers) for the goals of this module: each test's goals run on the node the earlier
+    ones left (a rejected goal, a cancel must leave it serving), and 8 node starts shrink to one."""
+    import sys
+
+    from ros_fixtures import NodeProcess
+
+    process = NodeProcess([sys.executable, "-m", "rollability_ros.nodes.sim_evaluator", "--ros-args",
+                           "-p", "evaluator.workers:=2"], tmp_path_factory.mktemp("evaluator") / "sim_evaluator.log")
+    yield process
+    assert process.stop() == 0, process.log()
 
 
 def _ridge(n_rows=10, n_cols=10, height=0.4):
@@ -70,9 +79,11 @@ def test_results_equal_the_core_and_carry_feedback(ros_node, evaluator):
 ])
 def test_bad_goals_are_rejected_and_the_node_survives(ros_node, evaluator, heights, trials, why):
     client = _client(ros_node, "/evaluate_profile")
+    rejected = evaluator.log().count("rejected evaluate_profile goal")
     handle = _send(ros_node, client, heights, trials, 1)
     assert not handle.accepted, why
-    assert ros_node.wait_for(lambda: "rejected evaluate_profile goal" in evaluator.log(), 10), evaluator.log()
+    assert ros_node.wait_for(lambda: evaluator.log().count("rejected evaluate_profile goal") > rejected, 10), \
+        evaluator.log()
     good = _send(ros_node, client, [], 2, 1)
     assert good.accepted and evaluator.alive()
     assert _wait(ros_node, good.get_result_async()).status == GoalStatus.STATUS_SUCCEEDED

@@ -4,7 +4,9 @@ simulator (own process, the firmware's protocol and timing), with the test playi
 Each case fires a 450 ms pulse (max_pulse_ms 500 on both sides; the board's keep-alive timeout 250 ms) and injects
 one fault while the relay is on. The evidence is the board's own event log: the relay must be off within
 ``max_pulse_ms + keepalive_timeout_ms`` of the pulse start, however the computer side failed. A stray participant
-on the same domain, without the session key, must never get the relay on.
+on the same domain, without the session key, must never get the relay on: neither at the valve's services nor
+through the rig's (launch goals, rig/confirm, record_outcome) or the outcome_logger's input (physical outcomes),
+with the dry-run valve and with the relay board simulator.
 
 Run with ``-s`` to see the table of measured times (the closing note of issue 16 quotes it).
 """
@@ -444,3 +446,251 @@ def test_a_stuck_serial_call_does_not_silence_the_valve(ros_node, tmp_path, rela
     finally:
         jam.unlink(missing_ok=True)
         assert process.stop() == 0, process.log()
+
+
+# --- the rig as deputy (issue 26): a stray participant against the rig's interfaces ----------------------------------
+
+STRAY_RIG = textwrap.dedent("""
+    # A stray participant on the rig's domain without the session key: launch goals (unsigned, forged, fuzzed, and
+    # the operator's captured signed goal replayed), its own answers on rig/confirm and record_outcome (unsigned,
+    # forged, the operator's captured ones replayed), and physical LaunchOutcomes published on launch_outcomes
+    # (forged, and the rig's signed ones replayed and tampered with).
+    import json, math, random, secrets, sys, time
+    import rclpy
+    from action_msgs.msg import GoalStatus
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.action import ActionClient
+    from rclpy.node import Node
+    from rollability_ros.action import Launch
+    from rollability_ros.msg import LaunchCondition, LaunchOutcome, ValveAuth
+    from rollability_ros.nodes._support import RECORD_QOS
+    from rollability_ros.srv import ConfirmRegulator, RecordOutcome
+    rclpy.init()
+    node = Node("stray_participant")
+    seconds, captured = float(sys.argv[1]), json.loads(sys.argv[2])
+    rng = random.Random(26)
+    sessions, outcomes = [], []
+    node.create_subscription(DiagnosticArray, "/diagnostics", lambda a: sessions.extend(
+        kv.value for s in a.status for kv in s.values if kv.key == "session"), 10)
+    node.create_subscription(LaunchOutcome, "launch_outcomes", outcomes.append, RECORD_QOS)
+    publisher = node.create_publisher(LaunchOutcome, "launch_outcomes", RECORD_QOS)
+    action = ActionClient(node, Launch, "launch")
+    confirm = node.create_client(ConfirmRegulator, "rig/confirm")
+    record = node.create_client(RecordOutcome, "record_outcome")
+    assert action.wait_for_server(timeout_sec=30) and confirm.wait_for_service(timeout_sec=30)
+    assert record.wait_for_service(timeout_sec=30)
+    replayed = [ValveAuth(session=s, counter=c, mac=m) for s, c, m in captured["auth"]]
+
+    def fuzz_auth():
+        session = sessions[-1] if sessions else secrets.token_hex(8)
+        return rng.choice([
+            ValveAuth(),
+            ValveAuth(session=session, counter=time.monotonic_ns(), mac=secrets.token_hex(32)),
+            ValveAuth(session=session, counter=rng.randrange(2**64), mac=secrets.token_hex(32).upper()),
+            ValveAuth(session=secrets.token_hex(8), counter=time.monotonic_ns(), mac=secrets.token_hex(32)),
+            ValveAuth(session="\\u00e9" * rng.randrange(5), counter=0, mac="zz" * rng.randrange(40)),
+            *replayed])   # the operator's own signatures, on whatever this request is
+
+    def condition():
+        return LaunchCondition(configuration=rng.choice(["A", "B", "baseline", "Z", "", "A" * 300]),
+                               height_m=rng.choice([0.75, 1.3, math.nan, -1.0, math.inf, 1e300]),
+                               speed_mps=rng.choice([0.8, 1.5, math.nan, 0.0, -0.8]),
+                               angle_deg=rng.choice([0.0, 30.0, math.nan, 720.0]),
+                               repetition=rng.randrange(2**32))
+
+    def result(future, timeout_s=10.0):
+        rclpy.spin_until_future_complete(node, future, timeout_sec=timeout_s)
+        return future.result() if future.done() else None
+
+    tried = {"goals": 0, "confirms": 0, "outcomes": 0, "published": 0}
+    accepted = {"goals": 0, "confirms": 0, "outcomes": 0}
+    past_the_guard = []   # refused for another reason than authentication: the request got past the guard
+    deadline = time.monotonic() + seconds
+    index = 0
+    while time.monotonic() < deadline:
+        index += 1
+        trial = rng.choice([f"stray/{index}", captured["trial_id"], captured["waiting"], ""])
+        goal = Launch.Goal(run_id=rng.choice(["stray-run", captured["run_id"]]), trial_id=trial or f"stray/{index}",
+                           condition=condition(), auth=fuzz_auth())
+        if index % 5 == 0:   # the operator's signed goal, resent exactly as captured
+            goal = Launch.Goal(run_id=captured["run_id"], trial_id=captured["trial_id"],
+                               condition=LaunchCondition(**captured["condition"]), auth=replayed[0])
+        handle = result(action.send_goal_async(goal))
+        tried["goals"] += 1
+        if handle is not None and handle.accepted:
+            done = result(handle.get_result_async())
+            if done is not None and done.status == GoalStatus.STATUS_SUCCEEDED:
+                accepted["goals"] += 1
+            elif done is not None and "not authenticated" not in done.result.message:
+                past_the_guard.append(done.result.message)
+        for client, request, kind in (
+                (confirm, ConfirmRegulator.Request(trial_id=trial, auth=fuzz_auth()), "confirms"),
+                (record, RecordOutcome.Request(trial_id=trial, upright=True, note="forged", auth=fuzz_auth(),
+                                               travel_time_s=rng.choice([math.nan, 0.4, -1.0, math.inf])),
+                 "outcomes")):
+            response = result(client.call_async(request), 5.0)
+            tried[kind] += 1
+            ok = response is not None and (response.success if kind == "confirms" else response.accepted)
+            accepted[kind] += bool(ok)
+            if response is not None and not ok and "not authenticated" not in response.message:
+                past_the_guard.append(response.message)
+        forged = LaunchOutcome(run_id="stray-run", trial_id=f"stray/{index}", backend="physical", upright=True,
+                               classified_by="operator", note="forged", travel_time_s=0.4,
+                               measured_speed_mps=0.85, auth=fuzz_auth())
+        forged.condition = LaunchCondition(configuration="A", height_m=0.75, speed_mps=0.8)
+        forged.final_orientation.w = 1.0
+        publisher.publish(forged)
+        tried["published"] += 1
+        for outcome in [o for o in outcomes if o.backend == "physical"][-2:]:
+            publisher.publish(outcome)                       # the rig's signed record, replayed as it was
+            outcome.note, outcome.trial_id = "forged", outcome.trial_id + "/forged"
+            publisher.publish(outcome)                       # and tampered with
+            tried["published"] += 2
+        time.sleep(0.1)   # a steady stream, not a flood (a flood is a denial of service: docs/valve-safety.md)
+    print(json.dumps({"tried": tried, "accepted": accepted, "past_the_guard": past_the_guard,
+                      "session_known": bool(sessions), "outcomes_seen": len(outcomes)}), flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+""")
+
+RIG_PARAMS = {"rig.backend": "physical", "rig.countdown_s": 0.1, "rig.operator_timeout_s": 60.0,
+              "valve.watchdog_ms": WATCHDOG_MS, "valve.heartbeat_period_ms": 50}
+#: the valve's fail-safe faults a stray's load can cause on a shared 2-core machine (never a pulse)
+FAIL_SAFE = ("did not answer", "link lost", "keepalive", "NOT_ARMED", "watchdog")
+
+
+def wait_phase(spun, feedback, phase, process_logs, timeout_s=30):
+    assert spun.wait_for(lambda: feedback and feedback[-1][0] == phase, timeout_s), (feedback, process_logs())
+
+
+def rig_cli(*args):
+    return subprocess.run([sys.executable, "-m", "rollability_ros.cli", "rig", *args, "--namespace", "/"],
+                          capture_output=True, text=True, timeout=60)
+
+
+@pytest.mark.parametrize("backend", ["dry_run", "serial_relay"])
+def test_stray_participant_never_launches_through_the_rig(ros_node, start_node, tmp_path, request, backend):
+    import json
+
+    from action_msgs.msg import GoalStatus
+    from rig_client import RigClient
+
+    from rollability_ros.core.results.records import LaunchCondition
+    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.rig import rig_auth, valve_auth
+    from rollability_ros.nodes._convert import auth_msg
+    from rollability_ros.srv import ConfirmRegulator
+
+    relay = request.getfixturevalue("relay") if backend == "serial_relay" else None
+    valve_params = {**VALVE_PARAMS, "valve.backend": backend, "valve.watchdog_ms": WATCHDOG_MS}
+    if relay is not None:
+        valve_params["valve.serial.port"] = relay.port
+    valve_process = start_node("valve_controller", params=valve_params)
+    valve = ValveClient(ros_node)
+    assert ros_node.wait_for(lambda: valve.states, 30), valve_process.log()
+    store_path = tmp_path / "store.sqlite"
+    logger = start_node("outcome_logger", params={"store_path": str(store_path)})
+    rig_process = start_node("rig", params=RIG_PARAMS)
+    rig = RigClient(ros_node)
+
+    def logs():
+        return "\n".join(f"--- {p.log_path.name}\n{p.log()[-3000:]}" for p in (valve_process, rig_process, logger))
+
+    def stored():
+        if not store_path.exists():
+            return []
+        with Store(store_path) as store:
+            return store.launch_outcomes()
+
+    def pulses():
+        return len(relay.relay_intervals()) if relay is not None else valve.last().pulses
+
+    # --- the operator's launch op/0, through the test's signed client: what a stray could capture of it --------
+    condition = LaunchCondition("A", 0.75, 0.8, 0.0, 0)
+    feedback = []
+    assert rig.action.wait_for_server(timeout_sec=30), logs()   # sign once the rig is there, as the tools do
+    goal = rig.goal("op/0", condition, run_id="op-run")
+    future = rig.send("op/0", condition, feedback, goal=goal)
+    wait_phase(ros_node, feedback, "waiting_for_operator", logs)
+    key = valve_auth.load_session_key(valve_auth.default_key_path(""))
+    expired = valve_auth.RequestSigner(key, lambda: time.monotonic_ns() - 6_000_000_000).sign_text(
+        rig_auth.confirm_text("op/0"))
+    refused = rig.confirm(request=ConfirmRegulator.Request(trial_id="op/0", auth=auth_msg(expired)))
+    assert not refused.success and "stale request" in refused.message, refused.message
+    other = rig.confirm("op/9")                    # signed, but for another launch than the one waiting
+    assert not other.success and "waits for a regulator confirmation of 'op/0', not 'op/9'" in other.message
+    unsigned = RigClient(ros_node, signed=False)
+    assert "not authenticated" in unsigned.confirm("op/0").message
+    confirmation = ConfirmRegulator.Request(trial_id="op/0", auth=rig.auth(lambda signer: signer.confirm("op/0")))
+    assert rig.confirm(request=confirmation).success
+    wait_phase(ros_node, feedback, "classifying", logs)
+    assert "not authenticated" in unsigned.record(True, "op/0", note="forged").message
+    answer = rig.record(False, "op/0", note="operator")
+    assert answer.accepted, answer.message
+    done = rig.result(future)
+    assert done.status == GoalStatus.STATUS_SUCCEEDED, done.result.message + logs()
+    assert done.result.outcome.backend == "physical" and done.result.outcome.auth.session == key.session
+    assert ros_node.wait_for(lambda: [o.trial_id for o in stored()] == ["op/0"], 15), logs()
+    assert pulses() == 1
+    # the captured signed goal and confirmation, resent at once: refused as replays, no second pulse
+    replay = rig.result(rig.send("op/0", condition, [], goal=goal))
+    assert replay.status == GoalStatus.STATUS_ABORTED and "replayed request" in replay.result.message
+    assert "replayed request" in rig.confirm(request=confirmation).message
+    assert pulses() == 1
+
+    # --- the stray participant runs while the operator launches op/1 with `rollability rig` -----------------------
+    captured = {"run_id": "op-run", "trial_id": "op/0", "waiting": "op/1",
+                "condition": {"configuration": "A", "height_m": 0.75, "speed_mps": 0.8, "angle_deg": 0.0,
+                              "repetition": 0},
+                "auth": [[a.session, a.counter, a.mac] for a in (goal.auth, confirmation.auth)]}
+    stray = subprocess.Popen([sys.executable, "-c", STRAY_RIG, "10", json.dumps(captured)], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    try:
+        time.sleep(2.0)                                   # the stray is sending by now
+        for attempt in range(3):
+            feedback = []
+            fast = LaunchCondition("A", 0.75, 1.5, 0.0, 0)  # another speed: the rig asks for the regulator again
+            future = rig.send("op/1", fast, feedback, goal=rig.goal("op/1", fast, run_id="op-run"))
+            wait_phase(ros_node, feedback, "waiting_for_operator", logs)
+            time.sleep(1.0)                               # the stray answers meanwhile: the question stays open
+            assert feedback[-1][0] == "waiting_for_operator" and not future.done(), feedback
+            confirmed = rig_cli("confirm", "--trial-id", "op/1")
+            assert confirmed.returncode == 0 and "confirm: ok" in confirmed.stdout, confirmed.stdout + confirmed.stderr
+            assert ros_node.wait_for(lambda: future.done() or feedback[-1][0] == "classifying", 30), logs()
+            if not future.done():
+                time.sleep(1.0)                           # the stray records its outcome meanwhile: still open
+                assert feedback[-1][0] == "classifying" and not future.done(), feedback
+                recorded = rig_cli("outcome", "upright", "--trial-id", "op/1", "--note", "operator")
+                assert recorded.returncode == 0, recorded.stdout + recorded.stderr
+            done = rig.result(future)
+            if done.status == GoalStatus.STATUS_SUCCEEDED:
+                break
+            # the stray's load stalled the valve node or the board simulator: a fail-safe, never a pulse; the
+            # operator acknowledges it and launches again
+            assert any(reason in done.result.message for reason in FAIL_SAFE), done.result.message + logs()
+            valve.arm(False)
+        assert done.status == GoalStatus.STATUS_SUCCEEDED, done.result.message
+        out, err = stray.communicate(timeout=120)
+    finally:
+        if stray.poll() is None:
+            stray.kill()
+    assert stray.returncode == 0, err
+    counts = json.loads(out.strip().splitlines()[-1])
+    tried, accepted = counts["tried"], counts["accepted"]
+    assert counts["session_known"] and counts["outcomes_seen"] >= 1, counts
+    assert tried["goals"] >= 10 and tried["confirms"] >= 10 and tried["outcomes"] >= 10, counts
+    assert accepted == {"goals": 0, "confirms": 0, "outcomes": 0}, counts
+    assert counts["past_the_guard"] == [], counts
+    # the valve pulsed for the operator's two launches only; the store holds exactly the operator's outcomes
+    assert pulses() == 2, logs()
+    assert ros_node.wait_for(lambda: len(stored()) == 2, 15), logs()
+    outcomes = {o.trial_id: o for o in stored()}
+    assert sorted(outcomes) == ["op/0", "op/1"] and all(o.run_id == "op-run" for o in outcomes.values())
+    assert (outcomes["op/0"].upright, outcomes["op/0"].note) == (False, "operator")
+    assert outcomes["op/1"].upright and outcomes["op/1"].note == "operator"
+    assert "refused physical launch outcome" in logger.log() and "not authenticated" in rig_process.log()
+    total = sum(tried.values())
+    MEASURED.append((f"stray participant against the rig ({backend} valve): {tried['goals']} launch goals, "
+                     f"{tried['confirms']} confirmations, {tried['outcomes']} outcomes, {tried['published']} "
+                     f"physical outcomes published ({total} in all; unsigned, forged, fuzzed, replayed), while the "
+                     "operator launched", "2 pulses (the operator's)", "0 accepted, 0 stored"))

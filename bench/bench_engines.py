@@ -1,6 +1,13 @@
 """Benchmark of the trial engines (PyBullet, MuJoCo) and the early decision; every ratio from this one run.
 
-    nice python bench/bench_engines.py [--trials 60] [--repeats 3]
+    nice python bench/bench_engines.py [--trials 60] [--repeats 3] [--launch-candidates 3] [--launches-only]
+
+Launch twin (first): twin launches per second per core in each engine, with and without the early decision, and
+the ratio to the PyBullet twin under the full rest rule (the twin before the MuJoCo twin and the launch early
+decision existed) on the same launches: ``--launch-candidates`` candidates (the dome and random profiles on the
+built-in chassis), each launched under the paper's 20 launch conditions (``config/campaign.yaml``) with the
+launch objective's seeds, in one process; every candidate's world is built anew (the model and early-decision
+caches are cleared), as for a new candidate of an optimization. Repeats are interleaved, the fastest kept.
 
 Prints, for the dome profile on the built-in chassis: trials/s per core of the evaluator for each engine with
 and without the early decision, steps per trial, the ratio to a naive loop of each engine written here (the
@@ -30,6 +37,61 @@ from rollability_ros.core.sim.mujoco_trials import _pose_speeds  # noqa: E402
 from rollability_ros.core.sim.trials import sample_conditions  # noqa: E402
 
 PAPER_TRIALS = 500 * 13 * 60
+
+
+def launch_rates(candidates, repeats):
+    """Twin launches per second per core (one process) for each (engine, early decision), steps per launch and
+    upright launches, the same launches in every variant (see the module docstring)."""
+    from rollability_ros.core.robots.robot import ProfileBody
+    from rollability_ros.core.profile.geometry import profile_mesh
+    from rollability_ros.core.sim import launch_twin, mujoco_launch_twin
+    from rollability_ros.core.sim.objectives import launch_conditions
+
+    base = evaluation.load_settings()
+    rng = np.random.default_rng(31)
+    grid = base.grid
+    heights = [dome_heights(grid)] + [rng.uniform(grid.height_min, grid.height_max, grid.n_variables)
+                                      for _ in range(candidates - 1)]
+    profiles = [ProfileBody.from_mesh(profile_mesh(h, grid), base.profile_density_kgpm3()) for h in heights]
+    conditions = launch_conditions(["campaign"])
+    twin = launch_twin.load_launch_twin_settings()
+    variants = {(engine, early): dataclasses.replace(
+        twin, physics=dataclasses.replace(twin.physics, engine=engine),
+        trial=dataclasses.replace(twin.trial, early_decision=early))
+        for engine in ("pybullet", "mujoco") for early in (False, True)}
+    launch_twin.simulate_launch(conditions[0], variants[("mujoco", False)], 0, use_profile=True)   # imports
+    times = {key: [] for key in variants}
+    steps, upright = {}, {}
+    for repeat in range(repeats):
+        for key, settings in variants.items():
+            mujoco_launch_twin._cache.clear()     # every candidate builds its world, as in an optimization
+            launch_twin._BASINS.clear()
+            outcomes = []
+            started = time.perf_counter()
+            for candidate, profile in enumerate(profiles):
+                for index, condition in enumerate(conditions):
+                    outcomes.append(launch_twin.simulate_valid_launch(
+                        condition, settings, evaluation.trial_seed(500 + candidate, index), profile=profile,
+                        use_profile=True))
+            times[key].append(time.perf_counter() - started)
+            steps[key] = np.mean([o.steps for o in outcomes])
+            upright[key] = sum(o.valid and o.upright for o in outcomes)
+    launches = len(profiles) * len(conditions)
+    return {key: launches / min(seconds) for key, seconds in times.items()}, steps, upright, launches
+
+
+def print_launch_rates(candidates, repeats):
+    rate, steps, upright, launches = launch_rates(candidates, repeats)
+    today = rate[("pybullet", False)]
+    print(f"launch twin: {candidates} candidates x 20 paper conditions = {launches} launches per variant, "
+          f"{repeats} repeats (fastest kept), one process; load average {os.getloadavg()[0]:.2f}")
+    print(f"{'twin':34s} {'launches/s/core':>15s} {'steps/launch':>12s} {'upright':>7s} {'vs PyBullet twin':>16s}")
+    for (engine, early), value in rate.items():
+        print(f"{engine + (' + early decision' if early else ' (full rest rule)'):34s} {value:15.2f} "
+              f"{steps[(engine, early)]:12.1f} {upright[(engine, early)]:7d} {value / today:15.2f}x")
+    best = max(rate, key=rate.get)
+    print(f"best: {best[0]}{' + early decision' if best[1] else ''} at {rate[best] / today:.2f}x today's PyBullet "
+          f"twin (full rest rule) on the same launches (target >= 5x, aim 10x)")
 
 
 def configured(settings, engine, early_decision):
@@ -197,7 +259,12 @@ def main():
     parser.add_argument("--trials", type=int, default=60)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--generations", type=int, default=4, help="paper-config generations timed per setting")
+    parser.add_argument("--launch-candidates", type=int, default=3, help="candidates launched on the twin (x 20)")
+    parser.add_argument("--launches-only", action="store_true", help="only the launch twin's table")
     args = parser.parse_args()
+    print_launch_rates(args.launch_candidates, args.repeats)
+    if args.launches_only:
+        return
     base = evaluation.load_settings()
     heights = dome_heights(base.grid)
     variants = {(engine, early): configured(base, engine, early)

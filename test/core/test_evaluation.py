@@ -262,3 +262,37 @@ def test_workers_exit_when_their_parent_is_killed():
     while any(pid_running(pid) for pid in pids) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not any(pid_running(pid) for pid in pids), f"orphaned workers still running: {pids}"
+
+
+def test_batched_engine_seam_gives_the_executors_outcomes_and_plugs_into_the_optimizer_evaluator():
+    """The TrialBatchEngine seam: the CPU engine over an executor gives evaluate_profile's outcomes; an engine
+    that takes a whole generation's (profile, trial) pairs in one call plugs into the optimizer's evaluate_batch."""
+    from rollability_ros.core.optimization.optimization_run import profile_batch_evaluator
+    from rollability_ros.core.sim.evaluation import ExecutorEngine, TrialBatchEngine, evaluate_jobs
+
+    heights_list = [None, ridge_heights(SETTINGS.grid)]
+    expected = [evaluate_profile(heights, 6, 3, SETTINGS) for heights in heights_list]
+    jobs = [profile_job(heights, SETTINGS) for heights in heights_list]
+    for engine in (ExecutorEngine(), ExecutorEngine(whole=True)):
+        results = evaluate_jobs(jobs, 6, 3, engine)
+        assert [r.trial_results for r in results] == [e.trial_results for e in expected]
+        assert [r.successes for r in results] == [e.successes for e in expected]
+
+    class WholeBatch(TrialBatchEngine):
+        """Stands in for a many-worlds engine: one call per generation, outcomes in the pairs' order."""
+        name = "batched"
+
+        def __init__(self):
+            self.calls = []
+
+        def run_trials(self, jobs, pairs):
+            self.calls.append(len(pairs))
+            return [run_batch(jobs[job], [(index, seed)])[0] for job, index, seed in reversed(pairs)][::-1]
+
+    batched = WholeBatch()
+    evaluate_batch = profile_batch_evaluator(SETTINGS, 6, None, engine=batched)
+    with LocalExecutor(workers=1) as executor:
+        plain = profile_batch_evaluator(SETTINGS, 6, executor)(heights_list, 3)
+    assert batched.calls == [] and [r[:2] for r in evaluate_batch(heights_list, 3)] == \
+        [(e.successes, e.trials) for e in expected] == [r[:2] for r in plain]
+    assert batched.calls == [12] and evaluate_batch(heights_list, 3)[0][3] == "batched"

@@ -584,7 +584,7 @@ def run_generations(run: OptimizationRun, stop_requested: typing.Callable[[], bo
 
 
 def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.Any,
-                            name: str = "local") -> typing.Callable:
+                            name: str = "local", engine: typing.Any = None) -> typing.Callable:
     """``evaluate_batch`` over :func:`evaluation.evaluate_profile` on ``executor`` (a LocalExecutor or RayExecutor).
 
     The profiles of a batch are evaluated concurrently (one thread each submitting its trial batches), so the
@@ -592,8 +592,17 @@ def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.
     least two profiles per local worker, each profile's trials go to one worker as one task (one world build and
     one round trip per profile; split into ``evaluator.batch_trials`` tasks, every worker built every profile's
     world: a paper-config generation took 1.84x as long in ``bench/bench_engines.py``).
+    ``engine``, a :class:`~rollability_ros.core.sim.evaluation.TrialBatchEngine`, gets each batch of profiles'
+    trials in one call instead (an engine that steps many worlds at once); the optimizer is the same.
     """
-    from rollability_ros.core.sim.evaluation import evaluate_profile
+    from rollability_ros.core.sim.evaluation import evaluate_jobs, evaluate_profile, profile_job
+
+    if engine is not None:
+        def evaluate_engine_batch(heights_list: typing.Sequence[np.ndarray], seed: int) -> typing.List[tuple]:
+            jobs = [profile_job(heights, settings) for heights in heights_list]
+            return [(r.successes, r.trials, r.eval_time_s, engine.name)
+                    for r in evaluate_jobs(jobs, trials, seed, engine)]
+        return evaluate_engine_batch
 
     workers = getattr(executor, "workers", None)
     whole = dataclasses.replace(settings, evaluator=dataclasses.replace(settings.evaluator, batch_trials=trials))

@@ -11,7 +11,12 @@ disturbances (common random numbers). A trial's outcome depends only on (profile
 Executors split the trials into batches of ``evaluator.batch_trials`` and yield each finished batch;
 :func:`evaluate_profile` reports every trial through ``on_trial`` as batches finish and checks the cancel event
 between them (every ``evaluator.poll_interval_s`` while waiting).
+
+Batches of profiles: :func:`evaluate_jobs` evaluates many profiles in one call of a :class:`TrialBatchEngine`
+(the declared seam for an engine that steps many worlds at once); :class:`ExecutorEngine` is the CPU
+engines' implementation over the executors.
 """
+import abc
 import concurrent.futures
 import dataclasses
 import hashlib
@@ -332,6 +337,81 @@ def make_executor(options, workers=None):
     if options.ray_address:
         return RayExecutor(options.ray_address, options.poll_interval_s)
     return LocalExecutor(workers if workers is not None else options.workers or None, options.poll_interval_s)
+
+
+class TrialBatchEngine(abc.ABC):
+    """The batched evaluator seam: runs many (profile, trial) pairs in one call.
+
+    ``run_trials(jobs, pairs)`` gets the :class:`TrialJob` of each profile of a batch and the pairs
+    ``(job position, trial index, trial seed)`` to run, and returns one outcome per pair, in the pairs' order,
+    each the same outcome the job's own :func:`run_batch` gives for that (index, seed). The CPU engines run
+    them as they always did (:class:`ExecutorEngine`); an engine that steps many worlds at once (MuJoCo's
+    ``rollout`` on threads, a GPU engine) implements this one method and plugs into :func:`evaluate_jobs` and
+    ``optimization_run.profile_batch_evaluator(..., engine=)`` without a change to the optimizer.
+    """
+
+    #: the evaluator name stored with each candidate's result
+    name = "local"
+
+    @abc.abstractmethod
+    def run_trials(self, jobs, pairs):
+        """Outcomes (:class:`~rollability_ros.core.sim.trials.TrialOutcome`) of ``pairs``, in their order."""
+
+
+class ExecutorEngine(TrialBatchEngine):
+    """The CPU engines behind :class:`TrialBatchEngine`: each job's trials go to ``executor`` (serial, local
+    pool or Ray) in tasks of ``evaluator.batch_trials`` trials (the job's whole trials with ``whole``), every
+    job in its own thread so the workers stay busy across profiles, as the optimizer's evaluations run (one
+    thread on the serial executor, whose trials share this process's physics client)."""
+
+    def __init__(self, executor=None, whole=False, name="local"):
+        self.executor, self.whole, self.name = executor or SerialExecutor(), whole, name
+
+    def run_trials(self, jobs, pairs):
+        by_job = {}
+        for position, (job, index, seed) in enumerate(pairs):
+            by_job.setdefault(job, []).append((position, index, seed))
+
+        def run_job(job):
+            wanted = by_job[job]
+            size = len(wanted) if self.whole else jobs[job].settings.evaluator.batch_trials
+            batches = [[(index, seed) for _, index, seed in wanted[start:start + size]]
+                       for start in range(0, len(wanted), size)]
+            return [outcome for batch in self.executor.iter_batches(jobs[job], batches, lambda: False)
+                    for outcome in batch]
+
+        outcomes = [None] * len(pairs)
+        # a serial executor runs in this process's one physics client: one job after another
+        threads = max(1, len(by_job)) if not isinstance(self.executor, SerialExecutor) else 1
+        with concurrent.futures.ThreadPoolExecutor(max_workers=threads) as pool:
+            for job, done in zip(by_job, pool.map(run_job, list(by_job))):
+                by_index = {outcome.index: outcome for outcome in done}
+                for position, index, _ in by_job[job]:
+                    outcomes[position] = by_index[index]
+        return outcomes
+
+
+def evaluate_jobs(jobs, trials, seed, engine):
+    """Evaluate every :class:`TrialJob` of ``jobs`` over ``trials`` trials with base ``seed`` (trial ``i`` of
+    each uses :func:`trial_seed` ``(seed, i)``: common random numbers) in one call of ``engine``
+    (a :class:`TrialBatchEngine`); one :class:`EvaluationResult` per job (``eval_time_s``: the whole batch's)."""
+    for job in jobs:
+        _check_request(trials, seed, job.settings.evaluator)
+    seeds = [trial_seed(seed, index) for index in range(trials)]
+    pairs = [(job, index, seeds[index]) for job in range(len(jobs)) for index in range(trials)]
+    started = time.perf_counter()
+    outcomes = engine.run_trials(list(jobs), pairs)
+    elapsed_s = time.perf_counter() - started
+    if len(outcomes) != len(pairs):
+        raise ValueError(f"trial engine {engine.name} returned {len(outcomes)} outcomes for {len(pairs)} pairs")
+    results = []
+    for job in range(len(jobs)):
+        own = sorted(outcomes[job * trials:(job + 1) * trials], key=lambda outcome: outcome.index)
+        successes = sum(outcome.upright for outcome in own)
+        low, high = wilson_interval(successes, trials)
+        results.append(EvaluationResult(fitness=successes / trials, successes=successes, trials=trials, ci_low=low,
+                                        ci_high=high, eval_time_s=elapsed_s, trial_results=own))
+    return results
 
 
 @dataclasses.dataclass(frozen=True)

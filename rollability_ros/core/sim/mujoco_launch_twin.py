@@ -145,7 +145,7 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         self.ground_geom = self.ledge_geom
         self.mass_kg = float(model.body_subtreemass[self.root])
         self._set_contacts()
-        self._plate = None
+        self._plate, self._local_points = None, None
         self._previous_pose, self._rest_since = None, None
         compliant = profile is not None and self.robot_model.profile_mount.compliant  # barriers need a rigid hull
         self.energy = MujocoEnergyMonitor(
@@ -189,13 +189,13 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
     # -- the placement ------------------------------------------------------------------------------------------
     def robot_points(self):
         """The world points (n, 3) whose hull is the robot's collision geometry now (m)."""
-        mujoco, model, data = self.mujoco, self.model, self.data
-        points = []
-        for geom in self.robot_geoms:
-            local = _geom_points(mujoco, model, geom)
-            if local is not None:
-                points.append(local @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom])
-        return np.vstack(points)
+        data = self.data
+        if self._local_points is None:   # each geom's points in its own frame (fixed), computed once
+            mujoco, model = self.mujoco, self.model
+            self._local_points = [(geom, local) for geom in self.robot_geoms
+                                  for local in [_geom_points(mujoco, model, geom)] if local is not None]
+        return np.vstack([local @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]
+                          for geom, local in self._local_points])
 
     def place(self, orientation_xyzw, clearance_m, xy_m=(0.0, 0.0), ground_z_m=1.0):
         """Reset the data and put the robot at rest with its lowest point ``clearance_m`` above z = ``ground_z_m``

@@ -97,8 +97,8 @@ def _resimulate(args):
 
 def _run_local(args, spec, ask):
     from rollability_ros.core.campaign.plan import plan_trials
-    from rollability_ros.core.campaign.runner import (LocalRig, report_exit_code, resume_refusal, run_campaign,
-                                                      store_writer)
+    from rollability_ros.core.campaign.runner import (LocalRig, record_campaign_run, report_exit_code,
+                                                      resume_refusal, run_campaign, store_writer)
     from rollability_ros.core.config import load_parameters
     from rollability_ros.core.results.store import Store
 
@@ -109,6 +109,7 @@ def _run_local(args, spec, ask):
             raise ValueError(refusal)
         rig = LocalRig(args.backend, load_parameters(args.rig_config or ["rig"]), ask or input)
         try:
+            record_campaign_run(store, spec.run_id, args.backend, rig.backend.design_sources())
             report = run_campaign(plan_trials(spec), spec.run_id, stored, lambda trial: rig.launch(spec.run_id, trial),
                                   store_writer(store), ask=ask)
         finally:

@@ -118,7 +118,8 @@ def register(subparsers):
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="optimization parameter file or shipped name: 'optimizer' (quick default, minutes on "
                              "2 cores) or 'paper' (the paper's settings); loaded on top of sim, robot and "
-                             "evaluator; repeatable, later files win (e.g. --config optimizer --config "
+                             "evaluator, and on top of 'optimizer' when neither is named (a robot config alone runs on "
+                             "the shipped defaults); repeatable, later files win (e.g. --config optimizer --config "
                              "runs/cal/calibrated.yaml). Optional with --resume (then the run's own config.yaml "
                              "is used)")
     parser.add_argument("--resume", metavar="RUN", help="continue run RUN (run id under output_dir, or its "

@@ -334,3 +334,54 @@ def test_drill_down_shows_each_seed_and_its_command_simulates_the_stored_launch_
     assert cli_main(["campaign", "--backend", "physical", "--resimulate", "baseline", "0.75", "0.8", "0",
                      "--seed", "1"]) == 2                       # a physical launch cannot be simulated again
     assert "--resimulate needs --backend sim" in capsys.readouterr().err
+
+
+def test_report_draws_only_the_designs_of_the_run_it_reports(tmp_path):
+    """Two optimization runs side by side under runs/ and a campaign store next to them (issue 28: the report drew
+    a sibling run's "Design A", another robot's part): a store or run directory shows the designs of the run it
+    names (its recorded designs_file, or its own designs/ folder) and never a sibling's."""
+    from rollability_ros.core.campaign.runner import record_campaign_run
+    from rollability_ros.core.profile import geometry
+    from rollability_ros.core.results import report
+
+    runs = tmp_path / "runs"
+    grid = geometry.ProfileGrid(rows=3, cols=3)
+    meshes = {}
+    for name, height in (("small-robot", 0.05), ("large-robot", 0.3)):
+        folder = runs / name / "designs"
+        folder.mkdir(parents=True)
+        meshes[name] = str(folder / "mesh_A.stl")
+        geometry.export_mesh(geometry.profile_mesh([height] * 9, grid), meshes[name])
+        (folder / "designs.yaml").write_text("/**:\n  ros__parameters:\n    designs:\n      labels: [A]\n",
+                                             encoding="utf-8")
+        with Store(runs / name) as store:
+            store.add_candidate(CandidateRecord(name, 1, 0, (height,), 0.5, 0, 20, 10, 1.0))
+    for name in meshes:   # each optimization run directory: its own designs only
+        assert report.load_report_data(runs / name).design_meshes == {"A": meshes[name]}
+    campaign = runs / "campaign.sqlite"
+    with Store(str(campaign)) as store:
+        for outcome in _campaign_outcomes(repetitions=1)[:8]:
+            store.add_launch_outcome(outcome)
+    data = report.load_report_data(campaign)
+    assert data.design_meshes == {} and data.design_folders == []        # names no run: no sibling's design
+    with Store(str(campaign)) as store:
+        record_campaign_run(store, "camp", "sim", {"designs_file": str(runs / "large-robot" / "designs" /
+                                                                       "designs.yaml"), "mesh_files": {}})
+    data = report.load_report_data(campaign)
+    assert data.design_meshes == {"A": meshes["large-robot"]}
+    linked = [path for path, _ in report.find_artefacts(data.design_folders, str(campaign))]
+    assert meshes["large-robot"] in linked and meshes["small-robot"] not in linked
+    assert cli_main(["report", str(campaign), "--out", str(tmp_path / "out")]) == 0
+    html = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
+    assert "large-robot" in html and "small-robot" not in html
+
+
+def test_the_sim_rig_records_where_its_designs_come_from(tmp_path):
+    from rollability_ros.core.rig.rig_session import RigSettings, SimulatedLaunch
+    from rollability_ros.core.rig.speed_gate import SpeedGateConfig
+
+    twin = tmp_path / "twin.yaml"
+    twin.write_text("/**:\n  ros__parameters:\n    launch_twin:\n      designs:\n        designs_file: d/designs.yaml\n",
+                    encoding="utf-8")
+    backend = SimulatedLaunch(RigSettings(twin_config=["sim", "robot", "launch_twin", str(twin)]), SpeedGateConfig())
+    assert backend.design_sources() == {"designs_file": os.path.abspath("d/designs.yaml"), "mesh_files": {}}

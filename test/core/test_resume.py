@@ -208,7 +208,8 @@ def test_cli_run_with_real_physics_killed_and_resumed_equals_uninterrupted(tmp_p
         stream.write(textwrap.dedent(f"""
             /**:
               ros__parameters:
-                optimizer: {{popsize: 4, trials: 4, max_generations: 4, seed: 2, output_dir: "{tmp_path}"}}
+                optimizer: {{method: cmaes, popsize: 4, trials: 4, max_generations: 4, seed: 2,
+                             initial_mean_screen: 0, output_dir: "{tmp_path}"}}
                 profile: {{rows: 3, cols: 2}}
                 evaluator: {{workers: 1}}
                 selection: {{count: 2, min_distance: 0.0, reevaluate_trials: 2}}

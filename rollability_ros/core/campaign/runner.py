@@ -86,6 +86,18 @@ def store_writer(store: Store) -> typing.Callable[[LaunchOutcome], None]:
     return confirm_stored
 
 
+def record_campaign_run(store: Store, run_id: str, backend: str, design_sources: dict) -> None:
+    """Describe campaign ``run_id`` in ``store``'s run info: its backend and where its profiles come from
+    (:meth:`~rollability_ros.core.rig.launch_backend.LaunchBackend.design_sources`), which is where a report
+    looks for the run's design meshes; keeps what an earlier session recorded."""
+    described = store.run_info(run_id)
+    info = dict(described["info"]) if described else {}
+    info["backend"] = backend
+    if design_sources:
+        info["designs"] = design_sources
+    store.set_run_info(run_id, described["kind"] if described else "campaign", info)
+
+
 class StoreAcknowledgements:
     """``confirm_stored`` for the node-graph route: waits for the outcome_logger's acknowledgement of a trial.
 

@@ -44,7 +44,8 @@ import numpy as np
 import yaml
 
 from rollability_ros.core.optimization import checkpoint as checkpoints
-from rollability_ros.core.config import ConfigError, check_path_component, from_mapping, load_parameters, section
+from rollability_ros.core.config import (ConfigError, check_path_component, from_mapping, load_parameters,
+                                         resolve_config_path, section)
 from rollability_ros.core.optimization.cmaes import (
     STREAM_POPULATION,
     STREAM_REEVALUATION,
@@ -78,12 +79,22 @@ def optimizer_settings(parameters: dict) -> OptimizerSettings:
     return from_mapping(OptimizerSettings, section(parameters, "optimizer"), "optimizer")
 
 
+#: The shipped optimiser defaults, loaded under the given files unless they name an optimiser file themselves.
+OPTIMIZER_CONFIGS = ("optimizer", "paper")
+
+
 def load_run_parameters(config_paths: typing.Union[str, os.PathLike, typing.Sequence]) -> dict:
     """Merge :data:`BASE_CONFIGS` and ``config_paths`` (one or a list of paths or shipped names such as
-    ``"paper"``; later files win, e.g. ``["optimizer", "runs/cal/calibrated.yaml"]``)."""
+    ``"paper"``; later files win, e.g. ``["optimizer", "runs/cal/calibrated.yaml"]``). Unless the list names a
+    shipped optimiser file (:data:`OPTIMIZER_CONFIGS`), ``config/optimizer.yaml`` goes first: a robot config
+    alone (``--config robot.yaml``) runs on the shipped defaults, and its own ``optimizer`` keys win."""
     if isinstance(config_paths, (str, os.PathLike)):
         config_paths = [config_paths]
-    return load_parameters(list(BASE_CONFIGS) + list(config_paths))
+    config_paths = list(config_paths)
+    shipped = {os.path.abspath(resolve_config_path(name)) for name in OPTIMIZER_CONFIGS}
+    named = any(os.path.abspath(resolve_config_path(path)) in shipped for path in config_paths)
+    defaults = [] if named else [OPTIMIZER_CONFIGS[0]]
+    return load_parameters(list(BASE_CONFIGS) + defaults + config_paths)
 
 
 def resolve_run_dir(run: typing.Union[str, os.PathLike], output_dir: str = "runs") -> str:
@@ -263,8 +274,9 @@ class OptimizationRun:
         self._clock = clock
         self._optimizer_factory = optimizer_factory
         self.checkpoint_path = os.path.join(self.run_dir, checkpoints.CHECKPOINT_FILENAME)
-        if not resume:
-            check_new_run_dir(self.run_dir)   # before the initial-mean screen's minutes of work
+        if not resume:  # before any simulation (the start-point screen takes tens of seconds)
+            check_new_run_dir(self.run_dir)
+            check_design_space_printable(self.parameters, self.grid)
         self.initial_mean_screen = self._screen_initial_means(screen_profiles)
         self.optimizer = self._resume() if resume else self._start()
         self.store = Store(self.run_dir)
@@ -339,7 +351,6 @@ class OptimizationRun:
         config_path = os.path.join(self.run_dir, RUN_CONFIG_FILENAME)
         check_new_run_dir(self.run_dir)
         optimizer = self._new_optimizer()  # validates the settings before anything is written
-        check_design_space_printable(self.parameters, self.grid)
         os.makedirs(self.run_dir, exist_ok=True)
         write_run_config(config_path, self.parameters)
         return optimizer

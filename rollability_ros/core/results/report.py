@@ -52,6 +52,7 @@ class ReportData:
     archive_rows: list = dataclasses.field(default_factory=list)  # design_map.read_archive rows (QD runs)
     trait_rows: list = dataclasses.field(default_factory=list)    # design_map.read_traits rows (QD runs)
     design_meshes: dict = dataclasses.field(default_factory=dict)  # label -> mesh file of the chosen designs
+    design_folders: list = dataclasses.field(default_factory=list)  # the designs/ folders of this run (design_folders)
     notes: list = dataclasses.field(default_factory=list)         # lines on what the report could not draw
 
 
@@ -178,20 +179,56 @@ def load_report_data(source, run_id=None):
     data.sim_fitness = {str(k): float(v) for k, v in info.get("sim_fitness", {}).items()}
     data.geometry = analysis.geometry_table(info.get("geometry", []), CONFIGURATION_ORDER)
     data.design_estimates = design_estimates(info.get("table3", []), source)
+    data.design_folders = design_folders(source, info)
     table3 = os.path.join(source, DESIGNS_TABLE)
     if kind == "store" and os.path.isdir(source) and os.path.isfile(table3) and not data.geometry:
         use_geometry_csv(data, table3)
-    data.engine_rows = _engine_rows(source)
-    _design_map(data, source)
+    data.engine_rows = _engine_rows(data.design_folders)
+    _design_map(data)
     return data
 
 
-def _design_map(data, source):
+#: Where a run keeps its chosen designs, relative to its folder: an optimization run directory's own
+#: ``designs/`` (and ``designs-<n>/`` of later selections), and a study's ``optimization/designs/``
+#: (``core/graph/study.py``).
+RUN_DESIGN_FOLDERS = ("designs", os.path.join("optimization", "designs"))
+
+
+def _design_sets(folder):
+    """``folder`` (a ``designs/`` path) and its later selections ``designs-<n>/`` beside it, in the order written."""
+    import glob
+
+    later = [path for path in glob.glob(folder + "-*") if path.rsplit("-", 1)[1].isdigit()]
+    return [folder] + sorted(later, key=lambda path: int(path.rsplit("-", 1)[1]))
+
+
+def design_folders(source, run_info=None):
+    """The ``designs/`` folders of the run ``source`` names, never a sibling run's: the folder of the
+    ``designs_file`` (and of the ``mesh_files``) recorded in the selected campaign run's info (``run_info``: the
+    ``info`` dict), and :data:`RUN_DESIGN_FOLDERS` of the source's own folder (of the study or session folder for
+    a bag inside one). Absolute paths, existing folders only, in that order."""
+    source = os.fspath(source)
+    base = os.path.abspath(source if os.path.isdir(source) else os.path.dirname(os.path.abspath(source)))
+    roots = [base, os.path.dirname(base)] if _is_bag(base) else [base]
+    recorded = (run_info or {}).get("designs", {})
+    named = [os.path.dirname(path) for path in [recorded.get("designs_file", "")] +
+             list(recorded.get("mesh_files", {}).values()) if path]
+    folders = []
+    own = [path for root in roots for name in RUN_DESIGN_FOLDERS for path in _design_sets(os.path.join(root, name))]
+    for folder in named + own:
+        folder = os.path.abspath(folder)
+        if os.path.isdir(folder) and folder not in folders:
+            folders.append(folder)
+    return folders
+
+
+def _design_map(data):
     """Read the quality-diversity map (``archive.csv``, ``traits.csv``) and the chosen designs' mesh files
-    written next to the ``designs.yaml`` in or next to ``source``, if any."""
+    written next to the ``designs.yaml`` of the run's design folders, if any."""
     from rollability_ros.core.results import design_map
 
-    for designs_yaml in [path for path, _ in find_artefacts(source) if os.path.basename(path) == "designs.yaml"]:
+    for designs_yaml in [path for path, _ in find_artefacts(data.design_folders)
+                         if os.path.basename(path) == "designs.yaml"]:
         folder = os.path.dirname(designs_yaml)
         archive = os.path.join(folder, design_map.ARCHIVE_FILENAME)
         traits = os.path.join(folder, design_map.TRAITS_FILENAME)
@@ -204,12 +241,12 @@ def _design_map(data, source):
         return
 
 
-def _engine_rows(source):
-    """The cross-engine table (``rollability evaluate --designs ... --engines ...``) of the designs in or next to
-    ``source``, if one was written; ``ValueError`` naming the file when it is unusable."""
+def _engine_rows(folders):
+    """The cross-engine table (``rollability evaluate --designs ... --engines ...``) of the designs in the run's
+    design ``folders``, if one was written; ``ValueError`` naming the file when it is unusable."""
     from rollability_ros.core.results import engine_agreement
 
-    for designs_yaml in [path for path, _ in find_artefacts(source) if os.path.basename(path) == "designs.yaml"]:
+    for designs_yaml in [path for path, _ in find_artefacts(folders) if os.path.basename(path) == "designs.yaml"]:
         path = os.path.join(os.path.dirname(designs_yaml), engine_agreement.TABLE_FILENAME)
         if os.path.isfile(path):
             return engine_agreement.read_table(path)
@@ -483,7 +520,8 @@ def build_report(data, out_dir, measure="condition_rate"):
     figures = _figures(out_dir, views, configurations, comparison, points, data.engine_rows, data)
     summary = summary_text(data, views, comparison, points)
     html_path = os.path.join(out_dir, "report.html")
-    artefacts = find_artefacts(data.source.split(" ", 1)[-1]) + [(path, "table (CSV)") for path in table_paths]
+    artefacts = find_artefacts(data.design_folders, data.source.split(" ", 1)[-1]) + \
+        [(path, "table (CSV)") for path in table_paths]
     trace = _pose_windows(data.outcomes, [p for p, kind in artefacts if kind == "bag"])
     with open(html_path, "w", encoding="utf-8") as stream:
         stream.write(_html(data, summary, figures, tables, artefacts, trace, out_dir))
@@ -500,25 +538,26 @@ pre { background: #f7f7f7; padding: 0.8em; }
 """
 
 
-def find_artefacts(source):
+def find_artefacts(folders, source=None):
     """``[(path, kind)]`` of the files a report links: design meshes (STL, 3MF), their Table 3 and ``designs.yaml``
-    and recorded bags (folders with ``metadata.yaml``, or the source bag itself) in or next to ``source``."""
+    in the run's design ``folders`` (:func:`design_folders`: never a sibling run's), and recorded bags (folders
+    with ``metadata.yaml``, or the source bag itself) in or next to ``source``."""
     import glob
 
-    source = os.fspath(source)
-    base = os.path.abspath(source if os.path.isdir(source) else os.path.dirname(os.path.abspath(source)))
-    # a bag inside a study or session folder: its designs and other bags sit next to it
-    roots = [base, os.path.dirname(os.path.abspath(base))] if _is_bag(base) else [base]
     found = []
-    designs = {d for root in roots for pattern in ("designs", "designs-*")   # later selections: designs-<n>
-               for d in glob.glob(os.path.join(root, pattern)) + glob.glob(os.path.join(root, "*", pattern))}
-    for folder in sorted(designs):
+    for folder in folders:
         for pattern, kind in (("mesh_*.stl", "design mesh (STL, millimetres unless its header says m)"),
                               ("mesh_*.3mf", "design mesh (3MF)"), ("table3.csv", "Table 3 (CSV)"),
                               ("designs.yaml", "design heights (ROS 2 parameter file)"),
                               ("archive.csv", "quality-diversity archive: every elite (CSV)"),
                               ("traits.csv", "fitness per height and sharpness bin (CSV)")):
             found += [(path, kind) for path in sorted(glob.glob(os.path.join(folder, pattern)))]
+    if source is None:
+        return found
+    source = os.fspath(source)
+    base = os.path.abspath(source if os.path.isdir(source) else os.path.dirname(os.path.abspath(source)))
+    # a bag inside a study or session folder: the other bags sit next to it
+    roots = [base, os.path.dirname(os.path.abspath(base))] if _is_bag(base) else [base]
     bags = {root for root in roots if _is_bag(root)}
     bags |= {os.path.dirname(p) for root in roots for p in glob.glob(os.path.join(root, "*", "metadata.yaml"))}
     found += [(path, "bag") for path in sorted(bags, key=os.path.abspath)]

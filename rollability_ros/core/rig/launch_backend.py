@@ -81,6 +81,12 @@ class LaunchBackend(abc.ABC):
         """One line for the start-up log."""
         return f"backend {self.name}"
 
+    def design_sources(self) -> dict:
+        """Where this backend's profiles come from, for the campaign's run info (reports draw and link the designs
+        of that run only): ``{"designs_file": absolute path or "", "mesh_files": {label: absolute path}}``, or
+        ``{}`` when it does not know (an operator mounts printed parts)."""
+        return {}
+
     def close(self) -> None:
         """Release what the backend opened (valve closed, heartbeat stopped); idempotent."""
 

@@ -29,6 +29,7 @@ that is the operator's decision.
 import dataclasses
 import importlib
 import math
+import os
 import threading
 import time
 import types
@@ -496,6 +497,13 @@ class SimulatedLaunch(LaunchBackend):
     def check(self, run_id: str, trial_id: str, condition: LaunchCondition) -> str:
         """:func:`check_goal` against ``rig.configurations``; returns the reason or ""."""
         return check_goal(run_id, trial_id, condition, self.settings.configurations)
+
+    def design_sources(self) -> dict:
+        """The twin's ``launch_twin.designs`` (relative paths are from the working directory), made absolute."""
+        self.load()
+        designs = self._twin_settings.twin.designs
+        return {"designs_file": os.path.abspath(designs.designs_file) if designs.designs_file else "",
+                "mesh_files": {label: os.path.abspath(path) for label, path in designs.meshes().items()}}
 
     def launch(self, run_id: str, trial_id: str, condition: LaunchCondition, on_phase: PhaseCallback = no_phase,
                *, on_pose: typing.Optional[PoseCallback] = None,

@@ -191,8 +191,13 @@ def test_texts_are_exact_and_unambiguous():
     # floats are signed exactly (hex), so 0.1 + 0.2 and 0.3 differ, and a NaN travel time has one text
     assert rig_auth.outcome_text("t", True, 0.1 + 0.2, "") != rig_auth.outcome_text("t", True, 0.3, "")
     assert rig_auth.outcome_text("t", True, math.nan, "") == rig_auth.outcome_text("t", True, float("nan"), "")
-    # a field cannot bleed into the next: ids are separated by newlines (which a trial id would need to forge)
+    # a field cannot bleed into the next, whatever characters an id or a note holds
     assert rig_auth.confirm_text("t0") != rig_auth.confirm_text("t0\n")
+    nan_text = rig_auth.outcome_text("a", True, math.nan, "")
+    bleeding = nan_text.split("\n", 1)[1]
+    assert rig_auth.outcome_text("a", True, 0.0, "x") != rig_auth.outcome_text("a", True, 0.0, "x\n" + bleeding)
+    assert rig_auth.outcome_text("a\n", False, 1.0, "") != rig_auth.outcome_text("a", False, 1.0, "\n")
+    assert rig_auth.launch_text("r\nt", "", CONDITION) != rig_auth.launch_text("r", "\nt", CONDITION)
     kinds = {text.split("\n")[0] for text in (rig_auth.launch_text("r", "t", CONDITION), rig_auth.confirm_text("t"),
                                               rig_auth.outcome_text("t", True, 1.0, ""), rig_auth.record_text(outcome()))}
     assert kinds == {"rig-launch", "rig-confirm", "rig-outcome", "rig-record"}

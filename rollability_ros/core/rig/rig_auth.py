@@ -23,8 +23,8 @@ authentic record is a duplicate, never a new one.
 The simulated rig (``rig.backend: sim``) moves no hardware and its outcomes are labelled ``sim``: it needs no key
 (:class:`OpenGuard`), so a simulated campaign runs on any computer.
 
-Every text starts with ``rig-<kind>`` and spans several lines, so no rig signature is ever a valid valve command
-(``arm``, ``fire 150``...) or another kind of rig request, and vice versa.
+Every text is ``rig-<kind>``, a newline and the fields as one JSON value, so no rig signature is ever a valid valve
+command (``arm``, ``fire 150``...) or another kind of rig request, and no two sets of fields share a text.
 """
 import dataclasses
 import json
@@ -46,27 +46,29 @@ def _number(value: float) -> str:
     return float(value).hex()
 
 
+def _text(kind: str, fields: typing.Any) -> str:
+    """``rig-<kind>`` and the fields as one JSON value: no field can bleed into the next (a newline in a note)."""
+    return f"rig-{kind}\n" + json.dumps(fields, sort_keys=True, ensure_ascii=True)
+
+
 def launch_text(run_id: str, trial_id: str, condition: typing.Any) -> str:
     """The signed text of a launch goal: run, trial and every field of its ``LaunchCondition``."""
-    return "\n".join(("rig-launch", run_id, trial_id, condition.configuration, _number(condition.height_m),
-                      _number(condition.speed_mps), _number(condition.angle_deg), str(int(condition.repetition))))
+    return _text("launch", [run_id, trial_id, condition.configuration, _number(condition.height_m),
+                            _number(condition.speed_mps), _number(condition.angle_deg), int(condition.repetition)])
 
 
 def confirm_text(trial_id: str) -> str:
     """The signed text of a regulator confirmation for ``trial_id`` ("" = the launch the rig waits on now)."""
-    return f"rig-confirm\n{trial_id}"
+    return _text("confirm", [trial_id])
 
 
 def outcome_text(trial_id: str, upright: bool, travel_time_s: float, note: str) -> str:
     """The signed text of an operator's outcome for ``trial_id`` ("" = the launch the rig waits on now)."""
-    return "\n".join(("rig-outcome", trial_id, "upright" if upright else "not upright", _number(travel_time_s),
-                      note))
+    return _text("outcome", [trial_id, bool(upright), _number(travel_time_s), note])
 
 
 def record_text(outcome: typing.Any) -> str:
     """The signed text of a stored :class:`~rollability_ros.core.results.records.LaunchOutcome`: all its fields."""
-    fields = dataclasses.asdict(outcome)
-
     def exact(value):
         if isinstance(value, float):
             return _number(value)
@@ -75,7 +77,7 @@ def record_text(outcome: typing.Any) -> str:
         if isinstance(value, (list, tuple)):
             return [exact(v) for v in value]
         return value
-    return "rig-record\n" + json.dumps(exact(fields), sort_keys=True, ensure_ascii=True)
+    return _text("record", exact(dataclasses.asdict(outcome)))
 
 
 class SessionKeys:

@@ -50,8 +50,9 @@ import numpy as np
 
 from rollability_ros.core.optional import require
 from rollability_ros.core.sim.launch_twin import (LaunchTracker, LaunchWorld, PhaseReporter, check_fits_launcher,
-                                                  decided_on_foam, foam_sink_m, launch_plan, launch_result,
-                                                  launcher_start_xy, mecanum_wheels, plate_placement, step_launch)
+                                                  decided_on_foam, foam_sink_m, hopeless_to_decide, launch_plan,
+                                                  launch_result, launcher_start_xy, mecanum_wheels,
+                                                  plate_placement, step_launch)
 from rollability_ros.core.sim.mujoco_trials import (MujocoEnergyMonitor, MujocoTrialWorld, _geom_points,
                                                     _pose_speeds, effective_contact, robot_spec, set_geom_contact,
                                                     wheel_bodies)
@@ -254,6 +255,10 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         if energy is None:
             return None
         mujoco, model, data = self.mujoco, self.model, self.data
+        vx, vy, vz = data.qvel[0:3].tolist()
+        if hopeless_to_decide(data.qpos[0:2].tolist(), math.sqrt(vx * vx + vy * vy + vz * vz), energy.radius_m,
+                              self.settings, remaining_s):
+            return None
         # the monitor reads the COM and the mass matrix of the current state (mj_step left those of the last)
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)

@@ -109,6 +109,36 @@ def test_estop_during_countdown_aborts_and_leaves_the_fault_latched(valve):
     assert rig.launch("run", "t0", CONDITION, operator).upright
 
 
+def test_a_fault_on_the_state_topic_never_shortens_the_countdown():
+    """The valve state the rig reads comes from a topic any participant can publish: a fake fault there must not
+    make the rig fire before the countdown ran out (it used to break the countdown and fire at once)."""
+    class SpoofedStateValve:
+        def __init__(self):
+            self.armed_at = self.fired_at = None
+
+        def arm(self):
+            self.armed_at = time.monotonic()
+            return True, "armed"
+
+        def status(self):
+            from rollability_ros.core.rig.valve import ValveStatus
+            return ValveStatus(True, False, True, "forged fault", "dry_run", 0, 0)   # what a stray publishes
+
+        def fire(self, pulse_ms):
+            self.fired_at = time.monotonic()
+            return False, "refused by the valve"
+
+        def disarm(self):
+            return True, "disarmed"
+
+    spoofed = SpoofedStateValve()
+    rig = make_rig(spoofed, countdown_s=0.4)
+    operator = ScriptedOperator(rig.operator)
+    with pytest.raises(LaunchAborted, match="refused by the valve"):
+        rig.launch("run", "t0", CONDITION, operator)
+    assert spoofed.fired_at - spoofed.armed_at >= 0.4
+
+
 def test_watchdog_trip_aborts_the_launch(valve):
     rig = make_rig(valve, countdown_s=0.5)                              # no heartbeat: trips after 200 ms
     operator = ScriptedOperator(rig.operator)

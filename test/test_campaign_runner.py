@@ -147,6 +147,20 @@ def test_graph_campaign_counts_a_trial_only_once_the_logger_acknowledges_it(ros_
     assert "0/4 stored" in out
 
 
+def test_physical_graph_campaign_without_the_key_is_refused_before_asking_anyone(tmp_path):
+    """The physical rig takes no unsigned goal: a runner that cannot read the valve's key stops at once, in one line
+    (before waiting for a logger or a rig), instead of sending goals the rig would refuse one by one."""
+    (tmp_path / "campaign.yaml").write_text(CAMPAIGN_YAML)
+    started = time.monotonic()
+    result = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "campaign", "--backend", "physical",
+                             "--graph", "--config", str(tmp_path / "campaign.yaml"), "--session-key-file",
+                             str(tmp_path / "no-valve-running.key")], capture_output=True, text=True, timeout=60,
+                            stdin=subprocess.DEVNULL)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert "a physical campaign signs its goals and answers: cannot read the valve session key" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and time.monotonic() - started < 20
+
+
 @pytest.fixture
 def relay(tmp_path):
     with RelaySim(tmp_path) as sim:

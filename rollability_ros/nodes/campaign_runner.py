@@ -216,6 +216,13 @@ def stored_trial_ids(node, executor, run_id, timeout_s):
 def run_graph_campaign(node, spec, settings, ask=None, say=_say):
     """Run the campaign through the graph from ``node`` (spun here, in this thread); returns the CampaignReport."""
     plan = plan_trials(spec)
+    signer = None
+    if launch_backend_class(settings.backend).authenticated:
+        signer = rig_auth.KeyFileSigner(settings.session_key_file or valve_auth.default_key_path(node.get_namespace()))
+        try:   # refused at once, before asking anyone: the physical rig takes no unsigned goal
+            valve_auth.load_session_key(signer.path)
+        except valve_auth.AuthError as exc:
+            raise ValueError(f"a physical campaign signs its goals and answers: {exc}") from exc
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:
@@ -227,14 +234,6 @@ def run_graph_campaign(node, spec, settings, ask=None, say=_say):
         refusal = resume_refusal(len(stored), settings.resume, spec.run_id)
         if refusal:
             raise ValueError(refusal)
-        signer = None
-        if launch_backend_class(settings.backend).authenticated:
-            signer = rig_auth.KeyFileSigner(settings.session_key_file
-                                            or valve_auth.default_key_path(node.get_namespace()))
-            try:   # refused at once, not at every trial: the physical rig takes no unsigned goal
-                valve_auth.load_session_key(signer.path)
-            except valve_auth.AuthError as exc:
-                raise ValueError(f"a physical campaign signs its goals: {exc}") from exc
         rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s, signer)
         return run_campaign(plan, spec.run_id, stored, rig.launch, acknowledgements, ask=ask, say=say)
     finally:

@@ -8,7 +8,8 @@ def register(subparsers):
                     "process (sim: the launch twin; physical: the valve, speed gate and your answers at the "
                     "terminal) and this command writes the store. With --graph it sends Launch goals to a running "
                     "rig node and waits until the outcome_logger acknowledges storing each outcome over ROS (one "
-                    "writer; its store may be on another computer). "
+                    "writer; for a sim campaign its store may be on another computer; physical goals and answers are "
+                    "signed with the valve's session key, so a physical --graph campaign runs on the rig computer). "
                     "Physical runs tell you what to change before each trial and wait for Enter; sim runs "
                     "unattended. Exit code 0 when complete, 3 when stopped early (rerun with --resume), 4 when more "
                     "than half of the launches are invalid (the message names the setting to change).")

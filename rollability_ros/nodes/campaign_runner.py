@@ -16,7 +16,8 @@ Parameters: ``campaign.*`` (:class:`~rollability_ros.core.campaign.plan.Campaign
   wait for an acknowledgement).
 
 One writer, reached only over ROS: the outcome_logger stores the outcomes the rig publishes and acknowledges
-them; this node never opens the store, so the logger may run in another directory or on another computer.
+them; this node never opens the store, so the logger may run in another directory (or, for a sim campaign, on
+another computer: physical outcomes are verified with the valve's key on the rig computer).
 Exit code: 0 when every trial is stored, 3 when the campaign stopped early (the reason is printed; rerun with
 ``runner.resume:=true``), 2 for bad parameters or no outcome_logger answering.
 """

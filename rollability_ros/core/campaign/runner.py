@@ -8,7 +8,8 @@ be stored:
 - through the node graph: ``launch`` sends a Launch goal to the ``rig`` node, whose outcome reaches the
   ``outcome_logger`` (the only writer on that route), and ``confirm_stored`` waits for the logger's
   acknowledgement over ROS (:class:`StoreAcknowledgements`, fed from the ``outcomes_stored`` topic), so a trial
-  counts as done only once it is on disk, and the logger may run on another computer.
+  counts as done only once it is on disk, and the logger may run elsewhere (another computer for simulated
+  outcomes; physical ones are verified with the valve's session key, on the rig computer).
 
 A trial that fails (valve fault, operator timeout, outcome never stored) stops the campaign: nothing was stored
 for it, so a resumed run (``remaining_trials``) launches it again, and every trial stored before stays stored.

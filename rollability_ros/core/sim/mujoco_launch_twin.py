@@ -49,6 +49,7 @@ import pickle
 import numpy as np
 
 from rollability_ros.core.optional import require
+from rollability_ros.core.sim.early_decision import _hull_vertices
 from rollability_ros.core.sim.launch_twin import (LaunchTracker, LaunchWorld, PhaseReporter, check_fits_launcher,
                                                   decided_on_foam, foam_sink_m, hopeless_to_decide, launch_plan,
                                                   launch_result, launcher_start_xy, mecanum_wheels,
@@ -191,9 +192,9 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
     def robot_points(self):
         """The world points (n, 3) whose hull is the robot's collision geometry now (m)."""
         data = self.data
-        if self._local_points is None:   # each geom's points in its own frame (fixed), computed once
+        if self._local_points is None:   # each geom's hull vertices in its own frame (fixed), computed once
             mujoco, model = self.mujoco, self.model
-            self._local_points = [(geom, local) for geom in self.robot_geoms
+            self._local_points = [(geom, _hull_vertices(local)) for geom in self.robot_geoms
                                   for local in [_geom_points(mujoco, model, geom)] if local is not None]
         return np.vstack([local @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]
                           for geom, local in self._local_points])
@@ -213,8 +214,8 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
 
     # -- LaunchWorld --------------------------------------------------------------------------------------------
     def pose(self):
-        x, y, z, qw, qx, qy, qz = self.data.qpos[0:7].tolist()
-        return (x, y, z), (qx, qy, qz, qw)
+        q = self.data.qpos[0:7].tolist()
+        return q[0:3], (q[4], q[5], q[6], q[3])
 
     def velocity(self):
         return self.data.qvel[0:3].tolist()
@@ -232,7 +233,9 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         return on_foam, on_floor
 
     def step(self):
-        self.data.qfrc_applied[self.plate_dof] = self._plate.force()
+        plate = self._plate
+        if plate.driving or not plate.at_rest:
+            self.data.qfrc_applied[self.plate_dof] = plate.force()
         self.mujoco.mj_step(self.model, self.data)
 
     def settled(self, steps):
@@ -320,6 +323,11 @@ class _MujocoPlate:
         self._gain = mass_kg / twin.physics.time_step_s
         self._target, self._limit = 0.0, spec.max_force_n
         self.driving = False
+
+    @property
+    def at_rest(self):
+        """True once the braked plate has stopped (its servo then holds it with the damping last set)."""
+        return not self.driving and abs(float(self._twin.data.qvel[self._twin.plate_dof])) < 1e-6
 
     def force(self):
         """Set the servo's damping for the coming step and return the joint force that goes with it (N)."""

@@ -773,6 +773,21 @@ class LaunchTracker:
         return not math.isnan(self.base.time_s)
 
     @property
+    def settling_only(self):
+        """True once only the peak deceleration is left to watch per step (landed, after the crossings)."""
+        return not math.isnan(self.landed_s) and self._velocity is not None
+
+    @property
+    def last_velocity(self):
+        """The base velocity after the last step accounted for (m/s), or None before the robot went over."""
+        return self._velocity
+
+    def add_steps(self, peak_mps2, velocity):
+        """Account for steps :meth:`LaunchWorld.advance` took after the landing: their peak and last velocity."""
+        self.peak_deceleration_mps2 = max(self.peak_deceleration_mps2, peak_mps2)
+        self._velocity = tuple(velocity)
+
+    @property
     def on_foam(self):
         """True once the robot has landed, and its first landing was on the foam."""
         return not math.isnan(self.landed_s) and not self.floor_first
@@ -821,6 +836,18 @@ class LaunchWorld:
     def settled(self, steps):
         """After step number ``steps``: True once the robot has stayed at rest for the trials' hold time."""
         raise NotImplementedError
+
+    def advance(self, steps, dt, velocity):
+        """Step ``steps`` times with nothing to watch but the base's velocity; return ``(largest change of the
+        base velocity over one step / dt, m/s^2, the velocity after the last step)``, ``velocity`` the one before
+        the first. :func:`step_launch` uses it once the robot has landed and the plate has stopped."""
+        peak = 0.0
+        for _ in range(steps):
+            self.step()
+            now = tuple(self.velocity())
+            peak = max(peak, math.dist(now, velocity) / dt)
+            velocity = now
+        return peak, velocity
 
     def decide(self, remaining_s):
         """The early decision now (True / False: the outcome is fixed upright / not upright; None: still open, or
@@ -964,17 +991,14 @@ def step_launch(world, plate, tracker, settings, on_pose, speed_mps):
     decision = None
     interval = settings.trial.check_interval_steps
     while steps < cap and not settled:
-        if plate.driving or not plate_started:
-            plate.drive(speed_mps, (steps + 1) * dt)
+        if on_pose is None and tracker.settling_only and not plate.driving:
+            # landed, plate stopped: only the impact's peak is watched per step until the next look
+            count = min(interval - steps % interval, cap - steps)
+            tracker.add_steps(*world.advance(count, dt, tracker.last_velocity))
+            steps += count
+        else:
+            steps = _one_step(world, plate, tracker, on_pose, speed_mps, steps, dt, pose_every, plate_started)
             plate_started = True
-        world.step()
-        steps += 1
-        position, orientation = world.pose()
-        tracker.update(steps, dt, position)
-        if plate.driving and (not math.isnan(tracker.base.time_s) or plate.reached_edge()):
-            plate.stop()
-        if on_pose is not None and steps % pose_every == 0:
-            on_pose(steps * dt, position, orientation)
         if steps % interval:   # the rest rule and the decision look every check_interval_steps only
             continue
         settled = world.settled(steps)
@@ -983,3 +1007,18 @@ def step_launch(world, plate, tracker, settings, on_pose, speed_mps):
             settled = decision is not None
     tracker.phases.reach("classifying")
     return steps, settled, decision
+
+
+def _one_step(world, plate, tracker, on_pose, speed_mps, steps, dt, pose_every, plate_started):
+    """One step of :func:`step_launch` with everything watched; returns the new step count."""
+    if plate.driving or not plate_started:
+        plate.drive(speed_mps, (steps + 1) * dt)
+    world.step()
+    steps += 1
+    position, orientation = world.pose()
+    tracker.update(steps, dt, position)
+    if plate.driving and (not math.isnan(tracker.base.time_s) or plate.reached_edge()):
+        plate.stop()
+    if on_pose is not None and steps % pose_every == 0:
+        on_pose(steps * dt, position, orientation)
+    return steps

@@ -57,7 +57,8 @@ def main(argv=None):
         # does; stdout goes to /dev/null so the interpreter's final flush cannot raise again
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
-    except (ConfigError, MissingDependency, FileNotFoundError, ValueError) as exc:
+    except (ConfigError, MissingDependency, FileNotFoundError, FileExistsError, IsADirectoryError, NotADirectoryError,
+            PermissionError, ValueError) as exc:   # user errors about paths included: one line, never a traceback
         print(f"rollability {args.verb}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -9,13 +9,18 @@ def run(args):
     from rollability_ros.core.graph.supervisor import Supervisor
     from rollability_ros.core.graph.progress import ProgressDisplay, session_progress
     from rollability_ros.core.graph.study import PROGRESS_PERIOD_S
+    from rollability_ros.core.config import check_path_component
 
     param_files = parameter_files(["bringup", *args.config])
     settings = load_graph_settings(param_files)
     if args.view:
         settings.view = True
-    run_dir = os.path.join(settings.output_dir, args.session_id or new_study_id().replace("study", "session"))
-    os.makedirs(run_dir, exist_ok=True)
+    session_id = (check_path_component(args.session_id, "--session-id") if args.session_id is not None
+                  else new_study_id().replace("study", "session"))
+    run_dir = os.path.join(settings.output_dir, session_id)
+    if os.path.lexists(run_dir):   # its closed bag and store belong to an earlier session: never written into
+        raise ValueError(f"session folder {run_dir} already exists; choose another --session-id")
+    os.makedirs(run_dir)
     if args.backend == "physical":
         _isolate_physical_rig()
     nodes = session_nodes(settings, run_dir, rig_backend=args.backend, optimizer=not args.no_optimizer)
@@ -73,5 +78,6 @@ def register(subparsers):
                              "ROS_DOMAIN_ID / ROS_AUTOMATIC_DISCOVERY_RANGE are set")
     parser.add_argument("--no-optimizer", action="store_true", help="leave the optimizer out (rig-only session)")
     parser.add_argument("--view", action="store_true", help="also serve the live topics to the Foxglove app")
-    parser.add_argument("--session-id", default=None, help="name of the session directory")
+    parser.add_argument("--session-id", default=None, help="name of the new session directory under "
+                                                         "bringup.output_dir (one folder name; must not exist)")
     parser.set_defaults(func=run)

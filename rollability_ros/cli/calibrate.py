@@ -52,13 +52,16 @@ def run(args):
 
     from rollability_ros.core.campaign import calibration
     from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
-    from rollability_ros.core.config import from_mapping, load_parameters, section
+    from rollability_ros.core.config import check_output_dir, from_mapping, load_parameters, section
     from rollability_ros.core.results.report import load_report_data
     from rollability_ros.core.sim.stable_poses import ScreenSettings
 
+    check_output_dir(args.out, "--out", keeps=("calibrated.yaml",))   # before minutes of fitting
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.config])
     settings = calibration.calibration_settings(parameters)
     if args.workers is not None:
+        if args.workers < 1:
+            raise ValueError(f"--workers must be >= 1, got {args.workers}")
         settings.workers = args.workers
     screen_settings = from_mapping(ScreenSettings, section(parameters, "stable_poses"), "stable_poses")
     data = load_report_data(args.physical, args.run)
@@ -104,6 +107,7 @@ def register(subparsers):
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file loaded over sim, robot, launch_twin and calibration (repeatable)")
     parser.add_argument("--out", default="calibration", metavar="DIR",
-                        help="output directory (default: ./calibration)")
+                        help="output directory (default: ./calibration); one that already holds a calibrated.yaml "
+                             "is refused (an earlier calibration is never overwritten)")
     parser.add_argument("--workers", type=int, help="launch worker processes (default: calibration.workers)")
     parser.set_defaults(func=run)

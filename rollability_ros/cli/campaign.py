@@ -46,7 +46,7 @@ def _spec(args):
     from rollability_ros.core.campaign.plan import load_campaign_spec
 
     spec = load_campaign_spec(args.config or ["campaign"])
-    if args.run_id:
+    if args.run_id is not None:   # given, even empty: then validate() refuses it
         spec = dataclasses.replace(spec, run_id=args.run_id)
         spec.validate()
     return spec

@@ -25,12 +25,14 @@ def run(args):
     """Build the report and print its summary; return the exit code."""
     from rollability_ros.core.results import report
 
+    out_dir = args.out or default_out_dir(args.source)
+    report.check_report_dir(out_dir)     # before reading: a refused output writes nothing
     data = report.load_report_data(args.source, run_id=args.run)
     if args.sim_fitness:
         data.sim_fitness.update(_sim_fitness(args.sim_fitness))
     if args.geometry:
         report.use_geometry_csv(data, args.geometry)
-    result = report.build_report(data, args.out or default_out_dir(args.source), measure=args.measure)
+    result = report.build_report(data, out_dir, measure=args.measure)
     print(result.summary)
     print(f"wrote {len(result.figure_paths)} figures, {len(result.table_paths)} tables and {result.html_path}")
     return 0
@@ -45,7 +47,8 @@ def register(subparsers):
                     "tables and one self-contained report.html, and prints a short summary.")
     parser.add_argument("source", help="store file or run directory (store.sqlite), bag directory or .mcap "
                                        "file, or CSV of hand-recorded outcomes (docs/outcome-csv.md)")
-    parser.add_argument("--out", help="output directory (default: <source>-report next to the source)")
+    parser.add_argument("--out", help="output directory (default: <source>-report next to the source): new, empty, or "
+                                      "an earlier report's (rewritten); a file or another folder is refused")
     parser.add_argument("--run", help="campaign run id (needed when the source holds several; the run id of a "
                                       "CSV without a run_id column, default 'csv')")
     parser.add_argument("--sim-fitness", metavar="CONF=FIT,...",

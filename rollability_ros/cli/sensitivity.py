@@ -25,11 +25,13 @@ def _profiles(args):
 
 def run(args):
     """Run the sensitivity study, write ``sensitivity.csv`` and ``sensitivity.png`` to ``--out``; exit code."""
+    from rollability_ros.core.config import check_output_dir
     from rollability_ros.core.optional import MissingDependency
     from rollability_ros.core.results import report_figures
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.sim.sensitivity import sensitivity_rows
 
+    check_output_dir(args.out, "--out", keeps=("sensitivity.csv", "sensitivity.png"))
     settings = evaluation.load_settings(["sim", "robot", "evaluator", *args.config])
     if args.trials < 1:
         raise ValueError(f"--trials must be >= 1, got {args.trials}")
@@ -70,7 +72,8 @@ def register(subparsers):
     parser.add_argument("--trials", type=int, default=60, help="trials per evaluation (default 60)")
     parser.add_argument("--seed", type=int, default=0, help="the one base seed of every evaluation (default 0)")
     parser.add_argument("--workers", type=int, help="worker processes (default: evaluator.workers)")
-    parser.add_argument("--out", default="sensitivity", help="output folder (default ./sensitivity)")
+    parser.add_argument("--out", default="sensitivity", help="output folder (default ./sensitivity); one that "
+                                                             "already holds sensitivity results is refused")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="extra parameter file loaded over sim, robot and evaluator (repeatable)")
     parser.set_defaults(func=run)

@@ -46,6 +46,18 @@ def check_path_component(value, what):
     return value
 
 
+def check_output_dir(path, what, keeps=()):
+    """Raise ConfigError unless ``path`` can receive a command's results: missing, an empty folder, or (with
+    ``keeps``, names of files a command writes) a folder holding none of them, so an earlier result is never
+    overwritten and a file never replaced by a folder; ``what`` names the flag in the message."""
+    if os.path.lexists(path) and not os.path.isdir(path):
+        raise ConfigError(f"{what} {path} is an existing file, not a folder; choose another {what}")
+    held = sorted(name for name in keeps if os.path.lexists(os.path.join(path, name)))
+    if held:
+        raise ConfigError(f"{what} {path} already holds the results of an earlier run ({', '.join(held)}); choose "
+                          f"a new folder for {what}")
+
+
 def config_dir():
     """Return the directory holding the shipped ``config/*.yaml`` files.
 

@@ -76,6 +76,10 @@ class PlayerNode(Node):
             check_readable(self.reader)
         except (BagError, ValueError) as exc:
             raise ParameterError(f"player.bag: {exc}") from exc
+        duration_s = int((self.reader.metadata.get("duration") or {}).get("nanoseconds", 0)) / 1e9
+        if self.settings.start_offset_s > duration_s:
+            raise ParameterError(f"player.start_offset_s: {self.settings.start_offset_s:g} s is beyond the end of the "
+                                 f"bag ({duration_s:.3f} s of recorded time): nothing would be played")
         self.publishers_by_topic = {}
         self.played_topics = []
         for info in self.reader.topic_infos:
@@ -128,6 +132,10 @@ class PlayerNode(Node):
         except BagError as exc:
             self.error = str(exc)
             logger.error(f"playback stopped: {exc}")
+        if self.published == 0 and self.error is None and not self._stop.is_set() and any(
+                t.message_count for t in self.reader.topic_infos if t.name in self.played_topics):
+            self.error = (f"no message at or after the start offset ({settings.start_offset_s:g} s) on the played "
+                          "topics: nothing was played")
         unacknowledged = wait_for_acks(self._publishers_to_wait_for(), ACK_TIMEOUT_S, self._stop)
         if unacknowledged and not self._stop.is_set():
             logger.warning(f"{unacknowledged} topic(s) not acknowledged by every reliable subscriber within "

@@ -12,7 +12,7 @@ import random
 import statistics
 import typing
 
-from rollability_ros.core.config import from_mapping, load_parameters, section
+from rollability_ros.core.config import check_path_component, from_mapping, load_parameters, section
 from rollability_ros.core.results.records import LaunchCondition
 
 #: The matrix levels in the order that minimises manual changes; LaunchCondition field names.
@@ -51,8 +51,7 @@ class CampaignSpec:
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable setting."""
-        if not self.run_id:
-            raise ValueError("run_id must be non-empty")
+        check_path_component(self.run_id, "campaign.run_id")   # a store key that also names study folders
         for name in ("configurations", "heights_m", "speeds_mps", "angles_deg"):
             values = getattr(self, name)
             if not values:

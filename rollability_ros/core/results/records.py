@@ -11,6 +11,9 @@ NOT_MEASURED = float("nan")
 #: Start of the note of an invalid launch (no launch happened as the rig launches: the chassis did not leave the
 #: ledge, landed outside the foam, ...): stored with its reason so nothing is lost, but never counted as an outcome.
 INVALID_LAUNCH = "invalid launch: "
+#: Largest departure of ``final_orientation``'s norm from 1 accepted (a hand-typed quaternion with 3-4 digits
+#: is within it; 0,0,0,0 or a vector with a forgotten w is not).
+QUATERNION_NORM_TOLERANCE = 0.01
 #: ``LaunchOutcome.seed`` of a launch that has no twin seed: a physical launch, or one recorded before outcomes
 #: carried their seed (old stores, CSVs and bags read back with it).
 NO_SEED = -1
@@ -90,6 +93,16 @@ class LaunchOutcome:
             raise ValueError(f"classified_by must be one of {self.CLASSIFIERS}, got {self.classified_by!r}")
         if len(self.final_orientation) != 4 or not all(math.isfinite(v) for v in self.final_orientation):
             raise ValueError(f"final_orientation must be 4 finite numbers (x, y, z, w), got {self.final_orientation!r}")
+        norm = math.sqrt(sum(v * v for v in self.final_orientation))
+        if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+            raise ValueError(f"final_orientation must be a unit quaternion (x, y, z, w), got {self.final_orientation!r} "
+                             f"(norm {norm:.4g})")
+        for name in ("travel_time_s", "measured_speed_mps"):
+            value = getattr(self, name)
+            if not math.isnan(value) and not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be >= 0 (or not measured), got {value!r}")
+        if not (math.isfinite(self.stamp_s) and self.stamp_s >= 0):
+            raise ValueError(f"stamp_s must be a time >= 0, s since the epoch, got {self.stamp_s!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < NO_SEED:
             raise ValueError(f"seed must be a twin seed >= 0 or {NO_SEED} (no seed), got {self.seed!r}")
 

@@ -493,6 +493,16 @@ def refuse_all_invalid(data):
                      "and run the campaign again")
 
 
+def check_report_dir(out_dir):
+    """Raise ValueError unless ``out_dir`` is missing, empty, or holds an earlier report (``report.html``): a report
+    never writes into a file's place or among other results (a run or bag folder)."""
+    if os.path.lexists(out_dir) and not os.path.isdir(out_dir):
+        raise ValueError(f"report output {out_dir} is an existing file, not a folder; choose another --out")
+    if os.path.isdir(out_dir) and os.listdir(out_dir) and not os.path.isfile(os.path.join(out_dir, "report.html")):
+        raise ValueError(f"report output {out_dir} holds other files (no earlier report.html in it); choose a new "
+                         "or empty folder for --out")
+
+
 def build_report(data, out_dir, measure="condition_rate"):
     """Write figures (PNG), tables (CSV) and ``report.html`` (self-contained) to ``out_dir``.
 
@@ -500,11 +510,13 @@ def build_report(data, out_dir, measure="condition_rate"):
     ----------
     data : ReportData
     out_dir : str or os.PathLike
-        Created if missing; existing report files in it are overwritten.
+        Created if missing; an earlier report in it (a folder with ``report.html``) is overwritten. A file, or a
+        folder holding anything but a report, is refused (ValueError) before anything is written.
     measure : str
         Experimental measure compared with simulated fitness: ``"condition_rate"`` (paper) or ``"trial_rate"``.
     """
     out_dir = os.fspath(out_dir)
+    check_report_dir(out_dir)
     refuse_all_invalid(data)
     os.makedirs(out_dir, exist_ok=True)
     views = analysis.paper_views(data.outcomes, CONFIGURATION_ORDER) if data.outcomes else None

@@ -1,0 +1,129 @@
+"""Issue 26, point 4: bad input at every verb's door gives one line naming the problem and exit 2; nothing is
+written and no existing file changes (SHA-256 of every file in the workspace before and after). The cases are the
+issue's and those a probe of every verb's numeric and path flags found; the full probe table is in the issue's
+closing note."""
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from doubles import SyntheticEvaluator, tree_checksums
+from rollability_ros.cli import main
+
+REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+SAMPLE_BAG = os.path.join(REPO, "bags", "sample")
+HEADER = "run_id,trial_id,configuration,height_m,speed_mps,angle_deg,repetition,upright"
+CSVS = {
+    "good.csv": f"{HEADER}\nr,t1,A,0.1,1.0,0,0,true\nr,t2,baseline,0.1,1.0,0,0,false\n",
+    "quaternion0.csv": f"{HEADER},final_qx,final_qy,final_qz,final_qw\nr,t1,A,0.1,1.0,0,0,true,0,0,0,0\n",
+    "quaternion_half.csv": f"{HEADER},final_qx,final_qy,final_qz,final_qw\nr,t1,A,0.1,1.0,0,0,true,0,0,0,0.5\n",
+    "travel_nan.csv": f"{HEADER},travel_time_s\nr,t1,A,0.1,1.0,0,0,true,nan\n",
+    "height_nan.csv": f"{HEADER}\nr,t1,A,nan,1.0,0,0,true\n",
+    "negative_travel.csv": f"{HEADER},travel_time_s\nr,t1,A,0.1,1.0,0,0,true,-0.5\n",
+    "negative_speed.csv": f"{HEADER},measured_speed_mps\nr,t1,A,0.1,1.0,0,0,true,-1\n",
+    "stamp_nan.csv": f"{HEADER},stamp_s\nr,t1,A,0.1,1.0,0,0,true,nan\n",
+}
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory):
+    """A folder with a bag, a finished optimization run (runs/ex), outcome CSVs, a file, a folder of notes and a
+    folder holding an earlier calibration."""
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.profile import geometry
+
+    root = tmp_path_factory.mktemp("bad_inputs")
+    shutil.copytree(SAMPLE_BAG, root / "bag")
+    grid = geometry.ProfileGrid(rows=3, cols=3)
+    run = OptimizationRun(str(root / "runs" / "ex"), {"optimizer.max_generations": 4, "optimizer.trials": 20,
+                                                      "profile.rows": 3, "profile.cols": 3}, grid,
+                          SyntheticEvaluator(np.linspace(0.1, 0.4, grid.n_variables), 20))
+    run.run()
+    run.close()
+    for name, text in CSVS.items():
+        (root / name).write_text(text)
+    (root / "afile.txt").write_text("the operator's notes\n")
+    (root / "full").mkdir()
+    (root / "full" / "x.txt").write_text("something else\n")
+    (root / "cal_done").mkdir()
+    (root / "cal_done" / "calibrated.yaml").write_text("# an earlier calibration\n")
+    (root / "study.yaml").write_text("/**:\n  ros__parameters:\n    bringup: {output_dir: '.'}\n")
+    return root
+
+
+ID_RULE = "one folder name of letters, digits"
+CASES = [
+    # the issue's cases
+    (["report", "bag", "--out", "afile.txt"], "is an existing file, not a folder"),
+    (["study", "--study-id", "full", "--config", "study.yaml"], "already exists"),
+    (["optimize", "--config", "optimizer", "--run-id", "../escaped_run"], ID_RULE),
+    (["optimize", "--config", "optimizer", "--run-id", ""], ID_RULE),
+    (["report", "quaternion0.csv", "--out", "r1"], "must be a unit quaternion"),
+    (["report", "travel_nan.csv", "--out", "r2"], "travel_time_s must be finite"),
+    # found by the probe, or checked at the door
+    (["report", "quaternion_half.csv", "--out", "r3"], "must be a unit quaternion"),
+    (["report", "height_nan.csv", "--out", "r4"], "height_m must be finite"),
+    (["report", "negative_travel.csv", "--out", "r5"], "travel_time_s must be >= 0"),
+    (["report", "negative_speed.csv", "--out", "r6"], "measured_speed_mps must be >= 0"),
+    (["report", "stamp_nan.csv", "--out", "r7"], "stamp_s must be finite"),
+    (["report", "bag", "--out", "full"], "holds other files"),
+    (["report", "good.csv", "--out", "bag"], "holds other files"),
+    (["report", "good.csv", "--sim-fitness", "A=nan", "--out", "r8"], "fitness in [0, 1]"),
+    (["calibrate", "--physical", "quaternion0.csv", "--out", "c1"], "must be a unit quaternion"),
+    (["calibrate", "--physical", "good.csv", "--out", "afile.txt"], "is an existing file, not a folder"),
+    (["calibrate", "--physical", "good.csv", "--out", "cal_done"], "already holds the results of an earlier run"),
+    (["calibrate", "--physical", "good.csv", "--workers", "-1", "--out", "c2"], "--workers must be >= 1"),
+    (["sensitivity", "--trials", "1", "--out", "afile.txt"], "is an existing file, not a folder"),
+    (["study", "--study-id", "../x", "--config", "study.yaml"], ID_RULE),
+    (["study", "--study-id", "", "--config", "study.yaml"], ID_RULE),
+    (["bringup", "--session-id", "../x", "--config", "study.yaml"], ID_RULE),
+    (["bringup", "--session-id", "", "--config", "study.yaml"], ID_RULE),
+    (["bringup", "--session-id", "full", "--config", "study.yaml"], "already exists"),
+    (["optimize", "--config", "optimizer", "--run-id", "ex"], "already exists; resume it"),
+    (["optimize", "--config", "optimizer", "--run-id", "a/b"], ID_RULE),
+    (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--run-id", ""], ID_RULE),
+    (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--run-id", "../x"], ID_RULE),
+    (["campaign", "--backend", "sim", "--graph", "--store-timeout-s", "nan"], "must be finite and > 0"),
+    (["campaign", "--backend", "sim", "--resimulate", "baseline", "nan", "1", "0", "--seed", "1"], "finite"),
+    (["select", "ex", "--output-dir", "runs", "--min-distance", "nan"], "must be finite"),
+    (["select", "ex", "--output-dir", "runs", "--top-fraction", "1.5"], "top_fraction must be in (0, 1]"),
+    (["select", "ex", "--output-dir", "runs", "--count", "0"], "count must be in [1, 26]"),
+    (["bag", "info", "afile.txt"], "not a bag"),
+    (["bag", "recover", "afile.txt"], "not a bag directory"),
+    (["bag", "convert", "bag", "bag", "--storage", "mcap"], "does not overwrite"),
+]
+
+
+@pytest.mark.parametrize("argv, reason", CASES, ids=[" ".join(argv)[:60] for argv, _ in CASES])
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(workspace, monkeypatch, capsys, argv, reason):
+    monkeypatch.chdir(workspace)
+    before = tree_checksums(workspace)
+    assert main(list(argv)) == 2
+    error = capsys.readouterr().err
+    assert error.startswith(f"rollability {argv[0]}: error:") and reason in error, error
+    if not argv[1].endswith(".csv") and "quaternion0" not in " ".join(argv):   # a CSV lists each refused row
+        assert len(error.strip().splitlines()) == 1, error
+    assert tree_checksums(workspace) == before
+
+
+def _cli(workspace, *argv):
+    environment = dict(os.environ, PYTHONPATH=REPO, LC_ALL="C.UTF-8", TERM="dumb", PYTHONUNBUFFERED="1")
+    return subprocess.run([sys.executable, "-m", "rollability_ros.cli", *argv], capture_output=True, text=True,
+                          timeout=120, cwd=workspace, env=environment)
+
+
+@pytest.mark.parametrize("argv, reason", [
+    (["play", "bag", "--start-offset", "1e12", "--wait-for-subscribers", "0"], "beyond the end of the bag"),
+    (["play", "bag", "--wait-for-subscribers", "-1"], "wait_for_subscribers_s must be >= 0"),
+])
+def test_the_player_refuses_what_it_cannot_play(workspace, argv, reason):
+    """Was: `play --start-offset 1e12` exited 0 after "played 0 messages"."""
+    before = tree_checksums(workspace)
+    result = _cli(workspace, *argv)
+    assert result.returncode == 2, result.stdout + result.stderr
+    errors = [line for line in result.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and reason in errors[0] and "Traceback" not in result.stderr, result.stderr
+    assert tree_checksums(workspace) == before

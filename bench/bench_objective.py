@@ -42,19 +42,11 @@ from rollability_ros.core.config import load_parameters  # noqa: E402
 from rollability_ros.core.optimization import optimization_run, selection  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
 from rollability_ros.core.results.records import LaunchCondition  # noqa: E402
-from rollability_ros.core.results.stats import wilson_interval  # noqa: E402
+from rollability_ros.core.results.stats import newcombe_interval  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
 
 CAMPAIGN = {"/**": {"ros__parameters": {"campaign": {"heights_m": [0.75], "speeds_mps": [0.8, 1.5],
                                                      "angles_deg": [-30.0, 30.0]}}}}
-
-
-def newcombe_difference(k1, n1, k2, n2):
-    """Newcombe's hybrid-score 95% interval of p1 - p2 (from the two Wilson intervals)."""
-    p1, p2 = k1 / n1, k2 / n2
-    (l1, u1), (l2, u2) = wilson_interval(k1, n1), wilson_interval(k2, n2)
-    return (p1 - p2 - math.sqrt((p1 - l1) ** 2 + (u2 - p2) ** 2),
-            p1 - p2 + math.sqrt((u1 - p1) ** 2 + (p2 - l2) ** 2))
 
 
 def optimize(run_dir, twin_config, campaign_file, args, seed, executor):
@@ -167,7 +159,7 @@ def main():
 def report_difference(lead, calibrated, uncalibrated):
     """Print calibrated - uncalibrated success on the truth with Newcombe's 95% interval; return the difference."""
     (k1, n1), (k2, n2) = calibrated, uncalibrated
-    low, high = newcombe_difference(k1, n1, k2, n2)
+    _, low, high = newcombe_interval(k1, n1, k2, n2)
     print(f"{lead}calibrated {k1}/{n1} - uncalibrated {k2}/{n2} on the truth: {k1 / n1 - k2 / n2:+.2f} "
           f"[{low:+.2f}, {high:+.2f}] (95%, Newcombe)", flush=True)
     return k1 / n1 - k2 / n2

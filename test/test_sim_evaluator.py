@@ -20,8 +20,8 @@ def _client(ros_node, name):
     return client
 
 
-def _send(ros_node, client, heights, trials, seed, feedback=None):
-    goal = EvaluateProfile.Goal(heights=list(heights), trials=trials, seed=seed)
+def _send(ros_node, client, heights, trials, seed, feedback=None, fidelity=""):
+    goal = EvaluateProfile.Goal(heights=list(heights), trials=trials, seed=seed, fidelity=fidelity)
     return _wait(ros_node, client.send_goal_async(goal, feedback_callback=feedback))
 
 
@@ -67,6 +67,18 @@ def test_results_equal_the_core_and_carry_feedback(ros_node, evaluator):
 
     baseline = _wait(ros_node, _send(ros_node, client, [], 4, 1).get_result_async())
     assert baseline.status == GoalStatus.STATUS_SUCCEEDED and baseline.result.trials == 4
+
+
+def test_a_launch_fidelity_goal_runs_robust_twin_launches_and_an_unknown_one_is_rejected(ros_node, evaluator):
+    from rollability_ros.core.sim.evaluation import evaluate_profile, load_settings, settings_at_fidelity
+
+    client = _client(ros_node, "/evaluate_profile")
+    response = _wait(ros_node, _send(ros_node, client, [], 2, 77, fidelity="launch").get_result_async())
+    assert response.status == GoalStatus.STATUS_SUCCEEDED, response.result.message
+    expected = evaluate_profile(None, 2, 77, settings_at_fidelity(load_settings(), "launch"))
+    assert [t.steps for t in response.result.trial_results] == [t.steps for t in expected.trial_results]
+    assert not _send(ros_node, client, [], 2, 1, fidelity="campaign").accepted
+    assert ros_node.wait_for(lambda: "unknown fidelity 'campaign'" in evaluator.log(), 10), evaluator.log()
 
 
 @pytest.mark.parametrize("heights, trials, why", [

@@ -31,25 +31,35 @@ def run(args):
     if args.config:  # later files win over the run's own config.yaml, key by key
         parameters.update(load_parameters(list(args.config)))
     mapping = section(parameters, "selection")
-    for name in ("count", "min_distance", "reevaluate_trials", "mesh_units", "top_fraction"):
+    for name in ("count", "min_distance", "reevaluate_trials", "mesh_units", "top_fraction", "launch_trials",
+                 "race_launches"):
         if getattr(args, name) is not None:
             mapping[name] = getattr(args, name)
     settings = from_mapping(selection.SelectionSettings, mapping, "selection")
     evaluator_settings = evaluation.settings_from_parameters(parameters)
     run_id = optimization_run.run_id_of(run_dir)
+    launches = bool(settings.race_launches or settings.launch_trials)
     executor = evaluation.make_executor(evaluator_settings.evaluator, args.workers) \
-        if settings.reevaluate_trials else None
+        if settings.reevaluate_trials or launches else None
     try:
         evaluate_batch = optimization_run.profile_batch_evaluator(
-            evaluator_settings, settings.reevaluate_trials, executor) if executor else None
+            evaluator_settings, settings.reevaluate_trials, executor) if settings.reevaluate_trials else None
+        launch_batch = optimization_run.fidelity_batch_evaluator(evaluator_settings, executor, "launch") \
+            if launches else None
         with Store(run_dir) as store:
             result, folder = selection.select_run(store, run_id, run_dir, evaluator_settings.grid,
                                                   evaluator_settings.printer, settings, evaluate_batch,
-                                                  optimization_run.optimizer_settings(parameters).seed)
+                                                  optimization_run.optimizer_settings(parameters).seed, launch_batch)
     finally:
         if executor is not None:
             executor.close()
-    if result.top_threshold is None:
+    if result.race is not None:
+        race = result.race
+        print(f"{len(result.designs)} design(s) from a race of {len(race.totals)} designs (the best by the screen) "
+              f"on robust twin launches of run {run_id}: rounds of "
+              f"{', '.join(str(r['trials']) for r in race.rounds)} launches, {len(race.survivors)} survived, "
+              f"{race.trials_spent} launches spent; bare robot {race.reference[0]}/{race.reference[1]}")
+    elif result.top_threshold is None:
         print(f"{len(result.designs)} design(s) from {result.considered} distinct logged designs of run {run_id} "
               f"(min RMS distance {settings.min_distance} units)")
     else:
@@ -58,6 +68,10 @@ def run(args):
     _print_table(selection.table_rows(result))
     for design in result.designs:
         print(f"{design.label}: {design.reason}")
+    for gain in result.gains():
+        if gain is not None:
+            print(f"{gain.label} minus the bare robot on {selection.GAIN_SOURCES[gain.source]}: {gain.text()} "
+                  f"(95% Newcombe){'' if gain.beats else '; does NOT beat the bare robot'}")
     print(f"wrote {folder}/: table3.csv, designs.yaml, {len(result.designs)} STL file(s) in "
           f"{'millimetres' if settings.mesh_units == 'mm' else 'metres'} and as many 3MF files")
     earlier = [os.path.basename(path) for path in selection.design_set_folders(run_dir)
@@ -65,6 +79,9 @@ def run(args):
     if earlier:
         print(f"earlier design set(s) kept unchanged ({', '.join(earlier)}: stored outcomes and printed parts may "
               f"refer to them); a campaign on this set needs launch_twin.designs.designs_file: {folder}/designs.yaml")
+    if result.no_design_helps():
+        print(f"rollability select: warning: {result.no_design_helps()}; designs.yaml marks each design "
+              f"beats_baseline: false", file=sys.stderr)
     if result.shortfall:
         print(f"rollability select: {result.shortfall}", file=sys.stderr)
         return 1
@@ -95,6 +112,12 @@ def register(subparsers):
                                                               "report the logged estimate")
     parser.add_argument("--top-fraction", type=float, help="archive runs: choose among the elites in this top "
                                                            "fraction of fitness (default: selection.top_fraction, 0.1)")
+    parser.add_argument("--race-launches", type=lambda text: [n for n in map(int, text.split(",")) if n], metavar="N,N,...",
+                        help="rank designs by a race on robust twin launches: launches per design in each round "
+                             "(default: selection.race_launches; 0 = rank by the screen)")
+    parser.add_argument("--launch-trials", type=int, help="fresh robust twin launches per chosen design and the "
+                                                          "bare robot for the gain over it (default: "
+                                                          "selection.launch_trials; 0 = none)")
     parser.add_argument("--workers", type=int, help="worker processes for the re-evaluation")
     parser.add_argument("--mesh-units", choices=("mm", "m"), help="length unit of the STL files (default: "
                                                                    "selection.mesh_units, mm as slicers expect)")

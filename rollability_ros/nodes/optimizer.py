@@ -184,7 +184,8 @@ class Optimizer(Node):
 
     def _submit(self, action_name, request, ticket):
         """Send one evaluation as an EvaluateProfile goal; report through ``ticket``; return a cancel function."""
-        goal = EvaluateProfile.Goal(heights=list(request.heights), trials=request.trials, seed=request.seed)
+        goal = EvaluateProfile.Goal(heights=list(request.heights), trials=request.trials, seed=request.seed,
+                                    fidelity=request.fidelity)
         goal_handle = {}
         cancelled = threading.Event()
 
@@ -360,12 +361,22 @@ class Optimizer(Node):
         """Choose the designs of the finished run (paper 2.1.5) into ``<run_dir>/designs/``."""
         chosen = settings["selection"]
         evaluate_batch = self._pool.batch_evaluator(chosen.reevaluate_trials) if chosen.reevaluate_trials else None
+        launch_batch = self._pool.fidelity_evaluator("launch") \
+            if chosen.race_launches or chosen.launch_trials else None
         result, folder = selection.select_run(run.store, run.run_id, run.run_dir, settings["profile"],
-                                              settings["printer"], chosen, evaluate_batch, run.settings.seed)
+                                              settings["printer"], chosen, evaluate_batch, run.settings.seed,
+                                              launch_batch)
         rows = "; ".join(f"{row['configuration']} {row['simulated_fitness']:.3f}"
                          for row in selection.table_rows(result) if row["trials"])
         self.get_logger().info(f"selected {len(result.designs)} design(s) into {folder} ({rows})"
                                + (f"; {result.shortfall}" if result.shortfall else ""))
+        for gain in result.gains():
+            if gain is not None:
+                self.get_logger().info(f"{gain.label} minus the bare robot on {selection.GAIN_SOURCES[gain.source]}: "
+                                       f"{gain.text()} (95% Newcombe)")
+        if result.no_design_helps():
+            self.get_logger().warning(f"{result.no_design_helps()}; designs.yaml marks each design "
+                                      f"beats_baseline: false")
 
     # --- publishing ----------------------------------------------------------------------------------------------
     def _publish_candidate(self, record):

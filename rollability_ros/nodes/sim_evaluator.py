@@ -2,7 +2,9 @@
 
 Interfaces (relative names; run several side by side in different namespaces):
 - action ``evaluate_profile`` (rollability_ros/action/EvaluateProfile): feedback per finished trial batch,
-  cancel honoured between batches, result with fitness, Wilson interval and every trial's outcome.
+  cancel honoured between batches, result with fitness, Wilson interval and every trial's outcome. The goal's
+  ``fidelity`` picks what a trial is: empty or ``screen`` = the ``objective`` parameters, ``launch`` = robust
+  launches on the launch twin (``core/sim/objectives.py``, ``at_fidelity``); any other value is rejected.
 
 - topic ``robot_description`` (std_msgs/String, transient local, as robot_state_publisher publishes it): the
   URDF when ``urdf_robot.mount_link`` names a mount and neither ``urdf_robot.urdf_path`` nor
@@ -27,7 +29,8 @@ from std_msgs.msg import String
 
 from rollability_ros.action import EvaluateProfile
 from rollability_ros.core.sim.evaluation import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
-                                             evaluate_profile, make_executor)
+                                             evaluate_profile, make_executor, settings_at_fidelity)
+from rollability_ros.core.sim.objectives import FIDELITIES
 from rollability_ros.core.profile.geometry import check_heights
 from rollability_ros.msg import TrialResult
 from rollability_ros.nodes._support import LATCHED_QOS, declare_settings, guard_settings, run_node
@@ -97,6 +100,8 @@ class SimEvaluator(Node):
         settings = self._settings
         if settings.urdf_robot.selected and not settings.urdf_robot.has_source:
             return "no robot description yet (waiting on the robot_description topic)"
+        if goal.fidelity not in ("", *FIDELITIES):
+            return f"unknown fidelity {goal.fidelity!r}: use one of {', '.join(FIDELITIES)} (or empty)"
         if not 1 <= goal.trials <= settings.evaluator.max_trials:
             return f"trials must be in [1, {settings.evaluator.max_trials}], got {goal.trials}"
         if len(goal.heights):
@@ -129,7 +134,8 @@ class SimEvaluator(Node):
         with self._busy:
             try:
                 evaluation = evaluate_profile(list(request.heights) or None, request.trials, request.seed,
-                                              self._settings, executor=self._pool, on_trial=on_trial,
+                                              settings_at_fidelity(self._settings, request.fidelity),
+                                              executor=self._pool, on_trial=on_trial,
                                               cancel_event=_CancelRequested(goal_handle, self._closing))
             except EvaluationCancelled as exc:
                 if goal_handle.is_cancel_requested:

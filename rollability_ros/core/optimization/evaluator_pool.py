@@ -73,11 +73,13 @@ class PoolSettings:
 
 @dataclasses.dataclass(frozen=True)
 class EvaluationRequest:
-    """One profile to evaluate: heights ``(n_variables,)`` in simulation units, trials, disturbance seed."""
+    """One profile to evaluate: heights ``(n_variables,)`` in simulation units, trials, disturbance seed, and the
+    evaluation fidelity (``""``/``screen``: the evaluator's objective; ``launch``: robust twin launches)."""
 
     heights: tuple
     trials: int
     seed: int
+    fidelity: str = ""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -298,11 +300,20 @@ class EvaluatorPool:
 
     def batch_evaluator(self, trials):
         """``evaluate_batch(heights_list, seed)`` of :mod:`optimization_run` over this pool, ``trials`` each."""
+        evaluate = self.fidelity_evaluator("")
+
         def evaluate_batch(heights_list, seed):
-            requests = [EvaluationRequest(tuple(float(h) for h in heights), int(trials), int(seed))
+            return evaluate(heights_list, seed, trials)
+        return evaluate_batch
+
+    def fidelity_evaluator(self, fidelity):
+        """``evaluate(heights_list, seed, trials)`` over this pool at evaluation ``fidelity`` (as
+        :func:`optimization_run.fidelity_batch_evaluator`, over the graph's evaluators)."""
+        def evaluate(heights_list, seed, trials):
+            requests = [EvaluationRequest(tuple(float(h) for h in heights), int(trials), int(seed), fidelity)
                         for heights in heights_list]
             return [result.as_tuple() for result in self.evaluate(requests)]
-        return evaluate_batch
+        return evaluate
 
     # --- internals (the ``_locked`` methods run with the condition held) ----------------------------------------
     def _assign_locked(self, batch, now):

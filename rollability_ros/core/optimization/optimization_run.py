@@ -606,7 +606,7 @@ def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.
     ``engine``, a :class:`~rollability_ros.core.sim.evaluation.TrialBatchEngine`, gets each batch of profiles'
     trials in one call instead (an engine that steps many worlds at once); the optimizer is the same.
     """
-    from rollability_ros.core.sim.evaluation import evaluate_jobs, evaluate_profile, profile_job
+    from rollability_ros.core.sim.evaluation import evaluate_jobs, profile_job
 
     if engine is not None:
         def evaluate_engine_batch(heights_list: typing.Sequence[np.ndarray], seed: int) -> typing.List[tuple]:
@@ -615,10 +615,26 @@ def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.
                     for r in evaluate_jobs(jobs, trials, seed, engine)]
         return evaluate_engine_batch
 
-    workers = getattr(executor, "workers", None)
-    whole = dataclasses.replace(settings, evaluator=dataclasses.replace(settings.evaluator, batch_trials=trials))
+    evaluate = fidelity_batch_evaluator(settings, executor, "screen", name)
 
     def evaluate_batch(heights_list: typing.Sequence[np.ndarray], seed: int) -> typing.List[tuple]:
+        return evaluate(heights_list, seed, trials)
+
+    return evaluate_batch
+
+
+def fidelity_batch_evaluator(settings: typing.Any, executor: typing.Any, fidelity: str = "screen",
+                             name: str = "local") -> typing.Callable:
+    """``evaluate(heights_list, seed, trials)`` at evaluation ``fidelity`` (``screen``: the configured objective;
+    ``launch``: robust twin launches, :func:`evaluation.settings_at_fidelity`) on ``executor``; each result
+    ``(successes, trials, eval_time_s, name)``. Concurrency as :func:`profile_batch_evaluator`."""
+    from rollability_ros.core.sim.evaluation import evaluate_profile, settings_at_fidelity
+
+    settings = settings_at_fidelity(settings, fidelity)
+    workers = getattr(executor, "workers", None)
+
+    def evaluate(heights_list: typing.Sequence[np.ndarray], seed: int, trials: int) -> typing.List[tuple]:
+        whole = dataclasses.replace(settings, evaluator=dataclasses.replace(settings.evaluator, batch_trials=trials))
         chosen = whole if workers is not None and len(heights_list) >= 2 * workers else settings
         threads = concurrent.futures.ThreadPoolExecutor(max_workers=max(1, len(heights_list)))
         try:
@@ -629,4 +645,4 @@ def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.
             threads.shutdown(wait=False, cancel_futures=True)
         return [(r.successes, r.trials, r.eval_time_s, name) for r in results]
 
-    return evaluate_batch
+    return evaluate

@@ -27,6 +27,23 @@ A quality-diversity run (``optimizer.method: cma_mae``) stores an archive of eli
    Wilson bound: farthest-point sampling, so A/B/C span the map as far as the fit designs allow.
 4. Re-evaluation as in step 4 above. Each design carries the sentence saying why it was chosen.
 
+Ranked by the rig's measure (``race_launches``)
+-----------------------------------------------
+The disturbance trials the optimizer maximises need not predict the launch campaign the rig runs. With
+``selection.race_launches`` (launches per design in each round) the ranking is by robust launches on the twin
+(the campaign's launch matrix, every launch under its own draw of the unknowns; fidelity ``launch`` of
+:mod:`~rollability_ros.core.sim.objectives`): the ``race_elites`` printable elites (or logged designs) with the
+best screen race against each other and the bare robot by successive halving
+(:mod:`~rollability_ros.core.optimization.racing`: one common seed per round; a design clearly worse than the
+leader, or outside the better half, stops; never fewer than ``race_keep`` go on). A/B/C come from the survivors
+whose pooled launch rate is above the bare robot's (all survivors when none is): A the highest lower Wilson bound
+of its launches, B and C farthest-point over the map as above (a ranked-log run: the distance rule). Then the
+chosen designs and the bare robot get ``launch_trials`` fresh robust launches on one new seed: each design's
+*gain* over the bare robot, with Newcombe's 95% hybrid score interval, goes into Table 3 and designs.yaml
+(``beats_baseline`` true only when the interval lies above 0). When no design beats the bare robot the designs are
+still written, for inspection, each marked ``beats_baseline: false``; ``select`` warns and the report says so.
+Without launches, the gain is taken on the fresh re-evaluation and labelled as such.
+
 Outputs (``<run_dir>/designs/``, or ``designs-<n>/`` for a later selection of the same run: design sets are
 append-only, see :func:`write_selection`): ``mesh_<label>.stl`` (millimetres by default, ``mesh_units``; the unit is
 written in the STL header), ``mesh_<label>.3mf`` (millimetres, the 3MF unit attribute), ``table3.csv`` (the paper's Table 3 with the
@@ -42,6 +59,7 @@ import os
 import re
 import shutil
 import string
+import typing
 
 import numpy as np
 import yaml
@@ -49,11 +67,20 @@ import yaml
 from rollability_ros.core.profile import geometry
 from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
 from rollability_ros.core.optimization.cmaes import STREAM_SELECTION, derive_seed
-from rollability_ros.core.results.stats import wilson_interval
+from rollability_ros.core.optimization import racing
+from rollability_ros.core.results.stats import newcombe_interval, wilson_interval
+
+#: The race's id of the bare robot (the reference that runs every round).
+BASELINE = "baseline"
+#: Generation keys of the selection's seeds (stream STREAM_SELECTION): the chosen designs' fresh launches, and
+#: the race's rounds from RACE_SEED_KEY on (0 and 1 are the re-evaluation and the screen).
+LAUNCH_SEED_KEY = 2
+RACE_SEED_KEY = 10
 
 #: Columns of ``archive.csv`` (quality-diversity runs): each elite, its run and screen estimates, its label if chosen.
 ARCHIVE_COLUMNS = ("cell_height", "cell_sharpness", "max_height_mm", "sharpness_deg", "in_run_fitness",
-                   "in_run_trials", "screen_successes", "screen_trials", "screen_fitness", "top_pool", "label")
+                   "in_run_trials", "screen_successes", "screen_trials", "screen_fitness", "top_pool", "label",
+                   "race_round1_successes", "race_round1_trials", "race_successes", "race_trials", "race_stopped")
 #: Columns of ``traits.csv``: every evaluation of the run pooled per bin of one descriptor.
 TRAIT_COLUMNS = ("trait", "bin_low", "bin_high", "designs", "successes", "trials", "fitness", "ci_low", "ci_high")
 #: Sub-directory of the run directory that receives the selected designs.
@@ -61,7 +88,11 @@ DESIGNS_DIRNAME = "designs"
 #: Columns of ``table3.csv`` (configuration and dimensions as in ``analysis.GEOMETRY_COLUMNS``).
 TABLE_COLUMNS = ("configuration", "length_m", "width_m", "max_height_m", "simulated_fitness", "ci_low", "ci_high",
                  "successes", "trials", "fitness_source", "in_run_fitness", "in_run_ci_low", "in_run_ci_high",
-                 "in_run_successes", "in_run_trials", "selection_bias")
+                 "in_run_successes", "in_run_trials", "selection_bias", "launch_successes", "launch_trials",
+                 "launch_fitness", "gain_source", "gain", "gain_low", "gain_high", "beats_baseline")
+#: What a design's gain over the bare robot is measured on (``gain_source`` of Table 3).
+GAIN_SOURCES = {"launches": "fresh robust launches on the twin (the rig's measure)",
+                "reevaluated": "fresh simulated trials of the optimized objective (not the rig's measure)"}
 
 
 @dataclasses.dataclass
@@ -87,8 +118,25 @@ class SelectionSettings:
                        "fraction of all elite fitnesses (fraction, (0, 1]; 0.1 = the top decile)",
         "range": (0.0, 1.0)})
 
+    race_launches: typing.List[int] = dataclasses.field(default_factory=list, metadata={
+        "description": "launches per elite in each round of the launch race that ranks designs by robust twin "
+                       "launches (counts; use multiples of the campaign's conditions); [] = rank by the screen"})
+    race_elites: int = dataclasses.field(default=16, metadata={
+        "description": "printable elites (or logged designs) with the best screen entering the launch race "
+                       "(count; 0 = all)", "range": (0, 100000)})
+    race_keep: int = dataclasses.field(default=6, metadata={
+        "description": "fewest designs kept after a race round (halving never goes below it; count)",
+        "range": (1, 100000)})
+    launch_trials: int = dataclasses.field(default=0, metadata={
+        "description": "fresh robust twin launches per chosen design and the bare robot, for the gain over the "
+                       "bare robot in Table 3 and designs.yaml (count; 0 = none)", "range": (0, 10000000)})
+
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
+        if any(int(n) < 1 for n in self.race_launches):
+            raise ValueError(f"race_launches must list counts >= 1, got {self.race_launches}")
+        if self.race_elites < 0 or self.race_keep < 1 or self.launch_trials < 0:
+            raise ValueError("need race_elites >= 0, race_keep >= 1 and launch_trials >= 0")
         if not 1 <= self.count <= len(string.ascii_uppercase):
             raise ValueError(f"count must be in [1, {len(string.ascii_uppercase)}], got {self.count}")
         if self.min_distance < 0:
@@ -134,6 +182,8 @@ class SelectedDesign:
     reason: str = ""                   # why it was chosen, one sentence
     descriptors: tuple = None          # (max_height_mm, sharpness_deg) for archive selections, else None
     cell: tuple = None                 # archive cell (height index, sharpness index), or None
+    launches: tuple = None             # (successes, trials, seed) of fresh robust twin launches, or None
+    race: tuple = None                 # (successes, trials) pooled over the launch race's rounds, or None
 
     @property
     def reported(self):
@@ -154,6 +204,21 @@ class SelectionResult:
     baseline: tuple = None             # (successes, trials, seed) of the baseline re-evaluation, or None
     top_threshold: float = None        # archive runs: the fitness an elite needed to be in the top pool
     archive: list = None               # archive runs: one row per elite (ARCHIVE_COLUMNS), else None
+    baseline_launches: tuple = None    # (successes, trials, seed) of the bare robot's fresh launches, or None
+    race: object = None                # racing.RaceResult of the launch race, or None
+
+    def gains(self):
+        """One :class:`Gain` per chosen design: its gain over the bare robot on fresh robust launches when there
+        are any, else on the fresh re-evaluation, else None (nothing fresh to compare)."""
+        return [design_gain(d, self) for d in self.designs]
+
+    def no_design_helps(self):
+        """A sentence when gains were measured and no design's 95% interval lies above 0, else ''."""
+        gains = [g for g in self.gains() if g is not None]
+        if not gains or any(g.beats for g in gains):
+            return ""
+        return (f"no design beats the bare robot on {GAIN_SOURCES[gains[0].source]}: "
+                + "; ".join(g.text() for g in gains))
 
     @property
     def shortfall(self):
@@ -171,6 +236,43 @@ class SelectionResult:
                  if self.top_threshold is not None else f"{self.considered} distinct logged designs")
         return (f"only {len(self.designs)} of {self.requested} requested designs qualify among {among} "
                 f"(rejected: {reasons}); {advice}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Gain:
+    """A design's success rate minus the bare robot's on the same fresh trials, with Newcombe's 95% interval."""
+
+    label: str
+    source: str                        # a key of GAIN_SOURCES
+    successes: int
+    trials: int
+    baseline_successes: int
+    baseline_trials: int
+
+    @property
+    def interval(self):
+        """``(difference, low, high)``: Newcombe's hybrid score 95% interval."""
+        return newcombe_interval(self.successes, self.trials, self.baseline_successes, self.baseline_trials)
+
+    @property
+    def beats(self):
+        """True when the whole 95% interval of the gain lies above 0."""
+        return self.interval[1] > 0
+
+    def text(self):
+        difference, low, high = self.interval
+        return (f"{self.label} {self.successes}/{self.trials} vs bare {self.baseline_successes}/"
+                f"{self.baseline_trials}: {difference:+.2f} [{low:+.2f}, {high:+.2f}]")
+
+
+def design_gain(design, result):
+    """The :class:`Gain` of ``design`` over the bare robot in ``result``, or None (see SelectionResult.gains)."""
+    if design.launches is not None and result.baseline_launches is not None:
+        return Gain(design.label, "launches", design.launches[0], design.launches[1], *result.baseline_launches[:2])
+    if design.reevaluation is not None and result.baseline is not None:
+        return Gain(design.label, "reevaluated", design.reevaluation[0], design.reevaluation[1],
+                    *result.baseline[:2])
+    return None
 
 
 def _limits_named(problems):
@@ -200,7 +302,7 @@ def rms_distance(heights_a, heights_b):
     return float(np.sqrt(np.mean((np.asarray(heights_a) - np.asarray(heights_b)) ** 2)))
 
 
-def select_designs(candidates, grid, printer, settings, evaluate_batch=None, run_seed=1):
+def select_designs(candidates, grid, printer, settings, evaluate_batch=None, run_seed=1, launch_batch=None):
     """Choose designs from a run's candidate log; see the module docstring.
 
     Parameters
@@ -213,31 +315,56 @@ def select_designs(candidates, grid, printer, settings, evaluate_batch=None, run
         Runs ``settings.reevaluate_trials`` trials per profile; needed when ``reevaluate_trials > 0``.
     run_seed : int
         The run's seed; the re-evaluation seed is derived from it (stream ``STREAM_SELECTION``).
+    launch_batch : callable(heights_list, seed, trials) -> [(successes, trials, eval_time_s, evaluator)], optional
+        Runs robust twin launches; needed for ``race_launches`` or ``launch_trials``. With ``race_launches`` the
+        ``race_elites`` printable designs ranked best race on launches, and A/B/C are taken from the survivors
+        by their launches (same distance rule).
     """
     settings.validate()
     if settings.reevaluate_trials and evaluate_batch is None:
         raise ValueError("reevaluate_trials > 0 needs an evaluator")
+    if (settings.race_launches or settings.launch_trials) and launch_batch is None:
+        raise ValueError("race_launches or launch_trials > 0 need a launch evaluator")
     pooled = [d for d in pool_candidates(candidates) if not geometry.is_baseline(d.heights)]
     ranked = sorted(pooled, key=lambda d: (-d.wilson_low, -d.fitness, d.first_generation))
-    chosen, rejected = [], {}
-    for rank, design in enumerate(ranked, 1):
+    chosen, rejected, race, meshes, reasons = [], {}, None, {}, {}
+    if settings.race_launches:
+        for index, design in enumerate(ranked):
+            if settings.race_elites and len(meshes) == settings.race_elites:
+                break
+            mesh, problem = _printable_mesh(design.heights, grid, printer)
+            if mesh is None:
+                rejected[problem] = rejected.get(problem, 0) + 1
+            else:
+                meshes[index] = mesh
+        entrants = list(meshes)
+        race = _launch_race(ranked, entrants, settings, launch_batch, run_seed, grid.n_variables)
+        order, _, _, race_text, pool_text = _race_pool(race, entrants, ranked)
+        order = [i for i in sorted(race.survivors, key=lambda i: (i not in order, -wilson_interval(*race.totals[i])[0]))]
+        reasons = {i: f"{pool_text}, rank {rank} by its launches: {race_text(i)}" for rank, i in enumerate(order, 1)}
+        walk = [(i, ranked[i]) for i in order]
+    else:
+        walk = list(enumerate(ranked))
+    for rank, (index, design) in enumerate(walk, 1):
         if len(chosen) == settings.count:
             break
         if any(rms_distance(design.heights, c.design.heights) < settings.min_distance for c in chosen):
             rejected["too close"] = rejected.get("too close", 0) + 1
             continue
-        mesh, problem = _printable_mesh(design.heights, grid, printer)
+        mesh, problem = (meshes[index], None) if index in meshes else _printable_mesh(design.heights, grid, printer)
         if mesh is None:
             rejected[problem] = rejected.get(problem, 0) + 1
             continue
-        reason = (f"rank {rank} of {len(ranked)} logged designs by lower Wilson bound "
-                  f"({design.successes}/{design.trials}, bound {design.wilson_low:.2f})"
-                  + (f", at least {settings.min_distance} units RMS from "
-                     f"{', '.join(c.label for c in chosen)}" if chosen else ""))
-        chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], design, mesh,
-                                     geometry.mesh_metrics(mesh), reason=reason))
+        reason = reasons.get(index) or (f"rank {rank} of {len(ranked)} logged designs by lower Wilson bound "
+                                        f"({design.successes}/{design.trials}, bound {design.wilson_low:.2f})")
+        if chosen:
+            reason += f", at least {settings.min_distance} units RMS from {', '.join(c.label for c in chosen)}"
+        chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], design, mesh, geometry.mesh_metrics(mesh),
+                                     reason=reason, race=race.totals[index] if race else None))
     chosen, baseline = _reevaluate(chosen, grid, settings, evaluate_batch, run_seed)
-    return SelectionResult(chosen, settings.count, len(pooled), rejected, baseline)
+    chosen, baseline_launches = _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed)
+    return SelectionResult(chosen, settings.count, len(pooled), rejected, baseline,
+                           baseline_launches=baseline_launches, race=race)
 
 
 def _reevaluate(chosen, grid, settings, evaluate_batch, run_seed):
@@ -271,7 +398,8 @@ def top_pool(fitnesses, top_fraction):
     return threshold, [i for i, f in enumerate(fitnesses) if f >= threshold]
 
 
-def select_from_archive(archive, candidates, grid, printer, settings, evaluate_batch=None, run_seed=1):
+def select_from_archive(archive, candidates, grid, printer, settings, evaluate_batch=None, run_seed=1,
+                        launch_batch=None):
     """Choose designs from a quality-diversity ``archive`` (the run info's ``archive``: ``ranges`` and
     ``elites``); see the module docstring. Arguments as :func:`select_designs`.
 
@@ -279,11 +407,15 @@ def select_from_archive(archive, candidates, grid, printer, settings, evaluate_b
     and ranking use the screen, not the elites' in-run estimates (each a maximum of noisy draws: the cells' lucky
     winners); the chosen designs are then re-evaluated once more on another seed for the reported fitness, since a
     design picked for its screen is again picked partly for luck. Without re-evaluation the in-run estimates
-    (pooled over the run's evaluations of the design) are used.
+    (pooled over the run's evaluations of the design) are used. With ``race_launches`` the printable elites with
+    the best screen race on robust twin launches (``launch_batch``) and A/B/C come from the race's survivors
+    (module docstring, "Ranked by the rig's measure").
     """
     settings.validate()
     if settings.reevaluate_trials and evaluate_batch is None:
         raise ValueError("reevaluate_trials > 0 needs an evaluator")
+    if (settings.race_launches or settings.launch_trials) and launch_batch is None:
+        raise ValueError("race_launches or launch_trials > 0 need a launch evaluator")
     elites = [e for e in archive["elites"] if not geometry.is_baseline(e["heights"])]
     if not elites:
         return SelectionResult([], settings.count, 0, {"no elites": 1})
@@ -301,53 +433,142 @@ def select_from_archive(archive, candidates, grid, printer, settings, evaluate_b
                    for d, r in zip(designs, results)]
         source = f"in the screen of all {len(elites)} elites"
     threshold, pool = top_pool([d.fitness for d in designs], settings.top_fraction)
-    ranked = sorted(pool, key=lambda i: (-designs[i].wilson_low, -designs[i].fitness, designs[i].first_generation))
+    by_screen = lambda i: (-designs[i].wilson_low, -designs[i].fitness, designs[i].first_generation)  # noqa: E731
     spans = [float(high - low) for low, high in archive["ranges"]]
-    chosen, rejected, points = [], {}, []
+    chosen, rejected, points, race = [], {}, [], None
+
     def spread(i):
         """How far elite ``i`` lies from the nearest design already taken, in the normalised descriptor plane."""
         return min(float(np.hypot(*(_descriptor_point(elites[i], spans) - point))) for point in points)
 
-    while ranked and len(chosen) < settings.count:
-        if chosen:
-            index = ranked.pop(max(range(len(ranked)),
-                                   key=lambda k: (spread(ranked[k]), designs[ranked[k]].wilson_low)))
-        else:
-            index = ranked.pop(0)
-        elite, design = elites[index], designs[index]
-        mesh, problem = _printable_mesh(design.heights, grid, printer)
-        if mesh is None:
-            rejected[problem] = rejected.get(problem, 0) + 1
-            continue
-        where = (f"{elite['max_height_mm']:.0f} mm tall, sharpness {elite['sharpness_deg']:.0f} deg, cell "
-                 f"{tuple(elite['cell'])}")
-        estimate = f"{design.successes}/{design.trials} {source}, lower 95% bound {design.wilson_low:.2f}"
-        if not chosen:
-            reason = (f"highest lower Wilson bound among the {len(pool)} of {len(elites)} elites in the top "
-                      f"{settings.top_fraction:.0%} (fitness >= {threshold:.3f} {source}): {estimate}; {where}")
-        else:
-            reason = (f"the top-{settings.top_fraction:.0%} elite farthest from {', '.join(c.label for c in chosen)} "
-                      f"in (height, sharpness): {where}; {estimate}")
-        chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], pooled.get(tuple(design.heights), design),
-                                     mesh, geometry.mesh_metrics(mesh), reason=reason,
-                                     descriptors=(elite["max_height_mm"], elite["sharpness_deg"]),
-                                     cell=tuple(elite["cell"])))
-        points.append(_descriptor_point(elite, spans))
-        ranked = [i for i in ranked if tuple(elites[i]["cell"]) != tuple(elite["cell"])]
+    def where(elite):
+        return (f"{elite['max_height_mm']:.0f} mm tall, sharpness {elite['sharpness_deg']:.0f} deg, cell "
+                f"{tuple(elite['cell'])}")
+
+    if settings.race_launches:
+        meshes = {}
+        for index in sorted(range(len(elites)), key=by_screen):
+            mesh, problem = _printable_mesh(designs[index].heights, grid, printer)
+            if mesh is None:
+                rejected[problem] = rejected.get(problem, 0) + 1
+            else:
+                meshes[index] = mesh
+        entrants = sorted(meshes, key=by_screen)[:settings.race_elites or None]
+        race = _launch_race(designs, entrants, settings, launch_batch, run_seed, grid.n_variables)
+        pool, ranked, race_low, race_text, pool_text = _race_pool(race, entrants, designs)
+        threshold = None
+        while ranked and len(chosen) < settings.count:
+            if chosen:
+                index = ranked.pop(max(range(len(ranked)), key=lambda k: (spread(ranked[k]), race_low(ranked[k]))))
+                reason = (f"the {pool_text} farthest from {', '.join(c.label for c in chosen)} in (height, "
+                          f"sharpness): {where(elites[index])}; {race_text(index)}")
+            else:
+                index = ranked.pop(0)
+                reason = (f"highest lower Wilson bound among the {pool_text}s: {race_text(index)}; "
+                          f"{where(elites[index])}")
+            elite, design = elites[index], designs[index]
+            chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], pooled.get(tuple(design.heights), design),
+                                         meshes[index], geometry.mesh_metrics(meshes[index]), reason=reason,
+                                         descriptors=(elite["max_height_mm"], elite["sharpness_deg"]),
+                                         cell=tuple(elite["cell"]), race=race.totals[index]))
+            points.append(_descriptor_point(elite, spans))
+            ranked = [i for i in ranked if tuple(elites[i]["cell"]) != tuple(elite["cell"])]
+    else:
+        ranked = sorted(pool, key=by_screen)
+        while ranked and len(chosen) < settings.count:
+            if chosen:
+                index = ranked.pop(max(range(len(ranked)),
+                                       key=lambda k: (spread(ranked[k]), designs[ranked[k]].wilson_low)))
+            else:
+                index = ranked.pop(0)
+            elite, design = elites[index], designs[index]
+            mesh, problem = _printable_mesh(design.heights, grid, printer)
+            if mesh is None:
+                rejected[problem] = rejected.get(problem, 0) + 1
+                continue
+            estimate = f"{design.successes}/{design.trials} {source}, lower 95% bound {design.wilson_low:.2f}"
+            if not chosen:
+                reason = (f"highest lower Wilson bound among the {len(pool)} of {len(elites)} elites in the top "
+                          f"{settings.top_fraction:.0%} (fitness >= {threshold:.3f} {source}): {estimate}; "
+                          f"{where(elite)}")
+            else:
+                reason = (f"the top-{settings.top_fraction:.0%} elite farthest from "
+                          f"{', '.join(c.label for c in chosen)} in (height, sharpness): {where(elite)}; {estimate}")
+            chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], pooled.get(tuple(design.heights), design),
+                                         mesh, geometry.mesh_metrics(mesh), reason=reason,
+                                         descriptors=(elite["max_height_mm"], elite["sharpness_deg"]),
+                                         cell=tuple(elite["cell"])))
+            points.append(_descriptor_point(elite, spans))
+            ranked = [i for i in ranked if tuple(elites[i]["cell"]) != tuple(elite["cell"])]
     chosen, baseline = _reevaluate(chosen, grid, settings, evaluate_batch, run_seed)
+    chosen, baseline_launches = _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed)
     labels = {d.cell: d.label for d in chosen}
     in_pool = set(pool)
     rows = []
     screened = bool(settings.reevaluate_trials)
     for index, (elite, design) in enumerate(zip(elites, designs)):
+        raced = race is not None and index in race.totals
         rows.append({"cell_height": elite["cell"][0], "cell_sharpness": elite["cell"][1],
                      "max_height_mm": elite["max_height_mm"], "sharpness_deg": elite["sharpness_deg"],
                      "in_run_fitness": elite["fitness"], "in_run_trials": elite["trials"],
                      "screen_successes": design.successes if screened else "",
                      "screen_trials": design.trials if screened else "",
                      "screen_fitness": design.fitness if screened else "", "top_pool": int(index in in_pool),
-                     "label": labels.get(tuple(elite["cell"]), "")})
-    return SelectionResult(chosen, settings.count, len(elites), rejected, baseline, threshold, rows)
+                     "label": labels.get(tuple(elite["cell"]), ""),
+                     "race_round1_successes": race.first_round[index][0] if raced else "",
+                     "race_round1_trials": race.first_round[index][1] if raced else "",
+                     "race_successes": race.totals[index][0] if raced else "",
+                     "race_trials": race.totals[index][1] if raced else "",
+                     "race_stopped": race.stopped[index][0] if raced and index in race.stopped else ""})
+    return SelectionResult(chosen, settings.count, len(elites), rejected, baseline, threshold, rows,
+                           baseline_launches, race)
+
+
+def _launch_race(designs, entrants, settings, launch_batch, run_seed, n_variables):
+    """Race the ``entrants`` (indices of ``designs``) and the bare robot on robust twin launches
+    (:func:`racing.race`; round ``r`` on seed ``derive_seed(run_seed, RACE_SEED_KEY + r, STREAM_SELECTION)``)."""
+    def evaluate(ids, seed, trials):
+        heights = [np.zeros(n_variables) if i == BASELINE else designs[i].heights for i in ids]
+        return [(int(r[0]), int(r[1])) for r in launch_batch(heights, seed, trials)]
+
+    rounds = [int(n) for n in settings.race_launches]
+    seeds = [derive_seed(run_seed, RACE_SEED_KEY + r, STREAM_SELECTION) for r in range(len(rounds))]
+    return racing.race(entrants, evaluate, rounds, seeds, keep_fraction=0.5, min_keep=settings.race_keep,
+                       reference=BASELINE)
+
+
+def _race_pool(race, entrants, designs):
+    """``(pool, ranked, lower_bound, text, name)`` after a launch race: the survivors whose pooled launch rate is
+    above the bare robot's (all survivors when none is), ranked by the lower Wilson bound of their launches; a
+    function giving a design's lower bound and one describing its estimates; the pool's name for reasons."""
+    rate = lambda i: race.totals[i][0] / race.totals[i][1]  # noqa: E731
+    low = lambda i: wilson_interval(*race.totals[i])[0]  # noqa: E731
+    base_s, base_n = race.reference
+    better = [i for i in race.survivors if rate(i) > base_s / base_n]
+    pool = better or list(race.survivors)
+    ranked = sorted(pool, key=lambda i: (-low(i), -rate(i), designs[i].first_generation))
+    rounds = "+".join(str(r["trials"]) for r in race.rounds)
+
+    def text(i):
+        return (f"{race.totals[i][0]}/{race.totals[i][1]} robust twin launches in the race (lower 95% bound "
+                f"{low(i):.2f}; bare robot {base_s}/{base_n} on the same draws), screen "
+                f"{designs[i].successes}/{designs[i].trials}")
+
+    name = (f"race survivor{'' if better else ' (none above the bare robot)'} of {len(entrants)} elites "
+            f"raced on {rounds} launches")
+    return pool, ranked, low, text, name
+
+
+def _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed):
+    """``(chosen, baseline_launches)``: the chosen designs and the bare robot on ``settings.launch_trials`` fresh
+    robust twin launches, one common seed; unchanged and None without them."""
+    if not (settings.launch_trials and chosen):
+        return chosen, None
+    seed = derive_seed(run_seed, LAUNCH_SEED_KEY, STREAM_SELECTION)
+    results = launch_batch([c.design.heights for c in chosen] + [np.zeros(grid.n_variables)], seed,
+                           settings.launch_trials)
+    chosen = [dataclasses.replace(c, launches=(int(r[0]), int(r[1]), seed)) for c, r in zip(chosen, results)]
+    return chosen, (int(results[-1][0]), int(results[-1][1]), seed)
 
 
 def trait_rows(candidates, grid, ranges, bins):
@@ -386,20 +607,40 @@ def _descriptor_point(elite, spans):
 def table_rows(result):
     """Rows of Table 3 as dicts with :data:`TABLE_COLUMNS` keys: the baseline first, then the designs.
 
-    The baseline has no profile, so its dimensions are 0 m; its fitness is given only when re-evaluated.
+    The baseline has no profile, so its dimensions are 0 m; its fitness is given only when re-evaluated. Each
+    design's gain over the baseline (``gain``, Newcombe 95% ``gain_low`` .. ``gain_high``, ``beats_baseline`` when
+    the interval lies above 0) is on fresh robust twin launches when there are any (``gain_source``), else on
+    the fresh re-evaluation, else empty.
     """
     rows = []
     baseline_fitness = _fitness_columns(*result.baseline[:2], "reevaluated") if result.baseline else \
         _fitness_columns(0, 0, "not evaluated")
     rows.append({"configuration": "baseline", "length_m": 0.0, "width_m": 0.0, "max_height_m": 0.0,
-                 **baseline_fitness, **_in_run_columns(0, 0, math.nan)})
-    for design in result.designs:
+                 **baseline_fitness, **_in_run_columns(0, 0, math.nan),
+                 **_launch_columns(result.baseline_launches), **_gain_columns(None)})
+    for design, gain in zip(result.designs, result.gains()):
         reported = _fitness_columns(*design.reported)
         fresh = reported["simulated_fitness"] if design.reevaluation is not None else math.nan
         rows.append({"configuration": design.label, "length_m": design.metrics.length_m,
                      "width_m": design.metrics.width_m, "max_height_m": design.metrics.max_height_m,
-                     **reported, **_in_run_columns(design.design.successes, design.design.trials, fresh)})
+                     **reported, **_in_run_columns(design.design.successes, design.design.trials, fresh),
+                     **_launch_columns(design.launches), **_gain_columns(gain)})
     return rows
+
+
+def _launch_columns(launches):
+    if launches is None:
+        return {"launch_successes": "", "launch_trials": "", "launch_fitness": ""}
+    return {"launch_successes": launches[0], "launch_trials": launches[1],
+            "launch_fitness": launches[0] / launches[1] if launches[1] else math.nan}
+
+
+def _gain_columns(gain):
+    if gain is None:
+        return {"gain_source": "", "gain": "", "gain_low": "", "gain_high": "", "beats_baseline": ""}
+    difference, low, high = gain.interval
+    return {"gain_source": gain.source, "gain": difference, "gain_low": low, "gain_high": high,
+            "beats_baseline": str(bool(gain.beats)).lower()}
 
 
 def _in_run_columns(successes, trials, fresh_fitness):
@@ -419,11 +660,17 @@ def _fitness_columns(successes, trials, source):
 
 
 def designs_document(result, grid, run_id, mesh_units="mm"):
-    """The ``designs.yaml`` content: a ROS 2 parameter file with namespace ``designs`` (heights per label)."""
+    """The ``designs.yaml`` content: a ROS 2 parameter file with namespace ``designs`` (heights per label).
+
+    Each design carries its gain over the bare robot (``gain_over_baseline``: what it was measured on, the
+    difference, Newcombe's 95% interval) and ``beats_baseline`` (the interval lies above 0) when a fresh
+    comparison was made; a design that does not beat the bare robot is exported for inspection, marked so."""
     body = {"run_id": run_id, "labels": [d.label for d in result.designs],
             "grid": {"rows": grid.rows, "cols": grid.cols, "length_m": grid.length_m, "width_m": grid.width_m,
                      "height_min": grid.height_min, "height_max": grid.height_max, "unit_m": grid.unit_m}}
-    for design in result.designs:
+    if result.baseline_launches is not None:
+        body["baseline_launches"] = {"successes": result.baseline_launches[0], "trials": result.baseline_launches[1]}
+    for design, gain in zip(result.designs, result.gains()):
         successes, trials, source = design.reported
         body[design.label] = {"heights": [float(h) for h in design.design.heights],
                               "mesh_file": f"mesh_{design.label}.stl", "mesh_units": mesh_units,
@@ -434,6 +681,14 @@ def designs_document(result, grid, run_id, mesh_units="mm"):
             body[design.label].update(max_height_mm=float(design.descriptors[0]),
                                       sharpness_deg=float(design.descriptors[1]),
                                       archive_cell=[int(i) for i in design.cell])
+        if design.launches is not None:
+            body[design.label]["launches"] = {"successes": design.launches[0], "trials": design.launches[1]}
+        if gain is not None:
+            difference, low, high = gain.interval
+            body[design.label]["gain_over_baseline"] = {"measured_on": GAIN_SOURCES[gain.source],
+                                                        "difference": float(difference),
+                                                        "newcombe_95": [float(low), float(high)]}
+            body[design.label]["beats_baseline"] = bool(gain.beats)
     return {"/**": {"ros__parameters": {"designs": body}}}
 
 
@@ -451,6 +706,7 @@ def record_selection(store, run_id, result, folder=""):
     info["geometry"] = [{k: r[k] for k in TABLE_COLUMNS[:4]} for r in rows if r["configuration"] != "baseline"]
     info["table3"] = rows   # fresh and in-run fitness side by side, for the report's headline
     info["selection"] = {"why": {d.label: d.reason for d in result.designs},
+                         "no_design_helps": result.no_design_helps(),
                          "archive_cells": {d.label: list(d.cell) for d in result.designs if d.cell is not None},
                          "top_threshold": result.top_threshold, "folder": os.path.basename(folder)}
     store.set_run_info(run_id, described["kind"], info)
@@ -515,7 +771,7 @@ def write_selection(run_dir, result, grid, run_id, mesh_units="mm", traits=None)
     return folder
 
 
-def select_run(store, run_id, run_dir, grid, printer, settings, evaluate_batch=None, run_seed=1):
+def select_run(store, run_id, run_dir, grid, printer, settings, evaluate_batch=None, run_seed=1, launch_batch=None):
     """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
     simulated fitness and geometry) and write a new design set (``<run_dir>/designs/`` or ``designs-<n>/``);
     return ``(SelectionResult, folder)``.
@@ -530,10 +786,11 @@ def select_run(store, run_id, run_dir, grid, printer, settings, evaluate_batch=N
     archive = ((store.run_info(run_id) or {}).get("info") or {}).get("archive")
     traits = None
     if archive:
-        result = select_from_archive(archive, candidates, grid, printer, settings, evaluate_batch, run_seed)
+        result = select_from_archive(archive, candidates, grid, printer, settings, evaluate_batch, run_seed,
+                                     launch_batch)
         traits = trait_rows(candidates, grid, archive["ranges"], archive["dims"])
     else:
-        result = select_designs(candidates, grid, printer, settings, evaluate_batch, run_seed)
+        result = select_designs(candidates, grid, printer, settings, evaluate_batch, run_seed, launch_batch)
     folder = write_selection(run_dir, result, grid, run_id, settings.mesh_units, traits)
     record_selection(store, run_id, result, folder)
     return result, folder

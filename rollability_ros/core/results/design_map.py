@@ -23,21 +23,23 @@ TRAITS_FILENAME = "traits.csv"
 TRAIT_LABELS = {"max_height_mm": "maximum height (mm)", "sharpness_deg": "sharpness (deg, mean ridge angle)"}
 _ARCHIVE_NUMBERS = ("cell_height", "cell_sharpness", "max_height_mm", "sharpness_deg", "in_run_fitness",
                     "in_run_trials", "screen_successes", "screen_trials", "screen_fitness", "top_pool")
+#: Columns of the launch race (selection.race_launches), absent or empty in tables without one.
+_RACE_NUMBERS = ("race_round1_successes", "race_round1_trials", "race_successes", "race_trials")
 _TRAIT_NUMBERS = ("bin_low", "bin_high", "designs", "successes", "trials", "fitness", "ci_low", "ci_high")
 
 
-def _read(path, numbers, optional=()):
+def _read(path, numbers, optional=(), absent_ok=()):
     rows = []
     try:
         with open(path, newline="", encoding="utf-8") as stream:
             reader = csv.DictReader(stream)
-            missing = [c for c in numbers if c not in (reader.fieldnames or ())]
+            missing = [c for c in numbers if c not in (reader.fieldnames or ()) and c not in absent_ok]
             if missing:
                 raise ValueError(f"missing column(s) {', '.join(missing)}")
             for line, record in enumerate(reader, start=2):
                 row = dict(record)
                 for column in numbers:
-                    text = (record[column] or "").strip()
+                    text = (record.get(column) or "").strip()
                     if text == "" and column in optional:
                         row[column] = math.nan
                         continue
@@ -53,7 +55,9 @@ def _read(path, numbers, optional=()):
 
 def read_archive(path):
     """The rows of an ``archive.csv`` (numbers as floats; no screen -> NaN screen columns)."""
-    rows = _read(path, _ARCHIVE_NUMBERS, optional=("screen_successes", "screen_trials", "screen_fitness"))
+    rows = _read(path, _ARCHIVE_NUMBERS + _RACE_NUMBERS,
+                 optional=("screen_successes", "screen_trials", "screen_fitness") + _RACE_NUMBERS,
+                 absent_ok=_RACE_NUMBERS)
     for row in rows:
         fitness = row["screen_fitness"] if math.isfinite(row["screen_fitness"]) else row["in_run_fitness"]
         if not 0 <= fitness <= 1:
@@ -79,6 +83,20 @@ def trait_trends(archive_rows):
         rho, p = spearman_permutation_test([r[trait] for r in archive_rows], [r["fitness"] for r in archive_rows])
         trends[trait] = (rho, p, len(archive_rows))
     return trends
+
+
+def transfer(archive_rows):
+    """``(rho, p, n)``: Spearman's rho between the elites' screen fitness and their success on the launch race's
+    first round (every raced elite, the same robust twin launches), with its two-sided permutation p-value; None
+    without a race (or a screen) over at least 3 elites. It says how well the cheap trials predict what the rig
+    measures."""
+    raced = [r for r in archive_rows if math.isfinite(r.get("race_round1_trials", math.nan))
+             and r["race_round1_trials"] > 0 and math.isfinite(r["screen_fitness"])]
+    if len(raced) < 3:
+        return None
+    rho, p = spearman_permutation_test([r["screen_fitness"] for r in raced],
+                                       [r["race_round1_successes"] / r["race_round1_trials"] for r in raced])
+    return rho, p, len(raced)
 
 
 def summary_lines(archive_rows, height_bound_mm=None):
@@ -107,4 +125,13 @@ def summary_lines(archive_rows, height_bound_mm=None):
         else:
             lines.append(f"fitness vs {name} over the {trend[2]} elites: Spearman rho {trend[0]:+.2f}, two-sided "
                          f"permutation p = {trend[1]:.3f}")
+    evidence = transfer(archive_rows)
+    if evidence is not None:
+        rho, p, n = evidence
+        launches = int(next(r["race_round1_trials"] for r in archive_rows
+                            if math.isfinite(r.get("race_round1_trials", math.nan))))
+        lines.append(f"transfer (simulated): screen fitness vs robust twin launches ({launches} each, the launch "
+                     f"race's first round) over the {n} raced elites: Spearman rho "
+                     + ("undefined (constant)" if not math.isfinite(rho) else f"{rho:+.2f}, two-sided permutation "
+                                                                             f"p = {p:.3f}"))
     return lines

@@ -27,7 +27,7 @@ from rollability_ros.core.results import analysis
 from rollability_ros.core.results.outcome_csv import read_outcome_csv
 from rollability_ros.core.results.records import INVALID_LAUNCH, NO_SEED, LaunchOutcome
 from rollability_ros.core.results.store import STORE_FILENAME, Store
-from rollability_ros.core.results.stats import wilson_interval
+from rollability_ros.core.results.stats import newcombe_interval, wilson_interval
 
 #: Order of configurations in figures and tables (others follow alphabetically).
 CONFIGURATION_ORDER = ("baseline", "A", "B", "C")
@@ -427,6 +427,53 @@ def _figures(out_dir, views, configurations, comparison, points, engine_rows=(),
     return drawn
 
 
+def selection_gain_lines(table3_rows):
+    """The summary's lines on each chosen design's gain over the bare robot as the selection measured it (Table 3's
+    ``gain*`` columns: fresh robust twin launches, or the fresh re-evaluation), with Newcombe's 95% interval, and
+    a plain sentence when no design beats the bare robot. Empty when Table 3 has no gains."""
+    from rollability_ros.core.optimization.selection import GAIN_SOURCES
+
+    rows = [r for r in table3_rows if str(r.get("gain_source") or "") in GAIN_SOURCES]
+    if not rows:
+        return []
+    baseline = next((r for r in table3_rows if r.get("configuration") == "baseline"), {})
+    source = str(rows[0]["gain_source"])
+    count = "launch" if source == "launches" else ""
+    base = (f"bare robot {int(float(baseline[count + '_successes' if count else 'successes']))}/"
+            f"{int(float(baseline[count + '_trials' if count else 'trials']))}") if baseline else "bare robot"
+    lines = [f"gain of each chosen design over the bare robot (simulated; {GAIN_SOURCES[source]}; {base}; "
+             f"Newcombe 95%):"]
+    for row in rows:
+        beats = str(row.get("beats_baseline")).lower() == "true"
+        lines.append(f"  {row['configuration']:<8} {float(row['gain']):+.2f} [{float(row['gain_low']):+.2f}, "
+                     f"{float(row['gain_high']):+.2f}]  {'beats the bare robot' if beats else 'does NOT beat the bare robot'}")
+    if not any(str(r.get("beats_baseline")).lower() == "true" for r in rows):
+        lines.append("NO DESIGN BEATS THE BARE ROBOT on this measure: the designs are written for inspection, not "
+                     "as improvements")
+    return lines
+
+
+def campaign_gain_lines(by_configuration, label):
+    """Each configuration's upright rate over the campaign's trials minus the baseline's, with Newcombe's 95%
+    interval, and a plain sentence when no design's interval lies above 0 (empty without a baseline)."""
+    cells = {cell.key["configuration"]: cell for cell in by_configuration}
+    baseline = cells.get("baseline")
+    designs = [c for name, c in cells.items() if name != "baseline"]
+    if baseline is None or not designs or not baseline.trials:
+        return []
+    lines = [f"{label}: trials upright minus the baseline's (Newcombe 95%):"]
+    beats = 0
+    for cell in designs:
+        difference, low, high = newcombe_interval(cell.successes, cell.trials, baseline.successes, baseline.trials)
+        beats += low > 0
+        lines.append(f"  {cell.key['configuration']:<8} {difference:+.2f} [{low:+.2f}, {high:+.2f}]  "
+                     + ("above the baseline" if low > 0 else "below the baseline" if high < 0 else
+                        "not distinguishable from the baseline"))
+    if not beats:
+        lines.append("NO DESIGN BEATS THE BASELINE in this campaign (no interval above 0)")
+    return lines
+
+
 def summary_text(data, views, comparison, points):
     """A few lines describing the report's data and headline numbers: the chosen designs' fresh re-evaluations
     first (with the in-run estimates beside them and the selection bias), then the campaign, labelled simulated
@@ -437,6 +484,7 @@ def summary_text(data, views, comparison, points):
                      "(Wilson 95% CI; selection bias = in-run - fresh)")
         lines.append(f"{'design':<10} {'fresh':<22}   {'in-run':<22}   {'bias':>5}")
         lines.extend(estimate.text() for estimate in data.design_estimates)
+    lines.extend(selection_gain_lines(data.geometry))
     if views is not None:
         runs = sorted({o.run_id for o in data.outcomes})
         backends = sorted({o.backend for o in data.outcomes})
@@ -454,6 +502,7 @@ def summary_text(data, views, comparison, points):
             lines.append(f"{cell.key['configuration']:<14} {cell.conditions_succeeded:>4}/{cell.conditions:<3} "
                          f"{cell.condition_rate:>4.0%} {cell.successes:>5}/{cell.trials:<4} {cell.trial_rate:>4.0%}"
                          f"  [{low:.0%}, {high:.0%}]")
+        lines.extend(campaign_gain_lines(views.by_configuration, label))
     else:
         lines.append("launch outcomes: none")
     if comparison is not None and comparison.rows:

@@ -32,7 +32,7 @@ from rollability_ros.core.config import from_mapping, load_parameters, section
 from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
 from rollability_ros.core.optional import require
 from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
-from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, launch_objective, \
+from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, at_fidelity, launch_objective, \
     run_launch_trial, run_robust_trial
 from rollability_ros.core.sim.world import PhysicsParams, connect
 from rollability_ros.core.results.stats import wilson_interval
@@ -129,6 +129,13 @@ def settings_from_parameters(flat):
     hints = {f.name: f.type for f in dataclasses.fields(EvaluatorSettings)}
     return EvaluatorSettings(**{name: from_mapping(hints[name], section(flat, prefix), prefix)
                                 for name, prefix in SETTINGS_SECTIONS.items()})
+
+
+def settings_at_fidelity(settings, fidelity):
+    """``settings`` with the objective of evaluation ``fidelity`` (:func:`~rollability_ros.core.sim.objectives.at_fidelity`:
+    ``screen``/empty = as configured, ``launch`` = robust twin launches); ``ValueError`` for an unknown fidelity."""
+    objective = at_fidelity(settings.objective, fidelity)
+    return settings if objective is settings.objective else dataclasses.replace(settings, objective=objective)
 
 
 def trial_seed(base_seed, index):

@@ -28,6 +28,14 @@ Every trial of an evaluation, of any kind and robust or not, runs on the evaluat
 seam (:func:`~rollability_ros.core.sim.trials.check_engine`): disturbance trials in
 :func:`~rollability_ros.core.sim.trials.make_trial_world`, launches in the twin of that engine. An engine that
 cannot run a kind of trial the objective asks for is refused with a one-line error, never replaced.
+Fidelities
+----------
+An evaluation request may name a *fidelity* (:data:`FIDELITIES`): ``screen`` (or empty) is the configured
+objective above, what the optimizer's candidates are scored with; ``launch`` is what the rig measures: robust
+launches on the twin under the campaign's conditions (``kind: launch_twin`` with ``robust.enabled``, the same
+``campaign_config``, ``twin_config`` and robust ranges). The multi-fidelity search (docs/optimization.md) lets
+cheap screen trials propose and launches decide; :func:`at_fidelity` is the one place that maps a fidelity to
+an objective, so the sim_evaluator node and an in-process evaluation measure the same thing.
 
 Trial ``i`` uses the evaluation's trial seed ``trial_seed(s, i)`` whatever its kind, so candidates evaluated with
 one base seed meet the same disturbances and the same launch scatter (common random numbers).
@@ -45,6 +53,8 @@ from rollability_ros.core.sim.trials import TrialOutcome, check_engine, run_tria
 
 #: ``objective.kind`` values.
 OBJECTIVES = ("disturbance", "launch_twin", "mix")
+#: Evaluation fidelities: the configured objective (``screen``; empty means the same) and robust twin launches.
+FIDELITIES = ("screen", "launch")
 #: The configuration id the candidate's launches are filed under (the twin mounts the candidate itself).
 CANDIDATE = "candidate"
 
@@ -76,6 +86,17 @@ class ObjectiveSettings:
     def launch_share(self):
         """Share of an evaluation's trials that are launches: 0, ``launch_weight`` or 1."""
         return {"disturbance": 0.0, "mix": self.launch_weight, "launch_twin": 1.0}[self.kind]
+
+
+def at_fidelity(settings, fidelity):
+    """The :class:`ObjectiveSettings` an evaluation at ``fidelity`` runs (module docstring, Fidelities): ``settings``
+    itself for ``screen`` / empty, robust launches on the twin for ``launch``; ``ValueError`` for any other name."""
+    if fidelity in ("", "screen"):
+        return settings
+    if fidelity == "launch":
+        return dataclasses.replace(settings, kind="launch_twin", launch_weight=1.0,
+                                   robust=dataclasses.replace(settings.robust, enabled=True))
+    raise ValueError(f"unknown evaluation fidelity {fidelity!r}: use one of {', '.join(FIDELITIES)}")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,0 +1,118 @@
+"""Racing by successive halving: spend expensive trials (launches on the twin) on the candidates that can still win.
+
+Every candidate still in the race gets the round's trials on the round's one seed (common random numbers: in a
+round every candidate meets the same launch conditions and the same draws of the unknowns); its estimate is its
+successes and trials pooled over the rounds it ran. After every round but the last, a candidate stops when
+
+1. *racing*: it is clearly worse than the leader: the upper bound of its 95% Wilson interval is below the lower
+   bound of the leader's (the leader: the highest lower bound). Two 95% Wilson intervals that do not overlap
+   differ at well below the 5% level for independent samples, and common random numbers only make the
+   difference's variance smaller, so the rule stops few candidates that could still lead; or
+2. *halving*: it is not among the best ``max(min_keep, ceil(keep_fraction x survivors))`` by pooled fitness (ties:
+   the higher lower bound, then the earlier candidate).
+
+A ``reference`` (the bare robot) runs every round beside the candidates on the same seed and never stops: the
+candidates' gain over it is measured on the same draws. The result keeps each round's estimates, so a caller can
+use the first round (every candidate, the same trials) as an unbiased comparison of all candidates.
+"""
+import dataclasses
+import math
+
+from rollability_ros.core.results.stats import wilson_interval
+
+
+@dataclasses.dataclass(frozen=True)
+class RaceResult:
+    """What a race measured.
+
+    ``totals``: {candidate: (successes, trials)} pooled over the rounds it ran; ``first_round``: {candidate:
+    (successes, trials)} of round 1 (every candidate); ``reference``: (successes, trials) of the reference pooled
+    over every round (or None); ``survivors``: the candidates that ran the last round, in the input order;
+    ``stopped``: {candidate: (round number, reason)}; ``trials_spent``: trials of candidates and reference;
+    ``rounds``: one dict per round (``round``, ``trials``, ``seed``, ``running``, ``stopped``).
+    """
+
+    totals: dict
+    first_round: dict
+    reference: tuple
+    survivors: list
+    stopped: dict
+    trials_spent: int
+    rounds: list
+
+
+def _bounds(pooled):
+    successes, trials = pooled
+    return wilson_interval(successes, trials)
+
+
+def stop_after_round(totals, running, keep_fraction, min_keep):
+    """``{candidate: reason}`` of the ``running`` candidates (in order) that stop after a round given their pooled
+    ``totals`` ({candidate: (successes, trials)}); module docstring, rules 1 and 2."""
+    lower = {c: _bounds(totals[c])[0] for c in running}
+    leader = max(running, key=lambda c: (lower[c], -running.index(c)))
+    stops = {}
+    for candidate in running:
+        upper = _bounds(totals[candidate])[1]
+        if candidate != leader and upper < lower[leader]:
+            stops[candidate] = (f"clearly worse than the leader: upper 95% bound {upper:.2f} < the leader's lower "
+                                f"bound {lower[leader]:.2f}")
+    left = [c for c in running if c not in stops]
+    keep = max(min_keep, math.ceil(keep_fraction * len(left)))
+    ranked = sorted(left, key=lambda c: (-totals[c][0] / totals[c][1], -lower[c], running.index(c)))
+    for candidate in ranked[keep:]:
+        stops[candidate] = f"halving: not among the best {keep} of {len(left)} by pooled fitness"
+    return stops
+
+
+def race(candidates, evaluate, round_trials, round_seeds, keep_fraction=0.5, min_keep=1, reference=None):
+    """Race ``candidates`` (hashable ids) by successive halving (module docstring).
+
+    Parameters
+    ----------
+    candidates : list
+        Ids, in a fixed order (ties go to the earlier one).
+    evaluate : callable(ids, seed, trials) -> [(successes, trials), ...]
+        Runs ``trials`` trials of each id with one base ``seed`` (the reference is one of the ids when given).
+    round_trials, round_seeds : sequences of int, same length
+        Trials per candidate and base seed of each round.
+    keep_fraction : float in (0, 1]
+        Share of the candidates kept after each round (halving: 0.5).
+    min_keep : int >= 1
+        Never keep fewer than this many after a round.
+    reference : hashable, optional
+        An id run every round and never stopped (the bare robot).
+    """
+    if len(round_trials) != len(round_seeds) or not round_trials:
+        raise ValueError("a race needs at least one round, with one seed per round")
+    if any(int(t) < 1 for t in round_trials):
+        raise ValueError(f"every round needs at least one trial, got {list(round_trials)}")
+    if not 0 < keep_fraction <= 1 or min_keep < 1:
+        raise ValueError(f"need keep_fraction in (0, 1] and min_keep >= 1, got {keep_fraction}, {min_keep}")
+    candidates = list(candidates)
+    if len(set(candidates)) != len(candidates) or reference in candidates:
+        raise ValueError("race candidates must be distinct and not the reference")
+    running = list(candidates)
+    totals, first_round, stopped, rounds = {}, {}, {}, []
+    reference_total, spent = (0, 0), 0
+    for number, (trials, seed) in enumerate(zip(round_trials, round_seeds), 1):
+        ids = running + ([reference] if reference is not None else [])
+        results = evaluate(ids, int(seed), int(trials))
+        spent += sum(int(r[1]) for r in results)
+        for candidate, result in zip(ids, results):
+            pooled = (int(result[0]), int(result[1]))
+            if candidate == reference and reference is not None:
+                reference_total = (reference_total[0] + pooled[0], reference_total[1] + pooled[1])
+                continue
+            previous = totals.get(candidate, (0, 0))
+            totals[candidate] = (previous[0] + pooled[0], previous[1] + pooled[1])
+            if number == 1:
+                first_round[candidate] = pooled
+        stops = stop_after_round(totals, running, keep_fraction, min_keep) if number < len(round_trials) else {}
+        rounds.append({"round": number, "trials": int(trials), "seed": int(seed), "running": len(running),
+                       "stopped": len(stops)})
+        for candidate, reason in stops.items():
+            stopped[candidate] = (number, reason)
+        running = [c for c in running if c not in stops]
+    return RaceResult(totals, first_round, reference_total if reference is not None else None, running, stopped,
+                      spent, rounds)

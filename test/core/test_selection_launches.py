@@ -1,0 +1,132 @@
+"""Designs ranked by the rig's measure: a launch race over the archive's elites, the gain over the bare robot with
+Newcombe's interval, and the plain "no design helps" outcome in designs.yaml, Table 3, select and the report."""
+import csv
+import os
+
+import numpy as np
+import pytest
+
+pytest.importorskip("trimesh")
+
+from rollability_ros.core.config import load_parameters  # noqa: E402
+from rollability_ros.core.optimization import selection  # noqa: E402
+from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid  # noqa: E402
+from rollability_ros.core.results import design_map, report  # noqa: E402
+
+GRID = ProfileGrid(rows=3, cols=3)
+
+
+def elite(cell, height_mm, sharpness_deg, fitness=0.5, trials=20):
+    heights = np.full(GRID.n_variables, height_mm / 1000 / GRID.unit_m)
+    heights[0] *= 0.5 + cell[1] / 10
+    return {"cell": list(cell), "heights": heights.tolist(), "fitness": fitness, "trials": trials, "generation": 1,
+            "max_height_mm": height_mm, "sharpness_deg": sharpness_deg}
+
+
+# (cell, height mm, sharpness deg, screen success, launch success)
+ELITES = [((9, 2), 88, 40, 0.90, 0.20), ((8, 2), 80, 40, 0.85, 0.25), ((5, 1), 50, 25, 0.60, 0.70),
+          ((6, 4), 65, 65, 0.55, 0.65), ((3, 3), 30, 55, 0.50, 0.60), ((2, 5), 25, 80, 0.45, 0.05),
+          ((7, 0), 70, 10, 0.40, 0.55), ((1, 1), 15, 20, 0.10, 0.02)]
+ARCHIVE = {"ranges": [[0, 90], [0, 90]], "elites": [elite(c, h, s) for c, h, s, _, _ in ELITES]}
+
+
+class Truth:
+    """Seeded trials with known success rates per design: screen (disturbance) and launch (the rig's measure)."""
+
+    def __init__(self, baseline_launch, launch_scale=1.0):
+        self.screen = {tuple(e["heights"]): p for e, (_, _, _, p, _) in zip(ARCHIVE["elites"], ELITES)}
+        self.launch = {tuple(e["heights"]): q * launch_scale for e, (*_, q) in zip(ARCHIVE["elites"], ELITES)}
+        self.baseline_launch = baseline_launch
+        self.launch_calls = []
+
+    def evaluate_batch(self, heights_list, seed, trials=60):
+        draws = np.random.default_rng(seed).random(trials)
+        return [(int(np.sum(draws < self.screen.get(tuple(h), 0.0))), trials, 0.0, "fake") for h in heights_list]
+
+    def launch_batch(self, heights_list, seed, trials):
+        self.launch_calls.append((len(heights_list), seed, trials))
+        draws = np.random.default_rng(seed).random(trials)
+        rates = [self.launch.get(tuple(h), self.baseline_launch) if np.any(h) else self.baseline_launch
+                 for h in heights_list]
+        return [(int(np.sum(draws < q)), trials, 0.0, "fake") for q in rates]
+
+
+SETTINGS = selection.SelectionSettings(count=3, top_fraction=0.5, reevaluate_trials=60, race_launches=[20, 20],
+                                       race_elites=6, race_keep=3, launch_trials=100)
+
+
+def test_designs_are_ranked_by_the_race_on_launches_not_by_the_screen():
+    truth = Truth(baseline_launch=0.25)
+    result = selection.select_from_archive(ARCHIVE, [], GRID, PrinterSpec(), SETTINGS, truth.evaluate_batch, 5,
+                                           truth.launch_batch)
+    # the screen's two best (88 and 80 mm) launch poorly: the race drops them; A is the best launcher
+    assert result.designs[0].cell == (5, 1)
+    assert {d.cell for d in result.designs} <= {(5, 1), (6, 4), (3, 3)}
+    assert len(result.designs) == 3 and result.shortfall == ""
+    # the race: the 6 best by the screen entered (never the screen's worst), round 2 with at most half of them
+    assert [c[0] for c in truth.launch_calls[:2]] == [6 + 1, 3 + 1]           # + the bare robot every round
+    assert truth.launch_calls[0][1] != truth.launch_calls[1][1]                # a fresh seed per round ...
+    assert truth.launch_calls[-1] == (3 + 1, selection.derive_seed(5, selection.LAUNCH_SEED_KEY, 2), 100)
+    assert "robust twin launches in the race" in result.designs[0].reason
+    for design, gain in zip(result.designs, result.gains()):
+        assert gain.source == "launches" and gain.beats and design.launches[1] == 100
+        difference, low, high = gain.interval
+        assert low < difference < high and low > 0
+    assert result.no_design_helps() == ""
+    rows = {r["cell_height"]: r for r in result.archive}
+    assert rows[1]["race_round1_trials"] == ""                                 # not among the 6 best screened
+    assert rows[9]["race_round1_trials"] == 20 and rows[9]["race_stopped"] == 1
+
+
+def test_when_no_design_beats_the_bare_robot_every_output_says_so(tmp_path, capsys):
+    truth = Truth(baseline_launch=0.7, launch_scale=0.6)     # every design launches worse than the bare robot
+    result = selection.select_from_archive(ARCHIVE, [], GRID, PrinterSpec(), SETTINGS, truth.evaluate_batch, 5,
+                                           truth.launch_batch)
+    assert result.designs, "designs are still written, for inspection"
+    assert all(not g.beats for g in result.gains())
+    assert result.no_design_helps().startswith("no design beats the bare robot on fresh robust launches")
+    assert "(none above the bare robot)" in result.designs[0].reason
+
+    folder = selection.write_selection(str(tmp_path), result, GRID, "run")
+    parameters = load_parameters(os.path.join(folder, "designs.yaml"))
+    for design in result.designs:
+        assert parameters[f"designs.{design.label}.beats_baseline"] is False
+        low, high = parameters[f"designs.{design.label}.gain_over_baseline.newcombe_95"]
+        assert low < 0
+    with open(os.path.join(folder, "table3.csv"), newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    assert [r["beats_baseline"] for r in rows] == ["", "false", "false", "false"]
+    assert rows[0]["launch_trials"] == "100" and rows[1]["gain_source"] == "launches"
+
+    data = report.ReportData(source="test")
+    report.use_geometry_csv(data, os.path.join(folder, "table3.csv"))
+    lines = report.selection_gain_lines(data.geometry)
+    assert "bare robot 70/100" in lines[0] or "bare robot" in lines[0]
+    assert sum("does NOT beat the bare robot" in line for line in lines) == 3
+    assert lines[-1].startswith("NO DESIGN BEATS THE BARE ROBOT")
+
+    archive = design_map.read_archive(os.path.join(folder, design_map.ARCHIVE_FILENAME))
+    rho, p, n = design_map.transfer(archive)
+    assert n == 6 and -1 <= rho <= 1 and 0 < p <= 1
+    assert any(line.startswith("transfer (simulated)") for line in design_map.summary_lines(archive))
+
+
+def test_a_race_without_a_launch_evaluator_is_refused():
+    with pytest.raises(ValueError, match="launch evaluator"):
+        selection.select_from_archive(ARCHIVE, [], GRID, PrinterSpec(), SETTINGS, Truth(0.2).evaluate_batch, 5)
+    with pytest.raises(ValueError, match="race_launches"):
+        selection.SelectionSettings(race_launches=[20, 0]).validate()
+
+
+def test_the_campaign_summary_gives_each_design_minus_the_baseline_and_says_when_none_is_above():
+    class Cell:
+        def __init__(self, name, successes, trials):
+            self.key, self.successes, self.trials = {"configuration": name}, successes, trials
+
+    lines = report.campaign_gain_lines([Cell("baseline", 22, 100), Cell("A", 30, 100), Cell("B", 41, 100)],
+                                       "simulated campaign (launch twin)")
+    assert "A        +0.08 [-0.04, +0.20]  not distinguishable from the baseline" in lines[1]
+    assert "B        +0.19 [+0.06, +0.31]  above the baseline" in lines[2]     # the issue's own numbers
+    assert not any("NO DESIGN" in line for line in lines)
+    lines = report.campaign_gain_lines([Cell("baseline", 22, 100), Cell("A", 30, 100)], "campaign")
+    assert lines[-1].startswith("NO DESIGN BEATS THE BASELINE")

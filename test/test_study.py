@@ -49,6 +49,8 @@ def test_miniature_main_job_end_to_end(tmp_path):
     for expected in ("report:", "bag (MCAP):", "outcome store:", "designs (STL, Table 3):"):
         assert expected in output
     assert "configuration  conditions ok" in output       # the summary table
+    assert "gain of each chosen design over the bare robot (simulated; fresh robust launches" in output
+    assert "trials upright minus the baseline's (Newcombe 95%)" in output
 
     designs = study_dir / "optimization" / "designs"
     assert (designs / "table3.csv").is_file() and list(designs.glob("*.stl"))

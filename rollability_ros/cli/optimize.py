@@ -1,4 +1,5 @@
 """`rollability optimize`: a CMA-ES or CMA-MAE profile optimization in this process (no ROS graph), resumable."""
+import argparse
 import math
 import os
 import sys
@@ -101,6 +102,12 @@ def run(args):
           "fresh re-evaluation is the number to quote")
     if figure:
         print(f"convergence curve: {figure}")
+    if args.select and end.status == "finished":
+        from rollability_ros.cli import select
+
+        print("selecting designs (the decision: robust launches on the twin when selection.race_launches is set)")
+        return select.run(argparse.Namespace(run=run.run_dir, output_dir=output_dir, config=[], workers=args.workers,
+                                             **{name: None for name in select.OVERRIDES}))
     print(f"choose designs with: rollability select {run.run_dir}")
     return 0
 
@@ -127,4 +134,7 @@ def register(subparsers):
     parser.add_argument("--run-id", help="id of a new run (default: opt-<date>-<time>)")
     parser.add_argument("--workers", type=int, help="worker processes for the trials (default: "
                                                     "evaluator.workers, 0 = one per core)")
+    parser.add_argument("--select", action="store_true",
+                        help="when the run finishes, choose designs A/B/C as `rollability select RUN` does (with "
+                             "the quick config: a race of the best elites on robust twin launches decides)")
     parser.set_defaults(func=run)

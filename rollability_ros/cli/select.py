@@ -3,6 +3,11 @@ import os
 import sys
 
 
+#: ``selection`` settings a command-line option overrides (same names).
+OVERRIDES = ("count", "min_distance", "reevaluate_trials", "mesh_units", "top_fraction", "launch_trials",
+             "race_launches")
+
+
 def _print_table(rows):
     stream = sys.stdout   # looked up when called: sys.stdout may be replaced after import
     stream.write(f"{'design':<10}{'length m':>10}{'width m':>10}{'max h m':>10}  {'fitness [95% CI]':<22}"
@@ -31,14 +36,13 @@ def run(args):
     if args.config:  # later files win over the run's own config.yaml, key by key
         parameters.update(load_parameters(list(args.config)))
     mapping = section(parameters, "selection")
-    for name in ("count", "min_distance", "reevaluate_trials", "mesh_units", "top_fraction", "launch_trials",
-                 "race_launches"):
+    for name in OVERRIDES:
         if getattr(args, name) is not None:
             mapping[name] = getattr(args, name)
     settings = from_mapping(selection.SelectionSettings, mapping, "selection")
     evaluator_settings = evaluation.settings_from_parameters(parameters)
     run_id = optimization_run.run_id_of(run_dir)
-    launches = bool(settings.race_launches or settings.launch_trials)
+    launches = bool(settings.race_rounds or settings.launch_trials)
     executor = evaluation.make_executor(evaluator_settings.evaluator, args.workers) \
         if settings.reevaluate_trials or launches else None
     try:
@@ -112,9 +116,9 @@ def register(subparsers):
                                                               "report the logged estimate")
     parser.add_argument("--top-fraction", type=float, help="archive runs: choose among the elites in this top "
                                                            "fraction of fitness (default: selection.top_fraction, 0.1)")
-    parser.add_argument("--race-launches", type=lambda text: [n for n in map(int, text.split(",")) if n], metavar="N,N,...",
+    parser.add_argument("--race-launches", type=lambda text: [int(n) for n in text.split(",")], metavar="N,N,...",
                         help="rank designs by a race on robust twin launches: launches per design in each round "
-                             "(default: selection.race_launches; 0 = rank by the screen)")
+                             "(default: selection.race_launches; 0 = no race, rank by the screen)")
     parser.add_argument("--launch-trials", type=int, help="fresh robust twin launches per chosen design and the "
                                                           "bare robot for the gain over it (default: "
                                                           "selection.launch_trials; 0 = none)")

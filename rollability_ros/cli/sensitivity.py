@@ -29,6 +29,7 @@ def run(args):
     from rollability_ros.core.optional import MissingDependency
     from rollability_ros.core.results import report_figures
     from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.results.sensitivity_table import gain_lines
     from rollability_ros.core.sim.sensitivity import sensitivity_rows
 
     check_output_dir(args.out, "--out", keeps=("sensitivity.csv", "sensitivity.png"))
@@ -53,6 +54,8 @@ def run(args):
         figure = report_figures.sensitivity(os.path.join(args.out, "sensitivity.png"), rows)
     except MissingDependency:
         figure = None
+    for line in gain_lines(rows):
+        print(line)
     print(f"wrote {csv_path}" + (f" and {figure}" if figure else ""))
     return 0
 

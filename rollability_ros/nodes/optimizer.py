@@ -362,7 +362,7 @@ class Optimizer(Node):
         chosen = settings["selection"]
         evaluate_batch = self._pool.batch_evaluator(chosen.reevaluate_trials) if chosen.reevaluate_trials else None
         launch_batch = self._pool.fidelity_evaluator("launch") \
-            if chosen.race_launches or chosen.launch_trials else None
+            if chosen.race_rounds or chosen.launch_trials else None
         result, folder = selection.select_run(run.store, run.run_id, run.run_dir, settings["profile"],
                                               settings["printer"], chosen, evaluate_batch, run.settings.seed,
                                               launch_batch)

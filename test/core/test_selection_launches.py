@@ -130,3 +130,58 @@ def test_the_campaign_summary_gives_each_design_minus_the_baseline_and_says_when
     assert not any("NO DESIGN" in line for line in lines)
     lines = report.campaign_gain_lines([Cell("baseline", 22, 100), Cell("A", 30, 100)], "campaign")
     assert lines[-1].startswith("NO DESIGN BEATS THE BASELINE")
+
+
+def test_the_sensitivity_table_gives_each_design_minus_the_bare_chassis_per_factor(tmp_path):
+    from rollability_ros.core.results.sensitivity_table import gain_lines, gain_rows
+
+    rows = [{"configuration": c, "factor": f, "level": lv, "successes": s, "trials": 60}
+            for c, f, lv, s in (("baseline", "disturbance_scale", 2.0, 38), ("A", "disturbance_scale", 2.0, 32),
+                                ("baseline", "robust", "all factors drawn", 12),
+                                ("A", "robust", "all factors drawn", 25))]
+    gains = {(g["factor"], g["configuration"]): g for g in gain_rows(rows)}
+    assert gains[("disturbance_scale", "A")]["gain"] == pytest.approx(-0.1)
+    robust = gains[("robust", "A")]
+    assert robust["gain"] == pytest.approx(13 / 60) and robust["gain_low"] > 0     # the 25/60 vs 12/60
+    lines = gain_lines(rows)
+    assert lines[-1].startswith("**robust") and "+0.22 [+0.05, +0.37]" in lines[-1]
+    folder = tmp_path / "designs"
+    folder.mkdir()
+    (folder / "sensitivity.csv").write_text("configuration,factor,level,successes,trials\n"
+                                            + "".join(f"{r['configuration']},{r['factor']},{r['level']},"
+                                                      f"{r['successes']},60\n" for r in rows))
+    assert report._sensitivity_lines(str(folder / "sensitivity.csv")) == lines
+
+
+def test_select_warns_in_one_line_and_exits_0_when_no_design_beats_the_bare_robot(tmp_path, monkeypatch, capsys):
+    pytest.importorskip("ribs")
+    from doubles import SyntheticEvaluator
+    from rollability_ros.cli import main
+    from rollability_ros.core.optimization import optimization_run
+
+    optimum = np.linspace(0.1, 0.4, GRID.n_variables)
+    parameters = {"optimizer.method": "cma_mae", "optimizer.max_generations": 4, "optimizer.seed": 2,
+                  "optimizer.trials": 30, "optimizer.popsize": 6, "optimizer.initial_mean_screen": 0,
+                  "quality_diversity.emitters": 2, "profile.rows": GRID.rows, "profile.cols": GRID.cols,
+                  "selection.reevaluate_trials": 0, "selection.race_launches": [4], "selection.race_elites": 4,
+                  "selection.launch_trials": 30, "selection.top_fraction": 1.0}
+    run_dir = str(tmp_path / "run")
+    run = optimization_run.OptimizationRun(run_dir, parameters, GRID, SyntheticEvaluator(optimum, trials=30))
+    run.run()
+    run.close()
+
+    def launches(settings, executor, fidelity="screen", name="local"):
+        assert fidelity == "launch"      # the race and the gain are measured on robust twin launches
+        return lambda heights_list, seed, trials: [(trials if not np.any(h) else trials // 3, trials, 0.0, name)
+                                                   for h in heights_list]
+
+    monkeypatch.setattr(optimization_run, "fidelity_batch_evaluator", launches)
+    assert main(["select", run_dir, "--workers", "1"]) == 0
+    captured = capsys.readouterr()
+    warnings = captured.err.strip().splitlines()
+    assert len(warnings) == 1 and warnings[0].startswith("rollability select: warning: no design beats the bare "
+                                                         "robot on fresh robust launches")
+    assert "does NOT beat the bare robot" in captured.out and "race of" in captured.out
+    parameters = load_parameters(os.path.join(run_dir, "designs", "designs.yaml"))
+    labels = parameters["designs.labels"]
+    assert labels and all(parameters[f"designs.{label}.beats_baseline"] is False for label in labels)

@@ -118,9 +118,10 @@ class SelectionSettings:
                        "fraction of all elite fitnesses (fraction, (0, 1]; 0.1 = the top decile)",
         "range": (0.0, 1.0)})
 
-    race_launches: typing.List[int] = dataclasses.field(default_factory=list, metadata={
+    race_launches: typing.List[int] = dataclasses.field(default_factory=lambda: [0], metadata={
         "description": "launches per elite in each round of the launch race that ranks designs by robust twin "
-                       "launches (counts; use multiples of the campaign's conditions); [] = rank by the screen"})
+                       "launches (counts; use multiples of the campaign's conditions); [0] = no race, rank by the "
+                       "screen"})
     race_elites: int = dataclasses.field(default=16, metadata={
         "description": "printable elites (or logged designs) with the best screen entering the launch race "
                        "(count; 0 = all)", "range": (0, 100000)})
@@ -133,8 +134,8 @@ class SelectionSettings:
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
-        if any(int(n) < 1 for n in self.race_launches):
-            raise ValueError(f"race_launches must list counts >= 1, got {self.race_launches}")
+        if list(self.race_launches) not in ([], [0]) and any(int(n) < 1 for n in self.race_launches):
+            raise ValueError(f"race_launches must list counts >= 1 (or be [0]: no race), got {self.race_launches}")
         if self.race_elites < 0 or self.race_keep < 1 or self.launch_trials < 0:
             raise ValueError("need race_elites >= 0, race_keep >= 1 and launch_trials >= 0")
         if not 1 <= self.count <= len(string.ascii_uppercase):
@@ -147,6 +148,11 @@ class SelectionSettings:
             raise ValueError(f"top_fraction must be in (0, 1], got {self.top_fraction}")
         if self.mesh_units not in geometry.MESH_UNITS:
             raise ValueError(f"mesh_units must be one of {', '.join(geometry.MESH_UNITS)}, got {self.mesh_units!r}")
+
+    @property
+    def race_rounds(self):
+        """Launches per design in each round of the launch race; [] without a race."""
+        return [] if list(self.race_launches) in ([], [0]) else [int(n) for n in self.race_launches]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -323,12 +329,12 @@ def select_designs(candidates, grid, printer, settings, evaluate_batch=None, run
     settings.validate()
     if settings.reevaluate_trials and evaluate_batch is None:
         raise ValueError("reevaluate_trials > 0 needs an evaluator")
-    if (settings.race_launches or settings.launch_trials) and launch_batch is None:
+    if (settings.race_rounds or settings.launch_trials) and launch_batch is None:
         raise ValueError("race_launches or launch_trials > 0 need a launch evaluator")
     pooled = [d for d in pool_candidates(candidates) if not geometry.is_baseline(d.heights)]
     ranked = sorted(pooled, key=lambda d: (-d.wilson_low, -d.fitness, d.first_generation))
     chosen, rejected, race, meshes, reasons = [], {}, None, {}, {}
-    if settings.race_launches:
+    if settings.race_rounds:
         for index, design in enumerate(ranked):
             if settings.race_elites and len(meshes) == settings.race_elites:
                 break
@@ -414,7 +420,7 @@ def select_from_archive(archive, candidates, grid, printer, settings, evaluate_b
     settings.validate()
     if settings.reevaluate_trials and evaluate_batch is None:
         raise ValueError("reevaluate_trials > 0 needs an evaluator")
-    if (settings.race_launches or settings.launch_trials) and launch_batch is None:
+    if (settings.race_rounds or settings.launch_trials) and launch_batch is None:
         raise ValueError("race_launches or launch_trials > 0 need a launch evaluator")
     elites = [e for e in archive["elites"] if not geometry.is_baseline(e["heights"])]
     if not elites:
@@ -445,7 +451,7 @@ def select_from_archive(archive, candidates, grid, printer, settings, evaluate_b
         return (f"{elite['max_height_mm']:.0f} mm tall, sharpness {elite['sharpness_deg']:.0f} deg, cell "
                 f"{tuple(elite['cell'])}")
 
-    if settings.race_launches:
+    if settings.race_rounds:
         meshes = {}
         for index in sorted(range(len(elites)), key=by_screen):
             mesh, problem = _printable_mesh(designs[index].heights, grid, printer)
@@ -531,7 +537,7 @@ def _launch_race(designs, entrants, settings, launch_batch, run_seed, n_variable
         heights = [np.zeros(n_variables) if i == BASELINE else designs[i].heights for i in ids]
         return [(int(r[0]), int(r[1])) for r in launch_batch(heights, seed, trials)]
 
-    rounds = [int(n) for n in settings.race_launches]
+    rounds = settings.race_rounds
     seeds = [derive_seed(run_seed, RACE_SEED_KEY + r, STREAM_SELECTION) for r in range(len(rounds))]
     return racing.race(entrants, evaluate, rounds, seeds, keep_fraction=0.5, min_keep=settings.race_keep,
                        reference=BASELINE)

@@ -232,6 +232,9 @@ def _design_map(data):
         folder = os.path.dirname(designs_yaml)
         archive = os.path.join(folder, design_map.ARCHIVE_FILENAME)
         traits = os.path.join(folder, design_map.TRAITS_FILENAME)
+        sensitivity = os.path.join(folder, SENSITIVITY_FILENAME)
+        if os.path.isfile(sensitivity):
+            data.notes.extend(_sensitivity_lines(sensitivity))
         if os.path.isfile(archive):
             data.archive_rows = design_map.read_archive(archive)
             data.trait_rows = design_map.read_traits(traits) if os.path.isfile(traits) else []
@@ -239,6 +242,23 @@ def _design_map(data):
                               for name in sorted(os.listdir(folder))
                               if name.startswith("mesh_") and name.endswith(".stl")}
         return
+
+
+#: A sensitivity table (``rollability sensitivity --designs-file .../designs.yaml --out <designs folder>``) next
+#: to the designs: the report gives each design minus the bare chassis per unknown factor.
+SENSITIVITY_FILENAME = "sensitivity.csv"
+
+
+def _sensitivity_lines(path):
+    """The summary lines of a ``sensitivity.csv`` (:func:`~rollability_ros.core.sim.sensitivity.gain_lines`);
+    ``ValueError`` naming the file when it is unusable."""
+    from rollability_ros.core.results.sensitivity_table import gain_lines
+
+    try:
+        with open(path, newline="", encoding="utf-8") as stream:
+            return gain_lines(list(csv.DictReader(stream)))
+    except (OSError, KeyError, ValueError, csv.Error) as exc:
+        raise ValueError(f"{path}: unusable sensitivity table: {exc!r}") from None
 
 
 def _engine_rows(folders):

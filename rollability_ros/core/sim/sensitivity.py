@@ -66,3 +66,4 @@ def sensitivity_rows(profiles, settings, trials, seed, executor=None, levels=Non
             if on_row is not None:
                 on_row(row)
     return rows
+

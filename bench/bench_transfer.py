@@ -1,0 +1,152 @@
+"""Do the main job's designs work where the rig measures them? The quick default study over several optimizer seeds.
+
+    nice python bench/bench_transfer.py [--seeds 1 2 3] [--sensitivity-trials 60] [--out transfer-bench]
+                                        [--config FILE ...]
+
+For each seed: ``rollability study`` (the node graph, quick default, all simulated) with ``optimizer.seed`` set to
+it (any ``--config`` files are added, e.g. ``paper``), timed; then, from the study's stores and files:
+
+- the launch campaign on the twin: each configuration's upright trials, and design minus baseline with Newcombe's
+  95% interval (the issue's target: A at least +0.25 with the interval above 0, no design below the baseline);
+- the selection's gain over the bare robot on fresh robust twin launches (Table 3);
+- the transfer evidence of the report: screen fitness vs the launch race's first round over the raced elites
+  (Spearman rho, permutation p);
+- the robust sensitivity row (``core/sim/sensitivity.py``: every disturbance trial under its own draw of all the
+  unknowns; ``--sensitivity-trials`` each, seed 0): A and the bare chassis, A minus bare (Newcombe 95%);
+- the study's wall time (set-up excluded; the machine's load is printed with it).
+
+Then the same over seeds: how many seeds meet each target and the pooled campaign gain of A. All numbers are
+simulated. Every study stays in ``--out/seed-<n>/`` for inspection.
+"""
+import argparse
+import csv
+import os
+import subprocess
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+import yaml  # noqa: E402
+
+from rollability_ros.core.results import design_map  # noqa: E402
+from rollability_ros.core.results.stats import newcombe_interval  # noqa: E402
+from rollability_ros.core.results.store import Store  # noqa: E402
+
+
+def run_study(out, seed, configs):
+    """Run one study with ``optimizer.seed`` = ``seed``; return (study dir, wall time s, load average at the end)."""
+    os.makedirs(out, exist_ok=True)
+    seed_file = os.path.join(out, f"seed-{seed}.yaml")
+    with open(seed_file, "w", encoding="utf-8") as stream:
+        yaml.safe_dump({"/**": {"ros__parameters": {"optimizer": {"seed": seed}}}}, stream)
+    study_id = f"seed-{seed}"
+    command = [sys.executable, "-m", "rollability_ros.cli", "study", "--study-id", study_id]
+    for config in [*configs, seed_file]:
+        command += ["--config", config]
+    started = time.perf_counter()
+    with open(os.path.join(out, f"{study_id}.log"), "w", encoding="utf-8") as log:
+        code = subprocess.call(command, cwd=out, stdout=log, stderr=subprocess.STDOUT)
+    elapsed = time.perf_counter() - started
+    if code != 0:
+        raise SystemExit(f"study {study_id} failed (exit {code}); see {out}/{study_id}.log")
+    return os.path.join(out, "runs", study_id), elapsed, os.getloadavg()[0]
+
+
+def campaign_counts(study_dir, study_id):
+    """{configuration: (upright valid trials, valid trials)} of the study's campaign."""
+    counts = {}
+    with Store(os.path.join(study_dir, "outcomes.sqlite")) as store:
+        for outcome in store.launch_outcomes(run_id=study_id):
+            if not outcome.valid:
+                continue
+            upright, trials = counts.get(outcome.condition.configuration, (0, 0))
+            counts[outcome.condition.configuration] = (upright + int(outcome.upright), trials + 1)
+    return counts
+
+
+def table3(study_dir):
+    with open(os.path.join(study_dir, "optimization", "designs", "table3.csv"), newline="") as stream:
+        return list(csv.DictReader(stream))
+
+
+def robust_row(study_dir, trials):
+    """{configuration: (successes, trials)} of the robust sensitivity row for the bare chassis and the designs."""
+    from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
+    from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.sim.sensitivity import sensitivity_rows
+
+    designs_file = os.path.join(study_dir, "optimization", "designs", "designs.yaml")
+    sources = DesignSources(designs_file=designs_file)
+    profiles = {"baseline": None}
+    profiles.update({label: profile_mesh_for(label, sources) for label in configuration_ids(sources)
+                     if label != "baseline"})
+    settings = evaluation.load_settings(["sim", "robot", "evaluator"])
+    with evaluation.make_executor(settings.evaluator) as executor:
+        rows = sensitivity_rows(profiles, settings, trials, 0, executor, levels={"disturbance_scale": (1.0,)})
+    return {r["configuration"]: (r["successes"], r["trials"]) for r in rows if r["factor"] == "robust"}
+
+
+def gain_text(a, b):
+    difference, low, high = newcombe_interval(*a, *b)
+    return f"{a[0]}/{a[1]} vs {b[0]}/{b[1]}: {difference:+.2f} [{low:+.2f}, {high:+.2f}]", difference, low
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    parser.add_argument("--sensitivity-trials", type=int, default=60)
+    parser.add_argument("--out", default="transfer-bench")
+    parser.add_argument("--config", action="append", default=[], help="extra study parameter file(s)")
+    args = parser.parse_args()
+    out = os.path.abspath(args.out)
+    summary = []
+    for seed in args.seeds:
+        study_dir, elapsed, load = run_study(out, seed, args.config)
+        study_id = os.path.basename(study_dir)
+        counts = campaign_counts(study_dir, study_id)
+        base = counts["baseline"]
+        print(f"\nseed {seed}: study {elapsed / 60:.1f} min wall (load average {load:.1f} at the end; 2 shared "
+              f"cores), {study_dir}", flush=True)
+        print(f"  campaign on the twin (simulated), upright / valid launches; design minus baseline, Newcombe 95%:")
+        print(f"    baseline {base[0]}/{base[1]}")
+        gains = {}
+        for label in sorted(c for c in counts if c != "baseline"):
+            text, difference, low = gain_text(counts[label], base)
+            gains[label] = (difference, low)
+            print(f"    {label:<8} {text}")
+        for row in table3(study_dir)[1:]:
+            if row.get("gain_source"):
+                print(f"  selection ({row['gain_source']}): {row['configuration']} {float(row['gain']):+.2f} "
+                      f"[{float(row['gain_low']):+.2f}, {float(row['gain_high']):+.2f}] beats_baseline "
+                      f"{row['beats_baseline']}")
+        archive = os.path.join(study_dir, "optimization", "designs", design_map.ARCHIVE_FILENAME)
+        evidence = design_map.transfer(design_map.read_archive(archive)) if os.path.isfile(archive) else None
+        if evidence is not None:
+            print(f"  transfer: screen vs race round 1 over {evidence[2]} elites: Spearman rho {evidence[0]:+.2f}, "
+                  f"permutation p {evidence[1]:.3f}")
+        robust = robust_row(study_dir, args.sensitivity_trials)
+        robust_text, robust_gain, robust_low = gain_text(robust["A"], robust["baseline"]) if "A" in robust else \
+            ("no design A", float("nan"), float("nan"))
+        print(f"  robust sensitivity row ({args.sensitivity_trials} trials): A minus bare {robust_text}", flush=True)
+        summary.append({"seed": seed, "minutes": elapsed / 60, "a_gain": gains.get("A", (float("nan"),) * 2),
+                        "lowest": min((g[0] for g in gains.values()), default=float("nan")),
+                        "a_counts": counts.get("A", (0, 0)), "base": base, "robust": (robust_gain, robust_low)})
+    print("\nover seeds (simulated; targets: A - baseline >= +0.25 with the interval above 0, no design below the "
+          "baseline, robust row A above bare with the interval above 0, about 5 min):")
+    print(f"{'seed':>5} {'A - base':>9} {'low':>6} {'lowest design':>14} {'robust A-bare':>14} {'low':>6} {'min':>5}")
+    for row in summary:
+        print(f"{row['seed']:>5} {row['a_gain'][0]:>+9.2f} {row['a_gain'][1]:>+6.2f} {row['lowest']:>+14.2f} "
+              f"{row['robust'][0]:>+14.2f} {row['robust'][1]:>+6.2f} {row['minutes']:>5.1f}")
+    met = sum(r["a_gain"][0] >= 0.25 and r["a_gain"][1] > 0 for r in summary)
+    pooled_a = (sum(r["a_counts"][0] for r in summary), sum(r["a_counts"][1] for r in summary))
+    pooled_base = (sum(r["base"][0] for r in summary), sum(r["base"][1] for r in summary))
+    print(f"A's campaign target met in {met} of {len(summary)} seeds; pooled A minus baseline "
+          f"{gain_text(pooled_a, pooled_base)[0]}; designs below the baseline (point estimate) in "
+          f"{sum(r['lowest'] < 0 for r in summary)} seeds; robust row A above bare with interval above 0 in "
+          f"{sum(r['robust'][1] > 0 for r in summary)} seeds")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -874,8 +874,9 @@ class _BulletLaunchWorld(LaunchWorld):
 
     def touching(self):
         contacts, client = self._pybullet.getContactPoints, self._client
-        return (bool(contacts(bodyA=self._body, bodyB=self._foam, physicsClientId=client)),
-                bool(contacts(bodyA=self._body, bodyB=self._floor, physicsClientId=client)))
+        if contacts(bodyA=self._body, bodyB=self._foam, physicsClientId=client):
+            return True, False   # the tracker reads the floor only when the foam is not touched
+        return False, bool(contacts(bodyA=self._body, bodyB=self._floor, physicsClientId=client))
 
     def step(self):
         self._robot.before_step()

@@ -221,6 +221,8 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         return self.data.qvel[0:3].tolist()
 
     def touching(self):
+        if not self.data.ncon:   # in flight
+            return False, False
         contact, robot, foam = self.data.contact, self._robot_geom_set, self.settings.twin.foam
         on_foam = on_floor = False
         for a, b, (x, y, _) in zip(contact.geom1.tolist(), contact.geom2.tolist(), contact.pos.tolist()):

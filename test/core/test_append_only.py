@@ -142,3 +142,24 @@ def test_a_refused_command_writes_nothing(tmp_path, argv, reason):
     assert reason in result.stderr and len(result.stderr.strip().splitlines()) == 1, result.stderr
     assert "Traceback" not in result.stderr
     assert tree_checksums(tmp_path) == before                 # nothing new, nothing changed
+
+
+def test_a_run_resumed_from_a_copied_folder_keeps_its_settings_but_not_its_old_location(tmp_path):
+    """A copied study resumes its optimization with optimizer.output_dir naming the new folder: the location is
+    not a setting of the run (was: "configuration differs ... optimizer.output_dir"); a real change is refused."""
+    from rollability_ros.core.config import ConfigError
+
+    parameters = {"optimizer.max_generations": 3, "optimizer.seed": 5, "optimizer.trials": 20,
+                  "optimizer.output_dir": str(tmp_path / "first"), "profile.rows": 3, "profile.cols": 3}
+    evaluator = SyntheticEvaluator(np.linspace(0.1, 0.4, GRID.n_variables), 20)
+    run = OptimizationRun(str(tmp_path / "first" / "optimization"), parameters, GRID, evaluator)
+    run.run()
+    run.close()
+    shutil.copytree(tmp_path / "first", tmp_path / "copy")
+    moved = {**parameters, "optimizer.output_dir": str(tmp_path / "copy")}
+    resumed = OptimizationRun(str(tmp_path / "copy" / "optimization"), moved, GRID, evaluator, resume=True)
+    assert resumed.optimizer.generation == 3 and resumed.run_id == "optimization"
+    resumed.close()
+    with pytest.raises(ConfigError, match="optimizer.trials"):
+        OptimizationRun(str(tmp_path / "copy" / "optimization"), {**moved, "optimizer.trials": 30}, GRID, evaluator,
+                        resume=True)

@@ -61,6 +61,8 @@ from rollability_ros.core.results.store import Store
 
 #: File name of the merged parameters inside a run directory.
 RUN_CONFIG_FILENAME = "config.yaml"
+#: The parameter naming the folder runs are kept in (not a setting of the run itself).
+OUTPUT_DIR_PARAMETER = "optimizer.output_dir"
 #: ``kind`` of optimization runs in the store's run table.
 RUN_KIND = "optimization"
 #: Parameter files every optimization config is loaded on top of (the evaluator's settings).
@@ -357,6 +359,10 @@ class OptimizationRun:
 
     def _resume(self):
         saved = read_run_config(self.run_dir)
+        # where the run lives is not how it computes: a run (or a study) resumed from a copied or renamed folder, or
+        # named by another path to the same folder, keeps its saved output_dir and is compared on the rest
+        if OUTPUT_DIR_PARAMETER in saved:
+            self.parameters[OUTPUT_DIR_PARAMETER] = saved[OUTPUT_DIR_PARAMETER]
         differences = checkpoints.parameter_differences(saved, self.parameters)
         if differences:
             raise ConfigError(f"cannot resume run {self.run_id}: the configuration differs from its "

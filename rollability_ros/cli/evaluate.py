@@ -128,6 +128,10 @@ def _compare_designs(args, settings, trials):
 
     engines = _engine_list(args.engines)
     sources = DesignSources(designs_file=args.designs)
+    table = os.path.join(os.path.dirname(os.path.abspath(args.designs)), engine_agreement.TABLE_FILENAME)
+    if os.path.lexists(table):   # before minutes of trials: an earlier comparison is a result, never overwritten
+        raise ValueError(f"{table} already holds an earlier engine comparison of these designs; move it aside to "
+                         "keep it, then run again")
     results = {}
     executor = evaluation.make_executor(settings.evaluator, args.workers)   # one worker pool for every evaluation
     try:
@@ -142,8 +146,7 @@ def _compare_designs(args, settings, trials):
     finally:
         executor.close()
     rows = engine_agreement.table_rows(results, args.seed)
-    path = engine_agreement.write_table(
-        os.path.join(os.path.dirname(os.path.abspath(args.designs)), engine_agreement.TABLE_FILENAME), rows)
+    path = engine_agreement.write_table(table, rows)
     print("\n".join(engine_agreement.summary_lines(rows)))
     print(f"wrote {path} (rollability report shows it)")
     return 0

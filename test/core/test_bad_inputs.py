@@ -127,3 +127,20 @@ def test_the_player_refuses_what_it_cannot_play(workspace, argv, reason):
     errors = [line for line in result.stderr.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and reason in errors[0] and "Traceback" not in result.stderr, result.stderr
     assert tree_checksums(workspace) == before
+
+
+def test_an_engine_comparison_never_overwrites_an_earlier_one(tmp_path, monkeypatch, capsys):
+    """`evaluate --designs ... --engines` writes engine_agreement.csv beside the designs; a second comparison is
+    refused before its trials instead of replacing the first table."""
+    import yaml
+
+    designs = tmp_path / "designs.yaml"
+    designs.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"designs": {
+        "labels": ["A"], "grid": {"rows": 3, "cols": 3}, "A": {"heights": [0.2] * 6}}}}}))
+    (tmp_path / "engine_agreement.csv").write_text("design,engine\nA,pybullet\n")
+    before = tree_checksums(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert main(["evaluate", "--designs", "designs.yaml", "--engines", "pybullet,mujoco", "--trials", "2"]) == 2
+    error = capsys.readouterr().err
+    assert "already holds an earlier engine comparison" in error and len(error.strip().splitlines()) == 1
+    assert tree_checksums(tmp_path) == before

@@ -32,7 +32,9 @@ Contact values (MuJoCo takes the larger of two geoms' friction; ``config/sim.yam
     (Bullet's ``a.rolling b.friction + b.rolling a.friction``; the wheels get the body's value here), and a
     direct spring-damper (``solref`` = -stiffness / m, -damping / m with m the robot's mass: Bullet's per-contact
     N/m and N s/m as an acceleration per metre of one contact carrying the whole robot), at least critically
-    damped (a lighter damping left a landed chassis rocking for ever, as in the MuJoCo trials).
+    damped (a lighter damping left a landed chassis rocking for ever, as in the MuJoCo trials) and at most as
+    stiff as MuJoCo's soft contacts stay stable at the step (:data:`FOAM_MAX_OMEGA_DT`; stiffer foams, e.g. a
+    robustness draw's, act as that one). A launch that still goes unstable raises ``RuntimeError``.
     Plate: friction 0.3 x the robot's ``lateral_friction`` (Bullet's product), the trials' contact spring.
 Not represented (known differences, measured by ``rollability evaluate --engines`` and ``bench/bench_engines.py``)
     restitution (as in the MuJoCo trials: contacts are critically damped springs; the foam's is as configured),
@@ -66,6 +68,10 @@ PLATE_FRICTION = 0.3
 #: was compressed by the plate's ramp and threw the robot off the plate faster than the launch speed.
 PLATE_TIME_CONSTANT_STEPS = 2
 PLATE_DAMPING_RATIO = 3.0
+#: Stiffest foam spring per unit robot mass the MuJoCo twin takes, as natural frequency x step (the shipped foam
+#: on the bare chassis: 0.56, stable over 2,000 launches; 400 robust launches at 2-3 x that foam, capped here,
+#: stable; 0.76 uncapped went unstable).
+FOAM_MAX_OMEGA_DT = 0.6
 #: Collision bits: the robot touches everything, the plate only the robot, the static world only the robot.
 ROBOT_BITS, PLATE_BITS, STATIC_BITS = (1, 3), (2, 2), (4, 1)
 #: Compiled twins kept per process (a generation's candidates in turn; each holds one model).
@@ -153,6 +159,8 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         self.energy = MujocoEnergyMonitor(
             self, settings.trial.early_decision_margin_m, sink_m=foam_sink_m(settings, self.mass_kg),
             ground_z_m=options.foam.thickness_m) if settings.trial.early_decision and not compliant else None
+        self._energy_foam, self._energy_com_offset_z_m = options.foam, settings.robot.com_offset_z_m
+        self._energy_valid = True
 
     def _set_contacts(self):
         """The wheels' and the foam's contact values (module docstring) on the compiled model."""
@@ -163,6 +171,8 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         data.qpos[0:7] = [0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0]
         self.mujoco.mj_forward(model, data)
         root_rotation = data.xmat[self.root].reshape(3, 3)
+        for geom in self.robot_geoms:   # the robot-ground values of sim.contact_model (robot_spec's, redone per draw)
+            model.geom_friction[geom] = [lateral, spinning, rolling]
         mecanum = mecanum_wheels(self.settings)
         for body, geoms in self.wheel_geoms.items():
             left = float((data.xpos[body] - data.xpos[self.root]) @ root_rotation[:, 1]) >= 0.0
@@ -181,12 +191,33 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         model.geom_friction[self.foam_geom] = [
             physics.lateral_friction * foam.lateral_friction, spinning,
             body["rollingFriction"] * foam.lateral_friction + foam.rolling_friction * physics.lateral_friction]
-        stiffness = foam.contact_stiffness_npm / self.mass_kg
+        # MuJoCo's soft contacts go unstable on a stiff spring at this step (a robustness draw of 2 x the shipped
+        # foam blew up at omega dt = 0.76): the spring is capped at omega dt = FOAM_MAX_OMEGA_DT
+        stiffness = min(foam.contact_stiffness_npm / self.mass_kg, (FOAM_MAX_OMEGA_DT / physics.time_step_s) ** 2)
         # at least critically damped: the configured 150 N s/m (damping ratio 0.48 on the chassis) left a landed
         # chassis rocking on the foam in a limit cycle at 1/240 s that never passed the rest rule
         model.geom_solref[self.foam_geom] = [-stiffness, -max(foam.contact_damping_nspm / self.mass_kg,
                                                               2 * math.sqrt(stiffness))]
         model.geom_solimp[self.foam_geom] = [0.99, 0.99, 0.001, 0.5, 2.0]
+
+    def retarget(self, settings):
+        """Take a robustness draw's ``settings`` (:mod:`~rollability_ros.core.sim.robustness`) without a new
+        model: the contact reading (``sim.contact_model``) and the foam's stiffness, damping and restitution go into
+        the compiled model's contact values, the chassis's drawn centre-of-mass height moves the base body's centre
+        of mass (the chassis's share of the fused base; its inertia about the centre of mass kept), and the
+        disturbance fields do not touch a launch. The early decision is off for a launch whose centre of mass or
+        foam differs from the ones its barriers were built for (they depend on both)."""
+        if settings == self.settings:
+            return
+        old = self.settings
+        if not settings.urdf_robot.selected and settings.robot.com_offset_z_m != old.robot.com_offset_z_m:
+            share = settings.robot.body_mass_kg / float(self.model.body_mass[self.root])
+            self.model.body_ipos[self.root][2] += (settings.robot.com_offset_z_m - old.robot.com_offset_z_m) * share
+            self.mujoco.mj_setConst(self.model, self.data)   # the constants compiled from the mass properties
+        self.settings, self.physics = settings, settings.physics
+        self._set_contacts()
+        self._energy_valid = (self.settings.twin.foam == self._energy_foam and
+                              self.settings.robot.com_offset_z_m == self._energy_com_offset_z_m)
 
     # -- the placement ------------------------------------------------------------------------------------------
     def robot_points(self):
@@ -273,7 +304,7 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
 
     def decide(self, remaining_s):
         energy = self.energy
-        if energy is None:
+        if energy is None or not self._energy_valid:
             return None
         mujoco, model, data = self.mujoco, self.model, self.data
         vx, vy, vz = data.qvel[0:3].tolist()
@@ -312,7 +343,12 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         self._previous_pose, self._rest_since = None, None
         plate = self._plate = _MujocoPlate(self, options.plate, push, placement.face_x_m)
         tracker = LaunchTracker(self, lead_m, PhaseReporter(on_phase), push)
+        unstable = mujoco.mjtWarning.mjWARN_BADQACC
+        data.warning[unstable].number = 0
         steps, settled, decision = step_launch(self, plate, tracker, settings, on_pose, speed_mps)
+        if data.warning[unstable].number:
+            raise RuntimeError(f"the MuJoCo launch twin went unstable (bad accelerations, MuJoCo reset the state) "
+                               f"in {condition} with seed {seed}; foam {options.foam}")
         mujoco.mj_forward(model, data)
         self.ground_geom = self.foam_geom if tracker.went_over else self.ledge_geom
         upright, tilt = self.is_upright() if decision is None else (decision, self.tilt_deg())
@@ -374,13 +410,28 @@ _cache = collections.OrderedDict()
 
 
 def _twin_key(settings, profile):
-    return hashlib.sha256(pickle.dumps((settings, profile), protocol=4)).hexdigest()
+    """What needs a model of its own: everything but the designs list and what :meth:`MujocoLaunchTwin.retarget`
+    applies to a compiled model (a robustness draw's contact reading, foam, centre of mass, disturbance)."""
+    foam = dataclasses.replace(settings.twin.foam, contact_stiffness_npm=1.0, contact_damping_nspm=0.0,
+                               restitution=0.0)
+    trial = dataclasses.replace(settings.trial, start_roll_deg=0.0, force_min_n=0.0, force_max_n=0.0,
+                                torque_min_nm=0.0, torque_max_nm=0.0)
+    canonical = dataclasses.replace(
+        settings, twin=dataclasses.replace(settings.twin, designs=None, foam=foam), trial=trial,
+        physics=dataclasses.replace(settings.physics, contact_model="per_contact"),
+        robot=dataclasses.replace(settings.robot, com_offset_z_m=0.0))
+    return hashlib.sha256(pickle.dumps((canonical, profile), protocol=4)).hexdigest()
 
 
 def twin_for(settings, profile):
-    """The :class:`MujocoLaunchTwin` of ``settings`` and ``profile`` from this process's cache (built if new)."""
-    key = _twin_key(dataclasses.replace(settings, twin=dataclasses.replace(settings.twin, designs=None)), profile)
-    twin = _cache.pop(key, None) or MujocoLaunchTwin(settings, profile)
+    """The :class:`MujocoLaunchTwin` of ``settings`` and ``profile`` from this process's cache (built if new,
+    else retargeted to ``settings``: :meth:`MujocoLaunchTwin.retarget`)."""
+    key = _twin_key(settings, profile)
+    twin = _cache.pop(key, None)
+    if twin is None:
+        twin = MujocoLaunchTwin(settings, profile)
+    else:
+        twin.retarget(settings)
     _cache[key] = twin
     while len(_cache) > CACHE_SIZE:
         _cache.popitem(last=False)

@@ -98,22 +98,36 @@ def _resimulate(args):
 
 def _run_local(args, spec, ask):
     from rollability_ros.core.campaign.plan import plan_trials
-    from rollability_ros.core.campaign.runner import (LocalRig, record_campaign_run, report_exit_code,
+    from rollability_ros.core.campaign.runner import (LocalRig, plan_refusal, record_campaign_run, report_exit_code,
                                                       resume_refusal, run_campaign, store_writer)
     from rollability_ros.core.config import load_parameters
     from rollability_ros.core.results.store import Store
 
-    with Store(args.store) as store:
-        stored = store.trial_ids(spec.run_id)
-        refusal = resume_refusal(len(stored), args.resume, spec.run_id)
+    parameters, plan = load_parameters(args.rig_config or ["rig"]), plan_trials(spec)
+
+    def checked_rig():
+        rig = LocalRig(args.backend, parameters, ask or input)
+        refusal = plan_refusal(rig.backend, spec.run_id, plan)
         if refusal:
+            rig.close()
             raise ValueError(refusal)
-        rig = LocalRig(args.backend, load_parameters(args.rig_config or ["rig"]), ask or input)
-        try:
+        return rig
+
+    # the twin opens no port: every trial is checked before the store is made; a physical rig opens its valve, so
+    # it waits until the store has accepted the run
+    rig = None if ask else checked_rig()
+    try:
+        with Store(args.store) as store:
+            stored = store.trial_ids(spec.run_id)
+            refusal = resume_refusal(len(stored), args.resume, spec.run_id)
+            if refusal:
+                raise ValueError(refusal)
+            rig = rig or checked_rig()
             record_campaign_run(store, spec.run_id, args.backend, rig.backend.design_sources())
-            report = run_campaign(plan_trials(spec), spec.run_id, stored, lambda trial: rig.launch(spec.run_id, trial),
+            report = run_campaign(plan, spec.run_id, stored, lambda trial: rig.launch(spec.run_id, trial),
                                   store_writer(store), ask=ask)
-        finally:
+    finally:
+        if rig is not None:
             rig.close()
     return report_exit_code(report)
 

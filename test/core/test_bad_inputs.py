@@ -87,6 +87,9 @@ CASES = [
     (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--run-id", ""], ID_RULE),
     (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--run-id", "../x"], ID_RULE),
     (["campaign", "--backend", "sim", "--graph", "--store-timeout-s", "nan"], "must be finite and > 0"),
+    # the shipped campaign launches A, B, C: without designs the twin has no profile for them (was: 100 baseline
+    # launches stored, then "campaign stopped" at the first A)
+    (["campaign", "--backend", "sim", "--store", "camp.sqlite"], "campaign not started: unknown configuration 'A'"),
     (["campaign", "--backend", "sim", "--resimulate", "baseline", "nan", "1", "0", "--seed", "1"], "finite"),
     (["select", "ex", "--output-dir", "runs", "--min-distance", "nan"], "must be finite"),
     (["select", "ex", "--output-dir", "runs", "--top-fraction", "1.5"], "top_fraction must be in (0, 1]"),

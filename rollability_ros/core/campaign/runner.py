@@ -258,6 +258,23 @@ def report_exit_code(report: CampaignReport, say: typing.Callable[[str], None] =
     return 0
 
 
+def plan_refusal(backend: typing.Any, run_id: str, plan: typing.Sequence[PlannedTrial]) -> str:
+    """Why the campaign must not start ("" if every planned trial can run): the first reason the backend's
+    ``check`` gives for a trial (e.g. a configuration the launch twin has no profile for), with how many trials
+    it concerns, so a campaign does not stop a hundred launches in."""
+    reasons = {}
+    for trial in plan:
+        reason = backend.check(run_id, trial.trial_id, trial.condition)
+        if reason:
+            reasons.setdefault(reason, []).append(trial.trial_id)
+    if not reasons:
+        return ""
+    reason, trials = next(iter(reasons.items()))
+    others = sum(len(t) for t in reasons.values()) - len(trials)
+    return (f"campaign not started: {reason} ({len(trials)} planned trial(s), e.g. {trials[0]}"
+            f"{f'; {others} more with other problems' if others else ''})")
+
+
 def resume_refusal(stored_count: int, resume: bool, run_id: str) -> str:
     """Why a session must not start ("" if it may): stored trials of ``run_id`` need an explicit resume."""
     if stored_count and not resume:

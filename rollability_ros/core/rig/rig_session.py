@@ -495,8 +495,22 @@ class SimulatedLaunch(LaunchBackend):
         return self._twin
 
     def check(self, run_id: str, trial_id: str, condition: LaunchCondition) -> str:
-        """:func:`check_goal` against ``rig.configurations``; returns the reason or ""."""
-        return check_goal(run_id, trial_id, condition, self.settings.configurations)
+        """:func:`check_goal` against ``rig.configurations``, then whether the twin has a profile for the
+        configuration (its ``launch_twin.designs``); returns the reason or ""."""
+        reason = check_goal(run_id, trial_id, condition, self.settings.configurations)
+        if reason:
+            return reason
+        from rollability_ros.core.profile.designs import configuration_ids
+
+        self.load()
+        try:
+            known = configuration_ids(self._twin_settings.twin.designs)
+        except (ValueError, OSError) as exc:   # an unreadable designs file: every goal names it
+            return f"the launch twin's designs cannot be read: {exc}"
+        if condition.configuration not in known:
+            return (f"unknown configuration {condition.configuration!r}: the launch twin knows {', '.join(known)} "
+                    "(set launch_twin.designs.designs_file or mesh_labels / mesh_files)")
+        return ""
 
     def design_sources(self) -> dict:
         """The twin's ``launch_twin.designs`` (relative paths are from the working directory), made absolute."""

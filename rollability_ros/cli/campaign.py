@@ -72,9 +72,12 @@ def _resimulate(args):
     from rollability_ros.core.campaign.runner import LocalRig
     from rollability_ros.core.config import load_parameters
     from rollability_ros.core.results.records import LaunchCondition
+    from rollability_ros.core.rig.rig_session import LAUNCH_BACKENDS, launch_backend_class
 
-    if args.backend != "sim" or not args.resimulate or args.seed is None:
-        raise ValueError("--resimulate needs --backend sim and --seed (a physical launch cannot be re-run)")
+    refusal = launch_backend_class(args.backend).resimulate_refusal()
+    if refusal or not args.resimulate or args.seed is None:
+        able = " or ".join(name for name, cls in LAUNCH_BACKENDS.items() if not cls.resimulate_refusal())
+        raise ValueError(f"--resimulate needs --backend {able} and --seed" + (f" ({refusal})" if refusal else ""))
     configuration, *numbers = args.resimulate
     try:
         height_m, speed_mps, angle_deg = (float(text) for text in numbers)
@@ -82,7 +85,7 @@ def _resimulate(args):
         raise ValueError(f"--resimulate: HEIGHT_M, SPEED_MPS and ANGLE_DEG must be numbers, got {numbers}") from None
     condition = LaunchCondition(configuration, height_m, speed_mps, angle_deg)
     condition.validate()
-    rig = LocalRig("sim", load_parameters(args.rig_config or ["rig"]))
+    rig = LocalRig(args.backend, load_parameters(args.rig_config or ["rig"]))
     try:
         result = rig.backend.resimulate(condition, args.seed)
     finally:

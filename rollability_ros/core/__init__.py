@@ -1,7 +1,7 @@
 """The pure core of rollability_ros: never imports rclpy, so it runs and is tested without ROS.
 
 Subpackages by domain (a module imports from its own subpackage and from those listed before it, plus the
-shared ``config`` and ``optional`` modules at this level):
+shared ``config``, ``optional`` and ``registry`` modules at this level):
 
 - profile       profile geometry, printability, configuration ids -> solids
 - robots        the built-in chassis and URDF robots the simulation spawns

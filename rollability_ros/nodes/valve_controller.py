@@ -82,13 +82,9 @@ class ValveControllerNode(Node):
         self.create_subscription(ValveHeartbeat, "rig/heartbeat", self._on_heartbeat, 10, callback_group=reentrant)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics, callback_group=reentrant,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
-        if config.backend == "gpio":
-            self.get_logger().warning(
-                "gpio backend: the line holder process drops the line when this node dies, but if the holder dies "
-                "too (or the computer freezes) the line stays where it was; only the hardware pulse limiter of "
-                "docs/firmware.md closes the valve then"
-                + ("" if config.gpio.hardware_pulse_limiter else
-                   " -- none is declared (valve.gpio.hardware_pulse_limiter: false), so every fire is refused"))
+        warning = self.controller.startup_warning()
+        if warning:
+            self.get_logger().warning(warning)
         limits = self.controller.device_limits()
         if limits is not None and limits.max_pulse_ms < config.max_pulse_ms:
             self.get_logger().warning(f"the relay board caps pulses at {limits.max_pulse_ms} ms, below "

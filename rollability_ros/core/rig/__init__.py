@@ -4,11 +4,12 @@
 - rig_session: its two implementations (SimulatedLaunch, PhysicalLaunch), make_launch_backend; goal checks,
   phases, operator answers, IMU outcome, speed
 - valve: fail-closed valve state machine
+- valve_backend: the ValveBackend contract, its VALVE_BACKENDS table and make_valve_backend
 - valve_backends: dry-run, GPIO and serial relay backends
 - relay_protocol: the relay board's serial protocol (RVR1) and its state machine (firmware/ mirrors it)
 - gpio_line_holder: the tiny process that owns the gpio backend's line and speaks the board protocol on its pipes
 - relay_device_sim: a simulated relay board on a pseudo-terminal (own process), running that state machine
 - valve_auth: the per-session arming key and the signed valve requests (only the operator side fires)
 - rig_network: the physical rig's default ROS domain / discovery range and exposure warnings
-- speed_gate: launch speed from light-gate travel times
+- speed_gate: launch speed from light-gate travel times; the SpeedGate contract, SPEED_GATES and make_speed_gate
 """

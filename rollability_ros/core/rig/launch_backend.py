@@ -90,6 +90,16 @@ class LaunchBackend(abc.ABC):
     def close(self) -> None:
         """Release what the backend opened (valve closed, heartbeat stopped); idempotent."""
 
+    @classmethod
+    def resimulate_refusal(cls) -> str:
+        """Why this backend cannot re-run a stored launch from its seed ("" when it can; default: it cannot)."""
+        return f"a {cls.name} launch cannot be re-run (it has no twin seed)"
+
+    def resimulate(self, condition: LaunchCondition, seed: int) -> typing.Any:
+        """The launch of ``condition`` with twin ``seed`` again (the launch a stored outcome was classified from);
+        by default refused with :meth:`resimulate_refusal` as a ``ValueError``."""
+        raise ValueError(self.resimulate_refusal())
+
 
 class RigPorts(abc.ABC):
     """The world a physical launch runs in, provided by the caller; each port is opened only when a backend uses it."""

@@ -537,6 +537,11 @@ class SimulatedLaunch(LaunchBackend):
                                             on_phase=lambda phase: on_phase(phase, "launch twin"), on_pose=on_pose)
         return simulated_outcome(run_id, trial_id, condition, result, self.speed_config)
 
+    @classmethod
+    def resimulate_refusal(cls) -> str:
+        """None: a simulated launch is re-run from its seed."""
+        return ""
+
     def resimulate(self, condition: LaunchCondition, seed: int) -> typing.Any:
         """The launch twin result of one launch of ``condition`` with twin ``seed``: given a stored outcome's
         condition and ``seed`` (and these twin settings), the launch that outcome was classified from, again."""

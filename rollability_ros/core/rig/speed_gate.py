@@ -1,26 +1,28 @@
 """Launch speed validation: travel time over the launch run -> measured speed -> flagged when off target.
 
 The chassis crosses two light gates ``run_length_m`` apart (the 0.34 m run to the edge, paper 2.2); the travel
-time between them gives the measured speed. Gates: :class:`SimulatedSpeedGate` (target speed plus noise),
-:class:`GpioSpeedGate` (two libgpiod lines, kernel edge timestamps) and :class:`OperatorSpeedGate` (typed in).
-Each has ``arm(target_mps)`` (before firing), ``read_travel_time(timeout_s) -> s`` (NaN when not measured) and
-``release()``.
+time between them gives the measured speed. Gates implement :class:`SpeedGate` (``arm(target_mps)`` before firing,
+``read_travel_time(timeout_s) -> s``, NaN when not measured, and ``release()``): :class:`SimulatedSpeedGate`
+(target speed plus noise), :class:`GpioSpeedGate` (two libgpiod lines, kernel edge timestamps) and
+:class:`OperatorSpeedGate` (typed in), listed in :data:`SPEED_GATES`; :func:`make_speed_gate` is the only place
+that looks at ``speed_gate.backend``. Adding a gate: one module with a ``SpeedGate`` subclass (and its
+``from_config``) plus one ``"name": "package.module:Class"`` line in :data:`SPEED_GATES`.
 """
+import abc
 import dataclasses
 import datetime
 import logging
 import math
 import random
 import time
+import typing
 
 from rollability_ros.core.optional import require
+from rollability_ros.core.registry import Registry
 from rollability_ros.core.results.records import NOT_MEASURED
 from rollability_ros.core.rig.valve_backends import gpio_chip_path
 
 _LOG = logging.getLogger(__name__)
-
-#: ``SpeedGateConfig.backend`` values.
-BACKENDS = ("simulated", "gpio", "operator")
 
 
 def _positive(name, value):
@@ -72,7 +74,27 @@ def measure(target_mps, travel_time_s, run_length_m, tolerance):
     return SpeedMeasurement(travel_time_s, speed_mps, check_speed(target_mps, speed_mps, tolerance))
 
 
-class SimulatedSpeedGate:
+class SpeedGate(abc.ABC):
+    """One source of launch travel times (the contract the physical launch calls)."""
+
+    @classmethod
+    @abc.abstractmethod
+    def from_config(cls, config: "SpeedGateConfig", ask: typing.Callable[[str], str]) -> "SpeedGate":
+        """The gate for ``config`` (:class:`SpeedGateConfig`); ``ask(prompt) -> str`` reaches the operator."""
+
+    @abc.abstractmethod
+    def arm(self, target_mps: float) -> None:
+        """Prepare for a launch at ``target_mps`` (m/s), before the valve fires."""
+
+    @abc.abstractmethod
+    def read_travel_time(self, timeout_s: float) -> float:
+        """The travel time over the run of the armed launch, s; NaN when not measured within ``timeout_s`` (s)."""
+
+    def release(self) -> None:
+        """Free what the gate holds (default: nothing)."""
+
+
+class SimulatedSpeedGate(SpeedGate):
     """Edge times of a chassis launched at the target speed times ``1 + N(0, speed_noise_fraction)``."""
 
     def __init__(self, run_length_m, speed_noise_fraction=0.0, seed=0, clock=time.monotonic):
@@ -84,6 +106,11 @@ class SimulatedSpeedGate:
         self._random = random.Random(seed)
         self._clock = clock
         self._target_mps = None
+
+    @classmethod
+    def from_config(cls, config, ask):
+        """Noise and seed from ``speed_gate.simulated.*``."""
+        return cls(config.run_length_m, config.simulated.speed_noise_fraction, config.simulated.seed)
 
     def arm(self, target_mps):
         """Prepare for a launch at ``target_mps`` (m/s)."""
@@ -105,9 +132,6 @@ class SimulatedSpeedGate:
         travel_time_s = end_s - start_s
         return travel_time_s if travel_time_s <= timeout_s else NOT_MEASURED
 
-    def release(self):
-        """Nothing to free."""
-
 
 def _check_gate_lines(start_line_offset, end_line_offset, edge, debounce_ms):
     if start_line_offset == end_line_offset or min(start_line_offset, end_line_offset) < 0:
@@ -119,7 +143,7 @@ def _check_gate_lines(start_line_offset, end_line_offset, edge, debounce_ms):
         raise ValueError(f"debounce_ms must be >= 0, got {debounce_ms}")
 
 
-class GpioSpeedGate:
+class GpioSpeedGate(SpeedGate):
     """Two light gates on GPIO input lines; the travel time comes from the kernel's edge-event timestamps.
 
     Parameters
@@ -144,6 +168,12 @@ class GpioSpeedGate:
         self.debounce_ms = debounce_ms
         self.consumer = consumer
         self._request = None
+
+    @classmethod
+    def from_config(cls, config, ask):
+        """The lines of ``speed_gate.gpio.*``."""
+        g = config.gpio
+        return cls(g.chip, g.start_line_offset, g.end_line_offset, g.edge, g.debounce_ms)
 
     def open(self):
         """Request both lines as inputs with edge detection and monotonic event timestamps."""
@@ -206,7 +236,7 @@ def parse_travel_time(text):
     return value
 
 
-class OperatorSpeedGate:
+class OperatorSpeedGate(SpeedGate):
     """The operator times the run (stopwatch, video) and types the travel time in.
 
     ``ask(prompt) -> str`` is the terminal's ``input`` or a service-backed equivalent; invalid answers are
@@ -217,6 +247,11 @@ class OperatorSpeedGate:
         self._ask = ask
         self.run_length_m = run_length_m
         self._target_mps = None
+
+    @classmethod
+    def from_config(cls, config, ask):
+        """Asks through ``ask``."""
+        return cls(ask, config.run_length_m)
 
     def arm(self, target_mps):
         """Remember the target to show the expected time in the prompt."""
@@ -234,8 +269,13 @@ class OperatorSpeedGate:
             except ValueError as exc:
                 prompt = f"{exc}; try again: "
 
-    def release(self):
-        """Nothing to free."""
+
+#: ``speed_gate.backend`` -> its :class:`SpeedGate` (a class, or ``"module:Class"`` imported when chosen).
+SPEED_GATES = Registry("backend", SpeedGate, {
+    "simulated": SimulatedSpeedGate,
+    "gpio": GpioSpeedGate,
+    "operator": OperatorSpeedGate,
+})
 
 
 @dataclasses.dataclass
@@ -288,8 +328,7 @@ class SpeedGateConfig:
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
-        if self.backend not in BACKENDS:
-            raise ValueError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
+        SPEED_GATES.check(self.backend)
         if not self.run_length_m > 0 or not self.timeout_s > 0:
             raise ValueError("run_length_m and timeout_s must be > 0")
         if not 0 < self.tolerance_fraction < 1:
@@ -304,12 +343,6 @@ class SpeedGateConfig:
 
 
 def make_speed_gate(config, ask=input):
-    """Build the gate named by a :class:`SpeedGateConfig`; ``ask`` is used by the operator gate only."""
-    if config.backend == "simulated":
-        return SimulatedSpeedGate(config.run_length_m, config.simulated.speed_noise_fraction, config.simulated.seed)
-    if config.backend == "gpio":
-        g = config.gpio
-        return GpioSpeedGate(g.chip, g.start_line_offset, g.end_line_offset, g.edge, g.debounce_ms)
-    if config.backend == "operator":
-        return OperatorSpeedGate(ask, config.run_length_m)
-    raise ValueError(f"unknown speed gate backend {config.backend!r}")
+    """Build the gate ``config.backend`` names (a :class:`SpeedGateConfig`); ``ask`` reaches the operator (the
+    operator gate asks through it). The only place that looks at the name."""
+    return SPEED_GATES.get(config.backend).from_config(config, ask)

@@ -15,8 +15,8 @@ board reports on its own reach :meth:`ValveController.device_fault`. See docs/va
 
 Thread model: ``fire()`` blocks for the pulse without holding the controller's lock, so ``estop()``,
 ``check_watchdog()`` and ``disarm()`` from other threads cut a running pulse at once. Every backend call runs on the
-controller's own backend thread and is bounded (the backend's ``call_timeout_s``, else
-:data:`DEFAULT_CALL_TIMEOUT_S`): a call that does not return in time latches a fault and later calls are refused at
+controller's own backend thread and is bounded (the backend's ``call_timeout_s``, by default
+:data:`~rollability_ros.core.rig.valve_backend.DEFAULT_CALL_TIMEOUT_S`): a call that does not return in time latches a fault and later calls are refused at
 once until it returns (the valve is then driven closed again), so the lock is never held longer than one bound.
 ``heartbeat()`` takes no lock and ``health()`` waits for it at most :data:`HEALTH_LOCK_WAIT_S`, so a stuck serial
 call cannot silence the node's state and diagnostics (issue 30).
@@ -28,13 +28,9 @@ import queue
 import threading
 import time
 
+from rollability_ros.core.rig.valve_backend import VALVE_BACKENDS, ValveBackend
+
 _LOG = logging.getLogger(__name__)
-
-#: ``ValveConfig.backend`` values (the ``backend`` field of ``msg/ValveState.msg``).
-BACKENDS = ("dry_run", "gpio", "serial_relay")
-
-#: Longest one backend call may take when the backend declares no ``call_timeout_s``, s.
-DEFAULT_CALL_TIMEOUT_S = 2.0
 
 #: Longest :meth:`ValveController.health` waits for the controller's lock before it reports the last state, s.
 HEALTH_LOCK_WAIT_S = 0.05
@@ -140,9 +136,9 @@ class ValveController:
 
     Parameters
     ----------
-    backend : valve backend
-        Object with ``name``, ``open()``, ``open_valve()``, ``close_valve()``, ``release()``
-        (see :mod:`rollability_ros.core.rig.valve_backends`).
+    backend : ValveBackend
+        The driver (:class:`~rollability_ros.core.rig.valve_backend.ValveBackend`); its optional methods are
+        called unconditionally (their defaults do nothing).
     max_pulse_ms : int
         Longest pulse ever fired, ms; longer requests are refused.
     watchdog_ms : int
@@ -160,6 +156,8 @@ class ValveController:
             raise ValueError(f"max_pulse_ms must be a positive number, got {max_pulse_ms!r}")
         if not isinstance(watchdog_ms, (int, float)) or not 0 < watchdog_ms < math.inf:
             raise ValueError(f"watchdog_ms must be a positive number, got {watchdog_ms!r}")
+        if not isinstance(backend, ValveBackend):
+            raise TypeError(f"backend must be a ValveBackend, got {type(backend).__name__}")
         self._backend = backend
         self.max_pulse_ms = max_pulse_ms
         self.watchdog_ms = watchdog_ms
@@ -180,10 +178,8 @@ class ValveController:
         self._watchdog_stop = None
         self._stall_reported = False
         self._last_status = None
-        self._caller = _BackendCaller(getattr(backend, "call_timeout_s", DEFAULT_CALL_TIMEOUT_S),
-                                      self._backend_returned)
-        if hasattr(backend, "set_fault_listener"):
-            backend.set_fault_listener(self.device_fault)
+        self._caller = _BackendCaller(backend.call_timeout_s, self._backend_returned)
+        backend.set_fault_listener(self.device_fault)
         with self._lock:
             self._drive_closed()
             self._emit("started")
@@ -191,24 +187,28 @@ class ValveController:
     # ------------------------------------------------------------------ state
     def device_limits(self):
         """The device's own limits (``relay_protocol.DeviceLimits``) when the backend reports them, else None."""
-        return getattr(self._backend, "limits", None)
+        return self._backend.limits
+
+    def startup_warning(self):
+        """The backend's start-up warning for the operator ("" when it has none)."""
+        return self._backend.startup_warning()
 
     def status(self):
         """Return the current :class:`ValveStatus`."""
         with self._lock:
             return ValveStatus(
                 armed=self._armed, open=self._open, fault=bool(self._fault_reason), fault_reason=self._fault_reason,
-                backend=getattr(self._backend, "name", type(self._backend).__name__),
+                backend=self._backend.name,
                 last_pulse_ms=int(self._last_pulse_ms), pulses=self._pulses,
             )
 
-    def _call(self, name, *args, timeout_s=None):
-        """Call the backend's method ``name`` on the backend thread, bounded in time (see :class:`_BackendCaller`)."""
-        return self._caller.call(name, getattr(self._backend, name), *args, timeout_s=timeout_s)
+    def _call(self, method, *args, timeout_s=None):
+        """Call the bound backend ``method`` on the backend thread, bounded in time (see :class:`_BackendCaller`)."""
+        return self._caller.call(method.__name__, method, *args, timeout_s=timeout_s)
 
     def _open_bound_s(self):
         """Bound of the backend's ``open()``: a board that boots after its port opens is waited for (HELLO)."""
-        return getattr(self._backend, "boot_wait_s", 0.0) + 4 * self._caller.timeout_s
+        return self._backend.boot_wait_s + 4 * self._caller.timeout_s
 
     def _backend_returned(self, name, seconds, error):
         """A backend call that overran its bound returned at last: drive the valve closed again (fault stays)."""
@@ -250,16 +250,16 @@ class ValveController:
             return True  # release() already drove it closed; the backend is gone
         try:
             if not self._backend_started:
-                self._call("open", timeout_s=self._open_bound_s())
+                self._call(self._backend.open, timeout_s=self._open_bound_s())
                 self._backend_started = True
-            self._call("close_valve")
+            self._call(self._backend.close_valve)
         except Exception as exc:  # noqa: BLE001 - any backend failure is a fault, whatever its type
             self._latch_fault(f"backend error on close: {exc}")
             return False
         self._open = False
-        if not self._armed and hasattr(self._backend, "disarm"):
+        if not self._armed:
             try:
-                self._call("disarm")  # the device, too, stops accepting pulses
+                self._call(self._backend.disarm)  # the device, too, stops accepting pulses
             except Exception as exc:  # noqa: BLE001
                 self._latch_fault(f"backend error on disarm: {exc}")
                 return False
@@ -275,14 +275,13 @@ class ValveController:
                 return False, f"fault latched ({self._fault_reason}); disarm to acknowledge, then arm"
             if self._armed:
                 return True, "already armed"
-            if hasattr(self._backend, "arm"):
-                try:
-                    self._call("arm")
-                except Exception as exc:  # noqa: BLE001
-                    self._latch_fault(f"backend error on arm: {exc}")
-                    self._drive_closed()
-                    self._emit("arm failed")
-                    return False, self._fault_reason
+            try:
+                self._call(self._backend.arm)
+            except Exception as exc:  # noqa: BLE001
+                self._latch_fault(f"backend error on arm: {exc}")
+                self._drive_closed()
+                self._emit("arm failed")
+                return False, self._fault_reason
             self._armed = True
             self._last_heartbeat = self._clock()  # the heartbeat window starts at arming
             self._emit("armed")
@@ -298,9 +297,9 @@ class ValveController:
             self._armed = False
             self._fault_reason = ""
             closed = self._drive_closed()
-            if closed and hasattr(self._backend, "clear"):
+            if closed:
                 try:
-                    self._call("clear")  # acknowledge a fault the device latched itself (its e-stop button)
+                    self._call(self._backend.clear)  # acknowledge a fault the device latched itself (its e-stop button)
                 except Exception as exc:  # noqa: BLE001
                     self._latch_fault(f"device fault not cleared: {exc}")
                     closed = False
@@ -346,8 +345,7 @@ class ValveController:
                 self._lock.release()
         else:
             status = self._last_status
-        link = getattr(self._backend, "link_state", None)
-        line = link() if link else f"{status.backend}: no device"
+        line = self._backend.link_state()
         running = self._caller.running()
         if running is not None and running[1] > HEALTH_LOCK_WAIT_S:
             line = f"backend call {running[0]} running for {running[1] * 1000:.0f} ms; {line}"
@@ -358,10 +356,9 @@ class ValveController:
         self._last_heartbeat = self._clock()
 
     def check_backend(self):
-        """Latch a device fault when the backend reports one of its own calls stalled (its ``stalled()`` hook, e.g.
+        """Latch a device fault when the backend reports one of its own calls stalled (its ``stalled()``, e.g.
         a keep-alive stuck in a serial write). Returns True when it latched one now."""
-        stalled = getattr(self._backend, "stalled", None)
-        reason = stalled() if stalled is not None else ""
+        reason = self._backend.stalled()
         if not reason:
             self._stall_reported = False
             return False
@@ -401,7 +398,7 @@ class ValveController:
             self._cut.clear()
             self._open = True  # from here on the valve may be open until a close succeeds
             try:
-                self._call("open_valve", pulse_ms)
+                self._call(self._backend.open_valve, pulse_ms)
             except Exception as exc:  # noqa: BLE001
                 self._latch_fault(f"backend error on open: {exc}")
                 self._drive_closed()
@@ -441,9 +438,9 @@ class ValveController:
             return f"fault latched: {self._fault_reason}"
         if not self._armed:
             return "valve is disarmed"
-        backend_refusal = getattr(self._backend, "fire_refusal", None)
-        if backend_refusal is not None and backend_refusal():
-            return backend_refusal()
+        backend_refusal = self._backend.fire_refusal()
+        if backend_refusal:
+            return backend_refusal
         if self._firing:
             return "a pulse is already in progress"
         return ""
@@ -485,7 +482,7 @@ class ValveController:
             self._drive_closed()
             try:
                 # backends drive closed once more before freeing the line / port
-                self._call("release", timeout_s=4 * self._caller.timeout_s)
+                self._call(self._backend.release, timeout_s=4 * self._caller.timeout_s)
                 self._released = True
             except Exception as exc:  # noqa: BLE001
                 self._latch_fault(f"backend error on release: {exc}")
@@ -620,8 +617,7 @@ class ValveConfig:
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
-        if self.backend not in BACKENDS:
-            raise ValueError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
+        VALVE_BACKENDS.check(self.backend)
         if self.max_pulse_ms <= 0:
             raise ValueError(f"max_pulse_ms must be > 0, got {self.max_pulse_ms}")
         if not 0 < self.launch_pulse_ms <= self.max_pulse_ms:

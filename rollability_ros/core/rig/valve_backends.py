@@ -1,14 +1,11 @@
 """Valve backends: what physically opens and closes the launcher's solenoid valve.
 
-Every backend has ``name``, ``open()`` (acquire the device, valve closed), ``open_valve(pulse_ms)``,
-``close_valve()`` and ``release()`` (drive closed, then free the device). None relies on a released line or a
-closed port to close the valve: ``release()`` commands it closed first. Errors are raised (``ValveBackendError``
-or the library's own); :class:`~rollability_ros.core.rig.valve.ValveController` turns them into latched faults.
-
-Optional hooks the controller uses when a backend has them: ``arm()`` / ``disarm()`` / ``clear()`` (device-side
-arming and fault acknowledgement), ``fire_refusal()`` (a reason this backend must not fire, or ""),
-``set_fault_listener(callback)`` (the device reports a fault on its own), ``link_state()`` (one line for
-diagnostics).
+Each implements :class:`~rollability_ros.core.rig.valve_backend.ValveBackend` (``open()``, ``open_valve(pulse_ms)``,
+``close_valve()``, ``release()``, and those of the optional ``arm()`` / ``disarm()`` / ``clear()``,
+``fire_refusal()``, ``set_fault_listener(callback)``, ``link_state()``, ``stalled()`` its device supports) and is
+listed in :data:`~rollability_ros.core.rig.valve_backend.VALVE_BACKENDS`. Errors are raised
+(``ValveBackendError`` or the library's own); :class:`~rollability_ros.core.rig.valve.ValveController` turns them
+into latched faults.
 
 What each backend can promise when the controlling process dies (SIGKILL, crash, power loss): ``serial_relay``
 talks to a board that times pulses and drops the relay without keep-alives (:mod:`.relay_protocol`), so the relay
@@ -27,6 +24,7 @@ import time
 from rollability_ros.core.optional import require
 from rollability_ros.core.rig import relay_protocol
 from rollability_ros.core.rig.valve import ValveController
+from rollability_ros.core.rig.valve_backend import ValveBackend, make_valve_backend
 
 _LOG = logging.getLogger(__name__)
 
@@ -35,7 +33,7 @@ class ValveBackendError(RuntimeError):
     """The valve hardware did not do or confirm what it was told."""
 
 
-class DryRunBackend:
+class DryRunBackend(ValveBackend):
     """Drives nothing; logs every command and keeps ``history`` as ``[(monotonic s, command), ...]``."""
 
     name = "dry_run"
@@ -76,7 +74,12 @@ def gpio_chip_path(chip):
     return chip if "/" in chip else f"/dev/{chip}"
 
 
-class GpioBackend:
+def _limiter_note(hardware_pulse_limiter):
+    return "" if hardware_pulse_limiter else \
+        " -- none is declared (valve.gpio.hardware_pulse_limiter: false), so every fire is refused"
+
+
+class GpioBackend(ValveBackend):
     """A GPIO line (libgpiod v2 ``gpiod`` bindings) driving the solenoid driver; active = valve open.
 
     Parameters
@@ -128,6 +131,12 @@ class GpioBackend:
                 "valve) on; wire the limiter of docs/firmware.md and set valve.gpio.hardware_pulse_limiter: true, "
                 "or use the serial_relay board")
 
+    def startup_warning(self):
+        """What a dead process leaves behind on the GPIO line, and whether firing is refused for it."""
+        return ("gpio backend (line held by this process, valve.gpio.line_holder: false): if this node dies the "
+                "line stays where it was; only the hardware pulse limiter of docs/firmware.md closes the valve then"
+                + _limiter_note(self.hardware_pulse_limiter))
+
     def link_state(self):
         """One line for diagnostics."""
         requested = "requested" if self._request is not None else "not requested"
@@ -159,7 +168,7 @@ class GpioBackend:
             self._request = None
 
 
-class SerialRelayBackend:
+class SerialRelayBackend(ValveBackend):
     """The valve relay board (:mod:`~rollability_ros.core.rig.relay_protocol`, firmware in ``firmware/``).
 
     The board times each pulse and drops the relay when its keep-alive stops; this backend sends ``KA`` from a
@@ -183,6 +192,12 @@ class SerialRelayBackend:
     """
 
     name = "serial_relay"
+
+    @classmethod
+    def from_config(cls, config):
+        """The board on ``valve.serial.*``."""
+        s = config.serial
+        return cls(s.port, s.baud, s.timeout_s, s.keepalive_period_ms, s.boot_wait_s)
 
     def __init__(self, port, baud=115200, timeout_s=0.2, keepalive_period_ms=50, boot_wait_s=3.0):
         self.port = port
@@ -538,7 +553,21 @@ class GpioHolderBackend(SerialRelayBackend):
                      "every fire is refused")
         return _PipePort(self.process, self.timeout_s)
 
+    @classmethod
+    def from_config(cls, config):
+        """The line on ``valve.gpio.*``: held by the child process, or (``line_holder: false``) by this process."""
+        g = config.gpio
+        if g.line_holder:
+            return cls(g.chip, g.line_offset, g.active_high, g.hardware_pulse_limiter, max_pulse_ms=config.max_pulse_ms)
+        return GpioBackend(g.chip, g.line_offset, g.active_high, hardware_pulse_limiter=g.hardware_pulse_limiter)
+
     fire_refusal = GpioBackend.fire_refusal
+
+    def startup_warning(self):
+        """What a dead holder leaves behind on the GPIO line, and whether firing is refused for it."""
+        return ("gpio backend: the line holder process drops the line when this node dies, but if the holder dies "
+                "too (or the computer freezes) the line stays where it was; only the hardware pulse limiter of "
+                "docs/firmware.md closes the valve then" + _limiter_note(self.hardware_pulse_limiter))
 
     def link_state(self):
         """One line for diagnostics: the holder link and whether a hardware limiter is declared."""
@@ -546,27 +575,12 @@ class GpioHolderBackend(SerialRelayBackend):
         return f"{super().link_state()}; {limiter}"
 
 
-def make_backend(config):
-    """Build the backend named by a :class:`~rollability_ros.core.rig.valve.ValveConfig` (not yet opened)."""
-    if config.backend == "dry_run":
-        return DryRunBackend()
-    if config.backend == "gpio":
-        g = config.gpio
-        if g.line_holder:
-            return GpioHolderBackend(g.chip, g.line_offset, g.active_high, g.hardware_pulse_limiter,
-                                     max_pulse_ms=config.max_pulse_ms)
-        return GpioBackend(g.chip, g.line_offset, g.active_high, hardware_pulse_limiter=g.hardware_pulse_limiter)
-    if config.backend == "serial_relay":
-        s = config.serial
-        return SerialRelayBackend(s.port, s.baud, s.timeout_s, s.keepalive_period_ms, s.boot_wait_s)
-    raise ValueError(f"unknown valve backend {config.backend!r}")
-
-
 def make_controller(config, on_state=None):
-    """Build the backend and a :class:`ValveController` for ``config`` and start its steady-clock watchdog.
+    """Build the backend ``config.backend`` names and a :class:`ValveController` for ``config``, and start its
+    steady-clock watchdog.
 
     The controller drives the valve closed during construction; call ``shutdown()`` when done.
     """
-    controller = ValveController(make_backend(config), config.max_pulse_ms, config.watchdog_ms, on_state=on_state)
+    controller = ValveController(make_valve_backend(config), config.max_pulse_ms, config.watchdog_ms, on_state=on_state)
     controller.start_watchdog(config.watchdog_check_ms / 1000.0)
     return controller

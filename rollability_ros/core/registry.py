@@ -1,0 +1,66 @@
+"""Registration tables: the implementations of one swap (valve board, speed gate, ...) by the setting's value.
+
+A table maps a name to ``"package.module:Class"`` (imported when that name is chosen, so a board's library loads
+only where it is used) or to the class itself (registered at run time, e.g. by a test). Adding an implementation
+is one new module plus one entry; the table's :meth:`Registry.get` is the only place that looks at the name.
+"""
+import importlib
+import typing
+
+
+class Registry:
+    """One swap's table: ``name -> subclass of base`` (given directly or as ``"module:Class"``).
+
+    Parameters
+    ----------
+    field : str
+        The setting that names an entry (``"backend"``), for the one-line refusal of an unknown name.
+    base : type
+        The contract every entry must subclass.
+    entries : dict, optional
+        The built-in entries.
+    """
+
+    def __init__(self, field: str, base: type, entries: typing.Optional[dict] = None):
+        self.field = field
+        self.base = base
+        self._entries: dict = {}
+        for name, target in (entries or {}).items():
+            self.register(name, target)
+
+    def register(self, name: str, target: typing.Union[str, type]) -> None:
+        """Add ``name``; ``ValueError`` when it is empty or taken (unregister first to replace one)."""
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"{self.field} names must be non-empty strings, got {name!r}")
+        if name in self._entries:
+            raise ValueError(f"{self.field} {name!r} is already registered")
+        if not isinstance(target, (str, type)):
+            raise TypeError(f"{self.field} {name!r}: register a class or 'module:Class', got {target!r}")
+        self._entries[name] = target
+
+    def unregister(self, name: str) -> None:
+        """Remove ``name`` if present."""
+        self._entries.pop(name, None)
+
+    def names(self) -> tuple:
+        """The registered names, in registration order."""
+        return tuple(self._entries)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._entries
+
+    def check(self, name: str) -> None:
+        """``ValueError`` naming the known entries unless ``name`` is one (does not import it)."""
+        if name not in self._entries:
+            raise ValueError(f"{self.field} must be one of {self.names()}, got {name!r}")
+
+    def get(self, name: str) -> type:
+        """The class registered as ``name`` (imported now if given as ``"module:Class"``)."""
+        self.check(name)
+        target = self._entries[name]
+        if isinstance(target, str):
+            module, _, attribute = target.partition(":")
+            target = getattr(importlib.import_module(module), attribute)
+        if not (isinstance(target, type) and issubclass(target, self.base)):
+            raise TypeError(f"{self.field} {name!r} is {target!r}, not a {self.base.__name__}")
+        return target

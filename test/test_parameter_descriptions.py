@@ -22,6 +22,10 @@ NODES = {
 #: it stays up to be described instead of sending (unsigned, refused) goals to the physical rig and exiting.
 ROS_ARGS = {"campaign_runner": ["-r", "stored_trials:=/nowhere/stored_trials"]}
 
+#: numeric parameters that may carry no range, each with the reason no bound exists (none today: every integer and
+#: floating-point parameter of every node declares its inclusive range, issue 29)
+UNBOUNDED = {}
+
 #: words that carry no meaning of their own
 _FILLER = {"the", "a", "an", "of", "in", "to", "for", "and", "or", "per", "is", "be", "as", "by", "on", "at"}
 
@@ -76,7 +80,9 @@ def test_every_node_parameter_is_described_with_meaning_units_and_ranges(ros_nod
     started = {module: start_node(module, params={k: v.format(tmp=tmp_path) if isinstance(v, str) else v
                                                   for k, v in params.items()}, ros_args=ROS_ARGS.get(module, ()))
                for module, params in NODES.items()}
-    described, restating, unitless = {}, [], []
+    from rcl_interfaces.msg import ParameterType
+
+    described, restating, unitless, unranged = {}, [], [], []
     for module, process in started.items():
         descriptors = describe_node(ros_node, module)
         assert process.alive(), process.log()
@@ -88,12 +94,18 @@ def test_every_node_parameter_is_described_with_meaning_units_and_ranges(ros_nod
                 restating.append(f"{module}:{name}: {descriptor.description!r}")
             if missing_unit(name, descriptor.description):
                 unitless.append(f"{module}:{name}: {descriptor.description!r}")
+            numeric = descriptor.type in (ParameterType.PARAMETER_INTEGER, ParameterType.PARAMETER_DOUBLE)
+            if numeric and not (descriptor.floating_point_range or descriptor.integer_range) \
+                    and f"{module}:{name}" not in UNBOUNDED:
+                unranged.append(f"{module}:{name}")
     ranged = sum(1 for d in described.values() if d.floating_point_range or d.integer_range)
     read_only = sum(1 for d in described.values() if d.read_only)
     print(f"\n{len(described)} node parameters described over ROS: {len(restating)} restate the name, "
-          f"{len(unitless)} lack their unit, {ranged} carry a numeric range, {read_only} read-only")
+          f"{len(unitless)} lack their unit, {ranged} carry a numeric range, {len(unranged)} numeric ones do not, "
+          f"{read_only} read-only")
     assert restating == [], "\n".join(restating)
     assert unitless == [], "\n".join(unitless)
+    assert unranged == [], "numeric parameters without a range (add metadata['range']):\n" + "\n".join(unranged)
     assert ranged >= 40 and read_only >= 10
     tip = described["tip_monitor:tip_monitor.tip_threshold_deg"]
     assert tip.floating_point_range[0].from_value == 0.0 and tip.floating_point_range[0].to_value == 180.0

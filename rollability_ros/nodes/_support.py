@@ -82,13 +82,13 @@ def declare_settings(node, prefix, settings_cls, descriptions=None, read_only=Fa
         text = descriptions.get(field.name) or _field_description(field) or field.name.replace("_", " ")
         try:
             node.declare_parameter(name, _ros_default(default, field_type),
-                                   _descriptor(text, field.metadata.get("range"), field_type, read_only))
+                                   parameter_descriptor(text, field.metadata.get("range"), field_type, read_only))
         except InvalidParameterValueException as exc:
             raise ParameterError(f"{name}: {exc}") from None
     return read_settings(node, prefix, settings_cls)
 
 
-def _descriptor(description, value_range, field_type, read_only):
+def parameter_descriptor(description, value_range=None, field_type=None, read_only=False):
     """A ParameterDescriptor with the description, an inclusive numeric range where given, and read_only."""
     descriptor = ParameterDescriptor(description=description, read_only=read_only)
     if value_range is not None and field_type is float:

@@ -45,7 +45,6 @@ import threading
 import rclpy
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import Point
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import get_action_names_and_types
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
@@ -68,7 +67,8 @@ from rollability_ros.core.robots.urdf_robot import UrdfRobotSpec, footprint_grid
 from rollability_ros.msg import CandidateResult, GenerationSummary
 from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, ThreadSafeActionClient,
-                                            declare_settings, guard_settings, read_settings, run_node)
+                                            declare_settings, guard_settings, parameter_descriptor, read_settings,
+                                            run_node)
 
 #: The action type an evaluator serves (as the graph API names it).
 EVALUATOR_ACTION_TYPE = "rollability_ros/action/EvaluateProfile"
@@ -80,7 +80,7 @@ RUN_SECTIONS = {"optimizer": OptimizerSettings, "quality_diversity": QualityDive
 ROBOT_SECTIONS = {"robot": ChassisSpec, "urdf_robot": UrdfRobotSpec, "stable_poses": ScreenSettings}
 _STATUS_NAMES = {GoalStatus.STATUS_ABORTED: "aborted", GoalStatus.STATUS_CANCELED: "cancelled",
                  GoalStatus.STATUS_UNKNOWN: "unknown"}
-_PARAMETERS = {  # name: (default, description)
+_PARAMETERS = {  # name: (default, description[, inclusive numeric range])
     "run_id": ("", "id of the run to start (empty: opt-<date>-<time>) or, with resume, to continue"),
     "resume": (False, "continue run run_id from its last checkpoint instead of starting a new run"),
     "autostart": (True, "start optimizing at start-up (false: wait for the start service)"),
@@ -91,11 +91,14 @@ _PARAMETERS = {  # name: (default, description)
     "frame_id": ("", "frame of the best-profile marker; empty: the link the profile is mounted on (base_link of "
                      "the chassis, urdf_robot.mount_link of a URDF robot)"),
     "evaluator_timeout_s": (PoolSettings.timeout_s, "s without any reply (accept, feedback, result) after which "
-                                                    "an evaluation is given up and retried elsewhere"),
+                                                    "an evaluation is given up and retried elsewhere",
+                            (0.0, 604800.0)),
     "evaluator_max_attempts": (PoolSettings.max_attempts, "failed attempts of one candidate before the run "
-                                                          "pauses and reports; 0 = retry without limit"),
-    "evaluator_retry_delay_s": (PoolSettings.retry_delay_s, "s an evaluator that failed gets no new evaluation"),
-    "evaluator_discovery_period_s": (2.0, "s between searches of the graph for EvaluateProfile servers"),
+                                                          "pauses and reports; 0 = retry without limit", (0, 1000000)),
+    "evaluator_retry_delay_s": (PoolSettings.retry_delay_s, "s an evaluator that failed gets no new evaluation",
+                                (0.0, 3600.0)),
+    "evaluator_discovery_period_s": (2.0, "s between searches of the graph for EvaluateProfile servers",
+                                     (0.0, 3600.0)),
 }
 
 
@@ -118,8 +121,9 @@ class Optimizer(Node):
             self._robots[prefix] = declare_settings(self, prefix, settings_cls)
             guard_settings(self, prefix, settings_cls,
                            on_change=lambda robot, prefix=prefix: self._robots.__setitem__(prefix, robot))
-        for name, (default, description) in _PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
+        for name, (default, description, *value_range) in _PARAMETERS.items():
+            value_range = value_range[0] if value_range else None
+            self.declare_parameter(name, default, parameter_descriptor(description, value_range, type(default)))
         try:
             pool_settings = PoolSettings(timeout_s=self._param("evaluator_timeout_s"),
                                          max_attempts=self._param("evaluator_max_attempts"),

@@ -74,7 +74,7 @@ class TipMonitorNodeSettings:
         "description": "durable store file for tip events; empty = do not store (the outcome_logger stores "
                        "tip_events when it runs)"})
     diagnostics_period_s: float = dataclasses.field(default=1.0, metadata={
-        "description": "period of the /diagnostics message, s"})
+        "description": "period of the /diagnostics message, s", "range": (0.0, 3600.0)})
 
     @property
     def mount_given(self):

@@ -49,19 +49,21 @@ class RecorderSettings:
         "description": "bag directory to create (must not exist or be empty); empty: "
                        "bags/rollability_<UTC date-time> under the working directory"})
     discovery_period_s: float = dataclasses.field(default=1.0, metadata={
-        "description": "how often the graph is searched for new topics to record, s"})
+        "description": "how often the graph is searched for new topics to record, s", "range": (0.0, 3600.0)})
     compression: str = dataclasses.field(default="zstd", metadata={
         "description": "MCAP chunk compression: zstd, lz4 or none"})
     split_max_bytes: int = dataclasses.field(default=0, metadata={
-        "description": "start a new storage file after this many bytes, B (0: never)"})
+        "description": "start a new storage file after this many bytes, B (0: never)", "range": (0, 2 ** 50)})
     split_max_duration_s: float = dataclasses.field(default=0.0, metadata={
-        "description": "start a new storage file after this much recorded time, s (0: never)"})
+        "description": "start a new storage file after this much recorded time, s (0: never)",
+        "range": (0.0, 31536000.0)})
     chunk_size_bytes: int = dataclasses.field(default=DEFAULT_CHUNK_SIZE_BYTES, metadata={
-        "description": "uncompressed MCAP chunk size, B: the most a kill -9 can lose"})
+        "description": "uncompressed MCAP chunk size, B: the most a kill -9 can lose", "range": (1, 2 ** 30)})
     flush_interval_s: float = dataclasses.field(default=DEFAULT_FLUSH_INTERVAL_S, metadata={
-        "description": "longest time a message waits in memory before its chunk is written, s"})
+        "description": "longest time a message waits in memory before its chunk is written, s",
+        "range": (0.0, 3600.0)})
     queue_depth: int = dataclasses.field(default=1000, metadata={
-        "description": "subscription queue depth, messages (keep-last topics)"})
+        "description": "subscription queue depth, messages (keep-last topics)", "range": (1, 1000000)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable setting."""
@@ -87,15 +89,15 @@ class PlayerSettings:
 
     bag: str = dataclasses.field(default="", metadata={"description": "bag directory to play (required)"})
     rate: float = dataclasses.field(default=1.0, metadata={
-        "description": "playback speed factor: 2.0 plays twice as fast"})
+        "description": "playback speed factor: 2.0 plays twice as fast", "range": (0.0, 1000.0)})
     start_offset_s: float = dataclasses.field(default=0.0, metadata={
-        "description": "skip this much recorded time from the bag's start, s"})
+        "description": "skip this much recorded time from the bag's start, s", "range": (0.0, 31536000.0)})
     loop: bool = dataclasses.field(default=False, metadata={"description": "play again from the start, forever"})
     clock: bool = dataclasses.field(default=False, metadata={
         "description": "publish /clock with each message's recorded time"})
     wait_for_subscribers_s: float = dataclasses.field(default=3.0, metadata={
         "description": "before the first message, wait up to this long for every played topic to have a "
-                       "subscriber (discovery takes about a second), s; 0: start at once"})
+                       "subscriber (discovery takes about a second), s; 0: start at once", "range": (0.0, 3600.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable setting."""

@@ -44,9 +44,10 @@ class ViewSettings:
     host: str = dataclasses.field(default="127.0.0.1", metadata={
         "description": "address to listen on; 127.0.0.1 = this machine only, 0.0.0.0 = every interface"})
     port: int = dataclasses.field(default=DEFAULT_PORT, metadata={
-        "description": "TCP port of the Foxglove WebSocket server (0 = any free port, logged at start)"})
+        "description": "TCP port of the Foxglove WebSocket server (0 = any free port, logged at start)",
+        "range": (0, 65535)})
     discovery_period_s: float = dataclasses.field(default=2.0, metadata={
-        "description": "how often the ROS graph is searched for new topics to serve, s"})
+        "description": "how often the ROS graph is searched for new topics to serve, s", "range": (0.0, 3600.0)})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""

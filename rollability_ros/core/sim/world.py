@@ -33,7 +33,7 @@ class PhysicsParams:
     gravity_mps2: float = dataclasses.field(default=-9.81, metadata={
         "description": "gravitational acceleration along world z, m/s^2 (negative = down)", "range": (-100.0, 0.0)})
     time_step_s: float = dataclasses.field(default=1.0 / 240.0, metadata={
-        "description": "physics time step, s (paper 1/240)"})
+        "description": "physics time step, s (paper 1/240)", "range": (0.0, 0.05)})
     lateral_friction: float = dataclasses.field(default=0.35, metadata={
         "description": "sliding friction coefficient (see sim.contact_model; paper 0.35)", "range": (0.0, 10.0)})
     rolling_friction: float = dataclasses.field(default=0.01, metadata={

@@ -155,7 +155,7 @@ def recovered_copy(bag, tmp_path):
 
     copy = tmp_path / f"copy{time.monotonic_ns()}"
     shutil.copytree(bag, copy)
-    return copy, recover(copy)
+    return copy, recover(copy, allow_empty=True)   # before the first chunk is written the copy holds nothing
 
 
 def test_sigkilled_recording_recovers_every_flushed_message(tmp_path, ros_node, start_node):
@@ -188,36 +188,56 @@ def test_sigkilled_recording_recovers_every_flushed_message(tmp_path, ros_node, 
 
 def test_a_restarted_recorder_continues_the_same_bag(tmp_path, ros_node, start_node):
     """Issue 17: a recorder SIGKILLed and started again on its output_dir records on into the same bag (was: the
-    restart was refused, "exists and is not an empty directory", and nothing more was recorded)."""
+    restart was refused, "exists and is not an empty directory", and nothing more was recorded). Issue 26: what the
+    transient-local outcome publisher re-delivers is not recorded twice (was: 442 outcomes for 400 trials), and the
+    window each topic missed is named, the volatile pose stream's too (was: only the outcomes')."""
+    from geometry_msgs.msg import PoseStamped
     from rclpy.duration import Duration
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
     from rollability_ros.core.bags.metadata import read_metadata
-    from rollability_ros.core.bags.recover import recording_gaps
+    from rollability_ros.core.bags.recover import missed_windows, recording_gaps
+    from rollability_ros.core.graph.study import compare_bags_with_store
     from rollability_ros.msg import LaunchOutcome as OutcomeMsg
     from rollability_ros.nodes import _convert
     from rollability_ros.nodes._support import RECORD_QOS
 
     publisher = ros_node.node.create_publisher(OutcomeMsg, "/launch_outcomes", RECORD_QOS)
+    poses = ros_node.node.create_publisher(PoseStamped, "/rig/pose", QoSProfile(
+        depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE))
+
+    def publish_poses(first, count):
+        for index in range(first, first + count):
+            pose = PoseStamped()
+            pose.pose.position.x = float(index)
+            poses.publish(pose)
+
     bag = tmp_path / "restarted"
     params = {"recorder.output_dir": str(bag), "recorder.discovery_period_s": 0.2, "recorder.flush_interval_s": 0.2}
     first = start_node("recorder", params=params)
-    assert ros_node.wait_for(lambda: publisher.get_subscription_count() > 0, 30), first.log()
+    assert ros_node.wait_for(lambda: publisher.get_subscription_count() > 0 and poses.get_subscription_count() > 0,
+                             30), first.log()
     before = [outcome(i) for i in range(100)]
     for record in before:
         publisher.publish(_convert.outcome_to_msg(record))
-    assert publisher.wait_for_all_acked(Duration(seconds=30))
+    publish_poses(0, 20)
+    assert publisher.wait_for_all_acked(Duration(seconds=30)) and poses.wait_for_all_acked(Duration(seconds=30))
 
-    assert ros_node.wait_for(lambda: recovered_copy(bag, tmp_path)[1]["message_count"] == 100, 10, period_s=0.2), \
+    assert ros_node.wait_for(lambda: recovered_copy(bag, tmp_path)[1]["message_count"] == 120, 10, period_s=0.2), \
         first.log()
     first.signal(signal.SIGKILL)
     first.process.wait(timeout=10)
+    publish_poses(20, 20)               # while no recorder runs: lost (volatile), the missed window
 
     second = start_node("recorder", params=params, name="recorder_again")
     # the killed recorder's reader may still count as a subscription until its lease expires: wait for the log
-    assert ros_node.wait_for(lambda: "recording /launch_outcomes" in second.log(), 30), second.log()
+    assert ros_node.wait_for(lambda: "recording /launch_outcomes" in second.log() and
+                             "recording /rig/pose" in second.log(), 30), second.log()
     after = [outcome(i) for i in range(100, 150)]
     for record in after:
         publisher.publish(_convert.outcome_to_msg(record))
+    publish_poses(40, 20)
+    assert poses.wait_for_all_acked(Duration(seconds=30))
 
     def recorded_after_restart():
         copy, _ = recovered_copy(bag, tmp_path)
@@ -229,11 +249,19 @@ def test_a_restarted_recorder_continues_the_same_bag(tmp_path, ros_node, start_n
     assert read_records_from_bag(bag)[0] == before + after
     information = read_metadata(bag)
     # the publisher is transient-local (depth 1000): the new recorder gets its 100 earlier messages again, and
-    # does not record them twice (issue 26: was 442 LaunchOutcome messages in the bag for 400 trials)
-    assert len(information["relative_file_paths"]) == 2 and information["message_count"] == 150
+    # does not record them twice
+    counts = {t["topic_metadata"]["name"]: t["message_count"] for t in information["topics_with_message_count"]}
+    assert len(information["relative_file_paths"]) == 2 and counts == {"/launch_outcomes": 150, "/rig/pose": 40}
+    assert information["message_count"] == 190 and bag_info(bag)["message_count"] == 190
     assert information["custom_data"]["recorder_duplicates_skipped"] == "100"
     assert "100 re-delivered copies of messages the bag already held not recorded again" in second.log()
-    assert bag_info(bag)["message_count"] == 150
     ((after_ns, until_ns),) = recording_gaps(bag)
     assert 0 < after_ns < until_ns
     assert bag_info(bag)["warnings"] == []
+    # every topic's own missed window, named in the study's note
+    (windows,) = missed_windows(bag)
+    assert set(windows) == {"/launch_outcomes", "/rig/pose"}
+    assert all(w["after_ns"] < w["until_ns"] for w in windows.values())
+    _, note = compare_bags_with_store({o.trial_id for o in before + after}, before + after, recording_gaps(bag),
+                                      missed_windows(bag))
+    assert "every topic's missed window" in note and "/rig/pose " in note and "/launch_outcomes " in note

@@ -52,7 +52,7 @@ def run(args):
 
 def _isolate_physical_rig():
     """The physical rig's graph defaults to its own domain and localhost discovery (the children inherit them)."""
-    from rollability_ros.core.rig.rig_network import exposure_warnings, physical_rig_environment
+    from rollability_ros.core.rig import exposure_warnings, physical_rig_environment
 
     added = physical_rig_environment(os.environ)
     os.environ.update(added)

@@ -43,7 +43,7 @@ def register(subparsers):
 def _spec(args):
     import dataclasses
 
-    from rollability_ros.core.campaign.plan import load_campaign_spec
+    from rollability_ros.core.campaign import load_campaign_spec
 
     spec = load_campaign_spec(args.config or ["campaign"])
     if args.run_id is not None:   # given, even empty: then validate() refuses it
@@ -53,7 +53,7 @@ def _spec(args):
 
 
 def run(args):
-    from rollability_ros.core.rig.rig_session import launch_backend_class
+    from rollability_ros.core.rig import launch_backend_class
 
     if args.resimulate or args.seed is not None:
         return _resimulate(args)
@@ -69,10 +69,10 @@ def run(args):
 
 
 def _resimulate(args):
-    from rollability_ros.core.campaign.runner import LocalRig
+    from rollability_ros.core.campaign import LocalRig
     from rollability_ros.core.config import load_parameters
     from rollability_ros.core.results.records import LaunchCondition
-    from rollability_ros.core.rig.rig_session import LAUNCH_BACKENDS, launch_backend_class
+    from rollability_ros.core.rig import LAUNCH_BACKENDS, launch_backend_class
 
     refusal = launch_backend_class(args.backend).resimulate_refusal()
     if refusal or not args.resimulate or args.seed is None:
@@ -100,9 +100,8 @@ def _resimulate(args):
 
 
 def _run_local(args, spec, ask):
-    from rollability_ros.core.campaign.plan import plan_trials
-    from rollability_ros.core.campaign.runner import (LocalRig, plan_refusal, record_campaign_run, report_exit_code,
-                                                      resume_refusal, run_campaign, store_writer)
+    from rollability_ros.core.campaign import (LocalRig, plan_refusal, plan_trials, record_campaign_run,
+                                               report_exit_code, resume_refusal, run_campaign, store_writer)
     from rollability_ros.core.config import load_parameters
     from rollability_ros.core.results.store import Store
 
@@ -139,7 +138,7 @@ def _run_graph(args, spec, ask):
     import rclpy
     from rclpy.node import Node
 
-    from rollability_ros.core.campaign.runner import RunnerSettings, report_exit_code
+    from rollability_ros.core.campaign import RunnerSettings, report_exit_code
     from rollability_ros.nodes.campaign_runner import run_graph_campaign
 
     settings = RunnerSettings(backend=args.backend, resume=args.resume, store_timeout_s=args.store_timeout_s,

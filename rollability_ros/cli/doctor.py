@@ -138,7 +138,7 @@ def _check_discovery(checks):
 
 def _check_rig_exposure(checks):
     """On the rig computer: warn when other computers' ROS 2 processes can discover the valve_controller."""
-    from rollability_ros.core.rig.rig_network import exposure_warnings
+    from rollability_ros.core.rig import exposure_warnings
 
     warnings = exposure_warnings(os.environ)
     for warning in warnings:

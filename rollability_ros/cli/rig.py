@@ -41,7 +41,7 @@ def check_arguments(args):
     place), the numbers (NaN, sign, range), a verdict where one is needed and only there."""
     import math
 
-    from rollability_ros.core.rig.rig_network import check_namespace
+    from rollability_ros.core.rig import check_namespace
 
     if args.namespace is not None:
         args.namespace = check_namespace(args.namespace)
@@ -125,7 +125,7 @@ def run(args):
     import os
     import time
 
-    from rollability_ros.core.rig.rig_network import check_namespace, physical_rig_environment
+    from rollability_ros.core.rig import check_namespace, physical_rig_environment
 
     check_arguments(args)   # before ROS starts: a bad argument is one line, never a traceback or a hang
     import rclpy

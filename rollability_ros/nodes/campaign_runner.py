@@ -33,13 +33,10 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from rollability_ros.action import Launch
-from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
-from rollability_ros.core.campaign.runner import (RunnerSettings, StoreAcknowledgements, answer_rig,
-                                                  report_exit_code, resume_refusal, run_campaign)
+from rollability_ros.core.campaign import (CampaignSpec, RunnerSettings, StoreAcknowledgements, answer_rig,
+                                           plan_trials, report_exit_code, resume_refusal, run_campaign)
 from rollability_ros.core.config import ConfigError
-from rollability_ros.core.rig import rig_auth, valve_auth
-from rollability_ros.core.rig.launch_backend import LaunchAborted
-from rollability_ros.core.rig.rig_session import launch_backend_class
+from rollability_ros.core.rig import LaunchAborted, launch_backend_class, rig_auth, valve_auth
 from rollability_ros.nodes import _convert
 from rollability_ros.msg import OutcomeStored, ValveAuth
 from rollability_ros.nodes._support import RECORD_QOS, ParameterError, declare_settings, init_ros

@@ -48,12 +48,10 @@ from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
 from rollability_ros.action import Launch
-from rollability_ros.core.rig.launch_backend import LaunchAborted, RigPorts
-from rollability_ros.core.rig.rig_session import OperatorOutcome, RigSettings, make_launch_backend
-from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
 from rollability_ros.core.imu.upright import ImuOutcomeConfig, imu_sample_from_message
-from rollability_ros.core.rig import rig_auth, valve_auth
-from rollability_ros.core.rig.valve import ValveConfig, ValveStatus
+from rollability_ros.core.rig import (LaunchAborted, OperatorOutcome, RigPorts, RigSettings, SpeedGateConfig,
+                                      ValveConfig, ValveStatus, make_launch_backend, make_speed_gate, rig_auth,
+                                      valve_auth)
 from rollability_ros.msg import LaunchOutcome, ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,

@@ -39,9 +39,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool
 
-from rollability_ros.core.rig import valve_auth
-from rollability_ros.core.rig.valve import ValveConfig
-from rollability_ros.core.rig.valve_backends import make_controller
+from rollability_ros.core.rig import ValveConfig, make_controller, valve_auth
 from rollability_ros.msg import ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import LATCHED_QOS, ParameterError, declare_settings, run_node

@@ -3,4 +3,17 @@
 - plan: experiment matrix, trial order, operator changes, resume, progress
 - runner: the campaign loop over an injected launch and store acknowledgement
 - calibration: fit the launch twin's uncertain parameters to physical outcomes
+
+The face below is what code outside ``core/campaign`` imports. ``calibration`` is public as a module and is not
+imported here (it loads numpy and the twin), so the rig computer's campaign runner stays light.
 """
+from rollability_ros.core.campaign.plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
+from rollability_ros.core.campaign.runner import (LocalRig, RunnerSettings, StoreAcknowledgements, answer_rig,
+                                                  plan_refusal, record_campaign_run, report_exit_code, resume_refusal,
+                                                  run_campaign, store_writer)
+
+__all__ = [
+    "CampaignSpec", "LocalRig", "RunnerSettings", "StoreAcknowledgements", "answer_rig", "calibration",
+    "load_campaign_spec", "plan_refusal", "plan_trials", "record_campaign_run", "report_exit_code", "resume_refusal",
+    "run_campaign", "store_writer", "trial_id_for",
+]

@@ -12,4 +12,28 @@
 - valve_auth: the per-session arming key and the signed valve requests (only the operator side fires)
 - rig_network: the physical rig's default ROS domain / discovery range and exposure warnings
 - speed_gate: launch speed from light-gate travel times; the SpeedGate contract, SPEED_GATES and make_speed_gate
+
+The face below is what code outside ``core/rig`` imports (``from rollability_ros.core.rig import ValveConfig``);
+the modules behind it may move. ``rig_auth`` and ``valve_auth`` are public as modules (the signed-request
+protocol). Every module here is light (no numpy, no physics): importing the face loads no heavy dependency.
 """
+from rollability_ros.core.rig import rig_auth, valve_auth
+from rollability_ros.core.rig.launch_backend import LaunchAborted, LaunchBackend, RigPorts
+from rollability_ros.core.rig.rig_network import check_namespace, exposure_warnings, physical_rig_environment
+from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, RIG_BACKENDS,
+                                                  OperatorOutcome, PhysicalLaunch, RigSettings, SimulatedLaunch,
+                                                  launch_backend_class, make_launch_backend, parse_outcome_answer)
+from rollability_ros.core.rig.speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
+from rollability_ros.core.rig.valve import ValveConfig, ValveController, ValveStatus
+from rollability_ros.core.rig.valve_backend import (VALVE_BACKENDS, ValveBackend, make_valve_backend,
+                                                    register_valve_backend)
+from rollability_ros.core.rig.valve_backends import make_controller
+
+__all__ = [
+    "ASK_OUTCOME", "ASK_REGULATOR", "LAUNCH_BACKENDS", "RIG_BACKENDS", "SPEED_GATES", "VALVE_BACKENDS",
+    "LaunchAborted", "LaunchBackend", "OperatorOutcome", "PhysicalLaunch", "RigPorts", "RigSettings",
+    "SimulatedLaunch", "SpeedGate", "SpeedGateConfig", "ValveBackend", "ValveConfig", "ValveController",
+    "ValveStatus", "check_namespace", "exposure_warnings", "launch_backend_class", "make_controller",
+    "make_launch_backend", "make_speed_gate", "make_valve_backend", "parse_outcome_answer", "physical_rig_environment",
+    "register_valve_backend", "rig_auth", "valve_auth",
+]

@@ -16,8 +16,9 @@ board reports on its own reach :meth:`ValveController.device_fault`. See docs/va
 Thread model: ``fire()`` blocks for the pulse without holding the controller's lock, so ``estop()``,
 ``check_watchdog()`` and ``disarm()`` from other threads cut a running pulse at once. Every backend call runs on the
 controller's own backend thread and is bounded (the backend's ``call_timeout_s``, by default
-:data:`~rollability_ros.core.rig.valve_backend.DEFAULT_CALL_TIMEOUT_S`): a call that does not return in time latches a fault and later calls are refused at
-once until it returns (the valve is then driven closed again), so the lock is never held longer than one bound.
+:data:`~rollability_ros.core.rig.valve_backend.DEFAULT_CALL_TIMEOUT_S`): a call that does not return in time
+latches a fault and later calls are refused at once until it returns (the valve is then driven closed again), so
+the lock is never held longer than one bound.
 ``heartbeat()`` takes no lock and ``health()`` waits for it at most :data:`HEALTH_LOCK_WAIT_S`, so a stuck serial
 call cannot silence the node's state and diagnostics (issue 30).
 """

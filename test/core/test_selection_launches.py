@@ -89,6 +89,8 @@ def test_when_no_design_beats_the_bare_robot_every_output_says_so(tmp_path, caps
 
     folder = selection.write_selection(str(tmp_path), result, GRID, "run")
     parameters = load_parameters(os.path.join(folder, "designs.yaml"))
+    assert parameters["designs.launch_race.rounds"] == [20, 20] and parameters["designs.launch_race.designs_raced"] == 6
+    assert parameters["designs.launch_race.baseline.trials"] == 40
     for design in result.designs:
         assert parameters[f"designs.{design.label}.beats_baseline"] is False
         low, high = parameters[f"designs.{design.label}.gain_over_baseline.newcombe_95"]

@@ -676,6 +676,12 @@ def designs_document(result, grid, run_id, mesh_units="mm"):
                      "height_min": grid.height_min, "height_max": grid.height_max, "unit_m": grid.unit_m}}
     if result.baseline_launches is not None:
         body["baseline_launches"] = {"successes": result.baseline_launches[0], "trials": result.baseline_launches[1]}
+    if result.race is not None:
+        body["launch_race"] = {"rounds": [r["trials"] for r in result.race.rounds],
+                               "designs_raced": len(result.race.totals), "survivors": len(result.race.survivors),
+                               "launches_spent": result.race.trials_spent,
+                               "baseline": {"successes": result.race.reference[0],
+                                            "trials": result.race.reference[1]}}
     for design, gain in zip(result.designs, result.gains()):
         successes, trials, source = design.reported
         body[design.label] = {"heights": [float(h) for h in design.design.heights],

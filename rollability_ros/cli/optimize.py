@@ -78,8 +78,9 @@ def run(args):
     try:
         trials = optimization_run.optimizer_settings(parameters).trials
         evaluate_batch = optimization_run.profile_batch_evaluator(settings, trials, executor)
-        run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid, evaluate_batch,
-                                               resume=bool(args.resume))
+        run = optimization_run.OptimizationRun(
+            run_dir, parameters, settings.grid, evaluate_batch, resume=bool(args.resume),
+            evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, executor, "screen"))
         progress = ProgressLine(run)
         run.on_candidate, run.on_generation = progress.candidate, progress.generation
         print(f"{run.start_text(bool(args.resume))}; {settings.grid.rows}x{settings.grid.cols} grid")

@@ -317,6 +317,7 @@ class Optimizer(Node):
             run = optimization_run.OptimizationRun(
                 run_dir, parameters, settings["profile"], self._pool.batch_evaluator(settings["optimizer"].trials),
                 resume=resume, on_candidate=self._publish_candidate,
+                evaluate_trials=self._pool.fidelity_evaluator(""),
                 screen_profiles=optimization_run.profile_screen(parameters, self._robot_settings(settings),
                                                                 self._robots["stable_poses"]))
         except (ConfigError, ValueError, FileNotFoundError) as exc:

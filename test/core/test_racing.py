@@ -60,3 +60,43 @@ def test_bad_race_settings_are_refused():
         racing.race(["a"], evaluate, [0], [1])
     with pytest.raises(ValueError, match="distinct"):
         racing.race(["a", "a"], evaluate, [20], [1])
+
+
+def test_the_optimizer_stops_candidates_clearly_worse_than_the_incumbent_after_their_first_trials(tmp_path):
+    pytest.importorskip("cma")
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.profile.geometry import ProfileGrid
+    from rollability_ros.core.results.store import Store
+
+    grid = ProfileGrid(rows=2, cols=2)
+
+    def good(heights):
+        return float(np.mean(heights)) > 0.26         # good designs always right themselves, the others never
+
+    def evaluate_trials(heights_list, seed, trials):
+        return [(trials if good(h) else 0, trials, 0.0, "fake") for h in heights_list]
+
+    def evaluate_batch(heights_list, seed):
+        return evaluate_trials(heights_list, seed, 30)
+
+    parameters = {"optimizer.method": "cmaes", "optimizer.max_generations": 5, "optimizer.seed": 4,
+                  "optimizer.trials": 30, "optimizer.race_first_trials": 10, "optimizer.popsize": 8,
+                  "optimizer.sigma0": 0.15, "optimizer.initial_mean_screen": 0, "optimizer.target_fitness": 2.0,
+                  "optimizer.stagnation_generations": 0,
+                  "profile.rows": grid.rows, "profile.cols": grid.cols}
+    stores = []
+    for name in ("a", "b"):
+        run = OptimizationRun(str(tmp_path / name), parameters, grid, evaluate_batch, evaluate_trials=evaluate_trials)
+        run.run()
+        run.close()
+        with Store(str(tmp_path / name)) as store:
+            stores.append([(c.generation, c.index, c.successes, c.trials, c.seed) for c in store.candidates()])
+    assert stores[0] == stores[1]                         # deterministic, so a resumed generation decides alike
+    population = [c for c in stores[0] if c[1] < 8]
+    assert all(trials == 30 for generation, _, _, trials, _ in population if generation == 1)   # no incumbent yet
+    later = [c for c in population if c[0] > 1]
+    # an incumbent at 30/30 (pooled: lower 95% bound > 0.88): 0/10 (upper bound 0.28) stops, a good one goes on
+    assert {(successes, trials) for _, _, successes, trials, _ in later} <= {(0, 10), (30, 30)}
+    assert any(trials == 10 for *_, trials, _ in later) and any(trials == 30 for *_, trials, _ in later)
+    with pytest.raises(ValueError, match="race_first_trials needs an evaluator"):
+        OptimizationRun(str(tmp_path / "c"), parameters, grid, evaluate_batch)

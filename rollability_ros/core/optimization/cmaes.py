@@ -36,6 +36,7 @@ from rollability_ros.core.optional import require
 STREAM_POPULATION = 0
 STREAM_REEVALUATION = 1
 STREAM_SELECTION = 2
+STREAM_RACE = 3
 #: Values of ``optimizer.method``: one CMA-ES (the paper's), or CMA-MAE quality diversity (quality_diversity.py).
 METHODS = ("cmaes", "cma_mae")
 
@@ -94,6 +95,10 @@ class OptimizerSettings:
                        "trials"})
     output_dir: str = dataclasses.field(default="runs", metadata={
         "description": "folder of run directories <output_dir>/<run_id>/, relative to the working directory"})
+    race_first_trials: int = dataclasses.field(default=0, metadata={
+        "description": "racing: every candidate first gets this many of its trials; one clearly worse than the "
+                       "incumbent (95% Wilson upper bound below the incumbent's lower bound) stops there, the others "
+                       "get the rest (count; 0 = no racing, every candidate gets all trials)", "range": (0, 10000000)})
     initial_mean_screen: int = dataclasses.field(default=0, metadata={
         "description": "random CMA-ES start means screened by the quasi-static stable-pose screen; the best is used "
                        "(count; 0 = the paper's one random mean)", "range": (0, 10000)})
@@ -110,6 +115,9 @@ class OptimizerSettings:
             raise ValueError(f"seed must be in [1, 2**32) (pycma treats 0 as 'seed from the clock'), got {self.seed}")
         if self.trials < 1:
             raise ValueError(f"trials must be >= 1, got {self.trials}")
+        if not 0 <= self.race_first_trials < self.trials and self.race_first_trials:
+            raise ValueError(f"race_first_trials must be 0 (no racing) or in [1, trials), got "
+                             f"{self.race_first_trials} with trials {self.trials}")
         for name in ("max_generations", "stagnation_generations", "max_evaluations"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0 (0 disables it), got {getattr(self, name)}")

@@ -48,6 +48,7 @@ from rollability_ros.core.config import (ConfigError, check_path_component, from
                                          resolve_config_path, section)
 from rollability_ros.core.optimization.cmaes import (
     STREAM_POPULATION,
+    STREAM_RACE,
     STREAM_REEVALUATION,
     IncumbentOptimizer,
     OptimizerResult,
@@ -259,18 +260,26 @@ class OptimizationRun:
     optimizer_factory : callable, optional
         ``factory(n_variables, settings, lower, upper, clock, initial_mean, state=None)`` -> the optimizer the run
         drives (module docstring); default :func:`make_optimizer` (``optimizer.method``: CMA-ES or CMA-MAE).
+    evaluate_trials : callable(heights_list, seed, trials), optional
+        ``evaluate_batch`` with a trial count: needed for racing (``optimizer.race_first_trials``), see
+        :meth:`_evaluate_raced`.
 
     ``on_candidate`` and ``on_generation`` are also public attributes, settable after construction.
     """
 
     def __init__(self, run_dir, parameters, grid, evaluate_batch, resume=False, on_candidate=None,
-                 on_generation=None, clock=time.monotonic, screen_profiles=None, optimizer_factory=None):
+                 on_generation=None, clock=time.monotonic, screen_profiles=None, optimizer_factory=None,
+                 evaluate_trials=None):
         self.run_dir = os.fspath(run_dir)
         self.run_id = run_id_of(self.run_dir)
         self.parameters = dict(parameters)
         self.settings = optimizer_settings(self.parameters)
         self.grid = grid
         self._evaluate_batch = evaluate_batch
+        self._evaluate_trials = evaluate_trials
+        if self.settings.race_first_trials and evaluate_trials is None:
+            raise ValueError("optimizer.race_first_trials needs an evaluator that takes a trial count "
+                             "(evaluate_trials)")
         self.on_candidate = on_candidate
         self.on_generation = on_generation
         self._clock = clock
@@ -461,7 +470,10 @@ class OptimizationRun:
         population = optimizer.ask()
         seeds = [derive_seed(settings.seed, index, STREAM_POPULATION,
                              0 if settings.common_random_numbers else i) for i in range(len(population))]
-        results = self._evaluate(generation, list(range(len(population))), population, seeds, stored)
+        if settings.race_first_trials and optimizer.best is not None and settings.common_random_numbers:
+            results = self._evaluate_raced(generation, index, population, seeds[0], stored)
+        else:
+            results = self._evaluate(generation, list(range(len(population))), population, seeds, stored)
         fitness = [r.fitness for r in results]
         optimizer.tell(population, fitness, [r.trials for r in results])
         reevaluation_request = getattr(optimizer, "reevaluation_request", None)
@@ -500,23 +512,72 @@ class OptimizationRun:
                                  f"{generation} than this resumed run computes (seed {previous.seed} vs {seed}); "
                                  "the store or the code changed since the run started")
         for seed, batch in pending.items():
-            results = self._evaluate_batch([heights for _, heights in batch], seed)
-            if len(results) != len(batch):
-                raise ValueError(f"evaluator returned {len(results)} results for {len(batch)} profiles")
+            results = self._checked(self._evaluate_batch([heights for _, heights in batch], seed),
+                                    [index for index, _ in batch], generation)
             for (index, heights), (successes, trials, eval_time_s, evaluator) in zip(batch, results):
-                if not 0 <= successes <= trials or trials < 1:
-                    raise ValueError(f"evaluator returned {successes} successes of {trials} trials for candidate "
-                                     f"{index} of generation {generation}")
-                record = CandidateRecord(run_id=self.run_id, generation=generation, index=index,
-                                         heights=tuple(np.asarray(heights, dtype=np.float64).tolist()),
-                                         fitness=successes / trials, successes=int(successes), trials=int(trials),
-                                         seed=seed, eval_time_s=float(eval_time_s), evaluator=str(evaluator),
-                                         stamp_s=time.time())
-                self.store.add_candidate(record)
-                records[index] = record
-                if self.on_candidate is not None:
-                    self.on_candidate(record)
+                records[index] = self._store_candidate(generation, index, heights, seed, successes, trials,
+                                                       eval_time_s, evaluator)
         return [records[index] for index in indices]
+
+    def _evaluate_raced(self, generation, index, population, seed, stored):
+        """The population's :class:`CandidateRecord` s with racing (``optimizer.race_first_trials`` = n1 of the
+        ``trials`` = n): every candidate not yet stored gets n1 trials on the generation's seed; one whose 95% Wilson
+        upper bound is below the lower bound of the incumbent's pooled estimate is clearly worse and stops with
+        those n1; the others get the other n - n1 on a second common seed (stream ``STREAM_RACE``) and their two
+        stages are pooled. Both stages keep common random numbers; a stored record (resume) holds the pooled
+        result under the first stage's seed, and the decision depends only on the checkpointed incumbent, so a
+        resumed generation makes the same decisions."""
+        from rollability_ros.core.results.stats import wilson_interval
+
+        settings, incumbent = self.settings, self.optimizer.best
+        first, rest = settings.race_first_trials, settings.trials - settings.race_first_trials
+        bar = wilson_interval(int(round(incumbent.fitness * incumbent.trials)), int(incumbent.trials))[0]
+        records = {}
+        pending = []
+        for number, heights in enumerate(population):
+            previous = stored.get(number)
+            if previous is None:
+                pending.append(number)
+            elif previous.seed == seed and np.array_equal(previous.heights, heights):
+                records[number] = previous
+            else:
+                raise ValueError(f"run {self.run_id}: the store holds a different candidate {number} of generation "
+                                 f"{generation} than this resumed run computes (seed {previous.seed} vs {seed})")
+        if pending:
+            stage1 = self._checked(self._evaluate_trials([population[i] for i in pending], seed, first), pending,
+                                   generation)
+            going_on = [i for i, r in zip(pending, stage1) if wilson_interval(r[0], r[1])[1] >= bar]
+            second = derive_seed(settings.seed, index, STREAM_RACE)
+            stage2 = dict(zip(going_on, self._checked(
+                self._evaluate_trials([population[i] for i in going_on], second, rest), going_on, generation))) \
+                if going_on else {}
+            for number, (successes, trials, eval_time_s, evaluator) in zip(pending, stage1):
+                more = stage2.get(number, (0, 0, 0.0, evaluator))
+                records[number] = self._store_candidate(generation, number, population[number], seed,
+                                                        successes + more[0], trials + more[1],
+                                                        eval_time_s + more[2], evaluator)
+        return [records[number] for number in range(len(population))]
+
+    @staticmethod
+    def _checked(results, indices, generation):
+        if len(results) != len(indices):
+            raise ValueError(f"evaluator returned {len(results)} results for {len(indices)} profiles")
+        for number, (successes, trials, _, _) in zip(indices, results):
+            if not 0 <= successes <= trials or trials < 1:
+                raise ValueError(f"evaluator returned {successes} successes of {trials} trials for candidate "
+                                 f"{number} of generation {generation}")
+        return results
+
+    def _store_candidate(self, generation, index, heights, seed, successes, trials, eval_time_s, evaluator):
+        record = CandidateRecord(run_id=self.run_id, generation=generation, index=index,
+                                 heights=tuple(np.asarray(heights, dtype=np.float64).tolist()),
+                                 fitness=successes / trials, successes=int(successes), trials=int(trials),
+                                 seed=seed, eval_time_s=float(eval_time_s), evaluator=str(evaluator),
+                                 stamp_s=time.time())
+        self.store.add_candidate(record)
+        if self.on_candidate is not None:
+            self.on_candidate(record)
+        return record
 
     # --- the loop -----------------------------------------------------------------------------------------------
     def run(self, cancel_event: typing.Optional[threading.Event] = None) -> OptimizerResult:

@@ -164,3 +164,42 @@ def test_cli_optimize_with_a_bad_up_axis_fails_in_one_line(tmp_path, capsys):
     assert main(["optimize", "--config", config, "--run-id", "x"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "up_axis_xyz [1.0, 0.0, 0.0] is 90 deg from the root link's z" in err[0]
+
+
+#: An upstream description as published: the TurtleBot3 Burger's xacro, visual meshes package://turtlebot3_description.
+BURGER = os.path.join(os.path.dirname(__file__), "..", "resources", "turtlebot3_burger.urdf")
+#: The walk-through's mount (docs/other-robots.md): on the lidar housing's top, the only free top surface.
+BURGER_MOUNT = dict(urdf_path=BURGER, mount_link="base_scan", footprint_length_m=0.07, footprint_width_m=0.07,
+                    footprint_offset_m=(0.015, 0.0, 0.00925), wheel_link_regex="wheel_(left|right)_link",
+                    min_wheels_in_contact=2)
+
+
+def test_upstream_xacro_with_missing_visual_meshes_says_what_to_do(monkeypatch):
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    with pytest.raises(ValueError) as refused:
+        UrdfRobotSpec(**BURGER_MOUNT).validate()
+    message = str(refused.value)
+    assert "\n" not in message and message.startswith(
+        "visual mesh package://turtlebot3_description/meshes/bases/burger_base.stl not found")
+    assert "AMENT_PREFIX_PATH" in message and "ignore_visual_meshes: true" in message
+    spec = UrdfRobotSpec(**BURGER_MOUNT, ignore_visual_meshes=True)
+    spec.validate()
+    assert "<visual>" not in spec.description().robot.original_urdf
+
+
+def test_upstream_meshes_found_through_ament_prefix_path(tmp_path, monkeypatch):
+    trimesh = pytest.importorskip("trimesh")
+    share = tmp_path / "prefix" / "share" / "turtlebot3_description" / "meshes"
+    for name in ("bases/burger_base.stl", "wheels/left_tire.stl", "wheels/right_tire.stl", "sensors/lds.stl"):
+        (share / name).parent.mkdir(parents=True, exist_ok=True)
+        trimesh.creation.box((10.0, 10.0, 10.0)).export(str(share / name))
+    monkeypatch.setenv("AMENT_PREFIX_PATH", f"{tmp_path / 'elsewhere'}{os.pathsep}{tmp_path / 'prefix'}")
+    UrdfRobotSpec(**BURGER_MOUNT).validate()    # found in the second prefix's share/ (the first has none)
+
+
+def test_upstream_robot_profile_over_its_lidar_is_refused_naming_it():
+    spec = UrdfRobotSpec(**{**BURGER_MOUNT, "mount_link": "base_link", "footprint_length_m": 0.12,
+                            "footprint_width_m": 0.12, "footprint_offset_m": (-0.032, 0.0, 0.1415)},
+                         ignore_visual_meshes=True)
+    with pytest.raises(ValueError, match="link 'base_scan' rises 0.0397 m above the footprint plane"):
+        spec.validate()

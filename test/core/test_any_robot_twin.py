@@ -164,3 +164,41 @@ def test_a_robot_landing_level_on_its_wheels_stays_put_and_is_stored_upright(rob
 def test_wheel_model_is_checked():
     with pytest.raises(Exception, match="wheel_model must be one of auto, mecanum, robot"):
         load_launch_twin_settings(TWIN, overrides={"twin.wheel_model": "tracks"})
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("robot_name", ["mast", "husky"])
+def test_end_to_end_optimise_select_campaign_on_the_twin_and_report(tmp_path, monkeypatch, capsys, robot_name):
+    """The documented commands at a miniature budget (docs/other-robots.md, walk-through): a robot config, optimise,
+    select, a campaign on the twin with the selected design (rig.twin_config, launch_twin.designs.designs_file),
+    report; every launch valid, and the report draws this run's design."""
+    monkeypatch.chdir(tmp_path)
+    budget = ("    optimizer:\n      popsize: 6\n      trials: 4\n      max_generations: 2\n      initial_mean_screen: 0\n"
+              "    quality_diversity:\n      emitters: 1\n    selection:\n      count: 1\n      reevaluate_trials: 4\n"
+              "      top_fraction: 1.0\n")
+    if robot_name == "mast":
+        (tmp_path / "robot.urdf").write_text(mast_robot_urdf(), encoding="utf-8")
+        (tmp_path / "robot.yaml").write_text(mast_robot_config("robot.urdf", extra=budget), encoding="utf-8")
+        configs = ["robot.yaml"]
+    else:
+        (tmp_path / "budget.yaml").write_text("/**:\n  ros__parameters:\n" + budget, encoding="utf-8")
+        configs = ["husky", "budget.yaml"]
+    arguments = [part for config in configs for part in ("--config", config)]
+    assert main(["optimize", *arguments, "--run-id", "opt", "--workers", "1"]) == 0
+    assert main(["select", "runs/opt"]) == 0
+    (tmp_path / "twin.yaml").write_text("/**:\n  ros__parameters:\n    launch_twin:\n      designs:\n"
+                                        "        designs_file: runs/opt/designs/designs.yaml\n", encoding="utf-8")
+    (tmp_path / "rig.yaml").write_text("/**:\n  ros__parameters:\n    rig:\n      twin_config: [sim, robot, "
+                                       f"launch_twin, {', '.join(configs)}, twin.yaml]\n", encoding="utf-8")
+    (tmp_path / "campaign.yaml").write_text(
+        "/**:\n  ros__parameters:\n    campaign:\n      run_id: twin\n      configurations: [baseline, A]\n"
+        "      heights_m: [0.5]\n      speeds_mps: [0.8]\n      angles_deg: [0.0, 30.0]\n      repetitions: 2\n",
+        encoding="utf-8")
+    capsys.readouterr()
+    assert main(["campaign", "--backend", "sim", "--config", "campaign.yaml", "--rig-config", "rig", "--rig-config",
+                 "rig.yaml", "--store", "campaign.sqlite"]) == 0
+    out = capsys.readouterr().out
+    assert "campaign complete: 8/8 trials stored" in out and "invalid launch" not in out
+    assert main(["report", "campaign.sqlite"]) == 0
+    html = (tmp_path / "campaign-report" / "report.html").read_text(encoding="utf-8")
+    assert os.path.join("runs", "opt", "designs", "mesh_A.stl") in html

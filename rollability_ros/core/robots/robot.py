@@ -134,12 +134,16 @@ def compliant_mount(client, body_id, joint, mount, profile_mass_kg):
 
 @dataclasses.dataclass(frozen=True)
 class SpawnedRobot:
-    """A robot in a PyBullet world: its body id, the link indices of its wheels (``-1`` = base) and, on a
-    compliant mount, the :class:`MountSpring` to apply before every step (None when rigid)."""
+    """A robot in a PyBullet world: its body id, the link indices of its wheels (``-1`` = base), on a compliant
+    mount the :class:`MountSpring` to apply before every step (None when rigid), and with a profile its link index
+    and hull vertices ``(k, 3)`` in that link's frame (m): its exact extent, where Bullet's bounding box of a mesh
+    link on rotated inertial axes is up to twice the mesh's size."""
 
     body_id: int
     wheel_links: tuple
     mount_spring: MountSpring = None
+    profile_link: int = None
+    profile_points_m: object = None
 
     def before_step(self):
         """Apply the per-step forces of the robot itself (the compliant mount's spring); call before each step."""
@@ -424,7 +428,9 @@ class ChassisModel(SpecThresholds, RobotModel):
         spring = None
         if profile is not None and s.profile_mount.compliant:
             spring = compliant_mount(client, body, 0, s.profile_mount, profile.mass_kg)
-        return SpawnedRobot(body_id=body, wheel_links=wheels, mount_spring=spring)
+        return SpawnedRobot(body_id=body, wheel_links=wheels, mount_spring=spring,
+                            profile_link=None if profile is None else 0,
+                            profile_points_m=None if profile is None else profile.hull_vertices_m)
 
     def up_axis(self, client, robot):
         pybullet = require("pybullet", feature="the simulated evaluator")

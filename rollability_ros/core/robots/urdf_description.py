@@ -108,6 +108,19 @@ def expand_xacro(text, path=None):
         os.chdir(previous)
 
 
+def without_visuals(xml_text):
+    """``xml_text`` with every link's ``<visual>`` elements removed (the simulation never draws them), so visual
+    meshes that are not on this machine stop nothing; collision meshes must still resolve."""
+    try:
+        root = ElementTree.fromstring(xml_text)
+    except ElementTree.ParseError as exc:
+        raise ValueError(f"robot description is not valid XML: {exc}") from exc
+    for link in root.iter("link"):
+        for visual in link.findall("visual"):
+            link.remove(visual)
+    return ElementTree.tostring(root, encoding="unicode")
+
+
 def search_folders(search_paths):
     """The folders of ``search_paths``: ``~`` and ``$VARS`` expanded, ``python:<module>`` -> the module's folder."""
     folders = []
@@ -144,8 +157,10 @@ def resolve_mesh_path(filename, urdf_folder, folders):
     for candidate in tried:
         if os.path.isfile(candidate):
             return os.path.abspath(candidate)
+    hint = (f" or put the install prefix holding share/{filename[len('package://'):].partition('/')[0]} on "
+            "AMENT_PREFIX_PATH" if filename.startswith("package://") else "")
     raise ValueError(f"mesh {filename} not found (looked in: {', '.join(tried) or 'no search folders'}); "
-                     "add its folder to urdf_robot.search_paths")
+                     f"add its folder to urdf_robot.search_paths{hint}")
 
 
 # --- small frame algebra ----------------------------------------------------------------------------------------
@@ -361,8 +376,15 @@ def describe(xml_text, urdf_folder=None, search_paths=()):
     root_element, links, joints = _parse(xml_text)
     root, children = _tree(links, joints)
     folders = search_folders(search_paths)
+    visual_meshes = {id(mesh) for visual in root_element.iter("visual") for mesh in visual.iter("mesh")}
     for element in root_element.iter("mesh"):
-        element.set("filename", resolve_mesh_path(element.get("filename", ""), urdf_folder, folders))
+        try:
+            element.set("filename", resolve_mesh_path(element.get("filename", ""), urdf_folder, folders))
+        except ValueError as exc:
+            if id(element) not in visual_meshes:
+                raise
+            raise ValueError(f"visual {exc}, or set urdf_robot.ignore_visual_meshes: true (the simulation never "
+                             "draws visuals)") from None
 
     body_of, link_in_body, order = {root: root}, {root: np.eye(4)}, [root]
     moving = []

@@ -39,7 +39,7 @@ from rollability_ros.core.optional import require
 from rollability_ros.core.robots.robot import (ChassisModel, ProfileMountSpec, RobotModel, SpawnedRobot,
                                                SpecThresholds, compliant_mount)
 from rollability_ros.core.robots.urdf_description import (PROFILE_LINK, describe, inertial_xml, origin_xml, read_urdf_source,
-                                                   transform)
+                                                   transform, without_visuals)
 
 #: The profile joint of the simulator URDF: fixed, or prismatic on a compliant mount.
 PROFILE_JOINT = f"{PROFILE_LINK}_joint"
@@ -78,6 +78,9 @@ class UrdfRobotSpec:
     search_paths: tuple[str, ...] = dataclasses.field(default=(), metadata={
         "description": "folders searched for the URDF, package:// and relative meshes; python:<module> = that installed"
                        " package's folder"})
+    ignore_visual_meshes: bool = dataclasses.field(default=False, metadata={
+        "description": "true: drop the description's <visual> elements before checking it (the simulation never draws "
+                       "them), so visual meshes missing on this machine stop nothing; exports then have no visuals"})
     mount_link: str = dataclasses.field(default="", metadata={
         "description": "URDF link the profile is fixed to; naming it selects the URDF robot instead of the built-in "
                        "chassis"})
@@ -202,7 +205,7 @@ def footprint_corners(spec):
 
 def _mount(spec):
     text, folder = read_urdf_source(spec.urdf_path, spec.robot_description, spec.search_paths)
-    robot = describe(text, folder, spec.search_paths)
+    robot = describe(without_visuals(text) if spec.ignore_visual_meshes else text, folder, spec.search_paths)
     mount_in_body = robot.link_transform(spec.mount_link)
     body = robot.body_of[spec.mount_link]
     points = robot.body_collision_points(body)
@@ -492,7 +495,8 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
         if profile is not None and self.spec.profile_mount.compliant:
             spring = compliant_mount(client, body, index[PROFILE_LINK], self.spec.profile_mount, profile.mass_kg)
         return SpawnedRobot(body_id=body, wheel_links=tuple(index[name] for name in self.mounted.wheel_bodies),
-                            mount_spring=spring)
+                            mount_spring=spring, profile_link=None if profile is None else index[PROFILE_LINK],
+                            profile_points_m=None if profile is None else profile.hull_vertices_m)
 
     def up_axis(self, client, robot):
         pybullet = require("pybullet", feature="the simulated evaluator")

@@ -463,11 +463,19 @@ class PhaseReporter:
             self._next += 1
 
 
-def _bounds_m(pybullet, client, body_id):
-    """The robot's world bounding box over all its links' bounding boxes: ``(low (3,), high (3,))`` (m)."""
-    boxes = np.array([pybullet.getAABB(body_id, link, physicsClientId=client)
-                      for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client))])
-    return boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
+def _bounds_m(pybullet, client, robot):
+    """The world bounding box of ``robot`` (a SpawnedRobot) from :func:`_corners_m`: ``(low (3,), high (3,))`` (m)."""
+    corners = _corners_m(pybullet, client, robot)
+    return corners.min(axis=0), corners.max(axis=0)
+
+
+def _place_on_plate(pybullet, client, robot, orientation, clearance_m, xy_m, plate_z):
+    """:func:`place_on_ground` on the launcher's top, then lowered so the lowest of :func:`_corners_m` (not of
+    Bullet's looser box of a profile mesh) is ``clearance_m`` above it."""
+    place_on_ground(client, robot.body_id, orientation, clearance_m, xy_m, plate_z)
+    position = list(pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)[0])
+    position[2] += plate_z + clearance_m - float(_bounds_m(pybullet, client, robot)[0][2])
+    pybullet.resetBasePositionAndOrientation(robot.body_id, position, orientation, physicsClientId=client)
 
 
 def place_on_launcher(pybullet, client, robot, orientation, push, settings, height_m):
@@ -480,12 +488,12 @@ def place_on_launcher(pybullet, client, robot, orientation, push, settings, heig
     """
     launcher = settings.twin.launcher
     plate_z = settings.twin.foam.thickness_m + height_m
-    place_on_ground(client, robot.body_id, orientation, launcher.start_clearance_m, (0.0, 0.0), plate_z)
+    _place_on_plate(pybullet, client, robot, orientation, launcher.start_clearance_m, (0.0, 0.0), plate_z)
     base_x = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)[0][0]
-    lead_m = float(_bounds_m(pybullet, client, robot.body_id)[1][0]) - base_x
-    place_on_ground(client, robot.body_id, orientation, launcher.start_clearance_m,
+    lead_m = float(_bounds_m(pybullet, client, robot)[1][0]) - base_x
+    _place_on_plate(pybullet, client, robot, orientation, launcher.start_clearance_m,
                     launcher_start_xy(lead_m, push, launcher), plate_z)
-    check_fits_launcher(*_bounds_m(pybullet, client, robot.body_id), launcher)
+    check_fits_launcher(*_bounds_m(pybullet, client, robot), launcher)
     return lead_m
 
 
@@ -541,7 +549,7 @@ class PushPlate:
     def __init__(self, pybullet, client, robot, push, spec, plate_z, ignore_bodies):
         self._pybullet, self._client, self.spec = pybullet, client, spec
         self.push = np.asarray(push, dtype=np.float64)
-        corners = _corners_m(pybullet, client, robot.body_id)
+        corners = _corners_m(pybullet, client, robot)
         base = np.asarray(pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)[0])
         placement = plate_placement(float((corners @ self.push).min()), base, self.push, spec, plate_z)
         shape = pybullet.createCollisionShape(
@@ -591,10 +599,18 @@ class PushPlate:
         self.driving = False
 
 
-def _corners_m(pybullet, client, body_id):
-    """The corners of every link's world bounding box of ``body_id``: (8 * links, 3) array (m)."""
+def _corners_m(pybullet, client, robot):
+    """Points bounding ``robot`` (a SpawnedRobot) in the world: the corners of each link's world bounding box, and
+    the profile's hull vertices placed exactly (Bullet's box of a mesh link on rotated inertial axes is up to
+    twice the mesh's size); (n, 3) array (m)."""
+    body_id = robot.body_id
     corners = []
     for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client)):
+        if link == robot.profile_link and robot.profile_points_m is not None:
+            position, orientation = pybullet.getLinkState(body_id, link, physicsClientId=client)[4:6]
+            rotation = np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+            corners.extend((np.asarray(robot.profile_points_m) @ rotation.T + position).tolist())
+            continue
         low, high = pybullet.getAABB(body_id, link, physicsClientId=client)
         corners.extend([(x, y, z) for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])])
     return np.asarray(corners, dtype=np.float64)

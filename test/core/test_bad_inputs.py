@@ -119,8 +119,9 @@ def _cli(workspace, *argv):
 
 
 @pytest.mark.parametrize("argv, reason", [
-    (["play", "bag", "--start-offset", "1e12", "--wait-for-subscribers", "0"], "beyond the end of the bag"),
-    (["play", "bag", "--wait-for-subscribers", "-1"], "wait_for_subscribers_s must be >= 0"),
+    (["play", "bag", "--start-offset", "1e12", "--wait-for-subscribers", "0"], "player.start_offset_s"),
+    (["play", "bag", "--start-offset", "1000", "--wait-for-subscribers", "0"], "beyond the end of the bag"),
+    (["play", "bag", "--wait-for-subscribers", "-1"], "player.wait_for_subscribers_s"),   # out of its range
 ])
 def test_the_player_refuses_what_it_cannot_play(workspace, argv, reason):
     """Was: `play --start-offset 1e12` exited 0 after "played 0 messages"."""

@@ -76,7 +76,8 @@ def _resimulate(args):
 
     refusal = launch_backend_class(args.backend).resimulate_refusal()
     if refusal or not args.resimulate or args.seed is None:
-        able = " or ".join(name for name, cls in LAUNCH_BACKENDS.items() if not cls.resimulate_refusal())
+        able = " or ".join(name for name in LAUNCH_BACKENDS.names()
+                           if not launch_backend_class(name).resimulate_refusal())
         raise ValueError(f"--resimulate needs --backend {able} and --seed" + (f" ({refusal})" if refusal else ""))
     configuration, *numbers = args.resimulate
     try:

@@ -10,6 +10,7 @@ import pytest
 
 from rollability_ros.core.registry import Registry
 from rollability_ros.core.rig import valve_backends
+from rollability_ros.core.rig.launch_backend import LaunchBackend
 from rollability_ros.core.rig.rig_session import LAUNCH_BACKENDS, PhysicalLaunch, SimulatedLaunch
 from rollability_ros.core.rig.speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
 from rollability_ros.core.rig.valve import ValveConfig, ValveController
@@ -182,11 +183,13 @@ def test_a_speed_gate_registered_from_one_module_runs_through_the_factory():
 def test_resimulating_is_a_declared_capability_of_the_launch_backend():
     assert SimulatedLaunch.resimulate_refusal() == ""
     refusal = PhysicalLaunch.resimulate_refusal()
-    assert refusal == "a physical launch cannot be re-run (it has no twin seed)"
+    assert refusal == "a physical launch cannot be re-run: it has no twin seed"
     backend = PhysicalLaunch.__new__(PhysicalLaunch)      # the default method refuses without touching a port
     with pytest.raises(ValueError, match=re.escape(refusal)):
         backend.resimulate(None, 1)
-    assert [name for name, cls in LAUNCH_BACKENDS.items() if not cls.resimulate_refusal()] == ["sim"]
+    assert [name for name in LAUNCH_BACKENDS.names() if not LAUNCH_BACKENDS.get(name).resimulate_refusal()] == ["sim"]
+    with pytest.raises(TypeError, match="does not implement from_ports"):
+        type("Bare", (LaunchBackend,), {"name": "bare"}).from_ports(None, None, None, None, None)
 
 
 def test_the_recording_board_is_bounded_like_any_other(recording_board):

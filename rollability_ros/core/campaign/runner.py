@@ -24,7 +24,7 @@ from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, c
 from rollability_ros.core.config import from_mapping, section
 from rollability_ros.core.imu.upright import ImuOutcomeConfig
 from rollability_ros.core.rig.launch_backend import LaunchAborted, RigPorts
-from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, RIG_BACKENDS, RigSettings,
+from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, RigSettings,
                                                   make_launch_backend, parse_outcome_answer)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
 from rollability_ros.core.results.records import INVALID_LAUNCH, LaunchOutcome
@@ -239,7 +239,7 @@ class RunnerSettings:
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
-        if self.backend not in RIG_BACKENDS:
+        if self.backend not in LAUNCH_BACKENDS:
             raise ValueError(f"backend must be 'sim' (unattended) or 'physical' (operator), got {self.backend!r}")
         if not 0 < self.store_timeout_s < math.inf or not 0 < self.server_timeout_s < math.inf:
             raise ValueError("store_timeout_s and server_timeout_s must be finite and > 0")

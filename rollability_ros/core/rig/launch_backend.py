@@ -17,7 +17,8 @@ import typing
 from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
 
 if typing.TYPE_CHECKING:  # annotations only: rig_session imports this module
-    from rollability_ros.core.rig.rig_session import ImuOutcome
+    from rollability_ros.core.imu.upright import ImuOutcomeConfig
+    from rollability_ros.core.rig.rig_session import ImuOutcome, RigSettings
     from rollability_ros.core.rig.speed_gate import SpeedGateConfig
     from rollability_ros.core.rig.valve import ValveConfig
 
@@ -77,6 +78,13 @@ class LaunchBackend(abc.ABC):
         :class:`LaunchAborted` when no outcome was obtained.
         """
 
+    @classmethod
+    def from_ports(cls, settings: "RigSettings", speed_config: "SpeedGateConfig", valve_config: "ValveConfig",
+                   imu_config: "ImuOutcomeConfig", ports: "RigPorts") -> "LaunchBackend":
+        """The backend for these settings, opening only the ``ports`` it uses (what ``make_launch_backend`` calls);
+        ``ValueError`` for settings it cannot honour."""
+        raise TypeError(f"launch backend {cls.__name__} does not implement from_ports")
+
     def describe(self) -> str:
         """One line for the start-up log."""
         return f"backend {self.name}"
@@ -93,7 +101,7 @@ class LaunchBackend(abc.ABC):
     @classmethod
     def resimulate_refusal(cls) -> str:
         """Why this backend cannot re-run a stored launch from its seed ("" when it can; default: it cannot)."""
-        return f"a {cls.name} launch cannot be re-run (it has no twin seed)"
+        return f"a {cls.name} launch cannot be re-run: it has no twin seed"
 
     def resimulate(self, condition: LaunchCondition, seed: int) -> typing.Any:
         """The launch of ``condition`` with twin ``seed`` again (the launch a stored outcome was classified from);

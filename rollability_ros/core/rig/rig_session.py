@@ -37,6 +37,7 @@ import typing
 import zlib
 
 from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
+from rollability_ros.core.registry import Registry
 from rollability_ros.core.results.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, LaunchCondition,
                                                   LaunchOutcome)
 from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
@@ -47,7 +48,6 @@ from rollability_ros.core.rig.valve import ValveConfig
 #: Feedback phases of the Launch action, in order.
 PHASES = ("waiting_for_operator", "armed", "fired", "in_flight", "settling", "classifying")
 #: ``rig.backend`` values.
-RIG_BACKENDS = ("sim", "physical")   # keys of LAUNCH_BACKENDS, kept here for RigSettings.validate
 #: ``rig.outcome_source`` values (physical backend).
 OUTCOME_SOURCES = ("operator", "imu")
 #: Start of the ``classifying`` feedback detail while the rig waits for the operator's outcome.
@@ -90,8 +90,7 @@ class RigSettings:
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
-        if self.backend not in RIG_BACKENDS:
-            raise ValueError(f"backend must be one of {RIG_BACKENDS}, got {self.backend!r}")
+        LAUNCH_BACKENDS.check(self.backend)
         if not self.configurations or not all(self.configurations):
             raise ValueError("configurations must list the configuration ids the rig can launch")
         if self.outcome_source not in OUTCOME_SOURCES:
@@ -551,15 +550,12 @@ class SimulatedLaunch(LaunchBackend):
 
 
 #: ``rig.backend`` -> the :class:`LaunchBackend` implementation.
-LAUNCH_BACKENDS = {"sim": SimulatedLaunch, "physical": PhysicalLaunch}
+LAUNCH_BACKENDS = Registry("backend", LaunchBackend, {"sim": SimulatedLaunch, "physical": PhysicalLaunch})
 
 
 def launch_backend_class(name: str) -> typing.Type[LaunchBackend]:
     """The :class:`LaunchBackend` class for a ``rig.backend`` value; ``ValueError`` names the known ones."""
-    try:
-        return LAUNCH_BACKENDS[name]
-    except KeyError:
-        raise ValueError(f"backend must be one of {tuple(LAUNCH_BACKENDS)}, got {name!r}") from None
+    return LAUNCH_BACKENDS.get(name)
 
 
 def make_launch_backend(settings: RigSettings, speed_config: SpeedGateConfig, valve_config: ValveConfig,

@@ -154,6 +154,8 @@ class UrdfRobotSpec:
             re.compile(self.wheel_link_regex)
         except re.error as exc:
             raise ValueError(f"wheel_link_regex {self.wheel_link_regex!r} is not a regular expression: {exc}") from exc
+        if self.selected:
+            check_up_axis(self)
         if self.selected and self.has_source:
             self.description()
 
@@ -212,7 +214,6 @@ def _mount(spec):
     if not len(points):
         raise ValueError(f"mount link {spec.mount_link!r}: its rigid body {body!r} has no collision shape to carry "
                          "a profile")
-    check_up_axis(spec)
     mount_in_root = np.array(robot.body_in_root[body]) @ mount_in_body
     root_to_mount = np.linalg.inv(mount_in_root)
     shapes = []

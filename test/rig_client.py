@@ -1,8 +1,25 @@
 """A test's side of a rig node: the Launch action, the operator services and the outcome topic, signed with the
 valve's session key as the operator's tools sign them; ``signed=False`` plays a stray participant without the key."""
 import math
+import time
 
 from rollability_ros.core.results.records import LaunchCondition
+
+
+def wait_for_session_key(namespace="", timeout_s=30.0):
+    """The valve_controller's session key, once the valve_controller started just before has written it: a
+    process start on a loaded machine takes seconds, and the operator's tools refuse to sign without the key."""
+    from rollability_ros.core.rig import valve_auth
+
+    path = valve_auth.default_key_path(namespace)
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            return valve_auth.load_session_key(path)
+        except valve_auth.AuthError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.1)
 
 
 class RigClient:
@@ -20,6 +37,8 @@ class RigClient:
 
         ns = namespace.rstrip("/") + "/" if namespace else ""
         self.spun = spun
+        if signed:
+            wait_for_session_key(namespace)
         self.signer = rig_auth.KeyFileSigner(valve_auth.default_key_path(namespace)) if signed else None
         self.action = ThreadSafeActionClient(spun.node, Launch, f"{ns}launch")
         self.confirm_client = spun.node.create_client(ConfirmRegulator, f"{ns}rig/confirm")

@@ -15,6 +15,7 @@ import sys
 import time
 
 import pytest
+from rig_client import wait_for_session_key
 from valve_client import ValveClient
 
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
@@ -59,6 +60,7 @@ class Graph:
         self.logger_dir, self.runner_dir = separate_directories(tmp_path)
         self.store = self.logger_dir / "store.sqlite"
         self.valve = start_node("valve_controller", params=valve_params)
+        wait_for_session_key()   # the runner refuses at once without it, as an operator's would
         # a relative store path: only the logger's working directory holds the store
         self.logger = (start_node("outcome_logger", params={"store_path": "store.sqlite"}, cwd=self.logger_dir)
                        if logger else None)

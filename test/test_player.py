@@ -125,7 +125,7 @@ def test_remap_clock_start_offset_and_loop(campaign_bag, ros_node, start_process
 def test_bad_bag_and_options_exit_with_a_reason(tmp_path, campaign_bag, start_process):
     bag, _ = campaign_bag
     cases = [((str(tmp_path / "missing"),), "not a directory"),
-             ((str(bag), "--rate", "-1"), "rate must be > 0"),
+             ((str(bag), "--rate", "-1"), "player.rate out of range"),
              ((str(bag), "--topics", "/nope"), "not in bag"),
              ((str(bag), "--remap", "/launch_outcomes"), "must look like")]
     for args, reason in cases:

@@ -1,6 +1,5 @@
 """Configuration ids resolve to the right solids: baseline, a selection's designs.yaml, STL files; bad ids refused."""
 import os
-import types
 
 import numpy as np
 import pytest
@@ -9,7 +8,8 @@ import yaml
 from rollability_ros.core.profile import geometry
 from rollability_ros.core.config import ConfigError
 from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
-from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, designs_document
+from rollability_ros.core.optimization.selection import (PooledDesign, SelectedDesign, SelectionResult,
+                                                         designs_document)
 
 pytest.importorskip("trimesh")
 
@@ -25,7 +25,8 @@ def write_designs(folder, tops):
     """A designs.yaml exactly as ``rollability select`` writes it, with one ramp design per label -> top."""
     chosen = [SelectedDesign(label, PooledDesign(ramp_heights(top), 9, 10, 1, 1), mesh=None, metrics=None,
                              reason="a ramp to the given top") for label, top in tops.items()]
-    document = designs_document(types.SimpleNamespace(designs=chosen), GRID, "run-1")
+    document = designs_document(SelectionResult(designs=chosen, requested=len(chosen), considered=len(chosen), rejected={}),
+                                GRID, "run-1")
     path = os.path.join(folder, "designs.yaml")
     with open(path, "w", encoding="utf-8") as stream:
         yaml.safe_dump(document, stream)

@@ -99,13 +99,12 @@ def test_evaluate_engines_prints_both_fitnesses_and_the_agreement(capsys):
 
 
 def test_evaluate_designs_in_two_engines_writes_the_table_the_report_reads(tmp_path, capsys):
-    import types
-
     import numpy as np
     import yaml
 
     from rollability_ros.cli import main
-    from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, designs_document
+    from rollability_ros.core.optimization.selection import (PooledDesign, SelectedDesign, SelectionResult,
+                                                             designs_document)
     from rollability_ros.core.profile.geometry import ProfileGrid
     from rollability_ros.core.results.engine_agreement import read_table
 
@@ -113,7 +112,8 @@ def test_evaluate_designs_in_two_engines_writes_the_table_the_report_reads(tmp_p
     chosen = [SelectedDesign("A", PooledDesign(np.repeat(np.linspace(0.05, 0.4, grid.rows), grid.cols), 9, 10, 1, 1),
                              mesh=None, metrics=None, reason="a ramp")]
     designs = tmp_path / "designs.yaml"
-    designs.write_text(yaml.safe_dump(designs_document(types.SimpleNamespace(designs=chosen), grid, "run-1")))
+    designs.write_text(yaml.safe_dump(designs_document(
+        SelectionResult(designs=chosen, requested=1, considered=1, rejected={}), grid, "run-1")))
     assert main(["evaluate", "--designs", str(designs), "--engines", "pybullet,mujoco", "--trials", "4",
                  "--workers", "1"]) == 0
     out = capsys.readouterr().out

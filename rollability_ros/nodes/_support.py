@@ -11,11 +11,13 @@ import os
 import signal
 import sys
 import threading
+import time
 import typing
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.action import ActionClient
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.signals import SignalHandlerOptions
@@ -332,3 +334,26 @@ class ThreadSafeActionClient(ActionClient):
     async def execute(self, taken_data):
         with self._request_lock:   # execute never suspends: its callbacks are plain functions
             await super().execute(taken_data)
+
+
+#: How often the acknowledgements are looked at, s. rclpy's ``wait_for_all_acked`` holds the GIL for as long as it
+#: waits (rclpy 7, Jazzy), so every Python thread, the main thread's stop-signal check too, would freeze for the
+#: whole timeout of each topic whose subscriber stopped acknowledging (a stalled or SIGSTOPped one): it is only
+#: ever called with a ~zero timeout, and the wait between looks releases the GIL (issue 30).
+ACK_POLL_S = 0.02
+
+
+def wait_for_acks(publishers, timeout_s, stop):
+    """Wait until every publisher's messages are acknowledged by its reliable subscribers, ``timeout_s`` in all, or
+    until ``stop`` (a ``threading.Event``) is set; return how many publishers are still waiting.
+
+    Never holds the GIL for longer than one ~zero-timeout ``wait_for_all_acked`` (see :data:`ACK_POLL_S`).
+    """
+    deadline = time.monotonic() + timeout_s
+    pending = list(publishers)
+    while pending:
+        pending = [p for p in pending if not p.wait_for_all_acked(Duration(nanoseconds=1000))]
+        if not pending or stop.wait(min(ACK_POLL_S, max(0.0, deadline - time.monotonic()))) \
+                or time.monotonic() >= deadline:
+            break
+    return len(pending)

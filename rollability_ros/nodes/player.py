@@ -17,7 +17,6 @@ import sys
 import threading
 import time
 
-from rclpy.duration import Duration
 from rclpy.node import Node
 
 from rollability_ros.core.bags.metadata import BagError
@@ -27,38 +26,16 @@ from rollability_ros.core.bags.messages import CurrentDefinitions
 from rollability_ros.core.bags.reader import BagReader, check_readable
 from rollability_ros.core.bags.record_play import PlayerSettings, check_topic_names, parse_remaps
 from rollability_ros.nodes._bag_nodes import declare_string_list, message_class, qos_profile_from_dict
-from rollability_ros.nodes._support import ParameterError, declare_settings, run_node
+from rollability_ros.nodes._support import ParameterError, declare_settings, run_node, wait_for_acks
 
 #: Longest wait for reliable subscribers to acknowledge the last messages before exiting (all topics together), s.
 ACK_TIMEOUT_S = 10.0
-
-#: How often the acknowledgements are looked at, s. rclpy's ``wait_for_all_acked`` holds the GIL for as long as it
-#: waits (rclpy 7, Jazzy), so every Python thread, the main thread's stop-signal check too, would freeze for the
-#: whole timeout of each topic whose subscriber stopped acknowledging (a stalled or SIGSTOPped one): it is only
-#: ever called with a ~zero timeout, and the wait between looks releases the GIL (issue 30).
-ACK_POLL_S = 0.02
 
 #: Time given to subscribers to match the player's publishers after the player has matched them, s.
 SETTLE_S = 0.3
 
 #: Publisher queue depth, messages.
 PUBLISHER_DEPTH = 1000
-
-
-def wait_for_acks(publishers, timeout_s, stop):
-    """Wait until every publisher's messages are acknowledged by its reliable subscribers, ``timeout_s`` in all, or
-    until ``stop`` (a ``threading.Event``) is set; return how many publishers are still waiting.
-
-    Never holds the GIL for longer than one ~zero-timeout ``wait_for_all_acked`` (see :data:`ACK_POLL_S`).
-    """
-    deadline = time.monotonic() + timeout_s
-    pending = list(publishers)
-    while pending:
-        pending = [p for p in pending if not p.wait_for_all_acked(Duration(nanoseconds=1000))]
-        if not pending or stop.wait(min(ACK_POLL_S, max(0.0, deadline - time.monotonic()))) \
-                or time.monotonic() >= deadline:
-            break
-    return len(pending)
 
 
 class PlayerNode(Node):

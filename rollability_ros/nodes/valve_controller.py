@@ -31,6 +31,7 @@ happens when this process is killed depends on the backend (docs/valve-safety.md
 relay on its own; a plain GPIO line cannot.
 """
 import math
+import threading
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
@@ -42,7 +43,7 @@ from std_msgs.msg import Bool
 from rollability_ros.core.rig import ValveConfig, make_controller, valve_auth
 from rollability_ros.msg import ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
-from rollability_ros.nodes._support import LATCHED_QOS, ParameterError, declare_settings, run_node
+from rollability_ros.nodes._support import LATCHED_QOS, ParameterError, declare_settings, run_node, wait_for_acks
 from rollability_ros.srv import ArmValve, FireValve
 
 DIAGNOSTICS_PERIOD_S = 1.0
@@ -51,6 +52,10 @@ DIAGNOSTICS_PERIOD_S = 1.0
 def key_path(node, config):
     """The session key file of this valve_controller (``valve.session_key_file`` or the per-domain default)."""
     return config.session_key_file or valve_auth.default_key_path(node.get_namespace())
+
+
+#: Longest wait at shutdown for the subscribers of valve/state to acknowledge the closed state, s.
+CLOSED_STATE_ACK_S = 2.0
 
 
 class ValveControllerNode(Node):
@@ -174,9 +179,12 @@ class ValveControllerNode(Node):
             self.controller.heartbeat()
 
     def close(self):
-        """Drive the valve closed, release the backend and remove this session's key file (idempotent)."""
+        """Drive the valve closed, release the backend and remove this session's key file (idempotent); then give
+        the subscribers up to :data:`CLOSED_STATE_ACK_S` to acknowledge the closed state before the node goes (a
+        writer destroyed right after publishing can take its last sample with it on a loaded machine)."""
         self.controller.shutdown()
         valve_auth.remove_session_key(self.key_path, self.session_key)
+        wait_for_acks([self.state_publisher], CLOSED_STATE_ACK_S, threading.Event())
 
 
 def main(args=None):

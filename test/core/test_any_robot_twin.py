@@ -202,3 +202,21 @@ def test_end_to_end_optimise_select_campaign_on_the_twin_and_report(tmp_path, mo
     assert main(["report", "campaign.sqlite"]) == 0
     html = (tmp_path / "campaign-report" / "report.html").read_text(encoding="utf-8")
     assert os.path.join("runs", "opt", "designs", "mesh_A.stl") in html
+
+
+def test_launches_of_an_evaluation_launch_the_evaluations_robot(robot):
+    """A launch-fidelity evaluation (the selection's race, a launch_twin objective) of a URDF robot launches that
+    robot, even when objective.twin_config names only the shipped twin files (the built-in chassis): a fresh-clone
+    run of select on the Husky raced its profiles on the chassis ("does not fit on the launcher")."""
+    import dataclasses
+
+    from rollability_ros.core.sim.evaluation import load_settings, profile_job
+    from rollability_ros.core.sim.objectives import at_fidelity
+
+    _, configs = robot
+    settings = load_settings(("sim", "robot", "evaluator") + tuple(c for c in configs if c not in TWIN))
+    assert settings.urdf_robot.mount_link
+    settings = dataclasses.replace(settings, objective=at_fidelity(settings.objective, "launch"))
+    job = profile_job(None, settings)
+    assert job.launch.twin.urdf_robot == settings.urdf_robot
+    assert type(job.launch.twin.robot_model()) is type(settings.robot_model())

@@ -174,8 +174,14 @@ def mesh_job(mesh, settings):
 
 
 def _launch_part(settings):
-    """The launch part of a job: launches on the evaluation's engine, with its early decision setting."""
-    return launch_objective(settings.objective, settings.physics.engine, settings.trial.early_decision)
+    """The launch part of a job: launches on the evaluation's engine, with its early decision setting, of the
+    evaluation's robot: when the evaluation is of a URDF robot (``urdf_robot.mount_link`` named) and the twin's files
+    describe another, the twin launches the evaluation's URDF robot (the one the profiles are made for), never the
+    built-in chassis with another robot's profile on it."""
+    objective = launch_objective(settings.objective, settings.physics.engine, settings.trial.early_decision)
+    if objective is None or not settings.urdf_robot.mount_link or objective.twin.urdf_robot == settings.urdf_robot:
+        return objective
+    return dataclasses.replace(objective, twin=dataclasses.replace(objective.twin, urdf_robot=settings.urdf_robot))
 
 
 _worker_client = None

@@ -144,9 +144,18 @@ def test_with_no_evaluator_it_says_so_and_waits_then_proceeds(ros_node, start_no
 
 def test_two_evaluators_share_the_run_and_it_equals_the_in_process_run(ros_node, start_node, evaluators, tmp_path,
                                                                          reference):
-    listener, optimizer = start_listened(ros_node, start_node, tmp_path, "two")
-    wait_for_log(ros_node, optimizer, "ended after 4 generation(s)")
+    from rollability_ros.nodes._graph_observer import RosGraphObserver
+
+    with RosGraphObserver("/", node_name="progress_observer") as observer:   # what study / bringup see
+        listener, optimizer = start_listened(ros_node, start_node, tmp_path, "two")
+        wait_for_log(ros_node, optimizer, "ended after 4 generation(s)")
+        assert ros_node.wait_for(lambda: [p.generation for p in observer.optimizer_progress()] == [0, 1, 2, 3, 4],
+                                 10), observer.optimizer_progress()
+        progress = observer.optimizer_progress()
     assert candidate_rows(tmp_path / "runs" / "two", "two") == reference["candidates"]
+    assert {(p.run_id, p.max_generations) for p in progress} == {("two", 4)}
+    assert progress[-1].trials == sum(row[4] for row in reference["candidates"])       # the store's, over ROS
+    assert [p.best_so_far for p in progress[1:]] == [g.best_so_far for g in reference["generations"]]
 
     stored = len(reference["candidates"])
     assert ros_node.wait_for(lambda: len(listener.candidates) == stored and len(listener.generations) == 4, 10)

@@ -109,7 +109,7 @@ def test_every_node_parameter_is_described_with_meaning_units_and_ranges(ros_nod
     assert ranged >= 40 and read_only >= 10
     tip = described["tip_monitor:tip_monitor.tip_threshold_deg"]
     assert tip.floating_point_range[0].from_value == 0.0 and tip.floating_point_range[0].to_value == 180.0
-    assert described["tip_monitor:store_path"].read_only
+    assert described["tip_monitor:diagnostics_period_s"].read_only
 
 
 def test_the_restating_check_catches_what_the_issue_found():

@@ -195,8 +195,10 @@ class Monitor:
 
 def test_sim_tip_that_rights_itself(ros_node, start_node, tmp_path):
     samples, truth = find_sim_stream("righted", 8.0)
-    store_path = tmp_path / "field.sqlite"
-    monitor = Monitor(ros_node, start_node, store_path=str(store_path))
+    store_path = tmp_path / "field.sqlite"   # the robot's own outcome_logger stores its tip events
+    logger = start_node("outcome_logger", params={"store_path": str(store_path)})
+    monitor = Monitor(ros_node, start_node)
+    assert ros_node.wait_for(lambda: ros_node.node.count_subscribers("/tip_events") >= 2, 30), logger.log()
     epoch = time.time()
     monitor.play(samples, epoch)
     assert ros_node.wait_for(lambda: monitor.labels()[-1:] == ["upright"] and monitor.events, 20), \
@@ -225,7 +227,9 @@ def test_sim_tip_that_rights_itself(ros_node, start_node, tmp_path):
     levels = monitor.levels()
     assert DIAGNOSTIC_WARN in levels and DIAGNOSTIC_ERROR not in levels and levels[-1] == DIAGNOSTIC_OK
 
+    assert ros_node.wait_for(lambda: "stored tip event simbot/" in logger.log(), 10), logger.log()
     monitor.process.stop()
+    logger.stop()
     from rollability_ros.core.results.store import Store
 
     with Store(store_path) as store:
@@ -342,7 +346,7 @@ def test_parameter_changes_are_validated(ros_node, start_node):
 
     refused = set_parameter("tip_monitor.recover_threshold_deg", 80.0)
     assert not refused.successful and "hysteresis band" in refused.reason
-    fixed = set_parameter("store_path", "elsewhere.sqlite")
+    fixed = set_parameter("diagnostics_period_s", 2.0)
     assert not fixed.successful and "read-only" in fixed.reason   # read_only in its descriptor
     assert set_parameter("tip_monitor.tip_threshold_deg", 50.0).successful
     assert ros_node.wait_for(lambda: "tracking restarts" in monitor.process.log(), 10)

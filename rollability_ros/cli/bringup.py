@@ -30,15 +30,18 @@ def run(args):
     signal.signal(signal.SIGTERM, lambda *_: stop.append("SIGTERM"))
     print(f"bringup: session {run_dir} ({len(nodes)} nodes, rig backend {args.backend}); Ctrl-C stops everything")
     started, last_shown = time.monotonic(), 0.0
-    with ProgressDisplay() as display:   # a live line on a terminal, a plain line per change in a pipe or log
+    from rollability_ros.nodes._graph_observer import RosGraphObserver
+
+    # a live line on a terminal, a plain line per change in a pipe or log; the progress comes over ROS
+    with ProgressDisplay() as display, RosGraphObserver(settings.namespace) as observer:
         try:
             supervisor.start()
             while not stop and supervisor.poll():
                 if time.monotonic() - last_shown >= PROGRESS_PERIOD_S:
                     last_shown = time.monotonic()
                     try:
-                        display.update(session_progress(run_dir, len(nodes), last_shown - started))
-                    except Exception as exc:  # informative only: a busy store must not end the session
+                        display.update(session_progress(observer, len(nodes), last_shown - started))
+                    except Exception as exc:  # informative only: it must not end the session
                         display.update(f"(progress unavailable: {exc})")
                 time.sleep(settings.poll_period_s)
         finally:

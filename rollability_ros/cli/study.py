@@ -5,12 +5,14 @@ import signal
 def run(args):
     from rollability_ros.core.graph.progress import ProgressDisplay
     from rollability_ros.core.graph.study import Study
+    from rollability_ros.nodes._graph_observer import RosGraphObserver
 
     with ProgressDisplay() as display:   # a live line on a terminal, plain lines in a pipe or log
         study = Study(extra_configs=args.config, study_id=args.study_id, resume=args.resume, display=display)
         signal.signal(signal.SIGINT, lambda *_: study.request_stop())
         signal.signal(signal.SIGTERM, lambda *_: study.request_stop())
-        result = study.run()
+        with RosGraphObserver(study.settings.namespace) as study.observer:   # progress over ROS, not the stores
+            result = study.run()
     print()
     if result.summary:
         print(result.summary)

@@ -10,8 +10,9 @@ from std_msgs.msg import Header
 
 from rollability_ros.core.results import record_messages as mapping
 from rollability_ros.core.rig import valve_auth
-from rollability_ros.msg import (CandidateResult, GenerationSummary, LaunchCondition, LaunchOutcome, TipEvent,
-                                  ValveAuth)
+from rollability_ros.core.results.records import RunProgress
+from rollability_ros.msg import (CandidateResult, GenerationSummary, LaunchCondition, LaunchOutcome,
+                                 OptimizerProgress, TipEvent, ValveAuth)
 
 _CLASSES = {mapping.OUTCOME_TYPE: LaunchOutcome, mapping.CANDIDATE_TYPE: CandidateResult,
             mapping.GENERATION_TYPE: GenerationSummary, mapping.TIP_EVENT_TYPE: TipEvent,
@@ -70,6 +71,20 @@ def generation_from_msg(msg):
 def tip_event_from_msg(msg):
     """``TipEvent`` -> validated record."""
     return mapping.record_from_message(mapping.TIP_EVENT_TYPE, msg)
+
+
+def progress_to_msg(progress, stamp_s):
+    """:class:`~rollability_ros.core.results.records.RunProgress` -> ``OptimizerProgress`` stamped ``stamp_s``."""
+    msg = OptimizerProgress(run_id=progress.run_id, generation=progress.generation,
+                            max_generations=progress.max_generations, best_so_far=float(progress.best_so_far),
+                            trials=progress.trials, elapsed_s=float(progress.elapsed_s))
+    msg.header.stamp = s_to_stamp(stamp_s)
+    return msg
+
+
+def progress_from_msg(msg):
+    """``OptimizerProgress`` -> :class:`~rollability_ros.core.results.records.RunProgress`."""
+    return RunProgress(msg.run_id, msg.generation, msg.max_generations, msg.best_so_far, msg.trials, msg.elapsed_s)
 
 
 def auth_msg(signature):

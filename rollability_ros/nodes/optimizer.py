@@ -6,6 +6,9 @@ Interfaces (relative names):
   after it is stored in the run's ``store.sqlite``;
 - publishes ``generations`` (rollability_ros/GenerationSummary, latched): every completed generation, after its
   checkpoint;
+- publishes ``optimizer_progress`` (rollability_ros/OptimizerProgress, latched): where the run stands (generations
+  done, the run's cap, best so far, simulated trials evaluated), when a run starts or resumes and after every
+  generation: what ``rollability study`` and ``bringup`` show, so they never open the run's store;
 - publishes ``best_profile_marker`` (visualization_msgs/Marker TRIANGLE_LIST, latched): the best-so-far
   profile solid (metres) where it is mounted: in the chassis's ``base_link`` on its top (``robot.body_height_m``
   / 2 above the box centre) or, for a URDF robot, in ``urdf_robot.mount_link`` at the mount footprint
@@ -64,8 +67,8 @@ from rollability_ros.core.robots.robot import ChassisSpec
 from rollability_ros.core.optimization.selection import SelectionSettings
 from rollability_ros.core.sim.stable_poses import ScreenSettings
 from rollability_ros.core.robots.urdf_robot import UrdfRobotSpec, footprint_grid, profile_mount
-from rollability_ros.msg import CandidateResult, GenerationSummary
-from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg
+from rollability_ros.msg import CandidateResult, GenerationSummary, OptimizerProgress
+from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg, progress_to_msg
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, ThreadSafeActionClient,
                                             declare_settings, guard_settings, parameter_descriptor, read_settings,
                                             run_node)
@@ -138,6 +141,7 @@ class Optimizer(Node):
 
         self._candidates = self.create_publisher(CandidateResult, "candidates", RECORD_QOS)
         self._generations = self.create_publisher(GenerationSummary, "generations", LATCHED_QOS)
+        self._progress = self.create_publisher(OptimizerProgress, "optimizer_progress", LATCHED_QOS)
         self._marker = self.create_publisher(Marker, "best_profile_marker", LATCHED_QOS)
         self._client_group = ReentrantCallbackGroup()
         self._action_clients = {}
@@ -326,6 +330,7 @@ class Optimizer(Node):
         try:
             log.info(f"{run.start_text(resume)}; {run.initial_mean_text()}")
             self._publish_best(run)
+            self._publish_progress(run)
             run.on_generation = lambda record: self._publish_generation(record, run)
             end = optimization_run.run_generations(
                 run, self._stop_requested.is_set, lambda exc: self._on_evaluation_failed(run, exc),
@@ -389,10 +394,14 @@ class Optimizer(Node):
 
     def _publish_generation(self, record, run):
         self._generations.publish(generation_to_msg(record))
+        self._publish_progress(run)
         self._publish_best(run)
         self.get_logger().info(f"generation {record.generation}: best {record.best_fitness:.3f}, mean "
                                f"{record.mean_fitness:.3f}, best-so-far {record.best_so_far:.3f}, sigma "
                                f"{record.sigma:.4f}, {record.evaluations} evaluations")
+
+    def _publish_progress(self, run):
+        self._progress.publish(progress_to_msg(run.progress(), self.get_clock().now().nanoseconds / 1e9))
 
     def _publish_best(self, run):
         """Publish the best-so-far marker if the incumbent design changed since the last one published."""

@@ -25,13 +25,13 @@ Parameters:
   ``config/tip_monitor.yaml``), validated at start-up; a ``ros2 param set`` that would make them invalid is
   refused, an accepted one restarts tracking (state upright) with the new thresholds.
   ``mount_quaternion_xyzw`` (double[4], default all zeros = not given): IMU mounting rotation imu -> body as a
-  quaternion; overrides ``tip_monitor.mount_rpy_deg`` when given. ``store_path`` (default empty): also store each event in
-  this durable store. ``diagnostics_period_s`` (default 1.0). These three are fixed at start-up.
+  quaternion; overrides ``tip_monitor.mount_rpy_deg`` when given. ``diagnostics_period_s`` (default 1.0). These two
+  are fixed at start-up.
 
-Who writes the store (one writer per event): when an outcome_logger runs in the same ROS graph it stores every
-``tip_events`` message, so leave ``store_path`` empty. A robot that runs the monitor without the logger sets
-``store_path`` (the store file the report reads). Both at once still store each event once (the store keys
-events by robot and tip time), but it is two writers for nothing.
+Who stores the events: the outcome_logger, the one writer of the outcome store, stores every ``tip_events``
+message. This node opens no store (no process opens another node's store): a robot that runs the monitor without
+the lab's graph runs an outcome_logger beside it (``rollability_ros.nodes.outcome_logger``, ``store_path`` the
+store file the report reads; it needs no simulation extras), on the robot or on any computer of its ROS graph.
 """
 import dataclasses
 import math
@@ -46,13 +46,12 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Header
 
-from rollability_ros.core.results.outcome_log import OutcomeLog, StoreFailure
 from rollability_ros.core.imu.tip_tracker import TipMonitorConfig, TipTracker, diagnostic_status
 from rollability_ros.core.imu.quaternion import normalize_quaternion, rpy_deg_from_quaternion
 from rollability_ros.core.imu.upright import imu_sample_from_message
 from rollability_ros.msg import TipEvent, TipState
 from rollability_ros.nodes import _convert
-from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, declare_settings,
+from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, declare_settings,
                                             guard_settings, run_node)
 
 PREFIX = "tip_monitor"
@@ -70,9 +69,6 @@ class TipMonitorNodeSettings:
     mount_quaternion_xyzw: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0], metadata={
         "description": "IMU mounting rotation imu -> body as (x, y, z, w); all zeros (the default) = use "
                        "tip_monitor.mount_rpy_deg"})
-    store_path: str = dataclasses.field(default="", metadata={
-        "description": "durable store file for tip events; empty = do not store (the outcome_logger stores "
-                       "tip_events when it runs)"})
     diagnostics_period_s: float = dataclasses.field(default=1.0, metadata={
         "description": "period of the /diagnostics message, s", "range": (0.0, 3600.0)})
 
@@ -92,7 +88,7 @@ class TipMonitorNodeSettings:
 
 
 class TipMonitorNode(Node):
-    """Thin adapter: Imu -> :class:`TipTracker` -> TipState, TipEvent, DiagnosticArray (and the store)."""
+    """Thin adapter: Imu -> :class:`TipTracker` -> TipState, TipEvent, DiagnosticArray."""
 
     def __init__(self):
         super().__init__("tip_monitor")
@@ -100,12 +96,6 @@ class TipMonitorNode(Node):
         self.settings = declare_settings(self, "", TipMonitorNodeSettings, read_only=True)
         self.add_on_set_parameters_callback(self._refuse_start_up_change)
         config = declare_settings(self, PREFIX, TipMonitorConfig)
-        self.log = None
-        if self.settings.store_path:
-            try:
-                self.log = OutcomeLog.open(self.settings.store_path)
-            except ValueError as exc:
-                raise ParameterError(f"store_path: {exc}") from exc
         self._group = MutuallyExclusiveCallbackGroup()
         self.state_publisher = self.create_publisher(TipState, "~/state", LATCHED_QOS)
         self.event_publishers = [self.create_publisher(TipEvent, topic, RECORD_QOS)
@@ -123,7 +113,7 @@ class TipMonitorNode(Node):
             f"watching {self.subscription.topic_name} for robot '{config.robot}': tipped above "
             f"{config.tip_threshold_deg:g} deg for {config.tip_confirm_s:g} s, recovered within "
             f"{config.recover_threshold_deg:g} deg for {config.settle_time_s:g} s, stuck after {config.give_up_s:g} s; "
-            + (f"storing events to {self.log.store.path}" if self.log else "events not stored here (store_path empty)"))
+            f"events on {self.resolve_topic_name('tip_events')} (an outcome_logger stores them)")
 
     def _refuse_start_up_change(self, params):
         fixed = {f.name for f in dataclasses.fields(TipMonitorNodeSettings)}
@@ -188,11 +178,6 @@ class TipMonitorNode(Node):
             self._publish_diagnostics()
 
     def _report_event(self, event):
-        if self.log is not None:
-            try:
-                self.log.add(event)
-            except (ValueError, StoreFailure) as exc:
-                self.get_logger().error(f"tip event NOT stored: {exc}")
         with self._lock:
             self.counts["events"] += 1
             self.counts["recovered" if event.recovered else "stuck"] += 1
@@ -225,12 +210,6 @@ class TipMonitorNode(Node):
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()
         self.diagnostics_publisher.publish(array)
-
-    def close(self):
-        """Close the store (run_node calls this before destroying the node)."""
-        if self.log is not None:
-            self.log.close()
-
 
 def main(args=None):
     """Run the node on a single-threaded executor: on a busy 2-core machine the multi-threaded one delivered

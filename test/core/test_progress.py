@@ -56,8 +56,29 @@ def test_a_terminal_gets_one_live_line(monkeypatch):
     assert "designs selected: A, B" in output and "\x1b[" in output   # cursor control: the line is redrawn
 
 
-def test_the_study_shows_every_generation_of_its_store(tmp_path):
-    """Generations completed between two ticks are all shown, with the trials stored and an ETA."""
+class Observed:
+    """What a GraphObserver would have received: ``run.progress()`` after each generation (what the optimizer node
+    publishes on optimizer_progress) and the logger's counts. The real one over DDS: test/test_graph_observer.py."""
+
+    def __init__(self):
+        self.progress, self.launches, self.trials = [], None, {}
+
+    def optimizer_progress(self):
+        return list(self.progress)
+
+    def stored_launches(self):
+        return self.launches
+
+    def stored_trials(self, run_id):
+        return self.trials.get(run_id)
+
+    def follow(self, run):
+        self.progress.append(run.progress())
+        run.on_generation = lambda _record: self.progress.append(run.progress())
+
+
+def test_the_study_shows_every_generation_the_optimizer_reported(tmp_path):
+    """Generations completed between two ticks are all shown, with the trials evaluated and an ETA."""
     pytest.importorskip("cma")
     import numpy as np
 
@@ -67,13 +88,16 @@ def test_the_study_shows_every_generation_of_its_store(tmp_path):
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     stream = io.StringIO()
-    study = Study(study_id="progress", display=ProgressDisplay(stream))
+    observed = Observed()
+    study = Study(study_id="progress", display=ProgressDisplay(stream), observer=observed)
     study.study_dir = str(tmp_path)
     study.parameters["optimizer.max_generations"] = 4
     assert study._progress_optimization()[0].phase == "optimizing: nodes starting"
     grid = ProfileGrid(rows=3, cols=3)
     run = OptimizationRun(study.optimization_dir, {"optimizer.max_generations": 4, "optimizer.trials": 10},
                           grid, SyntheticEvaluator(np.full(9, 0.2), trials=10))
+    observed.follow(run)
+    assert study._progress_optimization()[0].phase == "optimizing: first generation under evaluation"
     run.run()
     run.close()
     shown = study._progress_optimization()
@@ -82,6 +106,29 @@ def test_the_study_shows_every_generation_of_its_store(tmp_path):
     assert shown[-1].trials_stored == sum(c.trials for c in run_candidates(study.optimization_dir))
     assert shown[-1].eta_s == 0.0 and shown[0].eta_s > 0
     assert [p.generation for p in study._progress_optimization()] == [4]   # nothing new: the latest again
+    assert study._progress_campaign(8)[0].phase == "launch campaign: starting"
+    observed.trials["progress"] = 2
+    assert study._progress_campaign(8)[0].trials_stored == 2
+
+
+def test_a_resumed_run_reports_its_earlier_trials(tmp_path):
+    pytest.importorskip("cma")
+    import numpy as np
+
+    from doubles import SyntheticEvaluator
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.profile.geometry import ProfileGrid
+
+    parameters, grid = {"optimizer.max_generations": 2, "optimizer.trials": 10}, ProfileGrid(rows=3, cols=3)
+    run = OptimizationRun(str(tmp_path / "opt"), parameters, grid, SyntheticEvaluator(np.full(9, 0.2), trials=10))
+    run.step()
+    first = run.progress()
+    run.close()
+    again = OptimizationRun(str(tmp_path / "opt"), parameters, grid, SyntheticEvaluator(np.full(9, 0.2), trials=10),
+                            resume=True)
+    assert again.progress() == first and first.generation == 1 and first.trials == 10 * len(run_candidates(
+        str(tmp_path / "opt")))
+    again.close()
 
 
 def run_candidates(run_dir):
@@ -100,12 +147,16 @@ def test_a_bringup_session_shows_its_optimization_and_stored_launches(tmp_path):
     from rollability_ros.core.optimization.optimization_run import OptimizationRun
     from rollability_ros.core.profile.geometry import ProfileGrid
 
-    empty = session_progress(str(tmp_path), 7, 65.0)
+    observed = Observed()
+    empty = session_progress(observed, 7, 65.0)
     assert empty.text() == "session running 65 s, 7 nodes supervised | ETA unknown"
     run = OptimizationRun(str(tmp_path / "opt-1"), {"optimizer.max_generations": 3, "optimizer.trials": 10},
                           ProfileGrid(rows=3, cols=3), SyntheticEvaluator(np.full(9, 0.2), trials=10))
+    observed.follow(run)
     run.run()
     run.close()
-    progress = session_progress(str(tmp_path), 7, 65.0)
+    observed.launches = 5
+    progress = session_progress(observed, 7, 65.0)
     assert (progress.generation, progress.max_generations, progress.eta_s) == (3, 3, 0.0)
     assert "optimizing run opt-1" in progress.phase and progress.best_so_far is not None
+    assert progress.trials_stored == 5

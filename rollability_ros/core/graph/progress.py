@@ -8,8 +8,10 @@ control characters), so a log shows every generation and no repeats.
 import dataclasses
 import sys
 import time
+import typing
 
 from rollability_ros.core.optional import require
+from rollability_ros.core.results.records import RunProgress
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,39 +121,34 @@ class Stopwatch:
         return self._clock() - self._start
 
 
-def session_progress(run_dir, nodes, elapsed_s):
-    """A :class:`JobProgress` of a ``bringup`` session in ``run_dir``: its newest optimization run (generation,
-    best so far, ETA from its generation cap) and the launches the outcome logger stored; ``nodes`` supervised."""
-    import glob
-    import os
+class GraphObserver(typing.Protocol):
+    """What an orchestrator (``study``, ``bringup``) learns from the running node graph: over ROS, never from a
+    node's store (the logger and the optimizer may run in directories, or on computers, the orchestrator cannot
+    read). The implementation is ``rollability_ros.nodes._graph_observer.RosGraphObserver``: the optimizer's
+    latched ``optimizer_progress`` topic, the outcome logger's latched ``summary`` and its ``get_summary``
+    service."""
 
-    from rollability_ros.core.results.store import Store
+    def optimizer_progress(self) -> typing.List[RunProgress]:
+        """Every ``optimizer_progress`` received so far, oldest first (one per generation, and one per run start)."""
 
+    def stored_trials(self, run_id: str) -> typing.Optional[int]:
+        """Launch outcomes of ``run_id`` the outcome logger has stored (its latest answer); None before one."""
+
+    def stored_launches(self) -> typing.Optional[int]:
+        """Launch outcomes in the outcome logger's store, every run (its latest summary); None before one."""
+
+
+def session_progress(observer: GraphObserver, nodes: int, elapsed_s: float) -> JobProgress:
+    """A :class:`JobProgress` of a ``bringup`` session: the optimizer's newest run (generation, best so far, ETA
+    from the run's generation cap) and the launches the outcome logger stored, learnt through ``observer``;
+    ``nodes`` supervised."""
     phase = f"session running {format_duration(elapsed_s)}, {nodes} nodes supervised"
     generation = best = eta = None
     cap = 0
-    runs = sorted(glob.glob(os.path.join(run_dir, "*", "store.sqlite")), key=os.path.getmtime)
-    if runs:
-        with Store(runs[-1]) as store:
-            generations = store.generations()
-        if generations:
-            last = generations[-1]
-            generation, best = last.generation, last.best_so_far   # generations are numbered from 1
-            phase += f", optimizing run {os.path.basename(os.path.dirname(runs[-1]))}"
-            cap = _generation_cap(os.path.dirname(runs[-1]))
-            eta = eta_s(generation, cap, last.elapsed_s)
-    trials = None
-    outcomes = os.path.join(run_dir, "outcomes.sqlite")
-    if os.path.isfile(outcomes):
-        with Store(outcomes) as store:
-            trials = len(store.launch_outcomes())
-    return JobProgress(phase, generation, cap, best, trials, eta_s=eta)
-
-
-def _generation_cap(optimization_dir):
-    from rollability_ros.core.optimization.optimization_run import optimizer_settings, read_run_config
-
-    try:
-        return optimizer_settings(read_run_config(optimization_dir)).max_generations
-    except (OSError, ValueError):
-        return 0
+    history = observer.optimizer_progress()
+    if history and history[-1].generation:
+        last = history[-1]
+        generation, best, cap = last.generation, last.best_so_far, last.max_generations
+        phase += f", optimizing run {last.run_id}"
+        eta = eta_s(generation, cap, last.elapsed_s)   # generations are numbered from 1
+    return JobProgress(phase, generation, cap, best, observer.stored_launches(), eta_s=eta)

@@ -13,7 +13,10 @@
 Everything lands in ``<output_dir>/<study id>/``: ``config/`` (copies of the parameter files the study runs
 on, in load order), ``optimization/`` (run store, checkpoint, designs/ with STL files), ``outcomes.sqlite``
 (the logger's store), ``bag/`` (MCAP), ``report/``, ``logs/`` (one log per node), ``study.yaml`` (the parameters
-added for the campaign). This module never imports rclpy: it runs processes and reads stores.
+added for the campaign). This module never imports rclpy: it runs processes, learns the progress of the running
+graph through a :class:`~rollability_ros.core.graph.progress.GraphObserver` (over ROS: the optimizer's
+``optimizer_progress``, the logger's ``get_summary``; never their stores), and reads the study directory's store
+for the report once the graph has stopped.
 
 Resume (``rollability study --resume STUDY``) continues a study that was stopped or killed, on its own copied
 parameter files: a bag left open by a crash is recovered first and the graph records into the next free
@@ -25,11 +28,12 @@ import dataclasses
 import glob
 import os
 import shutil
+import typing
 
 import yaml
 
 from rollability_ros.core.graph.bringup import NodeLaunch, core_nodes, load_graph_settings, new_study_id, parameter_files
-from rollability_ros.core.graph.progress import JobProgress, ProgressDisplay, Stopwatch, eta_s
+from rollability_ros.core.graph.progress import GraphObserver, JobProgress, ProgressDisplay, Stopwatch, eta_s
 from rollability_ros.core.config import check_path_component, load_parameters
 from rollability_ros.core.results.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
@@ -62,9 +66,12 @@ class StudyResult:
 
 class Study:
     """Runs the main job (module docstring): events through ``say(text)``, progress snapshots (phase, generation,
-    best, trials stored, ETA) through ``display`` (a :class:`~rollability_ros.core.graph.progress.ProgressDisplay`)."""
+    best, trials stored, ETA) through ``display`` (a :class:`~rollability_ros.core.graph.progress.ProgressDisplay`),
+    learnt from the graph through ``observer`` (a :class:`~rollability_ros.core.graph.progress.GraphObserver`;
+    None: phases only, no numbers)."""
 
-    def __init__(self, extra_configs=(), study_id=None, say=None, resume=None, display=None):
+    def __init__(self, extra_configs=(), study_id=None, say=None, resume=None, display=None,
+                 observer: typing.Optional[GraphObserver] = None):
         self.param_files = parameter_files(["bringup", *extra_configs])
         self.resuming = resume is not None
         if self.resuming:
@@ -85,6 +92,7 @@ class Study:
         # display: live line on a terminal, plain lines otherwise (core/graph/progress.py); say: event lines
         self.display = display or ProgressDisplay(live=False)
         self.say = say or self.display.say
+        self.observer = observer
         self._stop_requested = False
         self._shown_generation = -1
         self._campaign_clock, self._campaign_start_done = None, 0
@@ -160,26 +168,25 @@ class Study:
     def _progress_optimization(self):
         """Snapshots of the optimization phase: one per generation completed since the last call (a plain log
         then shows every generation), or one phase snapshot when none is new."""
-        store_file = os.path.join(self.optimization_dir, "store.sqlite")
         cap = int(self.parameters.get("optimizer.max_generations", 0) or 0)
-        if not os.path.isfile(store_file):
+        history = self.observer.optimizer_progress() if self.observer is not None else []
+        if not history:
             return [JobProgress("optimizing: nodes starting", max_generations=cap)]
-        with Store(store_file) as store:
-            generations = store.generations()
-            trials = sum(c.trials for c in store.candidates()) if generations else 0
-        if not generations:
-            return [JobProgress("optimizing: first generation under evaluation", 0, cap)]
-        new = [g for g in generations if g.generation > self._shown_generation] or generations[-1:]
-        self._shown_generation = generations[-1].generation
-        return [JobProgress("optimizing", g.generation, cap, g.best_so_far, trials,
-                            eta_s=eta_s(g.generation, cap, g.elapsed_s), trials_label="simulated trials evaluated")
-                for g in new]
+        run_id = history[-1].run_id
+        history = [p for p in history if p.run_id == run_id]
+        if not history[-1].generation:
+            return [JobProgress("optimizing: first generation under evaluation", 0, history[-1].max_generations or cap)]
+        new = [p for p in history if p.generation > self._shown_generation] or history[-1:]
+        self._shown_generation = history[-1].generation
+        return [JobProgress("optimizing", p.generation, p.max_generations or cap, p.best_so_far, p.trials,
+                            eta_s=eta_s(p.generation, p.max_generations or cap, p.elapsed_s),
+                            trials_label="simulated trials evaluated")
+                for p in new if p.generation]
 
     def _progress_campaign(self, total):
-        if not os.path.isfile(self.store_path):
+        done = self.observer.stored_trials(self.study_id) if self.observer is not None else None
+        if done is None:
             return [JobProgress("launch campaign: starting", trials_stored=0, trials_total=total)]
-        with Store(self.store_path) as store:
-            done = len(store.trial_ids(self.study_id))
         if self._campaign_clock is None or done == 0:
             self._campaign_clock, self._campaign_start_done = Stopwatch(), done
         rate_done = done - self._campaign_start_done
@@ -191,7 +198,7 @@ class Study:
             try:
                 for snapshot in progress():
                     self.display.update(snapshot)
-            except Exception as exc:  # progress is informative only; a busy store must not end the study
+            except Exception as exc:  # progress is informative only: it must not end the study
                 self.display.update(f"(progress unavailable: {exc})")
 
         return supervisor.wait_for_exit(name, timeout_s, self.settings.poll_period_s,

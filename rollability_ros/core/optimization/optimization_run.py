@@ -57,7 +57,7 @@ from rollability_ros.core.optimization.cmaes import (
     derive_seed,
     random_initial_means,
 )
-from rollability_ros.core.results.records import CandidateRecord, GenerationRecord
+from rollability_ros.core.results.records import CandidateRecord, GenerationRecord, RunProgress
 from rollability_ros.core.results.store import Store
 
 #: File name of the merged parameters inside a run directory.
@@ -302,6 +302,8 @@ class OptimizationRun:
         self.store.set_run_info(self.run_id, RUN_KIND, info)
         self._session_start_generation = self.optimizer.generation
         self._session_start_s = clock()
+        self._trials = sum(c.trials for c in self.store.candidates(run_id=self.run_id))
+        self._last_generation = (self.store.generations(run_id=self.run_id) or [None])[-1]
 
     def _screen_initial_means(self, screen_profiles):
         """With ``initial_mean_screen`` > 0: screen the random initial means and return ``{"chosen": index,
@@ -489,6 +491,7 @@ class OptimizationRun:
                                   evaluations=optimizer.evaluations, elapsed_s=optimizer.elapsed_s,
                                   stamp_s=time.time())
         self.store.add_generation(record)
+        self._last_generation = record
         self._record_archive(optimizer)
         digest = checkpoints.save_checkpoint(self.checkpoint_path, self.run_id, self.parameters,
                                              optimizer.state_dict(), optimizer.best.fitness)
@@ -574,7 +577,8 @@ class OptimizationRun:
                                  fitness=successes / trials, successes=int(successes), trials=int(trials),
                                  seed=seed, eval_time_s=float(eval_time_s), evaluator=str(evaluator),
                                  stamp_s=time.time())
-        self.store.add_candidate(record)
+        if self.store.add_candidate(record):
+            self._trials += record.trials
         if self.on_candidate is not None:
             self.on_candidate(record)
         return record
@@ -600,6 +604,15 @@ class OptimizationRun:
         if self.settings.max_wall_time_s:
             remaining.append(max(0.0, self.settings.max_wall_time_s - self.optimizer.elapsed_s))
         return min(remaining) if remaining else float("nan")
+
+    def progress(self) -> RunProgress:
+        """Where the run stands (generations done, cap, best so far, trials evaluated), what the optimizer node
+        publishes for orchestrators: they never open the run's store."""
+        last = self._last_generation
+        if last is None:
+            return RunProgress(self.run_id, 0, self.settings.max_generations, trials=self._trials)
+        return RunProgress(self.run_id, last.generation, self.settings.max_generations, last.best_so_far,
+                           self._trials, last.elapsed_s)
 
     def close(self) -> None:
         """Close the store."""

@@ -157,6 +157,18 @@ class GenerationRecord:
 
 
 @dataclasses.dataclass(frozen=True)
+class RunProgress:
+    """Where an optimization run stands (``msg/OptimizerProgress.msg``): what an orchestrator shows; not stored."""
+
+    run_id: str
+    generation: int                   # generations completed: the last one's number, 0 before the first
+    max_generations: int = 0          # the run's cap, 0 = none
+    best_so_far: float = math.nan     # fitness, [0, 1]; NaN before the first generation
+    trials: int = 0                   # simulated trials evaluated in the run so far
+    elapsed_s: float = 0.0            # s of optimizer wall time so far
+
+
+@dataclasses.dataclass(frozen=True)
 class TipEventRecord:
     """One tip-over seen in the field by tip_monitor (``msg/TipEvent.msg``)."""
 

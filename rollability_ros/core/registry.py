@@ -7,9 +7,13 @@ is one new module plus one entry; the table's :meth:`Registry.get` is the only p
 import importlib
 import typing
 
+#: The contract of one table.
+T = typing.TypeVar("T")
 
-class Registry:
-    """One swap's table: ``name -> subclass of base`` (given directly or as ``"module:Class"``).
+
+class Registry(typing.Generic[T]):
+    """One swap's table: ``name -> subclass of base`` (given directly or as ``"module:Class"``); declared as
+    ``Registry[Base]`` so that :meth:`get` is typed (an abstract ``base`` cannot bind the type variable).
 
     Parameters
     ----------
@@ -54,7 +58,7 @@ class Registry:
         if name not in self._entries:
             raise ValueError(f"{self.field} must be one of {self.names()}, got {name!r}")
 
-    def get(self, name: str) -> type:
+    def get(self, name: str) -> typing.Type[T]:
         """The class registered as ``name`` (imported now if given as ``"module:Class"``)."""
         self.check(name)
         target = self._entries[name]
@@ -63,4 +67,4 @@ class Registry:
             target = getattr(importlib.import_module(module), attribute)
         if not (isinstance(target, type) and issubclass(target, self.base)):
             raise TypeError(f"{self.field} {name!r} is {target!r}, not a {self.base.__name__}")
-        return target
+        return typing.cast(typing.Type[T], target)

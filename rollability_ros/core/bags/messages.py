@@ -142,7 +142,7 @@ def read_records_from_bag(path: typing.Union[str, os.PathLike]) -> typing.Tuple[
         A bag directory (``metadata.yaml`` + storage files, MCAP or SQLite3) or one ``.mcap`` file.
     """
     path = os.fspath(path)
-    lists = {type_name: [] for type_name in RECORD_TYPES}
+    lists: typing.Dict[str, list] = {type_name: [] for type_name in RECORD_TYPES}
     seen = set()
     for type_name, definition, data in _bag_messages(path):
         type_name = full_type_name(type_name) if type_name.count("/") == 1 else type_name
@@ -158,4 +158,5 @@ def read_records_from_bag(path: typing.Union[str, os.PathLike]) -> typing.Tuple[
         if key not in seen:
             seen.add(key)
             lists[type_name].append(record)
-    return tuple(lists[type_name] for type_name in RECORD_TYPES)
+    outcomes, candidates, generations, tip_events = (lists[type_name] for type_name in RECORD_TYPES)
+    return outcomes, candidates, generations, tip_events

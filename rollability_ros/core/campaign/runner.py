@@ -121,7 +121,7 @@ class StoreAcknowledgements:
         self.timeout_s = timeout_s
         self._clock = clock
         self._lock = threading.Lock()
-        self._acknowledged = set()
+        self._acknowledged: set = set()
 
     def acknowledge(self, run_id: str, trial_id: str) -> None:
         """Record that the logger has stored (``run_id``, ``trial_id``)."""
@@ -262,7 +262,7 @@ def plan_refusal(backend: typing.Any, run_id: str, plan: typing.Sequence[Planned
     """Why the campaign must not start ("" if every planned trial can run): the first reason the backend's
     ``check`` gives for a trial (e.g. a configuration the launch twin has no profile for), with how many trials
     it concerns, so a campaign does not stop a hundred launches in."""
-    reasons = {}
+    reasons: typing.Dict[str, list] = {}
     for trial in plan:
         reason = backend.check(run_id, trial.trial_id, trial.condition)
         if reason:

@@ -223,10 +223,10 @@ class ImuUprightClassifier:
 
     def reset(self) -> None:
         """Forget the history (call when a launch is fired)."""
-        self._last_stamp = None
-        self._gravity = None          # low-pass specific force, body frame
-        self._still_since = None
-        self._upright_since = None
+        self._last_stamp: typing.Optional[float] = None
+        self._gravity: typing.Optional[tuple] = None          # low-pass specific force, body frame
+        self._still_since: typing.Optional[float] = None
+        self._upright_since: typing.Optional[float] = None
         self._moved = False
 
     def update(self, sample: ImuSample) -> UprightReading:
@@ -263,13 +263,14 @@ class ImuUprightClassifier:
                  and abs(math.hypot(*acceleration) - self.gravity_mps2) <= self.max_accel_deviation_mps2)
         if not still:
             self._moved = True
-        self._still_since = (self._still_since if self._still_since is not None else stamp) if still else None
+        still_since = (self._still_since if self._still_since is not None else stamp) if still else None
         upright = tilt <= self.tilt_threshold_deg  # False for NaN
-        self._upright_since = (self._upright_since if self._upright_since is not None else stamp) if upright else None
-        still_for = stamp - self._still_since if still else 0.0
+        upright_since = (self._upright_since if self._upright_since is not None else stamp) if upright else None
+        self._still_since, self._upright_since = still_since, upright_since
+        still_for = stamp - still_since if still_since is not None else 0.0
         return UprightReading(
             stamp_s=stamp, tilt_deg=tilt, angular_rate_radps=rate, still=still, still_for_s=still_for,
-            upright=upright, upright_for_s=stamp - self._upright_since if upright else 0.0,
+            upright=upright, upright_for_s=stamp - upright_since if upright_since is not None else 0.0,
             settled=still_for >= self.settle_time_s and (self._moved or not self.require_motion),
             orientation=orientation, source=source,
         )

@@ -29,6 +29,7 @@ import dataclasses
 import logging
 import threading
 import time
+import typing
 
 
 #: Largest multiple of ``retry_delay_s`` an evaluator rests after consecutive failures.
@@ -146,7 +147,7 @@ class _Job:
 @dataclasses.dataclass(eq=False)
 class _Evaluator:
     name: str
-    ticket: Ticket = None
+    ticket: typing.Optional[Ticket] = None
     resting_until_s: float = 0.0
     failures_in_a_row: int = 0
 

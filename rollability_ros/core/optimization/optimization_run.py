@@ -642,15 +642,15 @@ class RunEnd:
         return {"finished": 0, "stopped": 0, "failed": 1}.get(self.status)
 
 
-def give_up(error: Exception) -> bool:
+def give_up(error: BaseException) -> bool:
     """The default ``on_evaluation_failed``: end the run (``failed``)."""
     return False
 
 
 def run_generations(run: OptimizationRun, stop_requested: typing.Callable[[], bool] = _never,
-                    on_evaluation_failed: typing.Callable[[Exception], bool] = give_up,
-                    evaluation_errors: typing.Tuple[type, ...] = (),
-                    interruptions: typing.Tuple[type, ...] = ()) -> RunEnd:
+                    on_evaluation_failed: typing.Callable[[BaseException], bool] = give_up,
+                    evaluation_errors: typing.Tuple[typing.Type[BaseException], ...] = (),
+                    interruptions: typing.Tuple[typing.Type[BaseException], ...] = ()) -> RunEnd:
     """The optimization loop: :meth:`OptimizationRun.step` until a stop criterion or ``stop_requested()``.
 
     A generation whose evaluation raises one of ``evaluation_errors`` is rolled back to the checkpoint; then

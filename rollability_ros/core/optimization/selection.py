@@ -184,12 +184,12 @@ class SelectedDesign:
     design: PooledDesign
     mesh: object                       # trimesh.Trimesh, metres, profile frame
     metrics: geometry.ProfileMetrics
-    reevaluation: tuple = None         # (successes, trials, seed) of the fresh estimate, or None
+    reevaluation: typing.Optional[tuple] = None         # (successes, trials, seed) of the fresh estimate, or None
     reason: str = ""                   # why it was chosen, one sentence
-    descriptors: tuple = None          # (max_height_mm, sharpness_deg) for archive selections, else None
-    cell: tuple = None                 # archive cell (height index, sharpness index), or None
-    launches: tuple = None             # (successes, trials, seed) of fresh robust twin launches, or None
-    race: tuple = None                 # (successes, trials) pooled over the launch race's rounds, or None
+    descriptors: typing.Optional[tuple] = None          # (max_height_mm, sharpness_deg) for archive selections, else None
+    cell: typing.Optional[tuple] = None                 # archive cell (height index, sharpness index), or None
+    launches: typing.Optional[tuple] = None             # (successes, trials, seed) of fresh robust twin launches, or None
+    race: typing.Optional[tuple] = None                 # (successes, trials) pooled over the launch race's rounds, or None
 
     @property
     def reported(self):
@@ -207,10 +207,10 @@ class SelectionResult:
     requested: int
     considered: int                    # distinct designs in the log
     rejected: dict                     # reason -> count ("not printable", "too close", "flat")
-    baseline: tuple = None             # (successes, trials, seed) of the baseline re-evaluation, or None
-    top_threshold: float = None        # archive runs: the fitness an elite needed to be in the top pool
-    archive: list = None               # archive runs: one row per elite (ARCHIVE_COLUMNS), else None
-    baseline_launches: tuple = None    # (successes, trials, seed) of the bare robot's fresh launches, or None
+    baseline: typing.Optional[tuple] = None             # (successes, trials, seed) of the baseline re-evaluation, or None
+    top_threshold: typing.Optional[float] = None        # archive runs: the fitness an elite needed to be in the top pool
+    archive: typing.Optional[list] = None               # archive runs: one row per elite (ARCHIVE_COLUMNS), else None
+    baseline_launches: typing.Optional[tuple] = None    # (successes, trials, seed) of the bare robot's fresh launches, or None
     race: object = None                # racing.RaceResult of the launch race, or None
 
     def gains(self):

@@ -156,7 +156,7 @@ class RelayDevice:
 
     def tick(self, now_ms: float) -> list:
         """Advance to ``now_ms``: end pulses, enforce the keep-alive and the e-stop input."""
-        transitions = []
+        transitions: list = []
         if self.estop_held and (self.armed or self.relay_on or self.fault != "estop"):
             self._trip("estop", transitions)
         if self.relay_on and now_ms >= self._pulse_end_ms:

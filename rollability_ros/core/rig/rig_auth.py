@@ -92,7 +92,7 @@ class SessionKeys:
         self._lock = threading.Lock()
         self._newest = None
         self._file_stamp = None
-        self._keys = {}
+        self._keys: dict = {}
 
     def _lookup(self, session, current_only):
         with self._lock:
@@ -156,7 +156,7 @@ class RequestGuard:
         self._window_ns = window_ns
         self._not_before_ns = clock_ns()   # anything signed before this guard existed was captured, not sent now
         self._lock = threading.Lock()
-        self._verifiers = {}   # session -> RequestVerifier (its accepted counters)
+        self._verifiers: dict = {}   # session -> RequestVerifier (its accepted counters)
         self.rejected = 0
 
     def _verify(self, signature: Signature, text: str) -> typing.Tuple[typing.Optional[valve_auth.SessionKey], str]:
@@ -259,7 +259,7 @@ class KeyFileSigner:
     def __init__(self, path: str, load=valve_auth.load_session_key):
         self.path = path
         self._load = load
-        self._signer = None
+        self._signer: typing.Optional[valve_auth.RequestSigner] = None
 
     def _sign(self, text: str) -> Signature:
         key = self._load(self.path)

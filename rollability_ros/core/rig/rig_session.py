@@ -550,7 +550,7 @@ class SimulatedLaunch(LaunchBackend):
 
 
 #: ``rig.backend`` -> the :class:`LaunchBackend` implementation.
-LAUNCH_BACKENDS = Registry("backend", LaunchBackend, {"sim": SimulatedLaunch, "physical": PhysicalLaunch})
+LAUNCH_BACKENDS: Registry[LaunchBackend] = Registry("backend", LaunchBackend, {"sim": SimulatedLaunch, "physical": PhysicalLaunch})
 
 
 def launch_backend_class(name: str) -> typing.Type[LaunchBackend]:

@@ -271,7 +271,7 @@ class OperatorSpeedGate(SpeedGate):
 
 
 #: ``speed_gate.backend`` -> its :class:`SpeedGate` (a class, or ``"module:Class"`` imported when chosen).
-SPEED_GATES = Registry("backend", SpeedGate, {
+SPEED_GATES: Registry[SpeedGate] = Registry("backend", SpeedGate, {
     "simulated": SimulatedSpeedGate,
     "gpio": GpioSpeedGate,
     "operator": OperatorSpeedGate,

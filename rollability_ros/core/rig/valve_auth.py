@@ -137,7 +137,11 @@ def command_text(command: str, pulse_ms: int | None = None) -> str:
     """The signed text of a command: ``arm``, ``disarm``, ``heartbeat`` or ``fire <pulse_ms>``."""
     if command not in COMMANDS:
         raise ValueError(f"unknown valve command {command!r}")
-    return f"fire {int(pulse_ms)}" if command == "fire" else command
+    if command != "fire":
+        return command
+    if pulse_ms is None:
+        raise ValueError("fire needs pulse_ms")
+    return f"fire {int(pulse_ms)}"
 
 
 class RequestSigner:
@@ -171,7 +175,7 @@ class RequestVerifier:
         self._window_ns = window_ns
         self._not_before_ns = not_before_ns   # counters signed before this (a restarted verifier's start) refused
         self._lock = threading.Lock()
-        self._seen = {}  # counter -> accepted, pruned once older than the window
+        self._seen: dict = {}  # counter -> accepted, pruned once older than the window
         self.rejected = 0
 
     def verify(self, signature: Signature, command: str, pulse_ms: int | None = None) -> tuple:

@@ -104,7 +104,7 @@ class ValveBackend(abc.ABC):
 
 
 #: ``valve.backend`` -> its :class:`ValveBackend` (``"module:Class"`` entries are imported when chosen).
-VALVE_BACKENDS = Registry("backend", ValveBackend, {
+VALVE_BACKENDS: Registry[ValveBackend] = Registry("backend", ValveBackend, {
     "dry_run": "rollability_ros.core.rig.valve_backends:DryRunBackend",
     "gpio": "rollability_ros.core.rig.valve_backends:GpioHolderBackend",
     "serial_relay": "rollability_ros.core.rig.valve_backends:SerialRelayBackend",

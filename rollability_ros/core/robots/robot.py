@@ -10,6 +10,7 @@ profile frame (see :mod:`rollability_ros.core.profile.geometry`) sits at the cen
 import abc
 import dataclasses
 import math
+import typing
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -141,8 +142,8 @@ class SpawnedRobot:
 
     body_id: int
     wheel_links: tuple
-    mount_spring: MountSpring = None
-    profile_link: int = None
+    mount_spring: typing.Optional[MountSpring] = None
+    profile_link: typing.Optional[int] = None
     profile_points_m: object = None
 
     def before_step(self):
@@ -189,7 +190,7 @@ class RobotModel(abc.ABC):
         return self.to_urdf(mesh_filename, profile)
 
     #: Name of the profile's joint in :meth:`simulator_urdf` (None: no compliant mount possible).
-    profile_joint = None
+    profile_joint: typing.Optional[str] = None
 
     @property
     def profile_mount(self):

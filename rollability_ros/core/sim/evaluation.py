@@ -23,6 +23,7 @@ import hashlib
 import os
 import pickle
 import time
+import typing
 
 import numpy as np
 
@@ -155,7 +156,7 @@ class TrialJob:
 
     profile: ProfileBody
     settings: EvaluatorSettings
-    launch: LaunchObjective = None
+    launch: typing.Optional[LaunchObjective] = None
 
 
 def profile_job(heights, settings):

@@ -915,7 +915,7 @@ class _BulletLaunchWorld(LaunchWorld):
 
 
 #: Energy barriers and geometry of the early decision per robot + profile (the PyBullet twin spawns per launch).
-_BASINS = {}
+_BASINS: dict = {}
 
 
 def foam_sink_m(settings, mass_kg):

@@ -406,7 +406,7 @@ class _MujocoPlate:
         self._target, self._limit, self.driving = 0.0, self.spec.max_force_n * 10, False
 
 
-_cache = collections.OrderedDict()
+_cache: collections.OrderedDict = collections.OrderedDict()
 
 
 def _twin_key(settings, profile):

@@ -1,0 +1,229 @@
+"""Static counts over rollability_ros (ast only, nothing imported): the import graph of the core and its layering,
+annotated public functions, ``__all__`` faces, ``hasattr`` / ``getattr`` probes.
+
+``python test/code_counts.py`` prints them (the numbers of issue 29's closing note); test/core/test_layering.py
+and test/core/test_mypy.py use the same functions.
+
+Layers: ``rollability_ros/core/__init__.py`` lists the subpackages bottom first; a module may import from its own
+subpackage, from those listed before it, and from the shared modules at the core's top level (:data:`SHARED`).
+Every import counts, inside functions too (a function-level import is still a dependency, only a later one).
+"""
+import ast
+import pathlib
+import re
+import sys
+
+PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "rollability_ros"
+CORE = PACKAGE / "core"
+#: The core's top-level modules every subpackage may use.
+SHARED = ("config", "optional", "registry")
+
+
+def layer_order():
+    """The subpackages in the order ``core/__init__.py`` lists them (``- name  description`` lines)."""
+    text = ast.get_docstring(ast.parse((CORE / "__init__.py").read_text()))
+    names = re.findall(r"^- (\w+)\s", text, flags=re.M)
+    subpackages = sorted(p.name for p in CORE.iterdir() if (p / "__init__.py").is_file())
+    assert sorted(names) == subpackages, f"core/__init__.py lists {names}, the core holds {subpackages}"
+    return names
+
+
+def module_name(path):
+    """``core/sim/trials.py`` -> ``sim.trials``; ``core/sim/__init__.py`` -> ``sim``; ``core/config.py`` -> ``config``."""
+    parts = path.relative_to(CORE).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def core_modules():
+    """``{module name: path}`` of every module of the core (the core's own ``__init__`` left out)."""
+    return {module_name(path): path for path in sorted(CORE.rglob("*.py")) if path != CORE / "__init__.py"}
+
+
+def imports_of(path, modules):
+    """``[(target module, line)]``: the core modules ``path`` imports, at module level and inside functions."""
+    found = []
+    prefix = "rollability_ros.core."
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            targets = [f"{node.module}.{alias.name}" for alias in node.names]
+        else:
+            continue
+        for target in targets:
+            if not target.startswith(prefix):
+                continue
+            name = target[len(prefix):]
+            while name and name not in modules:   # "sim.trials.make_trial_world" -> "sim.trials"
+                name = name.rpartition(".")[0]
+            if name:
+                found.append((name, node.lineno))
+    return found
+
+
+def import_graph():
+    """``{module: {imported module: first line}}`` over the core (each edge once, a module's self-import left out)."""
+    modules = core_modules()
+    graph = {}
+    for name, path in modules.items():
+        edges = {}
+        for target, line in imports_of(path, modules):
+            if target != name:
+                edges.setdefault(target, line)
+        graph[name] = edges
+    return graph
+
+
+def subpackage(module):
+    """``sim.trials`` -> ``sim``; a shared top-level module -> itself."""
+    return module.split(".")[0]
+
+
+def upward_imports(graph=None):
+    """``[(module, imported module)]`` that import from a subpackage listed after the module's own (or a shared
+    module importing a subpackage)."""
+    graph = import_graph() if graph is None else graph
+    rank = {name: index for index, name in enumerate(layer_order())}
+    upward = []
+    for module, edges in sorted(graph.items()):
+        own = subpackage(module)
+        for target in sorted(edges):
+            theirs = subpackage(target)
+            if theirs in SHARED or theirs == own:
+                continue
+            if own in SHARED or rank[theirs] > rank[own]:
+                upward.append((module, target))
+    return upward
+
+
+def strongly_connected(graph):
+    """The strongly connected components of ``graph`` (``{node: iterable of nodes}``) with more than one node,
+    each as a sorted tuple, sorted (Tarjan's algorithm, iterative)."""
+    index, low, on_stack, stack, components = {}, {}, set(), [], []
+    counter = [0]
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph.get(root, ()))))]
+        index[root] = low[root] = counter[0]
+        counter[0] += 1
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, children = work[-1]
+            advanced = False
+            for child in children:
+                if child not in index:
+                    index[child] = low[child] = counter[0]
+                    counter[0] += 1
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph.get(child, ())))))
+                    advanced = True
+                    break
+                if child in on_stack:
+                    low[node] = min(low[node], index[child])
+            if advanced:
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                component = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.append(member)
+                    if member == node:
+                        break
+                if len(component) > 1:
+                    components.append(tuple(sorted(component)))
+    return sorted(components)
+
+
+def subpackage_cycles(graph=None):
+    """Cycles between subpackages: components of the subpackage graph (shared modules left out)."""
+    graph = import_graph() if graph is None else graph
+    packages = {}
+    for module, edges in graph.items():
+        own = subpackage(module)
+        if own in SHARED:
+            continue
+        targets = packages.setdefault(own, set())
+        targets.update(subpackage(t) for t in edges if subpackage(t) != own and subpackage(t) not in SHARED)
+    return strongly_connected(packages)
+
+
+def module_cycles(graph=None):
+    """Cycles between the modules of one subpackage: components of each subpackage's own module graph."""
+    graph = import_graph() if graph is None else graph
+    inside = {module: {t for t in edges if subpackage(t) == subpackage(module)} for module, edges in graph.items()}
+    return strongly_connected(inside)
+
+
+def function_level_imports():
+    """Imports of core modules made inside functions, over the core."""
+    modules = core_modules()
+    count = 0
+    for path in modules.values():
+        tree = ast.parse(path.read_text())
+        for function in ast.walk(tree):
+            if isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                for node in ast.walk(function):
+                    if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("rollability_ros.core"):
+                        count += 1
+    return count
+
+
+def public_functions(root=PACKAGE):
+    """``(annotated, total)`` public functions and methods under ``root`` (name without a leading underscore;
+    annotated: every parameter but self / cls, and the return)."""
+    annotated = total = 0
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and not node.name.startswith("_"):
+                total += 1
+                arguments = node.args.posonlyargs + node.args.args + node.args.kwonlyargs
+                params = [a for a in arguments if a.arg not in ("self", "cls")]
+                if node.returns is not None and all(a.annotation is not None for a in params):
+                    annotated += 1
+    return annotated, total
+
+
+def faces(root=PACKAGE):
+    """``(modules with __all__, modules)`` under ``root``."""
+    paths = sorted(root.rglob("*.py"))
+    with_all = sum(1 for path in paths if re.search(r"^__all__\s*[:=]", path.read_text(), flags=re.M))
+    return with_all, len(paths)
+
+
+def probes(root=PACKAGE):
+    """``hasattr(`` and ``getattr(`` calls under ``root`` (duck-typed seams show up as these)."""
+    count = 0
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("hasattr",
+                                                                                                   "getattr"):
+                count += 1
+    return count
+
+
+def main():
+    graph = import_graph()
+    upward = upward_imports(graph)
+    annotated, total = public_functions()
+    with_all, modules = faces()
+    print(f"core modules: {len(graph)}; imports of core modules inside functions: {function_level_imports()}")
+    print(f"upward imports: {len(upward)}")
+    for module, target in upward:
+        print(f"  {module} -> {target} (line {graph[module][target]})")
+    print(f"cycles between subpackages: {len(subpackage_cycles(graph))} {subpackage_cycles(graph)}")
+    print(f"cycles inside subpackages: {len(module_cycles(graph))} {module_cycles(graph)}")
+    print(f"annotated public functions: {annotated} of {total} ({100 * annotated / total:.0f}%)")
+    print(f"__all__ faces: {with_all} of {modules} modules")
+    print(f"hasattr/getattr calls: {probes()}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -154,6 +154,13 @@ def subpackage_cycles(graph=None):
     return strongly_connected(packages)
 
 
+def mutual_subpackages(graph=None):
+    """Pairs of subpackages that import each other (the simplest cross-subpackage cycles), sorted."""
+    graph = import_graph() if graph is None else graph
+    edges = {(subpackage(m), subpackage(t)) for m, targets in graph.items() for t in targets}
+    return sorted((a, b) for a, b in edges if a < b and (b, a) in edges and SHARED.count(a) == SHARED.count(b) == 0)
+
+
 def module_cycles(graph=None):
     """Cycles between the modules of one subpackage: components of each subpackage's own module graph."""
     graph = import_graph() if graph is None else graph
@@ -218,6 +225,7 @@ def main():
     for module, target in upward:
         print(f"  {module} -> {target} (line {graph[module][target]})")
     print(f"cycles between subpackages: {len(subpackage_cycles(graph))} {subpackage_cycles(graph)}")
+    print(f"subpackage pairs importing each other: {len(mutual_subpackages(graph))} {mutual_subpackages(graph)}")
     print(f"cycles inside subpackages: {len(module_cycles(graph))} {module_cycles(graph)}")
     print(f"annotated public functions: {annotated} of {total} ({100 * annotated / total:.0f}%)")
     print(f"__all__ faces: {with_all} of {modules} modules")

@@ -6,7 +6,8 @@ and test/core/test_mypy.py use the same functions.
 
 Layers: ``rollability_ros/core/__init__.py`` lists the subpackages bottom first; a module may import from its own
 subpackage, from those listed before it, and from the shared modules at the core's top level (:data:`SHARED`).
-Every import counts, inside functions too (a function-level import is still a dependency, only a later one).
+Every import counts, inside functions too (a function-level import is still a dependency, only a later one);
+imports under ``if typing.TYPE_CHECKING:`` (annotations only, never executed) do not.
 """
 import ast
 import pathlib
@@ -15,8 +16,8 @@ import sys
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "rollability_ros"
 CORE = PACKAGE / "core"
-#: The core's top-level modules every subpackage may use.
-SHARED = ("config", "optional", "registry")
+#: The core's top-level modules (config, optional, registry, records, ...): the shared bottom every subpackage may use.
+SHARED = tuple(sorted(path.stem for path in CORE.glob("*.py") if path.stem != "__init__"))
 
 
 def layer_order():
@@ -39,11 +40,25 @@ def core_modules():
     return {module_name(path): path for path in sorted(CORE.rglob("*.py")) if path != CORE / "__init__.py"}
 
 
+def _annotation_only(tree):
+    """The import nodes under ``if typing.TYPE_CHECKING:`` (annotations only: never executed)."""
+    skipped = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            skipped.update(id(child) for statement in node.body for child in ast.walk(statement))
+    return skipped
+
+
 def imports_of(path, modules):
-    """``[(target module, line)]``: the core modules ``path`` imports, at module level and inside functions."""
+    """``[(target module, line)]``: the core modules ``path`` imports, at module level and inside functions
+    (imports under ``if typing.TYPE_CHECKING:``, for annotations only, are left out)."""
     found = []
     prefix = "rollability_ros.core."
-    for node in ast.walk(ast.parse(path.read_text())):
+    tree = ast.parse(path.read_text())
+    skipped = _annotation_only(tree)
+    for node in ast.walk(tree):
+        if id(node) in skipped:
+            continue
         if isinstance(node, ast.Import):
             targets = [alias.name for alias in node.names]
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:

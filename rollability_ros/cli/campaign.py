@@ -71,7 +71,7 @@ def run(args):
 def _resimulate(args):
     from rollability_ros.core.campaign import LocalRig
     from rollability_ros.core.config import load_parameters
-    from rollability_ros.core.results.records import LaunchCondition
+    from rollability_ros.core.records import LaunchCondition
     from rollability_ros.core.rig import LAUNCH_BACKENDS, launch_backend_class
 
     refusal = launch_backend_class(args.backend).resimulate_refusal()
@@ -104,7 +104,7 @@ def _run_local(args, spec, ask):
     from rollability_ros.core.campaign import (LocalRig, plan_refusal, plan_trials, record_campaign_run,
                                                report_exit_code, resume_refusal, run_campaign, store_writer)
     from rollability_ros.core.config import load_parameters
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     parameters, plan = load_parameters(args.rig_config or ["rig"]), plan_trials(spec)
 

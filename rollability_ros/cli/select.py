@@ -29,7 +29,7 @@ def run(args):
     from rollability_ros.core.optimization import optimization_run as optimization_run
     from rollability_ros.core.optimization import selection
     from rollability_ros.core.config import from_mapping, load_parameters, section
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     run_dir = optimization_run.resolve_run_dir(args.run, args.output_dir)
     parameters = optimization_run.read_run_config(run_dir)

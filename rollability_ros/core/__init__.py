@@ -1,7 +1,11 @@
 """The pure core of rollability_ros: never imports rclpy, so it runs and is tested without ROS.
 
-Subpackages by domain (a module imports from its own subpackage and from those listed before it, plus the
-shared ``config``, ``optional`` and ``registry`` modules at this level):
+Subpackages by domain, bottom first: a module imports from its own subpackage and from those listed before it,
+plus the shared modules at this level, the bottom layer that imports no subpackage: ``config`` (parameter files
+-> settings), ``optional`` (heavy dependencies named in errors), ``registry`` (the tables of swappable
+implementations), ``records`` (the plain records every layer exchanges), ``record_messages`` (their one message
+mapping), ``store`` (the durable SQLite store of those records) and ``stats`` (binomial intervals, rank
+correlation). test/core/test_layering.py checks this order (no new upward import, no new cycle).
 
 - profile       profile geometry, printability, configuration ids -> solids
 - robots        the built-in chassis and URDF robots the simulation spawns
@@ -9,9 +13,9 @@ shared ``config``, ``optional`` and ``registry`` modules at this level):
 - optimization  CMA-ES, the run loop and checkpoints, evaluator pool, design selection
 - imu           orientation maths, upright classifier, tip-over tracker
 - rig           the launch sequence, the valve and its backends, relay simulator, speed gates
-- results       records, the durable store, CSV, analysis, figures, report
-- campaign      experiment matrix, campaign loop, calibration of the twin
 - bags          rosbag2/MCAP write, read, recover, convert, playback
+- results       the outcome log, CSV, analysis, figures, report
+- campaign      experiment matrix, campaign loop, calibration of the twin
 - graph         the node graph as processes: command lines, bringup, supervisor, study, live view
 
 Heavy dependencies (pybullet, trimesh, cma, matplotlib, ray) are imported only inside the modules that use them,

@@ -1,4 +1,4 @@
-"""rclpy bindings of the one record <-> message mapping (:mod:`rollability_ros.core.results.record_messages`).
+"""rclpy bindings of the one record <-> message mapping (:mod:`rollability_ros.core.record_messages`).
 
 The field mapping and validation live in the core, shared with the bag reader; this module only names the rclpy
 message classes and keeps the short names the nodes call. Times: message stamps (``builtin_interfaces/Time``)
@@ -8,9 +8,9 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Quaternion
 from std_msgs.msg import Header
 
-from rollability_ros.core.results import record_messages as mapping
+from rollability_ros.core import record_messages as mapping
 from rollability_ros.core.rig import valve_auth
-from rollability_ros.core.results.records import RunProgress
+from rollability_ros.core.records import RunProgress
 from rollability_ros.msg import (CandidateResult, GenerationSummary, LaunchCondition, LaunchOutcome,
                                  OptimizerProgress, TipEvent, ValveAuth)
 
@@ -41,7 +41,7 @@ def tuple_to_quaternion(xyzw):
 
 
 def condition_to_msg(condition):
-    """:class:`~rollability_ros.core.results.records.LaunchCondition` -> ``LaunchCondition``."""
+    """:class:`~rollability_ros.core.records.LaunchCondition` -> ``LaunchCondition``."""
     return mapping.condition_to_message(make_message, condition)
 
 
@@ -74,7 +74,7 @@ def tip_event_from_msg(msg):
 
 
 def progress_to_msg(progress, stamp_s):
-    """:class:`~rollability_ros.core.results.records.RunProgress` -> ``OptimizerProgress`` stamped ``stamp_s``."""
+    """:class:`~rollability_ros.core.records.RunProgress` -> ``OptimizerProgress`` stamped ``stamp_s``."""
     msg = OptimizerProgress(run_id=progress.run_id, generation=progress.generation,
                             max_generations=progress.max_generations, best_so_far=float(progress.best_so_far),
                             trials=progress.trials, elapsed_s=float(progress.elapsed_s))
@@ -83,7 +83,7 @@ def progress_to_msg(progress, stamp_s):
 
 
 def progress_from_msg(msg):
-    """``OptimizerProgress`` -> :class:`~rollability_ros.core.results.records.RunProgress`."""
+    """``OptimizerProgress`` -> :class:`~rollability_ros.core.records.RunProgress`."""
     return RunProgress(msg.run_id, msg.generation, msg.max_generations, msg.best_so_far, msg.trials, msg.elapsed_s)
 
 

@@ -20,7 +20,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from rollability_ros.core.results.records import RunProgress
+from rollability_ros.core.records import RunProgress
 from rollability_ros.msg import OptimizerProgress, OutcomeSummary
 from rollability_ros.nodes._convert import progress_from_msg
 from rollability_ros.nodes._support import LATCHED_QOS

@@ -118,7 +118,7 @@ class RigClient:
             raise LaunchAborted(str(exc)) from exc
 
     def launch(self, trial):
-        """Run ``trial`` on the rig; its :class:`~rollability_ros.core.results.records.LaunchOutcome`, or LaunchAborted."""
+        """Run ``trial`` on the rig; its :class:`~rollability_ros.core.records.LaunchOutcome`, or LaunchAborted."""
         if not spin_until(self.executor, self.action.server_is_ready, self.server_timeout_s):
             raise LaunchAborted(f"no rig serves the launch action within {self.server_timeout_s:g} s")
         feedback = queue.Queue()

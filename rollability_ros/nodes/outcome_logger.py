@@ -35,7 +35,7 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.node import Node
 
 from rollability_ros.core.results.outcome_log import OutcomeLog, OutcomeLoggerSettings, StoreFailure
-from rollability_ros.core.results.store import unique_key
+from rollability_ros.core.store import unique_key
 from rollability_ros.core.rig import rig_auth, valve_auth
 from rollability_ros.msg import (CandidateResult, ConfigurationSummary, GenerationSummary, LaunchOutcome,
                                  OutcomeStored, OutcomeSummary, TipEvent)

@@ -6,33 +6,18 @@ import or cycle fails with its file and line; an entry that no longer occurs fai
 """
 import code_counts
 
-#: (module, imported module) pairs that import from a subpackage listed later (module names below core/).
+#: (module, imported module) pairs that import from a subpackage listed later (module names below core/). Issue
+#: 29 counted 17 (records, stats, store in results/ imported by sim, optimization, imu and rig; results <-> campaign
+#: and bags): records, record_messages, store and stats moved to the shared bottom, bags below results,
+#: trial_id_for into records. Left: the robust objective reads the campaign's matrix.
 UPWARD_ALLOWED = {
-    ("imu.tip_tracker", "results.records"),
-    ("imu.upright", "results.record_messages"),
-    ("optimization.optimization_run", "results.records"),
-    ("optimization.optimization_run", "results.stats"),
-    ("optimization.optimization_run", "results.store"),
-    ("optimization.racing", "results.stats"),
-    ("optimization.selection", "results.stats"),
-    ("results.outcome_csv", "campaign.plan"),
-    ("results.report", "bags.messages"),
-    ("results.report", "bags.reader"),
-    ("rig.launch_backend", "results.records"),
-    ("rig.rig_session", "results.records"),
-    ("rig.speed_gate", "results.records"),
-    ("sim.evaluation", "results.stats"),
-    ("sim.launch_twin", "results.records"),
     ("sim.objectives", "campaign.plan"),
-    ("sim.objectives", "results.records"),
 }
-#: Strongly connected components of the subpackage graph.
-SUBPACKAGE_CYCLES_ALLOWED = [("bags", "campaign", "imu", "optimization", "results", "rig", "sim")]
+#: Strongly connected components of the subpackage graph (that one import makes this one).
+SUBPACKAGE_CYCLES_ALLOWED = [("campaign", "optimization", "results", "sim")]
 #: Strongly connected components of the module graph inside each subpackage.
 MODULE_CYCLES_ALLOWED = [
     ("bags.recover", "bags.writer"),
-    ("rig.launch_backend", "rig.rig_session"),
-    ("rig.valve", "rig.valve_backend"),
     ("sim.evaluation", "sim.launch_twin", "sim.mujoco_launch_twin", "sim.mujoco_trials", "sim.objectives",
      "sim.stable_poses", "sim.trials"),
 ]

@@ -6,7 +6,7 @@ import pathlib
 import pytest
 
 CORE = pathlib.Path(__file__).resolve().parents[2] / "rollability_ros" / "core"
-MODULES = ["imu/quaternion.py", "imu/upright.py", "results/records.py", "results/record_messages.py",
+MODULES = ["imu/quaternion.py", "imu/upright.py", "records.py", "record_messages.py",
            "rig/launch_backend.py", "rig/rig_session.py", "campaign/runner.py", "optimization/optimization_run.py",
            "bags/messages.py", "graph/bringup.py"]
 

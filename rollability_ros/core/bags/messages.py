@@ -3,8 +3,8 @@
 Messages are recognised by type (``rollability_ros/msg/LaunchOutcome``, ``CandidateResult``,
 ``GenerationSummary``, ``TipEvent``), whatever topic they were recorded on; every other type is skipped. A
 record repeated in the bag (a republished outcome) is kept once, under the same key as the store
-(:func:`rollability_ros.core.results.store.unique_key`), first one wins, so a bag and the live store of one campaign
-give the same records. A record the one mapping (:mod:`rollability_ros.core.results.record_messages`) refuses as
+(:func:`rollability_ros.core.store.unique_key`), first one wins, so a bag and the live store of one campaign
+give the same records. A record the one mapping (:mod:`rollability_ros.core.record_messages`) refuses as
 malformed is skipped with a warning, as the outcome_logger skips it. Decoding uses rosbags' CDR codec with the
 definition the bag stores for each type, so a bag recorded before an interface changed still decodes (a
 ``LaunchOutcome`` recorded before it had ``seed`` reads with ``NO_SEED``); a bag without stored definitions
@@ -17,10 +17,10 @@ import os
 import typing
 
 from rollability_ros.core.bags.msg_definitions import definition_for, full_type_name, interface_text
-from rollability_ros.core.results import record_messages
-from rollability_ros.core.results.record_messages import (CANDIDATE_TYPE, GENERATION_TYPE, OUTCOME_TYPE, RECORD_TYPES,
+from rollability_ros.core import record_messages
+from rollability_ros.core.record_messages import (CANDIDATE_TYPE, GENERATION_TYPE, OUTCOME_TYPE, RECORD_TYPES,
                                                           TIP_EVENT_TYPE)
-from rollability_ros.core.results.store import unique_key
+from rollability_ros.core.store import unique_key
 
 __all__ = ["OUTCOME_TYPE", "CANDIDATE_TYPE", "GENERATION_TYPE", "TIP_EVENT_TYPE", "RECORD_TYPES", "typestore",
            "record_from_message", "message_from_record", "read_records_from_bag", "decoding_typestore",
@@ -53,7 +53,7 @@ def make_message(type_name: str, **fields: typing.Any) -> typing.Any:
 
 
 def record_from_message(type_name: str, msg: typing.Any) -> record_messages.Record:
-    """A decoded record message -> its validated record (:mod:`~rollability_ros.core.results.record_messages`)."""
+    """A decoded record message -> its validated record (:mod:`~rollability_ros.core.record_messages`)."""
     return record_messages.record_from_message(type_name, msg)
 
 

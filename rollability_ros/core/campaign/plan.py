@@ -13,7 +13,7 @@ import statistics
 import typing
 
 from rollability_ros.core.config import check_path_component, from_mapping, load_parameters, section
-from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.records import LaunchCondition, trial_id_for
 
 #: The matrix levels in the order that minimises manual changes; LaunchCondition field names.
 LEVELS = ("configuration", "height_m", "angle_deg", "speed_mps")
@@ -79,13 +79,6 @@ class CampaignSpec:
 def load_campaign_spec(paths=("campaign",), node_name="/**"):
     """Read :class:`CampaignSpec` from parameter files (bare names are shipped ``config/`` files)."""
     return from_mapping(CampaignSpec, section(load_parameters(paths, node_name), "campaign"), "campaign")
-
-
-def trial_id_for(condition):
-    """Stable trial id of a condition, e.g. ``"B/h1.3m/v0.8mps/a-30deg/r2"``."""
-    return (f"{condition.configuration}/h{_format_number(condition.height_m)}m/"
-            f"v{_format_number(condition.speed_mps)}mps/a{_format_number(condition.angle_deg, '+')}deg/"
-            f"r{condition.repetition}")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -27,8 +27,8 @@ from rollability_ros.core.rig.launch_backend import LaunchAborted, RigPorts
 from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, RigSettings,
                                                   make_launch_backend, parse_outcome_answer)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
-from rollability_ros.core.results.records import INVALID_LAUNCH, LaunchOutcome
-from rollability_ros.core.results.store import Store
+from rollability_ros.core.records import INVALID_LAUNCH, LaunchOutcome
+from rollability_ros.core.store import Store
 from rollability_ros.core.rig.valve import ValveConfig, ValveController
 from rollability_ros.core.rig.valve_backends import make_controller
 
@@ -49,7 +49,7 @@ INVALID_LAUNCH_FIXES = (
 
 def invalid_launch_stop(notes: typing.Sequence[str]) -> str:
     """Why a campaign must stop for invalid launches ("" if it need not): ``notes`` are the notes of this session's
-    launches, an invalid one starting with :data:`~rollability_ros.core.results.records.INVALID_LAUNCH`."""
+    launches, an invalid one starting with :data:`~rollability_ros.core.records.INVALID_LAUNCH`."""
     invalid = [note[len(INVALID_LAUNCH):] for note in notes if note.startswith(INVALID_LAUNCH)]
     if len(notes) < INVALID_STOP_MIN_LAUNCHES or len(invalid) <= INVALID_STOP_FRACTION * len(notes):
         return ""

@@ -11,7 +11,7 @@ import time
 import typing
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.results.records import RunProgress
+from rollability_ros.core.records import RunProgress
 
 
 @dataclasses.dataclass(frozen=True)

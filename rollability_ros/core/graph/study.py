@@ -35,7 +35,7 @@ import yaml
 from rollability_ros.core.graph.bringup import NodeLaunch, core_nodes, load_graph_settings, new_study_id, parameter_files
 from rollability_ros.core.graph.progress import GraphObserver, JobProgress, ProgressDisplay, Stopwatch, eta_s
 from rollability_ros.core.config import check_path_component, load_parameters
-from rollability_ros.core.results.store import Store
+from rollability_ros.core.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
 
 #: The optimization run inside a study directory.

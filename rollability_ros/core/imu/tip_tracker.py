@@ -20,7 +20,7 @@ import enum
 import logging
 import math
 
-from rollability_ros.core.results.records import TipEventRecord
+from rollability_ros.core.records import TipEventRecord
 from rollability_ros.core.imu.upright import ImuMount, ImuUprightClassifier
 
 _LOG = logging.getLogger(__name__)

@@ -26,7 +26,7 @@ from rollability_ros.core.imu.quaternion import (  # noqa: F401  (re-exported: t
     rotate_vector,
     vector3 as _vector3,
 )
-from rollability_ros.core.results.record_messages import stamp_to_s
+from rollability_ros.core.record_messages import stamp_to_s
 
 _LOG = logging.getLogger(__name__)
 

@@ -57,8 +57,8 @@ from rollability_ros.core.optimization.cmaes import (
     derive_seed,
     random_initial_means,
 )
-from rollability_ros.core.results.records import CandidateRecord, GenerationRecord, RunProgress
-from rollability_ros.core.results.store import Store
+from rollability_ros.core.records import CandidateRecord, GenerationRecord, RunProgress
+from rollability_ros.core.store import Store
 
 #: File name of the merged parameters inside a run directory.
 RUN_CONFIG_FILENAME = "config.yaml"
@@ -530,7 +530,7 @@ class OptimizationRun:
         stages are pooled. Both stages keep common random numbers; a stored record (resume) holds the pooled
         result under the first stage's seed, and the decision depends only on the checkpointed incumbent, so a
         resumed generation makes the same decisions."""
-        from rollability_ros.core.results.stats import wilson_interval
+        from rollability_ros.core.stats import wilson_interval
 
         settings, incumbent = self.settings, self.optimizer.best
         first, rest = settings.race_first_trials, settings.trials - settings.race_first_trials

@@ -18,7 +18,7 @@ use the first round (every candidate, the same trials) as an unbiased comparison
 import dataclasses
 import math
 
-from rollability_ros.core.results.stats import wilson_interval
+from rollability_ros.core.stats import wilson_interval
 
 
 @dataclasses.dataclass(frozen=True)

@@ -68,7 +68,7 @@ from rollability_ros.core.profile import geometry
 from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
 from rollability_ros.core.optimization.cmaes import STREAM_SELECTION, derive_seed
 from rollability_ros.core.optimization import racing
-from rollability_ros.core.results.stats import newcombe_interval, wilson_interval
+from rollability_ros.core.stats import newcombe_interval, wilson_interval
 
 #: The race's id of the bare robot (the reference that runs every round).
 BASELINE = "baseline"

@@ -16,8 +16,8 @@ import math
 import random
 import statistics
 
-from rollability_ros.core.results.records import LaunchCondition
-from rollability_ros.core.results.stats import wilson_interval
+from rollability_ros.core.records import LaunchCondition
+from rollability_ros.core.stats import wilson_interval
 
 #: The grouping factors of a grouped condition, LaunchCondition field names.
 FACTORS = ("configuration", "height_m", "speed_mps", "angle_deg")

@@ -14,7 +14,7 @@ screened fitness, with a permutation p-value; the binned curves with Wilson inte
 import csv
 import math
 
-from rollability_ros.core.results.stats import spearman_permutation_test
+from rollability_ros.core.stats import spearman_permutation_test
 
 #: File names written next to ``designs.yaml``.
 ARCHIVE_FILENAME = "archive.csv"

@@ -8,7 +8,7 @@ import dataclasses
 
 import numpy as np
 
-from rollability_ros.core.results.stats import average_ranks, wilson_interval
+from rollability_ros.core.stats import average_ranks, wilson_interval
 
 
 @dataclasses.dataclass(frozen=True)

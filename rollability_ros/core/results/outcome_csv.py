@@ -7,8 +7,7 @@ silently dropped and no value is guessed. Stdlib only (runs on the robot compute
 import csv
 import math
 
-from rollability_ros.core.campaign.plan import trial_id_for
-from rollability_ros.core.results.records import NO_SEED, LaunchCondition, LaunchOutcome
+from rollability_ros.core.records import NO_SEED, LaunchCondition, LaunchOutcome, trial_id_for
 
 #: Columns every file must have.
 REQUIRED_COLUMNS = ("configuration", "height_m", "speed_mps", "angle_deg", "repetition", "upright")

@@ -1,6 +1,6 @@
 """The outcome logger's bookkeeping: store a record durably before it is acknowledged, and keep a summary.
 
-:class:`OutcomeLog` wraps a :class:`~rollability_ros.core.results.store.Store`. ``add(record)`` returns only after the
+:class:`OutcomeLog` wraps a :class:`~rollability_ros.core.store.Store`. ``add(record)`` returns only after the
 record is committed (the store fsyncs its write-ahead log), so a caller that acknowledges on return never
 acknowledges a record a ``kill -9`` can lose. It says what happened in the way the caller must act on:
 
@@ -21,8 +21,8 @@ import sqlite3
 import threading
 
 from rollability_ros.core.results.analysis import ConditionResult, summarise
-from rollability_ros.core.results.records import CandidateRecord, GenerationRecord, LaunchOutcome, TipEventRecord
-from rollability_ros.core.results.store import Store, unique_key
+from rollability_ros.core.records import CandidateRecord, GenerationRecord, LaunchOutcome, TipEventRecord
+from rollability_ros.core.store import Store, unique_key
 
 #: Store file used when no ``store_path`` is given (relative to the working directory).
 DEFAULT_STORE_PATH = "runs/outcomes.sqlite"

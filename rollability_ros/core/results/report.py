@@ -25,9 +25,9 @@ import shlex
 
 from rollability_ros.core.results import analysis
 from rollability_ros.core.results.outcome_csv import read_outcome_csv
-from rollability_ros.core.results.records import INVALID_LAUNCH, NO_SEED, LaunchOutcome
-from rollability_ros.core.results.store import STORE_FILENAME, Store
-from rollability_ros.core.results.stats import newcombe_interval, wilson_interval
+from rollability_ros.core.records import INVALID_LAUNCH, NO_SEED, LaunchOutcome
+from rollability_ros.core.store import STORE_FILENAME, Store
+from rollability_ros.core.stats import newcombe_interval, wilson_interval
 
 #: Order of configurations in figures and tables (others follow alphabetically).
 CONFIGURATION_ORDER = ("baseline", "A", "B", "C")

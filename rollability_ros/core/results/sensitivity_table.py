@@ -5,7 +5,7 @@ every (factor, level) evaluates the bare chassis and each design on the same tri
 a design's gain is its success rate minus the bare chassis's there, with Newcombe's 95% interval. ``rollability
 sensitivity`` prints them; the report shows them when ``sensitivity.csv`` lies next to the designs.
 """
-from rollability_ros.core.results.stats import newcombe_interval
+from rollability_ros.core.stats import newcombe_interval
 
 
 #: Columns of :func:`gain_rows` (``sensitivity_gains.csv``).

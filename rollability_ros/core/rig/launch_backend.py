@@ -1,7 +1,7 @@
 """The launch backend contract: what the rig node and the in-process campaign call, whichever backend runs.
 
 A :class:`LaunchBackend` launches one trial at a time and returns its
-:class:`~rollability_ros.core.results.records.LaunchOutcome`; the outcome's ``backend`` field is the only place a
+:class:`~rollability_ros.core.records.LaunchOutcome`; the outcome's ``backend`` field is the only place a
 caller learns which implementation ran. Two implementations live in :mod:`rollability_ros.core.rig.rig_session`:
 ``SimulatedLaunch`` (the launch twin in PyBullet) and ``PhysicalLaunch`` (valve, speed gate, operator or IMU), and
 :func:`~rollability_ros.core.rig.rig_session.make_launch_backend` picks one from ``rig.backend``.
@@ -14,7 +14,7 @@ it got.
 import abc
 import typing
 
-from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 
 if typing.TYPE_CHECKING:  # annotations only: rig_session imports this module
     from rollability_ros.core.imu.upright import ImuOutcomeConfig

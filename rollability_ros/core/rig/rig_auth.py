@@ -7,7 +7,7 @@ own arm / fire / heartbeat requests, every request to the rig that can move hard
 - the regulator confirmation ``rig/confirm`` (:func:`confirm_text`: bound to the trial it confirms, or to "the
   launch waiting now" when the operator's tool does not name one),
 - the operator's outcome ``record_outcome`` (:func:`outcome_text`: trial, verdict, travel time, note),
-- the physical :class:`~rollability_ros.core.results.records.LaunchOutcome` the rig publishes for the outcome_logger
+- the physical :class:`~rollability_ros.core.records.LaunchOutcome` the rig publishes for the outcome_logger
   (:func:`record_text`: every stored field).
 
 The operator's tools (``rollability rig``, ``rollability campaign --graph``, the campaign_runner node) read the key
@@ -68,7 +68,7 @@ def outcome_text(trial_id: str, upright: bool, travel_time_s: float, note: str) 
 
 
 def record_text(outcome: typing.Any) -> str:
-    """The signed text of a stored :class:`~rollability_ros.core.results.records.LaunchOutcome`: all its fields."""
+    """The signed text of a stored :class:`~rollability_ros.core.records.LaunchOutcome`: all its fields."""
     def exact(value):
         if isinstance(value, float):
             return _number(value)

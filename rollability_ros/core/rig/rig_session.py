@@ -38,7 +38,7 @@ import zlib
 
 from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
 from rollability_ros.core.registry import Registry
-from rollability_ros.core.results.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, LaunchCondition,
+from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, LaunchCondition,
                                                   LaunchOutcome)
 from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
                                                      RigPorts, no_phase, not_cancelled)

@@ -36,7 +36,7 @@ from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
 from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, at_fidelity, launch_objective, \
     run_launch_trial, run_robust_trial
 from rollability_ros.core.sim.world import PhysicsParams, connect
-from rollability_ros.core.results.stats import wilson_interval
+from rollability_ros.core.stats import wilson_interval
 from rollability_ros.core.sim.trials import TrialSettings, make_trial_world
 from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec, footprint_grid
 from rollability_ros.core.sim.worker_pool import spawn_pool

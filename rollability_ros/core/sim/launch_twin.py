@@ -73,7 +73,7 @@ Invalid launches
     A launch in which the chassis does not leave the ledge, or whose first landing is not on the foam, did not
     happen as the rig launches: ``LaunchResult.invalid_reason`` says why. :func:`simulate_valid_launch` retries
     it with derived seeds up to ``max_attempts`` launches in all; the rig stores one still invalid as an invalid
-    launch (:data:`~rollability_ros.core.results.records.INVALID_LAUNCH`), which the analysis leaves out.
+    launch (:data:`~rollability_ros.core.records.INVALID_LAUNCH`), which the analysis leaves out.
 Measurements and phases
     ``travel_time_s`` = time at which the foremost point crosses the edge line x = 0 (interpolated within the
     step): the light gates of the real rig, at the start and across the edge; ``measured_speed_mps`` =
@@ -95,7 +95,7 @@ import numpy as np
 from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
 from rollability_ros.core.profile.designs import DesignSources, profile_mesh_for
 from rollability_ros.core.optional import require
-from rollability_ros.core.results.records import NO_SEED, NOT_MEASURED
+from rollability_ros.core.records import NO_SEED, NOT_MEASURED
 from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
 from rollability_ros.core.sim.launcher_geometry import (check_launcher_geometry, derive_launcher_geometry,
                                                          robot_envelope)
@@ -642,7 +642,7 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, prof
 
     Parameters
     ----------
-    condition : rollability_ros.core.results.records.LaunchCondition
+    condition : rollability_ros.core.records.LaunchCondition
         Configuration id, ledge height above the foam (m), nominal launch speed (m/s), angle (deg).
     settings : LaunchTwinSettings
     seed : int

@@ -47,7 +47,7 @@ import math
 import typing
 
 from rollability_ros.core.campaign.plan import load_campaign_spec
-from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_for
 from rollability_ros.core.sim.trials import TrialOutcome, check_engine, run_trial
 

@@ -1,0 +1,199 @@
+"""Plain records exchanged between the core modules, the store, bags and the nodes.
+
+Field names are the message field names of ``msg/*.msg`` (flattened where a message nests another), so one
+word means one thing in config keys, message fields, store columns and CLI flags. Units: m, s, m/s, deg.
+"""
+import dataclasses
+import math
+
+#: Placeholder for "not measured" numeric fields (travel time, measured speed).
+NOT_MEASURED = float("nan")
+#: Start of the note of an invalid launch (no launch happened as the rig launches: the chassis did not leave the
+#: ledge, landed outside the foam, ...): stored with its reason so nothing is lost, but never counted as an outcome.
+INVALID_LAUNCH = "invalid launch: "
+#: Largest departure of ``final_orientation``'s norm from 1 accepted (a hand-typed quaternion with 3-4 digits
+#: is within it; 0,0,0,0 or a vector with a forgotten w is not).
+QUATERNION_NORM_TOLERANCE = 0.01
+#: ``LaunchOutcome.seed`` of a launch that has no twin seed: a physical launch, or one recorded before outcomes
+#: carried their seed (old stores, CSVs and bags read back with it).
+NO_SEED = -1
+
+
+@dataclasses.dataclass(frozen=True)
+class LaunchCondition:
+    """One cell of the launch matrix: configuration, ledge height (m), speed (m/s), angle (deg), repetition."""
+
+    configuration: str
+    height_m: float
+    speed_mps: float
+    angle_deg: float
+    repetition: int = 0
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.configuration:
+            raise ValueError("configuration must be a non-empty id")
+        for name in ("height_m", "speed_mps", "angle_deg"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"{name} must be a finite number, got {value!r}")
+        if self.height_m < 0:
+            raise ValueError(f"height_m must be >= 0, got {self.height_m}")
+        if self.speed_mps <= 0:
+            raise ValueError(f"speed_mps must be > 0, got {self.speed_mps}")
+        if not -180.0 <= self.angle_deg <= 180.0:
+            raise ValueError(f"angle_deg must be within [-180, 180], got {self.angle_deg}")
+        if self.repetition < 0:
+            raise ValueError(f"repetition must be >= 0, got {self.repetition}")
+
+    @property
+    def group_key(self) -> tuple:
+        """The grouped condition (paper 2.2.6): everything but the repetition."""
+        return (self.configuration, self.height_m, self.speed_mps, self.angle_deg)
+
+
+def trial_id_for(condition: LaunchCondition) -> str:
+    """Stable trial id of a condition, e.g. ``"B/h1.3m/v0.8mps/a-30deg/r2"`` (6 significant digits)."""
+    def number(value: float, sign: str = "") -> str:
+        return format(float(value), sign + ".6g")
+
+    return (f"{condition.configuration}/h{number(condition.height_m)}m/v{number(condition.speed_mps)}mps/"
+            f"a{number(condition.angle_deg, '+')}deg/r{condition.repetition}")
+
+
+@dataclasses.dataclass(frozen=True)
+class LaunchOutcome:
+    """A classified launch (``msg/LaunchOutcome.msg``). ``final_orientation`` is (x, y, z, w), world z up.
+
+    ``seed``: for a simulated launch the launch twin seed of the launch as stored (the retry that was kept), so
+    ``simulate_launch(condition, twin settings, seed)`` repeats it exactly; :data:`NO_SEED` for a physical one.
+    """
+
+    run_id: str
+    trial_id: str
+    condition: LaunchCondition
+    backend: str                      # "sim" | "physical"
+    upright: bool
+    travel_time_s: float = NOT_MEASURED
+    measured_speed_mps: float = NOT_MEASURED
+    speed_out_of_tolerance: bool = False
+    final_orientation: tuple = (0.0, 0.0, 0.0, 1.0)
+    classified_by: str = "sim"        # "operator" | "imu" | "sim"
+    note: str = ""
+    stamp_s: float = 0.0              # time of classification, s since the Unix epoch
+    seed: int = NO_SEED               # twin seed of a simulated launch; NO_SEED for a physical one
+
+    BACKENDS = ("sim", "physical")
+    CLASSIFIERS = ("operator", "imu", "sim")
+
+    @property
+    def valid(self) -> bool:
+        """False for an invalid launch (``note`` starts with :data:`INVALID_LAUNCH`): analysis leaves it out."""
+        return not self.note.startswith(INVALID_LAUNCH)
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.run_id or not self.trial_id:
+            raise ValueError("run_id and trial_id must be non-empty")
+        self.condition.validate()
+        if self.backend not in self.BACKENDS:
+            raise ValueError(f"backend must be one of {self.BACKENDS}, got {self.backend!r}")
+        if self.classified_by not in self.CLASSIFIERS:
+            raise ValueError(f"classified_by must be one of {self.CLASSIFIERS}, got {self.classified_by!r}")
+        if len(self.final_orientation) != 4 or not all(math.isfinite(v) for v in self.final_orientation):
+            raise ValueError(f"final_orientation must be 4 finite numbers (x, y, z, w), got {self.final_orientation!r}")
+        norm = math.sqrt(sum(v * v for v in self.final_orientation))
+        if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+            raise ValueError(f"final_orientation must be a unit quaternion (x, y, z, w), got {self.final_orientation!r} "
+                             f"(norm {norm:.4g})")
+        for name in ("travel_time_s", "measured_speed_mps"):
+            value = getattr(self, name)
+            if not math.isnan(value) and not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be >= 0 (or not measured), got {value!r}")
+        if not (math.isfinite(self.stamp_s) and self.stamp_s >= 0):
+            raise ValueError(f"stamp_s must be a time >= 0, s since the epoch, got {self.stamp_s!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < NO_SEED:
+            raise ValueError(f"seed must be a twin seed >= 0 or {NO_SEED} (no seed), got {self.seed!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class CandidateRecord:
+    """One evaluated candidate of an optimization run (``msg/CandidateResult.msg``)."""
+
+    run_id: str
+    generation: int
+    index: int
+    heights: tuple                    # half-grid vertex heights, simulation units
+    fitness: float                    # successes / trials
+    successes: int
+    trials: int
+    seed: int
+    eval_time_s: float
+    evaluator: str = ""
+    stamp_s: float = 0.0
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` for an inconsistent candidate (successes > trials, NaN heights, ...)."""
+        if not self.run_id:
+            raise ValueError("run_id is empty")
+        if self.successes > self.trials:
+            raise ValueError(f"successes {self.successes} > trials {self.trials}")
+        if not all(math.isfinite(h) for h in self.heights):
+            raise ValueError("heights contain NaN or infinity")
+        if not (math.isfinite(self.fitness) and 0.0 <= self.fitness <= 1.0):
+            raise ValueError(f"fitness {self.fitness} is not in [0, 1]")
+
+
+@dataclasses.dataclass(frozen=True)
+class GenerationRecord:
+    """Summary of one completed generation (``msg/GenerationSummary.msg``)."""
+
+    run_id: str
+    generation: int
+    best_fitness: float
+    mean_fitness: float
+    best_so_far: float
+    sigma: float
+    best_heights: tuple
+    evaluations: int
+    elapsed_s: float
+    stamp_s: float = 0.0
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.run_id:
+            raise ValueError("GenerationRecord: run_id must be non-empty")
+
+
+@dataclasses.dataclass(frozen=True)
+class RunProgress:
+    """Where an optimization run stands (``msg/OptimizerProgress.msg``): what an orchestrator shows; not stored."""
+
+    run_id: str
+    generation: int                   # generations completed: the last one's number, 0 before the first
+    max_generations: int = 0          # the run's cap, 0 = none
+    best_so_far: float = math.nan     # fitness, [0, 1]; NaN before the first generation
+    trials: int = 0                   # simulated trials evaluated in the run so far
+    elapsed_s: float = 0.0            # s of optimizer wall time so far
+
+
+@dataclasses.dataclass(frozen=True)
+class TipEventRecord:
+    """One tip-over seen in the field by tip_monitor (``msg/TipEvent.msg``)."""
+
+    robot: str
+    tipped_at_s: float                # s since the Unix epoch (or the IMU's clock)
+    duration_s: float
+    recovered: bool
+    peak_tilt_deg: float
+    peak_angular_rate_radps: float
+    final_orientation: tuple = (0.0, 0.0, 0.0, 1.0)
+    frame_id: str = ""
+    stamp_s: float = 0.0
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` naming the first unusable field."""
+        if not self.robot:
+            raise ValueError("TipEventRecord: robot must be non-empty")
+        if not math.isfinite(self.tipped_at_s):
+            raise ValueError(f"TipEvent: tipped_at must be a finite time, got {self.tipped_at_s}")

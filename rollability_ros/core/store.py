@@ -1,0 +1,355 @@
+"""Durable store of launch outcomes, candidate results, generation summaries, tip events and run info.
+
+Why SQLite in WAL mode rather than an append-only file with fsync: the logger must (1) acknowledge an outcome
+only once it is on disk, (2) store a duplicate trial id once, (3) let the campaign runner and the report read
+while the logger writes, and (4) never leave a torn record after ``kill -9``. SQLite gives all four from the
+standard library: a ``UNIQUE`` constraint does (2) without an in-memory index that must be rebuilt on start,
+WAL lets readers in other processes see a consistent snapshot while one writer appends (3), and a commit with
+``synchronous=FULL`` fsyncs the write-ahead log before returning (1), so a killed writer loses at most the
+transaction it had not committed (4) and the next open replays or discards the log atomically. An append-only
+file needs the same pieces hand-made: torn-tail detection, a dedup index, and readers that skip a half line.
+
+One file may hold several runs (``run_id`` is in every key); a run directory holds ``store.sqlite``. The schema
+is versioned with ``PRAGMA user_version`` and marked as ours with ``PRAGMA application_id``; another SQLite
+file or a non-database file is refused with ``ValueError``. A store of an older schema is migrated when it is opened
+(columns added since are added, its rows taking the field's default: outcomes of a version 1 store read with
+``seed`` = ``NO_SEED``); nothing already stored changes. Stdlib only: this module runs on the robot computer.
+"""
+import dataclasses
+import json
+import math
+import os
+import sqlite3
+import threading
+
+from rollability_ros.core.records import (
+    CandidateRecord,
+    GenerationRecord,
+    LaunchCondition,
+    LaunchOutcome,
+    TipEventRecord,
+)
+
+#: File name of the store inside a run directory.
+STORE_FILENAME = "store.sqlite"
+#: ``PRAGMA application_id`` of a rollability store ("ROLL" in ASCII).
+APPLICATION_ID = 0x524F4C4C
+#: Schema version written to ``PRAGMA user_version``; bump with a migration when the tables change.
+#: 1: the first schema; 2: ``launch_outcomes.seed`` (rows of a version 1 store read as ``NO_SEED``).
+SCHEMA_VERSION = 2
+
+
+def _encode_tuple(value):
+    return json.dumps([float(v) for v in value])
+
+
+def _decode_tuple(text):
+    return tuple(json.loads(text))
+
+
+def _encode_float(value):
+    # SQLite stores NaN as NULL; keep it explicit so the round trip is NaN -> NULL -> NaN
+    return None if value is None or (isinstance(value, float) and math.isnan(value)) else float(value)
+
+
+def _decode_float(value):
+    return math.nan if value is None else float(value)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Column:
+    """One column: name, SQL type, and how a record field value is written and read back."""
+
+    name: str
+    sql_type: str
+    encode: object = None
+    decode: object = None
+    default: object = None            # the record field's default, encoded; None: the field has no default
+
+    def add_sql(self, table_name):
+        """``ALTER TABLE`` adding this column to a store written before it existed, old rows taking the default."""
+        if self.default is None:
+            raise ValueError(f"cannot add column {table_name}.{self.name} to an existing store: it has no default")
+        literal = "'" + self.default.replace("'", "''") + "'" if isinstance(self.default, str) else repr(self.default)
+        return f'ALTER TABLE {table_name} ADD COLUMN "{self.name}" {self.sql_type} DEFAULT {literal}'
+
+
+def _columns_for(record_cls, skip=()):
+    """Columns for the scalar and tuple fields of a records dataclass, typed from its field annotations."""
+    columns = []
+    for field in dataclasses.fields(record_cls):
+        if field.name in skip:
+            continue
+        kind = field.type if isinstance(field.type, str) else field.type.__name__
+        if kind == "float":
+            column = _Column(field.name, "REAL", _encode_float, _decode_float)
+        elif kind == "int":
+            column = _Column(field.name, "INTEGER NOT NULL", int, int)
+        elif kind == "bool":
+            column = _Column(field.name, "INTEGER NOT NULL", int, bool)
+        elif kind == "str":
+            column = _Column(field.name, "TEXT NOT NULL", str, str)
+        elif kind == "tuple":
+            column = _Column(field.name, "TEXT NOT NULL", _encode_tuple, _decode_tuple)
+        else:
+            raise TypeError(f"no store column type for {record_cls.__name__}.{field.name}: {kind}")
+        if field.default is not dataclasses.MISSING and kind in ("int", "bool", "str"):
+            column = dataclasses.replace(column, default=column.encode(field.default))
+        columns.append(column)
+    return columns
+
+
+class _Table:
+    """A records dataclass stored as one table, rows kept in insertion order by ``seq``."""
+
+    def __init__(self, name, record_cls, unique, flatten=None):
+        self.name = name
+        self.record_cls = record_cls
+        self.unique = unique
+        # flatten: (field name, nested dataclass) stored as its own columns, e.g. LaunchOutcome.condition
+        self.flatten = flatten
+        nested = _columns_for(flatten[1]) if flatten else []
+        self.nested_names = [c.name for c in nested]
+        self.columns = _columns_for(record_cls, skip=(flatten[0],) if flatten else ()) + nested
+
+    def add_missing_columns(self, conn):
+        """Add the columns a store of an older schema lacks (e.g. ``seed``, schema 2), old rows getting the default.
+
+        Runs inside the caller's write transaction, so a second process migrating the same file sees them added.
+        """
+        existing = {row[1] for row in conn.execute(f"PRAGMA table_info({self.name})")}
+        for column in self.columns:
+            if existing and column.name not in existing:
+                conn.execute(column.add_sql(self.name))
+
+    def create_sql(self):
+        body = ", ".join(f'"{c.name}" {c.sql_type}' for c in self.columns)
+        keys = ", ".join(f'"{k}"' for k in self.unique)
+        return (f'CREATE TABLE IF NOT EXISTS {self.name} (seq INTEGER PRIMARY KEY AUTOINCREMENT, {body}, '
+                f'UNIQUE ({keys}))')
+
+    def insert_sql(self):
+        names = ", ".join(f'"{c.name}"' for c in self.columns)
+        marks = ", ".join("?" for _ in self.columns)
+        return f"INSERT OR IGNORE INTO {self.name} ({names}) VALUES ({marks})"
+
+    def select_sql(self, filters):
+        names = ", ".join(f'"{c.name}"' for c in self.columns)
+        where = " AND ".join(f'"{name}" = ?' for name in filters)
+        return f"SELECT {names} FROM {self.name}" + (f" WHERE {where}" if where else "") + " ORDER BY seq"
+
+    def to_row(self, record):
+        values = dataclasses.asdict(record)
+        if self.flatten:
+            values.update(values.pop(self.flatten[0]))
+        return tuple(c.encode(values[c.name]) for c in self.columns)
+
+    def from_row(self, row):
+        values = {c.name: c.decode(v) for c, v in zip(self.columns, row)}
+        if self.flatten:
+            field_name, nested_cls = self.flatten
+            values[field_name] = nested_cls(**{n: values.pop(n) for n in self.nested_names})
+        return self.record_cls(**values)
+
+
+_OUTCOMES = _Table("launch_outcomes", LaunchOutcome, ("run_id", "trial_id"),
+                   flatten=("condition", LaunchCondition))
+_CANDIDATES = _Table("candidates", CandidateRecord, ("run_id", "generation", "index"))
+_GENERATIONS = _Table("generations", GenerationRecord, ("run_id", "generation"))
+_TIP_EVENTS = _Table("tip_events", TipEventRecord, ("robot", "tipped_at_s"))
+_TABLES = (_OUTCOMES, _CANDIDATES, _GENERATIONS, _TIP_EVENTS)
+_TABLE_OF = {table.record_cls: table for table in _TABLES}
+_RUNS_SQL = "CREATE TABLE IF NOT EXISTS runs (run_id TEXT PRIMARY KEY, kind TEXT NOT NULL, info TEXT NOT NULL)"
+
+
+def unique_key(record):
+    """The key under which the store keeps ``record`` once, e.g. ``(run_id, trial_id)`` of a LaunchOutcome."""
+    table = _TABLE_OF.get(type(record))
+    if table is None:
+        raise ValueError(f"the store holds no {type(record).__name__} records")
+    return tuple(getattr(record, name) for name in table.unique)
+
+
+def store_path(path):
+    """Return the store file for ``path``: the path itself, or ``<dir>/store.sqlite`` for a directory."""
+    path = os.fspath(path)
+    return os.path.join(path, STORE_FILENAME) if os.path.isdir(path) else path
+
+
+class Store:
+    """SQLite store of run records; every ``add_*`` is committed (fsynced) before it returns.
+
+    Thread-safe per instance (one connection behind a lock); several processes may open the same file
+    (SQLite locks it; readers see committed data only).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Store file, or a run directory (then ``<dir>/store.sqlite``). Created with its schema if missing.
+    """
+
+    def __init__(self, path):
+        self.path = store_path(path)
+        self._lock = threading.Lock()
+        try:
+            self._conn = sqlite3.connect(self.path, timeout=30.0, check_same_thread=False, isolation_level=None)
+        except sqlite3.Error as exc:
+            raise ValueError(f"cannot open store {self.path}: {exc}") from exc
+        try:
+            self._open_schema()
+        except sqlite3.DatabaseError as exc:
+            self._conn.close()
+            raise ValueError(f"{self.path} is not a usable rollability store (corrupt or not SQLite): {exc}") from exc
+        except ValueError:
+            self._conn.close()
+            raise
+
+    def _open_schema(self):
+        conn = self._conn
+        conn.execute("PRAGMA busy_timeout = 30000")
+        application_id = conn.execute("PRAGMA application_id").fetchone()[0]
+        version = conn.execute("PRAGMA user_version").fetchone()[0]
+        has_tables = conn.execute("SELECT count(*) FROM sqlite_master").fetchone()[0] > 0
+        if has_tables and application_id != APPLICATION_ID:
+            raise ValueError(f"{self.path} is an SQLite file of another application "
+                             f"(application_id {application_id:#x}), not a rollability store")
+        if version > SCHEMA_VERSION:
+            raise ValueError(f"{self.path} has store schema version {version}, newer than this code "
+                             f"({SCHEMA_VERSION}); update rollability_ros")
+        if conn.execute("PRAGMA journal_mode = WAL").fetchone()[0].lower() != "wal":
+            raise ValueError(f"{self.path}: cannot switch the store to WAL mode (network file system?)")
+        conn.execute("PRAGMA synchronous = FULL")
+        if not has_tables or version < SCHEMA_VERSION:
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                for table in _TABLES:
+                    table.add_missing_columns(conn)
+                    conn.execute(table.create_sql())
+                conn.execute(_RUNS_SQL)
+                conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+                conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+                conn.execute("COMMIT")
+            except BaseException:
+                conn.execute("ROLLBACK")
+                raise
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        self.close()
+
+    def close(self):
+        """Close the connection (idempotent)."""
+        with self._lock:
+            if self._conn is not None:
+                self._conn.close()
+                self._conn = None
+
+    def _connection(self):
+        if self._conn is None:
+            raise ValueError(f"store {self.path} is closed")
+        return self._conn
+
+    def _write(self, sql, params):
+        """Run one statement in its own committed transaction; return the number of rows it changed."""
+        with self._lock:
+            conn = self._connection()
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                changed = conn.execute(sql, params).rowcount
+                conn.execute("COMMIT")
+            except BaseException:
+                conn.execute("ROLLBACK")
+                raise
+        return changed
+
+    def _insert(self, table, record):
+        if not isinstance(record, table.record_cls):
+            raise ValueError(f"expected a {table.record_cls.__name__}, got {type(record).__name__}")
+        owner = table.unique[0]  # run_id or robot: a record must say whose it is
+        if not getattr(record, owner):
+            raise ValueError(f"{table.record_cls.__name__}.{owner} must be non-empty")
+        return self._write(table.insert_sql(), table.to_row(record)) == 1
+
+    def _select(self, table, **filters):
+        filters = {k: v for k, v in filters.items() if v is not None}
+        with self._lock:
+            rows = self._connection().execute(table.select_sql(filters), tuple(filters.values())).fetchall()
+        return [table.from_row(row) for row in rows]
+
+    def add_launch_outcome(self, outcome):
+        """Store ``outcome`` durably; return False (and store nothing) if its (run_id, trial_id) is stored.
+
+        Raises ``ValueError`` for an outcome that fails :meth:`LaunchOutcome.validate`.
+        """
+        outcome.validate()
+        return self._insert(_OUTCOMES, outcome)
+
+    def launch_outcomes(self, run_id=None):
+        """Launch outcomes (all runs, or one), in insertion order."""
+        return self._select(_OUTCOMES, run_id=run_id)
+
+    def trial_ids(self, run_id):
+        """The set of trial ids stored for ``run_id`` (what a resumed campaign skips)."""
+        with self._lock:
+            rows = self._connection().execute(
+                "SELECT trial_id FROM launch_outcomes WHERE run_id = ?", (run_id,)).fetchall()
+        return {row[0] for row in rows}
+
+    def add_candidate(self, candidate):
+        """Store a candidate result; False if its (run_id, generation, index) is already stored."""
+        return self._insert(_CANDIDATES, candidate)
+
+    def candidates(self, run_id=None, generation=None):
+        """Candidate results (optionally of one run and/or generation), in insertion order."""
+        return self._select(_CANDIDATES, run_id=run_id, generation=generation)
+
+    def add_generation(self, generation):
+        """Store a generation summary; False if its (run_id, generation) is already stored."""
+        return self._insert(_GENERATIONS, generation)
+
+    def generations(self, run_id=None):
+        """Generation summaries (all runs, or one), in insertion order."""
+        return self._select(_GENERATIONS, run_id=run_id)
+
+    def add_tip_event(self, event):
+        """Store a field tip event; False if an event of that robot at that ``tipped_at_s`` is stored."""
+        return self._insert(_TIP_EVENTS, event)
+
+    def tip_events(self, robot=None):
+        """Tip events (all robots, or one), in insertion order."""
+        return self._select(_TIP_EVENTS, robot=robot)
+
+    def set_run_info(self, run_id, kind, info):
+        """Create or replace the description of run ``run_id``.
+
+        Parameters
+        ----------
+        run_id : str
+        kind : str
+            What the run is, e.g. ``"campaign"`` or ``"optimization"``.
+        info : dict
+            JSON-serialisable details (config, backend, start time, ...).
+        """
+        if not run_id:
+            raise ValueError("run_id must be non-empty")
+        try:
+            text = json.dumps(info, sort_keys=True)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"run info of {run_id} is not JSON-serialisable: {exc}") from exc
+        self._write("INSERT OR REPLACE INTO runs (run_id, kind, info) VALUES (?, ?, ?)", (run_id, str(kind), text))
+
+    def run_info(self, run_id):
+        """``{"kind": ..., "info": {...}}`` for ``run_id``, or None if it was never described."""
+        with self._lock:
+            row = self._connection().execute("SELECT kind, info FROM runs WHERE run_id = ?", (run_id,)).fetchone()
+        return None if row is None else {"kind": row[0], "info": json.loads(row[1])}
+
+    def run_ids(self):
+        """Every run id that has run info, outcomes, candidates or generations, sorted."""
+        union = " UNION ".join(f"SELECT run_id FROM {t}" for t in ("runs", "launch_outcomes", "candidates",
+                                                                       "generations"))
+        with self._lock:
+            rows = self._connection().execute(f"SELECT run_id FROM ({union}) ORDER BY run_id").fetchall()
+        return [row[0] for row in rows]

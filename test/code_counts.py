@@ -76,13 +76,33 @@ def imports_of(path, modules):
     return found
 
 
+def aliases(modules=None):
+    """``{old path: module}`` of the modules that only re-export another (a docstring and one ``from
+    rollability_ros.core.X import *``, e.g. ``results.records`` -> ``records``): importing one depends on X."""
+    modules = core_modules() if modules is None else modules
+    found = {}
+    for name, path in modules.items():
+        body = ast.parse(path.read_text()).body
+        if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+            body = body[1:]
+        if (len(body) == 1 and isinstance(body[0], ast.ImportFrom) and [a.name for a in body[0].names] == ["*"]
+                and (body[0].module or "").startswith("rollability_ros.core.")):
+            found[name] = body[0].module[len("rollability_ros.core."):]
+    return found
+
+
 def import_graph():
-    """``{module: {imported module: first line}}`` over the core (each edge once, a module's self-import left out)."""
+    """``{module: {imported module: first line}}`` over the core (each edge once, a module's self-import left out;
+    an import of an alias counts as one of the module it re-exports, and aliases are not nodes)."""
     modules = core_modules()
+    alias = aliases(modules)
     graph = {}
     for name, path in modules.items():
+        if name in alias:
+            continue
         edges = {}
         for target, line in imports_of(path, modules):
+            target = alias.get(target, target)
             if target != name:
                 edges.setdefault(target, line)
         graph[name] = edges
@@ -235,7 +255,8 @@ def main():
     upward = upward_imports(graph)
     annotated, total = public_functions()
     with_all, modules = faces()
-    print(f"core modules: {len(graph)}; imports of core modules inside functions: {function_level_imports()}")
+    print(f"core modules: {len(graph)} (and {len(aliases())} old paths re-exporting one); imports of core modules "
+          f"inside functions: {function_level_imports()}")
     print(f"upward imports: {len(upward)}")
     for module, target in upward:
         print(f"  {module} -> {target} (line {graph[module][target]})")

@@ -52,6 +52,12 @@ def test_no_new_cycle_inside_a_subpackage():
     _check_components(code_counts.module_cycles(), MODULE_CYCLES_ALLOWED, "inside a subpackage")
 
 
+def test_old_paths_are_aliases_of_the_bottom_layer():
+    """``results.records`` & co. re-export the moved modules: importing them is importing the bottom layer."""
+    assert code_counts.aliases() == {"results.record_messages": "record_messages", "results.records": "records",
+                                     "results.stats": "stats", "results.store": "store"}
+
+
 def test_the_check_sees_a_violation(tmp_path):
     """The analysis finds an upward import, a function-level one too, and a cycle, in a made-up graph."""
     graph = {"profile.geometry": {"sim.trials": 3}, "sim.trials": {"profile.geometry": 1, "sim.world": 2},

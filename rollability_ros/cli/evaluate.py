@@ -81,11 +81,11 @@ def run(args):
 
 def _engine_list(text):
     """The engines of ``--engines`` (comma separated), checked against the known ones."""
-    from rollability_ros.core.sim.world import ENGINES
+    from rollability_ros.core.sim.trial_engine import engine_names
     engines = [name.strip() for name in text.split(",") if name.strip()]
-    unknown = [name for name in engines if name not in ENGINES]
+    unknown = [name for name in engines if name not in engine_names()]
     if unknown or len(engines) != 2 or engines[0] == engines[1]:
-        raise ValueError(f"--engines needs two different engines of {', '.join(ENGINES)}, got {text!r}")
+        raise ValueError(f"--engines needs two different engines of {', '.join(engine_names())}, got {text!r}")
     return engines
 
 

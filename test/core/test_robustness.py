@@ -89,9 +89,10 @@ def test_robust_trial_runs_on_the_evaluations_engine():
 
 
 def test_an_engine_that_cannot_run_a_trial_kind_is_refused_in_one_line(monkeypatch):
-    from rollability_ros.core.sim import trials
+    from rollability_ros.core.sim import trial_engine
 
-    monkeypatch.setitem(trials.TRIAL_ENGINES, "disturbance", ("pybullet",))
+    monkeypatch.setattr(trial_engine.TRIAL_ENGINES, "_entries",     # a table with PyBullet only
+                        {"pybullet": trial_engine.TRIAL_ENGINES._entries["pybullet"]})
     settings = robust_settings()
     mujoco = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine="mujoco"))
     with pytest.raises(ValueError, match=r"^sim.engine 'mujoco' cannot run disturbance trials \(engines that can: "

@@ -2,7 +2,8 @@
 the launch twin.
 
 - world: PhysicsParams and one DIRECT client per simulation
-- trials: one disturbance trial (start, push, rest, upright test); make_trial_world picks the engine
+- trial_engine: the TrialEngine contract, its TRIAL_ENGINES table and make_trial_world (picks sim.engine)
+- trials: one disturbance trial (start, push, rest, upright test); TrialWorld, the pybullet engine
 - mujoco_trials: the same trial in MuJoCo (sim.engine: mujoco)
 - early_decision: ends a trial once energy fixes its outcome (barriers to the resting poses)
 - evaluation: fitness = upright / trials, serial, process pool or Ray

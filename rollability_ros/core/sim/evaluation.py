@@ -37,7 +37,8 @@ from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettin
     run_launch_trial, run_robust_trial
 from rollability_ros.core.sim.world import PhysicsParams, connect
 from rollability_ros.core.stats import wilson_interval
-from rollability_ros.core.sim.trials import TrialSettings, make_trial_world
+from rollability_ros.core.sim.trial_engine import make_trial_world
+from rollability_ros.core.sim.trials import TrialSettings
 from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec, footprint_grid
 from rollability_ros.core.sim.worker_pool import spawn_pool
 

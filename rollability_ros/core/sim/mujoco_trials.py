@@ -26,7 +26,8 @@ import math
 import numpy as np
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.sim.trials import RestDetector, TrialOutcome, sample_conditions
+from rollability_ros.core.sim.trial_engine import TrialEngine, TrialOutcome
+from rollability_ros.core.sim.trials import RestDetector, sample_conditions
 
 
 #: MuJoCo's contact spring (solref): time constant (s, MuJoCo's default; 2 steps blew up with the profile meshes)
@@ -121,8 +122,14 @@ def _coefficients(current, linear):
     return linear if np.ndim(current) == 0 else [linear] + [0.0] * (len(current) - 1)
 
 
-class MujocoTrialWorld:
-    """One robot + profile in a MuJoCo model; every trial starts from a reset of its data (no carry-over)."""
+class MujocoTrialWorld(TrialEngine):
+    """The ``mujoco`` trial engine: one robot + profile in a MuJoCo model; every trial starts from a reset of its
+    data (no carry-over)."""
+
+    @classmethod
+    def build(cls, client, robot_model, profile, settings, physics):
+        """The MuJoCo world (it has its own: ``client`` is not used)."""
+        return cls(robot_model, profile, settings, physics)
 
     def __init__(self, robot_model, profile, settings, physics):
         self.mujoco = mujoco = require("mujoco", feature="the MuJoCo trial engine")

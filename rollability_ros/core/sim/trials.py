@@ -32,6 +32,9 @@ import math
 import numpy as np
 
 from rollability_ros.core.optional import require
+# the engine seam (TRIAL_ENGINES, check_engine, make_trial_world, TrialOutcome) is importable from here as before
+from rollability_ros.core.sim.trial_engine import (TRIAL_ENGINES, TrialEngine, TrialOutcome, check_engine,  # noqa: F401
+                                                   make_trial_world)
 from rollability_ros.core.sim.world import reset_world, set_contact
 
 
@@ -96,20 +99,6 @@ class TrialSettings:
             raise ValueError(f"check_interval_steps must be >= 1, got {self.check_interval_steps}")
         if self.time_cap_s <= self.disturbance_delay_s + self.disturbance_duration_s + self.rest_hold_s:
             raise ValueError("time_cap_s must exceed disturbance_delay_s + disturbance_duration_s + rest_hold_s")
-
-
-@dataclasses.dataclass(frozen=True)
-class TrialOutcome:
-    """Outcome of one trial (``msg/TrialResult.msg``): upright at the end, settled before the cap, steps, tilt;
-    ``decided``: ended by the early decision (not part of the message)."""
-
-    index: int
-    seed: int
-    upright: bool
-    settled: bool
-    steps: int
-    tilt_deg: float
-    decided: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -266,8 +255,9 @@ class EnergyMonitor:
         return 0.5 * energy
 
 
-class TrialWorld:
-    """A world holding one robot + profile, saved once after building and restored before every trial.
+class TrialWorld(TrialEngine):
+    """The ``pybullet`` trial engine: a world holding one robot + profile, saved once after building and restored
+    before every trial.
 
     ``restoreState`` puts back the saved bodies, velocities and (empty) contact cache, so a trial starts from
     the same simulator state whatever ran before it in this client; building the world once saves the cost of
@@ -330,30 +320,7 @@ class TrialWorld:
 
 
 def run_trial(client, robot_model, profile, index, seed, settings, physics):
-    """Run one trial in a freshly built world of ``physics.engine`` (:func:`make_trial_world`; a PyBullet world
-    is built in ``client``) and return its :class:`TrialOutcome`."""
+    """Run one trial in a freshly built world of ``physics.engine``
+    (:func:`~rollability_ros.core.sim.trial_engine.make_trial_world`; a PyBullet world is built in ``client``)
+    and return its :class:`TrialOutcome`."""
     return make_trial_world(client, robot_model, profile, settings, physics).run(index, seed)
-
-
-#: The engine seam: trial kind -> the ``sim.engine`` values that can run it. :func:`check_engine` refuses any
-#: other pairing (never replaced by another engine). ``launch``: :mod:`~rollability_ros.core.sim.launch_twin`.
-TRIAL_ENGINES = {"disturbance": ("pybullet", "mujoco"), "launch": ("pybullet", "mujoco")}
-
-
-def check_engine(kind, engine):
-    """Raise ``ValueError`` (one line) unless ``sim.engine`` ``engine`` can run trials of ``kind``
-    (:data:`TRIAL_ENGINES`)."""
-    engines = TRIAL_ENGINES[kind]
-    if engine not in engines:
-        raise ValueError(f"sim.engine {engine!r} cannot run {kind} trials (engines that can: {', '.join(engines)})")
-
-
-def make_trial_world(client, robot_model, profile, settings, physics):
-    """The trial world of ``physics.engine``: a PyBullet :class:`TrialWorld` in ``client`` or a MuJoCo
-    :class:`~rollability_ros.core.sim.mujoco_trials.MujocoTrialWorld` (which ignores ``client``); both have
-    ``run(index, seed) -> TrialOutcome``. Every disturbance trial (plain or robust) is built here."""
-    check_engine("disturbance", physics.engine)
-    if physics.engine == "mujoco":
-        from rollability_ros.core.sim.mujoco_trials import MujocoTrialWorld
-        return MujocoTrialWorld(robot_model, profile, settings, physics)
-    return TrialWorld(client, robot_model, profile, settings, physics)

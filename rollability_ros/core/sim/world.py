@@ -22,8 +22,6 @@ import math
 from rollability_ros.core.optional import require
 
 CONTACT_MODELS = ("per_contact", "per_body")
-#: Physics engines of the disturbance trials (``sim.engine``): PyBullet (the paper's) or MuJoCo.
-ENGINES = ("pybullet", "mujoco")
 
 
 @dataclasses.dataclass
@@ -65,8 +63,10 @@ class PhysicsParams:
             raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
         if self.contact_model not in CONTACT_MODELS:
             raise ValueError(f"contact_model must be one of {', '.join(CONTACT_MODELS)}, got {self.contact_model!r}")
-        if self.engine not in ENGINES:
-            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
+        from rollability_ros.core.sim.trial_engine import engine_names
+
+        if self.engine not in engine_names():
+            raise ValueError(f"engine must be one of {', '.join(engine_names())}, got {self.engine!r}")
         if self.solver_iterations < 1:
             raise ValueError(f"solver_iterations must be >= 1, got {self.solver_iterations}")
 

@@ -62,41 +62,161 @@ def test_bad_race_settings_are_refused():
         racing.race(["a", "a"], evaluate, [20], [1])
 
 
-def test_the_optimizer_stops_candidates_clearly_worse_than_the_incumbent_after_their_first_trials(tmp_path):
-    pytest.importorskip("cma")
+# --- sequential racing inside the optimizer ---------------------------------------------------------------------
+
+def test_the_stop_count_is_the_exact_one_sided_binomial_test():
+    from scipy.stats import binom
+
+    for n, bar, level in ((10, 0.7, 0.1 / 3), (20, 0.7, 0.1 / 3), (40, 0.5, 0.025), (12, 0.9, 0.05)):
+        x = racing.stop_count(n, bar, level)
+        assert binom.cdf(x, n, bar) <= level < binom.cdf(x + 1, n, bar)
+    assert racing.stop_count(10, 0.7, 0.1 / 3) == 3            # 3/10 stops against a bar of 0.7, 4/10 does not
+    assert racing.stop_count(10, 0.0, 0.05) == -1              # nothing is clearly below a bar of 0
+    assert racing.sequential_stops(3, 10, 0.7, [10, 20, 40], 0.1)
+    assert not racing.sequential_stops(4, 10, 0.7, [10, 20, 40], 0.1)
+    assert not racing.sequential_stops(0, 10, None, [10, 20, 40], 0.1)   # no bar (empty cell): never stops
+
+
+def test_the_stages_are_the_increments_of_the_looks():
+    assert racing.sequential_stages([10, 20, 40], 60) == [10, 10, 20, 20]
+    assert racing.sequential_stages([], 60) == [60]
+    for looks in ([20, 10], [10, 60], [0, 10], [10, 10]):
+        with pytest.raises(ValueError, match="race_looks must be strictly increasing"):
+            racing.sequential_stages(looks, 60)
+
+
+def test_the_error_rate_of_stopping_a_candidate_as_good_as_the_bar_is_at_most_alpha_and_matches_simulation():
+    looks, trials, alpha = [10, 20, 40], 60, 0.1
+    for bar in (0.3, 0.7, 0.9):
+        error, spent = racing.sequential_stop_probability(looks, trials, bar, alpha, bar)
+        assert error <= alpha and 55 < spent <= 60
+        better, _ = racing.sequential_stop_probability(looks, trials, bar, alpha, min(1.0, bar + 0.05))
+        assert better <= error                                  # a better candidate stops less often
+    # the exact dynamic programme against a simulation of the staged rule (bar 0.7, a candidate at 0.45)
+    stopped_exact, spent_exact = racing.sequential_stop_probability(looks, trials, 0.7, alpha, 0.45)
+    rng = np.random.default_rng(5)
+    outcomes = rng.random((20000, trials)) < 0.45
+    stopped = np.zeros(len(outcomes), bool)
+    spent = np.full(len(outcomes), trials)
+    for look in looks:
+        now = ~stopped & (outcomes[:, :look].sum(axis=1) <= racing.stop_count(look, 0.7, alpha / len(looks)))
+        spent[now] = look
+        stopped |= now
+    assert abs(stopped.mean() - stopped_exact) < 0.015 and abs(spent.mean() - spent_exact) < 0.5
+    assert stopped_exact > 0.8 and spent_exact < 30                # clearly worse: most stop, at half the trials
+
+
+def bernoulli_evaluator(calls):
+    """A noisy evaluator with common random numbers: every profile of a call meets the same uniform draws of its
+    seed; a profile succeeds on a draw below its mean height / 0.45. Records (seed, trials, profiles) per call."""
+    def evaluate_trials(heights_list, seed, trials):
+        calls.append((seed, trials, len(heights_list)))
+        draws = np.random.default_rng(seed).random(trials)
+        return [(int(np.sum(draws < float(np.mean(h)) / 0.45)), trials, 0.0, "fake") for h in heights_list]
+    return evaluate_trials
+
+
+class Killed(Exception):
+    pass
+
+
+def racing_parameters(grid, method="cmaes", **extra):
+    return {"optimizer.method": method, "optimizer.max_generations": 5, "optimizer.seed": 4,
+            "optimizer.trials": 40, "optimizer.race_looks": [5, 10, 20], "optimizer.race_alpha": 0.2,
+            "optimizer.popsize": 8, "optimizer.sigma0": 0.1, "optimizer.initial_mean_screen": 0,
+            "optimizer.target_fitness": 2.0, "optimizer.stagnation_generations": 0,
+            "profile.rows": grid.rows, "profile.cols": grid.cols, **extra}
+
+
+def run_rows(run_dir, parameters, grid, evaluate_trials, resume=False):
     from rollability_ros.core.optimization.optimization_run import OptimizationRun
-    from rollability_ros.core.profile.geometry import ProfileGrid
     from rollability_ros.core.results.store import Store
 
-    grid = ProfileGrid(rows=2, cols=2)
-
-    def good(heights):
-        return float(np.mean(heights)) > 0.26         # good designs always right themselves, the others never
-
-    def evaluate_trials(heights_list, seed, trials):
-        return [(trials if good(h) else 0, trials, 0.0, "fake") for h in heights_list]
-
-    def evaluate_batch(heights_list, seed):
-        return evaluate_trials(heights_list, seed, 30)
-
-    parameters = {"optimizer.method": "cmaes", "optimizer.max_generations": 5, "optimizer.seed": 4,
-                  "optimizer.trials": 30, "optimizer.race_first_trials": 10, "optimizer.popsize": 8,
-                  "optimizer.sigma0": 0.15, "optimizer.initial_mean_screen": 0, "optimizer.target_fitness": 2.0,
-                  "optimizer.stagnation_generations": 0,
-                  "profile.rows": grid.rows, "profile.cols": grid.cols}
-    stores = []
-    for name in ("a", "b"):
-        run = OptimizationRun(str(tmp_path / name), parameters, grid, evaluate_batch, evaluate_trials=evaluate_trials)
+    run = OptimizationRun(str(run_dir), parameters, grid, lambda h, s: evaluate_trials(h, s, 40), resume=resume,
+                          evaluate_trials=evaluate_trials)
+    try:
         run.run()
+    finally:
         run.close()
-        with Store(str(tmp_path / name)) as store:
-            stores.append([(c.generation, c.index, c.successes, c.trials, c.seed) for c in store.candidates()])
-    assert stores[0] == stores[1]                         # deterministic, so a resumed generation decides alike
-    population = [c for c in stores[0] if c[1] < 8]
-    assert all(trials == 30 for generation, _, _, trials, _ in population if generation == 1)   # no incumbent yet
-    later = [c for c in population if c[0] > 1]
-    # an incumbent at 30/30 (pooled: lower 95% bound > 0.88): 0/10 (upper bound 0.28) stops, a good one goes on
-    assert {(successes, trials) for _, _, successes, trials, _ in later} <= {(0, 10), (30, 30)}
-    assert any(trials == 10 for *_, trials, _ in later) and any(trials == 30 for *_, trials, _ in later)
-    with pytest.raises(ValueError, match="race_first_trials needs an evaluator"):
-        OptimizationRun(str(tmp_path / "c"), parameters, grid, evaluate_batch)
+    with Store(str(run_dir)) as store:
+        return [(c.generation, c.index, c.successes, c.trials, c.seed) for c in store.candidates()]
+
+
+@pytest.mark.parametrize("method", ["cmaes", "cma_mae"])
+def test_the_optimizer_races_in_stages_and_a_killed_generation_resumes_to_the_same_decisions(tmp_path, method):
+    pytest.importorskip("cma")
+    if method == "cma_mae":
+        pytest.importorskip("ribs")
+    from rollability_ros.core.optimization import cmaes
+    from rollability_ros.core.profile.geometry import ProfileGrid
+
+    grid = ProfileGrid(rows=2, cols=2)
+    parameters = racing_parameters(grid, method)
+    calls = []
+    whole = run_rows(tmp_path / "whole", parameters, grid, bernoulli_evaluator(calls))
+    # every call is one stage of common random numbers (looks 5, 10, 20 of 40: stages of 5, 5, 10 and 20 trials),
+    # or an unraced population's / a re-evaluation's 40
+    assert {trials for _, trials, _ in calls} == {5, 10, 20, 40}
+    race_seeds = {cmaes.derive_seed(4, g, cmaes.STREAM_RACE, k) for g in range(5) for k in (1, 2, 3)}
+    population_seeds = {cmaes.derive_seed(4, g, cmaes.STREAM_POPULATION) for g in range(5)}
+    assert all(seed in race_seeds for seed, trials, _ in calls if trials in (10, 20))
+    first_stages = [seed for seed, trials, _ in calls if trials == 5 and seed in population_seeds]
+    assert first_stages and all(count == 8 for seed, _, count in calls if seed in first_stages)  # all 8 start
+    raced = [row for row in whole if row[1] < 8 and row[3] < 40]
+    assert raced and all(trials in (5, 10, 20) for *_, trials, _ in raced)   # stopped at a look
+    # kill the run in the middle of its last raced generation (before its third stage), then resume it afresh
+    kill_at = max(number for number, (_, trials, _) in enumerate(calls) if trials == 10)
+    killer_calls = []
+    inner = bernoulli_evaluator(killer_calls)
+
+    def dying(heights_list, seed, trials):
+        if len(killer_calls) == kill_at:
+            raise Killed()
+        return inner(heights_list, seed, trials)
+
+    with pytest.raises(Killed):
+        run_rows(tmp_path / "killed", parameters, grid, dying)
+    resumed = run_rows(tmp_path / "killed", parameters, grid, bernoulli_evaluator([]), resume=True)
+    assert resumed == whole
+
+
+def test_the_incumbent_and_the_cell_elite_are_the_bars():
+    pytest.importorskip("cma")
+    from rollability_ros.core.optimization.cmaes import ProfileOptimizer
+    from rollability_ros.core.optimization.optimization_run import make_optimizer, optimizer_settings
+    from rollability_ros.core.profile.geometry import ProfileGrid
+
+    grid = ProfileGrid(rows=2, cols=2)
+    settings = optimizer_settings(racing_parameters(grid))
+    optimizer = ProfileOptimizer(grid.n_variables, settings, grid.height_min, grid.height_max)
+    population = optimizer.ask()
+    assert optimizer.race_reference(population[0]) is None          # no incumbent yet: nobody stops
+    optimizer.tell(population, [0.25 * (i % 4) for i in range(8)], [40] * 8)
+    optimizer.tell_reevaluation(0.5, 40)
+    assert optimizer.race_reference(population[0]) == (50, 80)      # the incumbent pooled: 30/40 + 20/40
+    pytest.importorskip("ribs")
+    qd = make_optimizer(grid, racing_parameters(grid, "cma_mae"), clock=lambda: 0.0)
+    population = qd.ask()
+    assert all(qd.race_reference(h) is None for h in population)    # empty archive
+    qd.tell(population, [0.5] * 8, [20] * 8)
+    rows = qd.archive_rows()
+    assert all(qd.race_reference(h) is not None for h in population)
+    assert {qd.race_reference(h) for h in population} == {(10, 20)}  # the cell's elite: 0.5 of 20 trials
+    assert len(rows) >= 1
+
+
+def test_bad_racing_settings_are_refused(tmp_path):
+    pytest.importorskip("cma")
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, optimizer_settings
+    from rollability_ros.core.profile.geometry import ProfileGrid
+
+    grid = ProfileGrid(rows=2, cols=2)
+    for extra, message in (({"optimizer.race_looks": [10, 5]}, "race_looks must be strictly increasing"),
+                           ({"optimizer.race_looks": [40]}, "race_looks must be strictly increasing"),
+                           ({"optimizer.race_alpha": 0.0}, "race_alpha must be in"),
+                           ({"optimizer.common_random_numbers": False}, "needs common_random_numbers")):
+        with pytest.raises(ValueError, match=message):
+            optimizer_settings(racing_parameters(grid, **extra)).validate()
+    optimizer_settings(racing_parameters(grid, **{"optimizer.race_looks": [0]})).validate()   # [0]: off
+    with pytest.raises(ValueError, match="race_looks needs an evaluator"):
+        OptimizationRun(str(tmp_path / "c"), racing_parameters(grid), grid, lambda h, s: [])

@@ -27,6 +27,7 @@ import copy
 import dataclasses
 import pickle
 import time
+import typing
 
 import numpy as np
 
@@ -95,13 +96,34 @@ class OptimizerSettings:
                        "trials"})
     output_dir: str = dataclasses.field(default="runs", metadata={
         "description": "folder of run directories <output_dir>/<run_id>/, relative to the working directory"})
-    race_first_trials: int = dataclasses.field(default=0, metadata={
-        "description": "racing: every candidate first gets this many of its trials; one clearly worse than the "
-                       "incumbent (95% Wilson upper bound below the incumbent's lower bound) stops there, the others "
-                       "get the rest (count; 0 = no racing, every candidate gets all trials)", "range": (0, 10000000)})
+    race_looks: typing.List[int] = dataclasses.field(default_factory=lambda: [0], metadata={
+        "description": "sequential racing: cumulative trial counts at which a candidate is looked at before its "
+                       "full trials; at each look it stops when clearly worse than the incumbent (CMA-ES) or its "
+                       "cell's elite (CMA-MAE), an exact one-sided binomial test at level race_alpha / looks "
+                       "(strictly increasing counts in [1, trials); [0] = no racing, every candidate gets all trials)"})
+    race_alpha: float = dataclasses.field(default=0.1, metadata={
+        "description": "racing: at most this chance, over all looks, of stopping a candidate at least as good as "
+                       "the bar (the lower 95% bound of the incumbent's or elite's estimate) (probability)",
+        "range": (0.0, 1.0)})
     initial_mean_screen: int = dataclasses.field(default=0, metadata={
         "description": "random CMA-ES start means screened by the quasi-static stable-pose screen; the best is used "
                        "(count; 0 = the paper's one random mean)", "range": (0, 10000)})
+
+    @property
+    def race_stages(self):
+        """Trials of each racing stage (:func:`racing.sequential_stages`), or None without racing; ValueError for
+        looks that are not strictly increasing counts in [1, trials)."""
+        looks = [int(n) for n in self.race_looks]
+        if looks in ([], [0]):
+            return None
+        from rollability_ros.core.optimization.racing import sequential_stages
+
+        return sequential_stages(looks, self.trials)
+
+    @property
+    def race_looks_used(self):
+        """The looks of racing ([] without racing)."""
+        return [] if self.race_stages is None else [int(n) for n in self.race_looks]
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
@@ -115,9 +137,11 @@ class OptimizerSettings:
             raise ValueError(f"seed must be in [1, 2**32) (pycma treats 0 as 'seed from the clock'), got {self.seed}")
         if self.trials < 1:
             raise ValueError(f"trials must be >= 1, got {self.trials}")
-        if not 0 <= self.race_first_trials < self.trials and self.race_first_trials:
-            raise ValueError(f"race_first_trials must be 0 (no racing) or in [1, trials), got "
-                             f"{self.race_first_trials} with trials {self.trials}")
+        if self.race_stages is not None and not 0 < self.race_alpha < 1:
+            raise ValueError(f"race_alpha must be in (0, 1), got {self.race_alpha}")
+        if self.race_stages is not None and not self.common_random_numbers:
+            raise ValueError("race_looks needs common_random_numbers: true (every stage runs the candidates still "
+                             "going on one common seed)")
         for name in ("max_generations", "stagnation_generations", "max_evaluations"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0 (0 disables it), got {getattr(self, name)}")
@@ -253,6 +277,15 @@ class IncumbentOptimizer:
         challenger, self._challenger = self._challenger.pooled(float(fitness), int(trials)), None
         if self._incumbent is None or challenger.fitness > self._incumbent.fitness:
             self._adopt(challenger)
+
+    def race_reference(self, heights):
+        """``(successes, trials)`` of the estimate a candidate at ``heights`` is raced against (sequential racing,
+        :mod:`~rollability_ros.core.optimization.racing`): the incumbent's pooled estimate; None before there is one.
+        Depends only on the state between generations, so a resumed generation races alike."""
+        incumbent = self._incumbent
+        if incumbent is None:
+            return None
+        return int(round(incumbent.fitness * incumbent.trials)), int(incumbent.trials)
 
     def _adopt(self, estimate):
         self._incumbent = estimate

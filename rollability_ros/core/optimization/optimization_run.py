@@ -261,7 +261,7 @@ class OptimizationRun:
         ``factory(n_variables, settings, lower, upper, clock, initial_mean, state=None)`` -> the optimizer the run
         drives (module docstring); default :func:`make_optimizer` (``optimizer.method``: CMA-ES or CMA-MAE).
     evaluate_trials : callable(heights_list, seed, trials), optional
-        ``evaluate_batch`` with a trial count: needed for racing (``optimizer.race_first_trials``), see
+        ``evaluate_batch`` with a trial count: needed for racing (``optimizer.race_looks``), see
         :meth:`_evaluate_raced`.
 
     ``on_candidate`` and ``on_generation`` are also public attributes, settable after construction.
@@ -277,9 +277,8 @@ class OptimizationRun:
         self.grid = grid
         self._evaluate_batch = evaluate_batch
         self._evaluate_trials = evaluate_trials
-        if self.settings.race_first_trials and evaluate_trials is None:
-            raise ValueError("optimizer.race_first_trials needs an evaluator that takes a trial count "
-                             "(evaluate_trials)")
+        if self.settings.race_stages is not None and evaluate_trials is None:
+            raise ValueError("optimizer.race_looks needs an evaluator that takes a trial count (evaluate_trials)")
         self.on_candidate = on_candidate
         self.on_generation = on_generation
         self._clock = clock
@@ -472,8 +471,10 @@ class OptimizationRun:
         population = optimizer.ask()
         seeds = [derive_seed(settings.seed, index, STREAM_POPULATION,
                              0 if settings.common_random_numbers else i) for i in range(len(population))]
-        if settings.race_first_trials and optimizer.best is not None and settings.common_random_numbers:
-            results = self._evaluate_raced(generation, index, population, seeds[0], stored)
+        references = [optimizer.race_reference(heights) for heights in population] \
+            if settings.race_stages is not None else [None]
+        if any(reference is not None for reference in references):
+            results = self._evaluate_raced(generation, index, population, seeds[0], stored, references)
         else:
             results = self._evaluate(generation, list(range(len(population))), population, seeds, stored)
         fitness = [r.fitness for r in results]
@@ -522,21 +523,21 @@ class OptimizationRun:
                                                        eval_time_s, evaluator)
         return [records[index] for index in indices]
 
-    def _evaluate_raced(self, generation, index, population, seed, stored):
-        """The population's :class:`CandidateRecord` s with racing (``optimizer.race_first_trials`` = n1 of the
-        ``trials`` = n): every candidate not yet stored gets n1 trials on the generation's seed; one whose 95% Wilson
-        upper bound is below the lower bound of the incumbent's pooled estimate is clearly worse and stops with
-        those n1; the others get the other n - n1 on a second common seed (stream ``STREAM_RACE``) and their two
-        stages are pooled. Both stages keep common random numbers; a stored record (resume) holds the pooled
-        result under the first stage's seed, and the decision depends only on the checkpointed incumbent, so a
-        resumed generation makes the same decisions."""
-        from rollability_ros.core.stats import wilson_interval
+    def _evaluate_raced(self, generation, index, population, seed, stored, references):
+        """The population's :class:`CandidateRecord` s with sequential racing (``optimizer.race_looks``, module
+        :mod:`~rollability_ros.core.optimization.racing`): the candidates not yet stored run in stages ending at the
+        looks and then ``trials``; every stage runs all candidates still going on one common seed (stage 1 the
+        generation's seed, stage k its own, stream ``STREAM_RACE``); at each look a candidate whose pooled successes
+        are clearly below its bar (``references[i]``, the optimizer's :meth:`race_reference` taken before the
+        generation; None: never stops) stops. A record holds the trials the candidate ran, pooled over its stages,
+        under the first stage's seed. The bars come from the checkpointed state and the seeds from the run's seed,
+        so a killed and resumed generation makes the same decisions."""
+        from rollability_ros.core.optimization import racing
 
-        settings, incumbent = self.settings, self.optimizer.best
-        first, rest = settings.race_first_trials, settings.trials - settings.race_first_trials
-        bar = wilson_interval(int(round(incumbent.fitness * incumbent.trials)), int(incumbent.trials))[0]
-        records = {}
-        pending = []
+        settings = self.settings
+        looks, stages = settings.race_looks_used, settings.race_stages
+        bars = [None if r is None else racing.sequential_bar(*r) for r in references]
+        records, pending = {}, []
         for number, heights in enumerate(population):
             previous = stored.get(number)
             if previous is None:
@@ -546,19 +547,25 @@ class OptimizationRun:
             else:
                 raise ValueError(f"run {self.run_id}: the store holds a different candidate {number} of generation "
                                  f"{generation} than this resumed run computes (seed {previous.seed} vs {seed})")
-        if pending:
-            stage1 = self._checked(self._evaluate_trials([population[i] for i in pending], seed, first), pending,
-                                   generation)
-            going_on = [i for i, r in zip(pending, stage1) if wilson_interval(r[0], r[1])[1] >= bar]
-            second = derive_seed(settings.seed, index, STREAM_RACE)
-            stage2 = dict(zip(going_on, self._checked(
-                self._evaluate_trials([population[i] for i in going_on], second, rest), going_on, generation))) \
-                if going_on else {}
-            for number, (successes, trials, eval_time_s, evaluator) in zip(pending, stage1):
-                more = stage2.get(number, (0, 0, 0.0, evaluator))
-                records[number] = self._store_candidate(generation, number, population[number], seed,
-                                                        successes + more[0], trials + more[1],
-                                                        eval_time_s + more[2], evaluator)
+        totals = {number: [0, 0, 0.0, ""] for number in pending}
+        going_on = list(pending)
+        for stage, stage_trials in enumerate(stages):
+            if not going_on:
+                break
+            stage_seed = seed if stage == 0 else derive_seed(settings.seed, index, STREAM_RACE, stage)
+            results = self._checked(self._evaluate_trials([population[i] for i in going_on], stage_seed,
+                                                          stage_trials), going_on, generation)
+            for number, (successes, trials, eval_time_s, evaluator) in zip(going_on, results):
+                total = totals[number]
+                total[0], total[1], total[2], total[3] = (total[0] + successes, total[1] + trials,
+                                                          total[2] + eval_time_s, evaluator)
+            if stage < len(looks):
+                going_on = [i for i in going_on if not racing.sequential_stops(
+                    totals[i][0], totals[i][1], bars[i], looks, settings.race_alpha)]
+        for number in pending:
+            successes, trials, eval_time_s, evaluator = totals[number]
+            records[number] = self._store_candidate(generation, number, population[number], seed, successes, trials,
+                                                    eval_time_s, evaluator)
         return [records[number] for number in range(len(population))]
 
     @staticmethod

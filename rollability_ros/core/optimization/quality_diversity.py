@@ -211,6 +211,17 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
                             trials=np.asarray(trials, dtype=np.int64), heights=np.asarray(population),
                             generation=np.full(len(population), self.generation, dtype=np.int64))
 
+    def race_reference(self, heights):
+        """``(successes, trials)`` of the elite of the result-archive cell ``heights`` falls in (sequential racing
+        against its cell's elite); None for an empty cell (any candidate would fill it). The cell follows from the
+        geometry alone and the archive is the state between generations, so a resumed generation races alike."""
+        measures = np.array([descriptors.profile_descriptors(heights, self.grid).as_tuple()], dtype=np.float64)
+        occupied, data = self.result_archive.retrieve(measures)
+        if not bool(occupied[0]):
+            return None
+        trials = int(data["trials"][0])
+        return int(round(float(data["objective"][0]) * trials)), trials
+
     # --- state ----------------------------------------------------------------------------------------------------
     @property
     def sigma(self):

@@ -18,6 +18,8 @@ use the first round (every candidate, the same trials) as an unbiased comparison
 import dataclasses
 import math
 
+import numpy as np
+
 from rollability_ros.core.stats import wilson_interval
 
 
@@ -116,3 +118,75 @@ def race(candidates, evaluate, round_trials, round_seeds, keep_fraction=0.5, min
         running = [c for c in running if c not in stops]
     return RaceResult(totals, first_round, reference_total if reference is not None else None, running, stopped,
                       spent, rounds)
+
+
+# --- sequential racing inside the optimizer ------------------------------------------------------------------------
+# A candidate's ``trials`` are run in stages that end at the cumulative counts ``looks`` (then ``trials``); each stage
+# runs every candidate still going on one common seed. At look k (n_k trials, x_k successes) the candidate stops when
+#     P(X <= x_k | X ~ Binomial(n_k, b)) <= alpha / K,
+# b being the *bar*: the lower end of the 95% Wilson interval of the estimate it must beat (CMA-ES: the incumbent;
+# CMA-MAE: the elite of the candidate's archive cell). That is an exact one-sided binomial test of "p >= b" at level
+# alpha / K per look; for a candidate at least as good as the bar (p >= b) the chance of being stopped at any of the K
+# looks is at most alpha (union bound, and the test's power falls with p), computed exactly by
+# :func:`sequential_stop_probability`.
+
+def sequential_stages(looks, trials):
+    """The trials of each stage: the increments of ``looks`` (cumulative counts) and then up to ``trials``.
+
+    ``looks`` strictly increasing in [1, trials); ValueError otherwise. ``[]`` -> ``[trials]`` (one stage)."""
+    looks = [int(n) for n in looks]
+    if any(b <= a for a, b in zip(looks, looks[1:])) or (looks and not (looks[0] >= 1 and looks[-1] < trials)):
+        raise ValueError(f"race_looks must be strictly increasing trial counts in [1, trials = {trials}), got {looks}")
+    bounds = [0] + looks + [int(trials)]
+    return [b - a for a, b in zip(bounds, bounds[1:])]
+
+
+def sequential_bar(successes, trials):
+    """The bar a candidate must not be clearly below: the lower end of the 95% Wilson interval of ``successes`` /
+    ``trials`` (the incumbent's pooled estimate, or a cell's elite)."""
+    return wilson_interval(int(successes), int(trials))[0]
+
+
+def stop_count(n, bar, level):
+    """The largest success count x with P(Binomial(n, bar) <= x) <= ``level`` (-1: none; a candidate with at most x
+    successes of n stops)."""
+    from scipy.stats import binom
+
+    if bar <= 0.0 or n < 1:
+        return -1
+    x = int(binom.ppf(level, n, bar))       # smallest x with cdf(x) >= level
+    while x >= 0 and binom.cdf(x, n, bar) > level:
+        x -= 1
+    while x + 1 <= n and binom.cdf(x + 1, n, bar) <= level:
+        x += 1
+    return x
+
+
+def sequential_stops(successes, trials, bar, looks, alpha):
+    """True when a candidate at cumulative ``successes`` / ``trials`` (``trials`` one of ``looks``) stops against
+    ``bar`` (None: nothing to beat, never stops) under level ``alpha`` over the len(looks) looks."""
+    if bar is None or not looks:
+        return False
+    return successes <= stop_count(int(trials), float(bar), alpha / len(looks))
+
+
+def sequential_stop_probability(looks, trials, bar, alpha, p):
+    """Exact ``(P(stopped at some look), expected trials)`` of a candidate of true success rate ``p`` raced against
+    ``bar`` with ``looks`` of ``trials`` at level ``alpha`` (dynamic programme over the success count)."""
+    from scipy.stats import binom
+
+    stages = sequential_stages(looks, trials)
+    alive = np.zeros(int(trials) + 1)
+    alive[0] = 1.0
+    done, stopped, spent = 0, 0.0, 0.0
+    for number, stage in enumerate(stages):
+        spent += alive.sum() * stage
+        step = binom.pmf(np.arange(stage + 1), stage, p)
+        alive = np.convolve(alive, step)[:int(trials) + 1]
+        done += stage
+        if number < len(looks):
+            cut = stop_count(done, bar, alpha / len(looks))
+            if cut >= 0:
+                stopped += alive[:cut + 1].sum()
+                alive[:cut + 1] = 0.0
+    return float(stopped), float(spent)

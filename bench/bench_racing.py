@@ -1,0 +1,154 @@
+"""Racing inside the optimizer: does the raced run find as good a design on a fraction of the trials? (simulated)
+
+    nice python bench/bench_racing.py [--config optimizer] [--seeds 1 2 3 4 5] [--looks 10 20 40] [--alpha 0.1]
+                                      [--set optimizer.trials=60 ...] [--fresh-trials 300] [--workers 2]
+
+For every seed, one optimization with every candidate on all of its ``optimizer.trials`` (the full budget) and one
+with sequential racing (``optimizer.race_looks`` = ``--looks``, ``optimizer.race_alpha`` = ``--alpha``; docs/engines.md),
+the same settings otherwise (``--config`` plus the ``--set`` overrides; the engine ``--engine``, early decision on).
+Each run's final design (the incumbent, the best-so-far) is then evaluated on ``--fresh-trials`` fresh trials, the
+two designs of a seed on the same fresh seed, never one the run saw. Prints per seed and pooled over the seeds: the
+fresh fitness of both designs with its 95% Wilson interval, the raced minus full difference with Newcombe's 95%
+interval, the trials each run spent (population, stages and re-evaluations) and their ratio, and whether the raced
+design's pooled fresh fitness lies within the full-budget design's interval while spending at most a third of the
+trials. Everything is from this one run; the load average is printed.
+"""
+import argparse
+import os
+import sys
+import tempfile
+import time
+
+import yaml
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from rollability_ros.core.optimization import optimization_run  # noqa: E402
+from rollability_ros.core.results.stats import newcombe_interval, wilson_interval  # noqa: E402
+from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.sim import evaluation  # noqa: E402
+
+FRESH_SEED_BASE = 7_310_000          # far from every optimizer seed stream: the fresh trials are never the run's
+
+
+def parse_set(items):
+    """``["a.b=1", ...]`` -> ``{"a.b": 1}`` (values parsed as YAML)."""
+    overrides = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        if not name or not _:
+            raise SystemExit(f"--set takes name=value, got {item!r}")
+        overrides[name] = yaml.safe_load(value)
+    return overrides
+
+
+def run_parameters(args, racing):
+    parameters = optimization_run.load_run_parameters(args.config)
+    parameters.update({"sim.engine": args.engine, "trial.early_decision": True, **parse_set(args.set)})
+    parameters["optimizer.race_looks"] = list(args.looks) if racing else [0]
+    parameters["optimizer.race_alpha"] = args.alpha
+    return parameters
+
+
+def optimize(parameters, seed, executor, folder, name):
+    """Run one optimization; return (best heights, trials spent, generations, wall s)."""
+    parameters = {**parameters, "optimizer.seed": seed}
+    settings = evaluation.settings_from_parameters(parameters)
+    trials = optimization_run.optimizer_settings(parameters).trials
+    run_dir = os.path.join(folder, f"{name}-seed-{seed}")
+    run = optimization_run.OptimizationRun(
+        run_dir, parameters, settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
+        evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, executor, "screen"))
+    started = time.perf_counter()
+    try:
+        result = run.run()
+    finally:
+        run.close()
+    seconds = time.perf_counter() - started
+    popsize, trials = optimization_run.optimizer_settings(parameters).popsize, \
+        optimization_run.optimizer_settings(parameters).trials
+    with Store(run_dir) as store:
+        candidates = store.candidates()
+    spent = sum(c.trials for c in candidates)
+    stopped = sorted(c.trials for c in candidates if c.index < popsize and c.trials < trials)
+    return result.best.heights, spent, result.generations, seconds, settings, stopped
+
+
+def interval_text(successes, trials):
+    low, high = wilson_interval(successes, trials)
+    return f"{successes / trials:.3f} [{low:.2f}, {high:.2f}]"
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--config", default="optimizer", help="shipped config name or path (default: the quick one)")
+    parser.add_argument("--set", nargs="*", default=[], help="parameter overrides name=value")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5])
+    parser.add_argument("--looks", type=int, nargs="+", default=[10, 20, 40])
+    parser.add_argument("--alpha", type=float, default=0.1)
+    parser.add_argument("--engine", default="mujoco")
+    parser.add_argument("--fresh-trials", type=int, default=300)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--keep", help="folder to keep the runs in (default: a temporary one)")
+    args = parser.parse_args()
+    full_parameters, raced_parameters = run_parameters(args, False), run_parameters(args, True)
+    settings = optimization_run.optimizer_settings(raced_parameters)
+    settings.validate()
+    print(f"racing verification (simulated): --config {args.config} {' '.join(args.set)}, engine {args.engine} + "
+          f"early decision, {settings.method}, popsize {settings.popsize}, {settings.trials} trials per candidate, "
+          f"at most {settings.max_generations} generations; racing looks {list(args.looks)} alpha {args.alpha}; "
+          f"{args.fresh_trials} fresh trials per final design; cores {os.cpu_count()}", flush=True)
+    rows = []
+    folder = args.keep or tempfile.mkdtemp(prefix="bench-racing-")
+    started = time.perf_counter()
+    with evaluation.LocalExecutor(args.workers) as executor:
+        executor.warm()
+        for seed in args.seeds:
+            row = {"seed": seed}
+            for name, parameters in (("full", full_parameters), ("raced", raced_parameters)):
+                heights, spent, generations, seconds, evaluator_settings, stopped = optimize(
+                    parameters, seed, executor, folder, name)
+                fresh = evaluation.evaluate_profile(heights, args.fresh_trials, FRESH_SEED_BASE + seed,
+                                                    evaluator_settings, executor)
+                row[name] = {"spent": spent, "generations": generations, "seconds": seconds,
+                             "fresh": (fresh.successes, fresh.trials), "stopped": stopped}
+            rows.append(row)
+            full, raced = row["full"], row["raced"]
+            _, low, high = newcombe_interval(*raced["fresh"], *full["fresh"])
+            print(f"seed {seed}: full {interval_text(*full['fresh'])} ({full['spent']} trials, "
+                  f"{full['generations']} generations, {full['seconds']:.0f} s) | raced {interval_text(*raced['fresh'])} "
+                  f"({raced['spent']} trials, {raced['generations']} generations, {raced['seconds']:.0f} s) | "
+                  f"raced - full {(raced['fresh'][0] - full['fresh'][0]) / args.fresh_trials:+.3f} [{low:+.2f}, "
+                  f"{high:+.2f}] | trials {raced['spent'] / full['spent']:.2f}x; candidates stopped at a look (their "
+                  f"trials): {len(raced['stopped'])} {raced['stopped'][:12]}{' ...' if len(raced['stopped']) > 12 else ''}"
+                  f" | load average "
+                  f"{os.getloadavg()[0]:.1f}", flush=True)
+    pooled = {name: (sum(r[name]["fresh"][0] for r in rows), sum(r[name]["fresh"][1] for r in rows))
+              for name in ("full", "raced")}
+    spent = {name: sum(r[name]["spent"] for r in rows) for name in ("full", "raced")}
+    full_low, full_high = wilson_interval(*pooled["full"])
+    _, low, high = newcombe_interval(*pooled["raced"], *pooled["full"])
+    raced_fitness = pooled["raced"][0] / pooled["raced"][1]
+    ratio = spent["raced"] / spent["full"]
+    print()
+    print("| seed | full budget: fresh fitness [95% CI] | trials | raced: fresh fitness [95% CI] | trials | raced/full "
+          "trials | raced - full [Newcombe 95% CI] |")
+    print("|---|---|---|---|---|---|---|")
+    for row in rows:
+        full, raced = row["full"], row["raced"]
+        _, d_low, d_high = newcombe_interval(*raced["fresh"], *full["fresh"])
+        print(f"| {row['seed']} | {interval_text(*full['fresh'])} | {full['spent']:,} | "
+              f"{interval_text(*raced['fresh'])} | {raced['spent']:,} | {raced['spent'] / full['spent']:.2f} | "
+              f"{(raced['fresh'][0] - full['fresh'][0]) / full['fresh'][1]:+.3f} [{d_low:+.2f}, {d_high:+.2f}] |")
+    print(f"| pooled | {interval_text(*pooled['full'])} | {spent['full']:,} | {interval_text(*pooled['raced'])} | "
+          f"{spent['raced']:,} | {ratio:.2f} | {raced_fitness - pooled['full'][0] / pooled['full'][1]:+.3f} "
+          f"[{low:+.2f}, {high:+.2f}] |")
+    within = full_low <= raced_fitness <= full_high
+    print(f"raced design's pooled fresh fitness {raced_fitness:.3f} {'within' if within else 'OUTSIDE'} the full-budget "
+          f"design's interval [{full_low:.3f}, {full_high:.3f}]; trials {ratio:.2f}x of the full budget "
+          f"({'at most' if ratio <= 1 / 3 else 'MORE than'} a third); wall {time.perf_counter() - started:.0f} s, "
+          f"load average {' '.join(f'{v:.1f}' for v in os.getloadavg())} (simulated)")
+
+
+if __name__ == "__main__":
+    main()

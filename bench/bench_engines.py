@@ -1,6 +1,8 @@
 """Benchmark of the trial engines (PyBullet, MuJoCo) and the early decision; every ratio from this one run.
 
     nice python bench/bench_engines.py [--trials 60] [--repeats 3] [--launch-candidates 3] [--launches-only]
+                                       [--racing-generations 8] [--race-looks 10 20 40] [--race-alpha 0.1]
+                                       [--racing-only]
 
 Launch twin (first): twin launches per second per core in each engine, with and without the early decision, and
 the ratio to the PyBullet twin under the full rest rule (the twin before the MuJoCo twin and the launch early
@@ -15,7 +17,9 @@ same robot URDF and start states; a world built once, reset per trial, a plain p
 speed, the engine's default contacts), the speed-up of 2 workers over 1 on the fastest engine, and the
 projected wall time of the paper-scale optimization (500 generations x 13 evaluations x 60 trials) on 2 cores,
 from one profile's trials and from whole paper-config generations submitted as the optimizer does (each candidate
-run whole by one worker, and split into ``evaluator.batch_trials`` tasks as before).
+run whole by one worker, and split into ``evaluator.batch_trials`` tasks as before), and last the paper-scale run
+with racing projected from whole generations of two real optimizations on the paper's config, with and without
+``optimizer.race_looks``, stepped alternately (:func:`racing_generation_times`).
 Repeats are interleaved and the fastest kept (the machine may be shared); the load average is printed.
 """
 import argparse
@@ -250,6 +254,62 @@ def generation_times(base, fastest, generations):
     return {name: min(seconds) for name, seconds in times.items()}
 
 
+def racing_generation_times(generations, looks, alpha, workers=2):
+    """Whole paper-config generations of two real optimizations (``config/paper.yaml``, MuJoCo + early decision,
+    the same seed), one without racing and one with ``optimizer.race_looks`` = ``looks``, their generations stepped
+    alternately so both meet the same machine load: ``{name: (seconds per generation, trials per generation)}``
+    over the generations after the first (the first has no incumbent, so nothing races)."""
+    import tempfile
+
+    from rollability_ros.core.optimization import optimization_run
+    from rollability_ros.core.results.store import Store
+
+    folder = tempfile.mkdtemp(prefix="bench-racing-paper-")
+    parameters = optimization_run.load_run_parameters(["paper"])
+    parameters.update({"sim.engine": "mujoco", "trial.early_decision": True, "optimizer.output_dir": folder,
+                       "optimizer.race_alpha": alpha})
+    settings = evaluation.settings_from_parameters(parameters)
+    times = {"full": [], "raced": []}
+    with evaluation.LocalExecutor(workers) as pool:
+        pool.warm()
+        runs = {}
+        for name, race_looks in (("full", [0]), ("raced", list(looks))):
+            run_parameters = {**parameters, "optimizer.race_looks": race_looks}
+            runs[name] = optimization_run.OptimizationRun(
+                os.path.join(folder, name), run_parameters, settings.grid,
+                optimization_run.profile_batch_evaluator(settings, 60, pool),
+                evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, pool, "screen"))
+        try:
+            for _ in range(generations):
+                for name, run in runs.items():
+                    started = time.perf_counter()
+                    run.step()
+                    times[name].append(time.perf_counter() - started)
+        finally:
+            for run in runs.values():
+                run.close()
+    result = {}
+    for name in runs:
+        with Store(os.path.join(folder, name)) as store:
+            spent = [c.trials for c in store.candidates() if c.generation > 1]
+        result[name] = (float(np.mean(times[name][1:])), sum(spent) / max(1, generations - 1))
+    return result
+
+
+def print_racing_projection(generations, looks, alpha):
+    seconds = racing_generation_times(generations, looks, alpha)
+    full, raced = seconds["full"], seconds["raced"]
+    print(f"paper-scale run with racing (config/paper.yaml, MuJoCo + early decision, 2 workers, race_looks "
+          f"{list(looks)}, race_alpha {alpha}; generations 2-{generations} of two real runs stepped alternately, "
+          f"simulated):")
+    for name, (per_generation, trials) in seconds.items():
+        print(f"  {name:5s}: {per_generation:.2f} s and {trials:.0f} trials per generation -> 500 generations "
+              f"{500 * per_generation / 60:.1f} min")
+    print(f"  racing: {raced[1] / full[1]:.2f}x the trials, {full[0] / raced[0]:.2f}x faster generations; projected "
+          f"paper-scale run with racing {500 * raced[0] / 60:.1f} min (target <= 4 min; load average "
+          f"{' '.join(f'{v:.1f}' for v in os.getloadavg())})")
+
+
 def _split_evaluator(settings, pool):
     """A generation's candidates on ``pool``, each split into ``evaluator.batch_trials`` tasks (the optimizer's
     way before it ran candidates whole)."""
@@ -269,7 +329,15 @@ def main():
     parser.add_argument("--generations", type=int, default=4, help="paper-config generations timed per setting")
     parser.add_argument("--launch-candidates", type=int, default=3, help="candidates launched on the twin (x 20)")
     parser.add_argument("--launches-only", action="store_true", help="only the launch twin's table")
+    parser.add_argument("--racing-generations", type=int, default=8,
+                        help="paper-config generations of the racing projection (per run; 0 = skip it)")
+    parser.add_argument("--race-looks", type=int, nargs="+", default=[10, 20, 40])
+    parser.add_argument("--race-alpha", type=float, default=0.1)
+    parser.add_argument("--racing-only", action="store_true", help="only the paper-scale racing projection")
     args = parser.parse_args()
+    if args.racing_only:
+        print_racing_projection(args.racing_generations, args.race_looks, args.race_alpha)
+        return
     print_launch_rates(args.launch_candidates, args.repeats)
     if args.launches_only:
         return
@@ -337,6 +405,8 @@ def main():
     print(f"whole candidates per worker: {generation['split'] / generation['whole']:.2f}x faster generations; "
           f"projected paper-scale run from generations: {500 * generation['whole'] / 60:.1f} min (target <= 15; "
           f"CMA-ES and the store excluded)")
+    if args.racing_generations > 1:
+        print_racing_projection(args.racing_generations, args.race_looks, args.race_alpha)
 
 
 if __name__ == "__main__":

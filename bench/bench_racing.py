@@ -2,6 +2,7 @@
 
     nice python bench/bench_racing.py [--config optimizer] [--seeds 1 2 3 4 5] [--looks 10 20 40] [--alpha 0.1]
                                       [--set optimizer.trials=60 ...] [--fresh-trials 300] [--workers 2]
+                                      [--rule-only]
 
 For every seed, one optimization with every candidate on all of its ``optimizer.trials`` (the full budget) and one
 with sequential racing (``optimizer.race_looks`` = ``--looks``, ``optimizer.race_alpha`` = ``--alpha``; docs/engines.md),
@@ -11,7 +12,9 @@ two designs of a seed on the same fresh seed, never one the run saw. Prints per 
 fresh fitness of both designs with its 95% Wilson interval, the raced minus full difference with Newcombe's 95%
 interval, the trials each run spent (population, stages and re-evaluations) and their ratio, and whether the raced
 design's pooled fresh fitness lies within the full-budget design's interval while spending at most a third of the
-trials. Everything is from this one run; the load average is printed.
+trials. Everything is from this one run; the load average is printed. First it prints the rule's exact statistics
+(no simulation): for bars 0.3, 0.5, 0.7 and candidates 0 to 0.3 below them, the chance of a stop and the expected
+trials (``--rule-only``: only that).
 """
 import argparse
 import os
@@ -24,7 +27,7 @@ import yaml
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from rollability_ros.core.optimization import optimization_run  # noqa: E402
-from rollability_ros.core.results.stats import newcombe_interval, wilson_interval  # noqa: E402
+from rollability_ros.core.stats import newcombe_interval, wilson_interval  # noqa: E402
 from rollability_ros.core.results.store import Store  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
 
@@ -79,6 +82,23 @@ def interval_text(successes, trials):
     return f"{successes / trials:.3f} [{low:.2f}, {high:.2f}]"
 
 
+def print_rule_statistics(looks, trials, alpha, bars=(0.3, 0.5, 0.7), gaps=(0.0, 0.05, 0.1, 0.2, 0.3)):
+    """The rule's exact statistics (:func:`racing.sequential_stop_probability`, no simulation): for a candidate whose
+    true success rate is ``gap`` below the bar, the chance it is stopped and its expected trials."""
+    from rollability_ros.core.optimization import racing
+
+    print(f"the rule, exactly (looks {list(looks)} of {trials} trials, alpha {alpha}): P(stopped) / expected trials "
+          f"of a candidate whose true rate is the bar minus the gap")
+    print("| bar | " + " | ".join(f"gap {gap:.2f}" for gap in gaps) + " |")
+    print("|---|" + "---|" * len(gaps))
+    for bar in bars:
+        cells = []
+        for gap in gaps:
+            stopped, spent = racing.sequential_stop_probability(looks, trials, bar, alpha, max(0.0, bar - gap))
+            cells.append(f"{stopped:.3f} / {spent:.1f}")
+        print(f"| {bar:.1f} | " + " | ".join(cells) + " |")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="optimizer", help="shipped config name or path (default: the quick one)")
@@ -90,10 +110,14 @@ def main():
     parser.add_argument("--fresh-trials", type=int, default=300)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--keep", help="folder to keep the runs in (default: a temporary one)")
+    parser.add_argument("--rule-only", action="store_true", help="only the rule's exact statistics (no runs)")
     args = parser.parse_args()
     full_parameters, raced_parameters = run_parameters(args, False), run_parameters(args, True)
     settings = optimization_run.optimizer_settings(raced_parameters)
     settings.validate()
+    print_rule_statistics(args.looks, settings.trials, args.alpha)
+    if args.rule_only:
+        return
     print(f"racing verification (simulated): --config {args.config} {' '.join(args.set)}, engine {args.engine} + "
           f"early decision, {settings.method}, popsize {settings.popsize}, {settings.trials} trials per candidate, "
           f"at most {settings.max_generations} generations; racing looks {list(args.looks)} alpha {args.alpha}; "

@@ -220,3 +220,29 @@ def test_bad_racing_settings_are_refused(tmp_path):
     optimizer_settings(racing_parameters(grid, **{"optimizer.race_looks": [0]})).validate()   # [0]: off
     with pytest.raises(ValueError, match="race_looks needs an evaluator"):
         OptimizationRun(str(tmp_path / "c"), racing_parameters(grid), grid, lambda h, s: [])
+
+
+def test_a_kept_mujoco_world_gives_the_same_trials_when_racing_comes_back_to_its_profile():
+    """Racing runs a generation's profiles once per stage; each process keeps their MuJoCo worlds
+    (evaluation.MUJOCO_WORLD_CACHE), and a world it comes back to after another profile's trials gives the trials a
+    fresh one gives."""
+    pytest.importorskip("mujoco")
+    import dataclasses
+
+    from rollability_ros.core.sim import evaluation
+
+    base = evaluation.load_settings()
+    settings = dataclasses.replace(base, physics=dataclasses.replace(base.physics, engine="mujoco"))
+    grid = settings.grid
+    rng = np.random.default_rng(8)
+    jobs = [evaluation.profile_job(rng.uniform(grid.height_min, grid.height_max, grid.n_variables), settings)
+            for _ in range(2)]
+    batch = [(index, evaluation.trial_seed(17, index)) for index in range(3)]
+    evaluation._mujoco_worlds.clear()
+    first = evaluation.run_batch(jobs[0], batch)
+    evaluation.run_batch(jobs[1], batch)
+    assert len(evaluation._mujoco_worlds) == 2
+    again = evaluation.run_batch(jobs[0], batch)                 # the kept world, after the other profile's trials
+    evaluation._mujoco_worlds.clear()
+    fresh = evaluation.run_batch(jobs[0], batch)                  # a world built anew
+    assert again == first == fresh

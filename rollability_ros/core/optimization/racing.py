@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from rollability_ros.core.optional import require
 from rollability_ros.core.stats import wilson_interval
 
 
@@ -150,7 +151,7 @@ def sequential_bar(successes, trials):
 def stop_count(n, bar, level):
     """The largest success count x with P(Binomial(n, bar) <= x) <= ``level`` (-1: none; a candidate with at most x
     successes of n stops)."""
-    from scipy.stats import binom
+    binom = require("scipy.stats", feature="racing's binomial test").binom
 
     if bar <= 0.0 or n < 1:
         return -1
@@ -173,7 +174,7 @@ def sequential_stops(successes, trials, bar, looks, alpha):
 def sequential_stop_probability(looks, trials, bar, alpha, p):
     """Exact ``(P(stopped at some look), expected trials)`` of a candidate of true success rate ``p`` raced against
     ``bar`` with ``looks`` of ``trials`` at level ``alpha`` (dynamic programme over the success count)."""
-    from scipy.stats import binom
+    binom = require("scipy.stats", feature="racing's binomial test").binom
 
     stages = sequential_stages(looks, trials)
     alive = np.zeros(int(trials) + 1)

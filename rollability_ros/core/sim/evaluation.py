@@ -17,6 +17,7 @@ Batches of profiles: :func:`evaluate_jobs` evaluates many profiles in one call o
 engines' implementation over the executors.
 """
 import abc
+import collections
 import concurrent.futures
 import dataclasses
 import hashlib
@@ -187,7 +188,11 @@ def _launch_part(settings):
 
 
 _worker_client = None
-_worker_world = None  # (job key, TrialWorld): the last profile's world in this process
+_worker_world = None  # (job key, TrialWorld): the last profile's PyBullet world in this process
+#: MuJoCo worlds kept per process, by job key (a MuJoCo world owns its model, so several can be kept; a racing
+#: optimizer comes back to a generation's profiles once per stage, bench/bench_engines.py racing projection)
+MUJOCO_WORLD_CACHE = 16
+_mujoco_worlds: "collections.OrderedDict[str, typing.Any]" = collections.OrderedDict()
 
 
 def _job_key(job):
@@ -198,7 +203,8 @@ def run_batch(job, batch):
     """Run the trials ``batch`` = [(index, seed), ...] of ``job`` in this process's physics client.
 
     The process keeps one client and the world of the last job it ran, so consecutive batches of one profile
-    reuse it (restored before every trial, see :class:`~rollability_ros.core.sim.trials.TrialWorld`).
+    reuse it (restored before every trial, see :class:`~rollability_ros.core.sim.trials.TrialWorld`); MuJoCo
+    worlds, which own their models, are kept for the last ``MUJOCO_WORLD_CACHE`` jobs.
     """
     global _worker_client, _worker_world
     if job.launch is not None and all(job.launch.is_launch(index) for index, _ in batch) \
@@ -210,11 +216,18 @@ def run_batch(job, batch):
         _worker_world = None   # every robust trial builds its own world in the client
         return [run_robust_trial(_worker_client, job, index, seed) for index, seed in batch]
     key = _job_key(job)
-    if _worker_world is None or _worker_world[0] != key:
-        settings = job.settings
-        _worker_world = (key, make_trial_world(_worker_client, settings.robot_model(), job.profile, settings.trial,
-                                               settings.physics))
-    world = _worker_world[1]
+    settings = job.settings
+    if settings.physics.engine == "mujoco":
+        world = _mujoco_worlds.pop(key, None) or make_trial_world(
+            _worker_client, settings.robot_model(), job.profile, settings.trial, settings.physics)
+        _mujoco_worlds[key] = world
+        while len(_mujoco_worlds) > MUJOCO_WORLD_CACHE:
+            _mujoco_worlds.popitem(last=False)
+    else:
+        if _worker_world is None or _worker_world[0] != key:
+            _worker_world = (key, make_trial_world(_worker_client, settings.robot_model(), job.profile,
+                                                   settings.trial, settings.physics))
+        world = _worker_world[1]
     if job.launch is None:
         return [world.run(index, seed) for index, seed in batch]
     # a launch builds its own world in its own client, so the trial world above is left as it was

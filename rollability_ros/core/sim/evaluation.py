@@ -38,7 +38,7 @@ from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettin
     run_launch_trial, run_robust_trial
 from rollability_ros.core.sim.world import PhysicsParams, connect
 from rollability_ros.core.stats import wilson_interval
-from rollability_ros.core.sim.trial_engine import make_trial_world
+from rollability_ros.core.sim.trial_engine import TRIAL_ENGINES, make_trial_world
 from rollability_ros.core.sim.trials import TrialSettings
 from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec, footprint_grid
 from rollability_ros.core.sim.worker_pool import spawn_pool
@@ -188,9 +188,9 @@ def _launch_part(settings):
 
 
 _worker_client = None
-_worker_world = None  # (job key, TrialWorld): the last profile's PyBullet world in this process
-#: MuJoCo worlds kept per process, by job key (a MuJoCo world owns its model, so several can be kept; a racing
-#: optimizer comes back to a generation's profiles once per stage, bench/bench_engines.py racing projection)
+_worker_world = None  # (job key, TrialWorld): the last profile's world in this process (shared-client engines)
+#: Worlds of engines that own them (``TrialEngine.owns_world``: MuJoCo) kept per process, by job key: a racing
+#: optimizer comes back to a generation's profiles once per stage (bench/bench_engines.py racing projection)
 MUJOCO_WORLD_CACHE = 16
 _mujoco_worlds: "collections.OrderedDict[str, typing.Any]" = collections.OrderedDict()
 
@@ -217,7 +217,7 @@ def run_batch(job, batch):
         return [run_robust_trial(_worker_client, job, index, seed) for index, seed in batch]
     key = _job_key(job)
     settings = job.settings
-    if settings.physics.engine == "mujoco":
+    if settings.physics.engine in TRIAL_ENGINES and TRIAL_ENGINES.get(settings.physics.engine).owns_world:
         world = _mujoco_worlds.pop(key, None) or make_trial_world(
             _worker_client, settings.robot_model(), job.profile, settings.trial, settings.physics)
         _mujoco_worlds[key] = world

@@ -126,6 +126,8 @@ class MujocoTrialWorld(TrialEngine):
     """The ``mujoco`` trial engine: one robot + profile in a MuJoCo model; every trial starts from a reset of its
     data (no carry-over)."""
 
+    owns_world = True              # its own model and data: several can be kept per process
+
     @classmethod
     def build(cls, client, robot_model, profile, settings, physics):
         """The MuJoCo world (it has its own: ``client`` is not used)."""

@@ -39,6 +39,10 @@ class TrialOutcome:
 class TrialEngine(abc.ABC):
     """One robot + profile in one engine's world; ``run(index, seed)`` per trial (module docstring)."""
 
+    #: True when a world owns all its state (not the caller's shared PyBullet client), so a process may keep the
+    #: worlds of several profiles at once (evaluation.run_batch keeps the last ``MUJOCO_WORLD_CACHE``).
+    owns_world: typing.ClassVar[bool] = False
+
     @classmethod
     def build(cls, client: typing.Any, robot_model: typing.Any, profile: typing.Any, settings: "TrialSettings",
               physics: "PhysicsParams") -> "TrialEngine":

@@ -14,7 +14,8 @@ interval, the trials each run spent (population, stages and re-evaluations) and 
 design's pooled fresh fitness lies within the full-budget design's interval while spending at most a third of the
 trials. Everything is from this one run; the load average is printed. First it prints the rule's exact statistics
 (no simulation): for bars 0.3, 0.5, 0.7 and candidates 0 to 0.3 below them, the chance of a stop and the expected
-trials (``--rule-only``: only that).
+trials (``--rule-only``: only that); last, what other looks and levels would have spent on the full-budget runs'
+own candidates (:func:`print_what_if`, an approximation).
 """
 import argparse
 import os
@@ -74,7 +75,7 @@ def optimize(parameters, seed, executor, folder, name):
         candidates = store.candidates()
     spent = sum(c.trials for c in candidates)
     stopped = sorted(c.trials for c in candidates if c.index < popsize and c.trials < trials)
-    return result.best.heights, spent, result.generations, seconds, settings, stopped
+    return result.best.heights, spent, result.generations, seconds, settings, stopped, run_dir
 
 
 def interval_text(successes, trials):
@@ -97,6 +98,34 @@ def print_rule_statistics(looks, trials, alpha, bars=(0.3, 0.5, 0.7), gaps=(0.0,
             stopped, spent = racing.sequential_stop_probability(looks, trials, bar, alpha, max(0.0, bar - gap))
             cells.append(f"{stopped:.3f} / {spent:.1f}")
         print(f"| {bar:.1f} | " + " | ".join(cells) + " |")
+
+
+WHAT_IF_RULES = (([10, 20, 40], 0.1), ([10, 20, 40], 0.3), ([10, 20], 0.5), ([5, 10, 15, 20, 30, 40], 0.9))
+
+
+def print_what_if(run_dirs, popsize, rules=WHAT_IF_RULES):
+    """What other rules would have spent on the full-budget runs' own candidates: each candidate's rate over its
+    full trials taken as its true rate, the bar from the previous generation's best-so-far as if over 2 x trials
+    (the incumbent's pooled trials are not stored; it has at least two evaluations), the rule's exact expected
+    trials (:func:`racing.sequential_stop_probability`); re-evaluations unchanged. An approximation, stated so."""
+    from rollability_ros.core.optimization import racing
+
+    for looks, alpha in rules:
+        full = spent = 0.0
+        for run_dir in run_dirs:
+            with Store(run_dir) as store:
+                best = {g.generation: g.best_so_far for g in store.generations()}
+                for candidate in store.candidates():
+                    full += candidate.trials
+                    if candidate.index >= popsize or candidate.generation - 1 not in best:
+                        spent += candidate.trials
+                        continue
+                    bar = racing.sequential_bar(round(best[candidate.generation - 1] * 2 * candidate.trials),
+                                                2 * candidate.trials)
+                    spent += racing.sequential_stop_probability(looks, candidate.trials, bar, alpha,
+                                                                candidate.fitness)[1]
+        print(f"what if (the full-budget runs' candidates, approximate): looks {looks}, alpha {alpha}: expected "
+              f"{spent / full:.2f}x the trials")
 
 
 def main():
@@ -122,7 +151,7 @@ def main():
           f"early decision, {settings.method}, popsize {settings.popsize}, {settings.trials} trials per candidate, "
           f"at most {settings.max_generations} generations; racing looks {list(args.looks)} alpha {args.alpha}; "
           f"{args.fresh_trials} fresh trials per final design; cores {os.cpu_count()}", flush=True)
-    rows = []
+    rows, full_runs = [], []
     folder = args.keep or tempfile.mkdtemp(prefix="bench-racing-")
     started = time.perf_counter()
     with evaluation.LocalExecutor(args.workers) as executor:
@@ -130,8 +159,10 @@ def main():
         for seed in args.seeds:
             row = {"seed": seed}
             for name, parameters in (("full", full_parameters), ("raced", raced_parameters)):
-                heights, spent, generations, seconds, evaluator_settings, stopped = optimize(
+                heights, spent, generations, seconds, evaluator_settings, stopped, run_dir = optimize(
                     parameters, seed, executor, folder, name)
+                if name == "full":
+                    full_runs.append(run_dir)
                 fresh = evaluation.evaluate_profile(heights, args.fresh_trials, FRESH_SEED_BASE + seed,
                                                     evaluator_settings, executor)
                 row[name] = {"spent": spent, "generations": generations, "seconds": seconds,
@@ -172,6 +203,7 @@ def main():
           f"design's interval [{full_low:.3f}, {full_high:.3f}]; trials {ratio:.2f}x of the full budget "
           f"({'at most' if ratio <= 1 / 3 else 'MORE than'} a third); wall {time.perf_counter() - started:.0f} s, "
           f"load average {' '.join(f'{v:.1f}' for v in os.getloadavg())} (simulated)")
+    print_what_if(full_runs, settings.popsize)
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ pycma draws its samples from ``np.random`` (seeded by its ``seed`` option). :cla
 strategy a private copy of that generator right after construction, so other code in the process using
 ``np.random`` cannot change the sequence, and pickling the strategy (the checkpoint) captures the generator state.
 """
+import abc
 import copy
 import dataclasses
 import pickle
@@ -32,14 +33,13 @@ import typing
 import numpy as np
 
 from rollability_ros.core.optional import require
+from rollability_ros.core.registry import Registry
 
 #: Seed streams of :func:`derive_seed`: population evaluations, incumbent re-evaluations, design selection.
 STREAM_POPULATION = 0
 STREAM_REEVALUATION = 1
 STREAM_SELECTION = 2
 STREAM_RACE = 3
-#: Values of ``optimizer.method``: one CMA-ES (the paper's), or CMA-MAE quality diversity (quality_diversity.py).
-METHODS = ("cmaes", "cma_mae")
 
 
 def derive_seed(run_seed, generation, stream, index=0):
@@ -127,8 +127,7 @@ class OptimizerSettings:
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
-        if self.method not in METHODS:
-            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        OPTIMIZER_METHODS.check(self.method)
         if self.popsize < 2:
             raise ValueError(f"popsize must be >= 2, got {self.popsize}")
         if not self.sigma0 > 0:
@@ -193,11 +192,55 @@ def random_initial_means(settings, n_variables, lower=0.0, upper=0.45):
     return np.random.default_rng(settings.seed).uniform(lower, upper, (rows, int(n_variables)))
 
 
-class IncumbentOptimizer:
-    """What every profile optimizer shares: the ask/tell bookkeeping, the incumbent with its re-evaluation, the
-    stop criteria and the wall time. A subclass supplies ``_ask() -> [heights]`` and ``_tell(population, fitness,
-    trials)`` (its own search state) and calls :meth:`_init_bookkeeping` in its constructor.
+class IncumbentOptimizer(abc.ABC):
+    """The contract of an optimizer method (``optimizer.method``, :data:`OPTIMIZER_METHODS`) and what every method
+    shares: the ask/tell bookkeeping, the incumbent with its re-evaluation, the stop criteria and the wall time.
+
+    A method subclasses it, supplies ``_ask() -> [heights]`` and ``_tell(population, fitness, trials)`` (its own
+    search state), calls :meth:`_init_bookkeeping` in its constructor, and declares :meth:`create` (new, or
+    restored from a checkpoint state); :meth:`check_settings` and :meth:`archive_rows` have defaults for a method
+    that reads only the ``optimizer`` section and keeps no archive.
     """
+
+    # --- the method seam ----------------------------------------------------------------------------------------
+    @classmethod
+    def check_settings(cls, settings: "OptimizerSettings", parameters: dict) -> None:
+        """Raise ``ValueError`` naming the first unusable setting this method reads from the flat ``parameters``
+        (default: the ``optimizer`` section, ``settings``), before a run starts."""
+        settings.validate()
+
+    @classmethod
+    @abc.abstractmethod
+    def create(cls, grid: typing.Any, settings: "OptimizerSettings", parameters: dict,
+               clock: typing.Callable[[], float], initial_mean: typing.Optional[np.ndarray] = None,
+               state: typing.Optional[dict] = None) -> "IncumbentOptimizer":
+        """The optimizer over ``grid``'s variables and bounds, new or restored from a checkpoint ``state``."""
+
+    @abc.abstractmethod
+    def _ask(self) -> list:
+        """This generation's ``popsize`` height arrays ``(n_variables,)``, within the bounds."""
+
+    @abc.abstractmethod
+    def _tell(self, population: list, fitness: list, trials: list) -> None:
+        """Update the search state with the population's fitness (upright / trials, [0, 1]) and trial counts."""
+
+    @property
+    @abc.abstractmethod
+    def sigma(self) -> float:
+        """The search's step size now (simulation units), as the generation summary reports it."""
+
+    @property
+    @abc.abstractmethod
+    def result(self) -> "OptimizerResult":
+        """The run's result so far (incumbent, evaluations, generations, stop reason)."""
+
+    @abc.abstractmethod
+    def state_dict(self) -> dict:
+        """The checkpoint state (JSON data, never a pickle) :meth:`create` restores from."""
+
+    def archive_rows(self) -> typing.Optional[typing.List[dict]]:
+        """One row per elite of the method's archive (quality diversity); None for a method without one."""
+        return None
 
     def _init_bookkeeping(self, settings, clock):
         self.settings = settings
@@ -370,6 +413,14 @@ class ProfileOptimizer(IncumbentOptimizer):
         the stable-pose screen); default: row 0 of :func:`random_initial_means`.
     """
 
+    @classmethod
+    def create(cls, grid, settings, parameters, clock, initial_mean=None, state=None):
+        """``optimizer.method: cmaes``: one CMA-ES over the grid's heights."""
+        if state is None:
+            return cls(grid.n_variables, settings, grid.height_min, grid.height_max, clock, initial_mean)
+        return cls.from_state_dict(state, grid.n_variables, settings, grid.height_min, grid.height_max, clock,
+                                   initial_mean)
+
     def __init__(self, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic, initial_mean=None):
         cma = require("cma", feature="the CMA-ES optimizer")
         settings.validate()
@@ -453,3 +504,11 @@ def check_search_space(n_variables, settings, lower, upper, initial_mean):
             np.any(initial_mean < lower) or np.any(initial_mean > upper):
         raise ValueError(f"initial_mean must be {n_variables} finite heights in [{lower}, {upper}]")
     return n_variables, lower, upper, initial_mean
+
+
+#: ``optimizer.method`` -> its :class:`IncumbentOptimizer` subclass (``"module:Class"``: imported when chosen).
+#: A new method is one module with the subclass plus one entry here.
+OPTIMIZER_METHODS: Registry[IncumbentOptimizer] = Registry("method", IncumbentOptimizer, {
+    "cmaes": "rollability_ros.core.optimization.cmaes:ProfileOptimizer",
+    "cma_mae": "rollability_ros.core.optimization.quality_diversity:QualityDiversityOptimizer",
+})

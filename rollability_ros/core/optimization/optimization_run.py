@@ -17,13 +17,11 @@ Generations are numbered from 1 (:data:`FIRST_GENERATION`) in the store, the mes
 the seeds of generation number n are derived from its index n - 1, as before. Runs stored before this numbering
 (their run info has no ``first_generation``) keep 0 when resumed, so their stored candidates still match.
 
-The optimizer is pluggable: :class:`OptimizationRun` drives any object made by ``optimizer_factory`` (default
-:func:`make_optimizer`: CMA-ES or CMA-MAE by ``optimizer.method``) with ``ask() -> population``,
-``tell(population, fitness, trials)``, ``stop() -> dict``, ``result`` (an
-:class:`~rollability_ros.core.optimization.cmaes.OptimizerResult`), ``best``, ``sigma``, ``generation`` (completed
-generations), ``evaluations``, ``elapsed_s`` and ``state_dict()``; optionally ``reevaluation_request() -> heights
-or None`` and ``tell_reevaluation(fitness, trials)`` for an incumbent re-evaluation; optionally ``archive_rows()``
-and ``archive_summary()`` (a quality-diversity archive, stored in the run info under ``archive`` after every
+The optimizer is pluggable: :class:`OptimizationRun` drives an
+:class:`~rollability_ros.core.optimization.cmaes.IncumbentOptimizer` (the method contract: ``ask``, ``tell``,
+``stop``, ``result``, ``best``, ``sigma``, ``state_dict``, ``reevaluation_request`` / ``tell_reevaluation`` for the
+incumbent's re-evaluation, ``archive_rows`` -- None without an archive -- and ``archive_summary`` for a
+quality-diversity archive, stored in the run info under ``archive`` after every
 generation). :func:`run_generations` is the one loop (stop / pause / give-up policy) that ``rollability optimize``
 and the ``optimizer`` node run; :func:`run_target` is the one resolution of which run to start or continue.
 
@@ -50,6 +48,7 @@ from rollability_ros.core.optimization.cmaes import (
     STREAM_POPULATION,
     STREAM_RACE,
     STREAM_REEVALUATION,
+    OPTIMIZER_METHODS,
     IncumbentOptimizer,
     OptimizerResult,
     OptimizerSettings,
@@ -152,7 +151,8 @@ def run_target(run_id: str, resume: bool, parameters: typing.Optional[dict],
 def cmaes_optimizer(n_variables: int, settings: OptimizerSettings, lower: float, upper: float,
                     clock: typing.Callable[[], float], initial_mean: typing.Optional[np.ndarray] = None,
                     state: typing.Optional[dict] = None) -> ProfileOptimizer:
-    """The default ``optimizer_factory``: a :class:`ProfileOptimizer`, new or restored from a checkpoint ``state``."""
+    """An ``optimizer_factory`` for CMA-ES over explicit bounds: a :class:`ProfileOptimizer`, new or restored from a
+    checkpoint ``state``."""
     if state is None:
         return ProfileOptimizer(n_variables, settings, lower, upper, clock, initial_mean)
     return ProfileOptimizer.from_state_dict(state, n_variables, settings, lower, upper, clock, initial_mean)
@@ -161,37 +161,25 @@ def cmaes_optimizer(n_variables: int, settings: OptimizerSettings, lower: float,
 def quality_diversity_settings(parameters: dict) -> typing.Any:
     """The :class:`~rollability_ros.core.optimization.quality_diversity.QualityDiversitySettings` of flat
     ``parameters`` (namespace ``quality_diversity``; defaults where absent)."""
-    from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
+    from rollability_ros.core.optimization import quality_diversity
 
-    return from_mapping(QualityDiversitySettings, section(parameters, "quality_diversity"), "quality_diversity")
+    return quality_diversity.quality_diversity_settings(parameters)
 
 
 def check_method_settings(parameters: dict) -> None:
-    """Raise ``ValueError`` naming the first unusable setting of the search method ``parameters`` ask for (the
-    optimizer section, and for ``cma_mae`` the quality_diversity section against the popsize), before a run starts."""
+    """Raise ``ValueError`` naming the first unusable setting of the search method ``parameters`` ask for (its
+    :meth:`~rollability_ros.core.optimization.cmaes.IncumbentOptimizer.check_settings`), before a run starts."""
     settings = optimizer_settings(parameters)
-    settings.validate()
-    if settings.method == "cma_mae":
-        quality_diversity_settings(parameters).validate(settings.popsize)
+    OPTIMIZER_METHODS.get(settings.method).check_settings(settings, parameters)
 
 
 def make_optimizer(grid: typing.Any, parameters: dict, clock: typing.Callable[[], float],
                    initial_mean: typing.Optional[np.ndarray] = None,
                    state: typing.Optional[dict] = None) -> IncumbentOptimizer:
-    """The optimizer ``optimizer.method`` of ``parameters`` names, over ``grid``'s variables and bounds, new or
-    restored from a checkpoint ``state``: :func:`cmaes_optimizer` or a
-    :class:`~rollability_ros.core.optimization.quality_diversity.QualityDiversityOptimizer`."""
+    """The optimizer ``optimizer.method`` of ``parameters`` names (:data:`OPTIMIZER_METHODS`, the only lookup of
+    the name), over ``grid``'s variables and bounds, new or restored from a checkpoint ``state``."""
     settings = optimizer_settings(parameters)
-    if settings.method == "cmaes":
-        return cmaes_optimizer(grid.n_variables, settings, grid.height_min, grid.height_max, clock, initial_mean,
-                               state)
-    settings.validate()
-    from rollability_ros.core.optimization.quality_diversity import QualityDiversityOptimizer
-
-    qd_settings = quality_diversity_settings(parameters)
-    if state is None:
-        return QualityDiversityOptimizer(settings, qd_settings, grid, clock, initial_mean)
-    return QualityDiversityOptimizer.from_state_dict(state, settings, qd_settings, grid, clock, initial_mean)
+    return OPTIMIZER_METHODS.get(settings.method).create(grid, settings, parameters, clock, initial_mean, state)
 
 
 def read_run_config(run_dir: typing.Union[str, os.PathLike]) -> dict:
@@ -258,8 +246,9 @@ class OptimizationRun:
         ``parameters`` describe (a caller whose parameters do not hold the robot, the node, passes its own).
 
     optimizer_factory : callable, optional
-        ``factory(n_variables, settings, lower, upper, clock, initial_mean, state=None)`` -> the optimizer the run
-        drives (module docstring); default :func:`make_optimizer` (``optimizer.method``: CMA-ES or CMA-MAE).
+        ``factory(n_variables, settings, lower, upper, clock, initial_mean, state=None)`` -> the
+        :class:`~rollability_ros.core.optimization.cmaes.IncumbentOptimizer` the run drives; default
+        :func:`make_optimizer` (``optimizer.method`` in ``OPTIMIZER_METHODS``).
     evaluate_trials : callable(heights_list, seed, trials), optional
         ``evaluate_batch`` with a trial count: needed for racing (``optimizer.race_looks``), see
         :meth:`_evaluate_raced`.
@@ -441,10 +430,10 @@ class OptimizationRun:
     def _record_archive(self, optimizer):
         """Store a quality-diversity optimizer's archive (summary and every cell's elite, generations numbered as
         stored) in the run info under ``archive``; nothing for an optimizer without one."""
-        rows = getattr(optimizer, "archive_rows", None)
+        rows = optimizer.archive_rows()
         if rows is None:
             return
-        elites = [{**row, "generation": self.generation_number(row["generation"])} for row in rows()]
+        elites = [{**row, "generation": self.generation_number(row["generation"])} for row in rows]
         described = self.store.run_info(self.run_id)
         info = dict(described["info"]) if described else {}
         info["archive"] = {**optimizer.archive_summary(), "elites": elites}
@@ -479,8 +468,7 @@ class OptimizationRun:
             results = self._evaluate(generation, list(range(len(population))), population, seeds, stored)
         fitness = [r.fitness for r in results]
         optimizer.tell(population, fitness, [r.trials for r in results])
-        reevaluation_request = getattr(optimizer, "reevaluation_request", None)
-        request = reevaluation_request() if reevaluation_request is not None else None
+        request = optimizer.reevaluation_request()
         if request is not None:
             seed = derive_seed(settings.seed, index, STREAM_REEVALUATION)
             (again,) = self._evaluate(generation, [settings.popsize], [request], [seed], stored)

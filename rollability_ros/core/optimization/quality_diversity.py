@@ -44,6 +44,7 @@ import typing
 
 import numpy as np
 
+from rollability_ros.core.config import from_mapping, section
 from rollability_ros.core.optional import require
 from rollability_ros.core.optimization.cmaes import IncumbentOptimizer, OptimizerResult, check_search_space
 from rollability_ros.core.profile import descriptors
@@ -145,6 +146,12 @@ def _emitter_class():
     return StartRestartEmitter
 
 
+def quality_diversity_settings(parameters: dict) -> "QualityDiversitySettings":
+    """The :class:`QualityDiversitySettings` of flat ``parameters`` (namespace ``quality_diversity``; defaults where
+    absent)."""
+    return from_mapping(QualityDiversitySettings, section(parameters, "quality_diversity"), "quality_diversity")
+
+
 class QualityDiversityOptimizer(IncumbentOptimizer):
     """CMA-MAE over ``grid.n_variables`` heights in the grid's bounds; see the module docstring.
 
@@ -160,6 +167,21 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
     initial_mean : array_like, optional
         ``(n_variables,)`` start of the first emitter (default: the paper's random mean).
     """
+
+    @classmethod
+    def check_settings(cls, settings, parameters):
+        """The ``optimizer`` section, and the ``quality_diversity`` section against the popsize."""
+        settings.validate()
+        quality_diversity_settings(parameters).validate(settings.popsize)
+
+    @classmethod
+    def create(cls, grid, settings, parameters, clock, initial_mean=None, state=None):
+        """``optimizer.method: cma_mae``: CMA-MAE over the grid with the ``quality_diversity`` section."""
+        settings.validate()
+        qd_settings = quality_diversity_settings(parameters)
+        if state is None:
+            return cls(settings, qd_settings, grid, clock, initial_mean)
+        return cls.from_state_dict(state, settings, qd_settings, grid, clock, initial_mean)
 
     def __init__(self, settings, qd_settings, grid, clock=time.monotonic, initial_mean=None):
         require("ribs", feature="quality-diversity optimization (optimizer.method cma_mae)")

@@ -706,7 +706,7 @@ def fidelity_batch_evaluator(settings: typing.Any, executor: typing.Any, fidelit
     from rollability_ros.core.sim.evaluation import evaluate_profile, settings_at_fidelity
 
     settings = settings_at_fidelity(settings, fidelity)
-    workers = getattr(executor, "workers", None)
+    workers = executor.workers if executor is not None else None   # None: serial, in this process
 
     def evaluate(heights_list: typing.Sequence[np.ndarray], seed: int, trials: int) -> typing.List[tuple]:
         whole = dataclasses.replace(settings, evaluator=dataclasses.replace(settings.evaluator, batch_trials=trials))

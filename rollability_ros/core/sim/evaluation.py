@@ -245,8 +245,37 @@ def _warm(hold_s=0.2):
     return os.getpid()
 
 
-class SerialExecutor:
+class TrialExecutor(abc.ABC):
+    """The executor contract: where the trial batches of an evaluation run. Built in: :class:`SerialExecutor`
+    (this process), :class:`LocalExecutor` (a pool of worker processes), :class:`RayExecutor` (a Ray cluster);
+    :func:`make_executor` picks one from the evaluator options. Callers read :attr:`workers` and
+    :attr:`in_process` instead of asking which kind they hold."""
+
+    #: Local worker processes (an evaluation of many profiles sends whole profiles when it has >= 2 per worker);
+    #: None when the executor is not a local pool.
+    workers: typing.Optional[int] = None
+    #: True when batches run in this process, in its one physics client (one job at a time).
+    in_process: bool = False
+
+    @abc.abstractmethod
+    def iter_batches(self, job: "TrialJob", batches: list, should_stop: typing.Callable[[], bool]) -> typing.Iterator:
+        """Yield the outcome list of each batch ``[(index, seed), ...]`` of ``job`` as it finishes; stop early
+        (cancelling what is pending) once ``should_stop()`` is true."""
+
+    def close(self) -> None:
+        """Release workers or connections (default: nothing to release)."""
+
+    def __enter__(self) -> "TrialExecutor":
+        return self
+
+    def __exit__(self, *exc_info: typing.Any) -> None:
+        self.close()
+
+
+class SerialExecutor(TrialExecutor):
     """Runs batches one after another in the calling process (the default of :func:`evaluate_profile`)."""
+
+    in_process = True
 
     def iter_batches(self, job, batches, should_stop):
         """Yield the outcome list of each batch in order; stop early when ``should_stop()`` is true."""
@@ -255,8 +284,6 @@ class SerialExecutor:
                 return
             yield run_batch(job, batch)
 
-    def close(self):
-        """Nothing to release."""
 
 
 def _drain(pending, wait, cancel, should_stop, poll_interval_s):
@@ -271,7 +298,7 @@ def _drain(pending, wait, cancel, should_stop, poll_interval_s):
             cancel(future)
 
 
-class LocalExecutor:
+class LocalExecutor(TrialExecutor):
     """A pool of persistent worker processes (spawned, one physics client each) on this machine.
 
     Parameters
@@ -308,14 +335,8 @@ class LocalExecutor:
         """Stop the worker processes (pending batches are cancelled)."""
         self._pool.shutdown(wait=True, cancel_futures=True)
 
-    def __enter__(self):
-        return self
 
-    def __exit__(self, *exc_info):
-        self.close()
-
-
-class RayExecutor:
+class RayExecutor(TrialExecutor):
     """Hands trial batches to an existing Ray cluster (``ray start --head`` elsewhere) by ``address``.
 
     The package is shipped to the cluster's workers as a ``py_modules`` runtime environment, so the workers need
@@ -353,15 +374,10 @@ class RayExecutor:
         if self._owns_connection and self._ray.is_initialized():
             self._ray.shutdown()
 
-    def __enter__(self):
-        return self
 
-    def __exit__(self, *exc_info):
-        self.close()
-
-
-def make_executor(options, workers=None):
-    """The executor ``options`` (:class:`EvaluatorOptions`) ask for: Ray if ``ray_address`` is set, else a pool."""
+def make_executor(options, workers=None) -> TrialExecutor:
+    """The :class:`TrialExecutor` ``options`` (:class:`EvaluatorOptions`) ask for: Ray if ``ray_address`` is set,
+    else a local pool (the only code that chooses an executor)."""
     if options.ray_address:
         return RayExecutor(options.ray_address, options.poll_interval_s)
     return LocalExecutor(workers if workers is not None else options.workers or None, options.poll_interval_s)
@@ -409,8 +425,8 @@ class ExecutorEngine(TrialBatchEngine):
                     for outcome in batch]
 
         outcomes = [None] * len(pairs)
-        # a serial executor runs in this process's one physics client: one job after another
-        threads = max(1, len(by_job)) if not isinstance(self.executor, SerialExecutor) else 1
+        # an in-process executor runs in this process's one physics client: one job after another
+        threads = 1 if self.executor.in_process else max(1, len(by_job))
         with concurrent.futures.ThreadPoolExecutor(max_workers=threads) as pool:
             for job, done in zip(by_job, pool.map(run_job, list(by_job))):
                 by_index = {outcome.index: outcome for outcome in done}

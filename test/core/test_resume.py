@@ -212,7 +212,8 @@ def test_cli_run_with_real_physics_killed_and_resumed_equals_uninterrupted(tmp_p
                              initial_mean_screen: 0, output_dir: "{tmp_path}"}}
                 profile: {{rows: 3, cols: 2}}
                 evaluator: {{workers: 1}}
-                selection: {{count: 2, min_distance: 0.0, reevaluate_trials: 2}}
+                selection: {{count: 2, min_distance: 0.0, reevaluate_trials: 2, race_launches: [2], race_elites: 3,
+                             launch_trials: 2}}
             """))
     killed_dir = os.path.join(tmp_path, "killed")
     child = subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "optimize", "--config", config,

@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # Sets everything up (scripts/setup.sh), then runs the test suite. Extra arguments go to pytest.
 #   ./scripts/test.sh           every test except the minutes-long ones marked `slow` (the README's test command)
-#   ./scripts/test.sh --slow    only the `slow` ones (a kill -9 soak, a calibration recovery, a study killed twice)
+#   ./scripts/test.sh --slow    only the `slow` ones (a kill -9 soak, a study killed twice, two other robots end to
+#                               end, the colcon build and its installed executables)
 #   ./scripts/test.sh --all     all of them
-# .ci/run runs the first two (after a hostile-environment sample), so CI runs every test. Tests that start ROS
-# processes (outside test/core) get one rerun after a failure (test/conftest.py): a test that fails twice fails, and
-# every run ends with `reruns: N` and the rerun tests listed (docs/testing.md).
+# .ci/run runs the first two (after a hostile-environment sample), so CI runs every test. No test is rerun
+# automatically: a failure is a failure (docs/testing.md); every run ends with `reruns: N` (0 unless --reruns is given).
 # The report test opens the HTML report in a real headless browser (Debian's chromium); when chromium is missing
 # and this runs as root with apt-get available, it is installed here so nothing needs installing by hand.
 set -euo pipefail

@@ -4,7 +4,9 @@ The colcon route builds this repository with colcon (from PyPI) over the venv as
 real ROS 2 Jazzy install builds it, then imports the built interfaces and the Python sources from the install
 space and checks that the node executables are where `ros2 run rollability_ros <node>` looks. Then it does what
 `ros2 run` / `ros2 launch` do, without the launch package: it starts every installed executable file itself, with
-the environment `install/setup.sh` gives, and exercises each node.
+the environment `install/setup.sh` gives, and exercises each node. Both are marked `slow` (./scripts/test.sh --slow,
+which CI runs): the colcon build compiles the interfaces' C and C++ type support (48 s on a quiet 2-core machine,
+5 min at load average 16), and every node it starts is exercised through `python -m` by the README's command.
 """
 import os
 import pathlib
@@ -86,6 +88,7 @@ def colcon_install(tmp_path_factory):
     return ColconInstall(workspace / "install", run_env)
 
 
+@pytest.mark.slow
 def test_colcon_build_over_the_venv_underlay(colcon_install):
     install = colcon_install.package
     node_modules = sorted(p.stem for p in (REPO_ROOT / "rollability_ros" / "nodes").glob("*.py")
@@ -147,6 +150,7 @@ def _wait_for_text(process, text, timeout_s=120):
     assert text in process.log(), process.log()[-3000:]
 
 
+@pytest.mark.slow
 def test_installed_executables_run_the_session_graph(colcon_install, ros_node, tmp_path):
     """What `ros2 run` / `ros2 launch sim_bringup.launch.py` start, from the install space: each installed
     executable file itself (not `python -m`), with the install's environment and the launch files' exact

@@ -16,10 +16,9 @@ UPWARD_ALLOWED = {
 #: Strongly connected components of the subpackage graph (that one import makes this one).
 SUBPACKAGE_CYCLES_ALLOWED = [("campaign", "optimization", "results", "sim")]
 #: Strongly connected components of the module graph inside each subpackage.
+#: Issue 29 counted a 7-module cycle in sim/ too: the engine tables (string entries) and body_points broke it.
 MODULE_CYCLES_ALLOWED = [
     ("bags.recover", "bags.writer"),
-    ("sim.evaluation", "sim.launch_twin", "sim.mujoco_launch_twin", "sim.mujoco_trials", "sim.objectives",
-     "sim.stable_poses", "sim.trials"),
 ]
 
 

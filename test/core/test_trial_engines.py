@@ -60,13 +60,23 @@ def test_the_built_in_engines_are_on_the_contract():
     assert trial_engine.TRIAL_ENGINES.get("mujoco") is MujocoTrialWorld
 
 
-def test_only_the_factory_looks_at_the_disturbance_engine_name():
-    """No module of core/sim compares ``engine`` with a name, except the launch twin's choice of its MuJoCo twin
-    (launches are not on this seam yet)."""
+def test_only_the_tables_look_at_the_engine_name():
+    """No module of core/sim compares an engine setting with an engine's name: the tables and their factories
+    (make_trial_world, launch_twin.simulate_launch through LAUNCH_ENGINES) are the only lookups."""
     branches = []
     for path in sorted(SIM.glob("*.py")):
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Compare) and any(isinstance(c, ast.Constant) and c.value in ("pybullet", "mujoco")
-                                                     for c in node.comparators):
+                                                     for c in [node.left, *node.comparators]):
                 branches.append(f"{path.name}:{node.lineno}")
-    assert [b.split(":")[0] for b in branches] == ["launch_twin.py"], branches
+    assert branches == []
+
+
+def test_the_launch_engines_are_on_their_contract():
+    pytest.importorskip("mujoco")
+    from rollability_ros.core.sim.launch_twin import BulletLaunch
+    from rollability_ros.core.sim.mujoco_launch_twin import MujocoLaunch
+
+    assert trial_engine.LAUNCH_ENGINES.get("pybullet") is BulletLaunch
+    assert trial_engine.LAUNCH_ENGINES.get("mujoco") is MujocoLaunch
+    assert trial_engine.engine_names() == ("pybullet", "mujoco")

@@ -2,7 +2,8 @@
 the launch twin.
 
 - world: PhysicsParams and one DIRECT client per simulation
-- trial_engine: the TrialEngine contract, its TRIAL_ENGINES table and make_trial_world (picks sim.engine)
+- trial_engine: the TrialEngine and LaunchEngine contracts, their tables and make_trial_world (picks sim.engine)
+- body_points: hull points, mass and centre of mass of a spawned PyBullet body's links
 - trials: one disturbance trial (start, push, rest, upright test); TrialWorld, the pybullet engine
 - mujoco_trials: the same trial in MuJoCo (sim.engine: mujoco)
 - early_decision: ends a trial once energy fixes its outcome (barriers to the resting poses)

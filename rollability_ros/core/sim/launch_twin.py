@@ -100,7 +100,8 @@ from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
 from rollability_ros.core.sim.launcher_geometry import (check_launcher_geometry, derive_launcher_geometry,
                                                          robot_envelope)
 from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world, set_contact
-from rollability_ros.core.sim.trials import RestDetector, TrialSettings, check_engine, place_on_ground
+from rollability_ros.core.sim.trial_engine import LAUNCH_ENGINES, LaunchEngine, check_engine
+from rollability_ros.core.sim.trials import RestDetector, TrialSettings, place_on_ground
 from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec
 
 #: ``launch_twin.angle_convention`` values (see the module docstring).
@@ -664,38 +665,44 @@ def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, prof
     check_engine("launch", settings.physics.engine)
     condition.validate()
     settings = sized_for_robot(settings)[0]
-    options = settings.twin
     if not use_profile:
         profile = profile_body(condition.configuration, settings)
-    if settings.physics.engine == "mujoco":
-        from rollability_ros.core.sim import mujoco_launch_twin
-        return mujoco_launch_twin.simulate_launch(condition, settings, seed, profile, on_phase, on_pose)
-    pybullet = require("pybullet", feature="the launch twin")
-    speed_mps, angle_deg, push = launch_plan(condition, seed, options)
-    angle = math.radians(angle_deg)
-    model = settings.robot_model()
-    client = connect()
-    try:
-        foam_id, ledge_id, floor_id = build_launch_world(client, settings, condition.height_m)
-        orientation = pybullet.getQuaternionFromEuler([0.0, 0.0, angle])
-        robot = model.spawn(client, profile, (0.0, 0.0, 5.0), orientation)
-        set_contact(client, robot.body_id, settings.physics.body_contact())
-        _set_wheels(pybullet, client, robot, options, settings.physics.lateral_friction, mecanum_wheels(settings))
-        lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)
-        plate = PushPlate(pybullet, client, robot, push, options.plate, options.foam.thickness_m + condition.height_m,
-                          (floor_id, foam_id, ledge_id))
-        world = _BulletLaunchWorld(pybullet, client, robot, foam_id, floor_id, settings, profile)
-        tracker = LaunchTracker(world, lead_m, PhaseReporter(on_phase), push)
-        steps, settled, decision = step_launch(world, plate, tracker, settings, on_pose, speed_mps)
-        if decision is None:
-            upright, tilt = model.is_upright(client, robot, foam_id if tracker.went_over else ledge_id)
-        else:
-            upright, tilt = decision, model.tilt_deg(client, robot)
-        _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
-    finally:
-        disconnect(client)
-    return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, orientation),
-                         (speed_mps, angle_deg), seed)
+    return LAUNCH_ENGINES.get(settings.physics.engine).simulate(condition, settings, seed, profile, on_phase, on_pose)
+
+
+class BulletLaunch(LaunchEngine):
+    """``sim.engine: pybullet``: each launch in a fresh PyBullet world (:func:`simulate_launch`)."""
+
+    @classmethod
+    def simulate(cls, condition, settings, seed, profile, on_phase=None, on_pose=None):
+        """One launch of the sized twin ``settings`` carrying ``profile`` (see :func:`simulate_launch`)."""
+        options = settings.twin
+        pybullet = require("pybullet", feature="the launch twin")
+        speed_mps, angle_deg, push = launch_plan(condition, seed, options)
+        angle = math.radians(angle_deg)
+        model = settings.robot_model()
+        client = connect()
+        try:
+            foam_id, ledge_id, floor_id = build_launch_world(client, settings, condition.height_m)
+            orientation = pybullet.getQuaternionFromEuler([0.0, 0.0, angle])
+            robot = model.spawn(client, profile, (0.0, 0.0, 5.0), orientation)
+            set_contact(client, robot.body_id, settings.physics.body_contact())
+            _set_wheels(pybullet, client, robot, options, settings.physics.lateral_friction, mecanum_wheels(settings))
+            lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)
+            plate = PushPlate(pybullet, client, robot, push, options.plate, options.foam.thickness_m + condition.height_m,
+                              (floor_id, foam_id, ledge_id))
+            world = _BulletLaunchWorld(pybullet, client, robot, foam_id, floor_id, settings, profile)
+            tracker = LaunchTracker(world, lead_m, PhaseReporter(on_phase), push)
+            steps, settled, decision = step_launch(world, plate, tracker, settings, on_pose, speed_mps)
+            if decision is None:
+                upright, tilt = model.is_upright(client, robot, foam_id if tracker.went_over else ledge_id)
+            else:
+                upright, tilt = decision, model.tilt_deg(client, robot)
+            _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
+        finally:
+            disconnect(client)
+        return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, orientation),
+                             (speed_mps, angle_deg), seed)
 
 
 def launch_result(tracker, settings, run, classified, drawn, seed):

@@ -51,6 +51,7 @@ import pickle
 import numpy as np
 
 from rollability_ros.core.optional import require
+from rollability_ros.core.sim.trial_engine import LaunchEngine
 from rollability_ros.core.sim.early_decision import _hull_vertices
 from rollability_ros.core.sim.launch_twin import (LaunchTracker, LaunchWorld, PhaseReporter, check_fits_launcher,
                                                   decided_on_foam, foam_sink_m, hopeless_to_decide, launch_plan,
@@ -438,6 +439,10 @@ def twin_for(settings, profile):
     return twin
 
 
-def simulate_launch(condition, settings, seed, profile, on_phase=None, on_pose=None):
-    """One launch on the MuJoCo twin (called by :func:`~rollability_ros.core.sim.launch_twin.simulate_launch`)."""
-    return twin_for(settings, profile).launch(condition, seed, on_phase, on_pose)
+class MujocoLaunch(LaunchEngine):
+    """``sim.engine: mujoco``: launches on the kept MuJoCo twin of the robot + profile (:func:`twin_for`)."""
+
+    @classmethod
+    def simulate(cls, condition, settings, seed, profile, on_phase=None, on_pose=None):
+        """One launch (called by :func:`~rollability_ros.core.sim.launch_twin.simulate_launch`)."""
+        return twin_for(settings, profile).launch(condition, seed, on_phase, on_pose)

@@ -7,7 +7,9 @@ its :class:`TrialOutcome`, which depends only on (robot + profile, seed, setting
 (:class:`~rollability_ros.core.sim.trials.TrialWorld`, the paper's) and ``mujoco``
 (:class:`~rollability_ros.core.sim.mujoco_trials.MujocoTrialWorld`). Adding an engine is one module with a
 ``TrialEngine`` subclass plus one :func:`register_trial_engine` call or table line (test/core/test_trial_engines.py
-adds a replay engine that way). Launches run on the launch twin, whose engines are :data:`LAUNCH_ENGINES`.
+adds a replay engine that way). Launches run on the launch twin, whose engines are :data:`LAUNCH_ENGINES`
+(:class:`LaunchEngine`: ``pybullet`` -> ``launch_twin.BulletLaunch``, ``mujoco`` ->
+``mujoco_launch_twin.MujocoLaunch``).
 
 This module imports no physics library: the table names its entries as ``"module:Class"``, imported when chosen.
 """
@@ -60,8 +62,25 @@ TRIAL_ENGINES: Registry[TrialEngine] = Registry("sim.engine", TrialEngine, {
     "pybullet": "rollability_ros.core.sim.trials:TrialWorld",
     "mujoco": "rollability_ros.core.sim.mujoco_trials:MujocoTrialWorld",
 })
-#: The ``sim.engine`` values the launch twin runs in (:mod:`~rollability_ros.core.sim.launch_twin`).
-LAUNCH_ENGINES = ("pybullet", "mujoco")
+
+
+class LaunchEngine(abc.ABC):
+    """One launch of the launch twin in one engine (:func:`~rollability_ros.core.sim.launch_twin.simulate_launch`
+    checks the condition, sizes the twin and picks the profile, then hands over here)."""
+
+    @classmethod
+    @abc.abstractmethod
+    def simulate(cls, condition: typing.Any, settings: typing.Any, seed: int, profile: typing.Any,
+                 on_phase: typing.Optional[typing.Callable] = None,
+                 on_pose: typing.Optional[typing.Callable] = None) -> typing.Any:
+        """The ``LaunchResult`` of ``condition`` with ``seed`` on the twin ``settings`` carrying ``profile``."""
+
+
+#: ``sim.engine`` -> its :class:`LaunchEngine`: the engines the launch twin runs in.
+LAUNCH_ENGINES: Registry[LaunchEngine] = Registry("sim.engine", LaunchEngine, {
+    "pybullet": "rollability_ros.core.sim.launch_twin:BulletLaunch",
+    "mujoco": "rollability_ros.core.sim.mujoco_launch_twin:MujocoLaunch",
+})
 
 
 def register_trial_engine(name: str, engine: typing.Union[str, type]) -> None:
@@ -71,7 +90,7 @@ def register_trial_engine(name: str, engine: typing.Union[str, type]) -> None:
 
 def engine_names() -> typing.Tuple[str, ...]:
     """Every ``sim.engine`` value some trial kind can run in (what ``sim.engine`` accepts)."""
-    return tuple(dict.fromkeys(TRIAL_ENGINES.names() + LAUNCH_ENGINES))
+    return tuple(dict.fromkeys(TRIAL_ENGINES.names() + LAUNCH_ENGINES.names()))
 
 
 def engines_for(kind: str) -> typing.Tuple[str, ...]:
@@ -79,7 +98,7 @@ def engines_for(kind: str) -> typing.Tuple[str, ...]:
     if kind == "disturbance":
         return TRIAL_ENGINES.names()
     if kind == "launch":
-        return LAUNCH_ENGINES
+        return LAUNCH_ENGINES.names()
     raise ValueError(f"trial kind must be disturbance or launch, got {kind!r}")
 
 

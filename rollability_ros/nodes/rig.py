@@ -48,7 +48,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
 from rollability_ros.action import Launch
-from rollability_ros.core.imu.upright import ImuOutcomeConfig, imu_sample_from_message
+from rollability_ros.core.imu import ImuOutcomeConfig, imu_sample_from_message
 from rollability_ros.core.rig import (LaunchAborted, OperatorOutcome, RigPorts, RigSettings, SpeedGateConfig,
                                       ValveConfig, ValveStatus, make_launch_backend, make_speed_gate, rig_auth,
                                       valve_auth)

@@ -46,9 +46,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Header
 
-from rollability_ros.core.imu.tip_tracker import TipMonitorConfig, TipTracker, diagnostic_status
-from rollability_ros.core.imu.quaternion import normalize_quaternion, rpy_deg_from_quaternion
-from rollability_ros.core.imu.upright import imu_sample_from_message
+from rollability_ros.core.imu import (TipMonitorConfig, TipTracker, diagnostic_status, imu_sample_from_message,
+                                      normalize_quaternion, rpy_deg_from_quaternion)
 from rollability_ros.msg import TipEvent, TipState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, declare_settings,

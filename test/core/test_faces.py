@@ -1,4 +1,4 @@
-"""Package faces (issue 29): core/rig and core/campaign export their public names with ``__all__``, and nodes/ and
+"""Package faces (issue 29): core/rig, core/campaign and core/imu export their public names with ``__all__``, and nodes/ and
 cli/ import from those subpackages only through the face, never from the modules behind it."""
 import ast
 import importlib
@@ -12,7 +12,7 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "rollability_ros"
 #: subpackages with a face -> who must use it
-FACES = ("rollability_ros.core.rig", "rollability_ros.core.campaign")
+FACES = ("rollability_ros.core.rig", "rollability_ros.core.campaign", "rollability_ros.core.imu")
 CLIENTS = ("nodes", "cli")
 
 
@@ -60,7 +60,7 @@ def test_the_check_sees_a_deep_import(tmp_path):
 
 def test_the_faces_load_no_heavy_dependency():
     """The rig computer imports these faces: no numpy, physics or plotting behind them."""
-    script = ("import sys, rollability_ros.core.rig, rollability_ros.core.campaign\n"
+    script = ("import sys, rollability_ros.core.rig, rollability_ros.core.campaign, rollability_ros.core.imu\n"
               "print(' '.join(m for m in ('numpy', 'pybullet', 'mujoco', 'trimesh', 'matplotlib', 'scipy', 'ray') "
               "if m in sys.modules))")
     env = dict(os.environ, PYTHONPATH=str(ROOT), LC_ALL="C.UTF-8", PYTHONUNBUFFERED="1")

@@ -10,7 +10,7 @@ import dataclasses
 import datetime
 import os
 
-from rollability_ros.core.bags.writer import DEFAULT_CHUNK_SIZE_BYTES, DEFAULT_FLUSH_INTERVAL_S, mcap_compression
+from rollability_ros.core.bags.mcap_file import DEFAULT_CHUNK_SIZE_BYTES, DEFAULT_FLUSH_INTERVAL_S, mcap_compression
 from rollability_ros.core.bags.msg_definitions import OWN_PACKAGE
 
 #: Folder that holds recorded runs (relative to the working directory).

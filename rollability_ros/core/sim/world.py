@@ -20,8 +20,12 @@ import dataclasses
 import math
 
 from rollability_ros.core.optional import require
+from rollability_ros.core.sim.trial_engine import engine_names
 
 CONTACT_MODELS = ("per_contact", "per_body")
+#: The engine names of the tables (core/sim/trial_engine.py) when this module was imported, for code written
+#: before them; ``engine_names()`` also holds an engine registered later (``sim.engine`` validation uses it).
+ENGINES = engine_names()
 
 
 @dataclasses.dataclass
@@ -63,8 +67,6 @@ class PhysicsParams:
             raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
         if self.contact_model not in CONTACT_MODELS:
             raise ValueError(f"contact_model must be one of {', '.join(CONTACT_MODELS)}, got {self.contact_model!r}")
-        from rollability_ros.core.sim.trial_engine import engine_names
-
         if self.engine not in engine_names():
             raise ValueError(f"engine must be one of {', '.join(engine_names())}, got {self.engine!r}")
         if self.solver_iterations < 1:

@@ -4,6 +4,8 @@ The rig side (valve controller, physical rig, logger, recorder, tip monitor) run
 without pybullet, trimesh, cma, ray or matplotlib; a missing one raises an error naming the extra to install.
 """
 import importlib
+import types
+import typing
 
 #: module name -> the pip extra of rollability_ros that provides it
 EXTRA_FOR_MODULE = {
@@ -29,7 +31,7 @@ class MissingDependency(ImportError):
     """A feature needs a package that is not installed; the message names the extra that provides it."""
 
 
-def require(module_name, feature=None):
+def require(module_name: str, feature: typing.Optional[str] = None) -> types.ModuleType:
     """Import ``module_name`` or raise :class:`MissingDependency` naming the extra to install.
 
     Parameters

@@ -6,6 +6,7 @@ the same layout as a recorded one. Custom data and the ROS distro of the source 
 log (receive) time of each message survives a trip through SQLite3, which stores no publish time.
 """
 import os
+import typing
 
 from rollability_ros.core.bags.metadata import ROS_DISTRO, read_metadata, topics_from_metadata, write_metadata
 from rollability_ros.core.bags.reader import bag_file_errors
@@ -25,7 +26,7 @@ def _msg_definition(connection):
     return definition_for(connection.msgtype)
 
 
-def convert(src, dst, storage="sqlite3"):
+def convert(src: typing.Union[str, os.PathLike], dst: typing.Union[str, os.PathLike], storage: str = "sqlite3") -> typing.Any:
     """Write a copy of bag ``src`` as a new bag ``dst`` with storage ``"sqlite3"`` or ``"mcap"``.
 
     Raises

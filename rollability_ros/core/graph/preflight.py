@@ -61,7 +61,8 @@ def _declared_only(settings_cls, mapping):
     return kept
 
 
-def check_graph_parameters(param_files, node_names=None, overrides=None):
+def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing.Optional[typing.Sequence[str]] = None,
+                           overrides: typing.Optional[dict] = None) -> typing.List[str]:
     """Return every problem in the parameters the nodes ``node_names`` (default: all a study starts) would read.
 
     Parameters

@@ -5,6 +5,8 @@ every (factor, level) evaluates the bare chassis and each design on the same tri
 a design's gain is its success rate minus the bare chassis's there, with Newcombe's 95% interval. ``rollability
 sensitivity`` prints them; the report shows them when ``sensitivity.csv`` lies next to the designs.
 """
+import typing
+
 from rollability_ros.core.stats import newcombe_interval
 
 
@@ -13,7 +15,7 @@ GAIN_COLUMNS = ("factor", "level", "configuration", "successes", "trials", "base
                 "gain", "gain_low", "gain_high")
 
 
-def gain_rows(rows, baseline="baseline"):
+def gain_rows(rows: typing.Sequence[dict], baseline: str = "baseline") -> typing.List[dict]:
     """Each profile's fitness minus the bare chassis's at the same factor level (the same trials, common random
     numbers), with Newcombe's 95% interval: one row per (factor, level, profile) with :data:`GAIN_COLUMNS`. Rows
     as :func:`sensitivity_rows` returns them, or read back from its CSV (numbers as text are converted)."""
@@ -32,7 +34,7 @@ def gain_rows(rows, baseline="baseline"):
     return gains
 
 
-def gain_lines(rows, baseline="baseline"):
+def gain_lines(rows: typing.Sequence[dict], baseline: str = "baseline") -> typing.List[str]:
     """The sensitivity table as text lines: per factor level, each profile minus the bare chassis (Newcombe 95%),
     the robust row marked; empty without a bare chassis."""
     gains = gain_rows(rows, baseline)

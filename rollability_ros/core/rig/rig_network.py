@@ -6,6 +6,7 @@ arming or firing; keeping them off the rig's graph altogether is the second line
 :data:`RIG_DOMAIN_ID` with localhost-only discovery unless the environment or ``config/bringup.yaml`` says otherwise.
 """
 import re
+import typing
 
 #: One token of a ROS name: letters, digits and underscores, not starting with a digit.
 _NAME_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
@@ -16,7 +17,7 @@ RIG_DISCOVERY_RANGE = "LOCALHOST"
 DISCOVERY_RANGES = ("SUBNET", "LOCALHOST", "OFF", "SYSTEM_DEFAULT")
 
 
-def physical_rig_environment(environ, domain_id: int = RIG_DOMAIN_ID,
+def physical_rig_environment(environ: typing.Mapping[str, str], domain_id: int = RIG_DOMAIN_ID,
                              discovery_range: str = RIG_DISCOVERY_RANGE) -> dict:
     """The variables to add to ``environ`` for a physical rig: only those the operator has not set."""
     if discovery_range not in DISCOVERY_RANGES:
@@ -33,7 +34,7 @@ def physical_rig_environment(environ, domain_id: int = RIG_DOMAIN_ID,
     return added
 
 
-def exposure_warnings(environ) -> list:
+def exposure_warnings(environ: typing.Mapping[str, str]) -> list:
     """Plain-language warnings about who else on the network can discover the rig's nodes (empty: none)."""
     warnings = []
     scope = environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "")

@@ -5,11 +5,12 @@ imported here, so none of them depends on another for it).
 import math
 
 import numpy as np
+import typing
 
 from rollability_ros.core.optional import require
 
 
-def sphere_points(radius_m, sections):
+def sphere_points(radius_m: float, sections: int) -> np.ndarray:
     """About ``sections ** 2 / 2`` points on a sphere of ``radius_m`` (a Fibonacci lattice), (k, 3) m."""
     count = max(8, sections * sections // 2)
     index = np.arange(count) + 0.5
@@ -51,7 +52,7 @@ def _shape_points(pybullet, client, body_id, link, index, shape, sections):
     return local @ rotation.T + np.asarray(local_position)
 
 
-def link_points(client, body_id, sections=24):
+def link_points(client: int, body_id: int, sections: int = 24) -> typing.Tuple[dict, dict, dict]:
     """Hull points, mass and COM of every link of a spawned body as it stands now, in the world frame.
 
     Returns three dicts keyed by link index (-1 = base): points (k, 3) m whose hull is the link's collision

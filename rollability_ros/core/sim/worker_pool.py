@@ -31,7 +31,7 @@ def _worker_init(period_s):
                      daemon=True).start()
 
 
-def spawn_pool(workers, period_s=ORPHAN_CHECK_PERIOD_S):
+def spawn_pool(workers: int, period_s: float = ORPHAN_CHECK_PERIOD_S) -> concurrent.futures.ProcessPoolExecutor:
     """A ProcessPoolExecutor of ``workers`` spawned processes that ignore Ctrl-C and exit when orphaned."""
     return concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                                   initializer=_worker_init, initargs=(period_s,))

@@ -50,6 +50,9 @@ def test_miniature_main_job_end_to_end(tmp_path):
         assert expected in output
     assert "configuration  conditions ok" in output       # the summary table
     assert "gain of each chosen design over the bare robot (simulated; fresh robust launches" in output
+    # progress learnt over ROS (optimizer_progress, the logger's get_summary), never from the stores
+    assert "optimizing | generation 2/2 | best " in output and " simulated trials evaluated | " in output
+    assert "launch campaign (simulated rig) | " in output and "progress unavailable" not in output
     assert "trials upright minus the baseline's (Newcombe 95%)" in output
 
     designs = study_dir / "optimization" / "designs"

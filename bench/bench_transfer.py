@@ -9,8 +9,8 @@ it (any ``--config`` files are added, e.g. ``paper``), timed; then, from the stu
 - the launch campaign on the twin: each configuration's upright trials, and design minus baseline with Newcombe's
   95% interval (the issue's target: A at least +0.25 with the interval above 0, no design below the baseline);
 - the selection's gain over the bare robot on fresh robust twin launches (Table 3);
-- the transfer evidence of the report: screen fitness vs the launch race's first round over the raced elites
-  (Spearman rho, permutation p);
+- the transfer evidence of the report: screen fitness (the search's measure, on its engine) vs the launch race's
+  first round (PyBullet robust twin launches) over the raced elites (Spearman rho, permutation p);
 - the robust sensitivity row (``core/sim/sensitivity.py``: every disturbance trial under its own draw of all the
   unknowns; ``--sensitivity-trials`` each, seed 0): A and the bare chassis, A minus bare (Newcombe 95%);
 - the study's wall time (set-up excluded; the machine's load is printed with it).
@@ -51,6 +51,19 @@ def run_study(out, seed, configs):
     if code != 0:
         raise SystemExit(f"study {study_id} failed (exit {code}); see {out}/{study_id}.log")
     return os.path.join(out, "runs", study_id), elapsed, os.getloadavg()[0]
+
+
+def search_text(study_dir):
+    """What the study's search optimised and on which engines (from its saved parameter files)."""
+    from rollability_ros.core.config import load_parameters
+
+    files = sorted(os.path.join(study_dir, "config", name) for name in os.listdir(os.path.join(study_dir, "config")))
+    flat = load_parameters(files)
+    engine = flat.get("sim.engine", "pybullet")
+    return (f"search: objective {flat.get('objective.kind')} (robust {flat.get('objective.robust.enabled')}) on "
+            f"{flat.get('objective.screen_engine') or engine}, {flat.get('optimizer.trials')} trials x "
+            f"{flat.get('optimizer.popsize')} x {flat.get('optimizer.max_generations')} generations; race and fresh "
+            f"launches on {flat.get('objective.launch_engine') or engine}; campaign on {engine}")
 
 
 def campaign_counts(study_dir, study_id):
@@ -108,6 +121,7 @@ def main():
         base = counts["baseline"]
         print(f"\nseed {seed}: study {elapsed / 60:.1f} min wall (load average {load:.1f} at the end; 2 shared "
               f"cores), {study_dir}", flush=True)
+        print(f"  {search_text(study_dir)}")
         print(f"  campaign on the twin (simulated), upright / valid launches; design minus baseline, Newcombe 95%:")
         print(f"    baseline {base[0]}/{base[1]}")
         gains = {}
@@ -129,22 +143,28 @@ def main():
         robust_text, robust_gain, robust_low = gain_text(robust["A"], robust["baseline"]) if "A" in robust else \
             ("no design A", float("nan"), float("nan"))
         print(f"  robust sensitivity row ({args.sensitivity_trials} trials): A minus bare {robust_text}", flush=True)
-        summary.append({"seed": seed, "minutes": elapsed / 60, "a_gain": gains.get("A", (float("nan"),) * 2),
+        summary.append({"seed": seed, "minutes": elapsed / 60, "load": load,
+                        "a_gain": gains.get("A", (float("nan"),) * 2),
                         "lowest": min((g[0] for g in gains.values()), default=float("nan")),
-                        "a_counts": counts.get("A", (0, 0)), "base": base, "robust": (robust_gain, robust_low)})
+                        "a_counts": counts.get("A", (0, 0)), "base": base, "robust": (robust_gain, robust_low),
+                        "transfer": evidence or (float("nan"), float("nan"), 0)})
     print("\nover seeds (simulated; targets: A - baseline >= +0.25 with the interval above 0, no design below the "
           "baseline, robust row A above bare with the interval above 0, about 5 min):")
-    print(f"{'seed':>5} {'A - base':>9} {'low':>6} {'lowest design':>14} {'robust A-bare':>14} {'low':>6} {'min':>5}")
+    print(f"{'seed':>5} {'A - base':>9} {'low':>6} {'lowest design':>14} {'robust A-bare':>14} {'low':>6} "
+          f"{'rho':>6} {'p':>6} {'elites':>6} {'min':>5} {'load':>5}")
     for row in summary:
+        rho, p, elites = row["transfer"]
         print(f"{row['seed']:>5} {row['a_gain'][0]:>+9.2f} {row['a_gain'][1]:>+6.2f} {row['lowest']:>+14.2f} "
-              f"{row['robust'][0]:>+14.2f} {row['robust'][1]:>+6.2f} {row['minutes']:>5.1f}")
+              f"{row['robust'][0]:>+14.2f} {row['robust'][1]:>+6.2f} {rho:>+6.2f} {p:>6.3f} {elites:>6d} "
+              f"{row['minutes']:>5.1f} {row['load']:>5.1f}")
     met = sum(r["a_gain"][0] >= 0.25 and r["a_gain"][1] > 0 for r in summary)
     pooled_a = (sum(r["a_counts"][0] for r in summary), sum(r["a_counts"][1] for r in summary))
     pooled_base = (sum(r["base"][0] for r in summary), sum(r["base"][1] for r in summary))
     print(f"A's campaign target met in {met} of {len(summary)} seeds; pooled A minus baseline "
           f"{gain_text(pooled_a, pooled_base)[0]}; designs below the baseline (point estimate) in "
           f"{sum(r['lowest'] < 0 for r in summary)} seeds; robust row A above bare with interval above 0 in "
-          f"{sum(r['robust'][1] > 0 for r in summary)} seeds")
+          f"{sum(r['robust'][1] > 0 for r in summary)} seeds; at least 15 raced elites behind the transfer statistic "
+          f"in {sum(r['transfer'][2] >= 15 for r in summary)} seeds")
     return 0
 
 

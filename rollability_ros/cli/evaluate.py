@@ -40,7 +40,9 @@ def run(args):
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.profile import geometry
 
-    settings = evaluation.load_settings(["sim", "robot", "evaluator", *args.config])
+    # the objective and engine of the fidelity (objective.screen_engine / launch_engine; --engines names its own)
+    settings = evaluation.settings_at_fidelity(evaluation.load_settings(["sim", "robot", "evaluator", *args.config]),
+                                               args.fidelity)
     trials = args.trials if args.trials is not None else settings.evaluator.trials
     if args.designs is not None:
         if not args.engines:
@@ -75,7 +77,8 @@ def run(args):
     print(f"profile   {label}")
     print(f"fitness   {result.fitness:.3f}  ({result.successes}/{result.trials} upright)  "
           f"95% CI [{result.ci_low:.3f}, {result.ci_high:.3f}] (Wilson)")
-    print(f"seed      {args.seed}   steps/trial {mean_steps:.0f}   wall time {result.eval_time_s:.2f} s")
+    print(f"seed      {args.seed}   steps/trial {mean_steps:.0f}   wall time {result.eval_time_s:.2f} s   "
+          f"engine {settings.physics.engine}   fidelity {args.fidelity} (simulated)")
     return 0
 
 
@@ -178,6 +181,10 @@ def register(subparsers):
     parser.add_argument("--engines", metavar="A,B",
                         help="run the same trials in two engines (e.g. pybullet,mujoco) and print the fitness of "
                              "each and their trial-by-trial agreement")
+    parser.add_argument("--fidelity", choices=("screen", "launch"), default="screen",
+                        help="screen: the configured objective on objective.screen_engine (default); launch: robust "
+                             "twin launches on objective.launch_engine, as the selection's race (empty engine = "
+                             "sim.engine)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="extra parameter file loaded over sim, robot and evaluator (repeatable)")
     parser.set_defaults(func=run)

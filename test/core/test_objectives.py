@@ -104,3 +104,38 @@ def test_launches_run_on_the_evaluations_engine_or_are_refused(monkeypatch, tmp_
     mix = dataclasses.replace(mix, physics=dataclasses.replace(mix.physics, engine="mujoco"))
     with pytest.raises(ValueError, match=r"^sim.engine 'mujoco' cannot run launch trials"):
         evaluation.evaluate_profile(None, 2, 5, mix)
+
+
+def test_each_fidelity_runs_on_its_declared_engine_and_a_bad_one_is_refused(tmp_path, capsys):
+    """The multi-fidelity split: the optimizer's screen on objective.screen_engine, the race's launches on
+    objective.launch_engine, empty = sim.engine; nothing else changes engine."""
+    from rollability_ros.cli import main
+    from rollability_ros.core.sim.objectives import fidelity_engine
+
+    settings = settings_with(kind="launch_twin", screen_engine="mujoco", launch_engine="")
+    assert settings.physics.engine == "pybullet"
+    screen = evaluation.settings_at_fidelity(settings, "screen")
+    launch = evaluation.settings_at_fidelity(settings, "launch")
+    assert (screen.physics.engine, launch.physics.engine) == ("mujoco", "pybullet")
+    assert evaluation.settings_at_fidelity(settings, "") == screen
+    assert launch.objective.kind == "launch_twin" and launch.objective.robust.enabled
+    # the launch part of each job is the twin of that engine
+    assert evaluation.profile_job(None, screen).launch.twin.physics.engine == "mujoco"
+    assert evaluation.profile_job(None, launch).launch.twin.physics.engine == "pybullet"
+    swapped = settings_with(kind="mix", screen_engine="pybullet", launch_engine="mujoco")
+    assert evaluation.settings_at_fidelity(swapped, "launch").physics.engine == "mujoco"
+    assert evaluation.settings_at_fidelity(swapped, "screen").physics.engine == "pybullet"
+    # no engine named: the settings are returned as they are (every evaluation on sim.engine)
+    plain = settings_with()
+    assert evaluation.settings_at_fidelity(plain, "screen") is plain
+    assert fidelity_engine(plain.objective, "launch", "mujoco") == "mujoco"
+    with pytest.raises(ConfigError, match="screen_engine must be empty .* got 'bullet3'"):
+        settings_with(screen_engine="bullet3")
+    with pytest.raises(ValueError, match="unknown evaluation fidelity 'rig'"):
+        evaluation.settings_at_fidelity(settings, "rig")
+    # rollability evaluate runs the fidelity it is asked for, on that fidelity's engine, and says which
+    config = tmp_path / "split.yaml"
+    config.write_text("/**:\n  ros__parameters:\n    objective:\n      kind: disturbance\n"
+                      "      screen_engine: mujoco\n")
+    assert main(["evaluate", "--baseline", "--trials", "1", "--workers", "1", "--config", str(config)]) == 0
+    assert "engine mujoco   fidelity screen" in capsys.readouterr().out

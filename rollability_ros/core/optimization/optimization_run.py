@@ -681,11 +681,13 @@ def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.
     ``engine``, a :class:`~rollability_ros.core.sim.evaluation.TrialBatchEngine`, gets each batch of profiles'
     trials in one call instead (an engine that steps many worlds at once); the optimizer is the same.
     """
-    from rollability_ros.core.sim.evaluation import evaluate_jobs, profile_job
+    from rollability_ros.core.sim.evaluation import evaluate_jobs, profile_job, settings_at_fidelity
 
     if engine is not None:
+        screen = settings_at_fidelity(settings, "screen")   # the screen's engine (objective.screen_engine)
+
         def evaluate_engine_batch(heights_list: typing.Sequence[np.ndarray], seed: int) -> typing.List[tuple]:
-            jobs = [profile_job(heights, settings) for heights in heights_list]
+            jobs = [profile_job(heights, screen) for heights in heights_list]
             return [(r.successes, r.trials, r.eval_time_s, engine.name)
                     for r in evaluate_jobs(jobs, trials, seed, engine)]
         return evaluate_engine_batch

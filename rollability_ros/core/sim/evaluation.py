@@ -34,8 +34,8 @@ from rollability_ros.core.config import from_mapping, load_parameters, section
 from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
 from rollability_ros.core.optional import require
 from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
-from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, at_fidelity, launch_objective, \
-    run_launch_trial, run_robust_trial
+from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, at_fidelity, fidelity_engine, \
+    launch_objective, run_launch_trial, run_robust_trial
 from rollability_ros.core.sim.world import PhysicsParams, connect
 from rollability_ros.core.stats import wilson_interval
 from rollability_ros.core.sim.trial_engine import TRIAL_ENGINES, make_trial_world
@@ -136,9 +136,15 @@ def settings_from_parameters(flat):
 
 def settings_at_fidelity(settings, fidelity):
     """``settings`` with the objective of evaluation ``fidelity`` (:func:`~rollability_ros.core.sim.objectives.at_fidelity`:
-    ``screen``/empty = as configured, ``launch`` = robust twin launches); ``ValueError`` for an unknown fidelity."""
+    ``screen``/empty = as configured, ``launch`` = robust twin launches) on the fidelity's engine
+    (:func:`~rollability_ros.core.sim.objectives.fidelity_engine`: ``objective.screen_engine`` /
+    ``objective.launch_engine``, empty = ``sim.engine``); ``ValueError`` for an unknown fidelity or engine."""
     objective = at_fidelity(settings.objective, fidelity)
-    return settings if objective is settings.objective else dataclasses.replace(settings, objective=objective)
+    engine = fidelity_engine(settings.objective, fidelity, settings.physics.engine)
+    if objective is settings.objective and engine == settings.physics.engine:
+        return settings
+    return dataclasses.replace(settings, objective=objective,
+                               physics=dataclasses.replace(settings.physics, engine=engine))
 
 
 def trial_seed(base_seed, index):

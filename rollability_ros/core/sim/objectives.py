@@ -37,6 +37,12 @@ launches on the twin under the campaign's conditions (``kind: launch_twin`` with
 cheap screen trials propose and launches decide; :func:`at_fidelity` is the one place that maps a fidelity to
 an objective, so the sim_evaluator node and an in-process evaluation measure the same thing.
 
+Each fidelity may run on its own engine (``objective.screen_engine``, ``objective.launch_engine``; empty = the
+evaluation's ``sim.engine``): the quick default scores the optimizer's candidates on robust launches in MuJoCo (about
+a sixth of a PyBullet launch's cost) and lets the race and the fresh launches decide on the PyBullet twin, the
+campaign's engine. :func:`fidelity_engine` is the one place that maps a fidelity to its engine; an engine that
+cannot run the fidelity's trials is refused (:func:`~rollability_ros.core.sim.trials.check_engine`), never replaced.
+
 Trial ``i`` uses the evaluation's trial seed ``trial_seed(s, i)`` whatever its kind, so candidates evaluated with
 one base seed meet the same disturbances and the same launch scatter (common random numbers).
 """
@@ -50,6 +56,7 @@ from rollability_ros.core.campaign.plan import load_campaign_spec
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_for
 from rollability_ros.core.sim.trials import TrialOutcome, check_engine, run_trial
+from rollability_ros.core.sim.world import ENGINES
 
 #: ``objective.kind`` values.
 OBJECTIVES = ("disturbance", "launch_twin", "mix")
@@ -68,10 +75,16 @@ class ObjectiveSettings:
     campaign_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["campaign"], metadata={"description": "parameter file(s) whose campaign heights x speeds x angles are the launch conditions of launch trials"})
     twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"], metadata={"description": "the launch twin's parameter files in load order; append a calibrated file to optimize on the calibrated twin"})
     robust: RobustSettings = dataclasses.field(default_factory=RobustSettings)
+    screen_engine: str = dataclasses.field(default="", metadata={"description": "engine of screen-fidelity evaluations (the optimizer's candidates, the selection's screen): pybullet | mujoco; empty = sim.engine"})
+    launch_engine: str = dataclasses.field(default="", metadata={"description": "engine of launch-fidelity evaluations (the selection's launch race and fresh launches): pybullet | mujoco; empty = sim.engine"})
 
     def validate(self):
         """Raise ``ValueError`` naming the first unusable field."""
         self.robust.validate()
+        for name in ("screen_engine", "launch_engine"):
+            if getattr(self, name) not in ("", *ENGINES):
+                raise ValueError(f"{name} must be empty (= sim.engine) or one of {', '.join(ENGINES)}, "
+                                 f"got {getattr(self, name)!r}")
         if self.kind not in OBJECTIVES:
             raise ValueError(f"kind must be one of {', '.join(OBJECTIVES)}, got {self.kind!r}")
         if not 0 < self.launch_weight <= 1:
@@ -97,6 +110,18 @@ def at_fidelity(settings, fidelity):
         return dataclasses.replace(settings, kind="launch_twin", launch_weight=1.0,
                                    robust=dataclasses.replace(settings.robust, enabled=True))
     raise ValueError(f"unknown evaluation fidelity {fidelity!r}: use one of {', '.join(FIDELITIES)}")
+
+
+def fidelity_engine(settings, fidelity, default):
+    """The engine an evaluation at ``fidelity`` runs on: ``settings.screen_engine`` (``screen`` / empty) or
+    ``settings.launch_engine`` (``launch``), or ``default`` (the evaluation's ``sim.engine``) when that is empty;
+    ``ValueError`` for an unknown fidelity or engine."""
+    at_fidelity(settings, fidelity)   # validates the fidelity's name
+    engine = settings.launch_engine if fidelity == "launch" else settings.screen_engine
+    if engine not in ("", *ENGINES):
+        raise ValueError(f"objective.{fidelity or 'screen'}_engine must be empty (= sim.engine) or one of "
+                         f"{', '.join(ENGINES)}, got {engine!r}")
+    return engine or default
 
 
 @dataclasses.dataclass(frozen=True)

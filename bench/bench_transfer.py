@@ -13,7 +13,8 @@ it (any ``--config`` files are added, e.g. ``paper``), timed; then, from the stu
   first round (PyBullet robust twin launches) over the raced elites (Spearman rho, permutation p);
 - the robust sensitivity row (``core/sim/sensitivity.py``: every disturbance trial under its own draw of all the
   unknowns; ``--sensitivity-trials`` each, seed 0): A and the bare chassis, A minus bare (Newcombe 95%);
-- the study's wall time (set-up excluded; the machine's load is printed with it).
+- the study's wall time (set-up excluded; the machine's load is printed with it) and the CPU time of its processes
+  (divided by 2 cores: what it needs of an otherwise idle 2-core machine).
 
 Then the same over seeds: how many seeds meet each target and the pooled campaign gain of A. All numbers are
 simulated. Every study stays in ``--out/seed-<n>/`` for inspection.
@@ -34,6 +35,25 @@ from rollability_ros.core.results.stats import newcombe_interval  # noqa: E402
 from rollability_ros.core.results.store import Store  # noqa: E402
 
 
+def claim_domain():
+    """A ROS domain of its own for this bench (101..200, clear of the default 0 and of the tests' 20..100), held
+    by a lock for the life of the process: two studies in one DDS domain talk to each other's nodes (an optimizer
+    would send its goals to another study's evaluators), so benches run side by side must not share one."""
+    import fcntl
+    import tempfile
+
+    for offset in range(100):
+        domain = 101 + (os.getpid() + offset) % 100
+        handle = open(os.path.join(tempfile.gettempdir(), f"rollability-ros-domain-{domain}.lock"), "w")
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.close()
+            continue
+        return domain, handle
+    raise SystemExit("no free ROS_DOMAIN_ID in 101..200 for this bench")
+
+
 def run_study(out, seed, configs):
     """Run one study with ``optimizer.seed`` = ``seed``; return (study dir, wall time s, load average at the end)."""
     os.makedirs(out, exist_ok=True)
@@ -45,12 +65,22 @@ def run_study(out, seed, configs):
     for config in [*configs, seed_file]:
         command += ["--config", config]
     started = time.perf_counter()
+    cpu_before = _children_cpu_s()
     with open(os.path.join(out, f"{study_id}.log"), "w", encoding="utf-8") as log:
         code = subprocess.call(command, cwd=out, stdout=log, stderr=subprocess.STDOUT)
     elapsed = time.perf_counter() - started
     if code != 0:
         raise SystemExit(f"study {study_id} failed (exit {code}); see {out}/{study_id}.log")
-    return os.path.join(out, "runs", study_id), elapsed, os.getloadavg()[0]
+    return os.path.join(out, "runs", study_id), elapsed, os.getloadavg()[0], _children_cpu_s() - cpu_before
+
+
+def _children_cpu_s():
+    """CPU seconds (user + system) of this process's finished descendants: every node and worker of a study, each
+    waited for by its parent. Divided by the 2 cores it is what the study needs of an otherwise idle machine."""
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def search_text(study_dir):
@@ -113,14 +143,20 @@ def main():
     parser.add_argument("--config", action="append", default=[], help="extra study parameter file(s)")
     args = parser.parse_args()
     out = os.path.abspath(args.out)
+    domain, _lock = claim_domain()
+    os.environ["ROS_DOMAIN_ID"] = str(domain)   # the studies' nodes inherit it
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ.pop("ROS_STATIC_PEERS", None)
+    os.environ.pop("ROS_LOCALHOST_ONLY", None)
+    print(f"ROS_DOMAIN_ID {domain}, localhost discovery (this bench's studies only)", flush=True)
     summary = []
     for seed in args.seeds:
-        study_dir, elapsed, load = run_study(out, seed, args.config)
+        study_dir, elapsed, load, cpu = run_study(out, seed, args.config)
         study_id = os.path.basename(study_dir)
         counts = campaign_counts(study_dir, study_id)
         base = counts["baseline"]
         print(f"\nseed {seed}: study {elapsed / 60:.1f} min wall (load average {load:.1f} at the end; 2 shared "
-              f"cores), {study_dir}", flush=True)
+              f"cores), {cpu:.0f} s CPU of its processes (/ 2 cores = {cpu / 120:.1f} min), {study_dir}", flush=True)
         print(f"  {search_text(study_dir)}")
         print(f"  campaign on the twin (simulated), upright / valid launches; design minus baseline, Newcombe 95%:")
         print(f"    baseline {base[0]}/{base[1]}")
@@ -143,7 +179,7 @@ def main():
         robust_text, robust_gain, robust_low = gain_text(robust["A"], robust["baseline"]) if "A" in robust else \
             ("no design A", float("nan"), float("nan"))
         print(f"  robust sensitivity row ({args.sensitivity_trials} trials): A minus bare {robust_text}", flush=True)
-        summary.append({"seed": seed, "minutes": elapsed / 60, "load": load,
+        summary.append({"seed": seed, "minutes": elapsed / 60, "load": load, "cpu_minutes": cpu / 60,
                         "a_gain": gains.get("A", (float("nan"),) * 2),
                         "lowest": min((g[0] for g in gains.values()), default=float("nan")),
                         "a_counts": counts.get("A", (0, 0)), "base": base, "robust": (robust_gain, robust_low),
@@ -151,12 +187,12 @@ def main():
     print("\nover seeds (simulated; targets: A - baseline >= +0.25 with the interval above 0, no design below the "
           "baseline, robust row A above bare with the interval above 0, about 5 min):")
     print(f"{'seed':>5} {'A - base':>9} {'low':>6} {'lowest design':>14} {'robust A-bare':>14} {'low':>6} "
-          f"{'rho':>6} {'p':>6} {'elites':>6} {'min':>5} {'load':>5}")
+          f"{'rho':>6} {'p':>6} {'elites':>6} {'min':>5} {'load':>5} {'CPU min':>7}")
     for row in summary:
         rho, p, elites = row["transfer"]
         print(f"{row['seed']:>5} {row['a_gain'][0]:>+9.2f} {row['a_gain'][1]:>+6.2f} {row['lowest']:>+14.2f} "
               f"{row['robust'][0]:>+14.2f} {row['robust'][1]:>+6.2f} {rho:>+6.2f} {p:>6.3f} {elites:>6d} "
-              f"{row['minutes']:>5.1f} {row['load']:>5.1f}")
+              f"{row['minutes']:>5.1f} {row['load']:>5.1f} {row['cpu_minutes']:>7.1f}")
     met = sum(r["a_gain"][0] >= 0.25 and r["a_gain"][1] > 0 for r in summary)
     pooled_a = (sum(r["a_counts"][0] for r in summary), sum(r["a_counts"][1] for r in summary))
     pooled_base = (sum(r["base"][0] for r in summary), sum(r["base"][1] for r in summary))

@@ -24,6 +24,9 @@ from ros_fixtures import NodeProcess
 RUN = {"profile.rows": 3, "profile.cols": 3, "optimizer.popsize": 6, "optimizer.trials": 6,
        "optimizer.max_generations": 4, "optimizer.stagnation_generations": 0, "optimizer.seed": 1,
        "optimizer.initial_mean_screen": 0}
+#: The evaluators below run the objective's defaults (the paper's disturbance trial on sim.engine): so does the
+#: in-process reference (the quick default's launch objective runs through the graph in test_study.py).
+PAPER_OBJECTIVE = {"objective.kind": "disturbance", "objective.robust.enabled": False, "objective.screen_engine": ""}
 GRID = {"profile.rows": 3, "profile.cols": 3}
 OPTIMIZER_CONFIG = str(REPO_ROOT / "config" / "optimizer.yaml")
 ALL_GENERATIONS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
@@ -46,7 +49,7 @@ def reference(tmp_path_factory):
     from rollability_ros.core.results.store import Store
 
     parameters = optimization_run.load_run_parameters("optimizer")
-    parameters.update(RUN)
+    parameters.update({**RUN, **PAPER_OBJECTIVE})
     settings = evaluation.settings_from_parameters(parameters)
     executor = evaluation.make_executor(settings.evaluator, 2)
     run_dir = tmp_path_factory.mktemp("reference") / "ref"

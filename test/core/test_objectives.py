@@ -12,15 +12,24 @@ CAMPAIGN = ("/**:\n  ros__parameters:\n    campaign:\n      heights_m: [0.75]\n 
             "      angles_deg: [-30.0, 30.0]\n")
 
 
-def settings_with(**objective):
+def settings_with(quick=False, **objective):
+    """Settings of sim, robot, evaluator and optimizer.yaml: with the quick default's objective when ``quick``,
+    else the objective's defaults (the paper's disturbance trial on sim.engine), with ``objective`` on top."""
     flat = load_parameters(["sim", "robot", "evaluator", "optimizer"])
+    if not quick:
+        flat = {name: value for name, value in flat.items() if not name.startswith("objective.")}
     flat.update({f"objective.{name}": value for name, value in objective.items()})
     return evaluation.settings_from_parameters(flat)
 
 
-def test_shipped_objective_is_the_papers_disturbance_trial():
-    assert settings_with().objective == ObjectiveSettings()
-    assert launch_objective(ObjectiveSettings()) is None
+def test_the_default_objective_is_the_papers_disturbance_trial_and_the_quick_default_is_multi_fidelity():
+    assert launch_objective(ObjectiveSettings()) is None and ObjectiveSettings().kind == "disturbance"
+    # config/optimizer.yaml: the search scores robust launches on the MuJoCo twin, the race decides on sim.engine
+    quick = settings_with(quick=True)
+    assert (quick.objective.kind, quick.objective.robust.enabled, quick.objective.screen_engine,
+            quick.objective.launch_engine) == ("launch_twin", True, "mujoco", "")
+    assert evaluation.settings_at_fidelity(quick, "screen").physics.engine == "mujoco"
+    assert evaluation.settings_at_fidelity(quick, "launch").physics.engine == "pybullet"
 
 
 def test_mix_spreads_the_launch_share_evenly_and_cycles_the_conditions():

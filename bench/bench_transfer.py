@@ -30,28 +30,10 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import yaml  # noqa: E402
 
+from rollability_ros.core.graph.ros_domain import claim_domain  # noqa: E402
 from rollability_ros.core.results import design_map  # noqa: E402
 from rollability_ros.core.results.stats import newcombe_interval  # noqa: E402
 from rollability_ros.core.results.store import Store  # noqa: E402
-
-
-def claim_domain():
-    """A ROS domain of its own for this bench (101..200, clear of the default 0 and of the tests' 20..100), held
-    by a lock for the life of the process: two studies in one DDS domain talk to each other's nodes (an optimizer
-    would send its goals to another study's evaluators), so benches run side by side must not share one."""
-    import fcntl
-    import tempfile
-
-    for offset in range(100):
-        domain = 101 + (os.getpid() + offset) % 100
-        handle = open(os.path.join(tempfile.gettempdir(), f"rollability-ros-domain-{domain}.lock"), "w")
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            handle.close()
-            continue
-        return domain, handle
-    raise SystemExit("no free ROS_DOMAIN_ID in 101..200 for this bench")
 
 
 def run_study(out, seed, configs):
@@ -143,7 +125,8 @@ def main():
     parser.add_argument("--config", action="append", default=[], help="extra study parameter file(s)")
     args = parser.parse_args()
     out = os.path.abspath(args.out)
-    domain, _lock = claim_domain()
+    # studies in one DDS domain talk to each other's nodes: this bench's own domain, clear of the tests' 20..100
+    domain, _lock = claim_domain(101, 200)
     os.environ["ROS_DOMAIN_ID"] = str(domain)   # the studies' nodes inherit it
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ.pop("ROS_STATIC_PEERS", None)

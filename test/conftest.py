@@ -4,7 +4,6 @@ The domain id is taken with an exclusive lock on a file in the temp directory, s
 (two checkouts, CI beside a developer) never share a domain, and nodes started by the tests inherit it.
 """
 import atexit
-import fcntl
 import os
 import pathlib
 import shutil
@@ -12,24 +11,13 @@ import tempfile
 
 import pytest
 
+from rollability_ros.core.graph.ros_domain import claim_domain
+
 REPO_ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
-def _claim_domain():
-    start = 20 + os.getpid() % 80
-    for offset in range(81):
-        domain = 20 + (start - 20 + offset) % 81   # 20..100: clear of the default 0 and of other tools
-        handle = open(os.path.join(tempfile.gettempdir(), f"rollability-ros-domain-{domain}.lock"), "w")
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            handle.close()
-            continue
-        return domain, handle
-    raise RuntimeError("no free ROS_DOMAIN_ID in 20..100 for this test run (81 test runs at once?)")
-
-
-_DOMAIN, _DOMAIN_LOCK = _claim_domain()   # the lock is held for the life of this pytest process
+# 20..100: clear of the default 0 and of the benches (101..200); the lock is held for the life of this pytest process
+_DOMAIN, _DOMAIN_LOCK = claim_domain(20, 100, start=20 + os.getpid() % 80)
 os.environ["ROS_DOMAIN_ID"] = str(_DOMAIN)
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("ROS_STATIC_PEERS", None)

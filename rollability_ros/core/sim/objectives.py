@@ -56,7 +56,7 @@ from rollability_ros.core.campaign.plan import load_campaign_spec
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_for
 from rollability_ros.core.sim.trials import TrialOutcome, check_engine, run_trial
-from rollability_ros.core.sim.world import ENGINES
+from rollability_ros.core.sim.trial_engine import engine_names
 
 #: ``objective.kind`` values.
 OBJECTIVES = ("disturbance", "launch_twin", "mix")
@@ -82,8 +82,8 @@ class ObjectiveSettings:
         """Raise ``ValueError`` naming the first unusable field."""
         self.robust.validate()
         for name in ("screen_engine", "launch_engine"):
-            if getattr(self, name) not in ("", *ENGINES):
-                raise ValueError(f"{name} must be empty (= sim.engine) or one of {', '.join(ENGINES)}, "
+            if getattr(self, name) not in ("", *engine_names()):
+                raise ValueError(f"{name} must be empty (= sim.engine) or one of {', '.join(engine_names())}, "
                                  f"got {getattr(self, name)!r}")
         if self.kind not in OBJECTIVES:
             raise ValueError(f"kind must be one of {', '.join(OBJECTIVES)}, got {self.kind!r}")
@@ -118,9 +118,9 @@ def fidelity_engine(settings, fidelity, default):
     ``ValueError`` for an unknown fidelity or engine."""
     at_fidelity(settings, fidelity)   # validates the fidelity's name
     engine = settings.launch_engine if fidelity == "launch" else settings.screen_engine
-    if engine not in ("", *ENGINES):
+    if engine not in ("", *engine_names()):
         raise ValueError(f"objective.{fidelity or 'screen'}_engine must be empty (= sim.engine) or one of "
-                         f"{', '.join(ENGINES)}, got {engine!r}")
+                         f"{', '.join(engine_names())}, got {engine!r}")
     return engine or default
 
 

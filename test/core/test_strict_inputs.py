@@ -74,3 +74,29 @@ def test_shipped_configurations_pass_the_check():
 
     for extra in ([], ["paper"]):
         assert check_graph_parameters(parameter_files(["bringup", *extra])) == []
+
+
+@pytest.mark.parametrize("values, name", [
+    ({"objective": {"screen_engnie": "mujoco"}}, "objective.screen_engnie"),          # misspelt
+    ({"optimizer": {"race_first_trials": 10}}, "optimizer.race_first_trials"),        # a setting of an older version
+    ({"objective": {"robust": {"foam_stifness_factor_min": 0.5}}}, "objective.robust.foam_stifness_factor_min")])
+def test_a_parameter_no_node_reads_stops_the_study(tmp_path, values, name):
+    """Was: rclpy drops a parameter file's undeclared names, so a study ran on the default without a word."""
+    from rollability_ros.core.graph.study import Study
+
+    config = _bad_config(tmp_path, {"bringup": {"output_dir": str(tmp_path / "runs")}, **values})
+    study = Study(extra_configs=[config], study_id="bad", say=lambda text: None)
+    with pytest.raises(ConfigError, match=f"unknown parameter {name} "):
+        study.check_parameters()
+    assert not os.path.exists(tmp_path / "runs" / "bad")
+
+
+def test_known_parameters_in_every_namespace_pass_the_unknown_check():
+    """Every dotted name the shipped files set is a field some node reads (mapping-valued fields included)."""
+    import glob
+
+    from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.graph.preflight import unknown_parameters
+
+    for path in sorted(glob.glob(os.path.join(REPO, "config", "*.yaml"))):
+        assert unknown_parameters(load_parameters([path], node_name="/**")) == [], path

@@ -5,6 +5,11 @@ reason lands in the node's log while the rest of the graph runs on. :func:`check
 same settings dataclasses from the same parameter files, for each node name as the node would see them
 (``/**`` plus its own section), and collects every problem as ``"<node>: <prefix>.<field>: <reason>"``.
 Parameters a node declares outside these dataclasses (topic lists, run ids) are not checked here.
+
+A dotted parameter in a namespace these dataclasses read (``objective.``, ``optimizer.``, ...) that is a field of
+none of them is refused too (:func:`unknown_parameters`): no node reads it, so a misspelt key or one written for
+another version of the package would otherwise be dropped without a word (rclpy ignores a parameter file's
+undeclared names) and the graph would run on the default instead.
 """
 import dataclasses
 import typing
@@ -61,6 +66,47 @@ def _declared_only(settings_cls, mapping):
     return kept
 
 
+def _field_names(settings_cls, prefix):
+    """``(fields, leaves)``: the dotted names of every field of ``settings_cls`` under ``prefix`` (nested dataclasses
+    recursively) and of those whose values are not dataclasses (a leaf may hold a mapping, read whole)."""
+    hints = typing.get_type_hints(settings_cls)
+    fields, leaves = set(), set()
+    for field in dataclasses.fields(settings_cls):
+        name = f"{prefix}.{field.name}" if prefix else field.name
+        fields.add(name)
+        if dataclasses.is_dataclass(hints[field.name]):
+            inner_fields, inner_leaves = _field_names(hints[field.name], name)
+            fields |= inner_fields
+            leaves |= inner_leaves
+        else:
+            leaves.add(name)
+    return fields, leaves
+
+
+def unknown_parameters(flat: typing.Mapping[str, object]) -> typing.List[str]:
+    """The dotted names in ``flat`` whose namespace one of the graph's settings dataclasses reads but which no field
+    of any of them (in any node) matches, sorted; a name under a leaf field (a mapping value) is known."""
+    fields: typing.Set[str] = set()
+    leaves: typing.Set[str] = set()
+    namespaces = set()
+    for node_sections in _node_sections().values():
+        for prefix, settings_cls in node_sections.items():
+            if not prefix:
+                continue
+            namespaces.add(prefix)
+            node_fields, node_leaves = _field_names(settings_cls, prefix)
+            fields |= node_fields
+            leaves |= node_leaves
+    unknown = []
+    for name in flat:
+        if "." not in name or name.split(".", 1)[0] not in namespaces or name in fields:
+            continue
+        parts = name.split(".")
+        if not any(".".join(parts[:i]) in leaves for i in range(1, len(parts))):
+            unknown.append(name)
+    return sorted(unknown)
+
+
 def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing.Optional[typing.Sequence[str]] = None,
                            overrides: typing.Optional[dict] = None) -> typing.List[str]:
     """Return every problem in the parameters the nodes ``node_names`` (default: all a study starts) would read.
@@ -84,6 +130,8 @@ def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing
     for node in node_names or sections:
         flat = load_parameters(list(param_files), node_name=node)
         flat.update((overrides or {}).get(node, {}))
+        problems.extend(f"{node}: unknown parameter {name} (no node of the graph reads it)"
+                        for name in unknown_parameters(flat))
         for prefix, settings_cls in sections[node].items():
             try:
                 from_mapping(settings_cls, _declared_only(settings_cls, section(flat, prefix)), prefix or node)

@@ -152,16 +152,29 @@ def retried_on_stall(watchdog_ms, attempts=3):
     return decorate
 
 
+def longest_command_gap_s(relay):
+    """The longest time between two consecutive lines the board received (its own log's monotonic clock), s."""
+    stamps = [entry["monotonic_s"] for entry in relay.entries() if entry["event"] == "command"]
+    return max((later - earlier for earlier, later in zip(stamps, stamps[1:])), default=0.0)
+
+
 def fire_and_wait_on(valve, spun, relay, pulse_ms, watchdog_ms):
     """Ask for a ``pulse_ms`` pulse without waiting for the answer; return the call's future once the board
     switched the relay on. :class:`TestProcessStalled` if the whole pulse passed while this process was not
-    polling, or its heartbeats paused past 80% of ``watchdog_ms``."""
+    polling, its heartbeats paused past 80% of ``watchdog_ms``, or no line reached the board for longer than its
+    keep-alive timeout before the pulse (it then disarmed itself, as it must, before the case began)."""
     pulses_before = len(relay.relay_intervals())
     future = valve.fire_client.call_async(valve.fire_request(pulse_ms))
     if not spun.wait_for(relay.relay_on, 15):
         answer = future.result().message if spun.wait_for(future.done, 5) else "no answer"
         if len(relay.relay_intervals()) > pulses_before:
             raise TestProcessStalled(f"the whole {pulse_ms} ms pulse passed unseen (fire answered: {answer})")
+        gap_ms = longest_command_gap_s(relay) * 1000.0
+        if "keepalive" in answer and gap_ms > relay.keepalive_timeout_ms:
+            # the board disarmed itself (its safe answer) because no line reached it for longer than its keep-alive
+            # timeout before the pulse: the machine starved the valve node or the board, the case never began
+            raise TestProcessStalled(f"no command reached the board for {gap_ms:.0f} ms (keep-alive timeout "
+                                     f"{relay.keepalive_timeout_ms} ms) before the pulse; fire answered: {answer}")
         raise AssertionError(f"the relay never switched on; fire answered: {answer}; valve state: "
                              f"{valve.last() if valve.states else None}; board log: {relay.entries()[-5:]}")
     gap_ms = valve.longest_heartbeat_gap_s * 1000.0

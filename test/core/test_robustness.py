@@ -103,7 +103,7 @@ def test_an_engine_that_cannot_run_a_trial_kind_is_refused_in_one_line(monkeypat
 def test_robust_launches_reuse_one_mujoco_twin_and_match_a_fresh_build():
     """A robustness draw (contact reading, foam, centre of mass) is applied to the compiled MuJoCo twin instead of
     a new model: the same model as one compiled for the drawn settings (to the URDF's printed precision of the
-    centre of mass), and with the centre of mass kept, bit-identical launches."""
+    centre of mass), and bit-identical launches whatever was launched before."""
     pytest.importorskip("mujoco")
     import numpy as np
     from rollability_ros.core.results.records import LaunchCondition
@@ -119,15 +119,17 @@ def test_robust_launches_reuse_one_mujoco_twin_and_match_a_fresh_build():
     assert first.robot.com_offset_z_m != drawn.robot.com_offset_z_m and first.twin.foam != drawn.twin.foam
     condition = LaunchCondition("baseline", 0.75, 0.8, 0.0)
     mujoco_launch_twin._cache.clear()
-    mujoco_launch_twin.simulate_launch(condition, first, 3, None)
+    mujoco_launch_twin.MujocoLaunch.simulate(condition, first, 3, None)
     reused = mujoco_launch_twin.twin_for(drawn, None)
     assert len(mujoco_launch_twin._cache) == 1
     fresh = mujoco_launch_twin.MujocoLaunchTwin(drawn, None)
     for name in ("geom_friction", "geom_solref", "geom_solimp", "body_ipos", "body_inertia", "body_mass",
                  "dof_frictionloss", "dof_invweight0", "body_invweight0"):
         assert np.allclose(getattr(reused.model, name), getattr(fresh.model, name), rtol=1e-6, atol=1e-7), name
-    same_com = dataclasses.replace(drawn, robot=first.robot)
-    mujoco_launch_twin._cache.clear()
-    mujoco_launch_twin.simulate_launch(condition, first, 3, None)
-    assert repr(mujoco_launch_twin.simulate_launch(condition, same_com, 3, None)) == \
-        repr(mujoco_launch_twin.MujocoLaunchTwin(same_com, None).launch(condition, 3))
+    # a draw's launch never depends on the draws launched before it in the process (a resumed run launches alike)
+    for settings in (drawn, dataclasses.replace(drawn, robot=first.robot)):
+        mujoco_launch_twin._cache.clear()
+        alone = repr(mujoco_launch_twin.MujocoLaunch.simulate(condition, settings, 3, None))
+        mujoco_launch_twin._cache.clear()
+        mujoco_launch_twin.MujocoLaunch.simulate(condition, first, 5, None)
+        assert repr(mujoco_launch_twin.MujocoLaunch.simulate(condition, settings, 3, None)) == alone

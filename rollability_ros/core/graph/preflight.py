@@ -126,7 +126,7 @@ def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing
         ``"<node>: <where>: <reason>"`` lines; empty when every value is valid.
     """
     sections = _node_sections()
-    problems = []
+    problems: typing.List[str] = []
     for node in node_names or sections:
         flat = load_parameters(list(param_files), node_name=node)
         flat.update((overrides or {}).get(node, {}))

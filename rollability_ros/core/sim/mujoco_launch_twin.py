@@ -156,7 +156,17 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         self._set_contacts()
         self._plate, self._local_points = None, None
         self._previous_pose, self._rest_since = None, None
-        compliant = profile is not None and self.robot_model.profile_mount.compliant  # barriers need a rigid hull
+        self._profile = profile
+        self._build_ipos_z = float(model.body_ipos[self.root][2])   # retarget moves the COM from here, absolutely
+        self._build_com_offset_z_m = settings.robot.com_offset_z_m
+        self.energy = None
+        self.attach_energy()
+
+    def attach_energy(self):
+        """The early decision's barriers for the current settings (none when ``trial.early_decision`` is off or
+        the profile is compliant: barriers need a rigid hull); valid until a retarget changes the foam or COM."""
+        settings, options = self.settings, self.settings.twin
+        compliant = self._profile is not None and self.robot_model.profile_mount.compliant
         self.energy = MujocoEnergyMonitor(
             self, settings.trial.early_decision_margin_m, sink_m=foam_sink_m(settings, self.mass_kg),
             ground_z_m=options.foam.thickness_m) if settings.trial.early_decision and not compliant else None
@@ -213,7 +223,9 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         old = self.settings
         if not settings.urdf_robot.selected and settings.robot.com_offset_z_m != old.robot.com_offset_z_m:
             share = settings.robot.body_mass_kg / float(self.model.body_mass[self.root])
-            self.model.body_ipos[self.root][2] += (settings.robot.com_offset_z_m - old.robot.com_offset_z_m) * share
+            # from the build's value, not the last draw's: the model of a draw never depends on the draws before it
+            self.model.body_ipos[self.root][2] = self._build_ipos_z + (
+                settings.robot.com_offset_z_m - self._build_com_offset_z_m) * share
             self.mujoco.mj_setConst(self.model, self.data)   # the constants compiled from the mass properties
         self.settings, self.physics = settings, settings.physics
         self._set_contacts()
@@ -425,12 +437,26 @@ def _twin_key(settings, profile):
 
 
 def twin_for(settings, profile):
-    """The :class:`MujocoLaunchTwin` of ``settings`` and ``profile`` from this process's cache (built if new,
-    else retargeted to ``settings``: :meth:`MujocoLaunchTwin.retarget`)."""
+    """The :class:`MujocoLaunchTwin` of ``settings`` and ``profile`` from this process's cache.
+
+    The model a launch runs on depends on ``settings`` alone, never on what the process launched before (a killed
+    and resumed run, or another worker, launches alike): every twin is compiled with the chassis's centre of mass at
+    offset 0 and the early decision off, then retargeted to ``settings`` (:meth:`MujocoLaunchTwin.retarget`,
+    absolute values). With the early decision on, its barriers are built for exactly ``settings`` and the twin is
+    kept for exactly those; with it off (every robustness draw of a launch,
+    :func:`~rollability_ros.core.sim.robustness.perturb`), one twin per robot + profile + fixed settings serves
+    every draw."""
     key = _twin_key(settings, profile)
+    if settings.trial.early_decision:
+        key = "exact-" + hashlib.sha256(pickle.dumps((dataclasses.replace(
+            settings, twin=dataclasses.replace(settings.twin, designs=None)), profile), protocol=4)).hexdigest()
     twin = _cache.pop(key, None)
     if twin is None:
-        twin = MujocoLaunchTwin(settings, profile)
+        twin = MujocoLaunchTwin(dataclasses.replace(
+            settings, robot=dataclasses.replace(settings.robot, com_offset_z_m=0.0),
+            trial=dataclasses.replace(settings.trial, early_decision=False)), profile)
+        twin.retarget(settings)
+        twin.attach_energy()
     else:
         twin.retarget(settings)
     _cache[key] = twin

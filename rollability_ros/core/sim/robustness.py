@@ -102,6 +102,9 @@ def perturb(settings, drawn):
                "robot": dataclasses.replace(settings.robot, com_offset_z_m=drawn.com_offset_z_m)}
     twin = getattr(settings, "twin", None)
     if twin is not None:
+        # a launch's early decision needs barriers built for its own foam and centre of mass; a draw runs the full
+        # rule, so a kept MuJoCo twin serves every draw and a draw's launch never depends on the draws before it
+        changes["trial"] = dataclasses.replace(trial, early_decision=False)
         foam = dataclasses.replace(twin.foam, restitution=drawn.foam_restitution,
                                    contact_stiffness_npm=twin.foam.contact_stiffness_npm * drawn.foam_stiffness_factor,
                                    contact_damping_nspm=twin.foam.contact_damping_nspm * drawn.foam_stiffness_factor)

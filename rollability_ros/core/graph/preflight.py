@@ -12,6 +12,7 @@ another version of the package would otherwise be dropped without a word (rclpy 
 undeclared names) and the graph would run on the default instead.
 """
 import dataclasses
+import functools
 import typing
 
 from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
@@ -83,9 +84,9 @@ def _field_names(settings_cls, prefix):
     return fields, leaves
 
 
-def unknown_parameters(flat: typing.Mapping[str, object]) -> typing.List[str]:
-    """The dotted names in ``flat`` whose namespace one of the graph's settings dataclasses reads but which no field
-    of any of them (in any node) matches, sorted; a name under a leaf field (a mapping value) is known."""
+@functools.lru_cache(maxsize=1)
+def _known_names():
+    """``(namespaces, fields, leaves)`` of every node's settings dataclasses (:func:`_field_names`), built once."""
     fields: typing.Set[str] = set()
     leaves: typing.Set[str] = set()
     namespaces = set()
@@ -97,6 +98,13 @@ def unknown_parameters(flat: typing.Mapping[str, object]) -> typing.List[str]:
             node_fields, node_leaves = _field_names(settings_cls, prefix)
             fields |= node_fields
             leaves |= node_leaves
+    return frozenset(namespaces), frozenset(fields), frozenset(leaves)
+
+
+def unknown_parameters(flat: typing.Mapping[str, object]) -> typing.List[str]:
+    """The dotted names in ``flat`` whose namespace one of the graph's settings dataclasses reads but which no field
+    of any of them (in any node) matches, sorted; a name under a leaf field (a mapping value) is known."""
+    namespaces, fields, leaves = _known_names()
     unknown = []
     for name in flat:
         if "." not in name or name.split(".", 1)[0] not in namespaces or name in fields:

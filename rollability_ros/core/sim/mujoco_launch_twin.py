@@ -446,10 +446,9 @@ def twin_for(settings, profile):
     kept for exactly those; with it off (every robustness draw of a launch,
     :func:`~rollability_ros.core.sim.robustness.perturb`), one twin per robot + profile + fixed settings serves
     every draw."""
-    key = _twin_key(settings, profile)
-    if settings.trial.early_decision:
-        key = "exact-" + hashlib.sha256(pickle.dumps((dataclasses.replace(
-            settings, twin=dataclasses.replace(settings.twin, designs=None)), profile), protocol=4)).hexdigest()
+    key = ("exact-" + hashlib.sha256(pickle.dumps((dataclasses.replace(
+        settings, twin=dataclasses.replace(settings.twin, designs=None)), profile), protocol=4)).hexdigest()
+           if settings.trial.early_decision else _twin_key(settings, profile))
     twin = _cache.pop(key, None)
     if twin is None:
         twin = MujocoLaunchTwin(dataclasses.replace(

@@ -8,6 +8,7 @@ import dataclasses
 import faulthandler
 import math
 import os
+import re
 import signal
 import sys
 import threading
@@ -82,16 +83,43 @@ def declare_settings(node, prefix, settings_cls, descriptions=None, read_only=Fa
             continue
         default = getattr(default_obj, field.name) if default_obj is not None else None
         text = descriptions.get(field.name) or _field_description(field) or field.name.replace("_", " ")
+        value_range = field.metadata.get("range")
         try:
             node.declare_parameter(name, _ros_default(default, field_type),
-                                   parameter_descriptor(text, field.metadata.get("range"), field_type, read_only))
+                                   parameter_descriptor(text, value_range, field_type, read_only, name=name))
         except InvalidParameterValueException as exc:
-            raise ParameterError(f"{name}: {exc}") from None
+            raise ParameterError(refusal(name, exc, value_range)) from None
     return read_settings(node, prefix, settings_cls)
 
 
-def parameter_descriptor(description, value_range=None, field_type=None, read_only=False):
-    """A ParameterDescriptor with the description, an inclusive numeric range where given, and read_only."""
+def refusal(name, exc, value_range=None):
+    """One line for a value rclpy refused at declaration: the parameter, the value and the declared range.
+
+    rclpy's own text (``Invalid parameter value (-1.0) for parameter. Reason: Parameter player.rate out of range
+    Min: 0.0, Max: 1000.0, value: -1.0: player.rate``) says it twice and ends with the name again.
+    """
+    text = " ".join(str(exc).split())
+    reason = re.search(r"Reason: (.*?)(?:: " + re.escape(name) + r")?$", text)
+    value = re.search(r"value \((.*?)\) for parameter", text)
+    if value_range is not None and reason is not None and "out of range" in reason.group(1):
+        shown = value.group(1) if value else "the value"
+        return f"{name} out of range: {shown} is not in [{value_range[0]}, {value_range[1]}]"
+    return f"{name}: {reason.group(1) if reason else text}"
+
+
+#: Parameter types that carry a numeric range in their descriptor (rclpy checks INTEGER and DOUBLE values only).
+NUMERIC_TYPES = (int, float)
+
+
+def parameter_descriptor(description, value_range=None, field_type=None, read_only=False, name=None):
+    """A ParameterDescriptor with the description, an inclusive numeric range, and read_only.
+
+    Every ``int`` or ``float`` parameter must give ``value_range`` ``(low, high)``: a numeric parameter declared
+    without one raises ``TypeError`` (a programming error, caught by test/test_parameter_ranges.py before any node
+    starts), so ``ros2 param describe`` shows every bound and rclpy refuses a value outside it.
+    """
+    if value_range is None and field_type in NUMERIC_TYPES:
+        raise TypeError(f"numeric parameter {name or description!r} declared without a range")
     descriptor = ParameterDescriptor(description=description, read_only=read_only)
     if value_range is not None and field_type is float:
         descriptor.floating_point_range = [FloatingPointRange(from_value=float(value_range[0]),

@@ -48,6 +48,7 @@ import threading
 import rclpy
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import Point
+from rclpy.exceptions import InvalidParameterValueException
 from rclpy.action import get_action_names_and_types
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
@@ -71,7 +72,7 @@ from rollability_ros.msg import CandidateResult, GenerationSummary, OptimizerPro
 from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg, progress_to_msg
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, ThreadSafeActionClient,
                                             declare_settings, guard_settings, parameter_descriptor, read_settings,
-                                            run_node)
+                                            refusal, run_node)
 
 #: The action type an evaluator serves (as the graph API names it).
 EVALUATOR_ACTION_TYPE = "rollability_ros/action/EvaluateProfile"
@@ -126,7 +127,11 @@ class Optimizer(Node):
                            on_change=lambda robot, prefix=prefix: self._robots.__setitem__(prefix, robot))
         for name, (default, description, *value_range) in _PARAMETERS.items():
             value_range = value_range[0] if value_range else None
-            self.declare_parameter(name, default, parameter_descriptor(description, value_range, type(default)))
+            try:
+                self.declare_parameter(name, default, parameter_descriptor(description, value_range, type(default),
+                                                                             name=name))
+            except InvalidParameterValueException as exc:
+                raise ParameterError(refusal(name, exc, value_range)) from None
         try:
             pool_settings = PoolSettings(timeout_s=self._param("evaluator_timeout_s"),
                                          max_attempts=self._param("evaluator_max_attempts"),

@@ -4,8 +4,9 @@ Subpackages by domain, bottom first: a module imports from its own subpackage an
 plus the shared modules at this level, the bottom layer that imports no subpackage: ``config`` (parameter files
 -> settings), ``optional`` (heavy dependencies named in errors), ``registry`` (the tables of swappable
 implementations), ``records`` (the plain records every layer exchanges), ``record_messages`` (their one message
-mapping), ``store`` (the durable SQLite store of those records) and ``stats`` (binomial intervals, rank
-correlation). test/core/test_layering.py checks this order (no new upward import, no new cycle).
+mapping), ``store`` (the durable SQLite store of those records), ``stats`` (binomial intervals, rank correlation)
+and ``campaign_matrix`` (a campaign's experiment matrix, which the robust objective in sim scores over too).
+test/core/test_layering.py checks this order (no new upward import, no new cycle).
 
 - profile       profile geometry, printability, configuration ids -> solids
 - robots        the built-in chassis and URDF robots the simulation spawns

@@ -52,7 +52,7 @@ import itertools
 import math
 import typing
 
-from rollability_ros.core.campaign.plan import load_campaign_spec
+from rollability_ros.core.campaign_matrix import load_campaign_spec
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_for
 from rollability_ros.core.sim.trials import TrialOutcome, check_engine, run_trial

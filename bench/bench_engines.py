@@ -35,7 +35,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from bench.bench_evaluator import dome_heights  # noqa: E402
 from rollability_ros.core.optional import require  # noqa: E402
-from rollability_ros.core.robots.urdf_robot import _obj_text, profile_inertia  # noqa: E402
+from rollability_ros.core.robots.urdf_robot import obj_text, profile_inertia  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
 from rollability_ros.core.sim.mujoco_trials import _pose_speeds  # noqa: E402
 from rollability_ros.core.sim.trials import sample_conditions  # noqa: E402
@@ -127,7 +127,7 @@ def naive_pybullet(job, seeds, hold_steps, cap_steps):
         with tempfile.TemporaryDirectory() as folder:
             _, hull = profile_inertia(job.profile)
             with open(os.path.join(folder, "p.obj"), "w", encoding="utf-8") as stream:
-                stream.write(_obj_text(hull))
+                stream.write(obj_text(hull))
             with open(os.path.join(folder, "r.urdf"), "w", encoding="utf-8") as stream:
                 stream.write(settings.robot_model().simulator_urdf(job.profile, "p.obj"))
             body = pybullet.loadURDF(os.path.join(folder, "r.urdf"), [0, 0, 0.3], physicsClientId=client)
@@ -168,7 +168,7 @@ def naive_mujoco(job, seeds, hold_steps, cap_steps):
     settings = job.settings
     _, hull = profile_inertia(job.profile)
     spec = mujoco.MjSpec.from_string(settings.robot_model().simulator_urdf(job.profile, "p.obj"),
-                                     assets={"p.obj": _obj_text(hull).encode()})
+                                     assets={"p.obj": obj_text(hull).encode()})
     spec.option.timestep = settings.physics.time_step_s
     for joint in spec.joints:  # the unpowered drives' drag (free wheels would roll a pushed robot away forever)
         joint.frictionloss = settings.robot_model().joint_drag_torque_nm()

@@ -7,8 +7,8 @@ its executables with exactly its arguments. Only :func:`describe_session` import
 import os
 import typing
 
-from rollability_ros.core.graph.bringup import load_graph_settings, parameter_files, session_nodes
-from rollability_ros.core.rig.rig_network import physical_rig_environment
+from rollability_ros.core.graph import load_graph_settings, parameter_files, session_nodes
+from rollability_ros.core.rig import physical_rig_environment
 
 
 class NodeCommand(typing.NamedTuple):

@@ -1,5 +1,5 @@
 """Static counts over rollability_ros (ast only, nothing imported): the import graph of the core and its layering,
-annotated public functions, ``__all__`` faces, ``hasattr`` / ``getattr`` probes.
+annotated public functions, ``__all__`` faces and the imports that reach past one, ``hasattr`` / ``getattr`` probes.
 
 ``python test/code_counts.py`` prints them (the numbers of issue 29's closing note); test/core/test_layering.py
 and test/core/test_mypy.py use the same functions.
@@ -49,11 +49,43 @@ def _annotation_only(tree):
     return skipped
 
 
-def imports_of(path, modules):
+def subpackages():
+    """The core's subpackages (folders with an ``__init__.py``), sorted."""
+    return sorted(p.name for p in CORE.iterdir() if (p / "__init__.py").is_file())
+
+
+def face_exports(sub):
+    """``{name: module below core}`` that the lazy face of subpackage ``sub`` re-exports: its imports under ``if
+    typing.TYPE_CHECKING:`` (core/faces.py reads the same block at run time); ``{}`` for an eager face."""
+    exports = {}
+    for node in ast.parse((CORE / sub / "__init__.py").read_text()).body:
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            for statement in node.body:
+                if isinstance(statement, ast.ImportFrom) and statement.module:
+                    module = statement.module[len("rollability_ros.core."):]
+                    for alias in statement.names:
+                        exports[alias.asname or alias.name] = (f"{module}.{alias.name}" if module == sub
+                                                               else module)
+    return exports
+
+
+def face_all(sub):
+    """The names in subpackage ``sub``'s ``__all__`` (read statically), or ``None`` when its face has none."""
+    for node in ast.parse((CORE / sub / "__init__.py").read_text()).body:
+        if isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            if any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets) and node.value is not None:
+                return list(ast.literal_eval(node.value))
+    return None
+
+
+def imports_of(path, modules, faces=None):
     """``[(target module, line)]``: the core modules ``path`` imports, at module level and inside functions
-    (imports under ``if typing.TYPE_CHECKING:``, for annotations only, are left out)."""
+    (imports under ``if typing.TYPE_CHECKING:``, for annotations only, are left out). ``faces`` (``{subpackage:
+    face_exports(subpackage)}``) resolves a name taken from a lazy face to the module behind it."""
     found = []
     prefix = "rollability_ros.core."
+    faces = faces or {}
     tree = ast.parse(path.read_text())
     skipped = _annotation_only(tree)
     for node in ast.walk(tree):
@@ -69,6 +101,9 @@ def imports_of(path, modules):
             if not target.startswith(prefix):
                 continue
             name = target[len(prefix):]
+            sub, _, attribute = name.partition(".")
+            if attribute in faces.get(sub, {}):
+                name = faces[sub][attribute]
             while name and name not in modules:   # "sim.trials.make_trial_world" -> "sim.trials"
                 name = name.rpartition(".")[0]
             if name:
@@ -96,12 +131,13 @@ def import_graph():
     an import of an alias counts as one of the module it re-exports, and aliases are not nodes)."""
     modules = core_modules()
     alias = aliases(modules)
+    faces = {sub: face_exports(sub) for sub in subpackages()}
     graph = {}
     for name, path in modules.items():
         if name in alias:
             continue
         edges = {}
-        for target, line in imports_of(path, modules):
+        for target, line in imports_of(path, modules, faces):
             target = alias.get(target, target)
             if target != name:
                 edges.setdefault(target, line)
@@ -239,6 +275,45 @@ def faces(root=PACKAGE):
     return with_all, len(paths)
 
 
+def client_of(path):
+    """Who imports, for :func:`deep_imports`: ``nodes``, ``cli``, ``core`` (a core module) or ``other``."""
+    part = path.relative_to(PACKAGE).parts[0]
+    return part if part in ("nodes", "cli", "core") else "other"
+
+
+def deep_imports(root=PACKAGE):
+    """``[(client, "file:line: what")]``: imports under ``root`` that reach past a core subpackage's face from
+    outside that subpackage: a module behind the face (``rollability_ros.core.sim.evaluation``), or a name the face's
+    ``__all__`` does not list. A subpackage's own modules import each other directly and are not counted."""
+    prefix = "rollability_ros.core."
+    subs = subpackages()
+    exported = {sub: face_all(sub) for sub in subs}
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        relative = path.relative_to(PACKAGE).parts
+        own = relative[1] if relative[0] == "core" and len(relative) > 2 else None
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                taken = [(alias.name, None) for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                taken = [(node.module, [alias.name for alias in node.names])]
+            else:
+                continue
+            for module, names in taken:
+                if not module.startswith(prefix):
+                    continue
+                parts = module[len(prefix):].split(".")
+                if parts[0] not in subs or parts[0] == own:
+                    continue
+                where = f"{path.relative_to(PACKAGE)}:{node.lineno}"
+                if len(parts) > 1:
+                    found.append((client_of(path), f"{where}: {module}"))
+                elif names is not None:
+                    found += [(client_of(path), f"{where}: {module}.{name} (not in __all__)") for name in names
+                              if name not in (exported[parts[0]] or ())]
+    return found
+
+
 def probes(root=PACKAGE):
     """``hasattr(`` and ``getattr(`` calls under ``root`` (duck-typed seams show up as these)."""
     count = 0
@@ -264,7 +339,11 @@ def main():
     print(f"subpackage pairs importing each other: {len(mutual_subpackages(graph))} {mutual_subpackages(graph)}")
     print(f"cycles inside subpackages: {len(module_cycles(graph))} {module_cycles(graph)}")
     print(f"annotated public functions: {annotated} of {total} ({100 * annotated / total:.0f}%)")
-    print(f"__all__ faces: {with_all} of {modules} modules")
+    print(f"__all__ faces: {with_all} of {modules} modules; subpackages with a face: "
+          f"{sum(face_all(sub) is not None for sub in subpackages())} of {len(subpackages())}")
+    deep = deep_imports()
+    print("imports past a subpackage's face: " + ", ".join(
+        f"{client} {sum(1 for c, _ in deep if c == client)}" for client in ("nodes", "cli", "core", "other")))
     print(f"hasattr/getattr calls: {probes()}")
     return 0
 

@@ -4,7 +4,7 @@ import sys
 
 
 def _info(args):
-    from rollability_ros.core.bags.reader import bag_info, format_bag_info
+    from rollability_ros.core.bags import bag_info, format_bag_info
 
     info = bag_info(args.bag, verify_chunks=not args.no_verify)
     print(json.dumps(info, indent=2) if args.json else format_bag_info(info))
@@ -15,9 +15,9 @@ def _info(args):
 
 
 def _recover(args):
-    from rollability_ros.core.bags.recover import recover
+    from rollability_ros.core.bags import recover
 
-    report = recover(args.bag)
+    report = recover.recover(args.bag)
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
@@ -38,9 +38,9 @@ def _recover(args):
 
 
 def _convert(args):
-    from rollability_ros.core.bags.convert import convert
+    from rollability_ros.core.bags import convert
 
-    convert(args.src, args.dst, storage=args.storage)
+    convert.convert(args.src, args.dst, storage=args.storage)
     print(f"{args.src} -> {args.dst} ({args.storage})")
     return 0
 

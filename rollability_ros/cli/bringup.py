@@ -5,10 +5,8 @@ import time
 
 
 def run(args):
-    from rollability_ros.core.graph.bringup import load_graph_settings, new_study_id, parameter_files, session_nodes
-    from rollability_ros.core.graph.supervisor import Supervisor
-    from rollability_ros.core.graph.progress import ProgressDisplay, session_progress
-    from rollability_ros.core.graph.study import PROGRESS_PERIOD_S
+    from rollability_ros.core.graph import (PROGRESS_PERIOD_S, ProgressDisplay, Supervisor, load_graph_settings,
+                                            new_study_id, parameter_files, session_nodes, session_progress)
     from rollability_ros.core.config import check_path_component
 
     param_files = parameter_files(["bringup", *args.config])

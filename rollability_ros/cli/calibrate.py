@@ -15,8 +15,7 @@ def _write_csv(path, rows):
 def _screen_rows(twin_settings, configurations, screen_settings):
     """The stable-pose screen of each configuration on ``twin_settings``' robot, the built-in chassis or a URDF
     robot (quasi-static cross-check)."""
-    from rollability_ros.core.sim.launch_twin import profile_body
-    from rollability_ros.core.sim.stable_poses import screen_robot
+    from rollability_ros.core.sim import profile_body, screen_robot
 
     robot_model = twin_settings.robot_model()
     return [{"configuration": configuration,
@@ -51,10 +50,10 @@ def run(args):
     import yaml
 
     from rollability_ros.core.campaign import calibration
-    from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
+    from rollability_ros.core.optimization import atomic_write_bytes
     from rollability_ros.core.config import check_output_dir, from_mapping, load_parameters, section
-    from rollability_ros.core.results.report import load_report_data
-    from rollability_ros.core.sim.stable_poses import ScreenSettings
+    from rollability_ros.core.results import load_report_data
+    from rollability_ros.core.sim import ScreenSettings
 
     check_output_dir(args.out, "--out", keeps=("calibrated.yaml",))   # before minutes of fitting
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.config])

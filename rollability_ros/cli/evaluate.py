@@ -84,7 +84,7 @@ def run(args):
 
 def _engine_list(text):
     """The engines of ``--engines`` (comma separated), checked against the known ones."""
-    from rollability_ros.core.sim.trial_engine import engine_names
+    from rollability_ros.core.sim import engine_names
     engines = [name.strip() for name in text.split(",") if name.strip()]
     unknown = [name for name in engines if name not in engine_names()]
     if unknown or len(engines) != 2 or engines[0] == engines[1]:
@@ -95,7 +95,7 @@ def _engine_list(text):
 def _compare_engines(args, settings, mesh, trials, label):
     """Evaluate the same trials in two engines; print fitness per engine and trial-by-trial agreement."""
     import dataclasses
-    from rollability_ros.core.results.engine_agreement import trial_agreement
+    from rollability_ros.core.results import trial_agreement
     from rollability_ros.core.sim import evaluation
 
     engines = _engine_list(args.engines)
@@ -125,7 +125,7 @@ def _compare_designs(args, settings, trials):
     summary and write it next to the designs file (``engine_agreement.csv``, read by ``rollability report``)."""
     import dataclasses
     import os
-    from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
+    from rollability_ros.core.profile import DesignSources, configuration_ids, profile_mesh_for
     from rollability_ros.core.results import engine_agreement
     from rollability_ros.core.sim import evaluation
 

@@ -102,7 +102,7 @@ def _request(args, sign=False):
 
 def default_namespace(config_files=()):
     """The namespace ``rollability bringup`` puts the graph in: ``bringup.namespace`` of the parameter files."""
-    from rollability_ros.core.graph.bringup import load_graph_settings, parameter_files
+    from rollability_ros.core.graph import load_graph_settings, parameter_files
 
     return load_graph_settings(parameter_files(["bringup", *config_files])).namespace
 

@@ -7,7 +7,7 @@ import os
 def _profiles(args):
     """``{label: mesh or None}``: the bare chassis, then every ``--mesh LABEL=FILE`` and ``--designs-file`` design."""
     from rollability_ros.core.profile import geometry
-    from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
+    from rollability_ros.core.profile import DesignSources, configuration_ids, profile_mesh_for
 
     profiles = {"baseline": None}
     for item in args.mesh:
@@ -29,8 +29,8 @@ def run(args):
     from rollability_ros.core.optional import MissingDependency
     from rollability_ros.core.results import report_figures
     from rollability_ros.core.sim import evaluation
-    from rollability_ros.core.results.sensitivity_table import gain_lines
-    from rollability_ros.core.sim.sensitivity import sensitivity_rows
+    from rollability_ros.core.results import gain_lines
+    from rollability_ros.core.sim import sensitivity_rows
 
     check_output_dir(args.out, "--out", keeps=("sensitivity.csv", "sensitivity.png"))
     settings = evaluation.load_settings(["sim", "robot", "evaluator", *args.config])

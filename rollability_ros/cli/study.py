@@ -3,8 +3,7 @@ import signal
 
 
 def run(args):
-    from rollability_ros.core.graph.progress import ProgressDisplay
-    from rollability_ros.core.graph.study import Study
+    from rollability_ros.core.graph import ProgressDisplay, Study
     from rollability_ros.nodes._graph_observer import RosGraphObserver
 
     with ProgressDisplay() as display:   # a live line on a terminal, plain lines in a pipe or log

@@ -5,7 +5,9 @@ plus the shared modules at this level, the bottom layer that imports no subpacka
 -> settings), ``optional`` (heavy dependencies named in errors), ``registry`` (the tables of swappable
 implementations), ``records`` (the plain records every layer exchanges), ``record_messages`` (their one message
 mapping), ``store`` (the durable SQLite store of those records), ``stats`` (binomial intervals, rank correlation)
-and ``campaign_matrix`` (a campaign's experiment matrix, which the robust objective in sim scores over too).
+``campaign_matrix`` (a campaign's experiment matrix, which the robust objective in sim scores over too) and
+``faces`` (the lazy subpackage faces). Code outside a subpackage imports it through its face, the ``__init__`` that
+lists its public names in ``__all__`` (test/core/test_faces.py).
 test/core/test_layering.py checks this order (no new upward import, no new cycle).
 
 - profile       profile geometry, printability, configuration ids -> solids

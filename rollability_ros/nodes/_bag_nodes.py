@@ -6,7 +6,7 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from rollability_ros.core.bags.msg_definitions import split_type_name
+from rollability_ros.core.bags import split_type_name
 from rollability_ros.nodes._support import ParameterError
 
 

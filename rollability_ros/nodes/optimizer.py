@@ -56,18 +56,13 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
 from rollability_ros.action import EvaluateProfile
-from rollability_ros.core.profile import geometry
-from rollability_ros.core.optimization import optimization_run as optimization_run
-from rollability_ros.core.optimization import selection
 from rollability_ros.core.config import ConfigError
-from rollability_ros.core.optimization.evaluator_pool import EvaluationFailed, EvaluatorPool, PoolClosed, PoolSettings
-from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid
-from rollability_ros.core.optimization.cmaes import OptimizerSettings
-from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
-from rollability_ros.core.robots.robot import ChassisSpec
-from rollability_ros.core.optimization.selection import SelectionSettings
-from rollability_ros.core.sim.stable_poses import ScreenSettings
-from rollability_ros.core.robots.urdf_robot import UrdfRobotSpec, footprint_grid, profile_mount
+from rollability_ros.core.optimization import (EvaluationFailed, EvaluatorPool, OptimizerSettings, PoolClosed,
+                                               PoolSettings, QualityDiversitySettings, SelectionSettings,
+                                               optimization_run, selection)
+from rollability_ros.core.profile import PrinterSpec, ProfileGrid, geometry
+from rollability_ros.core.robots import ChassisSpec, UrdfRobotSpec, footprint_grid, profile_mount
+from rollability_ros.core.sim import ScreenSettings
 from rollability_ros.msg import CandidateResult, GenerationSummary, OptimizerProgress
 from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg, progress_to_msg
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, ThreadSafeActionClient,
@@ -291,7 +286,7 @@ class Optimizer(Node):
 
     def _robot_settings(self, settings):
         """The evaluator settings of the profile's robot (grid, printer, robot sections) for the stable-pose screen."""
-        from rollability_ros.core.sim.evaluation import EvaluatorSettings
+        from rollability_ros.core.sim import EvaluatorSettings
 
         return EvaluatorSettings(grid=settings["profile"], printer=settings["printer"], robot=self._robots["robot"],
                                  urdf_robot=self._robots["urdf_robot"])

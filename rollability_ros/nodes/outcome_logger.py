@@ -34,7 +34,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 
-from rollability_ros.core.results.outcome_log import OutcomeLog, OutcomeLoggerSettings, StoreFailure
+from rollability_ros.core.results import OutcomeLog, OutcomeLoggerSettings, StoreFailure
 from rollability_ros.core.store import unique_key
 from rollability_ros.core.rig import rig_auth, valve_auth
 from rollability_ros.msg import (CandidateResult, ConfigurationSummary, GenerationSummary, LaunchOutcome,

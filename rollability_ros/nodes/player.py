@@ -19,12 +19,9 @@ import time
 
 from rclpy.node import Node
 
-from rollability_ros.core.bags.metadata import BagError
-from rollability_ros.core.bags.playback import CLOCK_TOPIC, CLOCK_TYPE, clock_message_cdr, playback_schedule
-from rollability_ros.core.bags.qos import subscription_qos_for
-from rollability_ros.core.bags.messages import CurrentDefinitions
-from rollability_ros.core.bags.reader import BagReader, check_readable
-from rollability_ros.core.bags.record_play import PlayerSettings, check_topic_names, parse_remaps
+from rollability_ros.core.bags import (CLOCK_TOPIC, CLOCK_TYPE, BagError, BagReader, CurrentDefinitions,
+                                       PlayerSettings, check_readable, check_topic_names, clock_message_cdr,
+                                       parse_remaps, playback_schedule, subscription_qos_for)
 from rollability_ros.nodes._bag_nodes import declare_string_list, message_class, qos_profile_from_dict
 from rollability_ros.nodes._support import ParameterError, declare_settings, run_node, wait_for_acks
 

@@ -30,10 +30,8 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 
-from rollability_ros.core.bags.qos import qos_dict_from_profile, subscription_qos_for
-from rollability_ros.core.bags.writer import BagWriter
-from rollability_ros.core.bags.record_play import (RecorderSettings, check_topic_names, default_bag_directory,
-                                              select_topics, type_hash_string)
+from rollability_ros.core.bags import (BagWriter, RecorderSettings, check_topic_names, default_bag_directory,
+                                       qos_dict_from_profile, select_topics, subscription_qos_for, type_hash_string)
 from rollability_ros.nodes._bag_nodes import declare_string_list, message_class, qos_profile_from_dict
 from rollability_ros.nodes._support import ParameterError, declare_settings, run_node
 

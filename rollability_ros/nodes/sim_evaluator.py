@@ -28,10 +28,9 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from rollability_ros.action import EvaluateProfile
-from rollability_ros.core.sim.evaluation import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
-                                             evaluate_profile, make_executor, settings_at_fidelity)
-from rollability_ros.core.sim.objectives import FIDELITIES
-from rollability_ros.core.profile.geometry import check_heights
+from rollability_ros.core.sim import (FIDELITIES, SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
+                                      evaluate_profile, make_executor, settings_at_fidelity)
+from rollability_ros.core.profile import check_heights
 from rollability_ros.msg import TrialResult
 from rollability_ros.nodes._support import LATCHED_QOS, declare_settings, guard_settings, run_node
 

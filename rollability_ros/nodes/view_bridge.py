@@ -23,10 +23,9 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from rollability_ros.core.bags.qos import qos_dict_from_profile, subscription_qos_for
-from rollability_ros.core.graph.foxglove_view import ViewServer, ViewSettings, parse_pose_frames
+from rollability_ros.core.bags import check_topic_names, qos_dict_from_profile, select_topics, subscription_qos_for
+from rollability_ros.core.graph import ViewServer, ViewSettings, parse_pose_frames
 from rollability_ros.core.optional import MissingDependency
-from rollability_ros.core.bags.record_play import check_topic_names, select_topics
 from rollability_ros.nodes._bag_nodes import message_class, qos_profile_from_dict
 from rollability_ros.nodes._support import ParameterError, declare_settings, run_node
 

@@ -43,11 +43,10 @@ import numpy as np
 
 from rollability_ros.core.results import analysis
 from rollability_ros.core.config import ConfigError, from_mapping, section
-from rollability_ros.core.sim.evaluation import trial_seed
-from rollability_ros.core.sim.launch_twin import launch_twin_settings_from_parameters, simulate_valid_launch
+from rollability_ros.core.sim import (launch_twin_settings_from_parameters, simulate_valid_launch, spawn_pool,
+                                      trial_seed)
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import INVALID_LAUNCH, LaunchCondition, LaunchOutcome
-from rollability_ros.core.sim.worker_pool import spawn_pool
 
 #: The parameter files the twin is built from, in load order (``load_launch_twin_settings``' default).
 TWIN_CONFIGS = ("sim", "robot", "launch_twin")

@@ -22,15 +22,12 @@ import typing
 
 from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, changes_between
 from rollability_ros.core.config import from_mapping, section
-from rollability_ros.core.imu.upright import ImuOutcomeConfig
-from rollability_ros.core.rig.launch_backend import LaunchAborted, RigPorts
-from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, RigSettings,
-                                                  make_launch_backend, parse_outcome_answer)
-from rollability_ros.core.rig.speed_gate import SpeedGateConfig, make_speed_gate
+from rollability_ros.core.imu import ImuOutcomeConfig
+from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, LaunchAborted, RigPorts, RigSettings,
+                                      SpeedGateConfig, ValveConfig, ValveController, make_controller,
+                                      make_launch_backend, make_speed_gate, parse_outcome_answer)
 from rollability_ros.core.records import INVALID_LAUNCH, LaunchOutcome
 from rollability_ros.core.store import Store
-from rollability_ros.core.rig.valve import ValveConfig, ValveController
-from rollability_ros.core.rig.valve_backends import make_controller
 
 
 #: A campaign session stops once at least :data:`INVALID_STOP_MIN_LAUNCHES` launches were made and more than this

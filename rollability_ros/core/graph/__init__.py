@@ -7,4 +7,31 @@
 - preflight: every node's parameters checked before a study starts any process
 - progress: the live status line of study / bringup (plain lines when not a terminal)
 - foxglove_view: the graph's topics served over the Foxglove WebSocket protocol (poses also as /tf)
+
+The face below is what code outside ``core/graph`` imports (``from rollability_ros.core.graph import Study``). It is
+lazy (``core/faces.py``): importing it loads none of the modules behind it, and a name's module is imported when the
+name is first used, so a light caller never pays for the parts of the graph it does not use.
 """
+import typing
+
+from rollability_ros.core.faces import lazy_attribute
+
+if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
+    from rollability_ros.core.graph.bringup import (GraphSettings, NodeLaunch, load_graph_settings, new_study_id,
+                                                    parameter_files, session_nodes)
+    from rollability_ros.core.graph.foxglove_view import ViewServer, ViewSettings, parse_pose_frames
+    from rollability_ros.core.graph.preflight import check_graph_parameters
+    from rollability_ros.core.graph.progress import GraphObserver, ProgressDisplay, session_progress
+    from rollability_ros.core.graph.ros_domain import claim_domain
+    from rollability_ros.core.graph.study import PROGRESS_PERIOD_S, Study
+    from rollability_ros.core.graph.supervisor import ProcessSpec, Supervisor
+
+__all__ = [
+    "PROGRESS_PERIOD_S", "GraphObserver", "GraphSettings", "NodeLaunch", "ProcessSpec", "ProgressDisplay", "Study",
+    "Supervisor", "ViewServer", "ViewSettings", "check_graph_parameters", "claim_domain", "load_graph_settings",
+    "new_study_id", "parameter_files", "parse_pose_frames", "session_nodes", "session_progress",
+]
+
+
+def __getattr__(name: str) -> typing.Any:
+    return lazy_attribute(__name__, name)

@@ -26,7 +26,7 @@ import logging
 import threading
 import time
 
-from rollability_ros.core.bags.msg_definitions import definition_for, full_type_name
+from rollability_ros.core.bags import definition_for, full_type_name
 from rollability_ros.core.optional import require
 
 _LOG = logging.getLogger(__name__)

@@ -20,22 +20,15 @@ from rollability_ros.core.config import ConfigError, from_mapping, load_paramete
 
 def _node_sections():
     """``{node name: {parameter prefix: settings dataclass}}`` of the nodes a study starts."""
-    from rollability_ros.core.bags.record_play import RecorderSettings
-    from rollability_ros.core.campaign.plan import CampaignSpec
-    from rollability_ros.core.campaign.runner import RunnerSettings
-    from rollability_ros.core.imu.upright import ImuOutcomeConfig
-    from rollability_ros.core.optimization.cmaes import OptimizerSettings
-    from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
-    from rollability_ros.core.optimization.selection import SelectionSettings
-    from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid
-    from rollability_ros.core.results.outcome_log import OutcomeLoggerSettings
-    from rollability_ros.core.rig.rig_session import RigSettings
-    from rollability_ros.core.rig.speed_gate import SpeedGateConfig
-    from rollability_ros.core.rig.valve import ValveConfig
-    from rollability_ros.core.robots.robot import ChassisSpec
-    from rollability_ros.core.robots.urdf_robot import UrdfRobotSpec
-    from rollability_ros.core.sim.evaluation import SETTINGS_SECTIONS, EvaluatorSettings
-    from rollability_ros.core.sim.stable_poses import ScreenSettings
+    from rollability_ros.core.bags import RecorderSettings
+    from rollability_ros.core.campaign import CampaignSpec, RunnerSettings
+    from rollability_ros.core.imu import ImuOutcomeConfig
+    from rollability_ros.core.optimization import OptimizerSettings, QualityDiversitySettings, SelectionSettings
+    from rollability_ros.core.profile import PrinterSpec, ProfileGrid
+    from rollability_ros.core.results import OutcomeLoggerSettings
+    from rollability_ros.core.rig import RigSettings, SpeedGateConfig, ValveConfig
+    from rollability_ros.core.robots import ChassisSpec, UrdfRobotSpec
+    from rollability_ros.core.sim import SETTINGS_SECTIONS, EvaluatorSettings, ScreenSettings
 
     hints = typing.get_type_hints(EvaluatorSettings)
     evaluator = {prefix: hints[field] for field, prefix in SETTINGS_SECTIONS.items()}

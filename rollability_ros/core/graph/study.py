@@ -138,13 +138,13 @@ class Study:
 
     def _next_bag_dir(self):
         """``bag`` for a new study; for a resumed one the next free ``bag-<n>``, after recovering open bags."""
-        from rollability_ros.core.bags.recover import is_left_open, mark_restart, recover
+        from rollability_ros.core.bags import is_left_open, mark_restart, recover
 
         existing = self.bag_dirs()
         for path in existing:
             if is_left_open(path):
                 self.say(f"  recovering {path}: its recorder was killed before closing it")
-                recover(path, allow_empty=True)   # an empty one too: the resumed study records into the next bag
+                recover.recover(path, allow_empty=True)   # an empty one too: the resumed study records into the next bag
                 mark_restart(path)   # what was sent after its last kept chunk may be missing: a reported gap
         if not existing:
             return os.path.join(self.study_dir, "bag")
@@ -299,8 +299,7 @@ class Study:
         result.report_html = built.html_path
         result.summary = built.summary
         if result.bag_dir:
-            from rollability_ros.core.bags.messages import read_records_from_bag
-            from rollability_ros.core.bags.recover import missed_windows, recording_gaps
+            from rollability_ros.core.bags import missed_windows, read_records_from_bag, recording_gaps
 
             bagged = {o.trial_id for path in self.bag_dirs() for o in read_records_from_bag(path)[0]
                       if o.run_id == self.study_id}

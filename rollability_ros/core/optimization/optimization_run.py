@@ -211,7 +211,7 @@ def check_design_space_printable(parameters: dict, grid: typing.Any) -> None:
     of ``parameters`` (namespace ``printer``; skipped when the parameters hold no printer), before a long run."""
     if not any(name.startswith("printer.") for name in parameters):
         return
-    from rollability_ros.core.profile.geometry import PrinterSpec, design_space_printability
+    from rollability_ros.core.profile import PrinterSpec, design_space_printability
 
     printer = from_mapping(PrinterSpec, section(parameters, "printer"), "printer")
     problems = design_space_printability(grid, printer)
@@ -300,7 +300,7 @@ class OptimizationRun:
         if self.settings.initial_mean_screen == 0:
             return None
         if screen_profiles is None:
-            from rollability_ros.core.sim.evaluation import settings_from_parameters
+            from rollability_ros.core.sim import settings_from_parameters
 
             screen_profiles = profile_screen(self.parameters, settings_from_parameters(self.parameters))
         means = random_initial_means(self.settings, self.grid.n_variables, self.grid.height_min, self.grid.height_max)
@@ -681,7 +681,7 @@ def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.
     ``engine``, a :class:`~rollability_ros.core.sim.evaluation.TrialBatchEngine`, gets each batch of profiles'
     trials in one call instead (an engine that steps many worlds at once); the optimizer is the same.
     """
-    from rollability_ros.core.sim.evaluation import evaluate_jobs, profile_job, settings_at_fidelity
+    from rollability_ros.core.sim import evaluate_jobs, profile_job, settings_at_fidelity
 
     if engine is not None:
         screen = settings_at_fidelity(settings, "screen")   # the screen's engine (objective.screen_engine)
@@ -705,7 +705,7 @@ def fidelity_batch_evaluator(settings: typing.Any, executor: typing.Any, fidelit
     """``evaluate(heights_list, seed, trials)`` at evaluation ``fidelity`` (``screen``: the configured objective;
     ``launch``: robust twin launches, :func:`evaluation.settings_at_fidelity`) on ``executor``; each result
     ``(successes, trials, eval_time_s, name)``. Concurrency as :func:`profile_batch_evaluator`."""
-    from rollability_ros.core.sim.evaluation import evaluate_profile, settings_at_fidelity
+    from rollability_ros.core.sim import evaluate_profile, settings_at_fidelity
 
     settings = settings_at_fidelity(settings, fidelity)
     workers = executor.workers if executor is not None else None   # None: serial, in this process

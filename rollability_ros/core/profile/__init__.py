@@ -4,4 +4,29 @@ configuration ids -> profile solids (baseline, designs, files).
 - geometry: ProfileGrid, profile_mesh, printability checks
 - descriptors: the traits maximum height (mm) and sharpness (deg) of a profile's hull
 - designs: campaign configuration id -> the solid it mounts
+
+The face below is what code outside ``core/profile`` imports (``from rollability_ros.core.profile import
+ProfileGrid``). It is lazy (``core/faces.py``): importing it loads none of the modules behind it, and a name's
+module is imported when the name is first used, so a light caller never pays for numpy and trimesh.
 """
+import typing
+
+from rollability_ros.core.faces import lazy_attribute
+
+if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
+    from rollability_ros.core.profile import descriptors, designs, geometry
+    from rollability_ros.core.profile.descriptors import ProfileDescriptors, mesh_descriptors, profile_descriptors
+    from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
+    from rollability_ros.core.profile.geometry import (PrinterSpec, ProfileGrid, check_heights,
+                                                       design_space_printability, is_baseline, load_profile_mesh,
+                                                       profile_mesh)
+
+__all__ = [
+    "DesignSources", "PrinterSpec", "ProfileDescriptors", "ProfileGrid", "check_heights", "configuration_ids",
+    "descriptors", "design_space_printability", "designs", "geometry", "is_baseline", "load_profile_mesh",
+    "mesh_descriptors", "profile_descriptors", "profile_mesh", "profile_mesh_for",
+]
+
+
+def __getattr__(name: str) -> typing.Any:
+    return lazy_attribute(__name__, name)

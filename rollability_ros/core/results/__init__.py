@@ -9,4 +9,29 @@ The records, their message mapping, the store and the statistics are the core's 
 - analysis, report, report_figures: the paper's views, figures and HTML report
 - design_map: a quality-diversity run's map (archive.csv, traits.csv) and its height / sharpness trends
 - engine_agreement: the same trials in two physics engines: trial and rank agreement, robust designs
+
+The face below is what code outside ``core/results`` imports (``from rollability_ros.core.results import
+OutcomeLog``). It is lazy (``core/faces.py``): importing it loads none of the modules behind it, and a name's module
+is imported when the name is first used, so a light caller never pays for numpy and matplotlib.
 """
+import typing
+
+from rollability_ros.core.faces import lazy_attribute
+
+if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
+    from rollability_ros.core.results import analysis, design_map, engine_agreement, report, report_figures
+    from rollability_ros.core.results.engine_agreement import trial_agreement
+    from rollability_ros.core.results.outcome_csv import OutcomeCsvError, read_outcome_csv, write_outcome_csv
+    from rollability_ros.core.results.outcome_log import OutcomeLog, OutcomeLoggerSettings, StoreFailure
+    from rollability_ros.core.results.report import load_report_data
+    from rollability_ros.core.results.sensitivity_table import gain_lines
+
+__all__ = [
+    "OutcomeCsvError", "OutcomeLog", "OutcomeLoggerSettings", "StoreFailure", "analysis", "design_map",
+    "engine_agreement", "gain_lines", "load_report_data", "read_outcome_csv", "report", "report_figures",
+    "trial_agreement", "write_outcome_csv",
+]
+
+
+def __getattr__(name: str) -> typing.Any:
+    return lazy_attribute(__name__, name)

@@ -170,7 +170,7 @@ def load_report_data(source, run_id=None):
         if kind == "csv":
             data.outcomes = read_outcome_csv(source, run_id=run_id or "csv")
         else:
-            from rollability_ros.core.bags.messages import read_records_from_bag
+            from rollability_ros.core.bags import read_records_from_bag
 
             data.outcomes, data.candidates, data.generations, data.tip_events = (
                 list(records) for records in read_records_from_bag(source))
@@ -398,7 +398,7 @@ def _design_figures(out_dir, data, draw):
              data.trait_rows, data.archive_rows)
     if data.design_meshes:
         from rollability_ros.core.optional import MissingDependency
-        from rollability_ros.core.profile.geometry import load_profile_mesh
+        from rollability_ros.core.profile import load_profile_mesh
 
         traits = {r["label"]: r for r in data.archive_rows if r["label"]}
         for label, mesh_path in data.design_meshes.items():
@@ -451,7 +451,7 @@ def selection_gain_lines(table3_rows):
     """The summary's lines on each chosen design's gain over the bare robot as the selection measured it (Table 3's
     ``gain*`` columns: fresh robust twin launches, or the fresh re-evaluation), with Newcombe's 95% interval, and
     a plain sentence when no design beats the bare robot. Empty when Table 3 has no gains."""
-    from rollability_ros.core.optimization.selection import GAIN_SOURCES
+    from rollability_ros.core.optimization import GAIN_SOURCES
 
     rows = [r for r in table3_rows if str(r.get("gain_source") or "") in GAIN_SOURCES]
     if not rows:
@@ -658,7 +658,7 @@ def _pose_windows(outcomes, bags):
     previous outcome of its run and this one (the launch's pose trace), and where they start in the bag."""
     if not bags or not outcomes:
         return {}
-    from rollability_ros.core.bags.reader import BagReader, bag_info
+    from rollability_ros.core.bags import BagReader, bag_info
 
     windows = {}
     for bag in bags:

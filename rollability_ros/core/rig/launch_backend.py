@@ -17,7 +17,7 @@ import typing
 from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 
 if typing.TYPE_CHECKING:  # annotations only: rig_session imports this module
-    from rollability_ros.core.imu.upright import ImuOutcomeConfig
+    from rollability_ros.core.imu import ImuOutcomeConfig
     from rollability_ros.core.rig.rig_session import ImuOutcome, RigSettings
     from rollability_ros.core.rig.speed_gate import SpeedGateConfig
     from rollability_ros.core.rig.valve import ValveConfig

@@ -36,7 +36,7 @@ import types
 import typing
 import zlib
 
-from rollability_ros.core.imu.upright import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
+from rollability_ros.core.imu import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
 from rollability_ros.core.registry import Registry
 from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, LaunchCondition,
                                                   LaunchOutcome)
@@ -499,7 +499,7 @@ class SimulatedLaunch(LaunchBackend):
         reason = check_goal(run_id, trial_id, condition, self.settings.configurations)
         if reason:
             return reason
-        from rollability_ros.core.profile.designs import configuration_ids
+        from rollability_ros.core.profile import configuration_ids
 
         self.load()
         try:

@@ -437,7 +437,7 @@ def profile_link_xml(mount_body, profile_in_body, mesh_filename, profile=None, j
             f'<child link="{PROFILE_LINK}"/>{origin_xml(np.array(profile_in_body))}{joint[1]}</joint>\n')
 
 
-def _obj_text(mesh):
+def obj_text(mesh):
     vertices = "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in np.asarray(mesh.vertices).tolist())
     faces = "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in np.asarray(mesh.faces).tolist())
     return vertices + faces
@@ -472,7 +472,7 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
             mesh_filename = None
             if profile is not None:
                 _, hull = profile_inertia(profile)
-                obj = _obj_text(hull)
+                obj = obj_text(hull)
                 # named by content: PyBullet may cache meshes by file name
                 mesh_filename = os.path.join(folder, f"profile_{hashlib.sha256(obj.encode()).hexdigest()[:16]}.obj")
                 with open(mesh_filename, "w", encoding="utf-8") as stream:

@@ -11,4 +11,43 @@ the launch twin.
 - worker_pool: spawned worker processes that never outlive their parent
 - stable_poses: analytic stable-pose screen
 - launch_twin: the simulated launch rig (PyBullet; sim.engine mujoco runs mujoco_launch_twin, the same rules in MuJoCo)
+
+The face below is what code outside ``core/sim`` imports (``from rollability_ros.core.sim import
+evaluate_profile``). It is lazy (``core/faces.py``): importing it loads none of the modules behind it, and a name's
+module is imported when the name is first used, so a light caller never pays for numpy, PyBullet or MuJoCo.
 """
+import typing
+
+from rollability_ros.core.faces import lazy_attribute
+
+if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
+    from rollability_ros.core.sim import evaluation, stable_poses
+    from rollability_ros.core.sim.evaluation import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
+                                                     TrialExecutor, evaluate_jobs, evaluate_mesh, evaluate_profile,
+                                                     make_executor, profile_job, settings_at_fidelity,
+                                                     settings_from_parameters, trial_seed)
+    from rollability_ros.core.sim.launch_twin import (launch_twin_settings_from_parameters, profile_body,
+                                                      simulate_launch, simulate_valid_launch)
+    from rollability_ros.core.sim.objectives import FIDELITIES, ObjectiveSettings
+    from rollability_ros.core.sim.sensitivity import sensitivity_rows
+    from rollability_ros.core.sim.stable_poses import ScreenSettings, screen_robot
+    from rollability_ros.core.sim.trial_engine import (LAUNCH_ENGINES, TRIAL_ENGINES, LaunchEngine, TrialEngine,
+                                                       TrialOutcome, engine_names, make_trial_world,
+                                                       register_trial_engine)
+    from rollability_ros.core.sim.trials import TrialSettings
+    from rollability_ros.core.sim.worker_pool import spawn_pool
+    from rollability_ros.core.sim.world import PhysicsParams
+
+__all__ = [
+    "FIDELITIES", "LAUNCH_ENGINES", "SETTINGS_SECTIONS", "TRIAL_ENGINES", "EvaluationCancelled", "EvaluatorSettings",
+    "LaunchEngine", "ObjectiveSettings", "PhysicsParams", "ScreenSettings", "TrialEngine", "TrialExecutor",
+    "TrialOutcome", "TrialSettings", "engine_names", "evaluate_jobs", "evaluate_mesh", "evaluate_profile",
+    "evaluation", "launch_twin_settings_from_parameters", "make_executor", "make_trial_world", "profile_body",
+    "profile_job", "register_trial_engine", "screen_robot", "sensitivity_rows", "settings_at_fidelity",
+    "settings_from_parameters", "simulate_launch", "simulate_valid_launch", "spawn_pool", "stable_poses",
+    "trial_seed",
+]
+
+
+def __getattr__(name: str) -> typing.Any:
+    return lazy_attribute(__name__, name)

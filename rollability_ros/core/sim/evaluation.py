@@ -31,16 +31,15 @@ import numpy as np
 import rollability_ros
 
 from rollability_ros.core.config import from_mapping, load_parameters, section
-from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
+from rollability_ros.core.profile import PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
 from rollability_ros.core.optional import require
-from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
+from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, UrdfRobotSpec, footprint_grid
 from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, at_fidelity, fidelity_engine, \
     launch_objective, run_launch_trial, run_robust_trial
 from rollability_ros.core.sim.world import PhysicsParams, connect
 from rollability_ros.core.stats import wilson_interval
 from rollability_ros.core.sim.trial_engine import TRIAL_ENGINES, make_trial_world
 from rollability_ros.core.sim.trials import TrialSettings
-from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec, footprint_grid
 from rollability_ros.core.sim.worker_pool import spawn_pool
 
 #: Largest base seed (TrialResult.seed is uint64; trial seeds are kept below 2**63 for int64 stores).

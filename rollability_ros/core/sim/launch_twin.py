@@ -93,16 +93,15 @@ import pickle
 import numpy as np
 
 from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
-from rollability_ros.core.profile.designs import DesignSources, profile_mesh_for
+from rollability_ros.core.profile import DesignSources, profile_mesh_for
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import NO_SEED, NOT_MEASURED
-from rollability_ros.core.robots.robot import ChassisSpec, ProfileBody
+from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, UrdfRobotSpec
 from rollability_ros.core.sim.launcher_geometry import (check_launcher_geometry, derive_launcher_geometry,
                                                          robot_envelope)
 from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world, set_contact
 from rollability_ros.core.sim.trial_engine import LAUNCH_ENGINES, LaunchEngine, check_engine
 from rollability_ros.core.sim.trials import RestDetector, TrialSettings, place_on_ground
-from rollability_ros.core.robots.urdf_robot import RobotChoice, UrdfRobotSpec
 
 #: ``launch_twin.angle_convention`` values (see the module docstring).
 ANGLE_CONVENTIONS = ("yaw_of_push", "chassis_yaw")

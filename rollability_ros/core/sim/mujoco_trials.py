@@ -61,10 +61,10 @@ def robot_spec(robot_model, profile, physics):
     assets = {}
     mesh_file = None
     if profile is not None:
-        from rollability_ros.core.robots.urdf_robot import _obj_text, profile_inertia
+        from rollability_ros.core.robots import obj_text, profile_inertia
         _, hull = profile_inertia(profile)
         mesh_file = "profile.obj"
-        assets[mesh_file] = _obj_text(hull).encode()
+        assets[mesh_file] = obj_text(hull).encode()
     spec = mujoco.MjSpec.from_string(robot_model.simulator_urdf(profile, mesh_file), assets=assets)
     spec.option.timestep = physics.time_step_s
     spec.option.gravity = [0.0, 0.0, physics.gravity_mps2]

@@ -201,8 +201,8 @@ def test_the_documented_calibrate_reoptimize_validate_sequence_runs_on_a_synthet
     outcomes = synthetic_outcomes(twin_parameters(), list(truth), list(truth.values()), conditions, 6)
     write_outcome_csv(tmp_path / "campaign.csv", outcomes)
     (tmp_path / "small.yaml").write_text(yaml.safe_dump({"/**": {"ros__parameters": {"calibration": {
-        "parameters": list(truth), "lower": [0.2], "upper": [3.0], "log_scale": [True], "sim_repetitions": 4,
-        "popsize": 4, "max_generations": 2, "interval_points": 5}}}}), encoding="utf-8")
+        "parameters": list(truth), "lower": [0.2], "upper": [3.0], "log_scale": [True], "sim_repetitions": 2,
+        "popsize": 2, "max_generations": 1, "interval_points": 5}}}}), encoding="utf-8")
     assert main(["calibrate", "--physical", "campaign.csv", "--config", "small.yaml", "--out", "calibration",
                  "--workers", "1"]) == 0
     fitted = load_launch_twin_settings([*calibration.TWIN_CONFIGS, "calibration/calibrated.yaml"])
@@ -211,7 +211,7 @@ def test_the_documented_calibrate_reoptimize_validate_sequence_runs_on_a_synthet
     (tmp_path / "launch_objective.yaml").write_text(yaml.safe_dump({"/**": {"ros__parameters": {
         "objective": {"kind": "launch_twin",
                       "twin_config": ["sim", "robot", "launch_twin", "calibration/calibrated.yaml"]},
-        "optimizer": {"method": "cmaes", "trials": 4, "popsize": 4, "max_generations": 2,
+        "optimizer": {"method": "cmaes", "trials": 4, "popsize": 4, "max_generations": 1,
                       "initial_mean_screen": 0},
         "evaluator": {"workers": 1}, "profile": {"rows": 2, "cols": 2}}}}), encoding="utf-8")
     assert main(["optimize", "--config", "optimizer", "--config", "launch_objective.yaml"]) == 0

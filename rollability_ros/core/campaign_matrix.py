@@ -48,7 +48,7 @@ class CampaignSpec:
     random_seed: int = dataclasses.field(default=0, metadata={
         "description": "seed of the trial-order shuffle (integer, >= 0)", "range": (0, 2147483647)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable setting."""
         check_path_component(self.run_id, "campaign.run_id")   # a store key that also names study folders
         for name in ("configurations", "heights_m", "speeds_mps", "angles_deg"):
@@ -69,12 +69,12 @@ class CampaignSpec:
             LaunchCondition(self.configurations[0], height, speed, angle).validate()
 
     @property
-    def trial_count(self):
+    def trial_count(self) -> int:
         """Number of trials in the matrix."""
         return (len(self.configurations) * len(self.heights_m) * len(self.speeds_mps) * len(self.angles_deg)
                 * self.repetitions)
 
 
-def load_campaign_spec(paths=("campaign",), node_name="/**"):
+def load_campaign_spec(paths: typing.Sequence[str] = ("campaign",), node_name: str = "/**") -> CampaignSpec:
     """Read :class:`CampaignSpec` from parameter files (bare names are shipped ``config/`` files)."""
     return from_mapping(CampaignSpec, section(load_parameters(paths, node_name), "campaign"), "campaign")

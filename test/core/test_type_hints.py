@@ -11,7 +11,9 @@ MODULES = ["imu/quaternion.py", "imu/upright.py", "records.py", "record_messages
            "bags/messages.py", "graph/bringup.py",
            "bags/convert.py", "graph/preflight.py", "optional.py", "registry.py", "results/sensitivity_table.py",
            "rig/relay_protocol.py", "rig/rig_network.py", "rig/valve_auth.py", "rig/valve_backend.py",
-           "sim/body_points.py", "sim/trial_engine.py", "sim/worker_pool.py"]
+           "sim/body_points.py", "sim/trial_engine.py", "sim/worker_pool.py",
+           "campaign_matrix.py", "faces.py", "profile/descriptors.py", "profile/designs.py", "profile/geometry.py",
+           "robots/robot.py", "robots/urdf_description.py", "robots/urdf_robot.py"]
 
 
 def unannotated(path):

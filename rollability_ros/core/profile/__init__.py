@@ -17,12 +17,12 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
     from rollability_ros.core.profile import descriptors, designs, geometry
     from rollability_ros.core.profile.descriptors import ProfileDescriptors, mesh_descriptors, profile_descriptors
     from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
-    from rollability_ros.core.profile.geometry import (PrinterSpec, ProfileGrid, check_heights,
+    from rollability_ros.core.profile.geometry import (Mesh, PrinterSpec, ProfileGrid, check_heights,
                                                        design_space_printability, is_baseline, load_profile_mesh,
                                                        profile_mesh)
 
 __all__ = [
-    "DesignSources", "PrinterSpec", "ProfileDescriptors", "ProfileGrid", "check_heights", "configuration_ids",
+    "DesignSources", "Mesh", "PrinterSpec", "ProfileDescriptors", "ProfileGrid", "check_heights", "configuration_ids",
     "descriptors", "design_space_printability", "designs", "geometry", "is_baseline", "load_profile_mesh",
     "mesh_descriptors", "profile_descriptors", "profile_mesh", "profile_mesh_for",
 ]

@@ -15,8 +15,10 @@ candidate without a simulation; they are the behaviour descriptors of the qualit
 (``core/optimization/quality_diversity.py``) and the axes of the report's map.
 """
 import dataclasses
+import typing
 
 import numpy as np
+import numpy.typing as npt
 
 from rollability_ros.core.profile import geometry
 
@@ -34,12 +36,12 @@ class ProfileDescriptors:
     max_height_mm: float
     sharpness_deg: float
 
-    def as_tuple(self):
+    def as_tuple(self) -> typing.Tuple[float, float]:
         """``(max_height_mm, sharpness_deg)``, the archive's measure order."""
         return (self.max_height_mm, self.sharpness_deg)
 
 
-def mesh_descriptors(mesh) -> ProfileDescriptors:
+def mesh_descriptors(mesh: typing.Optional[geometry.Mesh]) -> ProfileDescriptors:
     """Measure a profile solid (``trimesh.Trimesh`` in metres, base on z = 0; None = the baseline)."""
     if mesh is None:
         return ProfileDescriptors(0.0, 0.0)
@@ -55,7 +57,7 @@ def mesh_descriptors(mesh) -> ProfileDescriptors:
     return ProfileDescriptors(max_height_mm=float(mesh.bounds[1][2]) * 1000.0, sharpness_deg=sharpness)
 
 
-def profile_descriptors(heights, grid) -> ProfileDescriptors:
+def profile_descriptors(heights: npt.ArrayLike, grid: geometry.ProfileGrid) -> ProfileDescriptors:
     """Measure the profile of half-grid ``heights`` (simulation units) on ``grid``; a profile too flat to be a solid
     (within ``grid.flat_tolerance``) counts as the baseline."""
     try:
@@ -65,6 +67,6 @@ def profile_descriptors(heights, grid) -> ProfileDescriptors:
         return ProfileDescriptors(0.0, 0.0)
 
 
-def height_bound_mm(grid) -> float:
+def height_bound_mm(grid: geometry.ProfileGrid) -> float:
     """The tallest profile the grid allows, mm: the height descriptor's upper end."""
     return grid.height_max * grid.unit_m * 1000.0

@@ -37,7 +37,7 @@ class DesignSources:
     mesh_labels: typing.List[str] = dataclasses.field(default_factory=list)
     mesh_files: typing.List[str] = dataclasses.field(default_factory=list)
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if len(self.mesh_labels) != len(self.mesh_files):
             raise ValueError(f"mesh_labels ({len(self.mesh_labels)}) and mesh_files ({len(self.mesh_files)}) "
@@ -51,7 +51,7 @@ class DesignSources:
         if repeated:
             raise ValueError(f"mesh_labels repeats {', '.join(repeated)}")
 
-    def meshes(self):
+    def meshes(self) -> typing.Dict[str, str]:
         """``{label: mesh file}``; a pair of empty strings is a placeholder (a ROS 2 parameter list cannot be
         empty) and is skipped."""
         return {label: path for label, path in zip(self.mesh_labels, self.mesh_files) if label}
@@ -99,7 +99,7 @@ def _file_mesh(version):
     return geometry.load_profile_mesh(version[0])
 
 
-def configuration_ids(sources):
+def configuration_ids(sources: DesignSources) -> typing.List[str]:
     """All ids ``sources`` defines: ``baseline``, the designs file's labels, then the mesh labels.
 
     Raises ``ValueError`` (:class:`ConfigError` for a bad designs file) when a label is defined twice.
@@ -112,7 +112,7 @@ def configuration_ids(sources):
     return [BASELINE, *design_labels, *mesh_labels]
 
 
-def profile_mesh_for(configuration, sources):
+def profile_mesh_for(configuration: str, sources: DesignSources) -> typing.Optional[geometry.Mesh]:
     """The profile solid (watertight trimesh, metres, profile frame) of ``configuration``; None for the baseline.
 
     Raises ``ValueError`` naming the known ids for an unknown one, ``FileNotFoundError`` for a missing file and

@@ -23,14 +23,20 @@ inside the functions that need it.
 """
 import dataclasses
 import os
+import typing
 
 import numpy as np
+import numpy.typing as npt
 
 from rollability_ros.core.optional import require
 
 #: Top vertices lower than this (m) lie on the base plane in the mesh: far below print and simulation resolution,
 #: far above trimesh's vertex-merge tolerance (1e-8 m).
 BASE_SNAP_M = 1e-6
+
+#: A ``trimesh.Trimesh`` in metres. trimesh is imported where used (and ships no type information), so annotations
+#: name it by this alias.
+Mesh = typing.Any
 
 
 @dataclasses.dataclass
@@ -63,11 +69,11 @@ class ProfileGrid:
                        "simulation units", "range": (0.0, 100.0)})
 
     @property
-    def n_variables(self):
+    def n_variables(self) -> int:
         """Number of design variables (half-grid vertices)."""
         return self.rows * self.cols
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if self.rows < 2 or self.cols < 1:
             raise ValueError(f"need rows >= 2 and cols >= 1, got rows={self.rows}, cols={self.cols}")
@@ -117,7 +123,7 @@ class PrinterSpec:
         "description": "steepest downward face printable without support, measured from vertical, deg",
         "range": (0.0, 90.0)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         for name in ("bed_x_m", "bed_y_m", "bed_z_m", "nozzle_m", "min_wall_m"):
             if not getattr(self, name) > 0:
@@ -139,13 +145,13 @@ class PrintabilityReport:
     """
 
     printable: bool
-    problems: list
+    problems: typing.List[str]
     extents_m: np.ndarray
     min_wall_m: float
     max_overhang_deg: float
 
 
-def check_heights(heights, grid):
+def check_heights(heights: npt.ArrayLike, grid: ProfileGrid) -> np.ndarray:
     """Return ``heights`` as a ``(grid.n_variables,)`` float64 array, or raise ``ValueError`` naming the problem.
 
     Checks, in order: one-dimensional, length ``rows * cols``, finite (NaN / inf named with their indices),
@@ -168,7 +174,7 @@ def check_heights(heights, grid):
     return array
 
 
-def is_baseline(heights, tolerance=0.0):
+def is_baseline(heights: typing.Optional[npt.ArrayLike], tolerance: float = 0.0) -> bool:
     """True for the "no profile" configuration: ``None``, empty, or every height ``<= tolerance`` (sim units)."""
     if heights is None:
         return True
@@ -176,7 +182,7 @@ def is_baseline(heights, tolerance=0.0):
     return array.size == 0 or bool(np.all(array <= tolerance))
 
 
-def grid_xy(grid):
+def grid_xy(grid: ProfileGrid) -> np.ndarray:
     """Return the half-grid vertex positions ``(rows*cols, 2)`` in metres (x, y > 0), row-major."""
     xs = np.linspace(-grid.length_m / 2, grid.length_m / 2, grid.rows)
     ys = np.linspace(-grid.width_m / 2, grid.width_m / 2, 2 * grid.cols)[grid.cols:]
@@ -184,7 +190,7 @@ def grid_xy(grid):
     return np.column_stack([xx.ravel(), yy.ravel()])
 
 
-def profile_vertices(heights, grid):
+def profile_vertices(heights: npt.ArrayLike, grid: ProfileGrid) -> np.ndarray:
     """Return the mirrored top-surface vertices ``(2*rows*cols, 3)`` in metres, profile frame.
 
     The first ``rows*cols`` rows are the half grid (y > 0) in design-variable order, the next ``rows*cols``
@@ -196,13 +202,13 @@ def profile_vertices(heights, grid):
     return np.vstack([half, mirror])
 
 
-def profile_mesh(heights, grid):
+def profile_mesh(heights: typing.Optional[npt.ArrayLike], grid: ProfileGrid) -> typing.Optional[Mesh]:
     """Return the profile solid as a watertight convex-hull ``trimesh.Trimesh`` (metres), or None for the baseline.
 
     The hull spans the top vertices and the footprint corners at z = 0. Raises ``ValueError`` for invalid
     heights and for a profile so flat (tallest vertex within ``grid.flat_tolerance``) that it has no volume.
     """
-    if is_baseline(heights):
+    if heights is None or is_baseline(heights):
         return None
     top = profile_vertices(heights, grid)
     if top[:, 2].max() <= grid.flat_tolerance * grid.unit_m:
@@ -223,12 +229,12 @@ def _hull(points):
     return mesh
 
 
-def profile_metrics(heights, grid):
+def profile_metrics(heights: typing.Optional[npt.ArrayLike], grid: ProfileGrid) -> ProfileMetrics:
     """Measure the profile of ``heights``: see :class:`ProfileMetrics` (zeros for the baseline)."""
     return mesh_metrics(profile_mesh(heights, grid))
 
 
-def mesh_metrics(mesh):
+def mesh_metrics(mesh: typing.Optional[Mesh]) -> ProfileMetrics:
     """Measure a profile solid in the profile frame: see :class:`ProfileMetrics`; None -> all zeros."""
     if mesh is None:
         return ProfileMetrics(0.0, 0.0, 0.0, 0.0, np.zeros(3))
@@ -237,7 +243,7 @@ def mesh_metrics(mesh):
                           volume_m3=float(mesh.volume), com_shift_m=np.asarray(mesh.center_mass, dtype=np.float64))
 
 
-def design_space_printability(grid, printer):
+def design_space_printability(grid: ProfileGrid, printer: PrinterSpec) -> typing.List[str]:
     """Problems that make every profile of ``grid`` unprintable on ``printer``, found before optimizing; [] if none.
 
     Every profile covers the whole ``length_m`` x ``width_m`` footprint (metres), so a footprint larger than the
@@ -246,7 +252,7 @@ def design_space_printability(grid, printer):
     configuration key to change.
     """
     printer.validate()
-    problems = []
+    problems: typing.List[str] = []
     length, width = grid.length_m, grid.width_m
     if not ((length <= printer.bed_x_m and width <= printer.bed_y_m)
             or (width <= printer.bed_x_m and length <= printer.bed_y_m)):
@@ -264,7 +270,7 @@ def design_space_printability(grid, printer):
     return problems
 
 
-def check_printability(mesh, printer):
+def check_printability(mesh: Mesh, printer: PrinterSpec) -> PrintabilityReport:
     """Check that ``mesh`` (metres, printed base-down on its z-min face) fits ``printer`` (a :class:`PrinterSpec`).
 
     Returns a :class:`PrintabilityReport`; ``problems`` names each failed check with its measured value.
@@ -272,7 +278,7 @@ def check_printability(mesh, printer):
     """
     vertices = np.asarray(mesh.vertices)
     extents = vertices.max(axis=0) - vertices.min(axis=0)
-    problems = []
+    problems: typing.List[str] = []
     fits_flat = extents[0] <= printer.bed_x_m and extents[1] <= printer.bed_y_m
     fits_turned = extents[1] <= printer.bed_x_m and extents[0] <= printer.bed_y_m
     if not (fits_flat or fits_turned):
@@ -322,13 +328,13 @@ def _check_units(units):
     return units
 
 
-def stl_header(units):
+def stl_header(units: str) -> bytes:
     """The 80-byte binary STL header naming ``units`` ('mm' or 'm'); it never starts with ``solid`` (ASCII STL)."""
     text = STL_HEADER_PREFIX + _check_units(units).encode("ascii") + b"; frame: base on z=0, x length, y width"
     return text[:80].ljust(80, b" ")
 
 
-def export_mesh(mesh, path, units="mm"):
+def export_mesh(mesh: Mesh, path: typing.Union[str, os.PathLike], units: str = "mm") -> None:
     """Write ``mesh`` (metres) to ``path`` in ``units`` ('mm', the slicers' convention, or 'm').
 
     Format by extension: binary STL (units in its 80-byte header, see :func:`stl_header`), OBJ (units in a
@@ -352,7 +358,7 @@ def export_mesh(mesh, path, units="mm"):
     os.replace(temporary, path)
 
 
-def mesh_file_units(path):
+def mesh_file_units(path: typing.Union[str, os.PathLike]) -> typing.Optional[str]:
     """The units a mesh file declares: 'mm' or 'm' from our STL header or OBJ comment, 'mm' for 3MF, else None."""
     file_type = _mesh_format(path)
     if file_type == "3mf":
@@ -368,7 +374,8 @@ def mesh_file_units(path):
     return None
 
 
-def load_profile_mesh(path, max_size_m=1.0, base_tolerance_m=0.001, units=None):
+def load_profile_mesh(path: typing.Union[str, os.PathLike], max_size_m: float = 1.0, base_tolerance_m: float = 0.001,
+                      units: typing.Optional[str] = None) -> Mesh:
     """Load a profile solid from STL/OBJ/3MF into metres, profile frame (base on z = 0).
 
     ``units`` ('mm' or 'm') is the file's length unit; None takes the one the file declares (our STL header,
@@ -409,7 +416,7 @@ def load_profile_mesh(path, max_size_m=1.0, base_tolerance_m=0.001, units=None):
     return mesh
 
 
-def marker_points(mesh):
+def marker_points(mesh: Mesh) -> np.ndarray:
     """Return ``(3*faces, 3)`` float64 points, three per triangle: a ``visualization_msgs/Marker`` TRIANGLE_LIST."""
     return np.asarray(mesh.vertices, dtype=np.float64)[np.asarray(mesh.faces)].reshape(-1, 3)
 

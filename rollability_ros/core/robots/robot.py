@@ -14,8 +14,13 @@ import typing
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
+import numpy.typing as npt
 
 from rollability_ros.core.optional import require
+from rollability_ros.core.profile import Mesh
+
+#: A robot's collision shapes standing level (:meth:`RobotModel.standing_shapes_m`): ``(shapes, com_m, mass_kg)``.
+StandingShapes = typing.Tuple[typing.List[typing.Tuple[str, np.ndarray]], np.ndarray, float]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -27,7 +32,7 @@ class ProfileBody:
     com_m: np.ndarray
 
     @classmethod
-    def from_mesh(cls, mesh, density_kgpm3):
+    def from_mesh(cls, mesh: Mesh, density_kgpm3: float) -> "ProfileBody":
         """Build from a watertight trimesh (metres) with uniform effective density (kg/m^3)."""
         hull = mesh.convex_hull
         return cls(hull_vertices_m=np.asarray(hull.vertices, dtype=np.float64),
@@ -62,11 +67,11 @@ class ProfileMountSpec:
     MAX_RATE_PER_STEP = 1.0
 
     @property
-    def compliant(self):
+    def compliant(self) -> bool:
         """True when the profile rides on a spring (``stiffness_npm`` > 0)."""
         return self.stiffness_npm > 0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         for name in ("stiffness_npm", "damping_nspm"):
             if getattr(self, name) < 0:
@@ -74,7 +79,7 @@ class ProfileMountSpec:
         if not self.travel_m > 0:
             raise ValueError(f"travel_m must be > 0, got {self.travel_m}")
 
-    def check_time_step(self, profile_mass_kg, time_step_s):
+    def check_time_step(self, profile_mass_kg: float, time_step_s: float) -> None:
         """Raise ``ValueError`` when the spring-damper on a profile of ``profile_mass_kg`` would be integrated
         unstably at ``time_step_s`` (both rates, per step, must stay at or below :attr:`MAX_RATE_PER_STEP`)."""
         if not self.compliant or profile_mass_kg <= 0:
@@ -87,7 +92,7 @@ class ProfileMountSpec:
                 f"{profile_mass_kg * 1000:.0f} g profile give {omega:.2f} rad and {decay:.2f} per {time_step_s:g} s "
                 f"step (at most {self.MAX_RATE_PER_STEP:g}): lower them or sim.time_step_s")
 
-    def joint_xml(self):
+    def joint_xml(self) -> typing.Tuple[str, str]:
         """The URDF ``type`` and extra tags of the profile joint: fixed, or prismatic along z with its stops."""
         if not self.compliant:
             return "fixed", ""
@@ -102,14 +107,14 @@ class MountSpring:
     motor is switched off at spawn). A force set by torque control lasts one step.
     """
 
-    def __init__(self, client, body_id, joint, mount):
+    def __init__(self, client: int, body_id: int, joint: int, mount: ProfileMountSpec) -> None:
         self.pybullet = require("pybullet", feature="the simulated evaluator")
         self.client, self.body_id, self.joint = client, body_id, joint
         self.stiffness_npm, self.damping_nspm = mount.stiffness_npm, mount.damping_nspm
         self.pybullet.setJointMotorControl2(body_id, joint, self.pybullet.VELOCITY_CONTROL, targetVelocity=0.0,
                                             force=0.0, physicsClientId=client)
 
-    def apply(self):
+    def apply(self) -> None:
         """Set the spring-damper force for the next step from the joint's current position and speed."""
         pybullet = self.pybullet
         position, speed, _, _ = pybullet.getJointState(self.body_id, self.joint, physicsClientId=self.client)
@@ -117,12 +122,13 @@ class MountSpring:
                                        force=-self.stiffness_npm * position - self.damping_nspm * speed,
                                        physicsClientId=self.client)
 
-    def position_m(self):
+    def position_m(self) -> float:
         """The profile's displacement along the mount normal, m (negative = pressed towards the robot)."""
         return self.pybullet.getJointState(self.body_id, self.joint, physicsClientId=self.client)[0]
 
 
-def compliant_mount(client, body_id, joint, mount, profile_mass_kg):
+def compliant_mount(client: int, body_id: int, joint: int, mount: ProfileMountSpec,
+                    profile_mass_kg: float) -> MountSpring:
     """Set up the compliant profile joint ``joint`` of ``body_id``: its end stops, the time-step check
     (:meth:`ProfileMountSpec.check_time_step`, at the client's step) and its :class:`MountSpring`."""
     pybullet = require("pybullet", feature="the simulated evaluator")
@@ -141,12 +147,12 @@ class SpawnedRobot:
     link on rotated inertial axes is up to twice the mesh's size."""
 
     body_id: int
-    wheel_links: tuple
+    wheel_links: typing.Tuple[int, ...]
     mount_spring: typing.Optional[MountSpring] = None
     profile_link: typing.Optional[int] = None
     profile_points_m: object = None
 
-    def before_step(self):
+    def before_step(self) -> None:
         """Apply the per-step forces of the robot itself (the compliant mount's spring); call before each step."""
         if self.mount_spring is not None:
             self.mount_spring.apply()
@@ -156,36 +162,39 @@ class RobotModel(abc.ABC):
     """What a trial needs from a robot: spawn it, judge "on its wheels", describe it as URDF."""
 
     @abc.abstractmethod
-    def spawn(self, client, profile, position, orientation):
+    def spawn(self, client: int, profile: typing.Optional[ProfileBody], position: npt.ArrayLike,
+              orientation: typing.Sequence[float]) -> SpawnedRobot:
         """Create the robot with ``profile`` (a :class:`ProfileBody` or None) in ``client``; return a SpawnedRobot.
 
         ``position`` (3,) metres and ``orientation`` (x, y, z, w) place the robot's base frame in the world.
         """
 
     @abc.abstractmethod
-    def up_axis(self, client, robot):
+    def up_axis(self, client: int, robot: SpawnedRobot) -> np.ndarray:
         """Return the robot's body up-axis as a world-frame unit vector (3,)."""
 
     @property
     @abc.abstractmethod
-    def upright_tilt_deg(self):
+    def upright_tilt_deg(self) -> float:
         """Largest angle between the body up-axis and world up that still counts as upright (deg)."""
 
     @property
     @abc.abstractmethod
-    def min_wheels_in_contact(self):
+    def min_wheels_in_contact(self) -> int:
         """How many wheel links must touch the ground for the robot to stand on its wheels."""
 
     @property
     @abc.abstractmethod
-    def contact_tolerance_m(self):
+    def contact_tolerance_m(self) -> float:
         """A wheel within this distance of the ground counts as touching it (m)."""
 
     @abc.abstractmethod
-    def to_urdf(self, profile_mesh_filename=None, profile=None):
+    def to_urdf(self, profile_mesh_filename: typing.Optional[str] = None,
+                profile: typing.Optional[ProfileBody] = None) -> str:
         """Return a URDF document (str) of the robot, with the profile mesh file on its mount if given."""
 
-    def simulator_urdf(self, profile=None, mesh_filename=None):
+    def simulator_urdf(self, profile: typing.Optional[ProfileBody] = None,
+                       mesh_filename: typing.Optional[str] = None) -> str:
         """The URDF a simulator loads (str): the robot with ``profile`` (ProfileBody) on ``mesh_filename``."""
         return self.to_urdf(mesh_filename, profile)
 
@@ -193,46 +202,46 @@ class RobotModel(abc.ABC):
     profile_joint: typing.Optional[str] = None
 
     @property
-    def profile_mount(self):
+    def profile_mount(self) -> ProfileMountSpec:
         """How the profile is held (:class:`ProfileMountSpec`); rigid unless a model says otherwise."""
         return ProfileMountSpec()
 
     @abc.abstractmethod
-    def wheel_link_names(self):
+    def wheel_link_names(self) -> typing.Tuple[str, ...]:
         """Names of the wheel links in :meth:`to_urdf`, in the order of :attr:`SpawnedRobot.wheel_links`."""
 
     @abc.abstractmethod
-    def joint_drag_torque_nm(self):
+    def joint_drag_torque_nm(self) -> float:
         """Back-drive drag torque of each unpowered joint (N m)."""
 
     @abc.abstractmethod
-    def up_axis_in_root(self):
+    def up_axis_in_root(self) -> typing.Tuple[float, ...]:
         """The up axis (3,) in the frame of :meth:`to_urdf`'s root link."""
 
     @abc.abstractmethod
-    def wheel_radii_m(self):
+    def wheel_radii_m(self) -> typing.Tuple[float, ...]:
         """Rolling radius of each wheel (m), a tuple in the order of :attr:`SpawnedRobot.wheel_links`."""
 
     @abc.abstractmethod
-    def standing_shapes_m(self):
+    def standing_shapes_m(self) -> StandingShapes:
         """The collision shapes of the bare robot standing level, facing +x, every joint at zero: ``(shapes,
         com_m, mass_kg)``, ``shapes`` a list of ``(link name, points (k, 3))`` (corner / vertex points of each
         shape), ``com_m`` (3,) the centre of mass, all in the robot's root frame turned about z so it faces +x (m);
         ``mass_kg`` the robot's mass.
         Engine-free: the launcher is sized from it (:mod:`rollability_ros.core.sim.launcher_geometry`)."""
 
-    def tilt_deg(self, client, robot):
+    def tilt_deg(self, client: int, robot: SpawnedRobot) -> float:
         """Angle between the body up-axis and world +z, degrees."""
         return math.degrees(math.acos(float(np.clip(self.up_axis(client, robot)[2], -1.0, 1.0))))
 
-    def wheels_in_contact(self, client, robot, ground_id):
+    def wheels_in_contact(self, client: int, robot: SpawnedRobot, ground_id: int) -> int:
         """Number of wheel links within ``contact_tolerance_m`` of the ground body."""
         pybullet = require("pybullet", feature="the simulated evaluator")
         return sum(bool(pybullet.getClosestPoints(robot.body_id, ground_id, self.contact_tolerance_m, linkIndexA=link,
                                                   physicsClientId=client))
                    for link in robot.wheel_links)
 
-    def is_upright(self, client, robot, ground_id):
+    def is_upright(self, client: int, robot: SpawnedRobot, ground_id: int) -> typing.Tuple[bool, float]:
         """Return ``(upright, tilt_deg)``: upright = tilt within the threshold and enough wheels on the ground."""
         tilt = self.tilt_deg(client, robot)
         upright = tilt <= self.upright_tilt_deg and \
@@ -289,7 +298,7 @@ class ChassisSpec:
         "description": "a wheel this close to the ground counts as touching it, m", "range": (0.0, 1.0)})
     profile_mount: ProfileMountSpec = dataclasses.field(default_factory=ProfileMountSpec)
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         self.profile_mount.validate()
         for name in ("body_length_m", "body_width_m", "body_height_m", "body_mass_kg", "wheel_radius_m",
@@ -313,25 +322,28 @@ class ChassisSpec:
 class SpecThresholds:
     """Mixin for a :class:`RobotModel` whose ``self.spec`` holds the upright thresholds and profile density."""
 
-    @property
-    def upright_tilt_deg(self):
-        return self.spec.upright_tilt_deg
+    #: A :class:`ChassisSpec` or a ``UrdfRobotSpec``: both have the fields read here.
+    spec: typing.Any
 
     @property
-    def min_wheels_in_contact(self):
-        return self.spec.min_wheels_in_contact
+    def upright_tilt_deg(self) -> float:
+        return float(self.spec.upright_tilt_deg)
 
     @property
-    def contact_tolerance_m(self):
-        return self.spec.contact_tolerance_m
+    def min_wheels_in_contact(self) -> int:
+        return int(self.spec.min_wheels_in_contact)
 
     @property
-    def profile_density_kgpm3(self):
+    def contact_tolerance_m(self) -> float:
+        return float(self.spec.contact_tolerance_m)
+
+    @property
+    def profile_density_kgpm3(self) -> float:
         """Effective density of the profile solid (kg/m^3)."""
-        return self.spec.profile_density_kgpm3
+        return float(self.spec.profile_density_kgpm3)
 
     @property
-    def profile_mount(self):
+    def profile_mount(self) -> ProfileMountSpec:
         """How the profile is held (:class:`ProfileMountSpec`): rigid, or on a spring-damper."""
         return self.spec.profile_mount
 
@@ -349,36 +361,36 @@ class ChassisModel(SpecThresholds, RobotModel):
     #: Name of the profile's joint in :meth:`simulator_urdf`.
     profile_joint = PROFILE_JOINT
 
-    def __init__(self, spec):
+    def __init__(self, spec: ChassisSpec) -> None:
         self.spec = spec
 
     @property
-    def mount_position_m(self):
+    def mount_position_m(self) -> np.ndarray:
         """The profile frame's origin in the chassis frame (3,): centre of the body's top face."""
         return np.array([0.0, 0.0, self.spec.body_height_m / 2])
 
-    def wheel_radii_m(self):
+    def wheel_radii_m(self) -> typing.Tuple[float, ...]:
         return (self.spec.wheel_radius_m,) * 4
 
     #: The wheels' link names in :meth:`to_urdf`, front-left, front-right, rear-left, rear-right.
     WHEEL_NAMES = ("front_left", "front_right", "rear_left", "rear_right")
 
-    def wheel_link_names(self):
+    def wheel_link_names(self) -> typing.Tuple[str, ...]:
         return tuple(f"{name}_wheel" for name in self.WHEEL_NAMES)
 
-    def joint_drag_torque_nm(self):
+    def joint_drag_torque_nm(self) -> float:
         return self.spec.wheel_drag_torque_nm
 
-    def up_axis_in_root(self):
+    def up_axis_in_root(self) -> typing.Tuple[float, ...]:
         return (0.0, 0.0, 1.0)
 
-    def wheel_positions_m(self):
+    def wheel_positions_m(self) -> np.ndarray:
         """Wheel centres in the chassis frame, (4, 3): front-left, front-right, rear-left, rear-right."""
         s = self.spec
         return np.array([[sx * s.wheelbase_m / 2, sy * s.track_m / 2, s.axle_offset_z_m]
                          for sx in (1, -1) for sy in (1, -1)])
 
-    def standing_shapes_m(self):
+    def standing_shapes_m(self) -> StandingShapes:
         s = self.spec
         corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
         shapes = [(self.BODY_LINK, corners * [s.body_length_m / 2, s.body_width_m / 2, s.body_height_m / 2])]
@@ -389,7 +401,8 @@ class ChassisModel(SpecThresholds, RobotModel):
         com = (s.body_mass_kg * np.array([0.0, 0.0, s.com_offset_z_m]) + s.wheel_mass_kg * wheels.sum(axis=0)) / mass
         return shapes, com, mass
 
-    def spawn(self, client, profile, position, orientation):
+    def spawn(self, client: int, profile: typing.Optional[ProfileBody], position: npt.ArrayLike,
+              orientation: typing.Sequence[float]) -> SpawnedRobot:
         pybullet = require("pybullet", feature="the simulated evaluator")
         s = self.spec
         body_shape = pybullet.createCollisionShape(
@@ -397,9 +410,11 @@ class ChassisModel(SpecThresholds, RobotModel):
             physicsClientId=client)
         wheel_shape = pybullet.createCollisionShape(pybullet.GEOM_CYLINDER, radius=s.wheel_radius_m,
                                                     height=s.wheel_width_m, physicsClientId=client)
-        links = {"mass": [], "shape": [], "position": [], "orientation": [], "com": [], "joint": [], "axis": []}
+        links: typing.Dict[str, list] = {"mass": [], "shape": [], "position": [], "orientation": [], "com": [],
+                                         "joint": [], "axis": []}
 
-        def add_link(mass, shape, position_m, orientation_xyzw, com_m, joint, axis):
+        def add_link(mass: float, shape: int, position_m: npt.ArrayLike, orientation_xyzw: typing.Sequence[float],
+                     com_m: npt.ArrayLike, joint: int, axis: typing.Sequence[float]) -> None:
             for key, value in zip(links, (mass, shape, position_m, orientation_xyzw, com_m, joint, axis)):
                 links[key].append(value)
 
@@ -416,7 +431,8 @@ class ChassisModel(SpecThresholds, RobotModel):
                      (0, 0, 1))
         count = len(links["mass"])
         body = pybullet.createMultiBody(
-            baseMass=s.body_mass_kg, baseCollisionShapeIndex=body_shape, basePosition=list(position),
+            baseMass=s.body_mass_kg, baseCollisionShapeIndex=body_shape,
+            basePosition=np.asarray(position, dtype=np.float64).tolist(),
             baseOrientation=list(orientation), baseInertialFramePosition=[0, 0, s.com_offset_z_m],
             linkMasses=links["mass"], linkCollisionShapeIndices=links["shape"], linkVisualShapeIndices=[-1] * count,
             linkPositions=[list(p) for p in links["position"]], linkOrientations=links["orientation"],
@@ -433,16 +449,18 @@ class ChassisModel(SpecThresholds, RobotModel):
                             profile_link=None if profile is None else 0,
                             profile_points_m=None if profile is None else profile.hull_vertices_m)
 
-    def up_axis(self, client, robot):
+    def up_axis(self, client: int, robot: SpawnedRobot) -> np.ndarray:
         pybullet = require("pybullet", feature="the simulated evaluator")
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
         return np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)[:, 2]
 
-    def to_urdf(self, profile_mesh_filename=None, profile=None):
+    def to_urdf(self, profile_mesh_filename: typing.Optional[str] = None,
+                profile: typing.Optional[ProfileBody] = None) -> str:
         """URDF of the chassis (inertias of solid boxes/cylinders); the profile link uses the given mesh file."""
         return self._urdf(profile_mesh_filename, profile, ("fixed", ""))
 
-    def simulator_urdf(self, profile=None, mesh_filename=None):
+    def simulator_urdf(self, profile: typing.Optional[ProfileBody] = None,
+                       mesh_filename: typing.Optional[str] = None) -> str:
         """As :meth:`to_urdf`, the profile on a prismatic joint when its mount is compliant (ProfileMountSpec)."""
         return self._urdf(mesh_filename, profile, self.spec.profile_mount.joint_xml())
 

@@ -28,9 +28,11 @@ import dataclasses
 import importlib.util
 import math
 import os
+import typing
 import xml.etree.ElementTree as ElementTree
 
 import numpy as np
+import numpy.typing as npt
 
 #: Name of the frame link added as PyBullet's base (see the module docstring).
 BASE_LINK = "rollability_base"
@@ -49,7 +51,8 @@ class _BadTransform:
         self.message = message
 
 
-def read_urdf_source(urdf_path, robot_description, search_paths=()):
+def read_urdf_source(urdf_path: str, robot_description: str,
+                     search_paths: typing.Sequence[str] = ()) -> typing.Tuple[str, typing.Optional[str]]:
     """Return ``(xml_text, folder)`` of the description: the string if given, else the file (its folder).
 
     A relative ``urdf_path`` is tried from the working directory, then in each search folder. A xacro file
@@ -80,12 +83,12 @@ def read_urdf_source(urdf_path, robot_description, search_paths=()):
 XACRO_NAMESPACE = "http://www.ros.org/wiki/xacro"
 
 
-def is_xacro(text, path=None):
+def is_xacro(text: str, path: typing.Optional[str] = None) -> bool:
     """True for xacro input: a ``.xacro`` file name, or text that declares the xacro namespace."""
     return bool(path and path.endswith(".xacro")) or XACRO_NAMESPACE in text[:4096] or "<xacro:" in text
 
 
-def expand_xacro(text, path=None):
+def expand_xacro(text: str, path: typing.Optional[str] = None) -> str:
     """Expand xacro ``text`` (read from ``path``, for relative includes) with the ``xacro`` package; plain URDF
     is returned unchanged. ``ValueError`` names the file and xacro's own message (an undefined property or
     macro, a missing include, ``$(find pkg)`` for a package that is not installed)."""
@@ -108,7 +111,7 @@ def expand_xacro(text, path=None):
         os.chdir(previous)
 
 
-def without_visuals(xml_text):
+def without_visuals(xml_text: str) -> str:
     """``xml_text`` with every link's ``<visual>`` elements removed (the simulation never draws them), so visual
     meshes that are not on this machine stop nothing; collision meshes must still resolve."""
     try:
@@ -121,7 +124,7 @@ def without_visuals(xml_text):
     return ElementTree.tostring(root, encoding="unicode")
 
 
-def search_folders(search_paths):
+def search_folders(search_paths: typing.Iterable[str]) -> typing.List[str]:
     """The folders of ``search_paths``: ``~`` and ``$VARS`` expanded, ``python:<module>`` -> the module's folder."""
     folders = []
     for entry in search_paths:
@@ -131,13 +134,13 @@ def search_folders(search_paths):
             if spec is None or not (spec.submodule_search_locations or spec.origin):
                 raise ValueError(f"search path entry {entry}: no installed Python package {module}")
             folders.append(list(spec.submodule_search_locations)[0] if spec.submodule_search_locations
-                           else os.path.dirname(spec.origin))
+                           else os.path.dirname(str(spec.origin)))
         else:
             folders.append(os.path.expanduser(os.path.expandvars(entry)))
     return folders
 
 
-def resolve_mesh_path(filename, urdf_folder, folders):
+def resolve_mesh_path(filename: str, urdf_folder: typing.Optional[str], folders: typing.Sequence[str]) -> str:
     """Return the absolute path of mesh ``filename`` (see the module docstring) or raise ``ValueError``."""
     tried = []
     if filename.startswith("package://"):
@@ -164,7 +167,7 @@ def resolve_mesh_path(filename, urdf_folder, folders):
 
 
 # --- small frame algebra ----------------------------------------------------------------------------------------
-def rpy_matrix(rpy):
+def rpy_matrix(rpy: typing.Sequence[float]) -> np.ndarray:
     """Rotation matrix (3, 3) of URDF roll-pitch-yaw (rad): fixed axes x, then y, then z."""
     r, p, y = rpy
     rx = np.array([[1, 0, 0], [0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]])
@@ -173,7 +176,7 @@ def rpy_matrix(rpy):
     return rz @ ry @ rx
 
 
-def matrix_rpy(rotation):
+def matrix_rpy(rotation: np.ndarray) -> typing.Tuple[float, float, float]:
     """URDF roll-pitch-yaw (rad) of a rotation matrix (3, 3)."""
     pitch = math.atan2(-rotation[2, 0], math.hypot(rotation[0, 0], rotation[1, 0]))
     if math.hypot(rotation[0, 0], rotation[1, 0]) < 1e-12:  # gimbal lock: put it all in roll
@@ -181,7 +184,8 @@ def matrix_rpy(rotation):
     return (math.atan2(rotation[2, 1], rotation[2, 2]), pitch, math.atan2(rotation[1, 0], rotation[0, 0]))
 
 
-def transform(xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)):
+def transform(xyz: typing.Sequence[float] = (0.0, 0.0, 0.0),
+              rpy: typing.Sequence[float] = (0.0, 0.0, 0.0)) -> np.ndarray:
     """4x4 transform of a URDF origin (xyz metres, rpy rad)."""
     matrix = np.eye(4)
     matrix[:3, :3] = rpy_matrix(rpy)
@@ -199,7 +203,7 @@ def _numbers(text, count, where):
     return values
 
 
-def origin_of(element, where):
+def origin_of(element: ElementTree.Element, where: str) -> np.ndarray:
     """The 4x4 transform of ``element``'s ``<origin>`` child (identity when absent)."""
     origin = element.find("origin")
     if origin is None:
@@ -212,12 +216,12 @@ def _fmt(values):
     return " ".join(repr(float(v)) for v in values)
 
 
-def origin_xml(matrix):
+def origin_xml(matrix: np.ndarray) -> str:
     """``<origin .../>`` of a 4x4 transform (full float precision)."""
     return f'<origin xyz="{_fmt(matrix[:3, 3])}" rpy="{_fmt(matrix_rpy(matrix[:3, :3]))}"/>'
 
 
-def inertial_xml(mass_kg, com_m, inertia):
+def inertial_xml(mass_kg: float, com_m: typing.Iterable[float], inertia: npt.ArrayLike) -> str:
     """``<inertial>`` with the centre of mass ``com_m`` (3,) and the inertia (3, 3) about it, link axes."""
     i = np.asarray(inertia, dtype=np.float64).tolist()
     return (f'<inertial><origin xyz="{_fmt(com_m)}" rpy="0 0 0"/><mass value="{float(mass_kg)!r}"/>'
@@ -253,7 +257,7 @@ class RobotDescription:
     collision_shapes: tuple = ()
     body_in_root: dict = dataclasses.field(default_factory=dict)
 
-    def link_transform(self, link):
+    def link_transform(self, link: str) -> np.ndarray:
         """4x4 transform of ``link`` in its rigid body's frame; ``ValueError`` if unknown or unreadable."""
         if link not in self.body_of:
             raise ValueError(f"unknown link {link!r}; the description has: {', '.join(sorted(self.body_of))}")
@@ -262,7 +266,7 @@ class RobotDescription:
             raise ValueError(value)
         return np.array(value)
 
-    def body_collision_points(self, body):
+    def body_collision_points(self, body: str) -> np.ndarray:
         """Corner / vertex points ``(k, 3)`` of the collision shapes of rigid body ``body`` (body frame, m)."""
         return np.array(self.collision_points.get(body, ()), dtype=np.float64).reshape(-1, 3)
 
@@ -371,7 +375,8 @@ def _geometry_points(geometry, where, mesh_path):
     return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
 
 
-def describe(xml_text, urdf_folder=None, search_paths=()):
+def describe(xml_text: str, urdf_folder: typing.Optional[str] = None,
+             search_paths: typing.Sequence[str] = ()) -> RobotDescription:
     """Check a URDF and build its :class:`RobotDescription` (see the module docstring); ``ValueError`` if bad."""
     root_element, links, joints = _parse(xml_text)
     root, children = _tree(links, joints)
@@ -386,13 +391,16 @@ def describe(xml_text, urdf_folder=None, search_paths=()):
             raise ValueError(f"visual {exc}, or set urdf_robot.ignore_visual_meshes: true (the simulation never "
                              "draws visuals)") from None
 
-    body_of, link_in_body, order = {root: root}, {root: np.eye(4)}, [root]
-    moving = []
+    # a link's placement in its body: a 4x4 transform, or the _BadTransform that keeps it from being placed
+    link_in_body: typing.Dict[str, typing.Any] = {root: np.eye(4)}
+    body_of, order = {root: root}, [root]
+    moving: typing.List[typing.Tuple[typing.Any, str, typing.Any]] = []   # (joint element, parent, placement)
     for name in order:  # breadth first: parents before children
         for joint in children[name]:
             child = joint.find("child").get("link")
             order.append(child)
             parent_in_body = link_in_body[name]
+            joint_origin: typing.Any   # a 4x4 transform or a _BadTransform
             try:
                 joint_origin = origin_of(joint, f"joint {joint.get('name')!r}")
             except ValueError as exc:
@@ -410,14 +418,15 @@ def describe(xml_text, urdf_folder=None, search_paths=()):
         raise ValueError("robot description has links not connected to the root: "
                          f"{', '.join(sorted(set(links) - set(order)))}")
 
-    def placed(link, what):
+    def placed(link: str, what: str) -> np.ndarray:
         value = link_in_body[link]
         if isinstance(value, _BadTransform):
             raise ValueError(f"{value.message} (needed to place {what} of link {link!r})")
         return value
 
-    bodies = {name: {"mass": 0.0, "moment": np.zeros(3), "parts": [], "collisions": [], "points": [],
-                     "contact": None} for name in order if body_of[name] == name}
+    bodies: typing.Dict[str, typing.Dict[str, typing.Any]] = {
+        name: {"mass": 0.0, "moment": np.zeros(3), "parts": [], "collisions": [], "points": [], "contact": None}
+        for name in order if body_of[name] == name}
     shapes = []
     for name in order:
         body = bodies[body_of[name]]

@@ -31,15 +31,18 @@ import math
 import os
 import re
 import tempfile
+import typing
 import xml.etree.ElementTree as ElementTree
 
 import numpy as np
+import numpy.typing as npt
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.robots.robot import (ChassisModel, ProfileMountSpec, RobotModel, SpawnedRobot,
-                                               SpecThresholds, compliant_mount)
-from rollability_ros.core.robots.urdf_description import (PROFILE_LINK, describe, inertial_xml, origin_xml, read_urdf_source,
-                                                   transform, without_visuals)
+from rollability_ros.core.profile import Mesh, ProfileGrid
+from rollability_ros.core.robots.robot import (ChassisModel, ChassisSpec, ProfileBody, ProfileMountSpec, RobotModel,
+                                               SpawnedRobot, SpecThresholds, StandingShapes, compliant_mount)
+from rollability_ros.core.robots.urdf_description import (PROFILE_LINK, RobotDescription, describe, inertial_xml,
+                                                          origin_xml, read_urdf_source, transform, without_visuals)
 
 #: The profile joint of the simulator URDF: fixed, or prismatic on a compliant mount.
 PROFILE_JOINT = f"{PROFILE_LINK}_joint"
@@ -119,16 +122,16 @@ class UrdfRobotSpec:
     profile_mount: ProfileMountSpec = dataclasses.field(default_factory=ProfileMountSpec)
 
     @property
-    def selected(self):
+    def selected(self) -> bool:
         """True when a mount link is named: the trials use this robot instead of the built-in chassis."""
         return bool(self.mount_link)
 
     @property
-    def has_source(self):
+    def has_source(self) -> bool:
         """True when a description file or string is given (the node may still be waiting for the topic)."""
         return bool(self.urdf_path or self.robot_description)
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field; with a description, check it too (see
         :meth:`description`)."""
         self.profile_mount.validate()
@@ -159,7 +162,7 @@ class UrdfRobotSpec:
         if self.selected and self.has_source:
             self.description()
 
-    def description(self):
+    def description(self) -> "MountedDescription":
         """The checked :class:`~rollability_ros.core.robots.urdf_robot.MountedDescription` (computed once, kept).
 
         Raises ``ValueError`` naming the problem: see :func:`~rollability_ros.core.robots.urdf_description.describe`,
@@ -189,13 +192,13 @@ class MountedDescription:
     holding the mount link); ``wheel_bodies`` the rigid bodies of the wheel links, sorted.
     """
 
-    robot: object
+    robot: RobotDescription
     mount_body: str
     profile_in_body: tuple
     wheel_bodies: tuple
 
 
-def footprint_corners(spec):
+def footprint_corners(spec: UrdfRobotSpec) -> np.ndarray:
     """The four footprint corners ``(4, 3)`` in the mount link's frame (m)."""
     yaw = math.radians(spec.footprint_yaw_deg)
     rotation = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
@@ -240,7 +243,7 @@ def _mount(spec):
                               wheel_bodies=wheel_bodies)
 
 
-def check_up_axis(spec):
+def check_up_axis(spec: UrdfRobotSpec) -> None:
     """Refuse an ``up_axis_xyz`` that is not the robot's up: the trials and the launch twin stand the robot with its
     root frame's z up (REP 103), so an up axis more than ``upright_tilt_deg`` from the root's z would score every
     robot standing on its wheels "not upright"; ``ValueError`` naming it."""
@@ -270,20 +273,21 @@ class _ShapeTop:
         except Exception:  # QhullError: a flat shape (a plane seen edge-on, a single point) covers no area
             self.outline = None
 
-    def covers(self, xy):
+    def covers(self, xy: np.ndarray) -> np.ndarray:
         """Which of the points ``xy`` (n, 2) lie within the shape seen from above (bool (n,))."""
         if self.outline is None:
             return np.zeros(len(xy), dtype=bool)
         return (xy @ self.outline[:, :2].T + self.outline[:, 2]).max(axis=1) <= FOOTPRINT_TOLERANCE_M
 
-    def top_at(self, xy):
+    def top_at(self, xy: np.ndarray) -> np.ndarray:
         """The shape's top z at the points ``xy`` (n, 2) it covers (m)."""
         if not len(self.upward):
             return np.full(len(xy), self.top_z)
         return np.min(-(xy @ self.upward[:, :2].T + self.upward[:, 3]) / self.upward[:, 2], axis=1)
 
 
-def check_mount_surface(spec, shapes):
+def check_mount_surface(spec: UrdfRobotSpec,
+                        shapes: typing.Sequence[typing.Tuple[str, bool, np.ndarray]]) -> None:
     """Refuse a footprint that does not sit on the mount, or that a collision shape rises through: ``ValueError``
     naming the problem and the link.
 
@@ -319,7 +323,7 @@ def check_mount_surface(spec, shapes):
                      for a in u for b in u]) + np.asarray(spec.footprint_offset_m[:2])
     centre = np.asarray(spec.footprint_offset_m[:2], dtype=np.float64)
 
-    def inside_footprint(xy):
+    def inside_footprint(xy: np.ndarray) -> np.ndarray:
         local = xy - centre
         return ((np.abs(local @ along) <= spec.footprint_length_m / 2 + FOOTPRINT_TOLERANCE_M)
                 & (np.abs(local @ across) <= spec.footprint_width_m / 2 + FOOTPRINT_TOLERANCE_M))
@@ -350,8 +354,8 @@ def check_mount_surface(spec, shapes):
                             f"centre range over {np.ptp(support):.4f} m)"))
     for link, _, top in tops:
         samples = grid[top.covers(grid)]
-        heights = list(top.top_at(samples)) + list(top.points[inside_footprint(top.points[:, :2]), 2])
-        highest = max(heights, default=-math.inf)
+        tops_z = list(top.top_at(samples)) + list(top.points[inside_footprint(top.points[:, :2]), 2])
+        highest = max(tops_z, default=-math.inf)
         if highest <= z0 + SURFACE_TOLERANCE_M:
             continue
         raise ValueError(f"{describe_footprint}: link {link!r} rises {highest - z0:.4f} m above the footprint "
@@ -361,7 +365,7 @@ def check_mount_surface(spec, shapes):
                          f"of {link!r}")
 
 
-def footprint_grid(grid, urdf_robot):
+def footprint_grid(grid: ProfileGrid, urdf_robot: UrdfRobotSpec) -> ProfileGrid:
     """``grid`` (a :class:`~rollability_ros.core.profile.geometry.ProfileGrid`) as the robot in use needs it: with a
     selected ``urdf_robot`` (:class:`UrdfRobotSpec`) its ``length_m`` / ``width_m`` are the mount footprint's."""
     if not urdf_robot.selected:
@@ -369,7 +373,7 @@ def footprint_grid(grid, urdf_robot):
     return dataclasses.replace(grid, length_m=urdf_robot.footprint_length_m, width_m=urdf_robot.footprint_width_m)
 
 
-def profile_mount(chassis, urdf_robot):
+def profile_mount(chassis: ChassisSpec, urdf_robot: UrdfRobotSpec) -> typing.Tuple[str, np.ndarray, float]:
     """Where the profile frame sits on the robot in use: ``(link, position_m (3,), yaw_deg)``.
 
     ``link`` names the link it is mounted on (the chassis URDF's body link, or ``urdf_robot.mount_link``);
@@ -386,18 +390,21 @@ class RobotChoice:
     """Mixin for settings dataclasses with a chassis ``robot`` (ChassisSpec) and a ``urdf_robot``
     (:class:`UrdfRobotSpec`) field: the built-in chassis unless ``urdf_robot`` names a mount link."""
 
-    def robot_model(self):
+    robot: ChassisSpec
+    urdf_robot: UrdfRobotSpec
+
+    def robot_model(self) -> RobotModel:
         """The :class:`~rollability_ros.core.robots.robot.RobotModel` in use (``ValueError`` for a bad URDF)."""
         if self.urdf_robot.selected:
             return UrdfRobotModel(self.urdf_robot)
         return ChassisModel(self.robot)
 
-    def profile_density_kgpm3(self):
+    def profile_density_kgpm3(self) -> float:
         """Effective density of the profile solid on the robot in use (kg/m^3)."""
         return (self.urdf_robot if self.urdf_robot.selected else self.robot).profile_density_kgpm3
 
 
-def half_width_across_m(points, axis):
+def half_width_across_m(points: np.ndarray, axis: npt.ArrayLike) -> float:
     """Half the smallest width of the points ``(k, 3)`` across ``axis`` (3,): over every direction normal to
     the axis, half the extent of the points along it (m). For a round wheel centred on its axle (a cylinder's
     bounding-box corners, a sphere, a mesh hull) this is its radius."""
@@ -406,7 +413,7 @@ def half_width_across_m(points, axis):
     first /= np.linalg.norm(first)
     second = np.cross(axis, first)
 
-    def widths(angles):
+    def widths(angles: np.ndarray) -> np.ndarray:
         along = points @ (np.outer(np.cos(angles), first) + np.outer(np.sin(angles), second)).T  # (k, angles)
         return along.max(axis=0) - along.min(axis=0)
 
@@ -417,14 +424,16 @@ def half_width_across_m(points, axis):
     return float(widths(np.linspace(narrowest - step, narrowest + step, fine)).min() / 2)
 
 
-def profile_inertia(profile):
+def profile_inertia(profile: ProfileBody) -> typing.Tuple[np.ndarray, Mesh]:
     """The inertia (3, 3) about its centre of mass of a :class:`ProfileBody`'s hull, uniform density (kg m^2)."""
     trimesh = require("trimesh", feature="profile meshes")
     hull = trimesh.convex.convex_hull(profile.hull_vertices_m)
     return np.asarray(hull.moment_inertia) * (profile.mass_kg / hull.volume), hull
 
 
-def profile_link_xml(mount_body, profile_in_body, mesh_filename, profile=None, joint=("fixed", "")):
+def profile_link_xml(mount_body: str, profile_in_body: npt.ArrayLike, mesh_filename: typing.Optional[str],
+                     profile: typing.Optional[ProfileBody] = None,
+                     joint: typing.Tuple[str, str] = ("fixed", "")) -> str:
     """URDF ``<link>`` and ``<joint>`` of the profile on ``mount_body`` (mesh file as collision and visual);
     ``joint``: the joint's type and extra tags (:meth:`ProfileMountSpec.joint_xml`), fixed by default."""
     inertial = ""
@@ -437,7 +446,8 @@ def profile_link_xml(mount_body, profile_in_body, mesh_filename, profile=None, j
             f'<child link="{PROFILE_LINK}"/>{origin_xml(np.array(profile_in_body))}{joint[1]}</joint>\n')
 
 
-def obj_text(mesh):
+def obj_text(mesh: Mesh) -> str:
+    """``mesh`` (metres) as Wavefront OBJ text (vertices, then 1-based triangles), full float precision."""
     vertices = "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in np.asarray(mesh.vertices).tolist())
     faces = "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in np.asarray(mesh.faces).tolist())
     return vertices + faces
@@ -450,12 +460,12 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
     #: Name of the profile's joint in :meth:`sim_urdf`.
     profile_joint = PROFILE_JOINT
 
-    def __init__(self, spec):
+    def __init__(self, spec: UrdfRobotSpec) -> None:
         self.spec = spec
         self.mounted = spec.description()
         self._up_axis = np.asarray(spec.up_axis_xyz, dtype=np.float64) / np.linalg.norm(spec.up_axis_xyz)
 
-    def sim_urdf(self, profile=None, mesh_filename=None):
+    def sim_urdf(self, profile: typing.Optional[ProfileBody] = None, mesh_filename: typing.Optional[str] = None) -> str:
         """The URDF PyBullet loads: the rigid-body robot, plus the profile link on ``mesh_filename`` if given."""
         text = self.mounted.robot.sim_urdf
         if profile is not None:
@@ -463,7 +473,8 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
                                      self.spec.profile_mount.joint_xml())
         return text + "</robot>\n"
 
-    def spawn(self, client, profile, position, orientation):
+    def spawn(self, client: int, profile: typing.Optional[ProfileBody], position: npt.ArrayLike,
+              orientation: typing.Sequence[float]) -> SpawnedRobot:
         pybullet = require("pybullet", feature="the simulated evaluator")
         # turn the robot about its z so its forward axis is the start orientation's x (the world's +x upright)
         facing = pybullet.getQuaternionFromEuler([0.0, 0.0, -math.radians(FORWARD_AXIS_DEG[self.spec.forward_axis])])
@@ -480,7 +491,8 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
             urdf_path = os.path.join(folder, "robot.urdf")
             with open(urdf_path, "w", encoding="utf-8") as stream:
                 stream.write(self.sim_urdf(profile, mesh_filename))
-            body = pybullet.loadURDF(urdf_path, list(position), list(orientation), useFixedBase=False,
+            body = pybullet.loadURDF(urdf_path, np.asarray(position, dtype=np.float64).tolist(), list(orientation),
+                                     useFixedBase=False,
                                      flags=pybullet.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
         index, joints = {}, []
         for joint in range(pybullet.getNumJoints(body, physicsClientId=client)):
@@ -499,12 +511,12 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
                             mount_spring=spring, profile_link=None if profile is None else index[PROFILE_LINK],
                             profile_points_m=None if profile is None else profile.hull_vertices_m)
 
-    def up_axis(self, client, robot):
+    def up_axis(self, client: int, robot: SpawnedRobot) -> np.ndarray:
         pybullet = require("pybullet", feature="the simulated evaluator")
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
         return np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3) @ self._up_axis
 
-    def standing_shapes_m(self):
+    def standing_shapes_m(self) -> StandingShapes:
         robot = self.mounted.robot
         yaw = -math.radians(FORWARD_AXIS_DEG[self.spec.forward_axis])
         facing = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0, 0, 1.0]])
@@ -514,27 +526,30 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
             shapes.append((link, (np.array(points) @ in_root[:3, :3].T + in_root[:3, 3]) @ facing.T))
         return shapes, facing @ np.asarray(robot.com_m), robot.mass_kg
 
-    def simulator_urdf(self, profile=None, mesh_filename=None):
+    def simulator_urdf(self, profile: typing.Optional[ProfileBody] = None,
+                       mesh_filename: typing.Optional[str] = None) -> str:
         return self.sim_urdf(profile, mesh_filename)
 
-    def wheel_link_names(self):
+    def wheel_link_names(self) -> typing.Tuple[str, ...]:
         return tuple(self.mounted.wheel_bodies)
 
-    def joint_drag_torque_nm(self):
+    def joint_drag_torque_nm(self) -> float:
         return self.spec.joint_drag_torque_nm
 
-    def up_axis_in_root(self):
+    def up_axis_in_root(self) -> typing.Tuple[float, ...]:
         return tuple(self.spec.up_axis_xyz)
 
-    def wheel_radii_m(self):
+    def wheel_radii_m(self) -> typing.Tuple[float, ...]:
         """Each wheel body's :func:`half_width_across_m` of its collision shapes across its joint axis (m).
 
         Raises ``ValueError`` for a wheel body on no moving joint or without a collision shape.
         """
         robot = self.mounted.robot
-        joints = {joint.find("child").get("link"): joint
-                  for joint in ElementTree.fromstring(robot.sim_urdf + "</robot>").iter("joint")
-                  if joint.get("type") != "fixed"}
+        joints = {}
+        for joint in ElementTree.fromstring(robot.sim_urdf + "</robot>").iter("joint"):
+            child = joint.find("child")
+            if joint.get("type") != "fixed" and child is not None:
+                joints[child.get("link")] = joint
         radii = []
         for body in self.mounted.wheel_bodies:
             if body not in joints:
@@ -547,7 +562,8 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
             radii.append(half_width_across_m(points, xyz))
         return tuple(radii)
 
-    def to_urdf(self, profile_mesh_filename=None, profile=None):
+    def to_urdf(self, profile_mesh_filename: typing.Optional[str] = None,
+                profile: typing.Optional[ProfileBody] = None) -> str:
         """The description as given, plus the profile link (mesh file, inertia if ``profile``) on the mount."""
         text = self.mounted.robot.original_urdf
         if profile_mesh_filename is None:

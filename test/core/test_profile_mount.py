@@ -36,7 +36,7 @@ def mount_trace(engine, model, steps=480):
         client = world.connect()
         try:
             world.reset_world(client, physics)
-            robot = model.spawn(client, PROFILE, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0, 1.0))
+            robot = model.spawn(client, PROFILE, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0, 1.0), time_step_s=physics.time_step_s)
             place_on_ground(client, robot.body_id, (0.0, 0.0, 0.0, 1.0), 0.0)
             trace = []
             for _ in range(steps):
@@ -114,9 +114,11 @@ def test_a_rigid_mount_is_a_fixed_joint_and_a_compliant_one_prismatic():
     assert 'type="fixed"' in compliant.to_urdf("profile.stl", PROFILE)  # the exported design stays bolted on
     client = world.connect()
     try:
-        world.reset_world(client, world.PhysicsParams())
-        assert rigid.spawn(client, PROFILE, (0, 0, 1), (0, 0, 0, 1)).mount_spring is None
-        spawned = compliant.spawn(client, PROFILE, (0, 2, 1), (0, 0, 0, 1))
+        physics = world.PhysicsParams()
+        world.reset_world(client, physics)
+        step = physics.time_step_s
+        assert rigid.spawn(client, PROFILE, (0, 0, 1), (0, 0, 0, 1), time_step_s=step).mount_spring is None
+        spawned = compliant.spawn(client, PROFILE, (0, 2, 1), (0, 0, 0, 1), time_step_s=step)
         info = pybullet.getJointInfo(spawned.body_id, spawned.mount_spring.joint, physicsClientId=client)
         assert info[2] == pybullet.JOINT_PRISMATIC and tuple(info[13]) == (0.0, 0.0, 1.0)  # along the normal
     finally:
@@ -175,3 +177,19 @@ def test_a_launch_on_a_compliant_mount_is_a_valid_launch_that_differs_from_the_r
     assert all(result.valid for result in results), [result.invalid_reason for result in results]
     assert results[0].final_orientation_xyzw != results[1].final_orientation_xyzw
     assert results[1].edge_speed_mps == pytest.approx(1.5, rel=0.05)  # the plate still launches at the target
+
+
+def test_the_spawn_checks_the_mount_against_the_time_step_it_is_given_not_the_engines():
+    """The step flows down from the settings (issue 29): the stiff mount that 1/240 s refuses passes at 10 us,
+    in the same world, and a world never stepped (geometry only, ``None``) checks nothing."""
+    model = chassis(1.0e6)
+    client = world.connect()
+    try:
+        physics = world.PhysicsParams()
+        world.reset_world(client, physics)
+        with pytest.raises(ValueError, match="lower them or sim.time_step_s"):
+            model.spawn(client, PROFILE, (0, 0, 1), (0, 0, 0, 1), time_step_s=physics.time_step_s)
+        assert model.spawn(client, PROFILE, (0, 2, 1), (0, 0, 0, 1), time_step_s=1e-5).mount_spring is not None
+        assert model.spawn(client, PROFILE, (0, 4, 1), (0, 0, 0, 1), time_step_s=None).mount_spring is not None
+    finally:
+        world.disconnect(client)

@@ -73,7 +73,7 @@ def test_husky_config_selects_the_urdf_robot_and_footprint_sets_the_grid(husky):
 
 def test_masses_and_inertias_come_from_the_urdf(client):
     model = UrdfRobotModel(husky_spec())
-    robot = model.spawn(client, None, (0, 0, 1), (0, 0, 0, 1))
+    robot = model.spawn(client, None, (0, 0, 1), (0, 0, 0, 1), time_step_s=None)
     body = robot.body_id
     names = {pybullet.getJointInfo(body, j, physicsClientId=client)[12].decode(): j
              for j in range(pybullet.getNumJoints(body, physicsClientId=client))}
@@ -123,7 +123,8 @@ def test_profile_is_fixed_rigidly_to_the_mount(client, husky):
     profile = ProfileBody.from_mesh(profile_mesh(heights, husky.grid), husky.profile_density_kgpm3())
     model = husky.robot_model()
     reset_world(client, husky.physics)
-    robot = model.spawn(client, profile, (0, 0, 1.5), pybullet.getQuaternionFromEuler([2.5, 0.4, 0.3]))
+    robot = model.spawn(client, profile, (0, 0, 1.5), pybullet.getQuaternionFromEuler([2.5, 0.4, 0.3]),
+                        time_step_s=husky.physics.time_step_s)
     body = robot.body_id
     links = {pybullet.getJointInfo(body, j, physicsClientId=client)[12].decode(): j
              for j in range(pybullet.getNumJoints(body, physicsClientId=client))}
@@ -157,7 +158,7 @@ def test_same_robot_from_a_string_a_package_uri_and_after_pickling(tmp_path, cli
     settings = EvaluatorSettings(urdf_robot=spec)
     restored = pickle.loads(pickle.dumps(settings))
     shutil.rmtree(tmp_path / "share")  # a worker never reads the description's files again
-    robot = restored.robot_model().spawn(client, None, (0, 0, 1), (0, 0, 0, 1))
+    robot = restored.robot_model().spawn(client, None, (0, 0, 1), (0, 0, 0, 1), time_step_s=None)
     assert len(robot.wheel_links) == 4
 
 
@@ -255,7 +256,8 @@ def test_forward_axis_turns_the_robot_to_face_world_x(client):
     pybullet = pytest.importorskip("pybullet")
     facing = {}
     for axis in ("x", "y"):
-        robot = UrdfRobotModel(husky_spec(forward_axis=axis)).spawn(client, None, (0, 0, 1), (0, 0, 0, 1))
+        robot = UrdfRobotModel(husky_spec(forward_axis=axis)).spawn(client, None, (0, 0, 1), (0, 0, 0, 1),
+                                                                    time_step_s=None)
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
         facing[axis] = np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
     np.testing.assert_allclose(facing["x"][:, 0], [1, 0, 0], atol=1e-9)    # REP 103: root x = world x
@@ -283,7 +285,7 @@ def test_any_urdf_from_config_alone(client):
     model = UrdfRobotModel(spec)
     ground = reset_world(client, PhysicsParams())
     for orientation, upright in (((0, 0, 0, 1), True), (pybullet.getQuaternionFromEuler([np.pi, 0, 0]), False)):
-        robot = model.spawn(client, None, (0, 0, 0.2), orientation)
+        robot = model.spawn(client, None, (0, 0, 0.2), orientation, time_step_s=PhysicsParams().time_step_s)
         for _ in range(480):
             pybullet.stepSimulation(physicsClientId=client)
         assert model.is_upright(client, robot, ground)[0] is upright
@@ -358,7 +360,7 @@ def test_a_compliant_mount_on_a_urdf_robot_deflects_by_the_profile_weight(husky,
         client = connect()
         try:
             reset_world(client, physics)
-            robot = model.spawn(client, profile, (0, 0, 1), (0, 0, 0, 1))
+            robot = model.spawn(client, profile, (0, 0, 1), (0, 0, 0, 1), time_step_s=physics.time_step_s)
             place_on_ground(client, robot.body_id, (0, 0, 0, 1), 0.0)
             info = pybullet.getJointInfo(robot.body_id, robot.mount_spring.joint, physicsClientId=client)
             assert info[1].decode() == PROFILE_JOINT and info[2] == pybullet.JOINT_PRISMATIC

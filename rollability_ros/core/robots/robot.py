@@ -127,13 +127,14 @@ class MountSpring:
         return self.pybullet.getJointState(self.body_id, self.joint, physicsClientId=self.client)[0]
 
 
-def compliant_mount(client: int, body_id: int, joint: int, mount: ProfileMountSpec,
-                    profile_mass_kg: float) -> MountSpring:
+def compliant_mount(client: int, body_id: int, joint: int, mount: ProfileMountSpec, profile_mass_kg: float,
+                    time_step_s: typing.Optional[float]) -> MountSpring:
     """Set up the compliant profile joint ``joint`` of ``body_id``: its end stops, the time-step check
-    (:meth:`ProfileMountSpec.check_time_step`, at the client's step) and its :class:`MountSpring`."""
+    (:meth:`ProfileMountSpec.check_time_step` at ``time_step_s``, the world's step as its caller set it; None for
+    a world that is never stepped) and its :class:`MountSpring`."""
     pybullet = require("pybullet", feature="the simulated evaluator")
-    time_step_s = pybullet.getPhysicsEngineParameters(physicsClientId=client)["fixedTimeStep"]
-    mount.check_time_step(profile_mass_kg, time_step_s)
+    if time_step_s is not None:
+        mount.check_time_step(profile_mass_kg, time_step_s)
     pybullet.changeDynamics(body_id, joint, jointLowerLimit=-mount.travel_m, jointUpperLimit=mount.travel_m,
                             physicsClientId=client)
     return MountSpring(client, body_id, joint, mount)
@@ -163,10 +164,13 @@ class RobotModel(abc.ABC):
 
     @abc.abstractmethod
     def spawn(self, client: int, profile: typing.Optional[ProfileBody], position: npt.ArrayLike,
-              orientation: typing.Sequence[float]) -> SpawnedRobot:
+              orientation: typing.Sequence[float], *, time_step_s: typing.Optional[float]) -> SpawnedRobot:
         """Create the robot with ``profile`` (a :class:`ProfileBody` or None) in ``client``; return a SpawnedRobot.
 
         ``position`` (3,) metres and ``orientation`` (x, y, z, w) place the robot's base frame in the world.
+        ``time_step_s`` is the world's fixed step (s) as the caller set it (``sim.time_step_s``), against which a
+        compliant mount is checked (:meth:`ProfileMountSpec.check_time_step`); None for a world that is never
+        stepped (geometry only). It flows down from the settings: no model reads it back from the engine.
         """
 
     @abc.abstractmethod
@@ -402,7 +406,7 @@ class ChassisModel(SpecThresholds, RobotModel):
         return shapes, com, mass
 
     def spawn(self, client: int, profile: typing.Optional[ProfileBody], position: npt.ArrayLike,
-              orientation: typing.Sequence[float]) -> SpawnedRobot:
+              orientation: typing.Sequence[float], *, time_step_s: typing.Optional[float]) -> SpawnedRobot:
         pybullet = require("pybullet", feature="the simulated evaluator")
         s = self.spec
         body_shape = pybullet.createCollisionShape(
@@ -444,7 +448,7 @@ class ChassisModel(SpecThresholds, RobotModel):
                                            forces=[s.wheel_drag_torque_nm] * 4, physicsClientId=client)
         spring = None
         if profile is not None and s.profile_mount.compliant:
-            spring = compliant_mount(client, body, 0, s.profile_mount, profile.mass_kg)
+            spring = compliant_mount(client, body, 0, s.profile_mount, profile.mass_kg, time_step_s)
         return SpawnedRobot(body_id=body, wheel_links=wheels, mount_spring=spring,
                             profile_link=None if profile is None else 0,
                             profile_points_m=None if profile is None else profile.hull_vertices_m)

@@ -474,7 +474,7 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
         return text + "</robot>\n"
 
     def spawn(self, client: int, profile: typing.Optional[ProfileBody], position: npt.ArrayLike,
-              orientation: typing.Sequence[float]) -> SpawnedRobot:
+              orientation: typing.Sequence[float], *, time_step_s: typing.Optional[float]) -> SpawnedRobot:
         pybullet = require("pybullet", feature="the simulated evaluator")
         # turn the robot about its z so its forward axis is the start orientation's x (the world's +x upright)
         facing = pybullet.getQuaternionFromEuler([0.0, 0.0, -math.radians(FORWARD_AXIS_DEG[self.spec.forward_axis])])
@@ -506,7 +506,8 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
                                                physicsClientId=client)
         spring = None
         if profile is not None and self.spec.profile_mount.compliant:
-            spring = compliant_mount(client, body, index[PROFILE_LINK], self.spec.profile_mount, profile.mass_kg)
+            spring = compliant_mount(client, body, index[PROFILE_LINK], self.spec.profile_mount, profile.mass_kg,
+                                     time_step_s)
         return SpawnedRobot(body_id=body, wheel_links=tuple(index[name] for name in self.mounted.wheel_bodies),
                             mount_spring=spring, profile_link=None if profile is None else index[PROFILE_LINK],
                             profile_points_m=None if profile is None else profile.hull_vertices_m)

@@ -684,7 +684,8 @@ class BulletLaunch(LaunchEngine):
         try:
             foam_id, ledge_id, floor_id = build_launch_world(client, settings, condition.height_m)
             orientation = pybullet.getQuaternionFromEuler([0.0, 0.0, angle])
-            robot = model.spawn(client, profile, (0.0, 0.0, 5.0), orientation)
+            robot = model.spawn(client, profile, (0.0, 0.0, 5.0), orientation,
+                                time_step_s=settings.physics.time_step_s)
             set_contact(client, robot.body_id, settings.physics.body_contact())
             _set_wheels(pybullet, client, robot, options, settings.physics.lateral_friction, mecanum_wheels(settings))
             lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)

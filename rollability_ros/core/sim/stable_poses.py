@@ -125,7 +125,8 @@ def robot_hull(robot_model, profile=None, sections=24):
 
     client = connect()
     try:
-        robot = robot_model.spawn(client, profile, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+        # geometry only: this world is never stepped
+        robot = robot_model.spawn(client, profile, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), time_step_s=None)
         points_by_link, masses, centres = link_points(client, robot.body_id, sections)
         points = list(points_by_link.values())
         masses, centres = list(masses.values()), list(centres.values())
@@ -290,7 +291,7 @@ def hull_spawner(body, upright_tilt_deg):
     pybullet = require("pybullet", feature="low-energy drop trials")
     cos_upright = math.cos(math.radians(upright_tilt_deg))
 
-    def spawn(client):
+    def spawn(client, time_step_s):   # a rigid hull: nothing in it depends on the step
         shape = pybullet.createCollisionShape(pybullet.GEOM_MESH, vertices=body.hull.vertices.tolist(),
                                               physicsClientId=client)
         body_id = pybullet.createMultiBody(baseMass=body.mass_kg, baseCollisionShapeIndex=shape,
@@ -305,8 +306,8 @@ def hull_spawner(body, upright_tilt_deg):
 
 def chassis_spawner(robot_model, profile):
     """A :func:`drop_trials` spawner for a robot model with ``profile``; upright by the model's own test."""
-    def spawn(client):
-        robot = robot_model.spawn(client, profile, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0, 1.0))
+    def spawn(client, time_step_s):
+        robot = robot_model.spawn(client, profile, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0, 1.0), time_step_s=time_step_s)
         return robot.body_id, lambda ground_id: robot_model.is_upright(client, robot, ground_id)[0]
     return spawn
 
@@ -317,8 +318,9 @@ def drop_trials(spawn, trials, seed, physics, trial_settings, clearance_m=0.001)
 
     Parameters
     ----------
-    spawn : callable(client) -> (body_id, upright(ground_id) -> bool)
-        :func:`hull_spawner` or :func:`chassis_spawner`; the body gets ``physics``' body contact.
+    spawn : callable(client, time_step_s) -> (body_id, upright(ground_id) -> bool)
+        :func:`hull_spawner` or :func:`chassis_spawner`, called with ``physics.time_step_s``; the body gets
+        ``physics``' body contact.
     trials, seed : int
         Number of drops; seed of the orientations.
     physics : rollability_ros.core.sim.world.PhysicsParams
@@ -341,7 +343,7 @@ def drop_trials(spawn, trials, seed, physics, trial_settings, clearance_m=0.001)
     client = connect()
     try:
         ground = reset_world(client, physics)
-        body_id, upright = spawn(client)
+        body_id, upright = spawn(client, physics.time_step_s)
         set_contact(client, body_id, physics.body_contact())
         saved = pybullet.saveState(physicsClientId=client)
         for _ in range(trials):

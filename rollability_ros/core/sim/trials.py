@@ -144,7 +144,7 @@ def place_on_ground(client, body_id, orientation, clearance_m, xy_m=(0.0, 0.0), 
 def build_trial_world(client, robot_model, profile, orientation, settings, physics):
     """Empty the world, add the ground and the robot in its start pose; return ``(ground_id, spawned robot)``."""
     ground = reset_world(client, physics)
-    robot = robot_model.spawn(client, profile, (0.0, 0.0, 1.0), orientation)
+    robot = robot_model.spawn(client, profile, (0.0, 0.0, 1.0), orientation, time_step_s=physics.time_step_s)
     set_contact(client, robot.body_id, physics.body_contact())
     place_on_ground(client, robot.body_id, orientation, settings.drop_height_m)
     return ground, robot

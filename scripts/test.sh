@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Sets everything up (scripts/setup.sh), then runs the test suite. Extra arguments go to pytest.
 #   ./scripts/test.sh           every test except the minutes-long ones marked `slow` (the README's test command)
-#   ./scripts/test.sh --slow    only the `slow` ones (a kill -9 soak, a study killed twice, two other robots end to
-#                               end, the colcon build and its installed executables)
+#   ./scripts/test.sh --slow    only the `slow` ones (a kill -9 soak, the miniature study end to end and killed twice,
+#                               two other robots end to end, the colcon build and its installed executables, and a
+#                               second path through a slow set-up: docs/testing.md lists them)
 #   ./scripts/test.sh --all     all of them
 # .ci/run runs the first two (after a hostile-environment sample), so CI runs every test. No test is rerun
 # automatically: a failure is a failure (docs/testing.md); every run ends with `reruns: N` (0 unless --reruns is given).

@@ -180,6 +180,8 @@ def test_two_evaluators_share_the_run_and_it_equals_the_in_process_run(ros_node,
     assert max(p.z for p in marker.points) > 0 and marker.pose.position.z > 0
 
 
+@pytest.mark.slow   # about 20 s, most of it the killed reader's DDS lease; the test above checks two evaluators
+#                     equal the in-process run in the README's command
 def test_a_killed_evaluator_is_replaced_and_the_results_do_not_change(ros_node, start_node, evaluators, tmp_path,
                                                                      reference):
     victim = start_node("sim_evaluator", params={"evaluator.workers": 1, **GRID}, ros_args=["-r", "__ns:=/eval_k"],
@@ -257,6 +259,7 @@ def test_pause_resume_and_stop(ros_node, start_node, evaluators, tmp_path):
     assert optimizer.alive() and not call(ros_node, "/pause").success   # no run in progress any more
 
 
+@pytest.mark.slow   # the node's checkpoint and resume; the core's are tested in test/core/test_resume.py
 def test_sigint_keeps_a_valid_checkpoint_and_resume_continues(ros_node, start_node, evaluators, tmp_path,
                                                               reference):
     from rollability_ros.core.optimization import checkpoint

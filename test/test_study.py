@@ -37,6 +37,7 @@ def _still_running(output):
     return running
 
 
+@pytest.mark.slow   # about 40 s; the README's command starts the same graph in the Ctrl-C test below
 def test_miniature_main_job_end_to_end(tmp_path):
     from rollability_ros.core.results import report
     from rollability_ros.core.bags.reader import BagReader

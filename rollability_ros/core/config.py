@@ -37,7 +37,7 @@ class ConfigError(ValueError):
 _PATH_COMPONENT = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,127}")
 
 
-def check_path_component(value, what):
+def check_path_component(value: object, what: str) -> str:
     """Return ``value`` if it is a safe single path component (:data:`_PATH_COMPONENT`), else raise ConfigError
     naming ``what``: an id like ``../escaped`` or ``''`` would write outside the output folder or into it."""
     if not isinstance(value, str) or not _PATH_COMPONENT.fullmatch(value):
@@ -46,7 +46,7 @@ def check_path_component(value, what):
     return value
 
 
-def check_output_dir(path, what, keeps=()):
+def check_output_dir(path: str, what: str, keeps: typing.Iterable[str] = ()) -> None:
     """Raise ConfigError unless ``path`` can receive a command's results: missing, an empty folder, or (with
     ``keeps``, names of files a command writes) a folder holding none of them, so an earlier result is never
     overwritten and a file never replaced by a folder; ``what`` names the flag in the message."""
@@ -58,7 +58,7 @@ def check_output_dir(path, what, keeps=()):
                           f"a new folder for {what}")
 
 
-def config_dir():
+def config_dir() -> str:
     """Return the directory holding the shipped ``config/*.yaml`` files.
 
     Looks at ``$ROLLABILITY_CONFIG_DIR``, then the source checkout (``<repo>/config``), then the ament share
@@ -77,7 +77,7 @@ def config_dir():
     raise ConfigError(f"no config directory found (looked in {', '.join(candidates)}); set {CONFIG_ENV}")
 
 
-def resolve_config_path(name_or_path):
+def resolve_config_path(name_or_path: str) -> str:
     """Return a path for ``name_or_path``: an existing file as given, else ``<config_dir>/<name>[.yaml]``."""
     if os.path.isfile(name_or_path):
         return name_or_path
@@ -99,7 +99,7 @@ def _flatten(mapping, prefix, out, path):
             out[name] = value
 
 
-def read_parameter_file(path):
+def read_parameter_file(path: str) -> typing.Dict[str, typing.Dict[str, typing.Any]]:
     """Read a ROS 2 parameter file into ``{node name: {dotted parameter: value}}``.
 
     Raises :class:`ConfigError` naming the file for unreadable YAML or a layout that is not
@@ -123,7 +123,7 @@ def read_parameter_file(path):
         params = body["ros__parameters"] or {}
         if not isinstance(params, dict):
             raise ConfigError(f"parameter file {path}: '{node_name}.ros__parameters' must be a mapping")
-        flat = {}
+        flat: typing.Dict[str, typing.Any] = {}
         _flatten(params, "", flat, path)
         nodes[str(node_name)] = flat
     return nodes
@@ -135,7 +135,8 @@ def _node_matches(pattern, node_name):
     return pattern.lstrip("/") == node_name.lstrip("/") or pattern.lstrip("/").split("/")[-1] == node_name.lstrip("/").split("/")[-1]
 
 
-def load_parameters(paths, node_name="/**"):
+def load_parameters(paths: typing.Union[str, os.PathLike, typing.Iterable[typing.Union[str, os.PathLike]]],
+                    node_name: str = "/**") -> typing.Dict[str, typing.Any]:
     """Merge parameter files into one flat dict for ``node_name``.
 
     Later files override earlier ones; within a file, a section naming the node overrides ``/**``.
@@ -154,7 +155,7 @@ def load_parameters(paths, node_name="/**"):
     return merged
 
 
-def check_namespaces(flat, where):
+def check_namespaces(flat: typing.Iterable[str], where: str) -> None:
     """Raise :class:`ConfigError` naming ``where`` and the parameter for a dotted name in ``flat`` whose namespace
     is not one of :data:`KNOWN_NAMESPACES` (names without a dot, e.g. ``use_sim_time``, pass)."""
     for name in flat:
@@ -164,9 +165,9 @@ def check_namespaces(flat, where):
                               f"{', '.join(sorted(KNOWN_NAMESPACES))}")
 
 
-def section(flat, prefix):
+def section(flat: typing.Mapping[str, typing.Any], prefix: str) -> typing.Dict[str, typing.Any]:
     """Return the parameters under ``prefix.`` as a nested dict (``section(p, "sim")["time_step_s"]``)."""
-    out = {}
+    out: typing.Dict[str, typing.Any] = {}
     lead = prefix + "." if prefix else ""
     for name, value in flat.items():
         if not name.startswith(lead):
@@ -177,6 +178,10 @@ def section(flat, prefix):
             node = node.setdefault(part, {})
         node[parts[-1]] = value
     return out
+
+
+#: A settings dataclass built by :func:`from_mapping`.
+_Settings = typing.TypeVar("_Settings")
 
 
 def _check_value(value, field_type, where):
@@ -211,7 +216,8 @@ def _check_value(value, field_type, where):
     return value
 
 
-def from_mapping(cls, mapping, where):
+def from_mapping(cls: typing.Type[_Settings], mapping: typing.Optional[typing.Mapping[str, typing.Any]],
+                 where: str) -> _Settings:
     """Build dataclass ``cls`` from a (nested) mapping, checking names and types.
 
     Unknown keys and wrongly typed values raise :class:`ConfigError` naming ``where.key``; missing keys take
@@ -223,14 +229,14 @@ def from_mapping(cls, mapping, where):
     if not isinstance(mapping, dict):
         raise ConfigError(f"{where}: expected a mapping, got {mapping!r}")
     hints = typing.get_type_hints(cls)
-    fields = {f.name: f for f in dataclasses.fields(cls)}
+    fields = {f.name: f for f in dataclasses.fields(typing.cast(typing.Any, cls))}   # refuses a non-dataclass
     unknown = sorted(set(mapping) - set(fields))
     if unknown:
         raise ConfigError(f"{where}: unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(fields))}")
     kwargs = {}
     for name, value in mapping.items():
         field_type = hints[name]
-        if dataclasses.is_dataclass(field_type):
+        if isinstance(field_type, type) and dataclasses.is_dataclass(field_type):
             kwargs[name] = from_mapping(field_type, value, f"{where}.{name}")
         else:
             kwargs[name] = _check_value(value, field_type, f"{where}.{name}")

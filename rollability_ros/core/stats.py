@@ -1,10 +1,12 @@
 """Binomial statistics for success rates (fitness = successes / trials), and rank correlation."""
 import math
+import typing
 
 import numpy as np
+import numpy.typing as npt
 
 
-def wilson_interval(successes, trials, z=1.959963984540054):
+def wilson_interval(successes: int, trials: int, z: float = 1.959963984540054) -> typing.Tuple[float, float]:
     """Wilson score interval of a binomial proportion.
 
     Parameters
@@ -32,7 +34,8 @@ def wilson_interval(successes, trials, z=1.959963984540054):
     return (max(0.0, centre - half) if successes else 0.0, min(1.0, centre + half) if successes < trials else 1.0)
 
 
-def newcombe_interval(successes_a, trials_a, successes_b, trials_b, z=1.959963984540054):
+def newcombe_interval(successes_a: int, trials_a: int, successes_b: int, trials_b: int,
+                      z: float = 1.959963984540054) -> typing.Tuple[float, float, float]:
     """Newcombe's hybrid score interval of the difference of two independent proportions, ``p_a - p_b``.
 
     Method 10 of Newcombe (1998), "Interval estimation for the difference between independent proportions:
@@ -52,19 +55,19 @@ def newcombe_interval(successes_a, trials_a, successes_b, trials_b, z=1.95996398
             difference + math.sqrt((high_a - p_a) ** 2 + (p_b - low_b) ** 2))
 
 
-def average_ranks(values):
+def average_ranks(values: npt.ArrayLike) -> np.ndarray:
     """Ranks 1..n of ``values`` (n,), ties sharing their average rank."""
-    values = np.asarray(values, dtype=np.float64)
-    order = np.argsort(values, kind="mergesort")
-    ranks = np.empty(len(values))
-    ranks[order] = np.arange(1, len(values) + 1)
-    for value in np.unique(values):
-        tied = values == value
+    array = np.asarray(values, dtype=np.float64)
+    order = np.argsort(array, kind="mergesort")
+    ranks = np.empty(len(array))
+    ranks[order] = np.arange(1, len(array) + 1)
+    for value in np.unique(array):
+        tied = array == value
         ranks[tied] = ranks[tied].mean()
     return ranks
 
 
-def spearman(x, y):
+def spearman(x: npt.ArrayLike, y: npt.ArrayLike) -> float:
     """Spearman rank correlation of paired samples (ties: average ranks); nan when either is constant."""
     rx, ry = average_ranks(x), average_ranks(y)
     if len(rx) < 2 or np.std(rx) == 0 or np.std(ry) == 0:
@@ -72,18 +75,19 @@ def spearman(x, y):
     return float(np.corrcoef(rx, ry)[0, 1])
 
 
-def spearman_permutation_test(x, y, permutations=10000, seed=0):
+def spearman_permutation_test(x: npt.ArrayLike, y: npt.ArrayLike, permutations: int = 10000,
+                              seed: int = 0) -> typing.Tuple[float, float]:
     """``(rho, p)``: Spearman's rho of ``x`` and ``y`` and its two-sided permutation p-value (the share of
     ``permutations`` random pairings, plus the observed one, with ``|rho|`` at least the observed; seeded, so the
     same data give the same p). Needs at least 3 pairs; nan, nan when rho is undefined."""
-    x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
-    if len(x) != len(y) or len(x) < 3:
-        raise ValueError(f"a rank test needs at least 3 pairs of equal length, got {len(x)} and {len(y)}")
-    observed = spearman(x, y)
+    xs, ys = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    if len(xs) != len(ys) or len(xs) < 3:
+        raise ValueError(f"a rank test needs at least 3 pairs of equal length, got {len(xs)} and {len(ys)}")
+    observed = spearman(xs, ys)
     if not math.isfinite(observed):
         return math.nan, math.nan
     rng = np.random.default_rng(seed)
-    rx, ry = average_ranks(x), average_ranks(y)
+    rx, ry = average_ranks(xs), average_ranks(ys)
     shuffled = np.array([rng.permutation(ry) for _ in range(permutations)])
     rx_c = rx - rx.mean()
     rhos = (shuffled - shuffled.mean(axis=1, keepdims=True)) @ rx_c / (

@@ -13,7 +13,9 @@ MODULES = ["imu/quaternion.py", "imu/upright.py", "records.py", "record_messages
            "rig/relay_protocol.py", "rig/rig_network.py", "rig/valve_auth.py", "rig/valve_backend.py",
            "sim/body_points.py", "sim/trial_engine.py", "sim/worker_pool.py",
            "campaign_matrix.py", "faces.py", "profile/descriptors.py", "profile/designs.py", "profile/geometry.py",
-           "robots/robot.py", "robots/urdf_description.py", "robots/urdf_robot.py"]
+           "robots/robot.py", "robots/urdf_description.py", "robots/urdf_robot.py",
+           "config.py", "stats.py", "campaign/plan.py", "graph/ros_domain.py", "rig/rig_auth.py", "sim/robustness.py",
+           "sim/world.py"]
 
 
 def unannotated(path):

@@ -9,6 +9,7 @@ plan was ordered or shuffled. Stdlib only (runs on the robot computer).
 import dataclasses
 import random
 import statistics
+import typing
 
 # the matrix itself is a shared value type at the core's bottom (the robust objective reads it too); its names stay
 # importable from here
@@ -31,7 +32,7 @@ def _block_key(condition, block_level):
     return tuple(getattr(condition, level) for level in LEVELS[:depth])
 
 
-def plan_trials(spec):
+def plan_trials(spec: CampaignSpec) -> typing.List[PlannedTrial]:
     """Every trial of ``spec`` in run order, each with a unique, condition-derived ``trial_id``.
 
     With ``spec.random_order`` the trials inside each block (same levels up to ``spec.random_block``) are
@@ -42,7 +43,7 @@ def plan_trials(spec):
                   for s in spec.speeds_mps for r in range(spec.repetitions)]
     if spec.random_order:
         rng = random.Random(spec.random_seed)
-        blocks = {}
+        blocks: typing.Dict[tuple, typing.List[LaunchCondition]] = {}
         for condition in conditions:
             blocks.setdefault(_block_key(condition, spec.random_block), []).append(condition)
         conditions = []
@@ -55,14 +56,16 @@ def plan_trials(spec):
     return plan
 
 
-def changed_levels(previous, following):
+def changed_levels(previous: typing.Optional[LaunchCondition], following: LaunchCondition) -> typing.List[str]:
     """Names of the matrix levels (``LEVELS``) that differ between two conditions; all of them if no previous."""
     if previous is None:
         return list(LEVELS)
     return [level for level in LEVELS if getattr(previous, level) != getattr(following, level)]
 
 
-def changes_between(previous, following, pressure_psi_by_speed=None):
+def changes_between(previous: typing.Union[LaunchCondition, PlannedTrial, None],
+                    following: typing.Union[LaunchCondition, PlannedTrial],
+                    pressure_psi_by_speed: typing.Optional[typing.Mapping[float, float]] = None) -> typing.List[str]:
     """What the operator must change on the rig before ``following``, one instruction per changed level.
 
     Parameters
@@ -72,15 +75,16 @@ def changes_between(previous, following, pressure_psi_by_speed=None):
     pressure_psi_by_speed : dict, optional
         ``{speed m/s: regulator pressure psi}`` from the rig config, to name the pressure to set.
     """
-    previous = getattr(previous, "condition", previous)
-    following = getattr(following, "condition", following)
+    before = previous.condition if isinstance(previous, PlannedTrial) else previous
+    after = following.condition if isinstance(following, PlannedTrial) else following
+    pressures = pressure_psi_by_speed or {}
     instructions = []
-    for level in changed_levels(previous, following):
-        instruction = f"{_INSTRUCTIONS[level]} {_level_text(following, level)}"
-        if level == "speed_mps" and following.speed_mps in (pressure_psi_by_speed or {}):
-            instruction += f" (regulator {pressure_psi_by_speed[following.speed_mps]:g} psi)"
-        if previous is not None:
-            instruction += f" (was {_level_text(previous, level)})"
+    for level in changed_levels(before, after):
+        instruction = f"{_INSTRUCTIONS[level]} {_level_text(after, level)}"
+        if level == "speed_mps" and after.speed_mps in pressures:
+            instruction += f" (regulator {pressures[after.speed_mps]:g} psi)"
+        if before is not None:
+            instruction += f" (was {_level_text(before, level)})"
         instructions.append(instruction)
     return instructions
 
@@ -95,7 +99,7 @@ def _level_text(condition, level):
             "angle_deg": lambda: f"{value:+g} deg", "speed_mps": lambda: f"{value:g} m/s"}[level]()
 
 
-def remaining_trials(plan, store, run_id):
+def remaining_trials(plan: typing.Sequence[PlannedTrial], store: typing.Any, run_id: str) -> typing.List[PlannedTrial]:
     """The planned trials of ``run_id`` whose outcome is not in ``store`` (a trial is done once stored)."""
     done = store.trial_ids(run_id)
     return [trial for trial in plan if trial.trial_id not in done]
@@ -114,7 +118,7 @@ class CampaignProgress:
         The ETA uses the median of the last ``window`` durations (robust to an operator's coffee break).
     """
 
-    def __init__(self, total, done=0, window=20):
+    def __init__(self, total: int, done: int = 0, window: int = 20) -> None:
         if not 0 <= done <= total:
             raise ValueError(f"need 0 <= done <= total, got {done} of {total}")
         if window < 1:
@@ -122,9 +126,9 @@ class CampaignProgress:
         self.total = total
         self.done = done
         self.window = window
-        self._durations_s = []
+        self._durations_s: typing.List[float] = []
 
-    def trial_done(self, duration_s):
+    def trial_done(self, duration_s: float) -> None:
         """Count one more stored trial that took ``duration_s`` (s, from command to stored outcome)."""
         if duration_s < 0:
             raise ValueError(f"duration_s must be >= 0, got {duration_s}")
@@ -134,18 +138,18 @@ class CampaignProgress:
         self._durations_s.append(float(duration_s))
 
     @property
-    def remaining(self):
+    def remaining(self) -> int:
         """Trials still to run."""
         return self.total - self.done
 
     @property
-    def eta_s(self):
+    def eta_s(self) -> typing.Optional[float]:
         """Estimated seconds left, or None before the first measured trial."""
         if not self._durations_s:
             return None if self.remaining else 0.0
         return statistics.median(self._durations_s[-self.window:]) * self.remaining
 
-    def text(self):
+    def text(self) -> str:
         """One status line, e.g. ``"37/400 done, 363 remaining, about 1 h 02 min left"``."""
         eta = self.eta_s
         if eta is None:

@@ -8,9 +8,10 @@ the returned handle stays open (the life of the process), so every claimant on t
 import fcntl
 import os
 import tempfile
+import typing
 
 
-def claim_domain(first, last, start=None):
+def claim_domain(first: int, last: int, start: typing.Optional[int] = None) -> typing.Tuple[int, typing.TextIO]:
     """``(domain, lock handle)``: the first domain in ``first..last`` (inclusive, tried from ``start``, default
     ``first + pid mod size``) that no other process holds; ``RuntimeError`` when all are held."""
     size = last - first + 1

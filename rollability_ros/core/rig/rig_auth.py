@@ -69,7 +69,7 @@ def outcome_text(trial_id: str, upright: bool, travel_time_s: float, note: str) 
 
 def record_text(outcome: typing.Any) -> str:
     """The signed text of a stored :class:`~rollability_ros.core.records.LaunchOutcome`: all its fields."""
-    def exact(value):
+    def exact(value: typing.Any) -> typing.Any:
         if isinstance(value, float):
             return _number(value)
         if isinstance(value, dict):
@@ -206,15 +206,17 @@ class OpenGuard:
     required = False
     rejected = 0
 
-    def check_launch(self, signature, run_id, trial_id, condition):
+    def check_launch(self, signature: typing.Any, run_id: str, trial_id: str,
+                     condition: typing.Any) -> typing.Tuple[LaunchTicket, str]:
         """Always a ticket (that signs nothing)."""
         return LaunchTicket(run_id, trial_id, None), ""
 
-    def check_confirm(self, signature, trial_id):
+    def check_confirm(self, signature: typing.Any, trial_id: str) -> typing.Tuple[bool, str]:
         """Always passes (the sim rig never asks; its operator channel refuses every answer)."""
         return True, ""
 
-    def check_outcome(self, signature, trial_id, upright, travel_time_s, note):
+    def check_outcome(self, signature: typing.Any, trial_id: str, upright: bool, travel_time_s: float,
+                      note: str) -> typing.Tuple[bool, str]:
         """Always passes (the sim rig never asks; its operator channel refuses every answer)."""
         return True, ""
 

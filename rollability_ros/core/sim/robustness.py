@@ -46,7 +46,7 @@ class RobustSettings:
     foam_stiffness_factor_max: float = dataclasses.field(default=2.0, metadata={"description": "launches: upper end of the factor on the foam's stiffness and damping (log-uniform), dimensionless", "range": (0.0, 100.0)})
     foam_restitution_max: float = dataclasses.field(default=0.3, metadata={"description": "launches: the foam's restitution is drawn uniform in [0, this], coefficient", "range": (0.0, 1.0)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not 0 < self.disturbance_scale_min <= self.disturbance_scale_max:
             raise ValueError("need 0 < disturbance_scale_min <= disturbance_scale_max")
@@ -75,7 +75,12 @@ class Draw:
     foam_restitution: float
 
 
-def draw(seed, robust, nominal_com_offset_z_m, body_height_m):
+#: An EvaluatorSettings or a LaunchTwinSettings (both have ``trial``, ``physics`` and ``robot``; defined in sim/
+#: modules that import this one), returned as the same type.
+_Perturbed = typing.Any
+
+
+def draw(seed: int, robust: RobustSettings, nominal_com_offset_z_m: float, body_height_m: float) -> Draw:
     """The :class:`Draw` of the trial with ``seed`` (its own stream of the trial seed: common random numbers)."""
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(_ROBUST_STREAM,)))
     scale = math.exp(rng.uniform(math.log(robust.disturbance_scale_min), math.log(robust.disturbance_scale_max)))
@@ -89,7 +94,7 @@ def draw(seed, robust, nominal_com_offset_z_m, body_height_m):
     return Draw(scale, roll, contact, com, stiffness, restitution)
 
 
-def perturb(settings, drawn):
+def perturb(settings: _Perturbed, drawn: Draw) -> _Perturbed:
     """Settings with a trial's :class:`Draw` applied: ``settings`` is an EvaluatorSettings or a
     LaunchTwinSettings (both have ``trial``, ``physics`` and ``robot``; a twin also has ``twin.foam``)."""
     trial = dataclasses.replace(
@@ -112,6 +117,6 @@ def perturb(settings, drawn):
     return dataclasses.replace(settings, **changes)
 
 
-def robust_settings_for(settings, seed, robust):
+def robust_settings_for(settings: _Perturbed, seed: int, robust: RobustSettings) -> _Perturbed:
     """``settings`` (EvaluatorSettings or LaunchTwinSettings) perturbed by the draw of trial ``seed``."""
     return perturb(settings, draw(seed, robust, settings.robot.com_offset_z_m, settings.robot.body_height_m))

@@ -18,6 +18,7 @@ says what the paper's numbers (``config/sim.yaml``) mean:
 """
 import dataclasses
 import math
+import typing
 
 from rollability_ros.core.optional import require
 from rollability_ros.core.sim.trial_engine import engine_names
@@ -54,7 +55,7 @@ class PhysicsParams:
         "description": "physics engine of the trials: pybullet (the paper's) or mujoco (faster; no restitution, "
                        "see docs/engines.md)"})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not self.gravity_mps2 < 0:
             raise ValueError(f"gravity_mps2 must be negative (z up), got {self.gravity_mps2}")
@@ -72,34 +73,34 @@ class PhysicsParams:
         if self.solver_iterations < 1:
             raise ValueError(f"solver_iterations must be >= 1, got {self.solver_iterations}")
 
-    def effective_friction(self):
+    def effective_friction(self) -> float:
         """The friction coefficient of a robot-ground contact under ``contact_model``."""
         return self.lateral_friction * (self.lateral_friction if self.contact_model == "per_body" else 1.0)
 
-    def body_contact(self):
+    def body_contact(self) -> typing.Dict[str, float]:
         """Contact parameters for a simulated object (robot, test box): pybullet ``changeDynamics`` keywords."""
         return {"lateralFriction": self.lateral_friction, "rollingFriction": self.rolling_friction,
                 "spinningFriction": self.spinning_friction, "restitution": self.restitution}
 
-    def ground_contact(self):
+    def ground_contact(self) -> typing.Dict[str, float]:
         """Contact parameters for the ground under ``contact_model`` (see the module docstring)."""
         if self.contact_model == "per_body":
             return self.body_contact()
         return {"lateralFriction": 1.0, "rollingFriction": 0.0, "spinningFriction": 0.0, "restitution": 1.0}
 
 
-def connect():
+def connect() -> int:
     """Start a PyBullet physics server in DIRECT mode (no GUI) and return its client id."""
     pybullet = require("pybullet", feature="the simulated evaluator")
     return pybullet.connect(pybullet.DIRECT)
 
 
-def disconnect(client):
+def disconnect(client: int) -> None:
     """Stop the physics server ``client``."""
     require("pybullet").disconnect(physicsClientId=client)
 
 
-def reset_world(client, physics, slope_deg=0.0):
+def reset_world(client: int, physics: PhysicsParams, slope_deg: float = 0.0) -> int:
     """Empty ``client``'s world, apply ``physics`` and add a ground plane; return the ground's body id.
 
     The ground is a static plane through the world origin, tilted by ``slope_deg`` about the world x axis (so
@@ -118,7 +119,7 @@ def reset_world(client, physics, slope_deg=0.0):
     return ground
 
 
-def set_contact(client, body_id, contact):
+def set_contact(client: int, body_id: int, contact: typing.Mapping[str, float]) -> None:
     """Apply ``contact`` (``changeDynamics`` keywords) to the base and every link of ``body_id``."""
     pybullet = require("pybullet", feature="the simulated evaluator")
     for link in range(-1, pybullet.getNumJoints(body_id, physicsClientId=client)):

@@ -15,7 +15,8 @@ MODULES = ["imu/quaternion.py", "imu/upright.py", "records.py", "record_messages
            "campaign_matrix.py", "faces.py", "profile/descriptors.py", "profile/designs.py", "profile/geometry.py",
            "robots/robot.py", "robots/urdf_description.py", "robots/urdf_robot.py",
            "config.py", "stats.py", "campaign/plan.py", "graph/ros_domain.py", "rig/rig_auth.py", "sim/robustness.py",
-           "sim/world.py"]
+           "sim/world.py", "bags/metadata.py", "bags/msg_definitions.py", "bags/playback.py", "bags/qos.py",
+           "bags/record_play.py"]
 
 
 def unannotated(path):

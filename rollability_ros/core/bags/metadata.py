@@ -5,6 +5,7 @@ A rosbag2 bag is a directory: ``metadata.yaml`` plus storage files. This module 
 """
 import dataclasses
 import os
+import typing
 
 import yaml
 
@@ -45,8 +46,10 @@ class FileInfo:
     message_count: int = 0
 
 
-def build_metadata(topics, files, *, storage_identifier="mcap", compression_format="", compression_mode="",
-                   custom_data=None, ros_distro=ROS_DISTRO):
+def build_metadata(topics: typing.Iterable[TopicInfo], files: typing.Sequence[FileInfo], *,
+                   storage_identifier: str = "mcap", compression_format: str = "", compression_mode: str = "",
+                   custom_data: typing.Optional[typing.Mapping[str, str]] = None,
+                   ros_distro: str = ROS_DISTRO) -> typing.Dict[str, typing.Any]:
     """Return the ``rosbag2_bagfile_information`` mapping (version 9) for ``topics`` and ``files``.
 
     Bag start and duration span the files that hold messages; an empty bag starts at 0 with duration 0.
@@ -94,12 +97,12 @@ def build_metadata(topics, files, *, storage_identifier="mcap", compression_form
     }
 
 
-def dump_metadata(information):
+def dump_metadata(information: typing.Mapping[str, typing.Any]) -> str:
     """Return ``information`` (a ``rosbag2_bagfile_information`` mapping) as YAML text, without the top key."""
     return yaml.safe_dump(information, sort_keys=False, default_flow_style=False)
 
 
-def write_metadata(directory, information):
+def write_metadata(directory: str, information: typing.Mapping[str, typing.Any]) -> None:
     """Write ``<directory>/metadata.yaml`` atomically (temp file, fsync, rename)."""
     path = os.path.join(directory, METADATA_FILE)
     text = yaml.safe_dump({"rosbag2_bagfile_information": information}, sort_keys=False,
@@ -112,7 +115,7 @@ def write_metadata(directory, information):
     os.replace(temporary, path)
 
 
-def read_metadata(directory):
+def read_metadata(directory: str) -> typing.Dict[str, typing.Any]:
     """Return the ``rosbag2_bagfile_information`` mapping of a bag directory.
 
     Raises
@@ -140,7 +143,7 @@ def read_metadata(directory):
     return information
 
 
-def topics_from_metadata(information):
+def topics_from_metadata(information: typing.Mapping[str, typing.Any]) -> typing.List[TopicInfo]:
     """Return the :class:`TopicInfo` list of a ``rosbag2_bagfile_information`` mapping (QoS normalised)."""
     topics = []
     for entry in information.get("topics_with_message_count") or []:

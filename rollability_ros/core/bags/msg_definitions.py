@@ -10,6 +10,7 @@ type's ``.msg`` text, then every nested type once, depth-first in sorted order, 
 import os
 import re
 import sys
+import typing
 
 #: ROS package name of this repository's own interfaces.
 OWN_PACKAGE = "rollability_ros"
@@ -35,7 +36,7 @@ _PART_SECTIONS = {
 _FEEDBACK_MESSAGE = "_FeedbackMessage"
 
 
-def split_type_name(type_name):
+def split_type_name(type_name: str) -> typing.Tuple[str, str, str]:
     """Split ``pkg/msg/Type``, ``pkg/srv/Type_Request`` or ``pkg/Type`` into ``(package, kind, name)``.
 
     Raises
@@ -48,15 +49,15 @@ def split_type_name(type_name):
         parts = [parts[0], "msg", parts[1]]
     if len(parts) != 3 or parts[1] not in ("msg", "srv", "action") or not all(parts):
         raise ValueError(f"message type name must look like 'pkg/msg/Type' or 'pkg/Type', got {type_name!r}")
-    return tuple(parts)
+    return parts[0], parts[1], parts[2]
 
 
-def full_type_name(type_name):
+def full_type_name(type_name: str) -> str:
     """Return the ``pkg/kind/Type`` form of ``type_name`` (``pkg/Type`` means ``pkg/msg/Type``)."""
     return "/".join(split_type_name(type_name))
 
 
-def package_directories(package):
+def package_directories(package: str) -> typing.Iterator[str]:
     """Yield the directories that may hold ``package``'s ``msg/``, ``srv/`` and ``action/`` folders, in search order."""
     if package == OWN_PACKAGE:
         yield os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", ".."))
@@ -87,7 +88,7 @@ def _split_sections(text):
     return ["".join(lines) for lines in sections]
 
 
-def interface_text(type_name):
+def interface_text(type_name: str) -> str:
     """Return the definition text of one type alone (no nested types), as written in its interface file.
 
     Service and action parts (``pkg/srv/Foo_Request``, ``pkg/action/Foo_Goal``, ...) are cut out of the
@@ -133,7 +134,7 @@ def _qualify_nested_types(text, package):
     return "".join(lines)
 
 
-def nested_type_names(text, package):
+def nested_type_names(text: str, package: str) -> typing.List[str]:
     """Return the sorted set of nested type names that the field lines of ``text`` reference.
 
     Unqualified names are resolved in ``package``, as rosidl does; names keep the form they are written in
@@ -147,7 +148,7 @@ def nested_type_names(text, package):
     return sorted(names)
 
 
-def definition_for(type_name):
+def definition_for(type_name: str) -> str:
     """Return the full ``ros2msg`` definition of ``type_name`` with all nested types, as rosbag2 writes it.
 
     Parameters
@@ -161,9 +162,9 @@ def definition_for(type_name):
         The type name is malformed, or its interface file (or one of a nested type) is not found; the
         message names the type and the folders searched.
     """
-    seen = set()
+    seen: typing.Set[str] = set()
 
-    def append_recursive(name, depth):
+    def append_recursive(name: str, depth: int) -> str:
         if depth > 50:
             raise ValueError(f"nested types of {type_name} are more than 50 levels deep (a cycle?)")
         text = interface_text(name)
@@ -177,7 +178,7 @@ def definition_for(type_name):
     return append_recursive(type_name, 0)
 
 
-def rihs01_hash(type_name, definition):
+def rihs01_hash(type_name: str, definition: str) -> str:
     """Return the ``RIHS01_<sha256>`` type description hash of ``type_name`` from its full ``ros2msg`` definition.
 
     Computed by rosbags' implementation of REP-2011 over the type description that the definition

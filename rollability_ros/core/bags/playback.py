@@ -29,8 +29,11 @@ class PlaybackItem(typing.NamedTuple):
     loop_index: int
 
 
-def playback_schedule(messages, rate=1.0, start_offset_s=0.0, loop=False, topics=None, remap=None,
-                      bag_start_time_ns=None):
+def playback_schedule(messages: typing.Iterable[typing.Tuple[str, str, bytes, int]], rate: float = 1.0,
+                      start_offset_s: float = 0.0, loop: bool = False,
+                      topics: typing.Optional[typing.Iterable[str]] = None,
+                      remap: typing.Optional[typing.Mapping[str, str]] = None,
+                      bag_start_time_ns: typing.Optional[int] = None) -> typing.Iterator[PlaybackItem]:
     """Yield the :class:`PlaybackItem` s of a playback, keeping the recorded spacing divided by ``rate``.
 
     Parameters
@@ -94,7 +97,7 @@ def playback_schedule(messages, rate=1.0, start_offset_s=0.0, loop=False, topics
         loop_index += 1
 
 
-def clock_message_cdr(time_ns):
+def clock_message_cdr(time_ns: int) -> bytes:
     """Return the CDR bytes of a ``rosgraph_msgs/msg/Clock`` holding ``time_ns`` (ns since the epoch)."""
     seconds, nanoseconds = divmod(int(time_ns), 1_000_000_000)
     return b"\x00\x01\x00\x00" + struct.pack("<iI", seconds, nanoseconds)

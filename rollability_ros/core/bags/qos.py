@@ -5,6 +5,8 @@ rosbag2 metadata version 9 stores each topic's offered QoS as a list of dicts wi
 a YAML string with rmw enum integers. :func:`normalize_qos_profiles` reads all of these;
 :func:`subscription_qos_for` picks the QoS a recorder subscribes with so it matches every publisher.
 """
+import typing
+
 import yaml
 
 #: rmw's "infinite" duration as rosbag2 writes it into QoS profiles.
@@ -62,7 +64,8 @@ def _duration(policy, value):
     raise ValueError(f"QoS {policy} must be {{sec, nsec}} or non-negative integer nanoseconds, got {value!r}")
 
 
-def normalize_qos_profiles(profiles):
+def normalize_qos_profiles(profiles: typing.Union[typing.Sequence[typing.Mapping[str, typing.Any]], str, None]
+                           ) -> typing.List[typing.Dict[str, typing.Any]]:
     """Return offered QoS profiles as version-9 dicts (policy names, ``{sec, nsec}`` durations).
 
     Parameters
@@ -105,12 +108,12 @@ def normalize_qos_profiles(profiles):
     return normalized
 
 
-def qos_profiles_yaml(profiles):
+def qos_profiles_yaml(profiles: typing.Sequence[typing.Mapping[str, typing.Any]]) -> str:
     """Return normalised profiles as the YAML string stored in an MCAP channel's ``offered_qos_profiles``."""
     return yaml.safe_dump(profiles, sort_keys=False, default_flow_style=False).strip()
 
 
-def qos_dict_from_profile(profile):
+def qos_dict_from_profile(profile: typing.Any) -> typing.Dict[str, typing.Any]:
     """Return a QoS dict from any object with rclpy ``QoSProfile`` attributes (durations with ``.nanoseconds``).
 
     Lets the recorder node pass ``TopicEndpointInfo.qos_profile`` without this module importing rclpy.
@@ -123,7 +126,8 @@ def qos_dict_from_profile(profile):
     return normalized
 
 
-def subscription_qos_for(offered_profiles, depth=1000):
+def subscription_qos_for(offered_profiles: typing.Union[typing.Sequence[typing.Mapping[str, typing.Any]], str, None],
+                         depth: int = 1000) -> typing.Dict[str, typing.Any]:
     """Return the QoS dict a recorder subscribes with to receive from every offering publisher.
 
     Reliable only if every publisher is reliable (a reliable subscription does not match a best-effort

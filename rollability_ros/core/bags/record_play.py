@@ -9,6 +9,7 @@ The recorder's default selection is "the project's graph": every topic whose typ
 import dataclasses
 import datetime
 import os
+import typing
 
 from rollability_ros.core.bags.mcap_file import DEFAULT_CHUNK_SIZE_BYTES, DEFAULT_FLUSH_INTERVAL_S, mcap_compression
 from rollability_ros.core.bags.msg_definitions import OWN_PACKAGE
@@ -65,7 +66,7 @@ class RecorderSettings:
     queue_depth: int = dataclasses.field(default=1000, metadata={
         "description": "subscription queue depth, messages (keep-last topics)", "range": (1, 1000000)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable setting."""
         _positive("discovery_period_s", self.discovery_period_s)
         mcap_compression(self.compression)
@@ -99,7 +100,7 @@ class PlayerSettings:
         "description": "before the first message, wait up to this long for every played topic to have a "
                        "subscriber (discovery takes about a second), s; 0: start at once", "range": (0.0, 3600.0)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable setting."""
         if not self.bag:
             raise ValueError("bag must name a bag directory")
@@ -110,18 +111,18 @@ class PlayerSettings:
         _non_negative("wait_for_subscribers_s", self.wait_for_subscribers_s)
 
 
-def default_bag_directory(now=None, root=BAGS_DIR):
+def default_bag_directory(now: typing.Optional[datetime.datetime] = None, root: str = BAGS_DIR) -> str:
     """Return ``<root>/rollability_<YYYY_MM_DD-HH_MM_SS>`` for ``now`` (a UTC ``datetime``; default: now)."""
     now = now or datetime.datetime.now(datetime.timezone.utc)
     return os.path.join(root, now.strftime("rollability_%Y_%m_%d-%H_%M_%S"))
 
 
-def is_hidden(topic):
+def is_hidden(topic: str) -> bool:
     """True for a hidden ROS topic: one of its name parts starts with ``_``."""
     return any(part.startswith("_") for part in topic.split("/"))
 
 
-def in_project_graph(topic, type_name):
+def in_project_graph(topic: str, type_name: str) -> bool:
     """True when the default selection records ``topic`` of ``type_name`` (see the module docstring)."""
     if topic in INFRASTRUCTURE_TOPICS or is_hidden(topic):
         return False
@@ -131,7 +132,9 @@ def in_project_graph(topic, type_name):
                for name in PROJECT_STANDARD_TOPICS)
 
 
-def select_topics(names_and_types, chosen=()):
+def select_topics(names_and_types: typing.Iterable[typing.Tuple[str, typing.Sequence[str]]],
+                  chosen: typing.Iterable[str] = ()) -> typing.Tuple[typing.List[typing.Tuple[str, str]],
+                                                                   typing.List[typing.Tuple[str, typing.List[str]]]]:
     """Return ``[(topic, type_name), ...]`` to record from the graph's ``[(topic, [type names]), ...]``.
 
     Parameters
@@ -144,10 +147,11 @@ def select_topics(names_and_types, chosen=()):
     A topic with more than one type on the graph is left out (a bag channel has one type); it is returned
     in the second list, ``[(topic, [types]), ...]``, so the caller can say so.
     """
-    chosen = set(chosen)
-    selected, ambiguous = [], []
+    wanted_topics = set(chosen)
+    selected: typing.List[typing.Tuple[str, str]] = []
+    ambiguous: typing.List[typing.Tuple[str, typing.List[str]]] = []
     for topic, types in names_and_types:
-        wanted = topic in chosen if chosen else any(in_project_graph(topic, t) for t in types)
+        wanted = topic in wanted_topics if wanted_topics else any(in_project_graph(topic, t) for t in types)
         if not wanted:
             continue
         if len(types) != 1:
@@ -157,7 +161,7 @@ def select_topics(names_and_types, chosen=()):
     return selected, ambiguous
 
 
-def check_topic_names(topics):
+def check_topic_names(topics: typing.Iterable[str]) -> typing.Tuple[str, ...]:
     """Return ``topics`` as a tuple of absolute names; ``ValueError`` for a relative or malformed name."""
     for topic in topics:
         if (not isinstance(topic, str) or not topic.startswith("/") or topic.endswith("/") or "//" in topic
@@ -167,9 +171,9 @@ def check_topic_names(topics):
     return tuple(topics)
 
 
-def parse_remaps(items):
+def parse_remaps(items: typing.Iterable[str]) -> typing.Dict[str, str]:
     """Return ``{recorded topic: new topic}`` from ``["/a:=/b", ...]``; ``ValueError`` naming a bad item."""
-    remap = {}
+    remap: typing.Dict[str, str] = {}
     for item in items:
         source, separator, target = str(item).partition(":=")
         if not separator:
@@ -181,7 +185,7 @@ def parse_remaps(items):
     return remap
 
 
-def type_hash_string(version, value):
+def type_hash_string(version: int, value: typing.Optional[typing.Sequence[int]]) -> typing.Optional[str]:
     """Return ``RIHS01_<hex>`` for a version-1 type hash (32 bytes), else None (unknown / not advertised)."""
     if version != 1 or not value or not any(value):
         return None

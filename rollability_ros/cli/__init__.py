@@ -9,12 +9,16 @@ import importlib
 import os
 import pkgutil
 import sys
+import typing
 
 from rollability_ros.core.config import ConfigError
 from rollability_ros.core.optional import MissingDependency
 
+#: What a verb module's ``register`` receives: the parser's subcommand table.
+Subparsers: typing.TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 
-def build_parser():
+
+def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser with every verb module registered."""
     parser = argparse.ArgumentParser(
         prog="rollability",
@@ -32,7 +36,7 @@ def build_parser():
     return parser
 
 
-def line_buffered_output():
+def line_buffered_output() -> None:
     """Flush stdout and stderr at every line, whatever they are (terminal, pipe, file).
 
     Python block-buffers stdout into a pipe or a file, so ``rollability study > study.log`` and a supervisor or
@@ -44,7 +48,7 @@ def line_buffered_output():
             reconfigure(line_buffering=True)
 
 
-def main(argv=None):
+def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     """Run one verb and return its exit code; known user errors print one line instead of a traceback."""
     line_buffered_output()
     args = build_parser().parse_args(argv)

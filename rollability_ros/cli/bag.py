@@ -2,6 +2,8 @@
 import json
 import sys
 
+from rollability_ros.cli import Subparsers
+
 
 def _info(args):
     from rollability_ros.core.bags import bag_info, format_bag_info
@@ -45,7 +47,7 @@ def _convert(args):
     return 0
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     """Add the ``bag`` verb with its ``info``, ``recover`` and ``convert`` sub-verbs."""
     parser = subparsers.add_parser(
         "bag", help="inspect, recover and convert rosbag2 bags (MCAP / SQLite3)",

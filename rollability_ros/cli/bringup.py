@@ -1,10 +1,13 @@
 """`rollability bringup`: the lab session's node graph as supervised processes, until Ctrl-C."""
+import argparse
 import os
 import signal
 import time
 
+from rollability_ros.cli import Subparsers
 
-def run(args):
+
+def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.graph import (PROGRESS_PERIOD_S, ProgressDisplay, Supervisor, load_graph_settings,
                                             new_study_id, parameter_files, session_nodes, session_progress)
     from rollability_ros.core.config import check_path_component
@@ -65,7 +68,7 @@ def _isolate_physical_rig():
         print(f"bringup: warning: {warning}")
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "bringup", help="start the whole node graph as supervised processes (Ctrl-C stops it cleanly)",
         description="Start recorder, outcome_logger, valve_controller, the sim_evaluator nodes, the rig and the "

@@ -1,6 +1,10 @@
 """`rollability calibrate`: fit the launch twin to recorded physical outcomes and write a calibrated parameter file."""
+import argparse
 import csv
 import os
+import typing
+
+from rollability_ros.cli import Subparsers
 
 
 def _write_csv(path, rows):
@@ -23,7 +27,8 @@ def _screen_rows(twin_settings, configurations, screen_settings):
             for configuration in configurations]
 
 
-def summary_lines(result, screen_rows):
+def summary_lines(result: typing.Any,
+                  screen_rows: typing.Sequence[typing.Mapping[str, typing.Any]]) -> typing.List[str]:
     """The printed summary: likelihood, parameters with uncertainty, per-configuration rates, rank agreement."""
     from rollability_ros.core.results import analysis
 
@@ -45,7 +50,7 @@ def summary_lines(result, screen_rows):
     return lines
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     """Calibrate, write the outputs to ``--out`` and print the summary; return the exit code."""
     import yaml
 
@@ -91,7 +96,7 @@ def run(args):
     return 0
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     """Add the ``calibrate`` verb."""
     parser = subparsers.add_parser(
         "calibrate", help="fit the simulated launch twin to recorded physical launch outcomes",

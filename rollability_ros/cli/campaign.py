@@ -1,7 +1,10 @@
 """`rollability campaign`: run the launch campaign (paper 2.2.6) in this process or through the node graph."""
+import argparse
+
+from rollability_ros.cli import Subparsers
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "campaign", help="run the launch campaign on the launch twin or the physical rig, resumably",
         description="Run every trial of the campaign matrix not yet stored. Without --graph the rig runs in this "
@@ -52,7 +55,7 @@ def _spec(args):
     return spec
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.rig import launch_backend_class
 
     if args.resimulate or args.seed is not None:
@@ -108,7 +111,7 @@ def _run_local(args, spec, ask):
 
     parameters, plan = load_parameters(args.rig_config or ["rig"]), plan_trials(spec)
 
-    def checked_rig():
+    def checked_rig() -> LocalRig:
         rig = LocalRig(args.backend, parameters, ask or input)
         refusal = plan_refusal(rig.backend, spec.run_id, plan)
         if refusal:

@@ -1,9 +1,12 @@
 """`rollability doctor`: check the installation and the ROS environment, in plain words."""
+import argparse
 import importlib
 import importlib.metadata
 import os
 import platform
 import sys
+
+from rollability_ros.cli import Subparsers
 
 #: (module, distribution, extra, needed on the rig side)
 PACKAGES = (
@@ -31,7 +34,7 @@ class Checks:
         self.failures = 0
         self.warnings = 0
 
-    def report(self, status, what, detail):
+    def report(self, status: str, what: str, detail: str) -> None:
         if status == "FAIL":
             self.failures += 1
         elif status == "warn":
@@ -156,7 +159,7 @@ def _check_config(checks):
         checks.report("FAIL", "config files", str(exc))
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     """Run every check; exit code 0 when nothing failed."""
     checks = Checks()
     print("rollability doctor" + (" (rig side only)" if args.rig else ""))
@@ -175,7 +178,7 @@ def run(args):
     return 0
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "doctor",
         help="check Python, rclpy, the RMW, the custom interfaces, dependencies and ROS discovery settings",

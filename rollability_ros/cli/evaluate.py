@@ -1,8 +1,12 @@
 """`rollability evaluate`: the simulated rollability of one profile, with its Wilson 95% interval."""
+import argparse
 import sys
+import typing
+
+from rollability_ros.cli import Subparsers
 
 
-def parse_heights(text, source="--heights"):
+def parse_heights(text: str, source: str = "--heights") -> typing.List[float]:
     """Parse profile heights (simulation units) separated by commas and/or whitespace; ValueError naming the
     problem for an empty list, an empty field (``1,,2``), a non-number or a non-finite value."""
     import math
@@ -35,7 +39,7 @@ def _read_heights(args):
     return None
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     """Evaluate the profile the arguments name and print fitness, interval and timing; return the exit code."""
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.profile import geometry
@@ -61,7 +65,7 @@ def run(args):
     executor = evaluation.make_executor(settings.evaluator, args.workers)
     done = []
 
-    def progress(outcome):
+    def progress(outcome: typing.Any) -> None:
         done.append(outcome)
         if sys.stderr.isatty():
             sys.stderr.write(f"\r  {len(done)}/{trials} trials, {sum(o.upright for o in done)} upright ")
@@ -155,7 +159,7 @@ def _compare_designs(args, settings, trials):
     return 0
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     """Add the ``evaluate`` verb."""
     parser = subparsers.add_parser(
         "evaluate", help="simulate one profile's self-righting rate (fitness) with its confidence interval",

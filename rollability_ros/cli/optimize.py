@@ -3,6 +3,9 @@ import argparse
 import math
 import os
 import sys
+import typing
+
+from rollability_ros.cli import Subparsers
 
 
 def _duration(seconds):
@@ -27,14 +30,14 @@ class ProgressLine:
         self.live = self.stream.isatty()
         self.evaluated = 0
 
-    def candidate(self, record):
+    def candidate(self, record: typing.Any) -> None:
         """``on_candidate`` callback."""
         self.evaluated += 1
         if self.live:
             self.stream.write(f"\r  generation {record.generation}: {self.evaluated} evaluated ")
             self.stream.flush()
 
-    def generation(self, record):
+    def generation(self, record: typing.Any) -> None:
         """``on_generation`` callback."""
         self.evaluated = 0
         cap = self.run.settings.max_generations or "-"
@@ -58,7 +61,7 @@ def _write_convergence_figure(run):
         return None
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     """Start or resume an optimization; return the exit code."""
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.optimization import optimization_run as optimization_run
@@ -113,7 +116,7 @@ def run(args):
     return 0
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     """Add the ``optimize`` verb."""
     parser = subparsers.add_parser(
         "optimize", help="run a CMA-ES or CMA-MAE profile optimization in this process (resumable)",

@@ -1,4 +1,5 @@
 """`rollability play BAG`: run the player node in this process until the bag is played (or Ctrl-C)."""
+from rollability_ros.cli import Subparsers
 
 
 def _play(args):
@@ -11,7 +12,7 @@ def _play(args):
     return player.main(args=[], parameter_overrides=parameter_overrides(values))
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     """Add the ``play`` verb."""
     parser = subparsers.add_parser(
         "play", help="replay a recorded bag with its original timing",

@@ -1,4 +1,5 @@
 """`rollability record`: run the recorder node in this process until Ctrl-C / SIGTERM."""
+from rollability_ros.cli import Subparsers
 
 
 def _record(args):
@@ -11,7 +12,7 @@ def _record(args):
     return recorder.main(args=[], parameter_overrides=parameter_overrides(values))
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     """Add the ``record`` verb."""
     parser = subparsers.add_parser(
         "record", help="record the project's topics (or chosen ones) into a rosbag2 MCAP bag",

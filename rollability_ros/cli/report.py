@@ -1,5 +1,9 @@
 """`rollability report SOURCE`: figures, tables and one self-contained HTML report of a run."""
+import argparse
 import os
+import typing
+
+from rollability_ros.cli import Subparsers
 
 
 def _sim_fitness(text):
@@ -16,12 +20,12 @@ def _sim_fitness(text):
     return fitness
 
 
-def default_out_dir(source):
+def default_out_dir(source: typing.Union[str, os.PathLike]) -> str:
     """``<source without extension>-report`` next to the source."""
     return os.path.splitext(os.path.normpath(os.fspath(source)))[0] + "-report"
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     """Build the report and print its summary; return the exit code."""
     from rollability_ros.core.results import report
 
@@ -38,7 +42,7 @@ def run(args):
     return 0
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     """Add the ``report`` verb."""
     parser = subparsers.add_parser(
         "report", help="figures, tables and an HTML report from a store, a bag or a CSV of outcomes",

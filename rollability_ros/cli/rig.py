@@ -1,11 +1,15 @@
 """`rollability rig`: operator commands to a running launch rig (valve_controller and rig nodes) over ROS 2."""
+import argparse
+import typing
+
+from rollability_ros.cli import Subparsers
 
 ACTIONS = ("arm", "disarm", "estop", "confirm", "outcome")
 #: Longest --timeout-s, s (a day: longer is a typo).
 MAX_TIMEOUT_S = 86400.0
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "rig", help="operator commands to the running rig: arm, disarm (acknowledge a fault), e-stop, confirm, outcome",
         description="Talk to the running valve_controller and rig nodes (same ROS domain). arm, disarm, confirm "
@@ -36,7 +40,7 @@ def register(subparsers):
     parser.set_defaults(func=run)
 
 
-def check_arguments(args):
+def check_arguments(args: argparse.Namespace) -> None:
     """Refuse unusable arguments before anything starts (``ValueError``, one line): the namespace (normalized in
     place), the numbers (NaN, sign, range), a verdict where one is needed and only there."""
     import math
@@ -100,14 +104,14 @@ def _request(args, sign=False):
         raise ValueError(str(exc)) from exc
 
 
-def default_namespace(config_files=()):
+def default_namespace(config_files: typing.Sequence[str] = ()) -> str:
     """The namespace ``rollability bringup`` puts the graph in: ``bringup.namespace`` of the parameter files."""
     from rollability_ros.core.graph import load_graph_settings, parameter_files
 
     return load_graph_settings(parameter_files(["bringup", *config_files])).namespace
 
 
-def namespaces_offering(names, relative_name):
+def namespaces_offering(names: typing.Iterable[str], relative_name: str) -> typing.List[str]:
     """The namespaces in which one of the fully qualified ``names`` is ``relative_name`` (sorted, "/" for root)."""
     suffix = "/" + relative_name
     return sorted({name[:-len(suffix)] or "/" for name in names if name.endswith(suffix)})
@@ -121,7 +125,7 @@ def _missing(problem, name, elsewhere):
     return f"{problem}; {name} is in {', '.join(elsewhere)}: use " + " or ".join(f"--namespace {ns}" for ns in elsewhere)
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     import os
     import time
 

@@ -1,6 +1,9 @@
 """`rollability select RUN`: choose the designs to fabricate (Mesh A, B, C) from an optimization run."""
+import argparse
 import os
 import sys
+
+from rollability_ros.cli import Subparsers
 
 
 #: ``selection`` settings a command-line option overrides (same names).
@@ -23,7 +26,7 @@ def _print_table(rows):
                      f"{in_run:<22}{row['in_run_trials']:>7}  {bias}\n")
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     """Select, export and report the designs; exit code 1 when fewer than requested qualify."""
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.optimization import optimization_run as optimization_run
@@ -92,7 +95,7 @@ def run(args):
     return 0
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     """Add the ``select`` verb."""
     parser = subparsers.add_parser(
         "select", help="choose high-fitness, printable, diverse designs (Mesh A, B, C) from an optimization run",

@@ -1,7 +1,11 @@
 """`rollability sensitivity`: the simulated fitness of the bare chassis and of profiles against each uncertain
 factor (disturbance scale, start pose, contact reading, centre of mass) and robustly, with intervals."""
+import argparse
 import csv
 import os
+import typing
+
+from rollability_ros.cli import Subparsers
 
 
 def _profiles(args):
@@ -23,7 +27,7 @@ def _profiles(args):
     return profiles
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     """Run the sensitivity study, write ``sensitivity.csv`` and ``sensitivity.png`` to ``--out``; exit code."""
     from rollability_ros.core.config import check_output_dir
     from rollability_ros.core.optional import MissingDependency
@@ -39,7 +43,7 @@ def run(args):
     profiles = _profiles(args)
     os.makedirs(args.out, exist_ok=True)
 
-    def show(row):
+    def show(row: typing.Mapping[str, typing.Any]) -> None:
         print(f"{row['configuration']:<10} {row['factor']:<18} {str(row['level']):<18} {row['successes']:>4}/"
               f"{row['trials']:<4} {row['fitness']:.2f} [{row['ci_low']:.2f}, {row['ci_high']:.2f}]", flush=True)
 
@@ -60,7 +64,7 @@ def run(args):
     return 0
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     """Add the ``sensitivity`` verb."""
     parser = subparsers.add_parser(
         "sensitivity", help="fitness of the bare chassis and profiles against each uncertain factor, with intervals",

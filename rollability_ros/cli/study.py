@@ -1,8 +1,11 @@
 """`rollability study`: the main job, through the real node graph, in simulation (see core/graph/study.py)."""
+import argparse
 import signal
 
+from rollability_ros.cli import Subparsers
 
-def run(args):
+
+def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.graph import ProgressDisplay, Study
     from rollability_ros.nodes._graph_observer import RosGraphObserver
 
@@ -33,7 +36,7 @@ def run(args):
     return 0
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "study", help="the main job: optimize, select designs, run the launch campaign in simulation, report",
         description="Run the whole loop through the real node graph (supervised processes): the optimizer (CMA-MAE, or CMA-ES with --config paper) over "

@@ -1,7 +1,11 @@
 """`rollability view`: serve the project's live ROS topics to the Foxglove app (no ROS install on the viewer)."""
+import argparse
+import typing
+
+from rollability_ros.cli import Subparsers
 
 
-def register(subparsers):
+def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "view", help="live view of the project's topics in the Foxglove app (WebSocket)",
         description="Run the view_bridge node: every topic of the project's graph (or --topics) is served over "
@@ -18,7 +22,8 @@ def register(subparsers):
     parser.set_defaults(func=run)
 
 
-def bridge_arguments(host="127.0.0.1", port=8765, topics=(), discovery_period_s=2.0):
+def bridge_arguments(host: str = "127.0.0.1", port: int = 8765, topics: typing.Sequence[str] = (),
+                     discovery_period_s: float = 2.0) -> typing.List[str]:
     """``--ros-args`` for ``python -m rollability_ros.nodes.view_bridge`` (what ``bringup --view`` starts)."""
     args = ["--ros-args", "-p", f"host:={host}", "-p", f"port:={int(port)}",
             "-p", f"discovery_period_s:={float(discovery_period_s)}"]
@@ -27,7 +32,7 @@ def bridge_arguments(host="127.0.0.1", port=8765, topics=(), discovery_period_s=
     return args
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.optional import require
 
     require("foxglove", feature="rollability view")

@@ -1,11 +1,12 @@
-"""Public functions of the core carry type hints: a ratchet over the modules already annotated (add a module to
-MODULES once every public function and method in it has annotated parameters and a return type)."""
+"""Public functions carry type hints: a ratchet over the core modules already annotated (add a module to MODULES once
+every public function and method in it has annotated parameters and a return type), and every module of the CLI."""
 import ast
 import pathlib
 
 import pytest
 
 CORE = pathlib.Path(__file__).resolve().parents[2] / "rollability_ros" / "core"
+CLI = CORE.parent / "cli"
 MODULES = ["imu/quaternion.py", "imu/upright.py", "records.py", "record_messages.py",
            "rig/launch_backend.py", "rig/rig_session.py", "campaign/runner.py", "optimization/optimization_run.py",
            "bags/messages.py", "graph/bringup.py",
@@ -33,3 +34,8 @@ def unannotated(path):
 @pytest.mark.parametrize("module", MODULES)
 def test_public_functions_are_annotated(module):
     assert unannotated(CORE / module) == []
+
+
+@pytest.mark.parametrize("module", sorted(path.name for path in CLI.glob("*.py")))
+def test_every_public_function_of_the_cli_is_annotated(module):
+    assert unannotated(CLI / module) == []

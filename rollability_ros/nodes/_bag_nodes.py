@@ -1,8 +1,10 @@
 """ROS plumbing shared by the recorder and player nodes: QoS profiles, message classes, string-array parameters."""
 import importlib
+import typing
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import ParameterUninitializedException
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -10,7 +12,7 @@ from rollability_ros.core.bags import split_type_name
 from rollability_ros.nodes._support import ParameterError
 
 
-def qos_profile_from_dict(qos):
+def qos_profile_from_dict(qos: typing.Mapping[str, typing.Any]) -> QoSProfile:
     """rclpy ``QoSProfile`` from a :mod:`rollability_ros.core.bags.qos` dict (history, depth, reliability,
     durability; deadline, lifespan and liveliness stay at their defaults, which match any peer)."""
     return QoSProfile(history=HistoryPolicy[qos["history"].upper()], depth=max(1, int(qos["depth"])),
@@ -18,7 +20,11 @@ def qos_profile_from_dict(qos):
                       durability=DurabilityPolicy[qos["durability"].upper()])
 
 
-def declare_string_list(node, name, description, check):
+_Checked = typing.TypeVar("_Checked")
+
+
+def declare_string_list(node: Node, name: str, description: str,
+                        check: typing.Callable[[typing.List[str]], _Checked]) -> _Checked:
     """Declare string-array parameter ``name`` (default empty) and return ``check(values)``.
 
     ``check`` turns the list into the value the node uses and raises ``ValueError`` naming the problem,
@@ -35,7 +41,7 @@ def declare_string_list(node, name, description, check):
         raise ParameterError(f"{name}: {exc}") from exc
 
 
-def message_class(type_name):
+def message_class(type_name: str) -> typing.Any:
     """Import the Python class of ``pkg/msg/Type``; ``ValueError`` when the package's interfaces are not installed."""
     package, kind, name = split_type_name(type_name)
     try:
@@ -44,6 +50,6 @@ def message_class(type_name):
         raise ValueError(f"type {type_name} is not importable here ({exc}); install its interface package") from exc
 
 
-def parameter_overrides(values):
+def parameter_overrides(values: typing.Mapping[str, typing.Any]) -> typing.List[Parameter]:
     """rclpy ``Parameter`` overrides from ``{name: value}``, leaving out unset (None) and empty-list values."""
     return [Parameter(name, value=value) for name, value in values.items() if value is not None and value != []]

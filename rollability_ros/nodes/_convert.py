@@ -2,14 +2,18 @@
 
 The field mapping and validation live in the core, shared with the bag reader; this module only names the rclpy
 message classes and keeps the short names the nodes call. Times: message stamps (``builtin_interfaces/Time``)
-<-> float seconds since the Unix epoch.
+<-> float seconds since the Unix epoch. Messages are typed ``typing.Any``: the generated interfaces carry no type
+information.
 """
+import typing
+
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Quaternion
 from std_msgs.msg import Header
 
 from rollability_ros.core import record_messages as mapping
 from rollability_ros.core.rig import valve_auth
+from rollability_ros.core import records
 from rollability_ros.core.records import RunProgress
 from rollability_ros.msg import (CandidateResult, GenerationSummary, LaunchCondition, LaunchOutcome,
                                  OptimizerProgress, TipEvent, ValveAuth)
@@ -20,7 +24,7 @@ _CLASSES = {mapping.OUTCOME_TYPE: LaunchOutcome, mapping.CANDIDATE_TYPE: Candida
             mapping.QUATERNION_TYPE: Quaternion, mapping.AUTH_TYPE: ValveAuth}
 
 
-def make_message(type_name, **fields):
+def make_message(type_name: str, **fields: typing.Any) -> typing.Any:
     """The rclpy message ``type_name`` with ``fields``."""
     return _CLASSES[type_name](**fields)
 
@@ -30,22 +34,22 @@ quaternion_to_tuple = mapping.quaternion_to_tuple
 condition_from_msg = mapping.condition_from_message
 
 
-def s_to_stamp(seconds):
+def s_to_stamp(seconds: float) -> typing.Any:
     """Seconds (float, >= 0) -> ``builtin_interfaces/Time`` (NaN and negative -> 0)."""
     return mapping.make_stamp(make_message, seconds)
 
 
-def tuple_to_quaternion(xyzw):
+def tuple_to_quaternion(xyzw: typing.Sequence[float]) -> typing.Any:
     """``(x, y, z, w)`` -> ``geometry_msgs/Quaternion``."""
     return mapping.make_quaternion(make_message, xyzw)
 
 
-def condition_to_msg(condition):
+def condition_to_msg(condition: records.LaunchCondition) -> typing.Any:
     """:class:`~rollability_ros.core.records.LaunchCondition` -> ``LaunchCondition``."""
     return mapping.condition_to_message(make_message, condition)
 
 
-def record_to_msg(record):
+def record_to_msg(record: mapping.Record) -> typing.Any:
     """Any record -> its rclpy message."""
     return mapping.message_from_record(make_message, record)[1]
 
@@ -53,27 +57,27 @@ def record_to_msg(record):
 outcome_to_msg = candidate_to_msg = generation_to_msg = tip_event_to_msg = record_to_msg
 
 
-def outcome_from_msg(msg):
+def outcome_from_msg(msg: typing.Any) -> mapping.Record:
     """``LaunchOutcome`` -> validated record; ``ValueError`` names the bad field."""
     return mapping.record_from_message(mapping.OUTCOME_TYPE, msg)
 
 
-def candidate_from_msg(msg):
+def candidate_from_msg(msg: typing.Any) -> mapping.Record:
     """``CandidateResult`` -> validated record (successes <= trials, finite heights, fitness in [0, 1])."""
     return mapping.record_from_message(mapping.CANDIDATE_TYPE, msg)
 
 
-def generation_from_msg(msg):
+def generation_from_msg(msg: typing.Any) -> mapping.Record:
     """``GenerationSummary`` -> validated record."""
     return mapping.record_from_message(mapping.GENERATION_TYPE, msg)
 
 
-def tip_event_from_msg(msg):
+def tip_event_from_msg(msg: typing.Any) -> mapping.Record:
     """``TipEvent`` -> validated record."""
     return mapping.record_from_message(mapping.TIP_EVENT_TYPE, msg)
 
 
-def progress_to_msg(progress, stamp_s):
+def progress_to_msg(progress: RunProgress, stamp_s: float) -> typing.Any:
     """:class:`~rollability_ros.core.records.RunProgress` -> ``OptimizerProgress`` stamped ``stamp_s``."""
     msg = OptimizerProgress(run_id=progress.run_id, generation=progress.generation,
                             max_generations=progress.max_generations, best_so_far=float(progress.best_so_far),
@@ -82,16 +86,16 @@ def progress_to_msg(progress, stamp_s):
     return msg
 
 
-def progress_from_msg(msg):
+def progress_from_msg(msg: typing.Any) -> RunProgress:
     """``OptimizerProgress`` -> :class:`~rollability_ros.core.records.RunProgress`."""
     return RunProgress(msg.run_id, msg.generation, msg.max_generations, msg.best_so_far, msg.trials, msg.elapsed_s)
 
 
-def auth_msg(signature):
+def auth_msg(signature: valve_auth.Signature) -> typing.Any:
     """:class:`~rollability_ros.core.rig.valve_auth.Signature` -> ``rollability_ros/ValveAuth``."""
     return ValveAuth(session=signature.session, counter=signature.counter, mac=signature.mac)
 
 
-def signature_from_msg(auth):
+def signature_from_msg(auth: typing.Any) -> valve_auth.Signature:
     """``rollability_ros/ValveAuth`` -> :class:`~rollability_ros.core.rig.valve_auth.Signature`."""
     return valve_auth.Signature(auth.session, int(auth.counter), auth.mac)

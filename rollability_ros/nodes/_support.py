@@ -23,6 +23,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, Si
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.signals import SignalHandlerOptions
 from rclpy.exceptions import InvalidParameterValueException
+from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from rollability_ros.core.config import ConfigError, from_mapping, section
@@ -63,7 +64,13 @@ def _ros_default(value, field_type):
     return value
 
 
-def declare_settings(node, prefix, settings_cls, descriptions=None, read_only=False):
+#: A core settings dataclass, declared as parameters and read back.
+_Settings = typing.TypeVar("_Settings")
+
+
+def declare_settings(node: Node, prefix: str, settings_cls: typing.Type[_Settings],
+                     descriptions: typing.Optional[typing.Mapping[str, str]] = None,
+                     read_only: bool = False) -> _Settings:
     """Declare the fields of ``settings_cls`` (recursively) as parameters ``prefix.field`` with descriptors.
 
     Field descriptions come from ``descriptions[name]`` or the dataclass field's ``metadata["description"]``; a
@@ -75,10 +82,10 @@ def declare_settings(node, prefix, settings_cls, descriptions=None, read_only=Fa
     descriptions = descriptions or {}
     hints = typing.get_type_hints(settings_cls)
     default_obj = settings_cls() if _has_all_defaults(settings_cls) else None
-    for field in dataclasses.fields(settings_cls):
+    for field in dataclasses.fields(typing.cast(typing.Any, settings_cls)):   # refuses a non-dataclass
         name = f"{prefix}.{field.name}" if prefix else field.name
         field_type = hints[field.name]
-        if dataclasses.is_dataclass(field_type):
+        if isinstance(field_type, type) and dataclasses.is_dataclass(field_type):
             declare_settings(node, name, field_type, descriptions, read_only)
             continue
         default = getattr(default_obj, field.name) if default_obj is not None else None
@@ -92,7 +99,7 @@ def declare_settings(node, prefix, settings_cls, descriptions=None, read_only=Fa
     return read_settings(node, prefix, settings_cls)
 
 
-def refusal(name, exc, value_range=None):
+def refusal(name: str, exc: Exception, value_range: typing.Optional[typing.Sequence[float]] = None) -> str:
     """One line for a value rclpy refused at declaration: the parameter, the value and the declared range.
 
     rclpy's own text (``Invalid parameter value (-1.0) for parameter. Reason: Parameter player.rate out of range
@@ -111,7 +118,9 @@ def refusal(name, exc, value_range=None):
 NUMERIC_TYPES = (int, float)
 
 
-def parameter_descriptor(description, value_range=None, field_type=None, read_only=False, name=None):
+def parameter_descriptor(description: str, value_range: typing.Optional[typing.Sequence[float]] = None,
+                         field_type: typing.Optional[type] = None, read_only: bool = False,
+                         name: typing.Optional[str] = None) -> ParameterDescriptor:
     """A ParameterDescriptor with the description, an inclusive numeric range, and read_only.
 
     Every ``int`` or ``float`` parameter must give ``value_range`` ``(low, high)``: a numeric parameter declared
@@ -146,7 +155,8 @@ def _current_values(node, prefix, overrides=None):
     return section(flat, "")
 
 
-def read_settings(node, prefix, settings_cls, overrides=None):
+def read_settings(node: Node, prefix: str, settings_cls: typing.Type[_Settings],
+                  overrides: typing.Optional[typing.Sequence[typing.Any]] = None) -> _Settings:
     """Build ``settings_cls`` from the node's current parameters under ``prefix`` (validated).
 
     ``overrides`` (a list of rclpy Parameters) are applied on top: used to check a pending parameter change.
@@ -154,7 +164,7 @@ def read_settings(node, prefix, settings_cls, overrides=None):
     """
     values = _current_values(node, prefix, overrides)
     hints = typing.get_type_hints(settings_cls)
-    known = {f.name for f in dataclasses.fields(settings_cls)}
+    known = {f.name for f in dataclasses.fields(typing.cast(typing.Any, settings_cls))}
     values = {k: v for k, v in values.items() if k in known}
     for name, value in list(values.items()):
         if hints[name] is float and isinstance(value, int) and not isinstance(value, bool):
@@ -167,14 +177,15 @@ def read_settings(node, prefix, settings_cls, overrides=None):
         raise ParameterError(str(exc)) from exc
 
 
-def guard_settings(node, prefix, settings_cls, on_change=None):
+def guard_settings(node: Node, prefix: str, settings_cls: typing.Type[_Settings],
+                   on_change: typing.Optional[typing.Callable[[_Settings], None]] = None) -> None:
     """Refuse parameter changes under ``prefix`` that would make ``settings_cls`` invalid.
 
     ``on_change(new_settings)`` is called after an accepted change.
     """
     lead = prefix + "."
 
-    def check(params):
+    def check(params: typing.Sequence[typing.Any]) -> SetParametersResult:
         relevant = [p for p in params if p.name.startswith(lead)]
         if not relevant:
             return SetParametersResult(successful=True)
@@ -189,7 +200,7 @@ def guard_settings(node, prefix, settings_cls, on_change=None):
     node.add_on_set_parameters_callback(check)
 
 
-def finite(value):
+def finite(value: object) -> bool:
     """True for a real, finite number (bools excluded)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
@@ -238,7 +249,7 @@ def _has_fileno(stream):
         return False
 
 
-def init_ros(args=None):
+def init_ros(args: typing.Optional[typing.List[str]] = None) -> None:
     """``rclpy.init`` without rclpy's own SIGINT / SIGTERM handlers.
 
     rclpy's handlers shut the context down at the signal, underneath callbacks still running: a last valve state
@@ -272,7 +283,8 @@ def _join_callback_threads(executor):
         threads.shutdown(wait=True)
 
 
-def run_node(node_factory, args=None, threads=4):
+def run_node(node_factory: typing.Callable[[], Node], args: typing.Optional[typing.List[str]] = None,
+             threads: int = 4) -> int:
     """Create the node with ``node_factory()`` after ``rclpy.init`` and spin it until SIGINT / SIGTERM.
 
     ``threads`` > 1 spins a multi-threaded executor (long callbacks do not block the node); ``threads=1`` a
@@ -288,8 +300,8 @@ def run_node(node_factory, args=None, threads=4):
     init_ros(args)
     _dump_stacks_on_sigusr1()
     stopped = threading.Event()   # set by the spinner when the executor stops, whoever stopped it
-    failures = []                 # what ended the spin other than a stop
-    signalled = []                # a handler only appends: taking a lock in a signal handler can deadlock
+    failures: typing.List[BaseException] = []   # what ended the spin other than a stop
+    signalled: typing.List[int] = []   # a handler only appends: taking a lock in a signal handler can deadlock
     on_main_thread = threading.current_thread() is threading.main_thread()
     if on_main_thread:
         for signum in (signal.SIGINT, signal.SIGTERM):
@@ -347,7 +359,7 @@ class ThreadSafeActionClient(ActionClient):
         super().__init__(*args, **kwargs)
         self._request_lock = threading.RLock()
 
-    def send_goal_async(self, *args, **kwargs):
+    def send_goal_async(self, *args: typing.Any, **kwargs: typing.Any) -> typing.Any:
         with self._request_lock:
             return super().send_goal_async(*args, **kwargs)
 
@@ -371,7 +383,7 @@ class ThreadSafeActionClient(ActionClient):
 ACK_POLL_S = 0.02
 
 
-def wait_for_acks(publishers, timeout_s, stop):
+def wait_for_acks(publishers: typing.Iterable[typing.Any], timeout_s: float, stop: threading.Event) -> int:
     """Wait until every publisher's messages are acknowledged by its reliable subscribers, ``timeout_s`` in all, or
     until ``stop`` (a ``threading.Event``) is set; return how many publishers are still waiting.
 

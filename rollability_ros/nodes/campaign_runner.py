@@ -25,6 +25,7 @@ import queue
 import signal
 import sys
 import time
+import typing
 
 import rclpy
 from action_msgs.msg import GoalStatus
@@ -117,11 +118,11 @@ class RigClient:
         except valve_auth.AuthError as exc:
             raise LaunchAborted(str(exc)) from exc
 
-    def launch(self, trial):
+    def launch(self, trial: typing.Any) -> typing.Any:
         """Run ``trial`` on the rig; its :class:`~rollability_ros.core.records.LaunchOutcome`, or LaunchAborted."""
         if not spin_until(self.executor, self.action.server_is_ready, self.server_timeout_s):
             raise LaunchAborted(f"no rig serves the launch action within {self.server_timeout_s:g} s")
-        feedback = queue.Queue()
+        feedback: queue.Queue = queue.Queue()
         goal = Launch.Goal(run_id=self.run_id, trial_id=trial.trial_id,
                            condition=_convert.condition_to_msg(trial.condition))
         goal.auth = self._sign(lambda signer: signer.launch(self.run_id, trial.trial_id, goal.condition))
@@ -174,7 +175,7 @@ class RigClient:
             self._answer(trial_id, message.phase, message.detail)
 
 
-def spin_until(executor, predicate, timeout_s):
+def spin_until(executor: typing.Any, predicate: typing.Callable[[], bool], timeout_s: float) -> bool:
     """Spin ``executor`` until ``predicate()`` or ``timeout_s``; returns its last value. (rclpy's wait_for_service
     and wait_for_server only sleep: meanwhile this node would not answer its parameter services.)"""
     deadline = time.monotonic() + timeout_s
@@ -189,7 +190,7 @@ def _say(text):
     print(text, flush=True)   # a supervisor's log file or a pipe shows each line as it happens
 
 
-def stored_trial_ids(node, executor, run_id, timeout_s):
+def stored_trial_ids(node: Node, executor: typing.Any, run_id: str, timeout_s: float) -> typing.Set[str]:
     """The trial ids the outcome_logger has stored for ``run_id`` (``stored_trials`` service); ``ValueError``
     when no logger answers within ``timeout_s`` or it cannot read its store."""
     client = node.create_client(GetStoredTrials, "stored_trials")
@@ -211,7 +212,9 @@ def stored_trial_ids(node, executor, run_id, timeout_s):
         node.destroy_client(client)
 
 
-def run_graph_campaign(node, spec, settings, ask=None, say=_say):
+def run_graph_campaign(node: Node, spec: CampaignSpec, settings: RunnerSettings,
+                       ask: typing.Optional[typing.Callable[[str], str]] = None,
+                       say: typing.Callable[[str], None] = _say) -> typing.Any:
     """Run the campaign through the graph from ``node`` (spun here, in this thread); returns the CampaignReport."""
     plan = plan_trials(spec)
     signer = None
@@ -226,8 +229,11 @@ def run_graph_campaign(node, spec, settings, ask=None, say=_say):
     try:
         acknowledgements = StoreAcknowledgements(lambda: executor.spin_once(timeout_sec=0.05),
                                                  settings.store_timeout_s)
-        node.create_subscription(OutcomeStored, "outcomes_stored",
-                                 lambda msg: acknowledgements.acknowledge(msg.run_id, msg.trial_id), RECORD_QOS)
+
+        def on_stored(msg: typing.Any) -> None:
+            acknowledgements.acknowledge(msg.run_id, msg.trial_id)
+
+        node.create_subscription(OutcomeStored, "outcomes_stored", on_stored, RECORD_QOS)
         stored = stored_trial_ids(node, executor, spec.run_id, settings.server_timeout_s)
         refusal = resume_refusal(len(stored), settings.resume, spec.run_id)
         if refusal:
@@ -240,7 +246,7 @@ def run_graph_campaign(node, spec, settings, ask=None, say=_say):
         executor.shutdown()
 
 
-def main(args=None):
+def main(args: typing.Optional[typing.List[str]] = None) -> int:
     init_ros(args)
     # a supervisor's SIGTERM ends the campaign as Ctrl-C does: the running goal is cancelled, the context stays
     # valid until the node is destroyed

@@ -44,7 +44,9 @@ import dataclasses
 import math
 import sys
 import threading
+import typing
 
+import numpy.typing as npt
 import rclpy
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import Point
@@ -101,7 +103,7 @@ _PARAMETERS = {  # name: (default, description[, inclusive numeric range])
 }
 
 
-def run_parameters(settings_by_section):
+def run_parameters(settings_by_section: typing.Mapping[str, typing.Any]) -> typing.Dict[str, typing.Any]:
     """Flat ``{"section.field": value}`` of the run-defining settings (what goes into the run's config.yaml)."""
     return {f"{prefix}.{name}": value for prefix, settings in settings_by_section.items()
             for name, value in dataclasses.asdict(settings).items()}
@@ -197,7 +199,7 @@ class Optimizer(Node):
         goal_handle = {}
         cancelled = threading.Event()
 
-        def on_result(future):
+        def on_result(future: typing.Any) -> None:
             response = future.result()
             if response.status != GoalStatus.STATUS_SUCCEEDED:
                 status = _STATUS_NAMES.get(response.status, f"status {response.status}")
@@ -206,7 +208,7 @@ class Optimizer(Node):
             result = response.result
             ticket.succeed(result.successes, result.trials, result.eval_time_s, result.evaluator or action_name)
 
-        def on_goal_response(future):
+        def on_goal_response(future: typing.Any) -> None:
             if future.exception() is not None:
                 ticket.fail(f"sending the goal failed: {future.exception()!r}")
                 return
@@ -221,7 +223,7 @@ class Optimizer(Node):
                 return
             handle.get_result_async().add_done_callback(on_result)
 
-        def cancel():
+        def cancel() -> None:
             cancelled.set()
             handle = goal_handle.get("handle")
             if handle is not None:
@@ -238,7 +240,7 @@ class Optimizer(Node):
 
     def _run_control(self, act, message):
         """A Trigger callback that calls ``act()`` if a run is in progress and answers ``message``."""
-        def callback(_request, response):
+        def callback(_request: typing.Any, response: typing.Any) -> typing.Any:
             if not self.running:
                 response.success, response.message = False, "no run in progress"
                 return response
@@ -254,11 +256,11 @@ class Optimizer(Node):
 
     # --- the run -------------------------------------------------------------------------------------------------
     @property
-    def running(self):
+    def running(self) -> bool:
         """True while a run's thread is alive."""
         return self._worker is not None and self._worker.is_alive()
 
-    def start(self):
+    def start(self) -> typing.Tuple[bool, str]:
         """Start (or, with ``resume``, continue) a run in a worker thread; return ``(started, message)``."""
         with self._lock:
             if self.running:
@@ -411,7 +413,7 @@ class Optimizer(Node):
         self._best_heights = best.heights.copy()
         self._marker.publish(self.profile_marker(best.heights))
 
-    def profile_marker(self, heights):
+    def profile_marker(self, heights: npt.ArrayLike) -> typing.Any:
         """The Marker (TRIANGLE_LIST, metres) of the profile solid of ``heights`` on the robot's profile mount."""
         frame, position_m, yaw_deg = self._mount
         marker = Marker()
@@ -433,17 +435,17 @@ class Optimizer(Node):
         marker.points = [Point(x=x, y=y, z=z) for x, y, z in geometry.marker_points(mesh).tolist()]
         return marker
 
-    def close(self):
+    def close(self) -> None:
         """End a run in progress at once (it keeps its last checkpoint) and wait for its thread."""
         self._pool.close()
         if self._worker is not None:
             self._worker.join(timeout=10)
 
 
-def main(args=None):
+def main(args: typing.Optional[typing.List[str]] = None) -> int:
     nodes = []
 
-    def make():
+    def make() -> Optimizer:
         nodes.append(Optimizer())
         return nodes[-1]
 

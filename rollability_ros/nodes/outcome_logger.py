@@ -30,6 +30,8 @@ acknowledged record survives ``kill -9``. A duplicate key (same run and trial id
 as a duplicate; a malformed message is logged with the reason and skipped; a store failure (disk full, locked)
 is logged as an error and the record is not acknowledged.
 """
+import typing
+
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
@@ -52,7 +54,7 @@ _RECORD_TOPICS = {
 }
 
 
-def summary_to_msg(summary):
+def summary_to_msg(summary: typing.Any) -> typing.Any:
     """:class:`~rollability_ros.core.results.outcome_log.LogSummary` -> ``OutcomeSummary``."""
     msg = OutcomeSummary(trials=summary.trials, candidates=summary.candidates)
     msg.header.stamp = _convert.s_to_stamp(summary.latest_stamp_s)
@@ -98,7 +100,7 @@ class OutcomeLoggerNode(Node):
         return SetParametersResult(successful=True)
 
     def _make_callback(self, convert, kind):
-        def on_message(msg):
+        def on_message(msg: typing.Any) -> None:
             self._store(msg, convert, kind)
         return on_message
 
@@ -151,12 +153,12 @@ class OutcomeLoggerNode(Node):
         response.summary = summary_to_msg(self.log.summary(request.run_id or None))
         return response
 
-    def close(self):
+    def close(self) -> None:
         """Close the store (run_node calls this before destroying the node)."""
         self.log.close()
 
 
-def main(args=None):
+def main(args: typing.Optional[typing.List[str]] = None) -> int:
     return run_node(OutcomeLoggerNode, args)
 
 

@@ -16,6 +16,7 @@ acknowledge them (up to ``ACK_TIMEOUT_S`` in all, never holding the GIL meanwhil
 import sys
 import threading
 import time
+import typing
 
 from rclpy.node import Node
 
@@ -137,18 +138,19 @@ class PlayerNode(Node):
     def _publishers_to_wait_for(self):
         return list(self.publishers_by_topic.values()) + ([self.clock_publisher] if self.clock_publisher else [])
 
-    def close(self):
+    def close(self) -> None:
         """Stop the playback thread (run_node calls this before destroying the node)."""
         self._stop.set()
         if self._thread is not threading.current_thread():
             self._thread.join(timeout=ACK_TIMEOUT_S + 5)
 
 
-def main(args=None, parameter_overrides=None):
+def main(args: typing.Optional[typing.List[str]] = None,
+         parameter_overrides: typing.Optional[typing.List[typing.Any]] = None) -> int:
     """Play the bag; exit 0 when every message was published, 1 when the bag failed part-way, 2 on bad input."""
     nodes = []
 
-    def create():
+    def create() -> PlayerNode:
         nodes.append(PlayerNode(parameter_overrides))
         return nodes[0]
 

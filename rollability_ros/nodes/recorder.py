@@ -25,6 +25,7 @@ Other parameters (``recorder.*``): see :class:`~rollability_ros.core.bags.record
 """
 import threading
 import time
+import typing
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -83,7 +84,7 @@ class RecorderNode(Node):
                                + (", ".join(self.chosen_topics) if self.chosen_topics else "the project's graph"))
         self.discover()
 
-    def discover(self):
+    def discover(self) -> None:
         """Subscribe to every selected topic that has publishers and is not recorded yet."""
         selected, ambiguous = select_topics(self.get_topic_names_and_types(), self.chosen_topics)
         for topic, types in ambiguous:
@@ -142,7 +143,7 @@ class RecorderNode(Node):
             taken += 1
 
     def _make_callback(self, topic, holder):
-        def on_message(data, info):
+        def on_message(data: typing.Any, info: typing.Any) -> None:
             with self._lock:
                 if self._closed:
                     return
@@ -152,7 +153,7 @@ class RecorderNode(Node):
         return on_message
 
     def _make_lost_callback(self, topic):
-        def on_lost(status):
+        def on_lost(status: typing.Any) -> None:
             self.lost[topic] = self.lost.get(topic, 0) + status.total_count_change
             self.get_logger().error(f"{topic}: the middleware lost {status.total_count_change} message(s) before "
                                     f"the recorder took them ({self.lost[topic]} on this topic so far)")
@@ -163,12 +164,12 @@ class RecorderNode(Node):
             if not self._closed:
                 self.writer.flush_if_due()
 
-    def counts(self):
+    def counts(self) -> typing.Dict[str, int]:
         """``{topic: messages written}`` so far."""
         with self._lock:
             return {name: info.message_count for name, info in self.writer.topics.items()}
 
-    def close(self):
+    def close(self) -> None:
         """Finish the bag (summary section, final metadata.yaml); idempotent.
 
         The recorder's callback group is taken for good first: a callback already running (the executor takes
@@ -200,7 +201,8 @@ class RecorderNode(Node):
                                   if duplicates else ""))
 
 
-def main(args=None, parameter_overrides=None):
+def main(args: typing.Optional[typing.List[str]] = None,
+         parameter_overrides: typing.Optional[typing.List[typing.Any]] = None) -> int:
     return run_node(lambda: RecorderNode(parameter_overrides), args)
 
 

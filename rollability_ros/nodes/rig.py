@@ -38,6 +38,7 @@ import dataclasses
 import math
 import threading
 import time
+import typing
 
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import SetParametersResult
@@ -49,9 +50,9 @@ from sensor_msgs.msg import Imu
 
 from rollability_ros.action import Launch
 from rollability_ros.core.imu import ImuOutcomeConfig, imu_sample_from_message
-from rollability_ros.core.rig import (LaunchAborted, OperatorOutcome, RigPorts, RigSettings, SpeedGateConfig,
-                                      ValveConfig, ValveStatus, make_launch_backend, make_speed_gate, rig_auth,
-                                      valve_auth)
+from rollability_ros.core.rig import (ImuOutcome, LaunchAborted, OperatorOutcome, RigPorts, RigSettings,
+                                      SpeedGateConfig, ValveConfig, ValveStatus, make_launch_backend, make_speed_gate,
+                                      rig_auth, valve_auth)
 from rollability_ros.msg import LaunchOutcome, ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
@@ -86,7 +87,7 @@ class ValveServices:
             self._status = ValveStatus(msg.armed, msg.open, msg.fault, msg.fault_reason, msg.backend,
                                        msg.last_pulse_ms, msg.pulses)
 
-    def status(self):
+    def status(self) -> typing.Any:
         """The newest valve state known (from ``valve/state`` or the last fire response)."""
         with self._lock:
             return self._status
@@ -110,7 +111,7 @@ class ValveServices:
             self._signer = valve_auth.RequestSigner(valve_auth.load_session_key(self._key_path))
         return auth_msg(self._signer.sign(command, pulse_ms))
 
-    def heartbeat(self, node_name, stamp):
+    def heartbeat(self, node_name: str, stamp: typing.Any) -> typing.Any:
         """A signed ``ValveHeartbeat``, or None before the first arming (no key read yet)."""
         if self._signer is None:
             return None
@@ -128,15 +129,15 @@ class ValveServices:
                 self._status = dataclasses.replace(self._status, armed=armed, fault=self._status.fault and armed)
         return response.success, response.message
 
-    def arm(self):
+    def arm(self) -> typing.Tuple[bool, str]:
         """Arm the valve: ``(ok, reason)``."""
         return self._set_armed(True)
 
-    def disarm(self):
+    def disarm(self) -> typing.Tuple[bool, str]:
         """Disarm the valve: ``(ok, reason)``."""
         return self._set_armed(False)
 
-    def fire(self, pulse_ms):
+    def fire(self, pulse_ms: int) -> typing.Tuple[bool, str]:
         """Fire one pulse: ``(ok, reason)``; the response's state becomes the known status."""
         response, failure = self._call(self._fire, lambda: FireValve.Request(
             pulse_ms=int(pulse_ms), auth=self._sign("fire", int(pulse_ms))), self._timeout_s + pulse_ms / 1000.0)
@@ -146,18 +147,7 @@ class ValveServices:
         return response.success, response.message
 
 
-def imu_sample_from_msg(msg):
-    """``sensor_msgs/Imu`` -> :class:`ImuSample` (orientation None when the IMU gives none)."""
-    q = msg.orientation
-    return ImuSample(
-        stamp_s=_convert.stamp_to_s(msg.header.stamp),
-        orientation=orientation_if_valid((q.x, q.y, q.z, q.w), list(msg.orientation_covariance)),
-        angular_velocity_radps=(msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z),
-        linear_acceleration_mps2=(msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z),
-        frame_id=msg.header.frame_id)
-
-
-def session_key_path(node, valve_config):
+def session_key_path(node: Node, valve_config: ValveConfig) -> str:
     """The valve_controller's key file: ``valve.session_key_file``, else the default for this namespace."""
     return valve_config.session_key_file or valve_auth.default_key_path(node.get_namespace())
 
@@ -173,7 +163,7 @@ class RosRigPorts(RigPorts):
         self._heartbeat_publisher = None
         self._valve_services = None
 
-    def open_valve(self, valve_config):
+    def open_valve(self, valve_config: ValveConfig) -> typing.Any:
         """:class:`ValveServices` signing with the valve's session key, and ``rig/heartbeat`` every
         ``valve.heartbeat_period_ms`` for the watchdog (signed; sent from the first arming on)."""
         node = self._node
@@ -190,11 +180,11 @@ class RosRigPorts(RigPorts):
         if msg is not None:
             self._heartbeat_publisher.publish(msg)
 
-    def open_speed_gate(self, speed_config):
+    def open_speed_gate(self, speed_config: SpeedGateConfig) -> typing.Any:
         """The configured speed gate."""
         return make_speed_gate(speed_config)
 
-    def open_imu(self, imu_outcome):
+    def open_imu(self, imu_outcome: ImuOutcome) -> None:
         """Feed ``imu_outcome`` from its configured IMU topic (sensor_msgs/Imu)."""
         self._node.create_subscription(Imu, imu_outcome.config.topic, lambda msg: self._on_imu(imu_outcome, msg),
                                        STREAM_QOS, callback_group=MutuallyExclusiveCallbackGroup())
@@ -270,11 +260,11 @@ class RigNode(Node):
         result = Launch.Result()
         logger = self.get_logger()
 
-        def on_phase(phase, detail):
+        def on_phase(phase: str, detail: str) -> None:
             logger.info(f"{goal.trial_id}: {phase}: {detail}")
             goal_handle.publish_feedback(Launch.Feedback(phase=phase, detail=detail))
 
-        def cancelled():
+        def cancelled() -> bool:
             return goal_handle.is_cancel_requested or self._closing.is_set()
 
         # authenticated before anything else: a stray participant's goals never hold the rig busy
@@ -327,7 +317,7 @@ class RigNode(Node):
         msg.pose.orientation = _convert.tuple_to_quaternion(orientation_xyzw)
         self.pose_publisher.publish(msg)
 
-    def close(self):
+    def close(self) -> None:
         """Abort a running launch at its next wait and wait for it to end (the node still spins meanwhile, so the
         launch's own cleanup can disarm the valve over its service); then close the backend."""
         self._closing.set()
@@ -336,7 +326,7 @@ class RigNode(Node):
         self.backend.close()
 
 
-def main(args=None):
+def main(args: typing.Optional[typing.List[str]] = None) -> int:
     return run_node(RigNode, args, threads=6)
 
 

@@ -21,6 +21,7 @@ import dataclasses
 import math
 import sys
 import threading
+import typing
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -42,7 +43,7 @@ class _CancelRequested:
         self._goal_handle = goal_handle
         self._closing = closing
 
-    def is_set(self):
+    def is_set(self) -> bool:
         return self._goal_handle.is_cancel_requested or self._closing.is_set()
 
 
@@ -76,7 +77,7 @@ class SimEvaluator(Node):
                                f"{self._settings.grid.rows}x{self._settings.grid.cols}")
 
     def _setter(self, name):
-        def apply(value):
+        def apply(value: typing.Any) -> None:
             if name == "urdf_robot" and value.selected and not value.has_source and self._topic_description:
                 value = dataclasses.replace(value, robot_description=self._topic_description)
             self._settings = dataclasses.replace(self._settings, **{name: value})
@@ -94,7 +95,7 @@ class SimEvaluator(Node):
         self.get_logger().info(f"robot description {urdf_robot.description().robot.name!r} received, "
                                f"profile on {urdf_robot.mount_link!r}")
 
-    def goal_problem(self, goal):
+    def goal_problem(self, goal: typing.Any) -> typing.Optional[str]:
         """Why ``goal`` cannot be evaluated, or None."""
         settings = self._settings
         if settings.urdf_robot.selected and not settings.urdf_robot.has_source:
@@ -123,7 +124,7 @@ class SimEvaluator(Node):
         request = goal_handle.request
         progress = {"done": 0, "upright": 0}
 
-        def on_trial(outcome):
+        def on_trial(outcome: typing.Any) -> None:
             progress["done"] += 1
             progress["upright"] += int(outcome.upright)
             goal_handle.publish_feedback(EvaluateProfile.Feedback(trials_done=progress["done"],
@@ -170,14 +171,14 @@ class SimEvaluator(Node):
             self.get_logger().warning(f"closing the broken worker pool: {exc!r}")
         self._pool = make_executor(self._settings.evaluator)
 
-    def close(self):
+    def close(self) -> None:
         """End a running evaluation at its next batch (the goal is aborted), then stop the worker processes."""
         self._closing.set()
         with self._busy:
             self._pool.close()
 
 
-def main(args=None):
+def main(args: typing.Optional[typing.List[str]] = None) -> int:
     return run_node(SimEvaluator, args)
 
 

@@ -32,6 +32,7 @@ relay on its own; a plain GPIO line cannot.
 """
 import math
 import threading
+import typing
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
@@ -49,7 +50,7 @@ from rollability_ros.srv import ArmValve, FireValve
 DIAGNOSTICS_PERIOD_S = 1.0
 
 
-def key_path(node, config):
+def key_path(node: Node, config: ValveConfig) -> str:
     """The session key file of this valve_controller (``valve.session_key_file`` or the per-domain default)."""
     return config.session_key_file or valve_auth.default_key_path(node.get_namespace())
 
@@ -178,7 +179,7 @@ class ValveControllerNode(Node):
         if self._authentic(msg.auth, "heartbeat")[0]:
             self.controller.heartbeat()
 
-    def close(self):
+    def close(self) -> None:
         """Drive the valve closed, release the backend and remove this session's key file (idempotent); then give
         the subscribers up to :data:`CLOSED_STATE_ACK_S` to acknowledge the closed state before the node goes (a
         writer destroyed right after publishing can take its last sample with it on a loaded machine)."""
@@ -187,7 +188,7 @@ class ValveControllerNode(Node):
         wait_for_acks([self.state_publisher], CLOSED_STATE_ACK_S, threading.Event())
 
 
-def main(args=None):
+def main(args: typing.Optional[typing.List[str]] = None) -> int:
     return run_node(ValveControllerNode, args)
 
 

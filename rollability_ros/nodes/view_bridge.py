@@ -17,6 +17,7 @@ Run: ``python -m rollability_ros.nodes.view_bridge --ros-args -p port:=8765`` (`
 ``rollability bringup --view`` do this); the log says ``Foxglove view on ws://<host>:<port>``.
 """
 import time
+import typing
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
@@ -72,7 +73,7 @@ class ViewBridgeNode(Node):
                                + (", ".join(self.chosen_topics) if self.chosen_topics else "the project's graph"))
         self.discover()
 
-    def discover(self):
+    def discover(self) -> None:
         """Serve every selected topic that has publishers and is not served yet."""
         selected, ambiguous = select_topics(self.get_topic_names_and_types(), self.chosen_topics)
         for topic, types in ambiguous:
@@ -113,12 +114,12 @@ class ViewBridgeNode(Node):
             except ValueError as exc:
                 self.get_logger().warning(f"{topic}: no transform: {exc}", throttle_duration_sec=5.0)
 
-    def close(self):
+    def close(self) -> None:
         """Stop the WebSocket server (run_node calls this before destroying the node)."""
         self.view.stop()
 
 
-def main(args=None):
+def main(args: typing.Optional[typing.List[str]] = None) -> int:
     return run_node(ViewBridgeNode, args)
 
 

@@ -1,5 +1,6 @@
 """Public functions carry type hints: a ratchet over the core modules already annotated (add a module to MODULES once
-every public function and method in it has annotated parameters and a return type), and every module of the CLI."""
+every public function and method in it has annotated parameters and a return type), and every module of the CLI
+and of the nodes."""
 import ast
 import pathlib
 
@@ -7,6 +8,7 @@ import pytest
 
 CORE = pathlib.Path(__file__).resolve().parents[2] / "rollability_ros" / "core"
 CLI = CORE.parent / "cli"
+NODES = CORE.parent / "nodes"
 MODULES = ["imu/quaternion.py", "imu/upright.py", "records.py", "record_messages.py",
            "rig/launch_backend.py", "rig/rig_session.py", "campaign/runner.py", "optimization/optimization_run.py",
            "bags/messages.py", "graph/bringup.py",
@@ -36,6 +38,7 @@ def test_public_functions_are_annotated(module):
     assert unannotated(CORE / module) == []
 
 
-@pytest.mark.parametrize("module", sorted(path.name for path in CLI.glob("*.py")))
-def test_every_public_function_of_the_cli_is_annotated(module):
-    assert unannotated(CLI / module) == []
+@pytest.mark.parametrize("module", sorted([f"cli/{path.name}" for path in CLI.glob("*.py")]
+                                           + [f"nodes/{path.name}" for path in NODES.glob("*.py")]))
+def test_every_public_function_of_the_cli_and_the_nodes_is_annotated(module):
+    assert unannotated(CORE.parent / module) == []

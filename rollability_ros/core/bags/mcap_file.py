@@ -4,8 +4,9 @@ sidecar; shared by the writer (:mod:`~rollability_ros.core.bags.writer`) and the
 """
 import json
 import os
+import typing
 
-from rollability_ros.core.bags.metadata import FileInfo, dump_metadata
+from rollability_ros.core.bags.metadata import FileInfo, TopicInfo, dump_metadata
 from rollability_ros.core.bags.qos import qos_profiles_yaml
 
 #: Default uncompressed chunk size, bytes: the most a SIGKILL can lose (see module docstring).
@@ -32,12 +33,12 @@ MCAP_LIBRARY = "rollability_ros bag_writer"
 SCHEMA_ENCODING = "ros2msg"
 
 
-def storage_file_name(bag_name, index):
+def storage_file_name(bag_name: str, index: int) -> str:
     """Return the name of storage file ``index`` of bag ``bag_name`` (``<name>_<index>.mcap``)."""
     return f"{bag_name}_{index}.mcap"
 
 
-def mcap_compression(compression):
+def mcap_compression(compression: str) -> typing.Any:
     """Return the ``mcap.writer.CompressionType`` for ``"zstd"``, ``"lz4"`` or ``"none"``/``""``."""
     from mcap.writer import CompressionType
 
@@ -48,13 +49,13 @@ def mcap_compression(compression):
     return choices[compression]
 
 
-def channel_metadata(topic):
+def channel_metadata(topic: TopicInfo) -> typing.Dict[str, str]:
     """Return the MCAP channel metadata rosbag2 stores for a :class:`TopicInfo`."""
     return {"offered_qos_profiles": qos_profiles_yaml(topic.offered_qos_profiles),
             "topic_type_hash": topic.type_description_hash}
 
 
-def write_sidecar(directory, schemas):
+def write_sidecar(directory: str, schemas: typing.Mapping[str, str]) -> None:
     """Atomically write the recovery sidecar: ``{type name: full definition}``."""
     path = os.path.join(directory, RECOVERY_SIDECAR)
     with open(path + ".tmp", "w", encoding="utf-8") as stream:
@@ -62,7 +63,7 @@ def write_sidecar(directory, schemas):
     os.replace(path + ".tmp", path)
 
 
-def read_sidecar(directory):
+def read_sidecar(directory: str) -> typing.Dict[str, str]:
     """Return the recovery sidecar's ``{type name: full definition}``, or ``{}`` when there is none."""
     path = os.path.join(directory, RECOVERY_SIDECAR)
     try:
@@ -80,7 +81,7 @@ class UnbufferedSink:
         self._position = 0
         self._fsync = fsync
 
-    def write(self, data):
+    def write(self, data: bytes) -> int:
         view = memoryview(data)
         while view:
             written = os.write(self._fd, view)
@@ -88,14 +89,14 @@ class UnbufferedSink:
         self._position += len(data)
         return len(data)
 
-    def tell(self):
+    def tell(self) -> int:
         return self._position
 
-    def flush(self):
+    def flush(self) -> None:
         if self._fsync:
             os.fsync(self._fd)
 
-    def close(self):
+    def close(self) -> None:
         if self._fd is not None:
             self.flush()
             os.close(self._fd)
@@ -116,23 +117,24 @@ class McapFile:
         self.channel_ids = {}
         self.end_time_ns = 0
 
-    def add_schema(self, type_name, encoding, data):
+    def add_schema(self, type_name: str, encoding: str, data: bytes) -> int:
         """Register a schema once per type name and return its id."""
         if type_name not in self.schema_ids:
             self.schema_ids[type_name] = self.writer.register_schema(type_name, encoding, data)
         return self.schema_ids[type_name]
 
-    def add_channel(self, topic_name, message_encoding, schema_id, metadata):
+    def add_channel(self, topic_name: str, message_encoding: str, schema_id: int,
+                    metadata: typing.Mapping[str, str]) -> None:
         """Register the channel of ``topic_name``."""
         self.channel_ids[topic_name] = self.writer.register_channel(topic_name, message_encoding, schema_id,
                                                                     metadata)
 
-    def add_topic(self, topic, definition):
+    def add_topic(self, topic: TopicInfo, definition: str) -> None:
         """Register ``topic``'s schema (once per type) and channel."""
         schema_id = self.add_schema(topic.type_name, SCHEMA_ENCODING, definition.encode("utf-8"))
         self.add_channel(topic.name, topic.serialization_format, schema_id, channel_metadata(topic))
 
-    def write(self, topic_name, data, log_time_ns, publish_time_ns):
+    def write(self, topic_name: str, data: bytes, log_time_ns: int, publish_time_ns: int) -> None:
         """Append one message and update the file's count and time span."""
         self.writer.add_message(self.channel_ids[topic_name], log_time_ns, data, publish_time_ns)
         info = self.info
@@ -143,7 +145,7 @@ class McapFile:
         info.duration_ns = self.end_time_ns - info.starting_time_ns
         info.message_count += 1
 
-    def close(self, information):
+    def close(self, information: typing.Mapping[str, typing.Any]) -> None:
         """Write the ``rosbag2`` metadata record and the summary section, and close the file."""
         self.writer.add_metadata("rosbag2", {"serialized_metadata": dump_metadata(information),
                                              "ROS_DISTRO": information["ros_distro"]})

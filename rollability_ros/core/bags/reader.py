@@ -24,7 +24,7 @@ class BagMessage(typing.NamedTuple):
 
 
 @contextlib.contextmanager
-def bag_file_errors(path):
+def bag_file_errors(path: str) -> typing.Iterator[None]:
     """Re-raise any failure inside the block as :class:`BagError` naming ``path`` (not a deep mcap traceback)."""
     try:
         yield
@@ -37,7 +37,7 @@ def bag_file_errors(path):
                        f"if it is an MCAP bag of a killed recorder, run `rollability bag recover`") from exc
 
 
-def open_mcap(path, stream):
+def open_mcap(path: str, stream: typing.BinaryIO) -> typing.Tuple[typing.Any, typing.Any]:
     """Return ``(reader, summary)`` for a complete MCAP file open as ``stream``; BagError if it is not one."""
     from mcap.reader import SeekingReader
 
@@ -59,7 +59,7 @@ def open_mcap(path, stream):
     return reader, summary
 
 
-def storage_paths(directory, information):
+def storage_paths(directory: str, information: typing.Mapping[str, typing.Any]) -> typing.List[str]:
     """Return the absolute storage file paths listed in metadata; BagError naming the first missing one."""
     paths = []
     for relative in information.get("relative_file_paths") or []:
@@ -104,7 +104,7 @@ class BagReader:
     def __iter__(self):
         return (message for message, _ in self.with_definitions())
 
-    def with_definitions(self):
+    def with_definitions(self) -> typing.Iterator[typing.Tuple[BagMessage, str]]:
         """Yield ``(BagMessage, definition)``: each message with the full ``ros2msg`` definition the bag stores for
         its type ("" when it has none), the one to decode it with; for a bag recorded before an interface changed
         it is not the installed one."""
@@ -141,14 +141,14 @@ class BagReader:
                        getattr(msgdef, "data", "") or "")
 
 
-def schema_text(schema):
+def schema_text(schema: typing.Any) -> str:
     """The ``ros2msg`` definition an MCAP schema holds ("" for none or another encoding)."""
     if schema is None or schema.encoding != "ros2msg":
         return ""
     return schema.data.decode("utf-8", errors="replace")
 
 
-def verify_mcap_file(path):
+def verify_mcap_file(path: str) -> None:
     """Raise BagError unless ``path`` is a complete MCAP file whose every chunk passes its CRC checks."""
     from mcap.records import Chunk
     from mcap.stream_reader import StreamReader, breakup_chunk
@@ -163,7 +163,7 @@ def verify_mcap_file(path):
                         pass
 
 
-def check_readable(reader):
+def check_readable(reader: BagReader) -> None:
     """Raise BagError unless every storage file of ``reader``'s bag opens and every MCAP chunk passes its CRC.
 
     Reads the whole bag once (no message is decoded), so a player refuses a damaged bag before publishing any
@@ -285,7 +285,7 @@ def _mcap_file_metadata(path):
             "compression_format": "", "compression_mode": ""}
 
 
-def human_time(time_ns):
+def human_time(time_ns: typing.Optional[int]) -> str:
     """``time_ns`` (ns since the Unix epoch) as ``2026-11-23 21:18:18.483396998 UTC``; None -> '-'."""
     import datetime
 
@@ -296,7 +296,7 @@ def human_time(time_ns):
     return f"{moment:%Y-%m-%d %H:%M:%S}.{nanoseconds:09d} UTC"
 
 
-def bag_info(path, verify_chunks=False):
+def bag_info(path: typing.Union[str, os.PathLike], verify_chunks: bool = False) -> typing.Dict[str, typing.Any]:
     """Summarise a bag directory, or one ``.mcap`` file: topics, types, counts, QoS, time span, files, sizes.
 
     Counts and times come from the storage files themselves (MCAP summary sections), so a metadata.yaml
@@ -336,7 +336,7 @@ def bag_info(path, verify_chunks=False):
         chunk_check = f"{len(corrupt_chunks)} of {chunk_count} chunks fail their check: run `rollability bag recover`"
     else:
         chunk_check = f"verified: all {chunk_count} chunks match their CRCs"
-    counts = {}
+    counts: typing.Dict[typing.Tuple[str, str], int] = {}
     for entry in files:
         for key, count in entry.pop("topic_counts").items():
             counts[key] = counts.get(key, 0) + count
@@ -375,7 +375,7 @@ def bag_info(path, verify_chunks=False):
         "end_time_ns": end_ns,
         "start_time": human_time(start_ns),
         "end_time": human_time(end_ns),
-        "duration_s": (end_ns - start_ns) / 1e9 if starts else 0.0,
+        "duration_s": (end_ns - start_ns) / 1e9 if end_ns is not None and start_ns is not None else 0.0,
         "size_bytes": sum(f["size_bytes"] for f in files),
         "compression": compression,
         "custom_data": information.get("custom_data") or {},
@@ -398,7 +398,7 @@ def _qos_text(profiles):
     return " | ".join(texts) or "-"
 
 
-def format_bag_info(info):
+def format_bag_info(info: typing.Mapping[str, typing.Any]) -> str:
     """Return :func:`bag_info`'s dict as the text ``rollability bag info`` prints (the fields of ``ros2 bag
     info`` and per-topic QoS)."""
     lines = [

@@ -27,6 +27,7 @@ support a writer that continues a bag after a restart.
 """
 import os
 import re
+import typing
 
 from rollability_ros.core.bags.metadata import (
     METADATA_FILE,
@@ -58,7 +59,7 @@ _SALVAGED_OPCODES = re.compile(b"[\x03\x04\x06]")
 BACKUP_SUFFIX = ".before-recover"
 
 
-def backup_path(path):
+def backup_path(path: str) -> str:
     """The name ``recover`` keeps the original of ``path`` under: ``<path>.before-recover``, or the first free
     ``<path>.before-recover-<n>`` when an earlier recovery already kept one (no backup is ever overwritten)."""
     candidate, number = path + BACKUP_SUFFIX, 2
@@ -82,7 +83,7 @@ def _storage_files(directory, information):
               if os.path.isfile(os.path.join(directory, p))]
     others = [n for n in os.listdir(directory) if n.endswith(".mcap") and n not in listed]
 
-    def split_index(name):
+    def split_index(name: str) -> typing.Tuple[int, str]:
         match = _SPLIT_INDEX.search(name)
         return (int(match.group(1)) if match else -1, name)
 
@@ -257,7 +258,7 @@ def _previous_metadata(directory):
         return {}
 
 
-def recover(directory, allow_empty=False):
+def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False) -> typing.Dict[str, typing.Any]:
     """Recover the bag in ``directory`` in place (see the module docstring); return a report.
 
     A bag in which no message can be saved is refused (BagError, nothing changed) unless ``allow_empty``: a writer
@@ -297,7 +298,10 @@ def recover(directory, allow_empty=False):
     known_topics = topics_from_metadata(previous) if previous else []
     definitions = read_sidecar(directory)
     stored = dict(previous)
-    reports, files, found_topics, repaired = [], [], {}, []
+    reports: typing.List[typing.Dict[str, typing.Any]] = []
+    files: typing.List[FileInfo] = []
+    found_topics: typing.Dict[str, TopicInfo] = {}
+    repaired: typing.List[typing.Tuple[str, str]] = []
     try:
         for name in names:
             path = os.path.join(directory, name)
@@ -369,7 +373,7 @@ def recover(directory, allow_empty=False):
             "metadata_backup": os.path.basename(metadata_backup), "sidecar_backup": os.path.basename(sidecar_backup)}
 
 
-def is_left_open(directory):
+def is_left_open(directory: typing.Union[str, os.PathLike]) -> bool:
     """Whether ``directory`` holds a bag its writer did not close: a recovery sidecar, or an incomplete file."""
     directory = os.fspath(directory)
     if os.path.exists(os.path.join(directory, RECOVERY_SIDECAR)):
@@ -378,7 +382,7 @@ def is_left_open(directory):
     return any(not _is_complete(os.path.join(directory, name)) for name in names)
 
 
-def recording_gaps(directory):
+def recording_gaps(directory: typing.Union[str, os.PathLike]) -> typing.List[typing.Tuple[int, typing.Optional[int]]]:
     """Return the windows a bag may be missing because its writer was killed and restarted.
 
     Returns
@@ -406,7 +410,8 @@ def _restart_indexes(information):
     return [int(r) for r in ((information.get("custom_data") or {}).get(RESTARTS_KEY) or "").split(",") if r]
 
 
-def missed_windows(directory):
+def missed_windows(directory: typing.Union[str, os.PathLike]
+                   ) -> typing.List[typing.Dict[str, typing.Dict[str, typing.Any]]]:
     """Per restart of the bag's writer, what each topic missed: the window from its last message before the kill
     to its first one after the restart (a topic's own window, not only the bag's: a 100 Hz pose stream and a
     launch outcome every few seconds lose different spans).
@@ -426,7 +431,7 @@ def missed_windows(directory):
     spans = []          # per storage file: {topic: [first ns, last ns, count]}
     for relative in information.get("relative_file_paths") or []:
         path = os.path.join(directory, relative)
-        span = {}
+        span: typing.Dict[str, typing.List[int]] = {}
         with open(path, "rb") as stream, bag_file_errors(path):
             reader, summary = open_mcap(path, stream)
             if summary.statistics.message_count:
@@ -435,7 +440,7 @@ def missed_windows(directory):
                     entry[0], entry[1] = min(entry[0], message.log_time), max(entry[1], message.log_time)
                     entry[2] += 1
         spans.append(span)
-    totals = {}
+    totals: typing.Dict[str, typing.List[int]] = {}
     for span in spans:
         for topic, (first, last, count) in span.items():
             total = totals.setdefault(topic, [first, last, 0])
@@ -452,7 +457,8 @@ def missed_windows(directory):
     return windows
 
 
-def mark_restart(directory, information=None):
+def mark_restart(directory: typing.Union[str, os.PathLike],
+                 information: typing.Optional[typing.Dict[str, typing.Any]] = None) -> typing.Dict[str, typing.Any]:
     """Note in ``directory``'s metadata.yaml that the recording stopped uncleanly after its current files
     (``custom_data["recorder_restarts"]`` gets the index of the next file); return the updated metadata."""
     from rollability_ros.core.bags.mcap_file import RESTARTS_KEY

@@ -24,6 +24,7 @@ import dataclasses
 import hashlib
 import os
 import time
+import typing
 
 from rollability_ros.core.bags.metadata import (
     ROS_DISTRO,
@@ -172,8 +173,10 @@ class BagWriter:
         return topic, int(publish_time_ns), hashlib.sha256(bytes(data)).digest()
 
     # --- topics and messages -------------------------------------------------------------------------
-    def add_topic(self, name, type_name, serialization_format="cdr", offered_qos_profiles=None, definition=None,
-                  type_description_hash=None):
+    def add_topic(self, name: str, type_name: str, serialization_format: str = "cdr",
+                  offered_qos_profiles: typing.Union[typing.Sequence[typing.Mapping[str, typing.Any]], str,
+                                                     None] = None,
+                  definition: typing.Optional[str] = None, type_description_hash: typing.Optional[str] = None) -> None:
         """Register a topic before writing to it.
 
         Parameters
@@ -228,11 +231,12 @@ class BagWriter:
         self._write_metadata()
 
     @property
-    def topics(self):
+    def topics(self) -> typing.Dict[str, TopicInfo]:
         """The registered topics as ``{name: TopicInfo}`` (message counts so far)."""
         return dict(self._topics)
 
-    def write(self, topic, cdr_bytes, log_time_ns, publish_time_ns=None):
+    def write(self, topic: str, cdr_bytes: bytes, log_time_ns: int,
+              publish_time_ns: typing.Optional[int] = None) -> bool:
         """Append one serialized message.
 
         Parameters
@@ -273,14 +277,14 @@ class BagWriter:
         self.flush_if_due()
         return True
 
-    def flush(self):
+    def flush(self) -> None:
         """Finish the open chunk and hand it to the OS (a chunk with no messages is not written)."""
         if self._current is not None:
             self._current.writer.flush()
         self._last_flush_s = self._clock()
         self._unflushed = 0
 
-    def flush_if_due(self):
+    def flush_if_due(self) -> bool:
         """Flush when messages have waited ``flush_interval_s`` or longer; return True when it flushed.
 
         A recorder calls this from a timer so a quiet topic's last messages are not held in memory.
@@ -290,7 +294,7 @@ class BagWriter:
             return True
         return False
 
-    def close(self):
+    def close(self) -> None:
         """Finish the last storage file, write the final metadata.yaml and drop the recovery sidecar."""
         if self._current is None:
             return
@@ -301,7 +305,7 @@ class BagWriter:
         if os.path.exists(sidecar):
             os.remove(sidecar)
 
-    def metadata(self):
+    def metadata(self) -> typing.Dict[str, typing.Any]:
         """Return the current ``rosbag2_bagfile_information`` mapping."""
         topics = []
         for name, previous in self._previous_topics.items():    # topics of files before a restart, first

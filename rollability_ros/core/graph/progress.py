@@ -27,7 +27,7 @@ class JobProgress:
     eta_s: float | None = None
     trials_label: str = "trials stored"     # what the trials are: launches stored, or simulated trials evaluated
 
-    def text(self):
+    def text(self) -> str:
         """The status as one line, e.g. ``optimizing | generation 4/30 | best 0.85 | 480 trials stored | ETA 3 min``."""
         parts = [self.phase]
         if self.generation is not None:
@@ -41,14 +41,14 @@ class JobProgress:
         return " | ".join(parts)
 
 
-def eta_s(done, total, elapsed_s):
+def eta_s(done: float, total: float, elapsed_s: float) -> typing.Optional[float]:
     """Seconds left at the rate so far (``done`` of ``total`` units in ``elapsed_s``); None when unknown."""
     if not total or not done or elapsed_s <= 0 or done >= total:
         return 0.0 if total and done >= total else None
     return elapsed_s / done * (total - done)
 
 
-def format_duration(seconds):
+def format_duration(seconds: float) -> str:
     """``seconds`` as ``42 s``, ``7 min`` or ``1.5 h``."""
     if seconds < 90:
         return f"{seconds:.0f} s"
@@ -85,14 +85,14 @@ class ProgressDisplay:
     def __exit__(self, *exc_info):
         self.close()
 
-    def say(self, text):
+    def say(self, text: str) -> None:
         """An event line: printed once (above the live line on a terminal)."""
         if self._console is not None:
             self._console.print(text, markup=False, highlight=False)
         else:
             print(text, file=self.stream, flush=True)
 
-    def update(self, progress):
+    def update(self, progress: typing.Union[JobProgress, str]) -> None:
         """Show a snapshot (a :class:`JobProgress` or text): rewritten in place, or printed when it changed."""
         text = progress.text() if isinstance(progress, JobProgress) else str(progress)
         if self._status is not None:
@@ -101,7 +101,7 @@ class ProgressDisplay:
             print(f"  {text}", file=self.stream, flush=True)
         self._last_text = text
 
-    def close(self):
+    def close(self) -> None:
         """Remove the live line (idempotent)."""
         if self._status is not None:
             self._status.stop()
@@ -116,7 +116,7 @@ class Stopwatch:
         self._start = clock()
 
     @property
-    def elapsed_s(self):
+    def elapsed_s(self) -> float:
         """Seconds since the stopwatch was made."""
         return self._clock() - self._start
 

@@ -15,6 +15,7 @@ import os
 import signal
 import subprocess
 import time
+import typing
 
 #: ``prctl`` option: the signal this process gets when its parent dies (linux/prctl.h).
 PR_SET_PDEATHSIG = 1
@@ -47,7 +48,7 @@ class SupervisorEvent:
     name: str
     detail: str = ""
 
-    def text(self):
+    def text(self) -> str:
         return f"[{self.name}] {self.kind}" + (f": {self.detail}" if self.detail else "")
 
 
@@ -61,7 +62,7 @@ def _die_with(parent_pid):
     except AttributeError:
         return None
 
-    def preexec():
+    def preexec() -> None:
         prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
         if os.getppid() != parent_pid:   # the parent died before the request took effect
             os._exit(1)
@@ -72,24 +73,27 @@ class _Child:
     def __init__(self, spec, log_dir):
         self.spec = spec
         self.restarts = 0
-        self.process = None
+        self.process: typing.Optional[subprocess.Popen] = None
         self.log_path = os.path.join(log_dir, f"{spec.name}.log")
         self.finished = False   # exited and not to be restarted
 
-    def start(self):
+    def start(self) -> subprocess.Popen:
+        """Start the process (its output appended to its log); return it."""
         log = open(self.log_path, "ab")
         env = dict(os.environ, **self.spec.env)
         try:
-            self.process = subprocess.Popen(self.spec.argv, stdout=log, stderr=subprocess.STDOUT, env=env,
-                                            start_new_session=True, stdin=subprocess.DEVNULL,
-                                            preexec_fn=_die_with(os.getpid()))
+            process = subprocess.Popen(self.spec.argv, stdout=log, stderr=subprocess.STDOUT, env=env,
+                                       start_new_session=True, stdin=subprocess.DEVNULL,
+                                       preexec_fn=_die_with(os.getpid()))
         finally:
             log.close()
+        self.process = process
+        return process
 
-    def alive(self):
+    def alive(self) -> bool:
         return self.process is not None and self.process.poll() is None
 
-    def tail(self, lines=5):
+    def tail(self, lines: int = 5) -> str:
         try:
             with open(self.log_path, encoding="utf-8", errors="replace") as stream:
                 return "".join(stream.readlines()[-lines:]).strip()
@@ -122,30 +126,30 @@ class Supervisor:
     def _emit(self, kind, child, detail=""):
         self._on_event(SupervisorEvent(kind, child.spec.name, detail))
 
-    def child(self, name):
+    def child(self, name: str) -> typing.Optional[subprocess.Popen]:
         """The ``subprocess.Popen`` of the named process (None before start)."""
         for child in self._children:
             if child.spec.name == name:
                 return child.process
         raise KeyError(name)
 
-    def add(self, spec):
+    def add(self, spec: ProcessSpec) -> None:
         """Add and start one more process while the graph runs (e.g. the rig once designs exist)."""
         if any(child.spec.name == spec.name for child in self._children):
             raise ValueError(f"a process named {spec.name!r} is already supervised")
         child = _Child(spec, self.log_dir)
         self._children.append(child)
-        child.start()
-        self._emit("started", child, f"pid {child.process.pid}")
+        process = child.start()
+        self._emit("started", child, f"pid {process.pid}")
 
-    def start(self):
+    def start(self) -> None:
         """Start every process in order."""
         for child in self._children:
             if child.process is None:
-                child.start()
-                self._emit("started", child, f"pid {child.process.pid}")
+                process = child.start()
+                self._emit("started", child, f"pid {process.pid}")
 
-    def poll(self):
+    def poll(self) -> bool:
         """Check every child once: restart the dead ones that may restart; return False when the graph must stop."""
         for child in self._children:
             if child.finished or child.alive() or child.process is None:
@@ -154,9 +158,9 @@ class Supervisor:
             self._emit("exited", child, f"exit code {code}; last log lines:\n{child.tail()}")
             if child.spec.restart and child.restarts < child.spec.max_restarts:
                 child.restarts += 1
-                child.start()
+                process = child.start()
                 self._emit("restarted", child,
-                           f"attempt {child.restarts} of {child.spec.max_restarts}, pid {child.process.pid}")
+                           f"attempt {child.restarts} of {child.spec.max_restarts}, pid {process.pid}")
                 continue
             child.finished = True
             if child.spec.critical:
@@ -165,7 +169,7 @@ class Supervisor:
                 return False
         return True
 
-    def finish(self, name):
+    def finish(self, name: str) -> None:
         """Mark a process as expected to end (e.g. a one-shot job): its exit is no failure, and it is not restarted."""
         for child in self._children:
             if child.spec.name == name:
@@ -174,8 +178,10 @@ class Supervisor:
                 return
         raise KeyError(name)
 
-    def wait_for_exit(self, name, timeout_s=None, period_s=0.2, stop_requested=lambda: False, on_tick=None,
-                      tick_period_s=10.0):
+    def wait_for_exit(self, name: str, timeout_s: typing.Optional[float] = None, period_s: float = 0.2,
+                      stop_requested: typing.Callable[[], bool] = lambda: False,
+                      on_tick: typing.Optional[typing.Callable[[], None]] = None,
+                      tick_period_s: float = 10.0) -> typing.Tuple[typing.Optional[int], str]:
         """Supervise until process ``name`` exits (it is :meth:`finish`-ed first).
 
         Returns ``(exit code, reason)``: the code is None when waiting ended otherwise, and ``reason`` then says
@@ -184,6 +190,8 @@ class Supervisor:
         """
         self.finish(name)
         process = self.child(name)
+        if process is None:
+            raise ValueError(f"{name} has not been started")
         deadline = None if not timeout_s else time.monotonic() + timeout_s
         last_tick = 0.0
         while process.poll() is None:
@@ -204,7 +212,7 @@ class Supervisor:
                 self._emit("finished", child, f"exit code {code}")
         return code, "" if code == 0 else f"{name} exited with code {code} (its log: {self.log_dir}/{name}.log)"
 
-    def wait_for_output(self, name, text, timeout_s, period_s=0.1):
+    def wait_for_output(self, name: str, text: str, timeout_s: float, period_s: float = 0.1) -> bool:
         """Wait until process ``name`` has written ``text`` to its log (a readiness line); True if it did."""
         child = next(child for child in self._children if child.spec.name == name)
         deadline = time.monotonic() + timeout_s
@@ -220,7 +228,7 @@ class Supervisor:
             time.sleep(period_s)
         return False
 
-    def stop(self):
+    def stop(self) -> None:
         """Stop every running child in reverse start order: SIGINT, then SIGTERM, then SIGKILL."""
         for child in reversed(self._children):
             child.finished = True

@@ -19,9 +19,10 @@ import dataclasses
 import enum
 import logging
 import math
+import typing
 
 from rollability_ros.core.records import TipEventRecord
-from rollability_ros.core.imu.upright import ImuMount, ImuUprightClassifier
+from rollability_ros.core.imu.upright import ImuMount, ImuSample, ImuUprightClassifier
 
 _LOG = logging.getLogger(__name__)
 
@@ -36,7 +37,7 @@ class TipState(enum.IntEnum):
     STUCK = 4
 
     @property
-    def label(self):
+    def label(self) -> str:
         """The state as lower-case text (``TipState.label``)."""
         return self.name.lower()
 
@@ -77,7 +78,7 @@ class TipMonitorConfig:
     imu_timeout_s: float = dataclasses.field(default=1.0, metadata={
         "description": "no IMU sample this long: diagnostics go STALE, s", "range": (0.0, 3600.0)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not self.robot or not self.imu_topic:
             raise ValueError("robot and imu_topic must be non-empty")
@@ -95,7 +96,7 @@ class TipMonitorConfig:
                              "a robot must have time to right itself before it is declared stuck")
         self.classifier()
 
-    def classifier(self):
+    def classifier(self) -> ImuUprightClassifier:
         """The upright classifier these thresholds configure (upright = within the recover threshold)."""
         return ImuUprightClassifier(self.recover_threshold_deg, self.settle_time_s,
                                     accel_filter_s=self.accel_filter_s, mount=ImuMount.from_rpy_deg(self.mount_rpy_deg))
@@ -126,7 +127,7 @@ class TipTracker:
         self._peak_tilt = 0.0
         self._peak_rate = 0.0
 
-    def update(self, sample):
+    def update(self, sample: ImuSample) -> "TipUpdate":
         """Feed one :class:`~rollability_ros.core.imu.upright.ImuSample`; return a :class:`TipUpdate`."""
         cfg = self.config
         reading = self.last_reading = self._classifier.update(sample)
@@ -186,7 +187,8 @@ class TipTracker:
         return record
 
 
-def diagnostic_status(state, tilt_deg, seconds_since_sample, imu_timeout_s):
+def diagnostic_status(state: TipState, tilt_deg: float, seconds_since_sample: typing.Optional[float],
+                      imu_timeout_s: float) -> typing.Tuple[int, str]:
     """Return ``(level, message)`` for ``diagnostic_msgs/DiagnosticStatus``.
 
     OK upright / recovered, WARN tipped / righting, ERROR stuck, STALE when no IMU sample for ``imu_timeout_s``.

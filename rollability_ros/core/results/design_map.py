@@ -13,6 +13,7 @@ screened fitness, with a permutation p-value; the binned curves with Wilson inte
 """
 import csv
 import math
+import typing
 
 from rollability_ros.core.stats import spearman_permutation_test
 
@@ -53,7 +54,7 @@ def _read(path, numbers, optional=(), absent_ok=()):
     return rows
 
 
-def read_archive(path):
+def read_archive(path: str) -> typing.List[typing.Dict[str, typing.Any]]:
     """The rows of an ``archive.csv`` (numbers as floats; no screen -> NaN screen columns)."""
     rows = _read(path, _ARCHIVE_NUMBERS + _RACE_NUMBERS,
                  optional=("screen_successes", "screen_trials", "screen_fitness") + _RACE_NUMBERS,
@@ -67,15 +68,16 @@ def read_archive(path):
     return rows
 
 
-def read_traits(path):
+def read_traits(path: str) -> typing.List[typing.Dict[str, typing.Any]]:
     """The rows of a ``traits.csv`` (numbers as floats; empty bins have NaN fitness)."""
     return _read(path, _TRAIT_NUMBERS, optional=("fitness", "ci_low", "ci_high"))
 
 
-def trait_trends(archive_rows):
+def trait_trends(archive_rows: typing.Sequence[typing.Mapping[str, typing.Any]]
+                 ) -> typing.Dict[str, typing.Optional[typing.Tuple[float, float, int]]]:
     """``{trait: (rho, p, n)}``: Spearman's rho between each trait and the elites' fitness (the screen's when
     there is one) with its two-sided permutation p-value; None for a trait with fewer than 3 elites."""
-    trends = {}
+    trends: typing.Dict[str, typing.Optional[typing.Tuple[float, float, int]]] = {}
     for trait in TRAIT_LABELS:
         if len(archive_rows) < 3:
             trends[trait] = None
@@ -85,7 +87,8 @@ def trait_trends(archive_rows):
     return trends
 
 
-def transfer(archive_rows):
+def transfer(archive_rows: typing.Sequence[typing.Mapping[str, typing.Any]]
+             ) -> typing.Optional[typing.Tuple[float, float, int]]:
     """``(rho, p, n)``: Spearman's rho between the elites' screen fitness and their success on the launch race's
     first round (every raced elite, the same robust twin launches), with its two-sided permutation p-value; None
     without a race (or a screen) over at least 3 elites. It says how well the cheap trials predict what the rig
@@ -99,7 +102,8 @@ def transfer(archive_rows):
     return rho, p, len(raced)
 
 
-def summary_lines(archive_rows, height_bound_mm=None):
+def summary_lines(archive_rows: typing.Sequence[typing.Mapping[str, typing.Any]],
+                  height_bound_mm: typing.Optional[float] = None) -> typing.List[str]:
     """The report's lines on the map: elites, the chosen designs' traits and height spread, and the trends."""
     if not archive_rows:
         return []

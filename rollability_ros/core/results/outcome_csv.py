@@ -6,6 +6,8 @@ silently dropped and no value is guessed. Stdlib only (runs on the robot compute
 """
 import csv
 import math
+import os
+import typing
 
 from rollability_ros.core.records import NO_SEED, LaunchCondition, LaunchOutcome, trial_id_for
 
@@ -75,7 +77,8 @@ def _parse_row(values, run_id):
     """Build a LaunchOutcome from one row's ``{column: text}``; raise ValueError with every reason."""
     reasons = []
 
-    def field(column, parse, default=None, *args):
+    def field(column: str, parse: typing.Callable[..., typing.Any], default: typing.Any = None,
+              *args: typing.Any) -> typing.Any:
         if column not in values:
             return default
         try:
@@ -84,10 +87,10 @@ def _parse_row(values, run_id):
             reasons.append(str(exc))
             return default
 
-    def text(value, column):
+    def text(value: str, column: str) -> str:
         return value
 
-    def non_empty(value, column):
+    def non_empty(value: str, column: str) -> str:
         if not value.strip():
             raise ValueError(f"{column} must not be empty")
         return value.strip()
@@ -146,7 +149,8 @@ def _check_header(header, run_id):
     return names, problems
 
 
-def read_outcome_csv(path, run_id=None):
+def read_outcome_csv(path: typing.Union[str, os.PathLike],
+                     run_id: typing.Optional[str] = None) -> typing.List[LaunchOutcome]:
     """Read a CSV of launch outcomes (schema: ``docs/outcome-csv.md``); all rows or none.
 
     Parameters
@@ -167,7 +171,7 @@ def read_outcome_csv(path, run_id=None):
     """
     problems = []
     outcomes = []
-    first_line_of = {}
+    first_line_of: typing.Dict[typing.Tuple[str, str], int] = {}
     try:
         stream = open(path, newline="", encoding="utf-8-sig")
     except OSError as exc:
@@ -223,7 +227,7 @@ def _format_float(value):
     return "" if math.isnan(value) else repr(float(value))
 
 
-def write_outcome_csv(path, outcomes):
+def write_outcome_csv(path: typing.Union[str, os.PathLike], outcomes: typing.Iterable[LaunchOutcome]) -> None:
     """Write launch outcomes with every column of ``EXPORT_COLUMNS`` (NaN as an empty cell)."""
     with open(path, "w", newline="", encoding="utf-8") as stream:
         writer = csv.writer(stream)

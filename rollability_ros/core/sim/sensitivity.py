@@ -10,6 +10,7 @@ factors). Each fitness comes with its Wilson 95% interval. ``rollability sensiti
 and draws them (:func:`rollability_ros.core.results.report_figures.sensitivity`).
 """
 import dataclasses
+import typing
 
 from rollability_ros.core.sim.evaluation import evaluate_mesh
 from rollability_ros.core.sim.robustness import RobustSettings, perturb, Draw
@@ -18,8 +19,11 @@ from rollability_ros.core.sim.robustness import RobustSettings, perturb, Draw
 DEFAULT_LEVELS = {"disturbance_scale": (0.5, 1.0, 2.0), "start_roll_deg": (180.0, 90.0),
                   "contact_model": ("per_contact", "per_body"), "com_offset_z_m": (-0.015, -0.005, 0.005)}
 
+#: One row of the study (configuration, factor, level, successes, trials, fitness and its interval).
+Row = typing.Dict[str, typing.Any]
 
-def with_factor(settings, factor, level):
+
+def with_factor(settings: typing.Any, factor: str, level: typing.Any) -> typing.Any:
     """EvaluatorSettings ``settings`` with one factor set to ``level`` (the others as configured)."""
     nominal = Draw(disturbance_scale=1.0, start_roll_deg=settings.trial.start_roll_deg,
                    contact_model=settings.physics.contact_model, com_offset_z_m=settings.robot.com_offset_z_m,
@@ -29,7 +33,11 @@ def with_factor(settings, factor, level):
     return perturb(settings, dataclasses.replace(nominal, **{factor: level}))
 
 
-def sensitivity_rows(profiles, settings, trials, seed, executor=None, levels=None, robust=None, on_row=None):
+def sensitivity_rows(profiles: typing.Mapping[str, typing.Any], settings: typing.Any, trials: int, seed: int,
+                     executor: typing.Any = None,
+                     levels: typing.Optional[typing.Mapping[str, typing.Sequence[typing.Any]]] = None,
+                     robust: typing.Optional[RobustSettings] = None,
+                     on_row: typing.Optional[typing.Callable[[Row], None]] = None) -> typing.List[Row]:
     """Evaluate every profile at every factor level and robustly; return the rows (dicts).
 
     Parameters

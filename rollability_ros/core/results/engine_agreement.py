@@ -5,6 +5,8 @@ a design whose advantage over the reference (e.g. the baseline) holds in every e
 engine*: its Wilson 95% interval lies above the reference's in each.
 """
 import dataclasses
+import os
+import typing
 
 import numpy as np
 
@@ -24,12 +26,13 @@ class TrialAgreement:
     ci_high: float
 
     @property
-    def fraction(self):
+    def fraction(self) -> float:
         """Share of trials with the same outcome, [0, 1]."""
         return self.agreed / self.trials
 
 
-def trial_agreement(first_outcomes, second_outcomes):
+def trial_agreement(first_outcomes: typing.Sequence[typing.Any],
+                    second_outcomes: typing.Sequence[typing.Any]) -> TrialAgreement:
     """Compare two lists of trial outcomes (objects with ``index``, ``seed``, ``upright``) trial by trial.
 
     Raises ``ValueError`` unless both hold the same trials (indices and seeds).
@@ -46,7 +49,7 @@ def trial_agreement(first_outcomes, second_outcomes):
                           only_second_upright=sum(b and not a for a, b in pairs), ci_low=low, ci_high=high)
 
 
-def rank_agreement(fitness_by_engine):
+def rank_agreement(fitness_by_engine: typing.Mapping[str, typing.Mapping[str, float]]) -> float:
     """Spearman rank correlation of design fitnesses between two engines.
 
     ``fitness_by_engine``: {engine: {design: fitness}} with exactly two engines and the same designs (>= 2);
@@ -64,7 +67,8 @@ def rank_agreement(fitness_by_engine):
     return float(np.corrcoef(ranks[0], ranks[1])[0, 1])
 
 
-def robust_to_engine(results_by_engine, reference):
+def robust_to_engine(results_by_engine: typing.Mapping[str, typing.Mapping[str, typing.Any]],
+                     reference: str) -> typing.List[str]:
     """Designs whose advantage over ``reference`` holds in every engine.
 
     ``results_by_engine``: {engine: {design: result with ci_low, ci_high}}; a design is robust when its
@@ -75,7 +79,7 @@ def robust_to_engine(results_by_engine, reference):
                   if all(table[d].ci_low > table[reference].ci_high for table in results_by_engine.values()))
 
 
-def rank_agreement_p_value(fitness_by_engine):
+def rank_agreement_p_value(fitness_by_engine: typing.Mapping[str, typing.Mapping[str, float]]) -> float:
     """One-sided exact permutation p-value of :func:`rank_agreement`: the share of the orderings of the second
     engine's fitnesses whose rank correlation with the first is at least the observed one (every ordering
     equally likely when the engines' rankings are unrelated). Needs >= 3 designs (with 2, rho can only be +-1
@@ -123,7 +127,8 @@ class EngineRow:
     agreement_ci_high: float
 
 
-def table_rows(results_by_design, seed):
+def table_rows(results_by_design: typing.Mapping[str, typing.Mapping[str, typing.Any]],
+               seed: int) -> typing.List["EngineRow"]:
     """``[EngineRow]`` from ``{design: {engine: EvaluationResult}}`` (two engines, the same seeds)."""
     rows = []
     for design, by_engine in results_by_design.items():
@@ -134,8 +139,11 @@ def table_rows(results_by_design, seed):
     return rows
 
 
-def write_table(path, rows):
-    """Write ``rows`` to ``path`` (CSV, :data:`TABLE_COLUMNS`)."""
+_Path = typing.TypeVar("_Path", str, os.PathLike)
+
+
+def write_table(path: _Path, rows: typing.Iterable["EngineRow"]) -> _Path:
+    """Write ``rows`` to ``path`` (CSV, :data:`TABLE_COLUMNS`); return ``path``."""
     import csv
 
     with open(path, "w", newline="", encoding="utf-8") as stream:
@@ -146,7 +154,7 @@ def write_table(path, rows):
     return path
 
 
-def read_table(path):
+def read_table(path: typing.Union[str, os.PathLike]) -> typing.List["EngineRow"]:
     """The rows of an ``engine_agreement.csv``; ``ValueError`` naming the file and the problem otherwise."""
     import csv
 
@@ -159,8 +167,9 @@ def read_table(path):
                 raise ValueError(f"columns {reader.fieldnames} are not {list(TABLE_COLUMNS)}")
             for line, record in enumerate(reader, start=2):
                 try:
-                    values = {k: (int(v) if types[k] in (int, "int") else float(v) if types[k] in (float, "float")
-                                  else v) for k, v in record.items()}
+                    values: typing.Dict[str, typing.Any] = {
+                        k: (int(v) if types[k] in (int, "int") else float(v) if types[k] in (float, "float") else v)
+                        for k, v in record.items()}
                 except (TypeError, ValueError):
                     raise ValueError(f"line {line}: not numbers where numbers belong") from None
                 row = EngineRow(**values)
@@ -176,7 +185,7 @@ def read_table(path):
     return rows
 
 
-def summary_lines(rows, reference="baseline"):
+def summary_lines(rows: typing.Sequence["EngineRow"], reference: str = "baseline") -> typing.List[str]:
     """Lines for the report: per design the fitness in each engine and the trial agreement, the rank agreement
     across designs (with its exact p-value, or why there is none) and the designs robust to the engine."""
     engines = sorted({row.engine for row in rows}, key=[r.engine for r in rows].index)

@@ -22,6 +22,7 @@ On the built-in chassis these give the shipped twin's plate (0.10 x 0.05 m at 5 
 """
 import dataclasses
 import math
+import typing
 
 import numpy as np
 
@@ -46,34 +47,34 @@ class RobotEnvelope:
     com_m: tuple
     mass_kg: float
 
-    def points(self):
+    def points(self) -> np.ndarray:
         """Every shape's points stacked, ``(n, 3)`` (m)."""
         return np.vstack([points for _, points in self.shapes])
 
     @property
-    def length_m(self):
+    def length_m(self) -> float:
         points = self.points()
         return float(np.ptp(points[:, 0]))
 
     @property
-    def width_m(self):
+    def width_m(self) -> float:
         points = self.points()
         return float(np.ptp(points[:, 1]))
 
     @property
-    def height_m(self):
+    def height_m(self) -> float:
         return float(self.points()[:, 2].max())
 
     @property
-    def com_height_m(self):
+    def com_height_m(self) -> float:
         return float(self.com_m[2])
 
     @property
-    def diagonal_m(self):
+    def diagonal_m(self) -> float:
         return math.hypot(self.length_m, self.width_m)
 
 
-def robot_envelope(robot_model):
+def robot_envelope(robot_model: typing.Any) -> RobotEnvelope:
     """The :class:`RobotEnvelope` of a :class:`~rollability_ros.core.robots.robot.RobotModel` (bare robot)."""
     shapes, com, mass_kg = robot_model.standing_shapes_m()
     lowest = min(float(np.asarray(points)[:, 2].min()) for _, points in shapes)
@@ -101,7 +102,8 @@ def _round(value_m, step_m, up=False):
     return (math.ceil(steps - 1e-9) if up else round(steps)) * step_m
 
 
-def derive_launcher_geometry(envelope, run_length_m, plate_thickness_m, configured=None):
+def derive_launcher_geometry(envelope: RobotEnvelope, run_length_m: float, plate_thickness_m: float,
+                             configured: typing.Optional[typing.Mapping[str, float]] = None) -> "LauncherGeometry":
     """The :class:`LauncherGeometry` for ``envelope`` (module docstring); ``configured`` maps field names of
     :class:`LauncherGeometry` to config values, and a non-zero one replaces the derived value."""
     configured = configured or {}
@@ -134,7 +136,8 @@ PARAMETERS = {"plate_width_m": "launch_twin.plate.width_m", "plate_height_m": "l
               "ledge_width_m": "launch_twin.launcher.ledge_width_m"}
 
 
-def check_launcher_geometry(envelope, geometry, run_length_m, plate_offset_m=0.0):
+def check_launcher_geometry(envelope: RobotEnvelope, geometry: "LauncherGeometry", run_length_m: float,
+                            plate_offset_m: float = 0.0) -> None:
     """Raise ``ValueError`` (one line, naming the settings) when the push plate would miss the robot or the robot
     would not stand on the ledge at its start (straight push): the plate's face, ``plate_clearance_m`` to
     ``plate_clearance_m + plate_height_m`` above the base plate and ``plate_width_m`` wide centred

@@ -28,6 +28,7 @@ Early decision (``early_decision``, on by default)
 """
 import dataclasses
 import math
+import typing
 
 import numpy as np
 
@@ -81,7 +82,7 @@ class TrialSettings:
         "description": "safety margin taken off every energy barrier of the early decision, m of height",
         "range": (0.0, 1.0)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not 0 <= self.start_tilt_max_deg <= 90:
             raise ValueError(f"start_tilt_max_deg must be in [0, 90], got {self.start_tilt_max_deg}")
@@ -110,7 +111,7 @@ class TrialConditions:
     torque_nm: np.ndarray
 
 
-def sample_conditions(seed, settings):
+def sample_conditions(seed: int, settings: TrialSettings) -> TrialConditions:
     """Draw a trial's start orientation and disturbance from ``seed`` (see the module docstring)."""
     pybullet = require("pybullet", feature="the simulated evaluator")
     rng = np.random.default_rng(seed)
@@ -129,7 +130,8 @@ def sample_conditions(seed, settings):
     return TrialConditions(orientation=tuple(orientation), force_n=force, torque_nm=torque)
 
 
-def place_on_ground(client, body_id, orientation, clearance_m, xy_m=(0.0, 0.0), ground_z_m=0.0):
+def place_on_ground(client: int, body_id: int, orientation: typing.Sequence[float], clearance_m: float,
+                    xy_m: typing.Sequence[float] = (0.0, 0.0), ground_z_m: float = 0.0) -> None:
     """Put ``body_id`` with ``orientation`` at ``xy_m`` (base origin, metres) so that its lowest point is
     ``clearance_m`` above the surface z = ``ground_z_m``, at rest."""
     pybullet = require("pybullet", feature="the simulated evaluator")
@@ -141,7 +143,8 @@ def place_on_ground(client, body_id, orientation, clearance_m, xy_m=(0.0, 0.0), 
                                              physicsClientId=client)
 
 
-def build_trial_world(client, robot_model, profile, orientation, settings, physics):
+def build_trial_world(client: int, robot_model: typing.Any, profile: typing.Any, orientation: typing.Sequence[float],
+                      settings: TrialSettings, physics: typing.Any) -> typing.Tuple[int, typing.Any]:
     """Empty the world, add the ground and the robot in its start pose; return ``(ground_id, spawned robot)``."""
     ground = reset_world(client, physics)
     robot = robot_model.spawn(client, profile, (0.0, 0.0, 1.0), orientation, time_step_s=physics.time_step_s)
@@ -165,7 +168,7 @@ class RestDetector:
         self._rest_since = None
         self._pybullet = require("pybullet", feature="the simulated evaluator")
 
-    def settled(self, client, body_id, steps):
+    def settled(self, client: int, body_id: int, steps: int) -> bool:
         """Call after step number ``steps``: True once ``body_id``'s base speeds have stayed below the thresholds
         for the hold time (checked every ``check_interval_steps`` steps)."""
         if steps % self.interval_steps:
@@ -217,7 +220,7 @@ class EnergyMonitor:
         self.com_in_base = tuple(float(value) for value in self.basins.com_m)
         self.highest_barrier_m = self.basins.highest_barrier_m()
 
-    def decide(self):
+    def decide(self) -> typing.Optional[bool]:
         """True / False once the trial's outcome is fixed (upright / not), else None."""
         # plain floats: a few numbers per link, where numpy's per-call cost would exceed a simulation step
         pybullet, client, body = self.pybullet, self.client, self.body
@@ -237,7 +240,7 @@ class EnergyMonitor:
             return None
         return self.basins.decide(np.array([-base[6], -base[7], -base[8]]), energy_height_m)
 
-    def com_xy_m(self):
+    def com_xy_m(self) -> typing.Tuple[float, float]:
         """The robot's centre of mass (x, y) in the world now (m)."""
         position, orientation = self.pybullet.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
         base = np.asarray(self.pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
@@ -276,7 +279,7 @@ class TrialWorld(TrialEngine):
                                     settings.early_decision_margin_m) \
             if settings.early_decision and self.robot.mount_spring is None else None
 
-    def run(self, index, seed):
+    def run(self, index: int, seed: int) -> TrialOutcome:
         """Run one trial (see the module docstring) and return its :class:`TrialOutcome`."""
         pybullet, client, settings, body = self.pybullet, self.client, self.settings, self.robot.body_id
         conditions = sample_conditions(seed, settings)
@@ -319,7 +322,8 @@ class TrialWorld(TrialEngine):
         return TrialOutcome(index=index, seed=seed, upright=upright, settled=settled, steps=steps, tilt_deg=tilt)
 
 
-def run_trial(client, robot_model, profile, index, seed, settings, physics):
+def run_trial(client: int, robot_model: typing.Any, profile: typing.Any, index: int, seed: int, settings: TrialSettings,
+              physics: typing.Any) -> TrialOutcome:
     """Run one trial in a freshly built world of ``physics.engine``
     (:func:`~rollability_ros.core.sim.trial_engine.make_trial_world`; a PyBullet world is built in ``client``)
     and return its :class:`TrialOutcome`."""

@@ -64,6 +64,7 @@ class NodeProcess:
         self._log = open(log_path, "wb")
         self.process = subprocess.Popen(argv, stdout=self._log, stderr=subprocess.STDOUT,
                                         env=env or os.environ.copy(), start_new_session=True, cwd=cwd)
+        self._interrupted = False
 
     def log(self):
         if not self._log.closed:   # stop() closes it; the file stays readable
@@ -78,10 +79,16 @@ class NodeProcess:
         if self.alive():
             os.killpg(self.process.pid, signum)
 
-    def stop(self, timeout_s=15.0):
-        """SIGINT, then SIGKILL after ``timeout_s``; returns the exit code."""
-        if self.alive():
+    def interrupt(self):
+        """SIGINT, once: a second one would interrupt the node's own shutdown."""
+        if self.alive() and not self._interrupted:
             self.signal(signal.SIGINT)
+            self._interrupted = True
+
+    def stop(self, timeout_s=15.0):
+        """SIGINT (unless :meth:`interrupt` sent it), then SIGKILL after ``timeout_s``; returns the exit code."""
+        if self.alive():
+            self.interrupt()
             try:
                 self.process.wait(timeout=timeout_s)
             except subprocess.TimeoutExpired:
@@ -118,6 +125,8 @@ def start_process(tmp_path):
         return handle
 
     yield start
+    for handle in reversed(started):   # every process shuts down at once, then each is waited for
+        handle.interrupt()
     for handle in reversed(started):
         handle.stop()
 

@@ -21,6 +21,7 @@ import math
 import os
 import sqlite3
 import threading
+import typing
 
 from rollability_ros.core.records import (
     CandidateRecord,
@@ -62,11 +63,11 @@ class _Column:
 
     name: str
     sql_type: str
-    encode: object = None
-    decode: object = None
+    encode: typing.Callable[[typing.Any], typing.Any]
+    decode: typing.Callable[[typing.Any], typing.Any]
     default: object = None            # the record field's default, encoded; None: the field has no default
 
-    def add_sql(self, table_name):
+    def add_sql(self, table_name: str) -> str:
         """``ALTER TABLE`` adding this column to a store written before it existed, old rows taking the default."""
         if self.default is None:
             raise ValueError(f"cannot add column {table_name}.{self.name} to an existing store: it has no default")
@@ -112,7 +113,7 @@ class _Table:
         self.nested_names = [c.name for c in nested]
         self.columns = _columns_for(record_cls, skip=(flatten[0],) if flatten else ()) + nested
 
-    def add_missing_columns(self, conn):
+    def add_missing_columns(self, conn: sqlite3.Connection) -> None:
         """Add the columns a store of an older schema lacks (e.g. ``seed``, schema 2), old rows getting the default.
 
         Runs inside the caller's write transaction, so a second process migrating the same file sees them added.
@@ -122,29 +123,29 @@ class _Table:
             if existing and column.name not in existing:
                 conn.execute(column.add_sql(self.name))
 
-    def create_sql(self):
+    def create_sql(self) -> str:
         body = ", ".join(f'"{c.name}" {c.sql_type}' for c in self.columns)
         keys = ", ".join(f'"{k}"' for k in self.unique)
         return (f'CREATE TABLE IF NOT EXISTS {self.name} (seq INTEGER PRIMARY KEY AUTOINCREMENT, {body}, '
                 f'UNIQUE ({keys}))')
 
-    def insert_sql(self):
+    def insert_sql(self) -> str:
         names = ", ".join(f'"{c.name}"' for c in self.columns)
         marks = ", ".join("?" for _ in self.columns)
         return f"INSERT OR IGNORE INTO {self.name} ({names}) VALUES ({marks})"
 
-    def select_sql(self, filters):
+    def select_sql(self, filters: typing.Iterable[str]) -> str:
         names = ", ".join(f'"{c.name}"' for c in self.columns)
         where = " AND ".join(f'"{name}" = ?' for name in filters)
         return f"SELECT {names} FROM {self.name}" + (f" WHERE {where}" if where else "") + " ORDER BY seq"
 
-    def to_row(self, record):
+    def to_row(self, record: typing.Any) -> tuple:
         values = dataclasses.asdict(record)
         if self.flatten:
             values.update(values.pop(self.flatten[0]))
         return tuple(c.encode(values[c.name]) for c in self.columns)
 
-    def from_row(self, row):
+    def from_row(self, row: typing.Sequence[typing.Any]) -> typing.Any:
         values = {c.name: c.decode(v) for c, v in zip(self.columns, row)}
         if self.flatten:
             field_name, nested_cls = self.flatten
@@ -162,7 +163,7 @@ _TABLE_OF = {table.record_cls: table for table in _TABLES}
 _RUNS_SQL = "CREATE TABLE IF NOT EXISTS runs (run_id TEXT PRIMARY KEY, kind TEXT NOT NULL, info TEXT NOT NULL)"
 
 
-def unique_key(record):
+def unique_key(record: typing.Any) -> tuple:
     """The key under which the store keeps ``record`` once, e.g. ``(run_id, trial_id)`` of a LaunchOutcome."""
     table = _TABLE_OF.get(type(record))
     if table is None:
@@ -170,7 +171,7 @@ def unique_key(record):
     return tuple(getattr(record, name) for name in table.unique)
 
 
-def store_path(path):
+def store_path(path: typing.Union[str, os.PathLike]) -> str:
     """Return the store file for ``path``: the path itself, or ``<dir>/store.sqlite`` for a directory."""
     path = os.fspath(path)
     return os.path.join(path, STORE_FILENAME) if os.path.isdir(path) else path
@@ -239,7 +240,7 @@ class Store:
     def __exit__(self, *exc_info):
         self.close()
 
-    def close(self):
+    def close(self) -> None:
         """Close the connection (idempotent)."""
         with self._lock:
             if self._conn is not None:
@@ -278,7 +279,7 @@ class Store:
             rows = self._connection().execute(table.select_sql(filters), tuple(filters.values())).fetchall()
         return [table.from_row(row) for row in rows]
 
-    def add_launch_outcome(self, outcome):
+    def add_launch_outcome(self, outcome: LaunchOutcome) -> bool:
         """Store ``outcome`` durably; return False (and store nothing) if its (run_id, trial_id) is stored.
 
         Raises ``ValueError`` for an outcome that fails :meth:`LaunchOutcome.validate`.
@@ -286,42 +287,43 @@ class Store:
         outcome.validate()
         return self._insert(_OUTCOMES, outcome)
 
-    def launch_outcomes(self, run_id=None):
+    def launch_outcomes(self, run_id: typing.Optional[str] = None) -> typing.List[LaunchOutcome]:
         """Launch outcomes (all runs, or one), in insertion order."""
         return self._select(_OUTCOMES, run_id=run_id)
 
-    def trial_ids(self, run_id):
+    def trial_ids(self, run_id: str) -> typing.Set[str]:
         """The set of trial ids stored for ``run_id`` (what a resumed campaign skips)."""
         with self._lock:
             rows = self._connection().execute(
                 "SELECT trial_id FROM launch_outcomes WHERE run_id = ?", (run_id,)).fetchall()
         return {row[0] for row in rows}
 
-    def add_candidate(self, candidate):
+    def add_candidate(self, candidate: CandidateRecord) -> bool:
         """Store a candidate result; False if its (run_id, generation, index) is already stored."""
         return self._insert(_CANDIDATES, candidate)
 
-    def candidates(self, run_id=None, generation=None):
+    def candidates(self, run_id: typing.Optional[str] = None,
+                   generation: typing.Optional[int] = None) -> typing.List[CandidateRecord]:
         """Candidate results (optionally of one run and/or generation), in insertion order."""
         return self._select(_CANDIDATES, run_id=run_id, generation=generation)
 
-    def add_generation(self, generation):
+    def add_generation(self, generation: GenerationRecord) -> bool:
         """Store a generation summary; False if its (run_id, generation) is already stored."""
         return self._insert(_GENERATIONS, generation)
 
-    def generations(self, run_id=None):
+    def generations(self, run_id: typing.Optional[str] = None) -> typing.List[GenerationRecord]:
         """Generation summaries (all runs, or one), in insertion order."""
         return self._select(_GENERATIONS, run_id=run_id)
 
-    def add_tip_event(self, event):
+    def add_tip_event(self, event: TipEventRecord) -> bool:
         """Store a field tip event; False if an event of that robot at that ``tipped_at_s`` is stored."""
         return self._insert(_TIP_EVENTS, event)
 
-    def tip_events(self, robot=None):
+    def tip_events(self, robot: typing.Optional[str] = None) -> typing.List[TipEventRecord]:
         """Tip events (all robots, or one), in insertion order."""
         return self._select(_TIP_EVENTS, robot=robot)
 
-    def set_run_info(self, run_id, kind, info):
+    def set_run_info(self, run_id: str, kind: str, info: typing.Mapping[str, typing.Any]) -> None:
         """Create or replace the description of run ``run_id``.
 
         Parameters
@@ -340,13 +342,13 @@ class Store:
             raise ValueError(f"run info of {run_id} is not JSON-serialisable: {exc}") from exc
         self._write("INSERT OR REPLACE INTO runs (run_id, kind, info) VALUES (?, ?, ?)", (run_id, str(kind), text))
 
-    def run_info(self, run_id):
+    def run_info(self, run_id: str) -> typing.Optional[typing.Dict[str, typing.Any]]:
         """``{"kind": ..., "info": {...}}`` for ``run_id``, or None if it was never described."""
         with self._lock:
             row = self._connection().execute("SELECT kind, info FROM runs WHERE run_id = ?", (run_id,)).fetchone()
         return None if row is None else {"kind": row[0], "info": json.loads(row[1])}
 
-    def run_ids(self):
+    def run_ids(self) -> typing.List[str]:
         """Every run id that has run info, outcomes, candidates or generations, sorted."""
         union = " UNION ".join(f"SELECT run_id FROM {t}" for t in ("runs", "launch_outcomes", "candidates",
                                                                        "generations"))

@@ -30,21 +30,21 @@ def _positive(name, value):
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")
 
 
-def travel_speed(run_length_m, travel_time_s):
+def travel_speed(run_length_m: float, travel_time_s: float) -> float:
     """Return the mean speed (m/s) over ``run_length_m`` (m) covered in ``travel_time_s`` (s)."""
     _positive("run_length_m", run_length_m)
     _positive("travel_time_s", travel_time_s)
     return run_length_m / travel_time_s
 
 
-def expected_travel_time(run_length_m, target_mps):
+def expected_travel_time(run_length_m: float, target_mps: float) -> float:
     """Return the travel time (s) over ``run_length_m`` (m) at ``target_mps`` (m/s): 0.34 m at 0.8 m/s -> 0.425 s."""
     _positive("run_length_m", run_length_m)
     _positive("target_mps", target_mps)
     return run_length_m / target_mps
 
 
-def check_speed(target_mps, measured_mps, tolerance):
+def check_speed(target_mps: float, measured_mps: float, tolerance: float) -> bool:
     """Return True (flagged) when ``measured_mps`` is more than ``tolerance`` (fraction) off ``target_mps``.
 
     A NaN measurement (not measured) is not flagged: the outcome's NaN speed already says so.
@@ -66,7 +66,7 @@ class SpeedMeasurement:
     speed_out_of_tolerance: bool
 
 
-def measure(target_mps, travel_time_s, run_length_m, tolerance):
+def measure(target_mps: float, travel_time_s: float, run_length_m: float, tolerance: float) -> "SpeedMeasurement":
     """Turn a travel time (s, NaN if not measured) into a :class:`SpeedMeasurement` for a launch at ``target_mps``."""
     if math.isnan(travel_time_s):
         return SpeedMeasurement(NOT_MEASURED, NOT_MEASURED, False)
@@ -108,16 +108,16 @@ class SimulatedSpeedGate(SpeedGate):
         self._target_mps = None
 
     @classmethod
-    def from_config(cls, config, ask):
+    def from_config(cls, config: "SpeedGateConfig", ask: typing.Callable[[str], str]) -> "SpeedGate":
         """Noise and seed from ``speed_gate.simulated.*``."""
         return cls(config.run_length_m, config.simulated.speed_noise_fraction, config.simulated.seed)
 
-    def arm(self, target_mps):
+    def arm(self, target_mps: float) -> None:
         """Prepare for a launch at ``target_mps`` (m/s)."""
         _positive("target_mps", target_mps)
         self._target_mps = target_mps
 
-    def edge_times(self):
+    def edge_times(self) -> typing.Tuple[float, float]:
         """Return ``(start_s, end_s)`` gate edges (steady clock, s) of the armed launch, starting now."""
         if self._target_mps is None:
             raise RuntimeError("arm(target_mps) the simulated speed gate before reading it")
@@ -125,7 +125,7 @@ class SimulatedSpeedGate(SpeedGate):
         start_s = self._clock()
         return start_s, start_s + self.run_length_m / speed_mps
 
-    def read_travel_time(self, timeout_s):
+    def read_travel_time(self, timeout_s: float) -> float:
         """Travel time (s) of the armed launch; NaN if it would exceed ``timeout_s``. Does not sleep."""
         start_s, end_s = self.edge_times()
         self._target_mps = None
@@ -170,12 +170,12 @@ class GpioSpeedGate(SpeedGate):
         self._request = None
 
     @classmethod
-    def from_config(cls, config, ask):
+    def from_config(cls, config: "SpeedGateConfig", ask: typing.Callable[[str], str]) -> "SpeedGate":
         """The lines of ``speed_gate.gpio.*``."""
         g = config.gpio
         return cls(g.chip, g.start_line_offset, g.end_line_offset, g.edge, g.debounce_ms)
 
-    def open(self):
+    def open(self) -> None:
         """Request both lines as inputs with edge detection and monotonic event timestamps."""
         gpiod = require("gpiod", feature="the gpio speed gate")
         settings = gpiod.LineSettings(
@@ -191,14 +191,14 @@ class GpioSpeedGate(SpeedGate):
         while self._request.wait_edge_events(0):
             self._request.read_edge_events()
 
-    def arm(self, target_mps):
+    def arm(self, target_mps: float) -> None:
         """Open the lines if needed and drop stale edges (a hand through a beam before the launch)."""
         _positive("target_mps", target_mps)
         if self._request is None:
             self.open()
         self._drain()
 
-    def read_travel_time(self, timeout_s, clock=time.monotonic):
+    def read_travel_time(self, timeout_s: float, clock: typing.Callable[[], float] = time.monotonic) -> float:
         """Wait for a start-gate edge and then an end-gate edge; return the time between them (s), NaN on timeout."""
         if self._request is None:
             raise RuntimeError("arm() the gpio speed gate before reading it")
@@ -216,14 +216,14 @@ class GpioSpeedGate(SpeedGate):
                 elif start_ns is not None and event.line_offset == self.end_line_offset:
                     return (event.timestamp_ns - start_ns) / 1e9
 
-    def release(self):
+    def release(self) -> None:
         """Release both lines."""
         if self._request is not None:
             self._request.release()
             self._request = None
 
 
-def parse_travel_time(text):
+def parse_travel_time(text: str) -> float:
     """Parse an operator-typed travel time in seconds; blank means not measured (NaN). Raises ``ValueError``."""
     text = text.strip()
     if not text:
@@ -249,16 +249,16 @@ class OperatorSpeedGate(SpeedGate):
         self._target_mps = None
 
     @classmethod
-    def from_config(cls, config, ask):
+    def from_config(cls, config: "SpeedGateConfig", ask: typing.Callable[[str], str]) -> "SpeedGate":
         """Asks through ``ask``."""
         return cls(ask, config.run_length_m)
 
-    def arm(self, target_mps):
+    def arm(self, target_mps: float) -> None:
         """Remember the target to show the expected time in the prompt."""
         _positive("target_mps", target_mps)
         self._target_mps = target_mps
 
-    def read_travel_time(self, timeout_s=None):
+    def read_travel_time(self, timeout_s: typing.Optional[float] = None) -> float:
         """Ask until a valid time (s) or a blank (NaN) is typed; ``timeout_s`` is the operator's business."""
         expected = expected_travel_time(self.run_length_m, self._target_mps) if self._target_mps else None
         prompt = "travel time over the run, s" + (f" (expected {expected:.2f} s)" if expected else "") + \
@@ -303,7 +303,7 @@ class GpioGateConfig:
     debounce_ms: float = dataclasses.field(default=1.0, metadata={
         "description": "kernel debounce of both gate lines, ms (0 = off)", "range": (0.0, 1000.0)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         _check_gate_lines(self.start_line_offset, self.end_line_offset, self.edge, self.debounce_ms)
 
@@ -326,7 +326,7 @@ class SpeedGateConfig:
     simulated: SimulatedGateConfig = dataclasses.field(default_factory=SimulatedGateConfig)
     gpio: GpioGateConfig = dataclasses.field(default_factory=GpioGateConfig)
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         SPEED_GATES.check(self.backend)
         if not self.run_length_m > 0 or not self.timeout_s > 0:
@@ -337,12 +337,12 @@ class SpeedGateConfig:
             raise ValueError(f"simulated.speed_noise_fraction must be in [0, 1), got "
                              f"{self.simulated.speed_noise_fraction}")
 
-    def measure(self, target_mps, travel_time_s):
+    def measure(self, target_mps: float, travel_time_s: float) -> "SpeedMeasurement":
         """:func:`measure` with this configuration's run length and tolerance."""
         return measure(target_mps, travel_time_s, self.run_length_m, self.tolerance_fraction)
 
 
-def make_speed_gate(config, ask=input):
+def make_speed_gate(config: "SpeedGateConfig", ask: typing.Callable[[str], str] = input) -> SpeedGate:
     """Build the gate ``config.backend`` names (a :class:`SpeedGateConfig`); ``ask`` reaches the operator (the
     operator gate asks through it). The only place that looks at the name."""
     return SPEED_GATES.get(config.backend).from_config(config, ask)

@@ -68,7 +68,8 @@ def average_ranks(values: npt.ArrayLike) -> np.ndarray:
 
 
 def spearman(x: npt.ArrayLike, y: npt.ArrayLike) -> float:
-    """Spearman rank correlation of paired samples (ties: average ranks); nan when either is constant."""
+    """Spearman rank correlation of paired samples ``x`` and ``y`` (n,) (ties: average ranks); nan when either is
+    constant."""
     rx, ry = average_ranks(x), average_ranks(y)
     if len(rx) < 2 or np.std(rx) == 0 or np.std(ry) == 0:
         return math.nan

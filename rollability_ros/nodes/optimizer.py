@@ -414,7 +414,8 @@ class Optimizer(Node):
         self._marker.publish(self.profile_marker(best.heights))
 
     def profile_marker(self, heights: npt.ArrayLike) -> typing.Any:
-        """The Marker (TRIANGLE_LIST, metres) of the profile solid of ``heights`` on the robot's profile mount."""
+        """The Marker (TRIANGLE_LIST, metres) of the profile solid of ``heights`` ``(grid.n_variables,)`` (simulation
+        units) on the robot's profile mount."""
         frame, position_m, yaw_deg = self._mount
         marker = Marker()
         marker.header.frame_id = frame

@@ -58,8 +58,8 @@ def mesh_descriptors(mesh: typing.Optional[geometry.Mesh]) -> ProfileDescriptors
 
 
 def profile_descriptors(heights: npt.ArrayLike, grid: geometry.ProfileGrid) -> ProfileDescriptors:
-    """Measure the profile of half-grid ``heights`` (simulation units) on ``grid``; a profile too flat to be a solid
-    (within ``grid.flat_tolerance``) counts as the baseline."""
+    """Measure the profile of half-grid ``heights`` ``(grid.n_variables,)`` (simulation units) on ``grid``; a profile
+    too flat to be a solid (within ``grid.flat_tolerance``) counts as the baseline."""
     try:
         return mesh_descriptors(geometry.profile_mesh(heights, grid))
     except ValueError:

@@ -175,7 +175,8 @@ def check_heights(heights: npt.ArrayLike, grid: ProfileGrid) -> np.ndarray:
 
 
 def is_baseline(heights: typing.Optional[npt.ArrayLike], tolerance: float = 0.0) -> bool:
-    """True for the "no profile" configuration: ``None``, empty, or every height ``<= tolerance`` (sim units)."""
+    """True for the "no profile" configuration: ``heights`` ``(n,)`` is ``None``, empty, or every height is at most
+    ``tolerance`` (simulation units)."""
     if heights is None:
         return True
     array = np.asarray(heights, dtype=np.float64).ravel()
@@ -203,7 +204,8 @@ def profile_vertices(heights: npt.ArrayLike, grid: ProfileGrid) -> np.ndarray:
 
 
 def profile_mesh(heights: typing.Optional[npt.ArrayLike], grid: ProfileGrid) -> typing.Optional[Mesh]:
-    """Return the profile solid as a watertight convex-hull ``trimesh.Trimesh`` (metres), or None for the baseline.
+    """Return the profile solid of ``heights`` ``(grid.n_variables,)`` (simulation units) as a watertight convex-hull
+    ``trimesh.Trimesh`` (metres), or None for the baseline.
 
     The hull spans the top vertices and the footprint corners at z = 0. Raises ``ValueError`` for invalid
     heights and for a profile so flat (tallest vertex within ``grid.flat_tolerance``) that it has no volume.
@@ -230,7 +232,8 @@ def _hull(points):
 
 
 def profile_metrics(heights: typing.Optional[npt.ArrayLike], grid: ProfileGrid) -> ProfileMetrics:
-    """Measure the profile of ``heights``: see :class:`ProfileMetrics` (zeros for the baseline)."""
+    """Measure the profile of ``heights`` ``(grid.n_variables,)`` (simulation units): see :class:`ProfileMetrics`
+    (zeros for the baseline)."""
     return mesh_metrics(profile_mesh(heights, grid))
 
 

@@ -407,6 +407,7 @@ class ChassisModel(SpecThresholds, RobotModel):
 
     def spawn(self, client: int, profile: typing.Optional[ProfileBody], position: npt.ArrayLike,
               orientation: typing.Sequence[float], *, time_step_s: typing.Optional[float]) -> SpawnedRobot:
+        """See :meth:`RobotModel.spawn`: the base frame at ``position`` (3,) m with ``orientation`` (x, y, z, w)."""
         pybullet = require("pybullet", feature="the simulated evaluator")
         s = self.spec
         body_shape = pybullet.createCollisionShape(
@@ -419,6 +420,7 @@ class ChassisModel(SpecThresholds, RobotModel):
 
         def add_link(mass: float, shape: int, position_m: npt.ArrayLike, orientation_xyzw: typing.Sequence[float],
                      com_m: npt.ArrayLike, joint: int, axis: typing.Sequence[float]) -> None:
+            """One link on the body: ``position_m`` and ``com_m`` (3,) in the body frame (m), axis (3,)."""
             for key, value in zip(links, (mass, shape, position_m, orientation_xyzw, com_m, joint, axis)):
                 links[key].append(value)
 
@@ -454,6 +456,7 @@ class ChassisModel(SpecThresholds, RobotModel):
                             profile_points_m=None if profile is None else profile.hull_vertices_m)
 
     def up_axis(self, client: int, robot: SpawnedRobot) -> np.ndarray:
+        """The body's +z in the world frame, a unit vector (3,)."""
         pybullet = require("pybullet", feature="the simulated evaluator")
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
         return np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)[:, 2]

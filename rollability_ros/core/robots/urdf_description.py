@@ -419,6 +419,7 @@ def describe(xml_text: str, urdf_folder: typing.Optional[str] = None,
                          f"{', '.join(sorted(set(links) - set(order)))}")
 
     def placed(link: str, what: str) -> np.ndarray:
+        """``link``'s 4x4 transform in its body's frame; ``ValueError`` when its placement could not be read."""
         value = link_in_body[link]
         if isinstance(value, _BadTransform):
             raise ValueError(f"{value.message} (needed to place {what} of link {link!r})")

@@ -324,6 +324,7 @@ def check_mount_surface(spec: UrdfRobotSpec,
     centre = np.asarray(spec.footprint_offset_m[:2], dtype=np.float64)
 
     def inside_footprint(xy: np.ndarray) -> np.ndarray:
+        """Which points ``xy`` (n, 2) lie in the footprint (bool (n,)), m in the mount link's frame."""
         local = xy - centre
         return ((np.abs(local @ along) <= spec.footprint_length_m / 2 + FOOTPRINT_TOLERANCE_M)
                 & (np.abs(local @ across) <= spec.footprint_width_m / 2 + FOOTPRINT_TOLERANCE_M))
@@ -414,6 +415,7 @@ def half_width_across_m(points: np.ndarray, axis: npt.ArrayLike) -> float:
     second = np.cross(axis, first)
 
     def widths(angles: np.ndarray) -> np.ndarray:
+        """The points' extent (m) along each direction at ``angles`` (n,), rad, about the axis: (n,)."""
         along = points @ (np.outer(np.cos(angles), first) + np.outer(np.sin(angles), second)).T  # (k, angles)
         return along.max(axis=0) - along.min(axis=0)
 
@@ -435,7 +437,8 @@ def profile_link_xml(mount_body: str, profile_in_body: npt.ArrayLike, mesh_filen
                      profile: typing.Optional[ProfileBody] = None,
                      joint: typing.Tuple[str, str] = ("fixed", "")) -> str:
     """URDF ``<link>`` and ``<joint>`` of the profile on ``mount_body`` (mesh file as collision and visual);
-    ``joint``: the joint's type and extra tags (:meth:`ProfileMountSpec.joint_xml`), fixed by default."""
+    ``profile_in_body`` (4, 4) places the profile frame in the mount body's frame (m); ``joint``: the joint's type and
+    extra tags (:meth:`ProfileMountSpec.joint_xml`), fixed by default."""
     inertial = ""
     if profile is not None:
         inertia, _ = profile_inertia(profile)
@@ -475,6 +478,8 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
 
     def spawn(self, client: int, profile: typing.Optional[ProfileBody], position: npt.ArrayLike,
               orientation: typing.Sequence[float], *, time_step_s: typing.Optional[float]) -> SpawnedRobot:
+        """See :meth:`RobotModel.spawn`: the root frame at ``position`` (3,) m with ``orientation`` (x, y, z, w), turned
+        about z so its forward axis points along the orientation's x."""
         pybullet = require("pybullet", feature="the simulated evaluator")
         # turn the robot about its z so its forward axis is the start orientation's x (the world's +x upright)
         facing = pybullet.getQuaternionFromEuler([0.0, 0.0, -math.radians(FORWARD_AXIS_DEG[self.spec.forward_axis])])
@@ -513,6 +518,7 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
                             profile_points_m=None if profile is None else profile.hull_vertices_m)
 
     def up_axis(self, client: int, robot: SpawnedRobot) -> np.ndarray:
+        """``up_axis_xyz`` in the world frame, a unit vector (3,)."""
         pybullet = require("pybullet", feature="the simulated evaluator")
         _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
         return np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3) @ self._up_axis

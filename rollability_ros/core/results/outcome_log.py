@@ -19,6 +19,7 @@ import dataclasses
 import os
 import sqlite3
 import threading
+import typing
 
 from rollability_ros.core.results.analysis import ConditionResult, summarise
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, LaunchOutcome, TipEventRecord
@@ -45,7 +46,7 @@ class OutcomeLoggerSettings:
                        "outcomes (a physical outcome without a valid one is not stored); \"\" = the default of "
                        "valve.session_key_file for this ROS domain and namespace. Fixed at start-up."})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` for an unusable store path."""
         if not isinstance(self.store_path, str) or not self.store_path.strip():
             raise ValueError("store_path must be a non-empty path")
@@ -89,7 +90,7 @@ class RunningSummary:
         self._candidates = collections.Counter()                           # run_id -> candidates stored
         self._latest_stamp_s = {}                                          # run_id -> newest outcome stamp, s
 
-    def add_outcome(self, outcome):
+    def add_outcome(self, outcome: LaunchOutcome) -> None:
         """Count a stored :class:`LaunchOutcome` (an invalid launch is stored but not counted)."""
         self._latest_stamp_s[outcome.run_id] = max(self._latest_stamp_s.get(outcome.run_id, 0.0),
                                                    outcome.stamp_s)
@@ -99,35 +100,35 @@ class RunningSummary:
         successes, trials = tally.get(outcome.condition.group_key, (0, 0))
         tally[outcome.condition.group_key] = (successes + bool(outcome.upright), trials + 1)
 
-    def add_candidate(self, candidate):
+    def add_candidate(self, candidate: CandidateRecord) -> None:
         """Count a stored :class:`CandidateRecord`."""
         self._candidates[candidate.run_id] += 1
 
     def _runs(self, table, run_id):
         return list(table.values()) if run_id is None else ([table[run_id]] if run_id in table else [])
 
-    def trials(self, run_id=None):
+    def trials(self, run_id: typing.Optional[str] = None) -> int:
         """Launch outcomes stored (every run, or ``run_id``)."""
         return sum(trials for tally in self._runs(self._conditions, run_id) for _, trials in tally.values())
 
-    def candidates(self, run_id=None):
+    def candidates(self, run_id: typing.Optional[str] = None) -> int:
         """Candidate results stored (every run, or ``run_id``)."""
         return sum(self._runs(self._candidates, run_id))
 
-    def latest_stamp_s(self, run_id=None):
+    def latest_stamp_s(self, run_id: typing.Optional[str] = None) -> float:
         """Stamp of the newest stored outcome, s since the epoch; 0.0 when none."""
         return max(self._runs(self._latest_stamp_s, run_id), default=0.0)
 
-    def conditions(self, run_id=None):
+    def conditions(self, run_id: typing.Optional[str] = None) -> typing.List[ConditionResult]:
         """Grouped conditions (:class:`~rollability_ros.core.results.analysis.ConditionResult`) of the stored outcomes."""
-        counts = {}
+        counts: typing.Dict[typing.Tuple[str, float, float, float], typing.Tuple[int, int]] = {}
         for tally in self._runs(self._conditions, run_id):
             for key, (successes, trials) in tally.items():
                 merged_successes, merged_trials = counts.get(key, (0, 0))
                 counts[key] = (merged_successes + successes, merged_trials + trials)
         return [ConditionResult(*key, successes, trials) for key, (successes, trials) in sorted(counts.items())]
 
-    def configurations(self, run_id=None):
+    def configurations(self, run_id: typing.Optional[str] = None) -> typing.List["ConfigurationTally"]:
         """One :class:`ConfigurationTally` per configuration id, sorted by id."""
         tallies = []
         for cell in summarise(self.conditions(run_id), by=("configuration",)):
@@ -167,7 +168,7 @@ class OutcomeLog:
                          GenerationRecord: store.add_generation, TipEventRecord: store.add_tip_event}
 
     @classmethod
-    def open(cls, path):
+    def open(cls, path: str) -> "OutcomeLog":
         """Open (or create, with parent directories) the store at ``path``; ``ValueError`` if unusable."""
         directory = os.path.dirname(os.fspath(path))
         if directory:
@@ -177,11 +178,11 @@ class OutcomeLog:
                 raise ValueError(f"cannot create the store directory {directory}: {exc}") from exc
         return cls(Store(path))
 
-    def close(self):
+    def close(self) -> None:
         """Close the store (idempotent)."""
         self.store.close()
 
-    def add(self, record):
+    def add(self, record: typing.Union[LaunchOutcome, CandidateRecord, GenerationRecord, TipEventRecord]) -> bool:
         """Store ``record`` durably; True if stored now, False if its key was already stored.
 
         Raises ``ValueError`` for a malformed record and :class:`StoreFailure` when the store cannot write.
@@ -201,7 +202,7 @@ class OutcomeLog:
                 self._summary.add_candidate(record)
         return stored
 
-    def summary(self, run_id=None):
+    def summary(self, run_id: typing.Optional[str] = None) -> "LogSummary":
         """A :class:`LogSummary` of every run, or of ``run_id`` (empty for an unknown run)."""
         with self._lock:
             return LogSummary(self._summary.trials(run_id), self._summary.candidates(run_id),

@@ -28,6 +28,7 @@ import math
 import queue
 import threading
 import time
+import typing
 
 from rollability_ros.core.rig.valve_backend import VALVE_BACKENDS, ValveBackend
 
@@ -66,12 +67,13 @@ class _BackendCaller:
         self._stuck = None
         threading.Thread(target=self._loop, name="valve-backend", daemon=True).start()
 
-    def running(self):
+    def running(self) -> typing.Optional[typing.Tuple[str, float]]:
         """``(name, seconds so far)`` of the call in progress, or None."""
         job = self._running
         return None if job is None else (job.name, time.monotonic() - job.queued_at)
 
-    def call(self, name, fn, *args, timeout_s=None):
+    def call(self, name: str, fn: typing.Callable[..., typing.Any], *args: typing.Any,
+             timeout_s: typing.Optional[float] = None) -> typing.Any:
         """Run ``fn(*args)`` on the backend thread; return its result or raise its exception or BackendStuck."""
         stuck = self._stuck
         if stuck is not None:
@@ -89,7 +91,7 @@ class _BackendCaller:
             raise job.error
         return job.result
 
-    def stop(self):
+    def stop(self) -> None:
         """End the thread after the calls already queued (a stuck call keeps it until it returns)."""
         self._jobs.put(None)
 
@@ -186,15 +188,15 @@ class ValveController:
             self._emit("started")
 
     # ------------------------------------------------------------------ state
-    def device_limits(self):
+    def device_limits(self) -> typing.Any:
         """The device's own limits (``relay_protocol.DeviceLimits``) when the backend reports them, else None."""
         return self._backend.limits
 
-    def startup_warning(self):
+    def startup_warning(self) -> str:
         """The backend's start-up warning for the operator ("" when it has none)."""
         return self._backend.startup_warning()
 
-    def status(self):
+    def status(self) -> "ValveStatus":
         """Return the current :class:`ValveStatus`."""
         with self._lock:
             return ValveStatus(
@@ -267,7 +269,7 @@ class ValveController:
         return True
 
     # --------------------------------------------------------------- commands
-    def arm(self):
+    def arm(self) -> typing.Tuple[bool, str]:
         """Allow firing. Returns ``(ok, reason)``; refused while a fault is latched or after shutdown."""
         with self._lock:
             if self._shut_down:
@@ -288,7 +290,7 @@ class ValveController:
             self._emit("armed")
             return True, "armed"
 
-    def disarm(self):
+    def disarm(self) -> typing.Tuple[bool, str]:
         """Drive the valve closed, disarm and clear a latched fault. Returns ``(ok, reason)``.
 
         The fault is cleared only if the close command succeeds; otherwise a new fault stays latched.
@@ -309,7 +311,7 @@ class ValveController:
                 return False, f"disarmed but the close command failed: {self._fault_reason}"
             return True, "disarmed, valve closed"
 
-    def estop(self, reason="e-stop"):
+    def estop(self, reason: str = "e-stop") -> None:
         """Latch a fault, cut any pulse and drive the valve closed."""
         self._cut.set()  # before the lock: a pulse ends even while another thread waits for the backend
         with self._lock:
@@ -318,7 +320,7 @@ class ValveController:
             self._drive_closed()
             self._emit("e-stop")
 
-    def device_fault(self, reason):
+    def device_fault(self, reason: str) -> None:
         """The backend's device faulted on its own (board e-stop, keep-alive timeout, link lost): latch and close."""
         if not self._shut_down:
             self._cut.set()
@@ -330,7 +332,7 @@ class ValveController:
             self._drive_closed()
             self._emit("device fault")
 
-    def health(self):
+    def health(self) -> typing.Tuple["ValveStatus", typing.Optional[float], str]:
         """Diagnostics: ``(status, watchdog margin ms or None when disarmed, device link line)``.
 
         Never waits for a backend call: while another thread holds the lock for one, the last state emitted is
@@ -352,11 +354,11 @@ class ValveController:
             line = f"backend call {running[0]} running for {running[1] * 1000:.0f} ms; {line}"
         return status, margin_ms, line
 
-    def heartbeat(self):
+    def heartbeat(self) -> None:
         """Record a heartbeat from the rig (steady clock). Takes no lock: one store, never behind a backend call."""
         self._last_heartbeat = self._clock()
 
-    def check_backend(self):
+    def check_backend(self) -> bool:
         """Latch a device fault when the backend reports one of its own calls stalled (its ``stalled()``, e.g.
         a keep-alive stuck in a serial write). Returns True when it latched one now."""
         reason = self._backend.stalled()
@@ -369,7 +371,7 @@ class ValveController:
         self.device_fault(reason)
         return True
 
-    def check_watchdog(self):
+    def check_watchdog(self) -> bool:
         """Trip if armed and the last heartbeat is older than ``watchdog_ms``. Returns True when it tripped now."""
         with self._lock:
             if not self._armed or self._fault_reason:
@@ -383,7 +385,7 @@ class ValveController:
             self._emit("watchdog trip")
             return True
 
-    def fire(self, pulse_ms):
+    def fire(self, pulse_ms: float) -> typing.Tuple[bool, str]:
         """Open the valve for ``pulse_ms`` ms, then drive it closed. Blocks for the pulse.
 
         Returns ``(ok, reason)``. Refused (valve untouched) when shut down, disarmed, faulted, already firing,
@@ -447,7 +449,7 @@ class ValveController:
         return ""
 
     # ---------------------------------------------------------- watchdog thread
-    def start_watchdog(self, period_s):
+    def start_watchdog(self, period_s: float) -> None:
         """Check the watchdog (and the backend's own calls, :meth:`check_backend`) every ``period_s`` seconds
         (steady clock) on a daemon thread until shutdown.
 
@@ -460,7 +462,7 @@ class ValveController:
                 raise RuntimeError("the watchdog thread is already running")
             stop = self._watchdog_stop = threading.Event()
 
-        def loop():
+        def loop() -> None:
             while not stop.wait(period_s):
                 try:
                     self.check_watchdog()
@@ -470,7 +472,7 @@ class ValveController:
 
         threading.Thread(target=loop, name="valve-watchdog", daemon=True).start()
 
-    def shutdown(self):
+    def shutdown(self) -> None:
         """Cut any pulse, drive closed, disarm, stop the watchdog thread and release the backend. Idempotent."""
         with self._lock:
             if self._shut_down:
@@ -508,7 +510,7 @@ class GpioValveConfig:
     line_holder: bool = dataclasses.field(default=True, metadata={
         "description": "true: a small child process owns the GPIO line and drops it when the valve node dies"})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not self.chip:
             raise ValueError("gpio.chip must name a GPIO chip (e.g. /dev/gpiochip0)")
@@ -534,7 +536,7 @@ class SerialRelayConfig:
         "description": "how long HELLO is repeated while the board boots after its port opens (an Uno resets), s",
         "range": (0.0, 60.0)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not self.port:
             raise ValueError("serial.port must name a serial device")
@@ -557,14 +559,14 @@ class RegulatorConfig:
     pressures_psi: list[float] = dataclasses.field(default_factory=lambda: [30.0, 60.0], metadata={
         "description": "regulator supply pressure for each target speed in valve.regulator.speeds_mps, psi"})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if len(self.speeds_mps) != len(self.pressures_psi) or not self.speeds_mps:
             raise ValueError("regulator.speeds_mps and regulator.pressures_psi must be non-empty and equally long")
         if any(s <= 0 for s in self.speeds_mps) or any(p <= 0 for p in self.pressures_psi):
             raise ValueError("regulator speeds and pressures must be > 0")
 
-    def pressure_psi(self, speed_mps):
+    def pressure_psi(self, speed_mps: float) -> float:
         """Return the regulator pressure (psi) for a target speed (m/s); ``ValueError`` if none is configured."""
         for speed, pressure in zip(self.speeds_mps, self.pressures_psi):
             if math.isclose(speed, speed_mps, rel_tol=1e-6, abs_tol=1e-9):
@@ -579,12 +581,12 @@ class RegulatorCheck:
         self._regulator = regulator
         self._confirmed_psi = None
 
-    def pending_psi(self, speed_mps):
+    def pending_psi(self, speed_mps: float) -> typing.Optional[float]:
         """Return the pressure (psi) the operator must set and confirm for ``speed_mps``, or None if confirmed."""
         pressure = self._regulator.pressure_psi(speed_mps)
         return None if pressure == self._confirmed_psi else pressure
 
-    def confirm(self, speed_mps):
+    def confirm(self, speed_mps: float) -> None:
         """Record that the regulator is set for ``speed_mps``."""
         self._confirmed_psi = self._regulator.pressure_psi(speed_mps)
 
@@ -616,7 +618,7 @@ class ValveConfig:
     serial: SerialRelayConfig = dataclasses.field(default_factory=SerialRelayConfig)
     regulator: RegulatorConfig = dataclasses.field(default_factory=RegulatorConfig)
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         VALVE_BACKENDS.check(self.backend)
         if self.max_pulse_ms <= 0:

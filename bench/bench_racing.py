@@ -1,11 +1,12 @@
 """Racing inside the optimizer: does the raced run find as good a design on a fraction of the trials? (simulated)
 
     nice python bench/bench_racing.py [--config optimizer] [--seeds 1 2 3 4 5] [--looks 10 20 40] [--alpha 0.1]
-                                      [--set optimizer.trials=60 ...] [--fresh-trials 300] [--workers 2]
-                                      [--rule-only]
+                                      [--survivors 0] [--set optimizer.trials=60 ...] [--raced-set ...] [--fresh-trials 300]
+                                      [--workers 2] [--rule-only]
 
 For every seed, one optimization with every candidate on all of its ``optimizer.trials`` (the full budget) and one
-with sequential racing (``optimizer.race_looks`` = ``--looks``, ``optimizer.race_alpha`` = ``--alpha``; docs/engines.md),
+with sequential racing (``optimizer.race_looks`` = ``--looks``, ``optimizer.race_alpha`` = ``--alpha``, successive halving
+``optimizer.race_survivors`` = ``--survivors``; docs/engines.md),
 the same settings otherwise (``--config`` plus the ``--set`` overrides; the engine ``--engine``, early decision on).
 Each run's final design (the incumbent, the best-so-far) is then evaluated on ``--fresh-trials`` fresh trials, the
 two designs of a seed on the same fresh seed, never one the run saw. Prints per seed and pooled over the seeds: the
@@ -14,7 +15,8 @@ interval, the trials each run spent (population, stages and re-evaluations) and 
 design's pooled fresh fitness lies within the full-budget design's interval while spending at most a third of the
 trials. Everything is from this one run; the load average is printed. First it prints the rule's exact statistics
 (no simulation): for bars 0.3, 0.5, 0.7 and candidates 0 to 0.3 below them, the chance of a stop and the expected
-trials (``--rule-only``: only that); last, what other looks and levels would have spent on the full-budget runs'
+trials, and with ``--survivors`` the halving's trial bound and the chance that a candidate better than the rest of
+its generation is dropped at the first look (``--rule-only``: only that); last, what other looks and levels would have spent on the full-budget runs'
 own candidates (:func:`print_what_if`, an approximation).
 """
 import argparse
@@ -23,6 +25,7 @@ import sys
 import tempfile
 import time
 
+import numpy as np
 import yaml
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -51,18 +54,23 @@ def run_parameters(args, racing):
     parameters.update({"sim.engine": args.engine, "trial.early_decision": True, **parse_set(args.set)})
     parameters["optimizer.race_looks"] = list(args.looks) if racing else [0]
     parameters["optimizer.race_alpha"] = args.alpha
+    parameters["optimizer.race_survivors"] = args.survivors if racing else 0
+    if racing:
+        parameters.update(parse_set(args.raced_set))
     return parameters
 
 
-def optimize(parameters, seed, executor, folder, name):
-    """Run one optimization; return (best heights, trials spent, generations, wall s)."""
+def optimize(parameters, seed, executor, folder, name, reuse=False):
+    """Run one optimization (``reuse``: resume the run kept in ``folder``, which ends at once when it is complete);
+    return (best heights, trials spent, generations, wall s, settings, stopped candidates' trials, run folder)."""
     parameters = {**parameters, "optimizer.seed": seed}
     settings = evaluation.settings_from_parameters(parameters)
     trials = optimization_run.optimizer_settings(parameters).trials
     run_dir = os.path.join(folder, f"{name}-seed-{seed}")
     run = optimization_run.OptimizationRun(
         run_dir, parameters, settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
-        evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, executor, "screen"))
+        evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, executor, "screen"),
+        resume=reuse and os.path.exists(run_dir))
     started = time.perf_counter()
     try:
         result = run.run()
@@ -100,6 +108,61 @@ def print_rule_statistics(looks, trials, alpha, bars=(0.3, 0.5, 0.7), gaps=(0.0,
         print(f"| {bar:.1f} | " + " | ".join(cells) + " |")
 
 
+def print_halving_statistics(looks, trials, survivors, popsize, rates=(0.2, 0.5), gaps=(0.05, 0.1, 0.2)):
+    """Successive halving's fixed cost (:func:`racing.halving_trials`) and, exactly, the chance that one candidate
+    ``gap`` better than the other ``popsize - 1`` (all at ``rate``) is dropped at the first look
+    (:func:`racing.halving_drop_probability`: independent counts, the conservative case)."""
+    from rollability_ros.core.optimization import racing
+
+    first = looks[0]
+    bound = racing.halving_trials(popsize, looks, trials, survivors)
+    print(f"successive halving: at most {bound} of {popsize * trials} population trials per generation "
+          f"({bound / (popsize * trials):.2f}x; {survivors} of {popsize} go on after the first look at {first}); "
+          f"chance that a candidate better by the gap than the other {popsize - 1} is dropped at the first look "
+          f"(independent counts; common random numbers lower it)")
+    print("| rate of the others | " + " | ".join(f"gap {gap:.2f}" for gap in gaps) + " |")
+    print("|---|" + "---|" * len(gaps))
+    for rate in rates:
+        cells = [f"{racing.halving_drop_probability(first, survivors, popsize - 1, rate, gap):.3f}" for gap in gaps]
+        print(f"| {rate:.1f} | " + " | ".join(cells) + " |")
+
+
+def print_first_look_agreement(run_dirs, settings, executor, first, survivors, popsize):
+    """How well the halving's first look ranks, measured on the full-budget runs' own generations: each candidate's
+    first ``first`` trials are run again (the same seed and trial indices as its stored evaluation, so the same
+    trials: common random numbers), the ``survivors`` best by them (ties to the earlier, as the rule) are compared
+    with the generation's best by its full trials (the candidate CMA-ES would have made the challenger). Prints the
+    share of generations whose full-trial best would have gone on, against chance (survivors / popsize), and the mean
+    rank correlation of the two rankings."""
+    from scipy.stats import spearmanr
+
+    evaluate = optimization_run.fidelity_batch_evaluator(settings, executor, "screen")
+    kept = generations = 0
+    rhos = []
+    for run_dir in run_dirs:
+        with Store(run_dir) as store:
+            candidates = [c for c in store.candidates() if c.index < popsize]
+        by_generation = {}
+        for candidate in candidates:
+            by_generation.setdefault(candidate.generation, []).append(candidate)
+        for generation, members in sorted(by_generation.items()):
+            members.sort(key=lambda c: c.index)
+            looks = evaluate([list(c.heights) for c in members], members[0].seed, first)
+            early = [r[0] for r in looks]
+            order = list(range(len(members)))
+            going_on = sorted(order, key=lambda i: (-early[i], i))[:survivors]
+            best = max(order, key=lambda i: (members[i].successes, -i))
+            kept += best in going_on
+            generations += 1
+            if len(set(early)) > 1 and len({c.successes for c in members}) > 1:
+                rhos.append(spearmanr(early, [c.successes for c in members])[0])
+    print(f"first look, measured on the full-budget runs' {generations} generations (their first {first} trials "
+          f"again, common random numbers): the full-trial best would have gone on in {kept}/{generations} = "
+          f"{kept / max(1, generations):.2f} (chance {survivors / popsize:.2f}); rank correlation of the first look "
+          f"with the full trials, mean Spearman {np.mean(rhos) if rhos else float('nan'):+.2f} over {len(rhos)} "
+          f"generations")
+
+
 WHAT_IF_RULES = (([10, 20, 40], 0.1), ([10, 20, 40], 0.3), ([10, 20], 0.5), ([5, 10, 15, 20, 30, 40], 0.9))
 
 
@@ -132,24 +195,48 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="optimizer", help="shipped config name or path (default: the quick one)")
     parser.add_argument("--set", nargs="*", default=[], help="parameter overrides name=value")
+    parser.add_argument("--raced-set", nargs="*", default=[],
+                        help="overrides of the raced run only (e.g. --looks 0 --raced-set optimizer.trials=20: the "
+                             "same share of the trials spent evenly, without racing)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5])
     parser.add_argument("--looks", type=int, nargs="+", default=[10, 20, 40])
     parser.add_argument("--alpha", type=float, default=0.1)
+    parser.add_argument("--survivors", type=int, default=0,
+                        help="successive halving: candidates going on after each look (0: off)")
     parser.add_argument("--engine", default="mujoco")
     parser.add_argument("--fresh-trials", type=int, default=300)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--keep", help="folder to keep the runs in (default: a temporary one)")
+    parser.add_argument("--raced-name", default="raced", help="name of the raced runs' folders (with --keep)")
+    parser.add_argument("--reuse-full", action="store_true",
+                        help="with --keep: resume the full-budget runs kept there (a complete run ends at once)")
     parser.add_argument("--rule-only", action="store_true", help="only the rule's exact statistics (no runs)")
+    parser.add_argument("--first-look-from", metavar="FOLDER",
+                        help="only the first-look agreement, on the full-budget runs kept in FOLDER by --keep")
     args = parser.parse_args()
     full_parameters, raced_parameters = run_parameters(args, False), run_parameters(args, True)
     settings = optimization_run.optimizer_settings(raced_parameters)
     settings.validate()
-    print_rule_statistics(args.looks, settings.trials, args.alpha)
+    if settings.race_stages is not None:
+        print_rule_statistics(args.looks, settings.trials, args.alpha)
+    if args.survivors:
+        print_halving_statistics(args.looks, settings.trials, args.survivors, settings.popsize)
     if args.rule_only:
+        return
+    if args.first_look_from:
+        full_runs = sorted(os.path.join(args.first_look_from, name) for name in os.listdir(args.first_look_from)
+                           if name.startswith("full-seed-"))
+        if not full_runs or not args.survivors:
+            raise SystemExit(f"--first-look-from needs --survivors and full-budget runs (full-seed-*) in "
+                             f"{args.first_look_from}")
+        with evaluation.LocalExecutor(args.workers) as executor:
+            print_first_look_agreement(full_runs, evaluation.settings_from_parameters(full_parameters), executor,
+                                       args.looks[0], args.survivors, settings.popsize)
         return
     print(f"racing verification (simulated): --config {args.config} {' '.join(args.set)}, engine {args.engine} + "
           f"early decision, {settings.method}, popsize {settings.popsize}, {settings.trials} trials per candidate, "
-          f"at most {settings.max_generations} generations; racing looks {list(args.looks)} alpha {args.alpha}; "
+          f"at most {settings.max_generations} generations; racing looks {list(args.looks)} alpha {args.alpha} survivors "
+          f"{args.survivors}; "
           f"{args.fresh_trials} fresh trials per final design; cores {os.cpu_count()}", flush=True)
     rows, full_runs = [], []
     folder = args.keep or tempfile.mkdtemp(prefix="bench-racing-")
@@ -160,7 +247,8 @@ def main():
             row = {"seed": seed}
             for name, parameters in (("full", full_parameters), ("raced", raced_parameters)):
                 heights, spent, generations, seconds, evaluator_settings, stopped, run_dir = optimize(
-                    parameters, seed, executor, folder, name)
+                    parameters, seed, executor, folder, name if name == "full" else args.raced_name,
+                    reuse=args.reuse_full and name == "full")
                 if name == "full":
                     full_runs.append(run_dir)
                 fresh = evaluation.evaluate_profile(heights, args.fresh_trials, FRESH_SEED_BASE + seed,
@@ -198,12 +286,25 @@ def main():
     print(f"| pooled | {interval_text(*pooled['full'])} | {spent['full']:,} | {interval_text(*pooled['raced'])} | "
           f"{spent['raced']:,} | {ratio:.2f} | {raced_fitness - pooled['full'][0] / pooled['full'][1]:+.3f} "
           f"[{low:+.2f}, {high:+.2f}] |")
+    differences = [(r["raced"]["fresh"][0] / r["raced"]["fresh"][1] - r["full"]["fresh"][0] / r["full"]["fresh"][1])
+                   for r in rows]
+    if len(differences) > 1:
+        from scipy.stats import t as student
+
+        half = student.ppf(0.975, len(differences) - 1) * np.std(differences, ddof=1) / np.sqrt(len(differences))
+        print(f"over seeds (each seed's two runs are two trajectories of the search, so their spread counts): mean "
+              f"raced - full {np.mean(differences):+.3f}, 95% t-interval [{np.mean(differences) - half:+.3f}, "
+              f"{np.mean(differences) + half:+.3f}] over {len(differences)} seeds")
     within = full_low <= raced_fitness <= full_high
     print(f"raced design's pooled fresh fitness {raced_fitness:.3f} {'within' if within else 'OUTSIDE'} the full-budget "
           f"design's interval [{full_low:.3f}, {full_high:.3f}]; trials {ratio:.2f}x of the full budget "
           f"({'at most' if ratio <= 1 / 3 else 'MORE than'} a third); wall {time.perf_counter() - started:.0f} s, "
           f"load average {' '.join(f'{v:.1f}' for v in os.getloadavg())} (simulated)")
     print_what_if(full_runs, settings.popsize)
+    if args.survivors:
+        with evaluation.LocalExecutor(args.workers) as executor:
+            print_first_look_agreement(full_runs, evaluation.settings_from_parameters(full_parameters), executor,
+                                       args.looks[0], args.survivors, settings.popsize)
 
 
 if __name__ == "__main__":

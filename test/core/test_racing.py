@@ -214,7 +214,11 @@ def test_bad_racing_settings_are_refused(tmp_path):
     for extra, message in (({"optimizer.race_looks": [10, 5]}, "race_looks must be strictly increasing"),
                            ({"optimizer.race_looks": [40]}, "race_looks must be strictly increasing"),
                            ({"optimizer.race_alpha": 0.0}, "race_alpha must be in"),
-                           ({"optimizer.common_random_numbers": False}, "needs common_random_numbers")):
+                           ({"optimizer.common_random_numbers": False}, "needs common_random_numbers"),
+                           ({"optimizer.race_survivors": 8}, "race_survivors must be below popsize 8"),
+                           ({"optimizer.race_survivors": -1}, "race_survivors must be >= 0"),
+                           ({"optimizer.race_survivors": 2, "optimizer.race_looks": [0]},
+                            "race_survivors needs race_looks")):
         with pytest.raises(ValueError, match=message):
             optimizer_settings(racing_parameters(grid, **extra)).validate()
     optimizer_settings(racing_parameters(grid, **{"optimizer.race_looks": [0]})).validate()   # [0]: off
@@ -246,3 +250,88 @@ def test_a_kept_mujoco_world_gives_the_same_trials_when_racing_comes_back_to_its
     evaluation._mujoco_worlds.clear()
     fresh = evaluation.run_batch(jobs[0], batch)                  # a world built anew
     assert again == first == fresh
+
+
+# --- successive halving inside the optimizer (optimizer.race_survivors) -------------------------------------------
+
+def test_halving_keeps_the_best_improvements_over_the_reference_ties_to_the_earlier():
+    totals = {0: (3, 8), 1: (5, 8), 2: (5, 8), 3: (1, 8), 4: (6, 8)}
+    assert racing.halving_survivors(totals, {}, 2) == [1, 4]            # 6/8, then the earlier of two 5/8
+    assert racing.halving_survivors(totals, {}, 9) == [0, 1, 2, 3, 4]
+    # CMA-MAE: improvement over the cell's elite; an empty cell (None) counts as 0
+    references = {0: None, 1: (9, 10), 2: (1, 10), 3: None, 4: (10, 10)}
+    # improvements 0.375, -0.275, 0.525, 0.125, -0.25
+    assert racing.halving_survivors(totals, references, 2) == [0, 2]
+    with pytest.raises(ValueError, match="survivors must be >= 1"):
+        racing.halving_survivors(totals, {}, 0)
+
+
+def test_the_halving_budget_and_its_drop_chance_are_exact():
+    assert racing.halving_trials(12, [8], 60, 2) == 12 * 8 + 2 * 52
+    assert racing.halving_trials(12, [8, 20], 60, 2) == 12 * 8 + 2 * 52
+    # nobody is dropped when all are kept; a certain winner is never dropped
+    assert racing.halving_drop_probability(8, 12, 11, 0.3, 0.1) == pytest.approx(0.0)
+    assert racing.halving_drop_probability(8, 2, 11, 0.0, 1.0) == pytest.approx(0.0)
+    # equal rates: by symmetry every candidate is kept with chance survivors / popsize
+    for n, rate in ((8, 0.2), (10, 0.5), (3, 0.9)):
+        assert racing.halving_drop_probability(n, 2, 11, rate, 0.0) == pytest.approx(1 - 2 / 12)
+    # against a simulation of independent counts with random tie-breaks
+    rng = np.random.default_rng(3)
+    draws = 40000
+    mine = rng.binomial(8, 0.35, draws)
+    theirs = rng.binomial(8, 0.2, (draws, 5))
+    above = (theirs > mine[:, None]).sum(axis=1)
+    tied = (theirs == mine[:, None]).sum(axis=1)
+    position = np.floor(rng.random(draws) * (tied + 1))
+    simulated = np.mean(above + position >= 2)
+    assert abs(simulated - racing.halving_drop_probability(8, 2, 5, 0.2, 0.15)) < 0.01
+    assert racing.halving_drop_probability(8, 2, 5, 0.2, 0.15) < 1 - 2 / 6     # better than the rest: kept more
+
+
+def survivor_rows(rows, popsize, trials):
+    """{generation: sorted trial counts of its population} of stored rows."""
+    generations = {}
+    for generation, index, _, ran, _ in rows:
+        if index < popsize:
+            generations.setdefault(generation, []).append(ran)
+    return {g: sorted(counts) for g, counts in generations.items()}
+
+
+@pytest.mark.parametrize("method", ["cmaes", "cma_mae"])
+def test_halving_runs_at_most_the_survivors_on_and_a_killed_generation_resumes_to_the_same_decisions(tmp_path,
+                                                                                                       method):
+    pytest.importorskip("cma")
+    if method == "cma_mae":
+        pytest.importorskip("ribs")
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.profile.geometry import ProfileGrid
+
+    grid = ProfileGrid(rows=2, cols=2)
+    parameters = racing_parameters(grid, method, **{"optimizer.race_looks": [5], "optimizer.race_survivors": 2})
+    calls = []
+    whole = run_rows(tmp_path / "whole", parameters, grid, bernoulli_evaluator(calls))
+    counts = survivor_rows(whole, 8, 40)
+    assert sorted(counts) == [1, 2, 3, 4, 5]                       # generation 1 is halved too (no bar needed)
+    for generation, ran in counts.items():
+        assert all(t in (5, 40) for t in ran) and sum(t == 40 for t in ran) <= 2
+        assert sum(ran) <= 8 * 5 + 2 * 35                               # racing.halving_trials
+    assert sum(sum(ran) for ran in counts.values()) < 0.4 * 5 * 8 * 40
+    # killed after the race, while the population is being stored (3 of 8 stored), then resumed afresh: the
+    # stored three are raced again with the rest (the same results) and the same two go on
+    stored = []
+
+    def dying(record):
+        stored.append(record)
+        if record.generation == 4 and sum(r.generation == 4 for r in stored) == 3:
+            raise Killed()
+
+    run = OptimizationRun(str(tmp_path / "killed"), parameters, grid,
+                          lambda h, s: bernoulli_evaluator([])(h, s, 40), on_candidate=dying,
+                          evaluate_trials=bernoulli_evaluator([]))
+    try:
+        with pytest.raises(Killed):
+            run.run()
+    finally:
+        run.close()
+    resumed = run_rows(tmp_path / "killed", parameters, grid, bernoulli_evaluator([]), resume=True)
+    assert resumed == whole

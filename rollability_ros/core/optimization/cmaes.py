@@ -105,6 +105,11 @@ class OptimizerSettings:
         "description": "racing: at most this chance, over all looks, of stopping a candidate at least as good as "
                        "the bar (the lower 95% bound of the incumbent's or elite's estimate) (probability)",
         "range": (0.0, 1.0)})
+    race_survivors: int = dataclasses.field(default=0, metadata={
+        "description": "racing by successive halving: after each look at most this many candidates go on to their "
+                       "full trials, the best by pooled estimate over the incumbent (CMA-ES) or their cell's elite "
+                       "(CMA-MAE); the others are told their estimate so far (count; needs race_looks; 0 = off)",
+        "range": (0, 100000)})
     initial_mean_screen: int = dataclasses.field(default=0, metadata={
         "description": "random CMA-ES start means screened by the quasi-static stable-pose screen; the best is used "
                        "(count; 0 = the paper's one random mean)", "range": (0, 10000)})
@@ -138,6 +143,13 @@ class OptimizerSettings:
             raise ValueError(f"trials must be >= 1, got {self.trials}")
         if self.race_stages is not None and not 0 < self.race_alpha < 1:
             raise ValueError(f"race_alpha must be in (0, 1), got {self.race_alpha}")
+        if self.race_survivors < 0:
+            raise ValueError(f"race_survivors must be >= 0 (0 = no halving), got {self.race_survivors}")
+        if self.race_survivors and self.race_stages is None:
+            raise ValueError("race_survivors needs race_looks (the looks after which the candidates are halved)")
+        if self.race_survivors >= self.popsize:
+            raise ValueError(f"race_survivors must be below popsize {self.popsize} (0 = no halving), got "
+                             f"{self.race_survivors}")
         if self.race_stages is not None and not self.common_random_numbers:
             raise ValueError("race_looks needs common_random_numbers: true (every stage runs the candidates still "
                              "going on one common seed)")

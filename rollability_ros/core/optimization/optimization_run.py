@@ -462,7 +462,7 @@ class OptimizationRun:
                              0 if settings.common_random_numbers else i) for i in range(len(population))]
         references = [optimizer.race_reference(heights) for heights in population] \
             if settings.race_stages is not None else [None]
-        if any(reference is not None for reference in references):
+        if settings.race_survivors or any(reference is not None for reference in references):
             results = self._evaluate_raced(generation, index, population, seeds[0], stored, references)
         else:
             results = self._evaluate(generation, list(range(len(population))), population, seeds, stored)
@@ -519,7 +519,11 @@ class OptimizationRun:
         are clearly below its bar (``references[i]``, the optimizer's :meth:`race_reference` taken before the
         generation; None: never stops) stops. A record holds the trials the candidate ran, pooled over its stages,
         under the first stage's seed. The bars come from the checkpointed state and the seeds from the run's seed,
-        so a killed and resumed generation makes the same decisions."""
+        so a killed and resumed generation makes the same decisions. With ``optimizer.race_survivors`` (successive
+        halving) at most that many of the candidates the bar left go on after each look, the best by improvement
+        over their reference (:func:`racing.halving_survivors`); that decision depends on the whole population, so
+        a resumed generation with some candidates stored races them all again (deterministic: the same results,
+        checked against the store) and stores the rest."""
         from rollability_ros.core.optimization import racing
 
         settings = self.settings
@@ -535,8 +539,10 @@ class OptimizationRun:
             else:
                 raise ValueError(f"run {self.run_id}: the store holds a different candidate {number} of generation "
                                  f"{generation} than this resumed run computes (seed {previous.seed} vs {seed})")
-        totals = {number: [0, 0, 0.0, ""] for number in pending}
-        going_on = list(pending)
+        halving = settings.race_survivors > 0
+        racing_now = list(range(len(population))) if halving and pending else pending
+        totals = {number: [0, 0, 0.0, ""] for number in racing_now}
+        going_on = list(racing_now)
         for stage, stage_trials in enumerate(stages):
             if not going_on:
                 break
@@ -550,6 +556,15 @@ class OptimizationRun:
             if stage < len(looks):
                 going_on = [i for i in going_on if not racing.sequential_stops(
                     totals[i][0], totals[i][1], bars[i], looks, settings.race_alpha)]
+                if halving and going_on:
+                    going_on = racing.halving_survivors({i: tuple(totals[i][:2]) for i in going_on},
+                                                        {i: references[i] for i in going_on},
+                                                        settings.race_survivors)
+        for number, previous in records.items():
+            if number in totals and (previous.successes, previous.trials) != tuple(totals[number][:2]):
+                raise ValueError(f"run {self.run_id}: candidate {number} of generation {generation} raced to "
+                                 f"{totals[number][0]}/{totals[number][1]} on resume, the store holds "
+                                 f"{previous.successes}/{previous.trials}; the store or the code changed")
         for number in pending:
             successes, trials, eval_time_s, evaluator = totals[number]
             records[number] = self._store_candidate(generation, number, population[number], seed, successes, trials,

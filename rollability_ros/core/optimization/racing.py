@@ -191,3 +191,66 @@ def sequential_stop_probability(looks, trials, bar, alpha, p):
                 stopped += alive[:cut + 1].sum()
                 alive[:cut + 1] = 0.0
     return float(stopped), float(spent)
+
+
+# --- successive halving inside the optimizer (``optimizer.race_survivors``) -------------------------------------------
+# After a look, of the candidates the bar test left going, at most ``survivors`` go on: the best by their pooled
+# estimate's improvement over their own reference (CMA-ES: the incumbent, the same for every candidate, so simply the
+# best pooled estimates; CMA-MAE: the elite of the candidate's result-archive cell, an empty cell counting as 0);
+# ties go to the earlier candidate (CMA-ES's samples come in random order, so that is a random tie-break). A
+# candidate that stops is told its estimate so far. This is a budget rule, not a test: its cost is fixed
+# (:func:`halving_trials`), and what it risks is stated by :func:`halving_drop_probability`.
+
+def halving_survivors(totals, references, survivors):
+    """The candidates (the keys of ``totals``, in their order) that go on after a look, at most ``survivors`` of them.
+
+    ``totals``: {candidate: (successes, trials)} pooled so far; ``references``: {candidate: (successes, trials) or
+    None} (None: nothing to improve on, counts as 0); ``survivors`` >= 1. Ranked by ``successes / trials -
+    reference rate``, ties by order."""
+    if survivors < 1:
+        raise ValueError(f"survivors must be >= 1, got {survivors}")
+    order = list(totals)
+
+    def improvement(candidate):
+        successes, trials = totals[candidate]
+        reference = references.get(candidate)
+        base = 0.0 if reference is None else reference[0] / reference[1]
+        return successes / trials - base
+
+    ranked = sorted(order, key=lambda c: (-improvement(c), order.index(c)))
+    kept = set(ranked[:survivors])
+    return [c for c in order if c in kept]
+
+
+def halving_trials(popsize, looks, trials, survivors):
+    """The most trials a generation's population can spend under halving (no re-evaluation): every candidate runs
+    to the first look, at most ``survivors`` run on to ``trials``."""
+    stages = sequential_stages(looks, trials)
+    return int(popsize * stages[0] + min(popsize, survivors) * (trials - stages[0]))
+
+
+def halving_drop_probability(n, survivors, others, p, gap):
+    """Exact chance that a candidate of rate ``p + gap`` is not among the best ``survivors`` after a first look of
+    ``n`` trials, against ``others`` candidates of rate ``p``, every count independent and ties broken at random.
+
+    Independent counts are the case without common random numbers; with them the candidates of a generation meet the
+    same trials, their counts are positively correlated and the chance is lower (a conservative figure)."""
+    binom = require("scipy.stats", feature="racing's binomial test").binom
+    from math import comb
+
+    counts = np.arange(n + 1)
+    mine = binom.pmf(counts, n, min(1.0, p + gap))
+    theirs = binom.pmf(counts, n, p)
+    dropped = 0.0
+    for count in counts:
+        above = float(theirs[count + 1:].sum())
+        equal = float(theirs[count])
+        below = max(0.0, 1.0 - above - equal)
+        kept = 0.0
+        for greater in range(0, min(others, survivors - 1) + 1):
+            for tied in range(0, others - greater + 1):
+                chance = (comb(others, greater) * comb(others - greater, tied) * above ** greater * equal ** tied
+                          * below ** (others - greater - tied))
+                kept += chance * min(tied + 1, survivors - greater) / (tied + 1)
+        dropped += float(mine[count]) * (1.0 - kept)
+    return float(dropped)

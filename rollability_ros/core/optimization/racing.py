@@ -17,6 +17,7 @@ use the first round (every candidate, the same trials) as an unbiased comparison
 """
 import dataclasses
 import math
+import typing
 
 import numpy as np
 
@@ -201,7 +202,7 @@ def sequential_stop_probability(looks, trials, bar, alpha, p):
 # candidate that stops is told its estimate so far. This is a budget rule, not a test: its cost is fixed
 # (:func:`halving_trials`), and what it risks is stated by :func:`halving_drop_probability`.
 
-def halving_survivors(totals, references, survivors):
+def halving_survivors(totals: dict, references: dict, survivors: int) -> list:
     """The candidates (the keys of ``totals``, in their order) that go on after a look, at most ``survivors`` of them.
 
     ``totals``: {candidate: (successes, trials)} pooled so far; ``references``: {candidate: (successes, trials) or
@@ -222,14 +223,14 @@ def halving_survivors(totals, references, survivors):
     return [c for c in order if c in kept]
 
 
-def halving_trials(popsize, looks, trials, survivors):
+def halving_trials(popsize: int, looks: typing.Sequence[int], trials: int, survivors: int) -> int:
     """The most trials a generation's population can spend under halving (no re-evaluation): every candidate runs
     to the first look, at most ``survivors`` run on to ``trials``."""
     stages = sequential_stages(looks, trials)
     return int(popsize * stages[0] + min(popsize, survivors) * (trials - stages[0]))
 
 
-def halving_drop_probability(n, survivors, others, p, gap):
+def halving_drop_probability(n: int, survivors: int, others: int, p: float, gap: float) -> float:
     """Exact chance that a candidate of rate ``p + gap`` is not among the best ``survivors`` after a first look of
     ``n`` trials, against ``others`` candidates of rate ``p``, every count independent and ties broken at random.
 

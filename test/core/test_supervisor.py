@@ -20,6 +20,8 @@ def on_int(*_):
 signal.signal(signal.SIGINT, on_int)
 if mode == "crash":
     time.sleep(0.2); sys.exit(3)
+if mode == "refuse":
+    print("error: no outcome_logger serves stored_trials within 30 s", file=sys.stderr, flush=True); sys.exit(2)
 while True:
     time.sleep(0.05)
 """
@@ -68,6 +70,18 @@ def test_restarts_then_gives_up_and_stops_the_graph(tmp_path):
     assert "exit code 3" in [e.detail for e in events if e.kind == "exited"][0]
     sup.stop()
     assert sup.child("steady").returncode == 0        # the healthy node was stopped cleanly, not left alive
+
+
+def test_a_failed_exit_says_the_node_s_last_line(tmp_path):
+    """``rollability study``'s "did not complete" line names why the node exited, not only its code."""
+    sup = Supervisor([_spec(tmp_path, "campaign_runner", "refuse")], str(tmp_path / "logs"), lambda event: None)
+    sup.start()
+    code, reason = sup.wait_for_exit("campaign_runner", timeout_s=20)
+    sup.stop()
+    assert code == 2
+    expected = "campaign_runner exited with code 2: error: no outcome_logger serves stored_trials within 30 s"
+    assert reason.startswith(expected), reason
+    assert reason.endswith("campaign_runner.log)"), reason
 
 
 def test_a_stubborn_child_is_killed(tmp_path):

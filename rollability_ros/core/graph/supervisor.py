@@ -206,11 +206,15 @@ class Supervisor:
                 last_tick = time.monotonic()
             time.sleep(period_s)
         code = process.returncode
+        last = ""
         for child in self._children:
             if child.spec.name == name:
                 child.finished = True
                 self._emit("finished", child, f"exit code {code}")
-        return code, "" if code == 0 else f"{name} exited with code {code} (its log: {self.log_dir}/{name}.log)"
+                last = child.tail(1)[:300]   # a node's last line as it exits: its one-line error
+        if code == 0:
+            return code, ""
+        return code, f"{name} exited with code {code}{f': {last}' if last else ''} (its log: {self.log_dir}/{name}.log)"
 
     def wait_for_output(self, name: str, text: str, timeout_s: float, period_s: float = 0.1) -> bool:
         """Wait until process ``name`` has written ``text`` to its log (a readiness line); True if it did."""
@@ -247,3 +251,4 @@ class Supervisor:
                 except subprocess.TimeoutExpired:
                     continue
             self._emit("stopped", child, f"exit code {code if code is not None else child.process.wait()}")
+

@@ -31,8 +31,10 @@ Units: metres, kilograms, seconds; frames as stated per function.
 import dataclasses
 import functools
 import math
+import typing
 
 import numpy as np
+import numpy.typing as npt
 
 from rollability_ros.core.optional import require
 
@@ -40,7 +42,7 @@ from rollability_ros.core.optional import require
 GRAVITY_MPS2 = 9.81
 
 
-def fibonacci_directions(count):
+def fibonacci_directions(count: int) -> np.ndarray:
     """``count`` nearly uniform unit vectors on the sphere (a Fibonacci lattice), (count, 3)."""
     index = np.arange(count) + 0.5
     z = 1 - 2 * index / count
@@ -102,15 +104,15 @@ class BasinMap:
     lowest_upright_m: float = 0.0
     lowest_not_upright_m: float = 0.0
 
-    def lowest_m(self, upright):
+    def lowest_m(self, upright: bool) -> float:
         """The lowest resting COM height (m) of the outcome ``upright`` (see the fields)."""
         return self.lowest_upright_m if upright else self.lowest_not_upright_m
 
-    def highest_barrier_m(self):
+    def highest_barrier_m(self) -> float:
         """No decision is possible at or above this energy height (m; inf if some pose is never left)."""
         return float(np.max(np.concatenate([self.barrier_to_upright_m, self.barrier_to_not_upright_m])))
 
-    def decide(self, down_in_base, energy_height_m):
+    def decide(self, down_in_base: np.ndarray, energy_height_m: float) -> typing.Optional[bool]:
         """The decided outcome (True = will end upright, False = will not) or None while still open.
 
         ``down_in_base`` (3,) unit world-down vector in the base frame; ``energy_height_m`` = COM height above
@@ -124,13 +126,16 @@ class BasinMap:
         return None
 
 
-def resting_directions(relative, wheel_links, up, upright_tilt_deg, min_wheels, contact_tolerance_m):
+def resting_directions(relative: typing.Mapping[int, np.ndarray], wheel_links: typing.Collection[int], up: np.ndarray,
+                       upright_tilt_deg: float, min_wheels: int,
+                       contact_tolerance_m: float) -> typing.Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every direction the body can rest in and whether it rests upright there.
 
     ``relative`` maps link -> hull points (k, 3) about the COM, m. A resting direction is the outward normal of
     a hull facet that the COM projects into (a triangle of the triangulated hull holding the COM's foot);
     upright: tilt within ``upright_tilt_deg`` and ``min_wheels`` wheel links within ``contact_tolerance_m`` of
-    the ground. Returns ((r, 3) unit vectors, (r,) bool).
+    the ground. Returns ((r, 3) unit vectors, (r,) bool upright, (r,) the COM's height above the ground resting
+    there, m).
     """
     trimesh = require("trimesh", feature="the early trial decision")
     hull = trimesh.convex.convex_hull(np.vstack(list(relative.values())))
@@ -182,8 +187,10 @@ def _hull_vertices(points):
         return points
 
 
-def build_basin_map(points_by_link, wheel_links, com_m, mass_kg, up_axis, upright_tilt_deg, min_wheels,
-                    contact_tolerance_m, directions=4096, neighbours=10, margin_m=0.002):
+def build_basin_map(points_by_link: typing.Mapping[int, npt.ArrayLike], wheel_links: typing.Collection[int],
+                    com_m: npt.ArrayLike, mass_kg: float, up_axis: npt.ArrayLike, upright_tilt_deg: float,
+                    min_wheels: int, contact_tolerance_m: float, directions: int = 4096, neighbours: int = 10,
+                    margin_m: float = 0.002) -> "BasinMap":
     """Tabulate the :class:`BasinMap` of a rigid body.
 
     Parameters
@@ -223,13 +230,15 @@ def build_basin_map(points_by_link, wheel_links, com_m, mass_kg, up_axis, uprigh
     edges_b = near.ravel()
     edge_height = np.maximum(height[edges_a], height[edges_b])
 
-    def grown(mask):
+    def grown(mask: np.ndarray) -> np.ndarray:
+        """``mask`` (directions,) bool and its lattice neighbours."""
         return mask | mask[near].any(axis=1)
 
     slack = radius * delta + margin_m
     to_upright = _minimax_from(grown(upright), edges_a, edges_b, edge_height, height) - slack
     to_not_upright = _minimax_from(grown(not_upright), edges_a, edges_b, edge_height, height) - slack
-    def lowest(mask):
+    def lowest(mask: np.ndarray) -> float:
+        """The lowest resting COM height (m) among the resting directions in ``mask`` (r,) bool; inf if none."""
         return float(rest_height[mask].min()) if np.any(mask) else math.inf
 
     return BasinMap(directions=lattice, barrier_to_upright_m=to_upright, barrier_to_not_upright_m=to_not_upright,

@@ -78,7 +78,7 @@ class ObjectiveSettings:
     screen_engine: str = dataclasses.field(default="", metadata={"description": "engine of screen-fidelity evaluations (the optimizer's candidates, the selection's screen): pybullet | mujoco; empty = sim.engine"})
     launch_engine: str = dataclasses.field(default="", metadata={"description": "engine of launch-fidelity evaluations (the selection's launch race and fresh launches): pybullet | mujoco; empty = sim.engine"})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         self.robust.validate()
         for name in ("screen_engine", "launch_engine"):
@@ -96,12 +96,12 @@ class ObjectiveSettings:
             raise ValueError("twin_config must list the launch twin's parameter files")
 
     @property
-    def launch_share(self):
+    def launch_share(self) -> float:
         """Share of an evaluation's trials that are launches: 0, ``launch_weight`` or 1."""
         return {"disturbance": 0.0, "mix": self.launch_weight, "launch_twin": 1.0}[self.kind]
 
 
-def at_fidelity(settings, fidelity):
+def at_fidelity(settings: "ObjectiveSettings", fidelity: str) -> "ObjectiveSettings":
     """The :class:`ObjectiveSettings` an evaluation at ``fidelity`` runs (module docstring, Fidelities): ``settings``
     itself for ``screen`` / empty, robust launches on the twin for ``launch``; ``ValueError`` for any other name."""
     if fidelity in ("", "screen"):
@@ -112,7 +112,7 @@ def at_fidelity(settings, fidelity):
     raise ValueError(f"unknown evaluation fidelity {fidelity!r}: use one of {', '.join(FIDELITIES)}")
 
 
-def fidelity_engine(settings, fidelity, default):
+def fidelity_engine(settings: "ObjectiveSettings", fidelity: str, default: str) -> str:
     """The engine an evaluation at ``fidelity`` runs on: ``settings.screen_engine`` (``screen`` / empty) or
     ``settings.launch_engine`` (``launch``), or ``default`` (the evaluation's ``sim.engine``) when that is empty;
     ``ValueError`` for an unknown fidelity or engine."""
@@ -133,17 +133,17 @@ class LaunchObjective:
     twin: object            # LaunchTwinSettings
     launch_share: float
 
-    def is_launch(self, index):
+    def is_launch(self, index: int) -> bool:
         """True when trial ``index`` of an evaluation is a launch (module docstring, ``mix``)."""
         return math.floor((index + 1) * self.launch_share + 1e-9) > math.floor(index * self.launch_share + 1e-9)
 
-    def condition(self, index):
+    def condition(self, index: int) -> LaunchCondition:
         """The launch condition of trial ``index`` (a launch): condition ``j mod C``, ``j`` = launches before it."""
         launches_before = math.floor(index * self.launch_share + 1e-9)
         return self.conditions[launches_before % len(self.conditions)]
 
 
-def launch_conditions(campaign_config):
+def launch_conditions(campaign_config: typing.Sequence[str]) -> typing.Tuple[LaunchCondition, ...]:
     """The distinct launch conditions (height m, speed m/s, angle deg) of a campaign parameter file, as
     :class:`LaunchCondition` s of configuration :data:`CANDIDATE`, in height, speed, angle order."""
     spec = load_campaign_spec(tuple(campaign_config))
@@ -162,7 +162,8 @@ def _resolve(kind, launch_weight, campaign_config, twin_config, engine, early_de
     return LaunchObjective(launch_conditions(campaign_config), twin, settings.launch_share)
 
 
-def launch_objective(settings, engine="pybullet", early_decision=True):
+def launch_objective(settings: "ObjectiveSettings", engine: str = "pybullet",
+                     early_decision: bool = True) -> typing.Optional[LaunchObjective]:
     """The :class:`LaunchObjective` of :class:`ObjectiveSettings` ``settings``, or None for ``disturbance``
     (files read once per distinct setting; a bad file raises ``ConfigError`` / ``ValueError``).
 
@@ -178,7 +179,7 @@ def launch_objective(settings, engine="pybullet", early_decision=True):
                     tuple(settings.twin_config), engine, bool(early_decision))
 
 
-def run_launch_trial(objective, profile, index, seed):
+def run_launch_trial(objective: LaunchObjective, profile: typing.Any, index: int, seed: int) -> TrialOutcome:
     """Trial ``index`` (a launch) of an evaluation: the candidate ``profile`` (ProfileBody, None = bare chassis)
     launched on the twin under :meth:`LaunchObjective.condition` with ``seed``; a :class:`TrialOutcome`."""
     from rollability_ros.core.sim.launch_twin import simulate_valid_launch
@@ -190,7 +191,7 @@ def run_launch_trial(objective, profile, index, seed):
                         decided=bool(result.decided))
 
 
-def run_robust_trial(client, job, index, seed):
+def run_robust_trial(client: typing.Any, job: typing.Any, index: int, seed: int) -> TrialOutcome:
     """Trial ``index`` of trial job ``job`` under the robustness draw of its ``seed``
     (:mod:`~rollability_ros.core.sim.robustness`): a launch on the perturbed twin, or a disturbance trial in a
     world built in ``client`` for the perturbed settings (which replaces any world held in ``client``)."""

@@ -25,6 +25,7 @@ import ipaddress
 import logging
 import threading
 import time
+import typing
 
 from rollability_ros.core.bags import definition_for, full_type_name
 from rollability_ros.core.optional import require
@@ -49,7 +50,7 @@ class ViewSettings:
     discovery_period_s: float = dataclasses.field(default=2.0, metadata={
         "description": "how often the ROS graph is searched for new topics to serve, s", "range": (0.0, 3600.0)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if self.host != "localhost":
             try:
@@ -62,7 +63,7 @@ class ViewSettings:
             raise ValueError(f"discovery_period_s must be > 0, got {self.discovery_period_s}")
 
 
-def ros2msg_schema(type_name):
+def ros2msg_schema(type_name: str) -> typing.Tuple[str, str]:
     """``(schema name, schema text)`` of ``pkg/msg/Type`` as the Foxglove app expects for ``cdr`` channels.
 
     Raises ``ValueError`` when the type's interface files are not found.
@@ -84,7 +85,7 @@ def _jazzy_typestore():
     return get_typestore(Stores.ROS2_JAZZY)
 
 
-def tf_from_pose_cdr(pose_stamped_cdr, child_frame_id):
+def tf_from_pose_cdr(pose_stamped_cdr: bytes, child_frame_id: str) -> bytes:
     """CDR bytes of a ``tf2_msgs/msg/TFMessage`` with one transform: the ``geometry_msgs/PoseStamped`` (CDR
     bytes) as the pose of ``child_frame_id`` in the pose's ``header.frame_id`` (same stamp; metres, unit
     quaternion). Raises ``ValueError`` for bytes that are not a PoseStamped or an empty frame."""
@@ -105,7 +106,7 @@ def tf_from_pose_cdr(pose_stamped_cdr, child_frame_id):
     return bytes(store.serialize_cdr(types[TF_TYPE](transforms=[transform]), TF_TYPE))
 
 
-def parse_pose_frames(entries):
+def parse_pose_frames(entries: typing.Iterable[str]) -> typing.Dict[str, str]:
     """``["/topic=child_frame", ...]`` -> ``{topic: child_frame}``; ``ValueError`` naming a malformed entry."""
     frames = {}
     for entry in entries:
@@ -120,7 +121,7 @@ def _replay_listener(foxglove, view):
     """A foxglove ``ServerListener`` that replays latched topics to a new subscriber (other events: no-ops)."""
 
     class ReplayLatched(foxglove.websocket.ServerListener):
-        def on_subscribe(self, client, channel):
+        def on_subscribe(self, client: typing.Any, channel: typing.Any) -> None:
             view.replay(channel.topic)
 
     return ReplayLatched()
@@ -148,27 +149,28 @@ class ViewServer:
         self._latched = {}           # topic -> last (cdr bytes, log time ns) of a latched topic
         self._lock = threading.Lock()
 
-    def start(self):
+    def start(self) -> int:
         """Start serving; return the bound port. Raises ``MissingDependency`` without the ``view`` extra."""
         foxglove = self._foxglove = require("foxglove", feature="the live Foxglove view")
         self._context = foxglove.Context()
         self._server = foxglove.start_server(name=self.name, host=self.settings.host, port=self.settings.port,
                                              context=self._context, server_listener=_replay_listener(foxglove, self))
-        _LOG.info("Foxglove view on ws://%s:%d", self.settings.host, self.port)
-        return self.port
+        port = int(self._server.port)
+        _LOG.info("Foxglove view on ws://%s:%d", self.settings.host, port)
+        return port
 
     @property
-    def port(self):
+    def port(self) -> typing.Optional[int]:
         """The port the server listens on (None before :meth:`start`)."""
         return None if self._server is None else self._server.port
 
     @property
-    def topics(self):
+    def topics(self) -> typing.Dict[str, str]:
         """``{topic: type name}`` of the channels served so far."""
         with self._lock:
             return {topic: type_name for topic, (type_name, _) in self._channels.items()}
 
-    def add_topic(self, topic, type_name, latched=False):
+    def add_topic(self, topic: str, type_name: str, latched: bool = False) -> bool:
         """Advertise ``topic`` of ROS type ``type_name``; True if new, False if already served with that type.
 
         ``latched``: keep its last message for clients that subscribe later. Raises ``ValueError`` when the
@@ -190,7 +192,7 @@ class ViewServer:
                 self._latched.setdefault(topic, None)
         return True
 
-    def log(self, topic, cdr_bytes, time_ns=None):
+    def log(self, topic: str, cdr_bytes: bytes, time_ns: typing.Optional[int] = None) -> None:
         """Send one serialized message of ``topic`` to its subscribers; ``time_ns`` defaults to now (ns).
 
         Raises ``ValueError`` for a topic that was never added.
@@ -204,14 +206,15 @@ class ViewServer:
                 self._latched[topic] = (bytes(cdr_bytes), time_ns)
         entry[1].log(bytes(cdr_bytes), log_time=time_ns)
 
-    def log_pose_as_tf(self, pose_stamped_cdr, child_frame_id, time_ns=None):
+    def log_pose_as_tf(self, pose_stamped_cdr: bytes, child_frame_id: str,
+                       time_ns: typing.Optional[int] = None) -> None:
         """Log a PoseStamped (CDR bytes) on :data:`TF_TOPIC` as the transform of ``child_frame_id``
         (:func:`tf_from_pose_cdr`), advertising the /tf channel on first use."""
         tf_bytes = tf_from_pose_cdr(pose_stamped_cdr, child_frame_id)
         self.add_topic(TF_TOPIC, TF_TYPE)
         self.log(TF_TOPIC, tf_bytes, time_ns)
 
-    def replay(self, topic):
+    def replay(self, topic: str) -> None:
         """Log the kept last message of latched ``topic`` again (nothing for other topics or before one came)."""
         with self._lock:
             last = self._latched.get(topic)
@@ -219,7 +222,7 @@ class ViewServer:
         if last is not None and entry is not None:
             entry[1].log(last[0], log_time=last[1])
 
-    def stop(self):
+    def stop(self) -> None:
         """Stop the server (idempotent)."""
         if self._server is not None:
             self._server.stop()

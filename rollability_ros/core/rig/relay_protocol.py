@@ -104,8 +104,8 @@ def split_lines(pending: bytes) -> tuple:
     return [raw.decode("ascii", errors="replace") for raw in lines], rest
 
 
-def pulse_command(pulse_ms: int) -> str:
-    """The command line for a pulse of ``pulse_ms`` ms (a positive integer)."""
+def pulse_command(pulse_ms: float) -> str:
+    """The command line for a pulse of ``pulse_ms`` ms (a positive whole number; a fraction is refused)."""
     if isinstance(pulse_ms, bool) or int(pulse_ms) != pulse_ms or pulse_ms <= 0:
         raise ValueError(f"pulse length must be a positive whole number of ms, got {pulse_ms!r}")
     return f"PULSE {int(pulse_ms)}"

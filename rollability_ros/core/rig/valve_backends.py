@@ -20,10 +20,11 @@ import subprocess
 import sys
 import threading
 import time
+import typing
 
 from rollability_ros.core.optional import require
 from rollability_ros.core.rig import relay_protocol
-from rollability_ros.core.rig.valve import ValveController
+from rollability_ros.core.rig.valve import ValveConfig, ValveController
 from rollability_ros.core.rig.valve_backend import ValveBackend, make_valve_backend
 
 _LOG = logging.getLogger(__name__)
@@ -46,30 +47,30 @@ class DryRunBackend(ValveBackend):
         self.history.append((self._clock(), command))
         _LOG.info("dry_run valve: %s", command)
 
-    def open(self):
+    def open(self) -> None:
         """Start (nothing to acquire)."""
         self._record("start")
 
-    def open_valve(self, pulse_ms=None):
+    def open_valve(self, pulse_ms: typing.Optional[float] = None) -> None:
         """Log an open command (``pulse_ms`` is the controller's, the dry run has no device to time it)."""
         self._record("open")
 
-    def close_valve(self):
+    def close_valve(self) -> None:
         """Log a close command."""
         self._record("close")
 
-    def release(self):
+    def release(self) -> None:
         """Log a close command, then the release."""
         self.close_valve()
         self._record("release")
 
     @property
-    def commands(self):
+    def commands(self) -> typing.List[str]:
         """The commands of ``history`` without their times."""
         return [command for _, command in self.history]
 
 
-def gpio_chip_path(chip):
+def gpio_chip_path(chip: str) -> str:
     """Return a device path for ``chip``: ``"gpiochip0"`` -> ``"/dev/gpiochip0"``; paths are kept."""
     return chip if "/" in chip else f"/dev/{chip}"
 
@@ -105,7 +106,7 @@ class GpioBackend(ValveBackend):
         self._gpiod = None
         self._request = None
 
-    def open(self):
+    def open(self) -> None:
         """Request the line as an output whose initial value is inactive (valve closed) from the first instant."""
         gpiod = self._gpiod = require("gpiod", feature="the gpio valve backend")
         settings = gpiod.LineSettings(
@@ -123,7 +124,7 @@ class GpioBackend(ValveBackend):
                 "the configuration declares a hardware pulse limiter (valve.gpio.hardware_pulse_limiter)"
                 if self.hardware_pulse_limiter else "no hardware pulse limiter is declared, so every fire is refused")
 
-    def fire_refusal(self):
+    def fire_refusal(self) -> str:
         """Refuse every pulse unless the configuration declares the external hardware pulse limiter."""
         if self.hardware_pulse_limiter:
             return ""
@@ -131,13 +132,13 @@ class GpioBackend(ValveBackend):
                 "valve) on; wire the limiter of docs/firmware.md and set valve.gpio.hardware_pulse_limiter: true, "
                 "or use the serial_relay board")
 
-    def startup_warning(self):
+    def startup_warning(self) -> str:
         """What a dead process leaves behind on the GPIO line, and whether firing is refused for it."""
         return ("gpio backend (line held by this process, valve.gpio.line_holder: false): if this node dies the "
                 "line stays where it was; only the hardware pulse limiter of docs/firmware.md closes the valve then"
                 + _limiter_note(self.hardware_pulse_limiter))
 
-    def link_state(self):
+    def link_state(self) -> str:
         """One line for diagnostics."""
         requested = "requested" if self._request is not None else "not requested"
         limiter = "hardware pulse limiter declared" if self.hardware_pulse_limiter else "NO hardware pulse limiter"
@@ -149,15 +150,15 @@ class GpioBackend(ValveBackend):
         value = self._gpiod.line.Value.ACTIVE if active else self._gpiod.line.Value.INACTIVE
         self._request.set_value(self.line_offset, value)
 
-    def open_valve(self, pulse_ms=None):
+    def open_valve(self, pulse_ms: typing.Optional[float] = None) -> None:
         """Drive the line active (the controller times the pulse; only a hardware limiter survives its death)."""
         self._set(True)
 
-    def close_valve(self):
+    def close_valve(self) -> None:
         """Drive the line inactive."""
         self._set(False)
 
-    def release(self):
+    def release(self) -> None:
         """Drive the line inactive, then release the request."""
         if self._request is None:
             return
@@ -194,7 +195,7 @@ class SerialRelayBackend(ValveBackend):
     name = "serial_relay"
 
     @classmethod
-    def from_config(cls, config):
+    def from_config(cls, config: "ValveConfig") -> ValveBackend:
         """The board on ``valve.serial.*``."""
         s = config.serial
         return cls(s.port, s.baud, s.timeout_s, s.keepalive_period_ms, s.boot_wait_s)
@@ -219,12 +220,12 @@ class SerialRelayBackend(ValveBackend):
         self._busy = None                 # (line, monotonic start) of the command holding the port
 
     @property
-    def call_timeout_s(self):
+    def call_timeout_s(self) -> float:  # type: ignore[override]  # a property over the contract's class attribute
         """Longest one command may take (write bound + answer bound + slack), s; the controller bounds each call by
         it and :meth:`stalled` reports a command that overran it."""
         return max(self.timeout_s, MIN_WRITE_TIMEOUT_S) + self.timeout_s + 0.5
 
-    def stalled(self):
+    def stalled(self) -> str:
         """A reason when the command holding the port (the keep-alive's too) has overrun :attr:`call_timeout_s`,
         else "": a write into a board that stopped taking bytes must not go unnoticed while no one else calls."""
         busy = self._busy
@@ -236,7 +237,7 @@ class SerialRelayBackend(ValveBackend):
         return (f"serial link stuck: command {busy[0]!r} has not returned for {age_s * 1000:.0f} ms "
                 f"(bound {self.call_timeout_s:.1f} s)")
 
-    def set_fault_listener(self, callback):
+    def set_fault_listener(self, callback: typing.Callable[[str], None]) -> None:
         """``callback(reason)`` is called (from the keep-alive thread) when the board faults on its own."""
         self._fault_listener = callback
 
@@ -250,7 +251,7 @@ class SerialRelayBackend(ValveBackend):
                              write_timeout=max(self.timeout_s, MIN_WRITE_TIMEOUT_S))
         return _SerialPort(port, self.timeout_s)
 
-    def open(self):
+    def open(self) -> None:
         """Open the port, check the board's protocol and limits, start the keep-alive thread."""
         self._serial = self._open_port()
         deadline = time.monotonic() + self.boot_wait_s
@@ -360,7 +361,7 @@ class SerialRelayBackend(ValveBackend):
             self._armed = False
         return state, expected_armed
 
-    def link_state(self):
+    def link_state(self) -> str:
         """One line for diagnostics: link, board limits, last answer age, board state."""
         if self.limits is None:
             return f"{self.port}: {self._link}"
@@ -369,31 +370,31 @@ class SerialRelayBackend(ValveBackend):
         return (f"{self.port}: {self._link}; {self.limits.protocol} max_pulse_ms={self.limits.max_pulse_ms} "
                 f"keepalive_timeout_ms={self.limits.keepalive_timeout_ms}; last answer {age}; board {state}")
 
-    def arm(self):
+    def arm(self) -> None:
         """Arm the board (its keep-alive timer starts)."""
         self._command("ARM", expect="OK ARMED", then=lambda _answer: setattr(self, "_armed", True))
 
-    def disarm(self):
+    def disarm(self) -> None:
         """Disarm the board (relay off)."""
         self._command("DISARM", expect="OK DISARMED", then=lambda _answer: setattr(self, "_armed", False))
 
-    def clear(self):
+    def clear(self) -> None:
         """Acknowledge a latched board fault (refused while the e-stop button is held)."""
         self._command("CLEAR", expect="OK CLEARED")
         self._reported_fault = "none"
 
-    def open_valve(self, pulse_ms=None):
+    def open_valve(self, pulse_ms: typing.Optional[float] = None) -> None:
         """Ask the board for a pulse of ``pulse_ms`` ms; the board ends it at ``min(pulse_ms, its max_pulse_ms)``."""
         if pulse_ms is None:
             raise ValveBackendError("the relay board needs the pulse length")
         answer = self._command(relay_protocol.pulse_command(pulse_ms), expect="OK PULSE ")
         self.granted_ms = int(answer.split()[-1])
 
-    def close_valve(self):
+    def close_valve(self) -> None:
         """Switch the relay off now (the board also ends the pulse on its own)."""
         self._command("OFF", expect="OK OFF")
 
-    def release(self):
+    def release(self) -> None:
         """Stop the keep-alive, switch the relay off and disarm, then close the port."""
         self._stop.set()
         if self._thread is not None:
@@ -433,7 +434,7 @@ class _LinePort:
         """Append what has arrived (waiting up to about ``wait_s`` for a first byte); True when anything came."""
         raise NotImplementedError
 
-    def read_until(self, terminator=b"\n"):
+    def read_until(self, terminator: bytes = b"\n") -> bytes:
         """Bytes up to and including ``terminator``, or what arrived within ``timeout_s``."""
         deadline = time.monotonic() + self.timeout_s
         while terminator not in self._buffer:
@@ -465,16 +466,16 @@ class _SerialPort(_LinePort):
         self._buffer += data
         return bool(data)
 
-    def reset_input_buffer(self):
+    def reset_input_buffer(self) -> None:
         """Drop everything received so far."""
         self.port.reset_input_buffer()
         self._buffer = b""
 
-    def write(self, data):
+    def write(self, data: bytes) -> None:
         """Send bytes to the board."""
         self.port.write(data)
 
-    def close(self):
+    def close(self) -> None:
         """Close the port."""
         self.port.close()
 
@@ -497,20 +498,20 @@ class _PipePort(_LinePort):
         self._buffer += data
         return True
 
-    def reset_input_buffer(self):
+    def reset_input_buffer(self) -> None:
         """Drop everything received so far."""
         while self.process.poll() is None and self._read_available(0):
             pass
         self._buffer = b""
 
-    def write(self, data):
+    def write(self, data: bytes) -> None:
         """Send bytes to the holder."""
         try:
             os.write(self.process.stdin.fileno(), data)
         except OSError as exc:
             raise ValveBackendError(f"gpio line holder gone: {exc}") from exc
 
-    def close(self):
+    def close(self) -> None:
         """Close the holder's input (it drives the line inactive and exits); kill it if it does not."""
         self.process.stdin.close()
         try:
@@ -554,7 +555,7 @@ class GpioHolderBackend(SerialRelayBackend):
         return _PipePort(self.process, self.timeout_s)
 
     @classmethod
-    def from_config(cls, config):
+    def from_config(cls, config: "ValveConfig") -> ValveBackend:
         """The line on ``valve.gpio.*``: held by the child process, or (``line_holder: false``) by this process."""
         g = config.gpio
         if g.line_holder:
@@ -563,19 +564,20 @@ class GpioHolderBackend(SerialRelayBackend):
 
     fire_refusal = GpioBackend.fire_refusal
 
-    def startup_warning(self):
+    def startup_warning(self) -> str:
         """What a dead holder leaves behind on the GPIO line, and whether firing is refused for it."""
         return ("gpio backend: the line holder process drops the line when this node dies, but if the holder dies "
                 "too (or the computer freezes) the line stays where it was; only the hardware pulse limiter of "
                 "docs/firmware.md closes the valve then" + _limiter_note(self.hardware_pulse_limiter))
 
-    def link_state(self):
+    def link_state(self) -> str:
         """One line for diagnostics: the holder link and whether a hardware limiter is declared."""
         limiter = "hardware pulse limiter declared" if self.hardware_pulse_limiter else "NO hardware pulse limiter"
         return f"{super().link_state()}; {limiter}"
 
 
-def make_controller(config, on_state=None):
+def make_controller(config: "ValveConfig",
+                    on_state: typing.Optional[typing.Callable[..., None]] = None) -> ValveController:
     """Build the backend ``config.backend`` names and a :class:`ValveController` for ``config``, and start its
     steady-clock watchdog.
 

@@ -34,10 +34,13 @@ trimesh, networkx (trimesh's pose graph), scipy and pybullet are imported inside
 import dataclasses
 import heapq
 import math
+import typing
 
 import numpy as np
+import numpy.typing as npt
 
 from rollability_ros.core.optional import require
+from rollability_ros.core.profile import Mesh
 from rollability_ros.core.sim.body_points import link_points
 
 #: Standard gravity for the barrier energy, m/s^2.
@@ -60,7 +63,7 @@ class ScreenSettings:
     prescreen_min_probability: float = dataclasses.field(default=0.0, metadata={
         "description": "candidates below this quasi-static P(upright) are flagged (0 = off)", "range": (0.0, 1.0)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not 0 <= self.com_sigma_m < 0.05:
             raise ValueError(f"com_sigma_m must be in [0, 0.05) m, got {self.com_sigma_m}")
@@ -78,12 +81,12 @@ class ScreenSettings:
 class RigidHull:
     """A rigid body for the screen: its convex hull (trimesh, metres, body frame), COM (3,) m, mass kg."""
 
-    hull: object
+    hull: Mesh
     com_m: np.ndarray
     mass_kg: float
 
     @classmethod
-    def from_points(cls, points_m, com_m, mass_kg):
+    def from_points(cls, points_m: npt.ArrayLike, com_m: npt.ArrayLike, mass_kg: float) -> "RigidHull":
         """The hull of ``points_m`` (k, 3) with ``com_m`` (3,) inside it; ``ValueError`` if degenerate or outside."""
         trimesh = require("trimesh", feature="the stable-pose screen")
         points = np.asanyarray(points_m, dtype=np.float64)
@@ -112,7 +115,7 @@ def _rotation_onto_z(axis):
     return np.eye(3) + skew + skew @ skew / (1 + cos)
 
 
-def robot_hull(robot_model, profile=None, sections=24):
+def robot_hull(robot_model: typing.Any, profile: typing.Any = None, sections: int = 24) -> RigidHull:
     """The :class:`RigidHull` of any :class:`~rollability_ros.core.robots.robot.RobotModel` with ``profile`` on its mount.
 
     The robot is spawned, as the trials spawn it, in a private PyBullet client at the origin with its base frame
@@ -127,9 +130,9 @@ def robot_hull(robot_model, profile=None, sections=24):
     try:
         # geometry only: this world is never stepped
         robot = robot_model.spawn(client, profile, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), time_step_s=None)
-        points_by_link, masses, centres = link_points(client, robot.body_id, sections)
+        points_by_link, mass_by_link, centre_by_link = link_points(client, robot.body_id, sections)
         points = list(points_by_link.values())
-        masses, centres = list(masses.values()), list(centres.values())
+        masses, centres = list(mass_by_link.values()), list(centre_by_link.values())
         up = robot_model.up_axis(client, robot)
     finally:
         disconnect(client)
@@ -164,7 +167,7 @@ class StableScreen:
     worst_barrier_m: float
     worst_barrier_j: float
 
-    def row(self):
+    def row(self) -> typing.Dict[str, float]:
         """Flat dict for a CSV table or a printout."""
         return {"upright_probability": self.upright_probability, "resting_poses": len(self.poses),
                 "worst_barrier_m": self.worst_barrier_m, "worst_barrier_j": self.worst_barrier_j}
@@ -201,7 +204,12 @@ def _minimax_heights(hull, com, upright_faces):
     return best, plane_height
 
 
-def screen_body(body, upright_tilt_deg, com_sigma_m=0.0, n_samples=1, seed=1):
+#: A :func:`drop_trials` spawner: ``spawn(client, time_step_s) -> (body_id, upright(ground_id) -> bool)``.
+Spawner = typing.Callable[[int, typing.Optional[float]], typing.Tuple[int, typing.Callable[[int], bool]]]
+
+
+def screen_body(body: RigidHull, upright_tilt_deg: float, com_sigma_m: float = 0.0, n_samples: int = 1,
+                seed: int = 1) -> StableScreen:
     """Screen ``body`` (a :class:`RigidHull`): resting poses with probabilities and barriers (module docstring).
 
     Parameters
@@ -248,15 +256,16 @@ def screen_body(body, upright_tilt_deg, com_sigma_m=0.0, n_samples=1, seed=1):
                         worst_barrier_j=body.mass_kg * GRAVITY_MPS2 * worst)
 
 
-def screen_robot(robot_model, profile, settings):
+def screen_robot(robot_model: typing.Any, profile: typing.Any, settings: ScreenSettings) -> StableScreen:
     """Screen ``robot_model`` (any RobotModel) with ``profile`` (ProfileBody or None) under :class:`ScreenSettings`,
     upright by the model's own tilt threshold."""
     body = robot_hull(robot_model, profile, settings.wheel_sections)
     return screen_body(body, robot_model.upright_tilt_deg, settings.com_sigma_m, settings.n_samples, settings.seed)
 
 
-def screen_heights(heights_list, evaluator_settings, settings):
-    """Screen candidate profiles (half-grid heights, simulation units) for the optimizer.
+def screen_heights(heights_list: typing.Sequence[npt.ArrayLike], evaluator_settings: typing.Any,
+                   settings: ScreenSettings) -> typing.List[typing.Tuple[StableScreen, bool]]:
+    """Screen candidate profiles (half-grid heights ``(grid.n_variables,)``, simulation units) for the optimizer.
 
     Returns ``[(StableScreen, passed)]`` in the order given; ``passed`` is ``upright_probability >=
     settings.prescreen_min_probability``. Meant for choosing or ranking initial means and for flagging
@@ -272,47 +281,50 @@ def screen_heights(heights_list, evaluator_settings, settings):
     return out
 
 
-def profile_screener(evaluator_settings, settings):
-    """``screen_profiles(heights_list) -> [StableScreen, ...]`` on the robot of ``evaluator_settings`` under
-    :class:`ScreenSettings` ``settings``: the screen an :class:`~rollability_ros.core.optimization.optimization_run.OptimizationRun`
+def profile_screener(evaluator_settings: typing.Any, settings: ScreenSettings
+                     ) -> typing.Callable[[typing.Sequence[npt.ArrayLike]], typing.List[StableScreen]]:
+    """``screen_profiles(heights_list) -> [StableScreen, ...]`` (each heights ``(grid.n_variables,)``, simulation
+    units) on the robot of ``evaluator_settings`` under :class:`ScreenSettings` ``settings``: the screen an :class:`~rollability_ros.core.optimization.optimization_run.OptimizationRun`
     ranks its initial means with."""
     settings.validate()
     return lambda heights_list: [screen for screen, _ in screen_heights(heights_list, evaluator_settings, settings)]
 
 
-def random_orientation(rng):
+def random_orientation(rng: np.random.Generator) -> typing.Tuple[float, ...]:
     """A uniformly random orientation (x, y, z, w) from numpy Generator ``rng`` (normalised 4-d Gaussian)."""
     quaternion = rng.standard_normal(4)
     return tuple(quaternion / np.linalg.norm(quaternion))
 
 
-def hull_spawner(body, upright_tilt_deg):
+def hull_spawner(body: RigidHull, upright_tilt_deg: float) -> Spawner:
     """A :func:`drop_trials` spawner for a :class:`RigidHull`: one convex mesh body, upright by tilt alone."""
     pybullet = require("pybullet", feature="low-energy drop trials")
     cos_upright = math.cos(math.radians(upright_tilt_deg))
 
-    def spawn(client, time_step_s):   # a rigid hull: nothing in it depends on the step
+    def spawn(client: int, time_step_s: typing.Optional[float]) -> typing.Tuple[int, typing.Callable[[int], bool]]:
+        # a rigid hull: nothing in it depends on the step
         shape = pybullet.createCollisionShape(pybullet.GEOM_MESH, vertices=body.hull.vertices.tolist(),
                                               physicsClientId=client)
         body_id = pybullet.createMultiBody(baseMass=body.mass_kg, baseCollisionShapeIndex=shape,
                                            baseInertialFramePosition=body.com_m.tolist(), physicsClientId=client)
 
-        def upright(ground_id):
+        def upright(ground_id: int) -> bool:
             _, orientation = pybullet.getBasePositionAndOrientation(body_id, physicsClientId=client)
             return pybullet.getMatrixFromQuaternion(orientation)[8] >= cos_upright
         return body_id, upright
     return spawn
 
 
-def chassis_spawner(robot_model, profile):
+def chassis_spawner(robot_model: typing.Any, profile: typing.Any) -> Spawner:
     """A :func:`drop_trials` spawner for a robot model with ``profile``; upright by the model's own test."""
-    def spawn(client, time_step_s):
+    def spawn(client: int, time_step_s: typing.Optional[float]) -> typing.Tuple[int, typing.Callable[[int], bool]]:
         robot = robot_model.spawn(client, profile, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0, 1.0), time_step_s=time_step_s)
         return robot.body_id, lambda ground_id: robot_model.is_upright(client, robot, ground_id)[0]
     return spawn
 
 
-def drop_trials(spawn, trials, seed, physics, trial_settings, clearance_m=0.001):
+def drop_trials(spawn: Spawner, trials: int, seed: int, physics: typing.Any, trial_settings: typing.Any,
+                clearance_m: float = 0.001) -> typing.Tuple[int, int]:
     """Low-energy PyBullet drops: ``trials`` uniformly random orientations released at rest ``clearance_m``
     above the ground; count how many come to rest upright (the quasi-static screen's experiment).
 

@@ -25,7 +25,8 @@ MODULES = ["imu/quaternion.py", "imu/upright.py", "records.py", "record_messages
            "results/outcome_csv.py", "sim/sensitivity.py", "results/engine_agreement.py", "sim/launcher_geometry.py",
            "sim/trials.py", "store.py", "rig/speed_gate.py", "rig/valve.py", "results/outcome_log.py",
            "sim/early_decision.py", "sim/objectives.py", "graph/foxglove_view.py",
-           "rig/valve_backends.py", "sim/stable_poses.py"]
+           "rig/valve_backends.py", "sim/stable_poses.py",
+           "sim/mujoco_trials.py"]
 
 
 def unannotated(path):

@@ -22,12 +22,14 @@ Contact values (how ``config/sim.yaml``'s numbers map; MuJoCo combines two geoms
     An unpowered wheel drive's drag torque becomes the joint's ``frictionloss`` (N m).
 """
 import math
+import typing
 
 import numpy as np
 
 from rollability_ros.core.optional import require
 from rollability_ros.core.sim.trial_engine import TrialEngine, TrialOutcome
-from rollability_ros.core.sim.trials import RestDetector, sample_conditions
+from rollability_ros.core.sim.trials import RestDetector, TrialSettings, sample_conditions
+from rollability_ros.core.sim.world import PhysicsParams
 
 
 #: MuJoCo's contact spring (solref): time constant (s, MuJoCo's default; 2 steps blew up with the profile meshes)
@@ -36,7 +38,7 @@ from rollability_ros.core.sim.trials import RestDetector, sample_conditions
 CONTACT_SOLREF = (0.02, 1.0)
 
 
-def effective_contact(physics):
+def effective_contact(physics: PhysicsParams) -> typing.Tuple[float, float, float, float]:
     """Robot-ground contact values (lateral, spinning, rolling friction, restitution) under ``contact_model``."""
     if physics.contact_model == "per_body":
         mu = physics.lateral_friction
@@ -45,7 +47,7 @@ def effective_contact(physics):
     return physics.lateral_friction, physics.spinning_friction, physics.rolling_friction, physics.restitution
 
 
-def set_geom_contact(geom, physics, ground=False):
+def set_geom_contact(geom: typing.Any, physics: PhysicsParams, ground: bool = False) -> None:
     """Give an MjSpec ``geom`` the contact values of ``physics`` (module docstring): a simulated object gets the
     effective robot-ground values, the ground zeros (MuJoCo takes the larger of two geoms' values)."""
     lateral, spinning, rolling, _ = effective_contact(physics)
@@ -54,7 +56,8 @@ def set_geom_contact(geom, physics, ground=False):
     geom.solref = [max(CONTACT_SOLREF[0], 4 * physics.time_step_s), CONTACT_SOLREF[1]]
 
 
-def robot_spec(robot_model, profile, physics):
+def robot_spec(robot_model: typing.Any, profile: typing.Any,
+               physics: PhysicsParams) -> typing.Tuple[typing.Any, typing.Any]:
     """The MjSpec of ``robot_model`` with ``profile`` (or None): contacts, joint drag, profile mount and a free
     joint on the root link, nothing else in the world. Returns ``(spec, root body spec)``."""
     mujoco = require("mujoco", feature="the MuJoCo trial engine")
@@ -94,13 +97,14 @@ def robot_spec(robot_model, profile, physics):
     return spec, root
 
 
-def wheel_bodies(model, robot_model):
+def wheel_bodies(model: typing.Any, robot_model: typing.Any) -> typing.Set[int]:
     """The body ids of ``robot_model``'s wheel links in compiled ``model``."""
     wheel_names = set(robot_model.wheel_link_names())
     return {model.body(i).id for i in range(model.nbody) if model.body(i).name in wheel_names}
 
 
-def build_model(robot_model, profile, physics):
+def build_model(robot_model: typing.Any, profile: typing.Any,
+                physics: PhysicsParams) -> typing.Tuple[typing.Any, int, typing.Set[int]]:
     """Compile the MuJoCo model of ``robot_model`` with ``profile`` (or None) on a ground plane.
 
     Returns ``(model, root body id, {wheel body id, ...})``.
@@ -129,7 +133,8 @@ class MujocoTrialWorld(TrialEngine):
     owns_world = True              # its own model and data: several can be kept per process
 
     @classmethod
-    def build(cls, client, robot_model, profile, settings, physics):
+    def build(cls, client: typing.Any, robot_model: typing.Any, profile: typing.Any, settings: TrialSettings,
+              physics: PhysicsParams) -> "MujocoTrialWorld":
         """The MuJoCo world (it has its own: ``client`` is not used)."""
         return cls(robot_model, profile, settings, physics)
 
@@ -149,12 +154,12 @@ class MujocoTrialWorld(TrialEngine):
         self.energy = MujocoEnergyMonitor(self, settings.early_decision_margin_m) \
             if settings.early_decision and not compliant else None
 
-    def lowest_distance_m(self, geoms):
+    def lowest_distance_m(self, geoms: typing.Iterable[int]) -> float:
         """Smallest distance (m, negative = penetration) from ``geoms`` to the ground, at the current state."""
         mujoco, model, data = self.mujoco, self.model, self.data
         return min(mujoco.mj_geomDistance(model, data, geom, self.ground_geom, 10.0, None) for geom in geoms)
 
-    def place(self, orientation_xyzw, clearance_m):
+    def place(self, orientation_xyzw: typing.Sequence[float], clearance_m: float) -> None:
         """Reset the data and put the robot at rest with ``orientation_xyzw`` and its lowest point ``clearance_m``
         above the ground."""
         mujoco, model, data = self.mujoco, self.model, self.data
@@ -165,19 +170,19 @@ class MujocoTrialWorld(TrialEngine):
         data.qpos[2] += clearance_m - self.lowest_distance_m(self.robot_geoms)
         mujoco.mj_forward(model, data)
 
-    def tilt_deg(self):
+    def tilt_deg(self) -> float:
         """Angle between the root frame's up axis and world +z, degrees."""
         up_world = self.data.xmat[self.root].reshape(3, 3) @ self.up_in_root
         return math.degrees(math.acos(float(np.clip(up_world[2], -1.0, 1.0))))
 
-    def is_upright(self):
+    def is_upright(self) -> typing.Tuple[bool, float]:
         """``(upright, tilt_deg)`` as :meth:`RobotModel.is_upright` judges it."""
         tilt = self.tilt_deg()
         tolerance = self.robot_model.contact_tolerance_m
         touching = sum(self.lowest_distance_m(geoms) <= tolerance for geoms in self.wheel_geoms.values() if geoms)
         return tilt <= self.robot_model.upright_tilt_deg and touching >= self.robot_model.min_wheels_in_contact, tilt
 
-    def run(self, index, seed):
+    def run(self, index: int, seed: int) -> TrialOutcome:
         """Run one trial (see :mod:`rollability_ros.core.sim.trials`) and return its :class:`TrialOutcome`."""
         mujoco, model, data, settings = self.mujoco, self.model, self.data, self.settings
         conditions = sample_conditions(seed, settings)
@@ -211,9 +216,9 @@ class MujocoTrialWorld(TrialEngine):
             if steps % interval:
                 continue
             pose = data.qpos[0:7].copy()
-            moved = previous_pose is not None and _pose_speeds(previous_pose, pose, interval * dt)
+            moved = None if previous_pose is None else _pose_speeds(previous_pose, pose, interval * dt)
             previous_pose = pose
-            if steps >= push_end and moved:
+            if steps >= push_end and moved is not None:
                 if energy is not None:
                     # the first half of the next step computes the position-dependent quantities (COM, mass
                     # matrix) the energy needs; mj_step1 + mj_step2 = mj_step (Euler integrator)
@@ -274,7 +279,7 @@ def _geom_points(mujoco, model, geom, sections=24):
     return None
 
 
-def penetration_allowance_m(physics):
+def penetration_allowance_m(physics: PhysicsParams) -> float:
     """How far (m) a resting or rocking body may sink into MuJoCo's soft ground: 3 x g x timeconst^2.
 
     A critically damped contact spring of time constant ``tc`` holds a body at rest ``g tc^2`` deep
@@ -324,7 +329,7 @@ class MujocoEnergyMonitor:
         self.gravity_mps2 = abs(world.physics.gravity_mps2)
         self._momentum = np.zeros(model.nv)
 
-    def decide(self):
+    def decide(self) -> typing.Optional[bool]:
         """True / False once the trial's outcome is fixed (upright / not), else None; call after ``mj_step1``."""
         mujoco, world = self.mujoco, self.world
         model, data = world.model, world.data

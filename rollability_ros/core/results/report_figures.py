@@ -5,6 +5,7 @@ rule); black points with whiskers show the per-trial success rate with its Wilso
 Heights are drawn in cm and speeds in m/s, as in the paper.
 """
 import math
+import typing
 
 from rollability_ros.core.results.analysis import cells_of, grid
 from rollability_ros.core.optional import require
@@ -45,7 +46,8 @@ def _panels(count, columns=2, size=(4.8, 3.4)):
     return figure, flat[:count]
 
 
-def heatmaps(path, cells, configurations, row_factor, title):
+def heatmaps(path: str, cells: typing.Sequence[typing.Any], configurations: typing.Sequence[str], row_factor: str,
+             title: str) -> str:
     """One heat map per configuration: ``row_factor`` x angle, colour = condition rate, text = both rates."""
     figure, axes = _panels(len(configurations))
     image = None
@@ -72,7 +74,8 @@ def _text_colour(rate):
     return "white" if rate < 0.2 or rate > 0.85 else "black"
 
 
-def angle_curves(path, speed_angle_cells, configurations):
+def angle_curves(path: str, speed_angle_cells: typing.Sequence[typing.Any],
+                 configurations: typing.Sequence[str]) -> str:
     """Figure 11: success against angle, one line per speed, one panel per configuration."""
     figure, axes = _panels(len(configurations))
     for letter, (ax, configuration) in zip("abcdefghijklmnop", zip(axes, configurations)):
@@ -108,7 +111,7 @@ OVERALL_MEASURES = {
 }
 
 
-def overall(path, views, configurations, measure="condition_rate"):
+def overall(path: str, views: typing.Any, configurations: typing.Sequence[str], measure: str = "condition_rate") -> str:
     """Figure 12: grouped bars by speed, height and angle per configuration, and overall per configuration, of one
     ``measure`` (:data:`OVERALL_MEASURES`): the paper's condition rate, or the trial rate with its interval."""
     label, whiskers = OVERALL_MEASURES[measure]
@@ -154,7 +157,7 @@ def _configuration_axis(ax, configurations, label="success rate"):
     ax.grid(axis="y", alpha=0.3)
 
 
-def convergence(path, points):
+def convergence(path: str, points: typing.Sequence[typing.Any]) -> str:
     """Figure 4: best-so-far fitness per generation (solid), generation best and mean (faint), per run."""
     plt = _pyplot()
     figure, ax = plt.subplots(figsize=(6.4, 3.8), layout="constrained")
@@ -175,7 +178,7 @@ def convergence(path, points):
     return _save(figure, path)
 
 
-def sim_vs_experiment(path, comparison):
+def sim_vs_experiment(path: str, comparison: typing.Any) -> str:
     """Simulated fitness against campaign success per configuration (the campaign labelled experimental or
     simulated), with the rank agreement."""
     plt = _pyplot()
@@ -194,7 +197,7 @@ def sim_vs_experiment(path, comparison):
     return _save(figure, path)
 
 
-def engine_fitness(path, rows):
+def engine_fitness(path: str, rows: typing.Sequence[typing.Any]) -> str:
     """Each design's simulated fitness per engine (bars) with its Wilson 95% interval (whiskers)."""
     plt = _pyplot()
     engines = sorted({row.engine for row in rows}, key=[row.engine for row in rows].index)
@@ -217,7 +220,7 @@ def engine_fitness(path, rows):
     return _save(figure, path)
 
 
-def render_profile_preview(mesh, path, title=None):
+def render_profile_preview(mesh: typing.Any, path: str, title: typing.Optional[str] = None) -> str:
     """Render a profile solid (a trimesh in metres, profile frame) to a shaded 3D PNG at ``path``; returns ``path``.
 
     Axes are in millimetres, equal scale, seen from the front-left above; ``mesh`` None (the baseline) draws the
@@ -256,7 +259,7 @@ def render_profile_preview(mesh, path, title=None):
     return _save(figure, path)
 
 
-def sensitivity(path, rows):
+def sensitivity(path: str, rows: typing.Sequence[typing.Mapping[str, typing.Any]]) -> str:
     """The sensitivity study (:mod:`rollability_ros.core.sim.sensitivity`): one panel per factor, fitness of each
     configuration against the factor's levels with Wilson 95% intervals; the robust fitness as its own panel."""
     plt = _pyplot()
@@ -285,7 +288,7 @@ def sensitivity(path, rows):
     return _save(figure, path)
 
 
-def archive_map(path, archive_rows, edges):
+def archive_map(path: str, archive_rows: typing.Sequence[typing.Mapping[str, typing.Any]], edges: typing.Any) -> str:
     """The quality-diversity map: one square per filled cell of maximum height (x) x sharpness (y), coloured by the
     elite's fitness (the fresh screen's when there is one), the chosen designs' labels written in their cells.
 
@@ -318,7 +321,8 @@ def archive_map(path, archive_rows, edges):
     return _save(figure, path)
 
 
-def trait_curves(path, trait_rows, archive_rows):
+def trait_curves(path: str, trait_rows: typing.Sequence[typing.Mapping[str, typing.Any]],
+                 archive_rows: typing.Sequence[typing.Mapping[str, typing.Any]]) -> str:
     """Fitness against each trait: every evaluation of the run pooled per bin (line, Wilson 95% band) and each
     elite's fitness (points; the fresh screen's when there is one)."""
     plt = _pyplot()

@@ -208,8 +208,8 @@ def main():
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--keep", help="folder to keep the runs in (default: a temporary one)")
     parser.add_argument("--raced-name", default="raced", help="name of the raced runs' folders (with --keep)")
-    parser.add_argument("--reuse-full", action="store_true",
-                        help="with --keep: resume the full-budget runs kept there (a complete run ends at once)")
+    parser.add_argument("--reuse", action="store_true",
+                        help="with --keep: resume the runs kept there (a complete run ends at once)")
     parser.add_argument("--rule-only", action="store_true", help="only the rule's exact statistics (no runs)")
     parser.add_argument("--first-look-from", metavar="FOLDER",
                         help="only the first-look agreement, on the full-budget runs kept in FOLDER by --keep")
@@ -248,7 +248,7 @@ def main():
             for name, parameters in (("full", full_parameters), ("raced", raced_parameters)):
                 heights, spent, generations, seconds, evaluator_settings, stopped, run_dir = optimize(
                     parameters, seed, executor, folder, name if name == "full" else args.raced_name,
-                    reuse=args.reuse_full and name == "full")
+                    reuse=args.reuse)
                 if name == "full":
                     full_runs.append(run_dir)
                 fresh = evaluation.evaluate_profile(heights, args.fresh_trials, FRESH_SEED_BASE + seed,

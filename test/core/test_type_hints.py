@@ -26,7 +26,8 @@ MODULES = ["imu/quaternion.py", "imu/upright.py", "records.py", "record_messages
            "sim/trials.py", "store.py", "rig/speed_gate.py", "rig/valve.py", "results/outcome_log.py",
            "sim/early_decision.py", "sim/objectives.py", "graph/foxglove_view.py",
            "rig/valve_backends.py", "sim/stable_poses.py",
-           "sim/mujoco_trials.py", "results/report_figures.py"]
+           "sim/mujoco_trials.py", "results/report_figures.py",
+           "rig/relay_device_sim.py"]
 
 
 def unannotated(path):

@@ -27,6 +27,7 @@ import subprocess
 import sys
 import time
 import tty
+import typing
 
 import rollability_ros
 from rollability_ros.core.rig.relay_protocol import (DEFAULT_KEEPALIVE_TIMEOUT_MS, DEFAULT_MAX_PULSE_MS,
@@ -41,48 +42,49 @@ class _Board:
         self._log = open(log_path, "a", encoding="utf-8", buffering=1)  # line-buffered: readable at once
 
     @staticmethod
-    def now_ms():
+    def now_ms() -> float:
         return time.monotonic() * 1000.0
 
-    def log(self, event, **fields):
+    def log(self, event: str, **fields: typing.Any) -> None:
         entry = {"event": event, "relay": "on" if self.device.relay_on else "off",
                  "time_s": time.time(), "monotonic_s": time.monotonic(), **fields}
         self._log.write(json.dumps(entry) + "\n")
 
-    def log_transitions(self, transitions):
+    def log_transitions(self, transitions: typing.Iterable[typing.Tuple[bool, str]]) -> None:
         for _on, reason in transitions:
             self.log("relay", reason=reason)
 
-    def tick(self):
+    def tick(self) -> None:
         self.log_transitions(self.device.tick(self.now_ms()))
 
-    def answer(self, line):
+    def answer(self, line: str) -> str:
         """Apply one command line; return the answer line (without line ending)."""
         answer, transitions = self.device.handle(line, self.now_ms())
         self.log_transitions(transitions)
         self.log("command", line=line, answer=answer)
         return answer
 
-    def next_deadline_s(self):
+    def next_deadline_s(self) -> float:
         """Seconds until the board must act on its own (pulse end, keep-alive), capped at 50 ms."""
         return min(50.0, self.device.ms_until_next_deadline(self.now_ms())) / 1000.0
 
-    def close(self):
+    def close(self) -> None:
         self.log("exit")
         self._log.close()
 
 
-def serve(port_file, log_path, max_pulse_ms=DEFAULT_MAX_PULSE_MS, keepalive_timeout_ms=DEFAULT_KEEPALIVE_TIMEOUT_MS,
-          ack_delay_s=0.0, boot_delay_s=0.0):
+def serve(port_file: str, log_path: str, max_pulse_ms: int = DEFAULT_MAX_PULSE_MS,
+          keepalive_timeout_ms: int = DEFAULT_KEEPALIVE_TIMEOUT_MS, ack_delay_s: float = 0.0,
+          boot_delay_s: float = 0.0) -> None:
     """Create the pty, publish its path in ``port_file`` and run the board until SIGTERM / SIGINT."""
     board = _Board(log_path, max_pulse_ms, keepalive_timeout_ms)
     master_fd, slave_fd = os.openpty()
     tty.setraw(slave_fd)  # no echo, no newline translation
-    received = []  # signals, applied by the loop (a handler writing the log could interleave with it)
+    received: typing.List[int] = []  # signals, applied by the loop (a handler writing the log could interleave with it)
     cut = False
 
-    for signum in (signal.SIGTERM, signal.SIGINT, signal.SIGUSR1, signal.SIGUSR2, signal.SIGHUP):
-        signal.signal(signum, lambda signum, _frame: received.append(signum))
+    for handled in (signal.SIGTERM, signal.SIGINT, signal.SIGUSR1, signal.SIGUSR2, signal.SIGHUP):
+        signal.signal(handled, lambda signum, _frame: received.append(signum))
     board.log("start", port=os.ttyname(slave_fd), max_pulse_ms=max_pulse_ms,
               keepalive_timeout_ms=keepalive_timeout_ms)
     tmp = port_file + ".tmp"
@@ -133,6 +135,10 @@ def serve(port_file, log_path, max_pulse_ms=DEFAULT_MAX_PULSE_MS, keepalive_time
         os.close(slave_fd)
 
 
+#: A relay on period from the board's log: ``(on entry, off entry or None while still on)``.
+Interval = typing.Tuple[typing.Dict[str, typing.Any], typing.Optional[typing.Dict[str, typing.Any]]]
+
+
 class RelaySim:
     """A relay board simulator process for tests: ``with RelaySim(tmp_path) as sim: ... sim.port ...``.
 
@@ -161,7 +167,7 @@ class RelaySim:
         self.process = None
         self.port = None
 
-    def start(self, timeout_s=10.0):
+    def start(self, timeout_s: float = 10.0) -> "RelaySim":
         """Start the process and wait until its port file appears; returns self."""
         package_root = os.path.dirname(os.path.dirname(os.path.abspath(rollability_ros.__file__)))
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")])))
@@ -178,14 +184,14 @@ class RelaySim:
             self.port = stream.read().strip()
         return self
 
-    def entries(self):
+    def entries(self) -> typing.List[typing.Dict[str, typing.Any]]:
         """All log entries so far, oldest first."""
         if not os.path.exists(self.log_path):
             return []
         with open(self.log_path, encoding="utf-8") as stream:
             return [json.loads(line) for line in stream if line.endswith("\n")]
 
-    def relay_on(self):
+    def relay_on(self) -> bool:
         """The relay state after the last logged event."""
         entries = self.entries()
         return bool(entries) and entries[-1]["relay"] == "on"
@@ -199,21 +205,22 @@ class RelaySim:
                 raise TimeoutError(f"relay simulator did not log '{event}' within {timeout_s} s")
             time.sleep(0.005)
 
-    def cut(self, timeout_s=5.0):
+    def cut(self, timeout_s: float = 5.0) -> None:
         """Cut the serial line (nothing gets through either way); returns once the simulator has logged it."""
         self._signal_and_wait(signal.SIGUSR1, "cut", timeout_s)
 
-    def restore(self, timeout_s=5.0):
+    def restore(self, timeout_s: float = 5.0) -> None:
         """Reconnect the serial line; returns once the simulator has logged it."""
         self._signal_and_wait(signal.SIGUSR2, "restore", timeout_s)
 
-    def press_estop(self, timeout_s=5.0):
+    def press_estop(self, timeout_s: float = 5.0) -> None:
         """Press and release the board's e-stop button (the fault latches); returns once logged."""
         self._signal_and_wait(signal.SIGHUP, "estop", timeout_s)
 
-    def relay_intervals(self):
+    def relay_intervals(self) -> typing.List[Interval]:
         """The relay's on periods from the board's own log: ``[(on entry, off entry or None), ...]``."""
-        intervals, current = [], None
+        intervals: typing.List[Interval] = []
+        current: typing.Optional[typing.Dict[str, typing.Any]] = None
         for entry in self.entries():
             if entry["event"] != "relay":
                 continue
@@ -226,7 +233,7 @@ class RelaySim:
             intervals.append((current, None))
         return intervals
 
-    def stop(self, timeout_s=5.0):
+    def stop(self, timeout_s: float = 5.0) -> None:
         """Terminate the process (killed if it does not exit within ``timeout_s``)."""
         if self.process is None or self.process.poll() is not None:
             return
@@ -244,7 +251,7 @@ class RelaySim:
         self.stop()
 
 
-def main(argv=None):
+def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     """Command-line entry point (``python -m rollability_ros.core.rig.relay_device_sim``)."""
     parser = argparse.ArgumentParser(prog="relay_device_sim", description=__doc__.split("\n\n")[0])
     parser.add_argument("--port-file", required=True, help="file to write the pty device path into")

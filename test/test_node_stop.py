@@ -70,3 +70,37 @@ def test_sigusr1_prints_every_threads_stack_and_the_node_runs_on(tmp_path):
     finally:
         process.kill()
         process.wait()
+
+
+def _catches_sigint(pid):
+    """True once process ``pid`` has its own SIGINT handler (``SigCgt`` in /proc/<pid>/status)."""
+    with open(f"/proc/{pid}/status") as stream:
+        masks = dict(line.split(":", 1) for line in stream if line.startswith(("SigCgt", "SigIgn")))
+    bit = 1 << (signal.SIGINT - 1)
+    return bool(int(masks["SigCgt"], 16) & bit) and not int(masks["SigIgn"], 16) & bit
+
+
+@pytest.mark.parametrize("module", ["campaign_runner", "outcome_logger"])
+def test_sigint_stops_a_node_started_with_sigint_ignored(tmp_path, module):
+    """A script's background job (`cmd &` without job control, nohup) starts with SIGINT ignored, and Python keeps
+    it ignored: every node sets its own stop handlers, so the supervisor's or launch's SIGINT still stops it."""
+    args = {"campaign_runner": ["-p", "runner.server_timeout_s:=600.0", "-r", "stored_trials:=/nowhere/stored_trials"],
+            "outcome_logger": ["-p", f"store_path:={tmp_path / 'store.sqlite'}"]}[module]
+    log = tmp_path / "node.log"
+    with open(log, "wb") as stream:
+        process = subprocess.Popen([sys.executable, "-m", f"rollability_ros.nodes.{module}", "--ros-args", *args],
+                                   stdout=stream, stderr=subprocess.STDOUT, start_new_session=True,
+                                   preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        deadline = time.monotonic() + 30
+        while process.poll() is None and not _catches_sigint(process.pid) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert process.poll() is None, log.read_text(errors="replace")
+        assert _catches_sigint(process.pid), f"{module} left SIGINT ignored"
+        process.send_signal(signal.SIGINT)
+        process.wait(timeout=10)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode in (0, 130), log.read_text(errors="replace")

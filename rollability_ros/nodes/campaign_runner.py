@@ -249,8 +249,10 @@ def run_graph_campaign(node: Node, spec: CampaignSpec, settings: RunnerSettings,
 def main(args: typing.Optional[typing.List[str]] = None) -> int:
     init_ros(args)
     # a supervisor's SIGTERM ends the campaign as Ctrl-C does: the running goal is cancelled, the context stays
-    # valid until the node is destroyed
-    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    # valid until the node is destroyed. SIGINT is set too: a process started in the background of a script
+    # inherits SIGINT ignored, and Python keeps an ignored SIGINT ignored (run_node sets both for the other nodes)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.default_int_handler)
     node = Node("campaign_runner")
     try:
         spec = declare_settings(node, "campaign", CampaignSpec)

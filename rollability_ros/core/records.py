@@ -5,6 +5,7 @@ word means one thing in config keys, message fields, store columns and CLI flags
 """
 import dataclasses
 import math
+import typing
 
 #: Placeholder for "not measured" numeric fields (travel time, measured speed).
 NOT_MEASURED = float("nan")
@@ -47,7 +48,7 @@ class LaunchCondition:
             raise ValueError(f"repetition must be >= 0, got {self.repetition}")
 
     @property
-    def group_key(self) -> tuple:
+    def group_key(self) -> typing.Tuple[str, float, float, float]:
         """The grouped condition (paper 2.2.6): everything but the repetition."""
         return (self.configuration, self.height_m, self.speed_mps, self.angle_deg)
 

@@ -15,12 +15,17 @@ import itertools
 import math
 import random
 import statistics
+import typing
 
-from rollability_ros.core.records import LaunchCondition
+from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 from rollability_ros.core.stats import wilson_interval
 
 #: The grouping factors of a grouped condition, LaunchCondition field names.
 FACTORS = ("configuration", "height_m", "speed_mps", "angle_deg")
+
+
+#: What :func:`group_conditions` tallies: a stored :class:`LaunchOutcome`, or ``(LaunchCondition, upright)``.
+Outcome = typing.Union[LaunchOutcome, typing.Tuple[LaunchCondition, bool]]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -35,12 +40,12 @@ class ConditionResult:
     trials: int
 
     @property
-    def failures(self):
+    def failures(self) -> int:
         """Repetitions that did not end upright."""
         return self.trials - self.successes
 
     @property
-    def success(self):
+    def success(self) -> bool:
         """Paper's majority rule: successes > failures; a tie is a failure."""
         return self.successes > self.failures
 
@@ -56,21 +61,21 @@ class CellSummary:
     successes: int
 
     @property
-    def condition_rate(self):
+    def condition_rate(self) -> float:
         """Fraction of grouped conditions that succeeded (paper's measure), NaN for an empty cell."""
         return self.conditions_succeeded / self.conditions if self.conditions else math.nan
 
     @property
-    def trial_rate(self):
+    def trial_rate(self) -> float:
         """Upright trials / trials, NaN for an empty cell."""
         return self.successes / self.trials if self.trials else math.nan
 
     @property
-    def trial_ci(self):
+    def trial_ci(self) -> typing.Tuple[float, float]:
         """Wilson 95 % interval of ``trial_rate``: (low, high)."""
         return wilson_interval(self.successes, self.trials)
 
-    def row(self):
+    def row(self) -> typing.Dict[str, typing.Any]:
         """Flat dict for a CSV table: factors, counts, rates in [0, 1] and the interval."""
         low, high = self.trial_ci
         return {**self.key, "conditions": self.conditions, "conditions_succeeded": self.conditions_succeeded,
@@ -78,7 +83,7 @@ class CellSummary:
                 "trial_rate": self.trial_rate, "trial_ci_low": low, "trial_ci_high": high}
 
 
-def group_conditions(outcomes):
+def group_conditions(outcomes: typing.Iterable[Outcome]) -> typing.List["ConditionResult"]:
     """Tally launch outcomes per grouped condition, sorted by (configuration, height, speed, angle).
 
     Parameters
@@ -87,7 +92,7 @@ def group_conditions(outcomes):
         Each item is a :class:`LaunchOutcome`, or a ``(LaunchCondition, upright)`` tuple. Invalid launches
         (``LaunchOutcome.valid`` false) are left out: they are no outcome.
     """
-    tallies = {}
+    tallies: typing.Dict[typing.Tuple[str, float, float, float], typing.Tuple[int, int]] = {}
     for item in outcomes:
         if not getattr(item, "valid", True):
             continue
@@ -100,7 +105,8 @@ def group_conditions(outcomes):
             for key, (successes, trials) in sorted(tallies.items())]
 
 
-def summarise(conditions, by, configuration_order=None):
+def summarise(conditions: typing.Iterable["ConditionResult"], by: typing.Sequence[str],
+              configuration_order: typing.Optional[typing.Sequence[str]] = None) -> typing.List["CellSummary"]:
     """Aggregate grouped conditions into cells keyed by the factors ``by`` (a subset of FACTORS).
 
     Cells are sorted by their factor values; ``configuration_order`` (ids) sorts configurations by that
@@ -109,7 +115,7 @@ def summarise(conditions, by, configuration_order=None):
     unknown = [factor for factor in by if factor not in FACTORS]
     if unknown:
         raise ValueError(f"unknown factor(s) {unknown}; known: {', '.join(FACTORS)}")
-    cells = {}
+    cells: typing.Dict[tuple, typing.List[int]] = {}
     for condition in conditions:
         key = tuple(getattr(condition, factor) for factor in by)
         counts = cells.setdefault(key, [0, 0, 0, 0])
@@ -119,7 +125,7 @@ def summarise(conditions, by, configuration_order=None):
         counts[3] += condition.successes
     rank = _configuration_rank(configuration_order)
 
-    def sort_key(key):
+    def sort_key(key: tuple) -> tuple:
         return tuple(rank(value) if factor == "configuration" else (0, value) for factor, value in zip(by, key))
 
     return [CellSummary(dict(zip(by, key)), *cells[key]) for key in sorted(cells, key=sort_key)]
@@ -132,7 +138,8 @@ def _configuration_rank(configuration_order):
                                   configuration)
 
 
-def configurations_in(conditions, configuration_order=None):
+def configurations_in(conditions: typing.Iterable["ConditionResult"],
+                      configuration_order: typing.Optional[typing.Sequence[str]] = None) -> typing.List[str]:
     """The configuration ids present, in ``configuration_order`` first, then alphabetically."""
     return sorted({c.configuration for c in conditions}, key=_configuration_rank(configuration_order))
 
@@ -150,18 +157,20 @@ class Views:
     by_configuration: list    # Figure 12d: configuration
 
 
-def paper_views(outcomes, configuration_order=("baseline", "A", "B", "C")):
+def paper_views(outcomes: typing.Iterable[Outcome],
+                configuration_order: typing.Sequence[str] = ("baseline", "A", "B", "C")) -> "Views":
     """Compute every view of Figures 9-12 from launch outcomes."""
     conditions = group_conditions(outcomes)
 
-    def view(*by):
+    def view(*by: str) -> typing.List["CellSummary"]:
         return summarise(conditions, ("configuration",) + by, configuration_order)
 
     return Views(conditions, view("height_m", "angle_deg"), view("speed_mps", "angle_deg"), view("speed_mps"),
                  view("height_m"), view("angle_deg"), view())
 
 
-def grid(cells, row_factor, column_factor, measure="condition_rate"):
+def grid(cells: typing.Sequence["CellSummary"], row_factor: str, column_factor: str,
+         measure: str = "condition_rate") -> typing.Tuple[list, list, list]:
     """Arrange cells (already restricted to one configuration) as a table for a heatmap.
 
     Returns
@@ -179,12 +188,12 @@ def grid(cells, row_factor, column_factor, measure="condition_rate"):
     return rows, columns, values
 
 
-def cells_of(cells, **key):
+def cells_of(cells: typing.Iterable["CellSummary"], **key: typing.Any) -> typing.List["CellSummary"]:
     """The cells whose key matches every ``factor=value`` given."""
     return [cell for cell in cells if all(cell.key.get(f) == v for f, v in key.items())]
 
 
-def average_ranks(values):
+def average_ranks(values: typing.Sequence[float]) -> typing.List[float]:
     """Ranks 1..n of ``values`` (1 = smallest), ties sharing the mean of their ranks."""
     order = sorted(range(len(values)), key=lambda i: values[i])
     ranks = [0.0] * len(values)
@@ -206,7 +215,7 @@ def _check_pairs(x, y):
         raise ValueError("rank agreement needs finite values")
 
 
-def spearman_rho(x, y):
+def spearman_rho(x: typing.Sequence[float], y: typing.Sequence[float]) -> float:
     """Spearman's rank correlation (Pearson on average ranks; ties handled); NaN if a side is constant or n < 2."""
     _check_pairs(x, y)
     if len(x) < 2:
@@ -219,7 +228,7 @@ def spearman_rho(x, y):
     return sxy / math.sqrt(sxx * syy) if sxx > 0 and syy > 0 else math.nan
 
 
-def kendall_tau_b(x, y):
+def kendall_tau_b(x: typing.Sequence[float], y: typing.Sequence[float]) -> float:
     """Kendall's tau-b (ties in either variable corrected); NaN if a side is constant or n < 2."""
     _check_pairs(x, y)
     concordant = discordant = ties_x = ties_y = 0
@@ -246,7 +255,7 @@ MIN_RANKED = 3
 PERMUTATION_SAMPLES = 40320
 
 
-def spearman_p_value(x, y, seed=0):
+def spearman_p_value(x: typing.Sequence[float], y: typing.Sequence[float], seed: int = 0) -> float:
     """Two-sided permutation p-value of Spearman's rho (m/s-free: a probability): the share of orderings of ``y``
     whose |rho| is at least the observed |rho|; exact for up to 8 values, else from ``PERMUTATION_SAMPLES``
     seeded random orderings. NaN when rho is undefined."""
@@ -254,6 +263,7 @@ def spearman_p_value(x, y, seed=0):
     if not math.isfinite(observed):
         return math.nan
     y = list(y)
+    orderings: typing.Iterable[typing.Sequence[float]]
     if math.factorial(len(y)) <= PERMUTATION_SAMPLES:
         orderings = itertools.permutations(y)
     else:
@@ -267,13 +277,13 @@ def spearman_p_value(x, y, seed=0):
     return extreme / total
 
 
-def rank_agreement_text(rho, tau, p_value=math.nan, count=None):
+def rank_agreement_text(rho: float, tau: float, p_value: float = math.nan, count: typing.Optional[int] = None) -> str:
     """``"Spearman rho 0.95 (permutation p = 0.02), Kendall tau-b 0.91"``; a NaN (a constant side, too few
     values) says undefined; with ``count`` < :data:`MIN_RANKED` configurations it says why there is none."""
     if count is not None and count < MIN_RANKED:
         return f"no rank statistic: {count} configuration(s), ranks need at least {MIN_RANKED}"
 
-    def show(value):
+    def show(value: float) -> str:
         return f"{value:.2f}" if math.isfinite(value) else "undefined"
     p_text = f" (permutation p = {p_value:.3f})" if math.isfinite(p_value) else ""
     text = f"Spearman rho {show(rho)}{p_text}, Kendall tau-b {show(tau)}"
@@ -292,12 +302,13 @@ class SimVsExperiment:
     spearman_p: float = math.nan
     campaign: str = "experimental"   # what the campaign was: "experimental", "simulated" or "mixed"
 
-    def agreement_text(self):
+    def agreement_text(self) -> str:
         """:func:`rank_agreement_text` of this comparison."""
         return rank_agreement_text(self.spearman_rho, self.kendall_tau_b, self.spearman_p, len(self.rows))
 
 
-def sim_vs_experiment(sim_fitness, by_configuration, measure="condition_rate", campaign="experimental"):
+def sim_vs_experiment(sim_fitness: typing.Mapping[str, float], by_configuration: typing.Sequence["CellSummary"],
+                      measure: str = "condition_rate", campaign: str = "experimental") -> "SimVsExperiment":
     """Compare simulated fitness with experimental success (the Discussion's comparison).
 
     Parameters
@@ -327,7 +338,7 @@ def sim_vs_experiment(sim_fitness, by_configuration, measure="condition_rate", c
                            spearman_p_value(sims, exps), campaign)
 
 
-def campaign_kind(outcomes):
+def campaign_kind(outcomes: typing.Iterable[LaunchOutcome]) -> str:
     """``"simulated"`` (every outcome from the sim backend), ``"experimental"`` (every one physical), ``"mixed"``,
     or ``"none"``: how a report must label a campaign."""
     backends = {outcome.backend for outcome in outcomes}
@@ -350,7 +361,8 @@ class ConvergencePoint:
     evaluations: int
 
 
-def convergence(generations=(), candidates=()):
+def convergence(generations: typing.Iterable[typing.Any] = (),
+                candidates: typing.Iterable[typing.Any] = ()) -> typing.List["ConvergencePoint"]:
     """Best-so-far fitness per generation, per run, sorted by (run, generation).
 
     Uses generation summaries where a run has them: their ``best_so_far`` is the optimizer's pooled estimate of
@@ -358,11 +370,11 @@ def convergence(generations=(), candidates=()):
     running maximum of noisy per-generation bests would overstate it. Runs with candidates only derive each
     generation (best, mean, count) and use the running maximum of ``best_fitness``, the only estimate there is.
     """
-    per_run = {}
+    per_run: typing.Dict[str, typing.Dict[int, tuple]] = {}
     for record in generations:
         per_run.setdefault(record.run_id, {})[record.generation] = (record.best_fitness, record.mean_fitness,
                                                                     record.evaluations, record.best_so_far)
-    derived = {}
+    derived: typing.Dict[str, typing.Dict[int, typing.List[float]]] = {}
     for candidate in candidates:
         if candidate.run_id not in per_run:
             derived.setdefault(candidate.run_id, {}).setdefault(candidate.generation, []).append(candidate.fitness)
@@ -388,7 +400,9 @@ def convergence(generations=(), candidates=()):
 GEOMETRY_COLUMNS = ("configuration", "length_m", "width_m", "max_height_m")
 
 
-def geometry_table(rows, configuration_order=("baseline", "A", "B", "C")):
+def geometry_table(rows: typing.Iterable[typing.Mapping[str, typing.Any]],
+                   configuration_order: typing.Sequence[str] = ("baseline", "A", "B", "C")
+                   ) -> typing.List[typing.Dict[str, typing.Any]]:
     """Check and order the rows of Table 3 (overall dimensions and maximum profile height per configuration).
 
     Parameters
@@ -415,9 +429,9 @@ def geometry_table(rows, configuration_order=("baseline", "A", "B", "C")):
     return sorted(checked, key=lambda r: rank(str(r["configuration"])))
 
 
-def tip_event_summary(events):
+def tip_event_summary(events: typing.Iterable[typing.Any]) -> typing.List[typing.Dict[str, typing.Any]]:
     """Per robot: events, recovered, recovery rate with Wilson interval, median duration s, worst tilt deg."""
-    per_robot = {}
+    per_robot: typing.Dict[str, list] = {}
     for event in events:
         per_robot.setdefault(event.robot, []).append(event)
     rows = []

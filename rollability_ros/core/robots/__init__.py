@@ -13,13 +13,14 @@ import typing
 from rollability_ros.core.faces import lazy_attribute
 
 if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
-    from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec, ProfileBody, ProfileMountSpec, RobotModel
+    from rollability_ros.core.robots.robot import (ChassisModel, ChassisSpec, ProfileBody, ProfileMountSpec, RobotModel,
+                                                   SpawnedRobot)
     from rollability_ros.core.robots.urdf_robot import (RobotChoice, UrdfRobotModel, UrdfRobotSpec, footprint_grid,
                                                         obj_text, profile_inertia, profile_mount)
 
 __all__ = [
-    "ChassisModel", "ChassisSpec", "ProfileBody", "ProfileMountSpec", "RobotChoice", "RobotModel", "UrdfRobotModel",
-    "UrdfRobotSpec", "footprint_grid", "obj_text", "profile_inertia", "profile_mount",
+    "ChassisModel", "ChassisSpec", "ProfileBody", "ProfileMountSpec", "RobotChoice", "RobotModel", "SpawnedRobot",
+    "UrdfRobotModel", "UrdfRobotSpec", "footprint_grid", "obj_text", "profile_inertia", "profile_mount",
 ]
 
 

@@ -89,19 +89,22 @@ import dataclasses
 import hashlib
 import math
 import pickle
+import types
+import typing
 
 import numpy as np
+import numpy.typing as npt
 
 from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
 from rollability_ros.core.profile import DesignSources, profile_mesh_for
 from rollability_ros.core.optional import require
-from rollability_ros.core.records import NO_SEED, NOT_MEASURED
-from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, UrdfRobotSpec
-from rollability_ros.core.sim.launcher_geometry import (check_launcher_geometry, derive_launcher_geometry,
-                                                         robot_envelope)
+from rollability_ros.core.records import NO_SEED, NOT_MEASURED, LaunchCondition
+from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, SpawnedRobot, UrdfRobotSpec
+from rollability_ros.core.sim.launcher_geometry import (LauncherGeometry, RobotEnvelope, check_launcher_geometry,
+                                                         derive_launcher_geometry, robot_envelope)
 from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world, set_contact
 from rollability_ros.core.sim.trial_engine import LAUNCH_ENGINES, LaunchEngine, check_engine
-from rollability_ros.core.sim.trials import RestDetector, TrialSettings, place_on_ground
+from rollability_ros.core.sim.trials import EnergyMonitor, RestDetector, TrialSettings, place_on_ground
 
 #: ``launch_twin.angle_convention`` values (see the module docstring).
 ANGLE_CONVENTIONS = ("yaw_of_push", "chassis_yaw")
@@ -109,6 +112,10 @@ ANGLE_CONVENTIONS = ("yaw_of_push", "chassis_yaw")
 WHEEL_MODELS = ("auto", "mecanum", "robot")
 #: Phases reported through ``on_phase``, in order.
 PHASES = ("fired", "in_flight", "settling", "classifying")
+#: ``on_phase(phase)``: called with each of :data:`PHASES` once, in order.
+PhaseCallback = typing.Callable[[str], None]
+#: ``on_pose(t_s, position (x, y, z) m, orientation (x, y, z, w))``: the base pose at ``pose_rate_hz``.
+PoseCallback = typing.Callable[[float, typing.Sequence[float], typing.Sequence[float]], None]
 #: Smallest cosine between the push and the edge normal (``yaw_of_push`` angles up to about +-84 deg).
 MIN_PUSH_TOWARDS_EDGE = 0.1
 
@@ -122,7 +129,7 @@ class LauncherSpec:
     ledge_width_m: float = 0.0
     start_clearance_m: float = 0.0005
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field (a ledge size of 0 is derived from the robot)."""
         if not self.run_length_m > 0:
             raise ValueError(f"run_length_m must be > 0, got {self.run_length_m}")
@@ -156,7 +163,7 @@ class PushPlateSpec:
     offset_m: float = 0.0
     yaw_bias_deg: float = 0.0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field (``width_m``, ``height_m`` and ``clearance_m`` of 0
         are derived from the robot: :mod:`~rollability_ros.core.sim.launcher_geometry`)."""
         for name in ("thickness_m", "mass_kg", "ramp_s"):
@@ -186,7 +193,7 @@ class FoamSpec:
     rolling_friction: float = 0.01
     restitution: float = 0.1
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         for name in ("thickness_m", "length_m", "width_m", "contact_stiffness_npm"):
             if not getattr(self, name) > 0:
@@ -197,7 +204,7 @@ class FoamSpec:
         if not 0 <= self.restitution <= 1:
             raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
 
-    def contact(self, ground_contact):
+    def contact(self, ground_contact: typing.Mapping[str, float]) -> typing.Dict[str, float]:
         """The foam's ``changeDynamics`` keywords: ``ground_contact``'s spinning friction, the foam's own rest."""
         return {**ground_contact, "lateralFriction": self.lateral_friction, "rollingFriction": self.rolling_friction,
                 "restitution": self.restitution,
@@ -224,7 +231,7 @@ class LaunchTwinOptions:
     foam: FoamSpec = dataclasses.field(default_factory=FoamSpec)
     designs: DesignSources = dataclasses.field(default_factory=DesignSources)
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if self.angle_convention not in ANGLE_CONVENTIONS:
             raise ValueError(f"angle_convention must be one of {', '.join(ANGLE_CONVENTIONS)}, "
@@ -268,13 +275,15 @@ class LaunchTwinSettings(RobotChoice):
 _SECTIONS = {"physics": "sim", "robot": "robot", "trial": "trial", "twin": "launch_twin", "urdf_robot": "urdf_robot"}
 
 
-def launch_twin_settings_from_parameters(flat, overrides=None):
+def launch_twin_settings_from_parameters(flat: typing.Mapping[str, typing.Any],
+                                         overrides: typing.Optional[typing.Mapping[str, typing.Any]] = None
+                                         ) -> LaunchTwinSettings:
     """Build :class:`LaunchTwinSettings` from flat ``{dotted name: value}`` parameters (e.g. a node's).
 
     ``overrides`` maps dotted *settings* names (``"twin.foam.contact_stiffness_npm"``, ``"physics.restitution"``,
     ``"robot.body_mass_kg"``) to values; they are checked like file values (:class:`ConfigError` if unknown or bad).
     """
-    nested = {name: section(flat, prefix) for name, prefix in _SECTIONS.items()}
+    nested: typing.Dict[str, typing.Any] = {name: section(flat, prefix) for name, prefix in _SECTIONS.items()}
     for dotted, value in (overrides or {}).items():
         *parents, leaf = dotted.split(".")
         node = nested
@@ -286,7 +295,10 @@ def launch_twin_settings_from_parameters(flat, overrides=None):
     return from_mapping(LaunchTwinSettings, nested, "launch twin settings")
 
 
-def load_launch_twin_settings(config_paths=("sim", "robot", "launch_twin"), node_name="/**", overrides=None):
+def load_launch_twin_settings(config_paths: typing.Sequence[str] = ("sim", "robot", "launch_twin"),
+                              node_name: str = "/**",
+                              overrides: typing.Optional[typing.Mapping[str, typing.Any]] = None
+                              ) -> LaunchTwinSettings:
     """Read :class:`LaunchTwinSettings` from ROS 2 parameter files (names of shipped files or paths).
 
     Namespaces: ``sim`` and ``trial`` (sim.yaml), ``robot`` (robot.yaml), ``launch_twin`` (launch_twin.yaml),
@@ -334,17 +346,18 @@ class LaunchResult:
     decided: bool = False
 
     @property
-    def valid(self):
+    def valid(self) -> bool:
         """True when the launch happened as the rig launches: the chassis left the ledge and landed on the foam."""
         return not self.invalid_reason
 
     @property
-    def final_orientation_xyzw(self):
+    def final_orientation_xyzw(self) -> tuple:
         """``final_orientation``, under the name :func:`rollability_ros.core.rig.rig_session.simulated_outcome` reads."""
         return self.final_orientation
 
 
-def sized_for_robot(settings):
+def sized_for_robot(settings: LaunchTwinSettings
+                    ) -> typing.Tuple[LaunchTwinSettings, RobotEnvelope, LauncherGeometry]:
     """``(settings, envelope, geometry)``: ``settings`` with the launcher's robot-dependent sizes that are 0 in the
     config (plate width, height and clearance; ledge depth and width) derived from the robot's collision geometry
     (:mod:`~rollability_ros.core.sim.launcher_geometry`), the robot's
@@ -364,7 +377,7 @@ def sized_for_robot(settings):
     return dataclasses.replace(settings, twin=twin), envelope, geometry
 
 
-def check_launcher(settings):
+def check_launcher(settings: LaunchTwinSettings) -> LauncherGeometry:
     """Check before a campaign that the (derived or configured) launcher launches this robot: the push plate meets
     its collision shapes and it fits on the ledge; ``ValueError`` naming the setting. Returns the
     :class:`~rollability_ros.core.sim.launcher_geometry.LauncherGeometry`."""
@@ -373,13 +386,14 @@ def check_launcher(settings):
     return geometry
 
 
-def profile_body(configuration, settings):
+def profile_body(configuration: str, settings: LaunchTwinSettings) -> typing.Optional[ProfileBody]:
     """The :class:`ProfileBody` mounted for ``configuration`` (None = baseline); see :mod:`designs`."""
     mesh = profile_mesh_for(configuration, settings.twin.designs)
     return None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
 
 
-def launch_draws(seed, nominal_speed_mps, nominal_angle_deg, options):
+def launch_draws(seed: int, nominal_speed_mps: float, nominal_angle_deg: float,
+                 options: LaunchTwinOptions) -> typing.Tuple[float, float]:
     """The seeded scatter of one launch: ``(actual launch speed m/s, actual angle deg)``."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
@@ -397,7 +411,7 @@ def _static_box(pybullet, client, half_extents, centre, contact):
     return body
 
 
-def build_launch_world(client, settings, height_m):
+def build_launch_world(client: int, settings: LaunchTwinSettings, height_m: float) -> typing.Tuple[int, int, int]:
     """Empty ``client``'s world and build floor, foam and ledge (module docstring); return
     ``(foam_id, ledge_id, floor_id)``."""
     pybullet = require("pybullet", feature="the launch twin")
@@ -411,7 +425,7 @@ def build_launch_world(client, settings, height_m):
     return foam_id, ledge_id, floor_id
 
 
-def wheel_side_m(pybullet, client, robot, link):
+def wheel_side_m(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, link: int) -> float:
     """Where wheel ``link`` sits across the robot: its y in the base frame (m; + = left)."""
     base_position, base_orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
     link_position = pybullet.getLinkState(robot.body_id, link, physicsClientId=client)[4]
@@ -419,7 +433,7 @@ def wheel_side_m(pybullet, client, robot, link):
     return pybullet.multiplyTransforms(inverse_position, inverse_orientation, link_position, (0, 0, 0, 1))[0][1]
 
 
-def mecanum_wheels(settings):
+def mecanum_wheels(settings: LaunchTwinSettings) -> bool:
     """True when the twin gives the wheels its Mecanum contact and drag (``wheel_model`` mecanum, or auto on the
     built-in chassis); False when the robot keeps its own (robot, or auto on a URDF robot), as in the trials."""
     wheel_model = settings.twin.wheel_model
@@ -451,11 +465,12 @@ def _set_wheels(pybullet, client, robot, options, lateral_friction, mecanum):
 class PhaseReporter:
     """Reports each of :data:`PHASES` once and in order, filling in any skipped before the one reached."""
 
-    def __init__(self, on_phase):
+    def __init__(self, on_phase: typing.Optional[PhaseCallback]) -> None:
         self._on_phase = on_phase
         self._next = 0
 
-    def reach(self, phase):
+    def reach(self, phase: str) -> None:
+        """Report ``phase`` (one of :data:`PHASES`), after any not yet reported before it; nothing if already."""
         target = PHASES.index(phase)
         while self._next <= target:
             if self._on_phase is not None:
@@ -478,7 +493,8 @@ def _place_on_plate(pybullet, client, robot, orientation, clearance_m, xy_m, pla
     pybullet.resetBasePositionAndOrientation(robot.body_id, position, orientation, physicsClientId=client)
 
 
-def place_on_launcher(pybullet, client, robot, orientation, push, settings, height_m):
+def place_on_launcher(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, orientation: typing.Sequence[float],
+                      push: npt.ArrayLike, settings: LaunchTwinSettings, height_m: float) -> float:
     """Put the chassis at rest on the plate so that its foremost point reaches the edge after ``run_length_m``
     along ``push`` (unit (3,)); the base origin's path passes through the edge's midpoint. Return the foremost
     point's offset ahead of the base origin along x (m).
@@ -493,20 +509,22 @@ def place_on_launcher(pybullet, client, robot, orientation, push, settings, heig
     lead_m = float(_bounds_m(pybullet, client, robot)[1][0]) - base_x
     _place_on_plate(pybullet, client, robot, orientation, launcher.start_clearance_m,
                     launcher_start_xy(lead_m, push, launcher), plate_z)
-    check_fits_launcher(*_bounds_m(pybullet, client, robot), launcher)
+    low, high = _bounds_m(pybullet, client, robot)
+    check_fits_launcher(low, high, launcher)
     return lead_m
 
 
-def launcher_start_xy(lead_m, push, launcher):
+def launcher_start_xy(lead_m: float, push: npt.ArrayLike, launcher: LauncherSpec) -> typing.Tuple[float, float]:
     """Where the base origin starts (x, y; m): its foremost point, ``lead_m`` ahead of it along x, reaches the edge
     after ``run_length_m`` along ``push`` (unit (3,)), on a path through the edge's midpoint (every twin's rule)."""
-    start = -(launcher.run_length_m + lead_m / push[0]) * np.asarray(push, dtype=np.float64)
+    push = np.asarray(push, dtype=np.float64)
+    start = -(launcher.run_length_m + lead_m / push[0]) * push
     return float(start[0]), float(start[1])
 
 
-def check_fits_launcher(low, high, launcher):
+def check_fits_launcher(low: typing.Sequence[float], high: typing.Sequence[float], launcher: LauncherSpec) -> None:
     """``ValueError`` when a robot whose world bounding box is ``low`` .. ``high`` (m) at its start is not wholly
-    over the ledge (``ledge_depth_m`` behind the edge, ``ledge_width_m`` along it)."""
+    over the ledge (``ledge_depth_m`` behind the edge, ``ledge_width_m`` along it); ``low`` and ``high`` (3,)."""
     side_m = max(-low[1], high[1])
     if low[0] < -launcher.ledge_depth_m or side_m > launcher.ledge_width_m / 2:
         raise ValueError(f"the robot does not fit on the launcher: placed {launcher.run_length_m} m before the edge "
@@ -527,7 +545,8 @@ class PlatePlacement:
     face_x_m: float
 
 
-def plate_placement(rear_m, base_m, push, spec, plate_z):
+def plate_placement(rear_m: float, base_m: npt.ArrayLike, push: npt.ArrayLike, spec: PushPlateSpec,
+                    plate_z: float) -> PlatePlacement:
     """The :class:`PlatePlacement` behind a robot whose rearmost point lies ``rear_m`` along ``push`` (unit (3,))
     with its base origin at ``base_m`` (3,): the face 1 mm behind that point (a turned face leads with one corner),
     ``offset_m`` to the side of the base's path, its bottom ``clearance_m`` above the plate at ``plate_z``."""
@@ -542,11 +561,27 @@ def plate_placement(rear_m, base_m, push, spec, plate_z):
                           face_x_m=(along_m + reach_m) * push[0])
 
 
+class LaunchPlate(typing.Protocol):
+    """What :func:`step_launch` drives of a twin's push plate (:class:`PushPlate`, the MuJoCo twin's plate)."""
+
+    driving: bool
+
+    def drive(self, speed_mps: float, time_s: float) -> None:
+        """Drive along the push at ``time_s`` (s) after the fire, ramping to ``speed_mps`` (m/s) over ``ramp_s``."""
+
+    def reached_edge(self) -> bool:
+        """True once the plate's face has reached the edge line x = 0."""
+
+    def stop(self) -> None:
+        """Brake the plate to rest."""
+
+
 class PushPlate:
     """The push plate on its prismatic joint: placed behind the chassis, driven at the launch speed along the push
     until the chassis goes over the edge (or the plate reaches it), then braked (module docstring, "Launch")."""
 
-    def __init__(self, pybullet, client, robot, push, spec, plate_z, ignore_bodies):
+    def __init__(self, pybullet: types.ModuleType, client: int, robot: SpawnedRobot, push: npt.ArrayLike,
+                 spec: PushPlateSpec, plate_z: float, ignore_bodies: typing.Iterable[int]) -> None:
         self._pybullet, self._client, self.spec = pybullet, client, spec
         self.push = np.asarray(push, dtype=np.float64)
         corners = _corners_m(pybullet, client, robot)
@@ -575,7 +610,7 @@ class PushPlate:
         self.driving = False
         self._at_speed = False
 
-    def drive(self, speed_mps, time_s):
+    def drive(self, speed_mps: float, time_s: float) -> None:
         """Drive the plate along the push at ``time_s`` after the fire: its speed ramps from rest to ``speed_mps``
         over ``ramp_s``, then holds, with at most ``max_force_n``."""
         if self._at_speed:
@@ -587,12 +622,12 @@ class PushPlate:
         self._at_speed = time_s >= self.spec.ramp_s
         self.driving = True
 
-    def reached_edge(self):
+    def reached_edge(self) -> bool:
         """True once the plate's face has reached the edge line x = 0."""
         travel_m = self._pybullet.getJointState(self.body_id, 0, physicsClientId=self._client)[0]
-        return self.face_x_m + travel_m * self.push[0] >= 0.0
+        return bool(self.face_x_m + travel_m * self.push[0] >= 0.0)
 
-    def stop(self):
+    def stop(self) -> None:
         """Brake the plate to rest (the cylinder at the end of its push)."""
         self._pybullet.setJointMotorControl2(self.body_id, 0, self._pybullet.VELOCITY_CONTROL, targetVelocity=0.0,
                                              force=self.spec.max_force_n * 10, physicsClientId=self._client)
@@ -616,7 +651,7 @@ def _corners_m(pybullet, client, robot):
     return np.asarray(corners, dtype=np.float64)
 
 
-def attempt_seed(seed, attempt):
+def attempt_seed(seed: int, attempt: int) -> int:
     """The seed of retry ``attempt`` (0 = the launch's own ``seed``) of :func:`simulate_valid_launch`."""
     if attempt == 0:
         return int(seed)
@@ -624,7 +659,10 @@ def attempt_seed(seed, attempt):
     return int(state[0]) & 0x7FFFFFFF
 
 
-def simulate_valid_launch(condition, settings, seed, on_phase=None, on_pose=None, profile=None, use_profile=False):
+def simulate_valid_launch(condition: LaunchCondition, settings: LaunchTwinSettings, seed: int,
+                          on_phase: typing.Optional[PhaseCallback] = None,
+                          on_pose: typing.Optional[PoseCallback] = None, profile: typing.Optional[ProfileBody] = None,
+                          use_profile: bool = False) -> LaunchResult:
     """:func:`simulate_launch`, repeated with :func:`attempt_seed` seeds while the launch is invalid, at most
     ``launch_twin.max_attempts`` times in all; returns the first valid launch or the last invalid one, with
     ``attempts`` set. The callbacks follow the first attempt only (a retry starts again from the push)."""
@@ -637,7 +675,9 @@ def simulate_valid_launch(condition, settings, seed, on_phase=None, on_pose=None
     return dataclasses.replace(result, attempts=attempt + 1)
 
 
-def simulate_launch(condition, settings, seed, on_phase=None, on_pose=None, profile=None, use_profile=False):
+def simulate_launch(condition: LaunchCondition, settings: LaunchTwinSettings, seed: int,
+                    on_phase: typing.Optional[PhaseCallback] = None, on_pose: typing.Optional[PoseCallback] = None,
+                    profile: typing.Optional[ProfileBody] = None, use_profile: bool = False) -> LaunchResult:
     """Launch ``condition``'s configuration off the simulated ledge and classify it (module docstring).
 
     Parameters
@@ -673,7 +713,9 @@ class BulletLaunch(LaunchEngine):
     """``sim.engine: pybullet``: each launch in a fresh PyBullet world (:func:`simulate_launch`)."""
 
     @classmethod
-    def simulate(cls, condition, settings, seed, profile, on_phase=None, on_pose=None):
+    def simulate(cls, condition: LaunchCondition, settings: LaunchTwinSettings, seed: int,
+                 profile: typing.Optional[ProfileBody], on_phase: typing.Optional[PhaseCallback] = None,
+                 on_pose: typing.Optional[PoseCallback] = None) -> LaunchResult:
         """One launch of the sized twin ``settings`` carrying ``profile`` (see :func:`simulate_launch`)."""
         options = settings.twin
         pybullet = require("pybullet", feature="the launch twin")
@@ -705,7 +747,10 @@ class BulletLaunch(LaunchEngine):
                              (speed_mps, angle_deg), seed)
 
 
-def launch_result(tracker, settings, run, classified, drawn, seed):
+def launch_result(tracker: "LaunchTracker", settings: LaunchTwinSettings,
+                  run: typing.Tuple[int, bool, typing.Optional[bool]],
+                  classified: typing.Tuple[bool, float, typing.Sequence[float]], drawn: typing.Tuple[float, float],
+                  seed: int) -> LaunchResult:
     """The :class:`LaunchResult` of a launch (every twin's): ``run`` = ``(steps, settled, decision)`` of
     :func:`step_launch`, ``classified`` = ``(upright, tilt_deg, final orientation (x, y, z, w))``, ``drawn`` =
     ``(launch speed m/s, angle deg)`` of :func:`launch_plan`."""
@@ -725,7 +770,8 @@ def launch_result(tracker, settings, run, classified, drawn, seed):
                         decided=decision is not None)
 
 
-def launch_plan(condition, seed, options):
+def launch_plan(condition: LaunchCondition, seed: int,
+                options: LaunchTwinOptions) -> typing.Tuple[float, float, np.ndarray]:
     """The drawn ``(launch speed m/s, angle deg, push direction (3,))`` of a launch of ``condition`` with ``seed``
     (module docstring, "Angle" and "Launch"); ``ValueError`` for an angle that pushes along or away from the edge."""
     speed_mps, angle_deg = launch_draws(seed, condition.speed_mps, condition.angle_deg, options)
@@ -737,7 +783,7 @@ def launch_plan(condition, seed, options):
     return speed_mps, angle_deg, push
 
 
-def invalid_reason(went_over, tracker, foam):
+def invalid_reason(went_over: bool, tracker: "LaunchTracker", foam: FoamSpec) -> str:
     """Why a launch is no launch ("" when it is one): see :attr:`LaunchResult.invalid_reason`."""
     if not went_over:
         return "did not leave the ledge"
@@ -754,17 +800,18 @@ def invalid_reason(went_over, tracker, foam):
 class _EdgeCrossing:
     """When a point ``offset_m`` ahead (in x) of the base origin crosses the edge line x = 0 (s, interpolated)."""
 
-    def __init__(self, offset_m):
+    def __init__(self, offset_m: float) -> None:
         self._offset_m = offset_m
-        self._previous_x = None
+        self._previous_x: typing.Optional[float] = None
         self.time_s = NOT_MEASURED
 
-    def update(self, steps, dt, base_x):
+    def update(self, steps: int, dt: float, base_x: float) -> bool:
         """Account for step number ``steps`` after which the base origin is at x = ``base_x``; True on crossing."""
         x = base_x + self._offset_m
-        crossed = x >= 0.0 and self._previous_x is not None and math.isnan(self.time_s)
-        if crossed:
-            self.time_s = (steps - 1 + -self._previous_x / (x - self._previous_x)) * dt
+        previous = self._previous_x
+        crossed = x >= 0.0 and previous is not None and math.isnan(self.time_s)
+        if crossed and previous is not None:
+            self.time_s = (steps - 1 + -previous / (x - previous)) * dt
         self._previous_x = x
         return crossed
 
@@ -777,7 +824,7 @@ class LaunchTracker:
     (:class:`LaunchWorld`): the tracker reads its base velocity and foam / floor contacts.
     """
 
-    def __init__(self, world, lead_m, phases, push):
+    def __init__(self, world: "LaunchWorld", lead_m: float, phases: PhaseReporter, push: npt.ArrayLike) -> None:
         self._world = world
         self._push = np.asarray(push, dtype=np.float64)
         self.phases = phases
@@ -786,37 +833,37 @@ class LaunchTracker:
         self.front = _EdgeCrossing(lead_m)
         self.base = _EdgeCrossing(0.0)
         self.landed_s = NOT_MEASURED
-        self.landing_m = (NOT_MEASURED,) * 3
+        self.landing_m: typing.Tuple[float, ...] = (NOT_MEASURED,) * 3
         self.peak_deceleration_mps2 = 0.0
-        self._velocity = None
+        self._velocity: typing.Optional[typing.Tuple[float, ...]] = None
 
     @property
-    def went_over(self):
+    def went_over(self) -> bool:
         """True once the base origin has crossed the edge line (the robot went over the edge)."""
         return not math.isnan(self.base.time_s)
 
     @property
-    def settling_only(self):
+    def settling_only(self) -> bool:
         """True once only the peak deceleration is left to watch per step (landed, after the crossings)."""
         return not math.isnan(self.landed_s) and self._velocity is not None
 
     @property
-    def last_velocity(self):
+    def last_velocity(self) -> typing.Optional[typing.Tuple[float, ...]]:
         """The base velocity after the last step accounted for (m/s), or None before the robot went over."""
         return self._velocity
 
-    def add_steps(self, peak_mps2, velocity):
+    def add_steps(self, peak_mps2: float, velocity: typing.Sequence[float]) -> None:
         """Account for steps :meth:`LaunchWorld.advance` took after the landing: their peak and last velocity."""
         self.peak_deceleration_mps2 = max(self.peak_deceleration_mps2, peak_mps2)
         self._velocity = tuple(velocity)
 
     @property
-    def on_foam(self):
+    def on_foam(self) -> bool:
         """True once the robot has landed, and its first landing was on the foam."""
         return not math.isnan(self.landed_s) and not self.floor_first
 
-    def update(self, steps, dt, position):
-        """Account for step number ``steps`` (of ``dt`` s) after which the base origin is at ``position``."""
+    def update(self, steps: int, dt: float, position: typing.Sequence[float]) -> None:
+        """Account for step number ``steps`` (of ``dt`` s) after which the base origin is at ``position`` (3,), m."""
         if self.front.update(steps, dt, position[0]):
             self.edge_speed_mps = float(np.dot(self._world.velocity(), self._push))
         if math.isnan(self.base.time_s):
@@ -840,27 +887,28 @@ class LaunchWorld:
     """What the launch loop (:func:`step_launch`) needs of an engine's world holding the twin: the robot's base
     pose and velocity, its first contacts, one step, the rest rule (the PyBullet and MuJoCo twins implement it)."""
 
-    def pose(self):
+    def pose(self) -> typing.Tuple[typing.Sequence[float], typing.Sequence[float]]:
         """The base origin (x, y, z) (m) and orientation (x, y, z, w) now."""
         raise NotImplementedError
 
-    def velocity(self):
+    def velocity(self) -> typing.Sequence[float]:
         """The base origin's linear velocity (3,) in the world frame, m/s."""
         raise NotImplementedError
 
-    def touching(self):
+    def touching(self) -> typing.Tuple[bool, bool]:
         """``(on the foam, on the floor)``: whether the robot touches each now."""
         raise NotImplementedError
 
-    def step(self):
+    def step(self) -> None:
         """Advance the world by one time step."""
         raise NotImplementedError
 
-    def settled(self, steps):
+    def settled(self, steps: int) -> bool:
         """After step number ``steps``: True once the robot has stayed at rest for the trials' hold time."""
         raise NotImplementedError
 
-    def advance(self, steps, dt, velocity):
+    def advance(self, steps: int, dt: float, velocity: typing.Sequence[float]
+                ) -> typing.Tuple[float, typing.Sequence[float]]:
         """Step ``steps`` times with nothing to watch but the base's velocity; return ``(largest change of the
         base velocity over one step / dt, m/s^2, the velocity after the last step)``, ``velocity`` the one before
         the first. :func:`step_launch` uses it once the robot has landed and the plate has stopped."""
@@ -872,7 +920,7 @@ class LaunchWorld:
             velocity = now
         return peak, velocity
 
-    def decide(self, remaining_s):
+    def decide(self, remaining_s: float) -> typing.Optional[bool]:
         """The early decision now (True / False: the outcome is fixed upright / not upright; None: still open, or
         no early decision in this world), ``remaining_s`` before the time cap (:func:`decided_on_foam`).
         :func:`step_launch` asks only once the robot has landed on the foam and the plate has stopped: from then
@@ -883,32 +931,34 @@ class LaunchWorld:
 class _BulletLaunchWorld(LaunchWorld):
     """:class:`LaunchWorld` of one PyBullet client holding the twin's bodies and the spawned robot."""
 
-    def __init__(self, pybullet, client, robot, foam_id, floor_id, settings, profile):
+    def __init__(self, pybullet: types.ModuleType, client: int, robot: SpawnedRobot, foam_id: int, floor_id: int,
+                 settings: LaunchTwinSettings, profile: typing.Optional[ProfileBody]) -> None:
         self._pybullet, self._client, self._robot = pybullet, client, robot
         self._body, self._foam, self._floor = robot.body_id, foam_id, floor_id
         self._rest = RestDetector(settings.trial, settings.physics.time_step_s)
-        self._settings, self._profile, self._energy = settings, profile, None
+        self._settings, self._profile = settings, profile
+        self._energy: typing.Optional[EnergyMonitor] = None
 
-    def pose(self):
+    def pose(self) -> typing.Tuple[typing.Sequence[float], typing.Sequence[float]]:
         return self._pybullet.getBasePositionAndOrientation(self._body, physicsClientId=self._client)
 
-    def velocity(self):
+    def velocity(self) -> typing.Sequence[float]:
         return self._pybullet.getBaseVelocity(self._body, physicsClientId=self._client)[0]
 
-    def touching(self):
+    def touching(self) -> typing.Tuple[bool, bool]:
         contacts, client = self._pybullet.getContactPoints, self._client
         if contacts(bodyA=self._body, bodyB=self._foam, physicsClientId=client):
             return True, False   # the tracker reads the floor only when the foam is not touched
         return False, bool(contacts(bodyA=self._body, bodyB=self._floor, physicsClientId=client))
 
-    def step(self):
+    def step(self) -> None:
         self._robot.before_step()
         self._pybullet.stepSimulation(physicsClientId=self._client)
 
-    def settled(self, steps):
+    def settled(self, steps: int) -> bool:
         return self._rest.settled(self._client, self._body, steps)
 
-    def decide(self, remaining_s):
+    def decide(self, remaining_s: float) -> typing.Optional[bool]:
         if self._energy is None:
             if not self._settings.trial.early_decision or self._robot.mount_spring is not None:
                 return None   # the barriers hold for a rigid hull only, as in the trials
@@ -922,16 +972,16 @@ class _BulletLaunchWorld(LaunchWorld):
 
 
 #: Energy barriers and geometry of the early decision per robot + profile (the PyBullet twin spawns per launch).
-_BASINS: dict = {}
+_BASINS: typing.Dict[str, typing.Any] = {}
 
 
-def foam_sink_m(settings, mass_kg):
+def foam_sink_m(settings: LaunchTwinSettings, mass_kg: float) -> float:
     """How far (m) a robot of ``mass_kg`` resting or rocking on the foam may sink into it: 3 m g / stiffness, its
     whole weight on one contact point, tripled for dynamic loads (as :func:`mujoco_trials.penetration_allowance_m`)."""
     return 3 * mass_kg * abs(settings.physics.gravity_mps2) / settings.twin.foam.contact_stiffness_npm
 
 
-def clear_of_foam_edges(com_xy_m, radius_m, foam):
+def clear_of_foam_edges(com_xy_m: typing.Sequence[float], radius_m: float, foam: FoamSpec) -> bool:
     """True when a hull of ``radius_m`` about a centre of mass at ``com_xy_m`` cannot reach the foam's edges or the
     ledge's wall (x = 0): the foam's flat top is then the only ground it can meet."""
     x, y = com_xy_m
@@ -944,7 +994,8 @@ def clear_of_foam_edges(com_xy_m, radius_m, foam):
 ROLL_HORIZON_S = 2.0
 
 
-def hopeless_to_decide(com_xy_m, speed_mps, radius_m, settings, remaining_s):
+def hopeless_to_decide(com_xy_m: typing.Sequence[float], speed_mps: float, radius_m: float,
+                       settings: LaunchTwinSettings, remaining_s: float) -> bool:
     """True when a robot at ``com_xy_m`` moving at ``speed_mps`` (its base) certainly fails
     :func:`decided_on_foam`'s edge test (the bound on its speed is at least about its speed now): the twins skip
     the energy computation then. Only a saving: skipping a decision never changes an outcome."""
@@ -952,7 +1003,8 @@ def hopeless_to_decide(com_xy_m, speed_mps, radius_m, settings, remaining_s):
                                    settings.twin.foam)
 
 
-def decided_on_foam(energy, com_xy_m, settings, remaining_s):
+def decided_on_foam(energy: EnergyMonitor, com_xy_m: typing.Sequence[float], settings: LaunchTwinSettings,
+                    remaining_s: float) -> typing.Optional[bool]:
     """The early decision of a landed robot (True / False / None), given its energy monitor (after ``decide``
     has read the state: ``energy_height_m``), its centre of mass (x, y) and the time left to the cap (s).
 
@@ -988,7 +1040,8 @@ def _bullet_energy_monitor(pybullet, client, robot, settings, profile):
     return monitor
 
 
-def step_launch(world, plate, tracker, settings, on_pose, speed_mps):
+def step_launch(world: LaunchWorld, plate: LaunchPlate, tracker: LaunchTracker, settings: LaunchTwinSettings,
+                on_pose: typing.Optional[PoseCallback], speed_mps: float) -> typing.Tuple[int, bool, typing.Optional[bool]]:
     """Step ``world`` (a :class:`LaunchWorld`) until the robot is at rest or the trials' time cap, driving ``plate``
     at ``speed_mps`` until the robot goes over the edge or the plate reaches it; return ``(steps, settled,
     decision)``. Every twin runs its launches through this loop (the launch rules live here and in
@@ -1015,10 +1068,11 @@ def step_launch(world, plate, tracker, settings, on_pose, speed_mps):
     decision = None
     interval = settings.trial.check_interval_steps
     while steps < cap and not settled:
-        if on_pose is None and tracker.settling_only and not plate.driving:
+        velocity = tracker.last_velocity   # not None once settling_only
+        if on_pose is None and tracker.settling_only and velocity is not None and not plate.driving:
             # landed, plate stopped: only the impact's peak is watched per step until the next look
             count = min(interval - steps % interval, cap - steps)
-            tracker.add_steps(*world.advance(count, dt, tracker.last_velocity))
+            tracker.add_steps(*world.advance(count, dt, velocity))
             steps += count
         else:
             steps = _one_step(world, plate, tracker, on_pose, speed_mps, steps, dt, pose_every, plate_started)

@@ -47,16 +47,22 @@ import dataclasses
 import hashlib
 import math
 import pickle
+import typing
 
 import numpy as np
+import numpy.typing as npt
 
 from rollability_ros.core.optional import require
+from rollability_ros.core.profile import DesignSources
+from rollability_ros.core.records import LaunchCondition
+from rollability_ros.core.robots import ProfileBody
 from rollability_ros.core.sim.trial_engine import LaunchEngine
 from rollability_ros.core.sim.early_decision import _hull_vertices
-from rollability_ros.core.sim.launch_twin import (LaunchTracker, LaunchWorld, PhaseReporter, check_fits_launcher,
-                                                  decided_on_foam, foam_sink_m, hopeless_to_decide, launch_plan,
-                                                  launch_result, launcher_start_xy, mecanum_wheels,
-                                                  plate_placement, step_launch)
+from rollability_ros.core.sim.launch_twin import (LaunchResult, LaunchTracker, LaunchTwinSettings, LaunchWorld,
+                                                  PhaseCallback, PhaseReporter, PoseCallback, PushPlateSpec,
+                                                  check_fits_launcher, decided_on_foam, foam_sink_m,
+                                                  hopeless_to_decide, launch_plan, launch_result, launcher_start_xy,
+                                                  mecanum_wheels, plate_placement, step_launch)
 from rollability_ros.core.sim.mujoco_trials import (MujocoEnergyMonitor, MujocoTrialWorld, _geom_points,
                                                     _pose_speeds, effective_contact, robot_spec, set_geom_contact,
                                                     wheel_bodies)
@@ -90,7 +96,7 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
     those judge against (``ground_geom``) is the foam or the ledge.
     """
 
-    def __init__(self, settings, profile):  # noqa: super().__init__ builds the trials' model, not this one
+    def __init__(self, settings: LaunchTwinSettings, profile: typing.Optional[ProfileBody]) -> None:  # noqa: super().__init__ builds the trials' model, not this one
         self.mujoco = mujoco = require("mujoco", feature="the MuJoCo launch twin")
         self.settings, self.physics, self.robot_model = settings, settings.physics, settings.robot_model()
         self.profile = profile
@@ -154,7 +160,8 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         self.ground_geom = self.ledge_geom
         self.mass_kg = float(model.body_subtreemass[self.root])
         self._set_contacts()
-        self._plate, self._local_points = None, None
+        self._plate: typing.Optional[_MujocoPlate] = None   # set by each launch
+        self._local_points: typing.Optional[typing.List[typing.Tuple[int, np.ndarray]]] = None
         self._previous_pose, self._rest_since = None, None
         self._profile = profile
         self._build_ipos_z = float(model.body_ipos[self.root][2])   # retarget moves the COM from here, absolutely
@@ -162,7 +169,7 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         self.energy = None
         self.attach_energy()
 
-    def attach_energy(self):
+    def attach_energy(self) -> None:
         """The early decision's barriers for the current settings (none when ``trial.early_decision`` is off or
         the profile is compliant: barriers need a rigid hull); valid until a retarget changes the foam or COM."""
         settings, options = self.settings, self.settings.twin
@@ -211,7 +218,7 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
                                                               2 * math.sqrt(stiffness))]
         model.geom_solimp[self.foam_geom] = [0.99, 0.99, 0.001, 0.5, 2.0]
 
-    def retarget(self, settings):
+    def retarget(self, settings: LaunchTwinSettings) -> None:
         """Take a robustness draw's ``settings`` (:mod:`~rollability_ros.core.sim.robustness`) without a new
         model: the contact reading (``sim.contact_model``) and the foam's stiffness, damping and restitution go into
         the compiled model's contact values, the chassis's drawn centre-of-mass height moves the base body's centre
@@ -233,7 +240,7 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
                               self.settings.robot.com_offset_z_m == self._energy_com_offset_z_m)
 
     # -- the placement ------------------------------------------------------------------------------------------
-    def robot_points(self):
+    def robot_points(self) -> np.ndarray:
         """The world points (n, 3) whose hull is the robot's collision geometry now (m)."""
         data = self.data
         if self._local_points is None:   # each geom's hull vertices in its own frame (fixed), computed once
@@ -243,9 +250,11 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         return np.vstack([local @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]
                           for geom, local in self._local_points])
 
-    def place(self, orientation_xyzw, clearance_m, xy_m=(0.0, 0.0), ground_z_m=1.0):
+    def place(self, orientation_xyzw: typing.Sequence[float], clearance_m: float,
+              xy_m: typing.Sequence[float] = (0.0, 0.0), ground_z_m: float = 1.0) -> None:
         """Reset the data and put the robot at rest with its lowest point ``clearance_m`` above z = ``ground_z_m``
-        at ``xy_m`` (base origin); the default holds it in the air (the energy monitor's geometry)."""
+        at ``xy_m`` (base origin, (x, y) m); ``orientation_xyzw`` the base's (x, y, z, w); the default holds it in the
+        air (the energy monitor's geometry)."""
         mujoco, model, data = self.mujoco, self.model, self.data
         mujoco.mj_resetData(model, data)
         x, y, z, w = orientation_xyzw
@@ -257,14 +266,14 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         mujoco.mj_forward(model, data)
 
     # -- LaunchWorld --------------------------------------------------------------------------------------------
-    def pose(self):
+    def pose(self) -> typing.Tuple[typing.Sequence[float], typing.Sequence[float]]:
         q = self.data.qpos[0:7].tolist()
         return q[0:3], (q[4], q[5], q[6], q[3])
 
-    def velocity(self):
+    def velocity(self) -> typing.Sequence[float]:
         return self.data.qvel[0:3].tolist()
 
-    def touching(self):
+    def touching(self) -> typing.Tuple[bool, bool]:
         if not self.data.ncon:   # in flight
             return False, False
         contact, robot, foam = self.data.contact, self._robot_geom_set, self.settings.twin.foam
@@ -278,16 +287,23 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
                 on_floor = True
         return on_foam, on_floor
 
-    def step(self):
-        plate = self._plate
+    def step(self) -> None:
+        plate = self._launch_plate()
         if plate.driving or not plate.at_rest:
             self.data.qfrc_applied[self.plate_dof] = plate.force()
         self.mujoco.mj_step(self.model, self.data)
 
-    def advance(self, steps, dt, velocity):
+    def _launch_plate(self) -> "_MujocoPlate":
+        """The plate of the launch under way (the world steps only within :meth:`launch`)."""
+        if self._plate is None:
+            raise RuntimeError("the MuJoCo launch twin steps only within a launch (no push plate placed yet)")
+        return self._plate
+
+    def advance(self, steps: int, dt: float, velocity: typing.Sequence[float]
+                ) -> typing.Tuple[float, typing.Sequence[float]]:
         # LaunchWorld.advance without the per-step calls: the plate is at rest (force 0, its damping holds it)
         mujoco, model, data = self.mujoco, self.model, self.data
-        plate, qvel, step = self._plate, data.qvel, mujoco.mj_step
+        plate, qvel, step = self._launch_plate(), data.qvel, mujoco.mj_step
         peak = 0.0
         px, py, pz = velocity
         for _ in range(steps):
@@ -300,7 +316,7 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
             px, py, pz = vx, vy, vz
         return math.sqrt(peak) / dt, (px, py, pz)
 
-    def settled(self, steps):
+    def settled(self, steps: int) -> bool:
         trial = self.settings.trial
         if steps % trial.check_interval_steps:
             return False
@@ -315,7 +331,7 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         self._rest_since = None
         return False
 
-    def decide(self, remaining_s):
+    def decide(self, remaining_s: float) -> typing.Optional[bool]:
         energy = self.energy
         if energy is None or not self._energy_valid:
             return None
@@ -331,7 +347,8 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         return decided_on_foam(energy, data.subtree_com[self.root][:2].tolist(), self.settings, remaining_s)
 
     # -- one launch ---------------------------------------------------------------------------------------------
-    def launch(self, condition, seed, on_phase=None, on_pose=None):
+    def launch(self, condition: LaunchCondition, seed: int, on_phase: typing.Optional[PhaseCallback] = None,
+               on_pose: typing.Optional[PoseCallback] = None) -> LaunchResult:
         """One launch of ``condition`` with ``seed`` (:func:`~rollability_ros.core.sim.launch_twin.simulate_launch`'s
         rules); returns its :class:`~rollability_ros.core.sim.launch_twin.LaunchResult`."""
         mujoco, model, data, settings = self.mujoco, self.model, self.data, self.settings
@@ -383,7 +400,7 @@ class _MujocoPlate:
     #: about 21% slow at 0.8 m/s and 7-10% fast at 1.5 m/s (PyBullet: within 3%): a known difference.
     ROBOT_SHARE = 0.25
 
-    def __init__(self, twin, spec, push, face_x_m):
+    def __init__(self, twin: MujocoLaunchTwin, spec: PushPlateSpec, push: npt.ArrayLike, face_x_m: float) -> None:
         self._twin, self.spec, self.push, self.face_x_m = twin, spec, np.asarray(push), face_x_m
         explicit = twin.model.opt.integrator != twin.mujoco.mjtIntegrator.mjINT_EULER
         mass_kg = spec.mass_kg + (0.0 if explicit else self.ROBOT_SHARE * twin.mass_kg)
@@ -392,11 +409,11 @@ class _MujocoPlate:
         self.driving = False
 
     @property
-    def at_rest(self):
+    def at_rest(self) -> bool:
         """True once the braked plate has stopped (its servo then holds it with the damping last set)."""
         return not self.driving and abs(float(self._twin.data.qvel[self._twin.plate_dof])) < 1e-6
 
-    def force(self):
+    def force(self) -> float:
         """Set the servo's damping for the coming step and return the joint force that goes with it (N)."""
         twin = self._twin
         error = abs(self._target - float(twin.data.qvel[twin.plate_dof]))
@@ -404,22 +421,22 @@ class _MujocoPlate:
         twin.model.dof_damping[twin.plate_dof] = gain
         return gain * self._target
 
-    def drive(self, speed_mps, time_s):
+    def drive(self, speed_mps: float, time_s: float) -> None:
         """Drive at ``speed_mps`` ramped over ``ramp_s`` from the fire (``time_s`` after it)."""
         self._target = speed_mps * min(1.0, time_s / self.spec.ramp_s)
         self.driving = True
 
-    def reached_edge(self):
+    def reached_edge(self) -> bool:
         """True once the plate's face has reached the edge line x = 0."""
         twin = self._twin
-        return self.face_x_m + float(twin.data.qpos[twin.plate_qpos]) * self.push[0] >= 0.0
+        return bool(self.face_x_m + float(twin.data.qpos[twin.plate_qpos]) * self.push[0] >= 0.0)
 
-    def stop(self):
+    def stop(self) -> None:
         """Brake to rest (the cylinder at the end of its push): target 0 with 10 x the force, from now on."""
         self._target, self._limit, self.driving = 0.0, self.spec.max_force_n * 10, False
 
 
-_cache: collections.OrderedDict = collections.OrderedDict()
+_cache: "collections.OrderedDict[str, MujocoLaunchTwin]" = collections.OrderedDict()
 
 
 def _twin_key(settings, profile):
@@ -430,13 +447,13 @@ def _twin_key(settings, profile):
     trial = dataclasses.replace(settings.trial, start_roll_deg=0.0, force_min_n=0.0, force_max_n=0.0,
                                 torque_min_nm=0.0, torque_max_nm=0.0)
     canonical = dataclasses.replace(
-        settings, twin=dataclasses.replace(settings.twin, designs=None, foam=foam), trial=trial,
+        settings, twin=dataclasses.replace(settings.twin, designs=DesignSources(), foam=foam), trial=trial,
         physics=dataclasses.replace(settings.physics, contact_model="per_contact"),
         robot=dataclasses.replace(settings.robot, com_offset_z_m=0.0))
     return hashlib.sha256(pickle.dumps((canonical, profile), protocol=4)).hexdigest()
 
 
-def twin_for(settings, profile):
+def twin_for(settings: LaunchTwinSettings, profile: typing.Optional[ProfileBody]) -> MujocoLaunchTwin:
     """The :class:`MujocoLaunchTwin` of ``settings`` and ``profile`` from this process's cache.
 
     The model a launch runs on depends on ``settings`` alone, never on what the process launched before (a killed
@@ -447,7 +464,7 @@ def twin_for(settings, profile):
     :func:`~rollability_ros.core.sim.robustness.perturb`), one twin per robot + profile + fixed settings serves
     every draw."""
     key = ("exact-" + hashlib.sha256(pickle.dumps((dataclasses.replace(
-        settings, twin=dataclasses.replace(settings.twin, designs=None)), profile), protocol=4)).hexdigest()
+        settings, twin=dataclasses.replace(settings.twin, designs=DesignSources())), profile), protocol=4)).hexdigest()
            if settings.trial.early_decision else _twin_key(settings, profile))
     twin = _cache.pop(key, None)
     if twin is None:
@@ -468,6 +485,8 @@ class MujocoLaunch(LaunchEngine):
     """``sim.engine: mujoco``: launches on the kept MuJoCo twin of the robot + profile (:func:`twin_for`)."""
 
     @classmethod
-    def simulate(cls, condition, settings, seed, profile, on_phase=None, on_pose=None):
+    def simulate(cls, condition: LaunchCondition, settings: LaunchTwinSettings, seed: int,
+                 profile: typing.Optional[ProfileBody], on_phase: typing.Optional[PhaseCallback] = None,
+                 on_pose: typing.Optional[PoseCallback] = None) -> LaunchResult:
         """One launch (called by :func:`~rollability_ros.core.sim.launch_twin.simulate_launch`)."""
         return twin_for(settings, profile).launch(condition, seed, on_phase, on_pose)

@@ -58,6 +58,9 @@ from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_
 from rollability_ros.core.sim.trials import TrialOutcome, check_engine, run_trial
 from rollability_ros.core.sim.trial_engine import engine_names
 
+if typing.TYPE_CHECKING:   # annotations only: the twin is imported when a launch runs
+    from rollability_ros.core.sim.launch_twin import LaunchTwinSettings
+
 #: ``objective.kind`` values.
 OBJECTIVES = ("disturbance", "launch_twin", "mix")
 #: Evaluation fidelities: the configured objective (``screen``; empty means the same) and robust twin launches.
@@ -130,7 +133,7 @@ class LaunchObjective:
     conditions (configuration :data:`CANDIDATE`), the twin's settings and the share of trials that are launches."""
 
     conditions: tuple
-    twin: object            # LaunchTwinSettings
+    twin: "LaunchTwinSettings"
     launch_share: float
 
     def is_launch(self, index: int) -> bool:

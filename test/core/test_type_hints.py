@@ -27,7 +27,8 @@ MODULES = ["imu/quaternion.py", "imu/upright.py", "records.py", "record_messages
            "sim/early_decision.py", "sim/objectives.py", "graph/foxglove_view.py",
            "rig/valve_backends.py", "sim/stable_poses.py",
            "sim/mujoco_trials.py", "results/report_figures.py",
-           "rig/relay_device_sim.py", "results/analysis.py", "sim/launch_twin.py", "sim/mujoco_launch_twin.py"]
+           "rig/relay_device_sim.py", "results/analysis.py", "sim/launch_twin.py", "sim/mujoco_launch_twin.py",
+           "sim/evaluation.py", "campaign/calibration.py"]
 
 
 def unannotated(path):

@@ -40,11 +40,12 @@ import os
 import typing
 
 import numpy as np
+import numpy.typing as npt
 
 from rollability_ros.core.results import analysis
 from rollability_ros.core.config import ConfigError, from_mapping, section
-from rollability_ros.core.sim import (launch_twin_settings_from_parameters, simulate_valid_launch, spawn_pool,
-                                      trial_seed)
+from rollability_ros.core.sim import (LaunchTwinSettings, launch_twin_settings_from_parameters, simulate_valid_launch,
+                                      spawn_pool, trial_seed)
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import INVALID_LAUNCH, LaunchCondition, LaunchOutcome
 
@@ -56,6 +57,8 @@ INTERVALS = ("likelihood", "bootstrap")
 MIN_BOOTSTRAP = 20
 #: Deviance of a 95% likelihood-ratio interval of one parameter (chi-squared, 1 degree of freedom).
 CHI2_1_95 = 3.841458820694124
+
+ConditionResult = analysis.ConditionResult
 
 
 @dataclasses.dataclass
@@ -80,7 +83,7 @@ class CalibrationSettings:
     interval_points: int = 13
     workers: int = 0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         count = len(self.parameters)
         if not count:
@@ -117,13 +120,13 @@ class CalibrationSettings:
         if self.interval == "likelihood" and self.interval_points < 5:
             raise ValueError(f"interval_points must be >= 5, got {self.interval_points}")
 
-    def to_values(self, normalised):
+    def to_values(self, normalised: npt.ArrayLike) -> np.ndarray:
         """Parameter values (own units) of normalised coordinates ``normalised`` (d,), clipped to [0, 1]."""
         u = np.clip(np.asarray(normalised, dtype=np.float64), 0.0, 1.0)
         return np.array([low * (high / low) ** x if log else low + x * (high - low)
                          for x, low, high, log in zip(u, self.lower, self.upper, self.log_scale)])
 
-    def to_normalised(self, values):
+    def to_normalised(self, values: typing.Union[typing.Sequence[float], np.ndarray]) -> np.ndarray:
         """Normalised coordinates of parameter ``values`` (d,); ``ValueError`` naming one outside its bounds."""
         out = []
         for name, value, low, high, log in zip(self.parameters, values, self.lower, self.upper, self.log_scale):
@@ -133,7 +136,7 @@ class CalibrationSettings:
         return np.array(out)
 
 
-def calibration_settings(parameters):
+def calibration_settings(parameters: typing.Mapping[str, typing.Any]) -> CalibrationSettings:
     """The :class:`CalibrationSettings` of flat parameters (namespace ``calibration``), checked against the
     twin's keys: every fitted name must be a key of the loaded parameter files."""
     settings = from_mapping(CalibrationSettings, section(parameters, "calibration"), "calibration")
@@ -144,22 +147,23 @@ def calibration_settings(parameters):
     return settings
 
 
-def twin_settings_with(parameters, names, values):
+def twin_settings_with(parameters: typing.Mapping[str, typing.Any], names: typing.Sequence[str],
+                       values: typing.Union[typing.Sequence[float], np.ndarray]) -> LaunchTwinSettings:
     """:class:`~rollability_ros.core.sim.launch_twin.LaunchTwinSettings` of flat ``parameters`` with ``names`` set to
-    ``values`` (config keys; checked like file values)."""
+    ``values`` (config keys, own units; ``values`` (d,) one per name; checked like file values)."""
     flat = dict(parameters)
     flat.update({name: float(value) for name, value in zip(names, values)})
     return launch_twin_settings_from_parameters(flat)
 
 
-def simulation_seeds(seed, resample, repetitions):
+def simulation_seeds(seed: int, resample: int, repetitions: int) -> typing.List[int]:
     """The common random numbers of one fit: ``repetitions`` launch seeds from (``seed``, ``resample``);
     resample 0 is the main fit, 1.. the bootstrap fits."""
     base = trial_seed(seed, resample)
     return [trial_seed(base, j) for j in range(repetitions)]
 
 
-def launch_condition(result):
+def launch_condition(result: ConditionResult) -> LaunchCondition:
     """The :class:`LaunchCondition` of a grouped condition (:class:`~rollability_ros.core.results.analysis.ConditionResult`)."""
     return LaunchCondition(result.configuration, result.height_m, result.speed_mps, result.angle_deg)
 
@@ -177,12 +181,14 @@ class LaunchPool:
     ``workers`` None or 0 = one per core, in :func:`~rollability_ros.core.sim.worker_pool.spawn_pool` processes.
     """
 
-    def __init__(self, workers=None):
+    def __init__(self, workers: typing.Optional[int] = None) -> None:
         self.workers = workers or os.cpu_count() or 1
         self._pool = None if self.workers == 1 else spawn_pool(self.workers)
 
-    def predicted_upright(self, twin_settings_list, conditions, seeds):
-        """Upright counts ``(len(twin_settings_list), len(conditions))`` of ``len(seeds)`` launches each."""
+    def predicted_upright(self, twin_settings_list: typing.Sequence[LaunchTwinSettings],
+                          conditions: typing.Sequence[ConditionResult], seeds: typing.Sequence[int]) -> np.ndarray:
+        """Upright counts (s, c): one row per twin of ``twin_settings_list`` (s), one column per condition (c), of
+        ``len(seeds)`` launches each."""
         jobs = [(settings, launch_condition(c), seeds) for settings in twin_settings_list for c in conditions]
         if self._pool is None:
             counts = [_count_upright(*job) for job in jobs]
@@ -190,23 +196,24 @@ class LaunchPool:
             counts = list(self._pool.map(_count_upright, *zip(*jobs)))
         return np.asarray(counts, dtype=np.int64).reshape(len(twin_settings_list), len(conditions))
 
-    def close(self):
+    def close(self) -> None:
         """Stop the worker processes."""
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
 
-    def __enter__(self):
+    def __enter__(self) -> "LaunchPool":
         return self
 
-    def __exit__(self, *exc_info):
+    def __exit__(self, *exc_info: typing.Any) -> None:
         self.close()
 
 
-def binomial_log_likelihood(successes, trials, probabilities, floor):
+def binomial_log_likelihood(successes: npt.ArrayLike, trials: npt.ArrayLike, probabilities: npt.ArrayLike,
+                            floor: float) -> typing.Any:
     """Sum over conditions of log Binomial(successes | trials, p), p clipped to [floor, 1 - floor].
 
     ``successes``, ``trials`` and ``probabilities`` are (c,) arrays (or the last axis of broadcastable arrays);
-    returns a float, or an array over the leading axes.
+    returns a float (numpy scalar), or an array over the leading axes.
     """
     k = np.asarray(successes, dtype=np.float64)
     n = np.asarray(trials, dtype=np.float64)
@@ -217,11 +224,12 @@ def binomial_log_likelihood(successes, trials, probabilities, floor):
     return (log_choose + k * np.log(p) + (n - k) * np.log1p(-p)).sum(axis=-1)
 
 
-def beta_binomial_log_likelihood(successes, trials, upright, repetitions):
+def beta_binomial_log_likelihood(successes: npt.ArrayLike, trials: npt.ArrayLike, upright: npt.ArrayLike,
+                                 repetitions: int) -> typing.Any:
     """Sum over conditions of log P(successes | trials) when the success probability is only known from
     ``upright`` of ``repetitions`` simulated launches: p ~ Beta(upright + 1, repetitions - upright + 1), so the
     physical count is beta-binomial. Unlike the plug-in binomial it carries the simulation's Monte Carlo error,
-    and it needs no probability floor. Arrays broadcast as in :func:`binomial_log_likelihood`."""
+    and it needs no probability floor. Arrays (c,) per condition broadcast as in :func:`binomial_log_likelihood`."""
     k = np.asarray(successes, dtype=np.float64)
     n = np.asarray(trials, dtype=np.float64)
     u = np.asarray(upright, dtype=np.float64)
@@ -229,20 +237,23 @@ def beta_binomial_log_likelihood(successes, trials, upright, repetitions):
         raise ValueError("need 0 <= successes <= trials and 0 <= upright <= repetitions in every condition")
     lgamma = np.vectorize(math.lgamma)
 
-    def log_beta(a, b):
+    def log_beta(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """log B(a, b) elementwise; ``a`` and ``b`` broadcast like the counts, e.g. (c,) or (g, c)."""
         return lgamma(a) + lgamma(b) - lgamma(a + b)
     log_choose = lgamma(n + 1) - lgamma(k + 1) - lgamma(n - k + 1)
     a, b = u + 1.0, repetitions - u + 1.0
     return (log_choose + log_beta(k + a, n - k + b) - log_beta(a, b)).sum(axis=-1)
 
 
-def likelihood_interval(grid_values, log_likelihoods, deviance=CHI2_1_95, ends="grid"):
+def likelihood_interval(grid_values: npt.ArrayLike, log_likelihoods: npt.ArrayLike, deviance: float = CHI2_1_95,
+                        ends: str = "grid") -> typing.Tuple[float, float]:
     """The likelihood-ratio interval on a grid: the values whose log-likelihood lies within ``deviance / 2`` of
     the grid's maximum. The likelihood is known at the grid points only, so with ``ends="grid"`` (default) each
     end is the first grid point outside that set (a bound of the grid when there is none): conservative by up to
     one grid step, which a coarse grid needs (bench_calibration --coverage: interpolated ends held the truth in
     only 8 of 10 cases, all misses within one step). ``ends="interpolate"`` puts them where the straight line
-    between neighbouring points crosses the level. ``grid_values`` (g,) ascending, own units; ``(low, high)``."""
+    between neighbouring points crosses the level. ``grid_values`` (g,) ascending, own units, ``log_likelihoods``
+    (g,); ``(low, high)``."""
     values = np.asarray(grid_values, dtype=np.float64)
     curve = np.asarray(log_likelihoods, dtype=np.float64)
     level = curve.max() - deviance / 2.0
@@ -253,23 +264,26 @@ def likelihood_interval(grid_values, log_likelihoods, deviance=CHI2_1_95, ends="
     if ends != "interpolate":
         raise ValueError(f"ends must be 'grid' or 'interpolate', got {ends!r}")
 
-    def crossing(i, j):   # i inside, j outside: where the line between them meets the level
+    def crossing(i: int, j: int) -> float:   # i inside, j outside: where the line between them meets the level
         return float(values[i] + (values[j] - values[i]) * (curve[i] - level) / (curve[i] - curve[j]))
     low = crossing(first, first - 1) if first > 0 else float(values[0])
     high = crossing(last, last + 1) if last < len(values) - 1 else float(values[-1])
     return low, high
 
 
-def interval_grid(settings, index, points=None):
-    """The grid of parameter ``index``: ``points`` values spread evenly over its bounds on its own scale."""
+def interval_grid(settings: CalibrationSettings, index: int, points: typing.Optional[int] = None) -> np.ndarray:
+    """The grid of parameter ``index``: ``points`` values (points,) spread evenly over its bounds on its own scale
+    (own units)."""
     u = np.linspace(0.0, 1.0, points or settings.interval_points)
     low, high, log = settings.lower[index], settings.upper[index], settings.log_scale[index]
     return low * (high / low) ** u if log else low + u * (high - low)
 
 
-def predicted_on_grid(conditions, parameters, settings, pool, fitted, index):
+def predicted_on_grid(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, typing.Any],
+                      settings: CalibrationSettings, pool: LaunchPool, fitted: npt.ArrayLike,
+                      index: int) -> typing.Tuple[np.ndarray, np.ndarray]:
     """Upright counts of ``sim_repetitions`` launches per grouped condition along parameter ``index``'s grid,
-    the other parameters at ``fitted`` (own units): ``(grid values (g,), upright (g, c))``. Every grid point
+    the other parameters at ``fitted`` (d,) (own units): ``(grid values (g,), upright (g, c))``. Every grid point
     uses the main fit's seeds (common random numbers); the counts do not depend on the physical outcomes."""
     grid = interval_grid(settings, index)
     twins = []
@@ -281,9 +295,12 @@ def predicted_on_grid(conditions, parameters, settings, pool, fitted, index):
     return grid, pool.predicted_upright(twins, conditions, seeds)
 
 
-def likelihood_profile(conditions, parameters, settings, pool, fitted, index, predicted=None):
+def likelihood_profile(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, typing.Any],
+                       settings: CalibrationSettings, pool: LaunchPool, fitted: npt.ArrayLike, index: int,
+                       predicted: typing.Optional[typing.Tuple[np.ndarray, np.ndarray]] = None
+                       ) -> typing.Tuple[np.ndarray, np.ndarray]:
     """Beta-binomial log-likelihood of grouped physical ``conditions`` along parameter ``index``'s grid, the
-    other parameters at ``fitted``: ``(grid values (g,), log-likelihoods (g,))``; ``predicted`` reuses a
+    other parameters at ``fitted`` (d,): ``(grid values (g,), log-likelihoods (g,))``; ``predicted`` reuses a
     :func:`predicted_on_grid` result made for the same conditions (in the same order)."""
     grid, upright = predicted or predicted_on_grid(conditions, parameters, settings, pool, fitted, index)
     successes = np.array([c.successes for c in conditions])
@@ -305,8 +322,11 @@ class FitResult:
     evaluations: int
 
 
-def fit(conditions, parameters, settings, pool, resample=0, on_generation=None):
-    """Fit ``settings.parameters`` to grouped physical ``conditions`` (list of ConditionResult) by CMA-ES.
+def fit(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, typing.Any],
+        settings: CalibrationSettings, pool: LaunchPool, resample: int = 0,
+        on_generation: typing.Optional[typing.Callable[[int, float], None]] = None) -> "FitResult":
+    """Fit ``settings.parameters`` to grouped physical ``conditions`` (list of ConditionResult) by CMA-ES; the
+    :class:`FitResult`'s ``values`` and ``normalised`` are (d,), its ``predicted_upright`` (c,).
 
     Parameters
     ----------
@@ -350,12 +370,15 @@ def fit(conditions, parameters, settings, pool, resample=0, on_generation=None):
                 on_generation(generation, best[1])
     finally:
         np.random.set_state(global_state)  # pycma's seed option reseeds the process-wide generator
+    if best is None:   # CalibrationSettings.validate holds max_generations >= 1
+        raise ValueError(f"max_generations must be >= 1, got {settings.max_generations}")
     x, log_likelihood, upright = best
     return FitResult(values=settings.to_values(x), normalised=np.clip(x, 0.0, 1.0), log_likelihood=log_likelihood,
                      predicted_upright=upright, generations=settings.max_generations, evaluations=evaluations)
 
 
-def bootstrap_conditions(conditions, rng):
+def bootstrap_conditions(conditions: typing.Sequence[ConditionResult],
+                         rng: np.random.Generator) -> typing.List[ConditionResult]:
     """A resample of the physical trials: each grouped condition's repetitions drawn with replacement."""
     return [dataclasses.replace(c, successes=int(rng.binomial(c.trials, c.successes / c.trials)))
             for c in conditions]
@@ -369,7 +392,7 @@ class ParameterEstimate:
     name: str
     initial: float
     fitted: float
-    bootstrap: tuple
+    bootstrap: typing.Tuple[float, ...]
     lower: float
     upper: float
     interval_low: float = math.nan
@@ -377,11 +400,11 @@ class ParameterEstimate:
     interval_method: str = ""
 
     @property
-    def std(self):
+    def std(self) -> float:
         """Standard deviation of the bootstrap fits (the stated uncertainty); NaN with fewer than 2."""
         return float(np.std(self.bootstrap, ddof=1)) if len(self.bootstrap) >= 2 else math.nan
 
-    def row(self):
+    def row(self) -> typing.Dict[str, typing.Any]:
         """Flat dict for a CSV table."""
         spread = (min(self.bootstrap), max(self.bootstrap)) if self.bootstrap else (math.nan, math.nan)
         return {"parameter": self.name, "initial": self.initial, "fitted": self.fitted,
@@ -395,20 +418,20 @@ class ParameterEstimate:
 class CalibrationResult:
     """A calibration: physical conditions, the twin's predictions before and after, the fitted parameters."""
 
-    conditions: list
+    conditions: typing.List[ConditionResult]
     sim_repetitions: int
     before_upright: np.ndarray
     after_upright: np.ndarray
     before_log_likelihood: float
     after_log_likelihood: float
-    estimates: list
+    estimates: typing.List[ParameterEstimate]
     evaluations: int
 
-    def fitted_values(self):
+    def fitted_values(self) -> typing.Dict[str, float]:
         """``{config key: fitted value}``."""
         return {e.name: e.fitted for e in self.estimates}
 
-    def condition_rows(self):
+    def condition_rows(self) -> typing.List[typing.Dict[str, typing.Any]]:
         """Per grouped condition: measured vs predicted success rate before and after."""
         r = self.sim_repetitions
         return [{"configuration": c.configuration, "height_m": c.height_m, "speed_mps": c.speed_mps,
@@ -416,12 +439,13 @@ class CalibrationResult:
                  "measured_rate": c.successes / c.trials, "before_rate": before / r, "after_rate": after / r}
                 for c, before, after in zip(self.conditions, self.before_upright, self.after_upright)]
 
-    def predicted_conditions(self, upright):
-        """The twin's prediction as ConditionResults (``upright`` of ``sim_repetitions`` per condition)."""
+    def predicted_conditions(self, upright: typing.Union[typing.Sequence[int], np.ndarray]) -> typing.List[ConditionResult]:
+        """The twin's prediction as ConditionResults (``upright`` (c,) of ``sim_repetitions`` per condition)."""
         return [dataclasses.replace(c, successes=int(k), trials=self.sim_repetitions)
                 for c, k in zip(self.conditions, upright)]
 
-    def configuration_rows(self, configuration_order=None):
+    def configuration_rows(self, configuration_order: typing.Optional[typing.Sequence[str]] = None
+                           ) -> typing.List[typing.Dict[str, typing.Any]]:
         """Per configuration: measured trial and condition (majority rule) rates, predicted before and after."""
         measured = analysis.summarise(self.conditions, ("configuration",), configuration_order)
         before = analysis.summarise(self.predicted_conditions(self.before_upright), ("configuration",),
@@ -434,11 +458,12 @@ class CalibrationResult:
                  "after_condition_rate": a.condition_rate}
                 for m, b, a in zip(measured, before, after)]
 
-    def rank_agreement(self, configuration_order=None):
+    def rank_agreement(self, configuration_order: typing.Optional[typing.Sequence[str]] = None
+                       ) -> typing.Dict[str, analysis.SimVsExperiment]:
         """``{"before": SimVsExperiment, "after": SimVsExperiment}``: configurations' predicted vs measured trial
         rates (:func:`rollability_ros.core.results.analysis.sim_vs_experiment`)."""
         measured = analysis.summarise(self.conditions, ("configuration",), configuration_order)
-        out = {}
+        out: typing.Dict[str, analysis.SimVsExperiment] = {}
         for label, upright in (("before", self.before_upright), ("after", self.after_upright)):
             predicted = analysis.summarise(self.predicted_conditions(upright), ("configuration",), configuration_order)
             rates = {cell.key["configuration"]: cell.trial_rate for cell in predicted}
@@ -446,7 +471,9 @@ class CalibrationResult:
         return out
 
 
-def calibrate(outcomes, parameters, settings, pool, on_progress=None):
+def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mapping[str, typing.Any],
+              settings: CalibrationSettings, pool: LaunchPool,
+              on_progress: typing.Optional[typing.Callable[[str], None]] = None) -> CalibrationResult:
     """Calibrate the twin to physical launch ``outcomes`` (LaunchOutcome list); see the module docstring.
 
     Parameters
@@ -500,14 +527,16 @@ def calibrate(outcomes, parameters, settings, pool, on_progress=None):
                              after_log_likelihood=main.log_likelihood, estimates=estimates, evaluations=evaluations)
 
 
-def calibrated_parameter_document(fitted, own_path=None, twin_configs=TWIN_CONFIGS):
+def calibrated_parameter_document(fitted: typing.Mapping[str, float],
+                                  own_path: typing.Optional[typing.Union[str, os.PathLike]] = None,
+                                  twin_configs: typing.Sequence[str] = TWIN_CONFIGS) -> typing.Dict[str, typing.Any]:
     """The calibrated ROS 2 parameter file as a dict: ``/**: {ros__parameters: {...}}``.
 
     ``fitted`` maps config keys to values; they are nested under their namespaces. With ``own_path`` (where the
     file will be written) ``rig.twin_config`` becomes ``twin_configs`` plus that path, so a rig loaded with this
     file launches its sim backend on the calibrated twin.
     """
-    flat = {name: float(value) for name, value in fitted.items()}
+    flat: typing.Dict[str, typing.Any] = {name: float(value) for name, value in fitted.items()}
     if own_path is not None:
         flat["rig.twin_config"] = [*twin_configs, os.fspath(own_path)]
     return {"/**": {"ros__parameters": section(flat, "")}}

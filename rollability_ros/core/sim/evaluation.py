@@ -27,18 +27,19 @@ import time
 import typing
 
 import numpy as np
+import numpy.typing as npt
 
 import rollability_ros
 
 from rollability_ros.core.config import from_mapping, load_parameters, section
-from rollability_ros.core.profile import PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
+from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
 from rollability_ros.core.optional import require
 from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, UrdfRobotSpec, footprint_grid
 from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, at_fidelity, fidelity_engine, \
     launch_objective, run_launch_trial, run_robust_trial
 from rollability_ros.core.sim.world import PhysicsParams, connect
 from rollability_ros.core.stats import wilson_interval
-from rollability_ros.core.sim.trial_engine import TRIAL_ENGINES, make_trial_world
+from rollability_ros.core.sim.trial_engine import TRIAL_ENGINES, TrialOutcome, make_trial_world
 from rollability_ros.core.sim.trials import TrialSettings
 from rollability_ros.core.sim.worker_pool import spawn_pool
 
@@ -74,7 +75,7 @@ class EvaluatorOptions:
     poll_interval_s: float = dataclasses.field(default=0.05, metadata={
         "description": "time between cancel checks while waiting for workers, s", "range": (0.001, 10.0)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not 1 <= self.trials <= self.max_trials:
             raise ValueError(f"need 1 <= trials <= max_trials, got trials={self.trials}, max_trials={self.max_trials}")
@@ -114,7 +115,19 @@ SETTINGS_SECTIONS = {"grid": "profile", "printer": "printer", "physics": "sim", 
                      "robot": "robot", "evaluator": "evaluator", "urdf_robot": "urdf_robot", "objective": "objective"}
 
 
-def load_settings(config_paths=("sim", "robot", "evaluator"), node_name="/**"):
+class CancelEvent(typing.Protocol):
+    """What an evaluation polls to stop early: a ``threading.Event``, or a node's view of a goal's cancel request."""
+
+    def is_set(self) -> bool:
+        """True once the evaluation should stop (pending batches are cancelled)."""
+
+
+#: One batch of trials: ``[(trial index, trial seed), ...]``.
+Batch = typing.Sequence[typing.Tuple[int, int]]
+
+
+def load_settings(config_paths: typing.Sequence[str] = ("sim", "robot", "evaluator"),
+                  node_name: str = "/**") -> "EvaluatorSettings":
     """Read :class:`EvaluatorSettings` from ROS 2 parameter files (names of shipped files or paths).
 
     Namespaces: ``sim`` and ``trial`` (sim.yaml), ``robot``, ``profile`` and ``printer`` (robot.yaml), ``urdf_robot``
@@ -126,14 +139,14 @@ def load_settings(config_paths=("sim", "robot", "evaluator"), node_name="/**"):
     return settings_from_parameters(flat)
 
 
-def settings_from_parameters(flat):
+def settings_from_parameters(flat: typing.Mapping[str, typing.Any]) -> "EvaluatorSettings":
     """Build :class:`EvaluatorSettings` from a flat ``{dotted name: value}`` dict (e.g. a node's parameters)."""
-    hints = {f.name: f.type for f in dataclasses.fields(EvaluatorSettings)}
+    hints: typing.Dict[str, typing.Any] = {f.name: f.type for f in dataclasses.fields(EvaluatorSettings)}
     return EvaluatorSettings(**{name: from_mapping(hints[name], section(flat, prefix), prefix)
                                 for name, prefix in SETTINGS_SECTIONS.items()})
 
 
-def settings_at_fidelity(settings, fidelity):
+def settings_at_fidelity(settings: "EvaluatorSettings", fidelity: str) -> "EvaluatorSettings":
     """``settings`` with the objective of evaluation ``fidelity`` (:func:`~rollability_ros.core.sim.objectives.at_fidelity`:
     ``screen``/empty = as configured, ``launch`` = robust twin launches) on the fidelity's engine
     (:func:`~rollability_ros.core.sim.objectives.fidelity_engine`: ``objective.screen_engine`` /
@@ -146,7 +159,7 @@ def settings_at_fidelity(settings, fidelity):
                                physics=dataclasses.replace(settings.physics, engine=engine))
 
 
-def trial_seed(base_seed, index):
+def trial_seed(base_seed: int, index: int) -> int:
     """Seed of trial ``index`` of an evaluation with ``base_seed`` (int in [0, 2**63)), via numpy SeedSequence."""
     if isinstance(base_seed, bool) or not isinstance(base_seed, (int, np.integer)) or not 0 <= base_seed <= MAX_SEED:
         raise ValueError(f"seed must be an integer in [0, 2**64), got {base_seed!r}")
@@ -161,13 +174,14 @@ class TrialJob:
     """What a worker needs to run trials of one profile: the profile body (None = baseline), the settings and,
     for a launch-twin or mixed objective, its resolved launch part (:mod:`~rollability_ros.core.sim.objectives`)."""
 
-    profile: ProfileBody
+    profile: typing.Optional[ProfileBody]
     settings: EvaluatorSettings
     launch: typing.Optional[LaunchObjective] = None
 
 
-def profile_job(heights, settings):
-    """Make the :class:`TrialJob` of half-grid ``heights`` (None / empty / flat = baseline); ``ValueError`` if bad."""
+def profile_job(heights: typing.Optional[npt.ArrayLike], settings: EvaluatorSettings) -> TrialJob:
+    """Make the :class:`TrialJob` of half-grid ``heights`` ``(grid.n_variables,)`` (simulation units; None / empty /
+    flat = baseline); ``ValueError`` if bad."""
     if heights is not None and np.asarray(heights).size:
         heights = check_heights(heights, settings.grid)
     if is_baseline(heights, settings.grid.flat_tolerance):
@@ -175,7 +189,7 @@ def profile_job(heights, settings):
     return mesh_job(profile_mesh(heights, settings.grid), settings)
 
 
-def mesh_job(mesh, settings):
+def mesh_job(mesh: typing.Optional[Mesh], settings: EvaluatorSettings) -> TrialJob:
     """Make the :class:`TrialJob` of a profile solid (trimesh, metres, profile frame); None = baseline."""
     profile = None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
     return TrialJob(profile=profile, settings=settings, launch=_launch_part(settings))
@@ -204,7 +218,7 @@ def _job_key(job):
     return hashlib.sha256(pickle.dumps(job, protocol=4)).hexdigest()
 
 
-def run_batch(job, batch):
+def run_batch(job: TrialJob, batch: Batch) -> typing.List[TrialOutcome]:
     """Run the trials ``batch`` = [(index, seed), ...] of ``job`` in this process's physics client.
 
     The process keeps one client and the world of the last job it ran, so consecutive batches of one profile
@@ -263,7 +277,8 @@ class TrialExecutor(abc.ABC):
     in_process: bool = False
 
     @abc.abstractmethod
-    def iter_batches(self, job: "TrialJob", batches: list, should_stop: typing.Callable[[], bool]) -> typing.Iterator:
+    def iter_batches(self, job: "TrialJob", batches: typing.Sequence[Batch],
+                     should_stop: typing.Callable[[], bool]) -> typing.Iterator[typing.List[TrialOutcome]]:
         """Yield the outcome list of each batch ``[(index, seed), ...]`` of ``job`` as it finishes; stop early
         (cancelling what is pending) once ``should_stop()`` is true."""
 
@@ -282,7 +297,8 @@ class SerialExecutor(TrialExecutor):
 
     in_process = True
 
-    def iter_batches(self, job, batches, should_stop):
+    def iter_batches(self, job: TrialJob, batches: typing.Sequence[Batch],
+                     should_stop: typing.Callable[[], bool]) -> typing.Iterator[typing.List[TrialOutcome]]:
         """Yield the outcome list of each batch in order; stop early when ``should_stop()`` is true."""
         for batch in batches:
             if should_stop():
@@ -314,7 +330,7 @@ class LocalExecutor(TrialExecutor):
         How often a wait for results checks the stop condition (s).
     """
 
-    def __init__(self, workers=None, poll_interval_s=0.05):
+    def __init__(self, workers: typing.Optional[int] = None, poll_interval_s: float = 0.05) -> None:
         self.workers = workers or os.cpu_count() or 1
         if self.workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
@@ -322,21 +338,22 @@ class LocalExecutor(TrialExecutor):
         self._pool = spawn_pool(self.workers)
         self._warming = [self._pool.submit(_warm) for _ in range(self.workers)]
 
-    def warm(self):
+    def warm(self) -> typing.List[int]:
         """Block until the worker processes have started their physics clients; return their pids."""
         return sorted({future.result() for future in self._warming})
 
-    def iter_batches(self, job, batches, should_stop):
+    def iter_batches(self, job: TrialJob, batches: typing.Sequence[Batch],
+                     should_stop: typing.Callable[[], bool]) -> typing.Iterator[typing.List[TrialOutcome]]:
         """Yield outcome lists as batches finish (any order); stop early when ``should_stop()`` is true."""
         pending = {self._pool.submit(run_batch, job, batch) for batch in batches}
 
-        def wait(futures, timeout):
+        def wait(futures: typing.Iterable[concurrent.futures.Future], timeout: float) -> typing.Any:
             return concurrent.futures.wait(futures, timeout=timeout, return_when=concurrent.futures.FIRST_COMPLETED)
 
         for future in _drain(pending, wait, lambda f: f.cancel(), should_stop, self.poll_interval_s):
             yield future.result()
 
-    def close(self):
+    def close(self) -> None:
         """Stop the worker processes (pending batches are cancelled)."""
         self._pool.shutdown(wait=True, cancel_futures=True)
 
@@ -348,7 +365,7 @@ class RayExecutor(TrialExecutor):
     only pybullet and numpy installed. Each Ray worker process keeps one physics client across tasks.
     """
 
-    def __init__(self, address, poll_interval_s=0.05):
+    def __init__(self, address: str, poll_interval_s: float = 0.05) -> None:
         if not address:
             raise ValueError("RayExecutor needs a cluster address (host:port of the Ray head)")
         ray = require("ray", feature="the Ray executor")
@@ -361,26 +378,27 @@ class RayExecutor(TrialExecutor):
                      logging_level="WARNING", configure_logging=False)
         self._remote_batch = ray.remote(run_batch)
 
-    def iter_batches(self, job, batches, should_stop):
+    def iter_batches(self, job: TrialJob, batches: typing.Sequence[Batch],
+                     should_stop: typing.Callable[[], bool]) -> typing.Iterator[typing.List[TrialOutcome]]:
         """Yield outcome lists as batches finish on the cluster; stop early when ``should_stop()`` is true."""
         ray = self._ray
         job_ref = ray.put(job)
         pending = [self._remote_batch.remote(job_ref, batch) for batch in batches]
 
-        def wait(refs, timeout):
+        def wait(refs: typing.Iterable[typing.Any], timeout: float) -> typing.Tuple[list, list]:
             done, rest = ray.wait(list(refs), num_returns=1, timeout=timeout)
             return done, rest
 
         for ref in _drain(pending, wait, lambda r: ray.cancel(r, force=False), should_stop, self.poll_interval_s):
             yield ray.get(ref)
 
-    def close(self):
+    def close(self) -> None:
         """Disconnect from the cluster if this executor connected (the cluster keeps running)."""
         if self._owns_connection and self._ray.is_initialized():
             self._ray.shutdown()
 
 
-def make_executor(options, workers=None) -> TrialExecutor:
+def make_executor(options: EvaluatorOptions, workers: typing.Optional[int] = None) -> TrialExecutor:
     """The :class:`TrialExecutor` ``options`` (:class:`EvaluatorOptions`) ask for: Ray if ``ray_address`` is set,
     else a local pool (the only code that chooses an executor)."""
     if options.ray_address:
@@ -403,8 +421,10 @@ class TrialBatchEngine(abc.ABC):
     name = "local"
 
     @abc.abstractmethod
-    def run_trials(self, jobs, pairs):
-        """Outcomes (:class:`~rollability_ros.core.sim.trials.TrialOutcome`) of ``pairs``, in their order."""
+    def run_trials(self, jobs: typing.Sequence[TrialJob],
+                   pairs: typing.Sequence[typing.Tuple[int, int, int]]) -> typing.List[TrialOutcome]:
+        """Outcomes (:class:`~rollability_ros.core.sim.trials.TrialOutcome`) of ``pairs`` ``(position in jobs,
+        trial index, trial seed)``, in their order."""
 
 
 class ExecutorEngine(TrialBatchEngine):
@@ -413,15 +433,18 @@ class ExecutorEngine(TrialBatchEngine):
     job in its own thread so the workers stay busy across profiles, as the optimizer's evaluations run (one
     thread on the serial executor, whose trials share this process's physics client)."""
 
-    def __init__(self, executor=None, whole=False, name="local"):
+    def __init__(self, executor: typing.Optional[TrialExecutor] = None, whole: bool = False,
+                 name: str = "local") -> None:
         self.executor, self.whole, self.name = executor or SerialExecutor(), whole, name
 
-    def run_trials(self, jobs, pairs):
-        by_job = {}
+    def run_trials(self, jobs: typing.Sequence[TrialJob],
+                   pairs: typing.Sequence[typing.Tuple[int, int, int]]) -> typing.List[TrialOutcome]:
+        """Outcomes of ``pairs`` ``(position in jobs, trial index, trial seed)``, in their order (see the class)."""
+        by_job: typing.Dict[int, typing.List[typing.Tuple[int, int, int]]] = {}
         for position, (job, index, seed) in enumerate(pairs):
             by_job.setdefault(job, []).append((position, index, seed))
 
-        def run_job(job):
+        def run_job(job: int) -> typing.List[TrialOutcome]:
             wanted = by_job[job]
             size = len(wanted) if self.whole else jobs[job].settings.evaluator.batch_trials
             batches = [[(index, seed) for _, index, seed in wanted[start:start + size]]
@@ -429,7 +452,7 @@ class ExecutorEngine(TrialBatchEngine):
             return [outcome for batch in self.executor.iter_batches(jobs[job], batches, lambda: False)
                     for outcome in batch]
 
-        outcomes = [None] * len(pairs)
+        outcomes: typing.List[typing.Any] = [None] * len(pairs)   # every position filled below
         # an in-process executor runs in this process's one physics client: one job after another
         threads = 1 if self.executor.in_process else max(1, len(by_job))
         with concurrent.futures.ThreadPoolExecutor(max_workers=threads) as pool:
@@ -440,7 +463,8 @@ class ExecutorEngine(TrialBatchEngine):
         return outcomes
 
 
-def evaluate_jobs(jobs, trials, seed, engine):
+def evaluate_jobs(jobs: typing.Sequence[TrialJob], trials: int, seed: int,
+                  engine: TrialBatchEngine) -> typing.List["EvaluationResult"]:
     """Evaluate every :class:`TrialJob` of ``jobs`` over ``trials`` trials with base ``seed`` (trial ``i`` of
     each uses :func:`trial_seed` ``(seed, i)``: common random numbers) in one call of ``engine``
     (a :class:`TrialBatchEngine`); one :class:`EvaluationResult` per job (``eval_time_s``: the whole batch's)."""
@@ -454,8 +478,8 @@ def evaluate_jobs(jobs, trials, seed, engine):
     if len(outcomes) != len(pairs):
         raise ValueError(f"trial engine {engine.name} returned {len(outcomes)} outcomes for {len(pairs)} pairs")
     results = []
-    for job in range(len(jobs)):
-        own = sorted(outcomes[job * trials:(job + 1) * trials], key=lambda outcome: outcome.index)
+    for position in range(len(jobs)):
+        own = sorted(outcomes[position * trials:(position + 1) * trials], key=lambda outcome: outcome.index)
         successes = sum(outcome.upright for outcome in own)
         low, high = wilson_interval(successes, trials)
         results.append(EvaluationResult(fitness=successes / trials, successes=successes, trials=trials, ci_low=low,
@@ -473,7 +497,7 @@ class EvaluationResult:
     ci_low: float
     ci_high: float
     eval_time_s: float
-    trial_results: list
+    trial_results: typing.List[TrialOutcome]
 
 
 def _check_request(trials, seed, options):
@@ -482,7 +506,9 @@ def _check_request(trials, seed, options):
     trial_seed(seed, 0)  # validates the seed
 
 
-def evaluate_job(job, trials, seed, executor=None, on_trial=None, cancel_event=None):
+def evaluate_job(job: TrialJob, trials: int, seed: int, executor: typing.Optional[TrialExecutor] = None,
+                 on_trial: typing.Optional[typing.Callable[[TrialOutcome], None]] = None,
+                 cancel_event: typing.Optional[CancelEvent] = None) -> EvaluationResult:
     """Run ``trials`` trials of ``job`` (a :class:`TrialJob`) with base ``seed``; see :func:`evaluate_profile`."""
     options = job.settings.evaluator
     _check_request(trials, seed, options)
@@ -508,7 +534,10 @@ def evaluate_job(job, trials, seed, executor=None, on_trial=None, cancel_event=N
                             eval_time_s=time.perf_counter() - started, trial_results=outcomes)
 
 
-def evaluate_profile(heights, trials, seed, settings, executor=None, on_trial=None, cancel_event=None):
+def evaluate_profile(heights: typing.Optional[npt.ArrayLike], trials: int, seed: int, settings: EvaluatorSettings,
+                     executor: typing.Optional[TrialExecutor] = None,
+                     on_trial: typing.Optional[typing.Callable[[TrialOutcome], None]] = None,
+                     cancel_event: typing.Optional[CancelEvent] = None) -> EvaluationResult:
     """Evaluate the profile of half-grid ``heights`` (None / empty / all zero = baseline) over ``trials`` trials.
 
     Parameters
@@ -535,6 +564,9 @@ def evaluate_profile(heights, trials, seed, settings, executor=None, on_trial=No
     return evaluate_job(profile_job(heights, settings), trials, seed, executor, on_trial, cancel_event)
 
 
-def evaluate_mesh(mesh, trials, seed, settings, executor=None, on_trial=None, cancel_event=None):
+def evaluate_mesh(mesh: typing.Optional[Mesh], trials: int, seed: int, settings: EvaluatorSettings,
+                  executor: typing.Optional[TrialExecutor] = None,
+                  on_trial: typing.Optional[typing.Callable[[TrialOutcome], None]] = None,
+                  cancel_event: typing.Optional[CancelEvent] = None) -> EvaluationResult:
     """Evaluate a profile solid (e.g. from :func:`~rollability_ros.core.profile.geometry.load_profile_mesh`); see above."""
     return evaluate_job(mesh_job(mesh, settings), trials, seed, executor, on_trial, cancel_event)

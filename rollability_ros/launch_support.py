@@ -15,11 +15,12 @@ class NodeCommand(typing.NamedTuple):
     """One node of a session: ``lib/rollability_ros/<executable> <arguments>``; ``restart``: respawn it."""
 
     executable: str
-    arguments: list
+    arguments: typing.List[str]
     restart: bool
 
 
-def session_commands(rig_backend, optimizer, evaluators=None, config="", run_dir="runs/session"):
+def session_commands(rig_backend: str, optimizer: bool, evaluators: typing.Optional[int] = None, config: str = "",
+                     run_dir: str = "runs/session") -> typing.List[NodeCommand]:
     """The :class:`NodeCommand` of every node of a session, in start order.
 
     ``config``: an extra parameter file on top of the shipped ones; ``evaluators``: overrides
@@ -54,12 +55,15 @@ def _nodes(context, rig_backend, optimizer, evaluators):
             for command in commands]
 
 
-def describe_session(rig_backend, optimizer, evaluators=None):
-    """A LaunchDescription with the ``config`` and ``run_dir`` arguments and the session's nodes."""
-    from launch import LaunchDescription
+def describe_session(rig_backend: str, optimizer: bool, evaluators: typing.Optional[int] = None) -> typing.Any:
+    """A LaunchDescription (``launch`` is untyped here: a ROS 2 install's, not on PyPI) with the ``config`` and
+    ``run_dir`` arguments and the session's nodes."""
+    import importlib
+
     from launch.actions import DeclareLaunchArgument, OpaqueFunction
 
-    return LaunchDescription([
+    # by name: mypy, run in the repository, takes its launch/ folder (the launch files) for the launch package
+    return importlib.import_module("launch").LaunchDescription([
         DeclareLaunchArgument("config", default_value="", description="extra ROS 2 parameter file (overrides)"),
         DeclareLaunchArgument("run_dir", default_value="runs/session",
                               description="where the outcome store and the bag of this session go"),

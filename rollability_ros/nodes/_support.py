@@ -371,7 +371,7 @@ class ThreadSafeActionClient(ActionClient):
         with self._request_lock:
             return super()._get_result_async(goal_handle)
 
-    async def execute(self, taken_data):
+    async def execute(self, taken_data: typing.Any) -> None:
         with self._request_lock:   # execute never suspends: its callbacks are plain functions
             await super().execute(taken_data)
 

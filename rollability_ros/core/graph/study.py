@@ -35,6 +35,7 @@ import yaml
 from rollability_ros.core.graph.bringup import NodeLaunch, core_nodes, load_graph_settings, new_study_id, parameter_files
 from rollability_ros.core.graph.progress import GraphObserver, JobProgress, ProgressDisplay, Stopwatch, eta_s
 from rollability_ros.core.config import check_path_component, load_parameters
+from rollability_ros.core.records import LaunchOutcome
 from rollability_ros.core.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
 
@@ -70,11 +71,13 @@ class Study:
     learnt from the graph through ``observer`` (a :class:`~rollability_ros.core.graph.progress.GraphObserver`;
     None: phases only, no numbers)."""
 
-    def __init__(self, extra_configs=(), study_id=None, say=None, resume=None, display=None,
-                 observer: typing.Optional[GraphObserver] = None):
+    def __init__(self, extra_configs: typing.Sequence[str] = (), study_id: typing.Optional[str] = None,
+                 say: typing.Optional[typing.Callable[[str], None]] = None, resume: typing.Optional[str] = None,
+                 display: typing.Optional[ProgressDisplay] = None,
+                 observer: typing.Optional[GraphObserver] = None) -> None:
         self.param_files = parameter_files(["bringup", *extra_configs])
         self.resuming = resume is not None
-        if self.resuming:
+        if resume is not None:   # self.resuming
             if extra_configs or study_id:
                 raise ValueError("a resumed study runs on its own saved configuration: no --config or --study-id")
             self.study_dir = resume_dir(resume, load_graph_settings(self.param_files).output_dir)
@@ -95,18 +98,21 @@ class Study:
         self.observer = observer
         self._stop_requested = False
         self._shown_generation = -1
-        self._campaign_clock, self._campaign_start_done = None, 0
+        self._campaign_clock: typing.Optional[Stopwatch] = None
+        self._campaign_start_done = 0
 
-    def request_stop(self):
+    def request_stop(self) -> None:
         """Ask the running study to stop at its next check (Ctrl-C handler)."""
         self._stop_requested = True
 
     @property
-    def optimization_dir(self):
+    def optimization_dir(self) -> str:
+        """The study's optimization run directory (:data:`OPTIMIZATION_DIR`)."""
         return os.path.join(self.study_dir, OPTIMIZATION_DIR)
 
     @property
-    def store_path(self):
+    def store_path(self) -> str:
+        """The logger's outcome store of the study."""
         return os.path.join(self.study_dir, "outcomes.sqlite")
 
     def _optimizer(self, resume):
@@ -114,7 +120,7 @@ class Study:
             "run_id": OPTIMIZATION_DIR, "optimizer.output_dir": self.study_dir, "autostart": True,
             "select_designs": True, "exit_on_finish": True, "resume": resume})
 
-    def make_study_dir(self):
+    def make_study_dir(self) -> None:
         """Make the new study's directory: its recorded id (:data:`STUDY_ID_FILE`) and its parameter files."""
         os.makedirs(self.study_dir, exist_ok=False)
         with open(os.path.join(self.study_dir, STUDY_ID_FILE), "w", encoding="utf-8") as stream:
@@ -131,7 +137,7 @@ class Study:
             shutil.copyfile(path, copies[-1])
         self.param_files = copies
 
-    def bag_dirs(self):
+    def bag_dirs(self) -> typing.List[str]:
         """The study's bag directories in recording order: ``bag``, then one ``bag-<n>`` per resume."""
         found = [path for path in glob.glob(os.path.join(self.study_dir, "bag*")) if os.path.isdir(path)]
         return sorted(found, key=lambda path: (len(path), path))
@@ -194,7 +200,7 @@ class Study:
         return [JobProgress("launch campaign (simulated rig)", trials_stored=done, trials_total=total, eta_s=left)]
 
     def _wait(self, supervisor, name, timeout_s, progress):
-        def tick():
+        def tick() -> None:
             try:
                 for snapshot in progress():
                     self.display.update(snapshot)
@@ -204,7 +210,7 @@ class Study:
         return supervisor.wait_for_exit(name, timeout_s, self.settings.poll_period_s,
                                         lambda: self._stop_requested, tick, tick_period_s=PROGRESS_PERIOD_S)
 
-    def check_parameters(self):
+    def check_parameters(self) -> None:
         """Raise ConfigError listing every node parameter of the graph that its node would refuse, before any
         directory is made or process started (a node's own refusal would only reach its log)."""
         from rollability_ros.core.config import ConfigError
@@ -214,7 +220,7 @@ class Study:
         if problems:
             raise ConfigError(f"study not started: {len(problems)} invalid parameter(s):\n  " + "\n  ".join(problems))
 
-    def run(self):
+    def run(self) -> StudyResult:
         """Run (or resume) the whole study; always stops the graph; returns a :class:`StudyResult`."""
         self.check_parameters()
         if self.resuming:
@@ -334,7 +340,7 @@ def _clock_ns(time_ns):
     return datetime.datetime.fromtimestamp(time_ns / 1e9, datetime.timezone.utc).strftime("%H:%M:%S.%f")[:-3]
 
 
-def topic_windows_text(window):
+def topic_windows_text(window: typing.Mapping[str, typing.Mapping[str, typing.Any]]) -> str:
     """One restart's per-topic missed windows (:func:`~rollability_ros.core.bags.recover.missed_windows`) as text:
     ``/ns/rig/pose 10:00:01.200 to 10:00:06.800 UTC (5.6 s, about 560 messages at its 100 Hz)``, one per topic."""
     parts = []
@@ -352,7 +358,10 @@ def topic_windows_text(window):
     return ", ".join(parts)
 
 
-def compare_bags_with_store(bagged_trial_ids, stored_outcomes, gaps, topic_windows=()):
+def compare_bags_with_store(bagged_trial_ids: typing.Collection[str], stored_outcomes: typing.Iterable[LaunchOutcome],
+                            gaps: typing.Sequence[typing.Tuple[int, typing.Optional[int]]],
+                            topic_windows: typing.Iterable[typing.Mapping[str, typing.Any]] = ()
+                            ) -> typing.Tuple[str, str]:
     """Check that every stored launch outcome is in a bag, or was stamped inside a reported recording gap.
 
     Parameters
@@ -378,8 +387,8 @@ def compare_bags_with_store(bagged_trial_ids, stored_outcomes, gaps, topic_windo
     extra = sorted(set(bagged_trial_ids) - set(stored))
     missing = [stored[t] for t in sorted(set(stored) - set(bagged_trial_ids))]
     margin_ns = int(GAP_MARGIN_S * 1e9)
-    in_gap = {index: [] for index in range(len(gaps))}
-    unexplained = []
+    in_gap: typing.Dict[int, typing.List[LaunchOutcome]] = {index: [] for index in range(len(gaps))}
+    unexplained: typing.List[LaunchOutcome] = []
     for outcome in missing:
         stamp_ns = int(round(outcome.stamp_s * 1e9))
         index = next((i for i, (after, until) in enumerate(gaps)
@@ -403,7 +412,7 @@ def compare_bags_with_store(bagged_trial_ids, stored_outcomes, gaps, topic_windo
     return problem, note
 
 
-def resume_dir(study, output_dir):
+def resume_dir(study: str, output_dir: str) -> str:
     """The directory of the study to resume: ``study`` as a path, else ``<output_dir>/<study>``; ``ValueError`` if
     it holds no study (no saved ``config/``)."""
     for candidate in (study, os.path.join(output_dir, study)):
@@ -413,7 +422,7 @@ def resume_dir(study, output_dir):
                      f"holds {CONFIG_DIR}/ with its parameter files)")
 
 
-def recorded_study_id(study_dir):
+def recorded_study_id(study_dir: str) -> str:
     """The id a study was started under: its ``study-id.txt``; for a study made before that file existed, the one
     campaign run in its outcome store, else the folder's name (a study stopped before its campaign began)."""
     path = os.path.join(study_dir, STUDY_ID_FILE)
@@ -432,7 +441,7 @@ def recorded_study_id(study_dir):
     return os.path.basename(os.path.normpath(study_dir))
 
 
-def saved_parameter_files(study_dir):
+def saved_parameter_files(study_dir: str) -> typing.List[str]:
     """The study's copied parameter files, in load order."""
     files = sorted(glob.glob(os.path.join(study_dir, CONFIG_DIR, "*.yaml")))
     if not files:

@@ -22,6 +22,7 @@ import html
 import math
 import os
 import shlex
+import typing
 
 from rollability_ros.core.results import analysis
 from rollability_ros.core.results.outcome_csv import read_outcome_csv
@@ -68,23 +69,23 @@ class DesignEstimate:
     in_run_trials: int
 
     @property
-    def fresh(self):
+    def fresh(self) -> float:
         """Fresh fitness, NaN when not re-evaluated."""
         return self.fresh_successes / self.fresh_trials if self.fresh_trials else math.nan
 
     @property
-    def in_run(self):
+    def in_run(self) -> float:
         """In-run (logged, pooled) fitness, NaN when none was logged (the baseline)."""
         return self.in_run_successes / self.in_run_trials if self.in_run_trials else math.nan
 
     @property
-    def selection_bias(self):
+    def selection_bias(self) -> float:
         """In-run minus fresh fitness (NaN without both)."""
         return self.in_run - self.fresh
 
-    def text(self):
+    def text(self) -> str:
         """One summary line: fresh with its Wilson 95% interval, in-run with its interval, the bias."""
-        def rate(successes, trials):
+        def rate(successes: int, trials: int) -> str:
             if not trials:
                 return f"{'-':>22}"
             low, high = wilson_interval(successes, trials)
@@ -94,14 +95,15 @@ class DesignEstimate:
                 f"{rate(self.in_run_successes, self.in_run_trials)}   {bias:>5}")
 
 
-def design_estimates(rows, path):
+def design_estimates(rows: typing.Iterable[typing.Mapping[str, typing.Any]],
+                     path: typing.Union[str, os.PathLike]) -> typing.List[DesignEstimate]:
     """The :class:`DesignEstimate` s of Table 3 rows (``selection.TABLE_COLUMNS``; a table without the in-run
     columns gives none); ``ValueError`` naming ``path`` and the cell for a count that is not a whole number."""
     estimates = []
     for row in rows:
         if "in_run_trials" not in row:
             return []
-        counts = {}
+        counts: typing.Dict[str, int] = {}
         for column in ("successes", "trials", "in_run_successes", "in_run_trials"):
             try:
                 counts[column] = int(float(row[column] or 0))
@@ -120,12 +122,12 @@ class ReportResult:
     """Paths written by :func:`build_report` and the text summary."""
 
     html_path: str
-    figure_paths: list
-    table_paths: list
+    figure_paths: typing.List[str]
+    table_paths: typing.List[str]
     summary: str
 
 
-def source_kind(path):
+def source_kind(path: typing.Union[str, os.PathLike]) -> str:
     """``"store"``, ``"bag"`` or ``"csv"`` for a report source; ValueError if it is none of them."""
     path = os.fspath(path)
     if os.path.isdir(path):
@@ -146,7 +148,7 @@ def source_kind(path):
     raise ValueError(f"{path}: not a store (SQLite), a bag (.mcap) or a CSV of outcomes")
 
 
-def load_report_data(source, run_id=None):
+def load_report_data(source: typing.Union[str, os.PathLike], run_id: typing.Optional[str] = None) -> ReportData:
     """Read the records of ``source`` (see module docstring) for one campaign run.
 
     ``run_id`` selects the launch outcomes of one campaign run; it may be omitted when the source holds one.
@@ -202,7 +204,8 @@ def _design_sets(folder):
     return [folder] + sorted(later, key=lambda path: int(path.rsplit("-", 1)[1]))
 
 
-def design_folders(source, run_info=None):
+def design_folders(source: typing.Union[str, os.PathLike],
+                   run_info: typing.Optional[typing.Mapping[str, typing.Any]] = None) -> typing.List[str]:
     """The ``designs/`` folders of the run ``source`` names, never a sibling run's: the folder of the
     ``designs_file`` (and of the ``mesh_files``) recorded in the selected campaign run's info (``run_info``: the
     ``info`` dict), and :data:`RUN_DESIGN_FOLDERS` of the source's own folder (of the study or session folder for
@@ -273,7 +276,7 @@ def _engine_rows(folders):
     return []
 
 
-def use_geometry_csv(data, path):
+def use_geometry_csv(data: ReportData, path: str) -> None:
     """Take Table 3 from a CSV (``designs/table3.csv`` of the selection); its ``simulated_fitness`` column
     fills in the simulated fitness of configurations that have none yet (empty or NaN cells are skipped)."""
     with open(path, newline="", encoding="utf-8-sig") as stream:
@@ -420,7 +423,7 @@ def _figures(out_dir, views, configurations, comparison, points, engine_rows=(),
 
     drawn = []
 
-    def draw(name, caption, function, *args):
+    def draw(name: str, caption: str, function: typing.Callable[..., str], *args: typing.Any) -> None:
         drawn.append((function(os.path.join(out_dir, name), *args), caption))
 
     if views is not None:
@@ -447,7 +450,7 @@ def _figures(out_dir, views, configurations, comparison, points, engine_rows=(),
     return drawn
 
 
-def selection_gain_lines(table3_rows):
+def selection_gain_lines(table3_rows: typing.Sequence[typing.Mapping[str, typing.Any]]) -> typing.List[str]:
     """The summary's lines on each chosen design's gain over the bare robot as the selection measured it (Table 3's
     ``gain*`` columns: fresh robust twin launches, or the fresh re-evaluation), with Newcombe's 95% interval, and
     a plain sentence when no design beats the bare robot. Empty when Table 3 has no gains."""
@@ -473,7 +476,7 @@ def selection_gain_lines(table3_rows):
     return lines
 
 
-def campaign_gain_lines(by_configuration, label):
+def campaign_gain_lines(by_configuration: typing.Iterable[analysis.CellSummary], label: str) -> typing.List[str]:
     """Each configuration's upright rate over the campaign's trials minus the baseline's, with Newcombe's 95%
     interval, and a plain sentence when no design's interval lies above 0 (empty without a baseline)."""
     cells = {cell.key["configuration"]: cell for cell in by_configuration}
@@ -494,7 +497,9 @@ def campaign_gain_lines(by_configuration, label):
     return lines
 
 
-def summary_text(data, views, comparison, points):
+def summary_text(data: ReportData, views: typing.Optional[analysis.Views],
+                 comparison: typing.Optional[analysis.SimVsExperiment],
+                 points: typing.Sequence[analysis.ConvergencePoint]) -> str:
     """A few lines describing the report's data and headline numbers: the chosen designs' fresh re-evaluations
     first (with the in-run estimates beside them and the selection bias), then the campaign, labelled simulated
     or experimental by where its outcomes came from."""
@@ -550,7 +555,7 @@ def summary_text(data, views, comparison, points):
     return "\n".join(lines)
 
 
-def refuse_all_invalid(data):
+def refuse_all_invalid(data: ReportData) -> None:
     """``ValueError`` (one line) when ``data`` has launch outcomes but every one is an invalid launch: nothing to
     analyse, and the cause is the rig's set-up, not the robot."""
     if not data.outcomes or any(outcome.valid for outcome in data.outcomes):
@@ -562,7 +567,7 @@ def refuse_all_invalid(data):
                      "and run the campaign again")
 
 
-def check_report_dir(out_dir):
+def check_report_dir(out_dir: typing.Union[str, os.PathLike]) -> None:
     """Raise ValueError unless ``out_dir`` is missing, empty, or holds an earlier report (``report.html``): a report
     never writes into a file's place or among other results (a run or bag folder)."""
     if os.path.lexists(out_dir) and not os.path.isdir(out_dir):
@@ -572,7 +577,8 @@ def check_report_dir(out_dir):
                          "or empty folder for --out")
 
 
-def build_report(data, out_dir, measure="condition_rate"):
+def build_report(data: ReportData, out_dir: typing.Union[str, os.PathLike],
+                 measure: str = "condition_rate") -> ReportResult:
     """Write figures (PNG), tables (CSV) and ``report.html`` (self-contained) to ``out_dir``.
 
     Parameters
@@ -619,7 +625,8 @@ pre { background: #f7f7f7; padding: 0.8em; }
 """
 
 
-def find_artefacts(folders, source=None):
+def find_artefacts(folders: typing.Iterable[str], source: typing.Optional[typing.Union[str, os.PathLike]] = None
+                   ) -> typing.List[typing.Tuple[str, str]]:
     """``[(path, kind)]`` of the files a report links: design meshes (STL, 3MF), their Table 3 and ``designs.yaml``
     in the run's design ``folders`` (:func:`design_folders`: never a sibling run's), and recorded bags (folders
     with ``metadata.yaml``, or the source bag itself) in or next to ``source``."""

@@ -16,11 +16,25 @@ import select
 import signal
 import sys
 import time
+import typing
 
 from rollability_ros.core.rig.relay_protocol import DEFAULT_KEEPALIVE_TIMEOUT_MS, RelayDevice, split_lines
 
 
-def serve(line, device, in_fd=0, out_fd=1):
+class HeldLine(typing.Protocol):
+    """The valve line this process drives (:class:`~rollability_ros.core.rig.valve_backends.GpioBackend`)."""
+
+    def open_valve(self) -> None:
+        """Drive the line active (the valve opens)."""
+
+    def close_valve(self) -> None:
+        """Drive the line inactive (the valve closes)."""
+
+    def release(self) -> None:
+        """Drive the line inactive and give it back."""
+
+
+def serve(line: HeldLine, device: RelayDevice, in_fd: int = 0, out_fd: int = 1) -> None:
     """Run ``device`` on the lines of ``in_fd`` until end of input or SIGTERM (SIGINT is ignored), driving ``line``.
 
     ``line`` has ``open_valve()``, ``close_valve()`` and ``release()``
@@ -33,7 +47,7 @@ def serve(line, device, in_fd=0, out_fd=1):
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     pending = b""
 
-    def apply(transitions):
+    def apply(transitions: typing.Iterable[typing.Tuple[bool, str]]) -> None:
         for relay_on, _reason in transitions:
             (line.open_valve if relay_on else line.close_valve)()
 
@@ -61,7 +75,7 @@ def serve(line, device, in_fd=0, out_fd=1):
         line.release()  # drives the line inactive first
 
 
-def main(argv=None):
+def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     """Command-line entry point (started by the gpio backend, not by people)."""
     from rollability_ros.core.rig.valve_backends import GpioBackend
 

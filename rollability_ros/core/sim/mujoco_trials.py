@@ -31,6 +31,9 @@ from rollability_ros.core.sim.trial_engine import TrialEngine, TrialOutcome
 from rollability_ros.core.sim.trials import RestDetector, TrialSettings, sample_conditions
 from rollability_ros.core.sim.world import PhysicsParams
 
+if typing.TYPE_CHECKING:  # annotations only
+    from rollability_ros.core.robots import ProfileBody, RobotModel
+
 
 #: MuJoCo's contact spring (solref): time constant (s, MuJoCo's default; 2 steps blew up with the profile meshes)
 #: and damping ratio 1 (critical). A damping ratio below 1 (what a restitution of 0.3 would map to, 0.36) left a
@@ -56,7 +59,7 @@ def set_geom_contact(geom: typing.Any, physics: PhysicsParams, ground: bool = Fa
     geom.solref = [max(CONTACT_SOLREF[0], 4 * physics.time_step_s), CONTACT_SOLREF[1]]
 
 
-def robot_spec(robot_model: typing.Any, profile: typing.Any,
+def robot_spec(robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
                physics: PhysicsParams) -> typing.Tuple[typing.Any, typing.Any]:
     """The MjSpec of ``robot_model`` with ``profile`` (or None): contacts, joint drag, profile mount and a free
     joint on the root link, nothing else in the world. Returns ``(spec, root body spec)``."""
@@ -97,13 +100,13 @@ def robot_spec(robot_model: typing.Any, profile: typing.Any,
     return spec, root
 
 
-def wheel_bodies(model: typing.Any, robot_model: typing.Any) -> typing.Set[int]:
+def wheel_bodies(model: typing.Any, robot_model: "RobotModel") -> typing.Set[int]:
     """The body ids of ``robot_model``'s wheel links in compiled ``model``."""
     wheel_names = set(robot_model.wheel_link_names())
     return {model.body(i).id for i in range(model.nbody) if model.body(i).name in wheel_names}
 
 
-def build_model(robot_model: typing.Any, profile: typing.Any,
+def build_model(robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
                 physics: PhysicsParams) -> typing.Tuple[typing.Any, int, typing.Set[int]]:
     """Compile the MuJoCo model of ``robot_model`` with ``profile`` (or None) on a ground plane.
 
@@ -133,8 +136,8 @@ class MujocoTrialWorld(TrialEngine):
     owns_world = True              # its own model and data: several can be kept per process
 
     @classmethod
-    def build(cls, client: typing.Any, robot_model: typing.Any, profile: typing.Any, settings: TrialSettings,
-              physics: PhysicsParams) -> "MujocoTrialWorld":
+    def build(cls, client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
+              settings: TrialSettings, physics: PhysicsParams) -> "MujocoTrialWorld":
         """The MuJoCo world (it has its own: ``client`` is not used)."""
         return cls(robot_model, profile, settings, physics)
 

@@ -59,6 +59,7 @@ from rollability_ros.core.sim.trials import TrialOutcome, check_engine, run_tria
 from rollability_ros.core.sim.trial_engine import engine_names
 
 if typing.TYPE_CHECKING:   # annotations only: the twin is imported when a launch runs
+    from rollability_ros.core.robots import ProfileBody, RobotModel
     from rollability_ros.core.sim.launch_twin import LaunchTwinSettings
 
 #: ``objective.kind`` values.
@@ -182,7 +183,8 @@ def launch_objective(settings: "ObjectiveSettings", engine: str = "pybullet",
                     tuple(settings.twin_config), engine, bool(early_decision))
 
 
-def run_launch_trial(objective: LaunchObjective, profile: typing.Any, index: int, seed: int) -> TrialOutcome:
+def run_launch_trial(objective: LaunchObjective, profile: "typing.Optional[ProfileBody]",
+                     index: int, seed: int) -> TrialOutcome:
     """Trial ``index`` (a launch) of an evaluation: the candidate ``profile`` (ProfileBody, None = bare chassis)
     launched on the twin under :meth:`LaunchObjective.condition` with ``seed``; a :class:`TrialOutcome`."""
     from rollability_ros.core.sim.launch_twin import simulate_valid_launch

@@ -43,6 +43,11 @@ from rollability_ros.core.optional import require
 from rollability_ros.core.profile import Mesh
 from rollability_ros.core.sim.body_points import link_points
 
+if typing.TYPE_CHECKING:  # annotations only
+    from rollability_ros.core.robots import ProfileBody, RobotModel
+    from rollability_ros.core.sim.trials import TrialSettings
+    from rollability_ros.core.sim.world import PhysicsParams
+
 #: Standard gravity for the barrier energy, m/s^2.
 GRAVITY_MPS2 = 9.81
 
@@ -115,7 +120,8 @@ def _rotation_onto_z(axis):
     return np.eye(3) + skew + skew @ skew / (1 + cos)
 
 
-def robot_hull(robot_model: typing.Any, profile: typing.Any = None, sections: int = 24) -> RigidHull:
+def robot_hull(robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]" = None,
+               sections: int = 24) -> RigidHull:
     """The :class:`RigidHull` of any :class:`~rollability_ros.core.robots.robot.RobotModel` with ``profile`` on its mount.
 
     The robot is spawned, as the trials spawn it, in a private PyBullet client at the origin with its base frame
@@ -256,7 +262,8 @@ def screen_body(body: RigidHull, upright_tilt_deg: float, com_sigma_m: float = 0
                         worst_barrier_j=body.mass_kg * GRAVITY_MPS2 * worst)
 
 
-def screen_robot(robot_model: typing.Any, profile: typing.Any, settings: ScreenSettings) -> StableScreen:
+def screen_robot(robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
+                 settings: ScreenSettings) -> StableScreen:
     """Screen ``robot_model`` (any RobotModel) with ``profile`` (ProfileBody or None) under :class:`ScreenSettings`,
     upright by the model's own tilt threshold."""
     body = robot_hull(robot_model, profile, settings.wheel_sections)
@@ -315,7 +322,7 @@ def hull_spawner(body: RigidHull, upright_tilt_deg: float) -> Spawner:
     return spawn
 
 
-def chassis_spawner(robot_model: typing.Any, profile: typing.Any) -> Spawner:
+def chassis_spawner(robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]") -> Spawner:
     """A :func:`drop_trials` spawner for a robot model with ``profile``; upright by the model's own test."""
     def spawn(client: int, time_step_s: typing.Optional[float]) -> typing.Tuple[int, typing.Callable[[int], bool]]:
         robot = robot_model.spawn(client, profile, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0, 1.0), time_step_s=time_step_s)
@@ -323,7 +330,7 @@ def chassis_spawner(robot_model: typing.Any, profile: typing.Any) -> Spawner:
     return spawn
 
 
-def drop_trials(spawn: Spawner, trials: int, seed: int, physics: typing.Any, trial_settings: typing.Any,
+def drop_trials(spawn: Spawner, trials: int, seed: int, physics: "PhysicsParams", trial_settings: "TrialSettings",
                 clearance_m: float = 0.001) -> typing.Tuple[int, int]:
     """Low-energy PyBullet drops: ``trials`` uniformly random orientations released at rest ``clearance_m``
     above the ground; count how many come to rest upright (the quasi-static screen's experiment).

@@ -20,6 +20,9 @@ import typing
 from rollability_ros.core.registry import Registry
 
 if typing.TYPE_CHECKING:  # annotations only
+    from rollability_ros.core.robots import ProfileBody, RobotModel
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.sim.launch_twin import LaunchResult, LaunchTwinSettings
     from rollability_ros.core.sim.trials import TrialSettings
     from rollability_ros.core.sim.world import PhysicsParams
 
@@ -46,8 +49,8 @@ class TrialEngine(abc.ABC):
     owns_world: typing.ClassVar[bool] = False
 
     @classmethod
-    def build(cls, client: typing.Any, robot_model: typing.Any, profile: typing.Any, settings: "TrialSettings",
-              physics: "PhysicsParams") -> "TrialEngine":
+    def build(cls, client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
+              settings: "TrialSettings", physics: "PhysicsParams") -> "TrialEngine":
         """The world of ``robot_model`` carrying ``profile`` (a ProfileBody, or None for the bare robot);
         ``client`` is the PyBullet client the caller opened (engines with their own world ignore it)."""
         return cls(client, robot_model, profile, settings, physics)  # type: ignore[call-arg]
@@ -70,9 +73,10 @@ class LaunchEngine(abc.ABC):
 
     @classmethod
     @abc.abstractmethod
-    def simulate(cls, condition: typing.Any, settings: typing.Any, seed: int, profile: typing.Any,
-                 on_phase: typing.Optional[typing.Callable] = None,
-                 on_pose: typing.Optional[typing.Callable] = None) -> typing.Any:
+    def simulate(cls, condition: "LaunchCondition", settings: "LaunchTwinSettings", seed: int,
+                 profile: "typing.Optional[ProfileBody]",
+                 on_phase: typing.Optional[typing.Callable[[str], None]] = None,
+                 on_pose: typing.Optional[typing.Callable[..., None]] = None) -> "LaunchResult":
         """The ``LaunchResult`` of ``condition`` with ``seed`` on the twin ``settings`` carrying ``profile``."""
 
 
@@ -110,8 +114,8 @@ def check_engine(kind: str, engine: str) -> None:
         raise ValueError(f"sim.engine {engine!r} cannot run {kind} trials (engines that can: {', '.join(engines)})")
 
 
-def make_trial_world(client: typing.Any, robot_model: typing.Any, profile: typing.Any, settings: "TrialSettings",
-                     physics: "PhysicsParams") -> TrialEngine:
+def make_trial_world(client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
+                     settings: "TrialSettings", physics: "PhysicsParams") -> TrialEngine:
     """The trial world of ``physics.engine`` (:data:`TRIAL_ENGINES`), built; every disturbance trial, plain or
     robust, is built here."""
     check_engine("disturbance", physics.engine)

@@ -36,7 +36,10 @@ from rollability_ros.core.optional import require
 # the engine seam (TRIAL_ENGINES, check_engine, make_trial_world, TrialOutcome) is importable from here as before
 from rollability_ros.core.sim.trial_engine import (TRIAL_ENGINES, TrialEngine, TrialOutcome, check_engine,  # noqa: F401
                                                    make_trial_world)
-from rollability_ros.core.sim.world import reset_world, set_contact
+from rollability_ros.core.sim.world import PhysicsParams, reset_world, set_contact
+
+if typing.TYPE_CHECKING:  # annotations only
+    from rollability_ros.core.robots import ProfileBody, RobotModel
 
 
 @dataclasses.dataclass
@@ -143,8 +146,9 @@ def place_on_ground(client: int, body_id: int, orientation: typing.Sequence[floa
                                              physicsClientId=client)
 
 
-def build_trial_world(client: int, robot_model: typing.Any, profile: typing.Any, orientation: typing.Sequence[float],
-                      settings: TrialSettings, physics: typing.Any) -> typing.Tuple[int, typing.Any]:
+def build_trial_world(client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
+                      orientation: typing.Sequence[float],
+                      settings: TrialSettings, physics: PhysicsParams) -> typing.Tuple[int, typing.Any]:
     """Empty the world, add the ground and the robot in its start pose; return ``(ground_id, spawned robot)``."""
     ground = reset_world(client, physics)
     robot = robot_model.spawn(client, profile, (0.0, 0.0, 1.0), orientation, time_step_s=physics.time_step_s)
@@ -322,8 +326,9 @@ class TrialWorld(TrialEngine):
         return TrialOutcome(index=index, seed=seed, upright=upright, settled=settled, steps=steps, tilt_deg=tilt)
 
 
-def run_trial(client: int, robot_model: typing.Any, profile: typing.Any, index: int, seed: int, settings: TrialSettings,
-              physics: typing.Any) -> TrialOutcome:
+def run_trial(client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
+              index: int, seed: int, settings: TrialSettings,
+              physics: PhysicsParams) -> TrialOutcome:
     """Run one trial in a freshly built world of ``physics.engine``
     (:func:`~rollability_ros.core.sim.trial_engine.make_trial_world`; a PyBullet world is built in ``client``)
     and return its :class:`TrialOutcome`."""

@@ -7,7 +7,8 @@ Heights are drawn in cm and speeds in m/s, as in the paper.
 import math
 import typing
 
-from rollability_ros.core.results.analysis import cells_of, grid
+from rollability_ros.core.results.analysis import (CellSummary, ConvergencePoint, SimVsExperiment, Views, cells_of,
+                                                   grid)
 from rollability_ros.core.optional import require
 
 _FACTOR_LABELS = {"height_m": "height (cm)", "speed_mps": "speed (m/s)", "angle_deg": "angle (deg)",
@@ -46,7 +47,7 @@ def _panels(count, columns=2, size=(4.8, 3.4)):
     return figure, flat[:count]
 
 
-def heatmaps(path: str, cells: typing.Sequence[typing.Any], configurations: typing.Sequence[str], row_factor: str,
+def heatmaps(path: str, cells: typing.Sequence[CellSummary], configurations: typing.Sequence[str], row_factor: str,
              title: str) -> str:
     """One heat map per configuration: ``row_factor`` x angle, colour = condition rate, text = both rates."""
     figure, axes = _panels(len(configurations))
@@ -74,7 +75,7 @@ def _text_colour(rate):
     return "white" if rate < 0.2 or rate > 0.85 else "black"
 
 
-def angle_curves(path: str, speed_angle_cells: typing.Sequence[typing.Any],
+def angle_curves(path: str, speed_angle_cells: typing.Sequence[CellSummary],
                  configurations: typing.Sequence[str]) -> str:
     """Figure 11: success against angle, one line per speed, one panel per configuration."""
     figure, axes = _panels(len(configurations))
@@ -111,7 +112,7 @@ OVERALL_MEASURES = {
 }
 
 
-def overall(path: str, views: typing.Any, configurations: typing.Sequence[str], measure: str = "condition_rate") -> str:
+def overall(path: str, views: Views, configurations: typing.Sequence[str], measure: str = "condition_rate") -> str:
     """Figure 12: grouped bars by speed, height and angle per configuration, and overall per configuration, of one
     ``measure`` (:data:`OVERALL_MEASURES`): the paper's condition rate, or the trial rate with its interval."""
     label, whiskers = OVERALL_MEASURES[measure]
@@ -157,7 +158,7 @@ def _configuration_axis(ax, configurations, label="success rate"):
     ax.grid(axis="y", alpha=0.3)
 
 
-def convergence(path: str, points: typing.Sequence[typing.Any]) -> str:
+def convergence(path: str, points: typing.Sequence[ConvergencePoint]) -> str:
     """Figure 4: best-so-far fitness per generation (solid), generation best and mean (faint), per run."""
     plt = _pyplot()
     figure, ax = plt.subplots(figsize=(6.4, 3.8), layout="constrained")
@@ -178,7 +179,7 @@ def convergence(path: str, points: typing.Sequence[typing.Any]) -> str:
     return _save(figure, path)
 
 
-def sim_vs_experiment(path: str, comparison: typing.Any) -> str:
+def sim_vs_experiment(path: str, comparison: SimVsExperiment) -> str:
     """Simulated fitness against campaign success per configuration (the campaign labelled experimental or
     simulated), with the rank agreement."""
     plt = _pyplot()
@@ -288,7 +289,8 @@ def sensitivity(path: str, rows: typing.Sequence[typing.Mapping[str, typing.Any]
     return _save(figure, path)
 
 
-def archive_map(path: str, archive_rows: typing.Sequence[typing.Mapping[str, typing.Any]], edges: typing.Any) -> str:
+def archive_map(path: str, archive_rows: typing.Sequence[typing.Mapping[str, typing.Any]],
+                edges: typing.Mapping[str, typing.Sequence[float]]) -> str:
     """The quality-diversity map: one square per filled cell of maximum height (x) x sharpness (y), coloured by the
     elite's fitness (the fresh screen's when there is one), the chosen designs' labels written in their cells.
 

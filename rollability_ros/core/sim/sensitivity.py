@@ -12,7 +12,8 @@ and draws them (:func:`rollability_ros.core.results.report_figures.sensitivity`)
 import dataclasses
 import typing
 
-from rollability_ros.core.sim.evaluation import evaluate_mesh
+from rollability_ros.core.profile import Mesh
+from rollability_ros.core.sim.evaluation import EvaluatorSettings, TrialExecutor, evaluate_mesh
 from rollability_ros.core.sim.robustness import RobustSettings, perturb, Draw
 
 #: factor -> default levels.
@@ -23,8 +24,9 @@ DEFAULT_LEVELS = {"disturbance_scale": (0.5, 1.0, 2.0), "start_roll_deg": (180.0
 Row = typing.Dict[str, typing.Any]
 
 
-def with_factor(settings: typing.Any, factor: str, level: typing.Any) -> typing.Any:
-    """EvaluatorSettings ``settings`` with one factor set to ``level`` (the others as configured)."""
+def with_factor(settings: EvaluatorSettings, factor: str, level: typing.Any) -> EvaluatorSettings:
+    """EvaluatorSettings ``settings`` with one factor set to ``level`` (its type is the factor's: a name for
+    ``contact_model``, else a number; the others as configured)."""
     nominal = Draw(disturbance_scale=1.0, start_roll_deg=settings.trial.start_roll_deg,
                    contact_model=settings.physics.contact_model, com_offset_z_m=settings.robot.com_offset_z_m,
                    foam_stiffness_factor=1.0, foam_restitution=0.0)
@@ -33,9 +35,9 @@ def with_factor(settings: typing.Any, factor: str, level: typing.Any) -> typing.
     return perturb(settings, dataclasses.replace(nominal, **{factor: level}))
 
 
-def sensitivity_rows(profiles: typing.Mapping[str, typing.Any], settings: typing.Any, trials: int, seed: int,
-                     executor: typing.Any = None,
-                     levels: typing.Optional[typing.Mapping[str, typing.Sequence[typing.Any]]] = None,
+def sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]], settings: EvaluatorSettings, trials: int,
+                     seed: int, executor: typing.Optional[TrialExecutor] = None,
+                     levels: typing.Optional[typing.Mapping[str, typing.Sequence[typing.Union[float, str]]]] = None,
                      robust: typing.Optional[RobustSettings] = None,
                      on_row: typing.Optional[typing.Callable[[Row], None]] = None) -> typing.List[Row]:
     """Evaluate every profile at every factor level and robustly; return the rows (dicts).

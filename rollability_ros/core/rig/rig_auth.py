@@ -37,6 +37,31 @@ import typing
 from rollability_ros.core.rig import valve_auth
 from rollability_ros.core.rig.valve_auth import AuthError, Signature
 
+class ConditionFields(typing.Protocol):
+    """The fields of a launch condition a launch goal signs: a :class:`~rollability_ros.core.records.LaunchCondition`,
+    or the ``LaunchCondition`` message of a goal as it arrives."""
+
+    @property
+    def configuration(self) -> str:
+        """The configuration id."""
+
+    @property
+    def height_m(self) -> float:
+        """The ledge height above the foam, m."""
+
+    @property
+    def speed_mps(self) -> float:
+        """The nominal launch speed, m/s."""
+
+    @property
+    def angle_deg(self) -> float:
+        """The launch angle, deg."""
+
+    @property
+    def repetition(self) -> int:
+        """The repetition number of the cell."""
+
+
 #: The signature of an unsigned request or record (what a sim rig sends).
 UNSIGNED = Signature("", 0, "")
 
@@ -51,7 +76,7 @@ def _text(kind: str, fields: typing.Any) -> str:
     return f"rig-{kind}\n" + json.dumps(fields, sort_keys=True, ensure_ascii=True)
 
 
-def launch_text(run_id: str, trial_id: str, condition: typing.Any) -> str:
+def launch_text(run_id: str, trial_id: str, condition: ConditionFields) -> str:
     """The signed text of a launch goal: run, trial and every field of its ``LaunchCondition``."""
     return _text("launch", [run_id, trial_id, condition.configuration, _number(condition.height_m),
                             _number(condition.speed_mps), _number(condition.angle_deg), int(condition.repetition)])
@@ -182,7 +207,7 @@ class RequestGuard:
         return None, f"not authenticated: {reason}"
 
     def check_launch(self, signature: Signature, run_id: str, trial_id: str,
-                     condition: typing.Any) -> typing.Tuple[typing.Optional[LaunchTicket], str]:
+                     condition: ConditionFields) -> typing.Tuple[typing.Optional[LaunchTicket], str]:
         """A :class:`LaunchTicket` for an authentic fresh launch goal, else ``(None, reason)``."""
         key, reason = self._verify(signature, launch_text(run_id, trial_id, condition))
         return (LaunchTicket(run_id, trial_id, key), "") if key is not None else (None, reason)
@@ -206,16 +231,16 @@ class OpenGuard:
     required = False
     rejected = 0
 
-    def check_launch(self, signature: typing.Any, run_id: str, trial_id: str,
-                     condition: typing.Any) -> typing.Tuple[LaunchTicket, str]:
+    def check_launch(self, signature: Signature, run_id: str, trial_id: str,
+                     condition: ConditionFields) -> typing.Tuple[LaunchTicket, str]:
         """Always a ticket (that signs nothing)."""
         return LaunchTicket(run_id, trial_id, None), ""
 
-    def check_confirm(self, signature: typing.Any, trial_id: str) -> typing.Tuple[bool, str]:
+    def check_confirm(self, signature: Signature, trial_id: str) -> typing.Tuple[bool, str]:
         """Always passes (the sim rig never asks; its operator channel refuses every answer)."""
         return True, ""
 
-    def check_outcome(self, signature: typing.Any, trial_id: str, upright: bool, travel_time_s: float,
+    def check_outcome(self, signature: Signature, trial_id: str, upright: bool, travel_time_s: float,
                       note: str) -> typing.Tuple[bool, str]:
         """Always passes (the sim rig never asks; its operator channel refuses every answer)."""
         return True, ""
@@ -269,7 +294,7 @@ class KeyFileSigner:
             self._signer = valve_auth.RequestSigner(key)
         return self._signer.sign_text(text)
 
-    def launch(self, run_id: str, trial_id: str, condition: typing.Any) -> Signature:
+    def launch(self, run_id: str, trial_id: str, condition: ConditionFields) -> Signature:
         """The signature of a launch goal."""
         return self._sign(launch_text(run_id, trial_id, condition))
 

@@ -139,7 +139,7 @@ class _Table:
         where = " AND ".join(f'"{name}" = ?' for name in filters)
         return f"SELECT {names} FROM {self.name}" + (f" WHERE {where}" if where else "") + " ORDER BY seq"
 
-    def to_row(self, record: typing.Any) -> tuple:
+    def to_row(self, record: "Record") -> tuple:
         values = dataclasses.asdict(record)
         if self.flatten:
             values.update(values.pop(self.flatten[0]))
@@ -153,6 +153,9 @@ class _Table:
         return self.record_cls(**values)
 
 
+#: A record the store keeps (one table each).
+Record = typing.Union[LaunchOutcome, CandidateRecord, GenerationRecord, TipEventRecord]
+
 _OUTCOMES = _Table("launch_outcomes", LaunchOutcome, ("run_id", "trial_id"),
                    flatten=("condition", LaunchCondition))
 _CANDIDATES = _Table("candidates", CandidateRecord, ("run_id", "generation", "index"))
@@ -163,7 +166,7 @@ _TABLE_OF = {table.record_cls: table for table in _TABLES}
 _RUNS_SQL = "CREATE TABLE IF NOT EXISTS runs (run_id TEXT PRIMARY KEY, kind TEXT NOT NULL, info TEXT NOT NULL)"
 
 
-def unique_key(record: typing.Any) -> tuple:
+def unique_key(record: "Record") -> tuple:
     """The key under which the store keeps ``record`` once, e.g. ``(run_id, trial_id)`` of a LaunchOutcome."""
     table = _TABLE_OF.get(type(record))
     if table is None:

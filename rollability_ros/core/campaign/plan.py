@@ -16,6 +16,9 @@ import typing
 from rollability_ros.core.campaign_matrix import LEVELS, CampaignSpec, load_campaign_spec  # noqa: F401
 from rollability_ros.core.records import LaunchCondition, trial_id_for
 
+if typing.TYPE_CHECKING:  # annotations only
+    from rollability_ros.core.store import Store
+
 
 @dataclasses.dataclass(frozen=True)
 class PlannedTrial:
@@ -99,7 +102,7 @@ def _level_text(condition, level):
             "angle_deg": lambda: f"{value:+g} deg", "speed_mps": lambda: f"{value:g} m/s"}[level]()
 
 
-def remaining_trials(plan: typing.Sequence[PlannedTrial], store: typing.Any, run_id: str) -> typing.List[PlannedTrial]:
+def remaining_trials(plan: typing.Sequence[PlannedTrial], store: "Store", run_id: str) -> typing.List[PlannedTrial]:
     """The planned trials of ``run_id`` whose outcome is not in ``store`` (a trial is done once stored)."""
     done = store.trial_ids(run_id)
     return [trial for trial in plan if trial.trial_id not in done]

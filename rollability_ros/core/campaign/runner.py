@@ -23,9 +23,10 @@ import typing
 from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, changes_between
 from rollability_ros.core.config import from_mapping, section
 from rollability_ros.core.imu import ImuOutcomeConfig
-from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, LaunchAborted, RigPorts, RigSettings,
-                                      SpeedGateConfig, ValveConfig, ValveController, make_controller,
-                                      make_launch_backend, make_speed_gate, parse_outcome_answer)
+from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, LaunchAborted,
+                                      LaunchBackend, RigPorts, RigSettings, SpeedGateConfig, ValveConfig,
+                                      ValveController, make_controller, make_launch_backend, make_speed_gate,
+                                      parse_outcome_answer)
 from rollability_ros.core.records import INVALID_LAUNCH, LaunchOutcome
 from rollability_ros.core.store import Store
 
@@ -255,7 +256,7 @@ def report_exit_code(report: CampaignReport, say: typing.Callable[[str], None] =
     return 0
 
 
-def plan_refusal(backend: typing.Any, run_id: str, plan: typing.Sequence[PlannedTrial]) -> str:
+def plan_refusal(backend: LaunchBackend, run_id: str, plan: typing.Sequence[PlannedTrial]) -> str:
     """Why the campaign must not start ("" if every planned trial can run): the first reason the backend's
     ``check`` gives for a trial (e.g. a configuration the launch twin has no profile for), with how many trials
     it concerns, so a campaign does not stop a hundred launches in."""
@@ -324,7 +325,7 @@ class LocalRigPorts(RigPorts):
         """The configured speed gate (its ``operator`` backend asks at this terminal)."""
         return make_speed_gate(speed_config, self._ask)
 
-    def open_imu(self, imu_outcome: typing.Any) -> None:
+    def open_imu(self, imu_outcome: ImuOutcome) -> None:
         """Refused: the in-process rig has no IMU topic."""
         raise ValueError("the in-process physical rig takes outcomes from the operator only (no IMU topic)")
 

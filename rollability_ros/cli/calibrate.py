@@ -6,6 +6,9 @@ import typing
 
 from rollability_ros.cli import Subparsers
 
+if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
+    from rollability_ros.core.campaign import calibration
+
 
 def _write_csv(path, rows):
     """Write homogeneous dict ``rows`` to ``path``; return the path."""
@@ -27,7 +30,7 @@ def _screen_rows(twin_settings, configurations, screen_settings):
             for configuration in configurations]
 
 
-def summary_lines(result: typing.Any,
+def summary_lines(result: "calibration.CalibrationResult",
                   screen_rows: typing.Sequence[typing.Mapping[str, typing.Any]]) -> typing.List[str]:
     """The printed summary: likelihood, parameters with uncertainty, per-configuration rates, rank agreement."""
     from rollability_ros.core.results import analysis

@@ -5,6 +5,9 @@ import typing
 
 from rollability_ros.cli import Subparsers
 
+if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
+    from rollability_ros.core.sim import TrialOutcome
+
 
 def parse_heights(text: str, source: str = "--heights") -> typing.List[float]:
     """Parse profile heights (simulation units) separated by commas and/or whitespace; ValueError naming the
@@ -65,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     executor = evaluation.make_executor(settings.evaluator, args.workers)
     done = []
 
-    def progress(outcome: typing.Any) -> None:
+    def progress(outcome: "TrialOutcome") -> None:
         done.append(outcome)
         if sys.stderr.isatty():
             sys.stderr.write(f"\r  {len(done)}/{trials} trials, {sum(o.upright for o in done)} upright ")

@@ -7,6 +7,9 @@ import typing
 
 from rollability_ros.cli import Subparsers
 
+if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
+    from rollability_ros.core.records import CandidateRecord, GenerationRecord
+
 
 def _duration(seconds):
     """``1h02m``, ``3m05s`` or ``12s``; ``?`` when unknown."""
@@ -30,14 +33,14 @@ class ProgressLine:
         self.live = self.stream.isatty()
         self.evaluated = 0
 
-    def candidate(self, record: typing.Any) -> None:
+    def candidate(self, record: "CandidateRecord") -> None:
         """``on_candidate`` callback."""
         self.evaluated += 1
         if self.live:
             self.stream.write(f"\r  generation {record.generation}: {self.evaluated} evaluated ")
             self.stream.flush()
 
-    def generation(self, record: typing.Any) -> None:
+    def generation(self, record: "GenerationRecord") -> None:
         """``on_generation`` callback."""
         self.evaluated = 0
         cap = self.run.settings.max_generations or "-"

@@ -30,7 +30,7 @@ from std_msgs.msg import String
 
 from rollability_ros.action import EvaluateProfile
 from rollability_ros.core.sim import (FIDELITIES, SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
-                                      evaluate_profile, make_executor, settings_at_fidelity)
+                                      TrialOutcome, evaluate_profile, make_executor, settings_at_fidelity)
 from rollability_ros.core.profile import check_heights
 from rollability_ros.msg import TrialResult
 from rollability_ros.nodes._support import LATCHED_QOS, declare_settings, guard_settings, run_node
@@ -124,7 +124,7 @@ class SimEvaluator(Node):
         request = goal_handle.request
         progress = {"done": 0, "upright": 0}
 
-        def on_trial(outcome: typing.Any) -> None:
+        def on_trial(outcome: TrialOutcome) -> None:
             progress["done"] += 1
             progress["upright"] += int(outcome.upright)
             goal_handle.publish_feedback(EvaluateProfile.Feedback(trials_done=progress["done"],

@@ -11,6 +11,9 @@ from rollability_ros.core.results.analysis import (CellSummary, ConvergencePoint
                                                    grid)
 from rollability_ros.core.optional import require
 
+if typing.TYPE_CHECKING:  # annotations only
+    from rollability_ros.core.profile import Mesh
+
 _FACTOR_LABELS = {"height_m": "height (cm)", "speed_mps": "speed (m/s)", "angle_deg": "angle (deg)",
                   "configuration": "configuration"}
 
@@ -221,7 +224,7 @@ def engine_fitness(path: str, rows: typing.Sequence[typing.Any]) -> str:
     return _save(figure, path)
 
 
-def render_profile_preview(mesh: typing.Any, path: str, title: typing.Optional[str] = None) -> str:
+def render_profile_preview(mesh: "Mesh", path: str, title: typing.Optional[str] = None) -> str:
     """Render a profile solid (a trimesh in metres, profile frame) to a shaded 3D PNG at ``path``; returns ``path``.
 
     Axes are in millimetres, equal scale, seen from the front-left above; ``mesh`` None (the baseline) draws the

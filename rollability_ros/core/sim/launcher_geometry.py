@@ -26,6 +26,9 @@ import typing
 
 import numpy as np
 
+if typing.TYPE_CHECKING:  # annotations only
+    from rollability_ros.core.robots import RobotModel
+
 #: Gap under the push plate unless the robot's centre of mass is lower than four times it (m).
 PLATE_CLEARANCE_M = 0.005
 #: Most acceleration the cylinder gives the robot (m/s^2): 200 N on the built-in chassis's 1.1 kg.
@@ -74,7 +77,7 @@ class RobotEnvelope:
         return math.hypot(self.length_m, self.width_m)
 
 
-def robot_envelope(robot_model: typing.Any) -> RobotEnvelope:
+def robot_envelope(robot_model: "RobotModel") -> RobotEnvelope:
     """The :class:`RobotEnvelope` of a :class:`~rollability_ros.core.robots.robot.RobotModel` (bare robot)."""
     shapes, com, mass_kg = robot_model.standing_shapes_m()
     lowest = min(float(np.asarray(points)[:, 2].min()) for _, points in shapes)

@@ -60,6 +60,7 @@ from rollability_ros.core.sim.trial_engine import engine_names
 
 if typing.TYPE_CHECKING:   # annotations only: the twin is imported when a launch runs
     from rollability_ros.core.robots import ProfileBody, RobotModel
+    from rollability_ros.core.sim.evaluation import TrialJob
     from rollability_ros.core.sim.launch_twin import LaunchTwinSettings
 
 #: ``objective.kind`` values.
@@ -196,7 +197,7 @@ def run_launch_trial(objective: LaunchObjective, profile: "typing.Optional[Profi
                         decided=bool(result.decided))
 
 
-def run_robust_trial(client: typing.Any, job: typing.Any, index: int, seed: int) -> TrialOutcome:
+def run_robust_trial(client: int, job: "TrialJob", index: int, seed: int) -> TrialOutcome:
     """Trial ``index`` of trial job ``job`` under the robustness draw of its ``seed``
     (:mod:`~rollability_ros.core.sim.robustness`): a launch on the perturbed twin, or a disturbance trial in a
     world built in ``client`` for the perturbed settings (which replaces any world held in ``client``)."""

@@ -45,6 +45,7 @@ from rollability_ros.core.sim.body_points import link_points
 
 if typing.TYPE_CHECKING:  # annotations only
     from rollability_ros.core.robots import ProfileBody, RobotModel
+    from rollability_ros.core.sim.evaluation import EvaluatorSettings
     from rollability_ros.core.sim.trials import TrialSettings
     from rollability_ros.core.sim.world import PhysicsParams
 
@@ -270,7 +271,7 @@ def screen_robot(robot_model: "RobotModel", profile: "typing.Optional[ProfileBod
     return screen_body(body, robot_model.upright_tilt_deg, settings.com_sigma_m, settings.n_samples, settings.seed)
 
 
-def screen_heights(heights_list: typing.Sequence[npt.ArrayLike], evaluator_settings: typing.Any,
+def screen_heights(heights_list: typing.Sequence[npt.ArrayLike], evaluator_settings: "EvaluatorSettings",
                    settings: ScreenSettings) -> typing.List[typing.Tuple[StableScreen, bool]]:
     """Screen candidate profiles (half-grid heights ``(grid.n_variables,)``, simulation units) for the optimizer.
 
@@ -288,7 +289,7 @@ def screen_heights(heights_list: typing.Sequence[npt.ArrayLike], evaluator_setti
     return out
 
 
-def profile_screener(evaluator_settings: typing.Any, settings: ScreenSettings
+def profile_screener(evaluator_settings: "EvaluatorSettings", settings: ScreenSettings
                      ) -> typing.Callable[[typing.Sequence[npt.ArrayLike]], typing.List[StableScreen]]:
     """``screen_profiles(heights_list) -> [StableScreen, ...]`` (each heights ``(grid.n_variables,)``, simulation
     units) on the robot of ``evaluator_settings`` under :class:`ScreenSettings` ``settings``: the screen an :class:`~rollability_ros.core.optimization.optimization_run.OptimizationRun`

@@ -18,6 +18,7 @@ use the first round (every candidate, the same trials) as an unbiased comparison
 import dataclasses
 import math
 import typing
+from collections.abc import Callable, Hashable, Sequence
 
 import numpy as np
 
@@ -36,13 +37,13 @@ class RaceResult:
     ``rounds``: one dict per round (``round``, ``trials``, ``seed``, ``running``, ``stopped``).
     """
 
-    totals: dict
-    first_round: dict
-    reference: tuple
-    survivors: list
-    stopped: dict
+    totals: dict[Hashable, tuple[int, int]]
+    first_round: dict[Hashable, tuple[int, int]]
+    reference: tuple[int, int] | None
+    survivors: list[Hashable]
+    stopped: dict[Hashable, tuple[int, str]]
     trials_spent: int
-    rounds: list
+    rounds: list[dict[str, int]]
 
 
 def _bounds(pooled):
@@ -50,7 +51,8 @@ def _bounds(pooled):
     return wilson_interval(successes, trials)
 
 
-def stop_after_round(totals, running, keep_fraction, min_keep):
+def stop_after_round(totals: dict[Hashable, tuple[int, int]], running: list[Hashable], keep_fraction: float,
+                     min_keep: int) -> dict[Hashable, str]:
     """``{candidate: reason}`` of the ``running`` candidates (in order) that stop after a round given their pooled
     ``totals`` ({candidate: (successes, trials)}); module docstring, rules 1 and 2."""
     lower = {c: _bounds(totals[c])[0] for c in running}
@@ -69,7 +71,10 @@ def stop_after_round(totals, running, keep_fraction, min_keep):
     return stops
 
 
-def race(candidates, evaluate, round_trials, round_seeds, keep_fraction=0.5, min_keep=1, reference=None):
+def race(candidates: Sequence[Hashable],
+         evaluate: Callable[[list[Hashable], int, int], Sequence[Sequence[int]]],
+         round_trials: Sequence[int], round_seeds: Sequence[int], keep_fraction: float = 0.5, min_keep: int = 1,
+         reference: Hashable | None = None) -> RaceResult:
     """Race ``candidates`` (hashable ids) by successive halving (module docstring).
 
     Parameters
@@ -97,7 +102,10 @@ def race(candidates, evaluate, round_trials, round_seeds, keep_fraction=0.5, min
     if len(set(candidates)) != len(candidates) or reference in candidates:
         raise ValueError("race candidates must be distinct and not the reference")
     running = list(candidates)
-    totals, first_round, stopped, rounds = {}, {}, {}, []
+    totals: dict[Hashable, tuple[int, int]] = {}
+    first_round: dict[Hashable, tuple[int, int]] = {}
+    stopped: dict[Hashable, tuple[int, str]] = {}
+    rounds: list[dict[str, int]] = []
     reference_total, spent = (0, 0), 0
     for number, (trials, seed) in enumerate(zip(round_trials, round_seeds), 1):
         ids = running + ([reference] if reference is not None else [])
@@ -132,7 +140,7 @@ def race(candidates, evaluate, round_trials, round_seeds, keep_fraction=0.5, min
 # looks is at most alpha (union bound, and the test's power falls with p), computed exactly by
 # :func:`sequential_stop_probability`.
 
-def sequential_stages(looks, trials):
+def sequential_stages(looks: Sequence[int], trials: int) -> list[int]:
     """The trials of each stage: the increments of ``looks`` (cumulative counts) and then up to ``trials``.
 
     ``looks`` strictly increasing in [1, trials); ValueError otherwise. ``[]`` -> ``[trials]`` (one stage)."""
@@ -143,13 +151,13 @@ def sequential_stages(looks, trials):
     return [b - a for a, b in zip(bounds, bounds[1:])]
 
 
-def sequential_bar(successes, trials):
+def sequential_bar(successes: int, trials: int) -> float:
     """The bar a candidate must not be clearly below: the lower end of the 95% Wilson interval of ``successes`` /
     ``trials`` (the incumbent's pooled estimate, or a cell's elite)."""
     return wilson_interval(int(successes), int(trials))[0]
 
 
-def stop_count(n, bar, level):
+def stop_count(n: int, bar: float, level: float) -> int:
     """The largest success count x with P(Binomial(n, bar) <= x) <= ``level`` (-1: none; a candidate with at most x
     successes of n stops)."""
     binom = require("scipy.stats", feature="racing's binomial test").binom
@@ -164,7 +172,7 @@ def stop_count(n, bar, level):
     return x
 
 
-def sequential_stops(successes, trials, bar, looks, alpha):
+def sequential_stops(successes: int, trials: int, bar: float | None, looks: Sequence[int], alpha: float) -> bool:
     """True when a candidate at cumulative ``successes`` / ``trials`` (``trials`` one of ``looks``) stops against
     ``bar`` (None: nothing to beat, never stops) under level ``alpha`` over the len(looks) looks."""
     if bar is None or not looks:
@@ -172,7 +180,8 @@ def sequential_stops(successes, trials, bar, looks, alpha):
     return successes <= stop_count(int(trials), float(bar), alpha / len(looks))
 
 
-def sequential_stop_probability(looks, trials, bar, alpha, p):
+def sequential_stop_probability(looks: Sequence[int], trials: int, bar: float, alpha: float,
+                                p: float) -> tuple[float, float]:
     """Exact ``(P(stopped at some look), expected trials)`` of a candidate of true success rate ``p`` raced against
     ``bar`` with ``looks`` of ``trials`` at level ``alpha`` (dynamic programme over the success count)."""
     binom = require("scipy.stats", feature="racing's binomial test").binom
@@ -212,7 +221,7 @@ def halving_survivors(totals: dict, references: dict, survivors: int) -> list:
         raise ValueError(f"survivors must be >= 1, got {survivors}")
     order = list(totals)
 
-    def improvement(candidate):
+    def improvement(candidate: Hashable) -> float:
         successes, trials = totals[candidate]
         reference = references.get(candidate)
         base = 0.0 if reference is None else reference[0] / reference[1]

@@ -14,6 +14,8 @@ run's own checkpoint from a damaged, replaced or foreign one (see ``Optimization
 import hashlib
 import json
 import os
+import typing
+from collections.abc import Mapping
 
 from rollability_ros.core.config import ConfigError
 
@@ -25,7 +27,7 @@ LEGACY_CHECKPOINT_FILENAME = "checkpoint.pkl"
 CHECKPOINT_FORMAT = 2
 
 
-def atomic_write_bytes(path, data):
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """Write ``data`` to ``path`` so that readers and crashes see either the old file or the new one.
 
     Temp file in the same directory -> write -> fsync -> ``os.replace`` -> fsync of the directory (makes the
@@ -46,7 +48,7 @@ def atomic_write_bytes(path, data):
         os.close(descriptor)
 
 
-def config_hash(parameters):
+def config_hash(parameters: Mapping[str, typing.Any]) -> str:
     """Return a stable hex digest of a flat ``{dotted name: value}`` parameter dict (order-independent)."""
     text = json.dumps(parameters, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
@@ -59,7 +61,7 @@ def _show(value):
     return "(unset)" if value is _UNSET else repr(value)
 
 
-def parameter_differences(saved, current):
+def parameter_differences(saved: Mapping[str, typing.Any], current: Mapping[str, typing.Any]) -> list[str]:
     """Return ``["name: saved -> current", ...]`` for every parameter that differs (added, removed or changed)."""
     lines = []
     for name in sorted(set(saved) | set(current)):
@@ -73,7 +75,8 @@ def _canonical(body):
     return json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False, default=str).encode("utf-8")
 
 
-def checkpoint_bytes(run_id, parameters, optimizer_state, best_so_far):
+def checkpoint_bytes(run_id: str, parameters: Mapping[str, typing.Any], optimizer_state: Mapping[str, typing.Any],
+                     best_so_far: float | None) -> bytes:
     """Return the checkpoint file's bytes (JSON) for ``run_id`` after ``optimizer_state["generation"]``."""
     body = {"format": CHECKPOINT_FORMAT, "run_id": run_id, "generation": optimizer_state["generation"],
             "config_hash": config_hash(parameters), "parameters": dict(parameters),
@@ -82,20 +85,21 @@ def checkpoint_bytes(run_id, parameters, optimizer_state, best_so_far):
     return _canonical({"sha256": hashlib.sha256(canonical).hexdigest(), "checkpoint": json.loads(canonical)})
 
 
-def save_checkpoint(path, run_id, parameters, optimizer_state, best_so_far):
+def save_checkpoint(path: str | os.PathLike[str], run_id: str, parameters: Mapping[str, typing.Any],
+                    optimizer_state: Mapping[str, typing.Any], best_so_far: float | None) -> str:
     """Atomically write the checkpoint of ``run_id``; return the SHA-256 hex digest of the file written."""
     data = checkpoint_bytes(run_id, parameters, optimizer_state, best_so_far)
     atomic_write_bytes(path, data)
     return hashlib.sha256(data).hexdigest()
 
 
-def file_sha256(path):
+def file_sha256(path: str | os.PathLike[str]) -> str:
     """SHA-256 hex digest of the file at ``path``."""
     with open(path, "rb") as stream:
         return hashlib.sha256(stream.read()).hexdigest()
 
 
-def load_checkpoint(path):
+def load_checkpoint(path: str | os.PathLike[str]) -> dict[str, typing.Any] | None:
     """Return the checkpoint body at ``path``, or None if there is none; ``ValueError`` naming why it is unusable
     (not JSON, checksum mismatch, wrong format). Only parses data: nothing in the file is executed."""
     try:
@@ -118,7 +122,8 @@ def load_checkpoint(path):
     return body
 
 
-def check_same_config(checkpoint, parameters, path):
+def check_same_config(checkpoint: Mapping[str, typing.Any], parameters: Mapping[str, typing.Any],
+                      path: str | os.PathLike[str]) -> None:
     """Raise :class:`ConfigError` listing the differing parameters if ``parameters`` differ from the checkpoint's."""
     if checkpoint["config_hash"] == config_hash(parameters):
         return

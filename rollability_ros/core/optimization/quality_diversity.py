@@ -43,11 +43,13 @@ import time
 import typing
 
 import numpy as np
+import numpy.typing as npt
 
 from rollability_ros.core.config import from_mapping, section
 from rollability_ros.core.optional import require
-from rollability_ros.core.optimization.cmaes import IncumbentOptimizer, OptimizerResult, check_search_space
-from rollability_ros.core.profile import descriptors
+from rollability_ros.core.optimization.cmaes import (IncumbentOptimizer, OptimizerResult, OptimizerSettings,
+                                                     check_search_space)
+from rollability_ros.core.profile import descriptors, geometry
 
 #: The archive's behaviour descriptors, in measure order, with their units.
 DESCRIPTOR_NAMES = ("max_height_mm", "sharpness_deg")
@@ -86,7 +88,7 @@ class QualityDiversitySettings:
         "description": "fitness threshold of an empty cell for CMA-MAE (fitness units, upright trials / trials)",
         "range": (-1.0, 1.0)})
 
-    def validate(self, popsize=None):
+    def validate(self, popsize: int | None = None) -> None:
         """Raise ``ValueError`` naming the first unusable field (``popsize``: the optimizer's, to split)."""
         if self.height_cells < 1 or self.sharpness_cells < 1:
             raise ValueError(f"height_cells and sharpness_cells must be >= 1, got {self.height_cells}, "
@@ -109,14 +111,14 @@ class QualityDiversitySettings:
             raise ValueError(f"threshold_min must be in [-1, 1), got {self.threshold_min}")
 
 
-def emitter_ceilings(emitters, lowest_ceiling):
+def emitter_ceilings(emitters: int, lowest_ceiling: float) -> list[float]:
     """Each emitter's height ceiling as a fraction of the height range: evenly from 1 down to ``lowest_ceiling``."""
     if emitters == 1:
         return [1.0]
     return [1.0 - k * (1.0 - lowest_ceiling) / (emitters - 1) for k in range(emitters)]
 
 
-def emitter_batch_sizes(popsize, emitters):
+def emitter_batch_sizes(popsize: int, emitters: int) -> list[int]:
     """Candidates per emitter: ``popsize`` split as evenly as possible, the first emitters taking the remainder."""
     return [popsize // emitters + (1 if k < popsize % emitters else 0) for k in range(emitters)]
 
@@ -132,12 +134,16 @@ def _emitter_class():
     from ribs.emitters import EvolutionStrategyEmitter
 
     class StartRestartEmitter(EvolutionStrategyEmitter):
-        def tell(self, solution, objective, measures, add_info, **fields):
+        def tell(self, solution: npt.ArrayLike, objective: npt.ArrayLike, measures: npt.ArrayLike,
+                 add_info: dict[str, np.ndarray], **fields: npt.ArrayLike) -> None:
+            """pyribs' ``tell`` of a batch: ``solution`` (batch, solution_dim), ``objective`` (batch,),
+            ``measures`` (batch, 2); with an empty archive a restart goes back to the emitter's ``x0``."""
             archive = self.archive
             if not archive.empty:
                 return super().tell(solution, objective, measures, add_info, **fields)
             start = np.asarray(self.x0, dtype=np.float64)
-            archive.sample_elites = lambda n: {"solution": np.repeat(start[None, :], n, axis=0)}
+            # an instance attribute shadowing the method for this one call (pyribs types it as a method)
+            setattr(archive, "sample_elites", lambda n: {"solution": np.repeat(start[None, :], n, axis=0)})
             try:
                 return super().tell(solution, objective, measures, add_info, **fields)
             finally:
@@ -169,14 +175,17 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
     """
 
     @classmethod
-    def check_settings(cls, settings, parameters):
+    def check_settings(cls, settings: OptimizerSettings, parameters: dict[str, typing.Any]) -> None:
         """The ``optimizer`` section, and the ``quality_diversity`` section against the popsize."""
         settings.validate()
         quality_diversity_settings(parameters).validate(settings.popsize)
 
     @classmethod
-    def create(cls, grid, settings, parameters, clock, initial_mean=None, state=None):
-        """``optimizer.method: cma_mae``: CMA-MAE over the grid with the ``quality_diversity`` section."""
+    def create(cls, grid: geometry.ProfileGrid, settings: OptimizerSettings, parameters: dict[str, typing.Any],
+               clock: typing.Callable[[], float], initial_mean: npt.ArrayLike | None = None,
+               state: dict[str, typing.Any] | None = None) -> "QualityDiversityOptimizer":
+        """``optimizer.method: cma_mae``: CMA-MAE over the grid with the ``quality_diversity`` section;
+        ``initial_mean`` ``(grid.n_variables,)`` simulation units, None: the paper's random mean."""
         settings.validate()
         qd_settings = quality_diversity_settings(parameters)
         if state is None:
@@ -233,8 +242,9 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
                             trials=np.asarray(trials, dtype=np.int64), heights=np.asarray(population),
                             generation=np.full(len(population), self.generation, dtype=np.int64))
 
-    def race_reference(self, heights):
-        """``(successes, trials)`` of the elite of the result-archive cell ``heights`` falls in (sequential racing
+    def race_reference(self, heights: npt.ArrayLike) -> tuple[int, int] | None:
+        """``(successes, trials)`` of the elite of the result-archive cell ``heights`` ``(grid.n_variables,)``
+        (simulation units) falls in (sequential racing
         against its cell's elite); None for an empty cell (any candidate would fill it). The cell follows from the
         geometry alone and the archive is the state between generations, so a resumed generation races alike."""
         measures = np.array([descriptors.profile_descriptors(heights, self.grid).as_tuple()], dtype=np.float64)
@@ -246,12 +256,12 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
 
     # --- state ----------------------------------------------------------------------------------------------------
     @property
-    def sigma(self):
+    def sigma(self) -> float:
         """Mean CMA-ES step size over the emitters, simulation units."""
         return float(np.mean([emitter._opt.sigma for emitter in self.emitters]))
 
     @property
-    def result(self):
+    def result(self) -> OptimizerResult:
         """The :class:`OptimizerResult` so far (``mean``: the heights of the first emitter's CMA-ES mean)."""
         mean = np.asarray(self._bounds[0].transform(np.asarray(self.emitters[0]._opt.mean, dtype=np.float64)),
                           dtype=np.float64)
@@ -289,7 +299,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
         text = repr([(r["cell"], r["heights"], r["fitness"]) for r in rows])
         return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
-    def state_dict(self):
+    def state_dict(self) -> dict[str, typing.Any]:
         """Plain-data state between generations: the tells (replayed by :meth:`from_state_dict`), the initial
         mean, and the result archive's digest and size as a check of the replay."""
         rows = self.archive_rows()
@@ -297,8 +307,12 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
                 "archive_sha256": self._archive_digest(rows), "elites": len(rows)}
 
     @classmethod
-    def from_state_dict(cls, state, settings, qd_settings, grid, clock=time.monotonic, initial_mean=None):
-        """Rebuild an optimizer saved by :meth:`state_dict`; ValueError when it belongs to other settings or code."""
+    def from_state_dict(cls, state: dict[str, typing.Any], settings: OptimizerSettings,
+                        qd_settings: QualityDiversitySettings, grid: geometry.ProfileGrid,
+                        clock: typing.Callable[[], float] = time.monotonic,
+                        initial_mean: npt.ArrayLike | None = None) -> "QualityDiversityOptimizer":
+        """Rebuild an optimizer saved by :meth:`state_dict`; ValueError when it belongs to other settings or code
+        (``initial_mean`` ``(grid.n_variables,)`` as for :meth:`create`)."""
         if state.get("method") != "cma_mae":
             raise ValueError("saved optimizer state is not a cma_mae state (optimizer.method changed?)")
         optimizer = cls(settings, qd_settings, grid, clock, initial_mean)

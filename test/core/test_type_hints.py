@@ -29,7 +29,7 @@ MODULES = ["imu/quaternion.py", "imu/upright.py", "records.py", "record_messages
            "sim/mujoco_trials.py", "results/report_figures.py",
            "rig/relay_device_sim.py", "results/analysis.py", "sim/launch_twin.py", "sim/mujoco_launch_twin.py",
            "sim/evaluation.py", "campaign/calibration.py", "results/report.py",
-           "graph/study.py", "rig/gpio_line_holder.py", "optimization/racing.py", "optimization/checkpoint.py", "optimization/quality_diversity.py"]
+           "graph/study.py", "rig/gpio_line_holder.py", "optimization/racing.py", "optimization/checkpoint.py", "optimization/quality_diversity.py", "optimization/evaluator_pool.py"]
 
 
 def unannotated(path):

@@ -30,6 +30,7 @@ import logging
 import threading
 import time
 import typing
+from collections.abc import Callable, Iterable
 
 
 #: Largest multiple of ``retry_delay_s`` an evaluator rests after consecutive failures.
@@ -60,7 +61,7 @@ class PoolSettings:
     retry_delay_s: float = 1.0
     waiting_log_period_s: float = 30.0
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not self.timeout_s > 0:
             raise ValueError(f"timeout_s must be > 0, got {self.timeout_s}")
@@ -92,12 +93,16 @@ class PoolEvaluationResult:
     eval_time_s: float
     evaluator: str
 
-    def as_tuple(self):
+    def as_tuple(self) -> tuple[int, int, float, str]:
         """``(successes, trials, eval_time_s, evaluator)``, the ``evaluate_batch`` contract of optimization_run."""
         return (self.successes, self.trials, self.eval_time_s, self.evaluator)
 
 
-def result_problem(request, successes, trials):
+#: What ``evaluate_batch`` / ``evaluate`` return: ``(successes, trials, eval_time_s, evaluator)`` per candidate.
+BatchResults = typing.List[typing.Tuple[int, int, float, str]]
+
+
+def result_problem(request: EvaluationRequest, successes: int, trials: int) -> str | None:
     """Why a reported result cannot be the result of ``request`` (None if it can)."""
     if trials != request.trials:
         return f"returned {trials} trials for {request.trials} requested"
@@ -109,29 +114,29 @@ def result_problem(request, successes, trials):
 class Ticket:
     """One attempt of one request on one evaluator; ``submit`` reports through it, from any thread."""
 
-    def __init__(self, pool, job, evaluator, now_s):
+    def __init__(self, pool: "EvaluatorPool", job: "_Job", evaluator: str, now_s: float) -> None:
         self._pool = pool
         self.job = job
         self.evaluator = evaluator
         self.deadline_s = now_s + pool.settings.timeout_s
-        self.cancel = None
+        self.cancel: Callable[[], object] | None = None
         self.done = False
 
     @property
-    def request(self):
+    def request(self) -> EvaluationRequest:
         """The :class:`EvaluationRequest` being attempted."""
         return self.job.request
 
-    def progress(self):
+    def progress(self) -> None:
         """The evaluator is alive and working on it: restart the timeout."""
         self._pool._touch(self)
 
-    def succeed(self, successes, trials, eval_time_s, evaluator=None):
+    def succeed(self, successes: int, trials: int, eval_time_s: float, evaluator: str | None = None) -> None:
         """Report the result (``evaluator``: the name the result is credited to; default the pool's name)."""
         self._pool._finish(self, PoolEvaluationResult(int(successes), int(trials), float(eval_time_s),
                                                   str(evaluator or self.evaluator)), None)
 
-    def fail(self, reason):
+    def fail(self, reason: str) -> None:
         """Report that this attempt produced no result, and why."""
         self._pool._finish(self, None, str(reason))
 
@@ -180,21 +185,23 @@ class EvaluatorPool:
     thread with :meth:`set_evaluators`.
     """
 
-    def __init__(self, submit, settings=None, log=_default_log, clock=time.monotonic):
+    def __init__(self, submit: Callable[[str, EvaluationRequest, Ticket], Callable[[], object] | None],
+                 settings: PoolSettings | None = None, log: Callable[[str, str], None] = _default_log,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.settings = settings or PoolSettings()
         self.settings.validate()
         self._submit = submit
         self._log = log
         self._clock = clock
         self._condition = threading.Condition()
-        self._evaluators = {}
-        self._batch = None
+        self._evaluators: dict[str, _Evaluator] = {}
+        self._batch: _Batch | None = None
         self._paused = False
         self._closed = False
-        self._waiting_logged_s = None
+        self._waiting_logged_s: float | None = None
 
     # --- evaluators and control -------------------------------------------------------------------------------
-    def set_evaluators(self, names):
+    def set_evaluators(self, names: Iterable[str]) -> tuple[list[str], list[str]]:
         """Make ``names`` the available evaluators; return ``(added, removed)`` (sorted name lists).
 
         A removed evaluator's request in flight counts as a failed attempt and is retried elsewhere.
@@ -217,12 +224,12 @@ class EvaluatorPool:
         return added, removed
 
     @property
-    def evaluators(self):
+    def evaluators(self) -> list[str]:
         """Names of the available evaluators, sorted."""
         with self._condition:
             return sorted(self._evaluators)
 
-    def status(self):
+    def status(self) -> dict[str, int | bool]:
         """``{"evaluators": n, "busy": n, "queued": n, "done": n, "paused": bool}`` of the current batch."""
         with self._condition:
             batch = self._batch
@@ -232,29 +239,30 @@ class EvaluatorPool:
                     "paused": self._paused}
 
     @property
-    def paused(self):
+    def paused(self) -> bool:
+        """True between :meth:`pause` and :meth:`resume`."""
         return self._paused
 
-    def pause(self):
+    def pause(self) -> None:
         """Send no new requests until :meth:`resume` (requests in flight finish and are kept)."""
         with self._condition:
             self._paused = True
             self._condition.notify_all()
 
-    def resume(self):
+    def resume(self) -> None:
         """Send requests again after :meth:`pause`."""
         with self._condition:
             self._paused = False
             self._condition.notify_all()
 
-    def close(self):
+    def close(self) -> None:
         """Make a waiting batch raise :class:`PoolClosed`; cancel the requests in flight. Idempotent."""
         with self._condition:
             self._closed = True
             self._condition.notify_all()
 
     # --- batches -----------------------------------------------------------------------------------------------
-    def evaluate(self, requests):
+    def evaluate(self, requests: Iterable[EvaluationRequest]) -> list[PoolEvaluationResult]:
         """Return one :class:`PoolEvaluationResult` per request, in order, once every request has a real result.
 
         Raises :class:`EvaluationFailed` when a request failed ``max_attempts`` times and :class:`PoolClosed`
@@ -299,18 +307,20 @@ class EvaluatorPool:
                 self._waiting_logged_s = None
             self._cancel([t.cancel for t in in_flight])
 
-    def batch_evaluator(self, trials):
-        """``evaluate_batch(heights_list, seed)`` of :mod:`optimization_run` over this pool, ``trials`` each."""
+    def batch_evaluator(self, trials: int) -> Callable[[Iterable[Iterable[float]], int], BatchResults]:
+        """``evaluate_batch(heights_list, seed)`` of :mod:`optimization_run` over this pool, ``trials`` each (each
+        heights ``(n_variables,)``, simulation units)."""
         evaluate = self.fidelity_evaluator("")
 
-        def evaluate_batch(heights_list, seed):
+        def evaluate_batch(heights_list: Iterable[Iterable[float]], seed: int) -> BatchResults:
             return evaluate(heights_list, seed, trials)
         return evaluate_batch
 
-    def fidelity_evaluator(self, fidelity):
+    def fidelity_evaluator(self, fidelity: str) -> Callable[[Iterable[Iterable[float]], int, int], BatchResults]:
         """``evaluate(heights_list, seed, trials)`` over this pool at evaluation ``fidelity`` (as
-        :func:`optimization_run.fidelity_batch_evaluator`, over the graph's evaluators)."""
-        def evaluate(heights_list, seed, trials):
+        :func:`optimization_run.fidelity_batch_evaluator`, over the graph's evaluators; each heights
+        ``(n_variables,)``, simulation units)."""
+        def evaluate(heights_list: Iterable[Iterable[float]], seed: int, trials: int) -> BatchResults:
             requests = [EvaluationRequest(tuple(float(h) for h in heights), int(trials), int(seed), fidelity)
                         for heights in heights_list]
             return [result.as_tuple() for result in self.evaluate(requests)]

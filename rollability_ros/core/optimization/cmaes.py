@@ -31,9 +31,13 @@ import time
 import typing
 
 import numpy as np
+import numpy.typing as npt
 
 from rollability_ros.core.optional import require
 from rollability_ros.core.registry import Registry
+
+if typing.TYPE_CHECKING:
+    from rollability_ros.core.profile import ProfileGrid
 
 #: Seed streams of :func:`derive_seed`: population evaluations, incumbent re-evaluations, design selection.
 STREAM_POPULATION = 0
@@ -42,7 +46,7 @@ STREAM_SELECTION = 2
 STREAM_RACE = 3
 
 
-def derive_seed(run_seed, generation, stream, index=0):
+def derive_seed(run_seed: int, generation: int, stream: int, index: int = 0) -> int:
     """Return a disturbance seed (int in [0, 2**32)) for one evaluation, independent across its keys.
 
     ``stream`` is one of the ``STREAM_*`` constants; ``index`` is the candidate index (independent-seed mode)
@@ -115,7 +119,7 @@ class OptimizerSettings:
                        "(count; 0 = the paper's one random mean)", "range": (0, 10000)})
 
     @property
-    def race_stages(self):
+    def race_stages(self) -> typing.Optional[typing.List[int]]:
         """Trials of each racing stage (:func:`racing.sequential_stages`), or None without racing; ValueError for
         looks that are not strictly increasing counts in [1, trials)."""
         looks = [int(n) for n in self.race_looks]
@@ -126,11 +130,11 @@ class OptimizerSettings:
         return sequential_stages(looks, self.trials)
 
     @property
-    def race_looks_used(self):
+    def race_looks_used(self) -> typing.List[int]:
         """The looks of racing ([] without racing)."""
         return [] if self.race_stages is None else [int(n) for n in self.race_looks]
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         OPTIMIZER_METHODS.check(self.method)
         if self.popsize < 2:
@@ -177,7 +181,7 @@ class Estimate:
     evaluations: int = 1
     generation: int = 0                # generation in which the design was first evaluated
 
-    def pooled(self, fitness, trials):
+    def pooled(self, fitness: float, trials: int) -> "Estimate":
         """Return this estimate pooled with one more evaluation (``fitness`` over ``trials``), trial-weighted."""
         total = self.trials + trials
         return dataclasses.replace(self, fitness=(self.fitness * self.trials + fitness * trials) / total,
@@ -197,7 +201,8 @@ class OptimizerResult:
     stop: dict
 
 
-def random_initial_means(settings, n_variables, lower=0.0, upper=0.45):
+def random_initial_means(settings: OptimizerSettings, n_variables: int, lower: float = 0.0,
+                         upper: float = 0.45) -> npt.NDArray[np.float64]:
     """The seeded random initial means ``(max(1, settings.initial_mean_screen), n_variables)``, uniform in
     ``[lower, upper]``; row 0 is the one the paper's settings start from (``initial_mean_screen`` 0 or 1)."""
     rows = max(1, settings.initial_mean_screen)
@@ -224,9 +229,10 @@ class IncumbentOptimizer(abc.ABC):
     @classmethod
     @abc.abstractmethod
     def create(cls, grid: typing.Any, settings: "OptimizerSettings", parameters: dict,
-               clock: typing.Callable[[], float], initial_mean: typing.Optional[np.ndarray] = None,
+               clock: typing.Callable[[], float], initial_mean: typing.Optional[npt.ArrayLike] = None,
                state: typing.Optional[dict] = None) -> "IncumbentOptimizer":
-        """The optimizer over ``grid``'s variables and bounds, new or restored from a checkpoint ``state``."""
+        """The optimizer over ``grid``'s variables and bounds, new or restored from a checkpoint ``state``;
+        ``initial_mean`` ``(grid.n_variables,)`` simulation units (None: the paper's random start)."""
 
     @abc.abstractmethod
     def _ask(self) -> list:
@@ -270,7 +276,7 @@ class IncumbentOptimizer(abc.ABC):
         self._tells = []
 
     # --- ask / tell -------------------------------------------------------------------------------------------
-    def ask(self):
+    def ask(self) -> typing.List[npt.NDArray[np.float64]]:
         """Return ``popsize`` candidate height arrays ``(n_variables,)`` within the bounds."""
         if self._reevaluation_pending:
             raise ValueError("ask() before tell_reevaluation(): the incumbent re-evaluation of generation "
@@ -280,8 +286,10 @@ class IncumbentOptimizer(abc.ABC):
         self._asked = [np.asarray(x, dtype=np.float64) for x in self._ask()]
         return [x.copy() for x in self._asked]
 
-    def tell(self, solutions, fitness, trials=None):
-        """Pass the fitness (in [0, 1], maximised) of the asked ``solutions``, in the asked order.
+    def tell(self, solutions: typing.Sequence[npt.ArrayLike], fitness: typing.Iterable[float],
+             trials: typing.Optional[typing.Iterable[int]] = None) -> None:
+        """Pass the fitness (in [0, 1], maximised) of the asked ``solutions`` (each ``(n_variables,)``), in the
+        asked order.
 
         ``trials`` (one int per solution, or None for weight 1) weights the pooling of re-evaluations.
         """
@@ -311,13 +319,14 @@ class IncumbentOptimizer(abc.ABC):
                 self._adopt(candidate)
         self._reevaluation_pending = self.settings.reevaluate_incumbent
 
-    def reevaluation_request(self):
-        """Return the heights to re-evaluate now (challenger, else incumbent), or None when nothing is due."""
+    def reevaluation_request(self) -> typing.Optional[npt.NDArray[np.float64]]:
+        """Return the heights ``(n_variables,)`` to re-evaluate now (challenger, else incumbent), or None when
+        nothing is due."""
         if not self._reevaluation_pending:
             return None
         return (self._challenger or self._incumbent).heights.copy()
 
-    def tell_reevaluation(self, fitness, trials=1):
+    def tell_reevaluation(self, fitness: float, trials: int = 1) -> None:
         """Pool a fresh evaluation (``fitness`` over ``trials``) into the design :meth:`reevaluation_request` named."""
         if not self._reevaluation_pending:
             raise ValueError("tell_reevaluation() without a pending re-evaluation")
@@ -333,8 +342,8 @@ class IncumbentOptimizer(abc.ABC):
         if self._incumbent is None or challenger.fitness > self._incumbent.fitness:
             self._adopt(challenger)
 
-    def race_reference(self, heights):
-        """``(successes, trials)`` of the estimate a candidate at ``heights`` is raced against (sequential racing,
+    def race_reference(self, heights: npt.ArrayLike) -> typing.Optional[typing.Tuple[int, int]]:
+        """``(successes, trials)`` of the estimate a candidate at ``heights`` ``(n_variables,)`` is raced against (sequential racing,
         :mod:`~rollability_ros.core.optimization.racing`): the incumbent's pooled estimate; None before there is one.
         Depends only on the state between generations, so a resumed generation races alike."""
         incumbent = self._incumbent
@@ -348,16 +357,16 @@ class IncumbentOptimizer(abc.ABC):
 
     # --- state --------------------------------------------------------------------------------------------------
     @property
-    def best(self):
+    def best(self) -> typing.Optional[Estimate]:
         """The incumbent :class:`Estimate` (best-so-far), or None before the first generation."""
         return self._incumbent
 
     @property
-    def elapsed_s(self):
+    def elapsed_s(self) -> float:
         """Optimization wall time, s, summed over resumed sessions."""
         return self._elapsed_before_s + (self._clock() - self._started)
 
-    def stop(self):
+    def stop(self) -> typing.Dict[str, float]:
         """Return ``{criterion: value}`` for every stop criterion met (empty: keep going).
 
         Criteria: ``max_generations``, ``target_fitness``, ``stagnation_generations``, ``max_evaluations``,
@@ -426,14 +435,19 @@ class ProfileOptimizer(IncumbentOptimizer):
     """
 
     @classmethod
-    def create(cls, grid, settings, parameters, clock, initial_mean=None, state=None):
-        """``optimizer.method: cmaes``: one CMA-ES over the grid's heights."""
+    def create(cls, grid: "ProfileGrid", settings: OptimizerSettings, parameters: dict,
+               clock: typing.Callable[[], float], initial_mean: typing.Optional[npt.ArrayLike] = None,
+               state: typing.Optional[dict] = None) -> "ProfileOptimizer":
+        """``optimizer.method: cmaes``: one CMA-ES over the grid's heights (``initial_mean`` ``(grid.n_variables,)``,
+        simulation units; None: the paper's random start)."""
         if state is None:
             return cls(grid.n_variables, settings, grid.height_min, grid.height_max, clock, initial_mean)
         return cls.from_state_dict(state, grid.n_variables, settings, grid.height_min, grid.height_max, clock,
                                    initial_mean)
 
-    def __init__(self, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic, initial_mean=None):
+    def __init__(self, n_variables: int, settings: OptimizerSettings, lower: float = 0.0, upper: float = 0.45,
+                 clock: typing.Callable[[], float] = time.monotonic,
+                 initial_mean: typing.Optional[npt.ArrayLike] = None) -> None:
         cma = require("cma", feature="the CMA-ES optimizer")
         settings.validate()
         self.n_variables, self.lower, self.upper, self.initial_mean = check_search_space(
@@ -454,18 +468,18 @@ class ProfileOptimizer(IncumbentOptimizer):
         self._es.tell(population, [1.0 - f for f in fitness])
 
     @property
-    def sigma(self):
+    def sigma(self) -> float:
         """Current CMA-ES step size, simulation units."""
         return float(self._es.sigma)
 
     @property
-    def result(self):
+    def result(self) -> OptimizerResult:
         """The :class:`OptimizerResult` so far."""
         return OptimizerResult(best=self._incumbent, generations=self.generation, evaluations=self.evaluations,
                                elapsed_s=self.elapsed_s, mean=np.asarray(self._es.result.xfavorite, dtype=np.float64),
                                sigma=self.sigma, stop=self.stop())
 
-    def state_dict(self):
+    def state_dict(self) -> dict:
         """Return the full optimizer state between generations as plain data (JSON-serialisable, no pickle).
 
         pycma's strategy is deterministic given its seed and the values told to it, so the state is the list of
@@ -476,11 +490,12 @@ class ProfileOptimizer(IncumbentOptimizer):
                 "mean": np.asarray(self._es.mean).tolist(), "sigma": float(self._es.sigma)}
 
     @classmethod
-    def from_state_dict(cls, state, n_variables, settings, lower=0.0, upper=0.45, clock=time.monotonic,
-                        initial_mean=None):
+    def from_state_dict(cls, state: dict, n_variables: int, settings: OptimizerSettings, lower: float = 0.0,
+                        upper: float = 0.45, clock: typing.Callable[[], float] = time.monotonic,
+                        initial_mean: typing.Optional[npt.ArrayLike] = None) -> "ProfileOptimizer":
         """Rebuild an optimizer saved by :meth:`state_dict`; it continues exactly where that one stopped.
 
-        ``initial_mean`` is the start these settings give (as for the constructor); a state that started
+        ``initial_mean`` ``(n_variables,)`` is the start these settings give (as for the constructor); a state that started
         elsewhere belongs to other settings and is refused, as is one whose replay does not reproduce the saved
         mean and step size (ValueError).
         """
@@ -499,10 +514,13 @@ class ProfileOptimizer(IncumbentOptimizer):
         return optimizer
 
 
-def check_search_space(n_variables, settings, lower, upper, initial_mean):
+def check_search_space(n_variables: int, settings: OptimizerSettings, lower: float, upper: float,
+                       initial_mean: typing.Optional[npt.ArrayLike]
+                       ) -> typing.Tuple[int, float, float, npt.NDArray[np.float64]]:
     """``(n_variables, lower, upper, initial_mean)`` checked and converted; ValueError naming what is wrong.
 
-    ``initial_mean`` None -> row 0 of :func:`random_initial_means` (the paper's random start).
+    ``initial_mean`` ``(n_variables,)`` heights, simulation units; None -> row 0 of :func:`random_initial_means`
+    (the paper's random start).
     """
     if n_variables < 1:
         raise ValueError(f"n_variables must be >= 1, got {n_variables}")
@@ -511,11 +529,11 @@ def check_search_space(n_variables, settings, lower, upper, initial_mean):
     n_variables, lower, upper = int(n_variables), float(lower), float(upper)
     if initial_mean is None:
         initial_mean = random_initial_means(settings, n_variables, lower, upper)[0]
-    initial_mean = np.array(initial_mean, dtype=np.float64)
-    if initial_mean.shape != (n_variables,) or not np.all(np.isfinite(initial_mean)) or \
-            np.any(initial_mean < lower) or np.any(initial_mean > upper):
+    mean = np.array(initial_mean, dtype=np.float64)
+    if mean.shape != (n_variables,) or not np.all(np.isfinite(mean)) or \
+            np.any(mean < lower) or np.any(mean > upper):
         raise ValueError(f"initial_mean must be {n_variables} finite heights in [{lower}, {upper}]")
-    return n_variables, lower, upper, initial_mean
+    return n_variables, lower, upper, mean
 
 
 #: ``optimizer.method`` -> its :class:`IncumbentOptimizer` subclass (``"module:Class"``: imported when chosen).

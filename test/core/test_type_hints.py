@@ -58,11 +58,8 @@ def test_every_public_function_of_the_cli_and_the_nodes_is_annotated(module):
 #: A shape in a docstring: ``(n, 3)``, ``(3,)``, ``(grid.n_variables,)``, ``4x4``.
 SHAPE = re.compile(r"\([\w.*+ ]+,[\w.*+ ,]*\)|\d+x\d+")
 #: Public functions with an array-valued parameter or return whose docstring states no shape yet (issue 29, point
-#: 6); only shrinks. Left in core/optimization, where other work was under way when the rest were written.
-SHAPES_UNSTATED = {"optimization/optimization_run.py:cmaes_optimizer",
-                   "optimization/optimization_run.py:make_optimizer", "optimization/optimization_run.py:evaluate",
-                   "optimization/optimization_run.py:evaluate_batch",
-                   "optimization/optimization_run.py:evaluate_engine_batch"}
+#: 6); only shrinks, and is empty: every one states its shape.
+SHAPES_UNSTATED: set[str] = set()
 
 
 def shapes_unstated(root):

@@ -152,7 +152,7 @@ def cmaes_optimizer(n_variables: int, settings: OptimizerSettings, lower: float,
                     clock: typing.Callable[[], float], initial_mean: typing.Optional[np.ndarray] = None,
                     state: typing.Optional[dict] = None) -> ProfileOptimizer:
     """An ``optimizer_factory`` for CMA-ES over explicit bounds: a :class:`ProfileOptimizer`, new or restored from a
-    checkpoint ``state``."""
+    checkpoint ``state``; ``initial_mean`` ``(n_variables,)`` simulation units (None: the paper's random start)."""
     if state is None:
         return ProfileOptimizer(n_variables, settings, lower, upper, clock, initial_mean)
     return ProfileOptimizer.from_state_dict(state, n_variables, settings, lower, upper, clock, initial_mean)
@@ -177,7 +177,8 @@ def make_optimizer(grid: typing.Any, parameters: dict, clock: typing.Callable[[]
                    initial_mean: typing.Optional[np.ndarray] = None,
                    state: typing.Optional[dict] = None) -> IncumbentOptimizer:
     """The optimizer ``optimizer.method`` of ``parameters`` names (:data:`OPTIMIZER_METHODS`, the only lookup of
-    the name), over ``grid``'s variables and bounds, new or restored from a checkpoint ``state``."""
+    the name), over ``grid``'s variables and bounds, new or restored from a checkpoint ``state``; ``initial_mean``
+    ``(grid.n_variables,)`` simulation units (None: the paper's random start)."""
     settings = optimizer_settings(parameters)
     return OPTIMIZER_METHODS.get(settings.method).create(grid, settings, parameters, clock, initial_mean, state)
 
@@ -702,6 +703,7 @@ def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.
         screen = settings_at_fidelity(settings, "screen")   # the screen's engine (objective.screen_engine)
 
         def evaluate_engine_batch(heights_list: typing.Sequence[np.ndarray], seed: int) -> typing.List[tuple]:
+            """``(successes, trials, eval_time_s, engine)`` of each heights ``(n_variables,)`` on ``engine``."""
             jobs = [profile_job(heights, screen) for heights in heights_list]
             return [(r.successes, r.trials, r.eval_time_s, engine.name)
                     for r in evaluate_jobs(jobs, trials, seed, engine)]
@@ -710,6 +712,7 @@ def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.
     evaluate = fidelity_batch_evaluator(settings, executor, "screen", name)
 
     def evaluate_batch(heights_list: typing.Sequence[np.ndarray], seed: int) -> typing.List[tuple]:
+        """``(successes, trials, eval_time_s, evaluator)`` of each heights ``(n_variables,)``, ``trials`` each."""
         return evaluate(heights_list, seed, trials)
 
     return evaluate_batch
@@ -726,6 +729,7 @@ def fidelity_batch_evaluator(settings: typing.Any, executor: typing.Any, fidelit
     workers = executor.workers if executor is not None else None   # None: serial, in this process
 
     def evaluate(heights_list: typing.Sequence[np.ndarray], seed: int, trials: int) -> typing.List[tuple]:
+        """``(successes, trials, eval_time_s, evaluator)`` of each heights ``(n_variables,)`` at the fidelity."""
         whole = dataclasses.replace(settings, evaluator=dataclasses.replace(settings.evaluator, batch_trials=trials))
         chosen = whole if workers is not None and len(heights_list) >= 2 * workers else settings
         threads = concurrent.futures.ThreadPoolExecutor(max_workers=max(1, len(heights_list)))

@@ -62,6 +62,7 @@ import string
 import typing
 
 import numpy as np
+import numpy.typing as npt
 import yaml
 
 from rollability_ros.core.profile import geometry
@@ -69,6 +70,9 @@ from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
 from rollability_ros.core.optimization.cmaes import STREAM_SELECTION, derive_seed
 from rollability_ros.core.optimization import racing
 from rollability_ros.core.stats import newcombe_interval, wilson_interval
+
+if typing.TYPE_CHECKING:
+    from rollability_ros.core.records import CandidateRecord
 
 #: The race's id of the bare robot (the reference that runs every round).
 BASELINE = "baseline"
@@ -132,7 +136,7 @@ class SelectionSettings:
         "description": "fresh robust twin launches per chosen design and the bare robot, for the gain over the "
                        "bare robot in Table 3 and designs.yaml (count; 0 = none)", "range": (0, 10000000)})
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if list(self.race_launches) not in ([], [0]) and any(int(n) < 1 for n in self.race_launches):
             raise ValueError(f"race_launches must list counts >= 1 (or be [0]: no race), got {self.race_launches}")
@@ -150,7 +154,7 @@ class SelectionSettings:
             raise ValueError(f"mesh_units must be one of {', '.join(geometry.MESH_UNITS)}, got {self.mesh_units!r}")
 
     @property
-    def race_rounds(self):
+    def race_rounds(self) -> typing.List[int]:
         """Launches per design in each round of the launch race; [] without a race."""
         return [] if list(self.race_launches) in ([], [0]) else [int(n) for n in self.race_launches]
 
@@ -166,12 +170,12 @@ class PooledDesign:
     first_generation: int
 
     @property
-    def fitness(self):
+    def fitness(self) -> float:
         """Pooled successes / trials."""
         return self.successes / self.trials
 
     @property
-    def wilson_low(self):
+    def wilson_low(self) -> float:
         """Lower bound of the 95% Wilson interval of the pooled fitness."""
         return wilson_interval(self.successes, self.trials)[0]
 
@@ -192,7 +196,7 @@ class SelectedDesign:
     race: typing.Optional[tuple] = None                 # (successes, trials) pooled over the launch race's rounds, or None
 
     @property
-    def reported(self):
+    def reported(self) -> typing.Tuple[int, int, str]:
         """(successes, trials, source) reported in Table 3: the re-evaluation if any, else the pooled log."""
         if self.reevaluation is not None:
             return self.reevaluation[0], self.reevaluation[1], "reevaluated"
@@ -213,12 +217,12 @@ class SelectionResult:
     baseline_launches: typing.Optional[tuple] = None    # (successes, trials, seed) of the bare robot's fresh launches, or None
     race: object = None                # racing.RaceResult of the launch race, or None
 
-    def gains(self):
+    def gains(self) -> typing.List[typing.Optional["Gain"]]:
         """One :class:`Gain` per chosen design: its gain over the bare robot on fresh robust launches when there
         are any, else on the fresh re-evaluation, else None (nothing fresh to compare)."""
         return [design_gain(d, self) for d in self.designs]
 
-    def no_design_helps(self):
+    def no_design_helps(self) -> str:
         """A sentence when gains were measured and no design's 95% interval lies above 0, else ''."""
         gains = [g for g in self.gains() if g is not None]
         if not gains or any(g.beats for g in gains):
@@ -227,7 +231,7 @@ class SelectionResult:
                 + "; ".join(g.text() for g in gains))
 
     @property
-    def shortfall(self):
+    def shortfall(self) -> str:
         """A sentence when fewer designs than requested qualified, else ''."""
         if len(self.designs) >= self.requested:
             return ""
@@ -256,22 +260,23 @@ class Gain:
     baseline_trials: int
 
     @property
-    def interval(self):
+    def interval(self) -> typing.Tuple[float, float, float]:
         """``(difference, low, high)``: Newcombe's hybrid score 95% interval."""
         return newcombe_interval(self.successes, self.trials, self.baseline_successes, self.baseline_trials)
 
     @property
-    def beats(self):
+    def beats(self) -> bool:
         """True when the whole 95% interval of the gain lies above 0."""
         return self.interval[1] > 0
 
-    def text(self):
+    def text(self) -> str:
+        """One line: the design's and the bare robot's counts and the gain with its 95% interval."""
         difference, low, high = self.interval
         return (f"{self.label} {self.successes}/{self.trials} vs bare {self.baseline_successes}/"
                 f"{self.baseline_trials}: {difference:+.2f} [{low:+.2f}, {high:+.2f}]")
 
 
-def design_gain(design, result):
+def design_gain(design: SelectedDesign, result: SelectionResult) -> typing.Optional[Gain]:
     """The :class:`Gain` of ``design`` over the bare robot in ``result``, or None (see SelectionResult.gains)."""
     if design.launches is not None and result.baseline_launches is not None:
         return Gain(design.label, "launches", design.launches[0], design.launches[1], *result.baseline_launches[:2])
@@ -287,9 +292,9 @@ def _limits_named(problems):
             for problem in problems]
 
 
-def pool_candidates(candidates):
+def pool_candidates(candidates: typing.Iterable["CandidateRecord"]) -> typing.List[PooledDesign]:
     """Pool :class:`CandidateRecord` s by identical heights; return :class:`PooledDesign` s in first-seen order."""
-    pooled = {}
+    pooled: typing.Dict[tuple, PooledDesign] = {}
     for record in candidates:
         key = tuple(record.heights)
         previous = pooled.get(key)
@@ -303,8 +308,8 @@ def pool_candidates(candidates):
     return list(pooled.values())
 
 
-def rms_distance(heights_a, heights_b):
-    """RMS difference of two height vectors, simulation units."""
+def rms_distance(heights_a: npt.ArrayLike, heights_b: npt.ArrayLike) -> float:
+    """RMS difference of two height vectors ``(n_variables,)``, simulation units."""
     return float(np.sqrt(np.mean((np.asarray(heights_a) - np.asarray(heights_b)) ** 2)))
 
 
@@ -397,7 +402,7 @@ def _printable_mesh(heights, grid, printer):
     return mesh, None
 
 
-def top_pool(fitnesses, top_fraction):
+def top_pool(fitnesses: typing.Sequence[float], top_fraction: float) -> typing.Tuple[float, typing.List[int]]:
     """``(threshold, indices)``: the indices of ``fitnesses`` at least their ``1 - top_fraction`` quantile (numpy's
     linear interpolation), and that quantile."""
     threshold = float(np.quantile(fitnesses, 1.0 - top_fraction))

@@ -343,9 +343,9 @@ class IncumbentOptimizer(abc.ABC):
             self._adopt(challenger)
 
     def race_reference(self, heights: npt.ArrayLike) -> typing.Optional[typing.Tuple[int, int]]:
-        """``(successes, trials)`` of the estimate a candidate at ``heights`` ``(n_variables,)`` is raced against (sequential racing,
-        :mod:`~rollability_ros.core.optimization.racing`): the incumbent's pooled estimate; None before there is one.
-        Depends only on the state between generations, so a resumed generation races alike."""
+        """``(successes, trials)`` of the estimate a candidate at ``heights`` ``(n_variables,)`` is raced against
+        (sequential racing, :mod:`~rollability_ros.core.optimization.racing`): the incumbent's pooled estimate; None
+        before there is one. Depends only on the state between generations, so a resumed generation races alike."""
         incumbent = self._incumbent
         if incumbent is None:
             return None
@@ -495,9 +495,9 @@ class ProfileOptimizer(IncumbentOptimizer):
                         initial_mean: typing.Optional[npt.ArrayLike] = None) -> "ProfileOptimizer":
         """Rebuild an optimizer saved by :meth:`state_dict`; it continues exactly where that one stopped.
 
-        ``initial_mean`` ``(n_variables,)`` is the start these settings give (as for the constructor); a state that started
-        elsewhere belongs to other settings and is refused, as is one whose replay does not reproduce the saved
-        mean and step size (ValueError).
+        ``initial_mean`` ``(n_variables,)`` is the start these settings give (as for the constructor); a state
+        that started elsewhere belongs to other settings and is refused, as is one whose replay does not reproduce
+        the saved mean and step size (ValueError).
         """
         if state.get("method", "cmaes") != "cmaes":
             raise ValueError(f"saved optimizer state is a {state.get('method')} state, not cmaes (optimizer.method "

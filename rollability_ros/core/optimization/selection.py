@@ -72,7 +72,10 @@ from rollability_ros.core.optimization import racing
 from rollability_ros.core.stats import newcombe_interval, wilson_interval
 
 if typing.TYPE_CHECKING:
+    from collections.abc import Hashable
+
     from rollability_ros.core.records import CandidateRecord
+    from rollability_ros.core.store import Store
 
 #: The race's id of the bare robot (the reference that runs every round).
 BASELINE = "baseline"
@@ -211,7 +214,8 @@ class SelectionResult:
     requested: int
     considered: int                    # distinct designs in the log
     rejected: dict                     # reason -> count ("not printable", "too close", "flat")
-    baseline: typing.Optional[tuple] = None             # (successes, trials, seed) of the baseline re-evaluation, or None
+    # (successes, trials, seed) of the baseline re-evaluation, or None
+    baseline: typing.Optional[typing.Tuple[int, int, int]] = None
     top_threshold: typing.Optional[float] = None        # archive runs: the fitness an elite needed to be in the top pool
     archive: typing.Optional[list] = None               # archive runs: one row per elite (ARCHIVE_COLUMNS), else None
     baseline_launches: typing.Optional[tuple] = None    # (successes, trials, seed) of the bare robot's fresh launches, or None
@@ -448,11 +452,12 @@ def select_from_archive(archive, candidates, grid, printer, settings, evaluate_b
     spans = [float(high - low) for low, high in archive["ranges"]]
     chosen, rejected, points, race = [], {}, [], None
 
-    def spread(i):
+    def spread(i: int) -> float:
         """How far elite ``i`` lies from the nearest design already taken, in the normalised descriptor plane."""
         return min(float(np.hypot(*(_descriptor_point(elites[i], spans) - point))) for point in points)
 
-    def where(elite):
+    def where(elite: typing.Dict[str, typing.Any]) -> str:
+        """Where ``elite`` lies on the map: its height, sharpness and cell."""
         return (f"{elite['max_height_mm']:.0f} mm tall, sharpness {elite['sharpness_deg']:.0f} deg, cell "
                 f"{tuple(elite['cell'])}")
 
@@ -538,7 +543,8 @@ def select_from_archive(archive, candidates, grid, printer, settings, evaluate_b
 def _launch_race(designs, entrants, settings, launch_batch, run_seed, n_variables):
     """Race the ``entrants`` (indices of ``designs``) and the bare robot on robust twin launches
     (:func:`racing.race`; round ``r`` on seed ``derive_seed(run_seed, RACE_SEED_KEY + r, STREAM_SELECTION)``)."""
-    def evaluate(ids, seed, trials):
+    def evaluate(ids: typing.List["Hashable"], seed: int, trials: int) -> typing.List[typing.Tuple[int, int]]:
+        """``(successes, trials)`` of each id (a design index or :data:`BASELINE`) on ``trials`` launches."""
         heights = [np.zeros(n_variables) if i == BASELINE else designs[i].heights for i in ids]
         return [(int(r[0]), int(r[1])) for r in launch_batch(heights, seed, trials)]
 
@@ -560,7 +566,8 @@ def _race_pool(race, entrants, designs):
     ranked = sorted(pool, key=lambda i: (-low(i), -rate(i), designs[i].first_generation))
     rounds = "+".join(str(r["trials"]) for r in race.rounds)
 
-    def text(i):
+    def text(i: int) -> str:
+        """Design ``i``'s launches in the race, the bare robot's and its screen, as a phrase."""
         return (f"{race.totals[i][0]}/{race.totals[i][1]} robust twin launches in the race (lower 95% bound "
                 f"{low(i):.2f}; bare robot {base_s}/{base_n} on the same draws), screen "
                 f"{designs[i].successes}/{designs[i].trials}")
@@ -615,7 +622,7 @@ def _descriptor_point(elite, spans):
     return np.array([elite["max_height_mm"] / spans[0], elite["sharpness_deg"] / spans[1]])
 
 
-def table_rows(result):
+def table_rows(result: SelectionResult) -> typing.List[typing.Dict[str, typing.Any]]:
     """Rows of Table 3 as dicts with :data:`TABLE_COLUMNS` keys: the baseline first, then the designs.
 
     The baseline has no profile, so its dimensions are 0 m; its fitness is given only when re-evaluated. Each
@@ -623,7 +630,7 @@ def table_rows(result):
     the interval lies above 0) is on fresh robust twin launches when there are any (``gain_source``), else on
     the fresh re-evaluation, else empty.
     """
-    rows = []
+    rows: typing.List[typing.Dict[str, typing.Any]] = []
     baseline_fitness = _fitness_columns(*result.baseline[:2], "reevaluated") if result.baseline else \
         _fitness_columns(0, 0, "not evaluated")
     rows.append({"configuration": "baseline", "length_m": 0.0, "width_m": 0.0, "max_height_m": 0.0,
@@ -709,7 +716,7 @@ def designs_document(result, grid, run_id, mesh_units="mm"):
     return {"/**": {"ros__parameters": {"designs": body}}}
 
 
-def record_selection(store, run_id, result, folder=""):
+def record_selection(store: "Store", run_id: str, result: SelectionResult, folder: str = "") -> None:
     """Add ``sim_fitness`` ({configuration: fitness}) and ``geometry`` (Table 3 rows of the designs) to the run's
     info in ``store``, the keys ``rollability report`` reads; the baseline has no geometry row (no profile).
     ``folder`` is the design set written; an earlier selection's entries move to ``earlier_selections``."""
@@ -738,7 +745,7 @@ def _write_csv(path, columns, rows):
     atomic_write_bytes(path, table.getvalue().encode("utf-8"))
 
 
-def design_set_folders(run_dir):
+def design_set_folders(run_dir: str) -> typing.List[str]:
     """The run's design sets in the order they were written: ``designs/``, then ``designs-2/``, ``designs-3/``, ..."""
     if not os.path.isdir(run_dir):
         return []
@@ -748,7 +755,7 @@ def design_set_folders(run_dir):
     return [os.path.join(run_dir, name) for name in sorted(found, key=lambda n: (len(n), n))]
 
 
-def next_design_folder(run_dir):
+def next_design_folder(run_dir: str) -> str:
     """The folder a new selection of the run writes: ``designs/`` for the first, else the next free
     ``designs-<n>/``. A written design set is never rewritten (docs/optimization.md, "Design sets are append-only")."""
     existing = design_set_folders(run_dir)

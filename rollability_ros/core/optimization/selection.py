@@ -589,7 +589,9 @@ def _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed):
     return chosen, (int(results[-1][0]), int(results[-1][1]), seed)
 
 
-def trait_rows(candidates, grid, ranges, bins):
+def trait_rows(candidates: typing.Iterable["CandidateRecord"], grid: geometry.ProfileGrid,
+               ranges: typing.Sequence[typing.Sequence[float]], bins: typing.Sequence[int]
+               ) -> typing.List[typing.Dict[str, typing.Any]]:
     """Every evaluation of a run pooled per bin of each descriptor: rows with :data:`TRAIT_COLUMNS`.
 
     ``ranges`` ``[[0, height mm], [low, high deg]]`` and ``bins`` ``[height bins, sharpness bins]`` (the archive's
@@ -767,7 +769,9 @@ def next_design_folder(run_dir: str) -> str:
     return os.path.join(run_dir, f"{DESIGNS_DIRNAME}-{number}")
 
 
-def write_selection(run_dir, result, grid, run_id, mesh_units="mm", traits=None):
+def write_selection(run_dir: str, result: SelectionResult, grid: geometry.ProfileGrid, run_id: str,
+                    mesh_units: str = "mm", traits: typing.Optional[typing.List[typing.Dict[str, typing.Any]]] = None
+                    ) -> str:
     """Write the STL (in ``mesh_units``) and 3MF files, ``table3.csv`` and ``designs.yaml`` into a new design set
     folder (:func:`next_design_folder`: ``<run_dir>/designs/``, or ``designs-<n>/`` when the run has one) and, for a
     quality-diversity run, ``archive.csv`` and the ``traits`` rows as ``traits.csv``; return that folder.

@@ -253,8 +253,9 @@ def main(args: typing.Optional[typing.List[str]] = None) -> int:
     # inherits SIGINT ignored, and Python keeps an ignored SIGINT ignored (run_node sets both for the other nodes)
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, signal.default_int_handler)
-    node = Node("campaign_runner")
+    node = None
     try:
+        node = Node("campaign_runner")   # inside: a stop signal while the node is made is a stop, not a traceback
         spec = declare_settings(node, "campaign", CampaignSpec)
         settings = declare_settings(node, "runner", RunnerSettings)
         ask = input if launch_backend_class(settings.backend).attended else None
@@ -265,7 +266,8 @@ def main(args: typing.Optional[typing.List[str]] = None) -> int:
     except KeyboardInterrupt:
         return 130
     finally:
-        node.destroy_node()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()
 
 

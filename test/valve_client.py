@@ -170,12 +170,17 @@ def fire_and_wait_on(valve, spun, relay, pulse_ms, watchdog_ms):
         if len(relay.relay_intervals()) > pulses_before:
             raise TestProcessStalled(f"the whole {pulse_ms} ms pulse passed unseen (fire answered: {answer})")
         gap_ms = longest_command_gap_s(relay) * 1000.0
-        if "keepalive" in answer and gap_ms > relay.keepalive_timeout_ms:
+        # the board's own answers say why it disarmed; the valve words it "board fault keepalive" the first time and
+        # "board disarmed itself" when that fault was already reported, so its wording is not the evidence
+        board_keepalive = any("fault=keepalive" in str(entry.get("answer", "")) for entry in relay.entries())
+        if (board_keepalive or "keepalive" in answer) and gap_ms > relay.keepalive_timeout_ms:
             # the board disarmed itself (its safe answer) because no line reached it for longer than its keep-alive
             # timeout before the pulse: the machine starved the valve node or the board, the case never began
             raise TestProcessStalled(f"no command reached the board for {gap_ms:.0f} ms (keep-alive timeout "
                                      f"{relay.keepalive_timeout_ms} ms) before the pulse; fire answered: {answer}")
-        raise AssertionError(f"the relay never switched on; fire answered: {answer}; valve state: "
+        raise AssertionError(f"the relay never switched on; fire answered: {answer}; longest gap between the "
+                             f"board's lines {gap_ms:.0f} ms (keep-alive timeout {relay.keepalive_timeout_ms} ms); "
+                             f"valve state: "
                              f"{valve.last() if valve.states else None}; board log: {relay.entries()[-5:]}")
     gap_ms = valve.longest_heartbeat_gap_s * 1000.0
     if gap_ms > 0.8 * watchdog_ms:

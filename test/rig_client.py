@@ -44,6 +44,7 @@ class RigClient:
         self.confirm_client = spun.node.create_client(ConfirmRegulator, f"{ns}rig/confirm")
         self.record_client = spun.node.create_client(RecordOutcome, f"{ns}record_outcome")
         self.outcomes = []
+        self.resends = []   # goals sent again because their answer was lost (send_goal_resending)
         spun.node.create_subscription(LaunchOutcome, f"{ns}launch_outcomes", self.outcomes.append, RECORD_QOS)
         self._launch, self._confirm, self._record, self._auth = Launch, ConfirmRegulator, RecordOutcome, ValveAuth
 
@@ -61,12 +62,14 @@ class RigClient:
         return goal
 
     def send(self, trial_id, condition, feedback, goal=None):
+        from rollability_ros.nodes._support import send_goal_resending
+
         assert self.action.wait_for_server(timeout_sec=30)
         goal = goal or self.goal(trial_id, condition)
-        future = self.action.send_goal_async(goal, feedback_callback=lambda fb: feedback.append(
-            (fb.feedback.phase, fb.feedback.detail)))
-        assert self.spun.wait_for(future.done, 30)
-        return future.result().get_result_async()
+        handle = send_goal_resending(self.action, goal, self.spun.wait_for, 30, feedback_callback=lambda fb: (
+            feedback.append((fb.feedback.phase, fb.feedback.detail))), on_resend=self.resends.append)
+        assert handle is not None, "the rig did not answer the goal within 30 s"
+        return handle.get_result_async()
 
     def result(self, future, timeout_s=30):
         assert self.spun.wait_for(future.done, timeout_s)

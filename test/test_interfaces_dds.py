@@ -3,10 +3,11 @@ import math
 import os
 import pathlib
 import sys
+import time
 
 import pytest
 
-from ros_fixtures import NodeProcess
+from ros_fixtures import NodeProcess, SpunNode
 
 PEER = pathlib.Path(__file__).with_name("interface_peer.py")
 
@@ -71,3 +72,52 @@ def test_topic_service_action_round_trip(ros_node, peer):
     assert result.evaluator == "/interface_peer"
     assert ros_node.wait_for(lambda: len(feedback) == 6, 5), feedback   # feedback may trail the result
     assert feedback == sorted(feedback) and feedback[-1] == 6
+
+
+def test_a_goal_answered_late_is_sent_again_and_the_late_copy_cancelled(ros_node):
+    """send_goal_resending: a goal unanswered for resend_after_s goes again; the first answer is used and the
+    late-accepted copy is cancelled (a lost answer, the case it exists for, is the late answer that never comes)."""
+    from action_msgs.msg import GoalStatus
+    from rclpy.action import ActionServer, CancelResponse, GoalResponse
+    from rclpy.callback_groups import ReentrantCallbackGroup
+
+    from rollability_ros.action import EvaluateProfile
+    from rollability_ros.nodes._support import ThreadSafeActionClient, send_goal_resending
+
+    server = SpunNode("late_answer_server")
+    try:
+        answered, cancelled = [], []
+
+        def on_goal(goal):
+            answered.append(goal)
+            if len(answered) == 1:
+                time.sleep(2.0)             # the first copy's answer comes after the client sent it again
+            return GoalResponse.ACCEPT
+
+        def execute(handle):
+            deadline = time.monotonic() + 3.0
+            while not handle.is_cancel_requested and time.monotonic() < deadline:
+                time.sleep(0.05)
+            if handle.is_cancel_requested:
+                cancelled.append(bytes(handle.goal_id.uuid))
+                handle.canceled()
+            else:
+                handle.succeed()
+            return EvaluateProfile.Result()
+
+        ActionServer(server.node, EvaluateProfile, "late_answer", execute_callback=execute,
+                     goal_callback=on_goal, cancel_callback=lambda _goal: CancelResponse.ACCEPT,
+                     callback_group=ReentrantCallbackGroup())
+        client = ThreadSafeActionClient(ros_node.node, EvaluateProfile, "late_answer")
+        assert client.wait_for_server(timeout_sec=30)
+        resends = []
+        handle = send_goal_resending(client, EvaluateProfile.Goal(trials=1), ros_node.wait_for, 30,
+                                     resend_after_s=0.5, on_resend=resends.append)
+        assert handle is not None and handle.accepted and resends == [1]
+        assert ros_node.wait_for(lambda: len(cancelled) == 1, 30), "the late copy was not cancelled"
+        assert cancelled[0] != bytes(handle.goal_id.uuid)     # the copy cancelled is the one not used
+        result = handle.get_result_async()
+        assert ros_node.wait_for(result.done, 30)
+        assert result.result().status == GoalStatus.STATUS_SUCCEEDED     # the copy used is not cancelled
+    finally:
+        server.close()

@@ -165,7 +165,7 @@ def test_installed_executables_run_the_session_graph(colcon_install, ros_node, t
     from rollability_ros.action import EvaluateProfile
     from rollability_ros.core.bags.reader import bag_info
     from rollability_ros.msg import GenerationSummary, LaunchOutcome, TipState, ValveState
-    from rollability_ros.nodes._support import LATCHED_QOS, RECORD_QOS, ThreadSafeActionClient
+    from rollability_ros.nodes._support import LATCHED_QOS, RECORD_QOS, ThreadSafeActionClient, send_goal_resending
     from rollability_ros.srv import GetSummary
     from test_view import FoxgloveClient
 
@@ -204,9 +204,9 @@ def test_installed_executables_run_the_session_graph(colcon_install, ros_node, t
         _wait_for_text(started["sim_evaluator"], "ready: evaluate_profile on 2 local worker(s)")
         evaluator = ThreadSafeActionClient(node, EvaluateProfile, f"{namespace}/eval_0/evaluate_profile")
         assert evaluator.wait_for_server(timeout_sec=60)
-        sent = evaluator.send_goal_async(EvaluateProfile.Goal(heights=[], trials=4, seed=7))
-        assert ros_node.wait_for(sent.done, 60) and sent.result().accepted
-        evaluated = sent.result().get_result_async()
+        sent = send_goal_resending(evaluator, EvaluateProfile.Goal(heights=[], trials=4, seed=7), ros_node.wait_for, 60)
+        assert sent is not None and sent.accepted
+        evaluated = sent.get_result_async()
         assert ros_node.wait_for(evaluated.done, 300), started["sim_evaluator"].log()[-3000:]
         assert evaluated.result().status == GoalStatus.STATUS_SUCCEEDED, \
             (evaluated.result().result.message, started["sim_evaluator"].log()[-3000:])

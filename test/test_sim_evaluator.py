@@ -6,7 +6,7 @@ import pytest
 from action_msgs.msg import GoalStatus
 
 from rollability_ros.action import EvaluateProfile
-from rollability_ros.nodes._support import ThreadSafeActionClient
+from rollability_ros.nodes._support import ThreadSafeActionClient, send_goal_resending
 
 
 def _wait(ros_node, future, timeout_s=180):
@@ -22,7 +22,9 @@ def _client(ros_node, name):
 
 def _send(ros_node, client, heights, trials, seed, feedback=None, fidelity=""):
     goal = EvaluateProfile.Goal(heights=list(heights), trials=trials, seed=seed, fidelity=fidelity)
-    return _wait(ros_node, client.send_goal_async(goal, feedback_callback=feedback))
+    handle = send_goal_resending(client, goal, ros_node.wait_for, 180, feedback_callback=feedback)
+    assert handle is not None, "the evaluator did not answer the goal"
+    return handle
 
 
 @pytest.fixture(scope="module")

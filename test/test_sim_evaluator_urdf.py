@@ -8,7 +8,7 @@ from std_msgs.msg import String
 
 from rollability_ros.action import EvaluateProfile
 from rollability_ros.core.config import config_dir
-from rollability_ros.nodes._support import LATCHED_QOS, ThreadSafeActionClient
+from rollability_ros.nodes._support import LATCHED_QOS, ThreadSafeActionClient, send_goal_resending
 
 pybullet_data = pytest.importorskip("pybullet_data")
 HUSKY_DIR = os.path.join(pybullet_data.getDataPath(), "husky")
@@ -40,9 +40,9 @@ def test_description_from_the_topic(ros_node, start_node, tmp_path):
     goal = EvaluateProfile.Goal(heights=heights, trials=4, seed=5)
 
     def send():
-        future = client.send_goal_async(goal)
-        assert ros_node.wait_for(future.done, 60)
-        return future.result()
+        handle = send_goal_resending(client, goal, ros_node.wait_for, 60)
+        assert handle is not None, evaluator.log()
+        return handle
 
     assert not send().accepted
     assert ros_node.wait_for(lambda: "no robot description yet" in evaluator.log(), 10), evaluator.log()

@@ -376,6 +376,52 @@ class ThreadSafeActionClient(ActionClient):
             await super().execute(taken_data)
 
 
+#: A goal its server has not answered within this time is sent again, s (:func:`send_goal_resending`).
+GOAL_RESEND_S = 5.0
+
+
+def send_goal_resending(client: ActionClient, goal: typing.Any, wait: typing.Callable[..., bool], timeout_s: float,
+                        feedback_callback: typing.Optional[typing.Callable[[typing.Any], None]] = None,
+                        resend_after_s: float = GOAL_RESEND_S,
+                        on_resend: typing.Optional[typing.Callable[[int], None]] = None) -> typing.Any:
+    """The goal handle of ``goal`` once ``client``'s server answered it; None without an answer within ``timeout_s``.
+
+    A client sees its server (``server_is_ready``) once *its* endpoints matched the server's; the server's answer
+    goes over a writer that discovery may not yet have matched to this client's reader. The server's rmw then waits
+    for the match only for the writer's max blocking time (rmw_fastrtps: 100 ms, "client will not receive
+    response"), and rclpy's action server logs "Failed to send goal response" and never runs that goal. Under load
+    the first goal after discovery can be lost that way (seen in CI: no answer in 30 s). So a goal unanswered for
+    ``resend_after_s`` is sent again (same content, a new goal id; ``on_resend(copies_sent_so_far)`` is told).
+    Should an earlier copy's answer still come, the first answer is the one returned and any other accepted copy is
+    cancelled. ``wait(predicate, timeout_s) -> bool`` waits however the caller spins.
+    """
+    copies: typing.List[typing.Any] = []
+    deadline = time.monotonic() + timeout_s
+    while True:
+        copies.append(client.send_goal_async(goal, feedback_callback=feedback_callback))
+        remaining = deadline - time.monotonic()
+        if wait(lambda: any(copy.done() for copy in copies), max(0.0, min(resend_after_s, remaining))):
+            break
+        if time.monotonic() >= deadline:
+            break
+        if on_resend is not None:
+            on_resend(len(copies))
+    answered = next((copy for copy in copies if copy.done()), None)
+    for copy in copies:
+        if copy is not answered:
+            copy.add_done_callback(_cancel_if_accepted)
+    return answered.result() if answered is not None else None
+
+
+def _cancel_if_accepted(future: typing.Any) -> None:
+    """Done callback of a goal copy that is not the one used: cancel it if its server accepted it."""
+    if future.cancelled() or future.exception() is not None:
+        return
+    handle = future.result()
+    if handle is not None and handle.accepted:
+        handle.cancel_goal_async()
+
+
 #: How often the acknowledgements are looked at, s. rclpy's ``wait_for_all_acked`` holds the GIL for as long as it
 #: waits (rclpy 7, Jazzy), so every Python thread, the main thread's stop-signal check too, would freeze for the
 #: whole timeout of each topic whose subscriber stopped acknowledging (a stalled or SIGSTOPped one): it is only

@@ -40,7 +40,8 @@ from rollability_ros.core.config import ConfigError
 from rollability_ros.core.rig import LaunchAborted, launch_backend_class, rig_auth, valve_auth
 from rollability_ros.nodes import _convert
 from rollability_ros.msg import OutcomeStored, ValveAuth
-from rollability_ros.nodes._support import RECORD_QOS, ParameterError, declare_settings, init_ros
+from rollability_ros.nodes._support import (GOAL_RESEND_S, RECORD_QOS, ParameterError, declare_settings, init_ros,
+                                            send_goal_resending)
 from rollability_ros.srv import ConfirmRegulator, GetStoredTrials, RecordOutcome
 
 #: Seconds the rig's action server may be missing from the graph before a running launch counts as lost.
@@ -126,7 +127,13 @@ class RigClient:
         goal = Launch.Goal(run_id=self.run_id, trial_id=trial.trial_id,
                            condition=_convert.condition_to_msg(trial.condition))
         goal.auth = self._sign(lambda signer: signer.launch(self.run_id, trial.trial_id, goal.condition))
-        handle = self._wait(self.action.send_goal_async(goal, feedback_callback=feedback.put), "the goal")
+        handle = send_goal_resending(
+            self.action, goal, lambda done, timeout_s: spin_until(self.executor, done, timeout_s),
+            self.server_timeout_s, feedback_callback=feedback.put,
+            on_resend=lambda copies: self.say(f"  the rig did not answer {trial.trial_id} within "
+                                              f"{GOAL_RESEND_S * copies:g} s; sending it again"))
+        if handle is None:
+            raise LaunchAborted(f"the rig did not answer the goal within {self.server_timeout_s:g} s")
         if not handle.accepted:
             raise LaunchAborted(f"the rig rejected {trial.trial_id}")
         result_future = handle.get_result_async()

@@ -29,11 +29,11 @@ from rollability_ros.core.optimization import optimization_run as optimization_r
 def one_run(parameters, settings, executor, run_dir):
     """Run to the end; return (start P(upright) or None, first-generation best fitness, final best fitness, s in the
     screen, s in total)."""
-    trials = optimization_run.optimizer_settings(parameters).trials
+    trials = optimization_run.run_settings(parameters).optimizer.trials
     started = time.perf_counter()
     run = optimization_run.OptimizationRun(
         run_dir, parameters, settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
-        screen_profiles=optimization_run.profile_screen(parameters, settings))
+        screen_profiles=optimization_run.profile_screen(optimization_run.run_settings(parameters), settings))
     screen_s = time.perf_counter() - started
     run.run()
     total_s = time.perf_counter() - started

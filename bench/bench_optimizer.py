@@ -62,7 +62,7 @@ def run_generations(parameters, grid, evaluate_batch, generations, workdir, name
 def cma_only_s(n_variables, generations):
     """Mean s per generation of ProfileOptimizer ask + tell alone (N variables, popsize 12)."""
     parameters = {"optimizer.max_generations": generations, "optimizer.reevaluate_incumbent": False}
-    optimizer = ProfileOptimizer(n_variables, optimization_run.optimizer_settings(parameters))
+    optimizer = ProfileOptimizer(n_variables, optimization_run.run_settings(parameters).optimizer)
     fitness = np.linspace(0.0, 0.9, 12)   # below the target fitness: no early stop
     started = time.perf_counter()
     while not optimizer.stop():
@@ -105,7 +105,7 @@ def main(argv=None):
 
     parameters = optimization_run.load_run_parameters("paper")
     settings = evaluation.settings_from_parameters(parameters)
-    trials = optimization_run.optimizer_settings(parameters).trials
+    trials = optimization_run.run_settings(parameters).optimizer.trials
     with tempfile.TemporaryDirectory() as workdir:
         executor = evaluation.make_executor(settings.evaluator, args.workers)
         try:
@@ -121,7 +121,7 @@ def main(argv=None):
         noise = noise_study(args.noise_seeds, workdir) if args.noise_seeds else None
 
     workers = getattr(executor, "workers", "?")
-    popsize = optimization_run.optimizer_settings(parameters).popsize
+    popsize = optimization_run.run_settings(parameters).optimizer.popsize
     evaluations = popsize + 1   # population + incumbent re-evaluation
     trials_per_generation = evaluations * trials
     rate = trials_per_generation / real_eval_s

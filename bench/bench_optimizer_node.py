@@ -63,7 +63,7 @@ def run_in_process(parameters, workdir, workers):
     executor = evaluation.make_executor(settings.evaluator, workers)
     try:
         executor.warm()
-        batch = optimization_run.profile_batch_evaluator(settings, optimization_run.optimizer_settings(parameters)
+        batch = optimization_run.profile_batch_evaluator(settings, optimization_run.run_settings(parameters).optimizer
                                                          .trials, executor)
         run = optimization_run.OptimizationRun(os.path.join(workdir, "inproc"), parameters, settings.grid, batch)
         run.run()
@@ -135,7 +135,7 @@ def main(argv=None):
         parser.error("--generations must be >= 2 (generation 0 is left out)")
     overrides = {"optimizer.max_generations": args.generations, "optimizer.stagnation_generations": 0}
     parameters = {**optimization_run.load_run_parameters(args.config), **overrides}
-    settings = optimization_run.optimizer_settings(parameters)
+    settings = optimization_run.run_settings(parameters).optimizer
     grid = evaluation.settings_from_parameters(parameters).grid
     workers_each = args.evaluator_workers or max(1, args.workers // args.evaluators)
 

@@ -61,8 +61,8 @@ def one_run(method, seed, generations, workers, workdir):
         parameters["optimizer.max_generations"] = generations
     settings = evaluation.settings_from_parameters(parameters)
     chosen = from_mapping(selection.SelectionSettings, section(parameters, "selection"), "selection")
-    qd_settings = optimization_run.quality_diversity_settings(parameters)
-    trials = optimization_run.optimizer_settings(parameters).trials
+    qd_settings = optimization_run.run_settings(parameters).quality_diversity
+    trials = optimization_run.run_settings(parameters).optimizer.trials
     run_dir = os.path.join(workdir, f"{method}-{seed}")
     started = time.perf_counter()
     with evaluation.make_executor(settings.evaluator, workers) as executor:

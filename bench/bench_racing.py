@@ -65,7 +65,7 @@ def optimize(parameters, seed, executor, folder, name, reuse=False):
     return (best heights, trials spent, generations, wall s, settings, stopped candidates' trials, run folder)."""
     parameters = {**parameters, "optimizer.seed": seed}
     settings = evaluation.settings_from_parameters(parameters)
-    trials = optimization_run.optimizer_settings(parameters).trials
+    trials = optimization_run.run_settings(parameters).optimizer.trials
     run_dir = os.path.join(folder, f"{name}-seed-{seed}")
     run = optimization_run.OptimizationRun(
         run_dir, parameters, settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
@@ -77,8 +77,8 @@ def optimize(parameters, seed, executor, folder, name, reuse=False):
     finally:
         run.close()
     seconds = time.perf_counter() - started
-    popsize, trials = optimization_run.optimizer_settings(parameters).popsize, \
-        optimization_run.optimizer_settings(parameters).trials
+    popsize, trials = optimization_run.run_settings(parameters).optimizer.popsize, \
+        optimization_run.run_settings(parameters).optimizer.trials
     with Store(run_dir) as store:
         candidates = store.candidates()
     spent = sum(c.trials for c in candidates)
@@ -215,7 +215,7 @@ def main():
                         help="only the first-look agreement, on the full-budget runs kept in FOLDER by --keep")
     args = parser.parse_args()
     full_parameters, raced_parameters = run_parameters(args, False), run_parameters(args, True)
-    settings = optimization_run.optimizer_settings(raced_parameters)
+    settings = optimization_run.run_settings(raced_parameters).optimizer
     settings.validate()
     if settings.race_stages is not None:
         print_rule_statistics(args.looks, settings.trials, args.alpha)

@@ -46,7 +46,8 @@ def in_process_run(run_dir):
     with evaluation.LocalExecutor(1) as executor:   # a batch's evaluations run in threads: one client each
         evaluate_batch = optimization_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
         run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid, evaluate_batch,
-                                               screen_profiles=optimization_run.profile_screen(parameters, settings))
+                                               screen_profiles=optimization_run.profile_screen(
+                                                   optimization_run.run_settings(parameters), settings))
         run.run()
         run.close()
     return candidate_rows(run_dir, "ref"), settings.grid

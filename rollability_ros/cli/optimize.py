@@ -76,13 +76,13 @@ def run(args: argparse.Namespace) -> int:
     if args.run_id is not None:
         check_path_component(args.run_id, "--run-id")
     given = optimization_run.load_run_parameters(args.config) if args.config else None
-    output_dir = optimization_run.optimizer_settings(given).output_dir if given else "runs"
+    output_dir = optimization_run.run_settings(given).optimizer.output_dir if given else "runs"
     run_dir, parameters = optimization_run.run_target(args.resume or args.run_id or "", bool(args.resume), given,
                                                       output_dir)
     settings = evaluation.settings_from_parameters(parameters)
+    trials = optimization_run.run_settings(parameters).optimizer.trials   # a resume: the run's config.yaml below
     executor = evaluation.make_executor(settings.evaluator, args.workers)
     try:
-        trials = optimization_run.optimizer_settings(parameters).trials
         evaluate_batch = optimization_run.profile_batch_evaluator(settings, trials, executor)
         run = optimization_run.OptimizationRun(
             run_dir, parameters, settings.grid, evaluate_batch, resume=bool(args.resume),

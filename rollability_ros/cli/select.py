@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         with Store(run_dir) as store:
             result, folder = selection.select_run(store, run_id, run_dir, evaluator_settings.grid,
                                                   evaluator_settings.printer, settings, evaluate_batch,
-                                                  optimization_run.optimizer_settings(parameters).seed, launch_batch)
+                                                  optimization_run.run_settings(parameters).optimizer.seed, launch_batch)
     finally:
         if executor is not None:
             executor.close()

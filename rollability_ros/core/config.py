@@ -3,7 +3,9 @@
 A parameter file maps node names (``/**`` for every node, or ``optimizer``, ``/ns/rig``, ...) to
 ``ros__parameters``. Nested mappings are ROS parameter namespaces: ``sim: {time_step_s: ...}`` is the parameter
 ``sim.time_step_s``. :func:`load_parameters` merges one or more files into one flat ``{dotted name: value}``
-dict for a node; :func:`section` cuts a namespace back out as a nested dict for a core dataclass.
+dict for a node; :func:`section` cuts a namespace back out as a nested dict for a core dataclass, and
+:func:`settings_from_sections` parses a whole flat dict once, at the edge (CLI or node), into a dataclass of typed
+sections that the core is then handed.
 """
 import dataclasses
 import math
@@ -250,3 +252,24 @@ def from_mapping(cls: typing.Type[_Settings], mapping: typing.Optional[typing.Ma
         except ValueError as exc:
             raise ConfigError(f"{where}: {exc}") from exc
     return obj
+
+
+def settings_from_sections(cls: typing.Type[_Settings], flat: typing.Mapping[str, typing.Any],
+                           namespaces: typing.Optional[typing.Mapping[str, str]] = None,
+                           optional: typing.Iterable[str] = ()) -> _Settings:
+    """Parse flat ``{dotted name: value}`` parameters once into ``cls``, a dataclass whose fields are settings
+    dataclasses, each built (:func:`from_mapping`) from the parameters under its namespace: ``namespaces`` maps a
+    field to it (default: the field's name). A field named in ``optional`` is None when ``flat`` holds none of its
+    namespace. Errors name the namespace and parameter (``optimizer: popsize must be >= 2, got 1``)."""
+    hints = typing.get_type_hints(cls)
+    kwargs: typing.Dict[str, typing.Any] = {}
+    for field in dataclasses.fields(typing.cast(typing.Any, cls)):
+        namespace = (namespaces or {}).get(field.name, field.name)
+        values = section(flat, namespace)
+        if field.name in optional and not values:
+            kwargs[field.name] = None
+            continue
+        field_type = hints[field.name]
+        args = [arg for arg in typing.get_args(field_type) if arg is not type(None)]
+        kwargs[field.name] = from_mapping(args[0] if field.name in optional else field_type, values, namespace)
+    return cls(**kwargs)

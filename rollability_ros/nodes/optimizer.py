@@ -268,7 +268,7 @@ class Optimizer(Node):
             try:
                 settings = self._read_run_settings()
                 run_dir, parameters, resume = self._run_target(settings)
-                optimization_run.check_method_settings(parameters)
+                optimization_run.check_method_settings(self._typed_run_settings(settings))
             except (ParameterError, ConfigError, ValueError, FileNotFoundError) as exc:
                 self.get_logger().error(f"cannot start: {exc}")
                 return False, str(exc)
@@ -285,6 +285,13 @@ class Optimizer(Node):
         settings = {prefix: read_settings(self, prefix, cls) for prefix, cls in RUN_SECTIONS.items()}
         settings["profile"] = footprint_grid(settings["profile"], self._robots["urdf_robot"])
         return settings
+
+    def _typed_run_settings(self, settings):
+        """The :class:`~rollability_ros.core.optimization.optimization_run.RunSettings` of the sections this node
+        declared (its own parse, once): what the method check and the start-point screen are handed."""
+        return optimization_run.RunSettings(optimizer=settings["optimizer"],
+                                            quality_diversity=settings["quality_diversity"],
+                                            stable_poses=self._robots["stable_poses"], printer=settings["printer"])
 
     def _robot_settings(self, settings):
         """The evaluator settings of the profile's robot (grid, printer, robot sections) for the stable-pose screen."""
@@ -324,8 +331,8 @@ class Optimizer(Node):
                 run_dir, parameters, settings["profile"], self._pool.batch_evaluator(settings["optimizer"].trials),
                 resume=resume, on_candidate=self._publish_candidate,
                 evaluate_trials=self._pool.fidelity_evaluator(""),
-                screen_profiles=optimization_run.profile_screen(parameters, self._robot_settings(settings),
-                                                                self._robots["stable_poses"]))
+                screen_profiles=optimization_run.profile_screen(self._typed_run_settings(settings),
+                                                                self._robot_settings(settings)))
         except (ConfigError, ValueError, FileNotFoundError) as exc:
             log.error(f"cannot {'resume' if resume else 'start'} run in {run_dir}: {exc}")
             return 1

@@ -7,11 +7,12 @@ import pytest
 
 pytest.importorskip("cma")
 
+from rollability_ros.core.config import ConfigError  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
 from doubles import SyntheticEvaluator  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import OptimizationRun, profile_screen  # noqa: E402
 from rollability_ros.core.optimization.cmaes import random_initial_means  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import optimizer_settings  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import run_settings  # noqa: E402
 
 GRID = ProfileGrid(rows=3, cols=3)
 OPTIMUM = np.linspace(0.05, 0.4, GRID.n_variables)
@@ -33,7 +34,7 @@ def fake_screen(calls):
 
 def test_without_the_screen_the_run_starts_from_the_papers_random_mean(tmp_path):
     run = OptimizationRun(os.path.join(tmp_path, "run"), parameters(0), GRID, SyntheticEvaluator(OPTIMUM, 30))
-    expected = random_initial_means(optimizer_settings(parameters(0)), GRID.n_variables)[0]
+    expected = random_initial_means(run_settings(parameters(0)).optimizer, GRID.n_variables)[0]
     assert np.array_equal(run.optimizer.initial_mean, expected)
     assert run.initial_mean_screen is None
     assert "initial_mean_screen" not in run.store.run_info(run.run_id)["info"]
@@ -47,7 +48,7 @@ def test_the_screened_start_is_the_best_candidate_recorded_and_kept_on_resume(tm
     calls = []
     run = OptimizationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30),
                           screen_profiles=fake_screen(calls))
-    means = random_initial_means(optimizer_settings(parameters(8)), GRID.n_variables)
+    means = random_initial_means(run_settings(parameters(8)).optimizer, GRID.n_variables)
     assert len(calls) == 1 and np.array_equal(np.array(calls[0]), means)
     keys = [(round(float(np.mean(m)), 1), -float(m[0])) for m in means]
     chosen = max(range(8), key=keys.__getitem__)
@@ -78,8 +79,8 @@ def test_by_default_the_run_screens_the_robot_its_parameters_describe(tmp_path):
 
     params = parameters(4, **{"profile.rows": 3, "profile.cols": 3, "stable_poses.com_sigma_m": 0.0})
     run = OptimizationRun(os.path.join(tmp_path, "run"), params, GRID, SyntheticEvaluator(OPTIMUM, 30))
-    expected = [s.upright_probability for s in profile_screen(params, settings_from_parameters(params))(
-        list(random_initial_means(optimizer_settings(params), GRID.n_variables)))]
+    expected = [s.upright_probability for s in profile_screen(run_settings(params), settings_from_parameters(params))(
+        list(random_initial_means(run_settings(params).optimizer, GRID.n_variables)))]
     assert run.initial_mean_screen["upright_probability"] == [round(p, 4) for p in expected]
     run.close()
 
@@ -91,12 +92,12 @@ def test_the_real_screen_ranks_random_means_on_the_robot_in_use():
 
     settings = EvaluatorSettings(grid=GRID)
     params = parameters(4, **{"stable_poses.com_sigma_m": 0.0})
-    screen = profile_screen(params, settings)
-    means = random_initial_means(optimizer_settings(params), GRID.n_variables)
+    screen = profile_screen(run_settings(params), settings)
+    means = random_initial_means(run_settings(params).optimizer, GRID.n_variables)
     screens = screen(list(means))
     probabilities = [s.upright_probability for s in screens]
     assert all(0.0 <= p <= 1.0 for p in probabilities) and len(set(probabilities)) > 1
     assert all(s.worst_barrier_m >= 0 for s in screens)
-    assert profile_screen(parameters(0), settings) is None
-    with pytest.raises(Exception, match="com_sigma_m"):
-        profile_screen(parameters(4, **{"stable_poses.com_sigma_m": 0.5}), settings)
+    assert profile_screen(run_settings(parameters(0)), settings) is None
+    with pytest.raises(ConfigError, match=r"^stable_poses: com_sigma_m must be in \[0, 0.05\) m, got 0.5$"):
+        run_settings(parameters(4, **{"stable_poses.com_sigma_m": 0.5}))     # refused where it is parsed

@@ -12,8 +12,8 @@ class RandomSearch(IncumbentOptimizer):
     """``optimizer.method: random``: uniform heights in the grid's bounds, from the run's seed and generation."""
 
     @classmethod
-    def create(cls, grid, settings, parameters, clock, initial_mean=None, state=None):
-        optimizer = cls(grid, settings, clock)
+    def create(cls, grid, settings, clock, initial_mean=None, state=None):
+        optimizer = cls(grid, settings.optimizer, clock)
         if state is not None:
             optimizer._replay(state)
             optimizer._resume_clock(state)
@@ -53,13 +53,14 @@ def methods(monkeypatch):
 def test_a_new_method_is_one_class_and_one_registration_line(methods, tmp_path):
     pytest.importorskip("cma")
     from doubles import SyntheticEvaluator
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun, check_method_settings
+    from rollability_ros.core.optimization.optimization_run import (OptimizationRun, check_method_settings,
+                                                                        run_settings)
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     methods.register("random", RandomSearch)        # the one registration line
     parameters = {"optimizer.method": "random", "optimizer.max_generations": 3, "optimizer.trials": 10,
                   "optimizer.popsize": 4, "optimizer.stagnation_generations": 0}
-    check_method_settings(parameters)
+    check_method_settings(run_settings(parameters))
     grid = ProfileGrid(rows=3, cols=3)
     evaluator = SyntheticEvaluator(np.full(9, 0.2), trials=10)
     run = OptimizationRun(tmp_path / "opt", parameters, grid, evaluator)
@@ -76,10 +77,10 @@ def test_a_new_method_is_one_class_and_one_registration_line(methods, tmp_path):
 
 
 def test_unknown_methods_and_incomplete_contracts_are_refused(methods):
-    from rollability_ros.core.optimization.optimization_run import check_method_settings
+    from rollability_ros.core.optimization.optimization_run import run_settings
 
     with pytest.raises(ValueError, match=r"^optimizer: method must be one of \('cmaes', 'cma_mae'\), got 'random'$"):
-        check_method_settings({"optimizer.method": "random"})
+        run_settings({"optimizer.method": "random"})       # refused where the parameters are parsed
     with pytest.raises(TypeError, match="abstract methods? .*_ask"):   # the contract declares what a method needs
         type("Incomplete", (IncumbentOptimizer,), {})()
     assert methods.get("cmaes") is cmaes.ProfileOptimizer

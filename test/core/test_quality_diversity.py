@@ -14,7 +14,8 @@ ribs = pytest.importorskip("ribs")
 from doubles import SyntheticEvaluator  # noqa: E402
 from rollability_ros.core.optimization import selection  # noqa: E402
 from rollability_ros.core.optimization.cmaes import OptimizerSettings  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import OptimizationRun, make_optimizer  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import (OptimizationRun, make_optimizer,  # noqa: E402
+                                                                run_settings)
 from rollability_ros.core.optimization.quality_diversity import (  # noqa: E402
     QualityDiversityOptimizer,
     QualityDiversitySettings,
@@ -196,7 +197,7 @@ def test_a_state_from_other_settings_or_method_is_refused():
     with pytest.raises(ValueError, match="archive"):
         QualityDiversityOptimizer.from_state_dict(tampered, settings(), qd, GRID)
     with pytest.raises(ValueError, match="cmaes"):
-        make_optimizer(GRID, {"optimizer.method": "cmaes", "optimizer.seed": 3}, clock=lambda: 0.0, state=state)
+        make_optimizer(GRID, run_settings({"optimizer.method": "cmaes", "optimizer.seed": 3}), clock=lambda: 0.0, state=state)
 
 
 def test_at_equal_budget_the_archive_spans_more_heights_than_one_cma_es():
@@ -207,9 +208,8 @@ def test_at_equal_budget_the_archive_spans_more_heights_than_one_cma_es():
     spans = {"cmaes": [0.0, 0], "cma_mae": [0.0, 0]}
     for seed in (3, 4, 5):
         for method in spans:
-            optimizer = make_optimizer(GRID, {f"optimizer.{k}": v for k, v in
-                                              dict(method=method, popsize=12, seed=seed, max_generations=0).items()},
-                                       clock=lambda: 0.0)
+            optimizer = make_optimizer(GRID, run_settings({f"optimizer.{k}": v for k, v in dict(
+                method=method, popsize=12, seed=seed, max_generations=0).items()}), clock=lambda: 0.0)
             heights_mm, cells = [], set()
             for generation in range(20):
                 population = optimizer.ask()
@@ -349,9 +349,9 @@ def test_the_result_mean_is_heights_within_the_bounds():
 def test_settings_the_method_cannot_run_are_refused_before_a_run_starts():
     from rollability_ros.core.optimization.optimization_run import check_method_settings
 
-    check_method_settings({"optimizer.method": "cma_mae", "optimizer.popsize": 12})
-    check_method_settings({"optimizer.method": "cmaes", "optimizer.popsize": 4})     # the archive is not used
+    check_method_settings(run_settings({"optimizer.method": "cma_mae", "optimizer.popsize": 12}))
+    check_method_settings(run_settings({"optimizer.method": "cmaes", "optimizer.popsize": 4}))   # no archive used
     with pytest.raises(ValueError, match="popsize 4 cannot give 3 emitters"):
-        check_method_settings({"optimizer.method": "cma_mae", "optimizer.popsize": 4})
+        check_method_settings(run_settings({"optimizer.method": "cma_mae", "optimizer.popsize": 4}))
     with pytest.raises(ValueError, match="method must be one of"):
-        check_method_settings({"optimizer.method": "cma-mae"})
+        run_settings({"optimizer.method": "cma-mae"})

@@ -183,11 +183,11 @@ def test_the_optimizer_races_in_stages_and_a_killed_generation_resumes_to_the_sa
 def test_the_incumbent_and_the_cell_elite_are_the_bars():
     pytest.importorskip("cma")
     from rollability_ros.core.optimization.cmaes import ProfileOptimizer
-    from rollability_ros.core.optimization.optimization_run import make_optimizer, optimizer_settings
+    from rollability_ros.core.optimization.optimization_run import make_optimizer, run_settings
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     grid = ProfileGrid(rows=2, cols=2)
-    settings = optimizer_settings(racing_parameters(grid))
+    settings = run_settings(racing_parameters(grid)).optimizer
     optimizer = ProfileOptimizer(grid.n_variables, settings, grid.height_min, grid.height_max)
     population = optimizer.ask()
     assert optimizer.race_reference(population[0]) is None          # no incumbent yet: nobody stops
@@ -195,7 +195,7 @@ def test_the_incumbent_and_the_cell_elite_are_the_bars():
     optimizer.tell_reevaluation(0.5, 40)
     assert optimizer.race_reference(population[0]) == (50, 80)      # the incumbent pooled: 30/40 + 20/40
     pytest.importorskip("ribs")
-    qd = make_optimizer(grid, racing_parameters(grid, "cma_mae"), clock=lambda: 0.0)
+    qd = make_optimizer(grid, run_settings(racing_parameters(grid, "cma_mae")), clock=lambda: 0.0)
     population = qd.ask()
     assert all(qd.race_reference(h) is None for h in population)    # empty archive
     qd.tell(population, [0.5] * 8, [20] * 8)
@@ -207,7 +207,7 @@ def test_the_incumbent_and_the_cell_elite_are_the_bars():
 
 def test_bad_racing_settings_are_refused(tmp_path):
     pytest.importorskip("cma")
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun, optimizer_settings
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_settings
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     grid = ProfileGrid(rows=2, cols=2)
@@ -220,8 +220,8 @@ def test_bad_racing_settings_are_refused(tmp_path):
                            ({"optimizer.race_survivors": 2, "optimizer.race_looks": [0]},
                             "race_survivors needs race_looks")):
         with pytest.raises(ValueError, match=message):
-            optimizer_settings(racing_parameters(grid, **extra)).validate()
-    optimizer_settings(racing_parameters(grid, **{"optimizer.race_looks": [0]})).validate()   # [0]: off
+            run_settings(racing_parameters(grid, **extra)).optimizer.validate()
+    run_settings(racing_parameters(grid, **{"optimizer.race_looks": [0]})).optimizer.validate()   # [0]: off
     with pytest.raises(ValueError, match="race_looks needs an evaluator"):
         OptimizationRun(str(tmp_path / "c"), racing_parameters(grid), grid, lambda h, s: [])
 

@@ -478,9 +478,9 @@ def test_state_dict_survives_json():
     import json
 
     from rollability_ros.core.optimization.cmaes import ProfileOptimizer
-    from rollability_ros.core.optimization.optimization_run import optimizer_settings
+    from rollability_ros.core.optimization.optimization_run import run_settings
 
-    settings = optimizer_settings(parameters())
+    settings = run_settings(parameters()).optimizer
     original = ProfileOptimizer(GRID.n_variables, settings, 0.0, 0.45)
     evaluator = SyntheticEvaluator(OPTIMUM, trials=30)
     for generation in range(3):

@@ -37,6 +37,7 @@ from rollability_ros.core.optional import require
 from rollability_ros.core.registry import Registry
 
 if typing.TYPE_CHECKING:
+    from rollability_ros.core.optimization.optimization_run import RunSettings
     from rollability_ros.core.profile import ProfileGrid
 
 #: Seed streams of :func:`derive_seed`: population evaluations, incumbent re-evaluations, design selection.
@@ -221,18 +222,19 @@ class IncumbentOptimizer(abc.ABC):
 
     # --- the method seam ----------------------------------------------------------------------------------------
     @classmethod
-    def check_settings(cls, settings: "OptimizerSettings", parameters: dict) -> None:
-        """Raise ``ValueError`` naming the first unusable setting this method reads from the flat ``parameters``
-        (default: the ``optimizer`` section, ``settings``), before a run starts."""
-        settings.validate()
+    def check_settings(cls, settings: "RunSettings") -> None:
+        """Raise ``ValueError`` naming the first unusable setting this method reads from the run's typed
+        ``settings`` (default: the ``optimizer`` section), before a run starts."""
+        settings.optimizer.validate()
 
     @classmethod
     @abc.abstractmethod
-    def create(cls, grid: typing.Any, settings: "OptimizerSettings", parameters: dict,
-               clock: typing.Callable[[], float], initial_mean: typing.Optional[npt.ArrayLike] = None,
+    def create(cls, grid: typing.Any, settings: "RunSettings", clock: typing.Callable[[], float],
+               initial_mean: typing.Optional[npt.ArrayLike] = None,
                state: typing.Optional[dict] = None) -> "IncumbentOptimizer":
-        """The optimizer over ``grid``'s variables and bounds, new or restored from a checkpoint ``state``;
-        ``initial_mean`` ``(grid.n_variables,)`` simulation units (None: the paper's random start)."""
+        """The optimizer over ``grid``'s variables and bounds with the run's typed ``settings``, new or restored
+        from a checkpoint ``state``; ``initial_mean`` ``(grid.n_variables,)`` simulation units (None: the paper's
+        random start)."""
 
     @abc.abstractmethod
     def _ask(self) -> list:
@@ -435,15 +437,15 @@ class ProfileOptimizer(IncumbentOptimizer):
     """
 
     @classmethod
-    def create(cls, grid: "ProfileGrid", settings: OptimizerSettings, parameters: dict,
-               clock: typing.Callable[[], float], initial_mean: typing.Optional[npt.ArrayLike] = None,
+    def create(cls, grid: "ProfileGrid", settings: "RunSettings", clock: typing.Callable[[], float],
+               initial_mean: typing.Optional[npt.ArrayLike] = None,
                state: typing.Optional[dict] = None) -> "ProfileOptimizer":
-        """``optimizer.method: cmaes``: one CMA-ES over the grid's heights (``initial_mean`` ``(grid.n_variables,)``,
-        simulation units; None: the paper's random start)."""
+        """``optimizer.method: cmaes``: one CMA-ES over the grid's heights with ``settings.optimizer``
+        (``initial_mean`` ``(grid.n_variables,)``, simulation units; None: the paper's random start)."""
         if state is None:
-            return cls(grid.n_variables, settings, grid.height_min, grid.height_max, clock, initial_mean)
-        return cls.from_state_dict(state, grid.n_variables, settings, grid.height_min, grid.height_max, clock,
-                                   initial_mean)
+            return cls(grid.n_variables, settings.optimizer, grid.height_min, grid.height_max, clock, initial_mean)
+        return cls.from_state_dict(state, grid.n_variables, settings.optimizer, grid.height_min, grid.height_max,
+                                   clock, initial_mean)
 
     def __init__(self, n_variables: int, settings: OptimizerSettings, lower: float = 0.0, upper: float = 0.45,
                  clock: typing.Callable[[], float] = time.monotonic,

@@ -42,8 +42,8 @@ import numpy as np
 import yaml
 
 from rollability_ros.core.optimization import checkpoint as checkpoints
-from rollability_ros.core.config import (ConfigError, check_path_component, from_mapping, load_parameters,
-                                         resolve_config_path, section)
+from rollability_ros.core.config import (ConfigError, check_path_component, load_parameters, resolve_config_path,
+                                         section, settings_from_sections)
 from rollability_ros.core.optimization.cmaes import (
     STREAM_POPULATION,
     STREAM_RACE,
@@ -56,7 +56,10 @@ from rollability_ros.core.optimization.cmaes import (
     derive_seed,
     random_initial_means,
 )
+from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
+from rollability_ros.core.profile import PrinterSpec
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, RunProgress
+from rollability_ros.core.sim import ScreenSettings
 from rollability_ros.core.store import Store
 
 #: File name of the merged parameters inside a run directory.
@@ -76,9 +79,23 @@ def new_run_id(now_s: typing.Optional[float] = None) -> str:
     return time.strftime("opt-%Y%m%d-%H%M%S", time.localtime(time.time() if now_s is None else now_s))
 
 
-def optimizer_settings(parameters: dict) -> OptimizerSettings:
-    """Return the :class:`OptimizerSettings` of a flat parameter dict (namespace ``optimizer``)."""
-    return from_mapping(OptimizerSettings, section(parameters, "optimizer"), "optimizer")
+@dataclasses.dataclass(frozen=True)
+class RunSettings:
+    """The typed settings of one optimization run, each field a namespace of its flat parameters: parsed once
+    (:func:`run_settings`, or built by the node from the sections it declared) and handed down to the method, the
+    start-point screen and the printability check, none of which reads the flat dict."""
+
+    optimizer: OptimizerSettings = dataclasses.field(default_factory=OptimizerSettings)
+    quality_diversity: QualityDiversitySettings = dataclasses.field(default_factory=QualityDiversitySettings)
+    stable_poses: ScreenSettings = dataclasses.field(default_factory=ScreenSettings)
+    #: None when the parameters hold no ``printer`` namespace (the printability check is then skipped).
+    printer: typing.Optional[PrinterSpec] = None
+
+
+def run_settings(parameters: typing.Mapping[str, typing.Any]) -> RunSettings:
+    """Parse a run's flat parameters once into :class:`RunSettings` (defaults where a namespace is absent); a bad
+    value raises :class:`ConfigError` naming its parameter (``optimizer: popsize must be >= 2, got 1``)."""
+    return settings_from_sections(RunSettings, parameters, optional=("printer",))
 
 
 #: The shipped optimiser defaults, loaded under the given files unless they name an optimiser file themselves.
@@ -158,29 +175,19 @@ def cmaes_optimizer(n_variables: int, settings: OptimizerSettings, lower: float,
     return ProfileOptimizer.from_state_dict(state, n_variables, settings, lower, upper, clock, initial_mean)
 
 
-def quality_diversity_settings(parameters: dict) -> typing.Any:
-    """The :class:`~rollability_ros.core.optimization.quality_diversity.QualityDiversitySettings` of flat
-    ``parameters`` (namespace ``quality_diversity``; defaults where absent)."""
-    from rollability_ros.core.optimization import quality_diversity
-
-    return quality_diversity.quality_diversity_settings(parameters)
+def check_method_settings(settings: RunSettings) -> None:
+    """Raise ``ValueError`` naming the first unusable setting of the search method ``settings.optimizer.method``
+    (its :meth:`~rollability_ros.core.optimization.cmaes.IncumbentOptimizer.check_settings`), before a run starts."""
+    OPTIMIZER_METHODS.get(settings.optimizer.method).check_settings(settings)
 
 
-def check_method_settings(parameters: dict) -> None:
-    """Raise ``ValueError`` naming the first unusable setting of the search method ``parameters`` ask for (its
-    :meth:`~rollability_ros.core.optimization.cmaes.IncumbentOptimizer.check_settings`), before a run starts."""
-    settings = optimizer_settings(parameters)
-    OPTIMIZER_METHODS.get(settings.method).check_settings(settings, parameters)
-
-
-def make_optimizer(grid: typing.Any, parameters: dict, clock: typing.Callable[[], float],
+def make_optimizer(grid: typing.Any, settings: RunSettings, clock: typing.Callable[[], float],
                    initial_mean: typing.Optional[np.ndarray] = None,
                    state: typing.Optional[dict] = None) -> IncumbentOptimizer:
-    """The optimizer ``optimizer.method`` of ``parameters`` names (:data:`OPTIMIZER_METHODS`, the only lookup of
-    the name), over ``grid``'s variables and bounds, new or restored from a checkpoint ``state``; ``initial_mean``
+    """The optimizer ``settings.optimizer.method`` names (:data:`OPTIMIZER_METHODS`, the only lookup of the name),
+    over ``grid``'s variables and bounds, new or restored from a checkpoint ``state``; ``initial_mean``
     ``(grid.n_variables,)`` simulation units (None: the paper's random start)."""
-    settings = optimizer_settings(parameters)
-    return OPTIMIZER_METHODS.get(settings.method).create(grid, settings, parameters, clock, initial_mean, state)
+    return OPTIMIZER_METHODS.get(settings.optimizer.method).create(grid, settings, clock, initial_mean, state)
 
 
 def read_run_config(run_dir: typing.Union[str, os.PathLike]) -> dict:
@@ -191,30 +198,26 @@ def read_run_config(run_dir: typing.Union[str, os.PathLike]) -> dict:
     return load_parameters(path)
 
 
-def profile_screen(parameters: dict, evaluator_settings: typing.Any,
-                   screen_settings: typing.Any = None) -> typing.Optional[typing.Callable]:
-    """The ``screen_profiles`` an :class:`OptimizationRun` with these flat ``parameters`` needs: the stable-pose
-    screen of profiles on the robot of ``evaluator_settings`` under ``screen_settings`` (default: namespace
-    ``stable_poses`` of ``parameters``, the defaults of ``config/calibration.yaml`` where absent); None when
+def profile_screen(settings: RunSettings, evaluator_settings: typing.Any,
+                   screen_settings: typing.Optional[ScreenSettings] = None) -> typing.Optional[typing.Callable]:
+    """The ``screen_profiles`` an :class:`OptimizationRun` with these ``settings`` needs: the stable-pose screen of
+    profiles on the robot of ``evaluator_settings`` under ``screen_settings`` (default: ``settings.stable_poses``,
+    the defaults of ``config/calibration.yaml`` where the parameters had none); None when
     ``optimizer.initial_mean_screen`` is 0."""
-    if optimizer_settings(parameters).initial_mean_screen == 0:
+    if settings.optimizer.initial_mean_screen == 0:
         return None
     from rollability_ros.core.sim import stable_poses
 
-    if screen_settings is None:
-        screen_settings = from_mapping(stable_poses.ScreenSettings, section(parameters, "stable_poses"),
-                                       "stable_poses")
-    return stable_poses.profile_screener(evaluator_settings, screen_settings)
+    return stable_poses.profile_screener(evaluator_settings, screen_settings or settings.stable_poses)
 
 
-def check_design_space_printable(parameters: dict, grid: typing.Any) -> None:
-    """Raise ``ValueError`` naming the printer limit when no profile of ``grid`` could be printed on the printer
-    of ``parameters`` (namespace ``printer``; skipped when the parameters hold no printer), before a long run."""
-    if not any(name.startswith("printer.") for name in parameters):
+def check_design_space_printable(printer: typing.Optional[PrinterSpec], grid: typing.Any) -> None:
+    """Raise ``ValueError`` naming the printer limit when no profile of ``grid`` could be printed on ``printer``
+    (skipped when None: the parameters held no printer), before a long run."""
+    if printer is None:
         return
-    from rollability_ros.core.profile import PrinterSpec, design_space_printability
+    from rollability_ros.core.profile import design_space_printability
 
-    printer = from_mapping(PrinterSpec, section(parameters, "printer"), "printer")
     problems = design_space_printability(grid, printer)
     if problems:
         raise ValueError("cannot optimize: " + "; ".join(problems))
@@ -262,8 +265,9 @@ class OptimizationRun:
                  evaluate_trials=None):
         self.run_dir = os.fspath(run_dir)
         self.run_id = run_id_of(self.run_dir)
-        self.parameters = dict(parameters)
-        self.settings = optimizer_settings(self.parameters)
+        self.parameters = dict(parameters)   # the run's record (config.yaml), compared on resume
+        self.run_settings = run_settings(self.parameters)   # its one parse: what runs below reads
+        self.settings = self.run_settings.optimizer
         self.grid = grid
         self._evaluate_batch = evaluate_batch
         self._evaluate_trials = evaluate_trials
@@ -276,7 +280,7 @@ class OptimizationRun:
         self.checkpoint_path = os.path.join(self.run_dir, checkpoints.CHECKPOINT_FILENAME)
         if not resume:  # before any simulation (the start-point screen takes tens of seconds)
             check_new_run_dir(self.run_dir)
-            check_design_space_printable(self.parameters, self.grid)
+            check_design_space_printable(self.run_settings.printer, self.grid)
         self.initial_mean_screen = self._screen_initial_means(screen_profiles)
         self.optimizer = self._resume() if resume else self._start()
         self.store = Store(self.run_dir)
@@ -303,7 +307,7 @@ class OptimizationRun:
         if screen_profiles is None:
             from rollability_ros.core.sim import settings_from_parameters
 
-            screen_profiles = profile_screen(self.parameters, settings_from_parameters(self.parameters))
+            screen_profiles = profile_screen(self.run_settings, settings_from_parameters(self.parameters))
         means = random_initial_means(self.settings, self.grid.n_variables, self.grid.height_min, self.grid.height_max)
         screens = screen_profiles(list(means))
         chosen = max(range(len(means)), key=lambda i: (screens[i].upright_probability, -screens[i].worst_barrier_m))
@@ -323,7 +327,7 @@ class OptimizationRun:
 
     def _new_optimizer(self, state=None):
         if self._optimizer_factory is None:
-            return make_optimizer(self.grid, self.parameters, self._clock, self._initial_mean, state)
+            return make_optimizer(self.grid, self.run_settings, self._clock, self._initial_mean, state)
         return self._optimizer_factory(self.grid.n_variables, self.settings, self.grid.height_min,
                                        self.grid.height_max, self._clock, self._initial_mean, state=state)
 

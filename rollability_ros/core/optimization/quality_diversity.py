@@ -45,11 +45,13 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
-from rollability_ros.core.config import from_mapping, section
 from rollability_ros.core.optional import require
 from rollability_ros.core.optimization.cmaes import (IncumbentOptimizer, OptimizerResult, OptimizerSettings,
                                                      check_search_space)
 from rollability_ros.core.profile import descriptors, geometry
+
+if typing.TYPE_CHECKING:
+    from rollability_ros.core.optimization.optimization_run import RunSettings
 
 #: The archive's behaviour descriptors, in measure order, with their units.
 DESCRIPTOR_NAMES = ("max_height_mm", "sharpness_deg")
@@ -152,12 +154,6 @@ def _emitter_class():
     return StartRestartEmitter
 
 
-def quality_diversity_settings(parameters: dict) -> "QualityDiversitySettings":
-    """The :class:`QualityDiversitySettings` of flat ``parameters`` (namespace ``quality_diversity``; defaults where
-    absent)."""
-    return from_mapping(QualityDiversitySettings, section(parameters, "quality_diversity"), "quality_diversity")
-
-
 class QualityDiversityOptimizer(IncumbentOptimizer):
     """CMA-MAE over ``grid.n_variables`` heights in the grid's bounds; see the module docstring.
 
@@ -175,22 +171,21 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
     """
 
     @classmethod
-    def check_settings(cls, settings: OptimizerSettings, parameters: dict[str, typing.Any]) -> None:
+    def check_settings(cls, settings: "RunSettings") -> None:
         """The ``optimizer`` section, and the ``quality_diversity`` section against the popsize."""
-        settings.validate()
-        quality_diversity_settings(parameters).validate(settings.popsize)
+        settings.optimizer.validate()
+        settings.quality_diversity.validate(settings.optimizer.popsize)
 
     @classmethod
-    def create(cls, grid: geometry.ProfileGrid, settings: OptimizerSettings, parameters: dict[str, typing.Any],
-               clock: typing.Callable[[], float], initial_mean: npt.ArrayLike | None = None,
+    def create(cls, grid: geometry.ProfileGrid, settings: "RunSettings", clock: typing.Callable[[], float],
+               initial_mean: npt.ArrayLike | None = None,
                state: dict[str, typing.Any] | None = None) -> "QualityDiversityOptimizer":
-        """``optimizer.method: cma_mae``: CMA-MAE over the grid with the ``quality_diversity`` section;
-        ``initial_mean`` ``(grid.n_variables,)`` simulation units, None: the paper's random mean."""
-        settings.validate()
-        qd_settings = quality_diversity_settings(parameters)
+        """``optimizer.method: cma_mae``: CMA-MAE over the grid with the ``optimizer`` and ``quality_diversity``
+        sections; ``initial_mean`` ``(grid.n_variables,)`` simulation units, None: the paper's random mean."""
+        settings.optimizer.validate()
         if state is None:
-            return cls(settings, qd_settings, grid, clock, initial_mean)
-        return cls.from_state_dict(state, settings, qd_settings, grid, clock, initial_mean)
+            return cls(settings.optimizer, settings.quality_diversity, grid, clock, initial_mean)
+        return cls.from_state_dict(state, settings.optimizer, settings.quality_diversity, grid, clock, initial_mean)
 
     def __init__(self, settings, qd_settings, grid, clock=time.monotonic, initial_mean=None):
         require("ribs", feature="quality-diversity optimization (optimizer.method cma_mae)")

@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _resimulate(args):
-    from rollability_ros.core.campaign import LocalRig
+    from rollability_ros.core.campaign import LocalRig, local_rig_settings
     from rollability_ros.core.config import load_parameters
     from rollability_ros.core.records import LaunchCondition
     from rollability_ros.core.rig import LAUNCH_BACKENDS, launch_backend_class
@@ -89,7 +89,7 @@ def _resimulate(args):
         raise ValueError(f"--resimulate: HEIGHT_M, SPEED_MPS and ANGLE_DEG must be numbers, got {numbers}") from None
     condition = LaunchCondition(configuration, height_m, speed_mps, angle_deg)
     condition.validate()
-    rig = LocalRig(args.backend, load_parameters(args.rig_config or ["rig"]))
+    rig = LocalRig(local_rig_settings(args.backend, load_parameters(args.rig_config or ["rig"])))
     try:
         result = rig.backend.resimulate(condition, args.seed)
     finally:
@@ -104,15 +104,16 @@ def _resimulate(args):
 
 
 def _run_local(args, spec, ask):
-    from rollability_ros.core.campaign import (LocalRig, plan_refusal, plan_trials, record_campaign_run,
-                                               report_exit_code, resume_refusal, run_campaign, store_writer)
+    from rollability_ros.core.campaign import (LocalRig, local_rig_settings, plan_refusal, plan_trials,
+                                               record_campaign_run, report_exit_code, resume_refusal, run_campaign,
+                                               store_writer)
     from rollability_ros.core.config import load_parameters
     from rollability_ros.core.store import Store
 
-    parameters, plan = load_parameters(args.rig_config or ["rig"]), plan_trials(spec)
+    settings, plan = local_rig_settings(args.backend, load_parameters(args.rig_config or ["rig"])), plan_trials(spec)
 
     def checked_rig() -> LocalRig:
-        rig = LocalRig(args.backend, parameters, ask or input)
+        rig = LocalRig(settings, ask or input)
         refusal = plan_refusal(rig.backend, spec.run_id, plan)
         if refusal:
             rig.close()

@@ -291,12 +291,12 @@ def test_drill_down_shows_each_seed_and_its_command_simulates_the_stored_launch_
 
     pytest.importorskip("pybullet")
     from rollability_ros.core.bags.messages import message_from_record, record_from_message, typestore
-    from rollability_ros.core.campaign.runner import LocalRig
+    from rollability_ros.core.campaign.runner import LocalRig, local_rig_settings
     from rollability_ros.core.config import load_parameters
     from rollability_ros.core.results.outcome_csv import read_outcome_csv
     from rollability_ros.core.results.records import NO_SEED
 
-    rig = LocalRig("sim", load_parameters(["rig"]))
+    rig = LocalRig(local_rig_settings("sim", load_parameters(["rig"])))
     try:
         baseline = [t for t in plan_trials(CampaignSpec(run_id="seeded", repetitions=1))
                     if t.condition.configuration == "baseline"]       # the shipped twin has no designs A/B/C

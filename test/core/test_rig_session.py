@@ -379,7 +379,7 @@ def test_simulated_backend_opens_no_port_and_refuses_operator_answers(valve):
 
 
 def test_in_process_rig_refuses_an_imu_outcome_before_opening_the_valve():
-    from rollability_ros.core.campaign.runner import LocalRig
+    from rollability_ros.core.campaign.runner import LocalRig, local_rig_settings
 
     with pytest.raises(ValueError, match="operator only"):
-        LocalRig("physical", {"rig.outcome_source": "imu"})
+        LocalRig(local_rig_settings("physical", {"rig.outcome_source": "imu"}))

@@ -8,12 +8,12 @@ The face below is what code outside ``core/campaign`` imports. ``calibration`` i
 imported here (it loads numpy and the twin), so the rig computer's campaign runner stays light.
 """
 from rollability_ros.core.campaign.plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
-from rollability_ros.core.campaign.runner import (LocalRig, RunnerSettings, StoreAcknowledgements, answer_rig,
-                                                  plan_refusal, record_campaign_run, report_exit_code, resume_refusal,
-                                                  run_campaign, store_writer)
+from rollability_ros.core.campaign.runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledgements,
+                                                  answer_rig, local_rig_settings, plan_refusal, record_campaign_run,
+                                                  report_exit_code, resume_refusal, run_campaign, store_writer)
 
 __all__ = [
-    "CampaignSpec", "LocalRig", "RunnerSettings", "StoreAcknowledgements", "answer_rig", "calibration",
-    "load_campaign_spec", "plan_refusal", "plan_trials", "record_campaign_run", "report_exit_code", "resume_refusal",
+    "CampaignSpec", "LocalRig", "LocalRigSettings", "RunnerSettings", "StoreAcknowledgements", "answer_rig",
+    "calibration", "load_campaign_spec", "local_rig_settings", "plan_refusal", "plan_trials", "record_campaign_run", "report_exit_code", "resume_refusal",
     "run_campaign", "store_writer", "trial_id_for",
 ]

@@ -21,7 +21,7 @@ import time
 import typing
 
 from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, changes_between
-from rollability_ros.core.config import from_mapping, section
+from rollability_ros.core.config import settings_from_sections
 from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, LaunchAborted,
                                       LaunchBackend, RigPorts, RigSettings, SpeedGateConfig, ValveConfig,
@@ -336,31 +336,42 @@ class LocalRigPorts(RigPorts):
             self.valve.shutdown()
 
 
+@dataclasses.dataclass(frozen=True)
+class LocalRigSettings:
+    """The typed sections an in-process rig is built from (``config/rig.yaml``), parsed once by the command that
+    starts it (:func:`local_rig_settings`)."""
+
+    rig: RigSettings = dataclasses.field(default_factory=RigSettings)
+    speed_gate: SpeedGateConfig = dataclasses.field(default_factory=SpeedGateConfig)
+    valve: ValveConfig = dataclasses.field(default_factory=ValveConfig)
+    imu_outcome: ImuOutcomeConfig = dataclasses.field(default_factory=ImuOutcomeConfig)
+
+
+def local_rig_settings(backend: str, parameters: typing.Mapping[str, typing.Any]) -> LocalRigSettings:
+    """Parse flat rig parameters (``load_parameters(["rig"])``: ``rig.*``, ``valve.*``, ``speed_gate.*``,
+    ``imu_outcome.*``) once, with ``rig.backend`` set to ``backend`` (``"sim"`` or ``"physical"``, the command
+    line's); a bad value raises ConfigError naming its parameter."""
+    return settings_from_sections(LocalRigSettings, {**parameters, "rig.backend": backend})
+
+
 class LocalRig:
-    """The rig in this process (no ROS): the backend ``backend`` names on :class:`LocalRigPorts`, with the operator
-    answering the rig's questions at the terminal (``ask``).
+    """The rig in this process (no ROS): the backend ``settings.rig.backend`` names on :class:`LocalRigPorts`, with
+    the operator answering the rig's questions at the terminal (``ask``).
 
     Parameters
     ----------
-    backend : str
-        ``rig.backend`` (``"sim"`` or ``"physical"``).
-    parameters : dict
-        Flat rig parameters (``load_parameters(["rig"])``): ``rig.*``, ``valve.*``, ``speed_gate.*``,
-        ``imu_outcome.*``.
+    settings : LocalRigSettings
+        The rig's typed sections (:func:`local_rig_settings`).
     ask, say : callable
         Terminal input / output.
     """
 
-    def __init__(self, backend, parameters, ask=input, say=print):
-        rig = section(parameters, "rig")
-        rig["backend"] = backend
-        settings = from_mapping(RigSettings, rig, "rig")
+    def __init__(self, settings: LocalRigSettings, ask: typing.Callable[[str], str] = input,
+                 say: typing.Callable[[str], None] = print) -> None:
         self._ask, self._say = ask, say
         self._stop = threading.Event()
-        self.backend = make_launch_backend(
-            settings, from_mapping(SpeedGateConfig, section(parameters, "speed_gate"), "speed_gate"),
-            from_mapping(ValveConfig, section(parameters, "valve"), "valve"),
-            from_mapping(ImuOutcomeConfig, section(parameters, "imu_outcome"), "imu_outcome"), LocalRigPorts(ask))
+        self.backend = make_launch_backend(settings.rig, settings.speed_gate, settings.valve, settings.imu_outcome,
+                                           LocalRigPorts(ask))
 
     def _on_phase(self, phase, detail):
         self._say(f"  {phase}: {detail}")

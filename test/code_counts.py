@@ -325,6 +325,38 @@ def probes(root=PACKAGE):
     return count
 
 
+#: The calls that turn flat parameters into settings: config's own (``section``, ``from_mapping``,
+#: ``settings_from_sections``) and the core's parse functions built on them, which an edge (node or CLI) calls once.
+PARSE_CALLS = ("section", "from_mapping", "settings_from_sections", "run_settings", "settings_from_parameters",
+               "launch_twin_settings_from_parameters", "calibration_settings", "local_rig_settings", "load_settings",
+               "load_launch_twin_settings")
+
+
+def parse_sites(root=CORE):
+    """``{(module path below core, enclosing function's qualified name): calls}`` of the :data:`PARSE_CALLS` made in
+    the core outside ``config.py`` (where they are defined): where flat parameters are still parsed below the edge."""
+    sites = {}
+
+    def visit(node, rel, scope):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                visit(child, rel, scope + [child.name])
+                continue
+            if isinstance(child, ast.Call):
+                func = child.func
+                name = func.id if isinstance(func, ast.Name) else getattr(func, "attr", None)
+                if name in PARSE_CALLS:
+                    key = (rel, ".".join(scope))
+                    sites[key] = sites.get(key, 0) + 1
+            visit(child, rel, scope)
+
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root).as_posix()
+        if rel != "config.py":
+            visit(ast.parse(path.read_text()), rel, [])
+    return sites
+
+
 def main():
     graph = import_graph()
     upward = upward_imports(graph)
@@ -345,6 +377,11 @@ def main():
     print("imports past a subpackage's face: " + ", ".join(
         f"{client} {sum(1 for c, _ in deep if c == client)}" for client in ("nodes", "cli", "core", "other")))
     print(f"hasattr/getattr calls: {probes()}")
+    sites = parse_sites()
+    print(f"calls parsing flat parameters in the core (outside config.py): {sum(sites.values())} in {len(sites)} "
+          "functions")
+    for (module, function), calls in sorted(sites.items()):
+        print(f"  core/{module} {function}: {calls}")
     return 0
 
 

@@ -31,7 +31,7 @@ import numpy.typing as npt
 
 import rollability_ros
 
-from rollability_ros.core.config import from_mapping, load_parameters, section
+from rollability_ros.core.config import load_parameters, settings_from_sections
 from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
 from rollability_ros.core.optional import require
 from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, UrdfRobotSpec, footprint_grid
@@ -140,10 +140,8 @@ def load_settings(config_paths: typing.Sequence[str] = ("sim", "robot", "evaluat
 
 
 def settings_from_parameters(flat: typing.Mapping[str, typing.Any]) -> "EvaluatorSettings":
-    """Build :class:`EvaluatorSettings` from a flat ``{dotted name: value}`` dict (e.g. a node's parameters)."""
-    hints: typing.Dict[str, typing.Any] = {f.name: f.type for f in dataclasses.fields(EvaluatorSettings)}
-    return EvaluatorSettings(**{name: from_mapping(hints[name], section(flat, prefix), prefix)
-                                for name, prefix in SETTINGS_SECTIONS.items()})
+    """Parse a flat ``{dotted name: value}`` dict (the CLI's merged files) once into :class:`EvaluatorSettings`."""
+    return settings_from_sections(EvaluatorSettings, flat, SETTINGS_SECTIONS)
 
 
 def settings_at_fidelity(settings: "EvaluatorSettings", fidelity: str) -> "EvaluatorSettings":

@@ -1,0 +1,60 @@
+"""Issue 29, point 5: settings are parsed once, at the edge (a node's declared sections, or the CLI's loaded files),
+into typed dataclasses that the core is handed; the core does not re-parse a flat parameter dict passed down to it.
+
+Checked statically (test/code_counts.py ``parse_sites``): every call in the core (outside config.py) of a parse
+(``section``, ``from_mapping``, ``settings_from_sections`` and the core's parse functions built on them) is listed
+below with why it stays. A new one fails with its function; one that went fails too, so the list only shrinks.
+Before (issue 29): 45 calls in 26 functions, among them ``optimizer_settings(`` re-parsing the ``optimizer`` section
+in four functions of one run and ``LocalRig`` re-parsing four sections it was handed flat.
+"""
+import code_counts
+
+#: (module below core, function): (calls, why the parse stays there)
+ALLOWED = {
+    # the parse functions an edge calls once (defined in the core next to their dataclasses)
+    ("optimization/optimization_run.py", "run_settings"): (1, "the edge parse of a run's parameters"),
+    ("campaign/runner.py", "local_rig_settings"): (1, "the edge parse of the in-process rig's parameters"),
+    ("sim/evaluation.py", "settings_from_parameters"): (1, "the edge parse of the evaluator's parameters"),
+    ("campaign/calibration.py", "calibration_settings"): (2, "the edge parse of the calibration section, checked "
+                                                             "against the twin's keys"),
+    ("sim/launch_twin.py", "launch_twin_settings_from_parameters"): (2, "the edge parse of the twin's parameters, "
+                                                                        "with settings overrides"),
+    # a file's own settings, read where the file is read
+    ("optimization/optimization_run.py", "OptimizationRun.__init__"): (1, "the run's record (config.yaml, written "
+                                                                          "and compared on resume), parsed once"),
+    ("optimization/optimization_run.py", "OptimizationRun._screen_initial_means"): (
+        1, "the robot the run's record describes, when the caller passes no screen"),
+    ("sim/evaluation.py", "load_settings"): (1, "reads parameter files"),
+    ("sim/launch_twin.py", "load_launch_twin_settings"): (1, "reads parameter files"),
+    ("rig/rig_session.py", "SimulatedLaunch.load"): (1, "reads the twin files rig.twin_config names"),
+    ("sim/objectives.py", "_resolve"): (1, "reads the twin files objective.twin_config names"),
+    ("campaign_matrix.py", "load_campaign_spec"): (2, "reads a campaign's parameter files"),
+    ("graph/bringup.py", "load_graph_settings"): (2, "reads the graph's parameter files"),
+    ("graph/preflight.py", "check_graph_parameters"): (2, "checks every node's parameter files before a start"),
+    ("profile/designs.py", "_read_designs"): (2, "reads a designs file"),
+    # the calibration fits config keys: each candidate's twin is the parameter files with the fitted keys set
+    ("campaign/calibration.py", "twin_settings_with"): (1, "rebuilds the twin with fitted config keys"),
+    # writing, not parsing: the flat dict nested again as a parameter file
+    ("optimization/optimization_run.py", "write_run_config"): (1, "writes config.yaml"),
+    ("campaign/calibration.py", "calibrated_parameter_document"): (1, "writes calibrated.yaml"),
+}
+
+
+def test_the_core_parses_flat_parameters_only_where_listed():
+    found = code_counts.parse_sites()
+    allowed = {site: calls for site, (calls, _why) in ALLOWED.items()}
+    new = {site: calls for site, calls in found.items() if calls > allowed.get(site, 0)}
+    assert not new, ("flat parameters parsed below the edge (parse them once in the node or CLI and hand the core "
+                     f"the typed settings, or list the site here with why): {new}")
+    gone = {site: calls for site, calls in allowed.items() if found.get(site, 0) < calls}
+    assert not gone, f"fewer parses than listed, lower or remove the entries: {gone} (found {found})"
+
+
+def test_the_check_sees_a_parse(tmp_path):
+    """A made-up core with one re-parse inside a method is found, with its function."""
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "m.py").write_text(
+        "from rollability_ros.core import config\n"
+        "class Run:\n    def step(self, flat):\n        return config.from_mapping(X, config.section(flat, 'a'), 'a')\n")
+    (tmp_path / "config.py").write_text("def section(flat, prefix):\n    return section(flat, prefix)\n")
+    assert code_counts.parse_sites(tmp_path) == {("sub/m.py", "Run.step"): 2}

@@ -65,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{len(result.designs)} design(s) from a race of {len(race.totals)} designs (the best by the screen) "
               f"on robust twin launches of run {run_id}: rounds of "
               f"{', '.join(str(r['trials']) for r in race.rounds)} launches, {len(race.survivors)} survived, "
-              f"{race.trials_spent} launches spent; bare robot {race.reference[0]}/{race.reference[1]}")
+              f"{race.trials_spent} launches spent"
+              + (f"; bare robot {race.reference[0]}/{race.reference[1]}" if race.reference is not None else ""))
     elif result.top_threshold is None:
         print(f"{len(result.designs)} design(s) from {result.considered} distinct logged designs of run {run_id} "
               f"(min RMS distance {settings.min_distance} units)")

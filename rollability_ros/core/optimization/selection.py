@@ -77,6 +77,13 @@ if typing.TYPE_CHECKING:
     from rollability_ros.core.records import CandidateRecord
     from rollability_ros.core.store import Store
 
+#: ``evaluate_batch(heights_list, seed) -> [(successes, trials, eval_time_s, evaluator), ...]``: heights
+#: ``(n_variables,)`` each, simulation units; one result per profile.
+BatchEvaluator = typing.Callable[[typing.List[np.ndarray], int], typing.Sequence[typing.Sequence[typing.Any]]]
+#: ``launch_batch(heights_list, seed, trials) -> [(successes, trials, eval_time_s, evaluator), ...]``: robust twin
+#: launches of each profile (heights ``(n_variables,)``, simulation units).
+LaunchEvaluator = typing.Callable[[typing.List[np.ndarray], int, int], typing.Sequence[typing.Sequence[typing.Any]]]
+
 #: The race's id of the bare robot (the reference that runs every round).
 BASELINE = "baseline"
 #: Generation keys of the selection's seeds (stream STREAM_SELECTION): the chosen designs' fresh launches, and
@@ -219,7 +226,7 @@ class SelectionResult:
     top_threshold: typing.Optional[float] = None        # archive runs: the fitness an elite needed to be in the top pool
     archive: typing.Optional[list] = None               # archive runs: one row per elite (ARCHIVE_COLUMNS), else None
     baseline_launches: typing.Optional[tuple] = None    # (successes, trials, seed) of the bare robot's fresh launches, or None
-    race: object = None                # racing.RaceResult of the launch race, or None
+    race: typing.Optional[racing.RaceResult] = None     # the launch race, or None without one
 
     def gains(self) -> typing.List[typing.Optional["Gain"]]:
         """One :class:`Gain` per chosen design: its gain over the bare robot on fresh robust launches when there
@@ -317,7 +324,10 @@ def rms_distance(heights_a: npt.ArrayLike, heights_b: npt.ArrayLike) -> float:
     return float(np.sqrt(np.mean((np.asarray(heights_a) - np.asarray(heights_b)) ** 2)))
 
 
-def select_designs(candidates, grid, printer, settings, evaluate_batch=None, run_seed=1, launch_batch=None):
+def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: geometry.ProfileGrid,
+                   printer: geometry.PrinterSpec, settings: SelectionSettings,
+                   evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
+                   launch_batch: typing.Optional[LaunchEvaluator] = None) -> SelectionResult:
     """Choose designs from a run's candidate log; see the module docstring.
 
     Parameters
@@ -342,7 +352,11 @@ def select_designs(candidates, grid, printer, settings, evaluate_batch=None, run
         raise ValueError("race_launches or launch_trials > 0 need a launch evaluator")
     pooled = [d for d in pool_candidates(candidates) if not geometry.is_baseline(d.heights)]
     ranked = sorted(pooled, key=lambda d: (-d.wilson_low, -d.fitness, d.first_generation))
-    chosen, rejected, race, meshes, reasons = [], {}, None, {}, {}
+    chosen: typing.List[SelectedDesign] = []
+    rejected: typing.Dict[str, int] = {}
+    race: typing.Optional[racing.RaceResult] = None
+    meshes: typing.Dict[int, typing.Any] = {}
+    reasons: typing.Dict[int, str] = {}
     if settings.race_rounds:
         for index, design in enumerate(ranked):
             if settings.race_elites and len(meshes) == settings.race_elites:
@@ -366,7 +380,7 @@ def select_designs(candidates, grid, printer, settings, evaluate_batch=None, run
         if any(rms_distance(design.heights, c.design.heights) < settings.min_distance for c in chosen):
             rejected["too close"] = rejected.get("too close", 0) + 1
             continue
-        mesh, problem = (meshes[index], None) if index in meshes else _printable_mesh(design.heights, grid, printer)
+        mesh, problem = (meshes[index], "") if index in meshes else _printable_mesh(design.heights, grid, printer)
         if mesh is None:
             rejected[problem] = rejected.get(problem, 0) + 1
             continue
@@ -394,8 +408,10 @@ def _reevaluate(chosen, grid, settings, evaluate_batch, run_seed):
     return chosen, (int(results[-1][0]), int(results[-1][1]), seed)
 
 
-def _printable_mesh(heights, grid, printer):
-    """``(mesh, None)`` for a printable profile, else ``(None, reason)`` (the rejection count's key)."""
+def _printable_mesh(heights: npt.ArrayLike, grid: geometry.ProfileGrid, printer: geometry.PrinterSpec
+                    ) -> typing.Tuple[typing.Optional[geometry.Mesh], str]:
+    """``(mesh, "")`` for a printable profile (heights ``(n_variables,)``, simulation units), else
+    ``(None, reason)`` (the rejection count's key)."""
     try:
         mesh = geometry.profile_mesh(heights, grid)
     except ValueError:
@@ -403,7 +419,7 @@ def _printable_mesh(heights, grid, printer):
     printability = geometry.check_printability(mesh, printer)
     if not printability.printable:
         return None, "not printable: " + ", ".join(_limits_named(printability.problems))
-    return mesh, None
+    return mesh, ""
 
 
 def top_pool(fitnesses: typing.Sequence[float], top_fraction: float) -> typing.Tuple[float, typing.List[int]]:
@@ -413,8 +429,10 @@ def top_pool(fitnesses: typing.Sequence[float], top_fraction: float) -> typing.T
     return threshold, [i for i, f in enumerate(fitnesses) if f >= threshold]
 
 
-def select_from_archive(archive, candidates, grid, printer, settings, evaluate_batch=None, run_seed=1,
-                        launch_batch=None):
+def select_from_archive(archive: typing.Mapping[str, typing.Any], candidates: typing.Iterable["CandidateRecord"],
+                        grid: geometry.ProfileGrid, printer: geometry.PrinterSpec, settings: SelectionSettings,
+                        evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
+                        launch_batch: typing.Optional[LaunchEvaluator] = None) -> SelectionResult:
     """Choose designs from a quality-diversity ``archive`` (the run info's ``archive``: ``ranges`` and
     ``elites``); see the module docstring. Arguments as :func:`select_designs`.
 
@@ -441,16 +459,20 @@ def select_from_archive(archive, candidates, grid, printer, settings, evaluate_b
         designs.append(pooled.get(key) or PooledDesign(np.asarray(key), int(round(elite["fitness"] * elite["trials"])),
                                                        int(elite["trials"]), 1, int(elite["generation"])))
     source = "in the run"
-    if settings.reevaluate_trials:
+    if settings.reevaluate_trials and evaluate_batch is not None:   # (checked above: one with the other)
         seed = derive_seed(run_seed, 1, STREAM_SELECTION)
         results = evaluate_batch([d.heights for d in designs], seed)
         designs = [PooledDesign(d.heights, int(r[0]), int(r[1]), 1, d.first_generation)
                    for d, r in zip(designs, results)]
         source = f"in the screen of all {len(elites)} elites"
-    threshold, pool = top_pool([d.fitness for d in designs], settings.top_fraction)
+    top, pool = top_pool([d.fitness for d in designs], settings.top_fraction)
+    threshold: typing.Optional[float] = top
     by_screen = lambda i: (-designs[i].wilson_low, -designs[i].fitness, designs[i].first_generation)  # noqa: E731
     spans = [float(high - low) for low, high in archive["ranges"]]
-    chosen, rejected, points, race = [], {}, [], None
+    chosen: typing.List[SelectedDesign] = []
+    rejected: typing.Dict[str, int] = {}
+    points: typing.List[np.ndarray] = []
+    race: typing.Optional[racing.RaceResult] = None
 
     def spread(i: int) -> float:
         """How far elite ``i`` lies from the nearest design already taken, in the normalised descriptor plane."""
@@ -505,7 +527,7 @@ def select_from_archive(archive, candidates, grid, printer, settings, evaluate_b
             estimate = f"{design.successes}/{design.trials} {source}, lower 95% bound {design.wilson_low:.2f}"
             if not chosen:
                 reason = (f"highest lower Wilson bound among the {len(pool)} of {len(elites)} elites in the top "
-                          f"{settings.top_fraction:.0%} (fitness >= {threshold:.3f} {source}): {estimate}; "
+                          f"{settings.top_fraction:.0%} (fitness >= {top:.3f} {source}): {estimate}; "
                           f"{where(elite)}")
             else:
                 reason = (f"the top-{settings.top_fraction:.0%} elite farthest from "
@@ -523,21 +545,26 @@ def select_from_archive(archive, candidates, grid, printer, settings, evaluate_b
     rows = []
     screened = bool(settings.reevaluate_trials)
     for index, (elite, design) in enumerate(zip(elites, designs)):
-        raced = race is not None and index in race.totals
         rows.append({"cell_height": elite["cell"][0], "cell_sharpness": elite["cell"][1],
                      "max_height_mm": elite["max_height_mm"], "sharpness_deg": elite["sharpness_deg"],
                      "in_run_fitness": elite["fitness"], "in_run_trials": elite["trials"],
                      "screen_successes": design.successes if screened else "",
                      "screen_trials": design.trials if screened else "",
                      "screen_fitness": design.fitness if screened else "", "top_pool": int(index in in_pool),
-                     "label": labels.get(tuple(elite["cell"]), ""),
-                     "race_round1_successes": race.first_round[index][0] if raced else "",
-                     "race_round1_trials": race.first_round[index][1] if raced else "",
-                     "race_successes": race.totals[index][0] if raced else "",
-                     "race_trials": race.totals[index][1] if raced else "",
-                     "race_stopped": race.stopped[index][0] if raced and index in race.stopped else ""})
+                     "label": labels.get(tuple(elite["cell"]), ""), **_race_columns(race, index)})
     return SelectionResult(chosen, settings.count, len(elites), rejected, baseline, threshold, rows,
                            baseline_launches, race)
+
+
+def _race_columns(race: typing.Optional[racing.RaceResult], index: int) -> typing.Dict[str, typing.Any]:
+    """The archive row's race columns of elite ``index``: its first round, its pooled launches and the round it was
+    stopped in; empty text when it did not race (or there was no race)."""
+    if race is None or index not in race.totals:
+        return dict.fromkeys(("race_round1_successes", "race_round1_trials", "race_successes", "race_trials",
+                              "race_stopped"), "")
+    return {"race_round1_successes": race.first_round[index][0], "race_round1_trials": race.first_round[index][1],
+            "race_successes": race.totals[index][0], "race_trials": race.totals[index][1],
+            "race_stopped": race.stopped[index][0] if index in race.stopped else ""}
 
 
 def _launch_race(designs, entrants, settings, launch_batch, run_seed, n_variables):
@@ -679,23 +706,25 @@ def _fitness_columns(successes, trials, source):
             "successes": successes, "trials": trials, "fitness_source": source}
 
 
-def designs_document(result, grid, run_id, mesh_units="mm"):
+def designs_document(result: SelectionResult, grid: geometry.ProfileGrid, run_id: str,
+                     mesh_units: str = "mm") -> typing.Dict[str, typing.Any]:
     """The ``designs.yaml`` content: a ROS 2 parameter file with namespace ``designs`` (heights per label).
 
     Each design carries its gain over the bare robot (``gain_over_baseline``: what it was measured on, the
     difference, Newcombe's 95% interval) and ``beats_baseline`` (the interval lies above 0) when a fresh
     comparison was made; a design that does not beat the bare robot is exported for inspection, marked so."""
-    body = {"run_id": run_id, "labels": [d.label for d in result.designs],
-            "grid": {"rows": grid.rows, "cols": grid.cols, "length_m": grid.length_m, "width_m": grid.width_m,
-                     "height_min": grid.height_min, "height_max": grid.height_max, "unit_m": grid.unit_m}}
+    body: typing.Dict[str, typing.Any] = {
+        "run_id": run_id, "labels": [d.label for d in result.designs],
+        "grid": {"rows": grid.rows, "cols": grid.cols, "length_m": grid.length_m, "width_m": grid.width_m,
+                 "height_min": grid.height_min, "height_max": grid.height_max, "unit_m": grid.unit_m}}
     if result.baseline_launches is not None:
         body["baseline_launches"] = {"successes": result.baseline_launches[0], "trials": result.baseline_launches[1]}
-    if result.race is not None:
-        body["launch_race"] = {"rounds": [r["trials"] for r in result.race.rounds],
-                               "designs_raced": len(result.race.totals), "survivors": len(result.race.survivors),
-                               "launches_spent": result.race.trials_spent,
-                               "baseline": {"successes": result.race.reference[0],
-                                            "trials": result.race.reference[1]}}
+    race = result.race
+    if race is not None:
+        body["launch_race"] = {"rounds": [r["trials"] for r in race.rounds], "designs_raced": len(race.totals),
+                               "survivors": len(race.survivors), "launches_spent": race.trials_spent}
+        if race.reference is not None:   # the bare robot runs every round of a selection's race
+            body["launch_race"]["baseline"] = {"successes": race.reference[0], "trials": race.reference[1]}
     for design, gain in zip(result.designs, result.gains()):
         successes, trials, source = design.reported
         body[design.label] = {"heights": [float(h) for h in design.design.heights],
@@ -799,7 +828,9 @@ def write_selection(run_dir: str, result: SelectionResult, grid: geometry.Profil
     return folder
 
 
-def select_run(store, run_id, run_dir, grid, printer, settings, evaluate_batch=None, run_seed=1, launch_batch=None):
+def select_run(store: "Store", run_id: str, run_dir: str, grid: geometry.ProfileGrid, printer: geometry.PrinterSpec,
+               settings: SelectionSettings, evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
+               launch_batch: typing.Optional[LaunchEvaluator] = None) -> typing.Tuple[SelectionResult, str]:
     """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
     simulated fitness and geometry) and write a new design set (``<run_dir>/designs/`` or ``designs-<n>/``);
     return ``(SelectionResult, folder)``.

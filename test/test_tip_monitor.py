@@ -324,7 +324,7 @@ def test_invalid_thresholds_are_refused(ros_node, start_node):
 
 
 def test_rpy_from_quaternion_round_trip():
-    from rollability_ros.core.imu.quaternion import rpy_deg_from_quaternion
+    from rollability_ros.core.imu import rpy_deg_from_quaternion
 
     for rpy in ([10.0, -20.0, 30.0], [180.0, 0.0, 90.0], [0.0, 0.0, 0.0], [-45.0, 60.0, -170.0]):
         back = quaternion_from_rpy_deg(*rpy_deg_from_quaternion(quaternion_from_rpy_deg(*rpy)))

@@ -96,6 +96,39 @@ def test_imports_go_through_the_faces():
         assert len(found) == allowed, f"{client}: {len(found)} deep imports left, lower DEEP_IMPORTS_ALLOWED to it"
 
 
+def private_module_imports(path):
+    """``line: module`` of each import in ``path`` of a core module with a leading underscore (``import
+    rollability_ros.core.sim._worker_pool``, ``from rollability_ros.core.sim._worker_pool import ...``, ``from
+    rollability_ros.core.sim import _worker_pool``)."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            modules = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            modules = [node.module] + [f"{node.module}.{alias.name}" for alias in node.names
+                                       if (ROOT / node.module.replace(".", "/") / f"{alias.name}.py").is_file()]
+        else:
+            continue
+        found += [f"{node.lineno}: {module}" for module in modules if module.startswith("rollability_ros.core.")
+                  and any(part.startswith("_") and part != "__init__" for part in module.split(".")[2:])]
+    return found
+
+
+def test_nothing_outside_the_package_imports_a_private_module(tmp_path):
+    """The modules behind a face with a leading underscore (``sim/_worker_pool``, ``rig/_valve_backend``, ...) are
+    their subpackage's own: tests, benches and scripts use the names the face exports."""
+    found = [f"{path.relative_to(ROOT)}:{where}" for folder in ("test", "bench", "scripts", "launch")
+             for path in sorted((ROOT / folder).rglob("*.py")) for where in private_module_imports(path)]
+    assert not found, "import these names from the subpackage's face:\n" + "\n".join(found)
+    made_up = tmp_path / "m.py"
+    made_up.write_text("from rollability_ros.core.sim._worker_pool import spawn_pool\n"
+                       "from rollability_ros.core.sim import spawn_pool, _worker_pool\n"
+                       "import rollability_ros.core.rig._valve_backend\nfrom rollability_ros.core.rig import _LOG\n")
+    assert private_module_imports(made_up) == ["1: rollability_ros.core.sim._worker_pool",
+                                               "2: rollability_ros.core.sim._worker_pool",
+                                               "3: rollability_ros.core.rig._valve_backend"]
+
+
 def test_the_check_sees_a_deep_import(tmp_path, monkeypatch):
     package = tmp_path / "rollability_ros"
     (package / "nodes").mkdir(parents=True)

@@ -16,8 +16,8 @@ UPWARD_ALLOWED: set = set()
 #: campaign -> optimization -> results -> sim -> campaign, went with the last upward import. None is left.
 SUBPACKAGE_CYCLES_ALLOWED: list = []
 #: Strongly connected components of the module graph inside each subpackage.
-#: Issue 29 counted a 7-module cycle in sim/ (broken by the engine tables' string entries and sim/body_points)
-#: and bags/recover <-> bags/writer (broken by bags/mcap_file). None is left.
+#: Issue 29 counted a 7-module cycle in sim/ (broken by the engine tables' string entries and sim/_body_points)
+#: and bags/recover <-> bags/writer (broken by bags/_mcap_file). None is left.
 MODULE_CYCLES_ALLOWED: list = []
 
 

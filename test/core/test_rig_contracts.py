@@ -14,7 +14,7 @@ from rollability_ros.core.rig.launch_backend import LaunchBackend
 from rollability_ros.core.rig.rig_session import LAUNCH_BACKENDS, PhysicalLaunch, SimulatedLaunch
 from rollability_ros.core.rig.speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
 from rollability_ros.core.rig.valve import ValveConfig, ValveController
-from rollability_ros.core.rig.valve_backend import VALVE_BACKENDS, ValveBackend, register_valve_backend
+from rollability_ros.core.rig import VALVE_BACKENDS, ValveBackend, register_valve_backend
 
 RIG = pathlib.Path(__file__).resolve().parents[2] / "rollability_ros" / "core" / "rig"
 

@@ -11,7 +11,7 @@ import datetime
 import os
 import typing
 
-from rollability_ros.core.bags.mcap_file import DEFAULT_CHUNK_SIZE_BYTES, DEFAULT_FLUSH_INTERVAL_S, mcap_compression
+from rollability_ros.core.bags._mcap_file import DEFAULT_CHUNK_SIZE_BYTES, DEFAULT_FLUSH_INTERVAL_S, mcap_compression
 from rollability_ros.core.bags.msg_definitions import OWN_PACKAGE
 
 #: Folder that holds recorded runs (relative to the working directory).

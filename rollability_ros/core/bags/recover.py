@@ -42,7 +42,7 @@ from rollability_ros.core.bags.metadata import (
 )
 from rollability_ros.core.bags.qos import normalize_qos_profiles
 from rollability_ros.core.bags.reader import MCAP_MAGIC, bag_file_errors, open_mcap, verify_mcap_file
-from rollability_ros.core.bags.mcap_file import (
+from rollability_ros.core.bags._mcap_file import (
     DEFAULT_CHUNK_SIZE_BYTES,
     RECOVERY_SIDECAR,
     McapFile,
@@ -405,7 +405,7 @@ def recording_gaps(directory: typing.Union[str, os.PathLike]) -> typing.List[typ
 
 
 def _restart_indexes(information):
-    from rollability_ros.core.bags.mcap_file import RESTARTS_KEY
+    from rollability_ros.core.bags._mcap_file import RESTARTS_KEY
 
     return [int(r) for r in ((information.get("custom_data") or {}).get(RESTARTS_KEY) or "").split(",") if r]
 
@@ -461,7 +461,7 @@ def mark_restart(directory: typing.Union[str, os.PathLike],
                  information: typing.Optional[typing.Dict[str, typing.Any]] = None) -> typing.Dict[str, typing.Any]:
     """Note in ``directory``'s metadata.yaml that the recording stopped uncleanly after its current files
     (``custom_data["recorder_restarts"]`` gets the index of the next file); return the updated metadata."""
-    from rollability_ros.core.bags.mcap_file import RESTARTS_KEY
+    from rollability_ros.core.bags._mcap_file import RESTARTS_KEY
 
     information = dict(information or read_metadata(os.fspath(directory)))
     custom_data = dict(information.get("custom_data") or {})

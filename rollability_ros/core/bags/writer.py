@@ -35,8 +35,8 @@ from rollability_ros.core.bags.metadata import (
 )
 from rollability_ros.core.bags.qos import normalize_qos_profiles
 from rollability_ros.core.bags.msg_definitions import definition_for, full_type_name, rihs01_hash
-# the MCAP file layer (constants, McapFile, the sidecar) lives in mcap_file.py; its names stay importable from here
-from rollability_ros.core.bags.mcap_file import (  # noqa: F401
+# the MCAP file layer (constants, McapFile, the sidecar) lives in _mcap_file.py; its names stay importable from here
+from rollability_ros.core.bags._mcap_file import (  # noqa: F401
     DEFAULT_CHUNK_SIZE_BYTES,
     DEFAULT_FLUSH_INTERVAL_S,
     DUPLICATES_KEY,

@@ -178,7 +178,7 @@ def _count_upright(settings, condition, seeds):
 class LaunchPool:
     """Counts upright launches per (parameter set, grouped condition), in worker processes (or serially: 1).
 
-    ``workers`` None or 0 = one per core, in :func:`~rollability_ros.core.sim.worker_pool.spawn_pool` processes.
+    ``workers`` None or 0 = one per core, in :func:`~rollability_ros.core.sim.spawn_pool` processes.
     """
 
     def __init__(self, workers: typing.Optional[int] = None) -> None:

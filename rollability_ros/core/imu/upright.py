@@ -1,5 +1,5 @@
 """Is the body upright? Tilt from orientation or gravity, and the IMU upright classifier shared by the rig and the
-tip monitor (quaternion maths: :mod:`rollability_ros.core.imu.quaternion`).
+tip monitor (quaternion maths: :mod:`rollability_ros.core.imu._quaternion`).
 
 Conventions (ROS, REP-103 / REP-145): quaternions are ``(x, y, z, w)``; the world frame has +z up; an IMU's
 ``orientation`` rotates its own frame into the world frame; an accelerometer at rest measures the reaction to
@@ -14,7 +14,7 @@ import logging
 import math
 import typing
 
-from rollability_ros.core.imu.quaternion import (  # noqa: F401  (re-exported: the classifier's frame maths)
+from rollability_ros.core.imu._quaternion import (  # noqa: F401  (re-exported: the classifier's frame maths)
     IDENTITY,
     Quaternion,
     Vector3,

@@ -4,7 +4,7 @@
 - rig_session: its two implementations (SimulatedLaunch, PhysicalLaunch), make_launch_backend; goal checks,
   phases, operator answers, IMU outcome, speed
 - valve: fail-closed valve state machine
-- valve_backend: the ValveBackend contract, its VALVE_BACKENDS table and make_valve_backend
+- _valve_backend: the ValveBackend contract, its VALVE_BACKENDS table and make_valve_backend
 - valve_backends: dry-run, GPIO and serial relay backends
 - relay_protocol: the relay board's serial protocol (RVR1) and its state machine (firmware/ mirrors it)
 - gpio_line_holder: the tiny process that owns the gpio backend's line and speaks the board protocol on its pipes
@@ -25,8 +25,8 @@ from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, LA
                                                   launch_backend_class, make_launch_backend, parse_outcome_answer)
 from rollability_ros.core.rig.speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
 from rollability_ros.core.rig.valve import ValveConfig, ValveController, ValveStatus
-from rollability_ros.core.rig.valve_backend import (VALVE_BACKENDS, ValveBackend, make_valve_backend,
-                                                    register_valve_backend)
+from rollability_ros.core.rig._valve_backend import (VALVE_BACKENDS, ValveBackend, make_valve_backend,
+                                                     register_valve_backend)
 from rollability_ros.core.rig.valve_backends import make_controller
 
 __all__ = [

@@ -16,7 +16,7 @@ board reports on its own reach :meth:`ValveController.device_fault`. See docs/va
 Thread model: ``fire()`` blocks for the pulse without holding the controller's lock, so ``estop()``,
 ``check_watchdog()`` and ``disarm()`` from other threads cut a running pulse at once. Every backend call runs on the
 controller's own backend thread and is bounded (the backend's ``call_timeout_s``, by default
-:data:`~rollability_ros.core.rig.valve_backend.DEFAULT_CALL_TIMEOUT_S`): a call that does not return in time
+:data:`~rollability_ros.core.rig._valve_backend.DEFAULT_CALL_TIMEOUT_S`): a call that does not return in time
 latches a fault and later calls are refused at once until it returns (the valve is then driven closed again), so
 the lock is never held longer than one bound.
 ``heartbeat()`` takes no lock and ``health()`` waits for it at most :data:`HEALTH_LOCK_WAIT_S`, so a stuck serial
@@ -30,7 +30,7 @@ import threading
 import time
 import typing
 
-from rollability_ros.core.rig.valve_backend import VALVE_BACKENDS, ValveBackend
+from rollability_ros.core.rig._valve_backend import VALVE_BACKENDS, ValveBackend
 
 _LOG = logging.getLogger(__name__)
 
@@ -140,7 +140,7 @@ class ValveController:
     Parameters
     ----------
     backend : ValveBackend
-        The driver (:class:`~rollability_ros.core.rig.valve_backend.ValveBackend`); its optional methods are
+        The driver (:class:`~rollability_ros.core.rig._valve_backend.ValveBackend`); its optional methods are
         called unconditionally (their defaults do nothing).
     max_pulse_ms : int
         Longest pulse ever fired, ms; longer requests are refused.

@@ -3,12 +3,12 @@ the launch twin.
 
 - world: PhysicsParams and one DIRECT client per simulation
 - trial_engine: the TrialEngine and LaunchEngine contracts, their tables and make_trial_world (picks sim.engine)
-- body_points: hull points, mass and centre of mass of a spawned PyBullet body's links
+- _body_points: hull points, mass and centre of mass of a spawned PyBullet body's links
 - trials: one disturbance trial (start, push, rest, upright test); TrialWorld, the pybullet engine
 - mujoco_trials: the same trial in MuJoCo (sim.engine: mujoco)
 - early_decision: ends a trial once energy fixes its outcome (barriers to the resting poses)
 - evaluation: fitness = upright / trials, serial, process pool or Ray
-- worker_pool: spawned worker processes that never outlive their parent
+- _worker_pool: spawned worker processes that never outlive their parent
 - stable_poses: analytic stable-pose screen
 - launch_twin: the simulated launch rig (PyBullet; sim.engine mujoco runs mujoco_launch_twin, the same rules in MuJoCo)
 
@@ -35,7 +35,7 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
                                                        TrialOutcome, engine_names, make_trial_world,
                                                        register_trial_engine)
     from rollability_ros.core.sim.trials import TrialSettings
-    from rollability_ros.core.sim.worker_pool import spawn_pool
+    from rollability_ros.core.sim._worker_pool import spawn_pool
     from rollability_ros.core.sim.world import PhysicsParams
 
 __all__ = [

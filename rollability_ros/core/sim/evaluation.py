@@ -41,7 +41,7 @@ from rollability_ros.core.sim.world import PhysicsParams, connect
 from rollability_ros.core.stats import wilson_interval
 from rollability_ros.core.sim.trial_engine import TRIAL_ENGINES, TrialOutcome, make_trial_world
 from rollability_ros.core.sim.trials import TrialSettings
-from rollability_ros.core.sim.worker_pool import spawn_pool
+from rollability_ros.core.sim._worker_pool import spawn_pool
 
 #: Largest base seed (TrialResult.seed is uint64; trial seeds are kept below 2**63 for int64 stores).
 MAX_SEED = 2**64 - 1

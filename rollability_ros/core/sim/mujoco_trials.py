@@ -273,10 +273,10 @@ def _geom_points(mujoco, model, geom, sections=24):
         rim = np.column_stack([size[0] * np.cos(angles), size[0] * np.sin(angles), np.zeros(sections)])
         return np.vstack([rim + [0.0, 0.0, side * size[1]] for side in (-1, 1)])
     if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
-        from rollability_ros.core.sim.body_points import sphere_points
+        from rollability_ros.core.sim._body_points import sphere_points
         return sphere_points(size[0], sections)
     if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
-        from rollability_ros.core.sim.body_points import sphere_points
+        from rollability_ros.core.sim._body_points import sphere_points
         ball = sphere_points(size[0], sections)
         return np.vstack([ball + [0.0, 0.0, side * size[1]] for side in (-1, 1)])
     return None

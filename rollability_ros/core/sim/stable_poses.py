@@ -41,7 +41,7 @@ import numpy.typing as npt
 
 from rollability_ros.core.optional import require
 from rollability_ros.core.profile import Mesh
-from rollability_ros.core.sim.body_points import link_points
+from rollability_ros.core.sim._body_points import link_points
 
 if typing.TYPE_CHECKING:  # annotations only
     from rollability_ros.core.robots import ProfileBody, RobotModel

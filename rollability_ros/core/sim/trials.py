@@ -197,7 +197,7 @@ class EnergyMonitor:
 
     def __init__(self, client, robot_model, robot, gravity_mps2, margin_m, ground_z_m=0.0, basins=None):
         from rollability_ros.core.sim.early_decision import build_basin_map
-        from rollability_ros.core.sim.body_points import link_points
+        from rollability_ros.core.sim._body_points import link_points
 
         pybullet = self.pybullet = require("pybullet", feature="the simulated evaluator")
         self.client, self.body = client, robot.body_id

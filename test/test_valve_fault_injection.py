@@ -310,7 +310,7 @@ def test_stray_participant_never_gets_the_relay_on(ros_node, start_node, relay):
                     assert valve.arm(False)[0], process.log()
                     armed, message = valve.arm()
                 assert armed, message + process.log()
-            stray = subprocess.run([sys.executable, "-c", STRAY, "6"], capture_output=True, text=True, timeout=120)
+            stray = subprocess.run([sys.executable, "-c", STRAY, "4"], capture_output=True, text=True, timeout=120)
             assert stray.returncode == 0, stray.stderr
             assert " 0 succeeded" in stray.stdout and "session known" in stray.stdout, stray.stdout
             calls = int(stray.stdout.split("stray: ")[1].split(" calls")[0])

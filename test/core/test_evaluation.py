@@ -229,6 +229,7 @@ def _connect(address, deadline_s=60.0):
             time.sleep(1.0)
 
 
+@pytest.mark.slow   # a local ray head starts in about 8 s: CI's --slow step runs it
 def test_ray_executor_matches_the_local_executor(ray_head):
     heights = ridge_heights(SETTINGS.grid)
     local = evaluate_profile(heights, 10, 21, SETTINGS)

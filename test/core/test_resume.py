@@ -197,6 +197,7 @@ def test_checkpoint_write_is_atomic_and_checked(tmp_path):
         checkpoints.check_same_config(loaded, {"x": 2, "y": 3}, path)
 
 
+@pytest.mark.slow   # the CLI path of the kill and resume above (about 12 s): CI's --slow step runs it
 def test_cli_run_with_real_physics_killed_and_resumed_equals_uninterrupted(tmp_path, capsys):
     """`rollability optimize` on a tiny real evaluation (6 variables, 4 trials): SIGKILL after the first stored
     generation, `--resume`, compare with an uninterrupted run; then `rollability select` on the result."""

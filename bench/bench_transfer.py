@@ -30,7 +30,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import yaml  # noqa: E402
 
-from rollability_ros.core.graph.ros_domain import claim_domain  # noqa: E402
+from rollability_ros.core.graph import claim_domain  # noqa: E402
 from rollability_ros.core.results import design_map  # noqa: E402
 from rollability_ros.core.results.stats import newcombe_interval  # noqa: E402
 from rollability_ros.core.results.store import Store  # noqa: E402

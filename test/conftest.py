@@ -11,7 +11,7 @@ import tempfile
 
 import pytest
 
-from rollability_ros.core.graph.ros_domain import claim_domain
+from rollability_ros.core.graph import claim_domain
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parents[1]
 

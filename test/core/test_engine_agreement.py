@@ -64,7 +64,7 @@ def test_rank_p_value_is_the_exact_permutation_share():
 
 def test_table_round_trips_and_the_report_shows_it(tmp_path):
     from rollability_ros.core.results import report
-    from rollability_ros.core.results.outcome_csv import write_outcome_csv
+    from rollability_ros.core.results import write_outcome_csv
     from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
 
     results = {"baseline": {"pybullet": evaluated([False] * 10), "mujoco": evaluated([False] * 9 + [True])},

@@ -5,7 +5,7 @@ import re
 
 import pytest
 
-from rollability_ros.core.results.outcome_csv import OutcomeCsvError, read_outcome_csv, write_outcome_csv
+from rollability_ros.core.results import OutcomeCsvError, read_outcome_csv, write_outcome_csv
 from rollability_ros.core.results.records import NO_SEED, LaunchCondition, LaunchOutcome
 
 

@@ -11,7 +11,7 @@ import pytest
 
 from rollability_ros.cli import main as cli_main
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
-from rollability_ros.core.results.outcome_csv import write_outcome_csv
+from rollability_ros.core.results import write_outcome_csv
 from rollability_ros.core.results.records import CandidateRecord, LaunchOutcome, TipEventRecord
 from rollability_ros.core.results.report import source_kind
 from rollability_ros.core.results.store import Store
@@ -293,7 +293,7 @@ def test_drill_down_shows_each_seed_and_its_command_simulates_the_stored_launch_
     from rollability_ros.core.bags.messages import message_from_record, record_from_message, typestore
     from rollability_ros.core.campaign.runner import LocalRig, local_rig_settings
     from rollability_ros.core.config import load_parameters
-    from rollability_ros.core.results.outcome_csv import read_outcome_csv
+    from rollability_ros.core.results import read_outcome_csv
     from rollability_ros.core.results.records import NO_SEED
 
     rig = LocalRig(local_rig_settings("sim", load_parameters(["rig"])))

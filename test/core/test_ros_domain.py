@@ -1,7 +1,7 @@
 """Each test run and bench claims a ROS domain of its own: a held domain is skipped, all held is refused."""
 import pytest
 
-from rollability_ros.core.graph.ros_domain import claim_domain
+from rollability_ros.core.graph import claim_domain
 
 
 def test_a_held_domain_is_skipped_and_none_free_is_refused_in_one_line():

@@ -22,7 +22,7 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
     from rollability_ros.core.graph.foxglove_view import ViewServer, ViewSettings, parse_pose_frames
     from rollability_ros.core.graph.preflight import check_graph_parameters
     from rollability_ros.core.graph.progress import GraphObserver, ProgressDisplay, session_progress
-    from rollability_ros.core.graph.ros_domain import claim_domain
+    from rollability_ros.core.graph._ros_domain import claim_domain
     from rollability_ros.core.graph.study import PROGRESS_PERIOD_S, Study
     from rollability_ros.core.graph.supervisor import ProcessSpec, Supervisor
 

@@ -5,7 +5,7 @@ The records, their message mapping, the store and the statistics are the core's 
 ``store`` and ``stats`` here are their old paths, kept for code not yet moved.
 
 - outcome_log: store-before-acknowledge bookkeeping of the outcome logger
-- outcome_csv: strict CSV import/export of hand-recorded outcomes
+- _outcome_csv: strict CSV import/export of hand-recorded outcomes
 - analysis, report, report_figures: the paper's views, figures and HTML report
 - design_map: a quality-diversity run's map (archive.csv, traits.csv) and its height / sharpness trends
 - engine_agreement: the same trials in two physics engines: trial and rank agreement, robust designs
@@ -21,7 +21,7 @@ from rollability_ros.core.faces import lazy_attribute
 if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
     from rollability_ros.core.results import analysis, design_map, engine_agreement, report, report_figures
     from rollability_ros.core.results.engine_agreement import trial_agreement
-    from rollability_ros.core.results.outcome_csv import OutcomeCsvError, read_outcome_csv, write_outcome_csv
+    from rollability_ros.core.results._outcome_csv import OutcomeCsvError, read_outcome_csv, write_outcome_csv
     from rollability_ros.core.results.outcome_log import OutcomeLog, OutcomeLoggerSettings, StoreFailure
     from rollability_ros.core.results.report import load_report_data
     from rollability_ros.core.results.sensitivity_table import gain_lines

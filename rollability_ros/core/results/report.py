@@ -25,7 +25,7 @@ import shlex
 import typing
 
 from rollability_ros.core.results import analysis
-from rollability_ros.core.results.outcome_csv import read_outcome_csv
+from rollability_ros.core.results._outcome_csv import read_outcome_csv
 from rollability_ros.core.records import INVALID_LAUNCH, NO_SEED, LaunchOutcome
 from rollability_ros.core.store import STORE_FILENAME, Store
 from rollability_ros.core.stats import newcombe_interval, wilson_interval

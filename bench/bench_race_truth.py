@@ -8,7 +8,9 @@ and the bare robot get ``--nominal`` launches on the PyBullet twin under the cam
 campaign's measure: the 20 launch conditions, no draw of the unknowns; other seeds than the campaign's) and
 ``--robust`` fresh robust launches (the race's measure). Printed per study: each raced elite's screen, race and
 the two fresh counts, the race's label (A/B/C), Spearman's rho between the measures, and what the race chose
-against what it could have chosen: A's nominal count beside the survivors' and all raced elites' best. A long
+against what it could have chosen: A's nominal count beside the survivors' and all raced elites' best, and what a
+final race round of ``--final-launches`` more robust launches for the ``--keep`` best survivors would pick
+(Monte Carlo on the measured rates). A long
 measurement of the race's candidates says whether the race's choice or the candidates themselves limit A's
 campaign gain. All numbers are simulated.
 """
@@ -70,7 +72,7 @@ def fresh_counts(study_dir, heights, nominal, robust, executor):
     return counts, launch.physics.engine
 
 
-def report(study_dir, rows, counts, engine):
+def report(study_dir, rows, counts, engine, final_launches=(), keep=4):
     """Print one study's table and what the race chose against what it could have."""
     nominal, robust = counts["nominal"], counts["robust"]
     column = lambda counts, k: f"{counts[k][0]}/{counts[k][1]}" if counts else "-"  # noqa: E731
@@ -100,6 +102,27 @@ def report(study_dir, rows, counts, engine):
         print(f"  nominal launches: A {column(nominal, chosen['A']) if 'A' in chosen else '-'}; the survivors' best "
               f"{best(survivors)}, their mean {np.mean([nominal[k][0] for k in survivors]):.1f}; all raced elites' "
               f"best {best(range(len(rows)))}; bare robot {nominal[-1][0]} (of {nominal[-1][1]} each)")
+        if robust:
+            for extra in final_launches:
+                picked = final_round(rows, survivors, robust, nominal, extra, keep)
+                print(f"  a final round of {extra} more robust launches for the best {keep} survivors (Monte Carlo "
+                      f"on the measured robust rates): A's expected nominal count {picked:.1f}")
+
+
+def final_round(rows, survivors, robust, nominal, extra, keep, draws=4000):
+    """Expected nominal count of the design a final race round would pick: the ``keep`` survivors best by their
+    race launches get ``extra`` more robust launches, each drawn at its measured robust rate (a plug-in estimate:
+    the measured rates spread more than the true ones, so the gain it shows is an upper bound); the pick is the
+    most successes in the race and the final together (ties at random)."""
+    rng = np.random.default_rng(0)
+    totals = {k: int(rows[k]["race_successes"]) for k in survivors}
+    final = sorted(survivors, key=lambda k: (-totals[k], k))[:keep]
+    picks = []
+    for _ in range(draws):
+        score = {k: totals[k] + rng.binomial(extra, robust[k][0] / robust[k][1]) + 0.01 * rng.random()
+                 for k in final}
+        picks.append(nominal[max(final, key=score.__getitem__)][0])
+    return float(np.mean(picks))
 
 
 def main():
@@ -108,9 +131,14 @@ def main():
     parser.add_argument("--nominal", type=int, default=100, help="nominal launches per design (campaign's measure)")
     parser.add_argument("--robust", type=int, default=100, help="fresh robust launches per design (race's measure)")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--final-launches", type=int, nargs="*", default=[60, 200],
+                        help="Monte Carlo of a final race round of this many more robust launches (needs both counts)")
+    parser.add_argument("--keep", type=int, default=4, help="designs in that final round (selection.race_keep)")
     args = parser.parse_args()
-    if args.nominal < 0 or args.robust < 0 or args.nominal + args.robust == 0 or args.workers < 1:
-        raise SystemExit("bench_race_truth: need --nominal, --robust >= 0 (not both 0) and --workers >= 1")
+    if args.nominal < 0 or args.robust < 0 or args.nominal + args.robust == 0 or args.workers < 1 or args.keep < 1 \
+            or any(n < 1 for n in args.final_launches):
+        raise SystemExit("bench_race_truth: need --nominal, --robust >= 0 (not both 0), --workers, --keep and "
+                         "--final-launches >= 1")
     for study_dir in args.studies:
         if not os.path.isfile(os.path.join(study_dir, "optimization", "designs", "archive.csv")):
             raise SystemExit(f"bench_race_truth: {study_dir} is not a study folder with a selection "
@@ -121,7 +149,7 @@ def main():
         for study_dir in args.studies:
             rows, heights = raced_elites(study_dir)
             counts, engine = fresh_counts(study_dir, heights, args.nominal, args.robust, executor)
-            report(study_dir, rows, counts, engine)
+            report(study_dir, rows, counts, engine, args.final_launches, args.keep)
     finally:
         executor.close()
     return 0

@@ -8,7 +8,7 @@ import os
 import typing
 
 from rollability_ros.core.graph import load_graph_settings, parameter_files, session_nodes
-from rollability_ros.core.rig import physical_rig_environment
+from rollability_ros.core.rig import launch_backend_class, physical_rig_environment
 
 
 class NodeCommand(typing.NamedTuple):
@@ -44,7 +44,7 @@ def _nodes(context, rig_backend, optimizer, evaluators):
                                 run_dir)
     # the physical rig's own domain and localhost discovery, unless the operator set them (as `rollability bringup`)
     isolation = []
-    if rig_backend == "physical":
+    if launch_backend_class(rig_backend).authenticated:   # a backend that moves hardware
         from launch.actions import SetEnvironmentVariable
 
         isolation = [SetEnvironmentVariable(name, value)

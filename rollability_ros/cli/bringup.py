@@ -11,6 +11,7 @@ def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.graph import (PROGRESS_PERIOD_S, ProgressDisplay, Supervisor, load_graph_settings,
                                             new_study_id, parameter_files, session_nodes, session_progress)
     from rollability_ros.core.config import check_path_component
+    from rollability_ros.core.rig import launch_backend_class
 
     param_files = parameter_files(["bringup", *args.config])
     settings = load_graph_settings(param_files)
@@ -22,7 +23,7 @@ def run(args: argparse.Namespace) -> int:
     if os.path.lexists(run_dir):   # its closed bag and store belong to an earlier session: never written into
         raise ValueError(f"session folder {run_dir} already exists; choose another --session-id")
     os.makedirs(run_dir)
-    if args.backend == "physical":
+    if launch_backend_class(args.backend).authenticated:   # a backend that moves hardware
         _isolate_physical_rig()
     nodes = session_nodes(settings, run_dir, rig_backend=args.backend, optimizer=not args.no_optimizer)
     supervisor = Supervisor([node.process_spec(param_files) for node in nodes], os.path.join(run_dir, "logs"))

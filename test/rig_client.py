@@ -65,8 +65,8 @@ class RigClient:
         from rollability_ros.nodes._support import send_goal_resending
 
         assert self.action.wait_for_server(timeout_sec=30)
-        goal = goal or self.goal(trial_id, condition)
-        handle = send_goal_resending(self.action, goal, self.spun.wait_for, 30, feedback_callback=lambda fb: (
+        make = (lambda: goal) if goal is not None else (lambda: self.goal(trial_id, condition))   # signed afresh
+        handle = send_goal_resending(self.action, make, self.spun.wait_for, 30, feedback_callback=lambda fb: (
             feedback.append((fb.feedback.phase, fb.feedback.detail))), on_resend=self.resends.append)
         assert handle is not None, "the rig did not answer the goal within 30 s"
         return handle.get_result_async()

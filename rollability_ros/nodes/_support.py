@@ -393,12 +393,15 @@ def send_goal_resending(client: ActionClient, goal: typing.Any, wait: typing.Cal
     the first goal after discovery can be lost that way (seen in CI: no answer in 30 s). So a goal unanswered for
     ``resend_after_s`` is sent again (same content, a new goal id; ``on_resend(copies_sent_so_far)`` is told).
     Should an earlier copy's answer still come, the first answer is the one returned and any other accepted copy is
-    cancelled. ``wait(predicate, timeout_s) -> bool`` waits however the caller spins.
+    cancelled. ``goal`` may be a function that makes the goal: a signed goal must be signed again for each copy
+    (a signature is fresh for a few seconds only). ``wait(predicate, timeout_s) -> bool`` waits however the caller
+    spins.
     """
     copies: typing.List[typing.Any] = []
     deadline = time.monotonic() + timeout_s
     while True:
-        copies.append(client.send_goal_async(goal, feedback_callback=feedback_callback))
+        copy = goal() if callable(goal) else goal   # a signed goal is signed afresh for each copy
+        copies.append(client.send_goal_async(copy, feedback_callback=feedback_callback))
         remaining = deadline - time.monotonic()
         if wait(lambda: any(copy.done() for copy in copies), max(0.0, min(resend_after_s, remaining))):
             break

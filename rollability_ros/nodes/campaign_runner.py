@@ -124,11 +124,14 @@ class RigClient:
         if not spin_until(self.executor, self.action.server_is_ready, self.server_timeout_s):
             raise LaunchAborted(f"no rig serves the launch action within {self.server_timeout_s:g} s")
         feedback: queue.Queue = queue.Queue()
-        goal = Launch.Goal(run_id=self.run_id, trial_id=trial.trial_id,
-                           condition=_convert.condition_to_msg(trial.condition))
-        goal.auth = self._sign(lambda signer: signer.launch(self.run_id, trial.trial_id, goal.condition))
+        def make_goal():
+            goal = Launch.Goal(run_id=self.run_id, trial_id=trial.trial_id,
+                               condition=_convert.condition_to_msg(trial.condition))
+            goal.auth = self._sign(lambda signer: signer.launch(self.run_id, trial.trial_id, goal.condition))
+            return goal
+
         handle = send_goal_resending(
-            self.action, goal, lambda done, timeout_s: spin_until(self.executor, done, timeout_s),
+            self.action, make_goal, lambda done, timeout_s: spin_until(self.executor, done, timeout_s),
             self.server_timeout_s, feedback_callback=feedback.put,
             on_resend=lambda copies: self.say(f"  the rig did not answer {trial.trial_id} within "
                                               f"{GOAL_RESEND_S * copies:g} s; sending it again"))

@@ -85,6 +85,7 @@ def test_a_goal_answered_late_is_sent_again_and_the_late_copy_cancelled(ros_node
     from rollability_ros.nodes._support import ThreadSafeActionClient, send_goal_resending
 
     server = SpunNode("late_answer_server")
+    action_server = client = None
     try:
         answered, cancelled = [], []
 
@@ -105,9 +106,9 @@ def test_a_goal_answered_late_is_sent_again_and_the_late_copy_cancelled(ros_node
                 handle.succeed()
             return EvaluateProfile.Result()
 
-        ActionServer(server.node, EvaluateProfile, "late_answer", execute_callback=execute,
-                     goal_callback=on_goal, cancel_callback=lambda _goal: CancelResponse.ACCEPT,
-                     callback_group=ReentrantCallbackGroup())
+        action_server = ActionServer(server.node, EvaluateProfile, "late_answer", execute_callback=execute,
+                                     goal_callback=on_goal, cancel_callback=lambda _goal: CancelResponse.ACCEPT,
+                                     callback_group=ReentrantCallbackGroup())
         client = ThreadSafeActionClient(ros_node.node, EvaluateProfile, "late_answer")
         assert client.wait_for_server(timeout_sec=30)
         resends = []
@@ -120,4 +121,9 @@ def test_a_goal_answered_late_is_sent_again_and_the_late_copy_cancelled(ros_node
         assert ros_node.wait_for(result.done, 30)
         assert result.result().status == GoalStatus.STATUS_SUCCEEDED     # the copy used is not cancelled
     finally:
+        # destroy_node() leaves an action server (a waitable) alive; left so, it would stay on the graph as an
+        # EvaluateProfile server that never answers, and later tests' optimizers would find it
+        for entity in (client, action_server):
+            if entity is not None:
+                entity.destroy()
         server.close()

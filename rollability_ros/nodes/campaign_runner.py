@@ -124,7 +124,7 @@ class RigClient:
         if not spin_until(self.executor, self.action.server_is_ready, self.server_timeout_s):
             raise LaunchAborted(f"no rig serves the launch action within {self.server_timeout_s:g} s")
         feedback: queue.Queue = queue.Queue()
-        def make_goal():
+        def make_goal() -> Launch.Goal:
             goal = Launch.Goal(run_id=self.run_id, trial_id=trial.trial_id,
                                condition=_convert.condition_to_msg(trial.condition))
             goal.auth = self._sign(lambda signer: signer.launch(self.run_id, trial.trial_id, goal.condition))

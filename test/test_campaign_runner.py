@@ -177,6 +177,7 @@ def relay_commands(relay):
     return [e["line"] for e in relay.entries() if e["event"] == "command" and e["line"] != "KA"]
 
 
+@pytest.mark.slow   # about 15 s; the README's command keeps the dry-run campaign and test_valve_controller's e-stop
 def test_physical_campaign_on_serial_relay_survives_estop_and_watchdog(ros_node, start_node, tmp_path, relay):
     plan = plan_trials(SPEC)
     graph = Graph(tmp_path, start_node, "serial_relay", relay)

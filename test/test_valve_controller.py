@@ -165,6 +165,7 @@ def test_diagnostics_report_armed_fault_margin_and_link(ros_node, start_node, re
         relay.restore()
 
 
+@pytest.mark.slow   # about 25 s of eight CLI processes; the services it calls are tested in the dry-run test above
 def test_operator_cli_estop_disarm_arm(ros_node, start_node, tmp_path):
     import subprocess
     import sys

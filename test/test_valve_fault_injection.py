@@ -296,6 +296,7 @@ STRAY = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow   # about 16 s; the stray participant against the rig (dry_run) stays in the README's command
 def test_stray_participant_never_gets_the_relay_on(ros_node, start_node, relay):
     process, valve = armed_valve(start_node, ros_node, relay)
     with valve.heartbeats():

@@ -103,4 +103,11 @@ def test_sigint_stops_a_node_started_with_sigint_ignored(tmp_path, module):
         if process.poll() is None:
             process.kill()
             process.wait()
-    assert process.returncode in (0, 130), log.read_text(errors="replace")
+    text = log.read_text(errors="replace")
+    # a stop by SIGINT may also be reported as death by SIGINT (-2: CPython exits so once a KeyboardInterrupt went
+    # unhandled anywhere, even in a nested call, whoever caught it later); the node's stop line shows that it stopped
+    # itself cleanly, which is what this test is about (without it, it was killed by the signal's default action)
+    if process.returncode == -signal.SIGINT:
+        assert module == "campaign_runner" and "stopped by a stop signal" in text, (process.returncode, text)
+    else:
+        assert process.returncode in (0, 130), (process.returncode, text)

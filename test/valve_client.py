@@ -177,9 +177,11 @@ def fire_and_wait_on(valve, spun, relay, pulse_ms, watchdog_ms):
             # the board disarmed itself (its safe answer) because no line reached it for longer than its keep-alive
             # timeout before the pulse: the machine starved the valve node or the board, the case never began
             raise TestProcessStalled(f"no command reached the board for {gap_ms:.0f} ms (keep-alive timeout "
-                                     f"{relay.keepalive_timeout_ms} ms) before the pulse; fire answered: {answer}")
+                                     f"{relay.keepalive_timeout_ms} ms) before the pulse; the board itself overslept "
+                                     f"up to {relay.longest_oversleep_ms():.0f} ms; fire answered: {answer}")
         raise AssertionError(f"the relay never switched on; fire answered: {answer}; longest gap between the "
-                             f"board's lines {gap_ms:.0f} ms (keep-alive timeout {relay.keepalive_timeout_ms} ms); "
+                             f"board's lines {gap_ms:.0f} ms (keep-alive timeout {relay.keepalive_timeout_ms} ms; "
+                             f"the board overslept up to {relay.longest_oversleep_ms():.0f} ms); "
                              f"valve state: "
                              f"{valve.last() if valve.states else None}; board log: {relay.entries()[-5:]}")
     gap_ms = valve.longest_heartbeat_gap_s * 1000.0

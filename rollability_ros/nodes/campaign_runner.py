@@ -258,14 +258,15 @@ def run_graph_campaign(node: Node, spec: CampaignSpec, settings: RunnerSettings,
 
 def main(args: typing.Optional[typing.List[str]] = None) -> int:
     init_ros(args)
-    # a supervisor's SIGTERM ends the campaign as Ctrl-C does: the running goal is cancelled, the context stays
-    # valid until the node is destroyed. SIGINT is set too: a process started in the background of a script
-    # inherits SIGINT ignored, and Python keeps an ignored SIGINT ignored (run_node sets both for the other nodes)
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, signal.default_int_handler)
     node = None
     try:
-        node = Node("campaign_runner")   # inside: a stop signal while the node is made is a stop, not a traceback
+        # a supervisor's SIGTERM ends the campaign as Ctrl-C does: the running goal is cancelled, the context stays
+        # valid until the node is destroyed. SIGINT is set too: a process started in the background of a script
+        # inherits SIGINT ignored, and Python keeps an ignored SIGINT ignored (run_node sets both for the other
+        # nodes). Inside the try: a signal right after its handler is set is a stop, not a traceback
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.default_int_handler)
+        node = Node("campaign_runner")
         spec = declare_settings(node, "campaign", CampaignSpec)
         settings = declare_settings(node, "runner", RunnerSettings)
         ask = input if launch_backend_class(settings.backend).attended else None
@@ -274,6 +275,7 @@ def main(args: typing.Optional[typing.List[str]] = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        print("campaign_runner: stopped by a stop signal", file=sys.stderr)
         return 130
     finally:
         if node is not None:

@@ -232,3 +232,36 @@ def test_an_answer_that_arrived_in_time_is_not_a_timeout_when_the_reader_runs_la
     silent = _SerialPort(_LatePort(b"", late_s=0), ANSWER_TIMEOUT_S)
     started = time.monotonic()
     assert silent.read_until(b"\n") == b"" and time.monotonic() - started < 1.0   # silence still times out
+
+
+def test_a_starved_simulator_says_so_in_its_log(sim):
+    """A board simulator the host did not run (here SIGSTOP for 0.4 s) logs how late it woke: a keep-alive fault
+    after such an entry may be the simulator's, not the valve node's (a real board is never starved)."""
+    assert wait_until(lambda: any(e["event"] == "start" for e in sim.entries()))
+    sim.process.send_signal(signal.SIGSTOP)
+    time.sleep(0.4)
+    sim.process.send_signal(signal.SIGCONT)
+    assert wait_until(lambda: sim.longest_oversleep_ms() >= 250.0), sim.entries()[-3:]
+
+
+def test_a_late_keepalive_while_armed_is_logged_by_the_valve(sim, caplog):
+    """The valve side warns when, armed, two answered commands lie more than half the board's keep-alive timeout
+    apart (here the port is held for 180 ms against a 250 ms timeout): how close the computer came to a board fault."""
+    controller, _states = controller_for(sim)
+    backend = controller._backend
+    try:
+        with caplog.at_level("WARNING", logger=backend_logger_name()):
+            time.sleep(0.3)
+            assert "starving the valve node" not in caplog.text     # disarmed, and on time
+            assert controller.arm()[0]
+            with backend._io_lock:
+                time.sleep(0.18)
+            assert wait_until(lambda: "starving the valve node" in caplog.text, 2), caplog.text
+    finally:
+        controller.shutdown()
+
+
+def backend_logger_name():
+    from rollability_ros.core.rig import valve_backends
+
+    return valve_backends._LOG.name

@@ -6,13 +6,16 @@ the slave's device path to ``PORT`` (atomically, once it is ready) and speaks th
 not the computer, ends every pulse and drops the relay when the keep-alive stops. Every event goes to ``LOG`` as
 one JSON object per line::
 
-    {"event": "start"|"command"|"relay"|"cut"|"restore"|"estop"|"exit", "relay": "on"|"off",
+    {"event": "start"|"command"|"relay"|"cut"|"restore"|"estop"|"overslept"|"exit", "relay": "on"|"off",
      "line": ..., "answer": ..., "reason": ..., "time_s": <Unix time>,
      "monotonic_s": <CLOCK_MONOTONIC, comparable across processes on Linux>}
 
 ``relay`` entries are the relay's own transitions (``reason``: ``PULSE <ms>``, ``pulse end``, ``OFF``,
 ``DISARM``, ``keepalive``, ``estop``), so a test can measure from the board's side how long the relay was on;
-``boot`` entries count bytes lost while the simulated bootloader runs (``--boot-delay-s``).
+``boot`` entries count bytes lost while the simulated bootloader runs (``--boot-delay-s``). An ``overslept`` entry
+(``late_ms``) says this process woke that long after the deadline it had asked the kernel for: the host starved the
+simulator, which a real board (a microcontroller of its own) never is, so a keep-alive fault that follows one may
+be the simulator's and not the valve node's (the valve node logs its own late keep-alives).
 
 Faults for tests, at run time: ``SIGUSR1`` cuts the serial line (bytes either way are lost, as with a pulled
 cable), ``SIGUSR2`` restores it, ``SIGHUP`` presses and releases the e-stop button; ``--ack-delay-s`` answers late.
@@ -32,6 +35,10 @@ import typing
 import rollability_ros
 from rollability_ros.core.rig.relay_protocol import (DEFAULT_KEEPALIVE_TIMEOUT_MS, DEFAULT_MAX_PULSE_MS,
                                                      RelayDevice, split_lines)
+
+
+#: A wake-up this much later than the deadline the board's loop asked for is logged as ``overslept``, ms.
+OVERSLEPT_MS = 50.0
 
 
 class _Board:
@@ -107,10 +114,15 @@ def serve(port_file: str, log_path: str, max_pulse_ms: int = DEFAULT_MAX_PULSE_M
                 else:
                     return
             board.tick()
+            asked_s = board.next_deadline_s()
+            asleep_at = time.monotonic()
             try:
-                readable, _, _ = select.select([master_fd], [], [], board.next_deadline_s())
+                readable, _, _ = select.select([master_fd], [], [], asked_s)
             except InterruptedError:
                 continue
+            late_ms = (time.monotonic() - asleep_at - asked_s) * 1000.0
+            if late_ms > OVERSLEPT_MS:
+                board.log("overslept", late_ms=round(late_ms, 1))
             if not readable:
                 continue
             data = os.read(master_fd, 4096)
@@ -216,6 +228,10 @@ class RelaySim:
     def press_estop(self, timeout_s: float = 5.0) -> None:
         """Press and release the board's e-stop button (the fault latches); returns once logged."""
         self._signal_and_wait(signal.SIGHUP, "estop", timeout_s)
+
+    def longest_oversleep_ms(self) -> float:
+        """The longest ``overslept`` delay in the log so far (0 when none): how long the host starved the board."""
+        return max((e["late_ms"] for e in self.entries() if e["event"] == "overslept"), default=0.0)
 
     def relay_intervals(self) -> typing.List[Interval]:
         """The relay's on periods from the board's own log: ``[(on entry, off entry or None), ...]``."""

@@ -316,10 +316,23 @@ class SerialRelayBackend(ValveBackend):
             if not answer.endswith(b"\n"):
                 raise ValveBackendError(f"relay board did not answer {line!r} within {self.timeout_s} s"
                                         + (f" (partial answer {text!r})" if text else ""))
-            self._last_answer_at = time.monotonic()
+            self._note_answer(time.monotonic())
             if expect is not None and not text.startswith(expect):
                 raise ValveBackendError(f"relay board answered {text!r} to {line!r}, expected {expect!r}")
             return then(text) if then is not None else text
+
+    def _note_answer(self, now):
+        """Record an answered command at ``now`` (port lock held); warn when, armed, the one before it was answered
+        more than half the board's keep-alive timeout earlier: the board restarts its timer on every command, so
+        that gap, seen from this side, is how close this computer came to the board dropping the relay."""
+        previous, self._last_answer_at = self._last_answer_at, now
+        if not self._armed or previous is None or self.limits is None:
+            return
+        gap_ms = (now - previous) * 1000.0
+        if gap_ms > self.limits.keepalive_timeout_ms / 2:
+            _LOG.warning("relay board: %.0f ms between two answered commands while armed (keep-alive every %d ms; "
+                         "the board drops the relay after %d ms without a command): this computer is starving the "
+                         "valve node", gap_ms, self.keepalive_period_ms, self.limits.keepalive_timeout_ms)
 
     def _notify(self, reason):
         _LOG.error("relay board: %s", reason)

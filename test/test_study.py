@@ -12,11 +12,31 @@ from conftest import REPO_ROOT
 MINI = str(REPO_ROOT / "test" / "resources" / "mini_study.yaml")
 
 
+#: Every study process a test started; none outlives its test (see :func:`_no_study_outlives_its_test`).
+_STARTED = []
+
+
+@pytest.fixture(autouse=True)
+def _no_study_outlives_its_test():
+    """A test that fails mid-way must not leave its study running: the study would go on into its campaign beside
+    the next tests, on the same ROS domain and key folder (a failed killed-twice test once left one whose valve
+    wrote the key the operator CLI test then read). SIGKILL of the study's process group; its nodes stop by
+    themselves once their supervisor is gone, as the tests here check."""
+    yield
+    while _STARTED:
+        process = _STARTED.pop()
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait(timeout=30)
+
+
 def _study(tmp_path, study_id=None):
     id_args = ["--study-id", study_id] if study_id else []
-    return subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "study", "--config", MINI, *id_args],
-                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            start_new_session=True)
+    process = subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "study", "--config", MINI, *id_args],
+                               cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                               start_new_session=True)
+    _STARTED.append(process)
+    return process
 
 
 def _still_running(output):
@@ -113,6 +133,7 @@ def _study_to_file(tmp_path, log_name, *args):
     with open(log, "w") as stream:
         process = subprocess.Popen([sys.executable, "-m", "rollability_ros.cli", "study", *args], cwd=tmp_path,
                                    stdout=stream, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    _STARTED.append(process)
     return process, log
 
 

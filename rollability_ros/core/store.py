@@ -211,9 +211,16 @@ class Store:
     def _open_schema(self):
         conn = self._conn
         conn.execute("PRAGMA busy_timeout = 30000")
-        application_id = conn.execute("PRAGMA application_id").fetchone()[0]
-        version = conn.execute("PRAGMA user_version").fetchone()[0]
-        has_tables = conn.execute("SELECT count(*) FROM sqlite_master").fetchone()[0] > 0
+        # one read transaction, so the three describe the same moment: read one by one, they could straddle the
+        # commit of another process creating this store (application_id still 0, tables already there) and call a
+        # store being created another application's file
+        conn.execute("BEGIN")
+        try:
+            application_id = conn.execute("PRAGMA application_id").fetchone()[0]
+            version = conn.execute("PRAGMA user_version").fetchone()[0]
+            has_tables = conn.execute("SELECT count(*) FROM sqlite_master").fetchone()[0] > 0
+        finally:
+            conn.execute("COMMIT")
         if has_tables and application_id != APPLICATION_ID:
             raise ValueError(f"{self.path} is an SQLite file of another application "
                              f"(application_id {application_id:#x}), not a rollability store")

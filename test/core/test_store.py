@@ -114,6 +114,43 @@ def test_corrupt_and_foreign_files_are_refused(tmp_path):
         closed.launch_outcomes()
 
 
+def test_a_store_opened_while_another_process_creates_it_is_not_called_foreign(tmp_path, monkeypatch):
+    """The creator commits the schema between the opener's reads of application_id and of the tables (the moment a
+    fresh-clone run hit: a test reading the optimizer's store as it was made): the opener must see one moment,
+    either before the commit (nothing there yet: it creates the same schema) or after it, never a mix."""
+    from rollability_ros.core import store as store_module
+
+    path = str(tmp_path / STORE_FILENAME)
+    with sqlite3.connect(path) as creator:               # a creator that has just switched the new file to WAL
+        assert creator.execute("PRAGMA journal_mode = WAL").fetchone()[0] == "wal"
+    real_connect = sqlite3.connect
+    created = []
+
+    class Opener:
+        """The opener's connection: the other process commits the whole schema just before the tables are read."""
+
+        def __init__(self, *args, **kwargs):
+            self._conn = real_connect(*args, **kwargs)
+
+        def execute(self, sql, *params):
+            if sql.startswith("SELECT count(*) FROM sqlite_master") and not created:
+                with monkeypatch.context() as inner:
+                    inner.setattr(store_module.sqlite3, "connect", real_connect)
+                    Store(path).close()                   # the other process creates the store and commits
+                created.append(True)
+            return self._conn.execute(sql, *params)
+
+        def __getattr__(self, name):
+            return getattr(self._conn, name)
+
+    monkeypatch.setattr(store_module.sqlite3, "connect", Opener)
+    with Store(path) as opened:
+        assert created and not opened.trial_ids("run1")
+    monkeypatch.undo()
+    with Store(path) as again:
+        assert not again.trial_ids("run1")
+
+
 def test_concurrent_writers_in_threads_store_everything_once(tmp_path):
     store = Store(tmp_path / "s.sqlite")
     accepted = []

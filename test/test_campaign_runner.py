@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -52,8 +53,9 @@ def operator_script(trials, previous_speed=None):
 class Graph:
     """valve_controller + rig + outcome_logger processes for one test."""
 
-    def __init__(self, tmp_path, start_node, backend="dry_run", relay=None, logger=True, countdown_s=0.6):
-        self.countdown_s = countdown_s
+    def __init__(self, tmp_path, start_node, backend="dry_run", relay=None, logger=True, countdown_s=0.6,
+                 question_repeat_s=2.0):
+        self.countdown_s, self.question_repeat_s = countdown_s, question_repeat_s
         valve_params = {"valve.backend": backend, "valve.watchdog_ms": WATCHDOG_MS, "valve.heartbeat_period_ms": 50}
         if relay is not None:
             valve_params["valve.serial.port"] = relay.port
@@ -71,6 +73,7 @@ class Graph:
 
     def start_rig(self):
         return self.start_node("rig", params={"rig.backend": "physical", "rig.countdown_s": self.countdown_s,
+                                              "rig.question_repeat_s": self.question_repeat_s,
                                               "valve.watchdog_ms": WATCHDOG_MS, "valve.heartbeat_period_ms": 50})
 
     def logs(self):
@@ -113,11 +116,48 @@ class ValveWatch(ValveClient):
         assert ok, message
 
 
+def interactive_operator(process, delay_s):
+    """Answer every prompt ``process`` shows, ``delay_s`` after it appears (Enter, or y for an outcome); returns
+    the thread, which ends with the process's output, and its transcript (a list of text chunks)."""
+    transcript = []
+
+    def answer():
+        text = ""
+        while True:
+            char = process.stdout.read(1)
+            if not char:
+                return
+            text += char
+            transcript.append(char)
+            if text.endswith(("Enter to launch, q to stop: ", "Enter when done: ", "[note]: ")):
+                time.sleep(delay_s)
+                process.stdin.write("y\n" if text.endswith("[note]: ") else "\n")
+                process.stdin.flush()
+                text = ""
+
+    thread = threading.Thread(target=answer, daemon=True)
+    thread.start()
+    return thread, transcript
+
+
 def test_physical_campaign_on_dry_run_valve(ros_node, start_node, tmp_path):
-    graph = Graph(tmp_path, start_node)
-    code, out = graph.run(operator_script(plan_trials(SPEC)))
+    # the rig repeats an open question every 50 ms and the operator answers 0.3 s after each prompt: the runner
+    # asks once per question all the same
+    graph = Graph(tmp_path, start_node, question_repeat_s=0.05)
+    runner = graph.runner()
+    reader, transcript = interactive_operator(runner, 0.3)
+    try:
+        code = runner.wait(timeout=120)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the runner did not finish in 120 s:\n" + "".join(transcript) + graph.logs())
+    finally:
+        runner.kill()
+    reader.join(10)
+    out = "".join(transcript)
     assert code == 0, out + graph.logs()
-    assert "campaign complete: 4/4" in out and "set the regulator to 60 psi" in out
+    assert "campaign complete: 4/4" in out
+    assert [out.count(f"set the regulator to {psi} psi") for psi in (30, 60)] == [2, 2], out  # feedback, prompt
+    assert out.count("upright or not: y/n") == 4, out
     assert graph.stored() == [t.trial_id for t in plan_trials(SPEC)]
     assert "stored launch outcome graph-physical/" in graph.logger.log()
     assert list(graph.runner_dir.iterdir()) == []            # the runner never wrote (or needed) a store

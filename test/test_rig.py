@@ -1,5 +1,6 @@
 """rig node over real DDS in its own process: goal checks with reasons, feedback phases, operator services, IMU
 outcome with override, outcomes on ``launch_outcomes``; the sim backend on the launch twin with poses."""
+import itertools
 import math
 import threading
 import time
@@ -27,7 +28,7 @@ def test_physical_rig_goal_checks_operator_outcome_and_imu_override(ros_node, st
 
     valve = start_node("valve_controller", params={"valve.backend": "dry_run", "valve.watchdog_ms": WATCHDOG_MS})
     rig_process = start_node("rig", params={"rig.backend": "physical", "rig.countdown_s": 0.1,
-                                            "rig.operator_timeout_s": 30.0})
+                                            "rig.operator_timeout_s": 30.0, "rig.question_repeat_s": 0.5})
     rig = RigClient(ros_node)
     for fields, reason in (({"height_m": math.nan}, "height_m must be a finite number"),
                            ({"height_m": -0.5}, "height_m must be >= 0"),
@@ -42,6 +43,8 @@ def test_physical_rig_goal_checks_operator_outcome_and_imu_override(ros_node, st
     future = rig.send("t0", LaunchCondition("A", 0.75, 0.8, 30.0, 0), feedback)
     assert ros_node.wait_for(lambda: feedback and feedback[-1][0] == "waiting_for_operator", 30), rig_process.log()
     assert "30 psi" in feedback[-1][1]
+    late = late_feedback(ros_node)   # a view whose feedback subscription matches after the first announcement
+    assert ros_node.wait_for(lambda: "waiting_for_operator" in late, 15), (late, rig_process.log())
     assert rig.confirm().success
     assert ros_node.wait_for(lambda: feedback[-1][0] == "classifying", 30), rig_process.log() + valve.log()
     assert not rig.record(True, trial_id="other").accepted
@@ -52,10 +55,20 @@ def test_physical_rig_goal_checks_operator_outcome_and_imu_override(ros_node, st
     assert (outcome.trial_id, outcome.upright, outcome.classified_by, outcome.backend) == (
         "t0", False, "operator", "physical")
     assert outcome.note == "on its lid" and math.isclose(outcome.measured_speed_mps, 0.8, rel_tol=0.2)
-    assert [p for p, _ in feedback] == ["waiting_for_operator", "armed", "fired", "in_flight", "settling",
-                                        "classifying"]
+    assert [p for p, _ in itertools.groupby(p for p, _ in feedback)] == ["waiting_for_operator", "armed", "fired", "in_flight",
+                                                          "settling", "classifying"]   # questions repeat
     assert ros_node.wait_for(lambda: [o.trial_id for o in rig.outcomes] == ["t0"], 10)
     assert "pulses=1" in valve.log()
+
+
+def late_feedback(spun, action="launch"):
+    """The phases of every goal's feedback on ``action``, from a subscription created now."""
+    from rollability_ros.action import Launch
+
+    phases = []
+    spun.node.create_subscription(Launch.Impl.FeedbackMessage, f"{action}/_action/feedback",
+                                  lambda msg: phases.append(msg.feedback.phase), 10)
+    return phases
 
 
 def imu_publisher(spun, topic="imu/data"):
@@ -95,8 +108,9 @@ def test_physical_rig_imu_outcome_and_operator_override(ros_node, start_node):
         feedback, stop = [], threading.Event()
         future = rig.send(trial_id, LaunchCondition("A", 0.75, 0.8, 0.0, 0), feedback)
         if trial_id == "imu0":
-            assert ros_node.wait_for(lambda: feedback and feedback[-1][0] == "waiting_for_operator", 30)
-            rig.confirm()
+            assert ros_node.wait_for(lambda: feedback and feedback[-1][0] == "waiting_for_operator", 30), \
+                rig_process.log()
+            assert rig.confirm().success
         assert ros_node.wait_for(lambda: any(p == "fired" for p, _ in feedback), 30), rig_process.log()
         threading.Thread(target=tumble, args=(final_upright, stop), daemon=True).start()
         try:

@@ -162,7 +162,7 @@ class RigClient:
         serves the action again but knows nothing of the goal: once the accepting process has left the graph
         (its endpoints vanish), the launch is reported lost instead of awaited for ever.
         """
-        missing_since = None
+        missing_since, last = None, None
         next_check = time.monotonic() + SERVER_LOST_S
         while not result_future.done():
             self.executor.spin_once(timeout_sec=0.05)
@@ -181,6 +181,9 @@ class RigClient:
                 elif time.monotonic() - missing_since > SERVER_LOST_S:
                     raise LaunchAborted(f"the rig left the graph during {trial_id}")
                 continue
+            if (message.phase, message.detail) == last:
+                continue    # the rig repeats an open question until it is answered: ask the operator once
+            last = (message.phase, message.detail)
             self.say(f"  {message.phase}: {message.detail}")
             self._answer(trial_id, message.phase, message.detail)
 

@@ -5,7 +5,9 @@ pneumatic launcher), through the :class:`~rollability_ros.core.rig.launch_backen
 Action server:
   ``launch`` (rollability_ros/Launch): one launch per goal, one at a time. A goal that cannot run (not
   authenticated on the physical backend, NaN or negative height, unknown configuration, no regulator pressure for
-  its speed, rig busy) is aborted at once with the reason in ``result.message``. Feedback phases: waiting_for_operator, armed, fired, in_flight, settling, classifying
+  its speed, rig busy) is aborted at once with the reason in ``result.message``. Feedback phases: waiting_for_operator,
+  armed, fired, in_flight, settling, classifying; a question to the operator is repeated every
+  ``rig.question_repeat_s`` until answered (a feedback sent before a client's subscription matched is lost)
   (``detail`` says what the operator must do). Cancel is honoured at the next wait (before firing, or while
   waiting for the operator or the IMU).
 Publications:
@@ -260,8 +262,12 @@ class RigNode(Node):
         result = Launch.Result()
         logger = self.get_logger()
 
+        announced = []
+
         def on_phase(phase: str, detail: str) -> None:
-            logger.info(f"{goal.trial_id}: {phase}: {detail}")
+            if announced[-1:] != [(phase, detail)]:    # a question repeated while it waits is logged once
+                logger.info(f"{goal.trial_id}: {phase}: {detail}")
+                announced.append((phase, detail))
             goal_handle.publish_feedback(Launch.Feedback(phase=phase, detail=detail))
 
         def cancelled() -> bool:

@@ -164,6 +164,25 @@ def test_operator_timeout_and_cancel_abort(valve):
         rig.launch("run", "t0", CONDITION, lambda phase, detail: cancel.set(), cancelled=cancel.is_set)
 
 
+def test_an_open_question_is_repeated_until_answered(valve):
+    """A feedback published before a client's subscription matched is lost (DDS does not queue it for a reader
+    that matches later): an operator who missed the first announcement answers the repeat."""
+    rig = make_rig(valve, operator_timeout_s=5.0, question_repeat_s=0.1)
+    operator = ScriptedOperator(rig.operator, [OperatorOutcome(True)])
+    heard = []
+
+    def late_operator(phase, detail):
+        heard.append(phase)
+        if heard.count(phase) > 2 or phase not in ("waiting_for_operator", "classifying"):
+            operator(phase, detail)     # the first two announcements of each question are lost
+
+    outcome = rig.launch("run", "t0", CONDITION, late_operator)
+    assert outcome.upright and outcome.classified_by == "operator"
+    assert heard == ["waiting_for_operator"] * 3 + ["armed", "fired", "in_flight", "settling"] + ["classifying"] * 3
+    with pytest.raises(ValueError, match="question_repeat_s"):
+        RigSettings(question_repeat_s=0.0).validate()
+
+
 def test_goal_checks_refuse_with_reasons(valve):
     rig = make_rig(valve)
     assert check_goal("run", "t", CONDITION, ["B"]) == ""

@@ -73,6 +73,10 @@ class RigSettings:
     operator_timeout_s: float = dataclasses.field(default=600.0, metadata={
         "description": "longest wait for an operator answer (regulator confirmation, outcome) before the launch aborts,"
                        " s", "range": (0.0, 86400.0)})
+    question_repeat_s: float = dataclasses.field(default=2.0, metadata={
+        "description": "period of the open question's feedback while the rig waits for the operator, s; a client "
+                       "whose feedback subscription matched after the first one (a loaded machine's discovery) or an "
+                       "operator's view that joined late still sees it", "range": (0.05, 3600.0)})
     imu_override_s: float = dataclasses.field(default=2.0, metadata={
         "description": "window in which the operator may override the IMU's outcome, s", "range": (0.0, 3600.0)})
     confirmation_valid_s: float = dataclasses.field(default=300.0, metadata={
@@ -100,6 +104,8 @@ class RigSettings:
             raise ValueError("countdown_s, imu_override_s and confirmation_valid_s must be finite and >= 0")
         if not 0 < self.operator_timeout_s < math.inf or not 0 < self.valve_timeout_s < math.inf:
             raise ValueError("operator_timeout_s and valve_timeout_s must be finite and > 0")
+        if not 0.05 <= self.question_repeat_s < math.inf:
+            raise ValueError(f"question_repeat_s must be finite and >= 0.05, got {self.question_repeat_s}")
 
 
 def check_goal(run_id: str, trial_id: str, condition: LaunchCondition,
@@ -345,10 +351,18 @@ class PhysicalLaunch(LaunchBackend):
         return psi == pressure_psi and time.monotonic() - confirmed_at < self.settings.confirmation_valid_s
 
     def _ask(self, kind, trial_id, phase, detail, on_phase, cancelled):
+        """Announce a question (feedback ``phase``, ``detail``), repeated every ``question_repeat_s`` until the
+        operator answers: a feedback sent before a client's subscription matched is lost, not queued."""
         self.operator.open(kind, trial_id)
+        deadline = time.monotonic() + self.settings.operator_timeout_s
+        answer = None
         try:
-            on_phase(phase, detail)
-            answer = self.operator.wait(self.settings.operator_timeout_s, cancelled)
+            while answer is None and not cancelled():
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                on_phase(phase, detail)
+                answer = self.operator.wait(min(self.settings.question_repeat_s, remaining), cancelled)
         finally:
             self.operator.close()
         if answer is None:

@@ -257,8 +257,23 @@ def test_a_late_keepalive_while_armed_is_logged_by_the_valve(sim, caplog):
             with backend._io_lock:
                 time.sleep(0.18)
             assert wait_until(lambda: "starving the valve node" in caplog.text, 2), caplog.text
+            assert "the valve node wrote 'KA'" in caplog.text and "answered late" not in caplog.text
     finally:
         controller.shutdown()
+
+
+def test_a_board_that_answers_late_is_told_apart_from_a_starved_valve_node(tmp_path, caplog):
+    """The same warning when the board is the slow side (here it answers each line 140 ms late against a 250 ms
+    timeout): the valve node wrote on time and the board answered late, so it does not blame this computer."""
+    with RelaySim(tmp_path, max_pulse_ms=3000, keepalive_timeout_ms=250, ack_delay_s=0.14) as slow:
+        controller, _states = controller_for(slow, timeout_s=0.5)
+        try:
+            with caplog.at_level("WARNING", logger=backend_logger_name()):
+                assert controller.arm()[0]
+                assert wait_until(lambda: "answered late" in caplog.text, 3), caplog.text
+                assert "starving the valve node" not in caplog.text, caplog.text
+        finally:
+            controller.shutdown()
 
 
 def backend_logger_name():

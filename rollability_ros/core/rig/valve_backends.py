@@ -309,6 +309,7 @@ class SerialRelayBackend(ValveBackend):
                 # bounded by the write timeout; no flush(): pyserial's is tcdrain, which has no timeout and blocks
                 # for as long as a board (or a USB-serial chip) takes no bytes; the answer shows the line arrived
                 self._serial.write((line + "\n").encode("ascii"))
+                sent_at = time.monotonic()
                 answer = self._serial.read_until(b"\n")  # bounded by the port timeout
             finally:
                 self._busy = None
@@ -316,23 +317,32 @@ class SerialRelayBackend(ValveBackend):
             if not answer.endswith(b"\n"):
                 raise ValveBackendError(f"relay board did not answer {line!r} within {self.timeout_s} s"
                                         + (f" (partial answer {text!r})" if text else ""))
-            self._note_answer(time.monotonic())
+            self._note_answer(time.monotonic(), line, sent_at)
             if expect is not None and not text.startswith(expect):
                 raise ValveBackendError(f"relay board answered {text!r} to {line!r}, expected {expect!r}")
             return then(text) if then is not None else text
 
-    def _note_answer(self, now):
-        """Record an answered command at ``now`` (port lock held); warn when, armed, the one before it was answered
-        more than half the board's keep-alive timeout earlier: the board restarts its timer on every command, so
-        that gap, seen from this side, is how close this computer came to the board dropping the relay."""
+    def _note_answer(self, now, line="", sent_at=None):
+        """Record the answer to ``line`` (written at ``sent_at``) at ``now`` (port lock held); warn when, armed, the
+        command before it was answered more than half the board's keep-alive timeout earlier: the board restarts
+        its timer on every command, so that gap, seen from this side, is how close this computer came to the board
+        dropping the relay. The warning splits the gap: how long this side took to write the next line after the
+        last answer (a valve node that did not run: starved, or a thread holding the GIL) and how long the board
+        took to answer it (a slow board or link)."""
         previous, self._last_answer_at = self._last_answer_at, now
         if not self._armed or previous is None or self.limits is None:
             return
         gap_ms = (now - previous) * 1000.0
-        if gap_ms > self.limits.keepalive_timeout_ms / 2:
-            _LOG.warning("relay board: %.0f ms between two answered commands while armed (keep-alive every %d ms; "
-                         "the board drops the relay after %d ms without a command): this computer is starving the "
-                         "valve node", gap_ms, self.keepalive_period_ms, self.limits.keepalive_timeout_ms)
+        if gap_ms <= self.limits.keepalive_timeout_ms / 2:
+            return
+        sent_at = now if sent_at is None else sent_at
+        waited_ms, answer_ms = (sent_at - previous) * 1000.0, (now - sent_at) * 1000.0
+        side = ("this computer is starving the valve node" if waited_ms >= answer_ms
+                else "the board (or its link) answered late")
+        _LOG.warning("relay board: %.0f ms between two answered commands while armed (keep-alive every %d ms; the "
+                     "board drops the relay after %d ms without a command): the valve node wrote %r %.0f ms after the "
+                     "last answer and the board answered it after %.0f ms: %s", gap_ms, self.keepalive_period_ms,
+                     self.limits.keepalive_timeout_ms, line, waited_ms, answer_ms, side)
 
     def _notify(self, reason):
         _LOG.error("relay board: %s", reason)

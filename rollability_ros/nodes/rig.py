@@ -262,12 +262,13 @@ class RigNode(Node):
         result = Launch.Result()
         logger = self.get_logger()
 
-        announced = []
+        last_logged: typing.Optional[typing.Tuple[str, str]] = None
 
         def on_phase(phase: str, detail: str) -> None:
-            if announced[-1:] != [(phase, detail)]:    # a question repeated while it waits is logged once
+            nonlocal last_logged
+            if (phase, detail) != last_logged:    # a question repeated while it waits is logged once
                 logger.info(f"{goal.trial_id}: {phase}: {detail}")
-                announced.append((phase, detail))
+                last_logged = (phase, detail)
             goal_handle.publish_feedback(Launch.Feedback(phase=phase, detail=detail))
 
         def cancelled() -> bool:

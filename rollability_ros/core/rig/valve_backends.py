@@ -322,7 +322,7 @@ class SerialRelayBackend(ValveBackend):
                 raise ValveBackendError(f"relay board answered {text!r} to {line!r}, expected {expect!r}")
             return then(text) if then is not None else text
 
-    def _note_answer(self, now, line="", sent_at=None):
+    def _note_answer(self, now, line, sent_at):
         """Record the answer to ``line`` (written at ``sent_at``) at ``now`` (port lock held); warn when, armed, the
         command before it was answered more than half the board's keep-alive timeout earlier: the board restarts
         its timer on every command, so that gap, seen from this side, is how close this computer came to the board
@@ -335,7 +335,6 @@ class SerialRelayBackend(ValveBackend):
         gap_ms = (now - previous) * 1000.0
         if gap_ms <= self.limits.keepalive_timeout_ms / 2:
             return
-        sent_at = now if sent_at is None else sent_at
         waited_ms, answer_ms = (sent_at - previous) * 1000.0, (now - sent_at) * 1000.0
         side = ("this computer is starving the valve node" if waited_ms >= answer_ms
                 else "the board (or its link) answered late")

@@ -116,6 +116,7 @@ class Monitor:
 
     def __init__(self, ros_node, start_node, **params):
         from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.qos import QoSProfile
         from sensor_msgs.msg import Imu
 
         from rollability_ros.msg import TipEvent, TipState
@@ -126,7 +127,12 @@ class Monitor:
         node = self.ros = ros_node
         self.states, self.events, self.node_events, self.diagnostics = [], [], [], []
         self.received_at = {}
-        node.node.create_subscription(TipState, "/tip_monitor/state", self._on_state, LATCHED_QOS)
+        # The state topic is latched (the writer keeps the latest state); this reader keeps a deep history, so a
+        # test process that falls behind while it plays the IMU stream still gets every transition the writer sent
+        # (a history of 1 here lost the ``tipped`` state once, fresh-clone run 38; docs/testing.md).
+        transitions = QoSProfile(depth=100, reliability=LATCHED_QOS.reliability, durability=LATCHED_QOS.durability,
+                                 history=LATCHED_QOS.history)
+        node.node.create_subscription(TipState, "/tip_monitor/state", self._on_state, transitions)
         node.node.create_subscription(TipEvent, "tip_events", self.events.append, RECORD_QOS)
         node.node.create_subscription(TipEvent, "/tip_monitor/events", self.node_events.append, RECORD_QOS)
         self.diagnostics_at = []

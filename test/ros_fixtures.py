@@ -10,6 +10,22 @@ import traceback
 import pytest
 
 
+def transitions_qos():
+    """A reader's profile for a latched state topic whose every transition a test checks.
+
+    It matches the latched writer (reliable, transient-local) but keeps a history of 100: a reader with the
+    writer's own history of 1 keeps only the newest sample its executor has not taken yet, so a test process busy
+    elsewhere (publishing an IMU stream, waiting in a service call) can miss a short-lived state (docs/testing.md,
+    fresh-clone run 38).
+    """
+    from rclpy.qos import QoSProfile
+
+    from rollability_ros.nodes._support import LATCHED_QOS
+
+    return QoSProfile(depth=100, reliability=LATCHED_QOS.reliability, durability=LATCHED_QOS.durability,
+                      history=LATCHED_QOS.history)
+
+
 class SpunNode:
     """An rclpy node in its own context, spun by a background executor thread."""
 

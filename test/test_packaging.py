@@ -20,7 +20,7 @@ import time
 import pytest
 
 from conftest import REPO_ROOT
-from ros_fixtures import NodeProcess
+from ros_fixtures import NodeProcess, transitions_qos
 
 SETUP = REPO_ROOT / "scripts" / "setup.sh"
 
@@ -194,7 +194,7 @@ def test_installed_executables_run_the_session_graph(colcon_install, ros_node, t
         states = []
         node.create_subscription(ValveState, f"{namespace}/valve/state", states.append, LATCHED_QOS)
         generations = []
-        node.create_subscription(GenerationSummary, f"{namespace}/generations", generations.append, LATCHED_QOS)
+        node.create_subscription(GenerationSummary, f"{namespace}/generations", generations.append, transitions_qos())
         outcomes = []
         node.create_subscription(LaunchOutcome, f"{namespace}/launch_outcomes", outcomes.append, RECORD_QOS)
         tip_states = []

@@ -14,6 +14,7 @@ import time
 import pytest
 
 from core.synthetic_imu import piecewise, stream
+from ros_fixtures import transitions_qos
 from rollability_ros.core.imu.tip_tracker import (DIAGNOSTIC_ERROR, DIAGNOSTIC_OK, DIAGNOSTIC_STALE, DIAGNOSTIC_WARN,
                                               TipMonitorConfig)
 from rollability_ros.core.imu.upright import (IDENTITY, STANDARD_GRAVITY_MPS2, ImuSample, quaternion_conjugate,
@@ -116,23 +117,17 @@ class Monitor:
 
     def __init__(self, ros_node, start_node, **params):
         from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.qos import QoSProfile
         from sensor_msgs.msg import Imu
 
         from rollability_ros.msg import TipEvent, TipState
-        from rollability_ros.nodes._support import LATCHED_QOS, RECORD_QOS
+        from rollability_ros.nodes._support import RECORD_QOS
 
         self.process = start_node("tip_monitor", params={"tip_monitor.robot": "simbot",
                                                          "tip_monitor.give_up_s": GIVE_UP_S, **params})
         node = self.ros = ros_node
         self.states, self.events, self.node_events, self.diagnostics = [], [], [], []
         self.received_at = {}
-        # The state topic is latched (the writer keeps the latest state); this reader keeps a deep history, so a
-        # test process that falls behind while it plays the IMU stream still gets every transition the writer sent
-        # (a history of 1 here lost the ``tipped`` state once, fresh-clone run 38; docs/testing.md).
-        transitions = QoSProfile(depth=100, reliability=LATCHED_QOS.reliability, durability=LATCHED_QOS.durability,
-                                 history=LATCHED_QOS.history)
-        node.node.create_subscription(TipState, "/tip_monitor/state", self._on_state, transitions)
+        node.node.create_subscription(TipState, "/tip_monitor/state", self._on_state, transitions_qos())
         node.node.create_subscription(TipEvent, "tip_events", self.events.append, RECORD_QOS)
         node.node.create_subscription(TipEvent, "/tip_monitor/events", self.node_events.append, RECORD_QOS)
         self.diagnostics_at = []

@@ -6,6 +6,8 @@ import signal
 import threading
 import time
 
+from ros_fixtures import transitions_qos
+
 
 class ValveClient:
     """Service clients, publishers and the latched state of a valve_controller, from the test's node."""
@@ -17,7 +19,6 @@ class ValveClient:
         from std_msgs.msg import Bool
 
         from rollability_ros.msg import ValveHeartbeat, ValveState
-        from rollability_ros.nodes._support import LATCHED_QOS
         from rollability_ros.srv import ArmValve, FireValve
 
         self.spun, node = spun, spun.node
@@ -26,7 +27,7 @@ class ValveClient:
         self.signed = signed
         self._signer = None
         self.states = []
-        node.create_subscription(ValveState, f"{ns}valve/state", self.states.append, LATCHED_QOS)
+        node.create_subscription(ValveState, f"{ns}valve/state", self.states.append, transitions_qos())
         self.arm_client = node.create_client(ArmValve, f"{ns}valve/arm")
         self.fire_client = node.create_client(FireValve, f"{ns}valve/fire")
         self.estop_pub = node.create_publisher(Bool, f"{ns}valve/estop", 10)

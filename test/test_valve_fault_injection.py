@@ -409,18 +409,23 @@ def test_a_stuck_serial_call_does_not_silence_the_valve(ros_node, tmp_path, rela
         argv += ["-p", f"{key}:={value}"]
     process = NodeProcess(argv, tmp_path / "valve.log")
     try:
-        arrivals = []   # (monotonic s, level) of every /diagnostics message of this valve
+        # (stamp s, arrival monotonic s, level) of every /diagnostics message of this valve: the stamp is the valve
+        # node's clock when it published, so the schedule is checked at the source; arrival gaps also hold the
+        # delivery to this test process, which a stall of the test process lengthens (fresh-clone run 40: a gap of
+        # 2.07 s by arrival, docs/testing.md)
+        arrivals = []
         ros_node.node.create_subscription(
             DiagnosticArray, "/diagnostics",
-            lambda msg: arrivals.extend((time.monotonic(), s.level, s.values) for s in msg.status
-                                        if s.name.endswith("valve_controller: valve")), 10)
+            lambda msg: arrivals.extend((msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, time.monotonic(),
+                                         s.level) for s in msg.status if s.name.endswith("valve_controller: valve")),
+            10)
         valve = ValveClient(ros_node)
         valve.ready(process.log)
         assert ros_node.wait_for(lambda: arrivals, 10), process.log()
         with valve.heartbeats():
             assert valve.arm()[0], process.log()
             jam.touch()
-            jammed_at = time.monotonic()
+            jammed_at, jammed_stamp = time.monotonic(), time.time()
             disarm = valve.arm_client.call_async(valve._arm.Request(arm=False, auth=valve.auth("disarm")))
             assert ros_node.wait_for(lambda: valve.last().fault, STUCK_S - 2), (
                 f"no fault state {STUCK_S - 2:.0f} s into a stuck serial call\n{process.log()}")
@@ -432,14 +437,24 @@ def test_a_stuck_serial_call_does_not_silence_the_valve(ros_node, tmp_path, rela
             assert not disarm.result().success, disarm.result().message
             time.sleep(max(0.0, jammed_at + STUCK_S - time.monotonic()))
             jam.unlink()
-            unjammed_at = time.monotonic()
-        during = [t for t, _, _ in arrivals if jammed_at <= t <= unjammed_at]
-        gaps = [b - a for a, b in zip([jammed_at] + during, during + [unjammed_at])]
+            unjammed_at, unjammed_stamp = time.monotonic(), time.time()
+        # one published after the jam ended has arrived, so every earlier one has (one reliable writer, in order)
+        assert ros_node.wait_for(lambda: arrivals[-1][0] > unjammed_stamp, 10), process.log()
+        during = [stamp for stamp, _, _ in arrivals if jammed_stamp <= stamp <= unjammed_stamp]
+        gaps = [b - a for a, b in zip([jammed_stamp] + during, during + [unjammed_stamp])]
+        received = [t for _, t, _ in arrivals if jammed_at <= t <= unjammed_at]
+        received_gaps = [b - a for a, b in zip([jammed_at] + received, received + [unjammed_at])]
         print(f"\nstuck serial call {STUCK_S:.0f} s: fault state after {fault_after_s:.2f} s ({reason}); "
-              f"{len(during)} /diagnostics, longest gap {max(gaps):.2f} s")
-        assert max(gaps) < 2.0, f"/diagnostics silent {max(gaps):.1f} s during a stuck serial call\n{process.log()}"
-        assert any(level == DiagnosticStatus.ERROR for t, level, _ in arrivals if jammed_at <= t <= unjammed_at), \
-            "no ERROR diagnostics"
+              f"{len(during)} /diagnostics, longest gap {max(gaps):.2f} s as published, "
+              f"{max(received_gaps):.2f} s as received")
+        # the period is 1 s; a timer that waited for the stuck call's 1.7 s bound would leave gaps of up to 2.7 s and
+        # at most 3 messages in the 6 s, a silenced one none. The slack above the period is this VM's: threads of an
+        # idle node process were measured not running for 0.1-1.1 s with no thread holding the GIL and no CPU load
+        # (docs/testing.md, fresh-clone run 40)
+        assert max(gaps) < 2.5, f"/diagnostics silent {max(gaps):.1f} s during a stuck serial call\n{process.log()}"
+        assert len(during) >= 4, f"{len(during)} /diagnostics in {STUCK_S:.0f} s of a stuck serial call"
+        assert any(level == DiagnosticStatus.ERROR for stamp, _, level in arrivals
+                   if jammed_stamp <= stamp <= unjammed_stamp), "no ERROR diagnostics"
         # the line works again: the operator's disarm acknowledges the fault, the relay is off
         # (the keep-alive that was stuck may still report the board's own keep-alive fault: acknowledge that too)
         deadline = time.monotonic() + 10

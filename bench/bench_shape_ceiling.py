@@ -1,0 +1,94 @@
+"""How high can a simple profile go on the campaign's measure? A ceiling check for the search's designs.
+
+    nice python bench/bench_shape_ceiling.py [--config optimizer] [--screen 100] [--fresh 200] [--top 3] [--workers 2]
+
+The quick study's designs land near 0.5 on the campaign's launches (docs/optimization.md, "What the race had to
+choose from"). Is that the search's limit or the twin's? This bench launches simple parametric profiles on the
+study's own grid, ``h(x, y) = H (1 - a |x| / (L/2)) (1 - b |y| / (W/2))`` for H in {0.2, 0.32, 0.45} (simulation
+units, of the 0.45 bound), a and b in {0, 0.5, 1} (a flat top, ridges along and across, a pyramid), and the bare
+robot, ``--screen`` times each under the campaign's nominal conditions on the launch fidelity's engine (the
+campaign's measure: its 20 launch conditions in turn, no draw of the unknowns; the PyBullet twin in the shipped
+configs). The best of a screen is a maximum of noisy estimates, so the ``--top`` shapes and the bare robot are then
+launched ``--fresh`` more times on other seeds, and those fresh counts are the result: each shape's rate with its
+Wilson 95% interval and its gain over the bare robot with Newcombe's 95% interval. All numbers are simulated.
+"""
+import argparse
+import dataclasses
+import itertools
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
+
+import numpy as np  # noqa: E402
+
+from rollability_ros.core.optimization import optimization_run  # noqa: E402
+from rollability_ros.core.profile import geometry  # noqa: E402
+from rollability_ros.core.sim import evaluation  # noqa: E402
+from rollability_ros.core.stats import newcombe_interval, wilson_interval  # noqa: E402
+
+#: Base seeds of the screen and the fresh launches (neither is a seed the campaign or a study uses).
+SCREEN_SEED, FRESH_SEED = 777001, 777003
+
+
+def nominal_settings(configs):
+    """The launch fidelity's settings of ``configs`` with the unknowns not drawn: the campaign's measure."""
+    launch = evaluation.settings_at_fidelity(
+        evaluation.settings_from_parameters(optimization_run.load_run_parameters(configs)), "launch")
+    objective = dataclasses.replace(launch.objective, screen_engine=launch.physics.engine,
+                                    robust=dataclasses.replace(launch.objective.robust, enabled=False))
+    return dataclasses.replace(launch, objective=objective)
+
+
+def shapes(grid):
+    """``{name: heights}``: the bare robot and the parametric family (see the module docstring)."""
+    xy = geometry.grid_xy(grid)
+    along, across = np.abs(xy[:, 0]) / (grid.length_m / 2), np.abs(xy[:, 1]) / (grid.width_m / 2)
+    family = {"bare": np.zeros(grid.n_variables)}
+    for height, a, b in itertools.product([0.2, 0.32, 0.45], [0.0, 0.5, 1.0], [0.0, 0.5, 1.0]):
+        heights = np.clip(height * (1 - a * along) * (1 - b * across), grid.height_min, grid.height_max)
+        family[f"H {height:.2f} a {a:.1f} b {b:.1f}"] = heights
+    return family
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--config", action="append", help="parameter files (default: optimizer, the quick study)")
+    parser.add_argument("--screen", type=int, default=100, help="nominal launches per shape in the screen")
+    parser.add_argument("--fresh", type=int, default=200, help="fresh nominal launches of the best and the bare robot")
+    parser.add_argument("--top", type=int, default=3, help="shapes launched afresh")
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    settings = nominal_settings(args.config or ["optimizer"])
+    family = shapes(settings.grid)
+    names = list(family)
+    started = time.perf_counter()
+    with evaluation.LocalExecutor(args.workers) as pool:
+        evaluate = optimization_run.fidelity_batch_evaluator(settings, pool, "screen")
+        screen = {name: (int(r[0]), int(r[1])) for name, r in
+                  zip(names, evaluate([family[name] for name in names], SCREEN_SEED, args.screen))}
+        best = sorted((name for name in names if name != "bare"), key=lambda name: -screen[name][0])[:args.top]
+        fresh_names = best + ["bare"]
+        fresh = {name: (int(r[0]), int(r[1])) for name, r in
+                 zip(fresh_names, evaluate([family[name] for name in fresh_names], FRESH_SEED, args.fresh))}
+    grid = settings.grid
+    print(f"simple profiles on the {grid.rows} x {grid.cols} half grid, nominal launches on the "
+          f"{settings.physics.engine} twin under the campaign's conditions (simulated); {time.perf_counter() - started:.0f} s")
+    print(f"screen ({args.screen} launches each, seed {SCREEN_SEED}; the best is biased upward):")
+    for name in sorted(names, key=lambda name: -screen[name][0]):
+        print(f"  {name:<22} {screen[name][0]:>4}/{screen[name][1]}")
+    bare = fresh["bare"]
+    low, high = wilson_interval(*bare)
+    print(f"fresh ({args.fresh} launches each, seed {FRESH_SEED}): bare robot {bare[0]}/{bare[1]} "
+          f"[{low:.2f}, {high:.2f}]")
+    for name in best:
+        s, n = fresh[name]
+        low, high = wilson_interval(s, n)
+        gain, gain_low, gain_high = newcombe_interval(s, n, *bare)
+        print(f"  {name:<22} {s:>4}/{n} = {s / n:.2f} [{low:.2f}, {high:.2f}]; minus bare "
+              f"{gain:+.2f} [{gain_low:+.2f}, {gain_high:+.2f}]")
+
+
+if __name__ == "__main__":
+    main()

@@ -10,6 +10,7 @@ import time
 
 from rollability_ros.core.results.records import CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome
 from rollability_ros.core.results.store import Store
+from ros_fixtures import transitions_qos
 from test_recorder import stopped_cleanly
 
 STORED = re.compile(r"stored launch outcome (\S+)/(\S+)")
@@ -26,10 +27,8 @@ class LoggerPeer:
     """The test's side of the logger: publishers of every record topic, the latched summary, the service."""
 
     def __init__(self, spun):
-        from rclpy.qos import QoSProfile
-
         from rollability_ros.msg import CandidateResult, GenerationSummary, LaunchOutcome, OutcomeSummary
-        from rollability_ros.nodes._support import LATCHED_QOS, RECORD_QOS
+        from rollability_ros.nodes._support import RECORD_QOS
         from rollability_ros.srv import GetSummary
 
         self.spun = spun
@@ -40,8 +39,7 @@ class LoggerPeer:
         self.summaries = []
         self.summary_sent_ns = []     # source timestamp of each summary (wall clock of its publisher, ns)
         # deeper than the publisher's 1 (still compatible): a burst of summaries is not squeezed into one slot
-        summary_qos = QoSProfile(depth=100, reliability=LATCHED_QOS.reliability, durability=LATCHED_QOS.durability)
-        node.create_subscription(OutcomeSummary, "/summary", self._on_summary, summary_qos)
+        node.create_subscription(OutcomeSummary, "/summary", self._on_summary, transitions_qos())
         self.client = node.create_client(GetSummary, "/get_summary")
         self.request_type = GetSummary.Request
         from rollability_ros.msg import OutcomeStored

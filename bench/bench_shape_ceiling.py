@@ -1,6 +1,7 @@
 """How high can a simple profile go on the campaign's measure? A ceiling check for the search's designs.
 
     nice python bench/bench_shape_ceiling.py [--config optimizer] [--screen 100] [--fresh 200] [--top 3] [--workers 2]
+                                             [--modes 100]
 
 The quick study's designs land near 0.5 on the campaign's launches (docs/optimization.md, "What the race had to
 choose from"). Is that the search's limit or the twin's? This bench launches simple parametric profiles on the
@@ -11,8 +12,15 @@ campaign's measure: its 20 launch conditions in turn, no draw of the unknowns; t
 configs). The best of a screen is a maximum of noisy estimates, so the ``--top`` shapes and the bare robot are then
 launched ``--fresh`` more times on other seeds, and those fresh counts are the result: each shape's rate with its
 Wilson 95% interval and its gain over the bare robot with Newcombe's 95% interval. All numbers are simulated.
+
+``--modes N`` then launches the fresh shapes N more times each (same conditions, other seeds, full rest rule) and
+says where they came to rest: upright, or resting upside down, on a side or on an end (the axis of the robot's
+base frame nearest world up), or tilted on its wheels beyond the upright test. That says what a profile would have
+to remove. ``--config FILE`` with ``robot.profile.unit_m`` tries another height scale (taller profiles).
 """
 import argparse
+import collections
+import concurrent.futures
 import dataclasses
 import itertools
 import os
@@ -28,8 +36,8 @@ from rollability_ros.core.profile import geometry  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
 from rollability_ros.core.stats import newcombe_interval, wilson_interval  # noqa: E402
 
-#: Base seeds of the screen and the fresh launches (neither is a seed the campaign or a study uses).
-SCREEN_SEED, FRESH_SEED = 777001, 777003
+#: Base seeds of the screen, the fresh launches and the rest modes (none is a seed the campaign or a study uses).
+SCREEN_SEED, FRESH_SEED, MODES_SEED = 777001, 777003, 777005
 
 
 def nominal_settings(configs):
@@ -52,6 +60,37 @@ def shapes(grid):
     return family
 
 
+#: Rest modes by the base-frame axis nearest world up (index, sign): the robot's own x forward, y left, z up.
+#: World up along the base's +y (its left) means it lies on its right side; along +x (its front), on its rear end.
+MODES = {(2, 1): "tilted on its wheels", (2, -1): "upside down", (1, 1): "on its right side",
+         (1, -1): "on its left side", (0, 1): "on its rear end", (0, -1): "on its front end"}
+
+
+def rest_mode(result) -> str:
+    """Where the launch ``result`` (a LaunchResult) ended: ``upright``, one of :data:`MODES`, or ``invalid``."""
+    from scipy.spatial.transform import Rotation
+
+    if not result.valid:
+        return "invalid"
+    if result.upright:
+        return "upright"
+    up = Rotation.from_quat(result.final_orientation).inv().apply([0.0, 0.0, 1.0])  # world up in the base frame
+    axis = int(np.argmax(np.abs(up)))
+    return MODES[(axis, int(np.sign(up[axis])))]
+
+
+def _modes_of(settings, heights, launches, seed):
+    """``Counter`` of :func:`rest_mode` over ``launches`` nominal launches of ``heights`` (full rest rule)."""
+    from rollability_ros.core.sim import objectives
+    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+
+    objective = objectives.launch_objective(settings.objective, settings.physics.engine, early_decision=False)
+    profile = evaluation.profile_job(heights, settings).profile
+    return collections.Counter(rest_mode(simulate_valid_launch(objective.condition(index), objective.twin,
+                                                               seed + index, profile=profile, use_profile=True))
+                               for index in range(launches))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", action="append", help="parameter files (default: optimizer, the quick study)")
@@ -59,6 +98,7 @@ def main():
     parser.add_argument("--fresh", type=int, default=200, help="fresh nominal launches of the best and the bare robot")
     parser.add_argument("--top", type=int, default=3, help="shapes launched afresh")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--modes", type=int, default=0, help="launches of each fresh shape classified by rest mode")
     args = parser.parse_args()
     settings = nominal_settings(args.config or ["optimizer"])
     family = shapes(settings.grid)
@@ -88,6 +128,14 @@ def main():
         gain, gain_low, gain_high = newcombe_interval(s, n, *bare)
         print(f"  {name:<22} {s:>4}/{n} = {s / n:.2f} [{low:.2f}, {high:.2f}]; minus bare "
               f"{gain:+.2f} [{gain_low:+.2f}, {gain_high:+.2f}]")
+    if args.modes:
+        with concurrent.futures.ProcessPoolExecutor(args.workers) as pool:
+            modes = dict(zip(fresh_names, pool.map(_modes_of, [settings] * len(fresh_names),
+                                                   [family[name] for name in fresh_names],
+                                                   [args.modes] * len(fresh_names), [MODES_SEED] * len(fresh_names))))
+        print(f"where {args.modes} more launches each came to rest (seed {MODES_SEED}, full rest rule):")
+        for name in fresh_names:
+            print(f"  {name:<22} " + ", ".join(f"{mode} {count}" for mode, count in modes[name].most_common()))
 
 
 if __name__ == "__main__":

@@ -24,14 +24,15 @@ def session_commands(rig_backend: str, optimizer: bool, evaluators: typing.Optio
     """The :class:`NodeCommand` of every node of a session, in start order.
 
     ``config``: an extra parameter file on top of the shipped ones; ``evaluators``: overrides
-    ``bringup.evaluators`` (None: as configured).
+    ``bringup.evaluators`` (None: as configured). Writes each node's own overrides as a parameter file under
+    ``run_dir/node-params/`` (:func:`~rollability_ros.core.graph.bringup.override_file`), named last in its arguments.
     """
     param_files = parameter_files(["bringup", *([config] if config else [])])
     settings = load_graph_settings(param_files)
     if evaluators is not None:
         settings.evaluators = evaluators
     launches = session_nodes(settings, run_dir, rig_backend=rig_backend, optimizer=optimizer)
-    return [NodeCommand(launch.module, launch.ros_args(param_files), launch.restart) for launch in launches]
+    return [NodeCommand(launch.module, launch.ros_args(param_files, run_dir), launch.restart) for launch in launches]
 
 
 def _nodes(context, rig_backend, optimizer, evaluators):

@@ -99,3 +99,33 @@ def test_killing_bringup_with_sigkill_stops_every_node_and_closes_the_bag(tmp_pa
     for path in bag.glob("*.mcap"):
         with open(path, "rb") as stream:
             assert make_reader(stream).get_summary() is not None, path
+
+
+LAB_RIG = """
+/**:
+  ros__parameters:
+    valve:
+      backend: serial_relay
+"""
+
+
+def test_the_graphs_own_overrides_win_over_a_file_that_repeats_them(tmp_path, start_process, ros_node):
+    """A lab's file that repeats a parameter the graph overrides (here ``valve.backend``, also in the shipped
+    rig.yaml) must not beat the override: in rcl a ``-p`` override lost to a parameter set in two files, so the
+    overrides are a parameter file after all the others (core/graph/bringup.py)."""
+    from rcl_interfaces.srv import GetParameters
+
+    from rollability_ros.core.graph.bringup import NodeLaunch, parameter_files
+
+    lab_rig = tmp_path / "lab_rig.yaml"
+    lab_rig.write_text(LAB_RIG)
+    node = NodeLaunch("valve_controller", namespace="/override_check", params={"valve.backend": "dry_run"})
+    files = parameter_files([str(lab_rig)])
+    args = node.ros_args(files, str(tmp_path))
+    assert args[-2:] == ["--params-file", str(tmp_path / "node-params" / "valve_controller.yaml")]
+    process = start_process("rollability_ros.nodes.valve_controller", *args)
+    client = ros_node.node.create_client(GetParameters, "/override_check/valve_controller/get_parameters")
+    assert ros_node.wait_for(lambda: client.service_is_ready(), timeout_s=60), process.log()
+    future = client.call_async(GetParameters.Request(names=["valve.backend"]))
+    assert ros_node.wait_for(future.done, timeout_s=30), process.log()
+    assert future.result().values[0].string_value == "dry_run", process.log()

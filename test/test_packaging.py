@@ -185,7 +185,7 @@ def test_installed_executables_run_the_session_graph(colcon_install, ros_node, t
                          str(install.config / "tip_monitor.yaml")]),
         ("view_bridge", ["--ros-args", "-r", f"__ns:={namespace}", "-p", "port:=0"]),
     ]
-    run_dir.mkdir()
+    run_dir.mkdir(exist_ok=True)   # session_commands wrote the nodes' override files into it
     started = {}
     try:
         for executable, arguments in commands:

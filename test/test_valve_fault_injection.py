@@ -152,7 +152,7 @@ SUPERVISOR = textwrap.dedent("""
     from rollability_ros.core.graph.bringup import NodeLaunch, parameter_files
     from rollability_ros.core.graph.supervisor import Supervisor
     node = NodeLaunch("valve_controller", params=json.loads(sys.argv[1]))
-    supervisor = Supervisor([node.process_spec(parameter_files())], sys.argv[2],
+    supervisor = Supervisor([node.process_spec(parameter_files(), sys.argv[2])], sys.argv[2],
                             on_event=lambda event: print(event.text(), flush=True))
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append("SIGTERM"))

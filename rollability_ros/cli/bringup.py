@@ -26,7 +26,7 @@ def run(args: argparse.Namespace) -> int:
     if launch_backend_class(args.backend).authenticated:   # a backend that moves hardware
         _isolate_physical_rig()
     nodes = session_nodes(settings, run_dir, rig_backend=args.backend, optimizer=not args.no_optimizer)
-    supervisor = Supervisor([node.process_spec(param_files) for node in nodes], os.path.join(run_dir, "logs"))
+    supervisor = Supervisor([node.process_spec(param_files, run_dir) for node in nodes], os.path.join(run_dir, "logs"))
     stop = []
     signal.signal(signal.SIGINT, lambda *_: stop.append("Ctrl-C"))
     signal.signal(signal.SIGTERM, lambda *_: stop.append("SIGTERM"))

@@ -6,15 +6,22 @@ outcome_logger (durable store), valve_controller, N sim_evaluator nodes (namespa
 request the optimizer, the rig and the live-view bridge.
 
 Every node gets the same ordered list of ROS 2 parameter files (``--params-file``, later files override earlier
-ones; a node takes only the parameters it declares; :func:`parameter_files`), plus a few per-node overrides
-(``-p name:=value``). The CLI reads the same files with :func:`rollability_ros.core.config.load_parameters`, so
-a value means the same to a node and to a verb.
+ones; a node takes only the parameters it declares; :func:`parameter_files`), plus a few per-node overrides,
+written as one more parameter file after them (:func:`override_file`). The CLI reads the same files with
+:func:`rollability_ros.core.config.load_parameters`, so a value means the same to a node and to a verb.
+
+Why a file and not ``-p name:=value``: in ROS 2 Jazzy (rcl), a parameter that two ``--params-file`` files both set
+is kept twice, the later file's value wins, and a ``-p`` override replaces only the first of the two. So a user's
+file that repeats, say, ``valve.backend`` or ``optimizer.output_dir`` (or a shipped file named twice with
+``--config``) silently beat the graph's own override. The last file's value always wins, so the overrides go last.
 """
 import dataclasses
 import datetime
 import os
 import sys
 import typing
+
+import yaml
 
 from rollability_ros.core.config import from_mapping, load_parameters, resolve_config_path, section
 from rollability_ros.core.graph.supervisor import ProcessSpec
@@ -23,15 +30,35 @@ from rollability_ros.core.graph.supervisor import ProcessSpec
 DEFAULT_CONFIGS = ("sim", "robot", "evaluator", "launch_twin", "rig", "campaign", "optimizer")
 
 
-def _ros_value(value):
-    """A parameter value as ``-p name:=value`` text (YAML for the ROS argument parser)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_ros_value(item) for item in value) + "]"
-    if isinstance(value, str):
-        return "'" + value.replace("'", "''") + "'"
-    return repr(value)
+#: Folder, inside a study or session directory, of the per-node override files (:func:`override_file`).
+NODE_PARAMS_DIR = "node-params"
+
+
+def _nested(params: typing.Mapping[str, typing.Any]) -> dict:
+    """``{"a.b": 1}`` -> ``{"a": {"b": 1}}``: the form in which a ROS 2 parameter file's value overrides the same
+    parameter of an earlier file (a dotted key in a file is not merged with the nested one); tuples as lists."""
+    nested: dict = {}
+    for key, value in params.items():
+        *parents, leaf = key.split(".")
+        node = nested
+        for parent in parents:
+            node = node.setdefault(parent, {})
+        node[leaf] = list(value) if isinstance(value, tuple) else value
+    return nested
+
+
+def override_file(directory: str, label: str, params: typing.Mapping[str, typing.Any]) -> str:
+    """Write ``params`` (``{"section.name": value}``) as the ROS 2 parameter file
+    ``<directory>/node-params/<label>.yaml`` (for every node, ``/**``) and return its path (module docstring)."""
+    folder = os.path.join(directory, NODE_PARAMS_DIR)
+    os.makedirs(folder, exist_ok=True)
+    path = os.path.join(folder, f"{label}.yaml")
+    text = yaml.safe_dump({"/**": {"ros__parameters": _nested(params)}}, sort_keys=False)
+    temporary = f"{path}.tmp-{os.getpid()}"
+    with open(temporary, "w", encoding="utf-8") as stream:
+        stream.write(text)
+    os.replace(temporary, path)   # a restarted node never reads half a file
+    return path
 
 
 @dataclasses.dataclass
@@ -50,8 +77,14 @@ class NodeLaunch:
     critical: bool = True
     stop_timeout_s: float = 15.0
 
-    def ros_args(self, param_files: typing.Sequence[str]) -> typing.List[str]:
-        """The node's arguments: ``--ros-args``, name and namespace remaps, parameter files, overrides."""
+    @property
+    def process_label(self) -> str:
+        """The supervisor's name for the process (and of its log and override files)."""
+        return self.label or self.name or self.module
+
+    def ros_args(self, param_files: typing.Sequence[str], params_dir: str) -> typing.List[str]:
+        """The node's arguments: ``--ros-args``, name and namespace remaps, parameter files, and last its
+        overrides as a file written under ``params_dir`` (the study's or session's directory; :func:`override_file`)."""
         args = ["--ros-args"]
         if self.name:
             args += ["-r", f"__node:={self.name}"]
@@ -59,18 +92,19 @@ class NodeLaunch:
             args += ["-r", f"__ns:={self.namespace}"]
         for path in param_files:
             args += ["--params-file", path]
-        for key, value in self.params.items():
-            args += ["-p", f"{key}:={_ros_value(value)}"]
+        if self.params:
+            args += ["--params-file", override_file(params_dir, self.process_label, self.params)]
         return args
 
-    def argv(self, param_files: typing.Sequence[str], python: str = sys.executable) -> typing.List[str]:
+    def argv(self, param_files: typing.Sequence[str], params_dir: str, python: str = sys.executable
+             ) -> typing.List[str]:
         """The command line: ``python -m rollability_ros.nodes.<module>`` and :meth:`ros_args`."""
-        return [python, "-m", f"rollability_ros.nodes.{self.module}", *self.ros_args(param_files)]
+        return [python, "-m", f"rollability_ros.nodes.{self.module}", *self.ros_args(param_files, params_dir)]
 
-    def process_spec(self, param_files: typing.Sequence[str]) -> ProcessSpec:
+    def process_spec(self, param_files: typing.Sequence[str], params_dir: str) -> ProcessSpec:
         """A :class:`~rollability_ros.core.graph.supervisor.ProcessSpec` for the supervisor."""
-        return ProcessSpec(name=self.label or self.name or self.module, argv=self.argv(param_files), restart=self.restart, critical=self.critical,
-                           stop_timeout_s=self.stop_timeout_s)
+        return ProcessSpec(name=self.process_label, argv=self.argv(param_files, params_dir), restart=self.restart,
+                           critical=self.critical, stop_timeout_s=self.stop_timeout_s)
 
 
 def parameter_files(extra: typing.Sequence[str] = ()) -> typing.List[str]:

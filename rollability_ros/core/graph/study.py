@@ -12,8 +12,9 @@
 
 Everything lands in ``<output_dir>/<study id>/``: ``config/`` (copies of the parameter files the study runs
 on, in load order), ``optimization/`` (run store, checkpoint, designs/ with STL files), ``outcomes.sqlite``
-(the logger's store), ``bag/`` (MCAP), ``report/``, ``logs/`` (one log per node), ``study.yaml`` (the parameters
-added for the campaign). This module never imports rclpy: it runs processes, learns the progress of the running
+(the logger's store), ``bag/`` (MCAP), ``report/``, ``logs/`` (one log per node), ``node-params/`` (each node's
+own overrides, its last parameter file: :func:`~rollability_ros.core.graph.bringup.override_file`), ``study.yaml``
+(the parameters added for the campaign). This module never imports rclpy: it runs processes, learns the progress of the running
 graph through a :class:`~rollability_ros.core.graph.progress.GraphObserver` (over ROS: the optimizer's
 ``optimizer_progress``, the logger's ``get_summary``; never their stores), and reads the study directory's store
 for the report once the graph has stopped.
@@ -232,7 +233,7 @@ class Study:
             self.make_study_dir()
             self.say(f"study {self.study_id}: results in {self.study_dir}")
         bag_dir = self._next_bag_dir() if self.settings.record else ""
-        supervisor = Supervisor([n.process_spec(self.param_files)
+        supervisor = Supervisor([n.process_spec(self.param_files, self.study_dir)
                                  for n in core_nodes(self.settings, self.study_dir, bag_dir)],
                                 os.path.join(self.study_dir, "logs"),
                                 on_event=lambda event: self.say("  " + event.text()))
@@ -243,20 +244,24 @@ class Study:
                 resume = os.path.isfile(os.path.join(self.optimization_dir, "config.yaml"))
                 self.say("resuming the optimization from its last checkpoint" if resume else
                          "optimizing the profile (the optimizer over the evaluators)")
-                supervisor.add(self._optimizer(resume).process_spec(self.param_files))
+                supervisor.add(self._optimizer(resume).process_spec(self.param_files, self.study_dir))
                 code, reason = self._wait(supervisor, "optimizer", self.settings.optimization_timeout_s,
                                           self._progress_optimization)
                 if code != 0:
                     result.reason = reason
+                    return result
+                if self._selected_labels() is None:
+                    result.reason = (f"the optimizer finished without writing the selection's designs.yaml under "
+                                     f"{self.optimization_dir} (see logs/optimizer.log)")
                     return result
             else:
                 self.say("the optimization and design selection finished before: continuing with the campaign")
             labels = self._selected_labels() or []
             self.say(f"designs selected: {', '.join(labels) or 'none'}; launching the campaign on the simulated rig")
             rig, runner = self._campaign_nodes(labels)
-            supervisor.add(rig.process_spec(self.param_files))
+            supervisor.add(rig.process_spec(self.param_files, self.study_dir))
             self._wait_for_recorder(supervisor, "launch_outcomes")
-            supervisor.add(runner.process_spec(self.param_files))
+            supervisor.add(runner.process_spec(self.param_files, self.study_dir))
             total = self._campaign_size(1 + len(labels))
             code, reason = self._wait(supervisor, "campaign_runner", self.settings.campaign_timeout_s,
                                       lambda: self._progress_campaign(total))

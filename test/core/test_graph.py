@@ -1,24 +1,33 @@
-"""Node command lines: parameter files in order, overrides quoted so the ROS argument parser reads them back."""
+"""Node command lines: parameter files in order, the node's overrides a last file that reads back as given."""
 import sys
 
 import yaml
 
+from rollability_ros.core.config import load_parameters
 from rollability_ros.core.graph.bringup import DEFAULT_CONFIGS, NodeLaunch, parameter_files
 
 
-def test_argv_and_overrides_round_trip_through_yaml():
+def test_argv_and_overrides_round_trip_through_yaml(tmp_path):
     launch = NodeLaunch("sim_evaluator", label="eval_0", namespace="/eval_0",
                         params={"evaluator.workers": 1, "flag": True, "path": "runs/it's here", "files": ["a", "b"],
-                                "ratio": 0.5})
-    argv = launch.argv(["one.yaml", "two.yaml"])
+                                "ratio": 0.5, "reply": "Y"})
+    argv = launch.argv(["one.yaml", "two.yaml"], str(tmp_path))
     assert argv[:4] == [sys.executable, "-m", "rollability_ros.nodes.sim_evaluator", "--ros-args"]
     assert argv[argv.index("-r") + 1] == "__ns:=/eval_0"
-    assert [argv[i + 1] for i, arg in enumerate(argv) if arg == "--params-file"] == ["one.yaml", "two.yaml"]
-    overrides = dict(argv[i + 1].split(":=", 1) for i, arg in enumerate(argv) if arg == "-p")
-    assert {key: yaml.safe_load(value) for key, value in overrides.items()} == {
-        "evaluator.workers": 1, "flag": True, "path": "runs/it's here", "files": ["a", "b"], "ratio": 0.5}
-    assert launch.process_spec([]).name == "eval_0"
-    assert NodeLaunch("rig", namespace="/rollability").process_spec([]).name == "rig"
+    override = str(tmp_path / "node-params" / "eval_0.yaml")
+    # the overrides are the last parameter file (a -p loses to a parameter two files set: core/graph/bringup.py)
+    assert [argv[i + 1] for i, arg in enumerate(argv) if arg == "--params-file"] == ["one.yaml", "two.yaml", override]
+    assert "-p" not in argv
+    with open(override, encoding="utf-8") as stream:
+        document = yaml.safe_load(stream)
+    assert document == {"/**": {"ros__parameters": {"evaluator": {"workers": 1}, "flag": True,
+                                                    "path": "runs/it's here", "files": ["a", "b"], "ratio": 0.5,
+                                                    "reply": "Y"}}}
+    assert load_parameters([override]) == {"evaluator.workers": 1, "flag": True, "path": "runs/it's here",
+                                           "files": ["a", "b"], "ratio": 0.5, "reply": "Y"}
+    assert launch.process_spec([], str(tmp_path)).name == "eval_0"
+    assert NodeLaunch("rig", namespace="/rollability").process_spec([], str(tmp_path)).name == "rig"
+    assert NodeLaunch("rig").argv([], str(tmp_path))[-1] == "--ros-args"   # no overrides: no file
 
 
 def test_parameter_files_resolve_in_order():

@@ -25,6 +25,7 @@ import yaml
 
 from rollability_ros.core.config import from_mapping, load_parameters, resolve_config_path, section
 from rollability_ros.core.graph.supervisor import ProcessSpec
+from rollability_ros.core.optimization import atomic_write_bytes
 
 #: Parameter files every node of the main job reads, in order (later ones override earlier ones).
 DEFAULT_CONFIGS = ("sim", "robot", "evaluator", "launch_twin", "rig", "campaign", "optimizer")
@@ -34,30 +35,15 @@ DEFAULT_CONFIGS = ("sim", "robot", "evaluator", "launch_twin", "rig", "campaign"
 NODE_PARAMS_DIR = "node-params"
 
 
-def _nested(params: typing.Mapping[str, typing.Any]) -> dict:
-    """``{"a.b": 1}`` -> ``{"a": {"b": 1}}``: the form in which a ROS 2 parameter file's value overrides the same
-    parameter of an earlier file (a dotted key in a file is not merged with the nested one); tuples as lists."""
-    nested: dict = {}
-    for key, value in params.items():
-        *parents, leaf = key.split(".")
-        node = nested
-        for parent in parents:
-            node = node.setdefault(parent, {})
-        node[leaf] = list(value) if isinstance(value, tuple) else value
-    return nested
-
-
 def override_file(directory: str, label: str, params: typing.Mapping[str, typing.Any]) -> str:
     """Write ``params`` (``{"section.name": value}``) as the ROS 2 parameter file
-    ``<directory>/node-params/<label>.yaml`` (for every node, ``/**``) and return its path (module docstring)."""
-    folder = os.path.join(directory, NODE_PARAMS_DIR)
-    os.makedirs(folder, exist_ok=True)
-    path = os.path.join(folder, f"{label}.yaml")
-    text = yaml.safe_dump({"/**": {"ros__parameters": _nested(params)}}, sort_keys=False)
-    temporary = f"{path}.tmp-{os.getpid()}"
-    with open(temporary, "w", encoding="utf-8") as stream:
-        stream.write(text)
-    os.replace(temporary, path)   # a restarted node never reads half a file
+    ``<directory>/node-params/<label>.yaml`` (for every node, ``/**``; nested, since a dotted key in a file does not
+    override the same parameter nested in an earlier file) and return its path (module docstring)."""
+    path = os.path.join(directory, NODE_PARAMS_DIR, f"{label}.yaml")
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    values = {key: list(value) if isinstance(value, tuple) else value for key, value in params.items()}
+    text = yaml.safe_dump({"/**": {"ros__parameters": section(values, "")}}, sort_keys=False)
+    atomic_write_bytes(path, text.encode("utf-8"))   # a restarted node never reads half a file
     return path
 
 

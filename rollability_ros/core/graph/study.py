@@ -250,13 +250,13 @@ class Study:
                 if code != 0:
                     result.reason = reason
                     return result
-                if self._selected_labels() is None:
-                    result.reason = (f"the optimizer finished without writing the selection's designs.yaml under "
-                                     f"{self.optimization_dir} (see logs/optimizer.log)")
-                    return result
             else:
                 self.say("the optimization and design selection finished before: continuing with the campaign")
-            labels = self._selected_labels() or []
+            labels = self._selected_labels()
+            if labels is None:
+                result.reason = (f"the optimizer finished without writing the selection's designs.yaml under "
+                                 f"{self.optimization_dir} (see logs/optimizer.log)")
+                return result
             self.say(f"designs selected: {', '.join(labels) or 'none'}; launching the campaign on the simulated rig")
             rig, runner = self._campaign_nodes(labels)
             supervisor.add(rig.process_spec(self.param_files, self.study_dir))

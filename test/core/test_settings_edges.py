@@ -37,6 +37,7 @@ ALLOWED = {
     # writing, not parsing: the flat dict nested again as a parameter file
     ("optimization/optimization_run.py", "write_run_config"): (1, "writes config.yaml"),
     ("campaign/calibration.py", "calibrated_parameter_document"): (1, "writes calibrated.yaml"),
+    ("graph/bringup.py", "override_file"): (1, "writes a node's overrides file"),
 }
 
 

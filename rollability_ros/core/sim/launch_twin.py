@@ -50,20 +50,32 @@ Angle (the paper gives mounting holes at -60 ... +60 deg, not a definition)
     from the edge's outward normal; the chassis runs ``run_length_m`` along the push direction and leaves the
     edge obliquely. ``chassis_yaw``: the push stays along the edge normal and only the chassis is turned on the
     plate (it runs sideways on its Mecanum rollers).
-Launch
-    The push plate drives the chassis over the whole run: a box (``launch_twin.plate``) on a prismatic joint along
-    the push, velocity-controlled with at most ``plate.max_force_n`` (the cylinder). At t = 0 the chassis stands
-    at rest on the launcher, the plate 1 mm behind it; the plate's speed ramps to the launch speed in
-    ``plate.ramp_s`` (the real cylinder reaches speed within a few millimetres of its stroke), pushing the
-    chassis up to speed, and whatever the chassis's rolling resistance (caster wheels, motor drag) it holds it
-    at the launch speed until its base origin goes over the edge (or the plate's face reaches the edge), then
-    brakes. So the chassis leaves the edge at the
-    launch speed (``edge_speed_mps``, within 1% on the shipped chassis and on one with 40 times the drag: see
-    test_launch_twin) and the speed gate reads ``run_length_m / travel_time_s`` as on the rig. The chassis
+Launch (``launcher.model``; one setting swaps the two, and a setting of the model not chosen is refused)
+    The push plate is a box (``launch_twin.plate``) on a prismatic joint along the push, velocity-controlled with a
+    force limit; at t = 0 the chassis stands at rest on the launcher, the plate 1 mm behind it. ``stroke`` (default,
+    the paper's rig, section 2.2): a 25 mm bore x 150 mm stroke cylinder at the regulator's 30 / 60 psi for the set
+    speeds 0.8 / 1.5 m/s (``launcher.bore_m``, ``stroke_m``, ``pressures_psi``) drives the plate (with the piston
+    and rod: ``plate.mass_kg``) with at most pressure x bore area (101 N / 203 N) up to the speed the lab's
+    setting gives, for ``stroke_m`` of travel, then stops it; the chassis coasts on its wheels over the rest of
+    the run (its wheels' rolling resistance, plus ``launcher.ledge_rolling_friction``, an unknown). The speed:
+    the lab sets the pressure until the speed gate reads the set speed over ``run_length_m`` (0.42 s / 0.22 s
+    over 0.34 m); pressure x bore gives 72 m/s^2 on the chassis, far more than those speeds need over 0.15 m, so
+    the cylinder's speed is the exhaust flow's, not the force's. The twin models exactly that check: the plate's
+    speed is solved per engine, robot, launcher and set speed (:func:`launch_drive`, cached) so that a launch of
+    the bare robot square to the edge reads the set speed on the gate, within 0.2% (test_launch_twin: both
+    engines, both speeds, within the gate's 15% tolerance ``speed_gate.tolerance_fraction``). A profile's mass
+    then changes the gate's reading as physics says. A cylinder too weak to reach the set speed is refused with a
+    ``ValueError`` naming the settings. ``push_through`` (the twin before issue 40): the plate's speed ramps to the
+    launch speed in ``plate.ramp_s`` with at most ``plate.max_force_n`` and holds it until the chassis's base
+    origin goes over the edge (or the plate's face reaches it), then brakes: the chassis leaves the edge at the
+    launch speed (``edge_speed_mps``, within 5% on the shipped chassis and on one with 40 times the drag: see
+    test_launch_twin). Either way the speed gate reads ``run_length_m / travel_time_s`` as on the rig. The chassis
     starts where its foremost point (largest x of its links' bounding boxes) reaches the edge line after
     ``run_length_m`` along the push, its base origin on a path through the edge's midpoint. The actual launch
-    speed scatters around the condition's speed with a relative standard deviation ``speed_sigma_fraction``,
-    and the angle by ``angle_sigma_deg`` (hand placement against the push plate), both drawn from the seed.
+    speed (the gate speed the setting gives in this launch) scatters around the condition's speed x (1 +
+    ``launcher.speed_bias_fraction``, the setting's systematic error, an unknown) with a relative standard
+    deviation ``speed_sigma_fraction``, and the angle by ``angle_sigma_deg`` (hand placement against the push
+    plate), both drawn from the seed; the stroke's plate speed scales with it.
 Asymmetry (the paper's rig is not mirror-symmetric in the angle; these let calibration fit it)
     ``plate.offset_m`` moves the plate sideways off the chassis's path, ``plate.yaw_bias_deg`` turns its face
     from square to the push (it then pushes on one corner), and ``wheel_friction_left_factor`` /
@@ -82,8 +94,18 @@ Measurements and phases
     crosses the edge, ``settling`` at the first foam contact, ``classifying`` once the chassis has come to rest
     (the trials' rest detection, ``config/sim.yaml`` section ``trial``: speeds below thresholds for
     ``rest_hold_s``) or at the trials' time cap. Every phase is reported once, in this order, even when an event
-    did not happen (a chassis too slow to leave the plate). The outcome is the robot model's upright test (the
-    trials' test) against the foam, or against the ledge if the chassis never went over the edge.
+    did not happen (a chassis too slow to leave the plate).
+Outcome (the rig's rule, :func:`rig_verdict`; the same in every engine)
+    Upright = at rest (the trials' rest rule, or the time cap) with the body's up axis within the robot's
+    ``upright_tilt_deg`` of world up (30 deg, ``config/robot.yaml``: the rig's IMU classifier's
+    ``imu_outcome.tilt_threshold_deg`` in ``config/rig.yaml``) and on its wheels (``min_wheels_in_contact`` wheels
+    within ``contact_tolerance_m`` of the surface it rests on), wherever it rests: on the foam pad, on the floor
+    beyond it, against the ledge. Where it came to rest (``rest_surface``, ``rest_position_m``,
+    ``rest_distance_m``), ``time_to_rest_s``, its tilt and the peak deceleration are recorded beside the verdict
+    and never decide it: the same launches give the same count on a 2.5 x 3 m pad and a 30 x 30 m one
+    (bench/bench_pad_size.py). The early decision (:func:`step_launch`) decides only while the robot cannot
+    reach the pad's edges or the ledge, where the pad's top is the only ground and this rule is the one its
+    energy barriers classify by.
 """
 import dataclasses
 import hashlib

@@ -396,8 +396,8 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         mujoco.mj_forward(model, data)
         tilt = self.tilt_deg()
         upright = rig_verdict(tilt, self.wheels_down(), self.robot_model) if decision is None else decision
-        position, orientation = self.pose()
-        return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, orientation),
+        position, final_orientation = self.pose()
+        return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, final_orientation),
                              (speed_mps, angle_deg), seed, position, drive.plate_speed_mps(speed_mps))
 
     def wheels_down(self) -> int:

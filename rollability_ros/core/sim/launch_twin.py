@@ -1308,9 +1308,12 @@ def decided_on_foam(energy: EnergyMonitor, com_xy_m: typing.Sequence[float], set
     """The early decision of a landed robot (True / False / None), given its energy monitor (after ``decide``
     has read the state: ``energy_height_m``), its centre of mass (x, y) and the time left to the cap (s).
 
-    The energy argument fixes the robot's orientation outcome, but a decided robot may still roll (on its wheels,
-    or sliding) off the foam or back against the ledge, onto ground other than the foam's flat top (a chassis
-    decided upright rolled off the foam's side 1.6 s after landing and was judged not upright by the full rule).
+    The energy argument fixes the robot's orientation outcome on the foam's flat top, but a decided robot may
+    still roll (on its wheels, or sliding) off the foam or back against the ledge, onto ground other than that
+    top: the 5 cm drop to the floor or the ledge's wall can still turn it, so the argument no longer holds there
+    (before issue 40 a chassis decided upright rolled off the foam's side 1.6 s after landing and the foam-contact
+    rule judged it not upright; the rig's rule, :func:`rig_verdict`, counts it wherever it rests, but the drop is
+    not in the barriers).
     Energy bounds its speed for ever by ``sqrt(2 g (E - lowest))`` (``lowest``: the lowest resting COM height of
     the decided outcome; the foam's sinking is left out here); the decision stands only if its hull cannot reach
     the foam's edges or the ledge at that speed within :data:`ROLL_HORIZON_S` (or the time left, if shorter)."""

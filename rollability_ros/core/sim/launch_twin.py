@@ -275,11 +275,17 @@ class FoamSpec:
     thickness_m: float = 0.05
     length_m: float = 2.5
     width_m: float = 3.0
-    contact_stiffness_npm: float = 2.0e4
-    contact_damping_nspm: float = 150.0
-    lateral_friction: float = 1.0
-    rolling_friction: float = 0.01
-    restitution: float = 0.1
+    contact_stiffness_npm: float = _setting(2.0e4, "UNKNOWN: Bullet contact stiffness per contact point, N/m "
+                                                   "(guessed: ~4 cm under a 1.3 m drop)", (1.0e3, 1.0e6))
+    contact_damping_nspm: float = _setting(150.0, "UNKNOWN: Bullet contact damping per contact point, N s/m "
+                                                  "(guessed: memory foam barely rebounds)", (0.0, 2000.0))
+    lateral_friction: float = _setting(1.0, "UNKNOWN: the foam's own friction coefficient; Bullet multiplies it with "
+                                            "the robot's (sim.lateral_friction 0.35) (guessed)", (0.3, 3.0))
+    rolling_friction: float = _setting(0.01, "UNKNOWN: the foam's own rolling friction, m: a wheel on the foam meets "
+                                             "this x the wheel's friction more (guessed: a wheel sinks in)",
+                                       (0.0, 0.05))
+    restitution: float = _setting(0.1, "UNKNOWN: the foam's own restitution; times the robot's 0.3 per contact "
+                                       "(guessed)", (0.0, 1.0))
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
@@ -307,9 +313,13 @@ class LaunchTwinOptions:
     wheel_model: str = "auto"
     speed_sigma_fraction: float = 0.03
     angle_sigma_deg: float = 1.0
-    wheel_side_friction_factor: float = 0.1
-    wheel_rolling_friction: float = 0.0002
-    wheel_drag_torque_nm: float = 0.0005
+    wheel_side_friction_factor: float = _setting(
+        0.1, "UNKNOWN: Mecanum wheels' friction along the axle / across it (guessed: the rollers slide)", (0.0, 1.0))
+    wheel_rolling_friction: float = _setting(
+        0.0002, "UNKNOWN: Bullet rolling friction of a Mecanum wheel, m (force ~ this / wheel radius x load; "
+                "guessed so the chassis covers the 0.34 m run)", (0.0, 0.01))
+    wheel_drag_torque_nm: float = _setting(
+        0.0005, "UNKNOWN: back-drive drag of each unpowered wheel motor, N m (guessed)", (0.0, 0.05))
     wheel_friction_left_factor: float = 1.0
     wheel_friction_right_factor: float = 1.0
     max_attempts: int = 3

@@ -15,7 +15,7 @@ from rollability_ros.core.config import ConfigError, load_parameters  # noqa: E4
 from rollability_ros.core.sim.evaluation import (EvaluatorSettings, evaluate_profile, load_settings,  # noqa: E402
                                              settings_from_parameters)
 from rollability_ros.core.profile.geometry import export_mesh, load_profile_mesh, profile_mesh  # noqa: E402
-from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec, ProfileBody  # noqa: E402
+from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec  # noqa: E402
 from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world  # noqa: E402
 from rollability_ros.core.robots.urdf_description import BASE_LINK, PROFILE_LINK  # noqa: E402
 from rollability_ros.core.robots.urdf_robot import UrdfRobotModel, UrdfRobotSpec, footprint_corners  # noqa: E402
@@ -65,10 +65,11 @@ def husky_copy(folder, text_changes=()):
 def test_husky_config_selects_the_urdf_robot_and_footprint_sets_the_grid(husky):
     assert isinstance(husky.robot_model(), UrdfRobotModel)
     assert (husky.grid.length_m, husky.grid.width_m) == (0.9, 0.56)
-    assert husky.profile_density_kgpm3() == 20.0
+    made = husky.urdf_robot.profile_print
+    assert (made.model, made.solid_density_kgpm3) == ("solid", 20.0)
     default = load_settings()
     assert isinstance(default.robot_model(), ChassisModel) and default.grid.length_m == 0.18
-    assert default.profile_density_kgpm3() == ChassisSpec().profile_density_kgpm3
+    assert default.robot.profile_print == ChassisSpec().profile_print and default.robot.profile_print.model == "shell"
 
 
 def test_masses_and_inertias_come_from_the_urdf(client):
@@ -120,7 +121,7 @@ def test_frame_base_moves_like_the_root_body_as_base(client, tmp_path):
 
 def test_profile_is_fixed_rigidly_to_the_mount(client, husky):
     heights = np.full(husky.grid.n_variables, 0.2)
-    profile = ProfileBody.from_mesh(profile_mesh(heights, husky.grid), husky.profile_density_kgpm3())
+    profile = husky.profile_body(profile_mesh(heights, husky.grid))
     model = husky.robot_model()
     reset_world(client, husky.physics)
     robot = model.spawn(client, profile, (0, 0, 1.5), pybullet.getQuaternionFromEuler([2.5, 0.4, 0.3]),
@@ -315,7 +316,7 @@ def test_exported_stl_and_urdf_fit_the_mount_footprint(tmp_path, husky):
     spec = husky.urdf_robot
     assert mesh.bounds[0][:2] == pytest.approx(footprint_corners(spec)[:, :2].min(axis=0), abs=1e-6)  # float32 STL
     assert mesh.bounds[1][:2] == pytest.approx(footprint_corners(spec)[:, :2].max(axis=0), abs=1e-6)
-    profile = ProfileBody.from_mesh(mesh, husky.profile_density_kgpm3())
+    profile = husky.profile_body(mesh)
     document = ElementTree.fromstring(husky.robot_model().to_urdf("husky_profile.stl", profile))
     (joint,) = [j for j in document.findall("joint") if j.find("child").get("link") == PROFILE_LINK]
     assert joint.find("parent").get("link") == "top_plate_link"
@@ -350,7 +351,7 @@ def test_a_compliant_mount_on_a_urdf_robot_deflects_by_the_profile_weight(husky,
 
     with open(FIXTURE, encoding="utf-8") as stream:
         heights = yaml.safe_load(stream)["heights"]
-    profile = ProfileBody.from_mesh(profile_mesh(heights, husky.grid), husky.profile_density_kgpm3())
+    profile = husky.profile_body(profile_mesh(heights, husky.grid))
     stiffness = 20000.0
     model = UrdfRobotModel(husky_spec(joint_drag_torque_nm=5.0, profile_mount=ProfileMountSpec(
         stiffness_npm=stiffness, damping_nspm=2 * (stiffness * profile.mass_kg) ** 0.5, travel_m=0.01)))

@@ -19,7 +19,7 @@ pybullet = pytest.importorskip("pybullet")
 
 SETTINGS = EvaluatorSettings()
 #: The dome printed as a hollow shell (0.8 mm walls and skins, no infill): about 70 g, against about 430 g with the
-#: shipped print settings (20 % infill), see docs/twin-model.md "Profile mass".
+#: shipped print settings (20 % infill), see docs/optimization.md "Profile mass".
 LIGHT = dataclasses.replace(SETTINGS, robot=dataclasses.replace(SETTINGS.robot,
                                                                 profile_print=ProfilePrintSpec(infill_fraction=0.0)))
 TRIALS = 60

@@ -238,3 +238,28 @@ def test_the_stable_pose_screen_and_the_twin_weigh_the_print(tmp_path):
     expected = 1.5 * print_mass_properties(profile_mesh(front_heavy_heights(grid), grid), shell(0.0008, 0.0008, 0.0)
                                            ).mass_kg
     assert launch_twin.profile_body("W", hollow).mass_kg == pytest.approx(expected, rel=1e-6)
+
+
+def test_bullets_box_of_a_profile_on_turned_inertial_axes_overstates_it_and_the_points_do_not():
+    """SpawnedRobot's claim: on principal axes turned off the profile frame (the wedge's, about y) Bullet's AABB of
+    the profile link is far taller than the profile (up to twice), while ``profile_points_m`` placed by the link
+    frame give its exact extent."""
+    pybullet = pytest.importorskip("pybullet")
+    from rollability_ros.core.sim import world
+
+    profile = printed_profile()
+    assert abs(profile.principal_inertia()[1][3]) < math.cos(math.radians(5) / 2)   # axes turned > 5 deg
+    height = np.ptp(profile.hull_vertices_m[:, 2])
+    client = world.connect()
+    try:
+        robot = ChassisModel(ChassisSpec()).spawn(client, profile, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0, 1.0),
+                                                  time_step_s=None)
+        low, high = pybullet.getAABB(robot.body_id, robot.profile_link, physicsClientId=client)
+        position, orientation = pybullet.getLinkState(robot.body_id, robot.profile_link,
+                                                      physicsClientId=client)[4:6]
+    finally:
+        world.disconnect(client)
+    turn = np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+    placed = np.asarray(robot.profile_points_m) @ turn.T + position
+    assert np.ptp(placed[:, 2]) == pytest.approx(height, abs=1e-9)
+    assert 1.5 * height < high[2] - low[2] <= 2 * height + 0.01   # the AABB adds a collision margin

@@ -380,3 +380,44 @@ def test_a_compliant_mount_on_a_urdf_robot_deflects_by_the_profile_weight(husky,
             mujoco.mj_step(world.model, world.data)
             trace.append(float(world.data.qpos[world.model.jnt_qposadr[joint.id]]))
     assert np.mean(trace[-60:]) == pytest.approx(-profile.mass_kg * 9.81 / stiffness, rel=0.03)
+
+
+def test_a_constraint_held_profile_would_stretch_and_be_left_behind_where_a_fixed_link_does_not(client):
+    """urdf_robot's reason for a fixed-joint profile link: a body held by createConstraint(JOINT_FIXED) stretches
+    away from its mount under an impact and stays put when the robot's base is reset; a link on a fixed joint does
+    neither."""
+    pybullet.setGravity(0, 0, 0, physicsClientId=client)
+    box = pybullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=[0.05, 0.05, 0.02], physicsClientId=client)
+    offset = np.array([0.0, 0.0, 0.1])
+
+    def profile_offset(base, profile_position):
+        """Where the profile is in its mount's frame (m)."""
+        position, orientation = pybullet.getBasePositionAndOrientation(base, physicsClientId=client)
+        turn = np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+        return turn.T @ np.subtract(profile_position(), position)
+
+    held = pybullet.createMultiBody(1.0, box, basePosition=[0, 0, 1], physicsClientId=client)
+    loose = pybullet.createMultiBody(0.3, box, basePosition=list(offset + [0, 0, 1]), physicsClientId=client)
+    pybullet.createConstraint(held, -1, loose, -1, pybullet.JOINT_FIXED, [0, 0, 0], list(offset), [0, 0, 0],
+                              physicsClientId=client)
+    linked = pybullet.createMultiBody(1.0, box, basePosition=[2, 0, 1], linkMasses=[0.3],
+                                      linkCollisionShapeIndices=[box], linkVisualShapeIndices=[-1],
+                                      linkPositions=[list(offset)], linkOrientations=[[0, 0, 0, 1]],
+                                      linkInertialFramePositions=[[0, 0, 0]],
+                                      linkInertialFrameOrientations=[[0, 0, 0, 1]], linkParentIndices=[0],
+                                      linkJointTypes=[pybullet.JOINT_FIXED], linkJointAxis=[[0, 0, 0]],
+                                      physicsClientId=client)
+    on_constraint = lambda: pybullet.getBasePositionAndOrientation(loose, physicsClientId=client)[0]  # noqa: E731
+    on_link = lambda: pybullet.getLinkState(linked, 0, computeForwardKinematics=True,  # noqa: E731
+                                            physicsClientId=client)[4]
+    for body, index in ((loose, -1), (linked, 0)):   # an impact on the profile: 2 kN for one step
+        position = on_constraint() if index < 0 else on_link()
+        pybullet.applyExternalForce(body, index, [2000.0, 0.0, 0.0], position, pybullet.WORLD_FRAME,
+                                    physicsClientId=client)
+    pybullet.stepSimulation(physicsClientId=client)
+    assert np.linalg.norm(profile_offset(held, on_constraint) - offset) > 0.001
+    assert profile_offset(linked, on_link) == pytest.approx(offset, abs=1e-6)
+    for base in (held, linked):
+        pybullet.resetBasePositionAndOrientation(base, [5, 5, 5], [0, 0, 0, 1], physicsClientId=client)
+    assert np.linalg.norm(profile_offset(held, on_constraint)) > 5
+    assert profile_offset(linked, on_link) == pytest.approx(offset, abs=1e-6)

@@ -15,7 +15,7 @@ and top/bottom skins of ``skin_thickness_m`` vertically, so a face whose unit ou
 base, the thicker of the two projections on a slope. When the moved half-spaces leave no room (walls thicker than
 half the solid's smallest width) the print is solid.
 
-Defaults and their sources (``docs/twin-model.md``, "Profile mass"): PLA at 1240 kg/m^3 (NatureWorks Ingeo 4043D
+Defaults and their sources (``docs/optimization.md``, "Profile mass"): PLA at 1240 kg/m^3 (NatureWorks Ingeo 4043D
 technical data sheet: specific gravity 1.24); two 0.4 mm perimeters (0.8 mm wall), 0.8 mm top/bottom skin and 20 %
 infill (Ultimaker Cura's default print settings: ``wall_thickness`` 0.8, ``top_bottom_thickness`` 0.8,
 ``infill_sparse_density`` 20). ``model: solid`` is the explicit alternative for a profile that is one uniform

@@ -19,8 +19,10 @@ Physics
     :mod:`rollability_ros.core.robots.urdf_description`. The profile is one more link of that URDF on a fixed joint
     to the mount's rigid body: a reduced-coordinate (Featherstone) fixed joint is exactly rigid and moves with
     every base reset, whereas a separate body held by ``createConstraint(JOINT_FIXED)`` is solved iteratively
-    (it stretches under impacts) and would be left behind by the trials' ``resetBasePositionAndOrientation``.
-    The profile collides as the convex hull of its vertices with the solid's inertia (uniform density).
+    (it stretches under impacts) and would be left behind by the trials' ``resetBasePositionAndOrientation``
+    (test_urdf_robot). The profile collides as the convex hull of its vertices with the mass, centre of mass and
+    full inertia of its print (:class:`ProfileBody`, :mod:`rollability_ros.core.profile.print_mass`), read from the
+    URDF by PyBullet and MuJoCo alike (test_print_mass).
 Picklable
     The spec keeps the text of the checked description (:meth:`UrdfRobotSpec.description`, computed once in
     the process that loads the config and pickled with it), so pool workers only write and load files.

@@ -117,7 +117,7 @@ def combine(parts: typing.Sequence[typing.Tuple[MassProperties, float]]) -> Mass
     mass = sum(part.mass_kg * density for part, density in parts)
     if not mass > 0:
         raise ValueError(f"the parts weigh {mass} kg: nothing to build a body from")
-    com = sum(part.com_m * part.mass_kg * density for part, density in parts) / mass
+    com = np.sum([part.com_m * part.mass_kg * density for part, density in parts], axis=0) / mass
     inertia = np.zeros((3, 3))
     for part, density in parts:
         offset = part.com_m - com

@@ -22,7 +22,7 @@ Contact
 Robot
     The built-in chassis, or any wheeled URDF robot when ``urdf_robot`` names a mount link (the trials' choice,
     :class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`; e.g. ``config/husky.yaml`` in the twin's files).
-    The profile weighs that robot's ``profile_density_kgpm3``.
+    The profile weighs what that robot's ``profile_print`` makes of its mesh, times ``profile_mass_scale``.
 Launcher sized for the robot (:mod:`~rollability_ros.core.sim.launcher_geometry`)
     The push plate's width, height, clearance and force and the ledge's depth and width are derived from the robot's
     collision geometry wherever the config leaves them 0 (the shipped ``config/launch_twin.yaml`` does; the
@@ -358,7 +358,7 @@ class LaunchTwinSettings(RobotChoice):
 
     The robot launched is the built-in chassis (``robot``) unless ``urdf_robot`` names a mount link, chosen as
     for the trials (:class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`: ``robot_model()``,
-    ``profile_density_kgpm3()``).
+    ``profile_body(mesh)``).
     """
 
     physics: PhysicsParams = dataclasses.field(default_factory=PhysicsParams)
@@ -630,7 +630,7 @@ def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force
 def profile_body(configuration: str, settings: LaunchTwinSettings) -> typing.Optional[ProfileBody]:
     """The :class:`ProfileBody` mounted for ``configuration`` (None = baseline); see :mod:`designs`."""
     mesh = profile_mesh_for(configuration, settings.twin.designs)
-    return None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
+    return None if mesh is None else settings.profile_body(mesh)
 
 
 def launch_draws(seed: int, nominal_speed_mps: float, nominal_angle_deg: float,

@@ -34,6 +34,23 @@ class ConfigError(ValueError):
     """A parameter file or a parameter value is unusable; the message names the file and the parameter."""
 
 
+@dataclasses.dataclass
+class SessionSettings:
+    """``session.*``: the session (``rollability study`` / ``bringup``) a node belongs to; nodes of a session talk only
+    to nodes of the same one (docs/sessions.md)."""
+
+    id: str = dataclasses.field(default="", metadata={
+        "description": "the session this node belongs to (session.yaml's id): goals, results and records of another "
+                       "session are refused and logged once; \"\" = a node outside any session, which accepts all"})
+
+    def refusal(self, other: str, what: str) -> str:
+        """"" when ``what`` (a goal, a result) of session ``other`` may be served or used here, else the reason: a
+        node of a session takes only its own session's; one outside any session takes all."""
+        if not self.id or other == self.id:
+            return ""
+        return f"{what} of session {other or '(none)'} refused: this node belongs to session {self.id}"
+
+
 #: A run, study or session id: one path component of letters, digits, '.', '_' and '-' (not starting with '.' or
 #: '-'), since it names a folder under the output directory and a key in the stores.
 _PATH_COMPONENT = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,127}")

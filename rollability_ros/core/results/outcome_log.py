@@ -49,7 +49,7 @@ class SessionGate:
             return ""
         if session != self.session_id:
             return (f"run {run_id} of session {session or '(none)'} refused: this outcome_logger stores session "
-                    f"{self.session_id} only")
+                    f"{self.session_id} only (join that session with --session)")
         if run_id not in self._runs:
             self._runs.add(run_id)
             if self._store.run_info(run_id) is None:

@@ -26,7 +26,7 @@ CONFIG_ENV = "ROLLABILITY_CONFIG_DIR"
 KNOWN_NAMESPACES = frozenset({
     "bringup", "calibration", "campaign", "designs", "evaluator", "imu_outcome", "launch_twin", "objective",
     "optimizer", "player", "printer", "profile", "quality_diversity", "recorder", "rig", "robot", "runner",
-    "selection", "sim", "speed_gate", "stable_poses", "tip_monitor", "trial", "urdf_robot", "valve",
+    "selection", "session", "sim", "speed_gate", "stable_poses", "tip_monitor", "trial", "urdf_robot", "valve",
     "qos_overrides"})
 
 

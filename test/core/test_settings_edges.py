@@ -14,6 +14,8 @@ ALLOWED = {
     # the parse functions an edge calls once (defined in the core next to their dataclasses)
     ("optimization/optimization_run.py", "run_settings"): (1, "the edge parse of a run's parameters"),
     ("campaign/runner.py", "local_rig_settings"): (1, "the edge parse of the in-process rig's parameters"),
+    ("campaign/runner.py", "local_rig_settings_from_files"): (1, "the edge parse of the rig files a command was "
+                                                                 "given, once their keys are checked"),
     ("sim/evaluation.py", "settings_from_parameters"): (1, "the edge parse of the evaluator's parameters"),
     ("campaign/calibration.py", "calibration_settings"): (2, "the edge parse of the calibration section, checked "
                                                              "against the twin's keys"),

@@ -18,9 +18,9 @@ from rollability_ros.core.faces import lazy_attribute
 
 if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
     from rollability_ros.core.graph.bringup import (GraphSettings, NodeLaunch, load_graph_settings, new_study_id,
-                                                    parameter_files, session_nodes)
+                                                    parameter_files, session_nodes, session_twin_config)
     from rollability_ros.core.graph.foxglove_view import ViewServer, ViewSettings, parse_pose_frames
-    from rollability_ros.core.graph.preflight import check_graph_parameters
+    from rollability_ros.core.graph.preflight import check_graph_parameters, graph_namespaces, refuse_bad_session
     from rollability_ros.core.graph.progress import GraphObserver, ProgressDisplay, session_progress
     from rollability_ros.core.graph._ros_domain import claim_domain
     from rollability_ros.core.graph.study import PROGRESS_PERIOD_S, Study
@@ -28,8 +28,9 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
 
 __all__ = [
     "PROGRESS_PERIOD_S", "GraphObserver", "GraphSettings", "NodeLaunch", "ProcessSpec", "ProgressDisplay", "Study",
-    "Supervisor", "ViewServer", "ViewSettings", "check_graph_parameters", "claim_domain", "load_graph_settings",
-    "new_study_id", "parameter_files", "parse_pose_frames", "session_nodes", "session_progress",
+    "Supervisor", "ViewServer", "ViewSettings", "check_graph_parameters", "claim_domain", "graph_namespaces",
+    "load_graph_settings", "new_study_id", "parameter_files", "parse_pose_frames", "refuse_bad_session",
+    "session_nodes", "session_progress", "session_twin_config",
 ]
 
 

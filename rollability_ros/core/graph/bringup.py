@@ -165,6 +165,17 @@ def core_nodes(settings: "GraphSettings", study_dir: str,
     return nodes
 
 
+def session_twin_config(param_files: typing.Sequence[str], given_files: typing.Sequence[str]) -> typing.List[str]:
+    """The rig's ``rig.twin_config`` for a session on ``param_files``: as those files set it (default: the shipped
+    twin files), then each of the user's ``given_files`` that sets launch twin parameters, so the rig's twin reads
+    them (they are applied, never dropped)."""
+    from rollability_ros.core.rig import RigSettings
+    from rollability_ros.core.sim import twin_files
+
+    twin = list(load_parameters(list(param_files)).get("rig.twin_config", RigSettings().twin_config))
+    return [*twin, *(path for path in twin_files(given_files) if path not in twin)]
+
+
 def session_nodes(settings: "GraphSettings", run_dir: str, rig_backend: str = "sim",
                   optimizer: bool = True) -> typing.List[NodeLaunch]:
     """A lab session's graph: :func:`core_nodes`, the rig (``sim`` | ``physical``) and optionally the optimizer.

@@ -15,7 +15,7 @@ import dataclasses
 import functools
 import typing
 
-from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
+from rollability_ros.core.config import ConfigError, check_given_files, from_mapping, load_parameters, section
 
 
 def _node_sections():
@@ -108,6 +108,18 @@ def unknown_parameters(flat: typing.Mapping[str, object]) -> typing.List[str]:
     return sorted(unknown)
 
 
+def graph_namespaces(node_names: typing.Optional[typing.Iterable[str]] = None) -> typing.FrozenSet[str]:
+    """The parameter namespaces the nodes ``node_names`` (default: every node a study starts; names of other nodes
+    pass) apply: their settings' prefixes, ``bringup`` (the session's own) and, with the rig, ``launch_twin`` (its
+    twin reads the parameter files ``rig.twin_config`` lists, the session's among them)."""
+    sections = _node_sections()
+    nodes = set(sections) if node_names is None else set(node_names)
+    namespaces = {"bringup", *(prefix for node in nodes & set(sections) for prefix in sections[node] if prefix)}
+    if "rig" in nodes:
+        namespaces.add("launch_twin")
+    return frozenset(namespaces)
+
+
 def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing.Optional[typing.Sequence[str]] = None,
                            overrides: typing.Optional[dict] = None) -> typing.List[str]:
     """Return every problem in the parameters the nodes ``node_names`` (default: all a study starts) would read.
@@ -139,3 +151,15 @@ def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing
             except (ConfigError, ValueError, TypeError) as exc:
                 problems.append(f"{node}: {exc}")
     return problems
+
+
+def refuse_bad_session(param_files: typing.Sequence[str], given_files: typing.Sequence[str],
+                       nodes: typing.Mapping[str, dict], command: str) -> None:
+    """Raise :class:`ConfigError` before a session starts ``nodes`` (``{node module: its overrides}``, from
+    ``param_files``) when a parameter of the files the user gave (``given_files``) is one no node of it applies
+    (:func:`graph_namespaces`), or any node would refuse its parameters (:func:`check_graph_parameters`)."""
+    checked = [node for node in nodes if node in _node_sections()]
+    check_given_files(given_files, graph_namespaces(checked), command)
+    problems = check_graph_parameters(param_files, checked, {node: nodes[node] for node in checked})
+    if problems:
+        raise ConfigError(f"{command} not started: {len(problems)} invalid parameter(s):\n  " + "\n  ".join(problems))

@@ -62,6 +62,23 @@ def check_output_dir(path: str, what: str, keeps: typing.Iterable[str] = ()) -> 
                           f"a new folder for {what}")
 
 
+def check_parent_steps(path: str, what: str) -> str:
+    """Return ``path`` unless its ``..`` steps climb above the filesystem root (from the working directory for a
+    relative path), else raise ConfigError naming ``what``: the operating system silently stops at ``/`` (the path
+    means somewhere else than its author counted) and SQLite refuses such a path outright."""
+    absolute = path if os.path.isabs(path) else os.path.join(os.getcwd(), path)
+    depth = 0
+    for part in absolute.split(os.sep):
+        if part == "..":
+            if depth == 0:
+                raise ConfigError(f"{what} {path!r} has more '..' than {os.getcwd() if absolute != path else '/'} "
+                                  f"has levels (it climbs above /); give a path that stays inside the file system")
+            depth -= 1
+        elif part not in ("", "."):
+            depth += 1
+    return path
+
+
 def config_dir() -> str:
     """Return the directory holding the shipped ``config/*.yaml`` files.
 

@@ -23,7 +23,8 @@ import typing
 
 import yaml
 
-from rollability_ros.core.config import from_mapping, load_parameters, resolve_config_path, section
+from rollability_ros.core.config import (check_parent_steps, from_mapping, load_parameters, resolve_config_path,
+                                         section)
 from rollability_ros.core.graph.supervisor import ProcessSpec
 from rollability_ros.core.optimization import atomic_write_bytes
 
@@ -129,6 +130,7 @@ class GraphSettings:
             raise ValueError(f"view_port must be a TCP port, got {self.view_port}")
         if self.optimization_timeout_s < 0 or self.campaign_timeout_s < 0 or self.poll_period_s <= 0:
             raise ValueError("timeouts must be >= 0 (0 = none) and poll_period_s > 0")
+        check_parent_steps(self.output_dir, "bringup.output_dir")   # before any folder is made or node started
 
 
 def load_graph_settings(param_files: typing.Sequence[str]) -> "GraphSettings":

@@ -150,7 +150,22 @@ def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing
                 from_mapping(settings_cls, _declared_only(settings_cls, section(flat, prefix)), prefix or node)
             except (ConfigError, ValueError, TypeError) as exc:
                 problems.append(f"{node}: {exc}")
+        if node == "rig" and flat.get("rig.backend", "sim") == "sim":
+            problems.extend(f"rig: {problem}" for problem in _twin_problems(flat))
     return problems
+
+
+def _twin_problems(flat):
+    """What the sim rig's twin would refuse in the files ``rig.twin_config`` names (it loads them at start)."""
+    from rollability_ros.core.rig import RigSettings
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters
+
+    twin_config = flat.get("rig.twin_config", RigSettings().twin_config)
+    try:
+        launch_twin_settings_from_parameters(load_parameters(list(twin_config)))
+    except (ConfigError, ValueError, TypeError) as exc:
+        return [f"launch twin ({', '.join(map(str, twin_config))}): {exc}"]
+    return []
 
 
 def refuse_bad_session(param_files: typing.Sequence[str], given_files: typing.Sequence[str],
@@ -161,5 +176,7 @@ def refuse_bad_session(param_files: typing.Sequence[str], given_files: typing.Se
     checked = [node for node in nodes if node in _node_sections()]
     check_given_files(given_files, graph_namespaces(checked), command)
     problems = check_graph_parameters(param_files, checked, {node: nodes[node] for node in checked})
+    if len(problems) == 1:
+        raise ConfigError(f"nothing started: {problems[0]}")
     if problems:
-        raise ConfigError(f"{command} not started: {len(problems)} invalid parameter(s):\n  " + "\n  ".join(problems))
+        raise ConfigError(f"nothing started: {len(problems)} invalid parameters:\n  " + "\n  ".join(problems))

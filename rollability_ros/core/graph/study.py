@@ -34,8 +34,9 @@ import typing
 import yaml
 
 from rollability_ros.core.graph.bringup import NodeLaunch, core_nodes, load_graph_settings, new_study_id, parameter_files
+from rollability_ros.core.graph.preflight import graph_namespaces
 from rollability_ros.core.graph.progress import GraphObserver, JobProgress, ProgressDisplay, Stopwatch, eta_s
-from rollability_ros.core.config import check_path_component, load_parameters
+from rollability_ros.core.config import check_given_files, check_path_component, load_parameters
 from rollability_ros.core.records import LaunchOutcome
 from rollability_ros.core.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
@@ -77,7 +78,7 @@ class Study:
                  display: typing.Optional[ProgressDisplay] = None,
                  observer: typing.Optional[GraphObserver] = None) -> None:
         self.param_files = parameter_files(["bringup", *extra_configs])
-        self.given_files = list(extra_configs)   # the user's: every key in them is applied or refused
+        check_given_files(extra_configs, graph_namespaces(), "rollability study")   # applied or refused, at once
         self.resuming = resume is not None
         if resume is not None:   # self.resuming
             if extra_configs or study_id:
@@ -219,11 +220,10 @@ class Study:
     def check_parameters(self) -> None:
         """Raise ConfigError listing every node parameter of the graph that its node would refuse, before any
         directory is made or process started (a node's own refusal would only reach its log)."""
-        from rollability_ros.core.config import ConfigError, check_given_files
-        from rollability_ros.core.graph.preflight import check_graph_parameters, graph_namespaces
+        from rollability_ros.core.config import ConfigError
+        from rollability_ros.core.graph.preflight import check_graph_parameters
 
-        check_given_files(self.given_files, graph_namespaces(), "rollability study")
-        problems = check_graph_parameters(self.param_files)
+        problems = check_graph_parameters(self.param_files, overrides={"rig": {"rig.twin_config": self.param_files}})
         if problems:
             raise ConfigError(f"study not started: {len(problems)} invalid parameter(s):\n  " + "\n  ".join(problems))
 
@@ -306,7 +306,6 @@ class Study:
         so a report lists that set and not one a later ``select`` wrote beside it; the logger has stopped, so the
         store has one writer."""
         from rollability_ros.core.campaign import record_campaign_run
-        from rollability_ros.core.store import Store
 
         if os.path.isfile(self.store_path) and os.path.isfile(self.designs_file):
             with Store(self.store_path) as store:

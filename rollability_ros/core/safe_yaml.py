@@ -29,7 +29,7 @@ class YamlLimitError(yaml.YAMLError):
     """A YAML file is well-formed but nests too deep, expands too far through aliases or repeats a key."""
 
 
-def _line(node_or_mark) -> str:
+def _line(node_or_mark: typing.Any) -> str:
     mark = getattr(node_or_mark, "start_mark", node_or_mark)
     return f"line {mark.line + 1}" if mark is not None else "an unknown line"
 
@@ -37,25 +37,25 @@ def _line(node_or_mark) -> str:
 class _BoundedLoader(yaml.SafeLoader):   # pure Python: the C loader's composer cannot be bounded (it recurses)
     """``SafeLoader`` whose composer counts depth and refuses a key repeated in one mapping."""
 
-    def __init__(self, stream):
+    def __init__(self, stream: typing.Union[str, bytes, typing.IO]) -> None:
         super().__init__(stream)
         self._depth = 0
 
     # the scanner looks ahead past every unclosed '[' / '{' (each may start a key), so 200,000 of them would take
     # minutes before the composer sees the first: it stops at the limit too, for flow and block nesting
-    def fetch_flow_collection_start(self, TokenClass):
+    def fetch_flow_collection_start(self, TokenClass: typing.Type[yaml.Token]) -> None:
         """Scan '[' or '{', refusing one that opens more than :data:`MAX_DEPTH` levels."""
         if self.flow_level >= MAX_DEPTH:
             raise YamlLimitError(f"nesting deeper than {MAX_DEPTH} levels at {_line(self.get_mark())}")
         super().fetch_flow_collection_start(TokenClass)
 
-    def add_indent(self, column):
+    def add_indent(self, column: int) -> bool:
         """Open a block level, refusing more than :data:`MAX_DEPTH`."""
         if len(self.indents) >= MAX_DEPTH:
             raise YamlLimitError(f"nesting deeper than {MAX_DEPTH} levels at {_line(self.get_mark())}")
         return super().add_indent(column)
 
-    def compose_node(self, parent, index):
+    def compose_node(self, parent: typing.Optional[yaml.Node], index: typing.Any) -> typing.Optional[yaml.Node]:
         """Compose one node, refusing nesting deeper than :data:`MAX_DEPTH`."""
         self._depth += 1
         try:
@@ -65,7 +65,7 @@ class _BoundedLoader(yaml.SafeLoader):   # pure Python: the C loader's composer 
         finally:
             self._depth -= 1
 
-    def compose_mapping_node(self, anchor):
+    def compose_mapping_node(self, anchor: typing.Any) -> yaml.MappingNode:
         """Compose one mapping, refusing a scalar key written twice in it (merge keys aside)."""
         node = super().compose_mapping_node(anchor)
         seen: typing.Dict[typing.Tuple[str, str], yaml.Node] = {}
@@ -85,7 +85,7 @@ def _check_expansion(root: yaml.Node) -> None:
     sizes: typing.Dict[int, int] = {}
     open_nodes: typing.Set[int] = set()
 
-    def expanded(node):
+    def expanded(node: yaml.Node) -> int:
         key = id(node)
         if key in sizes:
             return sizes[key]

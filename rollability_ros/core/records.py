@@ -33,7 +33,8 @@ def check_twin_seed(seed: object) -> int:
     """Return ``seed`` if it is a launch twin seed a stored launch can hold, [0, :data:`MAX_TWIN_SEED`], else raise
     ``ValueError`` (a physical launch has none: :data:`NO_SEED`)."""
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_TWIN_SEED:
-        raise ValueError(f"seed must be a launch twin seed in [0, 2**63) (a physical launch has none), got {seed!r}")
+        raise ValueError(f"seed must be a twin seed in [0, 2**63) (a physical launch has none: {NO_SEED}), got "
+                         f"{seed!r}")
     return seed
 
 
@@ -55,14 +56,16 @@ class LaunchCondition:
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"{name} must be a finite number, got {value!r}")
-        if not HEIGHT_RANGE_M[0] <= self.height_m <= HEIGHT_RANGE_M[1]:
-            raise ValueError(f"height_m must be within [{HEIGHT_RANGE_M[0]:g}, {HEIGHT_RANGE_M[1]:g}] m, got "
-                             f"{self.height_m}")
-        if not SPEED_RANGE_MPS[0] < self.speed_mps <= SPEED_RANGE_MPS[1]:
-            raise ValueError(f"speed_mps must be within ({SPEED_RANGE_MPS[0]:g}, {SPEED_RANGE_MPS[1]:g}] m/s, got "
-                             f"{self.speed_mps}")
+        if self.height_m < HEIGHT_RANGE_M[0]:
+            raise ValueError(f"height_m must be >= {HEIGHT_RANGE_M[0]:g}, got {self.height_m}")
+        if self.speed_mps <= SPEED_RANGE_MPS[0]:
+            raise ValueError(f"speed_mps must be > {SPEED_RANGE_MPS[0]:g}, got {self.speed_mps}")
+        if self.height_m > HEIGHT_RANGE_M[1]:   # no rig launches there: one declaration of the bounds
+            raise ValueError(f"height_m must be <= {HEIGHT_RANGE_M[1]:g} m, got {self.height_m}")
+        if self.speed_mps > SPEED_RANGE_MPS[1]:
+            raise ValueError(f"speed_mps must be <= {SPEED_RANGE_MPS[1]:g} m/s, got {self.speed_mps}")
         if not ANGLE_RANGE_DEG[0] <= self.angle_deg <= ANGLE_RANGE_DEG[1]:
-            raise ValueError(f"angle_deg must be within [{ANGLE_RANGE_DEG[0]:g}, {ANGLE_RANGE_DEG[1]:g}] deg, got "
+            raise ValueError(f"angle_deg must be within [{ANGLE_RANGE_DEG[0]:g}, {ANGLE_RANGE_DEG[1]:g}], got "
                              f"{self.angle_deg}")
         if self.repetition < 0:
             raise ValueError(f"repetition must be >= 0, got {self.repetition}")

@@ -110,6 +110,7 @@ Outcome (the rig's rule, :func:`rig_verdict`; the same in every engine)
 import dataclasses
 import hashlib
 import math
+import os
 import pickle
 import types
 import typing
@@ -117,7 +118,7 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
-from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
+from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, resolve_config_path, section
 from rollability_ros.core.profile import DesignSources, profile_mesh_for
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import NO_SEED, NOT_MEASURED, LaunchCondition
@@ -370,6 +371,20 @@ class LaunchTwinSettings(RobotChoice):
 
 #: settings field -> config namespace
 _SECTIONS = {"physics": "sim", "robot": "robot", "trial": "trial", "twin": "launch_twin", "urdf_robot": "urdf_robot"}
+
+
+#: The namespace of the twin's own parameters (``config/launch_twin.yaml``), and every namespace the twin reads.
+TWIN_NAMESPACE = _SECTIONS["twin"]
+TWIN_SECTIONS = frozenset(_SECTIONS.values())
+
+
+def twin_files(paths: typing.Sequence[str], namespaces: typing.Iterable[str] = (TWIN_NAMESPACE,)) -> typing.List[str]:
+    """The parameter files among ``paths`` that set parameters in ``namespaces`` (default: the twin's own), as
+    absolute paths: those a command appends to its twin's file list (``objective.twin_config``,
+    ``rig.twin_config``) so that the twin reads them."""
+    prefixes = tuple(namespace + "." for namespace in namespaces)
+    return [os.path.abspath(resolve_config_path(path)) for path in paths
+            if any(name.startswith(prefixes) for name in load_parameters([path]))]
 
 
 def launch_twin_settings_from_parameters(flat: typing.Mapping[str, typing.Any],

@@ -22,7 +22,7 @@ Contact
 Robot
     The built-in chassis, or any wheeled URDF robot when ``urdf_robot`` names a mount link (the trials' choice,
     :class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`; e.g. ``config/husky.yaml`` in the twin's files).
-    The profile weighs that robot's ``profile_density_kgpm3``.
+    The profile weighs what that robot's ``profile_print`` makes of its mesh, times ``profile_mass_scale``.
 Launcher sized for the robot (:mod:`~rollability_ros.core.sim.launcher_geometry`)
     The push plate's width, height, clearance and force and the ledge's depth and width are derived from the robot's
     collision geometry wherever the config leaves them 0 (the shipped ``config/launch_twin.yaml`` does; the
@@ -110,6 +110,7 @@ Outcome (the rig's rule, :func:`rig_verdict`; the same in every engine)
 import dataclasses
 import hashlib
 import math
+import os
 import pickle
 import types
 import typing
@@ -117,7 +118,7 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
-from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
+from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, resolve_config_path, section
 from rollability_ros.core.profile import DesignSources, profile_mesh_for
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import NO_SEED, NOT_MEASURED, LaunchCondition
@@ -368,7 +369,7 @@ class LaunchTwinSettings(RobotChoice):
 
     The robot launched is the built-in chassis (``robot``) unless ``urdf_robot`` names a mount link, chosen as
     for the trials (:class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`: ``robot_model()``,
-    ``profile_density_kgpm3()``).
+    ``profile_body(mesh)``).
     """
 
     physics: PhysicsParams = dataclasses.field(default_factory=PhysicsParams)
@@ -380,6 +381,20 @@ class LaunchTwinSettings(RobotChoice):
 
 #: settings field -> config namespace
 _SECTIONS = {"physics": "sim", "robot": "robot", "trial": "trial", "twin": "launch_twin", "urdf_robot": "urdf_robot"}
+
+
+#: The namespace of the twin's own parameters (``config/launch_twin.yaml``), and every namespace the twin reads.
+TWIN_NAMESPACE = _SECTIONS["twin"]
+TWIN_SECTIONS = frozenset(_SECTIONS.values())
+
+
+def twin_files(paths: typing.Sequence[str], namespaces: typing.Iterable[str] = (TWIN_NAMESPACE,)) -> typing.List[str]:
+    """The parameter files among ``paths`` that set parameters in ``namespaces`` (default: the twin's own), as
+    absolute paths: those a command appends to its twin's file list (``objective.twin_config``,
+    ``rig.twin_config``) so that the twin reads them."""
+    prefixes = tuple(namespace + "." for namespace in namespaces)
+    return [os.path.abspath(resolve_config_path(path)) for path in paths
+            if any(name.startswith(prefixes) for name in load_parameters([path]))]
 
 
 def launch_twin_settings_from_parameters(flat: typing.Mapping[str, typing.Any],
@@ -640,7 +655,7 @@ def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force
 def profile_body(configuration: str, settings: LaunchTwinSettings) -> typing.Optional[ProfileBody]:
     """The :class:`ProfileBody` mounted for ``configuration`` (None = baseline); see :mod:`designs`."""
     mesh = profile_mesh_for(configuration, settings.twin.designs)
-    return None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
+    return None if mesh is None else settings.profile_body(mesh)
 
 
 def launch_draws(seed: int, nominal_speed_mps: float, nominal_angle_deg: float,

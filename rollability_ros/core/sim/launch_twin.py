@@ -102,8 +102,10 @@ Outcome (the rig's rule, :func:`rig_verdict`; the same in every engine)
     within ``contact_tolerance_m`` of the surface it rests on), wherever it rests: on the foam pad, on the floor
     beyond it, against the ledge. Where it came to rest (``rest_surface``, ``rest_position_m``,
     ``rest_distance_m``), ``time_to_rest_s``, its tilt and the peak deceleration are recorded beside the verdict
-    and never decide it: the same launches give the same count on a 2.5 x 3 m pad and a 30 x 30 m one
-    (bench/bench_pad_size.py). The early decision (:func:`step_launch`) decides only while the robot cannot
+    and never decide it (test_launch_twin: a chassis that rolls off a 0.5 m pad and stops on its wheels on the
+    floor is upright, both engines; test_launch_twin_outcome: the rule against the IMU classifier on analytic
+    poses; measured, not tested: the same launches give upright counts within 3 of 100 on a 2.5 x 3 m pad and a
+    30 x 30 m one, bench/bench_pad_size.py). The early decision (:func:`step_launch`) decides only while the robot cannot
     reach the pad's edges or the ledge, where the pad's top is the only ground and this rule is the one its
     energy barriers classify by.
 """

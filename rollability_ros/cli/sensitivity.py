@@ -1,5 +1,6 @@
 """`rollability sensitivity`: the simulated fitness of the bare chassis and of profiles against each uncertain
-factor (disturbance scale, start pose, contact reading, centre of mass) and robustly, with intervals."""
+factor (disturbance scale, start pose, contact reading, centre of mass) and robustly, with intervals; with
+``--launches``, launches on the twin against each of its unknowns (both ends of each range) and robustly."""
 import argparse
 import csv
 import os
@@ -35,6 +36,7 @@ def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.results import gain_lines
     from rollability_ros.core.sim import sensitivity_rows
+    from rollability_ros.core.sim.sensitivity import launch_sensitivity_rows
 
     check_output_dir(args.out, "--out", keeps=("sensitivity.csv", "sensitivity.png"))
     settings = evaluation.load_settings(["sim", "robot", "evaluator", *args.config])
@@ -48,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
               f"{row['trials']:<4} {row['fitness']:.2f} [{row['ci_low']:.2f}, {row['ci_high']:.2f}]", flush=True)
 
     with evaluation.make_executor(settings.evaluator, args.workers) as executor:
-        rows = sensitivity_rows(profiles, settings, args.trials, args.seed, executor, on_row=show)
+        study = launch_sensitivity_rows if args.launches else sensitivity_rows
+        rows = study(profiles, settings, args.trials, args.seed, executor, on_row=show)
     csv_path = os.path.join(args.out, "sensitivity.csv")
     with open(csv_path, "w", newline="", encoding="utf-8") as stream:
         writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
@@ -72,11 +75,18 @@ def register(subparsers: Subparsers) -> None:
                     "uncertain factor at a time (disturbance scale, start pose, contact reading, centre of mass) "
                     "and all of them at once (the robust fitness), every evaluation from one seed (common "
                     "random numbers); prints each fitness with its Wilson 95%% interval and writes "
-                    "sensitivity.csv and sensitivity.png. See docs/optimization.md.")
+                    "sensitivity.csv and sensitivity.png. With --launches: launches on the twin under the "
+                    "campaign's conditions, each of the twin's unknowns (contact reading, centre of mass, foam "
+                    "stiffness, restitution, friction and rolling friction, wheel drag) at both ends of its "
+                    "range (objective.robust) and all drawn at once; each design minus the bare robot with its "
+                    "Newcombe 95%% interval. See docs/optimization.md and docs/twin-model.md.")
     parser.add_argument("--mesh", action="append", default=[], metavar="LABEL=FILE",
                         help="a profile solid (STL/OBJ, metres, base on z = 0) under a label (repeatable)")
     parser.add_argument("--designs-file", metavar="FILE", help="designs.yaml of `rollability select`")
-    parser.add_argument("--trials", type=int, default=60, help="trials per evaluation (default 60)")
+    parser.add_argument("--launches", action="store_true",
+                        help="vary the launch twin's unknowns on launches (the rig's measure) instead of the "
+                             "disturbance trial's factors")
+    parser.add_argument("--trials", type=int, default=60, help="trials (or launches) per evaluation (default 60)")
     parser.add_argument("--seed", type=int, default=0, help="the one base seed of every evaluation (default 0)")
     parser.add_argument("--workers", type=int, help="worker processes (default: evaluator.workers)")
     parser.add_argument("--out", default="sensitivity", help="output folder (default ./sensitivity); one that "

@@ -117,6 +117,9 @@ def test_robust_launches_reuse_one_mujoco_twin_and_match_a_fresh_build():
     robust = RobustSettings(enabled=True)
     first, drawn = (robust_settings_for(twin, seed, robust) for seed in (4, 9))
     assert first.robot.com_offset_z_m != drawn.robot.com_offset_z_m and first.twin.foam != drawn.twin.foam
+    assert first.twin.foam.lateral_friction != drawn.twin.foam.lateral_friction
+    assert first.twin.foam.rolling_friction != drawn.twin.foam.rolling_friction
+    assert first.twin.wheel_drag_torque_nm != drawn.twin.wheel_drag_torque_nm
     condition = LaunchCondition("baseline", 0.75, 0.8, 0.0)
     mujoco_launch_twin._cache.clear()
     mujoco_launch_twin.MujocoLaunch.simulate(condition, first, 3, None)
@@ -133,3 +136,75 @@ def test_robust_launches_reuse_one_mujoco_twin_and_match_a_fresh_build():
         mujoco_launch_twin._cache.clear()
         mujoco_launch_twin.MujocoLaunch.simulate(condition, first, 5, None)
         assert repr(mujoco_launch_twin.MujocoLaunch.simulate(condition, settings, 3, None)) == alone
+
+
+def test_launch_draws_cover_foam_friction_rolling_and_wheel_drag_and_keep_the_older_draws():
+    """The wheel-on-foam unknowns are drawn log-uniform over their stated ranges, from the trial seed's own stream
+    after the older unknowns (whose values do not move), and reach the settings of the wheels the twin uses."""
+    from rollability_ros.core.sim.launch_twin import LaunchTwinSettings
+
+    robust = RobustSettings(enabled=True)
+    draws = [draw(seed, robust, -0.015, 0.06) for seed in range(400)]
+    for field, (low, high) in (("foam_lateral_friction", (0.6, 2.5)), ("foam_rolling_friction_m", (0.002, 0.05)),
+                               ("wheel_drag_nm", (0.0005, 0.02))):
+        values = sorted(getattr(d, field) for d in draws)
+        assert low <= values[0] < low * 1.1 and high / 1.1 < values[-1] <= high, field
+        below_middle = sum(v < (low * high) ** 0.5 for v in values)   # log-uniform: half below the log midpoint
+        assert 160 < below_middle < 240, field
+    # the older unknowns of trial seed 7 as drawn before the new ones were added (values from that version)
+    assert (draws[7].disturbance_scale, draws[7].start_roll_deg, draws[7].contact_model, draws[7].com_offset_z_m,
+            draws[7].foam_stiffness_factor, draws[7].foam_restitution) == pytest.approx(
+        (1.6553459542991664, 180.0, "per_contact", -0.011239781177851415, 0.6389950123778069, 0.27143211935986666))
+    twin = robust_settings_for(LaunchTwinSettings(), 7, robust)
+    assert (twin.twin.foam.lateral_friction, twin.twin.foam.rolling_friction, twin.twin.wheel_drag_torque_nm) == (
+        draws[7].foam_lateral_friction, draws[7].foam_rolling_friction_m, draws[7].wheel_drag_nm)
+    own_wheels = LaunchTwinSettings()
+    own_wheels.twin.wheel_model = "robot"
+    drawn = robust_settings_for(own_wheels, 7, robust)
+    assert drawn.robot.wheel_drag_torque_nm == draws[7].wheel_drag_nm   # the drag acts on the wheels in use
+    assert drawn.twin.wheel_drag_torque_nm == own_wheels.twin.wheel_drag_torque_nm
+    with pytest.raises(ValueError, match="need 0 < wheel_drag_min <= wheel_drag_max"):
+        RobustSettings(wheel_drag_min_nm=0.0).validate()
+
+
+def test_launch_sensitivity_rows_are_real_launches_at_each_end_of_an_unknowns_range():
+    """Tiny counts: the bare robot and a block profile, four launches at each end of the foam-friction range and
+    robustly; a row's count is the count of the same launches made directly, and the gains table has each design
+    minus the bare robot at every level."""
+    pytest.importorskip("pybullet")
+    import trimesh
+
+    from rollability_ros.core.results import gain_lines
+    from rollability_ros.core.results.sensitivity_table import gain_rows
+    from rollability_ros.core.sim.evaluation import mesh_job, settings_at_fidelity, trial_seed
+    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.sim.sensitivity import (LAUNCH_FACTORS, launch_levels, launch_sensitivity_rows,
+                                                      with_launch_factor)
+
+    robust = RobustSettings(enabled=True)
+    levels = launch_levels(robust, -0.015)
+    assert tuple(levels) == LAUNCH_FACTORS and levels["foam_lateral_friction"] == (0.6, 2.5)
+    assert levels["com_offset_z_m"] == pytest.approx((-0.021, -0.009))
+    block = trimesh.creation.box((0.12, 0.16, 0.05))
+    block.apply_translation((0.0, 0.0, 0.025))
+    settings = evaluation.EvaluatorSettings()
+    rows = launch_sensitivity_rows({"baseline": None, "block": block}, settings, 4, 1,
+                                   levels={"foam_lateral_friction": (0.6, 2.5)})
+    assert [(r["configuration"], r["factor"], r["level"]) for r in rows] == [
+        (label, factor, level) for label in ("baseline", "block")
+        for factor, level in (("foam_lateral_friction", 0.6), ("foam_lateral_friction", 2.5),
+                              ("robust", "all unknowns drawn"))]
+    job = mesh_job(None, settings_at_fidelity(settings, "launch"))
+    twin = with_launch_factor(job.launch.twin, "foam_lateral_friction", 2.5)
+    assert twin.twin.foam.lateral_friction == 2.5
+    direct = sum(simulate_valid_launch(job.launch.condition(i), twin, trial_seed(1, i), profile=None,
+                                       use_profile=True).upright for i in range(4))
+    assert rows[1]["successes"] == direct > 0 and rows[1]["trials"] == 4
+    gains = gain_rows(rows)
+    assert [(g["factor"], g["level"], g["configuration"]) for g in gains] == [
+        ("foam_lateral_friction", 0.6, "block"), ("foam_lateral_friction", 2.5, "block"),
+        ("robust", "all unknowns drawn", "block")]
+    assert all(g["gain_low"] <= g["gain"] <= g["gain_high"] for g in gains)
+    assert gain_lines(rows)[0].startswith("sensitivity (simulated launches on the twin)")
+    with pytest.raises(ValueError, match="unknown launch factor 'wind'"):
+        with_launch_factor(job.launch.twin, "wind", 1.0)

@@ -50,7 +50,7 @@ def gain_lines(rows: typing.Sequence[dict], baseline: str = "baseline") -> typin
              "(same trials; Newcombe 95%)"]
     for gain in gains:
         mark = "**" if gain["factor"] == "robust" else "  "
-        lines.append(f"{mark}{gain['factor']:<18} {str(gain['level']):<18} {gain['configuration']:<6} "
+        lines.append(f"{mark}{gain['factor']:<24} {str(gain['level']):<18} {gain['configuration']:<6} "
                      f"{gain['successes']:>3}/{gain['trials']:<3} vs {gain['baseline_successes']:>3}/"
                      f"{gain['baseline_trials']:<3} {gain['gain']:+.2f} [{gain['gain_low']:+.2f}, "
                      f"{gain['gain_high']:+.2f}]")

@@ -97,7 +97,7 @@ def launch_levels(robust: RobustSettings, nominal_com_offset_z_m: float
                   ) -> typing.Dict[str, typing.Tuple[typing.Union[float, str], ...]]:
     """``{factor: (low, high)}`` of every launch unknown (:data:`LAUNCH_FACTORS`): the ends of its range in
     ``robust`` (the contact readings it lists; the centre of mass at its configured value -+ 2 ``com_sigma_m``)."""
-    com = (nominal_com_offset_z_m - 2 * robust.com_sigma_m, nominal_com_offset_z_m + 2 * robust.com_sigma_m)
+    com = tuple(round(nominal_com_offset_z_m + k * robust.com_sigma_m, 9) for k in (-2, 2))   # m, no float noise
     return {"contact_model": tuple(robust.contact_models), "com_offset_z_m": com,
             "foam_stiffness_factor": robust.range_of("foam_stiffness_factor"),
             "foam_restitution": (0.0, robust.foam_restitution_max),

@@ -28,6 +28,23 @@ def _profiles(args):
     return profiles
 
 
+def _varied(items: typing.Sequence[str]) -> typing.Dict[str, typing.Tuple[float, ...]]:
+    """``{dotted setting: levels}`` of ``--vary NAME=LOW,HIGH`` items; ``ValueError`` naming a malformed one."""
+    import math
+
+    varied = {}
+    for item in items:
+        name, _, values = item.partition("=")
+        try:
+            levels = tuple(float(v) for v in values.split(","))
+        except ValueError:
+            levels = ()
+        if not name or len(levels) < 2 or not all(math.isfinite(v) for v in levels):
+            raise ValueError(f"--vary takes NAME=LOW,HIGH (two or more finite numbers), got {item!r}")
+        varied[name] = levels
+    return varied
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the sensitivity study, write ``sensitivity.csv`` and ``sensitivity.png`` to ``--out``; exit code."""
     from rollability_ros.core.config import check_output_dir
@@ -43,6 +60,9 @@ def run(args: argparse.Namespace) -> int:
     if args.trials < 1:
         raise ValueError(f"--trials must be >= 1, got {args.trials}")
     profiles = _profiles(args)
+    varied = _varied(args.vary)
+    if varied and not args.launches:
+        raise ValueError("--vary needs --launches (it varies a launch twin setting)")
     os.makedirs(args.out, exist_ok=True)
 
     def show(row: typing.Mapping[str, typing.Any]) -> None:
@@ -50,8 +70,11 @@ def run(args: argparse.Namespace) -> int:
               f"{row['trials']:<4} {row['fitness']:.2f} [{row['ci_low']:.2f}, {row['ci_high']:.2f}]", flush=True)
 
     with evaluation.make_executor(settings.evaluator, args.workers) as executor:
-        study = launch_sensitivity_rows if args.launches else sensitivity_rows
-        rows = study(profiles, settings, args.trials, args.seed, executor, on_row=show)
+        if args.launches:
+            rows = launch_sensitivity_rows(profiles, settings, args.trials, args.seed, executor, on_row=show,
+                                           settings_levels=varied)
+        else:
+            rows = sensitivity_rows(profiles, settings, args.trials, args.seed, executor, on_row=show)
     csv_path = os.path.join(args.out, "sensitivity.csv")
     with open(csv_path, "w", newline="", encoding="utf-8") as stream:
         writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
@@ -86,6 +109,9 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--launches", action="store_true",
                         help="vary the launch twin's unknowns on launches (the rig's measure) instead of the "
                              "disturbance trial's factors")
+    parser.add_argument("--vary", action="append", default=[], metavar="NAME=LOW,HIGH",
+                        help="with --launches: also a row per level of this numeric launch twin setting, by its "
+                             "dotted settings name (e.g. twin.wheel_side_friction_factor=0.03,0.5; repeatable)")
     parser.add_argument("--trials", type=int, default=60, help="trials (or launches) per evaluation (default 60)")
     parser.add_argument("--seed", type=int, default=0, help="the one base seed of every evaluation (default 0)")
     parser.add_argument("--workers", type=int, help="worker processes (default: evaluator.workers)")

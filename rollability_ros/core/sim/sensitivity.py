@@ -118,9 +118,12 @@ def launch_sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]]
                             trials: int, seed: int, executor: typing.Optional[TrialExecutor] = None,
                             levels: typing.Optional[typing.Mapping[str, typing.Sequence[typing.Union[float, str]]]] = None,
                             robust: typing.Optional[RobustSettings] = None,
-                            on_row: typing.Optional[typing.Callable[[Row], None]] = None) -> typing.List[Row]:
+                            on_row: typing.Optional[typing.Callable[[Row], None]] = None,
+                            settings_levels: typing.Optional[typing.Mapping[str, typing.Sequence[float]]] = None
+                            ) -> typing.List[Row]:
     """Launch every profile on the twin at both ends of every unknown's range and robustly; the rows (dicts,
-    as :func:`sensitivity_rows`).
+    as :func:`sensitivity_rows`). ``settings_levels`` adds rows for any numeric twin setting by its dotted
+    settings name (``{"twin.wheel_side_friction_factor": (0.03, 0.5)}``; :func:`with_setting`).
 
     ``settings`` are the evaluator's (its ``objective`` names the campaign and twin files; its launch engine
     runs the launches: :func:`~rollability_ros.core.sim.evaluation.settings_at_fidelity` ``launch``); ``robust``
@@ -138,11 +141,48 @@ def launch_sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]]
         job = mesh_job(mesh, plain)
         if job.launch is None:   # settings_at_fidelity("launch") always has launches
             raise ValueError("the launch sensitivity needs launch trials")
-        chosen = levels or launch_levels(robust, job.launch.twin.robot.com_offset_z_m)
+        chosen = levels if levels is not None else launch_levels(robust, job.launch.twin.robot.com_offset_z_m)
         cases = [(factor, level, dataclasses.replace(job, launch=dataclasses.replace(
             job.launch, twin=with_launch_factor(job.launch.twin, factor, level))))
                  for factor, values in chosen.items() for level in values]
         cases.append(("robust", "all unknowns drawn", dataclasses.replace(job, settings=drawn)))
+        cases += [(name, level, _setting_case(mesh, plain, name, level)) for name, values in
+                  (settings_levels or {}).items() for level in values]
         for factor, level, case in cases:
             rows.append(_row(label, factor, level, evaluate_job(case, trials, seed, executor), on_row))
     return rows
+
+
+def with_setting(settings: typing.Any, dotted: str, value: float, full_name: str = "") -> typing.Any:
+    """Dataclass ``settings`` with the numeric field at ``dotted`` (``"twin.foam.thickness_m"``) set to
+    ``value``; ``ValueError`` naming a path that is not a numeric setting, or a value its group refuses."""
+    full_name = full_name or dotted
+    head, _, rest = dotted.partition(".")
+    if not dataclasses.is_dataclass(settings) or head not in {f.name for f in dataclasses.fields(settings)}:
+        raise ValueError(f"{full_name!r} is not a launch twin setting (dotted settings names, e.g. "
+                         f"twin.foam.thickness_m, robot.body_mass_kg)")
+    current = getattr(settings, head)
+    if rest:
+        replaced = dataclasses.replace(settings, **{head: with_setting(current, rest, value, full_name)})
+    elif isinstance(current, bool) or not isinstance(current, (int, float)):
+        raise ValueError(f"{full_name} is not a numeric setting (it holds {current!r})")
+    else:
+        replaced = dataclasses.replace(settings, **{head: type(current)(value)})
+    if hasattr(replaced, "validate"):
+        replaced.validate()
+    return replaced
+
+
+def _setting_case(mesh: typing.Optional[Mesh], plain: EvaluatorSettings, dotted: str, value: float) -> typing.Any:
+    """The TrialJob of ``mesh`` with twin setting ``dotted`` at ``value``; a ``robot.*`` setting also reaches
+    the evaluator's robot, whose profile density weighs the candidate's profile."""
+    evaluator = plain
+    if dotted.startswith("robot."):
+        evaluator = dataclasses.replace(plain, robot=with_setting(plain.robot, dotted.partition(".")[2], value,
+                                                                  dotted))
+    job = mesh_job(mesh, evaluator)
+    if job.launch is None:
+        raise ValueError("the launch sensitivity needs launch trials")
+    nominal = perturb(job.launch.twin, nominal_draw(job.launch.twin))   # early decision off, as every row
+    twin = with_setting(nominal, dotted, value)
+    return dataclasses.replace(job, launch=dataclasses.replace(job.launch, twin=twin))

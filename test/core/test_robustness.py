@@ -208,3 +208,27 @@ def test_launch_sensitivity_rows_are_real_launches_at_each_end_of_an_unknowns_ra
     assert gain_lines(rows)[0].startswith("sensitivity (simulated launches on the twin)")
     with pytest.raises(ValueError, match="unknown launch factor 'wind'"):
         with_launch_factor(job.launch.twin, "wind", 1.0)
+
+
+def test_any_numeric_twin_setting_can_be_varied_and_a_robot_setting_weighs_the_profile():
+    """``--vary``: a dotted settings name reaches the twin (and, for robot.*, the candidate's profile mass); a path
+    that is not a numeric setting, or a value its group refuses, is refused naming it."""
+    import trimesh
+
+    from rollability_ros.core.sim.evaluation import settings_at_fidelity
+    from rollability_ros.core.sim.sensitivity import _setting_case, with_setting
+
+    block = trimesh.creation.box((0.1, 0.1, 0.05))
+    plain = settings_at_fidelity(evaluation.EvaluatorSettings(), "launch")
+    light = _setting_case(block, plain, "robot.profile_density_kgpm3", 50.0)
+    assert light.profile.mass_kg == pytest.approx(0.1 * 0.1 * 0.05 * 50.0)
+    assert light.launch.twin.robot.profile_density_kgpm3 == 50.0
+    assert not light.launch.twin.trial.early_decision   # every row launches with the full rest rule
+    thin = _setting_case(None, plain, "twin.foam.thickness_m", 0.02)
+    assert thin.launch.twin.twin.foam.thickness_m == 0.02 and thin.profile is None
+    with pytest.raises(ValueError, match="'twin.foam.thick' is not a launch twin setting"):
+        with_setting(thin.launch.twin, "twin.foam.thick", 1.0)
+    with pytest.raises(ValueError, match="twin.wheel_model is not a numeric setting"):
+        with_setting(thin.launch.twin, "twin.wheel_model", 1.0)
+    with pytest.raises(ValueError, match="wheel_side_friction_factor must be in"):
+        with_setting(thin.launch.twin, "twin.wheel_side_friction_factor", 3.0)

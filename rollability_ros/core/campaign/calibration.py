@@ -76,13 +76,15 @@ class CalibrationSettings:
     parameters: typing.List[str] = dataclasses.field(default_factory=lambda: [
         "launch_twin.foam.contact_stiffness_npm", "launch_twin.foam.contact_damping_nspm",
         "launch_twin.foam.lateral_friction", "launch_twin.foam.restitution", "launch_twin.speed_sigma_fraction",
-        "robot.com_offset_z_m", "launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm"])
+        "robot.com_offset_z_m", "launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm",
+        "robot.profile_mass_scale", "launch_twin.launcher.ledge_rolling_friction",
+        "launch_twin.launcher.speed_bias_fraction"])
     lower: typing.List[float] = dataclasses.field(default_factory=lambda: [5000.0, 20.0, 0.2, 0.0, 0.0, -0.019,
-                                                                           0.002, 0.0005])
+                                                                           0.002, 0.0005, 0.5, 0.0, -0.15])
     upper: typing.List[float] = dataclasses.field(default_factory=lambda: [160000.0, 600.0, 3.0, 1.0, 0.15, 0.015,
-                                                                           0.05, 0.02])
+                                                                           0.05, 0.02, 2.0, 0.01, 0.15])
     log_scale: typing.List[bool] = dataclasses.field(default_factory=lambda: [True, True, True, False, False, False,
-                                                                              True, True])
+                                                                              True, True, True, False, False])
     sim_repetitions: int = 16
     probability_floor: float = 0.01
     popsize: int = 8

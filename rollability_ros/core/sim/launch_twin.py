@@ -570,12 +570,31 @@ def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force
     engine = LAUNCH_ENGINES.get(settings.physics.engine)
     launcher = settings.twin.launcher
     ratio, gate = 1.0, NOT_MEASURED
+    # the bracket: (ratio, gate) known to read below / above the set speed (a stall, no reading, counts as 0)
+    slow, fast = (0.0, 0.0), (math.inf, math.inf)
+    moved = ""   # which end of the bracket the last run moved
     for _ in range(SOLVE_RUNS):
         drive = LaunchDrive("stroke", ratio, force_n, launcher.stroke_m, ramp_s)
         gate = engine.simulate(condition, exact, 0, None, drive=drive, until_edge=True).measured_speed_mps
         if gate > 0 and abs(gate / set_speed_mps - 1) <= SOLVE_TOLERANCE:
             return ratio
-        ratio = ratio * (set_speed_mps / gate if gate > 0 else 2.0)
+        reading = gate if gate > 0 else 0.0
+        side = "fast" if reading > set_speed_mps else "slow"
+        if side == "fast":
+            fast = min(fast, (ratio, reading))
+        else:
+            slow = max(slow, (ratio, reading))
+        if math.isfinite(fast[0]) and slow[0] > 0:
+            # inside the bracket: with a strong coast resistance the gate is far from proportional to the plate's
+            # speed (the robot stalls below some speed) and proportional steps oscillate; false position while
+            # both ends read a speed and the ends alternate, else bisection (a stall reads none; a stale end)
+            if slow[1] > 0 and side != moved:
+                ratio = slow[0] + (fast[0] - slow[0]) * (set_speed_mps - slow[1]) / (fast[1] - slow[1])
+            else:
+                ratio = (slow[0] + fast[0]) / 2
+            moved = side
+        else:
+            ratio = ratio * (set_speed_mps / gate if gate > 0 else 2.0)
         if ratio > SOLVE_MAX_RATIO:
             break
     raise ValueError(

@@ -12,7 +12,9 @@ and draws them (:func:`rollability_ros.core.results.report_figures.sensitivity`)
 For launches (:func:`launch_sensitivity_rows`, ``rollability sensitivity --launches``) the factors are the launch
 twin's unknowns, each at the low and the high end of its plausible range as the robust draws state it
 (:func:`launch_levels`): the contact reading, the chassis's centre-of-mass height (configured value -+ 2 sigma),
-the foam's stiffness factor, restitution, friction and rolling friction, and the wheels' drag. Every evaluation
+the foam's stiffness factor, restitution, friction and rolling friction, the wheels' drag, the profile's mass
+multiplier, the launcher base plate's rolling friction, the speed setting's bias and the launcher model (both,
+whatever the robust draws list). Every evaluation
 is ``trials`` launches on the twin under the campaign's conditions (condition ``i mod C`` for launch ``i``), from
 one base seed, so each design's gain over the bare robot at a level is on the same launches.
 """
@@ -22,7 +24,7 @@ import typing
 from rollability_ros.core.profile import Mesh
 from rollability_ros.core.sim.evaluation import (EvaluatorSettings, TrialExecutor, evaluate_job, evaluate_mesh, mesh_job,
                                                   settings_at_fidelity)
-from rollability_ros.core.sim.robustness import RobustSettings, nominal_draw, perturb
+from rollability_ros.core.sim.robustness import RobustSettings, nominal_draw, perturb, scaled_profile
 
 #: factor -> default levels.
 DEFAULT_LEVELS = {"disturbance_scale": (0.5, 1.0, 2.0), "start_roll_deg": (180.0, 90.0),
@@ -30,7 +32,8 @@ DEFAULT_LEVELS = {"disturbance_scale": (0.5, 1.0, 2.0), "start_roll_deg": (180.0
 
 #: The launch twin's unknowns (the robust draws' fields varied by :func:`launch_sensitivity_rows`), in row order.
 LAUNCH_FACTORS = ("contact_model", "com_offset_z_m", "foam_stiffness_factor", "foam_restitution",
-                  "foam_lateral_friction", "foam_rolling_friction_m", "wheel_drag_nm")
+                  "foam_lateral_friction", "foam_rolling_friction_m", "wheel_drag_nm", "profile_mass_scale",
+                  "ledge_rolling_friction_m", "speed_bias_fraction", "launcher_model")
 
 #: One row of the study (configuration, factor, level, successes, trials, fitness and its interval).
 Row = typing.Dict[str, typing.Any]
@@ -103,7 +106,11 @@ def launch_levels(robust: RobustSettings, nominal_com_offset_z_m: float
             "foam_restitution": (0.0, robust.foam_restitution_max),
             "foam_lateral_friction": robust.range_of("foam_lateral_friction"),
             "foam_rolling_friction_m": robust.range_of("foam_rolling_friction"),
-            "wheel_drag_nm": robust.range_of("wheel_drag")}
+            "wheel_drag_nm": robust.range_of("wheel_drag"),
+            "profile_mass_scale": robust.range_of("profile_mass_scale"),
+            "ledge_rolling_friction_m": (0.0, robust.ledge_rolling_friction_max_m),
+            "speed_bias_fraction": (-robust.speed_bias_fraction_max, robust.speed_bias_fraction_max),
+            "launcher_model": ("stroke", "push_through")}
 
 
 def with_launch_factor(twin: typing.Any, factor: str, level: typing.Any) -> typing.Any:
@@ -142,15 +149,21 @@ def launch_sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]]
         if job.launch is None:   # settings_at_fidelity("launch") always has launches
             raise ValueError("the launch sensitivity needs launch trials")
         chosen = levels if levels is not None else launch_levels(robust, job.launch.twin.robot.com_offset_z_m)
-        cases = [(factor, level, dataclasses.replace(job, launch=dataclasses.replace(
-            job.launch, twin=with_launch_factor(job.launch.twin, factor, level))))
-                 for factor, values in chosen.items() for level in values]
+        cases = [(factor, level, _factor_case(job, factor, level)) for factor, values in chosen.items()
+                 for level in values]
         cases.append(("robust", "all unknowns drawn", dataclasses.replace(job, settings=drawn)))
         cases += [(name, level, _setting_case(mesh, plain, name, level)) for name, values in
                   (settings_levels or {}).items() for level in values]
         for factor, level, case in cases:
             rows.append(_row(label, factor, level, evaluate_job(case, trials, seed, executor), on_row))
     return rows
+
+
+def _factor_case(job: typing.Any, factor: str, level: typing.Any) -> typing.Any:
+    """The TrialJob ``job`` with launch unknown ``factor`` at ``level`` (its profile weighed for it)."""
+    twin = with_launch_factor(job.launch.twin, factor, level)
+    return dataclasses.replace(job, launch=dataclasses.replace(job.launch, twin=twin),
+                               profile=scaled_profile(job.profile, job.settings, twin))
 
 
 def with_setting(settings: typing.Any, dotted: str, value: float, full_name: str = "") -> typing.Any:

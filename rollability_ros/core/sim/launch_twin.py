@@ -521,7 +521,10 @@ class LaunchDrive:
 
 
 #: The stroke model's speed solve: gate speed within this fraction of the set speed, at most this many runs.
-SOLVE_TOLERANCE, SOLVE_RUNS = 0.002, 12
+SOLVE_TOLERANCE, SOLVE_RUNS = 0.002, 24
+#: A gate reading that jumps across the set speed between two plate speeds closer than any run can split (a contact
+#: event in the coast) is settled at the nearest reading, if within this fraction of the set speed.
+SOLVE_JUMP_TOLERANCE = 0.01
 #: Largest plate speed / set speed the solve tries before it refuses (the cylinder cannot reach the set speed).
 SOLVE_MAX_RATIO = 4.0
 #: Solved speed ratios per (engine, robot, launcher, set speed) in this process.
@@ -573,9 +576,12 @@ def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force
     # the bracket: (ratio, gate) known to read below / above the set speed (a stall, no reading, counts as 0)
     slow, fast = (0.0, 0.0), (math.inf, math.inf)
     moved = ""   # which end of the bracket the last run moved
+    nearest = (math.inf, ratio)   # (relative gate error, ratio) of the closest reading
     for _ in range(SOLVE_RUNS):
         drive = LaunchDrive("stroke", ratio, force_n, launcher.stroke_m, ramp_s)
         gate = engine.simulate(condition, exact, 0, None, drive=drive, until_edge=True).measured_speed_mps
+        if gate > 0:
+            nearest = min(nearest, (abs(gate / set_speed_mps - 1), ratio))
         if gate > 0 and abs(gate / set_speed_mps - 1) <= SOLVE_TOLERANCE:
             return ratio
         reading = gate if gate > 0 else 0.0
@@ -597,6 +603,8 @@ def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force
             ratio = ratio * (set_speed_mps / gate if gate > 0 else 2.0)
         if ratio > SOLVE_MAX_RATIO:
             break
+    if nearest[0] <= SOLVE_JUMP_TOLERANCE:
+        return nearest[1]
     raise ValueError(
         f"the stroke launcher cannot launch this robot at {set_speed_mps} m/s: the gate reads {gate:.3f} m/s at "
         f"best with {force_n:.0f} N (launch_twin.launcher.pressures_psi {launcher.pressure_psi(set_speed_mps):.0f} "

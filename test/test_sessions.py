@@ -1,5 +1,6 @@
 """Issue 42: every session isolated by default, nodes that talk only to their own session, and joining a session
 by the name it printed (docs/sessions.md)."""
+import importlib.util
 import os
 import re
 import signal
@@ -165,7 +166,7 @@ def test_joining_verbs_name_what_they_looked_for_and_where(tmp_path):
         assert len(done.stderr.strip().splitlines()) == 1, done.stderr
 
 
-@pytest.mark.slow   # a bringup session and a campaign through it: about a minute on 2 cores
+@pytest.mark.slow   # a bringup session, a campaign, the live view and the operator's CLI through it: about 40 s
 def test_campaign_graph_reaches_a_bringup_session_by_the_name_it_printed(tmp_path):
     """Issue 42 item 4 / issue 45 item 2: `campaign --graph` ran in the root namespace and never found bringup's
     logger; now it joins by the printed name (domain, namespace, session id) and the session's store holds it."""
@@ -182,6 +183,18 @@ def test_campaign_graph_reaches_a_bringup_session_by_the_name_it_printed(tmp_pat
                     str(tmp_path / "campaign.yaml"), stdin=subprocess.DEVNULL)
     assert campaign.wait(timeout=300) == 0, _log(tmp_path, "campaign") + _log(tmp_path, "bringup")
     assert "campaign complete: 2/2" in _log(tmp_path, "campaign")
+    # the live view and the operator's CLI reach it with what it printed; without it, this shell's domain is not it
+    stray = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "rig", "estop", "--timeout-s", "3"],
+                           cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert stray.returncode == 2 and "no valve controller subscribes" in stray.stderr, stray.stderr
+    joined = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "rig", "--session", "lab", "estop"],
+                            cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert joined.returncode == 0 and "e-stop sent" in joined.stdout, joined.stdout + joined.stderr
+    if importlib.util.find_spec("foxglove") is not None:
+        view = _cli(tmp_path, "view", "view", "--session", "runs/lab", "--port", "0", stdin=subprocess.DEVNULL)
+        _wait_for_line(tmp_path, "view", r"serving /rollability/summary", view, timeout_s=60)
+        os.killpg(view.pid, signal.SIGINT)
+        view.wait(timeout=30)
     os.killpg(bringup.pid, signal.SIGINT)
     assert bringup.wait(timeout=120) == 0, _log(tmp_path, "bringup")
     from rollability_ros.core.store import Store

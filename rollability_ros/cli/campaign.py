@@ -48,11 +48,17 @@ def register(subparsers: Subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+#: How the commands name the campaign's rig files in a refusal.
+RIG_CONFIG = "rollability campaign --rig-config"
+
+
 def _spec(args):
     import dataclasses
 
     from rollability_ros.core.campaign import load_campaign_spec
+    from rollability_ros.core.config import check_given_files
 
+    check_given_files(args.config or [], {"campaign"}, "rollability campaign --config")
     spec = load_campaign_spec(args.config or ["campaign"])
     if args.run_id is not None:   # given, even empty: then validate() refuses it
         spec = dataclasses.replace(spec, run_id=args.run_id)
@@ -72,6 +78,9 @@ def run(args: argparse.Namespace) -> int:
     if args.graph:
         if args.store:
             raise ValueError("--store is for the in-process campaign; with --graph the outcome_logger owns the store")
+        if args.rig_config:   # never dropped: the rig node of the graph was started with its own files
+            raise ValueError("--rig-config is for the in-process rig; with --graph the rig node reads the files it "
+                             "was started with")
         return _run_graph(args, spec, ask)
     if not args.store:
         raise ValueError("--store is required (the store file or run directory this command writes)")
@@ -79,9 +88,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _resimulate(args):
-    from rollability_ros.core.campaign import LocalRig, local_rig_settings
-    from rollability_ros.core.config import load_parameters
-    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.campaign import LocalRig, local_rig_settings_from_files
+    from rollability_ros.core.records import LaunchCondition, check_twin_seed
     from rollability_ros.core.rig import LAUNCH_BACKENDS, launch_backend_class
 
     refusal = launch_backend_class(args.backend).resimulate_refusal()
@@ -95,8 +103,9 @@ def _resimulate(args):
     except ValueError:
         raise ValueError(f"--resimulate: HEIGHT_M, SPEED_MPS and ANGLE_DEG must be numbers, got {numbers}") from None
     condition = LaunchCondition(configuration, height_m, speed_mps, angle_deg)
-    condition.validate()
-    rig = LocalRig(local_rig_settings(args.backend, load_parameters(args.rig_config or ["rig"])))
+    condition.validate()   # the campaign's own bounds (records.HEIGHT_RANGE_M ...): no stored launch lies outside
+    check_twin_seed(args.seed)
+    rig = LocalRig(local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG))
     try:
         result = rig.backend.resimulate(condition, args.seed)
     finally:
@@ -111,13 +120,12 @@ def _resimulate(args):
 
 
 def _run_local(args, spec, ask):
-    from rollability_ros.core.campaign import (LocalRig, local_rig_settings, plan_refusal, plan_trials,
+    from rollability_ros.core.campaign import (LocalRig, local_rig_settings_from_files, plan_refusal, plan_trials,
                                                record_campaign_run, report_exit_code, resume_refusal, run_campaign,
                                                store_writer)
-    from rollability_ros.core.config import load_parameters
     from rollability_ros.core.store import Store
 
-    settings, plan = local_rig_settings(args.backend, load_parameters(args.rig_config or ["rig"])), plan_trials(spec)
+    settings, plan = local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG), plan_trials(spec)
 
     def checked_rig() -> LocalRig:
         rig = LocalRig(settings, ask or input)

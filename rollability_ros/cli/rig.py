@@ -108,9 +108,12 @@ def _request(args, sign=False):
 
 
 def default_namespace(config_files: typing.Sequence[str] = ()) -> str:
-    """The namespace ``rollability bringup`` puts the graph in: ``bringup.namespace`` of the parameter files."""
-    from rollability_ros.core.graph import load_graph_settings, parameter_files
+    """The namespace ``rollability bringup`` puts the graph in: ``bringup.namespace`` of the parameter files (the
+    files as given to bringup: one bringup would refuse is refused here too)."""
+    from rollability_ros.core.config import check_given_files
+    from rollability_ros.core.graph import graph_namespaces, load_graph_settings, parameter_files
 
+    check_given_files(config_files, graph_namespaces(), "rollability rig")
     return load_graph_settings(parameter_files(["bringup", *config_files])).namespace
 
 

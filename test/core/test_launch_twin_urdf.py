@@ -33,7 +33,8 @@ def test_husky_config_makes_a_husky_twin_with_its_wheels_and_density(husky_twin)
     model = husky_twin.robot_model()
     assert isinstance(model, UrdfRobotModel) and model.spec.mount_link == "top_plate_link"
     assert model.wheel_radii_m() == pytest.approx((HUSKY_WHEEL_RADIUS_M,) * 4, rel=1e-5)
-    assert husky_twin.profile_density_kgpm3() == 20.0
+    assert husky_twin.urdf_robot.profile_print.model == "solid"
+    assert husky_twin.urdf_robot.profile_print.solid_density_kgpm3 == 20.0
     chassis = load_launch_twin_settings()
     assert isinstance(chassis.robot_model(), ChassisModel)
     assert chassis.robot_model().wheel_radii_m() == (ChassisSpec().wheel_radius_m,) * 4
@@ -62,7 +63,10 @@ def test_one_husky_launch_runs_is_deterministic_and_classifies(husky_twin):
     assert repr(simulate_launch(condition, husky_twin, 7)) == repr(result)
     assert phases == ["fired", "in_flight", "settling", "classifying"] and result.settled
     assert result.landing_position_m[0] > 0   # it went over the edge onto the foam
-    # the plate pushes the 44 kg robot with its 0.178 m wheels and 2 N m motor drag to the edge at the launch speed
+    # config/husky.yaml picks the push-through launcher (the paper's 0.15 m stroke leaves the 1 m long robot on the
+    # ledge): the plate pushes the 44 kg robot with its 0.178 m wheels and 2 N m motor drag to the edge at the
+    # launch speed
+    assert husky_twin.twin.launcher.model == "push_through"
     assert result.edge_speed_mps == pytest.approx(result.launch_speed_mps, rel=0.05)
     assert 1.0 < result.travel_time_s / (0.34 / result.launch_speed_mps) < 1.1
     # classified from its final pose: it pitches over the edge and lands on its back (tilt = angle of its z axis)

@@ -29,6 +29,7 @@ import os
 import re
 import typing
 
+from rollability_ros.core import safe_yaml
 from rollability_ros.core.bags.metadata import (
     METADATA_FILE,
     ROS_DISTRO,
@@ -224,7 +225,6 @@ def _nothing_saved(report, size):
 
 def _file_summary(path):
     """Return ``(FileInfo, {topic: TopicInfo from channel metadata}, rosbag2 metadata record dict or {})``."""
-    import yaml
 
     with open(path, "rb") as stream, bag_file_errors(path):
         reader, summary = open_mcap(path, stream)
@@ -244,7 +244,7 @@ def _file_summary(path):
         stored = {}
         for record in reader.iter_metadata():
             if record.name == "rosbag2" and record.metadata.get("serialized_metadata"):
-                stored = yaml.safe_load(record.metadata["serialized_metadata"]) or {}
+                stored = safe_yaml.load(record.metadata["serialized_metadata"]) or {}
     return info, topics, stored
 
 

@@ -35,9 +35,10 @@ import yaml
 
 from rollability_ros.core.graph.bringup import (NodeLaunch, core_nodes, join_nodes, load_graph_settings,
                                                 new_study_id, parameter_files)
+from rollability_ros.core.graph.preflight import graph_namespaces
 from rollability_ros.core.graph.session import SessionInfo, start_session
 from rollability_ros.core.graph.progress import GraphObserver, JobProgress, ProgressDisplay, Stopwatch, eta_s
-from rollability_ros.core.config import check_path_component, load_parameters
+from rollability_ros.core.config import check_given_files, check_path_component, load_parameters
 from rollability_ros.core.records import LaunchOutcome
 from rollability_ros.core.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
@@ -79,6 +80,7 @@ class Study:
                  display: typing.Optional[ProgressDisplay] = None,
                  observer: typing.Optional[GraphObserver] = None) -> None:
         self.param_files = parameter_files(["bringup", *extra_configs])
+        check_given_files(extra_configs, graph_namespaces(), "rollability study")   # applied or refused, at once
         self.resuming = resume is not None
         if resume is not None:   # self.resuming
             if extra_configs or study_id:
@@ -114,6 +116,11 @@ class Study:
     def optimization_dir(self) -> str:
         """The study's optimization run directory (:data:`OPTIMIZATION_DIR`)."""
         return os.path.join(self.study_dir, OPTIMIZATION_DIR)
+
+    @property
+    def designs_file(self) -> str:
+        """The designs.yaml the selection writes and the campaign launches (absolute)."""
+        return os.path.abspath(os.path.join(self.optimization_dir, "designs", "designs.yaml"))
 
     @property
     def store_path(self) -> str:
@@ -196,8 +203,7 @@ class Study:
 
     def _campaign_nodes(self, labels):
         configurations = ["baseline", *labels]
-        overrides = {"launch_twin": {"designs": {"designs_file": os.path.join(self.optimization_dir, "designs",
-                                                                              "designs.yaml")}}}
+        overrides = {"launch_twin": {"designs": {"designs_file": self.designs_file}}}
         study_yaml = os.path.join(self.study_dir, "study.yaml")
         with open(study_yaml, "w", encoding="utf-8") as stream:
             yaml.safe_dump({"/**": {"ros__parameters": overrides}}, stream)
@@ -254,7 +260,7 @@ class Study:
         from rollability_ros.core.config import ConfigError
         from rollability_ros.core.graph.preflight import check_graph_parameters
 
-        problems = check_graph_parameters(self.param_files)
+        problems = check_graph_parameters(self.param_files, overrides={"rig": {"rig.twin_config": self.param_files}})
         if problems:
             raise ConfigError(f"study not started: {len(problems)} invalid parameter(s):\n  " + "\n  ".join(problems))
 
@@ -315,13 +321,9 @@ class Study:
 
     def _selected_labels(self):
         """The labels of the selected designs (may be empty), or None before selection has written designs.yaml."""
-        designs_yaml = os.path.join(self.optimization_dir, "designs", "designs.yaml")
-        if not os.path.isfile(designs_yaml):
+        if not os.path.isfile(self.designs_file):
             return None
-        with open(designs_yaml, encoding="utf-8") as stream:
-            document = yaml.safe_load(stream) or {}
-        params = next(iter(document.values()), {}).get("ros__parameters", {})
-        return list(params.get("designs", {}).get("labels", []))
+        return list(load_parameters([self.designs_file]).get("designs.labels", []))
 
     def _campaign_size(self, configurations):
         per_configuration = 1
@@ -329,9 +331,22 @@ class Study:
             per_configuration *= len(self.parameters.get(key, [None]))
         return configurations * per_configuration * int(self.parameters.get("campaign.repetitions", 1))
 
+    def _record_campaign_designs(self):
+        """Record in the store the designs the campaign launched (the rig's designs_file, :meth:`_campaign_nodes`),
+        so a report lists that set and not one a later ``select`` wrote beside it; the logger has stopped, so the
+        store has one writer."""
+        from rollability_ros.core.campaign import record_campaign_run
+
+        if os.path.isfile(self.store_path) and os.path.isfile(self.designs_file):
+            with Store(self.store_path) as store:
+                if store.trial_ids(self.study_id):
+                    record_campaign_run(store, self.study_id, "sim", {"designs_file": self.designs_file,
+                                                                      "mesh_files": {}})
+
     def _report(self, result):
         from rollability_ros.core.results import report
 
+        self._record_campaign_designs()
         data = report.load_report_data(self.store_path, run_id=self.study_id)
         table3 = os.path.join(self.optimization_dir, "designs", "table3.csv")
         if os.path.isfile(table3):

@@ -31,7 +31,7 @@ import numpy.typing as npt
 
 import rollability_ros
 
-from rollability_ros.core.config import load_parameters, settings_from_sections
+from rollability_ros.core.config import check_given_files, load_parameters, settings_from_sections
 from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
 from rollability_ros.core.optional import require
 from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, UrdfRobotSpec, footprint_grid
@@ -93,7 +93,7 @@ class EvaluatorSettings(RobotChoice):
 
     The robot is the built-in chassis (``robot``) unless ``urdf_robot`` names a mount link; then the URDF robot is
     used and the grid's ``length_m`` / ``width_m`` are its mount footprint's (:func:`footprint_grid`).
-    ``robot_model()`` and ``profile_density_kgpm3()`` come from
+    ``robot_model()`` and ``profile_body(mesh)`` come from
     :class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`.
     """
 
@@ -157,6 +157,23 @@ def settings_at_fidelity(settings: "EvaluatorSettings", fidelity: str) -> "Evalu
                                physics=dataclasses.replace(settings.physics, engine=engine))
 
 
+def with_given_files(settings: "EvaluatorSettings", paths: typing.Sequence[str], command: str) -> "EvaluatorSettings":
+    """``settings`` (``paths`` merged in) whose launch twin also reads those of the parameter files ``paths`` a
+    user gave ``command`` that set twin parameters (:func:`twin_files`), once every parameter in them is one the
+    command applies (:func:`~rollability_ros.core.config.check_given_files`): the evaluation's namespaces
+    (:data:`SETTINGS_SECTIONS`) and, when its objective launches the twin, ``launch_twin``. So a twin parameter in a
+    given file changes the launches or is refused, never dropped."""
+    from rollability_ros.core.sim.launch_twin import TWIN_NAMESPACE, twin_files
+
+    launches = settings.objective.kind != "disturbance"
+    check_given_files(paths, {*SETTINGS_SECTIONS.values(), *([TWIN_NAMESPACE] if launches else [])}, command)
+    extra = twin_files(paths) if launches else []
+    if not extra:
+        return settings
+    objective = dataclasses.replace(settings.objective, twin_config=[*settings.objective.twin_config, *extra])
+    return dataclasses.replace(settings, objective=objective)
+
+
 def trial_seed(base_seed: int, index: int) -> int:
     """Seed of trial ``index`` of an evaluation with ``base_seed`` (int in [0, 2**63)), via numpy SeedSequence."""
     if isinstance(base_seed, bool) or not isinstance(base_seed, (int, np.integer)) or not 0 <= base_seed <= MAX_SEED:
@@ -189,7 +206,7 @@ def profile_job(heights: typing.Optional[npt.ArrayLike], settings: EvaluatorSett
 
 def mesh_job(mesh: typing.Optional[Mesh], settings: EvaluatorSettings) -> TrialJob:
     """Make the :class:`TrialJob` of a profile solid (trimesh, metres, profile frame); None = baseline."""
-    profile = None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
+    profile = None if mesh is None else settings.profile_body(mesh)
     return TrialJob(profile=profile, settings=settings, launch=_launch_part(settings))
 
 

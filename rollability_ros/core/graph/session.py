@@ -20,6 +20,7 @@ import typing
 
 import yaml
 
+from rollability_ros.core import safe_yaml
 from rollability_ros.core.graph._ros_domain import claim_domain
 from rollability_ros.core.optimization import atomic_write_bytes
 
@@ -127,7 +128,7 @@ def load_session(argument: str, output_dir: str = "runs") -> SessionInfo:
                              f"{path}")
     try:
         with open(path, encoding="utf-8") as stream:
-            document = yaml.safe_load(stream)
+            document = safe_yaml.load(stream)
         fields = dict(document["session"])
         info = SessionInfo(**{field.name: fields[field.name] for field in dataclasses.fields(SessionInfo)
                               if field.name in fields})

@@ -153,17 +153,21 @@ def test_ctrl_c_while_campaign_graph_waits_for_a_logger_is_a_clean_stop(tmp_path
     assert "Traceback" not in output and "continue with --resume" in output, output
 
 
-def test_joining_verbs_name_what_they_looked_for_and_where(tmp_path):
+def test_joining_verbs_name_what_they_looked_for_and_where(tmp_path, monkeypatch, capsys):
+    from rollability_ros.cli import main
+
     (tmp_path / "runs" / "empty").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path)
+    environment = dict(os.environ)
     for args, expected in (
             (["rig", "--session", "lab", "estop"], "no session 'lab': neither a directory nor a file of that name, "
                                                    "and no runs/lab/session.yaml"),
             (["campaign", "--backend", "sim", "--graph", "--session", "runs/empty"], "no session.yaml in runs/empty"),
             (["campaign", "--backend", "sim", "--session", "lab"], "--session and --namespace are for --graph")):
-        done = subprocess.run([sys.executable, "-m", "rollability_ros.cli", *args], cwd=tmp_path,
-                              capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
-        assert done.returncode == 2 and expected in done.stderr, (args, done.stdout, done.stderr)
-        assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+        assert main(args) == 2, args
+        error = capsys.readouterr().err
+        assert expected in error and len(error.strip().splitlines()) == 1, (args, error)
+    assert dict(os.environ) == environment      # nothing joined
 
 
 @pytest.mark.slow   # a bringup session, a campaign, the live view and the operator's CLI through it: about 40 s
@@ -201,3 +205,42 @@ def test_campaign_graph_reaches_a_bringup_session_by_the_name_it_printed(tmp_pat
 
     with Store(tmp_path / "runs" / "lab" / "outcomes.sqlite") as store:
         assert {o.run_id for o in store.launch_outcomes()} == {"joined"} and len(store.launch_outcomes()) == 2
+
+
+def test_an_evaluator_and_a_rig_of_a_session_serve_only_that_session(ros_node, start_node):
+    """An evaluator rejects another session's goal (logged once) and names its session in its result; a rig aborts
+    another session's launch goal before it can hold the rig busy."""
+    from action_msgs.msg import GoalStatus
+
+    from rig_client import RigClient
+    from rollability_ros.action import EvaluateProfile
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.nodes._support import ThreadSafeActionClient, send_goal_resending
+
+    evaluator = start_node("sim_evaluator", params={"evaluator.workers": 1, "session.id": "lab.1"})
+    rig = start_node("rig", params={"rig.backend": "sim", "session.id": "lab.1"})
+    client = ThreadSafeActionClient(ros_node.node, EvaluateProfile, "/evaluate_profile")
+    assert client.wait_for_server(timeout_sec=120), evaluator.log()
+
+    def send(session):
+        goal = EvaluateProfile.Goal(heights=[], trials=2, seed=1, session=session)
+        handle = send_goal_resending(client, goal, ros_node.wait_for, 120)
+        assert handle is not None, evaluator.log()
+        return handle
+
+    for session in ("other.2", "", "other.2"):
+        assert not send(session).accepted
+    log = evaluator.log()
+    assert log.count("evaluate_profile goal of session other.2 refused") == 1, log    # logged once
+    assert "evaluate_profile goal of session (none) refused: this node belongs to session lab.1" in log, log
+    accepted = send("lab.1")
+    assert accepted.accepted
+    future = accepted.get_result_async()
+    assert ros_node.wait_for(future.done, 120)
+    assert future.result().status == GoalStatus.STATUS_SUCCEEDED and future.result().result.session == "lab.1"
+
+    launcher = RigClient(ros_node, signed=False)
+    refused = launcher.result(launcher.send("t0", LaunchCondition("baseline", 0.75, 0.8, 0.0, 0), []))
+    assert refused.status == GoalStatus.STATUS_ABORTED, rig.log()
+    assert "launch goal of session (none) refused: this node belongs to session lab.1" in refused.result.message
+    assert launcher.outcomes == []

@@ -88,7 +88,10 @@ def claim_session_domain(environ: typing.Mapping[str, str]) -> typing.Tuple[int,
     skip = {RIG_DOMAIN_ID}
     if (environ.get("ROS_DOMAIN_ID") or "").strip().isdigit():
         skip.add(int(environ["ROS_DOMAIN_ID"]))
-    return claim_domain(*SESSION_DOMAINS, skip=skip)
+    try:
+        return claim_domain(*SESSION_DOMAINS, skip=skip)
+    except RuntimeError as exc:   # every session domain of this computer is taken: one line, nothing started
+        raise ValueError(f"cannot isolate the session: {exc}") from None
 
 
 def hold_domain(domain: int) -> typing.Optional[typing.TextIO]:

@@ -1,6 +1,8 @@
 """Sessions isolated by default and joined by name (core/graph/session.py), without ROS: the domain a session claims,
 its session.yaml, and what a joining verb resolves from what the session printed."""
+import dataclasses
 import os
+import subprocess
 
 import pytest
 import yaml
@@ -64,6 +66,8 @@ def test_a_session_is_joined_by_directory_file_or_printed_name_and_sets_the_envi
     for argument in (str(directory), str(directory / SESSION_FILE)):
         assert load_session(argument) == info
     assert load_session("lab", str(tmp_path / "runs")) == info
+    assert info.running()                       # this process wrote it
+    assert not dataclasses.replace(info, pid=_ended_pid()).running()   # its process has ended
     environ = {"ROS_DOMAIN_ID": "0", "ROS_STATIC_PEERS": "10.0.0.9"}
     info.apply(environ)
     assert environ == {"ROS_DOMAIN_ID": str(info.ros_domain_id), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
@@ -71,6 +75,12 @@ def test_a_session_is_joined_by_directory_file_or_printed_name_and_sets_the_envi
     assert f"rollability rig --session {directory}" in join and "campaign --graph --session" in join
     assert f"ROS_DOMAIN_ID={info.ros_domain_id} ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST" in raw
     assert "namespace /rollability" in raw
+
+
+def _ended_pid():
+    process = subprocess.Popen(["true"])
+    process.wait()
+    return process.pid
 
 
 def test_errors_name_what_was_looked_for_and_where(tmp_path):

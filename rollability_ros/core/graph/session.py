@@ -61,6 +61,16 @@ class SessionInfo:
             environ.pop(name, None)
         environ.update(self.environment())
 
+    def running(self) -> bool:
+        """True while the session's process (``pid``, on this computer: discovery is localhost) still runs."""
+        try:
+            os.kill(self.pid, 0)
+        except ProcessLookupError:
+            return False
+        except PermissionError:   # another user's process: it runs
+            return True
+        return self.pid > 0
+
     def join_lines(self) -> typing.List[str]:
         """What the session prints: how our verbs join it, and the raw settings for any other ROS 2 tool."""
         raw = " ".join(f"{name}={value}" for name, value in self.environment().items())

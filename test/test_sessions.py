@@ -170,7 +170,7 @@ def test_joining_verbs_name_what_they_looked_for_and_where(tmp_path, monkeypatch
     assert dict(os.environ) == environment      # nothing joined
 
 
-@pytest.mark.slow   # a bringup session, a campaign, the live view and the operator's CLI through it: about 40 s
+@pytest.mark.slow   # a bringup session, a campaign, the live view and the operator's CLI through it: about 25 s
 def test_campaign_graph_reaches_a_bringup_session_by_the_name_it_printed(tmp_path):
     """Issue 42 item 4 / issue 45 item 2: `campaign --graph` ran in the root namespace and never found bringup's
     logger; now it joins by the printed name (domain, namespace, session id) and the session's store holds it."""
@@ -244,3 +244,35 @@ def test_an_evaluator_and_a_rig_of_a_session_serve_only_that_session(ros_node, s
     assert refused.status == GoalStatus.STATUS_ABORTED, rig.log()
     assert "launch goal of session (none) refused: this node belongs to session lab.1" in refused.result.message
     assert launcher.outcomes == []
+
+
+@pytest.mark.slow   # a physical bringup (dry-run valve) and a 4-launch campaign through it: about 15 s (suite budget)
+def test_a_physical_campaign_joins_a_physical_bringup_by_name_and_signs_with_its_key(tmp_path):
+    """Issue 45 item 1: campaign and bringup reach each other as shipped; the campaign signs with the session's own
+    key file (from session.yaml), the session's logger verifies and stores every outcome."""
+    from test_campaign_runner import CAMPAIGN_YAML, SPEC, operator_script
+
+    from rollability_ros.core.campaign.plan import plan_trials
+    from rollability_ros.core.store import Store
+
+    (tmp_path / "small.yaml").write_text("/**:\n  ros__parameters:\n    bringup:\n      evaluators: 0\n"
+                                         "      poll_period_s: 0.2\n    rig:\n      countdown_s: 0.6\n")
+    (tmp_path / "campaign.yaml").write_text(CAMPAIGN_YAML)
+    bringup = _cli(tmp_path, "bringup", "bringup", "--backend", "physical", "--config", str(tmp_path / "small.yaml"),
+                   "--no-optimizer", "--session-id", "rig")
+    _wait_for_line(tmp_path, "bringup", r"\[rig\] started", bringup)
+    session = yaml.safe_load((tmp_path / "runs" / "rig" / "session.yaml").read_text())["session"]
+    deadline = time.monotonic() + 60
+    while not os.path.exists(session["valve_key_file"]) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    done = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "campaign", "--backend", "physical", "--graph",
+                           "--session", "rig", "--config", str(tmp_path / "campaign.yaml")], cwd=tmp_path,
+                          input=operator_script(plan_trials(SPEC)), capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr + _log(tmp_path, "bringup")
+    assert "campaign complete: 4/4" in done.stdout
+    os.killpg(bringup.pid, signal.SIGINT)
+    assert bringup.wait(timeout=120) == 0, _log(tmp_path, "bringup")
+    with Store(tmp_path / "runs" / "rig" / "outcomes.sqlite") as store:
+        outcomes = store.launch_outcomes(SPEC.run_id)
+    assert [o.trial_id for o in outcomes] == [t.trial_id for t in plan_trials(SPEC)]
+    assert {o.backend for o in outcomes} == {"physical"}

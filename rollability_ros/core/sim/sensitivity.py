@@ -175,12 +175,13 @@ def with_setting(settings: typing.Any, dotted: str, value: float, full_name: str
         raise ValueError(f"{full_name!r} is not a launch twin setting (dotted settings names, e.g. "
                          f"twin.foam.thickness_m, robot.body_mass_kg)")
     current = getattr(settings, head)
+    group: typing.Any = settings   # a dataclass instance (checked above)
     if rest:
-        replaced = dataclasses.replace(settings, **{head: with_setting(current, rest, value, full_name)})
+        replaced = dataclasses.replace(group, **{head: with_setting(current, rest, value, full_name)})
     elif isinstance(current, bool) or not isinstance(current, (int, float)):
         raise ValueError(f"{full_name} is not a numeric setting (it holds {current!r})")
     else:
-        replaced = dataclasses.replace(settings, **{head: type(current)(value)})
+        replaced = dataclasses.replace(group, **{head: type(current)(value)})
     if hasattr(replaced, "validate"):
         replaced.validate()
     return replaced

@@ -1,7 +1,7 @@
 """`rollability campaign`: run the launch campaign (paper 2.2.6) in this process or through the node graph."""
 import argparse
 
-from rollability_ros.cli import Subparsers
+from rollability_ros.cli import Subparsers, add_session_argument, join_session
 
 
 def register(subparsers: Subparsers) -> None:
@@ -34,6 +34,11 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--session-key-file", default="",
                         help="with --graph --backend physical: the valve_controller's session key, to sign the goals "
                              "and answers (default: valve.session_key_file's default for this ROS domain)")
+    add_session_argument(parser)
+    parser.add_argument("--namespace", default=None,
+                        help="with --graph: ROS namespace of the rig and outcome_logger (default: the session's with "
+                             "--session, else bringup.namespace, /rollability as shipped: where `rollability bringup` "
+                             "starts them)")
     parser.add_argument("--resimulate", nargs=4, metavar=("CONFIGURATION", "HEIGHT_M", "SPEED_MPS", "ANGLE_DEG"),
                         help="with --backend sim and --seed: run only this one launch on the launch twin of "
                              "--rig-config and print its outcome (the report's drill-down shows this command for "
@@ -68,6 +73,8 @@ def run(args: argparse.Namespace) -> int:
         return _resimulate(args)
     spec = _spec(args)
     ask = input if launch_backend_class(args.backend).attended else None
+    if (args.session is not None or args.namespace is not None) and not args.graph:
+        raise ValueError("--session and --namespace are for --graph (a campaign through a running graph)")
     if args.graph:
         if args.store:
             raise ValueError("--store is for the in-process campaign; with --graph the outcome_logger owns the store")
@@ -148,19 +155,43 @@ def _run_local(args, spec, ask):
 
 
 def _run_graph(args, spec, ask):
-    import rclpy
-    from rclpy.node import Node
+    import os
+    import signal
 
     from rollability_ros.core.campaign import RunnerSettings, report_exit_code
+    from rollability_ros.core.rig import check_namespace
+
+    session = join_session(args.session)   # its domain, discovery range, namespace and key, before ROS starts
+    if args.namespace is not None:
+        namespace = check_namespace(args.namespace)
+    elif session is not None:
+        namespace = session.namespace
+    else:
+        from rollability_ros.cli.rig import default_namespace
+
+        namespace = check_namespace(default_namespace())
+    settings = RunnerSettings(backend=args.backend, resume=args.resume, store_timeout_s=args.store_timeout_s,
+                              session_key_file=args.session_key_file or (session.valve_key_file if session else ""))
+    settings.validate()
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.node import Node
+
+    from rollability_ros.nodes._support import init_ros
     from rollability_ros.nodes.campaign_runner import run_graph_campaign
 
-    settings = RunnerSettings(backend=args.backend, resume=args.resume, store_timeout_s=args.store_timeout_s,
-                              session_key_file=args.session_key_file)
-    settings.validate()
-    rclpy.init(args=[])
-    node = Node("campaign_runner")
+    init_ros([])   # no rclpy signal handlers: Ctrl-C is a KeyboardInterrupt here (the running goal is cancelled)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    node = None
     try:
-        return report_exit_code(run_graph_campaign(node, spec, settings, ask))
+        node = Node("campaign_runner", namespace=namespace)
+        print(f"campaign: through the graph on ROS domain {os.environ.get('ROS_DOMAIN_ID') or '0'}, namespace "
+              f"{namespace}", flush=True)
+        return report_exit_code(run_graph_campaign(node, spec, settings, ask, session=session.id if session else ""))
+    except (KeyboardInterrupt, ExternalShutdownException):
+        print("campaign: stopped (Ctrl-C); stored trials are kept: continue with --resume", flush=True)
+        return 130
     finally:
-        node.destroy_node()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()

@@ -28,12 +28,29 @@ CONFIG_ENV = "ROLLABILITY_CONFIG_DIR"
 KNOWN_NAMESPACES = frozenset({
     "bringup", "calibration", "campaign", "designs", "evaluator", "imu_outcome", "launch_twin", "objective",
     "optimizer", "player", "printer", "profile", "quality_diversity", "recorder", "rig", "robot", "runner",
-    "selection", "sim", "speed_gate", "stable_poses", "tip_monitor", "trial", "urdf_robot", "valve",
+    "selection", "session", "sim", "speed_gate", "stable_poses", "tip_monitor", "trial", "urdf_robot", "valve",
     "qos_overrides"})
 
 
 class ConfigError(ValueError):
     """A parameter file or a parameter value is unusable; the message names the file and the parameter."""
+
+
+@dataclasses.dataclass
+class SessionSettings:
+    """``session.*``: the session (``rollability study`` / ``bringup``) a node belongs to; nodes of a session talk only
+    to nodes of the same one (docs/sessions.md)."""
+
+    id: str = dataclasses.field(default="", metadata={
+        "description": "the session this node belongs to (session.yaml's id): goals, results and records of another "
+                       "session are refused and logged once; \"\" = a node outside any session, which accepts all"})
+
+    def refusal(self, other: str, what: str) -> str:
+        """"" when ``what`` (a goal, a result) of session ``other`` may be served or used here, else the reason: a
+        node of a session takes only its own session's; one outside any session takes all."""
+        if not self.id or other == self.id:
+            return ""
+        return f"{what} of session {other or '(none)'} refused: this node belongs to session {self.id}"
 
 
 #: A run, study or session id: one path component of letters, digits, '.', '_' and '-' (not starting with '.' or

@@ -94,6 +94,20 @@ class NodeLaunch:
                            critical=self.critical, stop_timeout_s=self.stop_timeout_s)
 
 
+#: The parameter that names the valve session key file, per node module that reads it.
+KEY_FILE_PARAMETERS = {"valve_controller": "valve.session_key_file", "rig": "valve.session_key_file",
+                       "outcome_logger": "session_key_file", "campaign_runner": "runner.session_key_file"}
+
+
+def join_nodes(nodes: typing.Iterable[NodeLaunch], session_id: str, key_file: str) -> None:
+    """Make every node of ``nodes`` a member of session ``session_id`` (``session.id``: they talk only to nodes of
+    the same session) and give those that read the valve session key the session's own ``key_file``."""
+    for node in nodes:
+        node.params["session.id"] = session_id
+        if node.module in KEY_FILE_PARAMETERS:
+            node.params[KEY_FILE_PARAMETERS[node.module]] = key_file
+
+
 def parameter_files(extra: typing.Sequence[str] = ()) -> typing.List[str]:
     """Resolved paths of :data:`DEFAULT_CONFIGS` followed by ``extra`` (names of shipped files or paths)."""
     return [resolve_config_path(name) for name in (*DEFAULT_CONFIGS, *extra)]

@@ -21,6 +21,7 @@ from rollability_ros.core.config import ConfigError, check_given_files, from_map
 def _node_sections():
     """``{node name: {parameter prefix: settings dataclass}}`` of the nodes a study starts."""
     from rollability_ros.core.bags import RecorderSettings
+    from rollability_ros.core.config import SessionSettings
     from rollability_ros.core.campaign import CampaignSpec, RunnerSettings
     from rollability_ros.core.imu import ImuOutcomeConfig
     from rollability_ros.core.optimization import OptimizerSettings, QualityDiversitySettings, SelectionSettings
@@ -32,17 +33,18 @@ def _node_sections():
 
     hints = typing.get_type_hints(EvaluatorSettings)
     evaluator = {prefix: hints[field] for field, prefix in SETTINGS_SECTIONS.items()}
+    session = {"session": SessionSettings}   # session.id: the nodes that refuse other sessions (docs/sessions.md)
     return {
         "recorder": {"recorder": RecorderSettings},
-        "outcome_logger": {"": OutcomeLoggerSettings},
+        "outcome_logger": {"": OutcomeLoggerSettings, **session},
         "valve_controller": {"valve": ValveConfig},
-        "sim_evaluator": evaluator,
+        "sim_evaluator": {**evaluator, **session},
         "optimizer": {"optimizer": OptimizerSettings, "quality_diversity": QualityDiversitySettings,
                       "selection": SelectionSettings, "profile": ProfileGrid, "printer": PrinterSpec,
-                      "robot": ChassisSpec, "urdf_robot": UrdfRobotSpec, "stable_poses": ScreenSettings},
+                      "robot": ChassisSpec, "urdf_robot": UrdfRobotSpec, "stable_poses": ScreenSettings, **session},
         "rig": {"rig": RigSettings, "valve": ValveConfig, "speed_gate": SpeedGateConfig,
-                "imu_outcome": ImuOutcomeConfig},
-        "campaign_runner": {"campaign": CampaignSpec, "runner": RunnerSettings},
+                "imu_outcome": ImuOutcomeConfig, **session},
+        "campaign_runner": {"campaign": CampaignSpec, "runner": RunnerSettings, **session},
     }
 
 

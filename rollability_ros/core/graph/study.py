@@ -34,8 +34,9 @@ import typing
 import yaml
 
 from rollability_ros.core.graph.bringup import (DEFAULT_CONFIGS, NodeLaunch, add_twin_files, core_nodes,
-                                                load_graph_settings, new_study_id, parameter_files)
+                                                join_nodes, load_graph_settings, new_study_id, parameter_files)
 from rollability_ros.core.graph.preflight import graph_namespaces
+from rollability_ros.core.graph.session import SessionInfo, start_session
 from rollability_ros.core.graph.progress import GraphObserver, JobProgress, ProgressDisplay, Stopwatch, eta_s
 from rollability_ros.core.config import check_given_files, check_path_component, load_parameters
 from rollability_ros.core.records import LaunchOutcome
@@ -104,6 +105,8 @@ class Study:
         self._shown_generation = -1
         self._campaign_clock: typing.Optional[Stopwatch] = None
         self._campaign_start_done = 0
+        self.session: typing.Optional[SessionInfo] = None
+        self._domain_lock: typing.Optional[typing.TextIO] = None
 
     def request_stop(self) -> None:
         """Ask the running study to stop at its next check (Ctrl-C handler)."""
@@ -128,6 +131,39 @@ class Study:
     def given_files(self) -> typing.List[str]:
         """The user's parameter files (``--config``; their copies once saved), after the defaults and bringup's."""
         return self.param_files[len(DEFAULT_CONFIGS) + 1:]
+
+    def open_session(self, environ: typing.MutableMapping[str, str] = os.environ) -> SessionInfo:
+        """Check the parameters, make (or reopen) the study directory, and put this process (``environ``, before
+        ROS starts here: the observer and every node inherit it) on the study's own ROS domain with localhost
+        discovery (:mod:`~rollability_ros.core.graph.session`); writes ``session.yaml`` and says how to join."""
+        if self.session is not None:
+            return self.session
+        self.check_parameters()
+        if self.resuming:
+            self.say(f"study {self.study_id}: resuming in {self.study_dir}")
+            if os.path.basename(self.study_dir) != self.study_id:
+                self.say(f"  (the folder was renamed or copied: its campaign continues under its recorded id "
+                         f"{self.study_id})")
+        else:
+            self.make_study_dir()
+            self.say(f"study {self.study_id}: results in {self.study_dir}")
+        self.session, self._domain_lock = start_session("study", self.study_dir, self.settings.namespace, environ,
+                                                        store_path=self.store_path)
+        self.say(f"study {self.study_id}: its own ROS domain {self.session.ros_domain_id} "
+                 f"({self.session.discovery_range} discovery), namespace {self.session.namespace}")
+        for line in self.session.join_lines():
+            self.say(line)
+        return self.session
+
+    def _session_nodes(self, nodes):
+        """``nodes`` as members of the study's session (its id and valve key file); its logger stores only the
+        study's two runs (the optimization and the campaign)."""
+        if self.session is not None:
+            join_nodes(nodes, self.session.id, self.session.valve_key_file)
+        for node in nodes:
+            if node.module == "outcome_logger":
+                node.params["session_runs"] = [self.study_id, OPTIMIZATION_DIR]
+        return nodes
 
     def _optimizer(self, resume):
         optimizer = NodeLaunch("optimizer", namespace=self.settings.namespace, params={
@@ -184,7 +220,7 @@ class Study:
         runner = NodeLaunch("campaign_runner", namespace=self.settings.namespace, restart=False, params={
             "campaign.run_id": self.study_id, "campaign.configurations": configurations,
             "runner.backend": "sim", "runner.resume": self.resuming})
-        return rig, runner
+        return self._session_nodes([rig, runner])
 
     def _progress_optimization(self):
         """Snapshots of the optimization phase: one per generation completed since the last call (a plain log
@@ -237,17 +273,9 @@ class Study:
 
     def run(self) -> StudyResult:
         """Run (or resume) the whole study; always stops the graph; returns a :class:`StudyResult`."""
-        self.check_parameters()
-        if self.resuming:
-            self.say(f"study {self.study_id}: resuming in {self.study_dir}")
-            if os.path.basename(self.study_dir) != self.study_id:
-                self.say(f"  (the folder was renamed or copied: its campaign continues under its recorded id "
-                         f"{self.study_id})")
-        else:
-            self.make_study_dir()
-            self.say(f"study {self.study_id}: results in {self.study_dir}")
+        self.open_session()
         bag_dir = self._next_bag_dir() if self.settings.record else ""
-        nodes = core_nodes(self.settings, self.study_dir, bag_dir)
+        nodes = self._session_nodes(core_nodes(self.settings, self.study_dir, bag_dir))
         add_twin_files(nodes, self.param_files, self.given_files)   # the evaluators' twins read the user's twin keys
         supervisor = Supervisor([n.process_spec(self.param_files, self.study_dir) for n in nodes],
                                 os.path.join(self.study_dir, "logs"),
@@ -259,7 +287,8 @@ class Study:
                 resume = os.path.isfile(os.path.join(self.optimization_dir, "config.yaml"))
                 self.say("resuming the optimization from its last checkpoint" if resume else
                          "optimizing the profile (the optimizer over the evaluators)")
-                supervisor.add(self._optimizer(resume).process_spec(self.param_files, self.study_dir))
+                optimizer = self._session_nodes([self._optimizer(resume)])[0]
+                supervisor.add(optimizer.process_spec(self.param_files, self.study_dir))
                 code, reason = self._wait(supervisor, "optimizer", self.settings.optimization_timeout_s,
                                           self._progress_optimization)
                 if code != 0:
@@ -330,9 +359,7 @@ class Study:
         table3 = os.path.join(self.optimization_dir, "designs", "table3.csv")
         if os.path.isfile(table3):
             report.use_geometry_csv(data, table3)
-        built = report.build_report(data, os.path.join(self.study_dir, "report"))
-        result.report_html = built.html_path
-        result.summary = built.summary
+        problem = ""
         if result.bag_dir:
             from rollability_ros.core.bags import missed_windows, read_records_from_bag, recording_gaps
 
@@ -341,12 +368,22 @@ class Study:
             gaps = [gap for path in self.bag_dirs() for gap in recording_gaps(path)]
             windows = [window for path in self.bag_dirs() for window in missed_windows(path)]
             problem, gap_note = compare_bags_with_store(bagged, data.outcomes, gaps, windows)
-            if gap_note:
+            if gap_note:   # in the study's files and its report, not only on the console
                 self.say(gap_note)
-            if problem:
-                result.ok = False
-                result.reason = problem
+                with open(os.path.join(self.study_dir, RECORDING_GAPS_FILE), "w", encoding="utf-8") as stream:
+                    stream.write(gap_note + "\n")
+                data.notes.append(f"recording gaps ({RECORDING_GAPS_FILE}): {gap_note}")
+        built = report.build_report(data, os.path.join(self.study_dir, "report"))
+        result.report_html = built.html_path
+        result.summary = built.summary
+        if problem:
+            result.ok = False
+            result.reason = problem
         return result
+
+
+#: The study's note of what its bags lost to recorder restarts, in the study directory (also in the report).
+RECORDING_GAPS_FILE = "recording-gaps.txt"
 
 
 #: Slack at the start of a recording gap, s: an outcome stamped just before the last message the killed recorder
@@ -369,9 +406,14 @@ def _clock_ns(time_ns):
     return datetime.datetime.fromtimestamp(time_ns / 1e9, datetime.timezone.utc).strftime("%H:%M:%S.%f")[:-3]
 
 
-def topic_windows_text(window: typing.Mapping[str, typing.Mapping[str, typing.Any]]) -> str:
+def topic_windows_text(window: typing.Mapping[str, typing.Mapping[str, typing.Any]],
+                       known: typing.Optional[typing.Mapping[str, int]] = None) -> str:
     """One restart's per-topic missed windows (:func:`~rollability_ros.core.bags.recover.missed_windows`) as text:
-    ``/ns/rig/pose 10:00:01.200 to 10:00:06.800 UTC (5.6 s, about 560 messages at its 100 Hz)``, one per topic."""
+    ``/ns/rig/pose 10:00:01.200 to 10:00:06.800 UTC (5.6 s, about 560 messages at its 100 Hz)``, one per topic.
+
+    A steady-rate topic's loss is estimated from its rate; an event topic's is not: ``known`` (topic -> messages
+    known to have been published in its window, e.g. stored launch outcomes missing from the bag) says how many,
+    "nothing published" for 0, and without it the text says the loss is unknown."""
     parts = []
     for topic, entry in window.items():
         after, until, rate = entry["after_ns"], entry["until_ns"], entry["rate_hz"]
@@ -380,11 +422,20 @@ def topic_windows_text(window: typing.Mapping[str, typing.Mapping[str, typing.An
         text = f"{topic} {start} to {end}"
         if after is not None and until is not None:
             seconds = (until - after) / 1e9
-            estimate = (f", about {max(0, round(seconds * rate) - 1)} messages at its {rate:.3g} Hz"
-                        if rate else "")
-            text += f" ({seconds:.1f} s{estimate})"
+            if known is not None and topic in known:
+                lost = (f"nothing published" if not known[topic] else
+                        f"{known[topic]} message(s) published then, in the store, not in the bag")
+            elif entry.get("periodic", True):
+                lost = (f"about {max(0, round(seconds * rate) - 1)} messages at its {rate:.3g} Hz" if rate else "")
+            else:
+                lost = "an event topic: what it published then is not known"
+            text += f" ({seconds:.1f} s{', ' + lost if lost else ''})"
         parts.append(text)
     return ", ".join(parts)
+
+
+#: The topic whose lost messages the store can count: the launch outcomes (relative name).
+_COUNTED_TOPIC = "launch_outcomes"
 
 
 def compare_bags_with_store(bagged_trial_ids: typing.Collection[str], stored_outcomes: typing.Iterable[LaunchOutcome],
@@ -428,7 +479,8 @@ def compare_bags_with_store(bagged_trial_ids: typing.Collection[str], stored_out
         windows = "; ".join(f"{_format_ns(after)} to {_format_ns(until)} ({len(in_gap[i])} stored outcome(s) "
                             f"not in a bag)" for i, (after, until) in enumerate(gaps))
         note = f"the recorder was restarted {len(gaps)} time(s); the bag lost the window(s): {windows}"
-        per_topic = [topic_windows_text(window) for window in topic_windows if window]
+        per_topic = [topic_windows_text(window, _stored_in_windows(window, missing, margin_ns))
+                     for window in topic_windows if window]
         if per_topic:
             note += "; every topic's missed window (its last message before the kill to its first after the " \
                     "restart): " + "; ".join(per_topic)
@@ -439,6 +491,17 @@ def compare_bags_with_store(bagged_trial_ids: typing.Collection[str], stored_out
                    f"{' (e.g. ' + unexplained[0].trial_id + ')' if unexplained else ''}, {len(extra)} bagged "
                    f"outcome(s) not stored")
     return problem, note
+
+
+def _stored_in_windows(window, missing, margin_ns):
+    """``{launch outcome topic: stored outcomes missing from the bags stamped in its window}``."""
+    counts = {}
+    for topic, entry in window.items():
+        after, until = entry["after_ns"], entry["until_ns"]
+        if topic.rsplit("/", 1)[-1] == _COUNTED_TOPIC and after is not None and until is not None:
+            counts[topic] = sum(1 for outcome in missing
+                                if after - margin_ns <= int(round(outcome.stamp_s * 1e9)) <= until)
+    return counts
 
 
 def resume_dir(study: str, output_dir: str) -> str:

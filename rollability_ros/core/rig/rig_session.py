@@ -38,8 +38,8 @@ import zlib
 
 from rollability_ros.core.imu import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
 from rollability_ros.core.registry import Registry
-from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, LaunchCondition,
-                                                  LaunchOutcome)
+from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
+                                          LaunchCondition, LaunchOutcome)
 from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
                                                      RigPorts, no_phase, not_cancelled)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
@@ -54,6 +54,8 @@ OUTCOME_SOURCES = ("operator", "imu")
 ASK_OUTCOME = "record the outcome"
 #: Start of the ``waiting_for_operator`` detail while the rig waits for the regulator confirmation.
 ASK_REGULATOR = "set the regulator"
+#: Start of a physical outcome's note part that names where its travel time (and so its speed) came from.
+TRAVEL_TIME_NOTE = "travel time: "
 
 
 @dataclasses.dataclass
@@ -322,8 +324,11 @@ class PhysicalLaunch(LaunchBackend):
         return backend
 
     def describe(self) -> str:
-        """One line for the start-up log: the backend and where outcomes come from."""
-        return f"backend physical, outcome from {self.settings.outcome_source}"
+        """One line for the start-up log: the backend, where outcomes and travel times come from."""
+        gate = self.speed_gate
+        return (f"backend physical, outcome from {self.settings.outcome_source}, travel time from {gate.source}"
+                + ("" if gate.measures else ": WARNING, not a measurement; physical records store the speed as not "
+                                            "measured (set speed_gate.backend gpio or operator)"))
 
     def close(self) -> None:
         """Stop waiting for the operator and close the ports this backend opened (keep-alive, valve)."""
@@ -401,10 +406,9 @@ class PhysicalLaunch(LaunchBackend):
         except BaseException:
             self._confirmed = None   # after an e-stop, a fault or a cancel the operator confirms the pressure again
             raise
-        if operator is not None and not math.isnan(operator.travel_time_s) and math.isnan(travel_time_s):
-            travel_time_s = operator.travel_time_s
+        travel_time_s, source = self.travel_time_source(travel_time_s, operator)
         speed = self.speed_config.measure(condition.speed_mps, travel_time_s)
-        notes = [speed_note(speed, condition.speed_mps, self.speed_config.tolerance_fraction)]
+        notes = [source, speed_note(speed, condition.speed_mps, self.speed_config.tolerance_fraction)]
         if operator is not None and reading is not None and operator.upright != reading.upright:
             notes.append(f"operator overrode the IMU ({'upright' if reading.upright else 'not upright'}, "
                          f"tilt {reading.tilt_deg:.1f} deg)")
@@ -415,9 +419,22 @@ class PhysicalLaunch(LaunchBackend):
             upright=operator.upright if operator is not None else reading.upright,
             travel_time_s=speed.travel_time_s, measured_speed_mps=speed.measured_speed_mps,
             speed_out_of_tolerance=speed.speed_out_of_tolerance,
-            final_orientation=tuple(reading.orientation) if reading is not None else (0.0, 0.0, 0.0, 1.0),
+            final_orientation=tuple(reading.orientation) if reading is not None else UNKNOWN_ORIENTATION,
             classified_by="operator" if operator is not None else "imu", note="; ".join(filter(None, notes)),
             stamp_s=time.time())
+
+    def travel_time_source(self, gate_s: float, operator: typing.Optional[OperatorOutcome]
+                           ) -> typing.Tuple[float, str]:
+        """The travel time a physical record stores (s, NaN when not measured) and the note naming its source:
+        the gate's when it measures (:attr:`SpeedGate.measures`), else the operator's typed one, else none. A
+        simulated gate's made-up time is never stored on a physical record."""
+        gate = self.speed_gate
+        if not math.isnan(gate_s) and gate.measures:
+            return gate_s, f"{TRAVEL_TIME_NOTE}{gate.source}"
+        if operator is not None and not math.isnan(operator.travel_time_s):
+            return operator.travel_time_s, f"{TRAVEL_TIME_NOTE}typed by the operator (rig outcome --travel-time-s)"
+        why = f" ({gate.source} makes times up: not stored)" if not gate.measures else ""
+        return NOT_MEASURED, f"{TRAVEL_TIME_NOTE}not measured{why}"
 
     def _fire(self, condition, on_phase, cancelled):
         """Arm, count down, fire, read the speed gate, disarm; returns the gate's travel time (s, NaN if none)."""

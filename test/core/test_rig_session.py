@@ -50,11 +50,18 @@ def valve():
     controller.shutdown()
 
 
-def make_rig(valve, outcome_source="operator", imu=None, noise=0.0, countdown_s=0.0, **settings):
+class BenchGate(SimulatedSpeedGate):
+    """Stands in for light gates that measure (the simulated gate's times are never stored on a physical record)."""
+
+    measures = True
+    source = "the light gates"
+
+
+def make_rig(valve, outcome_source="operator", imu=None, noise=0.0, countdown_s=0.0, gate=BenchGate, **settings):
     settings = RigSettings(**{"backend": "physical", "outcome_source": outcome_source, "countdown_s": countdown_s,
                               "operator_timeout_s": 2.0, **settings})
     settings.validate()
-    return PhysicalLaunch(settings, valve, SimulatedSpeedGate(0.34, noise, seed=1), SpeedGateConfig(), 150,
+    return PhysicalLaunch(settings, valve, gate(0.34, noise, seed=1), SpeedGateConfig(), 150,
                           RegulatorConfig(), OperatorChannel(), imu)
 
 
@@ -73,7 +80,8 @@ def test_operator_launch_confirms_regulator_once_per_speed_and_disarms(valve):
     assert not valve.status().armed and valve.status().pulses == 1
     operator.phases.clear()
     second = rig.launch("run", "t1", CONDITION, operator)        # same speed block: no confirmation
-    assert operator.phases[0][0] == "armed" and not second.upright and second.note == "on its side"
+    assert operator.phases[0][0] == "armed" and not second.upright
+    assert second.note == "travel time: the light gates; on its side"   # the speed's source, then the operator's note
     operator.phases.clear()
     rig.launch("run", "t2", LaunchCondition("B", 0.75, 1.5, -30.0, 0), operator)
     assert operator.phases[0][0] == "waiting_for_operator" and "60 psi" in operator.phases[0][1]
@@ -90,7 +98,22 @@ def test_out_of_tolerance_speed_is_flagged_and_typed_time_fills_a_missing_gate(v
     rig.speed_gate.read_travel_time = lambda timeout_s: math.nan            # gate saw nothing
     typed = rig.launch("run", "typed", CONDITION, ScriptedOperator(rig.operator, [OperatorOutcome(True, 0.25)]))
     assert typed.travel_time_s == 0.25 and math.isclose(typed.measured_speed_mps, 1.36)
-    assert typed.speed_out_of_tolerance
+    assert typed.speed_out_of_tolerance and typed.note.startswith("travel time: typed by the operator")
+
+
+def test_a_simulated_speed_gate_never_writes_a_physical_speed_and_the_orientation_is_unknown(valve):
+    """Issue 45: the shipped simulated gate's made-up times were stored as a physical launch's measured speed, and
+    an operator-classified launch stored the upright quaternion (0, 0, 0, 1) even when it tipped."""
+    rig = make_rig(valve, gate=SimulatedSpeedGate)
+    assert "not a measurement" in rig.describe()
+    tipped = rig.launch("run", "t0", CONDITION, ScriptedOperator(rig.operator, [OperatorOutcome(False)]))
+    assert math.isnan(tipped.travel_time_s) and math.isnan(tipped.measured_speed_mps)
+    assert not tipped.speed_out_of_tolerance
+    assert tipped.note.startswith("travel time: not measured (the simulated speed gate")
+    assert not tipped.orientation_known and all(math.isnan(q) for q in tipped.final_orientation)
+    tipped.validate()
+    typed = rig.launch("run", "t1", CONDITION, ScriptedOperator(rig.operator, [OperatorOutcome(True, 0.4)]))
+    assert typed.travel_time_s == 0.4 and typed.note.startswith("travel time: typed by the operator")
 
 
 def test_estop_during_countdown_aborts_and_leaves_the_fault_latched(valve):
@@ -338,7 +361,7 @@ class RecordingPorts(RigPorts):
 
     def open_speed_gate(self, speed_config):
         self.opened.append("speed_gate")
-        return SimulatedSpeedGate(speed_config.run_length_m, 0.0, seed=1)
+        return BenchGate(speed_config.run_length_m, 0.0, seed=1)
 
     def open_imu(self, imu_outcome):
         if not self.imu:

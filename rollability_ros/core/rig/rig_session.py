@@ -310,6 +310,9 @@ class PhysicalLaunch(LaunchBackend):
     def from_ports(cls, settings: "RigSettings", speed_config: SpeedGateConfig, valve_config: ValveConfig,
                    imu_config: ImuOutcomeConfig, ports: RigPorts) -> "PhysicalLaunch":
         """Open the valve, speed gate and (for ``outcome_source`` imu) IMU ports; :meth:`close` closes them."""
+        if settings.countdown_s >= valve_config.arm_timeout_s:
+            raise ValueError(f"rig.countdown_s ({settings.countdown_s:g} s) must be shorter than valve.arm_timeout_s "
+                             f"({valve_config.arm_timeout_s:g} s): the valve would disarm before the fire")
         imu = None
         try:
             if settings.outcome_source == "imu":

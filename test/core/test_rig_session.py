@@ -9,7 +9,7 @@ from synthetic_imu import piecewise, stream
 
 from rollability_ros.core.results.records import NO_SEED, LaunchCondition
 from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
-from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
+from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
                                                   OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
                                                   check_goal, launch_backend_class, make_launch_backend,
                                                   parse_outcome_answer, simulated_outcome, launch_seed)
@@ -32,6 +32,8 @@ class ScriptedOperator:
 
     def __call__(self, phase, detail):
         self.phases.append((phase, detail))
+        if detail.startswith(ANSWERED):
+            return
         if phase == "waiting_for_operator":
             assert detail.startswith(ASK_REGULATOR)
             assert self.channel.confirm() == (True, "accepted")
@@ -70,8 +72,8 @@ def test_operator_launch_confirms_regulator_once_per_speed_and_disarms(valve):
     operator = ScriptedOperator(rig.operator, [OperatorOutcome(True), OperatorOutcome(False, note="on its side"),
                                                OperatorOutcome(True)])
     first = rig.launch("run", "t0", CONDITION, operator)
-    assert [p for p, _ in operator.phases] == ["waiting_for_operator", "armed", "fired", "in_flight", "settling",
-                                               "classifying"]
+    assert [p for p, d in operator.phases if not d.startswith(ANSWERED)] == [
+        "waiting_for_operator", "armed", "fired", "in_flight", "settling", "classifying"]
     assert "30 psi" in operator.phases[0][1]
     assert first.upright and first.backend == "physical" and first.classified_by == "operator"
     assert math.isclose(first.measured_speed_mps, 0.8) and math.isclose(first.travel_time_s, 0.425)
@@ -195,6 +197,8 @@ def test_an_open_question_is_repeated_until_answered(valve):
     heard = []
 
     def late_operator(phase, detail):
+        if detail.startswith(ANSWERED):
+            return
         heard.append(phase)
         if heard.count(phase) > 2 or phase not in ("waiting_for_operator", "classifying"):
             operator(phase, detail)     # the first two announcements of each question are lost
@@ -227,10 +231,41 @@ def test_operator_channel_refuses_stray_answers():
     assert channel.record_outcome(OperatorOutcome(True), "t9") == (
         False, "the rig waits for the outcome of 't3', not 't9'")
     assert channel.record_outcome(OperatorOutcome(False), "t3") == (True, "accepted")
-    assert channel.record_outcome(OperatorOutcome(True)) == (False, "already answered")
+    assert channel.record_outcome(OperatorOutcome(True)) == (
+        False, "already answered for t3: tipped; this answer (upright) differs and is refused (the first answer counts)")
     assert channel.wait(1.0) == OperatorOutcome(False)
     channel.close()
     assert channel.wait(0.5) is None
+
+
+def test_one_answer_counts_from_either_place_and_a_late_one_is_compared_with_it():
+    """Issue 45: after `rollability rig outcome` was accepted, the campaign terminal's own answer read as a failure
+    ("the rig is not waiting for an outcome"), and a different one was dropped without notice."""
+    channel = OperatorChannel()
+    channel.open("confirm", "t1")
+    assert channel.confirm("t1") == (True, "accepted")
+    channel.close()
+    assert channel.confirm() == (True, "already answered for t1: regulator confirmed (this answer agrees; nothing "
+                                       "changed)")
+    channel.open("outcome", "t1")
+    assert channel.record_outcome(OperatorOutcome(True, 0.41, "clean"), "t1") == (True, "accepted")
+    channel.close()
+    assert channel.record_outcome(OperatorOutcome(True), "t1")[0]                    # the same verdict: no failure
+    accepted, message = channel.record_outcome(OperatorOutcome(False, note="on its side"))
+    assert not accepted and "upright, travel time 0.41 s, note: clean" in message and "(tipped, note: on its side)" \
+        in message
+    assert channel.record_outcome(OperatorOutcome(False), "t2") == (False, "the rig is not waiting for an outcome")
+    channel.open("outcome", "t2")                                                      # a new question: answered anew
+    assert channel.record_outcome(OperatorOutcome(False), "t2") == (True, "accepted")
+
+
+def test_the_rig_announces_the_answer_that_counted(valve):
+    rig = make_rig(valve)
+    operator = ScriptedOperator(rig.operator, [OperatorOutcome(False, note="on its side")])
+    rig.launch("run", "t0", CONDITION, operator)
+    answered = [(phase, detail) for phase, detail in operator.phases if detail.startswith(ANSWERED)]
+    assert answered == [("waiting_for_operator", "answered: regulator confirmed"),
+                        ("classifying", "answered: tipped, note: on its side")]
 
 
 def test_regulator_confirmation_expires_and_is_forgotten_after_an_abort(valve, monkeypatch):
@@ -326,7 +361,7 @@ def test_operator_overrides_the_imu_and_answers_when_it_never_settles(valve):
 
     def no_imu(phase, detail):
         asked.append(detail)
-        if phase == "classifying":
+        if phase == "classifying" and not detail.startswith(ANSWERED):
             assert detail.startswith(ASK_OUTCOME) and "did not see the chassis settle" in detail
             rig.operator.record_outcome(OperatorOutcome(False))
     silent = rig.launch("run", "t1", CONDITION, no_imu)

@@ -20,7 +20,7 @@ protocol). Every module here is light (no numpy, no physics): importing the face
 from rollability_ros.core.rig import rig_auth, valve_auth
 from rollability_ros.core.rig.launch_backend import LaunchAborted, LaunchBackend, RigPorts
 from rollability_ros.core.rig.rig_network import check_namespace, exposure_warnings, physical_rig_environment
-from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome,
+from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome,
                                                   OperatorOutcome, PhysicalLaunch, RigSettings, SimulatedLaunch,
                                                   launch_backend_class, make_launch_backend, parse_outcome_answer)
 from rollability_ros.core.rig.speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
@@ -30,7 +30,7 @@ from rollability_ros.core.rig._valve_backend import (VALVE_BACKENDS, ValveBacken
 from rollability_ros.core.rig.valve_backends import make_controller
 
 __all__ = [
-    "ASK_OUTCOME", "ASK_REGULATOR", "LAUNCH_BACKENDS", "SPEED_GATES", "VALVE_BACKENDS",
+    "ANSWERED", "ASK_OUTCOME", "ASK_REGULATOR", "LAUNCH_BACKENDS", "SPEED_GATES", "VALVE_BACKENDS",
     "ImuOutcome", "LaunchAborted", "LaunchBackend", "OperatorOutcome", "PhysicalLaunch", "RigPorts", "RigSettings",
     "SimulatedLaunch", "SpeedGate", "SpeedGateConfig", "ValveBackend", "ValveConfig", "ValveController",
     "ValveStatus", "check_namespace", "exposure_warnings", "launch_backend_class", "make_controller",

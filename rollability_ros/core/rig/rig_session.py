@@ -54,6 +54,8 @@ OUTCOME_SOURCES = ("operator", "imu")
 ASK_OUTCOME = "record the outcome"
 #: Start of the ``waiting_for_operator`` detail while the rig waits for the regulator confirmation.
 ASK_REGULATOR = "set the regulator"
+#: Start of the feedback detail that closes a question: the answer that counted (from whichever place gave it).
+ANSWERED = "answered: "
 #: Start of a physical outcome's note part that names where its travel time (and so its speed) came from.
 TRAVEL_TIME_NOTE = "travel time: "
 
@@ -166,11 +168,26 @@ def parse_outcome_answer(text: str) -> "OperatorOutcome":
     return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest))
 
 
+def describe_answer(kind: str, answer: typing.Any) -> str:
+    """An operator answer in words: ``regulator confirmed`` or ``upright, travel time 0.42 s, note: ...``."""
+    if kind == "confirm":
+        return "regulator confirmed"
+    parts = ["upright" if answer.upright else "tipped"]
+    if not math.isnan(answer.travel_time_s):
+        parts.append(f"travel time {answer.travel_time_s:g} s")
+    if answer.note:
+        parts.append(f"note: {answer.note}")
+    return ", ".join(parts)
+
+
 class OperatorChannel:
     """One pending question to the operator (regulator confirmation or launch outcome) and its answer.
 
-    The launch opens a question, announces it (feedback), then waits; answers come from any thread. An answer
-    with no open question of its kind is refused with a reason, so a late or stray service call changes nothing.
+    The launch opens a question, announces it (feedback), then waits; answers come from any thread (the operator
+    may answer from the ``rollability rig`` CLI or from the campaign terminal: the first answer counts). An answer
+    with no open question of its kind is refused with a reason, so a late or stray service call changes nothing;
+    a late answer to the question just answered (same kind and trial) is compared with the answer that counted:
+    the same verdict is accepted as already given (it changes nothing), a different one is refused naming both.
     """
 
     def __init__(self):
@@ -178,6 +195,7 @@ class OperatorChannel:
         self._kind = None      # "confirm" | "outcome" | None
         self._trial_id = ""
         self._answer = None
+        self._last: typing.Dict[str, typing.Tuple[str, typing.Any]] = {}   # kind -> (trial id, answer that counted)
 
     def open(self, kind: str, trial_id: str = "") -> None:
         """Start waiting for a ``"confirm"`` or an ``"outcome"`` (of ``trial_id``)."""
@@ -198,8 +216,24 @@ class OperatorChannel:
         with self._cond:
             return self._kind
 
+    def _late(self, kind, answer, trial_id):
+        """``(accepted, message)`` for a late answer to the question of ``kind`` answered last, or None."""
+        if kind not in self._last or (self._kind == kind and self._answer is None):
+            return None
+        answered_trial, counted = self._last[kind]
+        if trial_id and trial_id != answered_trial:
+            return None
+        given = describe_answer(kind, counted)
+        if kind == "confirm" or counted.upright == answer.upright:
+            return True, f"already answered for {answered_trial}: {given} (this answer agrees; nothing changed)"
+        return False, (f"already answered for {answered_trial}: {given}; this answer ({describe_answer(kind, answer)}) "
+                       "differs and is refused (the first answer counts)")
+
     def _deliver(self, kind, answer, trial_id=""):
         with self._cond:
+            late = self._late(kind, answer, trial_id)
+            if late is not None:
+                return late
             if self._kind != kind:
                 what = "a regulator confirmation" if kind == "confirm" else "an outcome"
                 return False, f"the rig is not waiting for {what}" + (
@@ -208,9 +242,8 @@ class OperatorChannel:
             if trial_id and trial_id != self._trial_id:
                 what = "a regulator confirmation" if kind == "confirm" else "the outcome"
                 return False, f"the rig waits for {what} of {self._trial_id!r}, not {trial_id!r}"
-            if self._answer is not None:
-                return False, "already answered"
             self._answer = answer
+            self._last[kind] = (self._trial_id, answer)
             self._cond.notify_all()
             return True, "accepted"
 
@@ -376,6 +409,8 @@ class PhysicalLaunch(LaunchBackend):
         if answer is None:
             raise LaunchAborted("cancelled while waiting for the operator" if cancelled()
                                 else f"no operator answer within {self.settings.operator_timeout_s:g} s ({detail})")
+        # every place that shows the question learns at once that it was answered, and how
+        on_phase(phase, f"{ANSWERED}{describe_answer(kind, answer)}")
         return answer
 
     def _disarm_unless_faulted(self):

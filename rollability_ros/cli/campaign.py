@@ -104,9 +104,11 @@ def _resimulate(args):
 
 
 def _run_local(args, spec, ask):
+    import sys
+
     from rollability_ros.core.campaign import (LocalRig, local_rig_settings, plan_refusal, plan_trials,
-                                               record_campaign_run, report_exit_code, resume_refusal, run_campaign,
-                                               store_writer)
+                                               record_campaign_run, report_exit_code, resume_command, resume_refusal,
+                                               run_campaign, store_writer)
     from rollability_ros.core.config import load_parameters
     from rollability_ros.core.store import Store
 
@@ -136,15 +138,20 @@ def _run_local(args, spec, ask):
     finally:
         if rig is not None:
             rig.close()
-    return report_exit_code(report)
+    return report_exit_code(report, resume=resume_command(getattr(args, "argv", None) or sys.argv[1:]))
 
 
 def _run_graph(args, spec, ask):
+    import sys
+
     import rclpy
     from rclpy.node import Node
 
-    from rollability_ros.core.campaign import RunnerSettings, report_exit_code
+    from rollability_ros.core.campaign import RunnerSettings, TerminalAsk, report_exit_code, resume_command
     from rollability_ros.nodes.campaign_runner import run_graph_campaign
+
+    if ask is not None:   # a prompt that stops waiting when the rig CLI answered first
+        ask = TerminalAsk()
 
     settings = RunnerSettings(backend=args.backend, resume=args.resume, store_timeout_s=args.store_timeout_s,
                               session_key_file=args.session_key_file)
@@ -152,7 +159,8 @@ def _run_graph(args, spec, ask):
     rclpy.init(args=[])
     node = Node("campaign_runner")
     try:
-        return report_exit_code(run_graph_campaign(node, spec, settings, ask))
+        return report_exit_code(run_graph_campaign(node, spec, settings, ask),
+                                resume=resume_command(getattr(args, "argv", None) or sys.argv[1:]))
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

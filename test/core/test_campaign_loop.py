@@ -1,5 +1,7 @@
 """The campaign loop (core/campaign/runner.py) against a real store, and `rollability campaign` in process with
 a scripted operator on stdin driving the physical path on the dry-run valve."""
+import math
+import shlex
 import subprocess
 import sys
 
@@ -138,6 +140,7 @@ def test_cli_physical_in_process_with_a_scripted_operator(tmp_path):
                            timeout=60)
     assert first.returncode == 3, first.stdout + first.stderr
     assert "stopped by the operator" in first.stdout
+    assert f"to continue, type: rollability {shlex.join(command[3:])} --resume" in first.stdout   # the real command
     again = subprocess.run(command, input="", capture_output=True, text=True, timeout=60)
     assert again.returncode == 2 and "--resume" in again.stderr
     resumed = subprocess.run(command + ["--resume"], input="\n\ny\n\ny\n", capture_output=True, text=True,
@@ -147,5 +150,7 @@ def test_cli_physical_in_process_with_a_scripted_operator(tmp_path):
     with Store(store) as stored:
         outcomes = stored.launch_outcomes("cli-physical")
     assert [o.upright for o in outcomes] == [True, False, True, True]
-    assert outcomes[1].note == "on its lid" and outcomes[1].classified_by == "operator"
-    assert all(o.backend == "physical" and o.measured_speed_mps > 0 for o in outcomes)
+    assert outcomes[1].note == "travel time: typed by the operator (rig outcome --travel-time-s); on its lid"
+    assert outcomes[1].classified_by == "operator" and outcomes[1].travel_time_s == 0.5
+    # the shipped speed gate is simulated: its made-up times are not a physical record's speed
+    assert all(o.backend == "physical" and math.isnan(o.measured_speed_mps) for o in outcomes if o != outcomes[1])

@@ -110,7 +110,7 @@ def test_estop_latches_until_disarm_then_arm():
     assert states[-1] == status
     assert controller.fire(10) == (False, "fault latched: operator e-stop")
     ok, message = controller.arm()
-    assert not ok and "disarm to acknowledge" in message
+    assert not ok and "acknowledge it with a disarm" in message
     assert controller.disarm()[0]
     assert controller.arm() == (True, "armed")
     assert controller.fire(5)[0]

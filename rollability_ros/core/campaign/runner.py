@@ -71,6 +71,7 @@ class CampaignReport:
     total: int
     stopped_reason: str = ""
     failed: bool = False
+    advice: str = ""          # what the operator must do before resuming (e.g. acknowledge a valve e-stop)
 
     @property
     def complete(self) -> bool:
@@ -243,14 +244,26 @@ class RunnerSettings:
             raise ValueError("store_timeout_s and server_timeout_s must be finite and > 0")
 
 
-def report_exit_code(report: CampaignReport, say: typing.Callable[[str], None] = print) -> int:
+def resume_command(argv: typing.Sequence[str], program: str = "rollability") -> str:
+    """The command line that resumes the campaign started with ``program argv``: the same arguments with
+    ``--resume`` (once), quoted for a shell."""
+    import shlex
+
+    return shlex.join([program, *argv] + ([] if "--resume" in argv else ["--resume"]))
+
+
+def report_exit_code(report: CampaignReport, say: typing.Callable[[str], None] = print, resume: str = "") -> int:
     """Print how a session ended; return the exit code: 0 when complete, 3 when stopped early, 4 when it failed
-    (mostly invalid launches: the message names the setting to change)."""
+    (mostly invalid launches: the message names the setting to change). ``resume``: the exact command that
+    continues the campaign (:func:`resume_command`), printed after a stop with the report's ``advice``."""
     if report.failed:
         say(f"campaign failed: {report.stopped_reason} ({report.done}/{report.total} stored)")
         return 4
     if report.stopped_reason:
-        say(f"campaign stopped: {report.stopped_reason} ({report.done}/{report.total} stored; resume to continue)")
+        say(f"campaign stopped: {report.stopped_reason} ({report.done}/{report.total} stored)")
+        if report.advice:
+            say(f"before resuming: {report.advice}")
+        say(f"to continue, type: {resume}" if resume else "resume to continue (the same command with --resume)")
         return 3
     say(f"campaign complete: {report.done}/{report.total} trials stored")
     return 0

@@ -480,16 +480,23 @@ class PhysicalLaunch(LaunchBackend):
         if not ok:
             raise LaunchAborted(f"valve refused to arm: {reason}")
         try:
-            on_phase("armed", f"valve armed; firing in {self.settings.countdown_s:g} s, stand clear")
+            countdown_s = self.settings.countdown_s
+            on_phase("armed", countdown_text(countdown_s))
             self.speed_gate.arm(condition.speed_mps)
             if self.imu is not None:
                 self.imu.reset()
             # the countdown always runs out: a fault reported on the valve's state topic (which any participant can
-            # publish) never shortens it; if the fault is real, the valve refuses the fire below with its reason
-            deadline = time.monotonic() + self.settings.countdown_s
+            # publish) never shortens it; if the fault is real, the valve refuses the fire below with its reason.
+            # Each whole second left is announced, so every place that shows the launch shows the countdown
+            deadline = time.monotonic() + countdown_s
+            shown = math.ceil(countdown_s)
             while time.monotonic() < deadline:
                 if cancelled():
                     raise LaunchAborted("cancelled before firing")
+                left = math.ceil(deadline - time.monotonic())
+                if 1 <= left < shown:
+                    shown = left
+                    on_phase("armed", countdown_text(left))
                 time.sleep(min(0.02, max(0.0, deadline - time.monotonic())))
             ok, reason = self.valve.fire(self.launch_pulse_ms)
             if not ok:
@@ -636,6 +643,12 @@ def make_launch_backend(settings: RigSettings, speed_config: SpeedGateConfig, va
     """
     settings.validate()
     return launch_backend_class(settings.backend).from_ports(settings, speed_config, valve_config, imu_config, ports)
+
+
+def countdown_text(left_s: float) -> str:
+    """The ``armed`` feedback detail with ``left_s`` seconds before the fire, and how to stop it."""
+    return (f"valve armed; firing in {left_s:g} s, stand clear (stop: e in `rollability rig console`, or "
+            "`rollability rig estop`; cancel: c in the console)")
 
 
 def speed_note(speed: SpeedMeasurement, target_mps: float, tolerance_fraction: float) -> str:

@@ -284,7 +284,8 @@ class ValveController:
             if self._shut_down:
                 return False, "valve controller is shut down"
             if self._fault_reason:
-                return False, f"fault latched ({self._fault_reason}); disarm to acknowledge, then arm"
+                return False, (f"fault latched ({self._fault_reason}); acknowledge it with a disarm (`rollability rig "
+                               "disarm`); a launch sequence then arms by itself")
             if self._armed:
                 return True, "already armed"
             try:

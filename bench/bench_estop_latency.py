@@ -125,7 +125,7 @@ def measure(countdowns, runs):
     work = tempfile.mkdtemp(prefix="bench-estop-")
     os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", XDG_RUNTIME_DIR=work)
     os.environ.pop("ROS_LOCALHOST_ONLY", None)
-    sim = RelaySim(os.path.join(work, "port"), os.path.join(work, "relay.jsonl")).start()
+    sim = RelaySim(work).start()
     valve_log = open(os.path.join(work, "valve.log"), "wb")
     valve = subprocess.Popen([sys.executable, "-m", "rollability_ros.nodes.valve_controller", "--ros-args",
                               "-p", "valve.backend:=serial_relay", "-p", f"valve.serial.port:={sim.port}",

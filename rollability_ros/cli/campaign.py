@@ -34,6 +34,9 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--session-key-file", default="",
                         help="with --graph --backend physical: the valve_controller's session key, to sign the goals "
                              "and answers (default: valve.session_key_file's default for this ROS domain)")
+    parser.add_argument("--namespace", default=None,
+                        help="with --graph: ROS namespace of the rig and outcome_logger (`rollability bringup` starts "
+                             "them in bringup.namespace, /rollability as shipped)")
     parser.add_argument("--resimulate", nargs=4, metavar=("CONFIGURATION", "HEIGHT_M", "SPEED_MPS", "ANGLE_DEG"),
                         help="with --backend sim and --seed: run only this one launch on the launch twin of "
                              "--rig-config and print its outcome (the report's drill-down shows this command for "
@@ -62,6 +65,8 @@ def run(args: argparse.Namespace) -> int:
         return _resimulate(args)
     spec = _spec(args)
     ask = input if launch_backend_class(args.backend).attended else None
+    if args.namespace is not None and not args.graph:
+        raise ValueError("--namespace is for --graph (a campaign through a running graph)")
     if args.graph:
         if args.store:
             raise ValueError("--store is for the in-process campaign; with --graph the outcome_logger owns the store")
@@ -156,8 +161,13 @@ def _run_graph(args, spec, ask):
     settings = RunnerSettings(backend=args.backend, resume=args.resume, store_timeout_s=args.store_timeout_s,
                               session_key_file=args.session_key_file)
     settings.validate()
+    namespace = None
+    if args.namespace is not None:
+        from rollability_ros.core.rig import check_namespace
+
+        namespace = check_namespace(args.namespace)
     rclpy.init(args=[])
-    node = Node("campaign_runner")
+    node = Node("campaign_runner", namespace=namespace)
     try:
         return report_exit_code(run_graph_campaign(node, spec, settings, ask),
                                 resume=resume_command(getattr(args, "argv", None) or sys.argv[1:]))

@@ -41,7 +41,7 @@ def test_one_valve_backend_key_and_a_rig_only_session_starts_no_evaluators(tmp_p
     optimizer still started two sim evaluators."""
     from rollability_ros.core.graph.bringup import load_graph_settings, parameter_files, session_nodes
 
-    settings = load_graph_settings(parameter_files())
+    settings = load_graph_settings(parameter_files(["bringup"]))   # the shipped bringup.yaml reads
     rig_only = [node.process_label for node in session_nodes(settings, str(tmp_path), "physical", optimizer=False)]
     assert rig_only == ["recorder", "outcome_logger", "valve_controller", "rig"]
     full = [node.process_label for node in session_nodes(settings, str(tmp_path), "sim")]

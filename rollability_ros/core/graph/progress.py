@@ -37,7 +37,10 @@ class JobProgress:
         if self.trials_stored is not None:
             parts.append(f"{self.trials_stored}" + (f"/{self.trials_total}" if self.trials_total else "")
                          + f" {self.trials_label}")
-        parts.append(f"ETA {format_duration(self.eta_s)}" if self.eta_s is not None else "ETA unknown")
+        if self.eta_s is not None:
+            parts.append(f"ETA {format_duration(self.eta_s)}")
+        elif self.trials_total or self.max_generations:   # an end to estimate, not yet estimable
+            parts.append("ETA unknown")
         return " | ".join(parts)
 
 
@@ -142,7 +145,8 @@ def session_progress(observer: GraphObserver, nodes: int, elapsed_s: float) -> J
     """A :class:`JobProgress` of a ``bringup`` session: the optimizer's newest run (generation, best so far, ETA
     from the run's generation cap) and the launches the outcome logger stored, learnt through ``observer``;
     ``nodes`` supervised."""
-    phase = f"session running {format_duration(elapsed_s)}, {nodes} nodes supervised"
+    # whole minutes: in a pipe or log a line is printed per change, not every second (issue 45)
+    phase = f"session up {int(elapsed_s // 60)} min, {nodes} nodes supervised"
     generation = best = eta = None
     cap = 0
     history = observer.optimizer_progress()

@@ -48,6 +48,9 @@ from rollability_ros.nodes._support import (GOAL_RESEND_S, LATCHED_QOS, RECORD_Q
                                             send_goal_resending)
 from rollability_ros.srv import ConfirmRegulator, GetStoredTrials, RecordOutcome
 
+#: Longest wait for the valve's latched state before a launch (a valve_controller that publishes none: no wait
+#: after that), s.
+VALVE_STATE_WAIT_S = 5.0
 #: Seconds the rig's action server may be missing from the graph before a running launch counts as lost.
 SERVER_LOST_S = 3.0
 
@@ -85,6 +88,7 @@ class RigClient:
         self.record_client = node.create_client(RecordOutcome, "record_outcome")
         self._pending: typing.Deque[typing.Any] = collections.deque()   # feedback read while a prompt waited
         self.valve_state = None
+        self._waited_for_valve = False
         self._shown_fault = ""
         if ask is not None:   # an attended campaign shows the valve's stops as they happen
             if isinstance(ask, TerminalAsk) and ask.idle is None:   # messages arrive while a prompt waits
@@ -116,7 +120,12 @@ class RigClient:
 
     def _wait_valve_ready(self):
         """Before a launch: while the valve is stopped, tell the operator how to acknowledge it and wait."""
-        spin_until(self.executor, lambda: False, 0.1)
+        # the valve's latched state arrives once the subscription matched (a fresh process: a moment); waited for
+        # once, so a graph whose valve publishes nothing is not held up at every launch
+        if not self._waited_for_valve:
+            self._waited_for_valve = True
+            spin_until(self.executor, lambda: self.valve_state is not None, VALVE_STATE_WAIT_S)
+        spin_until(self.executor, lambda: False, 0.05)
         while self.valve_state is not None and self.valve_state.fault:
             reason = self.valve_state.fault_reason
             if self.ask is None:

@@ -41,13 +41,16 @@ from rollability_ros.core.campaign import (AnsweredElsewhere, CampaignSpec, Runn
                                            TerminalAsk, answer_rig, plan_trials, report_exit_code, resume_refusal,
                                            run_campaign)
 from rollability_ros.core.config import ConfigError
-from rollability_ros.core.rig import ANSWERED, LaunchAborted, launch_backend_class, rig_auth, valve_auth
+from rollability_ros.core.rig import (ANSWERED, LaunchAborted, describe_answer, launch_backend_class, rig_auth,
+                                      valve_auth)
 from rollability_ros.nodes import _convert
 from rollability_ros.msg import OutcomeStored, ValveAuth, ValveState
 from rollability_ros.nodes._support import (GOAL_RESEND_S, LATCHED_QOS, RECORD_QOS, ParameterError, declare_settings, init_ros,
                                             send_goal_resending)
 from rollability_ros.srv import ConfirmRegulator, GetStoredTrials, RecordOutcome
 
+#: How long after a launch's result the campaign still shows the rig's announcement of an answer, s.
+LATE_FEEDBACK_S = 0.3
 #: Longest wait for the valve's latched state before a launch (a valve_controller that publishes none: no wait
 #: after that), s.
 VALVE_STATE_WAIT_S = 5.0
@@ -87,6 +90,7 @@ class RigClient:
         self.confirm_client = node.create_client(ConfirmRegulator, "rig/confirm")
         self.record_client = node.create_client(RecordOutcome, "record_outcome")
         self._pending: typing.Deque[typing.Any] = collections.deque()   # feedback read while a prompt waited
+        self._said: typing.Optional[typing.Tuple[str, str]] = None     # the answer this terminal gave and showed
         self.valve_state = None
         self._waited_for_valve = False
         self._shown_fault = ""
@@ -189,6 +193,9 @@ class RigClient:
             self.say(f"  the rig refused the answer: {response.message}")
         elif response.message != "accepted":   # answered already, from the other place, with the same verdict
             self.say(f"  {response.message}")
+        else:   # shown now: the rig's own announcement of it may come after the launch's result
+            self._said = (phase, f"{ANSWERED}{describe_answer(kind, outcome)}")
+            self.say(f"  {phase}: {self._said[1]}")
 
     def _sign(self, sign):
         """``sign(signer)`` as a ``ValveAuth`` (unsigned without a signer); LaunchAborted when the key is unreadable."""
@@ -266,11 +273,25 @@ class RigClient:
                 elif time.monotonic() - missing_since > SERVER_LOST_S:
                     raise LaunchAborted(f"the rig left the graph during {trial_id}")
                 continue
-            if (message.phase, message.detail) == last:
+            if (message.phase, message.detail) in (last, self._said):
                 continue    # the rig repeats an open question until it is answered: ask the operator once
             last = (message.phase, message.detail)
             self.say(f"  {message.phase}: {message.detail}")
             self._answer(trial_id, message.phase, message.detail, feedback, result_future)
+        self._show_late_answers(feedback, last)
+
+    def _show_late_answers(self, feedback, last):
+        """The rig's announcement of an answer given elsewhere may arrive after the launch's result (another
+        topic): wait a moment for it, so this terminal always shows the answer that counted."""
+        spin_until(self.executor, lambda: False, LATE_FEEDBACK_S)
+        while True:
+            try:
+                message = feedback.get_nowait().feedback
+            except queue.Empty:
+                return
+            if message.detail.startswith(ANSWERED) and (message.phase, message.detail) not in (last, self._said):
+                last = (message.phase, message.detail)
+                self.say(f"  {message.phase}: {message.detail}")
 
 
 def spin_until(executor: typing.Any, predicate: typing.Callable[[], bool], timeout_s: float) -> bool:

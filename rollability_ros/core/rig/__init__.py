@@ -22,7 +22,8 @@ from rollability_ros.core.rig.launch_backend import LaunchAborted, LaunchBackend
 from rollability_ros.core.rig.rig_network import check_namespace, exposure_warnings, physical_rig_environment
 from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome,
                                                   OperatorOutcome, PhysicalLaunch, RigSettings, SimulatedLaunch,
-                                                  launch_backend_class, make_launch_backend, parse_outcome_answer)
+                                                  describe_answer, launch_backend_class, make_launch_backend,
+                                                  parse_outcome_answer)
 from rollability_ros.core.rig.speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
 from rollability_ros.core.rig.valve import ValveConfig, ValveController, ValveStatus
 from rollability_ros.core.rig._valve_backend import (VALVE_BACKENDS, ValveBackend, make_valve_backend,
@@ -33,7 +34,7 @@ __all__ = [
     "ANSWERED", "ASK_OUTCOME", "ASK_REGULATOR", "LAUNCH_BACKENDS", "SPEED_GATES", "VALVE_BACKENDS",
     "ImuOutcome", "LaunchAborted", "LaunchBackend", "OperatorOutcome", "PhysicalLaunch", "RigPorts", "RigSettings",
     "SimulatedLaunch", "SpeedGate", "SpeedGateConfig", "ValveBackend", "ValveConfig", "ValveController",
-    "ValveStatus", "check_namespace", "exposure_warnings", "launch_backend_class", "make_controller",
+    "ValveStatus", "check_namespace", "describe_answer", "exposure_warnings", "launch_backend_class", "make_controller",
     "make_launch_backend", "make_speed_gate", "make_valve_backend", "parse_outcome_answer", "physical_rig_environment",
     "register_valve_backend", "rig_auth", "valve_auth",
 ]

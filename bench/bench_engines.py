@@ -56,7 +56,7 @@ def launch_rates(candidates, repeats):
     grid = base.grid
     heights = [dome_heights(grid)] + [rng.uniform(grid.height_min, grid.height_max, grid.n_variables)
                                       for _ in range(candidates - 1)]
-    profiles = [ProfileBody.from_mesh(profile_mesh(h, grid), base.profile_density_kgpm3()) for h in heights]
+    profiles = [base.profile_body(profile_mesh(h, grid)) for h in heights]
     conditions = launch_conditions(["campaign"])
     twin = launch_twin.load_launch_twin_settings()
     variants = {(engine, early): dataclasses.replace(

@@ -13,7 +13,7 @@ OVERRIDES = ("count", "min_distance", "reevaluate_trials", "mesh_units", "top_fr
 
 def _print_table(rows):
     stream = sys.stdout   # looked up when called: sys.stdout may be replaced after import
-    stream.write(f"{'design':<10}{'length m':>10}{'width m':>10}{'max h m':>10}  {'fitness [95% CI]':<22}"
+    stream.write(f"{'design':<10}{'length m':>10}{'width m':>10}{'max h m':>10}{'mass g':>8}  {'fitness [95% CI]':<22}"
                  f"{'trials':>7}  {'source':<13}  {'in-run [95% CI]':<22}{'trials':>7}  bias\n")
     for row in rows:
         fitness = ("-" if not row["trials"] else
@@ -21,8 +21,10 @@ def _print_table(rows):
         in_run = ("-" if not row["in_run_trials"] else
                   f"{row['in_run_fitness']:.3f} [{row['in_run_ci_low']:.3f}, {row['in_run_ci_high']:.3f}]")
         bias = "-" if row["selection_bias"] != row["selection_bias"] else f"{row['selection_bias']:+.3f}"
+        mass = "-" if row["printed_mass_g"] == "" else f"{row['printed_mass_g']:.0f}"
         stream.write(f"{row['configuration']:<10}{row['length_m']:>10.4f}{row['width_m']:>10.4f}"
-                     f"{row['max_height_m']:>10.4f}  {fitness:<22}{row['trials']:>7}  {row['fitness_source']:<13}  "
+                     f"{row['max_height_m']:>10.4f}{mass:>8}  {fitness:<22}{row['trials']:>7}  "
+                     f"{row['fitness_source']:<13}  "
                      f"{in_run:<22}{row['in_run_trials']:>7}  {bias}\n")
 
 
@@ -56,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
         with Store(run_dir) as store:
             result, folder = selection.select_run(store, run_id, run_dir, evaluator_settings.grid,
                                                   evaluator_settings.printer, settings, evaluate_batch,
-                                                  optimization_run.run_settings(parameters).optimizer.seed, launch_batch)
+                                                  optimization_run.run_settings(parameters).optimizer.seed,
+                                                  launch_batch, weigh=lambda mesh: evaluator_settings.profile_body(mesh).mass_kg)
     finally:
         if executor is not None:
             executor.close()

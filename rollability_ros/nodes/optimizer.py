@@ -382,9 +382,10 @@ class Optimizer(Node):
         evaluate_batch = self._pool.batch_evaluator(chosen.reevaluate_trials) if chosen.reevaluate_trials else None
         launch_batch = self._pool.fidelity_evaluator("launch") \
             if chosen.race_rounds or chosen.launch_trials else None
+        robot = self._robot_settings(settings)
         result, folder = selection.select_run(run.store, run.run_id, run.run_dir, settings["profile"],
                                               settings["printer"], chosen, evaluate_batch, run.settings.seed,
-                                              launch_batch)
+                                              launch_batch, weigh=lambda mesh: robot.profile_body(mesh).mass_kg)
         rows = "; ".join(f"{row['configuration']} {row['simulated_fitness']:.3f}"
                          for row in selection.table_rows(result) if row["trials"])
         self.get_logger().info(f"selected {len(result.designs)} design(s) into {folder} ({rows})"

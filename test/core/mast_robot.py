@@ -65,5 +65,7 @@ def mast_robot_config(urdf_path, footprint_offset_x_m=0.06, footprint_length_m=0
       upright_tilt_deg: 30.0
       contact_tolerance_m: 0.005
       joint_drag_torque_nm: 0.05
-      profile_density_kgpm3: 60.0
+      profile_print:
+        model: solid
+        solid_density_kgpm3: 60.0
 {extra}"""

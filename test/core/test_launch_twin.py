@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from rollability_ros.core.config import ConfigError
+from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
 from rollability_ros.core.results.analysis import group_conditions
 from rollability_ros.core.results.records import LaunchCondition
 from rollability_ros.core.rig.rig_session import simulated_outcome
@@ -70,15 +70,20 @@ def test_same_seed_gives_the_identical_launch_and_seeds_scatter_the_speed():
 
 
 @pytest.mark.parametrize("speed_mps", [0.8, 1.5])
-def test_travel_time_over_the_run_matches_the_paper(paper_launches, speed_mps):
+def test_stroke_launcher_reads_the_set_speed_on_the_gate(paper_launches, speed_mps):
+    """The paper's cylinder (stroke 0.15 m, then the chassis coasts): the lab's setting is solved so that the gate
+    reads the set speed over the 0.34 m run, within the speed gate's tolerance (config/rig.yaml) and in fact 1%."""
     _, results = paper_launches
     _, result, _, _ = results[speed_mps]
-    expected_s = 0.34 / speed_mps                      # paper 2.2.5: 0.42 s and 0.22 s
     assert result.launch_speed_mps == speed_mps
-    # the plate ramps up to speed in plate.ramp_s, so the chassis arrives a little late; inside the 5% the rig needs
-    # (MuJoCo's plate servo lags the ramp more: mujoco_launch_twin._MujocoPlate)
-    assert expected_s <= result.travel_time_s < (1.08 if ENGINE[0] == "mujoco" else 1.05) * expected_s
+    expected_s = 0.34 / speed_mps                      # paper 2.2.5: 0.42 s and 0.22 s
     assert result.measured_speed_mps == pytest.approx(0.34 / result.travel_time_s)
+    tolerance = from_mapping(SpeedGateConfig, section(load_parameters("rig"), "speed_gate"), "speed_gate")
+    assert abs(result.measured_speed_mps / speed_mps - 1) <= tolerance.tolerance_fraction
+    assert result.travel_time_s == pytest.approx(expected_s, rel=0.01)
+    # the plate stops after its stroke and the chassis coasts the rest: it is pushed faster than the gate's mean
+    # and arrives at the edge slower than the plate drove it
+    assert result.plate_speed_mps > speed_mps and result.edge_speed_mps < result.plate_speed_mps
 
 
 @pytest.mark.parametrize("speed_mps", [0.8, 1.5])
@@ -118,8 +123,10 @@ def test_opposite_angles_mirror_the_launch_for_the_symmetric_chassis():
     left, right = launch(settings, angle_deg=30.0), launch(settings, angle_deg=-30.0)
     (lx, ly, lz), (rx, ry, rz) = left.landing_position_m, right.landing_position_m
     assert ly > 0.05                                   # pushed 30 deg counterclockwise: lands to the left (+y)
-    # MuJoCo's mesh contacts are less symmetric: mirrored landings within 6 mm
-    assert (lx, -ly, lz) == pytest.approx((rx, ry, rz), abs=6e-3 if ENGINE[0] == "mujoco" else 2e-3)
+    # MuJoCo's mesh contacts are less symmetric: mirrored landings within 6 mm (the coasting chassis lands on
+    # another part of a wheel: heights within 2 cm)
+    assert (lx, -ly) == pytest.approx((rx, ry), abs=6e-3 if ENGINE[0] == "mujoco" else 2e-3)
+    assert lz == pytest.approx(rz, abs=0.02 if ENGINE[0] == "mujoco" else 2e-3)
     assert left.travel_time_s == pytest.approx(right.travel_time_s, abs=1e-4)
     assert left.flight_time_s == pytest.approx(right.flight_time_s, abs=2 * settings.physics.time_step_s)
     straight = launch(settings, angle_deg=0.0)
@@ -178,23 +185,26 @@ def test_bare_chassis_at_low_speed_and_height_lands_on_its_wheels_mostly():
 #: A drive with drag (caster wheels, stiff motors): the trial chassis's rolling friction and motor drag, 40 times
 #: the twin's; coasting, this chassis stops within about 0.1 m.
 DRAG = {"wheel_rolling_friction": 0.01, "wheel_drag_torque_nm": 0.02}
+#: The alternative launcher (launch_twin.launcher.model): the plate drives the robot until it goes over.
+PUSH_THROUGH = {"launcher.model": "push_through"}
 
 
 @pytest.mark.parametrize("speed_mps,angle_deg", [(0.8, 0.0), (1.5, -60.0), (0.8, 30.0)])
-def test_plate_drives_a_chassis_with_drag_off_the_edge_at_the_launch_speed(speed_mps, angle_deg):
-    result = launch(exact_settings(**DRAG), height_m=0.75, speed_mps=speed_mps, angle_deg=angle_deg)
+def test_push_through_plate_drives_a_chassis_with_drag_off_the_edge_at_the_launch_speed(speed_mps, angle_deg):
+    result = launch(exact_settings(**DRAG, **PUSH_THROUGH), height_m=0.75, speed_mps=speed_mps, angle_deg=angle_deg)
     assert result.valid, result.invalid_reason
     assert result.edge_speed_mps == pytest.approx(speed_mps, rel=0.05 if ENGINE[0] == "pybullet" else 0.1)
     # what the rig's gate reads; MuJoCo's plate servo lags the ramp against this drag (and no Mecanum side slip)
     assert result.measured_speed_mps == pytest.approx(speed_mps, rel=0.05 if ENGINE[0] == "pybullet" else 0.15)
     # without the plate's drive (a push too weak to matter: the former one-off impulse) the same chassis is slow
-    coasting = launch(exact_settings(**DRAG, **{"plate.max_force_n": 1e-3}), speed_mps=speed_mps, angle_deg=angle_deg)
+    coasting = launch(exact_settings(**DRAG, **PUSH_THROUGH, **{"plate.max_force_n": 1e-3}), speed_mps=speed_mps,
+                      angle_deg=angle_deg)
     assert not coasting.edge_speed_mps > 0.9 * speed_mps
 
 
 def test_chassis_that_never_leaves_the_ledge_is_an_invalid_launch():
     phases = []
-    settings = exact_settings(**DRAG, **{"plate.max_force_n": 1e-3}, max_attempts=2)
+    settings = exact_settings(**DRAG, **PUSH_THROUGH, **{"plate.max_force_n": 1e-3}, max_attempts=2)
     result = launch(settings, speed_mps=0.3, on_phase=phases.append)
     assert math.isnan(result.travel_time_s) and math.isnan(result.measured_speed_mps)
     assert result.settled and not result.valid and result.invalid_reason == "did not leave the ledge"
@@ -212,6 +222,48 @@ def test_chassis_that_never_leaves_the_ledge_is_an_invalid_launch():
     assert [(c.successes, c.trials) for c in group_conditions([outcome, valid])] == [(1, 1)]
 
 
+def test_the_launcher_model_is_one_setting_and_settings_it_cannot_honour_are_refused():
+    stroke, through = launch(exact_settings()), launch(exact_settings(**PUSH_THROUGH))
+    assert through.plate_speed_mps == pytest.approx(0.8)   # the plate holds the launch speed to the edge ...
+    assert through.edge_speed_mps == pytest.approx(0.8, rel=0.05)
+    assert stroke.plate_speed_mps > 0.8 and stroke.edge_speed_mps < stroke.plate_speed_mps   # ... the stroke ends
+    with pytest.raises(ConfigError, match="launcher: model must be one of stroke, push_through"):
+        load_launch_twin_settings(overrides={"twin.launcher.model": "catapult"})
+    with pytest.raises(ConfigError, match="max_force_n .* push_through plate only"):
+        load_launch_twin_settings(overrides={"twin.plate.max_force_n": 150.0})
+    with pytest.raises(ConfigError, match="bore_m .* stroke cylinder only"):
+        load_launch_twin_settings(overrides={"twin.launcher.model": "push_through", "twin.launcher.bore_m": 0.02})
+
+
+def test_a_cylinder_too_weak_for_the_set_speed_is_refused():
+    weak = exact_settings(**DRAG, **{"launcher.pressures_psi": [0.05, 0.1]})
+    with pytest.raises(ValueError, match="stroke launcher cannot launch this robot at 0.8 m/s.*pressures_psi"):
+        launch(weak)
+
+
+def test_coast_resistance_and_speed_bias_are_unknowns_the_gate_sees():
+    """launcher.ledge_rolling_friction slows the coast (the lab's setting makes up for it at the gate, so the
+    chassis leaves the edge slower); launcher.speed_bias_fraction moves the gate's reading itself."""
+    shipped, rough = launch(exact_settings()), launch(exact_settings(**{"launcher.ledge_rolling_friction": 0.005}))
+    assert rough.measured_speed_mps == pytest.approx(0.8, rel=0.01)
+    assert rough.plate_speed_mps > shipped.plate_speed_mps and rough.edge_speed_mps < shipped.edge_speed_mps - 0.01
+    biased = launch(exact_settings(**{"launcher.speed_bias_fraction": 0.1}))
+    assert biased.launch_speed_mps == pytest.approx(0.88)
+    assert biased.measured_speed_mps == pytest.approx(0.88, rel=0.01)
+
+
+def test_a_chassis_at_rest_on_its_wheels_off_the_pad_is_upright():
+    """The rig's rule: upright wherever it rests. On a 0.5 m pad the chassis lands on the pad, rolls off it on its
+    wheels and stops on the floor (MuJoCo: on the pad's level beyond it, docs/engines.md): upright."""
+    result = launch(load_launch_twin_settings(overrides={"twin.foam.length_m": 0.5}), seed=0)
+    assert result.valid and result.settled and not result.decided
+    assert result.landing_position_m[0] < 0.5 < result.rest_position_m[0]
+    assert result.rest_surface == "floor" and result.rest_distance_m > 0.5
+    assert result.tilt_deg < 5 and result.upright
+    assert result.time_to_rest_s == pytest.approx(result.sim_time_s - result.flight_time_s - result.travel_time_s,
+                                                  abs=0.3)
+
+
 def test_landing_off_the_foam_is_an_invalid_launch():
     result = launch(exact_settings(**{"foam.length_m": 0.05}), height_m=0.75, speed_mps=1.5)
     assert result.invalid_reason.startswith("landed outside the foam")
@@ -226,10 +278,12 @@ def test_plate_yaw_bias_and_wheel_friction_break_the_mirror_symmetry():
         return abs(left.landing_position_m[1] + right.landing_position_m[1])
 
     neutral_m = mirror_gap_m(exact_settings())
-    assert neutral_m < 5e-4
+    # MuJoCo's contacts are not mirror-symmetric: after the stroke the coasting chassis lands 4 mm off the mirror
+    mujoco = ENGINE[0] == "mujoco"
+    assert neutral_m < (5e-3 if mujoco else 5e-4)
     assert mirror_gap_m(exact_settings(**{"plate.yaw_bias_deg": 10.0, "plate.offset_m": 0.03})) > 0.01
     # the wheels roll along the push, so their friction matters little until the landing: a smaller, real gap
-    assert mirror_gap_m(exact_settings(wheel_friction_left_factor=0.3)) > max(2e-3, 10 * neutral_m)
+    assert mirror_gap_m(exact_settings(wheel_friction_left_factor=0.3)) > max(2e-3, (2 if mujoco else 10) * neutral_m)
 
 
 def test_unknown_configuration_is_refused():

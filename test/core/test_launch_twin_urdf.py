@@ -33,7 +33,8 @@ def test_husky_config_makes_a_husky_twin_with_its_wheels_and_density(husky_twin)
     model = husky_twin.robot_model()
     assert isinstance(model, UrdfRobotModel) and model.spec.mount_link == "top_plate_link"
     assert model.wheel_radii_m() == pytest.approx((HUSKY_WHEEL_RADIUS_M,) * 4, rel=1e-5)
-    assert husky_twin.profile_density_kgpm3() == 20.0
+    assert husky_twin.urdf_robot.profile_print.model == "solid"
+    assert husky_twin.urdf_robot.profile_print.solid_density_kgpm3 == 20.0
     chassis = load_launch_twin_settings()
     assert isinstance(chassis.robot_model(), ChassisModel)
     assert chassis.robot_model().wheel_radii_m() == (ChassisSpec().wheel_radius_m,) * 4

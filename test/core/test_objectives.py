@@ -55,7 +55,6 @@ def test_launch_twin_objective_scores_launches_of_the_candidate_under_the_campai
     pytest.importorskip("pybullet")
     from rollability_ros.core.profile.geometry import profile_mesh
     from rollability_ros.core.results.records import LaunchCondition
-    from rollability_ros.core.robots.robot import ProfileBody
     from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_valid_launch
 
     campaign = tmp_path / "two_angles.yaml"
@@ -65,7 +64,7 @@ def test_launch_twin_objective_scores_launches_of_the_candidate_under_the_campai
     result = evaluation.evaluate_profile(heights, 2, 5, settings)
     # the same launches made directly on the twin, with the candidate's profile mounted
     twin = load_launch_twin_settings()
-    profile = ProfileBody.from_mesh(profile_mesh(heights, settings.grid), settings.profile_density_kgpm3())
+    profile = settings.profile_body(profile_mesh(heights, settings.grid))
     expected = []
     for index, angle_deg in enumerate((-30.0, 30.0)):
         condition = LaunchCondition(CANDIDATE, 0.75, 0.8, angle_deg)

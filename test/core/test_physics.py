@@ -1,4 +1,5 @@
-"""Physics shown, not assumed: contact parameters are live, the bare chassis stays inverted, a dome rights it.
+"""Physics shown, not assumed: contact parameters are live, the bare chassis stays inverted, a light dome rights it
+and a heavier print of the same dome does so less often.
 
 Margins are Wilson 95% intervals of the success probability; the trials are deterministic (fixed seeds), so
 these tests do not flake, and the intervals say how far the claims are from the thresholds.
@@ -11,11 +12,16 @@ import pytest
 
 from rollability_ros.core.sim.evaluation import EvaluatorSettings, evaluate_profile
 from rollability_ros.core.profile.geometry import grid_xy
+from rollability_ros.core.profile.print_mass import ProfilePrintSpec
 from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world, set_contact
 
 pybullet = pytest.importorskip("pybullet")
 
 SETTINGS = EvaluatorSettings()
+#: The dome printed as a hollow shell (0.8 mm walls and skins, no infill): about 70 g, against about 430 g with the
+#: shipped print settings (20 % infill), see docs/optimization.md "Profile mass".
+LIGHT = dataclasses.replace(SETTINGS, robot=dataclasses.replace(SETTINGS.robot,
+                                                                profile_print=ProfilePrintSpec(infill_fraction=0.0)))
 TRIALS = 60
 SEED = 7
 
@@ -71,12 +77,22 @@ def test_same_disturbances_mostly_leave_an_upright_chassis_upright():
 
 def test_dome_profile_rights_the_inverted_chassis():
     bare = evaluate_profile(None, TRIALS, SEED, SETTINGS)
-    dome = evaluate_profile(dome_heights(SETTINGS.grid), TRIALS, SEED, SETTINGS)
+    dome = evaluate_profile(dome_heights(LIGHT.grid), TRIALS, SEED, LIGHT)
     assert dome.ci_low > 0.4, f"dome fitness {dome.fitness:.2f} [{dome.ci_low:.2f}, {dome.ci_high:.2f}]"
     assert dome.ci_low > bare.ci_high  # the intervals do not overlap
     # a trial ended by the early decision reports the tilt at that moment (possibly still swinging upright):
     # the tilt at rest comes from the full rest rule, which must agree on every outcome
-    full_rule = dataclasses.replace(SETTINGS, trial=dataclasses.replace(SETTINGS.trial, early_decision=False))
-    rested = evaluate_profile(dome_heights(SETTINGS.grid), TRIALS, SEED, full_rule).trial_results
+    full_rule = dataclasses.replace(LIGHT, trial=dataclasses.replace(LIGHT.trial, early_decision=False))
+    rested = evaluate_profile(dome_heights(LIGHT.grid), TRIALS, SEED, full_rule).trial_results
     assert [o.upright for o in rested] == [o.upright for o in dome.trial_results]
     assert all(o.tilt_deg < SETTINGS.robot.upright_tilt_deg for o in rested if o.upright)
+
+
+def test_a_heavier_print_of_the_same_dome_rights_the_chassis_less_often():
+    """The profile's mass is not a detail: the same dome shape printed with 20 % infill (the shipped default, about
+    430 g) rights the inverted chassis less often than printed hollow (about 70 g); the intervals do not overlap."""
+    light = evaluate_profile(dome_heights(LIGHT.grid), TRIALS, SEED, LIGHT)
+    heavy = evaluate_profile(dome_heights(SETTINGS.grid), TRIALS, SEED, SETTINGS)
+    assert SETTINGS.robot.profile_print.infill_fraction > LIGHT.robot.profile_print.infill_fraction
+    assert light.ci_low > heavy.ci_high, (f"hollow {light.successes}/{TRIALS}, default print "
+                                          f"{heavy.successes}/{TRIALS}")

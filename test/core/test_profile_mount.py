@@ -20,7 +20,9 @@ GRAVITY = 9.81
 #: A box-shaped profile, 100 x 80 x 30 mm, its centre of mass at its middle.
 PROFILE = ProfileBody(hull_vertices_m=np.array([[x, y, z] for x in (-0.05, 0.05) for y in (-0.04, 0.04)
                                                 for z in (0.0, 0.03)]),
-                      mass_kg=PROFILE_KG, com_m=np.array([0.0, 0.0, 0.015]))
+                      mass_kg=PROFILE_KG, com_m=np.array([0.0, 0.0, 0.015]),
+                      inertia_kgm2=np.diag([PROFILE_KG / 12 * (b * b + c * c) for b, c in
+                                            ((0.08, 0.03), (0.1, 0.03), (0.1, 0.08))]))
 
 
 def chassis(stiffness, damping=0.0, travel=0.01):

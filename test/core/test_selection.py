@@ -152,3 +152,29 @@ def test_select_cli_takes_another_printer_from_config(run_candidates, tmp_path, 
     assert f"wrote {latest}/" in capsys.readouterr().out
     header = open(os.path.join(latest, "mesh_A.stl"), "rb").read(80)
     assert header.startswith(b"rollability_ros profile mesh; units=m;")
+
+
+def test_table3_gives_each_design_its_printed_mass_beside_its_height(run_candidates, tmp_path):
+    """The mass column is the robot's print of each design (what the twin mounts), and the report keeps it."""
+    import shutil
+
+    from rollability_ros.core.optimization.selection import select_run
+    from rollability_ros.core.results import report
+    from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec
+
+    run_dir = str(tmp_path / "run")
+    shutil.copytree(run_candidates[0], run_dir)
+    chassis = ChassisModel(ChassisSpec())
+    with Store(run_dir) as store:
+        result, folder = select_run(store, "run", run_dir, GRID, geometry.PrinterSpec(),
+                                    SelectionSettings(count=3, min_distance=0.05),
+                                    weigh=lambda mesh: chassis.profile_body(mesh).mass_kg)
+    with open(os.path.join(folder, "table3.csv"), newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    assert list(rows[0])[3:5] == ["max_height_m", "printed_mass_g"] and float(rows[0]["printed_mass_g"]) == 0.0
+    for row, design in zip(rows[1:], result.designs):
+        grams = chassis.profile_body(geometry.profile_mesh(design.design.heights, GRID)).mass_kg * 1000
+        assert float(row["printed_mass_g"]) == pytest.approx(grams, rel=1e-5) and grams > 10
+    shown = report.load_report_data(run_dir, "run").geometry
+    assert [float(r["printed_mass_g"]) for r in shown] == pytest.approx([float(r["printed_mass_g"]) for r in rows[1:]],
+                                                                     rel=1e-5)

@@ -15,7 +15,7 @@ from rollability_ros.core.config import ConfigError, load_parameters  # noqa: E4
 from rollability_ros.core.sim.evaluation import (EvaluatorSettings, evaluate_profile, load_settings,  # noqa: E402
                                              settings_from_parameters)
 from rollability_ros.core.profile.geometry import export_mesh, load_profile_mesh, profile_mesh  # noqa: E402
-from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec, ProfileBody  # noqa: E402
+from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec  # noqa: E402
 from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world  # noqa: E402
 from rollability_ros.core.robots.urdf_description import BASE_LINK, PROFILE_LINK  # noqa: E402
 from rollability_ros.core.robots.urdf_robot import UrdfRobotModel, UrdfRobotSpec, footprint_corners  # noqa: E402
@@ -65,10 +65,11 @@ def husky_copy(folder, text_changes=()):
 def test_husky_config_selects_the_urdf_robot_and_footprint_sets_the_grid(husky):
     assert isinstance(husky.robot_model(), UrdfRobotModel)
     assert (husky.grid.length_m, husky.grid.width_m) == (0.9, 0.56)
-    assert husky.profile_density_kgpm3() == 20.0
+    made = husky.urdf_robot.profile_print
+    assert (made.model, made.solid_density_kgpm3) == ("solid", 20.0)
     default = load_settings()
     assert isinstance(default.robot_model(), ChassisModel) and default.grid.length_m == 0.18
-    assert default.profile_density_kgpm3() == ChassisSpec().profile_density_kgpm3
+    assert default.robot.profile_print == ChassisSpec().profile_print and default.robot.profile_print.model == "shell"
 
 
 def test_masses_and_inertias_come_from_the_urdf(client):
@@ -120,7 +121,7 @@ def test_frame_base_moves_like_the_root_body_as_base(client, tmp_path):
 
 def test_profile_is_fixed_rigidly_to_the_mount(client, husky):
     heights = np.full(husky.grid.n_variables, 0.2)
-    profile = ProfileBody.from_mesh(profile_mesh(heights, husky.grid), husky.profile_density_kgpm3())
+    profile = husky.profile_body(profile_mesh(heights, husky.grid))
     model = husky.robot_model()
     reset_world(client, husky.physics)
     robot = model.spawn(client, profile, (0, 0, 1.5), pybullet.getQuaternionFromEuler([2.5, 0.4, 0.3]),
@@ -315,7 +316,7 @@ def test_exported_stl_and_urdf_fit_the_mount_footprint(tmp_path, husky):
     spec = husky.urdf_robot
     assert mesh.bounds[0][:2] == pytest.approx(footprint_corners(spec)[:, :2].min(axis=0), abs=1e-6)  # float32 STL
     assert mesh.bounds[1][:2] == pytest.approx(footprint_corners(spec)[:, :2].max(axis=0), abs=1e-6)
-    profile = ProfileBody.from_mesh(mesh, husky.profile_density_kgpm3())
+    profile = husky.profile_body(mesh)
     document = ElementTree.fromstring(husky.robot_model().to_urdf("husky_profile.stl", profile))
     (joint,) = [j for j in document.findall("joint") if j.find("child").get("link") == PROFILE_LINK]
     assert joint.find("parent").get("link") == "top_plate_link"
@@ -350,7 +351,7 @@ def test_a_compliant_mount_on_a_urdf_robot_deflects_by_the_profile_weight(husky,
 
     with open(FIXTURE, encoding="utf-8") as stream:
         heights = yaml.safe_load(stream)["heights"]
-    profile = ProfileBody.from_mesh(profile_mesh(heights, husky.grid), husky.profile_density_kgpm3())
+    profile = husky.profile_body(profile_mesh(heights, husky.grid))
     stiffness = 20000.0
     model = UrdfRobotModel(husky_spec(joint_drag_torque_nm=5.0, profile_mount=ProfileMountSpec(
         stiffness_npm=stiffness, damping_nspm=2 * (stiffness * profile.mass_kg) ** 0.5, travel_m=0.01)))
@@ -379,3 +380,44 @@ def test_a_compliant_mount_on_a_urdf_robot_deflects_by_the_profile_weight(husky,
             mujoco.mj_step(world.model, world.data)
             trace.append(float(world.data.qpos[world.model.jnt_qposadr[joint.id]]))
     assert np.mean(trace[-60:]) == pytest.approx(-profile.mass_kg * 9.81 / stiffness, rel=0.03)
+
+
+def test_a_constraint_held_profile_would_stretch_and_be_left_behind_where_a_fixed_link_does_not(client):
+    """urdf_robot's reason for a fixed-joint profile link: a body held by createConstraint(JOINT_FIXED) stretches
+    away from its mount under an impact and stays put when the robot's base is reset; a link on a fixed joint does
+    neither."""
+    pybullet.setGravity(0, 0, 0, physicsClientId=client)
+    box = pybullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=[0.05, 0.05, 0.02], physicsClientId=client)
+    offset = np.array([0.0, 0.0, 0.1])
+
+    def profile_offset(base, profile_position):
+        """Where the profile is in its mount's frame (m)."""
+        position, orientation = pybullet.getBasePositionAndOrientation(base, physicsClientId=client)
+        turn = np.asarray(pybullet.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+        return turn.T @ np.subtract(profile_position(), position)
+
+    held = pybullet.createMultiBody(1.0, box, basePosition=[0, 0, 1], physicsClientId=client)
+    loose = pybullet.createMultiBody(0.3, box, basePosition=list(offset + [0, 0, 1]), physicsClientId=client)
+    pybullet.createConstraint(held, -1, loose, -1, pybullet.JOINT_FIXED, [0, 0, 0], list(offset), [0, 0, 0],
+                              physicsClientId=client)
+    linked = pybullet.createMultiBody(1.0, box, basePosition=[2, 0, 1], linkMasses=[0.3],
+                                      linkCollisionShapeIndices=[box], linkVisualShapeIndices=[-1],
+                                      linkPositions=[list(offset)], linkOrientations=[[0, 0, 0, 1]],
+                                      linkInertialFramePositions=[[0, 0, 0]],
+                                      linkInertialFrameOrientations=[[0, 0, 0, 1]], linkParentIndices=[0],
+                                      linkJointTypes=[pybullet.JOINT_FIXED], linkJointAxis=[[0, 0, 0]],
+                                      physicsClientId=client)
+    on_constraint = lambda: pybullet.getBasePositionAndOrientation(loose, physicsClientId=client)[0]  # noqa: E731
+    on_link = lambda: pybullet.getLinkState(linked, 0, computeForwardKinematics=True,  # noqa: E731
+                                            physicsClientId=client)[4]
+    for body, index in ((loose, -1), (linked, 0)):   # an impact on the profile: 2 kN for one step
+        position = on_constraint() if index < 0 else on_link()
+        pybullet.applyExternalForce(body, index, [2000.0, 0.0, 0.0], position, pybullet.WORLD_FRAME,
+                                    physicsClientId=client)
+    pybullet.stepSimulation(physicsClientId=client)
+    assert np.linalg.norm(profile_offset(held, on_constraint) - offset) > 0.001
+    assert profile_offset(linked, on_link) == pytest.approx(offset, abs=1e-6)
+    for base in (held, linked):
+        pybullet.resetBasePositionAndOrientation(base, [5, 5, 5], [0, 0, 0, 1], physicsClientId=client)
+    assert np.linalg.norm(profile_offset(held, on_constraint)) > 5
+    assert profile_offset(linked, on_link) == pytest.approx(offset, abs=1e-6)

@@ -100,7 +100,8 @@ TRAIT_COLUMNS = ("trait", "bin_low", "bin_high", "designs", "successes", "trials
 #: Sub-directory of the run directory that receives the selected designs.
 DESIGNS_DIRNAME = "designs"
 #: Columns of ``table3.csv`` (configuration and dimensions as in ``analysis.GEOMETRY_COLUMNS``).
-TABLE_COLUMNS = ("configuration", "length_m", "width_m", "max_height_m", "simulated_fitness", "ci_low", "ci_high",
+TABLE_COLUMNS = ("configuration", "length_m", "width_m", "max_height_m", "printed_mass_g", "simulated_fitness",
+                 "ci_low", "ci_high",
                  "successes", "trials", "fitness_source", "in_run_fitness", "in_run_ci_low", "in_run_ci_high",
                  "in_run_successes", "in_run_trials", "selection_bias", "launch_successes", "launch_trials",
                  "launch_fitness", "gain_source", "gain", "gain_low", "gain_high", "beats_baseline")
@@ -204,6 +205,7 @@ class SelectedDesign:
     cell: typing.Optional[tuple] = None                 # archive cell (height index, sharpness index), or None
     launches: typing.Optional[tuple] = None             # (successes, trials, seed) of fresh robust twin launches, or None
     race: typing.Optional[tuple] = None                 # (successes, trials) pooled over the launch race's rounds, or None
+    printed_mass_kg: typing.Optional[float] = None      # the profile as printed and mounted on the twin, or None
 
     @property
     def reported(self) -> typing.Tuple[int, int, str]:
@@ -663,6 +665,7 @@ def table_rows(result: SelectionResult) -> typing.List[typing.Dict[str, typing.A
     baseline_fitness = _fitness_columns(*result.baseline[:2], "reevaluated") if result.baseline else \
         _fitness_columns(0, 0, "not evaluated")
     rows.append({"configuration": "baseline", "length_m": 0.0, "width_m": 0.0, "max_height_m": 0.0,
+                 "printed_mass_g": 0.0,
                  **baseline_fitness, **_in_run_columns(0, 0, math.nan),
                  **_launch_columns(result.baseline_launches), **_gain_columns(None)})
     for design, gain in zip(result.designs, result.gains()):
@@ -670,6 +673,7 @@ def table_rows(result: SelectionResult) -> typing.List[typing.Dict[str, typing.A
         fresh = reported["simulated_fitness"] if design.reevaluation is not None else math.nan
         rows.append({"configuration": design.label, "length_m": design.metrics.length_m,
                      "width_m": design.metrics.width_m, "max_height_m": design.metrics.max_height_m,
+                     "printed_mass_g": "" if design.printed_mass_kg is None else design.printed_mass_kg * 1000.0,
                      **reported, **_in_run_columns(design.design.successes, design.design.trials, fresh),
                      **_launch_columns(design.launches), **_gain_columns(gain)})
     return rows
@@ -758,7 +762,7 @@ def record_selection(store: "Store", run_id: str, result: SelectionResult, folde
         earlier = {key: info[key] for key in ("sim_fitness", "geometry", "table3", "selection") if key in info}
         info["earlier_selections"] = [*info.get("earlier_selections", []), earlier]
     info["sim_fitness"] = {r["configuration"]: r["simulated_fitness"] for r in rows if r["trials"]}
-    info["geometry"] = [{k: r[k] for k in TABLE_COLUMNS[:4]} for r in rows if r["configuration"] != "baseline"]
+    info["geometry"] = [{k: r[k] for k in TABLE_COLUMNS[:5]} for r in rows if r["configuration"] != "baseline"]
     info["table3"] = rows   # fresh and in-run fitness side by side, for the report's headline
     info["selection"] = {"why": {d.label: d.reason for d in result.designs},
                          "no_design_helps": result.no_design_helps(),
@@ -830,10 +834,13 @@ def write_selection(run_dir: str, result: SelectionResult, grid: geometry.Profil
 
 def select_run(store: "Store", run_id: str, run_dir: str, grid: geometry.ProfileGrid, printer: geometry.PrinterSpec,
                settings: SelectionSettings, evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
-               launch_batch: typing.Optional[LaunchEvaluator] = None) -> typing.Tuple[SelectionResult, str]:
+               launch_batch: typing.Optional[LaunchEvaluator] = None,
+               weigh: typing.Optional[typing.Callable[[typing.Any], float]] = None
+               ) -> typing.Tuple[SelectionResult, str]:
     """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
     simulated fitness and geometry) and write a new design set (``<run_dir>/designs/`` or ``designs-<n>/``);
-    return ``(SelectionResult, folder)``.
+    return ``(SelectionResult, folder)``. ``weigh(mesh) -> kg`` gives each design's printed mass for Table 3 (the
+    robot's ``profile_body(mesh).mass_kg``: what the twin mounts); without it the column is empty.
 
     The one selection flow of ``rollability select`` and the optimizer node: from the archive when the run has one
     (a quality-diversity run), else from the ranked log. Raises ``ValueError`` when the run
@@ -850,6 +857,9 @@ def select_run(store: "Store", run_id: str, run_dir: str, grid: geometry.Profile
         traits = trait_rows(candidates, grid, archive["ranges"], archive["dims"])
     else:
         result = select_designs(candidates, grid, printer, settings, evaluate_batch, run_seed, launch_batch)
+    if weigh is not None:
+        result = dataclasses.replace(result, designs=[dataclasses.replace(design, printed_mass_kg=weigh(design.mesh))
+                                                      for design in result.designs])
     folder = write_selection(run_dir, result, grid, run_id, settings.mesh_units, traits)
     record_selection(store, run_id, result, folder)
     return result, folder

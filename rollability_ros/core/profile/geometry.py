@@ -44,8 +44,11 @@ class ProfileGrid:
     """The design grid: its size, its footprint in metres and its height bounds in simulation units.
 
     ``unit_m`` (metres per simulation unit) = 0.2: the paper's upper bound 0.45 becomes a 0.09 m tall profile,
-    half the chassis length, enough to make the inverted pose of the default chassis unstable (see
-    test_physics). ``flat_tolerance`` (simulation units): a profile whose tallest vertex is at or below it is
+    half the chassis length. That bound does not make the default chassis's inverted pose unstable: at 0.09 m a
+    dome, a flat top, a centre ridge and random shapes each keep resting poses off their wheels (upside down or
+    on a side), and what the profile changes is the barrier back onto the wheels (the centre-of-mass lift from the
+    worst such rest), under half the bare chassis's for those three shapes (stable-pose screen, see
+    test_stable_poses). Righting at this bound therefore takes the energy of the fall. ``flat_tolerance`` (simulation units): a profile whose tallest vertex is at or below it is
     treated as the baseline (no profile) by the evaluator, because a hull thinner than that is not a solid.
     """
 
@@ -90,9 +93,10 @@ class ProfileGrid:
 class ProfileMetrics:
     """Measured size of a profile solid (metres, profile frame); all zero for the baseline.
 
-    ``com_shift_m`` (3,) is the centroid of the solid (uniform density) in the profile frame: where the
-    profile's mass acts relative to the mount origin; its x and y show how far the profile shifts the robot's
-    centre of mass off the centre line.
+    ``com_shift_m`` (3,) is the centroid of the solid (uniform density) in the profile frame. The printed
+    profile's own centre of mass is :func:`~rollability_ros.core.profile.print_mass.print_mass_properties`'s,
+    which differs from the centroid as the print differs from a solid (it equals it for a solid or a fully
+    infilled print).
     """
 
     length_m: float

@@ -375,7 +375,7 @@ def _tables(data, views, comparison, points):
 _TABLE_TITLES = {
     "by_configuration": "Overall success per configuration (Figure 12d)",
     "sim_vs_experiment": "Simulated fitness vs campaign success (Discussion; the campaign's kind is in the summary)",
-    "geometry": "Profile mesh geometry (Table 3), m",
+    "geometry": "Profile mesh geometry (Table 3), m; printed mass, g (as the twin mounts it)",
     "convergence": "Optimization convergence per generation (Figure 4)",
     "tip_events": "Field tip events per robot",
     "height_angle": "Success by height x angle per configuration (Figure 9)",

@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.profile import Mesh
+from rollability_ros.core.profile import Mesh, ProfilePrintSpec, print_mass_properties
 
 #: A robot's collision shapes standing level (:meth:`RobotModel.standing_shapes_m`): ``(shapes, com_m, mass_kg)``.
 StandingShapes = typing.Tuple[typing.List[typing.Tuple[str, np.ndarray]], np.ndarray, float]
@@ -25,18 +25,30 @@ StandingShapes = typing.Tuple[typing.List[typing.Tuple[str, np.ndarray]], np.nda
 
 @dataclasses.dataclass(frozen=True)
 class ProfileBody:
-    """A profile ready to attach: collision hull vertices ``(k, 3)`` (metres, profile frame), mass, centroid."""
+    """A profile ready to attach: collision hull vertices ``(k, 3)`` (metres, profile frame), mass (kg), centre of
+    mass ``com_m`` (3,) and inertia ``inertia_kgm2`` (3, 3) about it (kg m^2, profile frame axes)."""
 
     hull_vertices_m: np.ndarray
     mass_kg: float
     com_m: np.ndarray
+    inertia_kgm2: np.ndarray
 
     @classmethod
-    def from_mesh(cls, mesh: Mesh, density_kgpm3: float) -> "ProfileBody":
-        """Build from a watertight trimesh (metres) with uniform effective density (kg/m^3)."""
-        hull = mesh.convex_hull
-        return cls(hull_vertices_m=np.asarray(hull.vertices, dtype=np.float64),
-                   mass_kg=float(mesh.volume * density_kgpm3), com_m=np.asarray(mesh.center_mass, dtype=np.float64))
+    def from_mesh(cls, mesh: Mesh, make: ProfilePrintSpec, mass_scale: float = 1.0) -> "ProfileBody":
+        """Build from a watertight trimesh (metres) made as ``make`` says (a printed shell with infill, or a uniform
+        solid; :func:`~rollability_ros.core.profile.print_mass.print_mass_properties`), mass and inertia times
+        ``mass_scale`` (``profile_mass_scale``). ``ValueError`` for a degenerate or open mesh."""
+        properties = print_mass_properties(mesh, make, mass_scale)
+        return cls(hull_vertices_m=np.asarray(mesh.convex_hull.vertices, dtype=np.float64),
+                   mass_kg=properties.mass_kg, com_m=properties.com_m, inertia_kgm2=properties.inertia_kgm2)
+
+    def principal_inertia(self) -> typing.Tuple[np.ndarray, typing.Tuple[float, float, float, float]]:
+        """The principal moments (3,) kg m^2 and the rotation (x, y, z, w) from the profile frame to their axes."""
+        moments, axes = np.linalg.eigh(self.inertia_kgm2)
+        if np.linalg.det(axes) < 0:
+            axes[:, 2] = -axes[:, 2]
+        transform = require("scipy.spatial.transform", feature="the profile's inertia")
+        return moments, tuple(float(q) for q in transform.Rotation.from_matrix(axes).as_quat())
 
 
 @dataclasses.dataclass
@@ -253,6 +265,13 @@ class RobotModel(abc.ABC):
         return upright, tilt
 
 
+#: Metadata of ``profile_mass_scale`` (the chassis's and a URDF robot's): an unknown, drawn and calibrated.
+PROFILE_MASS_SCALE = {
+    "description": "unknown multiplier on the profile's mass and inertia as computed from profile_print (no unit; "
+                   "1 = as computed; covers what the print model leaves out: extrusion rate, infill pattern, seams, "
+                   "glue and tape)", "range": (0.5, 2.0)}
+
+
 @dataclasses.dataclass
 class ChassisSpec:
     """The built-in chassis (``config/robot.yaml``, section ``robot``): a box body with four wheels.
@@ -260,8 +279,9 @@ class ChassisSpec:
     The body's centre of mass sits ``com_offset_z_m`` below the box centre (battery and motors low). Wheel
     axles run along y at x = +-``wheelbase_m``/2, y = +-``track_m``/2 and ``axle_offset_z_m`` from the box
     centre. Wheels spin freely against a drag torque ``wheel_drag_torque_nm`` (an unpowered geared motor).
-    The profile's mass is its solid volume times ``profile_density_kgpm3`` (an effective density for
-    printed walls plus infill).
+    The profile's mass, centre of mass and inertia follow from its mesh and ``profile_print`` (a printed shell
+    with infill, or a uniform solid; :class:`~rollability_ros.core.profile.print_mass.ProfilePrintSpec`), mass and
+    inertia times ``profile_mass_scale``.
     """
 
     body_length_m: float = dataclasses.field(default=0.18, metadata={
@@ -290,9 +310,7 @@ class ChassisSpec:
         "range": (-1.0, 1.0)})
     wheel_drag_torque_nm: float = dataclasses.field(default=0.02, metadata={
         "description": "back-drive drag torque of each unpowered wheel drive, N m", "range": (0.0, 1000.0)})
-    profile_density_kgpm3: float = dataclasses.field(default=150.0, metadata={
-        "description": "density of the printed profile solid (its mass and inertia), kg/m^3",
-        "range": (0.0, 100000.0)})
+    profile_mass_scale: float = dataclasses.field(default=1.0, metadata=PROFILE_MASS_SCALE)
     upright_tilt_deg: float = dataclasses.field(default=30.0, metadata={
         "description": "upright when the body +z axis is within this angle of world up at rest, deg",
         "range": (0.0, 180.0)})
@@ -301,12 +319,14 @@ class ChassisSpec:
     contact_tolerance_m: float = dataclasses.field(default=0.003, metadata={
         "description": "a wheel this close to the ground counts as touching it, m", "range": (0.0, 1.0)})
     profile_mount: ProfileMountSpec = dataclasses.field(default_factory=ProfileMountSpec)
+    profile_print: ProfilePrintSpec = dataclasses.field(default_factory=ProfilePrintSpec)
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         self.profile_mount.validate()
+        self.profile_print.validate()
         for name in ("body_length_m", "body_width_m", "body_height_m", "body_mass_kg", "wheel_radius_m",
-                     "wheel_width_m", "wheel_mass_kg", "wheelbase_m", "track_m", "profile_density_kgpm3",
+                     "wheel_width_m", "wheel_mass_kg", "wheelbase_m", "track_m", "profile_mass_scale",
                      "contact_tolerance_m"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -324,7 +344,7 @@ class ChassisSpec:
 
 
 class SpecThresholds:
-    """Mixin for a :class:`RobotModel` whose ``self.spec`` holds the upright thresholds and profile density."""
+    """Mixin for a :class:`RobotModel` whose ``self.spec`` holds the upright thresholds and how its profile is made."""
 
     #: A :class:`ChassisSpec` or a ``UrdfRobotSpec``: both have the fields read here.
     spec: typing.Any
@@ -341,10 +361,10 @@ class SpecThresholds:
     def contact_tolerance_m(self) -> float:
         return float(self.spec.contact_tolerance_m)
 
-    @property
-    def profile_density_kgpm3(self) -> float:
-        """Effective density of the profile solid (kg/m^3)."""
-        return float(self.spec.profile_density_kgpm3)
+    def profile_body(self, mesh: Mesh) -> ProfileBody:
+        """The :class:`ProfileBody` of ``mesh`` (trimesh, metres) made as this robot's ``profile_print`` says, mass
+        and inertia times its ``profile_mass_scale``."""
+        return ProfileBody.from_mesh(mesh, self.spec.profile_print, self.spec.profile_mass_scale)
 
     @property
     def profile_mount(self) -> ProfileMountSpec:
@@ -424,6 +444,7 @@ class ChassisModel(SpecThresholds, RobotModel):
             for key, value in zip(links, (mass, shape, position_m, orientation_xyzw, com_m, joint, axis)):
                 links[key].append(value)
 
+        inertial_turns = []
         if profile is not None:
             profile_shape = pybullet.createCollisionShape(pybullet.GEOM_MESH,
                                                           vertices=profile.hull_vertices_m.tolist(),
@@ -432,6 +453,8 @@ class ChassisModel(SpecThresholds, RobotModel):
             add_link(profile.mass_kg, profile_shape, self.mount_position_m, (0, 0, 0, 1), profile.com_m,
                      pybullet.JOINT_PRISMATIC if mount.compliant else pybullet.JOINT_FIXED,
                      (0, 0, 1) if mount.compliant else (0, 0, 0))
+            moments, principal_axes = profile.principal_inertia()
+            inertial_turns.append(principal_axes)
         for wheel in self.wheel_positions_m():
             add_link(s.wheel_mass_kg, wheel_shape, wheel, _WHEEL_ORIENTATION, (0, 0, 0), pybullet.JOINT_REVOLUTE,
                      (0, 0, 1))
@@ -443,11 +466,14 @@ class ChassisModel(SpecThresholds, RobotModel):
             linkMasses=links["mass"], linkCollisionShapeIndices=links["shape"], linkVisualShapeIndices=[-1] * count,
             linkPositions=[list(p) for p in links["position"]], linkOrientations=links["orientation"],
             linkInertialFramePositions=[list(c) for c in links["com"]],
-            linkInertialFrameOrientations=[(0, 0, 0, 1)] * count, linkParentIndices=[0] * count,
+            linkInertialFrameOrientations=inertial_turns + [(0, 0, 0, 1)] * (count - len(inertial_turns)),
+            linkParentIndices=[0] * count,
             linkJointTypes=links["joint"], linkJointAxis=links["axis"], physicsClientId=client)
         wheels = tuple(range(count - 4, count))  # a massless placeholder link would break external torques
         pybullet.setJointMotorControlArray(body, list(wheels), pybullet.VELOCITY_CONTROL, targetVelocities=[0.0] * 4,
                                            forces=[s.wheel_drag_torque_nm] * 4, physicsClientId=client)
+        if profile is not None:  # Bullet took the mesh's box inertia: set the print's, on its principal axes
+            pybullet.changeDynamics(body, 0, localInertiaDiagonal=moments.tolist(), physicsClientId=client)
         spring = None
         if profile is not None and s.profile_mount.compliant:
             spring = compliant_mount(client, body, 0, s.profile_mount, profile.mass_kg, time_step_s)
@@ -481,8 +507,7 @@ class ChassisModel(SpecThresholds, RobotModel):
             mass = profile.mass_kg if profile is not None else 0.0
             com = tuple(profile.com_m) if profile is not None else (0, 0, 0)
             parts.append(_urdf_link("profile_link", f"<mesh filename={quoteattr(profile_mesh_filename)}/>", mass, com,
-                                    _box_inertia(mass, tuple(np.ptp(profile.hull_vertices_m, axis=0)))
-                                    if profile is not None else (0, 0, 0)))
+                                    profile.inertia_kgm2 if profile is not None else (0, 0, 0)))
             kind, tags = profile_joint
             parts.append(_urdf_joint(PROFILE_JOINT, kind, self.BODY_LINK, "profile_link", self.mount_position_m,
                                      (0, 0, 0), extra=tags))
@@ -508,11 +533,14 @@ def _xyz(values):
 
 
 def _urdf_link(name, geometry, mass, com, inertia, rpy=(0, 0, 0)):
+    """A URDF link; ``inertia`` about the centre of mass: principal moments (3,) or a full tensor (3, 3)."""
     shape = f'<origin xyz="0 0 0" rpy="{_xyz(rpy)}"/><geometry>{geometry}</geometry>'
+    i = np.asarray(inertia, dtype=np.float64)
+    i = np.diag(i) if i.ndim == 1 else i
     return (f'  <link name="{name}">\n'
-            f'    <inertial><origin xyz="{_xyz(com)}"/><mass value="{mass:.6g}"/>'
-            f'<inertia ixx="{inertia[0]:.6g}" iyy="{inertia[1]:.6g}" izz="{inertia[2]:.6g}" ixy="0" ixz="0" iyz="0"/>'
-            f'</inertial>\n'
+            f'    <inertial><origin xyz="{_xyz(com)}"/><mass value="{mass:.9g}"/>'
+            f'<inertia ixx="{i[0, 0]:.9g}" iyy="{i[1, 1]:.9g}" izz="{i[2, 2]:.9g}" ixy="{i[0, 1]:.9g}" '
+            f'ixz="{i[0, 2]:.9g}" iyz="{i[1, 2]:.9g}"/></inertial>\n'
             f'    <visual>{shape}</visual>\n    <collision>{shape}</collision>\n  </link>')
 
 

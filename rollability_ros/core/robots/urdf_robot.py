@@ -19,8 +19,10 @@ Physics
     :mod:`rollability_ros.core.robots.urdf_description`. The profile is one more link of that URDF on a fixed joint
     to the mount's rigid body: a reduced-coordinate (Featherstone) fixed joint is exactly rigid and moves with
     every base reset, whereas a separate body held by ``createConstraint(JOINT_FIXED)`` is solved iteratively
-    (it stretches under impacts) and would be left behind by the trials' ``resetBasePositionAndOrientation``.
-    The profile collides as the convex hull of its vertices with the solid's inertia (uniform density).
+    (it stretches under impacts) and would be left behind by the trials' ``resetBasePositionAndOrientation``
+    (test_urdf_robot). The profile collides as the convex hull of its vertices with the mass, centre of mass and
+    full inertia of its print (:class:`ProfileBody`, :mod:`rollability_ros.core.profile.print_mass`), read from the
+    URDF by PyBullet and MuJoCo alike (test_print_mass).
 Picklable
     The spec keeps the text of the checked description (:meth:`UrdfRobotSpec.description`, computed once in
     the process that loads the config and pickled with it), so pool workers only write and load files.
@@ -38,9 +40,10 @@ import numpy as np
 import numpy.typing as npt
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.profile import Mesh, ProfileGrid
-from rollability_ros.core.robots.robot import (ChassisModel, ChassisSpec, ProfileBody, ProfileMountSpec, RobotModel,
-                                               SpawnedRobot, SpecThresholds, StandingShapes, compliant_mount)
+from rollability_ros.core.profile import Mesh, ProfileGrid, ProfilePrintSpec
+from rollability_ros.core.robots.robot import (PROFILE_MASS_SCALE, ChassisModel, ChassisSpec, ProfileBody,
+                                               ProfileMountSpec, RobotModel, SpawnedRobot, SpecThresholds,
+                                               StandingShapes, compliant_mount)
 from rollability_ros.core.robots.urdf_description import (PROFILE_LINK, RobotDescription, describe, inertial_xml,
                                                           origin_xml, read_urdf_source, transform, without_visuals)
 
@@ -68,8 +71,8 @@ class UrdfRobotSpec:
     Upright = the root frame's ``up_axis_xyz`` within ``upright_tilt_deg`` of world up (180 = not judged) and at
     least ``min_wheels_in_contact`` of the wheel links (``wheel_links`` plus links matching
     ``wheel_link_regex``) within ``contact_tolerance_m`` of the ground (0 = not judged). Every moving joint is
-    held by a drag torque ``joint_drag_torque_nm`` (an unpowered drive). The profile weighs its solid volume
-    times ``profile_density_kgpm3``.
+    held by a drag torque ``joint_drag_torque_nm`` (an unpowered drive). The profile's mass, centre of mass and
+    inertia follow from its mesh and ``profile_print``, times ``profile_mass_scale`` (as on the chassis).
     """
 
     urdf_path: str = dataclasses.field(default="", metadata={
@@ -117,9 +120,9 @@ class UrdfRobotSpec:
     joint_drag_torque_nm: float = dataclasses.field(default=0.0, metadata={
         "description": "back-drive drag torque of each unpowered joint (wheel drives), N m",
         "range": (0.0, 1000000.0)})
-    profile_density_kgpm3: float = dataclasses.field(default=150.0, metadata={
-        "description": "density of the profile solid on this robot, kg/m^3", "range": (0.0, 100000.0)})
+    profile_mass_scale: float = dataclasses.field(default=1.0, metadata=PROFILE_MASS_SCALE)
     profile_mount: ProfileMountSpec = dataclasses.field(default_factory=ProfileMountSpec)
+    profile_print: ProfilePrintSpec = dataclasses.field(default_factory=ProfilePrintSpec)
 
     @property
     def selected(self) -> bool:
@@ -135,7 +138,8 @@ class UrdfRobotSpec:
         """Raise ``ValueError`` naming the first unusable field; with a description, check it too (see
         :meth:`description`)."""
         self.profile_mount.validate()
-        for name in ("footprint_length_m", "footprint_width_m", "contact_tolerance_m", "profile_density_kgpm3"):
+        self.profile_print.validate()
+        for name in ("footprint_length_m", "footprint_width_m", "contact_tolerance_m", "profile_mass_scale"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if len(self.footprint_offset_m) != 3:
@@ -400,9 +404,11 @@ class RobotChoice:
             return UrdfRobotModel(self.urdf_robot)
         return ChassisModel(self.robot)
 
-    def profile_density_kgpm3(self) -> float:
-        """Effective density of the profile solid on the robot in use (kg/m^3)."""
-        return (self.urdf_robot if self.urdf_robot.selected else self.robot).profile_density_kgpm3
+    def profile_body(self, mesh: Mesh) -> ProfileBody:
+        """The :class:`ProfileBody` of ``mesh`` (trimesh, metres) on the robot in use: made as its ``profile_print``
+        says, mass and inertia times its ``profile_mass_scale``."""
+        spec = self.urdf_robot if self.urdf_robot.selected else self.robot
+        return ProfileBody.from_mesh(mesh, spec.profile_print, spec.profile_mass_scale)
 
 
 def half_width_across_m(points: np.ndarray, axis: npt.ArrayLike) -> float:
@@ -427,10 +433,10 @@ def half_width_across_m(points: np.ndarray, axis: npt.ArrayLike) -> float:
 
 
 def profile_inertia(profile: ProfileBody) -> typing.Tuple[np.ndarray, Mesh]:
-    """The inertia (3, 3) about its centre of mass of a :class:`ProfileBody`'s hull, uniform density (kg m^2)."""
+    """The inertia (3, 3) about its centre of mass of a :class:`ProfileBody` (kg m^2, as computed from its print)
+    and its collision hull (a trimesh)."""
     trimesh = require("trimesh", feature="profile meshes")
-    hull = trimesh.convex.convex_hull(profile.hull_vertices_m)
-    return np.asarray(hull.moment_inertia) * (profile.mass_kg / hull.volume), hull
+    return np.asarray(profile.inertia_kgm2, dtype=np.float64), trimesh.convex.convex_hull(profile.hull_vertices_m)
 
 
 def profile_link_xml(mount_body: str, profile_in_body: npt.ArrayLike, mesh_filename: typing.Optional[str],

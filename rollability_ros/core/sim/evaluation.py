@@ -93,7 +93,7 @@ class EvaluatorSettings(RobotChoice):
 
     The robot is the built-in chassis (``robot``) unless ``urdf_robot`` names a mount link; then the URDF robot is
     used and the grid's ``length_m`` / ``width_m`` are its mount footprint's (:func:`footprint_grid`).
-    ``robot_model()`` and ``profile_density_kgpm3()`` come from
+    ``robot_model()`` and ``profile_body(mesh)`` come from
     :class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`.
     """
 
@@ -189,7 +189,7 @@ def profile_job(heights: typing.Optional[npt.ArrayLike], settings: EvaluatorSett
 
 def mesh_job(mesh: typing.Optional[Mesh], settings: EvaluatorSettings) -> TrialJob:
     """Make the :class:`TrialJob` of a profile solid (trimesh, metres, profile frame); None = baseline."""
-    profile = None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
+    profile = None if mesh is None else settings.profile_body(mesh)
     return TrialJob(profile=profile, settings=settings, launch=_launch_part(settings))
 
 

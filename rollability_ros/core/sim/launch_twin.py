@@ -22,7 +22,7 @@ Contact
 Robot
     The built-in chassis, or any wheeled URDF robot when ``urdf_robot`` names a mount link (the trials' choice,
     :class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`; e.g. ``config/husky.yaml`` in the twin's files).
-    The profile weighs that robot's ``profile_density_kgpm3``.
+    The profile weighs what that robot's ``profile_print`` makes of its mesh, times ``profile_mass_scale``.
 Launcher sized for the robot (:mod:`~rollability_ros.core.sim.launcher_geometry`)
     The push plate's width, height, clearance and force and the ledge's depth and width are derived from the robot's
     collision geometry wherever the config leaves them 0 (the shipped ``config/launch_twin.yaml`` does; the
@@ -50,20 +50,32 @@ Angle (the paper gives mounting holes at -60 ... +60 deg, not a definition)
     from the edge's outward normal; the chassis runs ``run_length_m`` along the push direction and leaves the
     edge obliquely. ``chassis_yaw``: the push stays along the edge normal and only the chassis is turned on the
     plate (it runs sideways on its Mecanum rollers).
-Launch
-    The push plate drives the chassis over the whole run: a box (``launch_twin.plate``) on a prismatic joint along
-    the push, velocity-controlled with at most ``plate.max_force_n`` (the cylinder). At t = 0 the chassis stands
-    at rest on the launcher, the plate 1 mm behind it; the plate's speed ramps to the launch speed in
-    ``plate.ramp_s`` (the real cylinder reaches speed within a few millimetres of its stroke), pushing the
-    chassis up to speed, and whatever the chassis's rolling resistance (caster wheels, motor drag) it holds it
-    at the launch speed until its base origin goes over the edge (or the plate's face reaches the edge), then
-    brakes. So the chassis leaves the edge at the
-    launch speed (``edge_speed_mps``, within 1% on the shipped chassis and on one with 40 times the drag: see
-    test_launch_twin) and the speed gate reads ``run_length_m / travel_time_s`` as on the rig. The chassis
+Launch (``launcher.model``; one setting swaps the two, and a setting of the model not chosen is refused)
+    The push plate is a box (``launch_twin.plate``) on a prismatic joint along the push, velocity-controlled with a
+    force limit; at t = 0 the chassis stands at rest on the launcher, the plate 1 mm behind it. ``stroke`` (default,
+    the paper's rig, section 2.2): a 25 mm bore x 150 mm stroke cylinder at the regulator's 30 / 60 psi for the set
+    speeds 0.8 / 1.5 m/s (``launcher.bore_m``, ``stroke_m``, ``pressures_psi``) drives the plate (with the piston
+    and rod: ``plate.mass_kg``) with at most pressure x bore area (101 N / 203 N) up to the speed the lab's
+    setting gives, for ``stroke_m`` of travel, then stops it; the chassis coasts on its wheels over the rest of
+    the run (its wheels' rolling resistance, plus ``launcher.ledge_rolling_friction``, an unknown). The speed:
+    the lab sets the pressure until the speed gate reads the set speed over ``run_length_m`` (0.42 s / 0.22 s
+    over 0.34 m); pressure x bore gives 72 m/s^2 on the chassis, far more than those speeds need over 0.15 m, so
+    the cylinder's speed is the exhaust flow's, not the force's. The twin models exactly that check: the plate's
+    speed is solved per engine, robot, launcher and set speed (:func:`launch_drive`, cached) so that a launch of
+    the bare robot square to the edge reads the set speed on the gate, within 0.2% (test_launch_twin: both
+    engines, both speeds, within the gate's 15% tolerance ``speed_gate.tolerance_fraction``). A profile's mass
+    then changes the gate's reading as physics says. A cylinder too weak to reach the set speed is refused with a
+    ``ValueError`` naming the settings. ``push_through`` (the twin before issue 40): the plate's speed ramps to the
+    launch speed in ``plate.ramp_s`` with at most ``plate.max_force_n`` and holds it until the chassis's base
+    origin goes over the edge (or the plate's face reaches it), then brakes: the chassis leaves the edge at the
+    launch speed (``edge_speed_mps``, within 5% on the shipped chassis and on one with 40 times the drag: see
+    test_launch_twin). Either way the speed gate reads ``run_length_m / travel_time_s`` as on the rig. The chassis
     starts where its foremost point (largest x of its links' bounding boxes) reaches the edge line after
     ``run_length_m`` along the push, its base origin on a path through the edge's midpoint. The actual launch
-    speed scatters around the condition's speed with a relative standard deviation ``speed_sigma_fraction``,
-    and the angle by ``angle_sigma_deg`` (hand placement against the push plate), both drawn from the seed.
+    speed (the gate speed the setting gives in this launch) scatters around the condition's speed x (1 +
+    ``launcher.speed_bias_fraction``, the setting's systematic error, an unknown) with a relative standard
+    deviation ``speed_sigma_fraction``, and the angle by ``angle_sigma_deg`` (hand placement against the push
+    plate), both drawn from the seed; the stroke's plate speed scales with it.
 Asymmetry (the paper's rig is not mirror-symmetric in the angle; these let calibration fit it)
     ``plate.offset_m`` moves the plate sideways off the chassis's path, ``plate.yaw_bias_deg`` turns its face
     from square to the push (it then pushes on one corner), and ``wheel_friction_left_factor`` /
@@ -82,8 +94,18 @@ Measurements and phases
     crosses the edge, ``settling`` at the first foam contact, ``classifying`` once the chassis has come to rest
     (the trials' rest detection, ``config/sim.yaml`` section ``trial``: speeds below thresholds for
     ``rest_hold_s``) or at the trials' time cap. Every phase is reported once, in this order, even when an event
-    did not happen (a chassis too slow to leave the plate). The outcome is the robot model's upright test (the
-    trials' test) against the foam, or against the ledge if the chassis never went over the edge.
+    did not happen (a chassis too slow to leave the plate).
+Outcome (the rig's rule, :func:`rig_verdict`; the same in every engine)
+    Upright = at rest (the trials' rest rule, or the time cap) with the body's up axis within the robot's
+    ``upright_tilt_deg`` of world up (30 deg, ``config/robot.yaml``: the rig's IMU classifier's
+    ``imu_outcome.tilt_threshold_deg`` in ``config/rig.yaml``) and on its wheels (``min_wheels_in_contact`` wheels
+    within ``contact_tolerance_m`` of the surface it rests on), wherever it rests: on the foam pad, on the floor
+    beyond it, against the ledge. Where it came to rest (``rest_surface``, ``rest_position_m``,
+    ``rest_distance_m``), ``time_to_rest_s``, its tilt and the peak deceleration are recorded beside the verdict
+    and never decide it: the same launches give the same count on a 2.5 x 3 m pad and a 30 x 30 m one
+    (bench/bench_pad_size.py). The early decision (:func:`step_launch`) decides only while the robot cannot
+    reach the pad's edges or the ledge, where the pad's top is the only ground and this rule is the one its
+    energy barriers classify by.
 """
 import dataclasses
 import hashlib
@@ -99,7 +121,8 @@ from rollability_ros.core.config import ConfigError, from_mapping, load_paramete
 from rollability_ros.core.profile import DesignSources, profile_mesh_for
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import NO_SEED, NOT_MEASURED, LaunchCondition
-from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, SpawnedRobot, UrdfRobotSpec
+from rollability_ros.core.robots import (ChassisSpec, ProfileBody, RobotChoice, RobotModel, SpawnedRobot,
+                                        UrdfRobotSpec)
 from rollability_ros.core.sim.launcher_geometry import (LauncherGeometry, RobotEnvelope, check_launcher_geometry,
                                                          derive_launcher_geometry, robot_envelope)
 from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect, reset_world, set_contact
@@ -120,17 +143,59 @@ PoseCallback = typing.Callable[[float, typing.Sequence[float], typing.Sequence[f
 MIN_PUSH_TOWARDS_EDGE = 0.1
 
 
+#: ``launch_twin.launcher.model`` values: how the cylinder drives the push plate (module docstring, "Launch").
+LAUNCHER_MODELS = ("stroke", "push_through")
+#: Pa per psi (the paper's regulator reads psi).
+PA_PER_PSI = 6894.757
+
+
+def _setting(default: typing.Any, description: str, value_range: typing.Optional[tuple] = None) -> typing.Any:
+    """A settings field with the project's metadata (``description``, and ``range`` (low, high) when numeric)."""
+    metadata = {"description": description, **({"range": value_range} if value_range is not None else {})}
+    if isinstance(default, list):
+        return dataclasses.field(default_factory=lambda: list(default), metadata=metadata)
+    return dataclasses.field(default=default, metadata=metadata)
+
+
 @dataclasses.dataclass
 class LauncherSpec:
-    """The launcher's run and ledge (``launch_twin.launcher``); metres."""
+    """The launcher's run, ledge and cylinder (``launch_twin.launcher``); metres (module docstring, "Launch").
 
-    run_length_m: float = 0.34
-    ledge_depth_m: float = 0.0
-    ledge_width_m: float = 0.0
-    start_clearance_m: float = 0.0005
+    Sources: ``run_length_m``, ``stroke_m``, the 25 mm bore and the regulator's 30 / 60 psi for 0.8 / 1.5 m/s are
+    the paper's (section 2.2); ``ledge_rolling_friction`` and ``speed_bias_fraction`` are unknowns (0 = none), for
+    calibration and the robust draws."""
+
+    run_length_m: float = _setting(0.34, "travel of the robot's foremost point from its start to the edge, m "
+                                         "(paper 2.2: the speed gate's run)", (0.05, 2.0))
+    ledge_depth_m: float = _setting(0.0, "base plate and table behind the edge, m; 0 = derived from the robot",
+                                    (0.0, 20.0))
+    ledge_width_m: float = _setting(0.0, "base plate along the edge, m; 0 = derived from the robot", (0.0, 20.0))
+    start_clearance_m: float = _setting(0.0005, "gap under the lowest wheel when placed on the plate, m",
+                                        (0.0, 0.01))
+    model: str = _setting("stroke", "how the cylinder drives the push plate: stroke (the paper's cylinder: pushes "
+                                    "for stroke_m, then stops; the robot coasts to the edge) | push_through (the "
+                                    "plate drives the robot at the launch speed until it goes over the edge)")
+    stroke_m: float = _setting(0.15, "cylinder stroke: the plate's travel before it stops, m (paper 2.2: MAL 25 x "
+                                     "150)", (0.01, 2.0))
+    bore_m: float = _setting(0.0, "cylinder bore, m; 0 = derived: the paper's 25 mm on the built-in chassis, "
+                                  "scaled with the square root of a heavier robot's mass", (0.0, 0.5))
+    pressure_speeds_mps: typing.List[float] = _setting(
+        [0.8, 1.5], "set launch speeds the regulator pressures below belong to, m/s (paper 2.2; as "
+                    "config/rig.yaml valve.regulator)")
+    pressures_psi: typing.List[float] = _setting(
+        [30.0, 60.0], "regulator pressure per set speed above, psi (paper 2.2); between and beyond them the "
+                      "pressure is interpolated linearly and held at the end values")
+    ledge_rolling_friction: float = _setting(
+        0.0, "UNKNOWN: the launcher base plate's own rolling friction, m (Bullet's rolling friction: a wheel "
+             "coasting on it meets this x the wheel's friction more); slows the coast from the stroke's end to the "
+             "edge", (0.0, 0.01))
+    speed_bias_fraction: float = _setting(
+        0.0, "UNKNOWN: systematic error of the lab's speed setting, fraction of the set speed (the gate accepts "
+             "launches within speed_gate.tolerance_fraction of it)", (-0.15, 0.15))
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field (a ledge size of 0 is derived from the robot)."""
+        """Raise ``ValueError`` naming the first unusable field (a ledge size or bore of 0 is derived from the
+        robot)."""
         if not self.run_length_m > 0:
             raise ValueError(f"run_length_m must be > 0, got {self.run_length_m}")
         for name in ("ledge_depth_m", "ledge_width_m"):
@@ -140,6 +205,29 @@ class LauncherSpec:
             raise ValueError(f"ledge_depth_m {self.ledge_depth_m} must exceed run_length_m {self.run_length_m}")
         if not 0 <= self.start_clearance_m < 0.01:
             raise ValueError(f"start_clearance_m must be in [0, 0.01), got {self.start_clearance_m}")
+        if self.model not in LAUNCHER_MODELS:
+            raise ValueError(f"model must be one of {', '.join(LAUNCHER_MODELS)}, got {self.model!r}")
+        if not 0 < self.stroke_m <= 2.0:
+            raise ValueError(f"stroke_m must be in (0, 2], got {self.stroke_m}")
+        if not 0 <= self.bore_m <= 0.5:
+            raise ValueError(f"bore_m must be in [0, 0.5] (0 = derived from the robot), got {self.bore_m}")
+        speeds, pressures = list(self.pressure_speeds_mps), list(self.pressures_psi)
+        if not speeds or len(speeds) != len(pressures):
+            raise ValueError(f"pressure_speeds_mps ({len(speeds)}) and pressures_psi ({len(pressures)}) must be "
+                             "non-empty and the same length")
+        if not all(0 < s < math.inf for s in speeds) or any(b <= a for a, b in zip(speeds, speeds[1:])):
+            raise ValueError(f"pressure_speeds_mps must be positive and increasing, got {speeds}")
+        if not all(0 < p < math.inf for p in pressures):
+            raise ValueError(f"pressures_psi must be positive, got {pressures}")
+        if not 0 <= self.ledge_rolling_friction <= 0.01:
+            raise ValueError(f"ledge_rolling_friction must be in [0, 0.01], got {self.ledge_rolling_friction}")
+        if not -0.15 <= self.speed_bias_fraction <= 0.15:
+            raise ValueError(f"speed_bias_fraction must be in [-0.15, 0.15], got {self.speed_bias_fraction}")
+
+    def pressure_psi(self, speed_mps: float) -> float:
+        """The regulator pressure (psi) the lab sets for a set speed of ``speed_mps``: linear between the
+        configured pairs, the end values beyond them."""
+        return float(np.interp(speed_mps, self.pressure_speeds_mps, self.pressures_psi))
 
 
 @dataclasses.dataclass
@@ -253,6 +341,15 @@ class LaunchTwinOptions:
             raise ValueError(f"max_attempts must be in [1, 20], got {self.max_attempts}")
         if not self.pose_rate_hz > 0:
             raise ValueError(f"pose_rate_hz must be > 0, got {self.pose_rate_hz}")
+        # one seam per swap: the settings of the launcher model not chosen cannot be honoured, so they are refused
+        if self.launcher.model == "stroke" and self.plate.max_force_n:
+            raise ValueError(f"plate.max_force_n ({self.plate.max_force_n} N) drives the push_through plate only; "
+                             "the stroke cylinder pushes with launcher.pressures_psi x its bore: set it to 0 or "
+                             "launcher.model to push_through")
+        if self.launcher.model == "push_through" and self.launcher.bore_m:
+            raise ValueError(f"launcher.bore_m ({self.launcher.bore_m} m) sizes the stroke cylinder only; the "
+                             "push_through plate pushes with plate.max_force_n: set it to 0 or launcher.model to "
+                             "stroke")
 
 
 @dataclasses.dataclass
@@ -261,7 +358,7 @@ class LaunchTwinSettings(RobotChoice):
 
     The robot launched is the built-in chassis (``robot``) unless ``urdf_robot`` names a mount link, chosen as
     for the trials (:class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`: ``robot_model()``,
-    ``profile_density_kgpm3()``).
+    ``profile_body(mesh)``).
     """
 
     physics: PhysicsParams = dataclasses.field(default_factory=PhysicsParams)
@@ -324,6 +421,15 @@ class LaunchResult:
     :func:`attempt_seed`): :func:`simulate_launch` with it repeats this launch exactly. ``decided``: ended by the
     early decision (``trial.early_decision``, :func:`step_launch`): ``upright`` is the decided outcome, ``settled``
     true, ``tilt_deg`` and ``final_orientation`` those at the decision.
+
+    ``upright`` is the rig's verdict (:func:`rig_verdict`, module docstring "Outcome"): at rest on its wheels,
+    wherever. Beside it, as data that never decides it: ``rest_surface`` where it came to rest ("pad": the base
+    origin over the foam pad's extent, "floor": beyond it, "ledge": it never went over), ``rest_position_m`` the
+    base origin at the end (x, y, z), ``rest_distance_m`` its horizontal distance from where it crossed the edge
+    line, ``time_to_rest_s`` from the first landing until the rest rule held (NaN when it hit the time cap, never
+    landed, or the early decision ended it: a decided launch's ``rest_*`` are where it was at the decision, clear of
+    the pad's edges by the decision's rule), and ``plate_speed_mps`` the speed the cylinder drove the plate at
+    (the stroke model's solved speed for this launch's set speed, :func:`launch_drive`).
     """
 
     upright: bool
@@ -344,6 +450,11 @@ class LaunchResult:
     attempts: int = 1
     seed: int = NO_SEED
     decided: bool = False
+    rest_surface: str = ""
+    rest_position_m: tuple = (NOT_MEASURED,) * 3
+    rest_distance_m: float = NOT_MEASURED
+    time_to_rest_s: float = NOT_MEASURED
+    plate_speed_mps: float = NOT_MEASURED
 
     @property
     def valid(self) -> bool:
@@ -367,11 +478,12 @@ def sized_for_robot(settings: LaunchTwinSettings
     envelope = robot_envelope(settings.robot_model())
     geometry = derive_launcher_geometry(envelope, launcher.run_length_m, plate.thickness_m, {
         "plate_width_m": plate.width_m, "plate_height_m": plate.height_m, "plate_clearance_m": plate.clearance_m,
-        "plate_max_force_n": plate.max_force_n, "ledge_depth_m": launcher.ledge_depth_m, "ledge_width_m": launcher.ledge_width_m})
+        "plate_max_force_n": plate.max_force_n, "ledge_depth_m": launcher.ledge_depth_m, "ledge_width_m": launcher.ledge_width_m,
+        "cylinder_bore_m": launcher.bore_m})
     twin = dataclasses.replace(
         settings.twin,
         launcher=dataclasses.replace(launcher, ledge_depth_m=geometry.ledge_depth_m,
-                                     ledge_width_m=geometry.ledge_width_m),
+                                     ledge_width_m=geometry.ledge_width_m, bore_m=geometry.cylinder_bore_m),
         plate=dataclasses.replace(plate, width_m=geometry.plate_width_m, height_m=geometry.plate_height_m,
                                   clearance_m=geometry.plate_clearance_m, max_force_n=geometry.plate_max_force_n))
     return dataclasses.replace(settings, twin=twin), envelope, geometry
@@ -386,20 +498,109 @@ def check_launcher(settings: LaunchTwinSettings) -> LauncherGeometry:
     return geometry
 
 
+@dataclasses.dataclass(frozen=True)
+class LaunchDrive:
+    """How the cylinder drives the push plate in launches of one set speed (module docstring, "Launch"): the
+    plate's speed is ``speed_ratio`` x the launch's drawn gate speed, reached with at most ``force_n`` (from rest,
+    within ``ramp_s``), and held until the plate has travelled ``stroke_m`` (inf: until the robot goes over the
+    edge, ``push_through``) or the robot goes over the edge."""
+
+    model: str
+    speed_ratio: float
+    force_n: float
+    stroke_m: float
+    ramp_s: float
+
+    def plate_speed_mps(self, gate_speed_mps: float) -> float:
+        """The plate's speed (m/s) for a launch whose drawn gate speed is ``gate_speed_mps``."""
+        return self.speed_ratio * gate_speed_mps
+
+    def plate_spec(self, spec: PushPlateSpec) -> PushPlateSpec:
+        """``spec`` with this drive's force and ramp (what the twins' plates read)."""
+        return dataclasses.replace(spec, max_force_n=self.force_n, ramp_s=self.ramp_s)
+
+
+#: The stroke model's speed solve: gate speed within this fraction of the set speed, at most this many runs.
+SOLVE_TOLERANCE, SOLVE_RUNS = 0.002, 12
+#: Largest plate speed / set speed the solve tries before it refuses (the cylinder cannot reach the set speed).
+SOLVE_MAX_RATIO = 4.0
+#: Solved speed ratios per (engine, robot, launcher, set speed) in this process.
+_SOLVED: typing.Dict[str, float] = {}
+
+
+def cylinder_force_n(launcher: LauncherSpec, set_speed_mps: float) -> float:
+    """The stroke cylinder's force (N) at the set speed's regulator pressure: pressure x bore area (``bore_m`` as
+    sized for the robot, :func:`sized_for_robot`)."""
+    return launcher.pressure_psi(set_speed_mps) * PA_PER_PSI * math.pi * (launcher.bore_m / 2) ** 2
+
+
+def launch_drive(settings: LaunchTwinSettings, set_speed_mps: float) -> LaunchDrive:
+    """The :class:`LaunchDrive` of launches at the set (nominal) speed ``set_speed_mps`` on the sized twin
+    ``settings`` (:func:`sized_for_robot`).
+
+    ``push_through``: the plate at the launch speed, ``plate.max_force_n``, ``plate.ramp_s``, until the robot goes
+    over. ``stroke``: the cylinder pushes with :func:`cylinder_force_n` for ``launcher.stroke_m`` at the speed the
+    lab's setting gives: as the lab sets the pressure until the speed gate reads the set speed over the run (paper
+    2.2), the plate's speed is solved (once per engine, robot, launcher and set speed, cached) so that a launch of
+    the bare robot square to the edge, without scatter, reads ``run_length_m / travel_time_s`` = the set speed
+    within :data:`SOLVE_TOLERANCE`. ``ValueError`` naming the settings when no plate speed up to
+    :data:`SOLVE_MAX_RATIO` x the set speed gets there (a cylinder too weak for the robot)."""
+    plate, launcher = settings.twin.plate, settings.twin.launcher
+    if launcher.model == "push_through":
+        return LaunchDrive("push_through", 1.0, plate.max_force_n, math.inf, plate.ramp_s)
+    force_n = cylinder_force_n(launcher, set_speed_mps)
+    ramp_s = settings.physics.time_step_s   # a step: the force limit sets the acceleration
+    canonical = dataclasses.replace(settings, trial=TrialSettings(), twin=dataclasses.replace(
+        settings.twin, speed_sigma_fraction=0.0, angle_sigma_deg=0.0, designs=DesignSources(),
+        foam=FoamSpec(), launcher=dataclasses.replace(launcher, speed_bias_fraction=0.0)))
+    key = hashlib.sha256(pickle.dumps((canonical, float(set_speed_mps)), protocol=4)).hexdigest()
+    if key not in _SOLVED:
+        _SOLVED[key] = _solve_speed_ratio(settings, set_speed_mps, force_n, ramp_s)
+        while len(_SOLVED) > 256:
+            del _SOLVED[next(iter(_SOLVED))]
+    return LaunchDrive("stroke", _SOLVED[key], force_n, launcher.stroke_m, ramp_s)
+
+
+def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force_n: float, ramp_s: float) -> float:
+    """The plate speed / set speed at which the gate reads the set speed (:func:`launch_drive`)."""
+    exact = dataclasses.replace(settings, twin=dataclasses.replace(
+        settings.twin, speed_sigma_fraction=0.0, angle_sigma_deg=0.0,
+        launcher=dataclasses.replace(settings.twin.launcher, speed_bias_fraction=0.0)))
+    condition = LaunchCondition("baseline", 0.75, set_speed_mps, 0.0)   # the bare robot: profile None below
+    engine = LAUNCH_ENGINES.get(settings.physics.engine)
+    launcher = settings.twin.launcher
+    ratio, gate = 1.0, NOT_MEASURED
+    for _ in range(SOLVE_RUNS):
+        drive = LaunchDrive("stroke", ratio, force_n, launcher.stroke_m, ramp_s)
+        gate = engine.simulate(condition, exact, 0, None, drive=drive, until_edge=True).measured_speed_mps
+        if gate > 0 and abs(gate / set_speed_mps - 1) <= SOLVE_TOLERANCE:
+            return ratio
+        ratio = ratio * (set_speed_mps / gate if gate > 0 else 2.0)
+        if ratio > SOLVE_MAX_RATIO:
+            break
+    raise ValueError(
+        f"the stroke launcher cannot launch this robot at {set_speed_mps} m/s: the gate reads {gate:.3f} m/s at "
+        f"best with {force_n:.0f} N (launch_twin.launcher.pressures_psi {launcher.pressure_psi(set_speed_mps):.0f} "
+        f"psi x bore {launcher.bore_m * 1000:.1f} mm) over the stroke_m {launcher.stroke_m} m; raise the pressure "
+        "or the bore, or lower the rolling resistance")
+
+
 def profile_body(configuration: str, settings: LaunchTwinSettings) -> typing.Optional[ProfileBody]:
     """The :class:`ProfileBody` mounted for ``configuration`` (None = baseline); see :mod:`designs`."""
     mesh = profile_mesh_for(configuration, settings.twin.designs)
-    return None if mesh is None else ProfileBody.from_mesh(mesh, settings.profile_density_kgpm3())
+    return None if mesh is None else settings.profile_body(mesh)
 
 
 def launch_draws(seed: int, nominal_speed_mps: float, nominal_angle_deg: float,
                  options: LaunchTwinOptions) -> typing.Tuple[float, float]:
-    """The seeded scatter of one launch: ``(actual launch speed m/s, actual angle deg)``."""
+    """The seeded scatter of one launch: ``(actual launch speed m/s, actual angle deg)``; the speed also carries
+    the lab's systematic setting error ``launcher.speed_bias_fraction``."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     rng = np.random.default_rng(int(seed))
     speed_factor, angle_offset = rng.standard_normal(2)
-    speed = nominal_speed_mps * max(0.05, 1.0 + options.speed_sigma_fraction * float(speed_factor))
+    speed = nominal_speed_mps * (1.0 + options.launcher.speed_bias_fraction) * max(
+        0.05, 1.0 + options.speed_sigma_fraction * float(speed_factor))
     return speed, nominal_angle_deg + options.angle_sigma_deg * float(angle_offset)
 
 
@@ -421,8 +622,16 @@ def build_launch_world(client: int, settings: LaunchTwinSettings, height_m: floa
                           (foam.length_m / 2, 0.0, foam.thickness_m / 2), foam.contact(physics.ground_contact()))
     top = foam.thickness_m + height_m
     ledge_id = _static_box(pybullet, client, (launcher.ledge_depth_m / 2, launcher.ledge_width_m / 2, top / 2),
-                           (-launcher.ledge_depth_m / 2, 0.0, top / 2), physics.ground_contact())
+                           (-launcher.ledge_depth_m / 2, 0.0, top / 2), ledge_contact(settings))
     return foam_id, ledge_id, floor_id
+
+
+def ledge_contact(settings: LaunchTwinSettings) -> typing.Dict[str, float]:
+    """The launcher base plate's ``changeDynamics`` keywords: the ground contact of ``config/sim.yaml`` with
+    ``launcher.ledge_rolling_friction`` added to its own rolling friction (the coast's unknown resistance)."""
+    contact = dict(settings.physics.ground_contact())
+    contact["rollingFriction"] = contact.get("rollingFriction", 0.0) + settings.twin.launcher.ledge_rolling_friction
+    return contact
 
 
 def wheel_side_m(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, link: int) -> float:
@@ -572,6 +781,9 @@ class LaunchPlate(typing.Protocol):
     def reached_edge(self) -> bool:
         """True once the plate's face has reached the edge line x = 0."""
 
+    def travel_m(self) -> float:
+        """How far the plate has moved along the push from its start (m)."""
+
     def stop(self) -> None:
         """Brake the plate to rest."""
 
@@ -626,6 +838,10 @@ class PushPlate:
         """True once the plate's face has reached the edge line x = 0."""
         travel_m = self._pybullet.getJointState(self.body_id, 0, physicsClientId=self._client)[0]
         return bool(self.face_x_m + travel_m * self.push[0] >= 0.0)
+
+    def travel_m(self) -> float:
+        """How far the plate has moved along the push from its start (m)."""
+        return float(self._pybullet.getJointState(self.body_id, 0, physicsClientId=self._client)[0]) - self.start_m
 
     def stop(self) -> None:
         """Brake the plate to rest (the cylinder at the end of its push)."""
@@ -706,7 +922,8 @@ def simulate_launch(condition: LaunchCondition, settings: LaunchTwinSettings, se
     settings = sized_for_robot(settings)[0]
     if not use_profile:
         profile = profile_body(condition.configuration, settings)
-    return LAUNCH_ENGINES.get(settings.physics.engine).simulate(condition, settings, seed, profile, on_phase, on_pose)
+    return LAUNCH_ENGINES.get(settings.physics.engine).simulate(condition, settings, seed, profile, on_phase, on_pose,
+                                                                drive=launch_drive(settings, condition.speed_mps))
 
 
 class BulletLaunch(LaunchEngine):
@@ -715,8 +932,10 @@ class BulletLaunch(LaunchEngine):
     @classmethod
     def simulate(cls, condition: LaunchCondition, settings: LaunchTwinSettings, seed: int,
                  profile: typing.Optional[ProfileBody], on_phase: typing.Optional[PhaseCallback] = None,
-                 on_pose: typing.Optional[PoseCallback] = None) -> LaunchResult:
-        """One launch of the sized twin ``settings`` carrying ``profile`` (see :func:`simulate_launch`)."""
+                 on_pose: typing.Optional[PoseCallback] = None, *, drive: "LaunchDrive",
+                 until_edge: bool = False) -> LaunchResult:
+        """One launch of the sized twin ``settings`` carrying ``profile`` with the cylinder's ``drive`` (see
+        :func:`simulate_launch`); ``until_edge``: stop once the foremost point crosses the edge (the speed solve)."""
         options = settings.twin
         pybullet = require("pybullet", feature="the launch twin")
         speed_mps, angle_deg, push = launch_plan(condition, seed, options)
@@ -731,43 +950,77 @@ class BulletLaunch(LaunchEngine):
             set_contact(client, robot.body_id, settings.physics.body_contact())
             _set_wheels(pybullet, client, robot, options, settings.physics.lateral_friction, mecanum_wheels(settings))
             lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)
-            plate = PushPlate(pybullet, client, robot, push, options.plate, options.foam.thickness_m + condition.height_m,
-                              (floor_id, foam_id, ledge_id))
+            plate = PushPlate(pybullet, client, robot, push, drive.plate_spec(options.plate),
+                              options.foam.thickness_m + condition.height_m, (floor_id, foam_id, ledge_id))
             world = _BulletLaunchWorld(pybullet, client, robot, foam_id, floor_id, settings, profile)
             tracker = LaunchTracker(world, lead_m, PhaseReporter(on_phase), push)
-            steps, settled, decision = step_launch(world, plate, tracker, settings, on_pose, speed_mps)
+            steps, settled, decision = step_launch(world, plate, tracker, settings, on_pose,
+                                                   drive.plate_speed_mps(speed_mps), drive.stroke_m, until_edge)
+            tilt = model.tilt_deg(client, robot)
             if decision is None:
-                upright, tilt = model.is_upright(client, robot, foam_id if tracker.went_over else ledge_id)
+                upright = rig_verdict(tilt, wheels_down(pybullet, client, robot, model, (foam_id, floor_id, ledge_id)),
+                                      model)
             else:
-                upright, tilt = decision, model.tilt_deg(client, robot)
-            _, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
+                upright = decision
+            position, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
         finally:
             disconnect(client)
         return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, orientation),
-                             (speed_mps, angle_deg), seed)
+                             (speed_mps, angle_deg), seed, position, drive.plate_speed_mps(speed_mps))
+
+
+def wheels_down(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, model: RobotModel,
+                surfaces: typing.Iterable[int]) -> int:
+    """How many of ``robot``'s wheel links are within the model's ``contact_tolerance_m`` of any of the bodies
+    ``surfaces`` (the twin's pad, floor and ledge): the wheels it stands on, wherever (:func:`rig_verdict`)."""
+    surfaces = tuple(surfaces)
+    return sum(any(pybullet.getClosestPoints(robot.body_id, surface, model.contact_tolerance_m, linkIndexA=link,
+                                             physicsClientId=client) for surface in surfaces)
+               for link in robot.wheel_links)
 
 
 def launch_result(tracker: "LaunchTracker", settings: LaunchTwinSettings,
                   run: typing.Tuple[int, bool, typing.Optional[bool]],
                   classified: typing.Tuple[bool, float, typing.Sequence[float]], drawn: typing.Tuple[float, float],
-                  seed: int) -> LaunchResult:
+                  seed: int, rest_position_m: typing.Sequence[float] = (NOT_MEASURED,) * 3,
+                  plate_speed_mps: float = NOT_MEASURED) -> LaunchResult:
     """The :class:`LaunchResult` of a launch (every twin's): ``run`` = ``(steps, settled, decision)`` of
     :func:`step_launch`, ``classified`` = ``(upright, tilt_deg, final orientation (x, y, z, w))``, ``drawn`` =
-    ``(launch speed m/s, angle deg)`` of :func:`launch_plan`."""
+    ``(launch speed m/s, angle deg)`` of :func:`launch_plan`, ``rest_position_m`` the base origin at the end (m),
+    ``plate_speed_mps`` the cylinder's speed in this launch."""
     steps, settled, decision = run
     upright, tilt, orientation = classified
     speed_mps, angle_deg = drawn
     options = settings.twin
     travel_s = tracker.front.time_s
+    sim_time_s = steps * settings.physics.time_step_s
+    rest = tuple(float(v) for v in rest_position_m)
+    foam = options.foam
+    if not tracker.went_over:
+        surface = "ledge"
+    else:
+        surface = "pad" if 0.0 <= rest[0] <= foam.length_m and abs(rest[1]) <= foam.width_m / 2 else "floor"
+    rested = settled and decision is None and not math.isnan(tracker.landed_s)
     return LaunchResult(upright=bool(upright), final_orientation=tuple(float(v) for v in orientation),
                         travel_time_s=travel_s, measured_speed_mps=options.launcher.run_length_m / travel_s,
                         launch_speed_mps=speed_mps, settled=bool(settled),
-                        sim_time_s=steps * settings.physics.time_step_s, steps=steps, tilt_deg=float(tilt),
+                        sim_time_s=sim_time_s, steps=steps, tilt_deg=float(tilt),
                         launch_angle_deg=angle_deg, flight_time_s=tracker.landed_s - tracker.base.time_s,
                         landing_position_m=tracker.landing_m,
                         peak_deceleration_mps2=tracker.peak_deceleration_mps2, edge_speed_mps=tracker.edge_speed_mps,
                         invalid_reason=invalid_reason(tracker.went_over, tracker, options.foam), seed=int(seed),
-                        decided=decision is not None)
+                        decided=decision is not None, rest_surface=surface, rest_position_m=rest,
+                        rest_distance_m=math.hypot(rest[0] - tracker.edge_xy_m[0], rest[1] - tracker.edge_xy_m[1]),
+                        time_to_rest_s=sim_time_s - tracker.landed_s if rested else NOT_MEASURED,
+                        plate_speed_mps=float(plate_speed_mps))
+
+
+def rig_verdict(tilt_deg: float, wheels_down: int, robot_model: "RobotModel") -> bool:
+    """The rig's outcome rule (module docstring, "Outcome"), every twin's verdict: at rest with the body's up axis
+    within ``upright_tilt_deg`` of world up (``config/robot.yaml``; the rig's IMU classifier uses the same 30 deg,
+    ``config/rig.yaml`` ``imu_outcome.tilt_threshold_deg``) and on its wheels: at least ``min_wheels_in_contact``
+    wheels (``wheels_down``) within ``contact_tolerance_m`` of whatever surface it rests on (pad, floor or ledge)."""
+    return tilt_deg <= robot_model.upright_tilt_deg and wheels_down >= robot_model.min_wheels_in_contact
 
 
 def launch_plan(condition: LaunchCondition, seed: int,
@@ -835,6 +1088,7 @@ class LaunchTracker:
         self.landed_s = NOT_MEASURED
         self.landing_m: typing.Tuple[float, ...] = (NOT_MEASURED,) * 3
         self.peak_deceleration_mps2 = 0.0
+        self.edge_xy_m: typing.Tuple[float, float] = (0.0, 0.0)   # where the base origin crossed the edge line
         self._velocity: typing.Optional[typing.Tuple[float, ...]] = None
 
     @property
@@ -868,6 +1122,7 @@ class LaunchTracker:
             self.edge_speed_mps = float(np.dot(self._world.velocity(), self._push))
         if math.isnan(self.base.time_s):
             if self.base.update(steps, dt, position[0]):
+                self.edge_xy_m = (0.0, float(position[1]))
                 self.phases.reach("in_flight")
             return
         velocity = tuple(self._world.velocity())   # plain floats: numpy's per-call cost exceeds a MuJoCo step
@@ -1041,10 +1296,13 @@ def _bullet_energy_monitor(pybullet, client, robot, settings, profile):
 
 
 def step_launch(world: LaunchWorld, plate: LaunchPlate, tracker: LaunchTracker, settings: LaunchTwinSettings,
-                on_pose: typing.Optional[PoseCallback], speed_mps: float) -> typing.Tuple[int, bool, typing.Optional[bool]]:
+                on_pose: typing.Optional[PoseCallback], speed_mps: float, stroke_m: float = math.inf,
+                until_edge: bool = False) -> typing.Tuple[int, bool, typing.Optional[bool]]:
     """Step ``world`` (a :class:`LaunchWorld`) until the robot is at rest or the trials' time cap, driving ``plate``
-    at ``speed_mps`` until the robot goes over the edge or the plate reaches it; return ``(steps, settled,
-    decision)``. Every twin runs its launches through this loop (the launch rules live here and in
+    at ``speed_mps`` until it has travelled ``stroke_m`` (the cylinder's stroke; inf: push-through), the robot goes
+    over the edge or the plate reaches it; return ``(steps, settled, decision)``. ``until_edge``: stop as soon as
+    the robot's foremost point crosses the edge line (the gate's reading is then known: the speed solve of
+    :func:`launch_drive`). Every twin runs its launches through this loop (the launch rules live here and in
     :class:`LaunchTracker`).
 
     Early decision (``trial.early_decision``): once the robot has landed on the foam and the plate has stopped,
@@ -1075,8 +1333,11 @@ def step_launch(world: LaunchWorld, plate: LaunchPlate, tracker: LaunchTracker, 
             tracker.add_steps(*world.advance(count, dt, velocity))
             steps += count
         else:
-            steps = _one_step(world, plate, tracker, on_pose, speed_mps, steps, dt, pose_every, plate_started)
+            steps = _one_step(world, plate, tracker, on_pose, speed_mps, steps, dt, pose_every, plate_started,
+                              stroke_m)
             plate_started = True
+            if until_edge and not math.isnan(tracker.front.time_s):
+                break
         if steps % interval:   # the rest rule and the decision look every check_interval_steps only
             continue
         settled = world.settled(steps)
@@ -1087,7 +1348,7 @@ def step_launch(world: LaunchWorld, plate: LaunchPlate, tracker: LaunchTracker, 
     return steps, settled, decision
 
 
-def _one_step(world, plate, tracker, on_pose, speed_mps, steps, dt, pose_every, plate_started):
+def _one_step(world, plate, tracker, on_pose, speed_mps, steps, dt, pose_every, plate_started, stroke_m):
     """One step of :func:`step_launch` with everything watched; returns the new step count."""
     if plate.driving or not plate_started:
         plate.drive(speed_mps, (steps + 1) * dt)
@@ -1095,7 +1356,7 @@ def _one_step(world, plate, tracker, on_pose, speed_mps, steps, dt, pose_every, 
     steps += 1
     position, orientation = world.pose()
     tracker.update(steps, dt, position)
-    if plate.driving and (not math.isnan(tracker.base.time_s) or plate.reached_edge()):
+    if plate.driving and (not math.isnan(tracker.base.time_s) or plate.reached_edge() or plate.travel_m() >= stroke_m):
         plate.stop()
     if on_pose is not None and steps % pose_every == 0:
         on_pose(steps * dt, position, orientation)

@@ -15,6 +15,9 @@ given, and :func:`check_launcher_geometry` checks either before a campaign)
     ``plate.max_force_n``   the robot's mass times :data:`PLATE_ACCELERATION_MPS2` (the paper rig's 200 N on the
                             1.1 kg chassis), rounded to 10 N: a heavier robot gets a bigger cylinder, so it reaches
                             the launch speed as early in the run as the chassis does;
+    ``launcher.bore_m``     the stroke cylinder's bore: the paper's :data:`PAPER_BORE_M` on the built-in chassis's
+                            :data:`CHASSIS_MASS_KG`, times the square root of a heavier robot's mass over it (the
+                            same force per kilogram at the same pressure), rounded to 1 mm; never smaller;
     ``launcher.ledge_depth_m``  the run, the robot's diagonal (any yaw), the plate and 0.1 m, rounded up to 0.1 m;
     ``launcher.ledge_width_m``  room for a start turned by :data:`LEDGE_ANGLE_DEG` either way: twice (run + the
                             diagonal / cos) x sin + the diagonal, plus 0.2 m, rounded up to 0.1 m.
@@ -33,6 +36,10 @@ if typing.TYPE_CHECKING:  # annotations only
 PLATE_CLEARANCE_M = 0.005
 #: Most acceleration the cylinder gives the robot (m/s^2): 200 N on the built-in chassis's 1.1 kg.
 PLATE_ACCELERATION_MPS2 = 200.0 / 1.1
+#: The paper's cylinder bore (m, section 2.2: MAL 25 x 150) and the mass of the chassis it launched (kg: the
+#: built-in chassis of config/robot.yaml, body 0.9 + four 0.05 kg wheels).
+PAPER_BORE_M = 0.025
+CHASSIS_MASS_KG = 1.1
 #: Largest start angle the derived ledge width holds (deg): the paper's mounting holes reach +-60 deg.
 LEDGE_ANGLE_DEG = 60.0
 #: Margins and rounding of the derived sizes (m).
@@ -97,6 +104,7 @@ class LauncherGeometry:
     plate_max_force_n: float
     ledge_depth_m: float
     ledge_width_m: float
+    cylinder_bore_m: float = PAPER_BORE_M
     derived: tuple = ()
 
 
@@ -126,7 +134,8 @@ def derive_launcher_geometry(envelope: RobotEnvelope, run_length_m: float, plate
               "plate_clearance_m": round(clearance, 4),
               "plate_max_force_n": float(_round(envelope.mass_kg * PLATE_ACCELERATION_MPS2, 10.0)),
               "ledge_depth_m": round(depth, 3),
-              "ledge_width_m": round(ledge_width, 3)}
+              "ledge_width_m": round(ledge_width, 3),
+              "cylinder_bore_m": round(PAPER_BORE_M * math.sqrt(max(1.0, envelope.mass_kg / CHASSIS_MASS_KG)), 3)}
     derived = tuple(name for name in values if not configured.get(name))
     values.update({name: float(value) for name, value in configured.items() if value})
     return LauncherGeometry(**{name: float(value) for name, value in values.items()}, derived=derived)
@@ -136,7 +145,7 @@ def derive_launcher_geometry(envelope: RobotEnvelope, run_length_m: float, plate
 PARAMETERS = {"plate_width_m": "launch_twin.plate.width_m", "plate_height_m": "launch_twin.plate.height_m",
               "plate_clearance_m": "launch_twin.plate.clearance_m", "plate_max_force_n": "launch_twin.plate.max_force_n",
               "ledge_depth_m": "launch_twin.launcher.ledge_depth_m",
-              "ledge_width_m": "launch_twin.launcher.ledge_width_m"}
+              "ledge_width_m": "launch_twin.launcher.ledge_width_m", "cylinder_bore_m": "launch_twin.launcher.bore_m"}
 
 
 def check_launcher_geometry(envelope: RobotEnvelope, geometry: "LauncherGeometry", run_length_m: float,

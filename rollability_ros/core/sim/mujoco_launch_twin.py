@@ -58,11 +58,11 @@ from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.robots import ProfileBody
 from rollability_ros.core.sim.trial_engine import LaunchEngine
 from rollability_ros.core.sim.early_decision import _hull_vertices
-from rollability_ros.core.sim.launch_twin import (LaunchResult, LaunchTracker, LaunchTwinSettings, LaunchWorld,
-                                                  PhaseCallback, PhaseReporter, PoseCallback, PushPlateSpec,
-                                                  check_fits_launcher, decided_on_foam, foam_sink_m,
+from rollability_ros.core.sim.launch_twin import (LaunchDrive, LaunchResult, LaunchTracker, LaunchTwinSettings,
+                                                  LaunchWorld, PhaseCallback, PhaseReporter, PoseCallback,
+                                                  PushPlateSpec, check_fits_launcher, decided_on_foam, foam_sink_m,
                                                   hopeless_to_decide, launch_plan, launch_result, launcher_start_xy,
-                                                  mecanum_wheels, plate_placement, step_launch)
+                                                  mecanum_wheels, plate_placement, rig_verdict, step_launch)
 from rollability_ros.core.sim.mujoco_trials import (MujocoEnergyMonitor, MujocoTrialWorld, _geom_points,
                                                     _pose_speeds, effective_contact, robot_spec, set_geom_contact,
                                                     wheel_bodies)
@@ -202,6 +202,13 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
             for joint in range(model.njnt):
                 if mecanum and model.jnt_bodyid[joint] == body:
                     model.dof_frictionloss[model.jnt_dofadr[joint]] = options.wheel_drag_torque_nm
+        # the base plate's unknown rolling resistance (launcher.ledge_rolling_friction): MuJoCo takes the larger
+        # of two geoms' values, so the ledge carries the wheels' rolling friction plus Bullet's ledge.rolling x
+        # wheel.lateral (0 = the trials' mapping: the ledge's zeros)
+        ledge_rolling = options.launcher.ledge_rolling_friction
+        wheel_rolling = options.wheel_rolling_friction * ground_lateral if mecanum else rolling
+        model.geom_friction[self.ledge_geom] = [
+            0.0, 0.0, wheel_rolling + ledge_rolling * physics.lateral_friction if ledge_rolling else 0.0]
         body = physics.body_contact()
         foam = options.foam
         model.geom_priority[self.foam_geom] = 1
@@ -348,9 +355,11 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
 
     # -- one launch ---------------------------------------------------------------------------------------------
     def launch(self, condition: LaunchCondition, seed: int, on_phase: typing.Optional[PhaseCallback] = None,
-               on_pose: typing.Optional[PoseCallback] = None) -> LaunchResult:
-        """One launch of ``condition`` with ``seed`` (:func:`~rollability_ros.core.sim.launch_twin.simulate_launch`'s
-        rules); returns its :class:`~rollability_ros.core.sim.launch_twin.LaunchResult`."""
+               on_pose: typing.Optional[PoseCallback] = None, *, drive: LaunchDrive,
+               until_edge: bool = False) -> LaunchResult:
+        """One launch of ``condition`` with ``seed`` and the cylinder's ``drive``
+        (:func:`~rollability_ros.core.sim.launch_twin.simulate_launch`'s rules; ``until_edge``: stop once the
+        foremost point crosses the edge); returns its :class:`~rollability_ros.core.sim.launch_twin.LaunchResult`."""
         mujoco, model, data, settings = self.mujoco, self.model, self.data, self.settings
         options = settings.twin
         speed_mps, angle_deg, push = launch_plan(condition, seed, options)
@@ -371,19 +380,31 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         data.qpos[self.plate_qpos] = max(0.0, gap - 0.001)
         mujoco.mj_forward(model, data)
         self._previous_pose, self._rest_since = None, None
-        plate = self._plate = _MujocoPlate(self, options.plate, push, placement.face_x_m)
+        plate = self._plate = _MujocoPlate(self, drive.plate_spec(options.plate), push, placement.face_x_m)
         tracker = LaunchTracker(self, lead_m, PhaseReporter(on_phase), push)
         unstable = mujoco.mjtWarning.mjWARN_BADQACC
         data.warning[unstable].number = 0
-        steps, settled, decision = step_launch(self, plate, tracker, settings, on_pose, speed_mps)
+        steps, settled, decision = step_launch(self, plate, tracker, settings, on_pose,
+                                               drive.plate_speed_mps(speed_mps), drive.stroke_m, until_edge)
         if data.warning[unstable].number:
             raise RuntimeError(f"the MuJoCo launch twin went unstable (bad accelerations, MuJoCo reset the state) "
                                f"in {condition} with seed {seed}; foam {options.foam}")
         mujoco.mj_forward(model, data)
-        self.ground_geom = self.foam_geom if tracker.went_over else self.ledge_geom
-        upright, tilt = self.is_upright() if decision is None else (decision, self.tilt_deg())
-        return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, self.pose()[1]),
-                             (speed_mps, angle_deg), seed)
+        tilt = self.tilt_deg()
+        upright = rig_verdict(tilt, self.wheels_down(), self.robot_model) if decision is None else decision
+        position, orientation = self.pose()
+        return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, orientation),
+                             (speed_mps, angle_deg), seed, position, drive.plate_speed_mps(speed_mps))
+
+    def wheels_down(self) -> int:
+        """How many wheels are within the robot's ``contact_tolerance_m`` of the pad, the floor or the ledge: the
+        wheels it stands on, wherever (:func:`~rollability_ros.core.sim.launch_twin.rig_verdict`)."""
+        mujoco, model, data = self.mujoco, self.model, self.data
+        tolerance = self.robot_model.contact_tolerance_m
+        surfaces = (self.foam_geom, self.floor_geom, self.ledge_geom)
+        return sum(min(mujoco.mj_geomDistance(model, data, geom, surface, 10.0, None)
+                       for geom in geoms for surface in surfaces) <= tolerance
+                   for geoms in self.wheel_geoms.values() if geoms)
 
 
 class _MujocoPlate:
@@ -406,6 +427,7 @@ class _MujocoPlate:
         mass_kg = spec.mass_kg + (0.0 if explicit else self.ROBOT_SHARE * twin.mass_kg)
         self._gain = mass_kg / twin.physics.time_step_s
         self._target, self._limit = 0.0, spec.max_force_n
+        self._start_m = float(twin.data.qpos[twin.plate_qpos])
         self.driving = False
 
     @property
@@ -431,6 +453,11 @@ class _MujocoPlate:
         twin = self._twin
         return bool(self.face_x_m + float(twin.data.qpos[twin.plate_qpos]) * self.push[0] >= 0.0)
 
+    def travel_m(self) -> float:
+        """How far the plate has moved along the push from its start (m)."""
+        twin = self._twin
+        return float(twin.data.qpos[twin.plate_qpos]) - self._start_m
+
     def stop(self) -> None:
         """Brake to rest (the cylinder at the end of its push): target 0 with 10 x the force, from now on."""
         self._target, self._limit, self.driving = 0.0, self.spec.max_force_n * 10, False
@@ -439,9 +466,20 @@ class _MujocoPlate:
 _cache: "collections.OrderedDict[str, MujocoLaunchTwin]" = collections.OrderedDict()
 
 
+def _launch_free(settings: LaunchTwinSettings) -> LaunchTwinSettings:
+    """``settings`` without what only a launch's draws and drive read (designs list, speed and angle scatter, the
+    speed setting's bias): settings that differ only there share a model."""
+    twin = settings.twin
+    return dataclasses.replace(settings, twin=dataclasses.replace(
+        twin, designs=DesignSources(), speed_sigma_fraction=0.0, angle_sigma_deg=0.0,
+        launcher=dataclasses.replace(twin.launcher, speed_bias_fraction=0.0)))
+
+
 def _twin_key(settings, profile):
-    """What needs a model of its own: everything but the designs list and what :meth:`MujocoLaunchTwin.retarget`
-    applies to a compiled model (a robustness draw's contact reading, foam, centre of mass, disturbance)."""
+    """What needs a model of its own: everything but :func:`_launch_free`'s fields and what
+    :meth:`MujocoLaunchTwin.retarget` applies to a compiled model (a robustness draw's contact reading, foam, centre
+    of mass, disturbance)."""
+    settings = _launch_free(settings)
     foam = dataclasses.replace(settings.twin.foam, contact_stiffness_npm=1.0, contact_damping_nspm=0.0,
                                restitution=0.0)
     trial = dataclasses.replace(settings.trial, start_roll_deg=0.0, force_min_n=0.0, force_max_n=0.0,
@@ -463,8 +501,7 @@ def twin_for(settings: LaunchTwinSettings, profile: typing.Optional[ProfileBody]
     kept for exactly those; with it off (every robustness draw of a launch,
     :func:`~rollability_ros.core.sim.robustness.perturb`), one twin per robot + profile + fixed settings serves
     every draw."""
-    key = ("exact-" + hashlib.sha256(pickle.dumps((dataclasses.replace(
-        settings, twin=dataclasses.replace(settings.twin, designs=DesignSources())), profile), protocol=4)).hexdigest()
+    key = ("exact-" + hashlib.sha256(pickle.dumps((_launch_free(settings), profile), protocol=4)).hexdigest()
            if settings.trial.early_decision else _twin_key(settings, profile))
     twin = _cache.pop(key, None)
     if twin is None:
@@ -487,6 +524,8 @@ class MujocoLaunch(LaunchEngine):
     @classmethod
     def simulate(cls, condition: LaunchCondition, settings: LaunchTwinSettings, seed: int,
                  profile: typing.Optional[ProfileBody], on_phase: typing.Optional[PhaseCallback] = None,
-                 on_pose: typing.Optional[PoseCallback] = None) -> LaunchResult:
+                 on_pose: typing.Optional[PoseCallback] = None, *, drive: LaunchDrive,
+                 until_edge: bool = False) -> LaunchResult:
         """One launch (called by :func:`~rollability_ros.core.sim.launch_twin.simulate_launch`)."""
-        return twin_for(settings, profile).launch(condition, seed, on_phase, on_pose)
+        return twin_for(settings, profile).launch(condition, seed, on_phase, on_pose, drive=drive,
+                                                  until_edge=until_edge)

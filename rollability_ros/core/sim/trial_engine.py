@@ -22,7 +22,7 @@ from rollability_ros.core.registry import Registry
 if typing.TYPE_CHECKING:  # annotations only
     from rollability_ros.core.robots import ProfileBody, RobotModel
     from rollability_ros.core.records import LaunchCondition
-    from rollability_ros.core.sim.launch_twin import LaunchResult, LaunchTwinSettings
+    from rollability_ros.core.sim.launch_twin import LaunchDrive, LaunchResult, LaunchTwinSettings
     from rollability_ros.core.sim.trials import TrialSettings
     from rollability_ros.core.sim.world import PhysicsParams
 
@@ -76,8 +76,11 @@ class LaunchEngine(abc.ABC):
     def simulate(cls, condition: "LaunchCondition", settings: "LaunchTwinSettings", seed: int,
                  profile: "typing.Optional[ProfileBody]",
                  on_phase: typing.Optional[typing.Callable[[str], None]] = None,
-                 on_pose: typing.Optional[typing.Callable[..., None]] = None) -> "LaunchResult":
-        """The ``LaunchResult`` of ``condition`` with ``seed`` on the twin ``settings`` carrying ``profile``."""
+                 on_pose: typing.Optional[typing.Callable[..., None]] = None, *, drive: "LaunchDrive",
+                 until_edge: bool = False) -> "LaunchResult":
+        """The ``LaunchResult`` of ``condition`` with ``seed`` on the twin ``settings`` carrying ``profile``, the
+        push plate driven as ``drive`` says (``launch_twin.launch_drive``); ``until_edge``: stop once the robot's
+        foremost point crosses the edge line (the speed gate has read the launch)."""
 
 
 #: ``sim.engine`` -> its :class:`LaunchEngine`: the engines the launch twin runs in.

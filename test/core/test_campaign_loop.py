@@ -154,3 +154,39 @@ def test_cli_physical_in_process_with_a_scripted_operator(tmp_path):
     assert outcomes[1].classified_by == "operator" and outcomes[1].travel_time_s == 0.5
     # the shipped speed gate is simulated: its made-up times are not a physical record's speed
     assert all(o.backend == "physical" and math.isnan(o.measured_speed_mps) for o in outcomes if o != outcomes[1])
+
+
+def test_the_operator_prompt_stops_waiting_when_the_question_was_answered_elsewhere():
+    """Issue 45: after `rollability rig confirm` the campaign terminal stayed blocked on its own prompt, and the
+    Enter typed there then answered nothing (or the next question)."""
+    import os
+
+    from rollability_ros.core.campaign import AnsweredElsewhere, TerminalAsk, resume_command
+
+    read_fd, write_fd = os.pipe()
+    out = []
+
+    class Out:
+        def write(self, text):
+            out.append(text)
+
+        def flush(self):
+            pass
+
+    idle = []
+    ask = TerminalAsk(os.fdopen(read_fd, "rb", buffering=0), Out(), idle=lambda: idle.append(1), poll_s=0.01)
+    os.write(write_fd, b"y 0.4\nsecond")
+    assert ask("outcome: ") == "y 0.4" and out == ["outcome: "]
+    polls = []
+    with pytest.raises(AnsweredElsewhere, match="classifying: answered: tipped"):
+        ask("next: ", interrupted=lambda: polls.append(1) or ("classifying: answered: tipped" if len(polls) > 3
+                                                                else None))
+    assert idle and len(polls) == 4
+    os.write(write_fd, b"\n")     # the half-typed "second" went with the withdrawn question: not the next answer
+    assert ask("again: ") == ""
+    os.close(write_fd)
+    with pytest.raises(EOFError):
+        ask("closed: ")
+    assert resume_command(["campaign", "--backend", "physical", "--config", "my file.yaml"]) == \
+        "rollability campaign --backend physical --config 'my file.yaml' --resume"
+    assert resume_command(["campaign", "--resume"]).count("--resume") == 1

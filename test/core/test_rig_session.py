@@ -460,3 +460,17 @@ def test_in_process_rig_refuses_an_imu_outcome_before_opening_the_valve():
 
     with pytest.raises(ValueError, match="operator only"):
         LocalRig(local_rig_settings("physical", {"rig.outcome_source": "imu"}))
+
+
+def test_the_countdown_is_announced_each_second_and_cannot_outlast_the_arm_timeout(valve):
+    """Issue 45: the countdown was one line ("firing in 1 s"); a countdown longer than valve.arm_timeout_s would
+    have the valve disarm itself before the fire."""
+    rig = make_rig(valve, countdown_s=1.1)
+    operator = ScriptedOperator(rig.operator, [OperatorOutcome(True)])
+    rig.launch("run", "t0", CONDITION, operator)
+    armed = [detail for phase, detail in operator.phases if phase == "armed"]
+    assert [detail.split(";")[1].split(",")[0] for detail in armed] == [" firing in 1.1 s", " firing in 1 s"]
+    assert "rollability rig console" in armed[0]
+    with pytest.raises(ValueError, match=r"rig.countdown_s \(20 s\) must be shorter than valve.arm_timeout_s \(15 s\)"):
+        make_launch_backend(RigSettings(backend="physical", countdown_s=20.0), SpeedGateConfig(), ValveConfig(),
+                            ImuOutcomeConfig(), RecordingPorts(valve))

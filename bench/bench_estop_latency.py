@@ -118,7 +118,7 @@ class Rig:
 
 
 def measure(countdowns, runs):
-    from rollability_ros.core.graph._ros_domain import claim_domain
+    from rollability_ros.core.graph import claim_domain
     from rollability_ros.core.rig.relay_device_sim import RelaySim
 
     domain, _lock = claim_domain(150, 200)

@@ -180,9 +180,9 @@ def _console(args, node):
 
     estop = _estop_publisher(node, args.timeout_s)
     cancel = node.create_client(CancelGoal, "launch/_action/cancel_goal")
-    shown = {}
+    shown: typing.Dict[str, str] = {}
 
-    def show(key, text):
+    def show(key: str, text: str) -> None:
         if shown.get(key) != text:
             shown[key] = text
             print(text, flush=True)
@@ -194,7 +194,7 @@ def _console(args, node):
     executor.add_node(node)
     stop = threading.Event()
 
-    def spin():
+    def spin() -> None:
         while not stop.is_set():
             executor.spin_once(timeout_sec=0.05)
 

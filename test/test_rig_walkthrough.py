@@ -177,6 +177,8 @@ def test_the_walkthrough_from_an_empty_terminal_to_a_report(tmp_path):
         bringup.stop()
         assert bringup.wait(90) == 0, bringup.text
         assert "bringup: stopped (Ctrl-C); outcomes and bag in runs/walkthrough" in bringup.text
+        # its progress line follows the campaign, with the campaign's own ETA
+        assert re.search(r"campaign rig-walkthrough \| [1-4]/4 launches stored \| ETA \d+ s", bringup.text), bringup.text
         console.type("q")
         assert console.wait() == 0, console.text
         code, out = run(cmd["report"], tmp_path, timeout_s=300)

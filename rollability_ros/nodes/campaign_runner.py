@@ -8,6 +8,8 @@ Service clients: ``stored_trials`` (rollability_ros/GetStoredTrials) of the ``ou
 Authentication: with ``runner.backend`` physical, goals, confirmations and outcomes are signed with the
   valve_controller's session key (``runner.session_key_file``; :mod:`rollability_ros.core.rig.rig_auth`), so this
   runner works on the rig computer as the valve_controller's user; a sim campaign signs nothing.
+Publication: ``campaign_progress`` (rollability_ros/CampaignProgress, latched): trials stored of planned and the
+  campaign's ETA, at the start and after each trial (``rollability bringup`` shows it).
 Subscription: ``outcomes_stored`` (rollability_ros/OutcomeStored, reliable, transient-local): the logger's
   acknowledgements; a trial counts as done once the logger acknowledged storing it.
 Parameters: ``campaign.*`` (:class:`~rollability_ros.core.campaign.plan.CampaignSpec`) and ``runner.*``
@@ -24,6 +26,7 @@ Exit code: 0 when every trial is stored, 3 when the campaign stopped early (the 
 import collections
 import dataclasses
 import functools
+import math
 import queue
 import signal
 import sys
@@ -44,7 +47,7 @@ from rollability_ros.core.config import ConfigError
 from rollability_ros.core.rig import (ANSWERED, LaunchAborted, describe_answer, launch_backend_class, rig_auth,
                                       valve_auth)
 from rollability_ros.nodes import _convert
-from rollability_ros.msg import OutcomeStored, ValveAuth, ValveState
+from rollability_ros.msg import CampaignProgress, OutcomeStored, ValveAuth, ValveState
 from rollability_ros.nodes._support import (GOAL_RESEND_S, LATCHED_QOS, RECORD_QOS, ParameterError, declare_settings, init_ros,
                                             send_goal_resending)
 from rollability_ros.srv import ConfirmRegulator, GetStoredTrials, RecordOutcome
@@ -358,7 +361,15 @@ def run_graph_campaign(node: Node, spec: CampaignSpec, settings: RunnerSettings,
         if refusal:
             raise ValueError(refusal)
         rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s, signer)
-        report = run_campaign(plan, spec.run_id, stored, rig.launch, acknowledgements, ask=ask, say=say)
+        progress_publisher = node.create_publisher(CampaignProgress, "campaign_progress", LATCHED_QOS)
+
+        def publish_progress(progress: typing.Any) -> None:
+            eta = progress.eta_s
+            progress_publisher.publish(CampaignProgress(run_id=spec.run_id, done=progress.done, total=progress.total,
+                                                        eta_s=math.nan if eta is None else float(eta)))
+
+        report = run_campaign(plan, spec.run_id, stored, rig.launch, acknowledgements, ask=ask, say=say,
+                              on_progress=publish_progress)
         if report.stopped_reason and ask is not None:
             report = dataclasses.replace(report, advice=rig.valve_advice())
         return report

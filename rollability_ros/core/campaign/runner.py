@@ -154,7 +154,8 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
                  confirm_stored: typing.Callable[[LaunchOutcome], None],
                  ask: typing.Optional[typing.Callable[[str], str]] = None, say: typing.Callable[[str], None] = print,
                  pressure_psi_by_speed: typing.Optional[typing.Mapping[float, float]] = None,
-                 clock: typing.Callable[[], float] = time.monotonic) -> CampaignReport:
+                 clock: typing.Callable[[], float] = time.monotonic,
+                 on_progress: typing.Optional[typing.Callable[[CampaignProgress], None]] = None) -> CampaignReport:
     """Run the trials of ``plan`` not yet stored, in plan order; returns a :class:`CampaignReport`.
 
     Parameters
@@ -176,10 +177,15 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
         Prints one line (instructions, progress).
     pressure_psi_by_speed : dict, optional
         ``{speed m/s: psi}`` to name the regulator pressure in the instructions.
+    on_progress : callable, optional
+        Called with the :class:`~rollability_ros.core.campaign.plan.CampaignProgress` at the start and after each
+        stored trial (the graph campaign publishes it for ``bringup``'s progress line).
     """
     todo = [trial for trial in plan if trial.trial_id not in stored_ids]
     progress = CampaignProgress(len(plan), len(plan) - len(todo))
     say(f"campaign {run_id}: {progress.text()}")
+    if on_progress is not None:
+        on_progress(progress)
     previous, stored_now, notes = None, 0, []
 
     def report(reason: str, failed: bool = False) -> CampaignReport:
@@ -206,6 +212,8 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
             return report(f"{trial.trial_id}: the operator's input closed")
         stored_now += 1
         progress.trial_done(clock() - started)
+        if on_progress is not None:
+            on_progress(progress)
         verdict = outcome.note if not outcome.valid else ("upright" if outcome.upright else "NOT upright")
         say(f"{trial.trial_id}: {verdict}"
             f"{' (speed flagged)' if outcome.speed_out_of_tolerance else ''}; {progress.text()}")

@@ -140,10 +140,15 @@ class GraphObserver(typing.Protocol):
     def stored_launches(self) -> typing.Optional[int]:
         """Launch outcomes in the outcome logger's store, every run (its latest summary); None before one."""
 
+    def campaign_progress(self) -> typing.Optional[typing.Tuple[str, int, int, typing.Optional[float]]]:
+        """The graph campaign's latest ``(run id, trials stored, trials planned, ETA s or None)``; None before
+        one."""
+
 
 def session_progress(observer: GraphObserver, nodes: int, elapsed_s: float) -> JobProgress:
     """A :class:`JobProgress` of a ``bringup`` session: the optimizer's newest run (generation, best so far, ETA
-    from the run's generation cap) and the launches the outcome logger stored, learnt through ``observer``;
+    from the run's generation cap), else the graph campaign's progress (its trials and ETA), else the launches the
+    outcome logger stored, learnt through ``observer``;
     ``nodes`` supervised."""
     # whole minutes: in a pipe or log a line is printed per change, not every second (issue 45)
     phase = f"session up {int(elapsed_s // 60)} min, {nodes} nodes supervised"
@@ -155,4 +160,10 @@ def session_progress(observer: GraphObserver, nodes: int, elapsed_s: float) -> J
         generation, best, cap = last.generation, last.best_so_far, last.max_generations
         phase += f", optimizing run {last.run_id}"
         eta = eta_s(generation, cap, last.elapsed_s)   # generations are numbered from 1
+        return JobProgress(phase, generation, cap, best, observer.stored_launches(), eta_s=eta)
+    campaign = observer.campaign_progress()
+    if campaign is not None:   # the campaign's own count and ETA (issue 45: "ETA unknown" every second)
+        run_id, done, total, eta = campaign
+        return JobProgress(f"{phase}, campaign {run_id}", trials_stored=done, trials_total=total, eta_s=eta,
+                           trials_label="launches stored")
     return JobProgress(phase, generation, cap, best, observer.stored_launches(), eta_s=eta)

@@ -6,8 +6,9 @@ For simple shapes on the chassis's grid (a flat top, a dome, a centre ridge, a p
 and at 0.18 m, prints the profile's volume, its mass and the rise of the robot's centre of mass over the bare
 chassis's (mm) three ways: the old solid block at 150 kg/m^3, the robot's ``profile_print`` (the shipped default:
 PLA shell, 0.8 mm walls and skins, 20 % infill), and the same shell printed hollow (infill 0). Then the time one
-``profile_body(mesh)`` takes (the print's offset, a linear programme and a half-space intersection) against the
-solid block's (the mesh volume and centroid), measured in the same run: it runs once per candidate evaluated.
+``profile_body(mesh)`` takes (the print's inward offset: a half-space intersection and its hull) against the
+solid block's (the mesh volume and centroid), measured in the same run: it runs once per candidate evaluated and
+once per simulated launch of a campaign configuration.
 """
 import argparse
 import dataclasses

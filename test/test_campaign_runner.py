@@ -82,7 +82,7 @@ class Graph:
 
     def runner(self, *extra):
         command = [sys.executable, "-m", "rollability_ros.cli", "campaign", "--backend", "physical", "--graph",
-                   "--config", str(self.tmp_path / "campaign.yaml"), *extra]
+                   "--namespace", "/", "--config", str(self.tmp_path / "campaign.yaml"), *extra]
         return subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                 text=True, env=os.environ.copy(), cwd=self.runner_dir)
 
@@ -325,8 +325,8 @@ def test_sim_matrix_through_the_graph_unattended(ros_node, start_node, tmp_path)
     store = logger_dir / "outcomes.sqlite"
     start_node("outcome_logger", params={"store_path": "outcomes.sqlite"}, cwd=logger_dir)
     rig = start_node("rig", params={"rig.backend": "sim", "rig.twin_config": ["sim", "robot", str(twin_yaml)]})
-    command = [sys.executable, "-m", "rollability_ros.cli", "campaign", "--backend", "sim", "--graph", "--config",
-               "campaign", "--config", str(tmp_path / "campaign.yaml")]
+    command = [sys.executable, "-m", "rollability_ros.cli", "campaign", "--backend", "sim", "--graph", "--namespace",
+               "/", "--config", "campaign", "--config", str(tmp_path / "campaign.yaml")]
     started = time.monotonic()
     done = subprocess.run(command, capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL,
                           cwd=runner_dir)

@@ -36,6 +36,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+SESSION_HELP = ("join a running study or bringup session: its directory, its session.yaml, or the name it printed "
+                "(looked up under bringup.output_dir); sets the ROS domain, discovery range, namespace and valve key "
+                "file from its session.yaml (docs/sessions.md)")
+
+
+def add_session_argument(parser: argparse.ArgumentParser) -> None:
+    """The joining verbs' ``--session SESSION``."""
+    parser.add_argument("--session", default=None, metavar="SESSION", help=SESSION_HELP)
+
+
+def join_session(session: typing.Optional[str], config_files: typing.Sequence[str] = ()) -> typing.Any:
+    """Put this process on ``session``'s graph (``os.environ``, before ROS starts) and return its
+    :class:`~rollability_ros.core.graph.session.SessionInfo`; None when no session was named."""
+    if session is None:
+        return None
+    from rollability_ros.core.graph import load_graph_settings, load_session, parameter_files
+
+    output_dir = load_graph_settings(parameter_files(["bringup", *config_files])).output_dir
+    info = load_session(session, output_dir)
+    info.apply(os.environ)
+    return info
+
+
 def line_buffered_output() -> None:
     """Flush stdout and stderr at every line, whatever they are (terminal, pipe, file).
 

@@ -8,8 +8,9 @@ from rollability_ros.cli import Subparsers
 
 
 def run(args: argparse.Namespace) -> int:
-    from rollability_ros.core.graph import (PROGRESS_PERIOD_S, ProgressDisplay, Supervisor, load_graph_settings,
-                                            new_study_id, parameter_files, session_nodes, session_progress)
+    from rollability_ros.core.graph import (PROGRESS_PERIOD_S, ProgressDisplay, Supervisor, join_nodes,
+                                            load_graph_settings, new_study_id, parameter_files, refuse_bad_session,
+                                            session_nodes, session_progress, session_twin_config, start_session)
     from rollability_ros.core.config import check_path_component
     from rollability_ros.core.rig import launch_backend_class
 
@@ -22,15 +23,29 @@ def run(args: argparse.Namespace) -> int:
     run_dir = os.path.join(settings.output_dir, session_id)
     if os.path.lexists(run_dir):   # its closed bag and store belong to an earlier session: never written into
         raise ValueError(f"session folder {run_dir} already exists; choose another --session-id")
-    os.makedirs(run_dir)
-    if launch_backend_class(args.backend).authenticated:   # a backend that moves hardware
-        _isolate_physical_rig()
     nodes = session_nodes(settings, run_dir, rig_backend=args.backend, optimizer=not args.no_optimizer)
+    for node in nodes:   # the rig's twin reads the given files that set twin parameters
+        if node.module == "rig":
+            node.params["rig.twin_config"] = session_twin_config(param_files, args.config)
+    # before anything is made or started: a key of a given file no node applies, or a value a node would refuse
+    refuse_bad_session(param_files, args.config, {node.module: node.params for node in nodes}, "rollability bringup")
+    os.makedirs(run_dir)
+    physical = launch_backend_class(args.backend).authenticated   # a backend that moves hardware
+    if physical:
+        _isolate_physical_rig()
+    # its own domain (the physical rig: its own, 73 unless set) and localhost discovery; nodes inherit the variables
+    session, _domain_lock = start_session("bringup", run_dir, settings.namespace, os.environ, own_domain=not physical,
+                                          rig_backend=args.backend)
+    join_nodes(nodes, session.id, session.valve_key_file)
     supervisor = Supervisor([node.process_spec(param_files, run_dir) for node in nodes], os.path.join(run_dir, "logs"))
     stop = []
     signal.signal(signal.SIGINT, lambda *_: stop.append("Ctrl-C"))
     signal.signal(signal.SIGTERM, lambda *_: stop.append("SIGTERM"))
-    print(f"bringup: session {run_dir} ({len(nodes)} nodes, rig backend {args.backend}); Ctrl-C stops everything")
+    print(f"bringup: session {run_dir} ({len(nodes)} nodes, rig backend {args.backend}) on ROS domain "
+          f"{session.ros_domain_id} ({session.discovery_range} discovery), namespace {session.namespace}; Ctrl-C stops "
+          "everything")
+    for line in session.join_lines():
+        print(f"bringup: {line}")
     started, last_shown = time.monotonic(), 0.0
     from rollability_ros.nodes._graph_observer import RosGraphObserver
 

@@ -53,17 +53,22 @@ def summary_lines(result: "calibration.CalibrationResult",
     return lines
 
 
+#: The rig node's parameter file written beside calibrated.yaml (``rig.twin_config`` naming it).
+RIG_FILE = "calibrated_rig.yaml"
+
+
 def run(args: argparse.Namespace) -> int:
     """Calibrate, write the outputs to ``--out`` and print the summary; return the exit code."""
     import yaml
 
     from rollability_ros.core.campaign import calibration
     from rollability_ros.core.optimization import atomic_write_bytes
-    from rollability_ros.core.config import check_output_dir, from_mapping, load_parameters, section
+    from rollability_ros.core.config import check_given_files, check_output_dir, from_mapping, load_parameters, section
     from rollability_ros.core.results import load_report_data
-    from rollability_ros.core.sim import ScreenSettings
+    from rollability_ros.core.sim import TWIN_SECTIONS, ScreenSettings
 
-    check_output_dir(args.out, "--out", keeps=("calibrated.yaml",))   # before minutes of fitting
+    check_output_dir(args.out, "--out", keeps=("calibrated.yaml", RIG_FILE))   # before minutes of fitting
+    check_given_files(args.config, {*TWIN_SECTIONS, "calibration", "stable_poses"}, "rollability calibrate")
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.config])
     settings = calibration.calibration_settings(parameters)
     if args.workers is not None:
@@ -79,10 +84,14 @@ def run(args: argparse.Namespace) -> int:
         result = calibration.calibrate(outcomes, parameters, settings, pool, on_progress=print)
     os.makedirs(args.out, exist_ok=True)
     params_path = os.path.join(args.out, "calibrated.yaml")
-    document = calibration.calibrated_parameter_document(result.fitted_values(), os.path.abspath(params_path))
+    document = calibration.calibrated_parameter_document(result.fitted_values())
     header = (f"# Calibrated launch-twin parameters from {data.source} (rollability calibrate); load on top of the\n"
-              f"# defaults: --config / --params-file. Bootstrap uncertainty in parameters.csv beside this file.\n")
+              f"# defaults: --config / --rig-config. Bootstrap uncertainty in parameters.csv beside this file.\n")
     atomic_write_bytes(params_path, (header + yaml.safe_dump(document, sort_keys=True)).encode("utf-8"))
+    rig_document = calibration.rig_parameter_document(os.path.abspath(params_path))
+    atomic_write_bytes(os.path.join(args.out, RIG_FILE),
+                       (f"# A rig node's twin on {params_path}: --params-file after config/rig.yaml\n"
+                        + yaml.safe_dump(rig_document, sort_keys=True)).encode("utf-8"))
     calibrated_twin = calibration.twin_settings_with(parameters, settings.parameters,
                                                      [e.fitted for e in result.estimates])
     configurations = sorted({c.configuration for c in result.conditions})
@@ -95,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
     with open(os.path.join(args.out, "summary.txt"), "w", encoding="utf-8") as stream:
         stream.write(summary + "\n")
     print(summary)
-    print(f"calibrated parameter file: {params_path}")
+    print(f"calibrated parameter file: {params_path} (a rig node's: {os.path.join(args.out, RIG_FILE)})")
     return 0
 
 
@@ -107,7 +116,8 @@ def register(subparsers: Subparsers) -> None:
                     "friction, restitution, speed scatter, centre of mass, with bounds) to physical outcomes by "
                     "maximising the binomial likelihood of the observed successes per grouped condition with "
                     "CMA-ES; report before/after agreement and bootstrap uncertainty; write calibrated.yaml, a "
-                    "parameter file the evaluator, optimizer and rig load on top of the defaults.")
+                    "parameter file the evaluator, optimizer and rig load on top of the defaults, and "
+                    "calibrated_rig.yaml, which points a rig node's twin at it.")
     parser.add_argument("--physical", required=True, metavar="SOURCE",
                         help="physical launch outcomes: a store, a run directory, a bag or a CSV (docs/outcome-csv.md)")
     parser.add_argument("--run", help="campaign run id in SOURCE (needed when it holds several)")

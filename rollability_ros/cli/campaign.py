@@ -1,7 +1,7 @@
 """`rollability campaign`: run the launch campaign (paper 2.2.6) in this process or through the node graph."""
 import argparse
 
-from rollability_ros.cli import Subparsers
+from rollability_ros.cli import Subparsers, add_session_argument, join_session
 
 
 def register(subparsers: Subparsers) -> None:
@@ -34,9 +34,11 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--session-key-file", default="",
                         help="with --graph --backend physical: the valve_controller's session key, to sign the goals "
                              "and answers (default: valve.session_key_file's default for this ROS domain)")
+    add_session_argument(parser)
     parser.add_argument("--namespace", default=None,
-                        help="with --graph: ROS namespace of the rig and outcome_logger (`rollability bringup` starts "
-                             "them in bringup.namespace, /rollability as shipped)")
+                        help="with --graph: ROS namespace of the rig and outcome_logger (default: the session's with "
+                             "--session, else bringup.namespace, /rollability as shipped: where `rollability bringup` "
+                             "starts them)")
     parser.add_argument("--resimulate", nargs=4, metavar=("CONFIGURATION", "HEIGHT_M", "SPEED_MPS", "ANGLE_DEG"),
                         help="with --backend sim and --seed: run only this one launch on the launch twin of "
                              "--rig-config and print its outcome (the report's drill-down shows this command for "
@@ -46,11 +48,17 @@ def register(subparsers: Subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+#: How the commands name the campaign's rig files in a refusal.
+RIG_CONFIG = "rollability campaign --rig-config"
+
+
 def _spec(args):
     import dataclasses
 
     from rollability_ros.core.campaign import load_campaign_spec
+    from rollability_ros.core.config import check_given_files
 
+    check_given_files(args.config or [], {"campaign"}, "rollability campaign --config")
     spec = load_campaign_spec(args.config or ["campaign"])
     if args.run_id is not None:   # given, even empty: then validate() refuses it
         spec = dataclasses.replace(spec, run_id=args.run_id)
@@ -65,11 +73,14 @@ def run(args: argparse.Namespace) -> int:
         return _resimulate(args)
     spec = _spec(args)
     ask = input if launch_backend_class(args.backend).attended else None
-    if args.namespace is not None and not args.graph:
-        raise ValueError("--namespace is for --graph (a campaign through a running graph)")
+    if (args.session is not None or args.namespace is not None) and not args.graph:
+        raise ValueError("--session and --namespace are for --graph (a campaign through a running graph)")
     if args.graph:
         if args.store:
             raise ValueError("--store is for the in-process campaign; with --graph the outcome_logger owns the store")
+        if args.rig_config:   # never dropped: the rig node of the graph was started with its own files
+            raise ValueError("--rig-config is for the in-process rig; with --graph the rig node reads the files it "
+                             "was started with")
         return _run_graph(args, spec, ask)
     if not args.store:
         raise ValueError("--store is required (the store file or run directory this command writes)")
@@ -77,9 +88,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _resimulate(args):
-    from rollability_ros.core.campaign import LocalRig, local_rig_settings
-    from rollability_ros.core.config import load_parameters
-    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.campaign import LocalRig, local_rig_settings_from_files
+    from rollability_ros.core.records import LaunchCondition, check_twin_seed
     from rollability_ros.core.rig import LAUNCH_BACKENDS, launch_backend_class
 
     refusal = launch_backend_class(args.backend).resimulate_refusal()
@@ -93,8 +103,9 @@ def _resimulate(args):
     except ValueError:
         raise ValueError(f"--resimulate: HEIGHT_M, SPEED_MPS and ANGLE_DEG must be numbers, got {numbers}") from None
     condition = LaunchCondition(configuration, height_m, speed_mps, angle_deg)
-    condition.validate()
-    rig = LocalRig(local_rig_settings(args.backend, load_parameters(args.rig_config or ["rig"])))
+    condition.validate()   # the campaign's own bounds (records.HEIGHT_RANGE_M ...): no stored launch lies outside
+    check_twin_seed(args.seed)
+    rig = LocalRig(local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG))
     try:
         result = rig.backend.resimulate(condition, args.seed)
     finally:
@@ -111,13 +122,12 @@ def _resimulate(args):
 def _run_local(args, spec, ask):
     import sys
 
-    from rollability_ros.core.campaign import (LocalRig, local_rig_settings, plan_refusal, plan_trials,
+    from rollability_ros.core.campaign import (LocalRig, local_rig_settings_from_files, plan_refusal, plan_trials,
                                                record_campaign_run, report_exit_code, resume_command, resume_refusal,
                                                run_campaign, store_writer)
-    from rollability_ros.core.config import load_parameters
     from rollability_ros.core.store import Store
 
-    settings, plan = local_rig_settings(args.backend, load_parameters(args.rig_config or ["rig"])), plan_trials(spec)
+    settings, plan = local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG), plan_trials(spec)
 
     def checked_rig() -> LocalRig:
         rig = LocalRig(settings, ask or input)
@@ -147,30 +157,48 @@ def _run_local(args, spec, ask):
 
 
 def _run_graph(args, spec, ask):
+    import os
+    import signal
     import sys
 
-    import rclpy
-    from rclpy.node import Node
-
     from rollability_ros.core.campaign import RunnerSettings, TerminalAsk, report_exit_code, resume_command
-    from rollability_ros.nodes.campaign_runner import run_graph_campaign
+    from rollability_ros.core.rig import check_namespace
 
     if ask is not None:   # a prompt that stops waiting when the rig CLI answered first
         ask = TerminalAsk()
 
-    settings = RunnerSettings(backend=args.backend, resume=args.resume, store_timeout_s=args.store_timeout_s,
-                              session_key_file=args.session_key_file)
-    settings.validate()
-    namespace = None
+    session = join_session(args.session)   # its domain, discovery range, namespace and key, before ROS starts
     if args.namespace is not None:
-        from rollability_ros.core.rig import check_namespace
-
         namespace = check_namespace(args.namespace)
-    rclpy.init(args=[])
-    node = Node("campaign_runner", namespace=namespace)
+    elif session is not None:
+        namespace = session.namespace
+    else:
+        from rollability_ros.cli.rig import default_namespace
+
+        namespace = check_namespace(default_namespace())
+    settings = RunnerSettings(backend=args.backend, resume=args.resume, store_timeout_s=args.store_timeout_s,
+                              session_key_file=args.session_key_file or (session.valve_key_file if session else ""))
+    settings.validate()
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.node import Node
+
+    from rollability_ros.nodes._support import init_ros
+    from rollability_ros.nodes.campaign_runner import run_graph_campaign
+
+    init_ros([])   # no rclpy signal handlers: Ctrl-C is a KeyboardInterrupt here (the running goal is cancelled)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    node = None
     try:
-        return report_exit_code(run_graph_campaign(node, spec, settings, ask),
+        node = Node("campaign_runner", namespace=namespace)
+        print(f"campaign: through the graph on ROS domain {os.environ.get('ROS_DOMAIN_ID') or '0'}, namespace "
+              f"{namespace}", flush=True)
+        return report_exit_code(run_graph_campaign(node, spec, settings, ask, session=session.id if session else ""),
                                 resume=resume_command(getattr(args, "argv", None) or sys.argv[1:]))
+    except (KeyboardInterrupt, ExternalShutdownException):
+        print("campaign: stopped (Ctrl-C); stored trials are kept: continue with --resume", flush=True)
+        return 130
     finally:
-        node.destroy_node()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()

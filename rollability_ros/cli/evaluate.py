@@ -50,9 +50,10 @@ def run(args: argparse.Namespace) -> int:
     # the objective and engine of the fidelity (objective.screen_engine / launch_engine; --engines names its own)
     settings = evaluation.settings_at_fidelity(evaluation.load_settings(["sim", "robot", "evaluator", *args.config]),
                                                args.fidelity)
+    settings = evaluation.with_given_files(settings, args.config, f"rollability evaluate --fidelity {args.fidelity}")
     trials = args.trials if args.trials is not None else settings.evaluator.trials
     if args.designs is not None:
-        if not args.engines:
+        if args.engines is None:
             raise ValueError("--designs compares engines: give --engines too (e.g. --engines pybullet,mujoco)")
         return _compare_designs(args, settings, trials)
     if args.stl is not None:
@@ -63,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         job = evaluation.profile_job(heights, settings)  # validates before any worker starts
         mesh = None if job.profile is None else geometry.profile_mesh(heights, settings.grid)
         label = "baseline (no profile)" if mesh is None else f"{len(heights)} heights"
-    if args.engines:
+    if args.engines is not None:   # `--engines ''` is refused (_engine_list), never one engine
         return _compare_engines(args, settings, mesh, trials, label)
     executor = evaluation.make_executor(settings.evaluator, args.workers)
     done = []

@@ -75,7 +75,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--run-id names a new run; --resume takes the run to continue")
     if args.run_id is not None:
         check_path_component(args.run_id, "--run-id")
-    given = optimization_run.load_run_parameters(args.config) if args.config else None
+    given = optimization_run.with_given_files(optimization_run.load_run_parameters(args.config), args.config,
+                                              "rollability optimize") if args.config else None
     output_dir = optimization_run.run_settings(given).optimizer.output_dir if given else "runs"
     run_dir, parameters = optimization_run.run_target(args.resume or args.run_id or "", bool(args.resume), given,
                                                       output_dir)

@@ -1,8 +1,9 @@
 """`rollability play BAG`: run the player node in this process until the bag is played (or Ctrl-C)."""
-from rollability_ros.cli import Subparsers
+from rollability_ros.cli import Subparsers, add_session_argument, join_session
 
 
 def _play(args):
+    join_session(args.session)   # a running session's own domain and discovery range, before ROS starts
     from rollability_ros.nodes import player
     from rollability_ros.nodes._bag_nodes import parameter_overrides
 
@@ -28,4 +29,5 @@ def register(subparsers: Subparsers) -> None:
                         help="publish /clock with each message's recorded time")
     parser.add_argument("--wait-for-subscribers", type=float, metavar="S",
                         help="wait up to S seconds for subscribers before the first message (default 3)")
+    add_session_argument(parser)
     parser.set_defaults(func=_play)

@@ -1,8 +1,9 @@
 """`rollability record`: run the recorder node in this process until Ctrl-C / SIGTERM."""
-from rollability_ros.cli import Subparsers
+from rollability_ros.cli import Subparsers, add_session_argument, join_session
 
 
 def _record(args):
+    join_session(args.session)   # a running session's own domain and discovery range, before ROS starts
     from rollability_ros.nodes import recorder
     from rollability_ros.nodes._bag_nodes import parameter_overrides
 
@@ -26,4 +27,5 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--split-max-bytes", type=int, metavar="B", help="start a new storage file after B bytes")
     parser.add_argument("--split-max-duration-s", type=float, metavar="S",
                         help="start a new storage file after S seconds of recorded time")
+    add_session_argument(parser)
     parser.set_defaults(func=_record)

@@ -2,7 +2,7 @@
 import argparse
 import typing
 
-from rollability_ros.cli import Subparsers
+from rollability_ros.cli import Subparsers, add_session_argument, join_session
 
 ACTIONS = ("arm", "disarm", "estop", "confirm", "outcome", "console")
 #: Keys of ``rollability rig console`` -> what they do.
@@ -39,8 +39,10 @@ def register(subparsers: Subparsers) -> None:
                              "/rollability as shipped: where `rollability bringup` and the launch files start them)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="extra ROS 2 parameter file(s), as given to bringup, for the default namespace")
-    parser.epilog = ("Unless ROS_DOMAIN_ID / ROS_AUTOMATIC_DISCOVERY_RANGE are set, this joins the physical rig's "
-                     "defaults: domain 73, localhost discovery (as `rollability bringup --backend physical`).")
+    add_session_argument(parser)
+    parser.epilog = ("With --session, this joins that session (its domain, namespace and key). Otherwise, unless "
+                     "ROS_DOMAIN_ID / ROS_AUTOMATIC_DISCOVERY_RANGE are set, it joins the physical rig's defaults: "
+                     "domain 73, localhost discovery (as `rollability bringup --backend physical`).")
     parser.add_argument("--session-key-file", default="",
                         help="for arm, disarm, confirm, outcome: the valve_controller's session key (default: "
                              "valve.session_key_file's default for this ROS domain and namespace)")
@@ -110,13 +112,17 @@ def _request(args, sign=False):
             trial_id=args.trial_id, upright=upright, travel_time_s=travel_time_s, note=args.note,
             auth=auth_msg(signer.outcome(args.trial_id, upright, travel_time_s, args.note)))
     except valve_auth.AuthError as exc:
-        raise ValueError(str(exc)) from exc
+        hint = "" if args.session else " (a session keeps its key where its session.yaml says: pass --session SESSION)"
+        raise ValueError(f"{exc}{hint}") from exc
 
 
 def default_namespace(config_files: typing.Sequence[str] = ()) -> str:
-    """The namespace ``rollability bringup`` puts the graph in: ``bringup.namespace`` of the parameter files."""
-    from rollability_ros.core.graph import load_graph_settings, parameter_files
+    """The namespace ``rollability bringup`` puts the graph in: ``bringup.namespace`` of the parameter files (the
+    files as given to bringup: one bringup would refuse is refused here too)."""
+    from rollability_ros.core.config import check_given_files
+    from rollability_ros.core.graph import graph_namespaces, load_graph_settings, parameter_files
 
+    check_given_files(config_files, graph_namespaces(), "rollability rig")
     return load_graph_settings(parameter_files(["bringup", *config_files])).namespace
 
 
@@ -128,9 +134,12 @@ def namespaces_offering(names: typing.Iterable[str], relative_name: str) -> typi
 
 def _missing(problem, name, elsewhere):
     """The error for ``name`` missing from the chosen namespace: ``problem``, and the namespaces where it is."""
+    import os
+
+    domain = os.environ.get("ROS_DOMAIN_ID") or "0"
     if not elsewhere:
-        return f"{problem}, nor in any other namespace of this ROS domain (is the node running, with the same " \
-               f"ROS_DOMAIN_ID?)"
+        return f"{problem}, nor in any other namespace of ROS domain {domain} (is the node running, with the same " \
+               f"ROS_DOMAIN_ID? a session's own domain: pass --session SESSION)"
     return f"{problem}; {name} is in {', '.join(elsewhere)}: use " + " or ".join(f"--namespace {ns}" for ns in elsewhere)
 
 
@@ -275,9 +284,13 @@ def run(args: argparse.Namespace) -> int:
 
     from rollability_ros.nodes._support import init_ros
 
-    os.environ.update(physical_rig_environment(os.environ))  # the physical bringup's defaults, unless set
+    session = join_session(args.session, args.config)   # its domain, discovery range, namespace and key
+    if session is None:
+        os.environ.update(physical_rig_environment(os.environ))  # the physical bringup's defaults, unless set
+    else:
+        args.session_key_file = args.session_key_file or session.valve_key_file
     if args.namespace is None:
-        args.namespace = check_namespace(default_namespace(args.config))
+        args.namespace = check_namespace(session.namespace if session else default_namespace(args.config))
     namespace = args.namespace
     if args.action == "console":
         init_ros([])

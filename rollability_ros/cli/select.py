@@ -33,13 +33,13 @@ def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.optimization import optimization_run as optimization_run
     from rollability_ros.core.optimization import selection
-    from rollability_ros.core.config import from_mapping, load_parameters, section
+    from rollability_ros.core.config import from_mapping, section
     from rollability_ros.core.store import Store
 
     run_dir = optimization_run.resolve_run_dir(args.run, args.output_dir)
     parameters = optimization_run.read_run_config(run_dir)
-    if args.config:  # later files win over the run's own config.yaml, key by key
-        parameters.update(load_parameters(list(args.config)))
+    # later files win over the run's own config.yaml, key by key; a key no run applies is refused
+    parameters = optimization_run.with_given_files(parameters, list(args.config), "rollability select")
     mapping = section(parameters, "selection")
     for name in OVERRIDES:
         if getattr(args, name) is not None:

@@ -37,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.sim import sensitivity_rows
 
     check_output_dir(args.out, "--out", keeps=("sensitivity.csv", "sensitivity.png"))
-    settings = evaluation.load_settings(["sim", "robot", "evaluator", *args.config])
+    settings = evaluation.with_given_files(evaluation.load_settings(["sim", "robot", "evaluator", *args.config]),
+                                           args.config, "rollability sensitivity")
     if args.trials < 1:
         raise ValueError(f"--trials must be >= 1, got {args.trials}")
     profiles = _profiles(args)

@@ -13,6 +13,7 @@ def run(args: argparse.Namespace) -> int:
         study = Study(extra_configs=args.config, study_id=args.study_id, resume=args.resume, display=display)
         signal.signal(signal.SIGINT, lambda *_: study.request_stop())
         signal.signal(signal.SIGTERM, lambda *_: study.request_stop())
+        study.open_session()   # its own ROS domain, before ROS starts in this process (the observer)
         with RosGraphObserver(study.settings.namespace) as study.observer:   # progress over ROS, not the stores
             result = study.run()
     print()

@@ -2,7 +2,7 @@
 import argparse
 import typing
 
-from rollability_ros.cli import Subparsers
+from rollability_ros.cli import Subparsers, add_session_argument, join_session
 
 
 def register(subparsers: Subparsers) -> None:
@@ -19,6 +19,7 @@ def register(subparsers: Subparsers) -> None:
                         help="absolute topic names to serve (default: the project's graph)")
     parser.add_argument("--discovery-period", type=float, default=2.0, metavar="S",
                         help="how often to look for new topics, s (default 2)")
+    add_session_argument(parser)
     parser.set_defaults(func=run)
 
 
@@ -36,6 +37,10 @@ def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.optional import require
 
     require("foxglove", feature="rollability view")
+    session = join_session(args.session)   # its domain and discovery range, before ROS starts
+    if session is not None:
+        print(f"view: session {session.name} on ROS domain {session.ros_domain_id}, namespace {session.namespace}",
+              flush=True)
     from rollability_ros.nodes import view_bridge
 
     return view_bridge.main(bridge_arguments(args.host, args.port, args.topics, args.discovery_period))

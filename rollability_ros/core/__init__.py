@@ -2,7 +2,7 @@
 
 Subpackages by domain, bottom first: a module imports from its own subpackage and from those listed before it,
 plus the shared modules at this level, the bottom layer that imports no subpackage: ``config`` (parameter files
--> settings), ``optional`` (heavy dependencies named in errors), ``registry`` (the tables of swappable
+-> settings), ``safe_yaml`` (the one bounded reader of YAML files), ``optional`` (heavy dependencies named in errors), ``registry`` (the tables of swappable
 implementations), ``records`` (the plain records every layer exchanges), ``record_messages`` (their one message
 mapping), ``store`` (the durable SQLite store of those records), ``stats`` (binomial intervals, rank correlation)
 ``campaign_matrix`` (a campaign's experiment matrix, which the robust objective in sim scores over too) and

@@ -15,6 +15,8 @@ import typing
 
 import yaml
 
+from rollability_ros.core import safe_yaml
+
 #: The folder of the config files shipped with the package (source checkout or install share dir).
 CONFIG_ENV = "ROLLABILITY_CONFIG_DIR"
 
@@ -26,12 +28,29 @@ CONFIG_ENV = "ROLLABILITY_CONFIG_DIR"
 KNOWN_NAMESPACES = frozenset({
     "bringup", "calibration", "campaign", "designs", "evaluator", "imu_outcome", "launch_twin", "objective",
     "optimizer", "player", "printer", "profile", "quality_diversity", "recorder", "rig", "robot", "runner",
-    "selection", "sim", "speed_gate", "stable_poses", "tip_monitor", "trial", "urdf_robot", "valve",
+    "selection", "session", "sim", "speed_gate", "stable_poses", "tip_monitor", "trial", "urdf_robot", "valve",
     "qos_overrides"})
 
 
 class ConfigError(ValueError):
     """A parameter file or a parameter value is unusable; the message names the file and the parameter."""
+
+
+@dataclasses.dataclass
+class SessionSettings:
+    """``session.*``: the session (``rollability study`` / ``bringup``) a node belongs to; nodes of a session talk only
+    to nodes of the same one (docs/sessions.md)."""
+
+    id: str = dataclasses.field(default="", metadata={
+        "description": "the session this node belongs to (session.yaml's id): goals, results and records of another "
+                       "session are refused and logged once; \"\" = a node outside any session, which accepts all"})
+
+    def refusal(self, other: str, what: str) -> str:
+        """"" when ``what`` (a goal, a result) of session ``other`` may be served or used here, else the reason: a
+        node of a session takes only its own session's; one outside any session takes all."""
+        if not self.id or other == self.id:
+            return ""
+        return f"{what} of session {other or '(none)'} refused: this node belongs to session {self.id}"
 
 
 #: A run, study or session id: one path component of letters, digits, '.', '_' and '-' (not starting with '.' or
@@ -58,6 +77,23 @@ def check_output_dir(path: str, what: str, keeps: typing.Iterable[str] = ()) -> 
     if held:
         raise ConfigError(f"{what} {path} already holds the results of an earlier run ({', '.join(held)}); choose "
                           f"a new folder for {what}")
+
+
+def check_parent_steps(path: str, what: str) -> str:
+    """Return ``path`` unless its ``..`` steps climb above the filesystem root (from the working directory for a
+    relative path), else raise ConfigError naming ``what``: the operating system silently stops at ``/`` (the path
+    means somewhere else than its author counted) and SQLite refuses such a path outright."""
+    absolute = path if os.path.isabs(path) else os.path.join(os.getcwd(), path)
+    depth = 0
+    for part in absolute.split(os.sep):
+        if part == "..":
+            if depth == 0:
+                raise ConfigError(f"{what} {path!r} has more '..' than {os.getcwd() if absolute != path else '/'} "
+                                  f"has levels (it climbs above /); give a path that stays inside the file system")
+            depth -= 1
+        elif part not in ("", "."):
+            depth += 1
+    return path
 
 
 def config_dir() -> str:
@@ -104,16 +140,19 @@ def _flatten(mapping, prefix, out, path):
 def read_parameter_file(path: str) -> typing.Dict[str, typing.Dict[str, typing.Any]]:
     """Read a ROS 2 parameter file into ``{node name: {dotted parameter: value}}``.
 
-    Raises :class:`ConfigError` naming the file for unreadable YAML or a layout that is not
-    ``<node>: {ros__parameters: {...}}``.
+    Raises :class:`ConfigError` naming the file for unreadable YAML, YAML beyond the limits of
+    :mod:`~rollability_ros.core.safe_yaml` (too deep, aliases expanding too far, a key written twice) or a layout
+    that is not ``<node>: {ros__parameters: {...}}``.
     """
     try:
         with open(path, encoding="utf-8") as stream:
-            document = yaml.safe_load(stream)
+            document = safe_yaml.load(stream)
     except OSError as exc:
         raise ConfigError(f"cannot read parameter file {path}: {exc.strerror}") from exc
+    except safe_yaml.YamlLimitError as exc:
+        raise ConfigError(f"parameter file {path}: {exc}") from exc
     except yaml.YAMLError as exc:
-        raise ConfigError(f"parameter file {path} is not valid YAML: {exc}") from exc
+        raise ConfigError(f"parameter file {path} is not valid YAML: {safe_yaml.one_line(exc)}") from exc
     if document is None:
         return {}
     if not isinstance(document, dict):
@@ -165,6 +204,26 @@ def check_namespaces(flat: typing.Iterable[str], where: str) -> None:
         if "." in name and namespace not in KNOWN_NAMESPACES:
             raise ConfigError(f"{where}: unknown parameter namespace {namespace!r} (parameter {name}); known: "
                               f"{', '.join(sorted(KNOWN_NAMESPACES))}")
+
+
+#: Namespaces every command passes on untouched: ROS's own (the QoS a node's publishers and subscribers take).
+PASS_THROUGH_NAMESPACES = frozenset({"qos_overrides"})
+
+
+def check_given_files(paths: typing.Iterable[typing.Union[str, os.PathLike]], reads: typing.Iterable[str],
+                      command: str) -> None:
+    """Raise :class:`ConfigError` naming the file, the parameter and ``command`` for the first dotted parameter of
+    the files ``paths`` (those a user gave the command, e.g. with ``--config``) whose namespace is not in ``reads``,
+    the namespaces ``command`` applies: it would be dropped without a word (``launch_twin.foam.length_m`` given to
+    an evaluation that launches no twin). Inside a namespace it reads, :func:`from_mapping` refuses unknown names."""
+    reads = frozenset(reads) | PASS_THROUGH_NAMESPACES
+    for path in paths:
+        resolved = resolve_config_path(os.fspath(path))
+        for name in load_parameters([resolved]):
+            if "." in name and name.split(".", 1)[0] not in reads:
+                raise ConfigError(f"parameter file {resolved}: {command} does not read {name} (it reads "
+                                  f"{', '.join(sorted(reads - PASS_THROUGH_NAMESPACES))}); remove it or give the "
+                                  f"file to a command that reads it")
 
 
 def section(flat: typing.Mapping[str, typing.Any], prefix: str) -> typing.Dict[str, typing.Any]:

@@ -21,6 +21,24 @@ QUATERNION_NORM_TOLERANCE = 0.01
 #: ``LaunchOutcome.seed`` of a launch that has no twin seed: a physical launch, or one recorded before outcomes
 #: carried their seed (old stores, CSVs and bags read back with it).
 NO_SEED = -1
+#: Largest twin seed a stored launch can hold (``LaunchOutcome.seed`` is int64 in the message and the store).
+MAX_TWIN_SEED = 2**63 - 1
+#: The launch conditions a rig can be asked for, one declaration for the campaign matrix (``campaign.heights_m``,
+#: ``speeds_mps``, ``angles_deg``), every stored outcome and ``campaign --resimulate``: ledge height above the
+#: impact surface, m, [low, high]; target launch speed, m/s, (low, high]; launch angle, deg, [low, high]. Far beyond
+#: a bench launcher (paper: 0.75/1.30 m, 0.8/1.5 m/s, -60..+60 deg), far below values that break the twin's physics.
+HEIGHT_RANGE_M = (0.0, 10.0)
+SPEED_RANGE_MPS = (0.0, 10.0)
+ANGLE_RANGE_DEG = (-180.0, 180.0)
+
+
+def check_twin_seed(seed: object) -> int:
+    """Return ``seed`` if it is a launch twin seed a stored launch can hold, [0, :data:`MAX_TWIN_SEED`], else raise
+    ``ValueError`` (a physical launch has none: :data:`NO_SEED`)."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_TWIN_SEED:
+        raise ValueError(f"seed must be a twin seed in [0, 2**63) (a physical launch has none: {NO_SEED}), got "
+                         f"{seed!r}")
+    return seed
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,12 +59,17 @@ class LaunchCondition:
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"{name} must be a finite number, got {value!r}")
-        if self.height_m < 0:
-            raise ValueError(f"height_m must be >= 0, got {self.height_m}")
-        if self.speed_mps <= 0:
-            raise ValueError(f"speed_mps must be > 0, got {self.speed_mps}")
-        if not -180.0 <= self.angle_deg <= 180.0:
-            raise ValueError(f"angle_deg must be within [-180, 180], got {self.angle_deg}")
+        if self.height_m < HEIGHT_RANGE_M[0]:
+            raise ValueError(f"height_m must be >= {HEIGHT_RANGE_M[0]:g}, got {self.height_m}")
+        if self.speed_mps <= SPEED_RANGE_MPS[0]:
+            raise ValueError(f"speed_mps must be > {SPEED_RANGE_MPS[0]:g}, got {self.speed_mps}")
+        if self.height_m > HEIGHT_RANGE_M[1]:   # no rig launches there: one declaration of the bounds
+            raise ValueError(f"height_m must be <= {HEIGHT_RANGE_M[1]:g} m, got {self.height_m}")
+        if self.speed_mps > SPEED_RANGE_MPS[1]:
+            raise ValueError(f"speed_mps must be <= {SPEED_RANGE_MPS[1]:g} m/s, got {self.speed_mps}")
+        if not ANGLE_RANGE_DEG[0] <= self.angle_deg <= ANGLE_RANGE_DEG[1]:
+            raise ValueError(f"angle_deg must be within [{ANGLE_RANGE_DEG[0]:g}, {ANGLE_RANGE_DEG[1]:g}], got "
+                             f"{self.angle_deg}")
         if self.repetition < 0:
             raise ValueError(f"repetition must be >= 0, got {self.repetition}")
 
@@ -124,8 +147,8 @@ class LaunchOutcome:
                 raise ValueError(f"{name} must be >= 0 (or not measured), got {value!r}")
         if not (math.isfinite(self.stamp_s) and self.stamp_s >= 0):
             raise ValueError(f"stamp_s must be a time >= 0, s since the epoch, got {self.stamp_s!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < NO_SEED:
-            raise ValueError(f"seed must be a twin seed >= 0 or {NO_SEED} (no seed), got {self.seed!r}")
+        if self.seed != NO_SEED:
+            check_twin_seed(self.seed)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -11,9 +11,12 @@ rclpy node of its own (own context, one executor thread) in the orchestrator's p
 - ``campaign_progress`` (rollability_ros/CampaignProgress, the graph campaign's latched topic): its trials stored,
   planned and its ETA;
 - ``get_summary`` (rollability_ros/GetSummary, the outcome logger's service): launch outcomes stored for one run,
-  asked again at most once per call while no answer is pending (the callers poll about once a second).
+  asked again at most once per call while no answer is pending (the callers poll about once a second); a request
+  unanswered for :data:`REQUEST_TIMEOUT_S` (its logger was killed: a restarted one never answers it) is dropped
+  and asked again, so the count goes on through a logger's restart.
 """
 import threading
+import time
 import typing
 
 import rclpy
@@ -34,11 +37,18 @@ _PROGRESS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                            durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
 
 
+#: Longest wait for the logger's answer before the request is dropped and asked again, s.
+REQUEST_TIMEOUT_S = 5.0
+
+
 class RosGraphObserver:
     """A :class:`~rollability_ros.core.graph.progress.GraphObserver` over ROS in namespace ``namespace`` (see the
     module docstring); a context manager (``close`` stops its node and context)."""
 
-    def __init__(self, namespace: str = "", node_name: str = "graph_observer") -> None:
+    def __init__(self, namespace: str = "", node_name: str = "graph_observer",
+                 request_timeout_s: float = REQUEST_TIMEOUT_S) -> None:
+        self._request_timeout_s = request_timeout_s
+        self._pending_since = 0.0
         self._context = rclpy.Context()
         rclpy.init(args=[], context=self._context, signal_handler_options=SignalHandlerOptions.NO)
         self._node = Node(node_name, namespace=namespace or None, context=self._context,
@@ -90,10 +100,15 @@ class RosGraphObserver:
             return self._launches
 
     def stored_trials(self, run_id: str) -> typing.Optional[int]:
-        if (self._pending is None or self._pending.done()) and self._summary_client.service_is_ready():
+        pending = self._pending
+        if pending is not None and not pending.done() and \
+                time.monotonic() - self._pending_since > self._request_timeout_s:
+            self._summary_client.remove_pending_request(pending)   # its server is gone: ask whoever serves now
+            pending = self._pending = None
+        if (pending is None or pending.done()) and self._summary_client.service_is_ready():
             future = self._summary_client.call_async(GetSummary.Request(run_id=run_id))
             future.add_done_callback(lambda done: self._on_answer(run_id, done))
-            self._pending = future
+            self._pending, self._pending_since = future, time.monotonic()
         with self._lock:
             return self._run_trials.get(run_id)
 

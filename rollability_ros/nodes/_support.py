@@ -446,3 +446,24 @@ def wait_for_acks(publishers: typing.Iterable[typing.Any], timeout_s: float, sto
                 or time.monotonic() >= deadline:
             break
     return len(pending)
+
+
+class SessionMembership:
+    """A node's ``session.*`` parameters (:class:`~rollability_ros.core.config.SessionSettings`) and its refusals
+    of other sessions' goals and results, each logged once per session and kind (docs/sessions.md)."""
+
+    def __init__(self, node: Node) -> None:
+        from rollability_ros.core.config import SessionSettings
+
+        self.settings = declare_settings(node, "session", SessionSettings, read_only=True)
+        self.id = self.settings.id
+        self._logger = node.get_logger()
+        self._logged: typing.Set[typing.Tuple[str, str]] = set()
+
+    def refusal(self, other: str, what: str) -> str:
+        """"" when ``what`` of session ``other`` belongs here, else the reason (logged the first time)."""
+        reason = self.settings.refusal(other, what)
+        if reason and (other, what) not in self._logged:
+            self._logged.add((other, what))
+            self._logger.warning(f"{reason} (logged once; later ones are refused silently)")
+        return reason

@@ -27,6 +27,7 @@ import collections
 import dataclasses
 import functools
 import math
+import os
 import queue
 import signal
 import sys
@@ -43,7 +44,7 @@ from rollability_ros.action import Launch
 from rollability_ros.core.campaign import (AnsweredElsewhere, CampaignSpec, RunnerSettings, StoreAcknowledgements,
                                            TerminalAsk, answer_rig, plan_trials, report_exit_code, resume_refusal,
                                            run_campaign)
-from rollability_ros.core.config import ConfigError
+from rollability_ros.core.config import ConfigError, SessionSettings
 from rollability_ros.core.rig import (ANSWERED, LaunchAborted, describe_answer, launch_backend_class, rig_auth,
                                       valve_auth)
 from rollability_ros.nodes import _convert
@@ -80,10 +81,13 @@ class RigClient:
         Longest wait for the rig's action server and services, s.
     signer : KeyFileSigner or None
         Signs goals and answers with the valve's session key (physical rig); None sends them unsigned (sim rig).
+    session : str
+        The runner's session (``session.id``), carried in every goal: a rig of another session aborts it.
     """
 
-    def __init__(self, node, executor, run_id, ask, say, server_timeout_s, signer=None):
+    def __init__(self, node, executor, run_id, ask, say, server_timeout_s, signer=None, session=""):
         self.signer = signer
+        self.session = session
         self.executor = executor
         self.run_id = run_id
         self.ask, self.say = ask, say
@@ -113,7 +117,10 @@ class RigClient:
             self.say("valve stop acknowledged (disarmed): the rig arms by itself at the next launch")
 
     def disarm_command(self) -> str:
-        """The operator's command that acknowledges a valve stop of this rig (its namespace named)."""
+        """The operator's command that acknowledges a valve stop of this rig: joining its session by name (a
+        session id is ``<name>.<token>``), else naming its namespace."""
+        if self.session:
+            return f"rollability rig disarm --session {self.session.rsplit('.', 1)[0]}"
         return f"rollability rig disarm --namespace {self.node.get_namespace()}"
 
     def valve_advice(self) -> str:
@@ -212,13 +219,15 @@ class RigClient:
     def launch(self, trial: typing.Any) -> typing.Any:
         """Run ``trial`` on the rig; its :class:`~rollability_ros.core.records.LaunchOutcome`, or LaunchAborted."""
         if not spin_until(self.executor, self.action.server_is_ready, self.server_timeout_s):
-            raise LaunchAborted(f"no rig serves the launch action within {self.server_timeout_s:g} s")
+            domain = os.environ.get("ROS_DOMAIN_ID") or "0"
+            raise LaunchAborted(f"no rig serves the launch action in ROS domain {domain} namespace "
+                                f"{self.node.get_namespace()} within {self.server_timeout_s:g} s")
         self._wait_valve_ready()
         self._pending.clear()
         feedback: queue.Queue = queue.Queue()
         def make_goal() -> Launch.Goal:
             goal = Launch.Goal(run_id=self.run_id, trial_id=trial.trial_id,
-                               condition=_convert.condition_to_msg(trial.condition))
+                               condition=_convert.condition_to_msg(trial.condition), session=self.session)
             goal.auth = self._sign(lambda signer: signer.launch(self.run_id, trial.trial_id, goal.condition))
             return goal
 
@@ -312,15 +321,19 @@ def _say(text):
     print(text, flush=True)   # a supervisor's log file or a pipe shows each line as it happens
 
 
-def stored_trial_ids(node: Node, executor: typing.Any, run_id: str, timeout_s: float) -> typing.Set[str]:
-    """The trial ids the outcome_logger has stored for ``run_id`` (``stored_trials`` service); ``ValueError``
-    when no logger answers within ``timeout_s`` or it cannot read its store."""
+def stored_trial_ids(node: Node, executor: typing.Any, run_id: str, timeout_s: float,
+                     session: str = "") -> typing.Set[str]:
+    """The trial ids the outcome_logger has stored for ``run_id`` (``stored_trials`` service, which also announces
+    the run as one of ``session``'s); ``ValueError`` when no logger answers within ``timeout_s``, it cannot read its
+    store, or it belongs to another session."""
     client = node.create_client(GetStoredTrials, "stored_trials")
     try:
         if not spin_until(executor, client.service_is_ready, timeout_s):
-            raise ValueError(f"no outcome_logger serves {client.srv_name} within {timeout_s:g} s: start one in this "
-                             "ROS domain")
-        future = client.call_async(GetStoredTrials.Request(run_id=run_id))
+            domain = os.environ.get("ROS_DOMAIN_ID") or "0"
+            raise ValueError(f"no outcome_logger serves {client.srv_name} in ROS domain {domain} namespace "
+                             f"{node.get_namespace()} within {timeout_s:g} s: start one there, or join its session "
+                             "(--session SESSION, --namespace)")
+        future = client.call_async(GetStoredTrials.Request(run_id=run_id, session=session))
         deadline = time.monotonic() + timeout_s
         while not future.done():
             if time.monotonic() > deadline:
@@ -336,8 +349,9 @@ def stored_trial_ids(node: Node, executor: typing.Any, run_id: str, timeout_s: f
 
 def run_graph_campaign(node: Node, spec: CampaignSpec, settings: RunnerSettings,
                        ask: typing.Optional[typing.Callable[[str], str]] = None,
-                       say: typing.Callable[[str], None] = _say) -> typing.Any:
-    """Run the campaign through the graph from ``node`` (spun here, in this thread); returns the CampaignReport."""
+                       say: typing.Callable[[str], None] = _say, session: str = "") -> typing.Any:
+    """Run the campaign through the graph from ``node`` (spun here, in this thread) as a runner of ``session``
+    (its ``session.id``; "" none); returns the CampaignReport."""
     plan = plan_trials(spec)
     signer = None
     if launch_backend_class(settings.backend).authenticated:
@@ -356,11 +370,11 @@ def run_graph_campaign(node: Node, spec: CampaignSpec, settings: RunnerSettings,
             acknowledgements.acknowledge(msg.run_id, msg.trial_id)
 
         node.create_subscription(OutcomeStored, "outcomes_stored", on_stored, RECORD_QOS)
-        stored = stored_trial_ids(node, executor, spec.run_id, settings.server_timeout_s)
+        stored = stored_trial_ids(node, executor, spec.run_id, settings.server_timeout_s, session)
         refusal = resume_refusal(len(stored), settings.resume, spec.run_id)
         if refusal:
             raise ValueError(refusal)
-        rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s, signer)
+        rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s, signer, session)
         progress_publisher = node.create_publisher(CampaignProgress, "campaign_progress", LATCHED_QOS)
 
         def publish_progress(progress: typing.Any) -> None:
@@ -392,8 +406,9 @@ def main(args: typing.Optional[typing.List[str]] = None) -> int:
         node = Node("campaign_runner")
         spec = declare_settings(node, "campaign", CampaignSpec)
         settings = declare_settings(node, "runner", RunnerSettings)
+        session = declare_settings(node, "session", SessionSettings, read_only=True)
         ask = TerminalAsk() if launch_backend_class(settings.backend).attended else None
-        return report_exit_code(run_graph_campaign(node, spec, settings, ask),
+        return report_exit_code(run_graph_campaign(node, spec, settings, ask, session=session.id),
                                 resume="the same command with -p runner.resume:=true")
     except (ParameterError, ConfigError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -31,7 +31,9 @@ are its mount footprint's, as the evaluators' are, the marker sits on that mount
 ``run_id`` (empty = new ``opt-<date>-<time>``), ``resume`` (continue run ``run_id`` from its last checkpoint),
 ``autostart`` (start once the graph has been searched twice), ``exit_on_finish``, ``select_designs`` (choose
 Mesh A, B, C when the run finishes), ``frame_id``, ``evaluator_timeout_s``, ``evaluator_max_attempts``,
-``evaluator_retry_delay_s``, ``evaluator_discovery_period_s``. Optimizer parameters are read when a run starts.
+``evaluator_retry_delay_s``, ``evaluator_discovery_period_s``; ``session.id``: goals carry it, and a result from an
+evaluator of another session is refused (logged once, never scored) and that evaluator is not asked again.
+Optimizer parameters are read when a run starts.
 See docs/optimization.md.
 
 A failed evaluation (rejected goal, aborted, silent for ``evaluator_timeout_s``, evaluator gone) is retried on
@@ -67,9 +69,9 @@ from rollability_ros.core.robots import ChassisSpec, UrdfRobotSpec, footprint_gr
 from rollability_ros.core.sim import ScreenSettings
 from rollability_ros.msg import CandidateResult, GenerationSummary, OptimizerProgress
 from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg, progress_to_msg
-from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, ThreadSafeActionClient,
-                                            declare_settings, guard_settings, parameter_descriptor, read_settings,
-                                            refusal, run_node)
+from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, SessionMembership,
+                                            ThreadSafeActionClient, declare_settings, guard_settings,
+                                            parameter_descriptor, read_settings, refusal, run_node)
 
 #: The action type an evaluator serves (as the graph API names it).
 EVALUATOR_ACTION_TYPE = "rollability_ros/action/EvaluateProfile"
@@ -140,6 +142,8 @@ class Optimizer(Node):
         if not discovery_period_s > 0:
             raise ParameterError(f"evaluator_discovery_period_s must be > 0, got {discovery_period_s}")
         self._grid, self._mount = self._read_run_settings()["profile"], self._read_mount()
+        self._session = SessionMembership(self)
+        self._foreign: typing.Set[str] = set()   # evaluators that answered as another session's: never asked again
 
         self._candidates = self.create_publisher(CandidateResult, "candidates", RECORD_QOS)
         self._generations = self.create_publisher(GenerationSummary, "generations", LATCHED_QOS)
@@ -179,7 +183,8 @@ class Optimizer(Node):
             if name not in self._action_clients:
                 self._action_clients[name] = ThreadSafeActionClient(self, EvaluateProfile, name,
                                                                      callback_group=self._client_group)
-        ready = [name for name in names if self._action_clients[name].server_is_ready()]
+        ready = [name for name in names
+                 if self._action_clients[name].server_is_ready() and name not in self._foreign]
         added, removed = self._pool.set_evaluators(ready)
         if added or removed:
             change = ", ".join([f"+{n}" for n in added] + [f"-{n}" for n in removed])
@@ -195,7 +200,7 @@ class Optimizer(Node):
     def _submit(self, action_name, request, ticket):
         """Send one evaluation as an EvaluateProfile goal; report through ``ticket``; return a cancel function."""
         goal = EvaluateProfile.Goal(heights=list(request.heights), trials=request.trials, seed=request.seed,
-                                    fidelity=request.fidelity)
+                                    fidelity=request.fidelity, session=self._session.id)
         goal_handle = {}
         cancelled = threading.Event()
 
@@ -206,6 +211,11 @@ class Optimizer(Node):
                 ticket.fail(f"goal {status}: {response.result.message or 'no message'}")
                 return
             result = response.result
+            refusal = self._session.refusal(result.session, f"result of evaluator {result.evaluator or action_name}")
+            if refusal:   # never scored: retried on an evaluator of this session
+                self._foreign.add(action_name)
+                ticket.fail(refusal)
+                return
             ticket.succeed(result.successes, result.trials, result.eval_time_s, result.evaluator or action_name)
 
         def on_goal_response(future: typing.Any) -> None:

@@ -18,6 +18,10 @@ Parameters:
   start-up.
   ``session_key_file`` (string, default "": ``valve.session_key_file``'s default for this domain and namespace):
   the valve_controller's key file, to verify physical outcomes.
+  ``session.id`` (string, default "": none) and ``session_runs`` (string array): the logger of a session stores
+  only its session's runs (:class:`~rollability_ros.core.results.outcome_log.SessionGate`): a ``stored_trials``
+  request of another session is refused, and a record of a run not of this session is refused, logged once per
+  run, never stored nor acknowledged.
 
 Physical outcomes are stored only with the rig's record signature (``auth``, made with the valve's session key for
 a launch whose goal the operator's tools signed: :mod:`rollability_ros.core.rig.rig_auth`); an unsigned or forged
@@ -36,7 +40,8 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 
-from rollability_ros.core.results import OutcomeLog, OutcomeLoggerSettings, StoreFailure
+from rollability_ros.core.config import SessionSettings
+from rollability_ros.core.results import OutcomeLog, OutcomeLoggerSettings, SessionGate, StoreFailure
 from rollability_ros.core.store import unique_key
 from rollability_ros.core.rig import rig_auth, valve_auth
 from rollability_ros.msg import (CandidateResult, ConfigurationSummary, GenerationSummary, LaunchOutcome,
@@ -76,6 +81,8 @@ class OutcomeLoggerNode(Node):
             self.log = OutcomeLog.open(settings.store_path)
         except ValueError as exc:
             raise ParameterError(f"store_path: {exc}") from exc
+        session = declare_settings(self, "session", SessionSettings, read_only=True)
+        self.session_gate = SessionGate(session.id, settings.session_runs, self.log.store)
         self.record_guard = rig_auth.RecordGuard(
             settings.session_key_file or valve_auth.default_key_path(self.get_namespace()))
         self.add_on_set_parameters_callback(self._refuse_store_change)
@@ -109,6 +116,11 @@ class OutcomeLoggerNode(Node):
         try:
             record = convert(msg)
             key = "/".join(str(part) for part in unique_key(record))
+            refusal = self.session_gate.refusal(record)
+            if refusal:
+                if self.session_gate.first_refusal(record.run_id):
+                    logger.warning(f"refused {kind} {key} and every later record of its run: {refusal}; NOT stored")
+                return
             if kind == "launch outcome":
                 authentic, reason = self.record_guard.check(_convert.signature_from_msg(msg.auth), record)
                 if not authentic:
@@ -142,6 +154,12 @@ class OutcomeLoggerNode(Node):
             response.success, response.message = False, "run_id must be non-empty"
             return response
         try:
+            refusal = self.session_gate.announce(request.session, request.run_id)
+            if refusal:
+                if self.session_gate.first_refusal(request.run_id):
+                    self.get_logger().warning(f"stored_trials: {refusal}")
+                response.success, response.message = False, refusal
+                return response
             response.trial_ids = sorted(self.log.store.trial_ids(request.run_id))
         except Exception as exc:  # a service must answer: the caller gets the reason instead of a timeout
             response.success, response.message = False, f"store {self.log.store.path} not readable: {exc}"

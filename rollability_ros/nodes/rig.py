@@ -9,7 +9,8 @@ Action server:
   armed, fired, in_flight, settling, classifying; a question to the operator is repeated every
   ``rig.question_repeat_s`` until answered (a feedback sent before a client's subscription matched is lost)
   (``detail`` says what the operator must do). Cancel is honoured at the next wait (before firing, or while
-  waiting for the operator or the IMU).
+  waiting for the operator or the IMU). With ``session.id`` set, a goal of another session (``goal.session``) is
+  aborted at once, logged once: a rig serves only its own session's campaign runner.
 Publications:
   ``launch_outcomes`` (rollability_ros/LaunchOutcome, reliable, deep queue): every outcome, for the outcome_logger;
   a physical one carries the rig's record signature (``auth``), made only for a goal that was signed.
@@ -57,8 +58,8 @@ from rollability_ros.core.rig import (ImuOutcome, LaunchAborted, OperatorOutcome
                                       rig_auth, valve_auth)
 from rollability_ros.msg import LaunchOutcome, ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
-from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, declare_settings,
-                                            run_node)
+from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, SessionMembership,
+                                            declare_settings, run_node)
 from rollability_ros.nodes._convert import auth_msg, signature_from_msg
 from rollability_ros.srv import ArmValve, ConfirmRegulator, FireValve, RecordOutcome
 
@@ -207,6 +208,7 @@ class RigNode(Node):
         valve = declare_settings(self, "valve", ValveConfig, read_only=True)
         speed_config = declare_settings(self, "speed_gate", SpeedGateConfig, read_only=True)
         imu_config = declare_settings(self, "imu_outcome", ImuOutcomeConfig, read_only=True)
+        self._session = SessionMembership(self)
         self.add_on_set_parameters_callback(self._refuse_change)
         self._closing = threading.Event()
         self._busy = threading.Lock()
@@ -274,6 +276,11 @@ class RigNode(Node):
         def cancelled() -> bool:
             return goal_handle.is_cancel_requested or self._closing.is_set()
 
+        refusal = self._session.refusal(goal.session, "launch goal")
+        if refusal:   # another session's campaign runner: never served, never holds the rig busy
+            result.message = f"{goal.trial_id}: {refusal}"
+            goal_handle.abort()
+            return result
         # authenticated before anything else: a stray participant's goals never hold the rig busy
         ticket, reason = self.guard.check_launch(signature_from_msg(goal.auth), goal.run_id, goal.trial_id,
                                                  goal.condition)

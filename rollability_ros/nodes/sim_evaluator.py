@@ -14,7 +14,8 @@ Interfaces (relative names; run several side by side in different namespaces):
 Parameters: the namespaces of config/sim.yaml (``sim``, ``trial``), config/robot.yaml (``robot``, ``profile``,
 ``printer``), config/evaluator.yaml (``evaluator``) and a URDF robot's config (``urdf_robot``, e.g.
 config/husky.yaml), each declared with a description and validated; an invalid ``ros2 param set`` is refused.
-``evaluator.workers`` and ``evaluator.ray_address`` take effect at start.
+``evaluator.workers`` and ``evaluator.ray_address`` take effect at start. ``session.id``: an evaluator of a session
+rejects goals of another (logged once) and names its session in every result.
 Goals are evaluated one at a time, each over the whole worker pool; bad goals are rejected with the reason logged.
 """
 import dataclasses
@@ -33,7 +34,8 @@ from rollability_ros.core.sim import (FIDELITIES, SETTINGS_SECTIONS, EvaluationC
                                       TrialOutcome, evaluate_profile, make_executor, settings_at_fidelity)
 from rollability_ros.core.profile import check_heights
 from rollability_ros.msg import TrialResult
-from rollability_ros.nodes._support import LATCHED_QOS, declare_settings, guard_settings, run_node
+from rollability_ros.nodes._support import (LATCHED_QOS, SessionMembership, declare_settings, guard_settings,
+                                            run_node)
 
 
 class _CancelRequested:
@@ -63,6 +65,7 @@ class SimEvaluator(Node):
             sections[field.name] = declare_settings(self, prefix, field.type)
             guard_settings(self, prefix, field.type, on_change=self._setter(field.name))
         self._settings = EvaluatorSettings(**sections)
+        self._session = SessionMembership(self)
         self._topic_description = ""
         if self._settings.urdf_robot.selected and not self._settings.urdf_robot.has_source:
             self.create_subscription(String, "robot_description", self._on_description, LATCHED_QOS)
@@ -114,6 +117,8 @@ class SimEvaluator(Node):
         return None
 
     def _check_goal(self, goal):
+        if self._session.refusal(goal.session, "evaluate_profile goal"):
+            return GoalResponse.REJECT
         problem = self.goal_problem(goal)
         if problem:
             self.get_logger().warning(f"rejected evaluate_profile goal: {problem}")
@@ -130,7 +135,7 @@ class SimEvaluator(Node):
             goal_handle.publish_feedback(EvaluateProfile.Feedback(trials_done=progress["done"],
                                                                   successes_so_far=progress["upright"]))
 
-        result = EvaluateProfile.Result(evaluator=self.get_fully_qualified_name())
+        result = EvaluateProfile.Result(evaluator=self.get_fully_qualified_name(), session=self._session.id)
         with self._busy:
             try:
                 evaluation = evaluate_profile(list(request.heights) or None, request.trials, request.seed,

@@ -28,6 +28,23 @@ CSVS = {
 }
 
 
+PARAMS = "/**:\n  ros__parameters:\n"
+LAUGHS = PARAMS + "    a0: &a0 {" + ", ".join(f"k{j}: {j}" for j in range(10)) + "}\n" + "".join(
+    f"    a{i}: &a{i} {{" + ", ".join(f"k{j}: *a{i - 1}" for j in range(10)) + "}\n" for i in range(1, 9)) + \
+    "    sim: *a8\n"   # 10^9 keys once expanded (issue 42: MemoryError in config._flatten after 52 s)
+PARAMETER_FILES = {
+    "deep.yaml": PARAMS + "    sim: " + "[" * 20000 + "\n",   # issue 42: a RecursionError traceback in every verb
+    "laughs.yaml": LAUGHS,
+    "duplicate.yaml": PARAMS + "    evaluator:\n      trials: 2\n      trials: 3\n",
+    "twin_negative.yaml": PARAMS + "    launch_twin: {foam: {length_m: -5.0}}\n",
+    "optimizer_keys.yaml": PARAMS + "    optimizer: {popsize: 8}\n",
+    "calibration_keys.yaml": PARAMS + "    calibration: {popsize: 4}\n",
+    "campaign_keys.yaml": PARAMS + "    campaign: {repetitions: 2}\n",
+    "far_heights.yaml": PARAMS + "    campaign: {heights_m: [1.0e+308]}\n",
+    "climbing.yaml": PARAMS + "    bringup: {output_dir: '" + "../" * 64 + "runs'}\n",
+}
+
+
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory):
     """A folder with a bag, a finished optimization run (runs/ex), outcome CSVs, a file, a folder of notes and a
@@ -43,7 +60,7 @@ def workspace(tmp_path_factory):
                           SyntheticEvaluator(np.linspace(0.1, 0.4, grid.n_variables), 20))
     run.run()
     run.close()
-    for name, text in CSVS.items():
+    for name, text in {**CSVS, **PARAMETER_FILES}.items():
         (root / name).write_text(text)
     (root / "afile.txt").write_text("the operator's notes\n")
     (root / "full").mkdir()
@@ -97,7 +114,56 @@ CASES = [
     (["bag", "info", "afile.txt"], "not a bag"),
     (["bag", "recover", "afile.txt"], "not a bag directory"),
     (["bag", "convert", "bag", "bag", "--storage", "mcap"], "does not overwrite"),
+    # issue 42, item 3
+    (["campaign", "--backend", "sim", "--resimulate", "baseline", "1e308", "1", "0", "--seed", "1"],
+     "height_m must be <= 10 m, got 1e+308"),
+    (["campaign", "--backend", "sim", "--resimulate", "baseline", "1", "1e9", "0", "--seed", "1"],
+     "speed_mps must be <= 10 m/s, got 1000000000.0"),
+    (["campaign", "--backend", "sim", "--resimulate", "baseline", "1", "1", "0", "--seed", str(2**63)],
+     "seed must be a twin seed in [0, 2**63)"),
+    (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--config", "far_heights.yaml"],
+     "height_m must be <= 10 m, got 1e+308"),                       # the same bounds as --resimulate
+    (["evaluate", "--baseline", "--engines", ""], "--engines needs two different engines"),
+    (["bringup", "--config", "climbing.yaml"], "bringup.output_dir"),
+    (["study", "--config", "climbing.yaml"], "has more '..' than"),
+    # a key of a given file the command never applies is refused, naming the file, key and command
+    (["evaluate", "--baseline", "--config", "twin_negative.yaml"],
+     "twin_negative.yaml: rollability evaluate --fidelity screen does not read launch_twin.foam.length_m"),
+    (["evaluate", "--baseline", "--fidelity", "launch", "--config", "twin_negative.yaml"], "length_m must be > 0"),
+    (["evaluate", "--baseline", "--config", "optimizer_keys.yaml"], "does not read optimizer.popsize"),
+    (["sensitivity", "--trials", "1", "--out", "s1", "--config", "optimizer_keys.yaml"],
+     "rollability sensitivity does not read optimizer.popsize"),
+    (["optimize", "--config", "campaign_keys.yaml"], "rollability optimize does not read campaign.repetitions"),
+    (["select", "ex", "--output-dir", "runs", "--config", "campaign_keys.yaml"],
+     "rollability select does not read campaign.repetitions"),
+    (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--config", "optimizer_keys.yaml"],
+     "rollability campaign --config does not read optimizer.popsize"),
+    (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--rig-config", "optimizer_keys.yaml"],
+     "rollability campaign --rig-config does not read optimizer.popsize"),
+    (["campaign", "--backend", "sim", "--graph", "--rig-config", "rig"], "--rig-config is for the in-process rig"),
+    (["calibrate", "--physical", "good.csv", "--out", "c3", "--config", "optimizer_keys.yaml"],
+     "rollability calibrate does not read optimizer.popsize"),
+    (["study", "--config", "calibration_keys.yaml"], "rollability study does not read calibration.popsize"),
+    (["bringup", "--config", "calibration_keys.yaml"], "rollability bringup does not read calibration.popsize"),
+    (["bringup", "--config", "twin_negative.yaml"], "length_m must be > 0"),   # before any node starts
 ]
+#: Every verb that reads parameter files, with FILE for the file under test.
+VERBS_WITH_FILES = [
+    ["evaluate", "--baseline", "--config", "FILE"],
+    ["optimize", "--config", "FILE"],
+    ["select", "ex", "--output-dir", "runs", "--config", "FILE"],
+    ["sensitivity", "--trials", "1", "--out", "s2", "--config", "FILE"],
+    ["calibrate", "--physical", "good.csv", "--out", "c4", "--config", "FILE"],
+    ["campaign", "--backend", "sim", "--store", "camp.sqlite", "--config", "FILE"],
+    ["campaign", "--backend", "sim", "--store", "camp.sqlite", "--rig-config", "FILE"],
+    ["campaign", "--backend", "sim", "--resimulate", "baseline", "1", "1", "0", "--seed", "1", "--rig-config", "FILE"],
+    ["study", "--config", "FILE"],
+    ["bringup", "--config", "FILE"],
+]
+for _file, _reason in [("deep.yaml", "nesting deeper than 100 levels at line 3"),
+                       ("laughs.yaml", "anchors and aliases expand to more than"),
+                       ("duplicate.yaml", "duplicate key 'trials' at line 5 (first at line 4)")]:
+    CASES += [([_file if arg == "FILE" else arg for arg in argv], f"{_file}: {_reason}") for argv in VERBS_WITH_FILES]
 
 
 @pytest.mark.parametrize("argv, reason", CASES, ids=[" ".join(argv)[:60] for argv, _ in CASES])
@@ -148,3 +214,15 @@ def test_an_engine_comparison_never_overwrites_an_earlier_one(tmp_path, monkeypa
     error = capsys.readouterr().err
     assert "already holds an earlier engine comparison" in error and len(error.strip().splitlines()) == 1
     assert tree_checksums(tmp_path) == before
+
+
+def test_the_operators_rig_command_refuses_a_bringup_file_bringup_would(workspace):
+    """`rollability rig --config FILE` reads the file given to bringup (for its namespace) the same way (a process:
+    the command sets the physical rig's ROS environment)."""
+    before = tree_checksums(workspace)
+    result = _cli(workspace, "rig", "estop", "--config", "deep.yaml", "--timeout-s", "1")
+    reason = "deep.yaml: nesting deeper than 100 levels"
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert result.stderr.startswith("rollability rig: error:") and reason in result.stderr, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+    assert tree_checksums(workspace) == before

@@ -424,3 +424,29 @@ def test_bag_info_checks_every_chunk_crc_and_names_corrupt_chunks(tmp_path):
     assert unchecked.returncode == 0 and "Chunk CRCs:        not verified" in unchecked.stdout
     single_file = _bag_info_cli(str(path), "--json")
     assert single_file.returncode == 1 and '"corrupt_chunks": [' in single_file.stdout
+
+
+def test_the_gap_note_estimates_steady_topics_only_and_counts_stored_outcomes_in_the_window():
+    """Issue 42: for an event topic the note says what is known ("nothing published" when the store holds no
+    outcome of that window that the bag lacks), never an estimate from its mean rate."""
+    from rollability_ros.core.graph.study import compare_bags_with_store
+
+    start = 1_700_000_000 * 10**9
+    window = {"/rollability/launch_outcomes": {"after_ns": start, "until_ns": start + 4 * 10**9, "rate_hz": 2.0,
+                                               "periodic": True},
+              "/rollability/rig/pose": {"after_ns": start, "until_ns": start + 4 * 10**9, "rate_hz": 100.0,
+                                        "periodic": True},
+              "/rollability/summary": {"after_ns": start, "until_ns": start + 4 * 10**9, "rate_hz": 2.0,
+                                       "periodic": False}}
+    gaps = [(start, start + 4 * 10**9)]
+    _, note = compare_bags_with_store(set(), [], gaps, [window])
+    assert "/rollability/launch_outcomes" in note and "(4.0 s, nothing published)" in note
+    assert "/rollability/rig/pose 22:13:20.000 to 22:13:24.000 UTC (4.0 s, about 399 messages at its 100 Hz)" in note
+    assert "/rollability/summary 22:13:20.000 to 22:13:24.000 UTC (4.0 s, an event topic: what it published then " \
+           "is not known)" in note
+    from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+
+    lost = LaunchOutcome(run_id="s", trial_id="t1", condition=LaunchCondition("A", 1.3, 1.5, 0.0, 1), backend="sim",
+                         upright=True, stamp_s=(start + 2 * 10**9) / 1e9)
+    problem, note = compare_bags_with_store(set(), [lost], gaps, [window])
+    assert not problem and "(4.0 s, 1 message(s) published then, in the store, not in the bag)" in note

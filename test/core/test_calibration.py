@@ -7,11 +7,11 @@ import pytest
 import yaml
 
 from doubles import synthetic_outcomes
-from rollability_ros.core.campaign import calibration
+from rollability_ros.core.campaign import calibration, local_rig_settings_from_files
 from rollability_ros.core.results.analysis import ConditionResult
 from rollability_ros.core.config import ConfigError, load_parameters, section
 from rollability_ros.core.sim.evaluation import load_settings
-from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
+from rollability_ros.core.sim.launch_twin import TWIN_SECTIONS, load_launch_twin_settings
 from rollability_ros.core.results import write_outcome_csv
 from rollability_ros.core.results.records import LaunchCondition
 
@@ -79,8 +79,10 @@ def test_calibrated_file_changes_twin_evaluator_and_rig_settings(tmp_path):
     path = tmp_path / "calibrated.yaml"
     fitted = {"launch_twin.foam.contact_stiffness_npm": 45000.0, "launch_twin.foam.lateral_friction": 0.6,
               "robot.com_offset_z_m": 0.004}
-    document = calibration.calibrated_parameter_document(fitted, path)
+    document = calibration.calibrated_parameter_document(fitted)
     path.write_text(yaml.safe_dump(document), encoding="utf-8")
+    rig_path = tmp_path / "calibrated_rig.yaml"
+    rig_path.write_text(yaml.safe_dump(calibration.rig_parameter_document(path)), encoding="utf-8")
     default = load_launch_twin_settings()
     twin = load_launch_twin_settings([*calibration.TWIN_CONFIGS, str(path)])
     assert default.twin.foam.contact_stiffness_npm != 45000.0
@@ -90,9 +92,14 @@ def test_calibrated_file_changes_twin_evaluator_and_rig_settings(tmp_path):
     assert twin.twin.foam.contact_damping_nspm == default.twin.foam.contact_damping_nspm   # the rest: defaults
     evaluator = load_settings(["sim", "robot", "evaluator", str(path)])       # evaluate / optimize --config
     assert evaluator.robot.com_offset_z_m == 0.004
-    rig = section(load_parameters(["rig", str(path)]), "rig")                  # the rig's --params-file
+    rig = section(load_parameters(["rig", str(rig_path)]), "rig")              # the rig node's --params-file
     assert rig["twin_config"] == [*calibration.TWIN_CONFIGS, str(path)]
     assert load_launch_twin_settings(rig["twin_config"]).twin.foam.lateral_friction == 0.6
+    # campaign --rig-config rig --rig-config calibrated.yaml: the in-process rig's twin reads it too
+    local = local_rig_settings_from_files("sim", ["rig", str(path)], "rollability campaign --rig-config")
+    assert load_launch_twin_settings(local.rig.twin_config).twin.foam.lateral_friction == 0.6
+    # every key of calibrated.yaml is one the twin reads: the file holds nothing a command would drop
+    assert {name.split(".")[0] for name in load_parameters([str(path)])} <= TWIN_SECTIONS
 
 
 def test_cli_writes_outputs_from_a_csv_of_physical_outcomes(tmp_path, capsys):

@@ -63,7 +63,10 @@ def test_one_husky_launch_runs_is_deterministic_and_classifies(husky_twin):
     assert repr(simulate_launch(condition, husky_twin, 7)) == repr(result)
     assert phases == ["fired", "in_flight", "settling", "classifying"] and result.settled
     assert result.landing_position_m[0] > 0   # it went over the edge onto the foam
-    # the plate pushes the 44 kg robot with its 0.178 m wheels and 2 N m motor drag to the edge at the launch speed
+    # config/husky.yaml picks the push-through launcher (the paper's 0.15 m stroke leaves the 1 m long robot on the
+    # ledge): the plate pushes the 44 kg robot with its 0.178 m wheels and 2 N m motor drag to the edge at the
+    # launch speed
+    assert husky_twin.twin.launcher.model == "push_through"
     assert result.edge_speed_mps == pytest.approx(result.launch_speed_mps, rel=0.05)
     assert 1.0 < result.travel_time_s / (0.34 / result.launch_speed_mps) < 1.1
     # classified from its final pose: it pitches over the edge and lands on its back (tilt = angle of its z axis)

@@ -384,6 +384,31 @@ def test_report_draws_only_the_designs_of_the_run_it_reports(tmp_path):
     assert "large-robot" in html and "small-robot" not in html
 
 
+def test_a_study_reports_only_the_designs_its_campaign_launched(tmp_path):
+    """Issue 42: a campaign run through the graph recorded no designs_file, so after a later `select` the study's
+    report listed designs-2/ and designs-3/ beside the set the campaign launched. The study records it (the logger
+    stopped: one writer) and a report with a recorded set lists that set only."""
+    from rollability_ros.core.graph import Study
+    from rollability_ros.core.results import report
+
+    config = tmp_path / "study.yaml"
+    config.write_text(f"/**:\n  ros__parameters:\n    bringup: {{output_dir: '{tmp_path / 'runs'}'}}\n")
+    study = Study(extra_configs=[str(config)], study_id="s1", say=lambda text: None)
+    launched = os.path.dirname(study.designs_file)
+    for folder in (launched, launched + "-2", launched + "-3"):   # the study's selection, then two later ones
+        os.makedirs(folder)
+        with open(os.path.join(folder, "designs.yaml"), "w", encoding="utf-8") as stream:
+            stream.write("/**:\n  ros__parameters:\n    designs:\n      labels: [A]\n")
+    with Store(study.store_path) as store:
+        for outcome in _campaign_outcomes(run_id="s1", repetitions=1)[:4]:
+            store.add_launch_outcome(outcome)
+    assert len(report.load_report_data(study.store_path, run_id="s1").design_folders) == 3   # nothing recorded
+    study._record_campaign_designs()
+    with Store(study.store_path) as store:
+        assert store.run_info("s1")["info"]["designs"]["designs_file"] == study.designs_file
+    assert report.load_report_data(study.store_path, run_id="s1").design_folders == [launched]
+
+
 def test_the_sim_rig_records_where_its_designs_come_from(tmp_path):
     from rollability_ros.core.rig.rig_session import RigSettings, SimulatedLaunch
     from rollability_ros.core.rig.speed_gate import SpeedGateConfig

@@ -14,6 +14,8 @@ ALLOWED = {
     # the parse functions an edge calls once (defined in the core next to their dataclasses)
     ("optimization/optimization_run.py", "run_settings"): (1, "the edge parse of a run's parameters"),
     ("campaign/runner.py", "local_rig_settings"): (1, "the edge parse of the in-process rig's parameters"),
+    ("campaign/runner.py", "local_rig_settings_from_files"): (1, "the edge parse of the rig files a command was "
+                                                                 "given, once their keys are checked"),
     ("sim/evaluation.py", "settings_from_parameters"): (1, "the edge parse of the evaluator's parameters"),
     ("campaign/calibration.py", "calibration_settings"): (2, "the edge parse of the calibration section, checked "
                                                              "against the twin's keys"),
@@ -31,6 +33,7 @@ ALLOWED = {
     ("campaign_matrix.py", "load_campaign_spec"): (2, "reads a campaign's parameter files"),
     ("graph/bringup.py", "load_graph_settings"): (2, "reads the graph's parameter files"),
     ("graph/preflight.py", "check_graph_parameters"): (2, "checks every node's parameter files before a start"),
+    ("graph/preflight.py", "_twin_problems"): (1, "loads the sim rig's twin files before a session starts"),
     ("profile/designs.py", "_read_designs"): (2, "reads a designs file"),
     # the calibration fits config keys: each candidate's twin is the parameter files with the fitted keys set
     ("campaign/calibration.py", "twin_settings_with"): (1, "rebuilds the twin with fitted config keys"),

@@ -421,3 +421,20 @@ def test_a_constraint_held_profile_would_stretch_and_be_left_behind_where_a_fixe
         pybullet.resetBasePositionAndOrientation(base, [5, 5, 5], [0, 0, 0, 1], physicsClientId=client)
     assert np.linalg.norm(profile_offset(held, on_constraint)) > 5
     assert profile_offset(linked, on_link) == pytest.approx(offset, abs=1e-6)
+
+
+def test_pybullets_loader_gives_a_massless_frame_1_kg_and_the_description_drops_it(client, tmp_path):
+    """urdf_description's reason to drop links that carry nothing: PyBullet's loader gives such a link 1 kg and a
+    1 kg m^2 inertia (with URDF_USE_INERTIA_FROM_FILE, as the robots are loaded)."""
+    from rollability_ros.core.robots.urdf_description import describe
+
+    text = ('<robot name="r"><link name="box"><inertial><mass value="2"/><inertia ixx="0.1" iyy="0.1" izz="0.1" '
+            'ixy="0" ixz="0" iyz="0"/></inertial><collision><geometry><box size="0.1 0.1 0.1"/></geometry>'
+            '</collision></link><link name="imu_link"/><joint name="imu_joint" type="fixed"><parent link="box"/>'
+            '<child link="imu_link"/></joint></robot>')
+    path = tmp_path / "frame.urdf"
+    path.write_text(text)
+    body = pybullet.loadURDF(str(path), flags=pybullet.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
+    mass, _, inertia = pybullet.getDynamicsInfo(body, 0, physicsClientId=client)[:3]
+    assert (mass, inertia) == (1.0, (1.0, 1.0, 1.0))
+    assert "imu_link" not in describe(text).sim_urdf

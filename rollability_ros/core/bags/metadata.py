@@ -9,6 +9,7 @@ import typing
 
 import yaml
 
+from rollability_ros.core import safe_yaml
 from rollability_ros.core.bags.qos import normalize_qos_profiles
 
 #: metadata.yaml format version written (rosbag2 on Jazzy writes 9).
@@ -128,14 +129,14 @@ def read_metadata(directory: str) -> typing.Dict[str, typing.Any]:
         raise BagError(f"{directory}: not a bag directory (does not exist or is not a directory)")
     try:
         with open(path, encoding="utf-8") as stream:
-            document = yaml.safe_load(stream)
+            document = safe_yaml.load(stream)
     except FileNotFoundError as exc:
         raise BagError(f"{path}: missing; if the recorder was killed, run `rollability bag recover "
                        f"{directory}`") from exc
     except OSError as exc:
         raise BagError(f"{path}: cannot read: {exc.strerror}") from exc
     except yaml.YAMLError as exc:
-        raise BagError(f"{path}: not valid YAML: {exc}") from exc
+        raise BagError(f"{path}: not valid YAML: {safe_yaml.one_line(exc)}") from exc
     information = document.get("rosbag2_bagfile_information") if isinstance(document, dict) else None
     required = ("version", "storage_identifier", "relative_file_paths", "topics_with_message_count")
     if not isinstance(information, dict) or any(key not in information for key in required):

@@ -9,6 +9,8 @@ import typing
 
 import yaml
 
+from rollability_ros.core import safe_yaml
+
 #: rmw's "infinite" duration as rosbag2 writes it into QoS profiles.
 INFINITE_DURATION = {"sec": 9223372036, "nsec": 854775807}
 
@@ -79,9 +81,9 @@ def normalize_qos_profiles(profiles: typing.Union[typing.Sequence[typing.Mapping
         return []
     if isinstance(profiles, str):
         try:
-            profiles = yaml.safe_load(profiles)
+            profiles = safe_yaml.load(profiles)
         except yaml.YAMLError as exc:
-            raise ValueError(f"offered_qos_profiles is not valid YAML: {exc}") from exc
+            raise ValueError(f"offered_qos_profiles is not valid YAML: {safe_yaml.one_line(exc)}") from exc
         if profiles is None:
             return []
     if isinstance(profiles, dict) or not isinstance(profiles, (list, tuple)):

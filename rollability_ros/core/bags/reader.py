@@ -259,6 +259,7 @@ def _mcap_file_metadata(path):
     serialization, offered QoS and type hash from the channels, counts from the statistics, distro and version
     from rosbag2's ``rosbag2`` metadata record where present (other MCAP writers have none)."""
     import yaml
+    from rollability_ros.core import safe_yaml
     from rollability_ros.core.bags.metadata import METADATA_VERSION
 
     with open(path, "rb") as stream:
@@ -267,7 +268,7 @@ def _mcap_file_metadata(path):
             records = {m.name: m.metadata for m in reader.iter_metadata()}
     embedded = records.get("rosbag2", {})
     try:
-        version = int((yaml.safe_load(embedded.get("serialized_metadata") or "") or {}).get("version",
+        version = int((safe_yaml.load(embedded.get("serialized_metadata") or "") or {}).get("version",
                                                                                           METADATA_VERSION))
     except (yaml.YAMLError, AttributeError, TypeError, ValueError):
         version = METADATA_VERSION

@@ -29,6 +29,7 @@ import os
 import re
 import typing
 
+from rollability_ros.core import safe_yaml
 from rollability_ros.core.bags.metadata import (
     METADATA_FILE,
     ROS_DISTRO,
@@ -224,7 +225,6 @@ def _nothing_saved(report, size):
 
 def _file_summary(path):
     """Return ``(FileInfo, {topic: TopicInfo from channel metadata}, rosbag2 metadata record dict or {})``."""
-    import yaml
 
     with open(path, "rb") as stream, bag_file_errors(path):
         reader, summary = open_mcap(path, stream)
@@ -244,7 +244,7 @@ def _file_summary(path):
         stored = {}
         for record in reader.iter_metadata():
             if record.name == "rosbag2" and record.metadata.get("serialized_metadata"):
-                stored = yaml.safe_load(record.metadata["serialized_metadata"]) or {}
+                stored = safe_yaml.load(record.metadata["serialized_metadata"]) or {}
     return info, topics, stored
 
 
@@ -421,7 +421,10 @@ def missed_windows(directory: typing.Union[str, os.PathLike]
     list of dict
         One ``{topic: {"after_ns", "until_ns", "rate_hz"}}`` per restart (as :func:`recording_gaps`):
         ``after_ns`` the topic's last message in the files before the restart (None: none), ``until_ns`` its first
-        one after (None: none yet), ``rate_hz`` its mean message rate over the whole bag (None below 2 messages).
+        one after (None: none yet), ``rate_hz`` its mean message rate over the whole bag (None below 2 messages),
+        ``periodic``: its messages come at a steady rate (the spacing inside each file varies by less than
+        :data:`STEADY_SPACING_CV` of its mean, over at least 3 spacings), so the rate estimates what the window lost;
+        an event topic's (False) does not.
     """
     directory = os.fspath(directory)
     information = read_metadata(directory)
@@ -429,6 +432,7 @@ def missed_windows(directory: typing.Union[str, os.PathLike]
     if not restarts:
         return []
     spans = []          # per storage file: {topic: [first ns, last ns, count]}
+    spacing: typing.Dict[str, typing.List[float]] = {}   # topic: [spacings, sum, sum of squares], inside files only
     for relative in information.get("relative_file_paths") or []:
         path = os.path.join(directory, relative)
         span: typing.Dict[str, typing.List[int]] = {}
@@ -437,6 +441,10 @@ def missed_windows(directory: typing.Union[str, os.PathLike]
             if summary.statistics.message_count:
                 for _, channel, message in reader.iter_messages():
                     entry = span.setdefault(channel.topic, [message.log_time, message.log_time, 0])
+                    if entry[2]:
+                        step_s = (message.log_time - entry[1]) / 1e9
+                        stats = spacing.setdefault(channel.topic, [0, 0.0, 0.0])
+                        stats[0], stats[1], stats[2] = stats[0] + 1, stats[1] + step_s, stats[2] + step_s * step_s
                     entry[0], entry[1] = min(entry[0], message.log_time), max(entry[1], message.log_time)
                     entry[2] += 1
         spans.append(span)
@@ -452,9 +460,23 @@ def missed_windows(directory: typing.Union[str, os.PathLike]
             before = [span[topic][1] for span in spans[:index] if topic in span]
             after = [span[topic][0] for span in spans[index:] if topic in span]
             window[topic] = {"after_ns": max(before, default=None), "until_ns": min(after, default=None),
-                             "rate_hz": (count - 1) / ((last - first) / 1e9) if count > 1 and last > first else None}
+                             "rate_hz": (count - 1) / ((last - first) / 1e9) if count > 1 and last > first else None,
+                             "periodic": _steady(spacing.get(topic))}
         windows.append(window)
     return windows
+
+
+#: Largest coefficient of variation of a topic's message spacing for a steady-rate (periodic) topic.
+STEADY_SPACING_CV = 0.5
+
+
+def _steady(stats: typing.Optional[typing.List[float]]) -> bool:
+    """True when the spacings ``[n, sum, sum of squares]`` (s) are at least 3 and steady (:data:`STEADY_SPACING_CV`)."""
+    if not stats or stats[0] < 3 or stats[1] <= 0:
+        return False
+    mean = stats[1] / stats[0]
+    variance = max(0.0, stats[2] / stats[0] - mean * mean)
+    return variance ** 0.5 <= STEADY_SPACING_CV * mean
 
 
 def mark_restart(directory: typing.Union[str, os.PathLike],

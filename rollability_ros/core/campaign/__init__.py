@@ -10,15 +10,15 @@ imported here (it loads numpy and the twin), so the rig computer's campaign runn
 """
 from rollability_ros.core.campaign.plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
 from rollability_ros.core.campaign.runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledgements,
-                                                  answer_rig, local_rig_settings, plan_refusal, record_campaign_run,
-                                                  report_exit_code, resume_command, resume_refusal, run_campaign,
-                                                  store_writer)
+                                                  answer_rig, local_rig_settings, local_rig_settings_from_files,
+                                                  plan_refusal, record_campaign_run, report_exit_code, resume_command,
+                                                  resume_refusal, run_campaign, store_writer)
 from rollability_ros.core.campaign.terminal import AnsweredElsewhere, TerminalAsk
 
 __all__ = [
     "AnsweredElsewhere", "TerminalAsk",
     "CampaignSpec", "LocalRig", "LocalRigSettings", "RunnerSettings", "StoreAcknowledgements", "answer_rig",
-    "calibration", "load_campaign_spec", "local_rig_settings", "plan_refusal", "plan_trials", "record_campaign_run", "report_exit_code", "resume_command",
-    "resume_refusal",
-    "run_campaign", "store_writer", "trial_id_for",
+    "calibration", "load_campaign_spec", "local_rig_settings", "local_rig_settings_from_files", "plan_refusal",
+    "plan_trials", "record_campaign_run", "report_exit_code", "resume_command", "resume_refusal", "run_campaign", "store_writer",
+    "trial_id_for",
 ]

@@ -29,8 +29,8 @@ Uncertainty (``interval``; bench/bench_calibration.py --coverage measures how of
 Output
     :func:`calibrated_parameter_document` is a ROS 2 parameter file with the fitted values under their own
     namespaces, loaded on top of the defaults by the evaluator, the optimizer and the twin (``--config``,
-    ``--params-file``); it also sets ``rig.twin_config`` to the defaults plus itself, so the rig's sim backend
-    launches on the calibrated twin. See ``docs/calibration.md``.
+    ``--params-file``); :func:`rig_parameter_document` sets a rig node's ``rig.twin_config`` to the defaults plus
+    that file, so the rig's sim backend launches on the calibrated twin. See ``docs/calibration.md``.
 
 Launches run in a process pool (``workers``); cma and pybullet are imported where they are used.
 """
@@ -527,16 +527,17 @@ def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mappi
                              after_log_likelihood=main.log_likelihood, estimates=estimates, evaluations=evaluations)
 
 
-def calibrated_parameter_document(fitted: typing.Mapping[str, float],
-                                  own_path: typing.Optional[typing.Union[str, os.PathLike]] = None,
-                                  twin_configs: typing.Sequence[str] = TWIN_CONFIGS) -> typing.Dict[str, typing.Any]:
-    """The calibrated ROS 2 parameter file as a dict: ``/**: {ros__parameters: {...}}``.
-
-    ``fitted`` maps config keys to values; they are nested under their namespaces. With ``own_path`` (where the
-    file will be written) ``rig.twin_config`` becomes ``twin_configs`` plus that path, so a rig loaded with this
-    file launches its sim backend on the calibrated twin.
-    """
+def calibrated_parameter_document(fitted: typing.Mapping[str, float]) -> typing.Dict[str, typing.Any]:
+    """The calibrated ROS 2 parameter file as a dict: ``/**: {ros__parameters: {...}}``, ``fitted`` (config keys to
+    values) nested under their namespaces: only keys of the twin's namespaces, so every command that reads the twin
+    applies all of them (a key a command does not apply is refused: ``config.check_given_files``)."""
     flat: typing.Dict[str, typing.Any] = {name: float(value) for name, value in fitted.items()}
-    if own_path is not None:
-        flat["rig.twin_config"] = [*twin_configs, os.fspath(own_path)]
     return {"/**": {"ros__parameters": section(flat, "")}}
+
+
+def rig_parameter_document(calibrated_path: typing.Union[str, os.PathLike],
+                           twin_configs: typing.Sequence[str] = TWIN_CONFIGS) -> typing.Dict[str, typing.Any]:
+    """The rig's parameter file for a calibrated twin: ``rig.twin_config`` = ``twin_configs`` plus
+    ``calibrated_path``, so a rig node given it (``--params-file``) launches its sim backend on the calibrated twin
+    (a node drops parameters it does not declare, such as ``launch_twin.*``)."""
+    return {"/**": {"ros__parameters": {"rig": {"twin_config": [*twin_configs, os.fspath(calibrated_path)]}}}}

@@ -21,7 +21,7 @@ import time
 import typing
 
 from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, changes_between
-from rollability_ros.core.config import settings_from_sections
+from rollability_ros.core.config import check_given_files, load_parameters, settings_from_sections
 from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, LaunchAborted,
                                       LaunchBackend, RigPorts, RigSettings, SpeedGateConfig, ValveConfig,
@@ -373,6 +373,25 @@ def local_rig_settings(backend: str, parameters: typing.Mapping[str, typing.Any]
     ``imu_outcome.*``) once, with ``rig.backend`` set to ``backend`` (``"sim"`` or ``"physical"``, the command
     line's); a bad value raises ConfigError naming its parameter."""
     return settings_from_sections(LocalRigSettings, {**parameters, "rig.backend": backend})
+
+
+def local_rig_settings_from_files(backend: str, paths: typing.Optional[typing.Sequence[str]],
+                                  command: str) -> LocalRigSettings:
+    """:func:`local_rig_settings` of the rig parameter files a user gave ``command`` (None: the shipped
+    ``config/rig.yaml``), once every parameter in them is one the rig applies (else ConfigError naming the file,
+    parameter and command): its own sections (:class:`LocalRigSettings`) and the twin's, through ``rig.twin_config``,
+    to which the files that set twin parameters are appended."""
+    from rollability_ros.core.sim import TWIN_SECTIONS, twin_files
+
+    paths = list(paths) if paths is not None else ["rig"]
+    own = {field.name for field in dataclasses.fields(LocalRigSettings)}
+    check_given_files(paths, own | TWIN_SECTIONS, command)
+    parameters = load_parameters(paths)
+    extra = twin_files(paths, TWIN_SECTIONS)
+    if extra:
+        twin = list(parameters.get("rig.twin_config", RigSettings().twin_config))
+        parameters["rig.twin_config"] = [*twin, *(path for path in extra if path not in twin)]
+    return local_rig_settings(backend, parameters)
 
 
 class LocalRig:

@@ -11,13 +11,17 @@ import tempfile
 import typing
 
 
-def claim_domain(first: int, last: int, start: typing.Optional[int] = None) -> typing.Tuple[int, typing.TextIO]:
+def claim_domain(first: int, last: int, start: typing.Optional[int] = None,
+                 skip: typing.Collection[int] = ()) -> typing.Tuple[int, typing.TextIO]:
     """``(domain, lock handle)``: the first domain in ``first..last`` (inclusive, tried from ``start``, default
-    ``first + pid mod size``) that no other process holds; ``RuntimeError`` when all are held."""
+    ``first + pid mod size``, never one of ``skip``) that no other process holds; ``RuntimeError`` when all are
+    held."""
     size = last - first + 1
     start = first + os.getpid() % size if start is None else start
     for offset in range(size):
         domain = first + (start - first + offset) % size
+        if domain in skip:
+            continue
         handle = open(os.path.join(tempfile.gettempdir(), f"rollability-ros-domain-{domain}.lock"), "w")
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)

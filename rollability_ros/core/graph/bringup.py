@@ -23,7 +23,8 @@ import typing
 
 import yaml
 
-from rollability_ros.core.config import from_mapping, load_parameters, resolve_config_path, section
+from rollability_ros.core.config import (check_parent_steps, from_mapping, load_parameters, resolve_config_path,
+                                         section)
 from rollability_ros.core.graph.supervisor import ProcessSpec
 from rollability_ros.core.optimization import atomic_write_bytes
 
@@ -93,6 +94,20 @@ class NodeLaunch:
                            critical=self.critical, stop_timeout_s=self.stop_timeout_s)
 
 
+#: The parameter that names the valve session key file, per node module that reads it.
+KEY_FILE_PARAMETERS = {"valve_controller": "valve.session_key_file", "rig": "valve.session_key_file",
+                       "outcome_logger": "session_key_file", "campaign_runner": "runner.session_key_file"}
+
+
+def join_nodes(nodes: typing.Iterable[NodeLaunch], session_id: str, key_file: str) -> None:
+    """Make every node of ``nodes`` a member of session ``session_id`` (``session.id``: they talk only to nodes of
+    the same session) and give those that read the valve session key the session's own ``key_file``."""
+    for node in nodes:
+        node.params["session.id"] = session_id
+        if node.module in KEY_FILE_PARAMETERS:
+            node.params[KEY_FILE_PARAMETERS[node.module]] = key_file
+
+
 def parameter_files(extra: typing.Sequence[str] = ()) -> typing.List[str]:
     """Resolved paths of :data:`DEFAULT_CONFIGS` followed by ``extra`` (names of shipped files or paths)."""
     return [resolve_config_path(name) for name in (*DEFAULT_CONFIGS, *extra)]
@@ -126,6 +141,7 @@ class GraphSettings:
             raise ValueError(f"view_port must be a TCP port, got {self.view_port}")
         if self.optimization_timeout_s < 0 or self.campaign_timeout_s < 0 or self.poll_period_s <= 0:
             raise ValueError("timeouts must be >= 0 (0 = none) and poll_period_s > 0")
+        check_parent_steps(self.output_dir, "bringup.output_dir")   # before any folder is made or node started
 
 
 #: Keys of ``bringup.*`` that moved: old key -> the one key that sets it now.
@@ -175,6 +191,17 @@ def core_nodes(settings: "GraphSettings", study_dir: str,
     for node in nodes:
         node.namespace = node.namespace or settings.namespace
     return nodes
+
+
+def session_twin_config(param_files: typing.Sequence[str], given_files: typing.Sequence[str]) -> typing.List[str]:
+    """The rig's ``rig.twin_config`` for a session on ``param_files``: as those files set it (default: the shipped
+    twin files), then each of the user's ``given_files`` that sets launch twin parameters, so the rig's twin reads
+    them (they are applied, never dropped)."""
+    from rollability_ros.core.rig import RigSettings
+    from rollability_ros.core.sim import twin_files
+
+    twin = list(load_parameters(list(param_files)).get("rig.twin_config", RigSettings().twin_config))
+    return [*twin, *(path for path in twin_files(given_files) if path not in twin)]
 
 
 def session_nodes(settings: "GraphSettings", run_dir: str, rig_backend: str = "sim",

@@ -15,12 +15,13 @@ import dataclasses
 import functools
 import typing
 
-from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
+from rollability_ros.core.config import ConfigError, check_given_files, from_mapping, load_parameters, section
 
 
 def _node_sections():
     """``{node name: {parameter prefix: settings dataclass}}`` of the nodes a study starts."""
     from rollability_ros.core.bags import RecorderSettings
+    from rollability_ros.core.config import SessionSettings
     from rollability_ros.core.campaign import CampaignSpec, RunnerSettings
     from rollability_ros.core.imu import ImuOutcomeConfig
     from rollability_ros.core.optimization import OptimizerSettings, QualityDiversitySettings, SelectionSettings
@@ -32,17 +33,18 @@ def _node_sections():
 
     hints = typing.get_type_hints(EvaluatorSettings)
     evaluator = {prefix: hints[field] for field, prefix in SETTINGS_SECTIONS.items()}
+    session = {"session": SessionSettings}   # session.id: the nodes that refuse other sessions (docs/sessions.md)
     return {
         "recorder": {"recorder": RecorderSettings},
-        "outcome_logger": {"": OutcomeLoggerSettings},
+        "outcome_logger": {"": OutcomeLoggerSettings, **session},
         "valve_controller": {"valve": ValveConfig},
-        "sim_evaluator": evaluator,
+        "sim_evaluator": {**evaluator, **session},
         "optimizer": {"optimizer": OptimizerSettings, "quality_diversity": QualityDiversitySettings,
                       "selection": SelectionSettings, "profile": ProfileGrid, "printer": PrinterSpec,
-                      "robot": ChassisSpec, "urdf_robot": UrdfRobotSpec, "stable_poses": ScreenSettings},
+                      "robot": ChassisSpec, "urdf_robot": UrdfRobotSpec, "stable_poses": ScreenSettings, **session},
         "rig": {"rig": RigSettings, "valve": ValveConfig, "speed_gate": SpeedGateConfig,
-                "imu_outcome": ImuOutcomeConfig},
-        "campaign_runner": {"campaign": CampaignSpec, "runner": RunnerSettings},
+                "imu_outcome": ImuOutcomeConfig, **session},
+        "campaign_runner": {"campaign": CampaignSpec, "runner": RunnerSettings, **session},
     }
 
 
@@ -108,6 +110,18 @@ def unknown_parameters(flat: typing.Mapping[str, object]) -> typing.List[str]:
     return sorted(unknown)
 
 
+def graph_namespaces(node_names: typing.Optional[typing.Iterable[str]] = None) -> typing.FrozenSet[str]:
+    """The parameter namespaces the nodes ``node_names`` (default: every node a study starts; names of other nodes
+    pass) apply: their settings' prefixes, ``bringup`` (the session's own) and, with the rig, ``launch_twin`` (its
+    twin reads the parameter files ``rig.twin_config`` lists, the session's among them)."""
+    sections = _node_sections()
+    nodes = set(sections) if node_names is None else set(node_names)
+    namespaces = {"bringup", *(prefix for node in nodes & set(sections) for prefix in sections[node] if prefix)}
+    if "rig" in nodes:
+        namespaces.add("launch_twin")
+    return frozenset(namespaces)
+
+
 def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing.Optional[typing.Sequence[str]] = None,
                            overrides: typing.Optional[dict] = None) -> typing.List[str]:
     """Return every problem in the parameters the nodes ``node_names`` (default: all a study starts) would read.
@@ -138,4 +152,33 @@ def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing
                 from_mapping(settings_cls, _declared_only(settings_cls, section(flat, prefix)), prefix or node)
             except (ConfigError, ValueError, TypeError) as exc:
                 problems.append(f"{node}: {exc}")
+        if node == "rig" and flat.get("rig.backend", "sim") == "sim":
+            problems.extend(f"rig: {problem}" for problem in _twin_problems(flat))
     return problems
+
+
+def _twin_problems(flat):
+    """What the sim rig's twin would refuse in the files ``rig.twin_config`` names (it loads them at start)."""
+    from rollability_ros.core.rig import RigSettings
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters
+
+    twin_config = flat.get("rig.twin_config", RigSettings().twin_config)
+    try:
+        launch_twin_settings_from_parameters(load_parameters(list(twin_config)))
+    except (ConfigError, ValueError, TypeError) as exc:
+        return [f"launch twin ({', '.join(map(str, twin_config))}): {exc}"]
+    return []
+
+
+def refuse_bad_session(param_files: typing.Sequence[str], given_files: typing.Sequence[str],
+                       nodes: typing.Mapping[str, dict], command: str) -> None:
+    """Raise :class:`ConfigError` before a session starts ``nodes`` (``{node module: its overrides}``, from
+    ``param_files``) when a parameter of the files the user gave (``given_files``) is one no node of it applies
+    (:func:`graph_namespaces`), or any node would refuse its parameters (:func:`check_graph_parameters`)."""
+    checked = [node for node in nodes if node in _node_sections()]
+    check_given_files(given_files, graph_namespaces(checked), command)
+    problems = check_graph_parameters(param_files, checked, {node: nodes[node] for node in checked})
+    if len(problems) == 1:
+        raise ConfigError(f"nothing started: {problems[0]}")
+    if problems:
+        raise ConfigError(f"nothing started: {len(problems)} invalid parameters:\n  " + "\n  ".join(problems))

@@ -33,9 +33,12 @@ import typing
 
 import yaml
 
-from rollability_ros.core.graph.bringup import NodeLaunch, core_nodes, load_graph_settings, new_study_id, parameter_files
+from rollability_ros.core.graph.bringup import (NodeLaunch, core_nodes, join_nodes, load_graph_settings,
+                                                new_study_id, parameter_files)
+from rollability_ros.core.graph.preflight import graph_namespaces
+from rollability_ros.core.graph.session import SessionInfo, start_session
 from rollability_ros.core.graph.progress import GraphObserver, JobProgress, ProgressDisplay, Stopwatch, eta_s
-from rollability_ros.core.config import check_path_component, load_parameters
+from rollability_ros.core.config import check_given_files, check_path_component, load_parameters
 from rollability_ros.core.records import LaunchOutcome
 from rollability_ros.core.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
@@ -77,6 +80,7 @@ class Study:
                  display: typing.Optional[ProgressDisplay] = None,
                  observer: typing.Optional[GraphObserver] = None) -> None:
         self.param_files = parameter_files(["bringup", *extra_configs])
+        check_given_files(extra_configs, graph_namespaces(), "rollability study")   # applied or refused, at once
         self.resuming = resume is not None
         if resume is not None:   # self.resuming
             if extra_configs or study_id:
@@ -101,6 +105,8 @@ class Study:
         self._shown_generation = -1
         self._campaign_clock: typing.Optional[Stopwatch] = None
         self._campaign_start_done = 0
+        self.session: typing.Optional[SessionInfo] = None
+        self._domain_lock: typing.Optional[typing.TextIO] = None
 
     def request_stop(self) -> None:
         """Ask the running study to stop at its next check (Ctrl-C handler)."""
@@ -112,9 +118,47 @@ class Study:
         return os.path.join(self.study_dir, OPTIMIZATION_DIR)
 
     @property
+    def designs_file(self) -> str:
+        """The designs.yaml the selection writes and the campaign launches (absolute)."""
+        return os.path.abspath(os.path.join(self.optimization_dir, "designs", "designs.yaml"))
+
+    @property
     def store_path(self) -> str:
         """The logger's outcome store of the study."""
         return os.path.join(self.study_dir, "outcomes.sqlite")
+
+    def open_session(self, environ: typing.MutableMapping[str, str] = os.environ) -> SessionInfo:
+        """Check the parameters, make (or reopen) the study directory, and put this process (``environ``, before
+        ROS starts here: the observer and every node inherit it) on the study's own ROS domain with localhost
+        discovery (:mod:`~rollability_ros.core.graph.session`); writes ``session.yaml`` and says how to join."""
+        if self.session is not None:
+            return self.session
+        self.check_parameters()
+        if self.resuming:
+            self.say(f"study {self.study_id}: resuming in {self.study_dir}")
+            if os.path.basename(self.study_dir) != self.study_id:
+                self.say(f"  (the folder was renamed or copied: its campaign continues under its recorded id "
+                         f"{self.study_id})")
+        else:
+            self.make_study_dir()
+            self.say(f"study {self.study_id}: results in {self.study_dir}")
+        self.session, self._domain_lock = start_session("study", self.study_dir, self.settings.namespace, environ,
+                                                        store_path=self.store_path)
+        self.say(f"study {self.study_id}: its own ROS domain {self.session.ros_domain_id} "
+                 f"({self.session.discovery_range} discovery), namespace {self.session.namespace}")
+        for line in self.session.join_lines():
+            self.say(line)
+        return self.session
+
+    def _session_nodes(self, nodes):
+        """``nodes`` as members of the study's session (its id and valve key file); its logger stores only the
+        study's two runs (the optimization and the campaign)."""
+        if self.session is not None:
+            join_nodes(nodes, self.session.id, self.session.valve_key_file)
+        for node in nodes:
+            if node.module == "outcome_logger":
+                node.params["session_runs"] = [self.study_id, OPTIMIZATION_DIR]
+        return nodes
 
     def _optimizer(self, resume):
         return NodeLaunch("optimizer", namespace=self.settings.namespace, params={
@@ -159,8 +203,7 @@ class Study:
 
     def _campaign_nodes(self, labels):
         configurations = ["baseline", *labels]
-        overrides = {"launch_twin": {"designs": {"designs_file": os.path.join(self.optimization_dir, "designs",
-                                                                              "designs.yaml")}}}
+        overrides = {"launch_twin": {"designs": {"designs_file": self.designs_file}}}
         study_yaml = os.path.join(self.study_dir, "study.yaml")
         with open(study_yaml, "w", encoding="utf-8") as stream:
             yaml.safe_dump({"/**": {"ros__parameters": overrides}}, stream)
@@ -170,7 +213,7 @@ class Study:
         runner = NodeLaunch("campaign_runner", namespace=self.settings.namespace, restart=False, params={
             "campaign.run_id": self.study_id, "campaign.configurations": configurations,
             "runner.backend": "sim", "runner.resume": self.resuming})
-        return rig, runner
+        return self._session_nodes([rig, runner])
 
     def _progress_optimization(self):
         """Snapshots of the optimization phase: one per generation completed since the last call (a plain log
@@ -217,24 +260,16 @@ class Study:
         from rollability_ros.core.config import ConfigError
         from rollability_ros.core.graph.preflight import check_graph_parameters
 
-        problems = check_graph_parameters(self.param_files)
+        problems = check_graph_parameters(self.param_files, overrides={"rig": {"rig.twin_config": self.param_files}})
         if problems:
             raise ConfigError(f"study not started: {len(problems)} invalid parameter(s):\n  " + "\n  ".join(problems))
 
     def run(self) -> StudyResult:
         """Run (or resume) the whole study; always stops the graph; returns a :class:`StudyResult`."""
-        self.check_parameters()
-        if self.resuming:
-            self.say(f"study {self.study_id}: resuming in {self.study_dir}")
-            if os.path.basename(self.study_dir) != self.study_id:
-                self.say(f"  (the folder was renamed or copied: its campaign continues under its recorded id "
-                         f"{self.study_id})")
-        else:
-            self.make_study_dir()
-            self.say(f"study {self.study_id}: results in {self.study_dir}")
+        self.open_session()
         bag_dir = self._next_bag_dir() if self.settings.record else ""
         supervisor = Supervisor([n.process_spec(self.param_files, self.study_dir)
-                                 for n in core_nodes(self.settings, self.study_dir, bag_dir)],
+                                 for n in self._session_nodes(core_nodes(self.settings, self.study_dir, bag_dir))],
                                 os.path.join(self.study_dir, "logs"),
                                 on_event=lambda event: self.say("  " + event.text()))
         result = StudyResult(study_dir=self.study_dir, ok=False, bag_dir=bag_dir)
@@ -244,7 +279,8 @@ class Study:
                 resume = os.path.isfile(os.path.join(self.optimization_dir, "config.yaml"))
                 self.say("resuming the optimization from its last checkpoint" if resume else
                          "optimizing the profile (the optimizer over the evaluators)")
-                supervisor.add(self._optimizer(resume).process_spec(self.param_files, self.study_dir))
+                optimizer = self._session_nodes([self._optimizer(resume)])[0]
+                supervisor.add(optimizer.process_spec(self.param_files, self.study_dir))
                 code, reason = self._wait(supervisor, "optimizer", self.settings.optimization_timeout_s,
                                           self._progress_optimization)
                 if code != 0:
@@ -285,13 +321,9 @@ class Study:
 
     def _selected_labels(self):
         """The labels of the selected designs (may be empty), or None before selection has written designs.yaml."""
-        designs_yaml = os.path.join(self.optimization_dir, "designs", "designs.yaml")
-        if not os.path.isfile(designs_yaml):
+        if not os.path.isfile(self.designs_file):
             return None
-        with open(designs_yaml, encoding="utf-8") as stream:
-            document = yaml.safe_load(stream) or {}
-        params = next(iter(document.values()), {}).get("ros__parameters", {})
-        return list(params.get("designs", {}).get("labels", []))
+        return list(load_parameters([self.designs_file]).get("designs.labels", []))
 
     def _campaign_size(self, configurations):
         per_configuration = 1
@@ -299,16 +331,27 @@ class Study:
             per_configuration *= len(self.parameters.get(key, [None]))
         return configurations * per_configuration * int(self.parameters.get("campaign.repetitions", 1))
 
+    def _record_campaign_designs(self):
+        """Record in the store the designs the campaign launched (the rig's designs_file, :meth:`_campaign_nodes`),
+        so a report lists that set and not one a later ``select`` wrote beside it; the logger has stopped, so the
+        store has one writer."""
+        from rollability_ros.core.campaign import record_campaign_run
+
+        if os.path.isfile(self.store_path) and os.path.isfile(self.designs_file):
+            with Store(self.store_path) as store:
+                if store.trial_ids(self.study_id):
+                    record_campaign_run(store, self.study_id, "sim", {"designs_file": self.designs_file,
+                                                                      "mesh_files": {}})
+
     def _report(self, result):
         from rollability_ros.core.results import report
 
+        self._record_campaign_designs()
         data = report.load_report_data(self.store_path, run_id=self.study_id)
         table3 = os.path.join(self.optimization_dir, "designs", "table3.csv")
         if os.path.isfile(table3):
             report.use_geometry_csv(data, table3)
-        built = report.build_report(data, os.path.join(self.study_dir, "report"))
-        result.report_html = built.html_path
-        result.summary = built.summary
+        problem = ""
         if result.bag_dir:
             from rollability_ros.core.bags import missed_windows, read_records_from_bag, recording_gaps
 
@@ -317,12 +360,22 @@ class Study:
             gaps = [gap for path in self.bag_dirs() for gap in recording_gaps(path)]
             windows = [window for path in self.bag_dirs() for window in missed_windows(path)]
             problem, gap_note = compare_bags_with_store(bagged, data.outcomes, gaps, windows)
-            if gap_note:
+            if gap_note:   # in the study's files and its report, not only on the console
                 self.say(gap_note)
-            if problem:
-                result.ok = False
-                result.reason = problem
+                with open(os.path.join(self.study_dir, RECORDING_GAPS_FILE), "w", encoding="utf-8") as stream:
+                    stream.write(gap_note + "\n")
+                data.notes.append(f"recording gaps ({RECORDING_GAPS_FILE}): {gap_note}")
+        built = report.build_report(data, os.path.join(self.study_dir, "report"))
+        result.report_html = built.html_path
+        result.summary = built.summary
+        if problem:
+            result.ok = False
+            result.reason = problem
         return result
+
+
+#: The study's note of what its bags lost to recorder restarts, in the study directory (also in the report).
+RECORDING_GAPS_FILE = "recording-gaps.txt"
 
 
 #: Slack at the start of a recording gap, s: an outcome stamped just before the last message the killed recorder
@@ -345,9 +398,14 @@ def _clock_ns(time_ns):
     return datetime.datetime.fromtimestamp(time_ns / 1e9, datetime.timezone.utc).strftime("%H:%M:%S.%f")[:-3]
 
 
-def topic_windows_text(window: typing.Mapping[str, typing.Mapping[str, typing.Any]]) -> str:
+def topic_windows_text(window: typing.Mapping[str, typing.Mapping[str, typing.Any]],
+                       known: typing.Optional[typing.Mapping[str, int]] = None) -> str:
     """One restart's per-topic missed windows (:func:`~rollability_ros.core.bags.recover.missed_windows`) as text:
-    ``/ns/rig/pose 10:00:01.200 to 10:00:06.800 UTC (5.6 s, about 560 messages at its 100 Hz)``, one per topic."""
+    ``/ns/rig/pose 10:00:01.200 to 10:00:06.800 UTC (5.6 s, about 560 messages at its 100 Hz)``, one per topic.
+
+    A steady-rate topic's loss is estimated from its rate; an event topic's is not: ``known`` (topic -> messages
+    known to have been published in its window, e.g. stored launch outcomes missing from the bag) says how many,
+    "nothing published" for 0, and without it the text says the loss is unknown."""
     parts = []
     for topic, entry in window.items():
         after, until, rate = entry["after_ns"], entry["until_ns"], entry["rate_hz"]
@@ -356,11 +414,20 @@ def topic_windows_text(window: typing.Mapping[str, typing.Mapping[str, typing.An
         text = f"{topic} {start} to {end}"
         if after is not None and until is not None:
             seconds = (until - after) / 1e9
-            estimate = (f", about {max(0, round(seconds * rate) - 1)} messages at its {rate:.3g} Hz"
-                        if rate else "")
-            text += f" ({seconds:.1f} s{estimate})"
+            if known is not None and topic in known:
+                lost = (f"nothing published" if not known[topic] else
+                        f"{known[topic]} message(s) published then, in the store, not in the bag")
+            elif entry.get("periodic", True):
+                lost = (f"about {max(0, round(seconds * rate) - 1)} messages at its {rate:.3g} Hz" if rate else "")
+            else:
+                lost = "an event topic: what it published then is not known"
+            text += f" ({seconds:.1f} s{', ' + lost if lost else ''})"
         parts.append(text)
     return ", ".join(parts)
+
+
+#: The topic whose lost messages the store can count: the launch outcomes (relative name).
+_COUNTED_TOPIC = "launch_outcomes"
 
 
 def compare_bags_with_store(bagged_trial_ids: typing.Collection[str], stored_outcomes: typing.Iterable[LaunchOutcome],
@@ -404,7 +471,8 @@ def compare_bags_with_store(bagged_trial_ids: typing.Collection[str], stored_out
         windows = "; ".join(f"{_format_ns(after)} to {_format_ns(until)} ({len(in_gap[i])} stored outcome(s) "
                             f"not in a bag)" for i, (after, until) in enumerate(gaps))
         note = f"the recorder was restarted {len(gaps)} time(s); the bag lost the window(s): {windows}"
-        per_topic = [topic_windows_text(window) for window in topic_windows if window]
+        per_topic = [topic_windows_text(window, _stored_in_windows(window, missing, margin_ns))
+                     for window in topic_windows if window]
         if per_topic:
             note += "; every topic's missed window (its last message before the kill to its first after the " \
                     "restart): " + "; ".join(per_topic)
@@ -415,6 +483,17 @@ def compare_bags_with_store(bagged_trial_ids: typing.Collection[str], stored_out
                    f"{' (e.g. ' + unexplained[0].trial_id + ')' if unexplained else ''}, {len(extra)} bagged "
                    f"outcome(s) not stored")
     return problem, note
+
+
+def _stored_in_windows(window, missing, margin_ns):
+    """``{launch outcome topic: stored outcomes missing from the bags stamped in its window}``."""
+    counts = {}
+    for topic, entry in window.items():
+        after, until = entry["after_ns"], entry["until_ns"]
+        if topic.rsplit("/", 1)[-1] == _COUNTED_TOPIC and after is not None and until is not None:
+            counts[topic] = sum(1 for outcome in missing
+                                if after - margin_ns <= int(round(outcome.stamp_s * 1e9)) <= until)
+    return counts
 
 
 def resume_dir(study: str, output_dir: str) -> str:

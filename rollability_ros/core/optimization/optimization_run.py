@@ -42,8 +42,8 @@ import numpy as np
 import yaml
 
 from rollability_ros.core.optimization import checkpoint as checkpoints
-from rollability_ros.core.config import (ConfigError, check_path_component, load_parameters, resolve_config_path,
-                                         section, settings_from_sections)
+from rollability_ros.core.config import (ConfigError, check_given_files, check_path_component, load_parameters,
+                                         resolve_config_path, section, settings_from_sections)
 from rollability_ros.core.optimization.cmaes import (
     STREAM_POPULATION,
     STREAM_RACE,
@@ -59,7 +59,8 @@ from rollability_ros.core.optimization.cmaes import (
 from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
 from rollability_ros.core.profile import PrinterSpec
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, RunProgress
-from rollability_ros.core.sim import ScreenSettings
+from rollability_ros.core.sim import (SETTINGS_SECTIONS, TWIN_NAMESPACE, ObjectiveSettings, ScreenSettings,
+                                      twin_files)
 from rollability_ros.core.store import Store
 
 #: File name of the merged parameters inside a run directory.
@@ -114,6 +115,27 @@ def load_run_parameters(config_paths: typing.Union[str, os.PathLike, typing.Sequ
     named = any(os.path.abspath(resolve_config_path(path)) in shipped for path in config_paths)
     defaults = [] if named else [OPTIMIZER_CONFIGS[0]]
     return load_parameters(list(BASE_CONFIGS) + defaults + config_paths)
+
+
+#: The namespaces an optimization run applies: its own (:class:`RunSettings`), the evaluation's, the selection that
+#: follows it, and the launch twin's (through ``objective.twin_config``: :func:`with_given_files`).
+RUN_NAMESPACES = frozenset({*(field.name for field in dataclasses.fields(RunSettings)), "selection",
+                            *SETTINGS_SECTIONS.values(), TWIN_NAMESPACE})
+
+
+def with_given_files(parameters: typing.Mapping[str, typing.Any], config_paths: typing.Sequence[str],
+                     command: str) -> dict:
+    """``parameters`` with the files a user gave ``command`` merged over them (later files win), once every
+    parameter in those files is one a run applies (:data:`RUN_NAMESPACES`; else :class:`ConfigError` naming the
+    file, parameter and command); the files that set launch twin parameters are appended to
+    ``objective.twin_config``, so the run's twin reads them."""
+    check_given_files(config_paths, RUN_NAMESPACES, command)
+    merged = {**parameters, **load_parameters(list(config_paths))} if config_paths else dict(parameters)
+    extra = twin_files(config_paths)
+    if extra:
+        twin = list(merged.get("objective.twin_config", ObjectiveSettings().twin_config))
+        merged["objective.twin_config"] = [*twin, *(path for path in extra if path not in twin)]
+    return merged
 
 
 def resolve_run_dir(run: typing.Union[str, os.PathLike], output_dir: str = "runs") -> str:

@@ -103,10 +103,11 @@ class MassProperties:
         return MassProperties(self.mass_kg * factor, self.com_m, self.inertia_kgm2 * factor)
 
 
-def _unit_solid(mesh: Mesh) -> MassProperties:
-    """Mass properties of ``mesh`` as a solid of density 1 (mass = volume, m^3)."""
+def _unit_solid(triangles: np.ndarray) -> MassProperties:
+    """Mass properties of the closed, outward-wound ``triangles`` (k, 3, 3) as a solid of density 1 (mass = volume,
+    m^3)."""
     trimesh = require("trimesh", feature="profile meshes")
-    properties = trimesh.triangles.mass_properties(mesh.triangles, density=1.0)
+    properties = trimesh.triangles.mass_properties(triangles, density=1.0)
     return MassProperties(float(properties["volume"]), np.asarray(properties["center_mass"], dtype=np.float64),
                           np.asarray(properties["inertia"], dtype=np.float64))
 
@@ -117,7 +118,7 @@ def combine(parts: typing.Sequence[typing.Tuple[MassProperties, float]]) -> Mass
     mass = sum(part.mass_kg * density for part, density in parts)
     if not mass > 0:
         raise ValueError(f"the parts weigh {mass} kg: nothing to build a body from")
-    com = sum(part.com_m * part.mass_kg * density for part, density in parts) / mass
+    com = np.sum([part.com_m * part.mass_kg * density for part, density in parts], axis=0) / mass
     inertia = np.zeros((3, 3))
     for part, density in parts:
         offset = part.com_m - com
@@ -139,26 +140,52 @@ def check_solid_mesh(mesh: Mesh) -> None:
                          "wound or inside out): its mass is undefined")
 
 
-def inner_solid(mesh: Mesh, wall_thickness_m: float, skin_thickness_m: float) -> typing.Optional[Mesh]:
-    """The convex ``mesh`` moved inwards by the shell (module docstring), or None when nothing is left inside."""
-    trimesh = require("trimesh", feature="profile meshes")
-    scipy_spatial = require("scipy.spatial", feature="the printed profile's mass")
-    scipy_optimize = require("scipy.optimize", feature="the printed profile's mass")
-    normals = np.asarray(mesh.face_normals, dtype=np.float64)
-    offsets = np.einsum("ij,ij->i", normals, np.asarray(mesh.triangles_center, dtype=np.float64))
+def face_planes(mesh: Mesh) -> typing.Tuple[np.ndarray, np.ndarray]:
+    """The distinct planes of ``mesh``'s faces of non-zero area: unit outward normals (p, 3) and offsets (p,) m, so
+    that the solid is ``normals @ x <= offsets`` when it is convex."""
+    triangles = np.asarray(mesh.triangles, dtype=np.float64)
+    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    length = np.linalg.norm(normals, axis=1)
+    keep = length > 1e-12 * max(1.0, float(np.ptp(triangles.reshape(-1, 3), axis=0).max()) ** 2)
+    normals = normals[keep] / length[keep, None]
+    offsets = np.einsum("ij,ij->i", normals, triangles[keep].mean(axis=1))
     planes = np.unique(np.round(np.column_stack([normals, offsets]), 12), axis=0)
-    normals, offsets = planes[:, :3] / np.linalg.norm(planes[:, :3], axis=1, keepdims=True), planes[:, 3]
+    return planes[:, :3] / np.linalg.norm(planes[:, :3], axis=1, keepdims=True), planes[:, 3]
+
+
+def is_convex(mesh: Mesh, normals: np.ndarray, offsets: np.ndarray) -> bool:
+    """True when every vertex of the closed, outward-wound ``mesh`` lies inside every face plane (to 1e-6 of its
+    size): the mesh is convex."""
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    tolerance = 1e-6 * float(np.ptp(vertices, axis=0).max())
+    return bool((vertices @ normals.T - offsets).max() <= tolerance)
+
+
+def inner_solid(normals: np.ndarray, offsets: np.ndarray, wall_thickness_m: float, skin_thickness_m: float,
+                guess_m: np.ndarray) -> typing.Optional[np.ndarray]:
+    """The convex solid ``normals @ x <= offsets`` moved inwards by the shell (module docstring) as outward-wound
+    triangles (k, 3, 3), or None when nothing is left inside; ``guess_m`` (3,) is tried first as its interior
+    point (the outer solid's centroid)."""
+    scipy_spatial = require("scipy.spatial", feature="the printed profile's mass")
     vertical = np.abs(normals[:, 2])
     shell = np.maximum(wall_thickness_m * np.sqrt(np.clip(1 - vertical ** 2, 0.0, 1.0)), skin_thickness_m * vertical)
     limits = offsets - shell
-    # Chebyshev centre: the largest ball inside every moved half-space n.x <= limit (maximise its radius r)
-    found = scipy_optimize.linprog(c=[0.0, 0.0, 0.0, -1.0], A_ub=np.column_stack([normals, np.ones(len(normals))]),
-                                   b_ub=limits, bounds=[(None, None)] * 3 + [(0.0, None)], method="highs")
-    if found.status != 0 or found.x[3] <= MIN_INNER_RADIUS_M:
-        return None
-    meet = scipy_spatial.HalfspaceIntersection(np.column_stack([normals, -limits]), found.x[:3])
-    inner = trimesh.convex.convex_hull(meet.intersections)
-    return inner if inner.volume > 0 else None
+    inside = np.asarray(guess_m, dtype=np.float64)
+    if not (limits - normals @ inside).min() > MIN_INNER_RADIUS_M * 10:
+        # Chebyshev centre: the largest ball inside every moved half-space n.x <= limit (maximise its radius r)
+        scipy_optimize = require("scipy.optimize", feature="the printed profile's mass")
+        found = scipy_optimize.linprog(c=[0.0, 0.0, 0.0, -1.0], A_ub=np.column_stack([normals, np.ones(len(normals))]),
+                                       b_ub=limits, bounds=[(None, None)] * 3 + [(0.0, None)], method="highs")
+        if found.status != 0 or found.x[3] <= MIN_INNER_RADIUS_M:
+            return None
+        inside = found.x[:3]
+    corners = scipy_spatial.HalfspaceIntersection(np.column_stack([normals, -limits]), inside).intersections
+    hull = scipy_spatial.ConvexHull(corners)
+    triangles = corners[hull.simplices]
+    outward = np.einsum("ij,ij->i", np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]),
+                        triangles[:, 0] - inside)
+    triangles[outward < 0] = triangles[outward < 0][:, ::-1]
+    return triangles if hull.volume > 0 else None
 
 
 def print_mass_properties(mesh: Mesh, spec: ProfilePrintSpec, mass_scale: float = 1.0) -> MassProperties:
@@ -172,14 +199,15 @@ def print_mass_properties(mesh: Mesh, spec: ProfilePrintSpec, mass_scale: float 
     if not mass_scale > 0:
         raise ValueError(f"profile_mass_scale must be > 0, got {mass_scale}")
     check_solid_mesh(mesh)
-    outer = _unit_solid(mesh)
+    outer = _unit_solid(np.asarray(mesh.triangles, dtype=np.float64))
     if spec.model == "solid":
         return combine([(outer, spec.solid_density_kgpm3)]).scaled(mass_scale)
-    if not mesh.is_convex:
+    normals, offsets = face_planes(mesh)
+    if not is_convex(mesh, normals, offsets):
         raise ValueError("profile_print.model: shell needs a convex profile mesh (the designs are convex hulls); for "
                          "another solid use profile_print.model: solid with its effective density")
     rho = spec.material_density_kgpm3
-    inner = inner_solid(mesh, spec.wall_thickness_m, spec.skin_thickness_m)
+    inner = inner_solid(normals, offsets, spec.wall_thickness_m, spec.skin_thickness_m, outer.com_m)
     if inner is None or spec.infill_fraction >= 1:
         return combine([(outer, rho)]).scaled(mass_scale)
     return combine([(outer, rho), (_unit_solid(inner), -rho * (1 - spec.infill_fraction))]).scaled(mass_scale)

@@ -22,12 +22,12 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
     from rollability_ros.core.results import analysis, design_map, engine_agreement, report, report_figures
     from rollability_ros.core.results.engine_agreement import trial_agreement
     from rollability_ros.core.results._outcome_csv import OutcomeCsvError, read_outcome_csv, write_outcome_csv
-    from rollability_ros.core.results.outcome_log import OutcomeLog, OutcomeLoggerSettings, StoreFailure
+    from rollability_ros.core.results.outcome_log import OutcomeLog, OutcomeLoggerSettings, SessionGate, StoreFailure
     from rollability_ros.core.results.report import load_report_data
     from rollability_ros.core.results.sensitivity_table import gain_lines
 
 __all__ = [
-    "OutcomeCsvError", "OutcomeLog", "OutcomeLoggerSettings", "StoreFailure", "analysis", "design_map",
+    "OutcomeCsvError", "OutcomeLog", "OutcomeLoggerSettings", "SessionGate", "StoreFailure", "analysis", "design_map",
     "engine_agreement", "gain_lines", "load_report_data", "read_outcome_csv", "report", "report_figures",
     "trial_agreement", "write_outcome_csv",
 ]

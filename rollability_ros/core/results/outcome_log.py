@@ -29,6 +29,48 @@ from rollability_ros.core.store import Store, unique_key
 DEFAULT_STORE_PATH = "runs/outcomes.sqlite"
 
 
+class SessionGate:
+    """Which records the outcome logger of session ``session_id`` stores (docs/sessions.md): those of runs listed in
+    ``runs``, of runs already in the store, and of runs a campaign runner of the same session announced
+    (:meth:`announce`, recorded in the store's runs table so a restarted logger knows them); candidates and
+    generations of any run when ``runs`` is empty. Tip events are not runs: always stored. Without a session id,
+    everything (a logger outside any session)."""
+
+    def __init__(self, session_id: str, runs: typing.Sequence[str], store: Store) -> None:
+        self.session_id = session_id
+        self._listed = bool(runs)
+        self._store = store
+        self._runs = set(runs) | (set(store.run_ids()) if session_id else set())
+        self._refused: typing.Set[str] = set()
+
+    def announce(self, session: str, run_id: str) -> str:
+        """"" when a runner of this session announces ``run_id`` (it is then this session's run), else the refusal."""
+        if not self.session_id:
+            return ""
+        if session != self.session_id:
+            return (f"run {run_id} of session {session or '(none)'} refused: this outcome_logger stores session "
+                    f"{self.session_id} only (join that session with --session)")
+        if run_id not in self._runs:
+            self._runs.add(run_id)
+            if self._store.run_info(run_id) is None:
+                self._store.set_run_info(run_id, "campaign", {"session": session})
+        return ""
+
+    def refusal(self, record: typing.Any) -> str:
+        """"" when ``record`` belongs to this session, else why it is refused."""
+        if not self.session_id or isinstance(record, TipEventRecord) or record.run_id in self._runs:
+            return ""
+        if not isinstance(record, LaunchOutcome) and not self._listed:
+            return ""
+        return f"run {record.run_id} is not a run of session {self.session_id}"
+
+    def first_refusal(self, run_id: str) -> bool:
+        """True the first time a record of ``run_id`` is refused (refusals are logged once per run)."""
+        first = run_id not in self._refused
+        self._refused.add(run_id)
+        return first
+
+
 class StoreFailure(RuntimeError):
     """The store could not write a well-formed record; it is not stored and must not be acknowledged."""
 
@@ -45,6 +87,10 @@ class OutcomeLoggerSettings:
         "description": "the valve_controller's session key file, to verify the rig's signature on physical launch "
                        "outcomes (a physical outcome without a valid one is not stored); \"\" = the default of "
                        "valve.session_key_file for this ROS domain and namespace. Fixed at start-up."})
+    session_runs: typing.List[str] = dataclasses.field(default_factory=list, metadata={
+        "description": "with session.id: the run ids of this session whose records are stored besides the runs its "
+                       "campaign runners announce (stored_trials) and those already stored; empty: launch outcomes "
+                       "of those runs only, candidates and generations of any run. Fixed at start-up."})
 
     def validate(self) -> None:
         """Raise ``ValueError`` for an unusable store path."""

@@ -219,8 +219,9 @@ def design_folders(source: typing.Union[str, os.PathLike],
                    run_info: typing.Optional[typing.Mapping[str, typing.Any]] = None) -> typing.List[str]:
     """The ``designs/`` folders of the run ``source`` names, never a sibling run's: the folder of the
     ``designs_file`` (and of the ``mesh_files``) recorded in the selected campaign run's info (``run_info``: the
-    ``info`` dict), and :data:`RUN_DESIGN_FOLDERS` of the source's own folder (of the study or session folder for
-    a bag inside one). Absolute paths, existing folders only, in that order."""
+    ``info`` dict), only those when recorded (a later ``select`` writes ``designs-<n>/`` beside the set the
+    campaign launched, which it never used); else :data:`RUN_DESIGN_FOLDERS` of the source's own folder (of the
+    study or session folder for a bag inside one) with their later sets. Absolute paths, existing folders only."""
     source = os.fspath(source)
     base = os.path.abspath(source if os.path.isdir(source) else os.path.dirname(os.path.abspath(source)))
     roots = [base, os.path.dirname(base)] if _is_bag(base) else [base]
@@ -229,7 +230,7 @@ def design_folders(source: typing.Union[str, os.PathLike],
              list(recorded.get("mesh_files", {}).values()) if path]
     folders = []
     own = [path for root in roots for name in RUN_DESIGN_FOLDERS for path in _design_sets(os.path.join(root, name))]
-    for folder in named + own:
+    for folder in named or own:
         folder = os.path.abspath(folder)
         if os.path.isdir(folder) and folder not in folders:
             folders.append(folder)

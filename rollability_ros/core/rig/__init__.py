@@ -19,7 +19,8 @@ protocol). Every module here is light (no numpy, no physics): importing the face
 """
 from rollability_ros.core.rig import rig_auth, valve_auth
 from rollability_ros.core.rig.launch_backend import LaunchAborted, LaunchBackend, RigPorts
-from rollability_ros.core.rig.rig_network import check_namespace, exposure_warnings, physical_rig_environment
+from rollability_ros.core.rig.rig_network import (DISCOVERY_RANGES, RIG_DOMAIN_ID, check_domain_id, check_namespace,
+                                                  exposure_warnings, physical_rig_environment)
 from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome,
                                                   OperatorOutcome, PhysicalLaunch, RigSettings, SimulatedLaunch,
                                                   describe_answer, launch_backend_class, make_launch_backend,
@@ -31,10 +32,12 @@ from rollability_ros.core.rig._valve_backend import (VALVE_BACKENDS, ValveBacken
 from rollability_ros.core.rig.valve_backends import make_controller
 
 __all__ = [
-    "ANSWERED", "ASK_OUTCOME", "ASK_REGULATOR", "LAUNCH_BACKENDS", "SPEED_GATES", "VALVE_BACKENDS",
+    "ANSWERED", "ASK_OUTCOME", "ASK_REGULATOR", "DISCOVERY_RANGES", "LAUNCH_BACKENDS", "RIG_DOMAIN_ID", "SPEED_GATES",
+    "VALVE_BACKENDS",
     "ImuOutcome", "LaunchAborted", "LaunchBackend", "OperatorOutcome", "PhysicalLaunch", "RigPorts", "RigSettings",
     "SimulatedLaunch", "SpeedGate", "SpeedGateConfig", "ValveBackend", "ValveConfig", "ValveController",
-    "ValveStatus", "check_namespace", "describe_answer", "exposure_warnings", "launch_backend_class", "make_controller",
+    "ValveStatus", "check_domain_id", "check_namespace", "describe_answer",
+    "exposure_warnings", "launch_backend_class", "make_controller",
     "make_launch_backend", "make_speed_gate", "make_valve_backend", "parse_outcome_answer", "physical_rig_environment",
     "register_valve_backend", "rig_auth", "valve_auth",
 ]

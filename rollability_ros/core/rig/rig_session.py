@@ -39,7 +39,7 @@ import zlib
 from rollability_ros.core.imu import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
 from rollability_ros.core.registry import Registry
 from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
-                                          LaunchCondition, LaunchOutcome)
+                                          LaunchCondition, LaunchOutcome, check_twin_seed)
 from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
                                                      RigPorts, no_phase, not_cancelled)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
@@ -620,9 +620,7 @@ class SimulatedLaunch(LaunchBackend):
     def resimulate(self, condition: LaunchCondition, seed: int) -> typing.Any:
         """The launch twin result of one launch of ``condition`` with twin ``seed``: given a stored outcome's
         condition and ``seed`` (and these twin settings), the launch that outcome was classified from, again."""
-        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-            raise ValueError(f"seed must be a twin seed >= 0 (a physical launch has none), got {seed!r}")
-        return self.load().simulate_launch(condition, self._twin_settings, seed)
+        return self.load().simulate_launch(condition, self._twin_settings, check_twin_seed(seed))
 
 
 #: ``rig.backend`` -> the :class:`LaunchBackend` implementation.

@@ -48,7 +48,8 @@ class ProfileBody:
         if np.linalg.det(axes) < 0:
             axes[:, 2] = -axes[:, 2]
         transform = require("scipy.spatial.transform", feature="the profile's inertia")
-        return moments, tuple(float(q) for q in transform.Rotation.from_matrix(axes).as_quat())
+        x, y, z, w = (float(q) for q in transform.Rotation.from_matrix(axes).as_quat())
+        return moments, (x, y, z, w)
 
 
 @dataclasses.dataclass

@@ -31,7 +31,7 @@ import numpy.typing as npt
 
 import rollability_ros
 
-from rollability_ros.core.config import load_parameters, settings_from_sections
+from rollability_ros.core.config import check_given_files, load_parameters, settings_from_sections
 from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
 from rollability_ros.core.optional import require
 from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, UrdfRobotSpec, footprint_grid
@@ -155,6 +155,23 @@ def settings_at_fidelity(settings: "EvaluatorSettings", fidelity: str) -> "Evalu
         return settings
     return dataclasses.replace(settings, objective=objective,
                                physics=dataclasses.replace(settings.physics, engine=engine))
+
+
+def with_given_files(settings: "EvaluatorSettings", paths: typing.Sequence[str], command: str) -> "EvaluatorSettings":
+    """``settings`` (``paths`` merged in) whose launch twin also reads those of the parameter files ``paths`` a
+    user gave ``command`` that set twin parameters (:func:`twin_files`), once every parameter in them is one the
+    command applies (:func:`~rollability_ros.core.config.check_given_files`): the evaluation's namespaces
+    (:data:`SETTINGS_SECTIONS`) and, when its objective launches the twin, ``launch_twin``. So a twin parameter in a
+    given file changes the launches or is refused, never dropped."""
+    from rollability_ros.core.sim.launch_twin import TWIN_NAMESPACE, twin_files
+
+    launches = settings.objective.kind != "disturbance"
+    check_given_files(paths, {*SETTINGS_SECTIONS.values(), *([TWIN_NAMESPACE] if launches else [])}, command)
+    extra = twin_files(paths) if launches else []
+    if not extra:
+        return settings
+    objective = dataclasses.replace(settings.objective, twin_config=[*settings.objective.twin_config, *extra])
+    return dataclasses.replace(settings, objective=objective)
 
 
 def trial_seed(base_seed: int, index: int) -> int:

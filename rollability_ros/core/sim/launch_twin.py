@@ -110,6 +110,7 @@ Outcome (the rig's rule, :func:`rig_verdict`; the same in every engine)
 import dataclasses
 import hashlib
 import math
+import os
 import pickle
 import types
 import typing
@@ -117,7 +118,7 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
-from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
+from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, resolve_config_path, section
 from rollability_ros.core.profile import DesignSources, profile_mesh_for
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import NO_SEED, NOT_MEASURED, LaunchCondition
@@ -372,6 +373,20 @@ class LaunchTwinSettings(RobotChoice):
 _SECTIONS = {"physics": "sim", "robot": "robot", "trial": "trial", "twin": "launch_twin", "urdf_robot": "urdf_robot"}
 
 
+#: The namespace of the twin's own parameters (``config/launch_twin.yaml``), and every namespace the twin reads.
+TWIN_NAMESPACE = _SECTIONS["twin"]
+TWIN_SECTIONS = frozenset(_SECTIONS.values())
+
+
+def twin_files(paths: typing.Sequence[str], namespaces: typing.Iterable[str] = (TWIN_NAMESPACE,)) -> typing.List[str]:
+    """The parameter files among ``paths`` that set parameters in ``namespaces`` (default: the twin's own), as
+    absolute paths: those a command appends to its twin's file list (``objective.twin_config``,
+    ``rig.twin_config``) so that the twin reads them."""
+    prefixes = tuple(namespace + "." for namespace in namespaces)
+    return [os.path.abspath(resolve_config_path(path)) for path in paths
+            if any(name.startswith(prefixes) for name in load_parameters([path]))]
+
+
 def launch_twin_settings_from_parameters(flat: typing.Mapping[str, typing.Any],
                                          overrides: typing.Optional[typing.Mapping[str, typing.Any]] = None
                                          ) -> LaunchTwinSettings:
@@ -520,8 +535,9 @@ class LaunchDrive:
         return dataclasses.replace(spec, max_force_n=self.force_n, ramp_s=self.ramp_s)
 
 
-#: The stroke model's speed solve: gate speed within this fraction of the set speed, at most this many runs.
-SOLVE_TOLERANCE, SOLVE_RUNS = 0.002, 12
+#: The stroke model's speed solve: gate speed within this fraction of the set speed, at most this many runs
+#: after the bracket.
+SOLVE_TOLERANCE, SOLVE_RUNS = 0.002, 20
 #: Largest plate speed / set speed the solve tries before it refuses (the cylinder cannot reach the set speed).
 SOLVE_MAX_RATIO = 4.0
 #: Solved speed ratios per (engine, robot, launcher, set speed) in this process.
@@ -562,27 +578,68 @@ def launch_drive(settings: LaunchTwinSettings, set_speed_mps: float) -> LaunchDr
 
 
 def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force_n: float, ramp_s: float) -> float:
-    """The plate speed / set speed at which the gate reads the set speed (:func:`launch_drive`)."""
+    """The plate speed / set speed at which the gate reads the set speed (:func:`launch_drive`): secant steps from
+    1 (the gate reads 0 at 0); when they do not converge, the ratio is raised by half until the gate reads at least
+    the set speed (a launch that never reaches the edge reads 0) and the bracket is closed by regula falsi
+    (Illinois)."""
     exact = dataclasses.replace(settings, twin=dataclasses.replace(
         settings.twin, speed_sigma_fraction=0.0, angle_sigma_deg=0.0,
         launcher=dataclasses.replace(settings.twin.launcher, speed_bias_fraction=0.0)))
     condition = LaunchCondition("baseline", 0.75, set_speed_mps, 0.0)   # the bare robot: profile None below
     engine = LAUNCH_ENGINES.get(settings.physics.engine)
     launcher = settings.twin.launcher
-    ratio, gate = 1.0, NOT_MEASURED
-    for _ in range(SOLVE_RUNS):
+
+    def miss(ratio: float) -> float:   # gate speed - set speed, m/s
         drive = LaunchDrive("stroke", ratio, force_n, launcher.stroke_m, ramp_s)
         gate = engine.simulate(condition, exact, 0, None, drive=drive, until_edge=True).measured_speed_mps
-        if gate > 0 and abs(gate / set_speed_mps - 1) <= SOLVE_TOLERANCE:
+        return (gate if gate > 0 else 0.0) - set_speed_mps
+
+    tolerance = SOLVE_TOLERANCE * set_speed_mps
+    # the secant from the plate at the set speed: the gate's reading is nearly proportional for a free-rolling
+    # robot (the chassis: 3 launches); the bracket below takes over when it is not
+    ratio, ratio_miss = 1.0, miss(1.0)
+    previous, previous_miss = 0.0, -set_speed_mps
+    for _ in range(4):
+        if abs(ratio_miss) <= tolerance:
             return ratio
-        ratio = ratio * (set_speed_mps / gate if gate > 0 else 2.0)
-        if ratio > SOLVE_MAX_RATIO:
+        slope = (ratio_miss - previous_miss) / (ratio - previous)
+        if not slope > 0:
             break
-    raise ValueError(
-        f"the stroke launcher cannot launch this robot at {set_speed_mps} m/s: the gate reads {gate:.3f} m/s at "
-        f"best with {force_n:.0f} N (launch_twin.launcher.pressures_psi {launcher.pressure_psi(set_speed_mps):.0f} "
-        f"psi x bore {launcher.bore_m * 1000:.1f} mm) over the stroke_m {launcher.stroke_m} m; raise the pressure "
-        "or the bore, or lower the rolling resistance")
+        previous, previous_miss = ratio, ratio_miss
+        ratio = min(SOLVE_MAX_RATIO, max(0.5 * ratio, ratio - ratio_miss / slope))
+        ratio_miss = miss(ratio)
+    low, low_miss = 0.0, -set_speed_mps
+    high, high_miss = 1.0, miss(1.0)
+    while high_miss < -tolerance:
+        low, low_miss = high, high_miss
+        high *= 1.5
+        if high > SOLVE_MAX_RATIO:
+            raise ValueError(
+                f"the stroke launcher cannot launch this robot at {set_speed_mps} m/s: the gate reads "
+                f"{set_speed_mps + low_miss:.3f} m/s with the plate at {low * set_speed_mps:.2f} m/s and {force_n:.0f} N "
+                f"(launch_twin.launcher.pressures_psi {launcher.pressure_psi(set_speed_mps):.0f} psi x bore "
+                f"{launcher.bore_m * 1000:.1f} mm) over the stroke_m {launcher.stroke_m} m; raise the pressure or "
+                "the bore, or lower the rolling resistance")
+        high_miss = miss(high)
+    side = 0
+    for _ in range(SOLVE_RUNS):
+        if abs(high_miss) <= tolerance:
+            return high
+        ratio = high - high_miss * (high - low) / (high_miss - low_miss)
+        ratio_miss = miss(ratio)
+        if abs(ratio_miss) <= tolerance:
+            return ratio
+        if ratio_miss > 0:
+            high, high_miss = ratio, ratio_miss
+            low_miss = low_miss / 2 if side == 1 else low_miss
+            side = 1
+        else:
+            low, low_miss = ratio, ratio_miss
+            high_miss = high_miss / 2 if side == -1 else high_miss
+            side = -1
+    raise ValueError(f"the stroke launcher's speed setting for {set_speed_mps} m/s did not converge in {SOLVE_RUNS} "
+                     f"launches (the gate reads {set_speed_mps + high_miss:.3f} m/s at plate speed "
+                     f"{high * set_speed_mps:.2f} m/s)")
 
 
 def profile_body(configuration: str, settings: LaunchTwinSettings) -> typing.Optional[ProfileBody]:
@@ -932,11 +989,14 @@ class BulletLaunch(LaunchEngine):
     @classmethod
     def simulate(cls, condition: LaunchCondition, settings: LaunchTwinSettings, seed: int,
                  profile: typing.Optional[ProfileBody], on_phase: typing.Optional[PhaseCallback] = None,
-                 on_pose: typing.Optional[PoseCallback] = None, *, drive: "LaunchDrive",
+                 on_pose: typing.Optional[PoseCallback] = None, *,
+                 drive: "typing.Optional[LaunchDrive]" = None,
                  until_edge: bool = False) -> LaunchResult:
         """One launch of the sized twin ``settings`` carrying ``profile`` with the cylinder's ``drive`` (see
-        :func:`simulate_launch`); ``until_edge``: stop once the foremost point crosses the edge (the speed solve)."""
+        :func:`simulate_launch`; None: :func:`launch_drive` of the condition's speed); ``until_edge``: stop once the
+        foremost point crosses the edge (the speed solve)."""
         options = settings.twin
+        drive = drive or launch_drive(settings, condition.speed_mps)
         pybullet = require("pybullet", feature="the launch twin")
         speed_mps, angle_deg, push = launch_plan(condition, seed, options)
         angle = math.radians(angle_deg)

@@ -61,7 +61,8 @@ from rollability_ros.core.sim.early_decision import _hull_vertices
 from rollability_ros.core.sim.launch_twin import (LaunchDrive, LaunchResult, LaunchTracker, LaunchTwinSettings,
                                                   LaunchWorld, PhaseCallback, PhaseReporter, PoseCallback,
                                                   PushPlateSpec, check_fits_launcher, decided_on_foam, foam_sink_m,
-                                                  hopeless_to_decide, launch_plan, launch_result, launcher_start_xy,
+                                                  hopeless_to_decide, launch_drive, launch_plan, launch_result,
+                                                  launcher_start_xy,
                                                   mecanum_wheels, plate_placement, rig_verdict, step_launch)
 from rollability_ros.core.sim.mujoco_trials import (MujocoEnergyMonitor, MujocoTrialWorld, _geom_points,
                                                     _pose_speeds, effective_contact, robot_spec, set_geom_contact,
@@ -355,13 +356,16 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
 
     # -- one launch ---------------------------------------------------------------------------------------------
     def launch(self, condition: LaunchCondition, seed: int, on_phase: typing.Optional[PhaseCallback] = None,
-               on_pose: typing.Optional[PoseCallback] = None, *, drive: LaunchDrive,
+               on_pose: typing.Optional[PoseCallback] = None, *, drive: typing.Optional[LaunchDrive] = None,
                until_edge: bool = False) -> LaunchResult:
         """One launch of ``condition`` with ``seed`` and the cylinder's ``drive``
         (:func:`~rollability_ros.core.sim.launch_twin.simulate_launch`'s rules; ``until_edge``: stop once the
         foremost point crosses the edge); returns its :class:`~rollability_ros.core.sim.launch_twin.LaunchResult`."""
         mujoco, model, data, settings = self.mujoco, self.model, self.data, self.settings
         options = settings.twin
+        if drive is None:   # the speed solve launches on the cached twins (this one too): back to these settings
+            drive = launch_drive(settings, condition.speed_mps)
+            self.retarget(settings)
         speed_mps, angle_deg, push = launch_plan(condition, seed, options)
         plate_z = options.foam.thickness_m + condition.height_m
         orientation = (0.0, 0.0, math.sin(math.radians(angle_deg) / 2), math.cos(math.radians(angle_deg) / 2))
@@ -392,8 +396,8 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         mujoco.mj_forward(model, data)
         tilt = self.tilt_deg()
         upright = rig_verdict(tilt, self.wheels_down(), self.robot_model) if decision is None else decision
-        position, orientation = self.pose()
-        return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, orientation),
+        position, final_orientation = self.pose()
+        return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, final_orientation),
                              (speed_mps, angle_deg), seed, position, drive.plate_speed_mps(speed_mps))
 
     def wheels_down(self) -> int:
@@ -524,8 +528,9 @@ class MujocoLaunch(LaunchEngine):
     @classmethod
     def simulate(cls, condition: LaunchCondition, settings: LaunchTwinSettings, seed: int,
                  profile: typing.Optional[ProfileBody], on_phase: typing.Optional[PhaseCallback] = None,
-                 on_pose: typing.Optional[PoseCallback] = None, *, drive: LaunchDrive,
+                 on_pose: typing.Optional[PoseCallback] = None, *, drive: typing.Optional[LaunchDrive] = None,
                  until_edge: bool = False) -> LaunchResult:
         """One launch (called by :func:`~rollability_ros.core.sim.launch_twin.simulate_launch`)."""
+        drive = drive or launch_drive(settings, condition.speed_mps)   # before the twin: the solve launches too
         return twin_for(settings, profile).launch(condition, seed, on_phase, on_pose, drive=drive,
                                                   until_edge=until_edge)

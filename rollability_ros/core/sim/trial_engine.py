@@ -76,10 +76,11 @@ class LaunchEngine(abc.ABC):
     def simulate(cls, condition: "LaunchCondition", settings: "LaunchTwinSettings", seed: int,
                  profile: "typing.Optional[ProfileBody]",
                  on_phase: typing.Optional[typing.Callable[[str], None]] = None,
-                 on_pose: typing.Optional[typing.Callable[..., None]] = None, *, drive: "LaunchDrive",
-                 until_edge: bool = False) -> "LaunchResult":
+                 on_pose: typing.Optional[typing.Callable[..., None]] = None, *,
+                 drive: "typing.Optional[LaunchDrive]" = None, until_edge: bool = False) -> "LaunchResult":
         """The ``LaunchResult`` of ``condition`` with ``seed`` on the twin ``settings`` carrying ``profile``, the
-        push plate driven as ``drive`` says (``launch_twin.launch_drive``); ``until_edge``: stop once the robot's
+        push plate driven as ``drive`` says (None: ``launch_twin.launch_drive`` of the condition's speed on the
+        sized ``settings``); ``until_edge``: stop once the robot's
         foremost point crosses the edge line (the speed gate has read the launch)."""
 
 

@@ -241,7 +241,7 @@ def test_physical_campaign_on_serial_relay_survives_estop_and_watchdog(ros_node,
     # issue 45: the terminal shows the stop when it happens, and says what to type before and to resume
     assert "VALVE STOPPED: e-stop" in out, out
     assert "before resuming: the valve is stopped" in out and "rollability rig disarm --namespace /" in out, out
-    assert "to continue, type: rollability campaign --backend physical --graph --config" in out and \
+    assert "to continue, type: rollability campaign --backend physical --graph --namespace / --config" in out and \
         out.rstrip().endswith("--resume"), out
     assert graph.stored() == [plan[0].trial_id]
     assert watch.states[-1].fault and not watch.states[-1].open

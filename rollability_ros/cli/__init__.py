@@ -55,6 +55,9 @@ def join_session(session: typing.Optional[str], config_files: typing.Sequence[st
 
     output_dir = load_graph_settings(parameter_files(["bringup", *config_files])).output_dir
     info = load_session(session, output_dir)
+    if not info.running():
+        raise ValueError(f"session {info.name} ({info.directory}) is not running: its process {info.pid} has ended "
+                         "(its files stay; start a new session, or resume a study with `rollability study --resume`)")
     info.apply(os.environ)
     return info
 

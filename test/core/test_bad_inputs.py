@@ -62,6 +62,8 @@ def workspace(tmp_path_factory):
     run.close()
     for name, text in {**CSVS, **PARAMETER_FILES}.items():
         (root / name).write_text(text)
+    shutil.copytree(root / "runs" / "ex", root / "runs" / "deep_checkpoint")
+    (root / "runs" / "deep_checkpoint" / "checkpoint.json").write_text("[" * 20000)   # was a RecursionError
     (root / "afile.txt").write_text("the operator's notes\n")
     (root / "full").mkdir()
     (root / "full" / "x.txt").write_text("something else\n")
@@ -124,6 +126,7 @@ CASES = [
     (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--config", "far_heights.yaml"],
      "height_m must be <= 10 m, got 1e+308"),                       # the same bounds as --resimulate
     (["evaluate", "--baseline", "--engines", ""], "--engines needs two different engines"),
+    (["optimize", "--resume", "deep_checkpoint"], "is damaged or not a checkpoint"),
     (["bringup", "--config", "climbing.yaml"], "bringup.output_dir"),
     (["study", "--config", "climbing.yaml"], "has more '..' than"),
     # a key of a given file the command never applies is refused, naming the file, key and command

@@ -193,15 +193,29 @@ def core_nodes(settings: "GraphSettings", study_dir: str,
     return nodes
 
 
-def session_twin_config(param_files: typing.Sequence[str], given_files: typing.Sequence[str]) -> typing.List[str]:
-    """The rig's ``rig.twin_config`` for a session on ``param_files``: as those files set it (default: the shipped
-    twin files), then each of the user's ``given_files`` that sets launch twin parameters, so the rig's twin reads
-    them (they are applied, never dropped)."""
+#: The nodes that run the launch twin, and the parameter listing the twin's files for each.
+TWIN_CONFIG_PARAMETERS = {"rig": "rig.twin_config", "sim_evaluator": "objective.twin_config",
+                          "optimizer": "objective.twin_config"}
+
+
+def add_twin_files(nodes: typing.Sequence[NodeLaunch], param_files: typing.Sequence[str],
+                   given_files: typing.Sequence[str]) -> None:
+    """Append each of the user's ``given_files`` that sets launch twin parameters to the twin file list of every
+    node in ``nodes`` that runs the twin (:data:`TWIN_CONFIG_PARAMETERS`; the list as ``param_files`` or the node's
+    own overrides set it, else the shipped twin files), so every twin of the session reads them: applied, never
+    dropped because the twin reads only its own list."""
     from rollability_ros.core.rig import RigSettings
     from rollability_ros.core.sim import twin_files
 
-    twin = list(load_parameters(list(param_files)).get("rig.twin_config", RigSettings().twin_config))
-    return [*twin, *(path for path in twin_files(given_files) if path not in twin)]
+    extra = twin_files(given_files)
+    if not extra:
+        return
+    merged = load_parameters(list(param_files))
+    for node in nodes:
+        name = TWIN_CONFIG_PARAMETERS.get(node.module)
+        if name is not None:
+            twin = list(node.params.get(name, merged.get(name, RigSettings().twin_config)))
+            node.params[name] = [*twin, *(path for path in extra if path not in twin)]
 
 
 def session_nodes(settings: "GraphSettings", run_dir: str, rig_backend: str = "sim",

@@ -1,5 +1,6 @@
 """Issue 42: every session isolated by default, nodes that talk only to their own session, and joining a session
 by the name it printed (docs/sessions.md)."""
+import importlib.util
 import os
 import re
 import signal
@@ -152,20 +153,24 @@ def test_ctrl_c_while_campaign_graph_waits_for_a_logger_is_a_clean_stop(tmp_path
     assert "Traceback" not in output and "continue with --resume" in output, output
 
 
-def test_joining_verbs_name_what_they_looked_for_and_where(tmp_path):
+def test_joining_verbs_name_what_they_looked_for_and_where(tmp_path, monkeypatch, capsys):
+    from rollability_ros.cli import main
+
     (tmp_path / "runs" / "empty").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path)
+    environment = dict(os.environ)
     for args, expected in (
             (["rig", "--session", "lab", "estop"], "no session 'lab': neither a directory nor a file of that name, "
                                                    "and no runs/lab/session.yaml"),
             (["campaign", "--backend", "sim", "--graph", "--session", "runs/empty"], "no session.yaml in runs/empty"),
             (["campaign", "--backend", "sim", "--session", "lab"], "--session and --namespace are for --graph")):
-        done = subprocess.run([sys.executable, "-m", "rollability_ros.cli", *args], cwd=tmp_path,
-                              capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
-        assert done.returncode == 2 and expected in done.stderr, (args, done.stdout, done.stderr)
-        assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+        assert main(args) == 2, args
+        error = capsys.readouterr().err
+        assert expected in error and len(error.strip().splitlines()) == 1, (args, error)
+    assert dict(os.environ) == environment      # nothing joined
 
 
-@pytest.mark.slow   # a bringup session and a campaign through it: about a minute on 2 cores
+@pytest.mark.slow   # a bringup session, a campaign, the live view and the operator's CLI through it: about 25 s
 def test_campaign_graph_reaches_a_bringup_session_by_the_name_it_printed(tmp_path):
     """Issue 42 item 4 / issue 45 item 2: `campaign --graph` ran in the root namespace and never found bringup's
     logger; now it joins by the printed name (domain, namespace, session id) and the session's store holds it."""
@@ -182,9 +187,92 @@ def test_campaign_graph_reaches_a_bringup_session_by_the_name_it_printed(tmp_pat
                     str(tmp_path / "campaign.yaml"), stdin=subprocess.DEVNULL)
     assert campaign.wait(timeout=300) == 0, _log(tmp_path, "campaign") + _log(tmp_path, "bringup")
     assert "campaign complete: 2/2" in _log(tmp_path, "campaign")
+    # the live view and the operator's CLI reach it with what it printed; without it, this shell's domain is not it
+    stray = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "rig", "estop", "--timeout-s", "3"],
+                           cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert stray.returncode == 2 and "no valve controller subscribes" in stray.stderr, stray.stderr
+    joined = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "rig", "--session", "lab", "estop"],
+                            cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert joined.returncode == 0 and "e-stop sent" in joined.stdout, joined.stdout + joined.stderr
+    if importlib.util.find_spec("foxglove") is not None:
+        view = _cli(tmp_path, "view", "view", "--session", "runs/lab", "--port", "0", stdin=subprocess.DEVNULL)
+        _wait_for_line(tmp_path, "view", r"serving /rollability/summary", view, timeout_s=60)
+        os.killpg(view.pid, signal.SIGINT)
+        view.wait(timeout=30)
     os.killpg(bringup.pid, signal.SIGINT)
     assert bringup.wait(timeout=120) == 0, _log(tmp_path, "bringup")
     from rollability_ros.core.store import Store
 
     with Store(tmp_path / "runs" / "lab" / "outcomes.sqlite") as store:
         assert {o.run_id for o in store.launch_outcomes()} == {"joined"} and len(store.launch_outcomes()) == 2
+
+
+def test_an_evaluator_and_a_rig_of_a_session_serve_only_that_session(ros_node, start_node):
+    """An evaluator rejects another session's goal (logged once) and names its session in its result; a rig aborts
+    another session's launch goal before it can hold the rig busy."""
+    from action_msgs.msg import GoalStatus
+
+    from rig_client import RigClient
+    from rollability_ros.action import EvaluateProfile
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.nodes._support import ThreadSafeActionClient, send_goal_resending
+
+    evaluator = start_node("sim_evaluator", params={"evaluator.workers": 1, "session.id": "lab.1"})
+    rig = start_node("rig", params={"rig.backend": "sim", "session.id": "lab.1"})
+    client = ThreadSafeActionClient(ros_node.node, EvaluateProfile, "/evaluate_profile")
+    assert client.wait_for_server(timeout_sec=120), evaluator.log()
+
+    def send(session):
+        goal = EvaluateProfile.Goal(heights=[], trials=2, seed=1, session=session)
+        handle = send_goal_resending(client, goal, ros_node.wait_for, 120)
+        assert handle is not None, evaluator.log()
+        return handle
+
+    for session in ("other.2", "", "other.2"):
+        assert not send(session).accepted
+    log = evaluator.log()
+    assert log.count("evaluate_profile goal of session other.2 refused") == 1, log    # logged once
+    assert "evaluate_profile goal of session (none) refused: this node belongs to session lab.1" in log, log
+    accepted = send("lab.1")
+    assert accepted.accepted
+    future = accepted.get_result_async()
+    assert ros_node.wait_for(future.done, 120)
+    assert future.result().status == GoalStatus.STATUS_SUCCEEDED and future.result().result.session == "lab.1"
+
+    launcher = RigClient(ros_node, signed=False)
+    refused = launcher.result(launcher.send("t0", LaunchCondition("baseline", 0.75, 0.8, 0.0, 0), []))
+    assert refused.status == GoalStatus.STATUS_ABORTED, rig.log()
+    assert "launch goal of session (none) refused: this node belongs to session lab.1" in refused.result.message
+    assert launcher.outcomes == []
+
+
+@pytest.mark.slow   # a physical bringup (dry-run valve) and a 4-launch campaign through it: about 15 s (suite budget)
+def test_a_physical_campaign_joins_a_physical_bringup_by_name_and_signs_with_its_key(tmp_path):
+    """Issue 45 item 1: campaign and bringup reach each other as shipped; the campaign signs with the session's own
+    key file (from session.yaml), the session's logger verifies and stores every outcome."""
+    from test_campaign_runner import CAMPAIGN_YAML, SPEC, operator_script
+
+    from rollability_ros.core.campaign.plan import plan_trials
+    from rollability_ros.core.store import Store
+
+    (tmp_path / "small.yaml").write_text("/**:\n  ros__parameters:\n    bringup:\n      evaluators: 0\n"
+                                         "      poll_period_s: 0.2\n    rig:\n      countdown_s: 0.6\n")
+    (tmp_path / "campaign.yaml").write_text(CAMPAIGN_YAML)
+    bringup = _cli(tmp_path, "bringup", "bringup", "--backend", "physical", "--config", str(tmp_path / "small.yaml"),
+                   "--no-optimizer", "--session-id", "rig")
+    _wait_for_line(tmp_path, "bringup", r"\[rig\] started", bringup)
+    session = yaml.safe_load((tmp_path / "runs" / "rig" / "session.yaml").read_text())["session"]
+    deadline = time.monotonic() + 60
+    while not os.path.exists(session["valve_key_file"]) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    done = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "campaign", "--backend", "physical", "--graph",
+                           "--session", "rig", "--config", str(tmp_path / "campaign.yaml")], cwd=tmp_path,
+                          input=operator_script(plan_trials(SPEC)), capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr + _log(tmp_path, "bringup")
+    assert "campaign complete: 4/4" in done.stdout
+    os.killpg(bringup.pid, signal.SIGINT)
+    assert bringup.wait(timeout=120) == 0, _log(tmp_path, "bringup")
+    with Store(tmp_path / "runs" / "rig" / "outcomes.sqlite") as store:
+        outcomes = store.launch_outcomes(SPEC.run_id)
+    assert [o.trial_id for o in outcomes] == [t.trial_id for t in plan_trials(SPEC)]
+    assert {o.backend for o in outcomes} == {"physical"}

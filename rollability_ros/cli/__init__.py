@@ -55,6 +55,9 @@ def join_session(session: typing.Optional[str], config_files: typing.Sequence[st
 
     output_dir = load_graph_settings(parameter_files(["bringup", *config_files])).output_dir
     info = load_session(session, output_dir)
+    if not info.running():
+        raise ValueError(f"session {info.name} ({info.directory}) is not running: its process {info.pid} has ended "
+                         "(its files stay; start a new session, or resume a study with `rollability study --resume`)")
     info.apply(os.environ)
     return info
 
@@ -75,6 +78,7 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     """Run one verb and return its exit code; known user errors print one line instead of a traceback."""
     line_buffered_output()
     args = build_parser().parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)   # as typed: a verb can print the command to rerun
     try:
         code = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, inside the try, not at interpreter exit

@@ -1,6 +1,8 @@
 """Sessions isolated by default and joined by name (core/graph/session.py), without ROS: the domain a session claims,
 its session.yaml, and what a joining verb resolves from what the session printed."""
+import dataclasses
 import os
+import subprocess
 
 import pytest
 import yaml
@@ -64,6 +66,8 @@ def test_a_session_is_joined_by_directory_file_or_printed_name_and_sets_the_envi
     for argument in (str(directory), str(directory / SESSION_FILE)):
         assert load_session(argument) == info
     assert load_session("lab", str(tmp_path / "runs")) == info
+    assert info.running()                       # this process wrote it
+    assert not dataclasses.replace(info, pid=_ended_pid()).running()   # its process has ended
     environ = {"ROS_DOMAIN_ID": "0", "ROS_STATIC_PEERS": "10.0.0.9"}
     info.apply(environ)
     assert environ == {"ROS_DOMAIN_ID": str(info.ros_domain_id), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
@@ -71,6 +75,12 @@ def test_a_session_is_joined_by_directory_file_or_printed_name_and_sets_the_envi
     assert f"rollability rig --session {directory}" in join and "campaign --graph --session" in join
     assert f"ROS_DOMAIN_ID={info.ros_domain_id} ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST" in raw
     assert "namespace /rollability" in raw
+
+
+def _ended_pid():
+    process = subprocess.Popen(["true"])
+    process.wait()
+    return process.pid
 
 
 def test_errors_name_what_was_looked_for_and_where(tmp_path):
@@ -83,3 +93,36 @@ def test_errors_name_what_was_looked_for_and_where(tmp_path):
     broken.write_text("session: {name: x, ros_domain_id: 999}\n")
     with pytest.raises(ValueError, match=f"{broken} is not a session file"):
         load_session(str(broken))
+
+
+def test_a_node_of_a_session_takes_only_its_own_sessions_and_a_node_outside_takes_all(tmp_path):
+    from rollability_ros.core.config import SessionSettings
+    from rollability_ros.core.records import CandidateRecord, LaunchCondition, LaunchOutcome
+    from rollability_ros.core.results import SessionGate
+    from rollability_ros.core.store import Store
+
+    member, outsider = SessionSettings(id="lab.1"), SessionSettings()
+    assert member.refusal("lab.1", "result") == "" and outsider.refusal("other.2", "result") == ""
+    assert member.refusal("other.2", "result") == "result of session other.2 refused: this node belongs to session " \
+                                                  "lab.1"
+    assert "of session (none) refused" in member.refusal("", "launch goal")
+
+    def launch(run_id):
+        return LaunchOutcome(run_id=run_id, trial_id="t0", condition=LaunchCondition("A", 0.75, 0.8, 0.0, 0),
+                             backend="sim", upright=True)
+
+    def candidate(run_id):
+        return CandidateRecord(run_id=run_id, generation=1, index=0, heights=(0.0,), fitness=1.0, successes=1,
+                               trials=1, seed=1, eval_time_s=0.1)
+
+    with Store(tmp_path / "store.sqlite") as store:
+        study = SessionGate("study-1.ab", ["study-1", "optimization"], store)
+        assert study.refusal(launch("study-1")) == "" and study.refusal(candidate("optimization")) == ""
+        assert study.refusal(launch("study-2")) and study.refusal(candidate("study-2"))
+        bringup = SessionGate("lab.cd", [], store)
+        assert bringup.refusal(launch("campaign-1")) and bringup.refusal(candidate("opt-1")) == ""
+        assert "session other.ef refused" in bringup.announce("other.ef", "campaign-1")
+        assert bringup.announce("lab.cd", "campaign-1") == "" and bringup.refusal(launch("campaign-1")) == ""
+        assert SessionGate("lab.cd", [], store).refusal(launch("campaign-1")) == ""   # a restarted logger knows it
+        assert SessionGate("", [], store).refusal(launch("anything")) == ""
+        assert bringup.first_refusal("x") and not bringup.first_refusal("x")

@@ -20,6 +20,7 @@ import typing
 
 import yaml
 
+from rollability_ros.core import safe_yaml
 from rollability_ros.core.graph._ros_domain import claim_domain
 from rollability_ros.core.optimization import atomic_write_bytes
 
@@ -60,6 +61,16 @@ class SessionInfo:
             environ.pop(name, None)
         environ.update(self.environment())
 
+    def running(self) -> bool:
+        """True while the session's process (``pid``, on this computer: discovery is localhost) still runs."""
+        try:
+            os.kill(self.pid, 0)
+        except ProcessLookupError:
+            return False
+        except PermissionError:   # another user's process: it runs
+            return True
+        return self.pid > 0
+
     def join_lines(self) -> typing.List[str]:
         """What the session prints: how our verbs join it, and the raw settings for any other ROS 2 tool."""
         raw = " ".join(f"{name}={value}" for name, value in self.environment().items())
@@ -87,7 +98,10 @@ def claim_session_domain(environ: typing.Mapping[str, str]) -> typing.Tuple[int,
     skip = {RIG_DOMAIN_ID}
     if (environ.get("ROS_DOMAIN_ID") or "").strip().isdigit():
         skip.add(int(environ["ROS_DOMAIN_ID"]))
-    return claim_domain(*SESSION_DOMAINS, skip=skip)
+    try:
+        return claim_domain(*SESSION_DOMAINS, skip=skip)
+    except RuntimeError as exc:   # every session domain of this computer is taken: one line, nothing started
+        raise ValueError(f"cannot isolate the session: {exc}") from None
 
 
 def hold_domain(domain: int) -> typing.Optional[typing.TextIO]:
@@ -127,7 +141,7 @@ def load_session(argument: str, output_dir: str = "runs") -> SessionInfo:
                              f"{path}")
     try:
         with open(path, encoding="utf-8") as stream:
-            document = yaml.safe_load(stream)
+            document = safe_yaml.load(stream)
         fields = dict(document["session"])
         info = SessionInfo(**{field.name: fields[field.name] for field in dataclasses.fields(SessionInfo)
                               if field.name in fields})

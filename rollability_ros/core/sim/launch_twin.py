@@ -740,6 +740,13 @@ def _set_wheels(pybullet, client, robot, options, lateral_friction, mecanum):
                                        physicsClientId=client)
 
 
+def apply_wheel_model(pybullet: types.ModuleType, client: int, robot: SpawnedRobot,
+                      settings: LaunchTwinSettings) -> None:
+    """The twin's wheel contact and drag (module docstring, "Wheels") on ``robot``'s wheel links: every PyBullet
+    model of the twin's rig (the launch, the characterisation roll-out) uses this one."""
+    _set_wheels(pybullet, client, robot, settings.twin, settings.physics.lateral_friction, mecanum_wheels(settings))
+
+
 class PhaseReporter:
     """Reports each of :data:`PHASES` once and in order, filling in any skipped before the one reached."""
 
@@ -1020,7 +1027,7 @@ class BulletLaunch(LaunchEngine):
             robot = model.spawn(client, profile, (0.0, 0.0, 5.0), orientation,
                                 time_step_s=settings.physics.time_step_s)
             set_contact(client, robot.body_id, settings.physics.body_contact())
-            _set_wheels(pybullet, client, robot, options, settings.physics.lateral_friction, mecanum_wheels(settings))
+            apply_wheel_model(pybullet, client, robot, settings)
             lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)
             plate = PushPlate(pybullet, client, robot, push, drive.plate_spec(options.plate),
                               options.foam.thickness_m + condition.height_m, (floor_id, foam_id, ledge_id))

@@ -37,8 +37,10 @@ INVALID_STOP_FRACTION = 0.5
 INVALID_STOP_MIN_LAUNCHES = 4
 #: Words of an invalid launch's note -> the setting to change.
 INVALID_LAUNCH_FIXES = (
-    ("did not leave the ledge", "the push plate does not move the robot: set launch_twin.plate.height_m, width_m and "
-                                "clearance_m to 0 (derived from the robot) and check launch_twin.plate.max_force_n"),
+    ("did not leave the ledge", "the launcher does not get the robot over the edge: set launch_twin.plate.height_m, "
+                                "width_m and clearance_m to 0 (derived from the robot); a robot that coasts to a "
+                                "stop after the cylinder's stroke needs launch_twin.launcher.model push_through (then "
+                                "check launch_twin.plate.max_force_n)"),
     ("outside the foam", "the robot lands beyond the foam: enlarge launch_twin.foam.length_m / width_m"),
     ("never landed", "the robot never reaches the foam: check launch_twin.foam and the trial time cap "
                      "(trial.time_cap_s)"),

@@ -230,7 +230,7 @@ def _console(args, node):
                     print("E-STOP sent", flush=True)
                 elif what == "cancel":
                     # a zero goal id and stamp cancels every goal of the launch action (action_msgs/CancelGoal)
-                    if cancel.service_is_ready():
+                    if cancel.wait_for_service(timeout_sec=1.0):   # a rig started after the console: found now
                         cancel.call_async(CancelGoal.Request())
                         print("cancel sent: the rig stops the launch at its next wait (before the fire)", flush=True)
                     else:

@@ -238,6 +238,11 @@ def test_physical_campaign_on_serial_relay_survives_estop_and_watchdog(ros_node,
     out, _ = runner.communicate(timeout=60)
     assert runner.returncode == 3, out + graph.logs()
     assert "e-stop" in out and plan[1].trial_id in out
+    # issue 45: the terminal shows the stop when it happens, and says what to type before and to resume
+    assert "VALVE STOPPED: e-stop" in out, out
+    assert "before resuming: the valve is stopped" in out and "rollability rig disarm --namespace /" in out, out
+    assert "to continue, type: rollability campaign --backend physical --graph --namespace / --config" in out and \
+        out.rstrip().endswith("--resume"), out
     assert graph.stored() == [plan[0].trial_id]
     assert watch.states[-1].fault and not watch.states[-1].open
     ons = relay.relay_intervals()                                         # from the board's own log
@@ -246,7 +251,8 @@ def test_physical_campaign_on_serial_relay_survives_estop_and_watchdog(ros_node,
 
     # resume with the fault latched: refused to arm, nothing lost, nothing stored twice
     code, out = graph.run(operator_script(plan[1:2]), "--resume")
-    assert code == 3 and "fault latched" in out, out
+    assert code == 3 and "the valve is stopped (e-stop" in out, out   # it waited for the acknowledgement
+    assert len(relay.relay_intervals()) == 1
     watch.acknowledge()
 
     # resume; at the next arming the rig freezes (SIGSTOP): its heartbeat stops and the watchdog closes the valve

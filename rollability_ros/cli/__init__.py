@@ -78,6 +78,7 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     """Run one verb and return its exit code; known user errors print one line instead of a traceback."""
     line_buffered_output()
     args = build_parser().parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)   # as typed: a verb can print the command to rerun
     try:
         code = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, inside the try, not at interpreter exit

@@ -8,9 +8,9 @@ from rollability_ros.cli import Subparsers
 
 
 def run(args: argparse.Namespace) -> int:
-    from rollability_ros.core.graph import (PROGRESS_PERIOD_S, ProgressDisplay, Supervisor, join_nodes,
-                                            load_graph_settings, new_study_id, parameter_files, refuse_bad_session,
-                                            session_nodes, session_progress, session_twin_config, start_session)
+    from rollability_ros.core.graph import (PROGRESS_PERIOD_S, ProgressDisplay, Supervisor, add_twin_files,
+                                            join_nodes, load_graph_settings, new_study_id, parameter_files,
+                                            refuse_bad_session, session_nodes, session_progress, start_session)
     from rollability_ros.core.config import check_path_component
     from rollability_ros.core.rig import launch_backend_class
 
@@ -24,9 +24,7 @@ def run(args: argparse.Namespace) -> int:
     if os.path.lexists(run_dir):   # its closed bag and store belong to an earlier session: never written into
         raise ValueError(f"session folder {run_dir} already exists; choose another --session-id")
     nodes = session_nodes(settings, run_dir, rig_backend=args.backend, optimizer=not args.no_optimizer)
-    for node in nodes:   # the rig's twin reads the given files that set twin parameters
-        if node.module == "rig":
-            node.params["rig.twin_config"] = session_twin_config(param_files, args.config)
+    add_twin_files(nodes, param_files, args.config)   # every twin reads the given files that set twin parameters
     # before anything is made or started: a key of a given file no node applies, or a value a node would refuse
     refuse_bad_session(param_files, args.config, {node.module: node.params for node in nodes}, "rollability bringup")
     os.makedirs(run_dir)

@@ -45,7 +45,7 @@ def summary_lines(result: "calibration.CalibrationResult",
     lines.append(f"{'configuration':<14} {'measured':>9} {'before':>7} {'after':>7}   (trial success rates)")
     lines += [f"{row['configuration']:<14} {row['measured_trial_rate']:>9.0%} {row['before_trial_rate']:>7.0%} "
               f"{row['after_trial_rate']:>7.0%}" for row in result.configuration_rows()]
-    for label, agreement in result.rank_agreement().items():
+    for label, agreement in (result.rank_agreement() if result.conditions else {}).items():
         lines.append(f"rank agreement {label}: "
                      f"{agreement.agreement_text()}")
     lines += [f"screen {row['configuration']}: quasi-static P(upright) {row['upright_probability']:.2f}, worst "
@@ -62,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
     import yaml
 
     from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.campaign.characterisation import load_characterisation
     from rollability_ros.core.optimization import atomic_write_bytes
     from rollability_ros.core.config import check_given_files, check_output_dir, from_mapping, load_parameters, section
     from rollability_ros.core.results import load_report_data
@@ -71,22 +72,37 @@ def run(args: argparse.Namespace) -> int:
     check_given_files(args.config, {*TWIN_SECTIONS, "calibration", "stable_poses"}, "rollability calibrate")
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.config])
     settings = calibration.calibration_settings(parameters)
+    if args.fit:
+        settings = settings.selected(args.fit)
+    characterisation = load_characterisation(args.characterisation) if args.characterisation else None
+    if args.physical is None and characterisation is None:
+        raise ValueError("give --physical (launch outcomes) and/or --characterisation (bench readings)")
     if args.workers is not None:
         if args.workers < 1:
             raise ValueError(f"--workers must be >= 1, got {args.workers}")
         settings.workers = args.workers
     screen_settings = from_mapping(ScreenSettings, section(parameters, "stable_poses"), "stable_poses")
-    data = load_report_data(args.physical, args.run)
-    outcomes = [o for o in data.outcomes if o.backend == "physical"]
-    if not outcomes:
-        raise ValueError(f"{data.source}: no physical launch outcomes to calibrate against")
+    outcomes = []
+    sources = []
+    if args.physical is not None:
+        data = load_report_data(args.physical, args.run)
+        outcomes = [o for o in data.outcomes if o.backend == "physical"]
+        if not outcomes:
+            raise ValueError(f"{data.source}: no physical launch outcomes to calibrate against")
+        sources.append(str(data.source))
+    if characterisation is not None:
+        print(characterisation.summary())
+        sources.append(characterisation.source)
+    calibration.check_fittable(parameters, settings)   # before any launch
     with calibration.LaunchPool(settings.workers) as pool:
-        result = calibration.calibrate(outcomes, parameters, settings, pool, on_progress=print)
+        result = calibration.calibrate(outcomes, parameters, settings, pool, on_progress=print,
+                                       characterisation=characterisation)
     os.makedirs(args.out, exist_ok=True)
     params_path = os.path.join(args.out, "calibrated.yaml")
     document = calibration.calibrated_parameter_document(result.fitted_values())
-    header = (f"# Calibrated launch-twin parameters from {data.source} (rollability calibrate); load on top of the\n"
-              f"# defaults: --config / --rig-config. Bootstrap uncertainty in parameters.csv beside this file.\n")
+    header = (f"# Calibrated launch-twin parameters from {' and '.join(sources)} (rollability calibrate); load on top "
+              f"of the\n# defaults: --config / --rig-config. Bootstrap uncertainty in parameters.csv beside this "
+              f"file.\n")
     atomic_write_bytes(params_path, (header + yaml.safe_dump(document, sort_keys=True)).encode("utf-8"))
     rig_document = calibration.rig_parameter_document(os.path.abspath(params_path))
     atomic_write_bytes(os.path.join(args.out, RIG_FILE),
@@ -96,10 +112,11 @@ def run(args: argparse.Namespace) -> int:
                                                      [e.fitted for e in result.estimates])
     configurations = sorted({c.configuration for c in result.conditions})
     screen_rows = _screen_rows(calibrated_twin, configurations, screen_settings)
-    _write_csv(os.path.join(args.out, "conditions.csv"), result.condition_rows())
-    _write_csv(os.path.join(args.out, "configurations.csv"), result.configuration_rows())
+    if result.conditions:   # a characterisation alone has no launch conditions to compare
+        _write_csv(os.path.join(args.out, "conditions.csv"), result.condition_rows())
+        _write_csv(os.path.join(args.out, "configurations.csv"), result.configuration_rows())
+        _write_csv(os.path.join(args.out, "screen.csv"), screen_rows)
     _write_csv(os.path.join(args.out, "parameters.csv"), [e.row() for e in result.estimates])
-    _write_csv(os.path.join(args.out, "screen.csv"), screen_rows)
     summary = "\n".join(summary_lines(result, screen_rows))
     with open(os.path.join(args.out, "summary.txt"), "w", encoding="utf-8") as stream:
         stream.write(summary + "\n")
@@ -113,13 +130,21 @@ def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "calibrate", help="fit the simulated launch twin to recorded physical launch outcomes",
         description="Fit the launch twin's uncertain parameters (config/calibration.yaml: foam stiffness, damping, "
-                    "friction, restitution, speed scatter, centre of mass, with bounds) to physical outcomes by "
+                    "friction, restitution, speed scatter, centre of mass, foam rolling friction, wheel drag, with "
+                    "bounds) to physical outcomes and/or bench characterisation readings by "
                     "maximising the binomial likelihood of the observed successes per grouped condition with "
                     "CMA-ES; report before/after agreement and bootstrap uncertainty; write calibrated.yaml, a "
                     "parameter file the evaluator, optimizer and rig load on top of the defaults, and "
                     "calibrated_rig.yaml, which points a rig node's twin at it.")
-    parser.add_argument("--physical", required=True, metavar="SOURCE",
-                        help="physical launch outcomes: a store, a run directory, a bag or a CSV (docs/outcome-csv.md)")
+    parser.add_argument("--physical", metavar="SOURCE",
+                        help="physical launch outcomes: a store, a run directory, a bag or a CSV (docs/outcome-csv.md); "
+                             "needed unless --characterisation is given")
+    parser.add_argument("--characterisation", metavar="FILE",
+                        help="bench readings (roll-out, slide angle) of docs/characterisation.md, fitted beside the "
+                             "launch outcomes, or alone before the first launch")
+    parser.add_argument("--fit", action="append", default=[], metavar="KEY",
+                        help="fit only this declared parameter (a key of calibration.parameters, with its bounds and "
+                             "scale; repeatable); the others stay at their loaded values")
     parser.add_argument("--run", help="campaign run id in SOURCE (needed when it holds several)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file loaded over sim, robot, launch_twin and calibration (repeatable)")

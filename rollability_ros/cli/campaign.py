@@ -120,9 +120,11 @@ def _resimulate(args):
 
 
 def _run_local(args, spec, ask):
+    import sys
+
     from rollability_ros.core.campaign import (LocalRig, local_rig_settings_from_files, plan_refusal, plan_trials,
-                                               record_campaign_run, report_exit_code, resume_refusal, run_campaign,
-                                               store_writer)
+                                               record_campaign_run, report_exit_code, resume_command, resume_refusal,
+                                               run_campaign, store_writer)
     from rollability_ros.core.store import Store
 
     settings, plan = local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG), plan_trials(spec)
@@ -151,15 +153,19 @@ def _run_local(args, spec, ask):
     finally:
         if rig is not None:
             rig.close()
-    return report_exit_code(report)
+    return report_exit_code(report, resume=resume_command(getattr(args, "argv", None) or sys.argv[1:]))
 
 
 def _run_graph(args, spec, ask):
     import os
     import signal
+    import sys
 
-    from rollability_ros.core.campaign import RunnerSettings, report_exit_code
+    from rollability_ros.core.campaign import RunnerSettings, TerminalAsk, report_exit_code, resume_command
     from rollability_ros.core.rig import check_namespace
+
+    if ask is not None:   # a prompt that stops waiting when the rig CLI answered first
+        ask = TerminalAsk()
 
     session = join_session(args.session)   # its domain, discovery range, namespace and key, before ROS starts
     if args.namespace is not None:
@@ -187,7 +193,8 @@ def _run_graph(args, spec, ask):
         node = Node("campaign_runner", namespace=namespace)
         print(f"campaign: through the graph on ROS domain {os.environ.get('ROS_DOMAIN_ID') or '0'}, namespace "
               f"{namespace}", flush=True)
-        return report_exit_code(run_graph_campaign(node, spec, settings, ask, session=session.id if session else ""))
+        return report_exit_code(run_graph_campaign(node, spec, settings, ask, session=session.id if session else ""),
+                                resume=resume_command(getattr(args, "argv", None) or sys.argv[1:]))
     except (KeyboardInterrupt, ExternalShutdownException):
         print("campaign: stopped (Ctrl-C); stored trials are kept: continue with --resume", flush=True)
         return 130

@@ -4,19 +4,28 @@ import typing
 
 from rollability_ros.cli import Subparsers, add_session_argument, join_session
 
-ACTIONS = ("arm", "disarm", "estop", "confirm", "outcome")
+ACTIONS = ("arm", "disarm", "estop", "confirm", "outcome", "console")
+#: Keys of ``rollability rig console`` -> what they do.
+CONSOLE_KEYS = {"e": "estop", " ": "estop", "c": "cancel", "d": "disarm", "q": "quit"}
+#: The console's line once it can stop the valve (a script may wait for it).
+CONSOLE_READY = "console ready: "
 #: Longest --timeout-s, s (a day: longer is a typo).
 MAX_TIMEOUT_S = 86400.0
 
 
 def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
-        "rig", help="operator commands to the running rig: arm, disarm (acknowledge a fault), e-stop, confirm, outcome",
+        "rig", help="operator commands to the running rig: arm, disarm (acknowledge a fault), e-stop, confirm, outcome, "
+                    "console (one key stops the valve)",
         description="Talk to the running valve_controller and rig nodes (same ROS domain). arm, disarm, confirm "
                     "and outcome are signed with the valve_controller's session key, so they work only on the rig "
                     "computer, as the user running the valve_controller; disarm also acknowledges a latched valve "
                     "fault (e-stop, watchdog). estop needs no key: anyone may stop. confirm answers the rig's "
-                    "regulator question; outcome records the result of the launch the rig waits on.")
+                    "regulator question; outcome records the result of the launch the rig waits on. console stays "
+                    "open beside the campaign: it shows the valve and the rig's launch (the countdown), and one key "
+                    "acts at once: e or space = e-stop, c = cancel the running launch (before the fire), d = disarm "
+                    "(acknowledge a stop), q = quit. Start it before the campaign: an `estop` command takes a second "
+                    "or two to start, longer than the countdown.")
     parser.add_argument("action", choices=ACTIONS, help="what to do")
     parser.add_argument("verdict", nargs="?", choices=("upright", "tipped"),
                         help="for outcome: upright (on its wheels) or tipped")
@@ -134,6 +143,135 @@ def _missing(problem, name, elsewhere):
     return f"{problem}; {name} is in {', '.join(elsewhere)}: use " + " or ".join(f"--namespace {ns}" for ns in elsewhere)
 
 
+def _estop_publisher(node, timeout_s):
+    """A ``valve/estop`` publisher matched by a valve controller within ``timeout_s`` (``ValueError`` otherwise,
+    naming the namespaces where one listens)."""
+    import time
+
+    from std_msgs.msg import Bool
+
+    publisher = node.create_publisher(Bool, "valve/estop", 10)
+    deadline = time.monotonic() + timeout_s
+    while publisher.get_subscription_count() == 0:
+        if time.monotonic() > deadline:
+            topics = [topic for topic, _types in node.get_topic_names_and_types() if node.count_subscribers(topic)]
+            raise ValueError(_missing(f"no valve controller subscribes to {node.resolve_topic_name('valve/estop')}",
+                                      "valve/estop", namespaces_offering(topics, "valve/estop")))
+        time.sleep(0.05)
+    return publisher
+
+
+def _valve_line(msg):
+    """The console's line for a valve state."""
+    if msg.fault:
+        return f"valve: STOPPED ({msg.fault_reason}); d acknowledges it (disarm)"
+    return f"valve: {'ARMED' if msg.armed else 'disarmed'}{', OPEN' if msg.open else ''} (pulses {msg.pulses})"
+
+
+def _console(args, node):
+    """``rollability rig console``: one key stops the valve (see the parser's description). Messages arrive on a
+    thread of their own; keys are read here and an e-stop is published from here at once (its publisher is matched
+    before the ready line)."""
+    import os
+    import select
+    import sys
+    import termios
+    import threading
+    import tty
+
+    from action_msgs.srv import CancelGoal
+    from rclpy.executors import SingleThreadedExecutor
+    from std_msgs.msg import Bool
+
+    from rollability_ros.action import Launch
+    from rollability_ros.msg import ValveState
+    from rollability_ros.nodes._support import LATCHED_QOS
+
+    estop = _estop_publisher(node, args.timeout_s)
+    cancel = node.create_client(CancelGoal, "launch/_action/cancel_goal")
+    shown: typing.Dict[str, str] = {}
+
+    def show(key: str, text: str) -> None:
+        if shown.get(key) != text:
+            shown[key] = text
+            print(text, flush=True)
+
+    node.create_subscription(ValveState, "valve/state", lambda msg: show("valve", _valve_line(msg)), LATCHED_QOS)
+    node.create_subscription(Launch.Impl.FeedbackMessage, "launch/_action/feedback",
+                             lambda msg: show("rig", f"rig: {msg.feedback.phase}: {msg.feedback.detail}"), 10)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    stop = threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.05)
+
+    spinner = threading.Thread(target=spin, name="console-spin", daemon=True)
+    spinner.start()
+    fd = sys.stdin.fileno()
+    saved = termios.tcgetattr(fd) if os.isatty(fd) else None
+    print(f"{CONSOLE_READY}e or space = E-STOP, c = cancel the running launch, d = disarm (acknowledge a stop), "
+          f"q = quit (rig namespace {node.get_namespace()})", flush=True)
+    try:
+        if saved is not None:
+            tty.setcbreak(fd)   # one key, no Enter
+        while True:
+            readable, _, _ = select.select([fd], [], [], 0.2)
+            if not readable:
+                continue
+            data = os.read(fd, 64)
+            if not data:
+                return 0
+            for key in data.decode("utf-8", "replace").lower():
+                what = CONSOLE_KEYS.get(key)
+                if what == "estop":
+                    estop.publish(Bool(data=True))
+                    print("E-STOP sent", flush=True)
+                elif what == "cancel":
+                    # a zero goal id and stamp cancels every goal of the launch action (action_msgs/CancelGoal)
+                    if cancel.service_is_ready():
+                        cancel.call_async(CancelGoal.Request())
+                        print("cancel sent: the rig stops the launch at its next wait (before the fire)", flush=True)
+                    else:
+                        print("no rig serves the launch action here", flush=True)
+                elif what == "disarm":
+                    _console_disarm(args, node)
+                elif what == "quit":
+                    return 0
+    finally:
+        if saved is not None:
+            termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+        stop.set()
+        spinner.join(1.0)
+        executor.shutdown()
+
+
+def _console_disarm(args, node):
+    """The console's d: a signed disarm (acknowledges a stop); its answer arrives on the spinning thread."""
+    import time
+
+    from rollability_ros.srv import ArmValve
+
+    client = node.create_client(ArmValve, "valve/arm")
+    try:
+        if not client.wait_for_service(timeout_sec=args.timeout_s):
+            print("disarm: valve/arm is not available", flush=True)
+            return
+        request = _request(argparse.Namespace(**{**vars(args), "action": "disarm"}), sign=True)[2]
+        future = client.call_async(request)
+        deadline = time.monotonic() + args.timeout_s
+        while not future.done() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        response = future.result() if future.done() else None
+        print(f"disarm: {'ok' if response is not None and response.success else 'refused'}: "
+              f"{response.message if response is not None else 'no answer'}", flush=True)
+    except ValueError as exc:
+        print(f"disarm: {exc}", flush=True)
+    finally:
+        node.destroy_client(client)
+
+
 def run(args: argparse.Namespace) -> int:
     import os
     import time
@@ -154,20 +292,20 @@ def run(args: argparse.Namespace) -> int:
     if args.namespace is None:
         args.namespace = check_namespace(session.namespace if session else default_namespace(args.config))
     namespace = args.namespace
+    if args.action == "console":
+        init_ros([])
+        node = Node("rig_console", namespace=namespace or None)
+        try:
+            return _console(args, node)
+        finally:
+            node.destroy_node()
+            rclpy.try_shutdown()
     kind, name, payload = _request(args)
     init_ros([])
     node = Node("rig_operator", namespace=namespace or None)
     try:
         if args.action == "estop":
-            publisher = node.create_publisher(kind, name, 10)
-            deadline = time.monotonic() + args.timeout_s
-            while publisher.get_subscription_count() == 0:
-                if time.monotonic() > deadline:
-                    topics = [topic for topic, _types in node.get_topic_names_and_types()
-                              if node.count_subscribers(topic)]
-                    raise ValueError(_missing(f"no valve controller subscribes to {node.resolve_topic_name(name)}",
-                                              name, namespaces_offering(topics, name)))
-                time.sleep(0.05)
+            publisher = _estop_publisher(node, args.timeout_s)
             publisher.publish(payload)
             time.sleep(0.2)  # let the reliable message leave before the node goes
             print("e-stop sent")

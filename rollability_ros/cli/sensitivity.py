@@ -1,5 +1,6 @@
 """`rollability sensitivity`: the simulated fitness of the bare chassis and of profiles against each uncertain
-factor (disturbance scale, start pose, contact reading, centre of mass) and robustly, with intervals."""
+factor (disturbance scale, start pose, contact reading, centre of mass) and robustly, with intervals; with
+``--launches``, launches on the twin against each of its unknowns (both ends of each range) and robustly."""
 import argparse
 import csv
 import os
@@ -27,6 +28,23 @@ def _profiles(args):
     return profiles
 
 
+def _varied(items: typing.Sequence[str]) -> typing.Dict[str, typing.Tuple[float, ...]]:
+    """``{dotted setting: levels}`` of ``--vary NAME=LOW,HIGH`` items; ``ValueError`` naming a malformed one."""
+    import math
+
+    varied = {}
+    for item in items:
+        name, _, values = item.partition("=")
+        try:
+            levels = tuple(float(v) for v in values.split(","))
+        except ValueError:
+            levels = ()
+        if not name or len(levels) < 2 or not all(math.isfinite(v) for v in levels):
+            raise ValueError(f"--vary takes NAME=LOW,HIGH (two or more finite numbers), got {item!r}")
+        varied[name] = levels
+    return varied
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the sensitivity study, write ``sensitivity.csv`` and ``sensitivity.png`` to ``--out``; exit code."""
     from rollability_ros.core.config import check_output_dir
@@ -35,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.results import gain_lines
     from rollability_ros.core.sim import sensitivity_rows
+    from rollability_ros.core.sim.sensitivity import launch_sensitivity_rows
 
     check_output_dir(args.out, "--out", keeps=("sensitivity.csv", "sensitivity.png"))
     settings = evaluation.with_given_files(evaluation.load_settings(["sim", "robot", "evaluator", *args.config]),
@@ -42,6 +61,9 @@ def run(args: argparse.Namespace) -> int:
     if args.trials < 1:
         raise ValueError(f"--trials must be >= 1, got {args.trials}")
     profiles = _profiles(args)
+    varied = _varied(args.vary)
+    if varied and not args.launches:
+        raise ValueError("--vary needs --launches (it varies a launch twin setting)")
     os.makedirs(args.out, exist_ok=True)
 
     def show(row: typing.Mapping[str, typing.Any]) -> None:
@@ -49,7 +71,11 @@ def run(args: argparse.Namespace) -> int:
               f"{row['trials']:<4} {row['fitness']:.2f} [{row['ci_low']:.2f}, {row['ci_high']:.2f}]", flush=True)
 
     with evaluation.make_executor(settings.evaluator, args.workers) as executor:
-        rows = sensitivity_rows(profiles, settings, args.trials, args.seed, executor, on_row=show)
+        if args.launches:
+            rows = launch_sensitivity_rows(profiles, settings, args.trials, args.seed, executor, on_row=show,
+                                           settings_levels=varied)
+        else:
+            rows = sensitivity_rows(profiles, settings, args.trials, args.seed, executor, on_row=show)
     csv_path = os.path.join(args.out, "sensitivity.csv")
     with open(csv_path, "w", newline="", encoding="utf-8") as stream:
         writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
@@ -73,11 +99,21 @@ def register(subparsers: Subparsers) -> None:
                     "uncertain factor at a time (disturbance scale, start pose, contact reading, centre of mass) "
                     "and all of them at once (the robust fitness), every evaluation from one seed (common "
                     "random numbers); prints each fitness with its Wilson 95%% interval and writes "
-                    "sensitivity.csv and sensitivity.png. See docs/optimization.md.")
+                    "sensitivity.csv and sensitivity.png. With --launches: launches on the twin under the "
+                    "campaign's conditions, each of the twin's unknowns (contact reading, centre of mass, foam "
+                    "stiffness, restitution, friction and rolling friction, wheel drag) at both ends of its "
+                    "range (objective.robust) and all drawn at once; each design minus the bare robot with its "
+                    "Newcombe 95%% interval. See docs/optimization.md and docs/twin-model.md.")
     parser.add_argument("--mesh", action="append", default=[], metavar="LABEL=FILE",
                         help="a profile solid (STL/OBJ, metres, base on z = 0) under a label (repeatable)")
     parser.add_argument("--designs-file", metavar="FILE", help="designs.yaml of `rollability select`")
-    parser.add_argument("--trials", type=int, default=60, help="trials per evaluation (default 60)")
+    parser.add_argument("--launches", action="store_true",
+                        help="vary the launch twin's unknowns on launches (the rig's measure) instead of the "
+                             "disturbance trial's factors")
+    parser.add_argument("--vary", action="append", default=[], metavar="NAME=LOW,HIGH",
+                        help="with --launches: also a row per level of this numeric launch twin setting, by its "
+                             "dotted settings name (e.g. twin.wheel_side_friction_factor=0.03,0.5; repeatable)")
+    parser.add_argument("--trials", type=int, default=60, help="trials (or launches) per evaluation (default 60)")
     parser.add_argument("--seed", type=int, default=0, help="the one base seed of every evaluation (default 0)")
     parser.add_argument("--workers", type=int, help="worker processes (default: evaluator.workers)")
     parser.add_argument("--out", default="sensitivity", help="output folder (default ./sensitivity); one that "

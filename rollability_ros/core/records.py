@@ -9,6 +9,9 @@ import typing
 
 #: Placeholder for "not measured" numeric fields (travel time, measured speed).
 NOT_MEASURED = float("nan")
+#: ``LaunchOutcome.final_orientation`` when no sensor saw it (an operator-classified launch): all four NaN, never
+#: the upright quaternion (0, 0, 0, 1), which would claim a tipped chassis ended on its wheels.
+UNKNOWN_ORIENTATION = (NOT_MEASURED,) * 4
 #: Start of the note of an invalid launch (no launch happened as the rig launches: the chassis did not leave the
 #: ledge, landed outside the foam, ...): stored with its reason so nothing is lost, but never counted as an outcome.
 INVALID_LAUNCH = "invalid launch: "
@@ -87,7 +90,8 @@ def trial_id_for(condition: LaunchCondition) -> str:
 
 @dataclasses.dataclass(frozen=True)
 class LaunchOutcome:
-    """A classified launch (``msg/LaunchOutcome.msg``). ``final_orientation`` is (x, y, z, w), world z up.
+    """A classified launch (``msg/LaunchOutcome.msg``). ``final_orientation`` is (x, y, z, w), world z up, or
+    :data:`UNKNOWN_ORIENTATION` (all NaN) when no sensor saw it (the operator classified the launch).
 
     ``seed``: for a simulated launch the launch twin seed of the launch as stored (the retry that was kept), so
     ``simulate_launch(condition, twin settings, seed)`` repeats it exactly; :data:`NO_SEED` for a physical one.
@@ -111,6 +115,11 @@ class LaunchOutcome:
     CLASSIFIERS = ("operator", "imu", "sim")
 
     @property
+    def orientation_known(self) -> bool:
+        """False when ``final_orientation`` is :data:`UNKNOWN_ORIENTATION` (no sensor saw the chassis at rest)."""
+        return all(math.isfinite(v) for v in self.final_orientation)
+
+    @property
     def valid(self) -> bool:
         """False for an invalid launch (``note`` starts with :data:`INVALID_LAUNCH`): analysis leaves it out."""
         return not self.note.startswith(INVALID_LAUNCH)
@@ -124,10 +133,12 @@ class LaunchOutcome:
             raise ValueError(f"backend must be one of {self.BACKENDS}, got {self.backend!r}")
         if self.classified_by not in self.CLASSIFIERS:
             raise ValueError(f"classified_by must be one of {self.CLASSIFIERS}, got {self.classified_by!r}")
-        if len(self.final_orientation) != 4 or not all(math.isfinite(v) for v in self.final_orientation):
-            raise ValueError(f"final_orientation must be 4 finite numbers (x, y, z, w), got {self.final_orientation!r}")
+        if len(self.final_orientation) != 4 or not (self.orientation_known or all(
+                isinstance(v, float) and math.isnan(v) for v in self.final_orientation)):
+            raise ValueError(f"final_orientation must be 4 finite numbers (x, y, z, w), or all 4 NaN (unknown), got "
+                             f"{self.final_orientation!r}")
         norm = math.sqrt(sum(v * v for v in self.final_orientation))
-        if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+        if self.orientation_known and abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
             raise ValueError(f"final_orientation must be a unit quaternion (x, y, z, w), got {self.final_orientation!r} "
                              f"(norm {norm:.4g})")
         for name in ("travel_time_s", "measured_speed_mps"):

@@ -33,6 +33,8 @@ from rollability_ros.core.records import (
 
 #: File name of the store inside a run directory.
 STORE_FILENAME = "store.sqlite"
+#: File name of the outcome logger's store inside a ``study`` or ``bringup`` session directory.
+SESSION_STORE_FILENAME = "outcomes.sqlite"
 #: ``PRAGMA application_id`` of a rollability store ("ROLL" in ASCII).
 APPLICATION_ID = 0x524F4C4C
 #: Schema version written to ``PRAGMA user_version``; bump with a migration when the tables change.

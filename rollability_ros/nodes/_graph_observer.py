@@ -8,6 +8,8 @@ rclpy node of its own (own context, one executor thread) in the orchestrator's p
 - ``optimizer_progress`` (rollability_ros/OptimizerProgress, the optimizer's latched topic): generations done, the
   run's cap, best so far, simulated trials evaluated;
 - ``summary`` (rollability_ros/OutcomeSummary, the outcome logger's latched topic): launch outcomes stored;
+- ``campaign_progress`` (rollability_ros/CampaignProgress, the graph campaign's latched topic): its trials stored,
+  planned and its ETA;
 - ``get_summary`` (rollability_ros/GetSummary, the outcome logger's service): launch outcomes stored for one run,
   asked again at most once per call while no answer is pending (the callers poll about once a second); a request
   unanswered for :data:`REQUEST_TIMEOUT_S` (its logger was killed: a restarted one never answers it) is dropped
@@ -24,7 +26,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 
 from rollability_ros.core.records import RunProgress
-from rollability_ros.msg import OptimizerProgress, OutcomeSummary
+from rollability_ros.msg import CampaignProgress, OptimizerProgress, OutcomeSummary
 from rollability_ros.nodes._convert import progress_from_msg
 from rollability_ros.nodes._support import LATCHED_QOS
 from rollability_ros.srv import GetSummary
@@ -58,6 +60,8 @@ class RosGraphObserver:
         self._pending: typing.Any = None
         self._node.create_subscription(OptimizerProgress, "optimizer_progress", self._on_progress, _PROGRESS_QOS)
         self._node.create_subscription(OutcomeSummary, "summary", self._on_summary, LATCHED_QOS)
+        self._campaign: typing.Optional[typing.Tuple[str, int, int, typing.Optional[float]]] = None
+        self._node.create_subscription(CampaignProgress, "campaign_progress", self._on_campaign, LATCHED_QOS)
         self._summary_client = self._node.create_client(GetSummary, "get_summary")
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
@@ -77,6 +81,15 @@ class RosGraphObserver:
     def _on_summary(self, msg: typing.Any) -> None:
         with self._lock:
             self._launches = int(msg.trials)
+
+    def _on_campaign(self, msg: typing.Any) -> None:
+        eta = float(msg.eta_s)
+        with self._lock:
+            self._campaign = (msg.run_id, int(msg.done), int(msg.total), None if eta != eta else eta)
+
+    def campaign_progress(self) -> typing.Optional[typing.Tuple[str, int, int, typing.Optional[float]]]:
+        with self._lock:
+            return self._campaign
 
     def optimizer_progress(self) -> typing.List[RunProgress]:
         with self._lock:

@@ -8,6 +8,8 @@ Service clients: ``stored_trials`` (rollability_ros/GetStoredTrials) of the ``ou
 Authentication: with ``runner.backend`` physical, goals, confirmations and outcomes are signed with the
   valve_controller's session key (``runner.session_key_file``; :mod:`rollability_ros.core.rig.rig_auth`), so this
   runner works on the rig computer as the valve_controller's user; a sim campaign signs nothing.
+Publication: ``campaign_progress`` (rollability_ros/CampaignProgress, latched): trials stored of planned and the
+  campaign's ETA, at the start and after each trial (``rollability bringup`` shows it).
 Subscription: ``outcomes_stored`` (rollability_ros/OutcomeStored, reliable, transient-local): the logger's
   acknowledgements; a trial counts as done once the logger acknowledged storing it.
 Parameters: ``campaign.*`` (:class:`~rollability_ros.core.campaign.plan.CampaignSpec`) and ``runner.*``
@@ -21,6 +23,10 @@ another computer: physical outcomes are verified with the valve's key on the rig
 Exit code: 0 when every trial is stored, 3 when the campaign stopped early (the reason is printed; rerun with
 ``runner.resume:=true``), 2 for bad parameters or no outcome_logger answering.
 """
+import collections
+import dataclasses
+import functools
+import math
 import os
 import queue
 import signal
@@ -35,16 +41,23 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from rollability_ros.action import Launch
-from rollability_ros.core.campaign import (CampaignSpec, RunnerSettings, StoreAcknowledgements, answer_rig,
-                                           plan_trials, report_exit_code, resume_refusal, run_campaign)
+from rollability_ros.core.campaign import (AnsweredElsewhere, CampaignSpec, RunnerSettings, StoreAcknowledgements,
+                                           TerminalAsk, answer_rig, plan_trials, report_exit_code, resume_refusal,
+                                           run_campaign)
 from rollability_ros.core.config import ConfigError, SessionSettings
-from rollability_ros.core.rig import LaunchAborted, launch_backend_class, rig_auth, valve_auth
+from rollability_ros.core.rig import (ANSWERED, LaunchAborted, describe_answer, launch_backend_class, rig_auth,
+                                      valve_auth)
 from rollability_ros.nodes import _convert
-from rollability_ros.msg import OutcomeStored, ValveAuth
-from rollability_ros.nodes._support import (GOAL_RESEND_S, RECORD_QOS, ParameterError, declare_settings, init_ros,
+from rollability_ros.msg import CampaignProgress, OutcomeStored, ValveAuth, ValveState
+from rollability_ros.nodes._support import (GOAL_RESEND_S, LATCHED_QOS, RECORD_QOS, ParameterError, declare_settings, init_ros,
                                             send_goal_resending)
 from rollability_ros.srv import ConfirmRegulator, GetStoredTrials, RecordOutcome
 
+#: How long after a launch's result the campaign still shows the rig's announcement of an answer, s.
+LATE_FEEDBACK_S = 0.3
+#: Longest wait for the valve's latched state before a launch (a valve_controller that publishes none: no wait
+#: after that), s.
+VALVE_STATE_WAIT_S = 5.0
 #: Seconds the rig's action server may be missing from the graph before a running launch counts as lost.
 SERVER_LOST_S = 3.0
 
@@ -83,6 +96,59 @@ class RigClient:
         self.action = ActionClient(node, Launch, "launch")
         self.confirm_client = node.create_client(ConfirmRegulator, "rig/confirm")
         self.record_client = node.create_client(RecordOutcome, "record_outcome")
+        self._pending: typing.Deque[typing.Any] = collections.deque()   # feedback read while a prompt waited
+        self._said: typing.Optional[typing.Tuple[str, str]] = None     # the answer this terminal gave and showed
+        self.valve_state = None
+        self._waited_for_valve = False
+        self._shown_fault = ""
+        if ask is not None:   # an attended campaign shows the valve's stops as they happen
+            if isinstance(ask, TerminalAsk) and ask.idle is None:   # messages arrive while a prompt waits
+                ask.idle = lambda: executor.spin_once(timeout_sec=0)
+            node.create_subscription(ValveState, "valve/state", self._on_valve_state, LATCHED_QOS)
+
+    def _on_valve_state(self, msg):
+        self.valve_state = msg
+        if msg.fault and msg.fault_reason != self._shown_fault:
+            self._shown_fault = msg.fault_reason
+            self.say(f"\nVALVE STOPPED: {msg.fault_reason}. The valve is closed and nothing fires until it is "
+                     f"acknowledged with: {self.disarm_command()}")
+        elif not msg.fault and self._shown_fault:
+            self._shown_fault = ""
+            self.say("valve stop acknowledged (disarmed): the rig arms by itself at the next launch")
+
+    def disarm_command(self) -> str:
+        """The operator's command that acknowledges a valve stop of this rig: joining its session by name (a
+        session id is ``<name>.<token>``), else naming its namespace."""
+        if self.session:
+            return f"rollability rig disarm --session {self.session.rsplit('.', 1)[0]}"
+        return f"rollability rig disarm --namespace {self.node.get_namespace()}"
+
+    def valve_advice(self) -> str:
+        """What to do before resuming when the valve is stopped ("" when it is not)."""
+        spin_until(self.executor, lambda: False, 0.2)   # a stop published just now arrives
+        state = self.valve_state
+        if state is None or not state.fault:
+            return ""
+        return (f"the valve is stopped ({state.fault_reason}): acknowledge it with `{self.disarm_command()}` (the "
+                "valve stays closed; the rig arms by itself at the next launch, do not arm by hand)")
+
+    def _wait_valve_ready(self):
+        """Before a launch: while the valve is stopped, tell the operator how to acknowledge it and wait."""
+        # the valve's latched state arrives once the subscription matched (a fresh process: a moment); waited for
+        # once, so a graph whose valve publishes nothing is not held up at every launch
+        if not self._waited_for_valve:
+            self._waited_for_valve = True
+            spin_until(self.executor, lambda: self.valve_state is not None, VALVE_STATE_WAIT_S)
+        spin_until(self.executor, lambda: False, 0.05)
+        while self.valve_state is not None and self.valve_state.fault:
+            reason = self.valve_state.fault_reason
+            if self.ask is None:
+                raise LaunchAborted(f"the valve is stopped ({reason})")
+            answer = self.ask(f"the valve is stopped ({reason}): acknowledge with `{self.disarm_command()}` in "
+                              "another terminal, then Enter to launch (q to stop): ")
+            if answer.strip().lower() in ("q", "quit", "stop"):
+                raise LaunchAborted(f"stopped by the operator while the valve was stopped ({reason})")
+            spin_until(self.executor, lambda: False, 0.3)   # the acknowledgement's new state arrives
 
     def _wait(self, future, what):
         deadline = time.monotonic() + self.server_timeout_s
@@ -92,8 +158,30 @@ class RigClient:
             self.executor.spin_once(timeout_sec=0.05)
         return future.result()
 
-    def _answer(self, trial_id, phase, detail):
-        reply = answer_rig(phase, detail, self.ask) if self.ask is not None else None
+    def _moved_on(self, phase, detail, feedback, result_future):
+        """While a prompt waits: the rig's next feedback that is not the question being asked (its answer, given
+        in another place, or a later phase), or the launch's end; None while the question stands."""
+        while True:
+            try:
+                self._pending.append(feedback.get_nowait().feedback)
+            except queue.Empty:
+                break
+        for message in self._pending:
+            if (message.phase, message.detail) != (phase, detail):
+                return f"{message.phase}: {message.detail}"
+        return "the launch ended" if result_future.done() else None
+
+    def _answer(self, trial_id, phase, detail, feedback, result_future):
+        if self.ask is None or detail.startswith(ANSWERED):
+            return
+        ask = self.ask
+        if isinstance(ask, TerminalAsk):   # the other place may answer first: then stop waiting here
+            ask = functools.partial(self.ask, interrupted=lambda: self._moved_on(phase, detail, feedback,
+                                                                                 result_future))
+        try:
+            reply = answer_rig(phase, detail, ask)
+        except AnsweredElsewhere:
+            return   # the answer that counted is the next feedback, shown by _follow
         if reply is None:
             return
         kind, outcome = reply
@@ -113,6 +201,11 @@ class RigClient:
         accepted = response.success if kind == "confirm" else response.accepted
         if not accepted:
             self.say(f"  the rig refused the answer: {response.message}")
+        elif response.message != "accepted":   # answered already, from the other place, with the same verdict
+            self.say(f"  {response.message}")
+        else:   # shown now: the rig's own announcement of it may come after the launch's result
+            self._said = (phase, f"{ANSWERED}{describe_answer(kind, outcome)}")
+            self.say(f"  {phase}: {self._said[1]}")
 
     def _sign(self, sign):
         """``sign(signer)`` as a ``ValveAuth`` (unsigned without a signer); LaunchAborted when the key is unreadable."""
@@ -129,6 +222,8 @@ class RigClient:
             domain = os.environ.get("ROS_DOMAIN_ID") or "0"
             raise LaunchAborted(f"no rig serves the launch action in ROS domain {domain} namespace "
                                 f"{self.node.get_namespace()} within {self.server_timeout_s:g} s")
+        self._wait_valve_ready()
+        self._pending.clear()
         feedback: queue.Queue = queue.Queue()
         def make_goal() -> Launch.Goal:
             goal = Launch.Goal(run_id=self.run_id, trial_id=trial.trial_id,
@@ -170,11 +265,14 @@ class RigClient:
         """
         missing_since, last = None, None
         next_check = time.monotonic() + SERVER_LOST_S
-        while not result_future.done():
-            self.executor.spin_once(timeout_sec=0.05)
+        while not result_future.done() or self._pending:
+            if not self._pending:
+                self.executor.spin_once(timeout_sec=0.05)
             try:
-                message = feedback.get_nowait().feedback
+                message = self._pending.popleft() if self._pending else feedback.get_nowait().feedback
             except queue.Empty:
+                if result_future.done():
+                    break
                 if serving and time.monotonic() > next_check:
                     next_check = time.monotonic() + SERVER_LOST_S
                     if not serving & self._server_gids():
@@ -187,11 +285,25 @@ class RigClient:
                 elif time.monotonic() - missing_since > SERVER_LOST_S:
                     raise LaunchAborted(f"the rig left the graph during {trial_id}")
                 continue
-            if (message.phase, message.detail) == last:
+            if (message.phase, message.detail) in (last, self._said):
                 continue    # the rig repeats an open question until it is answered: ask the operator once
             last = (message.phase, message.detail)
             self.say(f"  {message.phase}: {message.detail}")
-            self._answer(trial_id, message.phase, message.detail)
+            self._answer(trial_id, message.phase, message.detail, feedback, result_future)
+        self._show_late_answers(feedback, last)
+
+    def _show_late_answers(self, feedback, last):
+        """The rig's announcement of an answer given elsewhere may arrive after the launch's result (another
+        topic): wait a moment for it, so this terminal always shows the answer that counted."""
+        spin_until(self.executor, lambda: False, LATE_FEEDBACK_S)
+        while True:
+            try:
+                message = feedback.get_nowait().feedback
+            except queue.Empty:
+                return
+            if message.detail.startswith(ANSWERED) and (message.phase, message.detail) not in (last, self._said):
+                last = (message.phase, message.detail)
+                self.say(f"  {message.phase}: {message.detail}")
 
 
 def spin_until(executor: typing.Any, predicate: typing.Callable[[], bool], timeout_s: float) -> bool:
@@ -263,7 +375,18 @@ def run_graph_campaign(node: Node, spec: CampaignSpec, settings: RunnerSettings,
         if refusal:
             raise ValueError(refusal)
         rig = RigClient(node, executor, spec.run_id, ask, say, settings.server_timeout_s, signer, session)
-        return run_campaign(plan, spec.run_id, stored, rig.launch, acknowledgements, ask=ask, say=say)
+        progress_publisher = node.create_publisher(CampaignProgress, "campaign_progress", LATCHED_QOS)
+
+        def publish_progress(progress: typing.Any) -> None:
+            eta = progress.eta_s
+            progress_publisher.publish(CampaignProgress(run_id=spec.run_id, done=progress.done, total=progress.total,
+                                                        eta_s=math.nan if eta is None else float(eta)))
+
+        report = run_campaign(plan, spec.run_id, stored, rig.launch, acknowledgements, ask=ask, say=say,
+                              on_progress=publish_progress)
+        if report.stopped_reason and ask is not None:
+            report = dataclasses.replace(report, advice=rig.valve_advice())
+        return report
     finally:
         # while the context is valid: an executor left to the garbage collector after rclpy's shutdown prints an
         # InvalidHandle traceback at exit
@@ -284,8 +407,9 @@ def main(args: typing.Optional[typing.List[str]] = None) -> int:
         spec = declare_settings(node, "campaign", CampaignSpec)
         settings = declare_settings(node, "runner", RunnerSettings)
         session = declare_settings(node, "session", SessionSettings, read_only=True)
-        ask = input if launch_backend_class(settings.backend).attended else None
-        return report_exit_code(run_graph_campaign(node, spec, settings, ask, session=session.id))
+        ask = TerminalAsk() if launch_backend_class(settings.backend).attended else None
+        return report_exit_code(run_graph_campaign(node, spec, settings, ask, session=session.id),
+                                resume="the same command with -p runner.resume:=true")
     except (ParameterError, ConfigError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

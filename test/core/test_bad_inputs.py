@@ -62,6 +62,8 @@ def workspace(tmp_path_factory):
     run.close()
     for name, text in {**CSVS, **PARAMETER_FILES}.items():
         (root / name).write_text(text)
+    shutil.copytree(root / "runs" / "ex", root / "runs" / "deep_checkpoint")
+    (root / "runs" / "deep_checkpoint" / "checkpoint.json").write_text("[" * 20000)   # was a RecursionError
     (root / "afile.txt").write_text("the operator's notes\n")
     (root / "full").mkdir()
     (root / "full" / "x.txt").write_text("something else\n")
@@ -94,6 +96,14 @@ CASES = [
     (["calibrate", "--physical", "good.csv", "--out", "cal_done"], "already holds the results of an earlier run"),
     (["calibrate", "--physical", "good.csv", "--workers", "-1", "--out", "c2"], "--workers must be >= 1"),
     (["sensitivity", "--trials", "1", "--out", "afile.txt"], "is an existing file, not a folder"),
+    (["sensitivity", "--trials", "1", "--vary", "twin.foam.thickness_m=0.02,0.1", "--out", "s1"], "--vary needs --launches"),
+    (["sensitivity", "--launches", "--trials", "1", "--vary", "twin.foam.thickness_m=0.02", "--out", "s2"],
+     "--vary takes NAME=LOW,HIGH"),
+    (["sensitivity", "--launches", "--trials", "1", "--vary", "twin.foam.thickness_m=0.02,nan", "--out", "s3"],
+     "--vary takes NAME=LOW,HIGH"),
+    (["calibrate", "--characterisation", "good.csv", "--out", "c3"], "good.csv: must be a mapping"),
+    (["calibrate", "--physical", "good.csv", "--fit", "sim.gravity_mps2", "--out", "c4"],
+     "sim.gravity_mps2 is not declared in calibration.parameters"),
     (["study", "--study-id", "../x", "--config", "study.yaml"], ID_RULE),
     (["study", "--study-id", "", "--config", "study.yaml"], ID_RULE),
     (["bringup", "--session-id", "../x", "--config", "study.yaml"], ID_RULE),
@@ -124,6 +134,7 @@ CASES = [
     (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--config", "far_heights.yaml"],
      "height_m must be <= 10 m, got 1e+308"),                       # the same bounds as --resimulate
     (["evaluate", "--baseline", "--engines", ""], "--engines needs two different engines"),
+    (["optimize", "--resume", "deep_checkpoint"], "is damaged or not a checkpoint"),
     (["bringup", "--config", "climbing.yaml"], "bringup.output_dir"),
     (["study", "--config", "climbing.yaml"], "has more '..' than"),
     # a key of a given file the command never applies is refused, naming the file, key and command

@@ -1,5 +1,7 @@
 """The campaign loop (core/campaign/runner.py) against a real store, and `rollability campaign` in process with
 a scripted operator on stdin driving the physical path on the dry-run valve."""
+import math
+import shlex
 import subprocess
 import sys
 
@@ -138,6 +140,7 @@ def test_cli_physical_in_process_with_a_scripted_operator(tmp_path):
                            timeout=60)
     assert first.returncode == 3, first.stdout + first.stderr
     assert "stopped by the operator" in first.stdout
+    assert f"to continue, type: rollability {shlex.join(command[3:])} --resume" in first.stdout   # the real command
     again = subprocess.run(command, input="", capture_output=True, text=True, timeout=60)
     assert again.returncode == 2 and "--resume" in again.stderr
     resumed = subprocess.run(command + ["--resume"], input="\n\ny\n\ny\n", capture_output=True, text=True,
@@ -147,5 +150,43 @@ def test_cli_physical_in_process_with_a_scripted_operator(tmp_path):
     with Store(store) as stored:
         outcomes = stored.launch_outcomes("cli-physical")
     assert [o.upright for o in outcomes] == [True, False, True, True]
-    assert outcomes[1].note == "on its lid" and outcomes[1].classified_by == "operator"
-    assert all(o.backend == "physical" and o.measured_speed_mps > 0 for o in outcomes)
+    assert outcomes[1].note == "travel time: typed by the operator (rig outcome --travel-time-s); on its lid"
+    assert outcomes[1].classified_by == "operator" and outcomes[1].travel_time_s == 0.5
+    # the shipped speed gate is simulated: its made-up times are not a physical record's speed
+    assert all(o.backend == "physical" and math.isnan(o.measured_speed_mps) for o in outcomes if o != outcomes[1])
+
+
+def test_the_operator_prompt_stops_waiting_when_the_question_was_answered_elsewhere():
+    """Issue 45: after `rollability rig confirm` the campaign terminal stayed blocked on its own prompt, and the
+    Enter typed there then answered nothing (or the next question)."""
+    import os
+
+    from rollability_ros.core.campaign import AnsweredElsewhere, TerminalAsk, resume_command
+
+    read_fd, write_fd = os.pipe()
+    out = []
+
+    class Out:
+        def write(self, text):
+            out.append(text)
+
+        def flush(self):
+            pass
+
+    idle = []
+    ask = TerminalAsk(os.fdopen(read_fd, "rb", buffering=0), Out(), idle=lambda: idle.append(1), poll_s=0.01)
+    os.write(write_fd, b"y 0.4\nsecond")
+    assert ask("outcome: ") == "y 0.4" and out == ["outcome: "]
+    polls = []
+    with pytest.raises(AnsweredElsewhere, match="classifying: answered: tipped"):
+        ask("next: ", interrupted=lambda: polls.append(1) or ("classifying: answered: tipped" if len(polls) > 3
+                                                                else None))
+    assert idle and len(polls) == 4
+    os.write(write_fd, b"\n")     # the half-typed "second" went with the withdrawn question: not the next answer
+    assert ask("again: ") == ""
+    os.close(write_fd)
+    with pytest.raises(EOFError):
+        ask("closed: ")
+    assert resume_command(["campaign", "--backend", "physical", "--config", "my file.yaml"]) == \
+        "rollability campaign --backend physical --config 'my file.yaml' --resume"
+    assert resume_command(["campaign", "--resume"]).count("--resume") == 1

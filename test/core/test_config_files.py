@@ -120,15 +120,26 @@ def test_a_run_and_the_in_process_rig_append_twin_files_to_their_twin(tmp_path):
 
 
 def test_a_session_applies_or_refuses_every_key_before_it_starts(tmp_path):
-    from rollability_ros.core.graph import graph_namespaces, parameter_files, refuse_bad_session, session_twin_config
+    from rollability_ros.core.graph import (NodeLaunch, add_twin_files, graph_namespaces, parameter_files,
+                                            refuse_bad_session)
 
     assert {"bringup", "campaign", "launch_twin", "optimizer", "rig", "sim"} <= graph_namespaces()
     assert "campaign" not in graph_namespaces(["rig", "sim_evaluator"])            # no campaign_runner in it
     assert "launch_twin" not in graph_namespaces(["sim_evaluator"])               # no rig: no twin
     twin = _file(tmp_path, "twin.yaml", "    launch_twin: {foam: {length_m: -5.0}}\n")
     files = parameter_files(["bringup", twin])
-    assert session_twin_config(files, [twin])[-1] == twin
-    nodes = {"rig": {"rig.backend": "sim", "rig.twin_config": session_twin_config(files, [twin])}, "view_bridge": {}}
+    nodes = [NodeLaunch("rig", params={"rig.backend": "sim"}), NodeLaunch("sim_evaluator", label="eval_0"),
+             NodeLaunch("optimizer", params={"objective.twin_config": ["sim", "robot", "launch_twin", "cal.yaml"]}),
+             NodeLaunch("recorder"), NodeLaunch("view_bridge")]
+    add_twin_files(nodes, files, [twin])    # every twin of the session reads the user's twin keys
+    assert nodes[0].params["rig.twin_config"] == ["sim", "robot", "launch_twin", twin]
+    assert nodes[1].params["objective.twin_config"] == ["sim", "robot", "launch_twin", twin]
+    assert nodes[2].params["objective.twin_config"] == ["sim", "robot", "launch_twin", "cal.yaml", twin]
+    assert nodes[3].params == {} and nodes[4].params == {}
     with pytest.raises(ConfigError, match=r"nothing started: rig: launch twin .*length_m must be > 0, got -5.0"):
-        refuse_bad_session(files, [twin], nodes, "rollability bringup")
+        refuse_bad_session(files, [twin], {node.module: node.params for node in nodes}, "rollability bringup")
     refuse_bad_session(files, [twin], {"rig": {"rig.backend": "physical"}}, "rollability bringup")   # no twin there
+    robot = _file(tmp_path, "robot.yaml", "    robot: {com_offset_z_m: 0.004}\n")
+    untouched = [NodeLaunch("rig")]
+    add_twin_files(untouched, parameter_files(["bringup", robot]), [robot])     # no twin key: no list changed
+    assert untouched[0].params == {}

@@ -23,7 +23,9 @@ def test_minimal_file_with_defaults(tmp_path):
                             "B,1.3,1.5,60,0,1,\n")
     first, second, third = read_outcome_csv(path, run_id="hand")
     assert math.isnan(first.travel_time_s) and math.isnan(first.measured_speed_mps)
-    assert dataclasses.replace(first, travel_time_s=0.0, measured_speed_mps=0.0) == LaunchOutcome(
+    assert not first.orientation_known    # hand-recorded: no sensor saw the orientation, never "upright"
+    assert dataclasses.replace(first, travel_time_s=0.0, measured_speed_mps=0.0,
+                               final_orientation=(0.0, 0.0, 0.0, 1.0)) == LaunchOutcome(
         "hand", "A/h0.75m/v0.8mps/a-30deg/r0", LaunchCondition("A", 0.75, 0.8, -30.0, 0), "physical", True,
         travel_time_s=0.0, measured_speed_mps=0.0, classified_by="operator")
     assert not second.upright and second.note == "landed on the mesh,\nrolled back"
@@ -86,6 +88,27 @@ def test_export_then_import_round_trip(tmp_path):
     assert back[1].condition == outcomes[1].condition and math.isnan(back[1].travel_time_s)
     assert back[1].classified_by == "sim" and back[1].final_orientation == (0.0, 0.0, 0.0, 1.0)
     assert (back[0].seed, back[1].seed) == (NO_SEED, 1_234_567_891)     # no seed: an empty cell
+
+
+def test_an_unknown_orientation_round_trips_through_the_csv_and_the_store(tmp_path):
+    """Issue 45: an operator-classified launch has no orientation; every path keeps it unknown (never upright)."""
+    from rollability_ros.core.records import UNKNOWN_ORIENTATION
+    from rollability_ros.core.store import Store
+
+    outcome = LaunchOutcome("run", "t1", LaunchCondition("A", 0.75, 0.8, 30.0, 0), "physical", False,
+                            final_orientation=UNKNOWN_ORIENTATION, classified_by="operator", stamp_s=1.0)
+    outcome.validate()
+    path = tmp_path / "out.csv"
+    write_outcome_csv(path, [outcome])
+    assert path.read_text(encoding="utf-8").splitlines()[1].endswith(",,,,")   # four empty cells, then no seed
+    (back,) = read_outcome_csv(path)
+    assert not back.orientation_known and all(math.isnan(q) for q in back.final_orientation)
+    with Store(tmp_path / "s.sqlite") as store:
+        store.add_launch_outcome(outcome)
+        (stored,) = store.launch_outcomes()
+    assert not stored.orientation_known
+    with pytest.raises(ValueError, match="all 4 NaN"):   # half known is no orientation at all
+        dataclasses.replace(outcome, final_orientation=(math.nan, 0.0, 0.0, 1.0)).validate()
 
 
 def test_a_file_without_the_seed_column_reads_every_outcome_without_a_seed(tmp_path):

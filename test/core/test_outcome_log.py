@@ -43,6 +43,20 @@ def test_summary_counts_per_configuration_with_wilson_interval(tmp_path):
     log.close()
 
 
+def test_every_campaign_the_logger_stores_is_in_the_runs_table(tmp_path):
+    """Issue 45: a campaign run through the graph never opens the store, so its runs table stayed empty."""
+    log = OutcomeLog.open(tmp_path / "outcomes.sqlite")
+    log.store.set_run_info("run2", "campaign", {"designs": {"designs_file": "d.yaml"}})   # described by its campaign
+    assert log.add(outcome("t1")) and log.add(outcome("t2")) and log.add(outcome("t1", run_id="run2"))
+    assert log.add(dataclasses.replace(outcome("p1", run_id="run3"), backend="physical", classified_by="operator"))
+    assert log.add(outcome("s1", run_id="run3"))
+    assert log.store.run_info("run1") == {"kind": "campaign", "info": {"backend": "sim"}}
+    assert log.store.run_info("run2") == {"kind": "campaign", "info": {"backend": "sim",
+                                                                       "designs": {"designs_file": "d.yaml"}}}
+    assert log.store.run_info("run3")["info"]["backend"] == "mixed"
+    log.close()
+
+
 def test_duplicates_are_stored_once_and_summary_is_rebuilt_on_reopen(tmp_path):
     path = tmp_path / "outcomes.sqlite"
     log = OutcomeLog.open(path)

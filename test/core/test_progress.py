@@ -34,7 +34,7 @@ def test_plain_lines_when_not_a_terminal_each_change_once():
         for generation in (1, 2, 3):
             display.update(JobProgress("optimizing", generation, 3, 0.5, 10 * generation, eta_s=3.0 - generation))
     lines = stream.getvalue().splitlines()
-    assert lines == ["  optimizing: nodes starting | ETA unknown", "optimizing the profile",
+    assert lines == ["  optimizing: nodes starting", "optimizing the profile",   # no end to estimate: no ETA
                      "  optimizing | generation 1/3 | best 0.50 | 10 trials stored | ETA 2 s",
                      "  optimizing | generation 2/3 | best 0.50 | 20 trials stored | ETA 1 s",
                      "  optimizing | generation 3/3 | best 0.50 | 30 trials stored | ETA 0 s"]
@@ -61,7 +61,7 @@ class Observed:
     publishes on optimizer_progress) and the logger's counts. The real one over DDS: test/test_graph_observer.py."""
 
     def __init__(self):
-        self.progress, self.launches, self.trials = [], None, {}
+        self.progress, self.launches, self.trials, self.campaign = [], None, {}, None
 
     def optimizer_progress(self):
         return list(self.progress)
@@ -71,6 +71,9 @@ class Observed:
 
     def stored_trials(self, run_id):
         return self.trials.get(run_id)
+
+    def campaign_progress(self):
+        return self.campaign
 
     def follow(self, run):
         self.progress.append(run.progress())
@@ -149,7 +152,15 @@ def test_a_bringup_session_shows_its_optimization_and_stored_launches(tmp_path):
 
     observed = Observed()
     empty = session_progress(observed, 7, 65.0)
-    assert empty.text() == "session running 65 s, 7 nodes supervised | ETA unknown"
+    # no end to estimate, no "ETA unknown"; whole minutes, so a log gets a line per change, not one a second
+    assert empty.text() == "session up 1 min, 7 nodes supervised"
+    assert session_progress(observed, 7, 119.0).text() == empty.text()
+    observed.campaign = ("rig-walkthrough", 1, 4, None)     # the graph campaign's own count, then its ETA
+    assert session_progress(observed, 7, 65.0).text() == (
+        "session up 1 min, 7 nodes supervised, campaign rig-walkthrough | 1/4 launches stored | ETA unknown")
+    observed.campaign = ("rig-walkthrough", 2, 4, 130.0)
+    assert session_progress(observed, 7, 65.0).text().endswith("2/4 launches stored | ETA 2 min")
+    observed.campaign = None
     run = OptimizationRun(str(tmp_path / "opt-1"), {"optimizer.max_generations": 3, "optimizer.trials": 10},
                           ProfileGrid(rows=3, cols=3), SyntheticEvaluator(np.full(9, 0.2), trials=10))
     observed.follow(run)

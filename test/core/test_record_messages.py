@@ -34,6 +34,18 @@ def test_every_record_round_trips_through_cdr(record):
             assert expected == value, field
 
 
+def test_an_unknown_orientation_stays_unknown_in_a_bag_message():
+    """Issue 45: an operator-classified launch has no orientation: NaN through CDR, never the upright quaternion."""
+    from rollability_ros.core.records import UNKNOWN_ORIENTATION
+
+    record = LaunchOutcome("camp", "A/t2", LaunchCondition("A", 0.75, 0.8, 0.0, 0), "physical", False,
+                           final_orientation=UNKNOWN_ORIENTATION, classified_by="operator", stamp_s=1_700_000_000.0)
+    type_name, message = message_from_record(record)
+    decoded = typestore().deserialize_cdr(bytes(typestore().serialize_cdr(message, type_name)), type_name)
+    again = record_messages.record_from_message(type_name, decoded)
+    assert not again.orientation_known and all(math.isnan(q) for q in again.final_orientation)
+
+
 def test_stamps_clamp_nanoseconds_and_refuse_impossible_times():
     assert record_messages.split_stamp(1.9999999999) == (1, 999_999_999)   # rounds to 1e9 ns: clamped
     assert record_messages.split_stamp(12.5) == (12, 500_000_000)

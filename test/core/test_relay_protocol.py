@@ -65,3 +65,23 @@ def test_state_round_trips():
     assert relay_protocol.parse_state(relay_protocol.format_state(state)) == state
     with pytest.raises(ValueError):
         relay_protocol.parse_state("armed=2 relay=0 fault=none")
+
+
+def test_the_simulator_prints_its_port_on_a_ready_line(tmp_path):
+    """Issue 45: the simulator printed nothing, so a technician could not tell its port or that it was ready."""
+    import os
+    import subprocess
+    import sys
+
+    from rollability_ros.core.rig.relay_device_sim import READY
+
+    process = subprocess.Popen([sys.executable, "-m", "rollability_ros.core.rig.relay_device_sim"],
+                               stdout=subprocess.PIPE, text=True)
+    try:
+        line = process.stdout.readline()
+        assert line.startswith(READY), line
+        port = line[len(READY):].split()[0]
+        assert os.path.exists(port) and f"valve.serial.port: {port}" in line
+    finally:
+        process.terminate()
+        assert process.wait(10) == 0

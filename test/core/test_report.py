@@ -96,6 +96,14 @@ def test_sources_are_recognised_and_ambiguity_refused(store_report, tmp_path, ca
     (tmp_path / "notes.txt").write_text("hello")
     with pytest.raises(ValueError, match="not a store"):
         source_kind(tmp_path / "notes.txt")
+    session = tmp_path / "session-1"   # what bringup and study write: outcomes.sqlite (issue 45)
+    session.mkdir()
+    (run_dir / "store.sqlite").rename(session / "outcomes.sqlite")
+    assert source_kind(session) == "store"
+    assert cli_main(["report", str(session), "--out", str(tmp_path / "s")]) == 0
+    assert not (session / "store.sqlite").exists() and (tmp_path / "s" / "report.html").is_file()
+    with pytest.raises(ValueError, match="outcomes.sqlite .a study or bringup session"):
+        source_kind(tmp_path / "s")
     two_runs = tmp_path / "two.sqlite"
     with Store(two_runs) as store:
         for outcome in _campaign_outcomes("r1", 1)[:3] + _campaign_outcomes("r2", 1)[:3]:

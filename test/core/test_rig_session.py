@@ -9,7 +9,7 @@ from synthetic_imu import piecewise, stream
 
 from rollability_ros.core.results.records import NO_SEED, LaunchCondition
 from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
-from rollability_ros.core.rig.rig_session import (ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
+from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
                                                   OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
                                                   check_goal, launch_backend_class, make_launch_backend,
                                                   parse_outcome_answer, simulated_outcome, launch_seed)
@@ -32,6 +32,8 @@ class ScriptedOperator:
 
     def __call__(self, phase, detail):
         self.phases.append((phase, detail))
+        if detail.startswith(ANSWERED):
+            return
         if phase == "waiting_for_operator":
             assert detail.startswith(ASK_REGULATOR)
             assert self.channel.confirm() == (True, "accepted")
@@ -50,11 +52,18 @@ def valve():
     controller.shutdown()
 
 
-def make_rig(valve, outcome_source="operator", imu=None, noise=0.0, countdown_s=0.0, **settings):
+class BenchGate(SimulatedSpeedGate):
+    """Stands in for light gates that measure (the simulated gate's times are never stored on a physical record)."""
+
+    measures = True
+    source = "the light gates"
+
+
+def make_rig(valve, outcome_source="operator", imu=None, noise=0.0, countdown_s=0.0, gate=BenchGate, **settings):
     settings = RigSettings(**{"backend": "physical", "outcome_source": outcome_source, "countdown_s": countdown_s,
                               "operator_timeout_s": 2.0, **settings})
     settings.validate()
-    return PhysicalLaunch(settings, valve, SimulatedSpeedGate(0.34, noise, seed=1), SpeedGateConfig(), 150,
+    return PhysicalLaunch(settings, valve, gate(0.34, noise, seed=1), SpeedGateConfig(), 150,
                           RegulatorConfig(), OperatorChannel(), imu)
 
 
@@ -63,8 +72,8 @@ def test_operator_launch_confirms_regulator_once_per_speed_and_disarms(valve):
     operator = ScriptedOperator(rig.operator, [OperatorOutcome(True), OperatorOutcome(False, note="on its side"),
                                                OperatorOutcome(True)])
     first = rig.launch("run", "t0", CONDITION, operator)
-    assert [p for p, _ in operator.phases] == ["waiting_for_operator", "armed", "fired", "in_flight", "settling",
-                                               "classifying"]
+    assert [p for p, d in operator.phases if not d.startswith(ANSWERED)] == [
+        "waiting_for_operator", "armed", "fired", "in_flight", "settling", "classifying"]
     assert "30 psi" in operator.phases[0][1]
     assert first.upright and first.backend == "physical" and first.classified_by == "operator"
     assert math.isclose(first.measured_speed_mps, 0.8) and math.isclose(first.travel_time_s, 0.425)
@@ -73,7 +82,8 @@ def test_operator_launch_confirms_regulator_once_per_speed_and_disarms(valve):
     assert not valve.status().armed and valve.status().pulses == 1
     operator.phases.clear()
     second = rig.launch("run", "t1", CONDITION, operator)        # same speed block: no confirmation
-    assert operator.phases[0][0] == "armed" and not second.upright and second.note == "on its side"
+    assert operator.phases[0][0] == "armed" and not second.upright
+    assert second.note == "travel time: the light gates; on its side"   # the speed's source, then the operator's note
     operator.phases.clear()
     rig.launch("run", "t2", LaunchCondition("B", 0.75, 1.5, -30.0, 0), operator)
     assert operator.phases[0][0] == "waiting_for_operator" and "60 psi" in operator.phases[0][1]
@@ -90,7 +100,22 @@ def test_out_of_tolerance_speed_is_flagged_and_typed_time_fills_a_missing_gate(v
     rig.speed_gate.read_travel_time = lambda timeout_s: math.nan            # gate saw nothing
     typed = rig.launch("run", "typed", CONDITION, ScriptedOperator(rig.operator, [OperatorOutcome(True, 0.25)]))
     assert typed.travel_time_s == 0.25 and math.isclose(typed.measured_speed_mps, 1.36)
-    assert typed.speed_out_of_tolerance
+    assert typed.speed_out_of_tolerance and typed.note.startswith("travel time: typed by the operator")
+
+
+def test_a_simulated_speed_gate_never_writes_a_physical_speed_and_the_orientation_is_unknown(valve):
+    """Issue 45: the shipped simulated gate's made-up times were stored as a physical launch's measured speed, and
+    an operator-classified launch stored the upright quaternion (0, 0, 0, 1) even when it tipped."""
+    rig = make_rig(valve, gate=SimulatedSpeedGate)
+    assert "not a measurement" in rig.describe()
+    tipped = rig.launch("run", "t0", CONDITION, ScriptedOperator(rig.operator, [OperatorOutcome(False)]))
+    assert math.isnan(tipped.travel_time_s) and math.isnan(tipped.measured_speed_mps)
+    assert not tipped.speed_out_of_tolerance
+    assert tipped.note.startswith("travel time: not measured (the simulated speed gate")
+    assert not tipped.orientation_known and all(math.isnan(q) for q in tipped.final_orientation)
+    tipped.validate()
+    typed = rig.launch("run", "t1", CONDITION, ScriptedOperator(rig.operator, [OperatorOutcome(True, 0.4)]))
+    assert typed.travel_time_s == 0.4 and typed.note.startswith("travel time: typed by the operator")
 
 
 def test_estop_during_countdown_aborts_and_leaves_the_fault_latched(valve):
@@ -172,6 +197,8 @@ def test_an_open_question_is_repeated_until_answered(valve):
     heard = []
 
     def late_operator(phase, detail):
+        if detail.startswith(ANSWERED):
+            return
         heard.append(phase)
         if heard.count(phase) > 2 or phase not in ("waiting_for_operator", "classifying"):
             operator(phase, detail)     # the first two announcements of each question are lost
@@ -204,10 +231,41 @@ def test_operator_channel_refuses_stray_answers():
     assert channel.record_outcome(OperatorOutcome(True), "t9") == (
         False, "the rig waits for the outcome of 't3', not 't9'")
     assert channel.record_outcome(OperatorOutcome(False), "t3") == (True, "accepted")
-    assert channel.record_outcome(OperatorOutcome(True)) == (False, "already answered")
+    assert channel.record_outcome(OperatorOutcome(True)) == (
+        False, "already answered for t3: tipped; this answer (upright) differs and is refused (the first answer counts)")
     assert channel.wait(1.0) == OperatorOutcome(False)
     channel.close()
     assert channel.wait(0.5) is None
+
+
+def test_one_answer_counts_from_either_place_and_a_late_one_is_compared_with_it():
+    """Issue 45: after `rollability rig outcome` was accepted, the campaign terminal's own answer read as a failure
+    ("the rig is not waiting for an outcome"), and a different one was dropped without notice."""
+    channel = OperatorChannel()
+    channel.open("confirm", "t1")
+    assert channel.confirm("t1") == (True, "accepted")
+    channel.close()
+    assert channel.confirm() == (True, "already answered for t1: regulator confirmed (this answer agrees; nothing "
+                                       "changed)")
+    channel.open("outcome", "t1")
+    assert channel.record_outcome(OperatorOutcome(True, 0.41, "clean"), "t1") == (True, "accepted")
+    channel.close()
+    assert channel.record_outcome(OperatorOutcome(True), "t1")[0]                    # the same verdict: no failure
+    accepted, message = channel.record_outcome(OperatorOutcome(False, note="on its side"))
+    assert not accepted and "upright, travel time 0.41 s, note: clean" in message and "(tipped, note: on its side)" \
+        in message
+    assert channel.record_outcome(OperatorOutcome(False), "t2") == (False, "the rig is not waiting for an outcome")
+    channel.open("outcome", "t2")                                                      # a new question: answered anew
+    assert channel.record_outcome(OperatorOutcome(False), "t2") == (True, "accepted")
+
+
+def test_the_rig_announces_the_answer_that_counted(valve):
+    rig = make_rig(valve)
+    operator = ScriptedOperator(rig.operator, [OperatorOutcome(False, note="on its side")])
+    rig.launch("run", "t0", CONDITION, operator)
+    answered = [(phase, detail) for phase, detail in operator.phases if detail.startswith(ANSWERED)]
+    assert answered == [("waiting_for_operator", "answered: regulator confirmed"),
+                        ("classifying", "answered: tipped, note: on its side")]
 
 
 def test_regulator_confirmation_expires_and_is_forgotten_after_an_abort(valve, monkeypatch):
@@ -303,7 +361,7 @@ def test_operator_overrides_the_imu_and_answers_when_it_never_settles(valve):
 
     def no_imu(phase, detail):
         asked.append(detail)
-        if phase == "classifying":
+        if phase == "classifying" and not detail.startswith(ANSWERED):
             assert detail.startswith(ASK_OUTCOME) and "did not see the chassis settle" in detail
             rig.operator.record_outcome(OperatorOutcome(False))
     silent = rig.launch("run", "t1", CONDITION, no_imu)
@@ -338,7 +396,7 @@ class RecordingPorts(RigPorts):
 
     def open_speed_gate(self, speed_config):
         self.opened.append("speed_gate")
-        return SimulatedSpeedGate(speed_config.run_length_m, 0.0, seed=1)
+        return BenchGate(speed_config.run_length_m, 0.0, seed=1)
 
     def open_imu(self, imu_outcome):
         if not self.imu:
@@ -402,3 +460,17 @@ def test_in_process_rig_refuses_an_imu_outcome_before_opening_the_valve():
 
     with pytest.raises(ValueError, match="operator only"):
         LocalRig(local_rig_settings("physical", {"rig.outcome_source": "imu"}))
+
+
+def test_the_countdown_is_announced_each_second_and_cannot_outlast_the_arm_timeout(valve):
+    """Issue 45: the countdown was one line ("firing in 1 s"); a countdown longer than valve.arm_timeout_s would
+    have the valve disarm itself before the fire."""
+    rig = make_rig(valve, countdown_s=1.1)
+    operator = ScriptedOperator(rig.operator, [OperatorOutcome(True)])
+    rig.launch("run", "t0", CONDITION, operator)
+    armed = [detail for phase, detail in operator.phases if phase == "armed"]
+    assert [detail.split(";")[1].split(",")[0] for detail in armed] == [" firing in 1.1 s", " firing in 1 s"]
+    assert "rollability rig console" in armed[0]
+    with pytest.raises(ValueError, match=r"rig.countdown_s \(20 s\) must be shorter than valve.arm_timeout_s \(15 s\)"):
+        make_launch_backend(RigSettings(backend="physical", countdown_s=20.0), SpeedGateConfig(), ValveConfig(),
+                            ImuOutcomeConfig(), RecordingPorts(valve))

@@ -35,11 +35,11 @@ class FailingBackend(DryRunBackend):
             raise OSError(f"{command} broke")
 
 
-def make(backend=None, max_pulse_ms=200, watchdog_ms=500, clock=None):
+def make(backend=None, max_pulse_ms=200, watchdog_ms=500, clock=None, arm_timeout_s=None):
     backend = backend or DryRunBackend()
     states = []
     controller = ValveController(backend, max_pulse_ms, watchdog_ms, clock=clock or time.monotonic,
-                                 on_state=states.append)
+                                 on_state=states.append, arm_timeout_s=arm_timeout_s)
     return controller, backend, states
 
 
@@ -110,7 +110,7 @@ def test_estop_latches_until_disarm_then_arm():
     assert states[-1] == status
     assert controller.fire(10) == (False, "fault latched: operator e-stop")
     ok, message = controller.arm()
-    assert not ok and "disarm to acknowledge" in message
+    assert not ok and "acknowledge it with a disarm" in message
     assert controller.disarm()[0]
     assert controller.arm() == (True, "armed")
     assert controller.fire(5)[0]
@@ -162,6 +162,39 @@ def test_watchdog_trips_on_fake_steady_clock():
     assert backend.commands[-1] == "close" and states[-1] == status
     assert not controller.check_watchdog(), "a latched fault trips once"
     assert controller.fire(10)[1].startswith("fault latched: watchdog")
+
+
+def test_an_arming_that_fires_nothing_times_out_to_disarmed():
+    """Issue 45: a manual `rollability rig arm` left the valve armed and idle for 34 s, kept alive by the rig's
+    heartbeats; now an armed valve that fires nothing for valve.arm_timeout_s is disarmed (no fault to clear)."""
+    clock = FakeClock()
+    controller, backend, states = make(clock=clock, watchdog_ms=500, arm_timeout_s=15.0)
+    controller.arm()
+    for _ in range(149):                      # 14.9 s of heartbeats: still armed
+        clock.advance(0.1)
+        controller.heartbeat()
+        controller.check_watchdog()
+    assert controller.status().armed
+    assert controller.fire(10)[0]             # a pulse restarts the idle window
+    clock.advance(14.0)
+    controller.heartbeat()
+    controller.check_watchdog()
+    assert controller.status().armed
+    clock.advance(1.1)
+    controller.heartbeat()
+    assert not controller.check_watchdog()    # not a trip: a timeout to disarmed
+    status = controller.status()
+    assert not status.armed and not status.fault and not status.open and backend.commands[-1] == "close"
+    assert controller.fire(10) == (False, "valve is disarmed")
+    assert controller.arm() == (True, "armed")   # arming again needs no acknowledgement
+    with pytest.raises(ValueError, match="arm_timeout_s"):
+        make(arm_timeout_s=0.0)
+    config = ValveConfig(arm_timeout_s=float("nan"))
+    with pytest.raises(ValueError, match="arm_timeout_s must be a positive number"):
+        config.validate()
+    built = make_controller(ValveConfig(arm_timeout_s=2.5))
+    assert built.arm_timeout_s == 2.5
+    built.shutdown()
 
 
 def test_watchdog_thread_trips_on_the_real_clock():

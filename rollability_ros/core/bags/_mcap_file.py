@@ -69,7 +69,7 @@ def read_sidecar(directory: str) -> typing.Dict[str, str]:
     try:
         with open(path, encoding="utf-8") as stream:
             return dict(json.load(stream).get("definitions", {}))
-    except (FileNotFoundError, ValueError):
+    except (FileNotFoundError, ValueError, RecursionError):
         return {}  # written atomically, so only outside damage breaks it; the storage files hold most schemas
 
 

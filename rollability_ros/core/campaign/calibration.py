@@ -15,7 +15,11 @@ Objective
     make the likelihood zero. CMA-ES maximises the binomial log-likelihood sum_c log C(n, k) + k log p +
     (n - k) log(1 - p). Launch j of every condition uses the same seed (the speed and angle scatter draws) for
     every parameter set: common random numbers, so two parameter sets differ by their physics, not by their luck.
-    The fitted value is the best parameter set evaluated.
+    The fitted value is the best parameter set evaluated. Bench characterisation readings
+    (:mod:`~rollability_ros.core.campaign.characterisation`, ``rollability calibrate --characterisation``) add
+    their log-likelihood (each reading through a model of its measurement) to every parameter set's, in the fit
+    and in the intervals; with them the physical launch outcomes may be absent (the unknowns pinned before the
+    first launch).
 Uncertainty (``interval``; bench/bench_calibration.py --coverage measures how often it holds the truth)
     ``likelihood`` (default): for each parameter, the likelihood-ratio 95% interval along a grid of
     ``interval_points`` values over its bounds, the other parameters at their fitted values, with the
@@ -43,6 +47,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rollability_ros.core.results import analysis
+from rollability_ros.core.campaign.characterisation import Characterisation, characterisation_log_likelihood
 from rollability_ros.core.config import ConfigError, from_mapping, section
 from rollability_ros.core.sim import (LaunchTwinSettings, launch_twin_settings_from_parameters, simulate_valid_launch,
                                       spawn_pool, trial_seed)
@@ -59,6 +64,9 @@ MIN_BOOTSTRAP = 20
 CHI2_1_95 = 3.841458820694124
 
 ConditionResult = analysis.ConditionResult
+#: Config keys that act only on the twin's Mecanum wheels (:func:`check_fittable`).
+MECANUM_KEYS = ("launch_twin.wheel_drag_torque_nm", "launch_twin.wheel_rolling_friction",
+                "launch_twin.wheel_side_friction_factor")
 
 
 @dataclasses.dataclass
@@ -68,10 +76,15 @@ class CalibrationSettings:
     parameters: typing.List[str] = dataclasses.field(default_factory=lambda: [
         "launch_twin.foam.contact_stiffness_npm", "launch_twin.foam.contact_damping_nspm",
         "launch_twin.foam.lateral_friction", "launch_twin.foam.restitution", "launch_twin.speed_sigma_fraction",
-        "robot.com_offset_z_m"])
-    lower: typing.List[float] = dataclasses.field(default_factory=lambda: [5000.0, 20.0, 0.2, 0.0, 0.0, -0.019])
-    upper: typing.List[float] = dataclasses.field(default_factory=lambda: [160000.0, 600.0, 3.0, 1.0, 0.15, 0.015])
-    log_scale: typing.List[bool] = dataclasses.field(default_factory=lambda: [True, True, True, False, False, False])
+        "robot.com_offset_z_m", "launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm",
+        "robot.profile_mass_scale", "launch_twin.launcher.ledge_rolling_friction",
+        "launch_twin.launcher.speed_bias_fraction"])
+    lower: typing.List[float] = dataclasses.field(default_factory=lambda: [5000.0, 20.0, 0.2, 0.0, 0.0, -0.019,
+                                                                           0.002, 0.0005, 0.5, 0.0, -0.15])
+    upper: typing.List[float] = dataclasses.field(default_factory=lambda: [160000.0, 600.0, 3.0, 1.0, 0.15, 0.015,
+                                                                           0.05, 0.02, 2.0, 0.01, 0.15])
+    log_scale: typing.List[bool] = dataclasses.field(default_factory=lambda: [True, True, True, False, False, False,
+                                                                              True, True, True, False, False])
     sim_repetitions: int = 16
     probability_floor: float = 0.01
     popsize: int = 8
@@ -120,6 +133,18 @@ class CalibrationSettings:
         if self.interval == "likelihood" and self.interval_points < 5:
             raise ValueError(f"interval_points must be >= 5, got {self.interval_points}")
 
+    def selected(self, names: typing.Sequence[str]) -> "CalibrationSettings":
+        """These settings fitting only ``names`` (a subset of ``parameters``, each with its declared bounds and
+        scale; the others stay at their loaded values); ``ValueError`` naming one not declared."""
+        undeclared = [name for name in names if name not in self.parameters]
+        if undeclared:
+            raise ValueError(f"{undeclared[0]} is not declared in calibration.parameters (declared: "
+                             f"{', '.join(self.parameters)}); declare it there with its bounds and scale")
+        index = [self.parameters.index(name) for name in dict.fromkeys(names)]
+        return dataclasses.replace(self, parameters=[self.parameters[i] for i in index],
+                                   lower=[self.lower[i] for i in index], upper=[self.upper[i] for i in index],
+                                   log_scale=[self.log_scale[i] for i in index])
+
     def to_values(self, normalised: npt.ArrayLike) -> np.ndarray:
         """Parameter values (own units) of normalised coordinates ``normalised`` (d,), clipped to [0, 1]."""
         u = np.clip(np.asarray(normalised, dtype=np.float64), 0.0, 1.0)
@@ -147,13 +172,32 @@ def calibration_settings(parameters: typing.Mapping[str, typing.Any]) -> Calibra
     return settings
 
 
+def check_fittable(parameters: typing.Mapping[str, typing.Any], settings: CalibrationSettings) -> None:
+    """Refuse a fitted key the twin of flat ``parameters`` does not use (``ValueError`` naming it): the Mecanum
+    wheels' ``launch_twin.wheel_drag_torque_nm`` / ``wheel_rolling_friction`` / ``wheel_side_friction_factor``
+    on a twin that gives the robot its own wheels (``launch_twin.wheel_model``)."""
+    from rollability_ros.core.sim.launch_twin import mecanum_wheels
+
+    mecanum_only = [name for name in settings.parameters if name in MECANUM_KEYS]
+    if mecanum_only and not mecanum_wheels(launch_twin_settings_from_parameters(parameters)):
+        raise ValueError(f"calibration.parameters: {mecanum_only[0]} acts on the twin's Mecanum wheels only, and "
+                         f"this twin gives the robot its own wheels (launch_twin.wheel_model); fit the robot's own "
+                         f"drag (robot.wheel_drag_torque_nm or urdf_robot.joint_drag_torque_nm) instead")
+
+
 def twin_settings_with(parameters: typing.Mapping[str, typing.Any], names: typing.Sequence[str],
                        values: typing.Union[typing.Sequence[float], np.ndarray]) -> LaunchTwinSettings:
     """:class:`~rollability_ros.core.sim.launch_twin.LaunchTwinSettings` of flat ``parameters`` with ``names`` set to
     ``values`` (config keys, own units; ``values`` (d,) one per name; checked like file values)."""
+    return launch_twin_settings_from_parameters(flat_with(parameters, names, values))
+
+
+def flat_with(parameters: typing.Mapping[str, typing.Any], names: typing.Sequence[str],
+              values: typing.Union[typing.Sequence[float], np.ndarray]) -> typing.Dict[str, typing.Any]:
+    """Flat ``parameters`` with ``names`` set to ``values`` (d,) (config keys, own units)."""
     flat = dict(parameters)
     flat.update({name: float(value) for name, value in zip(names, values)})
-    return launch_twin_settings_from_parameters(flat)
+    return flat
 
 
 def simulation_seeds(seed: int, resample: int, repetitions: int) -> typing.List[int]:
@@ -190,11 +234,24 @@ class LaunchPool:
         """Upright counts (s, c): one row per twin of ``twin_settings_list`` (s), one column per condition (c), of
         ``len(seeds)`` launches each."""
         jobs = [(settings, launch_condition(c), seeds) for settings in twin_settings_list for c in conditions]
+        if not jobs:   # no launch conditions (a characterisation alone)
+            return np.zeros((len(twin_settings_list), len(conditions)), dtype=np.int64)
         if self._pool is None:
             counts = [_count_upright(*job) for job in jobs]
         else:
             counts = list(self._pool.map(_count_upright, *zip(*jobs)))
         return np.asarray(counts, dtype=np.int64).reshape(len(twin_settings_list), len(conditions))
+
+    def characterisation(self, characterisation: typing.Optional[Characterisation],
+                         flats: typing.Sequence[typing.Mapping[str, typing.Any]]) -> np.ndarray:
+        """The characterisation log-likelihood (s,) of each flat parameter set of ``flats`` (zeros without one),
+        in the worker processes (roll-outs are simulated)."""
+        if characterisation is None:
+            return np.zeros(len(flats))
+        jobs = [characterisation] * len(flats)
+        if self._pool is None:
+            return np.array([characterisation_log_likelihood(c, f) for c, f in zip(jobs, flats)])
+        return np.array(list(self._pool.map(characterisation_log_likelihood, jobs, flats)))
 
     def close(self) -> None:
         """Stop the worker processes."""
@@ -220,6 +277,8 @@ def binomial_log_likelihood(successes: npt.ArrayLike, trials: npt.ArrayLike, pro
     if np.any(k < 0) or np.any(k > n):
         raise ValueError("need 0 <= successes <= trials in every condition")
     p = np.clip(np.asarray(probabilities, dtype=np.float64), floor, 1.0 - floor)
+    if k.size == 0:   # no launch outcomes (a characterisation alone): they add nothing
+        return np.zeros(np.broadcast_shapes(k.shape, n.shape, p.shape)[:-1])
     log_choose = np.vectorize(lambda a, b: math.lgamma(a + 1) - math.lgamma(b + 1) - math.lgamma(a - b + 1))(n, k)
     return (log_choose + k * np.log(p) + (n - k) * np.log1p(-p)).sum(axis=-1)
 
@@ -235,6 +294,8 @@ def beta_binomial_log_likelihood(successes: npt.ArrayLike, trials: npt.ArrayLike
     u = np.asarray(upright, dtype=np.float64)
     if np.any(k < 0) or np.any(k > n) or np.any(u < 0) or np.any(u > repetitions):
         raise ValueError("need 0 <= successes <= trials and 0 <= upright <= repetitions in every condition")
+    if k.size == 0:   # no launch outcomes (a characterisation alone): they add nothing
+        return np.zeros(np.broadcast_shapes(k.shape, n.shape, u.shape)[:-1])
     lgamma = np.vectorize(math.lgamma)
 
     def log_beta(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -297,15 +358,23 @@ def predicted_on_grid(conditions: typing.Sequence[ConditionResult], parameters: 
 
 def likelihood_profile(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, typing.Any],
                        settings: CalibrationSettings, pool: LaunchPool, fitted: npt.ArrayLike, index: int,
-                       predicted: typing.Optional[typing.Tuple[np.ndarray, np.ndarray]] = None
+                       predicted: typing.Optional[typing.Tuple[np.ndarray, np.ndarray]] = None,
+                       characterisation: typing.Optional[Characterisation] = None
                        ) -> typing.Tuple[np.ndarray, np.ndarray]:
-    """Beta-binomial log-likelihood of grouped physical ``conditions`` along parameter ``index``'s grid, the
-    other parameters at ``fitted`` (d,): ``(grid values (g,), log-likelihoods (g,))``; ``predicted`` reuses a
-    :func:`predicted_on_grid` result made for the same conditions (in the same order)."""
+    """Beta-binomial log-likelihood of grouped physical ``conditions`` (plus ``characterisation``'s, if any)
+    along parameter ``index``'s grid, the other parameters at ``fitted`` (d,): ``(grid values (g,),
+    log-likelihoods (g,))``; ``predicted`` reuses a :func:`predicted_on_grid` result made for the same conditions
+    (in the same order)."""
     grid, upright = predicted or predicted_on_grid(conditions, parameters, settings, pool, fitted, index)
     successes = np.array([c.successes for c in conditions])
     trials = np.array([c.trials for c in conditions])
-    return grid, beta_binomial_log_likelihood(successes, trials, upright, settings.sim_repetitions)
+    flats = []
+    for value in grid:
+        values = np.array(fitted, dtype=np.float64)
+        values[index] = value
+        flats.append(flat_with(parameters, settings.parameters, values))
+    return grid, (beta_binomial_log_likelihood(successes, trials, upright, settings.sim_repetitions)
+                  + pool.characterisation(characterisation, flats))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -324,7 +393,8 @@ class FitResult:
 
 def fit(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, typing.Any],
         settings: CalibrationSettings, pool: LaunchPool, resample: int = 0,
-        on_generation: typing.Optional[typing.Callable[[int, float], None]] = None) -> "FitResult":
+        on_generation: typing.Optional[typing.Callable[[int, float], None]] = None,
+        characterisation: typing.Optional[Characterisation] = None) -> "FitResult":
     """Fit ``settings.parameters`` to grouped physical ``conditions`` (list of ConditionResult) by CMA-ES; the
     :class:`FitResult`'s ``values`` and ``normalised`` are (d,), its ``predicted_upright`` (c,).
 
@@ -338,10 +408,12 @@ def fit(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping
     resample : int
         0 for the main fit, b >= 1 for bootstrap fit b (its own simulation seeds and CMA-ES seed).
     on_generation : callable(generation, best log-likelihood), optional
+    characterisation : Characterisation, optional
+        Bench readings whose log-likelihood adds to the launches' (module docstring).
     """
     cma = require("cma", feature="the calibration")
-    if not conditions:
-        raise ValueError("no grouped conditions to calibrate against")
+    if not conditions and characterisation is None:
+        raise ValueError("no grouped conditions and no characterisation to calibrate against")
     successes = np.array([c.successes for c in conditions])
     trials = np.array([c.trials for c in conditions])
     seeds = simulation_seeds(settings.seed, resample, settings.sim_repetitions)
@@ -357,10 +429,12 @@ def fit(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping
         evaluations = 0
         for generation in range(settings.max_generations):
             population = [np.asarray(x, dtype=np.float64) for x in strategy.ask()]
-            twins = [twin_settings_with(parameters, settings.parameters, settings.to_values(x)) for x in population]
-            upright = pool.predicted_upright(twins, conditions, seeds)
+            flats = [flat_with(parameters, settings.parameters, settings.to_values(x)) for x in population]
+            upright = pool.predicted_upright([launch_twin_settings_from_parameters(f) for f in flats], conditions,
+                                             seeds)
             log_likelihood = binomial_log_likelihood(successes, trials, upright / settings.sim_repetitions,
-                                                     settings.probability_floor)
+                                                     settings.probability_floor) + pool.characterisation(
+                characterisation, flats)
             strategy.tell(population, list(-log_likelihood))
             evaluations += len(population)
             top = int(np.argmax(log_likelihood))
@@ -473,7 +547,8 @@ class CalibrationResult:
 
 def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mapping[str, typing.Any],
               settings: CalibrationSettings, pool: LaunchPool,
-              on_progress: typing.Optional[typing.Callable[[str], None]] = None) -> CalibrationResult:
+              on_progress: typing.Optional[typing.Callable[[str], None]] = None,
+              characterisation: typing.Optional[Characterisation] = None) -> CalibrationResult:
     """Calibrate the twin to physical launch ``outcomes`` (LaunchOutcome list); see the module docstring.
 
     Parameters
@@ -485,21 +560,26 @@ def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mappi
     pool : LaunchPool
     on_progress : callable(str), optional
         One line per finished fit.
+    characterisation : Characterisation, optional
+        Bench readings (``--characterisation``); with them ``outcomes`` may be empty. A bootstrap fit resamples the
+        launch outcomes only.
     """
+    check_fittable(parameters, settings)
     conditions = analysis.group_conditions(outcomes)
     say = on_progress or (lambda line: None)
     initial = [float(parameters[name]) for name in settings.parameters]
     seeds = simulation_seeds(settings.seed, 0, settings.sim_repetitions)
     before = pool.predicted_upright([twin_settings_with(parameters, settings.parameters, initial)], conditions,
                                     seeds)[0]
-    main = fit(conditions, parameters, settings, pool)
+    main = fit(conditions, parameters, settings, pool, characterisation=characterisation)
     say(f"fit: log-likelihood {main.log_likelihood:.2f} at "
         + ", ".join(f"{n} = {v:.4g}" for n, v in zip(settings.parameters, main.values)))
     rng = np.random.default_rng(settings.seed)
     resampled = []
     evaluations = 1 + main.evaluations
     for resample in range(1, settings.bootstrap_resamples + 1):
-        result = fit(bootstrap_conditions(conditions, rng), parameters, settings, pool, resample)
+        result = fit(bootstrap_conditions(conditions, rng), parameters, settings, pool, resample,
+                     characterisation=characterisation)
         resampled.append(result.values)
         evaluations += result.evaluations
         say(f"bootstrap {resample}/{settings.bootstrap_resamples}: "
@@ -511,7 +591,8 @@ def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mappi
             low, high = (float(v) for v in np.percentile(fits, [2.5, 97.5]))
             method = f"bootstrap percentile ({len(fits)} fits)"
         else:
-            grid, curve = likelihood_profile(conditions, parameters, settings, pool, main.values, i)
+            grid, curve = likelihood_profile(conditions, parameters, settings, pool, main.values, i,
+                                             characterisation=characterisation)
             evaluations += len(grid)
             low, high = likelihood_interval(grid, curve)
             method = f"likelihood ratio, beta-binomial ({len(grid)} points, others at their fit)"
@@ -521,7 +602,9 @@ def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mappi
     successes = np.array([c.successes for c in conditions])
     trials = np.array([c.trials for c in conditions])
     before_ll = float(binomial_log_likelihood(successes, trials, before / settings.sim_repetitions,
-                                              settings.probability_floor))
+                                              settings.probability_floor)
+                      + pool.characterisation(characterisation, [flat_with(parameters, settings.parameters,
+                                                                           initial)])[0])
     return CalibrationResult(conditions=conditions, sim_repetitions=settings.sim_repetitions, before_upright=before,
                              after_upright=main.predicted_upright, before_log_likelihood=before_ll,
                              after_log_likelihood=main.log_likelihood, estimates=estimates, evaluations=evaluations)

@@ -37,8 +37,10 @@ INVALID_STOP_FRACTION = 0.5
 INVALID_STOP_MIN_LAUNCHES = 4
 #: Words of an invalid launch's note -> the setting to change.
 INVALID_LAUNCH_FIXES = (
-    ("did not leave the ledge", "the push plate does not move the robot: set launch_twin.plate.height_m, width_m and "
-                                "clearance_m to 0 (derived from the robot) and check launch_twin.plate.max_force_n"),
+    ("did not leave the ledge", "the launcher does not get the robot over the edge: set launch_twin.plate.height_m, "
+                                "width_m and clearance_m to 0 (derived from the robot); a robot that coasts to a "
+                                "stop after the cylinder's stroke needs launch_twin.launcher.model push_through (then "
+                                "check launch_twin.plate.max_force_n)"),
     ("outside the foam", "the robot lands beyond the foam: enlarge launch_twin.foam.length_m / width_m"),
     ("never landed", "the robot never reaches the foam: check launch_twin.foam and the trial time cap "
                      "(trial.time_cap_s)"),
@@ -71,6 +73,7 @@ class CampaignReport:
     total: int
     stopped_reason: str = ""
     failed: bool = False
+    advice: str = ""          # what the operator must do before resuming (e.g. acknowledge a valve e-stop)
 
     @property
     def complete(self) -> bool:
@@ -153,7 +156,8 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
                  confirm_stored: typing.Callable[[LaunchOutcome], None],
                  ask: typing.Optional[typing.Callable[[str], str]] = None, say: typing.Callable[[str], None] = print,
                  pressure_psi_by_speed: typing.Optional[typing.Mapping[float, float]] = None,
-                 clock: typing.Callable[[], float] = time.monotonic) -> CampaignReport:
+                 clock: typing.Callable[[], float] = time.monotonic,
+                 on_progress: typing.Optional[typing.Callable[[CampaignProgress], None]] = None) -> CampaignReport:
     """Run the trials of ``plan`` not yet stored, in plan order; returns a :class:`CampaignReport`.
 
     Parameters
@@ -175,10 +179,15 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
         Prints one line (instructions, progress).
     pressure_psi_by_speed : dict, optional
         ``{speed m/s: psi}`` to name the regulator pressure in the instructions.
+    on_progress : callable, optional
+        Called with the :class:`~rollability_ros.core.campaign.plan.CampaignProgress` at the start and after each
+        stored trial (the graph campaign publishes it for ``bringup``'s progress line).
     """
     todo = [trial for trial in plan if trial.trial_id not in stored_ids]
     progress = CampaignProgress(len(plan), len(plan) - len(todo))
     say(f"campaign {run_id}: {progress.text()}")
+    if on_progress is not None:
+        on_progress(progress)
     previous, stored_now, notes = None, 0, []
 
     def report(reason: str, failed: bool = False) -> CampaignReport:
@@ -205,6 +214,8 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
             return report(f"{trial.trial_id}: the operator's input closed")
         stored_now += 1
         progress.trial_done(clock() - started)
+        if on_progress is not None:
+            on_progress(progress)
         verdict = outcome.note if not outcome.valid else ("upright" if outcome.upright else "NOT upright")
         say(f"{trial.trial_id}: {verdict}"
             f"{' (speed flagged)' if outcome.speed_out_of_tolerance else ''}; {progress.text()}")
@@ -243,14 +254,26 @@ class RunnerSettings:
             raise ValueError("store_timeout_s and server_timeout_s must be finite and > 0")
 
 
-def report_exit_code(report: CampaignReport, say: typing.Callable[[str], None] = print) -> int:
+def resume_command(argv: typing.Sequence[str], program: str = "rollability") -> str:
+    """The command line that resumes the campaign started with ``program argv``: the same arguments with
+    ``--resume`` (once), quoted for a shell."""
+    import shlex
+
+    return shlex.join([program, *argv] + ([] if "--resume" in argv else ["--resume"]))
+
+
+def report_exit_code(report: CampaignReport, say: typing.Callable[[str], None] = print, resume: str = "") -> int:
     """Print how a session ended; return the exit code: 0 when complete, 3 when stopped early, 4 when it failed
-    (mostly invalid launches: the message names the setting to change)."""
+    (mostly invalid launches: the message names the setting to change). ``resume``: the exact command that
+    continues the campaign (:func:`resume_command`), printed after a stop with the report's ``advice``."""
     if report.failed:
         say(f"campaign failed: {report.stopped_reason} ({report.done}/{report.total} stored)")
         return 4
     if report.stopped_reason:
-        say(f"campaign stopped: {report.stopped_reason} ({report.done}/{report.total} stored; resume to continue)")
+        say(f"campaign stopped: {report.stopped_reason} ({report.done}/{report.total} stored)")
+        if report.advice:
+            say(f"before resuming: {report.advice}")
+        say(f"to continue, type: {resume}" if resume else "resume to continue (the same command with --resume)")
         return 3
     say(f"campaign complete: {report.done}/{report.total} trials stored")
     return 0

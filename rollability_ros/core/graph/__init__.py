@@ -18,8 +18,8 @@ import typing
 from rollability_ros.core.faces import lazy_attribute
 
 if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
-    from rollability_ros.core.graph.bringup import (GraphSettings, NodeLaunch, join_nodes, load_graph_settings,
-                                                    new_study_id, parameter_files, session_nodes, session_twin_config)
+    from rollability_ros.core.graph.bringup import (GraphSettings, NodeLaunch, add_twin_files, join_nodes,
+                                                    load_graph_settings, new_study_id, parameter_files, session_nodes)
     from rollability_ros.core.graph.foxglove_view import ViewServer, ViewSettings, parse_pose_frames
     from rollability_ros.core.graph.preflight import check_graph_parameters, graph_namespaces, refuse_bad_session
     from rollability_ros.core.graph.progress import GraphObserver, ProgressDisplay, session_progress
@@ -30,10 +30,10 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
 
 __all__ = [
     "PROGRESS_PERIOD_S", "SESSION_FILE", "GraphObserver", "GraphSettings", "NodeLaunch", "ProcessSpec",
-    "ProgressDisplay", "SessionInfo", "Study", "Supervisor", "ViewServer", "ViewSettings", "check_graph_parameters",
-    "claim_domain", "graph_namespaces", "join_nodes", "load_graph_settings", "load_session", "new_study_id",
-    "parameter_files", "parse_pose_frames", "refuse_bad_session", "session_nodes", "session_progress",
-    "session_twin_config", "start_session",
+    "ProgressDisplay", "SessionInfo", "Study", "Supervisor", "ViewServer", "ViewSettings", "add_twin_files",
+    "check_graph_parameters", "claim_domain", "graph_namespaces", "join_nodes", "load_graph_settings", "load_session",
+    "new_study_id", "parameter_files", "parse_pose_frames", "refuse_bad_session", "session_nodes", "session_progress",
+    "start_session",
 ]
 
 

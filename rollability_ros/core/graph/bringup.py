@@ -120,7 +120,6 @@ class GraphSettings:
     namespace: str = "/rollability"
     evaluators: int = 2
     evaluator_workers: int = 1
-    valve_backend: str = "dry_run"
     record: bool = True
     view: bool = False
     view_port: int = 8765
@@ -138,8 +137,6 @@ class GraphSettings:
             raise ValueError(f"evaluators must be in [0, 64] (0: a rig-only session), got {self.evaluators}")
         if self.evaluator_workers < 0:
             raise ValueError(f"evaluator_workers must be >= 0 (0 = one per core), got {self.evaluator_workers}")
-        if self.valve_backend not in ("dry_run", "gpio", "serial_relay"):
-            raise ValueError(f"valve_backend must be dry_run, gpio or serial_relay, got {self.valve_backend!r}")
         if not 0 < self.view_port < 65536:
             raise ValueError(f"view_port must be a TCP port, got {self.view_port}")
         if self.optimization_timeout_s < 0 or self.campaign_timeout_s < 0 or self.poll_period_s <= 0:
@@ -147,9 +144,22 @@ class GraphSettings:
         check_parent_steps(self.output_dir, "bringup.output_dir")   # before any folder is made or node started
 
 
+#: Keys of ``bringup.*`` that moved: old key -> the one key that sets it now.
+MOVED_KEYS = {"valve_backend": "valve.backend"}
+
+
 def load_graph_settings(param_files: typing.Sequence[str]) -> "GraphSettings":
-    """:class:`GraphSettings` from the merged parameter files (namespace ``bringup``)."""
-    return from_mapping(GraphSettings, section(load_parameters(param_files), "bringup"), "bringup")
+    """:class:`GraphSettings` from the merged parameter files (namespace ``bringup``).
+
+    A key of :data:`MOVED_KEYS` is refused naming the key that replaced it: one setting picks the valve's backend
+    (``valve.backend``, read by the valve_controller node itself), so a lab file that still sets
+    ``bringup.valve_backend`` must not be silently ignored or beat it."""
+    values = section(load_parameters(param_files), "bringup")
+    for old, new in MOVED_KEYS.items():
+        if old in values:
+            raise ValueError(f"bringup.{old} is no longer read: set {new} instead (config/rig.yaml; one key picks "
+                             f"it for bringup, study, the launch files and the valve_controller node)")
+    return from_mapping(GraphSettings, values, "bringup")
 
 
 def new_study_id(now: typing.Optional[datetime.datetime] = None) -> str:
@@ -159,10 +169,12 @@ def new_study_id(now: typing.Optional[datetime.datetime] = None) -> str:
 
 
 def core_nodes(settings: "GraphSettings", study_dir: str,
-               bag_dir: typing.Optional[str] = None) -> typing.List[NodeLaunch]:
-    """The always-on part of the graph: recorder, outcome_logger, valve_controller, evaluators.
+               bag_dir: typing.Optional[str] = None, evaluators: bool = True) -> typing.List[NodeLaunch]:
+    """The always-on part of the graph: recorder, outcome_logger, valve_controller, evaluators (unless
+    ``evaluators`` is False: only an optimizer asks them for work).
 
-    The recorder writes ``bag_dir`` (default ``<study_dir>/bag``); the logger's store is ``<study_dir>/outcomes.sqlite``.
+    The recorder writes ``bag_dir`` (default ``<study_dir>/bag``); the logger's store is
+    ``<study_dir>/``:data:`SESSION_STORE`, the file ``rollability report <study_dir>`` reads.
     """
     nodes = []
     namespace = settings.namespace.rstrip("/")
@@ -170,8 +182,8 @@ def core_nodes(settings: "GraphSettings", study_dir: str,
         nodes.append(NodeLaunch("recorder", params={"recorder.output_dir": bag_dir or os.path.join(study_dir, "bag")},
                                 stop_timeout_s=30.0))
     nodes.append(NodeLaunch("outcome_logger", params={"store_path": os.path.join(study_dir, "outcomes.sqlite")}))
-    nodes.append(NodeLaunch("valve_controller", params={"valve.backend": settings.valve_backend}))
-    for index in range(settings.evaluators):
+    nodes.append(NodeLaunch("valve_controller"))   # valve.backend from the parameter files: the one key
+    for index in range(settings.evaluators if evaluators else 0):
         nodes.append(NodeLaunch("sim_evaluator", label=f"eval_{index}", namespace=f"{namespace}/eval_{index}",
                                 params={"evaluator.workers": settings.evaluator_workers}))
     if settings.view:
@@ -181,24 +193,39 @@ def core_nodes(settings: "GraphSettings", study_dir: str,
     return nodes
 
 
-def session_twin_config(param_files: typing.Sequence[str], given_files: typing.Sequence[str]) -> typing.List[str]:
-    """The rig's ``rig.twin_config`` for a session on ``param_files``: as those files set it (default: the shipped
-    twin files), then each of the user's ``given_files`` that sets launch twin parameters, so the rig's twin reads
-    them (they are applied, never dropped)."""
+#: The nodes that run the launch twin, and the parameter listing the twin's files for each.
+TWIN_CONFIG_PARAMETERS = {"rig": "rig.twin_config", "sim_evaluator": "objective.twin_config",
+                          "optimizer": "objective.twin_config"}
+
+
+def add_twin_files(nodes: typing.Sequence[NodeLaunch], param_files: typing.Sequence[str],
+                   given_files: typing.Sequence[str]) -> None:
+    """Append each of the user's ``given_files`` that sets launch twin parameters to the twin file list of every
+    node in ``nodes`` that runs the twin (:data:`TWIN_CONFIG_PARAMETERS`; the list as ``param_files`` or the node's
+    own overrides set it, else the shipped twin files), so every twin of the session reads them: applied, never
+    dropped because the twin reads only its own list."""
     from rollability_ros.core.rig import RigSettings
     from rollability_ros.core.sim import twin_files
 
-    twin = list(load_parameters(list(param_files)).get("rig.twin_config", RigSettings().twin_config))
-    return [*twin, *(path for path in twin_files(given_files) if path not in twin)]
+    extra = twin_files(given_files)
+    if not extra:
+        return
+    merged = load_parameters(list(param_files))
+    for node in nodes:
+        name = TWIN_CONFIG_PARAMETERS.get(node.module)
+        if name is not None:
+            twin = list(node.params.get(name, merged.get(name, RigSettings().twin_config)))
+            node.params[name] = [*twin, *(path for path in extra if path not in twin)]
 
 
 def session_nodes(settings: "GraphSettings", run_dir: str, rig_backend: str = "sim",
                   optimizer: bool = True) -> typing.List[NodeLaunch]:
     """A lab session's graph: :func:`core_nodes`, the rig (``sim`` | ``physical``) and optionally the optimizer.
 
-    The optimizer waits for its ``start`` service (no autostart) and keeps its runs under ``run_dir``.
+    Without the optimizer no sim_evaluator starts (nothing else asks them for work). The optimizer waits for its
+    ``start`` service (no autostart) and keeps its runs under ``run_dir``.
     """
-    nodes = core_nodes(settings, run_dir)
+    nodes = core_nodes(settings, run_dir, evaluators=optimizer)   # evaluators serve only the optimizer
     nodes.append(NodeLaunch("rig", namespace=settings.namespace, params={"rig.backend": rig_backend}))
     if optimizer:
         nodes.append(NodeLaunch("optimizer", namespace=settings.namespace,

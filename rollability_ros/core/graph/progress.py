@@ -37,7 +37,10 @@ class JobProgress:
         if self.trials_stored is not None:
             parts.append(f"{self.trials_stored}" + (f"/{self.trials_total}" if self.trials_total else "")
                          + f" {self.trials_label}")
-        parts.append(f"ETA {format_duration(self.eta_s)}" if self.eta_s is not None else "ETA unknown")
+        if self.eta_s is not None:
+            parts.append(f"ETA {format_duration(self.eta_s)}")
+        elif self.trials_total or self.max_generations:   # an end to estimate, not yet estimable
+            parts.append("ETA unknown")
         return " | ".join(parts)
 
 
@@ -137,12 +140,18 @@ class GraphObserver(typing.Protocol):
     def stored_launches(self) -> typing.Optional[int]:
         """Launch outcomes in the outcome logger's store, every run (its latest summary); None before one."""
 
+    def campaign_progress(self) -> typing.Optional[typing.Tuple[str, int, int, typing.Optional[float]]]:
+        """The graph campaign's latest ``(run id, trials stored, trials planned, ETA s or None)``; None before
+        one."""
+
 
 def session_progress(observer: GraphObserver, nodes: int, elapsed_s: float) -> JobProgress:
     """A :class:`JobProgress` of a ``bringup`` session: the optimizer's newest run (generation, best so far, ETA
-    from the run's generation cap) and the launches the outcome logger stored, learnt through ``observer``;
+    from the run's generation cap), else the graph campaign's progress (its trials and ETA), else the launches the
+    outcome logger stored, learnt through ``observer``;
     ``nodes`` supervised."""
-    phase = f"session running {format_duration(elapsed_s)}, {nodes} nodes supervised"
+    # whole minutes: in a pipe or log a line is printed per change, not every second (issue 45)
+    phase = f"session up {int(elapsed_s // 60)} min, {nodes} nodes supervised"
     generation = best = eta = None
     cap = 0
     history = observer.optimizer_progress()
@@ -151,4 +160,10 @@ def session_progress(observer: GraphObserver, nodes: int, elapsed_s: float) -> J
         generation, best, cap = last.generation, last.best_so_far, last.max_generations
         phase += f", optimizing run {last.run_id}"
         eta = eta_s(generation, cap, last.elapsed_s)   # generations are numbered from 1
+        return JobProgress(phase, generation, cap, best, observer.stored_launches(), eta_s=eta)
+    campaign = observer.campaign_progress()
+    if campaign is not None:   # the campaign's own count and ETA (issue 45: "ETA unknown" every second)
+        run_id, done, total, eta = campaign
+        return JobProgress(f"{phase}, campaign {run_id}", trials_stored=done, trials_total=total, eta_s=eta,
+                           trials_label="launches stored")
     return JobProgress(phase, generation, cap, best, observer.stored_launches(), eta_s=eta)

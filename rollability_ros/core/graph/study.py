@@ -33,8 +33,8 @@ import typing
 
 import yaml
 
-from rollability_ros.core.graph.bringup import (NodeLaunch, core_nodes, join_nodes, load_graph_settings,
-                                                new_study_id, parameter_files)
+from rollability_ros.core.graph.bringup import (DEFAULT_CONFIGS, NodeLaunch, add_twin_files, core_nodes,
+                                                join_nodes, load_graph_settings, new_study_id, parameter_files)
 from rollability_ros.core.graph.preflight import graph_namespaces
 from rollability_ros.core.graph.session import SessionInfo, start_session
 from rollability_ros.core.graph.progress import GraphObserver, JobProgress, ProgressDisplay, Stopwatch, eta_s
@@ -127,6 +127,11 @@ class Study:
         """The logger's outcome store of the study."""
         return os.path.join(self.study_dir, "outcomes.sqlite")
 
+    @property
+    def given_files(self) -> typing.List[str]:
+        """The user's parameter files (``--config``; their copies once saved), after the defaults and bringup's."""
+        return self.param_files[len(DEFAULT_CONFIGS) + 1:]
+
     def open_session(self, environ: typing.MutableMapping[str, str] = os.environ) -> SessionInfo:
         """Check the parameters, make (or reopen) the study directory, and put this process (``environ``, before
         ROS starts here: the observer and every node inherit it) on the study's own ROS domain with localhost
@@ -161,9 +166,11 @@ class Study:
         return nodes
 
     def _optimizer(self, resume):
-        return NodeLaunch("optimizer", namespace=self.settings.namespace, params={
+        optimizer = NodeLaunch("optimizer", namespace=self.settings.namespace, params={
             "run_id": OPTIMIZATION_DIR, "optimizer.output_dir": self.study_dir, "autostart": True,
             "select_designs": True, "exit_on_finish": True, "resume": resume})
+        add_twin_files([optimizer], self.param_files, self.given_files)
+        return optimizer
 
     def make_study_dir(self) -> None:
         """Make the new study's directory: its recorded id (:data:`STUDY_ID_FILE`) and its parameter files."""
@@ -268,8 +275,9 @@ class Study:
         """Run (or resume) the whole study; always stops the graph; returns a :class:`StudyResult`."""
         self.open_session()
         bag_dir = self._next_bag_dir() if self.settings.record else ""
-        supervisor = Supervisor([n.process_spec(self.param_files, self.study_dir)
-                                 for n in self._session_nodes(core_nodes(self.settings, self.study_dir, bag_dir))],
+        nodes = self._session_nodes(core_nodes(self.settings, self.study_dir, bag_dir))
+        add_twin_files(nodes, self.param_files, self.given_files)   # the evaluators' twins read the user's twin keys
+        supervisor = Supervisor([n.process_spec(self.param_files, self.study_dir) for n in nodes],
                                 os.path.join(self.study_dir, "logs"),
                                 on_event=lambda event: self.say("  " + event.text()))
         result = StudyResult(study_dir=self.study_dir, ok=False, bag_dir=bag_dir)

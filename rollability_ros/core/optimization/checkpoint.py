@@ -109,7 +109,7 @@ def load_checkpoint(path: str | os.PathLike[str]) -> dict[str, typing.Any] | Non
         return None
     try:
         document = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:   # RecursionError: nesting too deep
         raise ValueError(f"checkpoint {path} is damaged or not a checkpoint (not JSON: {exc})") from exc
     if not isinstance(document, dict) or not isinstance(document.get("checkpoint"), dict):
         raise ValueError(f"checkpoint {path} is not a checkpoint of this code (no checkpoint body)")

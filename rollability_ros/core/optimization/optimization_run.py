@@ -394,9 +394,13 @@ class OptimizationRun:
             raise ConfigError(f"cannot resume run {self.run_id}: the configuration differs from its "
                               f"{RUN_CONFIG_FILENAME} ({'; '.join(differences[:8])}"
                               f"{'; ...' if len(differences) > 8 else ''}); resume with the run's own config")
-        return self._from_checkpoint()
+        store = getattr(self, "store", None)
+        if store is not None:
+            return self._from_checkpoint(store)
+        with Store(self.run_dir) as store:   # closed on a refusal too: no file of the run is left changed
+            return self._from_checkpoint(store)
 
-    def _from_checkpoint(self):
+    def _from_checkpoint(self, store):
         """The optimizer as of the last checkpoint (a fresh one if the first generation never completed).
 
         The checkpoint must be the one this run's store recorded (its SHA-256), or the next one, written just
@@ -408,7 +412,6 @@ class OptimizationRun:
         if os.path.exists(legacy) and not os.path.exists(path):
             raise ConfigError(f"cannot resume run {self.run_id}: {legacy} is a pickled checkpoint of an earlier "
                               "version; it is not loaded (a pickle can run code)")
-        store = getattr(self, "store", None) or Store(self.run_dir)
         info = (store.run_info(self.run_id) or {}).get("info") or {}
         recorded = info.get("checkpoint")
         generations = {g.generation for g in store.generations(run_id=self.run_id)}
@@ -476,7 +479,7 @@ class OptimizationRun:
         try:
             return self._step()
         except BaseException:
-            self.optimizer = self._from_checkpoint()
+            self.optimizer = self._from_checkpoint(self.store)
             raise
 
     def _step(self):

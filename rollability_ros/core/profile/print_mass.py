@@ -154,8 +154,8 @@ def face_planes(mesh: Mesh) -> typing.Tuple[np.ndarray, np.ndarray]:
 
 
 def is_convex(mesh: Mesh, normals: np.ndarray, offsets: np.ndarray) -> bool:
-    """True when every vertex of the closed, outward-wound ``mesh`` lies inside every face plane (to 1e-6 of its
-    size): the mesh is convex."""
+    """True when every vertex of the closed, outward-wound ``mesh`` lies inside every face plane ``normals`` (F, 3)
+    . x <= ``offsets`` (F,) (to 1e-6 of its size): the mesh is convex."""
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     tolerance = 1e-6 * float(np.ptp(vertices, axis=0).max())
     return bool((vertices @ normals.T - offsets).max() <= tolerance)

@@ -9,7 +9,7 @@ import math
 import os
 import typing
 
-from rollability_ros.core.records import NO_SEED, LaunchCondition, LaunchOutcome, trial_id_for
+from rollability_ros.core.records import NO_SEED, UNKNOWN_ORIENTATION, LaunchCondition, LaunchOutcome, trial_id_for
 
 #: Columns every file must have.
 REQUIRED_COLUMNS = ("configuration", "height_m", "speed_mps", "angle_deg", "repetition", "upright")
@@ -114,8 +114,10 @@ def _parse_row(values, run_id):
         "stamp_s": field("stamp_s", _parse_float, 0.0),
         "seed": field("seed", _parse_seed, NO_SEED),
     }
+    optional["final_orientation"] = UNKNOWN_ORIENTATION   # hand-recorded: no sensor saw it
     if ORIENTATION_COLUMNS[0] in values:
-        optional["final_orientation"] = tuple(field(c, _parse_float, 0.0) for c in ORIENTATION_COLUMNS)
+        # empty cells: the orientation is unknown (an operator-classified launch), all four NaN
+        optional["final_orientation"] = tuple(field(c, _parse_float, math.nan, True) for c in ORIENTATION_COLUMNS)
     if reasons:
         raise ValueError("; ".join(reasons))
     if optional["run_id"] is None:
@@ -240,5 +242,5 @@ def write_outcome_csv(path: typing.Union[str, os.PathLike], outcomes: typing.Ite
                 str(outcome.upright).lower(), outcome.backend, _format_float(outcome.travel_time_s),
                 _format_float(outcome.measured_speed_mps), str(outcome.speed_out_of_tolerance).lower(),
                 outcome.classified_by, outcome.note, repr(float(outcome.stamp_s)),
-                *(repr(float(q)) for q in outcome.final_orientation),
+                *(_format_float(q) for q in outcome.final_orientation),   # unknown: empty cells
                 "" if outcome.seed == NO_SEED else outcome.seed])

@@ -250,9 +250,26 @@ class OutcomeLog:
                 raise StoreFailure(f"{self.store.path}: {exc}") from exc
             if stored and isinstance(record, LaunchOutcome):
                 self._summary.add_outcome(record)
+                self._describe_campaign(record)
             elif stored and isinstance(record, CandidateRecord):
                 self._summary.add_candidate(record)
         return stored
+
+    def _describe_campaign(self, outcome):
+        """Put ``outcome``'s campaign in the store's ``runs`` table (kind ``campaign``, its backend) when no one
+        described it yet: a campaign run through the graph never opens the store, so the logger records every
+        campaign it stores outcomes of. Keeps what the campaign itself recorded (designs); a run whose outcomes
+        come from two backends says ``mixed``. Lock held."""
+        described = self.store.run_info(outcome.run_id)
+        info = dict(described["info"]) if described else {}
+        backend = info.get("backend")
+        if described and backend in (outcome.backend, "mixed"):
+            return
+        info["backend"] = outcome.backend if backend is None else "mixed"
+        try:
+            self.store.set_run_info(outcome.run_id, described["kind"] if described else "campaign", info)
+        except (sqlite3.Error, OSError) as exc:
+            raise StoreFailure(f"{self.store.path}: {exc}") from exc
 
     def summary(self, run_id: typing.Optional[str] = None) -> "LogSummary":
         """A :class:`LogSummary` of every run, or of ``run_id`` (empty for an unknown run)."""

@@ -4,7 +4,8 @@ A report is built from records only (launch outcomes, candidates, generations, t
 campaign gives the same tables and figures whether it is read from the live store, from its bag or from a CSV
 of hand-recorded outcomes. Sources:
 
-- a store file (SQLite) or a run directory holding ``store.sqlite``;
+- a store file (SQLite), a run directory holding ``store.sqlite`` or a ``study`` / ``bringup`` session directory
+  holding the outcome logger's ``outcomes.sqlite``;
 - a recorded bag (a directory with ``metadata.yaml`` / ``*.mcap``, or one ``.mcap`` file), read through
   ``rollability_ros.core.bags.messages.read_records_from_bag``;
 - a CSV of launch outcomes (``docs/outcome-csv.md``).
@@ -27,7 +28,7 @@ import typing
 from rollability_ros.core.results import analysis
 from rollability_ros.core.results._outcome_csv import read_outcome_csv
 from rollability_ros.core.records import INVALID_LAUNCH, NO_SEED, LaunchOutcome
-from rollability_ros.core.store import STORE_FILENAME, Store
+from rollability_ros.core.store import SESSION_STORE_FILENAME, STORE_FILENAME, Store
 from rollability_ros.core.stats import newcombe_interval, wilson_interval
 
 #: Order of configurations in figures and tables (others follow alphabetically).
@@ -131,11 +132,12 @@ def source_kind(path: typing.Union[str, os.PathLike]) -> str:
     """``"store"``, ``"bag"`` or ``"csv"`` for a report source; ValueError if it is none of them."""
     path = os.fspath(path)
     if os.path.isdir(path):
-        if os.path.isfile(os.path.join(path, STORE_FILENAME)):
+        if directory_store(path):
             return "store"
         if os.path.isfile(os.path.join(path, "metadata.yaml")) or any(n.endswith(".mcap") for n in os.listdir(path)):
             return "bag"
-        raise ValueError(f"{path}: a directory without {STORE_FILENAME}, metadata.yaml or .mcap files")
+        raise ValueError(f"{path}: a directory without {STORE_FILENAME} (a run), {SESSION_STORE_FILENAME} (a study "
+                         "or bringup session), metadata.yaml or .mcap files (a bag)")
     if not os.path.isfile(path):
         raise FileNotFoundError(f"report source not found: {path}")
     if path.lower().endswith(".csv"):
@@ -146,6 +148,15 @@ def source_kind(path: typing.Union[str, os.PathLike]) -> str:
         if stream.read(len(_SQLITE_MAGIC)) == _SQLITE_MAGIC:
             return "store"
     raise ValueError(f"{path}: not a store (SQLite), a bag (.mcap) or a CSV of outcomes")
+
+
+def directory_store(directory: str) -> str:
+    """The store file of a run directory (``store.sqlite``) or of a session directory (``outcomes.sqlite``, what
+    ``bringup`` and ``study`` write), or "" when it has neither."""
+    for name in (STORE_FILENAME, SESSION_STORE_FILENAME):
+        if os.path.isfile(os.path.join(directory, name)):
+            return os.path.join(directory, name)
+    return ""
 
 
 def load_report_data(source: typing.Union[str, os.PathLike], run_id: typing.Optional[str] = None) -> ReportData:
@@ -161,7 +172,7 @@ def load_report_data(source: typing.Union[str, os.PathLike], run_id: typing.Opti
     data = ReportData(source=f"{kind} {source}")
     run_info = None
     if kind == "store":
-        with Store(source) as store:
+        with Store(directory_store(source) if os.path.isdir(source) else source) as store:
             data.outcomes = store.launch_outcomes()
             data.candidates = store.candidates()
             data.generations = store.generations()

@@ -1,5 +1,8 @@
 """The sensitivity table as gains: each design minus the bare chassis at every level of every unknown factor.
 
+Disturbance trials or launches on the twin (``rollability sensitivity --launches``: each launch unknown at both
+ends of its range).
+
 Rows come from :func:`rollability_ros.core.sim.sensitivity.sensitivity_rows` (or its ``sensitivity.csv``);
 every (factor, level) evaluates the bare chassis and each design on the same trials (common random numbers), so
 a design's gain is its success rate minus the bare chassis's there, with Newcombe's 95% interval. ``rollability
@@ -40,11 +43,14 @@ def gain_lines(rows: typing.Sequence[dict], baseline: str = "baseline") -> typin
     gains = gain_rows(rows, baseline)
     if not gains:
         return []
-    lines = ["sensitivity (simulated disturbance trials): each design minus the bare chassis per unknown factor "
+    # the launch study's robust row says "all unknowns drawn" (core/sim/sensitivity.launch_sensitivity_rows)
+    launches = any(str(r["level"]) == "all unknowns drawn" for r in rows)
+    measure = "launches on the twin" if launches else "disturbance trials"
+    lines = [f"sensitivity (simulated {measure}): each design minus the bare chassis per unknown factor "
              "(same trials; Newcombe 95%)"]
     for gain in gains:
         mark = "**" if gain["factor"] == "robust" else "  "
-        lines.append(f"{mark}{gain['factor']:<18} {str(gain['level']):<18} {gain['configuration']:<6} "
+        lines.append(f"{mark}{gain['factor']:<24} {str(gain['level']):<18} {gain['configuration']:<6} "
                      f"{gain['successes']:>3}/{gain['trials']:<3} vs {gain['baseline_successes']:>3}/"
                      f"{gain['baseline_trials']:<3} {gain['gain']:+.2f} [{gain['gain_low']:+.2f}, "
                      f"{gain['gain_high']:+.2f}]")

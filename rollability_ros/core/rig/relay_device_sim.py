@@ -1,7 +1,8 @@
 """A simulated valve relay board on a pseudo-terminal, run as its own process, for testing the valve path.
 
-Run ``python -m rollability_ros.core.rig.relay_device_sim --port-file PORT --log LOG.jsonl``: it opens a pty, writes
-the slave's device path to ``PORT`` (atomically, once it is ready) and speaks the board protocol of
+Run ``python -m rollability_ros.core.rig.relay_device_sim [--port-file PORT] [--log LOG.jsonl]``: it opens a pty,
+writes the slave's device path to ``PORT`` (atomically, once it is ready), prints it on a ready line
+(``relay board simulator ready on /dev/pts/N ...``) and speaks the board protocol of
 :mod:`rollability_ros.core.rig.relay_protocol` with the same state machine and timing as the firmware: the board,
 not the computer, ends every pulse and drops the relay when the keep-alive stops. Every event goes to ``LOG`` as
 one JSON object per line::
@@ -80,10 +81,21 @@ class _Board:
         self._log.close()
 
 
+#: Start of the line the simulator prints once its board answers on the port (a script may wait for it).
+READY = "relay board simulator ready on "
+
+
+def ready_line(port: str, max_pulse_ms: int, keepalive_timeout_ms: int) -> str:
+    """The line printed when the simulated board is ready: its port and the setting that uses it."""
+    return (f"{READY}{port} (max pulse {max_pulse_ms} ms, keep-alive timeout {keepalive_timeout_ms} ms); use it with "
+            f"valve.backend: serial_relay and valve.serial.port: {port}; Ctrl-C stops it")
+
+
 def serve(port_file: str, log_path: str, max_pulse_ms: int = DEFAULT_MAX_PULSE_MS,
           keepalive_timeout_ms: int = DEFAULT_KEEPALIVE_TIMEOUT_MS, ack_delay_s: float = 0.0,
           boot_delay_s: float = 0.0) -> None:
-    """Create the pty, publish its path in ``port_file`` and run the board until SIGTERM / SIGINT."""
+    """Create the pty, publish its path in ``port_file`` (when given) and on stdout (:func:`ready_line`), and run
+    the board until SIGTERM / SIGINT."""
     board = _Board(log_path, max_pulse_ms, keepalive_timeout_ms)
     master_fd, slave_fd = os.openpty()
     tty.setraw(slave_fd)  # no echo, no newline translation
@@ -94,10 +106,13 @@ def serve(port_file: str, log_path: str, max_pulse_ms: int = DEFAULT_MAX_PULSE_M
         signal.signal(handled, lambda signum, _frame: received.append(signum))
     board.log("start", port=os.ttyname(slave_fd), max_pulse_ms=max_pulse_ms,
               keepalive_timeout_ms=keepalive_timeout_ms)
-    tmp = port_file + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as stream:
-        stream.write(os.ttyname(slave_fd) + "\n")
-    os.replace(tmp, port_file)
+    port = os.ttyname(slave_fd)
+    if port_file:
+        tmp = port_file + ".tmp"
+        with open(tmp, "w", encoding="utf-8") as stream:
+            stream.write(port + "\n")
+        os.replace(tmp, port_file)
+    print(ready_line(port, max_pulse_ms, keepalive_timeout_ms), flush=True)
     pending = b""
     booted_at = time.monotonic() + boot_delay_s  # before this, a bootloader runs: received bytes are lost
     try:
@@ -183,7 +198,7 @@ class RelaySim:
         """Start the process and wait until its port file appears; returns self."""
         package_root = os.path.dirname(os.path.dirname(os.path.abspath(rollability_ros.__file__)))
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")])))
-        self.process = subprocess.Popen(self._argv, env=env)
+        self.process = subprocess.Popen(self._argv, env=env, stdout=subprocess.DEVNULL)
         deadline = time.monotonic() + timeout_s
         while not os.path.exists(self.port_file):
             if self.process.poll() is not None:
@@ -270,7 +285,8 @@ class RelaySim:
 def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     """Command-line entry point (``python -m rollability_ros.core.rig.relay_device_sim``)."""
     parser = argparse.ArgumentParser(prog="relay_device_sim", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--port-file", required=True, help="file to write the pty device path into")
+    parser.add_argument("--port-file", default="",
+                        help="file to write the pty device path into (it is printed on the ready line too)")
     parser.add_argument("--log", default=os.devnull, help="JSON-lines log of relay events (default: none)")
     parser.add_argument("--max-pulse-ms", type=int, default=DEFAULT_MAX_PULSE_MS,
                         help=f"the board's pulse limit, ms (firmware: {DEFAULT_MAX_PULSE_MS})")

@@ -38,8 +38,8 @@ import zlib
 
 from rollability_ros.core.imu import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
 from rollability_ros.core.registry import Registry
-from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, LaunchCondition, LaunchOutcome,
-                                          check_twin_seed)
+from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
+                                          LaunchCondition, LaunchOutcome, check_twin_seed)
 from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
                                                      RigPorts, no_phase, not_cancelled)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
@@ -54,6 +54,10 @@ OUTCOME_SOURCES = ("operator", "imu")
 ASK_OUTCOME = "record the outcome"
 #: Start of the ``waiting_for_operator`` detail while the rig waits for the regulator confirmation.
 ASK_REGULATOR = "set the regulator"
+#: Start of the feedback detail that closes a question: the answer that counted (from whichever place gave it).
+ANSWERED = "answered: "
+#: Start of a physical outcome's note part that names where its travel time (and so its speed) came from.
+TRAVEL_TIME_NOTE = "travel time: "
 
 
 @dataclasses.dataclass
@@ -164,11 +168,26 @@ def parse_outcome_answer(text: str) -> "OperatorOutcome":
     return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest))
 
 
+def describe_answer(kind: str, answer: typing.Any) -> str:
+    """An operator answer in words: ``regulator confirmed`` or ``upright, travel time 0.42 s, note: ...``."""
+    if kind == "confirm":
+        return "regulator confirmed"
+    parts = ["upright" if answer.upright else "tipped"]
+    if not math.isnan(answer.travel_time_s):
+        parts.append(f"travel time {answer.travel_time_s:g} s")
+    if answer.note:
+        parts.append(f"note: {answer.note}")
+    return ", ".join(parts)
+
+
 class OperatorChannel:
     """One pending question to the operator (regulator confirmation or launch outcome) and its answer.
 
-    The launch opens a question, announces it (feedback), then waits; answers come from any thread. An answer
-    with no open question of its kind is refused with a reason, so a late or stray service call changes nothing.
+    The launch opens a question, announces it (feedback), then waits; answers come from any thread (the operator
+    may answer from the ``rollability rig`` CLI or from the campaign terminal: the first answer counts). An answer
+    with no open question of its kind is refused with a reason, so a late or stray service call changes nothing;
+    a late answer to the question just answered (same kind and trial) is compared with the answer that counted:
+    the same verdict is accepted as already given (it changes nothing), a different one is refused naming both.
     """
 
     def __init__(self):
@@ -176,6 +195,7 @@ class OperatorChannel:
         self._kind = None      # "confirm" | "outcome" | None
         self._trial_id = ""
         self._answer = None
+        self._last: typing.Dict[str, typing.Tuple[str, typing.Any]] = {}   # kind -> (trial id, answer that counted)
 
     def open(self, kind: str, trial_id: str = "") -> None:
         """Start waiting for a ``"confirm"`` or an ``"outcome"`` (of ``trial_id``)."""
@@ -196,8 +216,24 @@ class OperatorChannel:
         with self._cond:
             return self._kind
 
+    def _late(self, kind, answer, trial_id):
+        """``(accepted, message)`` for a late answer to the question of ``kind`` answered last, or None."""
+        if kind not in self._last or (self._kind == kind and self._answer is None):
+            return None
+        answered_trial, counted = self._last[kind]
+        if trial_id and trial_id != answered_trial:
+            return None
+        given = describe_answer(kind, counted)
+        if kind == "confirm" or counted.upright == answer.upright:
+            return True, f"already answered for {answered_trial}: {given} (this answer agrees; nothing changed)"
+        return False, (f"already answered for {answered_trial}: {given}; this answer ({describe_answer(kind, answer)}) "
+                       "differs and is refused (the first answer counts)")
+
     def _deliver(self, kind, answer, trial_id=""):
         with self._cond:
+            late = self._late(kind, answer, trial_id)
+            if late is not None:
+                return late
             if self._kind != kind:
                 what = "a regulator confirmation" if kind == "confirm" else "an outcome"
                 return False, f"the rig is not waiting for {what}" + (
@@ -206,9 +242,8 @@ class OperatorChannel:
             if trial_id and trial_id != self._trial_id:
                 what = "a regulator confirmation" if kind == "confirm" else "the outcome"
                 return False, f"the rig waits for {what} of {self._trial_id!r}, not {trial_id!r}"
-            if self._answer is not None:
-                return False, "already answered"
             self._answer = answer
+            self._last[kind] = (self._trial_id, answer)
             self._cond.notify_all()
             return True, "accepted"
 
@@ -308,6 +343,9 @@ class PhysicalLaunch(LaunchBackend):
     def from_ports(cls, settings: "RigSettings", speed_config: SpeedGateConfig, valve_config: ValveConfig,
                    imu_config: ImuOutcomeConfig, ports: RigPorts) -> "PhysicalLaunch":
         """Open the valve, speed gate and (for ``outcome_source`` imu) IMU ports; :meth:`close` closes them."""
+        if settings.countdown_s >= valve_config.arm_timeout_s:
+            raise ValueError(f"rig.countdown_s ({settings.countdown_s:g} s) must be shorter than valve.arm_timeout_s "
+                             f"({valve_config.arm_timeout_s:g} s): the valve would disarm before the fire")
         imu = None
         try:
             if settings.outcome_source == "imu":
@@ -322,8 +360,11 @@ class PhysicalLaunch(LaunchBackend):
         return backend
 
     def describe(self) -> str:
-        """One line for the start-up log: the backend and where outcomes come from."""
-        return f"backend physical, outcome from {self.settings.outcome_source}"
+        """One line for the start-up log: the backend, where outcomes and travel times come from."""
+        gate = self.speed_gate
+        return (f"backend physical, outcome from {self.settings.outcome_source}, travel time from {gate.source}"
+                + ("" if gate.measures else ": WARNING, not a measurement; physical records store the speed as not "
+                                            "measured (set speed_gate.backend gpio or operator)"))
 
     def close(self) -> None:
         """Stop waiting for the operator and close the ports this backend opened (keep-alive, valve)."""
@@ -368,6 +409,8 @@ class PhysicalLaunch(LaunchBackend):
         if answer is None:
             raise LaunchAborted("cancelled while waiting for the operator" if cancelled()
                                 else f"no operator answer within {self.settings.operator_timeout_s:g} s ({detail})")
+        # every place that shows the question learns at once that it was answered, and how
+        on_phase(phase, f"{ANSWERED}{describe_answer(kind, answer)}")
         return answer
 
     def _disarm_unless_faulted(self):
@@ -401,10 +444,9 @@ class PhysicalLaunch(LaunchBackend):
         except BaseException:
             self._confirmed = None   # after an e-stop, a fault or a cancel the operator confirms the pressure again
             raise
-        if operator is not None and not math.isnan(operator.travel_time_s) and math.isnan(travel_time_s):
-            travel_time_s = operator.travel_time_s
+        travel_time_s, source = self.travel_time_source(travel_time_s, operator)
         speed = self.speed_config.measure(condition.speed_mps, travel_time_s)
-        notes = [speed_note(speed, condition.speed_mps, self.speed_config.tolerance_fraction)]
+        notes = [source, speed_note(speed, condition.speed_mps, self.speed_config.tolerance_fraction)]
         if operator is not None and reading is not None and operator.upright != reading.upright:
             notes.append(f"operator overrode the IMU ({'upright' if reading.upright else 'not upright'}, "
                          f"tilt {reading.tilt_deg:.1f} deg)")
@@ -415,9 +457,22 @@ class PhysicalLaunch(LaunchBackend):
             upright=operator.upright if operator is not None else reading.upright,
             travel_time_s=speed.travel_time_s, measured_speed_mps=speed.measured_speed_mps,
             speed_out_of_tolerance=speed.speed_out_of_tolerance,
-            final_orientation=tuple(reading.orientation) if reading is not None else (0.0, 0.0, 0.0, 1.0),
+            final_orientation=tuple(reading.orientation) if reading is not None else UNKNOWN_ORIENTATION,
             classified_by="operator" if operator is not None else "imu", note="; ".join(filter(None, notes)),
             stamp_s=time.time())
+
+    def travel_time_source(self, gate_s: float, operator: typing.Optional[OperatorOutcome]
+                           ) -> typing.Tuple[float, str]:
+        """The travel time a physical record stores (s, NaN when not measured) and the note naming its source:
+        the gate's when it measures (:attr:`SpeedGate.measures`), else the operator's typed one, else none. A
+        simulated gate's made-up time is never stored on a physical record."""
+        gate = self.speed_gate
+        if not math.isnan(gate_s) and gate.measures:
+            return gate_s, f"{TRAVEL_TIME_NOTE}{gate.source}"
+        if operator is not None and not math.isnan(operator.travel_time_s):
+            return operator.travel_time_s, f"{TRAVEL_TIME_NOTE}typed by the operator (rig outcome --travel-time-s)"
+        why = f" ({gate.source} makes times up: not stored)" if not gate.measures else ""
+        return NOT_MEASURED, f"{TRAVEL_TIME_NOTE}not measured{why}"
 
     def _fire(self, condition, on_phase, cancelled):
         """Arm, count down, fire, read the speed gate, disarm; returns the gate's travel time (s, NaN if none)."""
@@ -425,16 +480,23 @@ class PhysicalLaunch(LaunchBackend):
         if not ok:
             raise LaunchAborted(f"valve refused to arm: {reason}")
         try:
-            on_phase("armed", f"valve armed; firing in {self.settings.countdown_s:g} s, stand clear")
+            countdown_s = self.settings.countdown_s
+            on_phase("armed", countdown_text(countdown_s))
             self.speed_gate.arm(condition.speed_mps)
             if self.imu is not None:
                 self.imu.reset()
             # the countdown always runs out: a fault reported on the valve's state topic (which any participant can
-            # publish) never shortens it; if the fault is real, the valve refuses the fire below with its reason
-            deadline = time.monotonic() + self.settings.countdown_s
+            # publish) never shortens it; if the fault is real, the valve refuses the fire below with its reason.
+            # Each whole second left is announced, so every place that shows the launch shows the countdown
+            deadline = time.monotonic() + countdown_s
+            shown = math.ceil(countdown_s)
             while time.monotonic() < deadline:
                 if cancelled():
                     raise LaunchAborted("cancelled before firing")
+                left = math.ceil(deadline - time.monotonic())
+                if 1 <= left < shown:
+                    shown = left
+                    on_phase("armed", countdown_text(left))
                 time.sleep(min(0.02, max(0.0, deadline - time.monotonic())))
             ok, reason = self.valve.fire(self.launch_pulse_ms)
             if not ok:
@@ -579,6 +641,12 @@ def make_launch_backend(settings: RigSettings, speed_config: SpeedGateConfig, va
     """
     settings.validate()
     return launch_backend_class(settings.backend).from_ports(settings, speed_config, valve_config, imu_config, ports)
+
+
+def countdown_text(left_s: float) -> str:
+    """The ``armed`` feedback detail with ``left_s`` seconds before the fire, and how to stop it."""
+    return (f"valve armed; firing in {left_s:g} s, stand clear (stop: e in `rollability rig console`, or "
+            "`rollability rig estop`; cancel: c in the console)")
 
 
 def speed_note(speed: SpeedMeasurement, target_mps: float, tolerance_fraction: float) -> str:

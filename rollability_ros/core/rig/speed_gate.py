@@ -75,7 +75,15 @@ def measure(target_mps: float, travel_time_s: float, run_length_m: float, tolera
 
 
 class SpeedGate(abc.ABC):
-    """One source of launch travel times (the contract the physical launch calls)."""
+    """One source of launch travel times (the contract the physical launch calls).
+
+    ``measures``: True when its travel times are measurements of the real run; a gate that makes them up
+    (:class:`SimulatedSpeedGate`) says False, and a physical launch then stores its speed as not measured.
+    """
+
+    measures: bool = True
+    #: How an outcome's note names this gate as the source of its travel time.
+    source: str = "the light gates"
 
     @classmethod
     @abc.abstractmethod
@@ -95,7 +103,11 @@ class SpeedGate(abc.ABC):
 
 
 class SimulatedSpeedGate(SpeedGate):
-    """Edge times of a chassis launched at the target speed times ``1 + N(0, speed_noise_fraction)``."""
+    """Edge times of a chassis launched at the target speed times ``1 + N(0, speed_noise_fraction)``: made up, so
+    ``measures`` is False (a physical record never stores them as its speed)."""
+
+    measures = False
+    source = "the simulated speed gate (speed_gate.backend simulated)"
 
     def __init__(self, run_length_m, speed_noise_fraction=0.0, seed=0, clock=time.monotonic):
         _positive("run_length_m", run_length_m)
@@ -242,6 +254,8 @@ class OperatorSpeedGate(SpeedGate):
     ``ask(prompt) -> str`` is the terminal's ``input`` or a service-backed equivalent; invalid answers are
     asked again, a blank answer means not measured.
     """
+
+    source = "the operator's typed travel time"
 
     def __init__(self, ask, run_length_m):
         self._ask = ask

@@ -152,9 +152,18 @@ class ValveController:
     on_state : callable, optional
         Called with a :class:`ValveStatus` after every state change (also logged). Exceptions it raises are
         logged and swallowed: a broken publisher must not keep the valve open.
+    arm_timeout_s : float, optional
+        An armed valve that fires no pulse for this long (since arming or the end of its last pulse) is disarmed
+        by :meth:`check_watchdog` (no fault: nothing went wrong, the arming just was not used), so an arming
+        outside a launch sequence (``rollability rig arm``), which the rig's heartbeats would keep alive, does not
+        leave the valve armed and idle. None: no limit.
     """
 
-    def __init__(self, backend, max_pulse_ms, watchdog_ms, clock=time.monotonic, on_state=None):
+    def __init__(self, backend, max_pulse_ms, watchdog_ms, clock=time.monotonic, on_state=None, arm_timeout_s=None):
+        if arm_timeout_s is not None and not 0 < arm_timeout_s < math.inf:
+            raise ValueError(f"arm_timeout_s must be a positive number of seconds or None, got {arm_timeout_s!r}")
+        self.arm_timeout_s = arm_timeout_s
+        self._armed_idle_since = clock()
         if not isinstance(max_pulse_ms, (int, float)) or not 0 < max_pulse_ms < math.inf:
             raise ValueError(f"max_pulse_ms must be a positive number, got {max_pulse_ms!r}")
         if not isinstance(watchdog_ms, (int, float)) or not 0 < watchdog_ms < math.inf:
@@ -275,7 +284,8 @@ class ValveController:
             if self._shut_down:
                 return False, "valve controller is shut down"
             if self._fault_reason:
-                return False, f"fault latched ({self._fault_reason}); disarm to acknowledge, then arm"
+                return False, (f"fault latched ({self._fault_reason}); acknowledge it with a disarm (`rollability rig "
+                               "disarm`); a launch sequence then arms by itself")
             if self._armed:
                 return True, "already armed"
             try:
@@ -286,7 +296,7 @@ class ValveController:
                 self._emit("arm failed")
                 return False, self._fault_reason
             self._armed = True
-            self._last_heartbeat = self._clock()  # the heartbeat window starts at arming
+            self._last_heartbeat = self._armed_idle_since = self._clock()  # both windows start at arming
             self._emit("armed")
             return True, "armed"
 
@@ -372,9 +382,18 @@ class ValveController:
         return True
 
     def check_watchdog(self) -> bool:
-        """Trip if armed and the last heartbeat is older than ``watchdog_ms``. Returns True when it tripped now."""
+        """Trip if armed and the last heartbeat is older than ``watchdog_ms``. Returns True when it tripped now.
+
+        Also disarms (no fault) an armed valve idle longer than ``arm_timeout_s`` (see the class docstring)."""
         with self._lock:
             if not self._armed or self._fault_reason:
+                return False
+            idle_s = self._clock() - self._armed_idle_since
+            if self.arm_timeout_s is not None and not self._firing and idle_s > self.arm_timeout_s:
+                self._armed = False
+                self._drive_closed()
+                self._emit(f"disarmed: armed {idle_s:.1f} s without a pulse (valve.arm_timeout_s "
+                           f"{self.arm_timeout_s:g})")
                 return False
             silent_ms = (self._clock() - self._last_heartbeat) * 1000.0
             if silent_ms <= self.watchdog_ms:
@@ -420,6 +439,7 @@ class ValveController:
                 self._last_pulse_ms = min(pulse_ms, round(held_ms)) if cut_early else pulse_ms
                 self._pulses += 1
                 self._firing = False
+                self._armed_idle_since = self._clock()
                 self._emit("closed after pulse")
                 reason = self._fault_reason
         if cut_early:
@@ -611,6 +631,10 @@ class ValveConfig:
     heartbeat_period_ms: int = dataclasses.field(default=100, metadata={
         "description": "how often the rig sends its keep-alive to the valve, ms (at most half the watchdog)",
         "range": (1, 600000)})
+    arm_timeout_s: float = dataclasses.field(default=15.0, metadata={
+        "description": "an armed valve that fires nothing this long (since arming or its last pulse) is disarmed, s: "
+                       "an arming outside a launch sequence does not stay armed; longer than rig.countdown_s",
+        "range": (0.1, 3600.0)})
     session_key_file: str = dataclasses.field(default="", metadata={
         "description": "file of the per-session arming key the valve node writes (mode 0600) and the rig reads; "
                        "empty: a per-user runtime file named by ROS domain and namespace"})
@@ -634,6 +658,8 @@ class ValveConfig:
         if not 0 < self.heartbeat_period_ms <= self.watchdog_ms / 2:
             raise ValueError(f"heartbeat_period_ms ({self.heartbeat_period_ms}) must be in (0, watchdog_ms / 2]: "
                              "one lost heartbeat must not trip the watchdog")
+        if not 0 < self.arm_timeout_s < math.inf:
+            raise ValueError(f"arm_timeout_s must be a positive number of seconds, got {self.arm_timeout_s!r}")
         self.gpio.validate()
         self.serial.validate()
         self.regulator.validate()

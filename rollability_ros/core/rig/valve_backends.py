@@ -605,6 +605,7 @@ def make_controller(config: "ValveConfig",
 
     The controller drives the valve closed during construction; call ``shutdown()`` when done.
     """
-    controller = ValveController(make_valve_backend(config), config.max_pulse_ms, config.watchdog_ms, on_state=on_state)
+    controller = ValveController(make_valve_backend(config), config.max_pulse_ms, config.watchdog_ms, on_state=on_state,
+                                 arm_timeout_s=config.arm_timeout_s)
     controller.start_watchdog(config.watchdog_check_ms / 1000.0)
     return controller

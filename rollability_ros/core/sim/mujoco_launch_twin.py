@@ -228,9 +228,10 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
 
     def retarget(self, settings: LaunchTwinSettings) -> None:
         """Take a robustness draw's ``settings`` (:mod:`~rollability_ros.core.sim.robustness`) without a new
-        model: the contact reading (``sim.contact_model``) and the foam's stiffness, damping and restitution go into
-        the compiled model's contact values, the chassis's drawn centre-of-mass height moves the base body's centre
-        of mass (the chassis's share of the fused base; its inertia about the centre of mass kept), and the
+        model: the contact reading (``sim.contact_model``), the foam's stiffness, damping, restitution, friction and
+        rolling friction, the Mecanum wheels' drag and the base plate's rolling friction go into the compiled
+        model's contact values and joint friction, the chassis's drawn centre-of-mass height moves the base body's
+        centre of mass (the chassis's share of the fused base; its inertia about the centre of mass kept), and the
         disturbance fields do not touch a launch. The early decision is off for a launch whose centre of mass or
         foam differs from the ones its barriers were built for (they depend on both)."""
         if settings == self.settings:
@@ -481,17 +482,21 @@ def _launch_free(settings: LaunchTwinSettings) -> LaunchTwinSettings:
 
 def _twin_key(settings, profile):
     """What needs a model of its own: everything but :func:`_launch_free`'s fields and what
-    :meth:`MujocoLaunchTwin.retarget` applies to a compiled model (a robustness draw's contact reading, foam, centre
-    of mass, disturbance)."""
+    :meth:`MujocoLaunchTwin.retarget` applies to a compiled model (a robustness draw's contact reading, foam,
+    Mecanum wheel drag, base plate rolling friction, centre of mass, disturbance)."""
     settings = _launch_free(settings)
     foam = dataclasses.replace(settings.twin.foam, contact_stiffness_npm=1.0, contact_damping_nspm=0.0,
-                               restitution=0.0)
+                               restitution=0.0, lateral_friction=1.0, rolling_friction=0.0)
     trial = dataclasses.replace(settings.trial, start_roll_deg=0.0, force_min_n=0.0, force_max_n=0.0,
                                 torque_min_nm=0.0, torque_max_nm=0.0)
     canonical = dataclasses.replace(
-        settings, twin=dataclasses.replace(settings.twin, designs=DesignSources(), foam=foam), trial=trial,
+        settings, twin=dataclasses.replace(settings.twin, designs=DesignSources(), foam=foam, wheel_drag_torque_nm=0.0,
+                                           launcher=dataclasses.replace(settings.twin.launcher,
+                                                                        ledge_rolling_friction=0.0)), trial=trial,
         physics=dataclasses.replace(settings.physics, contact_model="per_contact"),
-        robot=dataclasses.replace(settings.robot, com_offset_z_m=0.0))
+        # the profile's mass multiplier is in the profile body (part of the key): the compiled robot never reads it
+        robot=dataclasses.replace(settings.robot, com_offset_z_m=0.0, profile_mass_scale=1.0),
+        urdf_robot=dataclasses.replace(settings.urdf_robot, profile_mass_scale=1.0))
     return hashlib.sha256(pickle.dumps((canonical, profile), protocol=4)).hexdigest()
 
 

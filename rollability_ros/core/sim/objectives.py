@@ -54,7 +54,7 @@ import typing
 
 from rollability_ros.core.campaign_matrix import load_campaign_spec
 from rollability_ros.core.records import LaunchCondition
-from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_for
+from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_for, scaled_profile
 from rollability_ros.core.sim.trials import TrialOutcome, check_engine, run_trial
 from rollability_ros.core.sim.trial_engine import engine_names
 
@@ -204,8 +204,10 @@ def run_robust_trial(client: int, job: "TrialJob", index: int, seed: int) -> Tri
     robust = job.settings.objective.robust
     if job.launch is not None and job.launch.is_launch(index):
         twin = robust_settings_for(job.launch.twin, seed, robust)
-        return run_launch_trial(dataclasses.replace(job.launch, twin=twin), job.profile, index, seed)
+        return run_launch_trial(dataclasses.replace(job.launch, twin=twin),
+                                scaled_profile(job.profile, job.settings, twin), index, seed)
     settings = robust_settings_for(job.settings, seed, robust)
     # run_trial builds the world of settings.physics.engine (make_trial_world): the robust trial's engine is the
-    # evaluation's, as for the plain trial
-    return run_trial(client, settings.robot_model(), job.profile, index, seed, settings.trial, settings.physics)
+    # evaluation's, as for the plain trial; the profile weighs the drawn profile_mass_scale
+    return run_trial(client, settings.robot_model(), scaled_profile(job.profile, job.settings, settings), index, seed,
+                     settings.trial, settings.physics)

@@ -14,7 +14,36 @@ its own trial seed (so candidates evaluated with one base seed meet the same dra
   standard deviation ``com_sigma_m`` (kept inside the body);
 - ``foam_stiffness_factor`` and ``foam_restitution``: on launch trials, a log-uniform factor in
   [``foam_stiffness_factor_min``, ``foam_stiffness_factor_max``] on the foam's stiffness and damping, and the
-  foam's restitution uniform in [0, ``foam_restitution_max``].
+  foam's restitution uniform in [0, ``foam_restitution_max``];
+- ``foam_lateral_friction``: on launch trials, the foam's own friction coefficient (``launch_twin.foam.
+  lateral_friction``; the contact's is it times the robot's ``sim.lateral_friction``), log-uniform in
+  [``foam_lateral_friction_min``, ``foam_lateral_friction_max``];
+- ``foam_rolling_friction_m``: on launch trials, the foam's own rolling friction (``launch_twin.foam.
+  rolling_friction``, m: the wheel-on-foam rolling resistance), log-uniform in [``foam_rolling_friction_min_m``,
+  ``foam_rolling_friction_max_m``];
+- ``wheel_drag_nm``: on launch trials, the back-drive drag torque of each wheel, log-uniform in
+  [``wheel_drag_min_nm``, ``wheel_drag_max_nm``]: the twin's Mecanum wheels' ``launch_twin.wheel_drag_torque_nm``
+  when the twin gives the robot those wheels, else the robot's own (``robot.wheel_drag_torque_nm`` or
+  ``urdf_robot.joint_drag_torque_nm``), so the drawn value always acts;
+- ``profile_mass_scale``: the multiplier on the printed profile's mass and inertia (``robot.profile_mass_scale``
+  or ``urdf_robot.profile_mass_scale``: print settings, material and glue the mass model does not know),
+  log-uniform in [``profile_mass_scale_min``, ``profile_mass_scale_max``], on every trial; the trial's profile
+  body is scaled with it (:func:`scaled_profile`);
+- ``ledge_rolling_friction_m``: on launch trials, the launcher base plate's own rolling friction
+  (``launch_twin.launcher.ledge_rolling_friction``: slows the stroke launcher's coast to the edge), uniform in
+  [0, ``ledge_rolling_friction_max_m``];
+- ``speed_bias_fraction``: on launch trials, the lab's systematic speed-setting error
+  (``launch_twin.launcher.speed_bias_fraction``), uniform in [-``speed_bias_fraction_max``,
+  +``speed_bias_fraction_max``];
+- ``launcher_model``: on launch trials, how the cylinder drives the plate, one of ``launcher_models``
+  (``launch_twin.launcher.model``; default only ``stroke``, the paper's cylinder: the model is known from the
+  paper, its quantities above are not; list ``push_through`` too to plan for a launcher that pushes to the edge).
+
+The ranges, their sources and how far each moves the designs' gain are in docs/twin-model.md. Both launch
+engines read every drawn field (the MuJoCo twin puts them into its compiled model's contact values and joint
+friction, :meth:`~rollability_ros.core.sim.mujoco_launch_twin.MujocoLaunchTwin.retarget`). The draws come from
+the trial seed's own stream in a fixed order, new unknowns after the old, so a trial's earlier draws keep their
+values when an unknown is added.
 
 The robust fitness is the success rate over these draws: an estimate of the expected success when the unknowns
 are spread as stated. Each robust trial builds its own world (the trials' cached world holds one robot), so it
@@ -45,6 +74,17 @@ class RobustSettings:
     foam_stiffness_factor_min: float = dataclasses.field(default=0.5, metadata={"description": "launches: lower end of the factor on the foam's stiffness and damping (log-uniform), dimensionless", "range": (0.0, 100.0)})
     foam_stiffness_factor_max: float = dataclasses.field(default=2.0, metadata={"description": "launches: upper end of the factor on the foam's stiffness and damping (log-uniform), dimensionless", "range": (0.0, 100.0)})
     foam_restitution_max: float = dataclasses.field(default=0.3, metadata={"description": "launches: the foam's restitution is drawn uniform in [0, this], coefficient", "range": (0.0, 1.0)})
+    foam_lateral_friction_min: float = dataclasses.field(default=0.6, metadata={"description": "launches: lower end of the foam's own friction coefficient (log-uniform; the contact's is this times sim.lateral_friction), coefficient", "range": (0.0, 100.0)})
+    foam_lateral_friction_max: float = dataclasses.field(default=2.5, metadata={"description": "launches: upper end of the foam's own friction coefficient (log-uniform), coefficient", "range": (0.0, 100.0)})
+    foam_rolling_friction_min_m: float = dataclasses.field(default=0.002, metadata={"description": "launches: lower end of the foam's own rolling friction, the wheel-on-foam rolling resistance (log-uniform), m", "range": (0.0, 1.0)})
+    foam_rolling_friction_max_m: float = dataclasses.field(default=0.05, metadata={"description": "launches: upper end of the foam's own rolling friction (log-uniform), m", "range": (0.0, 1.0)})
+    wheel_drag_min_nm: float = dataclasses.field(default=0.0005, metadata={"description": "launches: lower end of each wheel's back-drive drag torque (log-uniform), N m", "range": (0.0, 10.0)})
+    wheel_drag_max_nm: float = dataclasses.field(default=0.02, metadata={"description": "launches: upper end of each wheel's back-drive drag torque (log-uniform), N m", "range": (0.0, 10.0)})
+    profile_mass_scale_min: float = dataclasses.field(default=0.5, metadata={"description": "lower end of the multiplier on the printed profile's mass and inertia (log-uniform), dimensionless", "range": (0.0, 100.0)})
+    profile_mass_scale_max: float = dataclasses.field(default=2.0, metadata={"description": "upper end of the multiplier on the printed profile's mass and inertia (log-uniform), dimensionless", "range": (0.0, 100.0)})
+    ledge_rolling_friction_max_m: float = dataclasses.field(default=0.01, metadata={"description": "launches: the launcher base plate's rolling friction is drawn uniform in [0, this], m", "range": (0.0, 0.01)})
+    speed_bias_fraction_max: float = dataclasses.field(default=0.15, metadata={"description": "launches: the speed setting's systematic error is drawn uniform in [-this, +this], fraction of the set speed", "range": (0.0, 0.15)})
+    launcher_models: typing.List[str] = dataclasses.field(default_factory=lambda: ["stroke"], metadata={"description": "launches: launcher models drawn with equal probability: stroke (the paper's cylinder) and/or push_through"})
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
@@ -61,6 +101,22 @@ class RobustSettings:
             raise ValueError("need 0 < foam_stiffness_factor_min <= foam_stiffness_factor_max")
         if not 0 <= self.foam_restitution_max <= 1:
             raise ValueError(f"foam_restitution_max must be in [0, 1], got {self.foam_restitution_max}")
+        if not 0 <= self.ledge_rolling_friction_max_m <= 0.01:
+            raise ValueError(f"ledge_rolling_friction_max_m must be in [0, 0.01], got {self.ledge_rolling_friction_max_m}")
+        if not 0 <= self.speed_bias_fraction_max <= 0.15:
+            raise ValueError(f"speed_bias_fraction_max must be in [0, 0.15], got {self.speed_bias_fraction_max}")
+        if not self.launcher_models or not set(self.launcher_models) <= {"stroke", "push_through"}:
+            raise ValueError(f"launcher_models must list some of stroke, push_through, got {self.launcher_models}")
+        for name in ("foam_lateral_friction", "foam_rolling_friction", "wheel_drag", "profile_mass_scale"):
+            low, high = self.range_of(name)
+            if not 0 < low <= high:
+                raise ValueError(f"need 0 < {name}_min <= {name}_max (log-uniform), got [{low}, {high}]")
+
+    def range_of(self, unknown: str) -> typing.Tuple[float, float]:
+        """``(low, high)`` of a log-uniform unknown: ``foam_stiffness_factor``, ``foam_lateral_friction``,
+        ``foam_rolling_friction`` (m), ``wheel_drag`` (N m) or ``profile_mass_scale``."""
+        unit = {"foam_rolling_friction": "_m", "wheel_drag": "_nm"}.get(unknown, "")
+        return getattr(self, f"{unknown}_min{unit}"), getattr(self, f"{unknown}_max{unit}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,6 +129,13 @@ class Draw:
     com_offset_z_m: float
     foam_stiffness_factor: float
     foam_restitution: float
+    foam_lateral_friction: float
+    foam_rolling_friction_m: float
+    wheel_drag_nm: float
+    profile_mass_scale: float
+    ledge_rolling_friction_m: float
+    speed_bias_fraction: float
+    launcher_model: str
 
 
 #: An EvaluatorSettings or a LaunchTwinSettings (both have ``trial``, ``physics`` and ``robot``; defined in sim/
@@ -88,10 +151,19 @@ def draw(seed: int, robust: RobustSettings, nominal_com_offset_z_m: float, body_
     contact = str(robust.contact_models[rng.integers(len(robust.contact_models))])
     inside = 0.45 * body_height_m
     com = float(np.clip(nominal_com_offset_z_m + robust.com_sigma_m * rng.standard_normal(), -inside, inside))
-    stiffness = math.exp(rng.uniform(math.log(robust.foam_stiffness_factor_min),
-                                     math.log(robust.foam_stiffness_factor_max)))
+    def log_uniform(unknown: str) -> float:
+        low, high = robust.range_of(unknown)
+        return math.exp(rng.uniform(math.log(low), math.log(high)))
+    stiffness = log_uniform("foam_stiffness_factor")
     restitution = float(rng.uniform(0.0, robust.foam_restitution_max))
-    return Draw(scale, roll, contact, com, stiffness, restitution)
+    # drawn after the older unknowns (module docstring): those keep their values
+    foam_wheels = (log_uniform("foam_lateral_friction"), log_uniform("foam_rolling_friction"),
+                   log_uniform("wheel_drag"))
+    mass_scale = log_uniform("profile_mass_scale")
+    ledge = float(rng.uniform(0.0, robust.ledge_rolling_friction_max_m))
+    bias = float(rng.uniform(-robust.speed_bias_fraction_max, robust.speed_bias_fraction_max))
+    launcher = str(robust.launcher_models[rng.integers(len(robust.launcher_models))])
+    return Draw(scale, roll, contact, com, stiffness, restitution, *foam_wheels, mass_scale, ledge, bias, launcher)
 
 
 def perturb(settings: _Perturbed, drawn: Draw) -> _Perturbed:
@@ -104,7 +176,10 @@ def perturb(settings: _Perturbed, drawn: Draw) -> _Perturbed:
         torque_min_nm=settings.trial.torque_min_nm * drawn.disturbance_scale,
         torque_max_nm=settings.trial.torque_max_nm * drawn.disturbance_scale)
     changes = {"trial": trial, "physics": dataclasses.replace(settings.physics, contact_model=drawn.contact_model),
-               "robot": dataclasses.replace(settings.robot, com_offset_z_m=drawn.com_offset_z_m)}
+               "robot": dataclasses.replace(settings.robot, com_offset_z_m=drawn.com_offset_z_m,
+                                            profile_mass_scale=drawn.profile_mass_scale)}
+    if settings.urdf_robot.selected:   # the robot the profile is weighed for
+        changes["urdf_robot"] = dataclasses.replace(settings.urdf_robot, profile_mass_scale=drawn.profile_mass_scale)
     twin = getattr(settings, "twin", None)
     if twin is not None:
         # a launch's early decision needs barriers built for its own foam and centre of mass; a draw runs the full
@@ -112,9 +187,65 @@ def perturb(settings: _Perturbed, drawn: Draw) -> _Perturbed:
         changes["trial"] = dataclasses.replace(trial, early_decision=False)
         foam = dataclasses.replace(twin.foam, restitution=drawn.foam_restitution,
                                    contact_stiffness_npm=twin.foam.contact_stiffness_npm * drawn.foam_stiffness_factor,
-                                   contact_damping_nspm=twin.foam.contact_damping_nspm * drawn.foam_stiffness_factor)
-        changes["twin"] = dataclasses.replace(twin, foam=foam)
+                                   contact_damping_nspm=twin.foam.contact_damping_nspm * drawn.foam_stiffness_factor,
+                                   lateral_friction=drawn.foam_lateral_friction,
+                                   rolling_friction=drawn.foam_rolling_friction_m)
+        launcher = dataclasses.replace(twin.launcher, model=drawn.launcher_model,
+                                       ledge_rolling_friction=drawn.ledge_rolling_friction_m,
+                                       speed_bias_fraction=drawn.speed_bias_fraction)
+        changes["twin"] = dataclasses.replace(twin, foam=foam, launcher=launcher)
+        changes.update(_with_wheel_drag(settings, changes, drawn.wheel_drag_nm))
     return dataclasses.replace(settings, **changes)
+
+
+def wheel_drag_field(settings: _Perturbed) -> str:
+    """The dotted settings name of the wheel drag a launch twin's ``settings`` uses: the twin's Mecanum wheels'
+    (``twin.wheel_drag_torque_nm``), else the robot's own (``urdf_robot.joint_drag_torque_nm`` or
+    ``robot.wheel_drag_torque_nm``)."""
+    from rollability_ros.core.sim.launch_twin import mecanum_wheels   # launch_twin is heavier; sim-internal
+
+    if mecanum_wheels(settings):
+        return "twin.wheel_drag_torque_nm"
+    return "urdf_robot.joint_drag_torque_nm" if settings.urdf_robot.selected else "robot.wheel_drag_torque_nm"
+
+
+def _with_wheel_drag(settings, changes, drag_nm):
+    """``changes`` (settings field -> replaced value) with the drag of the wheels the twin uses set to ``drag_nm``."""
+    group, leaf = wheel_drag_field(settings).split(".")
+    current = changes.get(group, getattr(settings, group))
+    return {**changes, group: dataclasses.replace(current, **{leaf: drag_nm})}
+
+
+def nominal_draw(settings: _Perturbed) -> Draw:
+    """The :class:`Draw` that leaves ``settings`` (EvaluatorSettings or LaunchTwinSettings) as configured: each
+    unknown at its configured value (disturbance and foam stiffness factors 1)."""
+    twin = getattr(settings, "twin", None)
+    if twin is None:   # a disturbance trial has no foam and keeps its robot's drag
+        foam_values: typing.Tuple[float, float, float] = (0.0, 1.0, 0.01)
+        drag = float(settings.robot.wheel_drag_torque_nm)
+    else:
+        foam_values = (twin.foam.restitution, twin.foam.lateral_friction, twin.foam.rolling_friction)
+        group, leaf = wheel_drag_field(settings).split(".")
+        drag = float(getattr(getattr(settings, group), leaf))
+    launcher = (0.0, 0.0, "stroke") if twin is None else (
+        twin.launcher.ledge_rolling_friction, twin.launcher.speed_bias_fraction, twin.launcher.model)
+    return Draw(1.0, settings.trial.start_roll_deg, settings.physics.contact_model, settings.robot.com_offset_z_m,
+                1.0, *foam_values, drag, profile_mass_scale(settings), *launcher)
+
+
+def profile_mass_scale(settings: _Perturbed) -> float:
+    """The ``profile_mass_scale`` of the robot ``settings`` weigh the profile for (the URDF robot's or the
+    chassis's)."""
+    return float((settings.urdf_robot if settings.urdf_robot.selected else settings.robot).profile_mass_scale)
+
+
+def scaled_profile(profile: typing.Any, before: _Perturbed, after: _Perturbed) -> typing.Any:
+    """``profile`` (a ProfileBody made for settings ``before``, or None) weighed for settings ``after``: mass and
+    inertia times the ratio of their ``profile_mass_scale`` (the mass model is linear in it)."""
+    ratio = profile_mass_scale(after) / profile_mass_scale(before)
+    if profile is None or ratio == 1.0:
+        return profile
+    return dataclasses.replace(profile, mass_kg=profile.mass_kg * ratio, inertia_kgm2=profile.inertia_kgm2 * ratio)
 
 
 def robust_settings_for(settings: _Perturbed, seed: int, robust: RobustSettings) -> _Perturbed:

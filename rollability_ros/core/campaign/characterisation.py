@@ -1,0 +1,185 @@
+"""Bench characterisation before a campaign: cheap measurements that pin the twin's decisive unknowns.
+
+The protocol is docs/characterisation.md. A characterisation file (YAML, read with ``yaml.safe_load``, checked
+strictly: an unknown key, a missing one or a value of the wrong kind is refused in one line naming it) holds::
+
+    format: rollability-characterisation-1
+    rollout:                      # the bare robot pushed to about speed_mps, let go; distance rolled to rest
+      sigma_m: 0.03               # m, standard deviation of one reading (push and tape repeatability)
+      readings:
+        - {surface: foam, speed_mps: 1.0, distance_m: 0.31}   # surface: foam | floor (the hard launcher plate)
+    slide_angle:                  # tilt of the foam at which a printed coupon starts to slide
+      sigma_deg: 1.5              # deg, standard deviation of one reading
+      readings_deg: [18.5, 19.0, 20.0]
+
+Each section is optional, but the file needs one. Each reading enters ``rollability calibrate``'s likelihood
+through a model of that measurement with Gaussian error of the stated standard deviation:
+
+- ``slide_angle``: analytic. A block on a plane tilted by theta slides once tan(theta) exceeds the static
+  friction coefficient, and the twin's printed-part-on-foam coefficient is ``sim.lateral_friction`` x
+  ``launch_twin.foam.lateral_friction`` (both engines), so the model's angle is atan of that product.
+- ``rollout``: simulated in the twin (:func:`~rollability_ros.core.sim.rollout.rollout_distance_m`): pins the
+  foam's rolling friction and the wheels' drag (on the floor, the drag nearly alone).
+
+The log-likelihood of a characterisation under a set of twin parameters is
+:func:`characterisation_log_likelihood`; calibration adds it to the launch outcomes' for every parameter set it
+tries, so a file alone (no launches yet) already fits the unknowns it measures.
+"""
+import dataclasses
+import math
+import os
+import typing
+
+#: The ``format`` line of a characterisation file.
+FORMAT = "rollability-characterisation-1"
+#: Surfaces of a roll-out reading (:data:`rollability_ros.core.sim.rollout.SURFACES`, kept here so the parser
+#: needs no physics).
+ROLLOUT_SURFACES = ("foam", "floor")
+_SECTIONS = {"format", "rollout", "slide_angle"}
+
+
+@dataclasses.dataclass(frozen=True)
+class RolloutReading:
+    """One roll-out: surface, push speed (m/s) and distance rolled (m)."""
+
+    surface: str
+    speed_mps: float
+    distance_m: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Characterisation:
+    """A characterisation file's readings (module docstring); empty tuples for an absent section."""
+
+    source: str
+    rollouts: typing.Tuple[RolloutReading, ...] = ()
+    rollout_sigma_m: float = math.nan
+    slide_angles_deg: typing.Tuple[float, ...] = ()
+    slide_sigma_deg: float = math.nan
+
+    def summary(self) -> str:
+        """One line: what the file holds."""
+        parts = []
+        if self.rollouts:
+            parts.append(f"{len(self.rollouts)} roll-out(s) (sd {self.rollout_sigma_m:g} m)")
+        if self.slide_angles_deg:
+            parts.append(f"{len(self.slide_angles_deg)} slide angle(s) (sd {self.slide_sigma_deg:g} deg)")
+        return f"characterisation {self.source}: " + ", ".join(parts)
+
+
+def _number(value: typing.Any, where: str, low: float, high: float, low_open: bool = False) -> float:
+    """``value`` as a finite float within [low, high] (``(low, high]`` with ``low_open``); ``ValueError`` naming
+    ``where`` otherwise (a bool is not a number)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{where} must be a finite number, got {value!r}")
+    if value > high or value < low or (low_open and value == low):
+        bracket = "(" if low_open else "["
+        raise ValueError(f"{where} must be in {bracket}{low:g}, {high:g}], got {value!r}")
+    return float(value)
+
+
+def _mapping(value: typing.Any, where: str, keys: typing.Set[str]) -> typing.Mapping[str, typing.Any]:
+    """``value`` as a mapping with exactly ``keys``; ``ValueError`` naming ``where`` and the key otherwise."""
+    if not isinstance(value, dict):
+        raise ValueError(f"{where} must be a mapping, got {type(value).__name__}")
+    unknown = sorted(set(map(str, value)) - keys)
+    if unknown:
+        raise ValueError(f"{where}: unknown key {unknown[0]!r} (known: {', '.join(sorted(keys))})")
+    missing = sorted(keys - set(value))
+    if missing:
+        raise ValueError(f"{where}: missing key {missing[0]!r}")
+    return value
+
+
+def _readings(value: typing.Any, where: str) -> typing.List[typing.Any]:
+    """A non-empty list; ``ValueError`` naming ``where`` otherwise."""
+    if not isinstance(value, list) or not value:
+        raise ValueError(f"{where} must be a non-empty list")
+    return value
+
+
+def parse_characterisation(document: typing.Any, source: str) -> Characterisation:
+    """The :class:`Characterisation` of a loaded YAML ``document``; ``ValueError`` naming ``source`` and the
+    first problem."""
+    try:
+        if not isinstance(document, dict):
+            raise ValueError("must be a mapping with format, rollout and/or slide_angle")
+        unknown = sorted(set(map(str, document)) - _SECTIONS)
+        if unknown:
+            raise ValueError(f"unknown section {unknown[0]!r} (known: {', '.join(sorted(_SECTIONS))})")
+        if document.get("format") != FORMAT:
+            raise ValueError(f"format must be {FORMAT!r}, got {document.get('format')!r}")
+        if "rollout" not in document and "slide_angle" not in document:
+            raise ValueError("holds no measurements: give rollout and/or slide_angle")
+        fields: typing.Dict[str, typing.Any] = {}
+        if "rollout" in document:
+            rollout = _mapping(document["rollout"], "rollout", {"sigma_m", "readings"})
+            fields["rollout_sigma_m"] = _number(rollout["sigma_m"], "rollout.sigma_m", 0.0, 10.0, low_open=True)
+            readings = []
+            for i, item in enumerate(_readings(rollout["readings"], "rollout.readings")):
+                where = f"rollout.readings[{i}]"
+                item = _mapping(item, where, {"surface", "speed_mps", "distance_m"})
+                if item["surface"] not in ROLLOUT_SURFACES:
+                    raise ValueError(f"{where}.surface must be one of {', '.join(ROLLOUT_SURFACES)}, got "
+                                     f"{item['surface']!r}")
+                readings.append(RolloutReading(str(item["surface"]),
+                                               _number(item["speed_mps"], f"{where}.speed_mps", 0.0, 5.0, True),
+                                               _number(item["distance_m"], f"{where}.distance_m", 0.0, 50.0)))
+            fields["rollouts"] = tuple(readings)
+        if "slide_angle" in document:
+            slide = _mapping(document["slide_angle"], "slide_angle", {"sigma_deg", "readings_deg"})
+            fields["slide_sigma_deg"] = _number(slide["sigma_deg"], "slide_angle.sigma_deg", 0.0, 45.0, True)
+            fields["slide_angles_deg"] = tuple(
+                _number(v, f"slide_angle.readings_deg[{i}]", 0.0, 89.0, True)
+                for i, v in enumerate(_readings(slide["readings_deg"], "slide_angle.readings_deg")))
+        return Characterisation(source=source, **fields)
+    except ValueError as error:
+        raise ValueError(f"{source}: {error}") from None
+
+
+def load_characterisation(path: typing.Union[str, os.PathLike]) -> Characterisation:
+    """Read and check a characterisation file (module docstring); ``ValueError`` in one line naming the file and
+    the problem (unreadable, not YAML, or a bad entry). Loaded with ``yaml.safe_load``: nothing in it executes."""
+    import yaml
+
+    source = os.fspath(path)
+    try:
+        with open(source, encoding="utf-8") as stream:
+            document = yaml.safe_load(stream)
+    except (OSError, UnicodeDecodeError) as error:
+        raise ValueError(f"{source}: cannot read the characterisation file ({error})") from None
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise ValueError(f"{source}: not valid YAML{where}") from None
+    return parse_characterisation(document, source)
+
+
+def slide_angle_deg(parameters: typing.Mapping[str, typing.Any]) -> float:
+    """The twin's slide angle (deg) of a printed coupon on the foam: atan(``sim.lateral_friction`` x
+    ``launch_twin.foam.lateral_friction``) of flat ``parameters`` (module docstring)."""
+    mu = float(parameters["sim.lateral_friction"]) * float(parameters["launch_twin.foam.lateral_friction"])
+    return math.degrees(math.atan(mu))
+
+
+def _gaussian(observed: float, predicted: float, sigma: float) -> float:
+    """log N(observed | predicted, sigma^2)."""
+    return -0.5 * ((observed - predicted) / sigma) ** 2 - math.log(sigma * math.sqrt(2.0 * math.pi))
+
+
+def characterisation_log_likelihood(characterisation: Characterisation,
+                                    parameters: typing.Mapping[str, typing.Any]) -> float:
+    """log P(readings | twin of flat ``parameters``): the sum over readings of each measurement model's Gaussian
+    (module docstring). Roll-outs are simulated once per distinct (surface, speed)."""
+    total = sum(_gaussian(angle, slide_angle_deg(parameters), characterisation.slide_sigma_deg)
+                for angle in characterisation.slide_angles_deg)
+    if characterisation.rollouts:
+        from rollability_ros.core.sim import launch_twin_settings_from_parameters
+        from rollability_ros.core.sim.rollout import rollout_distance_m
+
+        settings = launch_twin_settings_from_parameters(parameters)
+        predicted = {key: rollout_distance_m(settings, key[1], key[0])
+                     for key in {(r.surface, r.speed_mps) for r in characterisation.rollouts}}
+        total += sum(_gaussian(r.distance_m, predicted[(r.surface, r.speed_mps)], characterisation.rollout_sigma_m)
+                     for r in characterisation.rollouts)
+    return float(total)

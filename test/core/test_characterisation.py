@@ -1,0 +1,134 @@
+"""Bench characterisation (docs/characterisation.md): the strict file format, the measurement models, and
+`rollability calibrate --characterisation` narrowing the interval of the unknown a reading measures."""
+import dataclasses
+import math
+
+import pytest
+import yaml
+
+from rollability_ros.core.campaign import calibration
+from rollability_ros.core.campaign.characterisation import (FORMAT, characterisation_log_likelihood,
+                                                            load_characterisation, parse_characterisation,
+                                                            slide_angle_deg)
+from rollability_ros.core.config import load_parameters
+
+
+def twin_parameters():
+    return load_parameters(list(calibration.TWIN_CONFIGS))
+
+
+def one_unknown(name, lower, upper, **changes):
+    """Calibration settings fitting ``name`` alone, small enough for a test."""
+    return calibration.CalibrationSettings(parameters=[name], lower=[lower], upper=[upper], log_scale=[True],
+                                           popsize=4, max_generations=3, interval_points=9, **changes)
+
+
+@pytest.mark.parametrize("document, problem", [
+    ("[1, 2]", "must be a mapping"),
+    ("format: rollability-characterisation-1\n", "holds no measurements"),
+    ("format: v0\nslide_angle: {sigma_deg: 1, readings_deg: [20]}\n", "format must be"),
+    (f"format: {FORMAT}\nslope: {{}}\n", "unknown section 'slope'"),
+    (f"format: {FORMAT}\nslide_angle: {{sigma_deg: 1}}\n", "slide_angle: missing key 'readings_deg'"),
+    (f"format: {FORMAT}\nslide_angle: {{sigma_deg: 0, readings_deg: [20]}}\n", "slide_angle.sigma_deg must be in"),
+    (f"format: {FORMAT}\nslide_angle: {{sigma_deg: 1, readings_deg: [20, .nan]}}\n",
+     r"slide_angle.readings_deg\[1\] must be a finite number"),
+    (f"format: {FORMAT}\nslide_angle: {{sigma_deg: 1, readings_deg: []}}\n", "must be a non-empty list"),
+    (f"format: {FORMAT}\nrollout: {{sigma_m: 0.03, readings: [{{surface: ice, speed_mps: 1, distance_m: 0.3}}]}}\n",
+     r"rollout.readings\[0\].surface must be one of foam, floor"),
+    (f"format: {FORMAT}\nrollout: {{sigma_m: 0.03, readings: [{{surface: foam, speed_mps: '1', distance_m: 0.3}}]}}\n",
+     r"rollout.readings\[0\].speed_mps must be a finite number"),
+    (f"format: {FORMAT}\nrollout: {{sigma_m: 0.03, readings: [{{surface: foam, speed_mps: 1, distance_m: 0.3, "
+     "by: me}]}\n", "unknown key 'by'"),
+    ("format: [unclosed\n", "not valid YAML at line"),
+    (f"format: {FORMAT}\nslide_angle: !!python/object/apply:os.system [echo]\n", "not valid YAML"),
+])
+def test_malformed_characterisation_files_are_refused_in_one_line_naming_the_problem(tmp_path, document, problem):
+    path = tmp_path / "bench.yaml"
+    path.write_text(document, encoding="utf-8")
+    with pytest.raises(ValueError, match=problem) as caught:
+        load_characterisation(path)
+    assert str(caught.value).startswith(str(path)) and "\n" not in str(caught.value)
+
+
+def test_the_slide_angle_model_is_atan_of_the_contacts_friction():
+    flat = {"sim.lateral_friction": 0.35, "launch_twin.foam.lateral_friction": 2.0}
+    assert slide_angle_deg(flat) == pytest.approx(math.degrees(math.atan(0.7)))   # 35.0 deg
+    readings = parse_characterisation({"format": FORMAT, "slide_angle": {"sigma_deg": 2.0, "readings_deg": [35.0]}},
+                                      "bench")
+    at_truth = characterisation_log_likelihood(readings, flat)
+    assert at_truth == pytest.approx(-math.log(2.0 * math.sqrt(2 * math.pi)), abs=1e-3)
+    assert characterisation_log_likelihood(readings, {**flat, "launch_twin.foam.lateral_friction": 1.0}) < at_truth - 10
+
+
+def test_a_slide_angle_alone_pins_the_foam_friction_before_any_launch():
+    """No launch outcomes: the fit of the foam's friction to three slide angles of a simulated truth (2.0: a
+    35 deg slide) holds the truth in an interval far narrower than the declared range."""
+    pytest.importorskip("cma")
+    truth = 2.0
+    angle = math.degrees(math.atan(0.35 * truth))
+    readings = parse_characterisation({"format": FORMAT, "slide_angle": {
+        "sigma_deg": 1.0, "readings_deg": [angle - 0.5, angle + 0.3, angle + 0.2]}}, "bench")
+    settings = one_unknown("launch_twin.foam.lateral_friction", 0.2, 3.0)
+    with calibration.LaunchPool(1) as pool:
+        result = calibration.calibrate([], twin_parameters(), settings, pool, characterisation=readings)
+    (estimate,) = result.estimates
+    assert estimate.interval_low <= truth <= estimate.interval_high
+    assert estimate.interval_high / estimate.interval_low < (3.0 / 0.2) ** 0.3   # < a third of the range, in log
+    assert not estimate.interval_low <= estimate.initial <= estimate.interval_high   # the shipped 1.0 ruled out
+
+
+def test_a_simulated_rollout_narrows_the_foam_rolling_friction_around_its_truth():
+    """A roll-out on the foam simulated with foam rolling friction 0.006 m is the 'bench reading'; the fit of that
+    one unknown (a new one) from the roll-out alone holds the truth in a narrower interval than its range."""
+    pytest.importorskip("pybullet")
+    pytest.importorskip("cma")
+    from rollability_ros.core.sim.launch_twin import launch_twin_settings_from_parameters
+    from rollability_ros.core.sim.rollout import rollout_distance_m
+
+    name, truth = "launch_twin.foam.rolling_friction", 0.006
+    parameters = twin_parameters()
+    distance = rollout_distance_m(launch_twin_settings_from_parameters({**parameters, name: truth}), 1.0)
+    shipped = rollout_distance_m(launch_twin_settings_from_parameters(parameters), 1.0)
+    assert distance > shipped + 0.05   # less rolling resistance, a longer roll (the reading can tell them apart)
+    readings = parse_characterisation({"format": FORMAT, "rollout": {"sigma_m": 0.02, "readings": [
+        {"surface": "foam", "speed_mps": 1.0, "distance_m": distance}]}}, "bench")
+    settings = dataclasses.replace(one_unknown(name, 0.002, 0.05), max_generations=2, interval_points=7)
+    with calibration.LaunchPool(1) as pool:
+        result = calibration.calibrate([], parameters, settings, pool, characterisation=readings)
+    (estimate,) = result.estimates
+    assert estimate.interval_low <= truth <= estimate.interval_high, (estimate.interval_low, estimate.interval_high)
+    assert estimate.interval_high / estimate.interval_low < (0.05 / 0.002) ** 0.5   # under half the range, in log
+    assert abs(math.log(estimate.fitted / truth)) < abs(math.log(estimate.initial / truth))
+
+
+def test_the_rollout_model_refuses_an_engine_without_one():
+    from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
+    from rollability_ros.core.sim.rollout import rollout_distance_m
+
+    settings = load_launch_twin_settings()
+    mujoco = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine="mujoco"))
+    with pytest.raises(ValueError, match="PyBullet twin only; sim.engine is 'mujoco'"):
+        rollout_distance_m(mujoco, 1.0)
+    with pytest.raises(ValueError, match="surface must be one of"):
+        rollout_distance_m(settings, 1.0, "ice")
+
+
+def test_calibrate_selects_declared_unknowns_and_refuses_the_rest(tmp_path, capsys):
+    from rollability_ros.cli import main
+
+    settings = calibration.calibration_settings(load_parameters([*calibration.TWIN_CONFIGS, "calibration"]))
+    chosen = settings.selected(["launch_twin.wheel_drag_torque_nm"])
+    assert (chosen.parameters, chosen.lower, chosen.upper, chosen.log_scale) == (
+        ["launch_twin.wheel_drag_torque_nm"], [0.0005], [0.02], [True])
+    with pytest.raises(ValueError, match="sim.gravity is not declared in calibration.parameters"):
+        settings.selected(["sim.gravity"])
+    robot_wheels = {**twin_parameters(), "launch_twin.wheel_model": "robot"}
+    with pytest.raises(ValueError, match="launch_twin.wheel_drag_torque_nm acts on the twin's Mecanum wheels only"):
+        calibration.check_fittable(robot_wheels, chosen)
+    bench = tmp_path / "bench.yaml"
+    bench.write_text(yaml.safe_dump({"format": FORMAT, "slide_angle": {"sigma_deg": 1, "readings_deg": ["x"]}}))
+    assert main(["calibrate", "--characterisation", str(bench), "--out", str(tmp_path / "out")]) == 2
+    assert "slide_angle.readings_deg[0] must be a finite number" in capsys.readouterr().err
+    assert main(["calibrate", "--out", str(tmp_path / "out")]) == 2
+    assert "--physical" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

@@ -107,7 +107,9 @@ def test_two_studies_5_s_apart_beside_a_physical_rig_each_equal_the_study_alone(
 def test_a_logger_of_a_session_stores_only_its_sessions_runs(tmp_path, ros_node, start_node):
     """A stored_trials request of another session is refused; a record of a run the session never announced is
     refused and logged once, never stored nor acknowledged; once the session's runner announces its run, its
-    outcomes are stored, also by a restarted logger."""
+    outcomes are stored, also by a restarted logger. Candidates and generations of another session (or none) are
+    refused, logged once, even under the session's own run id; its own are stored."""
+    from rollability_ros.core.records import CandidateRecord, GenerationRecord
     from rollability_ros.nodes import _convert
 
     params = {"store_path": "outcomes.sqlite", "session.id": "lab.1234"}
@@ -124,8 +126,19 @@ def test_a_logger_of_a_session_stores_only_its_sessions_runs(tmp_path, ros_node,
     assert accepted.success and list(accepted.trial_ids) == []
     peer.outcomes.publish(_convert.outcome_to_msg(outcome("t0", run_id="mine")))
     peer.wait_trials(1, logger)
+    # two sessions' optimizations, both run "optimization" (as two joined studies): the other's first, same keys
+    for session in ("other.9999", "other.9999", "", "lab.1234"):
+        peer.candidates.publish(_convert.candidate_to_msg(CandidateRecord(
+            "optimization", 0, 0, (0.1, 0.2), 0.5, 1, 2, 7, 0.5, session=session)))
+        peer.generations.publish(_convert.generation_to_msg(GenerationRecord(
+            "optimization", 0, 0.5, 0.5, 0.5, 0.1, (0.1, 0.2), 1, 1.0, session=session)))
+    assert ros_node.wait_for(lambda: "stored generation summary optimization/0" in logger.log()
+                             and "stored candidate optimization/0/0" in logger.log(), 30), logger.log()
     log = logger.log()
     assert log.count("refused launch outcome other-study/") == 1, log       # logged once
+    refusals = log.count("refused candidate optimization/0/0") + log.count("refused generation summary optimization/0")
+    assert refusals == 1 and "optimization of session " in log, log                 # logged once
+    assert "duplicate" not in log, log
     assert "stored launch outcome mine/t0" in log
     assert not any(ack.run_id == "other-study" for ack in peer.acknowledgements)
     logger.stop()
@@ -137,6 +150,8 @@ def test_a_logger_of_a_session_stores_only_its_sessions_runs(tmp_path, ros_node,
 
     with Store(tmp_path / "outcomes.sqlite") as store:
         assert {o.run_id for o in store.launch_outcomes()} == {"mine"} and len(store.launch_outcomes()) == 2
+        assert [(c.session, c.index) for c in store.candidates()] == [("lab.1234", 0)]
+        assert [g.session for g in store.generations()] == ["lab.1234"]
 
 
 def test_ctrl_c_while_campaign_graph_waits_for_a_logger_is_a_clean_stop(tmp_path):

@@ -10,7 +10,8 @@ Every record read from a message is validated (``validate()``), so a node and th
 malformed records. Times: ``builtin_interfaces/Time`` <-> float seconds since the Unix epoch; a time that cannot
 be a stamp (NaN, infinite, negative) becomes 0 and nanoseconds are clamped to ``[0, 999_999_999]``. A
 ``LaunchOutcome`` decoded from a definition without ``seed`` (a bag recorded before the field existed) reads as
-:data:`~rollability_ros.core.records.NO_SEED`.
+:data:`~rollability_ros.core.records.NO_SEED`; a ``CandidateResult`` or ``GenerationSummary`` without
+``session`` (recorded before the field existed) reads with session "".
 """
 import math
 import typing
@@ -104,7 +105,7 @@ def _candidate_from_message(msg):
         run_id=msg.run_id, generation=int(msg.generation), index=int(msg.index),
         heights=tuple(float(h) for h in msg.heights), fitness=float(msg.fitness), successes=int(msg.successes),
         trials=int(msg.trials), seed=int(msg.seed), eval_time_s=float(msg.eval_time_s), evaluator=msg.evaluator,
-        stamp_s=stamp_to_s(msg.header.stamp))
+        stamp_s=stamp_to_s(msg.header.stamp), session=getattr(msg, "session", ""))
 
 
 def _generation_from_message(msg):
@@ -112,7 +113,7 @@ def _generation_from_message(msg):
         run_id=msg.run_id, generation=int(msg.generation), best_fitness=float(msg.best_fitness),
         mean_fitness=float(msg.mean_fitness), best_so_far=float(msg.best_so_far), sigma=float(msg.sigma),
         best_heights=tuple(float(h) for h in msg.best_heights), evaluations=int(msg.evaluations),
-        elapsed_s=float(msg.elapsed_s), stamp_s=stamp_to_s(msg.header.stamp))
+        elapsed_s=float(msg.elapsed_s), stamp_s=stamp_to_s(msg.header.stamp), session=getattr(msg, "session", ""))
 
 
 def _tip_event_from_message(msg):
@@ -155,14 +156,15 @@ def message_from_record(make: MakeMessage, record: Record) -> typing.Tuple[str, 
             CANDIDATE_TYPE, header=_header(make, record.stamp_s), run_id=record.run_id,
             generation=int(record.generation), index=int(record.index), heights=[float(h) for h in record.heights],
             fitness=float(record.fitness), successes=int(record.successes), trials=int(record.trials),
-            seed=int(record.seed), eval_time_s=float(record.eval_time_s), evaluator=record.evaluator)
+            seed=int(record.seed), eval_time_s=float(record.eval_time_s), evaluator=record.evaluator,
+            session=record.session)
     if isinstance(record, GenerationRecord):
         return GENERATION_TYPE, make(
             GENERATION_TYPE, header=_header(make, record.stamp_s), run_id=record.run_id,
             generation=int(record.generation), best_fitness=float(record.best_fitness),
             mean_fitness=float(record.mean_fitness), best_so_far=float(record.best_so_far),
             sigma=float(record.sigma), best_heights=[float(h) for h in record.best_heights],
-            evaluations=int(record.evaluations), elapsed_s=float(record.elapsed_s))
+            evaluations=int(record.evaluations), elapsed_s=float(record.elapsed_s), session=record.session)
     if isinstance(record, TipEventRecord):
         return TIP_EVENT_TYPE, make(
             TIP_EVENT_TYPE, header=_header(make, record.stamp_s, record.frame_id), robot=record.robot,

@@ -166,6 +166,7 @@ class CandidateRecord:
     eval_time_s: float
     evaluator: str = ""
     stamp_s: float = 0.0
+    session: str = ""                 # the optimizer's session id (docs/sessions.md); "" = none, or recorded before
 
     def validate(self) -> None:
         """Raise ``ValueError`` for an inconsistent candidate (successes > trials, NaN heights, ...)."""
@@ -193,6 +194,7 @@ class GenerationRecord:
     evaluations: int
     elapsed_s: float
     stamp_s: float = 0.0
+    session: str = ""                 # the optimizer's session id (docs/sessions.md); "" = none, or recorded before
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""

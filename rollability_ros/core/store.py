@@ -38,8 +38,9 @@ SESSION_STORE_FILENAME = "outcomes.sqlite"
 #: ``PRAGMA application_id`` of a rollability store ("ROLL" in ASCII).
 APPLICATION_ID = 0x524F4C4C
 #: Schema version written to ``PRAGMA user_version``; bump with a migration when the tables change.
-#: 1: the first schema; 2: ``launch_outcomes.seed`` (rows of a version 1 store read as ``NO_SEED``).
-SCHEMA_VERSION = 2
+#: 1: the first schema; 2: ``launch_outcomes.seed`` (rows of a version 1 store read as ``NO_SEED``);
+#: 3: ``candidates.session`` and ``generations.session`` (rows of an older store read as session "").
+SCHEMA_VERSION = 3
 
 
 def _encode_tuple(value):

@@ -5,7 +5,8 @@ Interfaces (relative names):
 - publishes ``candidates`` (rollability_ros/CandidateResult, reliable, depth 1000): every evaluated candidate,
   after it is stored in the run's ``store.sqlite``;
 - publishes ``generations`` (rollability_ros/GenerationSummary, latched): every completed generation, after its
-  checkpoint;
+  checkpoint; candidates and generations carry the node's ``session.id`` (``session``), so a session's
+  outcome_logger stores only its own optimizer's;
 - publishes ``optimizer_progress`` (rollability_ros/OptimizerProgress, latched): where the run stands (generations
   done, the run's cap, best so far, simulated trials evaluated), when a run starts or resumes and after every
   generation: what ``rollability study`` and ``bringup`` show, so they never open the run's store;
@@ -410,10 +411,10 @@ class Optimizer(Node):
 
     # --- publishing ----------------------------------------------------------------------------------------------
     def _publish_candidate(self, record):
-        self._candidates.publish(candidate_to_msg(record))
+        self._candidates.publish(candidate_to_msg(dataclasses.replace(record, session=self._session.id)))
 
     def _publish_generation(self, record, run):
-        self._generations.publish(generation_to_msg(record))
+        self._generations.publish(generation_to_msg(dataclasses.replace(record, session=self._session.id)))
         self._publish_progress(run)
         self._publish_best(run)
         self.get_logger().info(f"generation {record.generation}: best {record.best_fitness:.3f}, mean "

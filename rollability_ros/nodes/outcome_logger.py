@@ -20,8 +20,8 @@ Parameters:
   the valve_controller's key file, to verify physical outcomes.
   ``session.id`` (string, default "": none) and ``session_runs`` (string array): the logger of a session stores
   only its session's runs (:class:`~rollability_ros.core.results.outcome_log.SessionGate`): a ``stored_trials``
-  request of another session is refused, and a record of a run not of this session is refused, logged once per
-  run, never stored nor acknowledged.
+  request of another session is refused, and a launch outcome of a run not of this session, or a candidate or
+  generation whose ``session`` is another's, is refused, logged once per run, never stored nor acknowledged.
 
 Physical outcomes are stored only with the rig's record signature (``auth``, made with the valve's session key for
 a launch whose goal the operator's tools signed: :mod:`rollability_ros.core.rig.rig_auth`); an unsigned or forged
@@ -119,7 +119,8 @@ class OutcomeLoggerNode(Node):
             refusal = self.session_gate.refusal(record)
             if refusal:
                 if self.session_gate.first_refusal(record.run_id):
-                    logger.warning(f"refused {kind} {key} and every later record of its run: {refusal}; NOT stored")
+                    logger.warning(f"refused {kind} {key}: {refusal}; NOT stored (later refusals of run "
+                                   f"{record.run_id} are not logged)")
                 return
             if kind == "launch outcome":
                 authentic, reason = self.record_guard.check(_convert.signature_from_msg(msg.auth), record)

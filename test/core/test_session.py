@@ -111,16 +111,22 @@ def test_a_node_of_a_session_takes_only_its_own_sessions_and_a_node_outside_take
         return LaunchOutcome(run_id=run_id, trial_id="t0", condition=LaunchCondition("A", 0.75, 0.8, 0.0, 0),
                              backend="sim", upright=True)
 
-    def candidate(run_id):
+    def candidate(run_id, session):
         return CandidateRecord(run_id=run_id, generation=1, index=0, heights=(0.0,), fitness=1.0, successes=1,
-                               trials=1, seed=1, eval_time_s=0.1)
+                               trials=1, seed=1, eval_time_s=0.1, session=session)
 
     with Store(tmp_path / "store.sqlite") as store:
-        study = SessionGate("study-1.ab", ["study-1", "optimization"], store)
-        assert study.refusal(launch("study-1")) == "" and study.refusal(candidate("optimization")) == ""
-        assert study.refusal(launch("study-2")) and study.refusal(candidate("study-2"))
+        study = SessionGate("study-1.ab", ["study-1"], store)
+        assert study.refusal(launch("study-1")) == "" and study.refusal(candidate("optimization", "study-1.ab")) == ""
+        assert study.refusal(launch("study-2"))
+        # candidates are the optimizer's session's, whatever their run id (two studies' runs share "optimization")
+        assert "run optimization of session study-2.ef is not of session study-1.ab" == study.refusal(
+            candidate("optimization", "study-2.ef"))
+        assert "of session (none)" in study.refusal(candidate("optimization", ""))
         bringup = SessionGate("lab.cd", [], store)
-        assert bringup.refusal(launch("campaign-1")) and bringup.refusal(candidate("opt-1")) == ""
+        assert bringup.refusal(launch("campaign-1")) and bringup.refusal(candidate("opt-1", "lab.cd")) == ""
+        assert bringup.refusal(candidate("opt-1", "study-1.ab")) and SessionGate("", [], store).refusal(
+            candidate("opt-1", "study-1.ab")) == ""
         assert "session other.ef refused" in bringup.announce("other.ef", "campaign-1")
         assert bringup.announce("lab.cd", "campaign-1") == "" and bringup.refusal(launch("campaign-1")) == ""
         assert SessionGate("lab.cd", [], store).refusal(launch("campaign-1")) == ""   # a restarted logger knows it

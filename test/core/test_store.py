@@ -256,8 +256,28 @@ def test_a_version_1_store_is_migrated_and_its_outcomes_read_without_a_seed(tmp_
         assert [o.seed for o in store.launch_outcomes()] == [NO_SEED, 123456]
         assert store.launch_outcomes()[1] == seeded
     conn = sqlite3.connect(path)
-    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 2
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
     conn.close()
+
+
+def test_a_version_2_store_is_migrated_and_its_candidates_read_without_a_session(tmp_path):
+    path = tmp_path / "v2.sqlite"
+    old_candidate = CandidateRecord("optimization", 0, 0, (0.1,), 0.5, 1, 2, 7, 0.5)
+    old_generation = GenerationRecord("optimization", 0, 0.5, 0.5, 0.5, 0.1, (0.1,), 1, 1.0)
+    with Store(path) as store:
+        assert store.add_candidate(old_candidate) and store.add_generation(old_generation)
+    conn = sqlite3.connect(path)                  # as schema version 2 wrote it: no session columns
+    conn.execute("ALTER TABLE candidates DROP COLUMN session")
+    conn.execute("ALTER TABLE generations DROP COLUMN session")
+    conn.execute("PRAGMA user_version = 2")
+    conn.commit()
+    conn.close()
+    mine = dataclasses.replace(old_candidate, index=1, session="study-1.abcd")
+    with Store(path) as store:
+        assert store.candidates() == [old_candidate] and store.generations() == [old_generation]
+        assert store.add_candidate(mine)
+    with Store(path) as store:
+        assert [c.session for c in store.candidates()] == ["", "study-1.abcd"]
 
 
 def test_seed_round_trips_and_a_bad_seed_is_refused(tmp_path):

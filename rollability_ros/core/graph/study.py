@@ -157,12 +157,12 @@ class Study:
 
     def _session_nodes(self, nodes):
         """``nodes`` as members of the study's session (its id and valve key file); its logger stores only the
-        study's two runs (the optimization and the campaign)."""
+        study's campaign's launch outcomes and its session's candidates and generations (the optimization)."""
         if self.session is not None:
             join_nodes(nodes, self.session.id, self.session.valve_key_file)
         for node in nodes:
             if node.module == "outcome_logger":
-                node.params["session_runs"] = [self.study_id, OPTIMIZATION_DIR]
+                node.params["session_runs"] = [self.study_id]
         return nodes
 
     def _optimizer(self, resume):

@@ -30,15 +30,15 @@ DEFAULT_STORE_PATH = "runs/outcomes.sqlite"
 
 
 class SessionGate:
-    """Which records the outcome logger of session ``session_id`` stores (docs/sessions.md): those of runs listed in
-    ``runs``, of runs already in the store, and of runs a campaign runner of the same session announced
+    """Which records the outcome logger of session ``session_id`` stores (docs/sessions.md): launch outcomes of runs
+    listed in ``runs``, of runs already in the store, and of runs a campaign runner of the same session announced
     (:meth:`announce`, recorded in the store's runs table so a restarted logger knows them); candidates and
-    generations of any run when ``runs`` is empty. Tip events are not runs: always stored. Without a session id,
-    everything (a logger outside any session)."""
+    generations whose ``session`` (the optimizer's, carried in each message) is this session's, whatever their run
+    id, so two sessions' runs of one id (a study's ``optimization``) never mix. Tip events are not runs: always
+    stored. Without a session id, everything (a logger outside any session)."""
 
     def __init__(self, session_id: str, runs: typing.Sequence[str], store: Store) -> None:
         self.session_id = session_id
-        self._listed = bool(runs)
         self._store = store
         self._runs = set(runs) | (set(store.run_ids()) if session_id else set())
         self._refused: typing.Set[str] = set()
@@ -58,9 +58,14 @@ class SessionGate:
 
     def refusal(self, record: typing.Any) -> str:
         """"" when ``record`` belongs to this session, else why it is refused."""
-        if not self.session_id or isinstance(record, TipEventRecord) or record.run_id in self._runs:
+        if not self.session_id or isinstance(record, TipEventRecord):
             return ""
-        if not isinstance(record, LaunchOutcome) and not self._listed:
+        if isinstance(record, (CandidateRecord, GenerationRecord)):   # the optimizer names its session
+            if record.session != self.session_id:
+                return (f"run {record.run_id} of session {record.session or '(none)'} is not of session "
+                        f"{self.session_id}")
+            return ""
+        if record.run_id in self._runs:
             return ""
         return f"run {record.run_id} is not a run of session {self.session_id}"
 
@@ -88,9 +93,10 @@ class OutcomeLoggerSettings:
                        "outcomes (a physical outcome without a valid one is not stored); \"\" = the default of "
                        "valve.session_key_file for this ROS domain and namespace. Fixed at start-up."})
     session_runs: typing.List[str] = dataclasses.field(default_factory=list, metadata={
-        "description": "with session.id: the run ids of this session whose records are stored besides the runs its "
-                       "campaign runners announce (stored_trials) and those already stored; empty: launch outcomes "
-                       "of those runs only, candidates and generations of any run. Fixed at start-up."})
+        "description": "with session.id: the run ids of this session whose launch outcomes are stored besides the "
+                       "runs its campaign runners announce (stored_trials) and those already stored (candidates "
+                       "and generations are stored when their session is this one, whatever their run). Fixed at "
+                       "start-up."})
 
     def validate(self) -> None:
         """Raise ``ValueError`` for an unusable store path."""

@@ -708,8 +708,10 @@ def test_stray_participant_never_launches_through_the_rig(ros_node, start_node, 
     assert ros_node.wait_for(lambda: len(stored()) == 2, 15), logs()
     outcomes = {o.trial_id: o for o in stored()}
     assert sorted(outcomes) == ["op/0", "op/1"] and all(o.run_id == "op-run" for o in outcomes.values())
-    assert (outcomes["op/0"].upright, outcomes["op/0"].note) == (False, "operator")
-    assert outcomes["op/1"].upright and outcomes["op/1"].note == "operator"
+    # every physical note starts with where its travel time came from (issue 45), then the operator's own note
+    assert not outcomes["op/0"].upright and outcomes["op/1"].upright
+    for outcome in outcomes.values():
+        assert outcome.note.startswith("travel time: ") and outcome.note.endswith("; operator"), outcome.note
     assert "refused physical launch outcome" in logger.log() and "not authenticated" in rig_process.log()
     total = sum(tried.values())
     MEASURED.append((f"stray participant against the rig ({backend} valve): {tried['goals']} launch goals, "

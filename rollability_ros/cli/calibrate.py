@@ -61,8 +61,7 @@ def run(args: argparse.Namespace) -> int:
     """Calibrate, write the outputs to ``--out`` and print the summary; return the exit code."""
     import yaml
 
-    from rollability_ros.core.campaign import calibration
-    from rollability_ros.core.campaign.characterisation import load_characterisation
+    from rollability_ros.core.campaign import calibration, characterisation as bench_readings
     from rollability_ros.core.optimization import atomic_write_bytes
     from rollability_ros.core.config import check_given_files, check_output_dir, from_mapping, load_parameters, section
     from rollability_ros.core.results import load_report_data
@@ -74,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     settings = calibration.calibration_settings(parameters)
     if args.fit:
         settings = settings.selected(args.fit)
-    characterisation = load_characterisation(args.characterisation) if args.characterisation else None
+    characterisation = bench_readings.load_characterisation(args.characterisation) if args.characterisation else None
     if args.physical is None and characterisation is None:
         raise ValueError("give --physical (launch outcomes) and/or --characterisation (bench readings)")
     if args.workers is not None:

@@ -52,8 +52,7 @@ def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.results import report_figures
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.results import gain_lines
-    from rollability_ros.core.sim import sensitivity_rows
-    from rollability_ros.core.sim.sensitivity import launch_sensitivity_rows
+    from rollability_ros.core.sim import launch_sensitivity_rows, sensitivity_rows
 
     check_output_dir(args.out, "--out", keeps=("sensitivity.csv", "sensitivity.png"))
     settings = evaluation.with_given_files(evaluation.load_settings(["sim", "robot", "evaluator", *args.config]),

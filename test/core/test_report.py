@@ -98,7 +98,7 @@ def test_sources_are_recognised_and_ambiguity_refused(store_report, tmp_path, ca
         source_kind(tmp_path / "notes.txt")
     session = tmp_path / "session-1"   # what bringup and study write: outcomes.sqlite (issue 45)
     session.mkdir()
-    (run_dir / "store.sqlite").rename(session / "outcomes.sqlite")
+    shutil.copyfile(run_dir / "store.sqlite", session / "outcomes.sqlite")   # the module's store stays for the rest
     assert source_kind(session) == "store"
     assert cli_main(["report", str(session), "--out", str(tmp_path / "s")]) == 0
     assert not (session / "store.sqlite").exists() and (tmp_path / "s" / "report.html").is_file()

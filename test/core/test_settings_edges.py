@@ -37,6 +37,10 @@ ALLOWED = {
     ("profile/designs.py", "_read_designs"): (2, "reads a designs file"),
     # the calibration fits config keys: each candidate's twin is the parameter files with the fitted keys set
     ("campaign/calibration.py", "twin_settings_with"): (1, "rebuilds the twin with fitted config keys"),
+    ("campaign/calibration.py", "check_fittable"): (1, "the twin of the given keys, to refuse a fitted key it ignores"),
+    ("campaign/calibration.py", "fit"): (1, "the twin of the given keys, for the characterisation readings' model"),
+    ("campaign/characterisation.py", "characterisation_log_likelihood"): (
+        1, "the roll-out's twin at one candidate point of the fitted keys"),
     # writing, not parsing: the flat dict nested again as a parameter file
     ("optimization/optimization_run.py", "write_run_config"): (1, "writes config.yaml"),
     ("campaign/calibration.py", "calibrated_parameter_document"): (1, "writes calibrated.yaml"),

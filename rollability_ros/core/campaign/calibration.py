@@ -176,7 +176,7 @@ def check_fittable(parameters: typing.Mapping[str, typing.Any], settings: Calibr
     """Refuse a fitted key the twin of flat ``parameters`` does not use (``ValueError`` naming it): the Mecanum
     wheels' ``launch_twin.wheel_drag_torque_nm`` / ``wheel_rolling_friction`` / ``wheel_side_friction_factor``
     on a twin that gives the robot its own wheels (``launch_twin.wheel_model``)."""
-    from rollability_ros.core.sim.launch_twin import mecanum_wheels
+    from rollability_ros.core.sim import mecanum_wheels
 
     mecanum_only = [name for name in settings.parameters if name in MECANUM_KEYS]
     if mecanum_only and not mecanum_wheels(launch_twin_settings_from_parameters(parameters)):

@@ -174,8 +174,7 @@ def characterisation_log_likelihood(characterisation: Characterisation,
     total = sum(_gaussian(angle, slide_angle_deg(parameters), characterisation.slide_sigma_deg)
                 for angle in characterisation.slide_angles_deg)
     if characterisation.rollouts:
-        from rollability_ros.core.sim import launch_twin_settings_from_parameters
-        from rollability_ros.core.sim.rollout import rollout_distance_m
+        from rollability_ros.core.sim import launch_twin_settings_from_parameters, rollout_distance_m
 
         settings = launch_twin_settings_from_parameters(parameters)
         predicted = {key: rollout_distance_m(settings, key[1], key[0])

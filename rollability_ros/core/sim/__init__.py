@@ -27,10 +27,11 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
                                                      make_executor, profile_job, settings_at_fidelity,
                                                      settings_from_parameters, trial_seed, with_given_files)
     from rollability_ros.core.sim.launch_twin import (TWIN_NAMESPACE, TWIN_SECTIONS, LaunchTwinSettings,
-                                                      launch_twin_settings_from_parameters, profile_body,
+                                                      launch_twin_settings_from_parameters, mecanum_wheels, profile_body,
                                                       simulate_launch, simulate_valid_launch, twin_files)
     from rollability_ros.core.sim.objectives import FIDELITIES, ObjectiveSettings
-    from rollability_ros.core.sim.sensitivity import sensitivity_rows
+    from rollability_ros.core.sim.rollout import rollout_distance_m
+    from rollability_ros.core.sim.sensitivity import launch_sensitivity_rows, sensitivity_rows
     from rollability_ros.core.sim.stable_poses import ScreenSettings, screen_robot
     from rollability_ros.core.sim.trial_engine import (LAUNCH_ENGINES, TRIAL_ENGINES, LaunchEngine, TrialEngine,
                                                        TrialOutcome, engine_names, make_trial_world,
@@ -43,8 +44,9 @@ __all__ = [
     "FIDELITIES", "LAUNCH_ENGINES", "SETTINGS_SECTIONS", "TRIAL_ENGINES", "TWIN_NAMESPACE", "TWIN_SECTIONS",
     "EvaluationCancelled", "EvaluatorSettings", "LaunchEngine", "LaunchTwinSettings", "ObjectiveSettings", "PhysicsParams",
     "ScreenSettings", "TrialEngine", "TrialExecutor", "TrialOutcome", "TrialSettings", "engine_names",
-    "evaluate_jobs", "evaluate_mesh", "evaluate_profile", "evaluation", "launch_twin_settings_from_parameters",
-    "make_executor", "make_trial_world", "profile_body", "profile_job", "register_trial_engine", "screen_robot",
+    "evaluate_jobs", "evaluate_mesh", "evaluate_profile", "evaluation", "launch_sensitivity_rows",
+    "launch_twin_settings_from_parameters",
+    "make_executor", "make_trial_world", "mecanum_wheels", "rollout_distance_m", "profile_body", "profile_job", "register_trial_engine", "screen_robot",
     "sensitivity_rows", "settings_at_fidelity", "settings_from_parameters", "simulate_launch",
     "simulate_valid_launch", "spawn_pool", "stable_poses", "trial_seed", "twin_files", "with_given_files",
 ]

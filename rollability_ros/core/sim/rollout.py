@@ -40,7 +40,10 @@ def rollout_distance_m(settings: LaunchTwinSettings, speed_mps: float, surface: 
     """The distance (m) the bare robot of the twin ``settings`` rolls on ``surface`` (:data:`SURFACES`) after a
     push to ``speed_mps`` (module docstring). Deterministic (no random draw). ``ValueError`` for a bad speed or
     surface, or a twin on an engine without a roll-out model (MuJoCo)."""
-    if settings.physics.engine != "pybullet":
+    from rollability_ros.core.sim.launch_twin import BulletLaunch
+    from rollability_ros.core.sim.trial_engine import LAUNCH_ENGINES
+
+    if LAUNCH_ENGINES.get(settings.physics.engine) is not BulletLaunch:
         raise ValueError(f"the characterisation roll-out is modelled in the PyBullet twin only; sim.engine is "
                          f"{settings.physics.engine!r}: calibrate with sim.engine pybullet")
     if surface not in SURFACES:

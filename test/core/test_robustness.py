@@ -184,7 +184,9 @@ def test_launcher_and_profile_mass_unknowns_are_drawn_and_weigh_the_trials_profi
     robust = RobustSettings(enabled=True, launcher_models=["stroke", "push_through"])
     draws = [draw(seed, robust, -0.015, 0.06) for seed in range(400)]
     scales = sorted(d.profile_mass_scale for d in draws)
-    assert 0.5 <= scales[0] < 0.55 and 1.8 < scales[-1] <= 2.0 and 160 < sum(v < 1.0 for v in scales) < 240
+    # log-uniform in [0.15, 1.5]: half below the geometric mean (0.474), log(1/0.15)/log(10) = 82 % below 1
+    assert 0.15 <= scales[0] < 0.17 and 1.35 < scales[-1] <= 1.5
+    assert 160 < sum(v < 0.474 for v in scales) < 240 and 290 < sum(v < 1.0 for v in scales) < 370
     assert all(0 <= d.ledge_rolling_friction_m <= 0.01 and -0.15 <= d.speed_bias_fraction <= 0.15 for d in draws)
     assert {d.launcher_model for d in draws} == {"stroke", "push_through"}
     assert {draw(s, RobustSettings(enabled=True), -0.015, 0.06).launcher_model for s in range(50)} == {"stroke"}

@@ -241,6 +241,32 @@ def test_a_cylinder_too_weak_for_the_set_speed_is_refused():
         launch(weak)
 
 
+@pytest.mark.parametrize("below, above, kept", [(0.78, 0.83, True), (0.70, 0.90, False)])
+def test_a_gate_reading_that_jumps_keeps_the_closest_setting_within_the_accept_fraction(monkeypatch, below, above,
+                                                                                       kept):
+    """A robot whose gate reading jumps across the set speed (it pitches on the plate above some plate speed) has
+    no setting within SOLVE_TOLERANCE: the closest one tried is kept when it reads within SOLVE_ACCEPT_FRACTION
+    (0.78 m/s for 0.8: 2.5 %), and the solve is refused when even that is off (0.70 / 0.90: 12.5 %)."""
+    import types
+
+    from rollability_ros.core.sim import launch_twin
+
+    class Jumping:   # the gate rises with the plate to `below` at ratio 1.2, then reads `above`
+        @staticmethod
+        def simulate(condition, settings, seed, profile, drive=None, until_edge=False):
+            ratio = drive.speed_ratio
+            return types.SimpleNamespace(measured_speed_mps=below * ratio / 1.2 if ratio < 1.2 else above)
+
+    monkeypatch.setattr(launch_twin, "LAUNCH_ENGINES", types.SimpleNamespace(get=lambda name: Jumping))
+    solve = lambda: launch_twin._solve_speed_ratio(exact_settings(), 0.8, 100.0, 0.05)   # noqa: E731
+    if kept:
+        ratio = solve()
+        assert 1.15 < ratio < 1.2 and abs(below * ratio / 1.2 - 0.8) <= launch_twin.SOLVE_ACCEPT_FRACTION * 0.8
+    else:
+        with pytest.raises(ValueError, match="did not converge"):
+            solve()
+
+
 def test_coast_resistance_and_speed_bias_are_unknowns_the_gate_sees():
     """launcher.ledge_rolling_friction slows the coast (the lab's setting makes up for it at the gate, so the
     chassis leaves the edge slower); launcher.speed_bias_fraction moves the gate's reading itself."""

@@ -550,6 +550,11 @@ class LaunchDrive:
 #: The stroke model's speed solve: gate speed within this fraction of the set speed, at most this many runs
 #: after the bracket.
 SOLVE_TOLERANCE, SOLVE_RUNS = 0.002, 20
+#: A gate reading that jumps across the set speed (the robot's contact with the plate or the ledge changes with the
+#: plate speed: a taller robot pitches) has no setting within SOLVE_TOLERANCE; the closest setting tried is kept when
+#: the gate reads within this fraction of the set speed, as a lab turning the regulator would keep it (well inside
+#: the speed gate's own flag, config/rig.yaml ``speed_gate.tolerance_fraction`` 0.15).
+SOLVE_ACCEPT_FRACTION = 0.05
 #: Largest plate speed / set speed the solve tries before it refuses (the cylinder cannot reach the set speed).
 SOLVE_MAX_RATIO = 4.0
 #: Solved speed ratios per (engine, robot, launcher, set speed) in this process.
@@ -593,7 +598,8 @@ def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force
     """The plate speed / set speed at which the gate reads the set speed (:func:`launch_drive`): secant steps from
     1 (the gate reads 0 at 0); when they do not converge, the ratio is raised by half until the gate reads at least
     the set speed (a launch that never reaches the edge reads 0) and the bracket is closed by regula falsi
-    (Illinois)."""
+    (Illinois). A reading that jumps across the set speed keeps the closest setting tried when it is within
+    :data:`SOLVE_ACCEPT_FRACTION`; ``ValueError`` otherwise."""
     exact = dataclasses.replace(settings, twin=dataclasses.replace(
         settings.twin, speed_sigma_fraction=0.0, angle_sigma_deg=0.0,
         launcher=dataclasses.replace(settings.twin.launcher, speed_bias_fraction=0.0)))
@@ -601,10 +607,14 @@ def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force
     engine = LAUNCH_ENGINES.get(settings.physics.engine)
     launcher = settings.twin.launcher
 
+    closest: typing.List[typing.Tuple[float, float]] = []   # (|miss|, ratio) of the closest setting tried
+
     def miss(ratio: float) -> float:   # gate speed - set speed, m/s
         drive = LaunchDrive("stroke", ratio, force_n, launcher.stroke_m, ramp_s)
         gate = engine.simulate(condition, exact, 0, None, drive=drive, until_edge=True).measured_speed_mps
-        return (gate if gate > 0 else 0.0) - set_speed_mps
+        off = (gate if gate > 0 else 0.0) - set_speed_mps
+        closest[:] = [min([*closest, (abs(off), ratio)])]
+        return off
 
     tolerance = SOLVE_TOLERANCE * set_speed_mps
     # the secant from the plate at the set speed: the gate's reading is nearly proportional for a free-rolling
@@ -649,6 +659,8 @@ def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force
             low, low_miss = ratio, ratio_miss
             high_miss = high_miss / 2 if side == -1 else high_miss
             side = -1
+    if closest and closest[0][0] <= SOLVE_ACCEPT_FRACTION * set_speed_mps:   # the reading jumps: keep the closest
+        return closest[0][1]
     raise ValueError(f"the stroke launcher's speed setting for {set_speed_mps} m/s did not converge in {SOLVE_RUNS} "
                      f"launches (the gate reads {set_speed_mps + high_miss:.3f} m/s at plate speed "
                      f"{high * set_speed_mps:.2f} m/s)")

@@ -131,7 +131,7 @@ class Optimizer(Node):
                 self.declare_parameter(name, default, parameter_descriptor(description, value_range, type(default),
                                                                              name=name))
             except InvalidParameterValueException as exc:
-                raise ParameterError(refusal(name, exc, value_range)) from None
+                raise ParameterError(refusal(name, exc, {"range": value_range} if value_range else None)) from None
         try:
             pool_settings = PoolSettings(timeout_s=self._param("evaluator_timeout_s"),
                                          max_attempts=self._param("evaluator_max_attempts"),
@@ -339,7 +339,7 @@ class Optimizer(Node):
         log = self.get_logger()
         try:
             run = optimization_run.OptimizationRun(
-                run_dir, parameters, settings["profile"], self._pool.batch_evaluator(settings["optimizer"].trials),
+                run_dir, optimization_run.run_config(parameters), settings["profile"], self._pool.batch_evaluator(settings["optimizer"].trials),
                 resume=resume, on_candidate=self._publish_candidate,
                 evaluate_trials=self._pool.fidelity_evaluator(""),
                 screen_profiles=optimization_run.profile_screen(self._typed_run_settings(settings),

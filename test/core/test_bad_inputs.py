@@ -49,14 +49,14 @@ PARAMETER_FILES = {
 def workspace(tmp_path_factory):
     """A folder with a bag, a finished optimization run (runs/ex), outcome CSVs, a file, a folder of notes and a
     folder holding an earlier calibration."""
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
     from rollability_ros.core.profile import geometry
 
     root = tmp_path_factory.mktemp("bad_inputs")
     shutil.copytree(SAMPLE_BAG, root / "bag")
     grid = geometry.ProfileGrid(rows=3, cols=3)
-    run = OptimizationRun(str(root / "runs" / "ex"), {"optimizer.max_generations": 4, "optimizer.trials": 20,
-                                                      "profile.rows": 3, "profile.cols": 3}, grid,
+    run = OptimizationRun(str(root / "runs" / "ex"), run_config({"optimizer.max_generations": 4, "optimizer.trials": 20,
+                                                      "profile.rows": 3, "profile.cols": 3}), grid,
                           SyntheticEvaluator(np.linspace(0.1, 0.4, grid.n_variables), 20))
     run.run()
     run.close()

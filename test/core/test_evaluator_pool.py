@@ -220,7 +220,7 @@ def test_a_run_over_a_flaky_pool_equals_the_run_over_the_evaluator_itself(tmp_pa
     pool = make_pool(graph, ["flaky", "steady"])
     stored = {}
     for name, evaluate_batch in (("direct", synthetic), ("pool", pool.batch_evaluator(12))):
-        run = optimization_run.OptimizationRun(tmp_path / name, parameters, grid, evaluate_batch)
+        run = optimization_run.OptimizationRun(tmp_path / name, optimization_run.run_config(parameters), grid, evaluate_batch)
         run.run()
         stored[name] = [(c.generation, c.index, c.heights, c.successes, c.trials, c.seed)
                         for c in run.store.candidates(run_id=name)]

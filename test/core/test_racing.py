@@ -129,10 +129,10 @@ def racing_parameters(grid, method="cmaes", **extra):
 
 
 def run_rows(run_dir, parameters, grid, evaluate_trials, resume=False):
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
     from rollability_ros.core.results.store import Store
 
-    run = OptimizationRun(str(run_dir), parameters, grid, lambda h, s: evaluate_trials(h, s, 40), resume=resume,
+    run = OptimizationRun(str(run_dir), run_config(parameters), grid, lambda h, s: evaluate_trials(h, s, 40), resume=resume,
                           evaluate_trials=evaluate_trials)
     try:
         run.run()
@@ -207,7 +207,7 @@ def test_the_incumbent_and_the_cell_elite_are_the_bars():
 
 def test_bad_racing_settings_are_refused(tmp_path):
     pytest.importorskip("cma")
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_settings
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config, run_settings
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     grid = ProfileGrid(rows=2, cols=2)
@@ -223,7 +223,7 @@ def test_bad_racing_settings_are_refused(tmp_path):
             run_settings(racing_parameters(grid, **extra)).optimizer.validate()
     run_settings(racing_parameters(grid, **{"optimizer.race_looks": [0]})).optimizer.validate()   # [0]: off
     with pytest.raises(ValueError, match="race_looks needs an evaluator"):
-        OptimizationRun(str(tmp_path / "c"), racing_parameters(grid), grid, lambda h, s: [])
+        OptimizationRun(str(tmp_path / "c"), run_config(racing_parameters(grid)), grid, lambda h, s: [])
 
 
 def test_a_kept_mujoco_world_gives_the_same_trials_when_racing_comes_back_to_its_profile():
@@ -303,7 +303,7 @@ def test_halving_runs_at_most_the_survivors_on_and_a_killed_generation_resumes_t
     pytest.importorskip("cma")
     if method == "cma_mae":
         pytest.importorskip("ribs")
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     grid = ProfileGrid(rows=2, cols=2)
@@ -325,7 +325,7 @@ def test_halving_runs_at_most_the_survivors_on_and_a_killed_generation_resumes_t
         if record.generation == 4 and sum(r.generation == 4 for r in stored) == 3:
             raise Killed()
 
-    run = OptimizationRun(str(tmp_path / "killed"), parameters, grid,
+    run = OptimizationRun(str(tmp_path / "killed"), run_config(parameters), grid,
                           lambda h, s: bernoulli_evaluator([])(h, s, 40), on_candidate=dying,
                           evaluate_trials=bernoulli_evaluator([]))
     try:

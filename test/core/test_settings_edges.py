@@ -13,6 +13,8 @@ import code_counts
 ALLOWED = {
     # the parse functions an edge calls once (defined in the core next to their dataclasses)
     ("optimization/optimization_run.py", "run_settings"): (1, "the edge parse of a run's parameters"),
+    ("optimization/optimization_run.py", "run_config"): (1, "the edge parse of a run's parameters, kept with them as "
+                                                            "the run's record (OptimizationRun takes it typed)"),
     ("campaign/runner.py", "local_rig_settings"): (1, "the edge parse of the in-process rig's parameters"),
     ("campaign/runner.py", "local_rig_settings_from_files"): (1, "the edge parse of the rig files a command was "
                                                                  "given, once their keys are checked"),
@@ -22,10 +24,6 @@ ALLOWED = {
     ("sim/launch_twin.py", "launch_twin_settings_from_parameters"): (2, "the edge parse of the twin's parameters, "
                                                                         "with settings overrides"),
     # a file's own settings, read where the file is read
-    ("optimization/optimization_run.py", "OptimizationRun.__init__"): (1, "the run's record (config.yaml, written "
-                                                                          "and compared on resume), parsed once"),
-    ("optimization/optimization_run.py", "OptimizationRun._screen_initial_means"): (
-        1, "the robot the run's record describes, when the caller passes no screen"),
     ("sim/evaluation.py", "load_settings"): (1, "reads parameter files"),
     ("sim/launch_twin.py", "load_launch_twin_settings"): (1, "reads parameter files"),
     ("rig/rig_session.py", "SimulatedLaunch.load"): (1, "reads the twin files rig.twin_config names"),
@@ -41,10 +39,6 @@ ALLOWED = {
     ("campaign/calibration.py", "fit"): (1, "the twin of the given keys, for the characterisation readings' model"),
     ("campaign/characterisation.py", "characterisation_log_likelihood"): (
         1, "the roll-out's twin at one candidate point of the fitted keys"),
-    # writing, not parsing: the flat dict nested again as a parameter file
-    ("optimization/optimization_run.py", "write_run_config"): (1, "writes config.yaml"),
-    ("campaign/calibration.py", "calibrated_parameter_document"): (1, "writes calibrated.yaml"),
-    ("graph/bringup.py", "override_file"): (1, "writes a node's overrides file"),
 }
 
 

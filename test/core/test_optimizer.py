@@ -128,7 +128,7 @@ def test_protocol_errors_are_named():
     optimizer.tell(population, [0.1] * 12)
     with pytest.raises(ValueError, match="re-evaluation .* still pending"):
         optimizer.ask()
-    with pytest.raises(ValueError, match="seed must be"):
+    with pytest.raises(ValueError, match=r"^optimizer.seed out of range: 0 is not in \[1, 2147483647\]$"):
         ProfileOptimizer(4, settings(seed=0))
 
 

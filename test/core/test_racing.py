@@ -213,10 +213,10 @@ def test_bad_racing_settings_are_refused(tmp_path):
     grid = ProfileGrid(rows=2, cols=2)
     for extra, message in (({"optimizer.race_looks": [10, 5]}, "race_looks must be strictly increasing"),
                            ({"optimizer.race_looks": [40]}, "race_looks must be strictly increasing"),
-                           ({"optimizer.race_alpha": 0.0}, "race_alpha must be in"),
+                           ({"optimizer.race_alpha": 0.0}, r"race_alpha out of range: 0.0 is not in \(0.0, 1.0\)"),
                            ({"optimizer.common_random_numbers": False}, "needs common_random_numbers"),
                            ({"optimizer.race_survivors": 8}, "race_survivors must be below popsize 8"),
-                           ({"optimizer.race_survivors": -1}, "race_survivors must be >= 0"),
+                           ({"optimizer.race_survivors": -1}, r"race_survivors out of range: -1 is not in \[0, 100000\]"),
                            ({"optimizer.race_survivors": 2, "optimizer.race_looks": [0]},
                             "race_survivors needs race_looks")):
         with pytest.raises(ValueError, match=message):

@@ -19,8 +19,9 @@ import yaml
 import rollability_ros
 from rollability_ros.core import config
 
-#: The prefix every table row is declared under, on both paths (the message names ``<prefix>.<field>``).
-PREFIX = "checked"
+#: The namespace every table row is given under, on both paths (the message names ``<namespace>.<field>``); any
+#: namespace the parameter files know will do.
+PREFIX = "robot"
 
 
 def _settings_classes():
@@ -53,26 +54,21 @@ def _ends(field_type, metadata):
     return rows
 
 
-def _rows():
-    rows = []
-    for settings_cls in _settings_classes():
-        hints = typing.get_type_hints(settings_cls)
-        for field in dataclasses.fields(settings_cls):
-            if "range" not in field.metadata:
-                continue
+def _ranged_fields(settings_cls):
+    """``(name, type, metadata)`` of each ranged field of ``settings_cls``."""
+    hints = typing.get_type_hints(settings_cls)
+    for field in dataclasses.fields(settings_cls):
+        if "range" in field.metadata:
             assert hints[field.name] in (int, float), f"{settings_cls.__name__}.{field.name}: a range on a non-number"
-            for end, outside, inside in _ends(hints[field.name], field.metadata):
-                rows.append(pytest.param(settings_cls, field.name, hints[field.name], field.metadata, outside, inside,
-                                         id=f"{settings_cls.__name__}.{field.name}-{end}"))
-    return rows
+            yield field.name, hints[field.name], field.metadata
 
 
-ROWS = _rows()
+CLASSES = _settings_classes()
 
 
 def test_the_table_covers_every_ranged_field():
     """The walk finds the settings of every layer (the issue counted 163 ranged fields), nested ones included."""
-    fields = {(row.values[0], row.values[1]) for row in ROWS}
+    fields = [(cls, name) for cls in CLASSES for name, _type, _metadata in _ranged_fields(cls)]
     names = {cls.__name__ for cls, _ in fields}
     assert len(fields) >= 160, len(fields)
     assert {"OptimizerSettings", "QualityDiversitySettings", "PhysicsParams", "ValveConfig", "SerialRelayConfig",
@@ -81,7 +77,7 @@ def test_the_table_covers_every_ranged_field():
 
 def test_every_default_lies_in_its_declared_range():
     """A settings class built from nothing (every default) passes its own ranges."""
-    for settings_cls in {row.values[0] for row in ROWS}:
+    for settings_cls in CLASSES:
         if all(f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
                for f in dataclasses.fields(settings_cls)):
             for field in dataclasses.fields(settings_cls):
@@ -90,13 +86,14 @@ def test_every_default_lies_in_its_declared_range():
                     assert config.in_range(default, field.metadata), (settings_cls.__name__, field.name, default)
 
 
-def _cli(settings_cls, name, value, tmp_path):
-    """Build ``settings_cls`` the CLI's way: a parameter file, loaded and parsed; "" or the error's text."""
+def _cli(settings_cls, values, tmp_path):
+    """Build ``settings_cls`` the CLI's way from ``values`` (``{field: value}``): a parameter file, loaded and
+    parsed; "" or the error's text."""
     path = tmp_path / "given.yaml"
-    path.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"x": {name: value}}}}))
+    path.write_text(yaml.safe_dump({"/**": {"ros__parameters": {PREFIX: values}}}))
     flat = config.load_parameters([str(path)])
     try:
-        config.from_mapping(settings_cls, config.section(flat, "x"), PREFIX)
+        config.from_mapping(settings_cls, config.section(flat, PREFIX), PREFIX)
     except config.ConfigError as exc:
         return str(exc)
     return ""
@@ -112,16 +109,18 @@ def ros_context():
     rclpy.shutdown(context=context)
 
 
-def _node(settings_cls, name, value, context):
-    """Build ``settings_cls`` the node's way: a node whose parameter ``<PREFIX>.<name>`` is overridden with
-    ``value``, declaring the settings (rclpy's descriptor check, then the builder); "" or the refusal's text."""
+def _node(settings_cls, values, context):
+    """Build ``settings_cls`` the node's way: a node whose parameters ``<PREFIX>.<field>`` are overridden with
+    ``values`` (``{field: value}``), declaring the settings (rclpy's descriptor check, then the builder); "" or the
+    refusal's text."""
     import rclpy
     from rclpy.parameter import Parameter
 
     from rollability_ros.nodes._support import ParameterError, declare_settings
 
     node = rclpy.create_node("range_table", context=context, start_parameter_services=False,
-                             parameter_overrides=[Parameter(f"{PREFIX}.{name}", value=value)])
+                             parameter_overrides=[Parameter(f"{PREFIX}.{name}", value=value)
+                                                  for name, value in values.items()])
     try:
         declare_settings(node, PREFIX, settings_cls)
     except ParameterError as exc:
@@ -131,52 +130,58 @@ def _node(settings_cls, name, value, context):
     return ""
 
 
-def _range_refusal(message, name):
-    return f"{PREFIX}.{name} out of range" in message
+def _range_refusal(message):
+    return " out of range: " in message
 
 
-@pytest.mark.parametrize("settings_cls, name, field_type, metadata, outside, inside", ROWS)
-def test_a_value_just_outside_is_refused_alike_and_the_end_accepted(settings_cls, name, field_type, metadata,
-                                                                    outside, inside, tmp_path, ros_context):
-    expected = config.out_of_range(f"{PREFIX}.{name}", outside, metadata)
-    assert _cli(settings_cls, name, outside, tmp_path) == expected
-    assert _node(settings_cls, name, outside, ros_context) == expected
-    # at the end (or just inside an open one) the range lets it through; a rule spanning fields may still refuse
-    # it (height_min at its top above height_max), but never as out of range
-    assert not _range_refusal(_cli(settings_cls, name, inside, tmp_path), name)
-    assert not _range_refusal(_node(settings_cls, name, inside, ros_context), name)
+@pytest.mark.parametrize("settings_cls", CLASSES, ids=lambda cls: cls.__name__)
+def test_a_value_just_outside_is_refused_alike_and_the_ends_accepted(settings_cls, tmp_path, ros_context):
+    """Each end of each ranged field: a value just outside gets the same line from the CLI and the node; the end
+    itself (or a value just inside an open end) is let through by the range on both paths (a rule spanning fields
+    may still refuse it, height_min at its top above height_max, but never as out of range)."""
+    inside_ends = {"low": [], "high": []}
+    for name, field_type, metadata in _ranged_fields(settings_cls):
+        for end, outside, inside in _ends(field_type, metadata):
+            expected = config.out_of_range(f"{PREFIX}.{name}", outside, metadata)
+            assert _cli(settings_cls, {name: outside}, tmp_path) == expected
+            assert _node(settings_cls, {name: outside}, ros_context) == expected
+            assert not _range_refusal(_cli(settings_cls, {name: inside}, tmp_path))
+            inside_ends[end].append((name, inside))
+    for values in inside_ends.values():   # every field at that end at once: one node each
+        assert not _range_refusal(_node(settings_cls, dict(values), ros_context))
 
 
 @pytest.mark.parametrize("value, expected", [
-    (math.nan, "checked.sigma0 out of range: nan is not in (0.0, 100.0]"),
-    (math.inf, "checked.sigma0 out of range: inf is not in (0.0, 100.0]"),
-    ("wide", "checked.sigma0: expected a number in (0.0, 100.0], got 'wide'"),
-    (True, "checked.sigma0: expected a number in (0.0, 100.0], got True"),
+    (math.nan, "robot.sigma0 out of range: nan is not in (0.0, 100.0]"),
+    (math.inf, "robot.sigma0 out of range: inf is not in (0.0, 100.0]"),
+    ("wide", "robot.sigma0: expected a number in (0.0, 100.0], got 'wide'"),
+    (True, "robot.sigma0: expected a number in (0.0, 100.0], got True"),
 ])
 def test_nan_infinity_and_a_wrong_type_get_one_line_alike(value, expected, tmp_path, ros_context):
     from rollability_ros.core.optimization import OptimizerSettings
 
-    assert _cli(OptimizerSettings, "sigma0", value, tmp_path) == expected
-    assert _node(OptimizerSettings, "sigma0", value, ros_context) == expected
+    assert _cli(OptimizerSettings, {"sigma0": value}, tmp_path) == expected
+    assert _node(OptimizerSettings, {"sigma0": value}, ros_context) == expected
 
 
 def test_an_integer_setting_given_text_is_refused_alike(tmp_path, ros_context):
     from rollability_ros.core.optimization import OptimizerSettings
 
-    expected = "checked.popsize: expected an integer in [2, 100000], got 'twelve'"
-    assert _cli(OptimizerSettings, "popsize", "twelve", tmp_path) == expected
-    assert _node(OptimizerSettings, "popsize", "twelve", ros_context) == expected
+    expected = "robot.popsize: expected an integer in [2, 100000], got 'twelve'"
+    assert _cli(OptimizerSettings, {"popsize": "twelve"}, tmp_path) == expected
+    assert _node(OptimizerSettings, {"popsize": "twelve"}, ros_context) == expected
 
 
 def test_core_entry_points_check_ranges_of_settings_built_in_code():
-    """Settings built in code (not by a builder) are checked where the core takes them."""
-    from rollability_ros.core.optimization import OptimizerSettings
-    from rollability_ros.core.optimization import ProfileOptimizer
+    """Settings built in code (not by a builder) are checked where the core takes them: their ranges, then the
+    rules that span fields."""
+    from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid, design_space_printability
 
-    with pytest.raises(config.ConfigError, match=r"^optimizer.popsize out of range: 1 is not in \[2, 100000\]$"):
-        ProfileOptimizer(4, OptimizerSettings(popsize=1))
-    with pytest.raises(config.ConfigError, match=r"^optimizer: race_survivors must be below popsize 12"):
-        ProfileOptimizer(4, OptimizerSettings(race_survivors=12, race_looks=[10], trials=60))
+    with pytest.raises(config.ConfigError, match=r"^printer.nozzle_m out of range: 0.0 is not in \(0.0, 0.1\]$"):
+        design_space_printability(ProfileGrid(), PrinterSpec(nozzle_m=0.0))
+    with pytest.raises(config.ConfigError, match=r"^printer: printer.min_wall_m 0.20 mm is thinner than one"):
+        design_space_printability(ProfileGrid(), PrinterSpec(min_wall_m=0.0002))
+    assert design_space_printability(ProfileGrid(), PrinterSpec()) == []
 
 
 def test_the_descriptor_says_an_open_end():

@@ -119,7 +119,8 @@ def refusal(name: str, exc: Exception, metadata: typing.Optional[typing.Mapping[
 
 
 #: How rclpy names the type of a value it refused, and how to read the value back from its text.
-_READ_BACK = {"STRING": str, "INTEGER": int, "DOUBLE": float, "BOOL": lambda text: text == "True"}
+_READ_BACK: typing.Dict[str, typing.Callable[[str], typing.Any]] = {
+    "STRING": str, "INTEGER": int, "DOUBLE": float, "BOOL": lambda text: text == "True"}
 
 
 def type_refusal(name: str, exc: Exception, field_type: type,

@@ -334,7 +334,8 @@ class OptimizationRun:
         self._session_start_generation = self.optimizer.generation
         self._session_start_s = clock()
         self._trials = sum(c.trials for c in self.store.candidates(run_id=self.run_id))
-        self._last_generation = (self.store.generations(run_id=self.run_id) or [None])[-1]
+        generations = self.store.generations(run_id=self.run_id)
+        self._last_generation: typing.Optional[GenerationRecord] = generations[-1] if generations else None
 
     def _screen_initial_means(self, screen_profiles):
         """With ``initial_mean_screen`` > 0: screen the random initial means and return ``{"chosen": index,

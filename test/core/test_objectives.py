@@ -47,7 +47,7 @@ def test_mix_spreads_the_launch_share_evenly_and_cycles_the_conditions():
 def test_bad_objective_settings_are_refused():
     with pytest.raises(ConfigError, match="kind must be one of disturbance, launch_twin, mix"):
         settings_with(kind="rig")
-    with pytest.raises(ConfigError, match="launch_weight must be in"):
+    with pytest.raises(ConfigError, match=r"objective.launch_weight out of range: 0.0 is not in \(0.0, 1.0\]$"):
         settings_with(kind="mix", launch_weight=0.0)
 
 

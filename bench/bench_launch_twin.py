@@ -15,6 +15,7 @@ import statistics
 import sys
 import tempfile
 import time
+import typing
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -22,7 +23,7 @@ from bench.bench_evaluator import dome_heights  # noqa: E402
 from rollability_ros.core.sim.evaluation import EvaluatorSettings  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh, profile_mesh  # noqa: E402
 from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_launch  # noqa: E402
-from rollability_ros.core.results.records import LaunchCondition  # noqa: E402
+from rollability_ros.core.records import LaunchCondition  # noqa: E402
 
 HEIGHTS_M, SPEEDS_MPS, ANGLES_DEG = (0.75, 1.30), (0.8, 1.5), (-60.0, -30.0, 0.0, 30.0, 60.0)
 CAMPAIGN_TRIALS = 400
@@ -43,7 +44,11 @@ def main():
         export_mesh(dome_mesh(), stl)
         settings = load_launch_twin_settings(overrides={"twin.designs.mesh_labels": ["dome"],
                                                         "twin.designs.mesh_files": [stl]})
-        walls, steps, sim_s, travel_ratio, flight_ratio = [], [], [], [], []
+        walls: typing.List[float] = []
+        steps: typing.List[float] = []
+        sim_s: typing.List[float] = []
+        travel_ratio: typing.List[float] = []
+        flight_ratio: typing.List[float] = []
         upright = collections.defaultdict(list)
         for configuration in ("baseline", "dome"):
             for height_m in HEIGHTS_M:

@@ -36,6 +36,7 @@ def _launches(settings, heights, pad, launches, engine):
     from rollability_ros.core.sim.launch_twin import simulate_valid_launch
 
     objective = objectives.launch_objective(settings.objective, engine, early_decision=True)
+    assert objective is not None, "the launch fidelity has a launch objective"
     twin = objective.twin
     foam = dataclasses.replace(twin.twin.foam, length_m=pad[0], width_m=pad[1])
     twin = dataclasses.replace(twin, twin=dataclasses.replace(twin.twin, foam=foam))

@@ -64,6 +64,7 @@ def main(argv=None):
         grid = dataclasses.replace(settings.grid, unit_m=unit)
         for name, heights in shapes(grid).items():
             mesh = profile_mesh(heights, grid)
+            assert mesh is not None   # every shape has a height
             cells = []
             for make in makes.values():
                 model = ChassisModel(dataclasses.replace(spec, profile_print=make))

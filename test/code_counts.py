@@ -54,24 +54,40 @@ def subpackages():
     return sorted(p.name for p in CORE.iterdir() if (p / "__init__.py").is_file())
 
 
+def face_stub(sub):
+    """The face of subpackage ``sub``: ``core/<sub>/__init__.pyi`` (what ``lazy_loader.attach_stub`` and type checkers
+    read)."""
+    return CORE / sub / "__init__.pyi"
+
+
 def face_exports(sub):
-    """``{name: module below core}`` that the lazy face of subpackage ``sub`` re-exports: its imports under ``if
-    typing.TYPE_CHECKING:`` (core/faces.py reads the same block at run time); ``{}`` for an eager face."""
+    """``{name: module below core}`` that the face of subpackage ``sub`` re-exports: the ``from .module import name``
+    lines of its stub (``{}`` without one); a whole module re-exported (``from . import module``) maps to itself."""
     exports = {}
-    for node in ast.parse((CORE / sub / "__init__.py").read_text()).body:
-        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
-            for statement in node.body:
-                if isinstance(statement, ast.ImportFrom) and statement.module:
-                    module = statement.module[len("rollability_ros.core."):]
-                    for alias in statement.names:
-                        exports[alias.asname or alias.name] = (f"{module}.{alias.name}" if module == sub
-                                                               else module)
+    if not face_stub(sub).is_file():
+        return exports
+    for node in ast.parse(face_stub(sub).read_text()).body:
+        if isinstance(node, ast.ImportFrom) and node.level == 1:
+            for alias in node.names:
+                exports[alias.asname or alias.name] = (f"{sub}.{node.module}" if node.module
+                                                       else f"{sub}.{alias.name}")
     return exports
 
 
+def face_modules(sub):
+    """The whole modules the face of ``sub`` exports as names (``from . import module`` in its stub)."""
+    if not face_stub(sub).is_file():
+        return []
+    return sorted(alias.name for node in ast.parse(face_stub(sub).read_text()).body
+                  if isinstance(node, ast.ImportFrom) and node.level == 1 and not node.module for alias in node.names)
+
+
 def face_all(sub):
-    """The names in subpackage ``sub``'s ``__all__`` (read statically), or ``None`` when its face has none."""
-    for node in ast.parse((CORE / sub / "__init__.py").read_text()).body:
+    """The names in subpackage ``sub``'s ``__all__`` (read statically from its stub), or ``None`` when its face has
+    none."""
+    if not face_stub(sub).is_file():
+        return None
+    for node in ast.parse(face_stub(sub).read_text()).body:
         if isinstance(node, (ast.Assign, ast.AnnAssign)):
             targets = node.targets if isinstance(node, ast.Assign) else [node.target]
             if any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets) and node.value is not None:
@@ -269,9 +285,10 @@ def public_functions(root=PACKAGE):
 
 
 def faces(root=PACKAGE):
-    """``(modules with __all__, modules)`` under ``root``."""
+    """``(modules with __all__, modules)`` under ``root`` (a face's ``__all__`` is in its ``.pyi`` stub)."""
     paths = sorted(root.rglob("*.py"))
-    with_all = sum(1 for path in paths if re.search(r"^__all__\s*[:=]", path.read_text(), flags=re.M))
+    with_all = sum(1 for path in paths if any(re.search(r"^__all__\s*[:=]", face.read_text(), flags=re.M)
+                                              for face in (path, path.with_suffix(".pyi")) if face.is_file()))
     return with_all, len(paths)
 
 

@@ -167,7 +167,7 @@ def test_the_mount_is_read_from_the_robot_parameters_and_checked():
 def test_a_launch_on_a_compliant_mount_is_a_valid_launch_that_differs_from_the_rigid_one():
     import dataclasses
 
-    from rollability_ros.core.results.records import LaunchCondition
+    from rollability_ros.core.records import LaunchCondition
     from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_launch
 
     rigid = load_launch_twin_settings(overrides={"twin.speed_sigma_fraction": 0.0, "twin.angle_sigma_deg": 0.0})

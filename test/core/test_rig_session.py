@@ -7,7 +7,7 @@ import time
 import pytest
 from synthetic_imu import piecewise, stream
 
-from rollability_ros.core.results.records import NO_SEED, LaunchCondition
+from rollability_ros.core.records import NO_SEED, LaunchCondition
 from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
 from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
                                                   OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,

@@ -215,7 +215,7 @@ def _mcap_file_info(path, verify_chunks=False):
         _, summary = open_mcap(path, stream)
         chunks, problems = _chunk_problems(path, stream, summary) if verify_chunks else (None, None)
     statistics = summary.statistics
-    counts = {}
+    counts: typing.Dict[typing.Tuple[str, str], int] = {}
     for channel_id, count in statistics.channel_message_counts.items():
         channel = summary.channels[channel_id]
         schema = summary.schemas.get(channel.schema_id)
@@ -272,7 +272,7 @@ def _mcap_file_metadata(path):
                                                                                           METADATA_VERSION))
     except (yaml.YAMLError, AttributeError, TypeError, ValueError):
         version = METADATA_VERSION
-    topics = {}
+    topics: typing.Dict[typing.Tuple[str, str], typing.Dict[str, typing.Any]] = {}
     for channel_id, channel in sorted(summary.channels.items()):
         schema = summary.schemas.get(channel.schema_id)
         key = (channel.topic, schema.name if schema else "")

@@ -174,7 +174,10 @@ def _rewrite_mcap(path, temporary, information, definitions, topics):
         data = stream.read()
     records = _scan_records(data, report) if data else []
     report["header_intact"] = data.startswith(MCAP_MAGIC)
-    schemas, channels, channel_topics, types_by_topic = {}, {}, {}, {}
+    schemas: typing.Dict[int, Schema] = {}
+    channels: typing.Dict[int, Channel] = {}
+    channel_topics: typing.Dict[int, str] = {}
+    types_by_topic: typing.Dict[str, str] = {}
     for record in records:
         if isinstance(record, Schema):
             schemas.setdefault(record.id, record)
@@ -232,7 +235,7 @@ def _file_summary(path):
         info = FileInfo(os.path.basename(path), statistics.message_start_time if statistics.message_count else 0,
                         statistics.message_end_time - statistics.message_start_time
                         if statistics.message_count else 0, statistics.message_count)
-        topics = {}
+        topics: typing.Dict[str, TopicInfo] = {}
         for channel_id, channel in summary.channels.items():
             schema = summary.schemas.get(channel.schema_id)
             topic = topics.setdefault(channel.topic, TopicInfo(
@@ -241,7 +244,7 @@ def _file_summary(path):
                 offered_qos_profiles=normalize_qos_profiles(channel.metadata.get("offered_qos_profiles")),
                 type_description_hash=channel.metadata.get("topic_type_hash", "")))
             topic.message_count += statistics.channel_message_counts.get(channel_id, 0)
-        stored = {}
+        stored: typing.Dict[str, typing.Any] = {}
         for record in reader.iter_metadata():
             if record.name == "rosbag2" and record.metadata.get("serialized_metadata"):
                 stored = safe_yaml.load(record.metadata["serialized_metadata"]) or {}

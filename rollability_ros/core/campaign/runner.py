@@ -332,7 +332,7 @@ class LocalRigPorts(RigPorts):
     def __init__(self, ask=input):
         self._ask = ask
         self._stop = threading.Event()
-        self.valve = None
+        self.valve: typing.Optional[ValveController] = None
 
     def open_valve(self, valve_config: ValveConfig) -> ValveController:
         """A valve controller on ``valve.*`` whose watchdog this object keeps fed until :meth:`close`."""
@@ -341,8 +341,10 @@ class LocalRigPorts(RigPorts):
         return self.valve
 
     def _beat(self, period_s):
+        valve = self.valve
+        assert valve is not None   # started by open_valve
         while not self._stop.wait(period_s):
-            self.valve.heartbeat()
+            valve.heartbeat()
 
     def open_speed_gate(self, speed_config: SpeedGateConfig) -> typing.Any:
         """The configured speed gate (its ``operator`` backend asks at this terminal)."""

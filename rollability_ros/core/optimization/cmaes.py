@@ -193,7 +193,7 @@ class Estimate:
 class OptimizerResult:
     """Outcome so far: the incumbent, counts, the distribution mean (phenotype) and step size, stop criteria."""
 
-    best: Estimate
+    best: typing.Optional[Estimate]   # None before the first evaluation
     generations: int
     evaluations: int
     elapsed_s: float
@@ -326,7 +326,9 @@ class IncumbentOptimizer(abc.ABC):
         nothing is due."""
         if not self._reevaluation_pending:
             return None
-        return (self._challenger or self._incumbent).heights.copy()
+        due = self._challenger or self._incumbent
+        assert due is not None   # a re-evaluation is due only once there is an incumbent
+        return due.heights.copy()
 
     def tell_reevaluation(self, fitness: float, trials: int = 1) -> None:
         """Pool a fresh evaluation (``fitness`` over ``trials``) into the design :meth:`reevaluation_request` named."""
@@ -338,6 +340,7 @@ class IncumbentOptimizer(abc.ABC):
         self._reevaluation_pending = False
         self._tells[-1]["reevaluation"] = [float(fitness), int(trials)]
         if self._challenger is None:
+            assert self._incumbent is not None   # see reevaluation_request
             self._incumbent = self._incumbent.pooled(float(fitness), int(trials))
             return
         challenger, self._challenger = self._challenger.pooled(float(fitness), int(trials)), None

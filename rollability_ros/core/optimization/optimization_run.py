@@ -228,9 +228,9 @@ def profile_screen(settings: RunSettings, evaluator_settings: typing.Any,
     ``optimizer.initial_mean_screen`` is 0."""
     if settings.optimizer.initial_mean_screen == 0:
         return None
-    from rollability_ros.core.sim import stable_poses
+    from rollability_ros.core.sim import profile_screener
 
-    return stable_poses.profile_screener(evaluator_settings, screen_settings or settings.stable_poses)
+    return profile_screener(evaluator_settings, screen_settings or settings.stable_poses)
 
 
 def check_design_space_printable(printer: typing.Optional[PrinterSpec], grid: typing.Any) -> None:
@@ -318,7 +318,8 @@ class OptimizationRun:
         self._session_start_generation = self.optimizer.generation
         self._session_start_s = clock()
         self._trials = sum(c.trials for c in self.store.candidates(run_id=self.run_id))
-        self._last_generation = (self.store.generations(run_id=self.run_id) or [None])[-1]
+        generations = self.store.generations(run_id=self.run_id)
+        self._last_generation = generations[-1] if generations else None
 
     def _screen_initial_means(self, screen_profiles):
         """With ``initial_mean_screen`` > 0: screen the random initial means and return ``{"chosen": index,
@@ -522,7 +523,7 @@ class OptimizationRun:
     def _evaluate(self, generation, indices, heights_list, seeds, stored):
         """Return the :class:`CandidateRecord` of each (index, heights, seed): reused if stored, else evaluated."""
         records = {}
-        pending = {}
+        pending: typing.Dict[int, typing.Any] = {}
         for index, heights, seed in zip(indices, heights_list, seeds):
             previous = stored.get(index)
             if previous is None:
@@ -558,6 +559,7 @@ class OptimizationRun:
 
         settings = self.settings
         looks, stages = settings.race_looks_used, settings.race_stages
+        assert stages is not None   # called only when racing
         bars = [None if r is None else racing.sequential_bar(*r) for r in references]
         records, pending = {}, []
         for number, heights in enumerate(population):
@@ -571,7 +573,7 @@ class OptimizationRun:
                                  f"{generation} than this resumed run computes (seed {previous.seed} vs {seed})")
         halving = settings.race_survivors > 0
         racing_now = list(range(len(population))) if halving and pending else pending
-        totals = {number: [0, 0, 0.0, ""] for number in racing_now}
+        totals: typing.Dict[int, typing.List[typing.Any]] = {number: [0, 0, 0.0, ""] for number in racing_now}
         going_on = list(racing_now)
         for stage, stage_trials in enumerate(stages):
             if not going_on:

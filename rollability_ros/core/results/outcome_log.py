@@ -138,8 +138,9 @@ class RunningSummary:
     """
 
     def __init__(self):
-        self._conditions = collections.defaultdict(dict)   # run_id -> {group_key: (successes, trials)}
-        self._candidates = collections.Counter()                           # run_id -> candidates stored
+        self._conditions: typing.DefaultDict[str, typing.Dict[typing.Any, typing.Tuple[int, int]]] = \
+            collections.defaultdict(dict)                                  # run_id -> {group_key: (successes, trials)}
+        self._candidates: typing.Counter[str] = collections.Counter()      # run_id -> candidates stored
         self._latest_stamp_s = {}                                          # run_id -> newest outcome stamp, s
 
     def add_outcome(self, outcome: LaunchOutcome) -> None:

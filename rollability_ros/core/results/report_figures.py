@@ -161,7 +161,7 @@ def _configuration_axis(ax, configurations, label="success rate"):
     ax.grid(axis="y", alpha=0.3)
 
 
-def convergence(path: str, points: typing.Sequence[ConvergencePoint]) -> str:
+def convergence_figure(path: str, points: typing.Sequence[ConvergencePoint]) -> str:
     """Figure 4: best-so-far fitness per generation (solid), generation best and mean (faint), per run."""
     plt = _pyplot()
     figure, ax = plt.subplots(figsize=(6.4, 3.8), layout="constrained")
@@ -263,7 +263,7 @@ def render_profile_preview(mesh: "Mesh", path: str, title: typing.Optional[str] 
     return _save(figure, path)
 
 
-def sensitivity(path: str, rows: typing.Sequence[typing.Mapping[str, typing.Any]]) -> str:
+def sensitivity_figure(path: str, rows: typing.Sequence[typing.Mapping[str, typing.Any]]) -> str:
     """The sensitivity study (:mod:`rollability_ros.core.sim.sensitivity`): one panel per factor, fitness of each
     configuration against the factor's levels with Wilson 95% intervals; the robust fitness as its own panel."""
     plt = _pyplot()

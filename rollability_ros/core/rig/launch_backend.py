@@ -18,7 +18,7 @@ from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 
 if typing.TYPE_CHECKING:  # annotations only: rig_session imports this module
     from rollability_ros.core.imu import ImuOutcomeConfig
-    from rollability_ros.core.rig.rig_session import ImuOutcome, RigSettings
+    from rollability_ros.core.rig.rig_session import ImuOutcome, OperatorChannel, RigSettings
     from rollability_ros.core.rig.speed_gate import SpeedGateConfig
     from rollability_ros.core.rig.valve import ValveConfig
 
@@ -62,6 +62,7 @@ class LaunchBackend(abc.ABC):
     name: str = ""
     attended: bool = False
     authenticated: bool = False
+    operator: "OperatorChannel"
 
     @abc.abstractmethod
     def check(self, run_id: str, trial_id: str, condition: LaunchCondition) -> str:

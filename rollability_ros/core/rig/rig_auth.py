@@ -115,8 +115,8 @@ class SessionKeys:
         self.path = path
         self._load = load
         self._lock = threading.Lock()
-        self._newest = None
-        self._file_stamp = None
+        self._newest: typing.Optional[valve_auth.SessionKey] = None
+        self._file_stamp: typing.Optional[typing.Tuple[int, int, int]] = None
         self._keys: dict = {}
 
     def _lookup(self, session, current_only):

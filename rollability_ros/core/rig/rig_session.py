@@ -578,6 +578,7 @@ class SimulatedLaunch(LaunchBackend):
         from rollability_ros.core.profile import configuration_ids
 
         self.load()
+        assert self._twin_settings is not None   # load() read them
         try:
             known = configuration_ids(self._twin_settings.twin.designs)
         except (ValueError, OSError) as exc:   # an unreadable designs file: every goal names it
@@ -590,6 +591,7 @@ class SimulatedLaunch(LaunchBackend):
     def design_sources(self) -> dict:
         """The twin's ``launch_twin.designs`` (relative paths are from the working directory), made absolute."""
         self.load()
+        assert self._twin_settings is not None   # load() read them
         designs = self._twin_settings.twin.designs
         return {"designs_file": os.path.abspath(designs.designs_file) if designs.designs_file else "",
                 "mesh_files": {label: os.path.abspath(path) for label, path in designs.meshes().items()}}

@@ -298,7 +298,7 @@ def _parse(xml_text):
         links[name] = link
     if not links:
         raise ValueError("robot description has no <link>")
-    joints = {}
+    joints: typing.Dict[str, ElementTree.Element] = {}
     for joint in root.findall("joint"):
         name, kind = joint.get("name"), joint.get("type")
         parent, child = joint.find("parent"), joint.find("child")
@@ -309,19 +309,26 @@ def _parse(xml_text):
         for end in (parent.get("link"), child.get("link")):
             if end not in links:
                 raise ValueError(f"joint {name!r} refers to unknown link {end!r}")
-        if child.get("link") in {j.find("child").get("link") for j in joints.values()}:
+        if child.get("link") in {_end(j, "child") for j in joints.values()}:
             raise ValueError(f"link {child.get('link')!r} is the child of more than one joint")
         joints[name] = joint
     return root, links, joints
 
 
+def _end(joint: ElementTree.Element, end: str) -> str:
+    """The link named by a checked joint's ``<parent>`` or ``<child>`` (``_read_links`` refused one without)."""
+    element = joint.find(end)
+    assert element is not None, end
+    return element.get("link", "")
+
+
 def _tree(links, joints):
     """Return ``(root link, {parent: [joint, ...]})``, checking there is one root and no loop."""
-    children = {name: [] for name in links}
+    children: typing.Dict[str, typing.List[ElementTree.Element]] = {name: [] for name in links}
     child_links = set()
     for joint in joints.values():
-        children[joint.find("parent").get("link")].append(joint)
-        child_links.add(joint.find("child").get("link"))
+        children[_end(joint, "parent")].append(joint)
+        child_links.add(_end(joint, "child"))
     roots = [name for name in links if name not in child_links]
     if len(roots) != 1:
         raise ValueError(f"robot description needs exactly one root link, found {len(roots)}: {', '.join(roots)}")

@@ -300,6 +300,11 @@ class TrialExecutor(abc.ABC):
     def close(self) -> None:
         """Release workers or connections (default: nothing to release)."""
 
+    def warm(self) -> typing.List[int]:
+        """Block until the executor's worker processes have started their physics clients; return their pids
+        (default: none to wait for)."""
+        return []
+
     def __enter__(self) -> "TrialExecutor":
         return self
 

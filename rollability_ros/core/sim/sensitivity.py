@@ -7,7 +7,7 @@ chassis's centre-of-mass height, m). Every (profile, factor, level) is evaluated
 base seed (common random numbers: the same start tilts and push directions at every level and for every profile),
 plus the ``robust`` fitness (:mod:`~rollability_ros.core.sim.robustness`: every trial under its own draw of all
 factors). Each fitness comes with its Wilson 95% interval. ``rollability sensitivity`` writes the rows as a CSV
-and draws them (:func:`rollability_ros.core.results.report_figures.sensitivity`).
+and draws them (:func:`rollability_ros.core.results.report_figures.sensitivity_figure`).
 
 For launches (:func:`launch_sensitivity_rows`, ``rollability sensitivity --launches``) the factors are the launch
 twin's unknowns, each at the low and the high end of its plausible range as the robust draws state it

@@ -10,7 +10,8 @@ the launch twin.
 - evaluation: fitness = upright / trials, serial, process pool or Ray
 - _worker_pool: spawned worker processes that never outlive their parent
 - stable_poses: analytic stable-pose screen
-- launch_twin: the simulated launch rig (PyBullet; sim.engine mujoco runs mujoco_launch_twin, the same rules in MuJoCo)
+- launch/: the simulated launch rig: settings, results, contract, placement, decision, loop, drive, twin (the entry)
+  and one module per engine (pybullet_twin, mujoco_twin: the same rules in MuJoCo)
 
 The face is ``__init__.pyi`` beside this file: the names code outside ``core/sim`` imports (``from
 rollability_ros.core.sim import <name>``), each with the module it lives in. ``lazy_loader.attach_stub``

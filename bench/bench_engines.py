@@ -59,14 +59,14 @@ def launch_rates(candidates, repeats):
                                       for _ in range(candidates - 1)]
     profiles = [base.profile_body(profile_mesh(h, grid)) for h in heights]
     conditions = launch_conditions(["campaign"])
-    twin = twin_settings.load_launch_twin_settings()
+    shipped = twin_settings.load_launch_twin_settings()
     variants = {(engine, early): dataclasses.replace(
-        twin, physics=dataclasses.replace(twin.physics, engine=engine),
-        trial=dataclasses.replace(twin.trial, early_decision=early))
+        shipped, physics=dataclasses.replace(shipped.physics, engine=engine),
+        trial=dataclasses.replace(shipped.trial, early_decision=early))
         for engine in ("pybullet", "mujoco") for early in (False, True)}
     twin.simulate_launch(conditions[0], variants[("mujoco", False)], 0, use_profile=True)   # imports
-    times = {key: [] for key in variants}
-    cpu = {key: [] for key in variants}
+    times: typing.Dict[typing.Any, typing.List[float]] = {key: [] for key in variants}
+    cpu: typing.Dict[typing.Any, typing.List[float]] = {key: [] for key in variants}
     steps, upright = {}, {}
     for repeat in range(repeats):
         for key, settings in variants.items():
@@ -190,7 +190,7 @@ def naive_mujoco(job, seeds, hold_steps, cap_steps):
         data.xfrc_applied[root, 0:3] = force
         data.xfrc_applied[root, 3:6] = torque
 
-    previous = [None]
+    previous = [data.qpos[0:7].copy()]
 
     def step():
         previous[0] = data.qpos[0:7].copy()

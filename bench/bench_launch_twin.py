@@ -36,10 +36,15 @@ def dome_mesh():
     return profile_mesh(dome_heights(grid), grid)
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repetitions", type=int, default=5, help="seeds per condition (default 5)")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    heights, speeds, angles = (HEIGHTS_M[:1], SPEEDS_MPS[:1], ANGLES_DEG[:1]) if args.smoke else (HEIGHTS_M, SPEEDS_MPS,
+                                                                                                    ANGLES_DEG)
+    if args.smoke:
+        args.repetitions = 1
     with tempfile.TemporaryDirectory() as folder:
         stl = os.path.join(folder, "dome.stl")
         export_mesh(dome_mesh(), stl)
@@ -52,9 +57,9 @@ def main():
         flight_ratio: typing.List[float] = []
         upright = collections.defaultdict(list)
         for configuration in ("baseline", "dome"):
-            for height_m in HEIGHTS_M:
-                for speed_mps in SPEEDS_MPS:
-                    for angle_deg in ANGLES_DEG:
+            for height_m in heights:
+                for speed_mps in speeds:
+                    for angle_deg in angles:
                         for repetition in range(args.repetitions):
                             condition = LaunchCondition(configuration, height_m, speed_mps, angle_deg, repetition)
                             started = time.perf_counter()

@@ -50,7 +50,10 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", nargs="+", default=["robot"], help="robot parameter files (default: robot)")
     parser.add_argument("--repeats", type=int, default=20, help="timed calls of each weighing (default 20)")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
+    if args.smoke:
+        args.repeats = 1
     settings = evaluation.load_settings(args.config)
     spec = settings.robot
     made = spec.profile_print
@@ -60,9 +63,9 @@ def main(argv=None):
     print(f"robot.profile_print = {made}, profile_mass_scale = {spec.profile_mass_scale}")
     print(f"{'shape':<14}{'height m':>9}{'volume cm3':>11}" + "".join(f"{name:>32}" for name in makes))
     print(f"{'':<14}{'':>9}{'':>11}" + "".join(f"{'mass g / COM rise mm':>32}" for _ in makes))
-    for unit in (settings.grid.unit_m, 2 * settings.grid.unit_m):
+    for unit in (settings.grid.unit_m,) if args.smoke else (settings.grid.unit_m, 2 * settings.grid.unit_m):
         grid = dataclasses.replace(settings.grid, unit_m=unit)
-        for name, heights in shapes(grid).items():
+        for name, heights in list(shapes(grid).items())[:1 if args.smoke else None]:
             mesh = profile_mesh(heights, grid)
             assert mesh is not None   # every shape has a height
             cells = []

@@ -449,6 +449,22 @@ def any_signatures(root=CORE):
     return found
 
 
+BENCH = PACKAGE.parent / "bench"
+
+
+def bench_coverage():
+    """``(bench scripts, run at a tiny size by the test command, type-checked by it)``: the scripts in bench/ (its
+    runner smoke.py left out), those bench/smoke.py's ``SMOKE`` runs with ``--smoke`` (test/test_bench_smoke.py), and
+    those under mypy (test/core/test_mypy.py checks ``bench`` whole: all of them, when it names it)."""
+    scripts = sorted(path.stem for path in BENCH.glob("*.py") if path.stem != "smoke")
+    smoke = []
+    for node in ast.parse((BENCH / "smoke.py").read_text()).body:
+        if isinstance(node, (ast.Assign, ast.AnnAssign)) and "SMOKE" in ast.unparse(node):
+            smoke = [name for name in ast.literal_eval(node.value) if name in scripts]
+    checked = scripts if '"bench"' in (PACKAGE.parent / "test" / "core" / "test_mypy.py").read_text() else []
+    return scripts, smoke, checked
+
+
 def check_untyped_defs(ini=MYPY_INI):
     """Whether mypy.ini's ``[mypy]`` section turns ``check_untyped_defs`` on (mypy checks unannotated bodies)."""
     import configparser
@@ -612,6 +628,9 @@ def print_limits(graph):
         print(f"  {name}: {lines}")
     print(f"public core signatures using Any: {len(any_signatures())} (limit {ANY_SIGNATURES_LIMIT})")
     print(f"mypy check_untyped_defs: {'on' if check_untyped_defs() else 'off'}")
+    scripts, smoke, checked = bench_coverage()
+    print(f"bench scripts: {len(scripts)}; type-checked by the test command: {len(checked)}; run at a tiny size by "
+          f"it: {len(smoke)} ({', '.join(smoke)})")
     back = type_only_back_references(graph)
     print(f"TYPE_CHECKING back-references: {len(back)}")
     for module, target in back:

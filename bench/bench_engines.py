@@ -57,7 +57,8 @@ def launch_rates(candidates, repeats):
     grid = base.grid
     heights = [dome_heights(grid)] + [rng.uniform(grid.height_min, grid.height_max, grid.n_variables)
                                       for _ in range(candidates - 1)]
-    profiles = [base.profile_body(profile_mesh(h, grid)) for h in heights]
+    meshes = [profile_mesh(h, grid) for h in heights]
+    profiles = [base.profile_body(mesh) for mesh in meshes if mesh is not None]   # a dome, random heights: none flat
     conditions = launch_conditions(["campaign"])
     shipped = twin_settings.load_launch_twin_settings()
     variants = {(engine, early): dataclasses.replace(

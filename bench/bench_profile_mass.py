@@ -75,6 +75,7 @@ def main(argv=None):
                 cells.append(f"{profile.mass_kg * 1000:>22.0f} / {com_rise_mm(model, profile):5.1f}")
             print(f"{name:<14}{grid.height_max * unit:>9.2f}{mesh.volume * 1e6:>11.0f}" + "".join(cells))
     mesh = profile_mesh(shapes(settings.grid)["dome"], settings.grid)
+    assert mesh is not None   # the dome has a height
     old = ChassisModel(dataclasses.replace(spec, profile_print=makes["old solid 150"]))
     timings = {}
     for label, model in (("print", ChassisModel(spec)), ("solid", old)):

@@ -104,7 +104,7 @@ def robust_row(study_dir, trials):
 
     designs_file = os.path.join(study_dir, "optimization", "designs", "designs.yaml")
     sources = DesignSources(designs_file=designs_file)
-    profiles = {"baseline": None}
+    profiles: typing.Dict[str, typing.Optional[typing.Any]] = {"baseline": None}
     profiles.update({label: profile_mesh_for(label, sources) for label in configuration_ids(sources)
                      if label != "baseline"})
     settings = evaluation.load_settings(["sim", "robot", "evaluator"])

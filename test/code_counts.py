@@ -409,20 +409,38 @@ def function_lines(root=PACKAGE):
     return dict(sorted(sizes.items(), key=lambda item: (-item[1], item[0])))
 
 
-def _mentions_any(annotation):
-    """Whether an annotation names ``Any`` (``typing.Any``, ``Any``, inside a subscript or a string too)."""
+def any_aliases(root=CORE):
+    """Names of the core's module-level type aliases whose value mentions ``Any`` (``Mesh = typing.Any``,
+    ``Row = typing.Dict[str, typing.Any]``): a signature naming one uses ``Any`` as much as one writing it."""
+    names = set()
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.parse(path.read_text()).body:
+            if (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)
+                    and re.search(r"\bAny\b", ast.unparse(node.value))
+                    and re.match(r"(typing\.)?(Any|Callable|Dict|List|Mapping|Sequence|Tuple|Union|Optional)\b",
+                                 ast.unparse(node.value))):
+                names.add(node.targets[0].id)
+    return names
+
+
+def _mentions_any(annotation, aliases=()):
+    """Whether an annotation names ``Any`` (``typing.Any``, ``Any``, inside a subscript or a string too) or one of
+    ``aliases`` (type aliases that stand for something with ``Any``)."""
     if annotation is None:
         return False
     text = annotation.value if isinstance(annotation, ast.Constant) and isinstance(annotation.value, str) \
         else ast.unparse(annotation)
-    return re.search(r"\bAny\b", text) is not None
+    words = set(re.findall(r"\b\w+\b", text))
+    return "Any" in words or bool(words & set(aliases))
 
 
 def any_signatures(root=CORE):
     """``["module:qualified name"]`` of the public functions and methods of the core whose signature (a parameter's
     or the return annotation) mentions ``Any``. Public: the function's, its classes' and its module's names have no
-    leading underscore (dunder methods of a public class count: ``__init__`` is the class's signature)."""
+    leading underscore (dunder methods of a public class count: ``__init__`` is the class's signature). A type alias
+    of the core that stands for something with ``Any`` (:func:`any_aliases`) counts as ``Any``."""
     found = []
+    aliases = any_aliases(root)
 
     def public(name):
         return not name.startswith("_") or (name.startswith("__") and name.endswith("__"))
@@ -437,7 +455,7 @@ def any_signatures(root=CORE):
                     continue
                 args = child.args
                 every = args.posonlyargs + args.args + args.kwonlyargs + [a for a in (args.vararg, args.kwarg) if a]
-                if _mentions_any(child.returns) or any(_mentions_any(a.annotation) for a in every):
+                if _mentions_any(child.returns, aliases) or any(_mentions_any(a.annotation, aliases) for a in every):
                     found.append(f"{rel}:{'.'.join(scope + [child.name])}")
             elif not isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 visit(child, rel, scope)

@@ -6,6 +6,7 @@ import typing
 from rollability_ros.cli import Subparsers
 
 if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
+    from rollability_ros.core.profile import Mesh
     from rollability_ros.core.sim import TrialOutcome
 
 
@@ -57,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
         if args.engines is None:
             raise ValueError("--designs compares engines: give --engines too (e.g. --engines pybullet,mujoco)")
         return _compare_designs(args, settings, trials)
+    mesh: typing.Optional["Mesh"]
     if args.stl is not None:
         mesh = load_profile_mesh(args.stl, units=args.stl_units)
         label = args.stl

@@ -53,10 +53,10 @@ def run(args: argparse.Namespace) -> int:
     executor = make_executor(evaluator_settings.evaluator, args.workers) \
         if settings.reevaluate_trials or launches else None
     try:
-        evaluate_batch = profile_batch_evaluator(
-            evaluator_settings, settings.reevaluate_trials, executor) if settings.reevaluate_trials else None
+        evaluate_batch = profile_batch_evaluator(evaluator_settings, settings.reevaluate_trials, executor) \
+            if executor is not None and settings.reevaluate_trials else None
         launch_batch = fidelity_batch_evaluator(evaluator_settings, executor, "launch") \
-            if launches else None
+            if executor is not None and launches else None
         with Store(run_dir) as store:
             result, folder = select_run(store, run_id, run_dir, evaluator_settings.grid,
                                         evaluator_settings.printer, settings, evaluate_batch,

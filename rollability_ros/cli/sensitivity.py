@@ -8,13 +8,16 @@ import typing
 
 from rollability_ros.cli import Subparsers
 
+if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
+    from rollability_ros.core.profile import Mesh
+
 
 def _profiles(args):
     """``{label: mesh or None}``: the bare chassis, then every ``--mesh LABEL=FILE`` and ``--designs-file`` design."""
     from rollability_ros.core.profile import load_profile_mesh
     from rollability_ros.core.profile import DesignSources, configuration_ids, profile_mesh_for
 
-    profiles = {"baseline": None}
+    profiles: typing.Dict[str, typing.Optional["Mesh"]] = {"baseline": None}
     for item in args.mesh:
         label, _, path = item.partition("=")
         if not label or not path:

@@ -2,9 +2,9 @@
 sizes and the back-references owned by the rooms that split those modules are printed until they land."""
 import code_counts
 
-#: Public core signatures that mention ``Any`` (issue 43's limit: 40). A ratchet: a new one fails; when one goes,
-#: lower the number here.
-ANY_SIGNATURES_ALLOWED = 144
+#: Public core signatures that mention ``Any`` or a core alias standing for it (issue 43's limit: 40; 179 counted
+#: so before this ratchet, 150 without the aliases). A ratchet: a new one fails; when one goes, lower the number.
+ANY_SIGNATURES_ALLOWED = 145
 
 
 def test_no_alias_module_and_no_name_used_past_a_face():
@@ -33,6 +33,8 @@ def test_the_counts_see_what_they_count(tmp_path, monkeypatch):
     body = "\n".join(f"    x{i} = {i}" for i in range(85))
     (core / "sim" / "m.py").write_text(
         "import typing\n"
+        "Row = typing.Dict[str, typing.Any]\n"
+        "def rows() -> typing.List[Row]: ...\n"
         "def f(a: typing.Any) -> int: ...\n"
         "def g(a: typing.Mapping[str, typing.Any]) -> None: ...\n"
         "def h(a: 'typing.Any') -> None: ...\n"
@@ -40,7 +42,8 @@ def test_the_counts_see_what_they_count(tmp_path, monkeypatch):
         "class _Private:\n    def q(self, a: typing.Any) -> None: ...\n"
         "class Public:\n    def r(self) -> typing.Any: ...\n"
         f"def long():\n{body}\n" + "\n" * 620)
-    assert code_counts.any_signatures(core) == ["sim/m.py:f", "sim/m.py:g", "sim/m.py:h", "sim/m.py:Public.r"]
+    assert code_counts.any_signatures(core) == ["sim/m.py:rows", "sim/m.py:f", "sim/m.py:g", "sim/m.py:h",
+                                                "sim/m.py:Public.r"]
     assert code_counts.function_lines(tmp_path / "rollability_ros")["rollability_ros/core/sim/m.py:long"] == 86
     assert code_counts.module_lines(tmp_path / "rollability_ros")["rollability_ros/core/sim/m.py"] > 700
     ini = tmp_path / "mypy.ini"

@@ -262,7 +262,7 @@ class LaunchPool:
     def __enter__(self) -> "LaunchPool":
         return self
 
-    def __exit__(self, *exc_info: typing.Any) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.close()
 
 

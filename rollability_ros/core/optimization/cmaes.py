@@ -229,7 +229,7 @@ class IncumbentOptimizer(abc.ABC):
 
     @classmethod
     @abc.abstractmethod
-    def create(cls, grid: typing.Any, settings: "RunSettings", clock: typing.Callable[[], float],
+    def create(cls, grid: "ProfileGrid", settings: "RunSettings", clock: typing.Callable[[], float],
                initial_mean: typing.Optional[npt.ArrayLike] = None,
                state: typing.Optional[dict] = None) -> "IncumbentOptimizer":
         """The optimizer over ``grid``'s variables and bounds with the run's typed ``settings``, new or restored

@@ -419,6 +419,8 @@ def _printable_mesh(heights: npt.ArrayLike, grid: ProfileGrid, printer: PrinterS
         mesh = profile_mesh(heights, grid)
     except ValueError:
         return None, "flat"
+    if mesh is None:
+        return None, "flat"
     printability = check_printability(mesh, printer)
     if not printability.printable:
         return None, "not printable: " + ", ".join(_limits_named(printability.problems))

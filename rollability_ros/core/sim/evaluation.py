@@ -308,7 +308,7 @@ class TrialExecutor(abc.ABC):
     def __enter__(self) -> "TrialExecutor":
         return self
 
-    def __exit__(self, *exc_info: typing.Any) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.close()
 
 

@@ -57,9 +57,11 @@ def record_to_msg(record: mapping.Record) -> typing.Any:
 outcome_to_msg = candidate_to_msg = generation_to_msg = tip_event_to_msg = record_to_msg
 
 
-def outcome_from_msg(msg: typing.Any) -> mapping.Record:
+def outcome_from_msg(msg: typing.Any) -> records.LaunchOutcome:
     """``LaunchOutcome`` -> validated record; ``ValueError`` names the bad field."""
-    return mapping.record_from_message(mapping.OUTCOME_TYPE, msg)
+    record = mapping.record_from_message(mapping.OUTCOME_TYPE, msg)
+    assert isinstance(record, records.LaunchOutcome)   # the mapping of OUTCOME_TYPE
+    return record
 
 
 def candidate_from_msg(msg: typing.Any) -> mapping.Record:

@@ -90,7 +90,7 @@ class ValveServices:
             self._status = ValveStatus(msg.armed, msg.open, msg.fault, msg.fault_reason, msg.backend,
                                        msg.last_pulse_ms, msg.pulses)
 
-    def status(self) -> typing.Any:
+    def status(self) -> ValveStatus:
         """The newest valve state known (from ``valve/state`` or the last fire response)."""
         with self._lock:
             return self._status

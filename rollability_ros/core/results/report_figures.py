@@ -13,6 +13,7 @@ from rollability_ros.core.optional import require
 
 if typing.TYPE_CHECKING:  # annotations only
     from rollability_ros.core.profile import Mesh
+    from rollability_ros.core.results.engine_agreement import EngineRow
 
 _FACTOR_LABELS = {"height_m": "height (cm)", "speed_mps": "speed (m/s)", "angle_deg": "angle (deg)",
                   "configuration": "configuration"}
@@ -201,7 +202,7 @@ def sim_vs_experiment(path: str, comparison: SimVsExperiment) -> str:
     return _save(figure, path)
 
 
-def engine_fitness(path: str, rows: typing.Sequence[typing.Any]) -> str:
+def engine_fitness(path: str, rows: typing.Sequence["EngineRow"]) -> str:
     """Each design's simulated fitness per engine (bars) with its Wilson 95% interval (whiskers)."""
     plt = _pyplot()
     engines = sorted({row.engine for row in rows}, key=[row.engine for row in rows].index)

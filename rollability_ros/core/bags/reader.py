@@ -10,6 +10,11 @@ import typing
 
 from rollability_ros.core.bags.metadata import BagError, read_metadata, topics_from_metadata
 
+if typing.TYPE_CHECKING:  # annotations only: mcap is imported where used
+    from mcap.reader import SeekingReader
+    from mcap.records import Schema, Statistics
+    from mcap.summary import Summary
+
 #: The 8 bytes that open and close every complete MCAP file.
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
@@ -37,7 +42,14 @@ def bag_file_errors(path: str) -> typing.Iterator[None]:
                        f"if it is an MCAP bag of a killed recorder, run `rollability bag recover`") from exc
 
 
-def open_mcap(path: str, stream: typing.BinaryIO) -> typing.Tuple[typing.Any, typing.Any]:
+def statistics_of(summary: "Summary") -> "Statistics":
+    """The statistics record of a summary :func:`open_mcap` returned (it refuses a file without one)."""
+    if summary.statistics is None:
+        raise BagError("an MCAP summary without statistics (open it with open_mcap)")
+    return summary.statistics
+
+
+def open_mcap(path: str, stream: typing.BinaryIO) -> typing.Tuple["SeekingReader", "Summary"]:
     """Return ``(reader, summary)`` for a complete MCAP file open as ``stream``; BagError if it is not one."""
     from mcap.reader import SeekingReader
 
@@ -118,7 +130,7 @@ class BagReader:
             for path in self.paths:
                 stream = stack.enter_context(open(path, "rb"))
                 reader, summary = open_mcap(path, stream)
-                if summary.statistics.message_count:
+                if statistics_of(summary).message_count:
                     streams.append(self._mcap_messages(path, reader))
             yield from heapq.merge(*streams, key=lambda pair: pair[0].log_time_ns)
 
@@ -141,7 +153,7 @@ class BagReader:
                        getattr(msgdef, "data", "") or "")
 
 
-def schema_text(schema: typing.Any) -> str:
+def schema_text(schema: typing.Optional["Schema"]) -> str:
     """The ``ros2msg`` definition an MCAP schema holds ("" for none or another encoding)."""
     if schema is None or schema.encoding != "ros2msg":
         return ""
@@ -214,7 +226,7 @@ def _mcap_file_info(path, verify_chunks=False):
     with open(path, "rb") as stream:
         _, summary = open_mcap(path, stream)
         chunks, problems = _chunk_problems(path, stream, summary) if verify_chunks else (None, None)
-    statistics = summary.statistics
+    statistics = statistics_of(summary)
     counts: typing.Dict[typing.Tuple[str, str], int] = {}
     for channel_id, count in statistics.channel_message_counts.items():
         channel = summary.channels[channel_id]
@@ -280,7 +292,7 @@ def _mcap_file_metadata(path):
             "name": channel.topic, "type": key[1], "serialization_format": channel.message_encoding,
             "offered_qos_profiles": channel.metadata.get("offered_qos_profiles", ""),
             "type_description_hash": channel.metadata.get("topic_type_hash", "")}, "message_count": 0})
-        entry["message_count"] += summary.statistics.channel_message_counts.get(channel_id, 0)
+        entry["message_count"] += statistics_of(summary).channel_message_counts.get(channel_id, 0)
     return {"version": version, "storage_identifier": "mcap", "relative_file_paths": [os.path.basename(path)],
             "topics_with_message_count": list(topics.values()), "ros_distro": embedded.get("ROS_DISTRO", ""),
             "compression_format": "", "compression_mode": ""}

@@ -42,7 +42,8 @@ from rollability_ros.core.bags.metadata import (
     write_metadata,
 )
 from rollability_ros.core.bags.qos import normalize_qos_profiles
-from rollability_ros.core.bags.reader import MCAP_MAGIC, bag_file_errors, open_mcap, verify_mcap_file
+from rollability_ros.core.bags.reader import (MCAP_MAGIC, bag_file_errors, open_mcap, statistics_of,
+                                              verify_mcap_file)
 from rollability_ros.core.bags._mcap_file import (
     DEFAULT_CHUNK_SIZE_BYTES,
     RECOVERY_SIDECAR,
@@ -214,8 +215,8 @@ def _verify(path, expected_messages):
         raise BagError(f"{path}: the recovered file does not verify; the original is left as it was")
     with open(path, "rb") as stream:
         _, summary = open_mcap(path, stream)
-    if summary.statistics.message_count != expected_messages:
-        raise BagError(f"{path}: the recovered file holds {summary.statistics.message_count} messages, "
+    if statistics_of(summary).message_count != expected_messages:
+        raise BagError(f"{path}: the recovered file holds {statistics_of(summary).message_count} messages, "
                        f"{expected_messages} were salvaged; the original is left as it was")
 
 
@@ -231,7 +232,7 @@ def _file_summary(path):
 
     with open(path, "rb") as stream, bag_file_errors(path):
         reader, summary = open_mcap(path, stream)
-        statistics = summary.statistics
+        statistics = statistics_of(summary)
         info = FileInfo(os.path.basename(path), statistics.message_start_time if statistics.message_count else 0,
                         statistics.message_end_time - statistics.message_start_time
                         if statistics.message_count else 0, statistics.message_count)
@@ -441,7 +442,7 @@ def missed_windows(directory: typing.Union[str, os.PathLike]
         span: typing.Dict[str, typing.List[int]] = {}
         with open(path, "rb") as stream, bag_file_errors(path):
             reader, summary = open_mcap(path, stream)
-            if summary.statistics.message_count:
+            if statistics_of(summary).message_count:
                 for _, channel, message in reader.iter_messages():
                     entry = span.setdefault(channel.topic, [message.log_time, message.log_time, 0])
                     if entry[2]:

@@ -156,7 +156,7 @@ class BagWriter:
     def _redeliverable_messages(self, information):
         """Keys (:meth:`_key`) of the messages the continued bag holds on topics with a transient-local publisher:
         those a new subscription gets again from the publisher's history, and must not be recorded twice."""
-        from rollability_ros.core.bags.reader import bag_file_errors, open_mcap
+        from rollability_ros.core.bags.reader import bag_file_errors, open_mcap, statistics_of
 
         topics = [t.name for t in self._previous_topics.values()
                   if any(p.get("durability") == "transient_local" for p in t.offered_qos_profiles)]
@@ -165,7 +165,7 @@ class BagWriter:
             path = os.path.join(self.directory, relative)
             with open(path, "rb") as stream, bag_file_errors(path):
                 reader, summary = open_mcap(path, stream)
-                if summary.statistics.message_count:
+                if statistics_of(summary).message_count:
                     for _, channel, message in reader.iter_messages(topics=topics):
                         held.add(self._key(channel.topic, message.data, message.publish_time))
         return held

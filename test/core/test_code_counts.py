@@ -4,7 +4,7 @@ import code_counts
 
 #: Public core signatures that mention ``Any`` or a core alias standing for it (issue 43's limit: 40; 179 counted
 #: so before this ratchet, 150 without the aliases). A ratchet: a new one fails; when one goes, lower the number.
-ANY_SIGNATURES_ALLOWED = 106
+ANY_SIGNATURES_ALLOWED = 104
 
 
 def test_no_alias_module_and_no_name_used_past_a_face():

@@ -80,10 +80,12 @@ if typing.TYPE_CHECKING:
 
 #: ``evaluate_batch(heights_list, seed) -> [(successes, trials, eval_time_s, evaluator), ...]``: heights
 #: ``(n_variables,)`` each, simulation units; one result per profile.
-BatchEvaluator = typing.Callable[[typing.List[np.ndarray], int], typing.Sequence[typing.Sequence[typing.Any]]]
+BatchEvaluator = typing.Callable[[typing.List[np.ndarray], int], typing.Sequence["EvaluatedProfile"]]
 #: ``launch_batch(heights_list, seed, trials) -> [(successes, trials, eval_time_s, evaluator), ...]``: robust twin
 #: launches of each profile (heights ``(n_variables,)``, simulation units).
-LaunchEvaluator = typing.Callable[[typing.List[np.ndarray], int, int], typing.Sequence[typing.Sequence[typing.Any]]]
+LaunchEvaluator = typing.Callable[[typing.List[np.ndarray], int, int], typing.Sequence["EvaluatedProfile"]]
+#: One profile's evaluation: ``(successes, trials, eval_time_s, evaluator)``.
+EvaluatedProfile = typing.Tuple[int, int, float, str]
 
 #: The race's id of the bare robot (the reference that runs every round).
 BASELINE = "baseline"
@@ -838,7 +840,7 @@ def write_selection(run_dir: str, result: SelectionResult, grid: ProfileGrid, ru
 def select_run(store: "Store", run_id: str, run_dir: str, grid: ProfileGrid, printer: PrinterSpec,
                settings: SelectionSettings, evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
                launch_batch: typing.Optional[LaunchEvaluator] = None,
-               weigh: typing.Optional[typing.Callable[[typing.Any], float]] = None
+               weigh: typing.Optional[typing.Callable[[Mesh], float]] = None
                ) -> typing.Tuple[SelectionResult, str]:
     """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
     simulated fitness and geometry) and write a new design set (``<run_dir>/designs/`` or ``designs-<n>/``);

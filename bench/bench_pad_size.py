@@ -51,13 +51,17 @@ def _launches(settings, heights, pad, launches, engine):
     return upright, floor, invalid
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", action="append", help="parameter files (default: optimizer, the quick study)")
     parser.add_argument("--launches", type=int, default=100, help="launches per shape and pad")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--engine", default=None, help="sim.engine of the launches (default: the launch fidelity's)")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true",
+                        help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        args.launches, args.workers = 1, 1
     settings = nominal_settings(args.config or ["optimizer"])
     engine = args.engine or settings.physics.engine
     family = shapes(settings.grid)
@@ -79,4 +83,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

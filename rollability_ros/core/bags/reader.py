@@ -309,6 +309,42 @@ def human_time(time_ns: typing.Optional[int]) -> str:
     return f"{moment:%Y-%m-%d %H:%M:%S}.{nanoseconds:09d} UTC"
 
 
+def _chunk_check(information, files, verify_chunks, corrupt_chunks):
+    """The sentence of :func:`bag_info`'s ``chunk_check`` (the files' chunk counts are taken from them)."""
+    chunk_count = sum(f.pop("chunks", None) or 0 for f in files)
+    if information["storage_identifier"] == "sqlite3":
+        return "not applicable (sqlite3 storage has no chunk CRCs)"
+    if not verify_chunks:
+        return "not verified"
+    if corrupt_chunks:
+        return f"{len(corrupt_chunks)} of {chunk_count} chunks fail their check: run `rollability bag recover`"
+    return f"verified: all {chunk_count} chunks match their CRCs"
+
+
+def _topics_against_metadata(information, files):
+    """``(topics, warnings)`` of :func:`bag_info`: each topic with the count its files hold (the files' topic
+    counts are taken from them), and a warning for each count or topic metadata.yaml does not match."""
+    counts: typing.Dict[typing.Tuple[str, str], int] = {}
+    for entry in files:
+        for key, count in entry.pop("topic_counts").items():
+            counts[key] = counts.get(key, 0) + count
+    warnings = []
+    topics = []
+    for topic in topics_from_metadata(information):
+        found = counts.pop((topic.name, topic.type_name), 0)
+        if found != topic.message_count:
+            warnings.append(f"metadata.yaml counts {topic.message_count} messages on {topic.name}, files hold {found}")
+        topics.append({"name": topic.name, "type": topic.type_name, "message_count": found,
+                       "serialization_format": topic.serialization_format,
+                       "type_description_hash": topic.type_description_hash,
+                       "offered_qos_profiles": topic.offered_qos_profiles})
+    for (name, type_name), count in counts.items():
+        warnings.append(f"topic {name} ({type_name}) is in the storage files but not in metadata.yaml")
+        topics.append({"name": name, "type": type_name, "message_count": count, "serialization_format": "cdr",
+                       "type_description_hash": "", "offered_qos_profiles": []})
+    return topics, warnings
+
+
 def bag_info(path: typing.Union[str, os.PathLike], verify_chunks: bool = False) -> typing.Dict[str, typing.Any]:
     """Summarise a bag directory, or one ``.mcap`` file: topics, types, counts, QoS, time span, files, sizes.
 
@@ -340,33 +376,8 @@ def bag_info(path: typing.Union[str, os.PathLike], verify_chunks: bool = False) 
     else:
         files = [_mcap_file_info(path, verify_chunks) for path in storage_paths(directory, information)]
     corrupt_chunks = [problem for f in files for problem in (f.pop("chunk_problems", None) or [])]
-    chunk_count = sum(f.pop("chunks", None) or 0 for f in files)
-    if information["storage_identifier"] == "sqlite3":
-        chunk_check = "not applicable (sqlite3 storage has no chunk CRCs)"
-    elif not verify_chunks:
-        chunk_check = "not verified"
-    elif corrupt_chunks:
-        chunk_check = f"{len(corrupt_chunks)} of {chunk_count} chunks fail their check: run `rollability bag recover`"
-    else:
-        chunk_check = f"verified: all {chunk_count} chunks match their CRCs"
-    counts: typing.Dict[typing.Tuple[str, str], int] = {}
-    for entry in files:
-        for key, count in entry.pop("topic_counts").items():
-            counts[key] = counts.get(key, 0) + count
-    warnings = []
-    topics = []
-    for topic in topics_from_metadata(information):
-        found = counts.pop((topic.name, topic.type_name), 0)
-        if found != topic.message_count:
-            warnings.append(f"metadata.yaml counts {topic.message_count} messages on {topic.name}, files hold {found}")
-        topics.append({"name": topic.name, "type": topic.type_name, "message_count": found,
-                       "serialization_format": topic.serialization_format,
-                       "type_description_hash": topic.type_description_hash,
-                       "offered_qos_profiles": topic.offered_qos_profiles})
-    for (name, type_name), count in counts.items():
-        warnings.append(f"topic {name} ({type_name}) is in the storage files but not in metadata.yaml")
-        topics.append({"name": name, "type": type_name, "message_count": count, "serialization_format": "cdr",
-                       "type_description_hash": "", "offered_qos_profiles": []})
+    chunk_check = _chunk_check(information, files, verify_chunks, corrupt_chunks)
+    topics, warnings = _topics_against_metadata(information, files)
     starts = [f["start_time_ns"] for f in files if f["start_time_ns"] is not None]
     ends = [f["end_time_ns"] for f in files if f["end_time_ns"] is not None]
     chunk_compressions = sorted({c for f in files for c in f.pop("chunk_compression")} - {"none"})

@@ -262,6 +262,66 @@ def _previous_metadata(directory):
         return {}
 
 
+def _recoverable(directory):
+    """``(old metadata.yaml contents or {}, storage file names)`` of the bag ``directory`` to recover; BagError
+    for a path that is no bag directory, another storage than mcap, or no storage file."""
+    if not os.path.isdir(directory):
+        raise BagError(f"{directory}: not a bag directory")
+    previous = _previous_metadata(directory)
+    if previous.get("storage_identifier", "mcap") != "mcap":
+        raise BagError(f"{directory}: recover handles mcap storage, this bag is {previous['storage_identifier']}")
+    names = _storage_files(directory, previous)
+    if not names:
+        raise BagError(f"{directory}: no .mcap storage file to recover")
+    return previous, names
+
+
+def _add_counts(found_topics, topics):
+    """Add ``topics`` (one storage file's) to ``found_topics`` ``{name: TopicInfo}``, summing message counts."""
+    for topic in topics:
+        if topic.name in found_topics:
+            found_topics[topic.name].message_count += topic.message_count
+        else:
+            found_topics[topic.name] = topic
+
+
+def _repair(path, temporary, stored, known_topics, files, definitions):
+    """Rewrite the damaged storage file ``path`` as ``temporary`` (every intact chunk and readable record) and
+    verify it; return its report. BagError when nothing can be saved from it."""
+    partial = build_metadata(known_topics, files, custom_data=stored.get("custom_data"),
+                             ros_distro=stored.get("ros_distro") or ROS_DISTRO)
+    report = _rewrite_mcap(path, temporary, partial, definitions, known_topics)
+    if _nothing_saved(report, os.path.getsize(path)):
+        raise BagError(
+            f"{path}: nothing can be saved ({report['chunks_discarded']} damaged chunks, no intact one"
+            f"{'' if report['header_intact'] else ', no MCAP header'}); the bag is left as it was")
+    _verify(temporary, report["messages"])
+    return report
+
+
+def _close_recovered(directory, previous, stored, topics, files):
+    """Write the recovered bag's metadata.yaml (the old one kept as a backup when it changes) and keep an open
+    writer's recovery sidecar under a backup name; return ``(metadata, metadata backup, sidecar backup)`` (the
+    backups' paths, "" for none)."""
+    information = build_metadata(
+        topics, files, storage_identifier="mcap",
+        compression_format=stored.get("compression_format", ""), compression_mode=stored.get("compression_mode", ""),
+        custom_data=stored.get("custom_data"), ros_distro=stored.get("ros_distro") or ROS_DISTRO)
+    metadata_path = os.path.join(directory, METADATA_FILE)
+    metadata_backup = ""
+    if information != previous:
+        if os.path.lexists(metadata_path):
+            metadata_backup = backup_path(metadata_path)
+            os.link(metadata_path, metadata_backup)
+        write_metadata(directory, information)
+    sidecar = os.path.join(directory, RECOVERY_SIDECAR)
+    sidecar_backup = ""
+    if os.path.exists(sidecar):   # the bag is closed now; the open writer's definitions stay, renamed
+        sidecar_backup = backup_path(sidecar)
+        os.replace(sidecar, sidecar_backup)
+    return information, metadata_backup, sidecar_backup
+
+
 def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False) -> typing.Dict[str, typing.Any]:
     """Recover the bag in ``directory`` in place (see the module docstring); return a report.
 
@@ -291,14 +351,7 @@ def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False
         nothing can be saved, or (without ``allow_empty``) no message can be saved at all.
     """
     directory = os.fspath(directory)
-    if not os.path.isdir(directory):
-        raise BagError(f"{directory}: not a bag directory")
-    previous = _previous_metadata(directory)
-    if previous.get("storage_identifier", "mcap") != "mcap":
-        raise BagError(f"{directory}: recover handles mcap storage, this bag is {previous['storage_identifier']}")
-    names = _storage_files(directory, previous)
-    if not names:
-        raise BagError(f"{directory}: no .mcap storage file to recover")
+    previous, names = _recoverable(directory)
     known_topics = topics_from_metadata(previous) if previous else []
     definitions = read_sidecar(directory)
     stored = dict(previous)
@@ -313,27 +366,15 @@ def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False
             if _is_complete(path):
                 reports.append({"path": name, "status": "intact"})
             else:
-                partial = build_metadata(known_topics, files, custom_data=stored.get("custom_data"),
-                                         ros_distro=stored.get("ros_distro") or ROS_DISTRO)
                 temporary = path + ".recovering"
                 repaired.append((path, temporary))
-                report = _rewrite_mcap(path, temporary, partial, definitions, known_topics)
-                if _nothing_saved(report, os.path.getsize(path)):
-                    raise BagError(
-                        f"{path}: nothing can be saved ({report['chunks_discarded']} damaged chunks, no intact one"
-                        f"{'' if report['header_intact'] else ', no MCAP header'}); the bag is left as it was")
-                _verify(temporary, report["messages"])
-                reports.append(report)
+                reports.append(_repair(path, temporary, stored, known_topics, files, definitions))
                 summary_path = temporary
             info, topics, file_stored = _file_summary(summary_path)
             info.path = name
             stored = stored or file_stored
             files.append(info)
-            for topic in topics.values():
-                if topic.name in found_topics:
-                    found_topics[topic.name].message_count += topic.message_count
-                else:
-                    found_topics[topic.name] = topic
+            _add_counts(found_topics, topics.values())
         if not allow_empty and not sum(info.message_count for info in files):
             declared = previous.get("message_count")
             raise BagError(f"{directory}: nothing can be saved: no intact message in {', '.join(names)}"
@@ -355,22 +396,7 @@ def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False
         topic.message_count = found_topics.pop(topic.name).message_count if topic.name in found_topics else 0
         topics.append(topic)
     topics.extend(found_topics.values())
-    information = build_metadata(
-        topics, files, storage_identifier="mcap",
-        compression_format=stored.get("compression_format", ""), compression_mode=stored.get("compression_mode", ""),
-        custom_data=stored.get("custom_data"), ros_distro=stored.get("ros_distro") or ROS_DISTRO)
-    metadata_path = os.path.join(directory, METADATA_FILE)
-    metadata_backup = ""
-    if information != previous:
-        if os.path.lexists(metadata_path):
-            metadata_backup = backup_path(metadata_path)
-            os.link(metadata_path, metadata_backup)
-        write_metadata(directory, information)
-    sidecar = os.path.join(directory, RECOVERY_SIDECAR)
-    sidecar_backup = ""
-    if os.path.exists(sidecar):   # the bag is closed now; the open writer's definitions stay, renamed
-        sidecar_backup = backup_path(sidecar)
-        os.replace(sidecar, sidecar_backup)
+    information, metadata_backup, sidecar_backup = _close_recovered(directory, previous, stored, topics, files)
     return {"files": reports, "message_count": information["message_count"],
             "topics": {t.name: t.message_count for t in topics},
             "metadata_rewritten": information != previous,

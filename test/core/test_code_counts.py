@@ -7,6 +7,20 @@ import code_counts
 ANY_SIGNATURES_ALLOWED = 104
 
 
+#: Modules other rooms are splitting this round (issue 43 item 5: selection and report; the settings rewrite of
+#: optimization_run): their sizes are printed, and asserted here once the splits land.
+SPLIT_ELSEWHERE = ("rollability_ros/core/optimization/selection.py", "rollability_ros/core/results/report.py",
+                   "rollability_ros/core/optimization/optimization_run.py")
+
+
+def test_no_module_over_700_lines_and_no_function_over_80_elsewhere():
+    modules = [path for path, lines in code_counts.module_lines().items()
+               if lines > code_counts.MODULE_LINES_LIMIT and path not in SPLIT_ELSEWHERE]
+    functions = [name for name, lines in code_counts.function_lines().items()
+                 if lines > code_counts.FUNCTION_LINES_LIMIT and name.split(":")[0] not in SPLIT_ELSEWHERE]
+    assert modules == [] and functions == [], (modules, functions)
+
+
 def test_no_alias_module_and_no_name_used_past_a_face():
     assert code_counts.aliases() == {}
     assert code_counts.names_past_faces() == []

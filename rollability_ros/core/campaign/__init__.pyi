@@ -11,10 +11,10 @@ from .runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledg
 from .terminal import AnsweredElsewhere, TerminalAsk
 
 __all__ = [
-    "TWIN_CONFIGS", "AnsweredElsewhere", "CalibrationResult", "CampaignSpec", "LaunchPool", "LocalRig", "LocalRigSettings", "RunnerSettings",
-    "StoreAcknowledgements", "TerminalAsk", "answer_rig", "calibrate", "calibrated_parameter_document",
-    "calibration_settings", "check_fittable", "load_campaign_spec", "load_characterisation", "local_rig_settings",
-    "local_rig_settings_from_files", "plan_refusal", "plan_trials", "record_campaign_run", "report_exit_code",
-    "resume_command", "resume_refusal", "rig_parameter_document", "run_campaign", "store_writer", "trial_id_for",
-    "twin_settings_with"
+    "TWIN_CONFIGS", "AnsweredElsewhere", "CalibrationResult", "CampaignSpec", "LaunchPool", "LocalRig",
+    "LocalRigSettings", "RunnerSettings", "StoreAcknowledgements", "TerminalAsk", "answer_rig", "calibrate",
+    "calibrated_parameter_document", "calibration_settings", "check_fittable", "load_campaign_spec",
+    "load_characterisation", "local_rig_settings", "local_rig_settings_from_files", "plan_refusal", "plan_trials",
+    "record_campaign_run", "report_exit_code", "resume_command", "resume_refusal", "rig_parameter_document",
+    "run_campaign", "store_writer", "trial_id_for", "twin_settings_with"
 ]

@@ -13,8 +13,7 @@ import numpy as np
 from rollability_ros.core.stats import average_ranks, wilson_interval
 
 if typing.TYPE_CHECKING:  # annotations only: the results read what the simulation returned
-    from rollability_ros.core.sim.evaluation import EvaluationResult
-    from rollability_ros.core.sim.trial_engine import TrialOutcome
+    from rollability_ros.core.sim import EvaluationResult, TrialOutcome
 
 
 @dataclasses.dataclass(frozen=True)

@@ -21,7 +21,7 @@ if typing.TYPE_CHECKING:  # annotations only: rig_session imports this module
     from rollability_ros.core.rig.rig_session import ImuOutcome, OperatorChannel, RigSettings
     from rollability_ros.core.rig.speed_gate import SpeedGate, SpeedGateConfig
     from rollability_ros.core.rig.valve import ValveConfig, ValveStatus
-    from rollability_ros.core.sim.launch.results import LaunchResult
+    from rollability_ros.core.sim import LaunchResult
 
 #: ``on_phase(phase, detail)``: one feedback phase of the Launch action and a sentence for the operator.
 PhaseCallback = typing.Callable[[str, str], None]

@@ -46,7 +46,7 @@ from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasuremen
 from rollability_ros.core.rig.valve import ValveConfig
 
 if typing.TYPE_CHECKING:  # annotations only: the twin is imported when a simulated launch runs
-    from rollability_ros.core.sim.launch.results import LaunchResult
+    from rollability_ros.core.sim import LaunchResult
 
 #: Feedback phases of the Launch action, in order.
 PHASES = ("waiting_for_operator", "armed", "fired", "in_flight", "settling", "classifying")

@@ -67,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
     """Start or resume an optimization; return the exit code."""
     from rollability_ros.core.sim import make_executor, settings_from_parameters
     from rollability_ros.core.optimization import (OptimizationRun, fidelity_batch_evaluator, load_run_parameters,
-                                                   profile_batch_evaluator, run_generations, run_settings, run_target,
-                                                   with_given_files)
+                                                   profile_batch_evaluator, profile_screen, run_config,
+                                                   run_generations, run_settings, run_target, with_given_files)
 
     from rollability_ros.core.config import check_path_component
 
@@ -82,13 +82,14 @@ def run(args: argparse.Namespace) -> int:
     run_dir, parameters = run_target(args.resume or args.run_id or "", bool(args.resume), given,
                                      output_dir)
     settings = settings_from_parameters(parameters)
-    trials = run_settings(parameters).optimizer.trials   # a resume: the run's config.yaml below
+    config = run_config(parameters)   # a resume: the run's config.yaml
     executor = make_executor(settings.evaluator, args.workers)
     try:
-        evaluate_batch = profile_batch_evaluator(settings, trials, executor)
+        evaluate_batch = profile_batch_evaluator(settings, config.settings.optimizer.trials, executor)
         run = OptimizationRun(
-            run_dir, parameters, settings.grid, evaluate_batch, resume=bool(args.resume),
-            evaluate_trials=fidelity_batch_evaluator(settings, executor, "screen"))
+            run_dir, config, settings.grid, evaluate_batch, resume=bool(args.resume),
+            evaluate_trials=fidelity_batch_evaluator(settings, executor, "screen"),
+            screen_profiles=profile_screen(config.settings, settings))
         progress = ProgressLine(run)
         run.on_candidate, run.on_generation = progress.candidate, progress.generation
         print(f"{run.start_text(bool(args.resume))}; {settings.grid.rows}x{settings.grid.cols} grid")

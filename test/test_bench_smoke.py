@@ -5,6 +5,7 @@ import os
 import pathlib
 import subprocess
 import sys
+import tempfile
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -13,9 +14,11 @@ from bench import smoke  # noqa: E402
 
 
 def _smoke(*names, pythonpath=str(ROOT)):
+    """Runs bench/smoke.py in a fresh directory: a bench's default output folder lands there, not in the repo."""
     env = dict(os.environ, PYTHONPATH=pythonpath, LC_ALL="C.UTF-8", PYTHONUNBUFFERED="1", MPLBACKEND="Agg")
-    return subprocess.run([sys.executable, str(ROOT / "bench" / "smoke.py"), *names], capture_output=True, text=True,
-                          timeout=300, env=env, cwd=ROOT)
+    with tempfile.TemporaryDirectory(prefix="bench-smoke-") as cwd:
+        return subprocess.run([sys.executable, str(ROOT / "bench" / "smoke.py"), *names], capture_output=True,
+                              text=True, timeout=300, env=env, cwd=cwd)
 
 
 def test_every_smoke_bench_runs_at_its_tiny_size():

@@ -40,17 +40,22 @@ def _condition(height_m, speed_mps, angle_deg, repetitions, engine):
 
 
 def _line(label, upright, launches):
+    if not launches:   # a value no launched condition has (a --smoke run's few conditions)
+        return f"  {label:<14} no launches"
     low, high = wilson_interval(upright, launches)
     return f"  {label:<14} {upright:>4}/{launches:<4} = {upright / launches:.2f} [{low:.2f}, {high:.2f}]"
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repetitions", type=int, default=10, help="launches per condition")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--engine", default="pybullet")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
     conditions = list(itertools.product(HEIGHTS_M, SPEEDS_MPS, ANGLES_DEG))
+    if args.smoke:   # two conditions, one launch each, one worker
+        conditions, args.repetitions, args.workers = conditions[:2], 1, 1
     started = time.perf_counter()
     with concurrent.futures.ProcessPoolExecutor(args.workers) as pool:
         counts = dict(zip(conditions, pool.map(_condition, *zip(*conditions), [args.repetitions] * len(conditions),
@@ -71,7 +76,8 @@ def main():
           "angle: upright):")
     for condition, count in counts.items():
         print(f"  {condition[0]:.2f} m {condition[1]:.1f} m/s {condition[2]:+4.0f} deg: {count}/{n}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -234,7 +234,7 @@ def generation_times(base, fastest, generations):
     trials each, common seed) evaluated as the optimizer does (one thread per candidate on one 2-worker pool):
     ``{"split": ..., "whole": ...}``, each candidate split into ``evaluator.batch_trials`` tasks (every worker builds
     its world) or run whole by one worker (what ``profile_batch_evaluator`` does with >= 2 candidates per worker)."""
-    from rollability_ros.core.optimization.optimization_run import profile_batch_evaluator
+    from rollability_ros.core.optimization.batch_evaluation import profile_batch_evaluator
 
     engine, early = fastest
     paper = evaluation.load_settings(("sim", "robot", "evaluator", "paper"))
@@ -264,10 +264,11 @@ def racing_generation_times(generations, looks, alpha, workers=2):
     import tempfile
 
     from rollability_ros.core.optimization import optimization_run
+    from rollability_ros.core.optimization import batch_evaluation, run_directory
     from rollability_ros.core.store import Store
 
     folder = tempfile.mkdtemp(prefix="bench-racing-paper-")
-    parameters = optimization_run.load_run_parameters(["paper"])
+    parameters = run_directory.load_run_parameters(["paper"])
     parameters.update({"sim.engine": "mujoco", "trial.early_decision": True, "optimizer.output_dir": folder,
                        "optimizer.race_alpha": alpha})
     settings = evaluation.settings_from_parameters(parameters)
@@ -279,8 +280,8 @@ def racing_generation_times(generations, looks, alpha, workers=2):
             run_parameters = {**parameters, "optimizer.race_looks": race_looks}
             runs[name] = optimization_run.OptimizationRun(
                 os.path.join(folder, name), optimization_run.run_config(run_parameters), settings.grid,
-                optimization_run.profile_batch_evaluator(settings, 60, pool),
-                evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, pool, "screen"))
+                batch_evaluation.profile_batch_evaluator(settings, 60, pool),
+                evaluate_trials=batch_evaluation.fidelity_batch_evaluator(settings, pool, "screen"))
         try:
             for _ in range(generations):
                 for name, run in runs.items():

@@ -94,11 +94,14 @@ def timed_evaluations(heights, trials, settings, worker_counts, repeats):
     return [min(record) for record in times], memory
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=60)
     parser.add_argument("--repeats", type=int, default=5)
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        args.trials, args.repeats = 2, 1
     settings = evaluation.load_settings()
     heights = dome_heights(settings.grid)
     job = evaluation.profile_job(heights, settings)
@@ -135,7 +138,8 @@ def main():
     print(f"world: build once per profile {building_s * 1e3:.2f} ms, restore + place per trial {restore_s * 1e3:.3f} ms "
           f"(a fresh world per trial would add {building_s / (min(trial_times) / len(steps)):.0%} to a trial)")
     print(f"peak RSS per worker                      {', '.join(f'{m:.0f}' for m in memory)} MB")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

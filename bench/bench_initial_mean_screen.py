@@ -25,6 +25,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 from rollability_ros.core.sim import evaluation
 
 from rollability_ros.core.optimization import optimization_run as optimization_run  # noqa: E402
+from rollability_ros.core.optimization import batch_evaluation, run_directory  # noqa: E402
+from bench.smoke import SMOKE_RUN  # noqa: E402
 
 
 def one_run(parameters, settings, executor, run_dir):
@@ -33,7 +35,7 @@ def one_run(parameters, settings, executor, run_dir):
     trials = optimization_run.run_settings(parameters).optimizer.trials
     started = time.perf_counter()
     run = optimization_run.OptimizationRun(
-        run_dir, optimization_run.run_config(parameters), settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
+        run_dir, optimization_run.run_config(parameters), settings.grid, batch_evaluation.profile_batch_evaluator(settings, trials, executor),
         screen_profiles=optimization_run.profile_screen(optimization_run.run_settings(parameters), settings))
     screen_s = time.perf_counter() - started
     run.run()
@@ -46,16 +48,20 @@ def one_run(parameters, settings, executor, run_dir):
     return start_probability, generations[0].best_fitness, best, screen_s, total_s
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--screen", type=int, default=16, help="random initial means screened (default 16)")
     parser.add_argument("--generations", type=int, default=10)
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--config", action="append", default=[], help="parameter files (default: optimizer)")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
 
-    base = optimization_run.load_run_parameters(args.config or ["optimizer"])
+    base = run_directory.load_run_parameters(args.config or ["optimizer"])
+    if args.smoke:   # one seed, one generation, a screen of two means (SMOKE_RUN), one worker
+        base.update(SMOKE_RUN)
+        args.seeds, args.generations, args.screen, args.workers = 1, 1, 2, 1
     settings = evaluation.settings_from_parameters(base)
     executor = evaluation.make_executor(settings.evaluator, args.workers)
     rows: typing.Dict[int, typing.List[typing.Any]] = {0: [], args.screen: []}
@@ -83,7 +89,8 @@ def main():
         print(f"{label:24} {a:15.3f} {b:15.3f} {b / a if a else float('nan'):7.2f}")
     print(f"screen time / run time: {screened[:, 2].sum():.1f} s / {screened[:, 3].sum():.1f} s = "
           f"{screened[:, 2].sum() / screened[:, 3].sum():.1%}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -40,6 +40,7 @@ from doubles import synthetic_outcomes  # noqa: E402
 from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 from rollability_ros.core.optimization import optimization_run, selection  # noqa: E402
+from rollability_ros.core.optimization import batch_evaluation, run_directory  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
 from rollability_ros.core.records import LaunchCondition  # noqa: E402
 from rollability_ros.core.stats import newcombe_interval  # noqa: E402
@@ -51,7 +52,7 @@ CAMPAIGN = {"/**": {"ros__parameters": {"campaign": {"heights_m": [0.75], "speed
 
 def optimize(run_dir, twin_config, campaign_file, args, seed, executor):
     """One launch-twin optimization with optimizer seed ``seed``; return its best pooled design's heights."""
-    parameters = optimization_run.load_run_parameters(["optimizer"])
+    parameters = run_directory.load_run_parameters(["optimizer"])
     parameters.update({"optimizer.method": "cmaes", "objective.kind": "launch_twin",
                        "objective.campaign_config": [campaign_file], "objective.twin_config": list(twin_config),
                        "optimizer.popsize": args.popsize, "optimizer.sigma0": args.sigma0,
@@ -60,7 +61,7 @@ def optimize(run_dir, twin_config, campaign_file, args, seed, executor):
                        "optimizer.target_fitness": 2.0,
                        "profile.rows": 3, "profile.cols": 3, "optimizer.seed": seed})
     settings = evaluation.settings_from_parameters(parameters)
-    batch = optimization_run.profile_batch_evaluator(settings, args.trials, executor)
+    batch = batch_evaluation.profile_batch_evaluator(settings, args.trials, executor)
     run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid, batch)
     result = run.run()
     pooled = selection.pool_candidates(run.store.candidates(run_id=run.run_id))

@@ -29,6 +29,8 @@ from rollability_ros.core.sim import evaluation
 
 from doubles import SyntheticEvaluator  # noqa: E402
 from rollability_ros.core.optimization import optimization_run as optimization_run  # noqa: E402
+from rollability_ros.core.optimization import batch_evaluation, run_directory  # noqa: E402
+from bench.smoke import SMOKE_RUN  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
 from rollability_ros.core.optimization.cmaes import ProfileOptimizer  # noqa: E402
 
@@ -70,7 +72,7 @@ def cma_only_s(n_variables, generations):
     return (time.perf_counter() - started) / generations
 
 
-def noise_study(seeds, workdir, generations=60, trials=20):
+def noise_study(seeds, workdir, generations=60, trials=20, overrides=None):
     """Return {(crn, reevaluate): (true fitness of final mean, overestimate of best-so-far)} averaged over seeds."""
     grid = ProfileGrid(rows=4, cols=4)
     table = {}
@@ -79,7 +81,7 @@ def noise_study(seeds, workdir, generations=60, trials=20):
         for seed in range(1, seeds + 1):
             parameters = {"optimizer.max_generations": generations, "optimizer.seed": seed,
                           "optimizer.trials": trials, "optimizer.common_random_numbers": crn,
-                          "optimizer.reevaluate_incumbent": reevaluate}
+                          "optimizer.reevaluate_incumbent": reevaluate, **(overrides or {})}
             evaluator = SyntheticEvaluator(
                 np.random.default_rng(1000 + seed).uniform(0, 0.45, grid.n_variables), trials, peak=0.8)
             run = optimization_run.OptimizationRun(os.path.join(workdir, f"noise-{crn}-{reevaluate}-{seed}"),
@@ -102,24 +104,32 @@ def main(argv=None):
     parser.add_argument("--generations", type=int, default=2, help="real paper-scale generations to time")
     parser.add_argument("--workers", type=int, default=None, help="worker processes (default: one per core)")
     parser.add_argument("--noise-seeds", type=int, default=8, help="seeds per noise-study arm (0 = skip)")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
 
-    parameters = optimization_run.load_run_parameters("paper")
+    parameters = run_directory.load_run_parameters("paper")
+    synthetic_generations, cma_generations, overrides = 50, 200, {}
+    if args.smoke:   # every step at SMOKE_RUN's size: one real generation, two synthetic ones, one noise seed
+        overrides = {"optimizer.popsize": SMOKE_RUN["optimizer.popsize"], "optimizer.max_generations": 2}
+        parameters.update(SMOKE_RUN)
+        args.generations, args.workers, args.noise_seeds = 1, 1, 1
+        synthetic_generations, cma_generations = 2, 2
     settings = evaluation.settings_from_parameters(parameters)
     trials = optimization_run.run_settings(parameters).optimizer.trials
     with tempfile.TemporaryDirectory() as workdir:
         executor = evaluation.make_executor(settings.evaluator, args.workers)
         try:
             executor.warm()
-            batch = optimization_run.profile_batch_evaluator(settings, trials, executor)
+            batch = batch_evaluation.profile_batch_evaluator(settings, trials, executor)
             real_total_s, real_eval_s = run_generations(parameters, settings.grid, batch, args.generations,
                                                         workdir, "real")
         finally:
             executor.close()
         synthetic = SyntheticEvaluator(np.full(settings.grid.n_variables, 0.2), trials)
-        loop_total_s, _ = run_generations(parameters, settings.grid, synthetic, 50, workdir, "synthetic")
-        cma_s = cma_only_s(settings.grid.n_variables, 200)
-        noise = noise_study(args.noise_seeds, workdir) if args.noise_seeds else None
+        loop_total_s, _ = run_generations(parameters, settings.grid, synthetic, synthetic_generations, workdir,
+                                          "synthetic")
+        cma_s = cma_only_s(settings.grid.n_variables, cma_generations)
+        noise = noise_study(args.noise_seeds, workdir, overrides=overrides) if args.noise_seeds else None
 
     workers = getattr(executor, "workers", "?")
     popsize = optimization_run.run_settings(parameters).optimizer.popsize

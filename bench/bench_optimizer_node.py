@@ -31,6 +31,7 @@ sys.path.insert(0, ROOT)  # this checkout first
 from rollability_ros.core.sim import evaluation
 
 from rollability_ros.core.optimization import optimization_run as optimization_run  # noqa: E402
+from rollability_ros.core.optimization import batch_evaluation, run_directory  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import FIRST_GENERATION  # noqa: E402
 from rollability_ros.core.config import resolve_config_path  # noqa: E402
 from rollability_ros.core.store import Store  # noqa: E402
@@ -63,7 +64,7 @@ def run_in_process(parameters, workdir, workers):
     executor = evaluation.make_executor(settings.evaluator, workers)
     try:
         executor.warm()
-        batch = optimization_run.profile_batch_evaluator(settings, optimization_run.run_settings(parameters).optimizer
+        batch = batch_evaluation.profile_batch_evaluator(settings, optimization_run.run_settings(parameters).optimizer
                                                          .trials, executor)
         run = optimization_run.OptimizationRun(os.path.join(workdir, "inproc"), optimization_run.run_config(parameters), settings.grid, batch)
         run.run()
@@ -134,7 +135,7 @@ def main(argv=None):
     if args.generations < 2:
         parser.error("--generations must be >= 2 (generation 0 is left out)")
     overrides = {"optimizer.max_generations": args.generations, "optimizer.stagnation_generations": 0}
-    parameters = {**optimization_run.load_run_parameters(args.config), **overrides}
+    parameters = {**run_directory.load_run_parameters(args.config), **overrides}
     settings = optimization_run.run_settings(parameters).optimizer
     grid = evaluation.settings_from_parameters(parameters).grid
     workers_each = args.evaluator_workers or max(1, args.workers // args.evaluators)

@@ -28,6 +28,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 
 from rollability_ros.core.config import from_mapping, section  # noqa: E402
 from rollability_ros.core.optimization import optimization_run, selection  # noqa: E402
+from rollability_ros.core.optimization import batch_evaluation, run_directory  # noqa: E402
+from bench.smoke import SMOKE_RUN  # noqa: E402
 from rollability_ros.core.profile import descriptors  # noqa: E402
 from rollability_ros.core.store import Store  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
@@ -54,10 +56,11 @@ def common_grid_scores(candidates, grid, qd_settings):
     return sum(best.values()), len(best) / cells
 
 
-def one_run(method, seed, generations, workers, workdir):
-    """Optimize and select with ``method`` and ``seed``; return the measurements (dict)."""
-    parameters = optimization_run.load_run_parameters("optimizer")
-    parameters.update({"optimizer.method": method, "optimizer.seed": seed})
+def one_run(method, seed, generations, workers, workdir, overrides=None):
+    """Optimize and select with ``method`` and ``seed`` (``overrides``: parameters over the quick config's); return
+    the measurements (dict)."""
+    parameters = run_directory.load_run_parameters("optimizer")
+    parameters.update({**(overrides or {}), "optimizer.method": method, "optimizer.seed": seed})
     if generations:
         parameters["optimizer.max_generations"] = generations
     settings = evaluation.settings_from_parameters(parameters)
@@ -68,14 +71,15 @@ def one_run(method, seed, generations, workers, workdir):
     started = time.perf_counter()
     with evaluation.make_executor(settings.evaluator, workers) as executor:
         run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid,
-                                               optimization_run.profile_batch_evaluator(settings, trials, executor))
+                                               batch_evaluation.profile_batch_evaluator(settings, trials, executor))
         result = run.run()
         run.close()
         with Store(run_dir) as store:
             candidates = store.candidates()
             picked, _ = selection.select_run(
                 store, run.run_id, run_dir, settings.grid, settings.printer, chosen,
-                optimization_run.profile_batch_evaluator(settings, chosen.reevaluate_trials, executor), seed)
+                batch_evaluation.profile_batch_evaluator(settings, chosen.reevaluate_trials, executor), seed,
+                batch_evaluation.fidelity_batch_evaluator(settings, executor, "launch"))
     wall_s = time.perf_counter() - started
     qd_score, coverage = common_grid_scores(candidates, settings.grid, qd_settings)
     heights = [d.metrics.max_height_m * 1000 for d in picked.designs]
@@ -88,17 +92,21 @@ def one_run(method, seed, generations, workers, workdir):
             "wall_s": wall_s}
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     parser.add_argument("--workers", type=int, default=None, help="worker processes (default: one per core)")
     parser.add_argument("--generations", type=int, default=0, help="generations (default: the quick config's 30)")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    overrides = SMOKE_RUN if args.smoke else {}
+    if args.smoke:   # one seed of each method, one generation (SMOKE_RUN), one worker
+        args.seeds, args.generations, args.workers = [1], 1, 1
     rows: typing.Dict[str, typing.List[typing.Any]] = {method: [] for method in METHODS}
     with tempfile.TemporaryDirectory() as workdir:
         for seed in args.seeds:
             for method in METHODS:
-                row = one_run(method, seed, args.generations, args.workers, workdir)
+                row = one_run(method, seed, args.generations, args.workers, workdir, overrides)
                 rows[method].append(row)
                 threshold = "" if row["threshold"] is None else f", screen top-decile threshold {row['threshold']:.2f}"
                 print(f"seed {seed} {method:<8} QD score {row['qd_score']:5.2f}  coverage {row['coverage']:5.1%}  "
@@ -116,7 +124,8 @@ def main():
     spreads = [r["spread"] for r in rows["cma_mae"]]
     print(f"CMA-MAE runs with A/B/C height spread >= 30% of the bound: {sum(s >= 0.3 for s in spreads)} of "
           f"{len(spreads)}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

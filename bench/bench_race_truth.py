@@ -24,7 +24,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 
 import numpy as np  # noqa: E402
 
-from rollability_ros.core.optimization import optimization_run  # noqa: E402
+from rollability_ros.core.optimization import batch_evaluation, run_directory  # noqa: E402
 from rollability_ros.core.profile import geometry  # noqa: E402
 from rollability_ros.core.stats import spearman_permutation_test  # noqa: E402
 from rollability_ros.core.store import Store  # noqa: E402
@@ -37,7 +37,7 @@ NOMINAL_SEED, ROBUST_SEED = 777001, 777002
 def raced_elites(study_dir):
     """``(rows, heights)``: the archive.csv rows of the raced elites and their heights, in the archive's order."""
     run_dir = os.path.join(study_dir, "optimization")
-    run_id = optimization_run.run_id_of(run_dir)
+    run_id = run_directory.run_id_of(run_dir)
     with Store(run_dir) as store:
         archive = ((store.run_info(run_id) or {}).get("info") or {}).get("archive")
     if not archive:
@@ -56,7 +56,7 @@ def raced_elites(study_dir):
 def fresh_counts(study_dir, heights, nominal, robust, executor):
     """``{"nominal": [(s, n), ...], "robust": [...]}`` of ``heights`` and then the bare robot, on the PyBullet twin
     (the launch fidelity's engine) with the study's own settings; nominal = the unknowns not drawn."""
-    parameters = optimization_run.read_run_config(os.path.join(study_dir, "optimization"))
+    parameters = run_directory.read_run_config(os.path.join(study_dir, "optimization"))
     launch = evaluation.settings_at_fidelity(evaluation.settings_from_parameters(parameters), "launch")
     # run at the screen fidelity with the launch fidelity's objective and engine: exactly these settings
     launch = dataclasses.replace(launch, objective=dataclasses.replace(launch.objective,
@@ -67,7 +67,7 @@ def fresh_counts(study_dir, heights, nominal, robust, executor):
     counts = {}
     for name, settings, trials, seed in (("nominal", plain, nominal, NOMINAL_SEED),
                                          ("robust", launch, robust, ROBUST_SEED)):
-        evaluate = optimization_run.fidelity_batch_evaluator(settings, executor, "screen")
+        evaluate = batch_evaluation.fidelity_batch_evaluator(settings, executor, "screen")
         counts[name] = [(int(r[0]), int(r[1])) for r in evaluate(profiles, seed, trials)] if trials else None
     return counts, launch.physics.engine
 
@@ -143,7 +143,7 @@ def main():
         if not os.path.isfile(os.path.join(study_dir, "optimization", "designs", "archive.csv")):
             raise SystemExit(f"bench_race_truth: {study_dir} is not a study folder with a selection "
                              f"(no optimization/designs/archive.csv)")
-    parameters = optimization_run.read_run_config(os.path.join(args.studies[0], "optimization"))
+    parameters = run_directory.read_run_config(os.path.join(args.studies[0], "optimization"))
     executor = evaluation.make_executor(evaluation.settings_from_parameters(parameters).evaluator, args.workers)
     try:
         for study_dir in args.studies:

@@ -32,6 +32,7 @@ import typing
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from rollability_ros.core.optimization import optimization_run  # noqa: E402
+from rollability_ros.core.optimization import batch_evaluation, run_directory  # noqa: E402
 from rollability_ros.core.stats import newcombe_interval, wilson_interval  # noqa: E402
 from rollability_ros.core.store import Store  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
@@ -51,7 +52,7 @@ def parse_set(items):
 
 
 def run_parameters(args, racing):
-    parameters = optimization_run.load_run_parameters(args.config)
+    parameters = run_directory.load_run_parameters(args.config)
     parameters.update({"sim.engine": args.engine, "trial.early_decision": True, **parse_set(args.set)})
     parameters["optimizer.race_looks"] = list(args.looks) if racing else [0]
     parameters["optimizer.race_alpha"] = args.alpha
@@ -69,8 +70,8 @@ def optimize(parameters, seed, executor, folder, name, reuse=False):
     trials = optimization_run.run_settings(parameters).optimizer.trials
     run_dir = os.path.join(folder, f"{name}-seed-{seed}")
     run = optimization_run.OptimizationRun(
-        run_dir, optimization_run.run_config(parameters), settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
-        evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, executor, "screen"),
+        run_dir, optimization_run.run_config(parameters), settings.grid, batch_evaluation.profile_batch_evaluator(settings, trials, executor),
+        evaluate_trials=batch_evaluation.fidelity_batch_evaluator(settings, executor, "screen"),
         resume=reuse and os.path.exists(run_dir))
     started = time.perf_counter()
     try:
@@ -138,7 +139,7 @@ def print_first_look_agreement(run_dirs, settings, executor, first, survivors, p
     rank correlation of the two rankings."""
     from scipy.stats import spearmanr
 
-    evaluate = optimization_run.fidelity_batch_evaluator(settings, executor, "screen")
+    evaluate = batch_evaluation.fidelity_batch_evaluator(settings, executor, "screen")
     kept = generations = 0
     rhos = []
     for run_dir in run_dirs:

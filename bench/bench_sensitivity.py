@@ -18,15 +18,17 @@ from rollability_ros.cli import main as cli_main  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=60)
     parser.add_argument("--out", default="sensitivity-bench")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as folder:
         stl = os.path.join(folder, "dome.stl")
         export_mesh(dome_mesh(), stl)
-        return cli_main(["sensitivity", "--mesh", f"dome={stl}", "--trials", str(args.trials), "--out", args.out])
+        trials, out = (1, os.path.join(folder, "out")) if args.smoke else (args.trials, args.out)
+        return cli_main(["sensitivity", "--mesh", f"dome={stl}", "--trials", str(trials), "--out", out])
 
 
 if __name__ == "__main__":

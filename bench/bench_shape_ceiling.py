@@ -31,7 +31,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 
 import numpy as np  # noqa: E402
 
-from rollability_ros.core.optimization import optimization_run  # noqa: E402
+from rollability_ros.core.optimization import batch_evaluation, run_directory  # noqa: E402
 from rollability_ros.core.profile import geometry  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
 from rollability_ros.core.stats import newcombe_interval, wilson_interval  # noqa: E402
@@ -43,7 +43,7 @@ SCREEN_SEED, FRESH_SEED, MODES_SEED = 777001, 777003, 777005
 def nominal_settings(configs):
     """The launch fidelity's settings of ``configs`` with the unknowns not drawn: the campaign's measure."""
     launch = evaluation.settings_at_fidelity(
-        evaluation.settings_from_parameters(optimization_run.load_run_parameters(configs)), "launch")
+        evaluation.settings_from_parameters(run_directory.load_run_parameters(configs)), "launch")
     objective = dataclasses.replace(launch.objective, screen_engine=launch.physics.engine,
                                     robust=dataclasses.replace(launch.objective.robust, enabled=False))
     return dataclasses.replace(launch, objective=objective)
@@ -92,7 +92,7 @@ def _modes_of(settings, heights, launches, seed):
                                for index in range(launches))
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", action="append", help="parameter files (default: optimizer, the quick study)")
     parser.add_argument("--screen", type=int, default=100, help="nominal launches per shape in the screen")
@@ -100,13 +100,16 @@ def main():
     parser.add_argument("--top", type=int, default=3, help="shapes launched afresh")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--modes", type=int, default=0, help="launches of each fresh shape classified by rest mode")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    if args.smoke:   # one launch per shape in each step (the rest modes too), the best shape only, one worker
+        args.screen, args.fresh, args.top, args.modes, args.workers = 1, 1, 1, 1, 1
     settings = nominal_settings(args.config or ["optimizer"])
     family = shapes(settings.grid)
     names = list(family)
     started = time.perf_counter()
     with evaluation.LocalExecutor(args.workers) as pool:
-        evaluate = optimization_run.fidelity_batch_evaluator(settings, pool, "screen")
+        evaluate = batch_evaluation.fidelity_batch_evaluator(settings, pool, "screen")
         screen = {name: (int(r[0]), int(r[1])) for name, r in
                   zip(names, evaluate([family[name] for name in names], SCREEN_SEED, args.screen))}
         best = sorted((name for name in names if name != "bare"), key=lambda name: -screen[name][0])[:args.top]
@@ -137,7 +140,8 @@ def main():
         print(f"where {args.modes} more launches each came to rest (seed {MODES_SEED}, full rest rule):")
         for name in fresh_names:
             print(f"  {name:<22} " + ", ".join(f"{mode} {count}" for mode, count in modes[name].most_common()))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -22,7 +22,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 
 from bench.bench_objective import CAMPAIGN  # noqa: E402
 from rollability_ros.core.campaign import calibration  # noqa: E402
-from rollability_ros.core.optimization import optimization_run  # noqa: E402
+from rollability_ros.core.optimization import run_directory  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
 
 TRUTHS = [("robot.com_offset_z_m", -0.005), ("robot.com_offset_z_m", 0.006),
@@ -44,21 +44,25 @@ def profiles():
     return fixed
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--launches", type=int, default=48, help="launches per profile and twin")
     parser.add_argument("--workers", type=int, default=2)
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    truths, shapes = TRUTHS, profiles()
+    if args.smoke:   # the shipped twin and one truth, one profile, one launch, one worker
+        truths, shapes, args.launches, args.workers = TRUTHS[:1], dict(list(shapes.items())[:1]), 1, 1
     with tempfile.TemporaryDirectory() as folder:
         campaign_file = os.path.join(folder, "campaign.yaml")
         with open(campaign_file, "w", encoding="utf-8") as stream:
             yaml.safe_dump(CAMPAIGN, stream)
-        parameters = optimization_run.load_run_parameters(["optimizer"])
+        parameters = run_directory.load_run_parameters(["optimizer"])
         parameters.update({"objective.kind": "launch_twin", "objective.campaign_config": [campaign_file],
                            "profile.rows": 3, "profile.cols": 3})
         settings = evaluation.settings_from_parameters(parameters)
         with evaluation.make_executor(evaluation.EvaluatorOptions(workers=args.workers)) as executor:
-            for index, truth in enumerate([None, *TRUTHS]):
+            for index, truth in enumerate([None, *truths]):
                 twin = list(calibration.TWIN_CONFIGS)
                 if truth is not None:
                     path = os.path.join(folder, f"truth-{index}.yaml")  # one file per truth: the twin is cached by path
@@ -69,13 +73,14 @@ def main():
                     kind="launch_twin", campaign_config=[campaign_file], twin_config=twin))
                 started = time.perf_counter()
                 counts = []
-                for name, heights in profiles().items():
+                for name, heights in shapes.items():
                     result = evaluation.evaluate_profile(heights, args.launches, 12345, on_twin, executor)
                     counts.append(f"{name} {result.successes}")
                 label = "shipped twin" if truth is None else f"{truth[0]} = {truth[1]:g}"
                 print(f"{label}: {', '.join(counts)} (of {args.launches}) [{time.perf_counter() - started:.0f} s]",
                       flush=True)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

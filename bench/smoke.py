@@ -17,7 +17,17 @@ import typing
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
 
 #: The bench scripts with a ``--smoke`` size, cheapest first (bench/<name>.py, each ``main(argv) -> int``).
-SMOKE = ("bench_bag_writer", "bench_profile_mass", "bench_launch_twin", "verify_early_decision", "bench_pad_size")
+#: docs/testing.md lists the benches left out and why.
+SMOKE = ("bench_bag_writer", "bench_profile_mass", "bench_launch_twin", "verify_early_decision", "bench_pad_size",
+         "bench_optimizer", "bench_bare_breakdown", "bench_truth_sweep", "bench_shape_ceiling")
+
+#: The optimization run's parameters at a smoke size, over a bench's own (``--smoke``): one generation of a few
+#: candidates with two trials each, no start-point screen, and a selection that re-evaluates and races on two
+#: launches.
+SMOKE_RUN = {"optimizer.popsize": 4, "optimizer.trials": 2, "optimizer.max_generations": 1,
+             "optimizer.initial_mean_screen": 0, "quality_diversity.emitters": 1,
+             "selection.reevaluate_trials": 2, "selection.race_launches": [2], "selection.race_elites": 2,
+             "selection.race_keep": 1, "selection.launch_trials": 2}
 
 
 def run(names: typing.Sequence[str]) -> typing.List[str]:

@@ -490,7 +490,9 @@ def bench_coverage():
     scripts = sorted(path.stem for path in BENCH.glob("*.py") if path.stem != "smoke")
     smoke = []
     for node in parsed(BENCH / "smoke.py").body:
-        if isinstance(node, (ast.Assign, ast.AnnAssign)) and "SMOKE" in ast.unparse(node):
+        targets = (node.targets if isinstance(node, ast.Assign)
+                   else [node.target] if isinstance(node, ast.AnnAssign) else [])
+        if any(isinstance(target, ast.Name) and target.id == "SMOKE" for target in targets):
             smoke = [name for name in ast.literal_eval(node.value) if name in scripts]
     checked = scripts if '"bench"' in (PACKAGE.parent / "test" / "core" / "test_mypy.py").read_text() else []
     return scripts, smoke, checked

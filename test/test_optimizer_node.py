@@ -55,15 +55,16 @@ def reference(tmp_path_factory):
     """The same run in this process (no ROS graph): stored candidates and generation summaries."""
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.optimization import optimization_run as optimization_run
+    from rollability_ros.core.optimization import batch_evaluation, run_directory
     from rollability_ros.core.store import Store
 
-    parameters = optimization_run.load_run_parameters("optimizer")
+    parameters = run_directory.load_run_parameters("optimizer")
     parameters.update({**RUN, **PAPER_OBJECTIVE})
     settings = evaluation.settings_from_parameters(parameters)
     executor = evaluation.make_executor(settings.evaluator, 2)
     run_dir = tmp_path_factory.mktemp("reference") / "ref"
     try:
-        evaluate_batch = optimization_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
+        evaluate_batch = batch_evaluation.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
         run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid, evaluate_batch)
         run.run()
         run.close()

@@ -39,12 +39,13 @@ def in_process_run(run_dir):
     """The same run without ROS, on the settings the CLI reads from husky.yaml (footprint grid)."""
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.optimization import optimization_run as optimization_run
+    from rollability_ros.core.optimization import batch_evaluation
     from rollability_ros.core.config import load_parameters
 
     parameters = {**load_parameters([HUSKY_CONFIG]), **RUN}
     settings = evaluation.settings_from_parameters(parameters)
     with evaluation.LocalExecutor(1) as executor:   # a batch's evaluations run in threads: one client each
-        evaluate_batch = optimization_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
+        evaluate_batch = batch_evaluation.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
         run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid, evaluate_batch,
                                                screen_profiles=optimization_run.profile_screen(
                                                    optimization_run.run_settings(parameters), settings))
@@ -54,7 +55,7 @@ def in_process_run(run_dir):
 
 
 def test_husky_run_over_dds_uses_the_mount_footprint(ros_node, start_node, tmp_path):
-    from rollability_ros.core.optimization import optimization_run as optimization_run
+    from rollability_ros.core.optimization import run_directory
 
     markers = []
     ros_node.node.create_subscription(Marker, "/best_profile_marker", markers.append, MARKER_QOS)
@@ -67,7 +68,7 @@ def test_husky_run_over_dds_uses_the_mount_footprint(ros_node, start_node, tmp_p
     assert optimizer.process.wait(timeout=120) == 0, optimizer.log()
 
     run_dir = tmp_path / "runs" / "husky"
-    saved = optimization_run.read_run_config(run_dir)
+    saved = run_directory.read_run_config(run_dir)
     assert (saved["profile.length_m"], saved["profile.width_m"], saved["profile.rows"]) == (0.9, 0.56, 4)
     stored, screen = candidate_rows(run_dir, "husky")
     assert len(stored) >= RUN["optimizer.popsize"] * RUN["optimizer.max_generations"]

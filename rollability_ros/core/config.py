@@ -137,7 +137,7 @@ def _flatten(mapping, prefix, out, path):
             out[name] = value
 
 
-def read_parameter_file(path: str) -> typing.Dict[str, typing.Dict[str, typing.Any]]:
+def read_parameter_file(path: str) -> typing.Dict[str, typing.Dict[str, object]]:
     """Read a ROS 2 parameter file into ``{node name: {dotted parameter: value}}``.
 
     Raises :class:`ConfigError` naming the file for unreadable YAML, YAML beyond the limits of
@@ -164,7 +164,7 @@ def read_parameter_file(path: str) -> typing.Dict[str, typing.Dict[str, typing.A
         params = body["ros__parameters"] or {}
         if not isinstance(params, dict):
             raise ConfigError(f"parameter file {path}: '{node_name}.ros__parameters' must be a mapping")
-        flat: typing.Dict[str, typing.Any] = {}
+        flat: typing.Dict[str, object] = {}
         _flatten(params, "", flat, path)
         nodes[str(node_name)] = flat
     return nodes
@@ -177,7 +177,7 @@ def _node_matches(pattern, node_name):
 
 
 def load_parameters(paths: typing.Union[str, os.PathLike, typing.Iterable[typing.Union[str, os.PathLike]]],
-                    node_name: str = "/**") -> typing.Dict[str, typing.Any]:
+                    node_name: str = "/**") -> typing.Dict[str, object]:
     """Merge parameter files into one flat dict for ``node_name``.
 
     Later files override earlier ones; within a file, a section naming the node overrides ``/**``.
@@ -185,7 +185,7 @@ def load_parameters(paths: typing.Union[str, os.PathLike, typing.Iterable[typing
     """
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
-    merged = {}
+    merged: typing.Dict[str, object] = {}
     for path in paths:
         resolved = resolve_config_path(os.fspath(path))
         nodes = read_parameter_file(resolved)
@@ -226,9 +226,9 @@ def check_given_files(paths: typing.Iterable[typing.Union[str, os.PathLike]], re
                                   f"file to a command that reads it")
 
 
-def section(flat: typing.Mapping[str, typing.Any], prefix: str) -> typing.Dict[str, typing.Any]:
+def section(flat: typing.Mapping[str, object], prefix: str) -> typing.Dict[str, object]:
     """Return the parameters under ``prefix.`` as a nested dict (``section(p, "sim")["time_step_s"]``)."""
-    out: typing.Dict[str, typing.Any] = {}
+    out: typing.Dict[str, object] = {}
     lead = prefix + "." if prefix else ""
     for name, value in flat.items():
         if not name.startswith(lead):
@@ -236,12 +236,45 @@ def section(flat: typing.Mapping[str, typing.Any], prefix: str) -> typing.Dict[s
         parts = name[len(lead):].split(".")
         node = out
         for part in parts[:-1]:
-            node = node.setdefault(part, {})
+            child = node.setdefault(part, {})
+            if not isinstance(child, dict):
+                raise ConfigError(f"parameter {name}: {'.'.join(parts[:parts.index(part) + 1])} is both a value and "
+                                  "a namespace")
+            node = child
         node[parts[-1]] = value
     return out
 
 
-def parameter_document(flat: typing.Mapping[str, typing.Any]) -> typing.Dict[str, typing.Any]:
+#: A ROS 2 parameter file's document: ``{node name: {"ros__parameters": {namespace: {...}, name: value}}}``.
+ParameterDocument = typing.Dict[str, typing.Dict[str, typing.Dict[str, object]]]
+
+
+def as_list(value: object) -> typing.List[object]:
+    """A parameter's value as a list: a list's or tuple's items, else the one value."""
+    return list(value) if isinstance(value, (list, tuple)) else [value]
+
+
+def number_parameter(parameters: typing.Mapping[str, object], name: str) -> float:
+    """The number parameter ``name`` of flat ``parameters``; :class:`ConfigError` in one line naming it when it is
+    absent or not a number."""
+    if name not in parameters:
+        raise ConfigError(f"{name}: missing")
+    value = parameters[name]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(wrong_type(name, float, value))
+    return float(value)
+
+
+def integer_parameter(parameters: typing.Mapping[str, object], name: str, default: int) -> int:
+    """The integer parameter ``name`` of flat ``parameters`` (``default`` when absent); :class:`ConfigError` in
+    one line naming it when it is not an integer."""
+    value = parameters.get(name, default)
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(wrong_type(name, int, value))
+    return value
+
+
+def parameter_document(flat: typing.Mapping[str, object]) -> ParameterDocument:
     """Flat ``{dotted name: value}`` parameters as a ROS 2 parameter file's document for every node:
     ``{"/**": {"ros__parameters": {...nested by namespace...}}}`` (tuples written as lists); the inverse of
     :func:`read_parameter_file` for one ``/**`` section."""
@@ -252,26 +285,40 @@ def parameter_document(flat: typing.Mapping[str, typing.Any]) -> typing.Dict[str
 #: A settings dataclass built by :func:`from_mapping`.
 _Settings = typing.TypeVar("_Settings")
 
+#: A settings field's ``metadata`` (``dataclasses.field(metadata=...)``): its declared ``"range"`` ``(low, high)``,
+#: ``"exclusive"`` (``"low"``, ``"high"`` or ``"both"``), and any other keys the field documents.
+FieldMetadata = typing.Mapping[str, object]
 
-def interval(metadata: typing.Mapping[str, typing.Any]) -> str:
+
+def declared_range(metadata: FieldMetadata) -> typing.Tuple[float, float]:
+    """The ``(low, high)`` a settings field declares in ``metadata["range"]``; ``TypeError`` naming the value when it
+    is not a pair of numbers (a mistake in the field's declaration, not in the user's input)."""
+    value = metadata["range"]
+    if (isinstance(value, (tuple, list)) and len(value) == 2
+            and all(isinstance(end, (int, float)) and not isinstance(end, bool) for end in value)):
+        return value[0], value[1]
+    raise TypeError(f"a settings field's range must be (low, high) numbers, got {value!r}")
+
+
+def interval(metadata: FieldMetadata) -> str:
     """The declared range of a settings field in interval notation: ``[0.0, 100.0]``, or ``(0.0, 100.0]`` when
     ``metadata["exclusive"]`` (``"low"``, ``"high"`` or ``"both"``) leaves an end out ("must be > 0")."""
-    low, high = metadata["range"]
+    low, high = declared_range(metadata)
     exclusive = metadata.get("exclusive", "")
     return (f"{'(' if exclusive in ('low', 'both') else '['}{low}, {high}"
             f"{')' if exclusive in ('high', 'both') else ']'}")
 
 
-def in_range(value: float, metadata: typing.Mapping[str, typing.Any]) -> bool:
+def in_range(value: float, metadata: FieldMetadata) -> bool:
     """True when the number ``value`` lies in the field's declared range (:func:`interval`); NaN never does."""
-    low, high = metadata["range"]
+    low, high = declared_range(metadata)
     exclusive = metadata.get("exclusive", "")
     above = value > low if exclusive in ("low", "both") else value >= low
     below = value < high if exclusive in ("high", "both") else value <= high
     return above and below
 
 
-def out_of_range(name: str, value: object, metadata: typing.Mapping[str, typing.Any]) -> str:
+def out_of_range(name: str, value: object, metadata: FieldMetadata) -> str:
     """The one line that refuses ``value`` for the setting ``name`` (a dotted parameter name), from the CLI and
     from a node alike: ``optimizer.popsize out of range: 1 is not in [2, 100000]``."""
     return f"{name} out of range: {value} is not in {interval(metadata)}"
@@ -282,7 +329,7 @@ _KINDS = {float: "a number", int: "an integer", bool: "true or false", str: "tex
 
 
 def wrong_type(name: str, field_type: type, value: object,
-               metadata: typing.Optional[typing.Mapping[str, typing.Any]] = None) -> str:
+               metadata: typing.Optional[FieldMetadata] = None) -> str:
     """The one line that refuses ``value`` of the wrong type for setting ``name`` (CLI and node alike):
     ``optimizer.popsize: expected an integer in [2, 100000], got 'twelve'``."""
     return f"{name}: expected {_KINDS.get(field_type, field_type.__name__)}{_in(metadata)}, got {value!r}"
@@ -347,10 +394,11 @@ def check_settings(settings: object, where: str) -> None:
             raise ConfigError(f"{where}: {exc}" if where else str(exc)) from exc
 
 
-def from_mapping(cls: typing.Type[_Settings], mapping: typing.Optional[typing.Mapping[str, typing.Any]],
+def from_mapping(cls: typing.Type[_Settings], mapping: object,
                  where: str) -> _Settings:
     """Build dataclass ``cls`` from a (nested) mapping, checking names and types.
 
+    ``mapping`` is what a parameter file held there: a dict, or None (all defaults); anything else is refused.
     Unknown keys and wrongly typed values raise :class:`ConfigError` naming ``where.key``; missing keys take
     the dataclass defaults. Nested dataclass fields are built recursively. A number outside its field's declared
     ``metadata["range"]`` (NaN included) is refused in one line (:func:`out_of_range`); after construction
@@ -377,7 +425,7 @@ def from_mapping(cls: typing.Type[_Settings], mapping: typing.Optional[typing.Ma
     return obj
 
 
-def settings_from_sections(cls: typing.Type[_Settings], flat: typing.Mapping[str, typing.Any],
+def settings_from_sections(cls: typing.Type[_Settings], flat: typing.Mapping[str, object],
                            namespaces: typing.Optional[typing.Mapping[str, str]] = None,
                            optional: typing.Iterable[str] = ()) -> _Settings:
     """Parse flat ``{dotted name: value}`` parameters once into ``cls``, a dataclass whose fields are settings

@@ -337,7 +337,7 @@ class Store:
         """Tip events (all robots, or one), in insertion order."""
         return self._select(_TIP_EVENTS, robot=robot)
 
-    def set_run_info(self, run_id: str, kind: str, info: typing.Mapping[str, typing.Any]) -> None:
+    def set_run_info(self, run_id: str, kind: str, info: typing.Mapping[str, object]) -> None:
         """Create or replace the description of run ``run_id``.
 
         Parameters

@@ -316,7 +316,7 @@ class Optimizer(Node):
 
     def _run_target(self, settings):
         """``(run_dir, parameters, resume)`` of the run to start, from ``run_id`` / ``resume``
-        (:func:`~rollability_ros.core.optimization.optimization_run.run_target`: a resume keeps the run's saved
+        (:func:`~rollability_ros.core.optimization.run_directory.run_target`: a resume keeps the run's saved
         config.yaml with this node's run sections on top, so the core refuses one whose settings differ)."""
         resume = self._param("resume")
         run_dir, parameters = run_target(self._param("run_id"), resume, run_parameters(settings),

@@ -10,6 +10,7 @@ import pytest
 from rollability_ros.cli import main
 from rollability_ros.core.config import ConfigError, load_parameters
 from rollability_ros.core.optimization import optimization_run
+from rollability_ros.core.optimization import run_directory
 from rollability_ros.core.robots.urdf_robot import UrdfRobotSpec
 from rollability_ros.core.sim import evaluation
 
@@ -126,7 +127,7 @@ def _robot_config(tmp_path, robot, extra=""):
 def test_the_printer_is_checked_before_any_simulation(tmp_path, robot, monkeypatch):
     configs = _robot_config(tmp_path, robot, "    printer:\n      bed_x_m: 0.05\n      bed_y_m: 0.05\n"
                                              "      bed_z_m: 0.05\n")
-    parameters = optimization_run.load_run_parameters(configs)
+    parameters = run_directory.load_run_parameters(configs)
     assert parameters["optimizer.initial_mean_screen"] > 0       # the start-point screen would run first
 
     def no_simulation(*args, **kwargs):
@@ -142,18 +143,18 @@ def test_the_printer_is_checked_before_any_simulation(tmp_path, robot, monkeypat
 @pytest.mark.parametrize("robot", ["husky", "mast"])
 def test_a_robot_config_alone_runs_on_the_shipped_optimizer_defaults(tmp_path, robot):
     configs = _robot_config(tmp_path, robot)
-    alone = optimization_run.load_run_parameters(configs)
-    explicit = optimization_run.load_run_parameters(["optimizer"] + configs)
+    alone = run_directory.load_run_parameters(configs)
+    explicit = run_directory.load_run_parameters(["optimizer"] + configs)
     assert alone == explicit
     shipped = load_parameters(["optimizer"])
     assert alone["optimizer.method"] == shipped["optimizer.method"] and alone["selection.count"] == 3
     assert alone["optimizer.initial_mean_screen"] == shipped["optimizer.initial_mean_screen"]
     if robot == "husky":   # the robot config's own optimizer keys still win
         assert alone["optimizer.popsize"] == 8
-    paper = optimization_run.load_run_parameters(["paper"] + configs)
+    paper = run_directory.load_run_parameters(["paper"] + configs)
     assert paper["optimizer.method"] == load_parameters(["paper"])["optimizer.method"]
     with pytest.raises(ConfigError, match="config file not found: nowhere.yaml"):
-        optimization_run.load_run_parameters(["nowhere.yaml"])
+        run_directory.load_run_parameters(["nowhere.yaml"])
 
 
 def test_cli_optimize_with_a_bad_up_axis_fails_in_one_line(tmp_path, capsys):

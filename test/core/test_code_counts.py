@@ -2,15 +2,17 @@
 sizes and the back-references owned by the rooms that split those modules are printed until they land."""
 import code_counts
 
-#: Public core signatures that mention ``Any`` or a core alias standing for it (issue 43's limit: 40; 179 counted
-#: so before this ratchet, 150 without the aliases). A ratchet: a new one fails; when one goes, lower the number.
-ANY_SIGNATURES_ALLOWED = 108
+#: Issue 43's limit on public core signatures that mention ``Any`` or a core alias standing for it.
+ANY_SIGNATURES_LIMIT = 40
+#: Those counted today (179 before this ratchet, 150 without the aliases; the parameter maps, documents and rows,
+#: MuJoCo handles and the robustness draw's settings typed since). A ratchet: a new one fails; when one goes, lower
+#: the number.
+ANY_SIGNATURES_ALLOWED = 34
 
 
-#: Modules other rooms are splitting this round (issue 43 item 5: selection and report; the settings rewrite of
-#: optimization_run): their sizes are printed, and asserted here once the splits land.
-SPLIT_ELSEWHERE = ("rollability_ros/core/optimization/selection.py", "rollability_ros/core/results/report.py",
-                   "rollability_ros/core/optimization/optimization_run.py")
+#: Modules another room is splitting this round (issue 43 item 5: selection and report): their sizes are printed,
+#: and asserted here once the splits land.
+SPLIT_ELSEWHERE = ("rollability_ros/core/optimization/selection.py", "rollability_ros/core/results/report.py")
 
 
 def test_no_module_over_700_lines_and_no_function_over_80_elsewhere():
@@ -35,6 +37,7 @@ def test_mypy_checks_untyped_bodies_and_every_bench_script():
 
 def test_any_in_public_core_signatures_only_shrinks():
     found = code_counts.any_signatures()
+    assert ANY_SIGNATURES_ALLOWED <= ANY_SIGNATURES_LIMIT
     assert len(found) <= ANY_SIGNATURES_ALLOWED, "new public signatures with Any:\n" + "\n".join(found)
     assert len(found) == ANY_SIGNATURES_ALLOWED, f"{len(found)} left: lower ANY_SIGNATURES_ALLOWED to it"
 

@@ -108,9 +108,10 @@ def test_a_twin_key_given_to_an_evaluation_that_launches_changes_its_twin(tmp_pa
 def test_a_run_and_the_in_process_rig_append_twin_files_to_their_twin(tmp_path):
     from rollability_ros.core.campaign import local_rig_settings_from_files
     from rollability_ros.core.optimization import optimization_run
+    from rollability_ros.core.optimization import run_directory
 
     pad = _file(tmp_path, "pad.yaml", "    launch_twin: {foam: {length_m: 3.5}}\n    optimizer: {popsize: 6}\n")
-    parameters = optimization_run.with_given_files(optimization_run.load_run_parameters([pad]), [pad], "optimize")
+    parameters = optimization_run.with_given_files(run_directory.load_run_parameters([pad]), [pad], "optimize")
     assert parameters["objective.twin_config"][-1] == pad and parameters["optimizer.popsize"] == 6
     with pytest.raises(ConfigError, match="rollability campaign --rig-config does not read optimizer.popsize"):
         local_rig_settings_from_files("sim", ["rig", pad], "rollability campaign --rig-config")

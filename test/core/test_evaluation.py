@@ -63,7 +63,7 @@ def test_a_generation_runs_each_candidate_whole_when_there_are_two_per_worker():
     """profile_batch_evaluator hands a candidate's trials to one worker as one task once a generation has at least
     two candidates per worker (one world build each); fewer candidates are split into batch_trials tasks. The
     outcomes are the serial ones either way."""
-    from rollability_ros.core.optimization.optimization_run import profile_batch_evaluator
+    from rollability_ros.core.optimization.batch_evaluation import profile_batch_evaluator
     from rollability_ros.core.sim.evaluation import SerialExecutor
 
     class TwoWorkers(SerialExecutor):
@@ -268,7 +268,7 @@ def test_workers_exit_when_their_parent_is_killed():
 def test_batched_engine_seam_gives_the_executors_outcomes_and_plugs_into_the_optimizer_evaluator():
     """The TrialBatchEngine seam: the CPU engine over an executor gives evaluate_profile's outcomes; an engine
     that takes a whole generation's (profile, trial) pairs in one call plugs into the optimizer's evaluate_batch."""
-    from rollability_ros.core.optimization.optimization_run import profile_batch_evaluator
+    from rollability_ros.core.optimization.batch_evaluation import profile_batch_evaluator
     from rollability_ros.core.sim.evaluation import ExecutorEngine, TrialBatchEngine, evaluate_jobs
 
     heights_list = [None, ridge_heights(SETTINGS.grid)]

@@ -17,7 +17,8 @@ from rollability_ros.core.optimization import checkpoint as checkpoints  # noqa:
 from rollability_ros.core.config import ConfigError  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
 from doubles import SyntheticEvaluator  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config, read_run_config  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config  # noqa: E402
+from rollability_ros.core.optimization.run_directory import read_run_config  # noqa: E402
 from rollability_ros.core.store import Store  # noqa: E402
 
 GRID = ProfileGrid(rows=3, cols=3)
@@ -315,6 +316,7 @@ def test_the_one_loop_retries_gives_up_stops_and_is_interrupted_by_policy(tmp_pa
 
 def test_generations_are_numbered_from_1_and_runs_numbered_from_0_keep_their_numbers(tmp_path, monkeypatch):
     from rollability_ros.core.optimization import optimization_run
+    from rollability_ros.core.optimization import run_directory
 
     run = OptimizationRun(tmp_path / "new", run_config(parameters(**{"optimizer.max_generations": 3})), GRID,
                           SyntheticEvaluator(OPTIMUM, trials=30))
@@ -332,7 +334,7 @@ def test_generations_are_numbered_from_1_and_runs_numbered_from_0_keep_their_num
         killed.step()
     info = dict(killed.store.run_info("old")["info"])
     del info["first_generation"]
-    killed.store.set_run_info("old", optimization_run.RUN_KIND, info)
+    killed.store.set_run_info("old", run_directory.RUN_KIND, info)
     killed.close()
     monkeypatch.setattr(optimization_run, "FIRST_GENERATION", 1)
     resumed = OptimizationRun(old_dir, run_config(parameters()), GRID, SyntheticEvaluator(OPTIMUM, trials=30), resume=True)

@@ -10,12 +10,12 @@ from .qos import qos_dict_from_profile, subscription_qos_for
 from .reader import BagReader, bag_info, check_readable, format_bag_info
 from .record_play import (PlayerSettings, RecorderSettings, check_topic_names, default_bag_directory, parse_remaps,
                           select_topics, type_hash_string)
-from .recover import is_left_open, mark_restart, missed_windows, recording_gaps, recover
+from .recover import TopicWindow, is_left_open, mark_restart, missed_windows, recording_gaps, recover
 from .writer import BagWriter
 
 __all__ = [
     "CLOCK_TOPIC", "CLOCK_TYPE", "BagError", "BagReader", "BagWriter", "CurrentDefinitions", "PlayerSettings",
-    "RecorderSettings", "bag_info", "check_readable", "check_topic_names", "clock_message_cdr", "convert",
+    "RecorderSettings", "TopicWindow", "bag_info", "check_readable", "check_topic_names", "clock_message_cdr", "convert",
     "default_bag_directory", "definition_for", "format_bag_info", "full_type_name", "is_left_open", "mark_restart",
     "missed_windows", "parse_remaps", "playback_schedule", "qos_dict_from_profile", "read_records_from_bag",
     "recording_gaps", "recover", "select_topics", "split_type_name", "subscription_qos_for", "type_hash_string"

@@ -98,12 +98,12 @@ def build_metadata(topics: typing.Iterable[TopicInfo], files: typing.Sequence[Fi
     }
 
 
-def dump_metadata(information: typing.Mapping[str, typing.Any]) -> str:
+def dump_metadata(information: typing.Mapping[str, object]) -> str:
     """Return ``information`` (a ``rosbag2_bagfile_information`` mapping) as YAML text, without the top key."""
     return yaml.safe_dump(information, sort_keys=False, default_flow_style=False)
 
 
-def write_metadata(directory: str, information: typing.Mapping[str, typing.Any]) -> None:
+def write_metadata(directory: str, information: typing.Mapping[str, object]) -> None:
     """Write ``<directory>/metadata.yaml`` atomically (temp file, fsync, rename)."""
     path = os.path.join(directory, METADATA_FILE)
     text = yaml.safe_dump({"rosbag2_bagfile_information": information}, sort_keys=False,
@@ -144,10 +144,13 @@ def read_metadata(directory: str) -> typing.Dict[str, typing.Any]:
     return information
 
 
-def topics_from_metadata(information: typing.Mapping[str, typing.Any]) -> typing.List[TopicInfo]:
+def topics_from_metadata(information: typing.Mapping[str, object]) -> typing.List[TopicInfo]:
     """Return the :class:`TopicInfo` list of a ``rosbag2_bagfile_information`` mapping (QoS normalised)."""
     topics = []
-    for entry in information.get("topics_with_message_count") or []:
+    entries = information.get("topics_with_message_count") or []
+    if not isinstance(entries, list):
+        raise BagError(f"metadata topics_with_message_count must be a list, got {entries!r}")
+    for entry in entries:
         meta = entry["topic_metadata"]
         topics.append(TopicInfo(
             name=meta["name"],

@@ -25,18 +25,39 @@ QOS_POLICY_NAMES = {
 
 _DURATION_KEYS = ("deadline", "lifespan", "liveliness_lease_duration")
 
+
+class QosDuration(typing.TypedDict):
+    """A QoS duration as rosbag2 writes it: whole seconds and nanoseconds."""
+
+    sec: int
+    nsec: int
+
+
+class QosProfile(typing.TypedDict):
+    """One offered QoS profile in rosbag2's version-9 form: policy names and ``{sec, nsec}`` durations."""
+
+    history: str
+    depth: int
+    reliability: str
+    durability: str
+    deadline: QosDuration
+    lifespan: QosDuration
+    liveliness: str
+    liveliness_lease_duration: QosDuration
+    avoid_ros_namespace_conventions: bool
+
 #: The profile of a default rclpy publisher (depth 10, reliable, volatile); missing keys are taken from it.
-DEFAULT_QOS = {
-    "history": "keep_last",
-    "depth": 10,
-    "reliability": "reliable",
-    "durability": "volatile",
-    "deadline": dict(INFINITE_DURATION),
-    "lifespan": dict(INFINITE_DURATION),
-    "liveliness": "automatic",
-    "liveliness_lease_duration": dict(INFINITE_DURATION),
-    "avoid_ros_namespace_conventions": False,
-}
+DEFAULT_QOS = QosProfile(
+    history="keep_last",
+    depth=10,
+    reliability="reliable",
+    durability="volatile",
+    deadline=QosDuration(sec=INFINITE_DURATION["sec"], nsec=INFINITE_DURATION["nsec"]),
+    lifespan=QosDuration(sec=INFINITE_DURATION["sec"], nsec=INFINITE_DURATION["nsec"]),
+    liveliness="automatic",
+    liveliness_lease_duration=QosDuration(sec=INFINITE_DURATION["sec"], nsec=INFINITE_DURATION["nsec"]),
+    avoid_ros_namespace_conventions=False,
+)
 
 
 def _policy_name(policy, value):
@@ -54,20 +75,20 @@ def _policy_name(policy, value):
     return name
 
 
-def _duration(policy, value):
+def _duration(policy, value) -> QosDuration:
     """Return ``{sec, nsec}`` for a duration given as such a dict or as integer nanoseconds."""
     if isinstance(value, dict):
         try:
-            return {"sec": int(value["sec"]), "nsec": int(value["nsec"])}
+            return QosDuration(sec=int(value["sec"]), nsec=int(value["nsec"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"QoS {policy} must be {{sec: int, nsec: int}}, got {value!r}") from exc
     if isinstance(value, int) and not isinstance(value, bool) and value >= 0:
-        return {"sec": value // 1_000_000_000, "nsec": value % 1_000_000_000}
+        return QosDuration(sec=value // 1_000_000_000, nsec=value % 1_000_000_000)
     raise ValueError(f"QoS {policy} must be {{sec, nsec}} or non-negative integer nanoseconds, got {value!r}")
 
 
-def normalize_qos_profiles(profiles: typing.Union[typing.Sequence[typing.Mapping[str, typing.Any]], str, None]
-                           ) -> typing.List[typing.Dict[str, typing.Any]]:
+def normalize_qos_profiles(profiles: typing.Union[typing.Sequence[typing.Mapping[str, object]], str, None]
+                           ) -> typing.List[QosProfile]:
     """Return offered QoS profiles as version-9 dicts (policy names, ``{sec, nsec}`` durations).
 
     Parameters
@@ -96,26 +117,23 @@ def normalize_qos_profiles(profiles: typing.Union[typing.Sequence[typing.Mapping
         if unknown:
             raise ValueError(f"unknown QoS profile keys {sorted(unknown)} (known: {sorted(DEFAULT_QOS)})")
         merged = {**DEFAULT_QOS, **profile}
-        out = {}
-        for key, value in merged.items():
-            if key in QOS_POLICY_NAMES:
-                out[key] = _policy_name(key, value)
-            elif key in _DURATION_KEYS:
-                out[key] = _duration(key, value)
-            elif key == "depth":
-                out[key] = int(value)
-            else:
-                out[key] = bool(value)
-        normalized.append(out)
+        normalized.append(QosProfile(
+            history=_policy_name("history", merged["history"]), depth=int(merged["depth"]),
+            reliability=_policy_name("reliability", merged["reliability"]),
+            durability=_policy_name("durability", merged["durability"]),
+            deadline=_duration("deadline", merged["deadline"]), lifespan=_duration("lifespan", merged["lifespan"]),
+            liveliness=_policy_name("liveliness", merged["liveliness"]),
+            liveliness_lease_duration=_duration("liveliness_lease_duration", merged["liveliness_lease_duration"]),
+            avoid_ros_namespace_conventions=bool(merged["avoid_ros_namespace_conventions"])))
     return normalized
 
 
-def qos_profiles_yaml(profiles: typing.Sequence[typing.Mapping[str, typing.Any]]) -> str:
+def qos_profiles_yaml(profiles: typing.Sequence[typing.Mapping[str, object]]) -> str:
     """Return normalised profiles as the YAML string stored in an MCAP channel's ``offered_qos_profiles``."""
     return yaml.safe_dump(profiles, sort_keys=False, default_flow_style=False).strip()
 
 
-def qos_dict_from_profile(profile: typing.Any) -> typing.Dict[str, typing.Any]:
+def qos_dict_from_profile(profile: object) -> QosProfile:
     """Return a QoS dict from any object with rclpy ``QoSProfile`` attributes (durations with ``.nanoseconds``).
 
     Lets the recorder node pass ``TopicEndpointInfo.qos_profile`` without this module importing rclpy.
@@ -128,8 +146,8 @@ def qos_dict_from_profile(profile: typing.Any) -> typing.Dict[str, typing.Any]:
     return normalized
 
 
-def subscription_qos_for(offered_profiles: typing.Union[typing.Sequence[typing.Mapping[str, typing.Any]], str, None],
-                         depth: int = 1000) -> typing.Dict[str, typing.Any]:
+def subscription_qos_for(offered_profiles: typing.Union[typing.Sequence[typing.Mapping[str, object]], str, None],
+                         depth: int = 1000) -> QosProfile:
     """Return the QoS dict a recorder subscribes with to receive from every offering publisher.
 
     Reliable only if every publisher is reliable (a reliable subscription does not match a best-effort
@@ -148,5 +166,8 @@ def subscription_qos_for(offered_profiles: typing.Union[typing.Sequence[typing.M
     offers = normalize_qos_profiles(offered_profiles)
     reliable = all(p["reliability"] == "reliable" for p in offers)
     transient_local = bool(offers) and all(p["durability"] == "transient_local" for p in offers)
-    return {**DEFAULT_QOS, "depth": depth, "reliability": "reliable" if reliable else "best_effort",
-            "durability": "transient_local" if transient_local else "volatile"}
+    qos = DEFAULT_QOS.copy()
+    qos["depth"] = depth
+    qos["reliability"] = "reliable" if reliable else "best_effort"
+    qos["durability"] = "transient_local" if transient_local else "volatile"
+    return qos

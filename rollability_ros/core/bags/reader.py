@@ -71,10 +71,13 @@ def open_mcap(path: str, stream: typing.BinaryIO) -> typing.Tuple["SeekingReader
     return reader, summary
 
 
-def storage_paths(directory: str, information: typing.Mapping[str, typing.Any]) -> typing.List[str]:
+def storage_paths(directory: str, information: typing.Mapping[str, object]) -> typing.List[str]:
     """Return the absolute storage file paths listed in metadata; BagError naming the first missing one."""
     paths = []
-    for relative in information.get("relative_file_paths") or []:
+    listed = information.get("relative_file_paths") or []
+    if not isinstance(listed, list) or not all(isinstance(relative, str) for relative in listed):
+        raise BagError(f"{directory}: metadata.yaml's relative_file_paths must be a list of file names, got {listed!r}")
+    for relative in listed:
         path = os.path.join(directory, relative)
         if not os.path.isfile(path):
             raise BagError(f"{path}: storage file listed in metadata.yaml is missing")

@@ -61,6 +61,41 @@ _SALVAGED_OPCODES = re.compile(b"[\x03\x04\x06]")
 BACKUP_SUFFIX = ".before-recover"
 
 
+class FileRecovery(typing.TypedDict, total=False):
+    """What :func:`recover` did to one storage file: ``intact``, or ``recovered`` with the counts of what it saved and
+    dropped and the name its damaged original is kept under."""
+
+    path: typing.Required[str]
+    status: typing.Required[str]
+    messages: int
+    chunks_recovered: int
+    chunks_discarded: int
+    bytes_discarded: int
+    messages_without_channel: int
+    header_intact: bool
+    backup: str
+
+
+class TopicWindow(typing.TypedDict):
+    """What one topic missed at one restart of a bag's writer (:func:`missed_windows`)."""
+
+    after_ns: typing.Optional[int]      # its last message before the restart (None: none)
+    until_ns: typing.Optional[int]      # its first message after it (None: none yet)
+    rate_hz: typing.Optional[float]     # its mean rate over the whole bag (None below 2 messages)
+    periodic: bool                      # its messages come at a steady rate
+
+
+class RecoveryReport(typing.TypedDict):
+    """The report of :func:`recover` (its docstring says what each key holds)."""
+
+    files: typing.List[FileRecovery]
+    message_count: int
+    topics: typing.Dict[str, int]
+    metadata_rewritten: bool
+    metadata_backup: str
+    sidecar_backup: str
+
+
 def backup_path(path: str) -> str:
     """The name ``recover`` keeps the original of ``path`` under: ``<path>.before-recover``, or the first free
     ``<path>.before-recover-<n>`` when an earlier recovery already kept one (no backup is ever overwritten)."""
@@ -322,7 +357,7 @@ def _close_recovered(directory, previous, stored, topics, files):
     return information, metadata_backup, sidecar_backup
 
 
-def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False) -> typing.Dict[str, typing.Any]:
+def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False) -> RecoveryReport:
     """Recover the bag in ``directory`` in place (see the module docstring); return a report.
 
     A bag in which no message can be saved is refused (BagError, nothing changed) unless ``allow_empty``: a writer
@@ -355,7 +390,7 @@ def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False
     known_topics = topics_from_metadata(previous) if previous else []
     definitions = read_sidecar(directory)
     stored = dict(previous)
-    reports: typing.List[typing.Dict[str, typing.Any]] = []
+    reports: typing.List[FileRecovery] = []
     files: typing.List[FileInfo] = []
     found_topics: typing.Dict[str, TopicInfo] = {}
     repaired: typing.List[typing.Tuple[str, str]] = []
@@ -397,10 +432,10 @@ def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False
         topics.append(topic)
     topics.extend(found_topics.values())
     information, metadata_backup, sidecar_backup = _close_recovered(directory, previous, stored, topics, files)
-    return {"files": reports, "message_count": information["message_count"],
-            "topics": {t.name: t.message_count for t in topics},
-            "metadata_rewritten": information != previous,
-            "metadata_backup": os.path.basename(metadata_backup), "sidecar_backup": os.path.basename(sidecar_backup)}
+    return RecoveryReport(files=reports, message_count=int(information["message_count"]),
+                          topics={t.name: t.message_count for t in topics}, metadata_rewritten=information != previous,
+                          metadata_backup=os.path.basename(metadata_backup),
+                          sidecar_backup=os.path.basename(sidecar_backup))
 
 
 def is_left_open(directory: typing.Union[str, os.PathLike]) -> bool:
@@ -441,7 +476,7 @@ def _restart_indexes(information):
 
 
 def missed_windows(directory: typing.Union[str, os.PathLike]
-                   ) -> typing.List[typing.Dict[str, typing.Dict[str, typing.Any]]]:
+                   ) -> typing.List[typing.Dict[str, TopicWindow]]:
     """Per restart of the bag's writer, what each topic missed: the window from its last message before the kill
     to its first one after the restart (a topic's own window, not only the bag's: a 100 Hz pose stream and a
     launch outcome every few seconds lose different spans).
@@ -485,7 +520,7 @@ def missed_windows(directory: typing.Union[str, os.PathLike]
             total[0], total[1], total[2] = min(total[0], first), max(total[1], last), total[2] + count
     windows = []
     for index in restarts:
-        window = {}
+        window: typing.Dict[str, TopicWindow] = {}
         for topic, (first, last, count) in sorted(totals.items()):
             before = [span[topic][1] for span in spans[:index] if topic in span]
             after = [span[topic][0] for span in spans[index:] if topic in span]
@@ -510,15 +545,19 @@ def _steady(stats: typing.Optional[typing.List[float]]) -> bool:
 
 
 def mark_restart(directory: typing.Union[str, os.PathLike],
-                 information: typing.Optional[typing.Dict[str, typing.Any]] = None) -> typing.Dict[str, typing.Any]:
+                 information: typing.Optional[typing.Mapping[str, object]] = None) -> typing.Dict[str, typing.Any]:
     """Note in ``directory``'s metadata.yaml that the recording stopped uncleanly after its current files
     (``custom_data["recorder_restarts"]`` gets the index of the next file); return the updated metadata."""
     from rollability_ros.core.bags._mcap_file import RESTARTS_KEY
 
     information = dict(information or read_metadata(os.fspath(directory)))
-    custom_data = dict(information.get("custom_data") or {})
+    custom = information.get("custom_data") or {}
+    files = information.get("files") or []
+    if not isinstance(custom, dict) or not isinstance(files, list):
+        raise BagError(f"{directory}: metadata.yaml's custom_data must be a mapping and files a list")
+    custom_data = dict(custom)
     restarts = [r for r in (custom_data.get(RESTARTS_KEY) or "").split(",") if r]
-    custom_data[RESTARTS_KEY] = ",".join(restarts + [str(len(information.get("files") or []))])
+    custom_data[RESTARTS_KEY] = ",".join(restarts + [str(len(files))])
     information["custom_data"] = custom_data
     write_metadata(os.fspath(directory), information)
     return information

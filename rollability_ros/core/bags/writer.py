@@ -54,6 +54,9 @@ from rollability_ros.core.bags._mcap_file import (  # noqa: F401
     write_sidecar,
 )
 
+if typing.TYPE_CHECKING:  # annotations only (the recovery is loaded when a bag is continued)
+    from rollability_ros.core.bags.recover import RecoveryReport
+
 
 class BagWriter:
     """Write a rosbag2 bag directory with MCAP storage; see the module docstring for layout and durability.
@@ -105,7 +108,7 @@ class BagWriter:
         self.directory = os.fspath(directory)
         self._previous_files: typing.List[FileInfo] = []
         self._previous_topics: typing.Dict[str, TopicInfo] = {}
-        self.continued: typing.Optional[typing.Dict[str, typing.Any]] = None   # recover()'s report when continued
+        self.continued: typing.Optional[RecoveryReport] = None   # recover()'s report when continued
         self._held = set()          # (topic, publish time, SHA-256) of re-deliverable messages the bag holds
         self.duplicates_skipped = {}
         if os.path.exists(self.directory) and (not os.path.isdir(self.directory) or os.listdir(self.directory)):
@@ -176,7 +179,7 @@ class BagWriter:
 
     # --- topics and messages -------------------------------------------------------------------------
     def add_topic(self, name: str, type_name: str, serialization_format: str = "cdr",
-                  offered_qos_profiles: typing.Union[typing.Sequence[typing.Mapping[str, typing.Any]], str,
+                  offered_qos_profiles: typing.Union[typing.Sequence[typing.Mapping[str, object]], str,
                                                      None] = None,
                   definition: typing.Optional[str] = None, type_description_hash: typing.Optional[str] = None) -> None:
         """Register a topic before writing to it.
@@ -307,7 +310,7 @@ class BagWriter:
         if os.path.exists(sidecar):
             os.remove(sidecar)
 
-    def metadata(self) -> typing.Dict[str, typing.Any]:
+    def metadata(self) -> typing.Dict[str, object]:
         """Return the current ``rosbag2_bagfile_information`` mapping."""
         topics = []
         for name, previous in self._previous_topics.items():    # topics of files before a restart, first

@@ -49,7 +49,8 @@ import numpy.typing as npt
 from rollability_ros.core.results import (ConditionResult, SimVsExperiment, group_conditions, sim_vs_experiment,
                                           summarise)
 from rollability_ros.core.campaign.characterisation import Characterisation, characterisation_log_likelihood
-from rollability_ros.core.config import ConfigError, from_mapping, parameter_document, section
+from rollability_ros.core.config import (ConfigError, ParameterDocument, from_mapping, number_parameter,
+                                         parameter_document, section)
 from rollability_ros.core.sim import (LaunchTwinSettings, launch_twin_settings_from_parameters, simulate_valid_launch,
                                       spawn_pool, trial_seed)
 from rollability_ros.core.optional import require
@@ -162,7 +163,7 @@ class CalibrationSettings:
         return np.array(out)
 
 
-def calibration_settings(parameters: typing.Mapping[str, typing.Any]) -> CalibrationSettings:
+def calibration_settings(parameters: typing.Mapping[str, object]) -> CalibrationSettings:
     """The :class:`CalibrationSettings` of flat parameters (namespace ``calibration``), checked against the
     twin's keys: every fitted name must be a key of the loaded parameter files."""
     settings = from_mapping(CalibrationSettings, section(parameters, "calibration"), "calibration")
@@ -173,7 +174,7 @@ def calibration_settings(parameters: typing.Mapping[str, typing.Any]) -> Calibra
     return settings
 
 
-def check_fittable(parameters: typing.Mapping[str, typing.Any], settings: CalibrationSettings) -> None:
+def check_fittable(parameters: typing.Mapping[str, object], settings: CalibrationSettings) -> None:
     """Refuse a fitted key the twin of flat ``parameters`` does not use (``ValueError`` naming it): the Mecanum
     wheels' ``launch_twin.wheel_drag_torque_nm`` / ``wheel_rolling_friction`` / ``wheel_side_friction_factor``
     on a twin that gives the robot its own wheels (``launch_twin.wheel_model``)."""
@@ -186,15 +187,15 @@ def check_fittable(parameters: typing.Mapping[str, typing.Any], settings: Calibr
                          f"drag (robot.wheel_drag_torque_nm or urdf_robot.joint_drag_torque_nm) instead")
 
 
-def twin_settings_with(parameters: typing.Mapping[str, typing.Any], names: typing.Sequence[str],
+def twin_settings_with(parameters: typing.Mapping[str, object], names: typing.Sequence[str],
                        values: typing.Union[typing.Sequence[float], np.ndarray]) -> LaunchTwinSettings:
     """:class:`~rollability_ros.core.sim.launch.settings.LaunchTwinSettings` of flat ``parameters`` with ``names`` set to
     ``values`` (config keys, own units; ``values`` (d,) one per name; checked like file values)."""
     return launch_twin_settings_from_parameters(flat_with(parameters, names, values))
 
 
-def flat_with(parameters: typing.Mapping[str, typing.Any], names: typing.Sequence[str],
-              values: typing.Union[typing.Sequence[float], np.ndarray]) -> typing.Dict[str, typing.Any]:
+def flat_with(parameters: typing.Mapping[str, object], names: typing.Sequence[str],
+              values: typing.Union[typing.Sequence[float], np.ndarray]) -> typing.Dict[str, object]:
     """Flat ``parameters`` with ``names`` set to ``values`` (d,) (config keys, own units)."""
     flat = dict(parameters)
     flat.update({name: float(value) for name, value in zip(names, values)})
@@ -244,7 +245,7 @@ class LaunchPool:
         return np.asarray(counts, dtype=np.int64).reshape(len(twin_settings_list), len(conditions))
 
     def characterisation(self, characterisation: typing.Optional[Characterisation],
-                         flats: typing.Sequence[typing.Mapping[str, typing.Any]]) -> np.ndarray:
+                         flats: typing.Sequence[typing.Mapping[str, object]]) -> np.ndarray:
         """The characterisation log-likelihood (s,) of each flat parameter set of ``flats`` (zeros without one),
         in the worker processes (roll-outs are simulated)."""
         if characterisation is None:
@@ -267,7 +268,7 @@ class LaunchPool:
 
 
 def binomial_log_likelihood(successes: npt.ArrayLike, trials: npt.ArrayLike, probabilities: npt.ArrayLike,
-                            floor: float) -> typing.Any:
+                            floor: float) -> typing.Union[np.float64, npt.NDArray[np.float64]]:
     """Sum over conditions of log Binomial(successes | trials, p), p clipped to [floor, 1 - floor].
 
     ``successes``, ``trials`` and ``probabilities`` are (c,) arrays (or the last axis of broadcastable arrays);
@@ -285,7 +286,7 @@ def binomial_log_likelihood(successes: npt.ArrayLike, trials: npt.ArrayLike, pro
 
 
 def beta_binomial_log_likelihood(successes: npt.ArrayLike, trials: npt.ArrayLike, upright: npt.ArrayLike,
-                                 repetitions: int) -> typing.Any:
+                                 repetitions: int) -> typing.Union[np.float64, npt.NDArray[np.float64]]:
     """Sum over conditions of log P(successes | trials) when the success probability is only known from
     ``upright`` of ``repetitions`` simulated launches: p ~ Beta(upright + 1, repetitions - upright + 1), so the
     physical count is beta-binomial. Unlike the plug-in binomial it carries the simulation's Monte Carlo error,
@@ -341,7 +342,7 @@ def interval_grid(settings: CalibrationSettings, index: int, points: typing.Opti
     return low * (high / low) ** u if log else low + u * (high - low)
 
 
-def predicted_on_grid(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, typing.Any],
+def predicted_on_grid(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, object],
                       settings: CalibrationSettings, pool: LaunchPool, fitted: npt.ArrayLike,
                       index: int) -> typing.Tuple[np.ndarray, np.ndarray]:
     """Upright counts of ``sim_repetitions`` launches per grouped condition along parameter ``index``'s grid,
@@ -357,7 +358,7 @@ def predicted_on_grid(conditions: typing.Sequence[ConditionResult], parameters: 
     return grid, pool.predicted_upright(twins, conditions, seeds)
 
 
-def likelihood_profile(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, typing.Any],
+def likelihood_profile(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, object],
                        settings: CalibrationSettings, pool: LaunchPool, fitted: npt.ArrayLike, index: int,
                        predicted: typing.Optional[typing.Tuple[np.ndarray, np.ndarray]] = None,
                        characterisation: typing.Optional[Characterisation] = None
@@ -392,7 +393,7 @@ class FitResult:
     evaluations: int
 
 
-def fit(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, typing.Any],
+def fit(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, object],
         settings: CalibrationSettings, pool: LaunchPool, resample: int = 0,
         on_generation: typing.Optional[typing.Callable[[int, float], None]] = None,
         characterisation: typing.Optional[Characterisation] = None) -> "FitResult":
@@ -418,7 +419,7 @@ def fit(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping
     successes = np.array([c.successes for c in conditions])
     trials = np.array([c.trials for c in conditions])
     seeds = simulation_seeds(settings.seed, resample, settings.sim_repetitions)
-    x0 = settings.to_normalised([parameters[name] for name in settings.parameters])
+    x0 = settings.to_normalised([number_parameter(parameters, name) for name in settings.parameters])
     options = {"popsize": settings.popsize, "bounds": [0.0, 1.0], "seed": settings.seed + resample,
                "verbose": -9, "verb_log": 0, "verb_disp": 0}
     if len(x0) == 1:  # pycma cannot rescale one coordinate's step to its bound range in 1-D (it raises): no limit
@@ -479,7 +480,7 @@ class ParameterEstimate:
         """Standard deviation of the bootstrap fits (the stated uncertainty); NaN with fewer than 2."""
         return float(np.std(self.bootstrap, ddof=1)) if len(self.bootstrap) >= 2 else math.nan
 
-    def row(self) -> typing.Dict[str, typing.Any]:
+    def row(self) -> typing.Dict[str, object]:
         """Flat dict for a CSV table."""
         spread = (min(self.bootstrap), max(self.bootstrap)) if self.bootstrap else (math.nan, math.nan)
         return {"parameter": self.name, "initial": self.initial, "fitted": self.fitted,
@@ -506,7 +507,7 @@ class CalibrationResult:
         """``{config key: fitted value}``."""
         return {e.name: e.fitted for e in self.estimates}
 
-    def condition_rows(self) -> typing.List[typing.Dict[str, typing.Any]]:
+    def condition_rows(self) -> typing.List[typing.Dict[str, object]]:
         """Per grouped condition: measured vs predicted success rate before and after."""
         r = self.sim_repetitions
         return [{"configuration": c.configuration, "height_m": c.height_m, "speed_mps": c.speed_mps,
@@ -520,7 +521,7 @@ class CalibrationResult:
                 for c, k in zip(self.conditions, upright)]
 
     def configuration_rows(self, configuration_order: typing.Optional[typing.Sequence[str]] = None
-                           ) -> typing.List[typing.Dict[str, typing.Any]]:
+                           ) -> typing.List[typing.Dict[str, object]]:
         """Per configuration: measured trial and condition (majority rule) rates, predicted before and after."""
         measured = summarise(self.conditions, ("configuration",), configuration_order)
         before = summarise(self.predicted_conditions(self.before_upright), ("configuration",),
@@ -546,7 +547,7 @@ class CalibrationResult:
         return out
 
 
-def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mapping[str, typing.Any],
+def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mapping[str, object],
               settings: CalibrationSettings, pool: LaunchPool,
               on_progress: typing.Optional[typing.Callable[[str], None]] = None,
               characterisation: typing.Optional[Characterisation] = None) -> CalibrationResult:
@@ -568,7 +569,7 @@ def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mappi
     check_fittable(parameters, settings)
     conditions = group_conditions(outcomes)
     say = on_progress or (lambda line: None)
-    initial = [float(parameters[name]) for name in settings.parameters]
+    initial = [number_parameter(parameters, name) for name in settings.parameters]
     seeds = simulation_seeds(settings.seed, 0, settings.sim_repetitions)
     before = pool.predicted_upright([twin_settings_with(parameters, settings.parameters, initial)], conditions,
                                     seeds)[0]
@@ -611,16 +612,15 @@ def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mappi
                              after_log_likelihood=main.log_likelihood, estimates=estimates, evaluations=evaluations)
 
 
-def calibrated_parameter_document(fitted: typing.Mapping[str, float]) -> typing.Dict[str, typing.Any]:
+def calibrated_parameter_document(fitted: typing.Mapping[str, float]) -> ParameterDocument:
     """The calibrated ROS 2 parameter file as a dict: ``/**: {ros__parameters: {...}}``, ``fitted`` (config keys to
     values) nested under their namespaces: only keys of the twin's namespaces, so every command that reads the twin
     applies all of them (a key a command does not apply is refused: ``config.check_given_files``)."""
-    flat: typing.Dict[str, typing.Any] = {name: float(value) for name, value in fitted.items()}
-    return parameter_document(flat)
+    return parameter_document({name: float(value) for name, value in fitted.items()})
 
 
 def rig_parameter_document(calibrated_path: typing.Union[str, os.PathLike],
-                           twin_configs: typing.Sequence[str] = TWIN_CONFIGS) -> typing.Dict[str, typing.Any]:
+                           twin_configs: typing.Sequence[str] = TWIN_CONFIGS) -> ParameterDocument:
     """The rig's parameter file for a calibrated twin: ``rig.twin_config`` = ``twin_configs`` plus
     ``calibrated_path``, so a rig node given it (``--params-file``) launches its sim backend on the calibrated twin
     (a node drops parameters it does not declare, such as ``launch_twin.*``)."""

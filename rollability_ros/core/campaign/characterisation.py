@@ -30,6 +30,8 @@ import math
 import os
 import typing
 
+from rollability_ros.core import config
+
 #: The ``format`` line of a characterisation file.
 FORMAT = "rollability-characterisation-1"
 #: Surfaces of a roll-out reading (:data:`rollability_ros.core.sim.rollout.SURFACES`, kept here so the parser
@@ -98,7 +100,7 @@ def _readings(value: typing.Any, where: str) -> typing.List[typing.Any]:
     return value
 
 
-def parse_characterisation(document: typing.Any, source: str) -> Characterisation:
+def parse_characterisation(document: object, source: str) -> Characterisation:
     """The :class:`Characterisation` of a loaded YAML ``document``; ``ValueError`` naming ``source`` and the
     first problem."""
     try:
@@ -155,10 +157,11 @@ def load_characterisation(path: typing.Union[str, os.PathLike]) -> Characterisat
     return parse_characterisation(document, source)
 
 
-def slide_angle_deg(parameters: typing.Mapping[str, typing.Any]) -> float:
+def slide_angle_deg(parameters: typing.Mapping[str, object]) -> float:
     """The twin's slide angle (deg) of a printed coupon on the foam: atan(``sim.lateral_friction`` x
     ``launch_twin.foam.lateral_friction``) of flat ``parameters`` (module docstring)."""
-    mu = float(parameters["sim.lateral_friction"]) * float(parameters["launch_twin.foam.lateral_friction"])
+    mu = (config.number_parameter(parameters, "sim.lateral_friction")
+          * config.number_parameter(parameters, "launch_twin.foam.lateral_friction"))
     return math.degrees(math.atan(mu))
 
 
@@ -168,7 +171,7 @@ def _gaussian(observed: float, predicted: float, sigma: float) -> float:
 
 
 def characterisation_log_likelihood(characterisation: Characterisation,
-                                    parameters: typing.Mapping[str, typing.Any]) -> float:
+                                    parameters: typing.Mapping[str, object]) -> float:
     """log P(readings | twin of flat ``parameters``): the sum over readings of each measurement model's Gaussian
     (module docstring). Roll-outs are simulated once per distinct (surface, speed)."""
     total = sum(_gaussian(angle, slide_angle_deg(parameters), characterisation.slide_sigma_deg)

@@ -21,7 +21,7 @@ import time
 import typing
 
 from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, changes_between
-from rollability_ros.core.config import check_given_files, load_parameters, settings_from_sections
+from rollability_ros.core.config import as_list, check_given_files, load_parameters, settings_from_sections
 from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, LaunchAborted,
                                       LaunchBackend, RigPorts, RigSettings, SpeedGate, SpeedGateConfig, ValveConfig,
@@ -370,7 +370,7 @@ class LocalRigSettings:
     imu_outcome: ImuOutcomeConfig = dataclasses.field(default_factory=ImuOutcomeConfig)
 
 
-def local_rig_settings(backend: str, parameters: typing.Mapping[str, typing.Any]) -> LocalRigSettings:
+def local_rig_settings(backend: str, parameters: typing.Mapping[str, object]) -> LocalRigSettings:
     """Parse flat rig parameters (``load_parameters(["rig"])``: ``rig.*``, ``valve.*``, ``speed_gate.*``,
     ``imu_outcome.*``) once, with ``rig.backend`` set to ``backend`` (``"sim"`` or ``"physical"``, the command
     line's); a bad value raises ConfigError naming its parameter."""
@@ -391,7 +391,7 @@ def local_rig_settings_from_files(backend: str, paths: typing.Optional[typing.Se
     parameters = load_parameters(paths)
     extra = twin_files(paths, TWIN_SECTIONS)
     if extra:
-        twin = list(parameters.get("rig.twin_config", RigSettings().twin_config))
+        twin = as_list(parameters.get("rig.twin_config", RigSettings().twin_config))
         parameters["rig.twin_config"] = [*twin, *(path for path in extra if path not in twin)]
     return local_rig_settings(backend, parameters)
 

@@ -36,7 +36,7 @@ DEFAULT_CONFIGS = ("sim", "robot", "evaluator", "launch_twin", "rig", "campaign"
 NODE_PARAMS_DIR = "node-params"
 
 
-def override_file(directory: str, label: str, params: typing.Mapping[str, typing.Any]) -> str:
+def override_file(directory: str, label: str, params: typing.Mapping[str, object]) -> str:
     """Write ``params`` (``{"section.name": value}``) as the ROS 2 parameter file
     ``<directory>/node-params/<label>.yaml`` (for every node, ``/**``; nested, since a dotted key in a file does not
     override the same parameter nested in an earlier file) and return its path (module docstring)."""

@@ -78,7 +78,7 @@ class SessionInfo:
                 f"{self.directory} ... | rollability view --session {self.directory}",
                 f"join (other ROS 2 tools): {raw} with namespace {self.namespace}, e.g. `{raw} ros2 topic list`"]
 
-    def to_document(self) -> typing.Dict[str, typing.Any]:
+    def to_document(self) -> typing.Dict[str, object]:
         """The ``session.yaml`` mapping."""
         return {"session": dataclasses.asdict(self)}
 

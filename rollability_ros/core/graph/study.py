@@ -38,10 +38,14 @@ from rollability_ros.core.graph.bringup import (DEFAULT_CONFIGS, NodeLaunch, add
 from rollability_ros.core.graph.preflight import graph_namespaces
 from rollability_ros.core.graph.session import SessionInfo, start_session
 from rollability_ros.core.graph.progress import GraphObserver, JobProgress, ProgressDisplay, Stopwatch, eta_s
-from rollability_ros.core.config import check_given_files, check_path_component, load_parameters
+from rollability_ros.core.config import (as_list, check_given_files, check_path_component, integer_parameter,
+                                         load_parameters)
 from rollability_ros.core.records import LaunchOutcome
 from rollability_ros.core.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
+
+if typing.TYPE_CHECKING:  # annotations only (the bag layer is loaded where bags are read)
+    from rollability_ros.core.bags import TopicWindow
 
 #: The optimization run inside a study directory.
 OPTIMIZATION_DIR = "optimization"
@@ -225,7 +229,7 @@ class Study:
     def _progress_optimization(self):
         """Snapshots of the optimization phase: one per generation completed since the last call (a plain log
         then shows every generation), or one phase snapshot when none is new."""
-        cap = int(self.parameters.get("optimizer.max_generations", 0) or 0)
+        cap = integer_parameter(self.parameters, "optimizer.max_generations", 0)
         history = self.observer.optimizer_progress() if self.observer is not None else []
         if not history:
             return [JobProgress("optimizing: nodes starting", max_generations=cap)]
@@ -331,13 +335,13 @@ class Study:
         """The labels of the selected designs (may be empty), or None before selection has written designs.yaml."""
         if not os.path.isfile(self.designs_file):
             return None
-        return list(load_parameters([self.designs_file]).get("designs.labels", []))
+        return as_list(load_parameters([self.designs_file]).get("designs.labels", []))
 
     def _campaign_size(self, configurations):
         per_configuration = 1
         for key in ("campaign.heights_m", "campaign.speeds_mps", "campaign.angles_deg"):
-            per_configuration *= len(self.parameters.get(key, [None]))
-        return configurations * per_configuration * int(self.parameters.get("campaign.repetitions", 1))
+            per_configuration *= len(as_list(self.parameters.get(key, [None])))
+        return configurations * per_configuration * integer_parameter(self.parameters, "campaign.repetitions", 1)
 
     def _record_campaign_designs(self):
         """Record in the store the designs the campaign launched (the rig's designs_file, :meth:`_campaign_nodes`),
@@ -406,7 +410,7 @@ def _clock_ns(time_ns):
     return datetime.datetime.fromtimestamp(time_ns / 1e9, datetime.timezone.utc).strftime("%H:%M:%S.%f")[:-3]
 
 
-def topic_windows_text(window: typing.Mapping[str, typing.Mapping[str, typing.Any]],
+def topic_windows_text(window: typing.Mapping[str, "TopicWindow"],
                        known: typing.Optional[typing.Mapping[str, int]] = None) -> str:
     """One restart's per-topic missed windows (:func:`~rollability_ros.core.bags.recover.missed_windows`) as text:
     ``/ns/rig/pose 10:00:01.200 to 10:00:06.800 UTC (5.6 s, about 560 messages at its 100 Hz)``, one per topic.
@@ -440,7 +444,7 @@ _COUNTED_TOPIC = "launch_outcomes"
 
 def compare_bags_with_store(bagged_trial_ids: typing.Collection[str], stored_outcomes: typing.Iterable[LaunchOutcome],
                             gaps: typing.Sequence[typing.Tuple[int, typing.Optional[int]]],
-                            topic_windows: typing.Iterable[typing.Mapping[str, typing.Any]] = ()
+                            topic_windows: typing.Iterable[typing.Mapping[str, "TopicWindow"]] = ()
                             ) -> typing.Tuple[str, str]:
     """Check that every stored launch outcome is in a bag, or was stamped inside a reported recording gap.
 

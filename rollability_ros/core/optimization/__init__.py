@@ -3,6 +3,8 @@
 - cmaes: ask / tell / stop / result around pycma
 - quality_diversity: CMA-MAE (pyribs) filling a maximum height x sharpness archive
 - optimization_run: generations through an injected evaluator, logged, checkpointed, resumable
+- run_directory: a run's folder, its config.yaml and the parameter files it is loaded from
+- batch_evaluation: the in-process evaluators a run is handed (evaluate_profile on a trial executor)
 - checkpoint: atomic checkpoints checked against the run's config
 - evaluator_pool: a batch of evaluations spread over the available evaluators
 - selection: designs A/B/C from a run's log or its archive

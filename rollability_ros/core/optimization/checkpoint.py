@@ -48,7 +48,23 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
         os.close(descriptor)
 
 
-def config_hash(parameters: Mapping[str, typing.Any]) -> str:
+class Checkpoint(typing.TypedDict):
+    """A checkpoint's body (:func:`checkpoint_bytes` writes it, :func:`load_checkpoint` returns it once its format
+    and SHA-256 show this code wrote it)."""
+
+    format: int
+    run_id: str
+    #: The optimizer's generation counter after the checkpointed generation (``optimizer["generation"]``).
+    generation: int
+    config_hash: str
+    #: The run's flat parameters.
+    parameters: typing.Dict[str, object]
+    #: The optimizer's ``state_dict()``, JSON data its method's ``create(state=...)`` reads back.
+    optimizer: typing.Dict[str, object]
+    best_so_far: float | None
+
+
+def config_hash(parameters: Mapping[str, object]) -> str:
     """Return a stable hex digest of a flat ``{dotted name: value}`` parameter dict (order-independent)."""
     text = json.dumps(parameters, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
@@ -61,7 +77,7 @@ def _show(value):
     return "(unset)" if value is _UNSET else repr(value)
 
 
-def parameter_differences(saved: Mapping[str, typing.Any], current: Mapping[str, typing.Any]) -> list[str]:
+def parameter_differences(saved: Mapping[str, object], current: Mapping[str, object]) -> list[str]:
     """Return ``["name: saved -> current", ...]`` for every parameter that differs (added, removed or changed)."""
     lines = []
     for name in sorted(set(saved) | set(current)):
@@ -75,18 +91,21 @@ def _canonical(body):
     return json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False, default=str).encode("utf-8")
 
 
-def checkpoint_bytes(run_id: str, parameters: Mapping[str, typing.Any], optimizer_state: Mapping[str, typing.Any],
+def checkpoint_bytes(run_id: str, parameters: Mapping[str, object], optimizer_state: Mapping[str, object],
                      best_so_far: float | None) -> bytes:
     """Return the checkpoint file's bytes (JSON) for ``run_id`` after ``optimizer_state["generation"]``."""
-    body = {"format": CHECKPOINT_FORMAT, "run_id": run_id, "generation": optimizer_state["generation"],
-            "config_hash": config_hash(parameters), "parameters": dict(parameters),
-            "optimizer": optimizer_state, "best_so_far": best_so_far}
+    generation = optimizer_state["generation"]
+    if isinstance(generation, bool) or not isinstance(generation, int):
+        raise ValueError(f"optimizer state's generation must be an integer, got {generation!r}")
+    body = Checkpoint(format=CHECKPOINT_FORMAT, run_id=run_id, generation=generation,
+                      config_hash=config_hash(parameters), parameters=dict(parameters),
+                      optimizer=dict(optimizer_state), best_so_far=best_so_far)
     canonical = _canonical(body)
     return _canonical({"sha256": hashlib.sha256(canonical).hexdigest(), "checkpoint": json.loads(canonical)})
 
 
-def save_checkpoint(path: str | os.PathLike[str], run_id: str, parameters: Mapping[str, typing.Any],
-                    optimizer_state: Mapping[str, typing.Any], best_so_far: float | None) -> str:
+def save_checkpoint(path: str | os.PathLike[str], run_id: str, parameters: Mapping[str, object],
+                    optimizer_state: Mapping[str, object], best_so_far: float | None) -> str:
     """Atomically write the checkpoint of ``run_id``; return the SHA-256 hex digest of the file written."""
     data = checkpoint_bytes(run_id, parameters, optimizer_state, best_so_far)
     atomic_write_bytes(path, data)
@@ -99,7 +118,7 @@ def file_sha256(path: str | os.PathLike[str]) -> str:
         return hashlib.sha256(stream.read()).hexdigest()
 
 
-def load_checkpoint(path: str | os.PathLike[str]) -> dict[str, typing.Any] | None:
+def load_checkpoint(path: str | os.PathLike[str]) -> Checkpoint | None:
     """Return the checkpoint body at ``path``, or None if there is none; ``ValueError`` naming why it is unusable
     (not JSON, checksum mismatch, wrong format). Only parses data: nothing in the file is executed."""
     try:
@@ -122,7 +141,7 @@ def load_checkpoint(path: str | os.PathLike[str]) -> dict[str, typing.Any] | Non
     return body
 
 
-def check_same_config(checkpoint: Mapping[str, typing.Any], parameters: Mapping[str, typing.Any],
+def check_same_config(checkpoint: Checkpoint, parameters: Mapping[str, object],
                       path: str | os.PathLike[str]) -> None:
     """Raise :class:`ConfigError` listing the differing parameters if ``parameters`` differ from the checkpoint's."""
     if checkpoint["config_hash"] == config_hash(parameters):

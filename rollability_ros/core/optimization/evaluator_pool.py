@@ -316,7 +316,7 @@ class EvaluatorPool:
 
     def fidelity_evaluator(self, fidelity: str) -> Callable[[Iterable[Iterable[float]], int, int], BatchResults]:
         """``evaluate(heights_list, seed, trials)`` over this pool at evaluation ``fidelity`` (as
-        :func:`optimization_run.fidelity_batch_evaluator`, over the graph's evaluators; each heights
+        :func:`batch_evaluation.fidelity_batch_evaluator`, over the graph's evaluators; each heights
         ``(n_variables,)``, simulation units)."""
         def evaluate(heights_list: Iterable[Iterable[float]], seed: int, trials: int) -> BatchResults:
             requests = [EvaluationRequest(tuple(float(h) for h in heights), int(trials), int(seed), fidelity)

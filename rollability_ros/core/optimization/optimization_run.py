@@ -9,9 +9,10 @@ one tuple per height array (``(n_variables,)``, simulation units), every profile
 disturbance seed. A failed evaluation must raise, never return 0 successes: the generation is then abandoned
 without a checkpoint and redone on resume.
 
-Run directory ``<output_dir>/<run_id>/``: ``config.yaml`` (the merged parameters, a ROS 2 parameter file),
-``store.sqlite`` (every candidate and generation summary), ``checkpoint.json`` (after each completed generation; its SHA-256 is recorded in the store)
-and, later, the designs exported by selection.
+Run directory ``<output_dir>/<run_id>/`` (:mod:`~rollability_ros.core.optimization.run_directory`): ``config.yaml``
+(the merged parameters, a ROS 2 parameter file), ``store.sqlite`` (every candidate and generation summary),
+``checkpoint.json`` (after each completed generation; its SHA-256 is recorded in the store) and, later, the designs
+exported by selection. The in-process evaluators live in :mod:`~rollability_ros.core.optimization.batch_evaluation`.
 
 Generations are numbered from 1 (:data:`FIRST_GENERATION`) in the store, the messages, bags, logs and reports;
 the seeds of generation number n are derived from its index n - 1, as before. Runs stored before this numbering
@@ -23,7 +24,8 @@ The optimizer is pluggable: :class:`OptimizationRun` drives an
 incumbent's re-evaluation, ``archive_rows`` -- None without an archive -- and ``archive_summary`` for a
 quality-diversity archive, stored in the run info under ``archive`` after every
 generation). :func:`run_generations` is the one loop (stop / pause / give-up policy) that ``rollability optimize``
-and the ``optimizer`` node run; :func:`run_target` is the one resolution of which run to start or continue.
+and the ``optimizer`` node run; :func:`~rollability_ros.core.optimization.run_directory.run_target` is the one
+resolution of which run to start or continue.
 
 Order within generation g: population -> store each candidate -> tell -> incumbent re-evaluation (stored as
 candidate index ``popsize``) -> store the generation summary -> checkpoint. A run killed anywhere in between
@@ -31,7 +33,6 @@ resumes from the last checkpoint and redoes generation g; candidates already sto
 their heights and seed are identical (evaluations are deterministic in heights and seed) and a stored
 candidate that differs is an error. Either way the stored sequence equals that of an uninterrupted run.
 """
-import concurrent.futures
 import dataclasses
 import os
 import threading
@@ -39,11 +40,10 @@ import time
 import typing
 
 import numpy as np
-import yaml
 
 from rollability_ros.core.optimization import checkpoint as checkpoints
-from rollability_ros.core.config import (ConfigError, check_given_files, check_path_component, load_parameters,
-                                         parameter_document, resolve_config_path, settings_from_sections)
+from rollability_ros.core.config import (ConfigError, as_list, check_given_files, load_parameters,
+                                         settings_from_sections)
 from rollability_ros.core.optimization.cmaes import (
     STREAM_POPULATION,
     STREAM_RACE,
@@ -52,32 +52,21 @@ from rollability_ros.core.optimization.cmaes import (
     IncumbentOptimizer,
     OptimizerResult,
     OptimizerSettings,
-    ProfileOptimizer,
     derive_seed,
     random_initial_means,
 )
 from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
 from rollability_ros.core.profile import PrinterSpec, ProfileGrid
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, RunProgress
+from rollability_ros.core.optimization.run_directory import (OUTPUT_DIR_PARAMETER, RUN_CONFIG_FILENAME, RUN_KIND,
+                                                            check_new_run_dir, read_run_config, run_id_of,
+                                                            write_run_config)
 from rollability_ros.core.sim import (SETTINGS_SECTIONS, TWIN_NAMESPACE, EvaluatorSettings, ObjectiveSettings,
-                                      ScreenSettings, TrialBatchEngine, TrialExecutor, twin_files)
+                                      ScreenSettings, twin_files)
 from rollability_ros.core.store import Store
 
-#: File name of the merged parameters inside a run directory.
-RUN_CONFIG_FILENAME = "config.yaml"
-#: The parameter naming the folder runs are kept in (not a setting of the run itself).
-OUTPUT_DIR_PARAMETER = "optimizer.output_dir"
-#: ``kind`` of optimization runs in the store's run table.
-RUN_KIND = "optimization"
-#: Parameter files every optimization config is loaded on top of (the evaluator's settings).
-BASE_CONFIGS = ("sim", "robot", "evaluator")
 #: Number of a run's first generation wherever generations are shown or stored.
 FIRST_GENERATION = 1
-
-
-def new_run_id(now_s: typing.Optional[float] = None) -> str:
-    """Return a run id from the local time, ``opt-YYYYmmdd-HHMMSS``."""
-    return time.strftime("opt-%Y%m%d-%H%M%S", time.localtime(time.time() if now_s is None else now_s))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,7 +82,7 @@ class RunSettings:
     printer: typing.Optional[PrinterSpec] = None
 
 
-def run_settings(parameters: typing.Mapping[str, typing.Any]) -> RunSettings:
+def run_settings(parameters: typing.Mapping[str, object]) -> RunSettings:
     """Parse a run's flat parameters once into :class:`RunSettings` (defaults where a namespace is absent); a bad
     value raises :class:`ConfigError` naming its parameter (``optimizer.popsize out of range: 1 is not in [2,
     100000]``)."""
@@ -109,27 +98,9 @@ class RunConfig:
     parameters: typing.Mapping[str, typing.Any]
 
 
-def run_config(parameters: typing.Mapping[str, typing.Any]) -> RunConfig:
+def run_config(parameters: typing.Mapping[str, object]) -> RunConfig:
     """The edge's one parse of a run's flat parameters (:func:`run_settings`), kept with them as the record."""
     return RunConfig(run_settings(parameters), dict(parameters))
-
-
-#: The shipped optimiser defaults, loaded under the given files unless they name an optimiser file themselves.
-OPTIMIZER_CONFIGS = ("optimizer", "paper")
-
-
-def load_run_parameters(config_paths: typing.Union[str, os.PathLike, typing.Sequence]) -> dict:
-    """Merge :data:`BASE_CONFIGS` and ``config_paths`` (one or a list of paths or shipped names such as
-    ``"paper"``; later files win, e.g. ``["optimizer", "runs/cal/calibrated.yaml"]``). Unless the list names a
-    shipped optimiser file (:data:`OPTIMIZER_CONFIGS`), ``config/optimizer.yaml`` goes first: a robot config
-    alone (``--config robot.yaml``) runs on the shipped defaults, and its own ``optimizer`` keys win."""
-    if isinstance(config_paths, (str, os.PathLike)):
-        config_paths = [config_paths]
-    config_paths = list(config_paths)
-    shipped = {os.path.abspath(resolve_config_path(name)) for name in OPTIMIZER_CONFIGS}
-    named = any(os.path.abspath(resolve_config_path(path)) in shipped for path in config_paths)
-    defaults = [] if named else [OPTIMIZER_CONFIGS[0]]
-    return load_parameters(list(BASE_CONFIGS) + defaults + config_paths)
 
 
 #: The namespaces an optimization run applies: its own (:class:`RunSettings`), the evaluation's, the selection that
@@ -138,7 +109,7 @@ RUN_NAMESPACES = frozenset({*(field.name for field in dataclasses.fields(RunSett
                             *SETTINGS_SECTIONS.values(), TWIN_NAMESPACE})
 
 
-def with_given_files(parameters: typing.Mapping[str, typing.Any], config_paths: typing.Sequence[str],
+def with_given_files(parameters: typing.Mapping[str, object], config_paths: typing.Sequence[str],
                      command: str) -> dict:
     """``parameters`` with the files a user gave ``command`` merged over them (later files win), once every
     parameter in those files is one a run applies (:data:`RUN_NAMESPACES`; else :class:`ConfigError` naming the
@@ -148,68 +119,9 @@ def with_given_files(parameters: typing.Mapping[str, typing.Any], config_paths: 
     merged = {**parameters, **load_parameters(list(config_paths))} if config_paths else dict(parameters)
     extra = twin_files(config_paths)
     if extra:
-        twin = list(merged.get("objective.twin_config", ObjectiveSettings().twin_config))
+        twin = as_list(merged.get("objective.twin_config", ObjectiveSettings().twin_config))
         merged["objective.twin_config"] = [*twin, *(path for path in extra if path not in twin)]
     return merged
-
-
-def resolve_run_dir(run: typing.Union[str, os.PathLike], output_dir: str = "runs") -> str:
-    """Return the directory of ``run``: a run directory path as given, else ``<output_dir>/<run>``."""
-    if os.path.isfile(os.path.join(run, RUN_CONFIG_FILENAME)):
-        return os.fspath(run)
-    return os.path.join(output_dir, run)
-
-
-def run_id_of(run_dir: typing.Union[str, os.PathLike]) -> str:
-    """The run id of a run directory: its name."""
-    return os.path.basename(os.path.normpath(os.fspath(run_dir)))
-
-
-def write_run_config(path: typing.Union[str, os.PathLike], parameters: dict) -> None:
-    """Write flat ``parameters`` as a ROS 2 parameter file (``/**: {ros__parameters: {...}}``), atomically."""
-    text = yaml.safe_dump(parameter_document(parameters), sort_keys=True)
-    checkpoints.atomic_write_bytes(path, text.encode("utf-8"))
-
-
-def check_new_run_dir(run_dir: str) -> None:
-    """Raise ValueError when ``run_dir`` exists and is not an empty folder: a new run never writes into a folder
-    that holds anything (another run, a study, files of the user), so a refused start leaves it as it was."""
-    if os.path.lexists(run_dir) and not (os.path.isdir(run_dir) and not os.listdir(run_dir)):
-        what = ("run" if os.path.isfile(os.path.join(run_dir, RUN_CONFIG_FILENAME)) else "folder")
-        raise ValueError(f"{what} {run_dir} already exists; resume it (--resume) or choose another run id"
-                         if what == "run" else f"{run_dir} already exists and is not an empty folder; choose "
-                         "another run id")
-
-
-def run_target(run_id: str, resume: bool, parameters: typing.Optional[dict],
-               output_dir: str = "runs") -> typing.Tuple[str, dict]:
-    """``(run_dir, parameters)`` of the run to start or continue: the one resolution the CLI and the node share.
-
-    A new run needs ``parameters`` and lives in ``<output_dir>/<run_id>`` (``run_id`` "" -> :func:`new_run_id`).
-    Resuming needs ``run_id`` (an id under ``output_dir`` or a run directory); its saved ``config.yaml`` is used
-    with ``parameters`` (if any) on top, so :class:`OptimizationRun` refuses a resume whose settings differ.
-    """
-    if not resume:
-        if parameters is None:
-            raise ValueError("a new run needs its parameters (e.g. --config optimizer, --config paper)")
-        run_id = check_path_component(run_id, "the run id") if run_id else new_run_id()
-        run_dir = os.path.join(output_dir, run_id)
-        check_new_run_dir(run_dir)
-        return run_dir, dict(parameters)
-    if not run_id:
-        raise ValueError("resume needs the run id (or directory) of the run to continue")
-    run_dir = resolve_run_dir(run_id, output_dir)
-    return run_dir, {**read_run_config(run_dir), **(parameters or {})}
-
-
-def cmaes_optimizer(n_variables: int, settings: OptimizerSettings, lower: float, upper: float,
-                    clock: typing.Callable[[], float], initial_mean: typing.Optional[np.ndarray] = None,
-                    state: typing.Optional[dict] = None) -> ProfileOptimizer:
-    """An ``optimizer_factory`` for CMA-ES over explicit bounds: a :class:`ProfileOptimizer`, new or restored from a
-    checkpoint ``state``; ``initial_mean`` ``(n_variables,)`` simulation units (None: the paper's random start)."""
-    if state is None:
-        return ProfileOptimizer(n_variables, settings, lower, upper, clock, initial_mean)
-    return ProfileOptimizer.from_state_dict(state, n_variables, settings, lower, upper, clock, initial_mean)
 
 
 def check_method_settings(settings: RunSettings) -> None:
@@ -225,14 +137,6 @@ def make_optimizer(grid: ProfileGrid, settings: RunSettings, clock: typing.Calla
     over ``grid``'s variables and bounds, new or restored from a checkpoint ``state``; ``initial_mean``
     ``(grid.n_variables,)`` simulation units (None: the paper's random start)."""
     return OPTIMIZER_METHODS.get(settings.optimizer.method).create(grid, settings, clock, initial_mean, state)
-
-
-def read_run_config(run_dir: typing.Union[str, os.PathLike]) -> dict:
-    """Return the flat parameters saved in ``<run_dir>/config.yaml``; ``FileNotFoundError`` if it is not a run."""
-    path = os.path.join(run_dir, RUN_CONFIG_FILENAME)
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"{run_dir} is not an optimization run (no {RUN_CONFIG_FILENAME})")
-    return load_parameters(path)
 
 
 def profile_screen(settings: RunSettings, evaluator_settings: EvaluatorSettings,
@@ -729,62 +633,3 @@ def run_generations(run: OptimizationRun, stop_requested: typing.Callable[[], bo
                               f"generation {run.generation_number(run.optimizer.generation)} got no real results "
                               f"({exc})")
     return RunEnd("stopped" if stop_requested() else "finished", run.optimizer.result)
-
-
-def profile_batch_evaluator(settings: EvaluatorSettings, trials: int, executor: TrialExecutor,
-                            name: str = "local", engine: typing.Optional[TrialBatchEngine] = None) -> typing.Callable:
-    """``evaluate_batch`` over :func:`evaluation.evaluate_profile` on ``executor`` (a LocalExecutor or RayExecutor).
-
-    The profiles of a batch are evaluated concurrently (one thread each submitting its trial batches), so the
-    workers stay busy across candidates; ``trials`` per profile, ``settings`` an ``EvaluatorSettings``. With at
-    least two profiles per local worker, each profile's trials go to one worker as one task (one world build and
-    one round trip per profile; split into ``evaluator.batch_trials`` tasks, every worker built every profile's
-    world: a paper-config generation took 1.84x as long in ``bench/bench_engines.py``).
-    ``engine``, a :class:`~rollability_ros.core.sim.evaluation.TrialBatchEngine`, gets each batch of profiles'
-    trials in one call instead (an engine that steps many worlds at once); the optimizer is the same.
-    """
-    from rollability_ros.core.sim import evaluate_jobs, profile_job, settings_at_fidelity
-
-    if engine is not None:
-        screen = settings_at_fidelity(settings, "screen")   # the screen's engine (objective.screen_engine)
-
-        def evaluate_engine_batch(heights_list: typing.Sequence[np.ndarray], seed: int) -> typing.List[tuple]:
-            """``(successes, trials, eval_time_s, engine)`` of each heights ``(n_variables,)`` on ``engine``."""
-            jobs = [profile_job(heights, screen) for heights in heights_list]
-            return [(r.successes, r.trials, r.eval_time_s, engine.name)
-                    for r in evaluate_jobs(jobs, trials, seed, engine)]
-        return evaluate_engine_batch
-
-    evaluate = fidelity_batch_evaluator(settings, executor, "screen", name)
-
-    def evaluate_batch(heights_list: typing.Sequence[np.ndarray], seed: int) -> typing.List[tuple]:
-        """``(successes, trials, eval_time_s, evaluator)`` of each heights ``(n_variables,)``, ``trials`` each."""
-        return evaluate(heights_list, seed, trials)
-
-    return evaluate_batch
-
-
-def fidelity_batch_evaluator(settings: EvaluatorSettings, executor: TrialExecutor, fidelity: str = "screen",
-                             name: str = "local") -> typing.Callable:
-    """``evaluate(heights_list, seed, trials)`` at evaluation ``fidelity`` (``screen``: the configured objective;
-    ``launch``: robust twin launches, :func:`evaluation.settings_at_fidelity`) on ``executor``; each result
-    ``(successes, trials, eval_time_s, name)``. Concurrency as :func:`profile_batch_evaluator`."""
-    from rollability_ros.core.sim import evaluate_profile, settings_at_fidelity
-
-    settings = settings_at_fidelity(settings, fidelity)
-    workers = executor.workers if executor is not None else None   # None: serial, in this process
-
-    def evaluate(heights_list: typing.Sequence[np.ndarray], seed: int, trials: int) -> typing.List[tuple]:
-        """``(successes, trials, eval_time_s, evaluator)`` of each heights ``(n_variables,)`` at the fidelity."""
-        whole = dataclasses.replace(settings, evaluator=dataclasses.replace(settings.evaluator, batch_trials=trials))
-        chosen = whole if workers is not None and len(heights_list) >= 2 * workers else settings
-        threads = concurrent.futures.ThreadPoolExecutor(max_workers=max(1, len(heights_list)))
-        try:
-            futures = [threads.submit(evaluate_profile, heights, trials, seed, chosen, executor)
-                       for heights in heights_list]
-            results = [future.result() for future in futures]
-        finally:
-            threads.shutdown(wait=False, cancel_futures=True)
-        return [(r.successes, r.trials, r.eval_time_s, name) for r in results]
-
-    return evaluate

@@ -75,7 +75,7 @@ class CellSummary:
         """Wilson 95 % interval of ``trial_rate``: (low, high)."""
         return wilson_interval(self.successes, self.trials)
 
-    def row(self) -> typing.Dict[str, typing.Any]:
+    def row(self) -> typing.Dict[str, object]:
         """Flat dict for a CSV table: factors, counts, rates in [0, 1] and the interval."""
         low, high = self.trial_ci
         return {**self.key, "conditions": self.conditions, "conditions_succeeded": self.conditions_succeeded,
@@ -400,9 +400,9 @@ def convergence(generations: typing.Iterable[GenerationRecord] = (),
 GEOMETRY_COLUMNS = ("configuration", "length_m", "width_m", "max_height_m")
 
 
-def geometry_table(rows: typing.Iterable[typing.Mapping[str, typing.Any]],
+def geometry_table(rows: typing.Iterable[typing.Mapping[str, typing.Union[str, float]]],
                    configuration_order: typing.Sequence[str] = ("baseline", "A", "B", "C")
-                   ) -> typing.List[typing.Dict[str, typing.Any]]:
+                   ) -> typing.List[typing.Dict[str, typing.Union[str, float]]]:
     """Check and order the rows of Table 3 (overall dimensions and maximum profile height per configuration).
 
     Parameters
@@ -419,17 +419,18 @@ def geometry_table(rows: typing.Iterable[typing.Mapping[str, typing.Any]],
         out = dict(row)
         for column in GEOMETRY_COLUMNS[1:]:
             try:
-                out[column] = float(row[column])
+                value = float(row[column])
             except (TypeError, ValueError):
                 raise ValueError(f"geometry row {number}: {column} must be a number, got {row[column]!r}") from None
-            if not math.isfinite(out[column]) or out[column] < 0:
+            out[column] = value
+            if not math.isfinite(value) or value < 0:
                 raise ValueError(f"geometry row {number}: {column} must be >= 0 m, got {row[column]!r}")
         checked.append(out)
     rank = _configuration_rank(configuration_order)
     return sorted(checked, key=lambda r: rank(str(r["configuration"])))
 
 
-def tip_event_summary(events: typing.Iterable[TipEventRecord]) -> typing.List[typing.Dict[str, typing.Any]]:
+def tip_event_summary(events: typing.Iterable[TipEventRecord]) -> typing.List[typing.Dict[str, object]]:
     """Per robot: events, recovered, recovery rate with Wilson interval, median duration s, worst tilt deg."""
     per_robot: typing.Dict[str, list] = {}
     for event in events:

@@ -162,8 +162,26 @@ def serve(port_file: str, log_path: str, max_pulse_ms: int = DEFAULT_MAX_PULSE_M
         os.close(slave_fd)
 
 
+class BoardLogEntry(typing.TypedDict, total=False):
+    """One line of the simulated board's JSON log: every entry has the event, the relay state after it and its
+    wall and monotonic times; the other keys belong to one event each."""
+
+    event: typing.Required[str]         # relay, command, cut, restore, estop, overslept, boot, start, exit
+    relay: typing.Required[str]         # "on" or "off" after the event
+    time_s: typing.Required[float]
+    monotonic_s: typing.Required[float]
+    reason: str                         # relay: why it switched
+    line: str                           # command: the line received
+    answer: str                         # command: the board's answer
+    late_ms: float                      # overslept: how late the board's loop woke
+    dropped: int                        # boot: bytes dropped
+    port: str                           # start: the serial port
+    max_pulse_ms: float                 # start
+    keepalive_timeout_ms: float         # start
+
+
 #: A relay on period from the board's log: ``(on entry, off entry or None while still on)``.
-Interval = typing.Tuple[typing.Dict[str, typing.Any], typing.Optional[typing.Dict[str, typing.Any]]]
+Interval = typing.Tuple[BoardLogEntry, typing.Optional[BoardLogEntry]]
 
 
 class RelaySim:
@@ -211,7 +229,7 @@ class RelaySim:
             self.port = stream.read().strip()
         return self
 
-    def entries(self) -> typing.List[typing.Dict[str, typing.Any]]:
+    def entries(self) -> typing.List[BoardLogEntry]:
         """All log entries so far, oldest first."""
         if not os.path.exists(self.log_path):
             return []
@@ -252,7 +270,7 @@ class RelaySim:
     def relay_intervals(self) -> typing.List[Interval]:
         """The relay's on periods from the board's own log: ``[(on entry, off entry or None), ...]``."""
         intervals: typing.List[Interval] = []
-        current: typing.Optional[typing.Dict[str, typing.Any]] = None
+        current: typing.Optional[BoardLogEntry] = None
         for entry in self.entries():
             if entry["event"] != "relay":
                 continue

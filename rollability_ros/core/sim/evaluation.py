@@ -134,7 +134,7 @@ def load_settings(config_paths: typing.Sequence[str] = ("sim", "robot", "evaluat
     return settings_from_parameters(flat)
 
 
-def settings_from_parameters(flat: typing.Mapping[str, typing.Any]) -> "EvaluatorSettings":
+def settings_from_parameters(flat: typing.Mapping[str, object]) -> "EvaluatorSettings":
     """Parse a flat ``{dotted name: value}`` dict (the CLI's merged files) once into :class:`EvaluatorSettings`."""
     return settings_from_sections(EvaluatorSettings, flat, SETTINGS_SECTIONS)
 
@@ -428,7 +428,7 @@ class TrialBatchEngine(abc.ABC):
     each the same outcome the job's own :func:`run_batch` gives for that (index, seed). The CPU engines run
     them as they always did (:class:`ExecutorEngine`); an engine that steps many worlds at once (MuJoCo's
     ``rollout`` on threads, a GPU engine) implements this one method and plugs into :func:`evaluate_jobs` and
-    ``optimization_run.profile_batch_evaluator(..., engine=)`` without a change to the optimizer.
+    ``batch_evaluation.profile_batch_evaluator(..., engine=)`` without a change to the optimizer.
     """
 
     #: the evaluator name stored with each candidate's result

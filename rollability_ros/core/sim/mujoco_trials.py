@@ -22,6 +22,7 @@ Contact values (how ``config/sim.yaml``'s numbers map; MuJoCo combines two geoms
     An unpowered wheel drive's drag torque becomes the joint's ``frictionloss`` (N m).
 """
 import math
+import types
 import typing
 
 import numpy as np
@@ -41,6 +42,41 @@ if typing.TYPE_CHECKING:  # annotations only
 CONTACT_SOLREF = (0.02, 1.0)
 
 
+class GeomSpec(typing.Protocol):
+    """The contact fields of an MjSpec geom (``mujoco.MjsGeom``) that :func:`set_geom_contact` sets."""
+
+    friction: typing.Sequence[float]
+    condim: int
+    solref: typing.Sequence[float]
+
+
+class BodyView(typing.Protocol):
+    """A body of a compiled MuJoCo model, ``model.body(i)``: its id and name."""
+
+    id: int
+    name: str
+
+
+class CompiledModel(typing.Protocol):
+    """What this module reads of a compiled ``mujoco.MjModel``: bodies by index and the geom and mesh arrays."""
+
+    nbody: int
+    geom_type: np.ndarray
+    geom_size: np.ndarray
+    geom_dataid: np.ndarray
+    mesh_vertadr: np.ndarray
+    mesh_vertnum: np.ndarray
+    mesh_vert: np.ndarray
+
+    def body(self, index: int) -> BodyView: ...
+
+
+class SimulationState(typing.Protocol):
+    """What this module reads of a ``mujoco.MjData``: each body's orientation, ``xmat`` (nbody, 9)."""
+
+    xmat: np.ndarray
+
+
 def effective_contact(physics: PhysicsParams) -> typing.Tuple[float, float, float, float]:
     """Robot-ground contact values (lateral, spinning, rolling friction, restitution) under ``contact_model``."""
     if physics.contact_model == "per_body":
@@ -50,7 +86,7 @@ def effective_contact(physics: PhysicsParams) -> typing.Tuple[float, float, floa
     return physics.lateral_friction, physics.spinning_friction, physics.rolling_friction, physics.restitution
 
 
-def set_geom_contact(geom: typing.Any, physics: PhysicsParams, ground: bool = False) -> None:
+def set_geom_contact(geom: GeomSpec, physics: PhysicsParams, ground: bool = False) -> None:
     """Give an MjSpec ``geom`` the contact values of ``physics`` (module docstring): a simulated object gets the
     effective robot-ground values, the ground zeros (MuJoCo takes the larger of two geoms' values)."""
     lateral, spinning, rolling, _ = effective_contact(physics)
@@ -100,7 +136,7 @@ def robot_spec(robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]
     return spec, root
 
 
-def wheel_bodies(model: typing.Any, robot_model: "RobotModel") -> typing.Set[int]:
+def wheel_bodies(model: CompiledModel, robot_model: "RobotModel") -> typing.Set[int]:
     """The body ids of ``robot_model``'s wheel links in compiled ``model``."""
     wheel_names = set(robot_model.wheel_link_names())
     return {model.body(i).id for i in range(model.nbody) if model.body(i).name in wheel_names}
@@ -247,7 +283,7 @@ class MujocoTrialWorld(TrialEngine):
                             tilt_deg=tilt)
 
 
-def root_tilt_deg(data: typing.Any, root: int, up_in_root: np.ndarray) -> float:
+def root_tilt_deg(data: SimulationState, root: int, up_in_root: np.ndarray) -> float:
     """Angle (deg) between world +z and the up axis ``up_in_root`` (3,) (unit, root frame) of body ``root`` in MuJoCo's
     ``data`` (every MuJoCo world's tilt: the trials' and the launch twin's)."""
     up_world = data.xmat[root].reshape(3, 3) @ up_in_root
@@ -266,7 +302,8 @@ def pose_speeds(before: typing.Sequence[float], after: typing.Sequence[float],
     return linear, 2 * math.acos(dot) / interval_s
 
 
-def geom_points(mujoco: typing.Any, model: typing.Any, geom: int, sections: int = 24) -> typing.Optional[np.ndarray]:
+def geom_points(mujoco: types.ModuleType, model: CompiledModel, geom: int, sections: int = 24
+                ) -> typing.Optional[np.ndarray]:
     """Points (k, 3) whose hull is geom ``geom`` in its own frame (m); None for a plane."""
     kind, size = model.geom_type[geom], model.geom_size[geom]
     if kind == mujoco.mjtGeom.mjGEOM_MESH:

@@ -58,7 +58,9 @@ import numpy as np
 from rollability_ros.core.sim.world import CONTACT_MODELS
 
 if typing.TYPE_CHECKING:  # annotations only
-    from rollability_ros.core.robots import ProfileBody
+    from rollability_ros.core.robots import ChassisSpec, ProfileBody, UrdfRobotSpec
+    from rollability_ros.core.sim.trials import TrialSettings
+    from rollability_ros.core.sim.world import PhysicsParams
 
 #: Spawn key of the robustness draws within a trial seed (apart from the trial's own draws).
 _ROBUST_STREAM = 0x7B0B
@@ -133,9 +135,28 @@ class Draw:
     launcher_model: str
 
 
-#: An EvaluatorSettings or a LaunchTwinSettings (both have ``trial``, ``physics`` and ``robot``; defined in sim/
-#: modules that import this one), returned as the same type.
-_Perturbed = typing.Any
+class PerturbedSettings(typing.Protocol):
+    """What a trial's :class:`Draw` perturbs: settings dataclasses with a disturbance ``trial``, ``physics`` and a
+    robot (``robot``, ``urdf_robot``) -- an EvaluatorSettings or a LaunchTwinSettings (defined in sim/ modules that
+    import this one; a twin's ``twin`` is perturbed too when present)."""
+
+    __dataclass_fields__: typing.ClassVar[typing.Dict[str, "dataclasses.Field[typing.Any]"]]
+
+    @property
+    def trial(self) -> "TrialSettings": ...
+
+    @property
+    def physics(self) -> "PhysicsParams": ...
+
+    @property
+    def robot(self) -> "ChassisSpec": ...
+
+    @property
+    def urdf_robot(self) -> "UrdfRobotSpec": ...
+
+
+#: The settings a function here is given, returned as the same type.
+_Perturbed = typing.TypeVar("_Perturbed", bound=PerturbedSettings)
 
 
 def draw(seed: int, robust: RobustSettings, nominal_com_offset_z_m: float, body_height_m: float) -> Draw:
@@ -197,9 +218,9 @@ def wheel_drag_field(settings: _Perturbed) -> str:
     """The dotted settings name of the wheel drag a launch twin's ``settings`` uses: the twin's Mecanum wheels'
     (``twin.wheel_drag_torque_nm``), else the robot's own (``urdf_robot.joint_drag_torque_nm`` or
     ``robot.wheel_drag_torque_nm``)."""
-    from rollability_ros.core.sim.launch.settings import mecanum_wheels  # launch_twin is heavier; sim-internal
+    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, mecanum_wheels  # heavier; sim-internal
 
-    if mecanum_wheels(settings):
+    if isinstance(settings, LaunchTwinSettings) and mecanum_wheels(settings):
         return "twin.wheel_drag_torque_nm"
     return "urdf_robot.joint_drag_torque_nm" if settings.urdf_robot.selected else "robot.wheel_drag_torque_nm"
 

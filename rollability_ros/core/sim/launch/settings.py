@@ -227,8 +227,8 @@ def twin_files(paths: typing.Sequence[str], namespaces: typing.Iterable[str] = (
     return [os.path.abspath(resolve_config_path(path)) for path in paths
             if any(name.startswith(prefixes) for name in load_parameters([path]))]
 
-def launch_twin_settings_from_parameters(flat: typing.Mapping[str, typing.Any],
-                                         overrides: typing.Optional[typing.Mapping[str, typing.Any]] = None
+def launch_twin_settings_from_parameters(flat: typing.Mapping[str, object],
+                                         overrides: typing.Optional[typing.Mapping[str, object]] = None
                                          ) -> LaunchTwinSettings:
     """Build :class:`LaunchTwinSettings` from flat ``{dotted name: value}`` parameters (e.g. a node's).
 
@@ -255,7 +255,7 @@ def launch_twin_settings_from_parameters(flat: typing.Mapping[str, typing.Any],
 
 def load_launch_twin_settings(config_paths: typing.Sequence[str] = ("sim", "robot", "launch_twin"),
                               node_name: str = "/**",
-                              overrides: typing.Optional[typing.Mapping[str, typing.Any]] = None
+                              overrides: typing.Optional[typing.Mapping[str, object]] = None
                               ) -> LaunchTwinSettings:
     """Read :class:`LaunchTwinSettings` from ROS 2 parameter files (names of shipped files or paths).
 

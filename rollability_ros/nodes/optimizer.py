@@ -63,7 +63,7 @@ from visualization_msgs.msg import Marker
 from rollability_ros.action import EvaluateProfile
 from rollability_ros.core.config import ConfigError
 from rollability_ros.core.optimization import (EvaluationFailed, EvaluatorPool, OptimizerSettings, PoolClosed,
-                                               PoolSettings, QualityDiversitySettings, SelectionSettings,
+                                               PoolSettings, QualityDiversitySettings, RunSettings, SelectionSettings,
                                                optimization_run, selection)
 from rollability_ros.core.profile import PrinterSpec, ProfileGrid, geometry
 from rollability_ros.core.robots import ChassisSpec, UrdfRobotSpec, footprint_grid, profile_mount
@@ -298,11 +298,10 @@ class Optimizer(Node):
         return settings
 
     def _typed_run_settings(self, settings):
-        """The :class:`~rollability_ros.core.optimization.optimization_run.RunSettings` of the sections this node
+        """The :class:`~rollability_ros.core.optimization.optimizer_contract.RunSettings` of the sections this node
         declared (its own parse, once): what the method check and the start-point screen are handed."""
-        return optimization_run.RunSettings(optimizer=settings["optimizer"],
-                                            quality_diversity=settings["quality_diversity"],
-                                            stable_poses=self._robots["stable_poses"], printer=settings["printer"])
+        return RunSettings(optimizer=settings["optimizer"], quality_diversity=settings["quality_diversity"],
+                           stable_poses=self._robots["stable_poses"], printer=settings["printer"])
 
     def _robot_settings(self, settings):
         """The evaluator settings of the profile's robot (grid, printer, robot sections) for the stable-pose screen."""

@@ -8,15 +8,16 @@ import pytest
 from synthetic_imu import piecewise, stream
 
 from rollability_ros.core.results.records import NO_SEED, LaunchCondition
-from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
-from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
-                                                  OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
-                                                  check_goal, launch_backend_class, make_launch_backend,
-                                                  parse_outcome_answer, simulated_outcome, launch_seed)
+from rollability_ros.core.rig.launch_backend import ImuOutcome, LaunchBackend, RigPorts, RigSettings
+from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LaunchAborted, OperatorChannel,
+                                                  OperatorOutcome, PhysicalLaunch, check_goal, launch_backend_class,
+                                                  make_launch_backend, parse_outcome_answer, simulated_outcome,
+                                                  launch_seed)
 from rollability_ros.core.rig.speed_gate import SimulatedSpeedGate, SpeedGateConfig
 from rollability_ros.core.imu.upright import ImuOutcomeConfig
-from rollability_ros.core.rig.valve import RegulatorConfig, ValveConfig, ValveController
-from rollability_ros.core.rig.valve_backends import DryRunBackend
+from rollability_ros.core.rig.valve import ValveController
+from rollability_ros.core.rig.valve_contract import RegulatorConfig, ValveConfig
+from rollability_ros.core.rig.valve_boards import DryRunBackend
 
 CONDITION = LaunchCondition("B", 0.75, 0.8, -30.0, 1)
 

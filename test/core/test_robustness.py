@@ -39,18 +39,13 @@ def test_bad_robust_settings_are_refused():
 def test_robust_evaluation_runs_each_trial_under_its_own_draw():
     pytest.importorskip("pybullet")
     from rollability_ros.core.sim.trials import run_trial
-    from rollability_ros.core.sim.world import connect, disconnect
 
     settings = robust_settings()
     result = evaluation.evaluate_profile(None, 3, 11, settings)
-    client = connect()
-    try:
-        for outcome in result.trial_results:
-            own = robust_settings_for(settings, outcome.seed, settings.objective.robust)
-            direct = run_trial(client, own.robot_model(), None, outcome.index, outcome.seed, own.trial, own.physics)
-            assert direct == outcome
-    finally:
-        disconnect(client)
+    for outcome in result.trial_results:
+        own = robust_settings_for(settings, outcome.seed, settings.objective.robust)
+        direct = run_trial(own.robot_model(), None, outcome.index, outcome.seed, own.trial, own.physics)
+        assert direct == outcome
     plain = evaluation.evaluate_profile(None, 3, 11, evaluation.EvaluatorSettings())
     assert [o.steps for o in plain.trial_results] != [o.steps for o in result.trial_results]
 

@@ -45,7 +45,7 @@ def test_an_unknown_engine_is_refused_by_the_settings_and_the_factory(engines):
     with pytest.raises(ValueError, match=r"^engine must be one of pybullet, mujoco, got 'replay'$"):
         PhysicsParams(engine="replay").validate()
     with pytest.raises(ValueError, match=r"^sim.engine 'replay' cannot run disturbance trials"):
-        trial_engine.make_trial_world(None, None, None, None, PhysicsParams(engine="replay"))
+        trial_engine.make_trial_world(None, None, None, PhysicsParams(engine="replay"))
     with pytest.raises(TypeError, match="not a TrialEngine"):
         trial_engine.register_trial_engine("wrong", "rollability_ros.core.sim.world:PhysicsParams")
         trial_engine.TRIAL_ENGINES.get("wrong")

@@ -1,6 +1,8 @@
 """Optimization of profile heights: CMA-ES or CMA-MAE, the run loop with checkpoints, design selection.
 
-- cmaes: ask / tell / stop / result around pycma
+- optimizer_contract: the method contract (IncumbentOptimizer), its OPTIMIZER_METHODS table and the run's typed
+  settings it is written in (RunSettings: OptimizerSettings, QualityDiversitySettings, ...)
+- cmaes: the paper's method, ask / tell / stop / result around pycma
 - quality_diversity: CMA-MAE (pyribs) filling a maximum height x sharpness archive
 - optimization_run: generations through an injected evaluator, logged, checkpointed, resumable
 - checkpoint: atomic checkpoints checked against the run's config
@@ -18,18 +20,19 @@ from rollability_ros.core.faces import lazy_attribute
 if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
     from rollability_ros.core.optimization import optimization_run, selection
     from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
-    from rollability_ros.core.optimization.cmaes import (OPTIMIZER_METHODS, IncumbentOptimizer, OptimizerSettings,
-                                                         ProfileOptimizer)
+    from rollability_ros.core.optimization.cmaes import ProfileOptimizer
+    from rollability_ros.core.optimization.optimizer_contract import (OPTIMIZER_METHODS, IncumbentOptimizer,
+                                                                      OptimizerSettings, QualityDiversitySettings,
+                                                                      RunSettings)
     from rollability_ros.core.optimization.evaluator_pool import (EvaluationFailed, EvaluatorPool, PoolClosed,
                                                                   PoolSettings)
     from rollability_ros.core.optimization.optimization_run import (OptimizationRun, make_optimizer, run_generations,
                                                                     run_target)
-    from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
     from rollability_ros.core.optimization.selection import GAIN_SOURCES, SelectionSettings
 
 __all__ = [
     "GAIN_SOURCES", "OPTIMIZER_METHODS", "EvaluationFailed", "EvaluatorPool", "IncumbentOptimizer", "OptimizationRun",
-    "OptimizerSettings", "PoolClosed", "PoolSettings", "ProfileOptimizer", "QualityDiversitySettings",
+    "OptimizerSettings", "PoolClosed", "PoolSettings", "ProfileOptimizer", "QualityDiversitySettings", "RunSettings",
     "SelectionSettings", "atomic_write_bytes", "make_optimizer", "optimization_run", "run_generations", "run_target",
     "selection",
 ]

@@ -67,7 +67,7 @@ import yaml
 
 from rollability_ros.core.profile import geometry
 from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
-from rollability_ros.core.optimization.cmaes import STREAM_SELECTION, derive_seed
+from rollability_ros.core.optimization.optimizer_contract import STREAM_SELECTION, derive_seed
 from rollability_ros.core.optimization import racing
 from rollability_ros.core.stats import newcombe_interval, wilson_interval
 

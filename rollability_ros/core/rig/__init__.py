@@ -4,8 +4,8 @@
 - rig_session: its two implementations (SimulatedLaunch, PhysicalLaunch), make_launch_backend; goal checks,
   phases, operator answers, IMU outcome, speed
 - valve: fail-closed valve state machine
-- _valve_backend: the ValveBackend contract, its VALVE_BACKENDS table and make_valve_backend
-- valve_backends: dry-run, GPIO and serial relay backends
+- valve_contract: the ValveBackend contract, its VALVE_BACKENDS table and make_valve_backend
+- valve_boards: the boards: dry-run, GPIO and serial relay backends
 - relay_protocol: the relay board's serial protocol (RVR1) and its state machine (firmware/ mirrors it)
 - gpio_line_holder: the tiny process that owns the gpio backend's line and speaks the board protocol on its pipes
 - relay_device_sim: a simulated relay board on a pseudo-terminal (own process), running that state machine
@@ -18,18 +18,18 @@ the modules behind it may move. ``rig_auth`` and ``valve_auth`` are public as mo
 protocol). Every module here is light (no numpy, no physics): importing the face loads no heavy dependency.
 """
 from rollability_ros.core.rig import rig_auth, valve_auth
-from rollability_ros.core.rig.launch_backend import LaunchAborted, LaunchBackend, RigPorts
+from rollability_ros.core.rig.launch_backend import (LAUNCH_BACKENDS, ImuOutcome, LaunchAborted, LaunchBackend,
+                                                     RigPorts, RigSettings)
 from rollability_ros.core.rig.rig_network import (DISCOVERY_RANGES, RIG_DOMAIN_ID, check_domain_id, check_namespace,
                                                   exposure_warnings, physical_rig_environment)
-from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome,
-                                                  OperatorOutcome, PhysicalLaunch, RigSettings, SimulatedLaunch,
-                                                  describe_answer, launch_backend_class, make_launch_backend,
-                                                  parse_outcome_answer)
+from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, OperatorOutcome,
+                                                  PhysicalLaunch, SimulatedLaunch, describe_answer,
+                                                  launch_backend_class, make_launch_backend, parse_outcome_answer)
 from rollability_ros.core.rig.speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
-from rollability_ros.core.rig.valve import ValveConfig, ValveController, ValveStatus
-from rollability_ros.core.rig._valve_backend import (VALVE_BACKENDS, ValveBackend, make_valve_backend,
-                                                     register_valve_backend)
-from rollability_ros.core.rig.valve_backends import make_controller
+from rollability_ros.core.rig.valve import ValveController, ValveStatus
+from rollability_ros.core.rig.valve_contract import (VALVE_BACKENDS, ValveBackend, ValveConfig, make_valve_backend,
+                                                    register_valve_backend)
+from rollability_ros.core.rig.valve_boards import make_controller
 
 __all__ = [
     "ANSWERED", "ASK_OUTCOME", "ASK_REGULATOR", "DISCOVERY_RANGES", "LAUNCH_BACKENDS", "RIG_DOMAIN_ID", "SPEED_GATES",

@@ -36,20 +36,17 @@ import types
 import typing
 import zlib
 
-from rollability_ros.core.imu import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
-from rollability_ros.core.registry import Registry
+from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
                                           LaunchCondition, LaunchOutcome, check_twin_seed)
-from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
-                                                     RigPorts, no_phase, not_cancelled)
+from rollability_ros.core.rig.launch_backend import (LAUNCH_BACKENDS, ImuOutcome, LaunchAborted, LaunchBackend,
+                                                     PhaseCallback, PoseCallback, RigPorts, RigSettings, no_phase,
+                                                     not_cancelled)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
-from rollability_ros.core.rig.valve import ValveConfig
+from rollability_ros.core.rig.valve_contract import ValveConfig
 
 #: Feedback phases of the Launch action, in order.
 PHASES = ("waiting_for_operator", "armed", "fired", "in_flight", "settling", "classifying")
-#: ``rig.backend`` values.
-#: ``rig.outcome_source`` values (physical backend).
-OUTCOME_SOURCES = ("operator", "imu")
 #: Start of the ``classifying`` feedback detail while the rig waits for the operator's outcome.
 ASK_OUTCOME = "record the outcome"
 #: Start of the ``waiting_for_operator`` detail while the rig waits for the regulator confirmation.
@@ -58,58 +55,6 @@ ASK_REGULATOR = "set the regulator"
 ANSWERED = "answered: "
 #: Start of a physical outcome's note part that names where its travel time (and so its speed) came from.
 TRAVEL_TIME_NOTE = "travel time: "
-
-
-@dataclasses.dataclass
-class RigSettings:
-    """``rig.*``: the rig node's own settings (the valve, speed gate and IMU have their own namespaces)."""
-
-    backend: str = dataclasses.field(default="sim", metadata={
-        "description": "launch backend: sim (the launch twin in PyBullet) or physical (valve, speed gate, operator / "
-                       "IMU)"})
-    configurations: typing.List[str] = dataclasses.field(default_factory=lambda: ["baseline", "A", "B", "C"], metadata={
-        "description": "configuration ids the rig accepts in a Launch goal (profile meshes mounted by the operator)"})
-    outcome_source: str = dataclasses.field(default="operator", metadata={
-        "description": "who classifies a physical launch: operator (record_outcome service) or imu (settled chassis "
-                       "IMU)"})
-    countdown_s: float = dataclasses.field(default=1.0, metadata={
-        "description": "countdown between arming and firing so people stand clear, s", "range": (0.0, 600.0)})
-    operator_timeout_s: float = dataclasses.field(default=600.0, metadata={
-        "description": "longest wait for an operator answer (regulator confirmation, outcome) before the launch aborts,"
-                       " s", "range": (0.0, 86400.0)})
-    question_repeat_s: float = dataclasses.field(default=2.0, metadata={
-        "description": "period of the open question's feedback while the rig waits for the operator, s; a client "
-                       "whose feedback subscription matched after the first one (a loaded machine's discovery) or an "
-                       "operator's view that joined late still sees it", "range": (0.05, 3600.0)})
-    imu_override_s: float = dataclasses.field(default=2.0, metadata={
-        "description": "window in which the operator may override the IMU's outcome, s", "range": (0.0, 3600.0)})
-    confirmation_valid_s: float = dataclasses.field(default=300.0, metadata={
-        "description": "a regulator confirmation holds for later launches at the same speed this long, s (0: ask "
-                       "before every launch); an aborted launch always forgets it", "range": (0.0, 86400.0)})
-    valve_timeout_s: float = dataclasses.field(default=5.0, metadata={
-        "description": "longest wait for the valve_controller's arm / fire / disarm services, s",
-        "range": (0.0, 600.0)})
-    seed: int = dataclasses.field(default=0, metadata={
-        "description": "seed of the simulated rig's launch twin and speed noise (integer >= 0)",
-        "range": (0, 2147483647)})
-    twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"], metadata={
-        "description": "parameter files (shipped names or paths) that configure the sim backend's launch twin, later "
-                       "files win"})
-
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        LAUNCH_BACKENDS.check(self.backend)
-        if not self.configurations or not all(self.configurations):
-            raise ValueError("configurations must list the configuration ids the rig can launch")
-        if self.outcome_source not in OUTCOME_SOURCES:
-            raise ValueError(f"outcome_source must be one of {OUTCOME_SOURCES}, got {self.outcome_source!r}")
-        if not all(0 <= value < math.inf for value in (self.countdown_s, self.imu_override_s,
-                                                        self.confirmation_valid_s)):
-            raise ValueError("countdown_s, imu_override_s and confirmation_valid_s must be finite and >= 0")
-        if not 0 < self.operator_timeout_s < math.inf or not 0 < self.valve_timeout_s < math.inf:
-            raise ValueError("operator_timeout_s and valve_timeout_s must be finite and > 0")
-        if not 0.05 <= self.question_repeat_s < math.inf:
-            raise ValueError(f"question_repeat_s must be finite and >= 0.05, got {self.question_repeat_s}")
 
 
 def check_goal(run_id: str, trial_id: str, condition: LaunchCondition,
@@ -267,41 +212,6 @@ class OperatorChannel:
                     return None
                 self._cond.wait(min(poll_s, remaining))
             return self._answer
-
-
-class ImuOutcome:
-    """The upright classifier fed from the IMU topic; a launch resets it at firing and waits for its verdict."""
-
-    def __init__(self, config):
-        self.config = config
-        self._classifier = ImuUprightClassifier.from_config(config)
-        self._cond = threading.Condition()
-        self._reading = None
-
-    def reset(self) -> None:
-        """Forget everything before the launch (a chassis waiting on the launcher looks settled too)."""
-        with self._cond:
-            self._classifier.reset()
-            self._reading = None
-
-    def feed(self, sample: ImuSample) -> None:
-        """Classify one :class:`~rollability_ros.core.imu.upright.ImuSample`; bad samples raise ``ValueError``."""
-        with self._cond:
-            self._reading = self._classifier.update(sample)
-            if self._reading.classification is not None:
-                self._cond.notify_all()
-
-    def wait_settled(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
-                     poll_s: float = 0.05) -> typing.Optional[UprightReading]:
-        """The first settled :class:`~rollability_ros.core.imu.upright.UprightReading`, or None on timeout/cancel."""
-        deadline = time.monotonic() + timeout_s
-        with self._cond:
-            while self._reading is None or self._reading.classification is None:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0 or cancelled():
-                    return None
-                self._cond.wait(min(poll_s, remaining))
-            return self._reading
 
 
 class PhysicalLaunch(LaunchBackend):
@@ -622,10 +532,6 @@ class SimulatedLaunch(LaunchBackend):
         """The launch twin result of one launch of ``condition`` with twin ``seed``: given a stored outcome's
         condition and ``seed`` (and these twin settings), the launch that outcome was classified from, again."""
         return self.load().simulate_launch(condition, self._twin_settings, check_twin_seed(seed))
-
-
-#: ``rig.backend`` -> the :class:`LaunchBackend` implementation.
-LAUNCH_BACKENDS: Registry[LaunchBackend] = Registry("backend", LaunchBackend, {"sim": SimulatedLaunch, "physical": PhysicalLaunch})
 
 
 def launch_backend_class(name: str) -> typing.Type[LaunchBackend]:

@@ -135,12 +135,6 @@ class MujocoTrialWorld(TrialEngine):
 
     owns_world = True              # its own model and data: several can be kept per process
 
-    @classmethod
-    def build(cls, client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
-              settings: TrialSettings, physics: PhysicsParams) -> "MujocoTrialWorld":
-        """The MuJoCo world (it has its own: ``client`` is not used)."""
-        return cls(robot_model, profile, settings, physics)
-
     def __init__(self, robot_model, profile, settings, physics):
         self.mujoco = mujoco = require("mujoco", feature="the MuJoCo trial engine")
         self.robot_model, self.settings, self.physics = robot_model, settings, physics

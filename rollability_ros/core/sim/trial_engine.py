@@ -46,16 +46,17 @@ class TrialOutcome:
 class TrialEngine(abc.ABC):
     """One robot + profile in one engine's world; ``run(index, seed)`` per trial (module docstring)."""
 
-    #: True when a world owns all its state (not the caller's shared PyBullet client), so a process may keep the
-    #: worlds of several profiles at once (evaluation.run_batch keeps the last ``MUJOCO_WORLD_CACHE``).
+    #: True when a world owns all its state, so a process may keep the worlds of several profiles at once
+    #: (evaluation.run_batch keeps the last ``MUJOCO_WORLD_CACHE``); False when the engine's worlds in one process
+    #: share state (the ``pybullet`` engine's one client), so the caller keeps one at a time.
     owns_world: typing.ClassVar[bool] = False
 
     @classmethod
-    def build(cls, client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
-              settings: "TrialSettings", physics: "PhysicsParams") -> "TrialEngine":
-        """The world of ``robot_model`` carrying ``profile`` (a ProfileBody, or None for the bare robot);
-        ``client`` is the PyBullet client the caller opened (engines with their own world ignore it)."""
-        return cls(client, robot_model, profile, settings, physics)  # type: ignore[call-arg]
+    def build(cls, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]", settings: "TrialSettings",
+              physics: "PhysicsParams") -> "TrialEngine":
+        """The world of ``robot_model`` carrying ``profile`` (a ProfileBody, or None for the bare robot). The
+        engine opens whatever its world needs (a physics client, a compiled model); the caller opens nothing."""
+        return cls(robot_model, profile, settings, physics)  # type: ignore[call-arg]
 
     @abc.abstractmethod
     def run(self, index: int, seed: int) -> TrialOutcome:
@@ -120,9 +121,9 @@ def check_engine(kind: str, engine: str) -> None:
         raise ValueError(f"sim.engine {engine!r} cannot run {kind} trials (engines that can: {', '.join(engines)})")
 
 
-def make_trial_world(client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
-                     settings: "TrialSettings", physics: "PhysicsParams") -> TrialEngine:
+def make_trial_world(robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]", settings: "TrialSettings",
+                     physics: "PhysicsParams") -> TrialEngine:
     """The trial world of ``physics.engine`` (:data:`TRIAL_ENGINES`), built; every disturbance trial, plain or
     robust, is built here."""
     check_engine("disturbance", physics.engine)
-    return TRIAL_ENGINES.get(physics.engine).build(client, robot_model, profile, settings, physics)
+    return TRIAL_ENGINES.get(physics.engine).build(robot_model, profile, settings, physics)

@@ -33,10 +33,8 @@ import typing
 import numpy as np
 
 from rollability_ros.core.optional import require
-# the engine seam (TRIAL_ENGINES, check_engine, make_trial_world, TrialOutcome) is importable from here as before
-from rollability_ros.core.sim.trial_engine import (TRIAL_ENGINES, TrialEngine, TrialOutcome, check_engine,  # noqa: F401
-                                                   make_trial_world)
-from rollability_ros.core.sim.world import PhysicsParams, reset_world, set_contact
+from rollability_ros.core.sim.trial_engine import TrialEngine, TrialOutcome, make_trial_world
+from rollability_ros.core.sim.world import PhysicsParams, connect, reset_world, set_contact
 
 if typing.TYPE_CHECKING:  # annotations only
     from rollability_ros.core.robots import ProfileBody, RobotModel
@@ -262,29 +260,61 @@ class EnergyMonitor:
         return 0.5 * energy
 
 
+#: The ``pybullet`` engine's own PyBullet client in this process (:func:`engine_client`), and per client the
+#: :class:`TrialWorld` whose bodies it holds now (building a world empties the client).
+_engine_client: typing.Optional[int] = None
+_holders: typing.Dict[int, "TrialWorld"] = {}
+
+
+def engine_client() -> int:
+    """The PyBullet DIRECT client the ``pybullet`` trial engine builds its worlds in (:meth:`TrialWorld.build`),
+    connected at the first world this process builds: callers of the engine seam open no client themselves."""
+    global _engine_client
+    if _engine_client is None:
+        _engine_client = connect()
+    return _engine_client
+
+
 class TrialWorld(TrialEngine):
     """The ``pybullet`` trial engine: a world holding one robot + profile, saved once after building and restored
     before every trial.
 
     ``restoreState`` puts back the saved bodies, velocities and (empty) contact cache, so a trial starts from
     the same simulator state whatever ran before it in this client; building the world once saves the cost of
-    creating the bodies per trial (see bench/bench_evaluator.py). Building another world in the same client
-    (or any ``resetSimulation``) invalidates this one.
+    creating the bodies per trial (see bench/bench_evaluator.py). Worlds built through the seam
+    (:meth:`build`) share this process's :func:`engine_client`; building another world in the same client
+    empties it, so a world that finds another one holding its client builds itself again before its trial.
     """
 
-    def __init__(self, client, robot_model, profile, settings, physics):
+    @classmethod
+    def build(cls, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]", settings: TrialSettings,
+              physics: PhysicsParams) -> "TrialWorld":
+        """The world in this process's :func:`engine_client`."""
+        return cls(engine_client(), robot_model, profile, settings, physics)
+
+    def __init__(self, client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
+                 settings: TrialSettings, physics: PhysicsParams) -> None:
         self.pybullet = require("pybullet", feature="the simulated evaluator")
         self.client, self.robot_model, self.settings, self.physics = client, robot_model, settings, physics
-        self.ground, self.robot = build_trial_world(client, robot_model, profile, (0.0, 0.0, 0.0, 1.0), settings,
-                                                    physics)
+        self.profile = profile
+        self._build()
+
+    def _build(self) -> None:
+        """Empty the client, build the ground and the robot, save the state and the early decision's barriers."""
+        client, robot_model, settings, physics = self.client, self.robot_model, self.settings, self.physics
+        self.ground, self.robot = build_trial_world(client, robot_model, self.profile, (0.0, 0.0, 0.0, 1.0),
+                                                    settings, physics)
         self.saved_state = self.pybullet.saveState(physicsClientId=client)
         # the energy barriers hold for a rigid hull only: a compliant mount's trials run to rest
         self.energy = EnergyMonitor(client, robot_model, self.robot, physics.gravity_mps2,
                                     settings.early_decision_margin_m) \
             if settings.early_decision and self.robot.mount_spring is None else None
+        _holders[client] = self
 
     def run(self, index: int, seed: int) -> TrialOutcome:
         """Run one trial (see the module docstring) and return its :class:`TrialOutcome`."""
+        if _holders.get(self.client) is not self:   # another world was built in this client since
+            self._build()
         pybullet, client, settings, body = self.pybullet, self.client, self.settings, self.robot.body_id
         conditions = sample_conditions(seed, settings)
         pybullet.restoreState(self.saved_state, physicsClientId=client)
@@ -326,10 +356,8 @@ class TrialWorld(TrialEngine):
         return TrialOutcome(index=index, seed=seed, upright=upright, settled=settled, steps=steps, tilt_deg=tilt)
 
 
-def run_trial(client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
-              index: int, seed: int, settings: TrialSettings,
-              physics: PhysicsParams) -> TrialOutcome:
+def run_trial(robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]", index: int, seed: int,
+              settings: TrialSettings, physics: PhysicsParams) -> TrialOutcome:
     """Run one trial in a freshly built world of ``physics.engine``
-    (:func:`~rollability_ros.core.sim.trial_engine.make_trial_world`; a PyBullet world is built in ``client``)
-    and return its :class:`TrialOutcome`."""
-    return make_trial_world(client, robot_model, profile, settings, physics).run(index, seed)
+    (:func:`~rollability_ros.core.sim.trial_engine.make_trial_world`) and return its :class:`TrialOutcome`."""
+    return make_trial_world(robot_model, profile, settings, physics).run(index, seed)

@@ -7,7 +7,7 @@ import pytest
 
 from rollability_ros.core.sim.evaluation import EvaluatorSettings, evaluate_profile
 from rollability_ros.core.sim.trial_engine import make_trial_world
-from rollability_ros.core.sim.trials import TrialWorld
+from rollability_ros.core.sim.pybullet_trials import TrialWorld
 from rollability_ros.core.sim.world import PhysicsParams
 
 mujoco = pytest.importorskip("mujoco")

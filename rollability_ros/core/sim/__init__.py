@@ -2,9 +2,11 @@
 the launch twin.
 
 - world: PhysicsParams and one DIRECT client per simulation
-- trial_engine: the TrialEngine and LaunchEngine contracts, their tables and make_trial_world (picks sim.engine)
+- engines: the engine tables (TRIAL_ENGINES, LAUNCH_ENGINES) and the checks of sim.engine against them (the bottom)
+- trial_engine: the TrialEngine contract, TrialOutcome and make_trial_world (builds the engine sim.engine names)
 - _body_points: hull points, mass and centre of mass of a spawned PyBullet body's links
-- trials: one disturbance trial (start, push, rest, upright test); TrialWorld, the pybullet engine
+- trials: one disturbance trial (start, push, rest, upright test)
+- pybullet_trials: TrialWorld, the pybullet engine
 - mujoco_trials: the same trial in MuJoCo (sim.engine: mujoco)
 - early_decision: ends a trial once energy fixes its outcome (barriers to the resting poses)
 - evaluation: fitness = upright / trials, serial, process pool or Ray
@@ -36,9 +38,10 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
     from rollability_ros.core.sim.rollout import rollout_distance_m
     from rollability_ros.core.sim.sensitivity import launch_sensitivity_rows, sensitivity_rows
     from rollability_ros.core.sim.stable_poses import ScreenSettings, screen_robot
-    from rollability_ros.core.sim.trial_engine import (LAUNCH_ENGINES, TRIAL_ENGINES, LaunchEngine, TrialEngine,
-                                                       TrialOutcome, engine_names, make_trial_world,
-                                                       register_trial_engine)
+    from rollability_ros.core.sim.engines import (LAUNCH_ENGINES, TRIAL_ENGINES, engine_names,
+                                                  register_trial_engine)
+    from rollability_ros.core.sim.launch.contract import LaunchEngine
+    from rollability_ros.core.sim.trial_engine import TrialEngine, TrialOutcome, make_trial_world
     from rollability_ros.core.sim.trials import TrialSettings
     from rollability_ros.core.sim._worker_pool import spawn_pool
     from rollability_ros.core.sim.world import PhysicsParams

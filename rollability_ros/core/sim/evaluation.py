@@ -38,10 +38,10 @@ from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, U
 from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, at_fidelity, fidelity_engine, \
     launch_objective, run_launch_trial
 from rollability_ros.core.sim.robustness import robust_settings_for, scaled_profile
-from rollability_ros.core.sim.trials import run_trial
 from rollability_ros.core.sim.world import PhysicsParams
 from rollability_ros.core.stats import wilson_interval
-from rollability_ros.core.sim.trial_engine import TRIAL_ENGINES, TrialOutcome, make_trial_world
+from rollability_ros.core.sim.engines import TRIAL_ENGINES
+from rollability_ros.core.sim.trial_engine import TrialOutcome, make_trial_world, run_trial
 from rollability_ros.core.sim.trials import TrialSettings
 from rollability_ros.core.sim._worker_pool import spawn_pool
 
@@ -255,7 +255,7 @@ def run_batch(job: TrialJob, batch: Batch) -> typing.List[TrialOutcome]:
     settings name (nothing else is opened: a MuJoCo evaluation never loads PyBullet).
 
     The process keeps the world of the last job it ran, so consecutive batches of one profile reuse it (restored
-    before every trial, see :class:`~rollability_ros.core.sim.trials.TrialWorld`); worlds of engines that own
+    before every trial, see :class:`~rollability_ros.core.sim.pybullet_trials.TrialWorld`); worlds of engines that own
     their state (``TrialEngine.owns_world``: MuJoCo) are kept for the last ``MUJOCO_WORLD_CACHE`` jobs.
     """
     global _worker_world

@@ -1,6 +1,6 @@
 """The disturbance trial of :mod:`rollability_ros.core.sim.trials` in MuJoCo (``sim.engine: mujoco``).
 
-Same trial semantics as the PyBullet :class:`~rollability_ros.core.sim.trials.TrialWorld`, behind the same
+Same trial semantics as the PyBullet :class:`~rollability_ros.core.sim.pybullet_trials.TrialWorld`, behind the same
 interface (``run(index, seed) -> TrialOutcome``): start state and disturbance from
 :func:`~rollability_ros.core.sim.trials.sample_conditions`, placement with the lowest point ``drop_height_m``
 above the ground, the push as a world-frame force and torque at the base's centre of mass, the rest rule of

@@ -57,7 +57,8 @@ from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.robots import ProfileBody
 from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
 from rollability_ros.core.sim.robustness import RobustSettings
-from rollability_ros.core.sim.trial_engine import TrialOutcome, check_engine, engine_names
+from rollability_ros.core.sim.engines import check_engine, engine_names
+from rollability_ros.core.sim.trial_engine import TrialOutcome
 
 #: ``objective.kind`` values.
 OBJECTIVES = ("disturbance", "launch_twin", "mix")

@@ -31,6 +31,7 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
+from rollability_ros.core import config
 from rollability_ros.core.optional import require
 from rollability_ros.core.optimization.optimizer_contract import (IncumbentOptimizer, OptimizerResult,
                                                                   OptimizerSettings, RunSettings,
@@ -70,7 +71,7 @@ class ProfileOptimizer(IncumbentOptimizer):
                  clock: typing.Callable[[], float] = time.monotonic,
                  initial_mean: typing.Optional[npt.ArrayLike] = None) -> None:
         cma = require("cma", feature="the CMA-ES optimizer")
-        settings.validate()
+        config.check_settings(settings, "optimizer")
         self.n_variables, self.lower, self.upper, self.initial_mean = check_search_space(
             n_variables, settings, lower, upper, initial_mean)
         self.cma_options = {"popsize": settings.popsize, "bounds": [self.lower, self.upper], "seed": settings.seed,

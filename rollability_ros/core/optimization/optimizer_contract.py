@@ -17,6 +17,7 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
+from rollability_ros.core import config
 from rollability_ros.core.profile import PrinterSpec
 from rollability_ros.core.registry import Registry
 from rollability_ros.core.sim import ScreenSettings
@@ -53,7 +54,7 @@ class OptimizerSettings:
         "description": "candidates per CMA-ES generation (count; paper 12)", "range": (2, 100000)})
     sigma0: float = dataclasses.field(default=0.02, metadata={
         "description": "initial CMA-ES step size, simulation units of vertex height (paper 0.02)",
-        "range": (0.0, 100.0)})
+        "range": (0.0, 100.0), "exclusive": "low"})
     seed: int = dataclasses.field(default=1, metadata={
         "description": "seed of pycma, the random initial mean and the disturbance seeds (integer >= 1)",
         "range": (1, 2147483647)})
@@ -64,7 +65,7 @@ class OptimizerSettings:
         "range": (0, 2147483647)})
     target_fitness: float = dataclasses.field(default=1.0, metadata={
         "description": "stop when the best-so-far fitness (upright trials / trials) reaches this; above 1 never",
-        "range": (0.0, 2.0)})
+        "range": (0.0, 2.0), "exclusive": "low"})
     stagnation_generations: int = dataclasses.field(default=0, metadata={
         "description": "stop after this many generations without a new best design (count; 0 = never)",
         "range": (0, 2147483647)})
@@ -90,7 +91,7 @@ class OptimizerSettings:
     race_alpha: float = dataclasses.field(default=0.1, metadata={
         "description": "racing: at most this chance, over all looks, of stopping a candidate at least as good as "
                        "the bar (the lower 95% bound of the incumbent's or elite's estimate) (probability)",
-        "range": (0.0, 1.0)})
+        "range": (0.0, 1.0), "exclusive": "both"})
     race_survivors: int = dataclasses.field(default=0, metadata={
         "description": "racing by successive halving: after each look at most this many candidates go on to their "
                        "full trials, the best by pooled estimate over the incumbent (CMA-ES) or their cell's elite "
@@ -117,20 +118,9 @@ class OptimizerSettings:
         return [] if self.race_stages is None else [int(n) for n in self.race_looks]
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
+        """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
+        checked by :func:`~rollability_ros.core.config.check_settings`)."""
         OPTIMIZER_METHODS.check(self.method)
-        if self.popsize < 2:
-            raise ValueError(f"popsize must be >= 2, got {self.popsize}")
-        if not self.sigma0 > 0:
-            raise ValueError(f"sigma0 must be > 0, got {self.sigma0}")
-        if not 1 <= self.seed < 2**32:
-            raise ValueError(f"seed must be in [1, 2**32) (pycma treats 0 as 'seed from the clock'), got {self.seed}")
-        if self.trials < 1:
-            raise ValueError(f"trials must be >= 1, got {self.trials}")
-        if self.race_stages is not None and not 0 < self.race_alpha < 1:
-            raise ValueError(f"race_alpha must be in (0, 1), got {self.race_alpha}")
-        if self.race_survivors < 0:
-            raise ValueError(f"race_survivors must be >= 0 (0 = no halving), got {self.race_survivors}")
         if self.race_survivors and self.race_stages is None:
             raise ValueError("race_survivors needs race_looks (the looks after which the candidates are halved)")
         if self.race_survivors >= self.popsize:
@@ -139,16 +129,6 @@ class OptimizerSettings:
         if self.race_stages is not None and not self.common_random_numbers:
             raise ValueError("race_looks needs common_random_numbers: true (every stage runs the candidates still "
                              "going on one common seed)")
-        for name in ("max_generations", "stagnation_generations", "max_evaluations"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0 (0 disables it), got {getattr(self, name)}")
-        if self.initial_mean_screen < 0:
-            raise ValueError(f"initial_mean_screen must be >= 0 (0 = the paper's one random mean), got "
-                             f"{self.initial_mean_screen}")
-        if self.max_wall_time_s < 0:
-            raise ValueError(f"max_wall_time_s must be >= 0 (0 disables it), got {self.max_wall_time_s}")
-        if not 0 < self.target_fitness:
-            raise ValueError(f"target_fitness must be > 0 (above 1 disables it), got {self.target_fitness}")
         if not self.output_dir:
             raise ValueError("output_dir must be a non-empty path")
 
@@ -175,38 +155,26 @@ class QualityDiversitySettings:
     lowest_ceiling: float = dataclasses.field(default=0.5, metadata={
         "description": "height ceiling of the last emitter as a fraction of the height bound; the emitters' ceilings "
                        "step evenly from the bound (first emitter) down to it (fraction, (0, 1]; 1 = no ceilings)",
-        "range": (0.0, 1.0)})
+        "range": (0.0, 1.0), "exclusive": "low"})
     sigma0: float = dataclasses.field(default=0.0, metadata={
         "description": "initial step size of every emitter's CMA-ES, simulation units of vertex height (0 = "
                        "optimizer.sigma0)", "range": (0.0, 100.0)})
     learning_rate: float = dataclasses.field(default=0.01, metadata={
         "description": "CMA-MAE archive learning rate alpha (fraction, (0, 1]; 1 = CMA-ME, small = more "
-                       "exploration first)", "range": (0.0, 1.0)})
+                       "exploration first)", "range": (0.0, 1.0), "exclusive": "low"})
     threshold_min: float = dataclasses.field(default=0.0, metadata={
         "description": "fitness threshold of an empty cell for CMA-MAE (fitness units, upright trials / trials)",
-        "range": (-1.0, 1.0)})
+        "range": (-1.0, 1.0), "exclusive": "high"})
 
     def validate(self, popsize: int | None = None) -> None:
-        """Raise ``ValueError`` naming the first unusable field (``popsize``: the optimizer's, to split)."""
-        if self.height_cells < 1 or self.sharpness_cells < 1:
-            raise ValueError(f"height_cells and sharpness_cells must be >= 1, got {self.height_cells}, "
-                             f"{self.sharpness_cells}")
-        if not 0 <= self.sharpness_min_deg < self.sharpness_max_deg:
-            raise ValueError(f"need 0 <= sharpness_min_deg < sharpness_max_deg, got [{self.sharpness_min_deg}, "
+        """Raise ``ValueError`` for a rule that spans fields (``popsize``: the optimizer's, to split; each number's
+        range is declared in its metadata and checked by :func:`~rollability_ros.core.config.check_settings`)."""
+        if not self.sharpness_min_deg < self.sharpness_max_deg:
+            raise ValueError(f"need sharpness_min_deg < sharpness_max_deg, got [{self.sharpness_min_deg}, "
                              f"{self.sharpness_max_deg}]")
-        if self.emitters < 1:
-            raise ValueError(f"emitters must be >= 1, got {self.emitters}")
         if popsize is not None and popsize < 2 * self.emitters:
             raise ValueError(f"optimizer.popsize {popsize} cannot give {self.emitters} emitters 2 candidates each; "
                              "lower quality_diversity.emitters or raise optimizer.popsize")
-        if not 0 < self.lowest_ceiling <= 1:
-            raise ValueError(f"lowest_ceiling must be in (0, 1], got {self.lowest_ceiling}")
-        if self.sigma0 < 0:
-            raise ValueError(f"sigma0 must be >= 0 (0 = optimizer.sigma0), got {self.sigma0}")
-        if not 0 < self.learning_rate <= 1:
-            raise ValueError(f"learning_rate must be in (0, 1], got {self.learning_rate}")
-        if not -1 <= self.threshold_min < 1:
-            raise ValueError(f"threshold_min must be in [-1, 1), got {self.threshold_min}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -275,7 +243,7 @@ class IncumbentOptimizer(abc.ABC):
     def check_settings(cls, settings: "RunSettings") -> None:
         """Raise ``ValueError`` naming the first unusable setting this method reads from the run's typed
         ``settings`` (default: the ``optimizer`` section), before a run starts."""
-        settings.optimizer.validate()
+        config.check_settings(settings.optimizer, "optimizer")
 
     @classmethod
     @abc.abstractmethod

@@ -44,6 +44,7 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
+from rollability_ros.core import config
 from rollability_ros.core.optional import require
 from rollability_ros.core.optimization.cmaes import check_search_space
 from rollability_ros.core.optimization.optimizer_contract import (IncumbentOptimizer, OptimizerResult,
@@ -115,7 +116,8 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
     @classmethod
     def check_settings(cls, settings: "RunSettings") -> None:
         """The ``optimizer`` section, and the ``quality_diversity`` section against the popsize."""
-        settings.optimizer.validate()
+        config.check_settings(settings.optimizer, "optimizer")
+        config.check_settings(settings.quality_diversity, "quality_diversity")
         settings.quality_diversity.validate(settings.optimizer.popsize)
 
     @classmethod
@@ -124,7 +126,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
                state: dict[str, typing.Any] | None = None) -> "QualityDiversityOptimizer":
         """``optimizer.method: cma_mae``: CMA-MAE over the grid with the ``optimizer`` and ``quality_diversity``
         sections; ``initial_mean`` ``(grid.n_variables,)`` simulation units, None: the paper's random mean."""
-        settings.optimizer.validate()
+        config.check_settings(settings.optimizer, "optimizer")
         if state is None:
             return cls(settings.optimizer, settings.quality_diversity, grid, clock, initial_mean)
         return cls.from_state_dict(state, settings.optimizer, settings.quality_diversity, grid, clock, initial_mean)
@@ -136,7 +138,8 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
         from ribs.archives import GridArchive
         from ribs.schedulers import Scheduler
 
-        settings.validate()
+        config.check_settings(settings, "optimizer")
+        config.check_settings(qd_settings, "quality_diversity")
         qd_settings.validate(settings.popsize)
         self.qd_settings = qd_settings
         self.grid = grid

@@ -36,6 +36,7 @@ import types
 import typing
 import zlib
 
+from rollability_ros.core import config
 from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
                                           LaunchCondition, LaunchOutcome, check_twin_seed)
@@ -546,7 +547,7 @@ def make_launch_backend(settings: RigSettings, speed_config: SpeedGateConfig, va
     Raises ``ValueError`` for unusable settings (a bad twin configuration, an IMU the caller cannot provide) and
     ``ImportError`` when the simulated backend's dependencies are missing.
     """
-    settings.validate()
+    config.check_settings(settings, "rig")
     return launch_backend_class(settings.backend).from_ports(settings, speed_config, valve_config, imu_config, ports)
 
 

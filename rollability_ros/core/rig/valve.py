@@ -528,3 +528,5 @@ class RegulatorCheck:
     def confirm(self, speed_mps: float) -> None:
         """Record that the regulator is set for ``speed_mps``."""
         self._confirmed_psi = self._regulator.pressure_psi(speed_mps)
+
+

@@ -9,10 +9,10 @@ from synthetic_imu import piecewise, stream
 
 from rollability_ros.core.config import check_settings
 from rollability_ros.core.records import NO_SEED, LaunchCondition
-from rollability_ros.core.rig.launch_backend import ImuOutcome, LaunchBackend, RigPorts, RigSettings
-from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LaunchAborted, OperatorChannel,
-                                                  OperatorOutcome, PhysicalLaunch, check_goal, launch_backend_class,
-                                                  make_launch_backend, parse_outcome_answer, simulated_outcome,
+from rollability_ros.core.rig.launch_backend import (ImuOutcome, LaunchAborted, LaunchBackend, OperatorChannel,
+                                                     OperatorOutcome, RigPorts, RigSettings, parse_outcome_answer)
+from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, PhysicalLaunch, check_goal,
+                                                  launch_backend_class, make_launch_backend, simulated_outcome,
                                                   launch_seed)
 from rollability_ros.core.rig.speed_gate import SimulatedSpeedGate, SpeedGateConfig
 from rollability_ros.core.imu.upright import ImuOutcomeConfig

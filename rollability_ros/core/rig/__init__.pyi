@@ -1,12 +1,13 @@
 """The face of ``rollability_ros.core.rig``: the names code outside the subpackage imports, and where each
 lives. Type checkers read this stub; at run time ``lazy_loader.attach_stub`` (``__init__.py``) reads the same
 imports and loads a name's module when the name is first used."""
-from .launch_backend import LAUNCH_BACKENDS, ImuOutcome, LaunchAborted, LaunchBackend, RigPorts, RigSettings
+from .launch_backend import (LAUNCH_BACKENDS, ImuOutcome, LaunchAborted, LaunchBackend, OperatorOutcome, RigPorts,
+                             RigSettings, describe_answer, parse_outcome_answer)
 from .rig_auth import KeyFileSigner, RecordGuard, request_guard
 from .rig_network import (DISCOVERY_RANGES, RIG_DOMAIN_ID, check_domain_id, check_namespace, exposure_warnings,
                           physical_rig_environment)
-from .rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, OperatorOutcome, PhysicalLaunch, SimulatedLaunch,
-                          describe_answer, launch_backend_class, make_launch_backend, parse_outcome_answer)
+from .rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, PhysicalLaunch, SimulatedLaunch, launch_backend_class,
+                          make_launch_backend)
 from .speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
 from .valve import ValveController, ValveStatus
 from .valve_auth import (AuthError, RequestSigner, RequestVerifier, Signature, create_session_key, default_key_path,

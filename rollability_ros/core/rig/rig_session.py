@@ -26,11 +26,9 @@ that is the operator's decision.
 
 :func:`simulated_outcome` turns the launch twin's result into an outcome for the ``sim`` backend.
 """
-import dataclasses
 import importlib
 import math
 import os
-import threading
 import time
 import types
 import typing
@@ -41,8 +39,8 @@ from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
                                           LaunchCondition, LaunchOutcome, check_twin_seed)
 from rollability_ros.core.rig.launch_backend import (LAUNCH_BACKENDS, ImuOutcome, LaunchAborted, LaunchBackend,
-                                                     PhaseCallback, PoseCallback, RigPorts, RigSettings, no_phase,
-                                                     not_cancelled)
+                                                     OperatorChannel, OperatorOutcome, PhaseCallback, PoseCallback,
+                                                     RigPorts, RigSettings, describe_answer, no_phase, not_cancelled)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
 from rollability_ros.core.rig.valve_contract import ValveConfig
 
@@ -83,140 +81,6 @@ def check_goal(run_id: str, trial_id: str, condition: LaunchCondition,
     if condition.configuration not in configurations:
         return f"unknown configuration {condition.configuration!r} (known: {', '.join(configurations)})"
     return ""
-
-
-@dataclasses.dataclass(frozen=True)
-class OperatorOutcome:
-    """The operator's classification of a launch: upright, optional travel time (s, NaN if not timed), note."""
-
-    upright: bool
-    travel_time_s: float = NOT_MEASURED
-    note: str = ""
-
-
-def parse_outcome_answer(text: str) -> "OperatorOutcome":
-    """Parse a typed outcome ``"y|n [travel time s] [note...]"`` into an :class:`OperatorOutcome`.
-
-    ``y``/``yes``/``u``/``upright`` mean upright, ``n``/``no``/``t``/``tipped`` not; raises ``ValueError`` otherwise.
-    """
-    words = text.split()
-    if not words:
-        raise ValueError("type y (upright) or n (not upright), optionally the travel time in s and a note")
-    verdict = words[0].lower()
-    if verdict not in ("y", "yes", "u", "upright", "n", "no", "t", "tipped"):
-        raise ValueError(f"first word must be y (upright) or n (not upright), got {words[0]!r}")
-    travel_time_s, rest = NOT_MEASURED, words[1:]
-    if rest:
-        try:
-            travel_time_s = float(rest[0])
-            rest = rest[1:]
-        except ValueError:
-            pass
-        if not (math.isnan(travel_time_s) or 0 < travel_time_s < math.inf):
-            raise ValueError(f"travel time must be > 0 s, got {travel_time_s}")
-    return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest))
-
-
-def describe_answer(kind: str, answer: typing.Optional[OperatorOutcome]) -> str:
-    """An operator answer in words: ``regulator confirmed`` or ``upright, travel time 0.42 s, note: ...``."""
-    if kind == "confirm":
-        return "regulator confirmed"
-    assert answer is not None, "an outcome answer carries the outcome"
-    parts = ["upright" if answer.upright else "tipped"]
-    if not math.isnan(answer.travel_time_s):
-        parts.append(f"travel time {answer.travel_time_s:g} s")
-    if answer.note:
-        parts.append(f"note: {answer.note}")
-    return ", ".join(parts)
-
-
-class OperatorChannel:
-    """One pending question to the operator (regulator confirmation or launch outcome) and its answer.
-
-    The launch opens a question, announces it (feedback), then waits; answers come from any thread (the operator
-    may answer from the ``rollability rig`` CLI or from the campaign terminal: the first answer counts). An answer
-    with no open question of its kind is refused with a reason, so a late or stray service call changes nothing;
-    a late answer to the question just answered (same kind and trial) is compared with the answer that counted:
-    the same verdict is accepted as already given (it changes nothing), a different one is refused naming both.
-    """
-
-    def __init__(self):
-        self._cond = threading.Condition()
-        self._kind = None      # "confirm" | "outcome" | None
-        self._trial_id = ""
-        self._answer = None
-        self._last: typing.Dict[str, typing.Tuple[str, typing.Any]] = {}   # kind -> (trial id, answer that counted)
-
-    def open(self, kind: str, trial_id: str = "") -> None:
-        """Start waiting for a ``"confirm"`` or an ``"outcome"`` (of ``trial_id``)."""
-        if kind not in ("confirm", "outcome"):
-            raise ValueError(f"kind must be 'confirm' or 'outcome', got {kind!r}")
-        with self._cond:
-            self._kind, self._trial_id, self._answer = kind, trial_id, None
-
-    def close(self) -> None:
-        """Stop waiting; later answers are refused."""
-        with self._cond:
-            self._kind, self._answer = None, None
-            self._cond.notify_all()
-
-    @property
-    def waiting_for(self) -> typing.Optional[str]:
-        """``"confirm"``, ``"outcome"`` or None."""
-        with self._cond:
-            return self._kind
-
-    def _late(self, kind, answer, trial_id):
-        """``(accepted, message)`` for a late answer to the question of ``kind`` answered last, or None."""
-        if kind not in self._last or (self._kind == kind and self._answer is None):
-            return None
-        answered_trial, counted = self._last[kind]
-        if trial_id and trial_id != answered_trial:
-            return None
-        given = describe_answer(kind, counted)
-        if kind == "confirm" or counted.upright == answer.upright:
-            return True, f"already answered for {answered_trial}: {given} (this answer agrees; nothing changed)"
-        return False, (f"already answered for {answered_trial}: {given}; this answer ({describe_answer(kind, answer)}) "
-                       "differs and is refused (the first answer counts)")
-
-    def _deliver(self, kind, answer, trial_id=""):
-        with self._cond:
-            late = self._late(kind, answer, trial_id)
-            if late is not None:
-                return late
-            if self._kind != kind:
-                what = "a regulator confirmation" if kind == "confirm" else "an outcome"
-                return False, f"the rig is not waiting for {what}" + (
-                    f" (it waits for {'a confirmation' if self._kind == 'confirm' else 'an outcome'})"
-                    if self._kind else "")
-            if trial_id and trial_id != self._trial_id:
-                what = "a regulator confirmation" if kind == "confirm" else "the outcome"
-                return False, f"the rig waits for {what} of {self._trial_id!r}, not {trial_id!r}"
-            self._answer = answer
-            self._last[kind] = (self._trial_id, answer)
-            self._cond.notify_all()
-            return True, "accepted"
-
-    def confirm(self, trial_id: str = "") -> typing.Tuple[bool, str]:
-        """Answer an open regulator confirmation (of ``trial_id``, "" = the current one). Returns
-        ``(accepted, message)``."""
-        return self._deliver("confirm", True, trial_id)
-
-    def record_outcome(self, outcome: OperatorOutcome, trial_id: str = "") -> typing.Tuple[bool, str]:
-        """Answer an open outcome question with an :class:`OperatorOutcome` (``trial_id`` "" = the current one)."""
-        return self._deliver("outcome", outcome, trial_id)
-
-    def wait(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
-             poll_s: float = 0.05) -> typing.Any:
-        """Return the answer once given, or None on timeout / ``cancelled()``; the question stays open."""
-        deadline = time.monotonic() + timeout_s
-        with self._cond:
-            while self._answer is None:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0 or cancelled() or self._kind is None:
-                    return None
-                self._cond.wait(min(poll_s, remaining))
-            return self._answer
 
 
 class PhysicalLaunch(LaunchBackend):

@@ -169,7 +169,7 @@ class MujocoTrialWorld(TrialEngine):
 
     def tilt_deg(self) -> float:
         """Angle between the root frame's up axis and world +z, degrees."""
-        return root_tilt_deg(self.data, self.root, self.up_in_root)
+        return root_tilt_deg(self.data.xmat[self.root], self.up_in_root)
 
     def is_upright(self) -> typing.Tuple[bool, float]:
         """``(upright, tilt_deg)`` as :meth:`RobotModel.is_upright` judges it."""
@@ -241,10 +241,11 @@ class MujocoTrialWorld(TrialEngine):
                             tilt_deg=tilt)
 
 
-def root_tilt_deg(data: typing.Any, root: int, up_in_root: np.ndarray) -> float:
-    """Angle (deg) between world +z and the up axis ``up_in_root`` (3,) (unit, root frame) of body ``root`` in MuJoCo's
-    ``data`` (every MuJoCo world's tilt: the trials' and the launch twin's)."""
-    up_world = data.xmat[root].reshape(3, 3) @ up_in_root
+def root_tilt_deg(root_rotation: np.ndarray, up_in_root: np.ndarray) -> float:
+    """Angle (deg) between world +z and the up axis ``up_in_root`` (3,) (unit, root frame) of a body whose world
+    rotation (MuJoCo's ``data.xmat`` row of it) is ``root_rotation`` (9,) (every MuJoCo world's tilt: the trials'
+    and the launch twin's)."""
+    up_world = np.asarray(root_rotation).reshape(3, 3) @ up_in_root
     return math.degrees(math.acos(float(np.clip(up_world[2], -1.0, 1.0))))
 
 

@@ -417,7 +417,7 @@ class MujocoLaunchTwin(LaunchWorld):
 
     def tilt_deg(self) -> float:
         """Angle between the robot's up axis and world +z now, degrees (the MuJoCo trials' rule)."""
-        return root_tilt_deg(self.data, self.root, self.up_in_root)
+        return root_tilt_deg(self.data.xmat[self.root], self.up_in_root)
 
     def wheels_down(self) -> int:
         """How many wheels are within the robot's ``contact_tolerance_m`` of the pad, the floor or the ledge: the

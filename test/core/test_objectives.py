@@ -54,7 +54,7 @@ def test_bad_objective_settings_are_refused():
 def test_launch_twin_objective_scores_launches_of_the_candidate_under_the_campaign_conditions(tmp_path):
     pytest.importorskip("pybullet")
     from rollability_ros.core.profile.geometry import profile_mesh
-    from rollability_ros.core.results.records import LaunchCondition
+    from rollability_ros.core.records import LaunchCondition
     from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
     from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
@@ -82,7 +82,7 @@ def test_launch_twin_objective_scores_launches_of_the_candidate_under_the_campai
 def test_launches_run_on_the_evaluations_engine_or_are_refused(monkeypatch, tmp_path, capsys):
     pytest.importorskip("mujoco")
     from rollability_ros.cli import main
-    from rollability_ros.core.results.records import LaunchCondition
+    from rollability_ros.core.records import LaunchCondition
     from rollability_ros.core.sim import trial_engine
     from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 

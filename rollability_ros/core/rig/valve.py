@@ -30,6 +30,7 @@ import threading
 import time
 import typing
 
+from rollability_ros.core.rig.relay_protocol import DeviceLimits
 from rollability_ros.core.rig.valve_contract import ValveBackend
 
 _LOG = logging.getLogger(__name__)
@@ -197,7 +198,7 @@ class ValveController:
             self._emit("started")
 
     # ------------------------------------------------------------------ state
-    def device_limits(self) -> typing.Any:
+    def device_limits(self) -> typing.Optional["DeviceLimits"]:
         """The device's own limits (``relay_protocol.DeviceLimits``) when the backend reports them, else None."""
         return self._backend.limits
 

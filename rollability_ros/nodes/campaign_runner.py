@@ -193,10 +193,11 @@ class RigClient:
             request = ConfirmRegulator.Request(trial_id=trial_id,
                                                auth=self._sign(lambda signer: signer.confirm(trial_id)))
         else:
+            rolled_m = -1.0 if math.isnan(outcome.rest_distance_m) else outcome.rest_distance_m   # -1: not measured
             request = RecordOutcome.Request(trial_id=trial_id, upright=outcome.upright, note=outcome.note,
-                                            travel_time_s=outcome.travel_time_s)
-            request.auth = self._sign(lambda signer: signer.outcome(trial_id, request.upright,
-                                                                    request.travel_time_s, request.note))
+                                            travel_time_s=outcome.travel_time_s, rest_distance_m=rolled_m)
+            request.auth = self._sign(lambda signer: signer.outcome(trial_id, request.upright, request.travel_time_s,
+                                                                    request.note, request.rest_distance_m))
         response = self._wait(client.call_async(request), client.srv_name)
         accepted = response.success if kind == "confirm" else response.accepted
         if not accepted:

@@ -315,7 +315,7 @@ def answer_rig(phase: str, detail: str,
         ask(f"{detail}: Enter when done: ")
         return "confirm", None
     if phase == "classifying" and detail.startswith(ASK_OUTCOME):
-        prompt = f"{detail}: y/n [travel time s] [note]: "
+        prompt = f"{detail}: y/n [travel time s] [rolled=M] [note]: "
         while True:
             try:
                 return "outcome", parse_outcome_answer(ask(prompt))

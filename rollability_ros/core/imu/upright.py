@@ -299,12 +299,19 @@ class ImuOutcomeConfig:
     settle_timeout_s: float = dataclasses.field(default=15.0, metadata={
         "description": "no settled IMU reading this long after firing: ask the operator instead, s",
         "range": (0.0, 3600.0)})
+    impact_threshold_mps2: float = dataclasses.field(default=30.0, metadata={
+        "description": "the landing is the first sample after the fire whose acceleration (gravity removed) exceeds "
+                       "this, m/s^2 (more than g: free flight reads g); time to rest and peak deceleration count from "
+                       "it", "range": (0.0, 10000.0)})
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field (by building the classifier it configures)."""
         if not self.topic:
             raise ValueError("topic must name the IMU topic")
         ImuUprightClassifier.from_config(self)
+        if not self.impact_threshold_mps2 > STANDARD_GRAVITY_MPS2:
+            raise ValueError(f"impact_threshold_mps2 must exceed g ({STANDARD_GRAVITY_MPS2:g} m/s^2: free flight "
+                             f"reads that), got {self.impact_threshold_mps2}")
         if not self.settle_timeout_s > self.settle_time_s:
             raise ValueError(f"settle_timeout_s ({self.settle_timeout_s}) must exceed settle_time_s "
                              f"({self.settle_time_s})")

@@ -36,7 +36,8 @@ import types
 import typing
 import zlib
 
-from rollability_ros.core.imu import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
+from rollability_ros.core.imu import (ImuMount, ImuOutcomeConfig, ImuSample, ImuUprightClassifier, LaunchMotion,
+                                      LaunchMotionMeter, UprightReading)
 from rollability_ros.core.registry import Registry
 from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
                                           LaunchCondition, LaunchOutcome, check_twin_seed)
@@ -143,14 +144,28 @@ class OperatorOutcome:
     upright: bool
     travel_time_s: float = NOT_MEASURED
     note: str = ""
+    rest_distance_m: float = NOT_MEASURED   # m from the ledge's edge to where it came to rest, as the operator measured
+
+
+#: The word of a typed outcome that gives the distance rolled, m: ``rolled=0.35``.
+ROLLED_WORD = "rolled="
 
 
 def parse_outcome_answer(text: str) -> "OperatorOutcome":
-    """Parse a typed outcome ``"y|n [travel time s] [note...]"`` into an :class:`OperatorOutcome`.
+    """Parse a typed outcome ``"y|n [travel time s] [rolled=M] [note...]"`` into an :class:`OperatorOutcome`.
 
-    ``y``/``yes``/``u``/``upright`` mean upright, ``n``/``no``/``t``/``tipped`` not; raises ``ValueError`` otherwise.
+    ``y``/``yes``/``u``/``upright`` mean upright, ``n``/``no``/``t``/``tipped`` not; ``rolled=0.35`` anywhere after the
+    verdict is the distance from the ledge's edge to where the chassis came to rest, m, as measured (>= 0); raises
+    ``ValueError`` otherwise.
     """
     words = text.split()
+    rolled = [word for word in words[1:] if word.lower().startswith(ROLLED_WORD)]
+    if len(rolled) > 1:
+        raise ValueError(f"give the distance rolled once ({ROLLED_WORD}M), got {' '.join(rolled)}")
+    rest_distance_m = NOT_MEASURED
+    if rolled:
+        rest_distance_m = check_rest_distance(rolled[0][len(ROLLED_WORD):])
+        words = [word for word in words if word is not rolled[0]]
     if not words:
         raise ValueError("type y (upright) or n (not upright), optionally the travel time in s and a note")
     verdict = words[0].lower()
@@ -165,7 +180,19 @@ def parse_outcome_answer(text: str) -> "OperatorOutcome":
             pass
         if not (math.isnan(travel_time_s) or 0 < travel_time_s < math.inf):
             raise ValueError(f"travel time must be > 0 s, got {travel_time_s}")
-    return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest))
+    return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest), rest_distance_m)
+
+
+def check_rest_distance(value: typing.Any) -> float:
+    """The distance rolled an operator gives (text or number), m: a finite number >= 0, else ``ValueError`` naming it."""
+    try:
+        distance = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"the distance rolled must be a number of metres >= 0 ({ROLLED_WORD}0.35), got {value!r}") \
+            from None
+    if not (math.isfinite(distance) and distance >= 0):
+        raise ValueError(f"the distance rolled must be a number of metres >= 0 ({ROLLED_WORD}0.35), got {value!r}")
+    return distance
 
 
 def describe_answer(kind: str, answer: typing.Any) -> str:
@@ -175,6 +202,8 @@ def describe_answer(kind: str, answer: typing.Any) -> str:
     parts = ["upright" if answer.upright else "tipped"]
     if not math.isnan(answer.travel_time_s):
         parts.append(f"travel time {answer.travel_time_s:g} s")
+    if not math.isnan(answer.rest_distance_m):
+        parts.append(f"rolled {answer.rest_distance_m:g} m")
     if answer.note:
         parts.append(f"note: {answer.note}")
     return ", ".join(parts)
@@ -270,26 +299,42 @@ class OperatorChannel:
 
 
 class ImuOutcome:
-    """The upright classifier fed from the IMU topic; a launch resets it at firing and waits for its verdict."""
+    """The upright classifier fed from the IMU topic; a launch resets it at firing and waits for its verdict. The
+    same samples feed a :class:`~rollability_ros.core.imu.launch_motion.LaunchMotionMeter` (the launch's final tilt,
+    time to rest and peak deceleration: :meth:`motion`)."""
 
     def __init__(self, config):
         self.config = config
         self._classifier = ImuUprightClassifier.from_config(config)
+        self._meter = LaunchMotionMeter(config.impact_threshold_mps2, ImuMount.from_rpy_deg(config.mount_rpy_deg))
         self._cond = threading.Condition()
         self._reading = None
+        self._settled = None   # the first settled reading since the reset
 
     def reset(self) -> None:
         """Forget everything before the launch (a chassis waiting on the launcher looks settled too)."""
         with self._cond:
             self._classifier.reset()
+            self._meter.reset()
             self._reading = None
+            self._settled = None
 
     def feed(self, sample: ImuSample) -> None:
         """Classify one :class:`~rollability_ros.core.imu.upright.ImuSample`; bad samples raise ``ValueError``."""
         with self._cond:
-            self._reading = self._classifier.update(sample)
-            if self._reading.classification is not None:
+            reading = self._classifier.update(sample)
+            if self._settled is None:
+                self._meter.update(sample)
+            self._reading = reading
+            if reading.classification is not None:
+                if self._settled is None:
+                    self._settled = reading
                 self._cond.notify_all()
+
+    def motion(self) -> LaunchMotion:
+        """The continuous outcomes of the launch since the reset (NaN what the IMU did not see)."""
+        with self._cond:
+            return self._meter.motion(self._settled)
 
     def wait_settled(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
                      poll_s: float = 0.05) -> typing.Optional[UprightReading]:
@@ -444,6 +489,7 @@ class PhysicalLaunch(LaunchBackend):
         except BaseException:
             self._confirmed = None   # after an e-stop, a fault or a cancel the operator confirms the pressure again
             raise
+        motion = self.imu.motion() if reading is not None and self.imu is not None else LaunchMotion()
         travel_time_s, source = self.travel_time_source(travel_time_s, operator)
         speed = self.speed_config.measure(condition.speed_mps, travel_time_s)
         notes = [source, speed_note(speed, condition.speed_mps, self.speed_config.tolerance_fraction)]
@@ -459,7 +505,8 @@ class PhysicalLaunch(LaunchBackend):
             speed_out_of_tolerance=speed.speed_out_of_tolerance,
             final_orientation=tuple(reading.orientation) if reading is not None else UNKNOWN_ORIENTATION,
             classified_by="operator" if operator is not None else "imu", note="; ".join(filter(None, notes)),
-            stamp_s=time.time())
+            stamp_s=time.time(), **motion.outcome_fields(),
+            rest_distance_m=operator.rest_distance_m if operator is not None else NOT_MEASURED)
 
     def travel_time_source(self, gate_s: float, operator: typing.Optional[OperatorOutcome]
                            ) -> typing.Tuple[float, str]:
@@ -667,7 +714,7 @@ def launch_seed(base_seed: int, trial_id: str) -> int:
 def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, result: typing.Any,
                       speed_config: SpeedGateConfig) -> LaunchOutcome:
     """The :class:`LaunchOutcome` of a launch twin result (``upright``, ``final_orientation_xyzw``,
-    ``travel_time_s``), with the speed flagged against ``speed_config``'s tolerance; an invalid launch
+    ``travel_time_s`` and the continuous outcomes, :func:`simulated_continuous_outcomes`), with the speed flagged against ``speed_config``'s tolerance; an invalid launch
     (``invalid_reason``) is stored not upright with a note starting with :data:`INVALID_LAUNCH`."""
     travel_time_s = float(getattr(result, "travel_time_s", NOT_MEASURED))
     if not travel_time_s > 0:
@@ -684,5 +731,20 @@ def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, re
         travel_time_s=speed.travel_time_s, measured_speed_mps=speed.measured_speed_mps,
         speed_out_of_tolerance=speed.speed_out_of_tolerance,
         final_orientation=tuple(float(v) for v in result.final_orientation_xyzw), classified_by="sim", note=note,
-        stamp_s=time.time(), seed=int(getattr(result, "seed", NO_SEED)))
+        stamp_s=time.time(), seed=int(getattr(result, "seed", NO_SEED)), **simulated_continuous_outcomes(result))
+
+
+def simulated_continuous_outcomes(result: typing.Any) -> typing.Dict[str, float]:
+    """The continuous outcomes (:data:`~rollability_ros.core.records.CONTINUOUS_OUTCOMES`) of a launch twin result:
+    its ``tilt_deg``, ``rest_distance_m``, ``time_to_rest_s`` and ``peak_deceleration_mps2``, each NaN where the twin
+    did not see it (a non-finite value; no time to rest after the time cap or an early decision; no peak
+    deceleration for a launch that never landed, whose ``landing_position_m`` is NaN)."""
+    def finite(name: str, default: float = NOT_MEASURED) -> float:
+        value = float(getattr(result, name, default))
+        return value if math.isfinite(value) else NOT_MEASURED
+
+    landed = all(math.isfinite(float(v)) for v in getattr(result, "landing_position_m", (NOT_MEASURED,)))
+    return {"final_tilt_deg": finite("tilt_deg"), "rest_distance_m": finite("rest_distance_m"),
+            "time_to_rest_s": finite("time_to_rest_s"),
+            "peak_deceleration_mps2": finite("peak_deceleration_mps2") if landed else NOT_MEASURED}
 

@@ -1,0 +1,579 @@
+"""Which launch next, and when a comparison is decided (issue 44.4).
+
+Which launch next
+    The unknowns of the twin (``calibration.parameters``: centre of mass, foam friction, ...) are uncertain; each
+    launch of a (configuration, condition) answers upright or not. The launch that teaches most about the unknowns
+    is the one whose outcome the current posterior is least sure of *for reasons of the unknowns*: the BALD score
+    (Houlsby et al. 2011), the mutual information between the outcome y and the unknowns theta,
+
+        I(y; theta) = H[E_theta p(theta)] - E_theta H[p(theta)],   H[p] = -p log p - (1 - p) log(1 - p) (nats),
+
+    over posterior samples of theta. A condition where every plausible theta predicts 50 % scores 0 (the outcome is
+    a coin flip whatever theta is: it teaches nothing); one where half the plausible thetas predict 5 % and half 95 %
+    scores about log 2.
+
+    It needs two things, each behind a small interface: samples of the unknowns (prior draws, in their calibration
+    bounds, on their own scale), and a predictor p(upright | theta, configuration, condition)
+    (:class:`UprightPredictor`): the simulation-based likelihood (:class:`TwinPredictor`: the upright fraction of
+    ``repetitions`` twin launches, common random numbers), a learnt likelihood, or an analytic model
+    (:class:`LogisticToyPredictor`). :class:`WeightedPosterior` keeps the prior samples with their predictions at
+    every candidate condition once, and weighs them by the likelihood of the launches seen (importance
+    sampling from the prior): each new outcome is one multiplication, each proposal one pass over a (samples x
+    candidates) table, so the operator gets the next launch at once. Its effective sample size says when the prior
+    draws are too few to describe the posterior (then draw more).
+
+When a comparison is decided
+    Design B against design A, launched in pairs at the same condition: each pair gives D = y_B - y_A in {-1, 0, 1}.
+    :class:`PairedSequentialTest` is a betting confidence sequence (Waudby-Smith and Ramdas 2023, "Estimating means
+    of bounded random variables by betting", hedged capital with a predictable plug-in bet): for each candidate mean
+    difference m the wealth K_t(m) = prod_i (1 + lambda_i (D_i - m)) is a nonnegative martingale when m is the true
+    mean, so by Ville's inequality P(sup_t K_t(m) >= 1/alpha) <= alpha. The set {m : K_t(m) < 1/alpha} holds the true
+    difference at every t at once with probability at least 1 - alpha: the campaign may look after every pair and
+    stop as soon as 0 leaves it ("decided"), and the chance that a decision was wrong (that it excluded the true
+    difference) stays at most alpha however long it runs. test/core/test_adaptive.py measures the false decisions
+    under equal designs by simulation.
+
+The comparison of plans (:func:`compare_plans`): on hidden truths drawn from the prior, the paper's matrix (every
+grouped condition in turn, in shuffled rounds) against the BALD plan, both with the same posterior machinery; how
+many launches each needs until every unknown's 95 % interval is at most a target width (normalised: a fraction of
+its range on its search scale). bench/bench_adaptive_plan.py runs it.
+
+numpy only (the twin predictor imports the calibration's launch pool when it is used).
+"""
+import dataclasses
+import math
+import typing
+
+import numpy as np
+import numpy.typing as npt
+
+from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+
+if typing.TYPE_CHECKING:   # annotations only: calibration loads the twin
+    from rollability_ros.core.campaign.calibration import CalibrationSettings, LaunchPool
+
+#: Predicted probabilities are kept in [EPSILON, 1 - EPSILON]: one impossible outcome must not zero a sample.
+EPSILON = 1e-3
+
+
+class UprightPredictor(typing.Protocol):
+    """p(upright | theta, configuration, condition): the likelihood the proposal and the posterior use."""
+
+    def probabilities(self, theta: np.ndarray, conditions: typing.Sequence[LaunchCondition]) -> np.ndarray:
+        """P(upright) (s, c) for parameter sets ``theta`` (s, d) (own units, in the unknowns' order) at each
+        grouped condition of ``conditions`` (c) (the repetition is ignored)."""
+        ...
+
+
+@dataclasses.dataclass(frozen=True)
+class Unknowns:
+    """The unknowns: config keys with their bounds and scales (own units), as ``calibration.parameters`` declares
+    them. Normalised coordinates u in [0, 1] map to ``lower + u (upper - lower)``, or ``lower (upper / lower) ** u``
+    on a log scale."""
+
+    names: typing.Tuple[str, ...]
+    lower: typing.Tuple[float, ...]
+    upper: typing.Tuple[float, ...]
+    log_scale: typing.Tuple[bool, ...]
+
+    def __post_init__(self) -> None:
+        if not self.names or not len(self.names) == len(self.lower) == len(self.upper) == len(self.log_scale):
+            raise ValueError("unknowns need one lower, upper and log_scale per name, and at least one name")
+        for name, low, high, log in zip(self.names, self.lower, self.upper, self.log_scale):
+            if not (math.isfinite(low) and math.isfinite(high) and low < high) or (log and not low > 0):
+                raise ValueError(f"{name}: need finite lower < upper (and lower > 0 on a log scale), got "
+                                 f"[{low}, {high}]")
+
+    @classmethod
+    def from_settings(cls, settings: "CalibrationSettings") -> "Unknowns":
+        """The unknowns of :class:`~rollability_ros.core.campaign.calibration.CalibrationSettings`."""
+        return cls(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper), tuple(settings.log_scale))
+
+    def to_values(self, normalised: npt.ArrayLike) -> np.ndarray:
+        """Own units (..., d) of normalised coordinates (..., d)."""
+        u = np.clip(np.asarray(normalised, dtype=np.float64), 0.0, 1.0)
+        low, high = np.array(self.lower), np.array(self.upper)
+        log = np.array(self.log_scale)
+        linear = low + u * (high - low)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            logged = low * (high / np.where(log, low, 1.0)) ** u
+        return np.where(log, logged, linear)
+
+    def to_normalised(self, values: npt.ArrayLike) -> np.ndarray:
+        """Normalised coordinates (..., d) of values in own units (..., d)."""
+        v = np.asarray(values, dtype=np.float64)
+        low, high = np.array(self.lower), np.array(self.upper)
+        log = np.array(self.log_scale)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            logged = np.log(v / np.where(log, low, 1.0)) / np.log(np.where(log, high / low, 2.0))
+        return np.where(log, logged, (v - low) / (high - low))
+
+    def draw(self, count: int, rng: np.random.Generator) -> np.ndarray:
+        """``count`` prior draws (count, d), own units: uniform on each unknown's search scale."""
+        return self.to_values(rng.uniform(0.0, 1.0, (count, len(self.names))))
+
+
+def binary_entropy(p: npt.ArrayLike) -> np.ndarray:
+    """H[p] in nats, elementwise; 0 at p = 0 and 1."""
+    q = np.clip(np.asarray(p, dtype=np.float64), 0.0, 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h = -(q * np.log(q) + (1.0 - q) * np.log1p(-q))
+    return np.nan_to_num(h, nan=0.0)
+
+
+def bald_scores(probabilities: npt.ArrayLike, weights: typing.Optional[npt.ArrayLike] = None) -> np.ndarray:
+    """The BALD score (nats) of each candidate: H[mean p] - mean H[p] over the samples.
+
+    Parameters
+    ----------
+    probabilities : (s, c) array
+        P(upright) of each posterior sample (s) at each candidate (c).
+    weights : (s,) array, optional
+        Sample weights (normalised here); equal weights by default.
+    """
+    p = np.asarray(probabilities, dtype=np.float64)
+    if p.ndim != 2:
+        raise ValueError(f"probabilities must be (samples, candidates), got shape {p.shape}")
+    w = np.full(p.shape[0], 1.0 / p.shape[0]) if weights is None else np.asarray(weights, dtype=np.float64)
+    if w.shape != (p.shape[0],) or not np.all(w >= 0) or not w.sum() > 0:
+        raise ValueError("weights must be one nonnegative number per sample, not all zero")
+    w = w / w.sum()
+    return binary_entropy(w @ p) - w @ binary_entropy(p)
+
+
+@dataclasses.dataclass(frozen=True)
+class Proposal:
+    """The proposed next launch: the condition, its BALD score (nats), and the predicted P(upright) with its spread
+    over the posterior (mean, 5 % and 95 % quantiles), next best candidates' scores for context."""
+
+    condition: LaunchCondition
+    score_nats: float
+    predicted_mean: float
+    predicted_low: float
+    predicted_high: float
+    runner_up: typing.Tuple[typing.Tuple[LaunchCondition, float], ...] = ()
+
+    def why(self) -> str:
+        """One line for the operator: the expected information and what the plausible unknowns predict."""
+        return (f"expected information {self.score_nats:.3f} nats ({self.score_nats / math.log(2):.2f} bits, of at most "
+                f"1 bit per launch): the plausible unknowns predict P(upright) from {self.predicted_low:.0%} to "
+                f"{self.predicted_high:.0%} here (mean {self.predicted_mean:.0%}), so its outcome tells them apart")
+
+
+class WeightedPosterior:
+    """Prior samples of the unknowns weighted by the launches seen (module docstring).
+
+    Parameters
+    ----------
+    unknowns : Unknowns
+    samples : (n, d) array
+        Prior draws, own units (:meth:`Unknowns.draw`).
+    candidates : list of LaunchCondition
+        The grouped conditions a launch may be proposed at (c).
+    probabilities : (n, c) array
+        P(upright) of every sample at every candidate (``predictor.probabilities(samples, candidates)``).
+    """
+
+    def __init__(self, unknowns: Unknowns, samples: npt.ArrayLike, candidates: typing.Sequence[LaunchCondition],
+                 probabilities: npt.ArrayLike) -> None:
+        self.unknowns = unknowns
+        self.samples = np.asarray(samples, dtype=np.float64)
+        self.candidates = list(candidates)
+        p = np.asarray(probabilities, dtype=np.float64)
+        if self.samples.ndim != 2 or self.samples.shape[1] != len(unknowns.names):
+            raise ValueError(f"samples must be (n, {len(unknowns.names)}), got shape {self.samples.shape}")
+        if p.shape != (len(self.samples), len(self.candidates)):
+            raise ValueError(f"probabilities must be ({len(self.samples)}, {len(self.candidates)}), got {p.shape}")
+        if not np.all(np.isfinite(p)) or np.any(p < 0) or np.any(p > 1):
+            raise ValueError("probabilities must be finite numbers in [0, 1]")
+        self.probabilities = np.clip(p, EPSILON, 1.0 - EPSILON)
+        self._log_p = np.log(self.probabilities)
+        self._log_q = np.log1p(-self.probabilities)
+        self._entropy = binary_entropy(self.probabilities)   # E_theta H[p] needs it at every proposal
+        self.log_weights = np.zeros(len(self.samples))
+        self._index = {c.group_key: i for i, c in enumerate(self.candidates)}
+        self.launches = 0
+
+    @classmethod
+    def from_predictor(cls, unknowns: Unknowns, predictor: UprightPredictor,
+                       candidates: typing.Sequence[LaunchCondition], samples: int,
+                       rng: np.random.Generator) -> "WeightedPosterior":
+        """``samples`` prior draws and their predictions at every candidate."""
+        theta = unknowns.draw(samples, rng)
+        return cls(unknowns, theta, candidates, predictor.probabilities(theta, candidates))
+
+    def candidate_index(self, condition: LaunchCondition) -> int:
+        """The column of ``condition``'s grouped condition; ``ValueError`` when it is no candidate."""
+        try:
+            return self._index[condition.group_key]
+        except KeyError:
+            raise ValueError(f"{condition.configuration} at {condition.height_m:g} m, {condition.speed_mps:g} m/s, "
+                             f"{condition.angle_deg:+g} deg is not a candidate condition") from None
+
+    def observe(self, index: int, upright: bool) -> None:
+        """Weigh the samples by one launch at candidate ``index``."""
+        self.log_weights += self._log_p[:, index] if upright else self._log_q[:, index]
+        self.launches += 1
+
+    def observe_counts(self, index: int, successes: int, trials: int) -> None:
+        """Weigh the samples by ``successes`` upright of ``trials`` launches at candidate ``index``."""
+        if not 0 <= successes <= trials:
+            raise ValueError(f"need 0 <= successes <= trials, got {successes} of {trials}")
+        self.log_weights += successes * self._log_p[:, index] + (trials - successes) * self._log_q[:, index]
+        self.launches += trials
+
+    def observe_outcomes(self, outcomes: typing.Iterable[LaunchOutcome]) -> int:
+        """Weigh by every valid outcome at a candidate condition; returns how many were used (others are ignored:
+        an invalid launch, or a condition not among the candidates)."""
+        used = 0
+        for outcome in outcomes:
+            if outcome.valid and outcome.condition.group_key in self._index:
+                self.observe(self._index[outcome.condition.group_key], outcome.upright)
+                used += 1
+        return used
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Normalised weights (n,)."""
+        w = np.exp(self.log_weights - self.log_weights.max())
+        return w / w.sum()
+
+    @property
+    def effective_sample_size(self) -> float:
+        """Kish's effective sample size of the weights, 1..n: under about 50 the prior draws are too few."""
+        w = self.weights
+        return float(1.0 / np.sum(w * w))
+
+    def scores(self) -> np.ndarray:
+        """BALD score (nats) of every candidate (c,) (:func:`bald_scores`, with the samples' entropies kept)."""
+        w = self.weights
+        return binary_entropy(w @ self.probabilities) - w @ self._entropy
+
+    def propose(self, runner_up: int = 3) -> Proposal:
+        """The candidate with the highest BALD score (ties: the first listed), with the predicted P(upright)."""
+        scores = self.scores()
+        order = np.argsort(-scores, kind="stable")
+        best = int(order[0])
+        low, mean, high = self._predicted(best)
+        return Proposal(self.candidates[best], float(scores[best]), mean, low, high,
+                        tuple((self.candidates[int(i)], float(scores[int(i)])) for i in order[1:1 + runner_up]))
+
+    def _predicted(self, index):
+        p = self.probabilities[:, index]
+        w = self.weights
+        low, high = weighted_quantiles(p, w, (0.05, 0.95))
+        return float(low), float(w @ p), float(high)
+
+    def intervals(self, level: float = 0.95) -> np.ndarray:
+        """Equal-tailed credible intervals (d, 2) of the unknowns, own units."""
+        tail = (1.0 - level) / 2.0
+        return np.array([weighted_quantiles(self.samples[:, j], self.weights, (tail, 1.0 - tail))
+                         for j in range(self.samples.shape[1])])
+
+    def normalised_widths(self, level: float = 0.95) -> np.ndarray:
+        """Widths (d,) of :meth:`intervals` as fractions of each unknown's range on its search scale."""
+        bounds = self.unknowns.to_normalised(self.intervals(level).T).T
+        return bounds[:, 1] - bounds[:, 0]
+
+
+def weighted_quantiles(values: npt.ArrayLike, weights: npt.ArrayLike,
+                       quantiles: typing.Sequence[float]) -> np.ndarray:
+    """Quantiles of weighted samples: the smallest value whose cumulative weight reaches each quantile."""
+    v = np.asarray(values, dtype=np.float64)
+    w = np.asarray(weights, dtype=np.float64)
+    order = np.argsort(v, kind="stable")
+    cumulative = np.cumsum(w[order])
+    cumulative /= cumulative[-1]
+    picks = np.searchsorted(cumulative, np.asarray(quantiles, dtype=np.float64), side="left")
+    return v[order][np.minimum(picks, len(v) - 1)]
+
+
+# --- predictors ---------------------------------------------------------------------------------------------------
+
+
+class LogisticToyPredictor:
+    """An analytic stand-in for the twin: P(upright) = sigmoid(a_c + b_c . (u - 1/2)), u the normalised unknowns.
+
+    Each grouped condition c gets its own intercept a_c ~ N(0, ``spread``) and sensitivities b_c ~ N(0,
+    ``strength``) (d,), drawn from ``seed`` and the condition itself, so some conditions are informative about some
+    unknowns and others (saturated near 0 or 1, or insensitive) teach little, as on the rig. Cheap and exact: for
+    tests and the plan comparison, never for a physical claim.
+    """
+
+    def __init__(self, unknowns: Unknowns, seed: int = 0, spread: float = 2.0, strength: float = 4.0) -> None:
+        self.unknowns = unknowns
+        self.seed = seed
+        self.spread = spread
+        self.strength = strength
+
+    def coefficients(self, condition: LaunchCondition) -> typing.Tuple[float, np.ndarray]:
+        """``(a_c, b_c)`` of a grouped condition (reproducible: seeded by ``seed`` and the condition's text)."""
+        import zlib
+
+        key = "|".join(str(v) for v in condition.group_key)
+        rng = np.random.default_rng([self.seed, zlib.crc32(key.encode("utf-8"))])
+        return float(rng.normal(0.0, self.spread)), rng.normal(0.0, self.strength, len(self.unknowns.names))
+
+    def probabilities(self, theta: np.ndarray, conditions: typing.Sequence[LaunchCondition]) -> np.ndarray:
+        """P(upright) (s, c); see the class docstring."""
+        u = self.unknowns.to_normalised(np.atleast_2d(theta)) - 0.5
+        columns = []
+        for condition in conditions:
+            a, b = self.coefficients(condition)
+            columns.append(1.0 / (1.0 + np.exp(-(a + u @ b))))
+        return np.stack(columns, axis=1) if columns else np.zeros((len(u), 0))
+
+
+@dataclasses.dataclass(frozen=True)
+class TwinPredictor:
+    """The simulation-based likelihood: P(upright) = upright fraction of ``repetitions`` launches of the twin with
+    theta's values set (the calibration's :class:`~rollability_ros.core.campaign.calibration.LaunchPool`, common
+    random numbers: the same launch seeds for every theta).
+
+    Parameters
+    ----------
+    parameters : dict
+        Flat parameters of the twin's files (everything not among the unknowns).
+    unknowns : Unknowns
+    pool : LaunchPool
+    repetitions : int
+        Launches per (theta, condition).
+    seed : int
+        The calibration seed the launch seeds come from.
+    """
+
+    parameters: typing.Mapping[str, typing.Any]
+    unknowns: Unknowns
+    pool: "LaunchPool"
+    repetitions: int
+    seed: int = 1
+
+    def __post_init__(self) -> None:
+        if self.repetitions < 1:
+            raise ValueError(f"repetitions must be >= 1, got {self.repetitions}")
+
+    def probabilities(self, theta: np.ndarray, conditions: typing.Sequence[LaunchCondition]) -> np.ndarray:
+        """P(upright) (s, c) from ``repetitions`` twin launches per entry."""
+        from rollability_ros.core.campaign.calibration import simulation_seeds, twin_settings_with
+        from rollability_ros.core.results.analysis import ConditionResult
+
+        twins = [twin_settings_with(self.parameters, self.unknowns.names, row) for row in np.atleast_2d(theta)]
+        grouped = [ConditionResult(*c.group_key, 0, 0) for c in conditions]
+        upright = self.pool.predicted_upright(twins, grouped, simulation_seeds(self.seed, 0, self.repetitions))
+        return upright / self.repetitions
+
+
+# --- the plans compared --------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanRun:
+    """One plan on one hidden truth: launches until every unknown's width reached the target (``None``: not within
+    the budget), the widths (d,) at the end, the effective sample size at the end."""
+
+    plan: str
+    launches_to_target: typing.Optional[int]
+    final_widths: np.ndarray
+    effective_sample_size: float
+
+
+def run_plan(plan: str, posterior: WeightedPosterior, truth_probabilities: np.ndarray, budget: int,
+             target_width: float, rng: np.random.Generator, level: float = 0.95) -> PlanRun:
+    """Launch ``plan`` ("matrix": every candidate once per round, each round shuffled; "adaptive": the BALD proposal
+    each time) on a hidden truth whose P(upright) at every candidate is ``truth_probabilities`` (c,), drawing
+    each outcome with ``rng``, until every unknown's normalised width is at most ``target_width`` or ``budget``
+    launches were made. ``posterior`` is updated in place (pass a fresh one per run)."""
+    if plan not in ("matrix", "adaptive"):
+        raise ValueError(f"plan must be 'matrix' or 'adaptive', got {plan!r}")
+    candidates = len(posterior.candidates)
+    order: typing.List[int] = []
+    reached = None
+    for launch in range(1, budget + 1):
+        if plan == "matrix":
+            if not order:
+                order = list(rng.permutation(candidates))
+            index = order.pop()
+        else:
+            index = int(np.argmax(posterior.scores()))
+        posterior.observe(index, bool(rng.random() < truth_probabilities[index]))
+        if np.all(posterior.normalised_widths(level) <= target_width):
+            reached = launch
+            break
+    return PlanRun(plan, reached, posterior.normalised_widths(level), posterior.effective_sample_size)
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanComparison:
+    """:func:`compare_plans`: per truth, the launches each plan needed (None: more than the budget)."""
+
+    target_width: float
+    budget: int
+    truths: np.ndarray                                   # (t, d), own units
+    matrix: typing.List[PlanRun]
+    adaptive: typing.List[PlanRun]
+
+    def summary(self) -> str:
+        """One line per truth and the medians."""
+        def text(run: PlanRun) -> str:
+            return f">{self.budget}" if run.launches_to_target is None else str(run.launches_to_target)
+        lines = [f"truth {i}: matrix {text(m)}, adaptive {text(a)} launches to widths <= {self.target_width:.0%}"
+                 for i, (m, a) in enumerate(zip(self.matrix, self.adaptive))]
+
+        def median(runs: typing.List[PlanRun]) -> str:
+            counts = [r.launches_to_target if r.launches_to_target is not None else math.inf for r in runs]
+            value = float(np.median(counts))
+            return f">{self.budget}" if math.isinf(value) else f"{value:g}"
+        lines.append(f"median: matrix {median(self.matrix)}, adaptive {median(self.adaptive)} launches "
+                     f"({len(self.matrix)} truths drawn from the prior)")
+        return "\n".join(lines)
+
+
+def compare_plans(unknowns: Unknowns, predictor: UprightPredictor, candidates: typing.Sequence[LaunchCondition],
+                  truths: int, target_width: float, budget: int, samples: int, seed: int = 0,
+                  level: float = 0.95) -> PlanComparison:
+    """The paper's matrix against the BALD plan (module docstring): ``truths`` hidden truths drawn from the prior;
+    for each, both plans launch on the same truth (outcomes drawn from the predictor's P(upright) at the truth)
+    with the same ``samples`` prior draws, until every unknown's 95 % interval is at most ``target_width`` of its
+    range or ``budget`` launches."""
+    rng = np.random.default_rng(seed)
+    prior = unknowns.draw(samples, rng)
+    table = predictor.probabilities(prior, candidates)
+    hidden = unknowns.draw(truths, rng)
+    truth_table = predictor.probabilities(hidden, candidates)
+    matrix, adaptive = [], []
+    for t in range(truths):
+        for plan, runs in (("matrix", matrix), ("adaptive", adaptive)):
+            posterior = WeightedPosterior(unknowns, prior, candidates, table)
+            runs.append(run_plan(plan, posterior, truth_table[t], budget, target_width,
+                                 np.random.default_rng([seed, t, len(runs)]), level))
+    return PlanComparison(target_width, budget, hidden, matrix, adaptive)
+
+
+# --- stopping a comparison -----------------------------------------------------------------------------------------
+
+
+class PairedSequentialTest:
+    """An always-valid (1 - ``alpha``) confidence sequence for the mean paired difference of two designs, and the
+    decision it allows (module docstring).
+
+    Parameters
+    ----------
+    alpha : float
+        The error rate: the chance that the sequence ever excludes the true difference, at most this.
+    grid : int
+        Candidate mean differences in [-1, 1] the confidence sequence is evaluated at.
+    """
+
+    def __init__(self, alpha: float = 0.05, grid: int = 401) -> None:
+        if not 0 < alpha < 1:
+            raise ValueError(f"alpha must be in (0, 1), got {alpha}")
+        if grid < 3:
+            raise ValueError(f"grid must be >= 3, got {grid}")
+        self.alpha = alpha
+        self.means = np.linspace(-1.0, 1.0, grid)
+        self._log_up = np.zeros(grid)      # log wealth betting that the mean exceeds m
+        self._log_down = np.zeros(grid)    # ... that it is below m
+        self._sum = 0.0
+        self._sum_sq = 0.0
+        self.pairs = 0
+
+    def _bet(self) -> float:
+        """The predictable plug-in bet, from the pairs before this one (:func:`plug_in_bet`)."""
+        return float(plug_in_bet(self._sum, self._sum_sq, self.pairs, self.alpha))
+
+    def update(self, difference: float) -> None:
+        """One pair's difference y_B - y_A (in [-1, 1])."""
+        if not -1.0 <= difference <= 1.0:
+            raise ValueError(f"a paired difference of two upright verdicts is in [-1, 1], got {difference!r}")
+        bet = self._bet()
+        m = self.means
+        with np.errstate(divide="ignore"):
+            # bets truncated to half of what keeps the wealth nonnegative (the hedged capital process)
+            up = np.minimum(bet, 0.5 / (1.0 + m))
+            down = np.minimum(bet, 0.5 / np.maximum(1.0 - m, 1e-12))
+            self._log_up += np.log1p(up * (difference - m))
+            self._log_down += np.log1p(-down * (difference - m))
+        self._sum += difference
+        self._sum_sq += difference * difference
+        self.pairs += 1
+
+    def wealth(self) -> np.ndarray:
+        """The hedged wealth K_t(m) at every grid mean (half on each side)."""
+        return 0.5 * np.exp(self._log_up) + 0.5 * np.exp(self._log_down)
+
+    def confidence_sequence(self) -> typing.Tuple[float, float]:
+        """The smallest and largest grid mean still plausible: ``(low, high)`` (the set is an interval up to the
+        grid's resolution)."""
+        plausible = self.means[self.wealth() < 1.0 / self.alpha]
+        if not len(plausible):   # cannot happen for the true mean but for probability alpha; keep the estimate
+            estimate = self._sum / max(self.pairs, 1)
+            return estimate, estimate
+        return float(plausible.min()), float(plausible.max())
+
+    @property
+    def decided(self) -> int:
+        """+1 when B is decided better (the whole sequence above 0), -1 when A is, 0 while undecided."""
+        low, high = self.confidence_sequence()
+        return 1 if low > 0 else -1 if high < 0 else 0
+
+
+def plug_in_bet(total: npt.ArrayLike, total_sq: npt.ArrayLike, pairs: int, alpha: float) -> np.ndarray:
+    """The predictable plug-in bet of Waudby-Smith and Ramdas (eq. 26) for differences in [-1, 1]:
+    sqrt(2 log(2 / alpha) / (variance t log(t + 1))), t = pairs + 1, from the sum and the sum of squares of the
+    ``pairs`` differences before (arrays: one bet per sequence); the variance estimate starts at a pseudo-variance
+    of 1/4 so the first bets are moderate."""
+    t = pairs + 1
+    s = np.asarray(total, dtype=np.float64)
+    mean = s / t
+    variance = (0.25 + np.asarray(total_sq, dtype=np.float64) - 2.0 * mean * s + pairs * mean * mean) / t
+    return np.sqrt(2.0 * math.log(2.0 / alpha) / (np.maximum(variance, 1e-6) * t * math.log(t + 1.0)))
+
+
+def first_decisions(differences: npt.ArrayLike, alpha: float = 0.05) -> np.ndarray:
+    """For many sequences of paired differences (runs, pairs) at once: the number of pairs after which each
+    sequence's :class:`PairedSequentialTest` first decided (0 leaves its confidence sequence), 0 where it never did.
+    The same bets and wealth as the class (at m = 0), vectorised over runs for simulations."""
+    d = np.asarray(differences, dtype=np.float64)
+    runs, pairs = d.shape
+    log_up, log_down = np.zeros(runs), np.zeros(runs)
+    total, total_sq = np.zeros(runs), np.zeros(runs)
+    first = np.zeros(runs, dtype=np.int64)
+    for i in range(pairs):
+        bet = np.minimum(plug_in_bet(total, total_sq, i, alpha), 0.5)   # at m = 0 both sides are capped at 1/2
+        log_up += np.log1p(bet * d[:, i])
+        log_down += np.log1p(-bet * d[:, i])
+        total += d[:, i]
+        total_sq += d[:, i] ** 2
+        wealth = 0.5 * np.exp(log_up) + 0.5 * np.exp(log_down)
+        first[(first == 0) & (wealth >= 1.0 / alpha)] = i + 1
+    return first
+
+
+def paired_differences(outcomes: typing.Iterable[LaunchOutcome], first: str, second: str
+                       ) -> typing.List[float]:
+    """The paired differences y_second - y_first of valid launches of configurations ``first`` and ``second`` at the
+    same (height, speed, angle, repetition), in the order the pair was completed."""
+    seen: typing.Dict[tuple, typing.Dict[str, bool]] = {}
+    differences = []
+    for outcome in outcomes:
+        c = outcome.condition
+        if not outcome.valid or c.configuration not in (first, second):
+            continue
+        key = (c.height_m, c.speed_mps, c.angle_deg, c.repetition)
+        pair = seen.setdefault(key, {})
+        if c.configuration in pair:
+            continue
+        pair[c.configuration] = outcome.upright
+        if len(pair) == 2:
+            differences.append(float(pair[second]) - float(pair[first]))
+    return differences
+
+
+def comparison_decision(outcomes: typing.Iterable[LaunchOutcome], first: str, second: str,
+                        alpha: float = 0.05) -> typing.Tuple[int, PairedSequentialTest]:
+    """The :class:`PairedSequentialTest` of ``second`` against ``first`` over the stored ``outcomes``, and its
+    decision (+1 ``second`` better, -1 ``first`` better, 0 undecided)."""
+    test = PairedSequentialTest(alpha)
+    for difference in paired_differences(outcomes, first, second):
+        test.update(difference)
+    return test.decided, test

@@ -1,0 +1,157 @@
+"""Which launch next (BALD over posterior samples) and when a design comparison is decided (issue 44.4)."""
+import math
+
+import numpy as np
+import pytest
+
+from rollability_ros.core.campaign.adaptive import (LogisticToyPredictor, PairedSequentialTest, Unknowns,
+                                                    WeightedPosterior, bald_scores, compare_plans,
+                                                    comparison_decision, first_decisions, paired_differences)
+from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+
+UNKNOWNS = Unknowns(("robot.com_offset_z_m", "launch_twin.foam.lateral_friction"), (-0.019, 0.2), (0.015, 3.0),
+                    (False, True))
+#: The paper's matrix of the bare chassis and three designs: 4 x 2 heights x 2 speeds x 5 angles = 80.
+MATRIX = [LaunchCondition(c, h, s, a) for c in ("baseline", "A", "B", "C") for h in (0.75, 1.3) for s in (0.8, 1.5)
+          for a in (-60.0, -30.0, 0.0, 30.0, 60.0)]
+
+
+def test_bald_is_the_mutual_information_of_known_cases():
+    # every sample predicts 50 %: a coin flip whatever theta is, nothing to learn; half 0 half 1: log 2 nats
+    p = np.array([[0.5, 0.0, 0.9], [0.5, 1.0, 0.9]])
+    scores = bald_scores(p)
+    assert scores[0] == pytest.approx(0.0, abs=1e-12)
+    assert scores[1] == pytest.approx(math.log(2))
+    assert scores[2] == pytest.approx(0.0, abs=1e-12)     # agreed, even if uncertain: nothing to learn
+    # by hand: samples 0.2 and 0.8 -> H(0.5) - H(0.2)
+    h = lambda q: -(q * math.log(q) + (1 - q) * math.log(1 - q))  # noqa: E731
+    assert bald_scores(np.array([[0.2], [0.8]]))[0] == pytest.approx(h(0.5) - h(0.2))
+    # weights: all the weight on one sample leaves nothing to learn
+    assert bald_scores(np.array([[0.2], [0.8]]), weights=[1.0, 0.0])[0] == pytest.approx(0.0, abs=1e-12)
+    with pytest.raises(ValueError, match="weights"):
+        bald_scores(p, weights=[0.0, 0.0])
+
+
+def test_unknowns_map_log_and_linear_scales_both_ways_and_refuse_bad_bounds():
+    values = UNKNOWNS.to_values([[0.5, 0.5]])
+    assert values[0, 0] == pytest.approx(-0.002) and values[0, 1] == pytest.approx(math.sqrt(0.2 * 3.0))
+    assert UNKNOWNS.to_normalised(values) == pytest.approx(np.array([[0.5, 0.5]]))
+    with pytest.raises(ValueError, match="lower > 0 on a log scale"):
+        Unknowns(("x",), (0.0,), (1.0,), (True,))
+
+
+def test_the_proposal_is_the_candidate_whose_outcome_separates_the_plausible_unknowns():
+    """One unknown; candidate 0 is saturated (always upright), 1 is a coin flip for every theta, 2 is the
+    threshold the unknown moves: the proposal is 2, and after its outcomes the posterior narrows."""
+    one = Unknowns(("x",), (0.0,), (1.0,), (False,))
+    candidates = [LaunchCondition("A", 0.75, 0.8, a) for a in (0.0, 30.0, 60.0)]
+    theta = np.linspace(0.0, 1.0, 201)[:, None]
+    table = np.column_stack([np.full(201, 0.99), np.full(201, 0.5), 1.0 / (1.0 + np.exp(-20.0 * (theta[:, 0] - 0.5)))])
+    posterior = WeightedPosterior(one, theta, candidates, table)
+    proposal = posterior.propose()
+    assert proposal.condition == candidates[2] and proposal.score_nats > 0.5
+    assert proposal.predicted_low < 0.1 and proposal.predicted_high > 0.9 and "expected information" in proposal.why()
+    width_before = posterior.normalised_widths()[0]
+    rng = np.random.default_rng(3)
+    for _ in range(12):   # the truth x = 0.7: P(upright) at candidate 2 about 0.98
+        posterior.observe(2, bool(rng.random() < 1.0 / (1.0 + math.exp(-20.0 * 0.2))))
+    assert posterior.normalised_widths()[0] < 0.6 * width_before
+    low, high = posterior.intervals()[0]
+    assert low < 0.7 < high
+    with pytest.raises(ValueError, match="not a candidate"):
+        posterior.candidate_index(LaunchCondition("B", 0.75, 0.8, 0.0))
+
+
+def test_stored_outcomes_weigh_the_samples_and_invalid_launches_do_not():
+    predictor = LogisticToyPredictor(UNKNOWNS, seed=4)
+    posterior = WeightedPosterior.from_predictor(UNKNOWNS, predictor, MATRIX[:10], 500, np.random.default_rng(1))
+    outcomes = [LaunchOutcome("r", f"t{i}", MATRIX[i % 10], "physical", i % 3 == 0) for i in range(30)]
+    invalid = LaunchOutcome("r", "bad", MATRIX[0], "physical", False, note="invalid launch: did not leave the ledge")
+    elsewhere = LaunchOutcome("r", "far", LaunchCondition("Z", 0.75, 0.8, 0.0), "physical", True)
+    assert posterior.observe_outcomes(outcomes + [invalid, elsewhere]) == 30 and posterior.launches == 30
+    assert 1.0 <= posterior.effective_sample_size < 500
+
+
+def test_the_adaptive_plan_on_the_toy_needs_fewer_launches_than_the_matrix_on_the_same_truths():
+    """The plan comparison on an analytic predictor (cheap): both plans, same truths and prior draws. It fails when
+    the BALD choice is no better than cycling the matrix."""
+    predictor = LogisticToyPredictor(UNKNOWNS, seed=7)
+    comparison = compare_plans(UNKNOWNS, predictor, MATRIX, truths=3, target_width=0.25, budget=400, samples=2000,
+                               seed=11)
+    adaptive = [r.launches_to_target or 401 for r in comparison.adaptive]
+    matrix = [r.launches_to_target or 401 for r in comparison.matrix]
+    assert sum(adaptive) < sum(matrix)
+    assert all(r.final_widths.shape == (2,) for r in comparison.adaptive)
+    assert "median: matrix" in comparison.summary()
+
+
+def test_the_twin_predictor_gives_launch_fractions_of_the_simulation_based_likelihood():
+    """The same interface on the existing simulation-based likelihood: a hidden centre of mass far up tips the
+    bare chassis more often than one far down (2 x 2 launches on the real twin, serial)."""
+    pytest.importorskip("pybullet")
+    from rollability_ros.core.campaign.adaptive import TwinPredictor
+    from rollability_ros.core.campaign.calibration import TWIN_CONFIGS, LaunchPool
+    from rollability_ros.core.config import load_parameters
+
+    com = Unknowns(("robot.com_offset_z_m",), (-0.019,), (0.015,), (False,))
+    with LaunchPool(workers=1) as pool:
+        predictor = TwinPredictor(load_parameters(list(TWIN_CONFIGS)), com, pool, repetitions=2)
+        table = predictor.probabilities(np.array([[-0.019], [0.015]]),
+                                        [LaunchCondition("baseline", 0.75, 0.8, 0.0)])
+    assert table.shape == (2, 1) and set(np.unique(table)) <= {0.0, 0.5, 1.0}
+    posterior = WeightedPosterior(com, np.array([[-0.019], [0.015]]), [LaunchCondition("baseline", 0.75, 0.8, 0.0)],
+                                  table)
+    assert posterior.scores().shape == (1,)
+
+
+def _decisions(alpha, runs, pairs, p_a, p_b, seed):
+    """When each of ``runs`` simulated comparisons (``pairs`` pairs of Bernoulli verdicts) first decided."""
+    rng = np.random.default_rng(seed)
+    differences = (rng.random((runs, pairs)) < p_b).astype(float) - (rng.random((runs, pairs)) < p_a)
+    return differences, first_decisions(differences, alpha)
+
+
+def test_the_vectorised_simulation_decides_exactly_where_the_test_does():
+    differences, first = _decisions(0.1, runs=20, pairs=60, p_a=0.4, p_b=0.7, seed=5)
+    for run, stop in zip(differences, first):
+        test = PairedSequentialTest(0.1, grid=3)   # -1, 0, +1: the decision needs m = 0 only
+        decided_at = 0
+        for pair, difference in enumerate(run, start=1):
+            test.update(difference)
+            if test.decided and not decided_at:
+                decided_at = pair
+        assert decided_at == stop
+    assert (first > 0).sum() >= 5           # some decided: the comparison is not vacuous
+
+
+def test_a_comparison_of_equal_designs_is_wrongly_decided_at_most_alpha_of_the_time_however_often_it_looks():
+    """Under equal designs (both 50 %; and both 90 %), looking after every one of 300 pairs: the stated 5 % holds (a
+    t-test repeated after every pair would decide wrongly in about a quarter of the runs)."""
+    for p in (0.5, 0.9):
+        _, first = _decisions(0.05, runs=2000, pairs=300, p_a=p, p_b=p, seed=2)
+        assert (first > 0).mean() <= 0.05 + 2 * math.sqrt(0.05 * 0.95 / 2000)
+
+
+def test_a_clear_difference_is_decided_early_and_the_right_way():
+    differences, first = _decisions(0.05, runs=200, pairs=200, p_a=0.3, p_b=0.85, seed=3)
+    assert (first > 0).all() and np.median(first) < 40
+    assert all(differences[run, :stop].sum() > 0 for run, stop in enumerate(first))   # B ahead when it stopped
+    test = PairedSequentialTest(0.05)
+    for d in [1.0] * 30:
+        test.update(d)
+    low, high = test.confidence_sequence()
+    assert test.decided == 1 and 0 < low < high <= 1.0
+    with pytest.raises(ValueError, match=r"in \[-1, 1\]"):
+        test.update(2.0)
+
+
+def test_paired_differences_pair_launches_at_the_same_condition_and_repetition():
+    def outcome(configuration, angle, repetition, upright, note=""):
+        return LaunchOutcome("r", f"{configuration}{angle}{repetition}",
+                             LaunchCondition(configuration, 0.75, 0.8, angle, repetition), "sim", upright, note=note)
+    outcomes = [outcome("A", 0.0, 0, False), outcome("B", 0.0, 0, True), outcome("B", 30.0, 0, False),
+                outcome("A", 30.0, 1, True), outcome("A", 30.0, 0, True), outcome("C", 0.0, 0, True),
+                outcome("B", 30.0, 1, False, note="invalid launch: landed outside the foam")]
+    assert paired_differences(outcomes, "A", "B") == [1.0, -1.0]
+    decision, test = comparison_decision(outcomes, "A", "B")
+    assert decision == 0 and test.pairs == 2

@@ -155,3 +155,56 @@ def test_paired_differences_pair_launches_at_the_same_condition_and_repetition()
     assert paired_differences(outcomes, "A", "B") == [1.0, -1.0]
     decision, test = comparison_decision(outcomes, "A", "B")
     assert decision == 0 and test.pairs == 2
+
+
+def test_a_campaign_stops_once_its_comparison_is_decided_and_says_so(tmp_path):
+    """The campaign loop with the comparison's stop rule: B always upright, A never, paired by condition; it ends
+    decided (exit 0) long before the 2 x 40 launches planned, every stored launch kept."""
+    from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
+    from rollability_ros.core.campaign.runner import report_exit_code, run_campaign, store_writer
+    from rollability_ros.core.campaign.adaptive import comparison_stop_rule
+    from rollability_ros.core.store import Store
+
+    spec = CampaignSpec(run_id="cmp", configurations=["A", "B"], heights_m=[0.75], speeds_mps=[0.8],
+                        angles_deg=[0.0], repetitions=40, random_block="repetition")
+    # pairs: A then B at each repetition (the order a comparison campaign launches in)
+    plan = sorted(plan_trials(spec), key=lambda t: (t.condition.repetition, t.condition.configuration))
+
+    def launch(trial):
+        return LaunchOutcome("cmp", trial.trial_id, trial.condition, "sim", trial.condition.configuration == "B")
+
+    lines = []
+    with Store(tmp_path / "s.sqlite") as store:
+        report = run_campaign(plan, "cmp", set(), launch, store_writer(store), say=lines.append,
+                              stop_rule=comparison_stop_rule([], "A", "B", 0.05))
+        stored = store.launch_outcomes("cmp")
+    assert report.decided and report.complete and report.stored_now == len(stored) < 40
+    assert "B rights the robot more often than A" in report.decided and "at most 5%" in report.decided
+    assert report_exit_code(report, say=lines.append) == 0 and lines[-1].startswith("campaign decided: B rights")
+
+
+def test_an_adaptive_campaign_launches_the_proposed_conditions_and_learns_from_each(tmp_path):
+    from rollability_ros.core.campaign.adaptive import adaptive_next_trial
+    from rollability_ros.core.campaign.plan import PlannedTrial
+    from rollability_ros.core.campaign.runner import run_campaign, store_writer
+    from rollability_ros.core.store import Store
+
+    predictor = LogisticToyPredictor(UNKNOWNS, seed=7)
+    posterior = WeightedPosterior.from_predictor(UNKNOWNS, predictor, MATRIX, 1000, np.random.default_rng(0))
+    truth = predictor.probabilities(UNKNOWNS.to_values([[0.3, 0.7]]), MATRIX)[0]
+    rng = np.random.default_rng(1)
+
+    def launch(trial):
+        index = posterior.candidate_index(trial.condition)
+        return LaunchOutcome("ad", trial.trial_id, trial.condition, "sim", bool(rng.random() < truth[index]))
+
+    lines = []
+    budget = [PlannedTrial(i, f"budget-{i}", MATRIX[0]) for i in range(25)]
+    with Store(tmp_path / "s.sqlite") as store:
+        report = run_campaign(budget, "ad", set(), launch, store_writer(store), say=lines.append,
+                              next_trial=adaptive_next_trial(posterior, set(), say=lines.append))
+        stored = store.launch_outcomes("ad")
+    assert report.complete and len(stored) == 25 and posterior.launches == 24   # the last is weighed at the next
+    assert len({o.trial_id for o in stored}) == 25                               # a repeated condition: r1, r2, ...
+    assert sum(line.startswith("next launch: ") for line in lines) == 25 and any("why: expected" in l for l in lines)
+    assert np.all(posterior.normalised_widths() < 0.6)

@@ -577,3 +577,96 @@ def comparison_decision(outcomes: typing.Iterable[LaunchOutcome], first: str, se
     for difference in paired_differences(outcomes, first, second):
         test.update(difference)
     return test.decided, test
+
+
+def comparison_stop_rule(outcomes: typing.Iterable[LaunchOutcome], first: str, second: str,
+                         alpha: float = 0.05) -> typing.Callable[[LaunchOutcome], str]:
+    """A campaign's ``stop_rule`` (:func:`~rollability_ros.core.campaign.runner.run_campaign`): fed every newly stored
+    outcome after the ``outcomes`` stored before, it answers why the comparison of ``second`` against ``first`` is
+    decided ("" while it is not): the always-valid test of :class:`PairedSequentialTest` at error rate ``alpha``."""
+    seen = [o for o in outcomes]
+
+    def rule(outcome: LaunchOutcome) -> str:
+        seen.append(outcome)
+        decision, test = comparison_decision(seen, first, second, alpha)
+        if not decision:
+            return ""
+        low, high = test.confidence_sequence()
+        better, worse = (second, first) if decision > 0 else (first, second)
+        return (f"{better} rights the robot more often than {worse} after {test.pairs} paired launches: the "
+                f"difference P({second}) - P({first}) lies in [{low:+.2f}, {high:+.2f}] (always-valid "
+                f"{1 - alpha:.0%} confidence sequence; the chance this decision is wrong is at most {alpha:.0%})")
+    return rule
+
+
+def candidate_conditions(configurations: typing.Sequence[str], heights_m: typing.Sequence[float],
+                         speeds_mps: typing.Sequence[float],
+                         angles_deg: typing.Sequence[float]) -> typing.List[LaunchCondition]:
+    """Every grouped condition of a campaign matrix (``campaign.*``), repetition 0: what may be proposed."""
+    return [LaunchCondition(c, h, s, a) for c in configurations for h in heights_m for s in speeds_mps
+            for a in angles_deg]
+
+
+def next_repetition(condition: LaunchCondition, stored_trial_ids: typing.Collection[str]) -> LaunchCondition:
+    """``condition`` with the first repetition whose trial id is not stored yet (its launch is new)."""
+    from rollability_ros.core.records import trial_id_for
+
+    repetition = 0
+    while trial_id_for(dataclasses.replace(condition, repetition=repetition)) in stored_trial_ids:
+        repetition += 1
+    return dataclasses.replace(condition, repetition=repetition)
+
+
+def proposal_lines(posterior: WeightedPosterior, proposal: Proposal,
+                   previous: typing.Optional[LaunchCondition],
+                   pressure_psi_by_speed: typing.Optional[typing.Mapping[float, float]] = None,
+                   instructions: bool = True) -> typing.List[str]:
+    """The proposal as the technician sets it up: what to change on the rig (from ``previous``; left out with
+    ``instructions`` False, when the campaign loop says it), why (the expected information), the runners-up, and the
+    unknowns' current 95 % intervals."""
+    from rollability_ros.core.campaign.plan import changes_between
+
+    c = proposal.condition
+    lines = [f"next launch: {c.configuration} at {c.height_m:.2f} m, {c.speed_mps:g} m/s, {c.angle_deg:+g} deg "
+             f"(from {posterior.launches} stored launches, {len(posterior.samples)} prior samples of the unknowns, "
+             f"effective {posterior.effective_sample_size:.1f})"]
+    if instructions:
+        lines += [f"  - {instruction}" for instruction in changes_between(previous, c, pressure_psi_by_speed)]
+    lines.append(f"why: {proposal.why()}")
+    if proposal.runner_up:
+        lines.append("then: " + "; ".join(f"{o.configuration} {o.height_m:.2f} m {o.speed_mps:g} m/s "
+                                          f"{o.angle_deg:+g} deg ({score:.3f} nats)"
+                                          for o, score in proposal.runner_up))
+    for name, (low, high) in zip(posterior.unknowns.names, posterior.intervals()):
+        lines.append(f"unknown {name}: 95% of the weighted samples in [{low:.4g}, {high:.4g}]")
+    if posterior.effective_sample_size < 20:
+        lines.append(f"WARNING: only {posterior.effective_sample_size:.1f} effective samples describe the unknowns "
+                     "now: the proposal and intervals are coarse; draw more prior samples (--prior-samples)")
+    return lines
+
+
+def adaptive_next_trial(posterior: WeightedPosterior, stored_trial_ids: typing.Collection[str],
+                        say: typing.Callable[[str], None] = print) -> typing.Callable[[typing.Optional[LaunchOutcome]], typing.Optional[typing.Any]]:
+    """A campaign's ``next_trial`` (:func:`~rollability_ros.core.campaign.runner.run_campaign`): weighs
+    ``posterior`` by each stored outcome, then proposes the next launch (the BALD choice), says why
+    (:func:`proposal_lines`; the campaign loop says what to change) and returns it as a :class:`~rollability_ros.core.campaign.plan.PlannedTrial` with a new
+    repetition number. ``posterior`` should already hold the outcomes stored before (``observe_outcomes``)."""
+    from rollability_ros.core.campaign.plan import PlannedTrial
+    from rollability_ros.core.records import trial_id_for
+
+    stored = set(stored_trial_ids)
+    state: typing.Dict[str, typing.Any] = {"previous": None, "index": 0}
+
+    def choose(last: typing.Optional[LaunchOutcome]) -> typing.Optional[PlannedTrial]:
+        if last is not None:
+            posterior.observe_outcomes([last])
+            stored.add(last.trial_id)
+            state["previous"] = last.condition
+        proposal = posterior.propose()
+        for line in proposal_lines(posterior, proposal, state["previous"], instructions=False):
+            say(line)
+        condition = next_repetition(proposal.condition, stored)
+        trial = PlannedTrial(state["index"], trial_id_for(condition), condition)
+        state["index"] += 1
+        return trial
+    return choose

@@ -74,11 +74,12 @@ class CampaignReport:
     stopped_reason: str = ""
     failed: bool = False
     advice: str = ""          # what the operator must do before resuming (e.g. acknowledge a valve e-stop)
+    decided: str = ""         # why the campaign's question was answered before its last trial (``stop_rule``)
 
     @property
     def complete(self) -> bool:
-        """True when every planned trial is stored."""
-        return self.done == self.total
+        """True when every planned trial is stored, or the campaign's question was decided (``decided``)."""
+        return self.done == self.total or bool(self.decided)
 
 
 def store_writer(store: Store) -> typing.Callable[[LaunchOutcome], None]:
@@ -157,7 +158,10 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
                  ask: typing.Optional[typing.Callable[[str], str]] = None, say: typing.Callable[[str], None] = print,
                  pressure_psi_by_speed: typing.Optional[typing.Mapping[float, float]] = None,
                  clock: typing.Callable[[], float] = time.monotonic,
-                 on_progress: typing.Optional[typing.Callable[[CampaignProgress], None]] = None) -> CampaignReport:
+                 on_progress: typing.Optional[typing.Callable[[CampaignProgress], None]] = None,
+                 stop_rule: typing.Optional[typing.Callable[[LaunchOutcome], str]] = None,
+                 next_trial: typing.Optional[typing.Callable[[typing.Optional[LaunchOutcome]],
+                                                             typing.Optional[PlannedTrial]]] = None) -> CampaignReport:
     """Run the trials of ``plan`` not yet stored, in plan order; returns a :class:`CampaignReport`.
 
     Parameters
@@ -182,17 +186,33 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
     on_progress : callable, optional
         Called with the :class:`~rollability_ros.core.campaign.plan.CampaignProgress` at the start and after each
         stored trial (the graph campaign publishes it for ``bringup``'s progress line).
+    stop_rule : callable, optional
+        ``stop_rule(outcome) -> str`` after each stored outcome: a non-empty answer ends the campaign there as
+        decided (its question answered, e.g. a design comparison: :func:`~rollability_ros.core.campaign.adaptive.
+        comparison_stop_rule`), a complete campaign, not a stop.
+    next_trial : callable, optional
+        An adaptive plan: ``next_trial(last stored outcome or None) -> PlannedTrial or None`` chooses each trial after
+        the previous one is stored (:func:`~rollability_ros.core.campaign.adaptive.adaptive_next_trial`), up to
+        ``len(plan)`` trials this session (``plan`` is then the budget's placeholder trials); None ends it.
     """
-    todo = [trial for trial in plan if trial.trial_id not in stored_ids]
-    progress = CampaignProgress(len(plan), len(plan) - len(todo))
+    if next_trial is None:
+        remaining = [trial for trial in plan if trial.trial_id not in stored_ids]
+        todo: typing.Iterable[PlannedTrial] = remaining
+        progress = CampaignProgress(len(plan), len(plan) - len(remaining))
+    else:
+        progress = CampaignProgress(len(plan), 0)
     say(f"campaign {run_id}: {progress.text()}")
     if on_progress is not None:
         on_progress(progress)
     previous, stored_now, notes = None, 0, []
+    last: typing.List[typing.Optional[LaunchOutcome]] = [None]
 
-    def report(reason: str, failed: bool = False) -> CampaignReport:
-        return CampaignReport(stored_now, progress.done, progress.total, reason, failed)
+    def report(reason: str, failed: bool = False, decided: str = "") -> CampaignReport:
+        return CampaignReport(stored_now, progress.done, progress.total, reason, failed, decided=decided)
 
+    if next_trial is not None:
+        choose = next_trial
+        todo = _chosen_trials(lambda: choose(last[0]), len(plan))
     for trial in todo:
         try:
             ready = ask is None or _operator_ready(ask, say, previous, trial, pressure_psi_by_speed)
@@ -220,11 +240,25 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
         say(f"{trial.trial_id}: {verdict}"
             f"{' (speed flagged)' if outcome.speed_out_of_tolerance else ''}; {progress.text()}")
         previous = trial
+        last[0] = outcome
         notes.append(outcome.note)
         invalid = invalid_launch_stop(notes)
         if invalid:
             return report(invalid, failed=True)
+        decided = stop_rule(outcome) if stop_rule is not None else ""
+        if decided:
+            return report("", decided=decided)
     return report("")
+
+
+def _chosen_trials(choose: typing.Callable[[], typing.Optional[PlannedTrial]],
+                   budget: int) -> typing.Iterator[PlannedTrial]:
+    """At most ``budget`` trials, each chosen by ``choose()`` when the loop asks for it (None ends them)."""
+    for _ in range(budget):
+        trial = choose()
+        if trial is None:
+            return
+        yield trial
 
 
 
@@ -275,6 +309,9 @@ def report_exit_code(report: CampaignReport, say: typing.Callable[[str], None] =
             say(f"before resuming: {report.advice}")
         say(f"to continue, type: {resume}" if resume else "resume to continue (the same command with --resume)")
         return 3
+    if report.decided:
+        say(f"campaign decided: {report.decided} ({report.done}/{report.total} stored; the rest are not needed)")
+        return 0
     say(f"campaign complete: {report.done}/{report.total} trials stored")
     return 0
 

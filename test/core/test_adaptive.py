@@ -85,25 +85,6 @@ def test_the_adaptive_plan_on_the_toy_needs_fewer_launches_than_the_matrix_on_th
     assert "median: matrix" in comparison.summary()
 
 
-def test_the_twin_predictor_gives_launch_fractions_of_the_simulation_based_likelihood():
-    """The same interface on the existing simulation-based likelihood: a hidden centre of mass far up tips the
-    bare chassis more often than one far down (2 x 2 launches on the real twin, serial)."""
-    pytest.importorskip("pybullet")
-    from rollability_ros.core.campaign.adaptive import TwinPredictor
-    from rollability_ros.core.campaign.calibration import TWIN_CONFIGS, LaunchPool
-    from rollability_ros.core.config import load_parameters
-
-    com = Unknowns(("robot.com_offset_z_m",), (-0.019,), (0.015,), (False,))
-    with LaunchPool(workers=1) as pool:
-        predictor = TwinPredictor(load_parameters(list(TWIN_CONFIGS)), com, pool, repetitions=2)
-        table = predictor.probabilities(np.array([[-0.019], [0.015]]),
-                                        [LaunchCondition("baseline", 0.75, 0.8, 0.0)])
-    assert table.shape == (2, 1) and set(np.unique(table)) <= {0.0, 0.5, 1.0}
-    posterior = WeightedPosterior(com, np.array([[-0.019], [0.015]]), [LaunchCondition("baseline", 0.75, 0.8, 0.0)],
-                                  table)
-    assert posterior.scores().shape == (1,)
-
-
 def _decisions(alpha, runs, pairs, p_a, p_b, seed):
     """When each of ``runs`` simulated comparisons (``pairs`` pairs of Bernoulli verdicts) first decided."""
     rng = np.random.default_rng(seed)
@@ -208,3 +189,54 @@ def test_an_adaptive_campaign_launches_the_proposed_conditions_and_learns_from_e
     assert len({o.trial_id for o in stored}) == 25                               # a repeated condition: r1, r2, ...
     assert sum(line.startswith("next launch: ") for line in lines) == 25 and any("why: expected" in l for l in lines)
     assert np.all(posterior.normalised_widths() < 0.6)
+
+
+def _tiny_campaign(tmp_path):
+    path = tmp_path / "tiny.yaml"
+    path.write_text("/**:\n  ros__parameters:\n    campaign:\n      run_id: tiny\n      configurations: [baseline]\n"
+                    "      heights_m: [0.75, 1.3]\n      speeds_mps: [0.8]\n      angles_deg: [0.0]\n"
+                    "      repetitions: 1\n", encoding="utf-8")
+    return str(path)
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--stop-when-decided", "baseline,Z"], "Z not in campaign.configurations"),
+    (["--stop-when-decided", "baseline"], "two different configurations"),
+    (["--plan", "adaptive", "--graph"], "run in process"),
+    (["--propose-next", "--prior-samples", "1"], "--prior-samples must be >= 2"),
+    (["--fit", "robot.com_offset_z_m"], "--fit and --twin-config are for --plan adaptive"),
+    (["--stop-when-decided", "baseline,baseline", "--alpha", "nan"], "two different"),
+    (["--alpha", "0.7"], "--alpha must be in"),
+])
+def test_adaptive_campaign_arguments_are_refused_in_one_line(tmp_path, capsys, extra, message):
+    from rollability_ros.cli import main
+
+    assert main(["campaign", "--backend", "sim", "--config", _tiny_campaign(tmp_path),
+                 "--store", str(tmp_path / "s.sqlite"), *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "s.sqlite").exists()     # refused before anything is written
+
+
+def test_propose_next_prints_the_launch_as_the_technician_sets_it_up(tmp_path, capsys):
+    """`rollability campaign --propose-next` on the simulation-based likelihood (TwinPredictor: the real twin, 2
+    conditions x 3 samples x 1 launch) from a store holding one launch; a missing store is refused, never created."""
+    pytest.importorskip("pybullet")
+    from rollability_ros.cli import main
+    from rollability_ros.core.store import Store
+
+    config = _tiny_campaign(tmp_path)
+    command = ["campaign", "--backend", "physical", "--config", config, "--store", str(tmp_path / "s.sqlite"),
+               "--propose-next", "--prior-samples", "3", "--sim-repetitions", "1", "--workers", "1",
+               "--fit", "robot.com_offset_z_m"]
+    assert main(command) == 2 and "no store at" in capsys.readouterr().err
+    with Store(tmp_path / "s.sqlite") as store:
+        store.add_launch_outcome(LaunchOutcome("tiny", "t0", LaunchCondition("baseline", 1.3, 0.8, 0.0), "physical",
+                                               False, final_orientation=(math.nan,) * 4, classified_by="operator"))
+    assert main(command) == 0
+    out = capsys.readouterr().out
+    assert "weighed by 1 stored launches of run tiny" in out
+    assert "next launch: baseline at " in out and "\nwhy: expected information" in out
+    assert "unknown robot.com_offset_z_m: 95% of the weighted samples in [" in out
+    with Store(tmp_path / "s.sqlite") as store:
+        assert len(store.launch_outcomes()) == 1                     # it launched nothing on the rig

@@ -155,6 +155,11 @@ class Proposal:
 
     def why(self) -> str:
         """One line for the operator: the expected information and what the plausible unknowns predict."""
+        if self.score_nats < 0.01:   # below 1.5 % of a bit: nothing left that these conditions can teach
+            return (f"expected information {self.score_nats:.3f} nats: every plausible value of the unknowns predicts "
+                    f"about the same P(upright) at every candidate ({self.predicted_mean:.0%} here), so no launch of "
+                    "these conditions is expected to teach much more (the unknowns are as pinned as these conditions "
+                    "pin them, or the prior samples are too few)")
         return (f"expected information {self.score_nats:.3f} nats ({self.score_nats / math.log(2):.2f} bits, of at most "
                 f"1 bit per launch): the plausible unknowns predict P(upright) from {self.predicted_low:.0%} to "
                 f"{self.predicted_high:.0%} here (mean {self.predicted_mean:.0%}), so its outcome tells them apart")
@@ -631,7 +636,8 @@ def proposal_lines(posterior: WeightedPosterior, proposal: Proposal,
              f"(from {posterior.launches} stored launches, {len(posterior.samples)} prior samples of the unknowns, "
              f"effective {posterior.effective_sample_size:.1f})"]
     if instructions:
-        lines += [f"  - {instruction}" for instruction in changes_between(previous, c, pressure_psi_by_speed)]
+        changes = changes_between(previous, c, pressure_psi_by_speed)
+        lines += [f"  - {instruction}" for instruction in changes] or ["  (nothing to change on the rig)"]
     lines.append(f"why: {proposal.why()}")
     if proposal.runner_up:
         lines.append("then: " + "; ".join(f"{o.configuration} {o.height_m:.2f} m {o.speed_mps:g} m/s "
@@ -670,3 +676,24 @@ def adaptive_next_trial(posterior: WeightedPosterior, stored_trial_ids: typing.C
         state["index"] += 1
         return trial
     return choose
+
+
+def paired_order(plan: typing.Sequence[typing.Any], first: str, second: str) -> typing.List[typing.Any]:
+    """``plan`` (PlannedTrials) reordered for a comparison of ``first`` and ``second``: their trials in pairs (the
+    same height, speed, angle and repetition, ``first`` then ``second``), pair after pair in plan order, so every
+    second launch completes a pair the stop rule can use; other configurations' trials follow in plan order."""
+    pairs: typing.Dict[tuple, typing.Dict[str, typing.Any]] = {}
+    rest = []
+    for trial in plan:
+        c = trial.condition
+        if c.configuration in (first, second):
+            pairs.setdefault((c.height_m, c.speed_mps, c.angle_deg, c.repetition), {})[c.configuration] = trial
+        else:
+            rest.append(trial)
+    ordered = [pair[name] for pair in pairs.values() for name in (first, second) if name in pair]
+    return ordered + rest
+
+
+#: The unknowns an adaptive plan learns about unless told otherwise (``--fit``): the two of issue 44's five-minute
+#: calibration.
+DEFAULT_UNKNOWNS = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")

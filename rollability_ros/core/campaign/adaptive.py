@@ -177,16 +177,40 @@ class WeightedPosterior:
         The grouped conditions a launch may be proposed at (c).
     probabilities : (n, c) array
         P(upright) of every sample at every candidate (``predictor.probabilities(samples, candidates)``).
+    predictor : UprightPredictor, optional
+        With it, the samples are renewed whenever the effective sample size falls below ``renew_fraction`` of n
+        (sequential Monte Carlo: resample by weight, then ``moves`` Metropolis steps each, a random walk in the
+        normalised unknowns with the prior's bounds, targeting the prior times the likelihood of every launch
+        seen): many launches pin the unknowns far more narrowly than the prior's spread, and prior draws alone
+        then describe the posterior with a handful of samples. Each move predicts P(upright) of n new samples at
+        every candidate: cheap with an analytic or learnt likelihood, launches with the twin's (leave it out).
+    rng : numpy Generator, optional
+        For the renewal (default: seeded with 0).
     """
 
     def __init__(self, unknowns: Unknowns, samples: npt.ArrayLike, candidates: typing.Sequence[LaunchCondition],
-                 probabilities: npt.ArrayLike) -> None:
+                 probabilities: npt.ArrayLike, predictor: typing.Optional[UprightPredictor] = None,
+                 rng: typing.Optional[np.random.Generator] = None, renew_fraction: float = 0.5,
+                 moves: int = 4) -> None:
         self.unknowns = unknowns
-        self.samples = np.asarray(samples, dtype=np.float64)
         self.candidates = list(candidates)
+        self._set_samples(samples, probabilities)
+        self.predictor = predictor
+        self.rng = rng if rng is not None else np.random.default_rng(0)
+        self.renew_fraction = renew_fraction
+        self.moves = moves
+        self.log_weights = np.zeros(len(self.samples))
+        self._index = {c.group_key: i for i, c in enumerate(self.candidates)}
+        self._successes = np.zeros(len(self.candidates))
+        self._trials = np.zeros(len(self.candidates))
+        self.launches = 0
+        self.renewals = 0
+
+    def _set_samples(self, samples: npt.ArrayLike, probabilities: npt.ArrayLike) -> None:
+        self.samples = np.asarray(samples, dtype=np.float64)
         p = np.asarray(probabilities, dtype=np.float64)
-        if self.samples.ndim != 2 or self.samples.shape[1] != len(unknowns.names):
-            raise ValueError(f"samples must be (n, {len(unknowns.names)}), got shape {self.samples.shape}")
+        if self.samples.ndim != 2 or self.samples.shape[1] != len(self.unknowns.names):
+            raise ValueError(f"samples must be (n, {len(self.unknowns.names)}), got shape {self.samples.shape}")
         if p.shape != (len(self.samples), len(self.candidates)):
             raise ValueError(f"probabilities must be ({len(self.samples)}, {len(self.candidates)}), got {p.shape}")
         if not np.all(np.isfinite(p)) or np.any(p < 0) or np.any(p > 1):
@@ -195,17 +219,48 @@ class WeightedPosterior:
         self._log_p = np.log(self.probabilities)
         self._log_q = np.log1p(-self.probabilities)
         self._entropy = binary_entropy(self.probabilities)   # E_theta H[p] needs it at every proposal
-        self.log_weights = np.zeros(len(self.samples))
-        self._index = {c.group_key: i for i, c in enumerate(self.candidates)}
-        self.launches = 0
+
+    def _log_likelihood(self, probabilities: np.ndarray) -> np.ndarray:
+        """Log-likelihood (n,) of every launch seen for samples with these P(upright) (n, c)."""
+        p = np.clip(probabilities, EPSILON, 1.0 - EPSILON)
+        return np.log(p) @ self._successes + np.log1p(-p) @ (self._trials - self._successes)
+
+    def renew(self) -> None:
+        """Resample by weight and move each sample ``moves`` Metropolis steps (class docstring)."""
+        if self.predictor is None:
+            raise ValueError("renewing the samples needs a predictor")
+        n, d = self.samples.shape
+        w = self.weights
+        picks = np.minimum(np.searchsorted(np.cumsum(w), (self.rng.random() + np.arange(n)) / n), n - 1)
+        u = self.unknowns.to_normalised(self.samples[picks])
+        p = self.probabilities[picks]
+        log_likelihood = self._log_likelihood(p)
+        step = np.maximum(np.sqrt(np.cov(u, rowvar=False).reshape(d, d).diagonal()), 1e-3) * 2.38 / math.sqrt(d)
+        for _ in range(self.moves):
+            proposed = u + self.rng.normal(0.0, 1.0, u.shape) * step
+            inside = np.all((proposed >= 0.0) & (proposed <= 1.0), axis=1)
+            p_new = self.predictor.probabilities(self.unknowns.to_values(np.clip(proposed, 0.0, 1.0)),
+                                                 self.candidates)
+            log_new = self._log_likelihood(p_new)
+            accept = inside & (np.log(self.rng.random(n)) < log_new - log_likelihood)
+            u[accept], p[accept], log_likelihood[accept] = proposed[accept], p_new[accept], log_new[accept]
+        self._set_samples(self.unknowns.to_values(u), p)
+        self.log_weights = np.zeros(n)
+        self.renewals += 1
+
+    def _after_observing(self) -> None:
+        if self.predictor is not None and self.effective_sample_size < self.renew_fraction * len(self.samples):
+            self.renew()
 
     @classmethod
     def from_predictor(cls, unknowns: Unknowns, predictor: UprightPredictor,
                        candidates: typing.Sequence[LaunchCondition], samples: int,
-                       rng: np.random.Generator) -> "WeightedPosterior":
-        """``samples`` prior draws and their predictions at every candidate."""
+                       rng: np.random.Generator, renew: bool = False) -> "WeightedPosterior":
+        """``samples`` prior draws and their predictions at every candidate; ``renew``: renew the samples with the
+        predictor as launches accumulate (class docstring)."""
         theta = unknowns.draw(samples, rng)
-        return cls(unknowns, theta, candidates, predictor.probabilities(theta, candidates))
+        return cls(unknowns, theta, candidates, predictor.probabilities(theta, candidates),
+                   predictor if renew else None, rng)
 
     def candidate_index(self, condition: LaunchCondition) -> int:
         """The column of ``condition``'s grouped condition; ``ValueError`` when it is no candidate."""
@@ -218,14 +273,20 @@ class WeightedPosterior:
     def observe(self, index: int, upright: bool) -> None:
         """Weigh the samples by one launch at candidate ``index``."""
         self.log_weights += self._log_p[:, index] if upright else self._log_q[:, index]
+        self._successes[index] += bool(upright)
+        self._trials[index] += 1
         self.launches += 1
+        self._after_observing()
 
     def observe_counts(self, index: int, successes: int, trials: int) -> None:
         """Weigh the samples by ``successes`` upright of ``trials`` launches at candidate ``index``."""
         if not 0 <= successes <= trials:
             raise ValueError(f"need 0 <= successes <= trials, got {successes} of {trials}")
         self.log_weights += successes * self._log_p[:, index] + (trials - successes) * self._log_q[:, index]
+        self._successes[index] += successes
+        self._trials[index] += trials
         self.launches += trials
+        self._after_observing()
 
     def observe_outcomes(self, outcomes: typing.Iterable[LaunchOutcome]) -> int:
         """Weigh by every valid outcome at a candidate condition; returns how many were used (others are ignored:
@@ -310,14 +371,18 @@ class LogisticToyPredictor:
         self.seed = seed
         self.spread = spread
         self.strength = strength
+        self._coefficients: typing.Dict[tuple, typing.Tuple[float, np.ndarray]] = {}
 
     def coefficients(self, condition: LaunchCondition) -> typing.Tuple[float, np.ndarray]:
         """``(a_c, b_c)`` of a grouped condition (reproducible: seeded by ``seed`` and the condition's text)."""
         import zlib
 
-        key = "|".join(str(v) for v in condition.group_key)
-        rng = np.random.default_rng([self.seed, zlib.crc32(key.encode("utf-8"))])
-        return float(rng.normal(0.0, self.spread)), rng.normal(0.0, self.strength, len(self.unknowns.names))
+        if condition.group_key not in self._coefficients:
+            key = "|".join(str(v) for v in condition.group_key)
+            rng = np.random.default_rng([self.seed, zlib.crc32(key.encode("utf-8"))])
+            self._coefficients[condition.group_key] = (float(rng.normal(0.0, self.spread)),
+                                                       rng.normal(0.0, self.strength, len(self.unknowns.names)))
+        return self._coefficients[condition.group_key]
 
     def probabilities(self, theta: np.ndarray, conditions: typing.Sequence[LaunchCondition]) -> np.ndarray:
         """P(upright) (s, c); see the class docstring."""
@@ -435,11 +500,12 @@ class PlanComparison:
 
 def compare_plans(unknowns: Unknowns, predictor: UprightPredictor, candidates: typing.Sequence[LaunchCondition],
                   truths: int, target_width: float, budget: int, samples: int, seed: int = 0,
-                  level: float = 0.95) -> PlanComparison:
+                  level: float = 0.95, renew: bool = True) -> PlanComparison:
     """The paper's matrix against the BALD plan (module docstring): ``truths`` hidden truths drawn from the prior;
     for each, both plans launch on the same truth (outcomes drawn from the predictor's P(upright) at the truth)
     with the same ``samples`` prior draws, until every unknown's 95 % interval is at most ``target_width`` of its
-    range or ``budget`` launches."""
+    range or ``budget`` launches. ``renew``: renew the samples as the posterior narrows (:class:`WeightedPosterior`;
+    each renewal asks the predictor again)."""
     rng = np.random.default_rng(seed)
     prior = unknowns.draw(samples, rng)
     table = predictor.probabilities(prior, candidates)
@@ -448,10 +514,59 @@ def compare_plans(unknowns: Unknowns, predictor: UprightPredictor, candidates: t
     matrix, adaptive = [], []
     for t in range(truths):
         for plan, runs in (("matrix", matrix), ("adaptive", adaptive)):
-            posterior = WeightedPosterior(unknowns, prior, candidates, table)
+            posterior = WeightedPosterior(unknowns, prior, candidates, table, predictor if renew else None,
+                                          np.random.default_rng([seed, t, len(runs), 2]))
             runs.append(run_plan(plan, posterior, truth_table[t], budget, target_width,
                                  np.random.default_rng([seed, t, len(runs)]), level))
     return PlanComparison(target_width, budget, hidden, matrix, adaptive)
+
+
+@dataclasses.dataclass(frozen=True)
+class MatchedWidths:
+    """:func:`adaptive_to_match_matrix` on one truth: the matrix's widths (d,) after its launches, the launches the
+    adaptive plan needed to reach them all (None: not within the budget), the adaptive widths then, and both plans'
+    effective sample sizes at the end."""
+
+    matrix_launches: int
+    matrix_widths: np.ndarray
+    adaptive_launches: typing.Optional[int]
+    adaptive_widths: np.ndarray
+    matrix_ess: float
+    adaptive_ess: float
+
+
+def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
+                             candidates: typing.Sequence[LaunchCondition], truths: int, matrix_launches: int,
+                             samples: int, seed: int = 0, level: float = 0.95,
+                             budget: typing.Optional[int] = None, renew: bool = True) -> typing.List[MatchedWidths]:
+    """Issue 44's comparison: on ``truths`` hidden truths drawn from the prior, the paper's matrix launches
+    ``matrix_launches`` times (every candidate once per shuffled round: 400 = the 80 grouped conditions x 5); the
+    adaptive plan then launches on the same truth, from the same prior draws, until each unknown's interval is at
+    most as wide as the matrix's (or ``budget`` launches, default ``matrix_launches``). ``renew`` as for
+    :func:`compare_plans`."""
+    rng = np.random.default_rng(seed)
+    prior = unknowns.draw(samples, rng)
+    table = predictor.probabilities(prior, candidates)
+    hidden = unknowns.draw(truths, rng)
+    truth_table = predictor.probabilities(hidden, candidates)
+    results = []
+    for t in range(truths):
+        renewal = predictor if renew else None
+        matrix = WeightedPosterior(unknowns, prior, candidates, table, renewal, np.random.default_rng([seed, t, 2]))
+        run_plan("matrix", matrix, truth_table[t], matrix_launches, -1.0, np.random.default_rng([seed, t, 0]), level)
+        widths = matrix.normalised_widths(level)
+        adaptive = WeightedPosterior(unknowns, prior, candidates, table, renewal, np.random.default_rng([seed, t, 3]))
+        outcome_rng = np.random.default_rng([seed, t, 1])
+        reached = None
+        for launch in range(1, (budget or matrix_launches) + 1):
+            index = int(np.argmax(adaptive.scores()))
+            adaptive.observe(index, bool(outcome_rng.random() < truth_table[t][index]))
+            if np.all(adaptive.normalised_widths(level) <= widths):
+                reached = launch
+                break
+        results.append(MatchedWidths(matrix_launches, widths, reached, adaptive.normalised_widths(level),
+                                     matrix.effective_sample_size, adaptive.effective_sample_size))
+    return results
 
 
 # --- stopping a comparison -----------------------------------------------------------------------------------------

@@ -31,13 +31,14 @@ from rollability_ros.core.campaign import adaptive  # noqa: E402
 
 
 def run(predictor: adaptive.UprightPredictor, unknowns: adaptive.Unknowns, candidates, truths: int,
-        matrix_launches: int, samples: int, seed: int = 2026, say=print):
-    """Print and return the matrix-vs-adaptive comparison (:func:`adaptive.adaptive_to_match_matrix`)."""
+        matrix_launches: int, samples: int, seed: int = 2026, say=print, renew: bool = True):
+    """Print and return the matrix-vs-adaptive comparison (:func:`adaptive.adaptive_to_match_matrix`); ``renew``:
+    renew the samples as the posterior narrows (asks the predictor again: for a cheap one, not the twin's)."""
     import numpy as np
 
     started = time.perf_counter()
     results = adaptive.adaptive_to_match_matrix(unknowns, predictor, candidates, truths, matrix_launches, samples,
-                                                seed)
+                                                seed, renew=renew)
     for i, r in enumerate(results):
         needed = f"{r.adaptive_launches}" if r.adaptive_launches is not None else f">{matrix_launches}"
         say(f"truth {i}: matrix {matrix_launches} launches -> widths "
@@ -86,10 +87,12 @@ def main(argv=None):
     with calibration.LaunchPool(args.workers) as pool:
         predictor = adaptive.TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
 
-        class Cached:   # the truths' table and the prior's come from the same launches once each
+        class Cached:   # the prior's table and the truths' are launched once each
             def probabilities(self, theta, conditions):
                 return predictor.probabilities(np.asarray(theta), conditions)
-        return run(Cached(), unknowns, candidates, args.truths, args.matrix_launches, args.samples, args.seed)
+        # no renewal: each would launch samples x 80 x repetitions again; watch the effective sample sizes printed
+        return run(Cached(), unknowns, candidates, args.truths, args.matrix_launches, args.samples, args.seed,
+                   renew=False)
 
 
 if __name__ == "__main__":

@@ -511,7 +511,8 @@ def compare_plans(unknowns: Unknowns, predictor: UprightPredictor, candidates: t
     table = predictor.probabilities(prior, candidates)
     hidden = unknowns.draw(truths, rng)
     truth_table = predictor.probabilities(hidden, candidates)
-    matrix, adaptive = [], []
+    matrix: typing.List[PlanRun] = []
+    adaptive: typing.List[PlanRun] = []
     for t in range(truths):
         for plan, runs in (("matrix", matrix), ("adaptive", adaptive)):
             posterior = WeightedPosterior(unknowns, prior, candidates, table, predictor if renew else None,

@@ -93,11 +93,12 @@ class LaunchMotionMeter:
 
     def motion(self, settled: typing.Optional[UprightReading]) -> LaunchMotion:
         """What the launch showed, given the classifier's settled reading (None: it never settled)."""
-        landed = self._landed_s is not None
+        landed_s = self._landed_s
         tilt = settled.tilt_deg if settled is not None and settled.settled else NOT_SEEN
         to_rest = NOT_SEEN
-        if landed and settled is not None and settled.settled and settled.stamp_s >= self._landed_s:
-            to_rest = settled.stamp_s - self._landed_s
-        return LaunchMotion(final_tilt_deg=tilt, time_to_rest_s=to_rest,
-                            peak_deceleration_mps2=self._peak if landed else NOT_SEEN,
-                            landed_s=self._landed_s if landed else NOT_SEEN)
+        if landed_s is not None and settled is not None and settled.settled and settled.stamp_s >= landed_s:
+            to_rest = settled.stamp_s - landed_s
+        if landed_s is None:
+            return LaunchMotion(final_tilt_deg=tilt)
+        return LaunchMotion(final_tilt_deg=tilt, time_to_rest_s=to_rest, peak_deceleration_mps2=self._peak,
+                            landed_s=landed_s)

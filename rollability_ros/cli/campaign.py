@@ -271,7 +271,6 @@ def _run_local(args, spec, ask):
                                                record_campaign_run, report_exit_code, resume_command, resume_refusal,
                                                run_campaign, store_writer)
     from rollability_ros.core.campaign import adaptive
-    from rollability_ros.core.campaign.plan import PlannedTrial
     from rollability_ros.core.store import Store
 
     settings, plan = local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG), plan_trials(spec)
@@ -303,7 +302,7 @@ def _run_local(args, spec, ask):
             if args.plan == "adaptive":
                 posterior = _adaptive_posterior(args, spec, store.launch_outcomes(spec.run_id))
                 next_trial = adaptive.adaptive_next_trial(posterior, stored)
-                plan = [PlannedTrial(i, f"adaptive-{i}", plan[0].condition) for i in range(args.budget)]
+                plan = adaptive.budget_placeholders(args.budget, plan[0].condition)
             report = run_campaign(plan, spec.run_id, stored, lambda trial: rig.launch(spec.run_id, trial),
                                   store_writer(store), ask=ask, pressure_psi_by_speed=_pressures(args),
                                   stop_rule=stop_rule, next_trial=next_trial)

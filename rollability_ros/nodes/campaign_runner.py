@@ -388,10 +388,10 @@ def run_graph_campaign(node: Node, spec: CampaignSpec, settings: RunnerSettings,
 
         stop_rule = None
         if comparison is not None:   # the logger holds the earlier outcomes: this session's pairs decide
-            from rollability_ros.core.campaign.adaptive import comparison_stop_rule, paired_order
+            from rollability_ros.core.campaign import adaptive
 
-            plan = paired_order(plan, *comparison)
-            stop_rule = comparison_stop_rule([], *comparison, alpha)
+            plan = adaptive.paired_order(plan, *comparison)
+            stop_rule = adaptive.comparison_stop_rule([], *comparison, alpha)
         report = run_campaign(plan, spec.run_id, stored, rig.launch, acknowledgements, ask=ask, say=say,
                               on_progress=publish_progress, stop_rule=stop_rule)
         if report.stopped_reason and ask is not None:

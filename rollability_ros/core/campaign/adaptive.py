@@ -424,8 +424,7 @@ class TwinPredictor:
 
     def probabilities(self, theta: np.ndarray, conditions: typing.Sequence[LaunchCondition]) -> np.ndarray:
         """P(upright) (s, c) from ``repetitions`` twin launches per entry."""
-        from rollability_ros.core.campaign.calibration import simulation_seeds, twin_settings_with
-        from rollability_ros.core.results.analysis import ConditionResult
+        from rollability_ros.core.campaign.calibration import ConditionResult, simulation_seeds, twin_settings_with
 
         twins = [twin_settings_with(self.parameters, self.unknowns.names, row) for row in np.atleast_2d(theta)]
         grouped = [ConditionResult(*c.group_key, 0, 0) for c in conditions]
@@ -813,3 +812,11 @@ def paired_order(plan: typing.Sequence[typing.Any], first: str, second: str) -> 
 #: The unknowns an adaptive plan learns about unless told otherwise (``--fit``): the two of issue 44's five-minute
 #: calibration.
 DEFAULT_UNKNOWNS = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")
+
+
+def budget_placeholders(budget: int, condition: LaunchCondition) -> typing.List[typing.Any]:
+    """The ``plan`` of an adaptive campaign (:func:`~rollability_ros.core.campaign.runner.run_campaign` with
+    ``next_trial``): ``budget`` placeholder trials that only count the launches; ``next_trial`` chooses each."""
+    from rollability_ros.core.campaign.plan import PlannedTrial
+
+    return [PlannedTrial(i, f"adaptive-{i}", condition) for i in range(budget)]

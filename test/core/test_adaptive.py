@@ -277,3 +277,22 @@ def test_renewed_samples_describe_the_exact_posterior_after_many_launches():
     low, high = renewed.intervals()[0]
     assert low == pytest.approx(exact_low, abs=0.01) and high == pytest.approx(exact_high, abs=0.01)
     assert plain.effective_sample_size < 100         # the prior draws alone: about 50 of 1000 left
+
+
+def test_a_per_launch_likelihood_plugs_in_through_the_adapter():
+    """The learnt likelihood's interface (predict_upright_probability per design and condition) feeds the same
+    posterior: the adapter's table equals the per-launch predictions column by column."""
+    from rollability_ros.core.campaign.adaptive import PerLaunchAdapter
+
+    toy = LogisticToyPredictor(UNKNOWNS, seed=3)
+
+    class PerLaunch:
+        def predict_upright_probability(self, theta, design, condition):
+            return toy.probabilities(theta, [LaunchCondition(design, *condition)])[:, 0]
+
+    theta = UNKNOWNS.draw(50, np.random.default_rng(2))
+    table = PerLaunchAdapter(PerLaunch()).probabilities(theta, MATRIX[:6])
+    assert table.shape == (50, 6) and np.allclose(table, toy.probabilities(theta, MATRIX[:6]))
+    posterior = WeightedPosterior.from_predictor(UNKNOWNS, PerLaunchAdapter(PerLaunch()), MATRIX[:6], 200,
+                                                 np.random.default_rng(0), renew=True)
+    assert posterior.propose().condition in MATRIX[:6]

@@ -432,6 +432,32 @@ class TwinPredictor:
         return upright / self.repetitions
 
 
+class PerLaunchPredictor(typing.Protocol):
+    """A likelihood that predicts one launch at a time: ``predict_upright_probability(theta (s, d), design,
+    (height m, speed m/s, angle deg)) -> (s,)`` (the learnt likelihood of ``core/campaign/likelihood.py``)."""
+
+    def predict_upright_probability(self, theta_samples: npt.ArrayLike, design: str,
+                                    condition: typing.Tuple[float, float, float]) -> np.ndarray:
+        """P(upright) (s,) of one launch of ``design`` at ``condition`` under each row of ``theta_samples``."""
+        ...
+
+
+@dataclasses.dataclass(frozen=True)
+class PerLaunchAdapter:
+    """An :class:`UprightPredictor` over a :class:`PerLaunchPredictor` (a learnt likelihood): one column per
+    condition. Its unknowns must be the same keys in the same order as the adaptive plan's."""
+
+    likelihood: PerLaunchPredictor
+
+    def probabilities(self, theta: np.ndarray, conditions: typing.Sequence[LaunchCondition]) -> np.ndarray:
+        """P(upright) (s, c)."""
+        theta = np.atleast_2d(np.asarray(theta, dtype=np.float64))
+        columns = [np.asarray(self.likelihood.predict_upright_probability(
+            theta, c.configuration, (c.height_m, c.speed_mps, c.angle_deg)), dtype=np.float64).reshape(len(theta))
+            for c in conditions]
+        return np.stack(columns, axis=1) if columns else np.zeros((len(theta), 0))
+
+
 # --- the plans compared --------------------------------------------------------------------------------------------
 
 

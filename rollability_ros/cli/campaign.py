@@ -261,6 +261,10 @@ def _resimulate(args):
     print(f"launch_speed_mps: {float(result.launch_speed_mps)!r}")
     print(f"launch_angle_deg: {float(result.launch_angle_deg)!r}")
     print(f"invalid_reason: {result.invalid_reason or '(valid launch)'}")
+    from rollability_ros.core.rig import simulated_continuous_outcomes
+
+    for name, value in simulated_continuous_outcomes(result).items():   # as the stored outcome carries them
+        print(f"{name}: {value!r}")
     return 0
 
 

@@ -240,6 +240,18 @@ def test_propose_next_prints_the_launch_as_the_technician_sets_it_up(tmp_path, c
     assert "unknown robot.com_offset_z_m: 95% of the weighted samples in [" in out
     with Store(tmp_path / "s.sqlite") as store:
         assert len(store.launch_outcomes()) == 1                     # it launched nothing on the rig
+    # --plan adaptive on the twin rig continues the run: each launch chosen after the previous one is stored
+    adaptive_run = ["campaign", "--backend", "sim", "--config", config, "--store", str(tmp_path / "s.sqlite"),
+                    "--plan", "adaptive", "--budget", "2", "--prior-samples", "3", "--sim-repetitions", "1",
+                    "--workers", "1", "--fit", "robot.com_offset_z_m"]
+    assert main(adaptive_run) == 2 and "pass --resume" in capsys.readouterr().err   # a stored run needs --resume
+    assert main([*adaptive_run, "--resume"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("next launch: baseline at ") == 2 and "campaign complete: 2/2 trials stored" in out
+    with Store(tmp_path / "s.sqlite") as store:
+        stored = store.launch_outcomes("tiny")
+    assert len(stored) == 3 and [o.backend for o in stored] == ["physical", "sim", "sim"]
+    assert all(not math.isnan(o.final_tilt_deg) for o in stored[1:])   # the twin's continuous outcomes, stored
 
 
 class _Thresholds:

@@ -24,7 +24,8 @@ from rollability_ros.core.rig.rig_network import (DISCOVERY_RANGES, RIG_DOMAIN_I
 from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome,
                                                   OperatorOutcome, PhysicalLaunch, RigSettings, SimulatedLaunch,
                                                   check_rest_distance, describe_answer, launch_backend_class,
-                                                  make_launch_backend, parse_outcome_answer)
+                                                  make_launch_backend, parse_outcome_answer,
+                                                  simulated_continuous_outcomes)
 from rollability_ros.core.rig.speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
 from rollability_ros.core.rig.valve import ValveConfig, ValveController, ValveStatus
 from rollability_ros.core.rig._valve_backend import (VALVE_BACKENDS, ValveBackend, make_valve_backend,
@@ -39,5 +40,5 @@ __all__ = [
     "ValveStatus", "check_domain_id", "check_namespace", "check_rest_distance", "describe_answer",
     "exposure_warnings", "launch_backend_class", "make_controller",
     "make_launch_backend", "make_speed_gate", "make_valve_backend", "parse_outcome_answer", "physical_rig_environment",
-    "register_valve_backend", "rig_auth", "valve_auth",
+    "register_valve_backend", "simulated_continuous_outcomes", "rig_auth", "valve_auth",
 ]

@@ -72,6 +72,10 @@ def register(subparsers: Subparsers) -> None:
                           help="twin launches per sample and condition for P(upright) (default 4)")
     adaptive.add_argument("--workers", type=int, default=None,
                           help="launch worker processes for the predictions (default: one per core)")
+    adaptive.add_argument("--about", metavar="FIRST,SECOND",
+                          help="with --propose-next / --plan adaptive: choose the launch that tells most about which "
+                               "of two configurations rights the robot more often (under the plausible unknowns), "
+                               "instead of about the unknowns themselves")
     adaptive.add_argument("--stop-when-decided", metavar="FIRST,SECOND",
                           help="compare two configurations launched in pairs (the same condition and repetition, "
                                "FIRST then SECOND; the plan is reordered so) and end the campaign as soon as the "
@@ -124,11 +128,12 @@ def run(args: argparse.Namespace) -> int:
     return _run_local(args, spec, ask)
 
 
-def _comparison(args):
-    """``(first, second)`` of ``--stop-when-decided``, or None."""
-    if not args.stop_when_decided:
+def _comparison(args, text=None):
+    """``(first, second)`` of ``--stop-when-decided`` (or of ``text``), or None."""
+    text = args.stop_when_decided if text is None else text
+    if not text:
         return None
-    first, second = args.stop_when_decided.split(",")
+    first, second = text.split(",")
     return first.strip(), second.strip()
 
 
@@ -136,22 +141,24 @@ def _check_adaptive_arguments(args, spec):
     """Refuse unusable adaptive-plan arguments in one line, before anything starts."""
     import math
 
-    if args.stop_when_decided is not None:
-        names = [name.strip() for name in args.stop_when_decided.split(",")]
+    for option, text in (("--stop-when-decided", args.stop_when_decided), ("--about", args.about)):
+        if text is None:
+            continue
+        names = [name.strip() for name in text.split(",")]
         if len(names) != 2 or names[0] == names[1] or not all(names):
-            raise ValueError(f"--stop-when-decided needs two different configurations as FIRST,SECOND, got "
-                             f"{args.stop_when_decided!r}")
+            raise ValueError(f"{option} needs two different configurations as FIRST,SECOND, got {text!r}")
         missing = [name for name in names if name not in spec.configurations]
         if missing:
-            raise ValueError(f"--stop-when-decided: {', '.join(missing)} not in campaign.configurations "
+            raise ValueError(f"{option}: {', '.join(missing)} not in campaign.configurations "
                              f"({', '.join(spec.configurations)})")
+    if args.stop_when_decided is not None:
         if args.plan == "adaptive":
             raise ValueError("--stop-when-decided compares two configurations on the matrix plan, not --plan adaptive")
     if not 0 < args.alpha < 0.5 or math.isnan(args.alpha):
         raise ValueError(f"--alpha must be in (0, 0.5), got {args.alpha}")
     adaptive = args.plan == "adaptive" or args.propose_next
-    if not adaptive and (args.fit or args.twin_config):
-        raise ValueError("--fit and --twin-config are for --plan adaptive and --propose-next")
+    if not adaptive and (args.fit or args.twin_config or args.about):
+        raise ValueError("--fit, --twin-config and --about are for --plan adaptive and --propose-next")
     if adaptive:
         if args.graph:
             raise ValueError("--plan adaptive and --propose-next run in process (--store), not with --graph")
@@ -227,7 +234,8 @@ def _propose_next(args, spec):
     pressures = _pressures(args)
     posterior = _adaptive_posterior(args, spec, outcomes)
     previous = outcomes[-1].condition if outcomes else None
-    for line in adaptive.proposal_lines(posterior, posterior.propose(), previous, pressures):
+    proposal = posterior.propose(comparison=_comparison(args, args.about or ""))
+    for line in adaptive.proposal_lines(posterior, proposal, previous, pressures):
         print(line)
     return 0
 
@@ -305,7 +313,8 @@ def _run_local(args, spec, ask):
                 stop_rule = adaptive.comparison_stop_rule(store.launch_outcomes(spec.run_id), *comparison, args.alpha)
             if args.plan == "adaptive":
                 posterior = _adaptive_posterior(args, spec, store.launch_outcomes(spec.run_id))
-                next_trial = adaptive.adaptive_next_trial(posterior, stored)
+                next_trial = adaptive.adaptive_next_trial(posterior, stored,
+                                                          comparison=_comparison(args, args.about or ""))
                 plan = adaptive.budget_placeholders(args.budget, plan[0].condition)
             report = run_campaign(plan, spec.run_id, stored, lambda trial: rig.launch(spec.run_id, trial),
                                   store_writer(store), ask=ask, pressure_psi_by_speed=_pressures(args),

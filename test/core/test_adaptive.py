@@ -204,7 +204,8 @@ def _tiny_campaign(tmp_path):
     (["--stop-when-decided", "baseline"], "two different configurations"),
     (["--plan", "adaptive", "--graph"], "run in process"),
     (["--propose-next", "--prior-samples", "1"], "--prior-samples must be >= 2"),
-    (["--fit", "robot.com_offset_z_m"], "--fit and --twin-config are for --plan adaptive"),
+    (["--fit", "robot.com_offset_z_m"], "--fit, --twin-config and --about are for --plan adaptive"),
+    (["--propose-next", "--about", "baseline,Q"], "--about: Q not in campaign.configurations"),
     (["--stop-when-decided", "baseline,baseline", "--alpha", "nan"], "two different"),
     (["--alpha", "0.7"], "--alpha must be in"),
 ])
@@ -308,3 +309,21 @@ def test_a_per_launch_likelihood_plugs_in_through_the_adapter():
     posterior = WeightedPosterior.from_predictor(UNKNOWNS, PerLaunchAdapter(PerLaunch()), MATRIX[:6], 200,
                                                  np.random.default_rng(0), renew=True)
     assert posterior.propose().condition in MATRIX[:6]
+
+
+def test_the_comparison_score_looks_for_the_launch_that_tells_which_design_is_better():
+    """Two designs, one unknown x: A is 60 % everywhere; B is 90 % at the first condition when x > 1/2 and 30 %
+    otherwise, and 50 % at the second whatever x. Which design is better depends on x only through the first
+    condition: the comparison score picks B there and scores the second condition's launches 0."""
+    one = Unknowns(("x",), (0.0,), (1.0,), (False,))
+    conditions = [LaunchCondition(c, 0.75, 0.8, a) for c in ("A", "B") for a in (0.0, 30.0)]
+    x = np.linspace(0.0, 1.0, 101)
+    high = x > 0.5
+    table = np.column_stack([np.full(101, 0.6), np.full(101, 0.6), np.where(high, 0.9, 0.3), np.full(101, 0.5)])
+    posterior = WeightedPosterior(one, x[:, None], conditions, table)
+    assert np.array_equal(posterior.design_difference("A", "B") > 0, x > 0.5 + 1e-9)   # (0.9 + 0.5)/2 > 0.6
+    scores = posterior.comparison_scores("A", "B")
+    assert int(np.argmax(scores)) == 2 and scores[3] == pytest.approx(0.0, abs=1e-12)
+    assert posterior.propose(comparison=("A", "B")).condition == conditions[2]
+    with pytest.raises(ValueError, match="share no candidate"):
+        posterior.design_difference("A", "Z")

@@ -152,6 +152,7 @@ class Proposal:
     predicted_low: float
     predicted_high: float
     runner_up: typing.Tuple[typing.Tuple[LaunchCondition, float], ...] = ()
+    about: str = "the unknowns"   # what the information is about: the unknowns, or which of two designs is better
 
     def why(self) -> str:
         """One line for the operator: the expected information and what the plausible unknowns predict."""
@@ -160,8 +161,8 @@ class Proposal:
                     f"about the same P(upright) at every candidate ({self.predicted_mean:.0%} here), so no launch of "
                     "these conditions is expected to teach much more (the unknowns are as pinned as these conditions "
                     "pin them, or the prior samples are too few)")
-        return (f"expected information {self.score_nats:.3f} nats ({self.score_nats / math.log(2):.2f} bits, of at most "
-                f"1 bit per launch): the plausible unknowns predict P(upright) from {self.predicted_low:.0%} to "
+        return (f"expected information about {self.about} {self.score_nats:.3f} nats ({self.score_nats / math.log(2):.2f} "
+                f"bits, of at most 1 bit per launch): the plausible unknowns predict P(upright) from {self.predicted_low:.0%} to "
                 f"{self.predicted_high:.0%} here (mean {self.predicted_mean:.0%}), so its outcome tells them apart")
 
 
@@ -315,14 +316,44 @@ class WeightedPosterior:
         w = self.weights
         return binary_entropy(w @ self.probabilities) - w @ self._entropy
 
-    def propose(self, runner_up: int = 3) -> Proposal:
-        """The candidate with the highest BALD score (ties: the first listed), with the predicted P(upright)."""
-        scores = self.scores()
+    def propose(self, runner_up: int = 3, comparison: typing.Optional[typing.Tuple[str, str]] = None) -> Proposal:
+        """The candidate with the highest BALD score (ties: the first listed), with the predicted P(upright); with
+        ``comparison`` (first, second), the highest :meth:`comparison_scores` instead (information about which of
+        the two designs is better)."""
+        scores = self.scores() if comparison is None else self.comparison_scores(*comparison)
         order = np.argsort(-scores, kind="stable")
         best = int(order[0])
         low, mean, high = self._predicted(best)
+        about = "the unknowns" if comparison is None else f"which of {comparison[0]} and {comparison[1]} is better"
         return Proposal(self.candidates[best], float(scores[best]), mean, low, high,
-                        tuple((self.candidates[int(i)], float(scores[int(i)])) for i in order[1:1 + runner_up]))
+                        tuple((self.candidates[int(i)], float(scores[int(i)])) for i in order[1:1 + runner_up]), about)
+
+    def design_difference(self, first: str, second: str) -> np.ndarray:
+        """Per sample (n,): the mean over the candidate conditions of P(upright) of ``second`` minus that of
+        ``first`` at the same condition (the campaign's measure of which design rights the robot more often under
+        that sample's unknowns); ``ValueError`` when either has no candidate condition the other shares."""
+        columns = {c.group_key: i for i, c in enumerate(self.candidates)}
+        pairs = [(columns[(first, *c.group_key[1:])], i) for i, c in enumerate(self.candidates)
+                 if c.configuration == second and (first, *c.group_key[1:]) in columns]
+        if not pairs:
+            raise ValueError(f"{first} and {second} share no candidate condition to compare them at")
+        a, b = (np.array(index) for index in zip(*pairs))
+        return (self.probabilities[:, b] - self.probabilities[:, a]).mean(axis=1)
+
+    def comparison_scores(self, first: str, second: str) -> np.ndarray:
+        """Expected information (nats) of a launch at each candidate (c,) about *which design is better*: the mutual
+        information between its outcome and the sign of :meth:`design_difference`, H[mean p] - sum_s P(s) H[mean p
+        | s] over the two groups of samples. 0 where both groups predict the same P(upright), whatever they
+        predict elsewhere; the launch that settles the comparison soonest, not the one that pins the unknowns."""
+        better = self.design_difference(first, second) > 0
+        w = self.weights
+        total = binary_entropy(w @ self.probabilities)
+        conditional = np.zeros(len(self.candidates))
+        for group in (better, ~better):
+            mass = w[group].sum()
+            if mass > 0:
+                conditional += mass * binary_entropy((w[group] / mass) @ self.probabilities[group])
+        return total - conditional
 
     def _predicted(self, index):
         p = self.probabilities[:, index]
@@ -793,10 +824,12 @@ def proposal_lines(posterior: WeightedPosterior, proposal: Proposal,
 
 
 def adaptive_next_trial(posterior: WeightedPosterior, stored_trial_ids: typing.Collection[str],
-                        say: typing.Callable[[str], None] = print) -> typing.Callable[[typing.Optional[LaunchOutcome]], typing.Optional[typing.Any]]:
+                        say: typing.Callable[[str], None] = print,
+                        comparison: typing.Optional[typing.Tuple[str, str]] = None) -> typing.Callable[[typing.Optional[LaunchOutcome]], typing.Optional[typing.Any]]:
     """A campaign's ``next_trial`` (:func:`~rollability_ros.core.campaign.runner.run_campaign`): weighs
     ``posterior`` by each stored outcome, then proposes the next launch (the BALD choice), says why
-    (:func:`proposal_lines`; the campaign loop says what to change) and returns it as a :class:`~rollability_ros.core.campaign.plan.PlannedTrial` with a new
+    (:func:`proposal_lines`; the campaign loop says what to change) and returns it (``comparison`` (first, second):
+    the launch that tells most about which of the two is better, :meth:`WeightedPosterior.comparison_scores`) as a :class:`~rollability_ros.core.campaign.plan.PlannedTrial` with a new
     repetition number. ``posterior`` should already hold the outcomes stored before (``observe_outcomes``)."""
     from rollability_ros.core.campaign.plan import PlannedTrial
     from rollability_ros.core.records import trial_id_for
@@ -809,7 +842,7 @@ def adaptive_next_trial(posterior: WeightedPosterior, stored_trial_ids: typing.C
             posterior.observe_outcomes([last])
             stored.add(last.trial_id)
             state["previous"] = last.condition
-        proposal = posterior.propose()
+        proposal = posterior.propose(comparison=comparison)
         for line in proposal_lines(posterior, proposal, state["previous"], instructions=False):
             say(line)
         condition = next_repetition(proposal.condition, stored)

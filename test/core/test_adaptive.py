@@ -76,11 +76,11 @@ def test_the_adaptive_plan_on_the_toy_needs_fewer_launches_than_the_matrix_on_th
     """The plan comparison on an analytic predictor (cheap): both plans, same truths and prior draws. It fails when
     the BALD choice is no better than cycling the matrix."""
     predictor = LogisticToyPredictor(UNKNOWNS, seed=7)
-    comparison = compare_plans(UNKNOWNS, predictor, MATRIX, truths=3, target_width=0.25, budget=400, samples=2000,
+    comparison = compare_plans(UNKNOWNS, predictor, MATRIX, truths=3, target_width=0.25, budget=250, samples=1500,
                                seed=11)
-    adaptive = [r.launches_to_target or 401 for r in comparison.adaptive]
-    matrix = [r.launches_to_target or 401 for r in comparison.matrix]
-    assert sum(adaptive) < sum(matrix)
+    adaptive = [r.launches_to_target or 251 for r in comparison.adaptive]
+    matrix = [r.launches_to_target or 251 for r in comparison.matrix]
+    assert sum(adaptive) < 0.5 * sum(matrix)         # measured: 88 against 450 launches
     assert all(r.final_widths.shape == (2,) for r in comparison.adaptive)
     assert "median: matrix" in comparison.summary()
 

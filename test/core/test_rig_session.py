@@ -375,6 +375,7 @@ def test_operator_overrides_the_imu_and_answers_when_it_never_settles(valve):
             rig.operator.record_outcome(OperatorOutcome(False))
     silent = rig.launch("run", "t1", CONDITION, no_imu)
     assert not silent.upright and silent.classified_by == "operator"
+    assert all(math.isnan(v) for v in silent.continuous().values())   # the IMU saw nothing of it: nothing stored
 
 
 def test_simulated_outcome_and_launch_seed():

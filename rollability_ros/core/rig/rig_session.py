@@ -489,7 +489,8 @@ class PhysicalLaunch(LaunchBackend):
         except BaseException:
             self._confirmed = None   # after an e-stop, a fault or a cancel the operator confirms the pressure again
             raise
-        motion = self.imu.motion() if reading is not None and self.imu is not None else LaunchMotion()
+        # what the IMU saw, even when it never settled and the operator answered (its peak, then, without a tilt)
+        motion = self.imu.motion() if self.imu is not None else LaunchMotion()
         travel_time_s, source = self.travel_time_source(travel_time_s, operator)
         speed = self.speed_config.measure(condition.speed_mps, travel_time_s)
         notes = [source, speed_note(speed, condition.speed_mps, self.speed_config.tolerance_fraction)]

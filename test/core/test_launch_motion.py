@@ -66,5 +66,8 @@ def test_what_the_imu_did_not_see_is_nan_never_made_up():
 def test_an_impact_threshold_at_or_below_g_is_refused():
     with pytest.raises(ValueError, match="impact_threshold_mps2 must exceed g"):
         LaunchMotionMeter(9.0)
-    with pytest.raises(ValueError, match="impact_threshold_mps2 must exceed g"):
-        ImuOutcomeConfig(impact_threshold_mps2=5.0).validate()
+    from rollability_ros.core.config import ConfigError, check_settings
+
+    with pytest.raises(ConfigError, match="imu_outcome.impact_threshold_mps2"):
+        check_settings(ImuOutcomeConfig(impact_threshold_mps2=5.0), "imu_outcome")
+    check_settings(ImuOutcomeConfig(), "imu_outcome")

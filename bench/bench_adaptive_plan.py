@@ -36,6 +36,9 @@ def run(predictor: adaptive.UprightPredictor, unknowns: adaptive.Unknowns, candi
     renew the samples as the posterior narrows (asks the predictor again: for a cheap one, not the twin's)."""
     import numpy as np
 
+    unknowns = adaptive.Unknowns.like(unknowns)   # a learnt likelihood's own unknowns are accepted as they are
+    if not hasattr(predictor, "probabilities"):    # one launch at a time (predict_upright_probability)
+        predictor = adaptive.PerLaunchAdapter(predictor)
     started = time.perf_counter()
     results = adaptive.adaptive_to_match_matrix(unknowns, predictor, candidates, truths, matrix_launches, samples,
                                                 seed, renew=renew)

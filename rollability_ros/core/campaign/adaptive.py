@@ -85,6 +85,12 @@ class Unknowns:
                                  f"[{low}, {high}]")
 
     @classmethod
+    def like(cls, other: typing.Any) -> "Unknowns":
+        """The unknowns of any object with ``names``, ``lower``, ``upper`` and ``log_scale`` (a learnt likelihood's)."""
+        return cls(tuple(other.names), tuple(float(v) for v in other.lower), tuple(float(v) for v in other.upper),
+                   tuple(bool(v) for v in other.log_scale))
+
+    @classmethod
     def from_settings(cls, settings: "CalibrationSettings") -> "Unknowns":
         """The unknowns of :class:`~rollability_ros.core.campaign.calibration.CalibrationSettings`."""
         return cls(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper), tuple(settings.log_scale))

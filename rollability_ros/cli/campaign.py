@@ -202,7 +202,10 @@ def _adaptive_posterior(args, spec, outcomes):
         posterior = adaptive.WeightedPosterior.from_predictor(unknowns, predictor, candidates, args.prior_samples,
                                                               np.random.default_rng(settings.seed))
     used = posterior.observe_outcomes(outcomes)
-    print(f"adaptive plan: weighed by {used} stored launches of run {spec.run_id}", flush=True)
+    left_out = len(outcomes) - used
+    print(f"adaptive plan: weighed by {used} stored launches of run {spec.run_id}"
+          + (f" ({left_out} left out: invalid launches, or conditions outside the campaign matrix)" if left_out else ""),
+          flush=True)
     return posterior
 
 
@@ -287,9 +290,11 @@ def _run_local(args, spec, ask):
 
     settings, plan = local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG), plan_trials(spec)
 
+    matrix = list(plan)
+
     def checked_rig() -> LocalRig:
         rig = LocalRig(settings, ask or input)
-        refusal = plan_refusal(rig.backend, spec.run_id, plan)
+        refusal = plan_refusal(rig.backend, spec.run_id, matrix)   # every trial of the matrix, whichever plan runs
         if refusal:
             rig.close()
             raise ValueError(refusal)
@@ -304,18 +309,18 @@ def _run_local(args, spec, ask):
             refusal = resume_refusal(len(stored), args.resume, spec.run_id)
             if refusal:
                 raise ValueError(refusal)
-            rig = rig or checked_rig()
-            record_campaign_run(store, spec.run_id, args.backend, rig.backend.design_sources())
             stop_rule, next_trial = None, None
             comparison = _comparison(args)
             if comparison is not None:
                 plan = adaptive.paired_order(plan, *comparison)
                 stop_rule = adaptive.comparison_stop_rule(store.launch_outcomes(spec.run_id), *comparison, args.alpha)
-            if args.plan == "adaptive":
+            if args.plan == "adaptive":   # minutes of twin launches: before a physical rig opens its valve
                 posterior = _adaptive_posterior(args, spec, store.launch_outcomes(spec.run_id))
                 next_trial = adaptive.adaptive_next_trial(posterior, stored,
                                                           comparison=_comparison(args, args.about or ""))
                 plan = adaptive.budget_placeholders(args.budget, plan[0].condition)
+            rig = rig or checked_rig()
+            record_campaign_run(store, spec.run_id, args.backend, rig.backend.design_sources())
             report = run_campaign(plan, spec.run_id, stored, lambda trial: rig.launch(spec.run_id, trial),
                                   store_writer(store), ask=ask, pressure_psi_by_speed=_pressures(args),
                                   stop_rule=stop_rule, next_trial=next_trial)

@@ -61,7 +61,8 @@ def register(subparsers: Subparsers) -> None:
                           help="with --plan adaptive: launches this session (default 150)")
     adaptive.add_argument("--fit", action="append", default=[], metavar="KEY",
                           help="an unknown to learn about (a key of calibration.parameters, its declared bounds and "
-                               "scale; repeatable; default: robot.com_offset_z_m and launch_twin.foam.lateral_friction)")
+                               "scale; repeatable; default: robot.com_offset_z_m and "
+                               "launch_twin.foam.lateral_friction)")
     adaptive.add_argument("--twin-config", action="append", default=[], metavar="FILE",
                           help="parameter file over sim, robot, launch_twin and calibration for the predictions (e.g. "
                                "the launch_twin.designs naming the profiles, or a calibrated.yaml); repeatable")
@@ -203,9 +204,8 @@ def _adaptive_posterior(args, spec, outcomes):
                                                               np.random.default_rng(settings.seed))
     used = posterior.observe_outcomes(outcomes)
     left_out = len(outcomes) - used
-    print(f"adaptive plan: weighed by {used} stored launches of run {spec.run_id}"
-          + (f" ({left_out} left out: invalid launches, or conditions outside the campaign matrix)" if left_out else ""),
-          flush=True)
+    why = f" ({left_out} left out: invalid launches, or conditions outside the campaign matrix)" if left_out else ""
+    print(f"adaptive plan: weighed by {used} stored launches of run {spec.run_id}{why}", flush=True)
     return posterior
 
 

@@ -167,8 +167,9 @@ class Proposal:
                     f"about the same P(upright) at every candidate ({self.predicted_mean:.0%} here), so no launch of "
                     "these conditions is expected to teach much more (the unknowns are as pinned as these conditions "
                     "pin them, or the prior samples are too few)")
-        return (f"expected information about {self.about} {self.score_nats:.3f} nats ({self.score_nats / math.log(2):.2f} "
-                f"bits, of at most 1 bit per launch): the plausible unknowns predict P(upright) from {self.predicted_low:.0%} to "
+        bits = self.score_nats / math.log(2)
+        return (f"expected information about {self.about} {self.score_nats:.3f} nats ({bits:.2f} bits, of at most 1 "
+                f"bit per launch): the plausible unknowns predict P(upright) from {self.predicted_low:.0%} to "
                 f"{self.predicted_high:.0%} here (mean {self.predicted_mean:.0%}), so its outcome tells them apart")
 
 
@@ -831,12 +832,13 @@ def proposal_lines(posterior: WeightedPosterior, proposal: Proposal,
 
 def adaptive_next_trial(posterior: WeightedPosterior, stored_trial_ids: typing.Collection[str],
                         say: typing.Callable[[str], None] = print,
-                        comparison: typing.Optional[typing.Tuple[str, str]] = None) -> typing.Callable[[typing.Optional[LaunchOutcome]], typing.Optional[typing.Any]]:
+                        comparison: typing.Optional[typing.Tuple[str, str]] = None
+                        ) -> typing.Callable[[typing.Optional[LaunchOutcome]], typing.Optional[typing.Any]]:
     """A campaign's ``next_trial`` (:func:`~rollability_ros.core.campaign.runner.run_campaign`): weighs
-    ``posterior`` by each stored outcome, then proposes the next launch (the BALD choice), says why
-    (:func:`proposal_lines`; the campaign loop says what to change) and returns it (``comparison`` (first, second):
-    the launch that tells most about which of the two is better, :meth:`WeightedPosterior.comparison_scores`) as a :class:`~rollability_ros.core.campaign.plan.PlannedTrial` with a new
-    repetition number. ``posterior`` should already hold the outcomes stored before (``observe_outcomes``)."""
+    ``posterior`` by each stored outcome, then proposes the next launch (the BALD choice; with ``comparison`` (first,
+    second) the launch that tells most about which of the two is better, :meth:`WeightedPosterior.comparison_scores`),
+    says why (:func:`proposal_lines`; the campaign loop says what to change) and returns it as a
+    :class:`~rollability_ros.core.campaign.plan.PlannedTrial` with a new repetition number. ``posterior`` should already hold the outcomes stored before (``observe_outcomes``)."""
     from rollability_ros.core.campaign.plan import PlannedTrial
     from rollability_ros.core.records import trial_id_for
 

@@ -178,7 +178,7 @@ def parse_outcome_answer(text: str) -> "OperatorOutcome":
 
 
 def check_rest_distance(value: typing.Any) -> float:
-    """The distance rolled an operator gives (text or number), m: a finite number >= 0, else ``ValueError`` naming it."""
+    """The distance rolled an operator gives (text or number), m: a finite number >= 0, else ``ValueError``."""
     try:
         distance = float(value)
     except (TypeError, ValueError):
@@ -710,8 +710,9 @@ def launch_seed(base_seed: int, trial_id: str) -> int:
 def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, result: typing.Any,
                       speed_config: SpeedGateConfig) -> LaunchOutcome:
     """The :class:`LaunchOutcome` of a launch twin result (``upright``, ``final_orientation_xyzw``,
-    ``travel_time_s`` and the continuous outcomes, :func:`simulated_continuous_outcomes`), with the speed flagged against ``speed_config``'s tolerance; an invalid launch
-    (``invalid_reason``) is stored not upright with a note starting with :data:`INVALID_LAUNCH`."""
+    ``travel_time_s`` and the continuous outcomes, :func:`simulated_continuous_outcomes`), with the speed flagged
+    against ``speed_config``'s tolerance; an invalid launch (``invalid_reason``) is stored not upright with a note
+    starting with :data:`INVALID_LAUNCH`."""
     travel_time_s = float(getattr(result, "travel_time_s", NOT_MEASURED))
     if not travel_time_s > 0:
         travel_time_s = NOT_MEASURED

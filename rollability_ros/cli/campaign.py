@@ -178,29 +178,31 @@ def _adaptive_posterior(args, spec, outcomes):
     every grouped condition of the matrix (launched now), weighed by ``outcomes``."""
     import numpy as np
 
-    from rollability_ros.core.campaign import adaptive, calibration
+    from rollability_ros.core.campaign import (DEFAULT_UNKNOWNS, TWIN_CONFIGS, LaunchPool, TwinPredictor, Unknowns,
+                                               WeightedPosterior, calibration_settings, candidate_conditions,
+                                               check_fittable)
     from rollability_ros.core.config import check_given_files, load_parameters
     from rollability_ros.core.profile import configuration_ids
     from rollability_ros.core.sim import TWIN_SECTIONS, launch_twin_settings_from_parameters
 
     check_given_files(args.twin_config, {*TWIN_SECTIONS, "calibration"}, "rollability campaign --twin-config")
-    parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.twin_config])
-    settings = calibration.calibration_settings(parameters).selected(args.fit or adaptive.DEFAULT_UNKNOWNS)
-    calibration.check_fittable(parameters, settings)
+    parameters = load_parameters([*TWIN_CONFIGS, "calibration", *args.twin_config])
+    settings = calibration_settings(parameters).selected(args.fit or DEFAULT_UNKNOWNS)
+    check_fittable(parameters, settings)
     known = configuration_ids(launch_twin_settings_from_parameters(parameters).twin.designs)
     unknown = [c for c in spec.configurations if c not in known]
     if unknown:
         raise ValueError(f"the twin has no profile for {', '.join(unknown)} (it knows {', '.join(known)}): give the "
                          "campaign's designs with --twin-config (launch_twin.designs)")
-    unknowns = adaptive.Unknowns.from_settings(settings)
-    candidates = adaptive.candidate_conditions(spec.configurations, spec.heights_m, spec.speeds_mps, spec.angles_deg)
+    unknowns = Unknowns.from_settings(settings)
+    candidates = candidate_conditions(spec.configurations, spec.heights_m, spec.speeds_mps, spec.angles_deg)
     launches = args.prior_samples * len(candidates) * args.sim_repetitions
     print(f"adaptive plan: P(upright) of {args.prior_samples} prior samples of {', '.join(unknowns.names)} at "
           f"{len(candidates)} conditions, {args.sim_repetitions} twin launches each ({launches} launches, about "
           f"{launches * 0.05 / 60:.0f} min on one core)", flush=True)
-    with calibration.LaunchPool(args.workers) as pool:
-        predictor = adaptive.TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
-        posterior = adaptive.WeightedPosterior.from_predictor(unknowns, predictor, candidates, args.prior_samples,
+    with LaunchPool(args.workers) as pool:
+        predictor = TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
+        posterior = WeightedPosterior.from_predictor(unknowns, predictor, candidates, args.prior_samples,
                                                               np.random.default_rng(settings.seed))
     used = posterior.observe_outcomes(outcomes)
     left_out = len(outcomes) - used
@@ -231,14 +233,14 @@ def _stored_outcomes(args, spec):
 
 
 def _propose_next(args, spec):
-    from rollability_ros.core.campaign import adaptive
+    from rollability_ros.core.campaign import proposal_lines
 
     outcomes = _stored_outcomes(args, spec)
     pressures = _pressures(args)
     posterior = _adaptive_posterior(args, spec, outcomes)
     previous = outcomes[-1].condition if outcomes else None
     proposal = posterior.propose(comparison=_comparison(args, args.about or ""))
-    for line in adaptive.proposal_lines(posterior, proposal, previous, pressures):
+    for line in proposal_lines(posterior, proposal, previous, pressures):
         print(line)
     return 0
 
@@ -285,7 +287,8 @@ def _run_local(args, spec, ask):
     from rollability_ros.core.campaign import (LocalRig, local_rig_settings_from_files, plan_refusal, plan_trials,
                                                record_campaign_run, report_exit_code, resume_command, resume_refusal,
                                                run_campaign, store_writer)
-    from rollability_ros.core.campaign import adaptive
+    from rollability_ros.core.campaign import (adaptive_next_trial, budget_placeholders, comparison_stop_rule,
+                                               paired_order)
     from rollability_ros.core.store import Store
 
     settings, plan = local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG), plan_trials(spec)
@@ -312,13 +315,12 @@ def _run_local(args, spec, ask):
             stop_rule, next_trial = None, None
             comparison = _comparison(args)
             if comparison is not None:
-                plan = adaptive.paired_order(plan, *comparison)
-                stop_rule = adaptive.comparison_stop_rule(store.launch_outcomes(spec.run_id), *comparison, args.alpha)
+                plan = paired_order(plan, *comparison)
+                stop_rule = comparison_stop_rule(store.launch_outcomes(spec.run_id), *comparison, args.alpha)
             if args.plan == "adaptive":   # minutes of twin launches: before a physical rig opens its valve
                 posterior = _adaptive_posterior(args, spec, store.launch_outcomes(spec.run_id))
-                next_trial = adaptive.adaptive_next_trial(posterior, stored,
-                                                          comparison=_comparison(args, args.about or ""))
-                plan = adaptive.budget_placeholders(args.budget, plan[0].condition)
+                next_trial = adaptive_next_trial(posterior, stored, comparison=_comparison(args, args.about or ""))
+                plan = budget_placeholders(args.budget, plan[0].condition)
             rig = rig or checked_rig()
             record_campaign_run(store, spec.run_id, args.backend, rig.backend.design_sources())
             report = run_campaign(plan, spec.run_id, stored, lambda trial: rig.launch(spec.run_id, trial),

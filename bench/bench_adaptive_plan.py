@@ -27,12 +27,12 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from rollability_ros.core.campaign import adaptive  # noqa: E402
+from rollability_ros.core.campaign import adaptive, plan_comparison  # noqa: E402
 
 
 def run(predictor: adaptive.UprightPredictor, unknowns: adaptive.Unknowns, candidates, truths: int,
         matrix_launches: int, samples: int, seed: int = 2026, say=print, renew: bool = True):
-    """Print and return the matrix-vs-adaptive comparison (:func:`adaptive.adaptive_to_match_matrix`); ``renew``:
+    """Print and return the matrix-vs-adaptive comparison (:func:`plan_comparison.adaptive_to_match_matrix`); ``renew``:
     renew the samples as the posterior narrows (asks the predictor again: for a cheap one, not the twin's)."""
     import numpy as np
 
@@ -40,7 +40,7 @@ def run(predictor: adaptive.UprightPredictor, unknowns: adaptive.Unknowns, candi
     if not hasattr(predictor, "probabilities"):    # one launch at a time (predict_upright_probability)
         predictor = adaptive.PerLaunchAdapter(predictor)
     started = time.perf_counter()
-    results = adaptive.adaptive_to_match_matrix(unknowns, predictor, candidates, truths, matrix_launches, samples,
+    results = plan_comparison.adaptive_to_match_matrix(unknowns, predictor, candidates, truths, matrix_launches, samples,
                                                 seed, renew=renew)
     for i, r in enumerate(results):
         needed = f"{r.adaptive_launches}" if r.adaptive_launches is not None else f">{matrix_launches}"

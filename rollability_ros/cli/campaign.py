@@ -45,6 +45,12 @@ def register(subparsers: Subparsers) -> None:
                              "every simulated launch); stores nothing")
     parser.add_argument("--seed", type=int,
                         help="with --resimulate: the twin seed of the launch (the stored outcome's seed)")
+    _add_adaptive_arguments(parser)
+    parser.set_defaults(func=run)
+
+
+def _add_adaptive_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of the adaptive plan and of a comparison that stops once decided."""
     adaptive = parser.add_argument_group(
         "which launch next (docs/calibration.md, 'Which launch next')",
         "An adaptive plan launches, each time, the (configuration, condition) of the campaign matrix whose outcome "
@@ -84,7 +90,6 @@ def register(subparsers: Subparsers) -> None:
     adaptive.add_argument("--alpha", type=float, default=0.05,
                           help="with --stop-when-decided: the error rate, the chance that a decision is wrong "
                                "(default 0.05)")
-    parser.set_defaults(func=run)
 
 
 #: How the commands name the campaign's rig files in a refusal.

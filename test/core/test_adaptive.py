@@ -4,9 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from rollability_ros.core.campaign.adaptive import (LogisticToyPredictor, PairedSequentialTest, Unknowns,
-                                                    WeightedPosterior, bald_scores, compare_plans,
-                                                    comparison_decision, first_decisions, paired_differences)
+from rollability_ros.core.campaign.adaptive import LogisticToyPredictor, Unknowns, WeightedPosterior, bald_scores
+from rollability_ros.core.campaign.plan_comparison import compare_plans
+from rollability_ros.core.campaign.sequential import (PairedSequentialTest, comparison_decision, first_decisions,
+                                                      paired_differences)
 from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 
 UNKNOWNS = Unknowns(("robot.com_offset_z_m", "launch_twin.foam.lateral_friction"), (-0.019, 0.2), (0.015, 3.0),
@@ -143,7 +144,7 @@ def test_a_campaign_stops_once_its_comparison_is_decided_and_says_so(tmp_path):
     decided (exit 0) long before the 2 x 40 launches planned, every stored launch kept."""
     from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
     from rollability_ros.core.campaign.runner import report_exit_code, run_campaign, store_writer
-    from rollability_ros.core.campaign.adaptive import comparison_stop_rule
+    from rollability_ros.core.campaign.sequential import comparison_stop_rule
     from rollability_ros.core.store import Store
 
     spec = CampaignSpec(run_id="cmp", configurations=["A", "B"], heights_m=[0.75], speeds_mps=[0.8],

@@ -10,7 +10,8 @@ from synthetic_imu import piecewise, stream
 from rollability_ros.core.config import check_settings
 from rollability_ros.core.records import NO_SEED, LaunchCondition
 from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
-from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
+from rollability_ros.core.rig.outcome_sources import ImuOutcome
+from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LaunchAborted,
                                                   OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
                                                   check_goal, launch_backend_class, make_launch_backend,
                                                   parse_outcome_answer, simulated_outcome, launch_seed)

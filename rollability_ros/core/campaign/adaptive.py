@@ -22,21 +22,8 @@ Which launch next
     candidates) table, so the operator gets the next launch at once. Its effective sample size says when the prior
     draws are too few to describe the posterior (then draw more).
 
-When a comparison is decided
-    Design B against design A, launched in pairs at the same condition: each pair gives D = y_B - y_A in {-1, 0, 1}.
-    :class:`PairedSequentialTest` is a betting confidence sequence (Waudby-Smith and Ramdas 2023, "Estimating means
-    of bounded random variables by betting", hedged capital with a predictable plug-in bet): for each candidate mean
-    difference m the wealth K_t(m) = prod_i (1 + lambda_i (D_i - m)) is a nonnegative martingale when m is the true
-    mean, so by Ville's inequality P(sup_t K_t(m) >= 1/alpha) <= alpha. The set {m : K_t(m) < 1/alpha} holds the true
-    difference at every t at once with probability at least 1 - alpha: the campaign may look after every pair and
-    stop as soon as 0 leaves it ("decided"), and the chance that a decision was wrong (that it excluded the true
-    difference) stays at most alpha however long it runs. test/core/test_adaptive.py measures the false decisions
-    under equal designs by simulation.
-
-The comparison of plans (:func:`compare_plans`): on hidden truths drawn from the prior, the paper's matrix (every
-grouped condition in turn, in shuffled rounds) against the BALD plan, both with the same posterior machinery; how
-many launches each needs until every unknown's 95 % interval is at most a target width (normalised: a fraction of
-its range on its search scale). bench/bench_adaptive_plan.py runs it.
+The always-valid test that stops a design comparison: :mod:`~rollability_ros.core.campaign.sequential`; the
+comparison of the adaptive plan with the paper's matrix: :mod:`~rollability_ros.core.campaign.plan_comparison`.
 
 numpy only (the twin predictor imports the calibration's launch pool when it is used).
 """
@@ -49,8 +36,9 @@ import numpy.typing as npt
 
 from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 
-if typing.TYPE_CHECKING:   # annotations only: calibration loads the twin
+if typing.TYPE_CHECKING:   # annotations only: calibration loads the twin; plan is light but keeps this module lean
     from rollability_ros.core.campaign.calibration import CalibrationSettings, LaunchPool
+    from rollability_ros.core.campaign.plan import PlannedTrial
 
 #: Predicted probabilities are kept in [EPSILON, 1 - EPSILON]: one impossible outcome must not zero a sample.
 EPSILON = 1e-3
@@ -63,6 +51,15 @@ class UprightPredictor(typing.Protocol):
         """P(upright) (s, c) for parameter sets ``theta`` (s, d) (own units, in the unknowns' order) at each
         grouped condition of ``conditions`` (c) (the repetition is ignored)."""
         ...
+
+
+class HasBounds(typing.Protocol):
+    """Anything that names unknowns with their bounds and scales (a learnt likelihood's own unknowns)."""
+
+    names: typing.Sequence[str]
+    lower: typing.Sequence[float]
+    upper: typing.Sequence[float]
+    log_scale: typing.Sequence[bool]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,7 +82,7 @@ class Unknowns:
                                  f"[{low}, {high}]")
 
     @classmethod
-    def like(cls, other: typing.Any) -> "Unknowns":
+    def like(cls, other: "HasBounds") -> "Unknowns":
         """The unknowns of any object with ``names``, ``lower``, ``upper`` and ``log_scale`` (a learnt likelihood's)."""
         return cls(tuple(other.names), tuple(float(v) for v in other.lower), tuple(float(v) for v in other.upper),
                    tuple(bool(v) for v in other.log_scale))
@@ -496,293 +493,6 @@ class PerLaunchAdapter:
         return np.stack(columns, axis=1) if columns else np.zeros((len(theta), 0))
 
 
-# --- the plans compared --------------------------------------------------------------------------------------------
-
-
-@dataclasses.dataclass(frozen=True)
-class PlanRun:
-    """One plan on one hidden truth: launches until every unknown's width reached the target (``None``: not within
-    the budget), the widths (d,) at the end, the effective sample size at the end."""
-
-    plan: str
-    launches_to_target: typing.Optional[int]
-    final_widths: np.ndarray
-    effective_sample_size: float
-
-
-def run_plan(plan: str, posterior: WeightedPosterior, truth_probabilities: np.ndarray, budget: int,
-             target_width: float, rng: np.random.Generator, level: float = 0.95) -> PlanRun:
-    """Launch ``plan`` ("matrix": every candidate once per round, each round shuffled; "adaptive": the BALD proposal
-    each time) on a hidden truth whose P(upright) at every candidate is ``truth_probabilities`` (c,), drawing
-    each outcome with ``rng``, until every unknown's normalised width is at most ``target_width`` or ``budget``
-    launches were made. ``posterior`` is updated in place (pass a fresh one per run)."""
-    if plan not in ("matrix", "adaptive"):
-        raise ValueError(f"plan must be 'matrix' or 'adaptive', got {plan!r}")
-    candidates = len(posterior.candidates)
-    order: typing.List[int] = []
-    reached = None
-    for launch in range(1, budget + 1):
-        if plan == "matrix":
-            if not order:
-                order = list(rng.permutation(candidates))
-            index = order.pop()
-        else:
-            index = int(np.argmax(posterior.scores()))
-        posterior.observe(index, bool(rng.random() < truth_probabilities[index]))
-        if np.all(posterior.normalised_widths(level) <= target_width):
-            reached = launch
-            break
-    return PlanRun(plan, reached, posterior.normalised_widths(level), posterior.effective_sample_size)
-
-
-@dataclasses.dataclass(frozen=True)
-class PlanComparison:
-    """:func:`compare_plans`: per truth, the launches each plan needed (None: more than the budget)."""
-
-    target_width: float
-    budget: int
-    truths: np.ndarray                                   # (t, d), own units
-    matrix: typing.List[PlanRun]
-    adaptive: typing.List[PlanRun]
-
-    def summary(self) -> str:
-        """One line per truth and the medians."""
-        def text(run: PlanRun) -> str:
-            return f">{self.budget}" if run.launches_to_target is None else str(run.launches_to_target)
-        lines = [f"truth {i}: matrix {text(m)}, adaptive {text(a)} launches to widths <= {self.target_width:.0%}"
-                 for i, (m, a) in enumerate(zip(self.matrix, self.adaptive))]
-
-        def median(runs: typing.List[PlanRun]) -> str:
-            counts = [r.launches_to_target if r.launches_to_target is not None else math.inf for r in runs]
-            value = float(np.median(counts))
-            return f">{self.budget}" if math.isinf(value) else f"{value:g}"
-        lines.append(f"median: matrix {median(self.matrix)}, adaptive {median(self.adaptive)} launches "
-                     f"({len(self.matrix)} truths drawn from the prior)")
-        return "\n".join(lines)
-
-
-def compare_plans(unknowns: Unknowns, predictor: UprightPredictor, candidates: typing.Sequence[LaunchCondition],
-                  truths: int, target_width: float, budget: int, samples: int, seed: int = 0,
-                  level: float = 0.95, renew: bool = True) -> PlanComparison:
-    """The paper's matrix against the BALD plan (module docstring): ``truths`` hidden truths drawn from the prior;
-    for each, both plans launch on the same truth (outcomes drawn from the predictor's P(upright) at the truth)
-    with the same ``samples`` prior draws, until every unknown's 95 % interval is at most ``target_width`` of its
-    range or ``budget`` launches. ``renew``: renew the samples as the posterior narrows (:class:`WeightedPosterior`;
-    each renewal asks the predictor again)."""
-    rng = np.random.default_rng(seed)
-    prior = unknowns.draw(samples, rng)
-    table = predictor.probabilities(prior, candidates)
-    hidden = unknowns.draw(truths, rng)
-    truth_table = predictor.probabilities(hidden, candidates)
-    matrix: typing.List[PlanRun] = []
-    adaptive: typing.List[PlanRun] = []
-    for t in range(truths):
-        for plan, runs in (("matrix", matrix), ("adaptive", adaptive)):
-            posterior = WeightedPosterior(unknowns, prior, candidates, table, predictor if renew else None,
-                                          np.random.default_rng([seed, t, len(runs), 2]))
-            runs.append(run_plan(plan, posterior, truth_table[t], budget, target_width,
-                                 np.random.default_rng([seed, t, len(runs)]), level))
-    return PlanComparison(target_width, budget, hidden, matrix, adaptive)
-
-
-@dataclasses.dataclass(frozen=True)
-class MatchedWidths:
-    """:func:`adaptive_to_match_matrix` on one truth: the matrix's widths (d,) after its launches, the launches the
-    adaptive plan needed to reach them all (None: not within the budget), the adaptive widths then, and both plans'
-    effective sample sizes at the end."""
-
-    matrix_launches: int
-    matrix_widths: np.ndarray
-    adaptive_launches: typing.Optional[int]
-    adaptive_widths: np.ndarray
-    matrix_ess: float
-    adaptive_ess: float
-
-
-def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
-                             candidates: typing.Sequence[LaunchCondition], truths: int, matrix_launches: int,
-                             samples: int, seed: int = 0, level: float = 0.95,
-                             budget: typing.Optional[int] = None, renew: bool = True) -> typing.List[MatchedWidths]:
-    """Issue 44's comparison: on ``truths`` hidden truths drawn from the prior, the paper's matrix launches
-    ``matrix_launches`` times (every candidate once per shuffled round: 400 = the 80 grouped conditions x 5); the
-    adaptive plan then launches on the same truth, from the same prior draws, until each unknown's interval is at
-    most as wide as the matrix's (or ``budget`` launches, default ``matrix_launches``). ``renew`` as for
-    :func:`compare_plans`."""
-    rng = np.random.default_rng(seed)
-    prior = unknowns.draw(samples, rng)
-    table = predictor.probabilities(prior, candidates)
-    hidden = unknowns.draw(truths, rng)
-    truth_table = predictor.probabilities(hidden, candidates)
-    results = []
-    for t in range(truths):
-        renewal = predictor if renew else None
-        matrix = WeightedPosterior(unknowns, prior, candidates, table, renewal, np.random.default_rng([seed, t, 2]))
-        run_plan("matrix", matrix, truth_table[t], matrix_launches, -1.0, np.random.default_rng([seed, t, 0]), level)
-        widths = matrix.normalised_widths(level)
-        adaptive = WeightedPosterior(unknowns, prior, candidates, table, renewal, np.random.default_rng([seed, t, 3]))
-        outcome_rng = np.random.default_rng([seed, t, 1])
-        reached = None
-        for launch in range(1, (budget or matrix_launches) + 1):
-            index = int(np.argmax(adaptive.scores()))
-            adaptive.observe(index, bool(outcome_rng.random() < truth_table[t][index]))
-            if np.all(adaptive.normalised_widths(level) <= widths):
-                reached = launch
-                break
-        results.append(MatchedWidths(matrix_launches, widths, reached, adaptive.normalised_widths(level),
-                                     matrix.effective_sample_size, adaptive.effective_sample_size))
-    return results
-
-
-# --- stopping a comparison -----------------------------------------------------------------------------------------
-
-
-class PairedSequentialTest:
-    """An always-valid (1 - ``alpha``) confidence sequence for the mean paired difference of two designs, and the
-    decision it allows (module docstring).
-
-    Parameters
-    ----------
-    alpha : float
-        The error rate: the chance that the sequence ever excludes the true difference, at most this.
-    grid : int
-        Candidate mean differences in [-1, 1] the confidence sequence is evaluated at.
-    """
-
-    def __init__(self, alpha: float = 0.05, grid: int = 401) -> None:
-        if not 0 < alpha < 1:
-            raise ValueError(f"alpha must be in (0, 1), got {alpha}")
-        if grid < 3:
-            raise ValueError(f"grid must be >= 3, got {grid}")
-        self.alpha = alpha
-        self.means = np.linspace(-1.0, 1.0, grid)
-        self._log_up = np.zeros(grid)      # log wealth betting that the mean exceeds m
-        self._log_down = np.zeros(grid)    # ... that it is below m
-        self._sum = 0.0
-        self._sum_sq = 0.0
-        self.pairs = 0
-
-    def _bet(self) -> float:
-        """The predictable plug-in bet, from the pairs before this one (:func:`plug_in_bet`)."""
-        return float(plug_in_bet(self._sum, self._sum_sq, self.pairs, self.alpha))
-
-    def update(self, difference: float) -> None:
-        """One pair's difference y_B - y_A (in [-1, 1])."""
-        if not -1.0 <= difference <= 1.0:
-            raise ValueError(f"a paired difference of two upright verdicts is in [-1, 1], got {difference!r}")
-        bet = self._bet()
-        m = self.means
-        with np.errstate(divide="ignore"):
-            # bets truncated to half of what keeps the wealth nonnegative (the hedged capital process)
-            up = np.minimum(bet, 0.5 / (1.0 + m))
-            down = np.minimum(bet, 0.5 / np.maximum(1.0 - m, 1e-12))
-            self._log_up += np.log1p(up * (difference - m))
-            self._log_down += np.log1p(-down * (difference - m))
-        self._sum += difference
-        self._sum_sq += difference * difference
-        self.pairs += 1
-
-    def wealth(self) -> np.ndarray:
-        """The hedged wealth K_t(m) at every grid mean (half on each side)."""
-        return 0.5 * np.exp(self._log_up) + 0.5 * np.exp(self._log_down)
-
-    def confidence_sequence(self) -> typing.Tuple[float, float]:
-        """The smallest and largest grid mean still plausible: ``(low, high)`` (the set is an interval up to the
-        grid's resolution)."""
-        plausible = self.means[self.wealth() < 1.0 / self.alpha]
-        if not len(plausible):   # cannot happen for the true mean but for probability alpha; keep the estimate
-            estimate = self._sum / max(self.pairs, 1)
-            return estimate, estimate
-        return float(plausible.min()), float(plausible.max())
-
-    @property
-    def decided(self) -> int:
-        """+1 when B is decided better (the whole sequence above 0), -1 when A is, 0 while undecided."""
-        low, high = self.confidence_sequence()
-        return 1 if low > 0 else -1 if high < 0 else 0
-
-
-def plug_in_bet(total: npt.ArrayLike, total_sq: npt.ArrayLike, pairs: int, alpha: float) -> np.ndarray:
-    """The predictable plug-in bet of Waudby-Smith and Ramdas (eq. 26) for differences in [-1, 1]:
-    sqrt(2 log(2 / alpha) / (variance t log(t + 1))), t = pairs + 1, from the sum and the sum of squares of the
-    ``pairs`` differences before (arrays: one bet per sequence); the variance estimate starts at a pseudo-variance
-    of 1/4 so the first bets are moderate."""
-    t = pairs + 1
-    s = np.asarray(total, dtype=np.float64)
-    mean = s / t
-    variance = (0.25 + np.asarray(total_sq, dtype=np.float64) - 2.0 * mean * s + pairs * mean * mean) / t
-    return np.sqrt(2.0 * math.log(2.0 / alpha) / (np.maximum(variance, 1e-6) * t * math.log(t + 1.0)))
-
-
-def first_decisions(differences: npt.ArrayLike, alpha: float = 0.05) -> np.ndarray:
-    """For many sequences of paired differences (runs, pairs) at once: the number of pairs after which each
-    sequence's :class:`PairedSequentialTest` first decided (0 leaves its confidence sequence), 0 where it never did.
-    The same bets and wealth as the class (at m = 0), vectorised over runs for simulations."""
-    d = np.asarray(differences, dtype=np.float64)
-    runs, pairs = d.shape
-    log_up, log_down = np.zeros(runs), np.zeros(runs)
-    total, total_sq = np.zeros(runs), np.zeros(runs)
-    first = np.zeros(runs, dtype=np.int64)
-    for i in range(pairs):
-        bet = np.minimum(plug_in_bet(total, total_sq, i, alpha), 0.5)   # at m = 0 both sides are capped at 1/2
-        log_up += np.log1p(bet * d[:, i])
-        log_down += np.log1p(-bet * d[:, i])
-        total += d[:, i]
-        total_sq += d[:, i] ** 2
-        wealth = 0.5 * np.exp(log_up) + 0.5 * np.exp(log_down)
-        first[(first == 0) & (wealth >= 1.0 / alpha)] = i + 1
-    return first
-
-
-def paired_differences(outcomes: typing.Iterable[LaunchOutcome], first: str, second: str
-                       ) -> typing.List[float]:
-    """The paired differences y_second - y_first of valid launches of configurations ``first`` and ``second`` at the
-    same (height, speed, angle, repetition), in the order the pair was completed."""
-    seen: typing.Dict[tuple, typing.Dict[str, bool]] = {}
-    differences = []
-    for outcome in outcomes:
-        c = outcome.condition
-        if not outcome.valid or c.configuration not in (first, second):
-            continue
-        key = (c.height_m, c.speed_mps, c.angle_deg, c.repetition)
-        pair = seen.setdefault(key, {})
-        if c.configuration in pair:
-            continue
-        pair[c.configuration] = outcome.upright
-        if len(pair) == 2:
-            differences.append(float(pair[second]) - float(pair[first]))
-    return differences
-
-
-def comparison_decision(outcomes: typing.Iterable[LaunchOutcome], first: str, second: str,
-                        alpha: float = 0.05) -> typing.Tuple[int, PairedSequentialTest]:
-    """The :class:`PairedSequentialTest` of ``second`` against ``first`` over the stored ``outcomes``, and its
-    decision (+1 ``second`` better, -1 ``first`` better, 0 undecided)."""
-    test = PairedSequentialTest(alpha)
-    for difference in paired_differences(outcomes, first, second):
-        test.update(difference)
-    return test.decided, test
-
-
-def comparison_stop_rule(outcomes: typing.Iterable[LaunchOutcome], first: str, second: str,
-                         alpha: float = 0.05) -> typing.Callable[[LaunchOutcome], str]:
-    """A campaign's ``stop_rule`` (:func:`~rollability_ros.core.campaign.runner.run_campaign`): fed every newly stored
-    outcome after the ``outcomes`` stored before, it answers why the comparison of ``second`` against ``first`` is
-    decided ("" while it is not): the always-valid test of :class:`PairedSequentialTest` at error rate ``alpha``."""
-    seen = [o for o in outcomes]
-
-    def rule(outcome: LaunchOutcome) -> str:
-        seen.append(outcome)
-        decision, test = comparison_decision(seen, first, second, alpha)
-        if not decision:
-            return ""
-        low, high = test.confidence_sequence()
-        better, worse = (second, first) if decision > 0 else (first, second)
-        return (f"{better} rights the robot more often than {worse} after {test.pairs} paired launches: the "
-                f"difference P({second}) - P({first}) lies in [{low:+.2f}, {high:+.2f}] (always-valid "
-                f"{1 - alpha:.0%} confidence sequence; the chance this decision is wrong is at most {alpha:.0%})")
-    return rule
-
-
 def candidate_conditions(configurations: typing.Sequence[str], heights_m: typing.Sequence[float],
                          speeds_mps: typing.Sequence[float],
                          angles_deg: typing.Sequence[float]) -> typing.List[LaunchCondition]:
@@ -833,19 +543,20 @@ def proposal_lines(posterior: WeightedPosterior, proposal: Proposal,
 def adaptive_next_trial(posterior: WeightedPosterior, stored_trial_ids: typing.Collection[str],
                         say: typing.Callable[[str], None] = print,
                         comparison: typing.Optional[typing.Tuple[str, str]] = None
-                        ) -> typing.Callable[[typing.Optional[LaunchOutcome]], typing.Optional[typing.Any]]:
+                        ) -> typing.Callable[[typing.Optional[LaunchOutcome]], typing.Optional["PlannedTrial"]]:
     """A campaign's ``next_trial`` (:func:`~rollability_ros.core.campaign.runner.run_campaign`): weighs
     ``posterior`` by each stored outcome, then proposes the next launch (the BALD choice; with ``comparison`` (first,
     second) the launch that tells most about which of the two is better, :meth:`WeightedPosterior.comparison_scores`),
     says why (:func:`proposal_lines`; the campaign loop says what to change) and returns it as a
-    :class:`~rollability_ros.core.campaign.plan.PlannedTrial` with a new repetition number. ``posterior`` should already hold the outcomes stored before (``observe_outcomes``)."""
+    :class:`~rollability_ros.core.campaign.plan.PlannedTrial` with a new repetition number. ``posterior`` should
+    already hold the outcomes stored before (``observe_outcomes``)."""
     from rollability_ros.core.campaign.plan import PlannedTrial
     from rollability_ros.core.records import trial_id_for
 
     stored = set(stored_trial_ids)
     state: typing.Dict[str, typing.Any] = {"previous": None, "index": 0}
 
-    def choose(last: typing.Optional[LaunchOutcome]) -> typing.Optional[PlannedTrial]:
+    def choose(last: typing.Optional[LaunchOutcome]) -> typing.Optional["PlannedTrial"]:
         if last is not None:
             posterior.observe_outcomes([last])
             stored.add(last.trial_id)
@@ -860,30 +571,14 @@ def adaptive_next_trial(posterior: WeightedPosterior, stored_trial_ids: typing.C
     return choose
 
 
-def paired_order(plan: typing.Sequence[typing.Any], first: str, second: str) -> typing.List[typing.Any]:
-    """``plan`` (PlannedTrials) reordered for a comparison of ``first`` and ``second``: their trials in pairs (the
-    same height, speed, angle and repetition, ``first`` then ``second``), pair after pair in plan order, so every
-    second launch completes a pair the stop rule can use; other configurations' trials follow in plan order."""
-    pairs: typing.Dict[tuple, typing.Dict[str, typing.Any]] = {}
-    rest = []
-    for trial in plan:
-        c = trial.condition
-        if c.configuration in (first, second):
-            pairs.setdefault((c.height_m, c.speed_mps, c.angle_deg, c.repetition), {})[c.configuration] = trial
-        else:
-            rest.append(trial)
-    ordered = [pair[name] for pair in pairs.values() for name in (first, second) if name in pair]
-    return ordered + rest
-
-
 #: The unknowns an adaptive plan learns about unless told otherwise (``--fit``): the two of issue 44's five-minute
 #: calibration.
 DEFAULT_UNKNOWNS = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")
 
 
-def budget_placeholders(budget: int, condition: LaunchCondition) -> typing.List[typing.Any]:
+def budget_placeholders(budget: int, condition: LaunchCondition) -> typing.List["PlannedTrial"]:
     """The ``plan`` of an adaptive campaign (:func:`~rollability_ros.core.campaign.runner.run_campaign` with
     ``next_trial``): ``budget`` placeholder trials that only count the launches; ``next_trial`` chooses each."""
-    from rollability_ros.core.campaign.plan import PlannedTrial
+    from rollability_ros.core.campaign.plan import PlannedTrial as Trial
 
-    return [PlannedTrial(i, f"adaptive-{i}", condition) for i in range(budget)]
+    return [Trial(i, f"adaptive-{i}", condition) for i in range(budget)]

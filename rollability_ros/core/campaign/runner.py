@@ -186,33 +186,21 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
     on_progress : callable, optional
         Called with the :class:`~rollability_ros.core.campaign.plan.CampaignProgress` at the start and after each
         stored trial (the graph campaign publishes it for ``bringup``'s progress line).
-    stop_rule : callable, optional
-        ``stop_rule(outcome) -> str`` after each stored outcome: a non-empty answer ends the campaign there as
-        decided (its question answered, e.g. a design comparison: :func:`~rollability_ros.core.campaign.adaptive.
-        comparison_stop_rule`), a complete campaign, not a stop.
-    next_trial : callable, optional
-        An adaptive plan: ``next_trial(last stored outcome or None) -> PlannedTrial or None`` chooses each trial after
-        the previous one is stored (:func:`~rollability_ros.core.campaign.adaptive.adaptive_next_trial`), up to
-        ``len(plan)`` trials this session (``plan`` is then the budget's placeholder trials); None ends it.
+    stop_rule, next_trial : callable, optional
+        ``stop_rule(outcome) -> str``: non-empty ends the campaign as decided (complete; ``sequential.
+        comparison_stop_rule``). ``next_trial(last outcome or None) -> PlannedTrial or None``: an adaptive plan of
+        up to ``len(plan)`` trials, each chosen once the previous is stored (``adaptive.adaptive_next_trial``).
     """
-    if next_trial is None:
-        remaining = [trial for trial in plan if trial.trial_id not in stored_ids]
-        todo: typing.Iterable[PlannedTrial] = remaining
-        progress = CampaignProgress(len(plan), len(plan) - len(remaining))
-    else:
-        progress = CampaignProgress(len(plan), 0)
+    last: typing.List[typing.Optional[LaunchOutcome]] = [None]
+    todo, progress = _trials_to_run(plan, stored_ids, next_trial, last)
     say(f"campaign {run_id}: {progress.text()}")
     if on_progress is not None:
         on_progress(progress)
     previous, stored_now, notes = None, 0, []
-    last: typing.List[typing.Optional[LaunchOutcome]] = [None]
 
     def report(reason: str, failed: bool = False, decided: str = "") -> CampaignReport:
         return CampaignReport(stored_now, progress.done, progress.total, reason, failed, decided=decided)
 
-    if next_trial is not None:
-        choose = next_trial
-        todo = _chosen_trials(lambda: choose(last[0]), len(plan))
     for trial in todo:
         try:
             ready = ask is None or _operator_ready(ask, say, previous, trial, pressure_psi_by_speed)
@@ -222,11 +210,7 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
             return report("stopped by the operator")
         started = clock()
         try:
-            outcome = launch(trial)
-            if (outcome.run_id, outcome.trial_id) != (run_id, trial.trial_id):
-                raise LaunchAborted(f"the rig answered {outcome.run_id}/{outcome.trial_id} for "
-                                    f"{run_id}/{trial.trial_id}")
-            confirm_stored(outcome)
+            outcome = _launch_and_store(trial, run_id, launch, confirm_stored)
         except (LaunchAborted, NotStored, ValueError) as exc:
             say(f"trial {trial.trial_id} not done: {exc}")
             return report(f"{trial.trial_id}: {exc}")
@@ -245,10 +229,32 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
         invalid = invalid_launch_stop(notes)
         if invalid:
             return report(invalid, failed=True)
-        decided = stop_rule(outcome) if stop_rule is not None else ""
-        if decided:
+        if stop_rule is not None and (decided := stop_rule(outcome)):
             return report("", decided=decided)
     return report("")
+
+
+def _trials_to_run(plan: typing.Sequence[PlannedTrial], stored_ids: typing.Collection[str],
+                   next_trial: typing.Optional[typing.Callable[[typing.Optional[LaunchOutcome]],
+                                                               typing.Optional[PlannedTrial]]],
+                   last: typing.List[typing.Optional[LaunchOutcome]]
+                   ) -> typing.Tuple[typing.Iterable[PlannedTrial], CampaignProgress]:
+    """The trials a session runs and its progress: the plan's trials not stored yet, or (``next_trial``) up to
+    ``len(plan)`` trials each chosen from the last stored outcome (``last[0]``, updated by the loop)."""
+    if next_trial is None:
+        remaining = [trial for trial in plan if trial.trial_id not in stored_ids]
+        return remaining, CampaignProgress(len(plan), len(plan) - len(remaining))
+    return _chosen_trials(lambda: next_trial(last[0]), len(plan)), CampaignProgress(len(plan), 0)
+
+
+def _launch_and_store(trial: PlannedTrial, run_id: str, launch: typing.Callable[[PlannedTrial], LaunchOutcome],
+                      confirm_stored: typing.Callable[[LaunchOutcome], None]) -> LaunchOutcome:
+    """Launch ``trial`` and return its outcome once stored; :class:`LaunchAborted` when the rig answered another."""
+    outcome = launch(trial)
+    if (outcome.run_id, outcome.trial_id) != (run_id, trial.trial_id):
+        raise LaunchAborted(f"the rig answered {outcome.run_id}/{outcome.trial_id} for {run_id}/{trial.trial_id}")
+    confirm_stored(outcome)
+    return outcome
 
 
 def _chosen_trials(choose: typing.Callable[[], typing.Optional[PlannedTrial]],

@@ -5,10 +5,10 @@ from .launch_backend import LaunchAborted, LaunchBackend, RigPorts
 from .rig_auth import KeyFileSigner, RecordGuard, request_guard
 from .rig_network import (DISCOVERY_RANGES, RIG_DOMAIN_ID, check_domain_id, check_namespace, exposure_warnings,
                           physical_rig_environment)
-from .rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, OperatorOutcome,
-                          PhysicalLaunch, RigSettings, SimulatedLaunch, check_rest_distance, describe_answer,
-                          launch_backend_class, make_launch_backend, parse_outcome_answer,
-                          simulated_continuous_outcomes)
+from .outcome_sources import ImuOutcome, check_rest_distance, simulated_continuous_outcomes
+from .rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, OperatorOutcome, PhysicalLaunch,
+                          RigSettings, SimulatedLaunch, describe_answer, launch_backend_class, make_launch_backend,
+                          parse_outcome_answer)
 from .speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
 from .valve import ValveConfig, ValveController, ValveStatus
 from .valve_auth import (AuthError, RequestSigner, RequestVerifier, Signature, create_session_key, default_key_path,

@@ -117,7 +117,7 @@ class Unknowns:
 
 
 def binary_entropy(p: npt.ArrayLike) -> np.ndarray:
-    """H[p] in nats, elementwise; 0 at p = 0 and 1."""
+    """H[p] in nats, elementwise (any shape, e.g. (s, c) -> (s, c)); 0 at p = 0 and 1."""
     q = np.clip(np.asarray(p, dtype=np.float64), 0.0, 1.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         h = -(q * np.log(q) + (1.0 - q) * np.log1p(-q))
@@ -379,7 +379,8 @@ class WeightedPosterior:
 
 def weighted_quantiles(values: npt.ArrayLike, weights: npt.ArrayLike,
                        quantiles: typing.Sequence[float]) -> np.ndarray:
-    """Quantiles of weighted samples: the smallest value whose cumulative weight reaches each quantile."""
+    """Quantiles (q,) of weighted samples ``values`` (n,) with ``weights`` (n,): the smallest value whose cumulative
+    weight reaches each quantile."""
     v = np.asarray(values, dtype=np.float64)
     w = np.asarray(weights, dtype=np.float64)
     order = np.argsort(v, kind="stable")

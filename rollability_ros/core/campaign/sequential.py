@@ -70,7 +70,7 @@ class PairedSequentialTest:
         self.pairs += 1
 
     def wealth(self) -> np.ndarray:
-        """The hedged wealth K_t(m) at every grid mean (half on each side)."""
+        """The hedged wealth K_t(m) (g,) at every grid mean (g,) (half on each side)."""
         return 0.5 * np.exp(self._log_up) + 0.5 * np.exp(self._log_down)
 
     def confidence_sequence(self) -> typing.Tuple[float, float]:
@@ -90,7 +90,8 @@ class PairedSequentialTest:
 
 
 def plug_in_bet(total: npt.ArrayLike, total_sq: npt.ArrayLike, pairs: int, alpha: float) -> np.ndarray:
-    """The predictable plug-in bet of Waudby-Smith and Ramdas (eq. 26) for differences in [-1, 1]:
+    """The predictable plug-in bets (r,) of Waudby-Smith and Ramdas (eq. 26) for differences in [-1, 1], one per
+    sequence from the sums ``total`` (r,) and ``total_sq`` (r,):
     sqrt(2 log(2 / alpha) / (variance t log(t + 1))), t = pairs + 1, from the sum and the sum of squares of the
     ``pairs`` differences before (arrays: one bet per sequence); the variance estimate starts at a pseudo-variance
     of 1/4 so the first bets are moderate."""

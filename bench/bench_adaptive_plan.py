@@ -24,24 +24,27 @@ import argparse
 import os
 import sys
 import time
+import typing
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from rollability_ros.core.campaign import adaptive, plan_comparison  # noqa: E402
 
 
-def run(predictor: adaptive.UprightPredictor, unknowns: adaptive.Unknowns, candidates, truths: int,
-        matrix_launches: int, samples: int, seed: int = 2026, say=print, renew: bool = True):
+def run(predictor: typing.Union[adaptive.UprightPredictor, adaptive.PerLaunchPredictor],
+        unknowns: adaptive.HasBounds, candidates: typing.Sequence[adaptive.LaunchCondition], truths: int,
+        matrix_launches: int, samples: int, seed: int = 2026, say: typing.Callable[[str], None] = print,
+        renew: bool = True) -> typing.List[plan_comparison.MatchedWidths]:
     """Print and return the matrix-vs-adaptive comparison (:func:`plan_comparison.adaptive_to_match_matrix`); ``renew``:
     renew the samples as the posterior narrows (asks the predictor again: for a cheap one, not the twin's)."""
     import numpy as np
 
-    unknowns = adaptive.Unknowns.like(unknowns)   # a learnt likelihood's own unknowns are accepted as they are
-    if not hasattr(predictor, "probabilities"):    # one launch at a time (predict_upright_probability)
-        predictor = adaptive.PerLaunchAdapter(predictor)
+    bounds = adaptive.Unknowns.like(unknowns)   # a learnt likelihood's own unknowns are accepted as they are
+    table: adaptive.UprightPredictor = (adaptive.PerLaunchAdapter(predictor)
+                                        if isinstance(predictor, adaptive.PerLaunchPredictor) else predictor)
     started = time.perf_counter()
-    results = plan_comparison.adaptive_to_match_matrix(unknowns, predictor, candidates, truths, matrix_launches, samples,
-                                                seed, renew=renew)
+    results = plan_comparison.adaptive_to_match_matrix(bounds, table, candidates, truths, matrix_launches, samples,
+                                                       seed, renew=renew)
     for i, r in enumerate(results):
         needed = f"{r.adaptive_launches}" if r.adaptive_launches is not None else f">{matrix_launches}"
         say(f"truth {i}: matrix {matrix_launches} launches -> widths "
@@ -55,7 +58,7 @@ def run(predictor: adaptive.UprightPredictor, unknowns: adaptive.Unknowns, candi
     return results
 
 
-def main(argv=None):
+def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     import numpy as np
 
     from rollability_ros.core.campaign import calibration
@@ -74,7 +77,12 @@ def main(argv=None):
     parser.add_argument("--twin-config", action="append", default=[], metavar="FILE")
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--seed", type=int, default=2026)
+    parser.add_argument("--smoke", action="store_true",
+                        help="every step once at a tiny size (1 truth, 2 unknowns, 200 samples, 40 matrix launches); "
+                             "the numbers mean nothing")
     args = parser.parse_args(argv)
+    if args.smoke:
+        args.truths, args.unknowns, args.samples, args.matrix_launches = 1, 2, 200, 40
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration.calibration_settings(parameters)
     order = list(adaptive.DEFAULT_UNKNOWNS) + [n for n in settings.parameters if n not in adaptive.DEFAULT_UNKNOWNS]
@@ -85,18 +93,20 @@ def main(argv=None):
     print(f"{args.likelihood} likelihood; unknowns {', '.join(unknowns.names)}; {len(candidates)} grouped conditions; "
           f"{args.truths} truths from the prior; {args.samples} prior samples; simulated")
     if args.likelihood == "toy":
-        return run(adaptive.LogisticToyPredictor(unknowns, seed=args.seed), unknowns, candidates, args.truths,
-                   args.matrix_launches, args.samples, args.seed)
+        run(adaptive.LogisticToyPredictor(unknowns, seed=args.seed), unknowns, candidates, args.truths,
+            args.matrix_launches, args.samples, args.seed)
+        return 0
     with calibration.LaunchPool(args.workers) as pool:
         predictor = adaptive.TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
 
         class Cached:   # the prior's table and the truths' are launched once each
-            def probabilities(self, theta, conditions):
+            def probabilities(self, theta: np.ndarray,
+                              conditions: typing.Sequence[adaptive.LaunchCondition]) -> np.ndarray:
                 return predictor.probabilities(np.asarray(theta), conditions)
         # no renewal: each would launch samples x 80 x repetitions again; watch the effective sample sizes printed
-        return run(Cached(), unknowns, candidates, args.truths, args.matrix_launches, args.samples, args.seed,
-                   renew=False)
+        run(Cached(), unknowns, candidates, args.truths, args.matrix_launches, args.samples, args.seed, renew=False)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

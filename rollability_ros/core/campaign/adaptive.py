@@ -56,10 +56,17 @@ class UprightPredictor(typing.Protocol):
 class HasBounds(typing.Protocol):
     """Anything that names unknowns with their bounds and scales (a learnt likelihood's own unknowns)."""
 
-    names: typing.Sequence[str]
-    lower: typing.Sequence[float]
-    upper: typing.Sequence[float]
-    log_scale: typing.Sequence[bool]
+    @property
+    def names(self) -> typing.Sequence[str]: ...
+
+    @property
+    def lower(self) -> typing.Sequence[float]: ...
+
+    @property
+    def upper(self) -> typing.Sequence[float]: ...
+
+    @property
+    def log_scale(self) -> typing.Sequence[bool]: ...
 
 
 @dataclasses.dataclass(frozen=True)
@@ -468,6 +475,7 @@ class TwinPredictor:
         return upright / self.repetitions
 
 
+@typing.runtime_checkable
 class PerLaunchPredictor(typing.Protocol):
     """A likelihood that predicts one launch at a time: ``predict_upright_probability(theta (s, d), design,
     (height m, speed m/s, angle deg)) -> (s,)`` (the learnt likelihood of ``core/campaign/likelihood.py``)."""

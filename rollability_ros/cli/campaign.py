@@ -1,5 +1,6 @@
 """`rollability campaign`: run the launch campaign (paper 2.2.6) in this process or through the node graph."""
 import argparse
+import typing
 
 from rollability_ros.cli import Subparsers, add_session_argument, join_session
 
@@ -134,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
     return _run_local(args, spec, ask)
 
 
-def _comparison(args, text=None):
+def _comparison(args: argparse.Namespace, text: typing.Optional[str] = None) -> typing.Optional[typing.Tuple[str, str]]:
     """``(first, second)`` of ``--stop-when-decided`` (or of ``text``), or None."""
     text = args.stop_when_decided if text is None else text
     if not text:
@@ -321,7 +322,8 @@ def _run_local(args, spec, ask):
             comparison = _comparison(args)
             if comparison is not None:
                 plan = paired_order(plan, *comparison)
-                stop_rule = comparison_stop_rule(store.launch_outcomes(spec.run_id), *comparison, args.alpha)
+                first, second = comparison
+                stop_rule = comparison_stop_rule(store.launch_outcomes(spec.run_id), first, second, args.alpha)
             if args.plan == "adaptive":   # minutes of twin launches: before a physical rig opens its valve
                 posterior = _adaptive_posterior(args, spec, store.launch_outcomes(spec.run_id))
                 next_trial = adaptive_next_trial(posterior, stored, comparison=_comparison(args, args.about or ""))

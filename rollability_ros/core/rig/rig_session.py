@@ -177,11 +177,11 @@ def parse_outcome_answer(text: str) -> "OperatorOutcome":
     return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest), rest_distance_m)
 
 
-def describe_answer(kind: str, answer: typing.Optional[OperatorOutcome]) -> str:
+def describe_answer(kind: str, answer: typing.Union[bool, OperatorOutcome, None]) -> str:
     """An operator answer in words: ``regulator confirmed`` or ``upright, travel time 0.42 s, note: ...``."""
     if kind == "confirm":
         return "regulator confirmed"
-    assert answer is not None, "an outcome answer carries the outcome"
+    assert isinstance(answer, OperatorOutcome), "an outcome answer carries the outcome"
     parts = ["upright" if answer.upright else "tipped"]
     if not math.isnan(answer.travel_time_s):
         parts.append(f"travel time {answer.travel_time_s:g} s")
@@ -269,8 +269,9 @@ class OperatorChannel:
         return self._deliver("outcome", outcome, trial_id)
 
     def wait(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
-             poll_s: float = 0.05) -> typing.Any:
-        """Return the answer once given, or None on timeout / ``cancelled()``; the question stays open."""
+             poll_s: float = 0.05) -> typing.Union[bool, OperatorOutcome, None]:
+        """Return the answer once given (True: the regulator confirmed; the outcome), or None on timeout /
+        ``cancelled()``; the question stays open."""
         deadline = time.monotonic() + timeout_s
         with self._cond:
             while self._answer is None:

@@ -1,9 +1,11 @@
 """The launch rig: one trial's sequence, the solenoid valve and its backends, the relay simulator, speed gates.
 
 - launch_backend: the LaunchBackend contract (check, launch, close), the RigPorts a caller provides, and the types
-  it is written in (RigSettings, ImuOutcome, the LAUNCH_BACKENDS table)
+  it is written in (RigSettings, the operator channel and its answers, the LAUNCH_BACKENDS table)
 - rig_session: its two implementations (SimulatedLaunch, PhysicalLaunch), make_launch_backend; goal checks,
   phases, operator answers, speed
+- outcome_sources: the IMU's verdict and continuous outcomes (ImuOutcome), the operator's distance rolled, the
+  twin's continuous outcomes
 - valve: fail-closed valve state machine
 - valve_contract: the ValveBackend contract, its VALVE_BACKENDS table, make_valve_backend and ValveConfig
 - valve_boards: the boards: dry-run, GPIO and serial relay backends

@@ -1,6 +1,8 @@
 """The launch backend contract: what the rig node and the in-process campaign call, whichever backend runs, with
-the types it is written in: the rig's settings (:class:`RigSettings`, ``rig.*``), the IMU outcome a physical
-launch waits on (:class:`ImuOutcome`) and the :data:`LAUNCH_BACKENDS` table (``rig.backend``).
+the types it is written in: the rig's settings (:class:`RigSettings`, ``rig.*``), the operator channel and its
+answers (:class:`OperatorChannel`, :class:`OperatorOutcome`) and the :data:`LAUNCH_BACKENDS` table
+(``rig.backend``); the IMU outcome a physical launch waits on comes from the module below it,
+:class:`~rollability_ros.core.rig.outcome_sources.ImuOutcome`.
 
 A :class:`LaunchBackend` launches one trial at a time and returns its
 :class:`~rollability_ros.core.records.LaunchOutcome`; the outcome's ``backend`` field is the only place a
@@ -20,9 +22,10 @@ import threading
 import time
 import typing
 
-from rollability_ros.core.imu import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
+from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.records import NOT_MEASURED, LaunchCondition, LaunchOutcome
 from rollability_ros.core.registry import Registry
+from rollability_ros.core.rig.outcome_sources import ROLLED_WORD, ImuOutcome, check_rest_distance
 from rollability_ros.core.rig.speed_gate import SpeedGate, SpeedGateConfig
 from rollability_ros.core.rig.valve import ValveStatus
 from rollability_ros.core.rig.valve_contract import ValveConfig
@@ -56,14 +59,24 @@ class OperatorOutcome:
     upright: bool
     travel_time_s: float = NOT_MEASURED
     note: str = ""
+    rest_distance_m: float = NOT_MEASURED   # m from the ledge's edge to where it came to rest, as the operator measured
 
 
 def parse_outcome_answer(text: str) -> "OperatorOutcome":
-    """Parse a typed outcome ``"y|n [travel time s] [note...]"`` into an :class:`OperatorOutcome`.
+    """Parse a typed outcome ``"y|n [travel time s] [rolled=M] [note...]"`` into an :class:`OperatorOutcome`.
 
-    ``y``/``yes``/``u``/``upright`` mean upright, ``n``/``no``/``t``/``tipped`` not; raises ``ValueError`` otherwise.
+    ``y``/``yes``/``u``/``upright`` mean upright, ``n``/``no``/``t``/``tipped`` not; ``rolled=0.35`` anywhere after the
+    verdict is the distance from the ledge's edge to where the chassis came to rest, m, as measured (>= 0); raises
+    ``ValueError`` otherwise.
     """
     words = text.split()
+    rolled = [word for word in words[1:] if word.lower().startswith(ROLLED_WORD)]
+    if len(rolled) > 1:
+        raise ValueError(f"give the distance rolled once ({ROLLED_WORD}M), got {' '.join(rolled)}")
+    rest_distance_m = NOT_MEASURED
+    if rolled:
+        rest_distance_m = check_rest_distance(rolled[0][len(ROLLED_WORD):])
+        words = [word for word in words if word is not rolled[0]]
     if not words:
         raise ValueError("type y (upright) or n (not upright), optionally the travel time in s and a note")
     verdict = words[0].lower()
@@ -78,7 +91,7 @@ def parse_outcome_answer(text: str) -> "OperatorOutcome":
             pass
         if not (math.isnan(travel_time_s) or 0 < travel_time_s < math.inf):
             raise ValueError(f"travel time must be > 0 s, got {travel_time_s}")
-    return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest))
+    return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest), rest_distance_m)
 
 
 def describe_answer(kind: str, answer: typing.Union[bool, OperatorOutcome, None]) -> str:
@@ -89,6 +102,8 @@ def describe_answer(kind: str, answer: typing.Union[bool, OperatorOutcome, None]
     parts = ["upright" if answer.upright else "tipped"]
     if not math.isnan(answer.travel_time_s):
         parts.append(f"travel time {answer.travel_time_s:g} s")
+    if not math.isnan(answer.rest_distance_m):
+        parts.append(f"rolled {answer.rest_distance_m:g} m")
     if answer.note:
         parts.append(f"note: {answer.note}")
     return ", ".join(parts)
@@ -284,41 +299,6 @@ class RigPorts(abc.ABC):
 
     def close(self) -> None:
         """Stop what the ports started (keep-alive, valve shut down); idempotent."""
-
-
-class ImuOutcome:
-    """The upright classifier fed from the IMU topic; a launch resets it at firing and waits for its verdict."""
-
-    def __init__(self, config):
-        self.config = config
-        self._classifier = ImuUprightClassifier.from_config(config)
-        self._cond = threading.Condition()
-        self._reading = None
-
-    def reset(self) -> None:
-        """Forget everything before the launch (a chassis waiting on the launcher looks settled too)."""
-        with self._cond:
-            self._classifier.reset()
-            self._reading = None
-
-    def feed(self, sample: ImuSample) -> None:
-        """Classify one :class:`~rollability_ros.core.imu.upright.ImuSample`; bad samples raise ``ValueError``."""
-        with self._cond:
-            self._reading = self._classifier.update(sample)
-            if self._reading.classification is not None:
-                self._cond.notify_all()
-
-    def wait_settled(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
-                     poll_s: float = 0.05) -> typing.Optional[UprightReading]:
-        """The first settled :class:`~rollability_ros.core.imu.upright.UprightReading`, or None on timeout/cancel."""
-        deadline = time.monotonic() + timeout_s
-        with self._cond:
-            while self._reading is None or self._reading.classification is None:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0 or cancelled():
-                    return None
-                self._cond.wait(min(poll_s, remaining))
-            return self._reading
 
 
 #: ``rig.backend`` -> the :class:`LaunchBackend` implementation.

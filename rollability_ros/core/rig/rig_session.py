@@ -35,12 +35,13 @@ import typing
 import zlib
 
 from rollability_ros.core import config
-from rollability_ros.core.imu import ImuOutcomeConfig
+from rollability_ros.core.imu import ImuOutcomeConfig, LaunchMotion
 from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
                                           LaunchCondition, LaunchOutcome, check_twin_seed)
-from rollability_ros.core.rig.launch_backend import (LAUNCH_BACKENDS, ImuOutcome, LaunchAborted, LaunchBackend,
-                                                     OperatorChannel, OperatorOutcome, PhaseCallback, PoseCallback,
-                                                     RigPorts, RigSettings, describe_answer, no_phase, not_cancelled)
+from rollability_ros.core.rig.launch_backend import (LAUNCH_BACKENDS, LaunchAborted, LaunchBackend, OperatorChannel,
+                                                     OperatorOutcome, PhaseCallback, PoseCallback, RigPorts,
+                                                     RigSettings, describe_answer, no_phase, not_cancelled)
+from rollability_ros.core.rig.outcome_sources import ImuOutcome, simulated_continuous_outcomes
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
 from rollability_ros.core.rig.valve_contract import ValveConfig
 
@@ -223,6 +224,8 @@ class PhysicalLaunch(LaunchBackend):
         except BaseException:
             self._confirmed = None   # after an e-stop, a fault or a cancel the operator confirms the pressure again
             raise
+        # what the IMU saw, even when it never settled and the operator answered (its peak, then, without a tilt)
+        motion = self.imu.motion() if self.imu is not None else LaunchMotion()
         travel_time_s, source = self.travel_time_source(travel_time_s, operator)
         speed = self.speed_config.measure(condition.speed_mps, travel_time_s)
         notes = [source, speed_note(speed, condition.speed_mps, self.speed_config.tolerance_fraction)]
@@ -238,7 +241,8 @@ class PhysicalLaunch(LaunchBackend):
             speed_out_of_tolerance=speed.speed_out_of_tolerance,
             final_orientation=tuple(reading.orientation) if reading is not None else UNKNOWN_ORIENTATION,
             classified_by="operator" if operator is not None else "imu", note="; ".join(filter(None, notes)),
-            stamp_s=time.time())
+            stamp_s=time.time(), **motion.outcome_fields(),
+            rest_distance_m=operator.rest_distance_m if operator is not None else NOT_MEASURED)
 
     def travel_time_source(self, gate_s: float, operator: typing.Optional[OperatorOutcome]
                            ) -> typing.Tuple[float, str]:
@@ -445,8 +449,9 @@ def launch_seed(base_seed: int, trial_id: str) -> int:
 def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, result: "LaunchResult",
                       speed_config: SpeedGateConfig) -> LaunchOutcome:
     """The :class:`LaunchOutcome` of a launch twin result (``upright``, ``final_orientation_xyzw``,
-    ``travel_time_s``), with the speed flagged against ``speed_config``'s tolerance; an invalid launch
-    (``invalid_reason``) is stored not upright with a note starting with :data:`INVALID_LAUNCH`."""
+    ``travel_time_s`` and the continuous outcomes, :func:`simulated_continuous_outcomes`), with the speed flagged
+    against ``speed_config``'s tolerance; an invalid launch (``invalid_reason``) is stored not upright with a note
+    starting with :data:`INVALID_LAUNCH`."""
     travel_time_s = float(getattr(result, "travel_time_s", NOT_MEASURED))
     if not travel_time_s > 0:
         travel_time_s = NOT_MEASURED
@@ -462,5 +467,4 @@ def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, re
         travel_time_s=speed.travel_time_s, measured_speed_mps=speed.measured_speed_mps,
         speed_out_of_tolerance=speed.speed_out_of_tolerance,
         final_orientation=tuple(float(v) for v in result.final_orientation_xyzw), classified_by="sim", note=note,
-        stamp_s=time.time(), seed=int(getattr(result, "seed", NO_SEED)))
-
+        stamp_s=time.time(), seed=int(getattr(result, "seed", NO_SEED)), **simulated_continuous_outcomes(result))

@@ -217,7 +217,7 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
 def write_csv(observations, path):
     """The observations as an outcome CSV (docs/outcome-csv.md): verdict, gate speed, final orientation (imu)."""
     from rollability_ros.core.records import LaunchCondition, LaunchOutcome
-    from rollability_ros.core.results.outcome_csv import write_outcome_csv
+    from rollability_ros.core.results import write_outcome_csv
 
     outcomes = []
     counts = {}
@@ -230,7 +230,7 @@ def write_csv(observations, path):
                                       measured_speed_mps=float(o.outcomes["measured_speed_mps"]),
                                       final_orientation=(math.sin(tilt / 2), 0.0, 0.0, math.cos(tilt / 2)),
                                       classified_by="imu"))
-    write_outcome_csv(outcomes, path)
+    write_outcome_csv(path, outcomes)
 
 
 def cli_check(likelihood_path, first, unknowns, folder, parameters):

@@ -102,7 +102,7 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
         raise ValueError(f"--prepare-launches must be >= 200, got {args.prepare_launches}")
     spec = from_mapping(CampaignSpec, section(parameters, "campaign"), "campaign")
     levels = learnt.ConditionLevels(tuple(spec.heights_m), tuple(spec.speeds_mps), tuple(spec.angles_deg))
-    configurations = ["baseline", *parameters.get("launch_twin.designs.mesh_labels", [])]
+    configurations = ["baseline", *(label for label in parameters.get("launch_twin.designs.mesh_labels", []) if label)]
     unknowns = learnt.Unknowns(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper),
                                tuple(settings.log_scale))
     fingerprint = learnt.twin_fingerprint(parameters, unknowns.names)
@@ -137,6 +137,8 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     from rollability_ros.core.campaign import likelihood as learnt
     from rollability_ros.core.results import analysis
 
+    if args.sampler_steps < 20:
+        raise ValueError(f"--sampler-steps must be >= 20, got {args.sampler_steps}")
     likelihood = learnt.load_likelihood(args.likelihood)
     unknowns = likelihood.unknowns
     if likelihood.fingerprint != learnt.twin_fingerprint(parameters, unknowns.names):
@@ -147,7 +149,8 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     observations = learnt.observations_from_outcomes(outcomes)
     extra = (learnt.characterisation_term(characterisation, parameters, unknowns)
              if characterisation is not None else None)
-    posterior = learnt.sample_posterior(likelihood, observations, sampled, fixed, extra, seed=args.seed)
+    posterior = learnt.sample_posterior(likelihood, observations, sampled, fixed, extra, seed=args.seed,
+                                        steps=args.sampler_steps)
     fitted = posterior.best()
     method = "highest-density set of the learnt likelihood's posterior"
     params_path = _write_outputs(args, sources, f"credible set ({method})", fitted)
@@ -293,4 +296,6 @@ def register(subparsers: Subparsers) -> None:
                         help="calibrate with a likelihood made by --prepare (its twin and designs must be the loaded "
                              "ones): the posterior of the --fit unknowns, the file's others held at their loaded values")
     parser.add_argument("--seed", type=int, default=1, help="seed of the posterior sampler (--likelihood)")
+    parser.add_argument("--sampler-steps", type=int, default=600, metavar="N",
+                        help="steps of the posterior sampler (--likelihood; the first half is discarded; >= 20)")
     parser.set_defaults(func=run)

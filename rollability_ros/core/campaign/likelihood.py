@@ -403,7 +403,12 @@ def load_likelihood(path: typing.Union[str, os.PathLike]) -> LearntLikelihood:
 
 def _load(source: str) -> LearntLikelihood:
     with np.load(source, allow_pickle=False) as archive:
-        arrays = {name: archive[name] for name in archive.files}
+        try:
+            arrays = {name: archive[name] for name in archive.files}
+        except ValueError as error:
+            if "allow_pickle" not in str(error):
+                raise
+            raise ValueError("holds a pickled object array (refused unread: nothing in the file may execute)") from None
     if "header" not in arrays or arrays["header"].dtype.kind != "U" or arrays["header"].shape != ():
         raise ValueError("not a prepared likelihood file (no header)")
     header = json.loads(str(arrays["header"]))
@@ -467,6 +472,8 @@ def twin_fingerprint(parameters: typing.Mapping[str, typing.Any], unknowns: typi
     kept.pop("launch_twin.designs.mesh_files", None)
     digest.update(json.dumps(kept, sort_keys=True, default=repr).encode("utf-8"))
     for path in parameters.get("launch_twin.designs.mesh_files", []) or []:
+        if not path:   # an empty entry: no design file
+            continue
         with open(path, "rb") as stream:
             digest.update(hashlib.sha256(stream.read()).digest())
     return digest.hexdigest()

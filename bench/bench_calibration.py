@@ -1,7 +1,7 @@
 """Calibration with the learnt likelihood on simulated hidden truths: preparation time, calibration time, coverage,
 widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise -> validate. All simulated.
 
-    nice python bench/bench_calibration.py [--prepare-launches 16000] [--truths 50] [--workers 2]
+    nice python bench/bench_calibration.py [--prepare-launches 8000] [--truths 50] [--workers 2]
         [--likelihood FILE] [--keep DIR] [--reoptimize-generations 15] [--skip-reoptimize] [--skip-cli]
 
 1. Designs: the bare robot and three profiles (bench_launch_twin's dome, a flat top at the 0.09 m bound and a low
@@ -311,15 +311,15 @@ def reoptimize(likelihood, parameters, unknowns, first, args, folder):
                 twin_config=[*calibration.TWIN_CONFIGS, files["truth"]]))
             result = evaluation.evaluate_profile(heights, args.validate, 987_654_321, on_truth, executor)
             scores[label] = (result.successes, result.trials)
-            print(f"{label}-twin design on the truth: {result.successes}/{result.trials} [{time.perf_counter() - started:.0f} s, "
-                  f"{load()}]", flush=True)
+            print(f"{label}-twin design on the truth: {result.successes}/{result.trials} "
+                  f"[{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
     report_difference("calibrate -> re-optimise -> validate on the first truth: ", scores["calibrated"],
                       scores["uncalibrated"])
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--prepare-launches", type=int, default=16000, help="twin launches of the preparation")
+    parser.add_argument("--prepare-launches", type=int, default=8000, help="twin launches of the preparation")
     parser.add_argument("--truths", type=int, default=50, help="hidden truths of the coverage (>= 50 for the claim)")
     parser.add_argument("--steps", type=int, default=600, help="sampler steps per calibration")
     parser.add_argument("--workers", type=int, default=2)

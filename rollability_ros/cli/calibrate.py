@@ -290,11 +290,12 @@ def register(subparsers: Subparsers) -> None:
                         help="learn the likelihood of the --fit unknowns (default: all declared) over the loaded "
                              "twin's configurations and the campaign's levels from simulated launches, and write it "
                              "to FILE (.npz; never overwritten); once per robot and design set")
-    parser.add_argument("--prepare-launches", type=int, default=16000, metavar="N",
-                        help="simulated launches of --prepare (default 16000: about 15 minutes on 2 cores)")
+    parser.add_argument("--prepare-launches", type=int, default=8000, metavar="N",
+                        help="simulated launches of --prepare (default 8000: sized for 15 minutes on 2 quiet cores)")
     parser.add_argument("--likelihood", metavar="FILE",
                         help="calibrate with a likelihood made by --prepare (its twin and designs must be the loaded "
-                             "ones): the posterior of the --fit unknowns, the file's others held at their loaded values")
+                             "ones): the posterior of the --fit unknowns, the file's others held at their loaded "
+                             "values")
     parser.add_argument("--seed", type=int, default=1, help="seed of the posterior sampler (--likelihood)")
     parser.add_argument("--sampler-steps", type=int, default=600, metavar="N",
                         help="steps of the posterior sampler (--likelihood; the first half is discarded; >= 20)")

@@ -132,7 +132,7 @@ def test_cli_writes_outputs_from_a_csv_of_physical_outcomes(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_recovers_a_hidden_centre_of_mass_offset_from_synthetic_outcomes(tmp_path):
-    """Reduced synthetic truth (bench/bench_calibration.py runs the fuller version): 'physical' outcomes from the
+    """Reduced synthetic truth (bench/bench_calibration_direct.py runs the fuller version): 'physical' outcomes from the
     twin with the chassis's COM 6 mm above the box centre instead of 15 mm below; the fit starts at the default."""
     pytest.importorskip("pybullet")
     pytest.importorskip("cma")

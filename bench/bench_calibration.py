@@ -134,20 +134,40 @@ def characterise_truth(parameters, unknowns, truth, rng):
                                   slide_sigma_deg=SLIDE_SIGMA_DEG)
 
 
-def adaptive_comparison(likelihood, truths, simulate):
-    """The adaptive plan against the paper's matrix (issue 44 item 4, the ``adaptive`` room's): calls
+def adaptive_comparison(likelihood, truths, simulate, configurations, levels):
+    """The adaptive plan against the paper's matrix (issue 44 item 4, the ``adaptive`` room's): the launches the
+    adaptive plan needs to reach the matrix's 400-launch widths, on the learnt likelihood. Calls
     ``rollability_ros.core.campaign.adaptive.compare_with_matrix(likelihood, truths, simulate)`` when it exists
-    and prints its lines. ``truths`` (n, d) own units; ``simulate(truth, cells, seed)`` launches cells
-    ((configuration, height, speed, angle) tuples) at a truth and returns Observations."""
+    (``truths`` (n, d) own units; ``simulate(truth, cells, seed)`` launches (configuration, height, speed, angle)
+    cells on the twin at a truth and returns Observations) and prints its lines; else its
+    ``adaptive_to_match_matrix`` with the learnt likelihood as the predictor (outcomes drawn from it) on as many
+    truths; else says it is not in this build."""
     try:
         from rollability_ros.core.campaign import adaptive  # type: ignore[attr-defined]
-        compare = adaptive.compare_with_matrix
-    except (ImportError, AttributeError):
-        print("adaptive plan vs the paper's matrix: not in this build (compare_with_matrix of "
-              "rollability_ros.core.campaign.adaptive)")
+    except ImportError:
+        adaptive = None
+    if adaptive is not None and hasattr(adaptive, "compare_with_matrix"):
+        for line in adaptive.compare_with_matrix(likelihood, truths, simulate):
+            print(line, flush=True)
         return
-    for line in compare(likelihood, truths, simulate):
-        print(line, flush=True)
+    if adaptive is None or not hasattr(adaptive, "adaptive_to_match_matrix"):
+        print("adaptive plan vs the paper's matrix: not in this build (rollability_ros.core.campaign.adaptive)")
+        return
+    from rollability_ros.core.records import LaunchCondition
+
+    u = likelihood.unknowns
+    candidates = [LaunchCondition(c, h, v, a) for c in configurations for h in levels.heights_m
+                  for v in levels.speeds_mps for a in levels.angles_deg]
+    started = time.perf_counter()
+    results = adaptive.adaptive_to_match_matrix(adaptive.Unknowns(u.names, u.lower, u.upper, u.log_scale),
+                                                adaptive.PerLaunchAdapter(likelihood), candidates, len(truths),
+                                                5 * len(candidates), samples=4000, seed=TRUTH_SEED)
+    counts = [r.adaptive_launches for r in results]
+    reached = sorted(c for c in counts if c is not None)
+    print(f"adaptive plan vs the paper's matrix ({5 * len(candidates)} launches), outcomes drawn from the learnt "
+          f"likelihood, {len(results)} truths from the prior: the adaptive plan reached the matrix's widths in "
+          f"{len(reached)} of {len(results)}, median {np.median(reached) if reached else math.nan:.0f} launches "
+          f"(target <= 150) [{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
 
 
 def rank_p_value(ranks, samples, bins=10):
@@ -224,7 +244,7 @@ def write_csv(observations, path):
     for o in observations:
         key = (o.configuration, o.height_m, o.speed_mps, o.angle_deg)
         counts[key] = counts.get(key, -1) + 1
-        tilt = math.radians(o.outcomes["tilt_deg"])
+        tilt = math.radians(o.outcomes["final_tilt_deg"])
         condition = LaunchCondition(*key, repetition=counts[key])
         outcomes.append(LaunchOutcome("truth", f"t{len(outcomes)}", condition, "physical", o.upright,
                                       measured_speed_mps=float(o.outcomes["measured_speed_mps"]),
@@ -366,7 +386,7 @@ def main():
                 return launch_truth(parameters, unknowns, truth, cells, seed, pool)
             rng = np.random.default_rng(TRUTH_SEED)
             adaptive_comparison(likelihood, unknowns.to_values(rng.uniform(size=(args.truths, len(unknowns.names)))),
-                                simulate)
+                                simulate, configurations, levels)
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
         if not args.skip_cli:

@@ -54,13 +54,13 @@ from rollability_ros.core.optional import require
 #: ``format`` of a prepared likelihood file; a file of another format is refused.
 FORMAT = "rollability-learnt-likelihood-1"
 #: Continuous outcomes of one launch, in this order (NaN: not measured). ``measured_speed_mps``: the speed gate's
-#: reading; ``tilt_deg``: the final tilt from upright (IMU); ``peak_deceleration_mps2``: the landing's peak
+#: reading; ``final_tilt_deg``: the final tilt from upright (IMU); ``peak_deceleration_mps2``: the landing's peak
 #: (IMU); ``time_to_rest_s``: from the first landing until at rest; ``rest_distance_m``: where it came to rest,
 #: from the edge line (the operator's tape).
-OUTCOMES = ("measured_speed_mps", "tilt_deg", "peak_deceleration_mps2", "time_to_rest_s", "rest_distance_m")
+OUTCOMES = ("measured_speed_mps", "final_tilt_deg", "peak_deceleration_mps2", "time_to_rest_s", "rest_distance_m")
 #: How each outcome is transformed before its Student-t: ``speed_ratio`` = reading / set speed, ``log``,
 #: ``log1p`` (distances that may be 0), ``none``.
-TRANSFORMS = {"measured_speed_mps": "speed_ratio", "tilt_deg": "none", "peak_deceleration_mps2": "log",
+TRANSFORMS = {"measured_speed_mps": "speed_ratio", "final_tilt_deg": "none", "peak_deceleration_mps2": "log",
               "time_to_rest_s": "log", "rest_distance_m": "log1p"}
 #: Degrees of freedom of each continuous outcome's Student-t.
 STUDENT_DF = 4.0
@@ -102,11 +102,12 @@ def observations_from_outcomes(outcomes: typing.Iterable[typing.Any]) -> typing.
         if not outcome.valid:
             continue
         values = {name: float(getattr(outcome, name)) for name in OUTCOMES if hasattr(outcome, name)}
-        if "tilt_deg" not in values and outcome.orientation_known and outcome.classified_by != "operator":
+        if (not math.isfinite(values.get("final_tilt_deg", math.nan)) and outcome.orientation_known
+                and outcome.classified_by != "operator"):
             # a sensor saw the final pose (an operator's verdict keeps the default orientation): the tilt of the
             # body's z axis from world up, cos(tilt) = 1 - 2 (x^2 + y^2)
             x, y, _z, _w = outcome.final_orientation
-            values["tilt_deg"] = math.degrees(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))))
+            values["final_tilt_deg"] = math.degrees(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))))
         condition = outcome.condition
         out.append(Observation(condition.configuration, condition.height_m, condition.speed_mps,
                                condition.angle_deg, bool(outcome.upright), values))

@@ -277,7 +277,9 @@ def cli_check(likelihood_path, first, unknowns, folder, parameters):
                    "--likelihood", likelihood_path, "--config", config, "--out", out,
                    *[arg for name in CLI_UNKNOWNS for arg in ("--fit", name)], *extra]
         started = time.perf_counter()
-        done = subprocess.run(command, capture_output=True, text=True, check=False)
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))   # this checkout, as the bench imports
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))}
+        done = subprocess.run(command, capture_output=True, text=True, check=False, env=env)
         wall = time.perf_counter() - started
         if done.returncode != 0:
             print(f"rollability calibrate ({label}) FAILED: {done.stderr.strip().splitlines()[-1:]}")

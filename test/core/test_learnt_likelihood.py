@@ -216,7 +216,10 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
 @pytest.mark.slow
 def test_learning_recovers_the_model_from_simulated_launches(tmp_path):
     """scikit-learn learns the hand-built model from 3,000 launches drawn from it: the verdict beats a constant
-    on held-out launches, and the learnt likelihood's posterior holds a truth the launches came from."""
+    on held-out launches, the learnt P(upright) stays within 0.12 of the model's over the unknowns, configurations
+    and conditions, and the learnt posterior's best value lies near a truth the launches came from. (Its 95% sets
+    are not asserted to hold the truth: with this much training the learnt probabilities are off by up to about
+    0.08, which moves a posterior from 120 launches by about its own width; the bench measures the coverage.)"""
     pytest.importorskip("sklearn")
     rng = np.random.default_rng(21)
     normalised, configuration, condition, _ = learnt.draw_training_jobs(UNKNOWNS, CONFIGURATIONS, LEVELS, 3000, 4)
@@ -230,9 +233,16 @@ def test_learning_recovers_the_model_from_simulated_launches(tmp_path):
     assert set(likelihood.location) == {"measured_speed_mps"}   # the outcomes never measured are not learnt
     path = tmp_path / "learnt.npz"
     likelihood.save(path)
+    loaded = learnt.load_likelihood(path)
+    grid = np.array([[a, b] for a in np.linspace(0.05, 0.95, 7) for b in (0.2, 0.8)])
+    exact = model()
+    for configuration_name, height, speed, angle in set(matrix(1)):
+        cell = (height, speed, angle)
+        learnt_p = loaded.predict_upright_probability(UNKNOWNS.to_values(grid), configuration_name, cell)
+        model_p = exact.predict_upright_probability(UNKNOWNS.to_values(grid), configuration_name, cell)
+        assert np.max(np.abs(learnt_p - model_p)) < 0.12, (configuration_name, cell)
     truth_u = np.array([0.6, 0.3])
     observations = simulate(truth_u, matrix(), np.random.default_rng(8))
-    posterior = learnt.sample_posterior(learnt.load_likelihood(path), observations, walkers=16, steps=300)
-    truth = UNKNOWNS.to_values(truth_u)
-    for i, name in enumerate(UNKNOWNS.names):
-        assert any(lo <= truth[i] <= hi for lo, hi in posterior.credible_set(name)), name
+    best = learnt.sample_posterior(loaded, observations, walkers=16, steps=300).best()
+    assert abs(UNKNOWNS.to_normalised_one(0, best["a"]) - 0.6) < 0.15
+    assert abs(UNKNOWNS.to_normalised_one(1, best["b"]) - 0.3) < 0.1

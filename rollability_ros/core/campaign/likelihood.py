@@ -182,11 +182,6 @@ class Unknowns:
             logged = np.log(v / low) / np.log(high / low)
         return np.where(log, logged, (v - low) / (high - low))
 
-    def width_fraction(self, low: float, high: float, index: int) -> float:
-        """The width of [low, high] of unknown ``index`` as a fraction of its range, on its scale."""
-        u = self.to_normalised_one(index, np.array([low, high]))
-        return float(u[1] - u[0])
-
     def to_normalised_one(self, index: int, values: npt.ArrayLike) -> np.ndarray:
         """Normalised coordinates of own-unit ``values`` of unknown ``index`` (any shape)."""
         v = np.asarray(values, dtype=np.float64)

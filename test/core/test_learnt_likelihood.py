@@ -117,6 +117,20 @@ def test_the_posterior_holds_the_truth_and_sampling_a_subset_holds_the_rest():
         learnt.sample_posterior(likelihood, observations, ["a"], {"b": 20.0})
 
 
+def test_slide_angles_enter_as_the_characterisation_model_says():
+    from rollability_ros.core.campaign.characterisation import Characterisation, characterisation_log_likelihood
+
+    unknowns = learnt.Unknowns(("launch_twin.foam.lateral_friction", "robot.com_offset_z_m"), (0.2, -0.019),
+                               (3.0, 0.015), (True, False))
+    parameters = {"sim.lateral_friction": 0.35, "launch_twin.foam.lateral_friction": 1.0, "robot.com_offset_z_m": 0.0}
+    readings = Characterisation("bench", slide_angles_deg=(18.5, 21.0, 25.0), slide_sigma_deg=1.5)
+    term = learnt.characterisation_term(readings, parameters, unknowns)
+    u = np.array([[0.2, 0.5], [0.6, 0.1], [0.9, 0.9]])
+    expected = [characterisation_log_likelihood(readings, {**parameters, **dict(zip(unknowns.names, row))})
+                for row in unknowns.to_values(u)]
+    assert np.allclose(term(u), expected)
+
+
 def test_a_split_credible_set_stays_split():
     rng = np.random.default_rng(0)
     samples = np.concatenate([rng.normal(0.2, 0.02, 4000), rng.normal(0.75, 0.02, 4000)])

@@ -800,17 +800,18 @@ def characterisation_term(characterisation: typing.Any, parameters: typing.Mappi
     names = unknowns.names
 
     def slide(u: np.ndarray) -> np.ndarray:
+        """The slide angles' log-likelihood (s,): bench.slide_angle_deg's model, vectorised over the samples."""
         if not characterisation.slide_angles_deg:
             return np.zeros(len(u))
         values = unknowns.to_values(u)
-        out = np.empty(len(u))
-        for i, row in enumerate(values):
-            flat = dict(parameters)
-            flat.update(zip(names, map(float, row)))
-            angle = bench.slide_angle_deg(flat)
-            out[i] = sum(bench._gaussian(a, angle, characterisation.slide_sigma_deg)
-                         for a in characterisation.slide_angles_deg)
-        return out
+        mu = np.ones(len(u))
+        for key in SLIDE_KEYS:   # the contact friction is the product of the two
+            mu = mu * (values[:, names.index(key)] if key in names else float(parameters[key]))
+        angle = np.degrees(np.arctan(mu))
+        sigma = characterisation.slide_sigma_deg
+        readings = np.asarray(characterisation.slide_angles_deg)
+        return (-0.5 * ((readings[None, :] - angle[:, None]) / sigma) ** 2
+                - math.log(sigma * math.sqrt(2.0 * math.pi))).sum(axis=1)
     if not characterisation.rollouts:
         return slide
     rolling = [names.index(k) for k in ROLLOUT_KEYS if k in names]
@@ -829,5 +830,7 @@ def characterisation_term(characterisation: typing.Any, parameters: typing.Mappi
     return lambda u: slide(u) + interpolate(np.clip(u[:, rolling], 0.0, 1.0))
 
 
+#: The keys whose product is the printed part's friction on the foam (the slide angle's model).
+SLIDE_KEYS = ("sim.lateral_friction", "launch_twin.foam.lateral_friction")
 #: Unknowns a roll-out depends on (:func:`characterisation_term` tabulates the roll-out over those sampled).
 ROLLOUT_KEYS = ("launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm")

@@ -262,10 +262,12 @@ def cli_check(likelihood_path, first, unknowns, folder, parameters):
     write_csv(observations, csv_path)
     config = os.path.join(folder, "bench.yaml")
     fixed = {name: float(value) for name, value in zip(unknowns.names, truth) if name not in CLI_UNKNOWNS}
+    from rollability_ros.core.config import section
+
     with open(config, "w", encoding="utf-8") as stream:   # the designs, and the truth's other unknowns as known
-        yaml.safe_dump(calibration.calibrated_parameter_document({
-            **fixed, "launch_twin.designs.mesh_labels": parameters["launch_twin.designs.mesh_labels"],
-            "launch_twin.designs.mesh_files": parameters["launch_twin.designs.mesh_files"]}), stream)
+        yaml.safe_dump({"/**": {"ros__parameters": section({
+            **fixed, "launch_twin.designs.mesh_labels": list(parameters["launch_twin.designs.mesh_labels"]),
+            "launch_twin.designs.mesh_files": list(parameters["launch_twin.designs.mesh_files"])}, "")}}, stream)
     slide = os.path.join(folder, "slide.yaml")
     with open(slide, "w", encoding="utf-8") as stream:
         yaml.safe_dump({"format": "rollability-characterisation-1", "slide_angle": {

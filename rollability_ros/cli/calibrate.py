@@ -264,7 +264,7 @@ def register(subparsers: Subparsers) -> None:
                     "profile mass, launcher, with bounds) to physical outcomes and/or bench characterisation "
                     "readings. With --likelihood FILE (made once by --prepare FILE): the posterior of the unknowns "
                     "from a likelihood learnt on simulated launches, over the verdicts and the measured outcomes "
-                    "(gate speed, final tilt, peak deceleration, time to rest, rest distance), in seconds, with 95% "
+                    "(gate speed, final tilt, peak deceleration, time to rest, rest distance), in minutes, with 95% "
                     "highest-density sets (a split set printed as a union of intervals). Without it: CMA-ES on the "
                     "twin simulated afresh for every parameter set, with a likelihood-ratio 95% interval per "
                     "parameter (calibration.interval). Writes calibrated.yaml, a parameter file the evaluator, "

@@ -368,8 +368,8 @@ def main():
             path = args.likelihood or os.path.join(folder, "likelihood.npz")
             if args.likelihood:
                 likelihood = learnt.load_likelihood(path)
-                if likelihood.fingerprint != fingerprint:
-                    raise SystemExit(f"{path}: prepared for another twin or design set")
+                if likelihood.fingerprint != fingerprint or likelihood.unknowns != unknowns:
+                    raise SystemExit(f"{path}: prepared for another twin, design set or unknowns' bounds")
                 print(f"loaded {path}: {likelihood.info}")
             else:
                 started = time.perf_counter()

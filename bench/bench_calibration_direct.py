@@ -39,7 +39,7 @@ CONDITIONS = (("baseline", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 0.0), ("dome", 0
               ("dome", 0.75, 1.5, 0.0))
 #: Parameters of the coverage bench: (config key, lower, upper, log scale).
 COVERAGE_PARAMETERS = (("robot.com_offset_z_m", -0.019, 0.015, False),
-                       ("launch_twin.foam.lateral_friction", 0.2, 3.0, True),
+                       ("launch_twin.foam.lateral_friction", 0.3, 3.0, True),
                        ("launch_twin.foam.restitution", 0.0, 1.0, False),
                        ("launch_twin.foam.contact_stiffness_npm", 5000.0, 160000.0, True),
                        ("launch_twin.plate.yaw_bias_deg", -15.0, 15.0, False))
@@ -121,7 +121,7 @@ def main():
     lower, upper, log_scale = [-0.019], [0.015], [False]
     if args.two_parameters:
         names, truth = names + ["launch_twin.foam.lateral_friction"], truth + [0.45]
-        lower, upper, log_scale = lower + [0.2], upper + [3.0], log_scale + [True]
+        lower, upper, log_scale = lower + [0.3], upper + [3.0], log_scale + [True]
     with tempfile.TemporaryDirectory() as folder:
         stl = os.path.join(folder, "dome.stl")
         export_mesh(dome_mesh(), stl)

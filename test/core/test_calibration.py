@@ -211,7 +211,7 @@ def test_the_documented_calibrate_reoptimize_validate_sequence_runs_on_a_synthet
     outcomes = synthetic_outcomes(twin_parameters(), list(truth), list(truth.values()), conditions, 6)
     write_outcome_csv(tmp_path / "campaign.csv", outcomes)
     (tmp_path / "small.yaml").write_text(yaml.safe_dump({"/**": {"ros__parameters": {"calibration": {
-        "parameters": list(truth), "lower": [0.2], "upper": [3.0], "log_scale": [True], "sim_repetitions": 2,
+        "parameters": list(truth), "lower": [0.3], "upper": [3.0], "log_scale": [True], "sim_repetitions": 2,
         "popsize": 2, "max_generations": 1, "interval_points": 5}}}}), encoding="utf-8")
     assert main(["calibrate", "--physical", "campaign.csv", "--config", "small.yaml", "--out", "calibration",
                  "--workers", "1"]) == 0

@@ -79,7 +79,7 @@ class CalibrationSettings:
         "robot.com_offset_z_m", "launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm",
         "robot.profile_mass_scale", "launch_twin.launcher.ledge_rolling_friction",
         "launch_twin.launcher.speed_bias_fraction"])
-    lower: typing.List[float] = dataclasses.field(default_factory=lambda: [5000.0, 20.0, 0.2, 0.0, 0.0, -0.019,
+    lower: typing.List[float] = dataclasses.field(default_factory=lambda: [5000.0, 20.0, 0.3, 0.0, 0.0, -0.019,
                                                                            0.002, 0.0005, 0.5, 0.0, -0.15])
     upper: typing.List[float] = dataclasses.field(default_factory=lambda: [160000.0, 600.0, 3.0, 1.0, 0.15, 0.015,
                                                                            0.05, 0.02, 2.0, 0.01, 0.15])

@@ -2,8 +2,8 @@
 
 Why (docs/calibration.md, "The learnt likelihood", has the numbers): a calibration that simulates the twin afresh
 for every parameter set it tries costs tens of thousands of 50-90 ms launches per unknown; with four or five
-unknowns it does not fit in an afternoon on 2 cores. Here the twin is simulated once (:func:`prepare`: launches
-at parameter sets drawn from the calibration bounds, the campaign's configurations and conditions), small neural
+unknowns it does not fit in an afternoon on 2 cores. Here the twin is simulated once (:func:`simulate_training_set`:
+launches at parameter sets drawn from the calibration bounds, the campaign's configurations and conditions), small neural
 networks learn the outcome of one launch from (unknowns, configuration, condition), and a calibration evaluates
 them instead of the twin: a posterior over 5 unknowns from 400 launches took 108 s on a loaded 2-core machine.
 
@@ -14,7 +14,8 @@ What is learnt (:class:`LearntLikelihood`)
     continuous outcome of :data:`OUTCOMES` (what the rig's speed gate and IMU, and the operator's tape, measure):
     given x and the verdict, a Student-t (:data:`STUDENT_DF` degrees of freedom: heavy tails for what a Gaussian
     would not expect) with a learnt location and a learnt scale (the scale network regresses the log squared
-    residual of the location network; E[log chi-squared_1] = :data:`LOG_CHI2_MEAN` is added back). Outcomes are
+    cross-fitted residual of the location network, so the scale holds the location's own error at launches it
+    did not see; E[log chi-squared_1] = :data:`LOG_CHI2_MEAN` is added back). Outcomes are
     transformed first (:data:`TRANSFORMS`: the gate's reading as a fraction of the set speed, logs of the
     positive ones). A launch's log-likelihood is log P(verdict) plus the log densities of the outcomes it
     measured (a missing one, NaN, adds nothing). Invalid launches (the rig's rule) are left out, as the analysis
@@ -613,13 +614,21 @@ def learn(training: TrainingSet, unknowns: Unknowns, configurations: typing.Sequ
         if finite.sum() < 50:
             say(f"{name}: {int(finite.sum())} launches measured it: not learnt")
             continue
-        regressor = neural.MLPRegressor(**common).fit(xv[finite], target[finite])
-        residual = target[finite] - regressor.predict(xv[finite])
-        spread = neural.MLPRegressor(**common).fit(xv[finite], np.log(residual ** 2 + 1e-12))
+        rows_x, rows_y = xv[finite], target[finite]
+        # the scale learns from cross-fitted residuals (each half predicted by a location net that never saw it),
+        # so it carries the location's error at launches it was not trained on, not only the launches' scatter
+        half = np.arange(len(rows_y)) % 2 == 0
+        residual = np.empty(len(rows_y))
+        for fit_on in (half, ~half):
+            held = neural.MLPRegressor(**common).fit(rows_x[fit_on], rows_y[fit_on])
+            residual[~fit_on] = rows_y[~fit_on] - held.predict(rows_x[~fit_on])
+        regressor = neural.MLPRegressor(**common).fit(rows_x, rows_y)
+        spread = neural.MLPRegressor(**common).fit(rows_x, np.log(residual ** 2 + 1e-12))
         location[name], scale[name] = _layers_of(regressor), _layers_of(spread)
         info[f"{name}_launches"] = int(finite.sum())
         info[f"{name}_residual_sd"] = float(np.std(residual))
-        say(f"{name}: learnt from {int(finite.sum())} launches, residual sd {np.std(residual):.3g} (transformed)")
+        say(f"{name}: learnt from {int(finite.sum())} launches, cross-fitted residual sd {np.std(residual):.3g} "
+            f"(transformed)")
     return LearntLikelihood(unknowns, tuple(configurations), levels, fingerprint, mean, std, logit_layers,
                             location, scale, info)
 

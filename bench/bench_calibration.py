@@ -5,7 +5,7 @@ widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise ->
         [--likelihood FILE] [--keep DIR] [--reoptimize-generations 15] [--skip-reoptimize] [--skip-cli]
 
 1. Designs: the bare robot and three profiles (bench_launch_twin's dome, a flat top at the 0.09 m bound and a low
-   pyramid: docs/twin-model.md's shapes), as STLs. Unknowns: :data:`UNKNOWNS` (centre of mass, foam friction,
+   pyramid: docs/twin-model.md's shapes), as STLs. UnknownBounds: :data:`UNKNOWNS` (centre of mass, foam friction,
    wheel-on-foam rolling resistance, launcher speed bias, profile mass scale), with the bounds and scales of
    ``config/calibration.yaml``.
 2. Preparation (once): ``--prepare-launches`` twin launches at unknowns drawn over the bounds, the four
@@ -83,12 +83,12 @@ def design_files(folder):
 
 
 def bench_parameters(folder):
-    """The twin's flat parameters with the three designs, and the bench's :class:`~learnt.Unknowns`."""
+    """The twin's flat parameters with the three designs, and the bench's :class:`~learnt.UnknownBounds`."""
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration"])
     labels, paths = design_files(folder)
     parameters.update({"launch_twin.designs.mesh_labels": labels, "launch_twin.designs.mesh_files": paths})
     settings = calibration.calibration_settings(parameters).selected(list(UNKNOWNS))
-    unknowns = learnt.Unknowns(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper),
+    unknowns = learnt.UnknownBounds(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper),
                                tuple(settings.log_scale))
     return parameters, unknowns, ["baseline", *labels]
 
@@ -113,7 +113,8 @@ def launch_truth(parameters, unknowns, truth, matrix, seed, pool):
     chunks = [jobs[i:i + 20] for i in range(0, len(jobs), 20)]
     rows = np.concatenate(list(pool.map(learnt.simulate_rows, [parameters] * len(chunks),
                                         [unknowns.names] * len(chunks), chunks)))
-    return [learnt.Observation(*cell, bool(row[1] > 0.5), dict(zip(learnt.OUTCOMES, row[2:])))
+    return [learnt.Observation(cell[0], cell[1], cell[2], cell[3], bool(row[1] > 0.5),
+                               dict(zip(learnt.OUTCOMES, map(float, row[2:]))))
             for cell, row in zip(matrix, rows) if row[0] > 0.5]
 
 
@@ -182,8 +183,12 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
     """Step 3 (module docstring); returns the first truth, its observations and characterisation."""
     rng = np.random.default_rng(TRUTH_SEED)
     d = len(unknowns.names)
-    hits, widths, ranks, times, split = np.zeros(d), [[] for _ in range(d)], [[] for _ in range(d)], [], 0
-    predicted, observed = [], []
+    hits, split = np.zeros(d), 0
+    widths: list = [[] for _ in range(d)]
+    ranks: list = [[] for _ in range(d)]
+    times: list = []
+    predicted: list = []
+    observed: list = []
     first = None
     for number in range(args.truths):
         truth_u = rng.uniform(size=d)
@@ -239,8 +244,8 @@ def write_csv(observations, path):
     from rollability_ros.core.records import LaunchCondition, LaunchOutcome
     from rollability_ros.core.results import write_outcome_csv
 
-    outcomes = []
-    counts = {}
+    outcomes: list = []
+    counts: dict = {}
     for o in observations:
         key = (o.configuration, o.height_m, o.speed_mps, o.angle_deg)
         counts[key] = counts.get(key, -1) + 1

@@ -7,7 +7,7 @@ import typing
 from rollability_ros.cli import Subparsers
 
 if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
-    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.campaign import CalibrationResult, CalibrationSettings
 
 
 def _write_csv(path, rows):
@@ -30,11 +30,9 @@ def _screen_rows(twin_settings, configurations, screen_settings):
             for configuration in configurations]
 
 
-def summary_lines(result: "calibration.CalibrationResult",
+def summary_lines(result: "CalibrationResult",
                   screen_rows: typing.Sequence[typing.Mapping[str, typing.Any]]) -> typing.List[str]:
     """The printed summary: likelihood, parameters with uncertainty, per-configuration rates, rank agreement."""
-    from rollability_ros.core.results import analysis
-
     trials = sum(c.trials for c in result.conditions)
     lines = [f"grouped conditions: {len(result.conditions)}, physical trials: {trials}, parameter sets simulated: "
              f"{result.evaluations} x {result.sim_repetitions} launches per condition",
@@ -71,14 +69,14 @@ def _write_outputs(args: argparse.Namespace, sources: typing.Sequence[str], meth
     """Write calibrated.yaml and calibrated_rig.yaml into ``args.out``; return calibrated.yaml's path."""
     import yaml
 
-    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.campaign import calibrated_parameter_document, rig_parameter_document
     from rollability_ros.core.optimization import atomic_write_bytes
 
     os.makedirs(args.out, exist_ok=True)
     params_path = os.path.join(args.out, "calibrated.yaml")
-    document = calibration.calibrated_parameter_document(fitted)
+    document = calibrated_parameter_document(fitted)
     atomic_write_bytes(params_path, (_header(sources, method) + yaml.safe_dump(document, sort_keys=True)).encode())
-    rig_document = calibration.rig_parameter_document(os.path.abspath(params_path))
+    rig_document = rig_parameter_document(os.path.abspath(params_path))
     atomic_write_bytes(os.path.join(args.out, RIG_FILE),
                        (f"# A rig node's twin on {params_path}: --params-file after config/rig.yaml\n"
                         + yaml.safe_dump(rig_document, sort_keys=True)).encode("utf-8"))
@@ -86,13 +84,13 @@ def _write_outputs(args: argparse.Namespace, sources: typing.Sequence[str], meth
 
 
 def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any],
-            settings: "calibration.CalibrationSettings") -> int:
+            settings: "CalibrationSettings") -> int:
     """``--prepare FILE``: simulate the training launches and learn the likelihood of the fitted unknowns over the
     loaded twin's configurations (the bare robot and ``launch_twin.designs``) and the campaign's levels."""
     import time
 
-    from rollability_ros.core.campaign import likelihood as learnt
-    from rollability_ros.core.campaign_matrix import CampaignSpec
+    from rollability_ros.core.campaign import (CampaignSpec, ConditionLevels, UnknownBounds, learn,
+                                               simulate_training_set, twin_fingerprint)
     from rollability_ros.core.config import from_mapping, section
     from rollability_ros.core.sim import spawn_pool
 
@@ -101,11 +99,11 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
     if args.prepare_launches < 200:
         raise ValueError(f"--prepare-launches must be >= 200, got {args.prepare_launches}")
     spec = from_mapping(CampaignSpec, section(parameters, "campaign"), "campaign")
-    levels = learnt.ConditionLevels(tuple(spec.heights_m), tuple(spec.speeds_mps), tuple(spec.angles_deg))
+    levels = ConditionLevels(tuple(spec.heights_m), tuple(spec.speeds_mps), tuple(spec.angles_deg))
     configurations = ["baseline", *(label for label in parameters.get("launch_twin.designs.mesh_labels", []) if label)]
-    unknowns = learnt.Unknowns(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper),
+    unknowns = UnknownBounds(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper),
                                tuple(settings.log_scale))
-    fingerprint = learnt.twin_fingerprint(parameters, unknowns.names)
+    fingerprint = twin_fingerprint(parameters, unknowns.names)
     print(f"preparing the likelihood of {', '.join(unknowns.names)} over {', '.join(configurations)} from "
           f"{args.prepare_launches} twin launches")
     started = time.perf_counter()
@@ -115,11 +113,11 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
         def progress(done: int, total: int) -> None:
             if done == total or done % 1000 < 25:
                 print(f"  {done}/{total} launches, {time.perf_counter() - started:.0f} s", flush=True)
-        training = learnt.simulate_training_set(parameters, unknowns, configurations, levels,
+        training = simulate_training_set(parameters, unknowns, configurations, levels,
                                                 args.prepare_launches, settings.seed, pool, on_progress=progress)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    likelihood = learnt.learn(training, unknowns, configurations, levels, fingerprint, settings.seed,
+    likelihood = learn(training, unknowns, configurations, levels, fingerprint, settings.seed,
                               on_progress=print)
     likelihood.info["prepare_s"] = time.perf_counter() - started
     likelihood.save(args.prepare)
@@ -134,22 +132,23 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     likelihood, the file's other unknowns held at their loaded values; write the outputs and print the summary."""
     import numpy as np
 
-    from rollability_ros.core.campaign import likelihood as learnt
-    from rollability_ros.core.results import analysis
+    from rollability_ros.core.campaign import (characterisation_term, format_set, load_likelihood,
+                                               observations_from_outcomes, sample_posterior, twin_fingerprint)
+    from rollability_ros.core.results import group_conditions
 
     if args.sampler_steps < 20:
         raise ValueError(f"--sampler-steps must be >= 20, got {args.sampler_steps}")
-    likelihood = learnt.load_likelihood(args.likelihood)
+    likelihood = load_likelihood(args.likelihood)
     unknowns = likelihood.unknowns
-    if likelihood.fingerprint != learnt.twin_fingerprint(parameters, unknowns.names):
+    if likelihood.fingerprint != twin_fingerprint(parameters, unknowns.names):
         raise ValueError(f"{args.likelihood}: prepared for another twin or design set than the loaded parameter "
                          f"files (a setting or a design mesh differs): prepare it again (--prepare)")
     sampled = list(dict.fromkeys(args.fit)) or list(unknowns.names)
     fixed = {name: float(parameters[name]) for name in unknowns.names if name not in sampled}
-    observations = learnt.observations_from_outcomes(outcomes)
-    extra = (learnt.characterisation_term(characterisation, parameters, unknowns)
+    observations = observations_from_outcomes(outcomes)
+    extra = (characterisation_term(characterisation, parameters, unknowns)
              if characterisation is not None else None)
-    posterior = learnt.sample_posterior(likelihood, observations, sampled, fixed, extra, seed=args.seed,
+    posterior = sample_posterior(likelihood, observations, sampled, fixed, extra, seed=args.seed,
                                         steps=args.sampler_steps)
     fitted = posterior.best()
     method = "highest-density set of the learnt likelihood's posterior"
@@ -159,14 +158,14 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
         j = unknowns.names.index(name)
         sets = posterior.credible_set(name)
         rows.append({"parameter": name, "initial": float(parameters[name]), "fitted": fitted[name],
-                     "median": posterior.median(name), "set": learnt.format_set(sets),
+                     "median": posterior.median(name), "set": format_set(sets),
                      "set_low": sets[0][0], "set_high": sets[-1][1],
                      "set_width_fraction": posterior.set_width_fraction(name), "split": len(sets) > 1,
                      "lower": unknowns.lower[j], "upper": unknowns.upper[j], "method": method})
     _write_csv(os.path.join(args.out, "parameters.csv"), rows)
     full = {**fixed, **fitted}
     before = {**fixed, **{n: float(parameters[n]) for n in sampled}}
-    conditions = analysis.group_conditions(outcomes)
+    conditions = group_conditions(outcomes)
     condition_rows = []
     for c in conditions:
         cell = (c.height_m, c.speed_mps, c.angle_deg)
@@ -195,7 +194,8 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
 
 def run(args: argparse.Namespace) -> int:
     """Calibrate, write the outputs to ``--out`` and print the summary; return the exit code."""
-    from rollability_ros.core.campaign import calibration, characterisation as bench_readings
+    from rollability_ros.core.campaign import (TWIN_CONFIGS, LaunchPool, calibrate, calibration_settings,
+                                               check_fittable, load_characterisation, twin_settings_with)
     from rollability_ros.core.config import check_given_files, check_output_dir, from_mapping, load_parameters, section
     from rollability_ros.core.results import load_report_data
     from rollability_ros.core.sim import TWIN_SECTIONS, ScreenSettings
@@ -205,8 +205,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.prepare:
         check_output_dir(args.out, "--out", keeps=("calibrated.yaml", RIG_FILE))   # before minutes of fitting
     check_given_files(args.config, {*TWIN_SECTIONS, "calibration", "stable_poses", "campaign"}, "rollability calibrate")
-    parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", "campaign", *args.config])
-    settings = calibration.calibration_settings(parameters)
+    parameters = load_parameters([*TWIN_CONFIGS, "calibration", "campaign", *args.config])
+    settings = calibration_settings(parameters)
     if args.fit and not args.likelihood:
         settings = settings.selected(args.fit)
     if args.workers is not None:
@@ -214,9 +214,9 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--workers must be >= 1, got {args.workers}")
         settings.workers = args.workers
     if args.prepare:
-        calibration.check_fittable(parameters, settings)
+        check_fittable(parameters, settings)
         return prepare(args, parameters, settings)
-    characterisation = bench_readings.load_characterisation(args.characterisation) if args.characterisation else None
+    characterisation = load_characterisation(args.characterisation) if args.characterisation else None
     if args.physical is None and characterisation is None:
         raise ValueError("give --physical (launch outcomes) and/or --characterisation (bench readings)")
     screen_settings = from_mapping(ScreenSettings, section(parameters, "stable_poses"), "stable_poses")
@@ -233,12 +233,12 @@ def run(args: argparse.Namespace) -> int:
         sources.append(characterisation.source)
     if args.likelihood:
         return run_learnt(args, parameters, outcomes, characterisation, sources)
-    calibration.check_fittable(parameters, settings)   # before any launch
-    with calibration.LaunchPool(settings.workers) as pool:
-        result = calibration.calibrate(outcomes, parameters, settings, pool, on_progress=print,
+    check_fittable(parameters, settings)   # before any launch
+    with LaunchPool(settings.workers) as pool:
+        result = calibrate(outcomes, parameters, settings, pool, on_progress=print,
                                        characterisation=characterisation)
     params_path = _write_outputs(args, sources, f"interval ({settings.interval})", result.fitted_values())
-    calibrated_twin = calibration.twin_settings_with(parameters, settings.parameters,
+    calibrated_twin = twin_settings_with(parameters, settings.parameters,
                                                      [e.fitted for e in result.estimates])
     configurations = sorted({c.configuration for c in result.conditions})
     screen_rows = _screen_rows(calibrated_twin, configurations, screen_settings)

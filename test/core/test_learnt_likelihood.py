@@ -12,7 +12,7 @@ import pytest
 
 from rollability_ros.core.campaign import likelihood as learnt
 
-UNKNOWNS = learnt.Unknowns(("a", "b"), (0.0, 0.1), (1.0, 10.0), (False, True))
+UNKNOWNS = learnt.UnknownBounds(("a", "b"), (0.0, 0.1), (1.0, 10.0), (False, True))
 LEVELS = learnt.ConditionLevels((0.75, 1.3), (0.8, 1.5), (-30.0, 0.0, 30.0))
 CONFIGURATIONS = ("baseline", "A")
 SIGMA = 0.02   # the gate reading's spread, as a fraction of the set speed
@@ -120,7 +120,7 @@ def test_the_posterior_holds_the_truth_and_sampling_a_subset_holds_the_rest():
 def test_slide_angles_enter_as_the_characterisation_model_says():
     from rollability_ros.core.campaign.characterisation import Characterisation, characterisation_log_likelihood
 
-    unknowns = learnt.Unknowns(("launch_twin.foam.lateral_friction", "robot.com_offset_z_m"), (0.3, -0.019),
+    unknowns = learnt.UnknownBounds(("launch_twin.foam.lateral_friction", "robot.com_offset_z_m"), (0.3, -0.019),
                                (3.0, 0.015), (True, False))
     parameters = {"sim.lateral_friction": 0.35, "launch_twin.foam.lateral_friction": 1.0, "robot.com_offset_z_m": 0.0}
     readings = Characterisation("bench", slide_angles_deg=(18.5, 21.0, 25.0), slide_sigma_deg=1.5)
@@ -189,7 +189,7 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
     from rollability_ros.core.results import write_outcome_csv
 
     names = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")
-    unknowns = learnt.Unknowns(names, (-0.019, 0.3), (0.015, 3.0), (False, True))
+    unknowns = learnt.UnknownBounds(names, (-0.019, 0.3), (0.015, 3.0), (False, True))
     levels = learnt.ConditionLevels((0.75, 1.3), (0.8, 1.5), (-60.0, -30.0, 0.0, 30.0, 60.0))
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", "campaign"])
     path = tmp_path / "likelihood.npz"

@@ -148,7 +148,7 @@ def _student_t_log_pdf(value: np.ndarray, location: np.ndarray, scale: np.ndarra
 
 
 @dataclasses.dataclass(frozen=True)
-class Unknowns:
+class UnknownBounds:
     """The unknowns a likelihood is learnt over: config keys with their bounds and scales (as in
     ``calibration.parameters``)."""
 
@@ -264,7 +264,7 @@ class LearntLikelihood:
     accuracy (written to the file's header).
     """
 
-    unknowns: Unknowns
+    unknowns: UnknownBounds
     configurations: typing.Tuple[str, ...]
     levels: ConditionLevels
     fingerprint: str
@@ -414,7 +414,7 @@ def _load(source: str) -> LearntLikelihood:
         found = header.get("format") if isinstance(header, dict) else None
         raise ValueError(f"format must be {FORMAT!r}, got {found!r}")
     u = header["unknowns"]
-    unknowns = Unknowns(tuple(map(str, u["names"])), tuple(map(float, u["lower"])), tuple(map(float, u["upper"])),
+    unknowns = UnknownBounds(tuple(map(str, u["names"])), tuple(map(float, u["lower"])), tuple(map(float, u["upper"])),
                         tuple(map(bool, u["log_scale"])))
     unknowns.validate()
     configurations = tuple(map(str, header["configurations"]))
@@ -515,7 +515,7 @@ class TrainingSet:
     rows: np.ndarray
 
 
-def draw_training_jobs(unknowns: Unknowns, configurations: typing.Sequence[str], levels: ConditionLevels,
+def draw_training_jobs(unknowns: UnknownBounds, configurations: typing.Sequence[str], levels: ConditionLevels,
                        launches: int, seed: int) -> typing.Tuple[np.ndarray, np.ndarray, np.ndarray, typing.List[int]]:
     """``launches`` training launches: unknowns uniform over the normalised box (a scrambled Sobol sequence
     when scipy has one: even coverage), configuration and condition levels uniform; returns (normalised (n, d),
@@ -537,7 +537,7 @@ def draw_training_jobs(unknowns: Unknowns, configurations: typing.Sequence[str],
     return normalised, configuration, condition, [trial_seed(seed, i) for i in range(launches)]
 
 
-def simulate_training_set(parameters: typing.Mapping[str, typing.Any], unknowns: Unknowns,
+def simulate_training_set(parameters: typing.Mapping[str, typing.Any], unknowns: UnknownBounds,
                           configurations: typing.Sequence[str], levels: ConditionLevels, launches: int, seed: int,
                           pool: typing.Any = None, chunk: int = 25,
                           on_progress: typing.Optional[typing.Callable[[int, int], None]] = None) -> TrainingSet:
@@ -566,7 +566,7 @@ def _layers_of(model: typing.Any) -> Layers:
             for w, b in zip(model.coefs_, model.intercepts_)]
 
 
-def learn(training: TrainingSet, unknowns: Unknowns, configurations: typing.Sequence[str], levels: ConditionLevels,
+def learn(training: TrainingSet, unknowns: UnknownBounds, configurations: typing.Sequence[str], levels: ConditionLevels,
           fingerprint: str, seed: int = 1, holdout_fraction: float = 0.15,
           on_progress: typing.Optional[typing.Callable[[str], None]] = None) -> LearntLikelihood:
     """Learn the networks (module docstring) from ``training``'s valid launches; the last ``holdout_fraction`` of
@@ -671,13 +671,13 @@ def stretch_sampler(log_density: LogDensity, start: np.ndarray, steps: int, rng:
 @dataclasses.dataclass(frozen=True)
 class Posterior:
     """Posterior samples of the sampled unknowns: ``names`` (k,), ``samples`` (n, k) own units, ``normalised``
-    (n, k), the :class:`Unknowns` entry of each (``unknowns``, indices ``index``), the sampler's wall time and
+    (n, k), the :class:`UnknownBounds` entry of each (``unknowns``, indices ``index``), the sampler's wall time and
     each sample's log posterior density ``log_density`` (n,) (up to a constant)."""
 
     names: typing.Tuple[str, ...]
     samples: np.ndarray
     normalised: np.ndarray
-    unknowns: Unknowns
+    unknowns: UnknownBounds
     index: typing.Tuple[int, ...]
     wall_s: float
     log_density: np.ndarray
@@ -798,7 +798,7 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
 
 
 def characterisation_term(characterisation: typing.Any, parameters: typing.Mapping[str, typing.Any],
-                          unknowns: Unknowns, grid_points: int = 9) -> LogDensity:
+                          unknowns: UnknownBounds, grid_points: int = 9) -> LogDensity:
     """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
     parameter set). Roll-outs: simulated on a grid of ``grid_points`` values of each roll-out unknown sampled here
@@ -841,5 +841,5 @@ def characterisation_term(characterisation: typing.Any, parameters: typing.Mappi
 
 #: The keys whose product is the printed part's friction on the foam (the slide angle's model).
 SLIDE_KEYS = ("sim.lateral_friction", "launch_twin.foam.lateral_friction")
-#: Unknowns a roll-out depends on (:func:`characterisation_term` tabulates the roll-out over those sampled).
+#: UnknownBounds a roll-out depends on (:func:`characterisation_term` tabulates the roll-out over those sampled).
 ROLLOUT_KEYS = ("launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm")

@@ -45,6 +45,7 @@ import numpy as np  # noqa: E402
 
 from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.campaign import likelihood as learnt  # noqa: E402
+from rollability_ros.core.campaign import posterior as sampling  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 
 #: The unknowns (config keys) of the bench, bounds and scales from config/calibration.yaml.
@@ -198,8 +199,8 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
         bench_readings = characterise_truth(parameters, unknowns, truth, rng)
         simulated_s = time.perf_counter() - started
         started = time.perf_counter()
-        extra = learnt.characterisation_term(bench_readings, parameters, unknowns)
-        posterior = learnt.sample_posterior(likelihood, observations, extra=extra, seed=number + 1,
+        extra = sampling.characterisation_term(bench_readings, parameters, unknowns)
+        posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1,
                                             steps=args.steps)
         times.append(time.perf_counter() - started)
         if first is None:
@@ -210,7 +211,7 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
             observed.append(o.upright)
         parts = []
         for i, name in enumerate(unknowns.names):
-            sets = learnt.credible_set(posterior.normalised[:, i])
+            sets = sampling.credible_set(posterior.normalised[:, i])
             inside = any(lo <= truth_u[i] <= hi for lo, hi in sets)
             hits[i] += inside
             widths[i].append(sum(hi - lo for lo, hi in sets))
@@ -218,7 +219,7 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
             thinned = posterior.normalised[:: max(1, len(posterior.normalised) // 99), i][:99]
             ranks[i].append(int(np.sum(thinned < truth_u[i])))
             parts.append(f"{name.split('.')[-1]} {truth[i]:.4g} {'in' if inside else 'OUT'} "
-                         f"{learnt.format_set(posterior.credible_set(name))}")
+                         f"{sampling.format_set(posterior.credible_set(name))}")
         print(f"truth {number + 1}/{args.truths}: {len(observations)} valid launches ({simulated_s:.0f} s simulated), "
               f"calibration {times[-1]:.1f} s [{load()}]; " + "; ".join(parts), flush=True)
     n = args.truths
@@ -315,8 +316,8 @@ def reoptimize(likelihood, parameters, unknowns, first, args, folder):
     from rollability_ros.core.sim import evaluation
 
     truth, observations, bench_readings = first
-    extra = learnt.characterisation_term(bench_readings, parameters, unknowns)
-    posterior = learnt.sample_posterior(likelihood, observations, extra=extra, seed=7, steps=args.steps)
+    extra = sampling.characterisation_term(bench_readings, parameters, unknowns)
+    posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=7, steps=args.steps)
     fitted = {name: posterior.median(name) for name in unknowns.names}
     files = {}
     for label, values in (("calibrated", fitted), ("truth", dict(zip(unknowns.names, map(float, truth))))):

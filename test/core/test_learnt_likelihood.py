@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from rollability_ros.core.campaign import likelihood as learnt
+from rollability_ros.core.campaign import posterior as sampling
 
 UNKNOWNS = learnt.UnknownBounds(("a", "b"), (0.0, 0.1), (1.0, 10.0), (False, True))
 LEVELS = learnt.ConditionLevels((0.75, 1.3), (0.8, 1.5), (-30.0, 0.0, 30.0))
@@ -101,7 +102,7 @@ def test_the_posterior_holds_the_truth_and_sampling_a_subset_holds_the_rest():
     likelihood = model()
     truth_u = np.array([0.35, 0.7])
     observations = simulate(truth_u, matrix(), np.random.default_rng(11))
-    posterior = learnt.sample_posterior(likelihood, observations, walkers=8, steps=160, seed=2)
+    posterior = sampling.sample_posterior(likelihood, observations, walkers=8, steps=160, seed=2)
     truth = UNKNOWNS.to_values(truth_u)
     for i, name in enumerate(UNKNOWNS.names):
         sets = posterior.credible_set(name)
@@ -109,12 +110,12 @@ def test_the_posterior_holds_the_truth_and_sampling_a_subset_holds_the_rest():
         assert posterior.set_width_fraction(name) < 0.3
     best = posterior.best()
     assert abs(UNKNOWNS.to_normalised_one(1, best["b"]) - 0.7) < 0.1
-    alone = learnt.sample_posterior(likelihood, observations, ["a"], {"b": float(truth[1])}, walkers=4, steps=40)
+    alone = sampling.sample_posterior(likelihood, observations, ["a"], {"b": float(truth[1])}, walkers=4, steps=40)
     assert alone.names == ("a",) and alone.samples.shape[1] == 1
     with pytest.raises(ValueError, match="b: not sampled, so it needs a fixed value"):
-        learnt.sample_posterior(likelihood, observations, ["a"])
+        sampling.sample_posterior(likelihood, observations, ["a"])
     with pytest.raises(ValueError, match="b = 20 lies outside the bounds the likelihood was learnt on"):
-        learnt.sample_posterior(likelihood, observations, ["a"], {"b": 20.0})
+        sampling.sample_posterior(likelihood, observations, ["a"], {"b": 20.0})
 
 
 def test_slide_angles_enter_as_the_characterisation_model_says():
@@ -124,7 +125,7 @@ def test_slide_angles_enter_as_the_characterisation_model_says():
                                (3.0, 0.015), (True, False))
     parameters = {"sim.lateral_friction": 0.35, "launch_twin.foam.lateral_friction": 1.0, "robot.com_offset_z_m": 0.0}
     readings = Characterisation("bench", slide_angles_deg=(18.5, 21.0, 25.0), slide_sigma_deg=1.5)
-    term = learnt.characterisation_term(readings, parameters, unknowns)
+    term = sampling.characterisation_term(readings, parameters, unknowns)
     u = np.array([[0.2, 0.5], [0.6, 0.1], [0.9, 0.9]])
     expected = [characterisation_log_likelihood(readings, {**parameters, **dict(zip(unknowns.names, row))})
                 for row in unknowns.to_values(u)]
@@ -134,11 +135,11 @@ def test_slide_angles_enter_as_the_characterisation_model_says():
 def test_a_split_credible_set_stays_split():
     rng = np.random.default_rng(0)
     samples = np.concatenate([rng.normal(0.2, 0.02, 4000), rng.normal(0.75, 0.02, 4000)])
-    sets = learnt.credible_set(samples)
+    sets = sampling.credible_set(samples)
     assert len(sets) == 2 and sets[0][1] < 0.5 < sets[1][0]
     assert sets[0][0] <= 0.2 <= sets[0][1] and sets[1][0] <= 0.75 <= sets[1][1]
-    assert learnt.format_set([(0.2, 0.3), (0.6, 3.0)]) == "[0.2, 0.3] U [0.6, 3]"
-    one = learnt.credible_set(rng.normal(0.5, 0.05, 8000))
+    assert sampling.format_set([(0.2, 0.3), (0.6, 3.0)]) == "[0.2, 0.3] U [0.6, 3]"
+    one = sampling.credible_set(rng.normal(0.5, 0.05, 8000))
     assert len(one) == 1 and one[0][0] < 0.42 and one[0][1] > 0.58
 
 
@@ -257,6 +258,6 @@ def test_learning_recovers_the_model_from_simulated_launches(tmp_path):
         assert np.max(np.abs(learnt_p - model_p)) < 0.12, (configuration_name, cell)
     truth_u = np.array([0.6, 0.3])
     observations = simulate(truth_u, matrix(), np.random.default_rng(8))
-    best = learnt.sample_posterior(loaded, observations, walkers=16, steps=300).best()
+    best = sampling.sample_posterior(loaded, observations, walkers=16, steps=300).best()
     assert abs(UNKNOWNS.to_normalised_one(0, best["a"]) - 0.6) < 0.15
     assert abs(UNKNOWNS.to_normalised_one(1, best["b"]) - 0.3) < 0.1

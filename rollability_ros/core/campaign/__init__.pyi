@@ -5,10 +5,10 @@ from .calibration import (TWIN_CONFIGS, CalibrationResult, CalibrationSettings, 
                           calibrated_parameter_document, calibration_settings, check_fittable, rig_parameter_document,
                           twin_settings_with)
 from .characterisation import load_characterisation
-from .likelihood import (ConditionLevels, LearntLikelihood, Observation, Posterior, UnknownBounds,
-                         characterisation_term, credible_set, format_set, learn, load_likelihood,
-                         observations_from_outcomes, sample_posterior, simulate_training_set, twin_fingerprint)
+from .likelihood import (ConditionLevels, LearntLikelihood, Observation, UnknownBounds, learn, load_likelihood,
+                         observations_from_outcomes, simulate_training_set, twin_fingerprint)
 from .plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
+from .posterior import Posterior, characterisation_term, credible_set, format_set, sample_posterior
 from .runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledgements, answer_rig, local_rig_settings,
                      local_rig_settings_from_files, plan_refusal, record_campaign_run, report_exit_code, resume_command,
                      resume_refusal, run_campaign, store_writer)

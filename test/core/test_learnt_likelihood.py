@@ -139,6 +139,11 @@ def test_a_split_credible_set_stays_split():
     assert len(sets) == 2 and sets[0][1] < 0.5 < sets[1][0]
     assert sets[0][0] <= 0.2 <= sets[0][1] and sets[1][0] <= 0.75 <= sets[1][1]
     assert sampling.format_set([(0.2, 0.3), (0.6, 3.0)]) == "[0.2, 0.3] U [0.6, 3]"
+    # a one-bin gap (bins of 0.02) is the samples' noise, merged; a wider one is kept
+    assert sampling.credible_set(np.concatenate([rng.uniform(0.1, 0.3, 4000), rng.uniform(0.32, 0.5, 4000)]),
+                                 mass=0.99) == [(0.1, 0.5)]
+    two = sampling.credible_set(np.concatenate([rng.uniform(0.1, 0.3, 4000), rng.uniform(0.36, 0.5, 4000)]), mass=0.99)
+    assert len(two) == 2
     one = sampling.credible_set(rng.normal(0.5, 0.05, 8000))
     assert len(one) == 1 and one[0][0] < 0.42 and one[0][1] > 0.58
 

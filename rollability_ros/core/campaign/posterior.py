@@ -88,11 +88,13 @@ class Posterior:
 SET_BINS = 50
 
 
-def credible_set(normalised_samples: npt.ArrayLike, mass: float = 0.95,
-                 bins: int = SET_BINS) -> typing.List[typing.Tuple[float, float]]:
+def credible_set(normalised_samples: npt.ArrayLike, mass: float = 0.95, bins: int = SET_BINS,
+                 gap_bins: int = 1) -> typing.List[typing.Tuple[float, float]]:
     """The highest-density set holding ``mass`` of the samples (normalised coordinates, (n,)): the fullest bins
-    of a ``bins``-bin histogram over [0, 1] until they hold ``mass``, adjacent bins merged; a list of disjoint
-    (low, high) intervals, ascending. Conservative by up to a bin at each end (a bin is in or out whole)."""
+    of a ``bins``-bin histogram over [0, 1] until they hold ``mass``, adjacent bins merged, and so are intervals
+    separated by at most ``gap_bins`` left-out bins (a gap that narrow is the samples' noise in a flat stretch,
+    measured: a verdicts-only posterior came out in five pieces of one-bin gaps); a list of disjoint (low, high)
+    intervals, ascending. Conservative by up to a bin at each end (a bin is in or out whole)."""
     x = np.clip(np.asarray(normalised_samples, dtype=np.float64), 0.0, 1.0)
     counts, edges = np.histogram(x, bins=bins, range=(0.0, 1.0))
     order = np.argsort(-counts, kind="stable")
@@ -104,8 +106,9 @@ def credible_set(normalised_samples: npt.ArrayLike, mass: float = 0.95,
         kept[b] = True
         total += counts[b]
     intervals: typing.List[typing.Tuple[float, float]] = []
+    width = 1.0 / bins
     for b in np.flatnonzero(kept):
-        if intervals and abs(intervals[-1][1] - edges[b]) < 1e-12:
+        if intervals and edges[b] - intervals[-1][1] < (gap_bins + 0.5) * width:
             intervals[-1] = (intervals[-1][0], float(edges[b + 1]))
         else:
             intervals.append((float(edges[b]), float(edges[b + 1])))

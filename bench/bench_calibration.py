@@ -25,8 +25,7 @@ widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise ->
 5. Calibrate -> re-optimise -> validate on the first truth (bench_objective's optimisation, one seed): the design
    optimised on the calibrated twin against the one on the uncalibrated twin, each launched ``--validate`` times on
    the truth; the gain with Newcombe's 95% interval.
-6. The adaptive plan against the paper's matrix: :func:`adaptive_comparison` is the hook (the ``adaptive`` room's
-   ``rollability_ros.core.campaign.adaptive.compare_with_matrix(likelihood, truths, simulate)``, when present).
+6. The adaptive plan against the paper's matrix with the learnt likelihood (:func:`adaptive_comparison`).
 
 Every line with a time carries the load average (``os.getloadavg``): the machine is shared.
 """
@@ -136,36 +135,22 @@ def characterise_truth(parameters, unknowns, truth, rng):
                                   slide_sigma_deg=SLIDE_SIGMA_DEG)
 
 
-def adaptive_comparison(likelihood, truths, simulate, configurations, levels):
-    """The adaptive plan against the paper's matrix (issue 44 item 4, the ``adaptive`` room's): the launches the
-    adaptive plan needs to reach the matrix's 400-launch widths, on the learnt likelihood. Calls
-    ``rollability_ros.core.campaign.adaptive.compare_with_matrix(likelihood, truths, simulate)`` when it exists
-    (``truths`` (n, d) own units; ``simulate(truth, cells, seed)`` launches (configuration, height, speed, angle)
-    cells on the twin at a truth and returns Observations) and prints its lines; else its
-    ``adaptive_to_match_matrix`` with the learnt likelihood as the predictor (outcomes drawn from it) on as many
-    truths; else says it is not in this build."""
-    try:
-        from rollability_ros.core.campaign import adaptive  # type: ignore[attr-defined]
-    except ImportError:
-        adaptive = None
-    if adaptive is not None and hasattr(adaptive, "compare_with_matrix"):
-        for line in adaptive.compare_with_matrix(likelihood, truths, simulate):
-            print(line, flush=True)
-        return
-    if adaptive is None or not hasattr(adaptive, "adaptive_to_match_matrix"):
-        print("adaptive plan vs the paper's matrix: not in this build (rollability_ros.core.campaign.adaptive)")
-        return
+def adaptive_comparison(likelihood, truths, configurations, levels):
+    """The adaptive plan against the paper's matrix (issue 44 item 4; the ``adaptive`` room's
+    ``plan_comparison.adaptive_to_match_matrix``, bench/bench_adaptive_plan.py benches it on its own) with the
+    learnt likelihood as its predictor (``adaptive.PerLaunchAdapter``; outcomes drawn from it): on ``len(truths)``
+    truths from the prior, the launches the adaptive plan needs to reach the widths of the matrix's 400."""
+    from rollability_ros.core.campaign import adaptive, plan_comparison
     from rollability_ros.core.records import LaunchCondition
 
     u = likelihood.unknowns
     candidates = [LaunchCondition(c, h, v, a) for c in configurations for h in levels.heights_m
                   for v in levels.speeds_mps for a in levels.angles_deg]
     started = time.perf_counter()
-    results = adaptive.adaptive_to_match_matrix(adaptive.Unknowns(u.names, u.lower, u.upper, u.log_scale),
-                                                adaptive.PerLaunchAdapter(likelihood), candidates, len(truths),
-                                                5 * len(candidates), samples=4000, seed=TRUTH_SEED)
-    counts = [r.adaptive_launches for r in results]
-    reached = sorted(c for c in counts if c is not None)
+    results = plan_comparison.adaptive_to_match_matrix(
+        adaptive.Unknowns(u.names, u.lower, u.upper, u.log_scale), adaptive.PerLaunchAdapter(likelihood), candidates,
+        len(truths), 5 * len(candidates), samples=4000, seed=TRUTH_SEED)
+    reached = sorted(r.adaptive_launches for r in results if r.adaptive_launches is not None)
     print(f"adaptive plan vs the paper's matrix ({5 * len(candidates)} launches), outcomes drawn from the learnt "
           f"likelihood, {len(results)} truths from the prior: the adaptive plan reached the matrix's widths in "
           f"{len(reached)} of {len(results)}, median {np.median(reached) if reached else math.nan:.0f} launches "
@@ -391,12 +376,9 @@ def main():
                       f"{time.perf_counter() - started:.0f} s on {args.workers} workers (target <= 900 s) [{load()}]",
                       flush=True)
             first = coverage(likelihood, parameters, unknowns, matrix, args, pool)
-
-            def simulate(truth, cells, seed):
-                return launch_truth(parameters, unknowns, truth, cells, seed, pool)
             rng = np.random.default_rng(TRUTH_SEED)
             adaptive_comparison(likelihood, unknowns.to_values(rng.uniform(size=(args.truths, len(unknowns.names)))),
-                                simulate, configurations, levels)
+                                configurations, levels)
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
         if not args.skip_cli:

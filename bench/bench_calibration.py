@@ -5,7 +5,7 @@ widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise ->
         [--likelihood FILE] [--keep DIR] [--reoptimize-generations 15] [--skip-reoptimize] [--skip-cli]
 
 1. Designs: the bare robot and three profiles (bench_launch_twin's dome, a flat top at the 0.09 m bound and a low
-   pyramid: docs/twin-model.md's shapes), as STLs. UnknownBounds: :data:`UNKNOWNS` (centre of mass, foam friction,
+   pyramid: docs/twin-model.md's shapes), as STLs. The unknowns: :data:`UNKNOWNS` (centre of mass, foam friction,
    wheel-on-foam rolling resistance, launcher speed bias, profile mass scale), with the bounds and scales of
    ``config/calibration.yaml``.
 2. Preparation (once): ``--prepare-launches`` twin launches at unknowns drawn over the bounds, the four
@@ -45,6 +45,7 @@ import numpy as np  # noqa: E402
 from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.campaign import likelihood as learnt  # noqa: E402
 from rollability_ros.core.campaign import posterior as sampling  # noqa: E402
+from rollability_ros.core.campaign.adaptive import Unknowns  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 
 #: The unknowns (config keys) of the bench, bounds and scales from config/calibration.yaml.
@@ -83,12 +84,12 @@ def design_files(folder):
 
 
 def bench_parameters(folder):
-    """The twin's flat parameters with the three designs, and the bench's :class:`~learnt.UnknownBounds`."""
+    """The twin's flat parameters with the three designs, and the bench's :class:`Unknowns`."""
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration"])
     labels, paths = design_files(folder)
     parameters.update({"launch_twin.designs.mesh_labels": labels, "launch_twin.designs.mesh_files": paths})
     settings = calibration.calibration_settings(parameters).selected(list(UNKNOWNS))
-    unknowns = learnt.UnknownBounds(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper),
+    unknowns = Unknowns(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper),
                                tuple(settings.log_scale))
     return parameters, unknowns, ["baseline", *labels]
 

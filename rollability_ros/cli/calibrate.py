@@ -89,7 +89,7 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
     loaded twin's configurations (the bare robot and ``launch_twin.designs``) and the campaign's levels."""
     import time
 
-    from rollability_ros.core.campaign import (CampaignSpec, ConditionLevels, UnknownBounds, learn,
+    from rollability_ros.core.campaign import (CampaignSpec, ConditionLevels, Unknowns, learn,
                                                simulate_training_set, twin_fingerprint)
     from rollability_ros.core.config import from_mapping, section
     from rollability_ros.core.sim import spawn_pool
@@ -101,7 +101,7 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
     spec = from_mapping(CampaignSpec, section(parameters, "campaign"), "campaign")
     levels = ConditionLevels(tuple(spec.heights_m), tuple(spec.speeds_mps), tuple(spec.angles_deg))
     configurations = ["baseline", *(label for label in parameters.get("launch_twin.designs.mesh_labels", []) if label)]
-    unknowns = UnknownBounds(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper),
+    unknowns = Unknowns(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper),
                                tuple(settings.log_scale))
     fingerprint = twin_fingerprint(parameters, unknowns.names)
     print(f"preparing the likelihood of {', '.join(unknowns.names)} over {', '.join(configurations)} from "

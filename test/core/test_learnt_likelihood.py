@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 from rollability_ros.core.campaign import likelihood as learnt
+from rollability_ros.core.campaign.adaptive import Unknowns
 from rollability_ros.core.campaign import posterior as sampling
 
-UNKNOWNS = learnt.UnknownBounds(("a", "b"), (0.0, 0.1), (1.0, 10.0), (False, True))
+UNKNOWNS = Unknowns(("a", "b"), (0.0, 0.1), (1.0, 10.0), (False, True))
 LEVELS = learnt.ConditionLevels((0.75, 1.3), (0.8, 1.5), (-30.0, 0.0, 30.0))
 CONFIGURATIONS = ("baseline", "A")
 SIGMA = 0.02   # the gate reading's spread, as a fraction of the set speed
@@ -109,7 +110,7 @@ def test_the_posterior_holds_the_truth_and_sampling_a_subset_holds_the_rest():
         assert any(lo <= truth[i] <= hi for lo, hi in sets), (name, sets, truth[i])
         assert posterior.set_width_fraction(name) < 0.3
     best = posterior.best()
-    assert abs(UNKNOWNS.to_normalised_one(1, best["b"]) - 0.7) < 0.1
+    assert abs(learnt.normalised_one(UNKNOWNS, 1, best["b"]) - 0.7) < 0.1
     alone = sampling.sample_posterior(likelihood, observations, ["a"], {"b": float(truth[1])}, walkers=4, steps=40)
     assert alone.names == ("a",) and alone.samples.shape[1] == 1
     with pytest.raises(ValueError, match="b: not sampled, so it needs a fixed value"):
@@ -121,7 +122,7 @@ def test_the_posterior_holds_the_truth_and_sampling_a_subset_holds_the_rest():
 def test_slide_angles_enter_as_the_characterisation_model_says():
     from rollability_ros.core.campaign.characterisation import Characterisation, characterisation_log_likelihood
 
-    unknowns = learnt.UnknownBounds(("launch_twin.foam.lateral_friction", "robot.com_offset_z_m"), (0.3, -0.019),
+    unknowns = Unknowns(("launch_twin.foam.lateral_friction", "robot.com_offset_z_m"), (0.3, -0.019),
                                (3.0, 0.015), (True, False))
     parameters = {"sim.lateral_friction": 0.35, "launch_twin.foam.lateral_friction": 1.0, "robot.com_offset_z_m": 0.0}
     readings = Characterisation("bench", slide_angles_deg=(18.5, 21.0, 25.0), slide_sigma_deg=1.5)
@@ -195,7 +196,7 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
     from rollability_ros.core.results import write_outcome_csv
 
     names = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")
-    unknowns = learnt.UnknownBounds(names, (-0.019, 0.3), (0.015, 3.0), (False, True))
+    unknowns = Unknowns(names, (-0.019, 0.3), (0.015, 3.0), (False, True))
     levels = learnt.ConditionLevels((0.75, 1.3), (0.8, 1.5), (-60.0, -30.0, 0.0, 30.0, 60.0))
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", "campaign"])
     path = tmp_path / "likelihood.npz"
@@ -264,5 +265,5 @@ def test_learning_recovers_the_model_from_simulated_launches(tmp_path):
     truth_u = np.array([0.6, 0.3])
     observations = simulate(truth_u, matrix(), np.random.default_rng(8))
     best = sampling.sample_posterior(loaded, observations, walkers=16, steps=300).best()
-    assert abs(UNKNOWNS.to_normalised_one(0, best["a"]) - 0.6) < 0.15
-    assert abs(UNKNOWNS.to_normalised_one(1, best["b"]) - 0.3) < 0.1
+    assert abs(learnt.normalised_one(UNKNOWNS, 0, best["a"]) - 0.6) < 0.15
+    assert abs(learnt.normalised_one(UNKNOWNS, 1, best["b"]) - 0.3) < 0.1

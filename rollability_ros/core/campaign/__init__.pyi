@@ -7,7 +7,7 @@ from .calibration import (TWIN_CONFIGS, CalibrationResult, CalibrationSettings, 
                           calibrated_parameter_document, calibration_settings, check_fittable, rig_parameter_document,
                           twin_settings_with)
 from .characterisation import load_characterisation
-from .likelihood import (ConditionLevels, LearntLikelihood, Observation, UnknownBounds, learn, load_likelihood,
+from .likelihood import (ConditionLevels, LearntLikelihood, Observation, learn, load_likelihood,
                          observations_from_outcomes, simulate_training_set, twin_fingerprint)
 from .plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
 from .posterior import Posterior, characterisation_term, credible_set, format_set, sample_posterior
@@ -21,7 +21,7 @@ __all__ = [
     "DEFAULT_UNKNOWNS", "TWIN_CONFIGS", "AnsweredElsewhere", "CalibrationResult", "CalibrationSettings",
     "CampaignSpec", "ConditionLevels", "LaunchPool", "LearntLikelihood", "LocalRig", "LocalRigSettings",
     "Observation", "Posterior", "RunnerSettings", "StoreAcknowledgements", "TerminalAsk", "TwinPredictor",
-    "UnknownBounds", "Unknowns", "WeightedPosterior", "adaptive_next_trial", "answer_rig", "budget_placeholders",
+    "Unknowns", "WeightedPosterior", "adaptive_next_trial", "answer_rig", "budget_placeholders",
     "calibrate", "calibrated_parameter_document", "calibration_settings", "candidate_conditions",
     "characterisation_term", "check_fittable", "comparison_stop_rule", "credible_set", "format_set", "learn",
     "load_campaign_spec", "load_characterisation", "load_likelihood", "local_rig_settings",

@@ -51,6 +51,7 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
+from rollability_ros.core.campaign.adaptive import Unknowns
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import LaunchOutcome
 
@@ -149,55 +150,20 @@ def _student_t_log_pdf(value: np.ndarray, location: np.ndarray, scale: np.ndarra
     return const - np.log(scale) - (nu + 1) / 2 * np.log1p(z * z / nu)
 
 
-@dataclasses.dataclass(frozen=True)
-class UnknownBounds:
-    """The unknowns a likelihood is learnt over: config keys with their bounds and scales (as in
-    ``calibration.parameters``)."""
+def normalised_one(unknowns: Unknowns, index: int, values: npt.ArrayLike) -> np.ndarray:
+    """Normalised coordinates of own-unit ``values`` of unknown ``index`` (any shape; not clipped)."""
+    v = np.asarray(values, dtype=np.float64)
+    low, high = unknowns.lower[index], unknowns.upper[index]
+    if unknowns.log_scale[index]:
+        return np.log(v / low) / math.log(high / low)
+    return (v - low) / (high - low)
 
-    names: typing.Tuple[str, ...]
-    lower: typing.Tuple[float, ...]
-    upper: typing.Tuple[float, ...]
-    log_scale: typing.Tuple[bool, ...]
 
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable entry."""
-        if not self.names or not len(self.names) == len(self.lower) == len(self.upper) == len(self.log_scale):
-            raise ValueError("unknowns need names, lower, upper and log_scale of one equal, non-zero length")
-        for name, low, high, log in zip(self.names, self.lower, self.upper, self.log_scale):
-            if not (math.isfinite(low) and math.isfinite(high) and low < high) or (log and not low > 0):
-                raise ValueError(f"{name}: unusable bounds [{low}, {high}] (log scale {log})")
-
-    def to_values(self, normalised: npt.ArrayLike) -> np.ndarray:
-        """Own units of normalised coordinates (..., d), clipped to [0, 1]."""
-        u = np.clip(np.asarray(normalised, dtype=np.float64), 0.0, 1.0)
-        low, high = np.array(self.lower), np.array(self.upper)
-        log = np.array(self.log_scale)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            logged = low * (high / low) ** u
-        return np.where(log, logged, low + u * (high - low))
-
-    def to_normalised(self, values: npt.ArrayLike) -> np.ndarray:
-        """Normalised coordinates of own-unit ``values`` (..., d) (not clipped: outside [0, 1] = out of bounds)."""
-        v = np.asarray(values, dtype=np.float64)
-        low, high = np.array(self.lower), np.array(self.upper)
-        log = np.array(self.log_scale)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            logged = np.log(v / low) / np.log(high / low)
-        return np.where(log, logged, (v - low) / (high - low))
-
-    def to_normalised_one(self, index: int, values: npt.ArrayLike) -> np.ndarray:
-        """Normalised coordinates of own-unit ``values`` of unknown ``index`` (any shape)."""
-        v = np.asarray(values, dtype=np.float64)
-        low, high = self.lower[index], self.upper[index]
-        if self.log_scale[index]:
-            return np.log(v / low) / math.log(high / low)
-        return (v - low) / (high - low)
-
-    def to_values_one(self, index: int, normalised: npt.ArrayLike) -> np.ndarray:
-        """Own units of normalised coordinates of unknown ``index`` (any shape)."""
-        u = np.asarray(normalised, dtype=np.float64)
-        low, high = self.lower[index], self.upper[index]
-        return low * (high / low) ** u if self.log_scale[index] else low + u * (high - low)
+def values_one(unknowns: Unknowns, index: int, normalised: npt.ArrayLike) -> np.ndarray:
+    """Own units of normalised coordinates of unknown ``index`` (any shape)."""
+    u = np.asarray(normalised, dtype=np.float64)
+    low, high = unknowns.lower[index], unknowns.upper[index]
+    return low * (high / low) ** u if unknowns.log_scale[index] else low + u * (high - low)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -266,7 +232,7 @@ class LearntLikelihood:
     accuracy (written to the file's header).
     """
 
-    unknowns: UnknownBounds
+    unknowns: Unknowns
     configurations: typing.Tuple[str, ...]
     levels: ConditionLevels
     fingerprint: str
@@ -416,9 +382,8 @@ def _load(source: str) -> LearntLikelihood:
         found = header.get("format") if isinstance(header, dict) else None
         raise ValueError(f"format must be {FORMAT!r}, got {found!r}")
     u = header["unknowns"]
-    unknowns = UnknownBounds(tuple(map(str, u["names"])), tuple(map(float, u["lower"])), tuple(map(float, u["upper"])),
+    unknowns = Unknowns(tuple(map(str, u["names"])), tuple(map(float, u["lower"])), tuple(map(float, u["upper"])),
                         tuple(map(bool, u["log_scale"])))
-    unknowns.validate()
     configurations = tuple(map(str, header["configurations"]))
     lv = header["levels"]
     levels = ConditionLevels(tuple(map(float, lv["heights_m"])), tuple(map(float, lv["speeds_mps"])),
@@ -518,7 +483,7 @@ class TrainingSet:
     rows: np.ndarray
 
 
-def draw_training_jobs(unknowns: UnknownBounds, configurations: typing.Sequence[str], levels: ConditionLevels,
+def draw_training_jobs(unknowns: Unknowns, configurations: typing.Sequence[str], levels: ConditionLevels,
                        launches: int, seed: int) -> typing.Tuple[np.ndarray, np.ndarray, np.ndarray, typing.List[int]]:
     """``launches`` training launches: unknowns uniform over the normalised box (a scrambled Sobol sequence
     when scipy has one: even coverage), configuration and condition levels uniform; returns (normalised (n, d),
@@ -540,7 +505,7 @@ def draw_training_jobs(unknowns: UnknownBounds, configurations: typing.Sequence[
     return normalised, configuration, condition, [trial_seed(seed, i) for i in range(launches)]
 
 
-def simulate_training_set(parameters: typing.Mapping[str, object], unknowns: UnknownBounds,
+def simulate_training_set(parameters: typing.Mapping[str, object], unknowns: Unknowns,
                           configurations: typing.Sequence[str], levels: ConditionLevels, launches: int, seed: int,
                           pool: typing.Optional[concurrent.futures.Executor] = None, chunk: int = 25,
                           on_progress: typing.Optional[typing.Callable[[int, int], None]] = None) -> TrainingSet:
@@ -569,7 +534,7 @@ def _layers_of(model: typing.Any) -> Layers:
             for w, b in zip(model.coefs_, model.intercepts_)]
 
 
-def learn(training: TrainingSet, unknowns: UnknownBounds, configurations: typing.Sequence[str], levels: ConditionLevels,
+def learn(training: TrainingSet, unknowns: Unknowns, configurations: typing.Sequence[str], levels: ConditionLevels,
           fingerprint: str, seed: int = 1, holdout_fraction: float = 0.15,
           on_progress: typing.Optional[typing.Callable[[str], None]] = None) -> LearntLikelihood:
     """Learn the networks (module docstring) from ``training``'s valid launches; the last ``holdout_fraction`` of

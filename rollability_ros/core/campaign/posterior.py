@@ -10,7 +10,8 @@ import numpy as np
 import numpy.typing as npt
 
 from rollability_ros.core.campaign.characterisation import Characterisation
-from rollability_ros.core.campaign.likelihood import LearntLikelihood, Observation, UnknownBounds
+from rollability_ros.core.campaign.adaptive import Unknowns
+from rollability_ros.core.campaign.likelihood import LearntLikelihood, Observation, normalised_one, values_one
 from rollability_ros.core.optional import require
 
 LogDensity = typing.Callable[[np.ndarray], np.ndarray]
@@ -49,13 +50,13 @@ def stretch_sampler(log_density: LogDensity, start: np.ndarray, steps: int, rng:
 @dataclasses.dataclass(frozen=True)
 class Posterior:
     """Posterior samples of the sampled unknowns: ``names`` (k,), ``samples`` (n, k) own units, ``normalised``
-    (n, k), the :class:`UnknownBounds` entry of each (``unknowns``, indices ``index``), the sampler's wall time and
+    (n, k), the :class:`Unknowns` entry of each (``unknowns``, indices ``index``), the sampler's wall time and
     each sample's log posterior density ``log_density`` (n,) (up to a constant)."""
 
     names: typing.Tuple[str, ...]
     samples: np.ndarray
     normalised: np.ndarray
-    unknowns: UnknownBounds
+    unknowns: Unknowns
     index: typing.Tuple[int, ...]
     wall_s: float
     log_density: np.ndarray
@@ -71,7 +72,7 @@ class Posterior:
         i = self.names.index(name)
         intervals = credible_set(self.normalised[:, i], mass)
         j = self.index[i]
-        return [(float(self.unknowns.to_values_one(j, lo)), float(self.unknowns.to_values_one(j, hi)))
+        return [(float(values_one(self.unknowns, j, lo)), float(values_one(self.unknowns, j, hi)))
                 for lo, hi in intervals]
 
     def set_width_fraction(self, name: str, mass: float = 0.95) -> float:
@@ -146,7 +147,7 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
             continue
         if fixed is None or name not in fixed:
             raise ValueError(f"{name}: not sampled, so it needs a fixed value")
-        base[i] = float(unknowns.to_normalised_one(i, fixed[name]))
+        base[i] = float(normalised_one(unknowns, i, fixed[name]))
         if not -1e-9 <= base[i] <= 1 + 1e-9:
             raise ValueError(f"{name} = {fixed[name]:g} lies outside the bounds the likelihood was learnt on "
                              f"[{unknowns.lower[i]:g}, {unknowns.upper[i]:g}]: prepare it with wider bounds")
@@ -174,13 +175,13 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
     with limits:
         chain, densities = stretch_sampler(log_density, start, steps, rng)
     kept = chain[steps // 2:].reshape(-1, k)
-    values = np.array([unknowns.to_values_one(j, kept[:, i]) for i, j in enumerate(index)]).T
+    values = np.array([values_one(unknowns, j, kept[:, i]) for i, j in enumerate(index)]).T
     return Posterior(names, values, kept, unknowns, index, time.perf_counter() - started,
                      densities[steps // 2:].reshape(-1))
 
 
 def characterisation_term(characterisation: Characterisation, parameters: typing.Mapping[str, object],
-                          unknowns: UnknownBounds, grid_points: int = 9) -> LogDensity:
+                          unknowns: Unknowns, grid_points: int = 9) -> LogDensity:
     """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
     parameter set). Roll-outs: simulated on a grid of ``grid_points`` values of each roll-out unknown sampled here
@@ -212,7 +213,7 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
     mesh = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(rolling), -1).T if rolling else np.zeros((1, 0))
     table = np.array([bench.characterisation_log_likelihood(
         dataclasses.replace(characterisation, slide_angles_deg=()),
-        {**parameters, **{names[j]: float(unknowns.to_values_one(j, point[i])) for i, j in enumerate(rolling)}})
+        {**parameters, **{names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(rolling)}})
         for point in mesh])
     if not rolling:
         return lambda u: slide(u) + table[0]
@@ -223,5 +224,5 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
 
 #: The keys whose product is the printed part's friction on the foam (the slide angle's model).
 SLIDE_KEYS = ("sim.lateral_friction", "launch_twin.foam.lateral_friction")
-#: UnknownBounds a roll-out depends on (:func:`characterisation_term` tabulates the roll-out over those sampled).
+#: The unknowns a roll-out depends on (:func:`characterisation_term` tabulates the roll-out over those sampled).
 ROLLOUT_KEYS = ("launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm")

@@ -18,8 +18,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 
 #: The bench scripts with a ``--smoke`` size, cheapest first (bench/<name>.py, each ``main(argv) -> int``).
 #: docs/testing.md lists the benches left out and why.
-SMOKE = ("bench_bag_writer", "bench_profile_mass", "bench_launch_twin", "verify_early_decision", "bench_pad_size",
-         "bench_optimizer", "bench_bare_breakdown", "bench_truth_sweep", "bench_shape_ceiling")
+SMOKE = ("bench_bag_writer", "bench_adaptive_plan", "bench_profile_mass", "bench_launch_twin", "verify_early_decision",
+         "bench_pad_size", "bench_optimizer", "bench_bare_breakdown", "bench_truth_sweep", "bench_shape_ceiling")
 
 #: The optimization run's parameters at a smoke size, over a bench's own (``--smoke``): one generation of a few
 #: candidates with two trials each, no start-point screen, and a selection that re-evaluates and races on two

@@ -32,7 +32,7 @@ Ports the physical backend opens (:class:`RosRigPorts`): clients ``valve/arm`` (
   (FireValve), signed with the session key ``valve.session_key_file`` that the valve_controller on this computer
   writes; subscriptions to ``valve/state`` (latched) and, when ``rig.outcome_source`` is ``imu``, to the IMU
   topic ``imu_outcome.topic`` (sensor_msgs/Imu, default ``imu/data``).
-Parameters: ``rig.*`` (:class:`~rollability_ros.core.rig.rig_session.RigSettings`: ``rig.backend`` sim | physical,
+Parameters: ``rig.*`` (:class:`~rollability_ros.core.rig.launch_backend.RigSettings`: ``rig.backend`` sim | physical,
   ...), ``valve.*`` (launch pulse, heartbeat period, regulator pressures), ``speed_gate.*``, ``imu_outcome.*``,
   all in ``config/rig.yaml``; the sim backend reads the launch twin's own parameter files (``rig.twin_config``,
   default sim, robot, launch_twin) at start-up. Fixed at start-up.
@@ -236,11 +236,14 @@ class RigNode(Node):
 
     def _on_record_outcome(self, request, response):
         response.accepted, response.message = self.guard.check_outcome(
-            signature_from_msg(request.auth), request.trial_id, request.upright, request.travel_time_s, request.note)
+            signature_from_msg(request.auth), request.trial_id, request.upright, request.travel_time_s, request.note,
+            request.rest_distance_m)
         if response.accepted:
             travel_time_s = request.travel_time_s if request.travel_time_s > 0 else math.nan
+            rolled_m = request.rest_distance_m if math.isfinite(request.rest_distance_m) and \
+                request.rest_distance_m >= 0 else math.nan   # < 0 (the default), NaN: not measured
             response.accepted, response.message = self.backend.operator.record_outcome(
-                OperatorOutcome(bool(request.upright), travel_time_s, request.note), request.trial_id)
+                OperatorOutcome(bool(request.upright), travel_time_s, request.note, rolled_m), request.trial_id)
         self._log_answer(response.accepted, f"operator outcome for {request.trial_id or 'the current launch'}: "
                          f"{'upright' if request.upright else 'not upright'} -> {response.message}")
         return response

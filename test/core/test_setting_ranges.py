@@ -190,3 +190,31 @@ def test_the_descriptor_says_an_open_end():
     descriptor = parameter_descriptor("a step", (0.0, 100.0), float, exclusive="low")
     assert descriptor.floating_point_range[0].from_value == 0.0
     assert descriptor.additional_constraints == "in (0.0, 100.0]"
+
+
+def test_a_real_node_refuses_with_the_clis_line(ros_node, start_node):
+    """One node process (not only the builder it uses): rclpy's own range refusal at start-up, reworded, is the
+    CLI's line, and the node stops with exit code 2."""
+    from rollability_ros.core.imu.tip_tracker import TipMonitorConfig
+
+    with pytest.raises(config.ConfigError) as from_cli:
+        config.from_mapping(TipMonitorConfig, {"tip_threshold_deg": 200.0}, "tip_monitor")
+    assert str(from_cli.value) == "tip_monitor.tip_threshold_deg out of range: 200.0 is not in [0.0, 180.0)"
+    process = start_node("tip_monitor", params={"tip_monitor.tip_threshold_deg": 200.0})
+    assert ros_node.wait_for(lambda: not process.alive(), 30)
+    assert process.process.returncode == 2 and str(from_cli.value) in process.log(), process.log()
+
+
+def test_the_shipped_calibration_searches_inside_each_keys_declared_range():
+    """A fitted key's bounds (config/calibration.yaml) lie in the range its setting declares: a candidate the
+    search proposes is never refused by the twin's builder mid-fit (lateral_friction's 0.2 was below a declared 0.3
+    that nothing enforced before)."""
+    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, launch_twin_settings_from_parameters
+
+    flat = config.load_parameters(["calibration"])
+    fitted = config.section(flat, "calibration")
+    assert len(fitted["parameters"]) >= 10
+    for name, low, high in zip(fitted["parameters"], fitted["lower"], fitted["upper"]):
+        for value in (low, high):
+            settings = launch_twin_settings_from_parameters({name: value})   # raises ConfigError when outside
+            assert isinstance(settings, LaunchTwinSettings)

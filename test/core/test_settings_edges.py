@@ -39,6 +39,8 @@ ALLOWED = {
     ("campaign/calibration.py", "twin_settings_with"): (1, "rebuilds the twin with fitted config keys"),
     ("campaign/calibration.py", "check_fittable"): (1, "the twin of the given keys, to refuse a fitted key it ignores"),
     ("campaign/calibration.py", "fit"): (1, "the twin of the given keys, for the characterisation readings' model"),
+    ("campaign/likelihood.py", "simulate_rows"): (1, "rebuilds the twin with each training launch's unknowns, as "
+                                                  "twin_settings_with does for a fit"),
     ("campaign/characterisation.py", "characterisation_log_likelihood"): (
         1, "the roll-out's twin at one candidate point of the fitted keys"),
 }

@@ -19,10 +19,10 @@ the seeds of generation number n are derived from its index n - 1, as before. Ru
 (their run info has no ``first_generation``) keep 0 when resumed, so their stored candidates still match.
 
 The optimizer is pluggable: :class:`OptimizationRun` drives an
-:class:`~rollability_ros.core.optimization.cmaes.IncumbentOptimizer` (the method contract: ``ask``, ``tell``,
-``stop``, ``result``, ``best``, ``sigma``, ``state_dict``, ``reevaluation_request`` / ``tell_reevaluation`` for the
-incumbent's re-evaluation, ``archive_rows`` -- None without an archive -- and ``archive_summary`` for a
-quality-diversity archive, stored in the run info under ``archive`` after every
+:class:`~rollability_ros.core.optimization.optimizer_contract.IncumbentOptimizer` (the method contract: ``ask``,
+``tell``, ``stop``, ``result``, ``best``, ``sigma``, ``state_dict``, ``reevaluation_request`` /
+``tell_reevaluation`` for the incumbent's re-evaluation, ``archive_rows`` -- None without an archive -- and
+``archive_summary`` for a quality-diversity archive, stored in the run info under ``archive`` after every
 generation). :func:`run_generations` is the one loop (stop / pause / give-up policy) that ``rollability optimize``
 and the ``optimizer`` node run; :func:`~rollability_ros.core.optimization.run_directory.run_target` is the one
 resolution of which run to start or continue.
@@ -44,18 +44,17 @@ import numpy as np
 from rollability_ros.core.optimization import checkpoint as checkpoints
 from rollability_ros.core.config import (ConfigError, as_list, check_given_files, load_parameters,
                                          settings_from_sections)
-from rollability_ros.core.optimization.cmaes import (
+from rollability_ros.core.optimization.optimizer_contract import (
     STREAM_POPULATION,
     STREAM_RACE,
     STREAM_REEVALUATION,
     OPTIMIZER_METHODS,
     IncumbentOptimizer,
     OptimizerResult,
-    OptimizerSettings,
+    RunSettings,
     derive_seed,
     random_initial_means,
 )
-from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
 from rollability_ros.core.profile import PrinterSpec, ProfileGrid
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, RunProgress
 from rollability_ros.core.optimization.run_directory import (OUTPUT_DIR_PARAMETER, RUN_CONFIG_FILENAME, RUN_KIND,
@@ -67,19 +66,6 @@ from rollability_ros.core.store import Store
 
 #: Number of a run's first generation wherever generations are shown or stored.
 FIRST_GENERATION = 1
-
-
-@dataclasses.dataclass(frozen=True)
-class RunSettings:
-    """The typed settings of one optimization run, each field a namespace of its flat parameters: parsed once
-    (:func:`run_settings`, or built by the node from the sections it declared) and handed down to the method, the
-    start-point screen and the printability check, none of which reads the flat dict."""
-
-    optimizer: OptimizerSettings = dataclasses.field(default_factory=OptimizerSettings)
-    quality_diversity: QualityDiversitySettings = dataclasses.field(default_factory=QualityDiversitySettings)
-    stable_poses: ScreenSettings = dataclasses.field(default_factory=ScreenSettings)
-    #: None when the parameters hold no ``printer`` namespace (the printability check is then skipped).
-    printer: typing.Optional[PrinterSpec] = None
 
 
 def run_settings(parameters: typing.Mapping[str, object]) -> RunSettings:
@@ -126,7 +112,8 @@ def with_given_files(parameters: typing.Mapping[str, object], config_paths: typi
 
 def check_method_settings(settings: RunSettings) -> None:
     """Raise ``ValueError`` naming the first unusable setting of the search method ``settings.optimizer.method``
-    (its :meth:`~rollability_ros.core.optimization.cmaes.IncumbentOptimizer.check_settings`), before a run starts."""
+    (its :meth:`~rollability_ros.core.optimization.optimizer_contract.IncumbentOptimizer.check_settings`), before a
+    run starts."""
     OPTIMIZER_METHODS.get(settings.optimizer.method).check_settings(settings)
 
 
@@ -193,7 +180,7 @@ class OptimizationRun:
 
     optimizer_factory : callable, optional
         ``factory(n_variables, settings, lower, upper, clock, initial_mean, state=None)`` -> the
-        :class:`~rollability_ros.core.optimization.cmaes.IncumbentOptimizer` the run drives; default
+        :class:`~rollability_ros.core.optimization.optimizer_contract.IncumbentOptimizer` the run drives; default
         :func:`make_optimizer` (``optimizer.method`` in ``OPTIMIZER_METHODS``).
     evaluate_trials : callable(heights_list, seed, trials), optional
         ``evaluate_batch`` with a trial count: needed for racing (``optimizer.race_looks``), see

@@ -159,7 +159,8 @@ def test_select_warns_in_one_line_and_exits_0_when_no_design_beats_the_bare_robo
     pytest.importorskip("ribs")
     from doubles import SyntheticEvaluator
     from rollability_ros.cli import main
-    from rollability_ros.core.optimization import batch_evaluation, optimization_run
+    from rollability_ros.core import optimization
+    from rollability_ros.core.optimization import optimization_run
 
     optimum = np.linspace(0.1, 0.4, GRID.n_variables)
     parameters = {"optimizer.method": "cma_mae", "optimizer.max_generations": 4, "optimizer.seed": 2,
@@ -177,7 +178,8 @@ def test_select_warns_in_one_line_and_exits_0_when_no_design_beats_the_bare_robo
         return lambda heights_list, seed, trials: [(trials if not np.any(h) else trials // 3, trials, 0.0, name)
                                                    for h in heights_list]
 
-    monkeypatch.setattr(batch_evaluation, "fidelity_batch_evaluator", launches)
+    # the face the CLI imports it from (lazy_loader keeps a name there once something in this process used it)
+    monkeypatch.setattr(optimization, "fidelity_batch_evaluator", launches)
     assert main(["select", run_dir, "--workers", "1"]) == 0
     captured = capsys.readouterr()
     warnings = captured.err.strip().splitlines()

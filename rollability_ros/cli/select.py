@@ -8,7 +8,7 @@ from rollability_ros.cli import Subparsers
 
 #: ``selection`` settings a command-line option overrides (same names).
 OVERRIDES = ("count", "min_distance", "reevaluate_trials", "mesh_units", "top_fraction", "launch_trials",
-             "race_launches")
+             "race_launches", "world_count", "world_launches")
 
 
 def _print_table(rows):
@@ -28,11 +28,32 @@ def _print_table(rows):
                      f"{in_run:<22}{row['in_run_trials']:>7}  {bias}\n")
 
 
+def _world_launch(evaluator_settings, executor):
+    """``(world_launch, describe_world)`` of the selection's world check in this process (fidelity world:<seed>)."""
+    from rollability_ros.core.optimization import optimization_run
+    from rollability_ros.core.sim import world_check, world_fidelity
+
+    def world_launch(heights_list, world_seed, launch_seed, launches):
+        evaluate = optimization_run.fidelity_batch_evaluator(evaluator_settings, executor, world_fidelity(world_seed))
+        return evaluate(heights_list, launch_seed, launches)
+    return world_launch, world_check.world_draws(evaluator_settings)
+
+
+def _print_recommendation(result):
+    """The world check per design and the recommendation, when the selection ran one (simulated)."""
+    from rollability_ros.core.sim import summarize_worlds, world_check
+
+    if result.recommendation is None:
+        return
+    for line in world_check.summary_lines(summarize_worlds(result.world_rows or [])):
+        print(line)
+    print(f"recommendation: {result.recommendation.headline()}")
+
+
 def run(args: argparse.Namespace) -> int:
     """Select, export and report the designs; exit code 1 when fewer than requested qualify."""
     from rollability_ros.core.sim import evaluation
-    from rollability_ros.core.optimization import optimization_run as optimization_run
-    from rollability_ros.core.optimization import selection
+    from rollability_ros.core.optimization import design_set, optimization_run, selection
     from rollability_ros.core.config import from_mapping, section
     from rollability_ros.core.store import Store
 
@@ -47,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     settings = from_mapping(selection.SelectionSettings, mapping, "selection")
     evaluator_settings = evaluation.settings_from_parameters(parameters)
     run_id = optimization_run.run_id_of(run_dir)
-    launches = bool(settings.race_rounds or settings.launch_trials)
+    launches = bool(settings.race_rounds or settings.launch_trials or settings.world_count)
     executor = evaluation.make_executor(evaluator_settings.evaluator, args.workers) \
         if settings.reevaluate_trials or launches else None
     try:
@@ -55,11 +76,15 @@ def run(args: argparse.Namespace) -> int:
             evaluator_settings, settings.reevaluate_trials, executor) if settings.reevaluate_trials else None
         launch_batch = optimization_run.fidelity_batch_evaluator(evaluator_settings, executor, "launch") \
             if launches else None
+        world_launch, describe_world = _world_launch(evaluator_settings, executor) if settings.world_count \
+            else (None, None)
         with Store(run_dir) as store:
-            result, folder = selection.select_run(store, run_id, run_dir, evaluator_settings.grid,
-                                                  evaluator_settings.printer, settings, evaluate_batch,
-                                                  optimization_run.run_settings(parameters).optimizer.seed,
-                                                  launch_batch, weigh=lambda mesh: evaluator_settings.profile_body(mesh).mass_kg)
+            result, folder = design_set.select_run(store, run_id, run_dir, evaluator_settings.grid,
+                                                   evaluator_settings.printer, settings, evaluate_batch,
+                                                   optimization_run.run_settings(parameters).optimizer.seed,
+                                                   launch_batch,
+                                                   weigh=lambda mesh: evaluator_settings.profile_body(mesh).mass_kg,
+                                                   world_launch=world_launch, describe_world=describe_world)
     finally:
         if executor is not None:
             executor.close()
@@ -76,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(f"{len(result.designs)} design(s) from the {result.considered} elites of run {run_id}'s height x "
               f"sharpness archive (top {settings.top_fraction:.0%}: fitness >= {result.top_threshold:.3f})")
-    _print_table(selection.table_rows(result))
+    _print_table(design_set.table_rows(result))
     for design in result.designs:
         print(f"{design.label}: {design.reason}")
     for gain in result.gains():
@@ -85,11 +110,12 @@ def run(args: argparse.Namespace) -> int:
                   f"(95% Newcombe){'' if gain.beats else '; does NOT beat the bare robot'}")
     print(f"wrote {folder}/: table3.csv, designs.yaml, {len(result.designs)} STL file(s) in "
           f"{'millimetres' if settings.mesh_units == 'mm' else 'metres'} and as many 3MF files")
-    earlier = [os.path.basename(path) for path in selection.design_set_folders(run_dir)
+    earlier = [os.path.basename(path) for path in design_set.design_set_folders(run_dir)
                if os.path.abspath(path) != os.path.abspath(folder)]
     if earlier:
         print(f"earlier design set(s) kept unchanged ({', '.join(earlier)}: stored outcomes and printed parts may "
               f"refer to them); a campaign on this set needs launch_twin.designs.designs_file: {folder}/designs.yaml")
+    _print_recommendation(result)
     if result.no_design_helps():
         print(f"rollability select: warning: {result.no_design_helps()}; designs.yaml marks each design "
               f"beats_baseline: false", file=sys.stderr)
@@ -129,6 +155,10 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--launch-trials", type=int, help="fresh robust twin launches per chosen design and the "
                                                           "bare robot for the gain over it (default: "
                                                           "selection.launch_trials; 0 = none)")
+    parser.add_argument("--world-count", type=int, help="worlds of the plausible-world check behind the "
+                                                        "recommendation (default: selection.world_count; 0 = none)")
+    parser.add_argument("--world-launches", type=int, help="paired launches per configuration in each world "
+                                                           "(default: selection.world_launches)")
     parser.add_argument("--workers", type=int, help="worker processes for the re-evaluation")
     parser.add_argument("--mesh-units", choices=("mm", "m"), help="length unit of the STL files (default: "
                                                                    "selection.mesh_units, mm as slicers expect)")

@@ -64,10 +64,10 @@ from rollability_ros.action import EvaluateProfile
 from rollability_ros.core.config import ConfigError
 from rollability_ros.core.optimization import (EvaluationFailed, EvaluatorPool, OptimizerSettings, PoolClosed,
                                                PoolSettings, QualityDiversitySettings, SelectionSettings,
-                                               optimization_run, selection)
+                                               design_set, optimization_run, selection)
 from rollability_ros.core.profile import PrinterSpec, ProfileGrid, geometry
 from rollability_ros.core.robots import ChassisSpec, UrdfRobotSpec, footprint_grid, profile_mount
-from rollability_ros.core.sim import ScreenSettings
+from rollability_ros.core.sim import ScreenSettings, world_fidelity
 from rollability_ros.msg import CandidateResult, GenerationSummary, OptimizerProgress
 from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg, progress_to_msg
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, SessionMembership,
@@ -394,11 +394,17 @@ class Optimizer(Node):
         launch_batch = self._pool.fidelity_evaluator("launch") \
             if chosen.race_rounds or chosen.launch_trials else None
         robot = self._robot_settings(settings)
-        result, folder = selection.select_run(run.store, run.run_id, run.run_dir, settings["profile"],
-                                              settings["printer"], chosen, evaluate_batch, run.settings.seed,
-                                              launch_batch, weigh=lambda mesh: robot.profile_body(mesh).mass_kg)
+
+        def world_launch(heights_list, world_seed, launch_seed, launches):
+            """Launches in one world over the evaluators (fidelity world:<seed>); their draws are the evaluators'."""
+            return self._pool.fidelity_evaluator(world_fidelity(world_seed))(heights_list, launch_seed, launches)
+
+        result, folder = design_set.select_run(run.store, run.run_id, run.run_dir, settings["profile"],
+                                               settings["printer"], chosen, evaluate_batch, run.settings.seed,
+                                               launch_batch, weigh=lambda mesh: robot.profile_body(mesh).mass_kg,
+                                               world_launch=world_launch)
         rows = "; ".join(f"{row['configuration']} {row['simulated_fitness']:.3f}"
-                         for row in selection.table_rows(result) if row["trials"])
+                         for row in design_set.table_rows(result) if row["trials"])
         self.get_logger().info(f"selected {len(result.designs)} design(s) into {folder} ({rows})"
                                + (f"; {result.shortfall}" if result.shortfall else ""))
         for gain in result.gains():
@@ -408,6 +414,8 @@ class Optimizer(Node):
         if result.no_design_helps():
             self.get_logger().warning(f"{result.no_design_helps()}; designs.yaml marks each design "
                                       f"beats_baseline: false")
+        if result.recommendation is not None:
+            self.get_logger().info(f"recommendation (simulated world check): {result.recommendation.headline()}")
 
     # --- publishing ----------------------------------------------------------------------------------------------
     def _publish_candidate(self, record):

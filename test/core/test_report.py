@@ -255,7 +255,7 @@ def test_heat_map_text_contrasts_with_its_cell_and_a_design_preview_renders(tmp_
 
 
 def test_report_leads_with_fresh_reevaluations_beside_the_in_run_estimates(tmp_path, capsys):
-    """Table 3 of the selection (selection.TABLE_COLUMNS) carries both estimates; the summary opens with them,
+    """Table 3 of the selection (design_set.TABLE_COLUMNS) carries both estimates; the summary opens with them,
     the selection bias between them, and labels the launch-twin campaign simulated."""
     with Store(tmp_path) as store:
         for outcome in _campaign_outcomes(repetitions=1):

@@ -352,7 +352,7 @@ class Study:
                                                                       "mesh_files": {}})
 
     def _report(self, result):
-        from rollability_ros.core.results import report
+        from rollability_ros.core.results import report, report_writer
 
         self._record_campaign_designs()
         data = report.load_report_data(self.store_path, run_id=self.study_id)
@@ -373,7 +373,7 @@ class Study:
                 with open(os.path.join(self.study_dir, RECORDING_GAPS_FILE), "w", encoding="utf-8") as stream:
                     stream.write(gap_note + "\n")
                 data.notes.append(f"recording gaps ({RECORDING_GAPS_FILE}): {gap_note}")
-        built = report.build_report(data, os.path.join(self.study_dir, "report"))
+        built = report_writer.build_report(data, os.path.join(self.study_dir, "report"))
         result.report_html = built.html_path
         result.summary = built.summary
         if problem:

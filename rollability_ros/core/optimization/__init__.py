@@ -5,7 +5,9 @@
 - optimization_run: generations through an injected evaluator, logged, checkpointed, resumable
 - checkpoint: atomic checkpoints checked against the run's config
 - evaluator_pool: a batch of evaluations spread over the available evaluators
-- selection: designs A/B/C from a run's log or its archive
+- selection: designs A/B/C from a run's log or its archive (deciding), and the world check's recommendation
+- recommendation: the rule naming the design to print first from the plausible-world check
+- design_set: writing a selection (STL, 3MF, Table 3, designs.yaml, world_check.csv) and its record
 
 The face below is what code outside ``core/optimization`` imports (``from rollability_ros.core.optimization import
 OptimizerSettings``). It is lazy (``core/faces.py``): importing it loads none of the modules behind it, and a name's
@@ -16,7 +18,7 @@ import typing
 from rollability_ros.core.faces import lazy_attribute
 
 if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
-    from rollability_ros.core.optimization import optimization_run, selection
+    from rollability_ros.core.optimization import design_set, optimization_run, recommendation, selection
     from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
     from rollability_ros.core.optimization.cmaes import (OPTIMIZER_METHODS, IncumbentOptimizer, OptimizerSettings,
                                                          ProfileOptimizer)
@@ -30,8 +32,8 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
 __all__ = [
     "GAIN_SOURCES", "OPTIMIZER_METHODS", "EvaluationFailed", "EvaluatorPool", "IncumbentOptimizer", "OptimizationRun",
     "OptimizerSettings", "PoolClosed", "PoolSettings", "ProfileOptimizer", "QualityDiversitySettings",
-    "SelectionSettings", "atomic_write_bytes", "make_optimizer", "optimization_run", "run_generations", "run_target",
-    "selection",
+    "SelectionSettings", "atomic_write_bytes", "design_set", "make_optimizer", "optimization_run", "recommendation",
+    "run_generations", "run_target", "selection",
 ]
 
 

@@ -6,7 +6,9 @@ The records, their message mapping, the store and the statistics are the core's 
 
 - outcome_log: store-before-acknowledge bookkeeping of the outcome logger
 - _outcome_csv: strict CSV import/export of hand-recorded outcomes
-- analysis, report, report_figures: the paper's views, figures and HTML report
+- analysis, report_figures: the paper's views and figures
+- report: what a report says (records read, summary text); report_writer: its CSV, PNG and HTML files
+- lead: the report's lead, which design to print first (the recommendation rule with the campaign's evidence)
 - design_map: a quality-diversity run's map (archive.csv, traits.csv) and its height / sharpness trends
 - engine_agreement: the same trials in two physics engines: trial and rank agreement, robust designs
 
@@ -19,7 +21,8 @@ import typing
 from rollability_ros.core.faces import lazy_attribute
 
 if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
-    from rollability_ros.core.results import analysis, design_map, engine_agreement, report, report_figures
+    from rollability_ros.core.results import (analysis, design_map, engine_agreement, lead, report, report_figures,
+                                              report_writer)
     from rollability_ros.core.results.engine_agreement import trial_agreement
     from rollability_ros.core.results._outcome_csv import OutcomeCsvError, read_outcome_csv, write_outcome_csv
     from rollability_ros.core.results.outcome_log import OutcomeLog, OutcomeLoggerSettings, SessionGate, StoreFailure
@@ -28,8 +31,8 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
 
 __all__ = [
     "OutcomeCsvError", "OutcomeLog", "OutcomeLoggerSettings", "SessionGate", "StoreFailure", "analysis", "design_map",
-    "engine_agreement", "gain_lines", "load_report_data", "read_outcome_csv", "report", "report_figures",
-    "trial_agreement", "write_outcome_csv",
+    "engine_agreement", "gain_lines", "lead", "load_report_data", "read_outcome_csv", "report", "report_figures",
+    "report_writer", "trial_agreement", "write_outcome_csv",
 ]
 
 

@@ -29,7 +29,7 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
     from rollability_ros.core.sim.launch_twin import (TWIN_NAMESPACE, TWIN_SECTIONS, LaunchTwinSettings,
                                                       launch_twin_settings_from_parameters, mecanum_wheels, profile_body,
                                                       simulate_launch, simulate_valid_launch, twin_files)
-    from rollability_ros.core.sim.objectives import FIDELITIES, ObjectiveSettings
+    from rollability_ros.core.sim.objectives import FIDELITIES, ObjectiveSettings, check_fidelity, world_fidelity
     from rollability_ros.core.sim.rollout import rollout_distance_m
     from rollability_ros.core.sim.sensitivity import launch_sensitivity_rows, sensitivity_rows
     from rollability_ros.core.sim.stable_poses import ScreenSettings, screen_robot
@@ -37,18 +37,21 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
                                                        TrialOutcome, engine_names, make_trial_world,
                                                        register_trial_engine)
     from rollability_ros.core.sim.trials import TrialSettings
+    from rollability_ros.core.sim import world_check
+    from rollability_ros.core.sim.world_check import WorldSummary, summarize_worlds
     from rollability_ros.core.sim._worker_pool import spawn_pool
     from rollability_ros.core.sim.world import PhysicsParams
 
 __all__ = [
     "FIDELITIES", "LAUNCH_ENGINES", "SETTINGS_SECTIONS", "TRIAL_ENGINES", "TWIN_NAMESPACE", "TWIN_SECTIONS",
     "EvaluationCancelled", "EvaluatorSettings", "LaunchEngine", "LaunchTwinSettings", "ObjectiveSettings", "PhysicsParams",
-    "ScreenSettings", "TrialEngine", "TrialExecutor", "TrialOutcome", "TrialSettings", "engine_names",
+    "ScreenSettings", "TrialEngine", "TrialExecutor", "TrialOutcome", "TrialSettings", "WorldSummary", "check_fidelity", "engine_names",
     "evaluate_jobs", "evaluate_mesh", "evaluate_profile", "evaluation", "launch_sensitivity_rows",
     "launch_twin_settings_from_parameters",
     "make_executor", "make_trial_world", "mecanum_wheels", "rollout_distance_m", "profile_body", "profile_job", "register_trial_engine", "screen_robot",
     "sensitivity_rows", "settings_at_fidelity", "settings_from_parameters", "simulate_launch",
-    "simulate_valid_launch", "spawn_pool", "stable_poses", "trial_seed", "twin_files", "with_given_files",
+    "simulate_valid_launch", "spawn_pool", "stable_poses", "summarize_worlds", "trial_seed", "twin_files",
+    "with_given_files", "world_check", "world_fidelity",
 ]
 
 

@@ -67,6 +67,9 @@ if typing.TYPE_CHECKING:   # annotations only: the twin is imported when a launc
 OBJECTIVES = ("disturbance", "launch_twin", "mix")
 #: Evaluation fidelities: the configured objective (``screen``; empty means the same) and robust twin launches.
 FIDELITIES = ("screen", "launch")
+#: Prefix of a world fidelity, ``world:<seed>``: launch fidelity with every launch in the one world drawn from
+#: ``seed`` (``objective.robust.world_seed``; the plausible-world check, :mod:`~rollability_ros.core.sim.world_check`).
+WORLD_FIDELITY = "world:"
 #: The configuration id the candidate's launches are filed under (the twin mounts the candidate itself).
 CANDIDATE = "candidate"
 
@@ -111,10 +114,40 @@ def at_fidelity(settings: "ObjectiveSettings", fidelity: str) -> "ObjectiveSetti
     itself for ``screen`` / empty, robust launches on the twin for ``launch``; ``ValueError`` for any other name."""
     if fidelity in ("", "screen"):
         return settings
-    if fidelity == "launch":
+    if fidelity == "launch" or fidelity.startswith(WORLD_FIDELITY):
+        world = world_seed_of(fidelity)
         return dataclasses.replace(settings, kind="launch_twin", launch_weight=1.0,
-                                   robust=dataclasses.replace(settings.robust, enabled=True))
-    raise ValueError(f"unknown evaluation fidelity {fidelity!r}: use one of {', '.join(FIDELITIES)}")
+                                   robust=dataclasses.replace(settings.robust, enabled=True, world_seed=world))
+    raise ValueError(f"unknown evaluation fidelity {fidelity!r}: use one of {', '.join(FIDELITIES)} or "
+                     f"{WORLD_FIDELITY}<seed>")
+
+
+def world_fidelity(world_seed: int) -> str:
+    """The fidelity of launches all in the world drawn from ``world_seed`` (>= 0): ``world:<seed>``."""
+    if int(world_seed) < 0:
+        raise ValueError(f"a world seed is >= 0, got {world_seed}")
+    return f"{WORLD_FIDELITY}{int(world_seed)}"
+
+
+def world_seed_of(fidelity: str) -> int:
+    """The world seed of a ``world:<seed>`` fidelity, -1 for any other (every launch draws its own world);
+    ``ValueError`` naming a malformed one."""
+    if not fidelity.startswith(WORLD_FIDELITY):
+        return -1
+    text = fidelity[len(WORLD_FIDELITY):]
+    if not text.isdigit() or int(text) > 2 ** 32 - 1:
+        raise ValueError(f"fidelity {fidelity!r}: a world fidelity is {WORLD_FIDELITY}<seed>, seed in [0, 2^32 - 1]")
+    return int(text)
+
+
+def check_fidelity(fidelity: str) -> typing.Optional[str]:
+    """Why ``fidelity`` is not an evaluation fidelity (one of :data:`FIDELITIES`, empty, or ``world:<seed>``), or
+    None."""
+    try:
+        at_fidelity(ObjectiveSettings(), fidelity)
+    except ValueError as exc:
+        return str(exc)
+    return None
 
 
 def fidelity_engine(settings: "ObjectiveSettings", fidelity: str, default: str) -> str:
@@ -122,7 +155,7 @@ def fidelity_engine(settings: "ObjectiveSettings", fidelity: str, default: str) 
     ``settings.launch_engine`` (``launch``), or ``default`` (the evaluation's ``sim.engine``) when that is empty;
     ``ValueError`` for an unknown fidelity or engine."""
     at_fidelity(settings, fidelity)   # validates the fidelity's name
-    engine = settings.launch_engine if fidelity == "launch" else settings.screen_engine
+    engine = settings.screen_engine if fidelity in ("", "screen") else settings.launch_engine
     if engine not in ("", *engine_names()):
         raise ValueError(f"objective.{fidelity or 'screen'}_engine must be empty (= sim.engine) or one of "
                          f"{', '.join(engine_names())}, got {engine!r}")

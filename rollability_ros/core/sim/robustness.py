@@ -85,6 +85,7 @@ class RobustSettings:
     ledge_rolling_friction_max_m: float = dataclasses.field(default=0.01, metadata={"description": "launches: the launcher base plate's rolling friction is drawn uniform in [0, this], m", "range": (0.0, 0.01)})
     speed_bias_fraction_max: float = dataclasses.field(default=0.15, metadata={"description": "launches: the speed setting's systematic error is drawn uniform in [-this, +this], fraction of the set speed", "range": (0.0, 0.15)})
     launcher_models: typing.List[str] = dataclasses.field(default_factory=lambda: ["stroke"], metadata={"description": "launches: launcher models drawn with equal probability: stroke (the paper's cylinder) and/or push_through"})
+    world_seed: int = dataclasses.field(default=-1, metadata={"description": "-1: every trial draws its own values of the unknowns; a seed >= 0: every trial uses the one draw of this seed, one plausible world (the world check, fidelity world:<seed>)", "range": (-1, 2 ** 32 - 1)})
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
@@ -105,6 +106,8 @@ class RobustSettings:
             raise ValueError(f"ledge_rolling_friction_max_m must be in [0, 0.01], got {self.ledge_rolling_friction_max_m}")
         if not 0 <= self.speed_bias_fraction_max <= 0.15:
             raise ValueError(f"speed_bias_fraction_max must be in [0, 0.15], got {self.speed_bias_fraction_max}")
+        if self.world_seed < -1:
+            raise ValueError(f"world_seed must be -1 (every trial draws) or a seed >= 0, got {self.world_seed}")
         if not self.launcher_models or not set(self.launcher_models) <= {"stroke", "push_through"}:
             raise ValueError(f"launcher_models must list some of stroke, push_through, got {self.launcher_models}")
         for name in ("foam_lateral_friction", "foam_rolling_friction", "wheel_drag", "profile_mass_scale"):
@@ -249,5 +252,12 @@ def scaled_profile(profile: typing.Any, before: _Perturbed, after: _Perturbed) -
 
 
 def robust_settings_for(settings: _Perturbed, seed: int, robust: RobustSettings) -> _Perturbed:
-    """``settings`` (EvaluatorSettings or LaunchTwinSettings) perturbed by the draw of trial ``seed``."""
-    return perturb(settings, draw(seed, robust, settings.robot.com_offset_z_m, settings.robot.body_height_m))
+    """``settings`` (EvaluatorSettings or LaunchTwinSettings) perturbed by the draw of trial ``seed``, or by the
+    one world's draw when ``robust.world_seed`` is set (>= 0: every trial in the same world)."""
+    return perturb(settings, settings_draw(settings, seed if robust.world_seed < 0 else robust.world_seed, robust))
+
+
+def settings_draw(settings: _Perturbed, seed: int, robust: RobustSettings) -> Draw:
+    """The :class:`Draw` of ``seed`` for ``settings`` (EvaluatorSettings or LaunchTwinSettings): the centre of mass
+    drawn around its robot's configured height, kept inside its body."""
+    return draw(seed, robust, settings.robot.com_offset_z_m, settings.robot.body_height_m)

@@ -60,12 +60,9 @@ def run_worlds(args: argparse.Namespace, settings: typing.Any, profiles: typing.
 
     import yaml
 
+    from rollability_ros.core.optimization import SelectionSettings, recommendation
     from rollability_ros.core.sim import evaluation, world_check
 
-    if args.launches_per_world < 1:
-        raise ValueError(f"--launches-per-world must be >= 1, got {args.launches_per_world}")
-    if len(profiles) < 2:
-        raise ValueError("the world check needs designs: give --designs-file or --mesh")
     if args.engine:
         settings = dataclasses.replace(settings, objective=dataclasses.replace(settings.objective,
                                                                                launch_engine=args.engine))
@@ -80,6 +77,7 @@ def run_worlds(args: argparse.Namespace, settings: typing.Any, profiles: typing.
                                            args.worlds, args.launches_per_world, args.seed,
                                            world_check.world_draws(settings), show)
     summaries = world_check.summarize_worlds(rows)
+    verdict = recommendation.recommend(summaries, SelectionSettings().recommend_world_share)
     csv_path = os.path.join(args.out, WORLD_FILES[0])
     with open(csv_path, "w", newline="", encoding="utf-8") as stream:
         writer = csv.DictWriter(stream, fieldnames=list(world_check.ROW_COLUMNS))
@@ -88,14 +86,30 @@ def run_worlds(args: argparse.Namespace, settings: typing.Any, profiles: typing.
     document = {"simulated": True, "engine": engine, "worlds": args.worlds,
                 "launches_per_world": args.launches_per_world, "seed": args.seed,
                 "wins_mean": "a design wins a world when its point gain over the bare robot there is > 0",
-                "designs": {s.configuration: s.as_dict() for s in summaries}}
+                "designs": {s.configuration: s.as_dict() for s in summaries},
+                "recommendation": verdict.as_dict()}
     yaml_path = os.path.join(args.out, WORLD_FILES[1])
     with open(yaml_path, "w", encoding="utf-8") as stream:
         yaml.safe_dump(document, stream, sort_keys=False)
     for line in world_check.summary_lines(summaries, engine):
         print(line)
+    print(f"recommendation (the selection's rule, selection.recommend_world_share): {verdict.headline()}")
     print(f"wrote {csv_path} and {yaml_path}")
     return 0
+
+
+def _check_world_arguments(args: argparse.Namespace, profiles: typing.Mapping[str, typing.Any],
+                           varied: typing.Mapping[str, typing.Any]) -> None:
+    """``ValueError`` for world-check flags without ``--worlds``, with a flag of the factor study, or unusable."""
+    if args.worlds is not None and (args.launches or varied):
+        raise ValueError("--worlds runs the world check: it takes neither --launches nor --vary")
+    if args.worlds is None and (args.engine or args.launches_per_world != DEFAULT_LAUNCHES_PER_WORLD):
+        raise ValueError("--engine and --launches-per-world belong to the world check: give --worlds N")
+    if args.worlds is not None and (args.worlds < 1 or args.launches_per_world < 1):
+        raise ValueError(f"--worlds and --launches-per-world must be >= 1, got {args.worlds} and "
+                         f"{args.launches_per_world}")
+    if args.worlds is not None and len(profiles) < 2:
+        raise ValueError("the world check needs designs: give --designs-file or --mesh")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -108,7 +122,8 @@ def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.results import gain_lines
     from rollability_ros.core.sim import launch_sensitivity_rows, sensitivity_rows
 
-    check_output_dir(args.out, "--out", keeps=("sensitivity.csv", "sensitivity.png", *WORLD_FILES))
+    check_output_dir(args.out, "--out", keeps=WORLD_FILES if args.worlds is not None else
+                     ("sensitivity.csv", "sensitivity.png"))
     settings = evaluation.with_given_files(evaluation.load_settings(["sim", "robot", "evaluator", *args.config]),
                                            args.config, "rollability sensitivity")
     if args.trials < 1:
@@ -117,10 +132,7 @@ def run(args: argparse.Namespace) -> int:
     varied = _varied(args.vary)
     if varied and not args.launches:
         raise ValueError("--vary needs --launches (it varies a launch twin setting)")
-    if args.worlds is not None and (args.launches or varied):
-        raise ValueError("--worlds runs the world check: it takes neither --launches nor --vary")
-    if args.worlds is None and (args.engine or args.launches_per_world != DEFAULT_LAUNCHES_PER_WORLD):
-        raise ValueError("--engine and --launches-per-world belong to the world check: give --worlds N")
+    _check_world_arguments(args, profiles, varied)
     os.makedirs(args.out, exist_ok=True)
     if args.worlds is not None:
         return run_worlds(args, settings, profiles)

@@ -201,13 +201,57 @@ def test_the_report_opens_with_the_recommendation_table(tmp_path):
 
 
 def test_the_report_never_lists_a_losing_design_first(tmp_path):
-    from rollability_ros.core.results import report, report_writer
+    from rollability_ros.core.results import analysis, report, report_writer
 
     source = _campaign_with_designs(tmp_path, {"baseline": [10] * 10, "A": [8] * 10, "B": [9] * 10},
                                     {"baseline": 20, "A": 12, "B": 18})
-    built = report_writer.build_report(report.load_report_data(source), str(tmp_path / "report"))
-    assert built.summary.startswith("RECOMMENDATION: NO DESIGN IS RECOMMENDED")
+    data = report.load_report_data(source)
+    views = analysis.paper_views(data.outcomes, report.CONFIGURATION_ORDER)
+    lead = report.report_lead(data, views)
+    summary = report.summary_text(data, views, None, [], lead)
+    assert summary.startswith("RECOMMENDATION: NO DESIGN IS RECOMMENDED") and "print first" not in summary
     parser = _Tables()
-    parser.feed(open(built.html_path, encoding="utf-8").read())
+    parser.feed(report_writer.lead_html(lead))
     verdicts = [row[1] for row in parser.tables[0]["rows"][1:]]
-    assert verdicts == ["not recommended", "not recommended"] and "print first" not in built.summary
+    assert verdicts == ["not recommended", "not recommended"]
+    # the same designs, now B wins every world clearly but loses on the campaign: still not listed first
+    with open(tmp_path / "designs" / "world_check.csv", "w", newline="", encoding="utf-8") as stream:
+        writer = csv.DictWriter(stream, fieldnames=world_check.ROW_COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows_from({"baseline": [5] * 10, "A": [4] * 10, "B": [15] * 10}))
+    data = report.load_report_data(source)
+    lead = report.report_lead(data, views)
+    assert lead.headline.startswith("NO DESIGN TO PRINT FIRST") and lead.rows[0].verdict == "not listed first"
+
+
+# --- the selection uses it -----------------------------------------------------------------------------------------
+def test_the_selection_checks_its_designs_in_worlds_and_records_the_recommendation():
+    import numpy as np
+
+    from rollability_ros.core.optimization.design_set import designs_document
+    from rollability_ros.core.optimization.selection import (PooledDesign, SelectedDesign, SelectionResult,
+                                                             SelectionSettings, with_world_check)
+    from rollability_ros.core.profile.geometry import ProfileGrid
+
+    grid = ProfileGrid(rows=2, cols=2)
+    designs = [SelectedDesign(label, PooledDesign(np.full(grid.n_variables, top), 9, 10, 1, 1), None, None)
+               for label, top in (("A", 0.1), ("B", 0.3))]
+    result = SelectionResult(designs, 2, 2, {})
+    calls = []
+
+    def world_launch(heights_list, world_seed, launch_seed, launches):
+        """B rights 15 of 20 in every world, A 6, the bare robot (zeros) 5; one call per world."""
+        calls.append((len(heights_list), world_seed, launch_seed))
+        return [(5 if not h.any() else 15 if h[0] > 0.2 else 6, launches, 0.0, "fake") for h in heights_list]
+
+    settings = SelectionSettings(world_count=10, world_launches=20)
+    checked = with_world_check(result, grid, settings, world_launch, run_seed=3)
+    assert len(calls) == 10 and all(n == 3 for n, _, _ in calls)          # bare robot + both designs together
+    assert len(checked.world_rows) == 30 and checked.recommendation.first == "B"
+    assert checked.recommendation.recommended == ("B",)                  # A wins every world, pooled not above 0
+    body = designs_document(checked, grid, "run")["/**"]["ros__parameters"]["designs"]
+    assert body["recommendation"]["first"] == "B" and body["recommendation"]["min_world_share"] == 0.9
+    assert body["world_check"] == {"worlds": 10, "launches_per_world": 20, "file": "selection_world_check.csv"}
+    assert with_world_check(result, grid, SelectionSettings(), None, 3) is result   # world_count 0: no check
+    with pytest.raises(ValueError, match="world launch evaluator"):
+        with_world_check(result, grid, settings, None, 3)

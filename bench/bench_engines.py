@@ -37,7 +37,7 @@ from bench.bench_evaluator import dome_heights  # noqa: E402
 from rollability_ros.core.optional import require  # noqa: E402
 from rollability_ros.core.robots.urdf_robot import obj_text, profile_inertia  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
-from rollability_ros.core.sim.mujoco_trials import _pose_speeds  # noqa: E402
+from rollability_ros.core.sim.mujoco_trials import pose_speeds  # noqa: E402
 from rollability_ros.core.sim.trials import sample_conditions  # noqa: E402
 
 PAPER_TRIALS = 500 * 13 * 60
@@ -48,7 +48,7 @@ def launch_rates(candidates, repeats):
     upright launches, the same launches in every variant (see the module docstring)."""
     from rollability_ros.core.robots.robot import ProfileBody
     from rollability_ros.core.profile.geometry import profile_mesh
-    from rollability_ros.core.sim import launch_twin, mujoco_launch_twin
+    from rollability_ros.core.sim.launch import mujoco_twin, pybullet_twin, settings as twin_settings, twin
     from rollability_ros.core.sim.objectives import launch_conditions
 
     base = evaluation.load_settings()
@@ -58,24 +58,24 @@ def launch_rates(candidates, repeats):
                                       for _ in range(candidates - 1)]
     profiles = [base.profile_body(profile_mesh(h, grid)) for h in heights]
     conditions = launch_conditions(["campaign"])
-    twin = launch_twin.load_launch_twin_settings()
+    twin = twin_settings.load_launch_twin_settings()
     variants = {(engine, early): dataclasses.replace(
         twin, physics=dataclasses.replace(twin.physics, engine=engine),
         trial=dataclasses.replace(twin.trial, early_decision=early))
         for engine in ("pybullet", "mujoco") for early in (False, True)}
-    launch_twin.simulate_launch(conditions[0], variants[("mujoco", False)], 0, use_profile=True)   # imports
+    twin.simulate_launch(conditions[0], variants[("mujoco", False)], 0, use_profile=True)   # imports
     times = {key: [] for key in variants}
     cpu = {key: [] for key in variants}
     steps, upright = {}, {}
     for repeat in range(repeats):
         for key, settings in variants.items():
-            mujoco_launch_twin._cache.clear()     # every candidate builds its world, as in an optimization
-            launch_twin._BASINS.clear()
+            mujoco_twin._cache.clear()     # every candidate builds its world, as in an optimization
+            pybullet_twin._BASINS.clear()
             outcomes = []
             started, cpu_started = time.perf_counter(), time.process_time()
             for candidate, profile in enumerate(profiles):
                 for index, condition in enumerate(conditions):
-                    outcomes.append(launch_twin.simulate_valid_launch(
+                    outcomes.append(twin.simulate_valid_launch(
                         condition, settings, evaluation.trial_seed(500 + candidate, index), profile=profile,
                         use_profile=True))
             times[key].append(time.perf_counter() - started)
@@ -197,7 +197,7 @@ def naive_mujoco(job, seeds, hold_steps, cap_steps):
         data.xfrc_applied[root] = 0.0
 
     def speeds():  # from poses: MuJoCo 4 may put a body at rest to sleep, freezing its pose but not its qvel
-        return _pose_speeds(previous[0], data.qpos[0:7], model.opt.timestep)
+        return pose_speeds(previous[0], data.qpos[0:7], model.opt.timestep)
 
     return _naive_loop(seeds, settings, hold_steps, cap_steps, (reset, push, step, speeds))
 

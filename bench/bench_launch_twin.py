@@ -21,7 +21,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from bench.bench_evaluator import dome_heights  # noqa: E402
 from rollability_ros.core.sim.evaluation import EvaluatorSettings  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh, profile_mesh  # noqa: E402
-from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_launch  # noqa: E402
+from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+from rollability_ros.core.sim.launch.twin import simulate_launch  # noqa: E402
 from rollability_ros.core.results.records import LaunchCondition  # noqa: E402
 
 HEIGHTS_M, SPEEDS_MPS, ANGLES_DEG = (0.75, 1.30), (0.8, 1.5), (-60.0, -30.0, 0.0, 30.0, 60.0)

@@ -33,7 +33,7 @@ ACCEPTED_PER_100 = 6
 def _launches(settings, heights, pad, launches, engine):
     """``(upright, on the floor, invalid)`` counts of ``launches`` nominal launches of ``heights`` on ``pad``."""
     from rollability_ros.core.sim import objectives
-    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     objective = objectives.launch_objective(settings.objective, engine, early_decision=True)
     twin = objective.twin

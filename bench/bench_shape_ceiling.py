@@ -82,7 +82,7 @@ def rest_mode(result) -> str:
 def _modes_of(settings, heights, launches, seed):
     """``Counter`` of :func:`rest_mode` over ``launches`` nominal launches of ``heights`` (full rest rule)."""
     from rollability_ros.core.sim import objectives
-    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     objective = objectives.launch_objective(settings.objective, settings.physics.engine, early_decision=False)
     profile = evaluation.profile_job(heights, settings).profile

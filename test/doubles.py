@@ -51,7 +51,7 @@ def synthetic_outcomes(parameters, names, values, conditions, repetitions, first
     """
     from rollability_ros.core.campaign import calibration
     from rollability_ros.core.results.records import INVALID_LAUNCH
-    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     hidden = calibration.twin_settings_with(parameters, names, values)
     outcomes = []

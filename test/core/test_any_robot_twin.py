@@ -13,8 +13,9 @@ from rollability_ros.core.campaign.runner import (INVALID_STOP_MIN_LAUNCHES, Cam
                                                   report_exit_code, run_campaign)
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
 from rollability_ros.core.results.records import INVALID_LAUNCH, LaunchCondition, LaunchOutcome
-from rollability_ros.core.sim.launch_twin import (check_launcher, load_launch_twin_settings, simulate_launch,
-                                                  simulate_valid_launch, sized_for_robot)
+from rollability_ros.core.sim.launch.placement import check_launcher, sized_for_robot
+from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+from rollability_ros.core.sim.launch.twin import simulate_launch, simulate_valid_launch
 from rollability_ros.core.sim.launcher_geometry import LauncherGeometry, check_launcher_geometry
 
 sys.path.insert(0, os.path.dirname(__file__))

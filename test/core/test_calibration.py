@@ -11,7 +11,7 @@ from rollability_ros.core.campaign import calibration, local_rig_settings_from_f
 from rollability_ros.core.results.analysis import ConditionResult
 from rollability_ros.core.config import ConfigError, load_parameters, section
 from rollability_ros.core.sim.evaluation import load_settings
-from rollability_ros.core.sim.launch_twin import TWIN_SECTIONS, load_launch_twin_settings
+from rollability_ros.core.sim.launch.settings import TWIN_SECTIONS, load_launch_twin_settings
 from rollability_ros.core.results import write_outcome_csv
 from rollability_ros.core.results.records import LaunchCondition
 

@@ -89,7 +89,7 @@ def test_a_twin_key_given_to_an_evaluation_that_launches_changes_its_twin(tmp_pa
     """Issue 42: `evaluate --fidelity launch --config F` ran on the shipped pad whatever F's launch_twin said (the
     twin reads objective.twin_config only); now F's twin keys reach the twin, and without launches are refused."""
     from rollability_ros.core.sim import evaluation
-    from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
 
     pad = _file(tmp_path, "pad.yaml", "    launch_twin: {foam: {length_m: 3.5}}\n")
     shipped = load_launch_twin_settings().twin.foam.length_m

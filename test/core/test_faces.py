@@ -66,7 +66,7 @@ def test_a_lazy_face_imports_a_name_when_it_is_used():
                   "before = 'rollability_ros.core.sim.evaluation' in sys.modules\n"
                   "from rollability_ros.core.sim import evaluate_profile\n"
                   "from rollability_ros.core.sim.evaluation import evaluate_profile as deep\n"
-                  "print(before, evaluate_profile is deep, 'rollability_ros.core.sim.launch_twin' in sys.modules)")
+                  "print(before, evaluate_profile is deep, 'rollability_ros.core.sim.launch.twin' in sys.modules)")
     assert loaded == ["False", "True", "False"]
     with pytest.raises(ImportError, match="cannot import name 'no_such_name'"):
         exec("from rollability_ros.core.sim import no_such_name", {})

@@ -55,7 +55,8 @@ def test_launch_twin_objective_scores_launches_of_the_candidate_under_the_campai
     pytest.importorskip("pybullet")
     from rollability_ros.core.profile.geometry import profile_mesh
     from rollability_ros.core.results.records import LaunchCondition
-    from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_valid_launch
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     campaign = tmp_path / "two_angles.yaml"
     campaign.write_text(CAMPAIGN)
@@ -83,7 +84,7 @@ def test_launches_run_on_the_evaluations_engine_or_are_refused(monkeypatch, tmp_
     from rollability_ros.cli import main
     from rollability_ros.core.results.records import LaunchCondition
     from rollability_ros.core.sim import trial_engine
-    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     campaign = tmp_path / "two_angles.yaml"
     campaign.write_text(CAMPAIGN)

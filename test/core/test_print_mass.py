@@ -218,7 +218,8 @@ def test_mujoco_compiles_the_printed_mass_centre_and_inertia(robot):
 
 def test_the_stable_pose_screen_and_the_twin_weigh_the_print(tmp_path):
     pytest.importorskip("pybullet")
-    from rollability_ros.core.sim import launch_twin, stable_poses
+    from rollability_ros.core.sim import stable_poses
+    from rollability_ros.core.sim.launch import settings as twin_settings, twin
 
     spec = ChassisSpec()
     profile = printed_profile(spec)
@@ -228,16 +229,16 @@ def test_the_stable_pose_screen_and_the_twin_weigh_the_print(tmp_path):
     grid = ProfileGrid()
     path = tmp_path / "wedge.stl"
     profile_mesh(front_heavy_heights(grid), grid).export(path)
-    settings = launch_twin.load_launch_twin_settings(overrides={"twin.designs.mesh_labels": ["W"],
-                                                                "twin.designs.mesh_files": [str(path)]})
-    hollow = launch_twin.load_launch_twin_settings(overrides={
+    settings = twin_settings.load_launch_twin_settings(overrides={"twin.designs.mesh_labels": ["W"],
+                                                                  "twin.designs.mesh_files": [str(path)]})
+    hollow = twin_settings.load_launch_twin_settings(overrides={
         "twin.designs.mesh_labels": ["W"], "twin.designs.mesh_files": [str(path)],
         "robot.profile_print.infill_fraction": 0.0, "robot.profile_mass_scale": 1.5})
-    mounted = launch_twin.profile_body("W", settings)
+    mounted = twin.profile_body("W", settings)
     assert mounted.mass_kg == pytest.approx(profile.mass_kg, rel=1e-6)
     expected = 1.5 * print_mass_properties(profile_mesh(front_heavy_heights(grid), grid), shell(0.0008, 0.0008, 0.0)
                                            ).mass_kg
-    assert launch_twin.profile_body("W", hollow).mass_kg == pytest.approx(expected, rel=1e-6)
+    assert twin.profile_body("W", hollow).mass_kg == pytest.approx(expected, rel=1e-6)
 
 
 def test_bullets_box_of_a_profile_on_turned_inertial_axes_overstates_it_and_the_points_do_not():

@@ -168,7 +168,8 @@ def test_a_launch_on_a_compliant_mount_is_a_valid_launch_that_differs_from_the_r
     import dataclasses
 
     from rollability_ros.core.results.records import LaunchCondition
-    from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_launch
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+    from rollability_ros.core.sim.launch.twin import simulate_launch
 
     rigid = load_launch_twin_settings(overrides={"twin.speed_sigma_fraction": 0.0, "twin.angle_sigma_deg": 0.0})
     compliant = dataclasses.replace(rigid, robot=dataclasses.replace(rigid.robot, profile_mount=ProfileMountSpec(

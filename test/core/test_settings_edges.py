@@ -19,15 +19,15 @@ ALLOWED = {
     ("sim/evaluation.py", "settings_from_parameters"): (1, "the edge parse of the evaluator's parameters"),
     ("campaign/calibration.py", "calibration_settings"): (2, "the edge parse of the calibration section, checked "
                                                              "against the twin's keys"),
-    ("sim/launch_twin.py", "launch_twin_settings_from_parameters"): (2, "the edge parse of the twin's parameters, "
-                                                                        "with settings overrides"),
+    ("sim/launch/settings.py", "launch_twin_settings_from_parameters"): (2, "the edge parse of the twin's "
+                                                                               "parameters, with settings overrides"),
     # a file's own settings, read where the file is read
     ("optimization/optimization_run.py", "OptimizationRun.__init__"): (1, "the run's record (config.yaml, written "
                                                                           "and compared on resume), parsed once"),
     ("optimization/optimization_run.py", "OptimizationRun._screen_initial_means"): (
         1, "the robot the run's record describes, when the caller passes no screen"),
     ("sim/evaluation.py", "load_settings"): (1, "reads parameter files"),
-    ("sim/launch_twin.py", "load_launch_twin_settings"): (1, "reads parameter files"),
+    ("sim/launch/settings.py", "load_launch_twin_settings"): (1, "reads parameter files"),
     ("rig/rig_session.py", "SimulatedLaunch.load"): (1, "reads the twin files rig.twin_config names"),
     ("sim/objectives.py", "_resolve"): (1, "reads the twin files objective.twin_config names"),
     ("campaign_matrix.py", "load_campaign_spec"): (2, "reads a campaign's parameter files"),

@@ -187,7 +187,7 @@ def check_fittable(parameters: typing.Mapping[str, typing.Any], settings: Calibr
 
 def twin_settings_with(parameters: typing.Mapping[str, typing.Any], names: typing.Sequence[str],
                        values: typing.Union[typing.Sequence[float], np.ndarray]) -> LaunchTwinSettings:
-    """:class:`~rollability_ros.core.sim.launch_twin.LaunchTwinSettings` of flat ``parameters`` with ``names`` set to
+    """:class:`~rollability_ros.core.sim.launch.settings.LaunchTwinSettings` of flat ``parameters`` with ``names`` set to
     ``values`` (config keys, own units; ``values`` (d,) one per name; checked like file values)."""
     return launch_twin_settings_from_parameters(flat_with(parameters, names, values))
 

@@ -529,7 +529,8 @@ class PhysicalLaunch(LaunchBackend):
 
 
 class SimulatedLaunch(LaunchBackend):
-    """The ``sim`` :class:`LaunchBackend`: launches on the launch twin (``rollability_ros.core.sim.launch_twin``),
+    """The ``sim`` :class:`LaunchBackend`: launches on the launch twin (``rollability_ros.core.sim.launch``, through the
+    ``rollability_ros.core.sim`` face),
     imported at the first launch (or :meth:`load`) so the physical rig runs without pybullet installed.
 
     Parameters
@@ -563,7 +564,7 @@ class SimulatedLaunch(LaunchBackend):
         """Import the twin, read its settings and check its launcher against the robot now (a node does it at
         start-up to fail early: ``ValueError`` naming the setting)."""
         if self._twin is None:
-            twin = importlib.import_module("rollability_ros.core.sim.launch_twin")
+            twin = importlib.import_module("rollability_ros.core.sim")
             self._twin_settings = twin.load_launch_twin_settings(self.settings.twin_config)
             twin.check_launcher(self._twin_settings)
             self._twin = twin

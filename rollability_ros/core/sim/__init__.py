@@ -10,7 +10,8 @@ the launch twin.
 - evaluation: fitness = upright / trials, serial, process pool or Ray
 - _worker_pool: spawned worker processes that never outlive their parent
 - stable_poses: analytic stable-pose screen
-- launch_twin: the simulated launch rig (PyBullet; sim.engine mujoco runs mujoco_launch_twin, the same rules in MuJoCo)
+- launch/: the simulated launch rig: settings, results, contract, placement, decision, loop, drive, twin (the entry)
+  and one module per engine (pybullet_twin, mujoco_twin: the same rules in MuJoCo)
 
 The face below is what code outside ``core/sim`` imports (``from rollability_ros.core.sim import
 evaluate_profile``). It is lazy (``core/faces.py``): importing it loads none of the modules behind it, and a name's
@@ -26,9 +27,11 @@ if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this
                                                      TrialExecutor, evaluate_jobs, evaluate_mesh, evaluate_profile,
                                                      make_executor, profile_job, settings_at_fidelity,
                                                      settings_from_parameters, trial_seed, with_given_files)
-    from rollability_ros.core.sim.launch_twin import (TWIN_NAMESPACE, TWIN_SECTIONS, LaunchTwinSettings,
-                                                      launch_twin_settings_from_parameters, mecanum_wheels, profile_body,
-                                                      simulate_launch, simulate_valid_launch, twin_files)
+    from rollability_ros.core.sim.launch.placement import check_launcher
+    from rollability_ros.core.sim.launch.settings import (TWIN_NAMESPACE, TWIN_SECTIONS, LaunchTwinSettings,
+                                                          launch_twin_settings_from_parameters,
+                                                          load_launch_twin_settings, mecanum_wheels, twin_files)
+    from rollability_ros.core.sim.launch.twin import profile_body, simulate_launch, simulate_valid_launch
     from rollability_ros.core.sim.objectives import FIDELITIES, ObjectiveSettings, check_fidelity, world_fidelity
     from rollability_ros.core.sim.rollout import rollout_distance_m
     from rollability_ros.core.sim.sensitivity import launch_sensitivity_rows, sensitivity_rows
@@ -48,7 +51,7 @@ __all__ = [
     "ScreenSettings", "TrialEngine", "TrialExecutor", "TrialOutcome", "TrialSettings", "WorldSummary", "check_fidelity", "engine_names",
     "evaluate_jobs", "evaluate_mesh", "evaluate_profile", "evaluation", "launch_sensitivity_rows",
     "launch_twin_settings_from_parameters",
-    "make_executor", "make_trial_world", "mecanum_wheels", "rollout_distance_m", "profile_body", "profile_job", "register_trial_engine", "screen_robot",
+    "check_launcher", "load_launch_twin_settings", "make_executor", "make_trial_world", "mecanum_wheels", "rollout_distance_m", "profile_body", "profile_job", "register_trial_engine", "screen_robot",
     "sensitivity_rows", "settings_at_fidelity", "settings_from_parameters", "simulate_launch",
     "simulate_valid_launch", "spawn_pool", "stable_poses", "summarize_worlds", "trial_seed", "twin_files",
     "with_given_files", "world_check", "world_fidelity",

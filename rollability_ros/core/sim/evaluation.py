@@ -163,7 +163,7 @@ def with_given_files(settings: "EvaluatorSettings", paths: typing.Sequence[str],
     command applies (:func:`~rollability_ros.core.config.check_given_files`): the evaluation's namespaces
     (:data:`SETTINGS_SECTIONS`) and, when its objective launches the twin, ``launch_twin``. So a twin parameter in a
     given file changes the launches or is refused, never dropped."""
-    from rollability_ros.core.sim.launch_twin import TWIN_NAMESPACE, twin_files
+    from rollability_ros.core.sim.launch.settings import TWIN_NAMESPACE, twin_files
 
     launches = settings.objective.kind != "disturbance"
     check_given_files(paths, {*SETTINGS_SECTIONS.values(), *([TWIN_NAMESPACE] if launches else [])}, command)

@@ -8,7 +8,7 @@ sim_evaluator node) runs it unchanged. What a *trial* is depends on ``objective.
 ``disturbance``
     the paper's trial (:mod:`rollability_ros.core.sim.trials`).
 ``launch_twin``
-    one launch of the candidate on the launch twin (:func:`~rollability_ros.core.sim.launch_twin.simulate_valid_launch`)
+    one launch of the candidate on the launch twin (:func:`~rollability_ros.core.sim.launch.twin.simulate_valid_launch`)
     under a launch condition of a campaign configuration: the heights, speeds and angles of
     ``objective.campaign_config`` (its ``campaign`` namespace; its configurations and repetitions are not used).
     Launch ``j`` of an evaluation takes condition ``j mod C`` of the C conditions (height, then speed, then angle
@@ -61,7 +61,7 @@ from rollability_ros.core.sim.trial_engine import engine_names
 if typing.TYPE_CHECKING:   # annotations only: the twin is imported when a launch runs
     from rollability_ros.core.robots import ProfileBody, RobotModel
     from rollability_ros.core.sim.evaluation import TrialJob
-    from rollability_ros.core.sim.launch_twin import LaunchTwinSettings
+    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
 
 #: ``objective.kind`` values.
 OBJECTIVES = ("disturbance", "launch_twin", "mix")
@@ -191,7 +191,7 @@ def launch_conditions(campaign_config: typing.Sequence[str]) -> typing.Tuple[Lau
 
 @functools.lru_cache(maxsize=8)
 def _resolve(kind, launch_weight, campaign_config, twin_config, engine, early_decision):
-    from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
 
     settings = ObjectiveSettings(kind, launch_weight, list(campaign_config), list(twin_config), RobustSettings())
     twin = load_launch_twin_settings(twin_config)
@@ -221,7 +221,7 @@ def run_launch_trial(objective: LaunchObjective, profile: "typing.Optional[Profi
                      index: int, seed: int) -> TrialOutcome:
     """Trial ``index`` (a launch) of an evaluation: the candidate ``profile`` (ProfileBody, None = bare chassis)
     launched on the twin under :meth:`LaunchObjective.condition` with ``seed``; a :class:`TrialOutcome`."""
-    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     condition = objective.condition(index)
     result = simulate_valid_launch(condition, objective.twin, seed, profile=profile, use_profile=True)

@@ -41,7 +41,7 @@ its own trial seed (so candidates evaluated with one base seed meet the same dra
 
 The ranges, their sources and how far each moves the designs' gain are in docs/twin-model.md. Both launch
 engines read every drawn field (the MuJoCo twin puts them into its compiled model's contact values and joint
-friction, :meth:`~rollability_ros.core.sim.mujoco_launch_twin.MujocoLaunchTwin.retarget`). The draws come from
+friction, :meth:`~rollability_ros.core.sim.launch.mujoco_twin.MujocoLaunchTwin.retarget`). The draws come from
 the trial seed's own stream in a fixed order, new unknowns after the old, so a trial's earlier draws keep their
 values when an unknown is added.
 
@@ -205,7 +205,7 @@ def wheel_drag_field(settings: _Perturbed) -> str:
     """The dotted settings name of the wheel drag a launch twin's ``settings`` uses: the twin's Mecanum wheels'
     (``twin.wheel_drag_torque_nm``), else the robot's own (``urdf_robot.joint_drag_torque_nm`` or
     ``robot.wheel_drag_torque_nm``)."""
-    from rollability_ros.core.sim.launch_twin import mecanum_wheels   # launch_twin is heavier; sim-internal
+    from rollability_ros.core.sim.launch.settings import mecanum_wheels  # launch_twin is heavier; sim-internal
 
     if mecanum_wheels(settings):
         return "twin.wheel_drag_torque_nm"

@@ -527,7 +527,8 @@ class _MapPicker:
     """Farthest-point picking over an archive's (height, sharpness) plane: the elites, their estimates, and the
     designs taken so far with their points."""
 
-    def __init__(self, elites, designs, pooled, spans):
+    def __init__(self, elites: typing.List[typing.Dict[str, typing.Any]], designs: typing.List[PooledDesign],
+                 pooled: typing.Dict[tuple, PooledDesign], spans: typing.List[float]) -> None:
         self.elites, self.designs, self.pooled, self.spans = elites, designs, pooled, spans
         self.chosen: typing.List[SelectedDesign] = []
         self.points: typing.List[np.ndarray] = []

@@ -35,7 +35,9 @@ objective above, what the optimizer's candidates are scored with; ``launch`` is 
 launches on the twin under the campaign's conditions (``kind: launch_twin`` with ``robust.enabled``, the same
 ``campaign_config``, ``twin_config`` and robust ranges). The multi-fidelity search (docs/optimization.md) lets
 cheap screen trials propose and launches decide; :func:`at_fidelity` is the one place that maps a fidelity to
-an objective, so the sim_evaluator node and an in-process evaluation measure the same thing.
+an objective, so the sim_evaluator node and an in-process evaluation measure the same thing. ``world:<seed>``
+(:func:`world_fidelity`) is ``launch`` with every launch in the one world drawn from ``seed``
+(``robust.world_seed``): the plausible-world check (:mod:`~rollability_ros.core.sim.world_check`).
 
 Each fidelity may run on its own engine (``objective.screen_engine``, ``objective.launch_engine``; empty = the
 evaluation's ``sim.engine``): the quick default scores the optimizer's candidates on robust launches in MuJoCo (about

@@ -255,3 +255,44 @@ def test_the_selection_checks_its_designs_in_worlds_and_records_the_recommendati
     assert with_world_check(result, grid, SelectionSettings(), None, 3) is result   # world_count 0: no check
     with pytest.raises(ValueError, match="world launch evaluator"):
         with_world_check(result, grid, settings, None, 3)
+
+
+def test_the_command_launches_in_real_worlds_and_writes_its_tables(tmp_path, capsys, monkeypatch):
+    """``rollability sensitivity --worlds``: MuJoCo launches (the cheaper engine), 2 worlds x 2 paired launches,
+    in this process (the command's worker pool would cost more to start than the launches)."""
+    import numpy as np
+    import yaml
+
+    from rollability_ros.core.sim import evaluation
+
+    monkeypatch.setattr(evaluation, "make_executor", lambda options, workers=None: evaluation.SerialExecutor())
+
+    pytest.importorskip("mujoco")
+    pytest.importorskip("trimesh")
+    from rollability_ros.cli import main
+    from rollability_ros.core.optimization.design_set import designs_document
+    from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, SelectionResult
+    from rollability_ros.core.profile.geometry import ProfileGrid
+
+    grid = ProfileGrid(rows=3, cols=3)
+    chosen = [SelectedDesign("A", PooledDesign(np.repeat(np.linspace(0.05, 0.3, 3), 3), 9, 10, 1, 1), None, None)]
+    document = designs_document(SelectionResult(chosen, 1, 1, {}), grid, "run-1")
+    (tmp_path / "designs.yaml").write_text(yaml.safe_dump(document), encoding="utf-8")
+    out = tmp_path / "worlds"
+    assert main(["sensitivity", "--designs-file", str(tmp_path / "designs.yaml"), "--worlds", "2",
+                 "--launches-per-world", "2", "--engine", "mujoco", "--seed", "4",
+                 "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "plausible-world check (simulated on mujoco): 2 worlds" in printed and "recommendation (" in printed
+    with open(out / "world_check.csv", newline="", encoding="utf-8") as stream:
+        rows = list(csv.DictReader(stream))
+    assert [(r["world"], r["configuration"]) for r in rows] == [("0", "baseline"), ("0", "A"), ("1", "baseline"),
+                                                                ("1", "A")]
+    for world in ("0", "1"):   # paired: one launch seed and one draw per world
+        own = [r for r in rows if r["world"] == world]
+        assert own[0]["launch_seed"] == own[1]["launch_seed"] and own[0]["wheel_drag_nm"] == own[1]["wheel_drag_nm"]
+    assert rows[0]["wheel_drag_nm"] != rows[2]["wheel_drag_nm"] and all(r["trials"] == "2" for r in rows)
+    summary = yaml.safe_load((out / "world_summary.yaml").read_text(encoding="utf-8"))
+    assert summary["simulated"] is True and summary["engine"] == "mujoco" and summary["designs"]["A"]["worlds"] == 2
+    assert main(["sensitivity", "--designs-file", str(tmp_path / "designs.yaml"), "--worlds", "2",
+                 "--out", str(out)]) == 2                                  # an earlier check is never overwritten

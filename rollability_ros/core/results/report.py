@@ -1,4 +1,10 @@
-"""The analysis report of a run: PNG figures, CSV tables, one self-contained HTML file and a text summary.
+"""What the analysis report of a run says: the records it reads, its text summary and its lead.
+
+The files (PNG figures, CSV tables, one self-contained HTML file) are written by
+:mod:`~rollability_ros.core.results.report_writer`. The summary opens with the lead
+(:func:`report_lead`, :mod:`~rollability_ros.core.results.lead`): which design to print first and why, from the
+designs' plausible-world check (``world_check.csv`` or the selection's ``selection_world_check.csv`` next to
+designs.yaml) and the campaign.
 
 A report is built from records only (launch outcomes, candidates, generations, tip events), so the same
 campaign gives the same tables and figures whether it is read from the live store, from its bag or from a CSV
@@ -11,7 +17,8 @@ of hand-recorded outcomes. Sources:
 - a CSV of launch outcomes (``docs/outcome-csv.md``).
 
 The per-trial drill-down lists every launch with its twin seed and, for a simulated one, the command that
-simulates it again (:func:`resimulate_command`), and its pose trace in a bag next to the source.
+simulates it again (:func:`~rollability_ros.core.results.report_writer.resimulate_command`), and its pose trace
+in a bag next to the source.
 
 Table 3 and the simulated fitness per configuration come from the store's run info (``geometry``,
 ``sim_fitness``), from ``<run dir>/designs/table3.csv`` of the design selection, or from the command line.

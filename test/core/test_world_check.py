@@ -191,7 +191,7 @@ def test_the_report_opens_with_the_recommendation_table(tmp_path):
     assert len(lead_lines) >= 4 and all(len(line) <= 120 for line in lead_lines)
     parser = _Tables()
     parser.feed(open(built.html_path, encoding="utf-8").read())
-    assert parser.headings[:2] == ["Contents", "Recommendation: which design to print first"]
+    assert parser.headings[:2] == ["Recommendation: which design to print first", "Contents"]   # first on the page
     lead = parser.tables[0]
     assert lead["class"] == "lead"
     header, first, second = lead["rows"][:3]

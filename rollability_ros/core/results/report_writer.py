@@ -341,8 +341,7 @@ def _gain_cell(gain):
 def _html(data, summary, figures, tables, artefacts=(), trace=None, out_dir=".", lead=None):
     """The report as one HTML document: a table of contents, the summary, figures as base64 data URIs, links to
     every artefact (relative to ``out_dir``), the tables inline and a per-trial drill-down; no external resources."""
-    sections = ([("recommendation", "Recommendation: which design to print first")] if lead is not None else []) \
-        + [("summary", "Summary")]
+    sections = [("summary", "Summary")]
     sections += [(f"figure-{_anchor(os.path.basename(path))}", caption) for path, caption in figures]
     if artefacts:
         sections.append(("artefacts", "Files: designs, bags, tables"))
@@ -352,9 +351,9 @@ def _html(data, summary, figures, tables, artefacts=(), trace=None, out_dir=".",
     toc = "".join(f"<li><a href='#{anchor}'>{html.escape(title)}</a></li>" for anchor, title in sections)
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>Rollability report</title>"
              f"<style>{_STYLE}</style></head><body><h1>Rollability report</h1>",
-             f"<nav id='contents'><h2>Contents</h2><ol>{toc}</ol></nav>",
              (f"<h2 id='recommendation'>Recommendation: which design to print first</h2>{lead_html(lead)}"
               if lead is not None else ""),
+             f"<nav id='contents'><h2>Contents</h2><ol>{toc}</ol></nav>",
              f"<h2 id='summary'>Summary</h2><pre>{html.escape(summary)}</pre>"]
     if figures:
         parts.append("<h2>Figures</h2>")

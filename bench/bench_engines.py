@@ -276,7 +276,7 @@ def racing_generation_times(generations, looks, alpha, workers=2):
         for name, race_looks in (("full", [0]), ("raced", list(looks))):
             run_parameters = {**parameters, "optimizer.race_looks": race_looks}
             runs[name] = optimization_run.OptimizationRun(
-                os.path.join(folder, name), run_parameters, settings.grid,
+                os.path.join(folder, name), optimization_run.run_config(run_parameters), settings.grid,
                 optimization_run.profile_batch_evaluator(settings, 60, pool),
                 evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, pool, "screen"))
         try:

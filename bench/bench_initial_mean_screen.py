@@ -32,7 +32,7 @@ def one_run(parameters, settings, executor, run_dir):
     trials = optimization_run.run_settings(parameters).optimizer.trials
     started = time.perf_counter()
     run = optimization_run.OptimizationRun(
-        run_dir, parameters, settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
+        run_dir, optimization_run.run_config(parameters), settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
         screen_profiles=optimization_run.profile_screen(optimization_run.run_settings(parameters), settings))
     screen_s = time.perf_counter() - started
     run.run()

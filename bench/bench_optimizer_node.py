@@ -65,7 +65,7 @@ def run_in_process(parameters, workdir, workers):
         executor.warm()
         batch = optimization_run.profile_batch_evaluator(settings, optimization_run.run_settings(parameters).optimizer
                                                          .trials, executor)
-        run = optimization_run.OptimizationRun(os.path.join(workdir, "inproc"), parameters, settings.grid, batch)
+        run = optimization_run.OptimizationRun(os.path.join(workdir, "inproc"), optimization_run.run_config(parameters), settings.grid, batch)
         run.run()
         run.close()
     finally:

@@ -66,7 +66,7 @@ def one_run(method, seed, generations, workers, workdir):
     run_dir = os.path.join(workdir, f"{method}-{seed}")
     started = time.perf_counter()
     with evaluation.make_executor(settings.evaluator, workers) as executor:
-        run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid,
+        run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid,
                                                optimization_run.profile_batch_evaluator(settings, trials, executor))
         result = run.run()
         run.close()

@@ -68,7 +68,7 @@ def optimize(parameters, seed, executor, folder, name, reuse=False):
     trials = optimization_run.run_settings(parameters).optimizer.trials
     run_dir = os.path.join(folder, f"{name}-seed-{seed}")
     run = optimization_run.OptimizationRun(
-        run_dir, parameters, settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
+        run_dir, optimization_run.run_config(parameters), settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
         evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, executor, "screen"),
         resume=reuse and os.path.exists(run_dir))
     started = time.perf_counter()

@@ -64,7 +64,7 @@ def reference(tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("reference") / "ref"
     try:
         evaluate_batch = optimization_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
-        run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid, evaluate_batch)
+        run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid, evaluate_batch)
         run.run()
         run.close()
     finally:

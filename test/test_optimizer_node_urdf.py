@@ -45,7 +45,7 @@ def in_process_run(run_dir):
     settings = evaluation.settings_from_parameters(parameters)
     with evaluation.LocalExecutor(1) as executor:   # a batch's evaluations run in threads: one client each
         evaluate_batch = optimization_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
-        run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid, evaluate_batch,
+        run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid, evaluate_batch,
                                                screen_profiles=optimization_run.profile_screen(
                                                    optimization_run.run_settings(parameters), settings))
         run.run()

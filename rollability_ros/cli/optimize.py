@@ -81,13 +81,15 @@ def run(args: argparse.Namespace) -> int:
     run_dir, parameters = optimization_run.run_target(args.resume or args.run_id or "", bool(args.resume), given,
                                                       output_dir)
     settings = evaluation.settings_from_parameters(parameters)
-    trials = optimization_run.run_settings(parameters).optimizer.trials   # a resume: the run's config.yaml below
+    run_config = optimization_run.run_config(parameters)   # a resume: the run's config.yaml
     executor = evaluation.make_executor(settings.evaluator, args.workers)
     try:
-        evaluate_batch = optimization_run.profile_batch_evaluator(settings, trials, executor)
+        evaluate_batch = optimization_run.profile_batch_evaluator(settings, run_config.settings.optimizer.trials,
+                                                                  executor)
         run = optimization_run.OptimizationRun(
-            run_dir, parameters, settings.grid, evaluate_batch, resume=bool(args.resume),
-            evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, executor, "screen"))
+            run_dir, run_config, settings.grid, evaluate_batch, resume=bool(args.resume),
+            evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, executor, "screen"),
+            screen_profiles=optimization_run.profile_screen(run_config.settings, settings))
         progress = ProgressLine(run)
         run.on_candidate, run.on_generation = progress.candidate, progress.generation
         print(f"{run.start_text(bool(args.resume))}; {settings.grid.rows}x{settings.grid.cols} grid")

@@ -61,7 +61,7 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
 from rollability_ros.action import EvaluateProfile
-from rollability_ros.core.config import ConfigError
+from rollability_ros.core.config import ConfigError, in_range, out_of_range
 from rollability_ros.core.optimization import (EvaluationFailed, EvaluatorPool, OptimizerSettings, PoolClosed,
                                                PoolSettings, QualityDiversitySettings, SelectionSettings,
                                                design_set, optimization_run, selection)
@@ -94,16 +94,14 @@ _PARAMETERS = {  # name: (default, description[, inclusive numeric range])
                               "start or got no real results (for unattended studies)"),
     "frame_id": ("", "frame of the best-profile marker; empty: the link the profile is mounted on (base_link of "
                      "the chassis, urdf_robot.mount_link of a URDF robot)"),
-    "evaluator_timeout_s": (PoolSettings.timeout_s, "s without any reply (accept, feedback, result) after which "
-                                                    "an evaluation is given up and retried elsewhere",
-                            (0.0, 604800.0)),
-    "evaluator_max_attempts": (PoolSettings.max_attempts, "failed attempts of one candidate before the run "
-                                                          "pauses and reports; 0 = retry without limit", (0, 1000000)),
-    "evaluator_retry_delay_s": (PoolSettings.retry_delay_s, "s an evaluator that failed gets no new evaluation",
-                                (0.0, 3600.0)),
     "evaluator_discovery_period_s": (2.0, "s between searches of the graph for EvaluateProfile servers",
-                                     (0.0, 3600.0)),
+                                     (0.0, 3600.0), "low"),
 }
+#: The pool's settings the node declares as ``evaluator_<field>`` (description and range from PoolSettings).
+_POOL_FIELDS = ("timeout_s", "max_attempts", "retry_delay_s")
+_PARAMETERS.update({f"evaluator_{field.name}": (field.default, field.metadata["description"],
+                                                field.metadata["range"], field.metadata.get("exclusive", ""))
+                    for field in dataclasses.fields(PoolSettings) if field.name in _POOL_FIELDS})
 
 
 def run_parameters(settings_by_section: typing.Mapping[str, typing.Any]) -> typing.Dict[str, typing.Any]:
@@ -125,23 +123,19 @@ class Optimizer(Node):
             self._robots[prefix] = declare_settings(self, prefix, settings_cls)
             guard_settings(self, prefix, settings_cls,
                            on_change=lambda robot, prefix=prefix: self._robots.__setitem__(prefix, robot))
-        for name, (default, description, *value_range) in _PARAMETERS.items():
-            value_range = value_range[0] if value_range else None
+        for name, (default, description, *declared) in _PARAMETERS.items():
+            metadata = {"range": declared[0], "exclusive": declared[1] if len(declared) > 1 else ""} \
+                if declared else None
             try:
-                self.declare_parameter(name, default, parameter_descriptor(description, value_range, type(default),
-                                                                             name=name))
+                self.declare_parameter(name, default, parameter_descriptor(
+                    description, declared[0] if declared else None, type(default), name=name,
+                    exclusive=metadata["exclusive"] if metadata else ""))
             except InvalidParameterValueException as exc:
-                raise ParameterError(refusal(name, exc, value_range)) from None
-        try:
-            pool_settings = PoolSettings(timeout_s=self._param("evaluator_timeout_s"),
-                                         max_attempts=self._param("evaluator_max_attempts"),
-                                         retry_delay_s=self._param("evaluator_retry_delay_s"))
-            pool_settings.validate()
-        except (TypeError, ValueError) as exc:
-            raise ParameterError(f"evaluator_*: {exc}") from exc
+                raise ParameterError(refusal(name, exc, metadata)) from None
+            if metadata is not None and not in_range(self._param(name), metadata):   # an open end
+                raise ParameterError(out_of_range(name, self._param(name), metadata))
+        pool_settings = PoolSettings(**{name: self._param(f"evaluator_{name}") for name in _POOL_FIELDS})
         discovery_period_s = self._param("evaluator_discovery_period_s")
-        if not discovery_period_s > 0:
-            raise ParameterError(f"evaluator_discovery_period_s must be > 0, got {discovery_period_s}")
         self._grid, self._mount = self._read_run_settings()["profile"], self._read_mount()
         self._session = SessionMembership(self)
         self._foreign: typing.Set[str] = set()   # evaluators that answered as another session's: never asked again
@@ -339,7 +333,7 @@ class Optimizer(Node):
         log = self.get_logger()
         try:
             run = optimization_run.OptimizationRun(
-                run_dir, parameters, settings["profile"], self._pool.batch_evaluator(settings["optimizer"].trials),
+                run_dir, optimization_run.run_config(parameters), settings["profile"], self._pool.batch_evaluator(settings["optimizer"].trials),
                 resume=resume, on_candidate=self._publish_candidate,
                 evaluate_trials=self._pool.fidelity_evaluator(""),
                 screen_profiles=optimization_run.profile_screen(self._typed_run_settings(settings),

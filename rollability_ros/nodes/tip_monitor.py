@@ -70,7 +70,7 @@ class TipMonitorNodeSettings:
         "description": "IMU mounting rotation imu -> body as (x, y, z, w); all zeros (the default) = use "
                        "tip_monitor.mount_rpy_deg"})
     diagnostics_period_s: float = dataclasses.field(default=1.0, metadata={
-        "description": "period of the /diagnostics message, s", "range": (0.0, 3600.0)})
+        "description": "period of the /diagnostics message, s", "range": (0.0, 3600.0), "exclusive": "low"})
 
     @property
     def mount_given(self) -> bool:
@@ -83,8 +83,6 @@ class TipMonitorNodeSettings:
             raise ValueError(f"mount_quaternion_xyzw must be 4 numbers (x, y, z, w), got {self.mount_quaternion_xyzw}")
         if self.mount_given:
             normalize_quaternion(self.mount_quaternion_xyzw)
-        if not 0 < self.diagnostics_period_s < math.inf:
-            raise ValueError(f"diagnostics_period_s must be > 0, got {self.diagnostics_period_s}")
 
 
 class TipMonitorNode(Node):

@@ -10,7 +10,7 @@ import pytest
 trimesh = pytest.importorskip("trimesh")
 pytest.importorskip("scipy")
 
-from rollability_ros.core.config import ConfigError, from_mapping  # noqa: E402
+from rollability_ros.core.config import ConfigError, check_settings, from_mapping  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid, grid_xy, profile_mesh  # noqa: E402
 from rollability_ros.core.profile.print_mass import MassProperties, ProfilePrintSpec, combine, print_mass_properties  # noqa: E402
 from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec, ProfileBody  # noqa: E402
@@ -105,12 +105,12 @@ def test_degenerate_open_and_non_convex_meshes_are_refused_by_name():
     ({"model": "solid"}, "needs profile_print.solid_density_kgpm3"),
     ({"solid_density_kgpm3": 20.0}, "only used with profile_print.model: solid"),
     ({"model": "foam"}, "must be one of shell, solid"),
-    ({"infill_fraction": 1.5}, "infill_fraction must be in"),
-    ({"wall_thickness_m": 0.0}, "wall_thickness_m must be > 0"),
+    ({"infill_fraction": 1.5}, r"infill_fraction out of range: 1.5 is not in \[0.0, 1.0\]"),
+    ({"wall_thickness_m": 0.0}, r"wall_thickness_m out of range: 0.0 is not in \(0.0, 1.0\]"),
 ])
 def test_inconsistent_print_settings_are_refused(fields, message):
     with pytest.raises(ValueError, match=message):
-        ProfilePrintSpec(**fields).validate()
+        check_settings(ProfilePrintSpec(**fields), "profile_print")
     with pytest.raises(ConfigError, match=message.split()[0]):
         from_mapping(ChassisSpec, {"profile_print": fields}, "robot")
 

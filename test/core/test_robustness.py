@@ -3,6 +3,7 @@ import dataclasses
 
 import pytest
 
+from rollability_ros.core.config import check_settings
 from rollability_ros.core.sim import evaluation
 from rollability_ros.core.sim.robustness import RobustSettings, draw, robust_settings_for
 from rollability_ros.core.sim.sensitivity import DEFAULT_LEVELS, sensitivity_rows, with_factor
@@ -169,8 +170,10 @@ def test_launch_draws_cover_foam_friction_rolling_and_wheel_drag_and_keep_the_ol
     drawn = robust_settings_for(own_wheels, 7, robust)
     assert drawn.robot.wheel_drag_torque_nm == draws[7].wheel_drag_nm   # the drag acts on the wheels in use
     assert drawn.twin.wheel_drag_torque_nm == own_wheels.twin.wheel_drag_torque_nm
-    with pytest.raises(ValueError, match="need 0 < wheel_drag_min <= wheel_drag_max"):
-        RobustSettings(wheel_drag_min_nm=0.0).validate()
+    with pytest.raises(ValueError, match=r"^objective.robust.wheel_drag_min_nm out of range: 0.0 is not in \(0.0, "):
+        check_settings(RobustSettings(wheel_drag_min_nm=0.0), "objective.robust")
+    with pytest.raises(ValueError, match="need wheel_drag_min <= wheel_drag_max"):
+        check_settings(RobustSettings(wheel_drag_min_nm=0.5), "objective.robust")
 
 
 
@@ -271,7 +274,7 @@ def test_any_numeric_twin_setting_can_be_varied_and_a_robot_setting_weighs_the_p
         with_setting(thin.launch.twin, "twin.foam.thick", 1.0)
     with pytest.raises(ValueError, match="twin.wheel_model is not a numeric setting"):
         with_setting(thin.launch.twin, "twin.wheel_model", 1.0)
-    with pytest.raises(ValueError, match="wheel_side_friction_factor must be in"):
+    with pytest.raises(ValueError, match=r"^twin.wheel_side_friction_factor out of range: 3.0 is not in \[0.0, 1.0\]$"):
         with_setting(thin.launch.twin, "twin.wheel_side_friction_factor", 3.0)
 
 

@@ -48,7 +48,7 @@ import numpy.typing as npt
 
 from rollability_ros.core.results import analysis
 from rollability_ros.core.campaign.characterisation import Characterisation, characterisation_log_likelihood
-from rollability_ros.core.config import ConfigError, from_mapping, section
+from rollability_ros.core.config import ConfigError, from_mapping, parameter_document, section
 from rollability_ros.core.sim import (LaunchTwinSettings, launch_twin_settings_from_parameters, simulate_valid_launch,
                                       spawn_pool, trial_seed)
 from rollability_ros.core.optional import require
@@ -615,7 +615,7 @@ def calibrated_parameter_document(fitted: typing.Mapping[str, float]) -> typing.
     values) nested under their namespaces: only keys of the twin's namespaces, so every command that reads the twin
     applies all of them (a key a command does not apply is refused: ``config.check_given_files``)."""
     flat: typing.Dict[str, typing.Any] = {name: float(value) for name, value in fitted.items()}
-    return {"/**": {"ros__parameters": section(flat, "")}}
+    return parameter_document(flat)
 
 
 def rig_parameter_document(calibrated_path: typing.Union[str, os.PathLike],

@@ -43,7 +43,7 @@ import yaml
 
 from rollability_ros.core.optimization import checkpoint as checkpoints
 from rollability_ros.core.config import (ConfigError, check_given_files, check_path_component, load_parameters,
-                                         resolve_config_path, section, settings_from_sections)
+                                         parameter_document, resolve_config_path, settings_from_sections)
 from rollability_ros.core.optimization.cmaes import (
     STREAM_POPULATION,
     STREAM_RACE,
@@ -95,8 +95,23 @@ class RunSettings:
 
 def run_settings(parameters: typing.Mapping[str, typing.Any]) -> RunSettings:
     """Parse a run's flat parameters once into :class:`RunSettings` (defaults where a namespace is absent); a bad
-    value raises :class:`ConfigError` naming its parameter (``optimizer: popsize must be >= 2, got 1``)."""
+    value raises :class:`ConfigError` naming its parameter (``optimizer.popsize out of range: 1 is not in [2,
+    100000]``)."""
     return settings_from_sections(RunSettings, parameters, optional=("printer",))
+
+
+@dataclasses.dataclass(frozen=True)
+class RunConfig:
+    """What an :class:`OptimizationRun` is handed by its edge (CLI or node): the typed settings it reads, and the
+    run's flat parameters as its record (written to config.yaml and compared on resume, never parsed below)."""
+
+    settings: RunSettings
+    parameters: typing.Mapping[str, typing.Any]
+
+
+def run_config(parameters: typing.Mapping[str, typing.Any]) -> RunConfig:
+    """The edge's one parse of a run's flat parameters (:func:`run_settings`), kept with them as the record."""
+    return RunConfig(run_settings(parameters), dict(parameters))
 
 
 #: The shipped optimiser defaults, loaded under the given files unless they name an optimiser file themselves.
@@ -152,7 +167,7 @@ def run_id_of(run_dir: typing.Union[str, os.PathLike]) -> str:
 
 def write_run_config(path: typing.Union[str, os.PathLike], parameters: dict) -> None:
     """Write flat ``parameters`` as a ROS 2 parameter file (``/**: {ros__parameters: {...}}``), atomically."""
-    text = yaml.safe_dump({"/**": {"ros__parameters": section(parameters, "")}}, sort_keys=True)
+    text = yaml.safe_dump(parameter_document(parameters), sort_keys=True)
     checkpoints.atomic_write_bytes(path, text.encode("utf-8"))
 
 
@@ -252,9 +267,10 @@ class OptimizationRun:
     ----------
     run_dir : str
         The run directory (created for a new run; must hold ``config.yaml`` to resume).
-    parameters : dict
-        Flat merged parameters (:func:`config.load_parameters`); ``optimizer.*`` configures the run. On resume
-        they must equal the run's ``config.yaml`` and checkpoint, else :class:`ConfigError` lists the differences.
+    run : RunConfig
+        The run's typed settings (``run.settings.optimizer`` configures the run), parsed at the edge
+        (:func:`run_config`), and its flat parameters as the record (``config.yaml``); on resume these must equal
+        the run's ``config.yaml`` and checkpoint, else :class:`ConfigError` lists the differences.
     grid : geometry.ProfileGrid
         Gives ``n_variables`` and the height bounds ``[height_min, height_max]``.
     evaluate_batch : callable
@@ -268,8 +284,8 @@ class OptimizationRun:
     screen_profiles : callable(heights_list) -> [StableScreen, ...], optional
         The stable-pose screen of half-grid heights, used when ``optimizer.initial_mean_screen`` > 0: the run then
         starts from the random initial mean with the highest quasi-static P(upright) (ties: the lowest worst
-        barrier), recorded in the store's run info. Default: :func:`profile_screen` on the robot that
-        ``parameters`` describe (a caller whose parameters do not hold the robot, the node, passes its own).
+        barrier), recorded in the store's run info; built at the edge (:func:`profile_screen` on the run's robot),
+        required then.
 
     optimizer_factory : callable, optional
         ``factory(n_variables, settings, lower, upper, clock, initial_mean, state=None)`` -> the
@@ -282,13 +298,13 @@ class OptimizationRun:
     ``on_candidate`` and ``on_generation`` are also public attributes, settable after construction.
     """
 
-    def __init__(self, run_dir, parameters, grid, evaluate_batch, resume=False, on_candidate=None,
+    def __init__(self, run_dir, run: RunConfig, grid, evaluate_batch, resume=False, on_candidate=None,
                  on_generation=None, clock=time.monotonic, screen_profiles=None, optimizer_factory=None,
                  evaluate_trials=None):
         self.run_dir = os.fspath(run_dir)
         self.run_id = run_id_of(self.run_dir)
-        self.parameters = dict(parameters)   # the run's record (config.yaml), compared on resume
-        self.run_settings = run_settings(self.parameters)   # its one parse: what runs below reads
+        self.parameters = dict(run.parameters)   # the run's record (config.yaml), compared on resume
+        self.run_settings = run.settings   # parsed at the edge: what runs below reads
         self.settings = self.run_settings.optimizer
         self.grid = grid
         self._evaluate_batch = evaluate_batch
@@ -318,7 +334,8 @@ class OptimizationRun:
         self._session_start_generation = self.optimizer.generation
         self._session_start_s = clock()
         self._trials = sum(c.trials for c in self.store.candidates(run_id=self.run_id))
-        self._last_generation = (self.store.generations(run_id=self.run_id) or [None])[-1]
+        generations = self.store.generations(run_id=self.run_id)
+        self._last_generation: typing.Optional[GenerationRecord] = generations[-1] if generations else None
 
     def _screen_initial_means(self, screen_profiles):
         """With ``initial_mean_screen`` > 0: screen the random initial means and return ``{"chosen": index,
@@ -327,9 +344,8 @@ class OptimizationRun:
         if self.settings.initial_mean_screen == 0:
             return None
         if screen_profiles is None:
-            from rollability_ros.core.sim import settings_from_parameters
-
-            screen_profiles = profile_screen(self.run_settings, settings_from_parameters(self.parameters))
+            raise ValueError(f"optimizer.initial_mean_screen {self.settings.initial_mean_screen} needs the stable-pose "
+                             "screen of the run's robot (screen_profiles, optimization_run.profile_screen)")
         means = random_initial_means(self.settings, self.grid.n_variables, self.grid.height_min, self.grid.height_max)
         screens = screen_profiles(list(means))
         chosen = max(range(len(means)), key=lambda i: (screens[i].upright_probability, -screens[i].worst_barrier_m))

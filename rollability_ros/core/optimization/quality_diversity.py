@@ -45,6 +45,7 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
+from rollability_ros.core import config
 from rollability_ros.core.optional import require
 from rollability_ros.core.optimization.cmaes import (IncumbentOptimizer, OptimizerResult, OptimizerSettings,
                                                      check_search_space)
@@ -79,38 +80,26 @@ class QualityDiversitySettings:
     lowest_ceiling: float = dataclasses.field(default=0.5, metadata={
         "description": "height ceiling of the last emitter as a fraction of the height bound; the emitters' ceilings "
                        "step evenly from the bound (first emitter) down to it (fraction, (0, 1]; 1 = no ceilings)",
-        "range": (0.0, 1.0)})
+        "range": (0.0, 1.0), "exclusive": "low"})
     sigma0: float = dataclasses.field(default=0.0, metadata={
         "description": "initial step size of every emitter's CMA-ES, simulation units of vertex height (0 = "
                        "optimizer.sigma0)", "range": (0.0, 100.0)})
     learning_rate: float = dataclasses.field(default=0.01, metadata={
         "description": "CMA-MAE archive learning rate alpha (fraction, (0, 1]; 1 = CMA-ME, small = more "
-                       "exploration first)", "range": (0.0, 1.0)})
+                       "exploration first)", "range": (0.0, 1.0), "exclusive": "low"})
     threshold_min: float = dataclasses.field(default=0.0, metadata={
         "description": "fitness threshold of an empty cell for CMA-MAE (fitness units, upright trials / trials)",
-        "range": (-1.0, 1.0)})
+        "range": (-1.0, 1.0), "exclusive": "high"})
 
     def validate(self, popsize: int | None = None) -> None:
-        """Raise ``ValueError`` naming the first unusable field (``popsize``: the optimizer's, to split)."""
-        if self.height_cells < 1 or self.sharpness_cells < 1:
-            raise ValueError(f"height_cells and sharpness_cells must be >= 1, got {self.height_cells}, "
-                             f"{self.sharpness_cells}")
-        if not 0 <= self.sharpness_min_deg < self.sharpness_max_deg:
-            raise ValueError(f"need 0 <= sharpness_min_deg < sharpness_max_deg, got [{self.sharpness_min_deg}, "
+        """Raise ``ValueError`` for a rule that spans fields (``popsize``: the optimizer's, to split; each number's
+        range is declared in its metadata and checked by :func:`~rollability_ros.core.config.check_settings`)."""
+        if not self.sharpness_min_deg < self.sharpness_max_deg:
+            raise ValueError(f"need sharpness_min_deg < sharpness_max_deg, got [{self.sharpness_min_deg}, "
                              f"{self.sharpness_max_deg}]")
-        if self.emitters < 1:
-            raise ValueError(f"emitters must be >= 1, got {self.emitters}")
         if popsize is not None and popsize < 2 * self.emitters:
             raise ValueError(f"optimizer.popsize {popsize} cannot give {self.emitters} emitters 2 candidates each; "
                              "lower quality_diversity.emitters or raise optimizer.popsize")
-        if not 0 < self.lowest_ceiling <= 1:
-            raise ValueError(f"lowest_ceiling must be in (0, 1], got {self.lowest_ceiling}")
-        if self.sigma0 < 0:
-            raise ValueError(f"sigma0 must be >= 0 (0 = optimizer.sigma0), got {self.sigma0}")
-        if not 0 < self.learning_rate <= 1:
-            raise ValueError(f"learning_rate must be in (0, 1], got {self.learning_rate}")
-        if not -1 <= self.threshold_min < 1:
-            raise ValueError(f"threshold_min must be in [-1, 1), got {self.threshold_min}")
 
 
 def emitter_ceilings(emitters: int, lowest_ceiling: float) -> list[float]:
@@ -173,7 +162,8 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
     @classmethod
     def check_settings(cls, settings: "RunSettings") -> None:
         """The ``optimizer`` section, and the ``quality_diversity`` section against the popsize."""
-        settings.optimizer.validate()
+        config.check_settings(settings.optimizer, "optimizer")
+        config.check_settings(settings.quality_diversity, "quality_diversity")
         settings.quality_diversity.validate(settings.optimizer.popsize)
 
     @classmethod
@@ -182,7 +172,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
                state: dict[str, typing.Any] | None = None) -> "QualityDiversityOptimizer":
         """``optimizer.method: cma_mae``: CMA-MAE over the grid with the ``optimizer`` and ``quality_diversity``
         sections; ``initial_mean`` ``(grid.n_variables,)`` simulation units, None: the paper's random mean."""
-        settings.optimizer.validate()
+        config.check_settings(settings.optimizer, "optimizer")
         if state is None:
             return cls(settings.optimizer, settings.quality_diversity, grid, clock, initial_mean)
         return cls.from_state_dict(state, settings.optimizer, settings.quality_diversity, grid, clock, initial_mean)
@@ -194,7 +184,8 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
         from ribs.archives import GridArchive
         from ribs.schedulers import Scheduler
 
-        settings.validate()
+        config.check_settings(settings, "optimizer")
+        config.check_settings(qd_settings, "quality_diversity")
         qd_settings.validate(settings.popsize)
         self.qd_settings = qd_settings
         self.grid = grid

@@ -66,8 +66,8 @@ def _reason(summary: "WorldSummary", recommended: bool, min_share: float) -> str
 
 def recommend(summaries: typing.Sequence["WorldSummary"], min_share: float = DEFAULT_WORLD_SHARE) -> Recommendation:
     """Apply the rule (module docstring) to the world check's :class:`WorldSummary` s."""
-    if not 0 < min_share <= 1:
-        raise ValueError(f"the recommendation's world share must be in (0, 1], got {min_share}")
+    if not 0 <= min_share <= 1:
+        raise ValueError(f"the recommendation's world share must be in [0, 1], got {min_share}")
     passing = [s for s in summaries if s.share_won >= min_share and s.pooled[1] > 0]
     ordered = sorted(passing, key=lambda s: (-s.pooled[1], -s.share_won, -s.worst.interval[0]))
     reasons = {s.configuration: _reason(s, s in passing, min_share) for s in summaries}

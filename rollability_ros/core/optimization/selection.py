@@ -124,7 +124,7 @@ class SelectionSettings:
     top_fraction: float = dataclasses.field(default=0.1, metadata={
         "description": "quality-diversity runs: choose among the archive elites whose fitness is in this top "
                        "fraction of all elite fitnesses (fraction, (0, 1]; 0.1 = the top decile)",
-        "range": (0.0, 1.0)})
+        "range": (0.0, 1.0), "exclusive": "low"})
 
     race_launches: typing.List[int] = dataclasses.field(default_factory=lambda: [0], metadata={
         "description": "launches per elite in each round of the launch race that ranks designs by robust twin "
@@ -152,21 +152,10 @@ class SelectionSettings:
         "range": (0.0, 1.0)})
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
+        """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
+        checked by :func:`~rollability_ros.core.config.check_settings`)."""
         if list(self.race_launches) not in ([], [0]) and any(int(n) < 1 for n in self.race_launches):
             raise ValueError(f"race_launches must list counts >= 1 (or be [0]: no race), got {self.race_launches}")
-        if self.race_elites < 0 or self.race_keep < 1 or self.launch_trials < 0:
-            raise ValueError("need race_elites >= 0, race_keep >= 1 and launch_trials >= 0")
-        if not 1 <= self.count <= len(string.ascii_uppercase):
-            raise ValueError(f"count must be in [1, {len(string.ascii_uppercase)}], got {self.count}")
-        if self.min_distance < 0:
-            raise ValueError(f"min_distance must be >= 0, got {self.min_distance}")
-        if self.reevaluate_trials < 0:
-            raise ValueError(f"reevaluate_trials must be >= 0 (0 = no re-evaluation), got {self.reevaluate_trials}")
-        if self.world_count < 0 or self.world_launches < 1 or not 0 < self.recommend_world_share <= 1:
-            raise ValueError("need world_count >= 0, world_launches >= 1 and recommend_world_share in (0, 1]")
-        if not 0 < self.top_fraction <= 1:
-            raise ValueError(f"top_fraction must be in (0, 1], got {self.top_fraction}")
         if self.mesh_units not in geometry.MESH_UNITS:
             raise ValueError(f"mesh_units must be one of {', '.join(geometry.MESH_UNITS)}, got {self.mesh_units!r}")
 

@@ -36,6 +36,7 @@ import types
 import typing
 import zlib
 
+from rollability_ros.core import config
 from rollability_ros.core.imu import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
 from rollability_ros.core.registry import Registry
 from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
@@ -76,7 +77,7 @@ class RigSettings:
         "description": "countdown between arming and firing so people stand clear, s", "range": (0.0, 600.0)})
     operator_timeout_s: float = dataclasses.field(default=600.0, metadata={
         "description": "longest wait for an operator answer (regulator confirmation, outcome) before the launch aborts,"
-                       " s", "range": (0.0, 86400.0)})
+                       " s", "range": (0.0, 86400.0), "exclusive": "low"})
     question_repeat_s: float = dataclasses.field(default=2.0, metadata={
         "description": "period of the open question's feedback while the rig waits for the operator, s; a client "
                        "whose feedback subscription matched after the first one (a loaded machine's discovery) or an "
@@ -88,7 +89,7 @@ class RigSettings:
                        "before every launch); an aborted launch always forgets it", "range": (0.0, 86400.0)})
     valve_timeout_s: float = dataclasses.field(default=5.0, metadata={
         "description": "longest wait for the valve_controller's arm / fire / disarm services, s",
-        "range": (0.0, 600.0)})
+        "range": (0.0, 600.0), "exclusive": "low"})
     seed: int = dataclasses.field(default=0, metadata={
         "description": "seed of the simulated rig's launch twin and speed noise (integer >= 0)",
         "range": (0, 2147483647)})
@@ -103,13 +104,6 @@ class RigSettings:
             raise ValueError("configurations must list the configuration ids the rig can launch")
         if self.outcome_source not in OUTCOME_SOURCES:
             raise ValueError(f"outcome_source must be one of {OUTCOME_SOURCES}, got {self.outcome_source!r}")
-        if not all(0 <= value < math.inf for value in (self.countdown_s, self.imu_override_s,
-                                                        self.confirmation_valid_s)):
-            raise ValueError("countdown_s, imu_override_s and confirmation_valid_s must be finite and >= 0")
-        if not 0 < self.operator_timeout_s < math.inf or not 0 < self.valve_timeout_s < math.inf:
-            raise ValueError("operator_timeout_s and valve_timeout_s must be finite and > 0")
-        if not 0.05 <= self.question_repeat_s < math.inf:
-            raise ValueError(f"question_repeat_s must be finite and >= 0.05, got {self.question_repeat_s}")
 
 
 def check_goal(run_id: str, trial_id: str, condition: LaunchCondition,
@@ -640,7 +634,7 @@ def make_launch_backend(settings: RigSettings, speed_config: SpeedGateConfig, va
     Raises ``ValueError`` for unusable settings (a bad twin configuration, an IMU the caller cannot provide) and
     ``ImportError`` when the simulated backend's dependencies are missing.
     """
-    settings.validate()
+    config.check_settings(settings, "rig")
     return launch_backend_class(settings.backend).from_ports(settings, speed_config, valve_config, imu_config, ports)
 
 

@@ -21,6 +21,7 @@ one base seed, so each design's gain over the bare robot at a level is on the sa
 import dataclasses
 import typing
 
+from rollability_ros.core import config
 from rollability_ros.core.profile import Mesh
 from rollability_ros.core.sim.evaluation import (EvaluatorSettings, TrialExecutor, evaluate_job, evaluate_mesh, mesh_job,
                                                   settings_at_fidelity)
@@ -95,7 +96,6 @@ def sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]], setti
     return rows
 
 
-
 def launch_levels(robust: RobustSettings, nominal_com_offset_z_m: float
                   ) -> typing.Dict[str, typing.Tuple[typing.Union[float, str], ...]]:
     """``{factor: (low, high)}`` of every launch unknown (:data:`LAUNCH_FACTORS`): the ends of its range in
@@ -139,7 +139,7 @@ def launch_sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]]
     """
     at_launch = settings_at_fidelity(settings, "launch")
     robust = dataclasses.replace(robust or settings.objective.robust, enabled=True)
-    robust.validate()
+    config.check_settings(robust, "objective.robust")
     plain = dataclasses.replace(at_launch, objective=dataclasses.replace(at_launch.objective,
                                                                          robust=RobustSettings()))
     drawn = dataclasses.replace(at_launch, objective=dataclasses.replace(at_launch.objective, robust=robust))
@@ -182,8 +182,7 @@ def with_setting(settings: typing.Any, dotted: str, value: float, full_name: str
         raise ValueError(f"{full_name} is not a numeric setting (it holds {current!r})")
     else:
         replaced = dataclasses.replace(group, **{head: type(current)(value)})
-    if hasattr(replaced, "validate"):
-        replaced.validate()
+    config.check_settings(replaced, full_name[:-len(dotted)].rstrip("."))   # the group's ranges and rules
     return replaced
 
 

@@ -27,9 +27,12 @@ LAUNCHER_MODELS = ("stroke", "push_through")
 #: Pa per psi (the paper's regulator reads psi).
 PA_PER_PSI = 6894.757
 
-def _setting(default: typing.Any, description: str, value_range: typing.Optional[tuple] = None) -> typing.Any:
-    """A settings field with the project's metadata (``description``, and ``range`` (low, high) when numeric)."""
-    metadata = {"description": description, **({"range": value_range} if value_range is not None else {})}
+def _setting(default: typing.Any, description: str, value_range: typing.Optional[tuple] = None,
+             exclusive: str = "") -> typing.Any:
+    """A settings field with the project's metadata (``description``, and ``range`` (low, high) when numeric, with
+    ``exclusive`` naming an end it leaves out: ``"low"``, ``"high"`` or ``"both"``)."""
+    metadata = {"description": description, **({"range": value_range} if value_range is not None else {}),
+                **({"exclusive": exclusive} if exclusive else {})}
     if isinstance(default, list):
         return dataclasses.field(default_factory=lambda: list(default), metadata=metadata)
     return dataclasses.field(default=default, metadata=metadata)
@@ -48,7 +51,7 @@ class LauncherSpec:
                                     (0.0, 20.0))
     ledge_width_m: float = _setting(0.0, "base plate along the edge, m; 0 = derived from the robot", (0.0, 20.0))
     start_clearance_m: float = _setting(0.0005, "gap under the lowest wheel when placed on the plate, m",
-                                        (0.0, 0.01))
+                                        (0.0, 0.01), "high")
     model: str = _setting("stroke", "how the cylinder drives the push plate: stroke (the paper's cylinder: pushes "
                                     "for stroke_m, then stops; the robot coasts to the edge) | push_through (the "
                                     "plate drives the robot at the launch speed until it goes over the edge)")
@@ -71,23 +74,13 @@ class LauncherSpec:
              "launches within speed_gate.tolerance_fraction of it)", (-0.15, 0.15))
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field (a ledge size or bore of 0 is derived from the
-        robot)."""
-        if not self.run_length_m > 0:
-            raise ValueError(f"run_length_m must be > 0, got {self.run_length_m}")
-        for name in ("ledge_depth_m", "ledge_width_m"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"{name} must be >= 0 (0 = derived from the robot), got {getattr(self, name)}")
+        """Raise ``ValueError`` for an unknown model, unusable speed-pressure pairs or a rule that spans fields
+        (each number's range is declared in its metadata and checked by
+        :func:`~rollability_ros.core.config.check_settings`; a ledge size or bore of 0 is derived from the robot)."""
         if self.ledge_depth_m and self.ledge_depth_m <= self.run_length_m:
             raise ValueError(f"ledge_depth_m {self.ledge_depth_m} must exceed run_length_m {self.run_length_m}")
-        if not 0 <= self.start_clearance_m < 0.01:
-            raise ValueError(f"start_clearance_m must be in [0, 0.01), got {self.start_clearance_m}")
         if self.model not in LAUNCHER_MODELS:
             raise ValueError(f"model must be one of {', '.join(LAUNCHER_MODELS)}, got {self.model!r}")
-        if not 0 < self.stroke_m <= 2.0:
-            raise ValueError(f"stroke_m must be in (0, 2], got {self.stroke_m}")
-        if not 0 <= self.bore_m <= 0.5:
-            raise ValueError(f"bore_m must be in [0, 0.5] (0 = derived from the robot), got {self.bore_m}")
         speeds, pressures = list(self.pressure_speeds_mps), list(self.pressures_psi)
         if not speeds or len(speeds) != len(pressures):
             raise ValueError(f"pressure_speeds_mps ({len(speeds)}) and pressures_psi ({len(pressures)}) must be "
@@ -96,10 +89,6 @@ class LauncherSpec:
             raise ValueError(f"pressure_speeds_mps must be positive and increasing, got {speeds}")
         if not all(0 < p < math.inf for p in pressures):
             raise ValueError(f"pressures_psi must be positive, got {pressures}")
-        if not 0 <= self.ledge_rolling_friction <= 0.01:
-            raise ValueError(f"ledge_rolling_friction must be in [0, 0.01], got {self.ledge_rolling_friction}")
-        if not -0.15 <= self.speed_bias_fraction <= 0.15:
-            raise ValueError(f"speed_bias_fraction must be in [-0.15, 0.15], got {self.speed_bias_fraction}")
 
     def pressure_psi(self, speed_mps: float) -> float:
         """The regulator pressure (psi) the lab sets for a set speed of ``speed_mps``: linear between the
@@ -117,39 +106,30 @@ class PushPlateSpec:
     ``ramp_s`` (the chassis is pushed up to speed through the plate, so the plate's offset and turn act on it).
     """
 
-    width_m: float = 0.0
-    height_m: float = 0.0
-    thickness_m: float = 0.01
-    mass_kg: float = 0.3
-    clearance_m: float = 0.0
-    max_force_n: float = 0.0
-    ramp_s: float = 0.012
-    offset_m: float = 0.0
-    yaw_bias_deg: float = 0.0
-
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field (``width_m``, ``height_m`` and ``clearance_m`` of 0
-        are derived from the robot: :mod:`~rollability_ros.core.sim.launcher_geometry`)."""
-        for name in ("thickness_m", "mass_kg", "ramp_s"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        for name in ("width_m", "height_m", "max_force_n"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"{name} must be >= 0 (0 = derived from the robot), got {getattr(self, name)}")
-        if not 0 <= self.clearance_m < 0.1:
-            raise ValueError(f"clearance_m must be in [0, 0.1), got {self.clearance_m}")
-        if not abs(self.offset_m) < 0.5:
-            raise ValueError(f"offset_m must be within +-0.5 m, got {self.offset_m}")
-        if not abs(self.yaw_bias_deg) <= 20:
-            raise ValueError(f"yaw_bias_deg must be within +-20 deg, got {self.yaw_bias_deg}")
+    width_m: float = _setting(0.0, "plate face across the push, m; 0 = derived from the robot", (0.0, 5.0))
+    height_m: float = _setting(0.0, "vertical extent of the plate face, m; 0 = derived from the robot", (0.0, 5.0))
+    thickness_m: float = _setting(0.01, "plate along the push, m", (0.0, 1.0), "low")
+    mass_kg: float = _setting(0.3, "plate with the cylinder's piston and rod, kg (guessed; not in the paper)",
+                              (0.0, 100.0), "low")
+    clearance_m: float = _setting(0.0, "gap between the plate's bottom and the launcher's base plate, m; 0 = derived "
+                                       "from the robot", (0.0, 0.1), "high")
+    max_force_n: float = _setting(0.0, "push_through only: most the plate pushes with, N (stroke: pressures_psi x "
+                                       "bore)", (0.0, 100000.0))
+    ramp_s: float = _setting(0.012, "time the plate's speed takes from rest to the launch speed, s", (0.0, 10.0),
+                             "low")
+    offset_m: float = _setting(0.0, "plate centre off the chassis's path (+ = left of the push), m: rig asymmetry",
+                               (-0.5, 0.5), "both")
+    yaw_bias_deg: float = _setting(0.0, "plate face turned from square to the push (+ = ccw from above), deg",
+                                   (-20.0, 20.0))
 
 @dataclasses.dataclass
 class FoamSpec:
     """The memory-foam layer under the impact region (``launch_twin.foam``)."""
 
-    thickness_m: float = 0.05
-    length_m: float = 2.5
-    width_m: float = 3.0
+    thickness_m: float = _setting(0.05, "memory foam on the floor in front of the ledge, m; its top is the impact "
+                                        "surface", (0.0, 1.0), "low")
+    length_m: float = _setting(2.5, "foam away from the ledge (x from 0 to length), m", (0.0, 100.0), "low")
+    width_m: float = _setting(3.0, "foam along the edge, centred, m", (0.0, 100.0), "low")
     contact_stiffness_npm: float = _setting(2.0e4, "UNKNOWN: Bullet contact stiffness per contact point, N/m "
                                                    "(guessed: ~4 cm under a 1.3 m drop)", (1.0e3, 1.0e6))
     contact_damping_nspm: float = _setting(150.0, "UNKNOWN: Bullet contact damping per contact point, N s/m "
@@ -161,17 +141,6 @@ class FoamSpec:
                                        (0.0, 0.05))
     restitution: float = _setting(0.1, "UNKNOWN: the foam's own restitution; times the robot's 0.3 per contact "
                                        "(guessed)", (0.0, 1.0))
-
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        for name in ("thickness_m", "length_m", "width_m", "contact_stiffness_npm"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        for name in ("contact_damping_nspm", "lateral_friction", "rolling_friction"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if not 0 <= self.restitution <= 1:
-            raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
 
     def contact(self, ground_contact: typing.Mapping[str, float]) -> typing.Dict[str, float]:
         """The foam's ``changeDynamics`` keywords: ``ground_contact``'s spinning friction, the foam's own rest."""
@@ -185,8 +154,10 @@ class LaunchTwinOptions:
 
     angle_convention: str = "yaw_of_push"
     wheel_model: str = "auto"
-    speed_sigma_fraction: float = 0.03
-    angle_sigma_deg: float = 1.0
+    speed_sigma_fraction: float = _setting(0.03, "standard deviation of the actual launch speed, fraction of the "
+                                                 "nominal speed", (0.0, 0.5))
+    angle_sigma_deg: float = _setting(1.0, "standard deviation of the chassis's placement angle against the push "
+                                           "plate, deg", (0.0, 30.0))
     wheel_side_friction_factor: float = _setting(
         0.1, "UNKNOWN: Mecanum wheels' friction along the axle / across it (guessed: the rollers slide)", (0.0, 1.0))
     wheel_rolling_friction: float = _setting(
@@ -194,37 +165,27 @@ class LaunchTwinOptions:
                 "guessed so the chassis covers the 0.34 m run)", (0.0, 0.01))
     wheel_drag_torque_nm: float = _setting(
         0.0005, "UNKNOWN: back-drive drag of each unpowered wheel motor, N m (guessed)", (0.0, 0.05))
-    wheel_friction_left_factor: float = 1.0
-    wheel_friction_right_factor: float = 1.0
-    max_attempts: int = 3
-    pose_rate_hz: float = 30.0
+    wheel_friction_left_factor: float = _setting(1.0, "the left wheels' friction / the chassis's (sim.yaml): rig "
+                                                      "asymmetry, fittable", (0.0, 5.0), "low")
+    wheel_friction_right_factor: float = _setting(1.0, "the right wheels' friction / the chassis's (sim.yaml): rig "
+                                                       "asymmetry, fittable", (0.0, 5.0), "low")
+    max_attempts: int = _setting(3, "a launch that does not leave the ledge or lands off the foam is retried up to "
+                                    "this many times in all (count)", (1, 20))
+    pose_rate_hz: float = _setting(30.0, "rate of the chassis pose reported during a launch, Hz of simulated time",
+                                   (0.0, 1000.0), "low")
     launcher: LauncherSpec = dataclasses.field(default_factory=LauncherSpec)
     plate: PushPlateSpec = dataclasses.field(default_factory=PushPlateSpec)
     foam: FoamSpec = dataclasses.field(default_factory=FoamSpec)
     designs: DesignSources = dataclasses.field(default_factory=DesignSources)
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
+        """Raise ``ValueError`` for an unknown convention or wheel model, or a rule that spans fields (each number's
+        range is declared in its metadata and checked by :func:`~rollability_ros.core.config.check_settings`)."""
         if self.angle_convention not in ANGLE_CONVENTIONS:
             raise ValueError(f"angle_convention must be one of {', '.join(ANGLE_CONVENTIONS)}, "
                              f"got {self.angle_convention!r}")
         if self.wheel_model not in WHEEL_MODELS:
             raise ValueError(f"wheel_model must be one of {', '.join(WHEEL_MODELS)}, got {self.wheel_model!r}")
-        if not 0 <= self.speed_sigma_fraction <= 0.5:
-            raise ValueError(f"speed_sigma_fraction must be in [0, 0.5], got {self.speed_sigma_fraction}")
-        if not 0 <= self.angle_sigma_deg <= 30:
-            raise ValueError(f"angle_sigma_deg must be in [0, 30], got {self.angle_sigma_deg}")
-        if not 0 <= self.wheel_side_friction_factor <= 1:
-            raise ValueError(f"wheel_side_friction_factor must be in [0, 1], got {self.wheel_side_friction_factor}")
-        if self.wheel_rolling_friction < 0 or self.wheel_drag_torque_nm < 0:
-            raise ValueError("wheel_rolling_friction and wheel_drag_torque_nm must be >= 0")
-        for name in ("wheel_friction_left_factor", "wheel_friction_right_factor"):
-            if not 0 < getattr(self, name) <= 5:
-                raise ValueError(f"{name} must be in (0, 5], got {getattr(self, name)}")
-        if not 1 <= self.max_attempts <= 20:
-            raise ValueError(f"max_attempts must be in [1, 20], got {self.max_attempts}")
-        if not self.pose_rate_hz > 0:
-            raise ValueError(f"pose_rate_hz must be > 0, got {self.pose_rate_hz}")
         # one seam per swap: the settings of the launcher model not chosen cannot be honoured, so they are refused
         if self.launcher.model == "stroke" and self.plate.max_force_n:
             raise ValueError(f"plate.max_force_n ({self.plate.max_force_n} N) drives the push_through plate only; "
@@ -272,7 +233,8 @@ def launch_twin_settings_from_parameters(flat: typing.Mapping[str, typing.Any],
     """Build :class:`LaunchTwinSettings` from flat ``{dotted name: value}`` parameters (e.g. a node's).
 
     ``overrides`` maps dotted *settings* names (``"twin.foam.contact_stiffness_npm"``, ``"physics.restitution"``,
-    ``"robot.body_mass_kg"``) to values; they are checked like file values (:class:`ConfigError` if unknown or bad).
+    ``"robot.body_mass_kg"``) to values; they are checked like file values (:class:`ConfigError` if unknown or bad,
+    naming the parameter: ``launch_twin.foam.contact_stiffness_npm out of range: ...``).
     """
     nested: typing.Dict[str, typing.Any] = {name: section(flat, prefix) for name, prefix in _SECTIONS.items()}
     for dotted, value in (overrides or {}).items():
@@ -283,7 +245,13 @@ def launch_twin_settings_from_parameters(flat: typing.Mapping[str, typing.Any],
             if not isinstance(node, dict):
                 raise ConfigError(f"override {dotted}: {part} is not a group of settings")
         node[leaf] = value
-    return from_mapping(LaunchTwinSettings, nested, "launch twin settings")
+    unknown = sorted(set(nested) - set(_SECTIONS))
+    if unknown:
+        raise ConfigError(f"launch twin settings: unknown group(s) {', '.join(unknown)}; known: "
+                          f"{', '.join(sorted(_SECTIONS))}")
+    hints = typing.get_type_hints(LaunchTwinSettings)
+    return LaunchTwinSettings(**{name: from_mapping(hints[name], values, _SECTIONS[name])
+                                 for name, values in nested.items()})
 
 def load_launch_twin_settings(config_paths: typing.Sequence[str] = ("sim", "robot", "launch_twin"),
                               node_name: str = "/**",

@@ -132,8 +132,10 @@ def test_outputs_with_reevaluation(run_candidates):
 
 
 def test_settings_are_checked():
-    with pytest.raises(ValueError, match="count"):
-        SelectionSettings(count=0).validate()
+    from rollability_ros.core.config import check_settings
+
+    with pytest.raises(ValueError, match="selection.count"):   # the range declared in its metadata
+        check_settings(SelectionSettings(count=0), "selection")
     with pytest.raises(ValueError, match="needs an evaluator"):
         select_designs([], GRID, geometry.PrinterSpec(), SelectionSettings(reevaluate_trials=10))
 

@@ -16,6 +16,7 @@ import os
 import sys
 import tempfile
 import time
+import typing
 
 import numpy as np
 
@@ -57,7 +58,7 @@ def main():
     base = optimization_run.load_run_parameters(args.config or ["optimizer"])
     settings = evaluation.settings_from_parameters(base)
     executor = evaluation.make_executor(settings.evaluator, args.workers)
-    rows = {0: [], args.screen: []}
+    rows: typing.Dict[int, typing.List[typing.Any]] = {0: [], args.screen: []}
     try:
         with tempfile.TemporaryDirectory(prefix="bench_screen_") as workdir:
             for seed in range(1, args.seeds + 1):

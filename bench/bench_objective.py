@@ -41,8 +41,8 @@ from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 from rollability_ros.core.optimization import optimization_run, selection  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
-from rollability_ros.core.results.records import LaunchCondition  # noqa: E402
-from rollability_ros.core.results.stats import newcombe_interval  # noqa: E402
+from rollability_ros.core.records import LaunchCondition  # noqa: E402
+from rollability_ros.core.stats import newcombe_interval  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
 
 CAMPAIGN = {"/**": {"ros__parameters": {"campaign": {"heights_m": [0.75], "speeds_mps": [0.8, 1.5],

@@ -86,6 +86,7 @@ def noise_study(seeds, workdir, generations=60, trials=20):
                                                    optimization_run.run_config(parameters), grid, evaluator)
             result = run.run()
             run.close()
+            assert result.best is not None, "the run evaluated no generation"
             rows.append((evaluator.success_probability(result.mean),
                          result.best.fitness - evaluator.success_probability(result.best.heights)))
         table[(crn, reevaluate)] = tuple(np.mean(rows, axis=0))

@@ -33,7 +33,7 @@ from rollability_ros.core.sim import evaluation
 from rollability_ros.core.optimization import optimization_run as optimization_run  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import FIRST_GENERATION  # noqa: E402
 from rollability_ros.core.config import resolve_config_path  # noqa: E402
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 
 PAPER_GENERATIONS, PAPER_POPSIZE, PAPER_TRIALS = 500, 12, 60
 

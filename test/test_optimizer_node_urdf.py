@@ -27,7 +27,7 @@ def ros_args(params):
 
 def candidate_rows(run_dir, run_id):
     """The stored candidates and the initial-mean screen of the run."""
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     with Store(run_dir) as store:
         return ([(c.generation, c.index, c.heights, c.successes, c.trials, c.seed)

@@ -10,21 +10,24 @@ import typing
 
 from rollability_ros.cli import Subparsers
 
+if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
+    from rollability_ros.core.profile import Mesh
+
 #: ``--launches-per-world`` default: the campaign's 20 conditions twice.
 DEFAULT_LAUNCHES_PER_WORLD = 40
 
 
 def _profiles(args):
     """``{label: mesh or None}``: the bare chassis, then every ``--mesh LABEL=FILE`` and ``--designs-file`` design."""
-    from rollability_ros.core.profile import geometry
+    from rollability_ros.core.profile import load_profile_mesh
     from rollability_ros.core.profile import DesignSources, configuration_ids, profile_mesh_for
 
-    profiles = {"baseline": None}
+    profiles: typing.Dict[str, typing.Optional["Mesh"]] = {"baseline": None}
     for item in args.mesh:
         label, _, path = item.partition("=")
         if not label or not path:
             raise ValueError(f"--mesh takes LABEL=FILE, got {item!r}")
-        profiles[label] = geometry.load_profile_mesh(path)
+        profiles[label] = load_profile_mesh(path)
     if args.designs_file:
         sources = DesignSources(designs_file=args.designs_file)
         for label in configuration_ids(sources):
@@ -60,27 +63,28 @@ def run_worlds(args: argparse.Namespace, settings: typing.Any, profiles: typing.
 
     import yaml
 
-    from rollability_ros.core.optimization import SelectionSettings, recommendation
-    from rollability_ros.core.sim import evaluation, world_check
+    from rollability_ros.core.optimization import SelectionSettings, recommend
+    from rollability_ros.core.sim import (WORLD_CHECK_COLUMNS, local_world_evaluator, make_executor,
+                                          run_world_check, settings_at_fidelity, summarize_worlds,
+                                          world_check_lines, world_draws)
 
     if args.engine:
         settings = dataclasses.replace(settings, objective=dataclasses.replace(settings.objective,
                                                                                launch_engine=args.engine))
-    engine = evaluation.settings_at_fidelity(settings, "launch").physics.engine
+    engine = settings_at_fidelity(settings, "launch").physics.engine
 
     def show(row: typing.Mapping[str, typing.Any]) -> None:
         print(f"world {row['world']:>3} {row['configuration']:<10} {row['successes']:>4}/{row['trials']:<4}",
               flush=True)
 
-    with evaluation.make_executor(settings.evaluator, args.workers) as executor:
-        rows = world_check.run_world_check(world_check.local_world_evaluator(profiles, settings, executor),
-                                           args.worlds, args.launches_per_world, args.seed,
-                                           world_check.world_draws(settings), show)
-    summaries = world_check.summarize_worlds(rows)
-    verdict = recommendation.recommend(summaries, SelectionSettings().recommend_world_share)
+    with make_executor(settings.evaluator, args.workers) as executor:
+        rows = run_world_check(local_world_evaluator(profiles, settings, executor), args.worlds,
+                               args.launches_per_world, args.seed, world_draws(settings), show)
+    summaries = summarize_worlds(rows)
+    verdict = recommend(summaries, SelectionSettings().recommend_world_share)
     csv_path = os.path.join(args.out, WORLD_FILES[0])
     with open(csv_path, "w", newline="", encoding="utf-8") as stream:
-        writer = csv.DictWriter(stream, fieldnames=list(world_check.ROW_COLUMNS))
+        writer = csv.DictWriter(stream, fieldnames=list(WORLD_CHECK_COLUMNS))
         writer.writeheader()
         writer.writerows(rows)
     document = {"simulated": True, "engine": engine, "worlds": args.worlds,
@@ -91,7 +95,7 @@ def run_worlds(args: argparse.Namespace, settings: typing.Any, profiles: typing.
     yaml_path = os.path.join(args.out, WORLD_FILES[1])
     with open(yaml_path, "w", encoding="utf-8") as stream:
         yaml.safe_dump(document, stream, sort_keys=False)
-    for line in world_check.summary_lines(summaries, engine):
+    for line in world_check_lines(summaries, engine):
         print(line)
     print(f"recommendation (the selection's rule, selection.recommend_world_share): {verdict.headline()}")
     print(f"wrote {csv_path} and {yaml_path}")
@@ -117,15 +121,15 @@ def run(args: argparse.Namespace) -> int:
     :data:`WORLD_FILES`); exit code."""
     from rollability_ros.core.config import check_output_dir
     from rollability_ros.core.optional import MissingDependency
-    from rollability_ros.core.results import report_figures
-    from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.results import sensitivity_figure
+    from rollability_ros.core.sim import load_settings, make_executor, with_given_files
     from rollability_ros.core.results import gain_lines
     from rollability_ros.core.sim import launch_sensitivity_rows, sensitivity_rows
 
     check_output_dir(args.out, "--out", keeps=WORLD_FILES if args.worlds is not None else
                      ("sensitivity.csv", "sensitivity.png"))
-    settings = evaluation.with_given_files(evaluation.load_settings(["sim", "robot", "evaluator", *args.config]),
-                                           args.config, "rollability sensitivity")
+    settings = with_given_files(load_settings(["sim", "robot", "evaluator", *args.config]),
+                                args.config, "rollability sensitivity")
     if args.trials < 1:
         raise ValueError(f"--trials must be >= 1, got {args.trials}")
     profiles = _profiles(args)
@@ -141,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{row['configuration']:<10} {row['factor']:<18} {str(row['level']):<18} {row['successes']:>4}/"
               f"{row['trials']:<4} {row['fitness']:.2f} [{row['ci_low']:.2f}, {row['ci_high']:.2f}]", flush=True)
 
-    with evaluation.make_executor(settings.evaluator, args.workers) as executor:
+    with make_executor(settings.evaluator, args.workers) as executor:
         if args.launches:
             rows = launch_sensitivity_rows(profiles, settings, args.trials, args.seed, executor, on_row=show,
                                            settings_levels=varied)
@@ -153,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
         writer.writeheader()
         writer.writerows(rows)
     try:
-        figure = report_figures.sensitivity(os.path.join(args.out, "sensitivity.png"), rows)
+        figure = sensitivity_figure(os.path.join(args.out, "sensitivity.png"), rows)
     except MissingDependency:
         figure = None
     for line in gain_lines(rows):

@@ -270,7 +270,7 @@ def _dump_stacks_on_sigusr1():
         faulthandler.register(signal.SIGUSR1, file=stream, all_threads=True)
 
 
-def _has_fileno(stream):
+def _has_fileno(stream: typing.Optional[typing.TextIO]) -> "typing.TypeGuard[typing.TextIO]":
     try:
         return stream is not None and stream.fileno() >= 0
     except (AttributeError, OSError, ValueError):

@@ -14,8 +14,8 @@ from doubles import SyntheticEvaluator, tree_checksums
 from rollability_ros.cli import main
 from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
 from rollability_ros.core.profile import geometry
-from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
-from rollability_ros.core.results.store import Store
+from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.store import Store
 
 REPO = os.path.join(os.path.dirname(__file__), "..", "..")
 GRID = geometry.ProfileGrid(rows=3, cols=3)

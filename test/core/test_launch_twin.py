@@ -8,7 +8,7 @@ import pytest
 
 from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
 from rollability_ros.core.results.analysis import group_conditions
-from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.rig.rig_session import simulated_outcome
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig
 from rollability_ros.core.sim.launch.placement import attempt_seed

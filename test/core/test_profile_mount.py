@@ -167,7 +167,7 @@ def test_the_mount_is_read_from_the_robot_parameters_and_checked():
 def test_a_launch_on_a_compliant_mount_is_a_valid_launch_that_differs_from_the_rigid_one():
     import dataclasses
 
-    from rollability_ros.core.results.records import LaunchCondition
+    from rollability_ros.core.records import LaunchCondition
     from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
     from rollability_ros.core.sim.launch.twin import simulate_launch
 

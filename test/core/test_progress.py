@@ -135,7 +135,7 @@ def test_a_resumed_run_reports_its_earlier_trials(tmp_path):
 
 
 def run_candidates(run_dir):
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     with Store(os.path.join(run_dir, "store.sqlite")) as store:
         return store.candidates()

@@ -24,7 +24,7 @@ from rollability_ros.core.optimization.quality_diversity import (  # noqa: E402
 )
 from rollability_ros.core.profile import descriptors  # noqa: E402
 from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid, grid_xy  # noqa: E402
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 
 GRID = ProfileGrid(rows=4, cols=4)
 

@@ -130,7 +130,7 @@ def racing_parameters(grid, method="cmaes", **extra):
 
 def run_rows(run_dir, parameters, grid, evaluate_trials, resume=False):
     from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     run = OptimizationRun(str(run_dir), run_config(parameters), grid, lambda h, s: evaluate_trials(h, s, 40), resume=resume,
                           evaluate_trials=evaluate_trials)

@@ -18,7 +18,7 @@ from rollability_ros.core.config import ConfigError  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
 from doubles import SyntheticEvaluator  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config, read_run_config  # noqa: E402
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 
 GRID = ProfileGrid(rows=3, cols=3)
 OPTIMUM = np.linspace(0.05, 0.4, GRID.n_variables)

@@ -8,7 +8,7 @@ import pytest
 from synthetic_imu import piecewise, stream
 
 from rollability_ros.core.config import check_settings
-from rollability_ros.core.results.records import NO_SEED, LaunchCondition
+from rollability_ros.core.records import NO_SEED, LaunchCondition
 from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
 from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
                                                   OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,

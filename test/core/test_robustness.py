@@ -107,7 +107,7 @@ def test_robust_launches_reuse_one_mujoco_twin_and_match_a_fresh_build():
     centre of mass), and bit-identical launches whatever was launched before."""
     pytest.importorskip("mujoco")
     import numpy as np
-    from rollability_ros.core.results.records import LaunchCondition
+    from rollability_ros.core.records import LaunchCondition
     from rollability_ros.core.sim.launch import mujoco_twin
     from rollability_ros.core.sim.launch.drive import launch_drive
     from rollability_ros.core.sim.launch.placement import sized_for_robot
@@ -283,7 +283,7 @@ def test_the_stroke_launchers_speed_solve_holds_under_a_draw_of_strong_coast_res
     below a plate speed of about 1.1 x the set speed: the solve still finds the speed at which the gate reads the
     set speed (proportional steps alone oscillated between a stall and 2 x the set speed and refused)."""
     pytest.importorskip("pybullet")
-    from rollability_ros.core.results.records import LaunchCondition
+    from rollability_ros.core.records import LaunchCondition
     from rollability_ros.core.sim.launch.drive import launch_drive
     from rollability_ros.core.sim.launch.placement import sized_for_robot
     from rollability_ros.core.sim.launch.settings import load_launch_twin_settings

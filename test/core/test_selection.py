@@ -13,7 +13,7 @@ from rollability_ros.core.profile import geometry  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 from doubles import SyntheticEvaluator, tree_checksums  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config  # noqa: E402
-from rollability_ros.core.results.records import CandidateRecord  # noqa: E402
+from rollability_ros.core.records import CandidateRecord  # noqa: E402
 from rollability_ros.core.optimization.design_set import design_set_folders, write_selection  # noqa: E402
 from rollability_ros.core.optimization.selection import (  # noqa: E402
     SelectionSettings,
@@ -21,7 +21,7 @@ from rollability_ros.core.optimization.selection import (  # noqa: E402
     rms_distance,
     select_designs,
 )
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 
 GRID = geometry.ProfileGrid(rows=3, cols=3)
 OPTIMUM = np.linspace(0.1, 0.4, GRID.n_variables)

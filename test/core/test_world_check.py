@@ -120,9 +120,9 @@ def test_a_design_that_loses_is_never_first_and_none_is_said_plainly():
 def test_ties_between_recommended_designs_keep_a_fixed_order_and_the_campaign_can_veto():
     verdict = _verdict({"baseline": [5] * 10, "A": [15] * 10, "B": [15] * 10})
     assert verdict.recommended == ("A", "B")                     # equal evidence: the selection's order
-    vetoed = recommendation.lead(verdict, {"A": (0.05, -0.07, 0.17), "B": (0.2, 0.08, 0.32)})
+    vetoed = recommendation.with_campaign(verdict, {"A": (0.05, -0.07, 0.17), "B": (0.2, 0.08, 0.32)})
     assert vetoed.first == "B" and "campaign does not show it beating" in vetoed.reasons["A"]
-    nothing = recommendation.lead(verdict, {"A": (0.0, -0.1, 0.1), "B": (-0.1, -0.2, 0.0)})
+    nothing = recommendation.with_campaign(verdict, {"A": (0.0, -0.1, 0.1), "B": (-0.1, -0.2, 0.0)})
     assert nothing.first is None and nothing.headline().startswith("NO DESIGN TO PRINT FIRST")
 
 
@@ -170,7 +170,7 @@ def _campaign_with_designs(tmp_path, world_counts, upright):
     (designs / "designs.yaml").write_text("/**:\n  ros__parameters:\n    designs:\n      labels: [A, B]\n"
                                           "      recommendation:\n        min_world_share: 0.9\n")
     with open(designs / "world_check.csv", "w", newline="", encoding="utf-8") as stream:
-        writer = csv.DictWriter(stream, fieldnames=world_check.ROW_COLUMNS)
+        writer = csv.DictWriter(stream, fieldnames=world_check.WORLD_CHECK_COLUMNS)
         writer.writeheader()
         writer.writerows(rows_from(world_counts))
     outcomes = [LaunchOutcome("r", f"{name}-{i}", LaunchCondition(name, 0.75, 0.8, 0.0, i), "sim", i < count)
@@ -216,7 +216,7 @@ def test_the_report_never_lists_a_losing_design_first(tmp_path):
     assert verdicts == ["not recommended", "not recommended"]
     # the same designs, now B wins every world clearly but loses on the campaign: still not listed first
     with open(tmp_path / "designs" / "world_check.csv", "w", newline="", encoding="utf-8") as stream:
-        writer = csv.DictWriter(stream, fieldnames=world_check.ROW_COLUMNS)
+        writer = csv.DictWriter(stream, fieldnames=world_check.WORLD_CHECK_COLUMNS)
         writer.writeheader()
         writer.writerows(rows_from({"baseline": [5] * 10, "A": [4] * 10, "B": [15] * 10}))
     data = report.load_report_data(source)

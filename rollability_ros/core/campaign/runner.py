@@ -24,7 +24,7 @@ from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, c
 from rollability_ros.core.config import check_given_files, load_parameters, settings_from_sections
 from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, LaunchAborted,
-                                      LaunchBackend, RigPorts, RigSettings, SpeedGateConfig, ValveConfig,
+                                      LaunchBackend, RigPorts, RigSettings, SpeedGate, SpeedGateConfig, ValveConfig,
                                       ValveController, make_controller, make_launch_backend, make_speed_gate,
                                       parse_outcome_answer)
 from rollability_ros.core.records import INVALID_LAUNCH, LaunchOutcome
@@ -330,7 +330,7 @@ class LocalRigPorts(RigPorts):
     def __init__(self, ask=input):
         self._ask = ask
         self._stop = threading.Event()
-        self.valve = None
+        self.valve: typing.Optional[ValveController] = None
 
     def open_valve(self, valve_config: ValveConfig) -> ValveController:
         """A valve controller on ``valve.*`` whose watchdog this object keeps fed until :meth:`close`."""
@@ -339,10 +339,12 @@ class LocalRigPorts(RigPorts):
         return self.valve
 
     def _beat(self, period_s):
+        valve = self.valve
+        assert valve is not None   # started by open_valve
         while not self._stop.wait(period_s):
-            self.valve.heartbeat()
+            valve.heartbeat()
 
-    def open_speed_gate(self, speed_config: SpeedGateConfig) -> typing.Any:
+    def open_speed_gate(self, speed_config: SpeedGateConfig) -> SpeedGate:
         """The configured speed gate (its ``operator`` backend asks at this terminal)."""
         return make_speed_gate(speed_config, self._ask)
 

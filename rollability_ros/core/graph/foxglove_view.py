@@ -118,7 +118,9 @@ def parse_pose_frames(entries: typing.Iterable[str]) -> typing.Dict[str, str]:
 def _replay_listener(foxglove, view):
     """A foxglove ``ServerListener`` that replays latched topics to a new subscriber (other events: no-ops)."""
 
-    class ReplayLatched(foxglove.websocket.ServerListener):
+    listener: typing.Any = foxglove.websocket.ServerListener   # the SDK's base class, imported at run time
+
+    class ReplayLatched(listener):
         def on_subscribe(self, client: typing.Any, channel: typing.Any) -> None:
             view.replay(channel.topic)
 
@@ -183,8 +185,10 @@ class ViewServer:
                 if served != schema_name:
                     raise ValueError(f"{topic} is served as {served}, not {schema_name}")
                 return False
-            schema = self._foxglove.Schema(name=schema_name, encoding="ros2msg", data=schema_text.encode())
-            channel = self._foxglove.Channel(topic, message_encoding="cdr", schema=schema, context=self._context)
+            foxglove = self._foxglove
+            assert foxglove is not None   # imported by start(), checked above
+            schema = foxglove.Schema(name=schema_name, encoding="ros2msg", data=schema_text.encode())
+            channel = foxglove.Channel(topic, message_encoding="cdr", schema=schema, context=self._context)
             self._channels[topic] = (schema_name, channel)
             if latched:
                 self._latched.setdefault(topic, None)

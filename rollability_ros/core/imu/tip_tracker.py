@@ -23,7 +23,7 @@ import typing
 
 from rollability_ros.core.config import check_settings
 from rollability_ros.core.records import TipEventRecord
-from rollability_ros.core.imu.upright import ImuMount, ImuSample, ImuUprightClassifier
+from rollability_ros.core.imu.upright import ImuMount, ImuSample, ImuUprightClassifier, UprightReading
 
 _LOG = logging.getLogger(__name__)
 
@@ -104,7 +104,7 @@ class TipUpdate:
 
     state: TipState
     changed: bool
-    reading: object                   # upright.UprightReading
+    reading: UprightReading
     event: TipEventRecord | None = None
 
 
@@ -118,7 +118,7 @@ class TipTracker:
         self.state = TipState.UPRIGHT
         self.last_reading = None
         self._above_since = None      # first sample of the current stretch above the tip threshold
-        self._tipped_at = None
+        self._tipped_at: typing.Optional[float] = None
         self._recovered_at = None
         self._peak_tilt = 0.0
         self._peak_rate = 0.0
@@ -172,6 +172,7 @@ class TipTracker:
         self._peak_rate = max(self._peak_rate, reading.angular_rate_radps)
 
     def _event(self, sample, reading, duration_s, recovered):
+        assert self._tipped_at is not None   # an event ends a tip that started
         record = TipEventRecord(
             robot=self.config.robot, tipped_at_s=self._tipped_at, duration_s=duration_s, recovered=recovered,
             peak_tilt_deg=self._peak_tilt, peak_angular_rate_radps=self._peak_rate,

@@ -173,7 +173,7 @@ class Estimate:
 class OptimizerResult:
     """Outcome so far: the incumbent, counts, the distribution mean (phenotype) and step size, stop criteria."""
 
-    best: Estimate
+    best: typing.Optional[Estimate]   # None before the first evaluation
     generations: int
     evaluations: int
     elapsed_s: float
@@ -209,7 +209,7 @@ class IncumbentOptimizer(abc.ABC):
 
     @classmethod
     @abc.abstractmethod
-    def create(cls, grid: typing.Any, settings: "RunSettings", clock: typing.Callable[[], float],
+    def create(cls, grid: "ProfileGrid", settings: "RunSettings", clock: typing.Callable[[], float],
                initial_mean: typing.Optional[npt.ArrayLike] = None,
                state: typing.Optional[dict] = None) -> "IncumbentOptimizer":
         """The optimizer over ``grid``'s variables and bounds with the run's typed ``settings``, new or restored
@@ -306,7 +306,9 @@ class IncumbentOptimizer(abc.ABC):
         nothing is due."""
         if not self._reevaluation_pending:
             return None
-        return (self._challenger or self._incumbent).heights.copy()
+        due = self._challenger or self._incumbent
+        assert due is not None   # a re-evaluation is due only once there is an incumbent
+        return due.heights.copy()
 
     def tell_reevaluation(self, fitness: float, trials: int = 1) -> None:
         """Pool a fresh evaluation (``fitness`` over ``trials``) into the design :meth:`reevaluation_request` named."""
@@ -318,6 +320,7 @@ class IncumbentOptimizer(abc.ABC):
         self._reevaluation_pending = False
         self._tells[-1]["reevaluation"] = [float(fitness), int(trials)]
         if self._challenger is None:
+            assert self._incumbent is not None   # see reevaluation_request
             self._incumbent = self._incumbent.pooled(float(fitness), int(trials))
             return
         challenger, self._challenger = self._challenger.pooled(float(fitness), int(trials)), None

@@ -9,7 +9,7 @@ written in the STL header), ``mesh_<label>.3mf`` (millimetres, the 3MF unit attr
 simulated fitness and its Wilson interval, baseline row first; beside it the in-run estimate with its interval
 and the selection bias, in-run minus fresh) and ``designs.yaml``, a ROS 2 parameter file
 with the heights of each design and its grid, for the rig's simulation twin. ``selection_world_check.csv``
-(:data:`~rollability_ros.core.sim.world_check.ROW_COLUMNS`) holds the selection's plausible-world check, and designs.yaml its ``recommendation``: the design to print first
+(:data:`~rollability_ros.core.sim.world_check.WORLD_CHECK_COLUMNS`) holds the selection's plausible-world check, and designs.yaml its ``recommendation``: the design to print first
 and why (:mod:`~rollability_ros.core.optimization.recommendation`).
 """
 import csv
@@ -24,7 +24,7 @@ import typing
 import numpy as np
 import yaml
 
-from rollability_ros.core.profile import geometry
+from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, export_mesh, is_baseline
 from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
 from rollability_ros.core.optimization.selection import (ARCHIVE_COLUMNS, GAIN_SOURCES, BatchEvaluator,
                                                           LaunchEvaluator, SelectionResult, SelectionSettings,
@@ -48,7 +48,7 @@ TABLE_COLUMNS = ("configuration", "length_m", "width_m", "max_height_m", "printe
                  "launch_fitness", "gain_source", "gain", "gain_low", "gain_high", "beats_baseline")
 
 
-def trait_rows(candidates: typing.Iterable["CandidateRecord"], grid: geometry.ProfileGrid,
+def trait_rows(candidates: typing.Iterable["CandidateRecord"], grid: ProfileGrid,
                ranges: typing.Sequence[typing.Sequence[float]], bins: typing.Sequence[int]
                ) -> typing.List[typing.Dict[str, typing.Any]]:
     """Every evaluation of a run pooled per bin of each descriptor: rows with :data:`TRAIT_COLUMNS`.
@@ -58,10 +58,10 @@ def trait_rows(candidates: typing.Iterable["CandidateRecord"], grid: geometry.Pr
     Wilson 95% interval: how well the designs the optimizer tried with that trait did (not a random sample of
     designs).
     """
-    from rollability_ros.core.profile import descriptors
+    from rollability_ros.core.profile import profile_descriptors
 
-    pooled = [d for d in pool_candidates(candidates) if not geometry.is_baseline(d.heights)]
-    measured = [descriptors.profile_descriptors(d.heights, grid).as_tuple() for d in pooled]
+    pooled = [d for d in pool_candidates(candidates) if not is_baseline(d.heights)]
+    measured = [profile_descriptors(d.heights, grid).as_tuple() for d in pooled]
     rows = []
     for axis, trait in enumerate(("max_height_mm", "sharpness_deg")):
         edges = np.linspace(ranges[axis][0], ranges[axis][1], int(bins[axis]) + 1)
@@ -135,7 +135,7 @@ def _fitness_columns(successes, trials, source):
             "successes": successes, "trials": trials, "fitness_source": source}
 
 
-def designs_document(result: SelectionResult, grid: geometry.ProfileGrid, run_id: str,
+def designs_document(result: SelectionResult, grid: ProfileGrid, run_id: str,
                      mesh_units: str = "mm") -> typing.Dict[str, typing.Any]:
     """The ``designs.yaml`` content: a ROS 2 parameter file with namespace ``designs`` (heights per label).
 
@@ -208,9 +208,9 @@ WORLD_CHECK_FILENAME = "selection_world_check.csv"
 
 
 def _world_columns():
-    from rollability_ros.core.sim import world_check
+    from rollability_ros.core.sim import WORLD_CHECK_COLUMNS
 
-    return world_check.ROW_COLUMNS
+    return WORLD_CHECK_COLUMNS
 
 
 def _write_csv(path, columns, rows):
@@ -244,7 +244,7 @@ def next_design_folder(run_dir: str) -> str:
     return os.path.join(run_dir, f"{DESIGNS_DIRNAME}-{number}")
 
 
-def write_selection(run_dir: str, result: SelectionResult, grid: geometry.ProfileGrid, run_id: str,
+def write_selection(run_dir: str, result: SelectionResult, grid: ProfileGrid, run_id: str,
                     mesh_units: str = "mm", traits: typing.Optional[typing.List[typing.Dict[str, typing.Any]]] = None
                     ) -> str:
     """Write the STL (in ``mesh_units``) and 3MF files, ``table3.csv`` and ``designs.yaml`` into a new design set
@@ -262,8 +262,8 @@ def write_selection(run_dir: str, result: SelectionResult, grid: geometry.Profil
         shutil.rmtree(partial)
     os.makedirs(partial)
     for design in result.designs:
-        geometry.export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.stl"), mesh_units)
-        geometry.export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.3mf"))
+        export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.stl"), mesh_units)
+        export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.3mf"))
     _write_csv(os.path.join(partial, "table3.csv"), TABLE_COLUMNS, table_rows(result))
     for name, columns, rows in (("archive.csv", ARCHIVE_COLUMNS, result.archive),
                                 ("traits.csv", TRAIT_COLUMNS, traits),
@@ -276,10 +276,10 @@ def write_selection(run_dir: str, result: SelectionResult, grid: geometry.Profil
     return folder
 
 
-def select_run(store: "Store", run_id: str, run_dir: str, grid: geometry.ProfileGrid, printer: geometry.PrinterSpec,
+def select_run(store: "Store", run_id: str, run_dir: str, grid: ProfileGrid, printer: PrinterSpec,
                settings: SelectionSettings, evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
                launch_batch: typing.Optional[LaunchEvaluator] = None,
-               weigh: typing.Optional[typing.Callable[[typing.Any], float]] = None,
+               weigh: typing.Optional[typing.Callable[[Mesh], float]] = None,
                world_launch: typing.Optional[WorldLaunch] = None,
                describe_world: typing.Optional[typing.Callable[[int], typing.Mapping[str, typing.Any]]] = None
                ) -> typing.Tuple[SelectionResult, str]:

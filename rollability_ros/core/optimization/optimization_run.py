@@ -57,10 +57,10 @@ from rollability_ros.core.optimization.cmaes import (
     random_initial_means,
 )
 from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
-from rollability_ros.core.profile import PrinterSpec
+from rollability_ros.core.profile import PrinterSpec, ProfileGrid
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, RunProgress
-from rollability_ros.core.sim import (SETTINGS_SECTIONS, TWIN_NAMESPACE, ObjectiveSettings, ScreenSettings,
-                                      twin_files)
+from rollability_ros.core.sim import (SETTINGS_SECTIONS, TWIN_NAMESPACE, EvaluatorSettings, ObjectiveSettings,
+                                      ScreenSettings, TrialBatchEngine, TrialExecutor, twin_files)
 from rollability_ros.core.store import Store
 
 #: File name of the merged parameters inside a run directory.
@@ -218,7 +218,7 @@ def check_method_settings(settings: RunSettings) -> None:
     OPTIMIZER_METHODS.get(settings.optimizer.method).check_settings(settings)
 
 
-def make_optimizer(grid: typing.Any, settings: RunSettings, clock: typing.Callable[[], float],
+def make_optimizer(grid: ProfileGrid, settings: RunSettings, clock: typing.Callable[[], float],
                    initial_mean: typing.Optional[np.ndarray] = None,
                    state: typing.Optional[dict] = None) -> IncumbentOptimizer:
     """The optimizer ``settings.optimizer.method`` names (:data:`OPTIMIZER_METHODS`, the only lookup of the name),
@@ -235,7 +235,7 @@ def read_run_config(run_dir: typing.Union[str, os.PathLike]) -> dict:
     return load_parameters(path)
 
 
-def profile_screen(settings: RunSettings, evaluator_settings: typing.Any,
+def profile_screen(settings: RunSettings, evaluator_settings: EvaluatorSettings,
                    screen_settings: typing.Optional[ScreenSettings] = None) -> typing.Optional[typing.Callable]:
     """The ``screen_profiles`` an :class:`OptimizationRun` with these ``settings`` needs: the stable-pose screen of
     profiles on the robot of ``evaluator_settings`` under ``screen_settings`` (default: ``settings.stable_poses``,
@@ -243,12 +243,12 @@ def profile_screen(settings: RunSettings, evaluator_settings: typing.Any,
     ``optimizer.initial_mean_screen`` is 0."""
     if settings.optimizer.initial_mean_screen == 0:
         return None
-    from rollability_ros.core.sim import stable_poses
+    from rollability_ros.core.sim import profile_screener
 
-    return stable_poses.profile_screener(evaluator_settings, screen_settings or settings.stable_poses)
+    return profile_screener(evaluator_settings, screen_settings or settings.stable_poses)
 
 
-def check_design_space_printable(printer: typing.Optional[PrinterSpec], grid: typing.Any) -> None:
+def check_design_space_printable(printer: typing.Optional[PrinterSpec], grid: ProfileGrid) -> None:
     """Raise ``ValueError`` naming the printer limit when no profile of ``grid`` could be printed on ``printer``
     (skipped when None: the parameters held no printer), before a long run."""
     if printer is None:
@@ -538,7 +538,7 @@ class OptimizationRun:
     def _evaluate(self, generation, indices, heights_list, seeds, stored):
         """Return the :class:`CandidateRecord` of each (index, heights, seed): reused if stored, else evaluated."""
         records = {}
-        pending = {}
+        pending: typing.Dict[int, typing.Any] = {}
         for index, heights, seed in zip(indices, heights_list, seeds):
             previous = stored.get(index)
             if previous is None:
@@ -574,6 +574,7 @@ class OptimizationRun:
 
         settings = self.settings
         looks, stages = settings.race_looks_used, settings.race_stages
+        assert stages is not None   # called only when racing
         bars = [None if r is None else racing.sequential_bar(*r) for r in references]
         records, pending = {}, []
         for number, heights in enumerate(population):
@@ -587,7 +588,7 @@ class OptimizationRun:
                                  f"{generation} than this resumed run computes (seed {previous.seed} vs {seed})")
         halving = settings.race_survivors > 0
         racing_now = list(range(len(population))) if halving and pending else pending
-        totals = {number: [0, 0, 0.0, ""] for number in racing_now}
+        totals: typing.Dict[int, typing.List[typing.Any]] = {number: [0, 0, 0.0, ""] for number in racing_now}
         going_on = list(racing_now)
         for stage, stage_trials in enumerate(stages):
             if not going_on:
@@ -730,8 +731,8 @@ def run_generations(run: OptimizationRun, stop_requested: typing.Callable[[], bo
     return RunEnd("stopped" if stop_requested() else "finished", run.optimizer.result)
 
 
-def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.Any,
-                            name: str = "local", engine: typing.Any = None) -> typing.Callable:
+def profile_batch_evaluator(settings: EvaluatorSettings, trials: int, executor: TrialExecutor,
+                            name: str = "local", engine: typing.Optional[TrialBatchEngine] = None) -> typing.Callable:
     """``evaluate_batch`` over :func:`evaluation.evaluate_profile` on ``executor`` (a LocalExecutor or RayExecutor).
 
     The profiles of a batch are evaluated concurrently (one thread each submitting its trial batches), so the
@@ -763,7 +764,7 @@ def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.
     return evaluate_batch
 
 
-def fidelity_batch_evaluator(settings: typing.Any, executor: typing.Any, fidelity: str = "screen",
+def fidelity_batch_evaluator(settings: EvaluatorSettings, executor: TrialExecutor, fidelity: str = "screen",
                              name: str = "local") -> typing.Callable:
     """``evaluate(heights_list, seed, trials)`` at evaluation ``fidelity`` (``screen``: the configured objective;
     ``launch``: robust twin launches, :func:`evaluation.settings_at_fidelity`) on ``executor``; each result

@@ -49,7 +49,7 @@ from rollability_ros.core import config
 from rollability_ros.core.optional import require
 from rollability_ros.core.optimization.cmaes import (IncumbentOptimizer, OptimizerResult, OptimizerSettings,
                                                      check_search_space)
-from rollability_ros.core.profile import descriptors, geometry
+from rollability_ros.core.profile import ProfileGrid, height_bound_mm, profile_descriptors
 
 if typing.TYPE_CHECKING:
     from rollability_ros.core.optimization.optimization_run import RunSettings
@@ -152,7 +152,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
         ``popsize`` (candidates per generation over all emitters), ``sigma0``, ``seed``, stop criteria,
         ``reevaluate_incumbent``.
     qd_settings : QualityDiversitySettings
-    grid : geometry.ProfileGrid
+    grid : ProfileGrid
         Bounds and the descriptors' geometry.
     clock : callable, optional
     initial_mean : array_like, optional
@@ -167,7 +167,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
         settings.quality_diversity.validate(settings.optimizer.popsize)
 
     @classmethod
-    def create(cls, grid: geometry.ProfileGrid, settings: "RunSettings", clock: typing.Callable[[], float],
+    def create(cls, grid: ProfileGrid, settings: "RunSettings", clock: typing.Callable[[], float],
                initial_mean: npt.ArrayLike | None = None,
                state: dict[str, typing.Any] | None = None) -> "QualityDiversityOptimizer":
         """``optimizer.method: cma_mae``: CMA-MAE over the grid with the ``optimizer`` and ``quality_diversity``
@@ -193,9 +193,9 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
             grid.n_variables, settings, grid.height_min, grid.height_max, initial_mean)
         seeds = np.random.SeedSequence([int(settings.seed), 0x51D]).generate_state(qd_settings.emitters + 2)
         dims = [qd_settings.height_cells, qd_settings.sharpness_cells]
-        self.ranges = [(0.0, descriptors.height_bound_mm(grid)),
+        self.ranges = [(0.0, height_bound_mm(grid)),
                        (qd_settings.sharpness_min_deg, qd_settings.sharpness_max_deg)]
-        extra = {"trials": ((), np.int64), "generation": ((), np.int64),
+        extra: typing.Dict[str, typing.Any] = {"trials": ((), np.int64), "generation": ((), np.int64),
                  "heights": ((self.n_variables,), np.float64)}
         self.archive = GridArchive(solution_dim=self.n_variables, dims=dims, ranges=self.ranges,
                                    learning_rate=qd_settings.learning_rate, threshold_min=qd_settings.threshold_min,
@@ -222,7 +222,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
                 for bounds, solution in zip(self._bounds, self.scheduler.ask())]
 
     def _tell(self, population, fitness, trials):
-        measures = np.array([descriptors.profile_descriptors(heights, self.grid).as_tuple()
+        measures = np.array([profile_descriptors(heights, self.grid).as_tuple()
                              for heights in population], dtype=np.float64)
         self.scheduler.tell(np.asarray(fitness, dtype=np.float64), measures,
                             trials=np.asarray(trials, dtype=np.int64), heights=np.asarray(population),
@@ -233,7 +233,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
         (simulation units) falls in (sequential racing
         against its cell's elite); None for an empty cell (any candidate would fill it). The cell follows from the
         geometry alone and the archive is the state between generations, so a resumed generation races alike."""
-        measures = np.array([descriptors.profile_descriptors(heights, self.grid).as_tuple()], dtype=np.float64)
+        measures = np.array([profile_descriptors(heights, self.grid).as_tuple()], dtype=np.float64)
         occupied, data = self.result_archive.retrieve(measures)
         if not bool(occupied[0]):
             return None
@@ -294,7 +294,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
 
     @classmethod
     def from_state_dict(cls, state: dict[str, typing.Any], settings: OptimizerSettings,
-                        qd_settings: QualityDiversitySettings, grid: geometry.ProfileGrid,
+                        qd_settings: QualityDiversitySettings, grid: ProfileGrid,
                         clock: typing.Callable[[], float] = time.monotonic,
                         initial_mean: npt.ArrayLike | None = None) -> "QualityDiversityOptimizer":
         """Rebuild an optimizer saved by :meth:`state_dict`; ValueError when it belongs to other settings or code

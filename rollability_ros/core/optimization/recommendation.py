@@ -6,7 +6,7 @@ A design is *recommended* only where, in the world check (:mod:`~rollability_ros
 the lab has not measured, not only on average. Recommended designs are ordered by the pooled gain's lower bound,
 then the share of worlds won, then the worst world's gain; the first is the design to print first.
 
-Later evidence can only take a recommendation away: with a campaign (:func:`lead`), a recommended design whose
+Later evidence can only take a recommendation away: with a campaign (:func:`with_campaign`), a recommended design whose
 campaign gain's interval does not lie above 0 is not listed first, and when none is left the lead says plainly that
 no design is to be printed first. Nothing here ever lists first a design that does not beat the bare robot.
 """
@@ -75,7 +75,7 @@ def recommend(summaries: typing.Sequence["WorldSummary"], min_share: float = DEF
                           max((s.worlds for s in summaries), default=0))
 
 
-def lead(recommendation: Recommendation,
+def with_campaign(recommendation: Recommendation,
          campaign: typing.Optional[typing.Mapping[str, typing.Tuple[float, float, float]]] = None) -> Recommendation:
     """``recommendation`` with the campaign's evidence: ``campaign`` ``{design: (gain, low, high)}`` (upright rate
     minus the bare robot's on the campaign, Newcombe 95%); a recommended design the campaign ran whose interval is

@@ -7,7 +7,7 @@ Procedure
 2. Designs are ranked by the lower bound of the 95% Wilson interval of their pooled fitness, then by fitness:
    a design seen once at 60/60 does not outrank one confirmed at 55/60 twice only because it was lucky once.
 3. Walking down that ranking, a design is taken when its convex-hull solid passes the printability checks
-   (:func:`geometry.check_printability`) and its RMS height distance (simulation units) to every design already
+   (:func:`check_printability`) and its RMS height distance (simulation units) to every design already
    taken is at least ``min_distance``. Labels follow the ranking: "A" is the best.
 4. Optionally the chosen designs and the baseline (no profile) are re-evaluated in one batch with a fresh
    common seed and ``reevaluate_trials`` trials: a fitness picked as a maximum is biased upward, a fresh
@@ -63,7 +63,8 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
-from rollability_ros.core.profile import geometry
+from rollability_ros.core.profile import (MESH_UNITS, Mesh, PrinterSpec, ProfileGrid, ProfileMetrics,
+                                          check_printability, is_baseline, mesh_metrics, profile_mesh)
 from rollability_ros.core.optimization.cmaes import STREAM_SELECTION, derive_seed
 from rollability_ros.core.optimization import racing
 from rollability_ros.core.optimization.recommendation import Recommendation, recommend
@@ -76,10 +77,12 @@ if typing.TYPE_CHECKING:
 
 #: ``evaluate_batch(heights_list, seed) -> [(successes, trials, eval_time_s, evaluator), ...]``: heights
 #: ``(n_variables,)`` each, simulation units; one result per profile.
-BatchEvaluator = typing.Callable[[typing.List[np.ndarray], int], typing.Sequence[typing.Sequence[typing.Any]]]
+BatchEvaluator = typing.Callable[[typing.List[np.ndarray], int], typing.Sequence["EvaluatedProfile"]]
 #: ``launch_batch(heights_list, seed, trials) -> [(successes, trials, eval_time_s, evaluator), ...]``: robust twin
 #: launches of each profile (heights ``(n_variables,)``, simulation units).
-LaunchEvaluator = typing.Callable[[typing.List[np.ndarray], int, int], typing.Sequence[typing.Sequence[typing.Any]]]
+LaunchEvaluator = typing.Callable[[typing.List[np.ndarray], int, int], typing.Sequence["EvaluatedProfile"]]
+#: One profile's evaluation: ``(successes, trials, eval_time_s, evaluator)``.
+EvaluatedProfile = typing.Tuple[int, int, float, str]
 
 #: ``launch(heights_list, world_seed, launch_seed, launches) -> [(successes, trials, eval_time_s, evaluator), ...]``:
 #: launches of each profile (heights ``(n_variables,)``, simulation units; zeros = the bare robot) all in the one
@@ -156,8 +159,8 @@ class SelectionSettings:
         checked by :func:`~rollability_ros.core.config.check_settings`)."""
         if list(self.race_launches) not in ([], [0]) and any(int(n) < 1 for n in self.race_launches):
             raise ValueError(f"race_launches must list counts >= 1 (or be [0]: no race), got {self.race_launches}")
-        if self.mesh_units not in geometry.MESH_UNITS:
-            raise ValueError(f"mesh_units must be one of {', '.join(geometry.MESH_UNITS)}, got {self.mesh_units!r}")
+        if self.mesh_units not in MESH_UNITS:
+            raise ValueError(f"mesh_units must be one of {', '.join(MESH_UNITS)}, got {self.mesh_units!r}")
 
     @property
     def race_rounds(self) -> typing.List[int]:
@@ -193,7 +196,7 @@ class SelectedDesign:
     label: str
     design: PooledDesign
     mesh: object                       # trimesh.Trimesh, metres, profile frame
-    metrics: geometry.ProfileMetrics
+    metrics: ProfileMetrics
     reevaluation: typing.Optional[tuple] = None         # (successes, trials, seed) of the fresh estimate, or None
     reason: str = ""                   # why it was chosen, one sentence
     descriptors: typing.Optional[tuple] = None          # (max_height_mm, sharpness_deg) for archive selections, else None
@@ -224,7 +227,7 @@ class SelectionResult:
     archive: typing.Optional[list] = None               # archive runs: one row per elite (ARCHIVE_COLUMNS), else None
     baseline_launches: typing.Optional[tuple] = None    # (successes, trials, seed) of the bare robot's fresh launches, or None
     race: typing.Optional[racing.RaceResult] = None     # the launch race, or None without one
-    world_rows: typing.Optional[list] = None            # the world check's rows (world_check.ROW_COLUMNS), or None
+    world_rows: typing.Optional[list] = None            # the world check's rows (world_check.WORLD_CHECK_COLUMNS), or None
     recommendation: typing.Optional[Recommendation] = None   # the rule applied to the world check, or None
 
     def gains(self) -> typing.List[typing.Optional["Gain"]]:
@@ -298,8 +301,8 @@ def design_gain(design: SelectedDesign, result: SelectionResult) -> typing.Optio
 
 def _limits_named(problems):
     """The configuration keys (``printer.bed_x_m / bed_y_m``, ...) that the printability ``problems`` name."""
-    return [re.search(r"\((printer\.[^)]*)\)", problem).group(1) if "(printer." in problem else problem
-            for problem in problems]
+    named = [re.search(r"\((printer\.[^)]*)\)", problem) for problem in problems]
+    return [match.group(1) if match else problem for match, problem in zip(named, problems)]
 
 
 def pool_candidates(candidates: typing.Iterable["CandidateRecord"]) -> typing.List[PooledDesign]:
@@ -323,8 +326,8 @@ def rms_distance(heights_a: npt.ArrayLike, heights_b: npt.ArrayLike) -> float:
     return float(np.sqrt(np.mean((np.asarray(heights_a) - np.asarray(heights_b)) ** 2)))
 
 
-def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: geometry.ProfileGrid,
-                   printer: geometry.PrinterSpec, settings: SelectionSettings,
+def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: ProfileGrid,
+                   printer: PrinterSpec, settings: SelectionSettings,
                    evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
                    launch_batch: typing.Optional[LaunchEvaluator] = None) -> SelectionResult:
     """Choose designs from a run's candidate log; see the module docstring.
@@ -332,8 +335,8 @@ def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: geometr
     Parameters
     ----------
     candidates : iterable of CandidateRecord
-    grid : geometry.ProfileGrid
-    printer : geometry.PrinterSpec
+    grid : ProfileGrid
+    printer : PrinterSpec
     settings : SelectionSettings
     evaluate_batch : callable(heights_list, seed) -> [(successes, trials, eval_time_s, evaluator)], optional
         Runs ``settings.reevaluate_trials`` trials per profile; needed when ``reevaluate_trials > 0``.
@@ -345,7 +348,7 @@ def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: geometr
         by their launches (same distance rule).
     """
     _check_evaluators(settings, evaluate_batch, launch_batch)
-    pooled = [d for d in pool_candidates(candidates) if not geometry.is_baseline(d.heights)]
+    pooled = [d for d in pool_candidates(candidates) if not is_baseline(d.heights)]
     ranked = sorted(pooled, key=lambda d: (-d.wilson_low, -d.fitness, d.first_generation))
     chosen: typing.List[SelectedDesign] = []
     rejected: typing.Dict[str, int] = {}
@@ -383,7 +386,7 @@ def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: geometr
                                         f"({design.successes}/{design.trials}, bound {design.wilson_low:.2f})")
         if chosen:
             reason += f", at least {settings.min_distance} units RMS from {', '.join(c.label for c in chosen)}"
-        chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], design, mesh, geometry.mesh_metrics(mesh),
+        chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], design, mesh, mesh_metrics(mesh),
                                      reason=reason, race=race.totals[index] if race else None))
     chosen, baseline = _reevaluate(chosen, grid, settings, evaluate_batch, run_seed)
     chosen, baseline_launches = _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed)
@@ -400,7 +403,7 @@ def _check_evaluators(settings, evaluate_batch, launch_batch):
         raise ValueError("race_launches or launch_trials > 0 need a launch evaluator")
 
 
-def with_world_check(result: SelectionResult, grid: geometry.ProfileGrid, settings: SelectionSettings,
+def with_world_check(result: SelectionResult, grid: ProfileGrid, settings: SelectionSettings,
                      world_launch: typing.Optional[WorldLaunch], run_seed: int,
                      describe: typing.Optional[typing.Callable[[int], typing.Mapping[str, typing.Any]]] = None
                      ) -> SelectionResult:
@@ -409,22 +412,22 @@ def with_world_check(result: SelectionResult, grid: geometry.ProfileGrid, settin
     :mod:`~rollability_ros.core.sim.world_check`) and the recommendation it gives
     (:mod:`~rollability_ros.core.optimization.recommendation`); unchanged without a check or designs.
     ``describe(world seed)`` names a world's draws in the rows (empty columns without it)."""
-    from rollability_ros.core.sim import world_check
+    from rollability_ros.core.sim import run_world_check, summarize_worlds
 
     if not (settings.world_count and result.designs):
         return result
     if world_launch is None:
         raise ValueError("world_count > 0 needs a world launch evaluator (fidelity world:<seed>)")
-    labels = [world_check.BASELINE] + [d.label for d in result.designs]
+    labels = [BASELINE] + [d.label for d in result.designs]
     heights = [np.zeros(grid.n_variables)] + [d.design.heights for d in result.designs]
 
     def evaluate(world_seed: int, launch_seed: int, launches: int) -> typing.Dict[str, typing.Tuple[int, int]]:
         results = world_launch(heights, world_seed, launch_seed, launches)
         return {label: (int(r[0]), int(r[1])) for label, r in zip(labels, results)}
 
-    rows = world_check.run_world_check(evaluate, settings.world_count, settings.world_launches,
+    rows = run_world_check(evaluate, settings.world_count, settings.world_launches,
                                        derive_seed(run_seed, WORLD_SEED_KEY, STREAM_SELECTION), describe)
-    verdict = recommend(world_check.summarize_worlds(rows), settings.recommend_world_share)
+    verdict = recommend(summarize_worlds(rows), settings.recommend_world_share)
     return dataclasses.replace(result, world_rows=rows, recommendation=verdict)
 
 
@@ -440,15 +443,17 @@ def _reevaluate(chosen, grid, settings, evaluate_batch, run_seed):
     return chosen, (int(results[-1][0]), int(results[-1][1]), seed)
 
 
-def _printable_mesh(heights: npt.ArrayLike, grid: geometry.ProfileGrid, printer: geometry.PrinterSpec
-                    ) -> typing.Tuple[typing.Optional[geometry.Mesh], str]:
+def _printable_mesh(heights: npt.ArrayLike, grid: ProfileGrid, printer: PrinterSpec
+                    ) -> typing.Tuple[typing.Optional[Mesh], str]:
     """``(mesh, "")`` for a printable profile (heights ``(n_variables,)``, simulation units), else
     ``(None, reason)`` (the rejection count's key)."""
     try:
-        mesh = geometry.profile_mesh(heights, grid)
+        mesh = profile_mesh(heights, grid)
     except ValueError:
         return None, "flat"
-    printability = geometry.check_printability(mesh, printer)
+    if mesh is None:
+        return None, "flat"
+    printability = check_printability(mesh, printer)
     if not printability.printable:
         return None, "not printable: " + ", ".join(_limits_named(printability.problems))
     return mesh, ""
@@ -462,7 +467,7 @@ def top_pool(fitnesses: typing.Sequence[float], top_fraction: float) -> typing.T
 
 
 def select_from_archive(archive: typing.Mapping[str, typing.Any], candidates: typing.Iterable["CandidateRecord"],
-                        grid: geometry.ProfileGrid, printer: geometry.PrinterSpec, settings: SelectionSettings,
+                        grid: ProfileGrid, printer: PrinterSpec, settings: SelectionSettings,
                         evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
                         launch_batch: typing.Optional[LaunchEvaluator] = None) -> SelectionResult:
     """Choose designs from a quality-diversity ``archive`` (the run info's ``archive``: ``ranges`` and
@@ -477,7 +482,7 @@ def select_from_archive(archive: typing.Mapping[str, typing.Any], candidates: ty
     (module docstring, "Ranked by the rig's measure").
     """
     _check_evaluators(settings, evaluate_batch, launch_batch)
-    elites = [e for e in archive["elites"] if not geometry.is_baseline(e["heights"])]
+    elites = [e for e in archive["elites"] if not is_baseline(e["heights"])]
     if not elites:
         return SelectionResult([], settings.count, 0, {"no elites": 1})
     pooled = {tuple(d.heights): d for d in pool_candidates(candidates)}
@@ -547,7 +552,7 @@ class _MapPicker:
         elite, design = self.elites[index], self.designs[index]
         self.chosen.append(SelectedDesign(string.ascii_uppercase[len(self.chosen)],
                                           self.pooled.get(tuple(design.heights), design), mesh,
-                                          geometry.mesh_metrics(mesh), reason=reason,
+                                          mesh_metrics(mesh), reason=reason,
                                           descriptors=(elite["max_height_mm"], elite["sharpness_deg"]),
                                           cell=tuple(elite["cell"]), race=race))
         self.points.append(_descriptor_point(elite, self.spans))

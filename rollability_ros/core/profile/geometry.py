@@ -31,13 +31,16 @@ import numpy.typing as npt
 from rollability_ros.core import config
 from rollability_ros.core.optional import require
 
+if typing.TYPE_CHECKING:   # annotations only: trimesh is imported where used
+    import trimesh
+
 #: Top vertices lower than this (m) lie on the base plane in the mesh: far below print and simulation resolution,
 #: far above trimesh's vertex-merge tolerance (1e-8 m).
 BASE_SNAP_M = 1e-6
 
-#: A ``trimesh.Trimesh`` in metres. trimesh is imported where used (and ships no type information), so annotations
-#: name it by this alias.
-Mesh = typing.Any
+#: A ``trimesh.Trimesh`` in metres. trimesh is imported where used (core/optional.py); annotations name it by this
+#: alias, which type checkers resolve to trimesh's own (typed) class.
+Mesh: "typing.TypeAlias" = "trimesh.Trimesh"
 
 
 @dataclasses.dataclass
@@ -349,12 +352,12 @@ def export_mesh(mesh: Mesh, path: typing.Union[str, os.PathLike], units: str = "
     scaled = mesh.copy()
     scaled.apply_scale(1.0 / MESH_UNITS[units])
     if file_type == "stl":
-        payload = stl_header(units) + scaled.export(file_type="stl")[80:]
+        payload = stl_header(units) + typing.cast(bytes, scaled.export(file_type="stl"))[80:]
     elif file_type == "obj":
-        payload = f"# units: {units}\n".encode("ascii") + scaled.export(file_type="obj").encode("utf-8")
+        payload = f"# units: {units}\n".encode("ascii") + typing.cast(str, scaled.export(file_type="obj")).encode("utf-8")
     else:
         require("lxml", feature="3MF export")
-        payload = scaled.export(file_type="3mf")
+        payload = typing.cast(bytes, scaled.export(file_type="3mf"))
     temporary = f"{os.fspath(path)}.tmp"
     with open(temporary, "wb") as stream:
         stream.write(payload)

@@ -13,7 +13,7 @@ import dataclasses
 import textwrap
 import typing
 
-from rollability_ros.core.optimization import recommendation
+from rollability_ros.core.optimization import recommend, with_campaign
 from rollability_ros.core.sim import WorldSummary, summarize_worlds
 from rollability_ros.core.stats import newcombe_interval
 
@@ -104,7 +104,7 @@ def report_lead(world_rows: typing.Sequence[typing.Mapping[str, typing.Any]], mi
                      for name in sorted(designs, key=lambda n: -newcombe_interval(*campaign[n])[1]))
         return Lead(headline, rows, campaign_label, world_label)
     gains = {name: newcombe_interval(*counts) for name, counts in campaign.items()}
-    verdict = recommendation.lead(recommendation.recommend(list(summaries.values()), min_share), gains)
+    verdict = with_campaign(recommend(list(summaries.values()), min_share), gains)
 
     def status(name: str) -> str:
         if name == verdict.first:

@@ -29,7 +29,7 @@ import math
 import os
 import typing
 
-from rollability_ros.core.optimization import recommendation
+from rollability_ros.core.optimization import DEFAULT_WORLD_SHARE
 from rollability_ros.core.results import analysis
 from rollability_ros.core.results._outcome_csv import read_outcome_csv
 from rollability_ros.core.records import INVALID_LAUNCH, LaunchOutcome
@@ -64,9 +64,9 @@ class ReportData:
     design_meshes: dict = dataclasses.field(default_factory=dict)  # label -> mesh file of the chosen designs
     design_folders: list = dataclasses.field(default_factory=list)  # the designs/ folders of this run (design_folders)
     notes: list = dataclasses.field(default_factory=list)         # lines on what the report could not draw
-    world_rows: list = dataclasses.field(default_factory=list)    # the designs' world check (world_check.ROW_COLUMNS)
+    world_rows: list = dataclasses.field(default_factory=list)    # the designs' world check (world_check.WORLD_CHECK_COLUMNS)
     world_file: str = ""                                          # the file they came from
-    world_share: float = recommendation.DEFAULT_WORLD_SHARE                     # the recommendation's share of worlds (designs.yaml)
+    world_share: float = DEFAULT_WORLD_SHARE                     # the recommendation's share of worlds (designs.yaml)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -284,7 +284,7 @@ def _world_check(data, folder, designs_yaml):
     except (OSError, KeyError, TypeError, ValueError, csv.Error) as exc:
         raise ValueError(f"{found[0]}: unusable world check: {exc!r}") from None
     body = ((document.get("/**") or {}).get("ros__parameters") or {}).get("designs") or {}
-    share = (body.get("recommendation") or {}).get("min_world_share", recommendation.DEFAULT_WORLD_SHARE)
+    share = (body.get("recommendation") or {}).get("min_world_share", DEFAULT_WORLD_SHARE)
     data.world_rows, data.world_file, data.world_share = rows, found[0], float(share)
 
 

@@ -46,6 +46,9 @@ from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBacken
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
 from rollability_ros.core.rig.valve import ValveConfig
 
+if typing.TYPE_CHECKING:  # annotations only: the twin is imported when a simulated launch runs
+    from rollability_ros.core.sim import LaunchResult
+
 #: Feedback phases of the Launch action, in order.
 PHASES = ("waiting_for_operator", "armed", "fired", "in_flight", "settling", "classifying")
 #: ``rig.backend`` values.
@@ -162,10 +165,11 @@ def parse_outcome_answer(text: str) -> "OperatorOutcome":
     return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest))
 
 
-def describe_answer(kind: str, answer: typing.Any) -> str:
+def describe_answer(kind: str, answer: typing.Optional[OperatorOutcome]) -> str:
     """An operator answer in words: ``regulator confirmed`` or ``upright, travel time 0.42 s, note: ...``."""
     if kind == "confirm":
         return "regulator confirmed"
+    assert answer is not None, "an outcome answer carries the outcome"
     parts = ["upright" if answer.upright else "tipped"]
     if not math.isnan(answer.travel_time_s):
         parts.append(f"travel time {answer.travel_time_s:g} s")
@@ -573,6 +577,7 @@ class SimulatedLaunch(LaunchBackend):
         from rollability_ros.core.profile import configuration_ids
 
         self.load()
+        assert self._twin_settings is not None   # load() read them
         try:
             known = configuration_ids(self._twin_settings.twin.designs)
         except (ValueError, OSError) as exc:   # an unreadable designs file: every goal names it
@@ -585,6 +590,7 @@ class SimulatedLaunch(LaunchBackend):
     def design_sources(self) -> dict:
         """The twin's ``launch_twin.designs`` (relative paths are from the working directory), made absolute."""
         self.load()
+        assert self._twin_settings is not None   # load() read them
         designs = self._twin_settings.twin.designs
         return {"designs_file": os.path.abspath(designs.designs_file) if designs.designs_file else "",
                 "mesh_files": {label: os.path.abspath(path) for label, path in designs.meshes().items()}}
@@ -612,7 +618,7 @@ class SimulatedLaunch(LaunchBackend):
         """None: a simulated launch is re-run from its seed."""
         return ""
 
-    def resimulate(self, condition: LaunchCondition, seed: int) -> typing.Any:
+    def resimulate(self, condition: LaunchCondition, seed: int) -> "LaunchResult":
         """The launch twin result of one launch of ``condition`` with twin ``seed``: given a stored outcome's
         condition and ``seed`` (and these twin settings), the launch that outcome was classified from, again."""
         return self.load().simulate_launch(condition, self._twin_settings, check_twin_seed(seed))
@@ -659,7 +665,7 @@ def launch_seed(base_seed: int, trial_id: str) -> int:
     return (zlib.crc32(trial_id.encode("utf-8")) ^ (base_seed & 0xFFFFFFFF)) & 0x7FFFFFFF
 
 
-def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, result: typing.Any,
+def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, result: "LaunchResult",
                       speed_config: SpeedGateConfig) -> LaunchOutcome:
     """The :class:`LaunchOutcome` of a launch twin result (``upright``, ``final_orientation_xyzw``,
     ``travel_time_s``), with the speed flagged against ``speed_config``'s tolerance; an invalid launch

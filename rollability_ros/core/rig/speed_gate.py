@@ -200,8 +200,10 @@ class GpioSpeedGate(SpeedGate):
                                             config={(self.start_line_offset, self.end_line_offset): settings})
 
     def _drain(self):
-        while self._request.wait_edge_events(0):
-            self._request.read_edge_events()
+        request = self._request
+        assert request is not None   # drained only while open
+        while request.wait_edge_events(0):
+            request.read_edge_events()
 
     def arm(self, target_mps: float) -> None:
         """Open the lines if needed and drop stale edges (a hand through a beam before the launch)."""

@@ -61,7 +61,7 @@ class _BackendCaller:
     def __init__(self, timeout_s, on_late_return):
         self.timeout_s = timeout_s
         self._on_late_return = on_late_return
-        self._jobs = queue.SimpleQueue()
+        self._jobs: "queue.SimpleQueue[typing.Optional[_Job]]" = queue.SimpleQueue()   # None: stop
         self._guard = threading.Lock()
         self._running = None
         self._stuck = None
@@ -181,7 +181,7 @@ class ValveController:
         self._armed = False
         self._open = False
         self._fault_reason = ""
-        self._last_pulse_ms = 0
+        self._last_pulse_ms: float = 0
         self._pulses = 0
         self._firing = False
         self._shut_down = False
@@ -189,7 +189,7 @@ class ValveController:
         self._last_heartbeat = clock()
         self._watchdog_stop = None
         self._stall_reported = False
-        self._last_status = None
+        self._last_status: ValveStatus   # set by _emit("started") below, before anyone can ask
         self._caller = _BackendCaller(backend.call_timeout_s, self._backend_returned)
         backend.set_fault_listener(self.device_fault)
         with self._lock:

@@ -295,10 +295,15 @@ class TrialExecutor(abc.ABC):
     def close(self) -> None:
         """Release workers or connections (default: nothing to release)."""
 
+    def warm(self) -> typing.List[int]:
+        """Block until the executor's worker processes have started their physics clients; return their pids
+        (default: none to wait for)."""
+        return []
+
     def __enter__(self) -> "TrialExecutor":
         return self
 
-    def __exit__(self, *exc_info: typing.Any) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.close()
 
 

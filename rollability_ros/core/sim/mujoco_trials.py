@@ -317,7 +317,7 @@ class MujocoEnergyMonitor:
         world.place((0.0, 0.0, 0.0, 1.0), 0.0)
         data = world.data
         origin, rotation = data.xpos[world.root].copy(), data.xmat[world.root].reshape(3, 3).copy()
-        points = {}
+        points: typing.Dict[int, np.ndarray] = {}
         for geom in world.robot_geoms:
             local = geom_points(mujoco, model, geom)
             if local is None:

@@ -57,6 +57,9 @@ import numpy as np
 
 from rollability_ros.core.sim.world import CONTACT_MODELS
 
+if typing.TYPE_CHECKING:  # annotations only
+    from rollability_ros.core.robots import ProfileBody
+
 #: Spawn key of the robustness draws within a trial seed (apart from the trial's own draws).
 _ROBUST_STREAM = 0x7B0B
 
@@ -232,7 +235,8 @@ def profile_mass_scale(settings: _Perturbed) -> float:
     return float((settings.urdf_robot if settings.urdf_robot.selected else settings.robot).profile_mass_scale)
 
 
-def scaled_profile(profile: typing.Any, before: _Perturbed, after: _Perturbed) -> typing.Any:
+def scaled_profile(profile: typing.Optional["ProfileBody"], before: _Perturbed,
+                   after: _Perturbed) -> typing.Optional["ProfileBody"]:
     """``profile`` (a ProfileBody made for settings ``before``, or None) weighed for settings ``after``: mass and
     inertia times the ratio of their ``profile_mass_scale`` (the mass model is linear in it)."""
     ratio = profile_mass_scale(after) / profile_mass_scale(before)

@@ -178,7 +178,7 @@ def _minimax_heights(hull, com, upright_faces):
     over_edge = np.linalg.norm(com - (edges[:, 0] + t[:, None] * along), axis=1)
     coplanar = hull.face_adjacency_angles < 1e-6
     pass_height = np.where(coplanar, plane_height[pairs].max(axis=1), over_edge)
-    neighbours = [[] for _ in range(len(hull.faces))]
+    neighbours: typing.List[typing.List[typing.Tuple[int, float]]] = [[] for _ in range(len(hull.faces))]
     for (a, b), height in zip(pairs, pass_height):
         neighbours[a].append((b, height))
         neighbours[b].append((a, height))

@@ -22,7 +22,7 @@ Per design (:class:`WorldSummary`), all simulated:
   treats the launches as independent; launches in one world share its draw, so when worlds differ widely the
   interval is somewhat narrower than a world-clustered one).
 
-``rollability sensitivity --worlds N`` runs it and writes ``world_check.csv`` (:data:`ROW_COLUMNS`) and
+``rollability sensitivity --worlds N`` runs it and writes ``world_check.csv`` (:data:`WORLD_CHECK_COLUMNS`) and
 ``world_summary.yaml``; the selection runs a small one and recommends a design only where it wins in at least
 ``selection.recommend_world_share`` of the worlds (:mod:`~rollability_ros.core.optimization.recommendation`).
 """
@@ -46,7 +46,7 @@ WORLD_UNKNOWNS = ("foam_stiffness_factor", "foam_restitution", "foam_lateral_fri
                   "wheel_drag_nm", "profile_mass_scale", "ledge_rolling_friction_m", "speed_bias_fraction",
                   "launcher_model", "contact_model", "com_offset_z_m")
 #: Columns of ``world_check.csv``: one row per (world, configuration).
-ROW_COLUMNS = ("world", "world_seed", "launch_seed", "configuration", "successes", "trials", *WORLD_UNKNOWNS)
+WORLD_CHECK_COLUMNS = ("world", "world_seed", "launch_seed", "configuration", "successes", "trials", *WORLD_UNKNOWNS)
 #: Short names of the unknowns in the printed worst world.
 _SHORT = {"foam_stiffness_factor": "foam stiffness x", "foam_restitution": "foam restitution",
           "foam_lateral_friction": "foam friction", "foam_rolling_friction_m": "foam rolling friction m",
@@ -57,7 +57,7 @@ _SHORT = {"foam_stiffness_factor": "foam stiffness x", "foam_restitution": "foam
 #: ``evaluate(world_seed, launch_seed, launches) -> {configuration: (successes, trials)}``: the bare robot and every
 #: design launched ``launches`` times in the one world of ``world_seed``, all on ``launch_seed``.
 WorldEvaluator = typing.Callable[[int, int, int], typing.Mapping[str, typing.Tuple[int, int]]]
-#: One row of the check (:data:`ROW_COLUMNS`).
+#: One row of the check (:data:`WORLD_CHECK_COLUMNS`).
 Row = typing.Dict[str, typing.Any]
 
 
@@ -74,7 +74,7 @@ def world_seeds(seed: int, worlds: int) -> typing.List[typing.Tuple[int, int]]:
 def run_world_check(evaluate: WorldEvaluator, worlds: int, launches: int, seed: int,
                     describe: typing.Optional[typing.Callable[[int], typing.Mapping[str, typing.Any]]] = None,
                     on_row: typing.Optional[typing.Callable[[Row], None]] = None) -> typing.List[Row]:
-    """The rows (:data:`ROW_COLUMNS`) of a check of ``worlds`` worlds x ``launches`` paired launches from ``seed``.
+    """The rows (:data:`WORLD_CHECK_COLUMNS`) of a check of ``worlds`` worlds x ``launches`` paired launches from ``seed``.
 
     ``evaluate`` launches the bare robot and every design in one world (:data:`WorldEvaluator`); ``describe(world
     seed)`` gives the world's drawn values (:func:`world_draws`; empty columns without it); ``on_row`` sees each
@@ -266,7 +266,7 @@ def summarize_worlds(rows: typing.Iterable[typing.Mapping[str, typing.Any]],
     return [WorldSummary(label, tuple(own)) for label, own in gains.items()]
 
 
-def summary_lines(summaries: typing.Sequence[WorldSummary], engine: str = "") -> typing.List[str]:
+def world_check_lines(summaries: typing.Sequence[WorldSummary], engine: str = "") -> typing.List[str]:
     """The check as text lines (empty without designs): what a win is, then one line per design."""
     if not summaries:
         return []

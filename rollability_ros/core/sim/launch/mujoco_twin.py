@@ -225,13 +225,13 @@ class MujocoLaunchTwin(LaunchWorld):
         wheel_rolling = options.wheel_rolling_friction * ground_lateral if mecanum else rolling
         model.geom_friction[self.ledge_geom] = [
             0.0, 0.0, wheel_rolling + ledge_rolling * physics.lateral_friction if ledge_rolling else 0.0]
-        body = physics.body_contact()
+        contact = physics.body_contact()
         foam = options.foam
         model.geom_priority[self.foam_geom] = 1
         model.geom_condim[self.foam_geom] = 6
         model.geom_friction[self.foam_geom] = [
             physics.lateral_friction * foam.lateral_friction, spinning,
-            body["rollingFriction"] * foam.lateral_friction + foam.rolling_friction * physics.lateral_friction]
+            contact["rollingFriction"] * foam.lateral_friction + foam.rolling_friction * physics.lateral_friction]
         # MuJoCo's soft contacts go unstable on a stiff spring at this step (a robustness draw of 2 x the shipped
         # foam blew up at omega dt = 0.76): the spring is capped at omega dt = FOAM_MAX_OMEGA_DT
         stiffness = min(foam.contact_stiffness_npm / self.mass_kg, (FOAM_MAX_OMEGA_DT / physics.time_step_s) ** 2)

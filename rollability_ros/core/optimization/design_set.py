@@ -28,7 +28,7 @@ from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, export_
 from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
 from rollability_ros.core.optimization.selection import (ARCHIVE_COLUMNS, GAIN_SOURCES, BatchEvaluator,
                                                           LaunchEvaluator, SelectionResult, SelectionSettings,
-                                                          WorldLaunch, pool_candidates, select_designs,
+                                                          WorldDescriber, WorldLaunch, pool_candidates, select_designs,
                                                           select_from_archive, with_world_check)
 from rollability_ros.core.stats import wilson_interval
 
@@ -281,7 +281,7 @@ def select_run(store: "Store", run_id: str, run_dir: str, grid: ProfileGrid, pri
                launch_batch: typing.Optional[LaunchEvaluator] = None,
                weigh: typing.Optional[typing.Callable[[Mesh], float]] = None,
                world_launch: typing.Optional[WorldLaunch] = None,
-               describe_world: typing.Optional[typing.Callable[[int], typing.Mapping[str, typing.Any]]] = None
+               describe_world: typing.Optional[WorldDescriber] = None
                ) -> typing.Tuple[SelectionResult, str]:
     """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
     simulated fitness and geometry) and write a new design set (``<run_dir>/designs/`` or ``designs-<n>/``);

@@ -46,7 +46,7 @@ class Recommendation:
                     f"{self.worlds} plausible worlds with its pooled gain's interval above 0 (simulated)")
         return f"print design {self.first} first: {self.reasons[self.first]}"
 
-    def as_dict(self) -> typing.Dict[str, typing.Any]:
+    def as_dict(self) -> typing.Dict[str, object]:
         """Plain values for designs.yaml (a ROS 2 parameter file: no empty lists) and the run's record."""
         return {"first": self.first or "", "recommended": ", ".join(self.recommended), "min_world_share": self.min_share,
                 "worlds": self.worlds, "headline": self.headline(), "why": dict(self.reasons)}

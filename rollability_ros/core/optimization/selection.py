@@ -87,7 +87,9 @@ EvaluatedProfile = typing.Tuple[int, int, float, str]
 #: ``launch(heights_list, world_seed, launch_seed, launches) -> [(successes, trials, eval_time_s, evaluator), ...]``:
 #: launches of each profile (heights ``(n_variables,)``, simulation units; zeros = the bare robot) all in the one
 #: world drawn from ``world_seed`` (evaluation fidelity ``world:<seed>``), on ``launch_seed``.
-WorldLaunch = typing.Callable[[typing.List[np.ndarray], int, int, int], typing.Sequence[typing.Sequence[typing.Any]]]
+WorldLaunch = typing.Callable[[typing.List[np.ndarray], int, int, int], typing.Sequence["EvaluatedProfile"]]
+#: ``describe(world_seed) -> {unknown: drawn value}``: names a world's draws in the world check's rows.
+WorldDescriber = typing.Callable[[int], typing.Mapping[str, typing.Union[str, int, float]]]
 
 #: The race's id of the bare robot (the reference that runs every round).
 BASELINE = "baseline"
@@ -405,7 +407,7 @@ def _check_evaluators(settings, evaluate_batch, launch_batch):
 
 def with_world_check(result: SelectionResult, grid: ProfileGrid, settings: SelectionSettings,
                      world_launch: typing.Optional[WorldLaunch], run_seed: int,
-                     describe: typing.Optional[typing.Callable[[int], typing.Mapping[str, typing.Any]]] = None
+                     describe: typing.Optional[WorldDescriber] = None
                      ) -> SelectionResult:
     """``result`` with the plausible-world check of its designs and the bare robot (``settings.world_count``
     worlds x ``world_launches`` paired launches, seed ``derive_seed(run_seed, WORLD_SEED_KEY, STREAM_SELECTION)``;

@@ -17,6 +17,9 @@ from rollability_ros.core.optimization import recommend, with_campaign
 from rollability_ros.core.sim import WorldSummary, summarize_worlds
 from rollability_ros.core.stats import newcombe_interval
 
+if typing.TYPE_CHECKING:
+    from rollability_ros.core.results.analysis import CellSummary
+
 #: Width of the lead's wrapped terminal lines, characters.
 _WIDTH = 110
 #: Verdicts of a lead row, in the order rows are listed.
@@ -75,7 +78,7 @@ def _worlds_text(summary: typing.Optional[WorldSummary]) -> str:
             f"{_gain_text(summary.worst.interval)}, pooled {_gain_text(summary.pooled)} (simulated)")
 
 
-def campaign_counts(by_configuration: typing.Iterable[typing.Any], baseline: str = "baseline"
+def campaign_counts(by_configuration: typing.Iterable["CellSummary"], baseline: str = "baseline"
                     ) -> typing.Dict[str, typing.Tuple[int, int, int, int]]:
     """``{design: (successes, trials, bare successes, bare trials)}`` of the campaign's per-configuration cells
     (``analysis.CellSummary``); empty without a bare robot."""
@@ -87,7 +90,7 @@ def campaign_counts(by_configuration: typing.Iterable[typing.Any], baseline: str
             for name, cell in cells.items() if name != baseline and cell.trials}
 
 
-def report_lead(world_rows: typing.Sequence[typing.Mapping[str, typing.Any]], min_share: float,
+def report_lead(world_rows: typing.Sequence[typing.Mapping[str, typing.Union[str, int, float]]], min_share: float,
                 campaign: typing.Mapping[str, typing.Tuple[int, int, int, int]], campaign_label: str = "",
                 world_label: str = "") -> typing.Optional[Lead]:
     """The :class:`Lead` from the world check's rows (``world_check.csv``), the recommendation's world share and

@@ -248,10 +248,5 @@ def scaled_profile(profile: typing.Optional["ProfileBody"], before: _Perturbed,
 def robust_settings_for(settings: _Perturbed, seed: int, robust: RobustSettings) -> _Perturbed:
     """``settings`` (EvaluatorSettings or LaunchTwinSettings) perturbed by the draw of trial ``seed``, or by the
     one world's draw when ``robust.world_seed`` is set (>= 0: every trial in the same world)."""
-    return perturb(settings, settings_draw(settings, seed if robust.world_seed < 0 else robust.world_seed, robust))
-
-
-def settings_draw(settings: _Perturbed, seed: int, robust: RobustSettings) -> Draw:
-    """The :class:`Draw` of ``seed`` for ``settings`` (EvaluatorSettings or LaunchTwinSettings): the centre of mass
-    drawn around its robot's configured height, kept inside its body."""
-    return draw(seed, robust, settings.robot.com_offset_z_m, settings.robot.body_height_m)
+    drawn_seed = seed if robust.world_seed < 0 else robust.world_seed
+    return perturb(settings, draw(drawn_seed, robust, settings.robot.com_offset_z_m, settings.robot.body_height_m))

@@ -58,7 +58,11 @@ _SHORT = {"foam_stiffness_factor": "foam stiffness x", "foam_restitution": "foam
 #: design launched ``launches`` times in the one world of ``world_seed``, all on ``launch_seed``.
 WorldEvaluator = typing.Callable[[int, int, int], typing.Mapping[str, typing.Tuple[int, int]]]
 #: One row of the check (:data:`WORLD_CHECK_COLUMNS`).
-Row = typing.Dict[str, typing.Any]
+WorldRow = typing.Dict[str, "Value"]
+#: A cell of a row: a count, a seed, a drawn number or a drawn name (text once read back from the CSV).
+Value = typing.Union[str, int, float]
+#: ``describe(world seed) -> {unknown: value}``: the world's drawn values.
+Describe = typing.Callable[[int], typing.Mapping[str, Value]]
 
 
 def world_seeds(seed: int, worlds: int) -> typing.List[typing.Tuple[int, int]]:
@@ -72,8 +76,8 @@ def world_seeds(seed: int, worlds: int) -> typing.List[typing.Tuple[int, int]]:
 
 
 def run_world_check(evaluate: WorldEvaluator, worlds: int, launches: int, seed: int,
-                    describe: typing.Optional[typing.Callable[[int], typing.Mapping[str, typing.Any]]] = None,
-                    on_row: typing.Optional[typing.Callable[[Row], None]] = None) -> typing.List[Row]:
+                    describe: typing.Optional[Describe] = None,
+                    on_row: typing.Optional[typing.Callable[[WorldRow], None]] = None) -> typing.List[WorldRow]:
     """The rows (:data:`WORLD_CHECK_COLUMNS`) of a check of ``worlds`` worlds x ``launches`` paired launches from ``seed``.
 
     ``evaluate`` launches the bare robot and every design in one world (:data:`WorldEvaluator`); ``describe(world
@@ -94,11 +98,11 @@ def run_world_check(evaluate: WorldEvaluator, worlds: int, launches: int, seed: 
     return rows
 
 
-def world_draws(settings: "EvaluatorSettings") -> typing.Callable[[int], typing.Dict[str, typing.Any]]:
+def world_draws(settings: "EvaluatorSettings") -> Describe:
     """``describe(world seed) -> {unknown: value}``: the drawn values of a world for the launches ``settings``
     (EvaluatorSettings) run at launch fidelity, as :func:`robust_settings_for` draws them for its twin."""
     from rollability_ros.core.sim.evaluation import mesh_job, settings_at_fidelity
-    from rollability_ros.core.sim.robustness import settings_draw
+    from rollability_ros.core.sim.robustness import draw
 
     at_launch = settings_at_fidelity(settings, "launch")
     job = mesh_job(None, at_launch)
@@ -106,8 +110,8 @@ def world_draws(settings: "EvaluatorSettings") -> typing.Callable[[int], typing.
         raise ValueError("the world check needs launch trials")
     twin, robust = job.launch.twin, at_launch.objective.robust
 
-    def describe(world_seed: int) -> typing.Dict[str, typing.Any]:
-        drawn = dataclasses.asdict(settings_draw(twin, world_seed, robust))
+    def describe(world_seed: int) -> typing.Dict[str, Value]:
+        drawn = dataclasses.asdict(draw(world_seed, robust, twin.robot.com_offset_z_m, twin.robot.body_height_m))
         return {name: drawn[name] for name in WORLD_UNKNOWNS}
     return describe
 
@@ -137,7 +141,7 @@ class WorldGain:
     trials: int
     baseline_successes: int
     baseline_trials: int
-    draws: typing.Mapping[str, typing.Any] = dataclasses.field(default_factory=dict)
+    draws: typing.Mapping[str, Value] = dataclasses.field(default_factory=dict)
 
     @property
     def interval(self) -> typing.Tuple[float, float, float]:
@@ -214,7 +218,7 @@ class WorldSummary:
                 f"{worst.baseline_successes}/{worst.baseline_trials}" + (f"; {draws}" if draws else "") +
                 f"); pooled {gain:+.2f} [{low:+.2f}, {high:+.2f}] over {launches} launches")
 
-    def as_dict(self) -> typing.Dict[str, typing.Any]:
+    def as_dict(self) -> typing.Dict[str, object]:
         """Plain numbers for ``world_summary.yaml`` and the selection's records."""
         worst, (gain, low, high) = self.worst, self.pooled
         w_gain, w_low, w_high = worst.interval
@@ -240,7 +244,7 @@ def _plain(value: typing.Any) -> typing.Any:
         return str(value)
 
 
-def summarize_worlds(rows: typing.Iterable[typing.Mapping[str, typing.Any]],
+def summarize_worlds(rows: typing.Iterable[typing.Mapping[str, Value]],
                      baseline: str = BASELINE) -> typing.List[WorldSummary]:
     """One :class:`WorldSummary` per design (first-seen order) from the check's rows (as :func:`run_world_check`
     returns them, or read back from ``world_check.csv``: numbers as text are converted); ``ValueError`` naming a

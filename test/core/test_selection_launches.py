@@ -178,6 +178,8 @@ def test_select_warns_in_one_line_and_exits_0_when_no_design_beats_the_bare_robo
                                                    for h in heights_list]
 
     monkeypatch.setattr(optimization_run, "fidelity_batch_evaluator", launches)
+    # the face caches a name once resolved (lazy_loader): the command reads it there
+    monkeypatch.setattr("rollability_ros.core.optimization.fidelity_batch_evaluator", launches)
     assert main(["select", run_dir, "--workers", "1"]) == 0
     captured = capsys.readouterr()
     warnings = captured.err.strip().splitlines()

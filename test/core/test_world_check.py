@@ -265,7 +265,11 @@ def test_the_command_launches_in_real_worlds_and_writes_its_tables(tmp_path, cap
 
     from rollability_ros.core.sim import evaluation
 
-    monkeypatch.setattr(evaluation, "make_executor", lambda options, workers=None: evaluation.SerialExecutor())
+    def serial(options, workers=None):
+        return evaluation.SerialExecutor()
+
+    monkeypatch.setattr(evaluation, "make_executor", serial)
+    monkeypatch.setattr("rollability_ros.core.sim.make_executor", serial)   # the face caches a resolved name
 
     pytest.importorskip("mujoco")
     pytest.importorskip("trimesh")

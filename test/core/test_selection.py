@@ -132,10 +132,8 @@ def test_outputs_with_reevaluation(run_candidates):
 
 
 def test_settings_are_checked():
-    from rollability_ros.core.config import check_settings
-
-    with pytest.raises(ValueError, match="selection.count"):   # the range declared in its metadata
-        check_settings(SelectionSettings(count=0), "selection")
+    with pytest.raises(ValueError, match=r"^selection.count out of range: 0 is not in \[1, 26\]$"):
+        select_designs([], GRID, geometry.PrinterSpec(), SelectionSettings(count=0))
     with pytest.raises(ValueError, match="needs an evaluator"):
         select_designs([], GRID, geometry.PrinterSpec(), SelectionSettings(reevaluate_trials=10))
 

@@ -63,6 +63,7 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
+from rollability_ros.core import config
 from rollability_ros.core.profile import (MESH_UNITS, Mesh, PrinterSpec, ProfileGrid, ProfileMetrics,
                                           check_printability, is_baseline, mesh_metrics, profile_mesh)
 from rollability_ros.core.optimization.cmaes import STREAM_SELECTION, derive_seed
@@ -397,8 +398,8 @@ def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: Profile
 
 
 def _check_evaluators(settings, evaluate_batch, launch_batch):
-    """Validate ``settings`` and refuse a setting whose evaluator is missing."""
-    settings.validate()
+    """Check ``settings`` (declared ranges and cross-field rules) and refuse a setting whose evaluator is missing."""
+    config.check_settings(settings, "selection")
     if settings.reevaluate_trials and evaluate_batch is None:
         raise ValueError("reevaluate_trials > 0 needs an evaluator")
     if (settings.race_rounds or settings.launch_trials) and launch_batch is None:

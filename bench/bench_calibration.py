@@ -1,158 +1,391 @@
-"""Synthetic-truth calibration benchmark: "physical" outcomes from the launch twin with hidden parameter values,
-calibrated back; prints the recovered values against the truth and their stated 95% intervals.
+"""Calibration with the learnt likelihood on simulated hidden truths: preparation time, calibration time, coverage,
+widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise -> validate. All simulated.
 
-    python bench/bench_calibration.py [--repetitions 20] [--sim-repetitions 16] [--generations 8] [--bootstrap 0]
-                                      [--two-parameters]
-    nice python bench/bench_calibration.py --coverage 20 [--repetitions 20] [--sim-repetitions 24]
-                                           [--coverage-only launch_twin.foam.lateral_friction]
+    nice python bench/bench_calibration.py [--prepare-launches 8000] [--truths 50] [--workers 2]
+        [--likelihood FILE] [--keep DIR] [--reoptimize-generations 15] [--skip-reoptimize] [--skip-cli]
 
-``--coverage N``: for each parameter of ``COVERAGE_PARAMETERS`` (the centre of mass, three foam parameters and the
-push plate's yaw bias, an asymmetry, on mirrored launch angles (``MIRRORED_CONDITIONS``); one at a time, the others
-at their defaults), N truths drawn evenly at random inside the inner 80% of its calibration bounds; each truth's
-"physical" outcomes (fresh seeds per truth) get the calibration's 95% likelihood interval (the grid of simulated
-launches does not depend on the truth, so it is launched once); prints how many intervals hold their
-truth (target: at least 90%) and their mean width.
+1. Designs: the bare robot and three profiles (bench_launch_twin's dome, a flat top at the 0.09 m bound and a low
+   pyramid: docs/twin-model.md's shapes), as STLs. The unknowns: :data:`UNKNOWNS` (centre of mass, foam friction,
+   wheel-on-foam rolling resistance, launcher speed bias, profile mass scale), with the bounds and scales of
+   ``config/calibration.yaml``.
+2. Preparation (once): ``--prepare-launches`` twin launches at unknowns drawn over the bounds, the four
+   configurations and the campaign's conditions, then the networks learnt
+   (:mod:`rollability_ros.core.campaign.likelihood`). ``--likelihood FILE`` loads a prepared file instead (its
+   twin fingerprint must match); ``--keep DIR`` writes it there.
+3. ``--truths`` hidden truths drawn from the prior (uniform over the normalised bounds). For each: the paper's
+   400-launch matrix (4 configurations x 2 heights x 2 speeds x 5 angles x 5) launched on the twin at the truth
+   (fresh seeds), five slide angles (the analytic model plus 1 deg noise) and three roll-outs on the foam (the
+   simulated roll-out plus 0.02 m noise); then the posterior of all unknowns from the verdicts, the gate's speed
+   and the IMU's tilt, peak deceleration and time to rest, plus the characterisation. Prints each unknown's
+   coverage of the 95% sets, their widths as a fraction of the range (own scale), the SBC rank histogram's
+   chi-squared p-value, the calibration time, and the classifier's accuracy on these fresh launches against the
+   truth's own frequencies (Brier score against a constant predictor).
+4. ``rollability calibrate --likelihood`` (the CLI, a subprocess) with two unknowns (centre of mass, foam friction)
+   on the first truth's 400 launches, written as an outcome CSV, then again with its slide angles.
+5. Calibrate -> re-optimise -> validate on the first truth (bench_objective's optimisation, one seed): the design
+   optimised on the calibrated twin against the one on the uncalibrated twin, each launched ``--validate`` times on
+   the truth; the gain with Newcombe's 95% interval.
+6. The adaptive plan against the paper's matrix with the learnt likelihood (:func:`adaptive_comparison`).
 
-Configurations: the bare chassis and bench_evaluator's dome profile (an STL in a temporary folder). The hidden
-truth moves ``robot.com_offset_z_m`` from -0.015 m to +0.006 m (and, with ``--two-parameters``, the foam's
-friction from 1.0 to 0.45). Every number is measured in this run; nothing is tuned to it.
+Every line with a time carries the load average (``os.getloadavg``): the machine is shared.
 """
 import argparse
+import dataclasses
+import math
 import os
+import subprocess
 import sys
 import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(1, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "test"))  # doubles
 
-from bench.bench_launch_twin import dome_mesh  # noqa: E402
-from doubles import synthetic_outcomes  # noqa: E402
+import numpy as np  # noqa: E402
+
 from rollability_ros.core.campaign import calibration  # noqa: E402
+from rollability_ros.core.campaign import likelihood as learnt  # noqa: E402
+from rollability_ros.core.campaign import posterior as sampling  # noqa: E402
+from rollability_ros.core.campaign.adaptive import Unknowns  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
-from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
-from rollability_ros.core.records import LaunchCondition  # noqa: E402
 
-#: The grouped conditions launched (configuration, height m, speed m/s, angle deg).
-CONDITIONS = (("baseline", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 30.0),
-              ("dome", 0.75, 1.5, 0.0))
-#: Parameters of the coverage bench: (config key, lower, upper, log scale).
-COVERAGE_PARAMETERS = (("robot.com_offset_z_m", -0.019, 0.015, False),
-                       ("launch_twin.foam.lateral_friction", 0.2, 3.0, True),
-                       ("launch_twin.foam.restitution", 0.0, 1.0, False),
-                       ("launch_twin.foam.contact_stiffness_npm", 5000.0, 160000.0, True),
-                       ("launch_twin.plate.yaw_bias_deg", -15.0, 15.0, False))
-#: An asymmetry shows only between mirrored launch angles: its coverage uses these conditions instead.
-MIRRORED_CONDITIONS = (("dome", 0.75, 0.8, -30.0), ("dome", 0.75, 0.8, 30.0), ("dome", 0.75, 1.5, -30.0),
-                       ("dome", 0.75, 1.5, 30.0))
-CONDITIONS_FOR = {"launch_twin.plate.yaw_bias_deg": MIRRORED_CONDITIONS}
+#: The unknowns (config keys) of the bench, bounds and scales from config/calibration.yaml.
+UNKNOWNS = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction", "launch_twin.foam.rolling_friction",
+            "launch_twin.launcher.speed_bias_fraction", "robot.profile_mass_scale")
+#: The two unknowns of the CLI check.
+CLI_UNKNOWNS = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")
+#: Noise of the simulated characterisation readings.
+SLIDE_SIGMA_DEG, ROLLOUT_SIGMA_M = 1.0, 0.02
+SLIDE_READINGS, ROLLOUT_SPEEDS_MPS = 5, (0.8, 1.0, 1.2)
+#: Base seeds (none used by a campaign, a study or the preparation's own draws).
+PREPARE_SEED, TRUTH_SEED = 31_001, 41_001
 
 
-def coverage(args, parameters):
-    """The coverage bench (module docstring); prints one line per truth and the coverage per parameter."""
-    import numpy as np
+def load() -> str:
+    """The 1-minute load average, for the line beside every timing."""
+    return f"load {os.getloadavg()[0]:.1f}"
 
-    from rollability_ros.core.results import analysis
 
-    rng = np.random.default_rng(2026)
-    with calibration.LaunchPool() as pool:
-        for name, low, high, log in COVERAGE_PARAMETERS[:args.coverage_parameters]:
-            u = rng.uniform(0.1, 0.9, args.coverage)   # drawn for every parameter: --coverage-only keeps the truths
-            if args.coverage_only and name not in args.coverage_only:
-                continue
-            conditions = [LaunchCondition(*c) for c in CONDITIONS_FOR.get(name, CONDITIONS)]
-            settings = calibration.CalibrationSettings(parameters=[name], lower=[low], upper=[high],
-                                                       log_scale=[log], sim_repetitions=args.sim_repetitions,
-                                                       interval_points=args.interval_points)
-            truths = low * (high / low) ** u if log else low + u * (high - low)
+def design_files(folder):
+    """Write the three designs' STLs into ``folder``; return (labels, paths)."""
+    from bench.bench_launch_twin import dome_mesh
+    from bench.bench_shape_ceiling import shapes
+    from rollability_ros.core.profile import geometry
+    from rollability_ros.core.sim import EvaluatorSettings
+
+    grid = EvaluatorSettings().grid
+    family = shapes(grid)
+    meshes = {"dome": dome_mesh(), "flat": geometry.profile_mesh(family["H 0.45 a 0.0 b 0.0"], grid),
+              "pyramid": geometry.profile_mesh(family["H 0.20 a 0.5 b 0.5"], grid)}
+    paths = []
+    for label, mesh in meshes.items():
+        paths.append(os.path.join(folder, f"{label}.stl"))
+        geometry.export_mesh(mesh, paths[-1])
+    return list(meshes), paths
+
+
+def bench_parameters(folder):
+    """The twin's flat parameters with the three designs, and the bench's :class:`Unknowns`."""
+    parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration"])
+    labels, paths = design_files(folder)
+    parameters.update({"launch_twin.designs.mesh_labels": labels, "launch_twin.designs.mesh_files": paths})
+    settings = calibration.calibration_settings(parameters).selected(list(UNKNOWNS))
+    unknowns = Unknowns(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper),
+                               tuple(settings.log_scale))
+    return parameters, unknowns, ["baseline", *labels]
+
+
+def paper_matrix(configurations):
+    """The paper's 400 launches: (configuration, height, speed, angle) x 5 repetitions."""
+    from rollability_ros.core.campaign_matrix import load_campaign_spec
+
+    spec = load_campaign_spec(["campaign"])
+    levels = learnt.ConditionLevels(tuple(spec.heights_m), tuple(spec.speeds_mps), tuple(spec.angles_deg))
+    cells = [(c, h, v, a) for c in configurations for h in spec.heights_m for v in spec.speeds_mps
+             for a in spec.angles_deg]
+    return levels, [cell for cell in cells for _ in range(spec.repetitions)]
+
+
+def launch_truth(parameters, unknowns, truth, matrix, seed, pool):
+    """The matrix launched at ``truth`` (own units): Observations with every continuous outcome, invalid ones
+    left out."""
+    from rollability_ros.core.sim import trial_seed
+
+    jobs = [(tuple(truth), *cell, trial_seed(seed, i)) for i, cell in enumerate(matrix)]
+    chunks = [jobs[i:i + 20] for i in range(0, len(jobs), 20)]
+    rows = np.concatenate(list(pool.map(learnt.simulate_rows, [parameters] * len(chunks),
+                                        [unknowns.names] * len(chunks), chunks)))
+    return [learnt.Observation(cell[0], cell[1], cell[2], cell[3], bool(row[1] > 0.5),
+                               dict(zip(learnt.OUTCOMES, map(float, row[2:]))))
+            for cell, row in zip(matrix, rows) if row[0] > 0.5]
+
+
+def characterise_truth(parameters, unknowns, truth, rng):
+    """Simulated bench readings of ``truth``: slide angles (analytic + noise) and roll-outs on the foam."""
+    from rollability_ros.core.campaign import characterisation as bench
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters, rollout_distance_m
+
+    flat = dict(parameters)
+    flat.update(zip(unknowns.names, map(float, truth)))
+    angle = bench.slide_angle_deg(flat)
+    settings = launch_twin_settings_from_parameters(flat)
+    rollouts = tuple(bench.RolloutReading("foam", v, max(0.0, rollout_distance_m(settings, v, "foam")
+                                                         + ROLLOUT_SIGMA_M * rng.standard_normal()))
+                     for v in ROLLOUT_SPEEDS_MPS)
+    return bench.Characterisation(source="simulated", rollouts=rollouts, rollout_sigma_m=ROLLOUT_SIGMA_M,
+                                  slide_angles_deg=tuple(angle + SLIDE_SIGMA_DEG * rng.standard_normal(SLIDE_READINGS)),
+                                  slide_sigma_deg=SLIDE_SIGMA_DEG)
+
+
+def adaptive_comparison(likelihood, truths, configurations, levels):
+    """The adaptive plan against the paper's matrix (issue 44 item 4; the ``adaptive`` room's
+    ``plan_comparison.adaptive_to_match_matrix``, bench/bench_adaptive_plan.py benches it on its own) with the
+    learnt likelihood as its predictor (``adaptive.PerLaunchAdapter``; outcomes drawn from it): on ``len(truths)``
+    truths from the prior, the launches the adaptive plan needs to reach the widths of the matrix's 400."""
+    from rollability_ros.core.campaign import adaptive, plan_comparison
+    from rollability_ros.core.records import LaunchCondition
+
+    u = likelihood.unknowns
+    candidates = [LaunchCondition(c, h, v, a) for c in configurations for h in levels.heights_m
+                  for v in levels.speeds_mps for a in levels.angles_deg]
+    started = time.perf_counter()
+    results = plan_comparison.adaptive_to_match_matrix(
+        adaptive.Unknowns(u.names, u.lower, u.upper, u.log_scale), adaptive.PerLaunchAdapter(likelihood), candidates,
+        len(truths), 5 * len(candidates), samples=4000, seed=TRUTH_SEED)
+    reached = sorted(r.adaptive_launches for r in results if r.adaptive_launches is not None)
+    print(f"adaptive plan vs the paper's matrix ({5 * len(candidates)} launches), outcomes drawn from the learnt "
+          f"likelihood, {len(results)} truths from the prior: the adaptive plan reached the matrix's widths in "
+          f"{len(reached)} of {len(results)}, median {np.median(reached) if reached else math.nan:.0f} launches "
+          f"(target <= 150) [{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
+
+
+def rank_p_value(ranks, samples, bins=10):
+    """Chi-squared p-value of uniform SBC ranks (``ranks`` in [0, samples]) over ``bins`` bins."""
+    from scipy import stats
+
+    counts, _ = np.histogram(ranks, bins=bins, range=(0, samples + 1))
+    return float(stats.chisquare(counts).pvalue)
+
+
+def coverage(likelihood, parameters, unknowns, matrix, args, pool):
+    """Step 3 (module docstring); returns the first truth, its observations and characterisation."""
+    rng = np.random.default_rng(TRUTH_SEED)
+    d = len(unknowns.names)
+    hits, split = np.zeros(d), 0
+    widths: list = [[] for _ in range(d)]
+    ranks: list = [[] for _ in range(d)]
+    times: list = []
+    predicted: list = []
+    observed: list = []
+    first = None
+    for number in range(args.truths):
+        truth_u = rng.uniform(size=d)
+        truth = unknowns.to_values(truth_u)
+        started = time.perf_counter()
+        observations = launch_truth(parameters, unknowns, truth, matrix, TRUTH_SEED + 1000 * number, pool)
+        bench_readings = characterise_truth(parameters, unknowns, truth, rng)
+        simulated_s = time.perf_counter() - started
+        started = time.perf_counter()
+        extra = sampling.characterisation_term(bench_readings, parameters, unknowns)
+        posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1,
+                                            steps=args.steps)
+        times.append(time.perf_counter() - started)
+        if first is None:
+            first = (truth, observations, bench_readings)
+        for o in observations:
+            predicted.append(float(likelihood.predict_upright_probability(
+                truth[None, :], o.configuration, (o.height_m, o.speed_mps, o.angle_deg))[0]))
+            observed.append(o.upright)
+        parts = []
+        for i, name in enumerate(unknowns.names):
+            sets = sampling.credible_set(posterior.normalised[:, i])
+            inside = any(lo <= truth_u[i] <= hi for lo, hi in sets)
+            hits[i] += inside
+            widths[i].append(sum(hi - lo for lo, hi in sets))
+            split += len(sets) > 1
+            thinned = posterior.normalised[:: max(1, len(posterior.normalised) // 99), i][:99]
+            ranks[i].append(int(np.sum(thinned < truth_u[i])))
+            parts.append(f"{name.split('.')[-1]} {truth[i]:.4g} {'in' if inside else 'OUT'} "
+                         f"{sampling.format_set(posterior.credible_set(name))}")
+        print(f"truth {number + 1}/{args.truths}: {len(observations)} valid launches ({simulated_s:.0f} s simulated), "
+              f"calibration {times[-1]:.1f} s [{load()}]; " + "; ".join(parts), flush=True)
+    n = args.truths
+    print(f"calibration of {d} unknowns from the paper's {len(matrix)} launches plus characterisation: median "
+          f"{np.median(times):.1f} s, max {max(times):.1f} s over {n} truths (target <= 180 s) [{load()}]")
+    for i, name in enumerate(unknowns.names):
+        print(f"coverage {name}: {int(hits[i])}/{n} = {hits[i] / n:.0%} of the 95% sets hold the truth (target >= "
+              f"90%); width median {np.median(widths[i]):.0%}, max {max(widths[i]):.0%} of the range "
+              f"({'log' if unknowns.log_scale[i] else 'linear'} scale; target < 25%); SBC rank chi-squared p = "
+              f"{rank_p_value(ranks[i], 99):.2f}")
+    print(f"split 95% sets (printed as unions, never as the hull): {split} of {n * d}")
+    p, y = np.array(predicted), np.array(observed, dtype=float)
+    base = y.mean()
+    print(f"learnt P(upright) on these {len(y)} fresh launches at their truths: Brier {np.mean((p - y) ** 2):.4f} "
+          f"(constant {np.mean((base - y) ** 2):.4f}); log loss "
+          f"{-np.mean(y * np.log(p) + (1 - y) * np.log1p(-p)):.4f}; predicted mean {p.mean():.3f} vs observed "
+          f"{base:.3f}")
+    return first
+
+
+def write_csv(observations, path):
+    """The observations as an outcome CSV (docs/outcome-csv.md): verdict, gate speed, final orientation (imu)."""
+    from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+    from rollability_ros.core.results import write_outcome_csv
+
+    outcomes: list = []
+    counts: dict = {}
+    for o in observations:
+        key = (o.configuration, o.height_m, o.speed_mps, o.angle_deg)
+        counts[key] = counts.get(key, -1) + 1
+        tilt = math.radians(o.outcomes["final_tilt_deg"])
+        condition = LaunchCondition(*key, repetition=counts[key])
+        outcomes.append(LaunchOutcome("truth", f"t{len(outcomes)}", condition, "physical", o.upright,
+                                      measured_speed_mps=float(o.outcomes["measured_speed_mps"]),
+                                      final_orientation=(math.sin(tilt / 2), 0.0, 0.0, math.cos(tilt / 2)),
+                                      classified_by="imu"))
+    write_outcome_csv(path, outcomes)
+
+
+def cli_check(likelihood_path, first, unknowns, folder, parameters):
+    """Step 4 (module docstring)."""
+    import yaml
+
+    truth, observations, bench_readings = first
+    csv_path = os.path.join(folder, "truth.csv")
+    write_csv(observations, csv_path)
+    config = os.path.join(folder, "bench.yaml")
+    fixed = {name: float(value) for name, value in zip(unknowns.names, truth) if name not in CLI_UNKNOWNS}
+    from rollability_ros.core.config import section
+
+    with open(config, "w", encoding="utf-8") as stream:   # the designs, and the truth's other unknowns as known
+        yaml.safe_dump({"/**": {"ros__parameters": section({
+            **fixed, "launch_twin.designs.mesh_labels": list(parameters["launch_twin.designs.mesh_labels"]),
+            "launch_twin.designs.mesh_files": list(parameters["launch_twin.designs.mesh_files"])}, "")}}, stream)
+    slide = os.path.join(folder, "slide.yaml")
+    with open(slide, "w", encoding="utf-8") as stream:
+        yaml.safe_dump({"format": "rollability-characterisation-1", "slide_angle": {
+            "sigma_deg": SLIDE_SIGMA_DEG, "readings_deg": [float(a) for a in bench_readings.slide_angles_deg]}},
+            stream)
+    for label, extra in (("launches only", []), ("with the slide angles", ["--characterisation", slide])):
+        out = os.path.join(folder, f"cli-{len(extra)}")
+        command = [sys.executable, "-m", "rollability_ros.cli", "calibrate", "--physical", csv_path, "--run", "truth",
+                   "--likelihood", likelihood_path, "--config", config, "--out", out,
+                   *[arg for name in CLI_UNKNOWNS for arg in ("--fit", name)], *extra]
+        started = time.perf_counter()
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))   # this checkout, as the bench imports
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))}
+        done = subprocess.run(command, capture_output=True, text=True, check=False, env=env)
+        wall = time.perf_counter() - started
+        if done.returncode != 0:
+            print(f"rollability calibrate ({label}) FAILED: {done.stderr.strip().splitlines()[-1:]}")
+            continue
+        import csv
+
+        with open(os.path.join(out, "parameters.csv"), encoding="utf-8") as stream:
+            rows = {row["parameter"]: row for row in csv.DictReader(stream)}
+        parts = []
+        for name in CLI_UNKNOWNS:
+            i = unknowns.names.index(name)
+            row = rows[name]
+            sets = [tuple(map(float, part.strip(" []").split(","))) for part in row["set"].split(" U ")]
+            inside = any(lo <= truth[i] <= hi for lo, hi in sets)
+            parts.append(f"{name} truth {truth[i]:.4g} set {row['set']} ({'holds' if inside else 'MISSES'} it, "
+                         f"width {float(row['set_width_fraction']):.0%} of the range)")
+        print(f"rollability calibrate --likelihood, 2 unknowns, {label}: {wall:.0f} s (target <= 300 s) [{load()}]; "
+              + "; ".join(parts), flush=True)
+
+
+def reoptimize(likelihood, parameters, unknowns, first, args, folder):
+    """Step 5 (module docstring): calibrate on the first truth, optimise on both twins, validate on the truth."""
+    import yaml
+
+    from bench.bench_objective import CAMPAIGN, optimize, report_difference
+    from rollability_ros.core.sim import evaluation
+
+    truth, observations, bench_readings = first
+    extra = sampling.characterisation_term(bench_readings, parameters, unknowns)
+    posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=7, steps=args.steps)
+    fitted = {name: posterior.median(name) for name in unknowns.names}
+    files = {}
+    for label, values in (("calibrated", fitted), ("truth", dict(zip(unknowns.names, map(float, truth))))):
+        files[label] = os.path.join(folder, f"{label}.yaml")
+        with open(files[label], "w", encoding="utf-8") as stream:
+            yaml.safe_dump(calibration.calibrated_parameter_document(values), stream)
+    campaign_file = os.path.join(folder, "campaign.yaml")
+    with open(campaign_file, "w", encoding="utf-8") as stream:
+        yaml.safe_dump(CAMPAIGN, stream)
+    options = argparse.Namespace(popsize=8, sigma0=0.1, generations=args.reoptimize_generations, trials=24,
+                                 screen=16)
+    scores = {}
+    with evaluation.make_executor(evaluation.EvaluatorOptions(workers=args.workers)) as executor:
+        for label, twin in (("uncalibrated", calibration.TWIN_CONFIGS),
+                            ("calibrated", (*calibration.TWIN_CONFIGS, files["calibrated"]))):
             started = time.perf_counter()
-            grouped = None
-            covered, covered_interpolated, widths = 0, 0, []
-            for number, truth in enumerate(truths):
-                outcomes = synthetic_outcomes(parameters, [name], [truth], conditions, args.repetitions,
-                                                          first_seed=1_000_000 + 1000 * number)
-                physical = analysis.group_conditions(outcomes)
-                if grouped is None:
-                    grouped = calibration.predicted_on_grid(physical, parameters, settings, pool,
-                                                            [parameters[name]], 0)
-                grid, curve = calibration.likelihood_profile(physical, parameters, settings, pool,
-                                                            [parameters[name]], 0, grouped)
-                interval = calibration.likelihood_interval(grid, curve)
-                interpolated = calibration.likelihood_interval(grid, curve, ends="interpolate")
-                hit = interval[0] <= truth <= interval[1]
-                covered += hit
-                covered_interpolated += interpolated[0] <= truth <= interpolated[1]
-                widths.append(interval[1] - interval[0])
-                print(f"  {name} truth {truth:.4g}: 95% interval [{interval[0]:.4g}, {interval[1]:.4g}] "
-                      f"{'holds it' if hit else 'MISSES'} (interpolated ends [{interpolated[0]:.4g}, "
-                      f"{interpolated[1]:.4g}])", flush=True)
-            print(f"coverage {name}: {covered}/{len(truths)} = {covered / len(truths):.0%} of the 95% intervals hold "
-                  f"the truth (target >= 90%; with interpolated ends {covered_interpolated}/{len(truths)}); "
-                  f"mean width {np.mean(widths):.4g}; {args.repetitions} 'physical' "
-                  f"launches x {len(conditions)} conditions per truth, grid {settings.interval_points} x "
-                  f"{settings.sim_repetitions} launches; {time.perf_counter() - started:.0f} s")
+            heights, run_settings = optimize(os.path.join(folder, f"run-{label}"), twin, campaign_file, options,
+                                             args.reoptimize_seed, executor)
+            on_truth = dataclasses.replace(run_settings, objective=evaluation.ObjectiveSettings(
+                kind="launch_twin", campaign_config=[campaign_file],
+                twin_config=[*calibration.TWIN_CONFIGS, files["truth"]]))
+            result = evaluation.evaluate_profile(heights, args.validate, 987_654_321, on_truth, executor)
+            scores[label] = (result.successes, result.trials)
+            print(f"{label}-twin design on the truth: {result.successes}/{result.trials} "
+                  f"[{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
+    report_difference("calibrate -> re-optimise -> validate on the first truth: ", scores["calibrated"],
+                      scores["uncalibrated"])
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repetitions", type=int, default=20, help="'physical' launches per condition")
-    parser.add_argument("--sim-repetitions", type=int, default=16, help="simulated launches per condition")
-    parser.add_argument("--generations", type=int, default=8, help="CMA-ES generations per fit")
-    parser.add_argument("--bootstrap", type=int, default=0, help="bootstrap fits")
-    parser.add_argument("--two-parameters", action="store_true", help="also fit the foam's friction")
-    parser.add_argument("--coverage", type=int, default=0, help="truths per parameter of the coverage bench")
-    parser.add_argument("--interval-points", type=int, default=13, help="grid points of the likelihood interval")
-    parser.add_argument("--coverage-parameters", type=int, default=len(COVERAGE_PARAMETERS),
-                        choices=range(1, len(COVERAGE_PARAMETERS) + 1),
-                        help="coverage of the first N parameters of COVERAGE_PARAMETERS (default: all)")
-    parser.add_argument("--coverage-only", action="append", default=[], metavar="KEY",
-                        help="run the coverage of this parameter only (repeatable; same truths as without it)")
+    parser.add_argument("--prepare-launches", type=int, default=8000, help="twin launches of the preparation")
+    parser.add_argument("--truths", type=int, default=50, help="hidden truths of the coverage (>= 50 for the claim)")
+    parser.add_argument("--steps", type=int, default=600, help="sampler steps per calibration")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--likelihood", help="a prepared likelihood file to load instead of preparing")
+    parser.add_argument("--keep", help="folder to keep the prepared likelihood and the designs in")
+    parser.add_argument("--skip-cli", action="store_true")
+    parser.add_argument("--skip-reoptimize", action="store_true")
+    parser.add_argument("--reoptimize-generations", type=int, default=15)
+    parser.add_argument("--reoptimize-seed", type=int, default=3)
+    parser.add_argument("--validate", type=int, default=96, help="launches per design on the truth")
     args = parser.parse_args()
-    if args.coverage:
-        with tempfile.TemporaryDirectory() as folder:
-            stl = os.path.join(folder, "dome.stl")
-            export_mesh(dome_mesh(), stl)
-            parameters = load_parameters(list(calibration.TWIN_CONFIGS))
-            parameters.update({"launch_twin.designs.mesh_labels": ["dome"],
-                               "launch_twin.designs.mesh_files": [stl]})
-            coverage(args, parameters)
-        return
-    names, truth = ["robot.com_offset_z_m"], [0.006]
-    lower, upper, log_scale = [-0.019], [0.015], [False]
-    if args.two_parameters:
-        names, truth = names + ["launch_twin.foam.lateral_friction"], truth + [0.45]
-        lower, upper, log_scale = lower + [0.2], upper + [3.0], log_scale + [True]
-    with tempfile.TemporaryDirectory() as folder:
-        stl = os.path.join(folder, "dome.stl")
-        export_mesh(dome_mesh(), stl)
-        parameters = load_parameters(list(calibration.TWIN_CONFIGS))
-        parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
-        started = time.perf_counter()
-        outcomes = synthetic_outcomes(parameters, names, truth,
-                                                  [LaunchCondition(*c) for c in CONDITIONS], args.repetitions)
-        print(f"synthetic outcomes: {len(outcomes)} launches in {time.perf_counter() - started:.1f} s")
-        settings = calibration.CalibrationSettings(
-            parameters=names, lower=lower, upper=upper, log_scale=log_scale, sim_repetitions=args.sim_repetitions,
-            popsize=6, max_generations=args.generations, bootstrap_resamples=args.bootstrap)
-        started = time.perf_counter()
-        with calibration.LaunchPool() as pool:
-            result = calibration.calibrate(outcomes, parameters, settings, pool, on_progress=print)
-        wall_s = time.perf_counter() - started
-    launches = result.evaluations * len(result.conditions) * settings.sim_repetitions
-    print(f"calibration: {result.evaluations} parameter sets, {launches} launches, {wall_s:.0f} s "
-          f"({wall_s / launches * 1000:.1f} ms per launch on {os.cpu_count()} cores)")
-    print(f"log-likelihood before {result.before_log_likelihood:.2f}, after {result.after_log_likelihood:.2f}")
-    for estimate, value in zip(result.estimates, truth):
-        error = estimate.fitted - value
-        print(f"{estimate.name}: truth {value:.4g}, start {estimate.initial:.4g}, fitted {estimate.fitted:.4g} "
-              f"(error {error:+.3g}), 95% interval [{estimate.interval_low:.4g}, {estimate.interval_high:.4g}] "
-              f"({estimate.interval_method}): "
-              f"{'holds' if estimate.interval_low <= value <= estimate.interval_high else 'MISSES'} the truth")
-    for row in result.condition_rows():
-        print(f"  {row['configuration']:<9} {row['height_m']:.2f} m {row['speed_mps']:.1f} m/s "
-              f"{row['angle_deg']:+5.0f} deg  measured {row['measured_rate']:.2f}  before {row['before_rate']:.2f}  after {row['after_rate']:.2f}")
-    for label, agreement in result.rank_agreement().items():
-        print(f"rank agreement {label}: {agreement.agreement_text()}")
+    from rollability_ros.core.sim import spawn_pool
+
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = args.keep or scratch
+        os.makedirs(folder, exist_ok=True)
+        parameters, unknowns, configurations = bench_parameters(folder)
+        levels, matrix = paper_matrix(configurations)
+        fingerprint = learnt.twin_fingerprint(parameters, unknowns.names)
+        pool = spawn_pool(args.workers)
+        try:
+            path = args.likelihood or os.path.join(folder, "likelihood.npz")
+            if args.likelihood:
+                likelihood = learnt.load_likelihood(path)
+                if likelihood.fingerprint != fingerprint or likelihood.unknowns != unknowns:
+                    raise SystemExit(f"{path}: prepared for another twin, design set or unknowns' bounds")
+                print(f"loaded {path}: {likelihood.info}")
+            else:
+                started = time.perf_counter()
+                training = learnt.simulate_training_set(parameters, unknowns, configurations, levels,
+                                                        args.prepare_launches, PREPARE_SEED, pool)
+                simulated = time.perf_counter() - started
+                likelihood = learnt.learn(training, unknowns, configurations, levels, fingerprint, on_progress=print)
+                likelihood.info["prepare_s"] = time.perf_counter() - started
+                likelihood.save(path)
+                print(f"preparation: {args.prepare_launches} launches in {simulated:.0f} s "
+                      f"({simulated / args.prepare_launches * 1000 * args.workers:.0f} ms per launch per worker), "
+                      f"learning {time.perf_counter() - started - simulated:.0f} s; total "
+                      f"{time.perf_counter() - started:.0f} s on {args.workers} workers (target <= 900 s) [{load()}]",
+                      flush=True)
+            first = coverage(likelihood, parameters, unknowns, matrix, args, pool)
+            rng = np.random.default_rng(TRUTH_SEED)
+            adaptive_comparison(likelihood, unknowns.to_values(rng.uniform(size=(args.truths, len(unknowns.names)))),
+                                configurations, levels)
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+        if not args.skip_cli:
+            cli_check(path, first, unknowns, folder, parameters)
+        if not args.skip_reoptimize:
+            reoptimize(likelihood, parameters, unknowns, first, args, folder)
 
 
 if __name__ == "__main__":

@@ -21,7 +21,8 @@ from rollability_ros.core.sim import evaluation  # noqa: E402
 from rollability_ros.core.profile.geometry import grid_xy  # noqa: E402
 from rollability_ros.core.optional import require  # noqa: E402
 from rollability_ros.core.sim.world import connect, disconnect  # noqa: E402
-from rollability_ros.core.sim.trials import TrialWorld, place_on_ground, sample_conditions  # noqa: E402
+from rollability_ros.core.sim.pybullet_trials import TrialWorld  # noqa: E402
+from rollability_ros.core.sim.trials import place_on_ground, sample_conditions  # noqa: E402
 
 
 def dome_heights(grid):

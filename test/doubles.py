@@ -3,7 +3,7 @@
 - :class:`SyntheticEvaluator`: an ``evaluate_batch`` with a known optimum, for optimization-loop tests and for
   timing the plumbing without physics (bench/bench_optimizer.py);
 - :func:`synthetic_outcomes`: "physical" launch outcomes made on the launch twin with hidden parameter values, to
-  test that a calibration recovers them (bench/bench_calibration.py);
+  test that a calibration recovers them (bench/bench_calibration_direct.py);
 - :func:`tree_checksums`: the SHA-256 of every file under a folder, to show a command changed nothing recorded.
 
 Tests import them as ``from doubles import ...`` (pytest puts test/ on the path through test/conftest.py); the

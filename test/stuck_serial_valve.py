@@ -7,10 +7,10 @@ import os
 import sys
 import time
 
-from rollability_ros.core.rig import valve_backends
+from rollability_ros.core.rig import valve_boards
 
 JAM = sys.argv.pop(1)
-_write = valve_backends._SerialPort.write
+_write = valve_boards._SerialPort.write
 
 
 def jammed_write(self, data):
@@ -19,7 +19,7 @@ def jammed_write(self, data):
     return _write(self, data)
 
 
-valve_backends._SerialPort.write = jammed_write
+valve_boards._SerialPort.write = jammed_write
 
 if __name__ == "__main__":
     from rollability_ros.nodes import valve_controller

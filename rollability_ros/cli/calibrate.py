@@ -7,7 +7,7 @@ import typing
 from rollability_ros.cli import Subparsers
 
 if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
-    from rollability_ros.core.campaign import CalibrationResult
+    from rollability_ros.core.campaign import CalibrationResult, CalibrationSettings
 
 
 def _write_csv(path, rows):
@@ -37,9 +37,11 @@ def summary_lines(result: "CalibrationResult",
     lines = [f"grouped conditions: {len(result.conditions)}, physical trials: {trials}, parameter sets simulated: "
              f"{result.evaluations} x {result.sim_repetitions} launches per condition",
              f"log-likelihood: before {result.before_log_likelihood:.2f}, after {result.after_log_likelihood:.2f}",
-             f"{'parameter':<42} {'start':>10} {'fitted':>10} {'95% interval':>24} {'bootstrap sd':>13}"]
+             f"{'parameter':<42} {'start':>10} {'fitted':>10} {'95% interval':>24}"
+             + (f" {'bootstrap sd':>13}" if any(e.bootstrap for e in result.estimates) else "")]
     lines += [f"{e.name:<42} {e.initial:>10.4g} {e.fitted:>10.4g} "
-              f"{f'[{e.interval_low:.4g}, {e.interval_high:.4g}]':>24} {e.std:>13.3g}" for e in result.estimates]
+              f"{f'[{e.interval_low:.4g}, {e.interval_high:.4g}]':>24}"
+              + (f" {e.std:>13.3g}" if e.bootstrap else "") + f"  ({e.interval_method})" for e in result.estimates]
     lines.append(f"{'configuration':<14} {'measured':>9} {'before':>7} {'after':>7}   (trial success rates)")
     lines += [f"{row['configuration']:<14} {row['measured_trial_rate']:>9.0%} {row['before_trial_rate']:>7.0%} "
               f"{row['after_trial_rate']:>7.0%}" for row in result.configuration_rows()]
@@ -55,31 +57,168 @@ def summary_lines(result: "CalibrationResult",
 RIG_FILE = "calibrated_rig.yaml"
 
 
-def run(args: argparse.Namespace) -> int:
-    """Calibrate, write the outputs to ``--out`` and print the summary; return the exit code."""
+def _header(sources: typing.Sequence[str], method: str) -> str:
+    """The comment at the top of calibrated.yaml: where the values come from and where their uncertainty is."""
+    return (f"# Calibrated launch-twin parameters from {' and '.join(sources)} (rollability calibrate); load on top "
+            f"of the\n# defaults: --config / --rig-config. Each value's 95% {method} is in parameters.csv beside "
+            f"this file.\n")
+
+
+def _write_outputs(args: argparse.Namespace, sources: typing.Sequence[str], method: str,
+                   fitted: typing.Mapping[str, float]) -> str:
+    """Write calibrated.yaml and calibrated_rig.yaml into ``args.out``; return calibrated.yaml's path."""
     import yaml
 
-    from rollability_ros.core.campaign import (TWIN_CONFIGS, LaunchPool, calibrate, calibrated_parameter_document,
-                                               calibration_settings, check_fittable, load_characterisation,
-                                               rig_parameter_document, twin_settings_with)
+    from rollability_ros.core.campaign import calibrated_parameter_document, rig_parameter_document
     from rollability_ros.core.optimization import atomic_write_bytes
+
+    os.makedirs(args.out, exist_ok=True)
+    params_path = os.path.join(args.out, "calibrated.yaml")
+    document = calibrated_parameter_document(fitted)
+    atomic_write_bytes(params_path, (_header(sources, method) + yaml.safe_dump(document, sort_keys=True)).encode())
+    rig_document = rig_parameter_document(os.path.abspath(params_path))
+    atomic_write_bytes(os.path.join(args.out, RIG_FILE),
+                       (f"# A rig node's twin on {params_path}: --params-file after config/rig.yaml\n"
+                        + yaml.safe_dump(rig_document, sort_keys=True)).encode("utf-8"))
+    return params_path
+
+
+def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any],
+            settings: "CalibrationSettings") -> int:
+    """``--prepare FILE``: simulate the training launches and learn the likelihood of the fitted unknowns over the
+    loaded twin's configurations (the bare robot and ``launch_twin.designs``) and the campaign's levels."""
+    import time
+
+    from rollability_ros.core.campaign import (CampaignSpec, ConditionLevels, Unknowns, learn,
+                                               simulate_training_set, twin_fingerprint)
+    from rollability_ros.core.config import from_mapping, section
+    from rollability_ros.core.sim import spawn_pool
+
+    if os.path.exists(args.prepare):
+        raise ValueError(f"--prepare {args.prepare}: the file exists; a prepared likelihood is never overwritten")
+    if args.prepare_launches < 200:
+        raise ValueError(f"--prepare-launches must be >= 200, got {args.prepare_launches}")
+    spec = from_mapping(CampaignSpec, section(parameters, "campaign"), "campaign")
+    levels = ConditionLevels(tuple(spec.heights_m), tuple(spec.speeds_mps), tuple(spec.angles_deg))
+    configurations = ["baseline", *(label for label in parameters.get("launch_twin.designs.mesh_labels", []) if label)]
+    unknowns = Unknowns(tuple(settings.parameters), tuple(settings.lower), tuple(settings.upper),
+                               tuple(settings.log_scale))
+    fingerprint = twin_fingerprint(parameters, unknowns.names)
+    print(f"preparing the likelihood of {', '.join(unknowns.names)} over {', '.join(configurations)} from "
+          f"{args.prepare_launches} twin launches")
+    started = time.perf_counter()
+    workers = settings.workers or os.cpu_count() or 1
+    pool = spawn_pool(workers)
+    try:
+        def progress(done: int, total: int) -> None:
+            if done == total or done % 1000 < 25:
+                print(f"  {done}/{total} launches, {time.perf_counter() - started:.0f} s", flush=True)
+        training = simulate_training_set(parameters, unknowns, configurations, levels,
+                                                args.prepare_launches, settings.seed, pool, on_progress=progress)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    likelihood = learn(training, unknowns, configurations, levels, fingerprint, settings.seed,
+                              on_progress=print)
+    likelihood.info["prepare_s"] = time.perf_counter() - started
+    likelihood.save(args.prepare)
+    print(f"prepared likelihood: {args.prepare} ({likelihood.info['prepare_s']:.0f} s on {workers} workers)")
+    return 0
+
+
+def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any],
+               outcomes: typing.Sequence[typing.Any], characterisation: typing.Any,
+               sources: typing.Sequence[str]) -> int:
+    """``--likelihood FILE``: the posterior of the ``--fit`` unknowns (default: all the file's) from the prepared
+    likelihood, the file's other unknowns held at their loaded values; write the outputs and print the summary."""
+    import numpy as np
+
+    from rollability_ros.core.campaign import (characterisation_term, format_set, load_likelihood,
+                                               observations_from_outcomes, sample_posterior, twin_fingerprint)
+    from rollability_ros.core.results import group_conditions
+
+    if args.sampler_steps < 20:
+        raise ValueError(f"--sampler-steps must be >= 20, got {args.sampler_steps}")
+    likelihood = load_likelihood(args.likelihood)
+    unknowns = likelihood.unknowns
+    if likelihood.fingerprint != twin_fingerprint(parameters, unknowns.names):
+        raise ValueError(f"{args.likelihood}: prepared for another twin or design set than the loaded parameter "
+                         f"files (a setting or a design mesh differs): prepare it again (--prepare)")
+    sampled = list(dict.fromkeys(args.fit)) or list(unknowns.names)
+    fixed = {name: float(parameters[name]) for name in unknowns.names if name not in sampled}
+    observations = observations_from_outcomes(outcomes)
+    extra = (characterisation_term(characterisation, parameters, unknowns)
+             if characterisation is not None else None)
+    posterior = sample_posterior(likelihood, observations, sampled, fixed, extra, seed=args.seed,
+                                        steps=args.sampler_steps)
+    fitted = posterior.best()
+    method = "highest-density set of the learnt likelihood's posterior"
+    params_path = _write_outputs(args, sources, f"credible set ({method})", fitted)
+    rows = []
+    for i, name in enumerate(posterior.names):
+        j = unknowns.names.index(name)
+        sets = posterior.credible_set(name)
+        rows.append({"parameter": name, "initial": float(parameters[name]), "fitted": fitted[name],
+                     "median": posterior.median(name), "set": format_set(sets),
+                     "set_low": sets[0][0], "set_high": sets[-1][1],
+                     "set_width_fraction": posterior.set_width_fraction(name), "split": len(sets) > 1,
+                     "lower": unknowns.lower[j], "upper": unknowns.upper[j], "method": method})
+    _write_csv(os.path.join(args.out, "parameters.csv"), rows)
+    full = {**fixed, **fitted}
+    before = {**fixed, **{n: float(parameters[n]) for n in sampled}}
+    conditions = group_conditions(outcomes)
+    condition_rows = []
+    for c in conditions:
+        cell = (c.height_m, c.speed_mps, c.angle_deg)
+        predicted = [float(likelihood.predict_upright_probability(
+            np.array([[values[n] for n in unknowns.names]]), c.configuration, cell)[0]) for values in (before, full)]
+        condition_rows.append({"configuration": c.configuration, "height_m": c.height_m, "speed_mps": c.speed_mps,
+                               "angle_deg": c.angle_deg, "trials": c.trials, "successes": c.successes,
+                               "measured_rate": c.successes / c.trials, "before_probability": predicted[0],
+                               "after_probability": predicted[1]})
+    if condition_rows:
+        _write_csv(os.path.join(args.out, "conditions.csv"), condition_rows)
+    lines = [f"physical launches: {len(observations)} valid; posterior of {len(sampled)} unknown(s) from the prepared "
+             f"likelihood {args.likelihood} ({len(posterior.samples)} samples, {posterior.wall_s:.1f} s)"
+             + (f"; held at their loaded values: {', '.join(f'{n} = {v:.4g}' for n, v in fixed.items())}"
+                if fixed else ""),
+             f"{'parameter':<42} {'start':>10} {'fitted':>10}   95% set (a split set is a union of intervals)"]
+    lines += [f"{r['parameter']:<42} {r['initial']:>10.4g} {r['fitted']:>10.4g}   {r['set']} "
+              f"({r['set_width_fraction']:.0%} of the range{', split' if r['split'] else ''})" for r in rows]
+    summary = "\n".join(lines)
+    with open(os.path.join(args.out, "summary.txt"), "w", encoding="utf-8") as stream:
+        stream.write(summary + "\n")
+    print(summary)
+    print(f"calibrated parameter file: {params_path} (a rig node's: {os.path.join(args.out, RIG_FILE)})")
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    """Calibrate, write the outputs to ``--out`` and print the summary; return the exit code."""
+    from rollability_ros.core.campaign import (TWIN_CONFIGS, LaunchPool, calibrate, calibration_settings,
+                                               check_fittable, load_characterisation, twin_settings_with)
     from rollability_ros.core.config import check_given_files, check_output_dir, from_mapping, load_parameters, section
     from rollability_ros.core.results import load_report_data
     from rollability_ros.core.sim import TWIN_SECTIONS, ScreenSettings
 
-    check_output_dir(args.out, "--out", keeps=("calibrated.yaml", RIG_FILE))   # before minutes of fitting
-    check_given_files(args.config, {*TWIN_SECTIONS, "calibration", "stable_poses"}, "rollability calibrate")
-    parameters = load_parameters([*TWIN_CONFIGS, "calibration", *args.config])
+    if args.prepare and args.likelihood:
+        raise ValueError("give --prepare FILE (learn a likelihood) or --likelihood FILE (calibrate with one), not both")
+    if not args.prepare:
+        check_output_dir(args.out, "--out", keeps=("calibrated.yaml", RIG_FILE))   # before minutes of fitting
+    check_given_files(args.config, {*TWIN_SECTIONS, "calibration", "stable_poses", "campaign"}, "rollability calibrate")
+    parameters = load_parameters([*TWIN_CONFIGS, "calibration", "campaign", *args.config])
     settings = calibration_settings(parameters)
-    if args.fit:
+    if args.fit and not args.likelihood:
         settings = settings.selected(args.fit)
-    characterisation = load_characterisation(args.characterisation) if args.characterisation else None
-    if args.physical is None and characterisation is None:
-        raise ValueError("give --physical (launch outcomes) and/or --characterisation (bench readings)")
     if args.workers is not None:
         if args.workers < 1:
             raise ValueError(f"--workers must be >= 1, got {args.workers}")
         settings.workers = args.workers
+    if args.prepare:
+        check_fittable(parameters, settings)
+        return prepare(args, parameters, settings)
+    characterisation = load_characterisation(args.characterisation) if args.characterisation else None
+    if args.physical is None and characterisation is None:
+        raise ValueError("give --physical (launch outcomes) and/or --characterisation (bench readings)")
     screen_settings = from_mapping(ScreenSettings, section(parameters, "stable_poses"), "stable_poses")
     outcomes = []
     sources = []
@@ -92,22 +231,15 @@ def run(args: argparse.Namespace) -> int:
     if characterisation is not None:
         print(characterisation.summary())
         sources.append(characterisation.source)
+    if args.likelihood:
+        return run_learnt(args, parameters, outcomes, characterisation, sources)
     check_fittable(parameters, settings)   # before any launch
     with LaunchPool(settings.workers) as pool:
         result = calibrate(outcomes, parameters, settings, pool, on_progress=print,
-                           characterisation=characterisation)
-    os.makedirs(args.out, exist_ok=True)
-    params_path = os.path.join(args.out, "calibrated.yaml")
-    document = calibrated_parameter_document(result.fitted_values())
-    header = (f"# Calibrated launch-twin parameters from {' and '.join(sources)} (rollability calibrate); load on top "
-              f"of the\n# defaults: --config / --rig-config. Bootstrap uncertainty in parameters.csv beside this "
-              f"file.\n")
-    atomic_write_bytes(params_path, (header + yaml.safe_dump(document, sort_keys=True)).encode("utf-8"))
-    rig_document = rig_parameter_document(os.path.abspath(params_path))
-    atomic_write_bytes(os.path.join(args.out, RIG_FILE),
-                       (f"# A rig node's twin on {params_path}: --params-file after config/rig.yaml\n"
-                        + yaml.safe_dump(rig_document, sort_keys=True)).encode("utf-8"))
-    calibrated_twin = twin_settings_with(parameters, settings.parameters, [e.fitted for e in result.estimates])
+                                       characterisation=characterisation)
+    params_path = _write_outputs(args, sources, f"interval ({settings.interval})", result.fitted_values())
+    calibrated_twin = twin_settings_with(parameters, settings.parameters,
+                                                     [e.fitted for e in result.estimates])
     configurations = sorted({c.configuration for c in result.conditions})
     screen_rows = _screen_rows(calibrated_twin, configurations, screen_settings)
     if result.conditions:   # a characterisation alone has no launch conditions to compare
@@ -128,12 +260,16 @@ def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "calibrate", help="fit the simulated launch twin to recorded physical launch outcomes",
         description="Fit the launch twin's uncertain parameters (config/calibration.yaml: foam stiffness, damping, "
-                    "friction, restitution, speed scatter, centre of mass, foam rolling friction, wheel drag, with "
-                    "bounds) to physical outcomes and/or bench characterisation readings by "
-                    "maximising the binomial likelihood of the observed successes per grouped condition with "
-                    "CMA-ES; report before/after agreement and bootstrap uncertainty; write calibrated.yaml, a "
-                    "parameter file the evaluator, optimizer and rig load on top of the defaults, and "
-                    "calibrated_rig.yaml, which points a rig node's twin at it.")
+                    "friction, restitution, speed scatter, centre of mass, foam rolling friction, wheel drag, "
+                    "profile mass, launcher, with bounds) to physical outcomes and/or bench characterisation "
+                    "readings. With --likelihood FILE (made once by --prepare FILE): the posterior of the unknowns "
+                    "from a likelihood learnt on simulated launches, over the verdicts and the measured outcomes "
+                    "(gate speed, final tilt, peak deceleration, time to rest, rest distance), in minutes, with 95% "
+                    "highest-density sets (a split set printed as a union of intervals). Without it: CMA-ES on the "
+                    "twin simulated afresh for every parameter set, with a likelihood-ratio 95% interval per "
+                    "parameter (calibration.interval). Writes calibrated.yaml, a parameter file the evaluator, "
+                    "optimizer and rig load on top of the defaults, calibrated_rig.yaml, which points a rig node's "
+                    "twin at it, and parameters.csv with each value's 95% interval or set.")
     parser.add_argument("--physical", metavar="SOURCE",
                         help="physical launch outcomes: a store, a run directory, a bag or a CSV (docs/outcome-csv.md); "
                              "needed unless --characterisation is given")
@@ -150,4 +286,17 @@ def register(subparsers: Subparsers) -> None:
                         help="output directory (default: ./calibration); one that already holds a calibrated.yaml "
                              "is refused (an earlier calibration is never overwritten)")
     parser.add_argument("--workers", type=int, help="launch worker processes (default: calibration.workers)")
+    parser.add_argument("--prepare", metavar="FILE",
+                        help="learn the likelihood of the --fit unknowns (default: all declared) over the loaded "
+                             "twin's configurations and the campaign's levels from simulated launches, and write it "
+                             "to FILE (.npz; never overwritten); once per robot and design set")
+    parser.add_argument("--prepare-launches", type=int, default=8000, metavar="N",
+                        help="simulated launches of --prepare (default 8000: sized for 15 minutes on 2 quiet cores)")
+    parser.add_argument("--likelihood", metavar="FILE",
+                        help="calibrate with a likelihood made by --prepare (its twin and designs must be the loaded "
+                             "ones): the posterior of the --fit unknowns, the file's others held at their loaded "
+                             "values")
+    parser.add_argument("--seed", type=int, default=1, help="seed of the posterior sampler (--likelihood)")
+    parser.add_argument("--sampler-steps", type=int, default=600, metavar="N",
+                        help="steps of the posterior sampler (--likelihood; the first half is discarded; >= 20)")
     parser.set_defaults(func=run)

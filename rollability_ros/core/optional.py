@@ -18,6 +18,7 @@ EXTRA_FOR_MODULE = {
     "xacro": "sim",
     "cma": "sim",
     "ribs": "sim",
+    "sklearn": "calibration",
     "ray": "cluster",
     "matplotlib": "report",
     "serial": "hardware",

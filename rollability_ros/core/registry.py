@@ -19,15 +19,16 @@ class Registry(typing.Generic[T]):
     ----------
     field : str
         The setting that names an entry (``"backend"``), for the one-line refusal of an unknown name.
-    base : type
-        The contract every entry must subclass.
+    base : type or str
+        The contract every entry must subclass, or its ``"module:Class"`` (imported at the first :meth:`get`: a
+        table declared below the module of its contract, as ``sim/engines.py``'s, names it so).
     entries : dict, optional
         The built-in entries.
     """
 
-    def __init__(self, field: str, base: type, entries: typing.Optional[dict] = None):
+    def __init__(self, field: str, base: typing.Union[type, str], entries: typing.Optional[dict] = None):
         self.field = field
-        self.base = base
+        self._base = base
         self._entries: dict = {}
         for name, target in (entries or {}).items():
             self.register(name, target)
@@ -58,13 +59,26 @@ class Registry(typing.Generic[T]):
         if name not in self._entries:
             raise ValueError(f"{self.field} must be one of {self.names()}, got {name!r}")
 
+    @property
+    def base(self) -> type:
+        """The contract every entry subclasses (imported now if given as ``"module:Class"``)."""
+        base = _resolve(self._base) if isinstance(self._base, str) else self._base
+        self._base = base
+        return base
+
     def get(self, name: str) -> typing.Type[T]:
         """The class registered as ``name`` (imported now if given as ``"module:Class"``)."""
         self.check(name)
         target = self._entries[name]
         if isinstance(target, str):
-            module, _, attribute = target.partition(":")
-            target = getattr(importlib.import_module(module), attribute)
-        if not (isinstance(target, type) and issubclass(target, self.base)):
-            raise TypeError(f"{self.field} {name!r} is {target!r}, not a {self.base.__name__}")
+            target = _resolve(target)
+        base = self.base
+        if not (isinstance(target, type) and issubclass(target, base)):
+            raise TypeError(f"{self.field} {name!r} is {target!r}, not a {base.__name__}")
         return typing.cast(typing.Type[T], target)
+
+
+def _resolve(target: str) -> typing.Any:
+    """The attribute ``"module:Class"`` names, its module imported."""
+    module, _, attribute = target.partition(":")
+    return getattr(importlib.import_module(module), attribute)

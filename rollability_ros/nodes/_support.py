@@ -6,7 +6,6 @@ calls that would make them invalid (``SetParametersResult(successful=False, reas
 """
 import dataclasses
 import faulthandler
-import math
 import os
 import re
 import signal
@@ -226,11 +225,6 @@ def guard_settings(node: Node, prefix: str, settings_cls: typing.Type[_Settings]
         return SetParametersResult(successful=True)
 
     node.add_on_set_parameters_callback(check)
-
-
-def finite(value: object) -> bool:
-    """True for a real, finite number (bools excluded)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 #: Once a node starts stopping, the most its shutdown may take before the process exits anyway (s).

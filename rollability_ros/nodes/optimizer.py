@@ -296,7 +296,7 @@ class Optimizer(Node):
         return settings
 
     def _typed_run_settings(self, settings):
-        """The :class:`~rollability_ros.core.optimization.optimization_run.RunSettings` of the sections this node
+        """The :class:`~rollability_ros.core.optimization.optimizer_contract.RunSettings` of the sections this node
         declared (its own parse, once): what the method check and the start-point screen are handed."""
         return RunSettings(optimizer=settings["optimizer"],
                            quality_diversity=settings["quality_diversity"],

@@ -32,7 +32,7 @@ Ports the physical backend opens (:class:`RosRigPorts`): clients ``valve/arm`` (
   (FireValve), signed with the session key ``valve.session_key_file`` that the valve_controller on this computer
   writes; subscriptions to ``valve/state`` (latched) and, when ``rig.outcome_source`` is ``imu``, to the IMU
   topic ``imu_outcome.topic`` (sensor_msgs/Imu, default ``imu/data``).
-Parameters: ``rig.*`` (:class:`~rollability_ros.core.rig.rig_session.RigSettings`: ``rig.backend`` sim | physical,
+Parameters: ``rig.*`` (:class:`~rollability_ros.core.rig.launch_backend.RigSettings`: ``rig.backend`` sim | physical,
   ...), ``valve.*`` (launch pulse, heartbeat period, regulator pressures), ``speed_gate.*``, ``imu_outcome.*``,
   all in ``config/rig.yaml``; the sim backend reads the launch twin's own parameter files (``rig.twin_config``,
   default sim, robot, launch_twin) at start-up. Fixed at start-up.

@@ -22,7 +22,7 @@ Publications:
   ``/diagnostics`` (diagnostic_msgs/DiagnosticArray): every second and on every state change: armed, fault and
   its reason, watchdog margin, device link, refused requests.
 Parameters:
-  ``valve.*`` (:class:`~rollability_ros.core.rig.valve.ValveConfig`, shipped in ``config/rig.yaml``), fixed at
+  ``valve.*`` (:class:`~rollability_ros.core.rig.valve_contract.ValveConfig`, shipped in ``config/rig.yaml``), fixed at
   start-up: a running safety device does not change its backend or limits underneath the rig.
 
 Fail-closed: the valve is driven closed at start, on disarm, e-stop, watchdog trip, backend error, at the end of

@@ -11,7 +11,7 @@ class ReplayTrialWorld(TrialEngine):
     #: seed -> the TrialOutcome another engine gave for it
     recorded: dict = {}
 
-    def __init__(self, client, robot_model, profile, settings, physics):
+    def __init__(self, robot_model, profile, settings, physics):
         self.profile = profile   # built like any engine's world; nothing to simulate
 
     def run(self, index: int, seed: int) -> TrialOutcome:

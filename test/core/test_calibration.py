@@ -132,7 +132,7 @@ def test_cli_writes_outputs_from_a_csv_of_physical_outcomes(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_recovers_a_hidden_centre_of_mass_offset_from_synthetic_outcomes(tmp_path):
-    """Reduced synthetic truth (bench/bench_calibration.py runs the fuller version): 'physical' outcomes from the
+    """Reduced synthetic truth (bench/bench_calibration_direct.py runs the fuller version): 'physical' outcomes from the
     twin with the chassis's COM 6 mm above the box centre instead of 15 mm below; the fit starts at the default."""
     pytest.importorskip("pybullet")
     pytest.importorskip("cma")
@@ -211,7 +211,7 @@ def test_the_documented_calibrate_reoptimize_validate_sequence_runs_on_a_synthet
     outcomes = synthetic_outcomes(twin_parameters(), list(truth), list(truth.values()), conditions, 6)
     write_outcome_csv(tmp_path / "campaign.csv", outcomes)
     (tmp_path / "small.yaml").write_text(yaml.safe_dump({"/**": {"ros__parameters": {"calibration": {
-        "parameters": list(truth), "lower": [0.2], "upper": [3.0], "log_scale": [True], "sim_repetitions": 2,
+        "parameters": list(truth), "lower": [0.3], "upper": [3.0], "log_scale": [True], "sim_repetitions": 2,
         "popsize": 2, "max_generations": 1, "interval_points": 5}}}}), encoding="utf-8")
     assert main(["calibrate", "--physical", "campaign.csv", "--config", "small.yaml", "--out", "calibration",
                  "--workers", "1"]) == 0

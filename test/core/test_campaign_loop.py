@@ -11,7 +11,7 @@ from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
 from rollability_ros.core.campaign.runner import (NotStored, StoreAcknowledgements, answer_rig, resume_refusal,
                                                   run_campaign, store_writer)
 from rollability_ros.core.records import LaunchOutcome
-from rollability_ros.core.rig.rig_session import LaunchAborted, OperatorOutcome
+from rollability_ros.core.rig.launch_backend import LaunchAborted, OperatorOutcome
 from rollability_ros.core.store import Store
 
 SPEC = CampaignSpec(run_id="loop", configurations=["A", "B"], heights_m=[0.75], speeds_mps=[0.8, 1.5],

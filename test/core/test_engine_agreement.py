@@ -7,7 +7,7 @@ from rollability_ros.core.results.engine_agreement import (TABLE_COLUMNS, TABLE_
                                                           rank_agreement_p_value, read_table, robust_to_engine,
                                                           table_rows, trial_agreement, write_table)
 from rollability_ros.core.sim.evaluation import EvaluationResult
-from rollability_ros.core.sim.trials import TrialOutcome
+from rollability_ros.core.sim.trial_engine import TrialOutcome
 
 
 def outcomes(uprights, seed_offset=0):

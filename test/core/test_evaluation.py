@@ -18,7 +18,7 @@ from rollability_ros.core.sim.evaluation import (EvaluationCancelled, EvaluatorS
                                              evaluate_mesh, evaluate_profile, load_settings, mesh_job, profile_job,
                                              run_batch, trial_seed)
 from rollability_ros.core.profile.geometry import export_mesh, grid_xy, load_profile_mesh, profile_mesh
-from rollability_ros.core.sim.trials import run_trial
+from rollability_ros.core.sim.trial_engine import run_trial
 
 pybullet = pytest.importorskip("pybullet")
 
@@ -42,21 +42,21 @@ def test_trial_seeds_are_reproducible_distinct_and_in_range():
 
 
 def test_a_trial_depends_only_on_profile_seed_and_settings():
-    """The reused, restored world gives exactly what a freshly built world gives, whatever ran before."""
+    """The reused, restored world gives exactly what a freshly built world gives, whatever ran before: another
+    profile's batch, or a world built in the engine's client outside the evaluation (run_trial), which empties the
+    client under the evaluation's kept world (that world builds itself again)."""
     settings = SETTINGS
     ridge = profile_job(ridge_heights(settings.grid), settings)
     bare = profile_job(None, settings)
     seeds = [(i, trial_seed(5, i)) for i in range(4)]
-    client = pybullet.connect(pybullet.DIRECT)
-    try:
-        fresh = [run_trial(client, settings.robot_model(), ridge.profile, i, s, settings.trial, settings.physics)
-                 for i, s in seeds]
-    finally:
-        pybullet.disconnect(client)
+    fresh = [run_trial(settings.robot_model(), ridge.profile, i, s, settings.trial, settings.physics)
+             for i, s in seeds]
     together = run_batch(ridge, seeds)
+    run_trial(settings.robot_model(), None, *seeds[0], settings.trial, settings.physics)
+    after_outside_build = run_batch(ridge, seeds)
     run_batch(bare, seeds[:2])  # another profile in between rebuilds this process's world
     alone_reversed = [run_batch(ridge, [pair])[0] for pair in reversed(seeds)][::-1]
-    assert together == fresh and alone_reversed == fresh
+    assert together == fresh and after_outside_build == fresh and alone_reversed == fresh
 
 
 def test_a_generation_runs_each_candidate_whole_when_there_are_two_per_worker():

@@ -121,7 +121,7 @@ def private_module_imports(path):
 
 
 def test_nothing_outside_the_package_imports_a_private_module(tmp_path):
-    """The modules behind a face with a leading underscore (``sim/_worker_pool``, ``rig/_valve_backend``, ...) are
+    """The modules behind a face with a leading underscore (``sim/_worker_pool``, ``imu/_quaternion``, ...) are
     their subpackage's own: tests, benches and scripts use the names the face exports."""
     found = [f"{path.relative_to(ROOT)}:{where}" for folder in ("test", "bench", "scripts", "launch")
              for path in sorted((ROOT / folder).rglob("*.py")) for where in private_module_imports(path)]
@@ -129,10 +129,10 @@ def test_nothing_outside_the_package_imports_a_private_module(tmp_path):
     made_up = tmp_path / "m.py"
     made_up.write_text("from rollability_ros.core.sim._worker_pool import spawn_pool\n"
                        "from rollability_ros.core.sim import spawn_pool, _worker_pool\n"
-                       "import rollability_ros.core.rig._valve_backend\nfrom rollability_ros.core.rig import _LOG\n")
+                       "import rollability_ros.core.imu._quaternion\nfrom rollability_ros.core.rig import _LOG\n")
     assert private_module_imports(made_up) == ["1: rollability_ros.core.sim._worker_pool",
                                                "2: rollability_ros.core.sim._worker_pool",
-                                               "3: rollability_ros.core.rig._valve_backend"]
+                                               "3: rollability_ros.core.imu._quaternion"]
 
 
 def test_the_check_sees_a_deep_import(tmp_path, monkeypatch):

@@ -11,7 +11,7 @@ from rollability_ros.core.config import ConfigError  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
 from doubles import SyntheticEvaluator  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config, profile_screen  # noqa: E402
-from rollability_ros.core.optimization.cmaes import random_initial_means  # noqa: E402
+from rollability_ros.core.optimization.optimizer_contract import random_initial_means  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import run_settings  # noqa: E402
 
 GRID = ProfileGrid(rows=3, cols=3)

@@ -9,7 +9,8 @@ import pytest
 from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
 from rollability_ros.core.sim.launch.twin import simulate_launch
 from rollability_ros.core.records import LaunchCondition
-from rollability_ros.core.rig.rig_session import RigSettings, SimulatedLaunch, simulated_outcome, launch_seed
+from rollability_ros.core.rig.launch_backend import RigSettings
+from rollability_ros.core.rig.rig_session import SimulatedLaunch, simulated_outcome, launch_seed
 from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig
 from rollability_ros.core.robots.urdf_robot import UrdfRobotModel, UrdfRobotSpec, half_width_across_m

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from rollability_ros.core.sim.evaluation import EvaluatorSettings, evaluate_profile
-from rollability_ros.core.sim.trials import TrialWorld, make_trial_world
-from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect
+from rollability_ros.core.sim.trial_engine import make_trial_world
+from rollability_ros.core.sim.pybullet_trials import TrialWorld
+from rollability_ros.core.sim.world import PhysicsParams
 
 mujoco = pytest.importorskip("mujoco")
 pytest.importorskip("pybullet")
@@ -53,16 +54,33 @@ def test_mujoco_box_slides_only_on_slopes_steeper_than_atan_of_effective_frictio
 
 
 def test_factory_picks_the_engine_and_callers_do_not_branch():
-    client = connect()
-    try:
-        assert isinstance(make_trial_world(client, SETTINGS.robot_model(), None, SETTINGS.trial, SETTINGS.physics),
-                          MujocoTrialWorld)
-        assert isinstance(make_trial_world(client, SETTINGS.robot_model(), None, SETTINGS.trial, PhysicsParams()),
-                          TrialWorld)
-    finally:
-        disconnect(client)
+    assert isinstance(make_trial_world(SETTINGS.robot_model(), None, SETTINGS.trial, SETTINGS.physics),
+                      MujocoTrialWorld)
+    assert isinstance(make_trial_world(SETTINGS.robot_model(), None, SETTINGS.trial, PhysicsParams()), TrialWorld)
     with pytest.raises(ValueError, match="engine"):
         PhysicsParams(engine="ode").validate()
+
+
+def test_a_mujoco_evaluation_opens_no_pybullet_client():
+    """The evaluation opens only the engine its settings name (issue 43): in a fresh process, a MuJoCo evaluation
+    leaves PyBullet with no client connected (before, every batch opened one)."""
+    import os
+    import pathlib
+    import subprocess
+    import sys
+
+    script = ("import dataclasses\n"
+              "from rollability_ros.core.sim import evaluation\n"
+              "from rollability_ros.core.sim.world import PhysicsParams\n"
+              "settings = dataclasses.replace(evaluation.EvaluatorSettings(), physics=PhysicsParams(engine='mujoco'))\n"
+              "assert evaluation.evaluate_profile(None, 2, 3, settings).trials == 2\n"
+              "import pybullet\n"
+              "print('connected', pybullet.getConnectionInfo(0)['isConnected'])\n")
+    root = pathlib.Path(__file__).resolve().parents[2]
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
+                            env=dict(os.environ, PYTHONPATH=str(root)))
+    assert result.returncode == 0, result.stderr
+    assert "connected 0" in result.stdout
 
 
 def test_a_chassis_at_rest_on_its_wheels_stays_upright_and_settles():

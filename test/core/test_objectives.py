@@ -83,7 +83,7 @@ def test_launches_run_on_the_evaluations_engine_or_are_refused(monkeypatch, tmp_
     pytest.importorskip("mujoco")
     from rollability_ros.cli import main
     from rollability_ros.core.records import LaunchCondition
-    from rollability_ros.core.sim import trial_engine
+    from rollability_ros.core.sim import engines
     from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     campaign = tmp_path / "two_angles.yaml"
@@ -107,8 +107,8 @@ def test_launches_run_on_the_evaluations_engine_or_are_refused(monkeypatch, tmp_
     out = capsys.readouterr().out
     assert "pybullet  fitness" in out and "mujoco    fitness" in out and "agreement " in out and "/2 trials" in out
     # an engine that cannot run launches is refused before any trial
-    monkeypatch.setattr(trial_engine.LAUNCH_ENGINES, "_entries",      # a table with the PyBullet twin only
-                        {"pybullet": trial_engine.LAUNCH_ENGINES._entries["pybullet"]})
+    monkeypatch.setattr(engines.LAUNCH_ENGINES, "_entries",      # a table with the PyBullet twin only
+                        {"pybullet": engines.LAUNCH_ENGINES._entries["pybullet"]})
     mix = settings_with(kind="mix")
     mix = dataclasses.replace(mix, physics=dataclasses.replace(mix.physics, engine="mujoco"))
     with pytest.raises(ValueError, match=r"^sim.engine 'mujoco' cannot run launch trials"):

@@ -9,11 +9,8 @@ cma = pytest.importorskip("cma")
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
 from doubles import SyntheticEvaluator  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config  # noqa: E402
-from rollability_ros.core.optimization.cmaes import (  # noqa: E402
-    OptimizerSettings,
-    ProfileOptimizer,
-    derive_seed,
-)
+from rollability_ros.core.optimization.cmaes import ProfileOptimizer  # noqa: E402
+from rollability_ros.core.optimization.optimizer_contract import OptimizerSettings, derive_seed  # noqa: E402
 
 N_VARIABLES = 16
 OPTIMUM = np.random.default_rng(42).uniform(0.0, 0.45, N_VARIABLES)

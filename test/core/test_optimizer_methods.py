@@ -1,11 +1,12 @@
-"""The optimizer-method seam (core/optimization/cmaes.py): the IncumbentOptimizer contract, the OPTIMIZER_METHODS
+"""The optimizer-method seam (core/optimization/optimizer_contract.py): the IncumbentOptimizer contract, the OPTIMIZER_METHODS
 table, make_optimizer / check_method_settings its only lookups. A new method is one class plus one registration
 line, and it runs, checkpoints and resumes through the same OptimizationRun as CMA-ES and CMA-MAE."""
 import numpy as np
 import pytest
 
 from rollability_ros.core.optimization import cmaes
-from rollability_ros.core.optimization.cmaes import OPTIMIZER_METHODS, IncumbentOptimizer, OptimizerResult
+from rollability_ros.core.optimization.optimizer_contract import (OPTIMIZER_METHODS, IncumbentOptimizer,
+                                                                  OptimizerResult)
 
 
 class RandomSearch(IncumbentOptimizer):

@@ -13,7 +13,8 @@ from rollability_ros.core.config import ConfigError, from_mapping  # noqa: E402
 from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec, ProfileBody, ProfileMountSpec  # noqa: E402
 from rollability_ros.core.sim import world  # noqa: E402
 from rollability_ros.core.sim.mujoco_trials import MujocoTrialWorld  # noqa: E402
-from rollability_ros.core.sim.trials import TrialSettings, TrialWorld, place_on_ground  # noqa: E402
+from rollability_ros.core.sim.pybullet_trials import TrialWorld  # noqa: E402
+from rollability_ros.core.sim.trials import TrialSettings, place_on_ground  # noqa: E402
 
 PROFILE_KG = 0.1
 GRAVITY = 9.81

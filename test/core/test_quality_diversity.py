@@ -13,15 +13,12 @@ ribs = pytest.importorskip("ribs")
 
 from doubles import SyntheticEvaluator  # noqa: E402
 from rollability_ros.core.optimization import design_set, selection  # noqa: E402
-from rollability_ros.core.optimization.cmaes import OptimizerSettings  # noqa: E402
+from rollability_ros.core.optimization.optimizer_contract import OptimizerSettings  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import (OptimizationRun, run_config, make_optimizer,  # noqa: E402
                                                                 run_settings)
-from rollability_ros.core.optimization.quality_diversity import (  # noqa: E402
-    QualityDiversityOptimizer,
-    QualityDiversitySettings,
-    emitter_batch_sizes,
-    emitter_ceilings,
-)
+from rollability_ros.core.optimization.quality_diversity import (QualityDiversityOptimizer, emitter_batch_sizes,
+                                                                 emitter_ceilings)
+from rollability_ros.core.optimization.optimizer_contract import QualityDiversitySettings  # noqa: E402
 from rollability_ros.core.profile import descriptors  # noqa: E402
 from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid, grid_xy  # noqa: E402
 from rollability_ros.core.store import Store  # noqa: E402

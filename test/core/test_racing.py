@@ -147,7 +147,7 @@ def test_the_optimizer_races_in_stages_and_a_killed_generation_resumes_to_the_sa
     pytest.importorskip("cma")
     if method == "cma_mae":
         pytest.importorskip("ribs")
-    from rollability_ros.core.optimization import cmaes
+    from rollability_ros.core.optimization import optimizer_contract
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     grid = ProfileGrid(rows=2, cols=2)
@@ -157,8 +157,10 @@ def test_the_optimizer_races_in_stages_and_a_killed_generation_resumes_to_the_sa
     # every call is one stage of common random numbers (looks 5, 10, 20 of 40: stages of 5, 5, 10 and 20 trials),
     # or an unraced population's / a re-evaluation's 40
     assert {trials for _, trials, _ in calls} == {5, 10, 20, 40}
-    race_seeds = {cmaes.derive_seed(4, g, cmaes.STREAM_RACE, k) for g in range(5) for k in (1, 2, 3)}
-    population_seeds = {cmaes.derive_seed(4, g, cmaes.STREAM_POPULATION) for g in range(5)}
+    derive, race, population = (optimizer_contract.derive_seed, optimizer_contract.STREAM_RACE,
+                                optimizer_contract.STREAM_POPULATION)
+    race_seeds = {derive(4, g, race, k) for g in range(5) for k in (1, 2, 3)}
+    population_seeds = {derive(4, g, population) for g in range(5)}
     assert all(seed in race_seeds for seed, trials, _ in calls if trials in (10, 20))
     first_stages = [seed for seed, trials, _ in calls if trials == 5 and seed in population_seeds]
     assert first_stages and all(count == 8 for seed, _, count in calls if seed in first_stages)  # all 8 start

@@ -415,7 +415,8 @@ def test_a_study_reports_only_the_designs_its_campaign_launched(tmp_path):
 
 
 def test_the_sim_rig_records_where_its_designs_come_from(tmp_path):
-    from rollability_ros.core.rig.rig_session import RigSettings, SimulatedLaunch
+    from rollability_ros.core.rig.launch_backend import RigSettings
+    from rollability_ros.core.rig.rig_session import SimulatedLaunch
     from rollability_ros.core.rig.speed_gate import SpeedGateConfig
 
     twin = tmp_path / "twin.yaml"

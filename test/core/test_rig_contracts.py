@@ -9,11 +9,13 @@ import threading
 import pytest
 
 from rollability_ros.core.registry import Registry
-from rollability_ros.core.rig import valve_backends
+from rollability_ros.core.rig import valve_boards
 from rollability_ros.core.rig.launch_backend import LaunchBackend
-from rollability_ros.core.rig.rig_session import LAUNCH_BACKENDS, PhysicalLaunch, SimulatedLaunch
+from rollability_ros.core.rig.launch_backend import LAUNCH_BACKENDS
+from rollability_ros.core.rig.rig_session import PhysicalLaunch, SimulatedLaunch
 from rollability_ros.core.rig.speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
-from rollability_ros.core.rig.valve import ValveConfig, ValveController
+from rollability_ros.core.rig.valve import ValveController
+from rollability_ros.core.rig.valve_contract import ValveConfig
 from rollability_ros.core.rig import VALVE_BACKENDS, ValveBackend, register_valve_backend
 
 RIG = pathlib.Path(__file__).resolve().parents[2] / "rollability_ros" / "core" / "rig"
@@ -77,7 +79,7 @@ def test_valve_controller_never_probes_its_backend():
 
 
 def test_backend_names_are_looked_at_only_by_the_tables():
-    for module in ("valve.py", "valve_backends.py", "speed_gate.py", "launch_backend.py"):
+    for module in ("valve.py", "valve_boards.py", "speed_gate.py", "launch_backend.py"):
         source = (RIG / module).read_text()
         assert not re.findall(r"backend (==|!=|in) ", source), module
     campaign = (RIG.parents[1] / "cli" / "campaign.py").read_text()
@@ -88,7 +90,7 @@ def test_a_board_registered_from_one_module_runs_through_the_factory(recording_b
     config = ValveConfig(backend="recording")
     config.validate()
     states = []
-    controller = valve_backends.make_controller(config, on_state=states.append)
+    controller = valve_boards.make_controller(config, on_state=states.append)
     try:
         board = controller._backend
         assert isinstance(board, RecordingBoard)
@@ -126,21 +128,21 @@ def test_the_contract_is_declared_not_guessed():
     with pytest.raises(TypeError, match="must be a ValveBackend"):
         ValveController(object(), 100, 500)
     with pytest.raises(TypeError, match="non-empty class attribute name"):
-        type("Nameless", (valve_backends.DryRunBackend,), {"name": ""})
+        type("Nameless", (valve_boards.DryRunBackend,), {"name": ""})
     with pytest.raises(TypeError, match="abstract"):
         type("Half", (ValveBackend,), {"name": "half", "open": lambda self: None})()
-    defaults = valve_backends.DryRunBackend()   # a board without the optional features gets the defaults
+    defaults = valve_boards.DryRunBackend()   # a board without the optional features gets the defaults
     assert (defaults.fire_refusal(), defaults.stalled(), defaults.startup_warning(), defaults.limits) == ("", "", "",
                                                                                                          None)
     assert defaults.link_state() == "dry_run: no device"
     table = Registry("backend", ValveBackend, {"bad": "rollability_ros.core.rig.speed_gate:SimulatedSpeedGate"})
     with pytest.raises(TypeError, match="not a ValveBackend"):
         table.get("bad")
-    assert VALVE_BACKENDS.get("gpio") is valve_backends.GpioHolderBackend
+    assert VALVE_BACKENDS.get("gpio") is valve_boards.GpioHolderBackend
     gpio = ValveConfig(backend="gpio")
-    assert type(valve_backends.make_valve_backend(gpio)) is valve_backends.GpioHolderBackend
+    assert type(valve_boards.make_valve_backend(gpio)) is valve_boards.GpioHolderBackend
     gpio.gpio.line_holder = False
-    assert type(VALVE_BACKENDS.get("gpio").from_config(gpio)) is valve_backends.GpioBackend
+    assert type(VALVE_BACKENDS.get("gpio").from_config(gpio)) is valve_boards.GpioBackend
     assert "every fire is refused" in VALVE_BACKENDS.get("gpio").from_config(gpio).startup_warning()
 
 

@@ -9,16 +9,17 @@ from synthetic_imu import piecewise, stream
 
 from rollability_ros.core.config import check_settings
 from rollability_ros.core.records import NO_SEED, LaunchCondition
-from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
+from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, OperatorChannel, OperatorOutcome,
+                                                     RigPorts, RigSettings, parse_outcome_answer)
 from rollability_ros.core.rig.outcome_sources import ImuOutcome
-from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LaunchAborted,
-                                                  OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
-                                                  check_goal, launch_backend_class, make_launch_backend,
-                                                  parse_outcome_answer, simulated_outcome, launch_seed)
+from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, PhysicalLaunch, check_goal,
+                                                  launch_backend_class, make_launch_backend, simulated_outcome,
+                                                  launch_seed)
 from rollability_ros.core.rig.speed_gate import SimulatedSpeedGate, SpeedGateConfig
 from rollability_ros.core.imu.upright import ImuOutcomeConfig
-from rollability_ros.core.rig.valve import RegulatorConfig, ValveConfig, ValveController
-from rollability_ros.core.rig.valve_backends import DryRunBackend
+from rollability_ros.core.rig.valve import ValveController
+from rollability_ros.core.rig.valve_contract import RegulatorConfig, ValveConfig
+from rollability_ros.core.rig.valve_boards import DryRunBackend
 
 CONDITION = LaunchCondition("B", 0.75, 0.8, -30.0, 1)
 

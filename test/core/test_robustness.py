@@ -39,19 +39,14 @@ def test_bad_robust_settings_are_refused():
 
 def test_robust_evaluation_runs_each_trial_under_its_own_draw():
     pytest.importorskip("pybullet")
-    from rollability_ros.core.sim.trials import run_trial
-    from rollability_ros.core.sim.world import connect, disconnect
+    from rollability_ros.core.sim.trial_engine import run_trial
 
     settings = robust_settings()
     result = evaluation.evaluate_profile(None, 3, 11, settings)
-    client = connect()
-    try:
-        for outcome in result.trial_results:
-            own = robust_settings_for(settings, outcome.seed, settings.objective.robust)
-            direct = run_trial(client, own.robot_model(), None, outcome.index, outcome.seed, own.trial, own.physics)
-            assert direct == outcome
-    finally:
-        disconnect(client)
+    for outcome in result.trial_results:
+        own = robust_settings_for(settings, outcome.seed, settings.objective.robust)
+        direct = run_trial(own.robot_model(), None, outcome.index, outcome.seed, own.trial, own.physics)
+        assert direct == outcome
     plain = evaluation.evaluate_profile(None, 3, 11, evaluation.EvaluatorSettings())
     assert [o.steps for o in plain.trial_results] != [o.steps for o in result.trial_results]
 
@@ -90,10 +85,10 @@ def test_robust_trial_runs_on_the_evaluations_engine():
 
 
 def test_an_engine_that_cannot_run_a_trial_kind_is_refused_in_one_line(monkeypatch):
-    from rollability_ros.core.sim import trial_engine
+    from rollability_ros.core.sim import engines
 
-    monkeypatch.setattr(trial_engine.TRIAL_ENGINES, "_entries",     # a table with PyBullet only
-                        {"pybullet": trial_engine.TRIAL_ENGINES._entries["pybullet"]})
+    monkeypatch.setattr(engines.TRIAL_ENGINES, "_entries",     # a table with PyBullet only
+                        {"pybullet": engines.TRIAL_ENGINES._entries["pybullet"]})
     settings = robust_settings()
     mujoco = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine="mujoco"))
     with pytest.raises(ValueError, match=r"^sim.engine 'mujoco' cannot run disturbance trials \(engines that can: "

@@ -203,3 +203,18 @@ def test_a_real_node_refuses_with_the_clis_line(ros_node, start_node):
     process = start_node("tip_monitor", params={"tip_monitor.tip_threshold_deg": 200.0})
     assert ros_node.wait_for(lambda: not process.alive(), 30)
     assert process.process.returncode == 2 and str(from_cli.value) in process.log(), process.log()
+
+
+def test_the_shipped_calibration_searches_inside_each_keys_declared_range():
+    """A fitted key's bounds (config/calibration.yaml) lie in the range its setting declares: a candidate the
+    search proposes is never refused by the twin's builder mid-fit (lateral_friction's 0.2 was below a declared 0.3
+    that nothing enforced before)."""
+    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, launch_twin_settings_from_parameters
+
+    flat = config.load_parameters(["calibration"])
+    fitted = config.section(flat, "calibration")
+    assert len(fitted["parameters"]) >= 10
+    for name, low, high in zip(fitted["parameters"], fitted["lower"], fitted["upper"]):
+        for value in (low, high):
+            settings = launch_twin_settings_from_parameters({name: value})   # raises ConfigError when outside
+            assert isinstance(settings, LaunchTwinSettings)

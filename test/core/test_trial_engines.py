@@ -1,12 +1,13 @@
-"""The trial-engine seam (core/sim/trial_engine.py): one contract, one table, one factory. A new engine is one file
-plus one registration line (replay_engine.py), and it runs through the same evaluation as PyBullet and MuJoCo."""
+"""The trial-engine seam (core/sim/trial_engine.py, its table in core/sim/engines.py): one contract, one table, one
+factory. A new engine is one file plus one registration line (replay_engine.py), and it runs through the same
+evaluation as PyBullet and MuJoCo."""
 import ast
 import dataclasses
 import pathlib
 
 import pytest
 
-from rollability_ros.core.sim import trial_engine
+from rollability_ros.core.sim import engines as tables, trial_engine
 
 SIM = pathlib.Path(__file__).resolve().parents[2] / "rollability_ros" / "core" / "sim"
 
@@ -14,8 +15,8 @@ SIM = pathlib.Path(__file__).resolve().parents[2] / "rollability_ros" / "core" /
 @pytest.fixture
 def engines(monkeypatch):
     """TRIAL_ENGINES as it is, restored after the test."""
-    monkeypatch.setattr(trial_engine.TRIAL_ENGINES, "_entries", dict(trial_engine.TRIAL_ENGINES._entries))
-    return trial_engine.TRIAL_ENGINES
+    monkeypatch.setattr(tables.TRIAL_ENGINES, "_entries", dict(tables.TRIAL_ENGINES._entries))
+    return tables.TRIAL_ENGINES
 
 
 def test_a_replay_engine_is_one_file_and_one_registration_line(engines):
@@ -23,7 +24,7 @@ def test_a_replay_engine_is_one_file_and_one_registration_line(engines):
     from replay_engine import ReplayTrialWorld
     from rollability_ros.core.sim import evaluation
 
-    trial_engine.register_trial_engine("replay", ReplayTrialWorld)     # the one registration line
+    tables.register_trial_engine("replay", ReplayTrialWorld)     # the one registration line
     settings = evaluation.EvaluatorSettings()
     real = evaluation.evaluate_profile(None, 4, 7, settings)            # PyBullet, the paper's engine
     ReplayTrialWorld.recorded = {outcome.seed: outcome for outcome in real.trial_results}
@@ -36,7 +37,7 @@ def test_a_replay_engine_is_one_file_and_one_registration_line(engines):
     # what it cannot run is refused in one line, never run in another engine
     with pytest.raises(ValueError, match=r"^sim.engine 'replay' cannot run launch trials \(engines that can: "
                                          r"pybullet, mujoco\)$"):
-        trial_engine.check_engine("launch", "replay")
+        tables.check_engine("launch", "replay")
 
 
 def test_an_unknown_engine_is_refused_by_the_settings_and_the_factory(engines):
@@ -45,19 +46,19 @@ def test_an_unknown_engine_is_refused_by_the_settings_and_the_factory(engines):
     with pytest.raises(ValueError, match=r"^engine must be one of pybullet, mujoco, got 'replay'$"):
         PhysicsParams(engine="replay").validate()
     with pytest.raises(ValueError, match=r"^sim.engine 'replay' cannot run disturbance trials"):
-        trial_engine.make_trial_world(None, None, None, None, PhysicsParams(engine="replay"))
+        trial_engine.make_trial_world(None, None, None, PhysicsParams(engine="replay"))
     with pytest.raises(TypeError, match="not a TrialEngine"):
-        trial_engine.register_trial_engine("wrong", "rollability_ros.core.sim.world:PhysicsParams")
-        trial_engine.TRIAL_ENGINES.get("wrong")
+        tables.register_trial_engine("wrong", "rollability_ros.core.sim.world:PhysicsParams")
+        tables.TRIAL_ENGINES.get("wrong")
 
 
 def test_the_built_in_engines_are_on_the_contract():
     pytest.importorskip("pybullet")
     from rollability_ros.core.sim.mujoco_trials import MujocoTrialWorld
-    from rollability_ros.core.sim.trials import TrialWorld
+    from rollability_ros.core.sim.pybullet_trials import TrialWorld
 
-    assert trial_engine.TRIAL_ENGINES.get("pybullet") is TrialWorld
-    assert trial_engine.TRIAL_ENGINES.get("mujoco") is MujocoTrialWorld
+    assert tables.TRIAL_ENGINES.get("pybullet") is TrialWorld
+    assert tables.TRIAL_ENGINES.get("mujoco") is MujocoTrialWorld
 
 
 def test_only_the_tables_look_at_the_engine_name():
@@ -77,6 +78,6 @@ def test_the_launch_engines_are_on_their_contract():
     from rollability_ros.core.sim.launch.pybullet_twin import BulletLaunch
     from rollability_ros.core.sim.launch.mujoco_twin import MujocoLaunch
 
-    assert trial_engine.LAUNCH_ENGINES.get("pybullet") is BulletLaunch
-    assert trial_engine.LAUNCH_ENGINES.get("mujoco") is MujocoLaunch
-    assert trial_engine.engine_names() == ("pybullet", "mujoco")
+    assert tables.LAUNCH_ENGINES.get("pybullet") is BulletLaunch
+    assert tables.LAUNCH_ENGINES.get("mujoco") is MujocoLaunch
+    assert tables.engine_names() == ("pybullet", "mujoco")

@@ -5,8 +5,9 @@ import time
 import pytest
 
 from rollability_ros.core.config import ConfigError, check_settings, from_mapping, load_parameters, section
-from rollability_ros.core.rig.valve import RegulatorCheck, ValveConfig, ValveController
-from rollability_ros.core.rig.valve_backends import DryRunBackend, make_controller
+from rollability_ros.core.rig.valve import RegulatorCheck, ValveController
+from rollability_ros.core.rig.valve_contract import ValveConfig
+from rollability_ros.core.rig.valve_boards import DryRunBackend, make_controller
 
 
 class FakeClock:
@@ -353,10 +354,10 @@ def test_rig_side_core_imports_without_heavy_or_hardware_packages():
     script = (
         "import sys\n"
         f"for name in {blocked!r}: sys.modules[name] = None\n"
-        "import rollability_ros.core.rig.valve, rollability_ros.core.rig.valve_backends, rollability_ros.core.rig.speed_gate\n"
+        "import rollability_ros.core.rig.valve, rollability_ros.core.rig.valve_boards, rollability_ros.core.rig.speed_gate\n"
         "import rollability_ros.core.imu.upright, rollability_ros.core.imu.tip_tracker, rollability_ros.core.rig.relay_device_sim\n"
-        "from rollability_ros.core.rig.valve import ValveConfig\n"
-        "from rollability_ros.core.rig.valve_backends import make_controller\n"
+        "from rollability_ros.core.rig.valve_contract import ValveConfig\n"
+        "from rollability_ros.core.rig.valve_boards import make_controller\n"
         "c = make_controller(ValveConfig()); c.arm(); assert c.fire(5)[0]; c.shutdown()\n"
     )
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

@@ -10,7 +10,7 @@ import pytest
 
 from rollability_ros.core.optional import MissingDependency
 from rollability_ros.core.rig.valve import ValveController
-from rollability_ros.core.rig.valve_backends import GpioBackend
+from rollability_ros.core.rig.valve_boards import GpioBackend
 
 gpiod = pytest.importorskip("gpiod")
 ACTIVE, INACTIVE = gpiod.line.Value.ACTIVE, gpiod.line.Value.INACTIVE

@@ -14,7 +14,7 @@ import time
 import pytest
 
 from rollability_ros.core.rig.valve import ValveController
-from rollability_ros.core.rig.valve_backends import GpioHolderBackend
+from rollability_ros.core.rig.valve_boards import GpioHolderBackend
 
 FAKE_GPIOD = pathlib.Path(__file__).resolve().parents[1] / "resources" / "fake_gpiod"
 
@@ -61,7 +61,7 @@ def test_without_a_declared_limiter_the_holder_never_drives_the_line(line_log):
 
 DYING_CONTROLLER = textwrap.dedent("""
     from rollability_ros.core.rig.valve import ValveController
-    from rollability_ros.core.rig.valve_backends import GpioHolderBackend
+    from rollability_ros.core.rig.valve_boards import GpioHolderBackend
     controller = ValveController(GpioHolderBackend("gpiochip3", 9, hardware_pulse_limiter=True, max_pulse_ms=5000),
                                  5000, 60000)
     controller.arm()

@@ -14,7 +14,7 @@ import pytest
 
 from rollability_ros.core.rig.relay_device_sim import RelaySim
 from rollability_ros.core.rig.valve import ValveController
-from rollability_ros.core.rig.valve_backends import SerialRelayBackend
+from rollability_ros.core.rig.valve_boards import SerialRelayBackend
 
 ANSWER_TIMEOUT_S = 0.15
 
@@ -82,7 +82,7 @@ def test_board_caps_the_pulse_at_its_own_limit(tmp_path):
 DYING_CONTROLLER = textwrap.dedent("""
     import sys, time
     from rollability_ros.core.rig.valve import ValveController
-    from rollability_ros.core.rig.valve_backends import SerialRelayBackend
+    from rollability_ros.core.rig.valve_boards import SerialRelayBackend
     controller = ValveController(SerialRelayBackend(sys.argv[1], timeout_s=0.5, keepalive_period_ms=40),
                                  max_pulse_ms=5000, watchdog_ms=60000)
     controller.arm()
@@ -224,7 +224,7 @@ class _LatePort:
 
 
 def test_an_answer_that_arrived_in_time_is_not_a_timeout_when_the_reader_runs_late():
-    from rollability_ros.core.rig.valve_backends import _SerialPort
+    from rollability_ros.core.rig.valve_boards import _SerialPort
 
     answer = b"OK KA armed=1 relay=0 fault=none\n"
     port = _SerialPort(_LatePort(answer, late_s=3 * ANSWER_TIMEOUT_S), ANSWER_TIMEOUT_S)
@@ -277,6 +277,6 @@ def test_a_board_that_answers_late_is_told_apart_from_a_starved_valve_node(tmp_p
 
 
 def backend_logger_name():
-    from rollability_ros.core.rig import valve_backends
+    from rollability_ros.core.rig import valve_boards
 
-    return valve_backends._LOG.name
+    return valve_boards._LOG.name

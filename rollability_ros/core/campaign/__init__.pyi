@@ -3,10 +3,14 @@ lives. Type checkers read this stub; at run time ``lazy_loader.attach_stub`` (``
 imports and loads a name's module when the name is first used."""
 from .adaptive import (DEFAULT_UNKNOWNS, TwinPredictor, Unknowns, WeightedPosterior, adaptive_next_trial,
                        budget_placeholders, candidate_conditions, proposal_lines)
-from .calibration import (TWIN_CONFIGS, CalibrationResult, LaunchPool, calibrate, calibrated_parameter_document,
-                          calibration_settings, check_fittable, rig_parameter_document, twin_settings_with)
+from .calibration import (TWIN_CONFIGS, CalibrationResult, CalibrationSettings, LaunchPool, calibrate,
+                          calibrated_parameter_document, calibration_settings, check_fittable, rig_parameter_document,
+                          twin_settings_with)
 from .characterisation import load_characterisation
+from .likelihood import (ConditionLevels, LearntLikelihood, Observation, learn, load_likelihood,
+                         observations_from_outcomes, simulate_training_set, twin_fingerprint)
 from .plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
+from .posterior import Posterior, characterisation_term, credible_set, format_set, sample_posterior
 from .sequential import comparison_stop_rule, paired_order
 from .runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledgements, answer_rig, local_rig_settings,
                      local_rig_settings_from_files, plan_refusal, record_campaign_run, report_exit_code, resume_command,
@@ -14,12 +18,15 @@ from .runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledg
 from .terminal import AnsweredElsewhere, TerminalAsk
 
 __all__ = [
-    "DEFAULT_UNKNOWNS", "TWIN_CONFIGS", "AnsweredElsewhere", "CalibrationResult", "CampaignSpec", "LaunchPool", "LocalRig",
-    "LocalRigSettings", "RunnerSettings", "StoreAcknowledgements", "TerminalAsk", "answer_rig", "calibrate",
-    "calibrated_parameter_document", "calibration_settings", "check_fittable", "load_campaign_spec",
-    "load_characterisation", "local_rig_settings", "local_rig_settings_from_files", "plan_refusal", "plan_trials",
-    "record_campaign_run", "report_exit_code", "resume_command", "resume_refusal", "rig_parameter_document",
-    "run_campaign", "store_writer", "trial_id_for", "twin_settings_with", "TwinPredictor", "Unknowns",
-    "WeightedPosterior", "adaptive_next_trial", "budget_placeholders", "candidate_conditions", "comparison_stop_rule",
-    "paired_order", "proposal_lines"
+    "DEFAULT_UNKNOWNS", "TWIN_CONFIGS", "AnsweredElsewhere", "CalibrationResult", "CalibrationSettings",
+    "CampaignSpec", "ConditionLevels", "LaunchPool", "LearntLikelihood", "LocalRig", "LocalRigSettings",
+    "Observation", "Posterior", "RunnerSettings", "StoreAcknowledgements", "TerminalAsk", "TwinPredictor",
+    "Unknowns", "WeightedPosterior", "adaptive_next_trial", "answer_rig", "budget_placeholders",
+    "calibrate", "calibrated_parameter_document", "calibration_settings", "candidate_conditions",
+    "characterisation_term", "check_fittable", "comparison_stop_rule", "credible_set", "format_set", "learn",
+    "load_campaign_spec", "load_characterisation", "load_likelihood", "local_rig_settings",
+    "local_rig_settings_from_files", "observations_from_outcomes", "paired_order", "plan_refusal", "plan_trials",
+    "proposal_lines", "record_campaign_run", "report_exit_code", "resume_command", "resume_refusal",
+    "rig_parameter_document", "run_campaign", "sample_posterior", "simulate_training_set", "store_writer",
+    "trial_id_for", "twin_fingerprint", "twin_settings_with"
 ]

@@ -20,7 +20,7 @@ Objective
     their log-likelihood (each reading through a model of its measurement) to every parameter set's, in the fit
     and in the intervals; with them the physical launch outcomes may be absent (the unknowns pinned before the
     first launch).
-Uncertainty (``interval``; bench/bench_calibration.py --coverage measures how often it holds the truth)
+Uncertainty (``interval``; bench/bench_calibration_direct.py --coverage measures how often it holds the truth)
     ``likelihood`` (default): for each parameter, the likelihood-ratio 95% interval along a grid of
     ``interval_points`` values over its bounds, the other parameters at their fitted values, with the
     beta-binomial likelihood (:func:`beta_binomial_log_likelihood`: the predicted probability is only known from
@@ -80,7 +80,7 @@ class CalibrationSettings:
         "robot.com_offset_z_m", "launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm",
         "robot.profile_mass_scale", "launch_twin.launcher.ledge_rolling_friction",
         "launch_twin.launcher.speed_bias_fraction"])
-    lower: typing.List[float] = dataclasses.field(default_factory=lambda: [5000.0, 20.0, 0.2, 0.0, 0.0, -0.019,
+    lower: typing.List[float] = dataclasses.field(default_factory=lambda: [5000.0, 20.0, 0.3, 0.0, 0.0, -0.019,
                                                                            0.002, 0.0005, 0.5, 0.0, -0.15])
     upper: typing.List[float] = dataclasses.field(default_factory=lambda: [160000.0, 600.0, 3.0, 1.0, 0.15, 0.015,
                                                                            0.05, 0.02, 2.0, 0.01, 0.15])
@@ -312,7 +312,7 @@ def likelihood_interval(grid_values: npt.ArrayLike, log_likelihoods: npt.ArrayLi
     """The likelihood-ratio interval on a grid: the values whose log-likelihood lies within ``deviance / 2`` of
     the grid's maximum. The likelihood is known at the grid points only, so with ``ends="grid"`` (default) each
     end is the first grid point outside that set (a bound of the grid when there is none): conservative by up to
-    one grid step, which a coarse grid needs (bench_calibration --coverage: interpolated ends held the truth in
+    one grid step, which a coarse grid needs (bench_calibration_direct --coverage: interpolated ends held the truth in
     only 8 of 10 cases, all misses within one step). ``ends="interpolate"`` puts them where the straight line
     between neighbouring points crosses the level. ``grid_values`` (g,) ascending, own units, ``log_likelihoods``
     (g,); ``(low, high)``."""

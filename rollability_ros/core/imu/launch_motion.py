@@ -3,7 +3,7 @@
 Beside the upright verdict (:class:`~rollability_ros.core.imu.upright.ImuUprightClassifier`), the rig's IMU sees the
 landing and the tumble. :class:`LaunchMotionMeter` is fed the same samples from the fire on and reports, with the
 classifier's settled reading, what the launch twin reports for a simulated launch
-(:class:`~rollability_ros.core.sim.launch_twin.LaunchResult`):
+(:class:`~rollability_ros.core.sim.launch.results.LaunchResult`):
 
 - the acceleration of the body (kinematic, gravity removed) of every sample: with the IMU's orientation,
   ``| R f - g z |`` (``f`` the specific force the accelerometer measures, ``R`` world<-body, ``z`` world up), the

@@ -1,6 +1,8 @@
 """Optimization of profile heights: CMA-ES or CMA-MAE, the run loop with checkpoints, design selection.
 
-- cmaes: ask / tell / stop / result around pycma
+- optimizer_contract: the method contract (IncumbentOptimizer), its OPTIMIZER_METHODS table and the run's typed
+  settings it is written in (RunSettings: OptimizerSettings, QualityDiversitySettings, ...)
+- cmaes: the paper's method, ask / tell / stop / result around pycma
 - quality_diversity: CMA-MAE (pyribs) filling a maximum height x sharpness archive
 - optimization_run: generations through an injected evaluator, logged, checkpointed, resumable
 - checkpoint: atomic checkpoints checked against the run's config

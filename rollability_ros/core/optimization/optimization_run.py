@@ -18,10 +18,10 @@ the seeds of generation number n are derived from its index n - 1, as before. Ru
 (their run info has no ``first_generation``) keep 0 when resumed, so their stored candidates still match.
 
 The optimizer is pluggable: :class:`OptimizationRun` drives an
-:class:`~rollability_ros.core.optimization.cmaes.IncumbentOptimizer` (the method contract: ``ask``, ``tell``,
-``stop``, ``result``, ``best``, ``sigma``, ``state_dict``, ``reevaluation_request`` / ``tell_reevaluation`` for the
-incumbent's re-evaluation, ``archive_rows`` -- None without an archive -- and ``archive_summary`` for a
-quality-diversity archive, stored in the run info under ``archive`` after every
+:class:`~rollability_ros.core.optimization.optimizer_contract.IncumbentOptimizer` (the method contract: ``ask``,
+``tell``, ``stop``, ``result``, ``best``, ``sigma``, ``state_dict``, ``reevaluation_request`` /
+``tell_reevaluation`` for the incumbent's re-evaluation, ``archive_rows`` -- None without an archive -- and
+``archive_summary`` for a quality-diversity archive, stored in the run info under ``archive`` after every
 generation). :func:`run_generations` is the one loop (stop / pause / give-up policy) that ``rollability optimize``
 and the ``optimizer`` node run; :func:`run_target` is the one resolution of which run to start or continue.
 
@@ -44,19 +44,17 @@ import yaml
 from rollability_ros.core.optimization import checkpoint as checkpoints
 from rollability_ros.core.config import (ConfigError, check_given_files, check_path_component, load_parameters,
                                          parameter_document, resolve_config_path, settings_from_sections)
-from rollability_ros.core.optimization.cmaes import (
+from rollability_ros.core.optimization.optimizer_contract import (
     STREAM_POPULATION,
     STREAM_RACE,
     STREAM_REEVALUATION,
     OPTIMIZER_METHODS,
     IncumbentOptimizer,
     OptimizerResult,
-    OptimizerSettings,
-    ProfileOptimizer,
+    RunSettings,
     derive_seed,
     random_initial_means,
 )
-from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
 from rollability_ros.core.profile import PrinterSpec, ProfileGrid
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, RunProgress
 from rollability_ros.core.sim import (SETTINGS_SECTIONS, TWIN_NAMESPACE, EvaluatorSettings, ObjectiveSettings,
@@ -78,19 +76,6 @@ FIRST_GENERATION = 1
 def new_run_id(now_s: typing.Optional[float] = None) -> str:
     """Return a run id from the local time, ``opt-YYYYmmdd-HHMMSS``."""
     return time.strftime("opt-%Y%m%d-%H%M%S", time.localtime(time.time() if now_s is None else now_s))
-
-
-@dataclasses.dataclass(frozen=True)
-class RunSettings:
-    """The typed settings of one optimization run, each field a namespace of its flat parameters: parsed once
-    (:func:`run_settings`, or built by the node from the sections it declared) and handed down to the method, the
-    start-point screen and the printability check, none of which reads the flat dict."""
-
-    optimizer: OptimizerSettings = dataclasses.field(default_factory=OptimizerSettings)
-    quality_diversity: QualityDiversitySettings = dataclasses.field(default_factory=QualityDiversitySettings)
-    stable_poses: ScreenSettings = dataclasses.field(default_factory=ScreenSettings)
-    #: None when the parameters hold no ``printer`` namespace (the printability check is then skipped).
-    printer: typing.Optional[PrinterSpec] = None
 
 
 def run_settings(parameters: typing.Mapping[str, typing.Any]) -> RunSettings:
@@ -202,19 +187,10 @@ def run_target(run_id: str, resume: bool, parameters: typing.Optional[dict],
     return run_dir, {**read_run_config(run_dir), **(parameters or {})}
 
 
-def cmaes_optimizer(n_variables: int, settings: OptimizerSettings, lower: float, upper: float,
-                    clock: typing.Callable[[], float], initial_mean: typing.Optional[np.ndarray] = None,
-                    state: typing.Optional[dict] = None) -> ProfileOptimizer:
-    """An ``optimizer_factory`` for CMA-ES over explicit bounds: a :class:`ProfileOptimizer`, new or restored from a
-    checkpoint ``state``; ``initial_mean`` ``(n_variables,)`` simulation units (None: the paper's random start)."""
-    if state is None:
-        return ProfileOptimizer(n_variables, settings, lower, upper, clock, initial_mean)
-    return ProfileOptimizer.from_state_dict(state, n_variables, settings, lower, upper, clock, initial_mean)
-
-
 def check_method_settings(settings: RunSettings) -> None:
     """Raise ``ValueError`` naming the first unusable setting of the search method ``settings.optimizer.method``
-    (its :meth:`~rollability_ros.core.optimization.cmaes.IncumbentOptimizer.check_settings`), before a run starts."""
+    (its :meth:`~rollability_ros.core.optimization.optimizer_contract.IncumbentOptimizer.check_settings`), before a
+    run starts."""
     OPTIMIZER_METHODS.get(settings.optimizer.method).check_settings(settings)
 
 
@@ -289,7 +265,7 @@ class OptimizationRun:
 
     optimizer_factory : callable, optional
         ``factory(n_variables, settings, lower, upper, clock, initial_mean, state=None)`` -> the
-        :class:`~rollability_ros.core.optimization.cmaes.IncumbentOptimizer` the run drives; default
+        :class:`~rollability_ros.core.optimization.optimizer_contract.IncumbentOptimizer` the run drives; default
         :func:`make_optimizer` (``optimizer.method`` in ``OPTIMIZER_METHODS``).
     evaluate_trials : callable(heights_list, seed, trials), optional
         ``evaluate_batch`` with a trial count: needed for racing (``optimizer.race_looks``), see

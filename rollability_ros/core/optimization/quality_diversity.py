@@ -36,7 +36,6 @@ Choices
   deterministic given what they are told, so :meth:`QualityDiversityOptimizer.from_state_dict` replays the tells and
   checks the replay against the saved archive digest; nothing is pickled.
 """
-import dataclasses
 import functools
 import hashlib
 import time
@@ -47,59 +46,14 @@ import numpy.typing as npt
 
 from rollability_ros.core import config
 from rollability_ros.core.optional import require
-from rollability_ros.core.optimization.cmaes import (IncumbentOptimizer, OptimizerResult, OptimizerSettings,
-                                                     check_search_space)
+from rollability_ros.core.optimization.cmaes import check_search_space
+from rollability_ros.core.optimization.optimizer_contract import (IncumbentOptimizer, OptimizerResult,
+                                                                  OptimizerSettings, QualityDiversitySettings,
+                                                                  RunSettings)
 from rollability_ros.core.profile import ProfileGrid, height_bound_mm, profile_descriptors
-
-if typing.TYPE_CHECKING:
-    from rollability_ros.core.optimization.optimization_run import RunSettings
 
 #: The archive's behaviour descriptors, in measure order, with their units.
 DESCRIPTOR_NAMES = ("max_height_mm", "sharpness_deg")
-
-
-@dataclasses.dataclass
-class QualityDiversitySettings:
-    """The ``quality_diversity`` parameter namespace: the archive's grid and CMA-MAE's settings."""
-
-    height_cells: int = dataclasses.field(default=10, metadata={
-        "description": "archive cells along the maximum-height descriptor, from 0 to the grid's tallest profile "
-                       "(height_max x unit_m) (count)", "range": (1, 1000)})
-    sharpness_cells: int = dataclasses.field(default=6, metadata={
-        "description": "archive cells along the sharpness descriptor (length-weighted mean ridge angle of the hull) "
-                       "(count)", "range": (1, 1000)})
-    sharpness_min_deg: float = dataclasses.field(default=0.0, metadata={
-        "description": "lower end of the sharpness axis, deg (lower values fall in the first cell)",
-        "range": (0.0, 180.0)})
-    sharpness_max_deg: float = dataclasses.field(default=90.0, metadata={
-        "description": "upper end of the sharpness axis, deg (box edges measure 90; higher fall in the last cell)",
-        "range": (0.0, 180.0)})
-    emitters: int = dataclasses.field(default=3, metadata={
-        "description": "CMA-ES emitters sharing the optimizer.popsize candidates of a generation (count; each gets "
-                       "at least 2)", "range": (1, 1000)})
-    lowest_ceiling: float = dataclasses.field(default=0.5, metadata={
-        "description": "height ceiling of the last emitter as a fraction of the height bound; the emitters' ceilings "
-                       "step evenly from the bound (first emitter) down to it (fraction, (0, 1]; 1 = no ceilings)",
-        "range": (0.0, 1.0), "exclusive": "low"})
-    sigma0: float = dataclasses.field(default=0.0, metadata={
-        "description": "initial step size of every emitter's CMA-ES, simulation units of vertex height (0 = "
-                       "optimizer.sigma0)", "range": (0.0, 100.0)})
-    learning_rate: float = dataclasses.field(default=0.01, metadata={
-        "description": "CMA-MAE archive learning rate alpha (fraction, (0, 1]; 1 = CMA-ME, small = more "
-                       "exploration first)", "range": (0.0, 1.0), "exclusive": "low"})
-    threshold_min: float = dataclasses.field(default=0.0, metadata={
-        "description": "fitness threshold of an empty cell for CMA-MAE (fitness units, upright trials / trials)",
-        "range": (-1.0, 1.0), "exclusive": "high"})
-
-    def validate(self, popsize: int | None = None) -> None:
-        """Raise ``ValueError`` for a rule that spans fields (``popsize``: the optimizer's, to split; each number's
-        range is declared in its metadata and checked by :func:`~rollability_ros.core.config.check_settings`)."""
-        if not self.sharpness_min_deg < self.sharpness_max_deg:
-            raise ValueError(f"need sharpness_min_deg < sharpness_max_deg, got [{self.sharpness_min_deg}, "
-                             f"{self.sharpness_max_deg}]")
-        if popsize is not None and popsize < 2 * self.emitters:
-            raise ValueError(f"optimizer.popsize {popsize} cannot give {self.emitters} emitters 2 candidates each; "
-                             "lower quality_diversity.emitters or raise optimizer.popsize")
 
 
 def emitter_ceilings(emitters: int, lowest_ceiling: float) -> list[float]:

@@ -66,7 +66,7 @@ import numpy.typing as npt
 from rollability_ros.core import config
 from rollability_ros.core.profile import (MESH_UNITS, Mesh, PrinterSpec, ProfileGrid, ProfileMetrics,
                                           check_printability, is_baseline, mesh_metrics, profile_mesh)
-from rollability_ros.core.optimization.cmaes import STREAM_SELECTION, derive_seed
+from rollability_ros.core.optimization.optimizer_contract import STREAM_SELECTION, derive_seed
 from rollability_ros.core.optimization import racing
 from rollability_ros.core.optimization.recommendation import Recommendation, recommend
 from rollability_ros.core.stats import newcombe_interval, wilson_interval

@@ -1,13 +1,14 @@
 """The launch rig: one trial's sequence, the solenoid valve and its backends, the relay simulator, speed gates.
 
-- launch_backend: the LaunchBackend contract (check, launch, close) and the RigPorts a caller provides
+- launch_backend: the LaunchBackend contract (check, launch, close), the RigPorts a caller provides, and the types
+  it is written in (RigSettings, the operator channel and its answers, the LAUNCH_BACKENDS table)
 - rig_session: its two implementations (SimulatedLaunch, PhysicalLaunch), make_launch_backend; goal checks,
   phases, operator answers, speed
 - outcome_sources: the IMU's verdict and continuous outcomes (ImuOutcome), the operator's distance rolled, the
   twin's continuous outcomes
 - valve: fail-closed valve state machine
-- _valve_backend: the ValveBackend contract, its VALVE_BACKENDS table and make_valve_backend
-- valve_backends: dry-run, GPIO and serial relay backends
+- valve_contract: the ValveBackend contract, its VALVE_BACKENDS table, make_valve_backend and ValveConfig
+- valve_boards: the boards: dry-run, GPIO and serial relay backends
 - relay_protocol: the relay board's serial protocol (RVR1) and its state machine (firmware/ mirrors it)
 - gpio_line_holder: the tiny process that owns the gpio backend's line and speaks the board protocol on its pipes
 - relay_device_sim: a simulated relay board on a pseudo-terminal (own process), running that state machine

@@ -1,6 +1,6 @@
 """The smallest process that owns the valve's GPIO line: the relay board protocol on stdin / stdout.
 
-The ``gpio`` backend (:class:`~rollability_ros.core.rig.valve_backends.GpioHolderBackend`) starts
+The ``gpio`` backend (:class:`~rollability_ros.core.rig.valve_boards.GpioHolderBackend`) starts
 ``python -m rollability_ros.core.rig.gpio_line_holder --chip C --line-offset N ...`` as a child and talks the
 board's protocol (:mod:`.relay_protocol`, the same :class:`~.relay_protocol.RelayDevice` state machine) over its
 pipes. This process does nothing else, so the line's owner is not the valve_controller with its DDS threads: when
@@ -22,7 +22,7 @@ from rollability_ros.core.rig.relay_protocol import DEFAULT_KEEPALIVE_TIMEOUT_MS
 
 
 class HeldLine(typing.Protocol):
-    """The valve line this process drives (:class:`~rollability_ros.core.rig.valve_backends.GpioBackend`)."""
+    """The valve line this process drives (:class:`~rollability_ros.core.rig.valve_boards.GpioBackend`)."""
 
     def open_valve(self) -> None:
         """Drive the line active (the valve opens)."""
@@ -38,7 +38,7 @@ def serve(line: HeldLine, device: RelayDevice, in_fd: int = 0, out_fd: int = 1) 
     """Run ``device`` on the lines of ``in_fd`` until end of input or SIGTERM (SIGINT is ignored), driving ``line``.
 
     ``line`` has ``open_valve()``, ``close_valve()`` and ``release()``
-    (:class:`~rollability_ros.core.rig.valve_backends.GpioBackend`). The line is driven inactive and released at
+    (:class:`~rollability_ros.core.rig.valve_boards.GpioBackend`). The line is driven inactive and released at
     the end, whatever ends it.
     """
     stop = []
@@ -77,7 +77,7 @@ def serve(line: HeldLine, device: RelayDevice, in_fd: int = 0, out_fd: int = 1) 
 
 def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     """Command-line entry point (started by the gpio backend, not by people)."""
-    from rollability_ros.core.rig.valve_backends import GpioBackend
+    from rollability_ros.core.rig.valve_boards import GpioBackend
 
     parser = argparse.ArgumentParser(prog="gpio_line_holder", description=__doc__.split("\n\n")[0])
     parser.add_argument("--chip", required=True, help="GPIO chip (/dev/gpiochipN or gpiochipN)")

@@ -11,10 +11,14 @@ import typing
 from rollability_ros.core.imu import (ImuMount, ImuOutcomeConfig, ImuSample, ImuUprightClassifier, LaunchMotion,
                                       LaunchMotionMeter, UprightReading)
 from rollability_ros.core.records import NOT_MEASURED
-from rollability_ros.core.rig.launch_backend import not_cancelled
 
 #: The word of a typed outcome that gives the distance rolled, m: ``rolled=0.35``.
 ROLLED_WORD = "rolled="
+
+
+def _never() -> bool:
+    """The default ``cancelled``: never (this module sits below the launch contract, which imports it)."""
+    return False
 
 
 class ImuOutcome:
@@ -55,7 +59,7 @@ class ImuOutcome:
         with self._cond:
             return self._meter.motion(self._settled)
 
-    def wait_settled(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
+    def wait_settled(self, timeout_s: float, cancelled: typing.Callable[[], bool] = _never,
                      poll_s: float = 0.05) -> typing.Optional[UprightReading]:
         """The first settled :class:`~rollability_ros.core.imu.upright.UprightReading`, or None on timeout/cancel."""
         deadline = time.monotonic() + timeout_s

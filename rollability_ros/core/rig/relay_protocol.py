@@ -2,7 +2,7 @@
 
 The firmware (``firmware/arduino/valve_relay/valve_relay.ino``), the relay simulator
 (:mod:`rollability_ros.core.rig.relay_device_sim`) and the ``serial_relay`` backend
-(:mod:`rollability_ros.core.rig.valve_backends`) all follow this module; ``docs/firmware.md`` documents it for people.
+(:mod:`rollability_ros.core.rig.valve_boards`) all follow this module; ``docs/firmware.md`` documents it for people.
 
 Why the device, not the computer, is the safety device: a SIGKILLed or frozen controller process, a crashed
 computer or an unplugged cable cannot send "relay off". So the board

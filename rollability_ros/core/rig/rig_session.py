@@ -26,11 +26,9 @@ that is the operator's decision.
 
 :func:`simulated_outcome` turns the launch twin's result into an outcome for the ``sim`` backend.
 """
-import dataclasses
 import importlib
 import math
 import os
-import threading
 import time
 import types
 import typing
@@ -38,24 +36,20 @@ import zlib
 
 from rollability_ros.core import config
 from rollability_ros.core.imu import ImuOutcomeConfig, LaunchMotion
-from rollability_ros.core.registry import Registry
 from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
                                           LaunchCondition, LaunchOutcome, check_twin_seed)
-from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
-                                                     RigPorts, no_phase, not_cancelled)
-from rollability_ros.core.rig.outcome_sources import (ROLLED_WORD, ImuOutcome, check_rest_distance,
-                                                      simulated_continuous_outcomes)
+from rollability_ros.core.rig.launch_backend import (LAUNCH_BACKENDS, LaunchAborted, LaunchBackend, OperatorChannel,
+                                                     OperatorOutcome, PhaseCallback, PoseCallback, RigPorts,
+                                                     RigSettings, describe_answer, no_phase, not_cancelled)
+from rollability_ros.core.rig.outcome_sources import ImuOutcome, simulated_continuous_outcomes
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
-from rollability_ros.core.rig.valve import ValveConfig
+from rollability_ros.core.rig.valve_contract import ValveConfig
 
 if typing.TYPE_CHECKING:  # annotations only: the twin is imported when a simulated launch runs
     from rollability_ros.core.sim import LaunchResult
 
 #: Feedback phases of the Launch action, in order.
 PHASES = ("waiting_for_operator", "armed", "fired", "in_flight", "settling", "classifying")
-#: ``rig.backend`` values.
-#: ``rig.outcome_source`` values (physical backend).
-OUTCOME_SOURCES = ("operator", "imu")
 #: Start of the ``classifying`` feedback detail while the rig waits for the operator's outcome.
 ASK_OUTCOME = "record the outcome"
 #: Start of the ``waiting_for_operator`` detail while the rig waits for the regulator confirmation.
@@ -64,51 +58,6 @@ ASK_REGULATOR = "set the regulator"
 ANSWERED = "answered: "
 #: Start of a physical outcome's note part that names where its travel time (and so its speed) came from.
 TRAVEL_TIME_NOTE = "travel time: "
-
-
-@dataclasses.dataclass
-class RigSettings:
-    """``rig.*``: the rig node's own settings (the valve, speed gate and IMU have their own namespaces)."""
-
-    backend: str = dataclasses.field(default="sim", metadata={
-        "description": "launch backend: sim (the launch twin in PyBullet) or physical (valve, speed gate, operator / "
-                       "IMU)"})
-    configurations: typing.List[str] = dataclasses.field(default_factory=lambda: ["baseline", "A", "B", "C"], metadata={
-        "description": "configuration ids the rig accepts in a Launch goal (profile meshes mounted by the operator)"})
-    outcome_source: str = dataclasses.field(default="operator", metadata={
-        "description": "who classifies a physical launch: operator (record_outcome service) or imu (settled chassis "
-                       "IMU)"})
-    countdown_s: float = dataclasses.field(default=1.0, metadata={
-        "description": "countdown between arming and firing so people stand clear, s", "range": (0.0, 600.0)})
-    operator_timeout_s: float = dataclasses.field(default=600.0, metadata={
-        "description": "longest wait for an operator answer (regulator confirmation, outcome) before the launch aborts,"
-                       " s", "range": (0.0, 86400.0), "exclusive": "low"})
-    question_repeat_s: float = dataclasses.field(default=2.0, metadata={
-        "description": "period of the open question's feedback while the rig waits for the operator, s; a client "
-                       "whose feedback subscription matched after the first one (a loaded machine's discovery) or an "
-                       "operator's view that joined late still sees it", "range": (0.05, 3600.0)})
-    imu_override_s: float = dataclasses.field(default=2.0, metadata={
-        "description": "window in which the operator may override the IMU's outcome, s", "range": (0.0, 3600.0)})
-    confirmation_valid_s: float = dataclasses.field(default=300.0, metadata={
-        "description": "a regulator confirmation holds for later launches at the same speed this long, s (0: ask "
-                       "before every launch); an aborted launch always forgets it", "range": (0.0, 86400.0)})
-    valve_timeout_s: float = dataclasses.field(default=5.0, metadata={
-        "description": "longest wait for the valve_controller's arm / fire / disarm services, s",
-        "range": (0.0, 600.0), "exclusive": "low"})
-    seed: int = dataclasses.field(default=0, metadata={
-        "description": "seed of the simulated rig's launch twin and speed noise (integer >= 0)",
-        "range": (0, 2147483647)})
-    twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"], metadata={
-        "description": "parameter files (shipped names or paths) that configure the sim backend's launch twin, later "
-                       "files win"})
-
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        LAUNCH_BACKENDS.check(self.backend)
-        if not self.configurations or not all(self.configurations):
-            raise ValueError("configurations must list the configuration ids the rig can launch")
-        if self.outcome_source not in OUTCOME_SOURCES:
-            raise ValueError(f"outcome_source must be one of {OUTCOME_SOURCES}, got {self.outcome_source!r}")
 
 
 def check_goal(run_id: str, trial_id: str, condition: LaunchCondition,
@@ -133,153 +82,6 @@ def check_goal(run_id: str, trial_id: str, condition: LaunchCondition,
     if condition.configuration not in configurations:
         return f"unknown configuration {condition.configuration!r} (known: {', '.join(configurations)})"
     return ""
-
-
-@dataclasses.dataclass(frozen=True)
-class OperatorOutcome:
-    """The operator's classification of a launch: upright, optional travel time (s, NaN if not timed), note."""
-
-    upright: bool
-    travel_time_s: float = NOT_MEASURED
-    note: str = ""
-    rest_distance_m: float = NOT_MEASURED   # m from the ledge's edge to where it came to rest, as the operator measured
-
-
-def parse_outcome_answer(text: str) -> "OperatorOutcome":
-    """Parse a typed outcome ``"y|n [travel time s] [rolled=M] [note...]"`` into an :class:`OperatorOutcome`.
-
-    ``y``/``yes``/``u``/``upright`` mean upright, ``n``/``no``/``t``/``tipped`` not; ``rolled=0.35`` anywhere after the
-    verdict is the distance from the ledge's edge to where the chassis came to rest, m, as measured (>= 0); raises
-    ``ValueError`` otherwise.
-    """
-    words = text.split()
-    rolled = [word for word in words[1:] if word.lower().startswith(ROLLED_WORD)]
-    if len(rolled) > 1:
-        raise ValueError(f"give the distance rolled once ({ROLLED_WORD}M), got {' '.join(rolled)}")
-    rest_distance_m = NOT_MEASURED
-    if rolled:
-        rest_distance_m = check_rest_distance(rolled[0][len(ROLLED_WORD):])
-        words = [word for word in words if word is not rolled[0]]
-    if not words:
-        raise ValueError("type y (upright) or n (not upright), optionally the travel time in s and a note")
-    verdict = words[0].lower()
-    if verdict not in ("y", "yes", "u", "upright", "n", "no", "t", "tipped"):
-        raise ValueError(f"first word must be y (upright) or n (not upright), got {words[0]!r}")
-    travel_time_s, rest = NOT_MEASURED, words[1:]
-    if rest:
-        try:
-            travel_time_s = float(rest[0])
-            rest = rest[1:]
-        except ValueError:
-            pass
-        if not (math.isnan(travel_time_s) or 0 < travel_time_s < math.inf):
-            raise ValueError(f"travel time must be > 0 s, got {travel_time_s}")
-    return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest), rest_distance_m)
-
-
-def describe_answer(kind: str, answer: typing.Union[bool, OperatorOutcome, None]) -> str:
-    """An operator answer in words: ``regulator confirmed`` or ``upright, travel time 0.42 s, note: ...``."""
-    if kind == "confirm":
-        return "regulator confirmed"
-    assert isinstance(answer, OperatorOutcome), "an outcome answer carries the outcome"
-    parts = ["upright" if answer.upright else "tipped"]
-    if not math.isnan(answer.travel_time_s):
-        parts.append(f"travel time {answer.travel_time_s:g} s")
-    if not math.isnan(answer.rest_distance_m):
-        parts.append(f"rolled {answer.rest_distance_m:g} m")
-    if answer.note:
-        parts.append(f"note: {answer.note}")
-    return ", ".join(parts)
-
-
-class OperatorChannel:
-    """One pending question to the operator (regulator confirmation or launch outcome) and its answer.
-
-    The launch opens a question, announces it (feedback), then waits; answers come from any thread (the operator
-    may answer from the ``rollability rig`` CLI or from the campaign terminal: the first answer counts). An answer
-    with no open question of its kind is refused with a reason, so a late or stray service call changes nothing;
-    a late answer to the question just answered (same kind and trial) is compared with the answer that counted:
-    the same verdict is accepted as already given (it changes nothing), a different one is refused naming both.
-    """
-
-    def __init__(self):
-        self._cond = threading.Condition()
-        self._kind = None      # "confirm" | "outcome" | None
-        self._trial_id = ""
-        self._answer = None
-        self._last: typing.Dict[str, typing.Tuple[str, typing.Any]] = {}   # kind -> (trial id, answer that counted)
-
-    def open(self, kind: str, trial_id: str = "") -> None:
-        """Start waiting for a ``"confirm"`` or an ``"outcome"`` (of ``trial_id``)."""
-        if kind not in ("confirm", "outcome"):
-            raise ValueError(f"kind must be 'confirm' or 'outcome', got {kind!r}")
-        with self._cond:
-            self._kind, self._trial_id, self._answer = kind, trial_id, None
-
-    def close(self) -> None:
-        """Stop waiting; later answers are refused."""
-        with self._cond:
-            self._kind, self._answer = None, None
-            self._cond.notify_all()
-
-    @property
-    def waiting_for(self) -> typing.Optional[str]:
-        """``"confirm"``, ``"outcome"`` or None."""
-        with self._cond:
-            return self._kind
-
-    def _late(self, kind, answer, trial_id):
-        """``(accepted, message)`` for a late answer to the question of ``kind`` answered last, or None."""
-        if kind not in self._last or (self._kind == kind and self._answer is None):
-            return None
-        answered_trial, counted = self._last[kind]
-        if trial_id and trial_id != answered_trial:
-            return None
-        given = describe_answer(kind, counted)
-        if kind == "confirm" or counted.upright == answer.upright:
-            return True, f"already answered for {answered_trial}: {given} (this answer agrees; nothing changed)"
-        return False, (f"already answered for {answered_trial}: {given}; this answer ({describe_answer(kind, answer)}) "
-                       "differs and is refused (the first answer counts)")
-
-    def _deliver(self, kind, answer, trial_id=""):
-        with self._cond:
-            late = self._late(kind, answer, trial_id)
-            if late is not None:
-                return late
-            if self._kind != kind:
-                what = "a regulator confirmation" if kind == "confirm" else "an outcome"
-                return False, f"the rig is not waiting for {what}" + (
-                    f" (it waits for {'a confirmation' if self._kind == 'confirm' else 'an outcome'})"
-                    if self._kind else "")
-            if trial_id and trial_id != self._trial_id:
-                what = "a regulator confirmation" if kind == "confirm" else "the outcome"
-                return False, f"the rig waits for {what} of {self._trial_id!r}, not {trial_id!r}"
-            self._answer = answer
-            self._last[kind] = (self._trial_id, answer)
-            self._cond.notify_all()
-            return True, "accepted"
-
-    def confirm(self, trial_id: str = "") -> typing.Tuple[bool, str]:
-        """Answer an open regulator confirmation (of ``trial_id``, "" = the current one). Returns
-        ``(accepted, message)``."""
-        return self._deliver("confirm", True, trial_id)
-
-    def record_outcome(self, outcome: OperatorOutcome, trial_id: str = "") -> typing.Tuple[bool, str]:
-        """Answer an open outcome question with an :class:`OperatorOutcome` (``trial_id`` "" = the current one)."""
-        return self._deliver("outcome", outcome, trial_id)
-
-    def wait(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
-             poll_s: float = 0.05) -> typing.Union[bool, OperatorOutcome, None]:
-        """Return the answer once given (True: the regulator confirmed; the outcome), or None on timeout /
-        ``cancelled()``; the question stays open."""
-        deadline = time.monotonic() + timeout_s
-        with self._cond:
-            while self._answer is None:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0 or cancelled() or self._kind is None:
-                    return None
-                self._cond.wait(min(poll_s, remaining))
-            return self._answer
 
 
 class PhysicalLaunch(LaunchBackend):
@@ -605,10 +407,6 @@ class SimulatedLaunch(LaunchBackend):
         """The launch twin result of one launch of ``condition`` with twin ``seed``: given a stored outcome's
         condition and ``seed`` (and these twin settings), the launch that outcome was classified from, again."""
         return self.load().simulate_launch(condition, self._twin_settings, check_twin_seed(seed))
-
-
-#: ``rig.backend`` -> the :class:`LaunchBackend` implementation.
-LAUNCH_BACKENDS: Registry[LaunchBackend] = Registry("backend", LaunchBackend, {"sim": SimulatedLaunch, "physical": PhysicalLaunch})
 
 
 def launch_backend_class(name: str) -> typing.Type[LaunchBackend]:

@@ -20,7 +20,7 @@ import typing
 from rollability_ros.core.optional import require
 from rollability_ros.core.registry import Registry
 from rollability_ros.core.records import NOT_MEASURED
-from rollability_ros.core.rig.valve_backends import gpio_chip_path
+from rollability_ros.core.rig.valve_boards import gpio_chip_path
 
 _LOG = logging.getLogger(__name__)
 

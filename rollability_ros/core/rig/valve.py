@@ -1,6 +1,6 @@
 """The launcher's solenoid valve as a fail-closed state machine, and the valve's configuration.
 
-:class:`ValveController` owns one backend (:mod:`rollability_ros.core.rig.valve_backends`) and is the only thing that
+:class:`ValveController` owns one backend (:mod:`rollability_ros.core.rig.valve_boards`) and is the only thing that
 commands it. The valve is driven closed explicitly at start, on disarm, on e-stop, on a missed rig heartbeat, on
 a backend error, at the end of every pulse and at shutdown; a fire is refused unless armed and fault-free, and
 its length is bounded by ``max_pulse_ms``.
@@ -16,7 +16,7 @@ board reports on its own reach :meth:`ValveController.device_fault`. See docs/va
 Thread model: ``fire()`` blocks for the pulse without holding the controller's lock, so ``estop()``,
 ``check_watchdog()`` and ``disarm()`` from other threads cut a running pulse at once. Every backend call runs on the
 controller's own backend thread and is bounded (the backend's ``call_timeout_s``, by default
-:data:`~rollability_ros.core.rig._valve_backend.DEFAULT_CALL_TIMEOUT_S`): a call that does not return in time
+:data:`~rollability_ros.core.rig.valve_contract.DEFAULT_CALL_TIMEOUT_S`): a call that does not return in time
 latches a fault and later calls are refused at once until it returns (the valve is then driven closed again), so
 the lock is never held longer than one bound.
 ``heartbeat()`` takes no lock and ``health()`` waits for it at most :data:`HEALTH_LOCK_WAIT_S`, so a stuck serial
@@ -30,10 +30,8 @@ import threading
 import time
 import typing
 
-from rollability_ros.core.rig._valve_backend import VALVE_BACKENDS, ValveBackend
-
-if typing.TYPE_CHECKING:  # annotations only
-    from rollability_ros.core.rig.relay_protocol import DeviceLimits
+from rollability_ros.core.rig.relay_protocol import DeviceLimits
+from rollability_ros.core.rig.valve_contract import ValveBackend
 
 _LOG = logging.getLogger(__name__)
 
@@ -143,7 +141,7 @@ class ValveController:
     Parameters
     ----------
     backend : ValveBackend
-        The driver (:class:`~rollability_ros.core.rig._valve_backend.ValveBackend`); its optional methods are
+        The driver (:class:`~rollability_ros.core.rig.valve_contract.ValveBackend`); its optional methods are
         called unconditionally (their defaults do nothing).
     max_pulse_ms : int
         Longest pulse ever fired, ms; longer requests are refused.
@@ -516,77 +514,6 @@ class ValveController:
             self._emit("shut down")
 
 
-@dataclasses.dataclass
-class GpioValveConfig:
-    """``valve.gpio.*``: the GPIO line driving the valve's solenoid driver."""
-
-    chip: str = dataclasses.field(default="/dev/gpiochip0", metadata={
-        "description": "GPIO chip device driving the solenoid (e.g. /dev/gpiochip0)"})
-    line_offset: int = dataclasses.field(default=17, metadata={
-        "description": "line offset on that chip that drives the solenoid driver", "range": (0, 1023)})
-    active_high: bool = dataclasses.field(default=True, metadata={
-        "description": "true: a high level on the line opens the valve; false: an active-low driver"})
-    hardware_pulse_limiter: bool = dataclasses.field(default=False, metadata={
-        "description": "true declares the hardware pulse limiter of docs/firmware.md (monostable or watchdog relay) "
-                       "is wired; without it the gpio backend refuses to fire, since a dead process cannot close "
-                       "the line"})
-    line_holder: bool = dataclasses.field(default=True, metadata={
-        "description": "true: a small child process owns the GPIO line and drops it when the valve node dies"})
-
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        if not self.chip:
-            raise ValueError("gpio.chip must name a GPIO chip (e.g. /dev/gpiochip0)")
-
-
-@dataclasses.dataclass
-class SerialRelayConfig:
-    """``valve.serial.*``: the valve relay board (``firmware/``) on a serial port."""
-
-    port: str = dataclasses.field(default="/dev/ttyACM0", metadata={
-        "description": "serial device of the relay board running firmware/arduino/valve_relay (e.g. /dev/ttyACM0)"})
-    baud: int = dataclasses.field(default=115200, metadata={
-        "description": "serial baud rate of the relay board, bit/s (the firmware uses 115200)", "range": (1, 10000000)})
-    timeout_s: float = dataclasses.field(default=0.2, metadata={
-        "description": "longest wait for the board's answer, s; a missing or late one faults and closes",
-        "range": (0.0, 60.0), "exclusive": "low"})
-    keepalive_period_ms: int = dataclasses.field(default=50, metadata={
-        "description": "how often this side sends KA while armed, ms; the board drops the relay after its own "
-                       "keep-alive timeout (250 ms) without one", "range": (1, 10000)})
-    boot_wait_s: float = dataclasses.field(default=3.0, metadata={
-        "description": "how long HELLO is repeated while the board boots after its port opens (an Uno resets), s",
-        "range": (0.0, 60.0)})
-
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        if not self.port:
-            raise ValueError("serial.port must name a serial device")
-
-
-@dataclasses.dataclass
-class RegulatorConfig:
-    """``valve.regulator.*``: the supply pressure that gives each target launch speed (paper 2.2)."""
-
-    speeds_mps: list[float] = dataclasses.field(default_factory=lambda: [0.8, 1.5], metadata={
-        "description": "target launch speeds that have a regulator pressure, m/s"})
-    pressures_psi: list[float] = dataclasses.field(default_factory=lambda: [30.0, 60.0], metadata={
-        "description": "regulator supply pressure for each target speed in valve.regulator.speeds_mps, psi"})
-
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        if len(self.speeds_mps) != len(self.pressures_psi) or not self.speeds_mps:
-            raise ValueError("regulator.speeds_mps and regulator.pressures_psi must be non-empty and equally long")
-        if not all(0 < value < math.inf for value in (*self.speeds_mps, *self.pressures_psi)):
-            raise ValueError("regulator speeds and pressures must be finite and > 0")
-
-    def pressure_psi(self, speed_mps: float) -> float:
-        """Return the regulator pressure (psi) for a target speed (m/s); ``ValueError`` if none is configured."""
-        for speed, pressure in zip(self.speeds_mps, self.pressures_psi):
-            if math.isclose(speed, speed_mps, rel_tol=1e-6, abs_tol=1e-9):
-                return pressure
-        raise ValueError(f"no regulator pressure configured for {speed_mps} m/s (configured: {self.speeds_mps})")
-
-
 class RegulatorCheck:
     """Remembers the pressure the operator confirmed, so the rig asks again only when a speed block changes."""
 
@@ -604,46 +531,3 @@ class RegulatorCheck:
         self._confirmed_psi = self._regulator.pressure_psi(speed_mps)
 
 
-@dataclasses.dataclass
-class ValveConfig:
-    """``valve.*`` of ``config/rig.yaml`` (build with ``config.from_mapping(ValveConfig, section(p, "valve"), ...)``)."""
-
-    backend: str = dataclasses.field(default="dry_run", metadata={
-        "description": "valve driver: dry_run (logs only), gpio (a libgpiod line) or serial_relay (a relay board)"})
-    max_pulse_ms: int = dataclasses.field(default=500, metadata={
-        "description": "longest valve opening ever fired, ms; longer fire requests are refused", "range": (1, 600000)})
-    launch_pulse_ms: int = dataclasses.field(default=150, metadata={
-        "description": "valve opening the rig commands for one launch, ms (at most max_pulse_ms)",
-        "range": (1, 600000)})
-    watchdog_ms: int = dataclasses.field(default=500, metadata={
-        "description": "an armed valve closes and faults when the rig's keep-alive is silent this long, ms",
-        "range": (1, 600000)})
-    watchdog_check_ms: int = dataclasses.field(default=20, metadata={
-        "description": "how often the watchdog looks at the heartbeat (steady clock), ms (at most half the watchdog)",
-        "range": (1, 600000)})
-    heartbeat_period_ms: int = dataclasses.field(default=100, metadata={
-        "description": "how often the rig sends its keep-alive to the valve, ms (at most half the watchdog)",
-        "range": (1, 600000)})
-    arm_timeout_s: float = dataclasses.field(default=15.0, metadata={
-        "description": "an armed valve that fires nothing this long (since arming or its last pulse) is disarmed, s: "
-                       "an arming outside a launch sequence does not stay armed; longer than rig.countdown_s",
-        "range": (0.1, 3600.0)})
-    session_key_file: str = dataclasses.field(default="", metadata={
-        "description": "file of the per-session arming key the valve node writes (mode 0600) and the rig reads; "
-                       "empty: a per-user runtime file named by ROS domain and namespace"})
-    gpio: GpioValveConfig = dataclasses.field(default_factory=GpioValveConfig)
-    serial: SerialRelayConfig = dataclasses.field(default_factory=SerialRelayConfig)
-    regulator: RegulatorConfig = dataclasses.field(default_factory=RegulatorConfig)
-
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        VALVE_BACKENDS.check(self.backend)
-        if not self.launch_pulse_ms <= self.max_pulse_ms:
-            raise ValueError(f"launch_pulse_ms must be at most max_pulse_ms={self.max_pulse_ms}, got "
-                             f"{self.launch_pulse_ms}")
-        if self.watchdog_check_ms > self.watchdog_ms / 2:
-            raise ValueError(f"watchdog_check_ms ({self.watchdog_check_ms}) must be at most half of watchdog_ms "
-                             f"({self.watchdog_ms})")
-        if not self.heartbeat_period_ms <= self.watchdog_ms / 2:
-            raise ValueError(f"heartbeat_period_ms ({self.heartbeat_period_ms}) must be at most watchdog_ms / 2: "
-                             "one lost heartbeat must not trip the watchdog")

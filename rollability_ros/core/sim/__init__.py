@@ -2,9 +2,11 @@
 the launch twin.
 
 - world: PhysicsParams and one DIRECT client per simulation
-- trial_engine: the TrialEngine and LaunchEngine contracts, their tables and make_trial_world (picks sim.engine)
+- engines: the engine tables (TRIAL_ENGINES, LAUNCH_ENGINES) and the checks of sim.engine against them (the bottom)
+- trial_engine: the TrialEngine contract, TrialOutcome and make_trial_world (builds the engine sim.engine names)
 - _body_points: hull points, mass and centre of mass of a spawned PyBullet body's links
-- trials: one disturbance trial (start, push, rest, upright test); TrialWorld, the pybullet engine
+- trials: one disturbance trial (start, push, rest, upright test)
+- pybullet_trials: TrialWorld, the pybullet engine
 - mujoco_trials: the same trial in MuJoCo (sim.engine: mujoco)
 - early_decision: ends a trial once energy fixes its outcome (barriers to the resting poses)
 - evaluation: fitness = upright / trials, serial, process pool or Ray

@@ -13,8 +13,9 @@ from .objectives import FIDELITIES, ObjectiveSettings, check_fidelity, world_fid
 from .rollout import rollout_distance_m
 from .sensitivity import launch_sensitivity_rows, sensitivity_rows
 from .stable_poses import ScreenSettings, profile_screener, screen_robot
-from .trial_engine import (LAUNCH_ENGINES, TRIAL_ENGINES, LaunchEngine, TrialEngine, TrialOutcome, engine_names,
-                           make_trial_world, register_trial_engine)
+from .engines import LAUNCH_ENGINES, TRIAL_ENGINES, engine_names, register_trial_engine
+from .launch.contract import LaunchEngine
+from .trial_engine import TrialEngine, TrialOutcome, make_trial_world
 from .trials import TrialSettings
 from .world import PhysicsParams
 from .world_check import (WORLD_CHECK_COLUMNS, WorldSummary, local_world_evaluator, run_world_check, summarize_worlds,

@@ -36,10 +36,12 @@ from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, check_h
 from rollability_ros.core.optional import require
 from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, UrdfRobotSpec, footprint_grid
 from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, at_fidelity, fidelity_engine, \
-    launch_objective, run_launch_trial, run_robust_trial
-from rollability_ros.core.sim.world import PhysicsParams, connect
+    launch_objective, run_launch_trial
+from rollability_ros.core.sim.robustness import robust_settings_for, scaled_profile
+from rollability_ros.core.sim.world import PhysicsParams
 from rollability_ros.core.stats import wilson_interval
-from rollability_ros.core.sim.trial_engine import TRIAL_ENGINES, TrialOutcome, make_trial_world
+from rollability_ros.core.sim.engines import TRIAL_ENGINES
+from rollability_ros.core.sim.trial_engine import TrialOutcome, make_trial_world, run_trial
 from rollability_ros.core.sim.trials import TrialSettings
 from rollability_ros.core.sim._worker_pool import spawn_pool
 
@@ -216,8 +218,7 @@ def _launch_part(settings):
     return dataclasses.replace(objective, twin=dataclasses.replace(objective.twin, urdf_robot=settings.urdf_robot))
 
 
-_worker_client = None
-_worker_world = None  # (job key, TrialWorld): the last profile's world in this process (shared-client engines)
+_worker_world = None  # (job key, world): the last profile's world in this process (engines whose worlds share state)
 #: Worlds of engines that own them (``TrialEngine.owns_world``: MuJoCo) kept per process, by job key: a racing
 #: optimizer comes back to a generation's profiles once per stage (bench/bench_engines.py racing projection)
 MUJOCO_WORLD_CACHE = 16
@@ -228,48 +229,63 @@ def _job_key(job):
     return hashlib.sha256(pickle.dumps(job, protocol=4)).hexdigest()
 
 
-def run_batch(job: TrialJob, batch: Batch) -> typing.List[TrialOutcome]:
-    """Run the trials ``batch`` = [(index, seed), ...] of ``job`` in this process's physics client.
+def run_robust_trial(job: TrialJob, index: int, seed: int) -> TrialOutcome:
+    """Trial ``index`` of trial job ``job`` under the robustness draw of its ``seed``
+    (:mod:`~rollability_ros.core.sim.robustness`): a launch on the perturbed twin, or a disturbance trial in a
+    world of the evaluation's engine built for the perturbed settings."""
+    robust = job.settings.objective.robust
+    if job.launch is not None and job.launch.is_launch(index):
+        twin = robust_settings_for(job.launch.twin, seed, robust)
+        return run_launch_trial(dataclasses.replace(job.launch, twin=twin),
+                                scaled_profile(job.profile, job.settings, twin), index, seed)
+    settings = robust_settings_for(job.settings, seed, robust)
+    # run_trial builds the world of settings.physics.engine (make_trial_world): the robust trial's engine is the
+    # evaluation's, as for the plain trial; the profile weighs the drawn profile_mass_scale
+    return run_trial(settings.robot_model(), scaled_profile(job.profile, job.settings, settings), index, seed,
+                     settings.trial, settings.physics)
 
-    The process keeps one client and the world of the last job it ran, so consecutive batches of one profile
-    reuse it (restored before every trial, see :class:`~rollability_ros.core.sim.trials.TrialWorld`); MuJoCo
-    worlds, which own their models, are kept for the last ``MUJOCO_WORLD_CACHE`` jobs.
+
+def run_batch(job: TrialJob, batch: Batch) -> typing.List[TrialOutcome]:
+    """Run the trials ``batch`` = [(index, seed), ...] of ``job`` in this process, in the engine the job's
+    settings name (nothing else is opened: a MuJoCo evaluation never loads PyBullet).
+
+    The process keeps the world of the last job it ran, so consecutive batches of one profile reuse it (restored
+    before every trial, see :class:`~rollability_ros.core.sim.pybullet_trials.TrialWorld`); worlds of engines that own
+    their state (``TrialEngine.owns_world``: MuJoCo) are kept for the last ``MUJOCO_WORLD_CACHE`` jobs.
     """
-    global _worker_client, _worker_world
+    global _worker_world
     if job.launch is not None and all(job.launch.is_launch(index) for index, _ in batch) \
             and not job.settings.objective.robust.enabled:
         return [run_launch_trial(job.launch, job.profile, index, seed) for index, seed in batch]
-    if _worker_client is None:
-        _worker_client = connect()
     if job.settings.objective.robust.enabled:
-        _worker_world = None   # every robust trial builds its own world in the client
-        return [run_robust_trial(_worker_client, job, index, seed) for index, seed in batch]
+        _worker_world = None   # every robust trial builds its own world
+        return [run_robust_trial(job, index, seed) for index, seed in batch]
     key = _job_key(job)
     settings = job.settings
     if settings.physics.engine in TRIAL_ENGINES and TRIAL_ENGINES.get(settings.physics.engine).owns_world:
         world = _mujoco_worlds.pop(key, None) or make_trial_world(
-            _worker_client, settings.robot_model(), job.profile, settings.trial, settings.physics)
+            settings.robot_model(), job.profile, settings.trial, settings.physics)
         _mujoco_worlds[key] = world
         while len(_mujoco_worlds) > MUJOCO_WORLD_CACHE:
             _mujoco_worlds.popitem(last=False)
     else:
         if _worker_world is None or _worker_world[0] != key:
-            _worker_world = (key, make_trial_world(_worker_client, settings.robot_model(), job.profile,
-                                                   settings.trial, settings.physics))
+            _worker_world = (key, make_trial_world(settings.robot_model(), job.profile, settings.trial,
+                                                   settings.physics))
         world = _worker_world[1]
     if job.launch is None:
         return [world.run(index, seed) for index, seed in batch]
-    # a launch builds its own world in its own client, so the trial world above is left as it was
+    # a launch builds its own world, so the trial world above is left as it was
     return [run_launch_trial(job.launch, job.profile, index, seed) if job.launch.is_launch(index)
             else world.run(index, seed) for index, seed in batch]
 
 
 def _warm(hold_s=0.2):
-    """Start this worker's physics client so the first batch does not pay for it; return the worker's pid.
+    """Start this worker process (its imports done) so the first batch does not pay for it; return its pid. No
+    engine is opened here: the first batch opens the one its job names.
 
     The pool starts processes on demand: holding each warm-up task for ``hold_s`` makes every process take one.
     """
-    run_batch(TrialJob(None, EvaluatorSettings()), [])
     time.sleep(hold_s)
     return os.getpid()
 
@@ -283,7 +299,8 @@ class TrialExecutor(abc.ABC):
     #: Local worker processes (an evaluation of many profiles sends whole profiles when it has >= 2 per worker);
     #: None when the executor is not a local pool.
     workers: typing.Optional[int] = None
-    #: True when batches run in this process, in its one physics client (one job at a time).
+    #: True when batches run in this process, whose engines keep one world of the kind that shares state (one job
+    #: at a time).
     in_process: bool = False
 
     @abc.abstractmethod
@@ -334,7 +351,7 @@ def _drain(pending, wait, cancel, should_stop, poll_interval_s):
 
 
 class LocalExecutor(TrialExecutor):
-    """A pool of persistent worker processes (spawned, one physics client each) on this machine.
+    """A pool of persistent worker processes (spawned, each keeping its own engine worlds) on this machine.
 
     Parameters
     ----------
@@ -353,7 +370,7 @@ class LocalExecutor(TrialExecutor):
         self._warming = [self._pool.submit(_warm) for _ in range(self.workers)]
 
     def warm(self) -> typing.List[int]:
-        """Block until the worker processes have started their physics clients; return their pids."""
+        """Block until the worker processes have started; return their pids."""
         return sorted({future.result() for future in self._warming})
 
     def iter_batches(self, job: TrialJob, batches: typing.Sequence[Batch],
@@ -376,7 +393,7 @@ class RayExecutor(TrialExecutor):
     """Hands trial batches to an existing Ray cluster (``ray start --head`` elsewhere) by ``address``.
 
     The package is shipped to the cluster's workers as a ``py_modules`` runtime environment, so the workers need
-    only pybullet and numpy installed. Each Ray worker process keeps one physics client across tasks.
+    only pybullet and numpy installed. Each Ray worker process keeps its engine worlds across tasks.
     """
 
     def __init__(self, address: str, poll_interval_s: float = 0.05) -> None:
@@ -445,7 +462,7 @@ class ExecutorEngine(TrialBatchEngine):
     """The CPU engines behind :class:`TrialBatchEngine`: each job's trials go to ``executor`` (serial, local
     pool or Ray) in tasks of ``evaluator.batch_trials`` trials (the job's whole trials with ``whole``), every
     job in its own thread so the workers stay busy across profiles, as the optimizer's evaluations run (one
-    thread on the serial executor, whose trials share this process's physics client)."""
+    thread on the serial executor, whose trials share this process's engine worlds)."""
 
     def __init__(self, executor: typing.Optional[TrialExecutor] = None, whole: bool = False,
                  name: str = "local") -> None:

@@ -1,6 +1,6 @@
 """The disturbance trial of :mod:`rollability_ros.core.sim.trials` in MuJoCo (``sim.engine: mujoco``).
 
-Same trial semantics as the PyBullet :class:`~rollability_ros.core.sim.trials.TrialWorld`, behind the same
+Same trial semantics as the PyBullet :class:`~rollability_ros.core.sim.pybullet_trials.TrialWorld`, behind the same
 interface (``run(index, seed) -> TrialOutcome``): start state and disturbance from
 :func:`~rollability_ros.core.sim.trials.sample_conditions`, placement with the lowest point ``drop_height_m``
 above the ground, the push as a world-frame force and torque at the base's centre of mass, the rest rule of
@@ -135,12 +135,6 @@ class MujocoTrialWorld(TrialEngine):
 
     owns_world = True              # its own model and data: several can be kept per process
 
-    @classmethod
-    def build(cls, client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
-              settings: TrialSettings, physics: PhysicsParams) -> "MujocoTrialWorld":
-        """The MuJoCo world (it has its own: ``client`` is not used)."""
-        return cls(robot_model, profile, settings, physics)
-
     def __init__(self, robot_model, profile, settings, physics):
         self.mujoco = mujoco = require("mujoco", feature="the MuJoCo trial engine")
         self.robot_model, self.settings, self.physics = robot_model, settings, physics
@@ -175,7 +169,7 @@ class MujocoTrialWorld(TrialEngine):
 
     def tilt_deg(self) -> float:
         """Angle between the root frame's up axis and world +z, degrees."""
-        return root_tilt_deg(self.data, self.root, self.up_in_root)
+        return root_tilt_deg(self.data.xmat[self.root], self.up_in_root)
 
     def is_upright(self) -> typing.Tuple[bool, float]:
         """``(upright, tilt_deg)`` as :meth:`RobotModel.is_upright` judges it."""
@@ -247,10 +241,11 @@ class MujocoTrialWorld(TrialEngine):
                             tilt_deg=tilt)
 
 
-def root_tilt_deg(data: typing.Any, root: int, up_in_root: np.ndarray) -> float:
-    """Angle (deg) between world +z and the up axis ``up_in_root`` (3,) (unit, root frame) of body ``root`` in MuJoCo's
-    ``data`` (every MuJoCo world's tilt: the trials' and the launch twin's)."""
-    up_world = data.xmat[root].reshape(3, 3) @ up_in_root
+def root_tilt_deg(root_rotation: np.ndarray, up_in_root: np.ndarray) -> float:
+    """Angle (deg) between world +z and the up axis ``up_in_root`` (3,) (unit, root frame) of a body whose world
+    rotation (MuJoCo's ``data.xmat`` row of it) is ``root_rotation`` (9,) (every MuJoCo world's tilt: the trials'
+    and the launch twin's)."""
+    up_world = np.asarray(root_rotation).reshape(3, 3) @ up_in_root
     return math.degrees(math.acos(float(np.clip(up_world[2], -1.0, 1.0))))
 
 

@@ -57,14 +57,11 @@ import typing
 from rollability_ros.core import config
 from rollability_ros.core.campaign_matrix import load_campaign_spec
 from rollability_ros.core.records import LaunchCondition
-from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_for, scaled_profile
-from rollability_ros.core.sim.trials import TrialOutcome, check_engine, run_trial
-from rollability_ros.core.sim.trial_engine import engine_names
-
-if typing.TYPE_CHECKING:   # annotations only: the twin is imported when a launch runs
-    from rollability_ros.core.robots import ProfileBody, RobotModel
-    from rollability_ros.core.sim.evaluation import TrialJob
-    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
+from rollability_ros.core.robots import ProfileBody
+from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
+from rollability_ros.core.sim.robustness import RobustSettings
+from rollability_ros.core.sim.engines import check_engine, engine_names
+from rollability_ros.core.sim.trial_engine import TrialOutcome
 
 #: ``objective.kind`` values.
 OBJECTIVES = ("disturbance", "launch_twin", "mix")
@@ -229,19 +226,3 @@ def run_launch_trial(objective: LaunchObjective, profile: "typing.Optional[Profi
     return TrialOutcome(index=index, seed=seed, upright=bool(result.valid and result.upright),
                         settled=bool(result.settled), steps=int(result.steps), tilt_deg=float(result.tilt_deg),
                         decided=bool(result.decided))
-
-
-def run_robust_trial(client: int, job: "TrialJob", index: int, seed: int) -> TrialOutcome:
-    """Trial ``index`` of trial job ``job`` under the robustness draw of its ``seed``
-    (:mod:`~rollability_ros.core.sim.robustness`): a launch on the perturbed twin, or a disturbance trial in a
-    world built in ``client`` for the perturbed settings (which replaces any world held in ``client``)."""
-    robust = job.settings.objective.robust
-    if job.launch is not None and job.launch.is_launch(index):
-        twin = robust_settings_for(job.launch.twin, seed, robust)
-        return run_launch_trial(dataclasses.replace(job.launch, twin=twin),
-                                scaled_profile(job.profile, job.settings, twin), index, seed)
-    settings = robust_settings_for(job.settings, seed, robust)
-    # run_trial builds the world of settings.physics.engine (make_trial_world): the robust trial's engine is the
-    # evaluation's, as for the plain trial; the profile weighs the drawn profile_mass_scale
-    return run_trial(client, settings.robot_model(), scaled_profile(job.profile, job.settings, settings), index, seed,
-                     settings.trial, settings.physics)

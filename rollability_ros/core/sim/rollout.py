@@ -42,7 +42,7 @@ def rollout_distance_m(settings: LaunchTwinSettings, speed_mps: float, surface: 
     push to ``speed_mps`` (module docstring). Deterministic (no random draw). ``ValueError`` for a bad speed or
     surface, or a twin on an engine without a roll-out model (MuJoCo)."""
     from rollability_ros.core.sim.launch.pybullet_twin import BulletLaunch
-    from rollability_ros.core.sim.trial_engine import LAUNCH_ENGINES
+    from rollability_ros.core.sim.engines import LAUNCH_ENGINES
 
     if LAUNCH_ENGINES.get(settings.physics.engine) is not BulletLaunch:
         raise ValueError(f"the characterisation roll-out is modelled in the PyBullet twin only; sim.engine is "

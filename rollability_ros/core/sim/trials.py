@@ -1,7 +1,8 @@
 """One disturbance trial: start state, randomised push, stepping to rest, upright test.
 
-A trial's result depends only on (robot + profile, trial seed, settings): a :class:`TrialWorld` is built once
-per profile and restored to its saved state before every trial, so nothing carries over from the trials run
+A trial's result depends only on (robot + profile, trial seed, settings): a world
+(:class:`~rollability_ros.core.sim.pybullet_trials.TrialWorld`, the ``pybullet`` engine) is built once per profile
+and restored to its saved state before every trial, so nothing carries over from the trials run
 before it in the same process (test_evaluation checks outcomes against a freshly built world and across orders),
 and the serial, process-pool and Ray executors give identical outcomes.
 
@@ -33,9 +34,6 @@ import typing
 import numpy as np
 
 from rollability_ros.core.optional import require
-# the engine seam (TRIAL_ENGINES, check_engine, make_trial_world, TrialOutcome) is importable from here as before
-from rollability_ros.core.sim.trial_engine import (TRIAL_ENGINES, TrialEngine, TrialOutcome, check_engine,  # noqa: F401
-                                                   make_trial_world)
 from rollability_ros.core.sim.world import PhysicsParams, reset_world, set_contact
 
 if typing.TYPE_CHECKING:  # annotations only
@@ -180,8 +178,8 @@ class RestDetector:
 class EnergyMonitor:
     """Reads a spawned robot's energy height and down direction and asks its basin map for a decision.
 
-    Built once per :class:`TrialWorld` (the robot at its saved pose): per-link masses and principal inertias,
-    and the :class:`~rollability_ros.core.sim.early_decision.BasinMap` of the robot + profile. ``ground_z_m`` is
+    Built once per :class:`~rollability_ros.core.sim.pybullet_trials.TrialWorld` (the robot at its saved pose):
+    per-link masses and principal inertias, and the :class:`~rollability_ros.core.sim.early_decision.BasinMap` of the robot + profile. ``ground_z_m`` is
     the height of the flat ground the barriers stand on (the launch twin's foam top); ``basins``, when given,
     is that robot + profile's map from an earlier build (the launch twin spawns its robot per launch).
     ``radius_m`` is the hull's largest distance from the centre of mass (m).
@@ -252,76 +250,3 @@ class EnergyMonitor:
             spin = rotation[axis] * wx + rotation[3 + axis] * wy + rotation[6 + axis] * wz
             energy += inertia[axis] * spin * spin
         return 0.5 * energy
-
-
-class TrialWorld(TrialEngine):
-    """The ``pybullet`` trial engine: a world holding one robot + profile, saved once after building and restored
-    before every trial.
-
-    ``restoreState`` puts back the saved bodies, velocities and (empty) contact cache, so a trial starts from
-    the same simulator state whatever ran before it in this client; building the world once saves the cost of
-    creating the bodies per trial (see bench/bench_evaluator.py). Building another world in the same client
-    (or any ``resetSimulation``) invalidates this one.
-    """
-
-    def __init__(self, client, robot_model, profile, settings, physics):
-        self.pybullet = require("pybullet", feature="the simulated evaluator")
-        self.client, self.robot_model, self.settings, self.physics = client, robot_model, settings, physics
-        self.ground, self.robot = build_trial_world(client, robot_model, profile, (0.0, 0.0, 0.0, 1.0), settings,
-                                                    physics)
-        self.saved_state = self.pybullet.saveState(physicsClientId=client)
-        # the energy barriers hold for a rigid hull only: a compliant mount's trials run to rest
-        self.energy = EnergyMonitor(client, robot_model, self.robot, physics.gravity_mps2,
-                                    settings.early_decision_margin_m) \
-            if settings.early_decision and self.robot.mount_spring is None else None
-
-    def run(self, index: int, seed: int) -> TrialOutcome:
-        """Run one trial (see the module docstring) and return its :class:`TrialOutcome`."""
-        pybullet, client, settings, body = self.pybullet, self.client, self.settings, self.robot.body_id
-        conditions = sample_conditions(seed, settings)
-        pybullet.restoreState(self.saved_state, physicsClientId=client)
-        place_on_ground(client, body, conditions.orientation, settings.drop_height_m)
-        dt = self.physics.time_step_s
-        push_start = round(settings.disturbance_delay_s / dt)
-        push_end = push_start + max(1, round(settings.disturbance_duration_s / dt))
-        cap = round(settings.time_cap_s / dt)
-        rest = RestDetector(settings, dt)
-        force, torque = conditions.force_n.tolist(), conditions.torque_nm.tolist()
-        step_simulation = pybullet.stepSimulation
-        before_step = self.robot.before_step
-        settled = False
-        decision = None
-        steps = 0
-        energy = self.energy
-        interval = settings.check_interval_steps
-        while steps < cap:
-            if push_start <= steps < push_end:
-                centre, _ = pybullet.getBasePositionAndOrientation(body, physicsClientId=client)
-                pybullet.applyExternalForce(body, -1, force, centre, pybullet.WORLD_FRAME, physicsClientId=client)
-                pybullet.applyExternalTorque(body, -1, torque, pybullet.WORLD_FRAME, physicsClientId=client)
-            before_step()
-            step_simulation(physicsClientId=client)
-            steps += 1
-            if steps >= push_end:
-                if energy is not None and steps % interval == 0:
-                    decision = energy.decide()
-                    if decision is not None:
-                        settled = True
-                        break
-                if rest.settled(client, body, steps):
-                    settled = True
-                    break
-        if decision is not None:
-            return TrialOutcome(index=index, seed=seed, upright=decision, settled=True, steps=steps,
-                                tilt_deg=self.robot_model.tilt_deg(client, self.robot), decided=True)
-        upright, tilt = self.robot_model.is_upright(client, self.robot, self.ground)
-        return TrialOutcome(index=index, seed=seed, upright=upright, settled=settled, steps=steps, tilt_deg=tilt)
-
-
-def run_trial(client: int, robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]",
-              index: int, seed: int, settings: TrialSettings,
-              physics: PhysicsParams) -> TrialOutcome:
-    """Run one trial in a freshly built world of ``physics.engine``
-    (:func:`~rollability_ros.core.sim.trial_engine.make_trial_world`; a PyBullet world is built in ``client``)
-    and return its :class:`TrialOutcome`."""
-    return make_trial_world(client, robot_model, profile, settings, physics).run(index, seed)

@@ -21,10 +21,10 @@ import math
 import typing
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.sim.trial_engine import engine_names
+from rollability_ros.core.sim.engines import engine_names
 
 CONTACT_MODELS = ("per_contact", "per_body")
-#: The engine names of the tables (core/sim/trial_engine.py) when this module was imported, for code written
+#: The engine names of the tables (core/sim/engines.py) when this module was imported, for code written
 #: before them; ``engine_names()`` also holds an engine registered later (``sim.engine`` validation uses it).
 ENGINES = engine_names()
 

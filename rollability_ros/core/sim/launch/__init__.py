@@ -3,8 +3,8 @@
 Modules, bottom first (each imports only modules above it in this list):
     ``settings``       the twin's settings dataclasses and parameter files
     ``results``        ``LaunchResult``, the phases and the callbacks that follow a launch
-    ``contract``       what the engine-neutral loop asks of an engine: ``LaunchWorld``, ``LaunchPlate``,
-                       ``LaunchDrive``
+    ``contract``       the engine contract ``LaunchEngine`` and what the engine-neutral loop asks of an
+                       engine: ``LaunchWorld``, ``LaunchPlate``, ``LaunchDrive``
     ``placement``      the launcher sized for the robot, the robot's and the plate's start, the seeded draws
     ``decision``       the early decision on the foam
     ``loop``           ``step_launch``, the event tracker, the rig's verdict and the result
@@ -12,7 +12,7 @@ Modules, bottom first (each imports only modules above it in this list):
     ``twin``           ``simulate_launch`` and ``simulate_valid_launch``: the entry
     ``pybullet_twin``  ``sim.engine: pybullet``, and ``mujoco_twin``  ``sim.engine: mujoco``: one module per
                        engine, siblings that share nothing but the modules above; the engine is picked by
-                       :data:`~rollability_ros.core.sim.trial_engine.LAUNCH_ENGINES`
+                       :data:`~rollability_ros.core.sim.engines.LAUNCH_ENGINES`
 The other modules call the description below "the package docstring".
 
 

@@ -1,11 +1,17 @@
-"""What the engine-neutral launch loop (:func:`~rollability_ros.core.sim.launch.loop.step_launch`) asks of an
-engine's twin: its world (:class:`LaunchWorld`), its push plate (:class:`LaunchPlate`), and how the cylinder drives
-that plate (:class:`LaunchDrive`). Each engine's module (``pybullet_twin``, ``mujoco_twin``) implements them."""
+"""The launch engine contract: what :func:`~rollability_ros.core.sim.launch.twin.simulate_launch` hands a launch to
+(:class:`LaunchEngine`, one per engine in :data:`~rollability_ros.core.sim.engines.LAUNCH_ENGINES`), and what the
+engine-neutral launch loop (:func:`~rollability_ros.core.sim.launch.loop.step_launch`) asks of an engine's twin:
+its world (:class:`LaunchWorld`), its push plate (:class:`LaunchPlate`), and how the cylinder drives that plate
+(:class:`LaunchDrive`). Each engine's module (``pybullet_twin``, ``mujoco_twin``) implements them."""
+import abc
 import dataclasses
 import math
 import typing
 
-from rollability_ros.core.sim.launch.settings import PushPlateSpec
+from rollability_ros.core.records import LaunchCondition
+from rollability_ros.core.robots import ProfileBody
+from rollability_ros.core.sim.launch.results import LaunchResult
+from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, PushPlateSpec
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,3 +95,20 @@ class LaunchWorld:
         :func:`step_launch` asks only once the robot has landed on the foam and the plate has stopped: from then
         on only gravity and passive contacts act."""
         return None
+
+
+class LaunchEngine(abc.ABC):
+    """One launch of the launch twin in one engine (:func:`~rollability_ros.core.sim.launch.twin.simulate_launch`
+    checks the condition, sizes the twin and picks the profile, then hands over here)."""
+
+    @classmethod
+    @abc.abstractmethod
+    def simulate(cls, condition: "LaunchCondition", settings: "LaunchTwinSettings", seed: int,
+                 profile: "typing.Optional[ProfileBody]",
+                 on_phase: typing.Optional[typing.Callable[[str], None]] = None,
+                 on_pose: typing.Optional[typing.Callable[..., None]] = None, *,
+                 drive: "typing.Optional[LaunchDrive]" = None, until_edge: bool = False) -> "LaunchResult":
+        """The ``LaunchResult`` of ``condition`` with ``seed`` on the twin ``settings`` carrying ``profile``, the
+        push plate driven as ``drive`` says (None: ``launch.drive.launch_drive`` of the condition's speed on the
+        sized ``settings``); ``until_edge``: stop once the robot's
+        foremost point crosses the edge line (the speed gate has read the launch)."""

@@ -11,7 +11,7 @@ from rollability_ros.core.profile import DesignSources
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.sim.launch.contract import LaunchDrive
 from rollability_ros.core.sim.launch.settings import PA_PER_PSI, FoamSpec, LauncherSpec, LaunchTwinSettings
-from rollability_ros.core.sim.trial_engine import LAUNCH_ENGINES
+from rollability_ros.core.sim.engines import LAUNCH_ENGINES
 from rollability_ros.core.sim.trials import TrialSettings
 
 

@@ -57,7 +57,7 @@ from rollability_ros.core.profile import DesignSources
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.robots import ProfileBody
 from rollability_ros.core.sim.early_decision import hull_vertices
-from rollability_ros.core.sim.launch.contract import LaunchDrive, LaunchWorld
+from rollability_ros.core.sim.launch.contract import LaunchDrive, LaunchEngine, LaunchWorld
 from rollability_ros.core.sim.launch.decision import decided_on_foam, foam_sink_m, hopeless_to_decide
 from rollability_ros.core.sim.launch.drive import launch_drive
 from rollability_ros.core.sim.launch.loop import LaunchTracker, PhaseReporter, launch_result, rig_verdict, step_launch
@@ -66,7 +66,6 @@ from rollability_ros.core.sim.launch.results import LaunchResult, PhaseCallback,
 from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, PushPlateSpec, mecanum_wheels
 from rollability_ros.core.sim.mujoco_trials import (MujocoEnergyMonitor, effective_contact, geom_points, pose_speeds,
                                                     robot_spec, root_tilt_deg, set_geom_contact, wheel_bodies)
-from rollability_ros.core.sim.trial_engine import LaunchEngine
 
 
 #: Half-height of the ledge's box (m): it reaches from the base plate to below the floor at any condition height.
@@ -418,7 +417,7 @@ class MujocoLaunchTwin(LaunchWorld):
 
     def tilt_deg(self) -> float:
         """Angle between the robot's up axis and world +z now, degrees (the MuJoCo trials' rule)."""
-        return root_tilt_deg(self.data, self.root, self.up_in_root)
+        return root_tilt_deg(self.data.xmat[self.root], self.up_in_root)
 
     def wheels_down(self) -> int:
         """How many wheels are within the robot's ``contact_tolerance_m`` of the pad, the floor or the ledge: the

@@ -13,14 +13,13 @@ import numpy.typing as npt
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.robots import ProfileBody, RobotModel, SpawnedRobot
-from rollability_ros.core.sim.launch.contract import LaunchDrive, LaunchWorld
+from rollability_ros.core.sim.launch.contract import LaunchDrive, LaunchEngine, LaunchWorld
 from rollability_ros.core.sim.launch.decision import decided_on_foam, foam_sink_m, hopeless_to_decide
 from rollability_ros.core.sim.launch.drive import launch_drive
 from rollability_ros.core.sim.launch.loop import LaunchTracker, PhaseReporter, launch_result, rig_verdict, step_launch
 from rollability_ros.core.sim.launch.placement import check_fits_launcher, launch_plan, launcher_start_xy, plate_placement
 from rollability_ros.core.sim.launch.results import LaunchResult, PhaseCallback, PoseCallback
 from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, PushPlateSpec, mecanum_wheels
-from rollability_ros.core.sim.trial_engine import LaunchEngine
 from rollability_ros.core.sim.trials import EnergyMonitor, RestDetector, place_on_ground
 from rollability_ros.core.sim.world import connect, disconnect, reset_world, set_contact
 

@@ -135,7 +135,7 @@ class FoamSpec:
     contact_damping_nspm: float = _setting(150.0, "UNKNOWN: Bullet contact damping per contact point, N s/m "
                                                   "(guessed: memory foam barely rebounds)", (0.0, 2000.0))
     lateral_friction: float = _setting(1.0, "UNKNOWN: the foam's own friction coefficient; Bullet multiplies it with "
-                                            "the robot's (sim.lateral_friction 0.35) (guessed)", (0.3, 3.0))
+                                            "the robot's (sim.lateral_friction 0.35) (guessed; > 0)", (0.0, 3.0), "low")
     rolling_friction: float = _setting(0.01, "UNKNOWN: the foam's own rolling friction, m: a wheel on the foam meets "
                                              "this x the wheel's friction more (guessed: a wheel sinks in)",
                                        (0.0, 0.05))

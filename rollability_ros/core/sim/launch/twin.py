@@ -1,5 +1,5 @@
 """The launch twin's entry: :func:`simulate_launch` (check, size, pick the profile and the cylinder's drive, hand
-over to the engine ``sim.engine`` names, :data:`~rollability_ros.core.sim.trial_engine.LAUNCH_ENGINES`) and
+over to the engine ``sim.engine`` names, :data:`~rollability_ros.core.sim.engines.LAUNCH_ENGINES`) and
 :func:`simulate_valid_launch` (retries of invalid launches), as :mod:`rollability_ros.core.sim.launch` describes."""
 import dataclasses
 import typing
@@ -11,7 +11,7 @@ from rollability_ros.core.sim.launch.drive import launch_drive
 from rollability_ros.core.sim.launch.placement import attempt_seed, sized_for_robot
 from rollability_ros.core.sim.launch.results import LaunchResult, PhaseCallback, PoseCallback
 from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
-from rollability_ros.core.sim.trial_engine import LAUNCH_ENGINES, check_engine
+from rollability_ros.core.sim.engines import LAUNCH_ENGINES, check_engine
 
 
 def profile_body(configuration: str, settings: LaunchTwinSettings) -> typing.Optional[ProfileBody]:

@@ -1,9 +1,9 @@
 """Valve backends: what physically opens and closes the launcher's solenoid valve.
 
-Each implements :class:`~rollability_ros.core.rig._valve_backend.ValveBackend` (``open()``, ``open_valve(pulse_ms)``,
+Each implements :class:`~rollability_ros.core.rig.valve_contract.ValveBackend` (``open()``, ``open_valve(pulse_ms)``,
 ``close_valve()``, ``release()``, and those of the optional ``arm()`` / ``disarm()`` / ``clear()``,
 ``fire_refusal()``, ``set_fault_listener(callback)``, ``link_state()``, ``stalled()`` its device supports) and is
-listed in :data:`~rollability_ros.core.rig._valve_backend.VALVE_BACKENDS`. Errors are raised
+listed in :data:`~rollability_ros.core.rig.valve_contract.VALVE_BACKENDS`. Errors are raised
 (``ValveBackendError`` or the library's own); :class:`~rollability_ros.core.rig.valve.ValveController` turns them
 into latched faults.
 
@@ -24,8 +24,8 @@ import typing
 
 from rollability_ros.core.optional import require
 from rollability_ros.core.rig import relay_protocol
-from rollability_ros.core.rig.valve import ValveConfig, ValveController
-from rollability_ros.core.rig._valve_backend import ValveBackend, make_valve_backend
+from rollability_ros.core.rig.valve import ValveController
+from rollability_ros.core.rig.valve_contract import ValveBackend, ValveConfig, make_valve_backend
 
 _LOG = logging.getLogger(__name__)
 

@@ -1,0 +1,601 @@
+"""A likelihood of the launch twin learnt once per robot and design set, reused by every calibration.
+
+Why (docs/calibration.md, "The learnt likelihood", has the numbers): a calibration that simulates the twin afresh
+for every parameter set it tries costs tens of thousands of 50-90 ms launches per unknown; with four or five
+unknowns it does not fit in an afternoon on 2 cores. Here the twin is simulated once (:func:`simulate_training_set`:
+launches at parameter sets drawn from the calibration bounds, the campaign's configurations and conditions),
+small neural networks learn the outcome of one launch from (unknowns, configuration, condition), and a calibration
+evaluates them instead of the twin (:mod:`~rollability_ros.core.campaign.posterior`): a posterior over 5 unknowns
+from 400 launches took 66-108 s on a loaded 2-core machine.
+
+What is learnt (:class:`LearntLikelihood`)
+    ``x`` = the unknowns in normalised coordinates (``CalibrationSettings.to_normalised``: [0, 1] on each one's
+    declared linear or log scale), the configuration (one-hot) and the condition (height, speed, angle, scaled to
+    [0, 1] over the campaign's levels). The upright verdict: P(upright | x), a classifier's logistic output. Each
+    continuous outcome of :data:`OUTCOMES` (what the rig's speed gate and IMU, and the operator's tape, measure):
+    given x and the verdict, a Student-t (:data:`STUDENT_DF` degrees of freedom: heavy tails for what a Gaussian
+    would not expect) with a learnt location and a learnt scale (the scale network regresses the log squared
+    cross-fitted residual of the location network, so the scale holds the location's own error at launches it
+    did not see; E[log chi-squared_1] = :data:`LOG_CHI2_MEAN` is added back). Outcomes are
+    transformed first (:data:`TRANSFORMS`: the gate's reading as a fraction of the set speed, logs of the
+    positive ones). A launch's log-likelihood is log P(verdict) plus the log densities of the outcomes it
+    measured (a missing one, NaN, adds nothing). Invalid launches (the rig's rule) are left out, as the analysis
+    leaves them out.
+Training
+    scikit-learn's multi-layer perceptrons (``MLPClassifier``, ``MLPRegressor``), imported only by
+    :func:`prepare`; their weights are copied into plain arrays, so loading and evaluating need numpy alone.
+The file (:meth:`LearntLikelihood.save`, :func:`load_likelihood`)
+    A ``.npz`` archive read with ``allow_pickle=False`` (nothing in it can execute): a JSON header (format
+    :data:`FORMAT`, the unknowns with their bounds and scales, the configurations, the condition levels, the
+    twin's fingerprint, the training counts and measured accuracy) and the networks' weight arrays. Every array's
+    shape is checked against the header and every number must be finite; a file that fails is refused with one
+    line naming the file and the problem.
+The twin's fingerprint
+    :func:`twin_fingerprint`: SHA-256 over the twin's flat parameters except the unknowns and over the bytes of
+    every design mesh. A calibration whose twin or designs differ from the prepared ones is refused (the
+    likelihood would describe another rig).
+Posterior (:mod:`~rollability_ros.core.campaign.posterior`: ``sample_posterior``)
+    Uniform prior over the normalised box (log-uniform on a log scale, as the bounds are searched), an
+    affine-invariant ensemble sampler (Goodman and Weare's stretch move) over the unknowns sampled, the others
+    held at given values. Its 95% credible sets (``credible_set``) are highest-density sets of the marginal
+    histogram: a split set is a union of intervals, printed as such, never as its hull.
+"""
+import concurrent.futures
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import typing
+
+import numpy as np
+import numpy.typing as npt
+
+from rollability_ros.core.campaign.adaptive import Unknowns
+from rollability_ros.core.optional import require
+from rollability_ros.core.records import LaunchOutcome
+
+#: ``format`` of a prepared likelihood file; a file of another format is refused.
+FORMAT = "rollability-learnt-likelihood-1"
+#: Continuous outcomes of one launch, in this order (NaN: not measured). ``measured_speed_mps``: the speed gate's
+#: reading; ``final_tilt_deg``: the final tilt from upright (IMU); ``peak_deceleration_mps2``: the landing's peak
+#: (IMU); ``time_to_rest_s``: from the first landing until at rest; ``rest_distance_m``: where it came to rest,
+#: from the edge line (the operator's tape).
+OUTCOMES = ("measured_speed_mps", "final_tilt_deg", "peak_deceleration_mps2", "time_to_rest_s", "rest_distance_m")
+#: How each outcome is transformed before its Student-t: ``speed_ratio`` = reading / set speed, ``log``,
+#: ``log1p`` (distances that may be 0), ``none``.
+TRANSFORMS = {"measured_speed_mps": "speed_ratio", "final_tilt_deg": "none", "peak_deceleration_mps2": "log",
+              "time_to_rest_s": "log", "rest_distance_m": "log1p"}
+#: Degrees of freedom of each continuous outcome's Student-t.
+STUDENT_DF = 4.0
+#: E[log chi-squared with 1 degree of freedom] = -(Euler-Mascheroni gamma + log 2).
+LOG_CHI2_MEAN = -1.2703628454614782
+#: P(upright) is kept within [floor, 1 - floor]: a learnt 0 or 1 would make one surprising launch infinitely
+#: unlikely.
+PROBABILITY_FLOOR = 0.005
+#: Hidden layers of every network.
+HIDDEN = (64, 64)
+
+
+@dataclasses.dataclass(frozen=True)
+class Observation:
+    """One launch as calibration sees it: configuration, condition, verdict and the continuous outcomes measured
+    (``outcomes``: a value per name of :data:`OUTCOMES`, NaN or absent when not measured)."""
+
+    configuration: str
+    height_m: float
+    speed_mps: float
+    angle_deg: float
+    upright: bool
+    outcomes: typing.Mapping[str, float] = dataclasses.field(default_factory=dict)
+
+    def outcome_vector(self) -> np.ndarray:
+        """The :data:`OUTCOMES` values (k,), NaN where not measured."""
+        unknown = sorted(set(self.outcomes) - set(OUTCOMES))
+        if unknown:
+            raise ValueError(f"unknown outcome {unknown[0]!r} (known: {', '.join(OUTCOMES)})")
+        return np.array([float(self.outcomes.get(name, math.nan)) for name in OUTCOMES])
+
+
+def observations_from_outcomes(outcomes: typing.Iterable[LaunchOutcome]) -> typing.List[Observation]:
+    """:class:`Observation` of each valid LaunchOutcome (invalid launches left out), with the outcomes the record
+    carries: the gate's ``measured_speed_mps``, the tilt of a known ``final_orientation``, and any field of
+    :data:`OUTCOMES` the record has (the rig's IMU and the operator's tape, when recorded)."""
+    out = []
+    for outcome in outcomes:
+        if not outcome.valid:
+            continue
+        values = {name: float(getattr(outcome, name)) for name in OUTCOMES if hasattr(outcome, name)}
+        if (not math.isfinite(values.get("final_tilt_deg", math.nan)) and outcome.orientation_known
+                and outcome.classified_by != "operator"):
+            # a sensor saw the final pose (an operator's verdict keeps the default orientation): the tilt of the
+            # body's z axis from world up, cos(tilt) = 1 - 2 (x^2 + y^2)
+            x, y, _z, _w = outcome.final_orientation
+            values["final_tilt_deg"] = math.degrees(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))))
+        condition = outcome.condition
+        out.append(Observation(condition.configuration, condition.height_m, condition.speed_mps,
+                               condition.angle_deg, bool(outcome.upright), values))
+    return out
+
+
+def transform(name: str, values: npt.ArrayLike, set_speed_mps: npt.ArrayLike) -> np.ndarray:
+    """Outcome ``name``'s ``values`` on the scale its Student-t is on (:data:`TRANSFORMS`); ``set_speed_mps``
+    broadcasts with them (used by ``speed_ratio``)."""
+    v = np.asarray(values, dtype=np.float64)
+    kind = TRANSFORMS[name]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if kind == "speed_ratio":
+            return v / np.asarray(set_speed_mps, dtype=np.float64)
+        if kind == "log":
+            return np.log(np.maximum(v, 1e-6))
+        if kind == "log1p":
+            return np.log1p(np.maximum(v, 0.0))
+    return v
+
+
+def _forward(layers: typing.Sequence[typing.Tuple[np.ndarray, np.ndarray]], x: np.ndarray) -> np.ndarray:
+    """A ReLU perceptron's output (n, outputs) for inputs ``x`` (n, inputs): ``layers`` are (weights, biases)."""
+    for i, (weights, biases) in enumerate(layers):
+        x = x @ weights + biases
+        if i < len(layers) - 1:
+            x = np.maximum(x, 0.0)
+    return x
+
+
+def _student_t_log_pdf(value: np.ndarray, location: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """log density of a Student-t with :data:`STUDENT_DF` degrees of freedom, elementwise."""
+    nu = STUDENT_DF
+    z = (value - location) / scale
+    const = math.lgamma((nu + 1) / 2) - math.lgamma(nu / 2) - 0.5 * math.log(nu * math.pi)
+    return const - np.log(scale) - (nu + 1) / 2 * np.log1p(z * z / nu)
+
+
+def normalised_one(unknowns: Unknowns, index: int, values: npt.ArrayLike) -> np.ndarray:
+    """Normalised coordinates of own-unit ``values`` of unknown ``index`` (any shape; not clipped)."""
+    v = np.asarray(values, dtype=np.float64)
+    low, high = unknowns.lower[index], unknowns.upper[index]
+    if unknowns.log_scale[index]:
+        return np.log(v / low) / math.log(high / low)
+    return (v - low) / (high - low)
+
+
+def values_one(unknowns: Unknowns, index: int, normalised: npt.ArrayLike) -> np.ndarray:
+    """Own units of normalised coordinates of unknown ``index`` (any shape)."""
+    u = np.asarray(normalised, dtype=np.float64)
+    low, high = unknowns.lower[index], unknowns.upper[index]
+    return low * (high / low) ** u if unknowns.log_scale[index] else low + u * (high - low)
+
+
+@dataclasses.dataclass(frozen=True)
+class ConditionLevels:
+    """The campaign's levels a likelihood is learnt on (the rig's ledge heights, speed settings, mounting
+    holes): a condition off these levels is refused."""
+
+    heights_m: typing.Tuple[float, ...]
+    speeds_mps: typing.Tuple[float, ...]
+    angles_deg: typing.Tuple[float, ...]
+
+    def features(self, height_m: npt.ArrayLike, speed_mps: npt.ArrayLike, angle_deg: npt.ArrayLike) -> np.ndarray:
+        """Condition features (..., 3): each level scaled to [0, 1] over its span (0.5 for a single level)."""
+        out = []
+        for value, levels in ((height_m, self.heights_m), (speed_mps, self.speeds_mps), (angle_deg, self.angles_deg)):
+            low, high = min(levels), max(levels)
+            v = np.asarray(value, dtype=np.float64)
+            out.append((v - low) / (high - low) if high > low else np.full_like(v, 0.5))
+        return np.stack(np.broadcast_arrays(*out), axis=-1)
+
+    def check(self, height_m: float, speed_mps: float, angle_deg: float) -> None:
+        """``ValueError`` naming a condition value off the learnt levels."""
+        for what, value, levels in (("height", height_m, self.heights_m), ("speed", speed_mps, self.speeds_mps),
+                                    ("angle", angle_deg, self.angles_deg)):
+            if not any(abs(value - level) <= 1e-6 * max(1.0, abs(level)) for level in levels):
+                raise ValueError(f"launch {what} {value:g} is not one of the levels the likelihood was learnt on "
+                                 f"({', '.join(f'{level:g}' for level in levels)}): prepare it with that level")
+
+
+Layers = typing.List[typing.Tuple[np.ndarray, np.ndarray]]
+
+
+def _forward_split(layers: Layers, theta: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """A perceptron's single output (s, G) on every pair of standardised unknowns ``theta`` (s, d) and the rest
+    of the standardised features ``rest`` (G, f - d): the first layer splits into the two parts, so it is
+    computed once per part and summed (s x G rows without building them)."""
+    d = theta.shape[1]
+    weights, biases = layers[0]
+    hidden = np.maximum((theta @ weights[:d])[:, None, :] + (rest @ weights[d:] + biases)[None, :, :], 0.0)
+    return _forward(list(layers[1:]), hidden.reshape(-1, hidden.shape[-1])).reshape(len(theta), len(rest))
+
+
+@dataclasses.dataclass(frozen=True)
+class Arranged:
+    """Observations arranged for :meth:`LearntLikelihood.log_likelihood`: per group (configuration, condition)
+    ``keys`` (G,), the standardised non-unknown features ``rest`` (G, f - d), ``successes`` and ``trials`` (G,),
+    the continuous ``outcomes`` used and their transformed ``values`` (outcomes, G, 2: upright / not, slots),
+    NaN where absent."""
+
+    keys: typing.Tuple[typing.Tuple[str, float, float, float], ...]
+    rest: np.ndarray
+    successes: np.ndarray
+    trials: np.ndarray
+    outcomes: typing.Tuple[str, ...]
+    values: np.ndarray
+
+
+@dataclasses.dataclass
+class LearntLikelihood:
+    """A prepared likelihood (module docstring): the networks and what they were learnt on.
+
+    ``upright``: the classifier's layers (logit output). ``location`` / ``scale``: per outcome of :data:`OUTCOMES`
+    the regressors' layers (input: the features plus the verdict), or absent when the training launches never
+    measured it. ``feature_mean`` / ``feature_std`` (f,) standardise the features (unknowns, one-hot
+    configuration, condition) before every network. ``info``: the training counts, timings and the held-out
+    accuracy (written to the file's header).
+    """
+
+    unknowns: Unknowns
+    configurations: typing.Tuple[str, ...]
+    levels: ConditionLevels
+    fingerprint: str
+    feature_mean: np.ndarray
+    feature_std: np.ndarray
+    upright: Layers
+    location: typing.Dict[str, Layers]
+    scale: typing.Dict[str, Layers]
+    info: typing.Dict[str, typing.Any] = dataclasses.field(default_factory=dict)
+
+    # ---- features -----------------------------------------------------------------------------------------
+    def features(self, normalised: np.ndarray, configuration: str, height_m: float, speed_mps: float,
+                 angle_deg: float) -> np.ndarray:
+        """Standardised features (s, f) of normalised unknowns (s, d) at one configuration and condition."""
+        if configuration not in self.configurations:
+            raise ValueError(f"configuration {configuration!r} is not one the likelihood was learnt on "
+                             f"({', '.join(self.configurations)}): prepare it for this design set")
+        self.levels.check(height_m, speed_mps, angle_deg)
+        s = normalised.shape[0]
+        onehot = np.zeros((s, len(self.configurations)))
+        onehot[:, self.configurations.index(configuration)] = 1.0
+        condition = np.broadcast_to(self.levels.features(height_m, speed_mps, angle_deg), (s, 3))
+        raw = np.concatenate([normalised, onehot, condition], axis=1)
+        return (raw - self.feature_mean) / self.feature_std
+
+    # ---- the interface other code uses ---------------------------------------------------------------------
+    def predict_upright_probability(self, theta_samples: npt.ArrayLike, design: str,
+                                    condition: typing.Tuple[float, float, float]) -> np.ndarray:
+        """P(upright) (s,) of one launch of configuration ``design`` at ``condition`` (height m, speed m/s,
+        angle deg) under each parameter set of ``theta_samples`` (s, d) (own units, :attr:`unknowns` order)."""
+        normalised = self.unknowns.to_normalised(np.atleast_2d(np.asarray(theta_samples, dtype=np.float64)))
+        return self._upright_probability(normalised, design, *condition)
+
+    def _upright_probability(self, normalised: np.ndarray, design: str, height_m: float, speed_mps: float,
+                             angle_deg: float) -> np.ndarray:
+        logit = _forward(self.upright, self.features(normalised, design, height_m, speed_mps, angle_deg))[:, 0]
+        return np.clip(1.0 / (1.0 + np.exp(-logit)), PROBABILITY_FLOOR, 1.0 - PROBABILITY_FLOOR)
+
+    def arrange(self, observations: typing.Sequence[Observation],
+                outcomes: typing.Optional[typing.Sequence[str]] = None) -> "Arranged":
+        """``observations`` grouped per (configuration, condition) for :meth:`log_likelihood` (each refused
+        when off the learnt configurations and levels); ``outcomes``: the continuous outcomes used (default:
+        every one the likelihood has)."""
+        used = tuple(name for name in (OUTCOMES if outcomes is None else outcomes) if name in self.location)
+        groups: typing.Dict[typing.Tuple[str, float, float, float], typing.List[Observation]] = {}
+        for observation in observations:
+            key = (observation.configuration, observation.height_m, observation.speed_mps, observation.angle_deg)
+            groups.setdefault(key, []).append(observation)
+        keys = list(groups)
+        rest = np.array([self.features(np.zeros((1, len(self.unknowns.names))), *key)[0, len(self.unknowns.names):]
+                         for key in keys]).reshape(len(keys), -1)
+        successes = np.array([sum(o.upright for o in groups[key]) for key in keys], dtype=np.float64)
+        trials = np.array([len(groups[key]) for key in keys], dtype=np.float64)
+        widest = max((len(g) for g in groups.values()), default=0)
+        # values (outcome, group, verdict: upright / not, slot), NaN where absent
+        values = np.full((len(used), len(keys), 2, max(widest, 1)), np.nan)
+        for g, key in enumerate(keys):
+            for v, verdict in enumerate((True, False)):
+                rows = [o.outcome_vector() for o in groups[key] if o.upright == verdict]
+                for j, name in enumerate(used):
+                    column = transform(name, np.array([row[OUTCOMES.index(name)] for row in rows]), key[2])
+                    values[j, g, v, :len(column)] = column
+        return Arranged(tuple(keys), rest, successes, trials, used, values)
+
+    def log_likelihood(self, normalised: npt.ArrayLike,
+                       observations: typing.Union[typing.Sequence[Observation], "Arranged"],
+                       outcomes: typing.Optional[typing.Sequence[str]] = None) -> np.ndarray:
+        """log P(observations | unknowns) (s,) for normalised unknowns (s, d): the verdicts' binomial terms plus
+        each measured outcome's Student-t (module docstring). ``observations`` may be an :meth:`arrange` result
+        (made once, evaluated many times: the sampler's case); ``outcomes`` as in :meth:`arrange`."""
+        arranged = observations if isinstance(observations, Arranged) else self.arrange(observations, outcomes)
+        u = np.atleast_2d(np.asarray(normalised, dtype=np.float64))
+        if not arranged.keys:
+            return np.zeros(u.shape[0])
+        d = len(self.unknowns.names)
+        theta = (u - self.feature_mean[:d]) / self.feature_std[:d]
+        logit = _forward_split(self.upright, theta, arranged.rest)                       # (s, G)
+        p = np.clip(1.0 / (1.0 + np.exp(-logit)), PROBABILITY_FLOOR, 1.0 - PROBABILITY_FLOOR)
+        total = (arranged.successes * np.log(p) + (arranged.trials - arranged.successes) * np.log1p(-p)).sum(axis=1)
+        if not arranged.outcomes:
+            return total
+        verdict = np.concatenate([np.repeat(arranged.rest, 2, axis=0),
+                                  np.tile([[1.0], [-1.0]], (len(arranged.keys), 1))], axis=1)   # (2G, f - d + 1)
+        for j, name in enumerate(arranged.outcomes):
+            values = arranged.values[j]                                                   # (G, 2, slots)
+            if not np.isfinite(values).any():
+                continue
+            location = _forward_split(self.location[name], theta, verdict).reshape(len(u), -1, 2)
+            variance = np.exp(np.clip(_forward_split(self.scale[name], theta, verdict) - LOG_CHI2_MEAN, -30.0, 30.0))
+            scale = np.sqrt(variance * (STUDENT_DF - 2.0) / STUDENT_DF).reshape(len(u), -1, 2)
+            density = _student_t_log_pdf(values[None], location[..., None], scale[..., None])  # (s, G, 2, slots)
+            total += np.where(np.isfinite(values)[None], density, 0.0).sum(axis=(1, 2, 3))
+        return total
+
+    # ---- the file ------------------------------------------------------------------------------------------
+    def header(self) -> typing.Dict[str, object]:
+        """The JSON header of the file."""
+        return {"format": FORMAT, "unknowns": dataclasses.asdict(self.unknowns),
+                "configurations": list(self.configurations), "levels": dataclasses.asdict(self.levels),
+                "fingerprint": self.fingerprint, "hidden": list(HIDDEN), "outcomes": sorted(self.location),
+                "student_df": STUDENT_DF, "info": self.info}
+
+    def save(self, path: typing.Union[str, os.PathLike]) -> None:
+        """Write the ``.npz`` file (module docstring) atomically (a temporary file renamed over ``path``)."""
+        arrays: typing.Dict[str, np.ndarray] = {
+            "header": np.array(json.dumps(self.header(), sort_keys=True)),
+            "feature_mean": self.feature_mean, "feature_std": self.feature_std}
+        for label, layers in (("upright", self.upright), *((f"location.{n}", v) for n, v in self.location.items()),
+                              *((f"scale.{n}", v) for n, v in self.scale.items())):
+            for i, (weights, biases) in enumerate(layers):
+                arrays[f"{label}.{i}.w"], arrays[f"{label}.{i}.b"] = weights, biases
+        target = os.fspath(path)
+        temporary = f"{target}.partial-{os.getpid()}.npz"
+        savez: typing.Any = np.savez_compressed   # its stub types **arrays as its own keyword options
+        savez(temporary, **arrays)
+        os.replace(temporary, target)
+
+
+def load_likelihood(path: typing.Union[str, os.PathLike]) -> LearntLikelihood:
+    """Read a prepared likelihood file; ``ValueError`` in one line naming the file and the problem (unreadable,
+    not an archive of this format, a missing or misshapen array, a number that is not finite). Read with
+    ``allow_pickle=False``: nothing in the file can execute."""
+    source = os.fspath(path)
+    try:
+        return _load(source)
+    except ValueError as error:
+        raise ValueError(f"{source}: {error}") from None
+    except (OSError, EOFError, KeyError, TypeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{source}: not a prepared likelihood file ({type(error).__name__}: "
+                         f"{str(error).splitlines()[0] if str(error) else 'unreadable'})") from None
+    except Exception as error:   # a damaged zip raises zipfile.BadZipFile, zlib.error, ...
+        raise ValueError(f"{source}: not a prepared likelihood file (damaged: {type(error).__name__})") from None
+
+
+def _load(source: str) -> LearntLikelihood:
+    with np.load(source, allow_pickle=False) as archive:
+        try:
+            arrays = {name: archive[name] for name in archive.files}
+        except ValueError as error:
+            if "allow_pickle" not in str(error):
+                raise
+            raise ValueError("holds a pickled object array (refused unread: nothing in the file may execute)") from None
+    if "header" not in arrays or arrays["header"].dtype.kind != "U" or arrays["header"].shape != ():
+        raise ValueError("not a prepared likelihood file (no header)")
+    header = json.loads(str(arrays["header"]))
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        found = header.get("format") if isinstance(header, dict) else None
+        raise ValueError(f"format must be {FORMAT!r}, got {found!r}")
+    u = header["unknowns"]
+    unknowns = Unknowns(tuple(map(str, u["names"])), tuple(map(float, u["lower"])), tuple(map(float, u["upper"])),
+                        tuple(map(bool, u["log_scale"])))
+    configurations = tuple(map(str, header["configurations"]))
+    lv = header["levels"]
+    levels = ConditionLevels(tuple(map(float, lv["heights_m"])), tuple(map(float, lv["speeds_mps"])),
+                             tuple(map(float, lv["angles_deg"])))
+    if not configurations or not all(levels.heights_m) or not levels.speeds_mps or not levels.angles_deg:
+        raise ValueError("the header names no configuration or no condition levels")
+    if list(header["hidden"]) != list(HIDDEN) or float(header["student_df"]) != STUDENT_DF:
+        raise ValueError(f"networks of another shape (hidden {header['hidden']}, this version reads {list(HIDDEN)})")
+    features = len(unknowns.names) + len(configurations) + 3
+
+    def layers(label: str, inputs: int) -> Layers:
+        out = []
+        sizes = [inputs, *HIDDEN, 1]
+        for i in range(len(sizes) - 1):
+            weights, biases = arrays.get(f"{label}.{i}.w"), arrays.get(f"{label}.{i}.b")
+            if weights is None or biases is None:
+                raise ValueError(f"missing the weights of {label} layer {i}")
+            if weights.shape != (sizes[i], sizes[i + 1]) or biases.shape != (sizes[i + 1],):
+                raise ValueError(f"{label} layer {i} has shape {weights.shape}, {biases.shape}; expected "
+                                 f"{(sizes[i], sizes[i + 1])}, {(sizes[i + 1],)}")
+            out.append((_finite(weights, label), _finite(biases, label)))
+        return out
+    outcomes = [str(name) for name in header["outcomes"]]
+    if not set(outcomes) <= set(OUTCOMES):
+        raise ValueError(f"unknown outcome in {outcomes}")
+    mean, std = arrays.get("feature_mean"), arrays.get("feature_std")
+    if mean is None or std is None or mean.shape != (features,) or std.shape != (features,):
+        raise ValueError(f"feature scaling must have {features} entries")
+    if not np.all(_finite(std, "feature_std") > 0):
+        raise ValueError("feature scaling has a zero spread")
+    return LearntLikelihood(unknowns, configurations, levels, str(header["fingerprint"]), _finite(mean, "feature_mean"),
+                            std, layers("upright", features),
+                            {n: layers(f"location.{n}", features + 1) for n in outcomes},
+                            {n: layers(f"scale.{n}", features + 1) for n in outcomes}, dict(header.get("info", {})))
+
+
+def _finite(array: np.ndarray, label: str) -> np.ndarray:
+    if array.dtype.kind != "f" or not np.all(np.isfinite(array)):
+        raise ValueError(f"{label} holds a value that is not a finite number")
+    return np.asarray(array, dtype=np.float64)
+
+
+# ---- preparation: the twin simulated once, the networks learnt ----------------------------------------------------
+
+def twin_fingerprint(parameters: typing.Mapping[str, object], unknowns: typing.Sequence[str]) -> str:
+    """SHA-256 (hex) of the twin's flat ``parameters`` except ``unknowns`` and the ``calibration``,
+    ``stable_poses`` and ``campaign`` namespaces (the levels are kept apart), and of the bytes of every design mesh
+    (``launch_twin.designs.mesh_files``; their paths do not count): what a prepared likelihood describes."""
+    digest = hashlib.sha256()
+    kept = {k: v for k, v in parameters.items() if k not in unknowns
+            and not k.startswith(("calibration.", "stable_poses.", "campaign."))}
+    kept.pop("launch_twin.designs.mesh_files", None)
+    digest.update(json.dumps(kept, sort_keys=True, default=repr).encode("utf-8"))
+    files = parameters.get("launch_twin.designs.mesh_files") or []
+    for path in files if isinstance(files, (list, tuple)) else []:
+        if not isinstance(path, str) or not path:   # an empty entry: no design file
+            continue
+        with open(path, "rb") as stream:
+            digest.update(hashlib.sha256(stream.read()).digest())
+    return digest.hexdigest()
+
+
+#: Columns of a simulated launch row (:func:`simulate_rows`): valid, upright, then :data:`OUTCOMES`.
+ROW = ("valid", "upright", *OUTCOMES)
+
+
+def simulate_rows(parameters: typing.Mapping[str, object], names: typing.Sequence[str],
+                  jobs: typing.Sequence[typing.Tuple[typing.Sequence[float], str, float, float, float, int]]
+                  ) -> np.ndarray:
+    """Launch the twin once per job (unknown values in own units, configuration, height, speed, angle, seed),
+    each with the unknowns ``names`` set to the job's values, run to rest (no early decision: the continuous
+    outcomes are the ones the rig measures at rest); an invalid launch is retried as the rig does. Rows (n, len
+    :data:`ROW`)."""
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters, simulate_valid_launch
+
+    rows = []
+    for values, configuration, height, speed, angle, seed in jobs:
+        flat = dict(parameters)
+        flat.update({name: float(value) for name, value in zip(names, values)})
+        settings = launch_twin_settings_from_parameters(flat)
+        settings = dataclasses.replace(settings, trial=dataclasses.replace(settings.trial, early_decision=False))
+        result = simulate_valid_launch(LaunchCondition(configuration, height, speed, angle), settings, int(seed))
+        rows.append([float(result.valid), float(result.valid and result.upright), result.measured_speed_mps,
+                     result.tilt_deg, result.peak_deceleration_mps2, result.time_to_rest_s, result.rest_distance_m])
+    return np.array(rows, dtype=np.float64).reshape(-1, len(ROW))
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainingSet:
+    """Simulated launches to learn from: normalised unknowns (n, d), configuration index (n,), condition
+    (n, 3: height, speed, angle) and :data:`ROW` rows (n, len ROW)."""
+
+    normalised: np.ndarray
+    configuration: np.ndarray
+    condition: np.ndarray
+    rows: np.ndarray
+
+
+def draw_training_jobs(unknowns: Unknowns, configurations: typing.Sequence[str], levels: ConditionLevels,
+                       launches: int, seed: int) -> typing.Tuple[np.ndarray, np.ndarray, np.ndarray, typing.List[int]]:
+    """``launches`` training launches: unknowns uniform over the normalised box (a scrambled Sobol sequence
+    when scipy has one: even coverage), configuration and condition levels uniform; returns (normalised (n, d),
+    configuration index (n,), condition (n, 3), launch seeds)."""
+    from rollability_ros.core.sim import trial_seed
+
+    rng = np.random.default_rng(seed)
+    d = len(unknowns.names)
+    try:
+        qmc = require("scipy.stats.qmc")
+        # drawn to the next power of 2 (the sequence's balance) and cut to the count
+        normalised = qmc.Sobol(d, scramble=True, seed=rng).random_base2(max(0, math.ceil(math.log2(launches))))
+        normalised = normalised[:launches]
+    except ImportError:   # MissingDependency: no scipy (the sim extra), plain random draws
+        normalised = rng.uniform(size=(launches, d))
+    configuration = rng.integers(len(configurations), size=launches)
+    condition = np.stack([rng.choice(levels.heights_m, launches), rng.choice(levels.speeds_mps, launches),
+                          rng.choice(levels.angles_deg, launches)], axis=1)
+    return normalised, configuration, condition, [trial_seed(seed, i) for i in range(launches)]
+
+
+def simulate_training_set(parameters: typing.Mapping[str, object], unknowns: Unknowns,
+                          configurations: typing.Sequence[str], levels: ConditionLevels, launches: int, seed: int,
+                          pool: typing.Optional[concurrent.futures.Executor] = None, chunk: int = 25,
+                          on_progress: typing.Optional[typing.Callable[[int, int], None]] = None) -> TrainingSet:
+    """:func:`draw_training_jobs` launched on the twin (:func:`simulate_rows`), in ``pool``'s worker processes
+    (a ``concurrent.futures`` executor) or serially."""
+    normalised, configuration, condition, seeds = draw_training_jobs(unknowns, configurations, levels, launches,
+                                                                     seed)
+    values = unknowns.to_values(normalised)
+    jobs = [(tuple(values[i]), configurations[configuration[i]], *condition[i], seeds[i]) for i in range(launches)]
+    chunks = [jobs[i:i + chunk] for i in range(0, len(jobs), chunk)]
+    rows: typing.List[np.ndarray] = []
+    if pool is None:
+        results: typing.Iterable[np.ndarray] = (simulate_rows(parameters, unknowns.names, c) for c in chunks)
+    else:
+        results = pool.map(simulate_rows, [parameters] * len(chunks), [unknowns.names] * len(chunks), chunks)
+    for part in results:
+        rows.append(part)
+        if on_progress is not None:
+            on_progress(sum(len(r) for r in rows), launches)
+    return TrainingSet(normalised, configuration, condition, np.concatenate(rows) if rows else
+                       np.zeros((0, len(ROW))))
+
+
+def _layers_of(model: typing.Any) -> Layers:
+    return [(np.asarray(w, dtype=np.float64), np.asarray(b, dtype=np.float64))
+            for w, b in zip(model.coefs_, model.intercepts_)]
+
+
+def learn(training: TrainingSet, unknowns: Unknowns, configurations: typing.Sequence[str], levels: ConditionLevels,
+          fingerprint: str, seed: int = 1, holdout_fraction: float = 0.15,
+          on_progress: typing.Optional[typing.Callable[[str], None]] = None) -> LearntLikelihood:
+    """Learn the networks (module docstring) from ``training``'s valid launches; the last ``holdout_fraction`` of
+    them is held out to measure the classifier's accuracy (log loss and Brier score against a constant), recorded
+    in ``info``. scikit-learn is imported here."""
+    neural = require("sklearn.neural_network", feature="preparing a learnt likelihood")
+    say = on_progress or (lambda line: None)
+    valid = training.rows[:, 0] > 0.5
+    n = int(valid.sum())
+    if n < 50:
+        raise ValueError(f"only {n} valid training launches: prepare with more launches")
+    u = training.normalised[valid]
+    onehot = np.eye(len(configurations))[training.configuration[valid]]
+    condition = training.condition[valid]
+    raw = np.concatenate([u, onehot, levels.features(condition[:, 0], condition[:, 1], condition[:, 2])], axis=1)
+    mean, std = raw.mean(axis=0), raw.std(axis=0)
+    std = np.where(std > 1e-9, std, 1.0)
+    x = (raw - mean) / std
+    rows = training.rows[valid]
+    upright = rows[:, 1] > 0.5
+    held = np.arange(n) >= int(round(n * (1.0 - holdout_fraction)))
+    common = {"hidden_layer_sizes": HIDDEN, "activation": "relu", "alpha": 1e-4, "max_iter": 300,
+              "early_stopping": True, "n_iter_no_change": 15, "random_state": seed}
+    classifier = neural.MLPClassifier(**common).fit(x[~held], upright[~held])
+    p = np.clip(classifier.predict_proba(x[held])[:, 1], PROBABILITY_FLOOR, 1 - PROBABILITY_FLOOR)
+    y = upright[held]
+    base = float(np.clip(upright[~held].mean(), PROBABILITY_FLOOR, 1 - PROBABILITY_FLOOR))
+    info: typing.Dict[str, typing.Any] = {
+        "training_launches": int(len(training.rows)), "valid_launches": n, "upright_fraction": float(upright.mean()),
+        "holdout_launches": int(held.sum()),
+        "holdout_log_loss": float(-np.mean(y * np.log(p) + (~y) * np.log1p(-p))),
+        "holdout_log_loss_constant": float(-np.mean(y * math.log(base) + (~y) * math.log1p(-base))),
+        "holdout_brier": float(np.mean((p - y) ** 2)), "holdout_brier_constant": float(np.mean((base - y) ** 2))}
+    say(f"upright classifier: held-out log loss {info['holdout_log_loss']:.3f} (a constant "
+        f"{info['holdout_log_loss_constant']:.3f}), Brier {info['holdout_brier']:.3f}")
+    # the classifier is refitted on every valid launch for the file (the held-out score above measured it)
+    classifier = neural.MLPClassifier(**common).fit(x, upright)
+    logit_layers = _layers_of(classifier)
+    location: typing.Dict[str, Layers] = {}
+    scale: typing.Dict[str, Layers] = {}
+    xv = np.concatenate([x, np.where(upright, 1.0, -1.0)[:, None]], axis=1)
+    for j, name in enumerate(OUTCOMES):
+        target = transform(name, rows[:, 2 + j], condition[:, 1])
+        finite = np.isfinite(target)
+        if finite.sum() < 50:
+            say(f"{name}: {int(finite.sum())} launches measured it: not learnt")
+            continue
+        rows_x, rows_y = xv[finite], target[finite]
+        # the scale learns from cross-fitted residuals (each half predicted by a location net that never saw it),
+        # so it carries the location's error at launches it was not trained on, not only the launches' scatter
+        half = np.arange(len(rows_y)) % 2 == 0
+        residual = np.empty(len(rows_y))
+        for fit_on in (half, ~half):
+            held = neural.MLPRegressor(**common).fit(rows_x[fit_on], rows_y[fit_on])
+            residual[~fit_on] = rows_y[~fit_on] - held.predict(rows_x[~fit_on])
+        regressor = neural.MLPRegressor(**common).fit(rows_x, rows_y)
+        spread = neural.MLPRegressor(**common).fit(rows_x, np.log(residual ** 2 + 1e-12))
+        location[name], scale[name] = _layers_of(regressor), _layers_of(spread)
+        info[f"{name}_launches"] = int(finite.sum())
+        info[f"{name}_residual_sd"] = float(np.std(residual))
+        say(f"{name}: learnt from {int(finite.sum())} launches, cross-fitted residual sd {np.std(residual):.3g} "
+            f"(transformed)")
+    return LearntLikelihood(unknowns, tuple(configurations), levels, fingerprint, mean, std, logit_layers,
+                            location, scale, info)

@@ -1,0 +1,228 @@
+"""The posterior of a learnt likelihood's unknowns (:mod:`~rollability_ros.core.campaign.likelihood`): the
+ensemble sampler, the 95% highest-density sets (a split set stays a union of intervals), and the characterisation
+readings as a log-likelihood term over the same unknowns. docs/calibration.md, "The learnt likelihood"."""
+import contextlib
+import dataclasses
+import math
+import typing
+
+import numpy as np
+import numpy.typing as npt
+
+from rollability_ros.core.campaign.characterisation import Characterisation
+from rollability_ros.core.campaign.adaptive import Unknowns
+from rollability_ros.core.campaign.likelihood import LearntLikelihood, Observation, normalised_one, values_one
+from rollability_ros.core.optional import require
+
+LogDensity = typing.Callable[[np.ndarray], np.ndarray]
+
+
+def stretch_sampler(log_density: LogDensity, start: np.ndarray, steps: int, rng: np.random.Generator,
+                    a: float = 2.0) -> typing.Tuple[np.ndarray, np.ndarray]:
+    """Goodman and Weare's affine-invariant ensemble sampler (the stretch move, two half-ensembles updated in
+    turn) on the unit box: ``log_density`` (w, k) -> (w,), -inf outside the box; ``start`` (w, k) with w even
+    and >= 2 k. Returns the chain (steps, w, k) and its log densities (steps, w)."""
+    walkers, k = start.shape
+    half = walkers // 2
+    position = start.copy()
+    current = log_density(position)
+    chain = np.empty((steps, walkers, k))
+    densities = np.empty((steps, walkers))
+    for step in range(steps):
+        for active, other in ((slice(0, half), slice(half, walkers)), (slice(half, walkers), slice(0, half))):
+            mine, theirs = position[active], position[other]
+            z = ((a - 1.0) * rng.uniform(size=len(mine)) + 1.0) ** 2 / a
+            partners = theirs[rng.integers(len(theirs), size=len(mine))]
+            proposal = partners + z[:, None] * (mine - partners)
+            proposed = np.full(len(mine), -np.inf)
+            inside = np.all((proposal >= 0.0) & (proposal <= 1.0), axis=1)
+            if inside.any():
+                proposed[inside] = log_density(proposal[inside])
+            accept = np.log(rng.uniform(size=len(mine))) < (k - 1) * np.log(z) + proposed - current[active]
+            mine = np.where(accept[:, None], proposal, mine)
+            position[active] = mine
+            current[active] = np.where(accept, proposed, current[active])
+        chain[step] = position
+        densities[step] = current
+    return chain, densities
+
+
+@dataclasses.dataclass(frozen=True)
+class Posterior:
+    """Posterior samples of the sampled unknowns: ``names`` (k,), ``samples`` (n, k) own units, ``normalised``
+    (n, k), the :class:`Unknowns` entry of each (``unknowns``, indices ``index``), the sampler's wall time and
+    each sample's log posterior density ``log_density`` (n,) (up to a constant)."""
+
+    names: typing.Tuple[str, ...]
+    samples: np.ndarray
+    normalised: np.ndarray
+    unknowns: Unknowns
+    index: typing.Tuple[int, ...]
+    wall_s: float
+    log_density: np.ndarray
+
+    def best(self) -> typing.Dict[str, float]:
+        """The sample of highest posterior density (own units): the fitted values (inside a split set, where a
+        marginal median might fall in the gap)."""
+        top = int(np.argmax(self.log_density))
+        return {name: float(self.samples[top, i]) for i, name in enumerate(self.names)}
+
+    def credible_set(self, name: str, mass: float = 0.95) -> typing.List[typing.Tuple[float, float]]:
+        """The highest-density ``mass`` set of unknown ``name``'s marginal (own units): :func:`credible_set`."""
+        i = self.names.index(name)
+        intervals = credible_set(self.normalised[:, i], mass)
+        j = self.index[i]
+        return [(float(values_one(self.unknowns, j, lo)), float(values_one(self.unknowns, j, hi)))
+                for lo, hi in intervals]
+
+    def set_width_fraction(self, name: str, mass: float = 0.95) -> float:
+        """The total length of the credible set as a fraction of the range, on the unknown's own scale."""
+        i = self.names.index(name)
+        return float(sum(hi - lo for lo, hi in credible_set(self.normalised[:, i], mass)))
+
+    def median(self, name: str) -> float:
+        """Posterior median (own units)."""
+        return float(np.median(self.samples[:, self.names.index(name)]))
+
+
+#: Bins of the marginal histogram a credible set is read from (over the unknown's normalised range).
+SET_BINS = 50
+
+
+def credible_set(normalised_samples: npt.ArrayLike, mass: float = 0.95, bins: int = SET_BINS,
+                 gap_bins: int = 1) -> typing.List[typing.Tuple[float, float]]:
+    """The highest-density set holding ``mass`` of the samples (normalised coordinates, (n,)): the fullest bins
+    of a ``bins``-bin histogram over [0, 1] until they hold ``mass``, adjacent bins merged, and so are intervals
+    separated by at most ``gap_bins`` left-out bins (a gap that narrow is the samples' noise in a flat stretch,
+    measured: a verdicts-only posterior came out in five pieces of one-bin gaps); a list of disjoint (low, high)
+    intervals, ascending. Conservative by up to a bin at each end (a bin is in or out whole)."""
+    x = np.clip(np.asarray(normalised_samples, dtype=np.float64), 0.0, 1.0)
+    counts, edges = np.histogram(x, bins=bins, range=(0.0, 1.0))
+    order = np.argsort(-counts, kind="stable")
+    kept = np.zeros(bins, dtype=bool)
+    total = 0
+    for b in order:
+        if total >= mass * len(x):
+            break
+        kept[b] = True
+        total += counts[b]
+    intervals: typing.List[typing.Tuple[float, float]] = []
+    width = 1.0 / bins
+    for b in np.flatnonzero(kept):
+        if intervals and edges[b] - intervals[-1][1] < (gap_bins + 0.5) * width:
+            intervals[-1] = (intervals[-1][0], float(edges[b + 1]))
+        else:
+            intervals.append((float(edges[b]), float(edges[b + 1])))
+    return intervals
+
+
+def format_set(intervals: typing.Sequence[typing.Tuple[float, float]]) -> str:
+    """A credible set as text: ``[a, b]``, or ``[a, b] U [c, d]`` when it is split (never the hull)."""
+    return " U ".join(f"[{lo:.4g}, {hi:.4g}]" for lo, hi in intervals)
+
+
+def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence[Observation],
+                     sample: typing.Optional[typing.Sequence[str]] = None,
+                     fixed: typing.Optional[typing.Mapping[str, float]] = None,
+                     extra: typing.Optional[LogDensity] = None, outcomes: typing.Optional[typing.Sequence[str]] = None,
+                     walkers: int = 32, steps: int = 600, seed: int = 1) -> Posterior:
+    """Posterior samples of the unknowns ``sample`` (default: all of the likelihood's) given ``observations``,
+    the others held at ``fixed`` (own units; every unknown not sampled needs a value inside its bounds).
+    ``extra``: a log-likelihood (s,) of the full normalised unknowns (s, d) added to the launches' (the
+    characterisation's, :func:`characterisation_term`). Uniform prior on the normalised box; the stretch sampler
+    starts from the best of 2,000 prior draws, discards the first half of ``steps`` and keeps every step after
+    (correlated samples, but more of them: a 50-bin histogram of every 5th step came out in noisy pieces)."""
+    import time
+
+    started = time.perf_counter()
+    unknowns = likelihood.unknowns
+    names = tuple(sample or unknowns.names)
+    missing = [n for n in names if n not in unknowns.names]
+    if missing:
+        raise ValueError(f"{missing[0]} is not an unknown of the prepared likelihood ({', '.join(unknowns.names)})")
+    index = tuple(unknowns.names.index(n) for n in names)
+    base = np.full(len(unknowns.names), np.nan)
+    for i, name in enumerate(unknowns.names):
+        if name in names:
+            continue
+        if fixed is None or name not in fixed:
+            raise ValueError(f"{name}: not sampled, so it needs a fixed value")
+        base[i] = float(normalised_one(unknowns, i, fixed[name]))
+        if not -1e-9 <= base[i] <= 1 + 1e-9:
+            raise ValueError(f"{name} = {fixed[name]:g} lies outside the bounds the likelihood was learnt on "
+                             f"[{unknowns.lower[i]:g}, {unknowns.upper[i]:g}]: prepare it with wider bounds")
+
+    def full(u: np.ndarray) -> np.ndarray:
+        out = np.repeat(base[None, :], len(u), axis=0)
+        out[:, index] = u
+        return out
+
+    arranged = likelihood.arrange(observations, outcomes)
+
+    def log_density(u: np.ndarray) -> np.ndarray:
+        value = likelihood.log_likelihood(full(u), arranged)
+        return value + extra(full(u)) if extra is not None else value
+    rng = np.random.default_rng(seed)
+    k = len(index)
+    walkers = max(walkers, 2 * k + 2) + (max(walkers, 2 * k + 2) % 2)
+    candidates = rng.uniform(size=(2000, k))
+    scores = np.concatenate([log_density(part) for part in np.array_split(candidates, 10)])
+    start = candidates[np.argsort(-scores)[:walkers]]
+    try:   # small matrices: BLAS threads only contend (4x slower measured on a loaded 2-core machine)
+        limits: typing.Any = require("threadpoolctl").threadpool_limits(1)
+    except ImportError:
+        limits = contextlib.nullcontext()
+    with limits:
+        chain, densities = stretch_sampler(log_density, start, steps, rng)
+    kept = chain[steps // 2:].reshape(-1, k)
+    values = np.array([values_one(unknowns, j, kept[:, i]) for i, j in enumerate(index)]).T
+    return Posterior(names, values, kept, unknowns, index, time.perf_counter() - started,
+                     densities[steps // 2:].reshape(-1))
+
+
+def characterisation_term(characterisation: Characterisation, parameters: typing.Mapping[str, object],
+                          unknowns: Unknowns, grid_points: int = 9) -> LogDensity:
+    """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
+    :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
+    parameter set). Roll-outs: simulated on a grid of ``grid_points`` values of each roll-out unknown sampled here
+    (:data:`ROLLOUT_KEYS`; at most two, the others at their loaded values) and interpolated (linear in the
+    normalised coordinates), since a roll-out per parameter set would cost as much as the launches it replaces."""
+    from rollability_ros.core.campaign import characterisation as bench
+
+    names = unknowns.names
+
+    def slide(u: np.ndarray) -> np.ndarray:
+        """The slide angles' log-likelihood (s,): bench.slide_angle_deg's model, vectorised over the samples."""
+        if not characterisation.slide_angles_deg:
+            return np.zeros(len(u))
+        values = unknowns.to_values(u)
+        mu = np.ones(len(u))
+        for key in SLIDE_KEYS:   # the contact friction is the product of the two
+            mu = mu * (values[:, names.index(key)] if key in names else float(typing.cast(float, parameters[key])))
+        angle = np.degrees(np.arctan(mu))
+        sigma = characterisation.slide_sigma_deg
+        readings = np.asarray(characterisation.slide_angles_deg)
+        return (-0.5 * ((readings[None, :] - angle[:, None]) / sigma) ** 2
+                - math.log(sigma * math.sqrt(2.0 * math.pi))).sum(axis=1)
+    if not characterisation.rollouts:
+        return slide
+    rolling = [names.index(k) for k in ROLLOUT_KEYS if k in names]
+    if len(rolling) > 2:
+        raise ValueError("at most two roll-out unknowns can be tabulated")
+    grids = [np.linspace(0.0, 1.0, grid_points) for _ in rolling]
+    mesh = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(rolling), -1).T if rolling else np.zeros((1, 0))
+    table = np.array([bench.characterisation_log_likelihood(
+        dataclasses.replace(characterisation, slide_angles_deg=()),
+        {**parameters, **{names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(rolling)}})
+        for point in mesh])
+    if not rolling:
+        return lambda u: slide(u) + table[0]
+    interpolate = require("scipy.interpolate", feature="tabulated roll-outs").RegularGridInterpolator(
+        grids, table.reshape([grid_points] * len(rolling)))
+    return lambda u: slide(u) + interpolate(np.clip(u[:, rolling], 0.0, 1.0))
+
+
+#: The keys whose product is the printed part's friction on the foam (the slide angle's model).
+SLIDE_KEYS = ("sim.lateral_friction", "launch_twin.foam.lateral_friction")
+#: The unknowns a roll-out depends on (:func:`characterisation_term` tabulates the roll-out over those sampled).
+ROLLOUT_KEYS = ("launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm")

@@ -27,7 +27,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
 
 from rollability_ros.core.config import from_mapping, section  # noqa: E402
-from rollability_ros.core.optimization import optimization_run, selection  # noqa: E402
+from rollability_ros.core.optimization import design_set, optimization_run, selection  # noqa: E402
 from rollability_ros.core.profile import descriptors  # noqa: E402
 from rollability_ros.core.store import Store  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
@@ -73,7 +73,7 @@ def one_run(method, seed, generations, workers, workdir):
         run.close()
         with Store(run_dir) as store:
             candidates = store.candidates()
-            picked, _ = selection.select_run(
+            picked, _ = design_set.select_run(
                 store, run.run_id, run_dir, settings.grid, settings.printer, chosen,
                 optimization_run.profile_batch_evaluator(settings, chosen.reevaluate_trials, executor), seed)
     wall_s = time.perf_counter() - started

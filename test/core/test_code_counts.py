@@ -7,10 +7,10 @@ import code_counts
 ANY_SIGNATURES_ALLOWED = 108
 
 
-#: Modules other rooms are splitting this round (issue 43 item 5: selection and report; the settings rewrite of
-#: optimization_run): their sizes are printed, and asserted here once the splits land.
-SPLIT_ELSEWHERE = ("rollability_ros/core/optimization/selection.py", "rollability_ros/core/results/report.py",
-                   "rollability_ros/core/optimization/optimization_run.py")
+#: Modules another room is splitting this round (the settings rewrite of optimization_run): their sizes are printed,
+#: and asserted here once the split lands. selection and report (issue 43 item 5) are split: deciding in
+#: selection.py and report.py, writing in design_set.py and report_writer.py.
+SPLIT_ELSEWHERE = ("rollability_ros/core/optimization/optimization_run.py",)
 
 
 def test_no_module_over_700_lines_and_no_function_over_80_elsewhere():

@@ -74,6 +74,60 @@ def test_topic_service_action_round_trip(ros_node, peer):
     assert feedback == sorted(feedback) and feedback[-1] == 6
 
 
+def test_a_running_goal_whose_answer_was_lost_is_followed_not_sent_again(ros_node):
+    """send_goal_resending: the server ran the goal but its answer never came (rclpy runs a goal whose response
+    the rmw could only warn about): the copy's feedback shows it running, so it is the one followed (its result
+    arrives through a handle made from its goal id) and no second copy is sent (a second launch, or a replay)."""
+    from action_msgs.msg import GoalStatus
+    from rclpy.action import ActionServer, GoalResponse
+    from rclpy.callback_groups import ReentrantCallbackGroup
+
+    from rollability_ros.action import EvaluateProfile
+    from rollability_ros.nodes._support import ThreadSafeActionClient, send_goal_resending
+
+    class LosesFirstAnswer(ThreadSafeActionClient):
+        lost = 0
+
+        async def execute(self, taken_data):
+            if "goal" in taken_data and not self.lost:
+                self.lost += 1
+                taken_data = {key: value for key, value in taken_data.items() if key != "goal"}
+            await super().execute(taken_data)
+
+    server = SpunNode("lost_answer_server")
+    action_server = client = None
+    try:
+        goals = []
+
+        def execute(handle):
+            for step in range(1, 11):
+                handle.publish_feedback(EvaluateProfile.Feedback(trials_done=step))
+                time.sleep(0.1)
+            handle.succeed()
+            return EvaluateProfile.Result(trials=7)
+
+        action_server = ActionServer(server.node, EvaluateProfile, "lost_answer", execute_callback=execute,
+                                     goal_callback=lambda goal: goals.append(goal) or GoalResponse.ACCEPT,
+                                     callback_group=ReentrantCallbackGroup())
+        client = LosesFirstAnswer(ros_node.node, EvaluateProfile, "lost_answer")
+        assert client.wait_for_server(timeout_sec=30)
+        resends, feedback = [], []
+        handle = send_goal_resending(client, EvaluateProfile.Goal(trials=1), ros_node.wait_for, 30,
+                                     feedback_callback=feedback.append, resend_after_s=5.0,
+                                     on_resend=resends.append)
+        assert client.lost == 1 and handle is not None and handle.accepted
+        assert resends == [] and len(goals) == 1, (resends, goals)
+        result = handle.get_result_async()
+        assert ros_node.wait_for(result.done, 30)
+        assert result.result().status == GoalStatus.STATUS_SUCCEEDED and result.result().result.trials == 7
+        assert feedback and all(bytes(f.goal_id.uuid) == bytes(handle.goal_id.uuid) for f in feedback)
+    finally:
+        for entity in (client, action_server):
+            if entity is not None:
+                entity.destroy()
+        server.close()
+
+
 def test_a_goal_answered_late_is_sent_again_and_the_late_copy_cancelled(ros_node):
     """send_goal_resending: a goal unanswered for resend_after_s goes again; the first answer is used and the
     late-accepted copy is cancelled (a lost answer, the case it exists for, is the late answer that never comes)."""

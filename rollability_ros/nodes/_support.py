@@ -389,31 +389,64 @@ def send_goal_resending(client: ActionClient, goal: typing.Any, wait: typing.Cal
     A client sees its server (``server_is_ready``) once *its* endpoints matched the server's; the server's answer
     goes over a writer that discovery may not yet have matched to this client's reader. The server's rmw then waits
     for the match only for the writer's max blocking time (rmw_fastrtps: 100 ms, "client will not receive
-    response"), and rclpy's action server logs "Failed to send goal response" and never runs that goal. Under load
-    the first goal after discovery can be lost that way (seen in CI: no answer in 30 s). So a goal unanswered for
-    ``resend_after_s`` is sent again (same content, a new goal id; ``on_resend(copies_sent_so_far)`` is told).
-    Should an earlier copy's answer still come, the first answer is the one returned and any other accepted copy is
-    cancelled. ``goal`` may be a function that makes the goal: a signed goal must be signed again for each copy
-    (a signature is fresh for a few seconds only). ``wait(predicate, timeout_s) -> bool`` waits however the caller
-    spins.
+    response"). Under load the first goal after discovery can lose its answer that way (seen in CI: no answer in
+    30 s). rclpy (Jazzy) then either drops the goal ("Failed to send goal response") or, when the rmw only warns
+    (``RuntimeWarning: failed to send response (timeout)``), runs it all the same. So:
+
+    - a copy whose feedback arrives is running, answer or not: it is the one used (a handle is made for it from
+      its goal id, which this function chose), and no further copy is sent: a resent copy of a running launch would
+      be a second launch, or (signed once) a replay the server refuses;
+    - a goal unanswered and silent for ``resend_after_s`` is sent again (same content, a new goal id;
+      ``on_resend(copies_sent_so_far)`` is told). Should an earlier copy's answer still come, the first answer is the
+      one returned and any other accepted copy is cancelled.
+
+    ``goal`` may be a function that makes the goal: a signed goal must be signed again for each copy (a signature is
+    fresh for a few seconds only). ``wait(predicate, timeout_s) -> bool`` waits however the caller spins.
     """
-    copies: typing.List[typing.Any] = []
+    import uuid
+
+    from rclpy.action.client import ClientGoalHandle
+    from unique_identifier_msgs.msg import UUID
+
+    copies: typing.List[typing.Tuple[typing.Any, typing.Any]] = []   # (goal id, the answer's future)
+    running: typing.List[bytes] = []                                 # goal ids whose feedback arrived
+
+    def on_feedback(message: typing.Any) -> None:
+        goal_id = bytes(message.goal_id.uuid)
+        if goal_id not in running:
+            running.append(goal_id)
+        if feedback_callback is not None:
+            feedback_callback(message)
+
+    def settled() -> bool:
+        return bool(running) or any(future.done() for _goal_id, future in copies)
+
     deadline = time.monotonic() + timeout_s
     while True:
         copy = goal() if callable(goal) else goal   # a signed goal is signed afresh for each copy
-        copies.append(client.send_goal_async(copy, feedback_callback=feedback_callback))
+        goal_id = UUID(uuid=list(uuid.uuid4().bytes))
+        copies.append((goal_id, client.send_goal_async(copy, feedback_callback=on_feedback, goal_uuid=goal_id)))
         remaining = deadline - time.monotonic()
-        if wait(lambda: any(copy.done() for copy in copies), max(0.0, min(resend_after_s, remaining))):
+        if wait(settled, max(0.0, min(resend_after_s, remaining))):
             break
         if time.monotonic() >= deadline:
             break
         if on_resend is not None:
             on_resend(len(copies))
-    answered = next((copy for copy in copies if copy.done()), None)
-    for copy in copies:
-        if copy is not answered:
-            copy.add_done_callback(_cancel_if_accepted)
-    return answered.result() if answered is not None else None
+    if running and not any(future.done() for _goal_id, future in copies):
+        wait(lambda: any(future.done() for _goal_id, future in copies), 1.0)   # its answer may be on its way
+    answered = next((future for _goal_id, future in copies if future.done()), None)
+    if answered is not None:
+        handle = answered.result()
+    elif running:   # running without an answer: a handle of our own, from the goal id we chose
+        goal_id = next(goal_id for goal_id, _future in copies if bytes(goal_id.uuid) == running[0])
+        handle = ClientGoalHandle(client, goal_id, client._action_type.Impl.SendGoalService.Response(accepted=True))
+    else:
+        return None
+    for goal_id, future in copies:
+        if future is not answered and bytes(goal_id.uuid) != bytes(handle.goal_id.uuid):
+            future.add_done_callback(_cancel_if_accepted)
+    return handle
 
 
 def _cancel_if_accepted(future: typing.Any) -> None:

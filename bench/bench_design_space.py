@@ -24,7 +24,7 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
 
-from bench_shape_ceiling import nominal_settings, shapes  # noqa: E402
+from bench.bench_shape_ceiling import nominal_settings, shapes  # noqa: E402
 
 from rollability_ros.core.optimization import optimization_run  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402

@@ -38,8 +38,11 @@ setup(
     python_requires=">=3.10",
     packages=find_packages(include=["rollability_ros", "rollability_ros.*"]),
     # The rig side needs only these: it runs on a robot computer without the simulation extras.
-    install_requires=["numpy>=1.23", "pyyaml>=6", "mcap>=1.1", "mcap-ros2-support>=0.5", "rosbags>=0.10", "zstandard"],
+    # lazy_loader: the core's faces (core/*/__init__.pyi, scientific-python SPEC 1) load a module when a name is used.
+    install_requires=["lazy_loader>=0.4", "numpy>=1.23", "pyyaml>=6", "mcap>=1.1", "mcap-ros2-support>=0.5", "rosbags>=0.10", "zstandard"],
     extras_require=EXTRAS,
+    # the faces' stubs: lazy_loader reads them at run time, type checkers too
+    package_data={"rollability_ros.core": ["*/__init__.pyi"]},
     data_files=[
         ("share/rollability_ros/config", sorted(glob.glob("config/*.yaml") + glob.glob("config/*.json"))),
         ("share/rollability_ros/launch", sorted(glob.glob("launch/*.py"))),

@@ -81,7 +81,7 @@ def measure(writer_name, payload_bytes, message_count, directory):
             "file_bytes": file_bytes}
 
 
-def run(seconds_per_case=2.0, cases=CASES, directory=None):
+def run(seconds_per_case=2.0, cases=CASES, directory=None, probe_messages=20_000):
     """Measure every case with both writers; return ``{case: {writer name: measure() dict}}``.
 
     The message count of a case is calibrated so the raw writer runs about ``seconds_per_case``.
@@ -89,8 +89,8 @@ def run(seconds_per_case=2.0, cases=CASES, directory=None):
     results = {}
     with tempfile.TemporaryDirectory(dir=directory) as scratch:
         for case, payload_bytes in cases:
-            probe = measure("raw_mcap", payload_bytes, 20_000, scratch)
-            count = max(20_000, int(probe["messages_per_s"] * seconds_per_case))
+            probe = measure("raw_mcap", payload_bytes, probe_messages, scratch)
+            count = max(probe_messages, int(probe["messages_per_s"] * seconds_per_case))
             results[case] = {name: measure(name, payload_bytes, count, scratch) for name in WRITERS}
     return results
 
@@ -98,8 +98,9 @@ def run(seconds_per_case=2.0, cases=CASES, directory=None):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds-per-case", type=float, default=2.0, help="target run time per writer, s")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
-    results = run(args.seconds_per_case)
+    results = run(0.0, probe_messages=50) if args.smoke else run(args.seconds_per_case)
     print(f"{'case':<12} {'payload B':>9} {'writer':<11} {'messages':>9} {'msg/s':>10} {'MB/s':>8}  ratio")
     for case, by_writer in results.items():
         raw = by_writer["raw_mcap"]["messages_per_s"]

@@ -30,7 +30,8 @@ BARE_SEED = 777021
 def _condition(height_m, speed_mps, angle_deg, repetitions, engine):
     """Upright count of ``repetitions`` valid-launch retries of the bare chassis at one condition."""
     from rollability_ros.core.records import LaunchCondition
-    from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_valid_launch
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     settings = load_launch_twin_settings(overrides={"physics.engine": engine})
     condition = LaunchCondition("baseline", height_m, speed_mps, angle_deg)

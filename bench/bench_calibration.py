@@ -31,7 +31,7 @@ from doubles import synthetic_outcomes  # noqa: E402
 from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
-from rollability_ros.core.results.records import LaunchCondition  # noqa: E402
+from rollability_ros.core.records import LaunchCondition  # noqa: E402
 
 #: The grouped conditions launched (configuration, height m, speed m/s, angle deg).
 CONDITIONS = (("baseline", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 30.0),
@@ -75,7 +75,8 @@ def coverage(args, parameters):
                 if grouped is None:
                     grouped = calibration.predicted_on_grid(physical, parameters, settings, pool,
                                                             [parameters[name]], 0)
-                grid, curve = calibration.likelihood_profile(physical, parameters, settings, pool, None, 0, grouped)
+                grid, curve = calibration.likelihood_profile(physical, parameters, settings, pool,
+                                                            [parameters[name]], 0, grouped)
                 interval = calibration.likelihood_interval(grid, curve)
                 interpolated = calibration.likelihood_interval(grid, curve, ends="interpolate")
                 hit = interval[0] <= truth <= interval[1]

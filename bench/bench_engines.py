@@ -28,6 +28,7 @@ import math
 import os
 import sys
 import time
+import typing
 
 import numpy as np
 
@@ -37,7 +38,7 @@ from bench.bench_evaluator import dome_heights  # noqa: E402
 from rollability_ros.core.optional import require  # noqa: E402
 from rollability_ros.core.robots.urdf_robot import obj_text, profile_inertia  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
-from rollability_ros.core.sim.mujoco_trials import _pose_speeds  # noqa: E402
+from rollability_ros.core.sim.mujoco_trials import pose_speeds  # noqa: E402
 from rollability_ros.core.sim.trials import sample_conditions  # noqa: E402
 
 PAPER_TRIALS = 500 * 13 * 60
@@ -48,7 +49,7 @@ def launch_rates(candidates, repeats):
     upright launches, the same launches in every variant (see the module docstring)."""
     from rollability_ros.core.robots.robot import ProfileBody
     from rollability_ros.core.profile.geometry import profile_mesh
-    from rollability_ros.core.sim import launch_twin, mujoco_launch_twin
+    from rollability_ros.core.sim.launch import mujoco_twin, pybullet_twin, settings as twin_settings, twin
     from rollability_ros.core.sim.objectives import launch_conditions
 
     base = evaluation.load_settings()
@@ -56,26 +57,27 @@ def launch_rates(candidates, repeats):
     grid = base.grid
     heights = [dome_heights(grid)] + [rng.uniform(grid.height_min, grid.height_max, grid.n_variables)
                                       for _ in range(candidates - 1)]
-    profiles = [base.profile_body(profile_mesh(h, grid)) for h in heights]
+    meshes = [profile_mesh(h, grid) for h in heights]
+    profiles = [base.profile_body(mesh) for mesh in meshes if mesh is not None]   # a dome, random heights: none flat
     conditions = launch_conditions(["campaign"])
-    twin = launch_twin.load_launch_twin_settings()
+    shipped = twin_settings.load_launch_twin_settings()
     variants = {(engine, early): dataclasses.replace(
-        twin, physics=dataclasses.replace(twin.physics, engine=engine),
-        trial=dataclasses.replace(twin.trial, early_decision=early))
+        shipped, physics=dataclasses.replace(shipped.physics, engine=engine),
+        trial=dataclasses.replace(shipped.trial, early_decision=early))
         for engine in ("pybullet", "mujoco") for early in (False, True)}
-    launch_twin.simulate_launch(conditions[0], variants[("mujoco", False)], 0, use_profile=True)   # imports
-    times = {key: [] for key in variants}
-    cpu = {key: [] for key in variants}
+    twin.simulate_launch(conditions[0], variants[("mujoco", False)], 0, use_profile=True)   # imports
+    times: typing.Dict[typing.Any, typing.List[float]] = {key: [] for key in variants}
+    cpu: typing.Dict[typing.Any, typing.List[float]] = {key: [] for key in variants}
     steps, upright = {}, {}
     for repeat in range(repeats):
         for key, settings in variants.items():
-            mujoco_launch_twin._cache.clear()     # every candidate builds its world, as in an optimization
-            launch_twin._BASINS.clear()
+            mujoco_twin._cache.clear()     # every candidate builds its world, as in an optimization
+            pybullet_twin._BASINS.clear()
             outcomes = []
             started, cpu_started = time.perf_counter(), time.process_time()
             for candidate, profile in enumerate(profiles):
                 for index, condition in enumerate(conditions):
-                    outcomes.append(launch_twin.simulate_valid_launch(
+                    outcomes.append(twin.simulate_valid_launch(
                         condition, settings, evaluation.trial_seed(500 + candidate, index), profile=profile,
                         use_profile=True))
             times[key].append(time.perf_counter() - started)
@@ -189,7 +191,7 @@ def naive_mujoco(job, seeds, hold_steps, cap_steps):
         data.xfrc_applied[root, 0:3] = force
         data.xfrc_applied[root, 3:6] = torque
 
-    previous = [None]
+    previous = [data.qpos[0:7].copy()]
 
     def step():
         previous[0] = data.qpos[0:7].copy()
@@ -197,7 +199,7 @@ def naive_mujoco(job, seeds, hold_steps, cap_steps):
         data.xfrc_applied[root] = 0.0
 
     def speeds():  # from poses: MuJoCo 4 may put a body at rest to sleep, freezing its pose but not its qvel
-        return _pose_speeds(previous[0], data.qpos[0:7], model.opt.timestep)
+        return pose_speeds(previous[0], data.qpos[0:7], model.opt.timestep)
 
     return _naive_loop(seeds, settings, hold_steps, cap_steps, (reset, push, step, speeds))
 
@@ -242,7 +244,7 @@ def generation_times(base, fastest, generations):
     mean = rng.uniform(grid.height_min, grid.height_max, grid.n_variables)
     populations = [[np.clip(mean + rng.normal(0.0, 0.02, mean.size), grid.height_min, grid.height_max)
                     for _ in range(13)] for _ in range(generations)]
-    times = {"split": [], "whole": []}
+    times: typing.Dict[str, typing.List[float]] = {"split": [], "whole": []}
     with evaluation.LocalExecutor(2) as pool:
         pool.warm()
         evaluators = {"whole": profile_batch_evaluator(settings, 60, pool), "split": _split_evaluator(settings, pool)}
@@ -262,21 +264,21 @@ def racing_generation_times(generations, looks, alpha, workers=2):
     import tempfile
 
     from rollability_ros.core.optimization import optimization_run
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     folder = tempfile.mkdtemp(prefix="bench-racing-paper-")
     parameters = optimization_run.load_run_parameters(["paper"])
     parameters.update({"sim.engine": "mujoco", "trial.early_decision": True, "optimizer.output_dir": folder,
                        "optimizer.race_alpha": alpha})
     settings = evaluation.settings_from_parameters(parameters)
-    times = {"full": [], "raced": []}
+    times: typing.Dict[str, typing.List[float]] = {"full": [], "raced": []}
     with evaluation.LocalExecutor(workers) as pool:
         pool.warm()
         runs = {}
         for name, race_looks in (("full", [0]), ("raced", list(looks))):
             run_parameters = {**parameters, "optimizer.race_looks": race_looks}
             runs[name] = optimization_run.OptimizationRun(
-                os.path.join(folder, name), run_parameters, settings.grid,
+                os.path.join(folder, name), optimization_run.run_config(run_parameters), settings.grid,
                 optimization_run.profile_batch_evaluator(settings, 60, pool),
                 evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, pool, "screen"))
         try:
@@ -348,8 +350,9 @@ def main():
     jobs = {key: evaluation.profile_job(heights, settings) for key, settings in variants.items()}
     hold = round(base.trial.rest_hold_s / base.physics.time_step_s)
     cap = round(base.trial.time_cap_s / base.physics.time_step_s)
-    times = {key: [] for key in list(jobs) + ["naive pybullet", "naive mujoco"]}
-    steps, fitness = {}, {}
+    times: typing.Dict[typing.Any, typing.List[float]] = {key: [] for key in list(jobs) + ["naive pybullet", "naive mujoco"]}
+    steps: typing.Dict[typing.Any, float] = {}
+    fitness: typing.Dict[typing.Any, float] = {}
     for key, job in jobs.items():  # build each world outside the timing
         evaluation.run_batch(job, [])
     for repeat in range(args.repeats):
@@ -360,8 +363,8 @@ def main():
             started = time.perf_counter()
             outcomes = evaluation.run_batch(job, batch)
             times[key].append(time.perf_counter() - started)
-            steps[key] = np.mean([o.steps for o in outcomes])
-            fitness[key] = np.mean([o.upright for o in outcomes])
+            steps[key] = float(np.mean([o.steps for o in outcomes]))
+            fitness[key] = float(np.mean([o.upright for o in outcomes]))
         for name, loop in (("naive pybullet", naive_pybullet), ("naive mujoco", naive_mujoco)):
             seconds, mean_steps = loop(jobs[("pybullet", False)], seeds, hold, cap)
             times[name].append(seconds)
@@ -383,7 +386,7 @@ def main():
     try:
         for pool in pools.values():
             pool.warm()
-        pool_times = {workers: [] for workers in pools}
+        pool_times: typing.Dict[int, typing.List[float]] = {workers: [] for workers in pools}
         for repeat in range(args.repeats):
             for workers, pool in pools.items():
                 pool_times[workers].append(evaluation.evaluate_profile(

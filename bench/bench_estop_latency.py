@@ -150,7 +150,9 @@ def measure(countdowns, runs):
         os.write(master, b"q")
         for process in (console, valve):
             try:
-                process.wait(10) if process is console else (process.terminate(), process.wait(10))
+                if process is not console:
+                    process.terminate()
+                process.wait(10)
             except subprocess.TimeoutExpired:
                 process.kill()
         sim.stop()

@@ -11,6 +11,7 @@ import os
 import statistics
 import sys
 import time
+import typing
 
 import numpy as np
 
@@ -81,7 +82,7 @@ def timed_evaluations(heights, trials, settings, worker_counts, repeats):
     pools = [evaluation.LocalExecutor(workers) for workers in worker_counts]
     try:
         pids = [pid for pool in pools for pid in pool.warm()]
-        times = [[] for _ in pools]
+        times: typing.List[typing.List[float]] = [[] for _ in pools]
         for repeat in range(repeats):
             for pool, record in zip(pools, times):
                 record.append(evaluation.evaluate_profile(heights, trials, 100 + repeat, settings,

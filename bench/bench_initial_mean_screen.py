@@ -16,6 +16,7 @@ import os
 import sys
 import tempfile
 import time
+import typing
 
 import numpy as np
 
@@ -32,7 +33,7 @@ def one_run(parameters, settings, executor, run_dir):
     trials = optimization_run.run_settings(parameters).optimizer.trials
     started = time.perf_counter()
     run = optimization_run.OptimizationRun(
-        run_dir, parameters, settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
+        run_dir, optimization_run.run_config(parameters), settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
         screen_profiles=optimization_run.profile_screen(optimization_run.run_settings(parameters), settings))
     screen_s = time.perf_counter() - started
     run.run()
@@ -57,7 +58,7 @@ def main():
     base = optimization_run.load_run_parameters(args.config or ["optimizer"])
     settings = evaluation.settings_from_parameters(base)
     executor = evaluation.make_executor(settings.evaluator, args.workers)
-    rows = {0: [], args.screen: []}
+    rows: typing.Dict[int, typing.List[typing.Any]] = {0: [], args.screen: []}
     try:
         with tempfile.TemporaryDirectory(prefix="bench_screen_") as workdir:
             for seed in range(1, args.seeds + 1):

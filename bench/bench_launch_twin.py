@@ -15,14 +15,16 @@ import statistics
 import sys
 import tempfile
 import time
+import typing
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from bench.bench_evaluator import dome_heights  # noqa: E402
 from rollability_ros.core.sim.evaluation import EvaluatorSettings  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh, profile_mesh  # noqa: E402
-from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_launch  # noqa: E402
-from rollability_ros.core.results.records import LaunchCondition  # noqa: E402
+from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+from rollability_ros.core.sim.launch.twin import simulate_launch  # noqa: E402
+from rollability_ros.core.records import LaunchCondition  # noqa: E402
 
 HEIGHTS_M, SPEEDS_MPS, ANGLES_DEG = (0.75, 1.30), (0.8, 1.5), (-60.0, -30.0, 0.0, 30.0, 60.0)
 CAMPAIGN_TRIALS = 400
@@ -34,21 +36,30 @@ def dome_mesh():
     return profile_mesh(dome_heights(grid), grid)
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repetitions", type=int, default=5, help="seeds per condition (default 5)")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    heights, speeds, angles = (HEIGHTS_M[:1], SPEEDS_MPS[:1], ANGLES_DEG[:1]) if args.smoke else (HEIGHTS_M, SPEEDS_MPS,
+                                                                                                    ANGLES_DEG)
+    if args.smoke:
+        args.repetitions = 1
     with tempfile.TemporaryDirectory() as folder:
         stl = os.path.join(folder, "dome.stl")
         export_mesh(dome_mesh(), stl)
         settings = load_launch_twin_settings(overrides={"twin.designs.mesh_labels": ["dome"],
                                                         "twin.designs.mesh_files": [stl]})
-        walls, steps, sim_s, travel_ratio, flight_ratio = [], [], [], [], []
+        walls: typing.List[float] = []
+        steps: typing.List[float] = []
+        sim_s: typing.List[float] = []
+        travel_ratio: typing.List[float] = []
+        flight_ratio: typing.List[float] = []
         upright = collections.defaultdict(list)
         for configuration in ("baseline", "dome"):
-            for height_m in HEIGHTS_M:
-                for speed_mps in SPEEDS_MPS:
-                    for angle_deg in ANGLES_DEG:
+            for height_m in heights:
+                for speed_mps in speeds:
+                    for angle_deg in angles:
                         for repetition in range(args.repetitions):
                             condition = LaunchCondition(configuration, height_m, speed_mps, angle_deg, repetition)
                             started = time.perf_counter()

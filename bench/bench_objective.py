@@ -41,8 +41,8 @@ from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 from rollability_ros.core.optimization import optimization_run, selection  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
-from rollability_ros.core.results.records import LaunchCondition  # noqa: E402
-from rollability_ros.core.results.stats import newcombe_interval  # noqa: E402
+from rollability_ros.core.records import LaunchCondition  # noqa: E402
+from rollability_ros.core.stats import newcombe_interval  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
 
 CAMPAIGN = {"/**": {"ros__parameters": {"campaign": {"heights_m": [0.75], "speeds_mps": [0.8, 1.5],
@@ -61,7 +61,7 @@ def optimize(run_dir, twin_config, campaign_file, args, seed, executor):
                        "profile.rows": 3, "profile.cols": 3, "optimizer.seed": seed})
     settings = evaluation.settings_from_parameters(parameters)
     batch = optimization_run.profile_batch_evaluator(settings, args.trials, executor)
-    run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid, batch)
+    run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid, batch)
     result = run.run()
     pooled = selection.pool_candidates(run.store.candidates(run_id=run.run_id))
     best = max(pooled, key=lambda d: (d.wilson_low, d.fitness))

@@ -50,7 +50,7 @@ def run_generations(parameters, grid, evaluate_batch, generations, workdir, name
     """Run ``generations`` generations; return (mean s per generation, mean s inside the evaluator)."""
     spent = [0.0]
     parameters = dict(parameters, **{"optimizer.max_generations": generations})
-    run = optimization_run.OptimizationRun(os.path.join(workdir, name), parameters, grid,
+    run = optimization_run.OptimizationRun(os.path.join(workdir, name), optimization_run.run_config(parameters), grid,
                                            timed(evaluate_batch, spent))
     started = time.perf_counter()
     run.run()
@@ -83,9 +83,10 @@ def noise_study(seeds, workdir, generations=60, trials=20):
             evaluator = SyntheticEvaluator(
                 np.random.default_rng(1000 + seed).uniform(0, 0.45, grid.n_variables), trials, peak=0.8)
             run = optimization_run.OptimizationRun(os.path.join(workdir, f"noise-{crn}-{reevaluate}-{seed}"),
-                                                   parameters, grid, evaluator)
+                                                   optimization_run.run_config(parameters), grid, evaluator)
             result = run.run()
             run.close()
+            assert result.best is not None, "the run evaluated no generation"
             rows.append((evaluator.success_probability(result.mean),
                          result.best.fitness - evaluator.success_probability(result.best.heights)))
         table[(crn, reevaluate)] = tuple(np.mean(rows, axis=0))

@@ -33,7 +33,7 @@ from rollability_ros.core.sim import evaluation
 from rollability_ros.core.optimization import optimization_run as optimization_run  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import FIRST_GENERATION  # noqa: E402
 from rollability_ros.core.config import resolve_config_path  # noqa: E402
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 
 PAPER_GENERATIONS, PAPER_POPSIZE, PAPER_TRIALS = 500, 12, 60
 
@@ -65,7 +65,7 @@ def run_in_process(parameters, workdir, workers):
         executor.warm()
         batch = optimization_run.profile_batch_evaluator(settings, optimization_run.run_settings(parameters).optimizer
                                                          .trials, executor)
-        run = optimization_run.OptimizationRun(os.path.join(workdir, "inproc"), parameters, settings.grid, batch)
+        run = optimization_run.OptimizationRun(os.path.join(workdir, "inproc"), optimization_run.run_config(parameters), settings.grid, batch)
         run.run()
         run.close()
     finally:

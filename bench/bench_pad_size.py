@@ -33,9 +33,10 @@ ACCEPTED_PER_100 = 6
 def _launches(settings, heights, pad, launches, engine):
     """``(upright, on the floor, invalid)`` counts of ``launches`` nominal launches of ``heights`` on ``pad``."""
     from rollability_ros.core.sim import objectives
-    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     objective = objectives.launch_objective(settings.objective, engine, early_decision=True)
+    assert objective is not None, "the launch fidelity has a launch objective"
     twin = objective.twin
     foam = dataclasses.replace(twin.twin.foam, length_m=pad[0], width_m=pad[1])
     twin = dataclasses.replace(twin, twin=dataclasses.replace(twin.twin, foam=foam))
@@ -50,13 +51,17 @@ def _launches(settings, heights, pad, launches, engine):
     return upright, floor, invalid
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", action="append", help="parameter files (default: optimizer, the quick study)")
     parser.add_argument("--launches", type=int, default=100, help="launches per shape and pad")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--engine", default=None, help="sim.engine of the launches (default: the launch fidelity's)")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true",
+                        help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        args.launches, args.workers = 1, 1
     settings = nominal_settings(args.config or ["optimizer"])
     engine = args.engine or settings.physics.engine
     family = shapes(settings.grid)
@@ -78,4 +83,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

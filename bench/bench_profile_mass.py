@@ -50,7 +50,10 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", nargs="+", default=["robot"], help="robot parameter files (default: robot)")
     parser.add_argument("--repeats", type=int, default=20, help="timed calls of each weighing (default 20)")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
+    if args.smoke:
+        args.repeats = 1
     settings = evaluation.load_settings(args.config)
     spec = settings.robot
     made = spec.profile_print
@@ -60,10 +63,11 @@ def main(argv=None):
     print(f"robot.profile_print = {made}, profile_mass_scale = {spec.profile_mass_scale}")
     print(f"{'shape':<14}{'height m':>9}{'volume cm3':>11}" + "".join(f"{name:>32}" for name in makes))
     print(f"{'':<14}{'':>9}{'':>11}" + "".join(f"{'mass g / COM rise mm':>32}" for _ in makes))
-    for unit in (settings.grid.unit_m, 2 * settings.grid.unit_m):
+    for unit in (settings.grid.unit_m,) if args.smoke else (settings.grid.unit_m, 2 * settings.grid.unit_m):
         grid = dataclasses.replace(settings.grid, unit_m=unit)
-        for name, heights in shapes(grid).items():
+        for name, heights in list(shapes(grid).items())[:1 if args.smoke else None]:
             mesh = profile_mesh(heights, grid)
+            assert mesh is not None   # every shape has a height
             cells = []
             for make in makes.values():
                 model = ChassisModel(dataclasses.replace(spec, profile_print=make))
@@ -71,6 +75,7 @@ def main(argv=None):
                 cells.append(f"{profile.mass_kg * 1000:>22.0f} / {com_rise_mm(model, profile):5.1f}")
             print(f"{name:<14}{grid.height_max * unit:>9.2f}{mesh.volume * 1e6:>11.0f}" + "".join(cells))
     mesh = profile_mesh(shapes(settings.grid)["dome"], settings.grid)
+    assert mesh is not None   # the dome has a height
     old = ChassisModel(dataclasses.replace(spec, profile_print=makes["old solid 150"]))
     timings = {}
     for label, model in (("print", ChassisModel(spec)), ("solid", old)):

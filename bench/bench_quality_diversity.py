@@ -20,6 +20,7 @@ import os
 import sys
 import tempfile
 import time
+import typing
 
 import numpy as np
 
@@ -28,7 +29,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 from rollability_ros.core.config import from_mapping, section  # noqa: E402
 from rollability_ros.core.optimization import optimization_run, selection  # noqa: E402
 from rollability_ros.core.profile import descriptors  # noqa: E402
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
 
 METHODS = ("cmaes", "cma_mae")
@@ -39,7 +40,7 @@ def common_grid_scores(candidates, grid, qd_settings):
     height_edges = np.linspace(0.0, descriptors.height_bound_mm(grid), qd_settings.height_cells + 1)
     sharp_edges = np.linspace(qd_settings.sharpness_min_deg, qd_settings.sharpness_max_deg,
                               qd_settings.sharpness_cells + 1)
-    best = {}
+    best: typing.Dict[typing.Tuple[int, int], typing.Any] = {}   # cell -> its best design
     for design in selection.pool_candidates(candidates):
         measured = descriptors.profile_descriptors(design.heights, grid)
         if measured.max_height_mm == 0:
@@ -66,7 +67,7 @@ def one_run(method, seed, generations, workers, workdir):
     run_dir = os.path.join(workdir, f"{method}-{seed}")
     started = time.perf_counter()
     with evaluation.make_executor(settings.evaluator, workers) as executor:
-        run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid,
+        run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid,
                                                optimization_run.profile_batch_evaluator(settings, trials, executor))
         result = run.run()
         run.close()
@@ -79,6 +80,7 @@ def one_run(method, seed, generations, workers, workdir):
     qd_score, coverage = common_grid_scores(candidates, settings.grid, qd_settings)
     heights = [d.metrics.max_height_m * 1000 for d in picked.designs]
     fresh = [d.reported[0] / d.reported[1] for d in picked.designs]
+    assert result.best is not None, "the run evaluated no generation"
     return {"qd_score": qd_score, "coverage": coverage, "evaluations": result.evaluations,
             "best_in_run": result.best.fitness, "a_fresh": fresh[0] if fresh else float("nan"),
             "heights_mm": heights, "fresh": fresh, "threshold": picked.top_threshold,
@@ -92,7 +94,7 @@ def main():
     parser.add_argument("--workers", type=int, default=None, help="worker processes (default: one per core)")
     parser.add_argument("--generations", type=int, default=0, help="generations (default: the quick config's 30)")
     args = parser.parse_args()
-    rows = {method: [] for method in METHODS}
+    rows: typing.Dict[str, typing.List[typing.Any]] = {method: [] for method in METHODS}
     with tempfile.TemporaryDirectory() as workdir:
         for seed in args.seeds:
             for method in METHODS:

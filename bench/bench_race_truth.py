@@ -27,7 +27,7 @@ import numpy as np  # noqa: E402
 from rollability_ros.core.optimization import optimization_run  # noqa: E402
 from rollability_ros.core.profile import geometry  # noqa: E402
 from rollability_ros.core.stats import spearman_permutation_test  # noqa: E402
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
 
 #: Base seeds of the two fresh measurements (any seeds the study did not use).

@@ -27,12 +27,13 @@ import time
 
 import numpy as np
 import yaml
+import typing
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from rollability_ros.core.optimization import optimization_run  # noqa: E402
 from rollability_ros.core.stats import newcombe_interval, wilson_interval  # noqa: E402
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 from rollability_ros.core.sim import evaluation  # noqa: E402
 
 FRESH_SEED_BASE = 7_310_000          # far from every optimizer seed stream: the fresh trials are never the run's
@@ -68,7 +69,7 @@ def optimize(parameters, seed, executor, folder, name, reuse=False):
     trials = optimization_run.run_settings(parameters).optimizer.trials
     run_dir = os.path.join(folder, f"{name}-seed-{seed}")
     run = optimization_run.OptimizationRun(
-        run_dir, parameters, settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
+        run_dir, optimization_run.run_config(parameters), settings.grid, optimization_run.profile_batch_evaluator(settings, trials, executor),
         evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, executor, "screen"),
         resume=reuse and os.path.exists(run_dir))
     started = time.perf_counter()
@@ -83,6 +84,7 @@ def optimize(parameters, seed, executor, folder, name, reuse=False):
         candidates = store.candidates()
     spent = sum(c.trials for c in candidates)
     stopped = sorted(c.trials for c in candidates if c.index < popsize and c.trials < trials)
+    assert result.best is not None, "the run evaluated no generation"
     return result.best.heights, spent, result.generations, seconds, settings, stopped, run_dir
 
 
@@ -142,7 +144,7 @@ def print_first_look_agreement(run_dirs, settings, executor, first, survivors, p
     for run_dir in run_dirs:
         with Store(run_dir) as store:
             candidates = [c for c in store.candidates() if c.index < popsize]
-        by_generation = {}
+        by_generation: typing.Dict[int, typing.List[typing.Any]] = {}   # generation -> its candidates
         for candidate in candidates:
             by_generation.setdefault(candidate.generation, []).append(candidate)
         for generation, members in sorted(by_generation.items()):

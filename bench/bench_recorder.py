@@ -24,6 +24,7 @@ import sys
 import tempfile
 import threading
 import time
+import typing
 
 BENCH_DIR = os.path.dirname(os.path.abspath(__file__))
 REPO_ROOT = os.path.dirname(BENCH_DIR)
@@ -105,16 +106,16 @@ def run_consumer(kind, case, count, bag_dir):
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 
     rclpy.init()
-    marks = {"first": None, "last": None, "count": 0}
+    marks: typing.Dict[str, typing.Any] = {"first": None, "last": None, "count": 0}
     if kind == "recorder":
         from rclpy.parameter import Parameter
 
         from rollability_ros.nodes.recorder import RecorderNode
 
-        node = RecorderNode([Parameter("recorder.output_dir", value=bag_dir),
-                             Parameter("recorder.topics", value=[TOPICS[case]]),
-                             Parameter("recorder.discovery_period_s", value=0.2)])
-        executor = MultiThreadedExecutor(num_threads=4)   # as run_node spins every node
+        node: typing.Any = RecorderNode([Parameter("recorder.output_dir", value=bag_dir),
+                                         Parameter("recorder.topics", value=[TOPICS[case]]),
+                                         Parameter("recorder.discovery_period_s", value=0.2)])
+        executor: typing.Any = MultiThreadedExecutor(num_threads=4)   # as run_node spins every node
 
         def received():
             return node.counts().get(TOPICS[case], 0)
@@ -170,6 +171,7 @@ def measure_consumer(kind, case, count, scratch):
     consumer = subprocess.Popen([sys.executable, __file__, "--role", "consumer", "--kind", kind, "--case", case,
                                  "--count", str(count), "--bag", bag_dir], stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, text=True, env=env)
+    assert consumer.stdout is not None
     consumer.stdout.readline()   # ready
     publisher = subprocess.run([sys.executable, __file__, "--role", "publisher", "--case", case, "--count",
                                 str(count)], capture_output=True, text=True, env=env, timeout=300)
@@ -193,7 +195,7 @@ def serialized_size(case):
 
 def run(counts):
     """Measure every case; return ``{case: {"payload_bytes": n, "rows": [result dicts]}}``."""
-    from bench_bag_writer import measure
+    from bench.bench_bag_writer import measure
 
     results = {}
     with tempfile.TemporaryDirectory() as scratch:

@@ -82,9 +82,10 @@ def rest_mode(result) -> str:
 def _modes_of(settings, heights, launches, seed):
     """``Counter`` of :func:`rest_mode` over ``launches`` nominal launches of ``heights`` (full rest rule)."""
     from rollability_ros.core.sim import objectives
-    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     objective = objectives.launch_objective(settings.objective, settings.physics.engine, early_decision=False)
+    assert objective is not None, "the launch fidelity has a launch objective"
     profile = evaluation.profile_job(heights, settings).profile
     return collections.Counter(rest_mode(simulate_valid_launch(objective.condition(index), objective.twin,
                                                                seed + index, profile=profile, use_profile=True))

@@ -30,6 +30,7 @@ import os
 import subprocess
 import sys
 import time
+import typing
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -37,8 +38,8 @@ import yaml  # noqa: E402
 
 from rollability_ros.core.graph import claim_domain  # noqa: E402
 from rollability_ros.core.results import design_map  # noqa: E402
-from rollability_ros.core.results.stats import newcombe_interval  # noqa: E402
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.stats import newcombe_interval  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 
 #: Base seed of the fresh robust launches on both engines (no seed a study's race, selection or campaign uses).
 ROBUST_SEED = 41041
@@ -90,7 +91,7 @@ def search_text(study_dir):
 
 def campaign_counts(study_dir, study_id):
     """{configuration: (upright valid trials, valid trials)} of the study's campaign."""
-    counts = {}
+    counts: typing.Dict[str, typing.Tuple[int, int]] = {}
     with Store(os.path.join(study_dir, "outcomes.sqlite")) as store:
         for outcome in store.launch_outcomes(run_id=study_id):
             if not outcome.valid:
@@ -113,7 +114,7 @@ def robust_row(study_dir, trials):
 
     designs_file = os.path.join(study_dir, "optimization", "designs", "designs.yaml")
     sources = DesignSources(designs_file=designs_file)
-    profiles = {"baseline": None}
+    profiles: typing.Dict[str, typing.Optional[typing.Any]] = {"baseline": None}
     profiles.update({label: profile_mesh_for(label, sources) for label in configuration_ids(sources)
                      if label != "baseline"})
     settings = evaluation.load_settings(["sim", "robot", "evaluator"])

@@ -91,13 +91,17 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--engine", choices=("pybullet", "mujoco"), default="pybullet")
     parser.add_argument("--launches", action="store_true", help="verify launches on the launch twin instead")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
+    if args.smoke:
+        args.trials_chassis = args.trials_husky = 2
     print(f"engine: {args.engine}   kind: {'launches on the twin' if args.launches else 'disturbance trials'}")
     total = changed = 0
     full_steps, early_steps = [], []
     print(f"{'case':20s} {'trials':>6s} {'changed':>7s} {'upright':>7s} {'steps full':>10s} {'steps early':>11s} "
           f"{'decided':>7s} {'time ratio':>10s}")
-    for name, settings, heights in cases(args.seed, args.engine, args.launches):
+    verified = cases(args.seed, args.engine, args.launches)
+    for name, settings, heights in [verified[1], verified[-3]] if args.smoke else verified:
         trials = args.trials_husky if name.startswith("husky") else args.trials_chassis
         full, early, full_s, early_s = compare(settings, heights, trials, args.seed)
         diffs = [(a.index, a.upright, b.upright) for a, b in zip(full, early) if a.upright != b.upright]

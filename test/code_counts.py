@@ -54,24 +54,40 @@ def subpackages():
     return sorted(p.name for p in CORE.iterdir() if (p / "__init__.py").is_file())
 
 
+def face_stub(sub):
+    """The face of subpackage ``sub``: ``core/<sub>/__init__.pyi`` (what ``lazy_loader.attach_stub`` and type checkers
+    read)."""
+    return CORE / sub / "__init__.pyi"
+
+
 def face_exports(sub):
-    """``{name: module below core}`` that the lazy face of subpackage ``sub`` re-exports: its imports under ``if
-    typing.TYPE_CHECKING:`` (core/faces.py reads the same block at run time); ``{}`` for an eager face."""
+    """``{name: module below core}`` that the face of subpackage ``sub`` re-exports: the ``from .module import name``
+    lines of its stub (``{}`` without one); a whole module re-exported (``from . import module``) maps to itself."""
     exports = {}
-    for node in ast.parse((CORE / sub / "__init__.py").read_text()).body:
-        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
-            for statement in node.body:
-                if isinstance(statement, ast.ImportFrom) and statement.module:
-                    module = statement.module[len("rollability_ros.core."):]
-                    for alias in statement.names:
-                        exports[alias.asname or alias.name] = (f"{module}.{alias.name}" if module == sub
-                                                               else module)
+    if not face_stub(sub).is_file():
+        return exports
+    for node in ast.parse(face_stub(sub).read_text()).body:
+        if isinstance(node, ast.ImportFrom) and node.level == 1:
+            for alias in node.names:
+                exports[alias.asname or alias.name] = (f"{sub}.{node.module}" if node.module
+                                                       else f"{sub}.{alias.name}")
     return exports
 
 
+def face_modules(sub):
+    """The whole modules the face of ``sub`` exports as names (``from . import module`` in its stub)."""
+    if not face_stub(sub).is_file():
+        return []
+    return sorted(alias.name for node in ast.parse(face_stub(sub).read_text()).body
+                  if isinstance(node, ast.ImportFrom) and node.level == 1 and not node.module for alias in node.names)
+
+
 def face_all(sub):
-    """The names in subpackage ``sub``'s ``__all__`` (read statically), or ``None`` when its face has none."""
-    for node in ast.parse((CORE / sub / "__init__.py").read_text()).body:
+    """The names in subpackage ``sub``'s ``__all__`` (read statically from its stub), or ``None`` when its face has
+    none."""
+    if not face_stub(sub).is_file():
+        return None
+    for node in ast.parse(face_stub(sub).read_text()).body:
         if isinstance(node, (ast.Assign, ast.AnnAssign)):
             targets = node.targets if isinstance(node, ast.Assign) else [node.target]
             if any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets) and node.value is not None:
@@ -269,9 +285,10 @@ def public_functions(root=PACKAGE):
 
 
 def faces(root=PACKAGE):
-    """``(modules with __all__, modules)`` under ``root``."""
+    """``(modules with __all__, modules)`` under ``root`` (a face's ``__all__`` is in its ``.pyi`` stub)."""
     paths = sorted(root.rglob("*.py"))
-    with_all = sum(1 for path in paths if re.search(r"^__all__\s*[:=]", path.read_text(), flags=re.M))
+    with_all = sum(1 for path in paths if any(re.search(r"^__all__\s*[:=]", face.read_text(), flags=re.M)
+                                              for face in (path, path.with_suffix(".pyi")) if face.is_file()))
     return with_all, len(paths)
 
 
@@ -357,6 +374,234 @@ def parse_sites(root=CORE):
     return sites
 
 
+#: Issue 43's limits: lines of a module, lines of a function (``def`` to its last line, decorators left out), public
+#: core signatures that mention ``Any``.
+MODULE_LINES_LIMIT = 700
+FUNCTION_LINES_LIMIT = 80
+ANY_SIGNATURES_LIMIT = 40
+MYPY_INI = PACKAGE.parent / "mypy.ini"
+
+
+def module_lines(root=PACKAGE):
+    """``{path below root's parent: lines}`` of every module under ``root``, largest first."""
+    sizes = {path.relative_to(root.parent).as_posix(): len(path.read_text().splitlines())
+             for path in sorted(root.rglob("*.py"))}
+    return dict(sorted(sizes.items(), key=lambda item: (-item[1], item[0])))
+
+
+def function_lines(root=PACKAGE):
+    """``{"path:qualified name": lines}`` of every function and method under ``root`` (nested ones too, each
+    counted whole), longest first."""
+    sizes = {}
+
+    def visit(node, rel, scope):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                name = scope + [child.name]
+                if not isinstance(child, ast.ClassDef):
+                    sizes[f"{rel}:{'.'.join(name)}"] = child.end_lineno - child.lineno + 1
+                visit(child, rel, name)
+            else:
+                visit(child, rel, scope)
+
+    for path in sorted(root.rglob("*.py")):
+        visit(ast.parse(path.read_text()), path.relative_to(root.parent).as_posix(), [])
+    return dict(sorted(sizes.items(), key=lambda item: (-item[1], item[0])))
+
+
+def any_aliases(root=CORE):
+    """Names of the core's module-level type aliases whose value mentions ``Any`` (``Mesh = typing.Any``,
+    ``Row = typing.Dict[str, typing.Any]``): a signature naming one uses ``Any`` as much as one writing it."""
+    names = set()
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.parse(path.read_text()).body:
+            if (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)
+                    and re.search(r"\bAny\b", ast.unparse(node.value))
+                    and re.match(r"(typing\.)?(Any|Callable|Dict|List|Mapping|Sequence|Tuple|Union|Optional)\b",
+                                 ast.unparse(node.value))):
+                names.add(node.targets[0].id)
+    return names
+
+
+def _mentions_any(annotation, aliases=()):
+    """Whether an annotation names ``Any`` (``typing.Any``, ``Any``, inside a subscript or a string too) or one of
+    ``aliases`` (type aliases that stand for something with ``Any``)."""
+    if annotation is None:
+        return False
+    text = annotation.value if isinstance(annotation, ast.Constant) and isinstance(annotation.value, str) \
+        else ast.unparse(annotation)
+    words = set(re.findall(r"\b\w+\b", text))
+    return "Any" in words or bool(words & set(aliases))
+
+
+def any_signatures(root=CORE):
+    """``["module:qualified name"]`` of the public functions and methods of the core whose signature (a parameter's
+    or the return annotation) mentions ``Any``. Public: the function's, its classes' and its module's names have no
+    leading underscore (dunder methods of a public class count: ``__init__`` is the class's signature). A type alias
+    of the core that stands for something with ``Any`` (:func:`any_aliases`) counts as ``Any``."""
+    found = []
+    aliases = any_aliases(root)
+
+    def public(name):
+        return not name.startswith("_") or (name.startswith("__") and name.endswith("__"))
+
+    def visit(node, rel, scope):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.ClassDef):
+                if public(child.name):
+                    visit(child, rel, scope + [child.name])
+            elif isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                if not public(child.name):
+                    continue
+                args = child.args
+                every = args.posonlyargs + args.args + args.kwonlyargs + [a for a in (args.vararg, args.kwarg) if a]
+                if _mentions_any(child.returns, aliases) or any(_mentions_any(a.annotation, aliases) for a in every):
+                    found.append(f"{rel}:{'.'.join(scope + [child.name])}")
+            elif not isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                visit(child, rel, scope)
+
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root).as_posix()
+        if all(public(part) for part in path.relative_to(root).with_suffix("").parts):
+            visit(ast.parse(path.read_text()), rel, [])
+    return found
+
+
+BENCH = PACKAGE.parent / "bench"
+
+
+def bench_coverage():
+    """``(bench scripts, run at a tiny size by the test command, type-checked by it)``: the scripts in bench/ (its
+    runner smoke.py left out), those bench/smoke.py's ``SMOKE`` runs with ``--smoke`` (test/test_bench_smoke.py), and
+    those under mypy (test/core/test_mypy.py checks ``bench`` whole: all of them, when it names it)."""
+    scripts = sorted(path.stem for path in BENCH.glob("*.py") if path.stem != "smoke")
+    smoke = []
+    for node in ast.parse((BENCH / "smoke.py").read_text()).body:
+        if isinstance(node, (ast.Assign, ast.AnnAssign)) and "SMOKE" in ast.unparse(node):
+            smoke = [name for name in ast.literal_eval(node.value) if name in scripts]
+    checked = scripts if '"bench"' in (PACKAGE.parent / "test" / "core" / "test_mypy.py").read_text() else []
+    return scripts, smoke, checked
+
+
+def check_untyped_defs(ini=MYPY_INI):
+    """Whether mypy.ini's ``[mypy]`` section turns ``check_untyped_defs`` on (mypy checks unannotated bodies)."""
+    import configparser
+
+    parser = configparser.ConfigParser()
+    parser.read(ini)
+    return parser.getboolean("mypy", "check_untyped_defs", fallback=False)
+
+
+def type_only_imports(path, modules):
+    """``[(target module, line)]``: the core modules ``path`` imports under ``if typing.TYPE_CHECKING:`` only."""
+    prefix = "rollability_ros.core."
+    tree = ast.parse(path.read_text())
+    skipped = _annotation_only(tree)
+    found = []
+    for node in ast.walk(tree):
+        if id(node) not in skipped:
+            continue
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            targets = [f"{node.module}.{alias.name}" for alias in node.names]
+        else:
+            continue
+        for target in targets:
+            name = target[len(prefix):] if target.startswith(prefix) else ""
+            while name and name not in modules:
+                name = name.rpartition(".")[0]
+            if name:
+                found.append((name, node.lineno))
+    return found
+
+
+def type_only_back_references(graph=None):
+    """``[(module, imported module)]``: imports under ``if typing.TYPE_CHECKING:`` in a module of the core (faces
+    left out) of a module that imports it back at run time, directly or through others: a cycle that exists only
+    for the type checker (a contract module naming its caller's types)."""
+    graph = import_graph() if graph is None else graph
+    modules = core_modules()
+    alias = aliases(modules)
+
+    def reaches(start, goal):
+        seen, todo = set(), [start]
+        while todo:
+            node = todo.pop()
+            if node == goal:
+                return True
+            if node not in seen:
+                seen.add(node)
+                todo.extend(graph.get(node, ()))
+        return False
+
+    found = set()
+    for name, path in modules.items():
+        if name in alias or path.name == "__init__.py":
+            continue
+        for target, _ in type_only_imports(path, modules):
+            target = alias.get(target, target)
+            if target != name and target in graph and reaches(target, name):
+                found.add((name, target))
+    return sorted(found)
+
+
+def names_past_faces(roots=(PACKAGE,)):
+    """``["file: subpackage.module.name"]`` of the names that code outside a core subpackage uses through one of its
+    modules rather than through the face's ``__all__``: ``module.name`` after ``from rollability_ros.core.sim import
+    evaluation`` (a face exporting a whole module) or after ``import rollability_ros.core.sim.evaluation``, and
+    ``from rollability_ros.core.sim.evaluation import name`` (a deep import). Sorted, each (file, name) once. A
+    module bound by an import is followed in the function (or module) that imports it and the functions inside it,
+    until a name there is assigned anew."""
+    prefix = "rollability_ros.core."
+    subs = set(subpackages())
+    found = set()
+    scopes = (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda, ast.ClassDef)
+
+    def own_nodes(scope):
+        """The nodes of ``scope``'s body, not descending into functions and classes defined in it."""
+        todo = list(ast.iter_child_nodes(scope))
+        while todo:
+            node = todo.pop()
+            yield node
+            if not isinstance(node, scopes):
+                todo.extend(ast.iter_child_nodes(node))
+
+    def visit(scope, outer, where, own):
+        bound = dict(outer)
+        nodes = list(own_nodes(scope))
+        for node in nodes:
+            if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+                bound.pop(node.id, None)
+        for node in nodes:
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0 and node.module.startswith(prefix):
+                parts = node.module[len(prefix):].split(".")
+                if parts[0] not in subs or parts[0] == own:
+                    continue
+                for alias in node.names:
+                    if len(parts) == 1 and (CORE / parts[0] / f"{alias.name}.py").is_file():
+                        bound[alias.asname or alias.name] = f"{parts[0]}.{alias.name}"
+                    elif len(parts) > 1:
+                        found.add(f"{where}: {'.'.join(parts)}.{alias.name}")
+            elif isinstance(node, ast.Import):
+                for alias in node.names:
+                    parts = alias.name[len(prefix):].split(".") if alias.name.startswith(prefix) else []
+                    if len(parts) > 1 and parts[0] in subs and parts[0] != own:
+                        bound[alias.asname or alias.name] = ".".join(parts)
+        for node in nodes:
+            if isinstance(node, ast.Attribute) and ast.unparse(node.value) in bound:
+                found.add(f"{where}: {bound[ast.unparse(node.value)]}.{node.attr}")
+            elif isinstance(node, scopes):
+                visit(node, bound, where, own)
+
+    for root in roots:
+        for path in sorted(root.rglob("*.py")):
+            relative = path.relative_to(root).parts
+            own = relative[1] if root == PACKAGE and relative[0] == "core" and len(relative) > 2 else None
+            visit(ast.parse(path.read_text()), {}, path.relative_to(PACKAGE.parent).as_posix(), own)
+    return sorted(found)
+
+
 def main():
     graph = import_graph()
     upward = upward_imports(graph)
@@ -382,7 +627,39 @@ def main():
           "functions")
     for (module, function), calls in sorted(sites.items()):
         print(f"  core/{module} {function}: {calls}")
+    print_limits(graph)
     return 0
+
+
+def print_limits(graph):
+    """Issue 43's counts, each with its limit and what is over it."""
+    sizes = module_lines()
+    over = {path: lines for path, lines in sizes.items() if lines > MODULE_LINES_LIMIT}
+    print(f"largest module: {max(sizes.values())} lines (limit {MODULE_LINES_LIMIT}); over the limit: {len(over)}")
+    for path, lines in over.items():
+        print(f"  {path}: {lines}")
+    lengths = function_lines()
+    over = {name: lines for name, lines in lengths.items() if lines > FUNCTION_LINES_LIMIT}
+    print(f"longest function: {max(lengths.values())} lines (limit {FUNCTION_LINES_LIMIT}); over the limit: "
+          f"{len(over)}")
+    for name, lines in over.items():
+        print(f"  {name}: {lines}")
+    print(f"public core signatures using Any: {len(any_signatures())} (limit {ANY_SIGNATURES_LIMIT})")
+    print(f"mypy check_untyped_defs: {'on' if check_untyped_defs() else 'off'}")
+    scripts, smoke, checked = bench_coverage()
+    print(f"bench scripts: {len(scripts)}; type-checked by the test command: {len(checked)}; run at a tiny size by "
+          f"it: {len(smoke)} ({', '.join(smoke)})")
+    back = type_only_back_references(graph)
+    print(f"TYPE_CHECKING back-references: {len(back)}")
+    for module, target in back:
+        print(f"  {module} -> {target}")
+    print(f"alias modules: {len(aliases())} {sorted(aliases())}")
+    past = names_past_faces()
+    print(f"names used past a face (package): {len(past)} uses of {len({w.split(': ')[1] for w in past})} names")
+    for where in past:
+        print(f"  {where}")
+    outside = names_past_faces((PACKAGE.parent / "test", PACKAGE.parent / "bench"))
+    print(f"names used past a face (tests and benches, not limited): {len(outside)}")
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ import os
 
 import numpy as np
 
-from rollability_ros.core.results.records import LaunchOutcome
+from rollability_ros.core.records import LaunchOutcome
 
 
 class SyntheticEvaluator:
@@ -50,11 +50,11 @@ def synthetic_outcomes(parameters, names, values, conditions, repetitions, first
     Returns LaunchOutcomes (backend ``physical``, run ``synthetic``).
     """
     from rollability_ros.core.campaign import calibration
-    from rollability_ros.core.results.records import INVALID_LAUNCH
-    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.records import INVALID_LAUNCH
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     hidden = calibration.twin_settings_with(parameters, names, values)
-    outcomes = []
+    outcomes: "list[LaunchOutcome]" = []
     for condition in conditions:
         for repetition in range(repetitions):
             launch = dataclasses.replace(condition, repetition=repetition)

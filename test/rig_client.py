@@ -3,7 +3,7 @@ valve's session key as the operator's tools sign them; ``signed=False`` plays a 
 import math
 import time
 
-from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.records import LaunchCondition
 
 
 def wait_for_session_key(namespace="", timeout_s=30.0):

@@ -21,7 +21,7 @@ from valve_client import ValveClient
 
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
 from rollability_ros.core.rig.relay_device_sim import RelaySim
-from rollability_ros.core.results.store import Store
+from rollability_ros.core.store import Store
 
 CAMPAIGN_YAML = """/**:
   ros__parameters:

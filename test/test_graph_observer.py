@@ -17,7 +17,7 @@ def no_store_here(monkeypatch):
         raise AssertionError("the orchestrator opened a store")
 
     monkeypatch.setattr(sqlite3, "connect", refuse)
-    from rollability_ros.core.results import store
+    from rollability_ros.core import store
 
     monkeypatch.setattr(store.Store, "__init__", refuse)
 

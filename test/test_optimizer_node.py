@@ -36,14 +36,14 @@ ALL_GENERATIONS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIAB
 def stored_generations(store_dir, run_id):
     """How many generations the run's store holds: what the optimizer completed (its summaries on ``/generations``
     may still be on their way to a listener)."""
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     with Store(store_dir) as store:
         return len(store.generations(run_id=run_id))
 
 
 def candidate_rows(store_dir, run_id):
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     with Store(store_dir) as store:
         return [(c.generation, c.index, c.heights, c.successes, c.trials, c.seed)
@@ -55,7 +55,7 @@ def reference(tmp_path_factory):
     """The same run in this process (no ROS graph): stored candidates and generation summaries."""
     from rollability_ros.core.sim import evaluation
     from rollability_ros.core.optimization import optimization_run as optimization_run
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     parameters = optimization_run.load_run_parameters("optimizer")
     parameters.update({**RUN, **PAPER_OBJECTIVE})
@@ -64,7 +64,7 @@ def reference(tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("reference") / "ref"
     try:
         evaluate_batch = optimization_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
-        run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid, evaluate_batch)
+        run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid, evaluate_batch)
         run.run()
         run.close()
     finally:

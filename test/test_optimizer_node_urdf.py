@@ -27,7 +27,7 @@ def ros_args(params):
 
 def candidate_rows(run_dir, run_id):
     """The stored candidates and the initial-mean screen of the run."""
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     with Store(run_dir) as store:
         return ([(c.generation, c.index, c.heights, c.successes, c.trials, c.seed)
@@ -45,7 +45,7 @@ def in_process_run(run_dir):
     settings = evaluation.settings_from_parameters(parameters)
     with evaluation.LocalExecutor(1) as executor:   # a batch's evaluations run in threads: one client each
         evaluate_batch = optimization_run.profile_batch_evaluator(settings, RUN["optimizer.trials"], executor)
-        run = optimization_run.OptimizationRun(run_dir, parameters, settings.grid, evaluate_batch,
+        run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid, evaluate_batch,
                                                screen_profiles=optimization_run.profile_screen(
                                                    optimization_run.run_settings(parameters), settings))
         run.run()

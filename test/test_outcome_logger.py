@@ -8,8 +8,8 @@ import sqlite3
 import threading
 import time
 
-from rollability_ros.core.results.records import CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome
-from rollability_ros.core.results.store import Store
+from rollability_ros.core.records import CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome
+from rollability_ros.core.store import Store
 from ros_fixtures import transitions_qos
 from test_recorder import stopped_cleanly
 

@@ -126,7 +126,7 @@ def test_a_numeric_parameter_without_a_range_cannot_be_declared():
 
 @pytest.mark.parametrize("name, value, expected", [
     ("recorder.chunk_size_bytes", 0, "recorder.chunk_size_bytes out of range: 0 is not in [1, 1073741824]"),
-    ("recorder.discovery_period_s", -1.0, "recorder.discovery_period_s out of range: -1.0 is not in [0.0, 3600.0]"),
+    ("recorder.discovery_period_s", -1.0, "recorder.discovery_period_s out of range: -1.0 is not in (0.0, 3600.0]"),
 ])
 def test_a_value_outside_its_range_is_refused_in_one_line(name, value, expected):
     """Against rclpy's own range check (an in-process node: no process started)."""

@@ -4,8 +4,8 @@ import threading
 import pytest
 
 from rollability_ros.core.bags.writer import BagWriter
-from rollability_ros.core.results.records import CandidateRecord, LaunchCondition, LaunchOutcome
-from rollability_ros.core.results.store import Store
+from rollability_ros.core.records import CandidateRecord, LaunchCondition, LaunchOutcome
+from rollability_ros.core.store import Store
 from test_recorder import stopped_cleanly
 
 T0_NS = 1_700_000_000_000_000_000

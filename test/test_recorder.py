@@ -4,7 +4,7 @@ import time
 
 from rollability_ros.core.bags.reader import bag_info
 from rollability_ros.core.bags.messages import read_records_from_bag
-from rollability_ros.core.results.records import CandidateRecord, LaunchCondition, LaunchOutcome
+from rollability_ros.core.records import CandidateRecord, LaunchCondition, LaunchOutcome
 
 
 #: What run_node's race looks like: the executor builds a wait set on the context a signal just shut down, and the

@@ -8,7 +8,7 @@ import time
 import pytest
 from rig_client import RigClient
 
-from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.records import LaunchCondition
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 

@@ -53,7 +53,7 @@ def test_report_from_the_sample_equals_the_live_store(tmp_path):
 
 def test_sample_replays_into_the_logger_like_the_live_run(tmp_path, ros_node, start_node, start_process):
     from rollability_ros.core.bags.messages import read_records_from_bag
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
     from rollability_ros.srv import GetSummary
 
     store_path = tmp_path / "replayed.sqlite"

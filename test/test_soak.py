@@ -78,7 +78,7 @@ def test_soak_kills_lose_no_acknowledged_or_stored_outcome(tmp_path):
     from rollability_ros.core.bags.messages import read_records_from_bag
     from rollability_ros.core.bags.recover import recording_gaps
     from rollability_ros.core.graph.study import compare_bags_with_store
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     rng = random.Random(SOAK_SEED)
     config = tmp_path / "soak.yaml"

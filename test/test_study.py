@@ -61,7 +61,7 @@ def _still_running(output):
 def test_miniature_main_job_end_to_end(tmp_path):
     from rollability_ros.core.results import report
     from rollability_ros.core.bags.reader import BagReader
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     process = _study(tmp_path, "e2e")
     output, _ = process.communicate(timeout=900)
@@ -157,7 +157,7 @@ def test_a_study_killed_twice_resumes_to_the_same_complete_result(tmp_path):
     from rollability_ros.core.results import report
     from rollability_ros.core.bags.reader import bag_info
     from rollability_ros.core.bags.messages import read_records_from_bag
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     config = tmp_path / "resumable.yaml"
     config.write_text(RESUMABLE)

@@ -231,7 +231,7 @@ def test_sim_tip_that_rights_itself(ros_node, start_node, tmp_path):
     assert ros_node.wait_for(lambda: "stored tip event simbot/" in logger.log(), 10), logger.log()
     monitor.process.stop()
     logger.stop()
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     with Store(store_path) as store:
         (stored,) = store.tip_events("simbot")

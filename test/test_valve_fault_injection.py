@@ -597,8 +597,8 @@ def test_stray_participant_never_launches_through_the_rig(ros_node, start_node, 
     from action_msgs.msg import GoalStatus
     from rig_client import RigClient
 
-    from rollability_ros.core.results.records import LaunchCondition
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.store import Store
     from rollability_ros.core.rig import rig_auth, valve_auth
     from rollability_ros.nodes._convert import auth_msg
     from rollability_ros.srv import ConfirmRegulator

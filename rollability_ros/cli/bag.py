@@ -19,7 +19,7 @@ def _info(args):
 def _recover(args):
     from rollability_ros.core.bags import recover
 
-    report = recover.recover(args.bag)
+    report = recover(args.bag)
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
@@ -42,7 +42,7 @@ def _recover(args):
 def _convert(args):
     from rollability_ros.core.bags import convert
 
-    convert.convert(args.src, args.dst, storage=args.storage)
+    convert(args.src, args.dst, storage=args.storage)
     print(f"{args.src} -> {args.dst} ({args.storage})")
     return 0
 

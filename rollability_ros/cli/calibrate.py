@@ -7,7 +7,7 @@ import typing
 from rollability_ros.cli import Subparsers
 
 if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
-    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.campaign import CalibrationResult
 
 
 def _write_csv(path, rows):
@@ -30,11 +30,9 @@ def _screen_rows(twin_settings, configurations, screen_settings):
             for configuration in configurations]
 
 
-def summary_lines(result: "calibration.CalibrationResult",
+def summary_lines(result: "CalibrationResult",
                   screen_rows: typing.Sequence[typing.Mapping[str, typing.Any]]) -> typing.List[str]:
     """The printed summary: likelihood, parameters with uncertainty, per-configuration rates, rank agreement."""
-    from rollability_ros.core.results import analysis
-
     trials = sum(c.trials for c in result.conditions)
     lines = [f"grouped conditions: {len(result.conditions)}, physical trials: {trials}, parameter sets simulated: "
              f"{result.evaluations} x {result.sim_repetitions} launches per condition",
@@ -61,7 +59,9 @@ def run(args: argparse.Namespace) -> int:
     """Calibrate, write the outputs to ``--out`` and print the summary; return the exit code."""
     import yaml
 
-    from rollability_ros.core.campaign import calibration, characterisation as bench_readings
+    from rollability_ros.core.campaign import (TWIN_CONFIGS, LaunchPool, calibrate, calibrated_parameter_document,
+                                               calibration_settings, check_fittable, load_characterisation,
+                                               rig_parameter_document, twin_settings_with)
     from rollability_ros.core.optimization import atomic_write_bytes
     from rollability_ros.core.config import check_given_files, check_output_dir, from_mapping, load_parameters, section
     from rollability_ros.core.results import load_report_data
@@ -69,11 +69,11 @@ def run(args: argparse.Namespace) -> int:
 
     check_output_dir(args.out, "--out", keeps=("calibrated.yaml", RIG_FILE))   # before minutes of fitting
     check_given_files(args.config, {*TWIN_SECTIONS, "calibration", "stable_poses"}, "rollability calibrate")
-    parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.config])
-    settings = calibration.calibration_settings(parameters)
+    parameters = load_parameters([*TWIN_CONFIGS, "calibration", *args.config])
+    settings = calibration_settings(parameters)
     if args.fit:
         settings = settings.selected(args.fit)
-    characterisation = bench_readings.load_characterisation(args.characterisation) if args.characterisation else None
+    characterisation = load_characterisation(args.characterisation) if args.characterisation else None
     if args.physical is None and characterisation is None:
         raise ValueError("give --physical (launch outcomes) and/or --characterisation (bench readings)")
     if args.workers is not None:
@@ -92,23 +92,22 @@ def run(args: argparse.Namespace) -> int:
     if characterisation is not None:
         print(characterisation.summary())
         sources.append(characterisation.source)
-    calibration.check_fittable(parameters, settings)   # before any launch
-    with calibration.LaunchPool(settings.workers) as pool:
-        result = calibration.calibrate(outcomes, parameters, settings, pool, on_progress=print,
-                                       characterisation=characterisation)
+    check_fittable(parameters, settings)   # before any launch
+    with LaunchPool(settings.workers) as pool:
+        result = calibrate(outcomes, parameters, settings, pool, on_progress=print,
+                           characterisation=characterisation)
     os.makedirs(args.out, exist_ok=True)
     params_path = os.path.join(args.out, "calibrated.yaml")
-    document = calibration.calibrated_parameter_document(result.fitted_values())
+    document = calibrated_parameter_document(result.fitted_values())
     header = (f"# Calibrated launch-twin parameters from {' and '.join(sources)} (rollability calibrate); load on top "
               f"of the\n# defaults: --config / --rig-config. Bootstrap uncertainty in parameters.csv beside this "
               f"file.\n")
     atomic_write_bytes(params_path, (header + yaml.safe_dump(document, sort_keys=True)).encode("utf-8"))
-    rig_document = calibration.rig_parameter_document(os.path.abspath(params_path))
+    rig_document = rig_parameter_document(os.path.abspath(params_path))
     atomic_write_bytes(os.path.join(args.out, RIG_FILE),
                        (f"# A rig node's twin on {params_path}: --params-file after config/rig.yaml\n"
                         + yaml.safe_dump(rig_document, sort_keys=True)).encode("utf-8"))
-    calibrated_twin = calibration.twin_settings_with(parameters, settings.parameters,
-                                                     [e.fitted for e in result.estimates])
+    calibrated_twin = twin_settings_with(parameters, settings.parameters, [e.fitted for e in result.estimates])
     configurations = sorted({c.configuration for c in result.conditions})
     screen_rows = _screen_rows(calibrated_twin, configurations, screen_settings)
     if result.conditions:   # a characterisation alone has no launch conditions to compare

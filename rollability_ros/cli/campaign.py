@@ -56,13 +56,13 @@ def _spec(args):
     import dataclasses
 
     from rollability_ros.core.campaign import load_campaign_spec
-    from rollability_ros.core.config import check_given_files
+    from rollability_ros.core.config import check_given_files, check_settings
 
     check_given_files(args.config or [], {"campaign"}, "rollability campaign --config")
     spec = load_campaign_spec(args.config or ["campaign"])
     if args.run_id is not None:   # given, even empty: then validate() refuses it
         spec = dataclasses.replace(spec, run_id=args.run_id)
-        spec.validate()
+        check_settings(spec, "campaign")
     return spec
 
 
@@ -162,6 +162,7 @@ def _run_graph(args, spec, ask):
     import sys
 
     from rollability_ros.core.campaign import RunnerSettings, TerminalAsk, report_exit_code, resume_command
+    from rollability_ros.core.config import check_settings
     from rollability_ros.core.rig import check_namespace
 
     if ask is not None:   # a prompt that stops waiting when the rig CLI answered first
@@ -178,7 +179,7 @@ def _run_graph(args, spec, ask):
         namespace = check_namespace(default_namespace())
     settings = RunnerSettings(backend=args.backend, resume=args.resume, store_timeout_s=args.store_timeout_s,
                               session_key_file=args.session_key_file or (session.valve_key_file if session else ""))
-    settings.validate()
+    check_settings(settings, "runner")
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node

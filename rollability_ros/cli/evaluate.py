@@ -6,6 +6,7 @@ import typing
 from rollability_ros.cli import Subparsers
 
 if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
+    from rollability_ros.core.profile import Mesh
     from rollability_ros.core.sim import TrialOutcome
 
 
@@ -44,29 +45,31 @@ def _read_heights(args):
 
 def run(args: argparse.Namespace) -> int:
     """Evaluate the profile the arguments name and print fitness, interval and timing; return the exit code."""
-    from rollability_ros.core.sim import evaluation
-    from rollability_ros.core.profile import geometry
+    from rollability_ros.core.sim import (evaluate_mesh, load_settings, make_executor, profile_job,
+                                          settings_at_fidelity, with_given_files)
+    from rollability_ros.core.profile import load_profile_mesh, profile_mesh
 
     # the objective and engine of the fidelity (objective.screen_engine / launch_engine; --engines names its own)
-    settings = evaluation.settings_at_fidelity(evaluation.load_settings(["sim", "robot", "evaluator", *args.config]),
-                                               args.fidelity)
-    settings = evaluation.with_given_files(settings, args.config, f"rollability evaluate --fidelity {args.fidelity}")
+    settings = settings_at_fidelity(load_settings(["sim", "robot", "evaluator", *args.config]),
+                                    args.fidelity)
+    settings = with_given_files(settings, args.config, f"rollability evaluate --fidelity {args.fidelity}")
     trials = args.trials if args.trials is not None else settings.evaluator.trials
     if args.designs is not None:
         if args.engines is None:
             raise ValueError("--designs compares engines: give --engines too (e.g. --engines pybullet,mujoco)")
         return _compare_designs(args, settings, trials)
+    mesh: typing.Optional["Mesh"]
     if args.stl is not None:
-        mesh = geometry.load_profile_mesh(args.stl, units=args.stl_units)
+        mesh = load_profile_mesh(args.stl, units=args.stl_units)
         label = args.stl
     else:
         heights = _read_heights(args)
-        job = evaluation.profile_job(heights, settings)  # validates before any worker starts
-        mesh = None if job.profile is None else geometry.profile_mesh(heights, settings.grid)
+        job = profile_job(heights, settings)  # validates before any worker starts
+        mesh = None if job.profile is None else profile_mesh(heights, settings.grid)
         label = "baseline (no profile)" if mesh is None else f"{len(heights)} heights"
     if args.engines is not None:   # `--engines ''` is refused (_engine_list), never one engine
         return _compare_engines(args, settings, mesh, trials, label)
-    executor = evaluation.make_executor(settings.evaluator, args.workers)
+    executor = make_executor(settings.evaluator, args.workers)
     done = []
 
     def progress(outcome: "TrialOutcome") -> None:
@@ -76,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
             sys.stderr.flush()
 
     try:
-        result = evaluation.evaluate_mesh(mesh, trials, args.seed, settings, executor=executor, on_trial=progress)
+        result = evaluate_mesh(mesh, trials, args.seed, settings, executor=executor, on_trial=progress)
     finally:
         executor.close()
         if sys.stderr.isatty():
@@ -104,15 +107,15 @@ def _compare_engines(args, settings, mesh, trials, label):
     """Evaluate the same trials in two engines; print fitness per engine and trial-by-trial agreement."""
     import dataclasses
     from rollability_ros.core.results import trial_agreement
-    from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.sim import evaluate_mesh, make_executor
 
     engines = _engine_list(args.engines)
     results = {}
     for engine in engines:
         engine_settings = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine=engine))
-        executor = evaluation.make_executor(settings.evaluator, args.workers)
+        executor = make_executor(settings.evaluator, args.workers)
         try:
-            results[engine] = evaluation.evaluate_mesh(mesh, trials, args.seed, engine_settings, executor=executor)
+            results[engine] = evaluate_mesh(mesh, trials, args.seed, engine_settings, executor=executor)
         finally:
             executor.close()
     print(f"profile   {label}   seed {args.seed}   (simulated)")
@@ -134,31 +137,31 @@ def _compare_designs(args, settings, trials):
     import dataclasses
     import os
     from rollability_ros.core.profile import DesignSources, configuration_ids, profile_mesh_for
-    from rollability_ros.core.results import engine_agreement
-    from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.results import TABLE_FILENAME, summary_lines, table_rows, write_table
+    from rollability_ros.core.sim import evaluate_mesh, make_executor
 
     engines = _engine_list(args.engines)
     sources = DesignSources(designs_file=args.designs)
-    table = os.path.join(os.path.dirname(os.path.abspath(args.designs)), engine_agreement.TABLE_FILENAME)
+    table = os.path.join(os.path.dirname(os.path.abspath(args.designs)), TABLE_FILENAME)
     if os.path.lexists(table):   # before minutes of trials: an earlier comparison is a result, never overwritten
         raise ValueError(f"{table} already holds an earlier engine comparison of these designs; move it aside to "
                          "keep it, then run again")
-    results = {}
-    executor = evaluation.make_executor(settings.evaluator, args.workers)   # one worker pool for every evaluation
+    results: typing.Dict[str, typing.Dict[str, typing.Any]] = {}
+    executor = make_executor(settings.evaluator, args.workers)   # one worker pool for every evaluation
     try:
         for design in configuration_ids(sources):
             mesh = profile_mesh_for(design, sources)
             results[design] = {}
             for engine in engines:
                 engine_settings = dataclasses.replace(settings, physics=dataclasses.replace(settings.physics,
-                                                                                             engine=engine))
-                results[design][engine] = evaluation.evaluate_mesh(mesh, trials, args.seed, engine_settings,
-                                                                   executor=executor)
+                                                                                            engine=engine))
+                results[design][engine] = evaluate_mesh(mesh, trials, args.seed, engine_settings,
+                                                        executor=executor)
     finally:
         executor.close()
-    rows = engine_agreement.table_rows(results, args.seed)
-    path = engine_agreement.write_table(table, rows)
-    print("\n".join(engine_agreement.summary_lines(rows)))
+    rows = table_rows(results, args.seed)
+    path = write_table(table, rows)
+    print("\n".join(summary_lines(rows)))
     print(f"wrote {path} (rollability report shows it)")
     return 0
 

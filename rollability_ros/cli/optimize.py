@@ -53,21 +53,22 @@ class ProgressLine:
 
 def _write_convergence_figure(run):
     """Write ``<run_dir>/convergence.png`` (the paper's Figure 4) if matplotlib is installed; return its path."""
-    from rollability_ros.core.results import analysis
-    from rollability_ros.core.results import report_figures
+    from rollability_ros.core.results import convergence, convergence_figure
     from rollability_ros.core.optional import MissingDependency
 
-    points = analysis.convergence(generations=run.store.generations(run_id=run.run_id))
+    points = convergence(generations=run.store.generations(run_id=run.run_id))
     try:
-        return report_figures.convergence(os.path.join(run.run_dir, "convergence.png"), points)
+        return convergence_figure(os.path.join(run.run_dir, "convergence.png"), points)
     except MissingDependency:
         return None
 
 
 def run(args: argparse.Namespace) -> int:
     """Start or resume an optimization; return the exit code."""
-    from rollability_ros.core.sim import evaluation
-    from rollability_ros.core.optimization import optimization_run as optimization_run
+    from rollability_ros.core.sim import make_executor, settings_from_parameters
+    from rollability_ros.core.optimization import (OptimizationRun, fidelity_batch_evaluator, load_run_parameters,
+                                                   profile_batch_evaluator, profile_screen, run_config,
+                                                   run_generations, run_settings, run_target, with_given_files)
 
     from rollability_ros.core.config import check_path_component
 
@@ -75,25 +76,26 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--run-id names a new run; --resume takes the run to continue")
     if args.run_id is not None:
         check_path_component(args.run_id, "--run-id")
-    given = optimization_run.with_given_files(optimization_run.load_run_parameters(args.config), args.config,
-                                              "rollability optimize") if args.config else None
-    output_dir = optimization_run.run_settings(given).optimizer.output_dir if given else "runs"
-    run_dir, parameters = optimization_run.run_target(args.resume or args.run_id or "", bool(args.resume), given,
-                                                      output_dir)
-    settings = evaluation.settings_from_parameters(parameters)
-    trials = optimization_run.run_settings(parameters).optimizer.trials   # a resume: the run's config.yaml below
-    executor = evaluation.make_executor(settings.evaluator, args.workers)
+    given = with_given_files(load_run_parameters(args.config), args.config,
+                             "rollability optimize") if args.config else None
+    output_dir = run_settings(given).optimizer.output_dir if given else "runs"
+    run_dir, parameters = run_target(args.resume or args.run_id or "", bool(args.resume), given,
+                                     output_dir)
+    settings = settings_from_parameters(parameters)
+    config = run_config(parameters)   # a resume: the run's config.yaml
+    executor = make_executor(settings.evaluator, args.workers)
     try:
-        evaluate_batch = optimization_run.profile_batch_evaluator(settings, trials, executor)
-        run = optimization_run.OptimizationRun(
-            run_dir, parameters, settings.grid, evaluate_batch, resume=bool(args.resume),
-            evaluate_trials=optimization_run.fidelity_batch_evaluator(settings, executor, "screen"))
+        evaluate_batch = profile_batch_evaluator(settings, config.settings.optimizer.trials, executor)
+        run = OptimizationRun(
+            run_dir, config, settings.grid, evaluate_batch, resume=bool(args.resume),
+            evaluate_trials=fidelity_batch_evaluator(settings, executor, "screen"),
+            screen_profiles=profile_screen(config.settings, settings))
         progress = ProgressLine(run)
         run.on_candidate, run.on_generation = progress.candidate, progress.generation
         print(f"{run.start_text(bool(args.resume))}; {settings.grid.rows}x{settings.grid.cols} grid")
         print(run.initial_mean_text())
         try:
-            end = optimization_run.run_generations(run)
+            end = run_generations(run)
         except KeyboardInterrupt:
             print(f"\ninterrupted; continue with: rollability optimize --resume {run.run_dir}", file=sys.stderr)
             raise

@@ -27,16 +27,16 @@ def default_out_dir(source: typing.Union[str, os.PathLike]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Build the report and print its summary; return the exit code."""
-    from rollability_ros.core.results import report
+    from rollability_ros.core.results import build_report, check_report_dir, load_report_data, use_geometry_csv
 
     out_dir = args.out or default_out_dir(args.source)
-    report.check_report_dir(out_dir)     # before reading: a refused output writes nothing
-    data = report.load_report_data(args.source, run_id=args.run)
+    check_report_dir(out_dir)     # before reading: a refused output writes nothing
+    data = load_report_data(args.source, run_id=args.run)
     if args.sim_fitness:
         data.sim_fitness.update(_sim_fitness(args.sim_fitness))
     if args.geometry:
-        report.use_geometry_csv(data, args.geometry)
-    result = report.build_report(data, out_dir, measure=args.measure)
+        use_geometry_csv(data, args.geometry)
+    result = build_report(data, out_dir, measure=args.measure)
     print(result.summary)
     print(f"wrote {len(result.figure_paths)} figures, {len(result.table_paths)} tables and {result.html_path}")
     return 0

@@ -86,7 +86,7 @@ def _request(args, sign=False):
 
     from std_msgs.msg import Bool
 
-    from rollability_ros.core.rig import rig_auth, valve_auth
+    from rollability_ros.core.rig import AuthError, KeyFileSigner, RequestSigner, default_key_path, load_session_key
     from rollability_ros.nodes._convert import auth_msg
     from rollability_ros.srv import ArmValve, ConfirmRegulator, RecordOutcome
 
@@ -97,12 +97,12 @@ def _request(args, sign=False):
         return kind, name, Bool(data=True)
     if not sign:
         return kind, name, None
-    key_file = args.session_key_file or valve_auth.default_key_path(args.namespace)
+    key_file = args.session_key_file or default_key_path(args.namespace)
     try:
         if args.action in ("arm", "disarm"):
-            signature = valve_auth.RequestSigner(valve_auth.load_session_key(key_file)).sign(args.action)
+            signature = RequestSigner(load_session_key(key_file)).sign(args.action)
             return kind, name, ArmValve.Request(arm=args.action == "arm", auth=auth_msg(signature))
-        signer = rig_auth.KeyFileSigner(key_file)
+        signer = KeyFileSigner(key_file)
         if args.action == "confirm":
             return kind, name, ConfirmRegulator.Request(trial_id=args.trial_id,
                                                         auth=auth_msg(signer.confirm(args.trial_id)))
@@ -111,7 +111,7 @@ def _request(args, sign=False):
         return kind, name, RecordOutcome.Request(
             trial_id=args.trial_id, upright=upright, travel_time_s=travel_time_s, note=args.note,
             auth=auth_msg(signer.outcome(args.trial_id, upright, travel_time_s, args.note)))
-    except valve_auth.AuthError as exc:
+    except AuthError as exc:
         hint = "" if args.session else " (a session keeps its key where its session.yaml says: pass --session SESSION)"
         raise ValueError(f"{exc}{hint}") from exc
 

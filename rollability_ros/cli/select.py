@@ -30,36 +30,38 @@ def _print_table(rows):
 
 def run(args: argparse.Namespace) -> int:
     """Select, export and report the designs; exit code 1 when fewer than requested qualify."""
-    from rollability_ros.core.sim import evaluation
-    from rollability_ros.core.optimization import optimization_run as optimization_run
-    from rollability_ros.core.optimization import selection
+    from rollability_ros.core.sim import make_executor, settings_from_parameters
+    from rollability_ros.core.optimization import (GAIN_SOURCES, SelectionSettings, design_set_folders,
+                                                   fidelity_batch_evaluator, profile_batch_evaluator, read_run_config,
+                                                   resolve_run_dir, run_id_of, run_settings, select_run, table_rows,
+                                                   with_given_files)
     from rollability_ros.core.config import from_mapping, section
     from rollability_ros.core.store import Store
 
-    run_dir = optimization_run.resolve_run_dir(args.run, args.output_dir)
-    parameters = optimization_run.read_run_config(run_dir)
+    run_dir = resolve_run_dir(args.run, args.output_dir)
+    parameters = read_run_config(run_dir)
     # later files win over the run's own config.yaml, key by key; a key no run applies is refused
-    parameters = optimization_run.with_given_files(parameters, list(args.config), "rollability select")
+    parameters = with_given_files(parameters, list(args.config), "rollability select")
     mapping = section(parameters, "selection")
     for name in OVERRIDES:
         if getattr(args, name) is not None:
             mapping[name] = getattr(args, name)
-    settings = from_mapping(selection.SelectionSettings, mapping, "selection")
-    evaluator_settings = evaluation.settings_from_parameters(parameters)
-    run_id = optimization_run.run_id_of(run_dir)
+    settings = from_mapping(SelectionSettings, mapping, "selection")
+    evaluator_settings = settings_from_parameters(parameters)
+    run_id = run_id_of(run_dir)
     launches = bool(settings.race_rounds or settings.launch_trials)
-    executor = evaluation.make_executor(evaluator_settings.evaluator, args.workers) \
+    executor = make_executor(evaluator_settings.evaluator, args.workers) \
         if settings.reevaluate_trials or launches else None
     try:
-        evaluate_batch = optimization_run.profile_batch_evaluator(
-            evaluator_settings, settings.reevaluate_trials, executor) if settings.reevaluate_trials else None
-        launch_batch = optimization_run.fidelity_batch_evaluator(evaluator_settings, executor, "launch") \
-            if launches else None
+        evaluate_batch = profile_batch_evaluator(evaluator_settings, settings.reevaluate_trials, executor) \
+            if executor is not None and settings.reevaluate_trials else None
+        launch_batch = fidelity_batch_evaluator(evaluator_settings, executor, "launch") \
+            if executor is not None and launches else None
         with Store(run_dir) as store:
-            result, folder = selection.select_run(store, run_id, run_dir, evaluator_settings.grid,
-                                                  evaluator_settings.printer, settings, evaluate_batch,
-                                                  optimization_run.run_settings(parameters).optimizer.seed,
-                                                  launch_batch, weigh=lambda mesh: evaluator_settings.profile_body(mesh).mass_kg)
+            result, folder = select_run(store, run_id, run_dir, evaluator_settings.grid,
+                                        evaluator_settings.printer, settings, evaluate_batch,
+                                        run_settings(parameters).optimizer.seed,
+                                        launch_batch, weigh=lambda mesh: evaluator_settings.profile_body(mesh).mass_kg)
     finally:
         if executor is not None:
             executor.close()
@@ -76,16 +78,16 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(f"{len(result.designs)} design(s) from the {result.considered} elites of run {run_id}'s height x "
               f"sharpness archive (top {settings.top_fraction:.0%}: fitness >= {result.top_threshold:.3f})")
-    _print_table(selection.table_rows(result))
+    _print_table(table_rows(result))
     for design in result.designs:
         print(f"{design.label}: {design.reason}")
     for gain in result.gains():
         if gain is not None:
-            print(f"{gain.label} minus the bare robot on {selection.GAIN_SOURCES[gain.source]}: {gain.text()} "
+            print(f"{gain.label} minus the bare robot on {GAIN_SOURCES[gain.source]}: {gain.text()} "
                   f"(95% Newcombe){'' if gain.beats else '; does NOT beat the bare robot'}")
     print(f"wrote {folder}/: table3.csv, designs.yaml, {len(result.designs)} STL file(s) in "
           f"{'millimetres' if settings.mesh_units == 'mm' else 'metres'} and as many 3MF files")
-    earlier = [os.path.basename(path) for path in selection.design_set_folders(run_dir)
+    earlier = [os.path.basename(path) for path in design_set_folders(run_dir)
                if os.path.abspath(path) != os.path.abspath(folder)]
     if earlier:
         print(f"earlier design set(s) kept unchanged ({', '.join(earlier)}: stored outcomes and printed parts may "
@@ -131,7 +133,7 @@ def register(subparsers: Subparsers) -> None:
                                                           "selection.launch_trials; 0 = none)")
     parser.add_argument("--workers", type=int, help="worker processes for the re-evaluation")
     parser.add_argument("--mesh-units", choices=("mm", "m"), help="length unit of the STL files (default: "
-                                                                   "selection.mesh_units, mm as slicers expect)")
+                        "selection.mesh_units, mm as slicers expect)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="a ROS 2 parameter file (or shipped name) whose keys override the run's config.yaml, "
                              "e.g. another printer section; repeatable, later files win")

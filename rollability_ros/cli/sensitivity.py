@@ -8,18 +8,21 @@ import typing
 
 from rollability_ros.cli import Subparsers
 
+if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
+    from rollability_ros.core.profile import Mesh
+
 
 def _profiles(args):
     """``{label: mesh or None}``: the bare chassis, then every ``--mesh LABEL=FILE`` and ``--designs-file`` design."""
-    from rollability_ros.core.profile import geometry
+    from rollability_ros.core.profile import load_profile_mesh
     from rollability_ros.core.profile import DesignSources, configuration_ids, profile_mesh_for
 
-    profiles = {"baseline": None}
+    profiles: typing.Dict[str, typing.Optional["Mesh"]] = {"baseline": None}
     for item in args.mesh:
         label, _, path = item.partition("=")
         if not label or not path:
             raise ValueError(f"--mesh takes LABEL=FILE, got {item!r}")
-        profiles[label] = geometry.load_profile_mesh(path)
+        profiles[label] = load_profile_mesh(path)
     if args.designs_file:
         sources = DesignSources(designs_file=args.designs_file)
         for label in configuration_ids(sources):
@@ -49,14 +52,14 @@ def run(args: argparse.Namespace) -> int:
     """Run the sensitivity study, write ``sensitivity.csv`` and ``sensitivity.png`` to ``--out``; exit code."""
     from rollability_ros.core.config import check_output_dir
     from rollability_ros.core.optional import MissingDependency
-    from rollability_ros.core.results import report_figures
-    from rollability_ros.core.sim import evaluation
+    from rollability_ros.core.results import sensitivity_figure
+    from rollability_ros.core.sim import load_settings, make_executor, with_given_files
     from rollability_ros.core.results import gain_lines
     from rollability_ros.core.sim import launch_sensitivity_rows, sensitivity_rows
 
     check_output_dir(args.out, "--out", keeps=("sensitivity.csv", "sensitivity.png"))
-    settings = evaluation.with_given_files(evaluation.load_settings(["sim", "robot", "evaluator", *args.config]),
-                                           args.config, "rollability sensitivity")
+    settings = with_given_files(load_settings(["sim", "robot", "evaluator", *args.config]),
+                                args.config, "rollability sensitivity")
     if args.trials < 1:
         raise ValueError(f"--trials must be >= 1, got {args.trials}")
     profiles = _profiles(args)
@@ -69,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{row['configuration']:<10} {row['factor']:<18} {str(row['level']):<18} {row['successes']:>4}/"
               f"{row['trials']:<4} {row['fitness']:.2f} [{row['ci_low']:.2f}, {row['ci_high']:.2f}]", flush=True)
 
-    with evaluation.make_executor(settings.evaluator, args.workers) as executor:
+    with make_executor(settings.evaluator, args.workers) as executor:
         if args.launches:
             rows = launch_sensitivity_rows(profiles, settings, args.trials, args.seed, executor, on_row=show,
                                            settings_levels=varied)
@@ -81,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         writer.writeheader()
         writer.writerows(rows)
     try:
-        figure = report_figures.sensitivity(os.path.join(args.out, "sensitivity.png"), rows)
+        figure = sensitivity_figure(os.path.join(args.out, "sensitivity.png"), rows)
     except MissingDependency:
         figure = None
     for line in gain_lines(rows):

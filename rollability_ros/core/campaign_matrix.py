@@ -61,8 +61,6 @@ class CampaignSpec:
         for configuration in self.configurations:
             if not configuration or any(c.isspace() or c == "/" for c in configuration):
                 raise ValueError(f"configuration ids must be non-empty without spaces or '/', got {configuration!r}")
-        if self.repetitions < 1:
-            raise ValueError(f"repetitions must be >= 1, got {self.repetitions}")
         if self.random_block not in LEVELS:
             raise ValueError(f"random_block must be one of {', '.join(LEVELS)}, got {self.random_block!r}")
         for height, speed, angle in itertools.product(self.heights_m, self.speeds_mps, self.angles_deg):

@@ -241,40 +241,110 @@ def section(flat: typing.Mapping[str, typing.Any], prefix: str) -> typing.Dict[s
     return out
 
 
+def parameter_document(flat: typing.Mapping[str, typing.Any]) -> typing.Dict[str, typing.Any]:
+    """Flat ``{dotted name: value}`` parameters as a ROS 2 parameter file's document for every node:
+    ``{"/**": {"ros__parameters": {...nested by namespace...}}}`` (tuples written as lists); the inverse of
+    :func:`read_parameter_file` for one ``/**`` section."""
+    values = {name: list(value) if isinstance(value, tuple) else value for name, value in flat.items()}
+    return {"/**": {"ros__parameters": section(values, "")}}
+
+
 #: A settings dataclass built by :func:`from_mapping`.
 _Settings = typing.TypeVar("_Settings")
 
 
-def _check_value(value, field_type, where):
-    """Coerce and check one value against a dataclass field type (float, int, bool, str, lists, tuples)."""
+def interval(metadata: typing.Mapping[str, typing.Any]) -> str:
+    """The declared range of a settings field in interval notation: ``[0.0, 100.0]``, or ``(0.0, 100.0]`` when
+    ``metadata["exclusive"]`` (``"low"``, ``"high"`` or ``"both"``) leaves an end out ("must be > 0")."""
+    low, high = metadata["range"]
+    exclusive = metadata.get("exclusive", "")
+    return (f"{'(' if exclusive in ('low', 'both') else '['}{low}, {high}"
+            f"{')' if exclusive in ('high', 'both') else ']'}")
+
+
+def in_range(value: float, metadata: typing.Mapping[str, typing.Any]) -> bool:
+    """True when the number ``value`` lies in the field's declared range (:func:`interval`); NaN never does."""
+    low, high = metadata["range"]
+    exclusive = metadata.get("exclusive", "")
+    above = value > low if exclusive in ("low", "both") else value >= low
+    below = value < high if exclusive in ("high", "both") else value <= high
+    return above and below
+
+
+def out_of_range(name: str, value: object, metadata: typing.Mapping[str, typing.Any]) -> str:
+    """The one line that refuses ``value`` for the setting ``name`` (a dotted parameter name), from the CLI and
+    from a node alike: ``optimizer.popsize out of range: 1 is not in [2, 100000]``."""
+    return f"{name} out of range: {value} is not in {interval(metadata)}"
+
+
+#: What a value of each scalar field type is called in a refusal.
+_KINDS = {float: "a number", int: "an integer", bool: "true or false", str: "text"}
+
+
+def wrong_type(name: str, field_type: type, value: object,
+               metadata: typing.Optional[typing.Mapping[str, typing.Any]] = None) -> str:
+    """The one line that refuses ``value`` of the wrong type for setting ``name`` (CLI and node alike):
+    ``optimizer.popsize: expected an integer in [2, 100000], got 'twelve'``."""
+    return f"{name}: expected {_KINDS.get(field_type, field_type.__name__)}{_in(metadata)}, got {value!r}"
+
+
+def _check_value(value, field_type, where, metadata=None):
+    """Coerce and check one value against a dataclass field type (float, int, bool, str, lists, tuples) and, for a
+    number, against the field's declared ``metadata["range"]``."""
+    value_range = (metadata or {}).get("range")
     origin = typing.get_origin(field_type)
     if field_type is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{where}: expected a number, got {value!r}")
+            raise ConfigError(wrong_type(where, float, value, metadata))
         value = float(value)
-        if not math.isfinite(value):
+        if value_range is None and not math.isfinite(value):
             raise ConfigError(f"{where}: must be finite, got {value!r}")
-        return value
-    if field_type is int:
+    elif field_type is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{where}: expected an integer, got {value!r}")
-        return value
-    if field_type is bool:
+            raise ConfigError(wrong_type(where, int, value, metadata))
+    elif field_type is bool:
         if not isinstance(value, bool):
-            raise ConfigError(f"{where}: expected true or false, got {value!r}")
-        return value
-    if field_type is str:
+            raise ConfigError(wrong_type(where, bool, value))
+    elif field_type is str:
         if not isinstance(value, str):
-            raise ConfigError(f"{where}: expected text, got {value!r}")
-        return value
-    if origin in (list, tuple):
+            raise ConfigError(wrong_type(where, str, value))
+    elif origin in (list, tuple):
         if not isinstance(value, (list, tuple)):
             raise ConfigError(f"{where}: expected a list, got {value!r}")
         args = typing.get_args(field_type)
         item_type = args[0] if args else typing.Any
         items = [_check_value(v, item_type, f"{where}[{i}]") for i, v in enumerate(value)]
         return tuple(items) if origin is tuple else items
+    if value_range is not None and field_type in (int, float) and not in_range(value, metadata):
+        raise ConfigError(out_of_range(where, value, metadata))
     return value
+
+
+def _in(metadata):
+    """`` in [low, high]`` for a field that declares its range, else ""."""
+    return f" in {interval(metadata)}" if metadata and "range" in metadata else ""
+
+
+def check_settings(settings: object, where: str) -> None:
+    """Check a built settings dataclass: every numeric field (nested settings too) against its declared
+    ``metadata["range"]``, then its ``validate()``, the rules that span fields. Raises :class:`ConfigError` naming
+    ``where.field``; the one check every builder (:func:`from_mapping`, the nodes, the core's entry points) runs."""
+    hints = typing.get_type_hints(type(settings))
+    for field in dataclasses.fields(typing.cast(typing.Any, settings)):
+        value = getattr(settings, field.name)
+        name = f"{where}.{field.name}" if where else field.name
+        if dataclasses.is_dataclass(value) and not isinstance(value, type):
+            check_settings(value, name)
+        elif "range" in field.metadata and hints[field.name] in (int, float):
+            _check_value(value, hints[field.name], name, field.metadata)
+    validate = getattr(settings, "validate", None)
+    if callable(validate):
+        try:
+            validate()
+        except ConfigError:
+            raise
+        except ValueError as exc:
+            raise ConfigError(f"{where}: {exc}" if where else str(exc)) from exc
 
 
 def from_mapping(cls: typing.Type[_Settings], mapping: typing.Optional[typing.Mapping[str, typing.Any]],
@@ -282,8 +352,9 @@ def from_mapping(cls: typing.Type[_Settings], mapping: typing.Optional[typing.Ma
     """Build dataclass ``cls`` from a (nested) mapping, checking names and types.
 
     Unknown keys and wrongly typed values raise :class:`ConfigError` naming ``where.key``; missing keys take
-    the dataclass defaults. Nested dataclass fields are built recursively. After construction, a
-    ``validate()`` method on ``cls`` (if any) checks ranges and raises ``ValueError``.
+    the dataclass defaults. Nested dataclass fields are built recursively. A number outside its field's declared
+    ``metadata["range"]`` (NaN included) is refused in one line (:func:`out_of_range`); after construction
+    :func:`check_settings` runs the dataclass's ``validate()`` (the rules that span fields).
     """
     if mapping is None:
         mapping = {}
@@ -300,16 +371,9 @@ def from_mapping(cls: typing.Type[_Settings], mapping: typing.Optional[typing.Ma
         if isinstance(field_type, type) and dataclasses.is_dataclass(field_type):
             kwargs[name] = from_mapping(field_type, value, f"{where}.{name}")
         else:
-            kwargs[name] = _check_value(value, field_type, f"{where}.{name}")
+            kwargs[name] = _check_value(value, field_type, f"{where}.{name}", fields[name].metadata)
     obj = cls(**kwargs)
-    validate = getattr(obj, "validate", None)
-    if callable(validate):
-        try:
-            validate()
-        except ConfigError:
-            raise
-        except ValueError as exc:
-            raise ConfigError(f"{where}: {exc}") from exc
+    check_settings(obj, where)
     return obj
 
 

@@ -21,8 +21,55 @@ from rollability_ros.core.records import (NO_SEED, CandidateRecord, GenerationRe
 
 #: Any of the record classes.
 Record = typing.Union[LaunchOutcome, CandidateRecord, GenerationRecord, TipEventRecord]
-#: ``make(type_name, **fields) -> message`` of one message implementation (rclpy, rosbags).
-MakeMessage = typing.Callable[..., typing.Any]
+#: A message of the caller's implementation (rclpy's generated classes, rosbags' dataclasses): what ``make`` builds.
+Message = typing.TypeVar("Message")
+#: ``make(type_name, **fields) -> message`` of one message implementation (rclpy, rosbags); generic in the message.
+MakeMessage = typing.Callable[..., Message]
+
+
+class StampMessage(typing.Protocol):
+    """A ``builtin_interfaces/Time`` as read: whole seconds and nanoseconds."""
+
+    @property
+    def sec(self) -> int: ...
+
+    @property
+    def nanosec(self) -> int: ...
+
+
+class QuaternionMessage(typing.Protocol):
+    """A ``geometry_msgs/Quaternion`` as read."""
+
+    @property
+    def x(self) -> float: ...
+
+    @property
+    def y(self) -> float: ...
+
+    @property
+    def z(self) -> float: ...
+
+    @property
+    def w(self) -> float: ...
+
+
+class ConditionMessage(typing.Protocol):
+    """A ``rollability_ros/LaunchCondition`` as read."""
+
+    @property
+    def configuration(self) -> str: ...
+
+    @property
+    def height_m(self) -> float: ...
+
+    @property
+    def speed_mps(self) -> float: ...
+
+    @property
+    def angle_deg(self) -> float: ...
+
+    @property
+    def repetition(self) -> int: ...
 
 OUTCOME_TYPE = "rollability_ros/msg/LaunchOutcome"
 CANDIDATE_TYPE = "rollability_ros/msg/CandidateResult"
@@ -39,7 +86,7 @@ RECORD_TYPES = {OUTCOME_TYPE: LaunchOutcome, CANDIDATE_TYPE: CandidateRecord, GE
                 TIP_EVENT_TYPE: TipEventRecord}
 
 
-def stamp_to_s(stamp: typing.Any) -> float:
+def stamp_to_s(stamp: StampMessage) -> float:
     """``builtin_interfaces/Time`` (``sec``, ``nanosec``) -> seconds since the epoch (float)."""
     return stamp.sec + stamp.nanosec * 1e-9
 
@@ -52,19 +99,19 @@ def split_stamp(seconds: float) -> typing.Tuple[int, int]:
     return sec, min(max(int(round((seconds - sec) * 1e9)), 0), 999_999_999)
 
 
-def make_stamp(make: MakeMessage, seconds: float) -> typing.Any:
+def make_stamp(make: MakeMessage[Message], seconds: float) -> Message:
     """A ``builtin_interfaces/Time`` of ``seconds`` (see :func:`split_stamp`)."""
     sec, nanosec = split_stamp(seconds)
     return make(TIME_TYPE, sec=sec, nanosec=nanosec)
 
 
-def make_quaternion(make: MakeMessage, xyzw: typing.Sequence[float]) -> typing.Any:
+def make_quaternion(make: MakeMessage[Message], xyzw: typing.Sequence[float]) -> Message:
     """A ``geometry_msgs/Quaternion`` from ``(x, y, z, w)``."""
     x, y, z, w = (float(v) for v in xyzw)
     return make(QUATERNION_TYPE, x=x, y=y, z=z, w=w)
 
 
-def quaternion_to_tuple(q: typing.Any) -> typing.Tuple[float, float, float, float]:
+def quaternion_to_tuple(q: QuaternionMessage) -> typing.Tuple[float, float, float, float]:
     """A ``geometry_msgs/Quaternion`` -> ``(x, y, z, w)``."""
     return (float(q.x), float(q.y), float(q.z), float(q.w))
 
@@ -73,14 +120,14 @@ def _header(make, stamp_s, frame_id=""):
     return make(HEADER_TYPE, stamp=make_stamp(make, stamp_s), frame_id=frame_id)
 
 
-def condition_to_message(make: MakeMessage, condition: LaunchCondition) -> typing.Any:
+def condition_to_message(make: MakeMessage[Message], condition: LaunchCondition) -> Message:
     """:class:`LaunchCondition` -> ``LaunchCondition`` message."""
     return make(CONDITION_TYPE, configuration=condition.configuration, height_m=float(condition.height_m),
                 speed_mps=float(condition.speed_mps), angle_deg=float(condition.angle_deg),
                 repetition=int(condition.repetition))
 
 
-def condition_from_message(msg: typing.Any) -> LaunchCondition:
+def condition_from_message(msg: ConditionMessage) -> LaunchCondition:
     """``LaunchCondition`` message -> validated :class:`LaunchCondition`; ``ValueError`` names the bad field."""
     condition = LaunchCondition(configuration=msg.configuration, height_m=float(msg.height_m),
                                 speed_mps=float(msg.speed_mps), angle_deg=float(msg.angle_deg),
@@ -129,7 +176,7 @@ _FROM_MESSAGE = {OUTCOME_TYPE: _outcome_from_message, CANDIDATE_TYPE: _candidate
                  GENERATION_TYPE: _generation_from_message, TIP_EVENT_TYPE: _tip_event_from_message}
 
 
-def record_from_message(type_name: str, msg: typing.Any) -> Record:
+def record_from_message(type_name: str, msg: object) -> Record:
     """A record message of type ``type_name`` -> its validated record; ``ValueError`` names the bad field."""
     try:
         convert = _FROM_MESSAGE[type_name]
@@ -140,7 +187,7 @@ def record_from_message(type_name: str, msg: typing.Any) -> Record:
     return record
 
 
-def message_from_record(make: MakeMessage, record: Record) -> typing.Tuple[str, typing.Any]:
+def message_from_record(make: MakeMessage[Message], record: Record) -> typing.Tuple[str, Message]:
     """``(type name, message)`` for a record, built with ``make``; the inverse of :func:`record_from_message`."""
     if isinstance(record, LaunchOutcome):
         return OUTCOME_TYPE, make(

@@ -198,21 +198,22 @@ class Store:
     def __init__(self, path):
         self.path = store_path(path)
         self._lock = threading.Lock()
+        self._conn: typing.Optional[sqlite3.Connection] = None   # None once closed: _connection() refuses
         try:
-            self._conn = sqlite3.connect(self.path, timeout=30.0, check_same_thread=False, isolation_level=None)
+            conn = self._conn = sqlite3.connect(self.path, timeout=30.0, check_same_thread=False, isolation_level=None)
         except sqlite3.Error as exc:
             raise ValueError(f"cannot open store {self.path}: {exc}") from exc
         try:
             self._open_schema()
         except sqlite3.DatabaseError as exc:
-            self._conn.close()
+            conn.close()
             raise ValueError(f"{self.path} is not a usable rollability store (corrupt or not SQLite): {exc}") from exc
         except ValueError:
-            self._conn.close()
+            conn.close()
             raise
 
     def _open_schema(self):
-        conn = self._conn
+        conn = self._connection()
         conn.execute("PRAGMA busy_timeout = 30000")
         # one read transaction, so the three describe the same moment: read one by one, they could straddle the
         # commit of another process creating this store (application_id still 0, tables already there) and call a
@@ -260,7 +261,7 @@ class Store:
                 self._conn.close()
                 self._conn = None
 
-    def _connection(self):
+    def _connection(self) -> sqlite3.Connection:
         if self._conn is None:
             raise ValueError(f"store {self.path} is closed")
         return self._conn

@@ -12,7 +12,7 @@ from geometry_msgs.msg import Quaternion
 from std_msgs.msg import Header
 
 from rollability_ros.core import record_messages as mapping
-from rollability_ros.core.rig import valve_auth
+from rollability_ros.core.rig import Signature
 from rollability_ros.core import records
 from rollability_ros.core.records import RunProgress
 from rollability_ros.msg import (CandidateResult, GenerationSummary, LaunchCondition, LaunchOutcome,
@@ -57,9 +57,11 @@ def record_to_msg(record: mapping.Record) -> typing.Any:
 outcome_to_msg = candidate_to_msg = generation_to_msg = tip_event_to_msg = record_to_msg
 
 
-def outcome_from_msg(msg: typing.Any) -> mapping.Record:
+def outcome_from_msg(msg: typing.Any) -> records.LaunchOutcome:
     """``LaunchOutcome`` -> validated record; ``ValueError`` names the bad field."""
-    return mapping.record_from_message(mapping.OUTCOME_TYPE, msg)
+    record = mapping.record_from_message(mapping.OUTCOME_TYPE, msg)
+    assert isinstance(record, records.LaunchOutcome)   # the mapping of OUTCOME_TYPE
+    return record
 
 
 def candidate_from_msg(msg: typing.Any) -> mapping.Record:
@@ -91,11 +93,11 @@ def progress_from_msg(msg: typing.Any) -> RunProgress:
     return RunProgress(msg.run_id, msg.generation, msg.max_generations, msg.best_so_far, msg.trials, msg.elapsed_s)
 
 
-def auth_msg(signature: valve_auth.Signature) -> typing.Any:
+def auth_msg(signature: Signature) -> typing.Any:
     """:class:`~rollability_ros.core.rig.valve_auth.Signature` -> ``rollability_ros/ValveAuth``."""
     return ValveAuth(session=signature.session, counter=signature.counter, mac=signature.mac)
 
 
-def signature_from_msg(auth: typing.Any) -> valve_auth.Signature:
+def signature_from_msg(auth: typing.Any) -> Signature:
     """``rollability_ros/ValveAuth`` -> :class:`~rollability_ros.core.rig.valve_auth.Signature`."""
-    return valve_auth.Signature(auth.session, int(auth.counter), auth.mac)
+    return Signature(auth.session, int(auth.counter), auth.mac)

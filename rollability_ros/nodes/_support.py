@@ -22,11 +22,11 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.signals import SignalHandlerOptions
-from rclpy.exceptions import InvalidParameterValueException
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from rollability_ros.core.config import ConfigError, from_mapping, section
+from rollability_ros.core.config import ConfigError, from_mapping, interval, out_of_range, section, wrong_type
 
 #: State topics (valve state, summaries, tip state): the last value reaches late joiners.
 LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -75,9 +75,11 @@ def declare_settings(node: Node, prefix: str, settings_cls: typing.Type[_Setting
 
     Field descriptions come from ``descriptions[name]`` or the dataclass field's ``metadata["description"]``; a
     field's ``metadata["range"]`` ``(low, high)`` becomes the descriptor's FloatingPointRange / IntegerRange
-    (inclusive; ``validate`` still refuses what the range cannot say, e.g. a bound itself); ``read_only`` marks
-    parameters the node fixes at start-up. Returns the settings object built from the declared values
-    (validated; raises :class:`ParameterError`, also for a value outside its range).
+    (inclusive; an end the metadata leaves out, ``"exclusive"``, is said in the descriptor's
+    ``additional_constraints`` and refused by the same builder as the CLI's, :func:`~rollability_ros.core.config.
+    from_mapping`); ``read_only`` marks parameters the node fixes at start-up. Returns the settings object built
+    from the declared values (checked; raises :class:`ParameterError`, also for a value outside its range, with
+    the CLI's message).
     """
     descriptions = descriptions or {}
     hints = typing.get_type_hints(settings_cls)
@@ -90,17 +92,20 @@ def declare_settings(node: Node, prefix: str, settings_cls: typing.Type[_Setting
             continue
         default = getattr(default_obj, field.name) if default_obj is not None else None
         text = descriptions.get(field.name) or _field_description(field) or field.name.replace("_", " ")
-        value_range = field.metadata.get("range")
         try:
             node.declare_parameter(name, _ros_default(default, field_type),
-                                   parameter_descriptor(text, value_range, field_type, read_only, name=name))
+                                   parameter_descriptor(text, field.metadata.get("range"), field_type, read_only,
+                                                        name=name, exclusive=field.metadata.get("exclusive", "")))
         except InvalidParameterValueException as exc:
-            raise ParameterError(refusal(name, exc, value_range)) from None
+            raise ParameterError(refusal(name, exc, field.metadata)) from None
+        except InvalidParameterTypeException as exc:
+            raise ParameterError(type_refusal(name, exc, field_type, field.metadata)) from None
     return read_settings(node, prefix, settings_cls)
 
 
-def refusal(name: str, exc: Exception, value_range: typing.Optional[typing.Sequence[float]] = None) -> str:
-    """One line for a value rclpy refused at declaration: the parameter, the value and the declared range.
+def refusal(name: str, exc: Exception, metadata: typing.Optional[typing.Mapping[str, typing.Any]] = None) -> str:
+    """One line for a value rclpy refused at declaration: the parameter, the value and the declared range
+    (``metadata["range"]``), in the words the CLI uses (:func:`~rollability_ros.core.config.out_of_range`).
 
     rclpy's own text (``Invalid parameter value (-1.0) for parameter. Reason: Parameter player.rate out of range
     Min: 0.0, Max: 1000.0, value: -1.0: player.rate``) says it twice and ends with the name again.
@@ -108,10 +113,29 @@ def refusal(name: str, exc: Exception, value_range: typing.Optional[typing.Seque
     text = " ".join(str(exc).split())
     reason = re.search(r"Reason: (.*?)(?:: " + re.escape(name) + r")?$", text)
     value = re.search(r"value \((.*?)\) for parameter", text)
-    if value_range is not None and reason is not None and "out of range" in reason.group(1):
-        shown = value.group(1) if value else "the value"
-        return f"{name} out of range: {shown} is not in [{value_range[0]}, {value_range[1]}]"
+    if metadata is not None and "range" in metadata and reason is not None and "out of range" in reason.group(1):
+        return out_of_range(name, value.group(1) if value else "the value", metadata)
     return f"{name}: {reason.group(1) if reason else text}"
+
+
+#: How rclpy names the type of a value it refused, and how to read the value back from its text.
+_READ_BACK: typing.Dict[str, typing.Callable[[str], typing.Any]] = {
+    "STRING": str, "INTEGER": int, "DOUBLE": float, "BOOL": lambda text: text == "True"}
+
+
+def type_refusal(name: str, exc: Exception, field_type: type,
+                 metadata: typing.Optional[typing.Mapping[str, typing.Any]] = None) -> str:
+    """One line for a value of the wrong type rclpy refused at declaration, in the words the CLI uses
+    (:func:`~rollability_ros.core.config.wrong_type`): rclpy's own text (``Trying to set parameter 'x' to 'abc' of
+    type 'STRING', expecting type 'DOUBLE'``) names ROS types rather than the setting's range."""
+    found = re.search(r"to '(.*)' of type '(\w+)'", " ".join(str(exc).split()))
+    if found is None or found.group(2) not in _READ_BACK:
+        return f"{name}: {' '.join(str(exc).split())}"
+    try:
+        value = _READ_BACK[found.group(2)](found.group(1))
+    except ValueError:
+        value = found.group(1)
+    return wrong_type(name, field_type, value, metadata)
 
 
 #: Parameter types that carry a numeric range in their descriptor (rclpy checks INTEGER and DOUBLE values only).
@@ -120,8 +144,10 @@ NUMERIC_TYPES = (int, float)
 
 def parameter_descriptor(description: str, value_range: typing.Optional[typing.Sequence[float]] = None,
                          field_type: typing.Optional[type] = None, read_only: bool = False,
-                         name: typing.Optional[str] = None) -> ParameterDescriptor:
-    """A ParameterDescriptor with the description, an inclusive numeric range, and read_only.
+                         name: typing.Optional[str] = None, exclusive: str = "") -> ParameterDescriptor:
+    """A ParameterDescriptor with the description, an inclusive numeric range, and read_only; an end of the range
+    that ``exclusive`` (``"low"``, ``"high"``, ``"both"``) leaves out is said in ``additional_constraints``
+    (ROS ranges are inclusive; the settings builder refuses the end itself).
 
     Every ``int`` or ``float`` parameter must give ``value_range`` ``(low, high)``: a numeric parameter declared
     without one raises ``TypeError`` (a programming error, caught by test/test_parameter_ranges.py before any node
@@ -135,6 +161,8 @@ def parameter_descriptor(description: str, value_range: typing.Optional[typing.S
                                                               to_value=float(value_range[1]))]
     elif value_range is not None and field_type is int:
         descriptor.integer_range = [IntegerRange(from_value=int(value_range[0]), to_value=int(value_range[1]))]
+    if value_range is not None and exclusive:
+        descriptor.additional_constraints = f"in {interval({'range': value_range, 'exclusive': exclusive})}"
     return descriptor
 
 
@@ -242,7 +270,7 @@ def _dump_stacks_on_sigusr1():
         faulthandler.register(signal.SIGUSR1, file=stream, all_threads=True)
 
 
-def _has_fileno(stream):
+def _has_fileno(stream: typing.Optional[typing.TextIO]) -> "typing.TypeGuard[typing.TextIO]":
     try:
         return stream is not None and stream.fileno() >= 0
     except (AttributeError, OSError, ValueError):

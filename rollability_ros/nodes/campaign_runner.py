@@ -45,8 +45,8 @@ from rollability_ros.core.campaign import (AnsweredElsewhere, CampaignSpec, Runn
                                            TerminalAsk, answer_rig, plan_trials, report_exit_code, resume_refusal,
                                            run_campaign)
 from rollability_ros.core.config import ConfigError, SessionSettings
-from rollability_ros.core.rig import (ANSWERED, LaunchAborted, describe_answer, launch_backend_class, rig_auth,
-                                      valve_auth)
+from rollability_ros.core.rig import (ANSWERED, AuthError, KeyFileSigner, LaunchAborted, default_key_path,
+                                      describe_answer, launch_backend_class, load_session_key)
 from rollability_ros.nodes import _convert
 from rollability_ros.msg import CampaignProgress, OutcomeStored, ValveAuth, ValveState
 from rollability_ros.nodes._support import (GOAL_RESEND_S, LATCHED_QOS, RECORD_QOS, ParameterError, declare_settings, init_ros,
@@ -213,7 +213,7 @@ class RigClient:
             return ValveAuth()
         try:
             return _convert.auth_msg(sign(self.signer))
-        except valve_auth.AuthError as exc:
+        except AuthError as exc:
             raise LaunchAborted(str(exc)) from exc
 
     def launch(self, trial: typing.Any) -> typing.Any:
@@ -355,10 +355,10 @@ def run_graph_campaign(node: Node, spec: CampaignSpec, settings: RunnerSettings,
     plan = plan_trials(spec)
     signer = None
     if launch_backend_class(settings.backend).authenticated:
-        signer = rig_auth.KeyFileSigner(settings.session_key_file or valve_auth.default_key_path(node.get_namespace()))
+        signer = KeyFileSigner(settings.session_key_file or default_key_path(node.get_namespace()))
         try:   # refused at once, before asking anyone: the physical rig takes no unsigned goal
-            valve_auth.load_session_key(signer.path)
-        except valve_auth.AuthError as exc:
+            load_session_key(signer.path)
+        except AuthError as exc:
             raise ValueError(f"a physical campaign signs its goals and answers: {exc}") from exc
     executor = SingleThreadedExecutor()
     executor.add_node(node)

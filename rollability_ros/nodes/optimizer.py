@@ -44,6 +44,7 @@ and says why (``resume`` retries the generation; with ``exit_on_finish`` the nod
 continues with ``resume:=true run_id:=<id>``.
 """
 import dataclasses
+import functools
 import math
 import sys
 import threading
@@ -61,11 +62,13 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
 from rollability_ros.action import EvaluateProfile
-from rollability_ros.core.config import ConfigError
-from rollability_ros.core.optimization import (EvaluationFailed, EvaluatorPool, OptimizerSettings, PoolClosed,
-                                               PoolSettings, QualityDiversitySettings, SelectionSettings,
-                                               optimization_run, selection)
-from rollability_ros.core.profile import PrinterSpec, ProfileGrid, geometry
+from rollability_ros.core.config import ConfigError, in_range, out_of_range
+from rollability_ros.core.optimization import (EvaluationFailed, EvaluatorPool, GAIN_SOURCES, OptimizationRun,
+                                               OptimizerSettings, PoolClosed, PoolSettings, QualityDiversitySettings,
+                                               RunSettings, SelectionSettings, check_method_settings, profile_screen,
+                                               run_config, run_generations, run_id_of, run_target, select_run,
+                                               table_rows)
+from rollability_ros.core.profile import PrinterSpec, ProfileGrid, is_baseline, marker_points, profile_mesh
 from rollability_ros.core.robots import ChassisSpec, UrdfRobotSpec, footprint_grid, profile_mount
 from rollability_ros.core.sim import ScreenSettings
 from rollability_ros.msg import CandidateResult, GenerationSummary, OptimizerProgress
@@ -84,7 +87,7 @@ RUN_SECTIONS = {"optimizer": OptimizerSettings, "quality_diversity": QualityDive
 ROBOT_SECTIONS = {"robot": ChassisSpec, "urdf_robot": UrdfRobotSpec, "stable_poses": ScreenSettings}
 _STATUS_NAMES = {GoalStatus.STATUS_ABORTED: "aborted", GoalStatus.STATUS_CANCELED: "cancelled",
                  GoalStatus.STATUS_UNKNOWN: "unknown"}
-_PARAMETERS = {  # name: (default, description[, inclusive numeric range])
+_PARAMETERS: typing.Dict[str, typing.Tuple[typing.Any, ...]] = {  # name: (default, description[, inclusive range])
     "run_id": ("", "id of the run to start (empty: opt-<date>-<time>) or, with resume, to continue"),
     "resume": (False, "continue run run_id from its last checkpoint instead of starting a new run"),
     "autostart": (True, "start optimizing at start-up (false: wait for the start service)"),
@@ -94,16 +97,14 @@ _PARAMETERS = {  # name: (default, description[, inclusive numeric range])
                               "start or got no real results (for unattended studies)"),
     "frame_id": ("", "frame of the best-profile marker; empty: the link the profile is mounted on (base_link of "
                      "the chassis, urdf_robot.mount_link of a URDF robot)"),
-    "evaluator_timeout_s": (PoolSettings.timeout_s, "s without any reply (accept, feedback, result) after which "
-                                                    "an evaluation is given up and retried elsewhere",
-                            (0.0, 604800.0)),
-    "evaluator_max_attempts": (PoolSettings.max_attempts, "failed attempts of one candidate before the run "
-                                                          "pauses and reports; 0 = retry without limit", (0, 1000000)),
-    "evaluator_retry_delay_s": (PoolSettings.retry_delay_s, "s an evaluator that failed gets no new evaluation",
-                                (0.0, 3600.0)),
     "evaluator_discovery_period_s": (2.0, "s between searches of the graph for EvaluateProfile servers",
-                                     (0.0, 3600.0)),
+                                     (0.0, 3600.0), "low"),
 }
+#: The pool's settings the node declares as ``evaluator_<field>`` (description and range from PoolSettings).
+_POOL_FIELDS = ("timeout_s", "max_attempts", "retry_delay_s")
+_PARAMETERS.update({f"evaluator_{field.name}": (field.default, field.metadata["description"],
+                                                field.metadata["range"], field.metadata.get("exclusive", ""))
+                    for field in dataclasses.fields(PoolSettings) if field.name in _POOL_FIELDS})
 
 
 def run_parameters(settings_by_section: typing.Mapping[str, typing.Any]) -> typing.Dict[str, typing.Any]:
@@ -120,28 +121,24 @@ class Optimizer(Node):
         for prefix, settings_cls in RUN_SECTIONS.items():
             declare_settings(self, prefix, settings_cls)
             guard_settings(self, prefix, settings_cls)
-        self._robots = {}
+        self._robots: typing.Dict[str, typing.Any] = {}
         for prefix, settings_cls in ROBOT_SECTIONS.items():
             self._robots[prefix] = declare_settings(self, prefix, settings_cls)
             guard_settings(self, prefix, settings_cls,
-                           on_change=lambda robot, prefix=prefix: self._robots.__setitem__(prefix, robot))
-        for name, (default, description, *value_range) in _PARAMETERS.items():
-            value_range = value_range[0] if value_range else None
+                           on_change=functools.partial(self._robots.__setitem__, prefix))
+        for name, (default, description, *declared) in _PARAMETERS.items():
+            metadata = {"range": declared[0], "exclusive": declared[1] if len(declared) > 1 else ""} \
+                if declared else None
             try:
-                self.declare_parameter(name, default, parameter_descriptor(description, value_range, type(default),
-                                                                             name=name))
+                self.declare_parameter(name, default, parameter_descriptor(
+                    description, declared[0] if declared else None, type(default), name=name,
+                    exclusive=metadata["exclusive"] if metadata else ""))
             except InvalidParameterValueException as exc:
-                raise ParameterError(refusal(name, exc, value_range)) from None
-        try:
-            pool_settings = PoolSettings(timeout_s=self._param("evaluator_timeout_s"),
-                                         max_attempts=self._param("evaluator_max_attempts"),
-                                         retry_delay_s=self._param("evaluator_retry_delay_s"))
-            pool_settings.validate()
-        except (TypeError, ValueError) as exc:
-            raise ParameterError(f"evaluator_*: {exc}") from exc
+                raise ParameterError(refusal(name, exc, metadata)) from None
+            if metadata is not None and not in_range(self._param(name), metadata):   # an open end
+                raise ParameterError(out_of_range(name, self._param(name), metadata))
+        pool_settings = PoolSettings(**{name: self._param(f"evaluator_{name}") for name in _POOL_FIELDS})
         discovery_period_s = self._param("evaluator_discovery_period_s")
-        if not discovery_period_s > 0:
-            raise ParameterError(f"evaluator_discovery_period_s must be > 0, got {discovery_period_s}")
         self._grid, self._mount = self._read_run_settings()["profile"], self._read_mount()
         self._session = SessionMembership(self)
         self._foreign: typing.Set[str] = set()   # evaluators that answered as another session's: never asked again
@@ -183,7 +180,7 @@ class Optimizer(Node):
         for name in names:
             if name not in self._action_clients:
                 self._action_clients[name] = ThreadSafeActionClient(self, EvaluateProfile, name,
-                                                                     callback_group=self._client_group)
+                                                                    callback_group=self._client_group)
         ready = [name for name in names
                  if self._action_clients[name].server_is_ready() and name not in self._foreign]
         added, removed = self._pool.set_evaluators(ready)
@@ -279,7 +276,7 @@ class Optimizer(Node):
             try:
                 settings = self._read_run_settings()
                 run_dir, parameters, resume = self._run_target(settings)
-                optimization_run.check_method_settings(self._typed_run_settings(settings))
+                check_method_settings(self._typed_run_settings(settings))
             except (ParameterError, ConfigError, ValueError, FileNotFoundError) as exc:
                 self.get_logger().error(f"cannot start: {exc}")
                 return False, str(exc)
@@ -289,20 +286,21 @@ class Optimizer(Node):
             self._worker = threading.Thread(target=self._optimize, name="optimization",
                                             args=(run_dir, parameters, resume, settings), daemon=True)
             self._worker.start()
-            return True, f"{'resuming' if resume else 'starting'} run {optimization_run.run_id_of(run_dir)}"
+            return True, f"{'resuming' if resume else 'starting'} run {run_id_of(run_dir)}"
 
     def _read_run_settings(self):
         """The run sections from the parameters, the grid spanning the robot's mount footprint (``footprint_grid``)."""
-        settings = {prefix: read_settings(self, prefix, cls) for prefix, cls in RUN_SECTIONS.items()}
+        settings: typing.Dict[str, typing.Any] = {prefix: read_settings(self, prefix, cls)
+                                                  for prefix, cls in RUN_SECTIONS.items()}
         settings["profile"] = footprint_grid(settings["profile"], self._robots["urdf_robot"])
         return settings
 
     def _typed_run_settings(self, settings):
         """The :class:`~rollability_ros.core.optimization.optimization_run.RunSettings` of the sections this node
         declared (its own parse, once): what the method check and the start-point screen are handed."""
-        return optimization_run.RunSettings(optimizer=settings["optimizer"],
-                                            quality_diversity=settings["quality_diversity"],
-                                            stable_poses=self._robots["stable_poses"], printer=settings["printer"])
+        return RunSettings(optimizer=settings["optimizer"],
+                           quality_diversity=settings["quality_diversity"],
+                           stable_poses=self._robots["stable_poses"], printer=settings["printer"])
 
     def _robot_settings(self, settings):
         """The evaluator settings of the profile's robot (grid, printer, robot sections) for the stable-pose screen."""
@@ -321,8 +319,8 @@ class Optimizer(Node):
         (:func:`~rollability_ros.core.optimization.optimization_run.run_target`: a resume keeps the run's saved
         config.yaml with this node's run sections on top, so the core refuses one whose settings differ)."""
         resume = self._param("resume")
-        run_dir, parameters = optimization_run.run_target(self._param("run_id"), resume, run_parameters(settings),
-                                                          settings["optimizer"].output_dir)
+        run_dir, parameters = run_target(self._param("run_id"), resume, run_parameters(settings),
+                                         settings["optimizer"].output_dir)
         return run_dir, parameters, resume
 
     def _optimize(self, run_dir, parameters, resume, settings):
@@ -338,12 +336,13 @@ class Optimizer(Node):
         stopped), 1 (failed) or None (interrupted by shutdown)."""
         log = self.get_logger()
         try:
-            run = optimization_run.OptimizationRun(
-                run_dir, parameters, settings["profile"], self._pool.batch_evaluator(settings["optimizer"].trials),
+            run = OptimizationRun(
+                run_dir, run_config(parameters), settings["profile"],
+                self._pool.batch_evaluator(settings["optimizer"].trials),
                 resume=resume, on_candidate=self._publish_candidate,
                 evaluate_trials=self._pool.fidelity_evaluator(""),
-                screen_profiles=optimization_run.profile_screen(self._typed_run_settings(settings),
-                                                                self._robot_settings(settings)))
+                screen_profiles=profile_screen(self._typed_run_settings(settings),
+                                               self._robot_settings(settings)))
         except (ConfigError, ValueError, FileNotFoundError) as exc:
             log.error(f"cannot {'resume' if resume else 'start'} run in {run_dir}: {exc}")
             return 1
@@ -352,7 +351,7 @@ class Optimizer(Node):
             self._publish_best(run)
             self._publish_progress(run)
             run.on_generation = lambda record: self._publish_generation(record, run)
-            end = optimization_run.run_generations(
+            end = run_generations(
                 run, self._stop_requested.is_set, lambda exc: self._on_evaluation_failed(run, exc),
                 evaluation_errors=(EvaluationFailed,), interruptions=(PoolClosed,))
             if end.status == "interrupted":
@@ -394,16 +393,16 @@ class Optimizer(Node):
         launch_batch = self._pool.fidelity_evaluator("launch") \
             if chosen.race_rounds or chosen.launch_trials else None
         robot = self._robot_settings(settings)
-        result, folder = selection.select_run(run.store, run.run_id, run.run_dir, settings["profile"],
-                                              settings["printer"], chosen, evaluate_batch, run.settings.seed,
-                                              launch_batch, weigh=lambda mesh: robot.profile_body(mesh).mass_kg)
+        result, folder = select_run(run.store, run.run_id, run.run_dir, settings["profile"],
+                                    settings["printer"], chosen, evaluate_batch, run.settings.seed,
+                                    launch_batch, weigh=lambda mesh: robot.profile_body(mesh).mass_kg)
         rows = "; ".join(f"{row['configuration']} {row['simulated_fitness']:.3f}"
-                         for row in selection.table_rows(result) if row["trials"])
+                         for row in table_rows(result) if row["trials"])
         self.get_logger().info(f"selected {len(result.designs)} design(s) into {folder} ({rows})"
                                + (f"; {result.shortfall}" if result.shortfall else ""))
         for gain in result.gains():
             if gain is not None:
-                self.get_logger().info(f"{gain.label} minus the bare robot on {selection.GAIN_SOURCES[gain.source]}: "
+                self.get_logger().info(f"{gain.label} minus the bare robot on {GAIN_SOURCES[gain.source]}: "
                                        f"{gain.text()} (95% Newcombe)")
         if result.no_design_helps():
             self.get_logger().warning(f"{result.no_design_helps()}; designs.yaml marks each design "
@@ -441,8 +440,8 @@ class Optimizer(Node):
         marker.header.stamp = self.get_clock().now().to_msg()
         marker.ns, marker.id = "best_profile", 0
         marker.type = Marker.TRIANGLE_LIST
-        mesh = None if geometry.is_baseline(heights, self._grid.flat_tolerance) else \
-            geometry.profile_mesh(heights, self._grid)
+        mesh = None if is_baseline(heights, self._grid.flat_tolerance) else \
+            profile_mesh(heights, self._grid)
         if mesh is None:
             marker.action = Marker.DELETE
             return marker
@@ -452,7 +451,7 @@ class Optimizer(Node):
         marker.pose.orientation.w = math.cos(math.radians(yaw_deg) / 2)
         marker.scale.x = marker.scale.y = marker.scale.z = 1.0
         marker.color.r, marker.color.g, marker.color.b, marker.color.a = 0.2, 0.6, 1.0, 0.9
-        marker.points = [Point(x=x, y=y, z=z) for x, y, z in geometry.marker_points(mesh).tolist()]
+        marker.points = [Point(x=x, y=y, z=z) for x, y, z in marker_points(mesh).tolist()]
         return marker
 
     def close(self) -> None:

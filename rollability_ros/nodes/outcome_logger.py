@@ -43,7 +43,7 @@ from rclpy.node import Node
 from rollability_ros.core.config import SessionSettings
 from rollability_ros.core.results import OutcomeLog, OutcomeLoggerSettings, SessionGate, StoreFailure
 from rollability_ros.core.store import unique_key
-from rollability_ros.core.rig import rig_auth, valve_auth
+from rollability_ros.core.rig import RecordGuard, default_key_path
 from rollability_ros.msg import (CandidateResult, ConfigurationSummary, GenerationSummary, LaunchOutcome,
                                  OutcomeStored, OutcomeSummary, TipEvent)
 from rollability_ros.nodes import _convert
@@ -83,8 +83,8 @@ class OutcomeLoggerNode(Node):
             raise ParameterError(f"store_path: {exc}") from exc
         session = declare_settings(self, "session", SessionSettings, read_only=True)
         self.session_gate = SessionGate(session.id, settings.session_runs, self.log.store)
-        self.record_guard = rig_auth.RecordGuard(
-            settings.session_key_file or valve_auth.default_key_path(self.get_namespace()))
+        self.record_guard = RecordGuard(
+            settings.session_key_file or default_key_path(self.get_namespace()))
         self.add_on_set_parameters_callback(self._refuse_store_change)
         self.summary_publisher = self.create_publisher(OutcomeSummary, "summary", LATCHED_QOS)
         self.stored_publisher = self.create_publisher(OutcomeStored, "outcomes_stored", RECORD_QOS)

@@ -117,7 +117,7 @@ class RecorderNode(Node):
         qos = subscription_qos_for(offered, depth=max([self.settings.queue_depth] + [p["depth"] for p in offered]))
         if qos["reliability"] == "reliable":
             qos["history"] = "keep_all"   # never overwrite a reliable message in our queue (see module docstring)
-        holder = []
+        holder: typing.List[typing.Any] = []   # the subscription, once created
         subscription = self.create_subscription(
             msg_type, topic, self._make_callback(topic, holder), qos_profile_from_dict(qos),
             callback_group=self._group, raw=True,

@@ -53,9 +53,9 @@ from sensor_msgs.msg import Imu
 
 from rollability_ros.action import Launch
 from rollability_ros.core.imu import ImuOutcomeConfig, imu_sample_from_message
-from rollability_ros.core.rig import (ImuOutcome, LaunchAborted, OperatorOutcome, RigPorts, RigSettings,
-                                      SpeedGateConfig, ValveConfig, ValveStatus, make_launch_backend, make_speed_gate,
-                                      rig_auth, valve_auth)
+from rollability_ros.core.rig import (AuthError, ImuOutcome, LaunchAborted, OperatorOutcome, RequestSigner, RigPorts,
+                                      RigSettings, SpeedGateConfig, ValveConfig, ValveStatus, default_key_path,
+                                      load_session_key, make_launch_backend, make_speed_gate, request_guard)
 from rollability_ros.msg import LaunchOutcome, ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, SessionMembership,
@@ -90,7 +90,7 @@ class ValveServices:
             self._status = ValveStatus(msg.armed, msg.open, msg.fault, msg.fault_reason, msg.backend,
                                        msg.last_pulse_ms, msg.pulses)
 
-    def status(self) -> typing.Any:
+    def status(self) -> ValveStatus:
         """The newest valve state known (from ``valve/state`` or the last fire response)."""
         with self._lock:
             return self._status
@@ -101,7 +101,7 @@ class ValveServices:
             return None, f"valve controller service {client.srv_name} is not available"
         try:
             request = make_request()
-        except valve_auth.AuthError as exc:
+        except AuthError as exc:
             return None, str(exc)
         response = client.call(request, timeout_sec=timeout_s)
         if response is None:
@@ -111,7 +111,7 @@ class ValveServices:
     def _sign(self, command, pulse_ms=None, reload=False):
         """A ``ValveAuth`` for ``command``; re-reads the key file when asked or when none was read yet."""
         if reload or self._signer is None:
-            self._signer = valve_auth.RequestSigner(valve_auth.load_session_key(self._key_path))
+            self._signer = RequestSigner(load_session_key(self._key_path))
         return auth_msg(self._signer.sign(command, pulse_ms))
 
     def heartbeat(self, node_name: str, stamp: typing.Any) -> typing.Any:
@@ -152,7 +152,7 @@ class ValveServices:
 
 def session_key_path(node: Node, valve_config: ValveConfig) -> str:
     """The valve_controller's key file: ``valve.session_key_file``, else the default for this namespace."""
-    return valve_config.session_key_file or valve_auth.default_key_path(node.get_namespace())
+    return valve_config.session_key_file or default_key_path(node.get_namespace())
 
 
 class RosRigPorts(RigPorts):
@@ -163,8 +163,8 @@ class RosRigPorts(RigPorts):
         self._node = node
         self._valve_timeout_s = valve_timeout_s
         self._group = callback_group
-        self._heartbeat_publisher = None
-        self._valve_services = None
+        self._heartbeat_publisher: typing.Any = None   # a Publisher of ValveHeartbeat, made by open_valve
+        self._valve_services: typing.Optional[ValveServices] = None
 
     def open_valve(self, valve_config: ValveConfig) -> typing.Any:
         """:class:`ValveServices` signing with the valve's session key, and ``rig/heartbeat`` every
@@ -179,6 +179,7 @@ class RosRigPorts(RigPorts):
         return self._valve_services
 
     def _heartbeat(self):
+        assert self._valve_services is not None   # the timer starts in open_valve
         msg = self._valve_services.heartbeat(self._node.get_name(), self._node.get_clock().now().to_msg())
         if msg is not None:
             self._heartbeat_publisher.publish(msg)
@@ -220,7 +221,7 @@ class RigNode(Node):
                                                RosRigPorts(self, self.settings.valve_timeout_s, group))
         except (ValueError, ImportError) as exc:  # ConfigError is a ValueError, MissingDependency ImportError
             raise ParameterError(f"rig.backend {self.settings.backend}: {exc}") from exc
-        self.guard = rig_auth.request_guard(self.backend.authenticated, session_key_path(self, valve))
+        self.guard = request_guard(self.backend.authenticated, session_key_path(self, valve))
         self.create_service(RecordOutcome, "record_outcome", self._on_record_outcome, callback_group=group)
         self.create_service(ConfirmRegulator, "rig/confirm", self._on_confirm, callback_group=group)
         ActionServer(self, Launch, "launch", execute_callback=self._execute, callback_group=group,

@@ -59,11 +59,12 @@ class SimEvaluator(Node):
 
     def __init__(self):
         super().__init__("sim_evaluator")
-        sections = {}
+        sections: typing.Dict[str, typing.Any] = {}   # field name -> its section's settings
         for field in dataclasses.fields(EvaluatorSettings):
             prefix = SETTINGS_SECTIONS[field.name]
-            sections[field.name] = declare_settings(self, prefix, field.type)
-            guard_settings(self, prefix, field.type, on_change=self._setter(field.name))
+            settings_cls = typing.cast(type, field.type)   # a class: the module has no string annotations
+            sections[field.name] = declare_settings(self, prefix, settings_cls)
+            guard_settings(self, prefix, settings_cls, on_change=self._setter(field.name))
         self._settings = EvaluatorSettings(**sections)
         self._session = SessionMembership(self)
         self._topic_description = ""

@@ -43,6 +43,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
+from rclpy.subscription import Subscription
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Header
@@ -70,7 +71,7 @@ class TipMonitorNodeSettings:
         "description": "IMU mounting rotation imu -> body as (x, y, z, w); all zeros (the default) = use "
                        "tip_monitor.mount_rpy_deg"})
     diagnostics_period_s: float = dataclasses.field(default=1.0, metadata={
-        "description": "period of the /diagnostics message, s", "range": (0.0, 3600.0)})
+        "description": "period of the /diagnostics message, s", "range": (0.0, 3600.0), "exclusive": "low"})
 
     @property
     def mount_given(self) -> bool:
@@ -83,8 +84,6 @@ class TipMonitorNodeSettings:
             raise ValueError(f"mount_quaternion_xyzw must be 4 numbers (x, y, z, w), got {self.mount_quaternion_xyzw}")
         if self.mount_given:
             normalize_quaternion(self.mount_quaternion_xyzw)
-        if not 0 < self.diagnostics_period_s < math.inf:
-            raise ValueError(f"diagnostics_period_s must be > 0, got {self.diagnostics_period_s}")
 
 
 class TipMonitorNode(Node):
@@ -101,7 +100,8 @@ class TipMonitorNode(Node):
         self.event_publishers = [self.create_publisher(TipEvent, topic, RECORD_QOS)
                                  for topic in ("~/events", "tip_events")]
         self.diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.subscription, self._imu_topic = None, None
+        self.subscription: typing.Optional[Subscription] = None   # set by _configure below
+        self._imu_topic: typing.Optional[str] = None
         self.counts = {"samples": 0, "refused_samples": 0, "orientation_unusable": 0, "events": 0, "recovered": 0,
                        "stuck": 0}
         self._stale_timer, self._reported_stale = None, False
@@ -110,7 +110,7 @@ class TipMonitorNode(Node):
         self.create_timer(self.settings.diagnostics_period_s, self._publish_diagnostics, callback_group=self._group)
         self._publish_diagnostics()
         self.get_logger().info(
-            f"watching {self.subscription.topic_name} for robot '{config.robot}': tipped above "
+            f"watching {self._subscribed_topic()} for robot '{config.robot}': tipped above "
             f"{config.tip_threshold_deg:g} deg for {config.tip_confirm_s:g} s, recovered within "
             f"{config.recover_threshold_deg:g} deg for {config.settle_time_s:g} s, stuck after {config.give_up_s:g} s; "
             f"events on {self.resolve_topic_name('tip_events')} (an outcome_logger stores them)")
@@ -146,6 +146,10 @@ class TipMonitorNode(Node):
     def _reconfigure(self, config):
         self.get_logger().info("thresholds changed: tracking restarts from upright")
         self._configure(config)
+
+    def _subscribed_topic(self) -> str:
+        """The resolved name of the IMU topic subscribed to."""
+        return self.subscription.topic_name if self.subscription is not None else ""
 
     def _on_imu(self, msg):
         try:
@@ -201,7 +205,7 @@ class TipMonitorNode(Node):
             robot, timeout_s = self.config.robot, self.config.imu_timeout_s
         tilt = reading.tilt_deg if reading is not None else math.nan
         level, message = diagnostic_status(state, tilt, since, timeout_s)
-        values = {"state": state.label, "tilt_deg": f"{tilt:.1f}", "imu_topic": self.subscription.topic_name,
+        values = {"state": state.label, "tilt_deg": f"{tilt:.1f}", "imu_topic": self._subscribed_topic(),
                   "seconds_since_sample": "never" if since is None else f"{since:.2f}",
                   **{name: str(count) for name, count in counts.items()}}
         status = DiagnosticStatus(level=bytes([level]), name=f"{self.get_name()}: {robot} tip state",

@@ -41,7 +41,8 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool
 
-from rollability_ros.core.rig import ValveConfig, make_controller, valve_auth
+from rollability_ros.core.rig import (AuthError, RequestVerifier, ValveConfig, create_session_key, default_key_path,
+                                      make_controller, remove_session_key)
 from rollability_ros.msg import ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import LATCHED_QOS, ParameterError, declare_settings, run_node, wait_for_acks
@@ -52,7 +53,7 @@ DIAGNOSTICS_PERIOD_S = 1.0
 
 def key_path(node: Node, config: ValveConfig) -> str:
     """The session key file of this valve_controller (``valve.session_key_file`` or the per-domain default)."""
-    return config.session_key_file or valve_auth.default_key_path(node.get_namespace())
+    return config.session_key_file or default_key_path(node.get_namespace())
 
 
 #: Longest wait at shutdown for the subscribers of valve/state to acknowledge the closed state, s.
@@ -67,10 +68,10 @@ class ValveControllerNode(Node):
         config = declare_settings(self, "valve", ValveConfig, read_only=True)
         self.key_path = key_path(self, config)
         try:
-            self.session_key = valve_auth.create_session_key(self.key_path)
-        except (OSError, valve_auth.AuthError) as exc:
+            self.session_key = create_session_key(self.key_path)
+        except (OSError, AuthError) as exc:
             raise ParameterError(f"valve.session_key_file: cannot write {self.key_path}: {exc}") from exc
-        self.verifier = valve_auth.RequestVerifier(self.session_key)
+        self.verifier = RequestVerifier(self.session_key)
         self.state_publisher = self.create_publisher(ValveState, "valve/state", LATCHED_QOS)
         self.diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         try:
@@ -184,7 +185,7 @@ class ValveControllerNode(Node):
         the subscribers up to :data:`CLOSED_STATE_ACK_S` to acknowledge the closed state before the node goes (a
         writer destroyed right after publishing can take its last sample with it on a loaded machine)."""
         self.controller.shutdown()
-        valve_auth.remove_session_key(self.key_path, self.session_key)
+        remove_session_key(self.key_path, self.session_key)
         wait_for_acks([self.state_publisher], CLOSED_STATE_ACK_S, threading.Event())
 
 

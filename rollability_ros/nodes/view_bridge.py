@@ -16,6 +16,7 @@ default ``/rollability/rig/pose=base_link``: each pose of that topic is also ser
 Run: ``python -m rollability_ros.nodes.view_bridge --ros-args -p port:=8765`` (``rollability view`` and
 ``rollability bringup --view`` do this); the log says ``Foxglove view on ws://<host>:<port>``.
 """
+import functools
 import time
 import typing
 
@@ -101,7 +102,7 @@ class ViewBridgeNode(Node):
             return
         child_frame = self.pose_frames.get(topic) if type_name.endswith("PoseStamped") else None
         self._served[topic] = self.create_subscription(
-            msg_type, topic, lambda data, topic=topic: self._forward(topic, data, child_frame),
+            msg_type, topic, functools.partial(self._forward, topic, child_frame=child_frame),
             qos_profile_from_dict(qos), callback_group=self._group, raw=True)
         self.get_logger().info(f"serving {topic} ({type_name}{', latched' if latched else ''})")
 

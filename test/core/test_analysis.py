@@ -16,14 +16,14 @@ from rollability_ros.core.results.analysis import (
     spearman_rho,
     tip_event_summary,
 )
-from rollability_ros.core.results.records import (
+from rollability_ros.core.records import (
     CandidateRecord,
     GenerationRecord,
     LaunchCondition,
     LaunchOutcome,
     TipEventRecord,
 )
-from rollability_ros.core.results.stats import wilson_interval
+from rollability_ros.core.stats import wilson_interval
 
 # (configuration, height m, speed m/s, angle deg): (upright repetitions, repetitions)
 TALLIES = {

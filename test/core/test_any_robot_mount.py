@@ -133,7 +133,7 @@ def test_the_printer_is_checked_before_any_simulation(tmp_path, robot, monkeypat
         raise AssertionError("simulated before the printer check")
 
     with pytest.raises(ValueError, match="cannot optimize: .*bed"):
-        optimization_run.OptimizationRun(tmp_path / "run", parameters,
+        optimization_run.OptimizationRun(tmp_path / "run", optimization_run.run_config(parameters),
                                          evaluation.settings_from_parameters(parameters).grid, no_simulation,
                                          screen_profiles=no_simulation)
     assert not (tmp_path / "run").exists()

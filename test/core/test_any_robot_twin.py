@@ -12,9 +12,10 @@ from rollability_ros.cli import main
 from rollability_ros.core.campaign.runner import (INVALID_STOP_MIN_LAUNCHES, CampaignReport, invalid_launch_stop,
                                                   report_exit_code, run_campaign)
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
-from rollability_ros.core.results.records import INVALID_LAUNCH, LaunchCondition, LaunchOutcome
-from rollability_ros.core.sim.launch_twin import (check_launcher, load_launch_twin_settings, simulate_launch,
-                                                  simulate_valid_launch, sized_for_robot)
+from rollability_ros.core.records import INVALID_LAUNCH, LaunchCondition, LaunchOutcome
+from rollability_ros.core.sim.launch.placement import check_launcher, sized_for_robot
+from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+from rollability_ros.core.sim.launch.twin import simulate_launch, simulate_valid_launch
 from rollability_ros.core.sim.launcher_geometry import LauncherGeometry, check_launcher_geometry
 
 sys.path.insert(0, os.path.dirname(__file__))
@@ -137,7 +138,7 @@ def test_a_campaign_of_invalid_launches_stops_with_the_setting_to_change():
 
 
 def test_report_on_a_store_of_only_invalid_launches_says_so(tmp_path, capsys):
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     plan = plan_trials(CampaignSpec(run_id="r", configurations=["baseline"], heights_m=[0.5], speeds_mps=[0.8],
                                     angles_deg=[0.0], repetitions=3))

@@ -12,10 +12,10 @@ import yaml
 
 from doubles import SyntheticEvaluator, tree_checksums
 from rollability_ros.cli import main
-from rollability_ros.core.optimization.optimization_run import OptimizationRun
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
 from rollability_ros.core.profile import geometry
-from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
-from rollability_ros.core.results.store import Store
+from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.store import Store
 
 REPO = os.path.join(os.path.dirname(__file__), "..", "..")
 GRID = geometry.ProfileGrid(rows=3, cols=3)
@@ -26,7 +26,7 @@ def _run(root):
     run_dir = os.path.join(root, "run")
     parameters = {"optimizer.max_generations": 12, "optimizer.seed": 5, "optimizer.trials": 30,
                   "optimizer.sigma0": 0.1, "profile.rows": GRID.rows, "profile.cols": GRID.cols}
-    run = OptimizationRun(run_dir, parameters, GRID, SyntheticEvaluator(np.linspace(0.1, 0.4, GRID.n_variables), 30))
+    run = OptimizationRun(run_dir, run_config(parameters), GRID, SyntheticEvaluator(np.linspace(0.1, 0.4, GRID.n_variables), 30))
     run.run()
     run.close()
     return run_dir
@@ -152,14 +152,14 @@ def test_a_run_resumed_from_a_copied_folder_keeps_its_settings_but_not_its_old_l
     parameters = {"optimizer.max_generations": 3, "optimizer.seed": 5, "optimizer.trials": 20,
                   "optimizer.output_dir": str(tmp_path / "first"), "profile.rows": 3, "profile.cols": 3}
     evaluator = SyntheticEvaluator(np.linspace(0.1, 0.4, GRID.n_variables), 20)
-    run = OptimizationRun(str(tmp_path / "first" / "optimization"), parameters, GRID, evaluator)
+    run = OptimizationRun(str(tmp_path / "first" / "optimization"), run_config(parameters), GRID, evaluator)
     run.run()
     run.close()
     shutil.copytree(tmp_path / "first", tmp_path / "copy")
     moved = {**parameters, "optimizer.output_dir": str(tmp_path / "copy")}
-    resumed = OptimizationRun(str(tmp_path / "copy" / "optimization"), moved, GRID, evaluator, resume=True)
+    resumed = OptimizationRun(str(tmp_path / "copy" / "optimization"), run_config(moved), GRID, evaluator, resume=True)
     assert resumed.optimizer.generation == 3 and resumed.run_id == "optimization"
     resumed.close()
     with pytest.raises(ConfigError, match="optimizer.trials"):
-        OptimizationRun(str(tmp_path / "copy" / "optimization"), {**moved, "optimizer.trials": 30}, GRID, evaluator,
+        OptimizationRun(str(tmp_path / "copy" / "optimization"), run_config({**moved, "optimizer.trials": 30}), GRID, evaluator,
                         resume=True)

@@ -49,14 +49,14 @@ PARAMETER_FILES = {
 def workspace(tmp_path_factory):
     """A folder with a bag, a finished optimization run (runs/ex), outcome CSVs, a file, a folder of notes and a
     folder holding an earlier calibration."""
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
     from rollability_ros.core.profile import geometry
 
     root = tmp_path_factory.mktemp("bad_inputs")
     shutil.copytree(SAMPLE_BAG, root / "bag")
     grid = geometry.ProfileGrid(rows=3, cols=3)
-    run = OptimizationRun(str(root / "runs" / "ex"), {"optimizer.max_generations": 4, "optimizer.trials": 20,
-                                                      "profile.rows": 3, "profile.cols": 3}, grid,
+    run = OptimizationRun(str(root / "runs" / "ex"), run_config({"optimizer.max_generations": 4, "optimizer.trials": 20,
+                                                      "profile.rows": 3, "profile.cols": 3}), grid,
                           SyntheticEvaluator(np.linspace(0.1, 0.4, grid.n_variables), 20))
     run.run()
     run.close()
@@ -113,14 +113,17 @@ CASES = [
     (["optimize", "--config", "optimizer", "--run-id", "a/b"], ID_RULE),
     (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--run-id", ""], ID_RULE),
     (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--run-id", "../x"], ID_RULE),
-    (["campaign", "--backend", "sim", "--graph", "--store-timeout-s", "nan"], "must be finite and > 0"),
+    (["campaign", "--backend", "sim", "--graph", "--store-timeout-s", "nan"],
+     "runner.store_timeout_s out of range: nan is not in (0.0, 3600.0]"),
     # the shipped campaign launches A, B, C: without designs the twin has no profile for them (was: 100 baseline
     # launches stored, then "campaign stopped" at the first A)
     (["campaign", "--backend", "sim", "--store", "camp.sqlite"], "campaign not started: unknown configuration 'A'"),
     (["campaign", "--backend", "sim", "--resimulate", "baseline", "nan", "1", "0", "--seed", "1"], "finite"),
-    (["select", "ex", "--output-dir", "runs", "--min-distance", "nan"], "must be finite"),
-    (["select", "ex", "--output-dir", "runs", "--top-fraction", "1.5"], "top_fraction must be in (0, 1]"),
-    (["select", "ex", "--output-dir", "runs", "--count", "0"], "count must be in [1, 26]"),
+    (["select", "ex", "--output-dir", "runs", "--min-distance", "nan"],
+     "selection.min_distance out of range: nan is not in [0.0, 1000.0]"),
+    (["select", "ex", "--output-dir", "runs", "--top-fraction", "1.5"],
+     "selection.top_fraction out of range: 1.5 is not in (0.0, 1.0]"),
+    (["select", "ex", "--output-dir", "runs", "--count", "0"], "selection.count out of range: 0 is not in [1, 26]"),
     (["bag", "info", "afile.txt"], "not a bag"),
     (["bag", "recover", "afile.txt"], "not a bag directory"),
     (["bag", "convert", "bag", "bag", "--storage", "mcap"], "does not overwrite"),
@@ -140,7 +143,8 @@ CASES = [
     # a key of a given file the command never applies is refused, naming the file, key and command
     (["evaluate", "--baseline", "--config", "twin_negative.yaml"],
      "twin_negative.yaml: rollability evaluate --fidelity screen does not read launch_twin.foam.length_m"),
-    (["evaluate", "--baseline", "--fidelity", "launch", "--config", "twin_negative.yaml"], "length_m must be > 0"),
+    (["evaluate", "--baseline", "--fidelity", "launch", "--config", "twin_negative.yaml"],
+     "launch_twin.foam.length_m out of range: -5.0 is not in (0.0, 100.0]"),
     (["evaluate", "--baseline", "--config", "optimizer_keys.yaml"], "does not read optimizer.popsize"),
     (["sensitivity", "--trials", "1", "--out", "s1", "--config", "optimizer_keys.yaml"],
      "rollability sensitivity does not read optimizer.popsize"),
@@ -156,7 +160,8 @@ CASES = [
      "rollability calibrate does not read optimizer.popsize"),
     (["study", "--config", "calibration_keys.yaml"], "rollability study does not read calibration.popsize"),
     (["bringup", "--config", "calibration_keys.yaml"], "rollability bringup does not read calibration.popsize"),
-    (["bringup", "--config", "twin_negative.yaml"], "length_m must be > 0"),   # before any node starts
+    (["bringup", "--config", "twin_negative.yaml"],   # before any node starts
+     "launch_twin.foam.length_m out of range: -5.0 is not in (0.0, 100.0]"),
 ]
 #: Every verb that reads parameter files, with FILE for the file under test.
 VERBS_WITH_FILES = [

@@ -307,7 +307,7 @@ def test_a_closed_bag_is_not_continued(tmp_path):
 
 def test_stored_outcomes_missing_from_the_bag_are_accepted_only_inside_a_reported_gap():
     from rollability_ros.core.graph.study import compare_bags_with_store
-    from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+    from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 
     def outcome(index, stamp_s):
         return LaunchOutcome(run_id="s", trial_id=f"t{index}", condition=LaunchCondition("A", 1.3, 1.5, 0.0, index),
@@ -444,7 +444,7 @@ def test_the_gap_note_estimates_steady_topics_only_and_counts_stored_outcomes_in
     assert "/rollability/rig/pose 22:13:20.000 to 22:13:24.000 UTC (4.0 s, about 399 messages at its 100 Hz)" in note
     assert "/rollability/summary 22:13:20.000 to 22:13:24.000 UTC (4.0 s, an event topic: what it published then " \
            "is not known)" in note
-    from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+    from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 
     lost = LaunchOutcome(run_id="s", trial_id="t1", condition=LaunchCondition("A", 1.3, 1.5, 0.0, 1), backend="sim",
                          upright=True, stamp_s=(start + 2 * 10**9) / 1e9)

@@ -11,9 +11,9 @@ from rollability_ros.core.campaign import calibration, local_rig_settings_from_f
 from rollability_ros.core.results.analysis import ConditionResult
 from rollability_ros.core.config import ConfigError, load_parameters, section
 from rollability_ros.core.sim.evaluation import load_settings
-from rollability_ros.core.sim.launch_twin import TWIN_SECTIONS, load_launch_twin_settings
+from rollability_ros.core.sim.launch.settings import TWIN_SECTIONS, load_launch_twin_settings
 from rollability_ros.core.results import write_outcome_csv
-from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.records import LaunchCondition
 
 
 def twin_parameters():
@@ -106,7 +106,7 @@ def test_cli_writes_outputs_from_a_csv_of_physical_outcomes(tmp_path, capsys):
     pytest.importorskip("pybullet")
     pytest.importorskip("cma")
     from rollability_ros.cli import main
-    from rollability_ros.core.results.records import LaunchOutcome
+    from rollability_ros.core.records import LaunchOutcome
 
     outcomes = [LaunchOutcome("rig-1", f"t{i}", LaunchCondition("baseline", 0.75, 0.8, angle, i), "physical",
                               upright=bool(i % 2), classified_by="operator")

@@ -15,8 +15,8 @@ from rollability_ros.core.campaign.plan import (
     trial_id_for,
 )
 from rollability_ros.core.config import ConfigError, from_mapping
-from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
-from rollability_ros.core.results.store import Store
+from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.store import Store
 
 
 def test_shipped_config_is_the_paper_matrix_of_400_trials():

@@ -10,9 +10,9 @@ import pytest
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
 from rollability_ros.core.campaign.runner import (NotStored, StoreAcknowledgements, answer_rig, resume_refusal,
                                                   run_campaign, store_writer)
-from rollability_ros.core.results.records import LaunchOutcome
+from rollability_ros.core.records import LaunchOutcome
 from rollability_ros.core.rig.rig_session import LaunchAborted, OperatorOutcome
-from rollability_ros.core.results.store import Store
+from rollability_ros.core.store import Store
 
 SPEC = CampaignSpec(run_id="loop", configurations=["A", "B"], heights_m=[0.75], speeds_mps=[0.8, 1.5],
                     angles_deg=[0.0], repetitions=2)

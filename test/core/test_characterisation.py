@@ -82,7 +82,7 @@ def test_a_simulated_rollout_narrows_the_foam_rolling_friction_around_its_truth(
     one unknown (a new one) from the roll-out alone holds the truth in a narrower interval than its range."""
     pytest.importorskip("pybullet")
     pytest.importorskip("cma")
-    from rollability_ros.core.sim.launch_twin import launch_twin_settings_from_parameters
+    from rollability_ros.core.sim.launch.settings import launch_twin_settings_from_parameters
     from rollability_ros.core.sim.rollout import rollout_distance_m
 
     name, truth = "launch_twin.foam.rolling_friction", 0.006
@@ -102,7 +102,7 @@ def test_a_simulated_rollout_narrows_the_foam_rolling_friction_around_its_truth(
 
 
 def test_the_rollout_model_refuses_an_engine_without_one():
-    from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
     from rollability_ros.core.sim.rollout import rollout_distance_m
 
     settings = load_launch_twin_settings()

@@ -89,7 +89,7 @@ def test_a_twin_key_given_to_an_evaluation_that_launches_changes_its_twin(tmp_pa
     """Issue 42: `evaluate --fidelity launch --config F` ran on the shipped pad whatever F's launch_twin said (the
     twin reads objective.twin_config only); now F's twin keys reach the twin, and without launches are refused."""
     from rollability_ros.core.sim import evaluation
-    from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
 
     pad = _file(tmp_path, "pad.yaml", "    launch_twin: {foam: {length_m: 3.5}}\n")
     shipped = load_launch_twin_settings().twin.foam.length_m
@@ -136,7 +136,8 @@ def test_a_session_applies_or_refuses_every_key_before_it_starts(tmp_path):
     assert nodes[1].params["objective.twin_config"] == ["sim", "robot", "launch_twin", twin]
     assert nodes[2].params["objective.twin_config"] == ["sim", "robot", "launch_twin", "cal.yaml", twin]
     assert nodes[3].params == {} and nodes[4].params == {}
-    with pytest.raises(ConfigError, match=r"nothing started: rig: launch twin .*length_m must be > 0, got -5.0"):
+    with pytest.raises(ConfigError, match=r"nothing started: rig: launch twin .*launch_twin.foam.length_m out of "
+                                          r"range: -5.0 is not in \(0.0, 100.0\]$"):
         refuse_bad_session(files, [twin], {node.module: node.params for node in nodes}, "rollability bringup")
     refuse_bad_session(files, [twin], {"rig": {"rig.backend": "physical"}}, "rollability bringup")   # no twin there
     robot = _file(tmp_path, "robot.yaml", "    robot: {com_offset_z_m: 0.004}\n")

@@ -34,7 +34,7 @@ def test_rank_agreement_is_spearman():
 
 
 def result(successes, trials=60):
-    from rollability_ros.core.results.stats import wilson_interval
+    from rollability_ros.core.stats import wilson_interval
     low, high = wilson_interval(successes, trials)
     return EvaluationResult(successes / trials, successes, trials, low, high, 0.0, [])
 
@@ -46,7 +46,7 @@ def test_a_design_is_robust_only_if_its_advantage_holds_in_every_engine():
 
 
 def evaluated(uprights):
-    from rollability_ros.core.results.stats import wilson_interval
+    from rollability_ros.core.stats import wilson_interval
 
     low, high = wilson_interval(sum(uprights), len(uprights))
     return EvaluationResult(sum(uprights) / len(uprights), sum(uprights), len(uprights), low, high, 0.0,
@@ -65,7 +65,7 @@ def test_rank_p_value_is_the_exact_permutation_share():
 def test_table_round_trips_and_the_report_shows_it(tmp_path):
     from rollability_ros.core.results import report
     from rollability_ros.core.results import write_outcome_csv
-    from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+    from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 
     results = {"baseline": {"pybullet": evaluated([False] * 10), "mujoco": evaluated([False] * 9 + [True])},
                "A": {"pybullet": evaluated([True] * 8 + [False] * 2), "mujoco": evaluated([True] * 9 + [False])},

@@ -182,10 +182,10 @@ def test_a_late_report_after_a_timeout_is_ignored():
 
 
 def test_bad_settings_are_refused():
-    with pytest.raises(ValueError, match="timeout_s"):
+    with pytest.raises(ValueError, match=r"^evaluator.timeout_s out of range: 0.0 is not in \(0.0, 604800.0\]$"):
         EvaluatorPool(lambda *a: None, PoolSettings(timeout_s=0))
-    with pytest.raises(ValueError, match="max_attempts"):
-        PoolSettings(max_attempts=-1).validate()
+    with pytest.raises(ValueError, match=r"^evaluator.max_attempts out of range: -1 is not in \[0, 1000000\]$"):
+        EvaluatorPool(lambda *a: None, PoolSettings(max_attempts=-1))
 
 
 class SyntheticGraph(FakeGraph):
@@ -220,7 +220,7 @@ def test_a_run_over_a_flaky_pool_equals_the_run_over_the_evaluator_itself(tmp_pa
     pool = make_pool(graph, ["flaky", "steady"])
     stored = {}
     for name, evaluate_batch in (("direct", synthetic), ("pool", pool.batch_evaluator(12))):
-        run = optimization_run.OptimizationRun(tmp_path / name, parameters, grid, evaluate_batch)
+        run = optimization_run.OptimizationRun(tmp_path / name, optimization_run.run_config(parameters), grid, evaluate_batch)
         run.run()
         stored[name] = [(c.generation, c.index, c.heights, c.successes, c.trials, c.seed)
                         for c in run.store.candidates(run_id=name)]

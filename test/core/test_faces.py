@@ -1,6 +1,6 @@
 """Package faces (issue 29): every subpackage of the core exports its public names with ``__all__``; nodes/, cli/
 and the other subpackages import them through the face, never from the modules behind it (a ratchet); importing a
-face loads no heavy dependency, and the lazy faces (core/faces.py) load nothing behind them at all."""
+face loads nothing behind it (``lazy_loader.attach_stub`` over the face's ``__init__.pyi``), so no heavy dependency."""
 import ast
 import importlib
 import os
@@ -14,8 +14,6 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 SUBPACKAGES = code_counts.subpackages()
 FACES = tuple(f"rollability_ros.core.{sub}" for sub in SUBPACKAGES)
-#: Faces that import the modules behind them at once (all light: the rig computer imports them).
-EAGER = {"rig", "campaign", "imu"}
 #: Never loaded by importing a face: physics, plotting, optimisers, meshes, clusters.
 HEAVY = ("pybullet", "mujoco", "ray", "trimesh", "matplotlib", "ribs", "cma")
 #: Imports that reach past a face (code_counts.deep_imports), by importer. The ratchet: a new one fails; when one
@@ -45,20 +43,28 @@ def test_each_face_exports_resolvable_names(face):
         assert getattr(module, name, None) is not None or importlib.import_module(f"{face}.{name}"), name
 
 
-@pytest.mark.parametrize("sub", sorted(set(SUBPACKAGES) - EAGER))
-def test_a_lazy_face_lists_what_it_re_exports(sub):
-    """``__all__`` and the ``if typing.TYPE_CHECKING:`` block (what mypy sees, what core/faces.py imports) agree,
-    and no re-exported name hides a submodule of the same name (``from bags import recover`` is the module)."""
+@pytest.mark.parametrize("sub", SUBPACKAGES)
+def test_a_face_lists_what_it_re_exports(sub):
+    """The stub's ``__all__`` (what type checkers export), its imports (what ``lazy_loader.attach_stub`` loads) and
+    the package's run-time ``__all__`` agree; no re-exported name hides a submodule of another name, and the face
+    exports names, never a whole module (``from . import module``)."""
     exports = code_counts.face_exports(sub)
     assert sorted(code_counts.face_all(sub)) == sorted(exports)
+    assert code_counts.face_modules(sub) == []
     modules = {path.stem for path in (code_counts.CORE / sub).glob("*.py")}
     for name, module in exports.items():
         assert name not in modules or module == f"{sub}.{name}", f"{sub}.{name} is both a submodule and a name"
     face = importlib.import_module(f"rollability_ros.core.{sub}")
-    from rollability_ros.core.faces import face_exports
+    assert sorted(face.__all__) == sorted(exports)
+    assert (code_counts.CORE / sub / "__init__.py").read_text().count("lazy_loader.attach_stub(__name__, __file__)") == 1
 
-    assert {name: where[0] for name, where in face_exports(face.__name__).items()} == {
-        name: f"rollability_ros.core.{module}" for name, module in exports.items()}
+
+def test_a_name_that_shares_its_module_name_is_the_name():
+    """``from rollability_ros.core.bags import recover`` is the function ``recover`` of ``bags/recover.py``, also
+    after the module was imported (lazy_loader guards the name against the import system's submodule attribute)."""
+    names = _run("import rollability_ros.core.bags.recover\nfrom rollability_ros.core.bags import recover, convert\n"
+                 "print(type(recover).__name__, type(convert).__name__)")
+    assert names == ["function", "function"]
 
 
 def test_a_lazy_face_imports_a_name_when_it_is_used():
@@ -66,14 +72,14 @@ def test_a_lazy_face_imports_a_name_when_it_is_used():
                   "before = 'rollability_ros.core.sim.evaluation' in sys.modules\n"
                   "from rollability_ros.core.sim import evaluate_profile\n"
                   "from rollability_ros.core.sim.evaluation import evaluate_profile as deep\n"
-                  "print(before, evaluate_profile is deep, 'rollability_ros.core.sim.launch_twin' in sys.modules)")
+                  "print(before, evaluate_profile is deep, 'rollability_ros.core.sim.launch.twin' in sys.modules)")
     assert loaded == ["False", "True", "False"]
     with pytest.raises(ImportError, match="cannot import name 'no_such_name'"):
         exec("from rollability_ros.core.sim import no_such_name", {})
 
 
 def test_importing_every_face_loads_no_heavy_dependency():
-    """Every face, in one fresh process: nothing heavy; the lazy ones load not even numpy."""
+    """Every face, in one fresh process: nothing heavy, not even numpy (the rig computer runs without them)."""
     script = (f"import sys\nfor face in {FACES!r}:\n    __import__(face)\n"
               f"print(' '.join(m for m in {HEAVY + ('numpy', 'scipy')!r} if m in sys.modules) or '-')")
     assert _run(script) == ["-"]

@@ -10,7 +10,7 @@ pytest.importorskip("cma")
 from rollability_ros.core.config import ConfigError  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
 from doubles import SyntheticEvaluator  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import OptimizationRun, profile_screen  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config, profile_screen  # noqa: E402
 from rollability_ros.core.optimization.cmaes import random_initial_means  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import run_settings  # noqa: E402
 
@@ -33,20 +33,20 @@ def fake_screen(calls):
 
 
 def test_without_the_screen_the_run_starts_from_the_papers_random_mean(tmp_path):
-    run = OptimizationRun(os.path.join(tmp_path, "run"), parameters(0), GRID, SyntheticEvaluator(OPTIMUM, 30))
+    run = OptimizationRun(os.path.join(tmp_path, "run"), run_config(parameters(0)), GRID, SyntheticEvaluator(OPTIMUM, 30))
     expected = random_initial_means(run_settings(parameters(0)).optimizer, GRID.n_variables)[0]
     assert np.array_equal(run.optimizer.initial_mean, expected)
     assert run.initial_mean_screen is None
     assert "initial_mean_screen" not in run.store.run_info(run.run_id)["info"]
     run.close()
-    with pytest.raises(ValueError, match="initial_mean_screen must be >= 0"):
-        OptimizationRun(os.path.join(tmp_path, "bad"), parameters(-1), GRID, SyntheticEvaluator(OPTIMUM, 30))
+    with pytest.raises(ValueError, match=r"^optimizer.initial_mean_screen out of range: -1 is not in \[0, 10000\]$"):
+        OptimizationRun(os.path.join(tmp_path, "bad"), run_config(parameters(-1)), GRID, SyntheticEvaluator(OPTIMUM, 30))
 
 
 def test_the_screened_start_is_the_best_candidate_recorded_and_kept_on_resume(tmp_path):
     run_dir = os.path.join(tmp_path, "run")
     calls = []
-    run = OptimizationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30),
+    run = OptimizationRun(run_dir, run_config(parameters(8)), GRID, SyntheticEvaluator(OPTIMUM, 30),
                           screen_profiles=fake_screen(calls))
     means = random_initial_means(run_settings(parameters(8)).optimizer, GRID.n_variables)
     assert len(calls) == 1 and np.array_equal(np.array(calls[0]), means)
@@ -59,26 +59,32 @@ def test_the_screened_start_is_the_best_candidate_recorded_and_kept_on_resume(tm
     run.step()
     run.close()
 
-    resumed = OptimizationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30), resume=True,
+    resumed = OptimizationRun(run_dir, run_config(parameters(8)), GRID, SyntheticEvaluator(OPTIMUM, 30), resume=True,
                               screen_profiles=fake_screen(calls))
     assert resumed.optimizer.generation == 1
     assert np.array_equal(resumed.optimizer.initial_mean, means[chosen])
     resumed.close()
 
     with pytest.raises(ValueError, match="different initial mean"):      # the screen changed under the run
-        OptimizationRun(run_dir, parameters(8), GRID, SyntheticEvaluator(OPTIMUM, 30), resume=True,
+        OptimizationRun(run_dir, run_config(parameters(8)), GRID, SyntheticEvaluator(OPTIMUM, 30), resume=True,
                         screen_profiles=lambda heights: [types.SimpleNamespace(upright_probability=0.0,
                                                                                worst_barrier_m=float(h[1]))
                                                          for h in heights])
 
 
-def test_by_default_the_run_screens_the_robot_its_parameters_describe(tmp_path):
+def test_the_edge_screens_the_robot_its_parameters_describe(tmp_path):
+    """The run reads no flat parameters: the screen of the robot they describe is built at the edge (as the CLI
+    does), and a run asked to screen without one is refused before anything is written."""
     pytest.importorskip("pybullet")
     pytest.importorskip("trimesh")
     from rollability_ros.core.sim.evaluation import settings_from_parameters
 
     params = parameters(4, **{"profile.rows": 3, "profile.cols": 3, "stable_poses.com_sigma_m": 0.0})
-    run = OptimizationRun(os.path.join(tmp_path, "run"), params, GRID, SyntheticEvaluator(OPTIMUM, 30))
+    with pytest.raises(ValueError, match="initial_mean_screen 4 needs the stable-pose screen"):
+        OptimizationRun(os.path.join(tmp_path, "none"), run_config(params), GRID, SyntheticEvaluator(OPTIMUM, 30))
+    assert not os.path.exists(os.path.join(tmp_path, "none"))
+    run = OptimizationRun(os.path.join(tmp_path, "run"), run_config(params), GRID, SyntheticEvaluator(OPTIMUM, 30),
+                          screen_profiles=profile_screen(run_settings(params), settings_from_parameters(params)))
     expected = [s.upright_probability for s in profile_screen(run_settings(params), settings_from_parameters(params))(
         list(random_initial_means(run_settings(params).optimizer, GRID.n_variables)))]
     assert run.initial_mean_screen["upright_probability"] == [round(p, 4) for p in expected]
@@ -99,5 +105,5 @@ def test_the_real_screen_ranks_random_means_on_the_robot_in_use():
     assert all(0.0 <= p <= 1.0 for p in probabilities) and len(set(probabilities)) > 1
     assert all(s.worst_barrier_m >= 0 for s in screens)
     assert profile_screen(run_settings(parameters(0)), settings) is None
-    with pytest.raises(ConfigError, match=r"^stable_poses: com_sigma_m must be in \[0, 0.05\) m, got 0.5$"):
+    with pytest.raises(ConfigError, match=r"^stable_poses.com_sigma_m out of range: 0.5 is not in \[0.0, 0.05\)$"):
         run_settings(parameters(4, **{"stable_poses.com_sigma_m": 0.5}))     # refused where it is parsed

@@ -8,12 +8,14 @@ import pytest
 
 from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
 from rollability_ros.core.results.analysis import group_conditions
-from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.rig.rig_session import simulated_outcome
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig
-from rollability_ros.core.sim.launch_twin import (PHASES, LaunchTwinSettings, attempt_seed,
-                                              launch_twin_settings_from_parameters, load_launch_twin_settings,
-                                              simulate_launch, simulate_valid_launch)
+from rollability_ros.core.sim.launch.placement import attempt_seed
+from rollability_ros.core.sim.launch.results import PHASES
+from rollability_ros.core.sim.launch.settings import (LaunchTwinSettings, launch_twin_settings_from_parameters,
+                                                      load_launch_twin_settings)
+from rollability_ros.core.sim.launch.twin import simulate_launch, simulate_valid_launch
 
 pytest.importorskip("pybullet")
 
@@ -249,7 +251,7 @@ def test_a_gate_reading_that_jumps_keeps_the_closest_setting_within_the_accept_f
     (0.78 m/s for 0.8: 2.5 %), and the solve is refused when even that is off (0.70 / 0.90: 12.5 %)."""
     import types
 
-    from rollability_ros.core.sim import launch_twin
+    from rollability_ros.core.sim.launch import drive
 
     class Jumping:   # the gate rises with the plate to `below` at ratio 1.2, then reads `above`
         @staticmethod
@@ -257,11 +259,11 @@ def test_a_gate_reading_that_jumps_keeps_the_closest_setting_within_the_accept_f
             ratio = drive.speed_ratio
             return types.SimpleNamespace(measured_speed_mps=below * ratio / 1.2 if ratio < 1.2 else above)
 
-    monkeypatch.setattr(launch_twin, "LAUNCH_ENGINES", types.SimpleNamespace(get=lambda name: Jumping))
-    solve = lambda: launch_twin._solve_speed_ratio(exact_settings(), 0.8, 100.0, 0.05)   # noqa: E731
+    monkeypatch.setattr(drive, "LAUNCH_ENGINES", types.SimpleNamespace(get=lambda name: Jumping))
+    solve = lambda: drive._solve_speed_ratio(exact_settings(), 0.8, 100.0, 0.05)   # noqa: E731
     if kept:
         ratio = solve()
-        assert 1.15 < ratio < 1.2 and abs(below * ratio / 1.2 - 0.8) <= launch_twin.SOLVE_ACCEPT_FRACTION * 0.8
+        assert 1.15 < ratio < 1.2 and abs(below * ratio / 1.2 - 0.8) <= drive.SOLVE_ACCEPT_FRACTION * 0.8
     else:
         with pytest.raises(ValueError, match="did not converge"):
             solve()

@@ -8,8 +8,10 @@ import pytest
 from rollability_ros.core.config import from_mapping, load_parameters, section
 from rollability_ros.core.imu.upright import (ImuOutcomeConfig, ImuSample, ImuUprightClassifier, quaternion_conjugate,
                                               quaternion_from_axis_angle, rotate_vector, tilt_from_orientation_deg)
-from rollability_ros.core.sim.launch_twin import (build_launch_world, load_launch_twin_settings, rig_verdict,
-                                                  sized_for_robot, wheels_down)
+from rollability_ros.core.sim.launch.loop import rig_verdict
+from rollability_ros.core.sim.launch.placement import sized_for_robot
+from rollability_ros.core.sim.launch.pybullet_twin import build_launch_world, wheels_down
+from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
 from rollability_ros.core.sim.trials import place_on_ground
 from rollability_ros.core.sim.world import connect, disconnect
 
@@ -65,7 +67,7 @@ def test_the_verdict_agrees_with_the_imu_classifier_on_analytic_poses(axis, angl
     on_wheels = model.min_wheels_in_contact
     assert rig_verdict(tilt, on_wheels, model) == imu_classification(orientation) == (expected_tilt <= 30.0)
     pytest.importorskip("mujoco")
-    from rollability_ros.core.sim.mujoco_launch_twin import twin_for
+    from rollability_ros.core.sim.launch.mujoco_twin import twin_for
     twin = twin_for(dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine="mujoco")),
                     None)
     twin.place(orientation, 0.5, (3.0, 0.0), 1.0)
@@ -97,7 +99,7 @@ def test_at_rest_on_its_wheels_is_upright_on_the_floor_beyond_the_pad_and_not_on
     assert verdicts["level"] == (True, 4, 0)      # four wheels on the floor, none on the foam
     assert verdicts["inverted"][0] is False and verdicts["lifted"][0] is False
     pytest.importorskip("mujoco")
-    from rollability_ros.core.sim.mujoco_launch_twin import twin_for
+    from rollability_ros.core.sim.launch.mujoco_twin import twin_for
     twin = twin_for(dataclasses.replace(settings, physics=dataclasses.replace(settings.physics, engine="mujoco")),
                     None)
     foam_top = settings.twin.foam.thickness_m

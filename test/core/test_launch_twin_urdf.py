@@ -6,8 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_launch
-from rollability_ros.core.results.records import LaunchCondition
+from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+from rollability_ros.core.sim.launch.twin import simulate_launch
+from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.rig.rig_session import RigSettings, SimulatedLaunch, simulated_outcome, launch_seed
 from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig

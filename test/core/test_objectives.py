@@ -47,15 +47,16 @@ def test_mix_spreads_the_launch_share_evenly_and_cycles_the_conditions():
 def test_bad_objective_settings_are_refused():
     with pytest.raises(ConfigError, match="kind must be one of disturbance, launch_twin, mix"):
         settings_with(kind="rig")
-    with pytest.raises(ConfigError, match="launch_weight must be in"):
+    with pytest.raises(ConfigError, match=r"objective.launch_weight out of range: 0.0 is not in \(0.0, 1.0\]$"):
         settings_with(kind="mix", launch_weight=0.0)
 
 
 def test_launch_twin_objective_scores_launches_of_the_candidate_under_the_campaign_conditions(tmp_path):
     pytest.importorskip("pybullet")
     from rollability_ros.core.profile.geometry import profile_mesh
-    from rollability_ros.core.results.records import LaunchCondition
-    from rollability_ros.core.sim.launch_twin import load_launch_twin_settings, simulate_valid_launch
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     campaign = tmp_path / "two_angles.yaml"
     campaign.write_text(CAMPAIGN)
@@ -81,9 +82,9 @@ def test_launch_twin_objective_scores_launches_of_the_candidate_under_the_campai
 def test_launches_run_on_the_evaluations_engine_or_are_refused(monkeypatch, tmp_path, capsys):
     pytest.importorskip("mujoco")
     from rollability_ros.cli import main
-    from rollability_ros.core.results.records import LaunchCondition
+    from rollability_ros.core.records import LaunchCondition
     from rollability_ros.core.sim import trial_engine
-    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     campaign = tmp_path / "two_angles.yaml"
     campaign.write_text(CAMPAIGN)

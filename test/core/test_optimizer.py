@@ -8,7 +8,7 @@ cma = pytest.importorskip("cma")
 
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
 from doubles import SyntheticEvaluator  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import OptimizationRun  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config  # noqa: E402
 from rollability_ros.core.optimization.cmaes import (  # noqa: E402
     OptimizerSettings,
     ProfileOptimizer,
@@ -128,7 +128,7 @@ def test_protocol_errors_are_named():
     optimizer.tell(population, [0.1] * 12)
     with pytest.raises(ValueError, match="re-evaluation .* still pending"):
         optimizer.ask()
-    with pytest.raises(ValueError, match="seed must be"):
+    with pytest.raises(ValueError, match=r"^optimizer.seed out of range: 0 is not in \[1, 2147483647\]$"):
         ProfileOptimizer(4, settings(seed=0))
 
 
@@ -187,7 +187,7 @@ def noisy_run(tmp_path, seed, common_random_numbers, reevaluate_incumbent, gener
                   "optimizer.reevaluate_incumbent": reevaluate_incumbent}
     evaluator = SyntheticEvaluator(np.random.default_rng(1000 + seed).uniform(0, 0.45, 16), trials, peak=0.8)
     run_dir = os.path.join(tmp_path, f"s{seed}-{common_random_numbers}-{reevaluate_incumbent}")
-    run = OptimizationRun(run_dir, parameters, ProfileGrid(rows=4, cols=4), evaluator)
+    run = OptimizationRun(run_dir, run_config(parameters), ProfileGrid(rows=4, cols=4), evaluator)
     result = run.run()
     run.close()
     return (evaluator.success_probability(result.best.heights), result.best.fitness,

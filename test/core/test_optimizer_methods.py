@@ -53,7 +53,7 @@ def methods(monkeypatch):
 def test_a_new_method_is_one_class_and_one_registration_line(methods, tmp_path):
     pytest.importorskip("cma")
     from doubles import SyntheticEvaluator
-    from rollability_ros.core.optimization.optimization_run import (OptimizationRun, check_method_settings,
+    from rollability_ros.core.optimization.optimization_run import (OptimizationRun, run_config, check_method_settings,
                                                                         run_settings)
     from rollability_ros.core.profile.geometry import ProfileGrid
 
@@ -63,13 +63,13 @@ def test_a_new_method_is_one_class_and_one_registration_line(methods, tmp_path):
     check_method_settings(run_settings(parameters))
     grid = ProfileGrid(rows=3, cols=3)
     evaluator = SyntheticEvaluator(np.full(9, 0.2), trials=10)
-    run = OptimizationRun(tmp_path / "opt", parameters, grid, evaluator)
+    run = OptimizationRun(tmp_path / "opt", run_config(parameters), grid, evaluator)
     assert isinstance(run.optimizer, RandomSearch)
     run.step()
     run.step()                                     # then the run is "killed": it resumes from its checkpoint
     first = [c.heights for c in run.store.candidates()]
     run.close()
-    again = OptimizationRun(tmp_path / "opt", parameters, grid, evaluator, resume=True)   # from its checkpoint
+    again = OptimizationRun(tmp_path / "opt", run_config(parameters), grid, evaluator, resume=True)   # from its checkpoint
     assert isinstance(again.optimizer, RandomSearch) and again.optimizer.generation == 2
     again.run()
     assert again.optimizer.generation == 3 and [c.heights for c in again.store.candidates()][:len(first)] == first

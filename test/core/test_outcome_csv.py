@@ -6,7 +6,7 @@ import re
 import pytest
 
 from rollability_ros.core.results import OutcomeCsvError, read_outcome_csv, write_outcome_csv
-from rollability_ros.core.results.records import NO_SEED, LaunchCondition, LaunchOutcome
+from rollability_ros.core.records import NO_SEED, LaunchCondition, LaunchOutcome
 
 
 def _write(tmp_path, text, name="o.csv"):

@@ -6,9 +6,9 @@ import sqlite3
 import pytest
 
 from rollability_ros.core.results.outcome_log import OutcomeLog, OutcomeLoggerSettings, StoreFailure
-from rollability_ros.core.results.records import (CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome,
+from rollability_ros.core.records import (CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome,
                                           TipEventRecord)
-from rollability_ros.core.results.stats import wilson_interval
+from rollability_ros.core.stats import wilson_interval
 
 
 def outcome(trial_id, configuration="A", upright=True, run_id="run1", angle_deg=0.0, stamp_s=100.0, **fields):

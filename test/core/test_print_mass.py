@@ -10,7 +10,7 @@ import pytest
 trimesh = pytest.importorskip("trimesh")
 pytest.importorskip("scipy")
 
-from rollability_ros.core.config import ConfigError, from_mapping  # noqa: E402
+from rollability_ros.core.config import ConfigError, check_settings, from_mapping  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid, grid_xy, profile_mesh  # noqa: E402
 from rollability_ros.core.profile.print_mass import MassProperties, ProfilePrintSpec, combine, print_mass_properties  # noqa: E402
 from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec, ProfileBody  # noqa: E402
@@ -105,12 +105,12 @@ def test_degenerate_open_and_non_convex_meshes_are_refused_by_name():
     ({"model": "solid"}, "needs profile_print.solid_density_kgpm3"),
     ({"solid_density_kgpm3": 20.0}, "only used with profile_print.model: solid"),
     ({"model": "foam"}, "must be one of shell, solid"),
-    ({"infill_fraction": 1.5}, "infill_fraction must be in"),
-    ({"wall_thickness_m": 0.0}, "wall_thickness_m must be > 0"),
+    ({"infill_fraction": 1.5}, r"infill_fraction out of range: 1.5 is not in \[0.0, 1.0\]"),
+    ({"wall_thickness_m": 0.0}, r"wall_thickness_m out of range: 0.0 is not in \(0.0, 1.0\]"),
 ])
 def test_inconsistent_print_settings_are_refused(fields, message):
     with pytest.raises(ValueError, match=message):
-        ProfilePrintSpec(**fields).validate()
+        check_settings(ProfilePrintSpec(**fields), "profile_print")
     with pytest.raises(ConfigError, match=message.split()[0]):
         from_mapping(ChassisSpec, {"profile_print": fields}, "robot")
 
@@ -218,7 +218,8 @@ def test_mujoco_compiles_the_printed_mass_centre_and_inertia(robot):
 
 def test_the_stable_pose_screen_and_the_twin_weigh_the_print(tmp_path):
     pytest.importorskip("pybullet")
-    from rollability_ros.core.sim import launch_twin, stable_poses
+    from rollability_ros.core.sim import stable_poses
+    from rollability_ros.core.sim.launch import settings as twin_settings, twin
 
     spec = ChassisSpec()
     profile = printed_profile(spec)
@@ -228,16 +229,16 @@ def test_the_stable_pose_screen_and_the_twin_weigh_the_print(tmp_path):
     grid = ProfileGrid()
     path = tmp_path / "wedge.stl"
     profile_mesh(front_heavy_heights(grid), grid).export(path)
-    settings = launch_twin.load_launch_twin_settings(overrides={"twin.designs.mesh_labels": ["W"],
-                                                                "twin.designs.mesh_files": [str(path)]})
-    hollow = launch_twin.load_launch_twin_settings(overrides={
+    settings = twin_settings.load_launch_twin_settings(overrides={"twin.designs.mesh_labels": ["W"],
+                                                                  "twin.designs.mesh_files": [str(path)]})
+    hollow = twin_settings.load_launch_twin_settings(overrides={
         "twin.designs.mesh_labels": ["W"], "twin.designs.mesh_files": [str(path)],
         "robot.profile_print.infill_fraction": 0.0, "robot.profile_mass_scale": 1.5})
-    mounted = launch_twin.profile_body("W", settings)
+    mounted = twin.profile_body("W", settings)
     assert mounted.mass_kg == pytest.approx(profile.mass_kg, rel=1e-6)
     expected = 1.5 * print_mass_properties(profile_mesh(front_heavy_heights(grid), grid), shell(0.0008, 0.0008, 0.0)
                                            ).mass_kg
-    assert launch_twin.profile_body("W", hollow).mass_kg == pytest.approx(expected, rel=1e-6)
+    assert twin.profile_body("W", hollow).mass_kg == pytest.approx(expected, rel=1e-6)
 
 
 def test_bullets_box_of_a_profile_on_turned_inertial_axes_overstates_it_and_the_points_do_not():

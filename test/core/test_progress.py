@@ -87,7 +87,7 @@ def test_the_study_shows_every_generation_the_optimizer_reported(tmp_path):
 
     from rollability_ros.core.graph.study import Study
     from doubles import SyntheticEvaluator
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     stream = io.StringIO()
@@ -97,7 +97,7 @@ def test_the_study_shows_every_generation_the_optimizer_reported(tmp_path):
     study.parameters["optimizer.max_generations"] = 4
     assert study._progress_optimization()[0].phase == "optimizing: nodes starting"
     grid = ProfileGrid(rows=3, cols=3)
-    run = OptimizationRun(study.optimization_dir, {"optimizer.max_generations": 4, "optimizer.trials": 10},
+    run = OptimizationRun(study.optimization_dir, run_config({"optimizer.max_generations": 4, "optimizer.trials": 10}),
                           grid, SyntheticEvaluator(np.full(9, 0.2), trials=10))
     observed.follow(run)
     assert study._progress_optimization()[0].phase == "optimizing: first generation under evaluation"
@@ -119,15 +119,15 @@ def test_a_resumed_run_reports_its_earlier_trials(tmp_path):
     import numpy as np
 
     from doubles import SyntheticEvaluator
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     parameters, grid = {"optimizer.max_generations": 2, "optimizer.trials": 10}, ProfileGrid(rows=3, cols=3)
-    run = OptimizationRun(str(tmp_path / "opt"), parameters, grid, SyntheticEvaluator(np.full(9, 0.2), trials=10))
+    run = OptimizationRun(str(tmp_path / "opt"), run_config(parameters), grid, SyntheticEvaluator(np.full(9, 0.2), trials=10))
     run.step()
     first = run.progress()
     run.close()
-    again = OptimizationRun(str(tmp_path / "opt"), parameters, grid, SyntheticEvaluator(np.full(9, 0.2), trials=10),
+    again = OptimizationRun(str(tmp_path / "opt"), run_config(parameters), grid, SyntheticEvaluator(np.full(9, 0.2), trials=10),
                             resume=True)
     assert again.progress() == first and first.generation == 1 and first.trials == 10 * len(run_candidates(
         str(tmp_path / "opt")))
@@ -135,7 +135,7 @@ def test_a_resumed_run_reports_its_earlier_trials(tmp_path):
 
 
 def run_candidates(run_dir):
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.store import Store
 
     with Store(os.path.join(run_dir, "store.sqlite")) as store:
         return store.candidates()
@@ -147,7 +147,7 @@ def test_a_bringup_session_shows_its_optimization_and_stored_launches(tmp_path):
 
     from rollability_ros.core.graph.progress import session_progress
     from doubles import SyntheticEvaluator
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     observed = Observed()
@@ -161,7 +161,7 @@ def test_a_bringup_session_shows_its_optimization_and_stored_launches(tmp_path):
     observed.campaign = ("rig-walkthrough", 2, 4, 130.0)
     assert session_progress(observed, 7, 65.0).text().endswith("2/4 launches stored | ETA 2 min")
     observed.campaign = None
-    run = OptimizationRun(str(tmp_path / "opt-1"), {"optimizer.max_generations": 3, "optimizer.trials": 10},
+    run = OptimizationRun(str(tmp_path / "opt-1"), run_config({"optimizer.max_generations": 3, "optimizer.trials": 10}),
                           ProfileGrid(rows=3, cols=3), SyntheticEvaluator(np.full(9, 0.2), trials=10))
     observed.follow(run)
     run.run()

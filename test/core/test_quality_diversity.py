@@ -14,7 +14,7 @@ ribs = pytest.importorskip("ribs")
 from doubles import SyntheticEvaluator  # noqa: E402
 from rollability_ros.core.optimization import selection  # noqa: E402
 from rollability_ros.core.optimization.cmaes import OptimizerSettings  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import (OptimizationRun, make_optimizer,  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import (OptimizationRun, run_config, make_optimizer,  # noqa: E402
                                                                 run_settings)
 from rollability_ros.core.optimization.quality_diversity import (  # noqa: E402
     QualityDiversityOptimizer,
@@ -24,7 +24,7 @@ from rollability_ros.core.optimization.quality_diversity import (  # noqa: E402
 )
 from rollability_ros.core.profile import descriptors  # noqa: E402
 from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid, grid_xy  # noqa: E402
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 
 GRID = ProfileGrid(rows=4, cols=4)
 
@@ -231,7 +231,7 @@ def test_a_run_stores_its_archive_every_generation(tmp_path):
     parameters = {"optimizer.method": "cma_mae", "optimizer.max_generations": 4, "optimizer.seed": 2,
                   "optimizer.trials": 30, "optimizer.popsize": 6, "quality_diversity.emitters": 2}
     run_dir = os.path.join(tmp_path, "run")
-    run = OptimizationRun(run_dir, parameters, GRID, SyntheticEvaluator(OPTIMUM, trials=30))
+    run = OptimizationRun(run_dir, run_config(parameters), GRID, SyntheticEvaluator(OPTIMUM, trials=30))
     run.run()
     run.close()
     with Store(run_dir) as store:
@@ -297,7 +297,7 @@ def test_a_run_selects_from_its_archive_and_the_report_shows_the_map(tmp_path):
                   "optimizer.trials": 30, "optimizer.popsize": 12, "quality_diversity.emitters": 3}
     run_dir = os.path.join(tmp_path, "run")
     evaluator = SyntheticEvaluator(OPTIMUM, trials=30, width=0.2)
-    run = OptimizationRun(run_dir, parameters, GRID, evaluator)
+    run = OptimizationRun(run_dir, run_config(parameters), GRID, evaluator)
     run.run()
     settings = selection.SelectionSettings(count=3, top_fraction=0.5, reevaluate_trials=60)
     picked, folder = selection.select_run(run.store, "run", run_dir, GRID, PrinterSpec(), settings,

@@ -129,10 +129,10 @@ def racing_parameters(grid, method="cmaes", **extra):
 
 
 def run_rows(run_dir, parameters, grid, evaluate_trials, resume=False):
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
+    from rollability_ros.core.store import Store
 
-    run = OptimizationRun(str(run_dir), parameters, grid, lambda h, s: evaluate_trials(h, s, 40), resume=resume,
+    run = OptimizationRun(str(run_dir), run_config(parameters), grid, lambda h, s: evaluate_trials(h, s, 40), resume=resume,
                           evaluate_trials=evaluate_trials)
     try:
         run.run()
@@ -207,23 +207,23 @@ def test_the_incumbent_and_the_cell_elite_are_the_bars():
 
 def test_bad_racing_settings_are_refused(tmp_path):
     pytest.importorskip("cma")
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_settings
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config, run_settings
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     grid = ProfileGrid(rows=2, cols=2)
     for extra, message in (({"optimizer.race_looks": [10, 5]}, "race_looks must be strictly increasing"),
                            ({"optimizer.race_looks": [40]}, "race_looks must be strictly increasing"),
-                           ({"optimizer.race_alpha": 0.0}, "race_alpha must be in"),
+                           ({"optimizer.race_alpha": 0.0}, r"race_alpha out of range: 0.0 is not in \(0.0, 1.0\)"),
                            ({"optimizer.common_random_numbers": False}, "needs common_random_numbers"),
                            ({"optimizer.race_survivors": 8}, "race_survivors must be below popsize 8"),
-                           ({"optimizer.race_survivors": -1}, "race_survivors must be >= 0"),
+                           ({"optimizer.race_survivors": -1}, r"race_survivors out of range: -1 is not in \[0, 100000\]"),
                            ({"optimizer.race_survivors": 2, "optimizer.race_looks": [0]},
                             "race_survivors needs race_looks")):
         with pytest.raises(ValueError, match=message):
             run_settings(racing_parameters(grid, **extra)).optimizer.validate()
     run_settings(racing_parameters(grid, **{"optimizer.race_looks": [0]})).optimizer.validate()   # [0]: off
     with pytest.raises(ValueError, match="race_looks needs an evaluator"):
-        OptimizationRun(str(tmp_path / "c"), racing_parameters(grid), grid, lambda h, s: [])
+        OptimizationRun(str(tmp_path / "c"), run_config(racing_parameters(grid)), grid, lambda h, s: [])
 
 
 def test_a_kept_mujoco_world_gives_the_same_trials_when_racing_comes_back_to_its_profile():
@@ -303,7 +303,7 @@ def test_halving_runs_at_most_the_survivors_on_and_a_killed_generation_resumes_t
     pytest.importorskip("cma")
     if method == "cma_mae":
         pytest.importorskip("ribs")
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     grid = ProfileGrid(rows=2, cols=2)
@@ -325,7 +325,7 @@ def test_halving_runs_at_most_the_survivors_on_and_a_killed_generation_resumes_t
         if record.generation == 4 and sum(r.generation == 4 for r in stored) == 3:
             raise Killed()
 
-    run = OptimizationRun(str(tmp_path / "killed"), parameters, grid,
+    run = OptimizationRun(str(tmp_path / "killed"), run_config(parameters), grid,
                           lambda h, s: bernoulli_evaluator([])(h, s, 40), on_candidate=dying,
                           evaluate_trials=bernoulli_evaluator([]))
     try:

@@ -6,8 +6,8 @@ import pytest
 
 from rollability_ros.core.bags.messages import make_message, message_from_record, read_records_from_bag, typestore
 from rollability_ros.core.bags.writer import BagWriter
-from rollability_ros.core.results import record_messages
-from rollability_ros.core.results.records import (CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome,
+from rollability_ros.core import record_messages
+from rollability_ros.core.records import (CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome,
                                                   TipEventRecord)
 
 RECORDS = [
@@ -95,7 +95,7 @@ def test_a_seeded_outcome_round_trips_and_the_old_sample_bag_decodes_without_see
     from rollability_ros.core.bags.messages import CurrentDefinitions, decoding_typestore
     from rollability_ros.core.bags.msg_definitions import definition_for
     from rollability_ros.core.bags.reader import BagReader
-    from rollability_ros.core.results.records import NO_SEED
+    from rollability_ros.core.records import NO_SEED
 
     seeded = LaunchOutcome("camp", "A/t2", LaunchCondition("A", 0.75, 0.8, -30.0, 0), "sim", True, 0.42, 0.81,
                            seed=2**31 - 1)

@@ -12,9 +12,9 @@ import pytest
 from rollability_ros.cli import main as cli_main
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
 from rollability_ros.core.results import write_outcome_csv
-from rollability_ros.core.results.records import CandidateRecord, LaunchOutcome, TipEventRecord
+from rollability_ros.core.records import CandidateRecord, LaunchOutcome, TipEventRecord
 from rollability_ros.core.results.report import source_kind
-from rollability_ros.core.results.store import Store
+from rollability_ros.core.store import Store
 
 SUCCESS_PROBABILITY = {"baseline": 0.3, "A": 0.3, "B": 0.75, "C": 0.6}
 FIGURES = ("fig04_convergence.png", "fig09_height_angle.png", "fig10_speed_angle.png", "fig11_angle_curves.png",
@@ -302,7 +302,7 @@ def test_drill_down_shows_each_seed_and_its_command_simulates_the_stored_launch_
     from rollability_ros.core.campaign.runner import LocalRig, local_rig_settings
     from rollability_ros.core.config import load_parameters
     from rollability_ros.core.results import read_outcome_csv
-    from rollability_ros.core.results.records import NO_SEED
+    from rollability_ros.core.records import NO_SEED
 
     rig = LocalRig(local_rig_settings("sim", load_parameters(["rig"])))
     try:

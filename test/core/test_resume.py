@@ -17,8 +17,8 @@ from rollability_ros.core.optimization import checkpoint as checkpoints  # noqa:
 from rollability_ros.core.config import ConfigError  # noqa: E402
 from rollability_ros.core.profile.geometry import ProfileGrid  # noqa: E402
 from doubles import SyntheticEvaluator  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import OptimizationRun, read_run_config  # noqa: E402
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config, read_run_config  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 
 GRID = ProfileGrid(rows=3, cols=3)
 OPTIMUM = np.linspace(0.05, 0.4, GRID.n_variables)
@@ -33,7 +33,7 @@ CHILD = textwrap.dedent("""
     from rollability_ros.core.profile.geometry import ProfileGrid
     sys.path.insert(0, sys.argv[4])   # test/, for the test doubles
     from doubles import SyntheticEvaluator
-    from rollability_ros.core.optimization.optimization_run import OptimizationRun
+    from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
     run_dir, block_at, crn, method = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "True", sys.argv[5]
     evaluator = SyntheticEvaluator(np.linspace(0.05, 0.4, 9), trials=30)
     calls = []
@@ -45,7 +45,7 @@ CHILD = textwrap.dedent("""
         return evaluator(heights_list, seed)
     parameters = {"optimizer.max_generations": %d, "optimizer.seed": 5, "optimizer.trials": 30,
                   "optimizer.popsize": 6, "optimizer.common_random_numbers": crn, "optimizer.method": method}
-    OptimizationRun(run_dir, parameters, ProfileGrid(rows=3, cols=3), evaluate_batch).run()
+    OptimizationRun(run_dir, run_config(parameters), ProfileGrid(rows=3, cols=3), evaluate_batch).run()
 """ % GENERATIONS)
 
 
@@ -67,7 +67,7 @@ def comparable(store_path):
 
 def uninterrupted(tmp_path, common_random_numbers, method="cmaes"):
     run_dir = os.path.join(tmp_path, "straight", "run")
-    run = OptimizationRun(run_dir, parameters(common_random_numbers, method), GRID,
+    run = OptimizationRun(run_dir, run_config(parameters(common_random_numbers, method)), GRID,
                           SyntheticEvaluator(OPTIMUM, trials=30))
     result = run.run()
     run.close()
@@ -108,7 +108,7 @@ def test_sigkill_mid_generation_then_resume_equals_uninterrupted(tmp_path, commo
     assert checkpoints.load_checkpoint(os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME))["generation"] == \
         KILL_GENERATION
 
-    resumed = OptimizationRun(run_dir, read_run_config(run_dir), GRID, SyntheticEvaluator(OPTIMUM, trials=30),
+    resumed = OptimizationRun(run_dir, run_config(read_run_config(run_dir)), GRID, SyntheticEvaluator(OPTIMUM, trials=30),
                               resume=True)
     assert resumed.optimizer.generation == KILL_GENERATION
     result = resumed.run()
@@ -133,9 +133,9 @@ def test_killed_in_generation_zero_resumes_from_scratch(tmp_path):
         raise RuntimeError("evaluator died")
 
     with pytest.raises(RuntimeError):
-        OptimizationRun(run_dir, parameters(), GRID, failing).run()
+        OptimizationRun(run_dir, run_config(parameters()), GRID, failing).run()
     assert not os.path.exists(os.path.join(run_dir, checkpoints.CHECKPOINT_FILENAME))
-    resumed = OptimizationRun(run_dir, parameters(), GRID, SyntheticEvaluator(OPTIMUM, trials=30), resume=True)
+    resumed = OptimizationRun(run_dir, run_config(parameters()), GRID, SyntheticEvaluator(OPTIMUM, trials=30), resume=True)
     resumed.run()
     resumed.close()
     assert comparable(run_dir) == comparable(uninterrupted(tmp_path, True)[0])
@@ -153,7 +153,7 @@ def test_after_an_evaluator_error_the_same_run_object_continues_identically(tmp_
             raise RuntimeError("evaluator went away")
         return healthy(heights_list, seed)
 
-    run = OptimizationRun(run_dir, parameters(), GRID, flaky)
+    run = OptimizationRun(run_dir, run_config(parameters()), GRID, flaky)
     with pytest.raises(RuntimeError, match="went away"):
         run.run()
     assert run.optimizer.generation == 3
@@ -164,18 +164,18 @@ def test_after_an_evaluator_error_the_same_run_object_continues_identically(tmp_
 
 def test_a_different_config_refuses_to_resume(tmp_path):
     run_dir = os.path.join(tmp_path, "run")
-    run = OptimizationRun(run_dir, parameters(**{"optimizer.max_generations": 2}), GRID,
+    run = OptimizationRun(run_dir, run_config(parameters(**{"optimizer.max_generations": 2})), GRID,
                           SyntheticEvaluator(OPTIMUM, trials=30))
     run.run()
     run.close()
     with pytest.raises(ConfigError, match=r"optimizer.trials: 30 -> 40"):
-        OptimizationRun(run_dir, parameters(**{"optimizer.max_generations": 2, "optimizer.trials": 40}), GRID,
+        OptimizationRun(run_dir, run_config(parameters(**{"optimizer.max_generations": 2, "optimizer.trials": 40})), GRID,
                         SyntheticEvaluator(OPTIMUM, trials=40), resume=True)
     with pytest.raises(ValueError, match="already exists"):
-        OptimizationRun(run_dir, parameters(**{"optimizer.max_generations": 2}), GRID,
+        OptimizationRun(run_dir, run_config(parameters(**{"optimizer.max_generations": 2})), GRID,
                         SyntheticEvaluator(OPTIMUM, trials=30))
     with pytest.raises(FileNotFoundError, match="not an optimization run"):
-        OptimizationRun(os.path.join(tmp_path, "nothing"), parameters(), GRID, SyntheticEvaluator(OPTIMUM, 30),
+        OptimizationRun(os.path.join(tmp_path, "nothing"), run_config(parameters()), GRID, SyntheticEvaluator(OPTIMUM, 30),
                         resume=True)
 
 
@@ -278,7 +278,7 @@ def test_the_one_loop_retries_gives_up_stops_and_is_interrupted_by_policy(tmp_pa
 
     # retry (the node pauses, then resumes): the run ends as if nothing failed
     failures = []
-    run = OptimizationRun(tmp_path / "retry", parameters(), GRID, failing_at(3, 4))
+    run = OptimizationRun(tmp_path / "retry", run_config(parameters()), GRID, failing_at(3, 4))
     end = run_generations(run, on_evaluation_failed=lambda exc: failures.append(exc) or True,
                           evaluation_errors=(NoResults,))
     run.close()
@@ -287,7 +287,7 @@ def test_the_one_loop_retries_gives_up_stops_and_is_interrupted_by_policy(tmp_pa
 
     # give up (exit_on_finish): failed, with the generation's number (from 1) in the reason
     calls.clear()
-    run = OptimizationRun(tmp_path / "give-up", parameters(), GRID, failing_at(3))
+    run = OptimizationRun(tmp_path / "give-up", run_config(parameters()), GRID, failing_at(3))
     end = run_generations(run, evaluation_errors=(NoResults,))
     assert end.status == "failed" and end.exit_code == 1
     assert end.reason == "generation 2 got no real results (no evaluator answered)"
@@ -295,17 +295,17 @@ def test_the_one_loop_retries_gives_up_stops_and_is_interrupted_by_policy(tmp_pa
 
     # interrupted (shutdown): no exit code, resumable; an error of no listed kind propagates
     calls.clear()
-    run = OptimizationRun(tmp_path / "shutdown", parameters(), GRID, failing_at(3, error=Shutdown))
+    run = OptimizationRun(tmp_path / "shutdown", run_config(parameters()), GRID, failing_at(3, error=Shutdown))
     end = run_generations(run, evaluation_errors=(NoResults,), interruptions=(Shutdown,))
     assert end.status == "interrupted" and end.exit_code is None and run.optimizer.generation == 1
     with pytest.raises(RuntimeError, match="went away"):
-        OptimizationRun(tmp_path / "bug", parameters(), GRID,
+        OptimizationRun(tmp_path / "bug", run_config(parameters()), GRID,
                         lambda h, s: (_ for _ in ()).throw(RuntimeError("went away"))).run()
     run.close()
 
     # stop between generations: the current generation is finished and checkpointed
     stop_after = []
-    run = OptimizationRun(tmp_path / "stop", parameters(), GRID, healthy,
+    run = OptimizationRun(tmp_path / "stop", run_config(parameters()), GRID, healthy,
                           on_generation=lambda record: stop_after.append(record.generation))
     end = run_generations(run, stop_requested=lambda: len(stop_after) >= 3)
     assert end.status == "stopped" and stop_after == [1, 2, 3] and run.optimizer.generation == 3
@@ -316,7 +316,7 @@ def test_the_one_loop_retries_gives_up_stops_and_is_interrupted_by_policy(tmp_pa
 def test_generations_are_numbered_from_1_and_runs_numbered_from_0_keep_their_numbers(tmp_path, monkeypatch):
     from rollability_ros.core.optimization import optimization_run
 
-    run = OptimizationRun(tmp_path / "new", parameters(**{"optimizer.max_generations": 3}), GRID,
+    run = OptimizationRun(tmp_path / "new", run_config(parameters(**{"optimizer.max_generations": 3})), GRID,
                           SyntheticEvaluator(OPTIMUM, trials=30))
     run.run()
     assert [g.generation for g in run.store.generations()] == [1, 2, 3]
@@ -327,7 +327,7 @@ def test_generations_are_numbered_from_1_and_runs_numbered_from_0_keep_their_num
     # a run stored by the code before this numbering: generations from 0 and no first_generation in its info
     monkeypatch.setattr(optimization_run, "FIRST_GENERATION", 0)
     old_dir = tmp_path / "old"
-    killed = OptimizationRun(old_dir, parameters(), GRID, SyntheticEvaluator(OPTIMUM, trials=30))
+    killed = OptimizationRun(old_dir, run_config(parameters()), GRID, SyntheticEvaluator(OPTIMUM, trials=30))
     for _ in range(3):
         killed.step()
     info = dict(killed.store.run_info("old")["info"])
@@ -335,7 +335,7 @@ def test_generations_are_numbered_from_1_and_runs_numbered_from_0_keep_their_num
     killed.store.set_run_info("old", optimization_run.RUN_KIND, info)
     killed.close()
     monkeypatch.setattr(optimization_run, "FIRST_GENERATION", 1)
-    resumed = OptimizationRun(old_dir, parameters(), GRID, SyntheticEvaluator(OPTIMUM, trials=30), resume=True)
+    resumed = OptimizationRun(old_dir, run_config(parameters()), GRID, SyntheticEvaluator(OPTIMUM, trials=30), resume=True)
     assert resumed.first_generation == 0 and "resuming after generation 2" in resumed.start_text(True)
     resumed.run()
     assert [g.generation for g in resumed.store.generations()] == list(range(GENERATIONS))
@@ -346,7 +346,7 @@ def test_generations_are_numbered_from_1_and_runs_numbered_from_0_keep_their_num
 def _partial_run(tmp_path, name="run", generations=3):
     """A run stopped after ``generations`` of GENERATIONS generations (as if killed between generations)."""
     run_dir = os.path.join(tmp_path, name)
-    run = OptimizationRun(run_dir, parameters(), GRID, SyntheticEvaluator(OPTIMUM, trials=30))
+    run = OptimizationRun(run_dir, run_config(parameters()), GRID, SyntheticEvaluator(OPTIMUM, trials=30))
     for _ in range(generations):
         run.step()
     run.close()
@@ -359,7 +359,7 @@ def _rows(run_dir):
 
 
 def _resume(run_dir):
-    return OptimizationRun(run_dir, read_run_config(run_dir), GRID, SyntheticEvaluator(OPTIMUM, trials=30),
+    return OptimizationRun(run_dir, run_config(read_run_config(run_dir)), GRID, SyntheticEvaluator(OPTIMUM, trials=30),
                            resume=True)
 
 

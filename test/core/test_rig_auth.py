@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 from rollability_ros.core.rig import rig_auth, valve_auth
 from rollability_ros.core.rig.valve_auth import Signature
 

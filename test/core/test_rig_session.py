@@ -7,7 +7,8 @@ import time
 import pytest
 from synthetic_imu import piecewise, stream
 
-from rollability_ros.core.results.records import NO_SEED, LaunchCondition
+from rollability_ros.core.config import check_settings
+from rollability_ros.core.records import NO_SEED, LaunchCondition
 from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
 from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
                                                   OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
@@ -206,8 +207,8 @@ def test_an_open_question_is_repeated_until_answered(valve):
     outcome = rig.launch("run", "t0", CONDITION, late_operator)
     assert outcome.upright and outcome.classified_by == "operator"
     assert heard == ["waiting_for_operator"] * 3 + ["armed", "fired", "in_flight", "settling"] + ["classifying"] * 3
-    with pytest.raises(ValueError, match="question_repeat_s"):
-        RigSettings(question_repeat_s=0.0).validate()
+    with pytest.raises(ValueError, match=r"^rig.question_repeat_s out of range: 0.0 is not in \[0.05, 3600.0\]$"):
+        check_settings(RigSettings(question_repeat_s=0.0), "rig")
 
 
 def test_goal_checks_refuse_with_reasons(valve):

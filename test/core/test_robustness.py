@@ -3,6 +3,7 @@ import dataclasses
 
 import pytest
 
+from rollability_ros.core.config import check_settings
 from rollability_ros.core.sim import evaluation
 from rollability_ros.core.sim.robustness import RobustSettings, draw, robust_settings_for
 from rollability_ros.core.sim.sensitivity import DEFAULT_LEVELS, sensitivity_rows, with_factor
@@ -106,9 +107,11 @@ def test_robust_launches_reuse_one_mujoco_twin_and_match_a_fresh_build():
     centre of mass), and bit-identical launches whatever was launched before."""
     pytest.importorskip("mujoco")
     import numpy as np
-    from rollability_ros.core.results.records import LaunchCondition
-    from rollability_ros.core.sim import mujoco_launch_twin
-    from rollability_ros.core.sim.launch_twin import launch_drive, load_launch_twin_settings, sized_for_robot
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.sim.launch import mujoco_twin
+    from rollability_ros.core.sim.launch.drive import launch_drive
+    from rollability_ros.core.sim.launch.placement import sized_for_robot
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
 
     twin = load_launch_twin_settings()
     twin = sized_for_robot(dataclasses.replace(
@@ -123,21 +126,21 @@ def test_robust_launches_reuse_one_mujoco_twin_and_match_a_fresh_build():
     condition = LaunchCondition("baseline", 0.75, 0.8, 0.0)
 
     def launch(settings, seed):
-        return mujoco_launch_twin.MujocoLaunch.simulate(condition, settings, seed, None,
-                                                        drive=launch_drive(settings, condition.speed_mps))
-    mujoco_launch_twin._cache.clear()
+        return mujoco_twin.MujocoLaunch.simulate(condition, settings, seed, None,
+                                                 drive=launch_drive(settings, condition.speed_mps))
+    mujoco_twin._cache.clear()
     launch(first, 3)
-    reused = mujoco_launch_twin.twin_for(drawn, None)
-    assert len(mujoco_launch_twin._cache) == 1
-    fresh = mujoco_launch_twin.MujocoLaunchTwin(drawn, None)
+    reused = mujoco_twin.twin_for(drawn, None)
+    assert len(mujoco_twin._cache) == 1
+    fresh = mujoco_twin.MujocoLaunchTwin(drawn, None)
     for name in ("geom_friction", "geom_solref", "geom_solimp", "body_ipos", "body_inertia", "body_mass",
                  "dof_frictionloss", "dof_invweight0", "body_invweight0"):
         assert np.allclose(getattr(reused.model, name), getattr(fresh.model, name), rtol=1e-6, atol=1e-7), name
     # a draw's launch never depends on the draws launched before it in the process (a resumed run launches alike)
     for settings in (drawn, dataclasses.replace(drawn, robot=first.robot)):
-        mujoco_launch_twin._cache.clear()
+        mujoco_twin._cache.clear()
         alone = repr(launch(settings, 3))
-        mujoco_launch_twin._cache.clear()
+        mujoco_twin._cache.clear()
         launch(first, 5)
         assert repr(launch(settings, 3)) == alone
 
@@ -145,7 +148,7 @@ def test_robust_launches_reuse_one_mujoco_twin_and_match_a_fresh_build():
 def test_launch_draws_cover_foam_friction_rolling_and_wheel_drag_and_keep_the_older_draws():
     """The wheel-on-foam unknowns are drawn log-uniform over their stated ranges, from the trial seed's own stream
     after the older unknowns (whose values do not move), and reach the settings of the wheels the twin uses."""
-    from rollability_ros.core.sim.launch_twin import LaunchTwinSettings
+    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
 
     robust = RobustSettings(enabled=True)
     draws = [draw(seed, robust, -0.015, 0.06) for seed in range(400)]
@@ -167,8 +170,10 @@ def test_launch_draws_cover_foam_friction_rolling_and_wheel_drag_and_keep_the_ol
     drawn = robust_settings_for(own_wheels, 7, robust)
     assert drawn.robot.wheel_drag_torque_nm == draws[7].wheel_drag_nm   # the drag acts on the wheels in use
     assert drawn.twin.wheel_drag_torque_nm == own_wheels.twin.wheel_drag_torque_nm
-    with pytest.raises(ValueError, match="need 0 < wheel_drag_min <= wheel_drag_max"):
-        RobustSettings(wheel_drag_min_nm=0.0).validate()
+    with pytest.raises(ValueError, match=r"^objective.robust.wheel_drag_min_nm out of range: 0.0 is not in \(0.0, "):
+        check_settings(RobustSettings(wheel_drag_min_nm=0.0), "objective.robust")
+    with pytest.raises(ValueError, match="need wheel_drag_min <= wheel_drag_max"):
+        check_settings(RobustSettings(wheel_drag_min_nm=0.5), "objective.robust")
 
 
 
@@ -178,7 +183,7 @@ def test_launcher_and_profile_mass_unknowns_are_drawn_and_weigh_the_trials_profi
     import numpy as np
 
     from rollability_ros.core.robots import ProfileBody
-    from rollability_ros.core.sim.launch_twin import LaunchTwinSettings
+    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
     from rollability_ros.core.sim.robustness import scaled_profile
 
     robust = RobustSettings(enabled=True, launcher_models=["stroke", "push_through"])
@@ -215,7 +220,7 @@ def test_launch_sensitivity_rows_are_real_launches_at_each_end_of_an_unknowns_ra
     from rollability_ros.core.results import gain_lines
     from rollability_ros.core.results.sensitivity_table import gain_rows
     from rollability_ros.core.sim.evaluation import mesh_job, settings_at_fidelity, trial_seed
-    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
     from rollability_ros.core.sim.sensitivity import (LAUNCH_FACTORS, launch_levels, launch_sensitivity_rows,
                                                       with_launch_factor)
 
@@ -269,7 +274,7 @@ def test_any_numeric_twin_setting_can_be_varied_and_a_robot_setting_weighs_the_p
         with_setting(thin.launch.twin, "twin.foam.thick", 1.0)
     with pytest.raises(ValueError, match="twin.wheel_model is not a numeric setting"):
         with_setting(thin.launch.twin, "twin.wheel_model", 1.0)
-    with pytest.raises(ValueError, match="wheel_side_friction_factor must be in"):
+    with pytest.raises(ValueError, match=r"^twin.wheel_side_friction_factor out of range: 3.0 is not in \[0.0, 1.0\]$"):
         with_setting(thin.launch.twin, "twin.wheel_side_friction_factor", 3.0)
 
 
@@ -278,9 +283,11 @@ def test_the_stroke_launchers_speed_solve_holds_under_a_draw_of_strong_coast_res
     below a plate speed of about 1.1 x the set speed: the solve still finds the speed at which the gate reads the
     set speed (proportional steps alone oscillated between a stall and 2 x the set speed and refused)."""
     pytest.importorskip("pybullet")
-    from rollability_ros.core.results.records import LaunchCondition
-    from rollability_ros.core.sim.launch_twin import (launch_drive, load_launch_twin_settings, simulate_launch,
-                                                      sized_for_robot)
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.sim.launch.drive import launch_drive
+    from rollability_ros.core.sim.launch.placement import sized_for_robot
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+    from rollability_ros.core.sim.launch.twin import simulate_launch
 
     twin = sized_for_robot(load_launch_twin_settings())[0]
     drawn = robust_settings_for(twin, 1, RobustSettings(enabled=True))

@@ -12,8 +12,8 @@ pytest.importorskip("trimesh")
 from rollability_ros.core.profile import geometry  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 from doubles import SyntheticEvaluator, tree_checksums  # noqa: E402
-from rollability_ros.core.optimization.optimization_run import OptimizationRun  # noqa: E402
-from rollability_ros.core.results.records import CandidateRecord  # noqa: E402
+from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config  # noqa: E402
+from rollability_ros.core.records import CandidateRecord  # noqa: E402
 from rollability_ros.core.optimization.selection import (  # noqa: E402
     SelectionSettings,
     pool_candidates,
@@ -22,7 +22,7 @@ from rollability_ros.core.optimization.selection import (  # noqa: E402
     design_set_folders,
     write_selection,
 )
-from rollability_ros.core.results.store import Store  # noqa: E402
+from rollability_ros.core.store import Store  # noqa: E402
 
 GRID = geometry.ProfileGrid(rows=3, cols=3)
 OPTIMUM = np.linspace(0.1, 0.4, GRID.n_variables)
@@ -34,7 +34,7 @@ def run_candidates(tmp_path_factory):
     run_dir = os.path.join(tmp_path_factory.mktemp("selection"), "run")
     parameters = {"optimizer.max_generations": 25, "optimizer.seed": 3, "optimizer.trials": 30,
                   "optimizer.sigma0": 0.1, "profile.rows": GRID.rows, "profile.cols": GRID.cols}
-    run = OptimizationRun(run_dir, parameters, GRID, SyntheticEvaluator(OPTIMUM, trials=30))
+    run = OptimizationRun(run_dir, run_config(parameters), GRID, SyntheticEvaluator(OPTIMUM, trials=30))
     run.run()
     run.close()
     with Store(run_dir) as store:
@@ -74,7 +74,7 @@ def test_a_footprint_wider_than_the_bed_stops_the_run_before_it_starts(tmp_path)
     parameters = {"optimizer.max_generations": 1, "printer.bed_x_m": 0.1, "printer.bed_y_m": 0.1}
     with pytest.raises(ValueError, match=r"cannot optimize: the profile footprint 180 x 140 mm does not fit the "
                                          r"printer bed 100 x 100 mm \(printer.bed_x_m / printer.bed_y_m\)"):
-        OptimizationRun(str(run_dir), parameters, GRID, SyntheticEvaluator(OPTIMUM, trials=30))
+        OptimizationRun(str(run_dir), run_config(parameters), GRID, SyntheticEvaluator(OPTIMUM, trials=30))
     assert not run_dir.exists()   # nothing written: the run can start again once the printer is fixed
     with pytest.raises(ValueError, match="printer.nozzle_m"):
         geometry.PrinterSpec(nozzle_m=0.001, min_wall_m=0.0008).validate()

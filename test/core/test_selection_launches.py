@@ -168,7 +168,7 @@ def test_select_warns_in_one_line_and_exits_0_when_no_design_beats_the_bare_robo
                   "selection.reevaluate_trials": 0, "selection.race_launches": [4], "selection.race_elites": 4,
                   "selection.launch_trials": 30, "selection.top_fraction": 1.0}
     run_dir = str(tmp_path / "run")
-    run = optimization_run.OptimizationRun(run_dir, parameters, GRID, SyntheticEvaluator(optimum, trials=30))
+    run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), GRID, SyntheticEvaluator(optimum, trials=30))
     run.run()
     run.close()
 

@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from rollability_ros.core.results.stats import newcombe_interval
+from rollability_ros.core.stats import newcombe_interval
 
 
 @pytest.mark.parametrize("a, b, expected", [

@@ -12,7 +12,7 @@ import threading
 
 import pytest
 
-from rollability_ros.core.results.records import (
+from rollability_ros.core.records import (
     NO_SEED,
     CandidateRecord,
     GenerationRecord,
@@ -20,7 +20,7 @@ from rollability_ros.core.results.records import (
     LaunchOutcome,
     TipEventRecord,
 )
-from rollability_ros.core.results.store import APPLICATION_ID, SCHEMA_VERSION, STORE_FILENAME, Store, unique_key
+from rollability_ros.core.store import APPLICATION_ID, SCHEMA_VERSION, STORE_FILENAME, Store, unique_key
 
 REPO_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -171,8 +171,8 @@ def test_concurrent_writers_in_threads_store_everything_once(tmp_path):
 
 WRITER = textwrap.dedent("""
     import sys
-    from rollability_ros.core.results.records import LaunchCondition, LaunchOutcome
-    from rollability_ros.core.results.store import Store
+    from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+    from rollability_ros.core.store import Store
     store = Store(sys.argv[1])
     i = 0
     while True:

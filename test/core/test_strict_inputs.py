@@ -41,9 +41,9 @@ def _bad_config(tmp_path, values):
     return str(path)
 
 
-@pytest.mark.parametrize("optimizer, reason", [({"trials": -5}, "trials must be >= 1"),
-                                               ({"trials": float("nan")}, "expected an integer"),
-                                               ({"sigma0": float("nan")}, "must be finite")])
+@pytest.mark.parametrize("optimizer, reason", [({"trials": -5}, "optimizer.trials out of range: -5 is not in [1, 10000000]"),
+                                               ({"trials": float("nan")}, "optimizer.trials: expected an integer in [1, 10000000], got nan"),
+                                               ({"sigma0": float("nan")}, "optimizer.sigma0 out of range: nan is not in (0.0, 100.0]")])
 def test_study_checks_every_node_parameter_before_starting(tmp_path, optimizer, reason):
     from rollability_ros.core.graph.study import Study
 
@@ -63,8 +63,8 @@ def test_study_cli_prints_the_reason_and_exits_2(tmp_path):
     result = subprocess.run([sys.executable, "-m", "rollability_ros.cli", "study", "--config", config],
                             capture_output=True, text=True, timeout=300, cwd=REPO)
     assert result.returncode == 2, result.stdout + result.stderr
-    assert "optimizer" in result.stderr and "trials must be >= 1" in result.stderr
-    assert "campaign" in result.stderr
+    assert "optimizer.trials out of range: -5 is not in [1, 10000000]" in result.stderr
+    assert "campaign.repetitions out of range: 0 is not in [1, 1000]" in result.stderr
     assert not os.path.exists(tmp_path / "runs")
 
 

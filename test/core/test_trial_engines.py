@@ -62,9 +62,9 @@ def test_the_built_in_engines_are_on_the_contract():
 
 def test_only_the_tables_look_at_the_engine_name():
     """No module of core/sim compares an engine setting with an engine's name: the tables and their factories
-    (make_trial_world, launch_twin.simulate_launch through LAUNCH_ENGINES) are the only lookups."""
+    (make_trial_world, launch.twin.simulate_launch through LAUNCH_ENGINES) are the only lookups."""
     branches = []
-    for path in sorted(SIM.glob("*.py")):
+    for path in sorted(SIM.rglob("*.py")):
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Compare) and any(isinstance(c, ast.Constant) and c.value in ("pybullet", "mujoco")
                                                      for c in [node.left, *node.comparators]):
@@ -74,8 +74,8 @@ def test_only_the_tables_look_at_the_engine_name():
 
 def test_the_launch_engines_are_on_their_contract():
     pytest.importorskip("mujoco")
-    from rollability_ros.core.sim.launch_twin import BulletLaunch
-    from rollability_ros.core.sim.mujoco_launch_twin import MujocoLaunch
+    from rollability_ros.core.sim.launch.pybullet_twin import BulletLaunch
+    from rollability_ros.core.sim.launch.mujoco_twin import MujocoLaunch
 
     assert trial_engine.LAUNCH_ENGINES.get("pybullet") is BulletLaunch
     assert trial_engine.LAUNCH_ENGINES.get("mujoco") is MujocoLaunch

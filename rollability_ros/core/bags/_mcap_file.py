@@ -97,10 +97,10 @@ class UnbufferedSink:
             os.fsync(self._fd)
 
     def close(self) -> None:
-        if self._fd is not None:
+        if self._fd >= 0:
             self.flush()
             os.close(self._fd)
-            self._fd = None
+            self._fd = -1   # closed
 
 
 class McapFile:
@@ -111,7 +111,7 @@ class McapFile:
 
         self.info = FileInfo(os.path.basename(path))
         self.sink = UnbufferedSink(path, fsync=fsync)
-        self.writer = Writer(self.sink, chunk_size=chunk_size_bytes, compression=compression)
+        self.writer = Writer(typing.cast(typing.IO[bytes], self.sink), chunk_size=chunk_size_bytes, compression=compression)
         self.writer.start(profile=MCAP_PROFILE, library=MCAP_LIBRARY)
         self.schema_ids = {}
         self.channel_ids = {}
@@ -127,7 +127,7 @@ class McapFile:
                     metadata: typing.Mapping[str, str]) -> None:
         """Register the channel of ``topic_name``."""
         self.channel_ids[topic_name] = self.writer.register_channel(topic_name, message_encoding, schema_id,
-                                                                    metadata)
+                                                                    dict(metadata))
 
     def add_topic(self, topic: TopicInfo, definition: str) -> None:
         """Register ``topic``'s schema (once per type) and channel."""

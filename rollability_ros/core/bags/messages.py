@@ -22,6 +22,11 @@ from rollability_ros.core.record_messages import (CANDIDATE_TYPE, GENERATION_TYP
                                                           TIP_EVENT_TYPE)
 from rollability_ros.core.store import unique_key
 
+if typing.TYPE_CHECKING:  # annotations only: rosbags and the reader are imported where used
+    from rosbags.typesys.store import Typestore
+
+    from rollability_ros.core.bags.reader import BagMessage, BagReader
+
 __all__ = ["OUTCOME_TYPE", "CANDIDATE_TYPE", "GENERATION_TYPE", "TIP_EVENT_TYPE", "RECORD_TYPES", "typestore",
            "record_from_message", "message_from_record", "read_records_from_bag", "decoding_typestore",
            "current_record_cdr", "CurrentDefinitions"]
@@ -30,7 +35,7 @@ _LOG = logging.getLogger(__name__)
 
 
 @functools.lru_cache(maxsize=1)
-def typestore() -> typing.Any:
+def typestore() -> "Typestore":
     """A rosbags type store of ROS 2 Jazzy's standard types plus this package's record messages."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -42,22 +47,23 @@ def typestore() -> typing.Any:
     return store
 
 
-def make_message(type_name: str, **fields: typing.Any) -> typing.Any:
+def make_message(type_name: str, **fields: object) -> object:
     """The rosbags message ``type_name`` with ``fields`` (lists become the float64 arrays rosbags encodes)."""
     import numpy
 
     for name, value in fields.items():
         if isinstance(value, list):
             fields[name] = numpy.asarray(value, dtype=numpy.float64)
-    return typestore().types[type_name](**fields)
+    values: typing.Dict[str, typing.Any] = fields   # each of the field's own type; rosbags checks them
+    return typestore().types[type_name](**values)
 
 
-def record_from_message(type_name: str, msg: typing.Any) -> record_messages.Record:
+def record_from_message(type_name: str, msg: object) -> record_messages.Record:
     """A decoded record message -> its validated record (:mod:`~rollability_ros.core.record_messages`)."""
     return record_messages.record_from_message(type_name, msg)
 
 
-def message_from_record(record: record_messages.Record) -> typing.Tuple[str, typing.Any]:
+def message_from_record(record: record_messages.Record) -> typing.Tuple[str, object]:
     """``(type name, rosbags message)`` for a record; the inverse of :func:`record_from_message`."""
     return record_messages.message_from_record(make_message, record)
 
@@ -68,7 +74,7 @@ def _installed_definition(type_name):
 
 
 @functools.lru_cache(maxsize=64)
-def decoding_typestore(type_name: str, definition: str) -> typing.Any:
+def decoding_typestore(type_name: str, definition: str) -> "Typestore":
     """The rosbags type store that decodes ``type_name`` as recorded with the full ``ros2msg`` ``definition``:
     :func:`typestore` when the definition is ours (or "", none stored), else one built from that definition alone.
 
@@ -106,10 +112,10 @@ class CurrentDefinitions:
     record messages of an older definition re-encoded in the installed one (:func:`current_record_cdr`), so a
     node built with today's interfaces can decode them; a malformed one is skipped with a warning."""
 
-    def __init__(self, reader: typing.Any):
+    def __init__(self, reader: "BagReader"):
         self.reader = reader
 
-    def __iter__(self) -> typing.Iterator[typing.Any]:
+    def __iter__(self) -> typing.Iterator["BagMessage"]:
         for message, definition in self.reader.with_definitions():
             try:
                 data = current_record_cdr(message.type_name, definition, message.data)
@@ -129,8 +135,8 @@ def _bag_messages(path):
         return
     with open(path, "rb") as stream:
         reader, _ = open_mcap(path, stream)
-        for schema, _, message in reader.iter_messages(log_time_order=True):
-            yield (schema.name if schema else ""), schema_text(schema), message.data
+        for schema, _, record in reader.iter_messages(log_time_order=True):
+            yield (schema.name if schema else ""), schema_text(schema), record.data
 
 
 def read_records_from_bag(path: typing.Union[str, os.PathLike]) -> typing.Tuple[list, list, list, list]:

@@ -79,7 +79,7 @@ def _read_interface_file(package, kind, name):
 
 def _split_sections(text):
     """Split a ``.srv`` / ``.action`` text at its ``---`` lines."""
-    sections = [[]]
+    sections: typing.List[typing.List[str]] = [[]]
     for line in text.splitlines(keepends=True):
         if line.strip() == "---":
             sections.append([])

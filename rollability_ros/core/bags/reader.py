@@ -10,6 +10,11 @@ import typing
 
 from rollability_ros.core.bags.metadata import BagError, read_metadata, topics_from_metadata
 
+if typing.TYPE_CHECKING:  # annotations only: mcap is imported where used
+    from mcap.reader import SeekingReader
+    from mcap.records import Schema, Statistics
+    from mcap.summary import Summary
+
 #: The 8 bytes that open and close every complete MCAP file.
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
@@ -37,7 +42,14 @@ def bag_file_errors(path: str) -> typing.Iterator[None]:
                        f"if it is an MCAP bag of a killed recorder, run `rollability bag recover`") from exc
 
 
-def open_mcap(path: str, stream: typing.BinaryIO) -> typing.Tuple[typing.Any, typing.Any]:
+def statistics_of(summary: "Summary") -> "Statistics":
+    """The statistics record of a summary :func:`open_mcap` returned (it refuses a file without one)."""
+    if summary.statistics is None:
+        raise BagError("an MCAP summary without statistics (open it with open_mcap)")
+    return summary.statistics
+
+
+def open_mcap(path: str, stream: typing.BinaryIO) -> typing.Tuple["SeekingReader", "Summary"]:
     """Return ``(reader, summary)`` for a complete MCAP file open as ``stream``; BagError if it is not one."""
     from mcap.reader import SeekingReader
 
@@ -118,7 +130,7 @@ class BagReader:
             for path in self.paths:
                 stream = stack.enter_context(open(path, "rb"))
                 reader, summary = open_mcap(path, stream)
-                if summary.statistics.message_count:
+                if statistics_of(summary).message_count:
                     streams.append(self._mcap_messages(path, reader))
             yield from heapq.merge(*streams, key=lambda pair: pair[0].log_time_ns)
 
@@ -141,7 +153,7 @@ class BagReader:
                        getattr(msgdef, "data", "") or "")
 
 
-def schema_text(schema: typing.Any) -> str:
+def schema_text(schema: typing.Optional["Schema"]) -> str:
     """The ``ros2msg`` definition an MCAP schema holds ("" for none or another encoding)."""
     if schema is None or schema.encoding != "ros2msg":
         return ""
@@ -214,8 +226,8 @@ def _mcap_file_info(path, verify_chunks=False):
     with open(path, "rb") as stream:
         _, summary = open_mcap(path, stream)
         chunks, problems = _chunk_problems(path, stream, summary) if verify_chunks else (None, None)
-    statistics = summary.statistics
-    counts = {}
+    statistics = statistics_of(summary)
+    counts: typing.Dict[typing.Tuple[str, str], int] = {}
     for channel_id, count in statistics.channel_message_counts.items():
         channel = summary.channels[channel_id]
         schema = summary.schemas.get(channel.schema_id)
@@ -272,7 +284,7 @@ def _mcap_file_metadata(path):
                                                                                           METADATA_VERSION))
     except (yaml.YAMLError, AttributeError, TypeError, ValueError):
         version = METADATA_VERSION
-    topics = {}
+    topics: typing.Dict[typing.Tuple[str, str], typing.Dict[str, typing.Any]] = {}
     for channel_id, channel in sorted(summary.channels.items()):
         schema = summary.schemas.get(channel.schema_id)
         key = (channel.topic, schema.name if schema else "")
@@ -280,7 +292,7 @@ def _mcap_file_metadata(path):
             "name": channel.topic, "type": key[1], "serialization_format": channel.message_encoding,
             "offered_qos_profiles": channel.metadata.get("offered_qos_profiles", ""),
             "type_description_hash": channel.metadata.get("topic_type_hash", "")}, "message_count": 0})
-        entry["message_count"] += summary.statistics.channel_message_counts.get(channel_id, 0)
+        entry["message_count"] += statistics_of(summary).channel_message_counts.get(channel_id, 0)
     return {"version": version, "storage_identifier": "mcap", "relative_file_paths": [os.path.basename(path)],
             "topics_with_message_count": list(topics.values()), "ros_distro": embedded.get("ROS_DISTRO", ""),
             "compression_format": "", "compression_mode": ""}
@@ -295,6 +307,42 @@ def human_time(time_ns: typing.Optional[int]) -> str:
     seconds, nanoseconds = divmod(int(time_ns), 1_000_000_000)
     moment = datetime.datetime.fromtimestamp(seconds, tz=datetime.timezone.utc)
     return f"{moment:%Y-%m-%d %H:%M:%S}.{nanoseconds:09d} UTC"
+
+
+def _chunk_check(information, files, verify_chunks, corrupt_chunks):
+    """The sentence of :func:`bag_info`'s ``chunk_check`` (the files' chunk counts are taken from them)."""
+    chunk_count = sum(f.pop("chunks", None) or 0 for f in files)
+    if information["storage_identifier"] == "sqlite3":
+        return "not applicable (sqlite3 storage has no chunk CRCs)"
+    if not verify_chunks:
+        return "not verified"
+    if corrupt_chunks:
+        return f"{len(corrupt_chunks)} of {chunk_count} chunks fail their check: run `rollability bag recover`"
+    return f"verified: all {chunk_count} chunks match their CRCs"
+
+
+def _topics_against_metadata(information, files):
+    """``(topics, warnings)`` of :func:`bag_info`: each topic with the count its files hold (the files' topic
+    counts are taken from them), and a warning for each count or topic metadata.yaml does not match."""
+    counts: typing.Dict[typing.Tuple[str, str], int] = {}
+    for entry in files:
+        for key, count in entry.pop("topic_counts").items():
+            counts[key] = counts.get(key, 0) + count
+    warnings = []
+    topics = []
+    for topic in topics_from_metadata(information):
+        found = counts.pop((topic.name, topic.type_name), 0)
+        if found != topic.message_count:
+            warnings.append(f"metadata.yaml counts {topic.message_count} messages on {topic.name}, files hold {found}")
+        topics.append({"name": topic.name, "type": topic.type_name, "message_count": found,
+                       "serialization_format": topic.serialization_format,
+                       "type_description_hash": topic.type_description_hash,
+                       "offered_qos_profiles": topic.offered_qos_profiles})
+    for (name, type_name), count in counts.items():
+        warnings.append(f"topic {name} ({type_name}) is in the storage files but not in metadata.yaml")
+        topics.append({"name": name, "type": type_name, "message_count": count, "serialization_format": "cdr",
+                       "type_description_hash": "", "offered_qos_profiles": []})
+    return topics, warnings
 
 
 def bag_info(path: typing.Union[str, os.PathLike], verify_chunks: bool = False) -> typing.Dict[str, typing.Any]:
@@ -328,33 +376,8 @@ def bag_info(path: typing.Union[str, os.PathLike], verify_chunks: bool = False) 
     else:
         files = [_mcap_file_info(path, verify_chunks) for path in storage_paths(directory, information)]
     corrupt_chunks = [problem for f in files for problem in (f.pop("chunk_problems", None) or [])]
-    chunk_count = sum(f.pop("chunks", None) or 0 for f in files)
-    if information["storage_identifier"] == "sqlite3":
-        chunk_check = "not applicable (sqlite3 storage has no chunk CRCs)"
-    elif not verify_chunks:
-        chunk_check = "not verified"
-    elif corrupt_chunks:
-        chunk_check = f"{len(corrupt_chunks)} of {chunk_count} chunks fail their check: run `rollability bag recover`"
-    else:
-        chunk_check = f"verified: all {chunk_count} chunks match their CRCs"
-    counts: typing.Dict[typing.Tuple[str, str], int] = {}
-    for entry in files:
-        for key, count in entry.pop("topic_counts").items():
-            counts[key] = counts.get(key, 0) + count
-    warnings = []
-    topics = []
-    for topic in topics_from_metadata(information):
-        found = counts.pop((topic.name, topic.type_name), 0)
-        if found != topic.message_count:
-            warnings.append(f"metadata.yaml counts {topic.message_count} messages on {topic.name}, files hold {found}")
-        topics.append({"name": topic.name, "type": topic.type_name, "message_count": found,
-                       "serialization_format": topic.serialization_format,
-                       "type_description_hash": topic.type_description_hash,
-                       "offered_qos_profiles": topic.offered_qos_profiles})
-    for (name, type_name), count in counts.items():
-        warnings.append(f"topic {name} ({type_name}) is in the storage files but not in metadata.yaml")
-        topics.append({"name": name, "type": type_name, "message_count": count, "serialization_format": "cdr",
-                       "type_description_hash": "", "offered_qos_profiles": []})
+    chunk_check = _chunk_check(information, files, verify_chunks, corrupt_chunks)
+    topics, warnings = _topics_against_metadata(information, files)
     starts = [f["start_time_ns"] for f in files if f["start_time_ns"] is not None]
     ends = [f["end_time_ns"] for f in files if f["end_time_ns"] is not None]
     chunk_compressions = sorted({c for f in files for c in f.pop("chunk_compression")} - {"none"})

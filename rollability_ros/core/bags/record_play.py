@@ -32,16 +32,6 @@ PROJECT_STANDARD_TYPES = ("visualization_msgs/msg/Marker", "visualization_msgs/m
 INFRASTRUCTURE_TOPICS = ("/rosout", "/parameter_events")
 
 
-def _positive(name, value):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
-
-
-def _non_negative(name, value):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
-        raise ValueError(f"{name} must be >= 0, got {value!r}")
-
-
 @dataclasses.dataclass(frozen=True)
 class RecorderSettings:
     """Settings of the recorder node (parameters ``recorder.*``); the topic list is the ``recorder.topics`` array."""
@@ -50,7 +40,8 @@ class RecorderSettings:
         "description": "bag directory to create (must not exist or be empty); empty: "
                        "bags/rollability_<UTC date-time> under the working directory"})
     discovery_period_s: float = dataclasses.field(default=1.0, metadata={
-        "description": "how often the graph is searched for new topics to record, s", "range": (0.0, 3600.0)})
+        "description": "how often the graph is searched for new topics to record, s",
+        "range": (0.0, 3600.0), "exclusive": "low"})
     compression: str = dataclasses.field(default="zstd", metadata={
         "description": "MCAP chunk compression: zstd, lz4 or none"})
     split_max_bytes: int = dataclasses.field(default=0, metadata={
@@ -68,12 +59,7 @@ class RecorderSettings:
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable setting."""
-        _positive("discovery_period_s", self.discovery_period_s)
         mcap_compression(self.compression)
-        for name in ("split_max_bytes", "split_max_duration_s", "flush_interval_s"):
-            _non_negative(name, getattr(self, name))
-        for name in ("chunk_size_bytes", "queue_depth"):
-            _positive(name, getattr(self, name))
         if self.output_dir and os.path.exists(self.output_dir) and (
                 not os.path.isdir(self.output_dir) or os.listdir(self.output_dir)):
             from rollability_ros.core.bags.recover import is_left_open
@@ -90,7 +76,7 @@ class PlayerSettings:
 
     bag: str = dataclasses.field(default="", metadata={"description": "bag directory to play (required)"})
     rate: float = dataclasses.field(default=1.0, metadata={
-        "description": "playback speed factor: 2.0 plays twice as fast", "range": (0.0, 1000.0)})
+        "description": "playback speed factor: 2.0 plays twice as fast", "range": (0.0, 1000.0), "exclusive": "low"})
     start_offset_s: float = dataclasses.field(default=0.0, metadata={
         "description": "skip this much recorded time from the bag's start, s", "range": (0.0, 31536000.0)})
     loop: bool = dataclasses.field(default=False, metadata={"description": "play again from the start, forever"})
@@ -106,9 +92,6 @@ class PlayerSettings:
             raise ValueError("bag must name a bag directory")
         if not os.path.isdir(self.bag):
             raise ValueError(f"bag {self.bag} is not a directory")
-        _positive("rate", self.rate)
-        _non_negative("start_offset_s", self.start_offset_s)
-        _non_negative("wait_for_subscribers_s", self.wait_for_subscribers_s)
 
 
 def default_bag_directory(now: typing.Optional[datetime.datetime] = None, root: str = BAGS_DIR) -> str:

@@ -42,7 +42,8 @@ from rollability_ros.core.bags.metadata import (
     write_metadata,
 )
 from rollability_ros.core.bags.qos import normalize_qos_profiles
-from rollability_ros.core.bags.reader import MCAP_MAGIC, bag_file_errors, open_mcap, verify_mcap_file
+from rollability_ros.core.bags.reader import (MCAP_MAGIC, bag_file_errors, open_mcap, statistics_of,
+                                              verify_mcap_file)
 from rollability_ros.core.bags._mcap_file import (
     DEFAULT_CHUNK_SIZE_BYTES,
     RECOVERY_SIDECAR,
@@ -174,7 +175,10 @@ def _rewrite_mcap(path, temporary, information, definitions, topics):
         data = stream.read()
     records = _scan_records(data, report) if data else []
     report["header_intact"] = data.startswith(MCAP_MAGIC)
-    schemas, channels, channel_topics, types_by_topic = {}, {}, {}, {}
+    schemas: typing.Dict[int, Schema] = {}
+    channels: typing.Dict[int, Channel] = {}
+    channel_topics: typing.Dict[int, str] = {}
+    types_by_topic: typing.Dict[str, str] = {}
     for record in records:
         if isinstance(record, Schema):
             schemas.setdefault(record.id, record)
@@ -211,8 +215,8 @@ def _verify(path, expected_messages):
         raise BagError(f"{path}: the recovered file does not verify; the original is left as it was")
     with open(path, "rb") as stream:
         _, summary = open_mcap(path, stream)
-    if summary.statistics.message_count != expected_messages:
-        raise BagError(f"{path}: the recovered file holds {summary.statistics.message_count} messages, "
+    if statistics_of(summary).message_count != expected_messages:
+        raise BagError(f"{path}: the recovered file holds {statistics_of(summary).message_count} messages, "
                        f"{expected_messages} were salvaged; the original is left as it was")
 
 
@@ -228,11 +232,11 @@ def _file_summary(path):
 
     with open(path, "rb") as stream, bag_file_errors(path):
         reader, summary = open_mcap(path, stream)
-        statistics = summary.statistics
+        statistics = statistics_of(summary)
         info = FileInfo(os.path.basename(path), statistics.message_start_time if statistics.message_count else 0,
                         statistics.message_end_time - statistics.message_start_time
                         if statistics.message_count else 0, statistics.message_count)
-        topics = {}
+        topics: typing.Dict[str, TopicInfo] = {}
         for channel_id, channel in summary.channels.items():
             schema = summary.schemas.get(channel.schema_id)
             topic = topics.setdefault(channel.topic, TopicInfo(
@@ -241,7 +245,7 @@ def _file_summary(path):
                 offered_qos_profiles=normalize_qos_profiles(channel.metadata.get("offered_qos_profiles")),
                 type_description_hash=channel.metadata.get("topic_type_hash", "")))
             topic.message_count += statistics.channel_message_counts.get(channel_id, 0)
-        stored = {}
+        stored: typing.Dict[str, typing.Any] = {}
         for record in reader.iter_metadata():
             if record.name == "rosbag2" and record.metadata.get("serialized_metadata"):
                 stored = safe_yaml.load(record.metadata["serialized_metadata"]) or {}
@@ -256,6 +260,66 @@ def _previous_metadata(directory):
         return read_metadata(directory)
     except BagError:
         return {}
+
+
+def _recoverable(directory):
+    """``(old metadata.yaml contents or {}, storage file names)`` of the bag ``directory`` to recover; BagError
+    for a path that is no bag directory, another storage than mcap, or no storage file."""
+    if not os.path.isdir(directory):
+        raise BagError(f"{directory}: not a bag directory")
+    previous = _previous_metadata(directory)
+    if previous.get("storage_identifier", "mcap") != "mcap":
+        raise BagError(f"{directory}: recover handles mcap storage, this bag is {previous['storage_identifier']}")
+    names = _storage_files(directory, previous)
+    if not names:
+        raise BagError(f"{directory}: no .mcap storage file to recover")
+    return previous, names
+
+
+def _add_counts(found_topics, topics):
+    """Add ``topics`` (one storage file's) to ``found_topics`` ``{name: TopicInfo}``, summing message counts."""
+    for topic in topics:
+        if topic.name in found_topics:
+            found_topics[topic.name].message_count += topic.message_count
+        else:
+            found_topics[topic.name] = topic
+
+
+def _repair(path, temporary, stored, known_topics, files, definitions):
+    """Rewrite the damaged storage file ``path`` as ``temporary`` (every intact chunk and readable record) and
+    verify it; return its report. BagError when nothing can be saved from it."""
+    partial = build_metadata(known_topics, files, custom_data=stored.get("custom_data"),
+                             ros_distro=stored.get("ros_distro") or ROS_DISTRO)
+    report = _rewrite_mcap(path, temporary, partial, definitions, known_topics)
+    if _nothing_saved(report, os.path.getsize(path)):
+        raise BagError(
+            f"{path}: nothing can be saved ({report['chunks_discarded']} damaged chunks, no intact one"
+            f"{'' if report['header_intact'] else ', no MCAP header'}); the bag is left as it was")
+    _verify(temporary, report["messages"])
+    return report
+
+
+def _close_recovered(directory, previous, stored, topics, files):
+    """Write the recovered bag's metadata.yaml (the old one kept as a backup when it changes) and keep an open
+    writer's recovery sidecar under a backup name; return ``(metadata, metadata backup, sidecar backup)`` (the
+    backups' paths, "" for none)."""
+    information = build_metadata(
+        topics, files, storage_identifier="mcap",
+        compression_format=stored.get("compression_format", ""), compression_mode=stored.get("compression_mode", ""),
+        custom_data=stored.get("custom_data"), ros_distro=stored.get("ros_distro") or ROS_DISTRO)
+    metadata_path = os.path.join(directory, METADATA_FILE)
+    metadata_backup = ""
+    if information != previous:
+        if os.path.lexists(metadata_path):
+            metadata_backup = backup_path(metadata_path)
+            os.link(metadata_path, metadata_backup)
+        write_metadata(directory, information)
+    sidecar = os.path.join(directory, RECOVERY_SIDECAR)
+    sidecar_backup = ""
+    if os.path.exists(sidecar):   # the bag is closed now; the open writer's definitions stay, renamed
+        sidecar_backup = backup_path(sidecar)
+        os.replace(sidecar, sidecar_backup)
+    return information, metadata_backup, sidecar_backup
 
 
 def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False) -> typing.Dict[str, typing.Any]:
@@ -287,14 +351,7 @@ def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False
         nothing can be saved, or (without ``allow_empty``) no message can be saved at all.
     """
     directory = os.fspath(directory)
-    if not os.path.isdir(directory):
-        raise BagError(f"{directory}: not a bag directory")
-    previous = _previous_metadata(directory)
-    if previous.get("storage_identifier", "mcap") != "mcap":
-        raise BagError(f"{directory}: recover handles mcap storage, this bag is {previous['storage_identifier']}")
-    names = _storage_files(directory, previous)
-    if not names:
-        raise BagError(f"{directory}: no .mcap storage file to recover")
+    previous, names = _recoverable(directory)
     known_topics = topics_from_metadata(previous) if previous else []
     definitions = read_sidecar(directory)
     stored = dict(previous)
@@ -309,27 +366,15 @@ def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False
             if _is_complete(path):
                 reports.append({"path": name, "status": "intact"})
             else:
-                partial = build_metadata(known_topics, files, custom_data=stored.get("custom_data"),
-                                         ros_distro=stored.get("ros_distro") or ROS_DISTRO)
                 temporary = path + ".recovering"
                 repaired.append((path, temporary))
-                report = _rewrite_mcap(path, temporary, partial, definitions, known_topics)
-                if _nothing_saved(report, os.path.getsize(path)):
-                    raise BagError(
-                        f"{path}: nothing can be saved ({report['chunks_discarded']} damaged chunks, no intact one"
-                        f"{'' if report['header_intact'] else ', no MCAP header'}); the bag is left as it was")
-                _verify(temporary, report["messages"])
-                reports.append(report)
+                reports.append(_repair(path, temporary, stored, known_topics, files, definitions))
                 summary_path = temporary
             info, topics, file_stored = _file_summary(summary_path)
             info.path = name
             stored = stored or file_stored
             files.append(info)
-            for topic in topics.values():
-                if topic.name in found_topics:
-                    found_topics[topic.name].message_count += topic.message_count
-                else:
-                    found_topics[topic.name] = topic
+            _add_counts(found_topics, topics.values())
         if not allow_empty and not sum(info.message_count for info in files):
             declared = previous.get("message_count")
             raise BagError(f"{directory}: nothing can be saved: no intact message in {', '.join(names)}"
@@ -351,22 +396,7 @@ def recover(directory: typing.Union[str, os.PathLike], allow_empty: bool = False
         topic.message_count = found_topics.pop(topic.name).message_count if topic.name in found_topics else 0
         topics.append(topic)
     topics.extend(found_topics.values())
-    information = build_metadata(
-        topics, files, storage_identifier="mcap",
-        compression_format=stored.get("compression_format", ""), compression_mode=stored.get("compression_mode", ""),
-        custom_data=stored.get("custom_data"), ros_distro=stored.get("ros_distro") or ROS_DISTRO)
-    metadata_path = os.path.join(directory, METADATA_FILE)
-    metadata_backup = ""
-    if information != previous:
-        if os.path.lexists(metadata_path):
-            metadata_backup = backup_path(metadata_path)
-            os.link(metadata_path, metadata_backup)
-        write_metadata(directory, information)
-    sidecar = os.path.join(directory, RECOVERY_SIDECAR)
-    sidecar_backup = ""
-    if os.path.exists(sidecar):   # the bag is closed now; the open writer's definitions stay, renamed
-        sidecar_backup = backup_path(sidecar)
-        os.replace(sidecar, sidecar_backup)
+    information, metadata_backup, sidecar_backup = _close_recovered(directory, previous, stored, topics, files)
     return {"files": reports, "message_count": information["message_count"],
             "topics": {t.name: t.message_count for t in topics},
             "metadata_rewritten": information != previous,
@@ -438,7 +468,7 @@ def missed_windows(directory: typing.Union[str, os.PathLike]
         span: typing.Dict[str, typing.List[int]] = {}
         with open(path, "rb") as stream, bag_file_errors(path):
             reader, summary = open_mcap(path, stream)
-            if summary.statistics.message_count:
+            if statistics_of(summary).message_count:
                 for _, channel, message in reader.iter_messages():
                     entry = span.setdefault(channel.topic, [message.log_time, message.log_time, 0])
                     if entry[2]:

@@ -103,7 +103,9 @@ class BagWriter:
             raise ValueError(f"chunk_size_bytes must be a positive integer, got {chunk_size_bytes!r}")
         self._compression = mcap_compression(compression)
         self.directory = os.fspath(directory)
-        self._previous_files, self._previous_topics, self.continued = [], {}, None
+        self._previous_files: typing.List[FileInfo] = []
+        self._previous_topics: typing.Dict[str, TopicInfo] = {}
+        self.continued: typing.Optional[typing.Dict[str, typing.Any]] = None   # recover()'s report when continued
         self._held = set()          # (topic, publish time, SHA-256) of re-deliverable messages the bag holds
         self.duplicates_skipped = {}
         if os.path.exists(self.directory) and (not os.path.isdir(self.directory) or os.listdir(self.directory)):
@@ -122,7 +124,7 @@ class BagWriter:
         self._topics = {}
         self._definitions = {}
         self._files = list(self._previous_files)
-        self._current = None
+        self._current: typing.Optional[McapFile] = None   # the open storage file (None once closed)
         self._last_flush_s = clock()
         self._unflushed = 0
         build_metadata([], [], custom_data=self._custom_data)  # validates custom_data before any file exists
@@ -154,7 +156,7 @@ class BagWriter:
     def _redeliverable_messages(self, information):
         """Keys (:meth:`_key`) of the messages the continued bag holds on topics with a transient-local publisher:
         those a new subscription gets again from the publisher's history, and must not be recorded twice."""
-        from rollability_ros.core.bags.reader import bag_file_errors, open_mcap
+        from rollability_ros.core.bags.reader import bag_file_errors, open_mcap, statistics_of
 
         topics = [t.name for t in self._previous_topics.values()
                   if any(p.get("durability") == "transient_local" for p in t.offered_qos_profiles)]
@@ -163,7 +165,7 @@ class BagWriter:
             path = os.path.join(self.directory, relative)
             with open(path, "rb") as stream, bag_file_errors(path):
                 reader, summary = open_mcap(path, stream)
-                if summary.statistics.message_count:
+                if statistics_of(summary).message_count:
                     for _, channel, message in reader.iter_messages(topics=topics):
                         held.add(self._key(channel.topic, message.data, message.publish_time))
         return held
@@ -226,7 +228,7 @@ class BagWriter:
             type_description_hash=type_description_hash or rihs01_hash(type_name, self._definitions[type_name]),
         )
         self._topics[name] = topic
-        self._current.add_topic(topic, self._definitions[type_name])
+        self._file.add_topic(topic, self._definitions[type_name])
         write_sidecar(self.directory, self._definitions)
         self._write_metadata()
 
@@ -327,11 +329,18 @@ class BagWriter:
         self.close()
 
     # --- storage files -------------------------------------------------------------------------------
+    @property
+    def _file(self) -> McapFile:
+        """The open storage file (a bag has one from its start until :meth:`close`)."""
+        if self._current is None:
+            raise ValueError(f"bag {self.directory} is closed")
+        return self._current
+
     def _split_due(self, log_time_ns):
-        info = self._current.info
+        info = self._file.info
         if info.message_count == 0:
             return False
-        if self.split_max_bytes and self._current.sink.tell() >= self.split_max_bytes:
+        if self.split_max_bytes and self._file.sink.tell() >= self.split_max_bytes:
             return True
         return bool(self.split_max_duration_ns and log_time_ns - info.starting_time_ns >= self.split_max_duration_ns)
 
@@ -344,7 +353,7 @@ class BagWriter:
         self._write_metadata()
 
     def _roll_over(self):
-        self._current.close(self.metadata())
+        self._file.close(self.metadata())
         self._open_file()
         self._last_flush_s = self._clock()
         self._unflushed = 0

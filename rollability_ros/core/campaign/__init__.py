@@ -6,20 +6,12 @@
 - calibration: fit the launch twin's uncertain parameters to physical outcomes
 - characterisation: bench readings taken before a campaign (docs/characterisation.md) and their likelihood
 
-The face below is what code outside ``core/campaign`` imports. ``calibration`` and ``characterisation`` are public as
-modules and are not imported here (it loads numpy and the twin), so the rig computer's campaign runner stays light.
+The face is ``__init__.pyi`` beside this file: the names code outside ``core/campaign`` imports (``from
+rollability_ros.core.campaign import <name>``), each with the module it lives in. ``lazy_loader.attach_stub``
+(scientific-python SPEC 1) reads it: importing the face loads none of the modules behind it, and a name's
+module is imported when the name is first used, so a light caller (the rig computer) never pays for numpy,
+physics or plotting. Type checkers read the same stub. test/core/test_faces.py checks both.
 """
-from rollability_ros.core.campaign.plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
-from rollability_ros.core.campaign.runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledgements,
-                                                  answer_rig, local_rig_settings, local_rig_settings_from_files,
-                                                  plan_refusal, record_campaign_run, report_exit_code, resume_command,
-                                                  resume_refusal, run_campaign, store_writer)
-from rollability_ros.core.campaign.terminal import AnsweredElsewhere, TerminalAsk
+import lazy_loader
 
-__all__ = [
-    "AnsweredElsewhere", "TerminalAsk",
-    "CampaignSpec", "LocalRig", "LocalRigSettings", "RunnerSettings", "StoreAcknowledgements", "answer_rig",
-    "calibration", "characterisation", "load_campaign_spec", "local_rig_settings", "local_rig_settings_from_files", "plan_refusal",
-    "plan_trials", "record_campaign_run", "report_exit_code", "resume_command", "resume_refusal", "run_campaign", "store_writer",
-    "trial_id_for",
-]
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

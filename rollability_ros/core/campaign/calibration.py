@@ -46,9 +46,10 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
-from rollability_ros.core.results import analysis
+from rollability_ros.core.results import (ConditionResult, SimVsExperiment, group_conditions, sim_vs_experiment,
+                                          summarise)
 from rollability_ros.core.campaign.characterisation import Characterisation, characterisation_log_likelihood
-from rollability_ros.core.config import ConfigError, from_mapping, section
+from rollability_ros.core.config import ConfigError, from_mapping, parameter_document, section
 from rollability_ros.core.sim import (LaunchTwinSettings, launch_twin_settings_from_parameters, simulate_valid_launch,
                                       spawn_pool, trial_seed)
 from rollability_ros.core.optional import require
@@ -63,7 +64,7 @@ MIN_BOOTSTRAP = 20
 #: Deviance of a 95% likelihood-ratio interval of one parameter (chi-squared, 1 degree of freedom).
 CHI2_1_95 = 3.841458820694124
 
-ConditionResult = analysis.ConditionResult
+ConditionResult = ConditionResult
 #: Config keys that act only on the twin's Mecanum wheels (:func:`check_fittable`).
 MECANUM_KEYS = ("launch_twin.wheel_drag_torque_nm", "launch_twin.wheel_rolling_friction",
                 "launch_twin.wheel_side_friction_factor")
@@ -187,7 +188,7 @@ def check_fittable(parameters: typing.Mapping[str, typing.Any], settings: Calibr
 
 def twin_settings_with(parameters: typing.Mapping[str, typing.Any], names: typing.Sequence[str],
                        values: typing.Union[typing.Sequence[float], np.ndarray]) -> LaunchTwinSettings:
-    """:class:`~rollability_ros.core.sim.launch_twin.LaunchTwinSettings` of flat ``parameters`` with ``names`` set to
+    """:class:`~rollability_ros.core.sim.launch.settings.LaunchTwinSettings` of flat ``parameters`` with ``names`` set to
     ``values`` (config keys, own units; ``values`` (d,) one per name; checked like file values)."""
     return launch_twin_settings_from_parameters(flat_with(parameters, names, values))
 
@@ -261,7 +262,7 @@ class LaunchPool:
     def __enter__(self) -> "LaunchPool":
         return self
 
-    def __exit__(self, *exc_info: typing.Any) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.close()
 
 
@@ -521,11 +522,11 @@ class CalibrationResult:
     def configuration_rows(self, configuration_order: typing.Optional[typing.Sequence[str]] = None
                            ) -> typing.List[typing.Dict[str, typing.Any]]:
         """Per configuration: measured trial and condition (majority rule) rates, predicted before and after."""
-        measured = analysis.summarise(self.conditions, ("configuration",), configuration_order)
-        before = analysis.summarise(self.predicted_conditions(self.before_upright), ("configuration",),
-                                    configuration_order)
-        after = analysis.summarise(self.predicted_conditions(self.after_upright), ("configuration",),
-                                   configuration_order)
+        measured = summarise(self.conditions, ("configuration",), configuration_order)
+        before = summarise(self.predicted_conditions(self.before_upright), ("configuration",),
+                           configuration_order)
+        after = summarise(self.predicted_conditions(self.after_upright), ("configuration",),
+                          configuration_order)
         return [{"configuration": m.key["configuration"], "measured_trial_rate": m.trial_rate,
                  "measured_condition_rate": m.condition_rate, "before_trial_rate": b.trial_rate,
                  "before_condition_rate": b.condition_rate, "after_trial_rate": a.trial_rate,
@@ -533,15 +534,15 @@ class CalibrationResult:
                 for m, b, a in zip(measured, before, after)]
 
     def rank_agreement(self, configuration_order: typing.Optional[typing.Sequence[str]] = None
-                       ) -> typing.Dict[str, analysis.SimVsExperiment]:
+                       ) -> typing.Dict[str, SimVsExperiment]:
         """``{"before": SimVsExperiment, "after": SimVsExperiment}``: configurations' predicted vs measured trial
         rates (:func:`rollability_ros.core.results.analysis.sim_vs_experiment`)."""
-        measured = analysis.summarise(self.conditions, ("configuration",), configuration_order)
-        out: typing.Dict[str, analysis.SimVsExperiment] = {}
+        measured = summarise(self.conditions, ("configuration",), configuration_order)
+        out: typing.Dict[str, SimVsExperiment] = {}
         for label, upright in (("before", self.before_upright), ("after", self.after_upright)):
-            predicted = analysis.summarise(self.predicted_conditions(upright), ("configuration",), configuration_order)
+            predicted = summarise(self.predicted_conditions(upright), ("configuration",), configuration_order)
             rates = {cell.key["configuration"]: cell.trial_rate for cell in predicted}
-            out[label] = analysis.sim_vs_experiment(rates, measured, "trial_rate")
+            out[label] = sim_vs_experiment(rates, measured, "trial_rate")
         return out
 
 
@@ -565,7 +566,7 @@ def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mappi
         launch outcomes only.
     """
     check_fittable(parameters, settings)
-    conditions = analysis.group_conditions(outcomes)
+    conditions = group_conditions(outcomes)
     say = on_progress or (lambda line: None)
     initial = [float(parameters[name]) for name in settings.parameters]
     seeds = simulation_seeds(settings.seed, 0, settings.sim_repetitions)
@@ -615,7 +616,7 @@ def calibrated_parameter_document(fitted: typing.Mapping[str, float]) -> typing.
     values) nested under their namespaces: only keys of the twin's namespaces, so every command that reads the twin
     applies all of them (a key a command does not apply is refused: ``config.check_given_files``)."""
     flat: typing.Dict[str, typing.Any] = {name: float(value) for name, value in fitted.items()}
-    return {"/**": {"ros__parameters": section(flat, "")}}
+    return parameter_document(flat)
 
 
 def rig_parameter_document(calibrated_path: typing.Union[str, os.PathLike],

@@ -24,7 +24,7 @@ from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, c
 from rollability_ros.core.config import check_given_files, load_parameters, settings_from_sections
 from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, LaunchAborted,
-                                      LaunchBackend, RigPorts, RigSettings, SpeedGateConfig, ValveConfig,
+                                      LaunchBackend, RigPorts, RigSettings, SpeedGate, SpeedGateConfig, ValveConfig,
                                       ValveController, make_controller, make_launch_backend, make_speed_gate,
                                       parse_outcome_answer)
 from rollability_ros.core.records import INVALID_LAUNCH, LaunchOutcome
@@ -227,7 +227,6 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
     return report("")
 
 
-
 @dataclasses.dataclass
 class RunnerSettings:
     """``runner.*``: how the campaign_runner node runs the campaign and waits for the rig and the logger."""
@@ -239,9 +238,10 @@ class RunnerSettings:
                        "id"})
     store_timeout_s: float = dataclasses.field(default=10.0, metadata={
         "description": "longest wait for the logger's acknowledgement that an outcome is stored, s",
-        "range": (0.0, 3600.0)})
+        "range": (0.0, 3600.0), "exclusive": "low"})
     server_timeout_s: float = dataclasses.field(default=30.0, metadata={
-        "description": "longest wait for the rig's Launch action server to appear, s", "range": (0.0, 86400.0)})
+        "description": "longest wait for the rig's Launch action server to appear, s",
+        "range": (0.0, 86400.0), "exclusive": "low"})
     session_key_file: str = dataclasses.field(default="", metadata={
         "description": "physical: the valve_controller's session key file this runner signs goals and answers with "
                        "(rig_auth); \"\" = the default of valve.session_key_file for this ROS domain and namespace"})
@@ -250,8 +250,6 @@ class RunnerSettings:
         """Raise ``ValueError`` naming the first unusable field."""
         if self.backend not in LAUNCH_BACKENDS:
             raise ValueError(f"backend must be 'sim' (unattended) or 'physical' (operator), got {self.backend!r}")
-        if not 0 < self.store_timeout_s < math.inf or not 0 < self.server_timeout_s < math.inf:
-            raise ValueError("store_timeout_s and server_timeout_s must be finite and > 0")
 
 
 def resume_command(argv: typing.Sequence[str], program: str = "rollability") -> str:
@@ -332,7 +330,7 @@ class LocalRigPorts(RigPorts):
     def __init__(self, ask=input):
         self._ask = ask
         self._stop = threading.Event()
-        self.valve = None
+        self.valve: typing.Optional[ValveController] = None
 
     def open_valve(self, valve_config: ValveConfig) -> ValveController:
         """A valve controller on ``valve.*`` whose watchdog this object keeps fed until :meth:`close`."""
@@ -341,10 +339,12 @@ class LocalRigPorts(RigPorts):
         return self.valve
 
     def _beat(self, period_s):
+        valve = self.valve
+        assert valve is not None   # started by open_valve
         while not self._stop.wait(period_s):
-            self.valve.heartbeat()
+            valve.heartbeat()
 
-    def open_speed_gate(self, speed_config: SpeedGateConfig) -> typing.Any:
+    def open_speed_gate(self, speed_config: SpeedGateConfig) -> SpeedGate:
         """The configured speed gate (its ``operator`` backend asks at this terminal)."""
         return make_speed_gate(speed_config, self._ask)
 

@@ -20,6 +20,12 @@ class AnsweredElsewhere(Exception):
     """The question was answered (or withdrawn) elsewhere while the prompt waited; ``args[0]`` says how."""
 
 
+class FileDescriptor(typing.Protocol):
+    """What :class:`TerminalAsk` reads the operator's lines from: anything with a file descriptor (stdin, a pipe)."""
+
+    def fileno(self) -> int: ...
+
+
 class TerminalAsk:
     """``ask(prompt, interrupted=None) -> line`` on a terminal or pipe (see the module docstring).
 
@@ -33,7 +39,7 @@ class TerminalAsk:
         Longest wait between checks of ``interrupted``, s.
     """
 
-    def __init__(self, stream: typing.Any = None, out: typing.Any = None,
+    def __init__(self, stream: typing.Optional["FileDescriptor"] = None, out: typing.Optional[typing.TextIO] = None,
                  idle: typing.Optional[typing.Callable[[], None]] = None, poll_s: float = 0.05):
         self.stream = stream or sys.stdin
         self.out = out or sys.stdout
@@ -41,7 +47,7 @@ class TerminalAsk:
         self.poll_s = poll_s
         self._pending = b""
 
-    def __call__(self, prompt: str, interrupted: typing.Optional[typing.Callable[[], typing.Any]] = None) -> str:
+    def __call__(self, prompt: str, interrupted: typing.Optional[typing.Callable[[], object]] = None) -> str:
         """Show ``prompt`` and return the next line typed (without its line end); ``EOFError`` when the input
         closed; :class:`AnsweredElsewhere` when ``interrupted()`` returned a value first."""
         self.out.write(prompt)

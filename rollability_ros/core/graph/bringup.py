@@ -23,8 +23,8 @@ import typing
 
 import yaml
 
-from rollability_ros.core.config import (check_parent_steps, from_mapping, load_parameters, resolve_config_path,
-                                         section)
+from rollability_ros.core.config import (check_parent_steps, from_mapping, load_parameters, parameter_document,
+                                         resolve_config_path, section)
 from rollability_ros.core.graph.supervisor import ProcessSpec
 from rollability_ros.core.optimization import atomic_write_bytes
 
@@ -42,8 +42,7 @@ def override_file(directory: str, label: str, params: typing.Mapping[str, typing
     override the same parameter nested in an earlier file) and return its path (module docstring)."""
     path = os.path.join(directory, NODE_PARAMS_DIR, f"{label}.yaml")
     os.makedirs(os.path.dirname(path), exist_ok=True)
-    values = {key: list(value) if isinstance(value, tuple) else value for key, value in params.items()}
-    text = yaml.safe_dump({"/**": {"ros__parameters": section(values, "")}}, sort_keys=False)
+    text = yaml.safe_dump(parameter_document(params), sort_keys=False)
     atomic_write_bytes(path, text.encode("utf-8"))   # a restarted node never reads half a file
     return path
 

@@ -27,6 +27,7 @@ import threading
 import time
 import typing
 
+from rollability_ros.core import config
 from rollability_ros.core.bags import definition_for, full_type_name
 from rollability_ros.core.optional import require
 
@@ -48,7 +49,8 @@ class ViewSettings:
         "description": "TCP port of the Foxglove WebSocket server (0 = any free port, logged at start)",
         "range": (0, 65535)})
     discovery_period_s: float = dataclasses.field(default=2.0, metadata={
-        "description": "how often the ROS graph is searched for new topics to serve, s", "range": (0.0, 3600.0)})
+        "description": "how often the ROS graph is searched for new topics to serve, s",
+        "range": (0.0, 3600.0), "exclusive": "low"})
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
@@ -57,10 +59,6 @@ class ViewSettings:
                 ipaddress.ip_address(self.host)
             except ValueError:
                 raise ValueError(f"host must be an IP address or 'localhost', got {self.host!r}") from None
-        if isinstance(self.port, bool) or not isinstance(self.port, int) or not 0 <= self.port <= 65535:
-            raise ValueError(f"port must be in [0, 65535], got {self.port!r}")
-        if not 0 < self.discovery_period_s < float("inf"):
-            raise ValueError(f"discovery_period_s must be > 0, got {self.discovery_period_s}")
 
 
 def ros2msg_schema(type_name: str) -> typing.Tuple[str, str]:
@@ -120,7 +118,9 @@ def parse_pose_frames(entries: typing.Iterable[str]) -> typing.Dict[str, str]:
 def _replay_listener(foxglove, view):
     """A foxglove ``ServerListener`` that replays latched topics to a new subscriber (other events: no-ops)."""
 
-    class ReplayLatched(foxglove.websocket.ServerListener):
+    listener: typing.Any = foxglove.websocket.ServerListener   # the SDK's base class, imported at run time
+
+    class ReplayLatched(listener):
         def on_subscribe(self, client: typing.Any, channel: typing.Any) -> None:
             view.replay(channel.topic)
 
@@ -139,7 +139,7 @@ class ViewServer:
     """
 
     def __init__(self, settings, name="rollability"):
-        settings.validate()
+        config.check_settings(settings, "")
         self.settings = settings
         self.name = name
         self._foxglove = None
@@ -185,8 +185,10 @@ class ViewServer:
                 if served != schema_name:
                     raise ValueError(f"{topic} is served as {served}, not {schema_name}")
                 return False
-            schema = self._foxglove.Schema(name=schema_name, encoding="ros2msg", data=schema_text.encode())
-            channel = self._foxglove.Channel(topic, message_encoding="cdr", schema=schema, context=self._context)
+            foxglove = self._foxglove
+            assert foxglove is not None   # imported by start(), checked above
+            schema = foxglove.Schema(name=schema_name, encoding="ros2msg", data=schema_text.encode())
+            channel = foxglove.Channel(topic, message_encoding="cdr", schema=schema, context=self._context)
             self._channels[topic] = (schema_name, channel)
             if latched:
                 self._latched.setdefault(topic, None)

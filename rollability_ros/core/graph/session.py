@@ -116,9 +116,9 @@ def hold_domain(domain: int) -> typing.Optional[typing.TextIO]:
 def session_key_path(name: str, namespace: str, domain: int) -> str:
     """The valve session key file of session ``name``: in the user's private key folder (as the default), named
     after the session as well as the domain and namespace, so two sessions never share one."""
-    from rollability_ros.core.rig import valve_auth
+    from rollability_ros.core.rig import default_key_path
 
-    default = valve_auth.default_key_path(namespace, str(domain))
+    default = default_key_path(namespace, str(domain))
     stem, extension = os.path.splitext(default)
     return f"{stem}.{name}{extension}"
 

@@ -202,7 +202,7 @@ class Study:
         for path in existing:
             if is_left_open(path):
                 self.say(f"  recovering {path}: its recorder was killed before closing it")
-                recover.recover(path, allow_empty=True)   # an empty one too: the resumed study records into the next bag
+                recover(path, allow_empty=True)   # an empty one too: the resumed study records into the next bag
                 mark_restart(path)   # what was sent after its last kept chunk may be missing: a reported gap
         if not existing:
             return os.path.join(self.study_dir, "bag")
@@ -352,13 +352,13 @@ class Study:
                                                                       "mesh_files": {}})
 
     def _report(self, result):
-        from rollability_ros.core.results import report
+        from rollability_ros.core.results import build_report, load_report_data, use_geometry_csv
 
         self._record_campaign_designs()
-        data = report.load_report_data(self.store_path, run_id=self.study_id)
+        data = load_report_data(self.store_path, run_id=self.study_id)
         table3 = os.path.join(self.optimization_dir, "designs", "table3.csv")
         if os.path.isfile(table3):
-            report.use_geometry_csv(data, table3)
+            use_geometry_csv(data, table3)
         problem = ""
         if result.bag_dir:
             from rollability_ros.core.bags import missed_windows, read_records_from_bag, recording_gaps
@@ -373,7 +373,7 @@ class Study:
                 with open(os.path.join(self.study_dir, RECORDING_GAPS_FILE), "w", encoding="utf-8") as stream:
                     stream.write(gap_note + "\n")
                 data.notes.append(f"recording gaps ({RECORDING_GAPS_FILE}): {gap_note}")
-        built = report.build_report(data, os.path.join(self.study_dir, "report"))
+        built = build_report(data, os.path.join(self.study_dir, "report"))
         result.report_html = built.html_path
         result.summary = built.summary
         if problem:

@@ -239,16 +239,18 @@ class Supervisor:
             if not child.alive():
                 continue
             self._emit("stopping", child)
+            process = child.process
+            assert process is not None   # alive
             code = None
             for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
                 try:
-                    os.killpg(child.process.pid, signum)
+                    os.killpg(process.pid, signum)
                 except ProcessLookupError:
                     break
                 try:
-                    code = child.process.wait(timeout=child.spec.stop_timeout_s)
+                    code = process.wait(timeout=child.spec.stop_timeout_s)
                     break
                 except subprocess.TimeoutExpired:
                     continue
-            self._emit("stopped", child, f"exit code {code if code is not None else child.process.wait()}")
+            self._emit("stopped", child, f"exit code {code if code is not None else process.wait()}")
 

@@ -4,22 +4,12 @@
 - upright: tilt, IMU message -> sample, and the IMU upright classifier
 - tip_tracker: tip-over state machine behind the tip_monitor node
 
-The face below is what code outside ``core/imu`` imports (nodes/ and cli/ only through it; test/core/test_faces.py).
-It loads nothing heavier than ``math``.
+The face is ``__init__.pyi`` beside this file: the names code outside ``core/imu`` imports (``from
+rollability_ros.core.imu import <name>``), each with the module it lives in. ``lazy_loader.attach_stub``
+(scientific-python SPEC 1) reads it: importing the face loads none of the modules behind it, and a name's
+module is imported when the name is first used, so a light caller (the rig computer) never pays for numpy,
+physics or plotting. Type checkers read the same stub. test/core/test_faces.py checks both.
 """
-from rollability_ros.core.imu._quaternion import (IDENTITY, normalize_quaternion, quaternion_conjugate,
-                                                  quaternion_from_axis_angle, quaternion_from_rpy_deg,
-                                                  quaternion_multiply, rotate_vector, rpy_deg_from_quaternion)
-from rollability_ros.core.imu.tip_tracker import (TipMonitorConfig, TipState, TipTracker, TipUpdate,
-                                                  diagnostic_status)
-from rollability_ros.core.imu.upright import (ImuMount, ImuOutcomeConfig, ImuSample, ImuUprightClassifier,
-                                              UprightReading, imu_sample_from_message, orientation_from_acceleration,
-                                              tilt_from_acceleration_deg, tilt_from_orientation_deg)
+import lazy_loader
 
-__all__ = [
-    "IDENTITY", "normalize_quaternion", "quaternion_conjugate", "quaternion_from_axis_angle",
-    "quaternion_from_rpy_deg", "quaternion_multiply", "rotate_vector", "rpy_deg_from_quaternion",
-    "TipMonitorConfig", "TipState", "TipTracker", "TipUpdate", "diagnostic_status",
-    "ImuMount", "ImuOutcomeConfig", "ImuSample", "ImuUprightClassifier", "UprightReading", "imu_sample_from_message",
-    "orientation_from_acceleration", "tilt_from_acceleration_deg", "tilt_from_orientation_deg",
-]
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -21,8 +21,9 @@ import logging
 import math
 import typing
 
+from rollability_ros.core.config import check_settings
 from rollability_ros.core.records import TipEventRecord
-from rollability_ros.core.imu.upright import ImuMount, ImuSample, ImuUprightClassifier
+from rollability_ros.core.imu.upright import ImuMount, ImuSample, ImuUprightClassifier, UprightReading
 
 _LOG = logging.getLogger(__name__)
 
@@ -58,39 +59,34 @@ class TipMonitorConfig:
         "description": "rotation IMU frame -> robot body frame as roll, pitch, yaw about fixed axes, deg"})
     tip_threshold_deg: float = dataclasses.field(default=60.0, metadata={
         "description": "tilt of the body +z axis from world up above which the robot is tipping, deg",
-        "range": (0.0, 180.0)})
+        "range": (0.0, 180.0), "exclusive": "high"})
     recover_threshold_deg: float = dataclasses.field(default=30.0, metadata={
         "description": "tilt below which the robot counts as back upright (must be below the tip threshold), deg",
-        "range": (0.0, 180.0)})
+        "range": (0.0, 180.0), "exclusive": "low"})
     tip_confirm_s: float = dataclasses.field(default=0.3, metadata={
         "description": "the tilt must stay above the tip threshold this long to count as tipped, s",
         "range": (0.0, 3600.0)})
     settle_time_s: float = dataclasses.field(default=1.0, metadata={
         "description": "the tilt must stay below the recover threshold this long to count as recovered, s",
-        "range": (0.0, 3600.0)})
+        "range": (0.0, 3600.0), "exclusive": "low"})
     give_up_s: float = dataclasses.field(default=10.0, metadata={
-        "description": "a tip-over not recovered this long after it began is STUCK, s", "range": (0.0, 86400.0)})
+        "description": "a tip-over not recovered this long after it began is STUCK, s",
+        "range": (0.0, 86400.0), "exclusive": "low"})
     recovered_hold_s: float = dataclasses.field(default=2.0, metadata={
         "description": "time RECOVERED is shown before the state returns to UPRIGHT, s", "range": (0.0, 3600.0)})
     accel_filter_s: float = dataclasses.field(default=0.1, metadata={
         "description": "low-pass time constant of the gravity estimate used without orientation, s",
         "range": (0.0, 10.0)})
     imu_timeout_s: float = dataclasses.field(default=1.0, metadata={
-        "description": "no IMU sample this long: diagnostics go STALE, s", "range": (0.0, 3600.0)})
+        "description": "no IMU sample this long: diagnostics go STALE, s", "range": (0.0, 3600.0), "exclusive": "low"})
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         if not self.robot or not self.imu_topic:
             raise ValueError("robot and imu_topic must be non-empty")
-        if not 0 < self.recover_threshold_deg < self.tip_threshold_deg < 180:
-            raise ValueError(f"need 0 < recover_threshold_deg ({self.recover_threshold_deg}) < tip_threshold_deg "
-                             f"({self.tip_threshold_deg}) < 180: the hysteresis band must not be empty")
-        for name in ("tip_confirm_s", "recovered_hold_s"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        for name in ("settle_time_s", "give_up_s", "imu_timeout_s"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not self.recover_threshold_deg < self.tip_threshold_deg:
+            raise ValueError(f"need recover_threshold_deg ({self.recover_threshold_deg}) < tip_threshold_deg "
+                             f"({self.tip_threshold_deg}): the hysteresis band must not be empty")
         if not self.give_up_s > self.settle_time_s:
             raise ValueError(f"give_up_s ({self.give_up_s}) must exceed settle_time_s ({self.settle_time_s}): "
                              "a robot must have time to right itself before it is declared stuck")
@@ -108,7 +104,7 @@ class TipUpdate:
 
     state: TipState
     changed: bool
-    reading: object                   # upright.UprightReading
+    reading: UprightReading
     event: TipEventRecord | None = None
 
 
@@ -116,13 +112,13 @@ class TipTracker:
     """Tracks one robot's tip-overs from its IMU samples; see the module docstring for the state machine."""
 
     def __init__(self, config):
-        config.validate()
+        check_settings(config, "tip_monitor")
         self.config = config
         self._classifier = config.classifier()
         self.state = TipState.UPRIGHT
         self.last_reading = None
         self._above_since = None      # first sample of the current stretch above the tip threshold
-        self._tipped_at = None
+        self._tipped_at: typing.Optional[float] = None
         self._recovered_at = None
         self._peak_tilt = 0.0
         self._peak_rate = 0.0
@@ -176,6 +172,7 @@ class TipTracker:
         self._peak_rate = max(self._peak_rate, reading.angular_rate_radps)
 
     def _event(self, sample, reading, duration_s, recovered):
+        assert self._tipped_at is not None   # an event ends a tip that started
         record = TipEventRecord(
             robot=self.config.robot, tipped_at_s=self._tipped_at, duration_s=duration_s, recovered=recovered,
             peak_tilt_deg=self._peak_tilt, peak_angular_rate_radps=self._peak_rate,

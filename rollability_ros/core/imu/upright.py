@@ -286,13 +286,16 @@ class ImuOutcomeConfig:
         "description": "rotation IMU frame -> chassis body frame as roll, pitch, yaw about fixed axes, deg"})
     tilt_threshold_deg: float = dataclasses.field(default=30.0, metadata={
         "description": "upright when the body +z axis is within this angle of world up after settling, deg",
-        "range": (0.0, 180.0)})
+        "range": (0.0, 180.0), "exclusive": "both"})
     settle_time_s: float = dataclasses.field(default=1.0, metadata={
-        "description": "the chassis must be still this long before the IMU classifies it, s", "range": (0.0, 60.0)})
+        "description": "the chassis must be still this long before the IMU classifies it, s",
+        "range": (0.0, 60.0), "exclusive": "low"})
     max_rate_radps: float = dataclasses.field(default=0.3, metadata={
-        "description": "still when the angular rate magnitude stays at most this, rad/s", "range": (0.0, 100.0)})
+        "description": "still when the angular rate magnitude stays at most this, rad/s",
+        "range": (0.0, 100.0), "exclusive": "low"})
     max_accel_deviation_mps2: float = dataclasses.field(default=1.0, metadata={
-        "description": "still when | |acceleration| - g | stays at most this, m/s^2", "range": (0.0, 100.0)})
+        "description": "still when | |acceleration| - g | stays at most this, m/s^2",
+        "range": (0.0, 100.0), "exclusive": "low"})
     accel_filter_s: float = dataclasses.field(default=0.05, metadata={
         "description": "low-pass time constant of the gravity estimate for IMUs without orientation, s",
         "range": (0.0, 10.0)})
@@ -301,10 +304,11 @@ class ImuOutcomeConfig:
         "range": (0.0, 3600.0)})
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field (by building the classifier it configures)."""
+        """Raise ``ValueError`` for an empty topic, an unusable mount or a rule that spans fields (each number's
+        range is declared in its metadata and checked by :func:`~rollability_ros.core.config.check_settings`)."""
         if not self.topic:
             raise ValueError("topic must name the IMU topic")
-        ImuUprightClassifier.from_config(self)
+        ImuMount.from_rpy_deg(self.mount_rpy_deg)
         if not self.settle_timeout_s > self.settle_time_s:
             raise ValueError(f"settle_timeout_s ({self.settle_timeout_s}) must exceed settle_time_s "
                              f"({self.settle_time_s})")

@@ -7,33 +7,12 @@
 - evaluator_pool: a batch of evaluations spread over the available evaluators
 - selection: designs A/B/C from a run's log or its archive
 
-The face below is what code outside ``core/optimization`` imports (``from rollability_ros.core.optimization import
-OptimizerSettings``). It is lazy (``core/faces.py``): importing it loads none of the modules behind it, and a name's
-module is imported when the name is first used, so a light caller never pays for numpy, pycma or pyribs.
+The face is ``__init__.pyi`` beside this file: the names code outside ``core/optimization`` imports (``from
+rollability_ros.core.optimization import <name>``), each with the module it lives in. ``lazy_loader.attach_stub``
+(scientific-python SPEC 1) reads it: importing the face loads none of the modules behind it, and a name's
+module is imported when the name is first used, so a light caller (the rig computer) never pays for numpy,
+physics or plotting. Type checkers read the same stub. test/core/test_faces.py checks both.
 """
-import typing
+import lazy_loader
 
-from rollability_ros.core.faces import lazy_attribute
-
-if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
-    from rollability_ros.core.optimization import optimization_run, selection
-    from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
-    from rollability_ros.core.optimization.cmaes import (OPTIMIZER_METHODS, IncumbentOptimizer, OptimizerSettings,
-                                                         ProfileOptimizer)
-    from rollability_ros.core.optimization.evaluator_pool import (EvaluationFailed, EvaluatorPool, PoolClosed,
-                                                                  PoolSettings)
-    from rollability_ros.core.optimization.optimization_run import (OptimizationRun, make_optimizer, run_generations,
-                                                                    run_target)
-    from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
-    from rollability_ros.core.optimization.selection import GAIN_SOURCES, SelectionSettings
-
-__all__ = [
-    "GAIN_SOURCES", "OPTIMIZER_METHODS", "EvaluationFailed", "EvaluatorPool", "IncumbentOptimizer", "OptimizationRun",
-    "OptimizerSettings", "PoolClosed", "PoolSettings", "ProfileOptimizer", "QualityDiversitySettings",
-    "SelectionSettings", "atomic_write_bytes", "make_optimizer", "optimization_run", "run_generations", "run_target",
-    "selection",
-]
-
-
-def __getattr__(name: str) -> typing.Any:
-    return lazy_attribute(__name__, name)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

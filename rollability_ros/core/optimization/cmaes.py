@@ -33,6 +33,7 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
+from rollability_ros.core import config
 from rollability_ros.core.optional import require
 from rollability_ros.core.registry import Registry
 
@@ -72,7 +73,7 @@ class OptimizerSettings:
         "description": "candidates per CMA-ES generation (count; paper 12)", "range": (2, 100000)})
     sigma0: float = dataclasses.field(default=0.02, metadata={
         "description": "initial CMA-ES step size, simulation units of vertex height (paper 0.02)",
-        "range": (0.0, 100.0)})
+        "range": (0.0, 100.0), "exclusive": "low"})
     seed: int = dataclasses.field(default=1, metadata={
         "description": "seed of pycma, the random initial mean and the disturbance seeds (integer >= 1)",
         "range": (1, 2147483647)})
@@ -83,7 +84,7 @@ class OptimizerSettings:
         "range": (0, 2147483647)})
     target_fitness: float = dataclasses.field(default=1.0, metadata={
         "description": "stop when the best-so-far fitness (upright trials / trials) reaches this; above 1 never",
-        "range": (0.0, 2.0)})
+        "range": (0.0, 2.0), "exclusive": "low"})
     stagnation_generations: int = dataclasses.field(default=0, metadata={
         "description": "stop after this many generations without a new best design (count; 0 = never)",
         "range": (0, 2147483647)})
@@ -109,7 +110,7 @@ class OptimizerSettings:
     race_alpha: float = dataclasses.field(default=0.1, metadata={
         "description": "racing: at most this chance, over all looks, of stopping a candidate at least as good as "
                        "the bar (the lower 95% bound of the incumbent's or elite's estimate) (probability)",
-        "range": (0.0, 1.0)})
+        "range": (0.0, 1.0), "exclusive": "both"})
     race_survivors: int = dataclasses.field(default=0, metadata={
         "description": "racing by successive halving: after each look at most this many candidates go on to their "
                        "full trials, the best by pooled estimate over the incumbent (CMA-ES) or their cell's elite "
@@ -136,20 +137,9 @@ class OptimizerSettings:
         return [] if self.race_stages is None else [int(n) for n in self.race_looks]
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
+        """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
+        checked by :func:`~rollability_ros.core.config.check_settings`)."""
         OPTIMIZER_METHODS.check(self.method)
-        if self.popsize < 2:
-            raise ValueError(f"popsize must be >= 2, got {self.popsize}")
-        if not self.sigma0 > 0:
-            raise ValueError(f"sigma0 must be > 0, got {self.sigma0}")
-        if not 1 <= self.seed < 2**32:
-            raise ValueError(f"seed must be in [1, 2**32) (pycma treats 0 as 'seed from the clock'), got {self.seed}")
-        if self.trials < 1:
-            raise ValueError(f"trials must be >= 1, got {self.trials}")
-        if self.race_stages is not None and not 0 < self.race_alpha < 1:
-            raise ValueError(f"race_alpha must be in (0, 1), got {self.race_alpha}")
-        if self.race_survivors < 0:
-            raise ValueError(f"race_survivors must be >= 0 (0 = no halving), got {self.race_survivors}")
         if self.race_survivors and self.race_stages is None:
             raise ValueError("race_survivors needs race_looks (the looks after which the candidates are halved)")
         if self.race_survivors >= self.popsize:
@@ -158,16 +148,6 @@ class OptimizerSettings:
         if self.race_stages is not None and not self.common_random_numbers:
             raise ValueError("race_looks needs common_random_numbers: true (every stage runs the candidates still "
                              "going on one common seed)")
-        for name in ("max_generations", "stagnation_generations", "max_evaluations"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0 (0 disables it), got {getattr(self, name)}")
-        if self.initial_mean_screen < 0:
-            raise ValueError(f"initial_mean_screen must be >= 0 (0 = the paper's one random mean), got "
-                             f"{self.initial_mean_screen}")
-        if self.max_wall_time_s < 0:
-            raise ValueError(f"max_wall_time_s must be >= 0 (0 disables it), got {self.max_wall_time_s}")
-        if not 0 < self.target_fitness:
-            raise ValueError(f"target_fitness must be > 0 (above 1 disables it), got {self.target_fitness}")
         if not self.output_dir:
             raise ValueError("output_dir must be a non-empty path")
 
@@ -193,7 +173,7 @@ class Estimate:
 class OptimizerResult:
     """Outcome so far: the incumbent, counts, the distribution mean (phenotype) and step size, stop criteria."""
 
-    best: Estimate
+    best: typing.Optional[Estimate]   # None before the first evaluation
     generations: int
     evaluations: int
     elapsed_s: float
@@ -225,11 +205,11 @@ class IncumbentOptimizer(abc.ABC):
     def check_settings(cls, settings: "RunSettings") -> None:
         """Raise ``ValueError`` naming the first unusable setting this method reads from the run's typed
         ``settings`` (default: the ``optimizer`` section), before a run starts."""
-        settings.optimizer.validate()
+        config.check_settings(settings.optimizer, "optimizer")
 
     @classmethod
     @abc.abstractmethod
-    def create(cls, grid: typing.Any, settings: "RunSettings", clock: typing.Callable[[], float],
+    def create(cls, grid: "ProfileGrid", settings: "RunSettings", clock: typing.Callable[[], float],
                initial_mean: typing.Optional[npt.ArrayLike] = None,
                state: typing.Optional[dict] = None) -> "IncumbentOptimizer":
         """The optimizer over ``grid``'s variables and bounds with the run's typed ``settings``, new or restored
@@ -326,7 +306,9 @@ class IncumbentOptimizer(abc.ABC):
         nothing is due."""
         if not self._reevaluation_pending:
             return None
-        return (self._challenger or self._incumbent).heights.copy()
+        due = self._challenger or self._incumbent
+        assert due is not None   # a re-evaluation is due only once there is an incumbent
+        return due.heights.copy()
 
     def tell_reevaluation(self, fitness: float, trials: int = 1) -> None:
         """Pool a fresh evaluation (``fitness`` over ``trials``) into the design :meth:`reevaluation_request` named."""
@@ -338,6 +320,7 @@ class IncumbentOptimizer(abc.ABC):
         self._reevaluation_pending = False
         self._tells[-1]["reevaluation"] = [float(fitness), int(trials)]
         if self._challenger is None:
+            assert self._incumbent is not None   # see reevaluation_request
             self._incumbent = self._incumbent.pooled(float(fitness), int(trials))
             return
         challenger, self._challenger = self._challenger.pooled(float(fitness), int(trials)), None
@@ -451,7 +434,7 @@ class ProfileOptimizer(IncumbentOptimizer):
                  clock: typing.Callable[[], float] = time.monotonic,
                  initial_mean: typing.Optional[npt.ArrayLike] = None) -> None:
         cma = require("cma", feature="the CMA-ES optimizer")
-        settings.validate()
+        config.check_settings(settings, "optimizer")
         self.n_variables, self.lower, self.upper, self.initial_mean = check_search_space(
             n_variables, settings, lower, upper, initial_mean)
         self.cma_options = {"popsize": settings.popsize, "bounds": [self.lower, self.upper], "seed": settings.seed,

@@ -32,6 +32,8 @@ import time
 import typing
 from collections.abc import Callable, Iterable
 
+from rollability_ros.core import config
+
 
 #: Largest multiple of ``retry_delay_s`` an evaluator rests after consecutive failures.
 MAX_BACKOFF = 64
@@ -56,21 +58,17 @@ class PoolSettings:
     ``waiting_log_period_s``: how often a batch waiting with no evaluator says so, s.
     """
 
-    timeout_s: float = 120.0
-    max_attempts: int = 10
-    retry_delay_s: float = 1.0
-    waiting_log_period_s: float = 30.0
-
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        if not self.timeout_s > 0:
-            raise ValueError(f"timeout_s must be > 0, got {self.timeout_s}")
-        if self.max_attempts < 0:
-            raise ValueError(f"max_attempts must be >= 0 (0 = no limit), got {self.max_attempts}")
-        if self.retry_delay_s < 0:
-            raise ValueError(f"retry_delay_s must be >= 0, got {self.retry_delay_s}")
-        if not self.waiting_log_period_s > 0:
-            raise ValueError(f"waiting_log_period_s must be > 0, got {self.waiting_log_period_s}")
+    timeout_s: float = dataclasses.field(default=120.0, metadata={
+        "description": "s without any reply (accept, feedback, result) after which an evaluation is given up and "
+                       "retried elsewhere", "range": (0.0, 604800.0), "exclusive": "low"})
+    max_attempts: int = dataclasses.field(default=10, metadata={
+        "description": "failed attempts of one candidate before the run pauses and reports; 0 = retry without limit",
+        "range": (0, 1000000)})
+    retry_delay_s: float = dataclasses.field(default=1.0, metadata={
+        "description": "s an evaluator that failed gets no new evaluation", "range": (0.0, 3600.0)})
+    waiting_log_period_s: float = dataclasses.field(default=30.0, metadata={
+        "description": "s between two messages of a batch waiting with no evaluator", "range": (0.0, 86400.0),
+        "exclusive": "low"})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -189,7 +187,7 @@ class EvaluatorPool:
                  settings: PoolSettings | None = None, log: Callable[[str, str], None] = _default_log,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.settings = settings or PoolSettings()
-        self.settings.validate()
+        config.check_settings(self.settings, "evaluator")   # the optimizer node's evaluator_* parameters
         self._submit = submit
         self._log = log
         self._clock = clock

@@ -43,7 +43,7 @@ import yaml
 
 from rollability_ros.core.optimization import checkpoint as checkpoints
 from rollability_ros.core.config import (ConfigError, check_given_files, check_path_component, load_parameters,
-                                         resolve_config_path, section, settings_from_sections)
+                                         parameter_document, resolve_config_path, settings_from_sections)
 from rollability_ros.core.optimization.cmaes import (
     STREAM_POPULATION,
     STREAM_RACE,
@@ -57,10 +57,10 @@ from rollability_ros.core.optimization.cmaes import (
     random_initial_means,
 )
 from rollability_ros.core.optimization.quality_diversity import QualityDiversitySettings
-from rollability_ros.core.profile import PrinterSpec
+from rollability_ros.core.profile import PrinterSpec, ProfileGrid
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, RunProgress
-from rollability_ros.core.sim import (SETTINGS_SECTIONS, TWIN_NAMESPACE, ObjectiveSettings, ScreenSettings,
-                                      twin_files)
+from rollability_ros.core.sim import (SETTINGS_SECTIONS, TWIN_NAMESPACE, EvaluatorSettings, ObjectiveSettings,
+                                      ScreenSettings, TrialBatchEngine, TrialExecutor, twin_files)
 from rollability_ros.core.store import Store
 
 #: File name of the merged parameters inside a run directory.
@@ -95,8 +95,23 @@ class RunSettings:
 
 def run_settings(parameters: typing.Mapping[str, typing.Any]) -> RunSettings:
     """Parse a run's flat parameters once into :class:`RunSettings` (defaults where a namespace is absent); a bad
-    value raises :class:`ConfigError` naming its parameter (``optimizer: popsize must be >= 2, got 1``)."""
+    value raises :class:`ConfigError` naming its parameter (``optimizer.popsize out of range: 1 is not in [2,
+    100000]``)."""
     return settings_from_sections(RunSettings, parameters, optional=("printer",))
+
+
+@dataclasses.dataclass(frozen=True)
+class RunConfig:
+    """What an :class:`OptimizationRun` is handed by its edge (CLI or node): the typed settings it reads, and the
+    run's flat parameters as its record (written to config.yaml and compared on resume, never parsed below)."""
+
+    settings: RunSettings
+    parameters: typing.Mapping[str, typing.Any]
+
+
+def run_config(parameters: typing.Mapping[str, typing.Any]) -> RunConfig:
+    """The edge's one parse of a run's flat parameters (:func:`run_settings`), kept with them as the record."""
+    return RunConfig(run_settings(parameters), dict(parameters))
 
 
 #: The shipped optimiser defaults, loaded under the given files unless they name an optimiser file themselves.
@@ -152,7 +167,7 @@ def run_id_of(run_dir: typing.Union[str, os.PathLike]) -> str:
 
 def write_run_config(path: typing.Union[str, os.PathLike], parameters: dict) -> None:
     """Write flat ``parameters`` as a ROS 2 parameter file (``/**: {ros__parameters: {...}}``), atomically."""
-    text = yaml.safe_dump({"/**": {"ros__parameters": section(parameters, "")}}, sort_keys=True)
+    text = yaml.safe_dump(parameter_document(parameters), sort_keys=True)
     checkpoints.atomic_write_bytes(path, text.encode("utf-8"))
 
 
@@ -203,7 +218,7 @@ def check_method_settings(settings: RunSettings) -> None:
     OPTIMIZER_METHODS.get(settings.optimizer.method).check_settings(settings)
 
 
-def make_optimizer(grid: typing.Any, settings: RunSettings, clock: typing.Callable[[], float],
+def make_optimizer(grid: ProfileGrid, settings: RunSettings, clock: typing.Callable[[], float],
                    initial_mean: typing.Optional[np.ndarray] = None,
                    state: typing.Optional[dict] = None) -> IncumbentOptimizer:
     """The optimizer ``settings.optimizer.method`` names (:data:`OPTIMIZER_METHODS`, the only lookup of the name),
@@ -220,7 +235,7 @@ def read_run_config(run_dir: typing.Union[str, os.PathLike]) -> dict:
     return load_parameters(path)
 
 
-def profile_screen(settings: RunSettings, evaluator_settings: typing.Any,
+def profile_screen(settings: RunSettings, evaluator_settings: EvaluatorSettings,
                    screen_settings: typing.Optional[ScreenSettings] = None) -> typing.Optional[typing.Callable]:
     """The ``screen_profiles`` an :class:`OptimizationRun` with these ``settings`` needs: the stable-pose screen of
     profiles on the robot of ``evaluator_settings`` under ``screen_settings`` (default: ``settings.stable_poses``,
@@ -228,12 +243,12 @@ def profile_screen(settings: RunSettings, evaluator_settings: typing.Any,
     ``optimizer.initial_mean_screen`` is 0."""
     if settings.optimizer.initial_mean_screen == 0:
         return None
-    from rollability_ros.core.sim import stable_poses
+    from rollability_ros.core.sim import profile_screener
 
-    return stable_poses.profile_screener(evaluator_settings, screen_settings or settings.stable_poses)
+    return profile_screener(evaluator_settings, screen_settings or settings.stable_poses)
 
 
-def check_design_space_printable(printer: typing.Optional[PrinterSpec], grid: typing.Any) -> None:
+def check_design_space_printable(printer: typing.Optional[PrinterSpec], grid: ProfileGrid) -> None:
     """Raise ``ValueError`` naming the printer limit when no profile of ``grid`` could be printed on ``printer``
     (skipped when None: the parameters held no printer), before a long run."""
     if printer is None:
@@ -252,9 +267,10 @@ class OptimizationRun:
     ----------
     run_dir : str
         The run directory (created for a new run; must hold ``config.yaml`` to resume).
-    parameters : dict
-        Flat merged parameters (:func:`config.load_parameters`); ``optimizer.*`` configures the run. On resume
-        they must equal the run's ``config.yaml`` and checkpoint, else :class:`ConfigError` lists the differences.
+    run : RunConfig
+        The run's typed settings (``run.settings.optimizer`` configures the run), parsed at the edge
+        (:func:`run_config`), and its flat parameters as the record (``config.yaml``); on resume these must equal
+        the run's ``config.yaml`` and checkpoint, else :class:`ConfigError` lists the differences.
     grid : geometry.ProfileGrid
         Gives ``n_variables`` and the height bounds ``[height_min, height_max]``.
     evaluate_batch : callable
@@ -268,8 +284,8 @@ class OptimizationRun:
     screen_profiles : callable(heights_list) -> [StableScreen, ...], optional
         The stable-pose screen of half-grid heights, used when ``optimizer.initial_mean_screen`` > 0: the run then
         starts from the random initial mean with the highest quasi-static P(upright) (ties: the lowest worst
-        barrier), recorded in the store's run info. Default: :func:`profile_screen` on the robot that
-        ``parameters`` describe (a caller whose parameters do not hold the robot, the node, passes its own).
+        barrier), recorded in the store's run info; built at the edge (:func:`profile_screen` on the run's robot),
+        required then.
 
     optimizer_factory : callable, optional
         ``factory(n_variables, settings, lower, upper, clock, initial_mean, state=None)`` -> the
@@ -282,13 +298,13 @@ class OptimizationRun:
     ``on_candidate`` and ``on_generation`` are also public attributes, settable after construction.
     """
 
-    def __init__(self, run_dir, parameters, grid, evaluate_batch, resume=False, on_candidate=None,
+    def __init__(self, run_dir, run: RunConfig, grid, evaluate_batch, resume=False, on_candidate=None,
                  on_generation=None, clock=time.monotonic, screen_profiles=None, optimizer_factory=None,
                  evaluate_trials=None):
         self.run_dir = os.fspath(run_dir)
         self.run_id = run_id_of(self.run_dir)
-        self.parameters = dict(parameters)   # the run's record (config.yaml), compared on resume
-        self.run_settings = run_settings(self.parameters)   # its one parse: what runs below reads
+        self.parameters = dict(run.parameters)   # the run's record (config.yaml), compared on resume
+        self.run_settings = run.settings   # parsed at the edge: what runs below reads
         self.settings = self.run_settings.optimizer
         self.grid = grid
         self._evaluate_batch = evaluate_batch
@@ -318,7 +334,8 @@ class OptimizationRun:
         self._session_start_generation = self.optimizer.generation
         self._session_start_s = clock()
         self._trials = sum(c.trials for c in self.store.candidates(run_id=self.run_id))
-        self._last_generation = (self.store.generations(run_id=self.run_id) or [None])[-1]
+        generations = self.store.generations(run_id=self.run_id)
+        self._last_generation: typing.Optional[GenerationRecord] = generations[-1] if generations else None
 
     def _screen_initial_means(self, screen_profiles):
         """With ``initial_mean_screen`` > 0: screen the random initial means and return ``{"chosen": index,
@@ -327,9 +344,8 @@ class OptimizationRun:
         if self.settings.initial_mean_screen == 0:
             return None
         if screen_profiles is None:
-            from rollability_ros.core.sim import settings_from_parameters
-
-            screen_profiles = profile_screen(self.run_settings, settings_from_parameters(self.parameters))
+            raise ValueError(f"optimizer.initial_mean_screen {self.settings.initial_mean_screen} needs the stable-pose "
+                             "screen of the run's robot (screen_profiles, optimization_run.profile_screen)")
         means = random_initial_means(self.settings, self.grid.n_variables, self.grid.height_min, self.grid.height_max)
         screens = screen_profiles(list(means))
         chosen = max(range(len(means)), key=lambda i: (screens[i].upright_probability, -screens[i].worst_barrier_m))
@@ -522,7 +538,7 @@ class OptimizationRun:
     def _evaluate(self, generation, indices, heights_list, seeds, stored):
         """Return the :class:`CandidateRecord` of each (index, heights, seed): reused if stored, else evaluated."""
         records = {}
-        pending = {}
+        pending: typing.Dict[int, typing.Any] = {}
         for index, heights, seed in zip(indices, heights_list, seeds):
             previous = stored.get(index)
             if previous is None:
@@ -558,6 +574,7 @@ class OptimizationRun:
 
         settings = self.settings
         looks, stages = settings.race_looks_used, settings.race_stages
+        assert stages is not None   # called only when racing
         bars = [None if r is None else racing.sequential_bar(*r) for r in references]
         records, pending = {}, []
         for number, heights in enumerate(population):
@@ -571,7 +588,7 @@ class OptimizationRun:
                                  f"{generation} than this resumed run computes (seed {previous.seed} vs {seed})")
         halving = settings.race_survivors > 0
         racing_now = list(range(len(population))) if halving and pending else pending
-        totals = {number: [0, 0, 0.0, ""] for number in racing_now}
+        totals: typing.Dict[int, typing.List[typing.Any]] = {number: [0, 0, 0.0, ""] for number in racing_now}
         going_on = list(racing_now)
         for stage, stage_trials in enumerate(stages):
             if not going_on:
@@ -714,8 +731,8 @@ def run_generations(run: OptimizationRun, stop_requested: typing.Callable[[], bo
     return RunEnd("stopped" if stop_requested() else "finished", run.optimizer.result)
 
 
-def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.Any,
-                            name: str = "local", engine: typing.Any = None) -> typing.Callable:
+def profile_batch_evaluator(settings: EvaluatorSettings, trials: int, executor: TrialExecutor,
+                            name: str = "local", engine: typing.Optional[TrialBatchEngine] = None) -> typing.Callable:
     """``evaluate_batch`` over :func:`evaluation.evaluate_profile` on ``executor`` (a LocalExecutor or RayExecutor).
 
     The profiles of a batch are evaluated concurrently (one thread each submitting its trial batches), so the
@@ -747,7 +764,7 @@ def profile_batch_evaluator(settings: typing.Any, trials: int, executor: typing.
     return evaluate_batch
 
 
-def fidelity_batch_evaluator(settings: typing.Any, executor: typing.Any, fidelity: str = "screen",
+def fidelity_batch_evaluator(settings: EvaluatorSettings, executor: TrialExecutor, fidelity: str = "screen",
                              name: str = "local") -> typing.Callable:
     """``evaluate(heights_list, seed, trials)`` at evaluation ``fidelity`` (``screen``: the configured objective;
     ``launch``: robust twin launches, :func:`evaluation.settings_at_fidelity`) on ``executor``; each result

@@ -45,10 +45,11 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
+from rollability_ros.core import config
 from rollability_ros.core.optional import require
 from rollability_ros.core.optimization.cmaes import (IncumbentOptimizer, OptimizerResult, OptimizerSettings,
                                                      check_search_space)
-from rollability_ros.core.profile import descriptors, geometry
+from rollability_ros.core.profile import ProfileGrid, height_bound_mm, profile_descriptors
 
 if typing.TYPE_CHECKING:
     from rollability_ros.core.optimization.optimization_run import RunSettings
@@ -79,38 +80,26 @@ class QualityDiversitySettings:
     lowest_ceiling: float = dataclasses.field(default=0.5, metadata={
         "description": "height ceiling of the last emitter as a fraction of the height bound; the emitters' ceilings "
                        "step evenly from the bound (first emitter) down to it (fraction, (0, 1]; 1 = no ceilings)",
-        "range": (0.0, 1.0)})
+        "range": (0.0, 1.0), "exclusive": "low"})
     sigma0: float = dataclasses.field(default=0.0, metadata={
         "description": "initial step size of every emitter's CMA-ES, simulation units of vertex height (0 = "
                        "optimizer.sigma0)", "range": (0.0, 100.0)})
     learning_rate: float = dataclasses.field(default=0.01, metadata={
         "description": "CMA-MAE archive learning rate alpha (fraction, (0, 1]; 1 = CMA-ME, small = more "
-                       "exploration first)", "range": (0.0, 1.0)})
+                       "exploration first)", "range": (0.0, 1.0), "exclusive": "low"})
     threshold_min: float = dataclasses.field(default=0.0, metadata={
         "description": "fitness threshold of an empty cell for CMA-MAE (fitness units, upright trials / trials)",
-        "range": (-1.0, 1.0)})
+        "range": (-1.0, 1.0), "exclusive": "high"})
 
     def validate(self, popsize: int | None = None) -> None:
-        """Raise ``ValueError`` naming the first unusable field (``popsize``: the optimizer's, to split)."""
-        if self.height_cells < 1 or self.sharpness_cells < 1:
-            raise ValueError(f"height_cells and sharpness_cells must be >= 1, got {self.height_cells}, "
-                             f"{self.sharpness_cells}")
-        if not 0 <= self.sharpness_min_deg < self.sharpness_max_deg:
-            raise ValueError(f"need 0 <= sharpness_min_deg < sharpness_max_deg, got [{self.sharpness_min_deg}, "
+        """Raise ``ValueError`` for a rule that spans fields (``popsize``: the optimizer's, to split; each number's
+        range is declared in its metadata and checked by :func:`~rollability_ros.core.config.check_settings`)."""
+        if not self.sharpness_min_deg < self.sharpness_max_deg:
+            raise ValueError(f"need sharpness_min_deg < sharpness_max_deg, got [{self.sharpness_min_deg}, "
                              f"{self.sharpness_max_deg}]")
-        if self.emitters < 1:
-            raise ValueError(f"emitters must be >= 1, got {self.emitters}")
         if popsize is not None and popsize < 2 * self.emitters:
             raise ValueError(f"optimizer.popsize {popsize} cannot give {self.emitters} emitters 2 candidates each; "
                              "lower quality_diversity.emitters or raise optimizer.popsize")
-        if not 0 < self.lowest_ceiling <= 1:
-            raise ValueError(f"lowest_ceiling must be in (0, 1], got {self.lowest_ceiling}")
-        if self.sigma0 < 0:
-            raise ValueError(f"sigma0 must be >= 0 (0 = optimizer.sigma0), got {self.sigma0}")
-        if not 0 < self.learning_rate <= 1:
-            raise ValueError(f"learning_rate must be in (0, 1], got {self.learning_rate}")
-        if not -1 <= self.threshold_min < 1:
-            raise ValueError(f"threshold_min must be in [-1, 1), got {self.threshold_min}")
 
 
 def emitter_ceilings(emitters: int, lowest_ceiling: float) -> list[float]:
@@ -163,7 +152,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
         ``popsize`` (candidates per generation over all emitters), ``sigma0``, ``seed``, stop criteria,
         ``reevaluate_incumbent``.
     qd_settings : QualityDiversitySettings
-    grid : geometry.ProfileGrid
+    grid : ProfileGrid
         Bounds and the descriptors' geometry.
     clock : callable, optional
     initial_mean : array_like, optional
@@ -173,16 +162,17 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
     @classmethod
     def check_settings(cls, settings: "RunSettings") -> None:
         """The ``optimizer`` section, and the ``quality_diversity`` section against the popsize."""
-        settings.optimizer.validate()
+        config.check_settings(settings.optimizer, "optimizer")
+        config.check_settings(settings.quality_diversity, "quality_diversity")
         settings.quality_diversity.validate(settings.optimizer.popsize)
 
     @classmethod
-    def create(cls, grid: geometry.ProfileGrid, settings: "RunSettings", clock: typing.Callable[[], float],
+    def create(cls, grid: ProfileGrid, settings: "RunSettings", clock: typing.Callable[[], float],
                initial_mean: npt.ArrayLike | None = None,
                state: dict[str, typing.Any] | None = None) -> "QualityDiversityOptimizer":
         """``optimizer.method: cma_mae``: CMA-MAE over the grid with the ``optimizer`` and ``quality_diversity``
         sections; ``initial_mean`` ``(grid.n_variables,)`` simulation units, None: the paper's random mean."""
-        settings.optimizer.validate()
+        config.check_settings(settings.optimizer, "optimizer")
         if state is None:
             return cls(settings.optimizer, settings.quality_diversity, grid, clock, initial_mean)
         return cls.from_state_dict(state, settings.optimizer, settings.quality_diversity, grid, clock, initial_mean)
@@ -194,7 +184,8 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
         from ribs.archives import GridArchive
         from ribs.schedulers import Scheduler
 
-        settings.validate()
+        config.check_settings(settings, "optimizer")
+        config.check_settings(qd_settings, "quality_diversity")
         qd_settings.validate(settings.popsize)
         self.qd_settings = qd_settings
         self.grid = grid
@@ -202,9 +193,9 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
             grid.n_variables, settings, grid.height_min, grid.height_max, initial_mean)
         seeds = np.random.SeedSequence([int(settings.seed), 0x51D]).generate_state(qd_settings.emitters + 2)
         dims = [qd_settings.height_cells, qd_settings.sharpness_cells]
-        self.ranges = [(0.0, descriptors.height_bound_mm(grid)),
+        self.ranges = [(0.0, height_bound_mm(grid)),
                        (qd_settings.sharpness_min_deg, qd_settings.sharpness_max_deg)]
-        extra = {"trials": ((), np.int64), "generation": ((), np.int64),
+        extra: typing.Dict[str, typing.Any] = {"trials": ((), np.int64), "generation": ((), np.int64),
                  "heights": ((self.n_variables,), np.float64)}
         self.archive = GridArchive(solution_dim=self.n_variables, dims=dims, ranges=self.ranges,
                                    learning_rate=qd_settings.learning_rate, threshold_min=qd_settings.threshold_min,
@@ -231,7 +222,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
                 for bounds, solution in zip(self._bounds, self.scheduler.ask())]
 
     def _tell(self, population, fitness, trials):
-        measures = np.array([descriptors.profile_descriptors(heights, self.grid).as_tuple()
+        measures = np.array([profile_descriptors(heights, self.grid).as_tuple()
                              for heights in population], dtype=np.float64)
         self.scheduler.tell(np.asarray(fitness, dtype=np.float64), measures,
                             trials=np.asarray(trials, dtype=np.int64), heights=np.asarray(population),
@@ -242,7 +233,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
         (simulation units) falls in (sequential racing
         against its cell's elite); None for an empty cell (any candidate would fill it). The cell follows from the
         geometry alone and the archive is the state between generations, so a resumed generation races alike."""
-        measures = np.array([descriptors.profile_descriptors(heights, self.grid).as_tuple()], dtype=np.float64)
+        measures = np.array([profile_descriptors(heights, self.grid).as_tuple()], dtype=np.float64)
         occupied, data = self.result_archive.retrieve(measures)
         if not bool(occupied[0]):
             return None
@@ -303,7 +294,7 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
 
     @classmethod
     def from_state_dict(cls, state: dict[str, typing.Any], settings: OptimizerSettings,
-                        qd_settings: QualityDiversitySettings, grid: geometry.ProfileGrid,
+                        qd_settings: QualityDiversitySettings, grid: ProfileGrid,
                         clock: typing.Callable[[], float] = time.monotonic,
                         initial_mean: npt.ArrayLike | None = None) -> "QualityDiversityOptimizer":
         """Rebuild an optimizer saved by :meth:`state_dict`; ValueError when it belongs to other settings or code

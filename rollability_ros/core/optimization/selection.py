@@ -7,7 +7,7 @@ Procedure
 2. Designs are ranked by the lower bound of the 95% Wilson interval of their pooled fitness, then by fitness:
    a design seen once at 60/60 does not outrank one confirmed at 55/60 twice only because it was lucky once.
 3. Walking down that ranking, a design is taken when its convex-hull solid passes the printability checks
-   (:func:`geometry.check_printability`) and its RMS height distance (simulation units) to every design already
+   (:func:`check_printability`) and its RMS height distance (simulation units) to every design already
    taken is at least ``min_distance``. Labels follow the ranking: "A" is the best.
 4. Optionally the chosen designs and the baseline (no profile) are re-evaluated in one batch with a fresh
    common seed and ``reevaluate_trials`` trials: a fitness picked as a maximum is biased upward, a fresh
@@ -65,7 +65,8 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from rollability_ros.core.profile import geometry
+from rollability_ros.core.profile import (MESH_UNITS, Mesh, PrinterSpec, ProfileGrid, ProfileMetrics,
+                                          check_printability, export_mesh, is_baseline, mesh_metrics, profile_mesh)
 from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
 from rollability_ros.core.optimization.cmaes import STREAM_SELECTION, derive_seed
 from rollability_ros.core.optimization import racing
@@ -79,10 +80,12 @@ if typing.TYPE_CHECKING:
 
 #: ``evaluate_batch(heights_list, seed) -> [(successes, trials, eval_time_s, evaluator), ...]``: heights
 #: ``(n_variables,)`` each, simulation units; one result per profile.
-BatchEvaluator = typing.Callable[[typing.List[np.ndarray], int], typing.Sequence[typing.Sequence[typing.Any]]]
+BatchEvaluator = typing.Callable[[typing.List[np.ndarray], int], typing.Sequence["EvaluatedProfile"]]
 #: ``launch_batch(heights_list, seed, trials) -> [(successes, trials, eval_time_s, evaluator), ...]``: robust twin
 #: launches of each profile (heights ``(n_variables,)``, simulation units).
-LaunchEvaluator = typing.Callable[[typing.List[np.ndarray], int, int], typing.Sequence[typing.Sequence[typing.Any]]]
+LaunchEvaluator = typing.Callable[[typing.List[np.ndarray], int, int], typing.Sequence["EvaluatedProfile"]]
+#: One profile's evaluation: ``(successes, trials, eval_time_s, evaluator)``.
+EvaluatedProfile = typing.Tuple[int, int, float, str]
 
 #: The race's id of the bare robot (the reference that runs every round).
 BASELINE = "baseline"
@@ -131,7 +134,7 @@ class SelectionSettings:
     top_fraction: float = dataclasses.field(default=0.1, metadata={
         "description": "quality-diversity runs: choose among the archive elites whose fitness is in this top "
                        "fraction of all elite fitnesses (fraction, (0, 1]; 0.1 = the top decile)",
-        "range": (0.0, 1.0)})
+        "range": (0.0, 1.0), "exclusive": "low"})
 
     race_launches: typing.List[int] = dataclasses.field(default_factory=lambda: [0], metadata={
         "description": "launches per elite in each round of the launch race that ranks designs by robust twin "
@@ -148,21 +151,12 @@ class SelectionSettings:
                        "bare robot in Table 3 and designs.yaml (count; 0 = none)", "range": (0, 10000000)})
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
+        """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
+        checked by :func:`~rollability_ros.core.config.check_settings`)."""
         if list(self.race_launches) not in ([], [0]) and any(int(n) < 1 for n in self.race_launches):
             raise ValueError(f"race_launches must list counts >= 1 (or be [0]: no race), got {self.race_launches}")
-        if self.race_elites < 0 or self.race_keep < 1 or self.launch_trials < 0:
-            raise ValueError("need race_elites >= 0, race_keep >= 1 and launch_trials >= 0")
-        if not 1 <= self.count <= len(string.ascii_uppercase):
-            raise ValueError(f"count must be in [1, {len(string.ascii_uppercase)}], got {self.count}")
-        if self.min_distance < 0:
-            raise ValueError(f"min_distance must be >= 0, got {self.min_distance}")
-        if self.reevaluate_trials < 0:
-            raise ValueError(f"reevaluate_trials must be >= 0 (0 = no re-evaluation), got {self.reevaluate_trials}")
-        if not 0 < self.top_fraction <= 1:
-            raise ValueError(f"top_fraction must be in (0, 1], got {self.top_fraction}")
-        if self.mesh_units not in geometry.MESH_UNITS:
-            raise ValueError(f"mesh_units must be one of {', '.join(geometry.MESH_UNITS)}, got {self.mesh_units!r}")
+        if self.mesh_units not in MESH_UNITS:
+            raise ValueError(f"mesh_units must be one of {', '.join(MESH_UNITS)}, got {self.mesh_units!r}")
 
     @property
     def race_rounds(self) -> typing.List[int]:
@@ -198,7 +192,7 @@ class SelectedDesign:
     label: str
     design: PooledDesign
     mesh: object                       # trimesh.Trimesh, metres, profile frame
-    metrics: geometry.ProfileMetrics
+    metrics: ProfileMetrics
     reevaluation: typing.Optional[tuple] = None         # (successes, trials, seed) of the fresh estimate, or None
     reason: str = ""                   # why it was chosen, one sentence
     descriptors: typing.Optional[tuple] = None          # (max_height_mm, sharpness_deg) for archive selections, else None
@@ -301,8 +295,8 @@ def design_gain(design: SelectedDesign, result: SelectionResult) -> typing.Optio
 
 def _limits_named(problems):
     """The configuration keys (``printer.bed_x_m / bed_y_m``, ...) that the printability ``problems`` name."""
-    return [re.search(r"\((printer\.[^)]*)\)", problem).group(1) if "(printer." in problem else problem
-            for problem in problems]
+    named = [re.search(r"\((printer\.[^)]*)\)", problem) for problem in problems]
+    return [match.group(1) if match else problem for match, problem in zip(named, problems)]
 
 
 def pool_candidates(candidates: typing.Iterable["CandidateRecord"]) -> typing.List[PooledDesign]:
@@ -326,8 +320,8 @@ def rms_distance(heights_a: npt.ArrayLike, heights_b: npt.ArrayLike) -> float:
     return float(np.sqrt(np.mean((np.asarray(heights_a) - np.asarray(heights_b)) ** 2)))
 
 
-def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: geometry.ProfileGrid,
-                   printer: geometry.PrinterSpec, settings: SelectionSettings,
+def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: ProfileGrid,
+                   printer: PrinterSpec, settings: SelectionSettings,
                    evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
                    launch_batch: typing.Optional[LaunchEvaluator] = None) -> SelectionResult:
     """Choose designs from a run's candidate log; see the module docstring.
@@ -335,8 +329,8 @@ def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: geometr
     Parameters
     ----------
     candidates : iterable of CandidateRecord
-    grid : geometry.ProfileGrid
-    printer : geometry.PrinterSpec
+    grid : ProfileGrid
+    printer : PrinterSpec
     settings : SelectionSettings
     evaluate_batch : callable(heights_list, seed) -> [(successes, trials, eval_time_s, evaluator)], optional
         Runs ``settings.reevaluate_trials`` trials per profile; needed when ``reevaluate_trials > 0``.
@@ -352,7 +346,7 @@ def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: geometr
         raise ValueError("reevaluate_trials > 0 needs an evaluator")
     if (settings.race_rounds or settings.launch_trials) and launch_batch is None:
         raise ValueError("race_launches or launch_trials > 0 need a launch evaluator")
-    pooled = [d for d in pool_candidates(candidates) if not geometry.is_baseline(d.heights)]
+    pooled = [d for d in pool_candidates(candidates) if not is_baseline(d.heights)]
     ranked = sorted(pooled, key=lambda d: (-d.wilson_low, -d.fitness, d.first_generation))
     chosen: typing.List[SelectedDesign] = []
     rejected: typing.Dict[str, int] = {}
@@ -390,7 +384,7 @@ def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: geometr
                                         f"({design.successes}/{design.trials}, bound {design.wilson_low:.2f})")
         if chosen:
             reason += f", at least {settings.min_distance} units RMS from {', '.join(c.label for c in chosen)}"
-        chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], design, mesh, geometry.mesh_metrics(mesh),
+        chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], design, mesh, mesh_metrics(mesh),
                                      reason=reason, race=race.totals[index] if race else None))
     chosen, baseline = _reevaluate(chosen, grid, settings, evaluate_batch, run_seed)
     chosen, baseline_launches = _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed)
@@ -410,15 +404,17 @@ def _reevaluate(chosen, grid, settings, evaluate_batch, run_seed):
     return chosen, (int(results[-1][0]), int(results[-1][1]), seed)
 
 
-def _printable_mesh(heights: npt.ArrayLike, grid: geometry.ProfileGrid, printer: geometry.PrinterSpec
-                    ) -> typing.Tuple[typing.Optional[geometry.Mesh], str]:
+def _printable_mesh(heights: npt.ArrayLike, grid: ProfileGrid, printer: PrinterSpec
+                    ) -> typing.Tuple[typing.Optional[Mesh], str]:
     """``(mesh, "")`` for a printable profile (heights ``(n_variables,)``, simulation units), else
     ``(None, reason)`` (the rejection count's key)."""
     try:
-        mesh = geometry.profile_mesh(heights, grid)
+        mesh = profile_mesh(heights, grid)
     except ValueError:
         return None, "flat"
-    printability = geometry.check_printability(mesh, printer)
+    if mesh is None:
+        return None, "flat"
+    printability = check_printability(mesh, printer)
     if not printability.printable:
         return None, "not printable: " + ", ".join(_limits_named(printability.problems))
     return mesh, ""
@@ -432,7 +428,7 @@ def top_pool(fitnesses: typing.Sequence[float], top_fraction: float) -> typing.T
 
 
 def select_from_archive(archive: typing.Mapping[str, typing.Any], candidates: typing.Iterable["CandidateRecord"],
-                        grid: geometry.ProfileGrid, printer: geometry.PrinterSpec, settings: SelectionSettings,
+                        grid: ProfileGrid, printer: PrinterSpec, settings: SelectionSettings,
                         evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
                         launch_batch: typing.Optional[LaunchEvaluator] = None) -> SelectionResult:
     """Choose designs from a quality-diversity ``archive`` (the run info's ``archive``: ``ranges`` and
@@ -451,7 +447,7 @@ def select_from_archive(archive: typing.Mapping[str, typing.Any], candidates: ty
         raise ValueError("reevaluate_trials > 0 needs an evaluator")
     if (settings.race_rounds or settings.launch_trials) and launch_batch is None:
         raise ValueError("race_launches or launch_trials > 0 need a launch evaluator")
-    elites = [e for e in archive["elites"] if not geometry.is_baseline(e["heights"])]
+    elites = [e for e in archive["elites"] if not is_baseline(e["heights"])]
     if not elites:
         return SelectionResult([], settings.count, 0, {"no elites": 1})
     pooled = {tuple(d.heights): d for d in pool_candidates(candidates)}
@@ -508,7 +504,7 @@ def select_from_archive(archive: typing.Mapping[str, typing.Any], candidates: ty
                           f"{where(elites[index])}")
             elite, design = elites[index], designs[index]
             chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], pooled.get(tuple(design.heights), design),
-                                         meshes[index], geometry.mesh_metrics(meshes[index]), reason=reason,
+                                         meshes[index], mesh_metrics(meshes[index]), reason=reason,
                                          descriptors=(elite["max_height_mm"], elite["sharpness_deg"]),
                                          cell=tuple(elite["cell"]), race=race.totals[index]))
             points.append(_descriptor_point(elite, spans))
@@ -535,7 +531,7 @@ def select_from_archive(archive: typing.Mapping[str, typing.Any], candidates: ty
                 reason = (f"the top-{settings.top_fraction:.0%} elite farthest from "
                           f"{', '.join(c.label for c in chosen)} in (height, sharpness): {where(elite)}; {estimate}")
             chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], pooled.get(tuple(design.heights), design),
-                                         mesh, geometry.mesh_metrics(mesh), reason=reason,
+                                         mesh, mesh_metrics(mesh), reason=reason,
                                          descriptors=(elite["max_height_mm"], elite["sharpness_deg"]),
                                          cell=tuple(elite["cell"])))
             points.append(_descriptor_point(elite, spans))
@@ -618,7 +614,7 @@ def _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed):
     return chosen, (int(results[-1][0]), int(results[-1][1]), seed)
 
 
-def trait_rows(candidates: typing.Iterable["CandidateRecord"], grid: geometry.ProfileGrid,
+def trait_rows(candidates: typing.Iterable["CandidateRecord"], grid: ProfileGrid,
                ranges: typing.Sequence[typing.Sequence[float]], bins: typing.Sequence[int]
                ) -> typing.List[typing.Dict[str, typing.Any]]:
     """Every evaluation of a run pooled per bin of each descriptor: rows with :data:`TRAIT_COLUMNS`.
@@ -628,10 +624,10 @@ def trait_rows(candidates: typing.Iterable["CandidateRecord"], grid: geometry.Pr
     Wilson 95% interval: how well the designs the optimizer tried with that trait did (not a random sample of
     designs).
     """
-    from rollability_ros.core.profile import descriptors
+    from rollability_ros.core.profile import profile_descriptors
 
-    pooled = [d for d in pool_candidates(candidates) if not geometry.is_baseline(d.heights)]
-    measured = [descriptors.profile_descriptors(d.heights, grid).as_tuple() for d in pooled]
+    pooled = [d for d in pool_candidates(candidates) if not is_baseline(d.heights)]
+    measured = [profile_descriptors(d.heights, grid).as_tuple() for d in pooled]
     rows = []
     for axis, trait in enumerate(("max_height_mm", "sharpness_deg")):
         edges = np.linspace(ranges[axis][0], ranges[axis][1], int(bins[axis]) + 1)
@@ -710,7 +706,7 @@ def _fitness_columns(successes, trials, source):
             "successes": successes, "trials": trials, "fitness_source": source}
 
 
-def designs_document(result: SelectionResult, grid: geometry.ProfileGrid, run_id: str,
+def designs_document(result: SelectionResult, grid: ProfileGrid, run_id: str,
                      mesh_units: str = "mm") -> typing.Dict[str, typing.Any]:
     """The ``designs.yaml`` content: a ROS 2 parameter file with namespace ``designs`` (heights per label).
 
@@ -802,7 +798,7 @@ def next_design_folder(run_dir: str) -> str:
     return os.path.join(run_dir, f"{DESIGNS_DIRNAME}-{number}")
 
 
-def write_selection(run_dir: str, result: SelectionResult, grid: geometry.ProfileGrid, run_id: str,
+def write_selection(run_dir: str, result: SelectionResult, grid: ProfileGrid, run_id: str,
                     mesh_units: str = "mm", traits: typing.Optional[typing.List[typing.Dict[str, typing.Any]]] = None
                     ) -> str:
     """Write the STL (in ``mesh_units``) and 3MF files, ``table3.csv`` and ``designs.yaml`` into a new design set
@@ -819,8 +815,8 @@ def write_selection(run_dir: str, result: SelectionResult, grid: geometry.Profil
         shutil.rmtree(partial)
     os.makedirs(partial)
     for design in result.designs:
-        geometry.export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.stl"), mesh_units)
-        geometry.export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.3mf"))
+        export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.stl"), mesh_units)
+        export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.3mf"))
     _write_csv(os.path.join(partial, "table3.csv"), TABLE_COLUMNS, table_rows(result))
     for name, columns, rows in (("archive.csv", ARCHIVE_COLUMNS, result.archive),
                                 ("traits.csv", TRAIT_COLUMNS, traits)):
@@ -832,10 +828,10 @@ def write_selection(run_dir: str, result: SelectionResult, grid: geometry.Profil
     return folder
 
 
-def select_run(store: "Store", run_id: str, run_dir: str, grid: geometry.ProfileGrid, printer: geometry.PrinterSpec,
+def select_run(store: "Store", run_id: str, run_dir: str, grid: ProfileGrid, printer: PrinterSpec,
                settings: SelectionSettings, evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
                launch_batch: typing.Optional[LaunchEvaluator] = None,
-               weigh: typing.Optional[typing.Callable[[typing.Any], float]] = None
+               weigh: typing.Optional[typing.Callable[[Mesh], float]] = None
                ) -> typing.Tuple[SelectionResult, str]:
     """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
     simulated fitness and geometry) and write a new design set (``<run_dir>/designs/`` or ``designs-<n>/``);

@@ -28,15 +28,19 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
+from rollability_ros.core import config
 from rollability_ros.core.optional import require
+
+if typing.TYPE_CHECKING:   # annotations only: trimesh is imported where used
+    import trimesh
 
 #: Top vertices lower than this (m) lie on the base plane in the mesh: far below print and simulation resolution,
 #: far above trimesh's vertex-merge tolerance (1e-8 m).
 BASE_SNAP_M = 1e-6
 
-#: A ``trimesh.Trimesh`` in metres. trimesh is imported where used (and ships no type information), so annotations
-#: name it by this alias.
-Mesh = typing.Any
+#: A ``trimesh.Trimesh`` in metres. trimesh is imported where used (core/optional.py); annotations name it by this
+#: alias, which type checkers resolve to trimesh's own (typed) class.
+Mesh: "typing.TypeAlias" = "trimesh.Trimesh"
 
 
 @dataclasses.dataclass
@@ -57,16 +61,18 @@ class ProfileGrid:
     cols: int = dataclasses.field(default=10, metadata={
         "description": "grid vertices across the y > 0 half of the footprint (count; paper 10)", "range": (1, 1000)})
     length_m: float = dataclasses.field(default=0.18, metadata={
-        "description": "footprint length along the chassis x axis that the profile covers, m", "range": (0.0, 100.0)})
+        "description": "footprint length along the chassis x axis that the profile covers, m",
+        "range": (0.0, 100.0), "exclusive": "low"})
     width_m: float = dataclasses.field(default=0.14, metadata={
-        "description": "footprint width along the chassis y axis that the profile covers, m", "range": (0.0, 100.0)})
+        "description": "footprint width along the chassis y axis that the profile covers, m",
+        "range": (0.0, 100.0), "exclusive": "low"})
     height_min: float = dataclasses.field(default=0.0, metadata={
         "description": "lower bound of every vertex height, simulation units (paper 0)", "range": (0.0, 1000.0)})
     height_max: float = dataclasses.field(default=0.45, metadata={
         "description": "upper bound of every vertex height, simulation units (paper 0.45)", "range": (0.0, 1000.0)})
     unit_m: float = dataclasses.field(default=0.2, metadata={
         "description": "metres per simulation unit of vertex height, m (0.2: height 0.45 = 0.09 m)",
-        "range": (0.0, 100.0)})
+        "range": (0.0, 100.0), "exclusive": "low"})
     flat_tolerance: float = dataclasses.field(default=0.001, metadata={
         "description": "a profile whose tallest vertex is at or below this counts as the baseline (no profile), "
                        "simulation units", "range": (0.0, 100.0)})
@@ -77,16 +83,12 @@ class ProfileGrid:
         return self.rows * self.cols
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        if self.rows < 2 or self.cols < 1:
-            raise ValueError(f"need rows >= 2 and cols >= 1, got rows={self.rows}, cols={self.cols}")
-        for name in ("length_m", "width_m", "unit_m"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        if not 0 <= self.height_min < self.height_max:
-            raise ValueError(f"need 0 <= height_min < height_max, got [{self.height_min}, {self.height_max}]")
-        if not 0 <= self.flat_tolerance < self.height_max:
-            raise ValueError(f"flat_tolerance must be in [0, height_max), got {self.flat_tolerance}")
+        """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
+        checked by :func:`~rollability_ros.core.config.check_settings`)."""
+        if not self.height_min < self.height_max:
+            raise ValueError(f"need height_min < height_max, got [{self.height_min}, {self.height_max}]")
+        if not self.flat_tolerance < self.height_max:
+            raise ValueError(f"flat_tolerance must be below height_max {self.height_max}, got {self.flat_tolerance}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -112,31 +114,28 @@ class PrinterSpec:
 
     bed_x_m: float = dataclasses.field(default=0.22, metadata={
         "description": "build plate size along the printer's x axis, m; a profile footprint must fit (turned 90 deg "
-                       "allowed)", "range": (0.0, 10.0)})
+                       "allowed)", "range": (0.0, 10.0), "exclusive": "low"})
     bed_y_m: float = dataclasses.field(default=0.22, metadata={
-        "description": "build plate size along the printer's y axis, m", "range": (0.0, 10.0)})
+        "description": "build plate size along the printer's y axis, m", "range": (0.0, 10.0), "exclusive": "low"})
     bed_z_m: float = dataclasses.field(default=0.25, metadata={
-        "description": "largest printable part height, m; the tallest profile must fit", "range": (0.0, 10.0)})
+        "description": "largest printable part height, m; the tallest profile must fit",
+        "range": (0.0, 10.0), "exclusive": "low"})
     nozzle_m: float = dataclasses.field(default=0.0004, metadata={
         "description": "nozzle diameter = one extrusion width, m; the minimum wall cannot be thinner",
-        "range": (0.0, 0.1)})
+        "range": (0.0, 0.1), "exclusive": "low"})
     min_wall_m: float = dataclasses.field(default=0.0008, metadata={
         "description": "thinnest solid width the printer makes reliably (e.g. two perimeters), m",
-        "range": (0.0, 1.0)})
+        "range": (0.0, 1.0), "exclusive": "low"})
     max_overhang_deg: float = dataclasses.field(default=45.0, metadata={
         "description": "steepest downward face printable without support, measured from vertical, deg",
         "range": (0.0, 90.0)})
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        for name in ("bed_x_m", "bed_y_m", "bed_z_m", "nozzle_m", "min_wall_m"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"printer.{name} must be > 0, got {getattr(self, name)}")
+        """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
+        checked by :func:`~rollability_ros.core.config.check_settings`)."""
         if self.min_wall_m < self.nozzle_m:
             raise ValueError(f"printer.min_wall_m {self.min_wall_m * 1000:.2f} mm is thinner than one extrusion of "
                              f"the printer.nozzle_m {self.nozzle_m * 1000:.2f} mm nozzle")
-        if not 0 <= self.max_overhang_deg <= 90:
-            raise ValueError(f"printer.max_overhang_deg must be in [0, 90], got {self.max_overhang_deg}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -258,7 +257,7 @@ def design_space_printability(grid: ProfileGrid, printer: PrinterSpec) -> typing
     profile below one nozzle width (``nozzle_m``) cannot be printed either. Each message names the limit and the
     configuration key to change.
     """
-    printer.validate()
+    config.check_settings(printer, "printer")
     problems: typing.List[str] = []
     length, width = grid.length_m, grid.width_m
     if not ((length <= printer.bed_x_m and width <= printer.bed_y_m)
@@ -353,12 +352,12 @@ def export_mesh(mesh: Mesh, path: typing.Union[str, os.PathLike], units: str = "
     scaled = mesh.copy()
     scaled.apply_scale(1.0 / MESH_UNITS[units])
     if file_type == "stl":
-        payload = stl_header(units) + scaled.export(file_type="stl")[80:]
+        payload = stl_header(units) + typing.cast(bytes, scaled.export(file_type="stl"))[80:]
     elif file_type == "obj":
-        payload = f"# units: {units}\n".encode("ascii") + scaled.export(file_type="obj").encode("utf-8")
+        payload = f"# units: {units}\n".encode("ascii") + typing.cast(str, scaled.export(file_type="obj")).encode("utf-8")
     else:
         require("lxml", feature="3MF export")
-        payload = scaled.export(file_type="3mf")
+        payload = typing.cast(bytes, scaled.export(file_type="3mf"))
     temporary = f"{os.fspath(path)}.tmp"
     with open(temporary, "wb") as stream:
         stream.write(payload)

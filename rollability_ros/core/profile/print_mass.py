@@ -28,6 +28,7 @@ import typing
 
 import numpy as np
 
+from rollability_ros.core import config
 from rollability_ros.core.optional import require
 from rollability_ros.core.profile.geometry import Mesh
 
@@ -53,13 +54,13 @@ class ProfilePrintSpec:
                        "solid (one uniform material throughout, e.g. cut foam; uses solid_density_kgpm3)"})
     material_density_kgpm3: float = dataclasses.field(default=1240.0, metadata={
         "description": "density of the printed material, kg/m^3 (PLA 1240: NatureWorks Ingeo 4043D data sheet; PETG "
-                       "about 1270, ABS about 1040)", "range": (0.0, 100000.0)})
+                       "about 1270, ABS about 1040)", "range": (0.0, 100000.0), "exclusive": "low"})
     wall_thickness_m: float = dataclasses.field(default=0.0008, metadata={
         "description": "solid wall (perimeters) across the side faces, horizontal, m (0.8 mm: Cura's default "
-                       "wall_thickness, two 0.4 mm lines)", "range": (0.0, 1.0)})
+                       "wall_thickness, two 0.4 mm lines)", "range": (0.0, 1.0), "exclusive": "low"})
     skin_thickness_m: float = dataclasses.field(default=0.0008, metadata={
         "description": "solid top and bottom skin, vertical, m (0.8 mm: Cura's default top_bottom_thickness)",
-        "range": (0.0, 1.0)})
+        "range": (0.0, 1.0), "exclusive": "low"})
     infill_fraction: float = dataclasses.field(default=0.2, metadata={
         "description": "sparse infill inside the shell as a fraction of solid (0 = hollow, 1 = solid; 0.2: Cura's "
                        "default infill_sparse_density 20 %)", "range": (0.0, 1.0)})
@@ -80,13 +81,6 @@ class ProfilePrintSpec:
             raise ValueError(f"profile_print.solid_density_kgpm3 ({self.solid_density_kgpm3}) is only used with "
                              "profile_print.model: solid; the shell model weighs the print from material_density_kgpm3, "
                              "wall_thickness_m, skin_thickness_m and infill_fraction (set model: solid, or remove it)")
-        if not self.material_density_kgpm3 > 0:
-            raise ValueError(f"profile_print.material_density_kgpm3 must be > 0, got {self.material_density_kgpm3}")
-        for name in ("wall_thickness_m", "skin_thickness_m"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"profile_print.{name} must be > 0, got {getattr(self, name)}")
-        if not 0 <= self.infill_fraction <= 1:
-            raise ValueError(f"profile_print.infill_fraction must be in [0, 1], got {self.infill_fraction}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -195,7 +189,7 @@ def print_mass_properties(mesh: Mesh, spec: ProfilePrintSpec, mass_scale: float 
     ``ValueError`` for an unusable spec or mesh (degenerate, not watertight, no volume; a non-convex mesh under the
     shell model, whose inward offset is not computed here).
     """
-    spec.validate()
+    config.check_settings(spec, "profile_print")
     if not mass_scale > 0:
         raise ValueError(f"profile_mass_scale must be > 0, got {mass_scale}")
     check_solid_mesh(mesh)

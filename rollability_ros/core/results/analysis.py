@@ -17,7 +17,7 @@ import random
 import statistics
 import typing
 
-from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+from rollability_ros.core.records import CandidateRecord, GenerationRecord, LaunchCondition, LaunchOutcome, TipEventRecord
 from rollability_ros.core.stats import wilson_interval
 
 #: The grouping factors of a grouped condition, LaunchCondition field names.
@@ -188,7 +188,7 @@ def grid(cells: typing.Sequence["CellSummary"], row_factor: str, column_factor: 
     return rows, columns, values
 
 
-def cells_of(cells: typing.Iterable["CellSummary"], **key: typing.Any) -> typing.List["CellSummary"]:
+def cells_of(cells: typing.Iterable["CellSummary"], **key: object) -> typing.List["CellSummary"]:
     """The cells whose key matches every ``factor=value`` given."""
     return [cell for cell in cells if all(cell.key.get(f) == v for f, v in key.items())]
 
@@ -361,8 +361,8 @@ class ConvergencePoint:
     evaluations: int
 
 
-def convergence(generations: typing.Iterable[typing.Any] = (),
-                candidates: typing.Iterable[typing.Any] = ()) -> typing.List["ConvergencePoint"]:
+def convergence(generations: typing.Iterable[GenerationRecord] = (),
+                candidates: typing.Iterable[CandidateRecord] = ()) -> typing.List["ConvergencePoint"]:
     """Best-so-far fitness per generation, per run, sorted by (run, generation).
 
     Uses generation summaries where a run has them: their ``best_so_far`` is the optimizer's pooled estimate of
@@ -429,7 +429,7 @@ def geometry_table(rows: typing.Iterable[typing.Mapping[str, typing.Any]],
     return sorted(checked, key=lambda r: rank(str(r["configuration"])))
 
 
-def tip_event_summary(events: typing.Iterable[typing.Any]) -> typing.List[typing.Dict[str, typing.Any]]:
+def tip_event_summary(events: typing.Iterable[TipEventRecord]) -> typing.List[typing.Dict[str, typing.Any]]:
     """Per robot: events, recovered, recovery rate with Wilson interval, median duration s, worst tilt deg."""
     per_robot: typing.Dict[str, list] = {}
     for event in events:

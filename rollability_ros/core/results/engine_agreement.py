@@ -12,6 +12,9 @@ import numpy as np
 
 from rollability_ros.core.stats import average_ranks, wilson_interval
 
+if typing.TYPE_CHECKING:  # annotations only: the results read what the simulation returned
+    from rollability_ros.core.sim import EvaluationResult, TrialOutcome
+
 
 @dataclasses.dataclass(frozen=True)
 class TrialAgreement:
@@ -31,8 +34,8 @@ class TrialAgreement:
         return self.agreed / self.trials
 
 
-def trial_agreement(first_outcomes: typing.Sequence[typing.Any],
-                    second_outcomes: typing.Sequence[typing.Any]) -> TrialAgreement:
+def trial_agreement(first_outcomes: typing.Sequence["TrialOutcome"],
+                    second_outcomes: typing.Sequence["TrialOutcome"]) -> TrialAgreement:
     """Compare two lists of trial outcomes (objects with ``index``, ``seed``, ``upright``) trial by trial.
 
     Raises ``ValueError`` unless both hold the same trials (indices and seeds).
@@ -67,7 +70,17 @@ def rank_agreement(fitness_by_engine: typing.Mapping[str, typing.Mapping[str, fl
     return float(np.corrcoef(ranks[0], ranks[1])[0, 1])
 
 
-def robust_to_engine(results_by_engine: typing.Mapping[str, typing.Mapping[str, typing.Any]],
+class WithInterval(typing.Protocol):
+    """A fitness with its 95% interval: an evaluation result or an :class:`EngineRow`'s cell."""
+
+    @property
+    def ci_low(self) -> float: ...
+
+    @property
+    def ci_high(self) -> float: ...
+
+
+def robust_to_engine(results_by_engine: typing.Mapping[str, typing.Mapping[str, "WithInterval"]],
                      reference: str) -> typing.List[str]:
     """Designs whose advantage over ``reference`` holds in every engine.
 
@@ -127,7 +140,7 @@ class EngineRow:
     agreement_ci_high: float
 
 
-def table_rows(results_by_design: typing.Mapping[str, typing.Mapping[str, typing.Any]],
+def table_rows(results_by_design: typing.Mapping[str, typing.Mapping[str, "EvaluationResult"]],
                seed: int) -> typing.List["EngineRow"]:
     """``[EngineRow]`` from ``{design: {engine: EvaluationResult}}`` (two engines, the same seeds)."""
     rows = []

@@ -25,6 +25,9 @@ from rollability_ros.core.results.analysis import ConditionResult, summarise
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, LaunchOutcome, TipEventRecord
 from rollability_ros.core.store import Store, unique_key
 
+if typing.TYPE_CHECKING:  # annotations only
+    from rollability_ros.core.record_messages import Record
+
 #: Store file used when no ``store_path`` is given (relative to the working directory).
 DEFAULT_STORE_PATH = "runs/outcomes.sqlite"
 
@@ -56,7 +59,7 @@ class SessionGate:
                 self._store.set_run_info(run_id, "campaign", {"session": session})
         return ""
 
-    def refusal(self, record: typing.Any) -> str:
+    def refusal(self, record: "Record") -> str:
         """"" when ``record`` belongs to this session, else why it is refused."""
         if not self.session_id or isinstance(record, TipEventRecord):
             return ""
@@ -138,8 +141,9 @@ class RunningSummary:
     """
 
     def __init__(self):
-        self._conditions = collections.defaultdict(dict)   # run_id -> {group_key: (successes, trials)}
-        self._candidates = collections.Counter()                           # run_id -> candidates stored
+        self._conditions: typing.DefaultDict[str, typing.Dict[typing.Any, typing.Tuple[int, int]]] = \
+            collections.defaultdict(dict)                                  # run_id -> {group_key: (successes, trials)}
+        self._candidates: typing.Counter[str] = collections.Counter()      # run_id -> candidates stored
         self._latest_stamp_s = {}                                          # run_id -> newest outcome stamp, s
 
     def add_outcome(self, outcome: LaunchOutcome) -> None:

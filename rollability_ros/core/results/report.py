@@ -453,7 +453,7 @@ def _figures(out_dir, views, configurations, comparison, points, engine_rows=(),
         draw("sim_vs_experiment.png", f"Simulated fitness vs {comparison.campaign} campaign success",
              figures.sim_vs_experiment, comparison)
     if points:
-        draw("fig04_convergence.png", "Figure 4: optimization convergence", figures.convergence, points)
+        draw("fig04_convergence.png", "Figure 4: optimization convergence", figures.convergence_figure, points)
     if engine_rows:
         draw("engine_agreement.png", "Cross-engine agreement (simulated): each design's fitness in both engines on "
              "the same seeds, with Wilson 95% intervals", figures.engine_fitness, engine_rows)
@@ -689,7 +689,7 @@ def _pose_windows(outcomes, bags):
             stamps = sorted(m.log_time_ns for m in BagReader(bag, topics=topics))
         except (ValueError, OSError):
             continue
-        previous = {}
+        previous: typing.Dict[str, int] = {}
         for outcome in sorted(outcomes, key=lambda o: o.stamp_s):
             end_ns = int(outcome.stamp_s * 1e9)
             start_ns = previous.get(outcome.run_id, info["start_time_ns"])

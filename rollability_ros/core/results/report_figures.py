@@ -13,6 +13,7 @@ from rollability_ros.core.optional import require
 
 if typing.TYPE_CHECKING:  # annotations only
     from rollability_ros.core.profile import Mesh
+    from rollability_ros.core.results.engine_agreement import EngineRow
 
 _FACTOR_LABELS = {"height_m": "height (cm)", "speed_mps": "speed (m/s)", "angle_deg": "angle (deg)",
                   "configuration": "configuration"}
@@ -161,7 +162,7 @@ def _configuration_axis(ax, configurations, label="success rate"):
     ax.grid(axis="y", alpha=0.3)
 
 
-def convergence(path: str, points: typing.Sequence[ConvergencePoint]) -> str:
+def convergence_figure(path: str, points: typing.Sequence[ConvergencePoint]) -> str:
     """Figure 4: best-so-far fitness per generation (solid), generation best and mean (faint), per run."""
     plt = _pyplot()
     figure, ax = plt.subplots(figsize=(6.4, 3.8), layout="constrained")
@@ -201,7 +202,7 @@ def sim_vs_experiment(path: str, comparison: SimVsExperiment) -> str:
     return _save(figure, path)
 
 
-def engine_fitness(path: str, rows: typing.Sequence[typing.Any]) -> str:
+def engine_fitness(path: str, rows: typing.Sequence["EngineRow"]) -> str:
     """Each design's simulated fitness per engine (bars) with its Wilson 95% interval (whiskers)."""
     plt = _pyplot()
     engines = sorted({row.engine for row in rows}, key=[row.engine for row in rows].index)
@@ -263,7 +264,7 @@ def render_profile_preview(mesh: "Mesh", path: str, title: typing.Optional[str] 
     return _save(figure, path)
 
 
-def sensitivity(path: str, rows: typing.Sequence[typing.Mapping[str, typing.Any]]) -> str:
+def sensitivity_figure(path: str, rows: typing.Sequence[typing.Mapping[str, typing.Any]]) -> str:
     """The sensitivity study (:mod:`rollability_ros.core.sim.sensitivity`): one panel per factor, fitness of each
     configuration against the factor's levels with Wilson 95% intervals; the robust fitness as its own panel."""
     plt = _pyplot()

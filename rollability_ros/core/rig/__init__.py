@@ -13,31 +13,12 @@
 - rig_network: the physical rig's default ROS domain / discovery range and exposure warnings
 - speed_gate: launch speed from light-gate travel times; the SpeedGate contract, SPEED_GATES and make_speed_gate
 
-The face below is what code outside ``core/rig`` imports (``from rollability_ros.core.rig import ValveConfig``);
-the modules behind it may move. ``rig_auth`` and ``valve_auth`` are public as modules (the signed-request
-protocol). Every module here is light (no numpy, no physics): importing the face loads no heavy dependency.
+The face is ``__init__.pyi`` beside this file: the names code outside ``core/rig`` imports (``from
+rollability_ros.core.rig import <name>``), each with the module it lives in. ``lazy_loader.attach_stub``
+(scientific-python SPEC 1) reads it: importing the face loads none of the modules behind it, and a name's
+module is imported when the name is first used, so a light caller (the rig computer) never pays for numpy,
+physics or plotting. Type checkers read the same stub. test/core/test_faces.py checks both.
 """
-from rollability_ros.core.rig import rig_auth, valve_auth
-from rollability_ros.core.rig.launch_backend import LaunchAborted, LaunchBackend, RigPorts
-from rollability_ros.core.rig.rig_network import (DISCOVERY_RANGES, RIG_DOMAIN_ID, check_domain_id, check_namespace,
-                                                  exposure_warnings, physical_rig_environment)
-from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome,
-                                                  OperatorOutcome, PhysicalLaunch, RigSettings, SimulatedLaunch,
-                                                  describe_answer, launch_backend_class, make_launch_backend,
-                                                  parse_outcome_answer)
-from rollability_ros.core.rig.speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
-from rollability_ros.core.rig.valve import ValveConfig, ValveController, ValveStatus
-from rollability_ros.core.rig._valve_backend import (VALVE_BACKENDS, ValveBackend, make_valve_backend,
-                                                     register_valve_backend)
-from rollability_ros.core.rig.valve_backends import make_controller
+import lazy_loader
 
-__all__ = [
-    "ANSWERED", "ASK_OUTCOME", "ASK_REGULATOR", "DISCOVERY_RANGES", "LAUNCH_BACKENDS", "RIG_DOMAIN_ID", "SPEED_GATES",
-    "VALVE_BACKENDS",
-    "ImuOutcome", "LaunchAborted", "LaunchBackend", "OperatorOutcome", "PhysicalLaunch", "RigPorts", "RigSettings",
-    "SimulatedLaunch", "SpeedGate", "SpeedGateConfig", "ValveBackend", "ValveConfig", "ValveController",
-    "ValveStatus", "check_domain_id", "check_namespace", "describe_answer",
-    "exposure_warnings", "launch_backend_class", "make_controller",
-    "make_launch_backend", "make_speed_gate", "make_valve_backend", "parse_outcome_answer", "physical_rig_environment",
-    "register_valve_backend", "rig_auth", "valve_auth",
-]
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

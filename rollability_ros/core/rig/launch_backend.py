@@ -18,9 +18,10 @@ from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 
 if typing.TYPE_CHECKING:  # annotations only: rig_session imports this module
     from rollability_ros.core.imu import ImuOutcomeConfig
-    from rollability_ros.core.rig.rig_session import ImuOutcome, RigSettings
-    from rollability_ros.core.rig.speed_gate import SpeedGateConfig
-    from rollability_ros.core.rig.valve import ValveConfig
+    from rollability_ros.core.rig.rig_session import ImuOutcome, OperatorChannel, RigSettings
+    from rollability_ros.core.rig.speed_gate import SpeedGate, SpeedGateConfig
+    from rollability_ros.core.rig.valve import ValveConfig, ValveStatus
+    from rollability_ros.core.sim import LaunchResult
 
 #: ``on_phase(phase, detail)``: one feedback phase of the Launch action and a sentence for the operator.
 PhaseCallback = typing.Callable[[str, str], None]
@@ -62,6 +63,7 @@ class LaunchBackend(abc.ABC):
     name: str = ""
     attended: bool = False
     authenticated: bool = False
+    operator: "OperatorChannel"
 
     @abc.abstractmethod
     def check(self, run_id: str, trial_id: str, condition: LaunchCondition) -> str:
@@ -103,21 +105,35 @@ class LaunchBackend(abc.ABC):
         """Why this backend cannot re-run a stored launch from its seed ("" when it can; default: it cannot)."""
         return f"a {cls.name} launch cannot be re-run: it has no twin seed"
 
-    def resimulate(self, condition: LaunchCondition, seed: int) -> typing.Any:
+    def resimulate(self, condition: LaunchCondition, seed: int) -> "LaunchResult":
         """The launch of ``condition`` with twin ``seed`` again (the launch a stored outcome was classified from);
         by default refused with :meth:`resimulate_refusal` as a ``ValueError``."""
         raise ValueError(self.resimulate_refusal())
+
+
+class ValvePort(typing.Protocol):
+    """The valve as a physical launch uses it: a :class:`~rollability_ros.core.rig.valve.ValveController` in this
+    process, or the rig node's signed service calls to the valve_controller node. Each command returns ``(ok,
+    message)``."""
+
+    def arm(self) -> typing.Tuple[bool, str]: ...
+
+    def disarm(self) -> typing.Tuple[bool, str]: ...
+
+    def fire(self, pulse_ms: int) -> typing.Tuple[bool, str]: ...
+
+    def status(self) -> "ValveStatus": ...
 
 
 class RigPorts(abc.ABC):
     """The world a physical launch runs in, provided by the caller; each port is opened only when a backend uses it."""
 
     @abc.abstractmethod
-    def open_valve(self, valve_config: "ValveConfig") -> typing.Any:
+    def open_valve(self, valve_config: "ValveConfig") -> ValvePort:
         """The valve (``arm``, ``fire``, ``disarm``, ``status``) with its keep-alive running; see ``PhysicalLaunch``."""
 
     @abc.abstractmethod
-    def open_speed_gate(self, speed_config: "SpeedGateConfig") -> typing.Any:
+    def open_speed_gate(self, speed_config: "SpeedGateConfig") -> "SpeedGate":
         """The speed gate (``arm(target_mps)``, ``read_travel_time(timeout_s)``) for ``speed_config``."""
 
     @abc.abstractmethod

@@ -191,7 +191,7 @@ class RelaySim:
                       self.port_file, "--log", self.log_path, "--max-pulse-ms", str(max_pulse_ms),
                       "--keepalive-timeout-ms", str(keepalive_timeout_ms), "--ack-delay-s", str(ack_delay_s),
                       "--boot-delay-s", str(boot_delay_s)]
-        self.process = None
+        self.process: typing.Optional[subprocess.Popen] = None
         self.port = None
 
     def start(self, timeout_s: float = 10.0) -> "RelaySim":
@@ -225,6 +225,7 @@ class RelaySim:
 
     def _signal_and_wait(self, signum, event, timeout_s):
         seen = sum(e["event"] == event for e in self.entries())
+        assert self.process is not None, "the simulated board is not running"
         self.process.send_signal(signum)
         deadline = time.monotonic() + timeout_s
         while sum(e["event"] == event for e in self.entries()) == seen:

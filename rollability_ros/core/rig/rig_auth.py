@@ -34,6 +34,7 @@ import threading
 import time
 import typing
 
+from rollability_ros.core.records import LaunchOutcome
 from rollability_ros.core.rig import valve_auth
 from rollability_ros.core.rig.valve_auth import AuthError, Signature
 
@@ -92,7 +93,7 @@ def outcome_text(trial_id: str, upright: bool, travel_time_s: float, note: str) 
     return _text("outcome", [trial_id, bool(upright), _number(travel_time_s), note])
 
 
-def record_text(outcome: typing.Any) -> str:
+def record_text(outcome: LaunchOutcome) -> str:
     """The signed text of a stored :class:`~rollability_ros.core.records.LaunchOutcome`: all its fields."""
     def exact(value: typing.Any) -> typing.Any:
         if isinstance(value, float):
@@ -115,8 +116,8 @@ class SessionKeys:
         self.path = path
         self._load = load
         self._lock = threading.Lock()
-        self._newest = None
-        self._file_stamp = None
+        self._newest: typing.Optional[valve_auth.SessionKey] = None
+        self._file_stamp: typing.Optional[typing.Tuple[int, int, int]] = None
         self._keys: dict = {}
 
     def _lookup(self, session, current_only):
@@ -155,7 +156,7 @@ class LaunchTicket:
     trial_id: str
     session_key: typing.Optional[valve_auth.SessionKey] = dataclasses.field(default=None, repr=False)
 
-    def sign_record(self, outcome: typing.Any) -> Signature:
+    def sign_record(self, outcome: LaunchOutcome) -> Signature:
         """The record signature of ``outcome`` (a LaunchOutcome of this ticket's run and trial); unsigned (sim)
         when the ticket came from an :class:`OpenGuard`."""
         if (outcome.run_id, outcome.trial_id) != (self.run_id, self.trial_id):
@@ -260,7 +261,7 @@ class RecordGuard:
         self._keys = SessionKeys(key_path, load)
         self.rejected = 0
 
-    def check(self, signature: Signature, outcome: typing.Any) -> typing.Tuple[bool, str]:
+    def check(self, signature: Signature, outcome: LaunchOutcome) -> typing.Tuple[bool, str]:
         """``(True, "")`` for a sim outcome or an authentic physical one, else ``(False, reason)``."""
         if outcome.backend == "sim":
             return True, ""

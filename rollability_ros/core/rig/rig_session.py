@@ -36,6 +36,7 @@ import types
 import typing
 import zlib
 
+from rollability_ros.core import config
 from rollability_ros.core.imu import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
 from rollability_ros.core.registry import Registry
 from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
@@ -44,6 +45,9 @@ from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBacken
                                                      RigPorts, no_phase, not_cancelled)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
 from rollability_ros.core.rig.valve import ValveConfig
+
+if typing.TYPE_CHECKING:  # annotations only: the twin is imported when a simulated launch runs
+    from rollability_ros.core.sim import LaunchResult
 
 #: Feedback phases of the Launch action, in order.
 PHASES = ("waiting_for_operator", "armed", "fired", "in_flight", "settling", "classifying")
@@ -76,7 +80,7 @@ class RigSettings:
         "description": "countdown between arming and firing so people stand clear, s", "range": (0.0, 600.0)})
     operator_timeout_s: float = dataclasses.field(default=600.0, metadata={
         "description": "longest wait for an operator answer (regulator confirmation, outcome) before the launch aborts,"
-                       " s", "range": (0.0, 86400.0)})
+                       " s", "range": (0.0, 86400.0), "exclusive": "low"})
     question_repeat_s: float = dataclasses.field(default=2.0, metadata={
         "description": "period of the open question's feedback while the rig waits for the operator, s; a client "
                        "whose feedback subscription matched after the first one (a loaded machine's discovery) or an "
@@ -88,7 +92,7 @@ class RigSettings:
                        "before every launch); an aborted launch always forgets it", "range": (0.0, 86400.0)})
     valve_timeout_s: float = dataclasses.field(default=5.0, metadata={
         "description": "longest wait for the valve_controller's arm / fire / disarm services, s",
-        "range": (0.0, 600.0)})
+        "range": (0.0, 600.0), "exclusive": "low"})
     seed: int = dataclasses.field(default=0, metadata={
         "description": "seed of the simulated rig's launch twin and speed noise (integer >= 0)",
         "range": (0, 2147483647)})
@@ -103,13 +107,6 @@ class RigSettings:
             raise ValueError("configurations must list the configuration ids the rig can launch")
         if self.outcome_source not in OUTCOME_SOURCES:
             raise ValueError(f"outcome_source must be one of {OUTCOME_SOURCES}, got {self.outcome_source!r}")
-        if not all(0 <= value < math.inf for value in (self.countdown_s, self.imu_override_s,
-                                                        self.confirmation_valid_s)):
-            raise ValueError("countdown_s, imu_override_s and confirmation_valid_s must be finite and >= 0")
-        if not 0 < self.operator_timeout_s < math.inf or not 0 < self.valve_timeout_s < math.inf:
-            raise ValueError("operator_timeout_s and valve_timeout_s must be finite and > 0")
-        if not 0.05 <= self.question_repeat_s < math.inf:
-            raise ValueError(f"question_repeat_s must be finite and >= 0.05, got {self.question_repeat_s}")
 
 
 def check_goal(run_id: str, trial_id: str, condition: LaunchCondition,
@@ -168,10 +165,11 @@ def parse_outcome_answer(text: str) -> "OperatorOutcome":
     return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest))
 
 
-def describe_answer(kind: str, answer: typing.Any) -> str:
+def describe_answer(kind: str, answer: typing.Optional[OperatorOutcome]) -> str:
     """An operator answer in words: ``regulator confirmed`` or ``upright, travel time 0.42 s, note: ...``."""
     if kind == "confirm":
         return "regulator confirmed"
+    assert answer is not None, "an outcome answer carries the outcome"
     parts = ["upright" if answer.upright else "tipped"]
     if not math.isnan(answer.travel_time_s):
         parts.append(f"travel time {answer.travel_time_s:g} s")
@@ -529,7 +527,8 @@ class PhysicalLaunch(LaunchBackend):
 
 
 class SimulatedLaunch(LaunchBackend):
-    """The ``sim`` :class:`LaunchBackend`: launches on the launch twin (``rollability_ros.core.sim.launch_twin``),
+    """The ``sim`` :class:`LaunchBackend`: launches on the launch twin (``rollability_ros.core.sim.launch``, through the
+    ``rollability_ros.core.sim`` face),
     imported at the first launch (or :meth:`load`) so the physical rig runs without pybullet installed.
 
     Parameters
@@ -563,7 +562,7 @@ class SimulatedLaunch(LaunchBackend):
         """Import the twin, read its settings and check its launcher against the robot now (a node does it at
         start-up to fail early: ``ValueError`` naming the setting)."""
         if self._twin is None:
-            twin = importlib.import_module("rollability_ros.core.sim.launch_twin")
+            twin = importlib.import_module("rollability_ros.core.sim")
             self._twin_settings = twin.load_launch_twin_settings(self.settings.twin_config)
             twin.check_launcher(self._twin_settings)
             self._twin = twin
@@ -578,6 +577,7 @@ class SimulatedLaunch(LaunchBackend):
         from rollability_ros.core.profile import configuration_ids
 
         self.load()
+        assert self._twin_settings is not None   # load() read them
         try:
             known = configuration_ids(self._twin_settings.twin.designs)
         except (ValueError, OSError) as exc:   # an unreadable designs file: every goal names it
@@ -590,6 +590,7 @@ class SimulatedLaunch(LaunchBackend):
     def design_sources(self) -> dict:
         """The twin's ``launch_twin.designs`` (relative paths are from the working directory), made absolute."""
         self.load()
+        assert self._twin_settings is not None   # load() read them
         designs = self._twin_settings.twin.designs
         return {"designs_file": os.path.abspath(designs.designs_file) if designs.designs_file else "",
                 "mesh_files": {label: os.path.abspath(path) for label, path in designs.meshes().items()}}
@@ -617,7 +618,7 @@ class SimulatedLaunch(LaunchBackend):
         """None: a simulated launch is re-run from its seed."""
         return ""
 
-    def resimulate(self, condition: LaunchCondition, seed: int) -> typing.Any:
+    def resimulate(self, condition: LaunchCondition, seed: int) -> "LaunchResult":
         """The launch twin result of one launch of ``condition`` with twin ``seed``: given a stored outcome's
         condition and ``seed`` (and these twin settings), the launch that outcome was classified from, again."""
         return self.load().simulate_launch(condition, self._twin_settings, check_twin_seed(seed))
@@ -639,7 +640,7 @@ def make_launch_backend(settings: RigSettings, speed_config: SpeedGateConfig, va
     Raises ``ValueError`` for unusable settings (a bad twin configuration, an IMU the caller cannot provide) and
     ``ImportError`` when the simulated backend's dependencies are missing.
     """
-    settings.validate()
+    config.check_settings(settings, "rig")
     return launch_backend_class(settings.backend).from_ports(settings, speed_config, valve_config, imu_config, ports)
 
 
@@ -664,7 +665,7 @@ def launch_seed(base_seed: int, trial_id: str) -> int:
     return (zlib.crc32(trial_id.encode("utf-8")) ^ (base_seed & 0xFFFFFFFF)) & 0x7FFFFFFF
 
 
-def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, result: typing.Any,
+def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, result: "LaunchResult",
                       speed_config: SpeedGateConfig) -> LaunchOutcome:
     """The :class:`LaunchOutcome` of a launch twin result (``upright``, ``final_orientation_xyzw``,
     ``travel_time_s``), with the speed flagged against ``speed_config``'s tolerance; an invalid launch

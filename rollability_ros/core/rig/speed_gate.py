@@ -200,8 +200,10 @@ class GpioSpeedGate(SpeedGate):
                                             config={(self.start_line_offset, self.end_line_offset): settings})
 
     def _drain(self):
-        while self._request.wait_edge_events(0):
-            self._request.read_edge_events()
+        request = self._request
+        assert request is not None   # drained only while open
+        while request.wait_edge_events(0):
+            request.read_edge_events()
 
     def arm(self, target_mps: float) -> None:
         """Open the lines if needed and drop stale edges (a hand through a beam before the launch)."""
@@ -297,7 +299,8 @@ class SimulatedGateConfig:
     """``speed_gate.simulated.*``."""
 
     speed_noise_fraction: float = dataclasses.field(default=0.03, metadata={
-        "description": "standard deviation of the simulated speed as a fraction of the target", "range": (0.0, 10.0)})
+        "description": "standard deviation of the simulated speed as a fraction of the target",
+        "range": (0.0, 1.0), "exclusive": "high"})
     seed: int = dataclasses.field(default=0, metadata={
         "description": "seed of the simulated gate's speed noise (integer >= 0)", "range": (0, 2147483647)})
 
@@ -331,25 +334,19 @@ class SpeedGateConfig:
                        "(typed in)"})
     run_length_m: float = dataclasses.field(default=0.34, metadata={
         "description": "distance between the two light gates, m; speed = distance / travel time",
-        "range": (0.0, 100.0)})
+        "range": (0.0, 100.0), "exclusive": "low"})
     tolerance_fraction: float = dataclasses.field(default=0.15, metadata={
-        "description": "a launch further than this fraction off its target speed is flagged", "range": (0.0, 10.0)})
+        "description": "a launch further than this fraction off its target speed is flagged",
+        "range": (0.0, 1.0), "exclusive": "both"})
     timeout_s: float = dataclasses.field(default=3.0, metadata={
         "description": "longest wait for both gate edges after firing, s; then the speed is not measured",
-        "range": (0.0, 600.0)})
+        "range": (0.0, 600.0), "exclusive": "low"})
     simulated: SimulatedGateConfig = dataclasses.field(default_factory=SimulatedGateConfig)
     gpio: GpioGateConfig = dataclasses.field(default_factory=GpioGateConfig)
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first unusable field."""
         SPEED_GATES.check(self.backend)
-        if not self.run_length_m > 0 or not self.timeout_s > 0:
-            raise ValueError("run_length_m and timeout_s must be > 0")
-        if not 0 < self.tolerance_fraction < 1:
-            raise ValueError(f"tolerance_fraction must be in (0, 1), got {self.tolerance_fraction}")
-        if not 0 <= self.simulated.speed_noise_fraction < 1:
-            raise ValueError(f"simulated.speed_noise_fraction must be in [0, 1), got "
-                             f"{self.simulated.speed_noise_fraction}")
 
     def measure(self, target_mps: float, travel_time_s: float) -> "SpeedMeasurement":
         """:func:`measure` with this configuration's run length and tolerance."""

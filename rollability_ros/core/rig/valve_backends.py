@@ -147,6 +147,7 @@ class GpioBackend(ValveBackend):
     def _set(self, active):
         if self._request is None:
             raise ValveBackendError(f"gpio line {self.chip_path}:{self.line_offset} is not requested")
+        assert self._gpiod is not None   # imported by the open that requested the line
         value = self._gpiod.line.Value.ACTIVE if active else self._gpiod.line.Value.INACTIVE
         self._request.set_value(self.line_offset, value)
 

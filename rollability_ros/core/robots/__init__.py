@@ -4,25 +4,12 @@
 - urdf_description: read and check a URDF into a rigid-body description
 - urdf_robot: a URDF robot with the profile on a mount link
 
-The face below is what code outside ``core/robots`` imports (``from rollability_ros.core.robots import
-ChassisSpec``). It is lazy (``core/faces.py``): importing it loads none of the modules behind it, and a name's
-module is imported when the name is first used, so a light caller never pays for numpy and PyBullet.
+The face is ``__init__.pyi`` beside this file: the names code outside ``core/robots`` imports (``from
+rollability_ros.core.robots import <name>``), each with the module it lives in. ``lazy_loader.attach_stub``
+(scientific-python SPEC 1) reads it: importing the face loads none of the modules behind it, and a name's
+module is imported when the name is first used, so a light caller (the rig computer) never pays for numpy,
+physics or plotting. Type checkers read the same stub. test/core/test_faces.py checks both.
 """
-import typing
+import lazy_loader
 
-from rollability_ros.core.faces import lazy_attribute
-
-if typing.TYPE_CHECKING:   # imported when first used: lazy_attribute reads this block
-    from rollability_ros.core.robots.robot import (ChassisModel, ChassisSpec, ProfileBody, ProfileMountSpec, RobotModel,
-                                                   SpawnedRobot)
-    from rollability_ros.core.robots.urdf_robot import (RobotChoice, UrdfRobotModel, UrdfRobotSpec, footprint_grid,
-                                                        obj_text, profile_inertia, profile_mount)
-
-__all__ = [
-    "ChassisModel", "ChassisSpec", "ProfileBody", "ProfileMountSpec", "RobotChoice", "RobotModel", "SpawnedRobot",
-    "UrdfRobotModel", "UrdfRobotSpec", "footprint_grid", "obj_text", "profile_inertia", "profile_mount",
-]
-
-
-def __getattr__(name: str) -> typing.Any:
-    return lazy_attribute(__name__, name)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

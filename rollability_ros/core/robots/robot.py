@@ -74,7 +74,7 @@ class ProfileMountSpec:
         "description": "viscous damping of the compliant mount along its normal, N s/m", "range": (0.0, 1000000.0)})
     travel_m: float = dataclasses.field(default=0.005, metadata={
         "description": "end stops of the compliant mount: the profile moves at most this far either way along "
-                       "the normal, m", "range": (0.0, 1.0)})
+                       "the normal, m", "range": (0.0, 1.0), "exclusive": "low"})
 
     #: Largest explicit-integration rate (undamped angular frequency x step, damping rate x step) accepted.
     MAX_RATE_PER_STEP = 1.0
@@ -83,14 +83,6 @@ class ProfileMountSpec:
     def compliant(self) -> bool:
         """True when the profile rides on a spring (``stiffness_npm`` > 0)."""
         return self.stiffness_npm > 0
-
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        for name in ("stiffness_npm", "damping_nspm"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if not self.travel_m > 0:
-            raise ValueError(f"travel_m must be > 0, got {self.travel_m}")
 
     def check_time_step(self, profile_mass_kg: float, time_step_s: float) -> None:
         """Raise ``ValueError`` when the spring-damper on a profile of ``profile_mass_kg`` would be integrated
@@ -287,26 +279,28 @@ class ChassisSpec:
     """
 
     body_length_m: float = dataclasses.field(default=0.18, metadata={
-        "description": "chassis body box length along x (forward), m", "range": (0.0, 10.0)})
+        "description": "chassis body box length along x (forward), m", "range": (0.0, 10.0), "exclusive": "low"})
     body_width_m: float = dataclasses.field(default=0.14, metadata={
-        "description": "chassis body box width along y (left), m", "range": (0.0, 10.0)})
+        "description": "chassis body box width along y (left), m", "range": (0.0, 10.0), "exclusive": "low"})
     body_height_m: float = dataclasses.field(default=0.04, metadata={
-        "description": "chassis body box height (z), m; the profile sits on its top face", "range": (0.0, 10.0)})
+        "description": "chassis body box height (z), m; the profile sits on its top face",
+        "range": (0.0, 10.0), "exclusive": "low"})
     body_mass_kg: float = dataclasses.field(default=0.9, metadata={
-        "description": "chassis body mass with battery and motors, kg", "range": (0.0, 10000.0)})
+        "description": "chassis body mass with battery and motors, kg", "range": (0.0, 10000.0), "exclusive": "low"})
     com_offset_z_m: float = dataclasses.field(default=-0.015, metadata={
         "description": "centre of mass height relative to the body centre, m (negative = below)",
         "range": (-1.0, 1.0)})
     wheel_radius_m: float = dataclasses.field(default=0.03, metadata={
-        "description": "radius of each wheel at the tyre surface, m", "range": (0.0, 10.0)})
+        "description": "radius of each wheel at the tyre surface, m", "range": (0.0, 10.0), "exclusive": "low"})
     wheel_width_m: float = dataclasses.field(default=0.025, metadata={
-        "description": "wheel width (tyre tread), m", "range": (0.0, 10.0)})
+        "description": "wheel width (tyre tread), m", "range": (0.0, 10.0), "exclusive": "low"})
     wheel_mass_kg: float = dataclasses.field(default=0.05, metadata={
-        "description": "mass of one wheel, kg", "range": (0.0, 1000.0)})
+        "description": "mass of one wheel, kg", "range": (0.0, 1000.0), "exclusive": "low"})
     wheelbase_m: float = dataclasses.field(default=0.12, metadata={
-        "description": "distance between the front and rear axles, m", "range": (0.0, 10.0)})
+        "description": "distance between the front and rear axles, m", "range": (0.0, 10.0), "exclusive": "low"})
     track_m: float = dataclasses.field(default=0.17, metadata={
-        "description": "distance between the left and right wheel centres, m", "range": (0.0, 10.0)})
+        "description": "distance between the left and right wheel centres, m",
+        "range": (0.0, 10.0), "exclusive": "low"})
     axle_offset_z_m: float = dataclasses.field(default=-0.015, metadata={
         "description": "height of the wheel axles relative to the body centre, m (negative = below)",
         "range": (-1.0, 1.0)})
@@ -315,31 +309,20 @@ class ChassisSpec:
     profile_mass_scale: float = dataclasses.field(default=1.0, metadata=PROFILE_MASS_SCALE)
     upright_tilt_deg: float = dataclasses.field(default=30.0, metadata={
         "description": "upright when the body +z axis is within this angle of world up at rest, deg",
-        "range": (0.0, 180.0)})
+        "range": (0.0, 90.0), "exclusive": "both"})
     min_wheels_in_contact: int = dataclasses.field(default=3, metadata={
-        "description": "wheels that must touch the ground for an upright verdict (count)", "range": (0, 4)})
+        "description": "wheels that must touch the ground for an upright verdict (count)", "range": (1, 4)})
     contact_tolerance_m: float = dataclasses.field(default=0.003, metadata={
-        "description": "a wheel this close to the ground counts as touching it, m", "range": (0.0, 1.0)})
+        "description": "a wheel this close to the ground counts as touching it, m",
+        "range": (0.0, 1.0), "exclusive": "low"})
     profile_mount: ProfileMountSpec = dataclasses.field(default_factory=ProfileMountSpec)
     profile_print: ProfilePrintSpec = dataclasses.field(default_factory=ProfilePrintSpec)
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        self.profile_mount.validate()
-        self.profile_print.validate()
-        for name in ("body_length_m", "body_width_m", "body_height_m", "body_mass_kg", "wheel_radius_m",
-                     "wheel_width_m", "wheel_mass_kg", "wheelbase_m", "track_m", "profile_mass_scale",
-                     "contact_tolerance_m"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
+        checked by :func:`~rollability_ros.core.config.check_settings`)."""
         if abs(self.com_offset_z_m) >= self.body_height_m / 2:
             raise ValueError(f"com_offset_z_m {self.com_offset_z_m} must lie inside the body (|.| < height/2)")
-        if self.wheel_drag_torque_nm < 0:
-            raise ValueError(f"wheel_drag_torque_nm must be >= 0, got {self.wheel_drag_torque_nm}")
-        if not 0 < self.upright_tilt_deg < 90:
-            raise ValueError(f"upright_tilt_deg must be in (0, 90), got {self.upright_tilt_deg}")
-        if not 1 <= self.min_wheels_in_contact <= 4:
-            raise ValueError(f"min_wheels_in_contact must be in [1, 4], got {self.min_wheels_in_contact}")
         if self.track_m / 2 - self.wheel_width_m / 2 < self.body_width_m / 2 - 1e-9 and \
                 self.axle_offset_z_m + self.wheel_radius_m > -self.body_height_m / 2:
             raise ValueError("wheels intersect the body: increase track_m or lower axle_offset_z_m")

@@ -298,7 +298,7 @@ def _parse(xml_text):
         links[name] = link
     if not links:
         raise ValueError("robot description has no <link>")
-    joints = {}
+    joints: typing.Dict[str, ElementTree.Element] = {}
     for joint in root.findall("joint"):
         name, kind = joint.get("name"), joint.get("type")
         parent, child = joint.find("parent"), joint.find("child")
@@ -309,19 +309,26 @@ def _parse(xml_text):
         for end in (parent.get("link"), child.get("link")):
             if end not in links:
                 raise ValueError(f"joint {name!r} refers to unknown link {end!r}")
-        if child.get("link") in {j.find("child").get("link") for j in joints.values()}:
+        if child.get("link") in {_end(j, "child") for j in joints.values()}:
             raise ValueError(f"link {child.get('link')!r} is the child of more than one joint")
         joints[name] = joint
     return root, links, joints
 
 
+def _end(joint: ElementTree.Element, end: str) -> str:
+    """The link named by a checked joint's ``<parent>`` or ``<child>`` (``_read_links`` refused one without)."""
+    element = joint.find(end)
+    assert element is not None, end
+    return element.get("link", "")
+
+
 def _tree(links, joints):
     """Return ``(root link, {parent: [joint, ...]})``, checking there is one root and no loop."""
-    children = {name: [] for name in links}
+    children: typing.Dict[str, typing.List[ElementTree.Element]] = {name: [] for name in links}
     child_links = set()
     for joint in joints.values():
-        children[joint.find("parent").get("link")].append(joint)
-        child_links.add(joint.find("child").get("link"))
+        children[_end(joint, "parent")].append(joint)
+        child_links.add(_end(joint, "child"))
     roots = [name for name in links if name not in child_links]
     if len(roots) != 1:
         raise ValueError(f"robot description needs exactly one root link, found {len(roots)}: {', '.join(roots)}")
@@ -375,12 +382,8 @@ def _geometry_points(geometry, where, mesh_path):
     return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
 
 
-def describe(xml_text: str, urdf_folder: typing.Optional[str] = None,
-             search_paths: typing.Sequence[str] = ()) -> RobotDescription:
-    """Check a URDF and build its :class:`RobotDescription` (see the module docstring); ``ValueError`` if bad."""
-    root_element, links, joints = _parse(xml_text)
-    root, children = _tree(links, joints)
-    folders = search_folders(search_paths)
+def _resolve_meshes(root_element, urdf_folder, folders):
+    """Set every ``<mesh filename>`` of the description to the file it names (:func:`resolve_mesh_path`)."""
     visual_meshes = {id(mesh) for visual in root_element.iter("visual") for mesh in visual.iter("mesh")}
     for element in root_element.iter("mesh"):
         try:
@@ -391,13 +394,17 @@ def describe(xml_text: str, urdf_folder: typing.Optional[str] = None,
             raise ValueError(f"visual {exc}, or set urdf_robot.ignore_visual_meshes: true (the simulation never "
                              "draws visuals)") from None
 
-    # a link's placement in its body: a 4x4 transform, or the _BadTransform that keeps it from being placed
+
+def _place_links(root, children):
+    """``(link_in_body, body_of, order, moving)``: each link's placement in its body (a 4x4 transform, or the
+    _BadTransform that keeps it from being placed), the body (the moving link) each link is fixed to, the links
+    breadth first from ``root``, and the moving joints as ``(joint element, parent link, placement)``."""
     link_in_body: typing.Dict[str, typing.Any] = {root: np.eye(4)}
     body_of, order = {root: root}, [root]
-    moving: typing.List[typing.Tuple[typing.Any, str, typing.Any]] = []   # (joint element, parent, placement)
+    moving: typing.List[typing.Tuple[typing.Any, str, typing.Any]] = []
     for name in order:  # breadth first: parents before children
         for joint in children[name]:
-            child = joint.find("child").get("link")
+            child = _end(joint, "child")
             order.append(child)
             parent_in_body = link_in_body[name]
             joint_origin: typing.Any   # a 4x4 transform or a _BadTransform
@@ -414,6 +421,61 @@ def describe(xml_text: str, urdf_folder: typing.Optional[str] = None,
             else:
                 body_of[child], link_in_body[child] = child, np.eye(4)
                 moving.append((joint, name, placement))
+    return link_in_body, body_of, order, moving
+
+
+def _check_masses(bodies, moving, root):
+    """``ValueError`` naming a moving link, or the root, whose body has no mass."""
+    for joint, _, _ in moving:
+        child = _end(joint, "child")
+        if bodies[child]["mass"] <= 0:
+            raise ValueError(f"link {child!r} moves on joint {joint.get('name')!r} but has no mass (no <inertial> "
+                             "on it or on links fixed to it)")
+    if bodies[root]["mass"] <= 0:
+        raise ValueError(f"root link {root!r} and the links fixed to it have no mass (no <inertial>)")
+
+
+def _body_inertials(bodies):
+    """``{body: (mass, centre of mass, inertia about it)}`` of the bodies with mass, their parts combined."""
+    body_inertials = {}
+    for name, body in bodies.items():
+        if body["mass"] <= 0:
+            continue  # cannot happen for a moving body (describe checks): the root is checked too
+        com = body["moment"] / body["mass"]
+        inertia = np.zeros((3, 3))
+        for mass, centre, part in body["parts"]:
+            offset = centre - com
+            inertia += part + mass * (offset @ offset * np.eye(3) - np.outer(offset, offset))
+        body_inertials[name] = (body["mass"], com, inertia)
+    return body_inertials
+
+
+def _sim_urdf(name, root, mass_kg, com_m, bodies, body_inertials, moving, body_of):
+    """The simulation's URDF text: a base link at the robot's centre of mass, one link per body, the moving
+    joints."""
+    parts = [f'<?xml version="1.0"?>\n<robot name="{name}_rollability">',
+             f'<link name="{BASE_LINK}">' + inertial_xml(mass_kg * FRAME_MASS_FRACTION, np.zeros(3),
+                                                         np.eye(3) * mass_kg * FRAME_MASS_FRACTION * 1e-2) + "</link>",
+             f'<joint name="{BASE_LINK}_joint" type="fixed"><parent link="{BASE_LINK}"/><child link="{root}"/>'
+             f'{origin_xml(transform(-com_m))}</joint>']
+    for link, body in bodies.items():
+        inertial = inertial_xml(*body_inertials[link]) if link in body_inertials else ""
+        parts.append(f'<link name="{link}">{inertial}{"".join(body["collisions"])}{body["contact"] or ""}</link>')
+    for joint, parent, placement in moving:
+        extras = "".join(ElementTree.tostring(element, encoding="unicode").strip()
+                         for tag in ("axis", "limit", "dynamics") for element in joint.findall(tag))
+        parts.append(f'<joint name="{joint.get("name")}" type="{joint.get("type")}"><parent link="{body_of[parent]}"/>'
+                     f'<child link="{_end(joint, "child")}"/>{origin_xml(placement)}{extras}</joint>')
+    return "\n".join(parts) + "\n"
+
+
+def describe(xml_text: str, urdf_folder: typing.Optional[str] = None,
+             search_paths: typing.Sequence[str] = ()) -> RobotDescription:
+    """Check a URDF and build its :class:`RobotDescription` (see the module docstring); ``ValueError`` if bad."""
+    root_element, links, joints = _parse(xml_text)
+    root, children = _tree(links, joints)
+    _resolve_meshes(root_element, urdf_folder, search_folders(search_paths))
+    link_in_body, body_of, order, moving = _place_links(root, children)
     if len(order) != len(links):
         raise ValueError("robot description has links not connected to the root: "
                          f"{', '.join(sorted(set(links) - set(order)))}")
@@ -455,24 +517,9 @@ def describe(xml_text: str, urdf_folder: typing.Optional[str] = None,
         if body["contact"] is None and links[name].find("contact") is not None:
             body["contact"] = ElementTree.tostring(links[name].find("contact"), encoding="unicode").strip()
 
-    for joint, _, _ in moving:
-        child = joint.find("child").get("link")
-        if bodies[child]["mass"] <= 0:
-            raise ValueError(f"link {child!r} moves on joint {joint.get('name')!r} but has no mass (no <inertial> "
-                             "on it or on links fixed to it)")
-    if bodies[root]["mass"] <= 0:
-        raise ValueError(f"root link {root!r} and the links fixed to it have no mass (no <inertial>)")
+    _check_masses(bodies, moving, root)
 
-    body_inertials = {}
-    for name, body in bodies.items():
-        if body["mass"] <= 0:
-            continue  # cannot happen for a moving body (checked above): the root is checked too
-        com = body["moment"] / body["mass"]
-        inertia = np.zeros((3, 3))
-        for mass, centre, part in body["parts"]:
-            offset = centre - com
-            inertia += part + mass * (offset @ offset * np.eye(3) - np.outer(offset, offset))
-        body_inertials[name] = (body["mass"], com, inertia)
+    body_inertials = _body_inertials(bodies)
 
     # centre of mass of the whole robot (joints at zero), in the root frame
     body_in_root = {root: np.eye(4)}
@@ -485,21 +532,10 @@ def describe(xml_text: str, urdf_folder: typing.Optional[str] = None,
     com_m = sum(b[0] * (body_in_root[n][:3, :3] @ b[1] + body_in_root[n][:3, 3])
                 for n, b in body_inertials.items()) / mass_kg
 
-    parts = [f'<?xml version="1.0"?>\n<robot name="{root_element.get("name", "robot")}_rollability">',
-             f'<link name="{BASE_LINK}">' + inertial_xml(mass_kg * FRAME_MASS_FRACTION, np.zeros(3),
-                                                         np.eye(3) * mass_kg * FRAME_MASS_FRACTION * 1e-2) + "</link>",
-             f'<joint name="{BASE_LINK}_joint" type="fixed"><parent link="{BASE_LINK}"/><child link="{root}"/>'
-             f'{origin_xml(transform(-com_m))}</joint>']
-    for name, body in bodies.items():
-        inertial = inertial_xml(*body_inertials[name]) if name in body_inertials else ""
-        parts.append(f'<link name="{name}">{inertial}{"".join(body["collisions"])}{body["contact"] or ""}</link>')
-    for joint, parent, placement in moving:
-        extras = "".join(ElementTree.tostring(element, encoding="unicode").strip()
-                         for tag in ("axis", "limit", "dynamics") for element in joint.findall(tag))
-        parts.append(f'<joint name="{joint.get("name")}" type="{joint.get("type")}"><parent link="{body_of[parent]}"/>'
-                     f'<child link="{joint.find("child").get("link")}"/>{origin_xml(placement)}{extras}</joint>')
+    sim_urdf = _sim_urdf(root_element.get("name", "robot"), root, mass_kg, com_m, bodies, body_inertials, moving,
+                         body_of)
     return RobotDescription(
-        name=root_element.get("name", "robot"), sim_urdf="\n".join(parts) + "\n", original_urdf=xml_text,
+        name=root_element.get("name", "robot"), sim_urdf=sim_urdf, original_urdf=xml_text,
         body_of=dict(body_of),
         link_in_body={k: (v.message if isinstance(v, _BadTransform) else tuple(map(tuple, v.tolist())))
                       for k, v in link_in_body.items()},

@@ -92,10 +92,10 @@ class UrdfRobotSpec:
                        "chassis"})
     footprint_length_m: float = dataclasses.field(default=0.18, metadata={
         "description": "length of the mount footprint the profile grid spans, along the footprint x, m",
-        "range": (0.0, 100.0)})
+        "range": (0.0, 100.0), "exclusive": "low"})
     footprint_width_m: float = dataclasses.field(default=0.14, metadata={
         "description": "width of the mount footprint the profile grid spans, along the footprint y, m",
-        "range": (0.0, 100.0)})
+        "range": (0.0, 100.0), "exclusive": "low"})
     footprint_offset_m: tuple[float, ...] = dataclasses.field(default=(0.0, 0.0, 0.0), metadata={
         "description": "footprint centre in the mount link's frame (x, y, z), m"})
     footprint_yaw_deg: float = dataclasses.field(default=0.0, metadata={
@@ -114,9 +114,10 @@ class UrdfRobotSpec:
         "description": "unit vector in the root link's frame that points up when the robot is upright (no unit)"})
     upright_tilt_deg: float = dataclasses.field(default=30.0, metadata={
         "description": "upright when the up axis is within this angle of world up at rest, deg (180 = not judged)",
-        "range": (0.0, 180.0)})
+        "range": (0.0, 180.0), "exclusive": "low"})
     contact_tolerance_m: float = dataclasses.field(default=0.005, metadata={
-        "description": "a wheel link this close to the ground counts as touching it, m", "range": (0.0, 10.0)})
+        "description": "a wheel link this close to the ground counts as touching it, m",
+        "range": (0.0, 10.0), "exclusive": "low"})
     joint_drag_torque_nm: float = dataclasses.field(default=0.0, metadata={
         "description": "back-drive drag torque of each unpowered joint (wheel drives), N m",
         "range": (0.0, 1000000.0)})
@@ -135,26 +136,17 @@ class UrdfRobotSpec:
         return bool(self.urdf_path or self.robot_description)
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field; with a description, check it too (see
+        """Raise ``ValueError`` for a rule that spans fields or a list, name or description that is unusable (each
+        number's range is declared in its metadata and checked by
+        :func:`~rollability_ros.core.config.check_settings`); with a description, check it too (see
         :meth:`description`)."""
-        self.profile_mount.validate()
-        self.profile_print.validate()
-        for name in ("footprint_length_m", "footprint_width_m", "contact_tolerance_m", "profile_mass_scale"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if len(self.footprint_offset_m) != 3:
             raise ValueError(f"footprint_offset_m must be [x, y, z] in metres, got {list(self.footprint_offset_m)}")
         if len(self.up_axis_xyz) != 3 or not np.linalg.norm(self.up_axis_xyz) > 0:
             raise ValueError(f"up_axis_xyz must be a non-zero [x, y, z] vector, got {list(self.up_axis_xyz)}")
-        if not 0 < self.upright_tilt_deg <= 180:
-            raise ValueError(f"upright_tilt_deg must be in (0, 180] (180 = tilt not judged), got {self.upright_tilt_deg}")
-        if self.min_wheels_in_contact < 0:
-            raise ValueError(f"min_wheels_in_contact must be >= 0, got {self.min_wheels_in_contact}")
         if self.forward_axis not in FORWARD_AXIS_DEG:
             raise ValueError(f"forward_axis must be one of {', '.join(FORWARD_AXIS_DEG)} (an axis of the root link), "
                              f"got {self.forward_axis!r}")
-        if self.joint_drag_torque_nm < 0:
-            raise ValueError(f"joint_drag_torque_nm must be >= 0, got {self.joint_drag_torque_nm}")
         if self.selected and self.upright_tilt_deg >= 180 and self.min_wheels_in_contact == 0:
             raise ValueError("upright is judged by nothing: set upright_tilt_deg < 180 or min_wheels_in_contact > 0")
         try:

@@ -174,7 +174,7 @@ def _lattice_graph(directions, neighbours):
     return lattice, near, spacing
 
 
-def _hull_vertices(points):
+def hull_vertices(points: np.ndarray) -> np.ndarray:
     """The vertices of the convex hull of ``points`` (k, 3): the same support function, radius and hull as all of
     them (a profile mesh's thousands of vertices cost 0.24 s of lattice products per map); all points when they
     span no volume (qhull refuses flat or tiny sets)."""
@@ -213,7 +213,7 @@ def build_basin_map(points_by_link: typing.Mapping[int, npt.ArrayLike], wheel_li
     """
     com = np.asarray(com_m, dtype=np.float64)
     lattice, near, delta = _lattice_graph(directions, neighbours)
-    relative = {link: _hull_vertices(np.asarray(points, dtype=np.float64) - com)
+    relative = {link: hull_vertices(np.asarray(points, dtype=np.float64) - com)
                 for link, points in points_by_link.items()}
     support = {link: (points @ lattice.T).max(axis=0) for link, points in relative.items()}  # (n,) per link
     height = np.max(np.vstack(list(support.values())), axis=0)

@@ -76,15 +76,10 @@ class EvaluatorOptions:
         "description": "time between cancel checks while waiting for workers, s", "range": (0.001, 10.0)})
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        if not 1 <= self.trials <= self.max_trials:
-            raise ValueError(f"need 1 <= trials <= max_trials, got trials={self.trials}, max_trials={self.max_trials}")
-        if self.batch_trials < 1:
-            raise ValueError(f"batch_trials must be >= 1, got {self.batch_trials}")
-        if self.workers < 0:
-            raise ValueError(f"workers must be >= 0 (0 = one per core), got {self.workers}")
-        if not self.poll_interval_s > 0:
-            raise ValueError(f"poll_interval_s must be > 0, got {self.poll_interval_s}")
+        """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
+        checked by :func:`~rollability_ros.core.config.check_settings`)."""
+        if not self.trials <= self.max_trials:
+            raise ValueError(f"need trials <= max_trials, got trials={self.trials}, max_trials={self.max_trials}")
 
 
 @dataclasses.dataclass
@@ -163,7 +158,7 @@ def with_given_files(settings: "EvaluatorSettings", paths: typing.Sequence[str],
     command applies (:func:`~rollability_ros.core.config.check_given_files`): the evaluation's namespaces
     (:data:`SETTINGS_SECTIONS`) and, when its objective launches the twin, ``launch_twin``. So a twin parameter in a
     given file changes the launches or is refused, never dropped."""
-    from rollability_ros.core.sim.launch_twin import TWIN_NAMESPACE, twin_files
+    from rollability_ros.core.sim.launch.settings import TWIN_NAMESPACE, twin_files
 
     launches = settings.objective.kind != "disturbance"
     check_given_files(paths, {*SETTINGS_SECTIONS.values(), *([TWIN_NAMESPACE] if launches else [])}, command)
@@ -300,10 +295,15 @@ class TrialExecutor(abc.ABC):
     def close(self) -> None:
         """Release workers or connections (default: nothing to release)."""
 
+    def warm(self) -> typing.List[int]:
+        """Block until the executor's worker processes have started their physics clients; return their pids
+        (default: none to wait for)."""
+        return []
+
     def __enter__(self) -> "TrialExecutor":
         return self
 
-    def __exit__(self, *exc_info: typing.Any) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.close()
 
 
@@ -319,7 +319,6 @@ class SerialExecutor(TrialExecutor):
             if should_stop():
                 return
             yield run_batch(job, batch)
-
 
 
 def _drain(pending, wait, cancel, should_stop, poll_interval_s):

@@ -6,7 +6,7 @@ interface (``run(index, seed) -> TrialOutcome``): start state and disturbance fr
 above the ground, the push as a world-frame force and torque at the base's centre of mass, the rest rule of
 :class:`~rollability_ros.core.sim.trials.RestDetector` (speeds of the root body), the upright test (tilt of the
 root frame's up axis, wheels within ``contact_tolerance_m`` of the ground) and the early decision. The rest rule
-reads the root's mean speeds over each check interval from its poses (see :func:`_pose_speeds`).
+reads the root's mean speeds over each check interval from its poses (see :func:`pose_speeds`).
 
 The robot is the URDF PyBullet loads too (:meth:`RobotModel.simulator_urdf`, profile hull as an OBJ mesh geom), compiled by
 MuJoCo (fixed links fused into their parent) with a free joint on its root link.
@@ -175,8 +175,7 @@ class MujocoTrialWorld(TrialEngine):
 
     def tilt_deg(self) -> float:
         """Angle between the root frame's up axis and world +z, degrees."""
-        up_world = self.data.xmat[self.root].reshape(3, 3) @ self.up_in_root
-        return math.degrees(math.acos(float(np.clip(up_world[2], -1.0, 1.0))))
+        return root_tilt_deg(self.data, self.root, self.up_in_root)
 
     def is_upright(self) -> typing.Tuple[bool, float]:
         """``(upright, tilt_deg)`` as :meth:`RobotModel.is_upright` judges it."""
@@ -219,7 +218,7 @@ class MujocoTrialWorld(TrialEngine):
             if steps % interval:
                 continue
             pose = data.qpos[0:7].copy()
-            moved = None if previous_pose is None else _pose_speeds(previous_pose, pose, interval * dt)
+            moved = None if previous_pose is None else pose_speeds(previous_pose, pose, interval * dt)
             previous_pose = pose
             if steps >= push_end and moved is not None:
                 if energy is not None:
@@ -248,7 +247,15 @@ class MujocoTrialWorld(TrialEngine):
                             tilt_deg=tilt)
 
 
-def _pose_speeds(before, after, interval_s):
+def root_tilt_deg(data: typing.Any, root: int, up_in_root: np.ndarray) -> float:
+    """Angle (deg) between world +z and the up axis ``up_in_root`` (3,) (unit, root frame) of body ``root`` in MuJoCo's
+    ``data`` (every MuJoCo world's tilt: the trials' and the launch twin's)."""
+    up_world = data.xmat[root].reshape(3, 3) @ up_in_root
+    return math.degrees(math.acos(float(np.clip(up_world[2], -1.0, 1.0))))
+
+
+def pose_speeds(before: typing.Sequence[float], after: typing.Sequence[float],
+                interval_s: float) -> typing.Tuple[float, float]:
     """Mean linear (m/s) and angular (rad/s) speed of a free joint between two (x, y, z, qw, qx, qy, qz) poses.
 
     Positions rather than ``qvel``: MuJoCo 4 may put a body at rest to sleep, which freezes its pose but keeps
@@ -259,7 +266,7 @@ def _pose_speeds(before, after, interval_s):
     return linear, 2 * math.acos(dot) / interval_s
 
 
-def _geom_points(mujoco, model, geom, sections=24):
+def geom_points(mujoco: typing.Any, model: typing.Any, geom: int, sections: int = 24) -> typing.Optional[np.ndarray]:
     """Points (k, 3) whose hull is geom ``geom`` in its own frame (m); None for a plane."""
     kind, size = model.geom_type[geom], model.geom_size[geom]
     if kind == mujoco.mjtGeom.mjGEOM_MESH:
@@ -310,9 +317,9 @@ class MujocoEnergyMonitor:
         world.place((0.0, 0.0, 0.0, 1.0), 0.0)
         data = world.data
         origin, rotation = data.xpos[world.root].copy(), data.xmat[world.root].reshape(3, 3).copy()
-        points = {}
+        points: typing.Dict[int, np.ndarray] = {}
         for geom in world.robot_geoms:
-            local = _geom_points(mujoco, model, geom)
+            local = geom_points(mujoco, model, geom)
             if local is None:
                 continue
             world_points = local @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]

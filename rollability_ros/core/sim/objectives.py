@@ -8,7 +8,7 @@ sim_evaluator node) runs it unchanged. What a *trial* is depends on ``objective.
 ``disturbance``
     the paper's trial (:mod:`rollability_ros.core.sim.trials`).
 ``launch_twin``
-    one launch of the candidate on the launch twin (:func:`~rollability_ros.core.sim.launch_twin.simulate_valid_launch`)
+    one launch of the candidate on the launch twin (:func:`~rollability_ros.core.sim.launch.twin.simulate_valid_launch`)
     under a launch condition of a campaign configuration: the heights, speeds and angles of
     ``objective.campaign_config`` (its ``campaign`` namespace; its configurations and repetitions are not used).
     Launch ``j`` of an evaluation takes condition ``j mod C`` of the C conditions (height, then speed, then angle
@@ -52,6 +52,7 @@ import itertools
 import math
 import typing
 
+from rollability_ros.core import config
 from rollability_ros.core.campaign_matrix import load_campaign_spec
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.sim.robustness import RobustSettings, robust_settings_for, scaled_profile
@@ -61,7 +62,7 @@ from rollability_ros.core.sim.trial_engine import engine_names
 if typing.TYPE_CHECKING:   # annotations only: the twin is imported when a launch runs
     from rollability_ros.core.robots import ProfileBody, RobotModel
     from rollability_ros.core.sim.evaluation import TrialJob
-    from rollability_ros.core.sim.launch_twin import LaunchTwinSettings
+    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
 
 #: ``objective.kind`` values.
 OBJECTIVES = ("disturbance", "launch_twin", "mix")
@@ -76,7 +77,7 @@ class ObjectiveSettings:
     """The ``objective`` namespace: what a candidate evaluation measures (module docstring)."""
 
     kind: str = dataclasses.field(default="disturbance", metadata={"description": "what one trial of a candidate is: disturbance (paper 2.1.3), launch_twin (a launch on the twin under the campaign conditions) or mix"})
-    launch_weight: float = dataclasses.field(default=0.5, metadata={"description": "mix only: share of each candidate's trials that are launches, fraction in (0, 1]", "range": (0.0, 1.0)})
+    launch_weight: float = dataclasses.field(default=0.5, metadata={"description": "mix only: share of each candidate's trials that are launches, fraction in (0, 1]", "range": (0.0, 1.0), "exclusive": "low"})
     campaign_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["campaign"], metadata={"description": "parameter file(s) whose campaign heights x speeds x angles are the launch conditions of launch trials"})
     twin_config: typing.List[str] = dataclasses.field(default_factory=lambda: ["sim", "robot", "launch_twin"], metadata={"description": "the launch twin's parameter files in load order; append a calibrated file to optimize on the calibrated twin"})
     robust: RobustSettings = dataclasses.field(default_factory=RobustSettings)
@@ -84,16 +85,14 @@ class ObjectiveSettings:
     launch_engine: str = dataclasses.field(default="", metadata={"description": "engine of launch-fidelity evaluations (the selection's launch race and fresh launches): pybullet | mujoco; empty = sim.engine"})
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        self.robust.validate()
+        """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
+        checked by :func:`~rollability_ros.core.config.check_settings`)."""
         for name in ("screen_engine", "launch_engine"):
             if getattr(self, name) not in ("", *engine_names()):
                 raise ValueError(f"{name} must be empty (= sim.engine) or one of {', '.join(engine_names())}, "
                                  f"got {getattr(self, name)!r}")
         if self.kind not in OBJECTIVES:
             raise ValueError(f"kind must be one of {', '.join(OBJECTIVES)}, got {self.kind!r}")
-        if not 0 < self.launch_weight <= 1:
-            raise ValueError(f"launch_weight must be in (0, 1], got {self.launch_weight}")
         if self.kind != "disturbance" and not (self.campaign_config and all(self.campaign_config)):
             raise ValueError("campaign_config must name the campaign parameter file(s) whose launch conditions "
                              "the launch-twin objective uses")
@@ -158,7 +157,7 @@ def launch_conditions(campaign_config: typing.Sequence[str]) -> typing.Tuple[Lau
 
 @functools.lru_cache(maxsize=8)
 def _resolve(kind, launch_weight, campaign_config, twin_config, engine, early_decision):
-    from rollability_ros.core.sim.launch_twin import load_launch_twin_settings
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
 
     settings = ObjectiveSettings(kind, launch_weight, list(campaign_config), list(twin_config), RobustSettings())
     twin = load_launch_twin_settings(twin_config)
@@ -176,7 +175,7 @@ def launch_objective(settings: "ObjectiveSettings", engine: str = "pybullet",
     ``trial.early_decision`` (the twin's files give the twin's physics constants, the evaluation the engine and
     the early decision of every trial it runs); an engine that cannot run launches is refused here
     (:func:`~rollability_ros.core.sim.trials.check_engine`), before any trial starts."""
-    settings.validate()
+    config.check_settings(settings, "objective")
     if settings.kind == "disturbance":
         return None
     check_engine("launch", engine)
@@ -188,7 +187,7 @@ def run_launch_trial(objective: LaunchObjective, profile: "typing.Optional[Profi
                      index: int, seed: int) -> TrialOutcome:
     """Trial ``index`` (a launch) of an evaluation: the candidate ``profile`` (ProfileBody, None = bare chassis)
     launched on the twin under :meth:`LaunchObjective.condition` with ``seed``; a :class:`TrialOutcome`."""
-    from rollability_ros.core.sim.launch_twin import simulate_valid_launch
+    from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     condition = objective.condition(index)
     result = simulate_valid_launch(condition, objective.twin, seed, profile=profile, use_profile=True)

@@ -41,7 +41,7 @@ its own trial seed (so candidates evaluated with one base seed meet the same dra
 
 The ranges, their sources and how far each moves the designs' gain are in docs/twin-model.md. Both launch
 engines read every drawn field (the MuJoCo twin puts them into its compiled model's contact values and joint
-friction, :meth:`~rollability_ros.core.sim.mujoco_launch_twin.MujocoLaunchTwin.retarget`). The draws come from
+friction, :meth:`~rollability_ros.core.sim.launch.mujoco_twin.MujocoLaunchTwin.retarget`). The draws come from
 the trial seed's own stream in a fixed order, new unknowns after the old, so a trial's earlier draws keep their
 values when an unknown is added.
 
@@ -57,6 +57,9 @@ import numpy as np
 
 from rollability_ros.core.sim.world import CONTACT_MODELS
 
+if typing.TYPE_CHECKING:  # annotations only
+    from rollability_ros.core.robots import ProfileBody
+
 #: Spawn key of the robustness draws within a trial seed (apart from the trial's own draws).
 _ROBUST_STREAM = 0x7B0B
 
@@ -66,51 +69,43 @@ class RobustSettings:
     """``objective.robust``: the distribution of the uncertain quantities (module docstring)."""
 
     enabled: bool = dataclasses.field(default=False, metadata={"description": "true: score every trial under its own seeded draw of the uncertain quantities (robust fitness)"})
-    disturbance_scale_min: float = dataclasses.field(default=0.5, metadata={"description": "lower end of the factor on the disturbance force and torque ranges (log-uniform), dimensionless", "range": (0.0, 100.0)})
+    disturbance_scale_min: float = dataclasses.field(default=0.5, metadata={"description": "lower end of the factor on the disturbance force and torque ranges (log-uniform), dimensionless", "range": (0.0, 100.0), "exclusive": "low"})
     disturbance_scale_max: float = dataclasses.field(default=2.0, metadata={"description": "upper end of the factor on the disturbance force and torque ranges (log-uniform), dimensionless", "range": (0.0, 100.0)})
     start_rolls_deg: typing.List[float] = dataclasses.field(default_factory=lambda: [180.0, 90.0], metadata={"description": "start roll angles drawn with equal probability, deg (180 = upside down, 90 = on its side)"})
     contact_models: typing.List[str] = dataclasses.field(default_factory=lambda: list(CONTACT_MODELS), metadata={"description": "readings of the paper's contact values drawn with equal probability: per_contact and/or per_body (config/sim.yaml)"})
     com_sigma_m: float = dataclasses.field(default=0.003, metadata={"description": "standard deviation of the chassis's centre-of-mass height offset, m", "range": (0.0, 1.0)})
-    foam_stiffness_factor_min: float = dataclasses.field(default=0.5, metadata={"description": "launches: lower end of the factor on the foam's stiffness and damping (log-uniform), dimensionless", "range": (0.0, 100.0)})
+    foam_stiffness_factor_min: float = dataclasses.field(default=0.5, metadata={"description": "launches: lower end of the factor on the foam's stiffness and damping (log-uniform), dimensionless", "range": (0.0, 100.0), "exclusive": "low"})
     foam_stiffness_factor_max: float = dataclasses.field(default=2.0, metadata={"description": "launches: upper end of the factor on the foam's stiffness and damping (log-uniform), dimensionless", "range": (0.0, 100.0)})
     foam_restitution_max: float = dataclasses.field(default=0.3, metadata={"description": "launches: the foam's restitution is drawn uniform in [0, this], coefficient", "range": (0.0, 1.0)})
-    foam_lateral_friction_min: float = dataclasses.field(default=0.6, metadata={"description": "launches: lower end of the foam's own friction coefficient (log-uniform; the contact's is this times sim.lateral_friction), coefficient", "range": (0.0, 100.0)})
+    foam_lateral_friction_min: float = dataclasses.field(default=0.6, metadata={"description": "launches: lower end of the foam's own friction coefficient (log-uniform; the contact's is this times sim.lateral_friction), coefficient", "range": (0.0, 100.0), "exclusive": "low"})
     foam_lateral_friction_max: float = dataclasses.field(default=2.5, metadata={"description": "launches: upper end of the foam's own friction coefficient (log-uniform), coefficient", "range": (0.0, 100.0)})
-    foam_rolling_friction_min_m: float = dataclasses.field(default=0.002, metadata={"description": "launches: lower end of the foam's own rolling friction, the wheel-on-foam rolling resistance (log-uniform), m", "range": (0.0, 1.0)})
+    foam_rolling_friction_min_m: float = dataclasses.field(default=0.002, metadata={"description": "launches: lower end of the foam's own rolling friction, the wheel-on-foam rolling resistance (log-uniform), m", "range": (0.0, 1.0), "exclusive": "low"})
     foam_rolling_friction_max_m: float = dataclasses.field(default=0.05, metadata={"description": "launches: upper end of the foam's own rolling friction (log-uniform), m", "range": (0.0, 1.0)})
-    wheel_drag_min_nm: float = dataclasses.field(default=0.0005, metadata={"description": "launches: lower end of each wheel's back-drive drag torque (log-uniform), N m", "range": (0.0, 10.0)})
+    wheel_drag_min_nm: float = dataclasses.field(default=0.0005, metadata={"description": "launches: lower end of each wheel's back-drive drag torque (log-uniform), N m", "range": (0.0, 10.0), "exclusive": "low"})
     wheel_drag_max_nm: float = dataclasses.field(default=0.02, metadata={"description": "launches: upper end of each wheel's back-drive drag torque (log-uniform), N m", "range": (0.0, 10.0)})
-    profile_mass_scale_min: float = dataclasses.field(default=0.15, metadata={"description": "lower end of the multiplier on the printed profile's mass and inertia (log-uniform), dimensionless", "range": (0.0, 100.0)})
+    profile_mass_scale_min: float = dataclasses.field(default=0.15, metadata={"description": "lower end of the multiplier on the printed profile's mass and inertia (log-uniform), dimensionless", "range": (0.0, 100.0), "exclusive": "low"})
     profile_mass_scale_max: float = dataclasses.field(default=1.5, metadata={"description": "upper end of the multiplier on the printed profile's mass and inertia (log-uniform), dimensionless", "range": (0.0, 100.0)})
     ledge_rolling_friction_max_m: float = dataclasses.field(default=0.01, metadata={"description": "launches: the launcher base plate's rolling friction is drawn uniform in [0, this], m", "range": (0.0, 0.01)})
     speed_bias_fraction_max: float = dataclasses.field(default=0.15, metadata={"description": "launches: the speed setting's systematic error is drawn uniform in [-this, +this], fraction of the set speed", "range": (0.0, 0.15)})
     launcher_models: typing.List[str] = dataclasses.field(default_factory=lambda: ["stroke"], metadata={"description": "launches: launcher models drawn with equal probability: stroke (the paper's cylinder) and/or push_through"})
 
     def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        if not 0 < self.disturbance_scale_min <= self.disturbance_scale_max:
-            raise ValueError("need 0 < disturbance_scale_min <= disturbance_scale_max")
+        """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
+        checked by :func:`~rollability_ros.core.config.check_settings`)."""
+        if not self.disturbance_scale_min <= self.disturbance_scale_max:
+            raise ValueError("need disturbance_scale_min <= disturbance_scale_max")
         if not self.start_rolls_deg or not all(0 <= r <= 180 for r in self.start_rolls_deg):
             raise ValueError("start_rolls_deg must list angles in [0, 180] deg")
         unknown = [m for m in self.contact_models if m not in CONTACT_MODELS]
         if not self.contact_models or unknown:
             raise ValueError(f"contact_models must list some of {', '.join(CONTACT_MODELS)}, got {self.contact_models}")
-        if self.com_sigma_m < 0:
-            raise ValueError(f"com_sigma_m must be >= 0, got {self.com_sigma_m}")
-        if not 0 < self.foam_stiffness_factor_min <= self.foam_stiffness_factor_max:
-            raise ValueError("need 0 < foam_stiffness_factor_min <= foam_stiffness_factor_max")
-        if not 0 <= self.foam_restitution_max <= 1:
-            raise ValueError(f"foam_restitution_max must be in [0, 1], got {self.foam_restitution_max}")
-        if not 0 <= self.ledge_rolling_friction_max_m <= 0.01:
-            raise ValueError(f"ledge_rolling_friction_max_m must be in [0, 0.01], got {self.ledge_rolling_friction_max_m}")
-        if not 0 <= self.speed_bias_fraction_max <= 0.15:
-            raise ValueError(f"speed_bias_fraction_max must be in [0, 0.15], got {self.speed_bias_fraction_max}")
         if not self.launcher_models or not set(self.launcher_models) <= {"stroke", "push_through"}:
             raise ValueError(f"launcher_models must list some of stroke, push_through, got {self.launcher_models}")
-        for name in ("foam_lateral_friction", "foam_rolling_friction", "wheel_drag", "profile_mass_scale"):
+        for name in ("foam_stiffness_factor", "foam_lateral_friction", "foam_rolling_friction", "wheel_drag",
+                     "profile_mass_scale"):
             low, high = self.range_of(name)
-            if not 0 < low <= high:
-                raise ValueError(f"need 0 < {name}_min <= {name}_max (log-uniform), got [{low}, {high}]")
+            if not low <= high:
+                raise ValueError(f"need {name}_min <= {name}_max (log-uniform), got [{low}, {high}]")
 
     def range_of(self, unknown: str) -> typing.Tuple[float, float]:
         """``(low, high)`` of a log-uniform unknown: ``foam_stiffness_factor``, ``foam_lateral_friction``,
@@ -202,7 +197,7 @@ def wheel_drag_field(settings: _Perturbed) -> str:
     """The dotted settings name of the wheel drag a launch twin's ``settings`` uses: the twin's Mecanum wheels'
     (``twin.wheel_drag_torque_nm``), else the robot's own (``urdf_robot.joint_drag_torque_nm`` or
     ``robot.wheel_drag_torque_nm``)."""
-    from rollability_ros.core.sim.launch_twin import mecanum_wheels   # launch_twin is heavier; sim-internal
+    from rollability_ros.core.sim.launch.settings import mecanum_wheels  # launch_twin is heavier; sim-internal
 
     if mecanum_wheels(settings):
         return "twin.wheel_drag_torque_nm"
@@ -239,7 +234,8 @@ def profile_mass_scale(settings: _Perturbed) -> float:
     return float((settings.urdf_robot if settings.urdf_robot.selected else settings.robot).profile_mass_scale)
 
 
-def scaled_profile(profile: typing.Any, before: _Perturbed, after: _Perturbed) -> typing.Any:
+def scaled_profile(profile: typing.Optional["ProfileBody"], before: _Perturbed,
+                   after: _Perturbed) -> typing.Optional["ProfileBody"]:
     """``profile`` (a ProfileBody made for settings ``before``, or None) weighed for settings ``after``: mass and
     inertia times the ratio of their ``profile_mass_scale`` (the mass model is linear in it)."""
     ratio = profile_mass_scale(after) / profile_mass_scale(before)

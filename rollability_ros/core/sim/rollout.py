@@ -6,8 +6,8 @@ wheel-on-foam resistance (the foam's rolling friction together with the wheels' 
 launcher plate or table (``surface: floor``) the drag nearly alone, because a wheel on a hard surface barely
 rolls in.
 
-Model (PyBullet, the launch twin's world of :func:`~rollability_ros.core.sim.launch_twin.build_launch_world` at
-ledge height 0 and its wheels, :func:`~rollability_ros.core.sim.launch_twin.apply_wheel_model`): the robot is set
+Model (PyBullet, the launch twin's world of :func:`~rollability_ros.core.sim.launch.pybullet_twin.build_launch_world` at
+ledge height 0 and its wheels, :func:`~rollability_ros.core.sim.launch.pybullet_twin.apply_wheel_model`): the robot is set
 on its wheels on the foam (x = 0.3 m, centred) or on the floor beside it (the floor carries the ground contact
 of ``config/sim.yaml``, as the launcher's plate), settles for :data:`SETTLE_S`, then gets the forward velocity
 ``speed_mps`` along +x with every wheel turning at ``speed_mps / radius`` (rolling, no slip: a hand push rolls
@@ -18,7 +18,8 @@ The MuJoCo twin has no roll-out model: a setting asking for it is refused (:func
 import math
 
 from rollability_ros.core.optional import require
-from rollability_ros.core.sim.launch_twin import LaunchTwinSettings, apply_wheel_model, build_launch_world
+from rollability_ros.core.sim.launch.pybullet_twin import apply_wheel_model, build_launch_world
+from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
 from rollability_ros.core.sim.trials import place_on_ground
 from rollability_ros.core.sim.world import connect, disconnect, set_contact
 
@@ -40,7 +41,7 @@ def rollout_distance_m(settings: LaunchTwinSettings, speed_mps: float, surface: 
     """The distance (m) the bare robot of the twin ``settings`` rolls on ``surface`` (:data:`SURFACES`) after a
     push to ``speed_mps`` (module docstring). Deterministic (no random draw). ``ValueError`` for a bad speed or
     surface, or a twin on an engine without a roll-out model (MuJoCo)."""
-    from rollability_ros.core.sim.launch_twin import BulletLaunch
+    from rollability_ros.core.sim.launch.pybullet_twin import BulletLaunch
     from rollability_ros.core.sim.trial_engine import LAUNCH_ENGINES
 
     if LAUNCH_ENGINES.get(settings.physics.engine) is not BulletLaunch:

@@ -7,7 +7,7 @@ chassis's centre-of-mass height, m). Every (profile, factor, level) is evaluated
 base seed (common random numbers: the same start tilts and push directions at every level and for every profile),
 plus the ``robust`` fitness (:mod:`~rollability_ros.core.sim.robustness`: every trial under its own draw of all
 factors). Each fitness comes with its Wilson 95% interval. ``rollability sensitivity`` writes the rows as a CSV
-and draws them (:func:`rollability_ros.core.results.report_figures.sensitivity`).
+and draws them (:func:`rollability_ros.core.results.report_figures.sensitivity_figure`).
 
 For launches (:func:`launch_sensitivity_rows`, ``rollability sensitivity --launches``) the factors are the launch
 twin's unknowns, each at the low and the high end of its plausible range as the robust draws state it
@@ -21,10 +21,14 @@ one base seed, so each design's gain over the bare robot at a level is on the sa
 import dataclasses
 import typing
 
+from rollability_ros.core import config
 from rollability_ros.core.profile import Mesh
 from rollability_ros.core.sim.evaluation import (EvaluatorSettings, TrialExecutor, evaluate_job, evaluate_mesh, mesh_job,
                                                   settings_at_fidelity)
 from rollability_ros.core.sim.robustness import RobustSettings, nominal_draw, perturb, scaled_profile
+
+if typing.TYPE_CHECKING:  # annotations only: the twin is imported when a launch runs
+    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
 
 #: factor -> default levels.
 DEFAULT_LEVELS = {"disturbance_scale": (0.5, 1.0, 2.0), "start_roll_deg": (180.0, 90.0),
@@ -37,6 +41,10 @@ LAUNCH_FACTORS = ("contact_model", "com_offset_z_m", "foam_stiffness_factor", "f
 
 #: One row of the study (configuration, factor, level, successes, trials, fitness and its interval).
 Row = typing.Dict[str, typing.Any]
+#: A factor's level: a name (``contact_model``, the launcher model) or a number in the factor's units.
+Level = typing.Union[str, float]
+#: Settings dataclasses :func:`with_setting` copies (EvaluatorSettings, LaunchTwinSettings, ...).
+_Settings = typing.TypeVar("_Settings")
 
 
 def _row(label: str, factor: str, level: typing.Any, result: typing.Any,
@@ -49,13 +57,14 @@ def _row(label: str, factor: str, level: typing.Any, result: typing.Any,
     return row
 
 
-def with_factor(settings: EvaluatorSettings, factor: str, level: typing.Any) -> EvaluatorSettings:
+def with_factor(settings: EvaluatorSettings, factor: str, level: Level) -> EvaluatorSettings:
     """EvaluatorSettings ``settings`` with one factor set to ``level`` (its type is the factor's: a name for
     ``contact_model``, else a number; the others as configured)."""
     nominal = dataclasses.replace(nominal_draw(settings), foam_restitution=0.0)
     if factor not in DEFAULT_LEVELS:
         raise ValueError(f"unknown factor {factor!r}; known: {', '.join(DEFAULT_LEVELS)}")
-    return perturb(settings, dataclasses.replace(nominal, **{factor: level}))
+    field: typing.Dict[str, typing.Any] = {factor: level}   # the factor's field, of the level's type
+    return perturb(settings, dataclasses.replace(nominal, **field))
 
 
 def sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]], settings: EvaluatorSettings, trials: int,
@@ -95,7 +104,6 @@ def sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]], setti
     return rows
 
 
-
 def launch_levels(robust: RobustSettings, nominal_com_offset_z_m: float
                   ) -> typing.Dict[str, typing.Tuple[typing.Union[float, str], ...]]:
     """``{factor: (low, high)}`` of every launch unknown (:data:`LAUNCH_FACTORS`): the ends of its range in
@@ -113,12 +121,13 @@ def launch_levels(robust: RobustSettings, nominal_com_offset_z_m: float
             "launcher_model": ("stroke", "push_through")}
 
 
-def with_launch_factor(twin: typing.Any, factor: str, level: typing.Any) -> typing.Any:
+def with_launch_factor(twin: "LaunchTwinSettings", factor: str, level: Level) -> "LaunchTwinSettings":
     """LaunchTwinSettings ``twin`` with one unknown (:data:`LAUNCH_FACTORS`) set to ``level``, the others as
     configured (its early decision off, as for every draw)."""
     if factor not in LAUNCH_FACTORS:
         raise ValueError(f"unknown launch factor {factor!r}; known: {', '.join(LAUNCH_FACTORS)}")
-    return perturb(twin, dataclasses.replace(nominal_draw(twin), **{factor: level}))
+    field: typing.Dict[str, typing.Any] = {factor: level}   # the factor's field, of the level's type
+    return perturb(twin, dataclasses.replace(nominal_draw(twin), **field))
 
 
 def launch_sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]], settings: EvaluatorSettings,
@@ -139,7 +148,7 @@ def launch_sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]]
     """
     at_launch = settings_at_fidelity(settings, "launch")
     robust = dataclasses.replace(robust or settings.objective.robust, enabled=True)
-    robust.validate()
+    config.check_settings(robust, "objective.robust")
     plain = dataclasses.replace(at_launch, objective=dataclasses.replace(at_launch.objective,
                                                                          robust=RobustSettings()))
     drawn = dataclasses.replace(at_launch, objective=dataclasses.replace(at_launch.objective, robust=robust))
@@ -166,7 +175,7 @@ def _factor_case(job: typing.Any, factor: str, level: typing.Any) -> typing.Any:
                                profile=scaled_profile(job.profile, job.settings, twin))
 
 
-def with_setting(settings: typing.Any, dotted: str, value: float, full_name: str = "") -> typing.Any:
+def with_setting(settings: _Settings, dotted: str, value: float, full_name: str = "") -> _Settings:
     """Dataclass ``settings`` with the numeric field at ``dotted`` (``"twin.foam.thickness_m"``) set to
     ``value``; ``ValueError`` naming a path that is not a numeric setting, or a value its group refuses."""
     full_name = full_name or dotted
@@ -182,8 +191,7 @@ def with_setting(settings: typing.Any, dotted: str, value: float, full_name: str
         raise ValueError(f"{full_name} is not a numeric setting (it holds {current!r})")
     else:
         replaced = dataclasses.replace(group, **{head: type(current)(value)})
-    if hasattr(replaced, "validate"):
-        replaced.validate()
+    config.check_settings(replaced, full_name[:-len(dotted)].rstrip("."))   # the group's ranges and rules
     return replaced
 
 

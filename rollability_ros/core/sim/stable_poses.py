@@ -39,6 +39,7 @@ import typing
 import numpy as np
 import numpy.typing as npt
 
+from rollability_ros.core import config
 from rollability_ros.core.optional import require
 from rollability_ros.core.profile import Mesh
 from rollability_ros.core.sim._body_points import link_points
@@ -59,28 +60,15 @@ class ScreenSettings:
 
     com_sigma_m: float = dataclasses.field(default=0.003, metadata={
         "description": "standard deviation of each centre-of-mass coordinate in the stable-pose screen, m",
-        "range": (0.0, 10.0)})
+        "range": (0.0, 0.05), "exclusive": "high"})
     n_samples: int = dataclasses.field(default=16, metadata={
         "description": "centre-of-mass samples of the stable-pose screen (count)", "range": (1, 1000000)})
     seed: int = dataclasses.field(default=1, metadata={
         "description": "seed of the centre-of-mass samples (integer)", "range": (0, 2147483647)})
     wheel_sections: int = dataclasses.field(default=24, metadata={
-        "description": "points per rim of each round collision shape such as a wheel (count)", "range": (3, 100000)})
+        "description": "points per rim of each round collision shape such as a wheel (count)", "range": (6, 100000)})
     prescreen_min_probability: float = dataclasses.field(default=0.0, metadata={
         "description": "candidates below this quasi-static P(upright) are flagged (0 = off)", "range": (0.0, 1.0)})
-
-    def validate(self) -> None:
-        """Raise ``ValueError`` naming the first unusable field."""
-        if not 0 <= self.com_sigma_m < 0.05:
-            raise ValueError(f"com_sigma_m must be in [0, 0.05) m, got {self.com_sigma_m}")
-        if self.n_samples < 1:
-            raise ValueError(f"n_samples must be >= 1, got {self.n_samples}")
-        if self.seed < 0:
-            raise ValueError(f"seed must be >= 0, got {self.seed}")
-        if self.wheel_sections < 6:
-            raise ValueError(f"wheel_sections must be >= 6, got {self.wheel_sections}")
-        if not 0 <= self.prescreen_min_probability <= 1:
-            raise ValueError(f"prescreen_min_probability must be in [0, 1], got {self.prescreen_min_probability}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -190,7 +178,7 @@ def _minimax_heights(hull, com, upright_faces):
     over_edge = np.linalg.norm(com - (edges[:, 0] + t[:, None] * along), axis=1)
     coplanar = hull.face_adjacency_angles < 1e-6
     pass_height = np.where(coplanar, plane_height[pairs].max(axis=1), over_edge)
-    neighbours = [[] for _ in range(len(hull.faces))]
+    neighbours: typing.List[typing.List[typing.Tuple[int, float]]] = [[] for _ in range(len(hull.faces))]
     for (a, b), height in zip(pairs, pass_height):
         neighbours[a].append((b, height))
         neighbours[b].append((a, height))
@@ -294,7 +282,7 @@ def profile_screener(evaluator_settings: "EvaluatorSettings", settings: ScreenSe
     """``screen_profiles(heights_list) -> [StableScreen, ...]`` (each heights ``(grid.n_variables,)``, simulation
     units) on the robot of ``evaluator_settings`` under :class:`ScreenSettings` ``settings``: the screen an :class:`~rollability_ros.core.optimization.optimization_run.OptimizationRun`
     ranks its initial means with."""
-    settings.validate()
+    config.check_settings(settings, "stable_poses")
     return lambda heights_list: [screen for screen, _ in screen_heights(heights_list, evaluator_settings, settings)]
 
 

@@ -8,8 +8,8 @@ its :class:`TrialOutcome`, which depends only on (robot + profile, seed, setting
 (:class:`~rollability_ros.core.sim.mujoco_trials.MujocoTrialWorld`). Adding an engine is one module with a
 ``TrialEngine`` subclass plus one :func:`register_trial_engine` call or table line (test/core/test_trial_engines.py
 adds a replay engine that way). Launches run on the launch twin, whose engines are :data:`LAUNCH_ENGINES`
-(:class:`LaunchEngine`: ``pybullet`` -> ``launch_twin.BulletLaunch``, ``mujoco`` ->
-``mujoco_launch_twin.MujocoLaunch``).
+(:class:`LaunchEngine`: ``pybullet`` -> ``launch.pybullet_twin.BulletLaunch``, ``mujoco`` ->
+``launch.mujoco_twin.MujocoLaunch``).
 
 This module imports no physics library: the table names its entries as ``"module:Class"``, imported when chosen.
 """
@@ -22,7 +22,9 @@ from rollability_ros.core.registry import Registry
 if typing.TYPE_CHECKING:  # annotations only
     from rollability_ros.core.robots import ProfileBody, RobotModel
     from rollability_ros.core.records import LaunchCondition
-    from rollability_ros.core.sim.launch_twin import LaunchDrive, LaunchResult, LaunchTwinSettings
+    from rollability_ros.core.sim.launch.contract import LaunchDrive
+    from rollability_ros.core.sim.launch.results import LaunchResult
+    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
     from rollability_ros.core.sim.trials import TrialSettings
     from rollability_ros.core.sim.world import PhysicsParams
 
@@ -68,7 +70,7 @@ TRIAL_ENGINES: Registry[TrialEngine] = Registry("sim.engine", TrialEngine, {
 
 
 class LaunchEngine(abc.ABC):
-    """One launch of the launch twin in one engine (:func:`~rollability_ros.core.sim.launch_twin.simulate_launch`
+    """One launch of the launch twin in one engine (:func:`~rollability_ros.core.sim.launch.twin.simulate_launch`
     checks the condition, sizes the twin and picks the profile, then hands over here)."""
 
     @classmethod
@@ -79,15 +81,15 @@ class LaunchEngine(abc.ABC):
                  on_pose: typing.Optional[typing.Callable[..., None]] = None, *,
                  drive: "typing.Optional[LaunchDrive]" = None, until_edge: bool = False) -> "LaunchResult":
         """The ``LaunchResult`` of ``condition`` with ``seed`` on the twin ``settings`` carrying ``profile``, the
-        push plate driven as ``drive`` says (None: ``launch_twin.launch_drive`` of the condition's speed on the
+        push plate driven as ``drive`` says (None: ``launch.drive.launch_drive`` of the condition's speed on the
         sized ``settings``); ``until_edge``: stop once the robot's
         foremost point crosses the edge line (the speed gate has read the launch)."""
 
 
 #: ``sim.engine`` -> its :class:`LaunchEngine`: the engines the launch twin runs in.
 LAUNCH_ENGINES: Registry[LaunchEngine] = Registry("sim.engine", LaunchEngine, {
-    "pybullet": "rollability_ros.core.sim.launch_twin:BulletLaunch",
-    "mujoco": "rollability_ros.core.sim.mujoco_launch_twin:MujocoLaunch",
+    "pybullet": "rollability_ros.core.sim.launch.pybullet_twin:BulletLaunch",
+    "mujoco": "rollability_ros.core.sim.launch.mujoco_twin:MujocoLaunch",
 })
 
 

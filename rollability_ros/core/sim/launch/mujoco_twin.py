@@ -1,17 +1,17 @@
-"""The launch twin of :mod:`rollability_ros.core.sim.launch_twin` in MuJoCo (``sim.engine: mujoco``).
+"""The launch twin of :mod:`rollability_ros.core.sim.launch` in MuJoCo (``sim.engine: mujoco``).
 
 The same launch: ledge, push plate over the whole stroke, foam pad, floor; the same placement
-(:func:`~rollability_ros.core.sim.launch_twin.launcher_start_xy`,
-:func:`~rollability_ros.core.sim.launch_twin.plate_placement`), scatter draws, launch loop
-(:func:`~rollability_ros.core.sim.launch_twin.step_launch`), event tracking
-(:class:`~rollability_ros.core.sim.launch_twin.LaunchTracker`), landing and invalid-launch rules
-(:func:`~rollability_ros.core.sim.launch_twin.invalid_reason`) and result; only the world differs. The robot is
+(:func:`~rollability_ros.core.sim.launch.placement.launcher_start_xy`,
+:func:`~rollability_ros.core.sim.launch.placement.plate_placement`), scatter draws, launch loop
+(:func:`~rollability_ros.core.sim.launch.loop.step_launch`), event tracking
+(:class:`~rollability_ros.core.sim.launch.loop.LaunchTracker`), landing and invalid-launch rules
+(:func:`~rollability_ros.core.sim.launch.loop.invalid_reason`) and result; only the world differs. The robot is
 the model of :mod:`~rollability_ros.core.sim.mujoco_trials` (the URDF PyBullet loads, profile hull as a mesh geom,
 free root joint). A :class:`MujocoLaunchTwin` is compiled once per robot + profile + settings and each launch
 resets its data, so launches of one candidate do not pay for a model build (a per-process cache,
 :func:`simulate_launch`, keeps the last few).
 
-World (metres; the frame of :mod:`~rollability_ros.core.sim.launch_twin`)
+World (metres; the frame of :mod:`~rollability_ros.core.sim.launch`)
     the floor: a plane at z = 0; the foam: its top, a plane at z = ``foam.thickness_m`` (MuJoCo's plane contacts
     cost a third of its box contacts; a robot touching that plane outside the foam's extent counts as hitting the
     floor first, an invalid launch as in the PyBullet twin, and one that later rolls off the foam's 2.5 x 3 m stays
@@ -23,7 +23,7 @@ Contact values (MuJoCo takes the larger of two geoms' friction; ``config/sim.yam
     robot on the ledge and floor: the trials' mapping (:func:`~rollability_ros.core.sim.mujoco_trials.set_geom_contact`:
     the robot's geoms carry the effective robot-ground values, ledge and floor zeros); the wheels' friction is
     times ``wheel_friction_left_factor`` / ``_right_factor`` and, when the twin gives them its Mecanum wheels
-    (:func:`~rollability_ros.core.sim.launch_twin.mecanum_wheels`: the chassis), the twin's rolling friction
+    (:func:`~rollability_ros.core.sim.launch.settings.mecanum_wheels`: the chassis), the twin's rolling friction
     (``wheel_rolling_friction`` x the ground's friction, Bullet's combination) and joint ``frictionloss`` =
     ``wheel_drag_torque_nm``; otherwise (a URDF robot) they keep the robot's own, as in the trials. The launcher's
     sizes are the PyBullet twin's (derived from the robot where configured 0: ``sized_for_robot``).
@@ -56,92 +56,62 @@ from rollability_ros.core.optional import require
 from rollability_ros.core.profile import DesignSources
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.robots import ProfileBody
+from rollability_ros.core.sim.early_decision import hull_vertices
+from rollability_ros.core.sim.launch.contract import LaunchDrive, LaunchWorld
+from rollability_ros.core.sim.launch.decision import decided_on_foam, foam_sink_m, hopeless_to_decide
+from rollability_ros.core.sim.launch.drive import launch_drive
+from rollability_ros.core.sim.launch.loop import LaunchTracker, PhaseReporter, launch_result, rig_verdict, step_launch
+from rollability_ros.core.sim.launch.placement import check_fits_launcher, launch_plan, launcher_start_xy, plate_placement
+from rollability_ros.core.sim.launch.results import LaunchResult, PhaseCallback, PoseCallback
+from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, PushPlateSpec, mecanum_wheels
+from rollability_ros.core.sim.mujoco_trials import (MujocoEnergyMonitor, effective_contact, geom_points, pose_speeds,
+                                                    robot_spec, root_tilt_deg, set_geom_contact, wheel_bodies)
 from rollability_ros.core.sim.trial_engine import LaunchEngine
-from rollability_ros.core.sim.early_decision import _hull_vertices
-from rollability_ros.core.sim.launch_twin import (LaunchDrive, LaunchResult, LaunchTracker, LaunchTwinSettings,
-                                                  LaunchWorld, PhaseCallback, PhaseReporter, PoseCallback,
-                                                  PushPlateSpec, check_fits_launcher, decided_on_foam, foam_sink_m,
-                                                  hopeless_to_decide, launch_drive, launch_plan, launch_result,
-                                                  launcher_start_xy,
-                                                  mecanum_wheels, plate_placement, rig_verdict, step_launch)
-from rollability_ros.core.sim.mujoco_trials import (MujocoEnergyMonitor, MujocoTrialWorld, _geom_points,
-                                                    _pose_speeds, effective_contact, robot_spec, set_geom_contact,
-                                                    wheel_bodies)
+
 
 #: Half-height of the ledge's box (m): it reaches from the base plate to below the floor at any condition height.
 LEDGE_HALF_HEIGHT_M = 5.0
+
 #: The push plate's own friction coefficient (Bullet multiplies it with the robot's), as in the PyBullet twin.
 PLATE_FRICTION = 0.3
+
 #: Time constant of the plate-robot contact spring, steps (critically damped): a softer one (the trials' 0.02 s)
 #: was compressed by the plate's ramp and threw the robot off the plate faster than the launch speed.
 PLATE_TIME_CONSTANT_STEPS = 2
+
 PLATE_DAMPING_RATIO = 3.0
+
 #: Stiffest foam spring per unit robot mass the MuJoCo twin takes, as natural frequency x step (the shipped foam
 #: on the bare chassis: 0.56, stable over 2,000 launches; 400 robust launches at 2-3 x that foam, capped here,
 #: stable; 0.76 uncapped went unstable).
 FOAM_MAX_OMEGA_DT = 0.6
+
 #: Collision bits: the robot touches everything, the plate only the robot, the static world only the robot.
 ROBOT_BITS, PLATE_BITS, STATIC_BITS = (1, 3), (2, 2), (4, 1)
+
 #: Compiled twins kept per process (a generation's candidates in turn; each holds one model).
 CACHE_SIZE = 4
-
 
 def _quat_wxyz(yaw_rad):
     return [math.cos(yaw_rad / 2), 0.0, 0.0, math.sin(yaw_rad / 2)]
 
-
-class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
+class MujocoLaunchTwin(LaunchWorld):
     """One robot + profile on the MuJoCo launch twin (module docstring): ``launch(...)`` -> ``LaunchResult``.
 
-    Shares the trial world's upright test, tilt and placement helpers (:class:`MujocoTrialWorld`); the surface
-    those judge against (``ground_geom``) is the foam or the ledge.
+    Its robot is the MuJoCo trials' (:func:`~rollability_ros.core.sim.mujoco_trials.robot_spec`) and its tilt their
+    rule (:func:`~rollability_ros.core.sim.mujoco_trials.root_tilt_deg`); the surface the early decision's energy
+    monitor judges against (``ground_geom``) is the ledge (the foam's top is its ``ground_z_m``).
     """
 
-    def __init__(self, settings: LaunchTwinSettings, profile: typing.Optional[ProfileBody]) -> None:  # noqa: super().__init__ builds the trials' model, not this one
+    def __init__(self, settings: LaunchTwinSettings, profile: typing.Optional[ProfileBody]) -> None:
         self.mujoco = mujoco = require("mujoco", feature="the MuJoCo launch twin")
         self.settings, self.physics, self.robot_model = settings, settings.physics, settings.robot_model()
         self.profile = profile
-        physics, options = settings.physics, settings.twin
-        spec, root = robot_spec(self.robot_model, profile, physics)
+        spec, root = robot_spec(self.robot_model, profile, settings.physics)
         for geom in spec.geoms:
             geom.contype, geom.conaffinity = ROBOT_BITS
-        world = spec.worldbody
-        floor = world.add_geom()
-        floor.name, floor.type, floor.size = "floor", mujoco.mjtGeom.mjGEOM_PLANE, [0.0, 0.0, 1.0]
-        foam = world.add_geom()   # the foam's top as a plane (FOAM_AS_PLANE)
-        foam.name, foam.type = "foam", mujoco.mjtGeom.mjGEOM_PLANE
-        foam.size = [options.foam.length_m / 2, options.foam.width_m / 2, 1.0]
-        foam.pos = [options.foam.length_m / 2, 0.0, options.foam.thickness_m]
-        ledge_body = world.add_body()
-        ledge_body.name, ledge_body.mocap = "ledge", True
-        ledge = ledge_body.add_geom()
-        ledge.name, ledge.type = "ledge", mujoco.mjtGeom.mjGEOM_BOX
-        launcher = options.launcher
-        ledge.size = [launcher.ledge_depth_m / 2, launcher.ledge_width_m / 2, LEDGE_HALF_HEIGHT_M]
-        for geom in (floor, ledge):
-            set_geom_contact(geom, physics, ground=True)
-        for geom in (floor, foam, ledge):
-            geom.contype, geom.conaffinity = STATIC_BITS
-        frame = world.add_body()
-        frame.name, frame.mocap = "plate_frame", True
-        plate_body = frame.add_body()
-        plate_body.name = "plate"
-        plate_body.mass = options.plate.mass_kg
-        plate_body.inertia = [1e-4, 1e-4, 1e-4]
-        slide = plate_body.add_joint()
-        slide.name, slide.type, slide.axis = "plate_slide", mujoco.mjtJoint.mjJNT_SLIDE, [1.0, 0.0, 0.0]
-        plate = plate_body.add_geom()
-        plate.name, plate.type = "plate", mujoco.mjtGeom.mjGEOM_BOX
-        spec_plate = options.plate
-        plate.size = [spec_plate.thickness_m / 2, spec_plate.width_m / 2, spec_plate.height_m / 2]
-        plate.quat = _quat_wxyz(math.radians(spec_plate.yaw_bias_deg))
-        plate.mass = options.plate.mass_kg
-        set_geom_contact(plate, physics)
-        plate.friction = [PLATE_FRICTION * physics.lateral_friction, 0.0, 0.0]
-        plate.condim = 3
-        plate.priority = 1          # its friction and its stiff spring make the plate-robot contact
-        plate.solref = [PLATE_TIME_CONSTANT_STEPS * physics.time_step_s, PLATE_DAMPING_RATIO]
-        plate.contype, plate.conaffinity = PLATE_BITS
+        self._add_static_world(spec)
+        self._add_plate(spec)
         self.model = model = spec.compile()
         self.data = mujoco.MjData(model)
         self.root = model.body(root.name).id
@@ -167,8 +137,53 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         self._profile = profile
         self._build_ipos_z = float(model.body_ipos[self.root][2])   # retarget moves the COM from here, absolutely
         self._build_com_offset_z_m = settings.robot.com_offset_z_m
-        self.energy = None
+        self.energy: typing.Optional[MujocoEnergyMonitor] = None
         self.attach_energy()
+
+    def _add_static_world(self, spec: typing.Any) -> None:
+        """The floor, the foam's top and the ledge (on its mocap body) in ``spec`` (an ``MjSpec``; module docstring)."""
+        mujoco, physics, options = self.mujoco, self.settings.physics, self.settings.twin
+        world = spec.worldbody
+        floor = world.add_geom()
+        floor.name, floor.type, floor.size = "floor", mujoco.mjtGeom.mjGEOM_PLANE, [0.0, 0.0, 1.0]
+        foam = world.add_geom()   # the foam's top as a plane (FOAM_AS_PLANE)
+        foam.name, foam.type = "foam", mujoco.mjtGeom.mjGEOM_PLANE
+        foam.size = [options.foam.length_m / 2, options.foam.width_m / 2, 1.0]
+        foam.pos = [options.foam.length_m / 2, 0.0, options.foam.thickness_m]
+        ledge_body = world.add_body()
+        ledge_body.name, ledge_body.mocap = "ledge", True
+        ledge = ledge_body.add_geom()
+        ledge.name, ledge.type = "ledge", mujoco.mjtGeom.mjGEOM_BOX
+        launcher = options.launcher
+        ledge.size = [launcher.ledge_depth_m / 2, launcher.ledge_width_m / 2, LEDGE_HALF_HEIGHT_M]
+        for geom in (floor, ledge):
+            set_geom_contact(geom, physics, ground=True)
+        for geom in (floor, foam, ledge):
+            geom.contype, geom.conaffinity = STATIC_BITS
+
+    def _add_plate(self, spec: typing.Any) -> None:
+        """The push plate in ``spec``: a box on a slide joint whose frame is a mocap body (module docstring)."""
+        mujoco, physics, options = self.mujoco, self.settings.physics, self.settings.twin
+        frame = spec.worldbody.add_body()
+        frame.name, frame.mocap = "plate_frame", True
+        plate_body = frame.add_body()
+        plate_body.name = "plate"
+        plate_body.mass = options.plate.mass_kg
+        plate_body.inertia = [1e-4, 1e-4, 1e-4]
+        slide = plate_body.add_joint()
+        slide.name, slide.type, slide.axis = "plate_slide", mujoco.mjtJoint.mjJNT_SLIDE, [1.0, 0.0, 0.0]
+        plate = plate_body.add_geom()
+        plate.name, plate.type = "plate", mujoco.mjtGeom.mjGEOM_BOX
+        spec_plate = options.plate
+        plate.size = [spec_plate.thickness_m / 2, spec_plate.width_m / 2, spec_plate.height_m / 2]
+        plate.quat = _quat_wxyz(math.radians(spec_plate.yaw_bias_deg))
+        plate.mass = options.plate.mass_kg
+        set_geom_contact(plate, physics)
+        plate.friction = [PLATE_FRICTION * physics.lateral_friction, 0.0, 0.0]
+        plate.condim = 3
+        plate.priority = 1          # its friction and its stiff spring make the plate-robot contact
+        plate.solref = [PLATE_TIME_CONSTANT_STEPS * physics.time_step_s, PLATE_DAMPING_RATIO]
+        plate.contype, plate.conaffinity = PLATE_BITS
 
     def attach_energy(self) -> None:
         """The early decision's barriers for the current settings (none when ``trial.early_decision`` is off or
@@ -210,13 +225,13 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         wheel_rolling = options.wheel_rolling_friction * ground_lateral if mecanum else rolling
         model.geom_friction[self.ledge_geom] = [
             0.0, 0.0, wheel_rolling + ledge_rolling * physics.lateral_friction if ledge_rolling else 0.0]
-        body = physics.body_contact()
+        contact = physics.body_contact()
         foam = options.foam
         model.geom_priority[self.foam_geom] = 1
         model.geom_condim[self.foam_geom] = 6
         model.geom_friction[self.foam_geom] = [
             physics.lateral_friction * foam.lateral_friction, spinning,
-            body["rollingFriction"] * foam.lateral_friction + foam.rolling_friction * physics.lateral_friction]
+            contact["rollingFriction"] * foam.lateral_friction + foam.rolling_friction * physics.lateral_friction]
         # MuJoCo's soft contacts go unstable on a stiff spring at this step (a robustness draw of 2 x the shipped
         # foam blew up at omega dt = 0.76): the spring is capped at omega dt = FOAM_MAX_OMEGA_DT
         stiffness = min(foam.contact_stiffness_npm / self.mass_kg, (FOAM_MAX_OMEGA_DT / physics.time_step_s) ** 2)
@@ -254,8 +269,8 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         data = self.data
         if self._local_points is None:   # each geom's hull vertices in its own frame (fixed), computed once
             mujoco, model = self.mujoco, self.model
-            self._local_points = [(geom, _hull_vertices(local)) for geom in self.robot_geoms
-                                  for local in [_geom_points(mujoco, model, geom)] if local is not None]
+            self._local_points = [(geom, hull_vertices(local)) for geom in self.robot_geoms
+                                  for local in [geom_points(mujoco, model, geom)] if local is not None]
         return np.vstack([local @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]
                           for geom, local in self._local_points])
 
@@ -333,7 +348,7 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         previous, self._previous_pose = self._previous_pose, pose
         if previous is None:
             return False
-        linear, angular = _pose_speeds(previous, pose, trial.check_interval_steps * self.physics.time_step_s)
+        linear, angular = pose_speeds(previous, pose, trial.check_interval_steps * self.physics.time_step_s)
         if linear < trial.rest_linear_speed_mps and angular < math.radians(trial.rest_angular_speed_dps):
             self._rest_since = steps if self._rest_since is None else self._rest_since
             return steps - self._rest_since >= round(trial.rest_hold_s / self.physics.time_step_s)
@@ -360,8 +375,8 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
                on_pose: typing.Optional[PoseCallback] = None, *, drive: typing.Optional[LaunchDrive] = None,
                until_edge: bool = False) -> LaunchResult:
         """One launch of ``condition`` with ``seed`` and the cylinder's ``drive``
-        (:func:`~rollability_ros.core.sim.launch_twin.simulate_launch`'s rules; ``until_edge``: stop once the
-        foremost point crosses the edge); returns its :class:`~rollability_ros.core.sim.launch_twin.LaunchResult`."""
+        (:func:`~rollability_ros.core.sim.launch.twin.simulate_launch`'s rules; ``until_edge``: stop once the
+        foremost point crosses the edge); returns its :class:`~rollability_ros.core.sim.launch.results.LaunchResult`."""
         mujoco, model, data, settings = self.mujoco, self.model, self.data, self.settings
         options = settings.twin
         if drive is None:   # the speed solve launches on the cached twins (this one too): back to these settings
@@ -401,16 +416,19 @@ class MujocoLaunchTwin(MujocoTrialWorld, LaunchWorld):
         return launch_result(tracker, settings, (steps, settled, decision), (upright, tilt, final_orientation),
                              (speed_mps, angle_deg), seed, position, drive.plate_speed_mps(speed_mps))
 
+    def tilt_deg(self) -> float:
+        """Angle between the robot's up axis and world +z now, degrees (the MuJoCo trials' rule)."""
+        return root_tilt_deg(self.data, self.root, self.up_in_root)
+
     def wheels_down(self) -> int:
         """How many wheels are within the robot's ``contact_tolerance_m`` of the pad, the floor or the ledge: the
-        wheels it stands on, wherever (:func:`~rollability_ros.core.sim.launch_twin.rig_verdict`)."""
+        wheels it stands on, wherever (:func:`~rollability_ros.core.sim.launch.loop.rig_verdict`)."""
         mujoco, model, data = self.mujoco, self.model, self.data
         tolerance = self.robot_model.contact_tolerance_m
         surfaces = (self.foam_geom, self.floor_geom, self.ledge_geom)
         return sum(min(mujoco.mj_geomDistance(model, data, geom, surface, 10.0, None)
                        for geom in geoms for surface in surfaces) <= tolerance
                    for geoms in self.wheel_geoms.values() if geoms)
-
 
 class _MujocoPlate:
     """The push plate's drive (the PyBullet twin's ``PushPlate`` interface): a velocity servo on its slide joint,
@@ -467,9 +485,7 @@ class _MujocoPlate:
         """Brake to rest (the cylinder at the end of its push): target 0 with 10 x the force, from now on."""
         self._target, self._limit, self.driving = 0.0, self.spec.max_force_n * 10, False
 
-
 _cache: "collections.OrderedDict[str, MujocoLaunchTwin]" = collections.OrderedDict()
-
 
 def _launch_free(settings: LaunchTwinSettings) -> LaunchTwinSettings:
     """``settings`` without what only a launch's draws and drive read (designs list, speed and angle scatter, the
@@ -478,7 +494,6 @@ def _launch_free(settings: LaunchTwinSettings) -> LaunchTwinSettings:
     return dataclasses.replace(settings, twin=dataclasses.replace(
         twin, designs=DesignSources(), speed_sigma_fraction=0.0, angle_sigma_deg=0.0,
         launcher=dataclasses.replace(twin.launcher, speed_bias_fraction=0.0)))
-
 
 def _twin_key(settings, profile):
     """What needs a model of its own: everything but :func:`_launch_free`'s fields and what
@@ -498,7 +513,6 @@ def _twin_key(settings, profile):
         robot=dataclasses.replace(settings.robot, com_offset_z_m=0.0, profile_mass_scale=1.0),
         urdf_robot=dataclasses.replace(settings.urdf_robot, profile_mass_scale=1.0))
     return hashlib.sha256(pickle.dumps((canonical, profile), protocol=4)).hexdigest()
-
 
 def twin_for(settings: LaunchTwinSettings, profile: typing.Optional[ProfileBody]) -> MujocoLaunchTwin:
     """The :class:`MujocoLaunchTwin` of ``settings`` and ``profile`` from this process's cache.
@@ -526,7 +540,6 @@ def twin_for(settings: LaunchTwinSettings, profile: typing.Optional[ProfileBody]
         _cache.popitem(last=False)
     return twin
 
-
 class MujocoLaunch(LaunchEngine):
     """``sim.engine: mujoco``: launches on the kept MuJoCo twin of the robot + profile (:func:`twin_for`)."""
 
@@ -535,7 +548,7 @@ class MujocoLaunch(LaunchEngine):
                  profile: typing.Optional[ProfileBody], on_phase: typing.Optional[PhaseCallback] = None,
                  on_pose: typing.Optional[PoseCallback] = None, *, drive: typing.Optional[LaunchDrive] = None,
                  until_edge: bool = False) -> LaunchResult:
-        """One launch (called by :func:`~rollability_ros.core.sim.launch_twin.simulate_launch`)."""
+        """One launch (called by :func:`~rollability_ros.core.sim.launch.twin.simulate_launch`)."""
         drive = drive or launch_drive(settings, condition.speed_mps)   # before the twin: the solve launches too
         return twin_for(settings, profile).launch(condition, seed, on_phase, on_pose, drive=drive,
                                                   until_edge=until_edge)

@@ -1,3 +1,0 @@
-"""Moved to :mod:`rollability_ros.core.store` (the core's shared bottom layer, below every subpackage); this name
-stays only for code written against the old path (tests, branches). New code imports ``rollability_ros.core.store``."""
-from rollability_ros.core.store import *  # noqa: F401,F403

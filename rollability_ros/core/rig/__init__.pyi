@@ -1,0 +1,27 @@
+"""The face of ``rollability_ros.core.rig``: the names code outside the subpackage imports, and where each
+lives. Type checkers read this stub; at run time ``lazy_loader.attach_stub`` (``__init__.py``) reads the same
+imports and loads a name's module when the name is first used."""
+from .launch_backend import LaunchAborted, LaunchBackend, RigPorts
+from .rig_auth import KeyFileSigner, RecordGuard, request_guard
+from .rig_network import (DISCOVERY_RANGES, RIG_DOMAIN_ID, check_domain_id, check_namespace, exposure_warnings,
+                          physical_rig_environment)
+from .rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, OperatorOutcome,
+                          PhysicalLaunch, RigSettings, SimulatedLaunch, describe_answer, launch_backend_class,
+                          make_launch_backend, parse_outcome_answer)
+from .speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
+from .valve import ValveConfig, ValveController, ValveStatus
+from .valve_auth import (AuthError, RequestSigner, RequestVerifier, Signature, create_session_key, default_key_path,
+                         load_session_key, remove_session_key)
+from .valve_backends import make_controller
+from ._valve_backend import VALVE_BACKENDS, ValveBackend, make_valve_backend, register_valve_backend
+
+__all__ = [
+    "ANSWERED", "ASK_OUTCOME", "ASK_REGULATOR", "DISCOVERY_RANGES", "LAUNCH_BACKENDS", "RIG_DOMAIN_ID", "SPEED_GATES",
+    "VALVE_BACKENDS", "AuthError", "ImuOutcome", "KeyFileSigner", "LaunchAborted", "LaunchBackend", "OperatorOutcome",
+    "PhysicalLaunch", "RecordGuard", "RequestSigner", "RequestVerifier", "RigPorts", "RigSettings", "Signature",
+    "SimulatedLaunch", "SpeedGate", "SpeedGateConfig", "ValveBackend", "ValveConfig", "ValveController", "ValveStatus",
+    "check_domain_id", "check_namespace", "create_session_key", "default_key_path", "describe_answer",
+    "exposure_warnings", "launch_backend_class", "load_session_key", "make_controller", "make_launch_backend",
+    "make_speed_gate", "make_valve_backend", "parse_outcome_answer", "physical_rig_environment",
+    "register_valve_backend", "remove_session_key", "request_guard"
+]

@@ -1,0 +1,32 @@
+"""The face of ``rollability_ros.core.sim``: the names code outside the subpackage imports, and where each
+lives. Type checkers read this stub; at run time ``lazy_loader.attach_stub`` (``__init__.py``) reads the same
+imports and loads a name's module when the name is first used."""
+from .evaluation import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluationResult, EvaluatorSettings, TrialBatchEngine,
+                         TrialExecutor, evaluate_jobs, evaluate_mesh, evaluate_profile, load_settings, make_executor,
+                         profile_job, settings_at_fidelity, settings_from_parameters, trial_seed, with_given_files)
+from .launch.placement import check_launcher
+from .launch.results import LaunchResult
+from .launch.settings import (TWIN_NAMESPACE, TWIN_SECTIONS, LaunchTwinSettings, launch_twin_settings_from_parameters,
+                              load_launch_twin_settings, mecanum_wheels, twin_files)
+from .launch.twin import profile_body, simulate_launch, simulate_valid_launch
+from .objectives import FIDELITIES, ObjectiveSettings
+from .rollout import rollout_distance_m
+from .sensitivity import launch_sensitivity_rows, sensitivity_rows
+from .stable_poses import ScreenSettings, profile_screener, screen_robot
+from .trial_engine import (LAUNCH_ENGINES, TRIAL_ENGINES, LaunchEngine, TrialEngine, TrialOutcome, engine_names,
+                           make_trial_world, register_trial_engine)
+from .trials import TrialSettings
+from .world import PhysicsParams
+from ._worker_pool import spawn_pool
+
+__all__ = [
+    "FIDELITIES", "LAUNCH_ENGINES", "SETTINGS_SECTIONS", "TRIAL_ENGINES", "TWIN_NAMESPACE", "TWIN_SECTIONS",
+    "EvaluationCancelled", "EvaluationResult", "EvaluatorSettings", "LaunchEngine", "LaunchResult",
+    "LaunchTwinSettings", "ObjectiveSettings", "PhysicsParams", "ScreenSettings", "TrialBatchEngine", "TrialEngine",
+    "TrialExecutor", "TrialOutcome", "TrialSettings", "check_launcher", "engine_names", "evaluate_jobs",
+    "evaluate_mesh", "evaluate_profile", "launch_sensitivity_rows", "launch_twin_settings_from_parameters",
+    "load_launch_twin_settings", "load_settings", "make_executor", "make_trial_world", "mecanum_wheels", "profile_body",
+    "profile_job", "profile_screener", "register_trial_engine", "rollout_distance_m", "screen_robot",
+    "sensitivity_rows", "settings_at_fidelity", "settings_from_parameters", "simulate_launch", "simulate_valid_launch",
+    "spawn_pool", "trial_seed", "twin_files", "with_given_files"
+]

@@ -138,7 +138,7 @@ def robust_launches(study_dir, launches):
             code = subprocess.call(command, cwd=study_dir, stdout=log, stderr=subprocess.STDOUT)
         if code != 0:
             raise SystemExit(f"rollability evaluate failed (exit {code}); see {study_dir}/robust-launches.log")
-    counts = {}
+    counts: typing.Dict[str, typing.Dict[str, typing.Tuple[int, int]]] = {}
     for row in engine_agreement.read_table(table):
         counts.setdefault(row.engine, {})[row.design] = (row.successes, row.trials)
     return counts
@@ -194,7 +194,7 @@ def main():
             print(f"  transfer: screen vs race round 1 over {evidence[2]} elites: Spearman rho {evidence[0]:+.2f}, "
                   f"permutation p {evidence[1]:.3f}")
         engines = robust_launches(study_dir, args.robust_launches) if args.robust_launches else {}
-        engine_lows = {}
+        engine_lows: typing.Dict[str, typing.List[float]] = {}
         for engine, by_design in engines.items():
             print(f"  fresh robust launches on the {engine} twin ({args.robust_launches} each, seed {ROBUST_SEED}): "
                   f"bare {by_design['baseline'][0]}/{by_design['baseline'][1]}")

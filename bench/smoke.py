@@ -17,7 +17,8 @@ import typing
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
 
 #: The bench scripts with a ``--smoke`` size, cheapest first (bench/<name>.py, each ``main(argv) -> int``).
-SMOKE = ("bench_bag_writer", "bench_profile_mass", "bench_launch_twin", "verify_early_decision", "bench_pad_size")
+SMOKE = ("bench_bag_writer", "bench_adaptive_plan", "bench_profile_mass", "bench_launch_twin", "verify_early_decision",
+         "bench_pad_size")
 
 
 def run(names: typing.Sequence[str]) -> typing.List[str]:

@@ -10,6 +10,8 @@ Every import counts, inside functions too (a function-level import is still a de
 imports under ``if typing.TYPE_CHECKING:`` (annotations only, never executed) do not.
 """
 import ast
+import functools
+import os
 import pathlib
 import re
 import sys
@@ -20,9 +22,20 @@ CORE = PACKAGE / "core"
 SHARED = tuple(sorted(path.stem for path in CORE.glob("*.py") if path.stem != "__init__"))
 
 
+@functools.lru_cache(maxsize=None)
+def _parsed(path, mtime_ns, size):
+    return ast.parse(pathlib.Path(path).read_text(), path)
+
+
+def parsed(path):
+    """The ast of the file ``path``, parsed once per version of it (the counts read every module many times)."""
+    status = os.stat(path)
+    return _parsed(str(path), status.st_mtime_ns, status.st_size)
+
+
 def layer_order():
     """The subpackages in the order ``core/__init__.py`` lists them (``- name  description`` lines)."""
-    text = ast.get_docstring(ast.parse((CORE / "__init__.py").read_text()))
+    text = ast.get_docstring(parsed(CORE / "__init__.py"))
     names = re.findall(r"^- (\w+)\s", text, flags=re.M)
     subpackages = sorted(p.name for p in CORE.iterdir() if (p / "__init__.py").is_file())
     assert sorted(names) == subpackages, f"core/__init__.py lists {names}, the core holds {subpackages}"
@@ -66,7 +79,7 @@ def face_exports(sub):
     exports = {}
     if not face_stub(sub).is_file():
         return exports
-    for node in ast.parse(face_stub(sub).read_text()).body:
+    for node in parsed(face_stub(sub)).body:
         if isinstance(node, ast.ImportFrom) and node.level == 1:
             for alias in node.names:
                 exports[alias.asname or alias.name] = (f"{sub}.{node.module}" if node.module
@@ -78,7 +91,7 @@ def face_modules(sub):
     """The whole modules the face of ``sub`` exports as names (``from . import module`` in its stub)."""
     if not face_stub(sub).is_file():
         return []
-    return sorted(alias.name for node in ast.parse(face_stub(sub).read_text()).body
+    return sorted(alias.name for node in parsed(face_stub(sub)).body
                   if isinstance(node, ast.ImportFrom) and node.level == 1 and not node.module for alias in node.names)
 
 
@@ -87,7 +100,7 @@ def face_all(sub):
     none."""
     if not face_stub(sub).is_file():
         return None
-    for node in ast.parse(face_stub(sub).read_text()).body:
+    for node in parsed(face_stub(sub)).body:
         if isinstance(node, (ast.Assign, ast.AnnAssign)):
             targets = node.targets if isinstance(node, ast.Assign) else [node.target]
             if any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets) and node.value is not None:
@@ -102,7 +115,7 @@ def imports_of(path, modules, faces=None):
     found = []
     prefix = "rollability_ros.core."
     faces = faces or {}
-    tree = ast.parse(path.read_text())
+    tree = parsed(path)
     skipped = _annotation_only(tree)
     for node in ast.walk(tree):
         if id(node) in skipped:
@@ -133,7 +146,7 @@ def aliases(modules=None):
     modules = core_modules() if modules is None else modules
     found = {}
     for name, path in modules.items():
-        body = ast.parse(path.read_text()).body
+        body = parsed(path).body
         if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
             body = body[1:]
         if (len(body) == 1 and isinstance(body[0], ast.ImportFrom) and [a.name for a in body[0].names] == ["*"]
@@ -260,7 +273,7 @@ def function_level_imports():
     modules = core_modules()
     count = 0
     for path in modules.values():
-        tree = ast.parse(path.read_text())
+        tree = parsed(path)
         for function in ast.walk(tree):
             if isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 for node in ast.walk(function):
@@ -274,7 +287,7 @@ def public_functions(root=PACKAGE):
     annotated: every parameter but self / cls, and the return)."""
     annotated = total = 0
     for path in sorted(root.rglob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(parsed(path)):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and not node.name.startswith("_"):
                 total += 1
                 arguments = node.args.posonlyargs + node.args.args + node.args.kwonlyargs
@@ -309,7 +322,7 @@ def deep_imports(root=PACKAGE):
     for path in sorted(root.rglob("*.py")):
         relative = path.relative_to(PACKAGE).parts
         own = relative[1] if relative[0] == "core" and len(relative) > 2 else None
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        for node in ast.walk(parsed(path)):
             if isinstance(node, ast.Import):
                 taken = [(alias.name, None) for alias in node.names]
             elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
@@ -335,7 +348,7 @@ def probes(root=PACKAGE):
     """``hasattr(`` and ``getattr(`` calls under ``root`` (duck-typed seams show up as these)."""
     count = 0
     for path in sorted(root.rglob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(parsed(path)):
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("hasattr",
                                                                                                    "getattr"):
                 count += 1
@@ -370,7 +383,7 @@ def parse_sites(root=CORE):
     for path in sorted(root.rglob("*.py")):
         rel = path.relative_to(root).as_posix()
         if rel != "config.py":
-            visit(ast.parse(path.read_text()), rel, [])
+            visit(parsed(path), rel, [])
     return sites
 
 
@@ -405,7 +418,7 @@ def function_lines(root=PACKAGE):
                 visit(child, rel, scope)
 
     for path in sorted(root.rglob("*.py")):
-        visit(ast.parse(path.read_text()), path.relative_to(root.parent).as_posix(), [])
+        visit(parsed(path), path.relative_to(root.parent).as_posix(), [])
     return dict(sorted(sizes.items(), key=lambda item: (-item[1], item[0])))
 
 
@@ -414,7 +427,7 @@ def any_aliases(root=CORE):
     ``Row = typing.Dict[str, typing.Any]``): a signature naming one uses ``Any`` as much as one writing it."""
     names = set()
     for path in sorted(root.rglob("*.py")):
-        for node in ast.parse(path.read_text()).body:
+        for node in parsed(path).body:
             if (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)
                     and re.search(r"\bAny\b", ast.unparse(node.value))
                     and re.match(r"(typing\.)?(Any|Callable|Dict|List|Mapping|Sequence|Tuple|Union|Optional)\b",
@@ -463,7 +476,7 @@ def any_signatures(root=CORE):
     for path in sorted(root.rglob("*.py")):
         rel = path.relative_to(root).as_posix()
         if all(public(part) for part in path.relative_to(root).with_suffix("").parts):
-            visit(ast.parse(path.read_text()), rel, [])
+            visit(parsed(path), rel, [])
     return found
 
 
@@ -476,7 +489,7 @@ def bench_coverage():
     those under mypy (test/core/test_mypy.py checks ``bench`` whole: all of them, when it names it)."""
     scripts = sorted(path.stem for path in BENCH.glob("*.py") if path.stem != "smoke")
     smoke = []
-    for node in ast.parse((BENCH / "smoke.py").read_text()).body:
+    for node in parsed(BENCH / "smoke.py").body:
         if isinstance(node, (ast.Assign, ast.AnnAssign)) and "SMOKE" in ast.unparse(node):
             smoke = [name for name in ast.literal_eval(node.value) if name in scripts]
     checked = scripts if '"bench"' in (PACKAGE.parent / "test" / "core" / "test_mypy.py").read_text() else []
@@ -495,7 +508,7 @@ def check_untyped_defs(ini=MYPY_INI):
 def type_only_imports(path, modules):
     """``[(target module, line)]``: the core modules ``path`` imports under ``if typing.TYPE_CHECKING:`` only."""
     prefix = "rollability_ros.core."
-    tree = ast.parse(path.read_text())
+    tree = parsed(path)
     skipped = _annotation_only(tree)
     found = []
     for node in ast.walk(tree):
@@ -598,7 +611,7 @@ def names_past_faces(roots=(PACKAGE,)):
         for path in sorted(root.rglob("*.py")):
             relative = path.relative_to(root).parts
             own = relative[1] if root == PACKAGE and relative[0] == "core" and len(relative) > 2 else None
-            visit(ast.parse(path.read_text()), {}, path.relative_to(PACKAGE.parent).as_posix(), own)
+            visit(parsed(path), {}, path.relative_to(PACKAGE.parent).as_posix(), own)
     return sorted(found)
 
 

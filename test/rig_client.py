@@ -81,8 +81,9 @@ class RigClient:
                                                    auth=self.auth(lambda signer: signer.confirm(trial_id)))
         return self.confirm_client.call(request, timeout_sec=30)
 
-    def record(self, upright, trial_id="", travel_time_s=math.nan, note=""):
+    def record(self, upright, trial_id="", travel_time_s=math.nan, note="", rest_distance_m=-1.0):
         assert self.record_client.wait_for_service(timeout_sec=30)
         return self.record_client.call(self._record.Request(
-            trial_id=trial_id, upright=upright, travel_time_s=travel_time_s, note=note,
-            auth=self.auth(lambda signer: signer.outcome(trial_id, upright, travel_time_s, note))), timeout_sec=30)
+            trial_id=trial_id, upright=upright, travel_time_s=travel_time_s, note=note, rest_distance_m=rest_distance_m,
+            auth=self.auth(lambda signer: signer.outcome(trial_id, upright, travel_time_s, note, rest_distance_m))),
+            timeout_sec=30)

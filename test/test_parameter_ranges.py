@@ -29,10 +29,16 @@ def _declared_classes(module, tree, argument):
     """The settings dataclasses ``argument`` (the third argument of a ``declare_settings`` call) can be.
 
     Understood: a module-level name; the loop variable of ``for prefix, cls in TABLE.items()``; ``field.type``
-    of ``for field in dataclasses.fields(Settings)``. Anything else fails the test (it must not be skipped).
+    of ``for field in dataclasses.fields(Settings)``, also through a name assigned ``typing.cast(type,
+    field.type)``. Anything else fails the test (it must not be skipped).
     """
     if isinstance(argument, ast.Name) and hasattr(module, argument.id):
         return [getattr(module, argument.id)]
+    if isinstance(argument, ast.Name):
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Assign) and [ast.unparse(t) for t in node.targets] == [argument.id]
+                    and isinstance(node.value, ast.Call) and ast.unparse(node.value.func) == "typing.cast"):
+                return _declared_classes(module, tree, node.value.args[1])
     found = []
     if isinstance(argument, ast.Name):
         for source in _loop_sources(tree, argument.id):

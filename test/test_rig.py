@@ -48,7 +48,7 @@ def test_physical_rig_goal_checks_operator_outcome_and_imu_override(ros_node, st
     assert rig.confirm().success
     assert ros_node.wait_for(lambda: feedback[-1][0] == "classifying", 30), rig_process.log() + valve.log()
     assert not rig.record(True, trial_id="other").accepted
-    assert rig.record(False, trial_id="t0", note="on its lid").accepted
+    assert rig.record(False, trial_id="t0", note="on its lid", rest_distance_m=0.35).accepted   # rolled=0.35
     done = rig.result(future)
     assert done.status == GoalStatus.STATUS_SUCCEEDED, done.result.message
     outcome = done.result.outcome
@@ -58,10 +58,14 @@ def test_physical_rig_goal_checks_operator_outcome_and_imu_override(ros_node, st
     assert outcome.note.startswith("travel time: not measured (the simulated speed gate")
     assert outcome.note.endswith("; on its lid") and math.isnan(outcome.measured_speed_mps)
     assert all(math.isnan(q) for q in (outcome.final_orientation.x, outcome.final_orientation.w))  # not seen: unknown
+    # the distance the operator measured, signed with the answer; what no sensor saw stays not measured
+    assert outcome.rest_distance_m == 0.35 and all(math.isnan(v) for v in (
+        outcome.final_tilt_deg, outcome.time_to_rest_s, outcome.peak_deceleration_mps2))
     # one place to answer (issue 45): a late answer from the other place that agrees is no failure, one that
     # differs is refused naming both
     agrees = rig.record(False, trial_id="t0")
-    assert agrees.accepted and agrees.message.startswith("already answered for t0: tipped, note: on its lid")
+    assert agrees.accepted and agrees.message.startswith("already answered for t0: tipped, rolled 0.35 m, note: on its "
+                                                         "lid")
     differs = rig.record(True, trial_id="t0")
     assert not differs.accepted and "this answer (upright) differs and is refused" in differs.message
     assert [p for p, _ in itertools.groupby(p for p, _ in feedback)] == ["waiting_for_operator", "armed", "fired", "in_flight",

@@ -1,5 +1,6 @@
 """`rollability campaign`: run the launch campaign (paper 2.2.6) in this process or through the node graph."""
 import argparse
+import typing
 
 from rollability_ros.cli import Subparsers, add_session_argument, join_session
 
@@ -45,7 +46,51 @@ def register(subparsers: Subparsers) -> None:
                              "every simulated launch); stores nothing")
     parser.add_argument("--seed", type=int,
                         help="with --resimulate: the twin seed of the launch (the stored outcome's seed)")
+    _add_adaptive_arguments(parser)
     parser.set_defaults(func=run)
+
+
+def _add_adaptive_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of the adaptive plan and of a comparison that stops once decided."""
+    adaptive = parser.add_argument_group(
+        "which launch next (docs/calibration.md, 'Which launch next')",
+        "An adaptive plan launches, each time, the (configuration, condition) of the campaign matrix whose outcome "
+        "tells most about the twin's unknowns (the BALD score over prior samples of the unknowns weighted by the "
+        "stored outcomes of the run; P(upright) of each sample from --sim-repetitions twin launches, made once at the "
+        "start). --propose-next prints that launch, as the technician sets it up, and why; it stores nothing.")
+    adaptive.add_argument("--plan", choices=("matrix", "adaptive"), default="matrix",
+                          help="matrix: every trial of the campaign matrix (default); adaptive: --budget launches, "
+                               "each the one with the most expected information (in process only)")
+    adaptive.add_argument("--propose-next", action="store_true",
+                          help="print the next launch the adaptive plan would make from the run's stored outcomes "
+                               "(--store) and why; launch nothing")
+    adaptive.add_argument("--budget", type=int, default=150,
+                          help="with --plan adaptive: launches this session (default 150)")
+    adaptive.add_argument("--fit", action="append", default=[], metavar="KEY",
+                          help="an unknown to learn about (a key of calibration.parameters, its declared bounds and "
+                               "scale; repeatable; default: robot.com_offset_z_m and "
+                               "launch_twin.foam.lateral_friction)")
+    adaptive.add_argument("--twin-config", action="append", default=[], metavar="FILE",
+                          help="parameter file over sim, robot, launch_twin and calibration for the predictions (e.g. "
+                               "the launch_twin.designs naming the profiles, or a calibrated.yaml); repeatable")
+    adaptive.add_argument("--prior-samples", type=int, default=32,
+                          help="prior samples of the unknowns (default 32; more describe the posterior better and "
+                               "cost prior-samples x conditions x sim-repetitions twin launches once)")
+    adaptive.add_argument("--sim-repetitions", type=int, default=4,
+                          help="twin launches per sample and condition for P(upright) (default 4)")
+    adaptive.add_argument("--workers", type=int, default=None,
+                          help="launch worker processes for the predictions (default: one per core)")
+    adaptive.add_argument("--about", metavar="FIRST,SECOND",
+                          help="with --propose-next / --plan adaptive: choose the launch that tells most about which "
+                               "of two configurations rights the robot more often (under the plausible unknowns), "
+                               "instead of about the unknowns themselves")
+    adaptive.add_argument("--stop-when-decided", metavar="FIRST,SECOND",
+                          help="compare two configurations launched in pairs (the same condition and repetition, "
+                               "FIRST then SECOND; the plan is reordered so) and end the campaign as soon as the "
+                               "always-valid test decides which rights the robot more often (exit 0)")
+    adaptive.add_argument("--alpha", type=float, default=0.05,
+                          help="with --stop-when-decided: the error rate, the chance that a decision is wrong "
+                               "(default 0.05)")
 
 
 #: How the commands name the campaign's rig files in a refusal.
@@ -72,6 +117,9 @@ def run(args: argparse.Namespace) -> int:
     if args.resimulate or args.seed is not None:
         return _resimulate(args)
     spec = _spec(args)
+    _check_adaptive_arguments(args, spec)
+    if args.propose_next:
+        return _propose_next(args, spec)
     ask = input if launch_backend_class(args.backend).attended else None
     if (args.session is not None or args.namespace is not None) and not args.graph:
         raise ValueError("--session and --namespace are for --graph (a campaign through a running graph)")
@@ -81,10 +129,126 @@ def run(args: argparse.Namespace) -> int:
         if args.rig_config:   # never dropped: the rig node of the graph was started with its own files
             raise ValueError("--rig-config is for the in-process rig; with --graph the rig node reads the files it "
                              "was started with")
-        return _run_graph(args, spec, ask)
+        return _run_graph(args, spec, ask, _comparison(args))
     if not args.store:
         raise ValueError("--store is required (the store file or run directory this command writes)")
     return _run_local(args, spec, ask)
+
+
+def _comparison(args: argparse.Namespace, text: typing.Optional[str] = None) -> typing.Optional[typing.Tuple[str, str]]:
+    """``(first, second)`` of ``--stop-when-decided`` (or of ``text``), or None."""
+    text = args.stop_when_decided if text is None else text
+    if not text:
+        return None
+    first, second = text.split(",")
+    return first.strip(), second.strip()
+
+
+def _check_adaptive_arguments(args, spec):
+    """Refuse unusable adaptive-plan arguments in one line, before anything starts."""
+    import math
+
+    for option, text in (("--stop-when-decided", args.stop_when_decided), ("--about", args.about)):
+        if text is None:
+            continue
+        names = [name.strip() for name in text.split(",")]
+        if len(names) != 2 or names[0] == names[1] or not all(names):
+            raise ValueError(f"{option} needs two different configurations as FIRST,SECOND, got {text!r}")
+        missing = [name for name in names if name not in spec.configurations]
+        if missing:
+            raise ValueError(f"{option}: {', '.join(missing)} not in campaign.configurations "
+                             f"({', '.join(spec.configurations)})")
+    if args.stop_when_decided is not None:
+        if args.plan == "adaptive":
+            raise ValueError("--stop-when-decided compares two configurations on the matrix plan, not --plan adaptive")
+    if not 0 < args.alpha < 0.5 or math.isnan(args.alpha):
+        raise ValueError(f"--alpha must be in (0, 0.5), got {args.alpha}")
+    adaptive = args.plan == "adaptive" or args.propose_next
+    if not adaptive and (args.fit or args.twin_config or args.about):
+        raise ValueError("--fit, --twin-config and --about are for --plan adaptive and --propose-next")
+    if adaptive:
+        if args.graph:
+            raise ValueError("--plan adaptive and --propose-next run in process (--store), not with --graph")
+        if not args.store:
+            raise ValueError("--plan adaptive and --propose-next need --store (the run's stored outcomes)")
+        for name, value, low in (("--budget", args.budget, 1), ("--prior-samples", args.prior_samples, 2),
+                                 ("--sim-repetitions", args.sim_repetitions, 1)):
+            if value < low:
+                raise ValueError(f"{name} must be >= {low}, got {value}")
+        if args.workers is not None and args.workers < 1:
+            raise ValueError(f"--workers must be >= 1, got {args.workers}")
+
+
+def _adaptive_posterior(args, spec, outcomes):
+    """The weighted posterior of the adaptive plan: prior samples of the unknowns, the twin's P(upright) of each at
+    every grouped condition of the matrix (launched now), weighed by ``outcomes``."""
+    import numpy as np
+
+    from rollability_ros.core.campaign import (DEFAULT_UNKNOWNS, TWIN_CONFIGS, LaunchPool, TwinPredictor, Unknowns,
+                                               WeightedPosterior, calibration_settings, candidate_conditions,
+                                               check_fittable)
+    from rollability_ros.core.config import check_given_files, load_parameters
+    from rollability_ros.core.profile import configuration_ids
+    from rollability_ros.core.sim import TWIN_SECTIONS, launch_twin_settings_from_parameters
+
+    check_given_files(args.twin_config, {*TWIN_SECTIONS, "calibration"}, "rollability campaign --twin-config")
+    parameters = load_parameters([*TWIN_CONFIGS, "calibration", *args.twin_config])
+    settings = calibration_settings(parameters).selected(args.fit or DEFAULT_UNKNOWNS)
+    check_fittable(parameters, settings)
+    known = configuration_ids(launch_twin_settings_from_parameters(parameters).twin.designs)
+    unknown = [c for c in spec.configurations if c not in known]
+    if unknown:
+        raise ValueError(f"the twin has no profile for {', '.join(unknown)} (it knows {', '.join(known)}): give the "
+                         "campaign's designs with --twin-config (launch_twin.designs)")
+    unknowns = Unknowns.from_settings(settings)
+    candidates = candidate_conditions(spec.configurations, spec.heights_m, spec.speeds_mps, spec.angles_deg)
+    launches = args.prior_samples * len(candidates) * args.sim_repetitions
+    print(f"adaptive plan: P(upright) of {args.prior_samples} prior samples of {', '.join(unknowns.names)} at "
+          f"{len(candidates)} conditions, {args.sim_repetitions} twin launches each ({launches} launches, about "
+          f"{launches * 0.05 / 60:.0f} min on one core)", flush=True)
+    with LaunchPool(args.workers) as pool:
+        predictor = TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
+        posterior = WeightedPosterior.from_predictor(unknowns, predictor, candidates, args.prior_samples,
+                                                              np.random.default_rng(settings.seed))
+    used = posterior.observe_outcomes(outcomes)
+    left_out = len(outcomes) - used
+    why = f" ({left_out} left out: invalid launches, or conditions outside the campaign matrix)" if left_out else ""
+    print(f"adaptive plan: weighed by {used} stored launches of run {spec.run_id}{why}", flush=True)
+    return posterior
+
+
+def _pressures(args):
+    """``{speed m/s: regulator psi}`` of the rig files (to name the pressure in the instructions)."""
+    from rollability_ros.core.campaign import local_rig_settings_from_files
+
+    regulator = local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG).valve.regulator
+    return dict(zip(regulator.speeds_mps, regulator.pressures_psi))
+
+
+def _stored_outcomes(args, spec):
+    """The run's stored outcomes in ``--store``; a store that does not exist is refused (never created here)."""
+    import os
+
+    from rollability_ros.core.store import Store, store_path
+
+    path = store_path(args.store)
+    if not os.path.isfile(path):
+        raise ValueError(f"no store at {path}: --propose-next reads the run's stored outcomes")
+    with Store(path) as store:
+        return store.launch_outcomes(spec.run_id)
+
+
+def _propose_next(args, spec):
+    from rollability_ros.core.campaign import proposal_lines
+
+    outcomes = _stored_outcomes(args, spec)
+    pressures = _pressures(args)
+    posterior = _adaptive_posterior(args, spec, outcomes)
+    previous = outcomes[-1].condition if outcomes else None
+    proposal = posterior.propose(comparison=_comparison(args, args.about or ""))
+    for line in proposal_lines(posterior, proposal, previous, pressures):
+        print(line)
+    return 0
 
 
 def _resimulate(args):
@@ -116,6 +280,10 @@ def _resimulate(args):
     print(f"launch_speed_mps: {float(result.launch_speed_mps)!r}")
     print(f"launch_angle_deg: {float(result.launch_angle_deg)!r}")
     print(f"invalid_reason: {result.invalid_reason or '(valid launch)'}")
+    from rollability_ros.core.rig import simulated_continuous_outcomes
+
+    for name, value in simulated_continuous_outcomes(result).items():   # as the stored outcome carries them
+        print(f"{name}: {value!r}")
     return 0
 
 
@@ -125,13 +293,17 @@ def _run_local(args, spec, ask):
     from rollability_ros.core.campaign import (LocalRig, local_rig_settings_from_files, plan_refusal, plan_trials,
                                                record_campaign_run, report_exit_code, resume_command, resume_refusal,
                                                run_campaign, store_writer)
+    from rollability_ros.core.campaign import (adaptive_next_trial, budget_placeholders, comparison_stop_rule,
+                                               paired_order)
     from rollability_ros.core.store import Store
 
     settings, plan = local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG), plan_trials(spec)
 
+    matrix = list(plan)
+
     def checked_rig() -> LocalRig:
         rig = LocalRig(settings, ask or input)
-        refusal = plan_refusal(rig.backend, spec.run_id, plan)
+        refusal = plan_refusal(rig.backend, spec.run_id, matrix)   # every trial of the matrix, whichever plan runs
         if refusal:
             rig.close()
             raise ValueError(refusal)
@@ -146,17 +318,28 @@ def _run_local(args, spec, ask):
             refusal = resume_refusal(len(stored), args.resume, spec.run_id)
             if refusal:
                 raise ValueError(refusal)
+            stop_rule, next_trial = None, None
+            comparison = _comparison(args)
+            if comparison is not None:
+                plan = paired_order(plan, *comparison)
+                first, second = comparison
+                stop_rule = comparison_stop_rule(store.launch_outcomes(spec.run_id), first, second, args.alpha)
+            if args.plan == "adaptive":   # minutes of twin launches: before a physical rig opens its valve
+                posterior = _adaptive_posterior(args, spec, store.launch_outcomes(spec.run_id))
+                next_trial = adaptive_next_trial(posterior, stored, comparison=_comparison(args, args.about or ""))
+                plan = budget_placeholders(args.budget, plan[0].condition)
             rig = rig or checked_rig()
             record_campaign_run(store, spec.run_id, args.backend, rig.backend.design_sources())
             report = run_campaign(plan, spec.run_id, stored, lambda trial: rig.launch(spec.run_id, trial),
-                                  store_writer(store), ask=ask)
+                                  store_writer(store), ask=ask, pressure_psi_by_speed=_pressures(args),
+                                  stop_rule=stop_rule, next_trial=next_trial)
     finally:
         if rig is not None:
             rig.close()
     return report_exit_code(report, resume=resume_command(getattr(args, "argv", None) or sys.argv[1:]))
 
 
-def _run_graph(args, spec, ask):
+def _run_graph(args, spec, ask, comparison=None):
     import os
     import signal
     import sys
@@ -194,7 +377,8 @@ def _run_graph(args, spec, ask):
         node = Node("campaign_runner", namespace=namespace)
         print(f"campaign: through the graph on ROS domain {os.environ.get('ROS_DOMAIN_ID') or '0'}, namespace "
               f"{namespace}", flush=True)
-        return report_exit_code(run_graph_campaign(node, spec, settings, ask, session=session.id if session else ""),
+        return report_exit_code(run_graph_campaign(node, spec, settings, ask, session=session.id if session else "",
+                                                   comparison=comparison, alpha=args.alpha),
                                 resume=resume_command(getattr(args, "argv", None) or sys.argv[1:]))
     except (KeyboardInterrupt, ExternalShutdownException):
         print("campaign: stopped (Ctrl-C); stored trials are kept: continue with --resume", flush=True)

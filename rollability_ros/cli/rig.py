@@ -34,6 +34,9 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--travel-time-s", type=float, default=None,
                         help="for outcome: travel time over the run, s, > 0 (when the light gates missed it)")
     parser.add_argument("--note", default="", help="for outcome: free text")
+    parser.add_argument("--rolled-m", type=float, default=None,
+                        help="for outcome: distance from the ledge's edge to where the chassis came to rest, m, >= 0, "
+                             "as measured (stored as the outcome's rest_distance_m; left out: not measured)")
     parser.add_argument("--namespace", default=None,
                         help="ROS namespace of the rig nodes (default: bringup.namespace of the parameter files, "
                              "/rollability as shipped: where `rollability bringup` and the launch files start them)")
@@ -68,6 +71,12 @@ def check_arguments(args: argparse.Namespace) -> None:
         if not 0 < args.travel_time_s < math.inf:
             raise ValueError(f"--travel-time-s must be a number of seconds > 0, got {args.travel_time_s} (leave it out "
                              "when the run was not timed)")
+    if args.rolled_m is not None:
+        if args.action != "outcome":
+            raise ValueError("--rolled-m is for outcome only")
+        from rollability_ros.core.rig import check_rest_distance
+
+        check_rest_distance(args.rolled_m)
     if args.action == "outcome" and args.verdict is None:
         raise ValueError("outcome needs a verdict: upright or tipped")
     if args.action != "outcome" and args.verdict is not None:
@@ -107,10 +116,12 @@ def _request(args, sign=False):
             return kind, name, ConfirmRegulator.Request(trial_id=args.trial_id,
                                                         auth=auth_msg(signer.confirm(args.trial_id)))
         travel_time_s = math.nan if args.travel_time_s is None else args.travel_time_s
+        rolled_m = -1.0 if args.rolled_m is None else args.rolled_m   # the service's "not measured"
         upright = args.verdict == "upright"
         return kind, name, RecordOutcome.Request(
             trial_id=args.trial_id, upright=upright, travel_time_s=travel_time_s, note=args.note,
-            auth=auth_msg(signer.outcome(args.trial_id, upright, travel_time_s, args.note)))
+            rest_distance_m=rolled_m,
+            auth=auth_msg(signer.outcome(args.trial_id, upright, travel_time_s, args.note, rolled_m)))
     except AuthError as exc:
         hint = "" if args.session else " (a session keeps its key where its session.yaml says: pass --session SESSION)"
         raise ValueError(f"{exc}{hint}") from exc

@@ -10,14 +10,15 @@ Every record read from a message is validated (``validate()``), so a node and th
 malformed records. Times: ``builtin_interfaces/Time`` <-> float seconds since the Unix epoch; a time that cannot
 be a stamp (NaN, infinite, negative) becomes 0 and nanoseconds are clamped to ``[0, 999_999_999]``. A
 ``LaunchOutcome`` decoded from a definition without ``seed`` (a bag recorded before the field existed) reads as
-:data:`~rollability_ros.core.records.NO_SEED`; a ``CandidateResult`` or ``GenerationSummary`` without
+:data:`~rollability_ros.core.records.NO_SEED`, and one without the continuous outcomes (``final_tilt_deg`` ...)
+with each not measured (NaN); a ``CandidateResult`` or ``GenerationSummary`` without
 ``session`` (recorded before the field existed) reads with session "".
 """
 import math
 import typing
 
-from rollability_ros.core.records import (NO_SEED, CandidateRecord, GenerationRecord, LaunchCondition,
-                                                  LaunchOutcome, TipEventRecord)
+from rollability_ros.core.records import (CONTINUOUS_OUTCOMES, NO_SEED, NOT_MEASURED, CandidateRecord,
+                                          GenerationRecord, LaunchCondition, LaunchOutcome, TipEventRecord)
 
 #: Any of the record classes.
 Record = typing.Union[LaunchOutcome, CandidateRecord, GenerationRecord, TipEventRecord]
@@ -136,15 +137,23 @@ def condition_from_message(msg: ConditionMessage) -> LaunchCondition:
     return condition
 
 
+def _measured(value: typing.Any) -> float:
+    """A float64 field that may say "not measured": NaN reads as :data:`~rollability_ros.core.records.NOT_MEASURED`."""
+    value = float(value)
+    return NOT_MEASURED if math.isnan(value) else value
+
+
 def _outcome_from_message(msg):
     return LaunchOutcome(
         run_id=msg.run_id, trial_id=msg.trial_id, condition=condition_from_message(msg.condition),
-        backend=msg.backend, upright=bool(msg.upright), travel_time_s=float(msg.travel_time_s),
-        measured_speed_mps=float(msg.measured_speed_mps), speed_out_of_tolerance=bool(msg.speed_out_of_tolerance),
+        backend=msg.backend, upright=bool(msg.upright), travel_time_s=_measured(msg.travel_time_s),
+        measured_speed_mps=_measured(msg.measured_speed_mps), speed_out_of_tolerance=bool(msg.speed_out_of_tolerance),
         final_orientation=quaternion_to_tuple(msg.final_orientation), classified_by=msg.classified_by,
         note=msg.note, stamp_s=stamp_to_s(msg.header.stamp),
         # a message decoded from a definition older than the seed field (an old bag) has no seed
-        seed=int(getattr(msg, "seed", NO_SEED)))
+        seed=int(getattr(msg, "seed", NO_SEED)),
+        # nor the continuous outcomes: not measured, never a number made up
+        **{name: _measured(getattr(msg, name, NOT_MEASURED)) for name in CONTINUOUS_OUTCOMES})
 
 
 def _candidate_from_message(msg):
@@ -197,7 +206,8 @@ def message_from_record(make: MakeMessage[Message], record: Record) -> typing.Tu
             measured_speed_mps=float(record.measured_speed_mps),
             speed_out_of_tolerance=bool(record.speed_out_of_tolerance),
             final_orientation=make_quaternion(make, record.final_orientation), classified_by=record.classified_by,
-            note=record.note, seed=int(record.seed), auth=make(AUTH_TYPE, session="", counter=0, mac=""))
+            note=record.note, seed=int(record.seed), auth=make(AUTH_TYPE, session="", counter=0, mac=""),
+            **{name: float(value) for name, value in record.continuous().items()})
     if isinstance(record, CandidateRecord):
         return CANDIDATE_TYPE, make(
             CANDIDATE_TYPE, header=_header(make, record.stamp_s), run_id=record.run_id,

@@ -7,8 +7,9 @@ import dataclasses
 import math
 import typing
 
-#: Placeholder for "not measured" numeric fields (travel time, measured speed).
-NOT_MEASURED = float("nan")
+#: Placeholder for "not measured" numeric fields (travel time, measured speed, the continuous outcomes): ``math.nan``
+#: itself, the one NaN object the store, CSV and message readers give back, so records read back compare equal.
+NOT_MEASURED = math.nan
 #: ``LaunchOutcome.final_orientation`` when no sensor saw it (an operator-classified launch): all four NaN, never
 #: the upright quaternion (0, 0, 0, 1), which would claim a tipped chassis ended on its wheels.
 UNKNOWN_ORIENTATION = (NOT_MEASURED,) * 4
@@ -95,6 +96,14 @@ class LaunchOutcome:
 
     ``seed``: for a simulated launch the launch twin seed of the launch as stored (the retry that was kept), so
     ``simulate_launch(condition, twin settings, seed)`` repeats it exactly; :data:`NO_SEED` for a physical one.
+
+    The continuous outcomes (:data:`CONTINUOUS_OUTCOMES`, data beside the verdict, never deciding it), each NaN when
+    nothing measured it (never invented): ``final_tilt_deg`` the angle between the body's up axis and world up at
+    rest (0 upright, 180 inverted); ``rest_distance_m`` how far the chassis came to rest from where it went over the
+    edge, horizontally (the twin's, or the distance the operator measured and typed); ``time_to_rest_s`` from the
+    first landing until it was at rest; ``peak_deceleration_mps2`` the largest acceleration magnitude from the
+    landing on (the impact an accelerometer on the chassis sees). Records written before these fields existed (old
+    stores, CSVs, bags) read with NaN.
     """
 
     run_id: str
@@ -110,6 +119,10 @@ class LaunchOutcome:
     note: str = ""
     stamp_s: float = 0.0              # time of classification, s since the Unix epoch
     seed: int = NO_SEED               # twin seed of a simulated launch; NO_SEED for a physical one
+    final_tilt_deg: float = NOT_MEASURED          # deg, [0, 180]; NaN = not measured
+    rest_distance_m: float = NOT_MEASURED         # m, >= 0; NaN = not measured
+    time_to_rest_s: float = NOT_MEASURED          # s, >= 0; NaN = not measured
+    peak_deceleration_mps2: float = NOT_MEASURED  # m/s^2, >= 0; NaN = not measured
 
     BACKENDS = ("sim", "physical")
     CLASSIFIERS = ("operator", "imu", "sim")
@@ -149,6 +162,31 @@ class LaunchOutcome:
             raise ValueError(f"stamp_s must be a time >= 0, s since the epoch, got {self.stamp_s!r}")
         if self.seed != NO_SEED:
             check_twin_seed(self.seed)
+        for name, (low, high) in CONTINUOUS_OUTCOMES.items():
+            check_continuous_outcome(name, getattr(self, name), low, high)
+
+    def continuous(self) -> typing.Dict[str, float]:
+        """``{name: value}`` of the :data:`CONTINUOUS_OUTCOMES` (NaN = not measured)."""
+        return {name: getattr(self, name) for name in CONTINUOUS_OUTCOMES}
+
+
+#: The continuous outcomes a :class:`LaunchOutcome` carries beside its verdict -> their allowed range (own units:
+#: deg, m, s, m/s^2); NaN means not measured.
+CONTINUOUS_OUTCOMES: typing.Dict[str, typing.Tuple[float, float]] = {
+    "final_tilt_deg": (0.0, 180.0), "rest_distance_m": (0.0, math.inf), "time_to_rest_s": (0.0, math.inf),
+    "peak_deceleration_mps2": (0.0, math.inf)}
+
+
+def check_continuous_outcome(name: str, value: object, low: float, high: float) -> float:
+    """``value`` as a float if it is NaN (not measured) or a finite number in [``low``, ``high``], else ``ValueError``
+    naming ``name`` (a negative time, an infinite distance, a tilt above 180 deg)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{name} must be a number (NaN when not measured), got {value!r}")
+    value = float(value)
+    if not math.isnan(value) and not (math.isfinite(value) and low <= value <= high):
+        bounds = f">= {low:g}" if high == math.inf else f"in [{low:g}, {high:g}]"
+        raise ValueError(f"{name} must be {bounds} (or NaN: not measured), got {value!r}")
+    return value
 
 
 @dataclasses.dataclass(frozen=True)

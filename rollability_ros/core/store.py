@@ -13,7 +13,7 @@ One file may hold several runs (``run_id`` is in every key); a run directory hol
 is versioned with ``PRAGMA user_version`` and marked as ours with ``PRAGMA application_id``; another SQLite
 file or a non-database file is refused with ``ValueError``. A store of an older schema is migrated when it is opened
 (columns added since are added, its rows taking the field's default: outcomes of a version 1 store read with
-``seed`` = ``NO_SEED``); nothing already stored changes. Stdlib only: this module runs on the robot computer.
+``seed`` = ``NO_SEED``, those of a version 3 store with NaN continuous outcomes); nothing already stored changes. Stdlib only: this module runs on the robot computer.
 """
 import dataclasses
 import json
@@ -39,8 +39,10 @@ SESSION_STORE_FILENAME = "outcomes.sqlite"
 APPLICATION_ID = 0x524F4C4C
 #: Schema version written to ``PRAGMA user_version``; bump with a migration when the tables change.
 #: 1: the first schema; 2: ``launch_outcomes.seed`` (rows of a version 1 store read as ``NO_SEED``);
-#: 3: ``candidates.session`` and ``generations.session`` (rows of an older store read as session "").
-SCHEMA_VERSION = 3
+#: 3: ``candidates.session`` and ``generations.session`` (rows of an older store read as session "");
+#: 4: the continuous outcomes of ``launch_outcomes`` (``final_tilt_deg``, ``rest_distance_m``, ``time_to_rest_s``,
+#: ``peak_deceleration_mps2``; rows of an older store read as NaN: not measured).
+SCHEMA_VERSION = 4
 
 
 def _encode_tuple(value):
@@ -69,9 +71,12 @@ class _Column:
     encode: typing.Callable[[typing.Any], typing.Any]
     decode: typing.Callable[[typing.Any], typing.Any]
     default: object = None            # the record field's default, encoded; None: the field has no default
+    null_default: bool = False        # the field's default is stored as NULL (a float field defaulting to NaN)
 
     def add_sql(self, table_name: str) -> str:
         """``ALTER TABLE`` adding this column to a store written before it existed, old rows taking the default."""
+        if self.null_default:
+            return f'ALTER TABLE {table_name} ADD COLUMN "{self.name}" {self.sql_type} DEFAULT NULL'
         if self.default is None:
             raise ValueError(f"cannot add column {table_name}.{self.name} to an existing store: it has no default")
         literal = "'" + self.default.replace("'", "''") + "'" if isinstance(self.default, str) else repr(self.default)
@@ -99,6 +104,8 @@ def _columns_for(record_cls, skip=()):
             raise TypeError(f"no store column type for {record_cls.__name__}.{field.name}: {kind}")
         if field.default is not dataclasses.MISSING and kind in ("int", "bool", "str"):
             column = dataclasses.replace(column, default=column.encode(field.default))
+        elif kind == "float" and isinstance(field.default, float) and math.isnan(field.default):
+            column = dataclasses.replace(column, null_default=True)   # not measured: NULL reads back as NaN
         columns.append(column)
     return columns
 

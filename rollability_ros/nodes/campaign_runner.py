@@ -193,10 +193,11 @@ class RigClient:
             request = ConfirmRegulator.Request(trial_id=trial_id,
                                                auth=self._sign(lambda signer: signer.confirm(trial_id)))
         else:
+            rolled_m = -1.0 if math.isnan(outcome.rest_distance_m) else outcome.rest_distance_m   # -1: not measured
             request = RecordOutcome.Request(trial_id=trial_id, upright=outcome.upright, note=outcome.note,
-                                            travel_time_s=outcome.travel_time_s)
-            request.auth = self._sign(lambda signer: signer.outcome(trial_id, request.upright,
-                                                                    request.travel_time_s, request.note))
+                                            travel_time_s=outcome.travel_time_s, rest_distance_m=rolled_m)
+            request.auth = self._sign(lambda signer: signer.outcome(trial_id, request.upright, request.travel_time_s,
+                                                                    request.note, request.rest_distance_m))
         response = self._wait(client.call_async(request), client.srv_name)
         accepted = response.success if kind == "confirm" else response.accepted
         if not accepted:
@@ -349,9 +350,12 @@ def stored_trial_ids(node: Node, executor: typing.Any, run_id: str, timeout_s: f
 
 def run_graph_campaign(node: Node, spec: CampaignSpec, settings: RunnerSettings,
                        ask: typing.Optional[typing.Callable[[str], str]] = None,
-                       say: typing.Callable[[str], None] = _say, session: str = "") -> typing.Any:
+                       say: typing.Callable[[str], None] = _say, session: str = "",
+                       comparison: typing.Optional[typing.Tuple[str, str]] = None, alpha: float = 0.05) -> typing.Any:
     """Run the campaign through the graph from ``node`` (spun here, in this thread) as a runner of ``session``
-    (its ``session.id``; "" none); returns the CampaignReport."""
+    (its ``session.id``; "" none); returns the CampaignReport. ``comparison`` (first, second): launch their trials
+    in pairs and end once the comparison is decided at error rate ``alpha`` (``rollability campaign
+    --stop-when-decided``)."""
     plan = plan_trials(spec)
     signer = None
     if launch_backend_class(settings.backend).authenticated:
@@ -382,8 +386,14 @@ def run_graph_campaign(node: Node, spec: CampaignSpec, settings: RunnerSettings,
             progress_publisher.publish(CampaignProgress(run_id=spec.run_id, done=progress.done, total=progress.total,
                                                         eta_s=math.nan if eta is None else float(eta)))
 
+        stop_rule = None
+        if comparison is not None:   # the logger holds the earlier outcomes: this session's pairs decide
+            from rollability_ros.core.campaign import comparison_stop_rule, paired_order
+
+            plan = paired_order(plan, *comparison)
+            stop_rule = comparison_stop_rule([], *comparison, alpha)
         report = run_campaign(plan, spec.run_id, stored, rig.launch, acknowledgements, ask=ask, say=say,
-                              on_progress=publish_progress)
+                              on_progress=publish_progress, stop_rule=stop_rule)
         if report.stopped_reason and ask is not None:
             report = dataclasses.replace(report, advice=rig.valve_advice())
         return report

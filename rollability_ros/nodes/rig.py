@@ -236,11 +236,14 @@ class RigNode(Node):
 
     def _on_record_outcome(self, request, response):
         response.accepted, response.message = self.guard.check_outcome(
-            signature_from_msg(request.auth), request.trial_id, request.upright, request.travel_time_s, request.note)
+            signature_from_msg(request.auth), request.trial_id, request.upright, request.travel_time_s, request.note,
+            request.rest_distance_m)
         if response.accepted:
             travel_time_s = request.travel_time_s if request.travel_time_s > 0 else math.nan
+            rolled_m = request.rest_distance_m if math.isfinite(request.rest_distance_m) and \
+                request.rest_distance_m >= 0 else math.nan   # < 0 (the default), NaN: not measured
             response.accepted, response.message = self.backend.operator.record_outcome(
-                OperatorOutcome(bool(request.upright), travel_time_s, request.note), request.trial_id)
+                OperatorOutcome(bool(request.upright), travel_time_s, request.note, rolled_m), request.trial_id)
         self._log_answer(response.accepted, f"operator outcome for {request.trial_id or 'the current launch'}: "
                          f"{'upright' if request.upright else 'not upright'} -> {response.message}")
         return response

@@ -75,7 +75,8 @@ def launch_outcome_cdr(typestore, trial_id, upright):
         condition=condition, backend="sim", upright=upright, travel_time_s=0.42, measured_speed_mps=0.81,
         speed_out_of_tolerance=False, final_orientation=new["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0,
                                                                                             w=1.0),
-        classified_by="sim", note="", seed=123_456_789,
+        classified_by="sim", note="", seed=123_456_789, final_tilt_deg=178.5, rest_distance_m=0.42,
+        time_to_rest_s=float("nan"), peak_deceleration_mps2=96.0,
         auth=new["rollability_ros/msg/ValveAuth"](session="0123456789abcdef", counter=2**63 + 5, mac="ab" * 32))
     missing = set(outcome_type.__dataclass_fields__) - set(values) - {"__msgtype__"}
     assert not missing, f"LaunchOutcome.msg has fields this test does not fill: {missing}"

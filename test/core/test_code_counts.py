@@ -4,7 +4,7 @@ import code_counts
 
 #: Public core signatures that mention ``Any`` or a core alias standing for it (issue 43's limit: 40; 179 counted
 #: so before this ratchet, 150 without the aliases). A ratchet: a new one fails; when one goes, lower the number.
-ANY_SIGNATURES_ALLOWED = 110
+ANY_SIGNATURES_ALLOWED = 108
 
 
 #: Modules other rooms are splitting this round (issue 43 item 5: selection and report; the settings rewrite of

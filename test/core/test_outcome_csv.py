@@ -141,3 +141,33 @@ def test_unterminated_quote_is_refused_with_its_line_number(tmp_path):
         read_outcome_csv(path, run_id="hand")
     assert [line for line, _ in caught.value.problems] == [3]
     assert "unterminated quote" in str(caught.value) and "line 3" in str(caught.value)
+
+
+def test_the_continuous_outcomes_round_trip_and_an_unmeasured_one_stays_empty(tmp_path):
+    """Issue 44.2: final tilt, rest distance, time to rest and peak deceleration; NaN (not measured) is an empty
+    cell both ways, never a number."""
+    measured = LaunchOutcome("run", "t1", LaunchCondition("A", 0.75, 0.8, 30.0, 0), "sim", False, seed=7,
+                             final_tilt_deg=171.25, rest_distance_m=0.4375, time_to_rest_s=1.625,
+                             peak_deceleration_mps2=212.5)
+    typed = LaunchOutcome("run", "t2", LaunchCondition("A", 0.75, 0.8, 30.0, 1), "physical", True,
+                          final_orientation=(math.nan,) * 4, classified_by="operator", rest_distance_m=0.3)
+    path = tmp_path / "out.csv"
+    write_outcome_csv(path, [measured, typed])
+    lines = path.read_text(encoding="utf-8").splitlines()
+    assert lines[0].endswith(",seed,final_tilt_deg,rest_distance_m,time_to_rest_s,peak_deceleration_mps2")
+    assert lines[2].endswith(",,,0.3,,")            # only the typed distance: the rest not measured
+    assert read_outcome_csv(path) == [measured, typed]
+
+
+@pytest.mark.parametrize("column, cell, reason", [
+    ("time_to_rest_s", "-0.5", "time_to_rest_s must be >= 0"),
+    ("rest_distance_m", "nan", "rest_distance_m must be finite"),
+    ("final_tilt_deg", "190", r"final_tilt_deg must be in \[0, 180\]"),
+    ("peak_deceleration_mps2", "fast", "peak_deceleration_mps2 must be a number"),
+])
+def test_a_bad_continuous_outcome_refuses_the_file_naming_line_and_column(tmp_path, column, cell, reason):
+    path = _write(tmp_path, f"configuration,height_m,speed_mps,angle_deg,repetition,upright,{column}\n"
+                            "A,0.75,0.8,0,0,true,\n"
+                            f"A,0.75,0.8,0,1,true,{cell}\n")
+    with pytest.raises(OutcomeCsvError, match="line 3: " + reason):
+        read_outcome_csv(path, run_id="r")

@@ -12,7 +12,8 @@ from rollability_ros.core.records import (CandidateRecord, GenerationRecord, Lau
 
 RECORDS = [
     LaunchOutcome("camp", "A/t1", LaunchCondition("A", 0.75, 0.8, -30.0, 2), "physical", True, 0.41, 0.83, False,
-                  (0.0, 0.0, 0.6, 0.8), "operator", "lid", 1_700_000_000.25),
+                  (0.0, 0.0, 0.6, 0.8), "operator", "lid", 1_700_000_000.25, final_tilt_deg=73.7,
+                  rest_distance_m=0.31, time_to_rest_s=1.5, peak_deceleration_mps2=88.0),
     CandidateRecord("opt", 3, 1, (0.1, 0.2, 0.3), 0.5, 5, 10, 77, 1.5, "eval_0", 1_700_000_001.5),
     GenerationRecord("opt", 3, 0.6, 0.4, 0.7, 0.05, (0.1, 0.2, 0.3), 48, 12.5, 1_700_000_002.0),
     TipEventRecord("husky", 1_700_000_003.125, 2.5, True, 120.0, 3.0, (0.0, 0.0, 0.0, 1.0), "imu_link",
@@ -87,6 +88,19 @@ def test_malformed_messages_are_refused_and_the_bag_reader_skips_them(tmp_path, 
     assert sum("skipped malformed" in r.message for r in caplog.records) == 3
 
 
+def test_the_continuous_outcomes_cross_cdr_and_a_not_measured_one_stays_nan():
+    measured = LaunchOutcome("camp", "A/t3", LaunchCondition("A", 0.75, 0.8, -30.0, 0), "sim", False, 0.42, 0.81,
+                             final_tilt_deg=171.5, rest_distance_m=0.375, peak_deceleration_mps2=120.25, seed=5)
+    type_name, message = message_from_record(measured)
+    decoded = typestore().deserialize_cdr(bytes(typestore().serialize_cdr(message, type_name)), type_name)
+    back = record_messages.record_from_message(type_name, decoded)
+    assert back == measured and math.isnan(back.time_to_rest_s)
+    negative = typestore().deserialize_cdr(bytes(typestore().serialize_cdr(message, type_name)), type_name)
+    negative.time_to_rest_s = -1.0                       # a malformed record: refused naming the field
+    with pytest.raises(ValueError, match="time_to_rest_s must be >= 0"):
+        record_messages.record_from_message(type_name, negative)
+
+
 def test_a_seeded_outcome_round_trips_and_the_old_sample_bag_decodes_without_seeds():
     """The seed crosses CDR; the committed sample bag, recorded before LaunchOutcome had a seed, decodes from its
     stored definition (every outcome without a seed) and is re-encoded in today's definition for the player."""
@@ -113,6 +127,8 @@ def test_a_seeded_outcome_round_trips_and_the_old_sample_bag_decodes_without_see
     old = [record_messages.record_from_message(type_name, decoding_typestore(type_name, definition)
                                                .deserialize_cdr(m.data, type_name)) for m, definition in recorded]
     assert read_records_from_bag(sample)[0] == old and {o.seed for o in old} == {NO_SEED}
+    # nor the continuous outcomes: each not measured, never a number made up
+    assert all(math.isnan(v) for o in old for v in o.continuous().values())
     upgraded = [m for m in CurrentDefinitions(BagReader(sample)) if m.type_name == record_messages.OUTCOME_TYPE]
     assert [record_messages.record_from_message(type_name, typestore().deserialize_cdr(m.data, type_name))
             for m in upgraded] == old

@@ -339,6 +339,8 @@ def test_drill_down_shows_each_seed_and_its_command_simulates_the_stored_launch_
     assert printed["upright"] == str(target.upright).lower()
     assert tuple(float(v) for v in printed["final_orientation (x, y, z, w)"].split()) == target.final_orientation
     assert float(printed["travel_time_s"]) == pytest.approx(target.travel_time_s, abs=1e-12)
+    for name, value in target.continuous().items():   # the stored continuous outcomes, repeated exactly
+        assert float(printed[name]) == pytest.approx(value, abs=1e-12, nan_ok=True), name
     assert cli_main(["campaign", "--backend", "physical", "--resimulate", "baseline", "0.75", "0.8", "0",
                      "--seed", "1"]) == 2                       # a physical launch cannot be simulated again
     assert "--resimulate needs --backend sim" in capsys.readouterr().err

@@ -36,6 +36,9 @@ BAD_INPUT = [
     (["estop"], {"ROS_DOMAIN_ID": "abc"}, "ROS_DOMAIN_ID must be an integer in 0..232"),
     (["estop"], {"ROS_DOMAIN_ID": "233"}, "ROS_DOMAIN_ID must be an integer in 0..232"),
     (["arm", "--config", "/no/such/file.yaml"], {}, "file.yaml"),
+    (["outcome", "tipped", "--rolled-m", "-0.2"], {}, "the distance rolled must be a number of metres >= 0"),
+    (["outcome", "tipped", "--rolled-m", "nan"], {}, "the distance rolled must be a number of metres >= 0"),
+    (["estop", "--rolled-m", "0.3"], {}, "--rolled-m is for outcome only"),
 ]
 #: argparse refuses these itself (usage line + one error line, exit 2)
 ARGPARSE_REFUSES = [

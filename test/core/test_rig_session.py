@@ -10,7 +10,8 @@ from synthetic_imu import piecewise, stream
 from rollability_ros.core.config import check_settings
 from rollability_ros.core.records import NO_SEED, LaunchCondition
 from rollability_ros.core.rig.launch_backend import LaunchBackend, RigPorts
-from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, ImuOutcome, LaunchAborted,
+from rollability_ros.core.rig.outcome_sources import ImuOutcome
+from rollability_ros.core.rig.rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LaunchAborted,
                                                   OperatorChannel, OperatorOutcome, PhysicalLaunch, RigSettings,
                                                   check_goal, launch_backend_class, make_launch_backend,
                                                   parse_outcome_answer, simulated_outcome, launch_seed)
@@ -308,7 +309,10 @@ def test_parse_outcome_answer():
     assert parse_outcome_answer("y") == OperatorOutcome(True)
     assert parse_outcome_answer("n 0.43 landed on the lid") == OperatorOutcome(False, 0.43, "landed on the lid")
     assert parse_outcome_answer("upright wheels down").note == "wheels down"
-    for bad in ("", "maybe", "y -1"):
+    assert parse_outcome_answer("n 0.43 rolled=0.35 on its lid") == OperatorOutcome(False, 0.43, "on its lid", 0.35)
+    assert parse_outcome_answer("y rolled=0").rest_distance_m == 0.0
+    assert math.isnan(parse_outcome_answer("y 0.4").rest_distance_m)     # not typed: not measured
+    for bad in ("", "maybe", "y -1", "y rolled=-0.2", "y rolled=far", "y rolled=nan", "y rolled=1 rolled=2"):
         with pytest.raises(ValueError):
             parse_outcome_answer(bad)
 
@@ -341,6 +345,10 @@ def test_imu_outcome_classifies_after_settling(valve, final_tilt_deg, upright):
     assert phases[-1][0] == "classifying" and "IMU" in phases[-1][1]
     tilt = math.degrees(2 * math.acos(min(1.0, abs(outcome.final_orientation[3]))))
     assert abs(tilt - final_tilt_deg) < 10
+    # the continuous outcomes: the settled tilt; no impact in this tumble, so no landing: nothing counted from it
+    assert abs(outcome.final_tilt_deg - final_tilt_deg) < 2
+    assert math.isnan(outcome.time_to_rest_s) and math.isnan(outcome.peak_deceleration_mps2)
+    assert math.isnan(outcome.rest_distance_m)
 
 
 def test_operator_overrides_the_imu_and_answers_when_it_never_settles(valve):
@@ -353,9 +361,11 @@ def test_operator_overrides_the_imu_and_answers_when_it_never_settles(valve):
         if phase == "fired":
             _feed_launch(imu, 178.0)
         if phase == "classifying":
-            assert rig.operator.record_outcome(OperatorOutcome(True, note="IMU cable caught"))[0]
+            assert rig.operator.record_outcome(OperatorOutcome(True, note="IMU cable caught", rest_distance_m=0.4))[0]
     overridden = rig.launch("run", "t0", CONDITION, override)
     assert overridden.upright and overridden.classified_by == "operator"
+    # the verdict is overridden, not what the IMU measured; the typed distance is stored beside it
+    assert abs(overridden.final_tilt_deg - 178.0) < 2 and overridden.rest_distance_m == 0.4
     assert "overrode the IMU (not upright" in overridden.note and "IMU cable caught" in overridden.note
 
     asked = []
@@ -367,6 +377,7 @@ def test_operator_overrides_the_imu_and_answers_when_it_never_settles(valve):
             rig.operator.record_outcome(OperatorOutcome(False))
     silent = rig.launch("run", "t1", CONDITION, no_imu)
     assert not silent.upright and silent.classified_by == "operator"
+    assert all(math.isnan(v) for v in silent.continuous().values())   # the IMU saw nothing of it: nothing stored
 
 
 def test_simulated_outcome_and_launch_seed():
@@ -382,6 +393,25 @@ def test_simulated_outcome_and_launch_seed():
     assert outcome.seed == NO_SEED                      # a result that names no seed
     Result.seed = 42
     assert simulated_outcome("run", "t", CONDITION, Result(), SpeedGateConfig()).seed == 42
+    assert all(math.isnan(v) for v in outcome.continuous().values())   # a result that names none: not measured
+
+
+def test_a_simulated_outcome_carries_the_twins_continuous_outcomes_and_invents_none():
+    class Landed:
+        upright, travel_time_s, seed = False, 0.4, 3
+        final_orientation_xyzw = (1.0, 0.0, 0.0, 0.0)
+        tilt_deg, rest_distance_m, time_to_rest_s, peak_deceleration_mps2 = 179.5, 0.42, 1.75, 96.0
+        landing_position_m = (0.3, 0.0, 0.05)
+    outcome = simulated_outcome("run", "t", CONDITION, Landed(), SpeedGateConfig())
+    assert outcome.continuous() == {"final_tilt_deg": 179.5, "rest_distance_m": 0.42, "time_to_rest_s": 1.75,
+                                    "peak_deceleration_mps2": 96.0}
+
+    class NeverLanded(Landed):   # the twin's defaults for a launch that never reached the foam
+        landing_position_m = (math.nan,) * 3
+        time_to_rest_s, peak_deceleration_mps2, rest_distance_m = math.nan, 0.0, math.nan
+    stalled = simulated_outcome("run", "t", CONDITION, NeverLanded(), SpeedGateConfig())
+    assert math.isnan(stalled.peak_deceleration_mps2) and math.isnan(stalled.time_to_rest_s)
+    assert stalled.final_tilt_deg == 179.5
 
 
 class RecordingPorts(RigPorts):

@@ -133,8 +133,8 @@ def test_outputs_with_reevaluation(run_candidates):
 
 
 def test_settings_are_checked():
-    with pytest.raises(ValueError, match="count"):
-        SelectionSettings(count=0).validate()
+    with pytest.raises(ValueError, match=r"^selection.count out of range: 0 is not in \[1, 26\]$"):
+        select_designs([], GRID, geometry.PrinterSpec(), SelectionSettings(count=0))
     with pytest.raises(ValueError, match="needs an evaluator"):
         select_designs([], GRID, geometry.PrinterSpec(), SelectionSettings(reevaluate_trials=10))
 

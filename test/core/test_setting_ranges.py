@@ -190,3 +190,16 @@ def test_the_descriptor_says_an_open_end():
     descriptor = parameter_descriptor("a step", (0.0, 100.0), float, exclusive="low")
     assert descriptor.floating_point_range[0].from_value == 0.0
     assert descriptor.additional_constraints == "in (0.0, 100.0]"
+
+
+def test_a_real_node_refuses_with_the_clis_line(ros_node, start_node):
+    """One node process (not only the builder it uses): rclpy's own range refusal at start-up, reworded, is the
+    CLI's line, and the node stops with exit code 2."""
+    from rollability_ros.core.imu.tip_tracker import TipMonitorConfig
+
+    with pytest.raises(config.ConfigError) as from_cli:
+        config.from_mapping(TipMonitorConfig, {"tip_threshold_deg": 200.0}, "tip_monitor")
+    assert str(from_cli.value) == "tip_monitor.tip_threshold_deg out of range: 200.0 is not in [0.0, 180.0)"
+    process = start_node("tip_monitor", params={"tip_monitor.tip_threshold_deg": 200.0})
+    assert ros_node.wait_for(lambda: not process.alive(), 30)
+    assert process.process.returncode == 2 and str(from_cli.value) in process.log(), process.log()

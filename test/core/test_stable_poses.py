@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from rollability_ros.core.config import check_settings
 from rollability_ros.core.sim import stable_poses
 from rollability_ros.core.profile.geometry import ProfileGrid, grid_xy, profile_mesh
 from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec
@@ -119,7 +120,7 @@ def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="upright_tilt_deg"):
         stable_poses.screen_body(box(0.1, 0.1, 0.1), 95.0)
     with pytest.raises(ValueError, match="n_samples"):
-        stable_poses.ScreenSettings(n_samples=0).validate()
+        check_settings(stable_poses.ScreenSettings(n_samples=0), "stable_poses")
 
 
 SHAPES = {

@@ -232,18 +232,23 @@ _VERSION_1_OUTCOMES = (
     '"trial_id"))')
 
 
-def test_a_version_1_store_is_migrated_and_its_outcomes_read_without_a_seed(tmp_path):
-    path = tmp_path / "old.sqlite"
+def _old_store(path, create_sql, row_sql, version):
+    """A store file as schema ``version`` wrote it: ``launch_outcomes`` made by ``create_sql``, one row."""
     conn = sqlite3.connect(path)
-    conn.execute(_VERSION_1_OUTCOMES)
+    conn.execute(create_sql)
     conn.execute("INSERT INTO launch_outcomes (run_id, trial_id, backend, upright, travel_time_s, measured_speed_mps,"
                  " speed_out_of_tolerance, final_orientation, classified_by, note, stamp_s, configuration, height_m,"
-                 " speed_mps, angle_deg, repetition) VALUES ('old', 't1', 'sim', 1, 0.42, NULL, 0, "
-                 "'[0.0, 0.0, 0.6, 0.8]', 'sim', 'kept', 1700000000.5, 'A', 0.75, 0.8, -30.0, 2)")
+                 f" speed_mps, angle_deg, repetition{row_sql}")
     conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
-    conn.execute("PRAGMA user_version = 1")
+    conn.execute(f"PRAGMA user_version = {version}")
     conn.commit()
     conn.close()
+
+
+def test_a_version_1_store_is_migrated_and_its_outcomes_read_without_a_seed(tmp_path):
+    path = tmp_path / "old.sqlite"
+    _old_store(path, _VERSION_1_OUTCOMES, ") VALUES ('old', 't1', 'sim', 1, 0.42, NULL, 0, '[0.0, 0.0, 0.6, 0.8]', "
+                                          "'sim', 'kept', 1700000000.5, 'A', 0.75, 0.8, -30.0, 2)", 1)
     expected_old = _outcome("t1", run_id="old", travel_time_s=0.42, final_orientation=(0.0, 0.0, 0.6, 0.8),
                             note="kept", stamp_s=1700000000.5)
     seeded = _outcome("t2", run_id="old", travel_time_s=0.4, measured_speed_mps=0.85, seed=123456)
@@ -256,8 +261,41 @@ def test_a_version_1_store_is_migrated_and_its_outcomes_read_without_a_seed(tmp_
         assert [o.seed for o in store.launch_outcomes()] == [NO_SEED, 123456]
         assert store.launch_outcomes()[1] == seeded
     conn = sqlite3.connect(path)
-    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
     conn.close()
+
+
+#: ``launch_outcomes`` as schema version 3 created it: version 1 plus the seed, no continuous outcomes.
+_VERSION_3_OUTCOMES = _VERSION_1_OUTCOMES.replace(', UNIQUE (', ', "seed" INTEGER NOT NULL DEFAULT -1, UNIQUE (')
+
+
+def test_a_version_3_store_is_migrated_and_its_outcomes_read_with_unmeasured_continuous_outcomes(tmp_path):
+    path = tmp_path / "v3.sqlite"
+    _old_store(path, _VERSION_3_OUTCOMES, ", seed) VALUES ('old', 't1', 'sim', 0, 0.42, 0.81, 0, "
+                                          "'[0.0, 1.0, 0.0, 0.0]', 'sim', 'kept', 1700000000.5, 'A', 0.75, 0.8, -30.0,"
+                                          " 2, 99)", 3)
+    expected_old = _outcome("t1", run_id="old", upright=False, travel_time_s=0.42, measured_speed_mps=0.81,
+                            final_orientation=(0.0, 1.0, 0.0, 0.0), note="kept", stamp_s=1700000000.5, seed=99)
+    measured = _outcome("t2", run_id="old", final_tilt_deg=172.5, rest_distance_m=0.31, time_to_rest_s=1.25,
+                        peak_deceleration_mps2=143.0)
+    with Store(path) as store:                     # migrated on open: nothing of the old row lost, nothing invented
+        (old,) = store.launch_outcomes()
+        assert old == expected_old and all(math.isnan(v) for v in old.continuous().values())
+        assert store.add_launch_outcome(measured)
+    with Store(path) as store:
+        assert store.launch_outcomes() == [expected_old, measured]
+    conn = sqlite3.connect(path)
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == 4
+    conn.close()
+
+
+@pytest.mark.parametrize("field, value", [("time_to_rest_s", -0.5), ("rest_distance_m", math.inf),
+                                          ("final_tilt_deg", 181.0), ("peak_deceleration_mps2", -1.0)])
+def test_a_bad_continuous_outcome_is_refused_naming_it(tmp_path, field, value):
+    with Store(tmp_path / "s.sqlite") as store:
+        with pytest.raises(ValueError, match=field):
+            store.add_launch_outcome(_outcome("t1", **{field: value}))
+        assert store.launch_outcomes() == []
 
 
 def test_a_version_2_store_is_migrated_and_its_candidates_read_without_a_session(tmp_path):

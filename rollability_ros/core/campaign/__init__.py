@@ -5,6 +5,9 @@
 - terminal: the operator's prompt that another place (the rig CLI) can answer first
 - calibration: fit the launch twin's uncertain parameters to physical outcomes
 - characterisation: bench readings taken before a campaign (docs/characterisation.md) and their likelihood
+- adaptive: which launch next (BALD over weighted samples of the unknowns, behind an UprightPredictor protocol)
+- sequential: the always-valid paired test that stops a design comparison once decided
+- plan_comparison: the adaptive plan against the paper's matrix on simulated truths (bench_adaptive_plan)
 
 The face is ``__init__.pyi`` beside this file: the names code outside ``core/campaign`` imports (``from
 rollability_ros.core.campaign import <name>``), each with the module it lives in. ``lazy_loader.attach_stub``

@@ -74,11 +74,12 @@ class CampaignReport:
     stopped_reason: str = ""
     failed: bool = False
     advice: str = ""          # what the operator must do before resuming (e.g. acknowledge a valve e-stop)
+    decided: str = ""         # why the campaign's question was answered before its last trial (``stop_rule``)
 
     @property
     def complete(self) -> bool:
-        """True when every planned trial is stored."""
-        return self.done == self.total
+        """True when every planned trial is stored, or the campaign's question was decided (``decided``)."""
+        return self.done == self.total or bool(self.decided)
 
 
 def store_writer(store: Store) -> typing.Callable[[LaunchOutcome], None]:
@@ -157,7 +158,10 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
                  ask: typing.Optional[typing.Callable[[str], str]] = None, say: typing.Callable[[str], None] = print,
                  pressure_psi_by_speed: typing.Optional[typing.Mapping[float, float]] = None,
                  clock: typing.Callable[[], float] = time.monotonic,
-                 on_progress: typing.Optional[typing.Callable[[CampaignProgress], None]] = None) -> CampaignReport:
+                 on_progress: typing.Optional[typing.Callable[[CampaignProgress], None]] = None,
+                 stop_rule: typing.Optional[typing.Callable[[LaunchOutcome], str]] = None,
+                 next_trial: typing.Optional[typing.Callable[[typing.Optional[LaunchOutcome]],
+                                                             typing.Optional[PlannedTrial]]] = None) -> CampaignReport:
     """Run the trials of ``plan`` not yet stored, in plan order; returns a :class:`CampaignReport`.
 
     Parameters
@@ -182,16 +186,20 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
     on_progress : callable, optional
         Called with the :class:`~rollability_ros.core.campaign.plan.CampaignProgress` at the start and after each
         stored trial (the graph campaign publishes it for ``bringup``'s progress line).
+    stop_rule, next_trial : callable, optional
+        ``stop_rule(outcome) -> str``: non-empty ends the campaign as decided (complete; ``sequential.
+        comparison_stop_rule``). ``next_trial(last outcome or None) -> PlannedTrial or None``: an adaptive plan of
+        up to ``len(plan)`` trials, each chosen once the previous is stored (``adaptive.adaptive_next_trial``).
     """
-    todo = [trial for trial in plan if trial.trial_id not in stored_ids]
-    progress = CampaignProgress(len(plan), len(plan) - len(todo))
+    last: typing.List[typing.Optional[LaunchOutcome]] = [None]
+    todo, progress = _trials_to_run(plan, stored_ids, next_trial, last)
     say(f"campaign {run_id}: {progress.text()}")
     if on_progress is not None:
         on_progress(progress)
     previous, stored_now, notes = None, 0, []
 
-    def report(reason: str, failed: bool = False) -> CampaignReport:
-        return CampaignReport(stored_now, progress.done, progress.total, reason, failed)
+    def report(reason: str, failed: bool = False, decided: str = "") -> CampaignReport:
+        return CampaignReport(stored_now, progress.done, progress.total, reason, failed, decided=decided)
 
     for trial in todo:
         try:
@@ -202,11 +210,7 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
             return report("stopped by the operator")
         started = clock()
         try:
-            outcome = launch(trial)
-            if (outcome.run_id, outcome.trial_id) != (run_id, trial.trial_id):
-                raise LaunchAborted(f"the rig answered {outcome.run_id}/{outcome.trial_id} for "
-                                    f"{run_id}/{trial.trial_id}")
-            confirm_stored(outcome)
+            outcome = _launch_and_store(trial, run_id, launch, confirm_stored)
         except (LaunchAborted, NotStored, ValueError) as exc:
             say(f"trial {trial.trial_id} not done: {exc}")
             return report(f"{trial.trial_id}: {exc}")
@@ -220,11 +224,47 @@ def run_campaign(plan: typing.Sequence[PlannedTrial], run_id: str, stored_ids: t
         say(f"{trial.trial_id}: {verdict}"
             f"{' (speed flagged)' if outcome.speed_out_of_tolerance else ''}; {progress.text()}")
         previous = trial
+        last[0] = outcome
         notes.append(outcome.note)
         invalid = invalid_launch_stop(notes)
         if invalid:
             return report(invalid, failed=True)
+        if stop_rule is not None and (decided := stop_rule(outcome)):
+            return report("", decided=decided)
     return report("")
+
+
+def _trials_to_run(plan: typing.Sequence[PlannedTrial], stored_ids: typing.Collection[str],
+                   next_trial: typing.Optional[typing.Callable[[typing.Optional[LaunchOutcome]],
+                                                               typing.Optional[PlannedTrial]]],
+                   last: typing.List[typing.Optional[LaunchOutcome]]
+                   ) -> typing.Tuple[typing.Iterable[PlannedTrial], CampaignProgress]:
+    """The trials a session runs and its progress: the plan's trials not stored yet, or (``next_trial``) up to
+    ``len(plan)`` trials each chosen from the last stored outcome (``last[0]``, updated by the loop)."""
+    if next_trial is None:
+        remaining = [trial for trial in plan if trial.trial_id not in stored_ids]
+        return remaining, CampaignProgress(len(plan), len(plan) - len(remaining))
+    return _chosen_trials(lambda: next_trial(last[0]), len(plan)), CampaignProgress(len(plan), 0)
+
+
+def _launch_and_store(trial: PlannedTrial, run_id: str, launch: typing.Callable[[PlannedTrial], LaunchOutcome],
+                      confirm_stored: typing.Callable[[LaunchOutcome], None]) -> LaunchOutcome:
+    """Launch ``trial`` and return its outcome once stored; :class:`LaunchAborted` when the rig answered another."""
+    outcome = launch(trial)
+    if (outcome.run_id, outcome.trial_id) != (run_id, trial.trial_id):
+        raise LaunchAborted(f"the rig answered {outcome.run_id}/{outcome.trial_id} for {run_id}/{trial.trial_id}")
+    confirm_stored(outcome)
+    return outcome
+
+
+def _chosen_trials(choose: typing.Callable[[], typing.Optional[PlannedTrial]],
+                   budget: int) -> typing.Iterator[PlannedTrial]:
+    """At most ``budget`` trials, each chosen by ``choose()`` when the loop asks for it (None ends them)."""
+    for _ in range(budget):
+        trial = choose()
+        if trial is None:
+            return
+        yield trial
 
 
 @dataclasses.dataclass
@@ -273,6 +313,9 @@ def report_exit_code(report: CampaignReport, say: typing.Callable[[str], None] =
             say(f"before resuming: {report.advice}")
         say(f"to continue, type: {resume}" if resume else "resume to continue (the same command with --resume)")
         return 3
+    if report.decided:
+        say(f"campaign decided: {report.decided} ({report.done}/{report.total} stored; the rest are not needed)")
+        return 0
     say(f"campaign complete: {report.done}/{report.total} trials stored")
     return 0
 
@@ -313,7 +356,7 @@ def answer_rig(phase: str, detail: str,
         ask(f"{detail}: Enter when done: ")
         return "confirm", None
     if phase == "classifying" and detail.startswith(ASK_OUTCOME):
-        prompt = f"{detail}: y/n [travel time s] [note]: "
+        prompt = f"{detail}: y/n [travel time s] [rolled=M] [note]: "
         while True:
             try:
                 return "outcome", parse_outcome_answer(ask(prompt))

@@ -3,6 +3,7 @@
 - _quaternion: quaternion maths on (x, y, z, w) tuples, roll/pitch/yaw
 - upright: tilt, IMU message -> sample, and the IMU upright classifier
 - tip_tracker: tip-over state machine behind the tip_monitor node
+- launch_motion: a launch's continuous outcomes (final tilt, time to rest, peak deceleration) from its IMU samples
 
 The face is ``__init__.pyi`` beside this file: the names code outside ``core/imu`` imports (``from
 rollability_ros.core.imu import <name>``), each with the module it lives in. ``lazy_loader.attach_stub``

@@ -302,6 +302,10 @@ class ImuOutcomeConfig:
     settle_timeout_s: float = dataclasses.field(default=15.0, metadata={
         "description": "no settled IMU reading this long after firing: ask the operator instead, s",
         "range": (0.0, 3600.0)})
+    impact_threshold_mps2: float = dataclasses.field(default=30.0, metadata={
+        "description": "the landing is the first sample after the fire whose acceleration (gravity removed) exceeds "
+                       "this, m/s^2 (more than g, 9.81: free flight reads g); time to rest and peak deceleration count "
+                       "from it", "range": (10.0, 10000.0)})
 
     def validate(self) -> None:
         """Raise ``ValueError`` for an empty topic, an unusable mount or a rule that spans fields (each number's

@@ -65,6 +65,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
+from rollability_ros.core import config
 from rollability_ros.core.profile import (MESH_UNITS, Mesh, PrinterSpec, ProfileGrid, ProfileMetrics,
                                           check_printability, export_mesh, is_baseline, mesh_metrics, profile_mesh)
 from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
@@ -341,7 +342,7 @@ def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: Profile
         ``race_elites`` printable designs ranked best race on launches, and A/B/C are taken from the survivors
         by their launches (same distance rule).
     """
-    settings.validate()
+    config.check_settings(settings, "selection")
     if settings.reevaluate_trials and evaluate_batch is None:
         raise ValueError("reevaluate_trials > 0 needs an evaluator")
     if (settings.race_rounds or settings.launch_trials) and launch_batch is None:
@@ -442,7 +443,7 @@ def select_from_archive(archive: typing.Mapping[str, typing.Any], candidates: ty
     the best screen race on robust twin launches (``launch_batch``) and A/B/C come from the race's survivors
     (module docstring, "Ranked by the rig's measure").
     """
-    settings.validate()
+    config.check_settings(settings, "selection")
     if settings.reevaluate_trials and evaluate_batch is None:
         raise ValueError("reevaluate_trials > 0 needs an evaluator")
     if (settings.race_rounds or settings.launch_trials) and launch_batch is None:

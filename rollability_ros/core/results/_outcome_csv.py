@@ -9,7 +9,8 @@ import math
 import os
 import typing
 
-from rollability_ros.core.records import NO_SEED, UNKNOWN_ORIENTATION, LaunchCondition, LaunchOutcome, trial_id_for
+from rollability_ros.core.records import (CONTINUOUS_OUTCOMES, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
+                                          LaunchCondition, LaunchOutcome, check_continuous_outcome, trial_id_for)
 
 #: Columns every file must have.
 REQUIRED_COLUMNS = ("configuration", "height_m", "speed_mps", "angle_deg", "repetition", "upright")
@@ -17,7 +18,8 @@ REQUIRED_COLUMNS = ("configuration", "height_m", "speed_mps", "angle_deg", "repe
 ORIENTATION_COLUMNS = ("final_qx", "final_qy", "final_qz", "final_qw")
 #: Columns a file may have; a missing one takes the documented default.
 OPTIONAL_COLUMNS = ("run_id", "trial_id", "backend", "travel_time_s", "measured_speed_mps",
-                    "speed_out_of_tolerance", "classified_by", "note", "stamp_s") + ORIENTATION_COLUMNS + ("seed",)
+                    "speed_out_of_tolerance", "classified_by", "note", "stamp_s") + ORIENTATION_COLUMNS + (
+                        "seed",) + tuple(CONTINUOUS_OUTCOMES)
 #: Column order of exported files.
 EXPORT_COLUMNS = ("run_id", "trial_id") + REQUIRED_COLUMNS + OPTIONAL_COLUMNS[2:]
 
@@ -46,7 +48,7 @@ def _parse_bool(text, column):
 
 def _parse_float(text, column, allow_empty=False):
     if allow_empty and not text.strip():
-        return math.nan
+        return NOT_MEASURED
     try:
         value = float(text)
     except ValueError:
@@ -71,6 +73,14 @@ def _parse_seed(text, column):
     if seed < NO_SEED:
         raise ValueError(f"{column} must be a twin seed >= 0, or empty for none, got {text!r}")
     return seed
+
+
+def _parse_continuous(text, column):
+    """A continuous outcome: an empty cell is not measured; else a finite number in its range (``nan`` refused)."""
+    if not text.strip():
+        return NOT_MEASURED
+    low, high = CONTINUOUS_OUTCOMES[column]
+    return check_continuous_outcome(column, _parse_float(text, column), low, high)
 
 
 def _parse_row(values, run_id):
@@ -113,6 +123,7 @@ def _parse_row(values, run_id):
         "note": field("note", text, ""),
         "stamp_s": field("stamp_s", _parse_float, 0.0),
         "seed": field("seed", _parse_seed, NO_SEED),
+        **{name: field(name, _parse_continuous, NOT_MEASURED) for name in CONTINUOUS_OUTCOMES},
     }
     optional["final_orientation"] = UNKNOWN_ORIENTATION   # hand-recorded: no sensor saw it
     if ORIENTATION_COLUMNS[0] in values:
@@ -243,4 +254,5 @@ def write_outcome_csv(path: typing.Union[str, os.PathLike], outcomes: typing.Ite
                 _format_float(outcome.measured_speed_mps), str(outcome.speed_out_of_tolerance).lower(),
                 outcome.classified_by, outcome.note, repr(float(outcome.stamp_s)),
                 *(_format_float(q) for q in outcome.final_orientation),   # unknown: empty cells
-                "" if outcome.seed == NO_SEED else outcome.seed])
+                "" if outcome.seed == NO_SEED else outcome.seed,
+                *(_format_float(value) for value in outcome.continuous().values())])   # not measured: empty

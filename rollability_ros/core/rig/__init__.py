@@ -2,7 +2,9 @@
 
 - launch_backend: the LaunchBackend contract (check, launch, close) and the RigPorts a caller provides
 - rig_session: its two implementations (SimulatedLaunch, PhysicalLaunch), make_launch_backend; goal checks,
-  phases, operator answers, IMU outcome, speed
+  phases, operator answers, speed
+- outcome_sources: the IMU's verdict and continuous outcomes (ImuOutcome), the operator's distance rolled, the
+  twin's continuous outcomes
 - valve: fail-closed valve state machine
 - _valve_backend: the ValveBackend contract, its VALVE_BACKENDS table and make_valve_backend
 - valve_backends: dry-run, GPIO and serial relay backends

@@ -5,9 +5,10 @@ from .launch_backend import LaunchAborted, LaunchBackend, RigPorts
 from .rig_auth import KeyFileSigner, RecordGuard, request_guard
 from .rig_network import (DISCOVERY_RANGES, RIG_DOMAIN_ID, check_domain_id, check_namespace, exposure_warnings,
                           physical_rig_environment)
-from .rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, OperatorOutcome,
-                          PhysicalLaunch, RigSettings, SimulatedLaunch, describe_answer, launch_backend_class,
-                          make_launch_backend, parse_outcome_answer)
+from .outcome_sources import ImuOutcome, check_rest_distance, simulated_continuous_outcomes
+from .rig_session import (ANSWERED, ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, OperatorOutcome, PhysicalLaunch,
+                          RigSettings, SimulatedLaunch, describe_answer, launch_backend_class, make_launch_backend,
+                          parse_outcome_answer)
 from .speed_gate import SPEED_GATES, SpeedGate, SpeedGateConfig, make_speed_gate
 from .valve import ValveConfig, ValveController, ValveStatus
 from .valve_auth import (AuthError, RequestSigner, RequestVerifier, Signature, create_session_key, default_key_path,
@@ -20,8 +21,8 @@ __all__ = [
     "VALVE_BACKENDS", "AuthError", "ImuOutcome", "KeyFileSigner", "LaunchAborted", "LaunchBackend", "OperatorOutcome",
     "PhysicalLaunch", "RecordGuard", "RequestSigner", "RequestVerifier", "RigPorts", "RigSettings", "Signature",
     "SimulatedLaunch", "SpeedGate", "SpeedGateConfig", "ValveBackend", "ValveConfig", "ValveController", "ValveStatus",
-    "check_domain_id", "check_namespace", "create_session_key", "default_key_path", "describe_answer",
+    "check_domain_id", "check_namespace", "check_rest_distance", "create_session_key", "default_key_path", "describe_answer",
     "exposure_warnings", "launch_backend_class", "load_session_key", "make_controller", "make_launch_backend",
     "make_speed_gate", "make_valve_backend", "parse_outcome_answer", "physical_rig_environment",
-    "register_valve_backend", "remove_session_key", "request_guard"
+    "register_valve_backend", "remove_session_key", "request_guard", "simulated_continuous_outcomes"
 ]

@@ -88,9 +88,13 @@ def confirm_text(trial_id: str) -> str:
     return _text("confirm", [trial_id])
 
 
-def outcome_text(trial_id: str, upright: bool, travel_time_s: float, note: str) -> str:
-    """The signed text of an operator's outcome for ``trial_id`` ("" = the launch the rig waits on now)."""
-    return _text("outcome", [trial_id, bool(upright), _number(travel_time_s), note])
+def outcome_text(trial_id: str, upright: bool, travel_time_s: float, note: str,
+                 rest_distance_m: float = math.nan) -> str:
+    """The signed text of an operator's outcome for ``trial_id`` ("" = the launch the rig waits on now); the distance
+    rolled is signed when measured (>= 0), so an answer without one signs the text it always did."""
+    measured = rest_distance_m >= 0   # False for NaN and for the service's -1 (not measured)
+    return _text("outcome", [trial_id, bool(upright), _number(travel_time_s), note]
+                 + ([_number(rest_distance_m)] if measured else []))
 
 
 def record_text(outcome: LaunchOutcome) -> str:
@@ -219,9 +223,9 @@ class RequestGuard:
         return key is not None, reason
 
     def check_outcome(self, signature: Signature, trial_id: str, upright: bool, travel_time_s: float,
-                      note: str) -> typing.Tuple[bool, str]:
+                      note: str, rest_distance_m: float = math.nan) -> typing.Tuple[bool, str]:
         """An authentic fresh operator outcome?"""
-        key, reason = self._verify(signature, outcome_text(trial_id, upright, travel_time_s, note))
+        key, reason = self._verify(signature, outcome_text(trial_id, upright, travel_time_s, note, rest_distance_m))
         return key is not None, reason
 
 
@@ -242,7 +246,7 @@ class OpenGuard:
         return True, ""
 
     def check_outcome(self, signature: Signature, trial_id: str, upright: bool, travel_time_s: float,
-                      note: str) -> typing.Tuple[bool, str]:
+                      note: str, rest_distance_m: float = math.nan) -> typing.Tuple[bool, str]:
         """Always passes (the sim rig never asks; its operator channel refuses every answer)."""
         return True, ""
 
@@ -303,6 +307,7 @@ class KeyFileSigner:
         """The signature of a regulator confirmation for ``trial_id`` ("" = the launch waiting now)."""
         return self._sign(confirm_text(trial_id))
 
-    def outcome(self, trial_id: str, upright: bool, travel_time_s: float = math.nan, note: str = "") -> Signature:
+    def outcome(self, trial_id: str, upright: bool, travel_time_s: float = math.nan, note: str = "",
+                rest_distance_m: float = math.nan) -> Signature:
         """The signature of an operator outcome."""
-        return self._sign(outcome_text(trial_id, upright, travel_time_s, note))
+        return self._sign(outcome_text(trial_id, upright, travel_time_s, note, rest_distance_m))

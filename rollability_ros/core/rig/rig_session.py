@@ -37,12 +37,14 @@ import typing
 import zlib
 
 from rollability_ros.core import config
-from rollability_ros.core.imu import ImuOutcomeConfig, ImuSample, ImuUprightClassifier, UprightReading
+from rollability_ros.core.imu import ImuOutcomeConfig, LaunchMotion
 from rollability_ros.core.registry import Registry
 from rollability_ros.core.records import (INVALID_LAUNCH, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
                                           LaunchCondition, LaunchOutcome, check_twin_seed)
 from rollability_ros.core.rig.launch_backend import (LaunchAborted, LaunchBackend, PhaseCallback, PoseCallback,
                                                      RigPorts, no_phase, not_cancelled)
+from rollability_ros.core.rig.outcome_sources import (ROLLED_WORD, ImuOutcome, check_rest_distance,
+                                                      simulated_continuous_outcomes)
 from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasurement
 from rollability_ros.core.rig.valve import ValveConfig
 
@@ -140,14 +142,24 @@ class OperatorOutcome:
     upright: bool
     travel_time_s: float = NOT_MEASURED
     note: str = ""
+    rest_distance_m: float = NOT_MEASURED   # m from the ledge's edge to where it came to rest, as the operator measured
 
 
 def parse_outcome_answer(text: str) -> "OperatorOutcome":
-    """Parse a typed outcome ``"y|n [travel time s] [note...]"`` into an :class:`OperatorOutcome`.
+    """Parse a typed outcome ``"y|n [travel time s] [rolled=M] [note...]"`` into an :class:`OperatorOutcome`.
 
-    ``y``/``yes``/``u``/``upright`` mean upright, ``n``/``no``/``t``/``tipped`` not; raises ``ValueError`` otherwise.
+    ``y``/``yes``/``u``/``upright`` mean upright, ``n``/``no``/``t``/``tipped`` not; ``rolled=0.35`` anywhere after the
+    verdict is the distance from the ledge's edge to where the chassis came to rest, m, as measured (>= 0); raises
+    ``ValueError`` otherwise.
     """
     words = text.split()
+    rolled = [word for word in words[1:] if word.lower().startswith(ROLLED_WORD)]
+    if len(rolled) > 1:
+        raise ValueError(f"give the distance rolled once ({ROLLED_WORD}M), got {' '.join(rolled)}")
+    rest_distance_m = NOT_MEASURED
+    if rolled:
+        rest_distance_m = check_rest_distance(rolled[0][len(ROLLED_WORD):])
+        words = [word for word in words if word is not rolled[0]]
     if not words:
         raise ValueError("type y (upright) or n (not upright), optionally the travel time in s and a note")
     verdict = words[0].lower()
@@ -162,17 +174,19 @@ def parse_outcome_answer(text: str) -> "OperatorOutcome":
             pass
         if not (math.isnan(travel_time_s) or 0 < travel_time_s < math.inf):
             raise ValueError(f"travel time must be > 0 s, got {travel_time_s}")
-    return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest))
+    return OperatorOutcome(verdict in ("y", "yes", "u", "upright"), travel_time_s, " ".join(rest), rest_distance_m)
 
 
-def describe_answer(kind: str, answer: typing.Optional[OperatorOutcome]) -> str:
+def describe_answer(kind: str, answer: typing.Union[bool, OperatorOutcome, None]) -> str:
     """An operator answer in words: ``regulator confirmed`` or ``upright, travel time 0.42 s, note: ...``."""
     if kind == "confirm":
         return "regulator confirmed"
-    assert answer is not None, "an outcome answer carries the outcome"
+    assert isinstance(answer, OperatorOutcome), "an outcome answer carries the outcome"
     parts = ["upright" if answer.upright else "tipped"]
     if not math.isnan(answer.travel_time_s):
         parts.append(f"travel time {answer.travel_time_s:g} s")
+    if not math.isnan(answer.rest_distance_m):
+        parts.append(f"rolled {answer.rest_distance_m:g} m")
     if answer.note:
         parts.append(f"note: {answer.note}")
     return ", ".join(parts)
@@ -255,8 +269,9 @@ class OperatorChannel:
         return self._deliver("outcome", outcome, trial_id)
 
     def wait(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
-             poll_s: float = 0.05) -> typing.Any:
-        """Return the answer once given, or None on timeout / ``cancelled()``; the question stays open."""
+             poll_s: float = 0.05) -> typing.Union[bool, OperatorOutcome, None]:
+        """Return the answer once given (True: the regulator confirmed; the outcome), or None on timeout /
+        ``cancelled()``; the question stays open."""
         deadline = time.monotonic() + timeout_s
         with self._cond:
             while self._answer is None:
@@ -265,41 +280,6 @@ class OperatorChannel:
                     return None
                 self._cond.wait(min(poll_s, remaining))
             return self._answer
-
-
-class ImuOutcome:
-    """The upright classifier fed from the IMU topic; a launch resets it at firing and waits for its verdict."""
-
-    def __init__(self, config):
-        self.config = config
-        self._classifier = ImuUprightClassifier.from_config(config)
-        self._cond = threading.Condition()
-        self._reading = None
-
-    def reset(self) -> None:
-        """Forget everything before the launch (a chassis waiting on the launcher looks settled too)."""
-        with self._cond:
-            self._classifier.reset()
-            self._reading = None
-
-    def feed(self, sample: ImuSample) -> None:
-        """Classify one :class:`~rollability_ros.core.imu.upright.ImuSample`; bad samples raise ``ValueError``."""
-        with self._cond:
-            self._reading = self._classifier.update(sample)
-            if self._reading.classification is not None:
-                self._cond.notify_all()
-
-    def wait_settled(self, timeout_s: float, cancelled: typing.Callable[[], bool] = not_cancelled,
-                     poll_s: float = 0.05) -> typing.Optional[UprightReading]:
-        """The first settled :class:`~rollability_ros.core.imu.upright.UprightReading`, or None on timeout/cancel."""
-        deadline = time.monotonic() + timeout_s
-        with self._cond:
-            while self._reading is None or self._reading.classification is None:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0 or cancelled():
-                    return None
-                self._cond.wait(min(poll_s, remaining))
-            return self._reading
 
 
 class PhysicalLaunch(LaunchBackend):
@@ -442,6 +422,8 @@ class PhysicalLaunch(LaunchBackend):
         except BaseException:
             self._confirmed = None   # after an e-stop, a fault or a cancel the operator confirms the pressure again
             raise
+        # what the IMU saw, even when it never settled and the operator answered (its peak, then, without a tilt)
+        motion = self.imu.motion() if self.imu is not None else LaunchMotion()
         travel_time_s, source = self.travel_time_source(travel_time_s, operator)
         speed = self.speed_config.measure(condition.speed_mps, travel_time_s)
         notes = [source, speed_note(speed, condition.speed_mps, self.speed_config.tolerance_fraction)]
@@ -457,7 +439,8 @@ class PhysicalLaunch(LaunchBackend):
             speed_out_of_tolerance=speed.speed_out_of_tolerance,
             final_orientation=tuple(reading.orientation) if reading is not None else UNKNOWN_ORIENTATION,
             classified_by="operator" if operator is not None else "imu", note="; ".join(filter(None, notes)),
-            stamp_s=time.time())
+            stamp_s=time.time(), **motion.outcome_fields(),
+            rest_distance_m=operator.rest_distance_m if operator is not None else NOT_MEASURED)
 
     def travel_time_source(self, gate_s: float, operator: typing.Optional[OperatorOutcome]
                            ) -> typing.Tuple[float, str]:
@@ -668,8 +651,9 @@ def launch_seed(base_seed: int, trial_id: str) -> int:
 def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, result: "LaunchResult",
                       speed_config: SpeedGateConfig) -> LaunchOutcome:
     """The :class:`LaunchOutcome` of a launch twin result (``upright``, ``final_orientation_xyzw``,
-    ``travel_time_s``), with the speed flagged against ``speed_config``'s tolerance; an invalid launch
-    (``invalid_reason``) is stored not upright with a note starting with :data:`INVALID_LAUNCH`."""
+    ``travel_time_s`` and the continuous outcomes, :func:`simulated_continuous_outcomes`), with the speed flagged
+    against ``speed_config``'s tolerance; an invalid launch (``invalid_reason``) is stored not upright with a note
+    starting with :data:`INVALID_LAUNCH`."""
     travel_time_s = float(getattr(result, "travel_time_s", NOT_MEASURED))
     if not travel_time_s > 0:
         travel_time_s = NOT_MEASURED
@@ -685,5 +669,4 @@ def simulated_outcome(run_id: str, trial_id: str, condition: LaunchCondition, re
         travel_time_s=speed.travel_time_s, measured_speed_mps=speed.measured_speed_mps,
         speed_out_of_tolerance=speed.speed_out_of_tolerance,
         final_orientation=tuple(float(v) for v in result.final_orientation_xyzw), classified_by="sim", note=note,
-        stamp_s=time.time(), seed=int(getattr(result, "seed", NO_SEED)))
-
+        stamp_s=time.time(), seed=int(getattr(result, "seed", NO_SEED)), **simulated_continuous_outcomes(result))

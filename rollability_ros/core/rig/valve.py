@@ -32,6 +32,9 @@ import typing
 
 from rollability_ros.core.rig._valve_backend import VALVE_BACKENDS, ValveBackend
 
+if typing.TYPE_CHECKING:  # annotations only
+    from rollability_ros.core.rig.relay_protocol import DeviceLimits
+
 _LOG = logging.getLogger(__name__)
 
 #: Longest :meth:`ValveController.health` waits for the controller's lock before it reports the last state, s.
@@ -197,7 +200,7 @@ class ValveController:
             self._emit("started")
 
     # ------------------------------------------------------------------ state
-    def device_limits(self) -> typing.Any:
+    def device_limits(self) -> typing.Optional["DeviceLimits"]:
         """The device's own limits (``relay_protocol.DeviceLimits``) when the backend reports them, else None."""
         return self._backend.limits
 

@@ -1,0 +1,112 @@
+"""The adaptive plan against the paper's matrix (issue 44.4): how many launches each needs for the same interval
+widths of the twin's unknowns, on the same hidden truths. Simulated throughout.
+
+    python bench/bench_adaptive_plan.py [--truths 10] [--unknowns 4] [--samples 20000] [--matrix-launches 400]
+    nice python bench/bench_adaptive_plan.py --likelihood twin --unknowns 2 --samples 48 --sim-repetitions 4
+
+For each hidden truth drawn from the prior (uniform on each unknown's search scale, its calibration bounds): the
+paper's matrix launches ``--matrix-launches`` times (the 80 grouped conditions of config/campaign.yaml -- the bare
+chassis and designs A, B, C at 2 heights, 2 speeds, 5 angles -- once per shuffled round); then the adaptive plan
+(each launch the BALD choice, core/campaign/adaptive.py) launches on the same truth from the same prior samples
+until every unknown's 95 % interval is at most as wide as the matrix's. Prints both per truth, the median, and the
+effective sample sizes (the importance-sampling posterior is only as good as its samples: under about 50, rerun
+with more). The same outcomes the launches' P(upright) predict at the truth, drawn with a seeded generator.
+
+``--likelihood toy`` (default): an analytic logistic stand-in (LogisticToyPredictor: each condition's own sensitivity
+to each unknown, seeded), cheap; it shows the machinery, not the rig. ``--likelihood twin``: the
+simulation-based likelihood (TwinPredictor: ``--sim-repetitions`` twin launches per sample and condition, the
+configurations from ``--twin-config`` files' launch_twin.designs, e.g. the optimizer's designs), expensive
+(samples x 80 x repetitions launches, about 50 ms each per core). A learnt likelihood (the calib room's) plugs in
+through :func:`run` with any object that has ``probabilities(theta (s, d), conditions) -> (s, c)``:
+bench/bench_calibration.py calls :func:`run` with its own predictor.
+"""
+import argparse
+import os
+import sys
+import time
+import typing
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from rollability_ros.core.campaign import adaptive, plan_comparison  # noqa: E402
+
+
+def run(predictor: typing.Union[adaptive.UprightPredictor, adaptive.PerLaunchPredictor],
+        unknowns: adaptive.HasBounds, candidates: typing.Sequence[adaptive.LaunchCondition], truths: int,
+        matrix_launches: int, samples: int, seed: int = 2026, say: typing.Callable[[str], None] = print,
+        renew: bool = True) -> typing.List[plan_comparison.MatchedWidths]:
+    """Print and return the matrix-vs-adaptive comparison (:func:`plan_comparison.adaptive_to_match_matrix`); ``renew``:
+    renew the samples as the posterior narrows (asks the predictor again: for a cheap one, not the twin's)."""
+    import numpy as np
+
+    bounds = adaptive.Unknowns.like(unknowns)   # a learnt likelihood's own unknowns are accepted as they are
+    table: adaptive.UprightPredictor = (adaptive.PerLaunchAdapter(predictor)
+                                        if isinstance(predictor, adaptive.PerLaunchPredictor) else predictor)
+    started = time.perf_counter()
+    results = plan_comparison.adaptive_to_match_matrix(bounds, table, candidates, truths, matrix_launches, samples,
+                                                       seed, renew=renew)
+    for i, r in enumerate(results):
+        needed = f"{r.adaptive_launches}" if r.adaptive_launches is not None else f">{matrix_launches}"
+        say(f"truth {i}: matrix {matrix_launches} launches -> widths "
+            + ", ".join(f"{w:.0%}" for w in r.matrix_widths)
+            + f" (ESS {r.matrix_ess:.0f}); adaptive reaches them in {needed} launches (ESS {r.adaptive_ess:.0f})")
+    counts = [r.adaptive_launches if r.adaptive_launches is not None else np.inf for r in results]
+    median = float(np.median(counts))
+    say(f"median launches to the matrix's widths: adaptive {median:g} against matrix {matrix_launches} "
+        f"(ratio {median / matrix_launches:.2f}; target: at most 150 against 400); adaptive within 150 on "
+        f"{sum(c <= 150 for c in counts)} of {len(counts)} truths; {time.perf_counter() - started:.1f} s; simulated")
+    return results
+
+
+def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
+    import numpy as np
+
+    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.campaign.plan import load_campaign_spec
+    from rollability_ros.core.config import load_parameters
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--likelihood", choices=("toy", "twin"), default="toy")
+    parser.add_argument("--truths", type=int, default=10)
+    parser.add_argument("--unknowns", type=int, default=4,
+                        help="the first N of calibration.parameters' shipped order after the two of "
+                             "adaptive.DEFAULT_UNKNOWNS (default 4)")
+    parser.add_argument("--samples", type=int, default=20000, help="prior samples of the unknowns")
+    parser.add_argument("--matrix-launches", type=int, default=400)
+    parser.add_argument("--sim-repetitions", type=int, default=4, help="--likelihood twin: launches per entry")
+    parser.add_argument("--twin-config", action="append", default=[], metavar="FILE")
+    parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--seed", type=int, default=2026)
+    parser.add_argument("--smoke", action="store_true",
+                        help="every step once at a tiny size (1 truth, 2 unknowns, 200 samples, 40 matrix launches); "
+                             "the numbers mean nothing")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        args.truths, args.unknowns, args.samples, args.matrix_launches = 1, 2, 200, 40
+    parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.twin_config])
+    settings = calibration.calibration_settings(parameters)
+    order = list(adaptive.DEFAULT_UNKNOWNS) + [n for n in settings.parameters if n not in adaptive.DEFAULT_UNKNOWNS]
+    settings = settings.selected(order[:args.unknowns])
+    unknowns = adaptive.Unknowns.from_settings(settings)
+    spec = load_campaign_spec(["campaign"])
+    candidates = adaptive.candidate_conditions(spec.configurations, spec.heights_m, spec.speeds_mps, spec.angles_deg)
+    print(f"{args.likelihood} likelihood; unknowns {', '.join(unknowns.names)}; {len(candidates)} grouped conditions; "
+          f"{args.truths} truths from the prior; {args.samples} prior samples; simulated")
+    if args.likelihood == "toy":
+        run(adaptive.LogisticToyPredictor(unknowns, seed=args.seed), unknowns, candidates, args.truths,
+            args.matrix_launches, args.samples, args.seed)
+        return 0
+    with calibration.LaunchPool(args.workers) as pool:
+        predictor = adaptive.TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
+
+        class Cached:   # the prior's table and the truths' are launched once each
+            def probabilities(self, theta: np.ndarray,
+                              conditions: typing.Sequence[adaptive.LaunchCondition]) -> np.ndarray:
+                return predictor.probabilities(np.asarray(theta), conditions)
+        # no renewal: each would launch samples x 80 x repetitions again; watch the effective sample sizes printed
+        run(Cached(), unknowns, candidates, args.truths, args.matrix_launches, args.samples, args.seed, renew=False)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

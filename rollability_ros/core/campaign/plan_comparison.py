@@ -1,0 +1,151 @@
+"""The adaptive plan against the paper's matrix (issue 44.4), on simulated hidden truths.
+
+:func:`compare_plans`: on hidden truths drawn from the prior, the paper's matrix (every grouped condition in turn, in
+shuffled rounds) against the BALD plan (:mod:`~rollability_ros.core.campaign.adaptive`), both with the same posterior
+machinery; how many launches each needs until every unknown's 95 % interval is at most a target width (normalised: a
+fraction of its range on its search scale). :func:`adaptive_to_match_matrix`: the launches the adaptive plan needs to
+reach the widths the matrix reaches in its 400 launches. bench/bench_adaptive_plan.py runs it. numpy only.
+"""
+import dataclasses
+import math
+import typing
+
+import numpy as np
+
+from rollability_ros.core.campaign.adaptive import Unknowns, UprightPredictor, WeightedPosterior
+from rollability_ros.core.records import LaunchCondition
+
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanRun:
+    """One plan on one hidden truth: launches until every unknown's width reached the target (``None``: not within
+    the budget), the widths (d,) at the end, the effective sample size at the end."""
+
+    plan: str
+    launches_to_target: typing.Optional[int]
+    final_widths: np.ndarray
+    effective_sample_size: float
+
+
+def run_plan(plan: str, posterior: WeightedPosterior, truth_probabilities: np.ndarray, budget: int,
+             target_width: float, rng: np.random.Generator, level: float = 0.95) -> PlanRun:
+    """Launch ``plan`` ("matrix": every candidate once per round, each round shuffled; "adaptive": the BALD proposal
+    each time) on a hidden truth whose P(upright) at every candidate is ``truth_probabilities`` (c,), drawing
+    each outcome with ``rng``, until every unknown's normalised width is at most ``target_width`` or ``budget``
+    launches were made. ``posterior`` is updated in place (pass a fresh one per run)."""
+    if plan not in ("matrix", "adaptive"):
+        raise ValueError(f"plan must be 'matrix' or 'adaptive', got {plan!r}")
+    candidates = len(posterior.candidates)
+    order: typing.List[int] = []
+    reached = None
+    for launch in range(1, budget + 1):
+        if plan == "matrix":
+            if not order:
+                order = list(rng.permutation(candidates))
+            index = order.pop()
+        else:
+            index = int(np.argmax(posterior.scores()))
+        posterior.observe(index, bool(rng.random() < truth_probabilities[index]))
+        if np.all(posterior.normalised_widths(level) <= target_width):
+            reached = launch
+            break
+    return PlanRun(plan, reached, posterior.normalised_widths(level), posterior.effective_sample_size)
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanComparison:
+    """:func:`compare_plans`: per truth, the launches each plan needed (None: more than the budget)."""
+
+    target_width: float
+    budget: int
+    truths: np.ndarray                                   # (t, d), own units
+    matrix: typing.List[PlanRun]
+    adaptive: typing.List[PlanRun]
+
+    def summary(self) -> str:
+        """One line per truth and the medians."""
+        def text(run: PlanRun) -> str:
+            return f">{self.budget}" if run.launches_to_target is None else str(run.launches_to_target)
+        lines = [f"truth {i}: matrix {text(m)}, adaptive {text(a)} launches to widths <= {self.target_width:.0%}"
+                 for i, (m, a) in enumerate(zip(self.matrix, self.adaptive))]
+
+        def median(runs: typing.List[PlanRun]) -> str:
+            counts = [r.launches_to_target if r.launches_to_target is not None else math.inf for r in runs]
+            value = float(np.median(counts))
+            return f">{self.budget}" if math.isinf(value) else f"{value:g}"
+        lines.append(f"median: matrix {median(self.matrix)}, adaptive {median(self.adaptive)} launches "
+                     f"({len(self.matrix)} truths drawn from the prior)")
+        return "\n".join(lines)
+
+
+def compare_plans(unknowns: Unknowns, predictor: UprightPredictor, candidates: typing.Sequence[LaunchCondition],
+                  truths: int, target_width: float, budget: int, samples: int, seed: int = 0,
+                  level: float = 0.95, renew: bool = True) -> PlanComparison:
+    """The paper's matrix against the BALD plan (module docstring): ``truths`` hidden truths drawn from the prior;
+    for each, both plans launch on the same truth (outcomes drawn from the predictor's P(upright) at the truth)
+    with the same ``samples`` prior draws, until every unknown's 95 % interval is at most ``target_width`` of its
+    range or ``budget`` launches. ``renew``: renew the samples as the posterior narrows (:class:`WeightedPosterior`;
+    each renewal asks the predictor again)."""
+    rng = np.random.default_rng(seed)
+    prior = unknowns.draw(samples, rng)
+    table = predictor.probabilities(prior, candidates)
+    hidden = unknowns.draw(truths, rng)
+    truth_table = predictor.probabilities(hidden, candidates)
+    matrix: typing.List[PlanRun] = []
+    adaptive: typing.List[PlanRun] = []
+    for t in range(truths):
+        for plan, runs in (("matrix", matrix), ("adaptive", adaptive)):
+            posterior = WeightedPosterior(unknowns, prior, candidates, table, predictor if renew else None,
+                                          np.random.default_rng([seed, t, len(runs), 2]))
+            runs.append(run_plan(plan, posterior, truth_table[t], budget, target_width,
+                                 np.random.default_rng([seed, t, len(runs)]), level))
+    return PlanComparison(target_width, budget, hidden, matrix, adaptive)
+
+
+@dataclasses.dataclass(frozen=True)
+class MatchedWidths:
+    """:func:`adaptive_to_match_matrix` on one truth: the matrix's widths (d,) after its launches, the launches the
+    adaptive plan needed to reach them all (None: not within the budget), the adaptive widths then, and both plans'
+    effective sample sizes at the end."""
+
+    matrix_launches: int
+    matrix_widths: np.ndarray
+    adaptive_launches: typing.Optional[int]
+    adaptive_widths: np.ndarray
+    matrix_ess: float
+    adaptive_ess: float
+
+
+def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
+                             candidates: typing.Sequence[LaunchCondition], truths: int, matrix_launches: int,
+                             samples: int, seed: int = 0, level: float = 0.95,
+                             budget: typing.Optional[int] = None, renew: bool = True) -> typing.List[MatchedWidths]:
+    """Issue 44's comparison: on ``truths`` hidden truths drawn from the prior, the paper's matrix launches
+    ``matrix_launches`` times (every candidate once per shuffled round: 400 = the 80 grouped conditions x 5); the
+    adaptive plan then launches on the same truth, from the same prior draws, until each unknown's interval is at
+    most as wide as the matrix's (or ``budget`` launches, default ``matrix_launches``). ``renew`` as for
+    :func:`compare_plans`."""
+    rng = np.random.default_rng(seed)
+    prior = unknowns.draw(samples, rng)
+    table = predictor.probabilities(prior, candidates)
+    hidden = unknowns.draw(truths, rng)
+    truth_table = predictor.probabilities(hidden, candidates)
+    results = []
+    for t in range(truths):
+        renewal = predictor if renew else None
+        matrix = WeightedPosterior(unknowns, prior, candidates, table, renewal, np.random.default_rng([seed, t, 2]))
+        run_plan("matrix", matrix, truth_table[t], matrix_launches, -1.0, np.random.default_rng([seed, t, 0]), level)
+        widths = matrix.normalised_widths(level)
+        adaptive = WeightedPosterior(unknowns, prior, candidates, table, renewal, np.random.default_rng([seed, t, 3]))
+        outcome_rng = np.random.default_rng([seed, t, 1])
+        reached = None
+        for launch in range(1, (budget or matrix_launches) + 1):
+            index = int(np.argmax(adaptive.scores()))
+            adaptive.observe(index, bool(outcome_rng.random() < truth_table[t][index]))
+            if np.all(adaptive.normalised_widths(level) <= widths):
+                reached = launch
+                break
+        results.append(MatchedWidths(matrix_launches, widths, reached, adaptive.normalised_widths(level),
+                                     matrix.effective_sample_size, adaptive.effective_sample_size))
+    return results

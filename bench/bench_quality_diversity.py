@@ -27,7 +27,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
 
 from rollability_ros.core.config import from_mapping, section  # noqa: E402
-from rollability_ros.core.optimization import optimization_run, selection  # noqa: E402
+from rollability_ros.core.optimization import design_set, optimization_run, selection  # noqa: E402
 from rollability_ros.core.optimization import batch_evaluation, run_directory  # noqa: E402
 from bench.smoke import SMOKE_RUN  # noqa: E402
 from rollability_ros.core.profile import descriptors  # noqa: E402
@@ -76,7 +76,7 @@ def one_run(method, seed, generations, workers, workdir, overrides=None):
         run.close()
         with Store(run_dir) as store:
             candidates = store.candidates()
-            picked, _ = selection.select_run(
+            picked, _ = design_set.select_run(
                 store, run.run_id, run_dir, settings.grid, settings.printer, chosen,
                 batch_evaluation.profile_batch_evaluator(settings, chosen.reevaluate_trials, executor), seed,
                 batch_evaluation.fidelity_batch_evaluator(settings, executor, "launch"))

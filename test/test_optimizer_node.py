@@ -143,7 +143,8 @@ def test_with_no_evaluator_it_says_so_and_waits_then_proceeds(ros_node, start_no
     optimizer = start_optimizer(start_node, tmp_path, "late", exit_on_finish=True, select_designs=True,
                                 **{"selection.reevaluate_trials": 2, "selection.min_distance": 0.01,
                                    "selection.race_launches": "[2]", "selection.race_elites": 3,
-                                   "selection.launch_trials": 2})
+                                   "selection.launch_trials": 2, "selection.world_count": 2,
+                                   "selection.world_launches": 2})
     wait_for_log(ros_node, optimizer, "no evaluator available", 60)
     assert "generation 1:" not in optimizer.log() and optimizer.alive()
     start_node("sim_evaluator", params={"evaluator.workers": 2, **GRID}, ros_args=["-r", "__ns:=/eval_late"],
@@ -156,6 +157,9 @@ def test_with_no_evaluator_it_says_so_and_waits_then_proceeds(ros_node, start_no
     assert "selected" in optimizer.log()
     # the race and the gain ran as launch-fidelity goals on the graph's evaluator
     assert "minus the bare robot on fresh robust launches on the twin" in optimizer.log(), optimizer.log()
+    # and the world check as world:<seed> goals: its rows and the recommendation it gives
+    assert (designs / "selection_world_check.csv").is_file()
+    assert "recommendation (simulated world check): " in optimizer.log(), optimizer.log()
 
 
 def test_two_evaluators_share_the_run_and_it_equals_the_in_process_run(ros_node, start_node, evaluators, tmp_path,

@@ -78,6 +78,9 @@ def test_miniature_main_job_end_to_end(tmp_path):
 
     designs = study_dir / "optimization" / "designs"
     assert (designs / "table3.csv").is_file() and list(designs.glob("*.stl"))
+    # the selection's world check ran over the evaluators (fidelity world:<seed>) and the summary leads with it
+    assert (designs / "selection_world_check.csv").is_file() and "RECOMMENDATION: " in output
+    assert "<h2 id='recommendation'>" in (study_dir / "report" / "report.html").read_text()
     with Store(study_dir / "outcomes.sqlite") as store:
         outcomes = store.launch_outcomes("e2e")
         candidates = store.candidates()

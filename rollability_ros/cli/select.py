@@ -8,7 +8,7 @@ from rollability_ros.cli import Subparsers
 
 #: ``selection`` settings a command-line option overrides (same names).
 OVERRIDES = ("count", "min_distance", "reevaluate_trials", "mesh_units", "top_fraction", "launch_trials",
-             "race_launches")
+             "race_launches", "world_count", "world_launches")
 
 
 def _print_table(rows):
@@ -26,6 +26,28 @@ def _print_table(rows):
                      f"{row['max_height_m']:>10.4f}{mass:>8}  {fitness:<22}{row['trials']:>7}  "
                      f"{row['fitness_source']:<13}  "
                      f"{in_run:<22}{row['in_run_trials']:>7}  {bias}\n")
+
+
+def _world_launch(evaluator_settings, executor):
+    """``(world_launch, describe_world)`` of the selection's world check in this process (fidelity world:<seed>)."""
+    from rollability_ros.core.optimization import fidelity_batch_evaluator
+    from rollability_ros.core.sim import world_draws, world_fidelity
+
+    def world_launch(heights_list, world_seed, launch_seed, launches):
+        evaluate = fidelity_batch_evaluator(evaluator_settings, executor, world_fidelity(world_seed))
+        return evaluate(heights_list, launch_seed, launches)
+    return world_launch, world_draws(evaluator_settings)
+
+
+def _print_recommendation(result):
+    """The world check per design and the recommendation, when the selection ran one (simulated)."""
+    from rollability_ros.core.sim import summarize_worlds, world_check_lines
+
+    if result.recommendation is None:
+        return
+    for line in world_check_lines(summarize_worlds(result.world_rows or [])):
+        print(line)
+    print(f"recommendation: {result.recommendation.headline()}")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -49,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     settings = from_mapping(SelectionSettings, mapping, "selection")
     evaluator_settings = settings_from_parameters(parameters)
     run_id = run_id_of(run_dir)
-    launches = bool(settings.race_rounds or settings.launch_trials)
+    launches = bool(settings.race_rounds or settings.launch_trials or settings.world_count)
     executor = make_executor(evaluator_settings.evaluator, args.workers) \
         if settings.reevaluate_trials or launches else None
     try:
@@ -57,11 +79,14 @@ def run(args: argparse.Namespace) -> int:
             if executor is not None and settings.reevaluate_trials else None
         launch_batch = fidelity_batch_evaluator(evaluator_settings, executor, "launch") \
             if executor is not None and launches else None
+        world_launch, describe_world = _world_launch(evaluator_settings, executor) \
+            if executor is not None and settings.world_count else (None, None)
         with Store(run_dir) as store:
             result, folder = select_run(store, run_id, run_dir, evaluator_settings.grid,
                                         evaluator_settings.printer, settings, evaluate_batch,
                                         run_settings(parameters).optimizer.seed,
-                                        launch_batch, weigh=lambda mesh: evaluator_settings.profile_body(mesh).mass_kg)
+                                        launch_batch, weigh=lambda mesh: evaluator_settings.profile_body(mesh).mass_kg,
+                                        world_launch=world_launch, describe_world=describe_world)
     finally:
         if executor is not None:
             executor.close()
@@ -92,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
     if earlier:
         print(f"earlier design set(s) kept unchanged ({', '.join(earlier)}: stored outcomes and printed parts may "
               f"refer to them); a campaign on this set needs launch_twin.designs.designs_file: {folder}/designs.yaml")
+    _print_recommendation(result)
     if result.no_design_helps():
         print(f"rollability select: warning: {result.no_design_helps()}; designs.yaml marks each design "
               f"beats_baseline: false", file=sys.stderr)
@@ -131,6 +157,10 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--launch-trials", type=int, help="fresh robust twin launches per chosen design and the "
                                                           "bare robot for the gain over it (default: "
                                                           "selection.launch_trials; 0 = none)")
+    parser.add_argument("--world-count", type=int, help="worlds of the plausible-world check behind the "
+                                                        "recommendation (default: selection.world_count; 0 = none)")
+    parser.add_argument("--world-launches", type=int, help="paired launches per configuration in each world "
+                                                           "(default: selection.world_launches)")
     parser.add_argument("--workers", type=int, help="worker processes for the re-evaluation")
     parser.add_argument("--mesh-units", choices=("mm", "m"), help="length unit of the STL files (default: "
                         "selection.mesh_units, mm as slicers expect)")

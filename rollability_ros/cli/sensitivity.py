@@ -1,6 +1,8 @@
 """`rollability sensitivity`: the simulated fitness of the bare chassis and of profiles against each uncertain
 factor (disturbance scale, start pose, contact reading, centre of mass) and robustly, with intervals; with
-``--launches``, launches on the twin against each of its unknowns (both ends of each range) and robustly."""
+``--launches``, launches on the twin against each of its unknowns (both ends of each range) and robustly; with
+``--worlds N``, the plausible-world check (``core/sim/world_check.py``): the bare robot and every design launched
+in each of N fixed draws of all unknowns on the same seeds."""
 import argparse
 import csv
 import os
@@ -10,6 +12,9 @@ from rollability_ros.cli import Subparsers
 
 if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
     from rollability_ros.core.profile import Mesh
+
+#: ``--launches-per-world`` default: the campaign's 20 conditions twice.
+DEFAULT_LAUNCHES_PER_WORLD = 40
 
 
 def _profiles(args):
@@ -48,8 +53,72 @@ def _varied(items: typing.Sequence[str]) -> typing.Dict[str, typing.Tuple[float,
     return varied
 
 
+#: Files the world check writes into ``--out``.
+WORLD_FILES = ("world_check.csv", "world_summary.yaml")
+
+
+def run_worlds(args: argparse.Namespace, settings: typing.Any, profiles: typing.Mapping[str, typing.Any]) -> int:
+    """The plausible-world check: print it, write :data:`WORLD_FILES` to ``--out``; exit code."""
+    import dataclasses
+
+    import yaml
+
+    from rollability_ros.core.optimization import SelectionSettings, recommend
+    from rollability_ros.core.sim import (WORLD_CHECK_COLUMNS, local_world_evaluator, make_executor,
+                                          run_world_check, settings_at_fidelity, summarize_worlds,
+                                          world_check_lines, world_draws)
+
+    if args.engine:
+        settings = dataclasses.replace(settings, objective=dataclasses.replace(settings.objective,
+                                                                               launch_engine=args.engine))
+    engine = settings_at_fidelity(settings, "launch").physics.engine
+
+    def show(row: typing.Mapping[str, typing.Any]) -> None:
+        print(f"world {row['world']:>3} {row['configuration']:<10} {row['successes']:>4}/{row['trials']:<4}",
+              flush=True)
+
+    with make_executor(settings.evaluator, args.workers) as executor:
+        rows = run_world_check(local_world_evaluator(profiles, settings, executor), args.worlds,
+                               args.launches_per_world, args.seed, world_draws(settings), show)
+    summaries = summarize_worlds(rows)
+    verdict = recommend(summaries, SelectionSettings().recommend_world_share)
+    csv_path = os.path.join(args.out, WORLD_FILES[0])
+    with open(csv_path, "w", newline="", encoding="utf-8") as stream:
+        writer = csv.DictWriter(stream, fieldnames=list(WORLD_CHECK_COLUMNS))
+        writer.writeheader()
+        writer.writerows(rows)
+    document = {"simulated": True, "engine": engine, "worlds": args.worlds,
+                "launches_per_world": args.launches_per_world, "seed": args.seed,
+                "wins_mean": "a design wins a world when its point gain over the bare robot there is > 0",
+                "designs": {s.configuration: s.as_dict() for s in summaries},
+                "recommendation": verdict.as_dict()}
+    yaml_path = os.path.join(args.out, WORLD_FILES[1])
+    with open(yaml_path, "w", encoding="utf-8") as stream:
+        yaml.safe_dump(document, stream, sort_keys=False)
+    for line in world_check_lines(summaries, engine):
+        print(line)
+    print(f"recommendation (the selection's rule, selection.recommend_world_share): {verdict.headline()}")
+    print(f"wrote {csv_path} and {yaml_path}")
+    return 0
+
+
+def _check_world_arguments(args: argparse.Namespace, profiles: typing.Mapping[str, typing.Any],
+                           varied: typing.Mapping[str, typing.Any]) -> None:
+    """``ValueError`` for world-check flags without ``--worlds``, with a flag of the factor study, or unusable."""
+    if args.worlds is not None and (args.launches or varied):
+        raise ValueError("--worlds runs the world check: it takes neither --launches nor --vary")
+    if args.worlds is None and (args.engine or args.launches_per_world != DEFAULT_LAUNCHES_PER_WORLD):
+        raise ValueError("--engine and --launches-per-world belong to the world check: give --worlds N")
+    if args.worlds is not None and (args.worlds < 1 or args.launches_per_world < 1):
+        raise ValueError(f"--worlds and --launches-per-world must be >= 1, got {args.worlds} and "
+                         f"{args.launches_per_world}")
+    if args.worlds is not None and len(profiles) < 2:
+        raise ValueError("the world check needs designs: give --designs-file or --mesh")
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run the sensitivity study, write ``sensitivity.csv`` and ``sensitivity.png`` to ``--out``; exit code."""
+    """Run the sensitivity study, write ``sensitivity.csv`` and ``sensitivity.png`` to ``--out`` (the world check:
+    :data:`WORLD_FILES`); exit code."""
     from rollability_ros.core.config import check_output_dir
     from rollability_ros.core.optional import MissingDependency
     from rollability_ros.core.results import sensitivity_figure
@@ -57,7 +126,8 @@ def run(args: argparse.Namespace) -> int:
     from rollability_ros.core.results import gain_lines
     from rollability_ros.core.sim import launch_sensitivity_rows, sensitivity_rows
 
-    check_output_dir(args.out, "--out", keeps=("sensitivity.csv", "sensitivity.png"))
+    check_output_dir(args.out, "--out", keeps=WORLD_FILES if args.worlds is not None else
+                     ("sensitivity.csv", "sensitivity.png"))
     settings = with_given_files(load_settings(["sim", "robot", "evaluator", *args.config]),
                                 args.config, "rollability sensitivity")
     if args.trials < 1:
@@ -66,7 +136,10 @@ def run(args: argparse.Namespace) -> int:
     varied = _varied(args.vary)
     if varied and not args.launches:
         raise ValueError("--vary needs --launches (it varies a launch twin setting)")
+    _check_world_arguments(args, profiles, varied)
     os.makedirs(args.out, exist_ok=True)
+    if args.worlds is not None:
+        return run_worlds(args, settings, profiles)
 
     def show(row: typing.Mapping[str, typing.Any]) -> None:
         print(f"{row['configuration']:<10} {row['factor']:<18} {str(row['level']):<18} {row['successes']:>4}/"
@@ -105,7 +178,9 @@ def register(subparsers: Subparsers) -> None:
                     "campaign's conditions, each of the twin's unknowns (contact reading, centre of mass, foam "
                     "stiffness, restitution, friction and rolling friction, wheel drag) at both ends of its "
                     "range (objective.robust) and all drawn at once; each design minus the bare robot with its "
-                    "Newcombe 95%% interval. See docs/optimization.md and docs/twin-model.md.")
+                    "Newcombe 95%% interval. With --worlds N: the plausible-world check (N fixed draws of all "
+                    "unknowns; the bare robot and every design on the same seeds in each; simulated). See "
+                    "docs/optimization.md and docs/twin-model.md.")
     parser.add_argument("--mesh", action="append", default=[], metavar="LABEL=FILE",
                         help="a profile solid (STL/OBJ, metres, base on z = 0) under a label (repeatable)")
     parser.add_argument("--designs-file", metavar="FILE", help="designs.yaml of `rollability select`")
@@ -115,6 +190,15 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--vary", action="append", default=[], metavar="NAME=LOW,HIGH",
                         help="with --launches: also a row per level of this numeric launch twin setting, by its "
                              "dotted settings name (e.g. twin.wheel_side_friction_factor=0.03,0.5; repeatable)")
+    parser.add_argument("--worlds", type=int, metavar="N",
+                        help="the plausible-world check: N fixed draws of all unknowns, the bare robot and every "
+                             "design launched in each on the same seeds; per design the share of worlds it wins, "
+                             "the worst world and the pooled gain (writes world_check.csv, world_summary.yaml)")
+    parser.add_argument("--launches-per-world", type=int, default=DEFAULT_LAUNCHES_PER_WORLD, metavar="K",
+                        help=f"with --worlds: paired launches per configuration in each world (default "
+                             f"{DEFAULT_LAUNCHES_PER_WORLD}: the campaign's 20 conditions twice)")
+    parser.add_argument("--engine", metavar="ENGINE",
+                        help="with --worlds: the launch engine, pybullet | mujoco (default: objective.launch_engine, else sim.engine)")
     parser.add_argument("--trials", type=int, default=60, help="trials (or launches) per evaluation (default 60)")
     parser.add_argument("--seed", type=int, default=0, help="the one base seed of every evaluation (default 0)")
     parser.add_argument("--workers", type=int, help="worker processes (default: evaluator.workers)")

@@ -70,7 +70,7 @@ from rollability_ros.core.optimization import (EvaluationFailed, EvaluatorPool, 
                                                table_rows)
 from rollability_ros.core.profile import PrinterSpec, ProfileGrid, is_baseline, marker_points, profile_mesh
 from rollability_ros.core.robots import ChassisSpec, UrdfRobotSpec, footprint_grid, profile_mount
-from rollability_ros.core.sim import ScreenSettings
+from rollability_ros.core.sim import ScreenSettings, world_fidelity
 from rollability_ros.msg import CandidateResult, GenerationSummary, OptimizerProgress
 from rollability_ros.nodes._convert import candidate_to_msg, generation_to_msg, progress_to_msg
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, ParameterError, SessionMembership,
@@ -393,9 +393,15 @@ class Optimizer(Node):
         launch_batch = self._pool.fidelity_evaluator("launch") \
             if chosen.race_rounds or chosen.launch_trials else None
         robot = self._robot_settings(settings)
+
+        def world_launch(heights_list, world_seed, launch_seed, launches):
+            """Launches in one world over the evaluators (fidelity world:<seed>); their draws are the evaluators'."""
+            return self._pool.fidelity_evaluator(world_fidelity(world_seed))(heights_list, launch_seed, launches)
+
         result, folder = select_run(run.store, run.run_id, run.run_dir, settings["profile"],
                                     settings["printer"], chosen, evaluate_batch, run.settings.seed,
-                                    launch_batch, weigh=lambda mesh: robot.profile_body(mesh).mass_kg)
+                                    launch_batch, weigh=lambda mesh: robot.profile_body(mesh).mass_kg,
+                                    world_launch=world_launch)
         rows = "; ".join(f"{row['configuration']} {row['simulated_fitness']:.3f}"
                          for row in table_rows(result) if row["trials"])
         self.get_logger().info(f"selected {len(result.designs)} design(s) into {folder} ({rows})"
@@ -407,6 +413,8 @@ class Optimizer(Node):
         if result.no_design_helps():
             self.get_logger().warning(f"{result.no_design_helps()}; designs.yaml marks each design "
                                       f"beats_baseline: false")
+        if result.recommendation is not None:
+            self.get_logger().info(f"recommendation (simulated world check): {result.recommendation.headline()}")
 
     # --- publishing ----------------------------------------------------------------------------------------------
     def _publish_candidate(self, record):

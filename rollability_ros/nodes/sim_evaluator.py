@@ -4,7 +4,8 @@ Interfaces (relative names; run several side by side in different namespaces):
 - action ``evaluate_profile`` (rollability_ros/action/EvaluateProfile): feedback per finished trial batch,
   cancel honoured between batches, result with fitness, Wilson interval and every trial's outcome. The goal's
   ``fidelity`` picks what a trial is: empty or ``screen`` = the ``objective`` parameters, ``launch`` = robust
-  launches on the launch twin (``core/sim/objectives.py``, ``at_fidelity``); any other value is rejected.
+  launches on the launch twin, ``world:<seed>`` = those launches all in the one world drawn from ``seed`` (the
+  plausible-world check) (``core/sim/objectives.py``, ``at_fidelity``); any other value is rejected.
 
 - topic ``robot_description`` (std_msgs/String, transient local, as robot_state_publisher publishes it): the
   URDF when ``urdf_robot.mount_link`` names a mount and neither ``urdf_robot.urdf_path`` nor
@@ -30,8 +31,9 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from rollability_ros.action import EvaluateProfile
-from rollability_ros.core.sim import (FIDELITIES, SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
-                                      TrialOutcome, evaluate_profile, make_executor, settings_at_fidelity)
+from rollability_ros.core.sim import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
+                                      TrialOutcome, check_fidelity, evaluate_profile, make_executor,
+                                      settings_at_fidelity)
 from rollability_ros.core.profile import check_heights
 from rollability_ros.msg import TrialResult
 from rollability_ros.nodes._support import (LATCHED_QOS, SessionMembership, declare_settings, guard_settings,
@@ -104,8 +106,8 @@ class SimEvaluator(Node):
         settings = self._settings
         if settings.urdf_robot.selected and not settings.urdf_robot.has_source:
             return "no robot description yet (waiting on the robot_description topic)"
-        if goal.fidelity not in ("", *FIDELITIES):
-            return f"unknown fidelity {goal.fidelity!r}: use one of {', '.join(FIDELITIES)} (or empty)"
+        if check_fidelity(goal.fidelity):
+            return check_fidelity(goal.fidelity)
         if not 1 <= goal.trials <= settings.evaluator.max_trials:
             return f"trials must be in [1, {settings.evaluator.max_trials}], got {goal.trials}"
         if len(goal.heights):

@@ -40,7 +40,7 @@ def _outcome(trial, configuration):
 
 def test_select_on_a_run_whose_designs_a_campaign_used_writes_a_new_design_set(tmp_path, capsys):
     """Was: the second `select` rewrote designs.yaml, the meshes and table3.csv the stored outcomes point at."""
-    from rollability_ros.core.optimization.selection import design_set_folders
+    from rollability_ros.core.optimization.design_set import design_set_folders
     from rollability_ros.core.profile.designs import DesignSources, profile_mesh_for
     from rollability_ros.core.results import report
 

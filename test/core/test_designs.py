@@ -8,8 +8,8 @@ import yaml
 from rollability_ros.core.profile import geometry
 from rollability_ros.core.config import ConfigError
 from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
-from rollability_ros.core.optimization.selection import (PooledDesign, SelectedDesign, SelectionResult,
-                                                         designs_document)
+from rollability_ros.core.optimization.design_set import designs_document
+from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, SelectionResult
 
 pytest.importorskip("trimesh")
 

@@ -63,7 +63,7 @@ def test_rank_p_value_is_the_exact_permutation_share():
 
 
 def test_table_round_trips_and_the_report_shows_it(tmp_path):
-    from rollability_ros.core.results import report
+    from rollability_ros.core.results import report, report_writer
     from rollability_ros.core.results import write_outcome_csv
     from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 
@@ -82,7 +82,7 @@ def test_table_round_trips_and_the_report_shows_it(tmp_path):
     csv_path = str(tmp_path / "outcomes.csv")
     write_outcome_csv(csv_path, [LaunchOutcome("r", f"t{i}", LaunchCondition("A", 0.75, 0.8, 0.0, i), "sim", i % 2)
                                  for i in range(1, 6)])
-    built = report.build_report(report.load_report_data(csv_path), str(tmp_path / "report"))
+    built = report_writer.build_report(report.load_report_data(csv_path), str(tmp_path / "report"))
     assert "same outcome 9/10 trials" in built.summary and "robust to the engine" in built.summary
     assert "rank agreement across 3 designs: Spearman rho +1.00 (exact one-sided permutation p = 0.167)" \
         in built.summary     # same order in both engines; 1 of the 3! orderings is that good

@@ -121,8 +121,8 @@ def test_evaluate_designs_in_two_engines_writes_the_table_the_report_reads(tmp_p
     import yaml
 
     from rollability_ros.cli import main
-    from rollability_ros.core.optimization.selection import (PooledDesign, SelectedDesign, SelectionResult,
-                                                             designs_document)
+    from rollability_ros.core.optimization.design_set import designs_document
+    from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, SelectionResult
     from rollability_ros.core.profile.geometry import ProfileGrid
     from rollability_ros.core.results.engine_agreement import read_table
 

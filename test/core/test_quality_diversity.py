@@ -12,7 +12,7 @@ pytest.importorskip("cma")
 ribs = pytest.importorskip("ribs")
 
 from doubles import SyntheticEvaluator  # noqa: E402
-from rollability_ros.core.optimization import selection  # noqa: E402
+from rollability_ros.core.optimization import design_set, selection  # noqa: E402
 from rollability_ros.core.optimization.optimizer_contract import OptimizerSettings  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import (OptimizationRun, run_config, make_optimizer,  # noqa: E402
                                                                 run_settings)
@@ -288,7 +288,7 @@ def test_archive_selection_screens_every_elite_on_fresh_trials():
 # --- the whole chain: run -> select -> report ------------------------------------------------------------------------
 def test_a_run_selects_from_its_archive_and_the_report_shows_the_map(tmp_path):
     pytest.importorskip("matplotlib")
-    from rollability_ros.core.results import design_map, report
+    from rollability_ros.core.results import design_map, report, report_writer
 
     parameters = {"optimizer.method": "cma_mae", "optimizer.max_generations": 8, "optimizer.seed": 4,
                   "optimizer.trials": 30, "optimizer.popsize": 12, "quality_diversity.emitters": 3}
@@ -297,7 +297,7 @@ def test_a_run_selects_from_its_archive_and_the_report_shows_the_map(tmp_path):
     run = OptimizationRun(run_dir, run_config(parameters), GRID, evaluator)
     run.run()
     settings = selection.SelectionSettings(count=3, top_fraction=0.5, reevaluate_trials=60)
-    picked, folder = selection.select_run(run.store, "run", run_dir, GRID, PrinterSpec(), settings,
+    picked, folder = design_set.select_run(run.store, "run", run_dir, GRID, PrinterSpec(), settings,
                                           SyntheticEvaluator(OPTIMUM, trials=60, width=0.2))
     run.close()
     assert picked.archive and picked.top_threshold is not None and len(picked.designs) >= 2
@@ -309,7 +309,7 @@ def test_a_run_selects_from_its_archive_and_the_report_shows_the_map(tmp_path):
     with Store(run_dir) as store:
         assert evaluated == sum(c.trials for c in store.candidates())   # every evaluation lands in one height bin
 
-    built = report.build_report(report.load_report_data(os.path.join(run_dir, "store.sqlite")), tmp_path / "report")
+    built = report_writer.build_report(report.load_report_data(os.path.join(run_dir, "store.sqlite")), tmp_path / "report")
     names = {os.path.basename(path) for path in built.figure_paths}
     assert {"design_map.png", "design_traits.png"} <= names
     assert {f"design_{d.label}.png" for d in picked.designs} <= names

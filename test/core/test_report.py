@@ -255,7 +255,7 @@ def test_heat_map_text_contrasts_with_its_cell_and_a_design_preview_renders(tmp_
 
 
 def test_report_leads_with_fresh_reevaluations_beside_the_in_run_estimates(tmp_path, capsys):
-    """Table 3 of the selection (selection.TABLE_COLUMNS) carries both estimates; the summary opens with them,
+    """Table 3 of the selection (design_set.TABLE_COLUMNS) carries both estimates; the summary opens with them,
     the selection bias between them, and labels the launch-twin campaign simulated."""
     with Store(tmp_path) as store:
         for outcome in _campaign_outcomes(repetitions=1):
@@ -267,7 +267,10 @@ def test_report_leads_with_fresh_reevaluations_beside_the_in_run_estimates(tmp_p
         "baseline,0,0,0,0.1,0.04,0.2,6,60,reevaluated,nan,nan,nan,0,0,nan\n"
         "A,0.2,0.15,0.031,0.35,0.24,0.48,21,60,reevaluated,0.75,0.53,0.89,15,20,0.4\n")
     assert cli_main(["report", str(tmp_path), "--out", str(tmp_path / "r")]) == 0
-    lines = capsys.readouterr().out.splitlines()
+    printed = capsys.readouterr().out.splitlines()
+    # the lead first: no world check of the designs, so nothing is recommended, and that is said first
+    assert printed[0].startswith("RECOMMENDATION: NO DESIGN IS RECOMMENDED: no plausible-world check")
+    lines = printed[next(i for i, line in enumerate(printed) if line.startswith("source: ")):]
     assert lines[1].startswith("simulated fitness of the chosen designs: fresh re-evaluation (headline)")
     assert re.match(r"A\s+21/60\s+0.35 \[0.24, 0.48\]\s+15/20\s+0.75 \[0.53, 0.89\]\s+\+0.40$", lines[4]), lines[4]
     assert re.match(r"baseline\s+6/60\s+0.10 .*-\s+-$", lines[3]), lines[3]

@@ -14,13 +14,12 @@ from rollability_ros.core.config import load_parameters  # noqa: E402
 from doubles import SyntheticEvaluator, tree_checksums  # noqa: E402
 from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config  # noqa: E402
 from rollability_ros.core.records import CandidateRecord  # noqa: E402
+from rollability_ros.core.optimization.design_set import design_set_folders, write_selection  # noqa: E402
 from rollability_ros.core.optimization.selection import (  # noqa: E402
     SelectionSettings,
     pool_candidates,
     rms_distance,
     select_designs,
-    design_set_folders,
-    write_selection,
 )
 from rollability_ros.core.store import Store  # noqa: E402
 
@@ -158,7 +157,7 @@ def test_table3_gives_each_design_its_printed_mass_beside_its_height(run_candida
     """The mass column is the robot's print of each design (what the twin mounts), and the report keeps it."""
     import shutil
 
-    from rollability_ros.core.optimization.selection import select_run
+    from rollability_ros.core.optimization.design_set import select_run
     from rollability_ros.core.results import report
     from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec
 

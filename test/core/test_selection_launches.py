@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("trimesh")
 
 from rollability_ros.core.config import load_parameters  # noqa: E402
-from rollability_ros.core.optimization import selection  # noqa: E402
+from rollability_ros.core.optimization import design_set, selection  # noqa: E402
 from rollability_ros.core.profile.geometry import PrinterSpec, ProfileGrid  # noqa: E402
 from rollability_ros.core.results import design_map, report  # noqa: E402
 
@@ -87,7 +87,7 @@ def test_when_no_design_beats_the_bare_robot_every_output_says_so(tmp_path, caps
     assert result.no_design_helps().startswith("no design beats the bare robot on fresh robust launches")
     assert "(none above the bare robot)" in result.designs[0].reason
 
-    folder = selection.write_selection(str(tmp_path), result, GRID, "run")
+    folder = design_set.write_selection(str(tmp_path), result, GRID, "run")
     parameters = load_parameters(os.path.join(folder, "designs.yaml"))
     assert parameters["designs.launch_race.rounds"] == [20, 20] and parameters["designs.launch_race.designs_raced"] == 6
     assert parameters["designs.launch_race.baseline.trials"] == 40
@@ -159,7 +159,6 @@ def test_select_warns_in_one_line_and_exits_0_when_no_design_beats_the_bare_robo
     pytest.importorskip("ribs")
     from doubles import SyntheticEvaluator
     from rollability_ros.cli import main
-    from rollability_ros.core import optimization
     from rollability_ros.core.optimization import optimization_run
 
     optimum = np.linspace(0.1, 0.4, GRID.n_variables)
@@ -178,8 +177,8 @@ def test_select_warns_in_one_line_and_exits_0_when_no_design_beats_the_bare_robo
         return lambda heights_list, seed, trials: [(trials if not np.any(h) else trials // 3, trials, 0.0, name)
                                                    for h in heights_list]
 
-    # the face the CLI imports it from (lazy_loader keeps a name there once something in this process used it)
-    monkeypatch.setattr(optimization, "fidelity_batch_evaluator", launches)
+    # the face caches a name once resolved (lazy_loader): the command reads it there
+    monkeypatch.setattr("rollability_ros.core.optimization.fidelity_batch_evaluator", launches)
     assert main(["select", run_dir, "--workers", "1"]) == 0
     captured = capsys.readouterr()
     warnings = captured.err.strip().splitlines()

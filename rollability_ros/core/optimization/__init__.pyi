@@ -9,14 +9,17 @@ from .optimization_run import (OptimizationRun, RunConfig, check_method_settings
                                run_config, run_generations, run_settings, with_given_files)
 from .optimizer_contract import (OPTIMIZER_METHODS, IncumbentOptimizer, OptimizerSettings, QualityDiversitySettings,
                                  RunSettings)
+from .design_set import design_set_folders, select_run, table_rows
 from .run_directory import load_run_parameters, read_run_config, resolve_run_dir, run_id_of, run_target
-from .selection import GAIN_SOURCES, SelectionSettings, design_set_folders, select_run, table_rows
+from .recommendation import DEFAULT_WORLD_SHARE, Recommendation, recommend, with_campaign
+from .selection import GAIN_SOURCES, SelectionSettings
 
 __all__ = [
-    "GAIN_SOURCES", "OPTIMIZER_METHODS", "EvaluationFailed", "EvaluatorPool", "IncumbentOptimizer", "OptimizationRun",
-    "OptimizerSettings", "PoolClosed", "PoolSettings", "ProfileOptimizer", "QualityDiversitySettings", "RunConfig",
-    "RunSettings", "SelectionSettings", "atomic_write_bytes", "check_method_settings", "design_set_folders",
-    "fidelity_batch_evaluator", "load_run_parameters", "make_optimizer", "profile_batch_evaluator", "profile_screen",
-    "read_run_config", "resolve_run_dir", "run_config", "run_generations", "run_id_of", "run_settings", "run_target",
-    "select_run", "table_rows", "with_given_files"
+    "DEFAULT_WORLD_SHARE", "GAIN_SOURCES", "OPTIMIZER_METHODS", "EvaluationFailed", "EvaluatorPool",
+    "IncumbentOptimizer", "OptimizationRun", "OptimizerSettings", "PoolClosed", "PoolSettings", "ProfileOptimizer",
+    "QualityDiversitySettings", "Recommendation", "RunConfig", "RunSettings", "SelectionSettings", "atomic_write_bytes",
+    "check_method_settings", "design_set_folders", "fidelity_batch_evaluator", "load_run_parameters", "make_optimizer",
+    "profile_batch_evaluator", "profile_screen", "read_run_config", "recommend", "resolve_run_dir", "run_config",
+    "run_generations", "run_id_of", "run_settings", "run_target", "select_run", "table_rows", "with_campaign",
+    "with_given_files"
 ]

@@ -44,40 +44,37 @@ chosen designs and the bare robot get ``launch_trials`` fresh robust launches on
 still written, for inspection, each marked ``beats_baseline: false``; ``select`` warns and the report says so.
 Without launches, the gain is taken on the fresh re-evaluation and labelled as such.
 
-Outputs (``<run_dir>/designs/``, or ``designs-<n>/`` for a later selection of the same run: design sets are
-append-only, see :func:`write_selection`): ``mesh_<label>.stl`` (millimetres by default, ``mesh_units``; the unit is
-written in the STL header), ``mesh_<label>.3mf`` (millimetres, the 3MF unit attribute), ``table3.csv`` (the paper's Table 3 with the
-simulated fitness and its Wilson interval, baseline row first; beside it the in-run estimate with its interval
-and the selection bias, in-run minus fresh) and ``designs.yaml``, a ROS 2 parameter file
-with the heights of each design and its grid, for the rig's simulation twin.
+The plausible-world check and the recommendation
+-------------------------------------------------
+With ``world_count`` > 0 the chosen designs and the bare robot are launched in ``world_count`` fixed draws of all
+unknowns, ``world_launches`` paired launches each (:func:`with_world_check`,
+:mod:`~rollability_ros.core.sim.world_check`), and the recommendation rule
+(:mod:`~rollability_ros.core.optimization.recommendation`) names the design to print first: only one that wins in
+at least ``recommend_world_share`` of the worlds with its pooled gain's interval above 0; none when no design does.
+
+Writing the design set (STL, 3MF, Table 3, designs.yaml, the world check) is
+:mod:`~rollability_ros.core.optimization.design_set`.
 """
-import csv
 import dataclasses
-import io
-import math
-import os
 import re
-import shutil
 import string
 import typing
 
 import numpy as np
 import numpy.typing as npt
-import yaml
 
 from rollability_ros.core import config
 from rollability_ros.core.profile import (MESH_UNITS, Mesh, PrinterSpec, ProfileGrid, ProfileMetrics,
-                                          check_printability, export_mesh, is_baseline, mesh_metrics, profile_mesh)
-from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
+                                          check_printability, is_baseline, mesh_metrics, profile_mesh)
 from rollability_ros.core.optimization.optimizer_contract import STREAM_SELECTION, derive_seed
 from rollability_ros.core.optimization import racing
+from rollability_ros.core.optimization.recommendation import Recommendation, recommend
 from rollability_ros.core.stats import newcombe_interval, wilson_interval
 
 if typing.TYPE_CHECKING:
     from collections.abc import Hashable
 
     from rollability_ros.core.records import CandidateRecord
-    from rollability_ros.core.store import Store
 
 #: ``evaluate_batch(heights_list, seed) -> [(successes, trials, eval_time_s, evaluator), ...]``: heights
 #: ``(n_variables,)`` each, simulation units; one result per profile.
@@ -88,27 +85,25 @@ LaunchEvaluator = typing.Callable[[typing.List[np.ndarray], int, int], typing.Se
 #: One profile's evaluation: ``(successes, trials, eval_time_s, evaluator)``.
 EvaluatedProfile = typing.Tuple[int, int, float, str]
 
+#: ``launch(heights_list, world_seed, launch_seed, launches) -> [(successes, trials, eval_time_s, evaluator), ...]``:
+#: launches of each profile (heights ``(n_variables,)``, simulation units; zeros = the bare robot) all in the one
+#: world drawn from ``world_seed`` (evaluation fidelity ``world:<seed>``), on ``launch_seed``.
+WorldLaunch = typing.Callable[[typing.List[np.ndarray], int, int, int], typing.Sequence["EvaluatedProfile"]]
+#: ``describe(world_seed) -> {unknown: drawn value}``: names a world's draws in the world check's rows.
+WorldDescriber = typing.Callable[[int], typing.Mapping[str, typing.Union[str, int, float]]]
+
 #: The race's id of the bare robot (the reference that runs every round).
 BASELINE = "baseline"
-#: Generation keys of the selection's seeds (stream STREAM_SELECTION): the chosen designs' fresh launches, and
-#: the race's rounds from RACE_SEED_KEY on (0 and 1 are the re-evaluation and the screen).
+#: Generation keys of the selection's seeds (stream STREAM_SELECTION): the chosen designs' fresh launches, the
+#: world check, and the race's rounds from RACE_SEED_KEY on (0 and 1 are the re-evaluation and the screen).
 LAUNCH_SEED_KEY = 2
+WORLD_SEED_KEY = 3
 RACE_SEED_KEY = 10
 
 #: Columns of ``archive.csv`` (quality-diversity runs): each elite, its run and screen estimates, its label if chosen.
 ARCHIVE_COLUMNS = ("cell_height", "cell_sharpness", "max_height_mm", "sharpness_deg", "in_run_fitness",
                    "in_run_trials", "screen_successes", "screen_trials", "screen_fitness", "top_pool", "label",
                    "race_round1_successes", "race_round1_trials", "race_successes", "race_trials", "race_stopped")
-#: Columns of ``traits.csv``: every evaluation of the run pooled per bin of one descriptor.
-TRAIT_COLUMNS = ("trait", "bin_low", "bin_high", "designs", "successes", "trials", "fitness", "ci_low", "ci_high")
-#: Sub-directory of the run directory that receives the selected designs.
-DESIGNS_DIRNAME = "designs"
-#: Columns of ``table3.csv`` (configuration and dimensions as in ``analysis.GEOMETRY_COLUMNS``).
-TABLE_COLUMNS = ("configuration", "length_m", "width_m", "max_height_m", "printed_mass_g", "simulated_fitness",
-                 "ci_low", "ci_high",
-                 "successes", "trials", "fitness_source", "in_run_fitness", "in_run_ci_low", "in_run_ci_high",
-                 "in_run_successes", "in_run_trials", "selection_bias", "launch_successes", "launch_trials",
-                 "launch_fitness", "gain_source", "gain", "gain_low", "gain_high", "beats_baseline")
 #: What a design's gain over the bare robot is measured on (``gain_source`` of Table 3).
 GAIN_SOURCES = {"launches": "fresh robust launches on the twin (the rig's measure)",
                 "reevaluated": "fresh simulated trials of the optimized objective (not the rig's measure)"}
@@ -150,6 +145,17 @@ class SelectionSettings:
     launch_trials: int = dataclasses.field(default=0, metadata={
         "description": "fresh robust twin launches per chosen design and the bare robot, for the gain over the "
                        "bare robot in Table 3 and designs.yaml (count; 0 = none)", "range": (0, 10000000)})
+    world_count: int = dataclasses.field(default=0, metadata={
+        "description": "worlds of the selection's plausible-world check (each one draw of every unknown; the "
+                       "chosen designs and the bare robot launched in each on the same seeds); 0 = no check and no "
+                       "recommendation (count)", "range": (0, 100000)})
+    world_launches: int = dataclasses.field(default=20, metadata={
+        "description": "paired launches per configuration in each world of the check (count; use multiples of "
+                       "the campaign's conditions)", "range": (1, 10000000)})
+    recommend_world_share: float = dataclasses.field(default=0.9, metadata={
+        "description": "a design is recommended only where it beats the bare robot (point gain > 0) in at least "
+                       "this share of the worlds, with its pooled gain's 95% interval above 0 (fraction)",
+        "range": (0.0, 1.0)})
 
     def validate(self) -> None:
         """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
@@ -224,6 +230,8 @@ class SelectionResult:
     archive: typing.Optional[list] = None               # archive runs: one row per elite (ARCHIVE_COLUMNS), else None
     baseline_launches: typing.Optional[tuple] = None    # (successes, trials, seed) of the bare robot's fresh launches, or None
     race: typing.Optional[racing.RaceResult] = None     # the launch race, or None without one
+    world_rows: typing.Optional[list] = None            # the world check's rows (world_check.WORLD_CHECK_COLUMNS), or None
+    recommendation: typing.Optional[Recommendation] = None   # the rule applied to the world check, or None
 
     def gains(self) -> typing.List[typing.Optional["Gain"]]:
         """One :class:`Gain` per chosen design: its gain over the bare robot on fresh robust launches when there
@@ -342,11 +350,7 @@ def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: Profile
         ``race_elites`` printable designs ranked best race on launches, and A/B/C are taken from the survivors
         by their launches (same distance rule).
     """
-    config.check_settings(settings, "selection")
-    if settings.reevaluate_trials and evaluate_batch is None:
-        raise ValueError("reevaluate_trials > 0 needs an evaluator")
-    if (settings.race_rounds or settings.launch_trials) and launch_batch is None:
-        raise ValueError("race_launches or launch_trials > 0 need a launch evaluator")
+    _check_evaluators(settings, evaluate_batch, launch_batch)
     pooled = [d for d in pool_candidates(candidates) if not is_baseline(d.heights)]
     ranked = sorted(pooled, key=lambda d: (-d.wilson_low, -d.fitness, d.first_generation))
     chosen: typing.List[SelectedDesign] = []
@@ -391,6 +395,43 @@ def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: Profile
     chosen, baseline_launches = _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed)
     return SelectionResult(chosen, settings.count, len(pooled), rejected, baseline,
                            baseline_launches=baseline_launches, race=race)
+
+
+def _check_evaluators(settings, evaluate_batch, launch_batch):
+    """Check ``settings`` (declared ranges and cross-field rules) and refuse a setting whose evaluator is missing."""
+    config.check_settings(settings, "selection")
+    if settings.reevaluate_trials and evaluate_batch is None:
+        raise ValueError("reevaluate_trials > 0 needs an evaluator")
+    if (settings.race_rounds or settings.launch_trials) and launch_batch is None:
+        raise ValueError("race_launches or launch_trials > 0 need a launch evaluator")
+
+
+def with_world_check(result: SelectionResult, grid: ProfileGrid, settings: SelectionSettings,
+                     world_launch: typing.Optional[WorldLaunch], run_seed: int,
+                     describe: typing.Optional[WorldDescriber] = None
+                     ) -> SelectionResult:
+    """``result`` with the plausible-world check of its designs and the bare robot (``settings.world_count``
+    worlds x ``world_launches`` paired launches, seed ``derive_seed(run_seed, WORLD_SEED_KEY, STREAM_SELECTION)``;
+    :mod:`~rollability_ros.core.sim.world_check`) and the recommendation it gives
+    (:mod:`~rollability_ros.core.optimization.recommendation`); unchanged without a check or designs.
+    ``describe(world seed)`` names a world's draws in the rows (empty columns without it)."""
+    from rollability_ros.core.sim import run_world_check, summarize_worlds
+
+    if not (settings.world_count and result.designs):
+        return result
+    if world_launch is None:
+        raise ValueError("world_count > 0 needs a world launch evaluator (fidelity world:<seed>)")
+    labels = [BASELINE] + [d.label for d in result.designs]
+    heights = [np.zeros(grid.n_variables)] + [d.design.heights for d in result.designs]
+
+    def evaluate(world_seed: int, launch_seed: int, launches: int) -> typing.Dict[str, typing.Tuple[int, int]]:
+        results = world_launch(heights, world_seed, launch_seed, launches)
+        return {label: (int(r[0]), int(r[1])) for label, r in zip(labels, results)}
+
+    rows = run_world_check(evaluate, settings.world_count, settings.world_launches,
+                                       derive_seed(run_seed, WORLD_SEED_KEY, STREAM_SELECTION), describe)
+    verdict = recommend(summarize_worlds(rows), settings.recommend_world_share)
+    return dataclasses.replace(result, world_rows=rows, recommendation=verdict)
 
 
 def _reevaluate(chosen, grid, settings, evaluate_batch, run_seed):
@@ -443,11 +484,7 @@ def select_from_archive(archive: typing.Mapping[str, typing.Any], candidates: ty
     the best screen race on robust twin launches (``launch_batch``) and A/B/C come from the race's survivors
     (module docstring, "Ranked by the rig's measure").
     """
-    config.check_settings(settings, "selection")
-    if settings.reevaluate_trials and evaluate_batch is None:
-        raise ValueError("reevaluate_trials > 0 needs an evaluator")
-    if (settings.race_rounds or settings.launch_trials) and launch_batch is None:
-        raise ValueError("race_launches or launch_trials > 0 need a launch evaluator")
+    _check_evaluators(settings, evaluate_batch, launch_batch)
     elites = [e for e in archive["elites"] if not is_baseline(e["heights"])]
     if not elites:
         return SelectionResult([], settings.count, 0, {"no elites": 1})
@@ -465,84 +502,119 @@ def select_from_archive(archive: typing.Mapping[str, typing.Any], candidates: ty
                    for d, r in zip(designs, results)]
         source = f"in the screen of all {len(elites)} elites"
     top, pool = top_pool([d.fitness for d in designs], settings.top_fraction)
-    threshold: typing.Optional[float] = top
-    by_screen = lambda i: (-designs[i].wilson_low, -designs[i].fitness, designs[i].first_generation)  # noqa: E731
-    spans = [float(high - low) for low, high in archive["ranges"]]
-    chosen: typing.List[SelectedDesign] = []
+    picker = _MapPicker(elites, designs, pooled, [float(high - low) for low, high in archive["ranges"]])
     rejected: typing.Dict[str, int] = {}
-    points: typing.List[np.ndarray] = []
     race: typing.Optional[racing.RaceResult] = None
+    threshold: typing.Optional[float] = top
+    if settings.race_rounds:
+        race, pool = _pick_by_race(picker, grid, printer, settings, launch_batch, run_seed, rejected)
+        threshold = None
+    else:
+        screen = f"{len(pool)} of {len(elites)} elites in the top {settings.top_fraction:.0%} (fitness >= {top:.3f} " \
+                 f"{source})"
+        _pick_by_screen(picker, pool, screen, source, grid, printer, settings, rejected)
+    chosen, baseline = _reevaluate(picker.chosen, grid, settings, evaluate_batch, run_seed)
+    chosen, baseline_launches = _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed)
+    rows = _archive_rows(elites, designs, chosen, set(pool), bool(settings.reevaluate_trials), race)
+    return SelectionResult(chosen, settings.count, len(elites), rejected, baseline, threshold, rows,
+                           baseline_launches, race)
 
-    def spread(i: int) -> float:
+
+class _MapPicker:
+    """Farthest-point picking over an archive's (height, sharpness) plane: the elites, their estimates, and the
+    designs taken so far with their points."""
+
+    def __init__(self, elites: typing.List[typing.Dict[str, typing.Any]], designs: typing.List[PooledDesign],
+                 pooled: typing.Dict[tuple, PooledDesign], spans: typing.List[float]) -> None:
+        self.elites, self.designs, self.pooled, self.spans = elites, designs, pooled, spans
+        self.chosen: typing.List[SelectedDesign] = []
+        self.points: typing.List[np.ndarray] = []
+
+    def screen_key(self, i: int) -> tuple:
+        """Rank of elite ``i`` by its screen: the higher lower Wilson bound, then fitness, then the earlier one."""
+        return -self.designs[i].wilson_low, -self.designs[i].fitness, self.designs[i].first_generation
+
+    def spread(self, i: int) -> float:
         """How far elite ``i`` lies from the nearest design already taken, in the normalised descriptor plane."""
-        return min(float(np.hypot(*(_descriptor_point(elites[i], spans) - point))) for point in points)
+        return min(float(np.hypot(*(_descriptor_point(self.elites[i], self.spans) - point)))
+                   for point in self.points)
 
-    def where(elite: typing.Dict[str, typing.Any]) -> str:
-        """Where ``elite`` lies on the map: its height, sharpness and cell."""
+    def where(self, i: int) -> str:
+        """Where elite ``i`` lies on the map: its height, sharpness and cell."""
+        elite = self.elites[i]
         return (f"{elite['max_height_mm']:.0f} mm tall, sharpness {elite['sharpness_deg']:.0f} deg, cell "
                 f"{tuple(elite['cell'])}")
 
-    if settings.race_rounds:
-        meshes = {}
-        for index in sorted(range(len(elites)), key=by_screen):
-            mesh, problem = _printable_mesh(designs[index].heights, grid, printer)
-            if mesh is None:
-                rejected[problem] = rejected.get(problem, 0) + 1
-            else:
-                meshes[index] = mesh
-        entrants = sorted(meshes, key=by_screen)[:settings.race_elites or None]
-        race = _launch_race(designs, entrants, settings, launch_batch, run_seed, grid.n_variables)
-        pool, ranked, race_low, race_text, pool_text = _race_pool(race, entrants, designs)
-        threshold = None
-        while ranked and len(chosen) < settings.count:
-            if chosen:
-                index = ranked.pop(max(range(len(ranked)), key=lambda k: (spread(ranked[k]), race_low(ranked[k]))))
-                reason = (f"the {pool_text} farthest from {', '.join(c.label for c in chosen)} in (height, "
-                          f"sharpness): {where(elites[index])}; {race_text(index)}")
-            else:
-                index = ranked.pop(0)
-                reason = (f"highest lower Wilson bound among the {pool_text}s: {race_text(index)}; "
-                          f"{where(elites[index])}")
-            elite, design = elites[index], designs[index]
-            chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], pooled.get(tuple(design.heights), design),
-                                         meshes[index], mesh_metrics(meshes[index]), reason=reason,
-                                         descriptors=(elite["max_height_mm"], elite["sharpness_deg"]),
-                                         cell=tuple(elite["cell"]), race=race.totals[index]))
-            points.append(_descriptor_point(elite, spans))
-            ranked = [i for i in ranked if tuple(elites[i]["cell"]) != tuple(elite["cell"])]
-    else:
-        ranked = sorted(pool, key=by_screen)
-        while ranked and len(chosen) < settings.count:
-            if chosen:
-                index = ranked.pop(max(range(len(ranked)),
-                                       key=lambda k: (spread(ranked[k]), designs[ranked[k]].wilson_low)))
-            else:
-                index = ranked.pop(0)
-            elite, design = elites[index], designs[index]
-            mesh, problem = _printable_mesh(design.heights, grid, printer)
-            if mesh is None:
-                rejected[problem] = rejected.get(problem, 0) + 1
-                continue
-            estimate = f"{design.successes}/{design.trials} {source}, lower 95% bound {design.wilson_low:.2f}"
-            if not chosen:
-                reason = (f"highest lower Wilson bound among the {len(pool)} of {len(elites)} elites in the top "
-                          f"{settings.top_fraction:.0%} (fitness >= {top:.3f} {source}): {estimate}; "
-                          f"{where(elite)}")
-            else:
-                reason = (f"the top-{settings.top_fraction:.0%} elite farthest from "
-                          f"{', '.join(c.label for c in chosen)} in (height, sharpness): {where(elite)}; {estimate}")
-            chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], pooled.get(tuple(design.heights), design),
-                                         mesh, mesh_metrics(mesh), reason=reason,
-                                         descriptors=(elite["max_height_mm"], elite["sharpness_deg"]),
-                                         cell=tuple(elite["cell"])))
-            points.append(_descriptor_point(elite, spans))
-            ranked = [i for i in ranked if tuple(elites[i]["cell"]) != tuple(elite["cell"])]
-    chosen, baseline = _reevaluate(chosen, grid, settings, evaluate_batch, run_seed)
-    chosen, baseline_launches = _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed)
+    def taken(self) -> str:
+        """The labels taken so far, comma-separated."""
+        return ", ".join(c.label for c in self.chosen)
+
+    def take(self, index: int, mesh: typing.Any, reason: str, ranked: typing.List[int],
+             race: typing.Optional[tuple] = None) -> typing.List[int]:
+        """Take elite ``index`` as the next design; return ``ranked`` without the elites of its cell."""
+        elite, design = self.elites[index], self.designs[index]
+        self.chosen.append(SelectedDesign(string.ascii_uppercase[len(self.chosen)],
+                                          self.pooled.get(tuple(design.heights), design), mesh,
+                                          mesh_metrics(mesh), reason=reason,
+                                          descriptors=(elite["max_height_mm"], elite["sharpness_deg"]),
+                                          cell=tuple(elite["cell"]), race=race))
+        self.points.append(_descriptor_point(elite, self.spans))
+        return [i for i in ranked if tuple(self.elites[i]["cell"]) != tuple(elite["cell"])]
+
+
+def _pick_by_race(picker, grid, printer, settings, launch_batch, run_seed, rejected):
+    """Race the printable elites with the best screen on launches and take A/B/C from the race's pool (module
+    docstring, "Ranked by the rig's measure"); ``(race, pool)``."""
+    meshes = {}
+    for index in sorted(range(len(picker.elites)), key=picker.screen_key):
+        mesh, problem = _printable_mesh(picker.designs[index].heights, grid, printer)
+        if mesh is None:
+            rejected[problem] = rejected.get(problem, 0) + 1
+        else:
+            meshes[index] = mesh
+    entrants = sorted(meshes, key=picker.screen_key)[:settings.race_elites or None]
+    race = _launch_race(picker.designs, entrants, settings, launch_batch, run_seed, grid.n_variables)
+    pool, ranked, race_low, race_text, pool_text = _race_pool(race, entrants, picker.designs)
+    while ranked and len(picker.chosen) < settings.count:
+        if picker.chosen:
+            index = ranked.pop(max(range(len(ranked)), key=lambda k: (picker.spread(ranked[k]), race_low(ranked[k]))))
+            reason = (f"the {pool_text} farthest from {picker.taken()} in (height, sharpness): "
+                      f"{picker.where(index)}; {race_text(index)}")
+        else:
+            index = ranked.pop(0)
+            reason = f"highest lower Wilson bound among the {pool_text}s: {race_text(index)}; {picker.where(index)}"
+        ranked = picker.take(index, meshes[index], reason, ranked, race.totals[index])
+    return race, pool
+
+
+def _pick_by_screen(picker, pool, screen, source, grid, printer, settings, rejected):
+    """Take A/B/C from the top ``pool`` by the screen (``screen`` names the pool): A the highest lower Wilson bound,
+    then farthest-point over the map."""
+    ranked = sorted(pool, key=picker.screen_key)
+    while ranked and len(picker.chosen) < settings.count:
+        if picker.chosen:
+            index = ranked.pop(max(range(len(ranked)),
+                                   key=lambda k: (picker.spread(ranked[k]), picker.designs[ranked[k]].wilson_low)))
+        else:
+            index = ranked.pop(0)
+        design = picker.designs[index]
+        mesh, problem = _printable_mesh(design.heights, grid, printer)
+        if mesh is None:
+            rejected[problem] = rejected.get(problem, 0) + 1
+            continue
+        estimate = f"{design.successes}/{design.trials} {source}, lower 95% bound {design.wilson_low:.2f}"
+        if not picker.chosen:
+            reason = f"highest lower Wilson bound among the {screen}: {estimate}; {picker.where(index)}"
+        else:
+            reason = (f"the top-{settings.top_fraction:.0%} elite farthest from {picker.taken()} in (height, "
+                      f"sharpness): {picker.where(index)}; {estimate}")
+        ranked = picker.take(index, mesh, reason, ranked)
+
+
+def _archive_rows(elites, designs, chosen, in_pool, screened, race):
+    """``archive.csv``'s rows (:data:`ARCHIVE_COLUMNS`): each elite, its run and screen estimates, its label."""
     labels = {d.cell: d.label for d in chosen}
-    in_pool = set(pool)
     rows = []
-    screened = bool(settings.reevaluate_trials)
     for index, (elite, design) in enumerate(zip(elites, designs)):
         rows.append({"cell_height": elite["cell"][0], "cell_sharpness": elite["cell"][1],
                      "max_height_mm": elite["max_height_mm"], "sharpness_deg": elite["sharpness_deg"],
@@ -551,8 +623,7 @@ def select_from_archive(archive: typing.Mapping[str, typing.Any], candidates: ty
                      "screen_trials": design.trials if screened else "",
                      "screen_fitness": design.fitness if screened else "", "top_pool": int(index in in_pool),
                      "label": labels.get(tuple(elite["cell"]), ""), **_race_columns(race, index)})
-    return SelectionResult(chosen, settings.count, len(elites), rejected, baseline, threshold, rows,
-                           baseline_launches, race)
+    return rows
 
 
 def _race_columns(race: typing.Optional[racing.RaceResult], index: int) -> typing.Dict[str, typing.Any]:
@@ -615,248 +686,6 @@ def _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed):
     return chosen, (int(results[-1][0]), int(results[-1][1]), seed)
 
 
-def trait_rows(candidates: typing.Iterable["CandidateRecord"], grid: ProfileGrid,
-               ranges: typing.Sequence[typing.Sequence[float]], bins: typing.Sequence[int]
-               ) -> typing.List[typing.Dict[str, typing.Any]]:
-    """Every evaluation of a run pooled per bin of each descriptor: rows with :data:`TRAIT_COLUMNS`.
-
-    ``ranges`` ``[[0, height mm], [low, high deg]]`` and ``bins`` ``[height bins, sharpness bins]`` (the archive's
-    grid). A design's evaluations all fall in its bins; the fitness of a bin is its pooled successes / trials with a
-    Wilson 95% interval: how well the designs the optimizer tried with that trait did (not a random sample of
-    designs).
-    """
-    from rollability_ros.core.profile import profile_descriptors
-
-    pooled = [d for d in pool_candidates(candidates) if not is_baseline(d.heights)]
-    measured = [profile_descriptors(d.heights, grid).as_tuple() for d in pooled]
-    rows = []
-    for axis, trait in enumerate(("max_height_mm", "sharpness_deg")):
-        edges = np.linspace(ranges[axis][0], ranges[axis][1], int(bins[axis]) + 1)
-        # the bin of each design; values below the first edge or above the last fall in the end bins
-        where = [int(np.clip(np.searchsorted(edges, m[axis], side="right") - 1, 0, len(edges) - 2))
-                 if math.isfinite(m[axis]) else None for m in measured]
-        for number, (low, high) in enumerate(zip(edges[:-1], edges[1:])):
-            members = [d for d, b in zip(pooled, where) if b == number]
-            successes, trials = sum(d.successes for d in members), sum(d.trials for d in members)
-            ci_low, ci_high = wilson_interval(successes, trials)
-            rows.append({"trait": trait, "bin_low": float(low), "bin_high": float(high), "designs": len(members),
-                         "successes": successes, "trials": trials,
-                         "fitness": successes / trials if trials else math.nan, "ci_low": ci_low, "ci_high": ci_high})
-    return rows
-
-
 def _descriptor_point(elite, spans):
     """An elite's (height, sharpness) divided by the axis lengths: the plane farthest-point sampling measures in."""
     return np.array([elite["max_height_mm"] / spans[0], elite["sharpness_deg"] / spans[1]])
-
-
-def table_rows(result: SelectionResult) -> typing.List[typing.Dict[str, typing.Any]]:
-    """Rows of Table 3 as dicts with :data:`TABLE_COLUMNS` keys: the baseline first, then the designs.
-
-    The baseline has no profile, so its dimensions are 0 m; its fitness is given only when re-evaluated. Each
-    design's gain over the baseline (``gain``, Newcombe 95% ``gain_low`` .. ``gain_high``, ``beats_baseline`` when
-    the interval lies above 0) is on fresh robust twin launches when there are any (``gain_source``), else on
-    the fresh re-evaluation, else empty.
-    """
-    rows: typing.List[typing.Dict[str, typing.Any]] = []
-    baseline_fitness = _fitness_columns(*result.baseline[:2], "reevaluated") if result.baseline else \
-        _fitness_columns(0, 0, "not evaluated")
-    rows.append({"configuration": "baseline", "length_m": 0.0, "width_m": 0.0, "max_height_m": 0.0,
-                 "printed_mass_g": 0.0,
-                 **baseline_fitness, **_in_run_columns(0, 0, math.nan),
-                 **_launch_columns(result.baseline_launches), **_gain_columns(None)})
-    for design, gain in zip(result.designs, result.gains()):
-        reported = _fitness_columns(*design.reported)
-        fresh = reported["simulated_fitness"] if design.reevaluation is not None else math.nan
-        rows.append({"configuration": design.label, "length_m": design.metrics.length_m,
-                     "width_m": design.metrics.width_m, "max_height_m": design.metrics.max_height_m,
-                     "printed_mass_g": "" if design.printed_mass_kg is None else design.printed_mass_kg * 1000.0,
-                     **reported, **_in_run_columns(design.design.successes, design.design.trials, fresh),
-                     **_launch_columns(design.launches), **_gain_columns(gain)})
-    return rows
-
-
-def _launch_columns(launches):
-    if launches is None:
-        return {"launch_successes": "", "launch_trials": "", "launch_fitness": ""}
-    return {"launch_successes": launches[0], "launch_trials": launches[1],
-            "launch_fitness": launches[0] / launches[1] if launches[1] else math.nan}
-
-
-def _gain_columns(gain):
-    if gain is None:
-        return {"gain_source": "", "gain": "", "gain_low": "", "gain_high": "", "beats_baseline": ""}
-    difference, low, high = gain.interval
-    return {"gain_source": gain.source, "gain": difference, "gain_low": low, "gain_high": high,
-            "beats_baseline": str(bool(gain.beats)).lower()}
-
-
-def _in_run_columns(successes, trials, fresh_fitness):
-    """The in-run (pooled log) estimate of a design, its Wilson interval and the selection bias: in-run minus
-    fresh fitness (NaN without a fresh re-evaluation). A design picked for its high logged fitness is picked
-    partly for its luck, so the bias is expected to be positive."""
-    low, high = wilson_interval(successes, trials)
-    in_run = successes / trials if trials else math.nan
-    return {"in_run_fitness": in_run, "in_run_ci_low": low, "in_run_ci_high": high, "in_run_successes": successes,
-            "in_run_trials": trials, "selection_bias": in_run - fresh_fitness}
-
-
-def _fitness_columns(successes, trials, source):
-    low, high = wilson_interval(successes, trials)
-    return {"simulated_fitness": successes / trials if trials else math.nan, "ci_low": low, "ci_high": high,
-            "successes": successes, "trials": trials, "fitness_source": source}
-
-
-def designs_document(result: SelectionResult, grid: ProfileGrid, run_id: str,
-                     mesh_units: str = "mm") -> typing.Dict[str, typing.Any]:
-    """The ``designs.yaml`` content: a ROS 2 parameter file with namespace ``designs`` (heights per label).
-
-    Each design carries its gain over the bare robot (``gain_over_baseline``: what it was measured on, the
-    difference, Newcombe's 95% interval) and ``beats_baseline`` (the interval lies above 0) when a fresh
-    comparison was made; a design that does not beat the bare robot is exported for inspection, marked so."""
-    body: typing.Dict[str, typing.Any] = {
-        "run_id": run_id, "labels": [d.label for d in result.designs],
-        "grid": {"rows": grid.rows, "cols": grid.cols, "length_m": grid.length_m, "width_m": grid.width_m,
-                 "height_min": grid.height_min, "height_max": grid.height_max, "unit_m": grid.unit_m}}
-    if result.baseline_launches is not None:
-        body["baseline_launches"] = {"successes": result.baseline_launches[0], "trials": result.baseline_launches[1]}
-    race = result.race
-    if race is not None:
-        body["launch_race"] = {"rounds": [r["trials"] for r in race.rounds], "designs_raced": len(race.totals),
-                               "survivors": len(race.survivors), "launches_spent": race.trials_spent}
-        if race.reference is not None:   # the bare robot runs every round of a selection's race
-            body["launch_race"]["baseline"] = {"successes": race.reference[0], "trials": race.reference[1]}
-    for design, gain in zip(result.designs, result.gains()):
-        successes, trials, source = design.reported
-        body[design.label] = {"heights": [float(h) for h in design.design.heights],
-                              "mesh_file": f"mesh_{design.label}.stl", "mesh_units": mesh_units,
-                              "fitness": successes / trials,
-                              "successes": successes, "trials": trials, "fitness_source": source,
-                              "why": design.reason}
-        if design.descriptors is not None:
-            body[design.label].update(max_height_mm=float(design.descriptors[0]),
-                                      sharpness_deg=float(design.descriptors[1]),
-                                      archive_cell=[int(i) for i in design.cell])
-        if design.launches is not None:
-            body[design.label]["launches"] = {"successes": design.launches[0], "trials": design.launches[1]}
-        if gain is not None:
-            difference, low, high = gain.interval
-            body[design.label]["gain_over_baseline"] = {"measured_on": GAIN_SOURCES[gain.source],
-                                                        "difference": float(difference),
-                                                        "newcombe_95": [float(low), float(high)]}
-            body[design.label]["beats_baseline"] = bool(gain.beats)
-    return {"/**": {"ros__parameters": {"designs": body}}}
-
-
-def record_selection(store: "Store", run_id: str, result: SelectionResult, folder: str = "") -> None:
-    """Add ``sim_fitness`` ({configuration: fitness}) and ``geometry`` (Table 3 rows of the designs) to the run's
-    info in ``store``, the keys ``rollability report`` reads; the baseline has no geometry row (no profile).
-    ``folder`` is the design set written; an earlier selection's entries move to ``earlier_selections``."""
-    rows = table_rows(result)
-    described = store.run_info(run_id) or {"kind": "optimization", "info": {}}
-    info = dict(described["info"])
-    if "selection" in info:   # append-only: the earlier design set's numbers stay in the run's record
-        earlier = {key: info[key] for key in ("sim_fitness", "geometry", "table3", "selection") if key in info}
-        info["earlier_selections"] = [*info.get("earlier_selections", []), earlier]
-    info["sim_fitness"] = {r["configuration"]: r["simulated_fitness"] for r in rows if r["trials"]}
-    info["geometry"] = [{k: r[k] for k in TABLE_COLUMNS[:5]} for r in rows if r["configuration"] != "baseline"]
-    info["table3"] = rows   # fresh and in-run fitness side by side, for the report's headline
-    info["selection"] = {"why": {d.label: d.reason for d in result.designs},
-                         "no_design_helps": result.no_design_helps(),
-                         "archive_cells": {d.label: list(d.cell) for d in result.designs if d.cell is not None},
-                         "top_threshold": result.top_threshold, "folder": os.path.basename(folder)}
-    store.set_run_info(run_id, described["kind"], info)
-
-
-def _write_csv(path, columns, rows):
-    table = io.StringIO()
-    writer = csv.DictWriter(table, fieldnames=columns, lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
-    atomic_write_bytes(path, table.getvalue().encode("utf-8"))
-
-
-def design_set_folders(run_dir: str) -> typing.List[str]:
-    """The run's design sets in the order they were written: ``designs/``, then ``designs-2/``, ``designs-3/``, ..."""
-    if not os.path.isdir(run_dir):
-        return []
-    pattern = re.compile(re.escape(DESIGNS_DIRNAME) + r"(-[1-9]\d*)?")
-    found = [name for name in os.listdir(run_dir)
-             if pattern.fullmatch(name) and os.path.isdir(os.path.join(run_dir, name))]
-    return [os.path.join(run_dir, name) for name in sorted(found, key=lambda n: (len(n), n))]
-
-
-def next_design_folder(run_dir: str) -> str:
-    """The folder a new selection of the run writes: ``designs/`` for the first, else the next free
-    ``designs-<n>/``. A written design set is never rewritten (docs/optimization.md, "Design sets are append-only")."""
-    existing = design_set_folders(run_dir)
-    if not existing:
-        return os.path.join(run_dir, DESIGNS_DIRNAME)
-    number = len(existing) + 1
-    while os.path.exists(os.path.join(run_dir, f"{DESIGNS_DIRNAME}-{number}")):
-        number += 1
-    return os.path.join(run_dir, f"{DESIGNS_DIRNAME}-{number}")
-
-
-def write_selection(run_dir: str, result: SelectionResult, grid: ProfileGrid, run_id: str,
-                    mesh_units: str = "mm", traits: typing.Optional[typing.List[typing.Dict[str, typing.Any]]] = None
-                    ) -> str:
-    """Write the STL (in ``mesh_units``) and 3MF files, ``table3.csv`` and ``designs.yaml`` into a new design set
-    folder (:func:`next_design_folder`: ``<run_dir>/designs/``, or ``designs-<n>/`` when the run has one) and, for a
-    quality-diversity run, ``archive.csv`` and the ``traits`` rows as ``traits.csv``; return that folder.
-
-    Append-only: an earlier design set (which a campaign's stored outcomes may refer to by label, and whose meshes
-    may have been printed) is never touched. The set is written into a hidden temporary folder and renamed into
-    place only when complete, so a killed selection leaves no half-written set.
-    """
-    folder = next_design_folder(run_dir)
-    partial = os.path.join(run_dir, f".{os.path.basename(folder)}.partial")
-    if os.path.isdir(partial):   # left by a selection killed before its rename: never referenced by anything
-        shutil.rmtree(partial)
-    os.makedirs(partial)
-    for design in result.designs:
-        export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.stl"), mesh_units)
-        export_mesh(design.mesh, os.path.join(partial, f"mesh_{design.label}.3mf"))
-    _write_csv(os.path.join(partial, "table3.csv"), TABLE_COLUMNS, table_rows(result))
-    for name, columns, rows in (("archive.csv", ARCHIVE_COLUMNS, result.archive),
-                                ("traits.csv", TRAIT_COLUMNS, traits)):
-        if rows is not None:
-            _write_csv(os.path.join(partial, name), columns, rows)
-    text = yaml.safe_dump(designs_document(result, grid, run_id, mesh_units), sort_keys=False)
-    atomic_write_bytes(os.path.join(partial, "designs.yaml"), text.encode("utf-8"))
-    os.rename(partial, folder)   # fails rather than replace: a folder that appeared meanwhile is kept
-    return folder
-
-
-def select_run(store: "Store", run_id: str, run_dir: str, grid: ProfileGrid, printer: PrinterSpec,
-               settings: SelectionSettings, evaluate_batch: typing.Optional[BatchEvaluator] = None, run_seed: int = 1,
-               launch_batch: typing.Optional[LaunchEvaluator] = None,
-               weigh: typing.Optional[typing.Callable[[Mesh], float]] = None
-               ) -> typing.Tuple[SelectionResult, str]:
-    """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
-    simulated fitness and geometry) and write a new design set (``<run_dir>/designs/`` or ``designs-<n>/``);
-    return ``(SelectionResult, folder)``. ``weigh(mesh) -> kg`` gives each design's printed mass for Table 3 (the
-    robot's ``profile_body(mesh).mass_kg``: what the twin mounts); without it the column is empty.
-
-    The one selection flow of ``rollability select`` and the optimizer node: from the archive when the run has one
-    (a quality-diversity run), else from the ranked log. Raises ``ValueError`` when the run
-    has no evaluated candidates.
-    """
-    candidates = store.candidates(run_id=run_id)
-    if not candidates:
-        raise ValueError(f"run {run_id} in {run_dir} has no evaluated candidates yet")
-    archive = ((store.run_info(run_id) or {}).get("info") or {}).get("archive")
-    traits = None
-    if archive:
-        result = select_from_archive(archive, candidates, grid, printer, settings, evaluate_batch, run_seed,
-                                     launch_batch)
-        traits = trait_rows(candidates, grid, archive["ranges"], archive["dims"])
-    else:
-        result = select_designs(candidates, grid, printer, settings, evaluate_batch, run_seed, launch_batch)
-    if weigh is not None:
-        result = dataclasses.replace(result, designs=[dataclasses.replace(design, printed_mass_kg=weigh(design.mesh))
-                                                      for design in result.designs])
-    folder = write_selection(run_dir, result, grid, run_id, settings.mesh_units, traits)
-    record_selection(store, run_id, result, folder)
-    return result, folder

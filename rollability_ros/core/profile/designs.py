@@ -5,7 +5,7 @@ A configuration id (``LaunchCondition.configuration``) names the profile mounted
 ``baseline``
     no profile (the bare chassis).
 a label of ``designs_file``
-    a ``designs.yaml`` written by ``rollability select`` (:func:`rollability_ros.core.optimization.selection.designs_document`:
+    a ``designs.yaml`` written by ``rollability select`` (:func:`rollability_ros.core.optimization.design_set.designs_document`:
     namespace ``designs`` with ``labels``, the design ``grid`` and ``<label>.heights``); the solid is rebuilt from
     the heights on that grid (:func:`rollability_ros.core.profile.geometry.profile_mesh`), exactly as it was evaluated.
 a label of ``mesh_labels``

@@ -5,7 +5,9 @@ The records, their message mapping, the store and the statistics are the core's 
 
 - outcome_log: store-before-acknowledge bookkeeping of the outcome logger
 - _outcome_csv: strict CSV import/export of hand-recorded outcomes
-- analysis, report, report_figures: the paper's views, figures and HTML report
+- analysis, report_figures: the paper's views and figures
+- report: what a report says (records read, summary text); report_writer: its CSV, PNG and HTML files
+- lead: the report's lead, which design to print first (the recommendation rule with the campaign's evidence)
 - design_map: a quality-diversity run's map (archive.csv, traits.csv) and its height / sharpness trends
 - engine_agreement: the same trials in two physics engines: trial and rank agreement, robust designs
 

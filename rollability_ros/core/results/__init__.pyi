@@ -4,7 +4,8 @@ imports and loads a name's module when the name is first used."""
 from .analysis import ConditionResult, SimVsExperiment, convergence, group_conditions, sim_vs_experiment, summarise
 from .engine_agreement import TABLE_FILENAME, summary_lines, table_rows, trial_agreement, write_table
 from .outcome_log import OutcomeLog, OutcomeLoggerSettings, SessionGate, StoreFailure
-from .report import build_report, check_report_dir, load_report_data, use_geometry_csv
+from .report import load_report_data, use_geometry_csv
+from .report_writer import build_report, check_report_dir
 from .report_figures import convergence_figure, sensitivity_figure
 from .sensitivity_table import gain_lines
 from ._outcome_csv import OutcomeCsvError, read_outcome_csv, write_outcome_csv

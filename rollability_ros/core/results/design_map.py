@@ -5,7 +5,7 @@
 * ``archive.csv``: one row per archive elite (``selection.ARCHIVE_COLUMNS``): its cell, maximum height (mm),
   sharpness (deg), in-run fitness and trials, the fresh screen's successes and trials, whether it made the top pool,
   and its label when chosen;
-* ``traits.csv``: every evaluation of the run pooled per bin of each trait (``selection.TRAIT_COLUMNS``).
+* ``traits.csv``: every evaluation of the run pooled per bin of each trait (``design_set.TRAIT_COLUMNS``).
 
 This module reads them back (numbers only; a malformed file is a ``ValueError`` naming it) and answers the paper's
 question from the data: how fitness changes with height and with sharpness (Spearman's rho over the elites'

@@ -12,6 +12,7 @@ the launch twin.
 - evaluation: fitness = upright / trials, serial, process pool or Ray
 - _worker_pool: spawned worker processes that never outlive their parent
 - stable_poses: analytic stable-pose screen
+- robustness, sensitivity, world_check: draws of the unknowns; one at a time; N fixed draws (plausible worlds)
 - launch/: the simulated launch rig: settings, results, contract, placement, decision, loop, drive, twin (the entry)
   and one module per engine (pybullet_twin, mujoco_twin: the same rules in MuJoCo)
 

@@ -9,7 +9,7 @@ from .launch.results import LaunchResult
 from .launch.settings import (TWIN_NAMESPACE, TWIN_SECTIONS, LaunchTwinSettings, launch_twin_settings_from_parameters,
                               load_launch_twin_settings, mecanum_wheels, twin_files)
 from .launch.twin import profile_body, simulate_launch, simulate_valid_launch
-from .objectives import FIDELITIES, ObjectiveSettings
+from .objectives import FIDELITIES, ObjectiveSettings, check_fidelity, world_fidelity
 from .rollout import rollout_distance_m
 from .sensitivity import launch_sensitivity_rows, sensitivity_rows
 from .stable_poses import ScreenSettings, profile_screener, screen_robot
@@ -18,16 +18,20 @@ from .launch.contract import LaunchEngine
 from .trial_engine import TrialEngine, TrialOutcome, make_trial_world
 from .trials import TrialSettings
 from .world import PhysicsParams
+from .world_check import (WORLD_CHECK_COLUMNS, WorldSummary, local_world_evaluator, run_world_check, summarize_worlds,
+                          world_check_lines, world_draws)
 from ._worker_pool import spawn_pool
 
 __all__ = [
     "FIDELITIES", "LAUNCH_ENGINES", "SETTINGS_SECTIONS", "TRIAL_ENGINES", "TWIN_NAMESPACE", "TWIN_SECTIONS",
-    "EvaluationCancelled", "EvaluationResult", "EvaluatorSettings", "LaunchEngine", "LaunchResult",
-    "LaunchTwinSettings", "ObjectiveSettings", "PhysicsParams", "ScreenSettings", "TrialBatchEngine", "TrialEngine",
-    "TrialExecutor", "TrialOutcome", "TrialSettings", "check_launcher", "engine_names", "evaluate_jobs",
-    "evaluate_mesh", "evaluate_profile", "launch_sensitivity_rows", "launch_twin_settings_from_parameters",
-    "load_launch_twin_settings", "load_settings", "make_executor", "make_trial_world", "mecanum_wheels", "profile_body",
-    "profile_job", "profile_screener", "register_trial_engine", "rollout_distance_m", "screen_robot",
-    "sensitivity_rows", "settings_at_fidelity", "settings_from_parameters", "simulate_launch", "simulate_valid_launch",
-    "spawn_pool", "trial_seed", "twin_files", "with_given_files"
+    "WORLD_CHECK_COLUMNS", "EvaluationCancelled", "EvaluationResult", "EvaluatorSettings", "LaunchEngine",
+    "LaunchResult", "LaunchTwinSettings", "ObjectiveSettings", "PhysicsParams", "ScreenSettings", "TrialBatchEngine",
+    "TrialEngine", "TrialExecutor", "TrialOutcome", "TrialSettings", "WorldSummary", "check_fidelity", "check_launcher",
+    "engine_names", "evaluate_jobs", "evaluate_mesh", "evaluate_profile", "launch_sensitivity_rows",
+    "launch_twin_settings_from_parameters", "load_launch_twin_settings", "load_settings", "local_world_evaluator",
+    "make_executor", "make_trial_world", "mecanum_wheels", "profile_body", "profile_job", "profile_screener",
+    "register_trial_engine", "rollout_distance_m", "run_world_check", "screen_robot", "sensitivity_rows",
+    "settings_at_fidelity", "settings_from_parameters", "simulate_launch", "simulate_valid_launch", "spawn_pool",
+    "summarize_worlds", "trial_seed", "twin_files", "with_given_files", "world_check_lines", "world_draws",
+    "world_fidelity"
 ]

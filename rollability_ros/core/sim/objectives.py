@@ -35,7 +35,9 @@ objective above, what the optimizer's candidates are scored with; ``launch`` is 
 launches on the twin under the campaign's conditions (``kind: launch_twin`` with ``robust.enabled``, the same
 ``campaign_config``, ``twin_config`` and robust ranges). The multi-fidelity search (docs/optimization.md) lets
 cheap screen trials propose and launches decide; :func:`at_fidelity` is the one place that maps a fidelity to
-an objective, so the sim_evaluator node and an in-process evaluation measure the same thing.
+an objective, so the sim_evaluator node and an in-process evaluation measure the same thing. ``world:<seed>``
+(:func:`world_fidelity`) is ``launch`` with every launch in the one world drawn from ``seed``
+(``robust.world_seed``): the plausible-world check (:mod:`~rollability_ros.core.sim.world_check`).
 
 Each fidelity may run on its own engine (``objective.screen_engine``, ``objective.launch_engine``; empty = the
 evaluation's ``sim.engine``): the quick default scores the optimizer's candidates on robust launches in MuJoCo (about
@@ -65,6 +67,9 @@ from rollability_ros.core.sim.trial_engine import TrialOutcome
 OBJECTIVES = ("disturbance", "launch_twin", "mix")
 #: Evaluation fidelities: the configured objective (``screen``; empty means the same) and robust twin launches.
 FIDELITIES = ("screen", "launch")
+#: Prefix of a world fidelity, ``world:<seed>``: launch fidelity with every launch in the one world drawn from
+#: ``seed`` (``objective.robust.world_seed``; the plausible-world check, :mod:`~rollability_ros.core.sim.world_check`).
+WORLD_FIDELITY = "world:"
 #: The configuration id the candidate's launches are filed under (the twin mounts the candidate itself).
 CANDIDATE = "candidate"
 
@@ -107,10 +112,40 @@ def at_fidelity(settings: "ObjectiveSettings", fidelity: str) -> "ObjectiveSetti
     itself for ``screen`` / empty, robust launches on the twin for ``launch``; ``ValueError`` for any other name."""
     if fidelity in ("", "screen"):
         return settings
-    if fidelity == "launch":
+    if fidelity == "launch" or fidelity.startswith(WORLD_FIDELITY):
+        world = world_seed_of(fidelity)
         return dataclasses.replace(settings, kind="launch_twin", launch_weight=1.0,
-                                   robust=dataclasses.replace(settings.robust, enabled=True))
-    raise ValueError(f"unknown evaluation fidelity {fidelity!r}: use one of {', '.join(FIDELITIES)}")
+                                   robust=dataclasses.replace(settings.robust, enabled=True, world_seed=world))
+    raise ValueError(f"unknown evaluation fidelity {fidelity!r}: use one of {', '.join(FIDELITIES)} or "
+                     f"{WORLD_FIDELITY}<seed>")
+
+
+def world_fidelity(world_seed: int) -> str:
+    """The fidelity of launches all in the world drawn from ``world_seed`` (>= 0): ``world:<seed>``."""
+    if int(world_seed) < 0:
+        raise ValueError(f"a world seed is >= 0, got {world_seed}")
+    return f"{WORLD_FIDELITY}{int(world_seed)}"
+
+
+def world_seed_of(fidelity: str) -> int:
+    """The world seed of a ``world:<seed>`` fidelity, -1 for any other (every launch draws its own world);
+    ``ValueError`` naming a malformed one."""
+    if not fidelity.startswith(WORLD_FIDELITY):
+        return -1
+    text = fidelity[len(WORLD_FIDELITY):]
+    if not text.isdigit() or int(text) > 2 ** 32 - 1:
+        raise ValueError(f"fidelity {fidelity!r}: a world fidelity is {WORLD_FIDELITY}<seed>, seed in [0, 2^32 - 1]")
+    return int(text)
+
+
+def check_fidelity(fidelity: str) -> typing.Optional[str]:
+    """Why ``fidelity`` is not an evaluation fidelity (one of :data:`FIDELITIES`, empty, or ``world:<seed>``), or
+    None."""
+    try:
+        at_fidelity(ObjectiveSettings(), fidelity)
+    except ValueError as exc:
+        return str(exc)
+    return None
 
 
 def fidelity_engine(settings: "ObjectiveSettings", fidelity: str, default: str) -> str:
@@ -118,7 +153,7 @@ def fidelity_engine(settings: "ObjectiveSettings", fidelity: str, default: str) 
     ``settings.launch_engine`` (``launch``), or ``default`` (the evaluation's ``sim.engine``) when that is empty;
     ``ValueError`` for an unknown fidelity or engine."""
     at_fidelity(settings, fidelity)   # validates the fidelity's name
-    engine = settings.launch_engine if fidelity == "launch" else settings.screen_engine
+    engine = settings.screen_engine if fidelity in ("", "screen") else settings.launch_engine
     if engine not in ("", *engine_names()):
         raise ValueError(f"objective.{fidelity or 'screen'}_engine must be empty (= sim.engine) or one of "
                          f"{', '.join(engine_names())}, got {engine!r}")

@@ -90,6 +90,7 @@ class RobustSettings:
     ledge_rolling_friction_max_m: float = dataclasses.field(default=0.01, metadata={"description": "launches: the launcher base plate's rolling friction is drawn uniform in [0, this], m", "range": (0.0, 0.01)})
     speed_bias_fraction_max: float = dataclasses.field(default=0.15, metadata={"description": "launches: the speed setting's systematic error is drawn uniform in [-this, +this], fraction of the set speed", "range": (0.0, 0.15)})
     launcher_models: typing.List[str] = dataclasses.field(default_factory=lambda: ["stroke"], metadata={"description": "launches: launcher models drawn with equal probability: stroke (the paper's cylinder) and/or push_through"})
+    world_seed: int = dataclasses.field(default=-1, metadata={"description": "-1: every trial draws its own values of the unknowns; a seed >= 0: every trial uses the one draw of this seed, one plausible world (the world check, fidelity world:<seed>)", "range": (-1, 2 ** 32 - 1)})
 
     def validate(self) -> None:
         """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
@@ -266,5 +267,7 @@ def scaled_profile(profile: typing.Optional["ProfileBody"], before: _Perturbed,
 
 
 def robust_settings_for(settings: _Perturbed, seed: int, robust: RobustSettings) -> _Perturbed:
-    """``settings`` (EvaluatorSettings or LaunchTwinSettings) perturbed by the draw of trial ``seed``."""
-    return perturb(settings, draw(seed, robust, settings.robot.com_offset_z_m, settings.robot.body_height_m))
+    """``settings`` (EvaluatorSettings or LaunchTwinSettings) perturbed by the draw of trial ``seed``, or by the
+    one world's draw when ``robust.world_seed`` is set (>= 0: every trial in the same world)."""
+    drawn_seed = seed if robust.world_seed < 0 else robust.world_seed
+    return perturb(settings, draw(drawn_seed, robust, settings.robot.com_offset_z_m, settings.robot.body_height_m))

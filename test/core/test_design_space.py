@@ -1,0 +1,38 @@
+"""The design-space option of issue 41.4 (config/tall_profile.yaml): profiles up to 0.18 m tall that print and
+weigh what the print model says; the quick study and the paper's configuration keep the 0.09 m bound."""
+import numpy as np
+import pytest
+
+from rollability_ros.core.optimization import run_directory
+from rollability_ros.core.profile import geometry
+from rollability_ros.core.sim import evaluation
+
+
+def settings_of(configs):
+    return evaluation.settings_from_parameters(run_directory.load_run_parameters(configs))
+
+
+def test_the_tall_option_reaches_0_18_m_and_its_tallest_profile_prints_with_its_printed_mass():
+    settings = settings_of(["optimizer", "tall_profile"])
+    grid = settings.grid
+    assert grid.height_max * grid.unit_m == pytest.approx(0.18)
+    assert geometry.design_space_printability(grid, settings.printer) == []
+    heights = np.full(grid.n_variables, grid.height_max)
+    tallest = geometry.profile_mesh(heights, grid)
+    assert tallest is not None
+    report = geometry.check_printability(tallest, settings.printer)
+    assert report.printable, report.problems
+    assert report.extents_m[2] == pytest.approx(0.18)
+    # the mass is the print model's (shell and 20 % infill), well between a hollow shell and solid PLA
+    body = evaluation.profile_job(heights, settings).profile
+    assert body is not None
+    solid_kg = tallest.volume * settings.robot.profile_print.material_density_kgpm3
+    assert 0.1 * solid_kg < body.mass_kg < 0.5 * solid_kg
+
+
+def test_the_quick_study_and_the_paper_configuration_keep_the_0_09_m_bound():
+    assert settings_of(["optimizer"]).grid.height_max * settings_of(["optimizer"]).grid.unit_m == pytest.approx(0.09)
+    for configs in (["paper"], ["optimizer", "paper"]):   # `optimize --config paper`; a study loads optimizer first
+        grid = settings_of(configs).grid
+        assert (grid.rows, grid.cols, grid.height_min, grid.height_max) == (10, 10, 0.0, 0.45)
+        assert grid.height_max * grid.unit_m == pytest.approx(0.09), configs

@@ -2,6 +2,10 @@
 import argparse
 import os
 import sys
+import typing
+
+if typing.TYPE_CHECKING:
+    import numpy
 
 from rollability_ros.cli import Subparsers
 
@@ -33,7 +37,8 @@ def _world_launch(evaluator_settings, executor):
     from rollability_ros.core.optimization import fidelity_batch_evaluator
     from rollability_ros.core.sim import world_draws, world_fidelity
 
-    def world_launch(heights_list, world_seed, launch_seed, launches):
+    def world_launch(heights_list: "typing.List[numpy.ndarray]", world_seed: int, launch_seed: int,
+                     launches: int) -> typing.Sequence[typing.Tuple[int, int, float, str]]:
         evaluate = fidelity_batch_evaluator(evaluator_settings, executor, world_fidelity(world_seed))
         return evaluate(heights_list, launch_seed, launches)
     return world_launch, world_draws(evaluator_settings)

@@ -50,6 +50,8 @@ import sys
 import threading
 import typing
 
+import numpy
+
 import numpy.typing as npt
 import rclpy
 from action_msgs.msg import GoalStatus
@@ -394,8 +396,10 @@ class Optimizer(Node):
             if chosen.race_rounds or chosen.launch_trials else None
         robot = self._robot_settings(settings)
 
-        def world_launch(heights_list, world_seed, launch_seed, launches):
-            """Launches in one world over the evaluators (fidelity world:<seed>); their draws are the evaluators'."""
+        def world_launch(heights_list: typing.List[numpy.ndarray], world_seed: int, launch_seed: int,
+                         launches: int) -> typing.Sequence[typing.Tuple[int, int, float, str]]:
+            """Launches in one world over the evaluators (fidelity world:<seed>) of each design's heights (a
+            (grid.n_variables,) array each); their draws are the evaluators'."""
             return self._pool.fidelity_evaluator(world_fidelity(world_seed))(heights_list, launch_seed, launches)
 
         result, folder = select_run(run.store, run.run_id, run.run_dir, settings["profile"],

@@ -119,8 +119,8 @@ def observations_from_outcomes(outcomes: typing.Iterable[LaunchOutcome]) -> typi
 
 
 def transform(name: str, values: npt.ArrayLike, set_speed_mps: npt.ArrayLike) -> np.ndarray:
-    """Outcome ``name``'s ``values`` on the scale its Student-t is on (:data:`TRANSFORMS`); ``set_speed_mps``
-    broadcasts with them (used by ``speed_ratio``)."""
+    """Outcome ``name``'s ``values`` (any shape, e.g. (n,)) on the scale its Student-t is on (:data:`TRANSFORMS`),
+    the same shape; ``set_speed_mps`` broadcasts with them (used by ``speed_ratio``)."""
     v = np.asarray(values, dtype=np.float64)
     kind = TRANSFORMS[name]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -151,7 +151,8 @@ def _student_t_log_pdf(value: np.ndarray, location: np.ndarray, scale: np.ndarra
 
 
 def normalised_one(unknowns: Unknowns, index: int, values: npt.ArrayLike) -> np.ndarray:
-    """Normalised coordinates of own-unit ``values`` of unknown ``index`` (any shape; not clipped)."""
+    """Normalised coordinates of own-unit ``values`` of unknown ``index`` (any shape, e.g. (n,); the same shape
+    out; not clipped)."""
     v = np.asarray(values, dtype=np.float64)
     low, high = unknowns.lower[index], unknowns.upper[index]
     if unknowns.log_scale[index]:
@@ -160,7 +161,7 @@ def normalised_one(unknowns: Unknowns, index: int, values: npt.ArrayLike) -> np.
 
 
 def values_one(unknowns: Unknowns, index: int, normalised: npt.ArrayLike) -> np.ndarray:
-    """Own units of normalised coordinates of unknown ``index`` (any shape)."""
+    """Own units of normalised coordinates of unknown ``index`` (any shape, e.g. (n,); the same shape out)."""
     u = np.asarray(normalised, dtype=np.float64)
     low, high = unknowns.lower[index], unknowns.upper[index]
     return low * (high / low) ** u if unknowns.log_scale[index] else low + u * (high - low)

@@ -153,6 +153,7 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
                              f"[{unknowns.lower[i]:g}, {unknowns.upper[i]:g}]: prepare it with wider bounds")
 
     def full(u: np.ndarray) -> np.ndarray:
+        """Samples (n, k) of the fitted unknowns -> (n, d) with the others at their loaded values."""
         out = np.repeat(base[None, :], len(u), axis=0)
         out[:, index] = u
         return out
@@ -160,6 +161,7 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
     arranged = likelihood.arrange(observations, outcomes)
 
     def log_density(u: np.ndarray) -> np.ndarray:
+        """Log likelihood (n,) of samples (n, k) of the fitted unknowns, characterisation included."""
         value = likelihood.log_likelihood(full(u), arranged)
         return value + extra(full(u)) if extra is not None else value
     rng = np.random.default_rng(seed)

@@ -346,12 +346,13 @@ def _select_run(data, run_id):
     return run_id
 
 
-def trait_edges(trait_rows):
-    """``{trait: bin edges}`` of the archive's grid, from the traits table."""
-    edges = {}
+def trait_edges(trait_rows: typing.Sequence[typing.Mapping[str, typing.Union[str, float]]]) -> typing.Dict[str, typing.List[float]]:
+    """``{trait: bin edges}`` of the archive's grid, from the traits table's rows (``trait``, ``bin_low``,
+    ``bin_high``)."""
+    edges: typing.Dict[str, typing.List[float]] = {}
     for trait in ("max_height_mm", "sharpness_deg"):
         own = [r for r in trait_rows if r["trait"] == trait]
-        edges[trait] = [own[0]["bin_low"]] + [r["bin_high"] for r in own] if own else []
+        edges[trait] = [float(own[0]["bin_low"])] + [float(r["bin_high"]) for r in own] if own else []
     return edges
 
 

@@ -139,6 +139,9 @@ def call(ros_node, name):
     return future.result()
 
 
+# The slow tier (about 25 s: a late evaluator, the race and a 2 x 2 world check over ROS); the README's command keeps
+# two evaluators equal to the in-process run and pause/resume/stop through the same node.
+@pytest.mark.slow
 def test_with_no_evaluator_it_says_so_and_waits_then_proceeds(ros_node, start_node, tmp_path, reference):
     optimizer = start_optimizer(start_node, tmp_path, "late", exit_on_finish=True, select_designs=True,
                                 **{"selection.reevaluate_trials": 2, "selection.min_distance": 0.01,

@@ -80,7 +80,7 @@ def test_a_launch_fidelity_goal_runs_robust_twin_launches_and_an_unknown_one_is_
     expected = evaluate_profile(None, 2, 77, settings_at_fidelity(load_settings(), "launch"))
     assert [t.steps for t in response.result.trial_results] == [t.steps for t in expected.trial_results]
     assert not _send(ros_node, client, [], 2, 1, fidelity="campaign").accepted
-    assert ros_node.wait_for(lambda: "unknown fidelity 'campaign'" in evaluator.log(), 10), evaluator.log()
+    assert ros_node.wait_for(lambda: "unknown evaluation fidelity 'campaign'" in evaluator.log(), 10), evaluator.log()
 
 
 @pytest.mark.parametrize("heights, trials, why", [

@@ -230,7 +230,7 @@ def test_the_documented_calibrate_reoptimize_validate_sequence_runs_on_a_synthet
     assert saved["objective.kind"] == "launch_twin"
     assert saved["objective.twin_config"][-1] == "calibration/calibrated.yaml"
     assert main(["select", str(run), "--count", "1", "--reevaluate-trials", "4", "--workers", "1",
-                 "--race-launches", "0", "--launch-trials", "0"]) == 0
+                 "--race-launches", "0", "--launch-trials", "0", "--world-count", "0"]) == 0
     designs = section(load_parameters([str(run / "designs" / "designs.yaml")]), "designs")
     heights = designs[designs["labels"][0]]["heights"]
     assert len(heights) == 4

@@ -252,7 +252,8 @@ def test_cli_run_with_real_physics_killed_and_resumed_equals_uninterrupted(tmp_p
     assert main(["select", killed_dir]) == 0
     assert "A " in capsys.readouterr().out
     assert sorted(os.listdir(os.path.join(killed_dir, "designs"))) == [
-        "designs.yaml", "mesh_A.3mf", "mesh_A.stl", "mesh_B.3mf", "mesh_B.stl", "table3.csv"]
+        "designs.yaml", "mesh_A.3mf", "mesh_A.stl", "mesh_B.3mf", "mesh_B.stl", "selection_world_check.csv",
+        "table3.csv"]
 
 
 class NoResults(RuntimeError):

@@ -108,6 +108,15 @@ def face_all(sub):
     return None
 
 
+def import_targets(node):
+    """The dotted names an absolute ``import`` / ``from ... import`` node brings in; None for any other node."""
+    if isinstance(node, ast.Import):
+        return [alias.name for alias in node.names]
+    if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+        return [f"{node.module}.{alias.name}" for alias in node.names]
+    return None
+
+
 def imports_of(path, modules, faces=None):
     """``[(target module, line)]``: the core modules ``path`` imports, at module level and inside functions
     (imports under ``if typing.TYPE_CHECKING:``, for annotations only, are left out). ``faces`` (``{subpackage:
@@ -120,11 +129,8 @@ def imports_of(path, modules, faces=None):
     for node in ast.walk(tree):
         if id(node) in skipped:
             continue
-        if isinstance(node, ast.Import):
-            targets = [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            targets = [f"{node.module}.{alias.name}" for alias in node.names]
-        else:
+        targets = import_targets(node)
+        if targets is None:
             continue
         for target in targets:
             if not target.startswith(prefix):
@@ -516,11 +522,8 @@ def type_only_imports(path, modules):
     for node in ast.walk(tree):
         if id(node) not in skipped:
             continue
-        if isinstance(node, ast.Import):
-            targets = [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            targets = [f"{node.module}.{alias.name}" for alias in node.names]
-        else:
+        targets = import_targets(node)
+        if targets is None:
             continue
         for target in targets:
             name = target[len(prefix):] if target.startswith(prefix) else ""

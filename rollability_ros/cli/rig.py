@@ -187,7 +187,6 @@ def _console(args, node):
     import select
     import sys
     import termios
-    import threading
     import tty
 
     from action_msgs.srv import CancelGoal
@@ -196,7 +195,7 @@ def _console(args, node):
 
     from rollability_ros.action import Launch
     from rollability_ros.msg import ValveState
-    from rollability_ros.nodes._support import LATCHED_QOS
+    from rollability_ros.nodes._support import LATCHED_QOS, ExecutorThread
 
     estop = _estop_publisher(node, args.timeout_s)
     cancel = node.create_client(CancelGoal, "launch/_action/cancel_goal")
@@ -212,14 +211,7 @@ def _console(args, node):
                              lambda msg: show("rig", f"rig: {msg.feedback.phase}: {msg.feedback.detail}"), 10)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    stop = threading.Event()
-
-    def spin() -> None:
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.05)
-
-    spinner = threading.Thread(target=spin, name="console-spin", daemon=True)
-    spinner.start()
+    spinner = ExecutorThread(executor, name="console-spin").start()
     fd = sys.stdin.fileno()
     saved = termios.tcgetattr(fd) if os.isatty(fd) else None
     print(f"{CONSOLE_READY}e or space = E-STOP, c = cancel the running launch, d = disarm (acknowledge a stop), "
@@ -253,9 +245,7 @@ def _console(args, node):
     finally:
         if saved is not None:
             termios.tcsetattr(fd, termios.TCSADRAIN, saved)
-        stop.set()
-        spinner.join(1.0)
-        executor.shutdown()
+        spinner.stop(timeout_s=1.0)
 
 
 def _console_disarm(args, node):

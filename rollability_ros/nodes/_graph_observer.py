@@ -28,7 +28,7 @@ from rclpy.signals import SignalHandlerOptions
 from rollability_ros.core.records import RunProgress
 from rollability_ros.msg import CampaignProgress, OptimizerProgress, OutcomeSummary
 from rollability_ros.nodes._convert import progress_from_msg
-from rollability_ros.nodes._support import LATCHED_QOS
+from rollability_ros.nodes._support import LATCHED_QOS, ExecutorThread
 from rollability_ros.srv import GetSummary
 
 #: The optimizer publishes progress latched (depth 1); this side keeps a deeper queue so that generations
@@ -65,14 +65,7 @@ class RosGraphObserver:
         self._summary_client = self._node.create_client(GetSummary, "get_summary")
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
-        self._thread = threading.Thread(target=self._spin, name="graph-observer", daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        try:
-            self._executor.spin()
-        except Exception:   # the context was shut down under the executor (close): nothing left to observe
-            pass
+        self._spinner = ExecutorThread(self._executor, name="graph-observer").start()
 
     def _on_progress(self, msg: typing.Any) -> None:
         with self._lock:
@@ -120,10 +113,9 @@ class RosGraphObserver:
     def close(self) -> None:
         """Stop the node, its executor thread and its context (idempotent)."""
         if self._context.ok():
-            self._executor.shutdown(timeout_sec=1.0)
+            self._spinner.stop(timeout_s=2.0)
             self._node.destroy_node()
             self._context.try_shutdown()
-        self._thread.join(timeout=2.0)
 
     def __enter__(self) -> "RosGraphObserver":
         return self

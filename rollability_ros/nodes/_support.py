@@ -281,17 +281,62 @@ def init_ros(args: typing.Optional[typing.List[str]] = None) -> None:
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
 
 
-def _spin(executor, stopped, failures):
-    try:
-        executor.spin()
-    except (ExternalShutdownException, RCLError) as exc:
-        # the node ended its own context (e.g. the optimizer with exit_on_finish) while the executor waited
-        if rclpy.ok():
-            failures.append(exc)
-    except Exception as exc:  # a callback's exception: the node stops (cleanly) and the process says so
-        failures.append(exc)
-    finally:
-        stopped.set()
+#: How long an executor thread waits for work before it looks at its stop request again, s.
+SPIN_POLL_S = 0.1
+
+
+class ExecutorThread:
+    """An rclpy executor spun on a thread of its own and stopped without racing it.
+
+    rclpy 7.1 (Jazzy) ``Executor.shutdown`` destroys the executor's guard conditions at once, also while another
+    thread is building a wait set from them: the spinning thread then dies with ``AttributeError: 'NoneType'
+    object has no attribute 'handle'`` (seen in CI at a node's SIGINT). So the thread spins ``spin_once`` until
+    asked to stop (:meth:`request_stop`, from any thread, also a callback), until ``finished`` is set, or until
+    the context is shut down; :meth:`stop` shuts the executor down only once the thread has left it.
+    """
+
+    def __init__(self, executor: typing.Any, name: str = "executor",
+                 finished: typing.Optional[threading.Event] = None) -> None:
+        self.executor = executor
+        self.stopped = threading.Event()   # set when the thread has left the executor, whoever stopped it
+        self.failures: typing.List[BaseException] = []   # what ended the spin other than a stop
+        self._stop = threading.Event()
+        self._finished = finished
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> "ExecutorThread":
+        self._thread.start()
+        return self
+
+    def request_stop(self) -> None:
+        self._stop.set()
+
+    def _stop_requested(self) -> bool:
+        return self._stop.is_set() or (self._finished is not None and self._finished.is_set())
+
+    def _run(self) -> None:
+        context = self.executor.context
+        try:
+            while not self._stop_requested() and context.ok():
+                self.executor.spin_once(timeout_sec=SPIN_POLL_S)
+        except (ExternalShutdownException, RCLError) as exc:
+            # the node ended its own context (e.g. the optimizer with exit_on_finish) while the executor waited
+            if context.ok():
+                self.failures.append(exc)
+        except Exception as exc:  # a callback's exception: the node stops (cleanly) and the process says so
+            self.failures.append(exc)
+        finally:
+            self.stopped.set()
+
+    def stop(self, timeout_s: typing.Optional[float] = None) -> None:
+        """Stop spinning, wait for the thread (and a multi-threaded executor's callbacks), shut the executor down."""
+        self._stop.set()
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
+            self._thread.join(timeout_s)
+        if self._thread.is_alive():   # still inside a callback after timeout_s: leave the executor to it
+            return
+        _join_callback_threads(self.executor)
+        self.executor.shutdown()
 
 
 def _join_callback_threads(executor):
@@ -315,20 +360,20 @@ def run_node(node_factory: typing.Callable[[], Node], args: typing.Optional[typi
     A stop signal (Ctrl-C, ``ros2 launch``, systemd, our supervisor) stops the node in this order, whoever sent
     it: the node's ``close()`` (if any) runs while the executor still spins and the context is valid (the valve
     publishes its closed state, a running goal finishes or aborts cleanly), then the executor stops, the node is
-    destroyed and the context shut down; no traceback. A node may also end itself by shutting its context or its
-    executor down. A :class:`ParameterError` or ``ConfigError`` at start-up prints one line naming the problem
+    destroyed and the context shut down; no traceback. A node may also end itself: by setting its ``finished``
+    event (a ``threading.Event`` attribute) or by shutting its context down (never its executor: see
+    :class:`ExecutorThread`). A :class:`ParameterError` or ``ConfigError`` at start-up prints one line naming the problem
     and exits 2.
     """
     init_ros(args)
     _dump_stacks_on_sigusr1()
-    stopped = threading.Event()   # set by the spinner when the executor stops, whoever stopped it
-    failures: typing.List[BaseException] = []   # what ended the spin other than a stop
     signalled: typing.List[int] = []   # a handler only appends: taking a lock in a signal handler can deadlock
     on_main_thread = threading.current_thread() is threading.main_thread()
     if on_main_thread:
         for signum in (signal.SIGINT, signal.SIGTERM):
             signal.signal(signum, lambda signum, _frame: signalled.append(signum))   # a second one changes nothing
-    node = executor = spinner = None
+    node: typing.Optional[Node] = None
+    spinner: typing.Optional[ExecutorThread] = None
     try:
         try:
             node = node_factory()
@@ -337,9 +382,10 @@ def run_node(node_factory: typing.Callable[[], Node], args: typing.Optional[typi
             return 2
         executor = MultiThreadedExecutor(num_threads=threads) if threads > 1 else SingleThreadedExecutor()
         executor.add_node(node)
-        spinner = threading.Thread(target=_spin, args=(executor, stopped, failures), name="executor")
+        finished = getattr(node, "finished", None)
+        spinner = ExecutorThread(executor, finished=finished if isinstance(finished, threading.Event) else None)
         spinner.start()
-        while not signalled and not stopped.wait(STOP_POLL_S if on_main_thread else None):
+        while not signalled and not spinner.stopped.wait(STOP_POLL_S if on_main_thread else None):
             pass
     finally:
         if on_main_thread:
@@ -356,16 +402,13 @@ def run_node(node_factory: typing.Callable[[], Node], args: typing.Optional[typi
             close = getattr(node, "close", None)
             if callable(close):
                 close()
-        if executor is not None:
-            executor.shutdown()
         if spinner is not None:
-            spinner.join()
-            _join_callback_threads(executor)
+            spinner.stop()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-    if failures:
-        raise failures[0]
+    if spinner is not None and spinner.failures:
+        raise spinner.failures[0]
     return 0
 
 

@@ -74,6 +74,7 @@ class PlayerNode(Node):
         self.published = 0
         self.error = None              # why the playback stopped early; main() then exits non-zero
         self._stop = threading.Event()
+        self.finished = threading.Event()   # set when the playback is over: run_node then stops the node
         self._thread = threading.Thread(target=self._play, name="playback", daemon=True)
         self._thread.start()
 
@@ -116,13 +117,9 @@ class PlayerNode(Node):
             logger.warning(f"{unacknowledged} topic(s) not acknowledged by every reliable subscriber within "
                            f"{ACK_TIMEOUT_S:g} s")
         logger.info(f"played {self.published} messages from {settings.bag}")
-        # the playback is the node's whole job: end the spin (stopping the executor, not the context, so the
-        # executor does not race a shut-down context)
-        executor = self.executor
-        if executor is not None:
-            executor.shutdown(timeout_sec=0)
-        else:
-            self.context.try_shutdown()
+        # the playback is the node's whole job: run_node ends the spin (the executor is shut down only once its
+        # thread has left it: shutting it down from here would race the wait set being built)
+        self.finished.set()
 
     def _wait_for_subscribers(self):
         """Wait until every played topic has a subscriber (plus a moment for them to match us back), or the

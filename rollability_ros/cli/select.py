@@ -91,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
                                         evaluator_settings.printer, settings, evaluate_batch,
                                         run_settings(parameters).optimizer.seed,
                                         launch_batch, weigh=lambda mesh: evaluator_settings.profile_body(mesh).mass_kg,
-                                        world_launch=world_launch, describe_world=describe_world)
+                                        world_launch=world_launch, describe_world=describe_world,
+                                        printed_with=evaluator_settings.print_instructions())
     finally:
         if executor is not None:
             executor.close()

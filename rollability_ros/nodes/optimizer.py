@@ -405,7 +405,7 @@ class Optimizer(Node):
         result, folder = select_run(run.store, run.run_id, run.run_dir, settings["profile"],
                                     settings["printer"], chosen, evaluate_batch, run.settings.seed,
                                     launch_batch, weigh=lambda mesh: robot.profile_body(mesh).mass_kg,
-                                    world_launch=world_launch)
+                                    world_launch=world_launch, printed_with=robot.print_instructions())
         rows = "; ".join(f"{row['configuration']} {row['simulated_fitness']:.3f}"
                          for row in table_rows(result) if row["trials"])
         self.get_logger().info(f"selected {len(result.designs)} design(s) into {folder} ({rows})"

@@ -154,20 +154,31 @@ def test_select_cli_takes_another_printer_from_config(run_candidates, tmp_path, 
 
 
 def test_table3_gives_each_design_its_printed_mass_beside_its_height(run_candidates, tmp_path):
-    """The mass column is the robot's print of each design (what the twin mounts), and the report keeps it."""
+    """The mass column is the robot's print of each design (what the twin mounts), and the report keeps it;
+    designs.yaml tells the lab the print those masses assume (here 10 % infill, config/light_print.yaml's)."""
+    import dataclasses
     import shutil
 
     from rollability_ros.core.optimization.design_set import select_run
+    from rollability_ros.core.profile.print_mass import ProfilePrintSpec
     from rollability_ros.core.results import report
     from rollability_ros.core.robots.robot import ChassisModel, ChassisSpec
+    from rollability_ros.core.sim import EvaluatorSettings
 
     run_dir = str(tmp_path / "run")
     shutil.copytree(run_candidates[0], run_dir)
-    chassis = ChassisModel(ChassisSpec())
+    spec = ChassisSpec(profile_print=ProfilePrintSpec(infill_fraction=0.1))
+    chassis = ChassisModel(spec)
     with Store(run_dir) as store:
         result, folder = select_run(store, "run", run_dir, GRID, geometry.PrinterSpec(),
                                     SelectionSettings(count=3, min_distance=0.05),
-                                    weigh=lambda mesh: chassis.profile_body(mesh).mass_kg)
+                                    weigh=lambda mesh: chassis.profile_body(mesh).mass_kg,
+                                    printed_with=EvaluatorSettings(robot=spec).print_instructions())
+    printed = load_parameters([os.path.join(folder, "designs.yaml")])
+    assert printed["designs.print.infill_fraction"] == 0.1 and printed["designs.print.profile_mass_scale"] == 1.0
+    assert printed["designs.print.wall_thickness_m"] == spec.profile_print.wall_thickness_m
+    heavier = ChassisModel(dataclasses.replace(spec, profile_print=ProfilePrintSpec()))   # the default 20 %
+    assert heavier.profile_body(result.designs[0].mesh).mass_kg > 1.05 * result.designs[0].printed_mass_kg
     with open(os.path.join(folder, "table3.csv"), newline="") as stream:
         rows = list(csv.DictReader(stream))
     assert list(rows[0])[3:5] == ["max_height_m", "printed_mass_g"] and float(rows[0]["printed_mass_g"]) == 0.0

@@ -173,6 +173,8 @@ def designs_document(result: SelectionResult, grid: ProfileGrid, run_id: str,
                                                         "difference": float(difference),
                                                         "newcombe_95": [float(low), float(high)]}
             body[design.label]["beats_baseline"] = bool(gain.beats)
+    if result.printed_with is not None:   # the lab's print instructions: the masses above assume them
+        body["print"] = dict(result.printed_with)
     if result.recommendation is not None:
         body["recommendation"] = result.recommendation.as_dict()
         body["world_check"] = {"worlds": result.recommendation.worlds,
@@ -281,12 +283,15 @@ def select_run(store: "Store", run_id: str, run_dir: str, grid: ProfileGrid, pri
                launch_batch: typing.Optional[LaunchEvaluator] = None,
                weigh: typing.Optional[typing.Callable[[Mesh], float]] = None,
                world_launch: typing.Optional[WorldLaunch] = None,
-               describe_world: typing.Optional[WorldDescriber] = None
+               describe_world: typing.Optional[WorldDescriber] = None,
+               printed_with: typing.Optional[typing.Mapping[str, typing.Any]] = None
                ) -> typing.Tuple[SelectionResult, str]:
     """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
     simulated fitness and geometry) and write a new design set (``<run_dir>/designs/`` or ``designs-<n>/``);
     return ``(SelectionResult, folder)``. ``weigh(mesh) -> kg`` gives each design's printed mass for Table 3 (the
-    robot's ``profile_body(mesh).mass_kg``: what the twin mounts); without it the column is empty. With
+    robot's ``profile_body(mesh).mass_kg``: what the twin mounts); without it the column is empty.
+    ``printed_with`` (the robot's ``print_instructions()``: its ``profile_print`` and ``profile_mass_scale``) goes
+    into designs.yaml as ``print``: how the lab prints the designs, and what their masses assume. With
     ``settings.world_count`` the chosen designs then go through the plausible-world check on ``world_launch``
     (``describe_world(seed)`` names each world's draws) and the result carries the recommendation
     (:func:`~rollability_ros.core.optimization.selection.with_world_check`).
@@ -311,6 +316,8 @@ def select_run(store: "Store", run_id: str, run_dir: str, grid: ProfileGrid, pri
     if weigh is not None:
         result = dataclasses.replace(result, designs=[dataclasses.replace(design, printed_mass_kg=weigh(design.mesh))
                                                       for design in result.designs])
+    if printed_with is not None:
+        result = dataclasses.replace(result, printed_with=dict(printed_with))
     result = with_world_check(result, grid, settings, world_launch, run_seed, describe_world)
     folder = write_selection(run_dir, result, grid, run_id, settings.mesh_units, traits)
     record_selection(store, run_id, result, folder)

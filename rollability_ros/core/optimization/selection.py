@@ -232,6 +232,7 @@ class SelectionResult:
     race: typing.Optional[racing.RaceResult] = None     # the launch race, or None without one
     world_rows: typing.Optional[list] = None            # the world check's rows (world_check.WORLD_CHECK_COLUMNS), or None
     recommendation: typing.Optional[Recommendation] = None   # the rule applied to the world check, or None
+    printed_with: typing.Optional[dict] = None          # how the designs are printed and weighed (designs.yaml `print`), or None
 
     def gains(self) -> typing.List[typing.Optional["Gain"]]:
         """One :class:`Gain` per chosen design: its gain over the bare robot on fresh robust launches when there

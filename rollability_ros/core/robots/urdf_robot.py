@@ -402,6 +402,12 @@ class RobotChoice:
         spec = self.urdf_robot if self.urdf_robot.selected else self.robot
         return ProfileBody.from_mesh(mesh, spec.profile_print, spec.profile_mass_scale)
 
+    def print_instructions(self) -> typing.Dict[str, typing.Any]:
+        """How the profile of the robot in use is printed and weighed (its ``profile_print`` fields and
+        ``profile_mass_scale``): what a design set tells the lab to print, and what its masses assume."""
+        spec = self.urdf_robot if self.urdf_robot.selected else self.robot
+        return {**dataclasses.asdict(spec.profile_print), "profile_mass_scale": float(spec.profile_mass_scale)}
+
 
 def half_width_across_m(points: np.ndarray, axis: npt.ArrayLike) -> float:
     """Half the smallest width of the points ``(k, 3)`` across ``axis`` (3,): over every direction normal to

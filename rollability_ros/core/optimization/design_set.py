@@ -284,7 +284,7 @@ def select_run(store: "Store", run_id: str, run_dir: str, grid: ProfileGrid, pri
                weigh: typing.Optional[typing.Callable[[Mesh], float]] = None,
                world_launch: typing.Optional[WorldLaunch] = None,
                describe_world: typing.Optional[WorldDescriber] = None,
-               printed_with: typing.Optional[typing.Mapping[str, typing.Any]] = None
+               printed_with: typing.Optional[typing.Mapping[str, typing.Union[str, float]]] = None
                ) -> typing.Tuple[SelectionResult, str]:
     """Select the designs of run ``run_id`` from its logged candidates, record them in ``store`` (run info:
     simulated fitness and geometry) and write a new design set (``<run_dir>/designs/`` or ``designs-<n>/``);

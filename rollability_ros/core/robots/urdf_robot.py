@@ -402,7 +402,7 @@ class RobotChoice:
         spec = self.urdf_robot if self.urdf_robot.selected else self.robot
         return ProfileBody.from_mesh(mesh, spec.profile_print, spec.profile_mass_scale)
 
-    def print_instructions(self) -> typing.Dict[str, typing.Any]:
+    def print_instructions(self) -> typing.Dict[str, typing.Union[str, float]]:
         """How the profile of the robot in use is printed and weighed (its ``profile_print`` fields and
         ``profile_mass_scale``): what a design set tells the lab to print, and what its masses assume."""
         spec = self.urdf_robot if self.urdf_robot.selected else self.robot

@@ -32,9 +32,13 @@ Contact values (MuJoCo takes the larger of two geoms' friction; ``config/sim.yam
     (Bullet's ``a.rolling b.friction + b.rolling a.friction``; the wheels get the body's value here), and a
     direct spring-damper (``solref`` = -stiffness / m, -damping / m with m the robot's mass: Bullet's per-contact
     N/m and N s/m as an acceleration per metre of one contact carrying the whole robot), at least critically
-    damped (a lighter damping left a landed chassis rocking for ever, as in the MuJoCo trials) and at most as
-    stiff as MuJoCo's soft contacts stay stable at the step (:data:`FOAM_MAX_OMEGA_DT`; stiffer foams, e.g. a
-    robustness draw's, act as that one). A launch that still goes unstable raises ``RuntimeError``.
+    damped (a lighter damping left a landed chassis rocking for ever, as in the MuJoCo trials). MuJoCo steps in
+    substeps of the twin's step that resolve that spring (:func:`foam_substeps`, :data:`FOAM_OMEGA_SUBSTEP`: at
+    one step of 1/240 s the shipped foam threw a chassis landing flat back at 0.45 x its impact speed, a numerical
+    rebound; resolved, 0.14, PyBullet's 0.05-0.10); a foam stiffer than :data:`FOAM_MAX_SUBSTEPS` resolve is capped
+    at :data:`FOAM_MAX_OMEGA_DT` per substep. A launch that still goes unstable raises ``RuntimeError``.
+Friction cone: elliptic (Coulomb's isotropic friction; Bullet's friction follows the sliding direction), not
+    MuJoCo's default pyramid.
     Plate: friction 0.3 x the robot's ``lateral_friction`` (Bullet's product), the trials' contact spring.
 Not represented (known differences, measured by ``rollability evaluate --engines`` and ``bench/bench_engines.py``)
     restitution (as in the MuJoCo trials: contacts are critically damped springs; the foam's is as configured),
@@ -80,9 +84,20 @@ PLATE_TIME_CONSTANT_STEPS = 2
 
 PLATE_DAMPING_RATIO = 3.0
 
-#: Stiffest foam spring per unit robot mass the MuJoCo twin takes, as natural frequency x step (the shipped foam
-#: on the bare chassis: 0.56, stable over 2,000 launches; 400 robust launches at 2-3 x that foam, capped here,
-#: stable; 0.76 uncapped went unstable).
+#: Foam spring per unit robot mass resolved by the MuJoCo twin's substep, as natural frequency x substep: the twin
+#: steps MuJoCo in ``ceil(omega dt / FOAM_OMEGA_SUBSTEP)`` substeps per twin step (:func:`foam_substeps`). Measured
+#: (a chassis dropped flat on the shipped foam at 4 m/s, bench/bench_engine_gap.py --drops): at the twin's 1/240 s
+#: (omega dt 0.56, one substep) the critically damped spring overshoots within the step and throws the chassis back
+#: at 0.45 x its impact speed; at 1/480 s 0.15, at 1/960 s 0.14 (converged); PyBullet's foam 0.05-0.10.
+FOAM_OMEGA_SUBSTEP = 0.3
+
+#: Most substeps per twin step (a MuJoCo launch's cost grows with them): a foam stiffer than they resolve (omega dt
+#: above FOAM_OMEGA_SUBSTEP x FOAM_MAX_SUBSTEPS = 1.2, over 4.5 x the shipped foam on the chassis) takes them all
+#: and is capped at FOAM_MAX_OMEGA_DT per substep.
+FOAM_MAX_SUBSTEPS = 4
+
+#: Stiffest foam spring the MuJoCo twin takes per unit robot mass, as natural frequency x substep (0.76 went
+#: unstable at one substep; 400 robust launches at 2-3 x the shipped foam, capped here, stable).
 FOAM_MAX_OMEGA_DT = 0.6
 
 #: Collision bits: the robot touches everything, the plate only the robot, the static world only the robot.
@@ -90,6 +105,12 @@ ROBOT_BITS, PLATE_BITS, STATIC_BITS = (1, 3), (2, 2), (4, 1)
 
 #: Compiled twins kept per process (a generation's candidates in turn; each holds one model).
 CACHE_SIZE = 4
+
+def foam_substeps(stiffness_per_kg: float, time_step_s: float) -> int:
+    """MuJoCo steps per twin step of ``time_step_s`` that resolve a foam spring of ``stiffness_per_kg`` (N/m per kg
+    of robot): omega x substep at most :data:`FOAM_OMEGA_SUBSTEP`, at most :data:`FOAM_MAX_SUBSTEPS`."""
+    omega_dt = math.sqrt(max(stiffness_per_kg, 0.0)) * time_step_s
+    return max(1, min(FOAM_MAX_SUBSTEPS, math.ceil(omega_dt / FOAM_OMEGA_SUBSTEP - 1e-9)))
 
 def _quat_wxyz(yaw_rad):
     return [math.cos(yaw_rad / 2), 0.0, 0.0, math.sin(yaw_rad / 2)]
@@ -107,6 +128,11 @@ class MujocoLaunchTwin(LaunchWorld):
         self.settings, self.physics, self.robot_model = settings, settings.physics, settings.robot_model()
         self.profile = profile
         spec, root = robot_spec(self.robot_model, profile, settings.physics)
+        # Coulomb's friction is isotropic: MuJoCo's elliptic cone is it, its default pyramid allows less friction
+        # off its axes (MuJoCo documentation, "Computation", friction cones); Bullet's two friction directions
+        # follow the sliding velocity (btSequentialImpulseConstraintSolver), isotropic too. Measured: 1.30 m,
+        # +-60 deg, 40 bare launches: pyramid 31 upright, elliptic 23 (PyBullet 5; bench/bench_engine_gap.py)
+        spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
         for geom in spec.geoms:
             geom.contype, geom.conaffinity = ROBOT_BITS
         self._add_static_world(spec)
@@ -231,9 +257,12 @@ class MujocoLaunchTwin(LaunchWorld):
         model.geom_friction[self.foam_geom] = [
             physics.lateral_friction * foam.lateral_friction, spinning,
             contact["rollingFriction"] * foam.lateral_friction + foam.rolling_friction * physics.lateral_friction]
-        # MuJoCo's soft contacts go unstable on a stiff spring at this step (a robustness draw of 2 x the shipped
-        # foam blew up at omega dt = 0.76): the spring is capped at omega dt = FOAM_MAX_OMEGA_DT
-        stiffness = min(foam.contact_stiffness_npm / self.mass_kg, (FOAM_MAX_OMEGA_DT / physics.time_step_s) ** 2)
+        # the foam's spring is resolved in substeps (FOAM_OMEGA_SUBSTEP); MuJoCo's soft contacts go unstable on a
+        # spring too stiff for the substep (omega dt = 0.76 blew up): capped at omega dt = FOAM_MAX_OMEGA_DT
+        self.substeps = foam_substeps(foam.contact_stiffness_npm / self.mass_kg, physics.time_step_s)
+        substep_s = physics.time_step_s / self.substeps
+        model.opt.timestep = substep_s
+        stiffness = min(foam.contact_stiffness_npm / self.mass_kg, (FOAM_MAX_OMEGA_DT / substep_s) ** 2)
         # at least critically damped: the configured 150 N s/m (damping ratio 0.48 on the chassis) left a landed
         # chassis rocking on the foam in a limit cycle at 1/240 s that never passed the rest rule
         model.geom_solref[self.foam_geom] = [-stiffness, -max(foam.contact_damping_nspm / self.mass_kg,
@@ -312,9 +341,10 @@ class MujocoLaunchTwin(LaunchWorld):
 
     def step(self) -> None:
         plate = self._launch_plate()
-        if plate.driving or not plate.at_rest:
-            self.data.qfrc_applied[self.plate_dof] = plate.force()
-        self.mujoco.mj_step(self.model, self.data)
+        for _ in range(self.substeps):
+            if plate.driving or not plate.at_rest:
+                self.data.qfrc_applied[self.plate_dof] = plate.force()
+            self.mujoco.mj_step(self.model, self.data)
 
     def _launch_plate(self) -> "_MujocoPlate":
         """The plate of the launch under way (the world steps only within :meth:`launch`)."""
@@ -326,13 +356,14 @@ class MujocoLaunchTwin(LaunchWorld):
                 ) -> typing.Tuple[float, typing.Sequence[float]]:
         # LaunchWorld.advance without the per-step calls: the plate is at rest (force 0, its damping holds it)
         mujoco, model, data = self.mujoco, self.model, self.data
-        plate, qvel, step = self._launch_plate(), data.qvel, mujoco.mj_step
+        plate, qvel, step, substeps = self._launch_plate(), data.qvel, mujoco.mj_step, range(self.substeps)
         peak = 0.0
         px, py, pz = velocity
         for _ in range(steps):
-            if not plate.at_rest:
-                data.qfrc_applied[self.plate_dof] = plate.force()
-            step(model, data)
+            for _ in substeps:
+                if not plate.at_rest:
+                    data.qfrc_applied[self.plate_dof] = plate.force()
+                step(model, data)
             vx, vy, vz = qvel[0:3].tolist()
             change = (vx - px) * (vx - px) + (vy - py) * (vy - py) + (vz - pz) * (vz - pz)
             peak = change if change > peak else peak
@@ -447,7 +478,7 @@ class _MujocoPlate:
         self._twin, self.spec, self.push, self.face_x_m = twin, spec, np.asarray(push), face_x_m
         explicit = twin.model.opt.integrator != twin.mujoco.mjtIntegrator.mjINT_EULER
         mass_kg = spec.mass_kg + (0.0 if explicit else self.ROBOT_SHARE * twin.mass_kg)
-        self._gain = mass_kg / twin.physics.time_step_s
+        self._gain = mass_kg / twin.model.opt.timestep   # per MuJoCo step (a twin step's substep)
         self._target, self._limit = 0.0, spec.max_force_n
         self._start_m = float(twin.data.qpos[twin.plate_qpos])
         self.driving = False

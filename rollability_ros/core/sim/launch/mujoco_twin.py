@@ -36,7 +36,7 @@ Contact values (MuJoCo takes the larger of two geoms' friction; ``config/sim.yam
     substeps of the twin's step that resolve that spring (:func:`foam_substeps`, :data:`FOAM_OMEGA_SUBSTEP`: at
     one step of 1/240 s the shipped foam threw a chassis landing flat back at 0.45 x its impact speed, a numerical
     rebound; resolved, 0.14, PyBullet's 0.05-0.10); a foam stiffer than :data:`FOAM_MAX_SUBSTEPS` resolve is capped
-    at :data:`FOAM_MAX_OMEGA_DT` per substep. A launch that still goes unstable raises ``RuntimeError``.
+    at :data:`FOAM_MAX_OMEGA_DT` per twin step. A launch that still goes unstable raises ``RuntimeError``.
 Friction cone: elliptic (Coulomb's isotropic friction; Bullet's friction follows the sliding direction), not
     MuJoCo's default pyramid.
     Plate: friction 0.3 x the robot's ``lateral_friction`` (Bullet's product), the trials' contact spring.
@@ -91,14 +91,13 @@ PLATE_DAMPING_RATIO = 3.0
 #: at 0.45 x its impact speed; at 1/480 s 0.15, at 1/960 s 0.14 (converged); PyBullet's foam 0.05-0.10.
 FOAM_OMEGA_SUBSTEP = 0.3
 
-#: Most substeps per twin step (a MuJoCo launch's cost grows with them): a foam stiffer than they resolve (omega dt
-#: above FOAM_OMEGA_SUBSTEP x FOAM_MAX_SUBSTEPS = 1.2, over 4.5 x the shipped foam on the chassis) takes them all
-#: and is capped at FOAM_MAX_OMEGA_DT per substep.
+#: Most substeps per twin step (a MuJoCo launch's cost grows with them).
 FOAM_MAX_SUBSTEPS = 4
 
-#: Stiffest foam spring the MuJoCo twin takes per unit robot mass, as natural frequency x substep (0.76 went
-#: unstable at one substep; 400 robust launches at 2-3 x the shipped foam, capped here, stable).
-FOAM_MAX_OMEGA_DT = 0.6
+#: Stiffest foam spring the MuJoCo twin takes per unit robot mass, as natural frequency x twin step: what
+#: FOAM_MAX_SUBSTEPS resolve (1.2: 4.6 x the shipped foam on the chassis; the robust draws reach 2 x). A stiffer
+#: foam acts as this one (before the substeps the cap was 0.6 at one step, where a spring already rebounded).
+FOAM_MAX_OMEGA_DT = FOAM_OMEGA_SUBSTEP * FOAM_MAX_SUBSTEPS
 
 #: Collision bits: the robot touches everything, the plate only the robot, the static world only the robot.
 ROBOT_BITS, PLATE_BITS, STATIC_BITS = (1, 3), (2, 2), (4, 1)
@@ -257,12 +256,11 @@ class MujocoLaunchTwin(LaunchWorld):
         model.geom_friction[self.foam_geom] = [
             physics.lateral_friction * foam.lateral_friction, spinning,
             contact["rollingFriction"] * foam.lateral_friction + foam.rolling_friction * physics.lateral_friction]
-        # the foam's spring is resolved in substeps (FOAM_OMEGA_SUBSTEP); MuJoCo's soft contacts go unstable on a
-        # spring too stiff for the substep (omega dt = 0.76 blew up): capped at omega dt = FOAM_MAX_OMEGA_DT
-        self.substeps = foam_substeps(foam.contact_stiffness_npm / self.mass_kg, physics.time_step_s)
-        substep_s = physics.time_step_s / self.substeps
-        model.opt.timestep = substep_s
-        stiffness = min(foam.contact_stiffness_npm / self.mass_kg, (FOAM_MAX_OMEGA_DT / substep_s) ** 2)
+        # the foam's spring is resolved in substeps (FOAM_OMEGA_SUBSTEP), at most FOAM_MAX_SUBSTEPS of them: a
+        # stiffer spring is capped at what they resolve (unresolved it rebounds, and at omega dt 0.76 blew up)
+        stiffness = min(foam.contact_stiffness_npm / self.mass_kg, (FOAM_MAX_OMEGA_DT / physics.time_step_s) ** 2)
+        self.substeps = foam_substeps(stiffness, physics.time_step_s)
+        model.opt.timestep = physics.time_step_s / self.substeps
         # at least critically damped: the configured 150 N s/m (damping ratio 0.48 on the chassis) left a landed
         # chassis rocking on the foam in a limit cycle at 1/240 s that never passed the rest rule
         model.geom_solref[self.foam_geom] = [-stiffness, -max(foam.contact_damping_nspm / self.mass_kg,

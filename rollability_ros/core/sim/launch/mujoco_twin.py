@@ -27,9 +27,11 @@ Contact values (MuJoCo takes the larger of two geoms' friction; ``config/sim.yam
     (``wheel_rolling_friction`` x the ground's friction, Bullet's combination) and joint ``frictionloss`` =
     ``wheel_drag_torque_nm``; otherwise (a URDF robot) they keep the robot's own, as in the trials. The launcher's
     sizes are the PyBullet twin's (derived from the robot where configured 0: ``sized_for_robot``).
-    Foam: a geom of higher priority, so its values make the contact: friction = the robot's
+    Foam: a geom of higher priority, so its values make the contact with the body: friction = the robot's
     ``lateral_friction`` x ``foam.lateral_friction``, rolling = the robot body's rolling friction on the foam
-    (Bullet's ``a.rolling b.friction + b.rolling a.friction``; the wheels get the body's value here), and a
+    (Bullet's ``a.rolling b.friction + b.rolling a.friction``); each wheel meets the foam by an explicit contact
+    pair carrying Bullet's combination of that wheel's own values (its friction with the left / right factor, its
+    rolling friction: the twin's Mecanum value or the robot's) with the foam's, and the foam's spring; and a
     direct spring-damper (``solref`` = -stiffness / m, -damping / m with m the robot's mass: Bullet's per-contact
     N/m and N s/m as an acceleration per metre of one contact carrying the whole robot), at least critically
     damped (a lighter damping left a landed chassis rocking for ever, as in the MuJoCo trials). MuJoCo steps in
@@ -86,7 +88,7 @@ PLATE_DAMPING_RATIO = 3.0
 
 #: Foam spring per unit robot mass resolved by the MuJoCo twin's substep, as natural frequency x substep: the twin
 #: steps MuJoCo in ``ceil(omega dt / FOAM_OMEGA_SUBSTEP)`` substeps per twin step (:func:`foam_substeps`). Measured
-#: (a chassis dropped flat on the shipped foam at 4 m/s, bench/bench_engine_gap.py --drops): at the twin's 1/240 s
+#: (a chassis dropped flat on the shipped foam at 4 m/s, test/core/test_twin_engine_fidelity.py): at the twin's 1/240 s
 #: (omega dt 0.56, one substep) the critically damped spring overshoots within the step and throws the chassis back
 #: at 0.45 x its impact speed; at 1/480 s 0.15, at 1/960 s 0.14 (converged); PyBullet's foam 0.05-0.10.
 FOAM_OMEGA_SUBSTEP = 0.3
@@ -99,8 +101,9 @@ FOAM_MAX_SUBSTEPS = 4
 #: foam acts as this one (before the substeps the cap was 0.6 at one step, where a spring already rebounded).
 FOAM_MAX_OMEGA_DT = FOAM_OMEGA_SUBSTEP * FOAM_MAX_SUBSTEPS
 
-#: Collision bits: the robot touches everything, the plate only the robot, the static world only the robot.
-ROBOT_BITS, PLATE_BITS, STATIC_BITS = (1, 3), (2, 2), (4, 1)
+#: Collision bits: the robot touches everything, the plate only the robot, the static world only the robot; the
+#: foam only the robot's geoms that carry its bit (not the wheels: they meet the foam by explicit pairs).
+ROBOT_BITS, PLATE_BITS, STATIC_BITS, FOAM_BITS = (1, 3), (2, 2), (4, 1), (4, 8)
 
 #: Compiled twins kept per process (a generation's candidates in turn; each holds one model).
 CACHE_SIZE = 4
@@ -129,11 +132,19 @@ class MujocoLaunchTwin(LaunchWorld):
         spec, root = robot_spec(self.robot_model, profile, settings.physics)
         # Coulomb's friction is isotropic: MuJoCo's elliptic cone is it, its default pyramid allows less friction
         # off its axes (MuJoCo documentation, "Computation", friction cones); Bullet's two friction directions
-        # follow the sliding velocity (btSequentialImpulseConstraintSolver), isotropic too. Measured: 1.30 m,
-        # +-60 deg, 40 bare launches: pyramid 31 upright, elliptic 23 (PyBullet 5; bench/bench_engine_gap.py)
+        # follow the sliding velocity (btSequentialImpulseConstraintSolver), isotropic too (docs/optimization.md,
+        # "The engines' disagreement on the bare robot")
         spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+        wheel_names = set(self.robot_model.wheel_link_names())
+        wheel_specs = [geom for body in spec.bodies if body.name in wheel_names for geom in body.geoms]
         for geom in spec.geoms:
             geom.contype, geom.conaffinity = ROBOT_BITS
+            if not any(geom is wheel for wheel in wheel_specs):
+                geom.contype |= FOAM_BITS[1]   # the body meets the foam by the foam geom's values
+        for index, geom in enumerate(wheel_specs):   # a wheel meets it by its own pair (module docstring)
+            geom.name = geom.name or f"wheel_geom_{index}"
+            pair = spec.add_pair()
+            pair.geomname1, pair.geomname2, pair.condim = geom.name, "foam", 6
         self._add_static_world(spec)
         self._add_plate(spec)
         self.model = model = spec.compile()
@@ -182,8 +193,9 @@ class MujocoLaunchTwin(LaunchWorld):
         ledge.size = [launcher.ledge_depth_m / 2, launcher.ledge_width_m / 2, LEDGE_HALF_HEIGHT_M]
         for geom in (floor, ledge):
             set_geom_contact(geom, physics, ground=True)
-        for geom in (floor, foam, ledge):
+        for geom in (floor, ledge):
             geom.contype, geom.conaffinity = STATIC_BITS
+        foam.contype, foam.conaffinity = FOAM_BITS
 
     def _add_plate(self, spec: typing.Any) -> None:
         """The push plate in ``spec``: a box on a slide joint whose frame is a mocap body (module docstring)."""
@@ -232,9 +244,10 @@ class MujocoLaunchTwin(LaunchWorld):
         for geom in self.robot_geoms:   # the robot-ground values of sim.contact_model (robot_spec's, redone per draw)
             model.geom_friction[geom] = [lateral, spinning, rolling]
         mecanum = mecanum_wheels(self.settings)
+        factors = {}
         for body, geoms in self.wheel_geoms.items():
             left = float((data.xpos[body] - data.xpos[self.root]) @ root_rotation[:, 1]) >= 0.0
-            factor = options.wheel_friction_left_factor if left else options.wheel_friction_right_factor
+            factor = factors[body] = options.wheel_friction_left_factor if left else options.wheel_friction_right_factor
             for geom in geoms:
                 model.geom_friction[geom][0] = lateral * factor
                 if mecanum:
@@ -266,6 +279,16 @@ class MujocoLaunchTwin(LaunchWorld):
         model.geom_solref[self.foam_geom] = [-stiffness, -max(foam.contact_damping_nspm / self.mass_kg,
                                                               2 * math.sqrt(stiffness))]
         model.geom_solimp[self.foam_geom] = [0.99, 0.99, 0.001, 0.5, 2.0]
+        # each wheel on the foam: Bullet's combination of the wheel's own values with the foam's (friction product,
+        # rolling wheel.rolling x foam.friction + foam.rolling x wheel.friction), the foam's spring
+        wheel_rolling_own = options.wheel_rolling_friction if mecanum else contact["rollingFriction"]
+        for pair in range(model.npair):   # MuJoCo may store the foam first
+            wheel = model.pair_geom2[pair] if model.pair_geom1[pair] == self.foam_geom else model.pair_geom1[pair]
+            wheel_lateral = physics.lateral_friction * factors[int(model.geom_bodyid[wheel])]
+            roll = wheel_rolling_own * foam.lateral_friction + foam.rolling_friction * wheel_lateral
+            model.pair_friction[pair] = [wheel_lateral * foam.lateral_friction] * 2 + [spinning, roll, roll]
+            model.pair_solref[pair] = model.geom_solref[self.foam_geom]
+            model.pair_solimp[pair] = model.geom_solimp[self.foam_geom]
 
     def retarget(self, settings: LaunchTwinSettings) -> None:
         """Take a robustness draw's ``settings`` (:mod:`~rollability_ros.core.sim.robustness`) without a new

@@ -227,7 +227,9 @@ def smoke_designs(out):
 
     folder = os.path.join(out, "smoke-designs")
     os.makedirs(folder, exist_ok=True)
-    chosen = [SelectedDesign("A", PooledDesign(np.repeat(np.linspace(0.05, 0.3, 3), 3), 9, 10, 1, 1), None, None)]
+    no_solid: typing.Any = None   # designs.yaml holds the heights only: no mesh, no metrics
+    chosen = [SelectedDesign("A", PooledDesign(np.repeat(np.linspace(0.05, 0.3, 3), 3), 9, 10, 1, 1), no_solid,
+                             no_solid)]
     path = os.path.join(folder, "designs.yaml")
     with open(path, "w", encoding="utf-8") as stream:
         yaml.safe_dump(designs_document(SelectionResult(chosen, 1, 1, {}), ProfileGrid(rows=3, cols=3), "smoke"),

@@ -194,8 +194,9 @@ def _adaptive_posterior(args, spec, outcomes):
     check_given_files(args.twin_config, {*TWIN_SECTIONS, "calibration"}, "rollability campaign --twin-config")
     parameters = load_parameters([*TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration_settings(parameters).selected(args.fit or DEFAULT_UNKNOWNS)
-    check_fittable(parameters, settings)
-    known = configuration_ids(launch_twin_settings_from_parameters(parameters).twin.designs)
+    twin = launch_twin_settings_from_parameters(parameters)   # parsed once, handed to the core typed
+    check_fittable(twin, settings)
+    known = configuration_ids(twin.twin.designs)
     unknown = [c for c in spec.configurations if c not in known]
     if unknown:
         raise ValueError(f"the twin has no profile for {', '.join(unknown)} (it knows {', '.join(known)}): give the "
@@ -207,7 +208,7 @@ def _adaptive_posterior(args, spec, outcomes):
           f"{len(candidates)} conditions, {args.sim_repetitions} twin launches each ({launches} launches, about "
           f"{launches * 0.05 / 60:.0f} min on one core)", flush=True)
     with LaunchPool(args.workers) as pool:
-        predictor = TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
+        predictor = TwinPredictor(twin, unknowns, pool, args.sim_repetitions, settings.seed)
         posterior = WeightedPosterior.from_predictor(unknowns, predictor, candidates, args.prior_samples,
                                                               np.random.default_rng(settings.seed))
     used = posterior.observe_outcomes(outcomes)

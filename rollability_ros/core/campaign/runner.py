@@ -21,7 +21,7 @@ import time
 import typing
 
 from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, changes_between
-from rollability_ros.core.config import as_list, check_given_files, load_parameters, settings_from_sections
+from rollability_ros.core.config import as_list, check_given_files, edge_parse, load_parameters, settings_from_sections
 from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, LaunchAborted,
                                       LaunchBackend, RigPorts, RigSettings, SpeedGate, SpeedGateConfig, ValveConfig,
@@ -413,6 +413,7 @@ class LocalRigSettings:
     imu_outcome: ImuOutcomeConfig = dataclasses.field(default_factory=ImuOutcomeConfig)
 
 
+@edge_parse
 def local_rig_settings(backend: str, parameters: typing.Mapping[str, object]) -> LocalRigSettings:
     """Parse flat rig parameters (``load_parameters(["rig"])``: ``rig.*``, ``valve.*``, ``speed_gate.*``,
     ``imu_outcome.*``) once, with ``rig.backend`` set to ``backend`` (``"sim"`` or ``"physical"``, the command
@@ -420,6 +421,7 @@ def local_rig_settings(backend: str, parameters: typing.Mapping[str, object]) ->
     return settings_from_sections(LocalRigSettings, {**parameters, "rig.backend": backend})
 
 
+@edge_parse
 def local_rig_settings_from_files(backend: str, paths: typing.Optional[typing.Sequence[str]],
                                   command: str) -> LocalRigSettings:
     """:func:`local_rig_settings` of the rig parameter files a user gave ``command`` (None: the shipped

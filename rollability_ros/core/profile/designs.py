@@ -23,7 +23,7 @@ import os
 import typing
 
 from rollability_ros.core.profile import geometry
-from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
+from rollability_ros.core.config import ConfigError, file_schema, from_mapping, load_parameters, section
 
 #: The configuration id of the bare chassis.
 BASELINE = "baseline"
@@ -65,6 +65,7 @@ def _file_version(path):
     return os.path.abspath(path), stat.st_size, stat.st_mtime_ns
 
 
+@file_schema("designs file")
 @functools.lru_cache(maxsize=16)
 def _read_designs(version):
     """``(grid, {label: heights})`` of the designs file ``version`` (see :func:`_file_version`)."""

@@ -252,6 +252,14 @@ def _propose_next(args, spec):
     return 0
 
 
+def _read_twin(twin_config):
+    """The launch twin of the files ``rig.twin_config`` names, parsed here, at the command (the edge); the in-process
+    rig's simulated backend asks for it once (a physical one never does, so the rig computer needs no physics)."""
+    from rollability_ros.core.sim import load_launch_twin_settings
+
+    return load_launch_twin_settings(twin_config)
+
+
 def _resimulate(args):
     from rollability_ros.core.campaign import LocalRig, local_rig_settings_from_files
     from rollability_ros.core.records import LaunchCondition, check_twin_seed
@@ -270,7 +278,8 @@ def _resimulate(args):
     condition = LaunchCondition(configuration, height_m, speed_mps, angle_deg)
     condition.validate()   # the campaign's own bounds (records.HEIGHT_RANGE_M ...): no stored launch lies outside
     check_twin_seed(args.seed)
-    rig = LocalRig(local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG))
+    rig = LocalRig(local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG),
+                   read_twin=_read_twin)
     try:
         result = rig.backend.resimulate(condition, args.seed)
     finally:
@@ -303,7 +312,7 @@ def _run_local(args, spec, ask):
     matrix = list(plan)
 
     def checked_rig() -> LocalRig:
-        rig = LocalRig(settings, ask or input)
+        rig = LocalRig(settings, ask or input, read_twin=_read_twin)
         refusal = plan_refusal(rig.backend, spec.run_id, matrix)   # every trial of the matrix, whichever plan runs
         if refusal:
             rig.close()

@@ -304,10 +304,11 @@ def test_drill_down_shows_each_seed_and_its_command_simulates_the_stored_launch_
     from rollability_ros.core.bags.messages import message_from_record, record_from_message, typestore
     from rollability_ros.core.campaign.runner import LocalRig, local_rig_settings
     from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.sim import load_launch_twin_settings
     from rollability_ros.core.results import read_outcome_csv
     from rollability_ros.core.records import NO_SEED
 
-    rig = LocalRig(local_rig_settings("sim", load_parameters(["rig"])))
+    rig = LocalRig(local_rig_settings("sim", load_parameters(["rig"])), read_twin=load_launch_twin_settings)
     try:
         baseline = [t for t in plan_trials(CampaignSpec(run_id="seeded", repetitions=1))
                     if t.condition.configuration == "baseline"]       # the shipped twin has no designs A/B/C
@@ -422,5 +423,9 @@ def test_the_sim_rig_records_where_its_designs_come_from(tmp_path):
     twin = tmp_path / "twin.yaml"
     twin.write_text("/**:\n  ros__parameters:\n    launch_twin:\n      designs:\n        designs_file: d/designs.yaml\n",
                     encoding="utf-8")
-    backend = SimulatedLaunch(RigSettings(twin_config=["sim", "robot", "launch_twin", str(twin)]), SpeedGateConfig())
+    from rollability_ros.core.sim import load_launch_twin_settings
+
+    twin_config = ["sim", "robot", "launch_twin", str(twin)]
+    backend = SimulatedLaunch(RigSettings(twin_config=twin_config), SpeedGateConfig(),
+                              load_launch_twin_settings(twin_config))
     assert backend.design_sources() == {"designs_file": os.path.abspath("d/designs.yaml"), "mesh_files": {}}

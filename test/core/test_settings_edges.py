@@ -29,7 +29,6 @@ ALLOWED = {
     ("graph/preflight.py", "_twin_problems"): (1, "x"),
     ("graph/preflight.py", "check_graph_parameters"): (2, "x"),
     ("graph/study.py", "Study.__init__"): (2, "x"),
-    ("rig/rig_session.py", "SimulatedLaunch.load"): (1, "x"),
     ("sim/objectives.py", "_resolve"): (1, "x"),
     ("sim/objectives.py", "launch_conditions"): (1, "x"),
 }

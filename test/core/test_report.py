@@ -394,12 +394,12 @@ def test_a_study_reports_only_the_designs_its_campaign_launched(tmp_path):
     """Issue 42: a campaign run through the graph recorded no designs_file, so after a later `select` the study's
     report listed designs-2/ and designs-3/ beside the set the campaign launched. The study records it (the logger
     stopped: one writer) and a report with a recorded set lists that set only."""
-    from rollability_ros.core.graph import Study
+    from rollability_ros.core.graph import Study, study_config
     from rollability_ros.core.results import report
 
     config = tmp_path / "study.yaml"
     config.write_text(f"/**:\n  ros__parameters:\n    bringup: {{output_dir: '{tmp_path / 'runs'}'}}\n")
-    study = Study(extra_configs=[str(config)], study_id="s1", say=lambda text: None)
+    study = Study(study_config([str(config)], "s1"), say=lambda text: None)
     launched = os.path.dirname(study.designs_file)
     for folder in (launched, launched + "-2", launched + "-3"):   # the study's selection, then two later ones
         os.makedirs(folder)

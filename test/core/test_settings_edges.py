@@ -26,9 +26,6 @@ import code_counts
 
 #: (module below core, function): (calls, why the parse stays there)
 ALLOWED = {
-    ("graph/preflight.py", "_twin_problems"): (1, "x"),
-    ("graph/preflight.py", "check_graph_parameters"): (2, "x"),
-    ("graph/study.py", "Study.__init__"): (2, "x"),
     ("sim/objectives.py", "_resolve"): (1, "x"),
     ("sim/objectives.py", "launch_conditions"): (1, "x"),
 }

@@ -85,8 +85,8 @@ class StudyConfig:
     parameters: typing.Dict[str, object]
     study_id: str
     study_dir: str
-    resuming: bool
-    problems: typing.List[str]
+    resuming: bool = False
+    problems: typing.Tuple[str, ...] = ()
 
 
 @edge_parse
@@ -116,7 +116,7 @@ def study_config(extra_configs: typing.Sequence[str] = (), study_id: typing.Opti
             raise ValueError(f"study directory {study_dir} already exists: continue it with --resume "
                              f"{study_dir}, or choose another --study-id")
     problems = check_graph_parameters(param_files, overrides={"rig": {"rig.twin_config": param_files}})
-    return StudyConfig(param_files, settings, parameters, chosen_id, study_dir, resume is not None, problems)
+    return StudyConfig(param_files, settings, parameters, chosen_id, study_dir, resume is not None, tuple(problems))
 
 
 class Study:
@@ -129,12 +129,9 @@ class Study:
                  display: typing.Optional[ProgressDisplay] = None,
                  observer: typing.Optional[GraphObserver] = None) -> None:
         self.config = config
-        self.param_files = config.param_files
-        self.settings = config.settings
-        self.parameters = config.parameters
-        self.study_id = config.study_id
-        self.study_dir = config.study_dir
-        self.resuming = config.resuming
+        self.param_files = config.param_files   # the study's copies once it saved them (make_study_dir)
+        self.settings, self.parameters = config.settings, config.parameters
+        self.study_id, self.study_dir, self.resuming = config.study_id, config.study_dir, config.resuming
         # display: live line on a terminal, plain lines otherwise (core/graph/progress.py); say: event lines
         self.display = display or ProgressDisplay(live=False)
         self.say = say or self.display.say

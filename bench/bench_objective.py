@@ -105,13 +105,13 @@ def main():
         parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
         uncalibrated_value = parameters[args.parameter]
         conditions = [LaunchCondition("baseline", 0.75, 0.8, 0.0), LaunchCondition("dome", 0.75, 0.8, 0.0)]
-        twin = launch_twin_settings_from_parameters(parameters)
-        outcomes = synthetic_outcomes(twin, [args.parameter], [args.truth], conditions, 24)
+        uncalibrated = launch_twin_settings_from_parameters(parameters)
+        outcomes = synthetic_outcomes(uncalibrated, [args.parameter], [args.truth], conditions, 24)
         settings = calibration.CalibrationSettings(parameters=[args.parameter], lower=[lower], upper=[upper],
                                                    log_scale=[log_scale], sim_repetitions=8, popsize=4,
                                                    max_generations=4, bootstrap_resamples=0)
         with calibration.LaunchPool(args.workers) as pool:
-            fitted = calibration.calibrate(outcomes, twin, settings, pool).estimates[0].fitted
+            fitted = calibration.calibrate(outcomes, uncalibrated, settings, pool).estimates[0].fitted
         calibrated = os.path.join(folder, "calibrated.yaml")
         with open(calibrated, "w", encoding="utf-8") as stream:
             yaml.safe_dump(calibration.calibrated_parameter_document({args.parameter: fitted}), stream)

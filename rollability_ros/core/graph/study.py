@@ -365,7 +365,9 @@ class Study:
         """The labels of the selected designs (may be empty), or None before selection has written designs.yaml."""
         if not os.path.isfile(self.designs_file):
             return None
-        return as_list(load_parameters([self.designs_file]).get("designs.labels", []))
+        from rollability_ros.core.profile import designs_file_labels
+
+        return designs_file_labels(self.designs_file)   # through the designs file's one reader
 
     def _campaign_size(self, configurations):
         per_configuration = 1

@@ -100,6 +100,12 @@ def _file_mesh(version):
     return geometry.load_profile_mesh(version[0])
 
 
+def designs_file_labels(path: str) -> typing.List[str]:
+    """The design labels of the designs file ``path``, in its order (read by its one reader); ``ConfigError`` for a
+    bad file, ``FileNotFoundError`` for a missing one."""
+    return list(_read_designs(_file_version(path))[1])
+
+
 def configuration_ids(sources: DesignSources) -> typing.List[str]:
     """All ids ``sources`` defines: ``baseline``, the designs file's labels, then the mesh labels.
 

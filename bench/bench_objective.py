@@ -3,7 +3,7 @@ beat one optimized on the uncalibrated twin, when both are scored on the truth?
 
     nice python bench/bench_objective.py [--parameter launch_twin.foam.lateral_friction] [--truth 2.5]
         [--generations 15] [--popsize 8] [--trials 24] [--sigma0 0.1] [--screen 16] [--seeds 3,4,...,20]
-        [--validate 96] [--workers 2]
+        [--validate 96] [--workers 2] [--smoke]
 
 1. Truth: the launch twin with ``--parameter`` moved to ``--truth`` (default: the foam's friction from 1.0 to
    2.5, a truth under which the profiles rank differently: docs/calibration.md); "physical" outcomes of the bare
@@ -72,7 +72,7 @@ def optimize(run_dir, twin_config, campaign_file, args, seed, executor):
     return best.heights, settings
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     defaults = calibration.CalibrationSettings()
     parser.add_argument("--parameter", default="launch_twin.foam.lateral_friction", choices=defaults.parameters,
@@ -90,7 +90,14 @@ def main():
                         help="optimizer seeds, comma-separated: one pair of runs each")
     parser.add_argument("--validate", type=int, default=96, help="launches per design on the truth")
     parser.add_argument("--workers", type=int, default=2)
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers "
+                                                             "mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    physical, fit = 24, {"sim_repetitions": 8, "popsize": 4, "max_generations": 4}
+    if args.smoke:   # one launch per condition, a fit of one generation of two, two seed pairs of 2 x 2 launches
+        physical, fit = 1, {"sim_repetitions": 1, "popsize": 2, "max_generations": 1}
+        args.generations, args.popsize, args.trials, args.screen, args.seeds = 1, 2, 2, 0, "3,4"
+        args.validate, args.workers = 2, 1
     index = defaults.parameters.index(args.parameter)
     lower, upper, log_scale = defaults.lower[index], defaults.upper[index], defaults.log_scale[index]
     seeds = [int(seed) for seed in args.seeds.split(",")]
@@ -105,10 +112,9 @@ def main():
         parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
         uncalibrated_value = parameters[args.parameter]
         conditions = [LaunchCondition("baseline", 0.75, 0.8, 0.0), LaunchCondition("dome", 0.75, 0.8, 0.0)]
-        outcomes = synthetic_outcomes(parameters, [args.parameter], [args.truth], conditions, 24)
+        outcomes = synthetic_outcomes(parameters, [args.parameter], [args.truth], conditions, physical)
         settings = calibration.CalibrationSettings(parameters=[args.parameter], lower=[lower], upper=[upper],
-                                                   log_scale=[log_scale], sim_repetitions=8, popsize=4,
-                                                   max_generations=4, bootstrap_resamples=0)
+                                                   log_scale=[log_scale], bootstrap_resamples=0, **fit)
         with calibration.LaunchPool(args.workers) as pool:
             fitted = calibration.calibrate(outcomes, parameters, settings, pool).estimates[0].fitted
         calibrated = os.path.join(folder, "calibrated.yaml")
@@ -155,6 +161,7 @@ def main():
             print(f"Wilcoxon signed-rank over the seeds: statistic {wilcoxon.statistic:.1f}, two-sided p = "
                   f"{wilcoxon.pvalue:.3f}")
     print(f"wall {time.perf_counter() - started:.0f} s on {os.cpu_count()} cores (simulated twin and truth)")
+    return 0
 
 
 def report_difference(lead, calibrated, uncalibrated):
@@ -167,4 +174,4 @@ def report_difference(lead, calibrated, uncalibrated):
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -23,6 +23,7 @@ import os
 import sys
 import tempfile
 import time
+import typing
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(1, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "test"))  # doubles
@@ -112,7 +113,8 @@ def main(argv=None):
     parser.add_argument("--smoke", action="store_true", help="tiny sizes: the fit and the coverage of the first "
                         "parameter, each once on two conditions, in-process; the numbers mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
-    conditions, popsize = CONDITIONS, 6
+    conditions: typing.Sequence[typing.Tuple[str, float, float, float]] = CONDITIONS
+    popsize = 6
     if args.smoke:   # one launch per condition and grid point, one generation of two, one truth; no pool
         conditions, popsize = CONDITIONS[:2], 2
         args.repetitions, args.sim_repetitions, args.generations, args.interval_points = 1, 1, 1, 5

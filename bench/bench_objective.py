@@ -89,15 +89,15 @@ def main(argv=None):
     parser.add_argument("--seeds", default=",".join(str(seed) for seed in range(3, 21)),
                         help="optimizer seeds, comma-separated: one pair of runs each")
     parser.add_argument("--validate", type=int, default=96, help="launches per design on the truth")
-    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (0: in this process)")
     parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers "
                                                              "mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
-    physical, fit = 24, {"sim_repetitions": 8, "popsize": 4, "max_generations": 4}
+    physical, repetitions, fit_popsize, fit_generations = 24, 8, 4, 4
     if args.smoke:   # one launch per condition, a fit of one generation of two, two seed pairs of 2 x 2 launches
-        physical, fit = 1, {"sim_repetitions": 1, "popsize": 2, "max_generations": 1}
+        physical, repetitions, fit_popsize, fit_generations = 1, 1, 2, 1
         args.generations, args.popsize, args.trials, args.screen, args.seeds = 1, 2, 2, 0, "3,4"
-        args.validate, args.workers = 2, 1
+        args.validate, args.workers = 2, 0
     index = defaults.parameters.index(args.parameter)
     lower, upper, log_scale = defaults.lower[index], defaults.upper[index], defaults.log_scale[index]
     seeds = [int(seed) for seed in args.seeds.split(",")]
@@ -114,8 +114,10 @@ def main(argv=None):
         conditions = [LaunchCondition("baseline", 0.75, 0.8, 0.0), LaunchCondition("dome", 0.75, 0.8, 0.0)]
         outcomes = synthetic_outcomes(parameters, [args.parameter], [args.truth], conditions, physical)
         settings = calibration.CalibrationSettings(parameters=[args.parameter], lower=[lower], upper=[upper],
-                                                   log_scale=[log_scale], bootstrap_resamples=0, **fit)
-        with calibration.LaunchPool(args.workers) as pool:
+                                                   log_scale=[log_scale], sim_repetitions=repetitions,
+                                                   popsize=fit_popsize, max_generations=fit_generations,
+                                                   bootstrap_resamples=0)
+        with calibration.LaunchPool(args.workers or 1) as pool:   # 1: in this process
             fitted = calibration.calibrate(outcomes, parameters, settings, pool).estimates[0].fitted
         calibrated = os.path.join(folder, "calibrated.yaml")
         with open(calibrated, "w", encoding="utf-8") as stream:
@@ -127,7 +129,8 @@ def main(argv=None):
             yaml.safe_dump(calibration.calibrated_parameter_document({args.parameter: args.truth}), stream)
         totals = {"calibrated": [0, 0], "uncalibrated": [0, 0]}
         differences = []
-        with evaluation.make_executor(evaluation.EvaluatorOptions(workers=args.workers)) as executor:
+        with evaluation.make_executor(evaluation.EvaluatorOptions(workers=args.workers)) if args.workers \
+                else evaluation.SerialExecutor() as executor:
             for seed in seeds:
                 scores = {}
                 for label, twin in (("uncalibrated", calibration.TWIN_CONFIGS),

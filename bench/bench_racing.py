@@ -89,6 +89,11 @@ def optimize(parameters, seed, executor, folder, name, reuse=False):
     return result.best.heights, spent, result.generations, seconds, settings, stopped, run_dir
 
 
+def executor_of(workers):
+    """A pool of ``workers`` processes, or this process (``workers`` 0)."""
+    return evaluation.LocalExecutor(workers) if workers else evaluation.SerialExecutor()
+
+
 def interval_text(successes, trials):
     low, high = wilson_interval(successes, trials)
     return f"{successes / trials:.3f} [{low:.2f}, {high:.2f}]"
@@ -215,7 +220,7 @@ def main(argv=None):
                         help="successive halving: candidates going on after each look (0: off)")
     parser.add_argument("--engine", default="mujoco")
     parser.add_argument("--fresh-trials", type=int, default=300)
-    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (0: in this process)")
     parser.add_argument("--keep", help="folder to keep the runs in (default: a temporary one)")
     parser.add_argument("--raced-name", default="raced", help="name of the raced runs' folders (with --keep)")
     parser.add_argument("--reuse", action="store_true",
@@ -226,8 +231,9 @@ def main(argv=None):
     parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers "
                                                              "mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
-    if args.smoke:   # two seeds (the over-seeds interval), two generations of 4 x 4 trials, a look at 2, halving
-        args.seeds, args.looks, args.survivors, args.fresh_trials, args.workers = [1, 2], [2], 2, 2, 1
+    if args.smoke:   # two seeds (the over-seeds interval), two generations of 4 x 4 trials, a look at 2, halving;
+        # in this process
+        args.seeds, args.looks, args.survivors, args.fresh_trials, args.workers = [1, 2], [2], 2, 2, 0
         args.set = [*args.set, "optimizer.popsize=4", "optimizer.trials=4", "optimizer.max_generations=2",
                     "optimizer.initial_mean_screen=0", "optimizer.stagnation_generations=0",
                     "quality_diversity.emitters=1"]
@@ -246,7 +252,7 @@ def main(argv=None):
         if not full_runs or not args.survivors:
             raise SystemExit(f"--first-look-from needs --survivors and full-budget runs (full-seed-*) in "
                              f"{args.first_look_from}")
-        with evaluation.LocalExecutor(args.workers) as executor:
+        with executor_of(args.workers) as executor:
             print_first_look_agreement(full_runs, evaluation.settings_from_parameters(full_parameters), executor,
                                        args.looks[0], args.survivors, settings.popsize)
         return 0
@@ -259,7 +265,7 @@ def main(argv=None):
     scratch = tempfile.TemporaryDirectory(prefix="bench-racing-")   # removed when main returns
     folder = args.keep or scratch.name
     started = time.perf_counter()
-    with evaluation.LocalExecutor(args.workers) as executor:
+    with executor_of(args.workers) as executor:
         executor.warm()
         for seed in args.seeds:
             row = {"seed": seed}
@@ -321,7 +327,7 @@ def main(argv=None):
     print_what_if(full_runs, settings.popsize, optimization_run.run_settings(full_parameters).optimizer.trials,
                   SMOKE_WHAT_IF_RULES if args.smoke else WHAT_IF_RULES)
     if args.survivors:
-        with evaluation.LocalExecutor(args.workers) as executor:
+        with executor_of(args.workers) as executor:
             print_first_look_agreement(full_runs, evaluation.settings_from_parameters(full_parameters), executor,
                                        args.looks[0], args.survivors, settings.popsize)
     return 0

@@ -26,11 +26,15 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 #: The bench scripts run at their ``--smoke`` size by the README's test command (bench/<name>.py, each
 #: ``main(argv) -> int``), cheapest first. docs/testing.md gives each one's measured time.
 SMOKE = ("bench_bag_writer", "bench_adaptive_plan", "bench_profile_mass", "bench_launch_twin", "verify_early_decision",
-         "bench_pad_size", "bench_optimizer", "bench_bare_breakdown", "bench_truth_sweep", "bench_shape_ceiling")
+         "bench_pad_size", "bench_design_space", "bench_bare_breakdown", "bench_truth_sweep", "bench_optimizer",
+         "bench_estop_latency", "bench_evaluator", "bench_sensitivity", "bench_quality_diversity",
+         "bench_initial_mean_screen", "bench_race_truth", "bench_calibration_direct", "bench_shape_ceiling",
+         "bench_engines", "bench_objective", "bench_racing")
 
-#: The bench scripts whose ``--smoke`` size still takes too long for the README's test command (node graphs in
-#: processes of their own, whole studies): the slow tier runs them (``./scripts/test.sh --slow``).
-SMOKE_SLOW: typing.Tuple[str, ...] = ()
+#: The bench scripts whose ``--smoke`` size still takes too long for the README's test command (node graphs of
+#: several processes each starting rclpy and the package, a learnt likelihood prepared from 240 launches, a whole
+#: miniature study): the slow tier runs them (``./scripts/test.sh --slow``).
+SMOKE_SLOW = ("bench_recorder", "bench_optimizer_node", "bench_calibration", "bench_transfer")
 
 #: What each bench must print at its smoke size: one piece of each line that carries its result (its ratio, table
 #: or verdict), so a bench that stops before its report, or drops a line of it, fails.
@@ -70,16 +74,23 @@ HEADLINES: typing.Dict[str, typing.Tuple[str, ...]] = {
                              "stored candidates identical in all 2 runs: True"),
     "bench_recorder": ("consumer", "bare_callback", "bare_drained", "recorder ", "raw_mcap", "bag_writer",
                        "outcome: recorder/bare_callback = ", "pose: recorder/bare_callback = "),
-    "bench_estop_latency": ("keypress->off ms", "countdown           1   0", "mid-pulse           1   0",
+    "bench_estop_latency": ("keypress->off ms", "ms of the 450 ms pulse",
                             "countdown : keypress->relay off min", "mid-pulse : keypress->relay off min",
                             "e-stops pressed 0.2 s before the fire that let it fire: ", "raw rows: "),
     "bench_transfer": ("localhost discovery (this bench's studies only)", "seed 1: study ", "search: objective",
-                       "campaign on the twin (simulated)", "baseline ", "fresh robust launches on the pybullet twin",
+                       "campaign on the twin (simulated)", "baseline ", "selection (", "transfer: screen vs race round 1",
+                       "fresh robust launches on the pybullet twin",
                        "fresh robust launches on the mujoco twin", "robust sensitivity row (1 trials)",
                        "over seeds (simulated", "A's campaign target met in"),
     "bench_race_truth": ("3 raced elites; bare robot", "  elite label  screen round 1", "screen vs nominal launches: "
                          "Spearman rho", "race round 1 vs nominal launches", "race (pooled) vs nominal launches",
                          "robust vs nominal launches", "nominal launches: A ", "a final round of 2 more robust"),
+    "bench_sensitivity": ("baseline   disturbance_scale", "dome       robust", "baseline   robust",
+                          "each design minus the bare chassis per unknown factor", "wrote ", "sensitivity.png"),
+    "bench_calibration": ("preparation: ", "truth 2/2: ", "calibration of 5 unknowns", "coverage robot.com_offset_z_m: ",
+                          "coverage robot.profile_mass_scale: ", "split 95% sets", "learnt P(upright) on these",
+                          "adaptive plan vs the paper's matrix", "rollability calibrate --likelihood, 2 unknowns, "
+                          "launches only", "rollability calibrate --likelihood, 2 unknowns, with the slide angles"),
     "bench_racing": ("the rule, exactly", "successive halving: ", "racing verification (simulated)", "seed 1: full ",
                      "| pooled |", "over seeds (", "raced design's pooled fresh fitness", "what if (",
                      "first look, measured on the full-budget runs"),

@@ -495,7 +495,8 @@ def bench_tier(name):
     for node in parsed(BENCH / "smoke.py").body:
         targets = (node.targets if isinstance(node, ast.Assign)
                    else [node.target] if isinstance(node, ast.AnnAssign) else [])
-        if node.value is not None and any(isinstance(target, ast.Name) and target.id == name for target in targets):
+        if targets and node.value is not None and any(isinstance(target, ast.Name) and target.id == name
+                                                      for target in targets):
             return [bench for bench in ast.literal_eval(node.value) if (BENCH / f"{bench}.py").is_file()
                     and '"--smoke"' in (BENCH / f"{bench}.py").read_text(encoding="utf-8")]
     return []

@@ -231,10 +231,10 @@ def main(argv=None):
     parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers "
                                                              "mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
-    if args.smoke:   # two seeds (the over-seeds interval), two generations of 4 x 4 trials, a look at 2, halving;
-        # in this process
-        args.seeds, args.looks, args.survivors, args.fresh_trials, args.workers = [1, 2], [2], 2, 2, 0
-        args.set = [*args.set, "optimizer.popsize=4", "optimizer.trials=4", "optimizer.max_generations=2",
+    if args.smoke:   # two seeds (the over-seeds interval), two generations of 2 x 4 trials, a look at 2, halving
+        # to one; in this process
+        args.seeds, args.looks, args.survivors, args.fresh_trials, args.workers = [1, 2], [2], 1, 2, 0
+        args.set = [*args.set, "optimizer.popsize=2", "optimizer.trials=4", "optimizer.max_generations=2",
                     "optimizer.initial_mean_screen=0", "optimizer.stagnation_generations=0",
                     "quality_diversity.emitters=1"]
     full_parameters, raced_parameters = run_parameters(args, False), run_parameters(args, True)

@@ -1,7 +1,8 @@
 """The bench scripts run against the package as it is: bench/smoke.py runs each bench once at its ``--smoke`` size
 (tiny inputs, every step and every line of its report; the numbers mean nothing), in one process, and fails
 naming a bench that raised, returned non-zero or did not print one of its headline lines. The README's command
-runs ``SMOKE``, the slow tier ``SMOKE_SLOW``; together they are every script in bench/. mypy checks every bench
+runs ``SMOKE`` in one process, the slow tier each of ``SMOKE_SLOW`` in one of its own; together they are every
+script in bench/. mypy checks every bench
 script too (test/core/test_mypy.py)."""
 import os
 import pathlib
@@ -56,9 +57,11 @@ def test_every_smoke_bench_runs_at_its_tiny_size():
     _runs_every_bench_of(smoke.SMOKE)
 
 
-@pytest.mark.slow   # node graphs in processes of their own and a whole miniature study: minutes on 2 cores
-def test_every_slow_smoke_bench_runs_at_its_tiny_size():
-    _runs_every_bench_of(smoke.SMOKE_SLOW, "--slow")
+@pytest.mark.slow   # node graphs in processes of their own, a learnt likelihood, a miniature study: minutes each
+@pytest.mark.timeout(1500)   # the learnt likelihood's preparation alone took 258 s at load average 19
+@pytest.mark.parametrize("name", smoke.SMOKE_SLOW)
+def test_every_slow_smoke_bench_runs_at_its_tiny_size(name):
+    _runs_every_bench_of([name], name)
 
 
 def test_every_bench_script_is_run_at_its_tiny_size_by_a_tier():

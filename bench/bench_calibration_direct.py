@@ -34,6 +34,7 @@ from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
 from rollability_ros.core.records import LaunchCondition  # noqa: E402
+from rollability_ros.core.sim import launch_twin_settings_from_parameters  # noqa: E402
 
 #: The grouped conditions launched (configuration, height m, speed m/s, angle deg).
 CONDITIONS = (("baseline", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 30.0),
@@ -50,7 +51,7 @@ MIRRORED_CONDITIONS = (("dome", 0.75, 0.8, -30.0), ("dome", 0.75, 0.8, 30.0), ("
 CONDITIONS_FOR = {"launch_twin.plate.yaw_bias_deg": MIRRORED_CONDITIONS}
 
 
-def coverage(args, parameters, default_conditions=CONDITIONS):
+def coverage(args, parameters, twin, default_conditions=CONDITIONS):
     """The coverage bench (module docstring); prints one line per truth and the coverage per parameter."""
     import numpy as np
 
@@ -71,13 +72,13 @@ def coverage(args, parameters, default_conditions=CONDITIONS):
             grouped = None
             covered, covered_interpolated, widths = 0, 0, []
             for number, truth in enumerate(truths):
-                outcomes = synthetic_outcomes(parameters, [name], [truth], conditions, args.repetitions,
+                outcomes = synthetic_outcomes(twin, [name], [truth], conditions, args.repetitions,
                                                           first_seed=1_000_000 + 1000 * number)
                 physical = analysis.group_conditions(outcomes)
                 if grouped is None:
-                    grouped = calibration.predicted_on_grid(physical, parameters, settings, pool,
+                    grouped = calibration.predicted_on_grid(physical, twin, settings, pool,
                                                             [parameters[name]], 0)
-                grid, curve = calibration.likelihood_profile(physical, parameters, settings, pool,
+                grid, curve = calibration.likelihood_profile(physical, twin, settings, pool,
                                                             [parameters[name]], 0, grouped)
                 interval = calibration.likelihood_interval(grid, curve)
                 interpolated = calibration.likelihood_interval(grid, curve, ends="interpolate")
@@ -126,7 +127,7 @@ def main(argv=None):
             parameters = load_parameters(list(calibration.TWIN_CONFIGS))
             parameters.update({"launch_twin.designs.mesh_labels": ["dome"],
                                "launch_twin.designs.mesh_files": [stl]})
-            coverage(args, parameters, conditions)
+            coverage(args, parameters, launch_twin_settings_from_parameters(parameters), conditions)
         if not args.smoke:
             return 0
     names, truth = ["robot.com_offset_z_m"], [0.006]
@@ -140,8 +141,8 @@ def main(argv=None):
         parameters = load_parameters(list(calibration.TWIN_CONFIGS))
         parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
         started = time.perf_counter()
-        outcomes = synthetic_outcomes(parameters, names, truth,
-                                      [LaunchCondition(*c) for c in conditions], args.repetitions)
+        twin = launch_twin_settings_from_parameters(parameters)
+        outcomes = synthetic_outcomes(twin, names, truth, [LaunchCondition(*c) for c in conditions], args.repetitions)
         print(f"synthetic outcomes: {len(outcomes)} launches in {time.perf_counter() - started:.1f} s")
         settings = calibration.CalibrationSettings(
             parameters=names, lower=lower, upper=upper, log_scale=log_scale, sim_repetitions=args.sim_repetitions,
@@ -149,7 +150,7 @@ def main(argv=None):
             interval_points=args.interval_points)
         started = time.perf_counter()
         with calibration.LaunchPool(args.workers or None) as pool:
-            result = calibration.calibrate(outcomes, parameters, settings, pool, on_progress=print)
+            result = calibration.calibrate(outcomes, twin, settings, pool, on_progress=print)
         wall_s = time.perf_counter() - started
     launches = result.evaluations * len(result.conditions) * settings.sim_repetitions
     print(f"calibration: {result.evaluations} parameter sets, {launches} launches, {wall_s:.0f} s "

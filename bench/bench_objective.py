@@ -44,7 +44,7 @@ from rollability_ros.core.optimization import batch_evaluation, run_directory  #
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
 from rollability_ros.core.records import LaunchCondition  # noqa: E402
 from rollability_ros.core.stats import newcombe_interval  # noqa: E402
-from rollability_ros.core.sim import evaluation  # noqa: E402
+from rollability_ros.core.sim import evaluation, launch_twin_settings_from_parameters  # noqa: E402
 
 CAMPAIGN = {"/**": {"ros__parameters": {"campaign": {"heights_m": [0.75], "speeds_mps": [0.8, 1.5],
                                                      "angles_deg": [-30.0, 30.0]}}}}
@@ -112,13 +112,14 @@ def main(argv=None):
         parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
         uncalibrated_value = parameters[args.parameter]
         conditions = [LaunchCondition("baseline", 0.75, 0.8, 0.0), LaunchCondition("dome", 0.75, 0.8, 0.0)]
-        outcomes = synthetic_outcomes(parameters, [args.parameter], [args.truth], conditions, physical)
+        uncalibrated = launch_twin_settings_from_parameters(parameters)
+        outcomes = synthetic_outcomes(uncalibrated, [args.parameter], [args.truth], conditions, physical)
         settings = calibration.CalibrationSettings(parameters=[args.parameter], lower=[lower], upper=[upper],
                                                    log_scale=[log_scale], sim_repetitions=repetitions,
                                                    popsize=fit_popsize, max_generations=fit_generations,
                                                    bootstrap_resamples=0)
         with calibration.LaunchPool(args.workers or 1) as pool:   # 1: in this process
-            fitted = calibration.calibrate(outcomes, parameters, settings, pool).estimates[0].fitted
+            fitted = calibration.calibrate(outcomes, uncalibrated, settings, pool).estimates[0].fitted
         calibrated = os.path.join(folder, "calibrated.yaml")
         with open(calibrated, "w", encoding="utf-8") as stream:
             yaml.safe_dump(calibration.calibrated_parameter_document({args.parameter: fitted}), stream)

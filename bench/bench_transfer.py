@@ -2,9 +2,8 @@
 
     nice python bench/bench_transfer.py [--seeds 1 2 3] [--robust-launches 100] [--sensitivity-trials 0]
                                         [--worlds 20] [--launches-per-world 40] [--world-engine ENGINE]
-                                        [--out transfer-bench] [--config FILE ...]
+                                        [--out transfer-bench] [--config FILE ...] [--smoke]
     nice python bench/bench_transfer.py --designs designs.yaml [...]   # no study: the checks of existing designs
-    python bench/bench_transfer.py --smoke                             # every step at a tiny size, seconds
 
 For each seed: ``rollability study`` (the node graph, quick default, all simulated) with ``optimizer.seed`` set to
 it (any ``--config`` files are added, e.g. ``paper``), timed; then, from the study's stores and files:
@@ -32,14 +31,16 @@ it (any ``--config`` files are added, e.g. ``paper``), timed; then, from the stu
 Then the same over seeds: how many seeds meet each target and the pooled campaign gain of A. All numbers are
 simulated. Every study stays in ``--out/seed-<n>/`` for inspection. ``--designs FILE`` runs no study: the robust
 launches and the world check of an existing designs file (``engine_agreement.csv`` and ``world-check-*/`` are
-written beside it; an earlier result there is read, not measured again). ``--smoke`` writes a one-design file into
-``--out`` and runs those two steps with 2 launches, 2 worlds x 2 launches (the numbers mean nothing).
+written beside it; an earlier result there is read, not measured again). ``--smoke``: one seed of the end-to-end
+test's miniature study (test/resources/mini_study.yaml), two robust launches, one sensitivity trial, a world check
+of 2 worlds x 2 launches, in a temporary folder (the numbers mean nothing).
 """
 import argparse
 import csv
 import os
 import subprocess
 import sys
+import tempfile
 import time
 import typing
 
@@ -47,7 +48,6 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import yaml  # noqa: E402
 
-from rollability_ros.core.graph import claim_domain  # noqa: E402
 from rollability_ros.core.results import design_map  # noqa: E402
 from rollability_ros.core.stats import newcombe_interval  # noqa: E402
 from rollability_ros.core.store import Store  # noqa: E402
@@ -217,26 +217,6 @@ def print_robust_launches(engines, launches, elapsed):
     return engine_lows
 
 
-def smoke_designs(out):
-    """A designs.yaml of one design (a ramp on a 3 x 3 grid) in ``out`` for ``--smoke``; its path."""
-    import numpy as np
-
-    from rollability_ros.core.optimization.design_set import designs_document
-    from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, SelectionResult
-    from rollability_ros.core.profile.geometry import ProfileGrid
-
-    folder = os.path.join(out, "smoke-designs")
-    os.makedirs(folder, exist_ok=True)
-    no_solid: typing.Any = None   # designs.yaml holds the heights only: no mesh, no metrics
-    chosen = [SelectedDesign("A", PooledDesign(np.repeat(np.linspace(0.05, 0.3, 3), 3), 9, 10, 1, 1), no_solid,
-                             no_solid)]
-    path = os.path.join(folder, "designs.yaml")
-    with open(path, "w", encoding="utf-8") as stream:
-        yaml.safe_dump(designs_document(SelectionResult(chosen, 1, 1, {}), ProfileGrid(rows=3, cols=3), "smoke"),
-                       stream)
-    return path
-
-
 def designs_checks(designs_file, args):
     """The robust launches and the world check of ``designs_file`` (``--designs`` / ``--smoke``), printed."""
     load = os.getloadavg()
@@ -273,23 +253,24 @@ def main(argv=None):
     parser.add_argument("--world-engine", default="", help="engine of the world check (default: the launch engine)")
     parser.add_argument("--workers", type=int, default=2, help="worker processes of the checks")
     parser.add_argument("--designs", metavar="FILE", help="no study: check this designs.yaml (module docstring)")
-    parser.add_argument("--smoke", action="store_true",
-                        help="tiny sizes, no study: each check once, in seconds; the numbers mean nothing")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: one seed of the miniature study, each "
+                        "measurement once; the numbers mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
-    out = os.path.abspath(args.out)
+    scratch = tempfile.TemporaryDirectory(prefix="bench-transfer-")   # ROS logs (and --smoke's studies)
     if args.smoke:
-        args.robust_launches, args.worlds, args.launches_per_world, args.workers = 2, 2, 2, 1
-        os.makedirs(out, exist_ok=True)
-        return designs_checks(smoke_designs(out), args)
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        args.seeds, args.robust_launches, args.sensitivity_trials = [1], 2, 1
+        args.worlds, args.launches_per_world, args.workers = 2, 2, 1
+        args.out = os.path.join(scratch.name, "transfer-bench")
+        args.config = [os.path.join(root, "test", "resources", "mini_study.yaml"), *args.config]
+    out = os.path.abspath(args.out)
     if args.designs:
         return designs_checks(os.path.abspath(args.designs), args)
     # studies in one DDS domain talk to each other's nodes: this bench's own domain, clear of the tests' 20..100
-    domain, _lock = claim_domain(101, 200)
-    os.environ["ROS_DOMAIN_ID"] = str(domain)   # the studies' nodes inherit it
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.pop("ROS_STATIC_PEERS", None)
-    os.environ.pop("ROS_LOCALHOST_ONLY", None)
-    print(f"ROS_DOMAIN_ID {domain}, localhost discovery (this bench's studies only)", flush=True)
+    from bench.smoke import isolated_ros
+
+    _lock = isolated_ros(scratch.name)   # the studies' nodes inherit it, and a folder for their ROS logs
+    print(f"ROS_DOMAIN_ID {os.environ['ROS_DOMAIN_ID']}, localhost discovery (this bench's studies only)", flush=True)
     summary = []
     for seed in args.seeds:
         study_dir, elapsed, load, cpu = run_study(out, seed, args.config)

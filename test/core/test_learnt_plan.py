@@ -1,0 +1,77 @@
+"""Which launch next from a learnt likelihood (core/campaign/learnt_plan.py): the weights are the calibration's own
+likelihood, the continuous outcomes add information the verdict alone does not carry, and the table refuses
+conditions the likelihood was not learnt on. The networks are test_learnt_likelihood's hand-built ones (a known
+model: P(upright) moves with unknown a, the gate's reading with unknown b)."""
+import math
+
+import numpy as np
+import pytest
+
+from rollability_ros.core.campaign import likelihood as learnt
+from rollability_ros.core.campaign.learnt_plan import LearntTable, OutcomePosterior
+from rollability_ros.core.records import INVALID_LAUNCH, LaunchCondition, LaunchOutcome
+
+from test_learnt_likelihood import CONFIGURATIONS, LEVELS, UNKNOWNS, model, simulate
+
+CANDIDATES = [LaunchCondition(c, h, v, a) for c in CONFIGURATIONS for h in LEVELS.heights_m
+              for v in LEVELS.speeds_mps for a in LEVELS.angles_deg]
+
+
+def test_the_weights_are_the_calibrations_likelihood_of_verdicts_and_outcomes():
+    likelihood = model()
+    table = LearntTable(likelihood, CANDIDATES)
+    assert table.outcomes == ("measured_speed_mps",)
+    posterior = OutcomePosterior.from_prior(table, 300, np.random.default_rng(0), renew=False)
+    rng = np.random.default_rng(1)
+    cells = [(c.configuration, c.height_m, c.speed_mps, c.angle_deg) for c in CANDIDATES[::5]]
+    observations = simulate((0.7, 0.3), cells, rng)
+    for o in observations:
+        index = posterior.candidate_index(LaunchCondition(o.configuration, o.height_m, o.speed_mps, o.angle_deg))
+        posterior.observe_launch(index, o.upright, table.transformed(index, o.outcomes))
+    expected = likelihood.log_likelihood(UNKNOWNS.to_normalised(posterior.samples), observations)
+    floor = learnt.PROBABILITY_FLOOR   # the two clip P(upright) alike
+    assert floor > 1e-3
+    assert np.allclose(posterior.log_weights - posterior.log_weights.max(), expected - expected.max(), atol=1e-9)
+
+
+def test_continuous_outcomes_teach_what_the_verdict_cannot_and_the_score_says_so():
+    """b moves only the gate's reading: verdicts alone leave b at its prior width; with the reading, the score of
+    every launch is above the verdict-only BALD score and 12 launches pin b to a fraction of its range."""
+    likelihood = model()
+    candidates = CANDIDATES[:12]   # one configuration: enough to separate a and b, and cheap
+    with_outcomes = OutcomePosterior.from_prior(LearntTable(likelihood, candidates), 400, np.random.default_rng(0),
+                                                draws=16)
+    verdicts = OutcomePosterior.from_prior(LearntTable(likelihood, candidates, outcomes=()), 400,
+                                           np.random.default_rng(0))
+    assert np.all(with_outcomes.scores() > verdicts.scores() + 0.5)   # the reading is worth more than a nat here
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        for posterior in (with_outcomes, verdicts):
+            index = int(np.argmax(posterior.scores()))
+            c = candidates[index]
+            o, = simulate((0.7, 0.3), [(c.configuration, c.height_m, c.speed_mps, c.angle_deg)], rng)
+            posterior.observe_launch(index, o.upright, posterior.table.transformed(index, o.outcomes))
+    assert with_outcomes.normalised_widths()[1] < 0.15 < 0.8 < verdicts.normalised_widths()[1]
+    low, high = with_outcomes.intervals()[1]
+    assert low <= UNKNOWNS.to_values([[0.7, 0.3]])[0, 1] <= high
+
+
+def test_stored_outcomes_enter_with_their_readings_and_off_matrix_conditions_are_refused():
+    likelihood = model()
+    table = LearntTable(likelihood, CANDIDATES)
+    posterior = OutcomePosterior.from_prior(table, 200, np.random.default_rng(0), renew=False)
+    condition = CANDIDATES[3]
+    stored = [LaunchOutcome("r", "t0", condition, "physical", True, measured_speed_mps=condition.speed_mps,
+                            classified_by="imu"),
+              LaunchOutcome("r", "t1", condition, "physical", False, note=f"{INVALID_LAUNCH}: misfire")]
+    assert posterior.observe_outcomes(stored) == 1
+    index = CANDIDATES.index(condition)
+    expected = likelihood.log_likelihood(UNKNOWNS.to_normalised(posterior.samples), learnt.observations_from_outcomes(
+        stored[:1]))
+    assert np.allclose(posterior.log_weights - posterior.log_weights.max(), expected - expected.max())
+    assert posterior._trials[index] == 1
+    with pytest.raises(ValueError, match="not one of the levels"):
+        LearntTable(likelihood, [LaunchCondition("A", 0.9, 0.8, 0.0)])
+    with pytest.raises(ValueError, match="configuration 'Z'"):
+        LearntTable(likelihood, [LaunchCondition("Z", 0.75, 0.8, 0.0)])
+    assert math.isnan(table.transformed(0, {})[0])

@@ -75,3 +75,46 @@ def test_stored_outcomes_enter_with_their_readings_and_off_matrix_conditions_are
     with pytest.raises(ValueError, match="configuration 'Z'"):
         LearntTable(likelihood, [LaunchCondition("Z", 0.75, 0.8, 0.0)])
     assert math.isnan(table.transformed(0, {})[0])
+
+
+def test_propose_next_from_a_prepared_likelihood_and_bad_files_refused_in_one_line(tmp_path, capsys):
+    """`rollability campaign --propose-next --likelihood FILE`: the stored launch (verdict and gate reading) weighs
+    the samples and the launch is proposed; a damaged file, one prepared for another twin, one whose levels miss the
+    campaign's, and --fit beside it are each refused in one line, with nothing stored."""
+    from rollability_ros.cli import main
+    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.store import Store
+
+    from test_adaptive import _tiny_campaign
+
+    names = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")
+    unknowns = type(UNKNOWNS)(names, (-0.019, 0.3), (0.015, 3.0), (False, True))
+    fingerprint = learnt.twin_fingerprint(load_parameters([*calibration.TWIN_CONFIGS, "calibration"]), names)
+    good, other_levels = tmp_path / "good.npz", tmp_path / "levels.npz"
+    model(unknowns, ("baseline",), learnt.ConditionLevels((0.75, 1.3), (0.8,), (0.0,)), fingerprint).save(good)
+    model(unknowns, ("baseline",), learnt.ConditionLevels((0.75, 1.3), (1.5,), (0.0,)), fingerprint).save(other_levels)
+    config, store_file = _tiny_campaign(tmp_path), tmp_path / "s.sqlite"
+    with Store(store_file) as store:
+        store.add_launch_outcome(LaunchOutcome("tiny", "t0", LaunchCondition("baseline", 1.3, 0.8, 0.0), "physical",
+                                               True, measured_speed_mps=0.79, classified_by="imu"))
+    command = ["campaign", "--backend", "physical", "--config", config, "--store", str(store_file),
+               "--propose-next", "--prior-samples", "200"]
+    assert main([*command, "--likelihood", str(good)]) == 0
+    out = capsys.readouterr().out
+    assert "the learnt likelihood" in out and "verdicts and measured_speed_mps" in out
+    assert "weighed by 1 stored launches of run tiny" in out and "next launch: baseline at " in out
+    assert "unknown launch_twin.foam.lateral_friction: 95% of the weighted samples in [" in out
+    broken = tmp_path / "broken.npz"
+    broken.write_bytes(b"PK\x03\x04 not an archive")
+    other = tmp_path / "other.yaml"
+    other.write_text("/**:\n  ros__parameters:\n    launch_twin:\n      foam:\n        restitution: 0.2\n")
+    for extra, message in ((["--likelihood", str(broken)], "not a prepared likelihood file"),
+                           (["--likelihood", str(good), "--twin-config", str(other)], "prepared for another twin"),
+                           (["--likelihood", str(other_levels)], "launch speed 0.8 is not one of the levels"),
+                           (["--likelihood", str(good), "--fit", names[0]], "--fit is for the twin's predictions")):
+        assert main([*command, *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and len(err.splitlines()) == 1, err
+    with Store(store_file) as store:
+        assert len(store.launch_outcomes()) == 1

@@ -205,7 +205,7 @@ def _tiny_campaign(tmp_path):
     (["--stop-when-decided", "baseline"], "two different configurations"),
     (["--plan", "adaptive", "--graph"], "run in process"),
     (["--propose-next", "--prior-samples", "1"], "--prior-samples must be >= 2"),
-    (["--fit", "robot.com_offset_z_m"], "--fit, --twin-config and --about are for --plan adaptive"),
+    (["--fit", "robot.com_offset_z_m"], "--fit, --twin-config, --likelihood and --about are for --plan adaptive"),
     (["--propose-next", "--about", "baseline,Q"], "--about: Q not in campaign.configurations"),
     (["--stop-when-decided", "baseline,baseline", "--alpha", "nan"], "two different"),
     (["--alpha", "0.7"], "--alpha must be in"),

@@ -118,3 +118,30 @@ def test_propose_next_from_a_prepared_likelihood_and_bad_files_refused_in_one_li
         assert message in err and len(err.splitlines()) == 1, err
     with Store(store_file) as store:
         assert len(store.launch_outcomes()) == 1
+
+
+@pytest.mark.slow
+def test_an_adaptive_campaign_on_the_twin_proposes_each_launch_from_the_learnt_likelihood(tmp_path, capsys):
+    """`rollability campaign --plan adaptive --likelihood FILE` on the twin rig: two launches, each proposed from the
+    hand-built likelihood after the previous one (with its gate reading) is stored."""
+    pytest.importorskip("pybullet")
+    from rollability_ros.cli import main
+    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.store import Store
+
+    from test_adaptive import _tiny_campaign
+
+    names = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")
+    unknowns = type(UNKNOWNS)(names, (-0.019, 0.3), (0.015, 3.0), (False, True))
+    fingerprint = learnt.twin_fingerprint(load_parameters([*calibration.TWIN_CONFIGS, "calibration"]), names)
+    good = tmp_path / "good.npz"
+    model(unknowns, ("baseline",), learnt.ConditionLevels((0.75, 1.3), (0.8,), (0.0,)), fingerprint).save(good)
+    store_file = tmp_path / "s.sqlite"
+    assert main(["campaign", "--backend", "sim", "--config", _tiny_campaign(tmp_path), "--store", str(store_file),
+                 "--plan", "adaptive", "--budget", "2", "--prior-samples", "200", "--likelihood", str(good)]) == 0
+    out = capsys.readouterr().out
+    assert "the learnt likelihood" in out and out.count("next launch: baseline at ") == 2
+    with Store(store_file) as store:
+        stored = store.launch_outcomes("tiny")
+    assert len(stored) == 2 and all(math.isfinite(o.measured_speed_mps) for o in stored)

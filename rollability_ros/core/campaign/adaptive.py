@@ -290,6 +290,11 @@ class WeightedPosterior:
         self.launches += 1
         self._after_observing()
 
+    def observe_launch(self, index: int, upright: bool, values: typing.Optional[npt.ArrayLike] = None) -> None:
+        """One launch at candidate ``index``; ``values``, the continuous outcomes of a likelihood that has them
+        (:class:`~rollability_ros.core.campaign.learnt_plan.OutcomePosterior`), are not used by the verdict's."""
+        self.observe(index, upright)
+
     def observe_counts(self, index: int, successes: int, trials: int) -> None:
         """Weigh the samples by ``successes`` upright of ``trials`` launches at candidate ``index``."""
         if not 0 <= successes <= trials:

@@ -42,7 +42,7 @@ from rollability_ros.core.campaign import adaptive, plan_comparison  # noqa: E40
 def run(predictor: typing.Union[adaptive.UprightPredictor, adaptive.PerLaunchPredictor],
         unknowns: adaptive.HasBounds, candidates: typing.Sequence[adaptive.LaunchCondition], truths: int,
         matrix_launches: int, samples: int, seed: int = 2026, say: typing.Callable[[str], None] = print,
-        renew: bool = True) -> typing.List[plan_comparison.MatchedWidths]:
+        renew: bool = True, acquisition: str = "joint") -> typing.List[plan_comparison.MatchedWidths]:
     """Print and return the matrix-vs-adaptive comparison (:func:`plan_comparison.adaptive_to_match_matrix`); ``renew``:
     renew the samples as the posterior narrows (asks the predictor again: for a cheap one, not the twin's)."""
     import numpy as np
@@ -52,7 +52,7 @@ def run(predictor: typing.Union[adaptive.UprightPredictor, adaptive.PerLaunchPre
                                         if isinstance(predictor, adaptive.PerLaunchPredictor) else predictor)
     started = time.perf_counter()
     results = plan_comparison.adaptive_to_match_matrix(bounds, table, candidates, truths, matrix_launches, samples,
-                                                       seed, renew=renew)
+                                                       seed, renew=renew, acquisition=acquisition)
     for i, r in enumerate(results):
         needed = f"{r.adaptive_launches}" if r.adaptive_launches is not None else f">{matrix_launches}"
         say(f"truth {i}: matrix {matrix_launches} launches -> widths "
@@ -72,7 +72,7 @@ def load() -> str:
 
 
 def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed: int, outcomes: str,
-               draws: int) -> typing.List[plan_comparison.MatchedWidths]:
+               draws: int, acquisition: str = "joint") -> typing.List[plan_comparison.MatchedWidths]:
     """``--learnt FILE`` (module docstring): print each truth as it finishes, then the median."""
     import numpy as np
 
@@ -88,7 +88,7 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
     print(f"learnt likelihood {os.path.basename(path)} ({likelihood.info.get('training_launches', '?')} training "
           f"launches); unknowns {', '.join(likelihood.unknowns.names)}; {len(candidates)} grouped conditions; "
           f"outcomes: verdict{''.join(', ' + n for n in table.outcomes)}; {truths} truths from the prior; {samples} "
-          f"prior samples (renewed); outcomes drawn from the learnt model at each truth; simulated", flush=True)
+          f"prior samples (renewed); {acquisition} acquisition; outcomes drawn from the learnt model at each truth; simulated", flush=True)
     started = time.perf_counter()
 
     def say(t: int, r: plan_comparison.MatchedWidths) -> None:
@@ -97,7 +97,7 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
               + f" (ESS {r.matrix_ess:.0f}); adaptive reaches them in {needed} launches (ESS {r.adaptive_ess:.0f}) "
               f"[{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
     _, results = plan_comparison.learnt_to_match_matrix(table, truths, matrix_launches, samples, seed, draws=draws,
-                                                        on_truth=say)
+                                                        acquisition=acquisition, on_truth=say)
     counts = [r.adaptive_launches if r.adaptive_launches is not None else np.inf for r in results]
     median = float(np.median(counts))
     print(f"median launches to the matrix's widths: adaptive {median:g} against matrix {matrix_launches} "
@@ -121,6 +121,9 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
                         help="with --learnt: all (default), none (verdicts only) or NAME,NAME of the continuous outcomes")
     parser.add_argument("--draws", type=int, default=32,
                         help="with --learnt: Monte Carlo outcomes per candidate of the expected information")
+    parser.add_argument("--acquisition", choices=plan_comparison.ACQUISITIONS, default="targeted",
+                        help="the adaptive plan's score: joint = the expected information about all the unknowns "
+                             "(BALD); targeted = about the unknown farthest from the width to reach (default)")
     parser.add_argument("--truths", type=int, default=10)
     parser.add_argument("--unknowns", type=int, default=4,
                         help="the first N of calibration.parameters' shipped order after the two of "
@@ -141,7 +144,8 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     if args.smoke:
         args.truths, args.unknowns, args.samples, args.matrix_launches = 1, 2, 200, 40
     if args.learnt:
-        run_learnt(args.learnt, args.truths, args.matrix_launches, args.samples, args.seed, args.outcomes, args.draws)
+        run_learnt(args.learnt, args.truths, args.matrix_launches, args.samples, args.seed, args.outcomes, args.draws,
+                   args.acquisition)
         return 0
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration.calibration_settings(parameters)
@@ -150,11 +154,11 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     unknowns = adaptive.Unknowns.from_settings(settings)
     spec = load_campaign_spec(["campaign"])
     candidates = adaptive.candidate_conditions(spec.configurations, spec.heights_m, spec.speeds_mps, spec.angles_deg)
-    print(f"{args.likelihood} likelihood; unknowns {', '.join(unknowns.names)}; {len(candidates)} grouped conditions; "
+    print(f"{args.likelihood} likelihood, {args.acquisition} acquisition; unknowns {', '.join(unknowns.names)}; {len(candidates)} grouped conditions; "
           f"{args.truths} truths from the prior; {args.samples} prior samples; simulated")
     if args.likelihood == "toy":
         run(adaptive.LogisticToyPredictor(unknowns, seed=args.seed), unknowns, candidates, args.truths,
-            args.matrix_launches, args.samples, args.seed)
+            args.matrix_launches, args.samples, args.seed, acquisition=args.acquisition)
         return 0
     with calibration.LaunchPool(args.workers) as pool:
         predictor = adaptive.TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
@@ -164,7 +168,8 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
                               conditions: typing.Sequence[adaptive.LaunchCondition]) -> np.ndarray:
                 return predictor.probabilities(np.asarray(theta), conditions)
         # no renewal: each would launch samples x 80 x repetitions again; watch the effective sample sizes printed
-        run(Cached(), unknowns, candidates, args.truths, args.matrix_launches, args.samples, args.seed, renew=False)
+        run(Cached(), unknowns, candidates, args.truths, args.matrix_launches, args.samples, args.seed, renew=False,
+            acquisition=args.acquisition)
     return 0
 
 

@@ -145,3 +145,13 @@ def test_an_adaptive_campaign_on_the_twin_proposes_each_launch_from_the_learnt_l
     with Store(store_file) as store:
         stored = store.launch_outcomes("tiny")
     assert len(stored) == 2 and all(math.isfinite(o.measured_speed_mps) for o in stored)
+
+
+def test_the_estimated_information_about_groups_is_the_score_when_each_sample_is_its_own_group():
+    posterior = OutcomePosterior.from_prior(LearntTable(model(), CANDIDATES[:6]), 300, np.random.default_rng(0))
+    assert np.allclose(posterior.group_scores(np.arange(300)), posterior.scores())
+    one_group = posterior.group_scores(np.zeros(300, dtype=int))
+    assert np.allclose(one_group, 0.0)   # knowing that the truth is among the samples teaches nothing
+    # the gate's reading moves with b only: information about b's bins is most of the information there is
+    about_b = posterior.unknown_scores(1)
+    assert np.all(about_b > 0.5 * posterior.scores()) and np.all(about_b > posterior.unknown_scores(0))

@@ -244,6 +244,17 @@ class OutcomePosterior(WeightedPosterior):
         (module docstring); the exact BALD score when the table has no continuous outcome."""
         if not self.table.outcomes:
             return super().scores()
+        return self._estimated_scores(None)
+
+    def group_scores(self, groups: npt.ArrayLike) -> np.ndarray:
+        """:meth:`WeightedPosterior.group_scores` over verdict and outcomes (estimated as :meth:`scores`)."""
+        if not self.table.outcomes:
+            return super().group_scores(groups)
+        return self._estimated_scores(np.asarray(groups))
+
+    def _estimated_scores(self, groups: typing.Optional[np.ndarray]) -> np.ndarray:
+        """I(y; group of theta) (c,) by nested Monte Carlo; ``groups`` None: each sample its own group (I(y; theta)):
+        mean_m [log p(y_m | g_m) - log p(y_m)], p(y | g) the group's weighted mixture."""
         w = self.weights
         log_w = np.log(np.maximum(w, 1e-300))
         rng = np.random.default_rng([self.launches, self.renewals, 7])   # common numbers across the candidates
@@ -262,5 +273,12 @@ class OutcomePosterior(WeightedPosterior):
             scale = self._scale[:, c][:, slot].transpose(1, 0, 2)
             log_f = verdict + _student_t_log_pdf(y[:, None, :], location, scale).sum(axis=2)    # (m, n)
             mixture = np.logaddexp.reduce(log_f + log_w[None, :], axis=1)
-            scores[c] = float(np.mean(log_f[np.arange(m), picks] - mixture))
+            if groups is None:
+                conditional = log_f[np.arange(m), picks]
+            else:
+                same = groups[None, :] == groups[picks][:, None]                                  # (m, n)
+                weighted = np.where(same, log_f + log_w[None, :], -np.inf)
+                mass = np.array([w[groups == groups[i]].sum() for i in picks])
+                conditional = np.logaddexp.reduce(weighted, axis=1) - np.log(mass)
+            scores[c] = float(np.mean(conditional - mixture))
         return np.maximum(scores, 0.0)

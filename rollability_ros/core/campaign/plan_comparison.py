@@ -123,13 +123,21 @@ class MatchedWidths:
 Launcher = typing.Callable[[int, np.random.Generator], typing.Tuple[bool, typing.Optional[np.ndarray]]]
 
 
+#: The adaptive plan's choice in the comparison: ``joint`` the expected information about all the unknowns
+#: (:meth:`~WeightedPosterior.scores`); ``targeted`` about the unknown farthest from the width to reach
+#: (:meth:`~WeightedPosterior.targeted_scores`, the matrix's widths as the targets).
+ACQUISITIONS = ("joint", "targeted")
+
+
 def match_matrix_on_truth(make_posterior: typing.Callable[[int], WeightedPosterior], launch: Launcher,
                           matrix_launches: int, seed: typing.Sequence[int], level: float = 0.95,
-                          budget: typing.Optional[int] = None) -> MatchedWidths:
+                          budget: typing.Optional[int] = None, acquisition: str = "joint") -> MatchedWidths:
     """One truth of :func:`adaptive_to_match_matrix`: the matrix's ``matrix_launches`` (every candidate once per
-    shuffled round) on a fresh ``make_posterior(0)``, then the adaptive plan (the highest :meth:`~WeightedPosterior.
-    scores` each time) on a fresh ``make_posterior(1)`` until each unknown's width is at most the matrix's or
-    ``budget`` launches (default ``matrix_launches``); ``launch`` draws the truth's outcomes."""
+    shuffled round) on a fresh ``make_posterior(0)``, then the adaptive plan (the highest score of ``acquisition``,
+    :data:`ACQUISITIONS`, each time) on a fresh ``make_posterior(1)`` until each unknown's width is at most the
+    matrix's or ``budget`` launches (default ``matrix_launches``); ``launch`` draws the truth's outcomes."""
+    if acquisition not in ACQUISITIONS:
+        raise ValueError(f"acquisition must be one of {', '.join(ACQUISITIONS)}, got {acquisition!r}")
     matrix = make_posterior(0)
     order: typing.List[int] = []
     rng = np.random.default_rng([*seed, 0])
@@ -143,7 +151,8 @@ def match_matrix_on_truth(make_posterior: typing.Callable[[int], WeightedPosteri
     outcome_rng = np.random.default_rng([*seed, 1])
     reached = None
     for number in range(1, (budget or matrix_launches) + 1):
-        index = int(np.argmax(adaptive.scores()))
+        scores = adaptive.scores() if acquisition == "joint" else adaptive.targeted_scores(widths, level)
+        index = int(np.argmax(scores))
         adaptive.observe_launch(index, *launch(index, outcome_rng))
         if np.all(adaptive.normalised_widths(level) <= widths):
             reached = number
@@ -155,7 +164,8 @@ def match_matrix_on_truth(make_posterior: typing.Callable[[int], WeightedPosteri
 def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
                              candidates: typing.Sequence[LaunchCondition], truths: int, matrix_launches: int,
                              samples: int, seed: int = 0, level: float = 0.95,
-                             budget: typing.Optional[int] = None, renew: bool = True) -> typing.List[MatchedWidths]:
+                             budget: typing.Optional[int] = None, renew: bool = True,
+                             acquisition: str = "joint") -> typing.List[MatchedWidths]:
     """Issue 44's comparison: on ``truths`` hidden truths drawn from the prior, the paper's matrix launches
     ``matrix_launches`` times (every candidate once per shuffled round: 400 = the 80 grouped conditions x 5); the
     adaptive plan then launches on the same truth, from the same prior draws, until each unknown's interval is at
@@ -174,12 +184,13 @@ def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
 
         def launch(index: int, outcome_rng: np.random.Generator, t: int = t) -> typing.Tuple[bool, None]:
             return bool(outcome_rng.random() < truth_table[t][index]), None
-        results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget))
+        results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition))
     return results
 
 
 def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: int, samples: int, seed: int = 0,
                            level: float = 0.95, budget: typing.Optional[int] = None, draws: int = 32,
+                           acquisition: str = "joint",
                            on_truth: typing.Optional[typing.Callable[[int, MatchedWidths], None]] = None
                            ) -> typing.Tuple[np.ndarray, typing.List[MatchedWidths]]:
     """:func:`adaptive_to_match_matrix` on a learnt likelihood's table
@@ -201,7 +212,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
         def launch(index: int, outcome_rng: np.random.Generator,
                    t: int = t) -> typing.Tuple[bool, typing.Optional[np.ndarray]]:
             return table.draw(hidden[t], index, outcome_rng)
-        results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget))
+        results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition))
         if on_truth is not None:
             on_truth(t, results[-1])
     return hidden, results

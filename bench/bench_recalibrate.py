@@ -96,6 +96,7 @@ def reoptimise_and_validate(args, unknowns, truth, fitted, folder):
     import yaml
 
     from bench.bench_objective import CAMPAIGN, optimize, report_difference
+    from rollability_ros.core.stats import newcombe_interval
     from rollability_ros.core.campaign import calibration
     from rollability_ros.core.sim import evaluation
 
@@ -134,7 +135,10 @@ def reoptimise_and_validate(args, unknowns, truth, fitted, folder):
                   f"[{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
     report_difference("calibrate -> re-optimise -> validate: ", scores["calibrated"], scores["uncalibrated"])
     for label in ("calibrated", "uncalibrated"):
-        report_difference(f"  {label} design against the bare robot: ", scores[label], scores["bare robot"])
+        (k1, n1), (k2, n2) = scores[label], scores["bare robot"]
+        _, low, high = newcombe_interval(k1, n1, k2, n2)
+        print(f"  the {label} design against the bare robot on the truth: {k1}/{n1} - {k2}/{n2} = "
+              f"{k1 / n1 - k2 / n2:+.2f} [{low:+.2f}, {high:+.2f}] (95%, Newcombe)")
     return scores
 
 

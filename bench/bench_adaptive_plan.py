@@ -121,9 +121,9 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
                         help="with --learnt: all (default), none (verdicts only) or NAME,NAME of the continuous outcomes")
     parser.add_argument("--draws", type=int, default=32,
                         help="with --learnt: Monte Carlo outcomes per candidate of the expected information")
-    parser.add_argument("--acquisition", choices=plan_comparison.ACQUISITIONS, default="targeted",
+    parser.add_argument("--acquisition", choices=plan_comparison.ACQUISITIONS, default="joint",
                         help="the adaptive plan's score: joint = the expected information about all the unknowns "
-                             "(BALD); targeted = about the unknown farthest from the width to reach (default)")
+                             "(BALD, default); targeted = about the unknown farthest from the width to reach")
     parser.add_argument("--truths", type=int, default=10)
     parser.add_argument("--unknowns", type=int, default=4,
                         help="the first N of calibration.parameters' shipped order after the two of "

@@ -155,10 +155,10 @@ class OutcomePosterior(WeightedPosterior):
                          moves)
 
     @classmethod
-    def from_prior(cls, table: LearntTable, samples: int, rng: np.random.Generator, **options: typing.Any
-                   ) -> "OutcomePosterior":
+    def from_prior(cls, table: LearntTable, samples: int, rng: np.random.Generator, renew: bool = True,
+                   draws: int = 32) -> "OutcomePosterior":
         """``samples`` prior draws of the likelihood's unknowns (uniform on each one's search scale)."""
-        return cls(table, table.unknowns.draw(samples, rng), rng, **options)
+        return cls(table, table.unknowns.draw(samples, rng), rng, renew, draws)
 
     def _launch_log_likelihood(self, p: np.ndarray, location: np.ndarray, scale: np.ndarray, column: int,
                                upright: bool, values: np.ndarray) -> np.ndarray:

@@ -381,7 +381,8 @@ class WeightedPosterior:
 
     def unknown_groups(self, unknown: int, bins: int = 8) -> np.ndarray:
         """A label per sample (n,): which of ``bins`` weighted-quantile bins of unknown ``unknown`` it falls in."""
-        edges = weighted_quantiles(self.samples[:, unknown], self.weights, np.linspace(0.0, 1.0, bins + 1)[1:-1])
+        quantiles = [float(q) for q in np.linspace(0.0, 1.0, bins + 1)[1:-1]]
+        edges = weighted_quantiles(self.samples[:, unknown], self.weights, quantiles)
         return np.searchsorted(edges, self.samples[:, unknown], side="right")
 
     def unknown_scores(self, unknown: int, bins: int = 8) -> np.ndarray:

@@ -58,8 +58,10 @@ def prepared(args, parameters, unknowns, configurations, levels, folder, pool):
     from bench.bench_calibration import PREPARE_SEED
 
     started = time.perf_counter()
-    training = learnt.simulate_training_set(parameters, unknowns, configurations, levels, args.prepare_launches,
-                                            PREPARE_SEED, pool)
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters
+
+    training = learnt.simulate_training_set(launch_twin_settings_from_parameters(parameters), unknowns, configurations,
+                                            levels, args.prepare_launches, PREPARE_SEED, pool)
     likelihood = learnt.learn(training, unknowns, configurations, levels, fingerprint, on_progress=print)
     path = os.path.join(folder, f"likelihood-{args.prepare_launches}.npz")
     likelihood.save(path)
@@ -79,7 +81,9 @@ def calibrated_values(likelihood, parameters, unknowns, truth, matrix, seed, ste
     print(f"the truth's {len(matrix)} launches ({len(observations)} valid) and characterisation simulated in "
           f"{time.perf_counter() - started:.0f} s [{load()}]", flush=True)
     started = time.perf_counter()
-    extra = sampling.characterisation_term(readings, parameters, unknowns)
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters
+
+    extra = sampling.characterisation_term(readings, launch_twin_settings_from_parameters(parameters), unknowns)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=seed % 1000 + 1, steps=steps)
     fitted = {name: posterior.median(name) for name in unknowns.names}
     print(f"calibration of {len(unknowns.names)} unknowns: {time.perf_counter() - started:.0f} s [{load()}]")

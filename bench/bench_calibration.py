@@ -2,7 +2,7 @@
 widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise -> validate. All simulated.
 
     nice python bench/bench_calibration.py [--prepare-launches 8000] [--truths 50] [--workers 2]
-        [--likelihood FILE] [--keep DIR] [--reoptimize-generations 15] [--skip-reoptimize] [--skip-cli]
+        [--likelihood FILE] [--keep DIR] [--reoptimize-generations 15] [--skip-reoptimize] [--skip-cli] [--smoke]
 
 1. Designs: the bare robot and three profiles (bench_launch_twin's dome, a flat top at the 0.09 m bound and a low
    pyramid: docs/twin-model.md's shapes), as STLs. The unknowns: :data:`UNKNOWNS` (centre of mass, foam friction,
@@ -336,7 +336,7 @@ def reoptimize(likelihood, parameters, unknowns, first, args, folder):
                       scores["uncalibrated"])
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--prepare-launches", type=int, default=8000, help="twin launches of the preparation")
     parser.add_argument("--truths", type=int, default=50, help="hidden truths of the coverage (>= 50 for the claim)")
@@ -349,7 +349,11 @@ def main():
     parser.add_argument("--reoptimize-generations", type=int, default=15)
     parser.add_argument("--reoptimize-seed", type=int, default=3)
     parser.add_argument("--validate", type=int, default=96, help="launches per design on the truth")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="every step at a tiny size (the numbers mean nothing): "
+                        "240 training launches, 2 truths of 20 launches, 20 sampler steps, no re-optimisation")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        args.prepare_launches, args.truths, args.steps, args.skip_reoptimize = 240, 2, 20, True
     from rollability_ros.core.sim import spawn_pool
 
     with tempfile.TemporaryDirectory() as scratch:
@@ -357,6 +361,8 @@ def main():
         os.makedirs(folder, exist_ok=True)
         parameters, unknowns, configurations = bench_parameters(folder)
         levels, matrix = paper_matrix(configurations)
+        if args.smoke:
+            matrix = matrix[::20]
         fingerprint = learnt.twin_fingerprint(parameters, unknowns.names)
         pool = spawn_pool(args.workers)
         try:
@@ -390,7 +396,8 @@ def main():
             cli_check(path, first, unknowns, folder, parameters)
         if not args.skip_reoptimize:
             reoptimize(likelihood, parameters, unknowns, first, args, folder)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

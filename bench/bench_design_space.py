@@ -1,7 +1,7 @@
 """What does each option of the design space buy? Simple profiles under each option, on both measures.
 
     nice python bench/bench_design_space.py [--option NAME=FILE[,FILE...] ...] [--launches 100] [--workers 2]
-                                            [--shapes "H 0.45 a 1.0 b 1.0" ...]
+                                            [--shapes "H 0.45 a 1.0 b 1.0" ...] [--smoke]
 
 An *option* is a set of parameter files laid over the quick study's (``optimizer``): a taller height bound
 (``profile.unit_m``), another print (``robot.profile_print``), another footprint (``profile.length_m`` /
@@ -52,27 +52,32 @@ def printed_mass_g(settings, heights) -> float:
 
 
 def measure(configs, names, launches, workers):
-    """``{measure: {name: (upright, launches)}}`` and ``{name: mass g}`` for ``names`` under ``configs``."""
+    """``{measure: {name: (upright, launches)}}`` and ``{name: mass g}`` for ``names`` under ``configs`` (``workers``
+    0: in this process)."""
     counts, masses = {}, {}
     for label, settings, seed in (("nominal", nominal_settings(configs), NOMINAL_SEED),
                                   ("robust", robust_settings(configs), ROBUST_SEED)):
         family = shapes(settings.grid)
         masses = {name: printed_mass_g(settings, family[name]) for name in names}
-        with evaluation.LocalExecutor(workers) as pool:
+        with evaluation.LocalExecutor(workers) if workers else evaluation.SerialExecutor() as pool:
             evaluate = batch_evaluation.fidelity_batch_evaluator(settings, pool, "screen")
             counts[label] = {name: (int(r[0]), int(r[1])) for name, r in
                              zip(names, evaluate([family[name] for name in names], seed, launches))}
     return counts, masses
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--option", action="append", default=[], metavar="NAME=FILE[,FILE...]",
                         help="an option: parameter files over the quick study's (repeat; default: the shipped one)")
     parser.add_argument("--shapes", nargs="+", default=list(DEFAULT_SHAPES))
     parser.add_argument("--launches", type=int, default=100)
-    parser.add_argument("--workers", type=int, default=2)
-    args = parser.parse_args()
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (0: in this process)")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: one shape, one launch per measure, in this "
+                                                             "process; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        args.shapes, args.launches, args.workers = args.shapes[:1], 1, 0
     options = [("shipped", [])] + [(text.split("=", 1)[0], text.split("=", 1)[1].split(","))
                                    for text in args.option]
     names = ["bare", *args.shapes]

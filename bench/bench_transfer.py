@@ -1,7 +1,7 @@
 """Do the main job's designs work where the rig measures them? The quick default study over several optimizer seeds.
 
     nice python bench/bench_transfer.py [--seeds 1 2 3] [--robust-launches 100] [--sensitivity-trials 0]
-                                        [--out transfer-bench] [--config FILE ...]
+                                        [--out transfer-bench] [--config FILE ...] [--smoke]
 
 For each seed: ``rollability study`` (the node graph, quick default, all simulated) with ``optimizer.seed`` set to
 it (any ``--config`` files are added, e.g. ``paper``), timed; then, from the study's stores and files:
@@ -22,13 +22,15 @@ it (any ``--config`` files are added, e.g. ``paper``), timed; then, from the stu
   (divided by 2 cores: what it needs of an otherwise idle 2-core machine).
 
 Then the same over seeds: how many seeds meet each target and the pooled campaign gain of A. All numbers are
-simulated. Every study stays in ``--out/seed-<n>/`` for inspection.
+simulated. Every study stays in ``--out/seed-<n>/`` for inspection. ``--smoke``: one seed of the end-to-end test's
+miniature study (test/resources/mini_study.yaml), two robust launches, one sensitivity trial, in a temporary folder.
 """
 import argparse
 import csv
 import os
 import subprocess
 import sys
+import tempfile
 import time
 import typing
 
@@ -36,7 +38,6 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import yaml  # noqa: E402
 
-from rollability_ros.core.graph import claim_domain  # noqa: E402
 from rollability_ros.core.results import design_map  # noqa: E402
 from rollability_ros.core.stats import newcombe_interval  # noqa: E402
 from rollability_ros.core.store import Store  # noqa: E402
@@ -149,7 +150,7 @@ def gain_text(a, b):
     return f"{a[0]}/{a[1]} vs {b[0]}/{b[1]}: {difference:+.2f} [{low:+.2f}, {high:+.2f}]", difference, low
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     parser.add_argument("--robust-launches", type=int, default=100,
@@ -158,15 +159,21 @@ def main():
                         help="robust disturbance trials per design in the sensitivity row (0 = none)")
     parser.add_argument("--out", default="transfer-bench")
     parser.add_argument("--config", action="append", default=[], help="extra study parameter file(s)")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: one seed of the miniature study, each "
+                        "measurement once; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    scratch = tempfile.TemporaryDirectory(prefix="bench-transfer-")   # ROS logs (and --smoke's studies)
+    if args.smoke:
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        args.seeds, args.robust_launches, args.sensitivity_trials = [1], 2, 1
+        args.out = os.path.join(scratch.name, "transfer-bench")
+        args.config = [os.path.join(root, "test", "resources", "mini_study.yaml"), *args.config]
     out = os.path.abspath(args.out)
     # studies in one DDS domain talk to each other's nodes: this bench's own domain, clear of the tests' 20..100
-    domain, _lock = claim_domain(101, 200)
-    os.environ["ROS_DOMAIN_ID"] = str(domain)   # the studies' nodes inherit it
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.pop("ROS_STATIC_PEERS", None)
-    os.environ.pop("ROS_LOCALHOST_ONLY", None)
-    print(f"ROS_DOMAIN_ID {domain}, localhost discovery (this bench's studies only)", flush=True)
+    from bench.smoke import isolated_ros
+
+    _lock = isolated_ros(scratch.name)   # the studies' nodes inherit it, and a folder for their ROS logs
+    print(f"ROS_DOMAIN_ID {os.environ['ROS_DOMAIN_ID']}, localhost discovery (this bench's studies only)", flush=True)
     summary = []
     for seed in args.seeds:
         study_dir, elapsed, load, cpu = run_study(out, seed, args.config)

@@ -568,17 +568,26 @@ def any_signatures(root=CORE):
 BENCH = PACKAGE.parent / "bench"
 
 
-def bench_coverage():
-    """``(bench scripts, run at a tiny size by the test command, type-checked by it)``: the scripts in bench/ (its
-    runner smoke.py left out), those bench/smoke.py's ``SMOKE`` runs with ``--smoke`` (test/test_bench_smoke.py), and
-    those under mypy (test/core/test_mypy.py checks ``bench`` whole: all of them, when it names it)."""
-    scripts = sorted(path.stem for path in BENCH.glob("*.py") if path.stem != "smoke")
-    smoke = []
+def bench_tier(name):
+    """The bench scripts bench/smoke.py's tuple ``name`` (``SMOKE``: the README's test command, ``SMOKE_SLOW``: the
+    slow tier; test/test_bench_smoke.py runs each) names that exist and declare ``--smoke``, their tiny size."""
     for node in parsed(BENCH / "smoke.py").body:
         targets = (node.targets if isinstance(node, ast.Assign)
                    else [node.target] if isinstance(node, ast.AnnAssign) else [])
-        if any(isinstance(target, ast.Name) and target.id == "SMOKE" for target in targets):
-            smoke = [name for name in ast.literal_eval(node.value) if name in scripts]
+        if targets and node.value is not None and any(isinstance(target, ast.Name) and target.id == name
+                                                      for target in targets):
+            return [bench for bench in ast.literal_eval(node.value) if (BENCH / f"{bench}.py").is_file()
+                    and '"--smoke"' in (BENCH / f"{bench}.py").read_text(encoding="utf-8")]
+    return []
+
+
+def bench_coverage():
+    """``(bench scripts, run at a tiny size by the test command, type-checked by it)``: the scripts in bench/ (its
+    runner smoke.py left out), those bench/smoke.py's ``SMOKE`` runs with ``--smoke`` (test/test_bench_smoke.py), and
+    those under mypy (test/core/test_mypy.py checks ``bench`` whole: all of them, when it names it). The slow tier's
+    are :func:`bench_tier` ``("SMOKE_SLOW")``."""
+    scripts = sorted(path.stem for path in BENCH.glob("*.py") if path.stem != "smoke")
+    smoke = [name for name in bench_tier("SMOKE") if name in scripts]
     checked = scripts if '"bench"' in (PACKAGE.parent / "test" / "core" / "test_mypy.py").read_text() else []
     return scripts, smoke, checked
 
@@ -744,8 +753,11 @@ def print_limits(graph):
     print(f"public core signatures using Any: {len(any_signatures())} (limit {ANY_SIGNATURES_LIMIT})")
     print(f"mypy check_untyped_defs: {'on' if check_untyped_defs() else 'off'}")
     scripts, smoke, checked = bench_coverage()
-    print(f"bench scripts: {len(scripts)}; type-checked by the test command: {len(checked)}; run at a tiny size by "
-          f"it: {len(smoke)} ({', '.join(smoke)})")
+    slow = [name for name in bench_tier("SMOKE_SLOW") if name in scripts and name not in smoke]
+    print(f"bench scripts type-checked by the test command: {len(checked)} of {len(scripts)}")
+    print(f"bench scripts run at a tiny size by the test command: {len(smoke)} of {len(scripts)} ({', '.join(smoke)})")
+    print(f"bench scripts run at a tiny size by the slow tier only (./scripts/test.sh --slow): {len(slow)} of "
+          f"{len(scripts)} ({', '.join(slow)}); by neither: {len(scripts) - len(smoke) - len(slow)}")
     back = type_only_back_references(graph)
     print(f"TYPE_CHECKING back-references: {len(back)}")
     for module, target in back:

@@ -155,8 +155,9 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     unknowns = adaptive.Unknowns.from_settings(settings)
     spec = load_campaign_spec(["campaign"])
     candidates = adaptive.candidate_conditions(spec.configurations, spec.heights_m, spec.speeds_mps, spec.angles_deg)
-    print(f"{args.likelihood} likelihood, {args.acquisition} acquisition; unknowns {', '.join(unknowns.names)}; {len(candidates)} grouped conditions; "
-          f"{args.truths} truths from the prior; {args.samples} prior samples; simulated")
+    print(f"{args.likelihood} likelihood; unknowns {', '.join(unknowns.names)}; {len(candidates)} grouped conditions; "
+          f"{args.truths} truths from the prior; {args.samples} prior samples; {args.acquisition} acquisition; "
+          "simulated")
     if args.likelihood == "toy":
         run(adaptive.LogisticToyPredictor(unknowns, seed=args.seed), unknowns, candidates, args.truths,
             args.matrix_launches, args.samples, args.seed, acquisition=args.acquisition)

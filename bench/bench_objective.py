@@ -62,7 +62,9 @@ def optimize(run_dir, twin_config, campaign_file, args, seed, executor):
                        "profile.rows": 3, "profile.cols": 3, "optimizer.seed": seed})
     settings = evaluation.settings_from_parameters(parameters)
     batch = batch_evaluation.profile_batch_evaluator(settings, args.trials, executor)
-    run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid, batch)
+    config = optimization_run.run_config(parameters)
+    run = optimization_run.OptimizationRun(run_dir, config, settings.grid, batch,
+                                           screen_profiles=optimization_run.profile_screen(config.settings, settings))
     result = run.run()
     pooled = selection.pool_candidates(run.store.candidates(run_id=run.run_id))
     best = max(pooled, key=lambda d: (d.wilson_low, d.fitness))

@@ -291,6 +291,11 @@ class WeightedPosterior:
         self.launches += 1
         self._after_observing()
 
+    def observe_launch(self, index: int, upright: bool, values: typing.Optional[npt.ArrayLike] = None) -> None:
+        """One launch at candidate ``index``; ``values``, the continuous outcomes of a likelihood that has them
+        (:class:`~rollability_ros.core.campaign.learnt_plan.OutcomePosterior`), are not used by the verdict's."""
+        self.observe(index, upright)
+
     def observe_counts(self, index: int, successes: int, trials: int) -> None:
         """Weigh the samples by ``successes`` upright of ``trials`` launches at candidate ``index``."""
         if not 0 <= successes <= trials:
@@ -357,15 +362,45 @@ class WeightedPosterior:
         information between its outcome and the sign of :meth:`design_difference`, H[mean p] - sum_s P(s) H[mean p
         | s] over the two groups of samples. 0 where both groups predict the same P(upright), whatever they
         predict elsewhere; the launch that settles the comparison soonest, not the one that pins the unknowns."""
-        better = self.design_difference(first, second) > 0
+        return self.group_scores((self.design_difference(first, second) > 0).astype(int))
+
+    def group_scores(self, groups: npt.ArrayLike) -> np.ndarray:
+        """Expected information (nats) of a launch at each candidate (c,) about which group of samples holds the
+        truth (``groups``: a label per sample, (n,)): H[mean p] - sum_g P(g) H[mean p | g]. Every sample its own
+        group: :meth:`scores`; two groups by the sign of a design difference: :meth:`comparison_scores`; bins of
+        one unknown: :meth:`unknown_scores`."""
+        labels = np.asarray(groups)
         w = self.weights
         total = binary_entropy(w @ self.probabilities)
         conditional = np.zeros(len(self.candidates))
-        for group in (better, ~better):
+        for label in np.unique(labels):
+            group = labels == label
             mass = w[group].sum()
             if mass > 0:
                 conditional += mass * binary_entropy((w[group] / mass) @ self.probabilities[group])
         return total - conditional
+
+    def unknown_groups(self, unknown: int, bins: int = 8) -> np.ndarray:
+        """A label per sample (n,): which of ``bins`` weighted-quantile bins of unknown ``unknown`` it falls in."""
+        quantiles = [float(q) for q in np.linspace(0.0, 1.0, bins + 1)[1:-1]]
+        edges = weighted_quantiles(self.samples[:, unknown], self.weights, quantiles)
+        return np.searchsorted(edges, self.samples[:, unknown], side="right")
+
+    def unknown_scores(self, unknown: int, bins: int = 8) -> np.ndarray:
+        """Expected information (nats) of a launch at each candidate (c,) about one unknown alone (which of
+        ``bins`` posterior-quantile bins holds it; the others marginalised): the launch that narrows that
+        unknown's interval, where :meth:`scores` may prefer one that teaches about the others."""
+        return self.group_scores(self.unknown_groups(unknown, bins))
+
+    def targeted_scores(self, target_widths: npt.ArrayLike, level: float = 0.95) -> np.ndarray:
+        """The expected information about the unknown farthest from its target width (the largest ratio of its
+        current normalised :meth:`normalised_widths` to ``target_widths`` (d,)): a plan that must bring *every*
+        interval under a width narrows the one that lags (:meth:`unknown_scores`); once all are under their
+        targets, :meth:`scores`."""
+        ratio = self.normalised_widths(level) / np.asarray(target_widths, dtype=np.float64)
+        if np.all(ratio <= 1.0):
+            return self.scores()
+        return self.unknown_scores(int(np.argmax(ratio)))
 
     def _predicted(self, index):
         p = self.probabilities[:, index]

@@ -162,13 +162,13 @@ def main(argv=None) -> int:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--smoke", action="store_true",
                         help="every step once at a tiny size (a 64-launch likelihood, 40 truth launches, 40 sampler "
-                             "steps, one generation of 4 x 4 launches, 8 validation launches): the numbers mean "
-                             "nothing")
+                             "steps, one generation of 4 x 4 launches, 8 validation launches, one worker): the numbers "
+                             "mean nothing")
     args = parser.parse_args(argv)
     if args.smoke:
         args.likelihood = None
         args.prepare_launches, args.steps, args.generations, args.popsize, args.trials = 64, 40, 1, 4, 4
-        args.screen, args.validate = 2, 8
+        args.screen, args.validate, args.workers = 2, 8, 1
     from bench.bench_calibration import TRUTH_SEED, bench_parameters, paper_matrix
     from rollability_ros.core.sim import spawn_pool
 

@@ -35,7 +35,7 @@ SMOKE = ("bench_bag_writer", "bench_adaptive_plan", "bench_profile_mass", "bench
 #: miniature study; and the two launch-twin calibration fits, about 6 s of CPU each, past the command's budget for
 #: the benches): the slow tier runs them (``./scripts/test.sh --slow``).
 SMOKE_SLOW = ("bench_calibration_direct", "bench_objective", "bench_recorder", "bench_optimizer_node",
-              "bench_calibration", "bench_transfer")
+              "bench_calibration", "bench_transfer", "bench_recalibrate")
 
 #: What each bench must print at its smoke size: one piece of each line that carries its result (its ratio, table
 #: or verdict), so a bench that stops before its report, or drops a line of it, fails.
@@ -78,6 +78,7 @@ HEADLINES: typing.Dict[str, typing.Tuple[str, ...]] = {
     "bench_estop_latency": ("keypress->off ms", "ms of the 450 ms pulse",
                             "countdown : keypress->relay off min", "mid-pulse : keypress->relay off min",
                             "e-stops pressed 0.2 s before the fire that let it fire: ", "raw rows: "),
+    "bench_recalibrate": ("calibrate -> re-optimise -> validate: ",),
     "bench_transfer": ("localhost discovery (this bench's studies only)", "seed 1: study ", "search: objective",
                        "campaign on the twin (simulated)", "baseline ", "selection (", "transfer: screen vs race round 1",
                        "fresh robust launches on the pybullet twin",

@@ -3,6 +3,7 @@ widths of the twin's unknowns, on the same hidden truths. Simulated throughout.
 
     python bench/bench_adaptive_plan.py [--truths 10] [--unknowns 4] [--samples 20000] [--matrix-launches 400]
     nice python bench/bench_adaptive_plan.py --likelihood twin --unknowns 2 --samples 48 --sim-repetitions 4
+    nice python bench/bench_adaptive_plan.py --learnt likelihood.npz [--outcomes all|none|NAME,...] --samples 500
 
 For each hidden truth drawn from the prior (uniform on each unknown's search scale, its calibration bounds): the
 paper's matrix launches ``--matrix-launches`` times (the 80 grouped conditions of config/campaign.yaml -- the bare
@@ -12,7 +13,14 @@ until every unknown's 95 % interval is at most as wide as the matrix's. Prints b
 effective sample sizes (the importance-sampling posterior is only as good as its samples: under about 50, rerun
 with more). The same outcomes the launches' P(upright) predict at the truth, drawn with a seeded generator.
 
-``--likelihood toy`` (default): an analytic logistic stand-in (LogisticToyPredictor: each condition's own sensitivity
+``--learnt FILE``: a likelihood prepared by ``rollability calibrate --prepare`` (or bench_calibration /
+``--prepare-launches`` here) over the twin's unknowns, designs and condition levels: the candidates are the file's
+configurations x levels; each launch of a truth draws the verdict and the continuous outcomes (``--outcomes``)
+from the learnt model at the truth; both plans weigh the samples by all of it and renew them; the adaptive plan
+scores the expected information of verdict and outcomes (learnt_plan.OutcomePosterior). ``--outcomes none``: the
+verdicts alone (the exact BALD score).
+
+``--likelihood toy`` (default without --learnt): an analytic logistic stand-in (LogisticToyPredictor: each condition's own sensitivity
 to each unknown, seeded), cheap; it shows the machinery, not the rig. ``--likelihood twin``: the
 simulation-based likelihood (TwinPredictor: ``--sim-repetitions`` twin launches per sample and condition, the
 configurations from ``--twin-config`` files' launch_twin.designs, e.g. the optimizer's designs), expensive
@@ -29,12 +37,13 @@ import typing
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from rollability_ros.core.campaign import adaptive, plan_comparison  # noqa: E402
+from rollability_ros.core.sim import launch_twin_settings_from_parameters  # noqa: E402
 
 
 def run(predictor: typing.Union[adaptive.UprightPredictor, adaptive.PerLaunchPredictor],
         unknowns: adaptive.HasBounds, candidates: typing.Sequence[adaptive.LaunchCondition], truths: int,
         matrix_launches: int, samples: int, seed: int = 2026, say: typing.Callable[[str], None] = print,
-        renew: bool = True) -> typing.List[plan_comparison.MatchedWidths]:
+        renew: bool = True, acquisition: str = "joint") -> typing.List[plan_comparison.MatchedWidths]:
     """Print and return the matrix-vs-adaptive comparison (:func:`plan_comparison.adaptive_to_match_matrix`); ``renew``:
     renew the samples as the posterior narrows (asks the predictor again: for a cheap one, not the twin's)."""
     import numpy as np
@@ -44,7 +53,7 @@ def run(predictor: typing.Union[adaptive.UprightPredictor, adaptive.PerLaunchPre
                                         if isinstance(predictor, adaptive.PerLaunchPredictor) else predictor)
     started = time.perf_counter()
     results = plan_comparison.adaptive_to_match_matrix(bounds, table, candidates, truths, matrix_launches, samples,
-                                                       seed, renew=renew)
+                                                       seed, renew=renew, acquisition=acquisition)
     for i, r in enumerate(results):
         needed = f"{r.adaptive_launches}" if r.adaptive_launches is not None else f">{matrix_launches}"
         say(f"truth {i}: matrix {matrix_launches} launches -> widths "
@@ -58,6 +67,47 @@ def run(predictor: typing.Union[adaptive.UprightPredictor, adaptive.PerLaunchPre
     return results
 
 
+def load() -> str:
+    """The 1-minute load average, beside every time (the machine is shared)."""
+    return f"load {os.getloadavg()[0]:.1f}"
+
+
+def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed: int, outcomes: str,
+               draws: int, acquisition: str = "joint") -> typing.List[plan_comparison.MatchedWidths]:
+    """``--learnt FILE`` (module docstring): print each truth as it finishes, then the median."""
+    import numpy as np
+
+    from rollability_ros.core.campaign import likelihood as learnt
+    from rollability_ros.core.campaign.learnt_plan import LearntTable
+
+    likelihood = learnt.load_likelihood(path)
+    levels = likelihood.levels
+    candidates = adaptive.candidate_conditions(likelihood.configurations, levels.heights_m, levels.speeds_mps,
+                                               levels.angles_deg)
+    chosen = None if outcomes == "all" else () if outcomes == "none" else tuple(outcomes.split(","))
+    table = LearntTable(likelihood, candidates, chosen)
+    print(f"learnt likelihood {os.path.basename(path)} ({likelihood.info.get('training_launches', '?')} training "
+          f"launches); unknowns {', '.join(likelihood.unknowns.names)}; {len(candidates)} grouped conditions; "
+          f"outcomes: verdict{''.join(', ' + n for n in table.outcomes)}; {truths} truths from the prior; {samples} "
+          f"prior samples (renewed); {acquisition} acquisition; outcomes drawn from the learnt model at each truth; simulated", flush=True)
+    started = time.perf_counter()
+
+    def say(t: int, r: plan_comparison.MatchedWidths) -> None:
+        needed = f"{r.adaptive_launches}" if r.adaptive_launches is not None else f">{matrix_launches}"
+        print(f"truth {t}: matrix {matrix_launches} launches -> widths " + ", ".join(f"{w:.0%}" for w in r.matrix_widths)
+              + f" (ESS {r.matrix_ess:.0f}); adaptive reaches them in {needed} launches (ESS {r.adaptive_ess:.0f}) "
+              f"[{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
+    _, results = plan_comparison.learnt_to_match_matrix(table, truths, matrix_launches, samples, seed, draws=draws,
+                                                        acquisition=acquisition, on_truth=say)
+    counts = [r.adaptive_launches if r.adaptive_launches is not None else np.inf for r in results]
+    median = float(np.median(counts))
+    print(f"median launches to the matrix's widths: adaptive {median:g} against matrix {matrix_launches} "
+          f"(ratio {median / matrix_launches:.2f}; target: at most 150 against 400); adaptive within 150 on "
+          f"{sum(c <= 150 for c in counts)} of {len(counts)} truths; {time.perf_counter() - started:.0f} s, {load()}; "
+          "simulated (the learnt model of the twin)")
+    return results
+
+
 def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     import numpy as np
 
@@ -67,11 +117,20 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--likelihood", choices=("toy", "twin"), default="toy")
+    parser.add_argument("--learnt", metavar="FILE", help="a prepared likelihood file (module docstring)")
+    parser.add_argument("--outcomes", default="all",
+                        help="with --learnt: all (default), none (verdicts only) or NAME,NAME of the continuous outcomes")
+    parser.add_argument("--draws", type=int, default=32,
+                        help="with --learnt: Monte Carlo outcomes per candidate of the expected information")
+    parser.add_argument("--acquisition", choices=plan_comparison.ACQUISITIONS, default="joint",
+                        help="the adaptive plan's score: joint = the expected information about all the unknowns "
+                             "(BALD, default); targeted = about the unknown farthest from the width to reach")
     parser.add_argument("--truths", type=int, default=10)
     parser.add_argument("--unknowns", type=int, default=4,
                         help="the first N of calibration.parameters' shipped order after the two of "
                              "adaptive.DEFAULT_UNKNOWNS (default 4)")
-    parser.add_argument("--samples", type=int, default=20000, help="prior samples of the unknowns")
+    parser.add_argument("--samples", type=int, default=None,
+                        help="prior samples of the unknowns (default 20000; 500 with --learnt, renewed)")
     parser.add_argument("--matrix-launches", type=int, default=400)
     parser.add_argument("--sim-repetitions", type=int, default=4, help="--likelihood twin: launches per entry")
     parser.add_argument("--twin-config", action="append", default=[], metavar="FILE")
@@ -81,8 +140,14 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
                         help="every step once at a tiny size (1 truth, 2 unknowns, 200 samples, 40 matrix launches); "
                              "the numbers mean nothing")
     args = parser.parse_args(argv)
+    if args.samples is None:
+        args.samples = 500 if args.learnt else 20000
     if args.smoke:
         args.truths, args.unknowns, args.samples, args.matrix_launches = 1, 2, 200, 40
+    if args.learnt:
+        run_learnt(args.learnt, args.truths, args.matrix_launches, args.samples, args.seed, args.outcomes, args.draws,
+                   args.acquisition)
+        return 0
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration.calibration_settings(parameters)
     order = list(adaptive.DEFAULT_UNKNOWNS) + [n for n in settings.parameters if n not in adaptive.DEFAULT_UNKNOWNS]
@@ -91,20 +156,23 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     spec = load_campaign_spec(["campaign"])
     candidates = adaptive.candidate_conditions(spec.configurations, spec.heights_m, spec.speeds_mps, spec.angles_deg)
     print(f"{args.likelihood} likelihood; unknowns {', '.join(unknowns.names)}; {len(candidates)} grouped conditions; "
-          f"{args.truths} truths from the prior; {args.samples} prior samples; simulated")
+          f"{args.truths} truths from the prior; {args.samples} prior samples; {args.acquisition} acquisition; "
+          "simulated")
     if args.likelihood == "toy":
         run(adaptive.LogisticToyPredictor(unknowns, seed=args.seed), unknowns, candidates, args.truths,
-            args.matrix_launches, args.samples, args.seed)
+            args.matrix_launches, args.samples, args.seed, acquisition=args.acquisition)
         return 0
     with calibration.LaunchPool(args.workers) as pool:
-        predictor = adaptive.TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
+        twin = launch_twin_settings_from_parameters(parameters)
+        predictor = adaptive.TwinPredictor(twin, unknowns, pool, args.sim_repetitions, settings.seed)
 
         class Cached:   # the prior's table and the truths' are launched once each
             def probabilities(self, theta: np.ndarray,
                               conditions: typing.Sequence[adaptive.LaunchCondition]) -> np.ndarray:
                 return predictor.probabilities(np.asarray(theta), conditions)
         # no renewal: each would launch samples x 80 x repetitions again; watch the effective sample sizes printed
-        run(Cached(), unknowns, candidates, args.truths, args.matrix_launches, args.samples, args.seed, renew=False)
+        run(Cached(), unknowns, candidates, args.truths, args.matrix_launches, args.samples, args.seed, renew=False,
+            acquisition=args.acquisition)
     return 0
 
 

@@ -2,7 +2,7 @@
 widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise -> validate. All simulated.
 
     nice python bench/bench_calibration.py [--prepare-launches 8000] [--truths 50] [--workers 2]
-        [--likelihood FILE] [--keep DIR] [--reoptimize-generations 15] [--skip-reoptimize] [--skip-cli]
+        [--likelihood FILE] [--keep DIR] [--reoptimize-generations 15] [--skip-reoptimize] [--skip-cli] [--smoke]
 
 1. Designs: the bare robot and three profiles (bench_launch_twin's dome, a flat top at the 0.09 m bound and a low
    pyramid: docs/twin-model.md's shapes), as STLs. The unknowns: :data:`UNKNOWNS` (centre of mass, foam friction,
@@ -47,6 +47,7 @@ from rollability_ros.core.campaign import likelihood as learnt  # noqa: E402
 from rollability_ros.core.campaign import posterior as sampling  # noqa: E402
 from rollability_ros.core.campaign.adaptive import Unknowns  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
+from rollability_ros.core.sim import launch_twin_settings_from_parameters  # noqa: E402
 
 #: The unknowns (config keys) of the bench, bounds and scales from config/calibration.yaml.
 UNKNOWNS = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction", "launch_twin.foam.rolling_friction",
@@ -112,8 +113,9 @@ def launch_truth(parameters, unknowns, truth, matrix, seed, pool):
 
     jobs = [(tuple(truth), *cell, trial_seed(seed, i)) for i, cell in enumerate(matrix)]
     chunks = [jobs[i:i + 20] for i in range(0, len(jobs), 20)]
-    rows = np.concatenate(list(pool.map(learnt.simulate_rows, [parameters] * len(chunks),
-                                        [unknowns.names] * len(chunks), chunks)))
+    twin = launch_twin_settings_from_parameters(parameters)
+    rows = np.concatenate(list(pool.map(learnt.simulate_rows, [twin] * len(chunks), [unknowns.names] * len(chunks),
+                                        chunks)))
     return [learnt.Observation(cell[0], cell[1], cell[2], cell[3], bool(row[1] > 0.5),
                                dict(zip(learnt.OUTCOMES, map(float, row[2:]))))
             for cell, row in zip(matrix, rows) if row[0] > 0.5]
@@ -122,12 +124,12 @@ def launch_truth(parameters, unknowns, truth, matrix, seed, pool):
 def characterise_truth(parameters, unknowns, truth, rng):
     """Simulated bench readings of ``truth``: slide angles (analytic + noise) and roll-outs on the foam."""
     from rollability_ros.core.campaign import characterisation as bench
-    from rollability_ros.core.sim import launch_twin_settings_from_parameters, rollout_distance_m
+    from rollability_ros.core.sim import rollout_distance_m
 
     flat = dict(parameters)
     flat.update(zip(unknowns.names, map(float, truth)))
-    angle = bench.slide_angle_deg(flat)
     settings = launch_twin_settings_from_parameters(flat)
+    angle = bench.slide_angle_deg(settings)
     rollouts = tuple(bench.RolloutReading("foam", v, max(0.0, rollout_distance_m(settings, v, "foam")
                                                          + ROLLOUT_SIGMA_M * rng.standard_normal()))
                      for v in ROLLOUT_SPEEDS_MPS)
@@ -185,7 +187,8 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
         bench_readings = characterise_truth(parameters, unknowns, truth, rng)
         simulated_s = time.perf_counter() - started
         started = time.perf_counter()
-        extra = sampling.characterisation_term(bench_readings, parameters, unknowns)
+        extra = sampling.characterisation_term(bench_readings, launch_twin_settings_from_parameters(parameters),
+                                               unknowns)
         posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1,
                                             steps=args.steps)
         times.append(time.perf_counter() - started)
@@ -302,7 +305,7 @@ def reoptimize(likelihood, parameters, unknowns, first, args, folder):
     from rollability_ros.core.sim import evaluation
 
     truth, observations, bench_readings = first
-    extra = sampling.characterisation_term(bench_readings, parameters, unknowns)
+    extra = sampling.characterisation_term(bench_readings, launch_twin_settings_from_parameters(parameters), unknowns)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=7, steps=args.steps)
     fitted = {name: posterior.median(name) for name in unknowns.names}
     files = {}
@@ -333,7 +336,7 @@ def reoptimize(likelihood, parameters, unknowns, first, args, folder):
                       scores["uncalibrated"])
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--prepare-launches", type=int, default=8000, help="twin launches of the preparation")
     parser.add_argument("--truths", type=int, default=50, help="hidden truths of the coverage (>= 50 for the claim)")
@@ -346,7 +349,11 @@ def main():
     parser.add_argument("--reoptimize-generations", type=int, default=15)
     parser.add_argument("--reoptimize-seed", type=int, default=3)
     parser.add_argument("--validate", type=int, default=96, help="launches per design on the truth")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="every step at a tiny size (the numbers mean nothing): "
+                        "240 training launches, 2 truths of 20 launches, 20 sampler steps, no re-optimisation")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        args.prepare_launches, args.truths, args.steps, args.skip_reoptimize = 240, 2, 20, True
     from rollability_ros.core.sim import spawn_pool
 
     with tempfile.TemporaryDirectory() as scratch:
@@ -354,6 +361,8 @@ def main():
         os.makedirs(folder, exist_ok=True)
         parameters, unknowns, configurations = bench_parameters(folder)
         levels, matrix = paper_matrix(configurations)
+        if args.smoke:
+            matrix = matrix[::20]
         fingerprint = learnt.twin_fingerprint(parameters, unknowns.names)
         pool = spawn_pool(args.workers)
         try:
@@ -365,8 +374,9 @@ def main():
                 print(f"loaded {path}: {likelihood.info}")
             else:
                 started = time.perf_counter()
-                training = learnt.simulate_training_set(parameters, unknowns, configurations, levels,
-                                                        args.prepare_launches, PREPARE_SEED, pool)
+                training = learnt.simulate_training_set(launch_twin_settings_from_parameters(parameters), unknowns,
+                                                        configurations, levels, args.prepare_launches, PREPARE_SEED,
+                                                        pool)
                 simulated = time.perf_counter() - started
                 likelihood = learnt.learn(training, unknowns, configurations, levels, fingerprint, on_progress=print)
                 likelihood.info["prepare_s"] = time.perf_counter() - started
@@ -386,7 +396,8 @@ def main():
             cli_check(path, first, unknowns, folder, parameters)
         if not args.skip_reoptimize:
             reoptimize(likelihood, parameters, unknowns, first, args, folder)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

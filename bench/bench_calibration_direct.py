@@ -3,7 +3,7 @@ likelihood): "physical" outcomes from the launch twin with hidden parameter valu
 recovered values against the truth and their stated 95% intervals.
 
     python bench/bench_calibration_direct.py [--repetitions 20] [--sim-repetitions 16] [--generations 8] [--bootstrap 0]
-                                      [--two-parameters]
+                                      [--two-parameters] [--workers N] [--smoke]
     nice python bench/bench_calibration_direct.py --coverage 20 [--repetitions 20] [--sim-repetitions 24]
                                            [--coverage-only launch_twin.foam.lateral_friction]
 
@@ -23,6 +23,7 @@ import os
 import sys
 import tempfile
 import time
+import typing
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(1, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "test"))  # doubles
@@ -33,6 +34,7 @@ from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
 from rollability_ros.core.records import LaunchCondition  # noqa: E402
+from rollability_ros.core.sim import launch_twin_settings_from_parameters  # noqa: E402
 
 #: The grouped conditions launched (configuration, height m, speed m/s, angle deg).
 CONDITIONS = (("baseline", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 30.0),
@@ -49,19 +51,19 @@ MIRRORED_CONDITIONS = (("dome", 0.75, 0.8, -30.0), ("dome", 0.75, 0.8, 30.0), ("
 CONDITIONS_FOR = {"launch_twin.plate.yaw_bias_deg": MIRRORED_CONDITIONS}
 
 
-def coverage(args, parameters):
+def coverage(args, parameters, twin, default_conditions=CONDITIONS):
     """The coverage bench (module docstring); prints one line per truth and the coverage per parameter."""
     import numpy as np
 
     from rollability_ros.core.results import analysis
 
     rng = np.random.default_rng(2026)
-    with calibration.LaunchPool() as pool:
+    with calibration.LaunchPool(args.workers or None) as pool:
         for name, low, high, log in COVERAGE_PARAMETERS[:args.coverage_parameters]:
             u = rng.uniform(0.1, 0.9, args.coverage)   # drawn for every parameter: --coverage-only keeps the truths
             if args.coverage_only and name not in args.coverage_only:
                 continue
-            conditions = [LaunchCondition(*c) for c in CONDITIONS_FOR.get(name, CONDITIONS)]
+            conditions = [LaunchCondition(*c) for c in CONDITIONS_FOR.get(name, default_conditions)]
             settings = calibration.CalibrationSettings(parameters=[name], lower=[low], upper=[high],
                                                        log_scale=[log], sim_repetitions=args.sim_repetitions,
                                                        interval_points=args.interval_points)
@@ -70,13 +72,13 @@ def coverage(args, parameters):
             grouped = None
             covered, covered_interpolated, widths = 0, 0, []
             for number, truth in enumerate(truths):
-                outcomes = synthetic_outcomes(parameters, [name], [truth], conditions, args.repetitions,
+                outcomes = synthetic_outcomes(twin, [name], [truth], conditions, args.repetitions,
                                                           first_seed=1_000_000 + 1000 * number)
                 physical = analysis.group_conditions(outcomes)
                 if grouped is None:
-                    grouped = calibration.predicted_on_grid(physical, parameters, settings, pool,
+                    grouped = calibration.predicted_on_grid(physical, twin, settings, pool,
                                                             [parameters[name]], 0)
-                grid, curve = calibration.likelihood_profile(physical, parameters, settings, pool,
+                grid, curve = calibration.likelihood_profile(physical, twin, settings, pool,
                                                             [parameters[name]], 0, grouped)
                 interval = calibration.likelihood_interval(grid, curve)
                 interpolated = calibration.likelihood_interval(grid, curve, ends="interpolate")
@@ -94,7 +96,7 @@ def coverage(args, parameters):
                   f"{settings.sim_repetitions} launches; {time.perf_counter() - started:.0f} s")
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repetitions", type=int, default=20, help="'physical' launches per condition")
     parser.add_argument("--sim-repetitions", type=int, default=16, help="simulated launches per condition")
@@ -108,7 +110,16 @@ def main():
                         help="coverage of the first N parameters of COVERAGE_PARAMETERS (default: all)")
     parser.add_argument("--coverage-only", action="append", default=[], metavar="KEY",
                         help="run the coverage of this parameter only (repeatable; same truths as without it)")
-    args = parser.parse_args()
+    parser.add_argument("--workers", type=int, default=0, help="launch worker processes (default: one per core)")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: the fit and the coverage of the first "
+                        "parameter, each once on two conditions, in-process; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    conditions: typing.Sequence[typing.Tuple[str, float, float, float]] = CONDITIONS
+    popsize = 6
+    if args.smoke:   # one launch per condition and grid point, one generation of two, one truth; no pool
+        conditions, popsize = CONDITIONS[:2], 2
+        args.repetitions, args.sim_repetitions, args.generations, args.interval_points = 1, 1, 1, 5
+        args.coverage, args.coverage_parameters, args.workers = 1, 1, 1
     if args.coverage:
         with tempfile.TemporaryDirectory() as folder:
             stl = os.path.join(folder, "dome.stl")
@@ -116,8 +127,9 @@ def main():
             parameters = load_parameters(list(calibration.TWIN_CONFIGS))
             parameters.update({"launch_twin.designs.mesh_labels": ["dome"],
                                "launch_twin.designs.mesh_files": [stl]})
-            coverage(args, parameters)
-        return
+            coverage(args, parameters, launch_twin_settings_from_parameters(parameters), conditions)
+        if not args.smoke:
+            return 0
     names, truth = ["robot.com_offset_z_m"], [0.006]
     lower, upper, log_scale = [-0.019], [0.015], [False]
     if args.two_parameters:
@@ -129,15 +141,16 @@ def main():
         parameters = load_parameters(list(calibration.TWIN_CONFIGS))
         parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
         started = time.perf_counter()
-        outcomes = synthetic_outcomes(parameters, names, truth,
-                                                  [LaunchCondition(*c) for c in CONDITIONS], args.repetitions)
+        twin = launch_twin_settings_from_parameters(parameters)
+        outcomes = synthetic_outcomes(twin, names, truth, [LaunchCondition(*c) for c in conditions], args.repetitions)
         print(f"synthetic outcomes: {len(outcomes)} launches in {time.perf_counter() - started:.1f} s")
         settings = calibration.CalibrationSettings(
             parameters=names, lower=lower, upper=upper, log_scale=log_scale, sim_repetitions=args.sim_repetitions,
-            popsize=6, max_generations=args.generations, bootstrap_resamples=args.bootstrap)
+            popsize=popsize, max_generations=args.generations, bootstrap_resamples=args.bootstrap,
+            interval_points=args.interval_points)
         started = time.perf_counter()
-        with calibration.LaunchPool() as pool:
-            result = calibration.calibrate(outcomes, parameters, settings, pool, on_progress=print)
+        with calibration.LaunchPool(args.workers or None) as pool:
+            result = calibration.calibrate(outcomes, twin, settings, pool, on_progress=print)
         wall_s = time.perf_counter() - started
     launches = result.evaluations * len(result.conditions) * settings.sim_repetitions
     print(f"calibration: {result.evaluations} parameter sets, {launches} launches, {wall_s:.0f} s "
@@ -154,7 +167,8 @@ def main():
               f"{row['angle_deg']:+5.0f} deg  measured {row['measured_rate']:.2f}  before {row['before_rate']:.2f}  after {row['after_rate']:.2f}")
     for label, agreement in result.rank_agreement().items():
         print(f"rank agreement {label}: {agreement.agreement_text()}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

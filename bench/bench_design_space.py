@@ -1,7 +1,7 @@
 """What does each option of the design space buy? Simple profiles under each option, on both measures.
 
     nice python bench/bench_design_space.py [--option NAME=FILE[,FILE...] ...] [--launches 100] [--workers 2]
-                                            [--shapes "H 0.45 a 1.0 b 1.0" ...]
+                                            [--shapes "H 0.45 a 1.0 b 1.0" ...] [--smoke]
 
 An *option* is a set of parameter files laid over the quick study's (``optimizer``): a taller height bound
 (``profile.unit_m``), another print (``robot.profile_print``), another footprint (``profile.length_m`` /
@@ -64,13 +64,14 @@ def printed_mass_g(settings, heights) -> float:
 
 
 def measure(configs, names, launches, workers):
-    """``{measure: {name: (upright, launches)}}`` and ``{name: mass g}`` for ``names`` under ``configs``."""
+    """``{measure: {name: (upright, launches)}}`` and ``{name: mass g}`` for ``names`` under ``configs`` (``workers``
+    0: in this process)."""
     counts, masses = {}, {}
     for label, settings, seed in (("nominal", nominal_settings(configs), NOMINAL_SEED),
                                   ("robust", robust_settings(configs), ROBUST_SEED)):
         family = shapes(settings.grid)
         masses = {name: printed_mass_g(settings, family[name]) for name in names}
-        with evaluation.LocalExecutor(workers) as pool:
+        with evaluation.LocalExecutor(workers) if workers else evaluation.SerialExecutor() as pool:
             evaluate = batch_evaluation.fidelity_batch_evaluator(settings, pool, "screen")
             counts[label] = {name: (int(r[0]), int(r[1])) for name, r in
                              zip(names, evaluate([family[name] for name in names], seed, launches))}
@@ -109,9 +110,13 @@ def mass_split(args):
     jobs = [("bare", None, 1.0)] + [(label, profile_mesh_for(label, sources), scale)
                                     for label in labels for scale in args.mass_scales]
     started = time.perf_counter()
-    with concurrent.futures.ProcessPoolExecutor(args.workers) as pool:
-        results = list(pool.map(split_launches, [settings] * len(jobs), [job[1] for job in jobs],
-                                [job[2] for job in jobs], [args.launches] * len(jobs), [SPLIT_SEED] * len(jobs)))
+    columns = ([settings] * len(jobs), [job[1] for job in jobs], [job[2] for job in jobs],
+               [args.launches] * len(jobs), [SPLIT_SEED] * len(jobs))
+    if args.workers:
+        with concurrent.futures.ProcessPoolExecutor(args.workers) as pool:
+            results = list(pool.map(split_launches, *columns))
+    else:   # in this process
+        results = list(map(split_launches, *columns))
     print(f"{args.designs}: {args.launches} nominal launches each under the campaign's conditions in turn (seed "
           f"{SPLIT_SEED}, {settings.physics.engine} twin, simulated), {time.perf_counter() - started:.0f} s")
     for (label, _mesh, scale), (rows, mass_kg) in zip(jobs, results):
@@ -135,12 +140,16 @@ def main(argv=None):
                         help="an option: parameter files over the quick study's (repeat; default: the shipped one)")
     parser.add_argument("--shapes", nargs="+", default=list(DEFAULT_SHAPES))
     parser.add_argument("--launches", type=int, default=100)
-    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (0: in this process)")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: one shape, one launch per measure, in this "
+                                                             "process; the numbers mean nothing (bench/smoke.py)")
     parser.add_argument("--designs", help="a designs.yaml: launch its designs at --mass-scales, split by speed")
     parser.add_argument("--labels", nargs="+", default=[], help="--designs: these designs only (default: all)")
     parser.add_argument("--mass-scales", type=float, nargs="+", default=[0.1, 1.0, 2.0])
     parser.add_argument("--config", action="append", default=[], help="--designs: parameter files over optimizer's")
     args = parser.parse_args(argv)
+    if args.smoke:
+        args.shapes, args.launches, args.workers = args.shapes[:1], 1, 0
     if args.designs:
         return mass_split(args)
     options = [("shipped", [])] + [(text.split("=", 1)[0], text.split("=", 1)[1].split(","))

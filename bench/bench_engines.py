@@ -2,7 +2,7 @@
 
     nice python bench/bench_engines.py [--trials 60] [--repeats 3] [--launch-candidates 3] [--launches-only]
                                        [--racing-generations 8] [--race-looks 10 20 40] [--race-alpha 0.1]
-                                       [--racing-only]
+                                       [--racing-only] [--smoke]
 
 Launch twin (first): twin launches per second per core in each engine, with and without the early decision, and
 the ratio to the PyBullet twin under the full rest rule (the twin before the MuJoCo twin and the launch early
@@ -44,9 +44,10 @@ from rollability_ros.core.sim.trials import sample_conditions  # noqa: E402
 PAPER_TRIALS = 500 * 13 * 60
 
 
-def launch_rates(candidates, repeats):
+def launch_rates(candidates, repeats, conditions=None):
     """Twin launches per second per core (one process) for each (engine, early decision), steps per launch and
-    upright launches, the same launches in every variant (see the module docstring)."""
+    upright launches, the same launches in every variant (see the module docstring); the first ``conditions`` of the
+    paper's (default all)."""
     from rollability_ros.core.robots.robot import ProfileBody
     from rollability_ros.core.profile.geometry import profile_mesh
     from rollability_ros.core.sim.launch import mujoco_twin, pybullet_twin, settings as twin_settings, twin
@@ -59,7 +60,7 @@ def launch_rates(candidates, repeats):
                                       for _ in range(candidates - 1)]
     meshes = [profile_mesh(h, grid) for h in heights]
     profiles = [base.profile_body(mesh) for mesh in meshes if mesh is not None]   # a dome, random heights: none flat
-    conditions = launch_conditions(["campaign"])
+    conditions = launch_conditions(["campaign"])[:conditions]
     shipped = twin_settings.load_launch_twin_settings()
     variants = {(engine, early): dataclasses.replace(
         shipped, physics=dataclasses.replace(shipped.physics, engine=engine),
@@ -86,15 +87,15 @@ def launch_rates(candidates, repeats):
             upright[key] = sum(o.valid and o.upright for o in outcomes)
     launches = len(profiles) * len(conditions)
     return ({key: launches / min(seconds) for key, seconds in times.items()},
-            {key: launches / min(seconds) for key, seconds in cpu.items()}, steps, upright, launches)
+            {key: launches / min(seconds) for key, seconds in cpu.items()}, steps, upright, launches, len(conditions))
 
 
-def print_launch_rates(candidates, repeats):
+def print_launch_rates(candidates, repeats, conditions=None):
     """Print the launch twin's table (module docstring): per core = launches per second of this process's CPU
     time (what one core gives when the machine is shared), with the wall-clock rate beside it."""
-    wall, rate, steps, upright, launches = launch_rates(candidates, repeats)
+    wall, rate, steps, upright, launches, paper = launch_rates(candidates, repeats, conditions)
     today, today_wall = rate[("pybullet", False)], wall[("pybullet", False)]
-    print(f"launch twin: {candidates} candidates x 20 paper conditions = {launches} launches per variant, "
+    print(f"launch twin: {candidates} candidates x {paper} paper conditions = {launches} launches per variant, "
           f"{repeats} repeats (fastest kept), one process; load average {os.getloadavg()[0]:.2f}")
     print(f"{'twin':34s} {'launches/s/core':>15s} {'vs PyBullet twin':>16s} {'wall launches/s':>15s} "
           f"{'(ratio)':>8s} {'steps/launch':>12s} {'upright':>7s}")
@@ -229,11 +230,12 @@ def _naive_loop(seeds, settings, hold_steps, cap_steps, engine):
     return time.perf_counter() - started, total_steps / len(seeds)
 
 
-def generation_times(base, fastest, generations):
-    """Fastest wall time (s) of a paper-config generation (13 candidates, sigma 0.02 around a random mean, 60
-    trials each, common seed) evaluated as the optimizer does (one thread per candidate on one 2-worker pool):
-    ``{"split": ..., "whole": ...}``, each candidate split into ``evaluator.batch_trials`` tasks (every worker builds
-    its world) or run whole by one worker (what ``profile_batch_evaluator`` does with >= 2 candidates per worker)."""
+def generation_times(base, fastest, generations, pool, candidates=13, trials=60):
+    """Fastest wall time (s) of a paper-config generation (``candidates`` 13, sigma 0.02 around a random mean,
+    ``trials`` 60 each, common seed) evaluated as the optimizer does (one thread per candidate on ``pool``, a warm
+    2-worker pool): ``{"split": ..., "whole": ...}``, each candidate split into ``evaluator.batch_trials`` tasks
+    (every worker builds its world) or run whole by one worker (what ``profile_batch_evaluator`` does with >= 2
+    candidates per worker)."""
     from rollability_ros.core.optimization.batch_evaluation import profile_batch_evaluator
 
     engine, early = fastest
@@ -243,54 +245,54 @@ def generation_times(base, fastest, generations):
     grid = settings.grid
     mean = rng.uniform(grid.height_min, grid.height_max, grid.n_variables)
     populations = [[np.clip(mean + rng.normal(0.0, 0.02, mean.size), grid.height_min, grid.height_max)
-                    for _ in range(13)] for _ in range(generations)]
+                    for _ in range(candidates)] for _ in range(generations)]
     times: typing.Dict[str, typing.List[float]] = {"split": [], "whole": []}
-    with evaluation.LocalExecutor(2) as pool:
-        pool.warm()
-        evaluators = {"whole": profile_batch_evaluator(settings, 60, pool), "split": _split_evaluator(settings, pool)}
-        for index, population in enumerate(populations):   # interleaved, so both meet the same machine load
-            for name, evaluate in evaluators.items():
-                started = time.perf_counter()
-                evaluate(population, 300 + index)
-                times[name].append(time.perf_counter() - started)
+    evaluators = {"whole": profile_batch_evaluator(settings, trials, pool),
+                  "split": _split_evaluator(settings, pool, trials)}
+    for index, population in enumerate(populations):   # interleaved, so both meet the same machine load
+        for name, evaluate in evaluators.items():
+            started = time.perf_counter()
+            evaluate(population, 300 + index)
+            times[name].append(time.perf_counter() - started)
     return {name: min(seconds) for name, seconds in times.items()}
 
 
-def racing_generation_times(generations, looks, alpha, workers=2):
-    """Whole paper-config generations of two real optimizations (``config/paper.yaml``, MuJoCo + early decision,
-    the same seed), one without racing and one with ``optimizer.race_looks`` = ``looks``, their generations stepped
-    alternately so both meet the same machine load: ``{name: (seconds per generation, trials per generation)}``
-    over the generations after the first (the first has no incumbent, so nothing races)."""
+def racing_generation_times(generations, looks, alpha, pool, overrides=None):
+    """Whole paper-config generations of two real optimizations (``config/paper.yaml`` with ``overrides``, MuJoCo +
+    early decision, the same seed) on ``pool``, one without racing and one with ``optimizer.race_looks`` =
+    ``looks``, their generations stepped alternately so both meet the same machine load: ``{name: (seconds per
+    generation, trials per generation)}`` over the generations after the first (the first has no incumbent, so
+    nothing races)."""
     import tempfile
 
     from rollability_ros.core.optimization import optimization_run
     from rollability_ros.core.optimization import batch_evaluation, run_directory
     from rollability_ros.core.store import Store
 
-    folder = tempfile.mkdtemp(prefix="bench-racing-paper-")
+    scratch = tempfile.TemporaryDirectory(prefix="bench-racing-paper-")   # removed when this returns
+    folder = scratch.name
     parameters = run_directory.load_run_parameters(["paper"])
     parameters.update({"sim.engine": "mujoco", "trial.early_decision": True, "optimizer.output_dir": folder,
-                       "optimizer.race_alpha": alpha})
+                       "optimizer.race_alpha": alpha, **(overrides or {})})
     settings = evaluation.settings_from_parameters(parameters)
+    trials = optimization_run.run_settings(parameters).optimizer.trials
     times: typing.Dict[str, typing.List[float]] = {"full": [], "raced": []}
-    with evaluation.LocalExecutor(workers) as pool:
-        pool.warm()
-        runs = {}
-        for name, race_looks in (("full", [0]), ("raced", list(looks))):
-            run_parameters = {**parameters, "optimizer.race_looks": race_looks}
-            runs[name] = optimization_run.OptimizationRun(
-                os.path.join(folder, name), optimization_run.run_config(run_parameters), settings.grid,
-                batch_evaluation.profile_batch_evaluator(settings, 60, pool),
-                evaluate_trials=batch_evaluation.fidelity_batch_evaluator(settings, pool, "screen"))
-        try:
-            for _ in range(generations):
-                for name, run in runs.items():
-                    started = time.perf_counter()
-                    run.step()
-                    times[name].append(time.perf_counter() - started)
-        finally:
-            for run in runs.values():
-                run.close()
+    runs = {}
+    for name, race_looks in (("full", [0]), ("raced", list(looks))):
+        run_parameters = {**parameters, "optimizer.race_looks": race_looks}
+        runs[name] = optimization_run.OptimizationRun(
+            os.path.join(folder, name), optimization_run.run_config(run_parameters), settings.grid,
+            batch_evaluation.profile_batch_evaluator(settings, trials, pool),
+            evaluate_trials=batch_evaluation.fidelity_batch_evaluator(settings, pool, "screen"))
+    try:
+        for _ in range(generations):
+            for name, run in runs.items():
+                started = time.perf_counter()
+                run.step()
+                times[name].append(time.perf_counter() - started)
+    finally:
+        for run in runs.values():
+            run.close()
     result = {}
     for name in runs:
         with Store(os.path.join(folder, name)) as store:
@@ -299,8 +301,8 @@ def racing_generation_times(generations, looks, alpha, workers=2):
     return result
 
 
-def print_racing_projection(generations, looks, alpha):
-    seconds = racing_generation_times(generations, looks, alpha)
+def print_racing_projection(generations, looks, alpha, pool, overrides=None):
+    seconds = racing_generation_times(generations, looks, alpha, pool, overrides)
     full, raced = seconds["full"], seconds["raced"]
     print(f"paper-scale run with racing (config/paper.yaml, MuJoCo + early decision, 2 workers, race_looks "
           f"{list(looks)}, race_alpha {alpha}; generations 2-{generations} of two real runs stepped alternately, "
@@ -313,19 +315,19 @@ def print_racing_projection(generations, looks, alpha):
           f"{' '.join(f'{v:.1f}' for v in os.getloadavg())})")
 
 
-def _split_evaluator(settings, pool):
+def _split_evaluator(settings, pool, trials):
     """A generation's candidates on ``pool``, each split into ``evaluator.batch_trials`` tasks (the optimizer's
     way before it ran candidates whole)."""
     import concurrent.futures
 
     def evaluate(population, seed):
         with concurrent.futures.ThreadPoolExecutor(len(population)) as threads:
-            list(threads.map(lambda heights: evaluation.evaluate_profile(heights, 60, seed, settings, pool),
+            list(threads.map(lambda heights: evaluation.evaluate_profile(heights, trials, seed, settings, pool),
                              population))
     return evaluate
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=60)
     parser.add_argument("--repeats", type=int, default=3)
@@ -337,13 +339,23 @@ def main():
     parser.add_argument("--race-looks", type=int, nargs="+", default=[10, 20, 40])
     parser.add_argument("--race-alpha", type=float, default=0.1)
     parser.add_argument("--racing-only", action="store_true", help="only the paper-scale racing projection")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers "
+                                                             "mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    conditions, candidates, trials, racing = None, 13, 60, None
+    if args.smoke:   # one candidate on two conditions, 2 trials, one repeat; generations of 2 candidates x 2 trials
+        conditions, candidates, trials = 2, 2, 2
+        args.launch_candidates, args.trials, args.repeats, args.generations = 1, 2, 1, 1
+        args.racing_generations, args.race_looks = 2, [1]
+        racing = {"optimizer.popsize": 2, "optimizer.trials": 2, "optimizer.initial_mean_screen": 0}
     if args.racing_only:
-        print_racing_projection(args.racing_generations, args.race_looks, args.race_alpha)
-        return
-    print_launch_rates(args.launch_candidates, args.repeats)
+        with evaluation.LocalExecutor(2) as pool:
+            pool.warm()
+            print_racing_projection(args.racing_generations, args.race_looks, args.race_alpha, pool, racing)
+        return 0
+    print_launch_rates(args.launch_candidates, args.repeats, conditions)
     if args.launches_only:
-        return
+        return 0
     base = evaluation.load_settings()
     heights = dome_heights(base.grid)
     variants = {(engine, early): configured(base, engine, early)
@@ -392,26 +404,28 @@ def main():
             for workers, pool in pools.items():
                 pool_times[workers].append(evaluation.evaluate_profile(
                     heights, args.trials, 200 + repeat, variants[fastest], executor=pool).eval_time_s)
+        pools.pop(1).close()
+        one, two = min(pool_times[1]), min(pool_times[2])
+        print(f"one evaluation of {args.trials} trials: 1 worker {one:.3f} s, 2 workers {two:.3f} s, "
+              f"speed-up {one / two:.2f}x")
+        projected_min = PAPER_TRIALS / (args.trials / two) / 60
+        print(f"projected paper-scale run (500 x 13 x 60 = {PAPER_TRIALS} trials) on 2 workers: {projected_min:.1f} "
+              f"min (one profile's trials only; load average {os.getloadavg()[0]:.2f})")
+        generation = generation_times(base, fastest, args.generations, pools[2], candidates, trials)
+        for name, seconds in generation.items():
+            print(f"paper-config generation ({candidates} candidates near a random mean x {trials} trials, 2 workers, "
+                  f"each candidate {'run whole by one worker' if name == 'whole' else 'split into batch_trials tasks'}"
+                  f"): {seconds:.2f} s -> 500 generations {500 * seconds / 60:.1f} min")
+        print(f"whole candidates per worker: {generation['split'] / generation['whole']:.2f}x faster generations; "
+              f"projected paper-scale run from generations: {500 * generation['whole'] / 60:.1f} min (target <= 15; "
+              f"CMA-ES and the store excluded)")
+        if args.racing_generations > 1:
+            print_racing_projection(args.racing_generations, args.race_looks, args.race_alpha, pools[2], racing)
     finally:
         for pool in pools.values():
             pool.close()
-    one, two = min(pool_times[1]), min(pool_times[2])
-    print(f"one evaluation of {args.trials} trials: 1 worker {one:.3f} s, 2 workers {two:.3f} s, "
-          f"speed-up {one / two:.2f}x")
-    projected_min = PAPER_TRIALS / (args.trials / two) / 60
-    print(f"projected paper-scale run (500 x 13 x 60 = {PAPER_TRIALS} trials) on 2 workers: {projected_min:.1f} min "
-          f"(one profile's trials only; load average {os.getloadavg()[0]:.2f})")
-    generation = generation_times(base, fastest, args.generations)
-    for name, seconds in generation.items():
-        print(f"paper-config generation (13 candidates near a random mean x 60 trials, 2 workers, each candidate "
-              f"{'run whole by one worker' if name == 'whole' else 'split into batch_trials tasks'}): {seconds:.2f} s "
-              f"-> 500 generations {500 * seconds / 60:.1f} min")
-    print(f"whole candidates per worker: {generation['split'] / generation['whole']:.2f}x faster generations; "
-          f"projected paper-scale run from generations: {500 * generation['whole'] / 60:.1f} min (target <= 15; "
-          f"CMA-ES and the store excluded)")
-    if args.racing_generations > 1:
-        print_racing_projection(args.racing_generations, args.race_looks, args.race_alpha)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -14,7 +14,10 @@ The target is at most 200 ms: an e-stop typed in the console lands before the fi
 that before the end of the countdown (the countdown length sets the window, not the latency). Prints each run,
 then min / median / max per case and the ratio of the worst to the target.
 
-    python bench/bench_estop_latency.py [--countdowns 1 2 3] [--runs 3]
+    python bench/bench_estop_latency.py [--countdowns 1 2 3] [--runs 3] [--smoke]
+
+Everything runs in a ROS domain of its own (``bench.smoke.isolated_ros``), with its session keys and ROS logs in a
+temporary folder. ``--smoke``: one run of each case at a 1 s countdown (bench/smoke.py).
 """
 import argparse
 import json
@@ -118,13 +121,12 @@ class Rig:
 
 
 def measure(countdowns, runs):
-    from rollability_ros.core.graph import claim_domain
+    from bench.smoke import isolated_ros
     from rollability_ros.core.rig.relay_device_sim import RelaySim
 
-    domain, _lock = claim_domain(150, 200)
-    work = tempfile.mkdtemp(prefix="bench-estop-")
-    os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", XDG_RUNTIME_DIR=work)
-    os.environ.pop("ROS_LOCALHOST_ONLY", None)
+    scratch = tempfile.TemporaryDirectory(prefix="bench-estop-")   # removed when this returns
+    work = scratch.name
+    _lock = isolated_ros(work)   # the valve's session key and the ROS logs in ``work`` too
     sim = RelaySim(work).start()
     valve_log = open(os.path.join(work, "valve.log"), "wb")
     valve = subprocess.Popen([sys.executable, "-m", "rollability_ros.nodes.valve_controller", "--ros-args",
@@ -211,11 +213,15 @@ def estop_mid_pulse(rig, sim, master, countdown_s):
     return (off["monotonic_s"] - pressed) * 1000.0, (off["monotonic_s"] - on["monotonic_s"]) * 1000.0
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--countdowns", type=float, nargs="+", default=[1.0, 2.0, 3.0], help="countdown lengths, s")
     parser.add_argument("--runs", type=int, default=3, help="runs per countdown and case")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: one run of each case at a 1 s countdown; "
+                                                             "the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        args.countdowns, args.runs = [1.0], 1
     rows = measure(args.countdowns, args.runs)
     print(f"{'case':10} {'countdown s':>11} {'run':>3} {'keypress->off ms':>16}  detail")
     for case, countdown_s, run, latency_ms, detail in rows:
@@ -234,7 +240,8 @@ def main():
     print(f"e-stops pressed 0.2 s before the fire that let it fire: {len(late)} of "
           f"{sum(row[0] == 'countdown' for row in rows)}")
     print("raw rows: " + json.dumps([list(row) for row in rows]))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -53,17 +53,19 @@ def main(argv=None):
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--screen", type=int, default=16, help="random initial means screened (default 16)")
     parser.add_argument("--generations", type=int, default=10)
-    parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--workers", type=int, default=None, help="worker processes (default: evaluator.workers; "
+                                                                  "0: in this process)")
     parser.add_argument("--config", action="append", default=[], help="parameter files (default: optimizer)")
     parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
 
     base = run_directory.load_run_parameters(args.config or ["optimizer"])
-    if args.smoke:   # one seed, one generation, a screen of two means (SMOKE_RUN), one worker
+    if args.smoke:   # one seed, one generation, a screen of two means (SMOKE_RUN), in this process
         base.update(SMOKE_RUN)
-        args.seeds, args.generations, args.screen, args.workers = 1, 1, 2, 1
+        args.seeds, args.generations, args.screen, args.workers = 1, 1, 2, 0
     settings = evaluation.settings_from_parameters(base)
-    executor = evaluation.make_executor(settings.evaluator, args.workers)
+    executor = evaluation.make_executor(settings.evaluator, args.workers) if args.workers != 0 \
+        else evaluation.SerialExecutor()
     rows: typing.Dict[int, typing.List[typing.Any]] = {0: [], args.screen: []}
     try:
         with tempfile.TemporaryDirectory(prefix="bench_screen_") as workdir:

@@ -3,7 +3,7 @@ beat one optimized on the uncalibrated twin, when both are scored on the truth?
 
     nice python bench/bench_objective.py [--parameter launch_twin.foam.lateral_friction] [--truth 2.5]
         [--generations 15] [--popsize 8] [--trials 24] [--sigma0 0.1] [--screen 16] [--seeds 3,4,...,20]
-        [--validate 96] [--workers 2]
+        [--validate 96] [--workers 2] [--smoke]
 
 1. Truth: the launch twin with ``--parameter`` moved to ``--truth`` (default: the foam's friction from 1.0 to
    2.5, a truth under which the profiles rank differently: docs/calibration.md); "physical" outcomes of the bare
@@ -44,7 +44,7 @@ from rollability_ros.core.optimization import batch_evaluation, run_directory  #
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
 from rollability_ros.core.records import LaunchCondition  # noqa: E402
 from rollability_ros.core.stats import newcombe_interval  # noqa: E402
-from rollability_ros.core.sim import evaluation  # noqa: E402
+from rollability_ros.core.sim import evaluation, launch_twin_settings_from_parameters  # noqa: E402
 
 CAMPAIGN = {"/**": {"ros__parameters": {"campaign": {"heights_m": [0.75], "speeds_mps": [0.8, 1.5],
                                                      "angles_deg": [-30.0, 30.0]}}}}
@@ -62,7 +62,9 @@ def optimize(run_dir, twin_config, campaign_file, args, seed, executor):
                        "profile.rows": 3, "profile.cols": 3, "optimizer.seed": seed})
     settings = evaluation.settings_from_parameters(parameters)
     batch = batch_evaluation.profile_batch_evaluator(settings, args.trials, executor)
-    run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid, batch)
+    config = optimization_run.run_config(parameters)
+    run = optimization_run.OptimizationRun(run_dir, config, settings.grid, batch,
+                                           screen_profiles=optimization_run.profile_screen(config.settings, settings))
     result = run.run()
     pooled = selection.pool_candidates(run.store.candidates(run_id=run.run_id))
     best = max(pooled, key=lambda d: (d.wilson_low, d.fitness))
@@ -72,7 +74,7 @@ def optimize(run_dir, twin_config, campaign_file, args, seed, executor):
     return best.heights, settings
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     defaults = calibration.CalibrationSettings()
     parser.add_argument("--parameter", default="launch_twin.foam.lateral_friction", choices=defaults.parameters,
@@ -89,8 +91,15 @@ def main():
     parser.add_argument("--seeds", default=",".join(str(seed) for seed in range(3, 21)),
                         help="optimizer seeds, comma-separated: one pair of runs each")
     parser.add_argument("--validate", type=int, default=96, help="launches per design on the truth")
-    parser.add_argument("--workers", type=int, default=2)
-    args = parser.parse_args()
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (0: in this process)")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers "
+                                                             "mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    physical, repetitions, fit_popsize, fit_generations = 24, 8, 4, 4
+    if args.smoke:   # one launch per condition, a fit of one generation of two, two seed pairs of 2 x 2 launches
+        physical, repetitions, fit_popsize, fit_generations = 1, 1, 2, 1
+        args.generations, args.popsize, args.trials, args.screen, args.seeds = 1, 2, 2, 0, "3,4"
+        args.validate, args.workers = 2, 0
     index = defaults.parameters.index(args.parameter)
     lower, upper, log_scale = defaults.lower[index], defaults.upper[index], defaults.log_scale[index]
     seeds = [int(seed) for seed in args.seeds.split(",")]
@@ -105,12 +114,14 @@ def main():
         parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
         uncalibrated_value = parameters[args.parameter]
         conditions = [LaunchCondition("baseline", 0.75, 0.8, 0.0), LaunchCondition("dome", 0.75, 0.8, 0.0)]
-        outcomes = synthetic_outcomes(parameters, [args.parameter], [args.truth], conditions, 24)
+        uncalibrated = launch_twin_settings_from_parameters(parameters)
+        outcomes = synthetic_outcomes(uncalibrated, [args.parameter], [args.truth], conditions, physical)
         settings = calibration.CalibrationSettings(parameters=[args.parameter], lower=[lower], upper=[upper],
-                                                   log_scale=[log_scale], sim_repetitions=8, popsize=4,
-                                                   max_generations=4, bootstrap_resamples=0)
-        with calibration.LaunchPool(args.workers) as pool:
-            fitted = calibration.calibrate(outcomes, parameters, settings, pool).estimates[0].fitted
+                                                   log_scale=[log_scale], sim_repetitions=repetitions,
+                                                   popsize=fit_popsize, max_generations=fit_generations,
+                                                   bootstrap_resamples=0)
+        with calibration.LaunchPool(args.workers or 1) as pool:   # 1: in this process
+            fitted = calibration.calibrate(outcomes, uncalibrated, settings, pool).estimates[0].fitted
         calibrated = os.path.join(folder, "calibrated.yaml")
         with open(calibrated, "w", encoding="utf-8") as stream:
             yaml.safe_dump(calibration.calibrated_parameter_document({args.parameter: fitted}), stream)
@@ -121,7 +132,8 @@ def main():
             yaml.safe_dump(calibration.calibrated_parameter_document({args.parameter: args.truth}), stream)
         totals = {"calibrated": [0, 0], "uncalibrated": [0, 0]}
         differences = []
-        with evaluation.make_executor(evaluation.EvaluatorOptions(workers=args.workers)) as executor:
+        with evaluation.make_executor(evaluation.EvaluatorOptions(workers=args.workers)) if args.workers \
+                else evaluation.SerialExecutor() as executor:
             for seed in seeds:
                 scores = {}
                 for label, twin in (("uncalibrated", calibration.TWIN_CONFIGS),
@@ -155,6 +167,7 @@ def main():
             print(f"Wilcoxon signed-rank over the seeds: statistic {wilcoxon.statistic:.1f}, two-sided p = "
                   f"{wilcoxon.pvalue:.3f}")
     print(f"wall {time.perf_counter() - started:.0f} s on {os.cpu_count()} cores (simulated twin and truth)")
+    return 0
 
 
 def report_difference(lead, calibrated, uncalibrated):
@@ -167,4 +180,4 @@ def report_difference(lead, calibrated, uncalibrated):
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -1,6 +1,7 @@
 """Optimizer node benchmark: optimizer + messaging overhead per generation through the ROS graph, paper projection.
 
     .venv/bin/python bench/bench_optimizer_node.py [--config paper] [--generations 3] [--evaluators 1] [--repeats 2]
+                                                   [--smoke]
 
 The same run (config, seed, generations) on this machine's cores, alternately ``--repeats`` times each way:
 1. in-process: ``OptimizationRun`` over ``profile_batch_evaluator`` on a local process pool (all cores);
@@ -13,11 +14,12 @@ in-process generation (target <= 5%); inside the node graph, the time outside th
 store, checkpoint, goals and results over DDS, workers idle between goals) as a fraction of the evaluators'
 own time. Then the projected wall time of the paper run (500 generations x (12 + 1
 re-evaluation) x 60 trials) from the trial rate measured through the node graph, and a check that both runs
-stored the same candidates.
+stored the same candidates. The node graph runs in a ROS domain of its own (``bench.smoke.isolated_ros``), its
+logs in a temporary folder. ``--smoke``: the quick config at bench/smoke.py's sizes, two generations, one worker
+each way, one repeat.
 """
 import argparse
 import os
-import random
 import subprocess
 import sys
 import tempfile
@@ -75,11 +77,9 @@ def run_in_process(parameters, workdir, workers):
 
 
 def run_node_graph(config_path, overrides, workdir, evaluators, workers_each):
-    """Run the optimizer node against ``evaluators`` sim_evaluator nodes in ``workdir``; return the stored run."""
-    """Run the optimizer node against ``evaluators`` sim_evaluator nodes; return the stored run."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])),
-               ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-               ROS_DOMAIN_ID=os.environ.get("ROS_DOMAIN_ID") or str(random.randint(101, 200)))
+    """Run the optimizer node against ``evaluators`` sim_evaluator nodes in ``workdir`` (in this process's ROS
+    domain: :func:`main` claims one); return the stored run."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))
     processes = []
 
     def start(module, name, args):
@@ -131,10 +131,22 @@ def main(argv=None):
     parser.add_argument("--evaluator-workers", type=int, help="worker processes per evaluator node (default: "
                                                               "--workers / --evaluators)")
     parser.add_argument("--repeats", type=int, default=2, help="runs each way (default 2)")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers "
+                                                             "mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
     if args.generations < 2:
         parser.error("--generations must be >= 2 (generation 0 is left out)")
     overrides = {"optimizer.max_generations": args.generations, "optimizer.stagnation_generations": 0}
+    if args.smoke:   # the quick config, two generations of SMOKE_RUN's size, one worker each way, one repeat
+        from bench.smoke import SMOKE_RUN
+
+        args.config, args.generations, args.workers, args.evaluators, args.repeats = "optimizer", 2, 1, 1, 1
+        overrides = {**{k: v for k, v in SMOKE_RUN.items() if k.startswith(("optimizer.", "quality_diversity."))},
+                     "optimizer.max_generations": 2, "optimizer.stagnation_generations": 0}
+    scratch = tempfile.TemporaryDirectory(prefix="bench-optimizer-node-")   # ROS logs; removed when main returns
+    from bench.smoke import isolated_ros
+
+    domain_lock = isolated_ros(scratch.name)   # noqa: F841 - held while the graph runs
     parameters = {**run_directory.load_run_parameters(args.config), **overrides}
     settings = optimization_run.run_settings(parameters).optimizer
     grid = evaluation.settings_from_parameters(parameters).grid

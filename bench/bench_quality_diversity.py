@@ -5,7 +5,7 @@
 For each seed, two optimizations on config/optimizer.yaml (the quick study's settings: 4 x 4 grid, popsize 12,
 20 trials, 30 generations; same evaluator, same objective, same number of profile evaluations), one with
 ``optimizer.method: cmaes``, one with ``cma_mae``; then the shipped selection (``selection`` of
-config/optimizer.yaml: 60 fresh trials; the CMA-MAE run's elites are screened first). Printed per seed and as
+config/optimizer.yaml: 60 fresh trials and the plausible-world check; the CMA-MAE run's elites are screened first). Printed per seed and as
 means with the CMA-MAE / CMA-ES ratio, all measured in this run (simulated):
 
 * QD score and coverage: every evaluated profile of a run placed in the same height x sharpness grid (the
@@ -32,7 +32,7 @@ from rollability_ros.core.optimization import batch_evaluation, run_directory  #
 from bench.smoke import SMOKE_RUN  # noqa: E402
 from rollability_ros.core.profile import descriptors  # noqa: E402
 from rollability_ros.core.store import Store  # noqa: E402
-from rollability_ros.core.sim import evaluation  # noqa: E402
+from rollability_ros.core.sim import evaluation, world_draws, world_fidelity  # noqa: E402
 
 METHODS = ("cmaes", "cma_mae")
 
@@ -56,9 +56,10 @@ def common_grid_scores(candidates, grid, qd_settings):
     return sum(best.values()), len(best) / cells
 
 
-def one_run(method, seed, generations, workers, workdir, overrides=None):
-    """Optimize and select with ``method`` and ``seed`` (``overrides``: parameters over the quick config's); return
-    the measurements (dict)."""
+def one_run(method, seed, generations, workers, workdir, overrides=None, run_dir=None):
+    """Optimize and select with ``method`` and ``seed`` (``overrides``: parameters over the quick config's;
+    ``workers`` 0: in this process) in ``run_dir`` (default ``workdir/<method>-<seed>``); return the measurements
+    (dict)."""
     parameters = run_directory.load_run_parameters("optimizer")
     parameters.update({**(overrides or {}), "optimizer.method": method, "optimizer.seed": seed})
     if generations:
@@ -67,19 +68,25 @@ def one_run(method, seed, generations, workers, workdir, overrides=None):
     chosen = from_mapping(selection.SelectionSettings, section(parameters, "selection"), "selection")
     qd_settings = optimization_run.run_settings(parameters).quality_diversity
     trials = optimization_run.run_settings(parameters).optimizer.trials
-    run_dir = os.path.join(workdir, f"{method}-{seed}")
+    run_dir = run_dir or os.path.join(workdir, f"{method}-{seed}")
     started = time.perf_counter()
-    with evaluation.make_executor(settings.evaluator, workers) as executor:
+    with evaluation.make_executor(settings.evaluator, workers) if workers != 0 else evaluation.SerialExecutor() \
+            as executor:
         run = optimization_run.OptimizationRun(run_dir, optimization_run.run_config(parameters), settings.grid,
                                                batch_evaluation.profile_batch_evaluator(settings, trials, executor))
         result = run.run()
         run.close()
+        def world_launch(heights_list, world_seed, launch_seed, launches):   # the shipped selection's world check
+            return batch_evaluation.fidelity_batch_evaluator(settings, executor, world_fidelity(world_seed))(
+                heights_list, launch_seed, launches)
+
         with Store(run_dir) as store:
             candidates = store.candidates()
             picked, _ = design_set.select_run(
                 store, run.run_id, run_dir, settings.grid, settings.printer, chosen,
                 batch_evaluation.profile_batch_evaluator(settings, chosen.reevaluate_trials, executor), seed,
-                batch_evaluation.fidelity_batch_evaluator(settings, executor, "launch"))
+                batch_evaluation.fidelity_batch_evaluator(settings, executor, "launch"), world_launch=world_launch,
+                describe_world=world_draws(settings))
     wall_s = time.perf_counter() - started
     qd_score, coverage = common_grid_scores(candidates, settings.grid, qd_settings)
     heights = [d.metrics.max_height_m * 1000 for d in picked.designs]
@@ -100,8 +107,8 @@ def main(argv=None):
     parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
     overrides = SMOKE_RUN if args.smoke else {}
-    if args.smoke:   # one seed of each method, one generation (SMOKE_RUN), one worker
-        args.seeds, args.generations, args.workers = [1], 1, 1
+    if args.smoke:   # one seed of each method, one generation (SMOKE_RUN), in this process
+        args.seeds, args.generations, args.workers = [1], 1, 0
     rows: typing.Dict[str, typing.List[typing.Any]] = {method: [] for method in METHODS}
     with tempfile.TemporaryDirectory() as workdir:
         for seed in args.seeds:

@@ -1,6 +1,7 @@
 """What the launch race had to choose from: every raced elite of finished studies measured again, at length.
 
     nice python bench/bench_race_truth.py STUDY_DIR [STUDY_DIR ...] [--nominal 100] [--robust 100] [--workers 2]
+    python bench/bench_race_truth.py --smoke
 
 For each study (a ``rollability study`` folder, e.g. ``transfer-bench/runs/seed-1`` of ``bench/bench_transfer.py``)
 the elites its selection raced (``designs/archive.csv``: screen and race columns; heights from the run's archive)
@@ -12,13 +13,16 @@ against what it could have chosen: A's nominal count beside the survivors' and a
 final race round of ``--final-launches`` more robust launches for the ``--keep`` best survivors would pick
 (Monte Carlo on the measured rates). A long
 measurement of the race's candidates says whether the race's choice or the candidates themselves limit A's
-campaign gain. All numbers are simulated.
+campaign gain. All numbers are simulated. ``--smoke`` makes its own study folder first (:func:`smoke_study`: one
+generation of the quick study's quality-diversity search and its selection with the race, at bench/smoke.py's
+sizes) and measures it with one launch of each kind.
 """
 import argparse
 import csv
 import dataclasses
 import os
 import sys
+import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
 
@@ -125,26 +129,48 @@ def final_round(rows, survivors, robust, nominal, extra, keep, draws=4000):
     return float(np.mean(picks))
 
 
-def main():
+def smoke_study(folder):
+    """A study folder in ``folder`` whose ``optimization`` holds one generation of the quick study's
+    quality-diversity search (a wide step, so its six candidates fill several cells) and its selection, every elite
+    screened and three raced on two launches each (otherwise bench/smoke.py's sizes); returns the folder."""
+    from bench.bench_quality_diversity import one_run
+    from bench.smoke import SMOKE_RUN
+
+    one_run("cma_mae", 1, 1, 0, folder, {**SMOKE_RUN, "optimizer.popsize": 6, "optimizer.sigma0": 0.3,
+                                         "selection.top_fraction": 1.0, "selection.race_elites": 3},
+            run_dir=os.path.join(folder, "optimization"))
+    return folder
+
+
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("studies", nargs="+", help="study folders (runs/<study-id>)")
+    parser.add_argument("studies", nargs="*", help="study folders (runs/<study-id>)")
     parser.add_argument("--nominal", type=int, default=100, help="nominal launches per design (campaign's measure)")
     parser.add_argument("--robust", type=int, default=100, help="fresh robust launches per design (race's measure)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--final-launches", type=int, nargs="*", default=[60, 200],
                         help="Monte Carlo of a final race round of this many more robust launches (needs both counts)")
     parser.add_argument("--keep", type=int, default=4, help="designs in that final round (selection.race_keep)")
-    args = parser.parse_args()
-    if args.nominal < 0 or args.robust < 0 or args.nominal + args.robust == 0 or args.workers < 1 or args.keep < 1 \
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: a study made here (smoke_study), one "
+                        "launch of each kind, in this process; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    scratch = tempfile.TemporaryDirectory(prefix="bench-race-truth-")   # removed when main returns
+    if args.smoke:
+        args.studies = [smoke_study(os.path.join(scratch.name, "smoke-study"))]
+        args.nominal, args.robust, args.workers, args.final_launches, args.keep = 1, 1, 0, [2], 1
+    if not args.studies:
+        parser.error("give at least one study folder (or --smoke)")
+    if args.nominal < 0 or args.robust < 0 or args.nominal + args.robust == 0 or args.workers < 0 or args.keep < 1 \
             or any(n < 1 for n in args.final_launches):
-        raise SystemExit("bench_race_truth: need --nominal, --robust >= 0 (not both 0), --workers, --keep and "
-                         "--final-launches >= 1")
+        raise SystemExit("bench_race_truth: need --nominal, --robust, --workers >= 0 (not both counts 0; 0 workers: "
+                         "in this process), --keep and --final-launches >= 1")
     for study_dir in args.studies:
         if not os.path.isfile(os.path.join(study_dir, "optimization", "designs", "archive.csv")):
             raise SystemExit(f"bench_race_truth: {study_dir} is not a study folder with a selection "
                              f"(no optimization/designs/archive.csv)")
     parameters = run_directory.read_run_config(os.path.join(args.studies[0], "optimization"))
-    executor = evaluation.make_executor(evaluation.settings_from_parameters(parameters).evaluator, args.workers)
+    executor = evaluation.make_executor(evaluation.settings_from_parameters(parameters).evaluator, args.workers) \
+        if args.workers else evaluation.SerialExecutor()
     try:
         for study_dir in args.studies:
             rows, heights = raced_elites(study_dir)

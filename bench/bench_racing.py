@@ -2,7 +2,7 @@
 
     nice python bench/bench_racing.py [--config optimizer] [--seeds 1 2 3 4 5] [--looks 10 20 40] [--alpha 0.1]
                                       [--survivors 0] [--set optimizer.trials=60 ...] [--raced-set ...] [--fresh-trials 300]
-                                      [--workers 2] [--rule-only]
+                                      [--workers 2] [--rule-only] [--smoke]
 
 For every seed, one optimization with every candidate on all of its ``optimizer.trials`` (the full budget) and one
 with sequential racing (``optimizer.race_looks`` = ``--looks``, ``optimizer.race_alpha`` = ``--alpha``, successive halving
@@ -89,6 +89,11 @@ def optimize(parameters, seed, executor, folder, name, reuse=False):
     return result.best.heights, spent, result.generations, seconds, settings, stopped, run_dir
 
 
+def executor_of(workers):
+    """A pool of ``workers`` processes, or this process (``workers`` 0)."""
+    return evaluation.LocalExecutor(workers) if workers else evaluation.SerialExecutor()
+
+
 def interval_text(successes, trials):
     low, high = wilson_interval(successes, trials)
     return f"{successes / trials:.3f} [{low:.2f}, {high:.2f}]"
@@ -167,16 +172,23 @@ def print_first_look_agreement(run_dirs, settings, executor, first, survivors, p
 
 
 WHAT_IF_RULES = (([10, 20, 40], 0.1), ([10, 20, 40], 0.3), ([10, 20], 0.5), ([5, 10, 15, 20, 30, 40], 0.9))
+#: The same at ``--smoke``'s 4 trials per candidate (the last rule's looks all come too late: that line too).
+SMOKE_WHAT_IF_RULES = (([2], 0.1), ([1, 2, 3], 0.9), ([10, 20], 0.5))
 
 
-def print_what_if(run_dirs, popsize, rules=WHAT_IF_RULES):
+def print_what_if(run_dirs, popsize, trials, rules=WHAT_IF_RULES):
     """What other rules would have spent on the full-budget runs' own candidates: each candidate's rate over its
     full trials taken as its true rate, the bar from the previous generation's best-so-far as if over 2 x trials
     (the incumbent's pooled trials are not stored; it has at least two evaluations), the rule's exact expected
-    trials (:func:`racing.sequential_stop_probability`); re-evaluations unchanged. An approximation, stated so."""
+    trials (:func:`racing.sequential_stop_probability`); re-evaluations unchanged. An approximation, stated so.
+    A rule's looks at or past the runs' ``trials`` per candidate are left out (a look must come before the end)."""
     from rollability_ros.core.optimization import racing
 
-    for looks, alpha in rules:
+    for rule_looks, alpha in rules:
+        looks = [look for look in rule_looks if look < trials]
+        if not looks:
+            print(f"what if: looks {rule_looks} all come at or after the runs' {trials} trials: not applicable")
+            continue
         full = spent = 0.0
         for run_dir in run_dirs:
             with Store(run_dir) as store:
@@ -194,7 +206,7 @@ def print_what_if(run_dirs, popsize, rules=WHAT_IF_RULES):
               f"{spent / full:.2f}x the trials")
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="optimizer", help="shipped config name or path (default: the quick one)")
     parser.add_argument("--set", nargs="*", default=[], help="parameter overrides name=value")
@@ -208,7 +220,7 @@ def main():
                         help="successive halving: candidates going on after each look (0: off)")
     parser.add_argument("--engine", default="mujoco")
     parser.add_argument("--fresh-trials", type=int, default=300)
-    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (0: in this process)")
     parser.add_argument("--keep", help="folder to keep the runs in (default: a temporary one)")
     parser.add_argument("--raced-name", default="raced", help="name of the raced runs' folders (with --keep)")
     parser.add_argument("--reuse", action="store_true",
@@ -216,7 +228,15 @@ def main():
     parser.add_argument("--rule-only", action="store_true", help="only the rule's exact statistics (no runs)")
     parser.add_argument("--first-look-from", metavar="FOLDER",
                         help="only the first-look agreement, on the full-budget runs kept in FOLDER by --keep")
-    args = parser.parse_args()
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: each step once, in seconds; the numbers "
+                                                             "mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    if args.smoke:   # two seeds (the over-seeds interval), two generations of 2 x 4 trials, a look at 2, halving
+        # to one; in this process
+        args.seeds, args.looks, args.survivors, args.fresh_trials, args.workers = [1, 2], [2], 1, 2, 0
+        args.set = [*args.set, "optimizer.popsize=2", "optimizer.trials=4", "optimizer.max_generations=2",
+                    "optimizer.initial_mean_screen=0", "optimizer.stagnation_generations=0",
+                    "quality_diversity.emitters=1"]
     full_parameters, raced_parameters = run_parameters(args, False), run_parameters(args, True)
     settings = optimization_run.run_settings(raced_parameters).optimizer
     settings.validate()
@@ -225,26 +245,27 @@ def main():
     if args.survivors:
         print_halving_statistics(args.looks, settings.trials, args.survivors, settings.popsize)
     if args.rule_only:
-        return
+        return 0
     if args.first_look_from:
         full_runs = sorted(os.path.join(args.first_look_from, name) for name in os.listdir(args.first_look_from)
                            if name.startswith("full-seed-"))
         if not full_runs or not args.survivors:
             raise SystemExit(f"--first-look-from needs --survivors and full-budget runs (full-seed-*) in "
                              f"{args.first_look_from}")
-        with evaluation.LocalExecutor(args.workers) as executor:
+        with executor_of(args.workers) as executor:
             print_first_look_agreement(full_runs, evaluation.settings_from_parameters(full_parameters), executor,
                                        args.looks[0], args.survivors, settings.popsize)
-        return
+        return 0
     print(f"racing verification (simulated): --config {args.config} {' '.join(args.set)}, engine {args.engine} + "
           f"early decision, {settings.method}, popsize {settings.popsize}, {settings.trials} trials per candidate, "
           f"at most {settings.max_generations} generations; racing looks {list(args.looks)} alpha {args.alpha} survivors "
           f"{args.survivors}; "
           f"{args.fresh_trials} fresh trials per final design; cores {os.cpu_count()}", flush=True)
     rows, full_runs = [], []
-    folder = args.keep or tempfile.mkdtemp(prefix="bench-racing-")
+    scratch = tempfile.TemporaryDirectory(prefix="bench-racing-")   # removed when main returns
+    folder = args.keep or scratch.name
     started = time.perf_counter()
-    with evaluation.LocalExecutor(args.workers) as executor:
+    with executor_of(args.workers) as executor:
         executor.warm()
         for seed in args.seeds:
             row = {"seed": seed}
@@ -303,12 +324,14 @@ def main():
           f"design's interval [{full_low:.3f}, {full_high:.3f}]; trials {ratio:.2f}x of the full budget "
           f"({'at most' if ratio <= 1 / 3 else 'MORE than'} a third); wall {time.perf_counter() - started:.0f} s, "
           f"load average {' '.join(f'{v:.1f}' for v in os.getloadavg())} (simulated)")
-    print_what_if(full_runs, settings.popsize)
+    print_what_if(full_runs, settings.popsize, optimization_run.run_settings(full_parameters).optimizer.trials,
+                  SMOKE_WHAT_IF_RULES if args.smoke else WHAT_IF_RULES)
     if args.survivors:
-        with evaluation.LocalExecutor(args.workers) as executor:
+        with executor_of(args.workers) as executor:
             print_first_look_agreement(full_runs, evaluation.settings_from_parameters(full_parameters), executor,
                                        args.looks[0], args.survivors, settings.popsize)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

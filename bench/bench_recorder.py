@@ -14,7 +14,10 @@ and, without ROS, the raw ``mcap`` writer and our BagWriter over the same number
 (``bench_bag_writer.measure``). Prints messages/s, MB/s (serialized payload), drops, and ratios; the target is
 recorder >= 0.8 x bare_callback.
 
-    python bench/bench_recorder.py [--outcomes 20000] [--poses 40000]
+    python bench/bench_recorder.py [--outcomes 20000] [--poses 40000] [--smoke]
+
+The processes run in a ROS domain of their own (``bench.smoke.isolated_ros``), their ROS logs in a temporary
+folder. ``--smoke``: 20 messages of each case (bench/smoke.py).
 """
 import argparse
 import json
@@ -222,6 +225,8 @@ def main(argv=None):
     parser.add_argument("--case", choices=tuple(TOPICS), help=argparse.SUPPRESS)
     parser.add_argument("--count", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--bag", help=argparse.SUPPRESS)
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: 20 messages of each case; the numbers "
+                                                             "mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
     if args.role == "publisher":
         run_publisher(args.case, args.count)
@@ -229,8 +234,12 @@ def main(argv=None):
     if args.role == "consumer":
         run_consumer(args.kind, args.case, args.count, args.bag)
         return 0
-    os.environ.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 80))   # clear of the tests' 20..100
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    if args.smoke:
+        args.outcomes = args.poses = 20
+    from bench.smoke import isolated_ros
+
+    scratch = tempfile.TemporaryDirectory(prefix="bench-recorder-")   # ROS logs; removed when main returns
+    domain_lock = isolated_ros(scratch.name)   # noqa: F841 - held while the processes run
     results = run({"outcome": args.outcomes, "pose": args.poses})
     print(f"{'case':<8} {'size B':>6} {'consumer':<14} {'messages':>8} {'drops':>5} {'msg/s':>9} {'MB/s':>7} "
           f"{'pub msg/s':>9}  vs bare_callback  vs bare_drained")

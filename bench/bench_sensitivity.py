@@ -28,7 +28,8 @@ def main(argv=None):
         stl = os.path.join(folder, "dome.stl")
         export_mesh(dome_mesh(), stl)
         trials, out = (1, os.path.join(folder, "out")) if args.smoke else (args.trials, args.out)
-        return cli_main(["sensitivity", "--mesh", f"dome={stl}", "--trials", str(trials), "--out", out])
+        workers = ["--workers", "1"] if args.smoke else []
+        return cli_main(["sensitivity", "--mesh", f"dome={stl}", "--trials", str(trials), "--out", out, *workers])
 
 
 if __name__ == "__main__":

@@ -1,7 +1,9 @@
 """Do the main job's designs work where the rig measures them? The quick default study over several optimizer seeds.
 
     nice python bench/bench_transfer.py [--seeds 1 2 3] [--robust-launches 100] [--sensitivity-trials 0]
-                                        [--out transfer-bench] [--config FILE ...]
+                                        [--worlds 20] [--launches-per-world 40] [--world-engine ENGINE]
+                                        [--out transfer-bench] [--config FILE ...] [--smoke]
+    nice python bench/bench_transfer.py --designs designs.yaml [...]   # no study: the checks of existing designs
 
 For each seed: ``rollability study`` (the node graph, quick default, all simulated) with ``optimizer.seed`` set to
 it (any ``--config`` files are added, e.g. ``paper``), timed; then, from the study's stores and files:
@@ -16,19 +18,29 @@ it (any ``--config`` files are added, e.g. ``paper``), timed; then, from the stu
   <designs.yaml> --engines pybullet,mujoco --fidelity launch --trials N``, ``--robust-launches`` N each, seed
   :data:`ROBUST_SEED`; it writes ``engine_agreement.csv`` beside the designs): design minus bare per engine
   (Newcombe 95%; issue 41's target: A's interval above 0 on both engines);
+- the plausible-world check (``rollability sensitivity --designs-file <designs.yaml> --worlds N
+  --launches-per-world K --seed S``, ``--worlds`` N >= 20 and ``--launches-per-world`` K >= 40 for issue 41; seed
+  :data:`WORLD_SEED`; on ``--world-engine``, default the evaluator's launch engine): per design the share of worlds
+  won against the bare robot and the worst world's gain with its Newcombe interval (issue 41's target: A wins at
+  least 90% of them);
 - with ``--sensitivity-trials`` N > 0, the robust sensitivity row (``core/sim/sensitivity.py``: every disturbance
   trial under its own draw of all the unknowns; N each, seed 0): A and the bare chassis, A minus bare;
 - the study's wall time (set-up excluded; the machine's load is printed with it) and the CPU time of its processes
   (divided by 2 cores: what it needs of an otherwise idle 2-core machine).
 
 Then the same over seeds: how many seeds meet each target and the pooled campaign gain of A. All numbers are
-simulated. Every study stays in ``--out/seed-<n>/`` for inspection.
+simulated. Every study stays in ``--out/seed-<n>/`` for inspection. ``--designs FILE`` runs no study: the robust
+launches and the world check of an existing designs file (``engine_agreement.csv`` and ``world-check-*/`` are
+written beside it; an earlier result there is read, not measured again). ``--smoke``: one seed of the end-to-end
+test's miniature study (test/resources/mini_study.yaml), two robust launches, one sensitivity trial, a world check
+of 2 worlds x 2 launches, in a temporary folder (the numbers mean nothing).
 """
 import argparse
 import csv
 import os
 import subprocess
 import sys
+import tempfile
 import time
 import typing
 
@@ -36,15 +48,18 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import yaml  # noqa: E402
 
-from rollability_ros.core.graph import claim_domain  # noqa: E402
 from rollability_ros.core.results import design_map  # noqa: E402
 from rollability_ros.core.stats import newcombe_interval  # noqa: E402
 from rollability_ros.core.store import Store  # noqa: E402
 
 #: Base seed of the fresh robust launches on both engines (no seed a study's race, selection or campaign uses).
 ROBUST_SEED = 41041
+#: Seed of the plausible-world check (its worlds' draws and launches; no seed a study uses).
+WORLD_SEED = 41042
 #: Issue 41's campaign target for A: the gain over the baseline and the lower bound of its Newcombe interval.
 A_GAIN_TARGET, A_LOW_TARGET = 0.30, 0.10
+#: Issue 41's world-check target for A: the share of worlds won.
+A_WORLD_SHARE_TARGET = 0.9
 
 
 def run_study(out, seed, configs):
@@ -123,25 +138,100 @@ def robust_row(study_dir, trials):
     return {r["configuration"]: (r["successes"], r["trials"]) for r in rows if r["factor"] == "robust"}
 
 
-def robust_launches(study_dir, launches):
+def robust_launches(designs_file, launches, workers=2):
     """{engine: {configuration: (upright, launches)}}: ``launches`` fresh robust launches of the bare robot and
-    every design on both engines, by the ``rollability evaluate`` command a user runs (module docstring)."""
+    every design of ``designs_file`` on both engines, by the ``rollability evaluate`` command a user runs (module
+    docstring), and the command's wall time (s; 0 when its table was there already)."""
     from rollability_ros.core.results import engine_agreement
 
-    designs = os.path.join(study_dir, "optimization", "designs")
+    designs = os.path.dirname(os.path.abspath(designs_file))
     table = os.path.join(designs, engine_agreement.TABLE_FILENAME)
+    started = time.perf_counter()
     if not os.path.exists(table):
-        command = [sys.executable, "-m", "rollability_ros.cli", "evaluate", "--designs",
-                   os.path.join(designs, "designs.yaml"), "--engines", "pybullet,mujoco", "--fidelity", "launch",
-                   "--trials", str(launches), "--seed", str(ROBUST_SEED), "--workers", "2"]
-        with open(os.path.join(study_dir, "robust-launches.log"), "w", encoding="utf-8") as log:
-            code = subprocess.call(command, cwd=study_dir, stdout=log, stderr=subprocess.STDOUT)
-        if code != 0:
-            raise SystemExit(f"rollability evaluate failed (exit {code}); see {study_dir}/robust-launches.log")
+        command = [sys.executable, "-m", "rollability_ros.cli", "evaluate", "--designs", designs_file,
+                   "--engines", "pybullet,mujoco", "--fidelity", "launch", "--trials", str(launches), "--seed",
+                   str(ROBUST_SEED), "--workers", str(workers)]
+        _run_logged(command, designs, "robust-launches.log", "rollability evaluate")
+    elapsed = time.perf_counter() - started
     counts: typing.Dict[str, typing.Dict[str, typing.Tuple[int, int]]] = {}
     for row in engine_agreement.read_table(table):
         counts.setdefault(row.engine, {})[row.design] = (row.successes, row.trials)
-    return counts
+    return counts, elapsed
+
+
+def _run_logged(command, folder, log_name, what):
+    """Run ``command`` in ``folder`` with its output in ``log_name`` there; SystemExit naming the log on failure."""
+    with open(os.path.join(folder, log_name), "w", encoding="utf-8") as log:
+        code = subprocess.call(command, cwd=folder, stdout=log, stderr=subprocess.STDOUT)
+    if code != 0:
+        raise SystemExit(f"{what} failed (exit {code}); see {os.path.join(folder, log_name)}")
+
+
+def world_check(designs_file, worlds, launches, engine="", workers=2):
+    """The plausible-world check of ``designs_file`` (module docstring) by the ``rollability sensitivity --worlds``
+    command a user runs, into ``world-check-<engine>/`` beside it (read when there already): its
+    ``world_summary.yaml`` as a dict, and the command's wall time (s)."""
+    folder = os.path.dirname(os.path.abspath(designs_file))
+    out = os.path.join(folder, f"world-check-{engine or 'launch-engine'}-{worlds}x{launches}")
+    summary = os.path.join(out, "world_summary.yaml")
+    started = time.perf_counter()
+    if not os.path.exists(summary):
+        command = [sys.executable, "-m", "rollability_ros.cli", "sensitivity", "--designs-file", designs_file,
+                   "--worlds", str(worlds), "--launches-per-world", str(launches), "--seed", str(WORLD_SEED),
+                   "--workers", str(workers), "--out", out] + (["--engine", engine] if engine else [])
+        _run_logged(command, folder, os.path.basename(out) + ".log", "rollability sensitivity --worlds")
+    elapsed = time.perf_counter() - started
+    with open(summary, encoding="utf-8") as stream:
+        return yaml.safe_load(stream), elapsed
+
+
+def print_world_check(document, elapsed):
+    """Print the check's line per design; return A's (share won, worst gain, worst low) or NaNs without A."""
+    print(f"  plausible-world check on the {document['engine']} twin (simulated; {document['worlds']} worlds x "
+          f"{document['launches_per_world']} paired launches, seed {document['seed']}; {elapsed:.0f} s wall): "
+          "share of worlds won (point gain > 0), worst world's gain [Newcombe 95%], pooled gain")
+    for label, design in document["designs"].items():
+        worst, pooled = design["worst_world"], design["pooled"]
+        print(f"    {label:<8} won {design['wins']}/{design['worlds']} ({design['share_won']:.0%}); worst world "
+              f"{worst['world']}: {worst['gain']:+.2f} [{worst['newcombe_95'][0]:+.2f}, {worst['newcombe_95'][1]:+.2f}]"
+              f"; pooled {pooled['gain']:+.2f} [{pooled['newcombe_95'][0]:+.2f}, {pooled['newcombe_95'][1]:+.2f}] "
+              f"({pooled['successes']}/{pooled['trials']} vs {pooled['baseline_successes']}/"
+              f"{pooled['baseline_trials']})")
+    print(f"    recommendation: {document['recommendation']['headline']}")
+    design = document["designs"].get("A")
+    if design is None:
+        return float("nan"), float("nan"), float("nan")
+    return design["share_won"], design["worst_world"]["gain"], design["worst_world"]["newcombe_95"][0]
+
+
+def print_robust_launches(engines, launches, elapsed):
+    """Print the fresh robust launches per engine; return {design: [lower bound of its gain per engine]}."""
+    engine_lows: typing.Dict[str, typing.List[float]] = {}
+    for engine, by_design in engines.items():
+        print(f"  fresh robust launches on the {engine} twin ({launches} each, seed {ROBUST_SEED}; both engines "
+              f"{elapsed:.0f} s wall): bare {by_design['baseline'][0]}/{by_design['baseline'][1]}")
+        for label in sorted(d for d in by_design if d != "baseline"):
+            text, _difference, low = gain_text(by_design[label], by_design["baseline"])
+            engine_lows.setdefault(label, []).append(low)
+            print(f"    {label:<8} {text}")
+    return engine_lows
+
+
+def designs_checks(designs_file, args):
+    """The robust launches and the world check of ``designs_file`` (``--designs`` / ``--smoke``), printed."""
+    load = os.getloadavg()
+    print(f"designs {designs_file} (load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}; 2 shared cores)")
+    if args.robust_launches:
+        engines, elapsed = robust_launches(designs_file, args.robust_launches, args.workers)
+        lows = print_robust_launches(engines, args.robust_launches, elapsed)
+        print(f"  A above bare with the interval above 0 on both engines: "
+              f"{len(lows.get('A', [])) == 2 and min(lows['A']) > 0}")
+    if args.worlds:
+        share, _gain, _low = print_world_check(*world_check(designs_file, args.worlds, args.launches_per_world,
+                                                             args.world_engine, args.workers))
+        print(f"  A wins at least {A_WORLD_SHARE_TARGET:.0%} of the worlds: {share >= A_WORLD_SHARE_TARGET}")
+    print(f"load average at the end: {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
+    return 0
 
 
 def gain_text(a, b):
@@ -149,7 +239,7 @@ def gain_text(a, b):
     return f"{a[0]}/{a[1]} vs {b[0]}/{b[1]}: {difference:+.2f} [{low:+.2f}, {high:+.2f}]", difference, low
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     parser.add_argument("--robust-launches", type=int, default=100,
@@ -158,15 +248,29 @@ def main():
                         help="robust disturbance trials per design in the sensitivity row (0 = none)")
     parser.add_argument("--out", default="transfer-bench")
     parser.add_argument("--config", action="append", default=[], help="extra study parameter file(s)")
-    args = parser.parse_args()
+    parser.add_argument("--worlds", type=int, default=20, help="worlds of the plausible-world check (0 = none)")
+    parser.add_argument("--launches-per-world", type=int, default=40, help="paired launches per design and world")
+    parser.add_argument("--world-engine", default="", help="engine of the world check (default: the launch engine)")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes of the checks")
+    parser.add_argument("--designs", metavar="FILE", help="no study: check this designs.yaml (module docstring)")
+    parser.add_argument("--smoke", action="store_true", help="tiny sizes: one seed of the miniature study, each "
+                        "measurement once; the numbers mean nothing (bench/smoke.py)")
+    args = parser.parse_args(argv)
+    scratch = tempfile.TemporaryDirectory(prefix="bench-transfer-")   # ROS logs (and --smoke's studies)
+    if args.smoke:
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        args.seeds, args.robust_launches, args.sensitivity_trials = [1], 2, 1
+        args.worlds, args.launches_per_world, args.workers = 2, 2, 1
+        args.out = os.path.join(scratch.name, "transfer-bench")
+        args.config = [os.path.join(root, "test", "resources", "mini_study.yaml"), *args.config]
     out = os.path.abspath(args.out)
+    if args.designs:
+        return designs_checks(os.path.abspath(args.designs), args)
     # studies in one DDS domain talk to each other's nodes: this bench's own domain, clear of the tests' 20..100
-    domain, _lock = claim_domain(101, 200)
-    os.environ["ROS_DOMAIN_ID"] = str(domain)   # the studies' nodes inherit it
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.pop("ROS_STATIC_PEERS", None)
-    os.environ.pop("ROS_LOCALHOST_ONLY", None)
-    print(f"ROS_DOMAIN_ID {domain}, localhost discovery (this bench's studies only)", flush=True)
+    from bench.smoke import isolated_ros
+
+    _lock = isolated_ros(scratch.name)   # the studies' nodes inherit it, and a folder for their ROS logs
+    print(f"ROS_DOMAIN_ID {os.environ['ROS_DOMAIN_ID']}, localhost discovery (this bench's studies only)", flush=True)
     summary = []
     for seed in args.seeds:
         study_dir, elapsed, load, cpu = run_study(out, seed, args.config)
@@ -193,15 +297,13 @@ def main():
         if evidence is not None:
             print(f"  transfer: screen vs race round 1 over {evidence[2]} elites: Spearman rho {evidence[0]:+.2f}, "
                   f"permutation p {evidence[1]:.3f}")
-        engines = robust_launches(study_dir, args.robust_launches) if args.robust_launches else {}
+        designs_file = os.path.join(study_dir, "optimization", "designs", "designs.yaml")
         engine_lows: typing.Dict[str, typing.List[float]] = {}
-        for engine, by_design in engines.items():
-            print(f"  fresh robust launches on the {engine} twin ({args.robust_launches} each, seed {ROBUST_SEED}): "
-                  f"bare {by_design['baseline'][0]}/{by_design['baseline'][1]}")
-            for label in sorted(d for d in by_design if d != "baseline"):
-                text, _difference, low = gain_text(by_design[label], by_design["baseline"])
-                engine_lows.setdefault(label, []).append(low)
-                print(f"    {label:<8} {text}")
+        if args.robust_launches:
+            engines, launches_s = robust_launches(designs_file, args.robust_launches, args.workers)
+            engine_lows = print_robust_launches(engines, args.robust_launches, launches_s)
+        worlds = print_world_check(*world_check(designs_file, args.worlds, args.launches_per_world, args.world_engine,
+                                                args.workers)) if args.worlds else (float("nan"),) * 3
         robust_gain = robust_low = float("nan")
         if args.sensitivity_trials:
             robust = robust_row(study_dir, args.sensitivity_trials)
@@ -214,24 +316,26 @@ def main():
                         "lowest": min((g[0] for g in gains.values()), default=float("nan")),
                         "a_counts": counts.get("A", (0, 0)), "base": base, "robust": (robust_gain, robust_low),
                         "a_engines": len(engine_lows.get("A", [])) == 2 and min(engine_lows["A"]) > 0,
-                        "transfer": evidence or (float("nan"), float("nan"), 0)})
+                        "transfer": evidence or (float("nan"), float("nan"), 0), "worlds": worlds})
     print(f"\nover seeds (simulated; targets: A - baseline >= {A_GAIN_TARGET:+.2f} with the lower bound >= "
           f"{A_LOW_TARGET:+.2f}, no design below the baseline, A's robust launches above bare with the interval above "
-          "0 on both engines, about 5 min):")
+          f"0 on both engines, A winning at least {A_WORLD_SHARE_TARGET:.0%} of the plausible worlds, about 5 min):")
     print(f"{'seed':>5} {'A - base':>9} {'low':>6} {'lowest design':>14} {'A > bare, both engines':>23} "
-          f"{'rho':>6} {'p':>6} {'elites':>6} {'min':>5} {'load':>5} {'CPU min':>7}")
+          f"{'A worlds won':>12} {'worst':>6} {'rho':>6} {'p':>6} {'elites':>6} {'min':>5} {'load':>5} {'CPU min':>7}")
     for row in summary:
         rho, p, elites = row["transfer"]
         print(f"{row['seed']:>5} {row['a_gain'][0]:>+9.2f} {row['a_gain'][1]:>+6.2f} {row['lowest']:>+14.2f} "
-              f"{str(row['a_engines']):>23} {rho:>+6.2f} {p:>6.3f} {elites:>6d} "
-              f"{row['minutes']:>5.1f} {row['load']:>5.1f} {row['cpu_minutes']:>7.1f}")
+              f"{str(row['a_engines']):>23} {row['worlds'][0]:>12.0%} {row['worlds'][1]:>+6.2f} {rho:>+6.2f} "
+              f"{p:>6.3f} {elites:>6d} {row['minutes']:>5.1f} {row['load']:>5.1f} {row['cpu_minutes']:>7.1f}")
     met = sum(r["a_gain"][0] >= A_GAIN_TARGET and r["a_gain"][1] >= A_LOW_TARGET for r in summary)
     pooled_a = (sum(r["a_counts"][0] for r in summary), sum(r["a_counts"][1] for r in summary))
     pooled_base = (sum(r["base"][0] for r in summary), sum(r["base"][1] for r in summary))
     print(f"A's campaign target met in {met} of {len(summary)} seeds; pooled A minus baseline "
           f"{gain_text(pooled_a, pooled_base)[0]}; designs below the baseline (point estimate) in "
           f"{sum(r['lowest'] < 0 for r in summary)} seeds; A's robust launches above bare with the interval above 0 on "
-          f"both engines in {sum(r['a_engines'] for r in summary)} seeds; at least 15 raced elites behind the transfer statistic "
+          f"both engines in {sum(r['a_engines'] for r in summary)} seeds; A winning at least "
+          f"{A_WORLD_SHARE_TARGET:.0%} of the worlds in {sum(r['worlds'][0] >= A_WORLD_SHARE_TARGET for r in summary)} "
+          f"seeds; at least 15 raced elites behind the transfer statistic "
           f"in {sum(r['transfer'][2] >= 15 for r in summary)} seeds")
     return 0
 

@@ -1,11 +1,17 @@
-"""The bench scripts run against the package as it is: bench/smoke.py runs each bench with a ``--smoke`` size once
-(tiny inputs, every step; the numbers mean nothing), in one process, and fails naming a bench that raised or
-returned non-zero. mypy checks every bench script too (test/core/test_mypy.py)."""
+"""The bench scripts run against the package as it is: bench/smoke.py runs each bench once at its ``--smoke`` size
+(tiny inputs, every step and every line of its report; the numbers mean nothing), in one process, and fails
+naming a bench that raised, returned non-zero or did not print one of its headline lines. The README's command
+runs ``SMOKE`` in one process, the slow tier each of ``SMOKE_SLOW`` in one of its own; together they are every
+script in bench/. mypy checks every bench
+script too (test/core/test_mypy.py)."""
 import os
 import pathlib
 import subprocess
 import sys
 import tempfile
+import types
+
+import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -18,25 +24,60 @@ def _smoke(*names, pythonpath=str(ROOT)):
     env = dict(os.environ, PYTHONPATH=pythonpath, LC_ALL="C.UTF-8", PYTHONUNBUFFERED="1", MPLBACKEND="Agg")
     with tempfile.TemporaryDirectory(prefix="bench-smoke-") as cwd:
         return subprocess.run([sys.executable, str(ROOT / "bench" / "smoke.py"), *names], capture_output=True,
-                              text=True, timeout=300, env=env, cwd=cwd)
+                              text=True, timeout=1500, env=env, cwd=cwd)
+
+
+def _repo_files():
+    """``{path: (size, mtime ns)}`` of the checkout's files (hidden folders, caches and build trees left out)."""
+    files = {}
+    for folder, folders, names in os.walk(ROOT):
+        folders[:] = [f for f in folders if not f.startswith(".") and f not in ("__pycache__", "build", "install",
+                                                                                 "log")]
+        for name in names:
+            path = pathlib.Path(folder, name)
+            stat = path.stat()
+            files[str(path.relative_to(ROOT))] = (stat.st_size, stat.st_mtime_ns)
+    return files
+
+
+def _runs_every_bench_of(names, *args):
+    before = _repo_files()
+    result = _smoke(*args)
+    assert result.returncode == 0, result.stdout[-6000:] + result.stderr[-3000:]
+    for name in names:
+        assert f"smoke {name}: ok (" in result.stdout, result.stdout
+        for line in smoke.HEADLINES[name]:   # bench/smoke.py checks them too; this test asks it did
+            assert line in result.stdout, (name, line)
+    assert f"smoke: {len(names)} benches ran" in result.stdout
+    after = _repo_files()
+    assert after == before, ("a bench wrote into the checkout", sorted(set(after.items()) ^ set(before.items())))
 
 
 def test_every_smoke_bench_runs_at_its_tiny_size():
-    result = _smoke()
-    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    for name in smoke.SMOKE:
-        assert f"smoke {name}: ok" in result.stdout, result.stdout
-    assert f"smoke: {len(smoke.SMOKE)} benches ran" in result.stdout
+    _runs_every_bench_of(smoke.SMOKE)
 
 
-def test_every_smoke_bench_takes_the_option():
-    """A bench in SMOKE declares --smoke (its tiny size), so the run exercises it rather than its full size."""
-    for name in smoke.SMOKE:
+@pytest.mark.slow   # node graphs in processes of their own, a learnt likelihood, a miniature study: minutes each
+@pytest.mark.timeout(1500)   # the learnt likelihood's preparation alone took 258 s at load average 19
+@pytest.mark.parametrize("name", smoke.SMOKE_SLOW)
+def test_every_slow_smoke_bench_runs_at_its_tiny_size(name):
+    _runs_every_bench_of([name], name)
+
+
+def test_every_bench_script_is_run_at_its_tiny_size_by_a_tier():
+    """Every script in bench/ is in exactly one of SMOKE and SMOKE_SLOW, declares --smoke (its tiny size, so the run
+    exercises it rather than its full size) and names the lines its report must print."""
+    scripts = sorted(path.stem for path in (ROOT / "bench").glob("*.py") if path.stem != "smoke")
+    assert sorted(smoke.SMOKE + smoke.SMOKE_SLOW) == scripts
+    for name in scripts:
         assert '"--smoke"' in (ROOT / "bench" / f"{name}.py").read_text(), name
+        assert smoke.HEADLINES[name] and all(smoke.HEADLINES[name]), name
+    assert set(smoke.HEADLINES) == set(scripts)
 
 
 def test_a_bench_that_breaks_fails_the_run(tmp_path):
-    """A bench that raises (here a made-up one in the ``bench`` namespace) fails the run, named, with its error."""
+    """A bench that raises or returns non-zero (here made-up ones in the ``bench`` namespace) fails the run, named,
+    with its error."""
     (tmp_path / "bench").mkdir()
     (tmp_path / "bench" / "bench_broken.py").write_text(
         "def main(argv=None):\n    raise RuntimeError('the package moved under me')\n")
@@ -46,3 +87,23 @@ def test_a_bench_that_breaks_fails_the_run(tmp_path):
     assert "smoke bench_broken: FAILED (RuntimeError: the package moved under me)" in result.stdout
     assert "smoke bench_unhappy: FAILED (3)" in result.stdout
     assert "2 of 2 benches failed: bench_broken, bench_unhappy" in result.stdout
+
+
+def test_a_bench_that_leaves_out_a_line_of_its_report_fails(monkeypatch, capsys):
+    """Exit 0 is not enough: a bench that stops before its report, or drops a line of it, fails naming the line; one
+    without HEADLINES fails too. The made-up benches run in this process, from ``sys.modules``."""
+    def bench(*lines):
+        module = types.ModuleType("made-up bench")
+        module.main = lambda argv: print(*lines, sep="\n")   # returns None: success, as a bench may
+        return module
+
+    monkeypatch.setitem(sys.modules, "bench.bench_complete", bench("rate 3.0 x", "verdict: meets the target"))
+    monkeypatch.setitem(sys.modules, "bench.bench_cut_short", bench("rate 3.0 x"))
+    monkeypatch.setitem(sys.modules, "bench.bench_unlisted", bench("rate 3.0 x"))
+    monkeypatch.setattr(smoke, "HEADLINES", {"bench_complete": ("rate ", "verdict: "),
+                                             "bench_cut_short": ("rate ", "verdict: ")})
+    assert smoke.run(["bench_complete", "bench_cut_short", "bench_unlisted"]) == ["bench_cut_short", "bench_unlisted"]
+    printed = capsys.readouterr().out
+    assert "smoke bench_complete: ok (" in printed
+    assert "smoke bench_cut_short: FAILED (no line with 'verdict: ')" in printed
+    assert "smoke bench_unlisted: FAILED (no HEADLINES entry in bench/smoke.py)" in printed

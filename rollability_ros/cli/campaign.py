@@ -55,9 +55,11 @@ def _add_adaptive_arguments(parser: argparse.ArgumentParser) -> None:
     adaptive = parser.add_argument_group(
         "which launch next (docs/calibration.md, 'Which launch next')",
         "An adaptive plan launches, each time, the (configuration, condition) of the campaign matrix whose outcome "
-        "tells most about the twin's unknowns (the BALD score over prior samples of the unknowns weighted by the "
-        "stored outcomes of the run; P(upright) of each sample from --sim-repetitions twin launches, made once at the "
-        "start). --propose-next prints that launch, as the technician sets it up, and why; it stores nothing.")
+        "tells most about the twin's unknowns (the expected information over samples of the unknowns weighted by the "
+        "stored outcomes of the run). With --likelihood FILE (made once by `rollability calibrate --prepare`) the "
+        "predictions are the learnt likelihood's, verdicts and continuous outcomes; without it P(upright) of each "
+        "sample comes from --sim-repetitions twin launches, made once at the start. --propose-next prints that "
+        "launch, as the technician sets it up, and why; it stores nothing.")
     adaptive.add_argument("--plan", choices=("matrix", "adaptive"), default="matrix",
                           help="matrix: every trial of the campaign matrix (default); adaptive: --budget launches, "
                                "each the one with the most expected information (in process only)")
@@ -70,12 +72,18 @@ def _add_adaptive_arguments(parser: argparse.ArgumentParser) -> None:
                           help="an unknown to learn about (a key of calibration.parameters, its declared bounds and "
                                "scale; repeatable; default: robot.com_offset_z_m and "
                                "launch_twin.foam.lateral_friction)")
+    adaptive.add_argument("--likelihood", metavar="FILE",
+                          help="a likelihood prepared by `rollability calibrate --prepare` for this twin and these "
+                               "designs: the proposal weighs the stored verdicts and continuous outcomes (gate speed, "
+                               "IMU, tape) by it and scores the information of both; its unknowns are the ones "
+                               "learnt about (--fit is refused with it)")
     adaptive.add_argument("--twin-config", action="append", default=[], metavar="FILE",
                           help="parameter file over sim, robot, launch_twin and calibration for the predictions (e.g. "
                                "the launch_twin.designs naming the profiles, or a calibrated.yaml); repeatable")
-    adaptive.add_argument("--prior-samples", type=int, default=32,
-                          help="prior samples of the unknowns (default 32; more describe the posterior better and "
-                               "cost prior-samples x conditions x sim-repetitions twin launches once)")
+    adaptive.add_argument("--prior-samples", type=int, default=None,
+                          help="prior samples of the unknowns (default 32 on the twin, where more describe the "
+                               "posterior better and cost prior-samples x conditions x sim-repetitions twin launches "
+                               "once; 1000 with --likelihood, renewed as the outcomes narrow them)")
     adaptive.add_argument("--sim-repetitions", type=int, default=4,
                           help="twin launches per sample and condition for P(upright) (default 4)")
     adaptive.add_argument("--workers", type=int, default=None,
@@ -164,13 +172,17 @@ def _check_adaptive_arguments(args, spec):
     if not 0 < args.alpha < 0.5 or math.isnan(args.alpha):
         raise ValueError(f"--alpha must be in (0, 0.5), got {args.alpha}")
     adaptive = args.plan == "adaptive" or args.propose_next
-    if not adaptive and (args.fit or args.twin_config or args.about):
-        raise ValueError("--fit, --twin-config and --about are for --plan adaptive and --propose-next")
+    if not adaptive and (args.fit or args.twin_config or args.about or args.likelihood):
+        raise ValueError("--fit, --twin-config, --likelihood and --about are for --plan adaptive and --propose-next")
+    if args.likelihood and args.fit:
+        raise ValueError("--fit is for the twin's predictions: with --likelihood the unknowns are the prepared file's")
     if adaptive:
         if args.graph:
             raise ValueError("--plan adaptive and --propose-next run in process (--store), not with --graph")
         if not args.store:
             raise ValueError("--plan adaptive and --propose-next need --store (the run's stored outcomes)")
+        if args.prior_samples is None:
+            args.prior_samples = LEARNT_PRIOR_SAMPLES if args.likelihood else TWIN_PRIOR_SAMPLES
         for name, value, low in (("--budget", args.budget, 1), ("--prior-samples", args.prior_samples, 2),
                                  ("--sim-repetitions", args.sim_repetitions, 1)):
             if value < low:
@@ -179,10 +191,55 @@ def _check_adaptive_arguments(args, spec):
             raise ValueError(f"--workers must be >= 1, got {args.workers}")
 
 
+#: Default prior samples of the adaptive plan on the twin's launches and on a learnt likelihood.
+TWIN_PRIOR_SAMPLES, LEARNT_PRIOR_SAMPLES = 32, 1000
+
+
+def _learnt_posterior(args, spec, outcomes):
+    """The adaptive plan's weighted samples over the prepared likelihood ``--likelihood`` (its unknowns, verdicts
+    and continuous outcomes), weighed by ``outcomes``; a file that is not one, or was prepared for another twin,
+    other designs or other condition levels, is refused in one line naming it."""
+    import numpy as np
+
+    from rollability_ros.core.campaign import (TWIN_CONFIGS, LearntTable, OutcomePosterior, candidate_conditions,
+                                               load_likelihood, twin_fingerprint)
+    from rollability_ros.core.config import check_given_files, load_parameters
+    from rollability_ros.core.sim import TWIN_SECTIONS
+
+    check_given_files(args.twin_config, {*TWIN_SECTIONS, "calibration"}, "rollability campaign --twin-config")
+    likelihood = load_likelihood(args.likelihood)
+    parameters = load_parameters([*TWIN_CONFIGS, "calibration", *args.twin_config])
+    if likelihood.fingerprint != twin_fingerprint(parameters, likelihood.unknowns.names):
+        raise ValueError(f"{args.likelihood}: prepared for another twin or design set than the loaded parameter files "
+                         "(--twin-config): prepare it again for these")
+    candidates = candidate_conditions(spec.configurations, spec.heights_m, spec.speeds_mps, spec.angles_deg)
+    try:
+        table = LearntTable(likelihood, candidates)
+    except ValueError as error:
+        raise ValueError(f"{args.likelihood}: {error}") from None
+    print(f"adaptive plan: the learnt likelihood {args.likelihood} over {', '.join(likelihood.unknowns.names)}, "
+          f"verdicts and {', '.join(table.outcomes) or 'no continuous outcome'}; {args.prior_samples} prior samples "
+          f"at {len(candidates)} conditions, renewed as the outcomes narrow them", flush=True)
+    posterior = OutcomePosterior.from_prior(table, args.prior_samples, np.random.default_rng(1))
+    return _weighed(posterior, outcomes, spec)
+
+
+def _weighed(posterior, outcomes, spec):
+    used = posterior.observe_outcomes(outcomes)
+    left_out = len(outcomes) - used
+    why = f" ({left_out} left out: invalid launches, or conditions outside the campaign matrix)" if left_out else ""
+    print(f"adaptive plan: weighed by {used} stored launches of run {spec.run_id}{why}", flush=True)
+    return posterior
+
+
 def _adaptive_posterior(args, spec, outcomes):
     """The weighted posterior of the adaptive plan: prior samples of the unknowns, the twin's P(upright) of each at
-    every grouped condition of the matrix (launched now), weighed by ``outcomes``."""
+    every grouped condition of the matrix (launched now), weighed by ``outcomes``; with ``--likelihood``, the learnt
+    likelihood's (:func:`_learnt_posterior`)."""
     import numpy as np
+
+    if args.likelihood:
+        return _learnt_posterior(args, spec, outcomes)
 
     from rollability_ros.core.campaign import (DEFAULT_UNKNOWNS, TWIN_CONFIGS, LaunchPool, TwinPredictor, Unknowns,
                                                WeightedPosterior, calibration_settings, candidate_conditions,
@@ -194,8 +251,9 @@ def _adaptive_posterior(args, spec, outcomes):
     check_given_files(args.twin_config, {*TWIN_SECTIONS, "calibration"}, "rollability campaign --twin-config")
     parameters = load_parameters([*TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration_settings(parameters).selected(args.fit or DEFAULT_UNKNOWNS)
-    check_fittable(parameters, settings)
-    known = configuration_ids(launch_twin_settings_from_parameters(parameters).twin.designs)
+    twin = launch_twin_settings_from_parameters(parameters)   # parsed once, handed to the core typed
+    check_fittable(twin, settings)
+    known = configuration_ids(twin.twin.designs)
     unknown = [c for c in spec.configurations if c not in known]
     if unknown:
         raise ValueError(f"the twin has no profile for {', '.join(unknown)} (it knows {', '.join(known)}): give the "
@@ -207,14 +265,10 @@ def _adaptive_posterior(args, spec, outcomes):
           f"{len(candidates)} conditions, {args.sim_repetitions} twin launches each ({launches} launches, about "
           f"{launches * 0.05 / 60:.0f} min on one core)", flush=True)
     with LaunchPool(args.workers) as pool:
-        predictor = TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
+        predictor = TwinPredictor(twin, unknowns, pool, args.sim_repetitions, settings.seed)
         posterior = WeightedPosterior.from_predictor(unknowns, predictor, candidates, args.prior_samples,
                                                               np.random.default_rng(settings.seed))
-    used = posterior.observe_outcomes(outcomes)
-    left_out = len(outcomes) - used
-    why = f" ({left_out} left out: invalid launches, or conditions outside the campaign matrix)" if left_out else ""
-    print(f"adaptive plan: weighed by {used} stored launches of run {spec.run_id}{why}", flush=True)
-    return posterior
+    return _weighed(posterior, outcomes, spec)
 
 
 def _pressures(args):
@@ -251,6 +305,14 @@ def _propose_next(args, spec):
     return 0
 
 
+def _read_twin(twin_config):
+    """The launch twin of the files ``rig.twin_config`` names, parsed here, at the command (the edge); the in-process
+    rig's simulated backend asks for it once (a physical one never does, so the rig computer needs no physics)."""
+    from rollability_ros.core.sim import load_launch_twin_settings
+
+    return load_launch_twin_settings(twin_config)
+
+
 def _resimulate(args):
     from rollability_ros.core.campaign import LocalRig, local_rig_settings_from_files
     from rollability_ros.core.records import LaunchCondition, check_twin_seed
@@ -269,7 +331,8 @@ def _resimulate(args):
     condition = LaunchCondition(configuration, height_m, speed_mps, angle_deg)
     condition.validate()   # the campaign's own bounds (records.HEIGHT_RANGE_M ...): no stored launch lies outside
     check_twin_seed(args.seed)
-    rig = LocalRig(local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG))
+    rig = LocalRig(local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG),
+                   read_twin=_read_twin)
     try:
         result = rig.backend.resimulate(condition, args.seed)
     finally:
@@ -302,7 +365,7 @@ def _run_local(args, spec, ask):
     matrix = list(plan)
 
     def checked_rig() -> LocalRig:
-        rig = LocalRig(settings, ask or input)
+        rig = LocalRig(settings, ask or input, read_twin=_read_twin)
         refusal = plan_refusal(rig.backend, spec.run_id, matrix)   # every trial of the matrix, whichever plan runs
         if refusal:
             rig.close()

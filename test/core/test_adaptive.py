@@ -205,7 +205,7 @@ def _tiny_campaign(tmp_path):
     (["--stop-when-decided", "baseline"], "two different configurations"),
     (["--plan", "adaptive", "--graph"], "run in process"),
     (["--propose-next", "--prior-samples", "1"], "--prior-samples must be >= 2"),
-    (["--fit", "robot.com_offset_z_m"], "--fit, --twin-config and --about are for --plan adaptive"),
+    (["--fit", "robot.com_offset_z_m"], "--fit, --twin-config, --likelihood and --about are for --plan adaptive"),
     (["--propose-next", "--about", "baseline,Q"], "--about: Q not in campaign.configurations"),
     (["--stop-when-decided", "baseline,baseline", "--alpha", "nan"], "two different"),
     (["--alpha", "0.7"], "--alpha must be in"),
@@ -328,3 +328,30 @@ def test_the_comparison_score_looks_for_the_launch_that_tells_which_design_is_be
     assert posterior.propose(comparison=("A", "B")).condition == conditions[2]
     with pytest.raises(ValueError, match="share no candidate"):
         posterior.design_difference("A", "Z")
+
+
+class _Separate:
+    """Two unknowns x, y in [0, 1]; the first candidate's P(upright) moves with x only, the second's with y only."""
+
+    def probabilities(self, theta, conditions):
+        t = np.atleast_2d(theta)
+        return np.column_stack([1.0 / (1.0 + np.exp(-10.0 * (t[:, 0] - 0.5))),
+                                1.0 / (1.0 + np.exp(-10.0 * (t[:, 1] - 0.5)))])[:, :len(conditions)]
+
+
+def test_the_targeted_score_narrows_the_unknown_that_lags_its_target_width():
+    """Each sample its own group is BALD itself; information about one unknown picks the launch that moves it; the
+    targeted score picks the launch of the unknown farthest from its target width, and BALD once all are under."""
+    two = Unknowns(("x", "y"), (0.0, 0.0), (1.0, 1.0), (False, False))
+    conditions = [LaunchCondition("A", 0.75, 0.8, a) for a in (0.0, 30.0)]
+    posterior = WeightedPosterior.from_predictor(two, _Separate(), conditions, 4000, np.random.default_rng(0))
+    assert np.allclose(posterior.group_scores(np.arange(4000)), posterior.scores())
+    assert int(np.argmax(posterior.unknown_scores(0))) == 0 and int(np.argmax(posterior.unknown_scores(1))) == 1
+    for _ in range(30):
+        posterior.observe(0, True)
+        posterior.observe(0, False)   # x pinned near 1/2, y still at its prior width
+    widths = posterior.normalised_widths()
+    assert widths[0] < 0.5 < widths[1]
+    assert int(np.argmax(posterior.targeted_scores([0.5, 0.5]))) == 1
+    assert np.array_equal(posterior.targeted_scores([widths[0] / 2, 1.0]), posterior.unknown_scores(0))
+    assert np.array_equal(posterior.targeted_scores([1.0, 1.0]), posterior.scores())

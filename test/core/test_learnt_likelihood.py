@@ -121,14 +121,16 @@ def test_the_posterior_holds_the_truth_and_sampling_a_subset_holds_the_rest():
 
 def test_slide_angles_enter_as_the_characterisation_model_says():
     from rollability_ros.core.campaign.characterisation import Characterisation, characterisation_log_likelihood
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters, twin_with_values
 
     unknowns = Unknowns(("launch_twin.foam.lateral_friction", "robot.com_offset_z_m"), (0.3, -0.019),
                                (3.0, 0.015), (True, False))
     parameters = {"sim.lateral_friction": 0.35, "launch_twin.foam.lateral_friction": 1.0, "robot.com_offset_z_m": 0.0}
+    twin = launch_twin_settings_from_parameters(parameters)
     readings = Characterisation("bench", slide_angles_deg=(18.5, 21.0, 25.0), slide_sigma_deg=1.5)
-    term = sampling.characterisation_term(readings, parameters, unknowns)
+    term = sampling.characterisation_term(readings, twin, unknowns)
     u = np.array([[0.2, 0.5], [0.6, 0.1], [0.9, 0.9]])
-    expected = [characterisation_log_likelihood(readings, {**parameters, **dict(zip(unknowns.names, row))})
+    expected = [characterisation_log_likelihood(readings, twin_with_values(twin, dict(zip(unknowns.names, row))))
                 for row in unknowns.to_values(u)]
     assert np.allclose(term(u), expected)
 

@@ -8,6 +8,7 @@
 - likelihood: the twin's likelihood learnt once per robot and design set, and its file
 - posterior: the posterior of a learnt likelihood's unknowns and its 95% sets
 - adaptive: which launch next (BALD over weighted samples of the unknowns, behind an UprightPredictor protocol)
+- learnt_plan: which launch next from a learnt likelihood, its verdicts and continuous outcomes
 - sequential: the always-valid paired test that stops a design comparison once decided
 - plan_comparison: the adaptive plan against the paper's matrix on simulated truths (bench_adaptive_plan)
 

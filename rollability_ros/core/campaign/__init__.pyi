@@ -7,6 +7,7 @@ from .calibration import (TWIN_CONFIGS, CalibrationResult, CalibrationSettings, 
                           calibrated_parameter_document, calibration_settings, check_fittable, rig_parameter_document,
                           twin_settings_with)
 from .characterisation import load_characterisation
+from .learnt_plan import LearntTable, OutcomePosterior
 from .likelihood import (ConditionLevels, LearntLikelihood, Observation, learn, load_likelihood,
                          observations_from_outcomes, simulate_training_set, twin_fingerprint)
 from .plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
@@ -19,8 +20,8 @@ from .terminal import AnsweredElsewhere, TerminalAsk
 
 __all__ = [
     "DEFAULT_UNKNOWNS", "TWIN_CONFIGS", "AnsweredElsewhere", "CalibrationResult", "CalibrationSettings",
-    "CampaignSpec", "ConditionLevels", "LaunchPool", "LearntLikelihood", "LocalRig", "LocalRigSettings",
-    "Observation", "Posterior", "RunnerSettings", "StoreAcknowledgements", "TerminalAsk", "TwinPredictor",
+    "CampaignSpec", "ConditionLevels", "LaunchPool", "LearntLikelihood", "LearntTable", "LocalRig", "LocalRigSettings",
+    "Observation", "OutcomePosterior", "Posterior", "RunnerSettings", "StoreAcknowledgements", "TerminalAsk", "TwinPredictor",
     "Unknowns", "WeightedPosterior", "adaptive_next_trial", "answer_rig", "budget_placeholders",
     "calibrate", "calibrated_parameter_document", "calibration_settings", "candidate_conditions",
     "characterisation_term", "check_fittable", "comparison_stop_rule", "credible_set", "format_set", "learn",

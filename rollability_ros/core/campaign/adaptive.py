@@ -39,6 +39,7 @@ from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 if typing.TYPE_CHECKING:   # annotations only: calibration loads the twin; plan is light but keeps this module lean
     from rollability_ros.core.campaign.calibration import CalibrationSettings, LaunchPool
     from rollability_ros.core.campaign.plan import PlannedTrial
+    from rollability_ros.core.sim import LaunchTwinSettings
 
 #: Predicted probabilities are kept in [EPSILON, 1 - EPSILON]: one impossible outcome must not zero a sample.
 EPSILON = 1e-3
@@ -290,6 +291,11 @@ class WeightedPosterior:
         self.launches += 1
         self._after_observing()
 
+    def observe_launch(self, index: int, upright: bool, values: typing.Optional[npt.ArrayLike] = None) -> None:
+        """One launch at candidate ``index``; ``values``, the continuous outcomes of a likelihood that has them
+        (:class:`~rollability_ros.core.campaign.learnt_plan.OutcomePosterior`), are not used by the verdict's."""
+        self.observe(index, upright)
+
     def observe_counts(self, index: int, successes: int, trials: int) -> None:
         """Weigh the samples by ``successes`` upright of ``trials`` launches at candidate ``index``."""
         if not 0 <= successes <= trials:
@@ -356,15 +362,45 @@ class WeightedPosterior:
         information between its outcome and the sign of :meth:`design_difference`, H[mean p] - sum_s P(s) H[mean p
         | s] over the two groups of samples. 0 where both groups predict the same P(upright), whatever they
         predict elsewhere; the launch that settles the comparison soonest, not the one that pins the unknowns."""
-        better = self.design_difference(first, second) > 0
+        return self.group_scores((self.design_difference(first, second) > 0).astype(int))
+
+    def group_scores(self, groups: npt.ArrayLike) -> np.ndarray:
+        """Expected information (nats) of a launch at each candidate (c,) about which group of samples holds the
+        truth (``groups``: a label per sample, (n,)): H[mean p] - sum_g P(g) H[mean p | g]. Every sample its own
+        group: :meth:`scores`; two groups by the sign of a design difference: :meth:`comparison_scores`; bins of
+        one unknown: :meth:`unknown_scores`."""
+        labels = np.asarray(groups)
         w = self.weights
         total = binary_entropy(w @ self.probabilities)
         conditional = np.zeros(len(self.candidates))
-        for group in (better, ~better):
+        for label in np.unique(labels):
+            group = labels == label
             mass = w[group].sum()
             if mass > 0:
                 conditional += mass * binary_entropy((w[group] / mass) @ self.probabilities[group])
         return total - conditional
+
+    def unknown_groups(self, unknown: int, bins: int = 8) -> np.ndarray:
+        """A label per sample (n,): which of ``bins`` weighted-quantile bins of unknown ``unknown`` it falls in."""
+        quantiles = [float(q) for q in np.linspace(0.0, 1.0, bins + 1)[1:-1]]
+        edges = weighted_quantiles(self.samples[:, unknown], self.weights, quantiles)
+        return np.searchsorted(edges, self.samples[:, unknown], side="right")
+
+    def unknown_scores(self, unknown: int, bins: int = 8) -> np.ndarray:
+        """Expected information (nats) of a launch at each candidate (c,) about one unknown alone (which of
+        ``bins`` posterior-quantile bins holds it; the others marginalised): the launch that narrows that
+        unknown's interval, where :meth:`scores` may prefer one that teaches about the others."""
+        return self.group_scores(self.unknown_groups(unknown, bins))
+
+    def targeted_scores(self, target_widths: npt.ArrayLike, level: float = 0.95) -> np.ndarray:
+        """The expected information about the unknown farthest from its target width (the largest ratio of its
+        current normalised :meth:`normalised_widths` to ``target_widths`` (d,)): a plan that must bring *every*
+        interval under a width narrows the one that lags (:meth:`unknown_scores`); once all are under their
+        targets, :meth:`scores`."""
+        ratio = self.normalised_widths(level) / np.asarray(target_widths, dtype=np.float64)
+        if np.all(ratio <= 1.0):
+            return self.scores()
+        return self.unknown_scores(int(np.argmax(ratio)))
 
     def _predicted(self, index):
         p = self.probabilities[:, index]
@@ -445,8 +481,8 @@ class TwinPredictor:
 
     Parameters
     ----------
-    parameters : dict
-        Flat parameters of the twin's files (everything not among the unknowns).
+    twin : LaunchTwinSettings
+        The typed twin of its files, parsed once by the command (everything not among the unknowns).
     unknowns : Unknowns
     pool : LaunchPool
     repetitions : int
@@ -455,7 +491,7 @@ class TwinPredictor:
         The calibration seed the launch seeds come from.
     """
 
-    parameters: typing.Mapping[str, typing.Any]
+    twin: "LaunchTwinSettings"
     unknowns: Unknowns
     pool: "LaunchPool"
     repetitions: int
@@ -469,7 +505,7 @@ class TwinPredictor:
         """P(upright) (s, c) from ``repetitions`` twin launches per entry."""
         from rollability_ros.core.campaign.calibration import ConditionResult, simulation_seeds, twin_settings_with
 
-        twins = [twin_settings_with(self.parameters, self.unknowns.names, row) for row in np.atleast_2d(theta)]
+        twins = [twin_settings_with(self.twin, self.unknowns.names, row) for row in np.atleast_2d(theta)]
         grouped = [ConditionResult(*c.group_key, 0, 0) for c in conditions]
         upright = self.pool.predicted_upright(twins, grouped, simulation_seeds(self.seed, 0, self.repetitions))
         return upright / self.repetitions

@@ -15,6 +15,8 @@ import numpy as np
 from rollability_ros.core.campaign.adaptive import Unknowns, UprightPredictor, WeightedPosterior
 from rollability_ros.core.records import LaunchCondition
 
+if typing.TYPE_CHECKING:   # annotations only: the learnt table is loaded by the caller
+    from rollability_ros.core.campaign.learnt_plan import LearntTable
 
 
 @dataclasses.dataclass(frozen=True)
@@ -117,15 +119,58 @@ class MatchedWidths:
     adaptive_ess: float
 
 
+#: A hidden truth's launch at a candidate (index, outcome generator) -> (upright, continuous outcomes or None).
+Launcher = typing.Callable[[int, np.random.Generator], typing.Tuple[bool, typing.Optional[np.ndarray]]]
+
+
+#: The adaptive plan's choice in the comparison: ``joint`` the expected information about all the unknowns
+#: (:meth:`~WeightedPosterior.scores`); ``targeted`` about the unknown farthest from the width to reach
+#: (:meth:`~WeightedPosterior.targeted_scores`, the matrix's widths as the targets).
+ACQUISITIONS = ("joint", "targeted")
+
+
+def match_matrix_on_truth(make_posterior: typing.Callable[[int], WeightedPosterior], launch: Launcher,
+                          matrix_launches: int, seed: typing.Sequence[int], level: float = 0.95,
+                          budget: typing.Optional[int] = None, acquisition: str = "joint") -> MatchedWidths:
+    """One truth of :func:`adaptive_to_match_matrix`: the matrix's ``matrix_launches`` (every candidate once per
+    shuffled round) on a fresh ``make_posterior(0)``, then the adaptive plan (the highest score of ``acquisition``,
+    :data:`ACQUISITIONS`, each time) on a fresh ``make_posterior(1)`` until each unknown's width is at most the
+    matrix's or ``budget`` launches (default ``matrix_launches``); ``launch`` draws the truth's outcomes."""
+    if acquisition not in ACQUISITIONS:
+        raise ValueError(f"acquisition must be one of {', '.join(ACQUISITIONS)}, got {acquisition!r}")
+    matrix = make_posterior(0)
+    order: typing.List[int] = []
+    rng = np.random.default_rng([*seed, 0])
+    for _ in range(matrix_launches):
+        if not order:
+            order = list(rng.permutation(len(matrix.candidates)))
+        index = order.pop()
+        matrix.observe_launch(index, *launch(index, rng))
+    widths = matrix.normalised_widths(level)
+    adaptive = make_posterior(1)
+    outcome_rng = np.random.default_rng([*seed, 1])
+    reached = None
+    for number in range(1, (budget or matrix_launches) + 1):
+        scores = adaptive.scores() if acquisition == "joint" else adaptive.targeted_scores(widths, level)
+        index = int(np.argmax(scores))
+        adaptive.observe_launch(index, *launch(index, outcome_rng))
+        if np.all(adaptive.normalised_widths(level) <= widths):
+            reached = number
+            break
+    return MatchedWidths(matrix_launches, widths, reached, adaptive.normalised_widths(level),
+                         matrix.effective_sample_size, adaptive.effective_sample_size)
+
+
 def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
                              candidates: typing.Sequence[LaunchCondition], truths: int, matrix_launches: int,
                              samples: int, seed: int = 0, level: float = 0.95,
-                             budget: typing.Optional[int] = None, renew: bool = True) -> typing.List[MatchedWidths]:
+                             budget: typing.Optional[int] = None, renew: bool = True,
+                             acquisition: str = "joint") -> typing.List[MatchedWidths]:
     """Issue 44's comparison: on ``truths`` hidden truths drawn from the prior, the paper's matrix launches
     ``matrix_launches`` times (every candidate once per shuffled round: 400 = the 80 grouped conditions x 5); the
     adaptive plan then launches on the same truth, from the same prior draws, until each unknown's interval is at
     most as wide as the matrix's (or ``budget`` launches, default ``matrix_launches``). ``renew`` as for
-    :func:`compare_plans`."""
+    :func:`compare_plans`. Verdicts only, drawn from the predictor's P(upright) at the truth."""
     rng = np.random.default_rng(seed)
     prior = unknowns.draw(samples, rng)
     table = predictor.probabilities(prior, candidates)
@@ -133,19 +178,41 @@ def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
     truth_table = predictor.probabilities(hidden, candidates)
     results = []
     for t in range(truths):
-        renewal = predictor if renew else None
-        matrix = WeightedPosterior(unknowns, prior, candidates, table, renewal, np.random.default_rng([seed, t, 2]))
-        run_plan("matrix", matrix, truth_table[t], matrix_launches, -1.0, np.random.default_rng([seed, t, 0]), level)
-        widths = matrix.normalised_widths(level)
-        adaptive = WeightedPosterior(unknowns, prior, candidates, table, renewal, np.random.default_rng([seed, t, 3]))
-        outcome_rng = np.random.default_rng([seed, t, 1])
-        reached = None
-        for launch in range(1, (budget or matrix_launches) + 1):
-            index = int(np.argmax(adaptive.scores()))
-            adaptive.observe(index, bool(outcome_rng.random() < truth_table[t][index]))
-            if np.all(adaptive.normalised_widths(level) <= widths):
-                reached = launch
-                break
-        results.append(MatchedWidths(matrix_launches, widths, reached, adaptive.normalised_widths(level),
-                                     matrix.effective_sample_size, adaptive.effective_sample_size))
+        def make(plan: int, t: int = t) -> WeightedPosterior:
+            return WeightedPosterior(unknowns, prior, candidates, table, predictor if renew else None,
+                                     np.random.default_rng([seed, t, 2 + plan]))
+
+        def launch(index: int, outcome_rng: np.random.Generator, t: int = t) -> typing.Tuple[bool, None]:
+            return bool(outcome_rng.random() < truth_table[t][index]), None
+        results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition))
     return results
+
+
+def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: int, samples: int, seed: int = 0,
+                           level: float = 0.95, budget: typing.Optional[int] = None, draws: int = 32,
+                           acquisition: str = "joint",
+                           on_truth: typing.Optional[typing.Callable[[int, MatchedWidths], None]] = None
+                           ) -> typing.Tuple[np.ndarray, typing.List[MatchedWidths]]:
+    """:func:`adaptive_to_match_matrix` on a learnt likelihood's table
+    (:class:`~rollability_ros.core.campaign.learnt_plan.LearntTable`): each launch of a hidden truth draws the
+    verdict and the table's continuous outcomes from the learnt model at the truth, both plans weigh the samples
+    by all of it (:class:`~rollability_ros.core.campaign.learnt_plan.OutcomePosterior`, renewed), and the
+    adaptive plan scores the information of verdict and outcomes (``draws`` Monte Carlo outcomes). Returns the
+    truths (t, d) and the results; ``on_truth(t, result)`` after each."""
+    from rollability_ros.core.campaign.learnt_plan import OutcomePosterior
+
+    rng = np.random.default_rng(seed)
+    prior = table.unknowns.draw(samples, rng)
+    hidden = table.unknowns.draw(truths, rng)
+    results = []
+    for t in range(truths):
+        def make(plan: int, t: int = t) -> WeightedPosterior:
+            return OutcomePosterior(table, prior, np.random.default_rng([seed, t, 2 + plan]), draws=draws)
+
+        def launch(index: int, outcome_rng: np.random.Generator,
+                   t: int = t) -> typing.Tuple[bool, typing.Optional[np.ndarray]]:
+            return table.draw(hidden[t], index, outcome_rng)
+        results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition))
+        if on_truth is not None:
+            on_truth(t, results[-1])
+    return hidden, results

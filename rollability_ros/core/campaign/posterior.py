@@ -14,6 +14,9 @@ from rollability_ros.core.campaign.adaptive import Unknowns
 from rollability_ros.core.campaign.likelihood import LearntLikelihood, Observation, normalised_one, values_one
 from rollability_ros.core.optional import require
 
+if typing.TYPE_CHECKING:
+    from rollability_ros.core.sim import LaunchTwinSettings
+
 LogDensity = typing.Callable[[np.ndarray], np.ndarray]
 
 
@@ -182,7 +185,7 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
                      densities[steps // 2:].reshape(-1))
 
 
-def characterisation_term(characterisation: Characterisation, parameters: typing.Mapping[str, object],
+def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinSettings",
                           unknowns: Unknowns, grid_points: int = 9) -> LogDensity:
     """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
@@ -190,6 +193,7 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
     (:data:`ROLLOUT_KEYS`; at most two, the others at their loaded values) and interpolated (linear in the
     normalised coordinates), since a roll-out per parameter set would cost as much as the launches it replaces."""
     from rollability_ros.core.campaign import characterisation as bench
+    from rollability_ros.core.sim import twin_value, twin_with_values
 
     names = unknowns.names
 
@@ -200,7 +204,7 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
         values = unknowns.to_values(u)
         mu = np.ones(len(u))
         for key in SLIDE_KEYS:   # the contact friction is the product of the two
-            mu = mu * (values[:, names.index(key)] if key in names else float(typing.cast(float, parameters[key])))
+            mu = mu * (values[:, names.index(key)] if key in names else twin_value(twin, key))
         angle = np.degrees(np.arctan(mu))
         sigma = characterisation.slide_sigma_deg
         readings = np.asarray(characterisation.slide_angles_deg)
@@ -215,7 +219,7 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
     mesh = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(rolling), -1).T if rolling else np.zeros((1, 0))
     table = np.array([bench.characterisation_log_likelihood(
         dataclasses.replace(characterisation, slide_angles_deg=()),
-        {**parameters, **{names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(rolling)}})
+        twin_with_values(twin, {names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(rolling)}))
         for point in mesh])
     if not rolling:
         return lambda u: slide(u) + table[0]

@@ -17,8 +17,8 @@ def profile_batch_evaluator(settings: EvaluatorSettings, trials: int, executor: 
                             name: str = "local", engine: typing.Optional[TrialBatchEngine] = None) -> typing.Callable:
     """``evaluate_batch`` over :func:`evaluation.evaluate_profile` on ``executor`` (a LocalExecutor or RayExecutor).
 
-    The profiles of a batch are evaluated concurrently (one thread each submitting its trial batches), so the
-    workers stay busy across candidates; ``trials`` per profile, ``settings`` an ``EvaluatorSettings``. With at
+    The profiles of a batch are evaluated concurrently (one thread each submitting its trial batches; one after
+    another on an executor that runs them in this process), so the workers stay busy across candidates; ``trials`` per profile, ``settings`` an ``EvaluatorSettings``. With at
     least two profiles per local worker, each profile's trials go to one worker as one task (one world build and
     one round trip per profile; split into ``evaluator.batch_trials`` tasks, every worker built every profile's
     world: a paper-config generation took 1.84x as long in ``bench/bench_engines.py``).
@@ -55,12 +55,15 @@ def fidelity_batch_evaluator(settings: EvaluatorSettings, executor: TrialExecuto
 
     settings = settings_at_fidelity(settings, fidelity)
     workers = executor.workers if executor is not None else None   # None: serial, in this process
+    # in this process the engines keep one world (TrialExecutor.in_process): one profile at a time, never two
+    # threads stepping it (MuJoCo's launch twin crashed the process that way)
+    in_process = executor is None or executor.in_process
 
     def evaluate(heights_list: typing.Sequence[np.ndarray], seed: int, trials: int) -> typing.List[tuple]:
         """``(successes, trials, eval_time_s, evaluator)`` of each heights ``(n_variables,)`` at the fidelity."""
         whole = dataclasses.replace(settings, evaluator=dataclasses.replace(settings.evaluator, batch_trials=trials))
         chosen = whole if workers is not None and len(heights_list) >= 2 * workers else settings
-        threads = concurrent.futures.ThreadPoolExecutor(max_workers=max(1, len(heights_list)))
+        threads = concurrent.futures.ThreadPoolExecutor(max_workers=1 if in_process else max(1, len(heights_list)))
         try:
             futures = [threads.submit(evaluate_profile, heights, trials, seed, chosen, executor)
                        for heights in heights_list]

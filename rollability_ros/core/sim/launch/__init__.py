@@ -39,6 +39,8 @@ Robot
     The built-in chassis, or any wheeled URDF robot when ``urdf_robot`` names a mount link (the trials' choice,
     :class:`~rollability_ros.core.robots.urdf_robot.RobotChoice`; e.g. ``config/husky.yaml`` in the twin's files).
     The profile weighs what that robot's ``profile_print`` makes of its mesh, times ``profile_mass_scale``.
+    Bullet's default damping of every multibody (0.04 linear and angular) is zeroed on it: the rig has none to
+    speak of (air drag), MuJoCo none (docs/optimization.md, "The engines' disagreement on the bare robot").
 Launcher sized for the robot (:mod:`~rollability_ros.core.sim.launcher_geometry`)
     The push plate's width, height, clearance and force and the ledge's depth and width are derived from the robot's
     collision geometry wherever the config leaves them 0 (the shipped ``config/launch_twin.yaml`` does; the

@@ -27,14 +27,20 @@ Contact values (MuJoCo takes the larger of two geoms' friction; ``config/sim.yam
     (``wheel_rolling_friction`` x the ground's friction, Bullet's combination) and joint ``frictionloss`` =
     ``wheel_drag_torque_nm``; otherwise (a URDF robot) they keep the robot's own, as in the trials. The launcher's
     sizes are the PyBullet twin's (derived from the robot where configured 0: ``sized_for_robot``).
-    Foam: a geom of higher priority, so its values make the contact: friction = the robot's
+    Foam: a geom of higher priority, so its values make the contact with the body: friction = the robot's
     ``lateral_friction`` x ``foam.lateral_friction``, rolling = the robot body's rolling friction on the foam
-    (Bullet's ``a.rolling b.friction + b.rolling a.friction``; the wheels get the body's value here), and a
+    (Bullet's ``a.rolling b.friction + b.rolling a.friction``); each wheel meets the foam by an explicit contact
+    pair carrying Bullet's combination of that wheel's own values (its friction with the left / right factor, its
+    rolling friction: the twin's Mecanum value or the robot's) with the foam's, and the foam's spring; and a
     direct spring-damper (``solref`` = -stiffness / m, -damping / m with m the robot's mass: Bullet's per-contact
     N/m and N s/m as an acceleration per metre of one contact carrying the whole robot), at least critically
-    damped (a lighter damping left a landed chassis rocking for ever, as in the MuJoCo trials) and at most as
-    stiff as MuJoCo's soft contacts stay stable at the step (:data:`FOAM_MAX_OMEGA_DT`; stiffer foams, e.g. a
-    robustness draw's, act as that one). A launch that still goes unstable raises ``RuntimeError``.
+    damped (a lighter damping left a landed chassis rocking for ever, as in the MuJoCo trials). MuJoCo steps in
+    substeps of the twin's step that resolve that spring (:func:`foam_substeps`, :data:`FOAM_OMEGA_SUBSTEP`: at
+    one step of 1/240 s the shipped foam threw a chassis landing flat back at 0.45 x its impact speed, a numerical
+    rebound; resolved, 0.14, PyBullet's 0.05-0.10); a foam stiffer than :data:`FOAM_MAX_SUBSTEPS` resolve is capped
+    at :data:`FOAM_MAX_OMEGA_DT` per twin step. A launch that still goes unstable raises ``RuntimeError``.
+Friction cone: elliptic (Coulomb's isotropic friction; Bullet's friction follows the sliding direction), not
+    MuJoCo's default pyramid.
     Plate: friction 0.3 x the robot's ``lateral_friction`` (Bullet's product), the trials' contact spring.
 Not represented (known differences, measured by ``rollability evaluate --engines`` and ``bench/bench_engines.py``)
     restitution (as in the MuJoCo trials: contacts are critically damped springs; the foam's is as configured),
@@ -80,16 +86,33 @@ PLATE_TIME_CONSTANT_STEPS = 2
 
 PLATE_DAMPING_RATIO = 3.0
 
-#: Stiffest foam spring per unit robot mass the MuJoCo twin takes, as natural frequency x step (the shipped foam
-#: on the bare chassis: 0.56, stable over 2,000 launches; 400 robust launches at 2-3 x that foam, capped here,
-#: stable; 0.76 uncapped went unstable).
-FOAM_MAX_OMEGA_DT = 0.6
+#: Foam spring per unit robot mass resolved by the MuJoCo twin's substep, as natural frequency x substep: the twin
+#: steps MuJoCo in ``ceil(omega dt / FOAM_OMEGA_SUBSTEP)`` substeps per twin step (:func:`foam_substeps`). Measured
+#: (a chassis dropped flat on the shipped foam at 4 m/s, test/core/test_twin_engine_fidelity.py): at the twin's 1/240 s
+#: (omega dt 0.56, one substep) the critically damped spring overshoots within the step and throws the chassis back
+#: at 0.45 x its impact speed; at 1/480 s 0.15, at 1/960 s 0.14 (converged); PyBullet's foam 0.05-0.10.
+FOAM_OMEGA_SUBSTEP = 0.3
 
-#: Collision bits: the robot touches everything, the plate only the robot, the static world only the robot.
-ROBOT_BITS, PLATE_BITS, STATIC_BITS = (1, 3), (2, 2), (4, 1)
+#: Most substeps per twin step (a MuJoCo launch's cost grows with them).
+FOAM_MAX_SUBSTEPS = 4
+
+#: Stiffest foam spring the MuJoCo twin takes per unit robot mass, as natural frequency x twin step: what
+#: FOAM_MAX_SUBSTEPS resolve (1.2: 4.6 x the shipped foam on the chassis; the robust draws reach 2 x). A stiffer
+#: foam acts as this one (before the substeps the cap was 0.6 at one step, where a spring already rebounded).
+FOAM_MAX_OMEGA_DT = FOAM_OMEGA_SUBSTEP * FOAM_MAX_SUBSTEPS
+
+#: Collision bits: the robot touches everything, the plate only the robot, the static world only the robot; the
+#: foam only the robot's geoms that carry its bit (not the wheels: they meet the foam by explicit pairs).
+ROBOT_BITS, PLATE_BITS, STATIC_BITS, FOAM_BITS = (1, 3), (2, 2), (4, 1), (4, 8)
 
 #: Compiled twins kept per process (a generation's candidates in turn; each holds one model).
 CACHE_SIZE = 4
+
+def foam_substeps(stiffness_per_kg: float, time_step_s: float) -> int:
+    """MuJoCo steps per twin step of ``time_step_s`` that resolve a foam spring of ``stiffness_per_kg`` (N/m per kg
+    of robot): omega x substep at most :data:`FOAM_OMEGA_SUBSTEP`, at most :data:`FOAM_MAX_SUBSTEPS`."""
+    omega_dt = math.sqrt(max(stiffness_per_kg, 0.0)) * time_step_s
+    return max(1, min(FOAM_MAX_SUBSTEPS, math.ceil(omega_dt / FOAM_OMEGA_SUBSTEP - 1e-9)))
 
 def _quat_wxyz(yaw_rad):
     return [math.cos(yaw_rad / 2), 0.0, 0.0, math.sin(yaw_rad / 2)]
@@ -107,8 +130,21 @@ class MujocoLaunchTwin(LaunchWorld):
         self.settings, self.physics, self.robot_model = settings, settings.physics, settings.robot_model()
         self.profile = profile
         spec, root = robot_spec(self.robot_model, profile, settings.physics)
+        # Coulomb's friction is isotropic: MuJoCo's elliptic cone is it, its default pyramid allows less friction
+        # off its axes (MuJoCo documentation, "Computation", friction cones); Bullet's two friction directions
+        # follow the sliding velocity (btSequentialImpulseConstraintSolver), isotropic too (docs/optimization.md,
+        # "The engines' disagreement on the bare robot")
+        spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+        wheel_names = set(self.robot_model.wheel_link_names())
+        wheel_specs = [geom for body in spec.bodies if body.name in wheel_names for geom in body.geoms]
         for geom in spec.geoms:
             geom.contype, geom.conaffinity = ROBOT_BITS
+            if not any(geom is wheel for wheel in wheel_specs):
+                geom.contype |= FOAM_BITS[1]   # the body meets the foam by the foam geom's values
+        for index, geom in enumerate(wheel_specs):   # a wheel meets it by its own pair (module docstring)
+            geom.name = geom.name or f"wheel_geom_{index}"
+            pair = spec.add_pair()
+            pair.geomname1, pair.geomname2, pair.condim = geom.name, "foam", 6
         self._add_static_world(spec)
         self._add_plate(spec)
         self.model = model = spec.compile()
@@ -157,8 +193,9 @@ class MujocoLaunchTwin(LaunchWorld):
         ledge.size = [launcher.ledge_depth_m / 2, launcher.ledge_width_m / 2, LEDGE_HALF_HEIGHT_M]
         for geom in (floor, ledge):
             set_geom_contact(geom, physics, ground=True)
-        for geom in (floor, foam, ledge):
+        for geom in (floor, ledge):
             geom.contype, geom.conaffinity = STATIC_BITS
+        foam.contype, foam.conaffinity = FOAM_BITS
 
     def _add_plate(self, spec: typing.Any) -> None:
         """The push plate in ``spec``: a box on a slide joint whose frame is a mocap body (module docstring)."""
@@ -207,9 +244,10 @@ class MujocoLaunchTwin(LaunchWorld):
         for geom in self.robot_geoms:   # the robot-ground values of sim.contact_model (robot_spec's, redone per draw)
             model.geom_friction[geom] = [lateral, spinning, rolling]
         mecanum = mecanum_wheels(self.settings)
+        factors = {}
         for body, geoms in self.wheel_geoms.items():
             left = float((data.xpos[body] - data.xpos[self.root]) @ root_rotation[:, 1]) >= 0.0
-            factor = options.wheel_friction_left_factor if left else options.wheel_friction_right_factor
+            factor = factors[body] = options.wheel_friction_left_factor if left else options.wheel_friction_right_factor
             for geom in geoms:
                 model.geom_friction[geom][0] = lateral * factor
                 if mecanum:
@@ -231,14 +269,26 @@ class MujocoLaunchTwin(LaunchWorld):
         model.geom_friction[self.foam_geom] = [
             physics.lateral_friction * foam.lateral_friction, spinning,
             contact["rollingFriction"] * foam.lateral_friction + foam.rolling_friction * physics.lateral_friction]
-        # MuJoCo's soft contacts go unstable on a stiff spring at this step (a robustness draw of 2 x the shipped
-        # foam blew up at omega dt = 0.76): the spring is capped at omega dt = FOAM_MAX_OMEGA_DT
+        # the foam's spring is resolved in substeps (FOAM_OMEGA_SUBSTEP), at most FOAM_MAX_SUBSTEPS of them: a
+        # stiffer spring is capped at what they resolve (unresolved it rebounds, and at omega dt 0.76 blew up)
         stiffness = min(foam.contact_stiffness_npm / self.mass_kg, (FOAM_MAX_OMEGA_DT / physics.time_step_s) ** 2)
+        self.substeps = foam_substeps(stiffness, physics.time_step_s)
+        model.opt.timestep = physics.time_step_s / self.substeps
         # at least critically damped: the configured 150 N s/m (damping ratio 0.48 on the chassis) left a landed
         # chassis rocking on the foam in a limit cycle at 1/240 s that never passed the rest rule
         model.geom_solref[self.foam_geom] = [-stiffness, -max(foam.contact_damping_nspm / self.mass_kg,
                                                               2 * math.sqrt(stiffness))]
         model.geom_solimp[self.foam_geom] = [0.99, 0.99, 0.001, 0.5, 2.0]
+        # each wheel on the foam: Bullet's combination of the wheel's own values with the foam's (friction product,
+        # rolling wheel.rolling x foam.friction + foam.rolling x wheel.friction), the foam's spring
+        wheel_rolling_own = options.wheel_rolling_friction if mecanum else contact["rollingFriction"]
+        for pair in range(model.npair):   # MuJoCo may store the foam first
+            wheel = model.pair_geom2[pair] if model.pair_geom1[pair] == self.foam_geom else model.pair_geom1[pair]
+            wheel_lateral = physics.lateral_friction * factors[int(model.geom_bodyid[wheel])]
+            roll = wheel_rolling_own * foam.lateral_friction + foam.rolling_friction * wheel_lateral
+            model.pair_friction[pair] = [wheel_lateral * foam.lateral_friction] * 2 + [spinning, roll, roll]
+            model.pair_solref[pair] = model.geom_solref[self.foam_geom]
+            model.pair_solimp[pair] = model.geom_solimp[self.foam_geom]
 
     def retarget(self, settings: LaunchTwinSettings) -> None:
         """Take a robustness draw's ``settings`` (:mod:`~rollability_ros.core.sim.robustness`) without a new
@@ -312,9 +362,10 @@ class MujocoLaunchTwin(LaunchWorld):
 
     def step(self) -> None:
         plate = self._launch_plate()
-        if plate.driving or not plate.at_rest:
-            self.data.qfrc_applied[self.plate_dof] = plate.force()
-        self.mujoco.mj_step(self.model, self.data)
+        for _ in range(self.substeps):
+            if plate.driving or not plate.at_rest:
+                self.data.qfrc_applied[self.plate_dof] = plate.force()
+            self.mujoco.mj_step(self.model, self.data)
 
     def _launch_plate(self) -> "_MujocoPlate":
         """The plate of the launch under way (the world steps only within :meth:`launch`)."""
@@ -326,13 +377,14 @@ class MujocoLaunchTwin(LaunchWorld):
                 ) -> typing.Tuple[float, typing.Sequence[float]]:
         # LaunchWorld.advance without the per-step calls: the plate is at rest (force 0, its damping holds it)
         mujoco, model, data = self.mujoco, self.model, self.data
-        plate, qvel, step = self._launch_plate(), data.qvel, mujoco.mj_step
+        plate, qvel, step, substeps = self._launch_plate(), data.qvel, mujoco.mj_step, range(self.substeps)
         peak = 0.0
         px, py, pz = velocity
         for _ in range(steps):
-            if not plate.at_rest:
-                data.qfrc_applied[self.plate_dof] = plate.force()
-            step(model, data)
+            for _ in substeps:
+                if not plate.at_rest:
+                    data.qfrc_applied[self.plate_dof] = plate.force()
+                step(model, data)
             vx, vy, vz = qvel[0:3].tolist()
             change = (vx - px) * (vx - px) + (vy - py) * (vy - py) + (vz - pz) * (vz - pz)
             peak = change if change > peak else peak
@@ -447,7 +499,7 @@ class _MujocoPlate:
         self._twin, self.spec, self.push, self.face_x_m = twin, spec, np.asarray(push), face_x_m
         explicit = twin.model.opt.integrator != twin.mujoco.mjtIntegrator.mjINT_EULER
         mass_kg = spec.mass_kg + (0.0 if explicit else self.ROBOT_SHARE * twin.mass_kg)
-        self._gain = mass_kg / twin.physics.time_step_s
+        self._gain = mass_kg / twin.model.opt.timestep   # per MuJoCo step (a twin step's substep)
         self._target, self._limit = 0.0, spec.max_force_n
         self._start_m = float(twin.data.qpos[twin.plate_qpos])
         self.driving = False

@@ -84,6 +84,10 @@ def apply_wheel_model(pybullet: types.ModuleType, client: int, robot: SpawnedRob
     """The twin's wheel contact and drag (package docstring, "Wheels") on ``robot``'s wheel links: every PyBullet
     model of the twin's rig (the launch, the characterisation roll-out) uses this one."""
     _set_wheels(pybullet, client, robot, settings.twin, settings.physics.lateral_friction, mecanum_wheels(settings))
+    # Bullet damps every multibody by default (force m v (0.04 + 0.04 |v|) on each link, the same for rotation): no
+    # source on the rig (air drag on the chassis is ~1e-3 of that) and not in MuJoCo; it slowed the spinning wheels
+    # (4.6 x their drag torque at 1.5 m/s) and the flight's rotation (13% in 0.4 s at 10 rad/s)
+    pybullet.changeDynamics(robot.body_id, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=client)
 
 def _corners_m(pybullet, client, robot):
     """Points bounding ``robot`` (a SpawnedRobot) in the world: the corners of each link's world bounding box, and

@@ -1,0 +1,284 @@
+"""Which launch next from a learnt likelihood, with the continuous outcomes (issue 44.2 and 44.4).
+
+A prepared likelihood (:mod:`~rollability_ros.core.campaign.likelihood`) predicts more than P(upright): per launch
+it gives each continuous outcome the rig measures (the gate's speed, the IMU's final tilt, peak deceleration and
+time to rest, the operator's tape) a Student-t given the unknowns, the configuration, the condition and the verdict.
+:class:`LearntTable` evaluates those predictions of a set of samples of the unknowns at every candidate condition
+at once; :class:`OutcomePosterior` is the adaptive plan's :class:`~rollability_ros.core.campaign.adaptive.
+WeightedPosterior` over them:
+
+- each launch weighs the samples by its whole likelihood, log P(verdict) plus the log densities of the outcomes it
+  measured (a missing one, NaN, adds nothing), exactly as the calibration's posterior does
+  (``LearntLikelihood.log_likelihood``; a test holds the two equal);
+- the expected information of a candidate launch about the unknowns, I(y; theta) with y = (verdict, outcomes),
+  has no closed form for a Student-t mixture, so it is estimated by nested Monte Carlo with common random numbers
+  across the candidates (:meth:`OutcomePosterior.scores`): ``draws`` outcomes y_m from the predictive (a sample
+  theta_m by weight, a verdict, then the outcomes), I ~ mean_m [log p(y_m | theta_m) - log sum_s w_s p(y_m |
+  theta_s)]. With ``outcomes=()`` it is the verdict's BALD score, exact;
+- the samples are renewed as the posterior narrows (resample by weight, Metropolis moves on the prior times the
+  likelihood of every launch seen), since a learnt likelihood is cheap to ask again.
+
+numpy only (the likelihood's networks are plain arrays).
+"""
+import math
+import typing
+
+import numpy as np
+import numpy.typing as npt
+
+from rollability_ros.core.campaign import likelihood as learnt
+from rollability_ros.core.campaign.adaptive import EPSILON, Unknowns, WeightedPosterior
+from rollability_ros.core.optional import require
+from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+
+#: Samples of the unknowns evaluated per network pass (bounds the memory of a table: samples x conditions x 64).
+CHUNK = 256
+
+
+class LearntTable:
+    """A learnt likelihood's predictions at ``candidates``: P(upright) (s, c) and, per continuous outcome of
+    ``outcomes`` (default: every one the likelihood has learnt), the Student-t's location and scale on the
+    transformed scale (s, c, 2, k), verdict slot 0 upright, 1 not. The candidates must be configurations and
+    levels the likelihood was learnt on (``ValueError`` naming the first that is not)."""
+
+    def __init__(self, likelihood: learnt.LearntLikelihood, candidates: typing.Sequence[LaunchCondition],
+                 outcomes: typing.Optional[typing.Sequence[str]] = None) -> None:
+        self.likelihood = likelihood
+        self.candidates = list(candidates)
+        wanted = learnt.OUTCOMES if outcomes is None else tuple(outcomes)
+        unknown = [name for name in wanted if name not in learnt.OUTCOMES]
+        if unknown:
+            raise ValueError(f"unknown outcome {unknown[0]!r} (known: {', '.join(learnt.OUTCOMES)})")
+        self.outcomes = tuple(name for name in wanted if name in likelihood.location)
+        d = len(likelihood.unknowns.names)
+        zeros = np.zeros((1, d))
+        self._rest = np.array([likelihood.features(zeros, c.configuration, c.height_m, c.speed_mps, c.angle_deg)[0, d:]
+                               for c in self.candidates]).reshape(len(self.candidates), -1)
+        self.set_speeds = np.array([c.speed_mps for c in self.candidates])
+
+    @property
+    def unknowns(self) -> Unknowns:
+        return self.likelihood.unknowns
+
+    def _theta(self, theta: npt.ArrayLike) -> np.ndarray:
+        u = self.unknowns.to_normalised(np.atleast_2d(np.asarray(theta, dtype=np.float64)))
+        d = u.shape[1]
+        return (u - self.likelihood.feature_mean[:d]) / self.likelihood.feature_std[:d]
+
+    def predict(self, theta: npt.ArrayLike, columns: typing.Optional[typing.Sequence[int]] = None
+                ) -> typing.Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(p (s, c), location (s, c, 2, k), scale (s, c, 2, k))`` for parameter sets ``theta`` (s, d) (own units)
+        at the candidates ``columns`` (default all)."""
+        index = np.arange(len(self.candidates)) if columns is None else np.asarray(columns, dtype=int)
+        standard = self._theta(theta)
+        rest = self._rest[index]
+        verdict = np.concatenate([np.repeat(rest, 2, axis=0), np.tile([[1.0], [-1.0]], (len(rest), 1))], axis=1)
+        s, c, k = len(standard), len(index), len(self.outcomes)
+        p = np.empty((s, c))  # filled by _fill
+        location, scale = np.empty((s, c, 2, k)), np.empty((s, c, 2, k))
+        with _one_blas_thread():
+            self._fill(standard, rest, verdict, p, location, scale)
+        return p, location, scale
+
+    def _fill(self, standard: np.ndarray, rest: np.ndarray, verdict: np.ndarray, p: np.ndarray, location: np.ndarray,
+              scale: np.ndarray) -> None:
+        forward = learnt._forward_split   # the same pass as LearntLikelihood.log_likelihood (a test holds them equal)
+        s, c = p.shape
+        for start in range(0, s, CHUNK):
+            part = slice(start, start + CHUNK)
+            logit = forward(self.likelihood.upright, standard[part], rest)
+            p[part] = np.clip(1.0 / (1.0 + np.exp(-logit)), learnt.PROBABILITY_FLOOR, 1.0 - learnt.PROBABILITY_FLOOR)
+            for j, name in enumerate(self.outcomes):
+                location[part, :, :, j] = forward(self.likelihood.location[name], standard[part], verdict).reshape(
+                    -1, c, 2)
+                log_variance = forward(self.likelihood.scale[name], standard[part], verdict) - learnt.LOG_CHI2_MEAN
+                variance = np.exp(np.clip(log_variance, -30.0, 30.0))
+                scale[part, :, :, j] = np.sqrt(variance * (learnt.STUDENT_DF - 2.0) / learnt.STUDENT_DF).reshape(
+                    -1, c, 2)
+
+    def probabilities(self, theta: np.ndarray, conditions: typing.Sequence[LaunchCondition]) -> np.ndarray:
+        """P(upright) (s, c) at ``conditions`` (the :class:`~rollability_ros.core.campaign.adaptive.UprightPredictor`
+        interface; each must be a candidate)."""
+        keys = {c.group_key: i for i, c in enumerate(self.candidates)}
+        missing = [c for c in conditions if c.group_key not in keys]
+        if missing:
+            raise ValueError(f"{missing[0].configuration} at {missing[0].height_m:g} m, {missing[0].speed_mps:g} m/s, "
+                             f"{missing[0].angle_deg:+g} deg is not a candidate condition")
+        return self.predict(theta, [keys[c.group_key] for c in conditions])[0]
+
+    def transformed(self, index: int, values: typing.Mapping[str, float]) -> np.ndarray:
+        """The outcomes (k,) of one launch at candidate ``index`` on their Student-t's scale, NaN where not measured
+        (``values``: own units by name, as ``Observation.outcomes``)."""
+        return np.array([float(learnt.transform(name, values.get(name, math.nan), self.set_speeds[index]))
+                         for name in self.outcomes])
+
+    def draw(self, theta: npt.ArrayLike, index: int, rng: np.random.Generator) -> typing.Tuple[bool, np.ndarray]:
+        """One simulated launch at candidate ``index`` under one parameter set ``theta`` (d,): the verdict and the
+        transformed outcomes (k,), drawn from the learnt model (a hidden truth's launches in the plan comparison)."""
+        p, location, scale = self.predict(np.atleast_2d(theta), [index])
+        upright = bool(rng.random() < p[0, 0])
+        slot = 0 if upright else 1
+        values = location[0, 0, slot] + scale[0, 0, slot] * rng.standard_t(learnt.STUDENT_DF, len(self.outcomes))
+        return upright, values
+
+
+def _one_blas_thread() -> typing.ContextManager[typing.Any]:
+    """One BLAS thread for the networks' small matrices (threads only contend on them: posterior.py measured it)."""
+    import contextlib
+
+    try:
+        return typing.cast(typing.ContextManager[typing.Any], require("threadpoolctl").threadpool_limits(1))
+    except ImportError:
+        return contextlib.nullcontext()
+
+
+def _student_t_log_pdf(value: np.ndarray, location: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The likelihood's Student-t log density (:data:`~rollability_ros.core.campaign.likelihood.STUDENT_DF`),
+    elementwise; 0 where ``value`` is NaN (not measured)."""
+    density = learnt._student_t_log_pdf(np.nan_to_num(value), location, scale)
+    return np.where(np.isfinite(value), density, 0.0)
+
+
+class OutcomePosterior(WeightedPosterior):
+    """The adaptive plan's weighted samples over a learnt likelihood's verdicts and continuous outcomes (module
+    docstring). ``samples``: prior draws (n, d), own units, of the likelihood's unknowns; ``draws``: the Monte Carlo
+    outcomes per candidate of :meth:`scores`; ``renew``: renew the samples as the posterior narrows."""
+
+    def __init__(self, table: LearntTable, samples: npt.ArrayLike, rng: typing.Optional[np.random.Generator] = None,
+                 renew: bool = True, draws: int = 32, renew_fraction: float = 0.5, moves: int = 4) -> None:
+        self.table = table
+        self.draws = draws
+        self._seen: typing.List[typing.Tuple[int, bool, np.ndarray]] = []
+        theta = np.asarray(samples, dtype=np.float64)
+        p, self._location, self._scale = table.predict(theta)
+        super().__init__(table.unknowns, theta, table.candidates, p, table if renew else None, rng, renew_fraction,
+                         moves)
+
+    @classmethod
+    def from_prior(cls, table: LearntTable, samples: int, rng: np.random.Generator, renew: bool = True,
+                   draws: int = 32) -> "OutcomePosterior":
+        """``samples`` prior draws of the likelihood's unknowns (uniform on each one's search scale)."""
+        return cls(table, table.unknowns.draw(samples, rng), rng, renew, draws)
+
+    def _launch_log_likelihood(self, p: np.ndarray, location: np.ndarray, scale: np.ndarray, column: int,
+                               upright: bool, values: np.ndarray) -> np.ndarray:
+        """log p(verdict, outcomes) (n,) of one launch at table column ``column``."""
+        slot = 0 if upright else 1
+        verdict = np.log(np.clip(p[:, column] if upright else 1.0 - p[:, column], EPSILON, 1.0))
+        return verdict + _student_t_log_pdf(values[None, :], location[:, column, slot], scale[:, column, slot]).sum(
+            axis=1)
+
+    def observe_launch(self, index: int, upright: bool, values: typing.Optional[npt.ArrayLike] = None) -> None:
+        """Weigh the samples by one launch at candidate ``index``: its verdict and its transformed outcomes
+        ``values`` (k,) (NaN or None: not measured; :meth:`LearntTable.transformed` makes them)."""
+        v = np.full(len(self.table.outcomes), np.nan) if values is None else np.asarray(values, dtype=np.float64)
+        self.log_weights += self._launch_log_likelihood(self.probabilities, self._location, self._scale, index,
+                                                        bool(upright), v)
+        self._seen.append((index, bool(upright), v))
+        self._successes[index] += bool(upright)
+        self._trials[index] += 1
+        self.launches += 1
+        self._after_observing()
+
+    def observe(self, index: int, upright: bool) -> None:
+        """A launch whose verdict only is known."""
+        self.observe_launch(index, upright)
+
+    def observe_counts(self, index: int, successes: int, trials: int) -> None:
+        """``successes`` upright of ``trials`` launches at candidate ``index``, verdicts only."""
+        if not 0 <= successes <= trials:
+            raise ValueError(f"need 0 <= successes <= trials, got {successes} of {trials}")
+        for i in range(trials):
+            self.observe_launch(index, i < successes)
+
+    def observe_outcomes(self, outcomes: typing.Iterable[LaunchOutcome]) -> int:
+        """Weigh by every valid outcome at a candidate condition with the continuous outcomes its record carries
+        (``likelihood.observations_from_outcomes``: the gate's speed, the IMU's tilt, ...); returns how many were
+        used (invalid launches and conditions off the candidates are left out)."""
+        used = 0
+        for outcome in outcomes:
+            if not (outcome.valid and outcome.condition.group_key in self._index):
+                continue
+            observation, = learnt.observations_from_outcomes([outcome])
+            index = self._index[outcome.condition.group_key]
+            self.observe_launch(index, observation.upright, self.table.transformed(index, observation.outcomes))
+            used += 1
+        return used
+
+    def _seen_log_likelihood(self, theta: np.ndarray) -> np.ndarray:
+        """log p(every launch seen) (n,) of parameter sets ``theta`` (n, d), from their predictions at the seen
+        candidates only."""
+        columns = sorted({index for index, _, _ in self._seen})
+        if not columns:
+            return np.zeros(len(theta))
+        where = {index: i for i, index in enumerate(columns)}
+        p, location, scale = self.table.predict(theta, columns)
+        total = np.zeros(len(theta))
+        for index, upright, values in self._seen:
+            total += self._launch_log_likelihood(p, location, scale, where[index], upright, values)
+        return total
+
+    def renew(self) -> None:
+        """Resample by weight, ``moves`` Metropolis steps each on the prior times the likelihood of every launch
+        seen (verdicts and outcomes), then the new samples' predictions at every candidate."""
+        n, d = self.samples.shape
+        w = self.weights
+        picks = np.minimum(np.searchsorted(np.cumsum(w), (self.rng.random() + np.arange(n)) / n), n - 1)
+        u = self.unknowns.to_normalised(self.samples[picks])
+        log_likelihood = self._seen_log_likelihood(self.samples[picks])
+        step = np.maximum(np.sqrt(np.cov(u, rowvar=False).reshape(d, d).diagonal()), 1e-3) * 2.38 / math.sqrt(d)
+        for _ in range(self.moves):
+            proposed = u + self.rng.normal(0.0, 1.0, u.shape) * step
+            inside = np.all((proposed >= 0.0) & (proposed <= 1.0), axis=1)
+            log_new = self._seen_log_likelihood(self.unknowns.to_values(np.clip(proposed, 0.0, 1.0)))
+            accept = inside & (np.log(self.rng.random(n)) < log_new - log_likelihood)
+            u[accept], log_likelihood[accept] = proposed[accept], log_new[accept]
+        theta = self.unknowns.to_values(u)
+        p, self._location, self._scale = self.table.predict(theta)
+        self._set_samples(theta, p)
+        self.log_weights = np.zeros(n)
+        self.renewals += 1
+
+    def scores(self) -> np.ndarray:
+        """Expected information (nats) about the unknowns of a launch at each candidate (c,), verdict and outcomes
+        (module docstring); the exact BALD score when the table has no continuous outcome."""
+        if not self.table.outcomes:
+            return super().scores()
+        return self._estimated_scores(None)
+
+    def group_scores(self, groups: npt.ArrayLike) -> np.ndarray:
+        """:meth:`WeightedPosterior.group_scores` over verdict and outcomes (estimated as :meth:`scores`)."""
+        if not self.table.outcomes:
+            return super().group_scores(groups)
+        return self._estimated_scores(np.asarray(groups))
+
+    def _estimated_scores(self, groups: typing.Optional[np.ndarray]) -> np.ndarray:
+        """I(y; group of theta) (c,) by nested Monte Carlo; ``groups`` None: each sample its own group (I(y; theta)):
+        mean_m [log p(y_m | g_m) - log p(y_m)], p(y | g) the group's weighted mixture."""
+        w = self.weights
+        log_w = np.log(np.maximum(w, 1e-300))
+        rng = np.random.default_rng([self.launches, self.renewals, 7])   # common numbers across the candidates
+        m = self.draws
+        picks = np.minimum(np.searchsorted(np.cumsum(w), (rng.random() + np.arange(m)) / m), len(w) - 1)
+        uniform = rng.random(m)
+        noise = rng.standard_t(learnt.STUDENT_DF, (m, len(self.table.outcomes)))
+        scores = np.empty(len(self.candidates))
+        log_p, log_q = np.log(self.probabilities), np.log1p(-self.probabilities)
+        for c in range(len(self.candidates)):
+            upright = uniform < self.probabilities[picks, c]                                     # (m,)
+            slot = np.where(upright, 0, 1)
+            y = self._location[picks, c, slot] + self._scale[picks, c, slot] * noise               # (m, k)
+            verdict = np.where(upright[:, None], log_p[None, :, c], log_q[None, :, c])           # (m, n)
+            location = self._location[:, c][:, slot].transpose(1, 0, 2)                          # (m, n, k)
+            scale = self._scale[:, c][:, slot].transpose(1, 0, 2)
+            log_f = verdict + _student_t_log_pdf(y[:, None, :], location, scale).sum(axis=2)    # (m, n)
+            mixture = np.logaddexp.reduce(log_f + log_w[None, :], axis=1)
+            if groups is None:
+                conditional = log_f[np.arange(m), picks]
+            else:
+                same = groups[None, :] == groups[picks][:, None]                                  # (m, n)
+                weighted = np.where(same, log_f + log_w[None, :], -np.inf)
+                mass = np.array([w[groups == groups[i]].sum() for i in picks])
+                conditional = np.logaddexp.reduce(weighted, axis=1) - np.log(mass)
+            scores[c] = float(np.mean(conditional - mixture))
+        return np.maximum(scores, 0.0)

@@ -1,0 +1,157 @@
+"""Which launch next from a learnt likelihood (core/campaign/learnt_plan.py): the weights are the calibration's own
+likelihood, the continuous outcomes add information the verdict alone does not carry, and the table refuses
+conditions the likelihood was not learnt on. The networks are test_learnt_likelihood's hand-built ones (a known
+model: P(upright) moves with unknown a, the gate's reading with unknown b)."""
+import math
+
+import numpy as np
+import pytest
+
+from rollability_ros.core.campaign import likelihood as learnt
+from rollability_ros.core.campaign.learnt_plan import LearntTable, OutcomePosterior
+from rollability_ros.core.records import INVALID_LAUNCH, LaunchCondition, LaunchOutcome
+
+from test_learnt_likelihood import CONFIGURATIONS, LEVELS, UNKNOWNS, model, simulate
+
+CANDIDATES = [LaunchCondition(c, h, v, a) for c in CONFIGURATIONS for h in LEVELS.heights_m
+              for v in LEVELS.speeds_mps for a in LEVELS.angles_deg]
+
+
+def test_the_weights_are_the_calibrations_likelihood_of_verdicts_and_outcomes():
+    likelihood = model()
+    table = LearntTable(likelihood, CANDIDATES)
+    assert table.outcomes == ("measured_speed_mps",)
+    posterior = OutcomePosterior.from_prior(table, 300, np.random.default_rng(0), renew=False)
+    rng = np.random.default_rng(1)
+    cells = [(c.configuration, c.height_m, c.speed_mps, c.angle_deg) for c in CANDIDATES[::5]]
+    observations = simulate((0.7, 0.3), cells, rng)
+    for o in observations:
+        index = posterior.candidate_index(LaunchCondition(o.configuration, o.height_m, o.speed_mps, o.angle_deg))
+        posterior.observe_launch(index, o.upright, table.transformed(index, o.outcomes))
+    expected = likelihood.log_likelihood(UNKNOWNS.to_normalised(posterior.samples), observations)
+    floor = learnt.PROBABILITY_FLOOR   # the two clip P(upright) alike
+    assert floor > 1e-3
+    assert np.allclose(posterior.log_weights - posterior.log_weights.max(), expected - expected.max(), atol=1e-9)
+
+
+def test_continuous_outcomes_teach_what_the_verdict_cannot_and_the_score_says_so():
+    """b moves only the gate's reading: verdicts alone leave b at its prior width; with the reading, the score of
+    every launch is above the verdict-only BALD score and 12 launches pin b to a fraction of its range."""
+    likelihood = model()
+    candidates = CANDIDATES[:12]   # one configuration: enough to separate a and b, and cheap
+    with_outcomes = OutcomePosterior.from_prior(LearntTable(likelihood, candidates), 400, np.random.default_rng(0),
+                                                draws=16)
+    verdicts = OutcomePosterior.from_prior(LearntTable(likelihood, candidates, outcomes=()), 400,
+                                           np.random.default_rng(0))
+    assert np.all(with_outcomes.scores() > verdicts.scores() + 0.5)   # the reading is worth more than a nat here
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        for posterior in (with_outcomes, verdicts):
+            index = int(np.argmax(posterior.scores()))
+            c = candidates[index]
+            o, = simulate((0.7, 0.3), [(c.configuration, c.height_m, c.speed_mps, c.angle_deg)], rng)
+            posterior.observe_launch(index, o.upright, posterior.table.transformed(index, o.outcomes))
+    assert with_outcomes.normalised_widths()[1] < 0.15 < 0.8 < verdicts.normalised_widths()[1]
+    low, high = with_outcomes.intervals()[1]
+    assert low <= UNKNOWNS.to_values([[0.7, 0.3]])[0, 1] <= high
+
+
+def test_stored_outcomes_enter_with_their_readings_and_off_matrix_conditions_are_refused():
+    likelihood = model()
+    table = LearntTable(likelihood, CANDIDATES)
+    posterior = OutcomePosterior.from_prior(table, 200, np.random.default_rng(0), renew=False)
+    condition = CANDIDATES[3]
+    stored = [LaunchOutcome("r", "t0", condition, "physical", True, measured_speed_mps=condition.speed_mps,
+                            classified_by="imu"),
+              LaunchOutcome("r", "t1", condition, "physical", False, note=f"{INVALID_LAUNCH}: misfire")]
+    assert posterior.observe_outcomes(stored) == 1
+    index = CANDIDATES.index(condition)
+    expected = likelihood.log_likelihood(UNKNOWNS.to_normalised(posterior.samples), learnt.observations_from_outcomes(
+        stored[:1]))
+    assert np.allclose(posterior.log_weights - posterior.log_weights.max(), expected - expected.max())
+    assert posterior._trials[index] == 1
+    with pytest.raises(ValueError, match="not one of the levels"):
+        LearntTable(likelihood, [LaunchCondition("A", 0.9, 0.8, 0.0)])
+    with pytest.raises(ValueError, match="configuration 'Z'"):
+        LearntTable(likelihood, [LaunchCondition("Z", 0.75, 0.8, 0.0)])
+    assert math.isnan(table.transformed(0, {})[0])
+
+
+def test_propose_next_from_a_prepared_likelihood_and_bad_files_refused_in_one_line(tmp_path, capsys):
+    """`rollability campaign --propose-next --likelihood FILE`: the stored launch (verdict and gate reading) weighs
+    the samples and the launch is proposed; a damaged file, one prepared for another twin, one whose levels miss the
+    campaign's, and --fit beside it are each refused in one line, with nothing stored."""
+    from rollability_ros.cli import main
+    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.store import Store
+
+    from test_adaptive import _tiny_campaign
+
+    names = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")
+    unknowns = type(UNKNOWNS)(names, (-0.019, 0.3), (0.015, 3.0), (False, True))
+    fingerprint = learnt.twin_fingerprint(load_parameters([*calibration.TWIN_CONFIGS, "calibration"]), names)
+    good, other_levels = tmp_path / "good.npz", tmp_path / "levels.npz"
+    model(unknowns, ("baseline",), learnt.ConditionLevels((0.75, 1.3), (0.8,), (0.0,)), fingerprint).save(good)
+    model(unknowns, ("baseline",), learnt.ConditionLevels((0.75, 1.3), (1.5,), (0.0,)), fingerprint).save(other_levels)
+    config, store_file = _tiny_campaign(tmp_path), tmp_path / "s.sqlite"
+    with Store(store_file) as store:
+        store.add_launch_outcome(LaunchOutcome("tiny", "t0", LaunchCondition("baseline", 1.3, 0.8, 0.0), "physical",
+                                               True, measured_speed_mps=0.79, classified_by="imu"))
+    command = ["campaign", "--backend", "physical", "--config", config, "--store", str(store_file),
+               "--propose-next", "--prior-samples", "200"]
+    assert main([*command, "--likelihood", str(good)]) == 0
+    out = capsys.readouterr().out
+    assert "the learnt likelihood" in out and "verdicts and measured_speed_mps" in out
+    assert "weighed by 1 stored launches of run tiny" in out and "next launch: baseline at " in out
+    assert "unknown launch_twin.foam.lateral_friction: 95% of the weighted samples in [" in out
+    broken = tmp_path / "broken.npz"
+    broken.write_bytes(b"PK\x03\x04 not an archive")
+    other = tmp_path / "other.yaml"
+    other.write_text("/**:\n  ros__parameters:\n    launch_twin:\n      foam:\n        restitution: 0.2\n")
+    for extra, message in ((["--likelihood", str(broken)], "not a prepared likelihood file"),
+                           (["--likelihood", str(good), "--twin-config", str(other)], "prepared for another twin"),
+                           (["--likelihood", str(other_levels)], "launch speed 0.8 is not one of the levels"),
+                           (["--likelihood", str(good), "--fit", names[0]], "--fit is for the twin's predictions")):
+        assert main([*command, *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and len(err.splitlines()) == 1, err
+    with Store(store_file) as store:
+        assert len(store.launch_outcomes()) == 1
+
+
+@pytest.mark.slow
+def test_an_adaptive_campaign_on_the_twin_proposes_each_launch_from_the_learnt_likelihood(tmp_path, capsys):
+    """`rollability campaign --plan adaptive --likelihood FILE` on the twin rig: two launches, each proposed from the
+    hand-built likelihood after the previous one (with its gate reading) is stored."""
+    pytest.importorskip("pybullet")
+    from rollability_ros.cli import main
+    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.store import Store
+
+    from test_adaptive import _tiny_campaign
+
+    names = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")
+    unknowns = type(UNKNOWNS)(names, (-0.019, 0.3), (0.015, 3.0), (False, True))
+    fingerprint = learnt.twin_fingerprint(load_parameters([*calibration.TWIN_CONFIGS, "calibration"]), names)
+    good = tmp_path / "good.npz"
+    model(unknowns, ("baseline",), learnt.ConditionLevels((0.75, 1.3), (0.8,), (0.0,)), fingerprint).save(good)
+    store_file = tmp_path / "s.sqlite"
+    assert main(["campaign", "--backend", "sim", "--config", _tiny_campaign(tmp_path), "--store", str(store_file),
+                 "--plan", "adaptive", "--budget", "2", "--prior-samples", "200", "--likelihood", str(good)]) == 0
+    out = capsys.readouterr().out
+    assert "the learnt likelihood" in out and out.count("next launch: baseline at ") == 2
+    with Store(store_file) as store:
+        stored = store.launch_outcomes("tiny")
+    assert len(stored) == 2 and all(math.isfinite(o.measured_speed_mps) for o in stored)
+
+
+def test_the_estimated_information_about_groups_is_the_score_when_each_sample_is_its_own_group():
+    posterior = OutcomePosterior.from_prior(LearntTable(model(), CANDIDATES[:6]), 300, np.random.default_rng(0))
+    assert np.allclose(posterior.group_scores(np.arange(300)), posterior.scores())
+    one_group = posterior.group_scores(np.zeros(300, dtype=int))
+    assert np.allclose(one_group, 0.0)   # knowing that the truth is among the samples teaches nothing
+    # the gate's reading moves with b only: information about b's bins is most of the information there is
+    about_b = posterior.unknown_scores(1)
+    assert np.all(about_b > 0.5 * posterior.scores()) and np.all(about_b > posterior.unknown_scores(0))

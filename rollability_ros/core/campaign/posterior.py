@@ -125,13 +125,18 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
                      sample: typing.Optional[typing.Sequence[str]] = None,
                      fixed: typing.Optional[typing.Mapping[str, float]] = None,
                      extra: typing.Optional[LogDensity] = None, outcomes: typing.Optional[typing.Sequence[str]] = None,
-                     walkers: int = 32, steps: int = 600, seed: int = 1) -> Posterior:
+                     walkers: int = 32, steps: int = 600, seed: int = 1,
+                     temperature: typing.Optional[float] = None) -> Posterior:
     """Posterior samples of the unknowns ``sample`` (default: all of the likelihood's) given ``observations``,
     the others held at ``fixed`` (own units; every unknown not sampled needs a value inside its bounds).
     ``extra``: a log-likelihood (s,) of the full normalised unknowns (s, d) added to the launches' (the
-    characterisation's, :func:`characterisation_term`). Uniform prior on the normalised box; the stretch sampler
-    starts from the best of 2,000 prior draws, discards the first half of ``steps`` and keeps every step after
-    (correlated samples, but more of them: a 50-bin histogram of every 5th step came out in noisy pieces)."""
+    characterisation's, :func:`characterisation_term`). Uniform prior on the normalised box. The emulator's
+    error enters twice: one posterior per ensemble member (each its own stretch sampler, started from the best
+    of 2,000 prior draws under that member), pooled with equal weights, so where the members disagree the sets
+    widen; and the launches' log-likelihood is raised to ``temperature`` (default: the file's,
+    :attr:`LearntLikelihood.temperature`). Each sampler discards the first half of ``steps`` and keeps every
+    step after (correlated samples, but more of them: a 50-bin histogram of every 5th step came out in noisy
+    pieces). ``log_density`` of each sample is its own member's."""
     import time
 
     started = time.perf_counter()
@@ -159,27 +164,35 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
         return out
 
     arranged = likelihood.arrange(observations, outcomes)
-
-    def log_density(u: np.ndarray) -> np.ndarray:
-        """Log likelihood (n,) of samples (n, k) of the fitted unknowns, characterisation included."""
-        value = likelihood.log_likelihood(full(u), arranged)
-        return value + extra(full(u)) if extra is not None else value
+    power = likelihood.temperature if temperature is None else float(temperature)
+    if not 0.0 < power <= 1.0:
+        raise ValueError(f"temperature must lie in (0, 1], got {power:g}")
     rng = np.random.default_rng(seed)
     k = len(index)
     walkers = max(walkers, 2 * k + 2) + (max(walkers, 2 * k + 2) % 2)
-    candidates = rng.uniform(size=(2000, k))
-    scores = np.concatenate([log_density(part) for part in np.array_split(candidates, 10)])
-    start = candidates[np.argsort(-scores)[:walkers]]
+    members = likelihood.ensemble_size
+    kept, kept_densities = [], []
     try:   # small matrices: BLAS threads only contend (4x slower measured on a loaded 2-core machine)
         limits: typing.Any = require("threadpoolctl").threadpool_limits(1)
     except ImportError:
         limits = contextlib.nullcontext()
     with limits:
-        chain, densities = stretch_sampler(log_density, start, steps, rng)
-    kept = chain[steps // 2:].reshape(-1, k)
-    values = np.array([values_one(unknowns, j, kept[:, i]) for i, j in enumerate(index)]).T
-    return Posterior(names, values, kept, unknowns, index, time.perf_counter() - started,
-                     densities[steps // 2:].reshape(-1))
+        for member in range(members):
+            def log_density(u: np.ndarray, member: int = member) -> np.ndarray:
+                """Log posterior (n,) of samples (n, k) of the fitted unknowns under one member, the
+                characterisation included (not tempered: its model is not learnt)."""
+                value = power * likelihood.log_likelihood(full(u), arranged, member=member)
+                return value + extra(full(u)) if extra is not None else value
+            candidates = rng.uniform(size=(2000, k))
+            scores = np.concatenate([log_density(part) for part in np.array_split(candidates, 10)])
+            start = candidates[np.argsort(-scores)[:walkers]]
+            chain, densities = stretch_sampler(log_density, start, steps, rng)
+            kept.append(chain[steps // 2:].reshape(-1, k))
+            kept_densities.append(densities[steps // 2:].reshape(-1))
+    pooled = np.concatenate(kept)
+    values = np.array([values_one(unknowns, j, pooled[:, i]) for i, j in enumerate(index)]).T
+    return Posterior(names, values, pooled, unknowns, index, time.perf_counter() - started,
+                     np.concatenate(kept_densities))
 
 
 def characterisation_term(characterisation: Characterisation, parameters: typing.Mapping[str, object],

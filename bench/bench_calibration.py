@@ -1,25 +1,31 @@
 """Calibration with the learnt likelihood on simulated hidden truths: preparation time, calibration time, coverage,
 widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise -> validate. All simulated.
 
-    nice python bench/bench_calibration.py [--prepare-launches 8000] [--truths 50] [--workers 2]
-        [--likelihood FILE] [--keep DIR] [--reoptimize-generations 15] [--skip-reoptimize] [--skip-cli]
+    nice python bench/bench_calibration.py [--prepare-launches 8000] [--members 3] [--truths 50] [--steps 200]
+        [--temperature T] [--engine mujoco|pybullet] [--workers 2] [--likelihood FILE] [--keep DIR]
+        [--skip-cli] [--skip-adaptive] [--skip-reoptimize] [--reoptimize-generations 15] [--smoke]
 
+0. The twin: ``--engine`` (``sim.engine``; default mujoco, whose launch run to rest costs about a fifth of
+   PyBullet's: 0.035 against 0.18 CPU s measured) launches the preparation and the truths alike; the
+   characterisation's roll-out is modelled in the PyBullet twin only and is used for both sides.
 1. Designs: the bare robot and three profiles (bench_launch_twin's dome, a flat top at the 0.09 m bound and a low
    pyramid: docs/twin-model.md's shapes), as STLs. The unknowns: :data:`UNKNOWNS` (centre of mass, foam friction,
    wheel-on-foam rolling resistance, launcher speed bias, profile mass scale), with the bounds and scales of
    ``config/calibration.yaml``.
 2. Preparation (once): ``--prepare-launches`` twin launches at unknowns drawn over the bounds, the four
-   configurations and the campaign's conditions, then the networks learnt
-   (:mod:`rollability_ros.core.campaign.likelihood`). ``--likelihood FILE`` loads a prepared file instead (its
-   twin fingerprint must match); ``--keep DIR`` writes it there.
-3. ``--truths`` hidden truths drawn from the prior (uniform over the normalised bounds). For each: the paper's
-   400-launch matrix (4 configurations x 2 heights x 2 speeds x 5 angles x 5) launched on the twin at the truth
-   (fresh seeds), five slide angles (the analytic model plus 1 deg noise) and three roll-outs on the foam (the
-   simulated roll-out plus 0.02 m noise); then the posterior of all unknowns from the verdicts, the gate's speed
-   and the IMU's tilt, peak deceleration and time to rest, plus the characterisation. Prints each unknown's
-   coverage of the 95% sets, their widths as a fraction of the range (own scale), the SBC rank histogram's
-   chi-squared p-value, the calibration time, and the classifier's accuracy on these fresh launches against the
-   truth's own frequencies (Brier score against a constant predictor).
+   configurations and the campaign's conditions, then the ensemble of ``--members`` networks learnt
+   (:mod:`rollability_ros.core.campaign.likelihood`; its held-out log loss, Brier score and reliability against a
+   constant are printed). ``--likelihood FILE`` loads a prepared file instead (its twin fingerprint must match);
+   ``--keep DIR`` writes it there and a later run with the same folder loads it.
+3. ``--truths`` hidden truths drawn from the prior (uniform over the normalised bounds, each from its own seed).
+   For each: the paper's 400-launch matrix (4 configurations x 2 heights x 2 speeds x 5 angles x 5) launched on
+   the twin at the truth (fresh seeds), five slide angles (the analytic model plus 1 deg noise) and three
+   roll-outs on the foam (the simulated roll-out plus 0.02 m noise), kept in ``--keep`` (JSON) for re-runs; then,
+   in a worker, the posterior of all unknowns from the verdicts, the gate's speed and the IMU's tilt, peak
+   deceleration, time to rest and the rest distance, plus the characterisation. Prints each unknown's coverage of
+   the 95% sets, their widths as a fraction of the range (own scale), the SBC ranks (the truth among 99 thinned
+   posterior samples: their histogram by fifths and its chi-squared p-value), the calibration time, and the
+   learnt P(upright) on these fresh launches against a constant (Brier, log loss, reliability by deciles).
 4. ``rollability calibrate --likelihood`` (the CLI, a subprocess) with two unknowns (centre of mass, foam friction)
    on the first truth's 400 launches, written as an outcome CSV, then again with its slide angles.
 5. Calibrate -> re-optimise -> validate on the first truth (bench_objective's optimisation, one seed): the design
@@ -27,7 +33,9 @@ widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise ->
    the truth; the gain with Newcombe's 95% interval.
 6. The adaptive plan against the paper's matrix with the learnt likelihood (:func:`adaptive_comparison`).
 
-Every line with a time carries the load average (``os.getloadavg``): the machine is shared.
+``--smoke``: every step but 5 at a tiny size (240 training launches, 2 members, 2 truths of 20 launches, 20
+sampler steps); its numbers mean nothing. Every line with a time carries the load average (``os.getloadavg``):
+the machine is shared.
 """
 import argparse
 import dataclasses
@@ -44,6 +52,7 @@ import numpy as np  # noqa: E402
 
 from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.campaign import likelihood as learnt  # noqa: E402
+from rollability_ros.core.campaign import likelihood_learning as learning  # noqa: E402
 from rollability_ros.core.campaign import posterior as sampling  # noqa: E402
 from rollability_ros.core.campaign.adaptive import Unknowns  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
@@ -206,7 +215,8 @@ def truth_data(parameters, unknowns, matrix, number, cache):
     return truth_u, observations, readings, cpu
 
 
-def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, temperature, cache):
+def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, temperature, cache, walkers=16,
+                    start_draws=500):
     """One truth of step 3 in a worker process: its data (:func:`truth_data`), then the posterior of every
     unknown. Returns a dict: the truth, the normalised samples, times, and the learnt P(upright) at the truth of
     each launch."""
@@ -214,7 +224,7 @@ def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, tem
     started, cpu = time.perf_counter(), time.process_time()
     extra = sampling.characterisation_term(readings, rollout_parameters(parameters), unknowns)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1, steps=steps,
-                                          temperature=temperature)
+                                          temperature=temperature, walkers=walkers, start_draws=start_draws)
     truth = unknowns.to_values(truth_u)
     predicted = [float(likelihood.predict_upright_probability(
         truth[None, :], o.configuration, (o.height_m, o.speed_mps, o.angle_deg))[0]) for o in observations]
@@ -236,7 +246,7 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
     count = args.truths
     jobs = pool.map(calibrate_truth, [likelihood] * count, [parameters] * count, [unknowns] * count,
                     [matrix] * count, range(count), [args.steps] * count, [args.temperature] * count,
-                    [args.cache] * count)
+                    [args.cache] * count, [args.walkers] * count, [args.start_draws] * count)
     for number, result in enumerate(jobs):
         truth_u = result["truth_u"]
         truth = unknowns.to_values(truth_u)
@@ -264,7 +274,7 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
     n = count
     print(f"{n} truths in {time.perf_counter() - started:.0f} s wall on {args.workers} workers [{load()}]")
     print(f"calibration of {d} unknowns from the paper's {len(matrix)} launches plus characterisation "
-          f"({likelihood.ensemble_size} members x {args.steps} sampler steps, temperature "
+          f"({likelihood.ensemble_size} members x {args.walkers} walkers x {args.steps} sampler steps, temperature "
           f"{likelihood.temperature if args.temperature is None else args.temperature:g}): median "
           f"{np.median(walls):.1f} s wall ({np.median(cpus):.1f} CPU s), max {max(walls):.1f} s wall over {n} truths "
           f"(target <= 180 s); simulating a truth's launches {np.median(simulated):.0f} CPU s (median)")
@@ -281,7 +291,7 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
           f"{-np.mean(y * np.log(p) + (1 - y) * np.log1p(-p)):.4f} (constant "
           f"{-np.mean(y * np.log(base) + (1 - y) * np.log1p(-base)):.4f}); predicted mean {p.mean():.3f} vs "
           f"observed {base:.3f}")
-    table = learnt.reliability(p, y)
+    table = learning.reliability(p, y)
     print("reliability on them (deciles of the predicted P: predicted / observed / launches): "
           + ", ".join(f"{a:.2f}/{b:.2f}/{c}" for a, b, c in table))
     truth_u, observations, readings, _ = truth_data(parameters, unknowns, matrix, 0, args.cache)
@@ -400,10 +410,13 @@ def reoptimize(likelihood, parameters, unknowns, first, args, folder):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--prepare-launches", type=int, default=16000, help="twin launches of the preparation")
+    parser.add_argument("--prepare-launches", type=int, default=8000, help="twin launches of the preparation")
     parser.add_argument("--members", type=int, default=learnt.MEMBERS, help="networks of the ensemble")
     parser.add_argument("--truths", type=int, default=50, help="hidden truths of the coverage (>= 50 for the claim)")
-    parser.add_argument("--steps", type=int, default=300, help="sampler steps per calibration and ensemble member")
+    parser.add_argument("--steps", type=int, default=200, help="sampler steps per calibration and ensemble member")
+    parser.add_argument("--walkers", type=int, default=16, help="sampler walkers per ensemble member")
+    parser.add_argument("--start-draws", type=int, default=500,
+                        help="prior draws the best walkers start from, per member")
     parser.add_argument("--temperature", type=float, help="the launches' log-likelihood exponent (default: the "
                         "prepared file's)")
     parser.add_argument("--engine", default="mujoco", choices=("mujoco", "pybullet"),
@@ -455,7 +468,7 @@ def main(argv=None):
                 print(f"preparation: {args.prepare_launches} launches simulated in {simulated:.0f} s wall "
                       f"({simulated / args.prepare_launches * 1000 * args.workers:.0f} ms per launch per worker) "
                       f"[{load()}]", flush=True)
-                likelihood = learnt.learn(training, unknowns, configurations, levels, fingerprint, on_progress=print,
+                likelihood = learning.learn(training, unknowns, configurations, levels, fingerprint, on_progress=print,
                                           members=args.members, pool=pool)
                 likelihood.info["prepare_s"] = time.perf_counter() - started
                 likelihood.save(path)

@@ -149,7 +149,7 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     extra = (characterisation_term(characterisation, parameters, unknowns)
              if characterisation is not None else None)
     posterior = sample_posterior(likelihood, observations, sampled, fixed, extra, seed=args.seed,
-                                        steps=args.sampler_steps)
+                                 steps=args.sampler_steps, temperature=args.temperature)
     fitted = posterior.best()
     method = "highest-density set of the learnt likelihood's posterior"
     params_path = _write_outputs(args, sources, f"credible set ({method})", fitted)
@@ -203,6 +203,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.prepare and args.likelihood:
         raise ValueError("give --prepare FILE (learn a likelihood) or --likelihood FILE (calibrate with one), not both")
+    if args.temperature is not None and not args.likelihood:
+        raise ValueError("--temperature tempers a prepared likelihood: give it with --likelihood FILE")
     if not args.prepare:
         check_output_dir(args.out, "--out", keeps=("calibrated.yaml", RIG_FILE))   # before minutes of fitting
     check_given_files(args.config, {*TWIN_SECTIONS, "calibration", "stable_poses", "campaign"}, "rollability calibrate")
@@ -301,4 +303,8 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--sampler-steps", type=int, default=300, metavar="N",
                         help="steps of the posterior sampler per ensemble member (--likelihood; the first half is "
                              "discarded; >= 20)")
+    parser.add_argument("--temperature", type=float, metavar="T",
+                        help="raise the launches' learnt log-likelihood to T in (0, 1] (--likelihood; default: the "
+                             "file's, 1 unless set): below 1 widens the sets for an emulator less accurate than "
+                             "its ensemble says (docs/calibration.md)")
     parser.set_defaults(func=run)

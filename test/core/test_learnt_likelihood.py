@@ -278,6 +278,11 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
     error = capsys.readouterr().err.strip()
     assert "not a prepared likelihood file" in error and len(error.splitlines()) == 1
     assert not (tmp_path / "out2").exists() and not (tmp_path / "out3").exists()
+    assert main(["calibrate", "--physical", str(source), "--temperature", "0.5", "--out", str(tmp_path / "out4")]) == 2
+    assert "--temperature tempers a prepared likelihood" in capsys.readouterr().err
+    assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--temperature", "1.5",
+                 "--out", str(tmp_path / "out5")]) == 2
+    assert "temperature must lie in (0, 1]" in capsys.readouterr().err
 
 
 @pytest.mark.slow
@@ -295,7 +300,9 @@ def test_learning_recovers_the_model_from_simulated_launches(tmp_path):
         o = simulate(u, [(CONFIGURATIONS[c], height, speed, angle)], rng)[0]
         rows.append([1.0, float(o.upright), o.outcomes["measured_speed_mps"], *[math.nan] * 4])
     training = learnt.TrainingSet(normalised, configuration, condition, np.array(rows))
-    likelihood = learnt.learn(training, UNKNOWNS, CONFIGURATIONS, LEVELS, "synthetic")
+    from rollability_ros.core.campaign.likelihood_learning import learn
+
+    likelihood = learn(training, UNKNOWNS, CONFIGURATIONS, LEVELS, "synthetic")
     assert likelihood.info["holdout_log_loss"] < 0.9 * likelihood.info["holdout_log_loss_constant"]
     assert set(likelihood.location) == {"measured_speed_mps"}   # the outcomes never measured are not learnt
     path = tmp_path / "learnt.npz"

@@ -41,7 +41,6 @@ Posterior (:mod:`~rollability_ros.core.campaign.posterior`: ``sample_posterior``
     histogram: a split set is a union of intervals, printed as such, never as its hull.
 """
 import concurrent.futures
-import contextlib
 import dataclasses
 import hashlib
 import json
@@ -79,7 +78,7 @@ HIDDEN = (64, 64)
 #: Networks of the ensemble (verdict classifier and outcome locations, each on its own resample of the training
 #: launches with its own seed): their disagreement is the emulator's error the posterior carries
 #: (:func:`~rollability_ros.core.campaign.posterior.sample_posterior` pools one posterior per member).
-MEMBERS = 4
+MEMBERS = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -583,146 +582,3 @@ def simulate_training_set(parameters: typing.Mapping[str, object], unknowns: Unk
             on_progress(sum(len(r) for r in rows), launches)
     return TrainingSet(normalised, configuration, condition, np.concatenate(rows) if rows else
                        np.zeros((0, len(ROW))))
-
-
-def _layers_of(model: typing.Any) -> Layers:
-    return [(np.asarray(w, dtype=np.float64), np.asarray(b, dtype=np.float64))
-            for w, b in zip(model.coefs_, model.intercepts_)]
-
-
-#: The perceptrons' training options (scikit-learn's names; ``random_state`` is each fit's own).
-TRAINING = {"hidden_layer_sizes": HIDDEN, "activation": "relu", "alpha": 1e-4, "max_iter": 300,
-            "early_stopping": True, "n_iter_no_change": 15}
-
-
-def fit_network(kind: str, x: np.ndarray, y: np.ndarray, seed: int,
-                predict: typing.Optional[np.ndarray] = None) -> typing.Tuple[Layers, typing.Optional[np.ndarray]]:
-    """One perceptron fitted (``kind`` ``classifier``: a logit output; ``regressor``) on ``x`` (n, f), ``y`` (n,)
-    with :data:`TRAINING`'s options and ``seed``; its layers, and its predictions (probabilities of the positive
-    class for a classifier) at ``predict`` (m, f) when given. A function of plain arrays, so a worker process can
-    run it."""
-    neural = require("sklearn.neural_network", feature="preparing a learnt likelihood")
-    try:   # a worker's BLAS threads only contend with the other workers
-        limits: typing.Any = require("threadpoolctl").threadpool_limits(1)
-    except ImportError:
-        limits = contextlib.nullcontext()
-    with limits:
-        if kind == "classifier":
-            model = neural.MLPClassifier(**TRAINING, random_state=seed).fit(x, y > 0.5)
-            out = model.predict_proba(predict)[:, 1] if predict is not None else None
-        else:
-            model = neural.MLPRegressor(**TRAINING, random_state=seed).fit(x, y)
-            out = model.predict(predict) if predict is not None else None
-    return _layers_of(model), out
-
-
-def _fit_all(tasks: typing.Sequence[typing.Tuple[str, np.ndarray, np.ndarray, int, typing.Optional[np.ndarray]]],
-             pool: typing.Optional[concurrent.futures.Executor]) -> typing.List[typing.Tuple[Layers, typing.Any]]:
-    if pool is None:
-        return [fit_network(*task) for task in tasks]
-    return list(pool.map(fit_network, *zip(*tasks)))
-
-
-def reliability(probabilities: np.ndarray, outcomes: np.ndarray, bins: int = 10) -> typing.List[typing.List[float]]:
-    """A reliability table: per decile of the predicted probabilities ``[mean predicted, observed frequency,
-    launches]`` (empty bins left out)."""
-    edges = np.quantile(probabilities, np.linspace(0.0, 1.0, bins + 1))
-    which = np.clip(np.searchsorted(edges, probabilities, side="right") - 1, 0, bins - 1)
-    return [[float(probabilities[which == b].mean()), float(outcomes[which == b].mean()), int((which == b).sum())]
-            for b in range(bins) if (which == b).any()]
-
-
-def learn(training: TrainingSet, unknowns: Unknowns, configurations: typing.Sequence[str], levels: ConditionLevels,
-          fingerprint: str, seed: int = 1, holdout_fraction: float = 0.15,
-          on_progress: typing.Optional[typing.Callable[[str], None]] = None, members: int = MEMBERS,
-          pool: typing.Optional[concurrent.futures.Executor] = None) -> LearntLikelihood:
-    """Learn the networks (module docstring) from ``training``'s valid launches: ``members`` classifiers and
-    location networks (the first on the launches as drawn, each further one on a resample with replacement and
-    its own seed), the scales from the first member's cross-fitted residuals. The last ``holdout_fraction`` of
-    the launches is never trained on by the classifiers: it measures the ensemble's verdict (log loss and Brier
-    score against a constant, a reliability table), recorded in ``info``. The fits run in ``pool``'s workers
-    when given. scikit-learn is imported by :func:`fit_network`."""
-    say = on_progress or (lambda line: None)
-    if members < 1:
-        raise ValueError(f"members must be >= 1, got {members}")
-    valid = training.rows[:, 0] > 0.5
-    n = int(valid.sum())
-    if n < 50:
-        raise ValueError(f"only {n} valid training launches: prepare with more launches")
-    u = training.normalised[valid]
-    onehot = np.eye(len(configurations))[training.configuration[valid]]
-    condition = training.condition[valid]
-    raw = np.concatenate([u, onehot, levels.features(condition[:, 0], condition[:, 1], condition[:, 2])], axis=1)
-    mean, std = raw.mean(axis=0), raw.std(axis=0)
-    std = np.where(std > 1e-9, std, 1.0)
-    x = (raw - mean) / std
-    rows = training.rows[valid]
-    upright = rows[:, 1] > 0.5
-    held = np.arange(n) >= int(round(n * (1.0 - holdout_fraction)))
-    rng = np.random.default_rng(seed)
-    trained = np.flatnonzero(~held)
-
-    def resample(indices: np.ndarray, k: int) -> np.ndarray:
-        return indices if k == 0 else rng.choice(indices, size=len(indices), replace=True)
-    tasks: typing.List[typing.Tuple[str, np.ndarray, np.ndarray, int, typing.Optional[np.ndarray]]] = []
-    for k in range(members):
-        pick = resample(trained, k)
-        tasks.append(("classifier", x[pick], upright[pick].astype(np.float64), seed + k, x[held]))
-    xv = np.concatenate([x, np.where(upright, 1.0, -1.0)[:, None]], axis=1)
-    measured: typing.List[typing.Tuple[str, np.ndarray, np.ndarray, np.ndarray]] = []
-    for j, name in enumerate(OUTCOMES):
-        target = transform(name, rows[:, 2 + j], condition[:, 1])
-        finite = np.flatnonzero(np.isfinite(target))
-        if len(finite) < 50:
-            say(f"{name}: {len(finite)} launches measured it: not learnt")
-            continue
-        # the scale learns from cross-fitted residuals (each half predicted by a location net that never saw it),
-        # so it carries the location's error at launches it was not trained on, not only the launches' scatter
-        half = np.arange(len(finite)) % 2 == 0
-        measured.append((name, finite, target, half))
-        for fit_on in (half, ~half):
-            tasks.append(("regressor", xv[finite[fit_on]], target[finite[fit_on]], seed, xv[finite[~fit_on]]))
-        for k in range(members):
-            pick = resample(finite, k)
-            tasks.append(("regressor", xv[pick], target[pick], seed + k, None))
-    say(f"learning {len(tasks)} networks from {n} valid launches ({members} ensemble members)")
-    fitted = iter(_fit_all(tasks, pool))
-    classifiers = [next(fitted) for _ in range(members)]
-    p = np.clip(np.mean([out for _, out in classifiers], axis=0), PROBABILITY_FLOOR, 1 - PROBABILITY_FLOOR)
-    first = np.clip(classifiers[0][1], PROBABILITY_FLOOR, 1 - PROBABILITY_FLOOR)
-    y = upright[held]
-    base = float(np.clip(upright[~held].mean(), PROBABILITY_FLOOR, 1 - PROBABILITY_FLOOR))
-
-    def log_loss(q: typing.Union[np.ndarray, float]) -> float:
-        return float(-np.mean(y * np.log(q) + (~y) * np.log1p(-np.asarray(q))))
-    info: typing.Dict[str, typing.Any] = {
-        "training_launches": int(len(training.rows)), "valid_launches": n, "upright_fraction": float(upright.mean()),
-        "holdout_launches": int(held.sum()), "members": members,
-        "holdout_log_loss": log_loss(p), "holdout_log_loss_first_member": log_loss(first),
-        "holdout_log_loss_constant": log_loss(base),
-        "holdout_brier": float(np.mean((p - y) ** 2)), "holdout_brier_constant": float(np.mean((base - y) ** 2)),
-        "holdout_member_spread": float(np.mean(np.std([out for _, out in classifiers], axis=0))),
-        "holdout_reliability": reliability(p, y.astype(np.float64))}
-    worst = max(abs(a - b) for a, b, _ in info["holdout_reliability"])
-    say(f"upright classifier ({members} members), {int(held.sum())} held-out launches: log loss "
-        f"{info['holdout_log_loss']:.3f} (one member {info['holdout_log_loss_first_member']:.3f}, a constant "
-        f"{info['holdout_log_loss_constant']:.3f}), Brier {info['holdout_brier']:.3f} (constant "
-        f"{info['holdout_brier_constant']:.3f}); reliability: deciles' predicted vs observed differ by at most "
-        f"{worst:.3f}; members' spread {info['holdout_member_spread']:.3f}")
-    location: typing.List[typing.Dict[str, Layers]] = [{} for _ in range(members)]
-    scale_tasks = []
-    for name, finite, target, half in measured:
-        residual = np.empty(len(finite))
-        for fit_on in (half, ~half):
-            residual[~fit_on] = target[finite[~fit_on]] - next(fitted)[1]
-        for k in range(members):
-            location[k][name] = next(fitted)[0]
-        scale_tasks.append(("regressor", xv[finite], np.log(residual ** 2 + 1e-12), seed, None))
-        info[f"{name}_launches"] = int(len(finite))
-        info[f"{name}_residual_sd"] = float(np.std(residual))
-        say(f"{name}: learnt from {len(finite)} launches, cross-fitted residual sd {np.std(residual):.3g} "
-            f"(transformed)")
-    scale = {name: layers for (name, *_), (layers, _) in zip(measured, _fit_all(scale_tasks, pool))}
-    return LearntLikelihood(unknowns, tuple(configurations), levels, fingerprint, mean, std, classifiers[0][0],
-                            location[0], scale, info,
-                            tuple(Member(layers, location[k]) for k, (layers, _) in enumerate(classifiers) if k))

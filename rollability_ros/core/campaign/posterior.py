@@ -125,14 +125,14 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
                      sample: typing.Optional[typing.Sequence[str]] = None,
                      fixed: typing.Optional[typing.Mapping[str, float]] = None,
                      extra: typing.Optional[LogDensity] = None, outcomes: typing.Optional[typing.Sequence[str]] = None,
-                     walkers: int = 32, steps: int = 600, seed: int = 1,
-                     temperature: typing.Optional[float] = None) -> Posterior:
+                     walkers: int = 32, steps: int = 300, seed: int = 1,
+                     temperature: typing.Optional[float] = None, start_draws: int = 2000) -> Posterior:
     """Posterior samples of the unknowns ``sample`` (default: all of the likelihood's) given ``observations``,
     the others held at ``fixed`` (own units; every unknown not sampled needs a value inside its bounds).
     ``extra``: a log-likelihood (s,) of the full normalised unknowns (s, d) added to the launches' (the
     characterisation's, :func:`characterisation_term`). Uniform prior on the normalised box. The emulator's
-    error enters twice: one posterior per ensemble member (each its own stretch sampler, started from the best
-    of 2,000 prior draws under that member), pooled with equal weights, so where the members disagree the sets
+    error enters twice: one posterior per ensemble member (each its own stretch sampler of ``walkers`` walkers,
+    started from the best of ``start_draws`` prior draws under that member), pooled with equal weights, so where the members disagree the sets
     widen; and the launches' log-likelihood is raised to ``temperature`` (default: the file's,
     :attr:`LearntLikelihood.temperature`). Each sampler discards the first half of ``steps`` and keeps every
     step after (correlated samples, but more of them: a 50-bin histogram of every 5th step came out in noisy
@@ -183,7 +183,7 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
                 characterisation included (not tempered: its model is not learnt)."""
                 value = power * likelihood.log_likelihood(full(u), arranged, member=member)
                 return value + extra(full(u)) if extra is not None else value
-            candidates = rng.uniform(size=(2000, k))
+            candidates = rng.uniform(size=(max(start_draws, walkers), k))
             scores = np.concatenate([log_density(part) for part in np.array_split(candidates, 10)])
             start = candidates[np.argsort(-scores)[:walkers]]
             chain, densities = stretch_sampler(log_density, start, steps, rng)

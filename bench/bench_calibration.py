@@ -216,7 +216,7 @@ def truth_data(parameters, unknowns, matrix, number, cache):
 
 
 def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, temperature, cache, walkers=16,
-                    start_draws=500):
+                    start_draws=500, outcomes=None):
     """One truth of step 3 in a worker process: its data (:func:`truth_data`), then the posterior of every
     unknown. Returns a dict: the truth, the normalised samples, times, and the learnt P(upright) at the truth of
     each launch."""
@@ -224,7 +224,8 @@ def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, tem
     started, cpu = time.perf_counter(), time.process_time()
     extra = sampling.characterisation_term(readings, rollout_parameters(parameters), unknowns)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1, steps=steps,
-                                          temperature=temperature, walkers=walkers, start_draws=start_draws)
+                                          temperature=temperature, walkers=walkers, start_draws=start_draws,
+                                          outcomes=outcomes)
     truth = unknowns.to_values(truth_u)
     predicted = [float(likelihood.predict_upright_probability(
         truth[None, :], o.configuration, (o.height_m, o.speed_mps, o.angle_deg))[0]) for o in observations]
@@ -234,8 +235,8 @@ def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, tem
 
 
 def coverage(likelihood, parameters, unknowns, matrix, args, pool):
-    """Step 3 (module docstring), the truths calibrated in ``pool``'s workers; returns the first truth, its
-    observations and characterisation (for the CLI check)."""
+    """Step 3 (module docstring), the truths calibrated in ``pool``'s workers; returns the first truth
+    calibrated, its observations and characterisation (for the CLI check)."""
     d = len(unknowns.names)
     hits = np.zeros(d)
     split = 0
@@ -244,10 +245,13 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
     walls, cpus, simulated, predicted, observed = [], [], [], [], []
     started = time.perf_counter()
     count = args.truths
+    # the truths whose launches an earlier run kept come first (their calibrations start at once)
+    order = sorted(range(count), key=lambda n: not os.path.exists(os.path.join(args.cache, f"truth-{n}.json")))
     jobs = pool.map(calibrate_truth, [likelihood] * count, [parameters] * count, [unknowns] * count,
-                    [matrix] * count, range(count), [args.steps] * count, [args.temperature] * count,
-                    [args.cache] * count, [args.walkers] * count, [args.start_draws] * count)
-    for number, result in enumerate(jobs):
+                    [matrix] * count, order, [args.steps] * count, [args.temperature] * count,
+                    [args.cache] * count, [args.walkers] * count, [args.start_draws] * count,
+                    [args.outcome_names] * count)
+    for done, (number, result) in enumerate(zip(order, jobs)):
         truth_u = result["truth_u"]
         truth = unknowns.to_values(truth_u)
         walls.append(result["wall_s"])
@@ -268,13 +272,15 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
                      for lo, hi in sets]
             parts.append(f"{name.split('.')[-1]} {truth[i]:.4g} {'in' if inside else 'OUT'} "
                          f"{sampling.format_set(shown)}")
-        print(f"truth {number + 1}/{count}: {result['launches']} valid launches (simulated in "
+        print(f"truth {number} ({done + 1} of {count}): {result['launches']} valid launches (simulated in "
               f"{result['simulated_cpu_s']:.0f} CPU s), calibration {result['wall_s']:.1f} s wall, "
-              f"{result['cpu_s']:.1f} CPU s [worker's load {result['load']:.1f}]; " + "; ".join(parts), flush=True)
+              f"{result['cpu_s']:.1f} CPU s [worker's load {result['load']:.1f}]; " + "; ".join(parts)
+              + f"; so far covered {', '.join(str(int(h)) for h in hits)} of {done + 1}", flush=True)
     n = count
     print(f"{n} truths in {time.perf_counter() - started:.0f} s wall on {args.workers} workers [{load()}]")
     print(f"calibration of {d} unknowns from the paper's {len(matrix)} launches plus characterisation "
-          f"({likelihood.ensemble_size} members x {args.walkers} walkers x {args.steps} sampler steps, temperature "
+          f"(outcomes: {args.outcomes}; {likelihood.ensemble_size} members x {args.walkers} walkers x {args.steps} "
+          f"sampler steps, temperature "
           f"{likelihood.temperature if args.temperature is None else args.temperature:g}): median "
           f"{np.median(walls):.1f} s wall ({np.median(cpus):.1f} CPU s), max {max(walls):.1f} s wall over {n} truths "
           f"(target <= 180 s); simulating a truth's launches {np.median(simulated):.0f} CPU s (median)")
@@ -294,7 +300,7 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
     table = learning.reliability(p, y)
     print("reliability on them (deciles of the predicted P: predicted / observed / launches): "
           + ", ".join(f"{a:.2f}/{b:.2f}/{c}" for a, b, c in table))
-    truth_u, observations, readings, _ = truth_data(parameters, unknowns, matrix, 0, args.cache)
+    truth_u, observations, readings, _ = truth_data(parameters, unknowns, matrix, order[0], args.cache)
     return unknowns.to_values(truth_u), observations, readings
 
 
@@ -342,7 +348,7 @@ def cli_check(likelihood_path, first, unknowns, folder, parameters, args):
         out = os.path.join(folder, f"cli-{len(extra)}")
         command = [sys.executable, "-m", "rollability_ros.cli", "calibrate", "--physical", csv_path, "--run", "truth",
                    "--likelihood", likelihood_path, "--config", config, "--out", out,
-                   "--sampler-steps", str(args.steps),
+                   *(["--temperature", str(args.temperature)] if args.temperature is not None else []),
                    *[arg for name in CLI_UNKNOWNS for arg in ("--fit", name)], *extra]
         started = time.perf_counter()
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))   # this checkout, as the bench imports
@@ -417,6 +423,9 @@ def main(argv=None):
     parser.add_argument("--walkers", type=int, default=16, help="sampler walkers per ensemble member")
     parser.add_argument("--start-draws", type=int, default=500,
                         help="prior draws the best walkers start from, per member")
+    parser.add_argument("--outcomes", default="all",
+                        help="continuous outcomes the calibrations use: all, none (the verdicts and the "
+                        "characterisation alone) or names of likelihood.OUTCOMES, comma-separated")
     parser.add_argument("--temperature", type=float, help="the launches' log-likelihood exponent (default: the "
                         "prepared file's)")
     parser.add_argument("--engine", default="mujoco", choices=("mujoco", "pybullet"),
@@ -434,6 +443,11 @@ def main(argv=None):
     parser.add_argument("--smoke", action="store_true", help="every step at a tiny size (the numbers mean nothing): "
                         "240 training launches, 2 ensemble members, 2 truths, 20 sampler steps, no re-optimisation")
     args = parser.parse_args(argv)
+    args.outcome_names = (None if args.outcomes == "all" else () if args.outcomes == "none"
+                          else tuple(args.outcomes.split(",")))
+    unknown = set(args.outcome_names or ()) - set(learnt.OUTCOMES)
+    if unknown:
+        parser.error(f"--outcomes: unknown {sorted(unknown)} (known: {', '.join(learnt.OUTCOMES)})")
     if args.smoke:
         args.prepare_launches, args.members, args.truths, args.steps = 240, 2, 2, 20
         args.skip_reoptimize, args.adaptive_samples = True, 200

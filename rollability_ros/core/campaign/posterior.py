@@ -196,13 +196,13 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
 
 
 def characterisation_term(characterisation: Characterisation, parameters: typing.Mapping[str, object],
-                          unknowns: Unknowns, grid_points: int = 9) -> LogDensity:
+                          unknowns: Unknowns, grid_points: int = 17) -> LogDensity:
     """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
-    parameter set). Roll-outs: simulated on a grid of ``grid_points`` values of each roll-out unknown sampled here
-    (:data:`ROLLOUT_KEYS`; at most two, the others at their loaded values) and interpolated (linear in the
-    normalised coordinates), since a roll-out per parameter set would cost as much as the launches it replaces."""
-    from rollability_ros.core.campaign import characterisation as bench
+    parameter set). Roll-outs: each reading's predicted distance simulated on a grid of ``grid_points`` values of
+    each roll-out unknown (:data:`ROLLOUT_KEYS`; at most two, the others at their loaded values), interpolated
+    (cubic in the normalised coordinates) and scored by the reading's Gaussian, since a roll-out per parameter
+    set would cost as much as the launches it replaces."""
 
     names = unknowns.names
 
@@ -221,20 +221,35 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
                 - math.log(sigma * math.sqrt(2.0 * math.pi))).sum(axis=1)
     if not characterisation.rollouts:
         return slide
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters, rollout_distance_m
+
     rolling = [names.index(k) for k in ROLLOUT_KEYS if k in names]
     if len(rolling) > 2:
         raise ValueError("at most two roll-out unknowns can be tabulated")
     grids = [np.linspace(0.0, 1.0, grid_points) for _ in rolling]
     mesh = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(rolling), -1).T if rolling else np.zeros((1, 0))
-    table = np.array([bench.characterisation_log_likelihood(
-        dataclasses.replace(characterisation, slide_angles_deg=()),
-        {**parameters, **{names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(rolling)}})
-        for point in mesh])
+    keys = sorted({(r.surface, r.speed_mps) for r in characterisation.rollouts})
+    # the predicted distance of each (surface, speed) at each grid point: the distances are smooth in the
+    # unknowns and are what is interpolated; the likelihood's peak, narrower than a grid step at 0.02 m
+    # readings, is computed from them (interpolating the log-likelihood itself put the peak on a grid point)
+    table = np.array([[rollout_distance_m(launch_twin_settings_from_parameters(
+        {**parameters, **{names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(rolling)}}),
+        speed, surface) for surface, speed in keys] for point in mesh])
+    readings = np.array([r.distance_m for r in characterisation.rollouts])
+    which = np.array([keys.index((r.surface, r.speed_mps)) for r in characterisation.rollouts])
+    sigma = characterisation.rollout_sigma_m
+
+    def rollouts(predicted: np.ndarray) -> np.ndarray:
+        """The roll-outs' Gaussian log-likelihood (s,) from predicted distances (s, keys)."""
+        z = (readings[None, :] - predicted[:, which]) / sigma
+        return (-0.5 * z * z - math.log(sigma * math.sqrt(2.0 * math.pi))).sum(axis=1)
     if not rolling:
-        return lambda u: slide(u) + table[0]
+        fixed = rollouts(table[:1])[0]
+        return lambda u: slide(u) + fixed
+    method = "cubic" if grid_points >= 4 else "linear"
     interpolate = require("scipy.interpolate", feature="tabulated roll-outs").RegularGridInterpolator(
-        grids, table.reshape([grid_points] * len(rolling)))
-    return lambda u: slide(u) + interpolate(np.clip(u[:, rolling], 0.0, 1.0))
+        grids, table.reshape([grid_points] * len(rolling) + [len(keys)]), method=method)
+    return lambda u: slide(u) + rollouts(interpolate(np.clip(u[:, rolling], 0.0, 1.0)))
 
 
 #: The keys whose product is the printed part's friction on the foam (the slide angle's model).

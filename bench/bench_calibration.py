@@ -216,12 +216,14 @@ def truth_data(parameters, unknowns, matrix, number, cache):
 
 
 def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, temperature, cache, walkers=16,
-                    start_draws=500, outcomes=None):
+                    start_draws=500, outcomes=None, rollouts=True):
     """One truth of step 3 in a worker process: its data (:func:`truth_data`), then the posterior of every
     unknown. Returns a dict: the truth, the normalised samples, times, and the learnt P(upright) at the truth of
     each launch."""
     truth_u, observations, readings, simulated_cpu = truth_data(parameters, unknowns, matrix, number, cache)
     started, cpu = time.perf_counter(), time.process_time()
+    if not rollouts:
+        readings = dataclasses.replace(readings, rollouts=())
     extra = sampling.characterisation_term(readings, rollout_parameters(parameters), unknowns)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1, steps=steps,
                                           temperature=temperature, walkers=walkers, start_draws=start_draws,
@@ -250,7 +252,7 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
     jobs = pool.map(calibrate_truth, [likelihood] * count, [parameters] * count, [unknowns] * count,
                     [matrix] * count, order, [args.steps] * count, [args.temperature] * count,
                     [args.cache] * count, [args.walkers] * count, [args.start_draws] * count,
-                    [args.outcome_names] * count)
+                    [args.outcome_names] * count, [not args.no_rollouts] * count)
     for done, (number, result) in enumerate(zip(order, jobs)):
         truth_u = result["truth_u"]
         truth = unknowns.to_values(truth_u)
@@ -426,6 +428,8 @@ def main(argv=None):
     parser.add_argument("--outcomes", default="all",
                         help="continuous outcomes the calibrations use: all, none (the verdicts and the "
                         "characterisation alone) or names of likelihood.OUTCOMES, comma-separated")
+    parser.add_argument("--no-rollouts", action="store_true",
+                        help="leave the roll-outs out of the calibrations (the slide angles stay)")
     parser.add_argument("--temperature", type=float, help="the launches' log-likelihood exponent (default: the "
                         "prepared file's)")
     parser.add_argument("--engine", default="mujoco", choices=("mujoco", "pybullet"),

@@ -179,6 +179,24 @@ def test_slide_angles_enter_as_the_characterisation_model_says():
     assert np.allclose(term(u), expected)
 
 
+def test_roll_outs_enter_through_their_simulated_distances_over_the_foam_friction():
+    """The roll-out depends on the foam's friction: a term tabulated without it scored every friction alike."""
+    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.campaign.characterisation import (Characterisation, RolloutReading,
+                                                                characterisation_log_likelihood)
+    from rollability_ros.core.config import load_parameters
+
+    pytest.importorskip("pybullet")
+    parameters = load_parameters(list(calibration.TWIN_CONFIGS))
+    unknowns = Unknowns(("launch_twin.foam.lateral_friction",), (0.3,), (3.0,), (True,))
+    readings = Characterisation("bench", rollouts=(RolloutReading("foam", 0.8, 0.25),), rollout_sigma_m=0.02)
+    term = sampling.characterisation_term(readings, parameters, unknowns, grid_points=5)
+    u = np.array([[0.0], [0.25], [1.0]])   # grid points: the interpolation is exact there
+    expected = [characterisation_log_likelihood(readings, {**parameters, unknowns.names[0]: float(value)})
+                for value in unknowns.to_values(u)[:, 0]]
+    assert np.allclose(term(u), expected) and np.ptp(expected) > 1.0
+
+
 def test_a_split_credible_set_stays_split():
     rng = np.random.default_rng(0)
     samples = np.concatenate([rng.normal(0.2, 0.02, 4000), rng.normal(0.75, 0.02, 4000)])

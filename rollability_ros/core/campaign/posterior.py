@@ -196,13 +196,14 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
 
 
 def characterisation_term(characterisation: Characterisation, parameters: typing.Mapping[str, object],
-                          unknowns: Unknowns, grid_points: int = 17) -> LogDensity:
+                          unknowns: Unknowns, grid_points: typing.Optional[int] = None) -> LogDensity:
     """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
     parameter set). Roll-outs: each reading's predicted distance simulated on a grid of ``grid_points`` values of
     each roll-out unknown (:data:`ROLLOUT_KEYS`; at most two, the others at their loaded values), interpolated
     (cubic in the normalised coordinates) and scored by the reading's Gaussian, since a roll-out per parameter
-    set would cost as much as the launches it replaces."""
+    set would cost as much as the launches it replaces. ``grid_points`` defaults to 17 for one such unknown and
+    9 for two (the table's roll-outs: 17 or 81 per reading's speed)."""
 
     names = unknowns.names
 
@@ -226,7 +227,8 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
     rolling = [names.index(k) for k in ROLLOUT_KEYS if k in names]
     if len(rolling) > 2:
         raise ValueError("at most two roll-out unknowns can be tabulated")
-    grids = [np.linspace(0.0, 1.0, grid_points) for _ in rolling]
+    points = grid_points or (17 if len(rolling) <= 1 else 9)
+    grids = [np.linspace(0.0, 1.0, points) for _ in rolling]
     mesh = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(rolling), -1).T if rolling else np.zeros((1, 0))
     keys = sorted({(r.surface, r.speed_mps) for r in characterisation.rollouts})
     # the predicted distance of each (surface, speed) at each grid point: the distances are smooth in the
@@ -246,13 +248,16 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
     if not rolling:
         fixed = rollouts(table[:1])[0]
         return lambda u: slide(u) + fixed
-    method = "cubic" if grid_points >= 4 else "linear"
+    method = "cubic" if points >= 4 else "linear"
     interpolate = require("scipy.interpolate", feature="tabulated roll-outs").RegularGridInterpolator(
-        grids, table.reshape([grid_points] * len(rolling) + [len(keys)]), method=method)
+        grids, table.reshape([points] * len(rolling) + [len(keys)]), method=method)
     return lambda u: slide(u) + rollouts(interpolate(np.clip(u[:, rolling], 0.0, 1.0)))
 
 
 #: The keys whose product is the printed part's friction on the foam (the slide angle's model).
 SLIDE_KEYS = ("sim.lateral_friction", "launch_twin.foam.lateral_friction")
-#: The unknowns a roll-out depends on (:func:`characterisation_term` tabulates the roll-out over those sampled).
-ROLLOUT_KEYS = ("launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm")
+#: The unknowns a roll-out depends on (:func:`characterisation_term` tabulates the roll-out over those sampled):
+#: the foam's friction among them (measured on the bench's chassis at 0.8 m/s: 0.20 m at friction 1.0, 0.28 m at
+#: 0.33; the centre of mass, the profile's mass and the speed bias moved it by under 0.002 m).
+ROLLOUT_KEYS = ("launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm",
+                "launch_twin.foam.lateral_friction")

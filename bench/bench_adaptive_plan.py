@@ -29,6 +29,7 @@ import typing
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from rollability_ros.core.campaign import adaptive, plan_comparison  # noqa: E402
+from rollability_ros.core.sim import launch_twin_settings_from_parameters  # noqa: E402
 
 
 def run(predictor: typing.Union[adaptive.UprightPredictor, adaptive.PerLaunchPredictor],
@@ -97,7 +98,8 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
             args.matrix_launches, args.samples, args.seed)
         return 0
     with calibration.LaunchPool(args.workers) as pool:
-        predictor = adaptive.TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
+        twin = launch_twin_settings_from_parameters(parameters)
+        predictor = adaptive.TwinPredictor(twin, unknowns, pool, args.sim_repetitions, settings.seed)
 
         class Cached:   # the prior's table and the truths' are launched once each
             def probabilities(self, theta: np.ndarray,

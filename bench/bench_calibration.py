@@ -56,6 +56,7 @@ from rollability_ros.core.campaign import likelihood_learning as learning  # noq
 from rollability_ros.core.campaign import posterior as sampling  # noqa: E402
 from rollability_ros.core.campaign.adaptive import Unknowns  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
+from rollability_ros.core.sim import launch_twin_settings_from_parameters  # noqa: E402
 
 #: The unknowns (config keys) of the bench, bounds and scales from config/calibration.yaml.
 UNKNOWNS = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction", "launch_twin.foam.rolling_friction",
@@ -120,7 +121,7 @@ def launch_truth(parameters, unknowns, truth, matrix, seed):
     from rollability_ros.core.sim import trial_seed
 
     jobs = [(tuple(truth), *cell, trial_seed(seed, i)) for i, cell in enumerate(matrix)]
-    rows = learnt.simulate_rows(parameters, unknowns.names, jobs)
+    rows = learnt.simulate_rows(launch_twin_settings_from_parameters(parameters), unknowns.names, jobs)
     return [learnt.Observation(cell[0], cell[1], cell[2], cell[3], bool(row[1] > 0.5),
                                dict(zip(learnt.OUTCOMES, map(float, row[2:]))))
             for cell, row in zip(matrix, rows) if row[0] > 0.5]
@@ -136,12 +137,12 @@ def rollout_parameters(parameters):
 def characterise_truth(parameters, unknowns, truth, rng):
     """Simulated bench readings of ``truth``: slide angles (analytic + noise) and roll-outs on the foam."""
     from rollability_ros.core.campaign import characterisation as bench
-    from rollability_ros.core.sim import launch_twin_settings_from_parameters, rollout_distance_m
+    from rollability_ros.core.sim import rollout_distance_m
 
     flat = rollout_parameters(parameters)
     flat.update(zip(unknowns.names, map(float, truth)))
-    angle = bench.slide_angle_deg(flat)
     settings = launch_twin_settings_from_parameters(flat)
+    angle = bench.slide_angle_deg(settings)
     rollouts = tuple(bench.RolloutReading("foam", v, max(0.0, rollout_distance_m(settings, v, "foam")
                                                          + ROLLOUT_SIGMA_M * rng.standard_normal()))
                      for v in ROLLOUT_SPEEDS_MPS)
@@ -224,7 +225,8 @@ def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, tem
     started, cpu = time.perf_counter(), time.process_time()
     if not rollouts:
         readings = dataclasses.replace(readings, rollouts=())
-    extra = sampling.characterisation_term(readings, rollout_parameters(parameters), unknowns)
+    extra = sampling.characterisation_term(
+        readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)), unknowns)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1, steps=steps,
                                           temperature=temperature, walkers=walkers, start_draws=start_draws,
                                           outcomes=outcomes)
@@ -384,7 +386,8 @@ def reoptimize(likelihood, parameters, unknowns, first, args, folder):
     from rollability_ros.core.sim import evaluation
 
     truth, observations, bench_readings = first
-    extra = sampling.characterisation_term(bench_readings, rollout_parameters(parameters), unknowns)
+    extra = sampling.characterisation_term(
+        bench_readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)), unknowns)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=7, steps=args.steps,
                                           temperature=args.temperature)
     fitted = {name: posterior.median(name) for name in unknowns.names}
@@ -479,9 +482,10 @@ def main(argv=None):
                     raise SystemExit(f"{path}: prepared for another twin, design set or unknowns' bounds")
                 print(f"loaded {path}: {likelihood.info}")
             else:
-                started, cpu = time.perf_counter(), time.process_time()
-                training = learnt.simulate_training_set(parameters, unknowns, configurations, levels,
-                                                        args.prepare_launches, PREPARE_SEED, pool)
+                started = time.perf_counter()
+                training = learnt.simulate_training_set(launch_twin_settings_from_parameters(parameters), unknowns,
+                                                        configurations, levels, args.prepare_launches, PREPARE_SEED,
+                                                        pool)
                 simulated = time.perf_counter() - started
                 print(f"preparation: {args.prepare_launches} launches simulated in {simulated:.0f} s wall "
                       f"({simulated / args.prepare_launches * 1000 * args.workers:.0f} ms per launch per worker) "

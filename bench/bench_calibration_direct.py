@@ -33,6 +33,7 @@ from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
 from rollability_ros.core.records import LaunchCondition  # noqa: E402
+from rollability_ros.core.sim import launch_twin_settings_from_parameters  # noqa: E402
 
 #: The grouped conditions launched (configuration, height m, speed m/s, angle deg).
 CONDITIONS = (("baseline", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 0.0), ("dome", 0.75, 0.8, 30.0),
@@ -49,7 +50,7 @@ MIRRORED_CONDITIONS = (("dome", 0.75, 0.8, -30.0), ("dome", 0.75, 0.8, 30.0), ("
 CONDITIONS_FOR = {"launch_twin.plate.yaw_bias_deg": MIRRORED_CONDITIONS}
 
 
-def coverage(args, parameters):
+def coverage(args, parameters, twin):
     """The coverage bench (module docstring); prints one line per truth and the coverage per parameter."""
     import numpy as np
 
@@ -70,13 +71,13 @@ def coverage(args, parameters):
             grouped = None
             covered, covered_interpolated, widths = 0, 0, []
             for number, truth in enumerate(truths):
-                outcomes = synthetic_outcomes(parameters, [name], [truth], conditions, args.repetitions,
+                outcomes = synthetic_outcomes(twin, [name], [truth], conditions, args.repetitions,
                                                           first_seed=1_000_000 + 1000 * number)
                 physical = analysis.group_conditions(outcomes)
                 if grouped is None:
-                    grouped = calibration.predicted_on_grid(physical, parameters, settings, pool,
+                    grouped = calibration.predicted_on_grid(physical, twin, settings, pool,
                                                             [parameters[name]], 0)
-                grid, curve = calibration.likelihood_profile(physical, parameters, settings, pool,
+                grid, curve = calibration.likelihood_profile(physical, twin, settings, pool,
                                                             [parameters[name]], 0, grouped)
                 interval = calibration.likelihood_interval(grid, curve)
                 interpolated = calibration.likelihood_interval(grid, curve, ends="interpolate")
@@ -116,7 +117,7 @@ def main():
             parameters = load_parameters(list(calibration.TWIN_CONFIGS))
             parameters.update({"launch_twin.designs.mesh_labels": ["dome"],
                                "launch_twin.designs.mesh_files": [stl]})
-            coverage(args, parameters)
+            coverage(args, parameters, launch_twin_settings_from_parameters(parameters))
         return
     names, truth = ["robot.com_offset_z_m"], [0.006]
     lower, upper, log_scale = [-0.019], [0.015], [False]
@@ -129,7 +130,8 @@ def main():
         parameters = load_parameters(list(calibration.TWIN_CONFIGS))
         parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
         started = time.perf_counter()
-        outcomes = synthetic_outcomes(parameters, names, truth,
+        twin = launch_twin_settings_from_parameters(parameters)
+        outcomes = synthetic_outcomes(twin, names, truth,
                                                   [LaunchCondition(*c) for c in CONDITIONS], args.repetitions)
         print(f"synthetic outcomes: {len(outcomes)} launches in {time.perf_counter() - started:.1f} s")
         settings = calibration.CalibrationSettings(
@@ -137,7 +139,7 @@ def main():
             popsize=6, max_generations=args.generations, bootstrap_resamples=args.bootstrap)
         started = time.perf_counter()
         with calibration.LaunchPool() as pool:
-            result = calibration.calibrate(outcomes, parameters, settings, pool, on_progress=print)
+            result = calibration.calibrate(outcomes, twin, settings, pool, on_progress=print)
         wall_s = time.perf_counter() - started
     launches = result.evaluations * len(result.conditions) * settings.sim_repetitions
     print(f"calibration: {result.evaluations} parameter sets, {launches} launches, {wall_s:.0f} s "

@@ -44,7 +44,7 @@ from rollability_ros.core.optimization import batch_evaluation, run_directory  #
 from rollability_ros.core.profile.geometry import export_mesh  # noqa: E402
 from rollability_ros.core.records import LaunchCondition  # noqa: E402
 from rollability_ros.core.stats import newcombe_interval  # noqa: E402
-from rollability_ros.core.sim import evaluation  # noqa: E402
+from rollability_ros.core.sim import evaluation, launch_twin_settings_from_parameters  # noqa: E402
 
 CAMPAIGN = {"/**": {"ros__parameters": {"campaign": {"heights_m": [0.75], "speeds_mps": [0.8, 1.5],
                                                      "angles_deg": [-30.0, 30.0]}}}}
@@ -105,12 +105,13 @@ def main():
         parameters.update({"launch_twin.designs.mesh_labels": ["dome"], "launch_twin.designs.mesh_files": [stl]})
         uncalibrated_value = parameters[args.parameter]
         conditions = [LaunchCondition("baseline", 0.75, 0.8, 0.0), LaunchCondition("dome", 0.75, 0.8, 0.0)]
-        outcomes = synthetic_outcomes(parameters, [args.parameter], [args.truth], conditions, 24)
+        uncalibrated = launch_twin_settings_from_parameters(parameters)
+        outcomes = synthetic_outcomes(uncalibrated, [args.parameter], [args.truth], conditions, 24)
         settings = calibration.CalibrationSettings(parameters=[args.parameter], lower=[lower], upper=[upper],
                                                    log_scale=[log_scale], sim_repetitions=8, popsize=4,
                                                    max_generations=4, bootstrap_resamples=0)
         with calibration.LaunchPool(args.workers) as pool:
-            fitted = calibration.calibrate(outcomes, parameters, settings, pool).estimates[0].fitted
+            fitted = calibration.calibrate(outcomes, uncalibrated, settings, pool).estimates[0].fitted
         calibrated = os.path.join(folder, "calibrated.yaml")
         with open(calibrated, "w", encoding="utf-8") as stream:
             yaml.safe_dump(calibration.calibrated_parameter_document({args.parameter: fitted}), stream)

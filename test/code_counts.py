@@ -362,15 +362,44 @@ def probes(root=PACKAGE):
 
 
 #: The calls that turn flat parameters into settings: config's own (``section``, ``from_mapping``,
-#: ``settings_from_sections``) and the core's parse functions built on them, which an edge (node or CLI) calls once.
-PARSE_CALLS = ("section", "from_mapping", "settings_from_sections", "run_settings", "settings_from_parameters",
-               "launch_twin_settings_from_parameters", "calibration_settings", "local_rig_settings", "load_settings",
-               "load_launch_twin_settings")
+#: ``settings_from_sections``); the core's functions declared ``@config.edge_parse`` (built on them) join them.
+PARSE_CALLS = ("section", "from_mapping", "settings_from_sections")
 
 
-def parse_sites(root=CORE):
-    """``{(module path below core, enclosing function's qualified name): calls}`` of the :data:`PARSE_CALLS` made in
-    the core outside ``config.py`` (where they are defined): where flat parameters are still parsed below the edge."""
+def _declaration(function):
+    """``("edge_parse", None)`` or ``("file_schema", kind)`` for a function declared by ``config.edge_parse`` /
+    ``config.file_schema(kind)``, else None."""
+    for decorator in function.decorator_list:
+        call = decorator if isinstance(decorator, ast.Call) else None
+        target = call.func if call else decorator
+        name = target.id if isinstance(target, ast.Name) else getattr(target, "attr", None)
+        if name == "edge_parse" and call is None:
+            return "edge_parse", None
+        if name == "file_schema" and call is not None and call.args and isinstance(call.args[0], ast.Constant):
+            return "file_schema", call.args[0].value
+    return None
+
+
+def declarations(root=CORE):
+    """``{(module path below root, function's qualified name): ("edge_parse", None) or ("file_schema", kind)}``
+    of the functions declared by ``@config.edge_parse`` / ``@config.file_schema(kind)``."""
+    found = {}
+
+    def visit(node, rel, scope):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                if not isinstance(child, ast.ClassDef) and _declaration(child):
+                    found[(rel, ".".join(scope + [child.name]))] = _declaration(child)
+                visit(child, rel, scope + [child.name])
+
+    for path in sorted(root.rglob("*.py")):
+        visit(parsed(path), path.relative_to(root).as_posix(), [])
+    return found
+
+
+def _calls(root, names):
+    """``{(module path below root, enclosing function's qualified name, called name): calls}`` of the calls of
+    ``names`` (by name or attribute) in the modules below ``root`` (``config.py`` left out: it defines the parse)."""
     sites = {}
 
     def visit(node, rel, scope):
@@ -381,8 +410,8 @@ def parse_sites(root=CORE):
             if isinstance(child, ast.Call):
                 func = child.func
                 name = func.id if isinstance(func, ast.Name) else getattr(func, "attr", None)
-                if name in PARSE_CALLS:
-                    key = (rel, ".".join(scope))
+                if name in names:
+                    key = (rel, ".".join(scope), name)
                     sites[key] = sites.get(key, 0) + 1
             visit(child, rel, scope)
 
@@ -391,6 +420,56 @@ def parse_sites(root=CORE):
         if rel != "config.py":
             visit(parsed(path), rel, [])
     return sites
+
+
+def _declared_scope(rel, scope, declared):
+    """The declaration of the innermost declared function enclosing ``scope`` in module ``rel``, else None."""
+    parts = scope.split(".") if scope else []
+    for end in range(len(parts), 0, -1):
+        found = declared.get((rel, ".".join(parts[:end])))
+        if found:
+            return found
+    return None
+
+
+def parse_sites(root=CORE):
+    """``{(module path below core, enclosing function's qualified name): calls}``: where flat parameters are still
+    parsed below the edge. A call counts when it parses (:data:`PARSE_CALLS`, or a function declared
+    ``@config.edge_parse``) outside a declared function: inside an ``edge_parse`` it is the edge's parse; inside a
+    ``file_schema`` reader only ``PARSE_CALLS`` pass (it reads its own file and no parameter files)."""
+    declared = declarations(root)
+    edge = {qualified.rsplit(".", 1)[-1] for (_rel, qualified), (kind, _) in declared.items() if kind == "edge_parse"}
+    sites = {}
+    for (rel, scope, name), calls in _calls(root, set(PARSE_CALLS) | edge).items():
+        inside = _declared_scope(rel, scope, declared)
+        if inside is not None and (inside[0] == "edge_parse" or name in PARSE_CALLS):
+            continue
+        sites[(rel, scope)] = sites.get((rel, scope), 0) + calls
+    return sites
+
+
+def edge_parses_without_edge(root=CORE, edges=(PACKAGE / "cli", PACKAGE / "nodes")):
+    """The functions declared ``@config.edge_parse`` that neither an edge (a module below ``edges``) nor another
+    edge parse calls: a declaration that no edge honours (``[(module, function)]``)."""
+    declared = declarations(root)
+    parses = {(rel, qualified) for (rel, qualified), (kind, _) in declared.items() if kind == "edge_parse"}
+    names = {qualified.rsplit(".", 1)[-1] for _rel, qualified in parses}
+    called = set()
+    for edge in edges:
+        called |= {name for (_rel, _scope, name) in _calls(edge, names)}
+    called |= {name for (rel, scope, name) in _calls(root, names)
+               if (_declared_scope(rel, scope, declared) or ("",))[0] == "edge_parse"
+               and scope.rsplit(".", 1)[-1] != name}
+    return sorted((rel, qualified) for rel, qualified in parses if qualified.rsplit(".", 1)[-1] not in called)
+
+
+def file_schemas(root=CORE):
+    """``{kind: [(module, function), ...]}`` of the ``@config.file_schema(kind)`` readers (one per kind)."""
+    kinds = {}
+    for site, (kind, what) in declarations(root).items():
+        if kind == "file_schema":
+            kinds.setdefault(what, []).append(site)
+    return kinds
 
 
 #: Issue 43's limits: lines of a module, lines of a function (``def`` to its last line, decorators left out), public
@@ -641,8 +720,8 @@ def main():
         f"{client} {sum(1 for c, _ in deep if c == client)}" for client in ("nodes", "cli", "core", "other")))
     print(f"hasattr/getattr calls: {probes()}")
     sites = parse_sites()
-    print(f"calls parsing flat parameters in the core (outside config.py): {sum(sites.values())} in {len(sites)} "
-          "functions")
+    print(f"flat parameters parsed below the edge (calls in the core outside config.py, its declared edge parses "
+          f"and file schema readers): {sum(sites.values())} in {len(sites)} functions")
     for (module, function), calls in sorted(sites.items()):
         print(f"  core/{module} {function}: {calls}")
     print_limits(graph)

@@ -42,8 +42,9 @@ class SyntheticEvaluator:
         return [(int(np.sum(draws < self.success_probability(h))), self.trials, 0.0, self.name) for h in heights_list]
 
 
-def synthetic_outcomes(parameters, names, values, conditions, repetitions, first_seed=100_000):
-    """"Physical" outcomes made on the twin with ``names`` set to hidden ``values``, to test a calibration.
+def synthetic_outcomes(twin, names, values, conditions, repetitions, first_seed=100_000):
+    """"Physical" outcomes made on the typed twin ``twin`` with ``names`` set to hidden ``values``, to test a
+    calibration.
 
     ``conditions`` are LaunchConditions (their repetition is ignored); each is launched ``repetitions`` times with
     seeds from ``first_seed`` on, which the calibration's own seeds (:func:`simulation_seeds`) do not reuse.
@@ -53,7 +54,7 @@ def synthetic_outcomes(parameters, names, values, conditions, repetitions, first
     from rollability_ros.core.records import INVALID_LAUNCH
     from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
-    hidden = calibration.twin_settings_with(parameters, names, values)
+    hidden = calibration.twin_settings_with(twin, names, values)
     outcomes: "list[LaunchOutcome]" = []
     for condition in conditions:
         for repetition in range(repetitions):

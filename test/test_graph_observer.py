@@ -24,7 +24,7 @@ def no_store_here(monkeypatch):
 
 def test_study_and_bringup_progress_come_from_the_logger_over_ros(tmp_path, ros_node, start_node, no_store_here):
     from rollability_ros.core.graph.progress import ProgressDisplay, session_progress
-    from rollability_ros.core.graph.study import Study
+    from rollability_ros.core.graph.study import Study, study_config
     from rollability_ros.nodes import _convert
     from rollability_ros.nodes._graph_observer import RosGraphObserver
 
@@ -33,7 +33,7 @@ def test_study_and_bringup_progress_come_from_the_logger_over_ros(tmp_path, ros_
     logger = start_node("outcome_logger", params={"store_path": "outcomes.sqlite"}, cwd=str(logger_dir))
     peer = LoggerPeer(ros_node)
     peer.wait_connected(logger)
-    study = Study(study_id="obs", display=ProgressDisplay(live=False))
+    study = Study(study_config(study_id="obs"), display=ProgressDisplay(live=False))
     study.study_dir = str(tmp_path / "orchestrator")       # no store there: the logger writes elsewhere
 
     with RosGraphObserver("/", node_name="test_observer") as observer:

@@ -111,3 +111,44 @@ def test_sigint_stops_a_node_started_with_sigint_ignored(tmp_path, module):
         assert module == "campaign_runner" and "stopped by a stop signal" in text, (process.returncode, text)
     else:
         assert process.returncode in (0, 130), (process.returncode, text)
+
+
+def test_an_executor_is_shut_down_only_after_its_spinning_thread_left_it():
+    """rclpy (Jazzy) ``Executor.shutdown`` destroys the executor's guard condition at once, also under a thread that
+    is building a wait set from it (CI: ``'NoneType' object has no attribute 'handle'`` at a node's SIGINT). The
+    executor thread of every node and console is therefore stopped first and the executor shut down after."""
+    import threading
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import MultiThreadedExecutor
+    from rclpy.node import Node
+
+    from rollability_ros.nodes._support import ExecutorThread
+
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        node = Node("executor_thread_probe", context=context, start_parameter_services=False)
+        ticks = []
+        node.create_timer(0.001, lambda: ticks.append(1))
+        for _ in range(20):
+            executor = MultiThreadedExecutor(num_threads=2, context=context)
+            executor.add_node(node)
+            spinner = ExecutorThread(executor, name="probe").start()
+            shut_down_while_spinning = []
+            original = executor.shutdown
+
+            def shutdown(*args, _original=original, _spinner=spinner, **kwargs):
+                shut_down_while_spinning.append(any(t.name == "probe" and t.is_alive() for t in threading.enumerate()))
+                return _original(*args, **kwargs)
+
+            executor.shutdown = shutdown
+            time.sleep(0.005)
+            spinner.stop()
+            assert spinner.stopped.is_set() and shut_down_while_spinning == [False]
+            assert spinner.failures == []
+        assert ticks, "the timer never ran: the executor thread did not spin"
+        node.destroy_node()
+    finally:
+        context.try_shutdown()

@@ -8,6 +8,7 @@ from rollability_ros.cli import Subparsers
 
 if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
     from rollability_ros.core.campaign import CalibrationResult, CalibrationSettings
+    from rollability_ros.core.sim import LaunchTwinSettings
 
 
 def _write_csv(path, rows):
@@ -83,7 +84,7 @@ def _write_outputs(args: argparse.Namespace, sources: typing.Sequence[str], meth
     return params_path
 
 
-def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any],
+def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any], twin: "LaunchTwinSettings",
             settings: "CalibrationSettings") -> int:
     """``--prepare FILE``: simulate the training launches and learn the likelihood of the fitted unknowns over the
     loaded twin's configurations (the bare robot and ``launch_twin.designs``) and the campaign's levels."""
@@ -113,7 +114,7 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
         def progress(done: int, total: int) -> None:
             if done == total or done % 1000 < 25:
                 print(f"  {done}/{total} launches, {time.perf_counter() - started:.0f} s", flush=True)
-        training = simulate_training_set(parameters, unknowns, configurations, levels,
+        training = simulate_training_set(twin, unknowns, configurations, levels,
                                          args.prepare_launches, settings.seed, pool, on_progress=progress)
         likelihood = learn(training, unknowns, configurations, levels, fingerprint, settings.seed,
                            on_progress=print, pool=pool)
@@ -125,7 +126,7 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
     return 0
 
 
-def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any],
+def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any], twin: "LaunchTwinSettings",
                outcomes: typing.Sequence[typing.Any], characterisation: typing.Any,
                sources: typing.Sequence[str]) -> int:
     """``--likelihood FILE``: the posterior of the ``--fit`` unknowns (default: all the file's) from the prepared
@@ -146,7 +147,7 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     sampled = list(dict.fromkeys(args.fit)) or list(unknowns.names)
     fixed = {name: float(parameters[name]) for name in unknowns.names if name not in sampled}
     observations = observations_from_outcomes(outcomes)
-    extra = (characterisation_term(characterisation, parameters, unknowns)
+    extra = (characterisation_term(characterisation, twin, unknowns)
              if characterisation is not None else None)
     posterior = sample_posterior(likelihood, observations, sampled, fixed, extra, seed=args.seed,
                                  steps=args.sampler_steps, temperature=args.temperature)
@@ -199,7 +200,7 @@ def run(args: argparse.Namespace) -> int:
                                                check_fittable, load_characterisation, twin_settings_with)
     from rollability_ros.core.config import check_given_files, check_output_dir, from_mapping, load_parameters, section
     from rollability_ros.core.results import load_report_data
-    from rollability_ros.core.sim import TWIN_SECTIONS, ScreenSettings
+    from rollability_ros.core.sim import TWIN_SECTIONS, ScreenSettings, launch_twin_settings_from_parameters
 
     if args.prepare and args.likelihood:
         raise ValueError("give --prepare FILE (learn a likelihood) or --likelihood FILE (calibrate with one), not both")
@@ -216,9 +217,10 @@ def run(args: argparse.Namespace) -> int:
         if args.workers < 1:
             raise ValueError(f"--workers must be >= 1, got {args.workers}")
         settings.workers = args.workers
+    twin = launch_twin_settings_from_parameters(parameters)   # the twin parsed once; the core is handed it typed
     if args.prepare:
-        check_fittable(parameters, settings)
-        return prepare(args, parameters, settings)
+        check_fittable(twin, settings)
+        return prepare(args, parameters, twin, settings)
     characterisation = load_characterisation(args.characterisation) if args.characterisation else None
     if args.physical is None and characterisation is None:
         raise ValueError("give --physical (launch outcomes) and/or --characterisation (bench readings)")
@@ -235,13 +237,13 @@ def run(args: argparse.Namespace) -> int:
         print(characterisation.summary())
         sources.append(characterisation.source)
     if args.likelihood:
-        return run_learnt(args, parameters, outcomes, characterisation, sources)
-    check_fittable(parameters, settings)   # before any launch
+        return run_learnt(args, parameters, twin, outcomes, characterisation, sources)
+    check_fittable(twin, settings)   # before any launch
     with LaunchPool(settings.workers) as pool:
-        result = calibrate(outcomes, parameters, settings, pool, on_progress=print,
+        result = calibrate(outcomes, twin, settings, pool, on_progress=print,
                                        characterisation=characterisation)
     params_path = _write_outputs(args, sources, f"interval ({settings.interval})", result.fitted_values())
-    calibrated_twin = twin_settings_with(parameters, settings.parameters,
+    calibrated_twin = twin_settings_with(twin, settings.parameters,
                                                      [e.fitted for e in result.estimates])
     configurations = sorted({c.configuration for c in result.conditions})
     screen_rows = _screen_rows(calibrated_twin, configurations, screen_settings)

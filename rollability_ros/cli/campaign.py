@@ -194,8 +194,9 @@ def _adaptive_posterior(args, spec, outcomes):
     check_given_files(args.twin_config, {*TWIN_SECTIONS, "calibration"}, "rollability campaign --twin-config")
     parameters = load_parameters([*TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration_settings(parameters).selected(args.fit or DEFAULT_UNKNOWNS)
-    check_fittable(parameters, settings)
-    known = configuration_ids(launch_twin_settings_from_parameters(parameters).twin.designs)
+    twin = launch_twin_settings_from_parameters(parameters)   # parsed once, handed to the core typed
+    check_fittable(twin, settings)
+    known = configuration_ids(twin.twin.designs)
     unknown = [c for c in spec.configurations if c not in known]
     if unknown:
         raise ValueError(f"the twin has no profile for {', '.join(unknown)} (it knows {', '.join(known)}): give the "
@@ -207,7 +208,7 @@ def _adaptive_posterior(args, spec, outcomes):
           f"{len(candidates)} conditions, {args.sim_repetitions} twin launches each ({launches} launches, about "
           f"{launches * 0.05 / 60:.0f} min on one core)", flush=True)
     with LaunchPool(args.workers) as pool:
-        predictor = TwinPredictor(parameters, unknowns, pool, args.sim_repetitions, settings.seed)
+        predictor = TwinPredictor(twin, unknowns, pool, args.sim_repetitions, settings.seed)
         posterior = WeightedPosterior.from_predictor(unknowns, predictor, candidates, args.prior_samples,
                                                               np.random.default_rng(settings.seed))
     used = posterior.observe_outcomes(outcomes)
@@ -251,6 +252,14 @@ def _propose_next(args, spec):
     return 0
 
 
+def _read_twin(twin_config):
+    """The launch twin of the files ``rig.twin_config`` names, parsed here, at the command (the edge); the in-process
+    rig's simulated backend asks for it once (a physical one never does, so the rig computer needs no physics)."""
+    from rollability_ros.core.sim import load_launch_twin_settings
+
+    return load_launch_twin_settings(twin_config)
+
+
 def _resimulate(args):
     from rollability_ros.core.campaign import LocalRig, local_rig_settings_from_files
     from rollability_ros.core.records import LaunchCondition, check_twin_seed
@@ -269,7 +278,8 @@ def _resimulate(args):
     condition = LaunchCondition(configuration, height_m, speed_mps, angle_deg)
     condition.validate()   # the campaign's own bounds (records.HEIGHT_RANGE_M ...): no stored launch lies outside
     check_twin_seed(args.seed)
-    rig = LocalRig(local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG))
+    rig = LocalRig(local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG),
+                   read_twin=_read_twin)
     try:
         result = rig.backend.resimulate(condition, args.seed)
     finally:
@@ -302,7 +312,7 @@ def _run_local(args, spec, ask):
     matrix = list(plan)
 
     def checked_rig() -> LocalRig:
-        rig = LocalRig(settings, ask or input)
+        rig = LocalRig(settings, ask or input, read_twin=_read_twin)
         refusal = plan_refusal(rig.backend, spec.run_id, matrix)   # every trial of the matrix, whichever plan runs
         if refusal:
             rig.close()

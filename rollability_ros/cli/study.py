@@ -6,11 +6,11 @@ from rollability_ros.cli import Subparsers
 
 
 def run(args: argparse.Namespace) -> int:
-    from rollability_ros.core.graph import ProgressDisplay, Study
+    from rollability_ros.core.graph import ProgressDisplay, Study, study_config
     from rollability_ros.nodes._graph_observer import RosGraphObserver
 
     with ProgressDisplay() as display:   # a live line on a terminal, plain lines in a pipe or log
-        study = Study(extra_configs=args.config, study_id=args.study_id, resume=args.resume, display=display)
+        study = Study(study_config(args.config, args.study_id, args.resume), display=display)   # parsed once, here
         signal.signal(signal.SIGINT, lambda *_: study.request_stop())
         signal.signal(signal.SIGTERM, lambda *_: study.request_stop())
         study.open_session()   # its own ROS domain, before ROS starts in this process (the observer)

@@ -9,7 +9,7 @@ import dataclasses
 import itertools
 import typing
 
-from rollability_ros.core.config import check_path_component, from_mapping, load_parameters, section
+from rollability_ros.core.config import check_path_component, edge_parse, from_mapping, load_parameters, section
 from rollability_ros.core.records import LaunchCondition
 
 __all__ = ["LEVELS", "CampaignSpec", "load_campaign_spec"]
@@ -73,6 +73,7 @@ class CampaignSpec:
                 * self.repetitions)
 
 
+@edge_parse
 def load_campaign_spec(paths: typing.Sequence[str] = ("campaign",), node_name: str = "/**") -> CampaignSpec:
     """Read :class:`CampaignSpec` from parameter files (bare names are shipped ``config/`` files)."""
     return from_mapping(CampaignSpec, section(load_parameters(paths, node_name), "campaign"), "campaign")

@@ -444,3 +444,84 @@ def settings_from_sections(cls: typing.Type[_Settings], flat: typing.Mapping[str
         args = [arg for arg in typing.get_args(field_type) if arg is not type(None)]
         kwargs[field.name] = from_mapping(args[0] if field.name in optional else field_type, values, namespace)
     return cls(**kwargs)
+
+
+#: A function declared by :func:`edge_parse` or :func:`file_schema` (returned unchanged).
+_Function = typing.TypeVar("_Function", bound=typing.Callable[..., object])
+
+
+def edge_parse(function: _Function) -> _Function:
+    """Declare ``function`` the parse of one kind of settings from flat parameters or parameter files (built on
+    :func:`section`, :func:`from_mapping`, :func:`settings_from_sections`): defined next to its dataclasses, called
+    once by an edge (a node or the CLI, or another edge parse it is made of) that then hands the core the typed
+    settings. The core never calls it; ``test/core/test_settings_edges.py`` checks both statically. Returns
+    ``function`` unchanged."""
+    return function
+
+
+def file_schema(kind: str) -> typing.Callable[[_Function], _Function]:
+    """Declare the decorated function the one reader of a kind of file that records its own settings (``kind``,
+    e.g. ``"designs file"``: the selection writes the profile grid its designs were made on next to their heights),
+    the file's schema reader: the core reads such a file wherever it needs its contents, always through this
+    function. It is not a parameter-file parse: one reader per kind, and it calls no :func:`edge_parse`
+    (``test/core/test_settings_edges.py`` checks both statically). Returns the function unchanged."""
+    def declare(function: _Function) -> _Function:
+        return function
+    return declare
+
+
+def with_values(settings: _Settings, namespaces: typing.Mapping[str, str],
+                values: typing.Mapping[str, object]) -> _Settings:
+    """Typed ``settings`` (a dataclass whose fields are settings dataclasses, each read from the namespace
+    ``namespaces`` maps it to, as :func:`settings_from_sections` builds them) with the parameters ``values``
+    (``{dotted parameter name: value}``, e.g. ``{"launch_twin.foam.restitution": 0.4}``) set: no parse, a copy with
+    those fields replaced, each value checked as :func:`from_mapping` checks a file's (the same one-line
+    :class:`ConfigError` naming the parameter), then every changed section's :func:`check_settings`."""
+    fields = {namespace: name for name, namespace in namespaces.items()}
+    changed: typing.Dict[str, object] = {}
+    for dotted, value in values.items():
+        namespace, _, rest = dotted.partition(".")
+        if namespace not in fields or not rest:
+            raise ConfigError(f"{dotted}: not a parameter of the namespaces {', '.join(sorted(fields))}")
+        name = fields[namespace]
+        changed[name] = _with_value(changed.get(name, getattr(settings, name)), rest.split("."), value, namespace)
+    for name, section_settings in changed.items():
+        check_settings(section_settings, namespaces[name])
+    return dataclasses.replace(typing.cast(typing.Any, settings), **changed)
+
+
+def _with_value(settings, path, value, where):
+    """Dataclass ``settings`` (read from the namespace ``where``) with the field at ``path`` (names) set to
+    ``value``, checked like a file's value."""
+    hints = typing.get_type_hints(type(settings))
+    fields = {f.name: f for f in dataclasses.fields(settings)}
+    name, name_where = path[0], f"{where}.{path[0]}"
+    if name not in fields:
+        raise ConfigError(f"{where}: unknown parameter(s) {name}; known: {', '.join(sorted(fields))}")
+    field_type = hints[name]
+    if isinstance(field_type, type) and dataclasses.is_dataclass(field_type):
+        if len(path) == 1:
+            raise ConfigError(f"{name_where}: expected a mapping, got {value!r}")
+        return dataclasses.replace(settings, **{name: _with_value(getattr(settings, name), path[1:], value,
+                                                                  name_where)})
+    if len(path) > 1:
+        raise ConfigError(f"parameter {where}.{'.'.join(path)}: {name_where} is both a value and a namespace")
+    return dataclasses.replace(settings, **{name: _check_value(value, field_type, name_where, fields[name].metadata)})
+
+
+def value_of(settings: object, namespaces: typing.Mapping[str, str], dotted: str) -> object:
+    """The value of the parameter ``dotted`` (``launch_twin.foam.restitution``) in typed ``settings`` (a dataclass
+    of settings sections, ``namespaces`` as for :func:`with_values`); :class:`ConfigError` naming a name that is no
+    value of them."""
+    fields = {namespace: name for name, namespace in namespaces.items()}
+    namespace, _, rest = dotted.partition(".")
+    if namespace not in fields or not rest:
+        raise ConfigError(f"{dotted}: not a parameter of the namespaces {', '.join(sorted(fields))}")
+    value = getattr(settings, fields[namespace])
+    for part in rest.split("."):
+        if not (dataclasses.is_dataclass(value) and part in {f.name for f in dataclasses.fields(value)}):
+            raise ConfigError(f"{dotted}: not a parameter of the namespaces {', '.join(sorted(fields))}")
+        value = getattr(value, part)
+    if dataclasses.is_dataclass(value):
+        raise ConfigError(f"parameter {dotted}: is a namespace, not a value")
+    return value

@@ -193,6 +193,12 @@ class RosRigPorts(RigPorts):
         self._node.create_subscription(Imu, imu_outcome.config.topic, lambda msg: self._on_imu(imu_outcome, msg),
                                        STREAM_QOS, callback_group=MutuallyExclusiveCallbackGroup())
 
+    def open_twin(self, twin_config: typing.Sequence[str]) -> typing.Any:
+        """The launch twin of the files ``rig.twin_config`` names, parsed here, at the node (the edge), once."""
+        from rollability_ros.core.sim import load_launch_twin_settings
+
+        return load_launch_twin_settings(twin_config)
+
     def _on_imu(self, imu_outcome, msg):
         try:
             imu_outcome.feed(imu_sample_from_message(msg, time.time()))

@@ -90,14 +90,14 @@ def _study_config(tmp_path):
 
 def test_a_resumed_study_keeps_its_recorded_id_whatever_its_folder_is_called(tmp_path):
     """Was: the id came from the folder name, so a copied folder ran a second campaign under a new run id."""
-    from rollability_ros.core.graph.study import STUDY_ID_FILE, Study
+    from rollability_ros.core.graph.study import STUDY_ID_FILE, Study, study_config
 
-    study = Study(extra_configs=[_study_config(tmp_path)], study_id="field-week", say=lambda text: None)
+    study = Study(study_config([_study_config(tmp_path)], "field-week"), say=lambda text: None)
     study.make_study_dir()
     copied = tmp_path / "elsewhere" / "copy-of-field-week"
     shutil.copytree(study.study_dir, copied)
     said = []
-    resumed = Study(resume=str(copied), say=said.append)
+    resumed = Study(study_config(resume=str(copied)), say=said.append)
     assert resumed.study_id == "field-week" and resumed.study_dir == str(copied)
     _, runner = resumed._campaign_nodes(["A"])
     assert runner.params["campaign.run_id"] == "field-week"
@@ -106,9 +106,9 @@ def test_a_resumed_study_keeps_its_recorded_id_whatever_its_folder_is_called(tmp
     os.remove(copied / STUDY_ID_FILE)
     with Store(str(copied / "outcomes.sqlite")) as store:
         store.add_launch_outcome(_outcome(0, "baseline"))
-    assert Study(resume=str(copied), say=said.append).study_id == "campaign-1"
+    assert Study(study_config(resume=str(copied)), say=said.append).study_id == "campaign-1"
     os.remove(copied / "outcomes.sqlite")
-    assert Study(resume=str(copied), say=said.append).study_id == "copy-of-field-week"   # no campaign yet
+    assert Study(study_config(resume=str(copied)), say=said.append).study_id == "copy-of-field-week"   # no campaign yet
 
 
 def _cli(*argv, cwd):

@@ -11,7 +11,8 @@ from rollability_ros.core.campaign import calibration, local_rig_settings_from_f
 from rollability_ros.core.results.analysis import ConditionResult
 from rollability_ros.core.config import ConfigError, load_parameters, section
 from rollability_ros.core.sim.evaluation import load_settings
-from rollability_ros.core.sim.launch.settings import TWIN_SECTIONS, load_launch_twin_settings
+from rollability_ros.core.sim.launch.settings import (TWIN_SECTIONS, launch_twin_settings_from_parameters,
+                                                      load_launch_twin_settings)
 from rollability_ros.core.results import write_outcome_csv
 from rollability_ros.core.records import LaunchCondition
 
@@ -149,12 +150,13 @@ def test_recovers_a_hidden_centre_of_mass_offset_from_synthetic_outcomes(tmp_pat
     # the dome at 0 deg rights 12/11/8 of 12 at COM -15/-5/+6 mm, at +30 deg 10/11/1; the bare chassis at 0 deg
     # rights 12 of 12 at all three, so it says nothing about the COM here
     conditions = [LaunchCondition("dome", 0.75, 0.8, 0.0), LaunchCondition("dome", 0.75, 0.8, 30.0)]
-    outcomes = synthetic_outcomes(parameters, [name], [truth], conditions, 24)
+    twin = launch_twin_settings_from_parameters(parameters)
+    outcomes = synthetic_outcomes(twin, [name], [truth], conditions, 24)
     settings = calibration.CalibrationSettings(parameters=[name], lower=[-0.019], upper=[0.015], log_scale=[False],
                                                sim_repetitions=8, popsize=4, sigma0=0.3, max_generations=4,
                                                bootstrap_resamples=2, interval_points=9)
     with calibration.LaunchPool(2) as pool:
-        result = calibration.calibrate(outcomes, parameters, settings, pool)
+        result = calibration.calibrate(outcomes, twin, settings, pool)
     (estimate,) = result.estimates
     assert estimate.initial == -0.015
     assert result.after_log_likelihood > result.before_log_likelihood + 5
@@ -208,7 +210,8 @@ def test_the_documented_calibrate_reoptimize_validate_sequence_runs_on_a_synthet
     monkeypatch.chdir(tmp_path)
     truth = {"launch_twin.foam.lateral_friction": 2.5}
     conditions = [LaunchCondition("baseline", 0.75, 0.8, angle) for angle in (-30.0, 30.0)]
-    outcomes = synthetic_outcomes(twin_parameters(), list(truth), list(truth.values()), conditions, 6)
+    outcomes = synthetic_outcomes(launch_twin_settings_from_parameters(twin_parameters()), list(truth),
+                                  list(truth.values()), conditions, 6)
     write_outcome_csv(tmp_path / "campaign.csv", outcomes)
     (tmp_path / "small.yaml").write_text(yaml.safe_dump({"/**": {"ros__parameters": {"calibration": {
         "parameters": list(truth), "lower": [0.3], "upper": [3.0], "log_scale": [True], "sim_repetitions": 2,

@@ -11,10 +11,16 @@ from rollability_ros.core.campaign.characterisation import (FORMAT, characterisa
                                                             load_characterisation, parse_characterisation,
                                                             slide_angle_deg)
 from rollability_ros.core.config import load_parameters
+from rollability_ros.core.sim.launch.settings import launch_twin_settings_from_parameters
 
 
 def twin_parameters():
     return load_parameters(list(calibration.TWIN_CONFIGS))
+
+
+def twin(**values):
+    """The typed twin of the shipped files, with ``values`` (config keys: ``{"sim.lateral_friction": 0.35}``)."""
+    return launch_twin_settings_from_parameters({**twin_parameters(), **values})
 
 
 def one_unknown(name, lower, upper, **changes):
@@ -52,12 +58,13 @@ def test_malformed_characterisation_files_are_refused_in_one_line_naming_the_pro
 
 def test_the_slide_angle_model_is_atan_of_the_contacts_friction():
     flat = {"sim.lateral_friction": 0.35, "launch_twin.foam.lateral_friction": 2.0}
-    assert slide_angle_deg(flat) == pytest.approx(math.degrees(math.atan(0.7)))   # 35.0 deg
+    assert slide_angle_deg(twin(**flat)) == pytest.approx(math.degrees(math.atan(0.7)))   # 35.0 deg
     readings = parse_characterisation({"format": FORMAT, "slide_angle": {"sigma_deg": 2.0, "readings_deg": [35.0]}},
                                       "bench")
-    at_truth = characterisation_log_likelihood(readings, flat)
+    at_truth = characterisation_log_likelihood(readings, twin(**flat))
     assert at_truth == pytest.approx(-math.log(2.0 * math.sqrt(2 * math.pi)), abs=1e-3)
-    assert characterisation_log_likelihood(readings, {**flat, "launch_twin.foam.lateral_friction": 1.0}) < at_truth - 10
+    assert characterisation_log_likelihood(readings, twin(**{**flat, "launch_twin.foam.lateral_friction": 1.0})) < (
+        at_truth - 10)
 
 
 def test_a_slide_angle_alone_pins_the_foam_friction_before_any_launch():
@@ -70,7 +77,7 @@ def test_a_slide_angle_alone_pins_the_foam_friction_before_any_launch():
         "sigma_deg": 1.0, "readings_deg": [angle - 0.5, angle + 0.3, angle + 0.2]}}, "bench")
     settings = one_unknown("launch_twin.foam.lateral_friction", 0.3, 3.0)
     with calibration.LaunchPool(1) as pool:
-        result = calibration.calibrate([], twin_parameters(), settings, pool, characterisation=readings)
+        result = calibration.calibrate([], twin(), settings, pool, characterisation=readings)
     (estimate,) = result.estimates
     assert estimate.interval_low <= truth <= estimate.interval_high
     assert estimate.interval_high / estimate.interval_low < (3.0 / 0.3) ** 0.3   # < a third of the range, in log
@@ -82,7 +89,6 @@ def test_a_simulated_rollout_narrows_the_foam_rolling_friction_around_its_truth(
     one unknown (a new one) from the roll-out alone holds the truth in a narrower interval than its range."""
     pytest.importorskip("pybullet")
     pytest.importorskip("cma")
-    from rollability_ros.core.sim.launch.settings import launch_twin_settings_from_parameters
     from rollability_ros.core.sim.rollout import rollout_distance_m
 
     name, truth = "launch_twin.foam.rolling_friction", 0.006
@@ -94,7 +100,7 @@ def test_a_simulated_rollout_narrows_the_foam_rolling_friction_around_its_truth(
         {"surface": "foam", "speed_mps": 1.0, "distance_m": distance}]}}, "bench")
     settings = dataclasses.replace(one_unknown(name, 0.002, 0.05), max_generations=2, interval_points=7)
     with calibration.LaunchPool(1) as pool:
-        result = calibration.calibrate([], parameters, settings, pool, characterisation=readings)
+        result = calibration.calibrate([], twin(), settings, pool, characterisation=readings)
     (estimate,) = result.estimates
     assert estimate.interval_low <= truth <= estimate.interval_high, (estimate.interval_low, estimate.interval_high)
     assert estimate.interval_high / estimate.interval_low < (0.05 / 0.002) ** 0.5   # under half the range, in log
@@ -122,7 +128,7 @@ def test_calibrate_selects_declared_unknowns_and_refuses_the_rest(tmp_path, caps
         ["launch_twin.wheel_drag_torque_nm"], [0.0005], [0.02], [True])
     with pytest.raises(ValueError, match="sim.gravity is not declared in calibration.parameters"):
         settings.selected(["sim.gravity"])
-    robot_wheels = {**twin_parameters(), "launch_twin.wheel_model": "robot"}
+    robot_wheels = twin(**{"launch_twin.wheel_model": "robot"})
     with pytest.raises(ValueError, match="launch_twin.wheel_drag_torque_nm acts on the twin's Mecanum wheels only"):
         calibration.check_fittable(robot_wheels, chosen)
     bench = tmp_path / "bench.yaml"

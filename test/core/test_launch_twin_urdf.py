@@ -88,7 +88,7 @@ def test_the_rig_sim_backend_launches_the_husky_from_its_twin_config(twin_config
     rig = RigSettings(twin_config=twin_config)
     speed_config = SpeedGateConfig()
     condition = LaunchCondition("baseline", 0.75, 0.8, 0.0)
-    outcome = SimulatedLaunch(rig, speed_config).launch("run", "h0", condition)
+    outcome = SimulatedLaunch(rig, speed_config, load_launch_twin_settings(twin_config)).launch("run", "h0", condition)
     expected = simulate_launch(condition, husky_twin, launch_seed(rig.seed, "h0"))
     direct = simulated_outcome("run", "h0", condition, expected, speed_config)
     assert outcome == dataclasses.replace(direct, stamp_s=outcome.stamp_s)

@@ -167,14 +167,16 @@ def test_the_posterior_holds_the_truth_and_sampling_a_subset_holds_the_rest():
 
 def test_slide_angles_enter_as_the_characterisation_model_says():
     from rollability_ros.core.campaign.characterisation import Characterisation, characterisation_log_likelihood
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters, twin_with_values
 
     unknowns = Unknowns(("launch_twin.foam.lateral_friction", "robot.com_offset_z_m"), (0.3, -0.019),
                                (3.0, 0.015), (True, False))
     parameters = {"sim.lateral_friction": 0.35, "launch_twin.foam.lateral_friction": 1.0, "robot.com_offset_z_m": 0.0}
+    twin = launch_twin_settings_from_parameters(parameters)
     readings = Characterisation("bench", slide_angles_deg=(18.5, 21.0, 25.0), slide_sigma_deg=1.5)
-    term = sampling.characterisation_term(readings, parameters, unknowns)
+    term = sampling.characterisation_term(readings, twin, unknowns)
     u = np.array([[0.2, 0.5], [0.6, 0.1], [0.9, 0.9]])
-    expected = [characterisation_log_likelihood(readings, {**parameters, **dict(zip(unknowns.names, row))})
+    expected = [characterisation_log_likelihood(readings, twin_with_values(twin, dict(zip(unknowns.names, row))))
                 for row in unknowns.to_values(u)]
     assert np.allclose(term(u), expected)
 
@@ -186,13 +188,15 @@ def test_roll_outs_enter_through_their_simulated_distances_over_the_foam_frictio
                                                                 characterisation_log_likelihood)
     from rollability_ros.core.config import load_parameters
 
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters, twin_with_values
+
     pytest.importorskip("pybullet")
-    parameters = load_parameters(list(calibration.TWIN_CONFIGS))
+    twin = launch_twin_settings_from_parameters(load_parameters(list(calibration.TWIN_CONFIGS)))
     unknowns = Unknowns(("launch_twin.foam.lateral_friction",), (0.3,), (3.0,), (True,))
     readings = Characterisation("bench", rollouts=(RolloutReading("foam", 0.8, 0.25),), rollout_sigma_m=0.02)
-    term = sampling.characterisation_term(readings, parameters, unknowns, grid_points=5)
+    term = sampling.characterisation_term(readings, twin, unknowns, grid_points=5)
     u = np.array([[0.0], [0.25], [1.0]])   # grid points: the interpolation is exact there
-    expected = [characterisation_log_likelihood(readings, {**parameters, unknowns.names[0]: float(value)})
+    expected = [characterisation_log_likelihood(readings, twin_with_values(twin, {unknowns.names[0]: float(value)}))
                 for value in unknowns.to_values(u)[:, 0]]
     assert np.allclose(term(u), expected) and np.ptp(expected) > 1.0
 

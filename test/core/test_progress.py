@@ -85,14 +85,14 @@ def test_the_study_shows_every_generation_the_optimizer_reported(tmp_path):
     pytest.importorskip("cma")
     import numpy as np
 
-    from rollability_ros.core.graph.study import Study
+    from rollability_ros.core.graph.study import Study, study_config
     from doubles import SyntheticEvaluator
     from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     stream = io.StringIO()
     observed = Observed()
-    study = Study(study_id="progress", display=ProgressDisplay(stream), observer=observed)
+    study = Study(study_config(study_id="progress"), display=ProgressDisplay(stream), observer=observed)
     study.study_dir = str(tmp_path)
     study.parameters["optimizer.max_generations"] = 4
     assert study._progress_optimization()[0].phase == "optimizing: nodes starting"

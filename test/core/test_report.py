@@ -304,10 +304,11 @@ def test_drill_down_shows_each_seed_and_its_command_simulates_the_stored_launch_
     from rollability_ros.core.bags.messages import message_from_record, record_from_message, typestore
     from rollability_ros.core.campaign.runner import LocalRig, local_rig_settings
     from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.sim import load_launch_twin_settings
     from rollability_ros.core.results import read_outcome_csv
     from rollability_ros.core.records import NO_SEED
 
-    rig = LocalRig(local_rig_settings("sim", load_parameters(["rig"])))
+    rig = LocalRig(local_rig_settings("sim", load_parameters(["rig"])), read_twin=load_launch_twin_settings)
     try:
         baseline = [t for t in plan_trials(CampaignSpec(run_id="seeded", repetitions=1))
                     if t.condition.configuration == "baseline"]       # the shipped twin has no designs A/B/C
@@ -393,12 +394,12 @@ def test_a_study_reports_only_the_designs_its_campaign_launched(tmp_path):
     """Issue 42: a campaign run through the graph recorded no designs_file, so after a later `select` the study's
     report listed designs-2/ and designs-3/ beside the set the campaign launched. The study records it (the logger
     stopped: one writer) and a report with a recorded set lists that set only."""
-    from rollability_ros.core.graph import Study
+    from rollability_ros.core.graph import Study, study_config
     from rollability_ros.core.results import report
 
     config = tmp_path / "study.yaml"
     config.write_text(f"/**:\n  ros__parameters:\n    bringup: {{output_dir: '{tmp_path / 'runs'}'}}\n")
-    study = Study(extra_configs=[str(config)], study_id="s1", say=lambda text: None)
+    study = Study(study_config([str(config)], "s1"), say=lambda text: None)
     launched = os.path.dirname(study.designs_file)
     for folder in (launched, launched + "-2", launched + "-3"):   # the study's selection, then two later ones
         os.makedirs(folder)
@@ -422,5 +423,9 @@ def test_the_sim_rig_records_where_its_designs_come_from(tmp_path):
     twin = tmp_path / "twin.yaml"
     twin.write_text("/**:\n  ros__parameters:\n    launch_twin:\n      designs:\n        designs_file: d/designs.yaml\n",
                     encoding="utf-8")
-    backend = SimulatedLaunch(RigSettings(twin_config=["sim", "robot", "launch_twin", str(twin)]), SpeedGateConfig())
+    from rollability_ros.core.sim import load_launch_twin_settings
+
+    twin_config = ["sim", "robot", "launch_twin", str(twin)]
+    backend = SimulatedLaunch(RigSettings(twin_config=twin_config), SpeedGateConfig(),
+                              load_launch_twin_settings(twin_config))
     assert backend.design_sources() == {"designs_file": os.path.abspath("d/designs.yaml"), "mesh_files": {}}

@@ -436,6 +436,13 @@ class RecordingPorts(RigPorts):
         self.opened.append("imu")
         self.imu_outcome = imu_outcome
 
+    def open_twin(self, twin_config):
+        """The twin parsed here, as a node or a command parses it (not a hardware port: not in ``opened``)."""
+        from rollability_ros.core.sim import load_launch_twin_settings
+
+        self.twin_config = twin_config
+        return load_launch_twin_settings(twin_config)
+
     def close(self):
         self.closed += 1
 
@@ -477,6 +484,7 @@ def test_simulated_backend_opens_no_port_and_refuses_operator_answers(valve):
     backend = make_launch_backend(RigSettings(backend="sim", configurations=["baseline"]), SpeedGateConfig(),
                                   ValveConfig(), ImuOutcomeConfig(), ports)
     assert isinstance(backend, LaunchBackend) and not backend.attended and ports.opened == []
+    assert ports.twin_config == RigSettings().twin_config   # the twin is read by the caller, from rig.twin_config
     assert backend.operator.record_outcome(OperatorOutcome(True))[0] is False
     assert "unknown configuration 'B'" in backend.check("run", "t0", CONDITION)
     with pytest.raises(ValueError, match="unknown configuration"):

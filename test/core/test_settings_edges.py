@@ -1,48 +1,52 @@
-"""Issue 29, point 5: settings are parsed once, at the edge (a node's declared sections, or the CLI's loaded files),
-into typed dataclasses that the core is handed; the core does not re-parse a flat parameter dict passed down to it.
+"""Issue 29, point 5 and issue 43, item 3: settings are parsed once, at the edge (a node's declared sections, or the
+CLI's loaded files), into typed dataclasses that the core is handed; the core does not re-parse flat parameters or
+read parameter files into settings itself.
 
-Checked statically (test/code_counts.py ``parse_sites``): every call in the core (outside config.py) of a parse
-(``section``, ``from_mapping``, ``settings_from_sections`` and the core's parse functions built on them) is listed
-below with why it stays. A new one fails with its function; one that went fails too, so the list only shrinks.
-Before (issue 29): 45 calls in 26 functions, among them ``optimizer_settings(`` re-parsing the ``optimizer`` section
-in four functions of one run and ``LocalRig`` re-parsing four sections it was handed flat. Issue 43: 30 in 24, of
-them ``OptimizationRun`` parsing the flat dict it was handed twice and three writers nesting it again; now 26 in 20
-(``OptimizationRun`` takes a typed ``RunConfig``, the writers go through ``config.parameter_document``).
+The rule, checked statically (test/code_counts.py ``parse_sites``, printed by ``python test/code_counts.py`` as
+"flat parameters parsed below the edge"): a parse is a call of config's ``section``, ``from_mapping`` or
+``settings_from_sections``, or of a function declared ``@config.edge_parse``. In the core (outside config.py,
+which defines them) a parse may stand in two declared places only:
+
+- an ``@config.edge_parse`` function: the parse of one kind of settings, defined next to its dataclasses (so a node
+  and the CLI parse alike). Its declaration is a promise checked here, not a licence: no core function calls it
+  (such a call is counted below like any other parse), and an edge (rollability_ros/cli/, rollability_ros/nodes/)
+  or another edge parse does (``edge_parses_without_edge``), so it runs once, where the parameters enter.
+- an ``@config.file_schema(kind)`` reader: the one reader of a kind of file that records its own settings (a
+  designs file holds the profile grid its designs were made on next to their heights; the rig and the report read
+  it wherever a design is launched or drawn). It may cut its own document (``section``, ``from_mapping``) but calls
+  no edge parse (no parameter file is read through it), and a kind has one reader (``file_schemas``).
+
+Everything else is counted and must be listed below with why it stays; a new one fails with its function, one
+that went fails too, so the list only shrinks.
+
+Why this is the rule and not an allow-list by another name: a declaration is checked against what the code does.
+An ``edge_parse`` that a core function calls is counted at the caller, and one that no edge calls fails
+``test_every_edge_parse_is_called_by_an_edge``, so declaring a core function an edge parse does not hide a parse,
+it moves the call to the node or the command. A ``file_schema`` reader cannot read parameter files through an edge
+parse, and a second reader of one kind fails. Parameter files that a setting names (``rig.twin_config``) are read
+by the edge too: the rig's ports (``RigPorts.open_twin``: the node's, the campaign command's ``read_twin``).
+
+Counts: issue 29 began at 45 calls in 26 functions; issue 43 found 30 in 24, then 27 in 21 (every edge parse
+counted, the calibration re-parsing its twin from flat parameters for every candidate, the sim rig and the study
+parsing the files they were named). Now 2 in 2: the edge parses and the designs file's reader are declared; the
+calibration, the characterisation, the learnt likelihood's training launches, the adaptive plan and the posterior
+take the twin typed and set fitted config keys on it (``sim.twin_with_values``, ``config.with_values``); the rig is
+handed its twin by its caller; a study is parsed by ``graph.study_config`` in the command.
 """
+import re
+
+import pytest
+
 import code_counts
 
 #: (module below core, function): (calls, why the parse stays there)
 ALLOWED = {
-    # the parse functions an edge calls once (defined in the core next to their dataclasses)
-    ("optimization/optimization_run.py", "run_settings"): (1, "the edge parse of a run's parameters"),
-    ("optimization/optimization_run.py", "run_config"): (1, "the edge parse of a run's parameters, kept with them as "
-                                                            "the run's record (OptimizationRun takes it typed)"),
-    ("campaign/runner.py", "local_rig_settings"): (1, "the edge parse of the in-process rig's parameters"),
-    ("campaign/runner.py", "local_rig_settings_from_files"): (1, "the edge parse of the rig files a command was "
-                                                                 "given, once their keys are checked"),
-    ("sim/evaluation.py", "settings_from_parameters"): (1, "the edge parse of the evaluator's parameters"),
-    ("campaign/calibration.py", "calibration_settings"): (2, "the edge parse of the calibration section, checked "
-                                                             "against the twin's keys"),
-    ("sim/launch/settings.py", "launch_twin_settings_from_parameters"): (2, "the edge parse of the twin's "
-                                                                               "parameters, with settings overrides"),
-    # a file's own settings, read where the file is read
-    ("sim/evaluation.py", "load_settings"): (1, "reads parameter files"),
-    ("sim/launch/settings.py", "load_launch_twin_settings"): (1, "reads parameter files"),
-    ("rig/rig_session.py", "SimulatedLaunch.load"): (1, "reads the twin files rig.twin_config names"),
+    # objective.campaign_config / objective.twin_config name the files of an evaluation's launch trials; the
+    # evaluation resolves them where it builds a job (in its worker processes too, cached per process). To move
+    # them to the edge, EvaluatorSettings would carry the resolved launch objective (twin and conditions), built by
+    # the evaluator's edge parse; core/sim/objectives.py is the search's this session, so they stay listed.
     ("sim/objectives.py", "_resolve"): (1, "reads the twin files objective.twin_config names"),
-    ("campaign_matrix.py", "load_campaign_spec"): (2, "reads a campaign's parameter files"),
-    ("graph/bringup.py", "load_graph_settings"): (2, "reads the graph's parameter files"),
-    ("graph/preflight.py", "check_graph_parameters"): (2, "checks every node's parameter files before a start"),
-    ("graph/preflight.py", "_twin_problems"): (1, "loads the sim rig's twin files before a session starts"),
-    ("profile/designs.py", "_read_designs"): (2, "reads a designs file"),
-    # the calibration fits config keys: each candidate's twin is the parameter files with the fitted keys set
-    ("campaign/calibration.py", "twin_settings_with"): (1, "rebuilds the twin with fitted config keys"),
-    ("campaign/calibration.py", "check_fittable"): (1, "the twin of the given keys, to refuse a fitted key it ignores"),
-    ("campaign/calibration.py", "fit"): (1, "the twin of the given keys, for the characterisation readings' model"),
-    ("campaign/likelihood.py", "simulate_rows"): (1, "rebuilds the twin with each training launch's unknowns, as "
-                                                  "twin_settings_with does for a fit"),
-    ("campaign/characterisation.py", "characterisation_log_likelihood"): (
-        1, "the roll-out's twin at one candidate point of the fitted keys"),
+    ("sim/objectives.py", "launch_conditions"): (1, "reads the campaign files objective.campaign_config names"),
 }
 
 
@@ -56,6 +60,15 @@ def test_the_core_parses_flat_parameters_only_where_listed():
     assert not gone, f"fewer parses than listed, lower or remove the entries: {gone} (found {found})"
 
 
+def test_every_edge_parse_is_called_by_an_edge():
+    assert code_counts.edge_parses_without_edge() == [], "declared @config.edge_parse, but no node or CLI calls it"
+
+
+def test_one_schema_reader_per_kind_of_file():
+    kinds = code_counts.file_schemas()
+    assert kinds and all(len(readers) == 1 for readers in kinds.values()), kinds
+
+
 def test_the_check_sees_a_parse(tmp_path):
     """A made-up core with one re-parse inside a method is found, with its function."""
     (tmp_path / "sub").mkdir()
@@ -64,3 +77,44 @@ def test_the_check_sees_a_parse(tmp_path):
         "class Run:\n    def step(self, flat):\n        return config.from_mapping(X, config.section(flat, 'a'), 'a')\n")
     (tmp_path / "config.py").write_text("def section(flat, prefix):\n    return section(flat, prefix)\n")
     assert code_counts.parse_sites(tmp_path) == {("sub/m.py", "Run.step"): 2}
+
+
+def test_the_check_sees_through_declarations(tmp_path):
+    """A declared edge parse may parse, but a core function calling it is counted, and so is a file reader calling
+    it; an edge parse no edge calls is named; two readers of one kind of file are both listed."""
+    core = tmp_path / "core"
+    core.mkdir()
+    (core / "m.py").write_text(
+        "from rollability_ros.core import config\n"
+        "@config.edge_parse\ndef parse_a(flat):\n    return config.from_mapping(A, config.section(flat, 'a'), 'a')\n"
+        "@config.edge_parse\ndef unused(flat):\n    return config.section(flat, 'b')\n"
+        "def core_step(flat):\n    return parse_a(flat)\n"
+        "@config.file_schema('a file')\ndef read_a(path):\n    return config.section(load(path), 'a'), parse_a({})\n"
+        "@config.file_schema('a file')\ndef read_a_again(path):\n    return config.section(load(path), 'a')\n")
+    (tmp_path / "edge").mkdir()
+    (tmp_path / "edge" / "cli.py").write_text("from m import parse_a\nparse_a({})\n")
+    assert code_counts.parse_sites(core) == {("m.py", "core_step"): 1, ("m.py", "read_a"): 1}
+    assert code_counts.edge_parses_without_edge(core, [tmp_path / "edge"]) == [("m.py", "unused")]
+    assert code_counts.file_schemas(core) == {"a file": [("m.py", "read_a"), ("m.py", "read_a_again")]}
+
+
+def test_fitted_keys_are_set_on_the_typed_twin_as_the_files_would_set_them():
+    """The calibration's candidate twins are the typed twin with its fitted config keys set (no parse): the same
+    settings as the files with those values, and the same one-line refusal of a value outside its range."""
+    from rollability_ros.core.campaign.calibration import TWIN_CONFIGS, CalibrationSettings, twin_values
+    from rollability_ros.core.config import ConfigError, load_parameters
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters, twin_with_values
+
+    flat = load_parameters(list(TWIN_CONFIGS))
+    twin = launch_twin_settings_from_parameters(flat)
+    keys = CalibrationSettings().parameters
+    assert twin_values(twin, keys) == [float(flat[key]) for key in keys]
+    values = {key: (low + high) / 2 for key, low, high in
+              zip(keys, CalibrationSettings().lower, CalibrationSettings().upper)}
+    assert twin_with_values(twin, values) == launch_twin_settings_from_parameters({**flat, **values}) != twin
+    for bad in ({"launch_twin.foam.contact_stiffness_npm": -1.0}, {"robot.com_offset_z_m": float("nan")},
+                {"launch_twin.foam.stiffness": 1.0}):
+        with pytest.raises(ConfigError) as from_files:
+            launch_twin_settings_from_parameters({**flat, **bad})
+        with pytest.raises(ConfigError, match="^" + re.escape(str(from_files.value)) + "$"):
+            twin_with_values(twin, bad)

@@ -45,10 +45,10 @@ def _bad_config(tmp_path, values):
                                                ({"trials": float("nan")}, "optimizer.trials: expected an integer in [1, 10000000], got nan"),
                                                ({"sigma0": float("nan")}, "optimizer.sigma0 out of range: nan is not in (0.0, 100.0]")])
 def test_study_checks_every_node_parameter_before_starting(tmp_path, optimizer, reason):
-    from rollability_ros.core.graph.study import Study
+    from rollability_ros.core.graph.study import Study, study_config
 
     config = _bad_config(tmp_path, {"bringup": {"output_dir": str(tmp_path / "runs")}, "optimizer": optimizer})
-    study = Study(extra_configs=[config], study_id="bad", say=lambda text: None)
+    study = Study(study_config([config], "bad"), say=lambda text: None)
     with pytest.raises(ConfigError, match="optimizer") as caught:
         study.check_parameters()
     assert reason in str(caught.value)
@@ -82,10 +82,10 @@ def test_shipped_configurations_pass_the_check():
     ({"objective": {"robust": {"foam_stifness_factor_min": 0.5}}}, "objective.robust.foam_stifness_factor_min")])
 def test_a_parameter_no_node_reads_stops_the_study(tmp_path, values, name):
     """Was: rclpy drops a parameter file's undeclared names, so a study ran on the default without a word."""
-    from rollability_ros.core.graph.study import Study
+    from rollability_ros.core.graph.study import Study, study_config
 
     config = _bad_config(tmp_path, {"bringup": {"output_dir": str(tmp_path / "runs")}, **values})
-    study = Study(extra_configs=[config], study_id="bad", say=lambda text: None)
+    study = Study(study_config([config], "bad"), say=lambda text: None)
     with pytest.raises(ConfigError, match=f"unknown parameter {name} "):
         study.check_parameters()
     assert not os.path.exists(tmp_path / "runs" / "bad")

@@ -39,6 +39,7 @@ from rollability_ros.core.records import LaunchCondition, LaunchOutcome
 if typing.TYPE_CHECKING:   # annotations only: calibration loads the twin; plan is light but keeps this module lean
     from rollability_ros.core.campaign.calibration import CalibrationSettings, LaunchPool
     from rollability_ros.core.campaign.plan import PlannedTrial
+    from rollability_ros.core.sim import LaunchTwinSettings
 
 #: Predicted probabilities are kept in [EPSILON, 1 - EPSILON]: one impossible outcome must not zero a sample.
 EPSILON = 1e-3
@@ -445,8 +446,8 @@ class TwinPredictor:
 
     Parameters
     ----------
-    parameters : dict
-        Flat parameters of the twin's files (everything not among the unknowns).
+    twin : LaunchTwinSettings
+        The typed twin of its files, parsed once by the command (everything not among the unknowns).
     unknowns : Unknowns
     pool : LaunchPool
     repetitions : int
@@ -455,7 +456,7 @@ class TwinPredictor:
         The calibration seed the launch seeds come from.
     """
 
-    parameters: typing.Mapping[str, typing.Any]
+    twin: "LaunchTwinSettings"
     unknowns: Unknowns
     pool: "LaunchPool"
     repetitions: int
@@ -469,7 +470,7 @@ class TwinPredictor:
         """P(upright) (s, c) from ``repetitions`` twin launches per entry."""
         from rollability_ros.core.campaign.calibration import ConditionResult, simulation_seeds, twin_settings_with
 
-        twins = [twin_settings_with(self.parameters, self.unknowns.names, row) for row in np.atleast_2d(theta)]
+        twins = [twin_settings_with(self.twin, self.unknowns.names, row) for row in np.atleast_2d(theta)]
         grouped = [ConditionResult(*c.group_key, 0, 0) for c in conditions]
         upright = self.pool.predicted_upright(twins, grouped, simulation_seeds(self.seed, 0, self.repetitions))
         return upright / self.repetitions

@@ -49,10 +49,9 @@ import numpy.typing as npt
 from rollability_ros.core.results import (ConditionResult, SimVsExperiment, group_conditions, sim_vs_experiment,
                                           summarise)
 from rollability_ros.core.campaign.characterisation import Characterisation, characterisation_log_likelihood
-from rollability_ros.core.config import (ConfigError, ParameterDocument, from_mapping, number_parameter,
-                                         parameter_document, section)
-from rollability_ros.core.sim import (LaunchTwinSettings, launch_twin_settings_from_parameters, simulate_valid_launch,
-                                      spawn_pool, trial_seed)
+from rollability_ros.core.config import ConfigError, ParameterDocument, edge_parse, from_mapping, parameter_document, section
+from rollability_ros.core.sim import (LaunchTwinSettings, simulate_valid_launch, spawn_pool, trial_seed, twin_value,
+                                      twin_with_values)
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import INVALID_LAUNCH, LaunchCondition, LaunchOutcome
 
@@ -163,6 +162,7 @@ class CalibrationSettings:
         return np.array(out)
 
 
+@edge_parse
 def calibration_settings(parameters: typing.Mapping[str, object]) -> CalibrationSettings:
     """The :class:`CalibrationSettings` of flat parameters (namespace ``calibration``), checked against the
     twin's keys: every fitted name must be a key of the loaded parameter files."""
@@ -174,32 +174,30 @@ def calibration_settings(parameters: typing.Mapping[str, object]) -> Calibration
     return settings
 
 
-def check_fittable(parameters: typing.Mapping[str, object], settings: CalibrationSettings) -> None:
-    """Refuse a fitted key the twin of flat ``parameters`` does not use (``ValueError`` naming it): the Mecanum
+def check_fittable(twin: LaunchTwinSettings, settings: CalibrationSettings) -> None:
+    """Refuse a fitted key the typed twin ``twin`` does not use (``ValueError`` naming it): the Mecanum
     wheels' ``launch_twin.wheel_drag_torque_nm`` / ``wheel_rolling_friction`` / ``wheel_side_friction_factor``
     on a twin that gives the robot its own wheels (``launch_twin.wheel_model``)."""
     from rollability_ros.core.sim import mecanum_wheels
 
     mecanum_only = [name for name in settings.parameters if name in MECANUM_KEYS]
-    if mecanum_only and not mecanum_wheels(launch_twin_settings_from_parameters(parameters)):
+    if mecanum_only and not mecanum_wheels(twin):
         raise ValueError(f"calibration.parameters: {mecanum_only[0]} acts on the twin's Mecanum wheels only, and "
                          f"this twin gives the robot its own wheels (launch_twin.wheel_model); fit the robot's own "
                          f"drag (robot.wheel_drag_torque_nm or urdf_robot.joint_drag_torque_nm) instead")
 
 
-def twin_settings_with(parameters: typing.Mapping[str, object], names: typing.Sequence[str],
+def twin_settings_with(twin: LaunchTwinSettings, names: typing.Sequence[str],
                        values: typing.Union[typing.Sequence[float], np.ndarray]) -> LaunchTwinSettings:
-    """:class:`~rollability_ros.core.sim.launch.settings.LaunchTwinSettings` of flat ``parameters`` with ``names`` set to
-    ``values`` (config keys, own units; ``values`` (d,) one per name; checked like file values)."""
-    return launch_twin_settings_from_parameters(flat_with(parameters, names, values))
+    """The typed twin ``twin`` (:class:`~rollability_ros.core.sim.launch.settings.LaunchTwinSettings`, parsed once
+    by the command) with ``names`` set to ``values`` (config keys, own units; ``values`` (d,) one per name; checked
+    like file values: :func:`~rollability_ros.core.sim.launch.settings.twin_with_values`)."""
+    return twin_with_values(twin, {name: float(value) for name, value in zip(names, values)})
 
 
-def flat_with(parameters: typing.Mapping[str, object], names: typing.Sequence[str],
-              values: typing.Union[typing.Sequence[float], np.ndarray]) -> typing.Dict[str, object]:
-    """Flat ``parameters`` with ``names`` set to ``values`` (d,) (config keys, own units)."""
-    flat = dict(parameters)
-    flat.update({name: float(value) for name, value in zip(names, values)})
-    return flat
+def twin_values(twin: LaunchTwinSettings, names: typing.Sequence[str]) -> typing.List[float]:
+    """The values (own units) the typed twin ``twin`` gives the config keys ``names``: a fit's starting point."""
+    return [twin_value(twin, name) for name in names]
 
 
 def simulation_seeds(seed: int, resample: int, repetitions: int) -> typing.List[int]:
@@ -245,15 +243,15 @@ class LaunchPool:
         return np.asarray(counts, dtype=np.int64).reshape(len(twin_settings_list), len(conditions))
 
     def characterisation(self, characterisation: typing.Optional[Characterisation],
-                         flats: typing.Sequence[typing.Mapping[str, object]]) -> np.ndarray:
-        """The characterisation log-likelihood (s,) of each flat parameter set of ``flats`` (zeros without one),
-        in the worker processes (roll-outs are simulated)."""
+                         twins: typing.Sequence[LaunchTwinSettings]) -> np.ndarray:
+        """The characterisation log-likelihood (s,) of each typed twin of ``twins`` (zeros without one), in the
+        worker processes (roll-outs are simulated)."""
         if characterisation is None:
-            return np.zeros(len(flats))
-        jobs = [characterisation] * len(flats)
+            return np.zeros(len(twins))
+        jobs = [characterisation] * len(twins)
         if self._pool is None:
-            return np.array([characterisation_log_likelihood(c, f) for c, f in zip(jobs, flats)])
-        return np.array(list(self._pool.map(characterisation_log_likelihood, jobs, flats)))
+            return np.array([characterisation_log_likelihood(c, t) for c, t in zip(jobs, twins)])
+        return np.array(list(self._pool.map(characterisation_log_likelihood, jobs, twins)))
 
     def close(self) -> None:
         """Stop the worker processes."""
@@ -342,7 +340,7 @@ def interval_grid(settings: CalibrationSettings, index: int, points: typing.Opti
     return low * (high / low) ** u if log else low + u * (high - low)
 
 
-def predicted_on_grid(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, object],
+def predicted_on_grid(conditions: typing.Sequence[ConditionResult], twin: LaunchTwinSettings,
                       settings: CalibrationSettings, pool: LaunchPool, fitted: npt.ArrayLike,
                       index: int) -> typing.Tuple[np.ndarray, np.ndarray]:
     """Upright counts of ``sim_repetitions`` launches per grouped condition along parameter ``index``'s grid,
@@ -353,12 +351,12 @@ def predicted_on_grid(conditions: typing.Sequence[ConditionResult], parameters: 
     for value in grid:
         values = np.array(fitted, dtype=np.float64)
         values[index] = value
-        twins.append(twin_settings_with(parameters, settings.parameters, values))
+        twins.append(twin_settings_with(twin, settings.parameters, values))
     seeds = simulation_seeds(settings.seed, 0, settings.sim_repetitions)
     return grid, pool.predicted_upright(twins, conditions, seeds)
 
 
-def likelihood_profile(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, object],
+def likelihood_profile(conditions: typing.Sequence[ConditionResult], twin: LaunchTwinSettings,
                        settings: CalibrationSettings, pool: LaunchPool, fitted: npt.ArrayLike, index: int,
                        predicted: typing.Optional[typing.Tuple[np.ndarray, np.ndarray]] = None,
                        characterisation: typing.Optional[Characterisation] = None
@@ -367,16 +365,16 @@ def likelihood_profile(conditions: typing.Sequence[ConditionResult], parameters:
     along parameter ``index``'s grid, the other parameters at ``fitted`` (d,): ``(grid values (g,),
     log-likelihoods (g,))``; ``predicted`` reuses a :func:`predicted_on_grid` result made for the same conditions
     (in the same order)."""
-    grid, upright = predicted or predicted_on_grid(conditions, parameters, settings, pool, fitted, index)
+    grid, upright = predicted or predicted_on_grid(conditions, twin, settings, pool, fitted, index)
     successes = np.array([c.successes for c in conditions])
     trials = np.array([c.trials for c in conditions])
-    flats = []
+    twins = []
     for value in grid:
         values = np.array(fitted, dtype=np.float64)
         values[index] = value
-        flats.append(flat_with(parameters, settings.parameters, values))
+        twins.append(twin_settings_with(twin, settings.parameters, values))
     return grid, (beta_binomial_log_likelihood(successes, trials, upright, settings.sim_repetitions)
-                  + pool.characterisation(characterisation, flats))
+                  + pool.characterisation(characterisation, twins))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -393,7 +391,7 @@ class FitResult:
     evaluations: int
 
 
-def fit(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping[str, object],
+def fit(conditions: typing.Sequence[ConditionResult], twin: LaunchTwinSettings,
         settings: CalibrationSettings, pool: LaunchPool, resample: int = 0,
         on_generation: typing.Optional[typing.Callable[[int, float], None]] = None,
         characterisation: typing.Optional[Characterisation] = None) -> "FitResult":
@@ -403,8 +401,8 @@ def fit(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping
     Parameters
     ----------
     conditions : list of rollability_ros.core.results.analysis.ConditionResult
-    parameters : dict
-        Flat parameters of the twin's files (the starting values and everything not fitted).
+    twin : LaunchTwinSettings
+        The typed twin of the loaded files (the starting values and everything not fitted).
     settings : CalibrationSettings
     pool : LaunchPool
     resample : int
@@ -419,7 +417,7 @@ def fit(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping
     successes = np.array([c.successes for c in conditions])
     trials = np.array([c.trials for c in conditions])
     seeds = simulation_seeds(settings.seed, resample, settings.sim_repetitions)
-    x0 = settings.to_normalised([number_parameter(parameters, name) for name in settings.parameters])
+    x0 = settings.to_normalised(twin_values(twin, settings.parameters))
     options = {"popsize": settings.popsize, "bounds": [0.0, 1.0], "seed": settings.seed + resample,
                "verbose": -9, "verb_log": 0, "verb_disp": 0}
     if len(x0) == 1:  # pycma cannot rescale one coordinate's step to its bound range in 1-D (it raises): no limit
@@ -431,12 +429,11 @@ def fit(conditions: typing.Sequence[ConditionResult], parameters: typing.Mapping
         evaluations = 0
         for generation in range(settings.max_generations):
             population = [np.asarray(x, dtype=np.float64) for x in strategy.ask()]
-            flats = [flat_with(parameters, settings.parameters, settings.to_values(x)) for x in population]
-            upright = pool.predicted_upright([launch_twin_settings_from_parameters(f) for f in flats], conditions,
-                                             seeds)
+            twins = [twin_settings_with(twin, settings.parameters, settings.to_values(x)) for x in population]
+            upright = pool.predicted_upright(twins, conditions, seeds)
             log_likelihood = binomial_log_likelihood(successes, trials, upright / settings.sim_repetitions,
                                                      settings.probability_floor) + pool.characterisation(
-                characterisation, flats)
+                characterisation, twins)
             strategy.tell(population, list(-log_likelihood))
             evaluations += len(population)
             top = int(np.argmax(log_likelihood))
@@ -547,7 +544,7 @@ class CalibrationResult:
         return out
 
 
-def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mapping[str, object],
+def calibrate(outcomes: typing.Iterable[LaunchOutcome], twin: LaunchTwinSettings,
               settings: CalibrationSettings, pool: LaunchPool,
               on_progress: typing.Optional[typing.Callable[[str], None]] = None,
               characterisation: typing.Optional[Characterisation] = None) -> CalibrationResult:
@@ -556,8 +553,9 @@ def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mappi
     Parameters
     ----------
     outcomes : list of LaunchOutcome
-    parameters : dict
-        Flat parameters of the twin's files (:data:`TWIN_CONFIGS` and any overrides): the uncalibrated twin.
+    twin : LaunchTwinSettings
+        The typed twin of its files (:data:`TWIN_CONFIGS` and any overrides), parsed once by the command: the
+        uncalibrated twin.
     settings : CalibrationSettings
     pool : LaunchPool
     on_progress : callable(str), optional
@@ -566,21 +564,21 @@ def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mappi
         Bench readings (``--characterisation``); with them ``outcomes`` may be empty. A bootstrap fit resamples the
         launch outcomes only.
     """
-    check_fittable(parameters, settings)
+    check_fittable(twin, settings)
     conditions = group_conditions(outcomes)
     say = on_progress or (lambda line: None)
-    initial = [number_parameter(parameters, name) for name in settings.parameters]
+    initial = twin_values(twin, settings.parameters)
     seeds = simulation_seeds(settings.seed, 0, settings.sim_repetitions)
-    before = pool.predicted_upright([twin_settings_with(parameters, settings.parameters, initial)], conditions,
+    before = pool.predicted_upright([twin_settings_with(twin, settings.parameters, initial)], conditions,
                                     seeds)[0]
-    main = fit(conditions, parameters, settings, pool, characterisation=characterisation)
+    main = fit(conditions, twin, settings, pool, characterisation=characterisation)
     say(f"fit: log-likelihood {main.log_likelihood:.2f} at "
         + ", ".join(f"{n} = {v:.4g}" for n, v in zip(settings.parameters, main.values)))
     rng = np.random.default_rng(settings.seed)
     resampled = []
     evaluations = 1 + main.evaluations
     for resample in range(1, settings.bootstrap_resamples + 1):
-        result = fit(bootstrap_conditions(conditions, rng), parameters, settings, pool, resample,
+        result = fit(bootstrap_conditions(conditions, rng), twin, settings, pool, resample,
                      characterisation=characterisation)
         resampled.append(result.values)
         evaluations += result.evaluations
@@ -593,7 +591,7 @@ def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mappi
             low, high = (float(v) for v in np.percentile(fits, [2.5, 97.5]))
             method = f"bootstrap percentile ({len(fits)} fits)"
         else:
-            grid, curve = likelihood_profile(conditions, parameters, settings, pool, main.values, i,
+            grid, curve = likelihood_profile(conditions, twin, settings, pool, main.values, i,
                                              characterisation=characterisation)
             evaluations += len(grid)
             low, high = likelihood_interval(grid, curve)
@@ -605,8 +603,8 @@ def calibrate(outcomes: typing.Iterable[LaunchOutcome], parameters: typing.Mappi
     trials = np.array([c.trials for c in conditions])
     before_ll = float(binomial_log_likelihood(successes, trials, before / settings.sim_repetitions,
                                               settings.probability_floor)
-                      + pool.characterisation(characterisation, [flat_with(parameters, settings.parameters,
-                                                                           initial)])[0])
+                      + pool.characterisation(characterisation, [twin_settings_with(twin, settings.parameters,
+                                                                                    initial)])[0])
     return CalibrationResult(conditions=conditions, sim_repetitions=settings.sim_repetitions, before_upright=before,
                              after_upright=main.predicted_upright, before_log_likelihood=before_ll,
                              after_log_likelihood=main.log_likelihood, estimates=estimates, evaluations=evaluations)

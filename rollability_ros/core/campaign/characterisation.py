@@ -30,7 +30,9 @@ import math
 import os
 import typing
 
-from rollability_ros.core import config
+
+if typing.TYPE_CHECKING:
+    from rollability_ros.core.sim import LaunchTwinSettings
 
 #: The ``format`` line of a characterisation file.
 FORMAT = "rollability-characterisation-1"
@@ -157,12 +159,10 @@ def load_characterisation(path: typing.Union[str, os.PathLike]) -> Characterisat
     return parse_characterisation(document, source)
 
 
-def slide_angle_deg(parameters: typing.Mapping[str, object]) -> float:
+def slide_angle_deg(twin: "LaunchTwinSettings") -> float:
     """The twin's slide angle (deg) of a printed coupon on the foam: atan(``sim.lateral_friction`` x
-    ``launch_twin.foam.lateral_friction``) of flat ``parameters`` (module docstring)."""
-    mu = (config.number_parameter(parameters, "sim.lateral_friction")
-          * config.number_parameter(parameters, "launch_twin.foam.lateral_friction"))
-    return math.degrees(math.atan(mu))
+    ``launch_twin.foam.lateral_friction``) of the typed twin ``twin`` (module docstring)."""
+    return math.degrees(math.atan(twin.physics.lateral_friction * twin.twin.foam.lateral_friction))
 
 
 def _gaussian(observed: float, predicted: float, sigma: float) -> float:
@@ -170,17 +170,15 @@ def _gaussian(observed: float, predicted: float, sigma: float) -> float:
     return -0.5 * ((observed - predicted) / sigma) ** 2 - math.log(sigma * math.sqrt(2.0 * math.pi))
 
 
-def characterisation_log_likelihood(characterisation: Characterisation,
-                                    parameters: typing.Mapping[str, object]) -> float:
-    """log P(readings | twin of flat ``parameters``): the sum over readings of each measurement model's Gaussian
+def characterisation_log_likelihood(characterisation: Characterisation, twin: "LaunchTwinSettings") -> float:
+    """log P(readings | the typed twin ``twin``): the sum over readings of each measurement model's Gaussian
     (module docstring). Roll-outs are simulated once per distinct (surface, speed)."""
-    total = sum(_gaussian(angle, slide_angle_deg(parameters), characterisation.slide_sigma_deg)
+    total = sum(_gaussian(angle, slide_angle_deg(twin), characterisation.slide_sigma_deg)
                 for angle in characterisation.slide_angles_deg)
     if characterisation.rollouts:
-        from rollability_ros.core.sim import launch_twin_settings_from_parameters, rollout_distance_m
+        from rollability_ros.core.sim import rollout_distance_m
 
-        settings = launch_twin_settings_from_parameters(parameters)
-        predicted = {key: rollout_distance_m(settings, key[1], key[0])
+        predicted = {key: rollout_distance_m(twin, key[1], key[0])
                      for key in {(r.surface, r.speed_mps) for r in characterisation.rollouts}}
         total += sum(_gaussian(r.distance_m, predicted[(r.surface, r.speed_mps)], characterisation.rollout_sigma_m)
                      for r in characterisation.rollouts)

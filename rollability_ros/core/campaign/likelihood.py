@@ -55,6 +55,9 @@ from rollability_ros.core.campaign.adaptive import Unknowns
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import LaunchOutcome
 
+if typing.TYPE_CHECKING:
+    from rollability_ros.core.sim import LaunchTwinSettings
+
 #: ``format`` of a prepared likelihood file; a file of another format is refused.
 FORMAT = "rollability-learnt-likelihood-2"
 #: Continuous outcomes of one launch, in this order (NaN: not measured). ``measured_speed_mps``: the speed gate's
@@ -505,21 +508,19 @@ def twin_fingerprint(parameters: typing.Mapping[str, object], unknowns: typing.S
 ROW = ("valid", "upright", *OUTCOMES)
 
 
-def simulate_rows(parameters: typing.Mapping[str, object], names: typing.Sequence[str],
+def simulate_rows(twin: "LaunchTwinSettings", names: typing.Sequence[str],
                   jobs: typing.Sequence[typing.Tuple[typing.Sequence[float], str, float, float, float, int]]
                   ) -> np.ndarray:
     """Launch the twin once per job (unknown values in own units, configuration, height, speed, angle, seed),
-    each with the unknowns ``names`` set to the job's values, run to rest (no early decision: the continuous
+    each the typed ``twin`` with the unknowns ``names`` set to the job's values, run to rest (no early decision: the continuous
     outcomes are the ones the rig measures at rest); an invalid launch is retried as the rig does. Rows (n, len
     :data:`ROW`)."""
     from rollability_ros.core.records import LaunchCondition
-    from rollability_ros.core.sim import launch_twin_settings_from_parameters, simulate_valid_launch
+    from rollability_ros.core.sim import simulate_valid_launch, twin_with_values
 
     rows = []
     for values, configuration, height, speed, angle, seed in jobs:
-        flat = dict(parameters)
-        flat.update({name: float(value) for name, value in zip(names, values)})
-        settings = launch_twin_settings_from_parameters(flat)
+        settings = twin_with_values(twin, {name: float(value) for name, value in zip(names, values)})
         settings = dataclasses.replace(settings, trial=dataclasses.replace(settings.trial, early_decision=False))
         result = simulate_valid_launch(LaunchCondition(configuration, height, speed, angle), settings, int(seed))
         rows.append([float(result.valid), float(result.valid and result.upright), result.measured_speed_mps,
@@ -560,7 +561,7 @@ def draw_training_jobs(unknowns: Unknowns, configurations: typing.Sequence[str],
     return normalised, configuration, condition, [trial_seed(seed, i) for i in range(launches)]
 
 
-def simulate_training_set(parameters: typing.Mapping[str, object], unknowns: Unknowns,
+def simulate_training_set(twin: "LaunchTwinSettings", unknowns: Unknowns,
                           configurations: typing.Sequence[str], levels: ConditionLevels, launches: int, seed: int,
                           pool: typing.Optional[concurrent.futures.Executor] = None, chunk: int = 25,
                           on_progress: typing.Optional[typing.Callable[[int, int], None]] = None) -> TrainingSet:
@@ -573,9 +574,9 @@ def simulate_training_set(parameters: typing.Mapping[str, object], unknowns: Unk
     chunks = [jobs[i:i + chunk] for i in range(0, len(jobs), chunk)]
     rows: typing.List[np.ndarray] = []
     if pool is None:
-        results: typing.Iterable[np.ndarray] = (simulate_rows(parameters, unknowns.names, c) for c in chunks)
+        results: typing.Iterable[np.ndarray] = (simulate_rows(twin, unknowns.names, c) for c in chunks)
     else:
-        results = pool.map(simulate_rows, [parameters] * len(chunks), [unknowns.names] * len(chunks), chunks)
+        results = pool.map(simulate_rows, [twin] * len(chunks), [unknowns.names] * len(chunks), chunks)
     for part in results:
         rows.append(part)
         if on_progress is not None:

@@ -14,6 +14,9 @@ from rollability_ros.core.campaign.adaptive import Unknowns
 from rollability_ros.core.campaign.likelihood import LearntLikelihood, Observation, normalised_one, values_one
 from rollability_ros.core.optional import require
 
+if typing.TYPE_CHECKING:
+    from rollability_ros.core.sim import LaunchTwinSettings
+
 LogDensity = typing.Callable[[np.ndarray], np.ndarray]
 
 
@@ -195,7 +198,7 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
                      np.concatenate(kept_densities))
 
 
-def characterisation_term(characterisation: Characterisation, parameters: typing.Mapping[str, object],
+def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinSettings",
                           unknowns: Unknowns, grid_points: typing.Optional[int] = None) -> LogDensity:
     """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
@@ -204,6 +207,7 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
     (cubic in the normalised coordinates) and scored by the reading's Gaussian, since a roll-out per parameter
     set would cost as much as the launches it replaces. ``grid_points`` defaults to 17 for one such unknown and
     9 for two (the table's roll-outs: 17 or 81 per reading's speed)."""
+    from rollability_ros.core.sim import rollout_distance_m, twin_value, twin_with_values
 
     names = unknowns.names
 
@@ -214,7 +218,7 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
         values = unknowns.to_values(u)
         mu = np.ones(len(u))
         for key in SLIDE_KEYS:   # the contact friction is the product of the two
-            mu = mu * (values[:, names.index(key)] if key in names else float(typing.cast(float, parameters[key])))
+            mu = mu * (values[:, names.index(key)] if key in names else twin_value(twin, key))
         angle = np.degrees(np.arctan(mu))
         sigma = characterisation.slide_sigma_deg
         readings = np.asarray(characterisation.slide_angles_deg)
@@ -222,8 +226,6 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
                 - math.log(sigma * math.sqrt(2.0 * math.pi))).sum(axis=1)
     if not characterisation.rollouts:
         return slide
-    from rollability_ros.core.sim import launch_twin_settings_from_parameters, rollout_distance_m
-
     rolling = [names.index(k) for k in ROLLOUT_KEYS if k in names]
     if len(rolling) > 2:
         raise ValueError("at most two roll-out unknowns can be tabulated")
@@ -234,9 +236,9 @@ def characterisation_term(characterisation: Characterisation, parameters: typing
     # the predicted distance of each (surface, speed) at each grid point: the distances are smooth in the
     # unknowns and are what is interpolated; the likelihood's peak, narrower than a grid step at 0.02 m
     # readings, is computed from them (interpolating the log-likelihood itself put the peak on a grid point)
-    table = np.array([[rollout_distance_m(launch_twin_settings_from_parameters(
-        {**parameters, **{names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(rolling)}}),
-        speed, surface) for surface, speed in keys] for point in mesh])
+    table = np.array([[rollout_distance_m(twin_with_values(
+        twin, {names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(rolling)}), speed, surface)
+        for surface, speed in keys] for point in mesh])
     readings = np.array([r.distance_m for r in characterisation.rollouts])
     which = np.array([keys.index((r.surface, r.speed_mps)) for r in characterisation.rollouts])
     sigma = characterisation.rollout_sigma_m

@@ -21,7 +21,7 @@ import time
 import typing
 
 from rollability_ros.core.campaign.plan import CampaignProgress, PlannedTrial, changes_between
-from rollability_ros.core.config import as_list, check_given_files, load_parameters, settings_from_sections
+from rollability_ros.core.config import as_list, check_given_files, edge_parse, load_parameters, settings_from_sections
 from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, LaunchAborted,
                                       LaunchBackend, RigPorts, RigSettings, SpeedGate, SpeedGateConfig, ValveConfig,
@@ -29,6 +29,9 @@ from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKEND
                                       parse_outcome_answer)
 from rollability_ros.core.records import INVALID_LAUNCH, LaunchOutcome
 from rollability_ros.core.store import Store
+
+if typing.TYPE_CHECKING:   # annotations only: the command parses the twin (the sim backend needs it)
+    from rollability_ros.core.sim import LaunchTwinSettings
 
 
 #: A campaign session stops once at least :data:`INVALID_STOP_MIN_LAUNCHES` launches were made and more than this
@@ -368,10 +371,13 @@ def answer_rig(phase: str, detail: str,
 class LocalRigPorts(RigPorts):
     """:class:`~rollability_ros.core.rig.launch_backend.RigPorts` in this process: a
     :class:`~rollability_ros.core.rig.valve.ValveController` on ``valve.*`` with a heartbeat thread for its
-    watchdog, the ``speed_gate.*`` gate (the operator types travel times through ``ask``), and no IMU."""
+    watchdog, the ``speed_gate.*`` gate (the operator types travel times through ``ask``), no IMU, and the launch
+    twin ``read_twin`` (the command's parse of the twin's files, called only by the simulated backend)."""
 
-    def __init__(self, ask=input):
+    def __init__(self, ask=input, read_twin: typing.Optional[typing.Callable[[typing.Sequence[str]],
+                                                                              "LaunchTwinSettings"]] = None):
         self._ask = ask
+        self._read_twin = read_twin
         self._stop = threading.Event()
         self.valve: typing.Optional[ValveController] = None
 
@@ -395,6 +401,12 @@ class LocalRigPorts(RigPorts):
         """Refused: the in-process rig has no IMU topic."""
         raise ValueError("the in-process physical rig takes outcomes from the operator only (no IMU topic)")
 
+    def open_twin(self, twin_config: typing.Sequence[str]) -> "LaunchTwinSettings":
+        """The twin ``read_twin`` parses from ``twin_config``; ``ValueError`` when the command gave none."""
+        if self._read_twin is None:
+            raise ValueError("the in-process rig was given no launch twin to read (read_twin)")
+        return self._read_twin(twin_config)
+
     def close(self) -> None:
         """Stop the heartbeat and shut the valve down (closed)."""
         self._stop.set()
@@ -413,6 +425,7 @@ class LocalRigSettings:
     imu_outcome: ImuOutcomeConfig = dataclasses.field(default_factory=ImuOutcomeConfig)
 
 
+@edge_parse
 def local_rig_settings(backend: str, parameters: typing.Mapping[str, object]) -> LocalRigSettings:
     """Parse flat rig parameters (``load_parameters(["rig"])``: ``rig.*``, ``valve.*``, ``speed_gate.*``,
     ``imu_outcome.*``) once, with ``rig.backend`` set to ``backend`` (``"sim"`` or ``"physical"``, the command
@@ -420,6 +433,7 @@ def local_rig_settings(backend: str, parameters: typing.Mapping[str, object]) ->
     return settings_from_sections(LocalRigSettings, {**parameters, "rig.backend": backend})
 
 
+@edge_parse
 def local_rig_settings_from_files(backend: str, paths: typing.Optional[typing.Sequence[str]],
                                   command: str) -> LocalRigSettings:
     """:func:`local_rig_settings` of the rig parameter files a user gave ``command`` (None: the shipped
@@ -449,14 +463,19 @@ class LocalRig:
         The rig's typed sections (:func:`local_rig_settings`).
     ask, say : callable
         Terminal input / output.
+    read_twin : callable(twin_config) -> LaunchTwinSettings, optional
+        The command's parse of the twin's parameter files (``load_launch_twin_settings``), which the simulated
+        backend calls once for ``rig.twin_config`` (:meth:`LocalRigPorts.open_twin`).
     """
 
     def __init__(self, settings: LocalRigSettings, ask: typing.Callable[[str], str] = input,
-                 say: typing.Callable[[str], None] = print) -> None:
+                 say: typing.Callable[[str], None] = print,
+                 read_twin: typing.Optional[typing.Callable[[typing.Sequence[str]], "LaunchTwinSettings"]] = None
+                 ) -> None:
         self._ask, self._say = ask, say
         self._stop = threading.Event()
         self.backend = make_launch_backend(settings.rig, settings.speed_gate, settings.valve, settings.imu_outcome,
-                                           LocalRigPorts(ask))
+                                           LocalRigPorts(ask, read_twin))
 
     def _on_phase(self, phase, detail):
         self._say(f"  {phase}: {detail}")

@@ -23,8 +23,8 @@ import typing
 
 import yaml
 
-from rollability_ros.core.config import (check_parent_steps, from_mapping, load_parameters, parameter_document,
-                                         resolve_config_path, section)
+from rollability_ros.core.config import (check_parent_steps, edge_parse, from_mapping, load_parameters,
+                                         parameter_document, resolve_config_path, section)
 from rollability_ros.core.graph.supervisor import ProcessSpec
 from rollability_ros.core.optimization import atomic_write_bytes
 
@@ -147,6 +147,7 @@ class GraphSettings:
 MOVED_KEYS = {"valve_backend": "valve.backend"}
 
 
+@edge_parse
 def load_graph_settings(param_files: typing.Sequence[str]) -> "GraphSettings":
     """:class:`GraphSettings` from the merged parameter files (namespace ``bringup``).
 

@@ -15,7 +15,7 @@ import dataclasses
 import functools
 import typing
 
-from rollability_ros.core.config import ConfigError, check_given_files, from_mapping, load_parameters, section
+from rollability_ros.core.config import ConfigError, check_given_files, edge_parse, from_mapping, load_parameters, section
 
 
 def _node_sections():
@@ -122,6 +122,7 @@ def graph_namespaces(node_names: typing.Optional[typing.Iterable[str]] = None) -
     return frozenset(namespaces)
 
 
+@edge_parse
 def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing.Optional[typing.Sequence[str]] = None,
                            overrides: typing.Optional[dict] = None) -> typing.List[str]:
     """Return every problem in the parameters the nodes ``node_names`` (default: all a study starts) would read.
@@ -157,6 +158,7 @@ def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing
     return problems
 
 
+@edge_parse
 def _twin_problems(flat):
     """What the sim rig's twin would refuse in the files ``rig.twin_config`` names (it loads them at start)."""
     from rollability_ros.core.rig import RigSettings
@@ -170,6 +172,7 @@ def _twin_problems(flat):
     return []
 
 
+@edge_parse
 def refuse_bad_session(param_files: typing.Sequence[str], given_files: typing.Sequence[str],
                        nodes: typing.Mapping[str, dict], command: str) -> None:
     """Raise :class:`ConfigError` before a session starts ``nodes`` (``{node module: its overrides}``, from

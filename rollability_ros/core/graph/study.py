@@ -33,13 +33,14 @@ import typing
 
 import yaml
 
-from rollability_ros.core.graph.bringup import (DEFAULT_CONFIGS, NodeLaunch, add_twin_files, core_nodes,
-                                                join_nodes, load_graph_settings, new_study_id, parameter_files)
+from rollability_ros.core.graph.bringup import (DEFAULT_CONFIGS, GraphSettings, NodeLaunch, add_twin_files,
+                                                core_nodes, join_nodes, load_graph_settings, new_study_id,
+                                                parameter_files)
 from rollability_ros.core.graph.preflight import graph_namespaces
 from rollability_ros.core.graph.session import SessionInfo, start_session
 from rollability_ros.core.graph.progress import GraphObserver, JobProgress, ProgressDisplay, Stopwatch, eta_s
-from rollability_ros.core.config import (as_list, check_given_files, check_path_component, integer_parameter,
-                                         load_parameters)
+from rollability_ros.core.config import (as_list, check_given_files, check_path_component, edge_parse,
+                                         integer_parameter, load_parameters)
 from rollability_ros.core.records import LaunchOutcome
 from rollability_ros.core.store import Store
 from rollability_ros.core.graph.supervisor import Supervisor
@@ -73,34 +74,64 @@ class StudyResult:
     summary: str = ""
 
 
-class Study:
-    """Runs the main job (module docstring): events through ``say(text)``, progress snapshots (phase, generation,
-    best, trials stored, ETA) through ``display`` (a :class:`~rollability_ros.core.graph.progress.ProgressDisplay`),
-    learnt from the graph through ``observer`` (a :class:`~rollability_ros.core.graph.progress.GraphObserver`;
-    None: phases only, no numbers)."""
+@dataclasses.dataclass(frozen=True)
+class StudyConfig:
+    """What a study runs on, parsed once by the command that starts it (:func:`study_config`): its parameter files
+    in load order, the graph's settings, their flat parameters (the campaign's size, the optimizer's budget), its id
+    and directory, and the node parameters its graph would refuse (``problems``, refused when it opens)."""
 
-    def __init__(self, extra_configs: typing.Sequence[str] = (), study_id: typing.Optional[str] = None,
-                 say: typing.Optional[typing.Callable[[str], None]] = None, resume: typing.Optional[str] = None,
+    param_files: typing.List[str]
+    settings: GraphSettings
+    parameters: typing.Dict[str, object]
+    study_id: str
+    study_dir: str
+    resuming: bool = False
+    problems: typing.Tuple[str, ...] = ()
+
+
+@edge_parse
+def study_config(extra_configs: typing.Sequence[str] = (), study_id: typing.Optional[str] = None,
+                 resume: typing.Optional[str] = None) -> StudyConfig:
+    """Parse a study's parameter files once: the defaults, bringup's and ``extra_configs`` (``--config``), or, to
+    ``resume`` a study, its own saved copies; ``study_id`` (``--study-id``) names a new one. Raises ``ValueError``
+    (:class:`~rollability_ros.core.config.ConfigError`) naming a file or parameter no node applies, a bad value of
+    the graph's own, or a study directory that exists; what a node would refuse is kept in ``problems``
+    (:func:`~rollability_ros.core.graph.preflight.check_graph_parameters`, the nodes' own parse, rehearsed)."""
+    from rollability_ros.core.graph.preflight import check_graph_parameters
+
+    param_files = parameter_files(["bringup", *extra_configs])
+    check_given_files(extra_configs, graph_namespaces(), "rollability study")   # applied or refused, at once
+    if resume is not None:
+        if extra_configs or study_id:
+            raise ValueError("a resumed study runs on its own saved configuration: no --config or --study-id")
+        study_dir = resume_dir(resume, load_graph_settings(param_files).output_dir)
+        chosen_id = recorded_study_id(study_dir)
+        param_files = saved_parameter_files(study_dir)
+    settings = load_graph_settings(param_files)
+    parameters = load_parameters(param_files)
+    if resume is None:
+        chosen_id = check_path_component(study_id, "--study-id") if study_id is not None else new_study_id()
+        study_dir = os.path.join(settings.output_dir, chosen_id)
+        if os.path.lexists(study_dir):
+            raise ValueError(f"study directory {study_dir} already exists: continue it with --resume "
+                             f"{study_dir}, or choose another --study-id")
+    problems = check_graph_parameters(param_files, overrides={"rig": {"rig.twin_config": param_files}})
+    return StudyConfig(param_files, settings, parameters, chosen_id, study_dir, resume is not None, tuple(problems))
+
+
+class Study:
+    """Runs the main job (module docstring) on ``config`` (:func:`study_config`, parsed by the command): events
+    through ``say(text)``, progress snapshots (phase, generation, best, trials stored, ETA) through ``display`` (a
+    :class:`~rollability_ros.core.graph.progress.ProgressDisplay`), learnt from the graph through ``observer`` (a
+    :class:`~rollability_ros.core.graph.progress.GraphObserver`; None: phases only, no numbers)."""
+
+    def __init__(self, config: StudyConfig, say: typing.Optional[typing.Callable[[str], None]] = None,
                  display: typing.Optional[ProgressDisplay] = None,
                  observer: typing.Optional[GraphObserver] = None) -> None:
-        self.param_files = parameter_files(["bringup", *extra_configs])
-        check_given_files(extra_configs, graph_namespaces(), "rollability study")   # applied or refused, at once
-        self.resuming = resume is not None
-        if resume is not None:   # self.resuming
-            if extra_configs or study_id:
-                raise ValueError("a resumed study runs on its own saved configuration: no --config or --study-id")
-            self.study_dir = resume_dir(resume, load_graph_settings(self.param_files).output_dir)
-            self.study_id = recorded_study_id(self.study_dir)
-            self.param_files = saved_parameter_files(self.study_dir)
-        self.settings = load_graph_settings(self.param_files)
-        self.parameters = load_parameters(self.param_files)
-        if not self.resuming:
-            self.study_id = (check_path_component(study_id, "--study-id") if study_id is not None
-                             else new_study_id())
-            self.study_dir = os.path.join(self.settings.output_dir, self.study_id)
-            if os.path.lexists(self.study_dir):
-                raise ValueError(f"study directory {self.study_dir} already exists: continue it with --resume "
-                                 f"{self.study_dir}, or choose another --study-id")
+        self.config = config
+        self.param_files = config.param_files   # the study's copies once it saved them (make_study_dir)
+        self.settings, self.parameters = config.settings, config.parameters
+        self.study_id, self.study_dir, self.resuming = config.study_id, config.study_dir, config.resuming
         # display: live line on a terminal, plain lines otherwise (core/graph/progress.py); say: event lines
         self.display = display or ProgressDisplay(live=False)
         self.say = say or self.display.say
@@ -269,9 +300,8 @@ class Study:
         """Raise ConfigError listing every node parameter of the graph that its node would refuse, before any
         directory is made or process started (a node's own refusal would only reach its log)."""
         from rollability_ros.core.config import ConfigError
-        from rollability_ros.core.graph.preflight import check_graph_parameters
 
-        problems = check_graph_parameters(self.param_files, overrides={"rig": {"rig.twin_config": self.param_files}})
+        problems = self.config.problems
         if problems:
             raise ConfigError(f"study not started: {len(problems)} invalid parameter(s):\n  " + "\n  ".join(problems))
 
@@ -335,7 +365,9 @@ class Study:
         """The labels of the selected designs (may be empty), or None before selection has written designs.yaml."""
         if not os.path.isfile(self.designs_file):
             return None
-        return as_list(load_parameters([self.designs_file]).get("designs.labels", []))
+        from rollability_ros.core.profile import designs_file_labels
+
+        return designs_file_labels(self.designs_file)   # through the designs file's one reader
 
     def _campaign_size(self, configurations):
         per_configuration = 1

@@ -42,7 +42,7 @@ import typing
 import numpy as np
 
 from rollability_ros.core.optimization import checkpoint as checkpoints
-from rollability_ros.core.config import (ConfigError, as_list, check_given_files, load_parameters,
+from rollability_ros.core.config import (ConfigError, as_list, check_given_files, edge_parse, load_parameters,
                                          settings_from_sections)
 from rollability_ros.core.optimization.optimizer_contract import (
     STREAM_POPULATION,
@@ -68,6 +68,7 @@ from rollability_ros.core.store import Store
 FIRST_GENERATION = 1
 
 
+@edge_parse
 def run_settings(parameters: typing.Mapping[str, object]) -> RunSettings:
     """Parse a run's flat parameters once into :class:`RunSettings` (defaults where a namespace is absent); a bad
     value raises :class:`ConfigError` naming its parameter (``optimizer.popsize out of range: 1 is not in [2,
@@ -84,6 +85,7 @@ class RunConfig:
     parameters: typing.Mapping[str, typing.Any]
 
 
+@edge_parse
 def run_config(parameters: typing.Mapping[str, object]) -> RunConfig:
     """The edge's one parse of a run's flat parameters (:func:`run_settings`), kept with them as the record."""
     return RunConfig(run_settings(parameters), dict(parameters))

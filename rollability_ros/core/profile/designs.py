@@ -23,7 +23,7 @@ import os
 import typing
 
 from rollability_ros.core.profile import geometry
-from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, section
+from rollability_ros.core.config import ConfigError, file_schema, from_mapping, load_parameters, section
 
 #: The configuration id of the bare chassis.
 BASELINE = "baseline"
@@ -65,6 +65,7 @@ def _file_version(path):
     return os.path.abspath(path), stat.st_size, stat.st_mtime_ns
 
 
+@file_schema("designs file")
 @functools.lru_cache(maxsize=16)
 def _read_designs(version):
     """``(grid, {label: heights})`` of the designs file ``version`` (see :func:`_file_version`)."""
@@ -97,6 +98,12 @@ def _designs_mesh(version, label):
 @functools.lru_cache(maxsize=16)
 def _file_mesh(version):
     return geometry.load_profile_mesh(version[0])
+
+
+def designs_file_labels(path: str) -> typing.List[str]:
+    """The design labels of the designs file ``path``, in its order (read by its one reader); ``ConfigError`` for a
+    bad file, ``FileNotFoundError`` for a missing one."""
+    return list(_read_designs(_file_version(path))[1])
 
 
 def configuration_ids(sources: DesignSources) -> typing.List[str]:

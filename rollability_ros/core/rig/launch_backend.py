@@ -31,7 +31,7 @@ from rollability_ros.core.rig.valve import ValveStatus
 from rollability_ros.core.rig.valve_contract import ValveConfig
 
 if typing.TYPE_CHECKING:  # annotations only: the sim face's twin result (the twin is imported when it launches)
-    from rollability_ros.core.sim import LaunchResult
+    from rollability_ros.core.sim import LaunchResult, LaunchTwinSettings
 
 #: ``on_phase(phase, detail)``: one feedback phase of the Launch action and a sentence for the operator.
 PhaseCallback = typing.Callable[[str, str], None]
@@ -296,6 +296,12 @@ class RigPorts(abc.ABC):
     @abc.abstractmethod
     def open_imu(self, imu_outcome: "ImuOutcome") -> None:
         """Feed :meth:`ImuOutcome.feed` from the IMU stream; ``ValueError`` when this caller has no IMU."""
+
+    @abc.abstractmethod
+    def open_twin(self, twin_config: typing.Sequence[str]) -> "LaunchTwinSettings":
+        """The launch twin a simulated launch runs in: its typed settings, parsed by the caller (the node or the
+        command, the edge) from the parameter files ``twin_config`` (``rig.twin_config``) once; ``ValueError``
+        (:class:`~rollability_ros.core.config.ConfigError`) naming a bad file or value."""
 
     def close(self) -> None:
         """Stop what the ports started (keep-alive, valve shut down); idempotent."""

@@ -46,7 +46,7 @@ from rollability_ros.core.rig.speed_gate import SpeedGateConfig, SpeedMeasuremen
 from rollability_ros.core.rig.valve_contract import ValveConfig
 
 if typing.TYPE_CHECKING:  # annotations only: the twin is imported when a simulated launch runs
-    from rollability_ros.core.sim import LaunchResult
+    from rollability_ros.core.sim import LaunchResult, LaunchTwinSettings
 
 #: Feedback phases of the Launch action, in order.
 PHASES = ("waiting_for_operator", "armed", "fired", "in_flight", "settling", "classifying")
@@ -323,32 +323,35 @@ class SimulatedLaunch(LaunchBackend):
         ``twin_config`` lists the twin's parameter files (shipped names or paths).
     speed_config : SpeedGateConfig
         Tolerance of the speed check on the twin's travel time.
+    twin_settings : LaunchTwinSettings
+        The twin of ``twin_config``'s files, parsed by the caller (:meth:`RigPorts.open_twin`).
     """
 
     name = "sim"
     attended = False
 
-    def __init__(self, settings, speed_config):
+    def __init__(self, settings: "RigSettings", speed_config: SpeedGateConfig,
+                 twin_settings: "LaunchTwinSettings") -> None:
         self.settings = settings
         self.speed_config = speed_config
         self.operator = OperatorChannel()   # never opened: the twin asks nothing, so every answer is refused
-        self._twin = None
-        self._twin_settings = None
+        self._twin: typing.Optional[types.ModuleType] = None
+        self._twin_settings = twin_settings
 
     @classmethod
     def from_ports(cls, settings: "RigSettings", speed_config: SpeedGateConfig, valve_config: ValveConfig,
                    imu_config: ImuOutcomeConfig, ports: RigPorts) -> "SimulatedLaunch":
-        """A twin backend with its settings loaded now (fails early on a bad ``twin_config``); opens no port."""
-        backend = cls(settings, speed_config)
+        """A twin backend on the twin ``ports`` reads from ``rig.twin_config`` now (fails early on a bad file, and
+        on a launcher that does not fit the robot); opens no hardware port."""
+        backend = cls(settings, speed_config, ports.open_twin(settings.twin_config))
         backend.load()
         return backend
 
     def load(self) -> types.ModuleType:
-        """Import the twin, read its settings and check its launcher against the robot now (a node does it at
-        start-up to fail early: ``ValueError`` naming the setting)."""
+        """Import the twin and check its launcher against the robot now (a node does it at start-up to fail
+        early: ``ValueError`` naming the setting)."""
         if self._twin is None:
             twin = importlib.import_module("rollability_ros.core.sim")
-            self._twin_settings = twin.load_launch_twin_settings(self.settings.twin_config)
             twin.check_launcher(self._twin_settings)
             self._twin = twin
         return self._twin
@@ -362,7 +365,6 @@ class SimulatedLaunch(LaunchBackend):
         from rollability_ros.core.profile import configuration_ids
 
         self.load()
-        assert self._twin_settings is not None   # load() read them
         try:
             known = configuration_ids(self._twin_settings.twin.designs)
         except (ValueError, OSError) as exc:   # an unreadable designs file: every goal names it
@@ -375,7 +377,6 @@ class SimulatedLaunch(LaunchBackend):
     def design_sources(self) -> dict:
         """The twin's ``launch_twin.designs`` (relative paths are from the working directory), made absolute."""
         self.load()
-        assert self._twin_settings is not None   # load() read them
         designs = self._twin_settings.twin.designs
         return {"designs_file": os.path.abspath(designs.designs_file) if designs.designs_file else "",
                 "mesh_files": {label: os.path.abspath(path) for label, path in designs.meshes().items()}}

@@ -7,7 +7,8 @@ from .evaluation import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluationResul
 from .launch.placement import check_launcher
 from .launch.results import LaunchResult
 from .launch.settings import (TWIN_NAMESPACE, TWIN_SECTIONS, LaunchTwinSettings, launch_twin_settings_from_parameters,
-                              load_launch_twin_settings, mecanum_wheels, twin_files)
+                              load_launch_twin_settings, mecanum_wheels, twin_files, twin_value,
+                              twin_with_values)
 from .launch.twin import profile_body, simulate_launch, simulate_valid_launch
 from .objectives import FIDELITIES, ObjectiveSettings, check_fidelity, world_fidelity
 from .rollout import rollout_distance_m
@@ -32,6 +33,6 @@ __all__ = [
     "make_executor", "make_trial_world", "mecanum_wheels", "profile_body", "profile_job", "profile_screener",
     "register_trial_engine", "rollout_distance_m", "run_world_check", "screen_robot", "sensitivity_rows",
     "settings_at_fidelity", "settings_from_parameters", "simulate_launch", "simulate_valid_launch", "spawn_pool",
-    "summarize_worlds", "trial_seed", "twin_files", "with_given_files", "world_check_lines", "world_draws",
-    "world_fidelity"
+    "summarize_worlds", "trial_seed", "twin_files", "twin_value", "twin_with_values", "with_given_files",
+    "world_check_lines", "world_draws", "world_fidelity"
 ]

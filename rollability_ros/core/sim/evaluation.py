@@ -31,7 +31,7 @@ import numpy.typing as npt
 
 import rollability_ros
 
-from rollability_ros.core.config import check_given_files, load_parameters, settings_from_sections
+from rollability_ros.core.config import check_given_files, edge_parse, load_parameters, settings_from_sections
 from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
 from rollability_ros.core.optional import require
 from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, UrdfRobotSpec, footprint_grid
@@ -123,6 +123,7 @@ class CancelEvent(typing.Protocol):
 Batch = typing.Sequence[typing.Tuple[int, int]]
 
 
+@edge_parse
 def load_settings(config_paths: typing.Sequence[str] = ("sim", "robot", "evaluator"),
                   node_name: str = "/**") -> "EvaluatorSettings":
     """Read :class:`EvaluatorSettings` from ROS 2 parameter files (names of shipped files or paths).
@@ -136,6 +137,7 @@ def load_settings(config_paths: typing.Sequence[str] = ("sim", "robot", "evaluat
     return settings_from_parameters(flat)
 
 
+@edge_parse
 def settings_from_parameters(flat: typing.Mapping[str, object]) -> "EvaluatorSettings":
     """Parse a flat ``{dotted name: value}`` dict (the CLI's merged files) once into :class:`EvaluatorSettings`."""
     return settings_from_sections(EvaluatorSettings, flat, SETTINGS_SECTIONS)

@@ -7,7 +7,8 @@ import typing
 
 import numpy as np
 
-from rollability_ros.core.config import ConfigError, from_mapping, load_parameters, resolve_config_path, section
+from rollability_ros.core.config import (ConfigError, edge_parse, from_mapping, load_parameters, resolve_config_path,
+                                         section, value_of, with_values, wrong_type)
 from rollability_ros.core.profile import DesignSources
 from rollability_ros.core.robots import ChassisSpec, RobotChoice, UrdfRobotSpec
 from rollability_ros.core.sim.trials import TrialSettings
@@ -227,6 +228,7 @@ def twin_files(paths: typing.Sequence[str], namespaces: typing.Iterable[str] = (
     return [os.path.abspath(resolve_config_path(path)) for path in paths
             if any(name.startswith(prefixes) for name in load_parameters([path]))]
 
+@edge_parse
 def launch_twin_settings_from_parameters(flat: typing.Mapping[str, object],
                                          overrides: typing.Optional[typing.Mapping[str, object]] = None
                                          ) -> LaunchTwinSettings:
@@ -253,6 +255,7 @@ def launch_twin_settings_from_parameters(flat: typing.Mapping[str, object],
     return LaunchTwinSettings(**{name: from_mapping(hints[name], values, _SECTIONS[name])
                                  for name, values in nested.items()})
 
+@edge_parse
 def load_launch_twin_settings(config_paths: typing.Sequence[str] = ("sim", "robot", "launch_twin"),
                               node_name: str = "/**",
                               overrides: typing.Optional[typing.Mapping[str, object]] = None
@@ -264,6 +267,22 @@ def load_launch_twin_settings(config_paths: typing.Sequence[str] = ("sim", "robo
     Missing keys keep their defaults; see :func:`launch_twin_settings_from_parameters` for ``overrides``.
     """
     return launch_twin_settings_from_parameters(load_parameters(list(config_paths), node_name), overrides)
+
+def twin_with_values(settings: LaunchTwinSettings, values: typing.Mapping[str, object]) -> LaunchTwinSettings:
+    """Typed twin ``settings`` with parameters set by their config keys (``{"launch_twin.foam.restitution": 0.4,
+    "robot.com_offset_z_m": 0.01}``), each checked as a parameter file's value is (:func:`config.with_values`):
+    the twin at one point of a calibration's fitted keys, without parsing parameters again."""
+    return with_values(settings, _SECTIONS, values)
+
+
+def twin_value(settings: LaunchTwinSettings, name: str) -> float:
+    """The number the config key ``name`` (``launch_twin.foam.restitution``) holds in typed twin ``settings``;
+    :class:`ConfigError` in one line naming it when it is no parameter of the twin or not a number."""
+    value = value_of(settings, _SECTIONS, name)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(wrong_type(name, float, value))
+    return float(value)
+
 
 def mecanum_wheels(settings: LaunchTwinSettings) -> bool:
     """True when the twin gives the wheels its Mecanum contact and drag (``wheel_model`` mecanum, or auto on the

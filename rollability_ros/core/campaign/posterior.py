@@ -63,11 +63,13 @@ class Posterior:
     index: typing.Tuple[int, ...]
     wall_s: float
     log_density: np.ndarray
+    best_index: typing.Optional[int] = None
 
     def best(self) -> typing.Dict[str, float]:
         """The sample of highest posterior density (own units): the fitted values (inside a split set, where a
-        marginal median might fall in the gap)."""
-        top = int(np.argmax(self.log_density))
+        marginal median might fall in the gap). ``best_index`` when given (the ensemble's: the sample of highest
+        density under the members' mean likelihood), else the highest ``log_density``."""
+        top = int(np.argmax(self.log_density)) if self.best_index is None else self.best_index
         return {name: float(self.samples[top, i]) for i, name in enumerate(self.names)}
 
     def credible_set(self, name: str, mass: float = 0.95) -> typing.List[typing.Tuple[float, float]]:
@@ -192,10 +194,18 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
             chain, densities = stretch_sampler(log_density, start, steps, rng)
             kept.append(chain[steps // 2:].reshape(-1, k))
             kept_densities.append(densities[steps // 2:].reshape(-1))
-    pooled = np.concatenate(kept)
+        pooled = np.concatenate(kept)
+        best = None
+        if members > 1:   # each sample's density is its own member's: the best is read under the members' mean
+            thinned = np.arange(0, len(pooled), max(1, len(pooled) // 2000))
+            mixture = np.concatenate([
+                power * likelihood.log_likelihood(full(pooled[part]), arranged)
+                + (extra(full(pooled[part])) if extra is not None else 0.0)
+                for part in np.array_split(thinned, max(1, len(thinned) // 250))])
+            best = int(thinned[int(np.argmax(mixture))])
     values = np.array([values_one(unknowns, j, pooled[:, i]) for i, j in enumerate(index)]).T
     return Posterior(names, values, pooled, unknowns, index, time.perf_counter() - started,
-                     np.concatenate(kept_densities))
+                     np.concatenate(kept_densities), best)
 
 
 def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinSettings",

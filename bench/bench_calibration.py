@@ -1,25 +1,31 @@
 """Calibration with the learnt likelihood on simulated hidden truths: preparation time, calibration time, coverage,
 widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise -> validate. All simulated.
 
-    nice python bench/bench_calibration.py [--prepare-launches 8000] [--truths 50] [--workers 2]
-        [--likelihood FILE] [--keep DIR] [--reoptimize-generations 15] [--skip-reoptimize] [--skip-cli] [--smoke]
+    nice python bench/bench_calibration.py [--prepare-launches 8000] [--members 3] [--truths 50] [--steps 200]
+        [--temperature T] [--engine mujoco|pybullet] [--workers 2] [--likelihood FILE] [--keep DIR]
+        [--skip-cli] [--skip-adaptive] [--skip-reoptimize] [--reoptimize-generations 15] [--smoke]
 
+0. The twin: ``--engine`` (``sim.engine``; default mujoco, whose launch run to rest costs about a fifth of
+   PyBullet's: 0.035 against 0.18 CPU s measured) launches the preparation and the truths alike; the
+   characterisation's roll-out is modelled in the PyBullet twin only and is used for both sides.
 1. Designs: the bare robot and three profiles (bench_launch_twin's dome, a flat top at the 0.09 m bound and a low
    pyramid: docs/twin-model.md's shapes), as STLs. The unknowns: :data:`UNKNOWNS` (centre of mass, foam friction,
    wheel-on-foam rolling resistance, launcher speed bias, profile mass scale), with the bounds and scales of
    ``config/calibration.yaml``.
 2. Preparation (once): ``--prepare-launches`` twin launches at unknowns drawn over the bounds, the four
-   configurations and the campaign's conditions, then the networks learnt
-   (:mod:`rollability_ros.core.campaign.likelihood`). ``--likelihood FILE`` loads a prepared file instead (its
-   twin fingerprint must match); ``--keep DIR`` writes it there.
-3. ``--truths`` hidden truths drawn from the prior (uniform over the normalised bounds). For each: the paper's
-   400-launch matrix (4 configurations x 2 heights x 2 speeds x 5 angles x 5) launched on the twin at the truth
-   (fresh seeds), five slide angles (the analytic model plus 1 deg noise) and three roll-outs on the foam (the
-   simulated roll-out plus 0.02 m noise); then the posterior of all unknowns from the verdicts, the gate's speed
-   and the IMU's tilt, peak deceleration and time to rest, plus the characterisation. Prints each unknown's
-   coverage of the 95% sets, their widths as a fraction of the range (own scale), the SBC rank histogram's
-   chi-squared p-value, the calibration time, and the classifier's accuracy on these fresh launches against the
-   truth's own frequencies (Brier score against a constant predictor).
+   configurations and the campaign's conditions, then the ensemble of ``--members`` networks learnt
+   (:mod:`rollability_ros.core.campaign.likelihood`; its held-out log loss, Brier score and reliability against a
+   constant are printed). ``--likelihood FILE`` loads a prepared file instead (its twin fingerprint must match);
+   ``--keep DIR`` writes it there and a later run with the same folder loads it.
+3. ``--truths`` hidden truths drawn from the prior (uniform over the normalised bounds, each from its own seed).
+   For each: the paper's 400-launch matrix (4 configurations x 2 heights x 2 speeds x 5 angles x 5) launched on
+   the twin at the truth (fresh seeds), five slide angles (the analytic model plus 1 deg noise) and three
+   roll-outs on the foam (the simulated roll-out plus 0.02 m noise), kept in ``--keep`` (JSON) for re-runs; then,
+   in a worker, the posterior of all unknowns from the verdicts, the gate's speed and the IMU's tilt, peak
+   deceleration, time to rest and the rest distance, plus the characterisation. Prints each unknown's coverage of
+   the 95% sets, their widths as a fraction of the range (own scale), the SBC ranks (the truth among 99 thinned
+   posterior samples: their histogram by fifths and its chi-squared p-value), the calibration time, and the
+   learnt P(upright) on these fresh launches against a constant (Brier, log loss, reliability by deciles).
 4. ``rollability calibrate --likelihood`` (the CLI, a subprocess) with two unknowns (centre of mass, foam friction)
    on the first truth's 400 launches, written as an outcome CSV, then again with its slide angles.
 5. Calibrate -> re-optimise -> validate on the first truth (bench_objective's optimisation, one seed): the design
@@ -27,7 +33,9 @@ widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise ->
    the truth; the gain with Newcombe's 95% interval.
 6. The adaptive plan against the paper's matrix with the learnt likelihood (:func:`adaptive_comparison`).
 
-Every line with a time carries the load average (``os.getloadavg``): the machine is shared.
+``--smoke``: every step but 5 at a tiny size (240 training launches, 2 members, 2 truths of 20 launches, 20
+sampler steps); its numbers mean nothing. Every line with a time carries the load average (``os.getloadavg``):
+the machine is shared.
 """
 import argparse
 import dataclasses
@@ -44,6 +52,7 @@ import numpy as np  # noqa: E402
 
 from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.campaign import likelihood as learnt  # noqa: E402
+from rollability_ros.core.campaign import likelihood_learning as learning  # noqa: E402
 from rollability_ros.core.campaign import posterior as sampling  # noqa: E402
 from rollability_ros.core.campaign.adaptive import Unknowns  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
@@ -106,19 +115,23 @@ def paper_matrix(configurations):
     return levels, [cell for cell in cells for _ in range(spec.repetitions)]
 
 
-def launch_truth(parameters, unknowns, truth, matrix, seed, pool):
-    """The matrix launched at ``truth`` (own units): Observations with every continuous outcome, invalid ones
-    left out."""
+def launch_truth(parameters, unknowns, truth, matrix, seed):
+    """The matrix launched at ``truth`` (own units), in this process: Observations with every continuous outcome,
+    invalid ones left out."""
     from rollability_ros.core.sim import trial_seed
 
     jobs = [(tuple(truth), *cell, trial_seed(seed, i)) for i, cell in enumerate(matrix)]
-    chunks = [jobs[i:i + 20] for i in range(0, len(jobs), 20)]
-    twin = launch_twin_settings_from_parameters(parameters)
-    rows = np.concatenate(list(pool.map(learnt.simulate_rows, [twin] * len(chunks), [unknowns.names] * len(chunks),
-                                        chunks)))
+    rows = learnt.simulate_rows(launch_twin_settings_from_parameters(parameters), unknowns.names, jobs)
     return [learnt.Observation(cell[0], cell[1], cell[2], cell[3], bool(row[1] > 0.5),
                                dict(zip(learnt.OUTCOMES, map(float, row[2:]))))
             for cell, row in zip(matrix, rows) if row[0] > 0.5]
+
+
+def rollout_parameters(parameters):
+    """``parameters`` for the characterisation: the roll-out is modelled in the PyBullet twin only, so its
+    readings and their likelihood use that engine's roll-out whichever engine launches (the same model on both
+    sides, the truth's and the calibration's)."""
+    return {**parameters, "sim.engine": "pybullet"}
 
 
 def characterise_truth(parameters, unknowns, truth, rng):
@@ -126,7 +139,7 @@ def characterise_truth(parameters, unknowns, truth, rng):
     from rollability_ros.core.campaign import characterisation as bench
     from rollability_ros.core.sim import rollout_distance_m
 
-    flat = dict(parameters)
+    flat = rollout_parameters(parameters)
     flat.update(zip(unknowns.names, map(float, truth)))
     settings = launch_twin_settings_from_parameters(flat)
     angle = bench.slide_angle_deg(settings)
@@ -138,7 +151,7 @@ def characterise_truth(parameters, unknowns, truth, rng):
                                   slide_sigma_deg=SLIDE_SIGMA_DEG)
 
 
-def adaptive_comparison(likelihood, truths, configurations, levels):
+def adaptive_comparison(likelihood, truths, configurations, levels, samples=4000):
     """The adaptive plan against the paper's matrix (issue 44 item 4; the ``adaptive`` room's
     ``plan_comparison.adaptive_to_match_matrix``, bench/bench_adaptive_plan.py benches it on its own) with the
     learnt likelihood as its predictor (``adaptive.PerLaunchAdapter``; outcomes drawn from it): on ``len(truths)``
@@ -152,7 +165,7 @@ def adaptive_comparison(likelihood, truths, configurations, levels):
     started = time.perf_counter()
     results = plan_comparison.adaptive_to_match_matrix(
         adaptive.Unknowns(u.names, u.lower, u.upper, u.log_scale), adaptive.PerLaunchAdapter(likelihood), candidates,
-        len(truths), 5 * len(candidates), samples=4000, seed=TRUTH_SEED)
+        len(truths), 5 * len(candidates), samples=samples, seed=TRUTH_SEED)
     reached = sorted(r.adaptive_launches for r in results if r.adaptive_launches is not None)
     print(f"adaptive plan vs the paper's matrix ({5 * len(candidates)} launches), outcomes drawn from the learnt "
           f"likelihood, {len(results)} truths from the prior: the adaptive plan reached the matrix's widths in "
@@ -168,65 +181,131 @@ def rank_p_value(ranks, samples, bins=10):
     return float(stats.chisquare(counts).pvalue)
 
 
+def truth_data(parameters, unknowns, matrix, number, cache):
+    """Hidden truth ``number`` (drawn from the prior with its own seed), its launches of the matrix and its
+    characterisation readings: simulated, or read from ``cache`` (a folder; JSON, written after simulating) when
+    an earlier run left them there, so a re-run with another sampler setting simulates nothing."""
+    import json
+
+    from rollability_ros.core.campaign import characterisation as bench
+
+    path = os.path.join(cache, f"truth-{number}.json") if cache else None
+    if path and os.path.exists(path):
+        with open(path, encoding="utf-8") as stream:
+            data = json.load(stream)
+        observations = [learnt.Observation(str(o[0]), float(o[1]), float(o[2]), float(o[3]), bool(o[4]),
+                                           dict(zip(learnt.OUTCOMES, map(float, o[5]))))
+                        for o in data["observations"]]
+        readings = bench.Characterisation(
+            source="simulated", rollouts=tuple(bench.RolloutReading(*r) for r in data["rollouts"]),
+            rollout_sigma_m=ROLLOUT_SIGMA_M, slide_angles_deg=tuple(data["slides"]), slide_sigma_deg=SLIDE_SIGMA_DEG)
+        return np.array(data["truth_u"]), observations, readings, 0.0
+    rng = np.random.default_rng([TRUTH_SEED, number])
+    truth_u = rng.uniform(size=len(unknowns.names))
+    truth = unknowns.to_values(truth_u)
+    started = time.process_time()
+    observations = launch_truth(parameters, unknowns, truth, matrix, TRUTH_SEED + 1000 * number)
+    readings = characterise_truth(parameters, unknowns, truth, rng)
+    cpu = time.process_time() - started
+    if path:
+        with open(path, "w", encoding="utf-8") as stream:
+            json.dump({"truth_u": truth_u.tolist(), "slides": list(readings.slide_angles_deg),
+                       "rollouts": [[r.surface, r.speed_mps, r.distance_m] for r in readings.rollouts],
+                       "observations": [[o.configuration, o.height_m, o.speed_mps, o.angle_deg, o.upright,
+                                         [o.outcomes[k] for k in learnt.OUTCOMES]] for o in observations]}, stream)
+    return truth_u, observations, readings, cpu
+
+
+def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, temperature, cache, walkers=16,
+                    start_draws=500, outcomes=None, rollouts=True):
+    """One truth of step 3 in a worker process: its data (:func:`truth_data`), then the posterior of every
+    unknown. Returns a dict: the truth, the normalised samples, times, and the learnt P(upright) at the truth of
+    each launch."""
+    truth_u, observations, readings, simulated_cpu = truth_data(parameters, unknowns, matrix, number, cache)
+    started, cpu = time.perf_counter(), time.process_time()
+    if not rollouts:
+        readings = dataclasses.replace(readings, rollouts=())
+    extra = sampling.characterisation_term(
+        readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)), unknowns)
+    posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1, steps=steps,
+                                          temperature=temperature, walkers=walkers, start_draws=start_draws,
+                                          outcomes=outcomes)
+    truth = unknowns.to_values(truth_u)
+    predicted = [float(likelihood.predict_upright_probability(
+        truth[None, :], o.configuration, (o.height_m, o.speed_mps, o.angle_deg))[0]) for o in observations]
+    return {"truth_u": truth_u, "normalised": posterior.normalised, "wall_s": time.perf_counter() - started,
+            "cpu_s": time.process_time() - cpu, "simulated_cpu_s": simulated_cpu, "launches": len(observations),
+            "predicted": predicted, "observed": [o.upright for o in observations], "load": os.getloadavg()[0]}
+
+
 def coverage(likelihood, parameters, unknowns, matrix, args, pool):
-    """Step 3 (module docstring); returns the first truth, its observations and characterisation."""
-    rng = np.random.default_rng(TRUTH_SEED)
+    """Step 3 (module docstring), the truths calibrated in ``pool``'s workers; returns the first truth
+    calibrated, its observations and characterisation (for the CLI check)."""
     d = len(unknowns.names)
-    hits, split = np.zeros(d), 0
+    hits = np.zeros(d)
+    split = 0
     widths: list = [[] for _ in range(d)]
     ranks: list = [[] for _ in range(d)]
-    times: list = []
-    predicted: list = []
-    observed: list = []
-    first = None
-    for number in range(args.truths):
-        truth_u = rng.uniform(size=d)
+    walls, cpus, simulated, predicted, observed = [], [], [], [], []
+    started = time.perf_counter()
+    count = args.truths
+    # the truths whose launches an earlier run kept come first (their calibrations start at once)
+    order = sorted(range(count), key=lambda n: not os.path.exists(os.path.join(args.cache, f"truth-{n}.json")))
+    jobs = pool.map(calibrate_truth, [likelihood] * count, [parameters] * count, [unknowns] * count,
+                    [matrix] * count, order, [args.steps] * count, [args.temperature] * count,
+                    [args.cache] * count, [args.walkers] * count, [args.start_draws] * count,
+                    [args.outcome_names] * count, [not args.no_rollouts] * count)
+    for done, (number, result) in enumerate(zip(order, jobs)):
+        truth_u = result["truth_u"]
         truth = unknowns.to_values(truth_u)
-        started = time.perf_counter()
-        observations = launch_truth(parameters, unknowns, truth, matrix, TRUTH_SEED + 1000 * number, pool)
-        bench_readings = characterise_truth(parameters, unknowns, truth, rng)
-        simulated_s = time.perf_counter() - started
-        started = time.perf_counter()
-        extra = sampling.characterisation_term(bench_readings, launch_twin_settings_from_parameters(parameters),
-                                               unknowns)
-        posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1,
-                                            steps=args.steps)
-        times.append(time.perf_counter() - started)
-        if first is None:
-            first = (truth, observations, bench_readings)
-        for o in observations:
-            predicted.append(float(likelihood.predict_upright_probability(
-                truth[None, :], o.configuration, (o.height_m, o.speed_mps, o.angle_deg))[0]))
-            observed.append(o.upright)
+        walls.append(result["wall_s"])
+        cpus.append(result["cpu_s"])
+        simulated.append(result["simulated_cpu_s"])
+        predicted += result["predicted"]
+        observed += result["observed"]
         parts = []
         for i, name in enumerate(unknowns.names):
-            sets = sampling.credible_set(posterior.normalised[:, i])
+            sets = sampling.credible_set(result["normalised"][:, i])
             inside = any(lo <= truth_u[i] <= hi for lo, hi in sets)
             hits[i] += inside
             widths[i].append(sum(hi - lo for lo, hi in sets))
             split += len(sets) > 1
-            thinned = posterior.normalised[:: max(1, len(posterior.normalised) // 99), i][:99]
+            thinned = result["normalised"][:: max(1, len(result["normalised"]) // 99), i][:99]
             ranks[i].append(int(np.sum(thinned < truth_u[i])))
+            shown = [(float(learnt.values_one(unknowns, i, lo)), float(learnt.values_one(unknowns, i, hi)))
+                     for lo, hi in sets]
             parts.append(f"{name.split('.')[-1]} {truth[i]:.4g} {'in' if inside else 'OUT'} "
-                         f"{sampling.format_set(posterior.credible_set(name))}")
-        print(f"truth {number + 1}/{args.truths}: {len(observations)} valid launches ({simulated_s:.0f} s simulated), "
-              f"calibration {times[-1]:.1f} s [{load()}]; " + "; ".join(parts), flush=True)
-    n = args.truths
-    print(f"calibration of {d} unknowns from the paper's {len(matrix)} launches plus characterisation: median "
-          f"{np.median(times):.1f} s, max {max(times):.1f} s over {n} truths (target <= 180 s) [{load()}]")
+                         f"{sampling.format_set(shown)}")
+        print(f"truth {number} ({done + 1} of {count}): {result['launches']} valid launches (simulated in "
+              f"{result['simulated_cpu_s']:.0f} CPU s), calibration {result['wall_s']:.1f} s wall, "
+              f"{result['cpu_s']:.1f} CPU s [worker's load {result['load']:.1f}]; " + "; ".join(parts)
+              + f"; so far covered {', '.join(str(int(h)) for h in hits)} of {done + 1}", flush=True)
+    n = count
+    print(f"{n} truths in {time.perf_counter() - started:.0f} s wall on {args.workers} workers [{load()}]")
+    print(f"calibration of {d} unknowns from the paper's {len(matrix)} launches plus characterisation "
+          f"(outcomes: {args.outcomes}; {likelihood.ensemble_size} members x {args.walkers} walkers x {args.steps} "
+          f"sampler steps, temperature "
+          f"{likelihood.temperature if args.temperature is None else args.temperature:g}): median "
+          f"{np.median(walls):.1f} s wall ({np.median(cpus):.1f} CPU s), max {max(walls):.1f} s wall over {n} truths "
+          f"(target <= 180 s); simulating a truth's launches {np.median(simulated):.0f} CPU s (median)")
     for i, name in enumerate(unknowns.names):
         print(f"coverage {name}: {int(hits[i])}/{n} = {hits[i] / n:.0%} of the 95% sets hold the truth (target >= "
               f"90%); width median {np.median(widths[i]):.0%}, max {max(widths[i]):.0%} of the range "
               f"({'log' if unknowns.log_scale[i] else 'linear'} scale; target < 25%); SBC rank chi-squared p = "
-              f"{rank_p_value(ranks[i], 99):.2f}")
+              f"{rank_p_value(ranks[i], 99):.2f}; ranks per fifth {np.histogram(ranks[i], 5, (0, 100))[0].tolist()}")
     print(f"split 95% sets (printed as unions, never as the hull): {split} of {n * d}")
     p, y = np.array(predicted), np.array(observed, dtype=float)
     base = y.mean()
     print(f"learnt P(upright) on these {len(y)} fresh launches at their truths: Brier {np.mean((p - y) ** 2):.4f} "
           f"(constant {np.mean((base - y) ** 2):.4f}); log loss "
-          f"{-np.mean(y * np.log(p) + (1 - y) * np.log1p(-p)):.4f}; predicted mean {p.mean():.3f} vs observed "
-          f"{base:.3f}")
-    return first
+          f"{-np.mean(y * np.log(p) + (1 - y) * np.log1p(-p)):.4f} (constant "
+          f"{-np.mean(y * np.log(base) + (1 - y) * np.log1p(-base)):.4f}); predicted mean {p.mean():.3f} vs "
+          f"observed {base:.3f}")
+    table = learning.reliability(p, y)
+    print("reliability on them (deciles of the predicted P: predicted / observed / launches): "
+          + ", ".join(f"{a:.2f}/{b:.2f}/{c}" for a, b, c in table))
+    truth_u, observations, readings, _ = truth_data(parameters, unknowns, matrix, order[0], args.cache)
+    return unknowns.to_values(truth_u), observations, readings
 
 
 def write_csv(observations, path):
@@ -248,7 +327,7 @@ def write_csv(observations, path):
     write_outcome_csv(path, outcomes)
 
 
-def cli_check(likelihood_path, first, unknowns, folder, parameters):
+def cli_check(likelihood_path, first, unknowns, folder, parameters, args):
     """Step 4 (module docstring)."""
     import yaml
 
@@ -261,7 +340,8 @@ def cli_check(likelihood_path, first, unknowns, folder, parameters):
 
     with open(config, "w", encoding="utf-8") as stream:   # the designs, and the truth's other unknowns as known
         yaml.safe_dump({"/**": {"ros__parameters": section({
-            **fixed, "launch_twin.designs.mesh_labels": list(parameters["launch_twin.designs.mesh_labels"]),
+            **fixed, "sim.engine": parameters["sim.engine"],
+            "launch_twin.designs.mesh_labels": list(parameters["launch_twin.designs.mesh_labels"]),
             "launch_twin.designs.mesh_files": list(parameters["launch_twin.designs.mesh_files"])}, "")}}, stream)
     slide = os.path.join(folder, "slide.yaml")
     with open(slide, "w", encoding="utf-8") as stream:
@@ -272,6 +352,7 @@ def cli_check(likelihood_path, first, unknowns, folder, parameters):
         out = os.path.join(folder, f"cli-{len(extra)}")
         command = [sys.executable, "-m", "rollability_ros.cli", "calibrate", "--physical", csv_path, "--run", "truth",
                    "--likelihood", likelihood_path, "--config", config, "--out", out,
+                   *(["--temperature", str(args.temperature)] if args.temperature is not None else []),
                    *[arg for name in CLI_UNKNOWNS for arg in ("--fit", name)], *extra]
         started = time.perf_counter()
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))   # this checkout, as the bench imports
@@ -298,76 +379,79 @@ def cli_check(likelihood_path, first, unknowns, folder, parameters):
 
 
 def reoptimize(likelihood, parameters, unknowns, first, args, folder):
-    """Step 5 (module docstring): calibrate on the first truth, optimise on both twins, validate on the truth."""
-    import yaml
-
-    from bench.bench_objective import CAMPAIGN, optimize, report_difference
-    from rollability_ros.core.sim import evaluation
+    """Step 5 (module docstring): calibrate on the first truth, then bench_recalibrate's optimisation on both twins
+    and validation on the truth."""
+    from bench.bench_recalibrate import reoptimise_and_validate
 
     truth, observations, bench_readings = first
-    extra = sampling.characterisation_term(bench_readings, launch_twin_settings_from_parameters(parameters), unknowns)
-    posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=7, steps=args.steps)
+    extra = sampling.characterisation_term(
+        bench_readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)), unknowns)
+    posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=7, steps=args.steps,
+                                          temperature=args.temperature)
     fitted = {name: posterior.median(name) for name in unknowns.names}
-    files = {}
-    for label, values in (("calibrated", fitted), ("truth", dict(zip(unknowns.names, map(float, truth))))):
-        files[label] = os.path.join(folder, f"{label}.yaml")
-        with open(files[label], "w", encoding="utf-8") as stream:
-            yaml.safe_dump(calibration.calibrated_parameter_document(values), stream)
-    campaign_file = os.path.join(folder, "campaign.yaml")
-    with open(campaign_file, "w", encoding="utf-8") as stream:
-        yaml.safe_dump(CAMPAIGN, stream)
-    options = argparse.Namespace(popsize=8, sigma0=0.1, generations=args.reoptimize_generations, trials=24,
-                                 screen=16)
-    scores = {}
-    with evaluation.make_executor(evaluation.EvaluatorOptions(workers=args.workers)) as executor:
-        for label, twin in (("uncalibrated", calibration.TWIN_CONFIGS),
-                            ("calibrated", (*calibration.TWIN_CONFIGS, files["calibrated"]))):
-            started = time.perf_counter()
-            heights, run_settings = optimize(os.path.join(folder, f"run-{label}"), twin, campaign_file, options,
-                                             args.reoptimize_seed, executor)
-            on_truth = dataclasses.replace(run_settings, objective=evaluation.ObjectiveSettings(
-                kind="launch_twin", campaign_config=[campaign_file],
-                twin_config=[*calibration.TWIN_CONFIGS, files["truth"]]))
-            result = evaluation.evaluate_profile(heights, args.validate, 987_654_321, on_truth, executor)
-            scores[label] = (result.successes, result.trials)
-            print(f"{label}-twin design on the truth: {result.successes}/{result.trials} "
-                  f"[{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
-    report_difference("calibrate -> re-optimise -> validate on the first truth: ", scores["calibrated"],
-                      scores["uncalibrated"])
+    options = argparse.Namespace(popsize=8, generations=args.reoptimize_generations, trials=24, screen=16,
+                                 optimizer_seed=args.reoptimize_seed, validate=args.validate, workers=args.workers)
+    reoptimise_and_validate(options, unknowns, truth, fitted, folder)
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--prepare-launches", type=int, default=8000, help="twin launches of the preparation")
+    parser.add_argument("--members", type=int, default=learnt.MEMBERS, help="networks of the ensemble")
     parser.add_argument("--truths", type=int, default=50, help="hidden truths of the coverage (>= 50 for the claim)")
-    parser.add_argument("--steps", type=int, default=600, help="sampler steps per calibration")
+    parser.add_argument("--steps", type=int, default=200, help="sampler steps per calibration and ensemble member")
+    parser.add_argument("--walkers", type=int, default=16, help="sampler walkers per ensemble member")
+    parser.add_argument("--start-draws", type=int, default=500,
+                        help="prior draws the best walkers start from, per member")
+    parser.add_argument("--outcomes", default="all",
+                        help="continuous outcomes the calibrations use: all, none (the verdicts and the "
+                        "characterisation alone) or names of likelihood.OUTCOMES, comma-separated")
+    parser.add_argument("--no-rollouts", action="store_true",
+                        help="leave the roll-outs out of the calibrations (the slide angles stay)")
+    parser.add_argument("--temperature", type=float, help="the launches' log-likelihood exponent (default: the "
+                        "prepared file's)")
+    parser.add_argument("--engine", default="mujoco", choices=("mujoco", "pybullet"),
+                        help="the twin's engine (sim.engine) for the preparation and the truths")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--likelihood", help="a prepared likelihood file to load instead of preparing")
-    parser.add_argument("--keep", help="folder to keep the prepared likelihood and the designs in")
+    parser.add_argument("--keep", help="folder to keep the prepared likelihood, the designs and the truths' "
+                        "simulated launches in (a re-run with the same folder reuses them)")
     parser.add_argument("--skip-cli", action="store_true")
+    parser.add_argument("--skip-adaptive", action="store_true")
     parser.add_argument("--skip-reoptimize", action="store_true")
     parser.add_argument("--reoptimize-generations", type=int, default=15)
     parser.add_argument("--reoptimize-seed", type=int, default=3)
     parser.add_argument("--validate", type=int, default=96, help="launches per design on the truth")
     parser.add_argument("--smoke", action="store_true", help="every step at a tiny size (the numbers mean nothing): "
-                        "240 training launches, 2 truths of 20 launches, 20 sampler steps, no re-optimisation")
+                        "240 training launches, 2 ensemble members, 2 truths, 20 sampler steps, no re-optimisation")
     args = parser.parse_args(argv)
+    args.outcome_names = (None if args.outcomes == "all" else () if args.outcomes == "none"
+                          else tuple(args.outcomes.split(",")))
+    unknown = set(args.outcome_names or ()) - set(learnt.OUTCOMES)
+    if unknown:
+        parser.error(f"--outcomes: unknown {sorted(unknown)} (known: {', '.join(learnt.OUTCOMES)})")
     if args.smoke:
-        args.prepare_launches, args.truths, args.steps, args.skip_reoptimize = 240, 2, 20, True
+        args.prepare_launches, args.members, args.truths, args.steps = 240, 2, 2, 20
+        args.skip_reoptimize, args.adaptive_samples = True, 200
+    else:
+        args.adaptive_samples = 4000
     from rollability_ros.core.sim import spawn_pool
 
     with tempfile.TemporaryDirectory() as scratch:
         folder = args.keep or scratch
         os.makedirs(folder, exist_ok=True)
+        args.cache = folder
         parameters, unknowns, configurations = bench_parameters(folder)
+        parameters["sim.engine"] = args.engine
         levels, matrix = paper_matrix(configurations)
         if args.smoke:
             matrix = matrix[::20]
         fingerprint = learnt.twin_fingerprint(parameters, unknowns.names)
+        print(f"the {args.engine} twin (simulated throughout); unknowns {', '.join(unknowns.names)}", flush=True)
         pool = spawn_pool(args.workers)
         try:
             path = args.likelihood or os.path.join(folder, "likelihood.npz")
-            if args.likelihood:
+            if args.likelihood or os.path.exists(path):
                 likelihood = learnt.load_likelihood(path)
                 if likelihood.fingerprint != fingerprint or likelihood.unknowns != unknowns:
                     raise SystemExit(f"{path}: prepared for another twin, design set or unknowns' bounds")
@@ -378,22 +462,25 @@ def main(argv=None):
                                                         configurations, levels, args.prepare_launches, PREPARE_SEED,
                                                         pool)
                 simulated = time.perf_counter() - started
-                likelihood = learnt.learn(training, unknowns, configurations, levels, fingerprint, on_progress=print)
+                print(f"preparation: {args.prepare_launches} launches simulated in {simulated:.0f} s wall "
+                      f"({simulated / args.prepare_launches * 1000 * args.workers:.0f} ms per launch per worker) "
+                      f"[{load()}]", flush=True)
+                likelihood = learning.learn(training, unknowns, configurations, levels, fingerprint, on_progress=print,
+                                          members=args.members, pool=pool)
                 likelihood.info["prepare_s"] = time.perf_counter() - started
                 likelihood.save(path)
-                print(f"preparation: {args.prepare_launches} launches in {simulated:.0f} s "
-                      f"({simulated / args.prepare_launches * 1000 * args.workers:.0f} ms per launch per worker), "
-                      f"learning {time.perf_counter() - started - simulated:.0f} s; total "
-                      f"{time.perf_counter() - started:.0f} s on {args.workers} workers (target <= 900 s) [{load()}]",
-                      flush=True)
+                print(f"preparation: learning {time.perf_counter() - started - simulated:.0f} s wall; total "
+                      f"{time.perf_counter() - started:.0f} s wall on {args.workers} workers (target <= 900 s) "
+                      f"[{load()}]", flush=True)
             first = coverage(likelihood, parameters, unknowns, matrix, args, pool)
-            rng = np.random.default_rng(TRUTH_SEED)
-            adaptive_comparison(likelihood, unknowns.to_values(rng.uniform(size=(args.truths, len(unknowns.names)))),
-                                configurations, levels)
+            if not args.skip_adaptive:
+                rng = np.random.default_rng(TRUTH_SEED)
+                adaptive_comparison(likelihood, unknowns.to_values(rng.uniform(size=(args.truths, len(unknowns.names)))),
+                                    configurations, levels, args.adaptive_samples)
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
         if not args.skip_cli:
-            cli_check(path, first, unknowns, folder, parameters)
+            cli_check(path, first, unknowns, folder, parameters, args)
         if not args.skip_reoptimize:
             reoptimize(likelihood, parameters, unknowns, first, args, folder)
     return 0

@@ -62,7 +62,10 @@ def prepared(args, parameters, unknowns, configurations, levels, folder, pool):
 
     training = learnt.simulate_training_set(launch_twin_settings_from_parameters(parameters), unknowns, configurations,
                                             levels, args.prepare_launches, PREPARE_SEED, pool)
-    likelihood = learnt.learn(training, unknowns, configurations, levels, fingerprint, on_progress=print)
+    from rollability_ros.core.campaign import likelihood_learning
+
+    likelihood = likelihood_learning.learn(training, unknowns, configurations, levels, fingerprint, on_progress=print,
+                                           pool=pool)
     path = os.path.join(folder, f"likelihood-{args.prepare_launches}.npz")
     likelihood.save(path)
     print(f"prepared {path}: {args.prepare_launches} launches and learning in {time.perf_counter() - started:.0f} s "
@@ -72,18 +75,19 @@ def prepared(args, parameters, unknowns, configurations, levels, folder, pool):
 
 def calibrated_values(likelihood, parameters, unknowns, truth, matrix, seed, steps, pool, rng):
     """Steps 3 and 4: the truth's launches and characterisation, the posterior, each unknown's median."""
-    from bench.bench_calibration import characterise_truth, launch_truth
+    from bench.bench_calibration import characterise_truth, launch_truth, rollout_parameters
     from rollability_ros.core.campaign import posterior as sampling
 
     started = time.perf_counter()
-    observations = launch_truth(parameters, unknowns, truth, matrix, seed, pool)
+    observations = launch_truth(parameters, unknowns, truth, matrix, seed)
     readings = characterise_truth(parameters, unknowns, truth, rng)
     print(f"the truth's {len(matrix)} launches ({len(observations)} valid) and characterisation simulated in "
           f"{time.perf_counter() - started:.0f} s [{load()}]", flush=True)
     started = time.perf_counter()
     from rollability_ros.core.sim import launch_twin_settings_from_parameters
 
-    extra = sampling.characterisation_term(readings, launch_twin_settings_from_parameters(parameters), unknowns)
+    extra = sampling.characterisation_term(readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)),
+                                           unknowns)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=seed % 1000 + 1, steps=steps)
     fitted = {name: posterior.median(name) for name in unknowns.names}
     print(f"calibration of {len(unknowns.names)} unknowns: {time.perf_counter() - started:.0f} s [{load()}]")

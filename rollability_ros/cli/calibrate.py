@@ -115,11 +115,11 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
             if done == total or done % 1000 < 25:
                 print(f"  {done}/{total} launches, {time.perf_counter() - started:.0f} s", flush=True)
         training = simulate_training_set(twin, unknowns, configurations, levels,
-                                                args.prepare_launches, settings.seed, pool, on_progress=progress)
+                                         args.prepare_launches, settings.seed, pool, on_progress=progress)
+        likelihood = learn(training, unknowns, configurations, levels, fingerprint, settings.seed,
+                           on_progress=print, pool=pool)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    likelihood = learn(training, unknowns, configurations, levels, fingerprint, settings.seed,
-                              on_progress=print)
     likelihood.info["prepare_s"] = time.perf_counter() - started
     likelihood.save(args.prepare)
     print(f"prepared likelihood: {args.prepare} ({likelihood.info['prepare_s']:.0f} s on {workers} workers)")
@@ -150,7 +150,7 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     extra = (characterisation_term(characterisation, twin, unknowns)
              if characterisation is not None else None)
     posterior = sample_posterior(likelihood, observations, sampled, fixed, extra, seed=args.seed,
-                                        steps=args.sampler_steps)
+                                 steps=args.sampler_steps, temperature=args.temperature)
     fitted = posterior.best()
     method = "highest-density set of the learnt likelihood's posterior"
     params_path = _write_outputs(args, sources, f"credible set ({method})", fitted)
@@ -179,7 +179,8 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     if condition_rows:
         _write_csv(os.path.join(args.out, "conditions.csv"), condition_rows)
     lines = [f"physical launches: {len(observations)} valid; posterior of {len(sampled)} unknown(s) from the prepared "
-             f"likelihood {args.likelihood} ({len(posterior.samples)} samples, {posterior.wall_s:.1f} s)"
+             f"likelihood {args.likelihood} ({len(posterior.samples)} samples pooled over its "
+             f"{likelihood.ensemble_size} ensemble members, {posterior.wall_s:.1f} s)"
              + (f"; held at their loaded values: {', '.join(f'{n} = {v:.4g}' for n, v in fixed.items())}"
                 if fixed else ""),
              f"{'parameter':<42} {'start':>10} {'fitted':>10}   95% set (a split set is a union of intervals)"]
@@ -203,6 +204,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.prepare and args.likelihood:
         raise ValueError("give --prepare FILE (learn a likelihood) or --likelihood FILE (calibrate with one), not both")
+    if args.temperature is not None and not args.likelihood:
+        raise ValueError("--temperature tempers a prepared likelihood: give it with --likelihood FILE")
     if not args.prepare:
         check_output_dir(args.out, "--out", keeps=("calibrated.yaml", RIG_FILE))   # before minutes of fitting
     check_given_files(args.config, {*TWIN_SECTIONS, "calibration", "stable_poses", "campaign"}, "rollability calibrate")
@@ -299,6 +302,11 @@ def register(subparsers: Subparsers) -> None:
                              "ones): the posterior of the --fit unknowns, the file's others held at their loaded "
                              "values")
     parser.add_argument("--seed", type=int, default=1, help="seed of the posterior sampler (--likelihood)")
-    parser.add_argument("--sampler-steps", type=int, default=600, metavar="N",
-                        help="steps of the posterior sampler (--likelihood; the first half is discarded; >= 20)")
+    parser.add_argument("--sampler-steps", type=int, default=300, metavar="N",
+                        help="steps of the posterior sampler per ensemble member (--likelihood; the first half is "
+                             "discarded; >= 20)")
+    parser.add_argument("--temperature", type=float, metavar="T",
+                        help="raise the launches' learnt log-likelihood to T in (0, 1] (--likelihood; default: the "
+                             "file's, 1 unless set): below 1 widens the sets for an emulator less accurate than "
+                             "its ensemble says (docs/calibration.md)")
     parser.set_defaults(func=run)

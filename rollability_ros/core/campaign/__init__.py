@@ -5,7 +5,8 @@
 - terminal: the operator's prompt that another place (the rig CLI) can answer first
 - calibration: fit the launch twin's uncertain parameters to physical outcomes
 - characterisation: bench readings taken before a campaign (docs/characterisation.md) and their likelihood
-- likelihood: the twin's likelihood learnt once per robot and design set, and its file
+- likelihood: the twin's likelihood learnt once per robot and design set, its training launches and its file
+- likelihood_learning: the likelihood's ensemble of networks learnt from the training launches (scikit-learn)
 - posterior: the posterior of a learnt likelihood's unknowns and its 95% sets
 - adaptive: which launch next (BALD over weighted samples of the unknowns, behind an UprightPredictor protocol)
 - learnt_plan: which launch next from a learnt likelihood, its verdicts and continuous outcomes

@@ -8,8 +8,9 @@ from .calibration import (TWIN_CONFIGS, CalibrationResult, CalibrationSettings, 
                           twin_settings_with)
 from .characterisation import load_characterisation
 from .learnt_plan import LearntTable, OutcomePosterior
-from .likelihood import (ConditionLevels, LearntLikelihood, Observation, learn, load_likelihood,
+from .likelihood import (ConditionLevels, LearntLikelihood, Observation, load_likelihood,
                          observations_from_outcomes, simulate_training_set, twin_fingerprint)
+from .likelihood_learning import learn
 from .plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
 from .posterior import Posterior, characterisation_term, credible_set, format_set, sample_posterior
 from .sequential import comparison_stop_rule, paired_order

@@ -292,7 +292,7 @@ class WeightedPosterior:
         self._after_observing()
 
     def observe_launch(self, index: int, upright: bool, values: typing.Optional[npt.ArrayLike] = None) -> None:
-        """One launch at candidate ``index``; ``values``, the continuous outcomes of a likelihood that has them
+        """One launch at candidate ``index``; ``values`` (o,), the continuous outcomes of a likelihood that has them
         (:class:`~rollability_ros.core.campaign.learnt_plan.OutcomePosterior`), are not used by the verdict's."""
         self.observe(index, upright)
 

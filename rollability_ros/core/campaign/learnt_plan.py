@@ -247,7 +247,8 @@ class OutcomePosterior(WeightedPosterior):
         return self._estimated_scores(None)
 
     def group_scores(self, groups: npt.ArrayLike) -> np.ndarray:
-        """:meth:`WeightedPosterior.group_scores` over verdict and outcomes (estimated as :meth:`scores`)."""
+        """:meth:`WeightedPosterior.group_scores` over verdict and outcomes (estimated as :meth:`scores`): ``groups``
+        (s,), one group per sample; scores (c,), one per candidate."""
         if not self.table.outcomes:
             return super().group_scores(groups)
         return self._estimated_scores(np.asarray(groups))

@@ -59,7 +59,7 @@ if typing.TYPE_CHECKING:
     from rollability_ros.core.sim import LaunchTwinSettings
 
 #: ``format`` of a prepared likelihood file; a file of another format is refused.
-FORMAT = "rollability-learnt-likelihood-1"
+FORMAT = "rollability-learnt-likelihood-2"
 #: Continuous outcomes of one launch, in this order (NaN: not measured). ``measured_speed_mps``: the speed gate's
 #: reading; ``final_tilt_deg``: the final tilt from upright (IMU); ``peak_deceleration_mps2``: the landing's peak
 #: (IMU); ``time_to_rest_s``: from the first landing until at rest; ``rest_distance_m``: where it came to rest,
@@ -78,6 +78,10 @@ LOG_CHI2_MEAN = -1.2703628454614782
 PROBABILITY_FLOOR = 0.005
 #: Hidden layers of every network.
 HIDDEN = (64, 64)
+#: Networks of the ensemble (verdict classifier and outcome locations, each on its own resample of the training
+#: launches with its own seed): their disagreement is the emulator's error the posterior carries
+#: (:func:`~rollability_ros.core.campaign.posterior.sample_posterior` pools one posterior per member).
+MEMBERS = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -225,6 +229,16 @@ class Arranged:
     values: np.ndarray
 
 
+@dataclasses.dataclass(frozen=True)
+class Member:
+    """A further member of the ensemble: its verdict classifier's layers (``upright``) and its outcome locations'
+    (``location``, the same outcomes as the first member's); the scales are shared (learnt from the first
+    member's cross-fitted residuals, so they hold a location network's error at launches it did not see)."""
+
+    upright: "Layers"
+    location: typing.Dict[str, "Layers"]
+
+
 @dataclasses.dataclass
 class LearntLikelihood:
     """A prepared likelihood (module docstring): the networks and what they were learnt on.
@@ -233,7 +247,10 @@ class LearntLikelihood:
     the regressors' layers (input: the features plus the verdict), or absent when the training launches never
     measured it. ``feature_mean`` / ``feature_std`` (f,) standardise the features (unknowns, one-hot
     configuration, condition) before every network. ``info``: the training counts, timings and the held-out
-    accuracy (written to the file's header).
+    accuracy (written to the file's header). ``members``: the ensemble's further members (:class:`Member`;
+    :data:`MEMBERS` - 1 when learnt by :func:`learn`); the first member is ``upright`` / ``location``.
+    ``temperature``: the launches' log-likelihood is multiplied by it in the posterior (1: as learnt; below 1
+    widens the sets, for an emulator whose error the ensemble does not hold; written to the file).
     """
 
     unknowns: Unknowns
@@ -246,6 +263,19 @@ class LearntLikelihood:
     location: typing.Dict[str, Layers]
     scale: typing.Dict[str, Layers]
     info: typing.Dict[str, typing.Any] = dataclasses.field(default_factory=dict)
+    members: typing.Tuple[Member, ...] = ()
+    temperature: float = 1.0
+
+    @property
+    def ensemble_size(self) -> int:
+        """Networks of the ensemble (the first member and :attr:`members`)."""
+        return 1 + len(self.members)
+
+    def member(self, index: int) -> Member:
+        """Member ``index`` of the ensemble (0: the first, ``upright`` / ``location``)."""
+        if not 0 <= index < self.ensemble_size:
+            raise ValueError(f"member {index} of an ensemble of {self.ensemble_size}")
+        return Member(self.upright, self.location) if index == 0 else self.members[index - 1]
 
     # ---- features -----------------------------------------------------------------------------------------
     def features(self, normalised: np.ndarray, configuration: str, height_m: float, speed_mps: float,
@@ -266,14 +296,17 @@ class LearntLikelihood:
     def predict_upright_probability(self, theta_samples: npt.ArrayLike, design: str,
                                     condition: typing.Tuple[float, float, float]) -> np.ndarray:
         """P(upright) (s,) of one launch of configuration ``design`` at ``condition`` (height m, speed m/s,
-        angle deg) under each parameter set of ``theta_samples`` (s, d) (own units, :attr:`unknowns` order)."""
+        angle deg) under each parameter set of ``theta_samples`` (s, d) (own units, :attr:`unknowns` order): the
+        mean of the ensemble's members."""
         normalised = self.unknowns.to_normalised(np.atleast_2d(np.asarray(theta_samples, dtype=np.float64)))
         return self._upright_probability(normalised, design, *condition)
 
     def _upright_probability(self, normalised: np.ndarray, design: str, height_m: float, speed_mps: float,
                              angle_deg: float) -> np.ndarray:
-        logit = _forward(self.upright, self.features(normalised, design, height_m, speed_mps, angle_deg))[:, 0]
-        return np.clip(1.0 / (1.0 + np.exp(-logit)), PROBABILITY_FLOOR, 1.0 - PROBABILITY_FLOOR)
+        features = self.features(normalised, design, height_m, speed_mps, angle_deg)
+        probabilities = [1.0 / (1.0 + np.exp(-_forward(self.member(k).upright, features)[:, 0]))
+                         for k in range(self.ensemble_size)]
+        return np.clip(np.mean(probabilities, axis=0), PROBABILITY_FLOOR, 1.0 - PROBABILITY_FLOOR)
 
     def arrange(self, observations: typing.Sequence[Observation],
                 outcomes: typing.Optional[typing.Sequence[str]] = None) -> "Arranged":
@@ -303,17 +336,24 @@ class LearntLikelihood:
 
     def log_likelihood(self, normalised: npt.ArrayLike,
                        observations: typing.Union[typing.Sequence[Observation], "Arranged"],
-                       outcomes: typing.Optional[typing.Sequence[str]] = None) -> np.ndarray:
+                       outcomes: typing.Optional[typing.Sequence[str]] = None,
+                       member: typing.Optional[int] = None) -> np.ndarray:
         """log P(observations | unknowns) (s,) for normalised unknowns (s, d): the verdicts' binomial terms plus
-        each measured outcome's Student-t (module docstring). ``observations`` may be an :meth:`arrange` result
-        (made once, evaluated many times: the sampler's case); ``outcomes`` as in :meth:`arrange`."""
+        each measured outcome's Student-t (module docstring), under ensemble member ``member``, or (None) the
+        log of the members' mean likelihood. ``observations`` may be an :meth:`arrange` result (made once,
+        evaluated many times: the sampler's case); ``outcomes`` as in :meth:`arrange`. Not tempered."""
         arranged = observations if isinstance(observations, Arranged) else self.arrange(observations, outcomes)
         u = np.atleast_2d(np.asarray(normalised, dtype=np.float64))
+        if member is None:
+            each = np.array([self.log_likelihood(u, arranged, member=k) for k in range(self.ensemble_size)])
+            top = each.max(axis=0)
+            return top + np.log(np.mean(np.exp(each - top), axis=0))
         if not arranged.keys:
             return np.zeros(u.shape[0])
+        networks = self.member(member)
         d = len(self.unknowns.names)
         theta = (u - self.feature_mean[:d]) / self.feature_std[:d]
-        logit = _forward_split(self.upright, theta, arranged.rest)                       # (s, G)
+        logit = _forward_split(networks.upright, theta, arranged.rest)                   # (s, G)
         p = np.clip(1.0 / (1.0 + np.exp(-logit)), PROBABILITY_FLOOR, 1.0 - PROBABILITY_FLOOR)
         total = (arranged.successes * np.log(p) + (arranged.trials - arranged.successes) * np.log1p(-p)).sum(axis=1)
         if not arranged.outcomes:
@@ -324,7 +364,7 @@ class LearntLikelihood:
             values = arranged.values[j]                                                   # (G, 2, slots)
             if not np.isfinite(values).any():
                 continue
-            location = _forward_split(self.location[name], theta, verdict).reshape(len(u), -1, 2)
+            location = _forward_split(networks.location[name], theta, verdict).reshape(len(u), -1, 2)
             variance = np.exp(np.clip(_forward_split(self.scale[name], theta, verdict) - LOG_CHI2_MEAN, -30.0, 30.0))
             scale = np.sqrt(variance * (STUDENT_DF - 2.0) / STUDENT_DF).reshape(len(u), -1, 2)
             density = _student_t_log_pdf(values[None], location[..., None], scale[..., None])  # (s, G, 2, slots)
@@ -337,7 +377,8 @@ class LearntLikelihood:
         return {"format": FORMAT, "unknowns": dataclasses.asdict(self.unknowns),
                 "configurations": list(self.configurations), "levels": dataclasses.asdict(self.levels),
                 "fingerprint": self.fingerprint, "hidden": list(HIDDEN), "outcomes": sorted(self.location),
-                "student_df": STUDENT_DF, "info": self.info}
+                "student_df": STUDENT_DF, "info": self.info, "members": len(self.members),
+                "temperature": self.temperature}
 
     def save(self, path: typing.Union[str, os.PathLike]) -> None:
         """Write the ``.npz`` file (module docstring) atomically (a temporary file renamed over ``path``)."""
@@ -345,7 +386,10 @@ class LearntLikelihood:
             "header": np.array(json.dumps(self.header(), sort_keys=True)),
             "feature_mean": self.feature_mean, "feature_std": self.feature_std}
         for label, layers in (("upright", self.upright), *((f"location.{n}", v) for n, v in self.location.items()),
-                              *((f"scale.{n}", v) for n, v in self.scale.items())):
+                              *((f"scale.{n}", v) for n, v in self.scale.items()),
+                              *((f"member{k + 1}.upright", m.upright) for k, m in enumerate(self.members)),
+                              *((f"member{k + 1}.location.{n}", v) for k, m in enumerate(self.members)
+                                for n, v in m.location.items())):
             for i, (weights, biases) in enumerate(layers):
                 arrays[f"{label}.{i}.w"], arrays[f"{label}.{i}.b"] = weights, biases
         target = os.fspath(path)
@@ -418,10 +462,20 @@ def _load(source: str) -> LearntLikelihood:
         raise ValueError(f"feature scaling must have {features} entries")
     if not np.all(_finite(std, "feature_std") > 0):
         raise ValueError("feature scaling has a zero spread")
+    count = header.get("members", 0)
+    temperature = header.get("temperature", 1.0)
+    if not isinstance(count, int) or not 0 <= count <= 64:
+        raise ValueError(f"members must be a count from 0 to 64, got {count!r}")
+    if not isinstance(temperature, (int, float)) or not 0.0 < float(temperature) <= 1.0:
+        raise ValueError(f"temperature must lie in (0, 1], got {temperature!r}")
+    members = tuple(Member(layers(f"member{k}.upright", features),
+                           {n: layers(f"member{k}.location.{n}", features + 1) for n in outcomes})
+                    for k in range(1, count + 1))
     return LearntLikelihood(unknowns, configurations, levels, str(header["fingerprint"]), _finite(mean, "feature_mean"),
                             std, layers("upright", features),
                             {n: layers(f"location.{n}", features + 1) for n in outcomes},
-                            {n: layers(f"scale.{n}", features + 1) for n in outcomes}, dict(header.get("info", {})))
+                            {n: layers(f"scale.{n}", features + 1) for n in outcomes}, dict(header.get("info", {})),
+                            members, float(temperature))
 
 
 def _finite(array: np.ndarray, label: str) -> np.ndarray:
@@ -529,75 +583,3 @@ def simulate_training_set(twin: "LaunchTwinSettings", unknowns: Unknowns,
             on_progress(sum(len(r) for r in rows), launches)
     return TrainingSet(normalised, configuration, condition, np.concatenate(rows) if rows else
                        np.zeros((0, len(ROW))))
-
-
-def _layers_of(model: typing.Any) -> Layers:
-    return [(np.asarray(w, dtype=np.float64), np.asarray(b, dtype=np.float64))
-            for w, b in zip(model.coefs_, model.intercepts_)]
-
-
-def learn(training: TrainingSet, unknowns: Unknowns, configurations: typing.Sequence[str], levels: ConditionLevels,
-          fingerprint: str, seed: int = 1, holdout_fraction: float = 0.15,
-          on_progress: typing.Optional[typing.Callable[[str], None]] = None) -> LearntLikelihood:
-    """Learn the networks (module docstring) from ``training``'s valid launches; the last ``holdout_fraction`` of
-    them is held out to measure the classifier's accuracy (log loss and Brier score against a constant), recorded
-    in ``info``. scikit-learn is imported here."""
-    neural = require("sklearn.neural_network", feature="preparing a learnt likelihood")
-    say = on_progress or (lambda line: None)
-    valid = training.rows[:, 0] > 0.5
-    n = int(valid.sum())
-    if n < 50:
-        raise ValueError(f"only {n} valid training launches: prepare with more launches")
-    u = training.normalised[valid]
-    onehot = np.eye(len(configurations))[training.configuration[valid]]
-    condition = training.condition[valid]
-    raw = np.concatenate([u, onehot, levels.features(condition[:, 0], condition[:, 1], condition[:, 2])], axis=1)
-    mean, std = raw.mean(axis=0), raw.std(axis=0)
-    std = np.where(std > 1e-9, std, 1.0)
-    x = (raw - mean) / std
-    rows = training.rows[valid]
-    upright = rows[:, 1] > 0.5
-    held = np.arange(n) >= int(round(n * (1.0 - holdout_fraction)))
-    common = {"hidden_layer_sizes": HIDDEN, "activation": "relu", "alpha": 1e-4, "max_iter": 300,
-              "early_stopping": True, "n_iter_no_change": 15, "random_state": seed}
-    classifier = neural.MLPClassifier(**common).fit(x[~held], upright[~held])
-    p = np.clip(classifier.predict_proba(x[held])[:, 1], PROBABILITY_FLOOR, 1 - PROBABILITY_FLOOR)
-    y = upright[held]
-    base = float(np.clip(upright[~held].mean(), PROBABILITY_FLOOR, 1 - PROBABILITY_FLOOR))
-    info: typing.Dict[str, typing.Any] = {
-        "training_launches": int(len(training.rows)), "valid_launches": n, "upright_fraction": float(upright.mean()),
-        "holdout_launches": int(held.sum()),
-        "holdout_log_loss": float(-np.mean(y * np.log(p) + (~y) * np.log1p(-p))),
-        "holdout_log_loss_constant": float(-np.mean(y * math.log(base) + (~y) * math.log1p(-base))),
-        "holdout_brier": float(np.mean((p - y) ** 2)), "holdout_brier_constant": float(np.mean((base - y) ** 2))}
-    say(f"upright classifier: held-out log loss {info['holdout_log_loss']:.3f} (a constant "
-        f"{info['holdout_log_loss_constant']:.3f}), Brier {info['holdout_brier']:.3f}")
-    # the classifier is refitted on every valid launch for the file (the held-out score above measured it)
-    classifier = neural.MLPClassifier(**common).fit(x, upright)
-    logit_layers = _layers_of(classifier)
-    location: typing.Dict[str, Layers] = {}
-    scale: typing.Dict[str, Layers] = {}
-    xv = np.concatenate([x, np.where(upright, 1.0, -1.0)[:, None]], axis=1)
-    for j, name in enumerate(OUTCOMES):
-        target = transform(name, rows[:, 2 + j], condition[:, 1])
-        finite = np.isfinite(target)
-        if finite.sum() < 50:
-            say(f"{name}: {int(finite.sum())} launches measured it: not learnt")
-            continue
-        rows_x, rows_y = xv[finite], target[finite]
-        # the scale learns from cross-fitted residuals (each half predicted by a location net that never saw it),
-        # so it carries the location's error at launches it was not trained on, not only the launches' scatter
-        half = np.arange(len(rows_y)) % 2 == 0
-        residual = np.empty(len(rows_y))
-        for fit_on in (half, ~half):
-            held = neural.MLPRegressor(**common).fit(rows_x[fit_on], rows_y[fit_on])
-            residual[~fit_on] = rows_y[~fit_on] - held.predict(rows_x[~fit_on])
-        regressor = neural.MLPRegressor(**common).fit(rows_x, rows_y)
-        spread = neural.MLPRegressor(**common).fit(rows_x, np.log(residual ** 2 + 1e-12))
-        location[name], scale[name] = _layers_of(regressor), _layers_of(spread)
-        info[f"{name}_launches"] = int(finite.sum())
-        info[f"{name}_residual_sd"] = float(np.std(residual))
-        say(f"{name}: learnt from {int(finite.sum())} launches, cross-fitted residual sd {np.std(residual):.3g} "
-            f"(transformed)")
-    return LearntLikelihood(unknowns, tuple(configurations), levels, fingerprint, mean, std, logit_layers,
-                            location, scale, info)

@@ -183,6 +183,7 @@ def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
                                      np.random.default_rng([seed, t, 2 + plan]))
 
         def launch(index: int, outcome_rng: np.random.Generator, t: int = t) -> typing.Tuple[bool, None]:
+            """Candidate ``index`` launched at truth ``t``: (upright, no outcomes (o,))."""
             return bool(outcome_rng.random() < truth_table[t][index]), None
         results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition))
     return results
@@ -211,6 +212,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
 
         def launch(index: int, outcome_rng: np.random.Generator,
                    t: int = t) -> typing.Tuple[bool, typing.Optional[np.ndarray]]:
+            """Candidate ``index`` launched at hidden truth ``t``: (upright, continuous outcomes (o,) or None)."""
             return table.draw(hidden[t], index, outcome_rng)
         results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition))
         if on_truth is not None:

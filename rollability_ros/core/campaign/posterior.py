@@ -63,11 +63,13 @@ class Posterior:
     index: typing.Tuple[int, ...]
     wall_s: float
     log_density: np.ndarray
+    best_index: typing.Optional[int] = None
 
     def best(self) -> typing.Dict[str, float]:
         """The sample of highest posterior density (own units): the fitted values (inside a split set, where a
-        marginal median might fall in the gap)."""
-        top = int(np.argmax(self.log_density))
+        marginal median might fall in the gap). ``best_index`` when given (the ensemble's: the sample of highest
+        density under the members' mean likelihood), else the highest ``log_density``."""
+        top = int(np.argmax(self.log_density)) if self.best_index is None else self.best_index
         return {name: float(self.samples[top, i]) for i, name in enumerate(self.names)}
 
     def credible_set(self, name: str, mass: float = 0.95) -> typing.List[typing.Tuple[float, float]]:
@@ -128,13 +130,18 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
                      sample: typing.Optional[typing.Sequence[str]] = None,
                      fixed: typing.Optional[typing.Mapping[str, float]] = None,
                      extra: typing.Optional[LogDensity] = None, outcomes: typing.Optional[typing.Sequence[str]] = None,
-                     walkers: int = 32, steps: int = 600, seed: int = 1) -> Posterior:
+                     walkers: int = 32, steps: int = 300, seed: int = 1,
+                     temperature: typing.Optional[float] = None, start_draws: int = 2000) -> Posterior:
     """Posterior samples of the unknowns ``sample`` (default: all of the likelihood's) given ``observations``,
     the others held at ``fixed`` (own units; every unknown not sampled needs a value inside its bounds).
     ``extra``: a log-likelihood (s,) of the full normalised unknowns (s, d) added to the launches' (the
-    characterisation's, :func:`characterisation_term`). Uniform prior on the normalised box; the stretch sampler
-    starts from the best of 2,000 prior draws, discards the first half of ``steps`` and keeps every step after
-    (correlated samples, but more of them: a 50-bin histogram of every 5th step came out in noisy pieces)."""
+    characterisation's, :func:`characterisation_term`). Uniform prior on the normalised box. The emulator's
+    error enters twice: one posterior per ensemble member (each its own stretch sampler of ``walkers`` walkers,
+    started from the best of ``start_draws`` prior draws under that member), pooled with equal weights, so where the members disagree the sets
+    widen; and the launches' log-likelihood is raised to ``temperature`` (default: the file's,
+    :attr:`LearntLikelihood.temperature`). Each sampler discards the first half of ``steps`` and keeps every
+    step after (correlated samples, but more of them: a 50-bin histogram of every 5th step came out in noisy
+    pieces). ``log_density`` of each sample is its own member's."""
     import time
 
     started = time.perf_counter()
@@ -162,38 +169,55 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
         return out
 
     arranged = likelihood.arrange(observations, outcomes)
-
-    def log_density(u: np.ndarray) -> np.ndarray:
-        """Log likelihood (n,) of samples (n, k) of the fitted unknowns, characterisation included."""
-        value = likelihood.log_likelihood(full(u), arranged)
-        return value + extra(full(u)) if extra is not None else value
+    power = likelihood.temperature if temperature is None else float(temperature)
+    if not 0.0 < power <= 1.0:
+        raise ValueError(f"temperature must lie in (0, 1], got {power:g}")
     rng = np.random.default_rng(seed)
     k = len(index)
     walkers = max(walkers, 2 * k + 2) + (max(walkers, 2 * k + 2) % 2)
-    candidates = rng.uniform(size=(2000, k))
-    scores = np.concatenate([log_density(part) for part in np.array_split(candidates, 10)])
-    start = candidates[np.argsort(-scores)[:walkers]]
+    members = likelihood.ensemble_size
+    kept, kept_densities = [], []
     try:   # small matrices: BLAS threads only contend (4x slower measured on a loaded 2-core machine)
         limits: typing.Any = require("threadpoolctl").threadpool_limits(1)
     except ImportError:
         limits = contextlib.nullcontext()
     with limits:
-        chain, densities = stretch_sampler(log_density, start, steps, rng)
-    kept = chain[steps // 2:].reshape(-1, k)
-    values = np.array([values_one(unknowns, j, kept[:, i]) for i, j in enumerate(index)]).T
-    return Posterior(names, values, kept, unknowns, index, time.perf_counter() - started,
-                     densities[steps // 2:].reshape(-1))
+        for member in range(members):
+            def log_density(u: np.ndarray, member: int = member) -> np.ndarray:
+                """Log posterior (n,) of samples (n, k) of the fitted unknowns under one member, the
+                characterisation included (not tempered: its model is not learnt)."""
+                value = power * likelihood.log_likelihood(full(u), arranged, member=member)
+                return value + extra(full(u)) if extra is not None else value
+            candidates = rng.uniform(size=(max(start_draws, walkers), k))
+            scores = np.concatenate([log_density(part) for part in np.array_split(candidates, 10)])
+            start = candidates[np.argsort(-scores)[:walkers]]
+            chain, densities = stretch_sampler(log_density, start, steps, rng)
+            kept.append(chain[steps // 2:].reshape(-1, k))
+            kept_densities.append(densities[steps // 2:].reshape(-1))
+        pooled = np.concatenate(kept)
+        best = None
+        if members > 1:   # each sample's density is its own member's: the best is read under the members' mean
+            thinned = np.arange(0, len(pooled), max(1, len(pooled) // 2000))
+            mixture = np.concatenate([
+                power * likelihood.log_likelihood(full(pooled[part]), arranged)
+                + (extra(full(pooled[part])) if extra is not None else 0.0)
+                for part in np.array_split(thinned, max(1, len(thinned) // 250))])
+            best = int(thinned[int(np.argmax(mixture))])
+    values = np.array([values_one(unknowns, j, pooled[:, i]) for i, j in enumerate(index)]).T
+    return Posterior(names, values, pooled, unknowns, index, time.perf_counter() - started,
+                     np.concatenate(kept_densities), best)
 
 
 def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinSettings",
-                          unknowns: Unknowns, grid_points: int = 9) -> LogDensity:
+                          unknowns: Unknowns, grid_points: typing.Optional[int] = None) -> LogDensity:
     """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
-    parameter set). Roll-outs: simulated on a grid of ``grid_points`` values of each roll-out unknown sampled here
-    (:data:`ROLLOUT_KEYS`; at most two, the others at their loaded values) and interpolated (linear in the
-    normalised coordinates), since a roll-out per parameter set would cost as much as the launches it replaces."""
-    from rollability_ros.core.campaign import characterisation as bench
-    from rollability_ros.core.sim import twin_value, twin_with_values
+    parameter set). Roll-outs: each reading's predicted distance simulated on a grid of ``grid_points`` values of
+    each roll-out unknown (:data:`ROLLOUT_KEYS`; at most two, the others at their loaded values), interpolated
+    (cubic in the normalised coordinates) and scored by the reading's Gaussian, since a roll-out per parameter
+    set would cost as much as the launches it replaces. ``grid_points`` defaults to 17 for one such unknown and
+    9 for two (the table's roll-outs: 17 or 81 per reading's speed)."""
+    from rollability_ros.core.sim import rollout_distance_m, twin_value, twin_with_values
 
     names = unknowns.names
 
@@ -215,20 +239,37 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
     rolling = [names.index(k) for k in ROLLOUT_KEYS if k in names]
     if len(rolling) > 2:
         raise ValueError("at most two roll-out unknowns can be tabulated")
-    grids = [np.linspace(0.0, 1.0, grid_points) for _ in rolling]
+    points = grid_points or (17 if len(rolling) <= 1 else 9)
+    grids = [np.linspace(0.0, 1.0, points) for _ in rolling]
     mesh = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(rolling), -1).T if rolling else np.zeros((1, 0))
-    table = np.array([bench.characterisation_log_likelihood(
-        dataclasses.replace(characterisation, slide_angles_deg=()),
-        twin_with_values(twin, {names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(rolling)}))
-        for point in mesh])
+    keys = sorted({(r.surface, r.speed_mps) for r in characterisation.rollouts})
+    # the predicted distance of each (surface, speed) at each grid point: the distances are smooth in the
+    # unknowns and are what is interpolated; the likelihood's peak, narrower than a grid step at 0.02 m
+    # readings, is computed from them (interpolating the log-likelihood itself put the peak on a grid point)
+    table = np.array([[rollout_distance_m(twin_with_values(
+        twin, {names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(rolling)}), speed, surface)
+        for surface, speed in keys] for point in mesh])
+    readings = np.array([r.distance_m for r in characterisation.rollouts])
+    which = np.array([keys.index((r.surface, r.speed_mps)) for r in characterisation.rollouts])
+    sigma = characterisation.rollout_sigma_m
+
+    def rollouts(predicted: np.ndarray) -> np.ndarray:
+        """The roll-outs' Gaussian log-likelihood (s,) from predicted distances (s, keys)."""
+        z = (readings[None, :] - predicted[:, which]) / sigma
+        return (-0.5 * z * z - math.log(sigma * math.sqrt(2.0 * math.pi))).sum(axis=1)
     if not rolling:
-        return lambda u: slide(u) + table[0]
+        fixed = rollouts(table[:1])[0]
+        return lambda u: slide(u) + fixed
+    method = "cubic" if points >= 4 else "linear"
     interpolate = require("scipy.interpolate", feature="tabulated roll-outs").RegularGridInterpolator(
-        grids, table.reshape([grid_points] * len(rolling)))
-    return lambda u: slide(u) + interpolate(np.clip(u[:, rolling], 0.0, 1.0))
+        grids, table.reshape([points] * len(rolling) + [len(keys)]), method=method)
+    return lambda u: slide(u) + rollouts(interpolate(np.clip(u[:, rolling], 0.0, 1.0)))
 
 
 #: The keys whose product is the printed part's friction on the foam (the slide angle's model).
 SLIDE_KEYS = ("sim.lateral_friction", "launch_twin.foam.lateral_friction")
-#: The unknowns a roll-out depends on (:func:`characterisation_term` tabulates the roll-out over those sampled).
-ROLLOUT_KEYS = ("launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm")
+#: The unknowns a roll-out depends on (:func:`characterisation_term` tabulates the roll-out over those sampled):
+#: the foam's friction among them (measured on the bench's chassis at 0.8 m/s: 0.20 m at friction 1.0, 0.28 m at
+#: 0.33; the centre of mass, the profile's mass and the speed bias moved it by under 0.002 m).
+ROLLOUT_KEYS = ("launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm",
+                "launch_twin.foam.lateral_friction")

@@ -89,7 +89,7 @@ HEADLINES: typing.Dict[str, typing.Tuple[str, ...]] = {
                          "robust vs nominal launches", "nominal launches: A ", "a final round of 2 more robust"),
     "bench_sensitivity": ("baseline   disturbance_scale", "dome       robust", "baseline   robust",
                           "each design minus the bare chassis per unknown factor", "wrote ", "sensitivity.png"),
-    "bench_calibration": ("preparation: ", "truth 2/2: ", "calibration of 5 unknowns", "coverage robot.com_offset_z_m: ",
+    "bench_calibration": ("preparation: ", "(2 of 2): ", "calibration of 5 unknowns", "coverage robot.com_offset_z_m: ",
                           "coverage robot.profile_mass_scale: ", "split 95% sets", "learnt P(upright) on these",
                           "adaptive plan vs the paper's matrix", "rollability calibrate --likelihood, 2 unknowns, "
                           "launches only", "rollability calibrate --likelihood, 2 unknowns, with the slide angles"),

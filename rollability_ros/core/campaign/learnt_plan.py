@@ -82,19 +82,16 @@ class LearntTable:
 
     def _fill(self, standard: np.ndarray, rest: np.ndarray, verdict: np.ndarray, p: np.ndarray, location: np.ndarray,
               scale: np.ndarray) -> None:
-        forward = learnt._forward_split   # the same pass as LearntLikelihood.log_likelihood (a test holds them equal)
+        likelihood = self.likelihood   # its own forward pass (a test holds the weights equal to its log_likelihood)
+        networks = likelihood.member(0)
         s, c = p.shape
         for start in range(0, s, CHUNK):
             part = slice(start, start + CHUNK)
-            logit = forward(self.likelihood.upright, standard[part], rest)
+            logit = likelihood.upright_logit(networks, standard[part], rest)
             p[part] = np.clip(1.0 / (1.0 + np.exp(-logit)), learnt.PROBABILITY_FLOOR, 1.0 - learnt.PROBABILITY_FLOOR)
             for j, name in enumerate(self.outcomes):
-                location[part, :, :, j] = forward(self.likelihood.location[name], standard[part], verdict).reshape(
-                    -1, c, 2)
-                log_variance = forward(self.likelihood.scale[name], standard[part], verdict) - learnt.LOG_CHI2_MEAN
-                variance = np.exp(np.clip(log_variance, -30.0, 30.0))
-                scale[part, :, :, j] = np.sqrt(variance * (learnt.STUDENT_DF - 2.0) / learnt.STUDENT_DF).reshape(
-                    -1, c, 2)
+                mean, spread = likelihood.outcome_distribution(networks, name, standard[part], verdict)
+                location[part, :, :, j], scale[part, :, :, j] = mean.reshape(-1, c, 2), spread.reshape(-1, c, 2)
 
     def probabilities(self, theta: np.ndarray, conditions: typing.Sequence[LaunchCondition]) -> np.ndarray:
         """P(upright) (s, c) at ``conditions`` (the :class:`~rollability_ros.core.campaign.adaptive.UprightPredictor`
@@ -132,13 +129,6 @@ def _one_blas_thread() -> typing.ContextManager[typing.Any]:
         return contextlib.nullcontext()
 
 
-def _student_t_log_pdf(value: np.ndarray, location: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """The likelihood's Student-t log density (:data:`~rollability_ros.core.campaign.likelihood.STUDENT_DF`),
-    elementwise; 0 where ``value`` is NaN (not measured)."""
-    density = learnt._student_t_log_pdf(np.nan_to_num(value), location, scale)
-    return np.where(np.isfinite(value), density, 0.0)
-
-
 class OutcomePosterior(WeightedPosterior):
     """The adaptive plan's weighted samples over a learnt likelihood's verdicts and continuous outcomes (module
     docstring). ``samples``: prior draws (n, d), own units, of the likelihood's unknowns; ``draws``: the Monte Carlo
@@ -165,8 +155,8 @@ class OutcomePosterior(WeightedPosterior):
         """log p(verdict, outcomes) (n,) of one launch at table column ``column``."""
         slot = 0 if upright else 1
         verdict = np.log(np.clip(p[:, column] if upright else 1.0 - p[:, column], EPSILON, 1.0))
-        return verdict + _student_t_log_pdf(values[None, :], location[:, column, slot], scale[:, column, slot]).sum(
-            axis=1)
+        density = learnt.measured_log_density(values[None, :], location[:, column, slot], scale[:, column, slot])
+        return verdict + density.sum(axis=1)
 
     def observe_launch(self, index: int, upright: bool, values: typing.Optional[npt.ArrayLike] = None) -> None:
         """Weigh the samples by one launch at candidate ``index``: its verdict and its transformed outcomes
@@ -272,7 +262,7 @@ class OutcomePosterior(WeightedPosterior):
             verdict = np.where(upright[:, None], log_p[None, :, c], log_q[None, :, c])           # (m, n)
             location = self._location[:, c][:, slot].transpose(1, 0, 2)                          # (m, n, k)
             scale = self._scale[:, c][:, slot].transpose(1, 0, 2)
-            log_f = verdict + _student_t_log_pdf(y[:, None, :], location, scale).sum(axis=2)    # (m, n)
+            log_f = verdict + learnt.measured_log_density(y[:, None, :], location, scale).sum(axis=2)    # (m, n)
             mixture = np.logaddexp.reduce(log_f + log_w[None, :], axis=1)
             if groups is None:
                 conditional = log_f[np.arange(m), picks]

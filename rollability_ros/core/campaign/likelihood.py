@@ -157,6 +157,13 @@ def _student_t_log_pdf(value: np.ndarray, location: np.ndarray, scale: np.ndarra
     return const - np.log(scale) - (nu + 1) / 2 * np.log1p(z * z / nu)
 
 
+def measured_log_density(value: np.ndarray, location: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The outcomes' Student-t log density (:data:`STUDENT_DF`), elementwise over arrays broadcast to one shape,
+    e.g. (s, G, 2, slots); 0 where ``value`` is NaN (not measured)."""
+    density = _student_t_log_pdf(np.nan_to_num(value), location, scale)
+    return np.where(np.isfinite(value), density, 0.0)
+
+
 def normalised_one(unknowns: Unknowns, index: int, values: npt.ArrayLike) -> np.ndarray:
     """Normalised coordinates of own-unit ``values`` of unknown ``index`` (any shape, e.g. (n,); the same shape
     out; not clipped)."""
@@ -353,7 +360,7 @@ class LearntLikelihood:
         networks = self.member(member)
         d = len(self.unknowns.names)
         theta = (u - self.feature_mean[:d]) / self.feature_std[:d]
-        logit = _forward_split(networks.upright, theta, arranged.rest)                   # (s, G)
+        logit = self.upright_logit(networks, theta, arranged.rest)                       # (s, G)
         p = np.clip(1.0 / (1.0 + np.exp(-logit)), PROBABILITY_FLOOR, 1.0 - PROBABILITY_FLOOR)
         total = (arranged.successes * np.log(p) + (arranged.trials - arranged.successes) * np.log1p(-p)).sum(axis=1)
         if not arranged.outcomes:
@@ -364,12 +371,24 @@ class LearntLikelihood:
             values = arranged.values[j]                                                   # (G, 2, slots)
             if not np.isfinite(values).any():
                 continue
-            location = _forward_split(networks.location[name], theta, verdict).reshape(len(u), -1, 2)
-            variance = np.exp(np.clip(_forward_split(self.scale[name], theta, verdict) - LOG_CHI2_MEAN, -30.0, 30.0))
-            scale = np.sqrt(variance * (STUDENT_DF - 2.0) / STUDENT_DF).reshape(len(u), -1, 2)
-            density = _student_t_log_pdf(values[None], location[..., None], scale[..., None])  # (s, G, 2, slots)
-            total += np.where(np.isfinite(values)[None], density, 0.0).sum(axis=(1, 2, 3))
+            location, scale = self.outcome_distribution(networks, name, theta, verdict)
+            location, scale = location.reshape(len(u), -1, 2), scale.reshape(len(u), -1, 2)
+            density = measured_log_density(values[None], location[..., None], scale[..., None])  # (s, G, 2, slots)
+            total += density.sum(axis=(1, 2, 3))
         return total
+
+    def upright_logit(self, networks: "Member", theta: np.ndarray, rest: np.ndarray) -> np.ndarray:
+        """The classifier's logit (s, G) of ensemble member ``networks`` for standardised unknowns ``theta`` (s, d)
+        at the standardised condition rows ``rest`` (G, f - d)."""
+        return _forward_split(networks.upright, theta, rest)
+
+    def outcome_distribution(self, networks: "Member", name: str, theta: np.ndarray,
+                             verdict: np.ndarray) -> typing.Tuple[np.ndarray, np.ndarray]:
+        """Outcome ``name``'s Student-t location and scale, (s, R) each, of ensemble member ``networks`` for
+        standardised unknowns ``theta`` (s, d) at condition-and-verdict rows ``verdict`` (R, f - d + 1)."""
+        location = _forward_split(networks.location[name], theta, verdict)
+        variance = np.exp(np.clip(_forward_split(self.scale[name], theta, verdict) - LOG_CHI2_MEAN, -30.0, 30.0))
+        return location, np.sqrt(variance * (STUDENT_DF - 2.0) / STUDENT_DF)
 
     # ---- the file ------------------------------------------------------------------------------------------
     def header(self) -> typing.Dict[str, object]:

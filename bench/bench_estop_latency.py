@@ -62,7 +62,8 @@ class Rig:
         from rclpy.executors import MultiThreadedExecutor
         from rclpy.node import Node
 
-        from rollability_ros.msg import ValveHeartbeat
+        from rollability_ros.msg import ValveHeartbeat, ValveState
+        from rollability_ros.nodes._support import LATCHED_QOS
         from rollability_ros.srv import ArmValve, FireValve
 
         rclpy.init(args=[])
@@ -70,12 +71,28 @@ class Rig:
         self.arm_client = self.node.create_client(ArmValve, "valve/arm")
         self.fire_client = self.node.create_client(FireValve, "valve/fire")
         self.heartbeats = self.node.create_publisher(ValveHeartbeat, "rig/heartbeat", 10)
+        self._state = None
+        self._state_changed = threading.Condition()
+        self.node.create_subscription(ValveState, "valve/state", self._on_state, LATCHED_QOS)
         self._types = ArmValve, FireValve, ValveHeartbeat
         self.executor = MultiThreadedExecutor(2)
         self.executor.add_node(self.node)
         threading.Thread(target=self.executor.spin, daemon=True).start()
         self._stop = threading.Event()
         self._signer = None
+
+    def _on_state(self, msg):
+        with self._state_changed:
+            self._state = msg
+            self._state_changed.notify_all()
+
+    def wait_state(self, what, match, timeout_s=10.0):
+        """Block until the valve's latched state satisfies ``match`` (RuntimeError naming ``what`` after the wait)."""
+        with self._state_changed:
+            if not self._state_changed.wait_for(lambda: self._state is not None and match(self._state), timeout_s):
+                last = self._state
+                raise RuntimeError(f"the valve did not report {what} within {timeout_s:g} s; last state: "
+                                   f"{last and (last.armed, last.fault, last.fault_reason)}")
 
     def sign(self, command, pulse_ms=None):
         from rollability_ros.core.rig import valve_auth
@@ -107,9 +124,12 @@ class Rig:
             raise RuntimeError(f"{'arm' if armed else 'disarm'} refused: {response and response.message}")
 
     def fire(self, pulse_ms):
+        """``(fired, message)``: the valve's answer to one signed fire request."""
         response = self.fire_client.call(self._types[1].Request(pulse_ms=pulse_ms, auth=self.sign("fire", pulse_ms)),
                                          timeout_sec=10)
-        return response is not None and response.success
+        if response is None:
+            return False, "no answer within 10 s"
+        return response.success, response.message
 
     def close(self):
         import rclpy
@@ -173,7 +193,7 @@ def _wait_entry(sim, t0, match, timeout_s=5.0):
             if match(entry):
                 return entry
         time.sleep(0.005)
-    raise RuntimeError("the board logged nothing matching within {timeout_s} s")
+    raise RuntimeError(f"the board logged nothing matching within {timeout_s:g} s")
 
 
 def _press(master):
@@ -183,9 +203,16 @@ def _press(master):
 
 
 def _reset(rig, master):
-    rig.set_armed(False)          # acknowledges the previous stop
-    time.sleep(0.3)
+    """Acknowledge the last stop and arm again, each step confirmed by the valve's own state (not by a sleep:
+    on a loaded machine an e-stop still in flight would latch after the acknowledgement and refuse the fire)."""
+    rig.set_armed(False)
+    rig.wait_state("disarmed without a fault", lambda s: not s.armed and not s.fault)
     rig.set_armed(True)
+    rig.wait_state("armed", lambda s: s.armed and not s.fault)
+
+
+def _latched(rig):
+    rig.wait_state("the e-stop latched", lambda s: s.fault and "e-stop" in s.fault_reason)
 
 
 def estop_in_countdown(rig, sim, master, countdown_s):
@@ -194,9 +221,10 @@ def estop_in_countdown(rig, sim, master, countdown_s):
     time.sleep(max(0.0, countdown_s - 0.2))
     pressed = _press(master)
     time.sleep(0.2)
-    fired = rig.fire(PULSE_MS)
+    fired, _ = rig.fire(PULSE_MS)
     off = _wait_entry(sim, pressed, lambda e: e["event"] == "command" and e["line"].startswith("OFF"))
     relay_on = any(e["event"] == "relay" and e["relay"] == "on" for e in _entries_after(sim, pressed))
+    _latched(rig)
     return (off["monotonic_s"] - pressed) * 1000.0, fired or relay_on
 
 
@@ -205,11 +233,21 @@ def estop_mid_pulse(rig, sim, master, countdown_s):
     _reset(rig, master)
     time.sleep(countdown_s)
     started = time.monotonic()
-    threading.Thread(target=rig.fire, args=(PULSE_MS,), daemon=True).start()
-    on = _wait_entry(sim, started, lambda e: e["event"] == "relay" and e["relay"] == "on")
+    answer = []
+    threading.Thread(target=lambda: answer.append(rig.fire(PULSE_MS)), daemon=True).start()
+    deadline = time.monotonic() + 10.0
+    on = None
+    while on is None and time.monotonic() < deadline:
+        on = next((e for e in _entries_after(sim, started) if e["event"] == "relay" and e["relay"] == "on"), None)
+        if on is None and answer and not answer[0][0]:
+            raise RuntimeError(f"the valve refused the fire: {answer[0][1]}")
+        time.sleep(0.005)
+    if on is None:
+        raise RuntimeError("the board never switched the relay on within 10 s of the fire")
     time.sleep(max(0.0, on["monotonic_s"] + 0.1 - time.monotonic()))
     pressed = _press(master)
     off = _wait_entry(sim, on["monotonic_s"], lambda e: e["event"] == "relay" and e["relay"] == "off")
+    _latched(rig)
     return (off["monotonic_s"] - pressed) * 1000.0, (off["monotonic_s"] - on["monotonic_s"]) * 1000.0
 
 

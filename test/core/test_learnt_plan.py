@@ -2,6 +2,7 @@
 likelihood, the continuous outcomes add information the verdict alone does not carry, and the table refuses
 conditions the likelihood was not learnt on. The networks are test_learnt_likelihood's hand-built ones (a known
 model: P(upright) moves with unknown a, the gate's reading with unknown b)."""
+import dataclasses
 import math
 
 import numpy as np
@@ -155,3 +156,45 @@ def test_the_estimated_information_about_groups_is_the_score_when_each_sample_is
     # the gate's reading moves with b only: information about b's bins is most of the information there is
     about_b = posterior.unknown_scores(1)
     assert np.all(about_b > 0.5 * posterior.scores()) and np.all(about_b > posterior.unknown_scores(0))
+
+
+def test_the_plan_reads_the_ensemble_as_the_calibration_does():
+    """Two members whose verdicts differ (the second's logit shifted by 3): the weights are the members' mean
+    likelihood (``log_likelihood(member=None)``, the calibration's), before any launch the predicted P(upright)
+    is the members' mean (``predict_upright_probability``), and after launches each sample's prediction is the
+    members' mixture weighted by how well each explained them. A plan that read the first member only fails all
+    three; renewing the samples keeps the weights the members' mean."""
+    from test_learnt_likelihood import shifted
+
+    single = model()
+    ensemble = dataclasses.replace(single, members=(shifted(single, 3.0),))
+    table = LearntTable(ensemble, CANDIDATES)
+    posterior = OutcomePosterior.from_prior(table, 300, np.random.default_rng(0), renew=False)
+    first = CANDIDATES[7]
+    mean = ensemble.predict_upright_probability(posterior.samples, first.configuration,
+                                                (first.height_m, first.speed_mps, first.angle_deg))
+    # (each member clipped to the floor, as log_likelihood clips them, before the mean: within the floor)
+    assert np.allclose(posterior.probabilities[:, 7], mean, rtol=0.0, atol=learnt.PROBABILITY_FLOOR)
+    alone = single.predict_upright_probability(posterior.samples, first.configuration,
+                                               (first.height_m, first.speed_mps, first.angle_deg))
+    assert np.abs(mean - alone).max() > 0.2   # the members disagree: the first alone is not the mean
+    rng = np.random.default_rng(1)
+    cells = [(c.configuration, c.height_m, c.speed_mps, c.angle_deg) for c in CANDIDATES[::5]]
+    observations = simulate((0.3, 0.6), cells * 2, rng)
+    for o in observations:
+        index = posterior.candidate_index(LaunchCondition(o.configuration, o.height_m, o.speed_mps, o.angle_deg))
+        posterior.observe_launch(index, o.upright, table.transformed(index, o.outcomes))
+    u = UNKNOWNS.to_normalised(posterior.samples)
+    expected = ensemble.log_likelihood(u, observations)
+    assert np.allclose(posterior.log_weights - posterior.log_weights.max(), expected - expected.max(), atol=1e-9)
+    members = np.array([ensemble.log_likelihood(u, observations, member=k) for k in range(2)])
+    weights = np.exp(members - members.max(axis=0))
+    weights /= weights.sum(axis=0)
+    p = [1 / (1 + np.exp(-(8.0 * u[:, 0] - 4.0 + 1.0 - 0.5 + shift))) for shift in (0.0, 3.0)]   # "A", angle 0
+    column = CANDIDATES.index(LaunchCondition("A", 0.75, 0.8, 0.0))
+    floor = learnt.PROBABILITY_FLOOR
+    assert np.allclose(posterior.probabilities[:, column],
+                       weights[0] * np.clip(p[0], floor, 1 - floor) + weights[1] * np.clip(p[1], floor, 1 - floor))
+    posterior.renew()
+    renewed = ensemble.log_likelihood(UNKNOWNS.to_normalised(posterior.samples), observations)
+    assert np.allclose(np.logaddexp.reduce(posterior.member_log_likelihood, axis=0) - np.log(2), renewed)

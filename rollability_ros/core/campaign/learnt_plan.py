@@ -16,7 +16,15 @@ WeightedPosterior` over them:
   theta_m by weight, a verdict, then the outcomes), I ~ mean_m [log p(y_m | theta_m) - log sum_s w_s p(y_m |
   theta_s)]. With ``outcomes=()`` it is the verdict's BALD score, exact;
 - the samples are renewed as the posterior narrows (resample by weight, Metropolis moves on the prior times the
-  likelihood of every launch seen), since a learnt likelihood is cheap to ask again.
+  likelihood of every launch seen), since a learnt likelihood is cheap to ask again;
+- the ensemble (``LearntLikelihood.ensemble_size`` members) enters as the calibration's does: a sample's weight is
+  the members' mean likelihood of every launch seen (``log_likelihood(member=None)``; a test holds the two equal),
+  and its prediction of the next launch is the members' mixture weighted by how well each member explained the
+  launches seen at that sample (equal weights before any launch: the members' mean). The score is the information
+  about the unknowns, I(y; theta), with the member marginalised at every theta; not BALD over (theta, member),
+  whose extra term I(y; member | theta) is information about which network is right: it would send the rig to
+  where the emulator is unsure, an experiment on the emulator, not on the rig. Where the members disagree the
+  launch's outcome is less predictable at every theta, so it teaches less about the unknowns and scores lower.
 
 numpy only (the likelihood's networks are plain arrays).
 """
@@ -65,25 +73,32 @@ class LearntTable:
         d = u.shape[1]
         return (u - self.likelihood.feature_mean[:d]) / self.likelihood.feature_std[:d]
 
+    @property
+    def members(self) -> int:
+        """The ensemble's members (K)."""
+        return self.likelihood.ensemble_size
+
     def predict(self, theta: npt.ArrayLike, columns: typing.Optional[typing.Sequence[int]] = None
                 ) -> typing.Tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(p (s, c), location (s, c, 2, k), scale (s, c, 2, k))`` for parameter sets ``theta`` (s, d) (own units)
-        at the candidates ``columns`` (default all)."""
+        """Each ensemble member's prediction for parameter sets ``theta`` (s, d) (own units) at the candidates
+        ``columns`` (default all): ``(p (K, s, c), location (K, s, c, 2, k), scale (s, c, 2, k))`` (the members
+        share their scales: ``likelihood.Member``)."""
         index = np.arange(len(self.candidates)) if columns is None else np.asarray(columns, dtype=int)
         standard = self._theta(theta)
         rest = self._rest[index]
         verdict = np.concatenate([np.repeat(rest, 2, axis=0), np.tile([[1.0], [-1.0]], (len(rest), 1))], axis=1)
         s, c, k = len(standard), len(index), len(self.outcomes)
-        p = np.empty((s, c))  # filled by _fill
-        location, scale = np.empty((s, c, 2, k)), np.empty((s, c, 2, k))
+        p = np.empty((self.members, s, c))  # filled by _fill
+        location, scale = np.empty((self.members, s, c, 2, k)), np.empty((s, c, 2, k))
         with _one_blas_thread():
-            self._fill(standard, rest, verdict, p, location, scale)
+            for member in range(self.members):
+                self._fill(member, standard, rest, verdict, p[member], location[member], scale)
         return p, location, scale
 
-    def _fill(self, standard: np.ndarray, rest: np.ndarray, verdict: np.ndarray, p: np.ndarray, location: np.ndarray,
-              scale: np.ndarray) -> None:
+    def _fill(self, member: int, standard: np.ndarray, rest: np.ndarray, verdict: np.ndarray, p: np.ndarray,
+              location: np.ndarray, scale: np.ndarray) -> None:
         likelihood = self.likelihood   # its own forward pass (a test holds the weights equal to its log_likelihood)
-        networks = likelihood.member(0)
+        networks = likelihood.member(member)
         s, c = p.shape
         for start in range(0, s, CHUNK):
             part = slice(start, start + CHUNK)
@@ -94,14 +109,15 @@ class LearntTable:
                 location[part, :, :, j], scale[part, :, :, j] = mean.reshape(-1, c, 2), spread.reshape(-1, c, 2)
 
     def probabilities(self, theta: np.ndarray, conditions: typing.Sequence[LaunchCondition]) -> np.ndarray:
-        """P(upright) (s, c) at ``conditions`` (the :class:`~rollability_ros.core.campaign.adaptive.UprightPredictor`
-        interface; each must be a candidate)."""
+        """P(upright) (s, c) at ``conditions``, the members' mean as ``LearntLikelihood.predict_upright_probability``
+        (the :class:`~rollability_ros.core.campaign.adaptive.UprightPredictor` interface; each must be a
+        candidate)."""
         keys = {c.group_key: i for i, c in enumerate(self.candidates)}
         missing = [c for c in conditions if c.group_key not in keys]
         if missing:
             raise ValueError(f"{missing[0].configuration} at {missing[0].height_m:g} m, {missing[0].speed_mps:g} m/s, "
                              f"{missing[0].angle_deg:+g} deg is not a candidate condition")
-        return self.predict(theta, [keys[c.group_key] for c in conditions])[0]
+        return self.predict(theta, [keys[c.group_key] for c in conditions])[0].mean(axis=0)
 
     def transformed(self, index: int, values: typing.Mapping[str, float]) -> np.ndarray:
         """The outcomes (k,) of one launch at candidate ``index`` on their Student-t's scale, NaN where not measured
@@ -111,11 +127,14 @@ class LearntTable:
 
     def draw(self, theta: npt.ArrayLike, index: int, rng: np.random.Generator) -> typing.Tuple[bool, np.ndarray]:
         """One simulated launch at candidate ``index`` under one parameter set ``theta`` (d,): the verdict and the
-        transformed outcomes (k,), drawn from the learnt model (a hidden truth's launches in the plan comparison)."""
+        transformed outcomes (k,), drawn from the learnt model (a hidden truth's launches in the plan comparison):
+        from a member drawn at random, so the verdict's probability is the members' mean."""
         p, location, scale = self.predict(np.atleast_2d(theta), [index])
-        upright = bool(rng.random() < p[0, 0])
+        member = int(rng.integers(self.members))
+        upright = bool(rng.random() < p[member, 0, 0])
         slot = 0 if upright else 1
-        values = location[0, 0, slot] + scale[0, 0, slot] * rng.standard_t(learnt.STUDENT_DF, len(self.outcomes))
+        values = (location[member, 0, 0, slot]
+                  + scale[0, 0, slot] * rng.standard_t(learnt.STUDENT_DF, len(self.outcomes)))
         return upright, values
 
 
@@ -132,7 +151,12 @@ def _one_blas_thread() -> typing.ContextManager[typing.Any]:
 class OutcomePosterior(WeightedPosterior):
     """The adaptive plan's weighted samples over a learnt likelihood's verdicts and continuous outcomes (module
     docstring). ``samples``: prior draws (n, d), own units, of the likelihood's unknowns; ``draws``: the Monte Carlo
-    outcomes per candidate of :meth:`scores`; ``renew``: renew the samples as the posterior narrows."""
+    outcomes per candidate of :meth:`scores`; ``renew``: renew the samples as the posterior narrows.
+
+    Per sample and ensemble member it keeps the log-likelihood of every launch seen (``member_log_likelihood``
+    (K, n)); a sample's weight is their mean (the calibration's ``log_likelihood(member=None)``), and
+    :attr:`probabilities` (n, c), which the verdict's scores, the design comparison and the proposal read, are the
+    members' predictions weighted by those likelihoods at each sample (the predictive given the launches seen)."""
 
     def __init__(self, table: LearntTable, samples: npt.ArrayLike, rng: typing.Optional[np.random.Generator] = None,
                  renew: bool = True, draws: int = 32, renew_fraction: float = 0.5, moves: int = 4) -> None:
@@ -140,9 +164,10 @@ class OutcomePosterior(WeightedPosterior):
         self.draws = draws
         self._seen: typing.List[typing.Tuple[int, bool, np.ndarray]] = []
         theta = np.asarray(samples, dtype=np.float64)
-        p, self._location, self._scale = table.predict(theta)
-        super().__init__(table.unknowns, theta, table.candidates, p, table if renew else None, rng, renew_fraction,
-                         moves)
+        self._member_p, self._location, self._scale = table.predict(theta)
+        self.member_log_likelihood = np.zeros((table.members, len(theta)))
+        super().__init__(table.unknowns, theta, table.candidates, self._member_p.mean(axis=0),
+                         table if renew else None, rng, renew_fraction, moves)
 
     @classmethod
     def from_prior(cls, table: LearntTable, samples: int, rng: np.random.Generator, renew: bool = True,
@@ -150,20 +175,38 @@ class OutcomePosterior(WeightedPosterior):
         """``samples`` prior draws of the likelihood's unknowns (uniform on each one's search scale)."""
         return cls(table, table.unknowns.draw(samples, rng), rng, renew, draws)
 
-    def _launch_log_likelihood(self, p: np.ndarray, location: np.ndarray, scale: np.ndarray, column: int,
+    @property
+    def member_weights(self) -> np.ndarray:
+        """P(member | launches seen, sample) (K, n): each member's likelihood of the launches seen at each sample,
+        normalised over the members (uniform before any launch)."""
+        ll = self.member_log_likelihood
+        w = np.exp(ll - ll.max(axis=0))
+        return w / w.sum(axis=0)
+
+    def _mix(self) -> None:
+        """:attr:`probabilities` (n, c): the members' P(upright) weighted by :attr:`member_weights`."""
+        self._set_samples(self.samples, np.einsum("kn,knc->nc", self.member_weights, self._member_p))
+
+    @staticmethod
+    def _launch_log_likelihood(p: np.ndarray, location: np.ndarray, scale: np.ndarray, column: int,
                                upright: bool, values: np.ndarray) -> np.ndarray:
-        """log p(verdict, outcomes) (n,) of one launch at table column ``column``."""
+        """log p(verdict, outcomes) (K, n) under each member of one launch at table column ``column`` (``p``
+        (K, n, c), ``location`` (K, n, c, 2, k), ``scale`` (n, c, 2, k): :meth:`LearntTable.predict`)."""
         slot = 0 if upright else 1
-        verdict = np.log(np.clip(p[:, column] if upright else 1.0 - p[:, column], EPSILON, 1.0))
-        density = learnt.measured_log_density(values[None, :], location[:, column, slot], scale[:, column, slot])
-        return verdict + density.sum(axis=1)
+        verdict = np.log(np.clip(p[:, :, column] if upright else 1.0 - p[:, :, column], EPSILON, 1.0))
+        density = learnt.measured_log_density(values[None, None, :], location[:, :, column, slot],
+                                              scale[None, :, column, slot])
+        return verdict + density.sum(axis=2)
 
     def observe_launch(self, index: int, upright: bool, values: typing.Optional[npt.ArrayLike] = None) -> None:
         """Weigh the samples by one launch at candidate ``index``: its verdict and its transformed outcomes
         ``values`` (k,) (NaN or None: not measured; :meth:`LearntTable.transformed` makes them)."""
         v = np.full(len(self.table.outcomes), np.nan) if values is None else np.asarray(values, dtype=np.float64)
-        self.log_weights += self._launch_log_likelihood(self.probabilities, self._location, self._scale, index,
-                                                        bool(upright), v)
+        before = np.logaddexp.reduce(self.member_log_likelihood, axis=0)
+        self.member_log_likelihood += self._launch_log_likelihood(self._member_p, self._location, self._scale, index,
+                                                                  bool(upright), v)
+        self.log_weights += np.logaddexp.reduce(self.member_log_likelihood, axis=0) - before
+        self._mix()
         self._seen.append((index, bool(upright), v))
         self._successes[index] += bool(upright)
         self._trials[index] += 1
@@ -196,42 +239,47 @@ class OutcomePosterior(WeightedPosterior):
         return used
 
     def _seen_log_likelihood(self, theta: np.ndarray) -> np.ndarray:
-        """log p(every launch seen) (n,) of parameter sets ``theta`` (n, d), from their predictions at the seen
-        candidates only."""
+        """log p(every launch seen) (K, n) under each member of parameter sets ``theta`` (n, d), from their
+        predictions at the seen candidates only."""
         columns = sorted({index for index, _, _ in self._seen})
+        total = np.zeros((self.table.members, len(theta)))
         if not columns:
-            return np.zeros(len(theta))
+            return total
         where = {index: i for i, index in enumerate(columns)}
         p, location, scale = self.table.predict(theta, columns)
-        total = np.zeros(len(theta))
         for index, upright, values in self._seen:
             total += self._launch_log_likelihood(p, location, scale, where[index], upright, values)
         return total
 
     def renew(self) -> None:
-        """Resample by weight, ``moves`` Metropolis steps each on the prior times the likelihood of every launch
-        seen (verdicts and outcomes), then the new samples' predictions at every candidate."""
+        """Resample by weight, ``moves`` Metropolis steps each on the prior times the members' mean likelihood of
+        every launch seen (verdicts and outcomes), then the new samples' predictions at every candidate."""
         n, d = self.samples.shape
         w = self.weights
         picks = np.minimum(np.searchsorted(np.cumsum(w), (self.rng.random() + np.arange(n)) / n), n - 1)
         u = self.unknowns.to_normalised(self.samples[picks])
-        log_likelihood = self._seen_log_likelihood(self.samples[picks])
+        members = self.member_log_likelihood[:, picks]
+        log_likelihood = np.logaddexp.reduce(members, axis=0)
         step = np.maximum(np.sqrt(np.cov(u, rowvar=False).reshape(d, d).diagonal()), 1e-3) * 2.38 / math.sqrt(d)
         for _ in range(self.moves):
             proposed = u + self.rng.normal(0.0, 1.0, u.shape) * step
             inside = np.all((proposed >= 0.0) & (proposed <= 1.0), axis=1)
-            log_new = self._seen_log_likelihood(self.unknowns.to_values(np.clip(proposed, 0.0, 1.0)))
+            new_members = self._seen_log_likelihood(self.unknowns.to_values(np.clip(proposed, 0.0, 1.0)))
+            log_new = np.logaddexp.reduce(new_members, axis=0)
             accept = inside & (np.log(self.rng.random(n)) < log_new - log_likelihood)
             u[accept], log_likelihood[accept] = proposed[accept], log_new[accept]
+            members[:, accept] = new_members[:, accept]
         theta = self.unknowns.to_values(u)
-        p, self._location, self._scale = self.table.predict(theta)
-        self._set_samples(theta, p)
+        self._member_p, self._location, self._scale = self.table.predict(theta)
+        self.member_log_likelihood = members
+        self._set_samples(theta, np.einsum("kn,knc->nc", self.member_weights, self._member_p))
         self.log_weights = np.zeros(n)
         self.renewals += 1
 
     def scores(self) -> np.ndarray:
         """Expected information (nats) about the unknowns of a launch at each candidate (c,), verdict and outcomes
-        (module docstring); the exact BALD score when the table has no continuous outcome."""
+        (module docstring); the exact BALD score of the members' mixture when the table has no continuous
+        outcome."""
         if not self.table.outcomes:
             return super().scores()
         return self._estimated_scores(None)
@@ -245,24 +293,29 @@ class OutcomePosterior(WeightedPosterior):
 
     def _estimated_scores(self, groups: typing.Optional[np.ndarray]) -> np.ndarray:
         """I(y; group of theta) (c,) by nested Monte Carlo; ``groups`` None: each sample its own group (I(y; theta)):
-        mean_m [log p(y_m | g_m) - log p(y_m)], p(y | g) the group's weighted mixture."""
+        mean_m [log p(y_m | g_m) - log p(y_m)], p(y | g) the group's weighted mixture, p(y | theta) the members'
+        mixture by :attr:`member_weights`."""
         w = self.weights
         log_w = np.log(np.maximum(w, 1e-300))
+        log_members = np.log(np.maximum(self.member_weights, 1e-300))                           # (K, n)
         rng = np.random.default_rng([self.launches, self.renewals, 7])   # common numbers across the candidates
         m = self.draws
         picks = np.minimum(np.searchsorted(np.cumsum(w), (rng.random() + np.arange(m)) / m), len(w) - 1)
+        member_cdf = np.cumsum(self.member_weights[:, picks], axis=0)                           # (K, m)
+        drawn = np.minimum((rng.random(m)[None, :] > member_cdf).sum(axis=0), self.table.members - 1)
         uniform = rng.random(m)
         noise = rng.standard_t(learnt.STUDENT_DF, (m, len(self.table.outcomes)))
         scores = np.empty(len(self.candidates))
-        log_p, log_q = np.log(self.probabilities), np.log1p(-self.probabilities)
+        log_p, log_q = np.log(self._member_p), np.log1p(-self._member_p)                          # (K, n, c)
         for c in range(len(self.candidates)):
-            upright = uniform < self.probabilities[picks, c]                                     # (m,)
+            upright = uniform < self._member_p[drawn, picks, c]                                  # (m,)
             slot = np.where(upright, 0, 1)
-            y = self._location[picks, c, slot] + self._scale[picks, c, slot] * noise               # (m, k)
-            verdict = np.where(upright[:, None], log_p[None, :, c], log_q[None, :, c])           # (m, n)
-            location = self._location[:, c][:, slot].transpose(1, 0, 2)                          # (m, n, k)
-            scale = self._scale[:, c][:, slot].transpose(1, 0, 2)
-            log_f = verdict + learnt.measured_log_density(y[:, None, :], location, scale).sum(axis=2)    # (m, n)
+            y = self._location[drawn, picks, c, slot] + self._scale[picks, c, slot] * noise      # (m, k)
+            verdict = np.where(upright[None, :, None], log_p[:, None, :, c], log_q[:, None, :, c])   # (K, m, n)
+            location = self._location[:, :, c][:, :, slot].transpose(0, 2, 1, 3)               # (K, m, n, k)
+            scale = self._scale[:, c][:, slot].transpose(1, 0, 2)                                # (m, n, k)
+            density = learnt.measured_log_density(y[None, :, None, :], location, scale[None]).sum(axis=3)
+            log_f = np.logaddexp.reduce(log_members[:, None, :] + verdict + density, axis=0)     # (m, n)
             mixture = np.logaddexp.reduce(log_f + log_w[None, :], axis=1)
             if groups is None:
                 conditional = log_f[np.arange(m), picks]

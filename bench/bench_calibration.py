@@ -64,8 +64,10 @@ UNKNOWNS = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction", "launch
 #: The two unknowns of the CLI check.
 CLI_UNKNOWNS = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")
 #: Noise of the simulated characterisation readings.
-SLIDE_SIGMA_DEG, ROLLOUT_SIGMA_M = 1.0, 0.02
+SLIDE_SIGMA_DEG, ROLLOUT_SIGMA_M, TIP_SIGMA_DEG = 1.0, 0.02, 1.0
 SLIDE_READINGS, ROLLOUT_SPEEDS_MPS = 5, (0.8, 1.0, 1.2)
+#: Tilt-table readings of the bare robot (docs/characterisation.md (d)): the sides it tips towards, one each.
+TIP_SIDES = ("front", "back", "left", "right", "front")
 #: Base seeds (none used by a campaign, a study or the preparation's own draws).
 PREPARE_SEED, TRUTH_SEED = 31_001, 41_001
 
@@ -135,13 +137,12 @@ def rollout_parameters(parameters):
 
 
 def characterise_truth(parameters, unknowns, truth, rng):
-    """Simulated bench readings of ``truth``: slide angles (analytic + noise) and roll-outs on the foam."""
+    """Simulated bench readings of ``truth``: slide angles (analytic + noise), roll-outs on the foam and tilt-table
+    tip angles (:func:`tip_readings`)."""
     from rollability_ros.core.campaign import characterisation as bench
     from rollability_ros.core.sim import rollout_distance_m
 
-    flat = rollout_parameters(parameters)
-    flat.update(zip(unknowns.names, map(float, truth)))
-    settings = launch_twin_settings_from_parameters(flat)
+    settings = truth_settings(parameters, unknowns, truth)
     angle = bench.slide_angle_deg(settings)
     rollouts = tuple(bench.RolloutReading("foam", v, max(0.0, rollout_distance_m(settings, v, "foam")
                                                          + ROLLOUT_SIGMA_M * rng.standard_normal()))
@@ -149,6 +150,24 @@ def characterise_truth(parameters, unknowns, truth, rng):
     return bench.Characterisation(source="simulated", rollouts=rollouts, rollout_sigma_m=ROLLOUT_SIGMA_M,
                                   slide_angles_deg=tuple(angle + SLIDE_SIGMA_DEG * rng.standard_normal(SLIDE_READINGS)),
                                   slide_sigma_deg=SLIDE_SIGMA_DEG)
+
+
+def truth_settings(parameters, unknowns, truth):
+    """The typed twin at ``truth`` (own units) for its bench readings (:func:`rollout_parameters`)."""
+    flat = rollout_parameters(parameters)
+    flat.update(zip(unknowns.names, map(float, truth)))
+    return launch_twin_settings_from_parameters(flat)
+
+
+def tip_readings(parameters, unknowns, truth, number):
+    """Simulated tilt-table readings of ``truth``: the model's tip angle towards each of :data:`TIP_SIDES` plus
+    noise of :data:`TIP_SIGMA_DEG` (its own seed per truth, so the truths kept by earlier runs get theirs)."""
+    from rollability_ros.core.campaign import characterisation as bench
+
+    settings = truth_settings(parameters, unknowns, truth)
+    rng = np.random.default_rng([TRUTH_SEED, number, 7])
+    return tuple(bench.TipReading(side, angle + TIP_SIGMA_DEG * rng.standard_normal())
+                 for side, angle in zip(TIP_SIDES, bench.tip_angles_deg(settings, TIP_SIDES)))
 
 
 def adaptive_comparison(likelihood, truths, configurations, levels, samples=4000):
@@ -199,13 +218,17 @@ def truth_data(parameters, unknowns, matrix, number, cache):
         readings = bench.Characterisation(
             source="simulated", rollouts=tuple(bench.RolloutReading(*r) for r in data["rollouts"]),
             rollout_sigma_m=ROLLOUT_SIGMA_M, slide_angles_deg=tuple(data["slides"]), slide_sigma_deg=SLIDE_SIGMA_DEG)
-        return np.array(data["truth_u"]), observations, readings, 0.0
+        truth_u = np.array(data["truth_u"])
+        readings = dataclasses.replace(readings, tips=tip_readings(parameters, unknowns, unknowns.to_values(truth_u),
+                                                                   number), tip_sigma_deg=TIP_SIGMA_DEG)
+        return truth_u, observations, readings, 0.0
     rng = np.random.default_rng([TRUTH_SEED, number])
     truth_u = rng.uniform(size=len(unknowns.names))
     truth = unknowns.to_values(truth_u)
     started = time.process_time()
     observations = launch_truth(parameters, unknowns, truth, matrix, TRUTH_SEED + 1000 * number)
-    readings = characterise_truth(parameters, unknowns, truth, rng)
+    readings = dataclasses.replace(characterise_truth(parameters, unknowns, truth, rng),
+                                   tips=tip_readings(parameters, unknowns, truth, number), tip_sigma_deg=TIP_SIGMA_DEG)
     cpu = time.process_time() - started
     if path:
         with open(path, "w", encoding="utf-8") as stream:
@@ -217,7 +240,7 @@ def truth_data(parameters, unknowns, matrix, number, cache):
 
 
 def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, temperature, cache, walkers=16,
-                    start_draws=500, outcomes=None, rollouts=True):
+                    start_draws=500, outcomes=None, rollouts=True, tips=True):
     """One truth of step 3 in a worker process: its data (:func:`truth_data`), then the posterior of every
     unknown. Returns a dict: the truth, the normalised samples, times, and the learnt P(upright) at the truth of
     each launch."""
@@ -225,6 +248,8 @@ def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, tem
     started, cpu = time.perf_counter(), time.process_time()
     if not rollouts:
         readings = dataclasses.replace(readings, rollouts=())
+    if not tips:
+        readings = dataclasses.replace(readings, tips=())
     extra = sampling.characterisation_term(
         readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)), unknowns)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1, steps=steps,
@@ -254,7 +279,7 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
     jobs = pool.map(calibrate_truth, [likelihood] * count, [parameters] * count, [unknowns] * count,
                     [matrix] * count, order, [args.steps] * count, [args.temperature] * count,
                     [args.cache] * count, [args.walkers] * count, [args.start_draws] * count,
-                    [args.outcome_names] * count, [not args.no_rollouts] * count)
+                    [args.outcome_names] * count, [not args.no_rollouts] * count, [not args.no_tips] * count)
     for done, (number, result) in enumerate(zip(order, jobs)):
         truth_u = result["truth_u"]
         truth = unknowns.to_values(truth_u)
@@ -343,13 +368,19 @@ def cli_check(likelihood_path, first, unknowns, folder, parameters, args):
             **fixed, "sim.engine": parameters["sim.engine"],
             "launch_twin.designs.mesh_labels": list(parameters["launch_twin.designs.mesh_labels"]),
             "launch_twin.designs.mesh_files": list(parameters["launch_twin.designs.mesh_files"])}, "")}}, stream)
-    slide = os.path.join(folder, "slide.yaml")
+    slide, tip = os.path.join(folder, "slide.yaml"), os.path.join(folder, "slide-tip.yaml")
+    readings = {"format": "rollability-characterisation-1", "slide_angle": {
+        "sigma_deg": SLIDE_SIGMA_DEG, "readings_deg": [float(a) for a in bench_readings.slide_angles_deg]}}
     with open(slide, "w", encoding="utf-8") as stream:
-        yaml.safe_dump({"format": "rollability-characterisation-1", "slide_angle": {
-            "sigma_deg": SLIDE_SIGMA_DEG, "readings_deg": [float(a) for a in bench_readings.slide_angles_deg]}},
-            stream)
-    for label, extra in (("launches only", []), ("with the slide angles", ["--characterisation", slide])):
-        out = os.path.join(folder, f"cli-{len(extra)}")
+        yaml.safe_dump(readings, stream)
+    with open(tip, "w", encoding="utf-8") as stream:
+        yaml.safe_dump({**readings, "tip_angle": {"sigma_deg": TIP_SIGMA_DEG, "readings": [
+            {"side": t.side, "angle_deg": float(t.angle_deg)} for t in bench_readings.tips]}}, stream)
+    runs = [("launches only", []), ("with the slide angles", ["--characterisation", slide])]
+    if bench_readings.tips and not args.no_tips:
+        runs.append(("with the slide and tip angles", ["--characterisation", tip]))
+    for label, extra in runs:
+        out = tempfile.mkdtemp(prefix=f"cli-{runs.index((label, extra))}-", dir=folder)   # a fresh folder per run
         command = [sys.executable, "-m", "rollability_ros.cli", "calibrate", "--physical", csv_path, "--run", "truth",
                    "--likelihood", likelihood_path, "--config", config, "--out", out,
                    *(["--temperature", str(args.temperature)] if args.temperature is not None else []),
@@ -408,6 +439,8 @@ def main(argv=None):
                         "characterisation alone) or names of likelihood.OUTCOMES, comma-separated")
     parser.add_argument("--no-rollouts", action="store_true",
                         help="leave the roll-outs out of the calibrations (the slide angles stay)")
+    parser.add_argument("--no-tips", action="store_true",
+                        help="leave the tilt-table tip angles out of the calibrations and of the CLI check")
     parser.add_argument("--temperature", type=float, help="the launches' log-likelihood exponent (default: the "
                         "prepared file's)")
     parser.add_argument("--engine", default="mujoco", choices=("mujoco", "pybullet"),

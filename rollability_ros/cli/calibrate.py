@@ -279,8 +279,8 @@ def register(subparsers: Subparsers) -> None:
                         help="physical launch outcomes: a store, a run directory, a bag or a CSV (docs/outcome-csv.md); "
                              "needed unless --characterisation is given")
     parser.add_argument("--characterisation", metavar="FILE",
-                        help="bench readings (roll-out, slide angle) of docs/characterisation.md, fitted beside the "
-                             "launch outcomes, or alone before the first launch")
+                        help="bench readings (roll-out, slide angle, tip angle) of docs/characterisation.md, fitted "
+                             "beside the launch outcomes, or alone before the first launch")
     parser.add_argument("--fit", action="append", default=[], metavar="KEY",
                         help="fit only this declared parameter (a key of calibration.parameters, with its bounds and "
                              "scale; repeatable); the others stay at their loaded values")

@@ -47,6 +47,10 @@ def one_unknown(name, lower, upper, **changes):
      "by: me}]}\n", "unknown key 'by'"),
     ("format: [unclosed\n", "not valid YAML at line"),
     (f"format: {FORMAT}\nslide_angle: !!python/object/apply:os.system [echo]\n", "not valid YAML"),
+    (f"format: {FORMAT}\ntip_angle: {{sigma_deg: 1, readings: [{{side: up, angle_deg: 60}}]}}\n",
+     r"tip_angle.readings\[0\].side must be one of front, back, left, right"),
+    (f"format: {FORMAT}\ntip_angle: {{sigma_deg: 1, readings: [{{side: left, angle_deg: 95}}]}}\n",
+     r"tip_angle.readings\[0\].angle_deg must be in"),
 ])
 def test_malformed_characterisation_files_are_refused_in_one_line_naming_the_problem(tmp_path, document, problem):
     path = tmp_path / "bench.yaml"
@@ -138,3 +142,42 @@ def test_calibrate_selects_declared_unknowns_and_refuses_the_rest(tmp_path, caps
     assert main(["calibrate", "--out", str(tmp_path / "out")]) == 2
     assert "--physical" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_the_tip_angle_is_the_tilt_tables_analytic_angle_and_pins_the_centre_of_mass():
+    """The built-in chassis (config/robot.yaml): the body's mass at its centre-of-mass offset below the box centre,
+    four wheels on axles at axle_offset_z_m, their bottoms the support. Tipping sideways pivots over the wheels'
+    outer edges (track / 2 + wheel width / 2), forwards over the front wheels' contact (wheelbase / 2); tan(angle)
+    = reach / height of the centre of mass above the wheels' bottoms. Five simulated readings of a truth then pin
+    the centre of mass (the characterisation's term over a grid of it) to under a fifth of its declared range."""
+    import numpy as np
+
+    from rollability_ros.core.campaign.adaptive import Unknowns
+    from rollability_ros.core.campaign.characterisation import Characterisation, TipReading, tip_angles_deg
+    from rollability_ros.core.campaign.posterior import characterisation_term
+
+    pytest.importorskip("pybullet")
+    flat = twin_parameters()
+    body, wheel = flat["robot.body_mass_kg"], flat["robot.wheel_mass_kg"]
+    ground = flat["robot.axle_offset_z_m"] - flat["robot.wheel_radius_m"]
+    sideways = flat["robot.track_m"] / 2 + flat["robot.wheel_width_m"] / 2
+    for offset in (-0.015, 0.01):
+        height = (body * offset + 4 * wheel * flat["robot.axle_offset_z_m"]) / (body + 4 * wheel) - ground
+        front, left, right = tip_angles_deg(twin(**{"robot.com_offset_z_m": offset}), ("front", "left", "right"))
+        assert front == pytest.approx(math.degrees(math.atan2(flat["robot.wheelbase_m"] / 2, height)), abs=0.05)
+        assert left == pytest.approx(math.degrees(math.atan2(sideways, height)), abs=0.05) and right == pytest.approx(left)
+    truth = 0.004
+    sides = ("front", "back", "left", "right", "front")
+    rng = np.random.default_rng(5)
+    readings = Characterisation("test", tips=tuple(TipReading(side, angle + rng.standard_normal()) for side, angle in
+                                                   zip(sides, tip_angles_deg(twin(**{"robot.com_offset_z_m": truth}),
+                                                                             sides))), tip_sigma_deg=1.0)
+    unknowns = Unknowns(("robot.com_offset_z_m",), (-0.019,), (0.015,), (False,))
+    term = characterisation_term(readings, twin(), unknowns, grid_points=9)
+    grid = np.linspace(0.0, 1.0, 341)[:, None]
+    log_likelihood = term(grid)
+    kept = grid[log_likelihood >= log_likelihood.max() - 1.92, 0]   # the likelihood-ratio 95% interval
+    low, high = unknowns.to_values(kept[[0, -1], None])[:, 0]
+    assert low <= truth <= high and kept[-1] - kept[0] < 0.2
+    assert characterisation_log_likelihood(readings, twin(**{"robot.com_offset_z_m": truth})) == pytest.approx(
+        float(term(unknowns.to_normalised(np.array([[truth]])))[0]), abs=0.05)   # the direct fit's model, the same

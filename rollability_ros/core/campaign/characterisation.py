@@ -11,6 +11,10 @@ strictly: an unknown key, a missing one or a value of the wrong kind is refused 
     slide_angle:                  # tilt of the foam at which a printed coupon starts to slide
       sigma_deg: 1.5              # deg, standard deviation of one reading
       readings_deg: [18.5, 19.0, 20.0]
+    tip_angle:                    # tilt of a board at which the bare robot, held by a stop, tips over its wheels
+      sigma_deg: 1.0              # deg, standard deviation of one reading
+      readings:
+        - {side: front, angle_deg: 58.5}   # side: front | back | left | right, the side it tips towards
 
 Each section is optional, but the file needs one. Each reading enters ``rollability calibrate``'s likelihood
 through a model of that measurement with Gaussian error of the stated standard deviation:
@@ -20,6 +24,13 @@ through a model of that measurement with Gaussian error of the stated standard d
   ``launch_twin.foam.lateral_friction`` (both engines), so the model's angle is atan of that product.
 - ``rollout``: simulated in the twin (:func:`~rollability_ros.core.sim.rollout.rollout_distance_m`): pins the
   foam's rolling friction and the wheels' drag (on the floor, the drag nearly alone).
+- ``tip_angle``: the tilt-table test of a vehicle's static stability. The bare robot stands on its wheels on a
+  board, a stop strip against its downhill wheels so it cannot roll or slide; the board is raised until the
+  uphill wheels lift. That happens when the centre of mass passes over the downhill support edge:
+  tan(angle) = e / h, h the centre of mass's height above the board and e its horizontal distance to the
+  outermost support point on that side (:func:`tip_angle_deg`, from the robot's hull and centre of mass as the
+  trials spawn it, any robot model). It pins the centre of mass's height (``robot.com_offset_z_m``), which the
+  launches' verdicts leave wide.
 
 The log-likelihood of a characterisation under a set of twin parameters is
 :func:`characterisation_log_likelihood`; calibration adds it to the launch outcomes' for every parameter set it
@@ -30,6 +41,8 @@ import math
 import os
 import typing
 
+import numpy as np
+
 
 if typing.TYPE_CHECKING:
     from rollability_ros.core.sim import LaunchTwinSettings
@@ -39,7 +52,10 @@ FORMAT = "rollability-characterisation-1"
 #: Surfaces of a roll-out reading (:data:`rollability_ros.core.sim.rollout.SURFACES`, kept here so the parser
 #: needs no physics).
 ROLLOUT_SURFACES = ("foam", "floor")
-_SECTIONS = {"format", "rollout", "slide_angle"}
+#: Sides a tip-angle reading tips towards, as the horizontal direction in the robot's base frame (x forward, y
+#: left, the up axis turned onto +z as the stable-pose screen turns it).
+TIP_SIDES = {"front": (1.0, 0.0), "back": (-1.0, 0.0), "left": (0.0, 1.0), "right": (0.0, -1.0)}
+_SECTIONS = {"format", "rollout", "slide_angle", "tip_angle"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,6 +68,14 @@ class RolloutReading:
 
 
 @dataclasses.dataclass(frozen=True)
+class TipReading:
+    """One tilt-table reading: the side the robot tipped towards (:data:`TIP_SIDES`) and the board's angle (deg)."""
+
+    side: str
+    angle_deg: float
+
+
+@dataclasses.dataclass(frozen=True)
 class Characterisation:
     """A characterisation file's readings (module docstring); empty tuples for an absent section."""
 
@@ -60,6 +84,8 @@ class Characterisation:
     rollout_sigma_m: float = math.nan
     slide_angles_deg: typing.Tuple[float, ...] = ()
     slide_sigma_deg: float = math.nan
+    tips: typing.Tuple[TipReading, ...] = ()
+    tip_sigma_deg: float = math.nan
 
     def summary(self) -> str:
         """One line: what the file holds."""
@@ -68,6 +94,8 @@ class Characterisation:
             parts.append(f"{len(self.rollouts)} roll-out(s) (sd {self.rollout_sigma_m:g} m)")
         if self.slide_angles_deg:
             parts.append(f"{len(self.slide_angles_deg)} slide angle(s) (sd {self.slide_sigma_deg:g} deg)")
+        if self.tips:
+            parts.append(f"{len(self.tips)} tip angle(s) (sd {self.tip_sigma_deg:g} deg)")
         return f"characterisation {self.source}: " + ", ".join(parts)
 
 
@@ -107,14 +135,14 @@ def parse_characterisation(document: object, source: str) -> Characterisation:
     first problem."""
     try:
         if not isinstance(document, dict):
-            raise ValueError("must be a mapping with format, rollout and/or slide_angle")
+            raise ValueError("must be a mapping with format, rollout, slide_angle and/or tip_angle")
         unknown = sorted(set(map(str, document)) - _SECTIONS)
         if unknown:
             raise ValueError(f"unknown section {unknown[0]!r} (known: {', '.join(sorted(_SECTIONS))})")
         if document.get("format") != FORMAT:
             raise ValueError(f"format must be {FORMAT!r}, got {document.get('format')!r}")
-        if "rollout" not in document and "slide_angle" not in document:
-            raise ValueError("holds no measurements: give rollout and/or slide_angle")
+        if not {"rollout", "slide_angle", "tip_angle"} & set(document):
+            raise ValueError("holds no measurements: give rollout, slide_angle and/or tip_angle")
         fields: typing.Dict[str, typing.Any] = {}
         if "rollout" in document:
             rollout = _mapping(document["rollout"], "rollout", {"sigma_m", "readings"})
@@ -136,6 +164,18 @@ def parse_characterisation(document: object, source: str) -> Characterisation:
             fields["slide_angles_deg"] = tuple(
                 _number(v, f"slide_angle.readings_deg[{i}]", 0.0, 89.0, True)
                 for i, v in enumerate(_readings(slide["readings_deg"], "slide_angle.readings_deg")))
+        if "tip_angle" in document:
+            tip = _mapping(document["tip_angle"], "tip_angle", {"sigma_deg", "readings"})
+            fields["tip_sigma_deg"] = _number(tip["sigma_deg"], "tip_angle.sigma_deg", 0.0, 45.0, True)
+            tips = []
+            for i, item in enumerate(_readings(tip["readings"], "tip_angle.readings")):
+                where = f"tip_angle.readings[{i}]"
+                item = _mapping(item, where, {"side", "angle_deg"})
+                if item["side"] not in TIP_SIDES:
+                    raise ValueError(f"{where}.side must be one of {', '.join(TIP_SIDES)}, got {item['side']!r}")
+                tips.append(TipReading(str(item["side"]), _number(item["angle_deg"], f"{where}.angle_deg", 0.0, 89.0,
+                                                                  True)))
+            fields["tips"] = tuple(tips)
         return Characterisation(source=source, **fields)
     except ValueError as error:
         raise ValueError(f"{source}: {error}") from None
@@ -165,6 +205,41 @@ def slide_angle_deg(twin: "LaunchTwinSettings") -> float:
     return math.degrees(math.atan(twin.physics.lateral_friction * twin.twin.foam.lateral_friction))
 
 
+def tip_angle_deg(twin: "LaunchTwinSettings", side: str) -> float:
+    """The tilt-table angle (deg) at which the typed twin's bare robot, standing on its wheels with a stop at its
+    downhill wheels, tips towards ``side`` (:data:`TIP_SIDES`): atan(e / h), h the centre of mass's height above
+    the lowest hull points (the support: the wheels' bottoms) and e its horizontal distance to the outermost of
+    them on that side (module docstring). The robot's hull and centre of mass are the stable-pose screen's
+    (``robot_hull``: PyBullet's collision shapes and link masses, any robot model)."""
+    return tip_angles_deg(twin, (side,))[0]
+
+
+def tip_angles_deg(twin: "LaunchTwinSettings", sides: typing.Sequence[str]) -> typing.List[float]:
+    """:func:`tip_angle_deg` towards each of ``sides``, from one hull of the robot."""
+    from rollability_ros.core.sim.stable_poses import robot_hull
+
+    unknown = [side for side in sides if side not in TIP_SIDES]
+    if unknown:
+        raise ValueError(f"side must be one of {', '.join(TIP_SIDES)}, got {unknown[0]!r}")
+    body = robot_hull(twin.robot_model(), None)
+    vertices = np.asarray(body.hull.vertices)
+    bottom = vertices[:, 2].min()
+    support = vertices[vertices[:, 2] <= bottom + SUPPORT_TOLERANCE_M]
+    height = float(body.com_m[2] - bottom)
+    angles = []
+    for side in sides:
+        direction = np.asarray(TIP_SIDES[side])
+        reach = float((support[:, :2] @ direction).max() - body.com_m[:2] @ direction)
+        if reach <= 0.0:
+            raise ValueError(f"the robot's centre of mass lies outside its support towards {side}: it does not stand")
+        angles.append(math.degrees(math.atan2(reach, height)))
+    return angles
+
+
+#: Hull points within this height of the lowest count as the support a tip-angle reading pivots over (m).
+SUPPORT_TOLERANCE_M = 1e-4
+
+
 def _gaussian(observed: float, predicted: float, sigma: float) -> float:
     """log N(observed | predicted, sigma^2)."""
     return -0.5 * ((observed - predicted) / sigma) ** 2 - math.log(sigma * math.sqrt(2.0 * math.pi))
@@ -175,6 +250,9 @@ def characterisation_log_likelihood(characterisation: Characterisation, twin: "L
     (module docstring). Roll-outs are simulated once per distinct (surface, speed)."""
     total = sum(_gaussian(angle, slide_angle_deg(twin), characterisation.slide_sigma_deg)
                 for angle in characterisation.slide_angles_deg)
+    sides = sorted({t.side for t in characterisation.tips})
+    tipped = dict(zip(sides, tip_angles_deg(twin, sides))) if sides else {}
+    total += sum(_gaussian(t.angle_deg, tipped[t.side], characterisation.tip_sigma_deg) for t in characterisation.tips)
     if characterisation.rollouts:
         from rollability_ros.core.sim import rollout_distance_m
 

@@ -212,12 +212,14 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
                           unknowns: Unknowns, grid_points: typing.Optional[int] = None) -> LogDensity:
     """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
-    parameter set). Roll-outs: each reading's predicted distance simulated on a grid of ``grid_points`` values of
-    each roll-out unknown (:data:`ROLLOUT_KEYS`; at most two, the others at their loaded values), interpolated
-    (cubic in the normalised coordinates) and scored by the reading's Gaussian, since a roll-out per parameter
-    set would cost as much as the launches it replaces. ``grid_points`` defaults to 17 for one such unknown and
-    9 for two (the table's roll-outs: 17 or 81 per reading's speed)."""
-    from rollability_ros.core.sim import rollout_distance_m, twin_value, twin_with_values
+    parameter set). Roll-outs and tip angles: each reading's prediction computed on a grid of ``grid_points``
+    values of each unknown it depends on that is sampled (:data:`ROLLOUT_KEYS`, :data:`TIP_KEYS`; at most two per
+    kind, the others at their loaded values), interpolated (cubic in the normalised coordinates) and scored by
+    the reading's Gaussian, since a roll-out (a simulation) or a tip angle (the robot's hull) per parameter set
+    would cost as much as the launches it replaces. ``grid_points`` defaults to 17 for one such unknown and 9
+    for two (the table's predictions: 17 or 81 per kind of reading)."""
+    from rollability_ros.core.campaign.characterisation import tip_angles_deg
+    from rollability_ros.core.sim import rollout_distance_m, twin_value
 
     names = unknowns.names
 
@@ -234,36 +236,56 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
         readings = np.asarray(characterisation.slide_angles_deg)
         return (-0.5 * ((readings[None, :] - angle[:, None]) / sigma) ** 2
                 - math.log(sigma * math.sqrt(2.0 * math.pi))).sum(axis=1)
-    if not characterisation.rollouts:
-        return slide
-    rolling = [names.index(k) for k in ROLLOUT_KEYS if k in names]
-    if len(rolling) > 2:
-        raise ValueError("at most two roll-out unknowns can be tabulated")
-    points = grid_points or (17 if len(rolling) <= 1 else 9)
-    grids = [np.linspace(0.0, 1.0, points) for _ in rolling]
-    mesh = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(rolling), -1).T if rolling else np.zeros((1, 0))
-    keys = sorted({(r.surface, r.speed_mps) for r in characterisation.rollouts})
-    # the predicted distance of each (surface, speed) at each grid point: the distances are smooth in the
-    # unknowns and are what is interpolated; the likelihood's peak, narrower than a grid step at 0.02 m
-    # readings, is computed from them (interpolating the log-likelihood itself put the peak on a grid point)
-    table = np.array([[rollout_distance_m(twin_with_values(
-        twin, {names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(rolling)}), speed, surface)
-        for surface, speed in keys] for point in mesh])
-    readings = np.array([r.distance_m for r in characterisation.rollouts])
-    which = np.array([keys.index((r.surface, r.speed_mps)) for r in characterisation.rollouts])
-    sigma = characterisation.rollout_sigma_m
+    terms: typing.List[LogDensity] = [slide]
+    if characterisation.rollouts:
+        keys = sorted({(r.surface, r.speed_mps) for r in characterisation.rollouts})
+        terms.append(_tabulated(
+            twin, unknowns, ROLLOUT_KEYS, grid_points,
+            lambda settings: [rollout_distance_m(settings, speed, surface) for surface, speed in keys],
+            [r.distance_m for r in characterisation.rollouts],
+            [keys.index((r.surface, r.speed_mps)) for r in characterisation.rollouts], characterisation.rollout_sigma_m))
+    if characterisation.tips:
+        sides = sorted({t.side for t in characterisation.tips})
+        terms.append(_tabulated(
+            twin, unknowns, TIP_KEYS, grid_points, lambda settings: tip_angles_deg(settings, sides),
+            [t.angle_deg for t in characterisation.tips], [sides.index(t.side) for t in characterisation.tips],
+            characterisation.tip_sigma_deg))
+    return lambda u: sum(term(u) for term in terms)
 
-    def rollouts(predicted: np.ndarray) -> np.ndarray:
-        """The roll-outs' Gaussian log-likelihood (s,) from predicted distances (s, keys)."""
-        z = (readings[None, :] - predicted[:, which]) / sigma
+
+def _tabulated(twin: "LaunchTwinSettings", unknowns: Unknowns, depends_on: typing.Sequence[str],
+               grid_points: typing.Optional[int],
+               predict: typing.Callable[["LaunchTwinSettings"], typing.Sequence[float]],
+               readings: typing.Sequence[float], which: typing.Sequence[int], sigma: float) -> LogDensity:
+    """The Gaussian log-likelihood (s,) of ``readings`` (r,), reading i predicted by ``predict(twin)[which[i]]``,
+    as a function of normalised unknowns (s, d): the predictions tabulated on a grid of the sampled unknowns among
+    ``depends_on`` (at most two) and interpolated (cubic): the predictions are smooth in the unknowns and are what
+    is interpolated; the likelihood's peak, narrower than a grid step at precise readings, is computed from them
+    (interpolating the log-likelihood itself put the peak on a grid point)."""
+    from rollability_ros.core.sim import twin_with_values
+
+    names = unknowns.names
+    varied = [names.index(k) for k in depends_on if k in names]
+    if len(varied) > 2:
+        raise ValueError(f"at most two of {', '.join(depends_on)} can be tabulated")
+    points = grid_points or (17 if len(varied) <= 1 else 9)
+    grids = [np.linspace(0.0, 1.0, points) for _ in varied]
+    mesh = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(varied), -1).T if varied else np.zeros((1, 0))
+    table = np.array([predict(twin_with_values(
+        twin, {names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(varied)})) for point in mesh])
+    observed, index = np.asarray(readings, dtype=np.float64), np.asarray(which, dtype=int)
+
+    def gaussian(predicted: np.ndarray) -> np.ndarray:
+        """The readings' Gaussian log-likelihood (s,) from the predictions (s, kinds)."""
+        z = (observed[None, :] - predicted[:, index]) / sigma
         return (-0.5 * z * z - math.log(sigma * math.sqrt(2.0 * math.pi))).sum(axis=1)
-    if not rolling:
-        fixed = rollouts(table[:1])[0]
-        return lambda u: slide(u) + fixed
+    if not varied:
+        fixed = gaussian(table[:1])[0]
+        return lambda u: np.full(len(u), fixed)
     method = "cubic" if points >= 4 else "linear"
-    interpolate = require("scipy.interpolate", feature="tabulated roll-outs").RegularGridInterpolator(
-        grids, table.reshape([points] * len(rolling) + [len(keys)]), method=method)
-    return lambda u: slide(u) + rollouts(interpolate(np.clip(u[:, rolling], 0.0, 1.0)))
+    interpolate = require("scipy.interpolate", feature="tabulated characterisation readings").RegularGridInterpolator(
+        grids, table.reshape([points] * len(varied) + [table.shape[1]]), method=method)
+    return lambda u: gaussian(interpolate(np.clip(u[:, varied], 0.0, 1.0)))
 
 
 #: The keys whose product is the printed part's friction on the foam (the slide angle's model).
@@ -273,3 +295,6 @@ SLIDE_KEYS = ("sim.lateral_friction", "launch_twin.foam.lateral_friction")
 #: 0.33; the centre of mass, the profile's mass and the speed bias moved it by under 0.002 m).
 ROLLOUT_KEYS = ("launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_torque_nm",
                 "launch_twin.foam.lateral_friction")
+#: The unknowns a tip angle depends on (the bare robot's centre of mass; :func:`characterisation_term` tabulates
+#: it over those sampled).
+TIP_KEYS = ("robot.com_offset_z_m",)

@@ -20,14 +20,17 @@ widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise ->
 3. ``--truths`` hidden truths drawn from the prior (uniform over the normalised bounds, each from its own seed).
    For each: the paper's 400-launch matrix (4 configurations x 2 heights x 2 speeds x 5 angles x 5) launched on
    the twin at the truth (fresh seeds), five slide angles (the analytic model plus 1 deg noise) and three
-   roll-outs on the foam (the simulated roll-out plus 0.02 m noise), kept in ``--keep`` (JSON) for re-runs; then,
+   roll-outs on the foam (the simulated roll-out plus 0.02 m noise), kept in ``--keep`` (JSON) for re-runs, five
+   tilt-table tip angles of the bare robot (1 deg noise; ``--no-tips`` leaves them out) and one weighing of each
+   design's profile (1 g noise; ``--no-weighing``), drawn afresh from the truth's seed; then,
    in a worker, the posterior of all unknowns from the verdicts, the gate's speed and the IMU's tilt, peak
    deceleration, time to rest and the rest distance, plus the characterisation. Prints each unknown's coverage of
    the 95% sets, their widths as a fraction of the range (own scale), the SBC ranks (the truth among 99 thinned
    posterior samples: their histogram by fifths and its chi-squared p-value), the calibration time, and the
    learnt P(upright) on these fresh launches against a constant (Brier, log loss, reliability by deciles).
 4. ``rollability calibrate --likelihood`` (the CLI, a subprocess) with two unknowns (centre of mass, foam friction)
-   on the first truth's 400 launches, written as an outcome CSV, then again with its slide angles.
+   on the first truth's 400 launches, written as an outcome CSV, then again with its slide angles, then with its
+   slide and tip angles.
 5. Calibrate -> re-optimise -> validate on the first truth (bench_objective's optimisation, one seed): the design
    optimised on the calibrated twin against the one on the uncalibrated twin, each launched ``--validate`` times on
    the truth; the gain with Newcombe's 95% interval.
@@ -64,7 +67,7 @@ UNKNOWNS = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction", "launch
 #: The two unknowns of the CLI check.
 CLI_UNKNOWNS = ("robot.com_offset_z_m", "launch_twin.foam.lateral_friction")
 #: Noise of the simulated characterisation readings.
-SLIDE_SIGMA_DEG, ROLLOUT_SIGMA_M, TIP_SIGMA_DEG = 1.0, 0.02, 1.0
+SLIDE_SIGMA_DEG, ROLLOUT_SIGMA_M, TIP_SIGMA_DEG, MASS_SIGMA_KG = 1.0, 0.02, 1.0, 0.001
 SLIDE_READINGS, ROLLOUT_SPEEDS_MPS = 5, (0.8, 1.0, 1.2)
 #: Tilt-table readings of the bare robot (docs/characterisation.md (d)): the sides it tips towards, one each.
 TIP_SIDES = ("front", "back", "left", "right", "front")
@@ -137,8 +140,8 @@ def rollout_parameters(parameters):
 
 
 def characterise_truth(parameters, unknowns, truth, rng):
-    """Simulated bench readings of ``truth``: slide angles (analytic + noise), roll-outs on the foam and tilt-table
-    tip angles (:func:`tip_readings`)."""
+    """Simulated bench readings of ``truth``: slide angles (analytic + noise) and roll-outs on the foam (the tip
+    angles and weighings: :func:`bench_readings`)."""
     from rollability_ros.core.campaign import characterisation as bench
     from rollability_ros.core.sim import rollout_distance_m
 
@@ -159,15 +162,21 @@ def truth_settings(parameters, unknowns, truth):
     return launch_twin_settings_from_parameters(flat)
 
 
-def tip_readings(parameters, unknowns, truth, number):
-    """Simulated tilt-table readings of ``truth``: the model's tip angle towards each of :data:`TIP_SIDES` plus
-    noise of :data:`TIP_SIGMA_DEG` (its own seed per truth, so the truths kept by earlier runs get theirs)."""
+def bench_readings(parameters, unknowns, truth, number, readings):
+    """``readings`` with the truth's tilt-table tip angles (the model's angle towards each of :data:`TIP_SIDES`
+    plus noise of :data:`TIP_SIGMA_DEG`) and one weighing of each design's profile (the model's mass plus noise of
+    :data:`MASS_SIGMA_KG`), drawn with the truth's own seed (so the truths kept by earlier runs get theirs)."""
     from rollability_ros.core.campaign import characterisation as bench
 
     settings = truth_settings(parameters, unknowns, truth)
     rng = np.random.default_rng([TRUTH_SEED, number, 7])
-    return tuple(bench.TipReading(side, angle + TIP_SIGMA_DEG * rng.standard_normal())
+    tips = tuple(bench.TipReading(side, angle + TIP_SIGMA_DEG * rng.standard_normal())
                  for side, angle in zip(TIP_SIDES, bench.tip_angles_deg(settings, TIP_SIDES)))
+    masses = tuple(bench.MassReading(label, bench.profile_mass_kg(settings, label) + MASS_SIGMA_KG
+                                     * rng.standard_normal())
+                   for label in parameters["launch_twin.designs.mesh_labels"])
+    return dataclasses.replace(readings, tips=tips, tip_sigma_deg=TIP_SIGMA_DEG, masses=masses,
+                               mass_sigma_kg=MASS_SIGMA_KG)
 
 
 def adaptive_comparison(likelihood, truths, configurations, levels, samples=4000):
@@ -219,16 +228,14 @@ def truth_data(parameters, unknowns, matrix, number, cache):
             source="simulated", rollouts=tuple(bench.RolloutReading(*r) for r in data["rollouts"]),
             rollout_sigma_m=ROLLOUT_SIGMA_M, slide_angles_deg=tuple(data["slides"]), slide_sigma_deg=SLIDE_SIGMA_DEG)
         truth_u = np.array(data["truth_u"])
-        readings = dataclasses.replace(readings, tips=tip_readings(parameters, unknowns, unknowns.to_values(truth_u),
-                                                                   number), tip_sigma_deg=TIP_SIGMA_DEG)
-        return truth_u, observations, readings, 0.0
+        return truth_u, observations, bench_readings(parameters, unknowns, unknowns.to_values(truth_u), number,
+                                                     readings), 0.0
     rng = np.random.default_rng([TRUTH_SEED, number])
     truth_u = rng.uniform(size=len(unknowns.names))
     truth = unknowns.to_values(truth_u)
     started = time.process_time()
     observations = launch_truth(parameters, unknowns, truth, matrix, TRUTH_SEED + 1000 * number)
-    readings = dataclasses.replace(characterise_truth(parameters, unknowns, truth, rng),
-                                   tips=tip_readings(parameters, unknowns, truth, number), tip_sigma_deg=TIP_SIGMA_DEG)
+    readings = bench_readings(parameters, unknowns, truth, number, characterise_truth(parameters, unknowns, truth, rng))
     cpu = time.process_time() - started
     if path:
         with open(path, "w", encoding="utf-8") as stream:
@@ -240,7 +247,7 @@ def truth_data(parameters, unknowns, matrix, number, cache):
 
 
 def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, temperature, cache, walkers=16,
-                    start_draws=500, outcomes=None, rollouts=True, tips=True):
+                    start_draws=500, outcomes=None, rollouts=True, tips=True, weighing=True):
     """One truth of step 3 in a worker process: its data (:func:`truth_data`), then the posterior of every
     unknown. Returns a dict: the truth, the normalised samples, times, and the learnt P(upright) at the truth of
     each launch."""
@@ -250,6 +257,8 @@ def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, tem
         readings = dataclasses.replace(readings, rollouts=())
     if not tips:
         readings = dataclasses.replace(readings, tips=())
+    if not weighing:
+        readings = dataclasses.replace(readings, masses=())
     extra = sampling.characterisation_term(
         readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)), unknowns)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1, steps=steps,
@@ -279,7 +288,8 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
     jobs = pool.map(calibrate_truth, [likelihood] * count, [parameters] * count, [unknowns] * count,
                     [matrix] * count, order, [args.steps] * count, [args.temperature] * count,
                     [args.cache] * count, [args.walkers] * count, [args.start_draws] * count,
-                    [args.outcome_names] * count, [not args.no_rollouts] * count, [not args.no_tips] * count)
+                    [args.outcome_names] * count, [not args.no_rollouts] * count, [not args.no_tips] * count,
+                    [not args.no_weighing] * count)
     for done, (number, result) in enumerate(zip(order, jobs)):
         truth_u = result["truth_u"]
         truth = unknowns.to_values(truth_u)
@@ -441,6 +451,8 @@ def main(argv=None):
                         help="leave the roll-outs out of the calibrations (the slide angles stay)")
     parser.add_argument("--no-tips", action="store_true",
                         help="leave the tilt-table tip angles out of the calibrations and of the CLI check")
+    parser.add_argument("--no-weighing", action="store_true",
+                        help="leave the profiles' weighings out of the calibrations")
     parser.add_argument("--temperature", type=float, help="the launches' log-likelihood exponent (default: the "
                         "prepared file's)")
     parser.add_argument("--engine", default="mujoco", choices=("mujoco", "pybullet"),

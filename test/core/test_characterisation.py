@@ -181,3 +181,40 @@ def test_the_tip_angle_is_the_tilt_tables_analytic_angle_and_pins_the_centre_of_
     assert low <= truth <= high and kept[-1] - kept[0] < 0.2
     assert characterisation_log_likelihood(readings, twin(**{"robot.com_offset_z_m": truth})) == pytest.approx(
         float(term(unknowns.to_normalised(np.array([[truth]])))[0]), abs=0.05)   # the direct fit's model, the same
+
+
+def test_a_weighed_profile_pins_its_mass_multiplier(tmp_path):
+    """The profile's weighed mass is the twin's printed mass of its mesh times ``profile_mass_scale`` (linear in
+    it); one weighing at 1 g pins the multiplier to a few percent of its declared (log) range; the bare robot has
+    no profile to weigh."""
+    import numpy as np
+    import trimesh
+
+    from rollability_ros.core.campaign.adaptive import Unknowns
+    from rollability_ros.core.campaign.characterisation import Characterisation, MassReading, profile_mass_kg
+    from rollability_ros.core.campaign.posterior import characterisation_term
+
+    path = tmp_path / "box.stl"
+    trimesh.creation.box((0.12, 0.1, 0.03)).apply_translation((0, 0, 0.015)).export(path)
+    designs = {"launch_twin.designs.mesh_labels": ["A"], "launch_twin.designs.mesh_files": [str(path)]}
+    one = profile_mass_kg(twin(**designs, **{"robot.profile_mass_scale": 1.0}), "A")
+    assert one > 0.01 and profile_mass_kg(twin(**designs, **{"robot.profile_mass_scale": 1.3}), "A") == \
+        pytest.approx(1.3 * one)
+    with pytest.raises(ValueError, match="no printed profile"):
+        profile_mass_kg(twin(**designs), "baseline")
+    readings = Characterisation("test", masses=(MassReading("A", 1.3 * one + 0.0004),), mass_sigma_kg=0.001)
+    unknowns = Unknowns(("robot.profile_mass_scale",), (0.15,), (2.0,), (True,))
+    term = characterisation_term(readings, twin(**designs), unknowns, grid_points=9)
+    grid = np.linspace(0.0, 1.0, 2001)[:, None]
+    log_likelihood = term(grid)
+    kept = grid[log_likelihood >= log_likelihood.max() - 1.92, 0]
+    low, high = unknowns.to_values(kept[[0, -1], None])[:, 0]
+    assert low <= 1.3 <= high and kept[-1] - kept[0] < 0.05
+    assert characterisation_log_likelihood(readings, twin(**designs, **{"robot.profile_mass_scale": 1.3})) == \
+        pytest.approx(float(term(unknowns.to_normalised(np.array([[1.3]])))[0]), abs=0.05)
+    document = {"format": FORMAT, "profile_mass": {"sigma_kg": 0.001, "readings": [{"configuration": "A",
+                                                                                   "mass_kg": 0.05}]}}
+    assert parse_characterisation(document, "x").masses == (MassReading("A", 0.05),)
+    document["profile_mass"]["readings"][0]["mass_kg"] = -1
+    with pytest.raises(ValueError, match=r"profile_mass.readings\[0\].mass_kg must be in"):
+        parse_characterisation(document, "x")

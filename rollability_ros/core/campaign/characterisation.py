@@ -15,6 +15,10 @@ strictly: an unknown key, a missing one or a value of the wrong kind is refused 
       sigma_deg: 1.0              # deg, standard deviation of one reading
       readings:
         - {side: front, angle_deg: 58.5}   # side: front | back | left | right, the side it tips towards
+    profile_mass:                 # each printed profile weighed on a scale
+      sigma_kg: 0.0005            # kg, standard deviation of one weighing
+      readings:
+        - {configuration: A, mass_kg: 0.062}
 
 Each section is optional, but the file needs one. Each reading enters ``rollability calibrate``'s likelihood
 through a model of that measurement with Gaussian error of the stated standard deviation:
@@ -31,6 +35,8 @@ through a model of that measurement with Gaussian error of the stated standard d
   outermost support point on that side (:func:`tip_angle_deg`, from the robot's hull and centre of mass as the
   trials spawn it, any robot model). It pins the centre of mass's height (``robot.com_offset_z_m``), which the
   launches' verdicts leave wide.
+- ``profile_mass``: the twin's mass of the configuration's printed profile (its mesh made as ``profile_print``
+  says, times ``profile_mass_scale``: :func:`profile_mass_kg`); pins the profile's mass multiplier.
 
 The log-likelihood of a characterisation under a set of twin parameters is
 :func:`characterisation_log_likelihood`; calibration adds it to the launch outcomes' for every parameter set it
@@ -55,7 +61,8 @@ ROLLOUT_SURFACES = ("foam", "floor")
 #: Sides a tip-angle reading tips towards, as the horizontal direction in the robot's base frame (x forward, y
 #: left, the up axis turned onto +z as the stable-pose screen turns it).
 TIP_SIDES = {"front": (1.0, 0.0), "back": (-1.0, 0.0), "left": (0.0, 1.0), "right": (0.0, -1.0)}
-_SECTIONS = {"format", "rollout", "slide_angle", "tip_angle"}
+_SECTIONS = {"format", "rollout", "slide_angle", "tip_angle", "profile_mass"}
+_MEASUREMENTS = ("rollout", "slide_angle", "tip_angle", "profile_mass")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,6 +83,14 @@ class TipReading:
 
 
 @dataclasses.dataclass(frozen=True)
+class MassReading:
+    """One weighing of a configuration's printed profile (kg)."""
+
+    configuration: str
+    mass_kg: float
+
+
+@dataclasses.dataclass(frozen=True)
 class Characterisation:
     """A characterisation file's readings (module docstring); empty tuples for an absent section."""
 
@@ -86,6 +101,8 @@ class Characterisation:
     slide_sigma_deg: float = math.nan
     tips: typing.Tuple[TipReading, ...] = ()
     tip_sigma_deg: float = math.nan
+    masses: typing.Tuple[MassReading, ...] = ()
+    mass_sigma_kg: float = math.nan
 
     def summary(self) -> str:
         """One line: what the file holds."""
@@ -96,6 +113,8 @@ class Characterisation:
             parts.append(f"{len(self.slide_angles_deg)} slide angle(s) (sd {self.slide_sigma_deg:g} deg)")
         if self.tips:
             parts.append(f"{len(self.tips)} tip angle(s) (sd {self.tip_sigma_deg:g} deg)")
+        if self.masses:
+            parts.append(f"{len(self.masses)} profile weighing(s) (sd {self.mass_sigma_kg:g} kg)")
         return f"characterisation {self.source}: " + ", ".join(parts)
 
 
@@ -135,14 +154,14 @@ def parse_characterisation(document: object, source: str) -> Characterisation:
     first problem."""
     try:
         if not isinstance(document, dict):
-            raise ValueError("must be a mapping with format, rollout, slide_angle and/or tip_angle")
+            raise ValueError(f"must be a mapping with format and any of {', '.join(_MEASUREMENTS)}")
         unknown = sorted(set(map(str, document)) - _SECTIONS)
         if unknown:
             raise ValueError(f"unknown section {unknown[0]!r} (known: {', '.join(sorted(_SECTIONS))})")
         if document.get("format") != FORMAT:
             raise ValueError(f"format must be {FORMAT!r}, got {document.get('format')!r}")
-        if not {"rollout", "slide_angle", "tip_angle"} & set(document):
-            raise ValueError("holds no measurements: give rollout, slide_angle and/or tip_angle")
+        if not set(_MEASUREMENTS) & set(document):
+            raise ValueError(f"holds no measurements: give any of {', '.join(_MEASUREMENTS)}")
         fields: typing.Dict[str, typing.Any] = {}
         if "rollout" in document:
             rollout = _mapping(document["rollout"], "rollout", {"sigma_m", "readings"})
@@ -176,6 +195,18 @@ def parse_characterisation(document: object, source: str) -> Characterisation:
                 tips.append(TipReading(str(item["side"]), _number(item["angle_deg"], f"{where}.angle_deg", 0.0, 89.0,
                                                                   True)))
             fields["tips"] = tuple(tips)
+        if "profile_mass" in document:
+            weighed = _mapping(document["profile_mass"], "profile_mass", {"sigma_kg", "readings"})
+            fields["mass_sigma_kg"] = _number(weighed["sigma_kg"], "profile_mass.sigma_kg", 0.0, 10.0, True)
+            masses = []
+            for i, item in enumerate(_readings(weighed["readings"], "profile_mass.readings")):
+                where = f"profile_mass.readings[{i}]"
+                item = _mapping(item, where, {"configuration", "mass_kg"})
+                if not isinstance(item["configuration"], str) or not item["configuration"]:
+                    raise ValueError(f"{where}.configuration must be a design label, got {item['configuration']!r}")
+                masses.append(MassReading(item["configuration"], _number(item["mass_kg"], f"{where}.mass_kg", 0.0,
+                                                                         100.0, True)))
+            fields["masses"] = tuple(masses)
         return Characterisation(source=source, **fields)
     except ValueError as error:
         raise ValueError(f"{source}: {error}") from None
@@ -236,6 +267,18 @@ def tip_angles_deg(twin: "LaunchTwinSettings", sides: typing.Sequence[str]) -> t
     return angles
 
 
+def profile_mass_kg(twin: "LaunchTwinSettings", configuration: str) -> float:
+    """The twin's mass (kg) of ``configuration``'s printed profile: its mesh (``launch_twin.designs``) made as the
+    robot's ``profile_print`` says, times its ``profile_mass_scale``. ``ValueError`` for the baseline (no
+    profile to weigh) or an unknown configuration."""
+    from rollability_ros.core.profile.designs import profile_mesh_for
+
+    mesh = profile_mesh_for(configuration, twin.twin.designs)
+    if mesh is None:
+        raise ValueError(f"{configuration} has no printed profile to weigh")
+    return float(twin.profile_body(mesh).mass_kg)
+
+
 #: Hull points within this height of the lowest count as the support a tip-angle reading pivots over (m).
 SUPPORT_TOLERANCE_M = 1e-4
 
@@ -253,6 +296,9 @@ def characterisation_log_likelihood(characterisation: Characterisation, twin: "L
     sides = sorted({t.side for t in characterisation.tips})
     tipped = dict(zip(sides, tip_angles_deg(twin, sides))) if sides else {}
     total += sum(_gaussian(t.angle_deg, tipped[t.side], characterisation.tip_sigma_deg) for t in characterisation.tips)
+    weighed = {c: profile_mass_kg(twin, c) for c in {m.configuration for m in characterisation.masses}}
+    total += sum(_gaussian(m.mass_kg, weighed[m.configuration], characterisation.mass_sigma_kg)
+                 for m in characterisation.masses)
     if characterisation.rollouts:
         from rollability_ros.core.sim import rollout_distance_m
 

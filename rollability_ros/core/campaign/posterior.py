@@ -212,13 +212,14 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
                           unknowns: Unknowns, grid_points: typing.Optional[int] = None) -> LogDensity:
     """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
-    parameter set). Roll-outs and tip angles: each reading's prediction computed on a grid of ``grid_points``
-    values of each unknown it depends on that is sampled (:data:`ROLLOUT_KEYS`, :data:`TIP_KEYS`; at most two per
-    kind, the others at their loaded values), interpolated (cubic in the normalised coordinates) and scored by
-    the reading's Gaussian, since a roll-out (a simulation) or a tip angle (the robot's hull) per parameter set
-    would cost as much as the launches it replaces. ``grid_points`` defaults to 17 for one such unknown and 9
-    for two (the table's predictions: 17 or 81 per kind of reading)."""
-    from rollability_ros.core.campaign.characterisation import tip_angles_deg
+    parameter set). Roll-outs, tip angles and profile weighings: each reading's prediction computed on a grid of
+    ``grid_points`` values of each unknown it depends on that is sampled (:data:`ROLLOUT_KEYS`, :data:`TIP_KEYS`,
+    :data:`MASS_KEYS`; at most two per kind, the others at their loaded values), interpolated (cubic in the
+    normalised coordinates) and scored by the reading's Gaussian, since a roll-out (a simulation), a tip angle (the
+    robot's hull) or a profile's mass (its printed shell) per parameter set would cost as much as the launches it
+    replaces. ``grid_points`` defaults to 17 for one such unknown and 9 for two (the table's predictions: 17 or 81
+    per kind of reading)."""
+    from rollability_ros.core.campaign.characterisation import profile_mass_kg, tip_angles_deg
     from rollability_ros.core.sim import rollout_distance_m, twin_value
 
     names = unknowns.names
@@ -250,6 +251,12 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
             twin, unknowns, TIP_KEYS, grid_points, lambda settings: tip_angles_deg(settings, sides),
             [t.angle_deg for t in characterisation.tips], [sides.index(t.side) for t in characterisation.tips],
             characterisation.tip_sigma_deg))
+    if characterisation.masses:
+        weighed = sorted({m.configuration for m in characterisation.masses})
+        terms.append(_tabulated(
+            twin, unknowns, MASS_KEYS, grid_points, lambda settings: [profile_mass_kg(settings, c) for c in weighed],
+            [m.mass_kg for m in characterisation.masses], [weighed.index(m.configuration) for m in
+                                                            characterisation.masses], characterisation.mass_sigma_kg))
     return lambda u: sum(term(u) for term in terms)
 
 
@@ -298,3 +305,5 @@ ROLLOUT_KEYS = ("launch_twin.foam.rolling_friction", "launch_twin.wheel_drag_tor
 #: The unknowns a tip angle depends on (the bare robot's centre of mass; :func:`characterisation_term` tabulates
 #: it over those sampled).
 TIP_KEYS = ("robot.com_offset_z_m",)
+#: The unknowns a profile's weighed mass depends on (its mass multiplier, on the built-in chassis or a URDF robot).
+MASS_KEYS = ("robot.profile_mass_scale", "urdf_robot.profile_mass_scale")

@@ -149,6 +149,27 @@ def _readings(value: typing.Any, where: str) -> typing.List[typing.Any]:
     return value
 
 
+def _listed(section: typing.Any, name: str, sigma_key: str, sigma_high: float, keys: typing.Tuple[str, str],
+            labels: typing.Optional[typing.Iterable[str]], value_high: float,
+            make: typing.Callable[[str, float], typing.Any]) -> typing.Tuple[float, typing.Tuple[typing.Any, ...]]:
+    """A section of a standard deviation ``sigma_key`` in (0, ``sigma_high``] and ``readings``, each a mapping of
+    a label ``keys[0]`` (one of ``labels``, or any non-empty text when None) and a value ``keys[1]`` in (0,
+    ``value_high``]: the standard deviation and ``make(label, value)`` of each reading."""
+    mapping = _mapping(section, name, {sigma_key, "readings"})
+    sigma = _number(mapping[sigma_key], f"{name}.{sigma_key}", 0.0, sigma_high, True)
+    out = []
+    for i, item in enumerate(_readings(mapping["readings"], f"{name}.readings")):
+        where = f"{name}.readings[{i}]"
+        item = _mapping(item, where, set(keys))
+        label = item[keys[0]]
+        known = list(labels) if labels is not None else None
+        if not isinstance(label, str) or not label or (known is not None and label not in known):
+            expected = f"one of {', '.join(known)}" if known is not None else "a design label"
+            raise ValueError(f"{where}.{keys[0]} must be {expected}, got {label!r}")
+        out.append(make(label, _number(item[keys[1]], f"{where}.{keys[1]}", 0.0, value_high, True)))
+    return sigma, tuple(out)
+
+
 def parse_characterisation(document: object, source: str) -> Characterisation:
     """The :class:`Characterisation` of a loaded YAML ``document``; ``ValueError`` naming ``source`` and the
     first problem."""
@@ -184,29 +205,12 @@ def parse_characterisation(document: object, source: str) -> Characterisation:
                 _number(v, f"slide_angle.readings_deg[{i}]", 0.0, 89.0, True)
                 for i, v in enumerate(_readings(slide["readings_deg"], "slide_angle.readings_deg")))
         if "tip_angle" in document:
-            tip = _mapping(document["tip_angle"], "tip_angle", {"sigma_deg", "readings"})
-            fields["tip_sigma_deg"] = _number(tip["sigma_deg"], "tip_angle.sigma_deg", 0.0, 45.0, True)
-            tips = []
-            for i, item in enumerate(_readings(tip["readings"], "tip_angle.readings")):
-                where = f"tip_angle.readings[{i}]"
-                item = _mapping(item, where, {"side", "angle_deg"})
-                if item["side"] not in TIP_SIDES:
-                    raise ValueError(f"{where}.side must be one of {', '.join(TIP_SIDES)}, got {item['side']!r}")
-                tips.append(TipReading(str(item["side"]), _number(item["angle_deg"], f"{where}.angle_deg", 0.0, 89.0,
-                                                                  True)))
-            fields["tips"] = tuple(tips)
+            fields["tip_sigma_deg"], fields["tips"] = _listed(document["tip_angle"], "tip_angle", "sigma_deg", 45.0,
+                                                              ("side", "angle_deg"), TIP_SIDES, 89.0, TipReading)
         if "profile_mass" in document:
-            weighed = _mapping(document["profile_mass"], "profile_mass", {"sigma_kg", "readings"})
-            fields["mass_sigma_kg"] = _number(weighed["sigma_kg"], "profile_mass.sigma_kg", 0.0, 10.0, True)
-            masses = []
-            for i, item in enumerate(_readings(weighed["readings"], "profile_mass.readings")):
-                where = f"profile_mass.readings[{i}]"
-                item = _mapping(item, where, {"configuration", "mass_kg"})
-                if not isinstance(item["configuration"], str) or not item["configuration"]:
-                    raise ValueError(f"{where}.configuration must be a design label, got {item['configuration']!r}")
-                masses.append(MassReading(item["configuration"], _number(item["mass_kg"], f"{where}.mass_kg", 0.0,
-                                                                         100.0, True)))
-            fields["masses"] = tuple(masses)
+            fields["mass_sigma_kg"], fields["masses"] = _listed(document["profile_mass"], "profile_mass", "sigma_kg",
+                                                                10.0, ("configuration", "mass_kg"), None, 100.0,
+                                                                MassReading)
         return Characterisation(source=source, **fields)
     except ValueError as error:
         raise ValueError(f"{source}: {error}") from None

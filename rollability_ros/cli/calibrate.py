@@ -143,7 +143,7 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     unknowns = likelihood.unknowns
     if likelihood.fingerprint != twin_fingerprint(parameters, unknowns.names):
         raise ValueError(f"{args.likelihood}: prepared for another twin or design set than the loaded parameter "
-                         f"files (a setting or a design mesh differs): prepare it again (--prepare)")
+                         f"files (a setting, a design mesh or the twin's code differs): prepare it again (--prepare)")
     sampled = list(dict.fromkeys(args.fit)) or list(unknowns.names)
     fixed = {name: float(parameters[name]) for name in unknowns.names if name not in sampled}
     observations = observations_from_outcomes(outcomes)

@@ -211,7 +211,7 @@ def _learnt_posterior(args, spec, outcomes):
     parameters = load_parameters([*TWIN_CONFIGS, "calibration", *args.twin_config])
     if likelihood.fingerprint != twin_fingerprint(parameters, likelihood.unknowns.names):
         raise ValueError(f"{args.likelihood}: prepared for another twin or design set than the loaded parameter files "
-                         "(--twin-config): prepare it again for these")
+                         "(--twin-config) or the twin's code: prepare it again for these")
     candidates = candidate_conditions(spec.configurations, spec.heights_m, spec.speeds_mps, spec.angles_deg)
     try:
         table = LearntTable(likelihood, candidates)

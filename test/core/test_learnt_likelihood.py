@@ -350,3 +350,20 @@ def test_learning_recovers_the_model_from_simulated_launches(tmp_path):
     # 0.2: measured 0.78 for the 3-member ensemble (the flattened probabilities above); one network: within 0.15
     assert abs(learnt.normalised_one(UNKNOWNS, 0, best["a"]) - 0.6) < 0.2
     assert abs(learnt.normalised_one(UNKNOWNS, 1, best["b"]) - 0.3) < 0.1
+
+
+def test_the_fingerprint_holds_the_twins_code(monkeypatch):
+    """A likelihood describes the twin's code as much as its parameter files: the same parameters with another
+    twin code digest give another fingerprint (a file learnt before the twin's model changed is refused), and the
+    digest reads the source of the packages that simulate a launch."""
+    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.config import load_parameters
+
+    parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration"])
+    names = ("robot.com_offset_z_m",)
+    before = learnt.twin_fingerprint(parameters, names)
+    assert learnt.twin_fingerprint(parameters, names) == before
+    digest = learnt.twin_code_digest()
+    assert len(digest) == 32 and "rollability_ros.core.sim" in learnt.TWIN_CODE
+    monkeypatch.setattr(learnt, "twin_code_digest", lambda: b"another twin model")
+    assert learnt.twin_fingerprint(parameters, names) != before

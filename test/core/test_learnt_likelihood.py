@@ -367,3 +367,31 @@ def test_the_fingerprint_holds_the_twins_code(monkeypatch):
     assert len(digest) == 32 and "rollability_ros.core.sim" in learnt.TWIN_CODE
     monkeypatch.setattr(learnt, "twin_code_digest", lambda: b"another twin model")
     assert learnt.twin_fingerprint(parameters, names) != before
+
+
+def test_the_training_draws_reach_past_the_bounds():
+    """The networks learn a margin beyond each bound (``TRAINING_MARGIN``), so a truth at a bound is inside their
+    data: the draws span [-margin, 1 + margin] evenly, and simulating them sets values past the bounds (own units,
+    not clipped back onto them)."""
+    margin = learnt.TRAINING_MARGIN
+    assert margin > 0
+    normalised, *_ = learnt.draw_training_jobs(UNKNOWNS, CONFIGURATIONS, LEVELS, 512, 4)
+    assert normalised.min() < -0.8 * margin and normalised.max() > 1 + 0.8 * margin
+    assert normalised.min() >= -margin and normalised.max() <= 1 + margin
+    assert np.mean(normalised < 0.0) == pytest.approx(margin / (1 + 2 * margin), abs=0.02)
+    inside, *_ = learnt.draw_training_jobs(UNKNOWNS, CONFIGURATIONS, LEVELS, 512, 4, margin=0.0)
+    assert inside.min() >= 0.0 and inside.max() <= 1.0
+    assert learnt.values_one(UNKNOWNS, 1, -margin) < UNKNOWNS.lower[1]   # log scale: below the bound, not on it
+    # a setting whose own range ends at the bound is not drawn past it (the foam friction's 3.0, the rolling
+    # friction's 0.05; the centre of mass's -0.0207 m would lie below the 0.04 m body), the other sides are
+    from rollability_ros.core.campaign import calibration
+    from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters
+
+    twin = launch_twin_settings_from_parameters(load_parameters(list(calibration.TWIN_CONFIGS)))
+    friction = Unknowns(("launch_twin.foam.lateral_friction", "launch_twin.foam.rolling_friction"), (0.3, 0.002),
+                        (3.0, 0.05), (True, True))
+    assert learnt.training_margins(twin, friction).tolist() == [[margin, 0.0], [margin, 0.0]]   # 0.05: its range
+    widened, *_ = learnt.draw_training_jobs(friction, CONFIGURATIONS, LEVELS, 256, 4,
+                                            learnt.training_margins(twin, friction))
+    assert widened.max() <= 1.0 and np.all(widened.min(axis=0) < 0.0)

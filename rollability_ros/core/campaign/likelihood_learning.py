@@ -150,6 +150,7 @@ def learn(training: TrainingSet, unknowns: Unknowns, configurations: typing.Sequ
     info: typing.Dict[str, typing.Any] = {
         "training_launches": int(len(training.rows)), "valid_launches": n, "upright_fraction": float(upright.mean()),
         "holdout_launches": int(held.sum()), "members": members,
+        "training_normalised_range": [float(u.min()), float(u.max())],
         **held_out_accuracy([out for _, out in classifiers], upright[held], float(upright[~held].mean()), say)}
     location: typing.List[typing.Dict[str, Layers]] = [{} for _ in range(members)]
     scale_tasks = []

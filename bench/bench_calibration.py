@@ -317,7 +317,10 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
               + f"; so far covered {', '.join(str(int(h)) for h in hits)} of {done + 1}", flush=True)
     n = count
     print(f"{n} truths in {time.perf_counter() - started:.0f} s wall on {args.workers} workers [{load()}]")
-    print(f"calibration of {d} unknowns from the paper's {len(matrix)} launches plus characterisation "
+    readings = ", ".join(name for name, used in (("slide angles", True), ("roll-outs", not args.no_rollouts),
+                                                 ("tip angles", not args.no_tips),
+                                                 ("profile weighings", not args.no_weighing)) if used)
+    print(f"calibration of {d} unknowns from the paper's {len(matrix)} launches plus characterisation ({readings}) "
           f"(outcomes: {args.outcomes}; {likelihood.ensemble_size} members x {args.walkers} walkers x {args.steps} "
           f"sampler steps, temperature "
           f"{likelihood.temperature if args.temperature is None else args.temperature:g}): median "

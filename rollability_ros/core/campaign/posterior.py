@@ -257,7 +257,14 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
             twin, unknowns, MASS_KEYS, grid_points, lambda settings: [profile_mass_kg(settings, c) for c in weighed],
             [m.mass_kg for m in characterisation.masses], [weighed.index(m.configuration) for m in
                                                             characterisation.masses], characterisation.mass_sigma_kg))
-    return lambda u: sum(term(u) for term in terms)
+
+    def total(u: np.ndarray) -> np.ndarray:
+        """Every reading's log-likelihood (s,), summed."""
+        out = np.zeros(len(u))
+        for term in terms:
+            out = out + term(u)
+        return out
+    return total
 
 
 def _tabulated(twin: "LaunchTwinSettings", unknowns: Unknowns, depends_on: typing.Sequence[str],

@@ -126,6 +126,22 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
     return 0
 
 
+def outcome_names(which: str) -> typing.Optional[typing.Tuple[str, ...]]:
+    """``--outcomes``: ``none`` -> () (the verdicts only), ``all`` -> None (every one), else the comma-separated
+    names, each one of ``likelihood.OUTCOMES`` (``ValueError`` naming an unknown one)."""
+    from rollability_ros.core.campaign.likelihood import OUTCOMES
+
+    if which == "none":
+        return ()
+    if which == "all":
+        return None
+    names = tuple(name.strip() for name in which.split(","))
+    unknown = [name for name in names if name not in OUTCOMES]
+    if unknown:
+        raise ValueError(f"--outcomes: unknown outcome {unknown[0]!r} (known: none, all, {', '.join(OUTCOMES)})")
+    return names
+
+
 def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any], twin: "LaunchTwinSettings",
                outcomes: typing.Sequence[typing.Any], characterisation: typing.Any,
                sources: typing.Sequence[str]) -> int:
@@ -147,10 +163,11 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     sampled = list(dict.fromkeys(args.fit)) or list(unknowns.names)
     fixed = {name: float(parameters[name]) for name in unknowns.names if name not in sampled}
     observations = observations_from_outcomes(outcomes)
+    chosen = outcome_names(args.outcomes)
     extra = (characterisation_term(characterisation, twin, unknowns)
              if characterisation is not None else None)
     posterior = sample_posterior(likelihood, observations, sampled, fixed, extra, seed=args.seed,
-                                 steps=args.sampler_steps, temperature=args.temperature)
+                                 steps=args.sampler_steps, temperature=args.temperature, outcomes=chosen)
     fitted = posterior.best()
     method = "highest-density set of the learnt likelihood's posterior"
     params_path = _write_outputs(args, sources, f"credible set ({method})", fitted)
@@ -206,6 +223,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("give --prepare FILE (learn a likelihood) or --likelihood FILE (calibrate with one), not both")
     if args.temperature is not None and not args.likelihood:
         raise ValueError("--temperature tempers a prepared likelihood: give it with --likelihood FILE")
+    if args.outcomes != "none" and not args.likelihood:
+        raise ValueError("--outcomes chooses a prepared likelihood's continuous outcomes: give it with --likelihood "
+                         "FILE")
     if not args.prepare:
         check_output_dir(args.out, "--out", keeps=("calibrated.yaml", RIG_FILE))   # before minutes of fitting
     check_given_files(args.config, {*TWIN_SECTIONS, "calibration", "stable_poses", "campaign"}, "rollability calibrate")
@@ -305,6 +325,11 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--sampler-steps", type=int, default=300, metavar="N",
                         help="steps of the posterior sampler per ensemble member (--likelihood; the first half is "
                              "discarded; >= 20)")
+    parser.add_argument("--outcomes", default="none", metavar="WHICH",
+                        help="the continuous outcomes the learnt likelihood weighs beside the verdicts (--likelihood): "
+                             "none (default: the verdicts only), all (every one the records carry) or NAME,NAME of "
+                             "measured_speed_mps, final_tilt_deg, ... (measured: the learnt continuous outcomes are "
+                             "biased, sets from them missed their truths; docs/calibration.md)")
     parser.add_argument("--temperature", type=float, metavar="T",
                         help="raise the launches' learnt log-likelihood to T in (0, 1] (--likelihood; default: the "
                              "file's, 1 unless set): below 1 widens the sets for an emulator less accurate than "

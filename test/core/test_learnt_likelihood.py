@@ -298,6 +298,9 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
     assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--config", str(other),
                  "--out", str(tmp_path / "out2")]) == 2
     assert "prepared for another twin or design set" in capsys.readouterr().err
+    assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--outcomes", "tilt",
+                 "--out", str(tmp_path / "out3")]) == 2
+    assert "--outcomes: unknown outcome 'tilt'" in capsys.readouterr().err
     broken = tmp_path / "broken.npz"
     broken.write_bytes(b"PK\x03\x04 not an archive")
     assert main(["calibrate", "--physical", str(source), "--likelihood", str(broken), "--out",

@@ -431,10 +431,14 @@ def settings_from_sections(cls: typing.Type[_Settings], flat: typing.Mapping[str
     """Parse flat ``{dotted name: value}`` parameters once into ``cls``, a dataclass whose fields are settings
     dataclasses, each built (:func:`from_mapping`) from the parameters under its namespace: ``namespaces`` maps a
     field to it (default: the field's name). A field named in ``optional`` is None when ``flat`` holds none of its
-    namespace. Errors name the namespace and parameter (``optimizer: popsize must be >= 2, got 1``)."""
+    namespace. A field whose metadata names what it is ``resolved_from`` (settings the edge reads from files the
+    sections name, e.g. the launch twin of ``objective.twin_config``) is no namespace: it keeps its default here.
+    Errors name the namespace and parameter (``optimizer: popsize must be >= 2, got 1``)."""
     hints = typing.get_type_hints(cls)
     kwargs: typing.Dict[str, typing.Any] = {}
     for field in dataclasses.fields(typing.cast(typing.Any, cls)):
+        if "resolved_from" in field.metadata:
+            continue
         namespace = (namespaces or {}).get(field.name, field.name)
         values = section(flat, namespace)
         if field.name in optional and not values:

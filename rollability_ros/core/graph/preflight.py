@@ -155,6 +155,8 @@ def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing
                 problems.append(f"{node}: {exc}")
         if node == "rig" and flat.get("rig.backend", "sim") == "sim":
             problems.extend(f"rig: {problem}" for problem in _twin_problems(flat))
+        if node == "sim_evaluator":
+            problems.extend(f"sim_evaluator: {problem}" for problem in _objective_file_problems(flat))
     return problems
 
 
@@ -169,6 +171,26 @@ def _twin_problems(flat):
         launch_twin_settings_from_parameters(load_parameters(list(twin_config)))
     except (ConfigError, ValueError, TypeError) as exc:
         return [f"launch twin ({', '.join(map(str, twin_config))}): {exc}"]
+    return []
+
+
+@edge_parse
+def _objective_file_problems(flat):
+    """What the sim_evaluator would refuse in the files ``objective.twin_config`` and ``objective.campaign_config``
+    name (it reads them at start, :func:`~rollability_ros.core.sim.objectives.resolve_launch`); none when the
+    ``objective`` section itself is refused (reported with the node's sections)."""
+    from rollability_ros.core.sim import ObjectiveSettings, resolve_launch
+
+    try:
+        objective = from_mapping(ObjectiveSettings, _declared_only(ObjectiveSettings, section(flat, "objective")),
+                                 "objective")
+    except (ConfigError, ValueError, TypeError):
+        return []
+    try:
+        resolve_launch(objective)
+    except (ConfigError, ValueError, TypeError) as exc:
+        return [f"the objective's launch twin or campaign ({', '.join(map(str, objective.twin_config))}; "
+                f"{', '.join(map(str, objective.campaign_config))}): {exc}"]
     return []
 
 

@@ -238,7 +238,8 @@ def launch_objective(settings: "ObjectiveSettings", resolved: typing.Optional[Re
         return None
     check_engine("launch", engine)
     if resolved is None or not resolved.names_files_of(settings):
-        held = "none" if resolved is None else f"those of {list(resolved.twin_config)}, {list(resolved.campaign_config)}"
+        held = ("none" if resolved is None
+                else f"those of {list(resolved.twin_config)}, {list(resolved.campaign_config)}")
         raise ValueError(f"the launch twin and conditions of objective.twin_config {list(settings.twin_config)} and "
                          f"campaign_config {list(settings.campaign_config)} were not read at the edge (the settings "
                          f"hold {held}): build the evaluator's settings with its edge parse (load_settings, "

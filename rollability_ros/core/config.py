@@ -254,17 +254,6 @@ def as_list(value: object) -> typing.List[object]:
     return list(value) if isinstance(value, (list, tuple)) else [value]
 
 
-def number_parameter(parameters: typing.Mapping[str, object], name: str) -> float:
-    """The number parameter ``name`` of flat ``parameters``; :class:`ConfigError` in one line naming it when it is
-    absent or not a number."""
-    if name not in parameters:
-        raise ConfigError(f"{name}: missing")
-    value = parameters[name]
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(wrong_type(name, float, value))
-    return float(value)
-
-
 def integer_parameter(parameters: typing.Mapping[str, object], name: str, default: int) -> int:
     """The integer parameter ``name`` of flat ``parameters`` (``default`` when absent); :class:`ConfigError` in
     one line naming it when it is not an integer."""

@@ -14,6 +14,8 @@ the launch twin.
 - _worker_pool: spawned worker processes that never outlive their parent
 - stable_poses: analytic stable-pose screen
 - robustness, sensitivity, world_check: draws of the unknowns; one at a time; N fixed draws (plausible worlds)
+- launcher_geometry: the launch twin's push plate and ledge sized from the robot's collision geometry (engine-free)
+- rollout: the characterisation's roll-out (the bare robot pushed and let go on the foam or a plate) in the twin
 - launch/: the simulated launch rig: settings, results, contract, placement, decision, loop, drive, twin (the entry)
   and one module per engine (pybullet_twin, mujoco_twin: the same rules in MuJoCo)
 

@@ -19,7 +19,7 @@ from rollability_ros.core.sim.evaluation import (EvaluationCancelled, EvaluatorS
                                              evaluate_mesh, evaluate_profile, load_settings, mesh_job, profile_job,
                                              run_batch, trial_seed)
 from rollability_ros.core.profile.geometry import export_mesh, grid_xy, load_profile_mesh, profile_mesh
-from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+from rollability_ros.core.sim import load_launch_twin_settings
 from rollability_ros.core.sim.trial_engine import run_trial
 
 pybullet = pytest.importorskip("pybullet")

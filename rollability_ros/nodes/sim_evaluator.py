@@ -62,11 +62,13 @@ class SimEvaluator(Node):
     def __init__(self):
         super().__init__("sim_evaluator")
         sections: typing.Dict[str, typing.Any] = {}   # field name -> its section's settings
-        types = {field.name: field.type for field in dataclasses.fields(EvaluatorSettings)}
-        for name, prefix in SETTINGS_SECTIONS.items():
-            settings_cls = typing.cast(type, types[name])   # a class: the module has no string annotations
-            sections[name] = declare_settings(self, prefix, settings_cls)
-            guard_settings(self, prefix, settings_cls, on_change=self._setter(name))
+        for field in dataclasses.fields(EvaluatorSettings):
+            if field.name not in SETTINGS_SECTIONS:
+                continue   # not a parameter section: the launch resolved from the objective's files (below)
+            prefix = SETTINGS_SECTIONS[field.name]
+            settings_cls = typing.cast(type, field.type)   # a class: the module has no string annotations
+            sections[field.name] = declare_settings(self, prefix, settings_cls)
+            guard_settings(self, prefix, settings_cls, on_change=self._setter(field.name))
         # the launch twin and conditions of the files the objective names, read here, once (and again when the
         # objective's files change): the core is handed them typed
         self._settings = with_objective(EvaluatorSettings(**sections), sections["objective"])

@@ -30,7 +30,7 @@ os.environ["ROS_LOG_DIR"] = os.path.join(os.environ["XDG_RUNTIME_DIR"], "ros-log
 # subprocesses (nodes, peers) import this checkout's sources, whatever their working directory
 os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH", "")]))
 
-pytest_plugins = ["ros_fixtures", "rerun_summary"]
+pytest_plugins = ["ros_fixtures", "rerun_summary", "smoke_early"]
 
 
 def pid_running(pid):

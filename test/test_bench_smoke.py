@@ -36,12 +36,13 @@ def _runs_every_bench_of(names, run):
                                  sorted(set(after.items()) ^ set(run.before.items())))
 
 
+@pytest.mark.timeout(1500)   # when run alone it runs the benches itself: 23 of them, minutes at a high load
 def test_every_smoke_bench_runs_at_its_tiny_size():
     """SMOKE, in the process test/smoke_early.py started when collection ended (it runs beside the core tests)."""
     _runs_every_bench_of(smoke.SMOKE, smoke_run())
 
 
-@pytest.mark.slow   # node graphs in processes of their own, a learnt likelihood, a miniature study: minutes each
+@pytest.mark.slow   # a learnt likelihood prepared and used, a miniature study on two engines: minutes each
 @pytest.mark.timeout(1500)   # the learnt likelihood's preparation alone took 258 s at load average 19
 @pytest.mark.parametrize("name", smoke.SMOKE_SLOW)
 def test_every_slow_smoke_bench_runs_at_its_tiny_size(name):

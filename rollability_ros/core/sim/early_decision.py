@@ -221,11 +221,16 @@ def build_basin_map(points_by_link: typing.Mapping[int, npt.ArrayLike], wheel_li
         return _BUILT[key]
     basins = tabulate_basin_map(points_by_link, wheel_links, com_m, mass_kg, up_axis, upright_tilt_deg, min_wheels,
                                 contact_tolerance_m, directions, neighbours, margin_m)
-    arrays = {field.name: np.array(getattr(basins, field.name)) for field in dataclasses.fields(basins)
-              if isinstance(getattr(basins, field.name), np.ndarray)}   # copies: a caller's own arrays stay writeable
-    for array in arrays.values():
-        array.flags.writeable = False
-    basins = dataclasses.replace(basins, **arrays)
+    def frozen(array: np.ndarray) -> np.ndarray:
+        """A read-only copy (a copy: a caller's own array, such as ``com_m``, stays writeable)."""
+        copy = np.array(array)
+        copy.flags.writeable = False
+        return copy
+
+    basins = dataclasses.replace(basins, directions=frozen(basins.directions), upright=frozen(basins.upright),
+                                 barrier_to_upright_m=frozen(basins.barrier_to_upright_m),
+                                 barrier_to_not_upright_m=frozen(basins.barrier_to_not_upright_m),
+                                 com_m=frozen(basins.com_m))
     _BUILT[key] = basins
     while len(_BUILT) > _BUILT_KEPT:
         _BUILT.popitem(last=False)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rollability_ros.core.sim.early_decision import build_basin_map, tabulate_basin_map
-from rollability_ros.core.sim.evaluation import evaluate_profile, load_settings
+from rollability_ros.core.sim.evaluation import evaluate_profile, load_settings, with_objective
 
 pytest.importorskip("scipy")
 pybullet = pytest.importorskip("pybullet")
@@ -96,7 +96,7 @@ def test_early_decision_of_launches_changes_no_outcome(engine, robot, profile, l
     settings = load_settings(("sim", "robot", "evaluator") + extra)
     objective = dataclasses.replace(settings.objective, kind="launch_twin",
                                     twin_config=["sim", "robot", "launch_twin", *extra])
-    settings = dataclasses.replace(settings, objective=objective,
+    settings = dataclasses.replace(with_objective(settings, objective),
                                    physics=dataclasses.replace(settings.physics, engine=engine))
     heights = None if profile == "baseline" else dome_heights(settings.grid)
     full = evaluate_profile(heights, launches, 5, early(settings, False)).trial_results

@@ -82,6 +82,8 @@ def smoke_run(*args: str) -> SmokeRun:
 
 
 def pytest_collection_finish(session):
+    if session.config.option.collectonly:
+        return
     if len(session.items) > 1 and any(item.name == EARLY_TEST for item in session.items):
         _early[()] = SmokeRun()
 

@@ -32,7 +32,8 @@ def _runs_every_bench_of(names, run):
             assert line in result.stdout, (name, line)
     assert f"smoke: {len(names)} benches ran" in result.stdout
     after = repo_files()
-    assert after == run.before, ("a bench wrote into the checkout",
+    assert after == run.before, ("the checkout changed while the benches ran (a bench wrote into it, or a test that "
+                                 "ran beside them: test/smoke_early.py)",
                                  sorted(set(after.items()) ^ set(run.before.items())))
 
 

@@ -203,8 +203,9 @@ def build_basin_map(points_by_link: typing.Mapping[int, npt.ArrayLike], wheel_li
     design rebuilds the same body, and the lattice products over the hull's vertices took about 0.2 s per map),
     kept read-only (its arrays refuse writes) because the launches that got it share it.
 
-    The parameters are :func:`tabulate_basin_map`'s; the key is a digest of all of them, bytes of every array
-    included, so a body that differs in any input gets its own map.
+    The parameters are :func:`tabulate_basin_map`'s (``points_by_link`` {link: (k, 3)}, ``com_m`` and ``up_axis``
+    (3,), base frame, m); the key is a digest of all of them, bytes of every array included, so a body that differs
+    in any input gets its own map.
     """
     digest = hashlib.blake2b(repr((sorted(int(link) for link in wheel_links), float(mass_kg),
                                    float(upright_tilt_deg), int(min_wheels), float(contact_tolerance_m),
@@ -221,16 +222,17 @@ def build_basin_map(points_by_link: typing.Mapping[int, npt.ArrayLike], wheel_li
         return _BUILT[key]
     basins = tabulate_basin_map(points_by_link, wheel_links, com_m, mass_kg, up_axis, upright_tilt_deg, min_wheels,
                                 contact_tolerance_m, directions, neighbours, margin_m)
-    def frozen(array: np.ndarray) -> np.ndarray:
-        """A read-only copy (a copy: a caller's own array, such as ``com_m``, stays writeable)."""
+    def _frozen(array: np.ndarray) -> np.ndarray:
+        """A read-only copy of ``array`` (any shape; a copy: a caller's own array, such as ``com_m``, stays
+        writeable)."""
         copy = np.array(array)
         copy.flags.writeable = False
         return copy
 
-    basins = dataclasses.replace(basins, directions=frozen(basins.directions), upright=frozen(basins.upright),
-                                 barrier_to_upright_m=frozen(basins.barrier_to_upright_m),
-                                 barrier_to_not_upright_m=frozen(basins.barrier_to_not_upright_m),
-                                 com_m=frozen(basins.com_m))
+    basins = dataclasses.replace(basins, directions=_frozen(basins.directions), upright=_frozen(basins.upright),
+                                 barrier_to_upright_m=_frozen(basins.barrier_to_upright_m),
+                                 barrier_to_not_upright_m=_frozen(basins.barrier_to_not_upright_m),
+                                 com_m=_frozen(basins.com_m))
     _BUILT[key] = basins
     while len(_BUILT) > _BUILT_KEPT:
         _BUILT.popitem(last=False)

@@ -247,7 +247,7 @@ def truth_data(parameters, unknowns, matrix, number, cache):
 
 
 def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, temperature, cache, walkers=16,
-                    start_draws=500, outcomes=None, rollouts=True, tips=True, weighing=True):
+                    start_draws=500, outcomes=None, rollouts=True, tips=True, weighing=True, grid_points=None):
     """One truth of step 3 in a worker process: its data (:func:`truth_data`), then the posterior of every
     unknown. Returns a dict: the truth, the normalised samples, times, and the learnt P(upright) at the truth of
     each launch."""
@@ -260,7 +260,7 @@ def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, tem
     if not weighing:
         readings = dataclasses.replace(readings, masses=())
     extra = sampling.characterisation_term(
-        readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)), unknowns)
+        readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)), unknowns, grid_points)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1, steps=steps,
                                           temperature=temperature, walkers=walkers, start_draws=start_draws,
                                           outcomes=outcomes)
@@ -289,7 +289,7 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
                     [matrix] * count, order, [args.steps] * count, [args.temperature] * count,
                     [args.cache] * count, [args.walkers] * count, [args.start_draws] * count,
                     [args.outcome_names] * count, [not args.no_rollouts] * count, [not args.no_tips] * count,
-                    [not args.no_weighing] * count)
+                    [not args.no_weighing] * count, [args.grid_points] * count)
     for done, (number, result) in enumerate(zip(order, jobs)):
         truth_u = result["truth_u"]
         truth = unknowns.to_values(truth_u)
@@ -397,6 +397,7 @@ def cli_check(likelihood_path, first, unknowns, folder, parameters, args):
         command = [sys.executable, "-m", "rollability_ros.cli", "calibrate", "--physical", csv_path, "--run", "truth",
                    "--likelihood", likelihood_path, "--config", config, "--out", out,
                    *(["--temperature", str(args.temperature)] if args.temperature is not None else []),
+                   *(["--sampler-steps", str(args.steps)] if args.smoke else []),
                    *[arg for name in CLI_UNKNOWNS for arg in ("--fit", name)], *extra]
         started = time.perf_counter()
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))   # this checkout, as the bench imports
@@ -478,8 +479,10 @@ def main(argv=None):
     unknown = set(args.outcome_names or ()) - set(learnt.OUTCOMES)
     if unknown:
         parser.error(f"--outcomes: unknown {sorted(unknown)} (known: {', '.join(learnt.OUTCOMES)})")
-    if args.smoke:
-        args.prepare_launches, args.members, args.truths, args.steps = 240, 2, 2, 20
+    args.grid_points = None   # the characterisation's tables: posterior.characterisation_term's default
+    if args.smoke:   # the sampler's and the tables' smallest sizes, the pool's workers started once each
+        args.prepare_launches, args.members, args.truths, args.steps = 160, 2, 2, 20
+        args.walkers, args.start_draws, args.grid_points, args.workers = 8, 32, 4, 1
         args.skip_reoptimize, args.adaptive_samples = True, 200
     else:
         args.adaptive_samples = 4000

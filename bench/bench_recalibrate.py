@@ -65,7 +65,7 @@ def prepared(args, parameters, unknowns, configurations, levels, folder, pool):
     from rollability_ros.core.campaign import likelihood_learning
 
     likelihood = likelihood_learning.learn(training, unknowns, configurations, levels, fingerprint, on_progress=print,
-                                           pool=pool)
+                                           pool=pool, **({"members": 2} if args.smoke else {}))
     path = os.path.join(folder, f"likelihood-{args.prepare_launches}.npz")
     likelihood.save(path)
     print(f"prepared {path}: {args.prepare_launches} launches and learning in {time.perf_counter() - started:.0f} s "
@@ -73,8 +73,10 @@ def prepared(args, parameters, unknowns, configurations, levels, folder, pool):
     return likelihood
 
 
-def calibrated_values(likelihood, parameters, unknowns, truth, matrix, seed, steps, pool, rng):
-    """Steps 3 and 4: the truth's launches and characterisation, the posterior, each unknown's median."""
+def calibrated_values(likelihood, parameters, unknowns, truth, matrix, seed, steps, pool, rng, sizes=None):
+    """Steps 3 and 4: the truth's launches and characterisation, the posterior, each unknown's median. ``sizes``:
+    the sampler's walkers and start draws and the characterisation's table points (``--smoke``'s; default:
+    :func:`posterior.sample_posterior`'s and :func:`posterior.characterisation_term`'s)."""
     from bench.bench_calibration import characterise_truth, launch_truth, rollout_parameters
     from rollability_ros.core.campaign import posterior as sampling
 
@@ -86,9 +88,11 @@ def calibrated_values(likelihood, parameters, unknowns, truth, matrix, seed, ste
     started = time.perf_counter()
     from rollability_ros.core.sim import launch_twin_settings_from_parameters
 
+    sizes = sizes or {}
     extra = sampling.characterisation_term(readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)),
-                                           unknowns)
-    posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=seed % 1000 + 1, steps=steps)
+                                           unknowns, sizes.get("grid_points"))
+    posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=seed % 1000 + 1, steps=steps,
+                                          **{k: v for k, v in sizes.items() if k != "grid_points"})
     fitted = {name: posterior.median(name) for name in unknowns.names}
     print(f"calibration of {len(unknowns.names)} unknowns: {time.perf_counter() - started:.0f} s [{load()}]")
     for i, name in enumerate(unknowns.names):
@@ -163,14 +167,15 @@ def main(argv=None) -> int:
     parser.add_argument("--validate", type=int, default=96, help="launches per design on the truth")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--smoke", action="store_true",
-                        help="every step once at a tiny size (a 64-launch likelihood, 40 truth launches, 40 sampler "
-                             "steps, one generation of 4 x 4 launches, 8 validation launches, one worker): the numbers "
-                             "mean nothing")
+                        help="every step once at a tiny size (a 2-member likelihood from 64 launches, 40 truth "
+                             "launches, 20 sampler steps of 8 walkers, one generation of 2 x 2 launches, 4 validation "
+                             "launches, one worker): the numbers mean nothing")
     args = parser.parse_args(argv)
     if args.smoke:
         args.likelihood = None
-        args.prepare_launches, args.steps, args.generations, args.popsize, args.trials = 64, 40, 1, 4, 4
-        args.screen, args.validate, args.workers = 2, 8, 1
+        args.prepare_launches, args.steps, args.generations, args.popsize, args.trials = 64, 20, 1, 2, 2
+        args.screen, args.validate, args.workers = 2, 4, 1
+    sizes = {"walkers": 8, "start_draws": 32, "grid_points": 4} if args.smoke else None
     from bench.bench_calibration import TRUTH_SEED, bench_parameters, paper_matrix
     from rollability_ros.core.sim import spawn_pool
 
@@ -188,7 +193,7 @@ def main(argv=None) -> int:
         try:
             likelihood = prepared(args, parameters, unknowns, configurations, levels, folder, pool)
             fitted = calibrated_values(likelihood, parameters, unknowns, truth, matrix,
-                                       TRUTH_SEED + 7_000 + args.truth_seed, args.steps, pool, rng)
+                                       TRUTH_SEED + 7_000 + args.truth_seed, args.steps, pool, rng, sizes)
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
         reoptimise_and_validate(args, unknowns, truth, fitted, folder)

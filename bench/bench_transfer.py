@@ -262,7 +262,8 @@ def main(argv=None):
         args.seeds, args.robust_launches, args.sensitivity_trials = [1], 2, 1
         args.worlds, args.launches_per_world, args.workers = 2, 2, 1
         args.out = os.path.join(scratch.name, "transfer-bench")
-        args.config = [os.path.join(root, "test", "resources", "mini_study.yaml"), *args.config]
+        args.config = [*(os.path.join(root, "test", "resources", f"{name}_study.yaml") for name in ("mini", "tiny")),
+                       *args.config]
     out = os.path.abspath(args.out)
     if args.designs:
         return designs_checks(os.path.abspath(args.designs), args)

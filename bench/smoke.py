@@ -1,15 +1,15 @@
-"""Every bench script once at its tiny size, in this one process: ``python bench/smoke.py [--slow | bench_name ...]``.
+"""Every bench script once at its tiny size, in this one process: ``python bench/smoke.py [bench_name ...]``.
 
 A bench's ``--smoke`` option runs each of its steps once on the smallest inputs that still take the same code
 path (a launch or two, a few messages, one repeat, one generation); every line it prints is printed, from tiny
-samples, so the numbers mean nothing. The README's test command runs :data:`SMOKE` (test/test_bench_smoke.py), the
-slow tier :data:`SMOKE_SLOW`, so a bench that no longer runs against the package fails there, not weeks later when
+samples, so the numbers mean nothing. The README's test command runs :data:`SMOKE`, every bench script
+(test/test_bench_smoke.py), so a bench that no longer runs against the package fails there, not weeks later when
 someone measures. The benches share this process: numpy, PyBullet and the package are imported once.
 
 A bench passes when its ``main(["--smoke"])`` returns 0 (or None) and what it printed holds each of its
 :data:`HEADLINES`. Prints one ``smoke <bench>: ok (<wall> s wall, <cpu> s CPU)`` line per bench (CPU: this
 process and the children it waited for, the load-independent cost) and exits 1 naming each bench that raised,
-returned non-zero or left out a headline. Without names it runs :data:`SMOKE`; ``--slow`` runs :data:`SMOKE_SLOW`.
+returned non-zero or left out a headline. Without names it runs :data:`SMOKE`.
 """
 import contextlib
 import importlib
@@ -24,18 +24,15 @@ import typing
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
 
 #: The bench scripts run at their ``--smoke`` size by the README's test command (bench/<name>.py, each
-#: ``main(argv) -> int``), cheapest first (the four ROS-graph and calibration ones last). docs/testing.md gives each
-#: one's measured time.
+#: ``main(argv) -> int``): all of them, cheapest first (the ROS-graph and calibration ones last; the last three
+#: prepare a learnt likelihood or run a whole study through the node graph, each at its smallest size).
+#: docs/testing.md gives each one's measured time.
 SMOKE = ("bench_bag_writer", "bench_adaptive_plan", "bench_profile_mass", "bench_launch_twin", "verify_early_decision",
          "bench_pad_size", "bench_design_space", "bench_bare_breakdown", "bench_truth_sweep", "bench_optimizer",
          "bench_estop_latency", "bench_evaluator", "bench_sensitivity", "bench_quality_diversity",
          "bench_initial_mean_screen", "bench_race_truth", "bench_shape_ceiling", "bench_engines", "bench_racing",
-         "bench_recorder", "bench_calibration_direct", "bench_objective", "bench_optimizer_node")
-
-#: The bench scripts whose ``--smoke`` size still takes minutes (a learnt likelihood prepared from 240 launches and
-#: its networks trained; that likelihood's calibration, a re-optimisation and a validation; a whole miniature study
-#: on two engines): the slow tier runs them (``./scripts/test.sh --slow``). docs/testing.md says why each stays.
-SMOKE_SLOW = ("bench_calibration", "bench_transfer", "bench_recalibrate")
+         "bench_recorder", "bench_calibration_direct", "bench_objective", "bench_optimizer_node", "bench_calibration",
+         "bench_recalibrate", "bench_transfer")
 
 #: What each bench must print at its smoke size: one piece of each line that carries its result (its ratio, table
 #: or verdict), so a bench that stops before its report, or drops a line of it, fails.
@@ -179,10 +176,7 @@ def run(names: typing.Sequence[str]) -> typing.List[str]:
 
 
 def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
-    names = list(sys.argv[1:] if argv is None else argv)
-    if names == ["--slow"]:
-        names = list(SMOKE_SLOW)
-    names = names or list(SMOKE)
+    names = list(sys.argv[1:] if argv is None else argv) or list(SMOKE)
     print(f"load average {' '.join(f'{v:.1f}' for v in os.getloadavg())} on {os.cpu_count()} cores", flush=True)
     failed = run(names)
     if failed:

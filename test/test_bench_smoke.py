@@ -1,9 +1,8 @@
 """The bench scripts run against the package as it is: bench/smoke.py runs each bench once at its ``--smoke`` size
 (tiny inputs, every step and every line of its report; the numbers mean nothing), in one process, and fails
 naming a bench that raised, returned non-zero or did not print one of its headline lines. The README's command
-runs ``SMOKE`` in one process, the slow tier each of ``SMOKE_SLOW`` in one of its own; together they are every
-script in bench/. mypy checks every bench
-script too (test/core/test_mypy.py)."""
+runs ``SMOKE``, every script in bench/, in one process. mypy checks every bench script too
+(test/core/test_mypy.py)."""
 import os
 import pathlib
 import sys
@@ -37,24 +36,17 @@ def _runs_every_bench_of(names, run):
                                  sorted(set(after.items()) ^ set(run.before.items())))
 
 
-@pytest.mark.timeout(1500)   # when run alone it runs the benches itself: 23 of them, minutes at a high load
+@pytest.mark.timeout(1500)   # when run alone it runs the benches itself: 26 of them, minutes at a high load
 def test_every_smoke_bench_runs_at_its_tiny_size():
     """SMOKE, in the process test/smoke_early.py started when collection ended (it runs beside the core tests)."""
     _runs_every_bench_of(smoke.SMOKE, smoke_run())
 
 
-@pytest.mark.slow   # a learnt likelihood prepared and used, a miniature study on two engines: minutes each
-@pytest.mark.timeout(1500)   # the learnt likelihood's preparation alone took 258 s at load average 19
-@pytest.mark.parametrize("name", smoke.SMOKE_SLOW)
-def test_every_slow_smoke_bench_runs_at_its_tiny_size(name):
-    _runs_every_bench_of([name], SmokeRun(name))
-
-
-def test_every_bench_script_is_run_at_its_tiny_size_by_a_tier():
-    """Every script in bench/ is in exactly one of SMOKE and SMOKE_SLOW, declares --smoke (its tiny size, so the run
+def test_every_bench_script_is_run_at_its_tiny_size():
+    """Every script in bench/ is in SMOKE once, declares --smoke (its tiny size, so the run
     exercises it rather than its full size) and names the lines its report must print."""
     scripts = sorted(path.stem for path in (ROOT / "bench").glob("*.py") if path.stem != "smoke")
-    assert sorted(smoke.SMOKE + smoke.SMOKE_SLOW) == scripts
+    assert sorted(smoke.SMOKE) == scripts
     for name in scripts:
         assert '"--smoke"' in (ROOT / "bench" / f"{name}.py").read_text(), name
         assert smoke.HEADLINES[name] and all(smoke.HEADLINES[name]), name

@@ -37,7 +37,7 @@ DEFAULT_LEVELS = {"disturbance_scale": (0.5, 1.0, 2.0), "start_roll_deg": (180.0
 #: The launch twin's unknowns (the robust draws' fields varied by :func:`launch_sensitivity_rows`), in row order.
 LAUNCH_FACTORS = ("contact_model", "com_offset_z_m", "foam_stiffness_factor", "foam_restitution",
                   "foam_lateral_friction", "foam_rolling_friction_m", "wheel_drag_nm", "profile_mass_scale",
-                  "ledge_rolling_friction_m", "speed_bias_fraction", "launcher_model")
+                  "ledge_rolling_friction_m", "speed_bias_fraction", "launcher_model", "robot_restitution")
 
 #: One row of the study (configuration, factor, level, successes, trials, fitness and its interval).
 Row = typing.Dict[str, typing.Any]
@@ -118,7 +118,8 @@ def launch_levels(robust: RobustSettings, nominal_com_offset_z_m: float
             "profile_mass_scale": robust.range_of("profile_mass_scale"),
             "ledge_rolling_friction_m": (0.0, robust.ledge_rolling_friction_max_m),
             "speed_bias_fraction": (-robust.speed_bias_fraction_max, robust.speed_bias_fraction_max),
-            "launcher_model": ("stroke", "push_through")}
+            "launcher_model": ("stroke", "push_through"),
+            "robot_restitution": (robust.robot_restitution_min, robust.robot_restitution_max)}
 
 
 def with_launch_factor(twin: "LaunchTwinSettings", factor: str, level: Level) -> "LaunchTwinSettings":

@@ -121,6 +121,30 @@ def table3(study_dir):
         return list(csv.DictReader(stream))
 
 
+def evidence_first(study_dir, counts):
+    """The selection's labelling rule read back (docs/optimization.md, "Labels follow the evidence"): the order in
+    which the selection's own world check ranks the designs, as a line with the campaign gain of the design it
+    ranks first; '' without that check. On a study whose selection labelled by the race (before the rule), it says
+    what the rule would have labelled A."""
+    from rollability_ros.core.optimization.recommendation import evidence_ranking
+    from rollability_ros.core.sim import summarize_worlds
+
+    designs = os.path.join(study_dir, "optimization", "designs")
+    check = os.path.join(designs, "selection_world_check.csv")
+    if not os.path.isfile(check):
+        return ""
+    with open(check, newline="") as stream:
+        summaries = summarize_worlds(list(csv.DictReader(stream)))
+    with open(os.path.join(designs, "designs.yaml"), encoding="utf-8") as stream:
+        document = yaml.safe_load(stream)["/**"]["ros__parameters"]["designs"]
+    share = float((document.get("recommendation") or {}).get("min_world_share", 0.9))
+    order = evidence_ranking(summaries, share)
+    first = order[0]
+    campaign = gain_text(counts[first], counts["baseline"])[0] if first in counts else "not in the campaign"
+    return (f"  labels by the evidence (the selection's {summaries[0].worlds}-world check): {', '.join(order)}; "
+            f"ranked first: {first}, campaign {campaign}")
+
+
 def robust_row(study_dir, trials):
     """{configuration: (successes, trials)} of the robust sensitivity row for the bare chassis and the designs."""
     from rollability_ros.core.profile.designs import DesignSources, configuration_ids, profile_mesh_for
@@ -287,6 +311,9 @@ def main(argv=None):
             text, difference, low = gain_text(counts[label], base)
             gains[label] = (difference, low)
             print(f"    {label:<8} {text}")
+        ranked = evidence_first(study_dir, counts)
+        if ranked:
+            print(ranked)
         for row in table3(study_dir)[1:]:
             if row.get("gain_source"):
                 print(f"  selection ({row['gain_source']}): {row['configuration']} {float(row['gain']):+.2f} "

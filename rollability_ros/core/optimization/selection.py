@@ -78,7 +78,7 @@ from rollability_ros.core.profile import (MESH_UNITS, Mesh, PrinterSpec, Profile
                                           check_printability, is_baseline, mesh_metrics, profile_mesh)
 from rollability_ros.core.optimization.optimizer_contract import STREAM_SELECTION, derive_seed
 from rollability_ros.core.optimization import racing
-from rollability_ros.core.optimization.recommendation import Recommendation, recommend
+from rollability_ros.core.optimization.recommendation import Recommendation, evidence_ranking, recommend
 from rollability_ros.core.stats import newcombe_interval, wilson_interval
 
 if typing.TYPE_CHECKING:
@@ -718,14 +718,8 @@ def evidence_order(result: SelectionResult) -> typing.Tuple[typing.List[int], st
     if result.world_rows and result.recommendation is not None:
         from rollability_ros.core.sim import summarize_worlds
 
-        summaries = {s.configuration: s for s in summarize_worlds(result.world_rows)}
-        recommended = result.recommendation.recommended
-
-        def world_key(i: int) -> tuple:
-            label, summary = result.designs[i].label, summaries[result.designs[i].label]
-            first = recommended.index(label) if label in recommended else count
-            return first, -summary.pooled[1], -summary.share_won, -summary.worst.interval[0], i
-        return sorted(range(count), key=world_key), "the plausible-world check"
+        ranking = evidence_ranking(summarize_worlds(result.world_rows), result.recommendation.min_share)
+        return sorted(range(count), key=lambda i: ranking.index(result.designs[i].label)), "the plausible-world check"
     gains = result.gains()
     if gains and all(g is not None and g.source == "launches" for g in gains):
         def launch_key(i: int) -> tuple:

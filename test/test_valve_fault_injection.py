@@ -241,9 +241,13 @@ def test_supervisor_faults_mid_pulse(ros_node, relay, tmp_path, fault):
                                      and valve.last().pulses == 0, 30)
             assert not relay.relay_on()
             # requests signed in the killed valve's session do not count in the new one
-            old = valve_auth.RequestSigner(old_key).sign("arm")
-            stale = valve.arm_client.call(valve._arm.Request(arm=True, auth=ValveAuth(
-                session=old.session, counter=old.counter, mac=old.mac)), timeout_sec=30)
+            old_signer = valve_auth.RequestSigner(old_key)
+
+            def stale_request():
+                old = old_signer.sign("arm")
+                return valve._arm.Request(arm=True, auth=ValveAuth(session=old.session, counter=old.counter,
+                                                                   mac=old.mac))
+            stale = valve.answered(valve.arm_client, stale_request, "an arm signed in the killed session")
             assert not stale.success and "signed for session" in stale.message
         else:
             supervised.process.wait(30)

@@ -63,9 +63,20 @@ class ValveClient:
         assert self.spun.wait_for(lambda: self.heartbeat_pub.get_subscription_count() > 0, 30), log()
 
     def arm(self, on=True):
-        response = self.arm_client.call(self._arm.Request(arm=on, auth=self.auth("arm" if on else "disarm")),
-                                        timeout_sec=30)
+        response = self.answered(self.arm_client, lambda: self._arm.Request(arm=on, auth=self.auth(
+            "arm" if on else "disarm")), "arm" if on else "disarm")
         return response.success, response.message
+
+    def answered(self, client, request, what, attempts=3, timeout_s=10.0):
+        """The answer to an idempotent request (arm, disarm, a refused one), asked again when none came: after a
+        server restarts, DDS can drop a request sent before the new server matched this client (a lost request is
+        not the valve's verdict). ``request`` builds a freshly signed request per try. Never used for fire."""
+        for _ in range(attempts):
+            client.wait_for_service(timeout_sec=timeout_s)
+            response = client.call(request(), timeout_sec=timeout_s)
+            if response is not None:
+                return response
+        raise AssertionError(f"no answer to {what} in {attempts} tries of {timeout_s:g} s")
 
     def fire(self, pulse_ms):
         return self.fire_client.call(self.fire_request(pulse_ms), timeout_sec=30)

@@ -12,6 +12,8 @@ it (any ``--config`` files are added, e.g. ``paper``), timed; then, from the stu
   95% interval (issue 41's target: A at least +0.30 with the lower bound at least +0.10, no design below the
   baseline);
 - the selection's gain over the bare robot on fresh robust twin launches (Table 3);
+- the labelling rule read back: the order in which the selection's own world check ranks the designs and the
+  campaign gain of the first (A on a study of this branch; on an older study, what the rule would have labelled A);
 - the transfer evidence of the report: screen fitness (the search's measure, on its engine) vs the launch race's
   first round (PyBullet robust twin launches) over the raced elites (Spearman rho, permutation p);
 - fresh robust launches of the bare robot and every design on both engines (``rollability evaluate --designs

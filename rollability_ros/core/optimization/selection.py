@@ -40,8 +40,9 @@ whose pooled launch rate is above the bare robot's (all survivors when none is):
 lower Wilson bound of its launches, the next ones farthest-point over the map as above (a ranked-log run: the
 distance rule). Then the chosen designs and the bare robot get ``launch_trials`` fresh robust launches on one new
 seed: each design's *gain* over the bare robot, with Newcombe's 95% hybrid score interval, goes into Table 3 and
-designs.yaml (``beats_baseline`` true only when the interval lies above 0). When no design beats the bare robot the designs are
-still written, for inspection, each marked ``beats_baseline: false``; ``select`` warns and the report says so.
+designs.yaml (``beats_baseline`` true only when the interval lies above 0). When no design beats the bare robot
+the designs are still written, for inspection, each marked ``beats_baseline: false``; ``select`` warns and the
+report says so.
 Without launches, the gain is taken on the fresh re-evaluation and labelled as such.
 
 The plausible-world check and the recommendation

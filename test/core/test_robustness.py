@@ -202,6 +202,10 @@ def test_the_robots_restitution_is_drawn_on_pybullet_and_mujoco_refuses_any_valu
                                                                          restitution=0.0))
     with pytest.raises(ValueError, match="need robot_restitution_min <= robot_restitution_max"):
         RobustSettings(robot_restitution_min=0.6).validate()
+    from rollability_ros.core.sim.sensitivity import with_launch_factor
+    assert with_launch_factor(LaunchTwinSettings(), "robot_restitution", 0.5).physics.restitution == 0.5
+    with pytest.raises(ValueError, match="robot_restitution cannot be varied on 'mujoco'"):
+        with_launch_factor(mujoco, "robot_restitution", 0.5)
 
 
 def test_launcher_and_profile_mass_unknowns_are_drawn_and_weigh_the_trials_profile():

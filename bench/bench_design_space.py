@@ -85,7 +85,8 @@ def split_launches(settings, mesh, mass_scale, launches, seed):
     from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
     settings = dataclasses.replace(settings, robot=dataclasses.replace(settings.robot, profile_mass_scale=mass_scale))
-    objective = objectives.launch_objective(settings.objective, settings.physics.engine, early_decision=False)
+    objective = objectives.launch_objective(settings.objective, settings.resolved_launch, settings.physics.engine,
+                                           early_decision=False)
     assert objective is not None, "the launch fidelity has a launch objective"
     profile = None if mesh is None else evaluation.mesh_job(mesh, settings).profile
     rows = []

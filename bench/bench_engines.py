@@ -50,6 +50,7 @@ def launch_rates(candidates, repeats, conditions=None):
     paper's (default all)."""
     from rollability_ros.core.robots.robot import ProfileBody
     from rollability_ros.core.profile.geometry import profile_mesh
+    from rollability_ros.core.campaign_matrix import load_campaign_spec
     from rollability_ros.core.sim.launch import mujoco_twin, pybullet_twin, settings as twin_settings, twin
     from rollability_ros.core.sim.objectives import launch_conditions
 
@@ -60,7 +61,7 @@ def launch_rates(candidates, repeats, conditions=None):
                                       for _ in range(candidates - 1)]
     meshes = [profile_mesh(h, grid) for h in heights]
     profiles = [base.profile_body(mesh) for mesh in meshes if mesh is not None]   # a dome, random heights: none flat
-    conditions = launch_conditions(["campaign"])[:conditions]
+    conditions = launch_conditions(load_campaign_spec(("campaign",)))[:conditions]
     shipped = twin_settings.load_launch_twin_settings()
     variants = {(engine, early): dataclasses.replace(
         shipped, physics=dataclasses.replace(shipped.physics, engine=engine),

@@ -22,7 +22,6 @@ Everything is measured in this run; nothing is tuned to it. The launch condition
 about 3.5 minutes per pair at 15 generations. docs/calibration.md gives the measured runs (15 and 30 generations).
 """
 import argparse
-import dataclasses
 import math
 import os
 import sys
@@ -141,7 +140,7 @@ def main(argv=None):
                     print(f"seed {seed}: optimizing on the {label} twin", flush=True)
                     heights, run_settings = optimize(os.path.join(folder, f"{label}-{seed}"), twin, campaign_file,
                                                      args, seed, executor)
-                    on_truth = dataclasses.replace(run_settings, objective=evaluation.ObjectiveSettings(
+                    on_truth = evaluation.with_objective(run_settings, evaluation.ObjectiveSettings(
                         kind="launch_twin", campaign_config=[campaign_file],
                         twin_config=[*calibration.TWIN_CONFIGS, truth_file]))
                     result = evaluation.evaluate_profile(heights, args.validate, 987_654_321, on_truth, executor)

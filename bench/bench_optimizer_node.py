@@ -15,8 +15,8 @@ store, checkpoint, goals and results over DDS, workers idle between goals) as a 
 own time. Then the projected wall time of the paper run (500 generations x (12 + 1
 re-evaluation) x 60 trials) from the trial rate measured through the node graph, and a check that both runs
 stored the same candidates. The node graph runs in a ROS domain of its own (``bench.smoke.isolated_ros``), its
-logs in a temporary folder. ``--smoke``: the quick config at bench/smoke.py's sizes, two generations, one worker
-each way, one repeat.
+logs in a temporary folder. ``--smoke``: the quick config, two generations of two candidates on one launch each, one
+worker each way, one repeat.
 """
 import argparse
 import os
@@ -137,12 +137,13 @@ def main(argv=None):
     if args.generations < 2:
         parser.error("--generations must be >= 2 (generation 0 is left out)")
     overrides = {"optimizer.max_generations": args.generations, "optimizer.stagnation_generations": 0}
-    if args.smoke:   # the quick config, two generations of SMOKE_RUN's size, one worker each way, one repeat
+    if args.smoke:   # the quick config, two generations of two candidates on one launch, one worker each way, once
         from bench.smoke import SMOKE_RUN
 
         args.config, args.generations, args.workers, args.evaluators, args.repeats = "optimizer", 2, 1, 1, 1
         overrides = {**{k: v for k, v in SMOKE_RUN.items() if k.startswith(("optimizer.", "quality_diversity."))},
-                     "optimizer.max_generations": 2, "optimizer.stagnation_generations": 0}
+                     "optimizer.max_generations": 2, "optimizer.stagnation_generations": 0,
+                     "optimizer.popsize": 2, "optimizer.trials": 1}
     scratch = tempfile.TemporaryDirectory(prefix="bench-optimizer-node-")   # ROS logs; removed when main returns
     from bench.smoke import isolated_ros
 

@@ -35,7 +35,7 @@ def _launches(settings, heights, pad, launches, engine):
     from rollability_ros.core.sim import objectives
     from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
-    objective = objectives.launch_objective(settings.objective, engine, early_decision=True)
+    objective = objectives.launch_objective(settings.objective, settings.resolved_launch, engine, early_decision=True)
     assert objective is not None, "the launch fidelity has a launch objective"
     twin = objective.twin
     foam = dataclasses.replace(twin.twin.foam, length_m=pad[0], width_m=pad[1])

@@ -131,9 +131,7 @@ def reoptimise_and_validate(args, unknowns, truth, fitted, folder):
             print(f"  {time.perf_counter() - started:.0f} s [{load()}]", flush=True)
         on_truth = evaluation.ObjectiveSettings(kind="launch_twin", campaign_config=[campaign_file],
                                                 twin_config=[*calibration.TWIN_CONFIGS, files["truth"]])
-        import dataclasses
-
-        truth_settings = dataclasses.replace(settings, objective=on_truth)
+        truth_settings = evaluation.with_objective(settings, on_truth)   # reads the truth twin's files
         designs["bare robot"] = None   # no profile: the bare chassis
         for label, heights in designs.items():
             started = time.perf_counter()

@@ -76,10 +76,8 @@ def run_publisher(case, count):
     rclpy.init()
     node = rclpy.create_node("bench_publisher")
     publisher = node.create_publisher(message_type(case), TOPICS[case], reliable_keep_all())
-    deadline = time.monotonic() + 30
-    while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
-        time.sleep(0.02)
-    time.sleep(1.0)   # the consumer's side of the match
+    _wait(lambda: publisher.get_subscription_count() > 0, 30, 0.02)   # this side of the match
+    sys.stdin.readline()   # the consumer's side: measure_consumer says "go" once the consumer sees this publisher
     msg = sample_message(case)
     start = time.perf_counter()
     for index in range(count):
@@ -147,6 +145,8 @@ def run_consumer(kind, case, count, bag_dir):
     spinner = threading.Thread(target=executor.spin, daemon=True)
     spinner.start()
     print(json.dumps({"ready": True}), flush=True)
+    matched = _wait(lambda: node.count_publishers(TOPICS[case]) > 0, 60)   # the publisher's side: it waits for us
+    print(json.dumps({"matched": matched}), flush=True)
     if kind == "recorder":
         _wait(lambda: received() > 0, 60)
         marks["first"] = time.perf_counter()
@@ -157,6 +157,9 @@ def run_consumer(kind, case, count, bag_dir):
     total = received() if kind != "recorder" else sum(node.counts().values())
     print(json.dumps({"received": total, "seconds": (marks["last"] or time.perf_counter()) - marks["first"],
                       "complete": done}), flush=True)
+    # stay until the publisher left: it leaves once this side acknowledged every message, and a reader that left
+    # first kept its publisher's wait_for_all_acked waiting ~20 s for the reader's lease to run out
+    _wait(lambda: node.count_publishers(TOPICS[case]) == 0, 60)
     executor.shutdown()
     node.destroy_node()
     rclpy.shutdown()
@@ -176,13 +179,16 @@ def measure_consumer(kind, case, count, scratch):
                                 stderr=subprocess.PIPE, text=True, env=env)
     assert consumer.stdout is not None
     consumer.stdout.readline()   # ready
-    publisher = subprocess.run([sys.executable, __file__, "--role", "publisher", "--case", case, "--count",
-                                str(count)], capture_output=True, text=True, env=env, timeout=300)
+    publisher = subprocess.Popen([sys.executable, __file__, "--role", "publisher", "--case", case, "--count",
+                                  str(count)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                 text=True, env=env)
+    consumer.stdout.readline()   # matched (or the consumer's end): the publisher may go once it matched too
+    published_out, published_err = publisher.communicate("go\n", timeout=300)
     out, err = consumer.communicate(timeout=300)
-    results = _json_lines(out)
-    published = _json_lines(publisher.stdout)
+    results = [line for line in _json_lines(out) if "received" in line]
+    published = _json_lines(published_out)
     if not results or not published:
-        raise RuntimeError(f"{kind}/{case} failed:\n{err[-2000:]}\n{publisher.stderr[-2000:]}")
+        raise RuntimeError(f"{kind}/{case} failed:\n{err[-2000:]}\n{published_err[-2000:]}")
     result, sent = results[-1], published[-1]
     return {"consumer": kind, "messages": sent["published"], "received": result["received"],
             "drops": sent["published"] - result["received"], "seconds": result["seconds"],

@@ -84,7 +84,8 @@ def _modes_of(settings, heights, launches, seed):
     from rollability_ros.core.sim import objectives
     from rollability_ros.core.sim.launch.twin import simulate_valid_launch
 
-    objective = objectives.launch_objective(settings.objective, settings.physics.engine, early_decision=False)
+    objective = objectives.launch_objective(settings.objective, settings.resolved_launch, settings.physics.engine,
+                                           early_decision=False)
     assert objective is not None, "the launch fidelity has a launch objective"
     profile = evaluation.profile_job(heights, settings).profile
     return collections.Counter(rest_mode(simulate_valid_launch(objective.condition(index), objective.twin,

@@ -9,7 +9,6 @@ random ones from a fixed seed) are launched ``--launches`` times each on the sma
 with every profile's upright launches. All simulated; the same launch seeds for every profile and twin.
 """
 import argparse
-import dataclasses
 import os
 import sys
 import tempfile
@@ -69,7 +68,7 @@ def main(argv=None):
                     with open(path, "w", encoding="utf-8") as stream:
                         yaml.safe_dump(calibration.calibrated_parameter_document(dict([truth])), stream)
                     twin.append(path)
-                on_twin = dataclasses.replace(settings, objective=evaluation.ObjectiveSettings(
+                on_twin = evaluation.with_objective(settings, evaluation.ObjectiveSettings(
                     kind="launch_twin", campaign_config=[campaign_file], twin_config=twin))
                 started = time.perf_counter()
                 counts = []

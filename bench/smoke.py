@@ -24,18 +24,18 @@ import typing
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # this checkout first
 
 #: The bench scripts run at their ``--smoke`` size by the README's test command (bench/<name>.py, each
-#: ``main(argv) -> int``), cheapest first. docs/testing.md gives each one's measured time.
+#: ``main(argv) -> int``), cheapest first (the four ROS-graph and calibration ones last). docs/testing.md gives each
+#: one's measured time.
 SMOKE = ("bench_bag_writer", "bench_adaptive_plan", "bench_profile_mass", "bench_launch_twin", "verify_early_decision",
          "bench_pad_size", "bench_design_space", "bench_bare_breakdown", "bench_truth_sweep", "bench_optimizer",
          "bench_estop_latency", "bench_evaluator", "bench_sensitivity", "bench_quality_diversity",
-         "bench_initial_mean_screen", "bench_race_truth", "bench_shape_ceiling", "bench_engines", "bench_racing")
+         "bench_initial_mean_screen", "bench_race_truth", "bench_shape_ceiling", "bench_engines", "bench_racing",
+         "bench_recorder", "bench_calibration_direct", "bench_objective", "bench_optimizer_node")
 
-#: The bench scripts whose ``--smoke`` size still takes too long for the README's test command (node graphs of
-#: several processes each starting rclpy and the package, a learnt likelihood prepared from 240 launches, a whole
-#: miniature study; and the two launch-twin calibration fits, about 6 s of CPU each, past the command's budget for
-#: the benches): the slow tier runs them (``./scripts/test.sh --slow``).
-SMOKE_SLOW = ("bench_calibration_direct", "bench_objective", "bench_recorder", "bench_optimizer_node",
-              "bench_calibration", "bench_transfer", "bench_recalibrate")
+#: The bench scripts whose ``--smoke`` size still takes minutes (a learnt likelihood prepared from 240 launches and
+#: its networks trained; that likelihood's calibration, a re-optimisation and a validation; a whole miniature study
+#: on two engines): the slow tier runs them (``./scripts/test.sh --slow``). docs/testing.md says why each stays.
+SMOKE_SLOW = ("bench_calibration", "bench_transfer", "bench_recalibrate")
 
 #: What each bench must print at its smoke size: one piece of each line that carries its result (its ratio, table
 #: or verdict), so a bench that stops before its report, or drops a line of it, fails.

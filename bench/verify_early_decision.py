@@ -48,7 +48,7 @@ def as_launches(settings, twin_config):
     """A copy of ``settings`` whose trials are launches on the twin of ``twin_config`` (the paper's conditions)."""
     objective = dataclasses.replace(settings.objective, kind="launch_twin", campaign_config=["campaign"],
                                     twin_config=list(twin_config))
-    return dataclasses.replace(settings, objective=objective)
+    return evaluation.with_objective(settings, objective)
 
 
 def cases(seed, engine="pybullet", launches=False):

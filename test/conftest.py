@@ -30,7 +30,31 @@ os.environ["ROS_LOG_DIR"] = os.path.join(os.environ["XDG_RUNTIME_DIR"], "ros-log
 # subprocesses (nodes, peers) import this checkout's sources, whatever their working directory
 os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH", "")]))
 
-pytest_plugins = ["ros_fixtures", "rerun_summary"]
+
+
+def _ram_temp_root(path="/dev/shm", room_bytes=4 * 2**30):
+    """``path`` when it is a writable folder with ``room_bytes`` free (Linux's RAM file system), else None.
+
+    pytest's tmp_path folders go there: the store commits (fsyncs) every record and a checkpoint every generation,
+    and on this project's 2-core VM's disk an fsync took about 6 ms: a 30-generation optimisation run on a store
+    took 3.5 s of wall time on disk and 0.3 s in RAM, with the same records written. Nothing else changes: the
+    files, their contents and the processes that write them are the same, and a kill -9 of a writer still loses
+    what it had not committed. Where there is no such folder or too little room (a container's 64 MB /dev/shm),
+    the system's temporary folder is used as before. Only pytest's folders move: ROS domain locks, ROS logs and
+    what child processes put in their own temporary files stay in the system's (``TMPDIR`` is left alone)."""
+    try:
+        stat = os.statvfs(path)
+    except OSError:
+        return None
+    if stat.f_bavail * stat.f_frsize < room_bytes or not os.access(path, os.W_OK | os.X_OK):
+        return None
+    return path
+
+
+if "PYTEST_DEBUG_TEMPROOT" not in os.environ and _ram_temp_root():   # pytest's own seam for its temporary root
+    os.environ["PYTEST_DEBUG_TEMPROOT"] = _ram_temp_root()
+
+pytest_plugins = ["ros_fixtures", "rerun_summary", "smoke_early"]
 
 
 def pid_running(pid):

@@ -6,9 +6,7 @@ script in bench/. mypy checks every bench
 script too (test/core/test_mypy.py)."""
 import os
 import pathlib
-import subprocess
 import sys
-import tempfile
 import types
 
 import pytest
@@ -17,51 +15,39 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench import smoke  # noqa: E402
+from smoke_early import SmokeRun, repo_files, smoke_run  # noqa: E402
 
 
 def _smoke(*names, pythonpath=str(ROOT)):
     """Runs bench/smoke.py in a fresh directory: a bench's default output folder lands there, not in the repo."""
-    env = dict(os.environ, PYTHONPATH=pythonpath, LC_ALL="C.UTF-8", PYTHONUNBUFFERED="1", MPLBACKEND="Agg")
-    with tempfile.TemporaryDirectory(prefix="bench-smoke-") as cwd:
-        return subprocess.run([sys.executable, str(ROOT / "bench" / "smoke.py"), *names], capture_output=True,
-                              text=True, timeout=1500, env=env, cwd=cwd)
+    return SmokeRun(*names, pythonpath=pythonpath).wait(1500)
 
 
-def _repo_files():
-    """``{path: (size, mtime ns)}`` of the checkout's files (hidden folders, caches and build trees left out)."""
-    files = {}
-    for folder, folders, names in os.walk(ROOT):
-        folders[:] = [f for f in folders if not f.startswith(".") and f not in ("__pycache__", "build", "install",
-                                                                                 "log")]
-        for name in names:
-            path = pathlib.Path(folder, name)
-            stat = path.stat()
-            files[str(path.relative_to(ROOT))] = (stat.st_size, stat.st_mtime_ns)
-    return files
-
-
-def _runs_every_bench_of(names, *args):
-    before = _repo_files()
-    result = _smoke(*args)
+def _runs_every_bench_of(names, run):
+    result = run.wait(1500)
     assert result.returncode == 0, result.stdout[-6000:] + result.stderr[-3000:]
     for name in names:
         assert f"smoke {name}: ok (" in result.stdout, result.stdout
         for line in smoke.HEADLINES[name]:   # bench/smoke.py checks them too; this test asks it did
             assert line in result.stdout, (name, line)
     assert f"smoke: {len(names)} benches ran" in result.stdout
-    after = _repo_files()
-    assert after == before, ("a bench wrote into the checkout", sorted(set(after.items()) ^ set(before.items())))
+    after = repo_files()
+    assert after == run.before, ("the checkout changed while the benches ran (a bench wrote into it, or a test that "
+                                 "ran beside them: test/smoke_early.py)",
+                                 sorted(set(after.items()) ^ set(run.before.items())))
 
 
+@pytest.mark.timeout(1500)   # when run alone it runs the benches itself: 23 of them, minutes at a high load
 def test_every_smoke_bench_runs_at_its_tiny_size():
-    _runs_every_bench_of(smoke.SMOKE)
+    """SMOKE, in the process test/smoke_early.py started when collection ended (it runs beside the core tests)."""
+    _runs_every_bench_of(smoke.SMOKE, smoke_run())
 
 
-@pytest.mark.slow   # node graphs in processes of their own, a learnt likelihood, a miniature study: minutes each
+@pytest.mark.slow   # a learnt likelihood prepared and used, a miniature study on two engines: minutes each
 @pytest.mark.timeout(1500)   # the learnt likelihood's preparation alone took 258 s at load average 19
 @pytest.mark.parametrize("name", smoke.SMOKE_SLOW)
 def test_every_slow_smoke_bench_runs_at_its_tiny_size(name):
-    _runs_every_bench_of([name], name)
+    _runs_every_bench_of([name], SmokeRun(name))
 
 
 def test_every_bench_script_is_run_at_its_tiny_size_by_a_tier():

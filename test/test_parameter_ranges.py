@@ -50,7 +50,10 @@ def _declared_classes(module, tree, argument):
             if isinstance(source, ast.Call) and ast.unparse(source.func) == "dataclasses.fields":
                 owner = getattr(module, source.args[0].id)
                 hints = typing.get_type_hints(owner)
-                found.extend(hints[f.name] for f in dataclasses.fields(owner))
+                # the settings sections among the fields (a field that is not a settings dataclass, such as a
+                # value resolved from them, is skipped by the node's loop and declares no parameter)
+                found.extend(hints[f.name] for f in dataclasses.fields(owner)
+                             if isinstance(hints[f.name], type) and dataclasses.is_dataclass(hints[f.name]))
     assert found, f"{module.__name__}: cannot tell which settings declare_settings({ast.unparse(argument)}) declares"
     return found
 

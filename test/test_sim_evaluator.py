@@ -83,6 +83,43 @@ def test_a_launch_fidelity_goal_runs_robust_twin_launches_and_an_unknown_one_is_
     assert ros_node.wait_for(lambda: "unknown evaluation fidelity 'campaign'" in evaluator.log(), 10), evaluator.log()
 
 
+def test_the_node_reads_a_changed_objective_file_and_refuses_one_it_cannot_read(ros_node, evaluator, tmp_path):
+    """The node reads the files its objective names (the edge): a new objective.campaign_config is read when it is
+    set, and its launches are those of that file; a file that cannot be read refuses the change, naming it."""
+    import dataclasses
+
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    from rollability_ros.core.sim.evaluation import evaluate_profile, load_settings, settings_at_fidelity, with_objective
+
+    campaign = tmp_path / "one_condition.yaml"
+    campaign.write_text("/**:\n  ros__parameters:\n    campaign:\n      heights_m: [1.30]\n      speeds_mps: [1.5]\n"
+                        "      angles_deg: [45.0]\n")
+    service = ros_node.node.create_client(SetParameters, "/sim_evaluator/set_parameters")
+    assert service.wait_for_service(timeout_sec=30)
+
+    def set_campaign(files):
+        request = SetParameters.Request(parameters=[
+            Parameter("objective.campaign_config", value=files).to_parameter_msg()])
+        return service.call(request, timeout_sec=30).results[0]
+
+    missing = str(tmp_path / "missing.yaml")
+    refused = set_campaign([missing])
+    assert not refused.successful and missing in refused.reason, refused.reason
+    try:
+        assert set_campaign([str(campaign)]).successful
+        client = _client(ros_node, "/evaluate_profile")
+        response = _wait(ros_node, _send(ros_node, client, [], 2, 77, fidelity="launch").get_result_async())
+        assert response.status == GoalStatus.STATUS_SUCCEEDED, response.result.message
+        settings = load_settings()
+        settings = with_objective(settings, dataclasses.replace(settings.objective, campaign_config=[str(campaign)]))
+        expected = evaluate_profile(None, 2, 77, settings_at_fidelity(settings, "launch"))
+        assert [t.steps for t in response.result.trial_results] == [t.steps for t in expected.trial_results]
+    finally:
+        assert set_campaign(["campaign"]).successful   # the module's other goals run on the shipped campaign
+
+
 @pytest.mark.parametrize("heights, trials, why", [
     ([0.1] * 99, 4, "wrong length"),
     ([float("nan")] + [0.1] * 99, 4, "NaN"),

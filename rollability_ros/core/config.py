@@ -254,17 +254,6 @@ def as_list(value: object) -> typing.List[object]:
     return list(value) if isinstance(value, (list, tuple)) else [value]
 
 
-def number_parameter(parameters: typing.Mapping[str, object], name: str) -> float:
-    """The number parameter ``name`` of flat ``parameters``; :class:`ConfigError` in one line naming it when it is
-    absent or not a number."""
-    if name not in parameters:
-        raise ConfigError(f"{name}: missing")
-    value = parameters[name]
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(wrong_type(name, float, value))
-    return float(value)
-
-
 def integer_parameter(parameters: typing.Mapping[str, object], name: str, default: int) -> int:
     """The integer parameter ``name`` of flat ``parameters`` (``default`` when absent); :class:`ConfigError` in
     one line naming it when it is not an integer."""
@@ -431,10 +420,14 @@ def settings_from_sections(cls: typing.Type[_Settings], flat: typing.Mapping[str
     """Parse flat ``{dotted name: value}`` parameters once into ``cls``, a dataclass whose fields are settings
     dataclasses, each built (:func:`from_mapping`) from the parameters under its namespace: ``namespaces`` maps a
     field to it (default: the field's name). A field named in ``optional`` is None when ``flat`` holds none of its
-    namespace. Errors name the namespace and parameter (``optimizer: popsize must be >= 2, got 1``)."""
+    namespace. A field whose metadata names what it is ``resolved_from`` (settings the edge reads from files the
+    sections name, e.g. the launch twin of ``objective.twin_config``) is no namespace: it keeps its default here.
+    Errors name the namespace and parameter (``optimizer: popsize must be >= 2, got 1``)."""
     hints = typing.get_type_hints(cls)
     kwargs: typing.Dict[str, typing.Any] = {}
     for field in dataclasses.fields(typing.cast(typing.Any, cls)):
+        if "resolved_from" in field.metadata:
+            continue
         namespace = (namespaces or {}).get(field.name, field.name)
         values = section(flat, namespace)
         if field.name in optional and not values:

@@ -208,7 +208,8 @@ def guard_settings(node: Node, prefix: str, settings_cls: typing.Type[_Settings]
                    on_change: typing.Optional[typing.Callable[[_Settings], None]] = None) -> None:
     """Refuse parameter changes under ``prefix`` that would make ``settings_cls`` invalid.
 
-    ``on_change(new_settings)`` is called after an accepted change.
+    ``on_change(new_settings)`` is called after an accepted change; a ``ValueError`` it raises (a file the new
+    settings name cannot be read: ``ConfigError``) refuses the change with its message.
     """
     lead = prefix + "."
 
@@ -221,7 +222,10 @@ def guard_settings(node: Node, prefix: str, settings_cls: typing.Type[_Settings]
         except ParameterError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         if on_change is not None:
-            on_change(new_settings)
+            try:
+                on_change(new_settings)
+            except ValueError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
     node.add_on_set_parameters_callback(check)

@@ -33,7 +33,7 @@ from std_msgs.msg import String
 from rollability_ros.action import EvaluateProfile
 from rollability_ros.core.sim import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
                                       TrialOutcome, check_fidelity, evaluate_profile, make_executor,
-                                      settings_at_fidelity)
+                                      settings_at_fidelity, with_objective)
 from rollability_ros.core.profile import check_heights
 from rollability_ros.msg import TrialResult
 from rollability_ros.nodes._support import (LATCHED_QOS, SessionMembership, declare_settings, guard_settings,
@@ -63,11 +63,15 @@ class SimEvaluator(Node):
         super().__init__("sim_evaluator")
         sections: typing.Dict[str, typing.Any] = {}   # field name -> its section's settings
         for field in dataclasses.fields(EvaluatorSettings):
+            if field.name not in SETTINGS_SECTIONS:
+                continue   # not a parameter section: the launch resolved from the objective's files (below)
             prefix = SETTINGS_SECTIONS[field.name]
             settings_cls = typing.cast(type, field.type)   # a class: the module has no string annotations
             sections[field.name] = declare_settings(self, prefix, settings_cls)
             guard_settings(self, prefix, settings_cls, on_change=self._setter(field.name))
-        self._settings = EvaluatorSettings(**sections)
+        # the launch twin and conditions of the files the objective names, read here, once (and again when the
+        # objective's files change): the core is handed them typed
+        self._settings = with_objective(EvaluatorSettings(**sections), sections["objective"])
         self._session = SessionMembership(self)
         self._topic_description = ""
         if self._settings.urdf_robot.selected and not self._settings.urdf_robot.has_source:
@@ -86,7 +90,10 @@ class SimEvaluator(Node):
         def apply(value: typing.Any) -> None:
             if name == "urdf_robot" and value.selected and not value.has_source and self._topic_description:
                 value = dataclasses.replace(value, robot_description=self._topic_description)
-            self._settings = dataclasses.replace(self._settings, **{name: value})
+            if name == "objective":   # a file that cannot be read refuses the change (ConfigError)
+                self._settings = with_objective(self._settings, value)
+            else:
+                self._settings = dataclasses.replace(self._settings, **{name: value})
         return apply
 
     def _on_description(self, msg):

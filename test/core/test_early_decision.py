@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from rollability_ros.core.sim.early_decision import build_basin_map
-from rollability_ros.core.sim.evaluation import evaluate_profile, load_settings
+from rollability_ros.core.sim.early_decision import build_basin_map, tabulate_basin_map
+from rollability_ros.core.sim.evaluation import evaluate_profile, load_settings, with_objective
 
 pytest.importorskip("scipy")
 pybullet = pytest.importorskip("pybullet")
@@ -35,6 +35,26 @@ def test_cube_barriers_match_analytic_heights():
         assert over_edge_m - 0.1 * SIDE_M < barrier <= over_edge_m  # lowered only by the lattice slack
         assert cube.decide(start, SIDE_M / 2 + 0.001) is outcome
         assert cube.decide(start, over_edge_m + 0.001) is None
+
+
+def test_a_basin_map_is_tabulated_once_per_body_and_shared_read_only():
+    """Every launch of one design rebuilds the same body: its map is tabulated once per process and shared, so it
+    refuses writes; a body that differs in one input (here the COM, by 1 mm) gets its own, equal to a fresh one."""
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * SIDE_M / 2
+    com = np.zeros(3)
+    first = cube_map()
+    assert cube_map() is first
+    with pytest.raises(ValueError, match="read-only"):
+        first.barrier_to_upright_m[0] = 0.0
+    com[2] = 0.001
+    kwargs = dict(upright_tilt_deg=30.0, min_wheels=0, contact_tolerance_m=0.001, margin_m=0.0)
+    moved = build_basin_map({-1: corners}, (), com, 1.0, (0.0, 0.0, 1.0), **kwargs)
+    assert moved is not first and not np.array_equal(moved.barrier_to_upright_m, first.barrier_to_upright_m)
+    fresh = tabulate_basin_map({-1: corners}, (), com, 1.0, (0.0, 0.0, 1.0), **kwargs)
+    for field in dataclasses.fields(fresh):
+        assert np.array_equal(getattr(moved, field.name), getattr(fresh, field.name)), field.name
+    com[2] = 0.0   # the caller's array was copied, not frozen: it stays the caller's
+    assert cube_map() is first
 
 
 def dome_heights(grid):
@@ -76,7 +96,7 @@ def test_early_decision_of_launches_changes_no_outcome(engine, robot, profile, l
     settings = load_settings(("sim", "robot", "evaluator") + extra)
     objective = dataclasses.replace(settings.objective, kind="launch_twin",
                                     twin_config=["sim", "robot", "launch_twin", *extra])
-    settings = dataclasses.replace(settings, objective=objective,
+    settings = dataclasses.replace(with_objective(settings, objective),
                                    physics=dataclasses.replace(settings.physics, engine=engine))
     heights = None if profile == "baseline" else dome_heights(settings.grid)
     full = evaluate_profile(heights, launches, 5, early(settings, False)).trial_results

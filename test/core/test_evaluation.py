@@ -1,4 +1,5 @@
 """Evaluation: seeds, reproducibility across executors, streaming, cancel, request checks, settings, URDF, Ray."""
+import dataclasses
 import os
 import shutil
 import signal
@@ -18,6 +19,7 @@ from rollability_ros.core.sim.evaluation import (EvaluationCancelled, EvaluatorS
                                              evaluate_mesh, evaluate_profile, load_settings, mesh_job, profile_job,
                                              run_batch, trial_seed)
 from rollability_ros.core.profile.geometry import export_mesh, grid_xy, load_profile_mesh, profile_mesh
+from rollability_ros.core.sim import load_launch_twin_settings
 from rollability_ros.core.sim.trial_engine import run_trial
 
 pybullet = pytest.importorskip("pybullet")
@@ -146,7 +148,11 @@ def test_stl_profile_evaluates_like_its_heights(tmp_path):
 
 
 def test_shipped_config_files_load_and_match_the_documented_defaults(tmp_path):
-    assert load_settings() == EvaluatorSettings()
+    shipped = load_settings()
+    # the files' values are the dataclasses' defaults; the edge also read the twin and campaign the objective names
+    assert dataclasses.replace(shipped, resolved_launch=None) == EvaluatorSettings()
+    assert shipped.resolved_launch.twin == load_launch_twin_settings(["sim", "robot", "launch_twin"])
+    assert len(shipped.resolved_launch.conditions) == 20   # the paper's 2 heights x 2 speeds x 5 angles
     override = tmp_path / "fast.yaml"
     override.write_text("/**:\n  ros__parameters:\n    evaluator: {trials: 8}\n    sim: {contact_model: per_body}\n")
     settings = load_settings(("sim", "robot", "evaluator", str(override)))

@@ -4,6 +4,9 @@ test/code_counts.py): no new upward import and no new import cycle, between subp
 The allow-lists below are what is left of the violations counted in issue 29; they only shrink. A new upward
 import or cycle fails with its file and line; an entry that no longer occurs fails too, so it is removed here.
 """
+import ast
+import re
+
 import code_counts
 
 #: (module, imported module) pairs that import from a subpackage listed later (module names below core/). Issue
@@ -71,3 +74,25 @@ def test_the_check_sees_a_violation(tmp_path):
                       "from rollability_ros.core import config\n")
     assert sorted(code_counts.imports_of(module, {"sim.trials", "config"})) == [("config", 3), ("sim.trials", 2),
                                                                                  ("sim.trials", 2)]
+
+
+def unmapped_modules(core=code_counts.CORE):
+    """``[module path below core]`` of the modules that the map of their package (the docstring of its
+    ``__init__.py``, which says in a few lines what each module holds) does not name."""
+    missing = []
+    for init in sorted(core.rglob("__init__.py")):
+        text = ast.get_docstring(ast.parse(init.read_text())) or ""
+        missing += [module.relative_to(core).as_posix() for module in sorted(init.parent.glob("*.py"))
+                    if module.name != "__init__.py" and not re.search(rf"(?<![\w.]){re.escape(module.stem)}\b", text)]
+    return missing
+
+
+def test_every_module_is_on_its_packages_map(tmp_path):
+    """Each package's ``__init__.py`` maps its modules (what each holds): a module it does not name fails here, as a
+    made-up package with one unnamed module does."""
+    assert unmapped_modules() == []
+    (tmp_path / "pkg").mkdir()
+    (tmp_path / "pkg" / "__init__.py").write_text('"""A package.\n\n- held: what it holds\n"""\n')
+    for name in ("held", "forgotten"):
+        (tmp_path / "pkg" / f"{name}.py").write_text("")
+    assert unmapped_modules(tmp_path) == ["pkg/forgotten.py"]

@@ -1,9 +1,12 @@
 """Objectives of a candidate evaluation: disturbance trials, launches on the launch twin, or a mix."""
 import dataclasses
+import pickle
 
 import numpy as np
 import pytest
 
+from rollability_ros.core import config
+from rollability_ros.core.campaign_matrix import load_campaign_spec
 from rollability_ros.core.config import ConfigError, load_parameters
 from rollability_ros.core.sim import evaluation
 from rollability_ros.core.sim.objectives import CANDIDATE, ObjectiveSettings, launch_conditions, launch_objective
@@ -23,7 +26,7 @@ def settings_with(quick=False, **objective):
 
 
 def test_the_default_objective_is_the_papers_disturbance_trial_and_the_quick_default_is_multi_fidelity():
-    assert launch_objective(ObjectiveSettings()) is None and ObjectiveSettings().kind == "disturbance"
+    assert launch_objective(ObjectiveSettings(), None) is None and ObjectiveSettings().kind == "disturbance"
     # config/optimizer.yaml: the search scores robust launches on the MuJoCo twin, the race decides on sim.engine
     quick = settings_with(quick=True)
     assert (quick.objective.kind, quick.objective.robust.enabled, quick.objective.screen_engine,
@@ -33,15 +36,50 @@ def test_the_default_objective_is_the_papers_disturbance_trial_and_the_quick_def
 
 
 def test_mix_spreads_the_launch_share_evenly_and_cycles_the_conditions():
-    objective = launch_objective(ObjectiveSettings(kind="mix", launch_weight=0.25))
+    resolved = evaluation.load_settings().resolved_launch   # the shipped twin and campaign files, read once
+    objective = launch_objective(ObjectiveSettings(kind="mix", launch_weight=0.25), resolved)
     launches = [i for i in range(40) if objective.is_launch(i)]
     assert len(launches) == 10 and launches[:3] == [3, 7, 11]
-    paper = launch_conditions(["campaign"])
+    paper = launch_conditions(load_campaign_spec(("campaign",)))
     assert len(paper) == 20 and {c.configuration for c in paper} == {CANDIDATE}
     # the launches of an evaluation take the 20 conditions in turn
     assert [objective.condition(i) for i in launches] == list(paper[:10])
-    only = launch_objective(ObjectiveSettings(kind="launch_twin"))
+    only = launch_objective(ObjectiveSettings(kind="launch_twin"), resolved)
     assert all(only.is_launch(i) for i in range(25)) and only.condition(21) == paper[1]
+
+
+def test_the_objectives_files_are_read_once_at_the_edge_and_a_launch_from_other_files_is_refused(tmp_path,
+                                                                                                   monkeypatch):
+    """The evaluator's edge parse reads the twin and campaign files the objective names into its settings; a trial
+    job (what the workers are sent) takes them from there and opens no parameter file; settings whose objective
+    names other files than were read are refused, never launched on a twin the files no longer describe."""
+    campaign = tmp_path / "two_angles.yaml"
+    campaign.write_text(CAMPAIGN)
+    settings = settings_with(kind="launch_twin", campaign_config=[str(campaign)])
+    assert [c.angle_deg for c in settings.resolved_launch.conditions] == [-30.0, 30.0]
+    assert settings.resolved_launch.twin == evaluation.load_settings().resolved_launch.twin   # the shipped twin
+    campaign.write_text(CAMPAIGN.replace("[-30.0, 30.0]", "[0.0]"))
+
+    def no_file(path):
+        raise AssertionError(f"the core read the parameter file {path}")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(config, "read_parameter_file", no_file)
+        job = evaluation.profile_job(None, evaluation.settings_at_fidelity(settings, "launch"))
+    assert [c.angle_deg for c in job.launch.conditions] == [-30.0, 30.0]
+    assert pickle.loads(pickle.dumps(job)) == job
+    other = dataclasses.replace(settings.objective, campaign_config=["campaign"])
+    with pytest.raises(ValueError, match=r"campaign_config \['campaign'\] were not read at the edge \(the settings "
+                                         r"hold those of \['sim', 'robot', 'launch_twin'\], \['.*two_angles.yaml'\]\)"):
+        evaluation.profile_job(None, dataclasses.replace(settings, objective=other))
+    with pytest.raises(ValueError, match=r"were not read at the edge \(the settings hold none\)"):
+        evaluation.profile_job(None, evaluation.EvaluatorSettings(objective=other))
+    assert len(evaluation.profile_job(None, evaluation.with_objective(settings, other)).launch.conditions) == 20
+    # an objective without launches that names no files is fine; asked for launches it is refused as before
+    bare = evaluation.with_objective(settings, ObjectiveSettings(twin_config=[]))
+    assert bare.resolved_launch is None and evaluation.profile_job(None, bare).launch is None
+    with pytest.raises(ConfigError, match="twin_config must list the launch twin's parameter files"):
+        evaluation.profile_job(None, evaluation.settings_at_fidelity(bare, "launch"))
 
 
 def test_bad_objective_settings_are_refused():
@@ -93,7 +131,7 @@ def test_launches_run_on_the_evaluations_engine_or_are_refused(monkeypatch, tmp_
         settings, physics=dataclasses.replace(settings.physics, engine=engine))).trial_results
         for engine in ("pybullet", "mujoco")}
     assert [o.steps for o in on["pybullet"]] != [o.steps for o in on["mujoco"]]
-    twin = launch_objective(settings.objective, "mujoco").twin
+    twin = launch_objective(settings.objective, settings.resolved_launch, "mujoco").twin
     assert twin.physics.engine == "mujoco"
     direct = simulate_valid_launch(LaunchCondition(CANDIDATE, 0.75, 0.8, -30.0), twin, evaluation.trial_seed(5, 0),
                                    profile=None, use_profile=True)

@@ -261,7 +261,7 @@ def test_launch_sensitivity_rows_are_real_launches_at_each_end_of_an_unknowns_ra
     assert levels["com_offset_z_m"] == pytest.approx((-0.021, -0.009))
     block = trimesh.creation.box((0.12, 0.16, 0.05))
     block.apply_translation((0.0, 0.0, 0.025))
-    settings = evaluation.EvaluatorSettings()
+    settings = evaluation.load_settings()   # with the launch twin and conditions the objective's files name
     rows = launch_sensitivity_rows({"baseline": None, "block": block}, settings, 4, 1,
                                    levels={"foam_lateral_friction": (0.6, 2.5)})
     assert [(r["configuration"], r["factor"], r["level"]) for r in rows] == [
@@ -293,7 +293,7 @@ def test_any_numeric_twin_setting_can_be_varied_and_a_robot_setting_weighs_the_p
     from rollability_ros.core.sim.sensitivity import _setting_case, with_setting
 
     block = trimesh.creation.box((0.1, 0.1, 0.05))
-    plain = settings_at_fidelity(evaluation.EvaluatorSettings(), "launch")
+    plain = settings_at_fidelity(evaluation.load_settings(), "launch")
     light = _setting_case(block, plain, "robot.profile_print.infill_fraction", 0.05)
     heavy = _setting_case(block, plain, "robot.profile_print.infill_fraction", 0.8)
     assert 0 < light.profile.mass_kg < heavy.profile.mass_kg   # the print weighs the candidate's profile

@@ -16,22 +16,27 @@ which defines them) a parse may stand in two declared places only:
   it wherever a design is launched or drawn). It may cut its own document (``section``, ``from_mapping``) but calls
   no edge parse (no parameter file is read through it), and a kind has one reader (``file_schemas``).
 
-Everything else is counted and must be listed below with why it stays; a new one fails with its function, one
-that went fails too, so the list only shrinks.
+Everything else is counted, and the count must be 0: there is no list of exceptions, so a new parse below the edge
+fails with its function (parse it in the node or the command, or declare it as above and call it from there).
 
 Why this is the rule and not an allow-list by another name: a declaration is checked against what the code does.
 An ``edge_parse`` that a core function calls is counted at the caller, and one that no edge calls fails
 ``test_every_edge_parse_is_called_by_an_edge``, so declaring a core function an edge parse does not hide a parse,
 it moves the call to the node or the command. A ``file_schema`` reader cannot read parameter files through an edge
-parse, and a second reader of one kind fails. Parameter files that a setting names (``rig.twin_config``) are read
-by the edge too: the rig's ports (``RigPorts.open_twin``: the node's, the campaign command's ``read_twin``).
+parse, and a second reader of one kind fails. Parameter files that a setting names are read by the edge too: the
+rig's twin (``rig.twin_config``: ``RigPorts.open_twin``, the node's, the campaign command's ``read_twin``), and the
+evaluation's launch twin and conditions (``objective.twin_config``, ``objective.campaign_config``:
+``objectives.resolve_launch`` through the evaluator's edge parses, which the commands and the sim_evaluator node
+call; carried to every trial job in ``EvaluatorSettings.resolved_launch``).
 
 Counts: issue 29 began at 45 calls in 26 functions; issue 43 found 30 in 24, then 27 in 21 (every edge parse
 counted, the calibration re-parsing its twin from flat parameters for every candidate, the sim rig and the study
-parsing the files they were named). Now 2 in 2: the edge parses and the designs file's reader are declared; the
-calibration, the characterisation, the learnt likelihood's training launches, the adaptive plan and the posterior
-take the twin typed and set fitted config keys on it (``sim.twin_with_values``, ``config.with_values``); the rig is
-handed its twin by its caller; a study is parsed by ``graph.study_config`` in the command.
+parsing the files they were named), then 2 in 2 (the evaluation reading its objective's twin and campaign files
+where it built a job). Now 0: the edge parses and the designs file's reader are declared; the calibration, the
+characterisation, the learnt likelihood's training launches, the adaptive plan and the posterior take the twin
+typed and set fitted config keys on it (``sim.twin_with_values``, ``config.with_values``); the rig is handed its
+twin by its caller; a study is parsed by ``graph.study_config`` in the command; an evaluation is handed its launch
+twin and conditions in its settings.
 """
 import re
 
@@ -39,25 +44,11 @@ import pytest
 
 import code_counts
 
-#: (module below core, function): (calls, why the parse stays there)
-ALLOWED = {
-    # objective.campaign_config / objective.twin_config name the files of an evaluation's launch trials; the
-    # evaluation resolves them where it builds a job (in its worker processes too, cached per process). To move
-    # them to the edge, EvaluatorSettings would carry the resolved launch objective (twin and conditions), built by
-    # the evaluator's edge parse; core/sim/objectives.py is the search's this session, so they stay listed.
-    ("sim/objectives.py", "_resolve"): (1, "reads the twin files objective.twin_config names"),
-    ("sim/objectives.py", "launch_conditions"): (1, "reads the campaign files objective.campaign_config names"),
-}
 
-
-def test_the_core_parses_flat_parameters_only_where_listed():
+def test_the_core_parses_no_flat_parameters():
     found = code_counts.parse_sites()
-    allowed = {site: calls for site, (calls, _why) in ALLOWED.items()}
-    new = {site: calls for site, calls in found.items() if calls > allowed.get(site, 0)}
-    assert not new, ("flat parameters parsed below the edge (parse them once in the node or CLI and hand the core "
-                     f"the typed settings, or list the site here with why): {new}")
-    gone = {site: calls for site, calls in allowed.items() if found.get(site, 0) < calls}
-    assert not gone, f"fewer parses than listed, lower or remove the entries: {gone} (found {found})"
+    assert found == {}, ("flat parameters parsed below the edge (parse them once in the node or CLI and hand the core "
+                         f"the typed settings): {found}")
 
 
 def test_every_edge_parse_is_called_by_an_edge():

@@ -76,6 +76,18 @@ def test_shipped_configurations_pass_the_check():
         assert check_graph_parameters(parameter_files(["bringup", *extra])) == []
 
 
+def test_an_objective_file_the_evaluator_cannot_read_stops_the_study(tmp_path):
+    """The sim_evaluator reads the files its objective names when it starts: the preflight reads them first."""
+    from rollability_ros.core.graph.bringup import parameter_files
+    from rollability_ros.core.graph.preflight import check_graph_parameters
+
+    missing = str(tmp_path / "no_campaign.yaml")
+    config = _bad_config(tmp_path, {"objective": {"campaign_config": [missing]}})
+    problems = check_graph_parameters([*parameter_files(["bringup"]), config])
+    assert len(problems) == 1 and problems[0].startswith("sim_evaluator: the objective's launch twin or campaign ")
+    assert f"config file not found: {missing}" in problems[0]
+
+
 @pytest.mark.parametrize("values, name", [
     ({"objective": {"screen_engnie": "mujoco"}}, "objective.screen_engnie"),          # misspelt
     ({"optimizer": {"race_first_trials": 10}}, "optimizer.race_first_trials"),        # a setting of an older version

@@ -8,6 +8,7 @@
 - progress: the live status line of study / bringup (plain lines when not a terminal)
 - session: a session's own ROS domain (isolation by default), its session.yaml and how a verb joins it
 - foxglove_view: the graph's topics served over the Foxglove WebSocket protocol (poses also as /tf)
+- _ros_domain: a ROS domain of its own for a test run or a bench (claim_domain), so graphs side by side do not talk
 
 The face is ``__init__.pyi`` beside this file: the names code outside ``core/graph`` imports (``from
 rollability_ros.core.graph import <name>``), each with the module it lives in. ``lazy_loader.attach_stub``

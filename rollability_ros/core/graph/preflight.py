@@ -143,6 +143,7 @@ def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing
     """
     sections = _node_sections()
     problems: typing.List[str] = []
+    file_errors: typing.Set[str] = set()   # one file's error once, however many nodes read the file
     for node in node_names or sections:
         flat = load_parameters(list(param_files), node_name=node)
         flat.update((overrides or {}).get(node, {}))
@@ -153,14 +154,20 @@ def check_graph_parameters(param_files: typing.Sequence[str], node_names: typing
                 from_mapping(settings_cls, _declared_only(settings_cls, section(flat, prefix)), prefix or node)
             except (ConfigError, ValueError, TypeError) as exc:
                 problems.append(f"{node}: {exc}")
+        named: typing.List[typing.Tuple[str, str]] = []   # (what, error): files the node reads at start
         if node == "rig" and flat.get("rig.backend", "sim") == "sim":
-            problems.extend(f"rig: {problem}" for problem in _twin_problems(flat))
+            named += _twin_problems(flat)
+        if node == "sim_evaluator":
+            named += _objective_file_problems(flat)
+        problems.extend(f"{node}: {what}: {error}" for what, error in named if error not in file_errors)
+        file_errors.update(error for _what, error in named)
     return problems
 
 
 @edge_parse
 def _twin_problems(flat):
-    """What the sim rig's twin would refuse in the files ``rig.twin_config`` names (it loads them at start)."""
+    """``[(what, error)]``: what the sim rig's twin would refuse in the files ``rig.twin_config`` names (it loads
+    them at start)."""
     from rollability_ros.core.rig import RigSettings
     from rollability_ros.core.sim import launch_twin_settings_from_parameters
 
@@ -168,7 +175,28 @@ def _twin_problems(flat):
     try:
         launch_twin_settings_from_parameters(load_parameters(list(twin_config)))
     except (ConfigError, ValueError, TypeError) as exc:
-        return [f"launch twin ({', '.join(map(str, twin_config))}): {exc}"]
+        return [(f"launch twin ({', '.join(map(str, twin_config))})", str(exc))]
+    return []
+
+
+@edge_parse
+def _objective_file_problems(flat):
+    """``[(what, error)]``: what the sim_evaluator would refuse in the files ``objective.twin_config`` and
+    ``objective.campaign_config`` name (it reads them at start:
+    :func:`~rollability_ros.core.sim.objectives.resolve_launch`); none when the ``objective`` section itself is
+    refused (reported with the node's sections)."""
+    from rollability_ros.core.sim import ObjectiveSettings, resolve_launch
+
+    try:
+        objective = from_mapping(ObjectiveSettings, _declared_only(ObjectiveSettings, section(flat, "objective")),
+                                 "objective")
+    except (ConfigError, ValueError, TypeError):
+        return []
+    try:
+        resolve_launch(objective)
+    except (ConfigError, ValueError, TypeError) as exc:
+        return [(f"the objective's launch twin or campaign ({', '.join(map(str, objective.twin_config))}; "
+                 f"{', '.join(map(str, objective.campaign_config))})", str(exc))]
     return []
 
 

@@ -9,6 +9,7 @@
 - batch_evaluation: the in-process evaluators a run is handed (evaluate_profile on a trial executor)
 - checkpoint: atomic checkpoints checked against the run's config
 - evaluator_pool: a batch of evaluations spread over the available evaluators
+- racing: successive halving over common seeds, for the selection's race and the optimizer's sequential rule
 - selection: deciding designs A/B/C from a run's log or its archive, and the world check behind the recommendation
 - recommendation: the rule naming the design to print first from the plausible-world check
 - design_set: writing a selection (STL, 3MF, Table 3, designs.yaml, the world check's rows) and its record

@@ -10,6 +10,7 @@ The records, their message mapping, the store and the statistics are the core's 
 - lead: the report's lead, which design to print first (the recommendation rule with the campaign's evidence)
 - design_map: a quality-diversity run's map (archive.csv, traits.csv) and its height / sharpness trends
 - engine_agreement: the same trials in two physics engines: trial and rank agreement, robust designs
+- sensitivity_table: the sensitivity study as gains, each design minus the bare chassis per unknown factor
 
 The face is ``__init__.pyi`` beside this file: the names code outside ``core/results`` imports (``from
 rollability_ros.core.results import <name>``), each with the module it lives in. ``lazy_loader.attach_stub``

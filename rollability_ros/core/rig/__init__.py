@@ -13,6 +13,7 @@
 - gpio_line_holder: the tiny process that owns the gpio backend's line and speaks the board protocol on its pipes
 - relay_device_sim: a simulated relay board on a pseudo-terminal (own process), running that state machine
 - valve_auth: the per-session arming key and the signed valve requests (only the operator side fires)
+- rig_auth: the same key signs the rig's launch goals, confirmations, operator outcomes and physical records
 - rig_network: the physical rig's default ROS domain / discovery range and exposure warnings
 - speed_gate: launch speed from light-gate travel times; the SpeedGate contract, SPEED_GATES and make_speed_gate
 

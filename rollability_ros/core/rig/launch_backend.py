@@ -139,12 +139,6 @@ class OperatorChannel:
             self._kind, self._answer = None, None
             self._cond.notify_all()
 
-    @property
-    def waiting_for(self) -> typing.Optional[str]:
-        """``"confirm"``, ``"outcome"`` or None."""
-        with self._cond:
-            return self._kind
-
     def _late(self, kind, answer, trial_id):
         """``(accepted, message)`` for a late answer to the question of ``kind`` answered last, or None."""
         if kind not in self._last or (self._kind == kind and self._answer is None):

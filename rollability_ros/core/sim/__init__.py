@@ -10,9 +10,12 @@ the launch twin.
 - mujoco_trials: the same trial in MuJoCo (sim.engine: mujoco)
 - early_decision: ends a trial once energy fixes its outcome (barriers to the resting poses)
 - evaluation: fitness = upright / trials, serial, process pool or Ray
+- objectives: what a trial of a candidate is (disturbance, launch_twin, mix), the fidelities and their engines
 - _worker_pool: spawned worker processes that never outlive their parent
 - stable_poses: analytic stable-pose screen
 - robustness, sensitivity, world_check: draws of the unknowns; one at a time; N fixed draws (plausible worlds)
+- launcher_geometry: the launch twin's push plate and ledge sized from the robot's collision geometry (engine-free)
+- rollout: the characterisation's roll-out (the bare robot pushed and let go on the foam or a plate) in the twin
 - launch/: the simulated launch rig: settings, results, contract, placement, decision, loop, drive, twin (the entry)
   and one module per engine (pybullet_twin, mujoco_twin: the same rules in MuJoCo)
 

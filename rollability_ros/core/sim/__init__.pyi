@@ -3,14 +3,15 @@ lives. Type checkers read this stub; at run time ``lazy_loader.attach_stub`` (``
 imports and loads a name's module when the name is first used."""
 from .evaluation import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluationResult, EvaluatorSettings, TrialBatchEngine,
                          TrialExecutor, evaluate_jobs, evaluate_mesh, evaluate_profile, load_settings, make_executor,
-                         profile_job, settings_at_fidelity, settings_from_parameters, trial_seed, with_given_files)
+                         profile_job, settings_at_fidelity, settings_from_parameters, trial_seed, with_given_files,
+                         with_objective)
 from .launch.placement import check_launcher
 from .launch.results import LaunchResult
 from .launch.settings import (TWIN_NAMESPACE, TWIN_SECTIONS, LaunchTwinSettings, launch_twin_settings_from_parameters,
                               load_launch_twin_settings, mecanum_wheels, twin_files, twin_value,
                               twin_with_values)
 from .launch.twin import profile_body, simulate_launch, simulate_valid_launch
-from .objectives import FIDELITIES, ObjectiveSettings, check_fidelity, world_fidelity
+from .objectives import FIDELITIES, ObjectiveSettings, ResolvedLaunch, check_fidelity, resolve_launch, world_fidelity
 from .rollout import rollout_distance_m
 from .sensitivity import launch_sensitivity_rows, sensitivity_rows
 from .stable_poses import ScreenSettings, profile_screener, screen_robot
@@ -26,13 +27,13 @@ from ._worker_pool import spawn_pool
 __all__ = [
     "FIDELITIES", "LAUNCH_ENGINES", "SETTINGS_SECTIONS", "TRIAL_ENGINES", "TWIN_NAMESPACE", "TWIN_SECTIONS",
     "WORLD_CHECK_COLUMNS", "EvaluationCancelled", "EvaluationResult", "EvaluatorSettings", "LaunchEngine",
-    "LaunchResult", "LaunchTwinSettings", "ObjectiveSettings", "PhysicsParams", "ScreenSettings", "TrialBatchEngine",
-    "TrialEngine", "TrialExecutor", "TrialOutcome", "TrialSettings", "WorldSummary", "check_fidelity", "check_launcher",
-    "engine_names", "evaluate_jobs", "evaluate_mesh", "evaluate_profile", "launch_sensitivity_rows",
-    "launch_twin_settings_from_parameters", "load_launch_twin_settings", "load_settings", "local_world_evaluator",
-    "make_executor", "make_trial_world", "mecanum_wheels", "profile_body", "profile_job", "profile_screener",
-    "register_trial_engine", "rollout_distance_m", "run_world_check", "screen_robot", "sensitivity_rows",
-    "settings_at_fidelity", "settings_from_parameters", "simulate_launch", "simulate_valid_launch", "spawn_pool",
-    "summarize_worlds", "trial_seed", "twin_files", "twin_value", "twin_with_values", "with_given_files",
-    "world_check_lines", "world_draws", "world_fidelity"
+    "LaunchResult", "LaunchTwinSettings", "ObjectiveSettings", "PhysicsParams", "ResolvedLaunch", "ScreenSettings",
+    "TrialBatchEngine", "TrialEngine", "TrialExecutor", "TrialOutcome", "TrialSettings", "WorldSummary",
+    "check_fidelity", "check_launcher", "engine_names", "evaluate_jobs", "evaluate_mesh", "evaluate_profile",
+    "launch_sensitivity_rows", "launch_twin_settings_from_parameters", "load_launch_twin_settings", "load_settings",
+    "local_world_evaluator", "make_executor", "make_trial_world", "mecanum_wheels", "profile_body", "profile_job",
+    "profile_screener", "register_trial_engine", "resolve_launch", "rollout_distance_m", "run_world_check",
+    "screen_robot", "sensitivity_rows", "settings_at_fidelity", "settings_from_parameters", "simulate_launch",
+    "simulate_valid_launch", "spawn_pool", "summarize_worlds", "trial_seed", "twin_files", "twin_value",
+    "twin_with_values", "with_given_files", "with_objective", "world_check_lines", "world_draws", "world_fidelity"
 ]

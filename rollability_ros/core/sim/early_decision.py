@@ -28,8 +28,10 @@ impacts. ``bench/verify_early_decision.py`` runs thousands of trials with and wi
 counts outcome changes (none allowed); ``test/core/test_early_decision.py`` does the same on a smaller sample.
 Units: metres, kilograms, seconds; frames as stated per function.
 """
+import collections
 import dataclasses
 import functools
+import hashlib
 import math
 import typing
 
@@ -187,11 +189,61 @@ def hull_vertices(points: np.ndarray) -> np.ndarray:
         return points
 
 
+#: Basin maps built in this process, newest last, by a digest of every input (see :func:`build_basin_map`).
+_BUILT: "collections.OrderedDict[bytes, BasinMap]" = collections.OrderedDict()
+#: How many maps :data:`_BUILT` keeps (a map is ~0.2 MB; a study's launches use one per design and robot).
+_BUILT_KEPT = 16
+
+
 def build_basin_map(points_by_link: typing.Mapping[int, npt.ArrayLike], wheel_links: typing.Collection[int],
                     com_m: npt.ArrayLike, mass_kg: float, up_axis: npt.ArrayLike, upright_tilt_deg: float,
                     min_wheels: int, contact_tolerance_m: float, directions: int = 4096, neighbours: int = 10,
                     margin_m: float = 0.002) -> "BasinMap":
-    """Tabulate the :class:`BasinMap` of a rigid body.
+    """The :class:`BasinMap` of a rigid body: tabulated once per process for the same inputs (every launch of one
+    design rebuilds the same body, and the lattice products over the hull's vertices took about 0.2 s per map),
+    kept read-only (its arrays refuse writes) because the launches that got it share it.
+
+    The parameters are :func:`tabulate_basin_map`'s (``points_by_link`` {link: (k, 3)}, ``com_m`` and ``up_axis``
+    (3,), base frame, m); the key is a digest of all of them, bytes of every array included, so a body that differs
+    in any input gets its own map.
+    """
+    digest = hashlib.blake2b(repr((sorted(int(link) for link in wheel_links), float(mass_kg),
+                                   float(upright_tilt_deg), int(min_wheels), float(contact_tolerance_m),
+                                   int(directions), int(neighbours), float(margin_m))).encode())
+    for array in (com_m, up_axis):
+        digest.update(np.ascontiguousarray(array, dtype=np.float64).tobytes())
+    for link in sorted(points_by_link):
+        points = np.ascontiguousarray(points_by_link[link], dtype=np.float64)
+        digest.update(repr((int(link), points.shape)).encode())
+        digest.update(points.tobytes())
+    key = digest.digest()
+    if key in _BUILT:
+        _BUILT.move_to_end(key)
+        return _BUILT[key]
+    basins = tabulate_basin_map(points_by_link, wheel_links, com_m, mass_kg, up_axis, upright_tilt_deg, min_wheels,
+                                contact_tolerance_m, directions, neighbours, margin_m)
+    def _frozen(array: np.ndarray) -> np.ndarray:
+        """A read-only copy of ``array`` (any shape; a copy: a caller's own array, such as ``com_m``, stays
+        writeable)."""
+        copy = np.array(array)
+        copy.flags.writeable = False
+        return copy
+
+    basins = dataclasses.replace(basins, directions=_frozen(basins.directions), upright=_frozen(basins.upright),
+                                 barrier_to_upright_m=_frozen(basins.barrier_to_upright_m),
+                                 barrier_to_not_upright_m=_frozen(basins.barrier_to_not_upright_m),
+                                 com_m=_frozen(basins.com_m))
+    _BUILT[key] = basins
+    while len(_BUILT) > _BUILT_KEPT:
+        _BUILT.popitem(last=False)
+    return basins
+
+
+def tabulate_basin_map(points_by_link: typing.Mapping[int, npt.ArrayLike], wheel_links: typing.Collection[int],
+                       com_m: npt.ArrayLike, mass_kg: float, up_axis: npt.ArrayLike, upright_tilt_deg: float,
+                       min_wheels: int, contact_tolerance_m: float, directions: int = 4096, neighbours: int = 10,
+                       margin_m: float = 0.002) -> "BasinMap":
+    """Tabulate the :class:`BasinMap` of a rigid body (every time; :func:`build_basin_map` keeps the ones built).
 
     Parameters
     ----------

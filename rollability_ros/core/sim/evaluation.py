@@ -35,8 +35,8 @@ from rollability_ros.core.config import check_given_files, edge_parse, load_para
 from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, check_heights, is_baseline, profile_mesh
 from rollability_ros.core.optional import require
 from rollability_ros.core.robots import ChassisSpec, ProfileBody, RobotChoice, UrdfRobotSpec, footprint_grid
-from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, at_fidelity, fidelity_engine, \
-    launch_objective, run_launch_trial
+from rollability_ros.core.sim.objectives import LaunchObjective, ObjectiveSettings, ResolvedLaunch, at_fidelity, \
+    fidelity_engine, launch_objective, resolve_launch, run_launch_trial
 from rollability_ros.core.sim.robustness import robust_settings_for, scaled_profile
 from rollability_ros.core.sim.world import PhysicsParams
 from rollability_ros.core.stats import wilson_interval
@@ -86,7 +86,9 @@ class EvaluatorOptions:
 
 @dataclasses.dataclass
 class EvaluatorSettings(RobotChoice):
-    """Everything a trial needs (picklable): grid, printer, physics, trial protocol, robot, evaluator options.
+    """Everything a trial needs (picklable): grid, printer, physics, trial protocol, robot, evaluator options,
+    the objective, and the launch twin and conditions its files hold (``resolved_launch``, read at the edge:
+    :func:`load_settings`, :func:`settings_from_parameters`, :func:`with_objective`; the core reads no file).
 
     The robot is the built-in chassis (``robot``) unless ``urdf_robot`` names a mount link; then the URDF robot is
     used and the grid's ``length_m`` / ``width_m`` are its mount footprint's (:func:`footprint_grid`).
@@ -102,12 +104,17 @@ class EvaluatorSettings(RobotChoice):
     evaluator: EvaluatorOptions = dataclasses.field(default_factory=EvaluatorOptions)
     urdf_robot: UrdfRobotSpec = dataclasses.field(default_factory=UrdfRobotSpec)
     objective: ObjectiveSettings = dataclasses.field(default_factory=ObjectiveSettings)
+    resolved_launch: typing.Optional[ResolvedLaunch] = dataclasses.field(default=None, metadata={
+        "resolved_from": ("objective.twin_config", "objective.campaign_config"),
+        "description": "the launch twin and launch conditions the objective's files hold, read by the edge "
+                       "(objectives.resolve_launch); None = not read, and then a launch is refused"})
 
     def __post_init__(self):
         self.grid = footprint_grid(self.grid, self.urdf_robot)
 
 
-#: settings field -> config namespace (also the ROS parameter prefix the sim_evaluator node declares)
+#: settings field -> config namespace (also the ROS parameter prefix the sim_evaluator node declares); every field
+#: but ``resolved_launch``, which the edge reads from the files ``objective`` names
 SETTINGS_SECTIONS = {"grid": "profile", "printer": "printer", "physics": "sim", "trial": "trial",
                      "robot": "robot", "evaluator": "evaluator", "urdf_robot": "urdf_robot", "objective": "objective"}
 
@@ -139,8 +146,23 @@ def load_settings(config_paths: typing.Sequence[str] = ("sim", "robot", "evaluat
 
 @edge_parse
 def settings_from_parameters(flat: typing.Mapping[str, object]) -> "EvaluatorSettings":
-    """Parse a flat ``{dotted name: value}`` dict (the CLI's merged files) once into :class:`EvaluatorSettings`."""
-    return settings_from_sections(EvaluatorSettings, flat, SETTINGS_SECTIONS)
+    """Parse a flat ``{dotted name: value}`` dict (the CLI's merged files) once into :class:`EvaluatorSettings`,
+    with the launch twin and conditions its objective's files hold (:func:`with_objective`)."""
+    settings = settings_from_sections(EvaluatorSettings, flat, SETTINGS_SECTIONS)
+    return with_objective(settings, settings.objective)
+
+
+@edge_parse
+def with_objective(settings: "EvaluatorSettings", objective: ObjectiveSettings) -> "EvaluatorSettings":
+    """``settings`` with ``objective`` (:class:`~rollability_ros.core.sim.objectives.ObjectiveSettings`) and the
+    launch twin and conditions of the files it names
+    (:func:`~rollability_ros.core.sim.objectives.resolve_launch`; read again only when it names other files than
+    ``settings.resolved_launch`` was read from). The edge's way to change an objective's files: the core refuses
+    a launch whose ``resolved_launch`` another list of files was read into."""
+    resolved = settings.resolved_launch
+    if resolved is None or not resolved.names_files_of(objective):
+        resolved = resolve_launch(objective)
+    return dataclasses.replace(settings, objective=objective, resolved_launch=resolved)
 
 
 def settings_at_fidelity(settings: "EvaluatorSettings", fidelity: str) -> "EvaluatorSettings":
@@ -156,12 +178,14 @@ def settings_at_fidelity(settings: "EvaluatorSettings", fidelity: str) -> "Evalu
                                physics=dataclasses.replace(settings.physics, engine=engine))
 
 
+@edge_parse
 def with_given_files(settings: "EvaluatorSettings", paths: typing.Sequence[str], command: str) -> "EvaluatorSettings":
     """``settings`` (``paths`` merged in) whose launch twin also reads those of the parameter files ``paths`` a
     user gave ``command`` that set twin parameters (:func:`twin_files`), once every parameter in them is one the
     command applies (:func:`~rollability_ros.core.config.check_given_files`): the evaluation's namespaces
     (:data:`SETTINGS_SECTIONS`) and, when its objective launches the twin, ``launch_twin``. So a twin parameter in a
-    given file changes the launches or is refused, never dropped."""
+    given file changes the launches or is refused, never dropped. The twin is read again with them
+    (:func:`with_objective`)."""
     from rollability_ros.core.sim.launch.settings import TWIN_NAMESPACE, twin_files
 
     launches = settings.objective.kind != "disturbance"
@@ -170,7 +194,7 @@ def with_given_files(settings: "EvaluatorSettings", paths: typing.Sequence[str],
     if not extra:
         return settings
     objective = dataclasses.replace(settings.objective, twin_config=[*settings.objective.twin_config, *extra])
-    return dataclasses.replace(settings, objective=objective)
+    return with_objective(settings, objective)
 
 
 def trial_seed(base_seed: int, index: int) -> int:
@@ -214,7 +238,8 @@ def _launch_part(settings):
     evaluation's robot: when the evaluation is of a URDF robot (``urdf_robot.mount_link`` named) and the twin's files
     describe another, the twin launches the evaluation's URDF robot (the one the profiles are made for), never the
     built-in chassis with another robot's profile on it."""
-    objective = launch_objective(settings.objective, settings.physics.engine, settings.trial.early_decision)
+    objective = launch_objective(settings.objective, settings.resolved_launch, settings.physics.engine,
+                                 settings.trial.early_decision)
     if objective is None or not settings.urdf_robot.mount_link or objective.twin.urdf_robot == settings.urdf_robot:
         return objective
     return dataclasses.replace(objective, twin=dataclasses.replace(objective.twin, urdf_robot=settings.urdf_robot))

@@ -13,9 +13,11 @@ sim_evaluator node) runs it unchanged. What a *trial* is depends on ``objective.
     ``objective.campaign_config`` (its ``campaign`` namespace; its configurations and repetitions are not used).
     Launch ``j`` of an evaluation takes condition ``j mod C`` of the C conditions (height, then speed, then angle
     order), so ``trials`` = C x repetitions launches every condition equally often (the paper matrix: C = 20).
-    The twin is read from ``objective.twin_config`` (the twin's parameter files in load order; append a
-    calibrated parameter file from ``rollability calibrate`` to optimize on the calibrated twin). A launch that
-    is still invalid after its retries counts as not upright.
+    The twin is that of ``objective.twin_config`` (the twin's parameter files in load order; append a
+    calibrated parameter file from ``rollability calibrate`` to optimize on the calibrated twin). Both lists of
+    files are read once, at the edge (:func:`resolve_launch`, through the evaluator's edge parses), into a
+    :class:`ResolvedLaunch` the evaluator's settings carry to every trial job: the core reads no file. A launch
+    that is still invalid after its retries counts as not upright.
 ``mix``
     trial ``i`` is a launch when ``floor((i + 1) w) > floor(i w)`` for ``w = objective.launch_weight``, else a
     disturbance trial: the share ``w`` of the trials are launches, spread evenly, so the fitness is the
@@ -49,16 +51,15 @@ Trial ``i`` uses the evaluation's trial seed ``trial_seed(s, i)`` whatever its k
 one base seed meet the same disturbances and the same launch scatter (common random numbers).
 """
 import dataclasses
-import functools
 import itertools
 import math
 import typing
 
 from rollability_ros.core import config
-from rollability_ros.core.campaign_matrix import load_campaign_spec
+from rollability_ros.core.campaign_matrix import CampaignSpec, load_campaign_spec
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.robots import ProfileBody
-from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
+from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, load_launch_twin_settings
 from rollability_ros.core.sim.robustness import RobustSettings
 from rollability_ros.core.sim.engines import check_engine, engine_names
 from rollability_ros.core.sim.trial_engine import TrialOutcome
@@ -161,12 +162,32 @@ def fidelity_engine(settings: "ObjectiveSettings", fidelity: str, default: str) 
 
 
 @dataclasses.dataclass(frozen=True)
-class LaunchObjective:
-    """The launch part of an objective, resolved from files (picklable, sent with a trial job): the launch
-    conditions (configuration :data:`CANDIDATE`), the twin's settings and the share of trials that are launches."""
+class ResolvedLaunch:
+    """The launch part of an objective as its files hold it, parsed once at the edge (:func:`resolve_launch`: the
+    evaluator's edge parses, the sim_evaluator node): the twin of ``objective.twin_config`` and the launch
+    conditions (configuration :data:`CANDIDATE`) of ``objective.campaign_config``, with the file lists they were
+    read from. Carried by the evaluator's settings to every trial job (picklable, a few kB), so the core reads no
+    parameter file; an objective that names other files than these refuses it (:func:`launch_objective`) rather
+    than launching a twin its files no longer describe."""
 
-    conditions: tuple
-    twin: "LaunchTwinSettings"
+    twin_config: typing.Tuple[str, ...]
+    campaign_config: typing.Tuple[str, ...]
+    twin: LaunchTwinSettings
+    conditions: typing.Tuple[LaunchCondition, ...]
+
+    def names_files_of(self, settings: "ObjectiveSettings") -> bool:
+        """True when ``settings`` (:class:`ObjectiveSettings`) names the files this was resolved from."""
+        return (self.twin_config, self.campaign_config) == (tuple(settings.twin_config),
+                                                             tuple(settings.campaign_config))
+
+
+@dataclasses.dataclass(frozen=True)
+class LaunchObjective:
+    """The launch part of one evaluation (picklable, sent with a trial job): the launch conditions (configuration
+    :data:`CANDIDATE`), the twin's settings on the evaluation's engine and the share of trials that are launches."""
+
+    conditions: typing.Tuple[LaunchCondition, ...]
+    twin: LaunchTwinSettings
     launch_share: float
 
     def is_launch(self, index: int) -> bool:
@@ -179,40 +200,53 @@ class LaunchObjective:
         return self.conditions[launches_before % len(self.conditions)]
 
 
-def launch_conditions(campaign_config: typing.Sequence[str]) -> typing.Tuple[LaunchCondition, ...]:
-    """The distinct launch conditions (height m, speed m/s, angle deg) of a campaign parameter file, as
-    :class:`LaunchCondition` s of configuration :data:`CANDIDATE`, in height, speed, angle order."""
-    spec = load_campaign_spec(tuple(campaign_config))
+def launch_conditions(spec: CampaignSpec) -> typing.Tuple[LaunchCondition, ...]:
+    """The distinct launch conditions (height m, speed m/s, angle deg) of campaign ``spec``
+    (:class:`~rollability_ros.core.campaign_matrix.CampaignSpec`), as :class:`LaunchCondition` s of configuration
+    :data:`CANDIDATE`, in height, speed, angle order."""
     return tuple(LaunchCondition(CANDIDATE, float(h), float(v), float(a))
                  for h, v, a in itertools.product(spec.heights_m, spec.speeds_mps, spec.angles_deg))
 
 
-@functools.lru_cache(maxsize=8)
-def _resolve(kind, launch_weight, campaign_config, twin_config, engine, early_decision):
-    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+@config.edge_parse
+def resolve_launch(settings: "ObjectiveSettings") -> typing.Optional[ResolvedLaunch]:
+    """Read the files :class:`ObjectiveSettings` ``settings`` names into a :class:`ResolvedLaunch`: the twin of
+    ``twin_config`` (load order) and the conditions of ``campaign_config``'s ``campaign`` namespace. Whatever the
+    objective's kind, since an evaluation at the ``launch`` fidelity launches any objective's twin; None when
+    either list is empty or names an empty file (an objective without launches may name none; one with launches
+    is refused by :meth:`ObjectiveSettings.validate`). A bad file raises ``ConfigError`` naming it."""
+    if not (settings.twin_config and all(settings.twin_config) and settings.campaign_config
+            and all(settings.campaign_config)):
+        return None
+    twin = load_launch_twin_settings(settings.twin_config)
+    conditions = launch_conditions(load_campaign_spec(tuple(settings.campaign_config)))
+    return ResolvedLaunch(tuple(settings.twin_config), tuple(settings.campaign_config), twin, conditions)
 
-    settings = ObjectiveSettings(kind, launch_weight, list(campaign_config), list(twin_config), RobustSettings())
-    twin = load_launch_twin_settings(twin_config)
-    twin = dataclasses.replace(twin, physics=dataclasses.replace(twin.physics, engine=engine),
-                               trial=dataclasses.replace(twin.trial, early_decision=early_decision))
-    return LaunchObjective(launch_conditions(campaign_config), twin, settings.launch_share)
 
-
-def launch_objective(settings: "ObjectiveSettings", engine: str = "pybullet",
-                     early_decision: bool = True) -> typing.Optional[LaunchObjective]:
-    """The :class:`LaunchObjective` of :class:`ObjectiveSettings` ``settings``, or None for ``disturbance``
-    (files read once per distinct setting; a bad file raises ``ConfigError`` / ``ValueError``).
+def launch_objective(settings: "ObjectiveSettings", resolved: typing.Optional[ResolvedLaunch],
+                     engine: str = "pybullet", early_decision: bool = True) -> typing.Optional[LaunchObjective]:
+    """The :class:`LaunchObjective` of :class:`ObjectiveSettings` ``settings`` from ``resolved``, the
+    :class:`ResolvedLaunch` of its files that the edge parsed, or None for ``disturbance`` (no file is read here).
 
     Its launches run on ``engine``, the evaluation's ``sim.engine``, with the evaluation's
     ``trial.early_decision`` (the twin's files give the twin's physics constants, the evaluation the engine and
     the early decision of every trial it runs); an engine that cannot run launches is refused here
-    (:func:`~rollability_ros.core.sim.trials.check_engine`), before any trial starts."""
+    (:func:`~rollability_ros.core.sim.trials.check_engine`), before any trial starts, and so is a ``resolved``
+    that is missing or was read from other files than ``settings`` names (``ValueError``, one line)."""
     config.check_settings(settings, "objective")
     if settings.kind == "disturbance":
         return None
     check_engine("launch", engine)
-    return _resolve(settings.kind, float(settings.launch_weight), tuple(settings.campaign_config),
-                    tuple(settings.twin_config), engine, bool(early_decision))
+    if resolved is None or not resolved.names_files_of(settings):
+        held = ("none" if resolved is None
+                else f"those of {list(resolved.twin_config)}, {list(resolved.campaign_config)}")
+        raise ValueError(f"the launch twin and conditions of objective.twin_config {list(settings.twin_config)} and "
+                         f"campaign_config {list(settings.campaign_config)} were not read at the edge (the settings "
+                         f"hold {held}): build the evaluator's settings with its edge parse (load_settings, "
+                         "settings_from_parameters, with_objective)")
+    twin = dataclasses.replace(resolved.twin, physics=dataclasses.replace(resolved.twin.physics, engine=engine),
+                               trial=dataclasses.replace(resolved.twin.trial, early_decision=early_decision))
+    return LaunchObjective(resolved.conditions, twin, settings.launch_share)
 
 
 def run_launch_trial(objective: LaunchObjective, profile: "typing.Optional[ProfileBody]",

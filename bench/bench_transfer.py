@@ -12,6 +12,8 @@ it (any ``--config`` files are added, e.g. ``paper``), timed; then, from the stu
   95% interval (issue 41's target: A at least +0.30 with the lower bound at least +0.10, no design below the
   baseline);
 - the selection's gain over the bare robot on fresh robust twin launches (Table 3);
+- the labelling rule read back: the order in which the selection's own world check ranks the designs and the
+  campaign gain of the first (A on a study of this branch; on an older study, what the rule would have labelled A);
 - the transfer evidence of the report: screen fitness (the search's measure, on its engine) vs the launch race's
   first round (PyBullet robust twin launches) over the raced elites (Spearman rho, permutation p);
 - fresh robust launches of the bare robot and every design on both engines (``rollability evaluate --designs
@@ -119,6 +121,30 @@ def campaign_counts(study_dir, study_id):
 def table3(study_dir):
     with open(os.path.join(study_dir, "optimization", "designs", "table3.csv"), newline="") as stream:
         return list(csv.DictReader(stream))
+
+
+def evidence_first(study_dir, counts):
+    """The selection's labelling rule read back (docs/optimization.md, "Labels follow the evidence"): the order in
+    which the selection's own world check ranks the designs, as a line with the campaign gain of the design it
+    ranks first; '' without that check. On a study whose selection labelled by the race (before the rule), it says
+    what the rule would have labelled A."""
+    from rollability_ros.core.optimization.recommendation import evidence_ranking
+    from rollability_ros.core.sim import summarize_worlds
+
+    designs = os.path.join(study_dir, "optimization", "designs")
+    check = os.path.join(designs, "selection_world_check.csv")
+    if not os.path.isfile(check):
+        return ""
+    with open(check, newline="") as stream:
+        summaries = summarize_worlds(list(csv.DictReader(stream)))
+    with open(os.path.join(designs, "designs.yaml"), encoding="utf-8") as stream:
+        document = yaml.safe_load(stream)["/**"]["ros__parameters"]["designs"]
+    share = float((document.get("recommendation") or {}).get("min_world_share", 0.9))
+    order = evidence_ranking(summaries, share)
+    first = order[0]
+    campaign = gain_text(counts[first], counts["baseline"])[0] if first in counts else "not in the campaign"
+    return (f"  labels by the evidence (the selection's {summaries[0].worlds}-world check): {', '.join(order)}; "
+            f"ranked first: {first}, campaign {campaign}")
 
 
 def robust_row(study_dir, trials):
@@ -288,6 +314,9 @@ def main(argv=None):
             text, difference, low = gain_text(counts[label], base)
             gains[label] = (difference, low)
             print(f"    {label:<8} {text}")
+        ranked = evidence_first(study_dir, counts)
+        if ranked:
+            print(ranked)
         for row in table3(study_dir)[1:]:
             if row.get("gain_source"):
                 print(f"  selection ({row['gain_source']}): {row['configuration']} {float(row['gain']):+.2f} "

@@ -261,7 +261,8 @@ def test_archive_selection_takes_the_best_then_the_farthest_fit_elites():
     assert [d.cell for d in chosen.designs[1:]] == [(5, 1), (6, 4)]
     assert chosen.top_threshold == pytest.approx(np.quantile([e["fitness"] for e in elites], 0.7))
     assert "highest lower Wilson bound" in chosen.designs[0].reason
-    assert "farthest from A" in chosen.designs[1].reason and "farthest from A, B" in chosen.designs[2].reason
+    assert "farthest from pick 1 " in chosen.designs[1].reason
+    assert "farthest from picks 1, 2 " in chosen.designs[2].reason
 
 
 def test_archive_selection_screens_every_elite_on_fresh_trials():

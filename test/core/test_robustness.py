@@ -172,6 +172,42 @@ def test_launch_draws_cover_foam_friction_rolling_and_wheel_drag_and_keep_the_ol
 
 
 
+def test_the_robots_restitution_is_drawn_on_pybullet_and_mujoco_refuses_any_value_but_the_papers():
+    """The robot's restitution (its bounce off the ledge edge) is a drawn unknown of a launch on PyBullet; MuJoCo,
+    which has no restitution, keeps the paper's value it runs as its known difference, and a launch or trial there
+    that sets another value is refused in one line before anything is built."""
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
+    from rollability_ros.core.sim.launch.twin import simulate_launch
+    from rollability_ros.core.sim.trial_engine import make_trial_world
+
+    robust = RobustSettings(enabled=True)
+    draws = [draw(seed, robust, -0.015, 0.06) for seed in range(400)]
+    values = sorted(d.robot_restitution for d in draws)
+    assert 0.0 <= values[0] < 0.02 and 0.48 < values[-1] <= 0.5 and 160 < sum(v < 0.25 for v in values) < 240
+    assert draws[7].launcher_model == "stroke" and draws[7].foam_restitution == pytest.approx(0.27143211935986666)
+    on_bullet = robust_settings_for(LaunchTwinSettings(), 7, robust)
+    assert on_bullet.physics.restitution == draws[7].robot_restitution != 0.3
+    mujoco = LaunchTwinSettings()
+    mujoco.physics.engine = "mujoco"
+    on_mujoco = robust_settings_for(mujoco, 7, robust)
+    assert on_mujoco.physics.restitution == 0.3 and on_mujoco.twin.foam == on_bullet.twin.foam   # the rest alike
+    assert robust_settings_for(evaluation.EvaluatorSettings(), 7, robust).physics.restitution == 0.3   # no launch
+    with pytest.raises(ValueError, match=r"^sim.engine 'mujoco' cannot represent restitution .*0.12 is refused"):
+        simulate_launch(LaunchCondition("A", 0.75, 0.8, 0.0), dataclasses.replace(
+            on_mujoco, physics=dataclasses.replace(on_mujoco.physics, restitution=0.12)), seed=1)
+    settings = evaluation.EvaluatorSettings()
+    with pytest.raises(ValueError, match="cannot represent restitution"):
+        make_trial_world(None, None, settings.trial, dataclasses.replace(settings.physics, engine="mujoco",
+                                                                         restitution=0.0))
+    with pytest.raises(ValueError, match="need robot_restitution_min <= robot_restitution_max"):
+        RobustSettings(robot_restitution_min=0.6).validate()
+    from rollability_ros.core.sim.sensitivity import with_launch_factor
+    assert with_launch_factor(LaunchTwinSettings(), "robot_restitution", 0.5).physics.restitution == 0.5
+    with pytest.raises(ValueError, match="robot_restitution cannot be varied on 'mujoco'"):
+        with_launch_factor(mujoco, "robot_restitution", 0.5)
+
+
 def test_launcher_and_profile_mass_unknowns_are_drawn_and_weigh_the_trials_profile():
     """The launcher's unknowns (base plate rolling friction, speed-setting bias, the model when listed) and the
     profile's mass multiplier are drawn over their ranges and reach the twin and the trial's profile body."""

@@ -230,7 +230,8 @@ def test_the_selection_checks_its_designs_in_worlds_and_records_the_recommendati
 
     from rollability_ros.core.optimization.design_set import designs_document
     from rollability_ros.core.optimization.selection import (PooledDesign, SelectedDesign, SelectionResult,
-                                                             SelectionSettings, with_world_check)
+                                                             SelectionSettings, label_by_evidence,
+                                                             with_world_check)
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     grid = ProfileGrid(rows=2, cols=2)
@@ -252,9 +253,39 @@ def test_the_selection_checks_its_designs_in_worlds_and_records_the_recommendati
     body = designs_document(checked, grid, "run")["/**"]["ros__parameters"]["designs"]
     assert body["recommendation"]["first"] == "B" and body["recommendation"]["min_world_share"] == 0.9
     assert body["world_check"] == {"worlds": 10, "launches_per_world": 20, "file": "selection_world_check.csv"}
+    # the labels follow that evidence: B, picked second, becomes A (the design to print first), A becomes B
+    labelled = label_by_evidence(checked, settings.recommend_world_share)
+    assert [(d.label, float(d.design.heights[0])) for d in labelled.designs] == [("A", 0.3), ("B", 0.1)]
+    assert labelled.designs[0].reason.startswith("labelled A: rank 1 of 2 by the plausible-world check")
+    assert "pick 2" in labelled.designs[0].reason and labelled.recommendation.first == "A"
+    assert {r["configuration"] for r in labelled.world_rows} == {"baseline", "A", "B"}
+    assert sum(r["successes"] for r in labelled.world_rows if r["configuration"] == "A") == 150
     assert with_world_check(result, grid, SelectionSettings(), None, 3) is result   # world_count 0: no check
     with pytest.raises(ValueError, match="world launch evaluator"):
         with_world_check(result, grid, settings, None, 3)
+
+
+def test_without_a_world_check_the_fresh_launches_label_and_a_loser_is_never_a():
+    """Picked first by the race, a design whose fresh launches do not beat the bare robot is labelled after one
+    that does; without fresh launches the pick order stays."""
+    import numpy as np
+
+    from rollability_ros.core.optimization.selection import (PooledDesign, SelectedDesign, SelectionResult,
+                                                             label_by_evidence)
+
+    def design(label, launches):
+        return SelectedDesign(label, PooledDesign(np.full(4, 0.1), 9, 10, 1, 1), None, None, reason="race",
+                              launches=launches)
+
+    # A (the race's first pick): 14/40 against the bare robot's 10/40, interval not above 0; B 30/40, C 22/40
+    picked = SelectionResult([design("A", (14, 40, 7)), design("B", (30, 40, 7)), design("C", (22, 40, 7))], 3, 3,
+                             {}, baseline_launches=(10, 40, 7))
+    labelled = label_by_evidence(picked, 0.9)
+    assert [(d.label, d.launches[0]) for d in labelled.designs] == [("A", 30), ("B", 22), ("C", 14)]
+    assert [g.beats for g in labelled.gains()] == [True, True, False]
+    assert "by the fresh robust launches" in labelled.designs[2].reason and "pick 1: race" in labelled.designs[2].reason
+    unlaunched = SelectionResult([design("A", None), design("B", None)], 2, 2, {})
+    assert [d.label for d in label_by_evidence(unlaunched, 0.9).designs] == ["A", "B"]
 
 
 def test_the_command_launches_in_real_worlds_and_writes_its_tables(tmp_path, capsys, monkeypatch):

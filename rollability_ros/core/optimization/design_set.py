@@ -28,8 +28,9 @@ from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, export_
 from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
 from rollability_ros.core.optimization.selection import (ARCHIVE_COLUMNS, GAIN_SOURCES, BatchEvaluator,
                                                           LaunchEvaluator, SelectionResult, SelectionSettings,
-                                                          WorldDescriber, WorldLaunch, pool_candidates, select_designs,
-                                                          select_from_archive, with_world_check)
+                                                          WorldDescriber, WorldLaunch, label_by_evidence,
+                                                          pool_candidates, select_designs, select_from_archive,
+                                                          with_world_check)
 from rollability_ros.core.stats import wilson_interval
 
 if typing.TYPE_CHECKING:
@@ -294,7 +295,9 @@ def select_run(store: "Store", run_id: str, run_dir: str, grid: ProfileGrid, pri
     into designs.yaml as ``print``: how the lab prints the designs, and what their masses assume. With
     ``settings.world_count`` the chosen designs then go through the plausible-world check on ``world_launch``
     (``describe_world(seed)`` names each world's draws) and the result carries the recommendation
-    (:func:`~rollability_ros.core.optimization.selection.with_world_check`).
+    (:func:`~rollability_ros.core.optimization.selection.with_world_check`). Last the designs are labelled by the
+    evidence gathered after the pick (:func:`~rollability_ros.core.optimization.selection.label_by_evidence`): A is
+    the design the world check (or, without one, the fresh launches) ranks first.
 
     The one selection flow of ``rollability select`` and the optimizer node: from the archive when the run has one
     (a quality-diversity run), else from the ranked log. Raises ``ValueError`` when the run
@@ -319,6 +322,7 @@ def select_run(store: "Store", run_id: str, run_dir: str, grid: ProfileGrid, pri
     if printed_with is not None:
         result = dataclasses.replace(result, printed_with=dict(printed_with))
     result = with_world_check(result, grid, settings, world_launch, run_seed, describe_world)
+    result = label_by_evidence(result, settings.recommend_world_share)
     folder = write_selection(run_dir, result, grid, run_id, settings.mesh_units, traits)
     record_selection(store, run_id, result, folder)
     return result, folder

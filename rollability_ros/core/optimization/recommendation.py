@@ -75,6 +75,17 @@ def recommend(summaries: typing.Sequence["WorldSummary"], min_share: float = DEF
                           max((s.worlds for s in summaries), default=0))
 
 
+def evidence_ranking(summaries: typing.Sequence["WorldSummary"],
+                     min_share: float = DEFAULT_WORLD_SHARE) -> typing.Tuple[str, ...]:
+    """Every design of the world check in the order its evidence ranks them: the recommended designs first, in the
+    rule's order (:func:`recommend`), then the others by the same keys (the pooled gain's lower bound, the share of
+    worlds won, the worst world's gain). The selection labels its designs A, B, C in this order."""
+    recommended = recommend(summaries, min_share).recommended
+    return tuple(s.configuration for s in sorted(summaries, key=lambda s: (
+        recommended.index(s.configuration) if s.configuration in recommended else len(recommended),
+        -s.pooled[1], -s.share_won, -s.worst.interval[0])))
+
+
 def with_campaign(recommendation: Recommendation,
          campaign: typing.Optional[typing.Mapping[str, typing.Tuple[float, float, float]]] = None) -> Recommendation:
     """``recommendation`` with the campaign's evidence: ``campaign`` ``{design: (gain, low, high)}`` (upright rate

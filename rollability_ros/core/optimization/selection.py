@@ -8,7 +8,7 @@ Procedure
    a design seen once at 60/60 does not outrank one confirmed at 55/60 twice only because it was lucky once.
 3. Walking down that ranking, a design is taken when its convex-hull solid passes the printability checks
    (:func:`check_printability`) and its RMS height distance (simulation units) to every design already
-   taken is at least ``min_distance``. Labels follow the ranking: "A" is the best.
+   taken is at least ``min_distance``. Picks follow the ranking (labels: "Labels follow the evidence" below).
 4. Optionally the chosen designs and the baseline (no profile) are re-evaluated in one batch with a fresh
    common seed and ``reevaluate_trials`` trials: a fitness picked as a maximum is biased upward, a fresh
    estimate is not, so Table 3 then reports the re-evaluated fitness.
@@ -36,12 +36,13 @@ The disturbance trials the optimizer maximises need not predict the launch campa
 best screen race against each other and the bare robot by successive halving
 (:mod:`~rollability_ros.core.optimization.racing`: one common seed per round; a design clearly worse than the
 leader, or outside the better half, stops; never fewer than ``race_keep`` go on). A/B/C come from the survivors
-whose pooled launch rate is above the bare robot's (all survivors when none is): A the highest lower Wilson bound
-of its launches, B and C farthest-point over the map as above (a ranked-log run: the distance rule). Then the
-chosen designs and the bare robot get ``launch_trials`` fresh robust launches on one new seed: each design's
-*gain* over the bare robot, with Newcombe's 95% hybrid score interval, goes into Table 3 and designs.yaml
-(``beats_baseline`` true only when the interval lies above 0). When no design beats the bare robot the designs are
-still written, for inspection, each marked ``beats_baseline: false``; ``select`` warns and the report says so.
+whose pooled launch rate is above the bare robot's (all survivors when none is): the first pick the highest
+lower Wilson bound of its launches, the next ones farthest-point over the map as above (a ranked-log run: the
+distance rule). Then the chosen designs and the bare robot get ``launch_trials`` fresh robust launches on one new
+seed: each design's *gain* over the bare robot, with Newcombe's 95% hybrid score interval, goes into Table 3 and
+designs.yaml (``beats_baseline`` true only when the interval lies above 0). When no design beats the bare robot
+the designs are still written, for inspection, each marked ``beats_baseline: false``; ``select`` warns and the
+report says so.
 Without launches, the gain is taken on the fresh re-evaluation and labelled as such.
 
 The plausible-world check and the recommendation
@@ -51,6 +52,16 @@ unknowns, ``world_launches`` paired launches each (:func:`with_world_check`,
 :mod:`~rollability_ros.core.sim.world_check`), and the recommendation rule
 (:mod:`~rollability_ros.core.optimization.recommendation`) names the design to print first: only one that wins in
 at least ``recommend_world_share`` of the worlds with its pooled gain's interval above 0; none when no design does.
+
+Labels follow the evidence
+--------------------------
+The race decides *which* designs are chosen; the labels come from the evidence gathered afterwards on all of them
+alike (:func:`label_by_evidence`, :func:`evidence_order`): with the world check, A is the design the
+recommendation puts first (the recommended designs in its order, then the others by their pooled gain's lower
+bound); without it, the fresh robust launches rank them (designs whose gain's interval lies above 0 first). A
+design picked first for a lucky race is then labelled by what its fresh launches show, and a design that does not
+beat the bare robot is never labelled ahead of one that does. A campaign that runs later cannot relabel (design
+sets are append-only and its outcomes are stored under these labels); it can only take the recommendation away.
 
 Writing the design set (STL, 3MF, Table 3, designs.yaml, the world check) is
 :mod:`~rollability_ros.core.optimization.design_set`.
@@ -68,7 +79,7 @@ from rollability_ros.core.profile import (MESH_UNITS, Mesh, PrinterSpec, Profile
                                           check_printability, is_baseline, mesh_metrics, profile_mesh)
 from rollability_ros.core.optimization.optimizer_contract import STREAM_SELECTION, derive_seed
 from rollability_ros.core.optimization import racing
-from rollability_ros.core.optimization.recommendation import Recommendation, recommend
+from rollability_ros.core.optimization.recommendation import Recommendation, evidence_ranking, recommend
 from rollability_ros.core.stats import newcombe_interval, wilson_interval
 
 if typing.TYPE_CHECKING:
@@ -389,7 +400,7 @@ def select_designs(candidates: typing.Iterable["CandidateRecord"], grid: Profile
         reason = reasons.get(index) or (f"rank {rank} of {len(ranked)} logged designs by lower Wilson bound "
                                         f"({design.successes}/{design.trials}, bound {design.wilson_low:.2f})")
         if chosen:
-            reason += f", at least {settings.min_distance} units RMS from {', '.join(c.label for c in chosen)}"
+            reason += f", at least {settings.min_distance} units RMS from {_picks(len(chosen))}"
         chosen.append(SelectedDesign(string.ascii_uppercase[len(chosen)], design, mesh, mesh_metrics(mesh),
                                      reason=reason, race=race.totals[index] if race else None))
     chosen, baseline = _reevaluate(chosen, grid, settings, evaluate_batch, run_seed)
@@ -547,8 +558,9 @@ class _MapPicker:
                 f"{tuple(elite['cell'])}")
 
     def taken(self) -> str:
-        """The labels taken so far, comma-separated."""
-        return ", ".join(c.label for c in self.chosen)
+        """The designs taken so far, by the order they were picked in ("pick 1", "picks 1, 2"): the labels follow
+        the evidence after the pick (:func:`label_by_evidence`), so a reason names picks, not labels."""
+        return _picks(len(self.chosen))
 
     def take(self, index: int, mesh: typing.Any, reason: str, ranked: typing.List[int],
              race: typing.Optional[tuple] = None) -> typing.List[int]:
@@ -685,6 +697,66 @@ def _launch_reevaluate(chosen, grid, settings, launch_batch, run_seed):
                            settings.launch_trials)
     chosen = [dataclasses.replace(c, launches=(int(r[0]), int(r[1]), seed)) for c, r in zip(chosen, results)]
     return chosen, (int(results[-1][0]), int(results[-1][1]), seed)
+
+
+def _picks(count: int) -> str:
+    """The first ``count`` picks of a selection, named by order: "pick 1", "picks 1, 2"."""
+    return f"pick{'s' if count > 1 else ''} {', '.join(str(k) for k in range(1, count + 1))}"
+
+
+def evidence_order(result: SelectionResult) -> typing.Tuple[typing.List[int], str]:
+    """``(order, measure)``: the indices of ``result.designs`` as the fresh evidence after the pick ranks them, and
+    what ranked them (a phrase). The race picks *which* designs are chosen, and a pick by the maximum of noisy
+    launches is biased upward; the evidence gathered afterwards on every chosen design alike ranks them:
+
+    - with the plausible-world check: the recommended designs first, in the recommendation's order (the pooled
+      gain's lower bound, then the share of worlds won, then the worst world), then the others by the same keys;
+    - else with fresh robust launches: the designs whose gain's interval lies above 0 first, then by the gain's
+      lower bound, then the gain;
+    - else the pick order.
+    A design that does not beat the bare robot on that evidence is never ranked before one that does."""
+    count = len(result.designs)
+    if result.world_rows and result.recommendation is not None:
+        from rollability_ros.core.sim import summarize_worlds
+
+        ranking = evidence_ranking(summarize_worlds(result.world_rows), result.recommendation.min_share)
+        return sorted(range(count), key=lambda i: ranking.index(result.designs[i].label)), "the plausible-world check"
+    gains = result.gains()
+    if gains and all(g is not None and g.source == "launches" for g in gains):
+        def launch_key(i: int) -> tuple:
+            gain = typing.cast(Gain, gains[i])
+            return not gain.beats, -gain.interval[1], -gain.interval[0], i
+        return sorted(range(count), key=launch_key), "the fresh robust launches"
+    return list(range(count)), "the pick"
+
+
+def label_by_evidence(result: SelectionResult, min_share: float) -> SelectionResult:
+    """``result`` with its designs relabelled A, B, C, ... in :func:`evidence_order`: "A" is the design the fresh
+    evidence ranks first (with the world check, the design to print first whenever one is recommended), never one
+    that does not beat the bare robot while another does. Each design's reason says what ranked it and which pick
+    it was; the world check's rows, the recommendation and the archive rows follow the new labels. Unchanged
+    without designs."""
+    if not result.designs:
+        return result
+    from rollability_ros.core.sim import summarize_worlds
+
+    order, measure = evidence_order(result)
+    labels = {result.designs[i].label: string.ascii_uppercase[rank] for rank, i in enumerate(order)}
+    designs = []
+    for rank, i in enumerate(order):
+        design = result.designs[i]
+        why = (f"labelled {labels[design.label]}: rank {rank + 1} of {len(order)} by {measure} (the evidence after "
+               f"the pick, on every chosen design alike); pick {i + 1}: {design.reason}")
+        designs.append(dataclasses.replace(design, label=labels[design.label], reason=why))
+    changes: typing.Dict[str, typing.Any] = {"designs": designs}
+    if result.world_rows is not None:
+        rows = [{**row, "configuration": labels.get(str(row["configuration"]), row["configuration"])}
+                for row in result.world_rows]
+        changes["world_rows"] = rows
+        changes["recommendation"] = recommend(summarize_worlds(rows), min_share)
+    if result.archive is not None:
+        changes["archive"] = [{**row, "label": labels.get(row["label"], row["label"])} for row in result.archive]
+    return dataclasses.replace(result, **changes)
 
 
 def _descriptor_point(elite, spans):

@@ -56,3 +56,26 @@ def check_engine(kind: str, engine: str) -> None:
     engines = engines_for(kind)
     if engine not in engines:
         raise ValueError(f"sim.engine {engine!r} cannot run {kind} trials (engines that can: {', '.join(engines)})")
+
+
+#: The engines whose contacts have no coefficient of restitution (a contact is a damped spring, critically damped:
+#: an underdamped one rings for ever at rest). They run the paper's robot restitution (``sim.restitution`` 0.3) as
+#: their declared known difference (docs/engines.md) and refuse any other value (:func:`check_restitution`); the
+#: robust objective draws the robot's restitution only on the other engines (:mod:`~rollability_ros.core.sim.
+#: robustness`).
+ENGINES_WITHOUT_RESTITUTION = ("mujoco",)
+
+
+def represents_restitution(engine: str) -> bool:
+    """Whether ``sim.engine`` ``engine`` represents the robot's coefficient of restitution."""
+    return engine not in ENGINES_WITHOUT_RESTITUTION
+
+
+def check_restitution(engine: str, restitution: float, paper_value: float) -> None:
+    """Raise ``ValueError`` (one line) when ``engine`` cannot represent restitution and ``restitution`` is not the
+    paper's ``paper_value`` (the value it runs as its known difference): a setting a code path cannot honour is
+    refused, never silently replaced."""
+    if not represents_restitution(engine) and restitution != paper_value:
+        raise ValueError(f"sim.engine {engine!r} cannot represent restitution (its contacts are damped springs): "
+                         f"sim.restitution {restitution:g} is refused (it runs only the paper's {paper_value:g}, as "
+                         f"its known difference: docs/engines.md); run this on pybullet")

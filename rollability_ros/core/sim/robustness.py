@@ -37,7 +37,13 @@ its own trial seed (so candidates evaluated with one base seed meet the same dra
   +``speed_bias_fraction_max``];
 - ``launcher_model``: on launch trials, how the cylinder drives the plate, one of ``launcher_models``
   (``launch_twin.launcher.model``; default only ``stroke``, the paper's cylinder: the model is known from the
-  paper, its quantities above are not; list ``push_through`` too to plan for a launcher that pushes to the edge).
+  paper, its quantities above are not; list ``push_through`` too to plan for a launcher that pushes to the edge);
+- ``robot_restitution``: on launch trials on an engine that represents restitution (PyBullet), the robot's
+  coefficient of restitution (``sim.restitution``: its contact with the launcher's plate and ledge edge, and times
+  the foam's own with the foam), uniform in [``robot_restitution_min``, ``robot_restitution_max``]. An engine
+  without restitution (MuJoCo, :data:`~rollability_ros.core.sim.engines.ENGINES_WITHOUT_RESTITUTION`) keeps the
+  configured value, the one it accepts (its declared known difference); the draw is still taken, so the other
+  unknowns of a trial are the same on both engines.
 
 The ranges, their sources and how far each moves the designs' gain are in docs/twin-model.md. Both launch
 engines read every drawn field (the MuJoCo twin puts them into its compiled model's contact values and joint
@@ -55,6 +61,7 @@ import typing
 
 import numpy as np
 
+from rollability_ros.core.sim.engines import represents_restitution
 from rollability_ros.core.sim.world import CONTACT_MODELS
 
 if typing.TYPE_CHECKING:  # annotations only
@@ -90,6 +97,8 @@ class RobustSettings:
     ledge_rolling_friction_max_m: float = dataclasses.field(default=0.01, metadata={"description": "launches: the launcher base plate's rolling friction is drawn uniform in [0, this], m", "range": (0.0, 0.01)})
     speed_bias_fraction_max: float = dataclasses.field(default=0.15, metadata={"description": "launches: the speed setting's systematic error is drawn uniform in [-this, +this], fraction of the set speed", "range": (0.0, 0.15)})
     launcher_models: typing.List[str] = dataclasses.field(default_factory=lambda: ["stroke"], metadata={"description": "launches: launcher models drawn with equal probability: stroke (the paper's cylinder) and/or push_through"})
+    robot_restitution_min: float = dataclasses.field(default=0.0, metadata={"description": "launches on engines with restitution (pybullet): lower end of the robot's restitution, drawn uniform (sim.restitution: its contact with the launcher's plate and ledge), coefficient", "range": (0.0, 1.0)})
+    robot_restitution_max: float = dataclasses.field(default=0.5, metadata={"description": "launches on engines with restitution (pybullet): upper end of the robot's restitution, drawn uniform, coefficient", "range": (0.0, 1.0)})
     world_seed: int = dataclasses.field(default=-1, metadata={"description": "-1: every trial draws its own values of the unknowns; a seed >= 0: every trial uses the one draw of this seed, one plausible world (the world check, fidelity world:<seed>)", "range": (-1, 2 ** 32 - 1)})
 
     def validate(self) -> None:
@@ -104,6 +113,9 @@ class RobustSettings:
             raise ValueError(f"contact_models must list some of {', '.join(CONTACT_MODELS)}, got {self.contact_models}")
         if not self.launcher_models or not set(self.launcher_models) <= {"stroke", "push_through"}:
             raise ValueError(f"launcher_models must list some of stroke, push_through, got {self.launcher_models}")
+        if not self.robot_restitution_min <= self.robot_restitution_max:
+            raise ValueError(f"need robot_restitution_min <= robot_restitution_max, got "
+                             f"[{self.robot_restitution_min}, {self.robot_restitution_max}]")
         for name in ("foam_stiffness_factor", "foam_lateral_friction", "foam_rolling_friction", "wheel_drag",
                      "profile_mass_scale"):
             low, high = self.range_of(name)
@@ -134,6 +146,7 @@ class Draw:
     ledge_rolling_friction_m: float
     speed_bias_fraction: float
     launcher_model: str
+    robot_restitution: float
 
 
 class PerturbedSettings(typing.Protocol):
@@ -180,7 +193,9 @@ def draw(seed: int, robust: RobustSettings, nominal_com_offset_z_m: float, body_
     ledge = float(rng.uniform(0.0, robust.ledge_rolling_friction_max_m))
     bias = float(rng.uniform(-robust.speed_bias_fraction_max, robust.speed_bias_fraction_max))
     launcher = str(robust.launcher_models[rng.integers(len(robust.launcher_models))])
-    return Draw(scale, roll, contact, com, stiffness, restitution, *foam_wheels, mass_scale, ledge, bias, launcher)
+    robot_restitution = float(rng.uniform(robust.robot_restitution_min, robust.robot_restitution_max))
+    return Draw(scale, roll, contact, com, stiffness, restitution, *foam_wheels, mass_scale, ledge, bias, launcher,
+                robot_restitution)
 
 
 def perturb(settings: _Perturbed, drawn: Draw) -> _Perturbed:
@@ -211,6 +226,9 @@ def perturb(settings: _Perturbed, drawn: Draw) -> _Perturbed:
                                        ledge_rolling_friction=drawn.ledge_rolling_friction_m,
                                        speed_bias_fraction=drawn.speed_bias_fraction)
         changes["twin"] = dataclasses.replace(twin, foam=foam, launcher=launcher)
+        if represents_restitution(settings.physics.engine):   # else the configured value (module docstring)
+            changes["physics"] = dataclasses.replace(settings.physics, contact_model=drawn.contact_model,
+                                                     restitution=drawn.robot_restitution)
         changes.update(_with_wheel_drag(settings, changes, drawn.wheel_drag_nm))
     return dataclasses.replace(settings, **changes)
 
@@ -244,10 +262,11 @@ def nominal_draw(settings: _Perturbed) -> Draw:
         foam_values = (twin.foam.restitution, twin.foam.lateral_friction, twin.foam.rolling_friction)
         group, leaf = wheel_drag_field(settings).split(".")
         drag = float(getattr(getattr(settings, group), leaf))
-    launcher = (0.0, 0.0, "stroke") if twin is None else (
+    launcher: typing.Tuple[float, float, str] = (0.0, 0.0, "stroke") if twin is None else (
         twin.launcher.ledge_rolling_friction, twin.launcher.speed_bias_fraction, twin.launcher.model)
     return Draw(1.0, settings.trial.start_roll_deg, settings.physics.contact_model, settings.robot.com_offset_z_m,
-                1.0, *foam_values, drag, profile_mass_scale(settings), *launcher)
+                1.0, *foam_values, drag, profile_mass_scale(settings), *launcher,
+                robot_restitution=settings.physics.restitution)
 
 
 def profile_mass_scale(settings: _Perturbed) -> float:

@@ -23,6 +23,7 @@ import typing
 
 from rollability_ros.core import config
 from rollability_ros.core.profile import Mesh
+from rollability_ros.core.sim.engines import represents_restitution
 from rollability_ros.core.sim.evaluation import (EvaluatorSettings, TrialExecutor, evaluate_job, evaluate_mesh, mesh_job,
                                                   settings_at_fidelity)
 from rollability_ros.core.sim.robustness import RobustSettings, nominal_draw, perturb, scaled_profile
@@ -37,7 +38,7 @@ DEFAULT_LEVELS = {"disturbance_scale": (0.5, 1.0, 2.0), "start_roll_deg": (180.0
 #: The launch twin's unknowns (the robust draws' fields varied by :func:`launch_sensitivity_rows`), in row order.
 LAUNCH_FACTORS = ("contact_model", "com_offset_z_m", "foam_stiffness_factor", "foam_restitution",
                   "foam_lateral_friction", "foam_rolling_friction_m", "wheel_drag_nm", "profile_mass_scale",
-                  "ledge_rolling_friction_m", "speed_bias_fraction", "launcher_model")
+                  "ledge_rolling_friction_m", "speed_bias_fraction", "launcher_model", "robot_restitution")
 
 #: One row of the study (configuration, factor, level, successes, trials, fitness and its interval).
 Row = typing.Dict[str, typing.Any]
@@ -118,7 +119,8 @@ def launch_levels(robust: RobustSettings, nominal_com_offset_z_m: float
             "profile_mass_scale": robust.range_of("profile_mass_scale"),
             "ledge_rolling_friction_m": (0.0, robust.ledge_rolling_friction_max_m),
             "speed_bias_fraction": (-robust.speed_bias_fraction_max, robust.speed_bias_fraction_max),
-            "launcher_model": ("stroke", "push_through")}
+            "launcher_model": ("stroke", "push_through"),
+            "robot_restitution": (robust.robot_restitution_min, robust.robot_restitution_max)}
 
 
 def with_launch_factor(twin: "LaunchTwinSettings", factor: str, level: Level) -> "LaunchTwinSettings":
@@ -126,6 +128,9 @@ def with_launch_factor(twin: "LaunchTwinSettings", factor: str, level: Level) ->
     configured (its early decision off, as for every draw)."""
     if factor not in LAUNCH_FACTORS:
         raise ValueError(f"unknown launch factor {factor!r}; known: {', '.join(LAUNCH_FACTORS)}")
+    if factor == "robot_restitution" and not represents_restitution(twin.physics.engine):
+        raise ValueError(f"the launch factor robot_restitution cannot be varied on {twin.physics.engine!r}: it "
+                         f"has no restitution (docs/engines.md); run the sensitivity on pybullet")
     field: typing.Dict[str, typing.Any] = {factor: level}   # the factor's field, of the level's type
     return perturb(twin, dataclasses.replace(nominal_draw(twin), **field))
 
@@ -158,6 +163,8 @@ def launch_sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]]
         if job.launch is None:   # settings_at_fidelity("launch") always has launches
             raise ValueError("the launch sensitivity needs launch trials")
         chosen = levels if levels is not None else launch_levels(robust, job.launch.twin.robot.com_offset_z_m)
+        if levels is None and not represents_restitution(job.launch.twin.physics.engine):
+            chosen = {f: v for f, v in chosen.items() if f != "robot_restitution"}   # no such row: none to vary
         cases = [(factor, level, _factor_case(job, factor, level)) for factor, values in chosen.items()
                  for level in values]
         cases.append(("robust", "all unknowns drawn", dataclasses.replace(job, settings=drawn)))

@@ -19,9 +19,9 @@ import dataclasses
 import typing
 
 from rollability_ros.core.robots import ProfileBody, RobotModel
-from rollability_ros.core.sim.engines import TRIAL_ENGINES, check_engine
+from rollability_ros.core.sim.engines import TRIAL_ENGINES, check_engine, check_restitution
 from rollability_ros.core.sim.trials import TrialSettings
-from rollability_ros.core.sim.world import PhysicsParams
+from rollability_ros.core.sim.world import PAPER_RESTITUTION, PhysicsParams
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,6 +63,7 @@ def make_trial_world(robot_model: "RobotModel", profile: "typing.Optional[Profil
     """The trial world of ``physics.engine`` (:data:`TRIAL_ENGINES`), built; every disturbance trial, plain or
     robust, is built here."""
     check_engine("disturbance", physics.engine)
+    check_restitution(physics.engine, physics.restitution, PAPER_RESTITUTION)
     engine: typing.Type[TrialEngine] = TRIAL_ENGINES.get(physics.engine)
     return engine.build(robot_model, profile, settings, physics)
 

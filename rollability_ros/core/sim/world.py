@@ -24,6 +24,9 @@ from rollability_ros.core.optional import require
 from rollability_ros.core.sim.engines import engine_names
 
 CONTACT_MODELS = ("per_contact", "per_body")
+#: The paper's coefficient of restitution (2.1.1): ``sim.restitution``'s default, and the one value an engine without
+#: restitution runs (:func:`~rollability_ros.core.sim.engines.check_restitution`).
+PAPER_RESTITUTION = 0.3
 #: The engine names of the tables (core/sim/engines.py) when this module was imported, for code written
 #: before them; ``engine_names()`` also holds an engine registered later (``sim.engine`` validation uses it).
 ENGINES = engine_names()
@@ -44,7 +47,7 @@ class PhysicsParams:
         "description": "rolling friction coefficient (see sim.contact_model)", "range": (0.0, 10.0)})
     spinning_friction: float = dataclasses.field(default=0.02, metadata={
         "description": "spinning (torsional) friction coefficient (see sim.contact_model)", "range": (0.0, 10.0)})
-    restitution: float = dataclasses.field(default=0.3, metadata={
+    restitution: float = dataclasses.field(default=PAPER_RESTITUTION, metadata={
         "description": "coefficient of restitution of impacts (see sim.contact_model; paper 0.3)",
         "range": (0.0, 1.0)})
     contact_model: str = dataclasses.field(default="per_contact", metadata={

@@ -44,7 +44,7 @@ BASELINE = "baseline"
 #: The drawn unknowns a launch reads, as the rows name them (fields of robustness.Draw).
 WORLD_UNKNOWNS = ("foam_stiffness_factor", "foam_restitution", "foam_lateral_friction", "foam_rolling_friction_m",
                   "wheel_drag_nm", "profile_mass_scale", "ledge_rolling_friction_m", "speed_bias_fraction",
-                  "launcher_model", "contact_model", "com_offset_z_m")
+                  "launcher_model", "contact_model", "com_offset_z_m", "robot_restitution")
 #: Columns of ``world_check.csv``: one row per (world, configuration).
 WORLD_CHECK_COLUMNS = ("world", "world_seed", "launch_seed", "configuration", "successes", "trials", *WORLD_UNKNOWNS)
 #: Short names of the unknowns in the printed worst world.
@@ -52,7 +52,8 @@ _SHORT = {"foam_stiffness_factor": "foam stiffness x", "foam_restitution": "foam
           "foam_lateral_friction": "foam friction", "foam_rolling_friction_m": "foam rolling friction m",
           "wheel_drag_nm": "wheel drag N m", "profile_mass_scale": "profile mass x",
           "ledge_rolling_friction_m": "ledge rolling friction m", "speed_bias_fraction": "speed bias",
-          "launcher_model": "launcher", "contact_model": "contact", "com_offset_z_m": "COM offset m"}
+          "launcher_model": "launcher", "contact_model": "contact", "com_offset_z_m": "COM offset m",
+          "robot_restitution": "robot restitution"}
 
 #: ``evaluate(world_seed, launch_seed, launches) -> {configuration: (successes, trials)}``: the bare robot and every
 #: design launched ``launches`` times in the one world of ``world_seed``, all on ``launch_seed``.
@@ -102,6 +103,7 @@ def world_draws(settings: "EvaluatorSettings") -> Describe:
     """``describe(world seed) -> {unknown: value}``: the drawn values of a world for the launches ``settings``
     (EvaluatorSettings) run at launch fidelity, as :func:`robust_settings_for` draws them for its twin."""
     from rollability_ros.core.sim.evaluation import mesh_job, settings_at_fidelity
+    from rollability_ros.core.sim.engines import represents_restitution
     from rollability_ros.core.sim.robustness import draw
 
     at_launch = settings_at_fidelity(settings, "launch")
@@ -112,6 +114,8 @@ def world_draws(settings: "EvaluatorSettings") -> Describe:
 
     def describe(world_seed: int) -> typing.Dict[str, Value]:
         drawn = dataclasses.asdict(draw(world_seed, robust, twin.robot.com_offset_z_m, twin.robot.body_height_m))
+        if not represents_restitution(twin.physics.engine):   # drawn, not applied (robustness's docstring)
+            drawn["robot_restitution"] = f"none ({twin.physics.engine})"
         return {name: drawn[name] for name in WORLD_UNKNOWNS}
     return describe
 

@@ -11,7 +11,8 @@ from rollability_ros.core.sim.launch.drive import launch_drive
 from rollability_ros.core.sim.launch.placement import attempt_seed, sized_for_robot
 from rollability_ros.core.sim.launch.results import LaunchResult, PhaseCallback, PoseCallback
 from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
-from rollability_ros.core.sim.engines import LAUNCH_ENGINES, check_engine
+from rollability_ros.core.sim.engines import LAUNCH_ENGINES, check_engine, check_restitution
+from rollability_ros.core.sim.world import PAPER_RESTITUTION
 
 
 def profile_body(configuration: str, settings: LaunchTwinSettings) -> typing.Optional[ProfileBody]:
@@ -61,6 +62,7 @@ def simulate_launch(condition: LaunchCondition, settings: LaunchTwinSettings, se
         launcher (:func:`place_on_launcher`).
     """
     check_engine("launch", settings.physics.engine)
+    check_restitution(settings.physics.engine, settings.physics.restitution, PAPER_RESTITUTION)
     condition.validate()
     settings = sized_for_robot(settings)[0]
     if not use_profile:

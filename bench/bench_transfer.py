@@ -34,8 +34,9 @@ Then the same over seeds: how many seeds meet each target and the pooled campaig
 simulated. Every study stays in ``--out/seed-<n>/`` for inspection. ``--designs FILE`` runs no study: the robust
 launches and the world check of an existing designs file (``engine_agreement.csv`` and ``world-check-*/`` are
 written beside it; an earlier result there is read, not measured again). ``--smoke``: one seed of the end-to-end
-test's miniature study (test/resources/mini_study.yaml), two robust launches, one sensitivity trial, a world check
-of 2 worlds x 2 launches, in a temporary folder (the numbers mean nothing).
+test's miniature study (test/resources/mini_study.yaml) made smaller (test/resources/tiny_study.yaml), two robust
+launches, one sensitivity trial, a world check of 2 worlds x 2 launches, in a temporary folder (the numbers mean
+nothing).
 """
 import argparse
 import csv

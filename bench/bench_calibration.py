@@ -36,8 +36,9 @@ widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise ->
    the truth; the gain with Newcombe's 95% interval.
 6. The adaptive plan against the paper's matrix with the learnt likelihood (:func:`adaptive_comparison`).
 
-``--smoke``: every step but 5 at a tiny size (240 training launches, 2 members, 2 truths of 20 launches, 20
-sampler steps); its numbers mean nothing. Every line with a time carries the load average (``os.getloadavg``):
+``--smoke``: every step but 5 at a tiny size (160 training launches, 2 members, 2 truths of 20 launches, 8
+walkers x 20 sampler steps from 32 start draws, 4-point characterisation tables, one worker; the CLI at 20 sampler
+steps); its numbers mean nothing. Every line with a time carries the load average (``os.getloadavg``):
 the machine is shared.
 """
 import argparse
@@ -472,7 +473,7 @@ def main(argv=None):
     parser.add_argument("--reoptimize-seed", type=int, default=3)
     parser.add_argument("--validate", type=int, default=96, help="launches per design on the truth")
     parser.add_argument("--smoke", action="store_true", help="every step at a tiny size (the numbers mean nothing): "
-                        "240 training launches, 2 ensemble members, 2 truths, 20 sampler steps, no re-optimisation")
+                        "160 training launches, 2 ensemble members, 2 truths, 8 walkers x 20 sampler steps, no re-optimisation")
     args = parser.parse_args(argv)
     args.outcome_names = (None if args.outcomes == "all" else () if args.outcomes == "none"
                           else tuple(args.outcomes.split(",")))

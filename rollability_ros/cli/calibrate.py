@@ -129,7 +129,7 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
 def outcome_names(which: str) -> typing.Optional[typing.Tuple[str, ...]]:
     """``--outcomes``: ``none`` -> () (the verdicts only), ``all`` -> None (every one), else the comma-separated
     names, each one of ``likelihood.OUTCOMES`` (``ValueError`` naming an unknown one)."""
-    from rollability_ros.core.campaign.likelihood import OUTCOMES
+    from rollability_ros.core.campaign import OUTCOMES
 
     if which == "none":
         return ()

@@ -229,9 +229,9 @@ def test_the_selection_checks_its_designs_in_worlds_and_records_the_recommendati
     import numpy as np
 
     from rollability_ros.core.optimization.design_set import designs_document
+    from rollability_ros.core.optimization.labelling import label_by_evidence
     from rollability_ros.core.optimization.selection import (PooledDesign, SelectedDesign, SelectionResult,
-                                                             SelectionSettings, label_by_evidence,
-                                                             with_world_check)
+                                                             SelectionSettings, with_world_check)
     from rollability_ros.core.profile.geometry import ProfileGrid
 
     grid = ProfileGrid(rows=2, cols=2)
@@ -270,8 +270,8 @@ def test_without_a_world_check_the_fresh_launches_label_and_a_loser_is_never_a()
     that does; without fresh launches the pick order stays."""
     import numpy as np
 
-    from rollability_ros.core.optimization.selection import (PooledDesign, SelectedDesign, SelectionResult,
-                                                             label_by_evidence)
+    from rollability_ros.core.optimization.labelling import label_by_evidence
+    from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, SelectionResult
 
     def design(label, launches):
         return SelectedDesign(label, PooledDesign(np.full(4, 0.1), 9, 10, 1, 1), None, None, reason="race",

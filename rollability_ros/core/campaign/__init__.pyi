@@ -8,7 +8,7 @@ from .calibration import (TWIN_CONFIGS, CalibrationResult, CalibrationSettings, 
                           twin_settings_with)
 from .characterisation import load_characterisation
 from .learnt_plan import LearntTable, OutcomePosterior
-from .likelihood import (ConditionLevels, LearntLikelihood, Observation, load_likelihood,
+from .likelihood import (OUTCOMES, ConditionLevels, LearntLikelihood, Observation, load_likelihood,
                          observations_from_outcomes, simulate_training_set, twin_fingerprint)
 from .likelihood_learning import learn
 from .plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
@@ -20,7 +20,7 @@ from .runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledg
 from .terminal import AnsweredElsewhere, TerminalAsk
 
 __all__ = [
-    "DEFAULT_UNKNOWNS", "TWIN_CONFIGS", "AnsweredElsewhere", "CalibrationResult", "CalibrationSettings",
+    "DEFAULT_UNKNOWNS", "OUTCOMES", "TWIN_CONFIGS", "AnsweredElsewhere", "CalibrationResult", "CalibrationSettings",
     "CampaignSpec", "ConditionLevels", "LaunchPool", "LearntLikelihood", "LearntTable", "LocalRig", "LocalRigSettings",
     "Observation", "OutcomePosterior", "Posterior", "RunnerSettings", "StoreAcknowledgements", "TerminalAsk", "TwinPredictor",
     "Unknowns", "WeightedPosterior", "adaptive_next_trial", "answer_rig", "budget_placeholders",

@@ -251,7 +251,7 @@ def tip_angle_deg(twin: "LaunchTwinSettings", side: str) -> float:
 
 def tip_angles_deg(twin: "LaunchTwinSettings", sides: typing.Sequence[str]) -> typing.List[float]:
     """:func:`tip_angle_deg` towards each of ``sides``, from one hull of the robot."""
-    from rollability_ros.core.sim.stable_poses import robot_hull
+    from rollability_ros.core.sim import robot_hull
 
     unknown = [side for side in sides if side not in TIP_SIDES]
     if unknown:
@@ -275,7 +275,7 @@ def profile_mass_kg(twin: "LaunchTwinSettings", configuration: str) -> float:
     """The twin's mass (kg) of ``configuration``'s printed profile: its mesh (``launch_twin.designs``) made as the
     robot's ``profile_print`` says, times its ``profile_mass_scale``. ``ValueError`` for the baseline (no
     profile to weigh) or an unknown configuration."""
-    from rollability_ros.core.profile.designs import profile_mesh_for
+    from rollability_ros.core.profile import profile_mesh_for
 
     mesh = profile_mesh_for(configuration, twin.twin.designs)
     if mesh is None:

@@ -11,6 +11,7 @@
 - evaluator_pool: a batch of evaluations spread over the available evaluators
 - racing: successive halving over common seeds, for the selection's race and the optimizer's sequential rule
 - selection: deciding designs A/B/C from a run's log or its archive, and the world check behind the recommendation
+- labelling: the labels A, B, C in the order the evidence after the pick ranks the chosen designs
 - recommendation: the rule naming the design to print first from the plausible-world check
 - design_set: writing a selection (STL, 3MF, Table 3, designs.yaml, the world check's rows) and its record
 

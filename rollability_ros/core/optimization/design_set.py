@@ -26,11 +26,11 @@ import yaml
 
 from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, export_mesh, is_baseline
 from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
+from rollability_ros.core.optimization.labelling import label_by_evidence
 from rollability_ros.core.optimization.selection import (ARCHIVE_COLUMNS, GAIN_SOURCES, BatchEvaluator,
                                                           LaunchEvaluator, SelectionResult, SelectionSettings,
-                                                          WorldDescriber, WorldLaunch, label_by_evidence,
-                                                          pool_candidates, select_designs, select_from_archive,
-                                                          with_world_check)
+                                                          WorldDescriber, WorldLaunch, pool_candidates,
+                                                          select_designs, select_from_archive, with_world_check)
 from rollability_ros.core.stats import wilson_interval
 
 if typing.TYPE_CHECKING:
@@ -296,7 +296,7 @@ def select_run(store: "Store", run_id: str, run_dir: str, grid: ProfileGrid, pri
     ``settings.world_count`` the chosen designs then go through the plausible-world check on ``world_launch``
     (``describe_world(seed)`` names each world's draws) and the result carries the recommendation
     (:func:`~rollability_ros.core.optimization.selection.with_world_check`). Last the designs are labelled by the
-    evidence gathered after the pick (:func:`~rollability_ros.core.optimization.selection.label_by_evidence`): A is
+    evidence gathered after the pick (:func:`~rollability_ros.core.optimization.labelling.label_by_evidence`): A is
     the design the world check (or, without one, the fresh launches) ranks first.
 
     The one selection flow of ``rollability select`` and the optimizer node: from the archive when the run has one

@@ -14,7 +14,7 @@ from .launch.twin import profile_body, simulate_launch, simulate_valid_launch
 from .objectives import FIDELITIES, ObjectiveSettings, ResolvedLaunch, check_fidelity, resolve_launch, world_fidelity
 from .rollout import rollout_distance_m
 from .sensitivity import launch_sensitivity_rows, sensitivity_rows
-from .stable_poses import ScreenSettings, profile_screener, screen_robot
+from .stable_poses import ScreenSettings, profile_screener, robot_hull, screen_robot
 from .engines import LAUNCH_ENGINES, TRIAL_ENGINES, engine_names, register_trial_engine
 from .launch.contract import LaunchEngine
 from .trial_engine import TrialEngine, TrialOutcome, make_trial_world
@@ -32,8 +32,9 @@ __all__ = [
     "check_fidelity", "check_launcher", "engine_names", "evaluate_jobs", "evaluate_mesh", "evaluate_profile",
     "launch_sensitivity_rows", "launch_twin_settings_from_parameters", "load_launch_twin_settings", "load_settings",
     "local_world_evaluator", "make_executor", "make_trial_world", "mecanum_wheels", "profile_body", "profile_job",
-    "profile_screener", "register_trial_engine", "resolve_launch", "rollout_distance_m", "run_world_check",
-    "screen_robot", "sensitivity_rows", "settings_at_fidelity", "settings_from_parameters", "simulate_launch",
-    "simulate_valid_launch", "spawn_pool", "summarize_worlds", "trial_seed", "twin_files", "twin_value",
-    "twin_with_values", "with_given_files", "with_objective", "world_check_lines", "world_draws", "world_fidelity"
+    "profile_screener", "register_trial_engine", "resolve_launch", "robot_hull", "rollout_distance_m",
+    "run_world_check", "screen_robot", "sensitivity_rows", "settings_at_fidelity", "settings_from_parameters",
+    "simulate_launch", "simulate_valid_launch", "spawn_pool", "summarize_worlds", "trial_seed", "twin_files",
+    "twin_value", "twin_with_values", "with_given_files", "with_objective", "world_check_lines", "world_draws",
+    "world_fidelity"
 ]

@@ -569,8 +569,8 @@ BENCH = PACKAGE.parent / "bench"
 
 
 def bench_tier(name):
-    """The bench scripts bench/smoke.py's tuple ``name`` (``SMOKE``: the README's test command, ``SMOKE_SLOW``: the
-    slow tier; test/test_bench_smoke.py runs each) names that exist and declare ``--smoke``, their tiny size."""
+    """The bench scripts bench/smoke.py's tuple ``name`` (``SMOKE``: the README's test command; test/test_bench_smoke.py
+    runs it) names that exist and declare ``--smoke``, their tiny size."""
     for node in parsed(BENCH / "smoke.py").body:
         targets = (node.targets if isinstance(node, ast.Assign)
                    else [node.target] if isinstance(node, ast.AnnAssign) else [])
@@ -584,8 +584,7 @@ def bench_tier(name):
 def bench_coverage():
     """``(bench scripts, run at a tiny size by the test command, type-checked by it)``: the scripts in bench/ (its
     runner smoke.py left out), those bench/smoke.py's ``SMOKE`` runs with ``--smoke`` (test/test_bench_smoke.py), and
-    those under mypy (test/core/test_mypy.py checks ``bench`` whole: all of them, when it names it). The slow tier's
-    are :func:`bench_tier` ``("SMOKE_SLOW")``."""
+    those under mypy (test/core/test_mypy.py checks ``bench`` whole: all of them, when it names it)."""
     scripts = sorted(path.stem for path in BENCH.glob("*.py") if path.stem != "smoke")
     smoke = [name for name in bench_tier("SMOKE") if name in scripts]
     checked = scripts if '"bench"' in (PACKAGE.parent / "test" / "core" / "test_mypy.py").read_text() else []
@@ -753,11 +752,9 @@ def print_limits(graph):
     print(f"public core signatures using Any: {len(any_signatures())} (limit {ANY_SIGNATURES_LIMIT})")
     print(f"mypy check_untyped_defs: {'on' if check_untyped_defs() else 'off'}")
     scripts, smoke, checked = bench_coverage()
-    slow = [name for name in bench_tier("SMOKE_SLOW") if name in scripts and name not in smoke]
     print(f"bench scripts type-checked by the test command: {len(checked)} of {len(scripts)}")
     print(f"bench scripts run at a tiny size by the test command: {len(smoke)} of {len(scripts)} ({', '.join(smoke)})")
-    print(f"bench scripts run at a tiny size by the slow tier only (./scripts/test.sh --slow): {len(slow)} of "
-          f"{len(scripts)} ({', '.join(slow)}); by neither: {len(scripts) - len(smoke) - len(slow)}")
+    print(f"bench scripts not run at a tiny size by the test command: {len(scripts) - len(smoke)}")
     back = type_only_back_references(graph)
     print(f"TYPE_CHECKING back-references: {len(back)}")
     for module, target in back:

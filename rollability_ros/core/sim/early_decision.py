@@ -189,6 +189,13 @@ def hull_vertices(points: np.ndarray) -> np.ndarray:
         return points
 
 
+def _frozen(array: np.ndarray) -> np.ndarray:
+    """A read-only copy of ``array`` (any shape; a copy: a caller's own array, such as ``com_m``, stays writeable)."""
+    copy = np.array(array)
+    copy.flags.writeable = False
+    return copy
+
+
 #: Basin maps built in this process, newest last, by a digest of every input (see :func:`build_basin_map`).
 _BUILT: "collections.OrderedDict[bytes, BasinMap]" = collections.OrderedDict()
 #: How many maps :data:`_BUILT` keeps (a map is ~0.2 MB; a study's launches use one per design and robot).
@@ -222,13 +229,6 @@ def build_basin_map(points_by_link: typing.Mapping[int, npt.ArrayLike], wheel_li
         return _BUILT[key]
     basins = tabulate_basin_map(points_by_link, wheel_links, com_m, mass_kg, up_axis, upright_tilt_deg, min_wheels,
                                 contact_tolerance_m, directions, neighbours, margin_m)
-    def _frozen(array: np.ndarray) -> np.ndarray:
-        """A read-only copy of ``array`` (any shape; a copy: a caller's own array, such as ``com_m``, stays
-        writeable)."""
-        copy = np.array(array)
-        copy.flags.writeable = False
-        return copy
-
     basins = dataclasses.replace(basins, directions=_frozen(basins.directions), upright=_frozen(basins.upright),
                                  barrier_to_upright_m=_frozen(basins.barrier_to_upright_m),
                                  barrier_to_not_upright_m=_frozen(basins.barrier_to_not_upright_m),

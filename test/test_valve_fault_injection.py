@@ -10,6 +10,7 @@ with the dry-run valve and with the relay board simulator.
 
 Run with ``-s`` to see the table of measured times (the closing note of issue 16 quotes it).
 """
+import statistics
 import signal
 import subprocess
 import sys
@@ -452,10 +453,15 @@ def test_a_stuck_serial_call_does_not_silence_the_valve(ros_node, tmp_path, rela
               f"{len(during)} /diagnostics, longest gap {max(gaps):.2f} s as published, "
               f"{max(received_gaps):.2f} s as received")
         # the period is 1 s; a timer that waited for the stuck call's 1.7 s bound would leave gaps of up to 2.7 s and
-        # at most 3 messages in the 6 s, a silenced one none. The slack above the period is this VM's: threads of an
-        # idle node process were measured not running for 0.1-1.1 s with no thread holding the GIL and no CPU load
-        # (docs/testing.md, fresh-clone run 40)
-        assert max(gaps) < 2.5, f"/diagnostics silent {max(gaps):.1f} s during a stuck serial call\n{process.log()}"
+        # at most 3 messages in the 6 s, every gap at least 1.7 s; a silenced one none. Threads of an idle node
+        # process on this VM were measured not running for 0.1-1.1 s with no thread holding the GIL and no CPU load
+        # (docs/testing.md, fresh-clone run 40), and CI saw one gap of 2.54 s among gaps near 1 s: so the schedule is
+        # judged by the median gap (one stall lengthens one gap, a timer that waits on the bound lengthens every
+        # one) and a silence by the longest
+        median_gap = statistics.median(gaps)
+        assert median_gap < 1.5, (
+            f"/diagnostics every {median_gap:.1f} s (median) during a stuck serial call, period 1 s\n{process.log()}")
+        assert max(gaps) < 4.0, f"/diagnostics silent {max(gaps):.1f} s during a stuck serial call\n{process.log()}"
         assert len(during) >= 4, f"{len(during)} /diagnostics in {STUCK_S:.0f} s of a stuck serial call"
         assert any(level == DiagnosticStatus.ERROR for stamp, _, level in arrivals
                    if jammed_stamp <= stamp <= unjammed_stamp), "no ERROR diagnostics"

@@ -1,0 +1,157 @@
+"""The speed gate's readings as an exact term of the calibration's likelihood (docs/calibration.md, "The speed
+gate's term"): the rig's gate records every launch's speed, and that reading pins the lab's speed-setting bias
+(``launch_twin.launcher.speed_bias_fraction``) without the learnt networks, whose continuous outcomes are biased
+(measured in docs/calibration.md).
+
+The twin's model of a reading (:mod:`rollability_ros.core.sim.launch`, "Launch"): the launch speed is the set speed
+x (1 + bias) x (1 + ``speed_sigma_fraction`` z), z standard normal from the launch's seed; the stroke launcher's
+plate then pushes, the robot coasts on the launcher's base plate, and the gate reads ``run_length_m /
+travel_time_s``. That reading is not the launch speed: the coast and the cylinder's force limit make it depend on
+the configuration, the set speed, the bias (not in proportion: on the bench's chassis at 1.5 m/s a bias of -0.15
+reads 0.851 of the set speed, +0.15 reads 1.139) and on the robot (the flat top at 0.8 m/s without bias reads
+1.018 of the set speed at profile mass scale 0.2 and 1.058 at 1.4, 1.061 at a centre of mass 0.01 m lower and
+1.024 at 0.015 m higher). The ledge height, the angle, and the foam (past the edge) do not move it (under 0.001 of
+the set speed, measured on the same twin). So :func:`gate_term` tabulates the reading without scatter, G, per
+(configuration, set speed) over the bias and the sampled unknowns that act before the edge (at most
+:data:`MAX_OTHER`: the profile's mass, the centre of mass, the base plate's rolling friction, the wheels' drag),
+interpolates it (cubic), and scores each reading by the Gaussian of the delta method: mean G(b), standard deviation
+G'(b) (1 + b) ``speed_sigma_fraction`` (the scatter enters exactly as the bias does). Exact in the twin's sense:
+never tempered, like the characterisation's terms."""
+import dataclasses
+import hashlib
+import math
+import pickle
+import typing
+
+import numpy as np
+
+from rollability_ros.core.campaign.adaptive import Unknowns
+from rollability_ros.core.campaign.likelihood import Observation, values_one
+from rollability_ros.core.optional import require
+
+if typing.TYPE_CHECKING:
+    from rollability_ros.core.sim import LaunchTwinSettings
+
+LogDensity = typing.Callable[[np.ndarray], np.ndarray]
+
+#: The unknown the term is for, and the launch speed's scatter (read from the samples when it is sampled).
+BIAS_KEY, SCATTER_KEY = "launch_twin.launcher.speed_bias_fraction", "launch_twin.speed_sigma_fraction"
+#: Unknowns that cannot move a reading: the foam lies past the edge, the gate before it.
+AFTER_THE_EDGE = ("launch_twin.foam.",)
+#: Grid points of the table: over the bias, and over each other unknown it spans (at most MAX_OTHER of them).
+BIAS_POINTS, OTHER_POINTS, MAX_OTHER = 7, 5, 2
+#: Simulated time per tabulated launch, s: the gate's reading is taken at the edge (0.4-0.6 s on the paper's
+#: speeds); the rest of the launch is not needed (the speed gate's own timeout, config/rig.yaml, is 3 s).
+GATE_CAP_S = 3.0
+#: The ledge height of the tabulated launches, m (the paper's lower ledge; the height does not move the reading).
+GATE_HEIGHT_M = 0.75
+#: Readings at or below this fraction of the set speed are "not measured" (a gate that timed out reads 0).
+MIN_READING_FRACTION = 0.05
+
+_TABLES: typing.Dict[str, np.ndarray] = {}
+
+
+def gate_reading_mps(twin: "LaunchTwinSettings", configuration: str, speed_mps: float) -> float:
+    """The gate's reading (m/s) of a launch of ``configuration`` at the set speed ``speed_mps`` on ``twin``
+    without the speed and angle scatter (deterministic; the ledge height and the angle do not move it: module
+    docstring). ``ValueError`` when the launch never reaches the edge within :data:`GATE_CAP_S`."""
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.sim import simulate_launch
+
+    exact = dataclasses.replace(
+        twin, twin=dataclasses.replace(twin.twin, speed_sigma_fraction=0.0, angle_sigma_deg=0.0),
+        trial=dataclasses.replace(twin.trial, time_cap_s=min(twin.trial.time_cap_s, GATE_CAP_S)))
+    condition = LaunchCondition(configuration, GATE_HEIGHT_M, float(speed_mps), 0.0)
+    reading = simulate_launch(condition, exact, 0).measured_speed_mps
+    if not (math.isfinite(reading) and reading > MIN_READING_FRACTION * speed_mps):
+        raise ValueError(f"the twin's launch of {configuration} at {speed_mps} m/s does not reach the speed gate's "
+                         f"edge within {GATE_CAP_S} s: no gate reading to weigh")
+    return float(reading)
+
+
+def gate_unknowns(unknowns: Unknowns) -> typing.List[int]:
+    """Indices of the unknowns the table spans besides the bias: those not past the edge (module docstring).
+    ``ValueError`` without the bias among ``unknowns``, on a log-scaled bias, or with more than :data:`MAX_OTHER`
+    others."""
+    names = unknowns.names
+    if BIAS_KEY not in names:
+        raise ValueError(f"the speed gate's term weighs the speed bias: {BIAS_KEY} must be an unknown")
+    if unknowns.log_scale[names.index(BIAS_KEY)]:
+        raise ValueError(f"{BIAS_KEY} must be searched on a linear scale (it changes sign)")
+    others = [i for i, name in enumerate(names)
+              if name not in (BIAS_KEY, SCATTER_KEY) and not name.startswith(AFTER_THE_EDGE)]
+    if len(others) > MAX_OTHER:
+        raise ValueError(f"the speed gate's term tabulates at most {MAX_OTHER} unknowns besides the bias; "
+                         f"{', '.join(names[i] for i in others)} act before the edge: fit fewer")
+    return others
+
+
+def gate_table(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Sequence[typing.Tuple[str, float]],
+               bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS) -> np.ndarray:
+    """G: the gate's readings without scatter (m/s), shape (bias_points, other_points, ... , len(groups)), on
+    the normalised grid of the bias and of :func:`gate_unknowns`' others, per (configuration, set speed) of
+    ``groups``; the unknowns not spanned at ``twin``'s values. Kept per process (the same twin, unknowns and groups
+    give the same table: every truth of a bench, every calibration of a session)."""
+    from rollability_ros.core.sim import twin_with_values
+
+    names = unknowns.names
+    spanned = [names.index(BIAS_KEY), *gate_unknowns(unknowns)]
+    shape = [bias_points] + [other_points] * (len(spanned) - 1)
+    key = hashlib.sha256(pickle.dumps((twin, unknowns, tuple(groups), shape), protocol=4)).hexdigest()
+    if key not in _TABLES:
+        grid = np.array(np.meshgrid(*[np.linspace(0.0, 1.0, n) for n in shape], indexing="ij")).reshape(len(shape), -1).T
+        rows = []
+        for point in grid:
+            settings = twin_with_values(twin, {names[j]: float(values_one(unknowns, j, point[i]))
+                                               for i, j in enumerate(spanned)})
+            rows.append([gate_reading_mps(settings, configuration, speed) for configuration, speed in groups])
+        _TABLES[key] = np.array(rows).reshape(*shape, len(groups))
+        while len(_TABLES) > 8:
+            del _TABLES[next(iter(_TABLES))]
+    return _TABLES[key]
+
+
+def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSettings", unknowns: Unknowns,
+              bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS) -> LogDensity:
+    """The gate readings' log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
+    :func:`~rollability_ros.core.campaign.posterior.sample_posterior`'s ``extra`` (module docstring). Uses each
+    observation's ``measured_speed_mps`` (a reading absent, not finite or at most :data:`MIN_READING_FRACTION` of
+    the set speed is not measured and adds nothing). The learnt likelihood must then not weigh the same reading
+    (``outcomes`` without ``measured_speed_mps``)."""
+    names = unknowns.names
+    others = gate_unknowns(unknowns)
+    bias = names.index(BIAS_KEY)
+    readings: typing.Dict[typing.Tuple[str, float], typing.List[float]] = {}
+    for o in observations:
+        value = float(o.outcomes.get("measured_speed_mps", math.nan))
+        if math.isfinite(value) and value > MIN_READING_FRACTION * o.speed_mps:
+            readings.setdefault((o.configuration, float(o.speed_mps)), []).append(value)
+    if not readings:
+        return lambda u: np.zeros(len(u))
+    groups = sorted(readings)
+    table = gate_table(twin, unknowns, groups, bias_points, other_points)
+    grids = [np.linspace(0.0, 1.0, n) for n in table.shape[:-1]]
+    interpolate = require("scipy.interpolate", feature="the speed gate's term").RegularGridInterpolator(
+        grids, table, method="cubic" if min(table.shape[:-1]) >= 4 else "linear")
+    count = np.array([len(readings[g]) for g in groups], dtype=np.float64)
+    first = np.array([sum(readings[g]) for g in groups])
+    second = np.array([sum(v * v for v in readings[g]) for g in groups])
+    span = unknowns.upper[bias] - unknowns.lower[bias]
+    step = 0.5 / (table.shape[0] - 1)   # half a grid step, normalised: the slope's central difference
+    scatter = names.index(SCATTER_KEY) if SCATTER_KEY in names else None
+    sigma_fixed = twin.twin.speed_sigma_fraction
+
+    def term(u: np.ndarray) -> np.ndarray:
+        """The readings' Gaussian log-likelihood (s,), summed over the groups."""
+        point = np.clip(u[:, [bias, *others]], 0.0, 1.0)
+        low, high = point.copy(), point.copy()
+        low[:, 0] = np.clip(point[:, 0] - step, 0.0, 1.0)
+        high[:, 0] = np.clip(point[:, 0] + step, 0.0, 1.0)
+        mean, below, above = interpolate(point), interpolate(low), interpolate(high)
+        slope = (above - below) / ((high[:, 0] - low[:, 0]) * span)[:, None]   # dG / d bias, m/s per unit
+        b = values_one(unknowns, bias, point[:, 0])
+        sigma = values_one(unknowns, scatter, u[:, scatter]) if scatter is not None else np.full(len(u), sigma_fixed)
+        sd = np.maximum(np.abs(slope) * ((1.0 + b) * sigma)[:, None], 1e-6)
+        squares = second[None, :] - 2.0 * mean * first[None, :] + count[None, :] * mean * mean
+        return (-0.5 * squares / sd ** 2 - count[None, :] * np.log(sd * math.sqrt(2.0 * math.pi))).sum(axis=1)
+    return term

@@ -313,6 +313,11 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
     assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--temperature", "1.5",
                  "--out", str(tmp_path / "out5")]) == 2
     assert "temperature must lie in (0, 1]" in capsys.readouterr().err
+    assert main(["calibrate", "--physical", str(source), "--gate", "--out", str(tmp_path / "out6")]) == 2
+    assert "--gate adds the speed gate's term to a prepared likelihood" in capsys.readouterr().err
+    assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--gate",
+                 "--out", str(tmp_path / "out7")]) == 2   # the gate's term is for the speed bias: not an unknown here
+    assert "must be a fitted unknown" in capsys.readouterr().err
 
 
 @pytest.mark.slow

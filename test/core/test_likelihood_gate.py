@@ -26,7 +26,7 @@ def twin():
 def analytic_table(factor):
     """A gate_table stand-in: G = set speed x (1 + bias) x factor[configuration], x (1 + 0.1 (mass_u - 0.5)) for
     the profile "A" (mass_u the normalised profile mass), on the grid gate_table would use."""
-    def table(twin, unknowns, groups, bias_points, other_points):
+    def table(twin, unknowns, groups, bias_points, other_points, sampled=None):
         b = np.linspace(-0.15, 0.15, bias_points)[:, None, None]
         m = np.linspace(0.0, 1.0, other_points)[None, :, None]
         return np.stack([speed * (1 + b[..., 0]) * factor[c] * (1 + 0.1 * (m[..., 0] - 0.5) * (c == "A"))
@@ -83,12 +83,15 @@ def test_the_term_peaks_at_the_bias_with_the_spread_of_the_launch_scatter(monkey
 
 def test_what_the_term_refuses():
     settings = twin()
-    with pytest.raises(ValueError, match="must be an unknown"):
+    with pytest.raises(ValueError, match="must be a fitted unknown"):
         gate.gate_term([], settings, Unknowns(("robot.profile_mass_scale",), (0.15,), (2.0,), (True,)))
     crowded = Unknowns((BIAS, "robot.profile_mass_scale", "robot.com_offset_z_m", "launch_twin.wheel_drag_torque_nm"),
                        (-0.15, 0.15, -0.019, 0.0005), (0.15, 2.0, 0.015, 0.02), (False, True, False, True))
     with pytest.raises(ValueError, match="at most 2 unknowns besides the bias"):
         gate.gate_term([], settings, crowded)
+    with pytest.raises(ValueError, match="must be a fitted unknown"):
+        gate.gate_term([], settings, crowded, sampled=crowded.names[1:])
+    assert gate.gate_unknowns(crowded, sampled=crowded.names[:2]) == [1]   # the others held: not spanned
     # the foam's unknowns lie past the edge: not tabulated; no readings, no term
     term = gate.gate_term([], settings, UNKNOWNS)
     assert np.all(term(np.full((3, 3), 0.5)) == 0.0)

@@ -69,17 +69,19 @@ def gate_reading_mps(twin: "LaunchTwinSettings", configuration: str, speed_mps: 
     return float(reading)
 
 
-def gate_unknowns(unknowns: Unknowns) -> typing.List[int]:
-    """Indices of the unknowns the table spans besides the bias: those not past the edge (module docstring).
-    ``ValueError`` without the bias among ``unknowns``, on a log-scaled bias, or with more than :data:`MAX_OTHER`
+def gate_unknowns(unknowns: Unknowns, sampled: typing.Optional[typing.Sequence[str]] = None) -> typing.List[int]:
+    """Indices of the unknowns the table spans besides the bias: those of ``sampled`` (default: all of
+    ``unknowns``) not past the edge (module docstring); the others are held at the twin's values. ``ValueError``
+    without the bias among the sampled unknowns, on a log-scaled bias, or with more than :data:`MAX_OTHER`
     others."""
     names = unknowns.names
-    if BIAS_KEY not in names:
-        raise ValueError(f"the speed gate's term weighs the speed bias: {BIAS_KEY} must be an unknown")
+    sampled = names if sampled is None else tuple(sampled)
+    if BIAS_KEY not in names or BIAS_KEY not in sampled:
+        raise ValueError(f"the speed gate's term weighs the speed bias: {BIAS_KEY} must be a fitted unknown")
     if unknowns.log_scale[names.index(BIAS_KEY)]:
         raise ValueError(f"{BIAS_KEY} must be searched on a linear scale (it changes sign)")
-    others = [i for i, name in enumerate(names)
-              if name not in (BIAS_KEY, SCATTER_KEY) and not name.startswith(AFTER_THE_EDGE)]
+    others = [i for i, name in enumerate(names) if name in sampled
+              and name not in (BIAS_KEY, SCATTER_KEY) and not name.startswith(AFTER_THE_EDGE)]
     if len(others) > MAX_OTHER:
         raise ValueError(f"the speed gate's term tabulates at most {MAX_OTHER} unknowns besides the bias; "
                          f"{', '.join(names[i] for i in others)} act before the edge: fit fewer")
@@ -87,7 +89,8 @@ def gate_unknowns(unknowns: Unknowns) -> typing.List[int]:
 
 
 def gate_table(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Sequence[typing.Tuple[str, float]],
-               bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS) -> np.ndarray:
+               bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS,
+               sampled: typing.Optional[typing.Sequence[str]] = None) -> np.ndarray:
     """G: the gate's readings without scatter (m/s), shape (bias_points, other_points, ... , len(groups)), on
     the normalised grid of the bias and of :func:`gate_unknowns`' others, per (configuration, set speed) of
     ``groups``; the unknowns not spanned at ``twin``'s values. Kept per process (the same twin, unknowns and groups
@@ -95,11 +98,12 @@ def gate_table(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Se
     from rollability_ros.core.sim import twin_with_values
 
     names = unknowns.names
-    spanned = [names.index(BIAS_KEY), *gate_unknowns(unknowns)]
+    spanned = [names.index(BIAS_KEY), *gate_unknowns(unknowns, sampled)]
     shape = [bias_points] + [other_points] * (len(spanned) - 1)
-    key = hashlib.sha256(pickle.dumps((twin, unknowns, tuple(groups), shape), protocol=4)).hexdigest()
+    key = hashlib.sha256(pickle.dumps((twin, unknowns, tuple(groups), shape, spanned), protocol=4)).hexdigest()
     if key not in _TABLES:
-        grid = np.array(np.meshgrid(*[np.linspace(0.0, 1.0, n) for n in shape], indexing="ij")).reshape(len(shape), -1).T
+        axes = [np.linspace(0.0, 1.0, n) for n in shape]
+        grid = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(shape), -1).T
         rows = []
         for point in grid:
             settings = twin_with_values(twin, {names[j]: float(values_one(unknowns, j, point[i]))
@@ -112,14 +116,16 @@ def gate_table(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Se
 
 
 def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSettings", unknowns: Unknowns,
-              bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS) -> LogDensity:
+              bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS,
+              sampled: typing.Optional[typing.Sequence[str]] = None) -> LogDensity:
     """The gate readings' log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`~rollability_ros.core.campaign.posterior.sample_posterior`'s ``extra`` (module docstring). Uses each
     observation's ``measured_speed_mps`` (a reading absent, not finite or at most :data:`MIN_READING_FRACTION` of
-    the set speed is not measured and adds nothing). The learnt likelihood must then not weigh the same reading
+    the set speed is not measured and adds nothing). ``sampled``: the unknowns the posterior samples (default:
+    all); the others must be ``twin``'s values. The learnt likelihood must then not weigh the same reading
     (``outcomes`` without ``measured_speed_mps``)."""
     names = unknowns.names
-    others = gate_unknowns(unknowns)
+    others = gate_unknowns(unknowns, sampled)
     bias = names.index(BIAS_KEY)
     readings: typing.Dict[typing.Tuple[str, float], typing.List[float]] = {}
     for o in observations:
@@ -129,7 +135,7 @@ def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSetti
     if not readings:
         return lambda u: np.zeros(len(u))
     groups = sorted(readings)
-    table = gate_table(twin, unknowns, groups, bias_points, other_points)
+    table = gate_table(twin, unknowns, groups, bias_points, other_points, sampled)
     grids = [np.linspace(0.0, 1.0, n) for n in table.shape[:-1]]
     interpolate = require("scipy.interpolate", feature="the speed gate's term").RegularGridInterpolator(
         grids, table, method="cubic" if min(table.shape[:-1]) >= 4 else "linear")
@@ -138,7 +144,7 @@ def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSetti
     second = np.array([sum(v * v for v in readings[g]) for g in groups])
     span = unknowns.upper[bias] - unknowns.lower[bias]
     step = 0.5 / (table.shape[0] - 1)   # half a grid step, normalised: the slope's central difference
-    scatter = names.index(SCATTER_KEY) if SCATTER_KEY in names else None
+    scatter = names.index(SCATTER_KEY) if SCATTER_KEY in (names if sampled is None else sampled) else None
     sigma_fixed = twin.twin.speed_sigma_fraction
 
     def term(u: np.ndarray) -> np.ndarray:

@@ -55,7 +55,7 @@ def test_the_term_peaks_at_the_bias_with_the_spread_of_the_launch_scatter(monkey
                      learnt.Observation("A", 0.75, 0.8, 0.0, True, {"measured_speed_mps": math.nan}),
                      learnt.Observation("A", 0.75, 0.8, 0.0, True, {})]
     monkeypatch.setattr(gate, "gate_table", analytic_table(factor))
-    term = gate.gate_term(observations, settings, UNKNOWNS, bias_points=13, other_points=5)
+    term = gate.gate_term(observations, settings, UNKNOWNS, bias_points=13, other_points=5, model_error=0.0)
     u = np.zeros((2001, 3))
     u[:, 1] = np.linspace(0.0, 1.0, 2001)
     u[:, 2] = 0.3
@@ -67,6 +67,11 @@ def test_the_term_peaks_at_the_bias_with_the_spread_of_the_launch_scatter(monkey
     near = np.abs(-0.15 + 0.3 * u[:, 1] - bias) < 3 * sd
     curvature = np.polyfit(-0.15 + 0.3 * u[near, 1], values[near], 2)[0]
     assert math.sqrt(-1 / (2 * curvature)) == pytest.approx(sd, rel=0.1)
+    # the table's own error, shared by a group's readings, widens the term (it does not average away)
+    shared = gate.gate_term(observations, settings, UNKNOWNS, bias_points=13, other_points=5, model_error=0.004)(u)
+    width = math.sqrt(-1 / (2 * np.polyfit(-0.15 + 0.3 * u[near, 1], shared[near], 2)[0]))
+    per_group = math.sqrt(((1 + 0.06) * sigma) ** 2 / 50 + 0.004 ** 2)   # a group's mean, as a fraction
+    assert width == pytest.approx(per_group * (1 + 0.06) / 2, rel=0.15)   # four groups of 50
     # the profile's mass moves the reading, so the term weighs it too: the truth's mass beats a wrong one
     wrong = u.copy()
     wrong[:, 2] = 0.9
@@ -74,7 +79,7 @@ def test_the_term_peaks_at_the_bias_with_the_spread_of_the_launch_scatter(monkey
     # the scatter as an unknown: a wider scatter, a flatter term
     wide = Unknowns((*UNKNOWNS.names, gate.SCATTER_KEY), (*UNKNOWNS.lower, 0.0), (*UNKNOWNS.upper, 0.15),
                     (*UNKNOWNS.log_scale, False))
-    with_scatter = gate.gate_term(observations, settings, wide, bias_points=13, other_points=5)
+    with_scatter = gate.gate_term(observations, settings, wide, bias_points=13, other_points=5, model_error=0.0)
     at = np.array([[0.0, 0.7, 0.3, sigma / 0.15], [0.0, 0.7, 0.3, 2 * sigma / 0.15]])
     assert with_scatter(at[:1]) == pytest.approx(term(at[:1, :3]))
     assert np.ptp(with_scatter(np.array([[0.0, 0.55, 0.3, 2 * sigma / 0.15], [0.0, 0.7, 0.3, 2 * sigma / 0.15]]))) < \

@@ -15,7 +15,8 @@ the set speed, measured on the same twin). So :func:`gate_term` tabulates the re
 (configuration, set speed) over the bias and the sampled unknowns that act before the edge (at most
 :data:`MAX_OTHER`: the profile's mass, the centre of mass, the base plate's rolling friction, the wheels' drag),
 interpolates it (cubic), and scores each reading by the Gaussian of the delta method: mean G(b), standard deviation
-G'(b) (1 + b) ``speed_sigma_fraction`` (the scatter enters exactly as the bias does). Exact in the twin's sense:
+G'(b) (1 + b) ``speed_sigma_fraction`` (the scatter enters exactly as the bias does), the table's own error
+(:data:`MODEL_ERROR` of the reading) shared by the readings of each (configuration, set speed). Exact in the twin's sense:
 never tempered, like the characterisation's terms."""
 import dataclasses
 import hashlib
@@ -47,6 +48,10 @@ GATE_CAP_S = 3.0
 GATE_HEIGHT_M = 0.75
 #: Readings at or below this fraction of the set speed are "not measured" (a gate that timed out reads 0).
 MIN_READING_FRACTION = 0.05
+
+#: The table's error (interpolation, and the ledge height and angle it leaves out), as a fraction of the reading:
+#: the root mean square of interpolated against simulated readings at random parameter sets (docs/calibration.md).
+MODEL_ERROR = 0.004
 
 _TABLES: typing.Dict[str, np.ndarray] = {}
 
@@ -117,12 +122,13 @@ def gate_table(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Se
 
 def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSettings", unknowns: Unknowns,
               bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS,
-              sampled: typing.Optional[typing.Sequence[str]] = None) -> LogDensity:
+              sampled: typing.Optional[typing.Sequence[str]] = None, model_error: float = MODEL_ERROR) -> LogDensity:
     """The gate readings' log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`~rollability_ros.core.campaign.posterior.sample_posterior`'s ``extra`` (module docstring). Uses each
     observation's ``measured_speed_mps`` (a reading absent, not finite or at most :data:`MIN_READING_FRACTION` of
     the set speed is not measured and adds nothing). ``sampled``: the unknowns the posterior samples (default:
-    all); the others must be ``twin``'s values. The learnt likelihood must then not weigh the same reading
+    all); the others must be ``twin``'s values. ``model_error``: the table's error as a fraction of the reading
+    (:data:`MODEL_ERROR`), shared by the readings of one (configuration, set speed), so it does not average away. The learnt likelihood must then not weigh the same reading
     (``outcomes`` without ``measured_speed_mps``)."""
     names = unknowns.names
     others = gate_unknowns(unknowns, sampled)
@@ -158,6 +164,12 @@ def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSetti
         b = values_one(unknowns, bias, point[:, 0])
         sigma = values_one(unknowns, scatter, u[:, scatter]) if scatter is not None else np.full(len(u), sigma_fixed)
         sd = np.maximum(np.abs(slope) * ((1.0 + b) * sigma)[:, None], 1e-6)
-        squares = second[None, :] - 2.0 * mean * first[None, :] + count[None, :] * mean * mean
-        return (-0.5 * squares / sd ** 2 - count[None, :] * np.log(sd * math.sqrt(2.0 * math.pi))).sum(axis=1)
+        # readings g_i = G + shared + scatter_i: the group's mean carries the table's error (model_error x G,
+        # shared by its readings), each reading its own scatter (sd): the Gaussian with covariance sd^2 I + tau^2 1 1'
+        variance, shared = sd ** 2, (model_error * mean) ** 2
+        within = second - first ** 2 / count   # sum of squares about the group's mean
+        offset = first / count - mean
+        return -0.5 * ((count - 1.0) * np.log(variance) + np.log(variance + count * shared) + within / variance
+                       + count * offset ** 2 / (variance + count * shared)
+                       + count * math.log(2.0 * math.pi)).sum(axis=1)
     return term

@@ -403,3 +403,13 @@ def test_the_training_draws_reach_past_the_bounds():
     widened, *_ = learnt.draw_training_jobs(friction, CONFIGURATIONS, LEVELS, 256, 4,
                                             learnt.training_margins(twin, friction))
     assert widened.max() <= 1.0 and np.all(widened.min(axis=0) < 0.0)
+
+
+def test_bench_readings_alone_give_a_posterior():
+    """No launches yet (``rollability calibrate --characterisation`` alone, or the adaptive plan's start): the
+    posterior is the readings' term over the uniform prior (an empty launch list was refused by a reshape)."""
+    likelihood = model()
+    posterior = sampling.sample_posterior(likelihood, [], extra=lambda u: -0.5 * ((u[:, 0] - 0.3) / 0.05) ** 2,
+                                          steps=60, walkers=8, start_draws=100)
+    assert abs(np.median(posterior.normalised[:, 0]) - 0.3) < 0.05
+    assert np.ptp(posterior.normalised[:, 1]) > 0.8   # the other unknown keeps its prior

@@ -58,6 +58,7 @@ import numpy as np  # noqa: E402
 from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.campaign import likelihood as learnt  # noqa: E402
 from rollability_ros.core.campaign import likelihood_learning as learning  # noqa: E402
+from rollability_ros.core.campaign import likelihood_gate  # noqa: E402
 from rollability_ros.core.campaign import posterior as sampling  # noqa: E402
 from rollability_ros.core.campaign.adaptive import Unknowns  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
@@ -259,8 +260,6 @@ def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, tem
     truth_u, observations, readings, simulated_cpu = truth_data(parameters, unknowns, matrix, number, cache)
     table_cpu = 0.0
     if gate_points:
-        from rollability_ros.core.campaign import likelihood_gate
-
         table_cpu = time.process_time()
         gate = likelihood_gate.gate_term(observations, launch_twin_settings_from_parameters(parameters), unknowns,
                                          *gate_points)
@@ -505,7 +504,7 @@ def main(argv=None):
     if unknown:
         parser.error(f"--outcomes: unknown {sorted(unknown)} (known: {', '.join(learnt.OUTCOMES)})")
     args.grid_points = None   # the characterisation's tables: posterior.characterisation_term's default
-    args.gate_points = (7, 5) if args.gate else None   # likelihood_gate's default grid
+    args.gate_points = (likelihood_gate.BIAS_POINTS, likelihood_gate.OTHER_POINTS) if args.gate else None
     if args.smoke:   # the sampler's and the tables' smallest sizes, the pool's workers started once each
         args.prepare_launches, args.members, args.truths, args.steps = 160, 2, 2, 20
         args.walkers, args.start_draws, args.grid_points, args.workers = 8, 32, 4, 1

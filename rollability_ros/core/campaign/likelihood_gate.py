@@ -40,7 +40,7 @@ BIAS_KEY, SCATTER_KEY = "launch_twin.launcher.speed_bias_fraction", "launch_twin
 #: Unknowns that cannot move a reading: the foam lies past the edge, the gate before it.
 AFTER_THE_EDGE = ("launch_twin.foam.",)
 #: Grid points of the table: over the bias, and over each other unknown it spans (at most MAX_OTHER of them).
-BIAS_POINTS, OTHER_POINTS, MAX_OTHER = 7, 5, 2
+BIAS_POINTS, OTHER_POINTS, MAX_OTHER = 7, 7, 2
 #: Simulated time per tabulated launch, s: the gate's reading is taken at the edge (0.4-0.6 s on the paper's
 #: speeds); the rest of the launch is not needed (the speed gate's own timeout, config/rig.yaml, is 3 s).
 GATE_CAP_S = 3.0

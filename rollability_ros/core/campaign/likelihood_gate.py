@@ -46,6 +46,9 @@ BIAS_POINTS, OTHER_POINTS, MAX_OTHER = 7, 7, 2
 GATE_CAP_S = 3.0
 #: The ledge height of the tabulated launches, m (the paper's lower ledge; the height does not move the reading).
 GATE_HEIGHT_M = 0.75
+#: The bare robot's configuration id (core/profile/designs.py) and the profile's mass multipliers, which do not act
+#: on it: the configurations whose readings the term weighs by default, and what their table need not span.
+BARE_ROBOT, PROFILE_MASS_KEYS = "baseline", ("robot.profile_mass_scale", "urdf_robot.profile_mass_scale")
 #: Readings at or below this fraction of the set speed are "not measured" (a gate that timed out reads 0).
 MIN_READING_FRACTION = 0.05
 
@@ -74,13 +77,16 @@ def gate_reading_mps(twin: "LaunchTwinSettings", configuration: str, speed_mps: 
     return float(reading)
 
 
-def gate_unknowns(unknowns: Unknowns, sampled: typing.Optional[typing.Sequence[str]] = None) -> typing.List[int]:
+def gate_unknowns(unknowns: Unknowns, sampled: typing.Optional[typing.Sequence[str]] = None,
+                  bare_only: bool = False) -> typing.List[int]:
     """Indices of the unknowns the table spans besides the bias: those of ``sampled`` (default: all of
-    ``unknowns``) not past the edge (module docstring); the others are held at the twin's values. ``ValueError``
-    without the bias among the sampled unknowns, on a log-scaled bias, or with more than :data:`MAX_OTHER`
-    others."""
+    ``unknowns``) not past the edge (module docstring), without the profile's mass when only the bare robot's
+    readings are weighed (``bare_only``); the others are held at the twin's values. ``ValueError`` without the
+    bias among the sampled unknowns, on a log-scaled bias, or with more than :data:`MAX_OTHER` others."""
     names = unknowns.names
     sampled = names if sampled is None else tuple(sampled)
+    if bare_only:
+        sampled = tuple(name for name in sampled if name not in PROFILE_MASS_KEYS)
     if BIAS_KEY not in names or BIAS_KEY not in sampled:
         raise ValueError(f"the speed gate's term weighs the speed bias: {BIAS_KEY} must be a fitted unknown")
     if unknowns.log_scale[names.index(BIAS_KEY)]:
@@ -95,15 +101,15 @@ def gate_unknowns(unknowns: Unknowns, sampled: typing.Optional[typing.Sequence[s
 
 def gate_table(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Sequence[typing.Tuple[str, float]],
                bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS,
-               sampled: typing.Optional[typing.Sequence[str]] = None) -> np.ndarray:
+               sampled: typing.Optional[typing.Sequence[str]] = None, bare_only: bool = False) -> np.ndarray:
     """G: the gate's readings without scatter (m/s), shape (bias_points, other_points, ... , len(groups)), on
-    the normalised grid of the bias and of :func:`gate_unknowns`' others, per (configuration, set speed) of
-    ``groups``; the unknowns not spanned at ``twin``'s values. Kept per process (the same twin, unknowns and groups
+    the normalised grid of the bias and of :func:`gate_unknowns`' others (``sampled``, ``bare_only`` as there),
+    per (configuration, set speed) of ``groups``; the unknowns not spanned at ``twin``'s values. Kept per process (the same twin, unknowns and groups
     give the same table: every truth of a bench, every calibration of a session)."""
     from rollability_ros.core.sim import twin_with_values
 
     names = unknowns.names
-    spanned = [names.index(BIAS_KEY), *gate_unknowns(unknowns, sampled)]
+    spanned = [names.index(BIAS_KEY), *gate_unknowns(unknowns, sampled, bare_only)]
     shape = [bias_points] + [other_points] * (len(spanned) - 1)
     key = hashlib.sha256(pickle.dumps((twin, unknowns, tuple(groups), shape, spanned), protocol=4)).hexdigest()
     if key not in _TABLES:
@@ -122,26 +128,34 @@ def gate_table(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Se
 
 def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSettings", unknowns: Unknowns,
               bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS,
-              sampled: typing.Optional[typing.Sequence[str]] = None, model_error: float = MODEL_ERROR) -> LogDensity:
+              sampled: typing.Optional[typing.Sequence[str]] = None, model_error: float = MODEL_ERROR,
+              configurations: typing.Optional[typing.Sequence[str]] = (BARE_ROBOT,)) -> LogDensity:
     """The gate readings' log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`~rollability_ros.core.campaign.posterior.sample_posterior`'s ``extra`` (module docstring). Uses each
     observation's ``measured_speed_mps`` (a reading absent, not finite or at most :data:`MIN_READING_FRACTION` of
     the set speed is not measured and adds nothing). ``sampled``: the unknowns the posterior samples (default:
     all); the others must be ``twin``'s values. ``model_error``: the table's error as a fraction of the reading
-    (:data:`MODEL_ERROR`), shared by the readings of one (configuration, set speed), so it does not average away. The learnt likelihood must then not weigh the same reading
-    (``outcomes`` without ``measured_speed_mps``)."""
+    (:data:`MODEL_ERROR`), shared by the readings of one (configuration, set speed), so it does not average away.
+    ``configurations``: whose readings are weighed (None: every one's). Default: the bare robot's, whose reading
+    depends on the bias alone; a design's also moves with the profile's mass and the centre of mass (up to 4%
+    of the reading), and with them in the term the table's error pulled the centre of mass off its truth
+    (measured: docs/calibration.md, "The speed gate's term"). The learnt likelihood must then not weigh the same
+    reading (``outcomes`` without ``measured_speed_mps``)."""
     names = unknowns.names
-    others = gate_unknowns(unknowns, sampled)
+    bare_only = configurations is not None and all(c == BARE_ROBOT for c in configurations)
+    others = gate_unknowns(unknowns, sampled, bare_only)
     bias = names.index(BIAS_KEY)
     readings: typing.Dict[typing.Tuple[str, float], typing.List[float]] = {}
     for o in observations:
+        if configurations is not None and o.configuration not in configurations:
+            continue
         value = float(o.outcomes.get("measured_speed_mps", math.nan))
         if math.isfinite(value) and value > MIN_READING_FRACTION * o.speed_mps:
             readings.setdefault((o.configuration, float(o.speed_mps)), []).append(value)
     if not readings:
         return lambda u: np.zeros(len(u))
     groups = sorted(readings)
-    table = gate_table(twin, unknowns, groups, bias_points, other_points, sampled)
+    table = gate_table(twin, unknowns, groups, bias_points, other_points, sampled, bare_only)
     grids = [np.linspace(0.0, 1.0, n) for n in table.shape[:-1]]
     interpolate = require("scipy.interpolate", feature="the speed gate's term").RegularGridInterpolator(
         grids, table, method="cubic" if min(table.shape[:-1]) >= 4 else "linear")

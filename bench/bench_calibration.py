@@ -2,7 +2,7 @@
 widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise -> validate. All simulated.
 
     nice python bench/bench_calibration.py [--prepare-launches 8000] [--members 3] [--truths 50] [--steps 200]
-        [--temperature T] [--outcomes all|none|NAMES] [--no-rollouts] [--no-tips] [--no-weighing] [--gate]
+        [--first-truth K] [--temperature T] [--outcomes all|none|NAMES] [--no-rollouts] [--no-tips] [--no-weighing] [--gate]
         [--engine mujoco|pybullet] [--workers 2] [--likelihood FILE] [--keep DIR]
         [--skip-cli] [--skip-adaptive] [--skip-reoptimize] [--reoptimize-generations 15] [--smoke]
 
@@ -302,7 +302,8 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
     started = time.perf_counter()
     count = args.truths
     # the truths whose launches an earlier run kept come first (their calibrations start at once)
-    order = sorted(range(count), key=lambda n: not os.path.exists(os.path.join(args.cache, f"truth-{n}.json")))
+    order = sorted(range(args.first_truth, args.first_truth + count),
+                   key=lambda n: not os.path.exists(os.path.join(args.cache, f"truth-{n}.json")))
     jobs = pool.map(calibrate_truth, [likelihood] * count, [parameters] * count, [unknowns] * count,
                     [matrix] * count, order, [args.steps] * count, [args.temperature] * count,
                     [args.cache] * count, [args.walkers] * count, [args.start_draws] * count,
@@ -465,6 +466,9 @@ def main(argv=None):
     parser.add_argument("--prepare-launches", type=int, default=8000, help="twin launches of the preparation")
     parser.add_argument("--members", type=int, default=learnt.MEMBERS, help="networks of the ensemble")
     parser.add_argument("--truths", type=int, default=50, help="hidden truths of the coverage (>= 50 for the claim)")
+    parser.add_argument("--first-truth", type=int, default=0,
+                        help="number of the first hidden truth (truths K..K+N-1: e.g. a held-out set to choose a "
+                        "temperature on, apart from the truths it is then measured on)")
     parser.add_argument("--steps", type=int, default=200, help="sampler steps per calibration and ensemble member")
     parser.add_argument("--walkers", type=int, default=16, help="sampler walkers per ensemble member")
     parser.add_argument("--start-draws", type=int, default=500,

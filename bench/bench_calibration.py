@@ -26,7 +26,9 @@ widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise ->
    design's profile (1 g noise; ``--no-weighing``), drawn afresh from the truth's seed; then,
    in a worker, the posterior of all unknowns from the verdicts, the gate's speed and the IMU's tilt, peak
    deceleration, time to rest and the rest distance, plus the characterisation. Prints each unknown's coverage of
-   the 95% sets, their widths as a fraction of the range (own scale), the SBC ranks (the truth among 99 thinned
+   the 95% sets (``--gate``: the speed gate's readings through the twin's tabulated launcher model instead of the
+   learnt gate outcome, core/campaign/likelihood_gate.py; ``--first-truth K``: truths K.. instead of 0..), their
+   widths as a fraction of the range (own scale), the SBC ranks (the truth among 99 thinned
    posterior samples: their histogram by fifths and its chi-squared p-value), the calibration time, and the
    learnt P(upright) on these fresh launches against a constant (Brier, log loss, reliability by deciles).
 4. ``rollability calibrate --likelihood`` (the CLI, a subprocess) with two unknowns (centre of mass, foam friction)

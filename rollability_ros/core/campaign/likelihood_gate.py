@@ -16,8 +16,9 @@ the set speed, measured on the same twin). So :func:`gate_term` tabulates the re
 :data:`MAX_OTHER`: the profile's mass, the centre of mass, the base plate's rolling friction, the wheels' drag),
 interpolates it (cubic), and scores each reading by the Gaussian of the delta method: mean G(b), standard deviation
 G'(b) (1 + b) ``speed_sigma_fraction`` (the scatter enters exactly as the bias does), the table's own error
-(:data:`MODEL_ERROR` of the reading) shared by the readings of each (configuration, set speed). Exact in the twin's sense:
-never tempered, like the characterisation's terms."""
+(:data:`MODEL_ERROR` of the reading) shared by the readings of each (configuration, set speed). Exact in the
+twin's sense: never tempered, like the characterisation's terms. By default only the bare robot's readings are
+weighed (:data:`BARE_ROBOT`; :func:`gate_term`'s ``configurations``): they depend on the bias alone."""
 import dataclasses
 import hashlib
 import math

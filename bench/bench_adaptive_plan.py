@@ -32,6 +32,7 @@ through :func:`run` with any object that has ``probabilities(theta (s, d), condi
 bench/bench_calibration.py calls :func:`run` with its own predictor.
 """
 import argparse
+import math
 import os
 import sys
 import time
@@ -103,9 +104,45 @@ def characterisation_start(likelihood: typing.Any, folder: str, samples: int) ->
     return start
 
 
+def gate_model(likelihood: typing.Any, candidates: typing.Sequence[adaptive.LaunchCondition],
+               folder: str) -> typing.Tuple[typing.Any, typing.Any]:
+    """``--gate``: the speed gate's exact term (likelihood_gate.GateModel, the bare robot's readings, on
+    bench_calibration.py's twin: both plans weigh the readings, the adaptive plan scores them) and each truth's readings: the twin's reading without scatter at the truth's
+    unknowns (its bias among them), tabulated over the launch speed's scatter z (the set speed x (1 + sigma z);
+    9 points over +-4 sigma, cubic) per set speed, then read at each launch's z; the designs' readings are not weighed, so not drawn."""
+    import numpy as np
+    from scipy.interpolate import CubicSpline
+
+    from bench import bench_calibration as bench
+    from rollability_ros.core.campaign import likelihood_gate
+    from rollability_ros.core.sim import twin_with_values
+
+    parameters, unknowns, _ = bench.bench_parameters(folder)
+    if unknowns != likelihood.unknowns:
+        raise SystemExit(f"--gate: the likelihood's unknowns are not bench_calibration.py's "
+                         f"({', '.join(likelihood.unknowns.names)})")
+    twin = launch_twin_settings_from_parameters(parameters)
+    sigma = twin.twin.speed_sigma_fraction
+    splines: typing.Dict[typing.Tuple[int, float], typing.Any] = {}
+
+    model = likelihood_gate.GateModel(twin, unknowns, [(c.configuration, c.speed_mps) for c in candidates])
+
+    def reading(t: int, truth: np.ndarray, condition: adaptive.LaunchCondition, rng: np.random.Generator) -> float:
+        if condition.configuration != likelihood_gate.BARE_ROBOT:
+            return math.nan
+        key = (t, float(condition.speed_mps))
+        if key not in splines:
+            at_truth = twin_with_values(twin, dict(zip(unknowns.names, map(float, truth))))
+            z = np.linspace(-4.0, 4.0, 9)   # the scatter as a set speed x (1 + sigma z): the same launch speed
+            splines[key] = CubicSpline(z, [likelihood_gate.gate_reading_mps(
+                at_truth, condition.configuration, condition.speed_mps * (1.0 + sigma * float(e))) for e in z])
+        return float(splines[key](float(np.clip(rng.standard_normal(), -4.0, 4.0))))
+    return model, reading
+
+
 def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed: int, outcomes: str,
-               draws: int, acquisition: str = "joint",
-               characterisation: typing.Optional[str] = None) -> typing.List[plan_comparison.MatchedWidths]:
+               draws: int, acquisition: str = "joint", characterisation: typing.Optional[str] = None,
+               gate: typing.Optional[str] = None) -> typing.List[plan_comparison.MatchedWidths]:
     """``--learnt FILE`` (module docstring): print each truth as it finishes, then the median."""
     import numpy as np
 
@@ -122,8 +159,10 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
           f"launches); unknowns {', '.join(likelihood.unknowns.names)}; {len(candidates)} grouped conditions; "
           f"outcomes: verdict{''.join(', ' + n for n in table.outcomes)}; {truths} truths from the prior; {samples} "
           f"{'samples of the characterisation posterior' if characterisation else 'prior samples'} (renewed); "
-          f"{acquisition} acquisition; outcomes drawn from the learnt model at each truth; simulated", flush=True)
+          f"{acquisition} acquisition; outcomes drawn from the learnt model at each truth"
+          f"{'; the bare robot gate readings weighed by the exact term' if gate else ''}; simulated", flush=True)
     start = characterisation_start(likelihood, characterisation, samples) if characterisation else None
+    model, reading = gate_model(likelihood, candidates, gate) if gate else (None, None)
     started = time.perf_counter()
 
     def say(t: int, r: plan_comparison.MatchedWidths) -> None:
@@ -132,7 +171,8 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
               + f" (ESS {r.matrix_ess:.0f}); adaptive reaches them in {needed} launches (ESS {r.adaptive_ess:.0f}) "
               f"[{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
     _, results = plan_comparison.learnt_to_match_matrix(table, truths, matrix_launches, samples, seed, draws=draws,
-                                                        acquisition=acquisition, on_truth=say, start=start)
+                                                        acquisition=acquisition, on_truth=say, start=start,
+                                                        gate=model, gate_reading=reading)
     counts = [r.adaptive_launches if r.adaptive_launches is not None else np.inf for r in results]
     median = float(np.median(counts))
     print(f"median launches to the matrix's widths: adaptive {median:g} against matrix {matrix_launches} "
@@ -158,6 +198,10 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
                         help="with --learnt (a file over bench_calibration.py's unknowns and designs): both plans "
                              "start from each truth's bench readings (slide, roll-out, tip angles, weighings), "
                              "simulated as bench_calibration.py does; its designs' STLs are written to DIR")
+    parser.add_argument("--gate", metavar="DIR",
+                        help="with --learnt (bench_calibration.py's unknowns): every launch of both plans also gives "
+                             "its speed gate reading, the bare robot's weighed by the exact term "
+                             "(core/campaign/likelihood_gate.py); the designs' STLs are written to DIR")
     parser.add_argument("--draws", type=int, default=32,
                         help="with --learnt: Monte Carlo outcomes per candidate of the expected information")
     parser.add_argument("--acquisition", choices=plan_comparison.ACQUISITIONS, default="joint",
@@ -184,7 +228,7 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
         args.truths, args.unknowns, args.samples, args.matrix_launches = 1, 2, 200, 40
     if args.learnt:
         run_learnt(args.learnt, args.truths, args.matrix_launches, args.samples, args.seed, args.outcomes, args.draws,
-                   args.acquisition, args.characterisation)
+                   args.acquisition, args.characterisation, args.gate)
         return 0
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration.calibration_settings(parameters)

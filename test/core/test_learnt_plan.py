@@ -214,3 +214,80 @@ def test_renewals_keep_the_density_the_samples_were_drawn_from():
         posterior.renew()
         spreads.append(np.std(UNKNOWNS.to_normalised(posterior.samples)[:, 1]))
     assert spreads[0] == pytest.approx(0.03, rel=0.3) and spreads[1] > 0.06
+
+
+class FakeGate:
+    """A stand-in for likelihood_gate.GateModel without twin launches: the bare robot's reading at set speed v is
+    v (0.9 + 0.2 b_u), scatter 0.02 v, with the gate term's shared table error (model_error x the reading)."""
+
+    model_error = 0.004
+
+    def __init__(self, candidates):
+        self.groups = sorted({(c.configuration, float(c.speed_mps)) for c in candidates
+                              if c.configuration == "baseline"})
+        self.speeds = np.array([v for _, v in self.groups])
+
+    def predict(self, u):
+        mean = (0.9 + 0.2 * u[:, 1])[:, None] * self.speeds[None, :]
+        return mean, np.full_like(mean, 0.02) * self.speeds[None, :]
+
+    def term(self, observations):
+        from rollability_ros.core.campaign import likelihood_gate
+
+        def log_density(u):   # the exact term's Gaussian (shared error per group), through its own code path
+            mean, sd = self.predict(u)
+            total = np.zeros(len(u))
+            for g, group in enumerate(self.groups):
+                values = np.array([o.outcomes["measured_speed_mps"] for o in observations
+                                   if (o.configuration, float(o.speed_mps)) == group])
+                if len(values):
+                    cov = sd[:, g, None, None] ** 2 * np.eye(len(values)) + (self.model_error * mean[:, g]) [
+                        :, None, None] ** 2
+                    r = values[None, :] - mean[:, g, None]
+                    total += -0.5 * (np.einsum("si,sij,sj->s", r, np.linalg.inv(cov), r)
+                                     + np.linalg.slogdet(cov)[1] + len(values) * math.log(2 * math.pi))
+            return total
+        assert likelihood_gate.GateModel.term   # the real model has the same interface
+        return log_density
+
+
+def test_the_gate_reading_enters_both_the_weights_and_the_choice_of_launch():
+    """b moves only the gate's reading, which the verdict-only table does not weigh: with the gate's term the
+    posterior weighs each reading (the weights are verdicts plus the term of all readings so far, renewed or not),
+    the bare robot's launches score above the verdict-only BALD score, and 16 chosen launches pin b, which the
+    verdicts leave at its prior width."""
+    likelihood = model()
+    candidates = CANDIDATES
+    gate = FakeGate(candidates)
+    table = LearntTable(likelihood, candidates, outcomes=())
+    with pytest.raises(ValueError, match="twice"):
+        OutcomePosterior(LearntTable(likelihood, candidates), UNKNOWNS.draw(10, np.random.default_rng(0)), gate=gate)
+    plain = OutcomePosterior.from_prior(table, 300, np.random.default_rng(0), renew=False)
+    with_gate = OutcomePosterior(table, plain.samples, np.random.default_rng(0), renew=False, gate=gate)
+    bare = np.array([c.configuration == "baseline" for c in candidates])
+    assert np.all(with_gate.scores()[bare] > plain.scores()[bare] + 0.5)
+    assert np.allclose(with_gate.scores()[~bare], plain.scores()[~bare])
+    rng = np.random.default_rng(5)
+    cells = [(c.configuration, c.height_m, c.speed_mps, c.angle_deg) for c in candidates[::3]]
+    observations = simulate((0.7, 0.3), cells, rng)
+    for o in observations:
+        index = with_gate.candidate_index(LaunchCondition(o.configuration, o.height_m, o.speed_mps, o.angle_deg))
+        reading = o.outcomes["measured_speed_mps"] if o.configuration == "baseline" else None
+        with_gate.observe_launch(index, o.upright, None, reading)
+    u = UNKNOWNS.to_normalised(with_gate.samples)
+    expected = likelihood.log_likelihood(u, [dataclasses.replace(o, outcomes={}) for o in observations]) + gate.term(
+        [o for o in observations if o.configuration == "baseline"])(u)
+    assert np.allclose(with_gate.log_weights - with_gate.log_weights.max(), expected - expected.max(), atol=1e-6)
+    renewed, verdicts = (OutcomePosterior.from_prior(table, 300, np.random.default_rng(1)) for _ in range(2))
+    renewed.gate = gate
+    for _ in range(16):
+        for posterior in (renewed, verdicts):
+            index = int(np.argmax(posterior.scores()))
+            c = candidates[index]
+            o, = simulate((0.7, 0.3), [(c.configuration, c.height_m, c.speed_mps, c.angle_deg)], rng)
+            reading = o.outcomes["measured_speed_mps"] if posterior.gate and c.configuration == "baseline" else None
+            posterior.observe_launch(index, o.upright, None, reading)
+    assert renewed.renewals > 0
+    assert renewed.normalised_widths()[1] < 0.25 < 0.8 < verdicts.normalised_widths()[1]
+    low, high = renewed.intervals()[1]
+    assert low <= UNKNOWNS.to_values([[0.7, 0.3]])[0, 1] <= high

@@ -291,9 +291,11 @@ class WeightedPosterior:
         self.launches += 1
         self._after_observing()
 
-    def observe_launch(self, index: int, upright: bool, values: typing.Optional[npt.ArrayLike] = None) -> None:
-        """One launch at candidate ``index``; ``values`` (o,), the continuous outcomes of a likelihood that has them
-        (:class:`~rollability_ros.core.campaign.learnt_plan.OutcomePosterior`), are not used by the verdict's."""
+    def observe_launch(self, index: int, upright: bool, values: typing.Optional[npt.ArrayLike] = None,
+                       reading: typing.Optional[float] = None) -> None:
+        """One launch at candidate ``index``; ``values`` (o,), the continuous outcomes of a likelihood that has them,
+        and the speed gate's ``reading`` (m/s) are weighed by :class:`~rollability_ros.core.campaign.learnt_plan.
+        OutcomePosterior`, not by the verdict's posterior."""
         self.observe(index, upright)
 
     def observe_counts(self, index: int, successes: int, trials: int) -> None:

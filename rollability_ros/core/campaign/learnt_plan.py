@@ -17,6 +17,11 @@ WeightedPosterior` over them:
   theta_s)]. With ``outcomes=()`` it is the verdict's BALD score, exact;
 - the samples are renewed as the posterior narrows (resample by weight, Metropolis moves on the prior times the
   likelihood of every launch seen), since a learnt likelihood is cheap to ask again;
+- the speed gate's readings, where given (``gate``: the exact term of
+  :mod:`~rollability_ros.core.campaign.likelihood_gate`, whose readings share the table's error per configuration
+  and set speed, so the term is rebuilt from all readings rather than multiplied per launch), weigh the samples
+  beside the learnt likelihood, as in the calibration's ``--gate``; the learnt table must then not weigh the same
+  reading (``outcomes`` without ``measured_speed_mps``);
 - the ensemble (``LearntLikelihood.ensemble_size`` members) enters as the calibration's does: a sample's weight is
   the members' mean likelihood of every launch seen (``log_likelihood(member=None)``; a test holds the two equal),
   and its prediction of the next launch is the members' mixture weighted by how well each member explained the
@@ -38,6 +43,15 @@ from rollability_ros.core.campaign import likelihood as learnt
 from rollability_ros.core.campaign.adaptive import EPSILON, Unknowns, WeightedPosterior
 from rollability_ros.core.optional import require
 from rollability_ros.core.records import LaunchCondition, LaunchOutcome
+
+if typing.TYPE_CHECKING:
+    from rollability_ros.core.campaign.likelihood_gate import GateModel
+
+#: A log density (s,) of normalised unknowns (s, d).
+LogDensity = typing.Callable[[np.ndarray], np.ndarray]
+#: Monte Carlo (verdict, reading) pairs per candidate of the gate's expected information (:meth:`OutcomePosterior.
+#: scores`), the same random numbers for every candidate.
+GATE_DRAWS = 256
 
 #: Samples of the unknowns evaluated per network pass (bounds the memory of a table: samples x conditions x 64).
 CHUNK = 256
@@ -160,9 +174,16 @@ class OutcomePosterior(WeightedPosterior):
 
     def __init__(self, table: LearntTable, samples: npt.ArrayLike, rng: typing.Optional[np.random.Generator] = None,
                  renew: bool = True, draws: int = 32, renew_fraction: float = 0.5, moves: int = 4,
-                 log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = None) -> None:
+                 log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = None,
+                 gate: typing.Optional["GateModel"] = None) -> None:
+        if gate is not None and "measured_speed_mps" in table.outcomes:
+            raise ValueError("the gate's term and the learnt measured_speed_mps would weigh the same reading twice")
         self.table = table
         self.draws = draws
+        #: the speed gate's term from the readings so far (module docstring), and its log density at the samples
+        self.gate = gate
+        self._readings: typing.List[learnt.Observation] = []
+        self._gate_term: typing.Optional[LogDensity] = None
         #: log density (n,) of normalised unknowns (n, d) the samples were drawn from, beside the uniform prior
         #: (the characterisation's readings: ``posterior.characterisation_term``); the renewal's moves target it
         #: times the launches' likelihood
@@ -171,6 +192,7 @@ class OutcomePosterior(WeightedPosterior):
         theta = np.asarray(samples, dtype=np.float64)
         self._member_p, self._location, self._scale = table.predict(theta)
         self.member_log_likelihood = np.zeros((table.members, len(theta)))
+        self._gate_log_likelihood = np.zeros(len(theta))
         super().__init__(table.unknowns, theta, table.candidates, self._member_p.mean(axis=0),
                          table if renew else None, rng, renew_fraction, moves)
 
@@ -203,14 +225,26 @@ class OutcomePosterior(WeightedPosterior):
                                               scale[None, :, column, slot])
         return verdict + density.sum(axis=2)
 
-    def observe_launch(self, index: int, upright: bool, values: typing.Optional[npt.ArrayLike] = None) -> None:
+    def observe_launch(self, index: int, upright: bool, values: typing.Optional[npt.ArrayLike] = None,
+                       reading: typing.Optional[float] = None) -> None:
         """Weigh the samples by one launch at candidate ``index``: its verdict and its transformed outcomes
-        ``values`` (k,) (NaN or None: not measured; :meth:`LearntTable.transformed` makes them)."""
+        ``values`` (k,) (NaN or None: not measured; :meth:`LearntTable.transformed` makes them), and the speed
+        gate's ``reading`` (m/s; None or NaN: not read) through :attr:`gate`'s term."""
         v = np.full(len(self.table.outcomes), np.nan) if values is None else np.asarray(values, dtype=np.float64)
         before = np.logaddexp.reduce(self.member_log_likelihood, axis=0)
         self.member_log_likelihood += self._launch_log_likelihood(self._member_p, self._location, self._scale, index,
                                                                   bool(upright), v)
         self.log_weights += np.logaddexp.reduce(self.member_log_likelihood, axis=0) - before
+        if reading is not None and math.isfinite(reading):
+            if self.gate is None:
+                raise ValueError("a speed gate reading needs the posterior's gate term (gate=)")
+            c = self.candidates[index]
+            self._readings.append(learnt.Observation(c.configuration, c.height_m, c.speed_mps, c.angle_deg,
+                                                     bool(upright), {"measured_speed_mps": float(reading)}))
+            self._gate_term = self.gate.term(self._readings)
+            now = self._gate_term(self.unknowns.to_normalised(self.samples))
+            self.log_weights += now - self._gate_log_likelihood
+            self._gate_log_likelihood = now
         self._mix()
         self._seen.append((index, bool(upright), v))
         self._successes[index] += bool(upright)
@@ -265,7 +299,9 @@ class OutcomePosterior(WeightedPosterior):
         picks = np.minimum(np.searchsorted(np.cumsum(w), (self.rng.random() + np.arange(n)) / n), n - 1)
         u = self.unknowns.to_normalised(self.samples[picks])
         members = self.member_log_likelihood[:, picks]
-        prior = (lambda x: np.zeros(len(x))) if self.log_prior is None else self.log_prior
+        start = (lambda x: np.zeros(len(x))) if self.log_prior is None else self.log_prior
+        gate = self._gate_term
+        prior = start if gate is None else (lambda x: start(x) + gate(x))   # the readings' term moves with the samples
         log_likelihood = np.logaddexp.reduce(members, axis=0)
         log_prior = prior(u)
         step = np.maximum(np.sqrt(np.cov(u, rowvar=False).reshape(d, d).diagonal()), 1e-3) * 2.38 / math.sqrt(d)
@@ -280,6 +316,7 @@ class OutcomePosterior(WeightedPosterior):
         theta = self.unknowns.to_values(u)
         self._member_p, self._location, self._scale = self.table.predict(theta)
         self.member_log_likelihood = members
+        self._gate_log_likelihood = np.zeros(n) if gate is None else gate(u)
         self._set_samples(theta, np.einsum("kn,knc->nc", self.member_weights, self._member_p))
         self.log_weights = np.zeros(n)
         self.renewals += 1
@@ -288,9 +325,53 @@ class OutcomePosterior(WeightedPosterior):
         """Expected information (nats) about the unknowns of a launch at each candidate (c,), verdict and outcomes
         (module docstring); the exact BALD score of the members' mixture when the table has no continuous
         outcome."""
-        if not self.table.outcomes:
-            return super().scores()
-        return self._estimated_scores(None)
+        scores = super().scores() if not self.table.outcomes else self._estimated_scores(None)
+        return scores if self.gate is None else self._with_gate(scores)
+
+    def _gate_predictive(self) -> typing.Tuple[np.ndarray, np.ndarray]:
+        """The next reading's Gaussian at each sample and weighed group given the readings so far (the group's
+        shared table error conditioned on them): mean, variance (n, g) of :attr:`gate`'s groups."""
+        assert self.gate is not None and self.gate.predict is not None
+        mean, sd = self.gate.predict(self.unknowns.to_normalised(self.samples))
+        count, total = np.zeros(len(self.gate.groups)), np.zeros(len(self.gate.groups))
+        where = {g: i for i, g in enumerate(self.gate.groups)}
+        for o in self._readings:
+            i = where.get((o.configuration, float(o.speed_mps)))
+            if i is not None:
+                count[i] += 1
+                total[i] += o.outcomes["measured_speed_mps"]
+        shared, variance = (self.gate.model_error * mean) ** 2, sd ** 2
+        gain = count * shared / (variance + count * shared)   # the shared error's posterior, per reading seen
+        average = np.where(count > 0, total / np.maximum(count, 1.0), mean)
+        return mean + gain * (average - mean), variance + shared * (1.0 - gain)
+
+    def _with_gate(self, scores: np.ndarray) -> np.ndarray:
+        """``scores`` with the candidates whose reading :attr:`gate` weighs scored by the information of verdict and
+        reading together, I((verdict, reading); theta), by nested Monte Carlo (:data:`GATE_DRAWS`; the verdict and
+        the reading independent given theta, as the posterior weighs them)."""
+        assert self.gate is not None
+        where = {g: i for i, g in enumerate(self.gate.groups)}
+        columns = [(c, where[(k.configuration, float(k.speed_mps))]) for c, k in enumerate(self.candidates)
+                   if (k.configuration, float(k.speed_mps)) in where]
+        if not columns:
+            return scores
+        mean, variance = self._gate_predictive()
+        w = self.weights
+        log_w = np.log(np.maximum(w, 1e-300))
+        rng = np.random.default_rng([self.launches, self.renewals, 11])
+        m = GATE_DRAWS
+        picks = np.minimum(np.searchsorted(np.cumsum(w), (rng.random() + np.arange(m)) / m), len(w) - 1)
+        uniform, z = rng.random(m), rng.standard_normal(m)
+        out = scores.copy()
+        for c, g in columns:
+            upright = uniform < self.probabilities[picks, c]                                     # (m,)
+            y = mean[picks, g] + np.sqrt(variance[picks, g]) * z
+            verdict = np.where(upright[:, None], self._log_p[None, :, c], self._log_q[None, :, c])   # (m, n)
+            log_f = verdict - 0.5 * ((y[:, None] - mean[None, :, g]) ** 2 / variance[None, :, g]
+                                     + np.log(2.0 * math.pi * variance[None, :, g]))
+            mixture = np.logaddexp.reduce(log_f + log_w[None, :], axis=1)
+            out[c] = max(float(np.mean(log_f[np.arange(m), picks] - mixture)), 0.0)
+        return out
 
     def group_scores(self, groups: npt.ArrayLike) -> np.ndarray:
         """:meth:`WeightedPosterior.group_scores` over verdict and outcomes (estimated as :meth:`scores`): ``groups``

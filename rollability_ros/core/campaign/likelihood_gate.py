@@ -142,10 +142,8 @@ def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSetti
     of the reading), and with them in the term the table's error pulled the centre of mass off its truth
     (measured: docs/calibration.md, "The speed gate's term"). The learnt likelihood must then not weigh the same
     reading (``outcomes`` without ``measured_speed_mps``)."""
-    names = unknowns.names
     bare_only = configurations is not None and all(c == BARE_ROBOT for c in configurations)
-    others = gate_unknowns(unknowns, sampled, bare_only)
-    bias = names.index(BIAS_KEY)
+    gate_unknowns(unknowns, sampled, bare_only)   # refuses unknowns the term cannot weigh, readings or not
     readings: typing.Dict[typing.Tuple[str, float], typing.List[float]] = {}
     for o in observations:
         if configurations is not None and o.configuration not in configurations:
@@ -156,29 +154,14 @@ def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSetti
     if not readings:
         return lambda u: np.zeros(len(u))
     groups = sorted(readings)
-    table = gate_table(twin, unknowns, groups, bias_points, other_points, sampled, bare_only)
-    grids = [np.linspace(0.0, 1.0, n) for n in table.shape[:-1]]
-    interpolate = require("scipy.interpolate", feature="the speed gate's term").RegularGridInterpolator(
-        grids, table, method="cubic" if min(table.shape[:-1]) >= 4 else "linear")
+    predict = gate_predictor(twin, unknowns, groups, bias_points, other_points, sampled, bare_only)
     count = np.array([len(readings[g]) for g in groups], dtype=np.float64)
     first = np.array([sum(readings[g]) for g in groups])
     second = np.array([sum(v * v for v in readings[g]) for g in groups])
-    span = unknowns.upper[bias] - unknowns.lower[bias]
-    step = 0.5 / (table.shape[0] - 1)   # half a grid step, normalised: the slope's central difference
-    scatter = names.index(SCATTER_KEY) if SCATTER_KEY in (names if sampled is None else sampled) else None
-    sigma_fixed = twin.twin.speed_sigma_fraction
 
     def term(u: np.ndarray) -> np.ndarray:
         """The readings' Gaussian log-likelihood (s,), summed over the groups."""
-        point = np.clip(u[:, [bias, *others]], 0.0, 1.0)
-        low, high = point.copy(), point.copy()
-        low[:, 0] = np.clip(point[:, 0] - step, 0.0, 1.0)
-        high[:, 0] = np.clip(point[:, 0] + step, 0.0, 1.0)
-        mean, below, above = interpolate(point), interpolate(low), interpolate(high)
-        slope = (above - below) / ((high[:, 0] - low[:, 0]) * span)[:, None]   # dG / d bias, m/s per unit
-        b = values_one(unknowns, bias, point[:, 0])
-        sigma = values_one(unknowns, scatter, u[:, scatter]) if scatter is not None else np.full(len(u), sigma_fixed)
-        sd = np.maximum(np.abs(slope) * ((1.0 + b) * sigma)[:, None], 1e-6)
+        mean, sd = predict(u)
         # readings g_i = G + shared + scatter_i: the group's mean carries the table's error (model_error x G,
         # shared by its readings), each reading its own scatter (sd): the Gaussian with covariance sd^2 I + tau^2 1 1'
         variance, shared = sd ** 2, (model_error * mean) ** 2
@@ -188,3 +171,55 @@ def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSetti
                        + count * offset ** 2 / (variance + count * shared)
                        + count * math.log(2.0 * math.pi)).sum(axis=1)
     return term
+
+
+def gate_predictor(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Sequence[typing.Tuple[str, float]],
+                   bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS,
+                   sampled: typing.Optional[typing.Sequence[str]] = None, bare_only: bool = False
+                   ) -> typing.Callable[[np.ndarray], typing.Tuple[np.ndarray, np.ndarray]]:
+    """normalised unknowns (s, d) -> (G, sd) (s, len(groups)): the reading without scatter at each (configuration,
+    set speed) of ``groups`` (:func:`gate_table`, interpolated) and the scatter's standard deviation of one reading
+    (the delta method: G'(b) (1 + b) ``speed_sigma_fraction``); the model :func:`gate_term` weighs readings by."""
+    names = unknowns.names
+    others = gate_unknowns(unknowns, sampled, bare_only)
+    bias = names.index(BIAS_KEY)
+    table = gate_table(twin, unknowns, groups, bias_points, other_points, sampled, bare_only)
+    grids = [np.linspace(0.0, 1.0, n) for n in table.shape[:-1]]
+    interpolate = require("scipy.interpolate", feature="the speed gate's term").RegularGridInterpolator(
+        grids, table, method="cubic" if min(table.shape[:-1]) >= 4 else "linear")
+    span = unknowns.upper[bias] - unknowns.lower[bias]
+    step = 0.5 / (table.shape[0] - 1)   # half a grid step, normalised: the slope's central difference
+    scatter = names.index(SCATTER_KEY) if SCATTER_KEY in (names if sampled is None else sampled) else None
+    sigma_fixed = twin.twin.speed_sigma_fraction
+
+    def predict(u: np.ndarray) -> typing.Tuple[np.ndarray, np.ndarray]:
+        point = np.clip(u[:, [bias, *others]], 0.0, 1.0)
+        low, high = point.copy(), point.copy()
+        low[:, 0] = np.clip(point[:, 0] - step, 0.0, 1.0)
+        high[:, 0] = np.clip(point[:, 0] + step, 0.0, 1.0)
+        mean, below, above = interpolate(point), interpolate(low), interpolate(high)
+        slope = (above - below) / ((high[:, 0] - low[:, 0]) * span)[:, None]   # dG / d bias, m/s per unit
+        b = values_one(unknowns, bias, point[:, 0])
+        sigma = values_one(unknowns, scatter, u[:, scatter]) if scatter is not None else np.full(len(u), sigma_fixed)
+        return mean, np.maximum(np.abs(slope) * ((1.0 + b) * sigma)[:, None], 1e-6)
+    return predict
+
+
+class GateModel:
+    """The speed gate's term for a plan (:class:`~rollability_ros.core.campaign.learnt_plan.OutcomePosterior`'s
+    ``gate``): :meth:`term` weighs the readings so far (:func:`gate_term`), :meth:`predict` gives the model at the
+    weighed (configuration, set speed) of ``groups`` (:attr:`groups`: those of ``configurations``) for the
+    expected information of a launch's reading."""
+
+    def __init__(self, twin: "LaunchTwinSettings", unknowns: Unknowns,
+                 groups: typing.Iterable[typing.Tuple[str, float]], model_error: float = MODEL_ERROR,
+                 configurations: typing.Optional[typing.Sequence[str]] = (BARE_ROBOT,)) -> None:
+        self.twin, self.unknowns, self.model_error, self.configurations = twin, unknowns, model_error, configurations
+        self.groups = sorted({(c, float(v)) for c, v in groups if configurations is None or c in configurations})
+        bare_only = configurations is not None and all(c == BARE_ROBOT for c in configurations)
+        self.predict = gate_predictor(twin, unknowns, self.groups, bare_only=bare_only) if self.groups else None
+
+    def term(self, observations: typing.Sequence[Observation]) -> LogDensity:
+        """:func:`gate_term` of ``observations`` on this model's twin, unknowns, error and configurations."""
+        return gate_term(observations, self.twin, self.unknowns, model_error=self.model_error,
+                         configurations=self.configurations)

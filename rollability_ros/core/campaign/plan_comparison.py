@@ -17,6 +17,7 @@ from rollability_ros.core.records import LaunchCondition
 
 if typing.TYPE_CHECKING:   # annotations only: the learnt table is loaded by the caller
     from rollability_ros.core.campaign.learnt_plan import LearntTable
+    from rollability_ros.core.campaign.likelihood_gate import GateModel
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,8 +120,10 @@ class MatchedWidths:
     adaptive_ess: float
 
 
-#: A hidden truth's launch at a candidate (index, outcome generator) -> (upright, continuous outcomes or None).
-Launcher = typing.Callable[[int, np.random.Generator], typing.Tuple[bool, typing.Optional[np.ndarray]]]
+#: A hidden truth's launch at a candidate (index, outcome generator) -> (upright, continuous outcomes or None, the
+#: speed gate's reading in m/s or None).
+Launcher = typing.Callable[[int, np.random.Generator],
+                           typing.Tuple[bool, typing.Optional[np.ndarray], typing.Optional[float]]]
 
 
 #: The adaptive plan's choice in the comparison: ``joint`` the expected information about all the unknowns
@@ -182,12 +185,16 @@ def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
             return WeightedPosterior(unknowns, prior, candidates, table, predictor if renew else None,
                                      np.random.default_rng([seed, t, 2 + plan]))
 
-        def launch(index: int, outcome_rng: np.random.Generator, t: int = t) -> typing.Tuple[bool, None]:
-            """Candidate ``index`` launched at truth ``t``: (upright, no outcomes (o,))."""
-            return bool(outcome_rng.random() < truth_table[t][index]), None
+        def launch(index: int, outcome_rng: np.random.Generator, t: int = t) -> typing.Tuple[bool, None, None]:
+            """Candidate ``index`` launched at truth ``t``: (upright, no outcomes, no gate reading)."""
+            return bool(outcome_rng.random() < truth_table[t][index]), None, None
         results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition))
     return results
 
+
+#: A hidden truth's speed gate reading: (truth index, truth (d,) own units, the launch's condition, generator) -> m/s
+#: (NaN: not read).
+GateReading = typing.Callable[[int, np.ndarray, LaunchCondition, np.random.Generator], float]
 
 #: A hidden truth's starting samples: (truth index, truth (d,) own units) -> (samples (n, d) own units, the log
 #: density (normalised (s, d) -> (s,)) they were drawn from beside the uniform prior, e.g. its characterisation's).
@@ -198,7 +205,8 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
                            level: float = 0.95, budget: typing.Optional[int] = None, draws: int = 32,
                            acquisition: str = "joint",
                            on_truth: typing.Optional[typing.Callable[[int, MatchedWidths], None]] = None,
-                           start: typing.Optional[Start] = None
+                           start: typing.Optional[Start] = None, gate: typing.Optional["GateModel"] = None,
+                           gate_reading: typing.Optional[GateReading] = None
                            ) -> typing.Tuple[np.ndarray, typing.List[MatchedWidths]]:
     """:func:`adaptive_to_match_matrix` on a learnt likelihood's table
     (:class:`~rollability_ros.core.campaign.learnt_plan.LearntTable`): each launch of a hidden truth draws the
@@ -207,7 +215,11 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
     adaptive plan scores the information of verdict and outcomes (``draws`` Monte Carlo outcomes). Returns the
     truths (t, d) and the results; ``on_truth(t, result)`` after each. ``start`` (:data:`Start`): each truth's
     starting samples for both plans instead of the prior draws (the characterisation's posterior: both plans then
-    begin from the same bench readings, and renewals keep their density)."""
+    begin from the same bench readings, and renewals keep their density). ``gate`` (the speed gate's exact term,
+    :class:`~rollability_ros.core.campaign.likelihood_gate.GateModel`: the posteriors weigh the readings, the
+    adaptive plan scores their information) and ``gate_reading`` (:data:`GateReading`: the
+    truth's reading of a launch): every launch of both plans also gives its gate reading, weighed by that term
+    (drawn from a generator of its own per truth and plan, so the verdicts are those drawn without it)."""
     from rollability_ros.core.campaign.learnt_plan import OutcomePosterior
 
     rng = np.random.default_rng(seed)
@@ -221,12 +233,19 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
                  log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = log_prior
                  ) -> WeightedPosterior:
             return OutcomePosterior(table, begin, np.random.default_rng([seed, t, 2 + plan]), draws=draws,
-                                    log_prior=log_prior)
+                                    log_prior=log_prior, gate=gate)
 
-        def launch(index: int, outcome_rng: np.random.Generator,
-                   t: int = t) -> typing.Tuple[bool, typing.Optional[np.ndarray]]:
-            """Candidate ``index`` launched at hidden truth ``t``: (upright, continuous outcomes (o,) or None)."""
-            return table.draw(hidden[t], index, outcome_rng)
+        readers: typing.Dict[int, np.random.Generator] = {}   # by the plan's outcome generator: matrix, adaptive
+
+        def launch(index: int, outcome_rng: np.random.Generator, t: int = t
+                   ) -> typing.Tuple[bool, typing.Optional[np.ndarray], typing.Optional[float]]:
+            """Candidate ``index`` launched at hidden truth ``t``: (upright, continuous outcomes (o,) or None, the
+            gate's reading or None)."""
+            upright, values = table.draw(hidden[t], index, outcome_rng)
+            if gate_reading is None:
+                return upright, values, None
+            reader = readers.setdefault(id(outcome_rng), np.random.default_rng([seed, t, 5, len(readers)]))
+            return upright, values, gate_reading(t, hidden[t], table.candidates[index], reader)
         results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition))
         if on_truth is not None:
             on_truth(t, results[-1])

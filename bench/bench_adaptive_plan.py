@@ -117,6 +117,7 @@ def gate_model(likelihood: typing.Any, candidates: typing.Sequence[adaptive.Laun
     from rollability_ros.core.campaign import likelihood_gate
     from rollability_ros.core.sim import twin_with_values
 
+    os.makedirs(folder, exist_ok=True)
     parameters, unknowns, _ = bench.bench_parameters(folder)
     if unknowns != likelihood.unknowns:
         raise SystemExit(f"--gate: the likelihood's unknowns are not bench_calibration.py's "
@@ -168,8 +169,9 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
     def say(t: int, r: plan_comparison.MatchedWidths) -> None:
         needed = f"{r.adaptive_launches}" if r.adaptive_launches is not None else f">{matrix_launches}"
         print(f"truth {t}: matrix {matrix_launches} launches -> widths " + ", ".join(f"{w:.0%}" for w in r.matrix_widths)
-              + f" (ESS {r.matrix_ess:.0f}); adaptive reaches them in {needed} launches (ESS {r.adaptive_ess:.0f}) "
-              f"[{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
+              + f" (ESS {r.matrix_ess:.0f}); adaptive reaches them in {needed} launches (ESS {r.adaptive_ess:.0f}"
+              + ("" if r.adaptive_launches else "; widths then " + ", ".join(f"{w:.0%}" for w in r.adaptive_widths))
+              + f") [{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
     _, results = plan_comparison.learnt_to_match_matrix(table, truths, matrix_launches, samples, seed, draws=draws,
                                                         acquisition=acquisition, on_truth=say, start=start,
                                                         gate=model, gate_reading=reading)

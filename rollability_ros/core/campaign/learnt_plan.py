@@ -369,7 +369,9 @@ class OutcomePosterior(WeightedPosterior):
             verdict = np.where(upright[:, None], self._log_p[None, :, c], self._log_q[None, :, c])   # (m, n)
             log_f = verdict - 0.5 * ((y[:, None] - mean[None, :, g]) ** 2 / variance[None, :, g]
                                      + np.log(2.0 * math.pi * variance[None, :, g]))
-            mixture = np.logaddexp.reduce(log_f + log_w[None, :], axis=1)
+            joint = log_f + log_w[None, :]
+            top = joint.max(axis=1)
+            mixture = top + np.log(np.exp(joint - top[:, None]).sum(axis=1))   # log-sum-exp, faster than a reduce
             out[c] = max(float(np.mean(log_f[np.arange(m), picks] - mixture)), 0.0)
         return out
 

@@ -4,7 +4,7 @@ widths of the twin's unknowns, on the same hidden truths. Simulated throughout.
     python bench/bench_adaptive_plan.py [--truths 10] [--unknowns 4] [--samples 20000] [--matrix-launches 400]
     nice python bench/bench_adaptive_plan.py --likelihood twin --unknowns 2 --samples 48 --sim-repetitions 4
     nice python bench/bench_adaptive_plan.py --learnt likelihood.npz [--outcomes all|none|NAME,...] --samples 500
-        [--characterisation DIR]
+        [--characterisation DIR] [--gate DIR]
 
 For each hidden truth drawn from the prior (uniform on each unknown's search scale, its calibration bounds): the
 paper's matrix launches ``--matrix-launches`` times (the 80 grouped conditions of config/campaign.yaml -- the bare
@@ -21,7 +21,10 @@ from the learnt model at the truth; both plans weigh the samples by all of it an
 scores the expected information of verdict and outcomes (learnt_plan.OutcomePosterior). ``--outcomes none``: the
 verdicts alone (the exact BALD score). ``--characterisation DIR`` (a file over bench_calibration.py's unknowns and
 designs, e.g. its ``--keep`` folder's): both plans start from each truth's bench readings (issue 44: the
-characterisation on both sides), simulated as bench_calibration.py does.
+characterisation on both sides), simulated as bench_calibration.py does. ``--gate DIR``: every launch of both plans
+also gives its speed gate reading (the truth's, from the twin), the bare robot's weighed by the exact term of
+core/campaign/likelihood_gate.py, and the adaptive plan scores verdict and reading together (with ``--outcomes``
+that leave out measured_speed_mps, so the reading is weighed once).
 
 ``--likelihood toy`` (default without --learnt): an analytic logistic stand-in (LogisticToyPredictor: each condition's own sensitivity
 to each unknown, seeded), cheap; it shows the machinery, not the rig. ``--likelihood twin``: the

@@ -267,6 +267,9 @@ def test_the_gate_reading_enters_both_the_weights_and_the_choice_of_launch():
     bare = np.array([c.configuration == "baseline" for c in candidates])
     assert np.all(with_gate.scores()[bare] > plain.scores()[bare] + 0.5)
     assert np.allclose(with_gate.scores()[~bare], plain.scores()[~bare])
+    about_b = with_gate.unknown_scores(1)   # the targeted score's: about b alone, which only the reading sees
+    assert np.all(about_b[bare] > plain.unknown_scores(1)[bare] + 0.5)
+    assert np.all(about_b[bare] <= with_gate.scores()[bare] + 0.05)   # about b: at most about both unknowns
     rng = np.random.default_rng(5)
     cells = [(c.configuration, c.height_m, c.speed_mps, c.angle_deg) for c in candidates[::3]]
     observations = simulate((0.7, 0.3), cells, rng)

@@ -345,10 +345,11 @@ class OutcomePosterior(WeightedPosterior):
         average = np.where(count > 0, total / np.maximum(count, 1.0), mean)
         return mean + gain * (average - mean), variance + shared * (1.0 - gain)
 
-    def _with_gate(self, scores: np.ndarray) -> np.ndarray:
+    def _with_gate(self, scores: np.ndarray, groups: typing.Optional[np.ndarray] = None) -> np.ndarray:
         """``scores`` with the candidates whose reading :attr:`gate` weighs scored by the information of verdict and
-        reading together, I((verdict, reading); theta), by nested Monte Carlo (:data:`GATE_DRAWS`; the verdict and
-        the reading independent given theta, as the posterior weighs them)."""
+        reading together, I((verdict, reading); theta) (``groups`` (n,): about the sample's group instead, as
+        :meth:`group_scores`), by nested Monte Carlo (:data:`GATE_DRAWS`; the verdict and the reading independent
+        given theta, as the posterior weighs them)."""
         assert self.gate is not None
         where = {g: i for i, g in enumerate(self.gate.groups)}
         columns = [(c, where[(k.configuration, float(k.speed_mps))]) for c, k in enumerate(self.candidates)
@@ -362,6 +363,7 @@ class OutcomePosterior(WeightedPosterior):
         m = GATE_DRAWS
         picks = np.minimum(np.searchsorted(np.cumsum(w), (rng.random() + np.arange(m)) / m), len(w) - 1)
         uniform, z = rng.random(m), rng.standard_normal(m)
+        mass = None if groups is None else np.array([w[groups == groups[i]].sum() for i in picks])
         out = scores.copy()
         for c, g in columns:
             upright = uniform < self.probabilities[picks, c]                                     # (m,)
@@ -372,15 +374,21 @@ class OutcomePosterior(WeightedPosterior):
             joint = log_f + log_w[None, :]
             top = joint.max(axis=1)
             mixture = top + np.log(np.exp(joint - top[:, None]).sum(axis=1))   # log-sum-exp, faster than a reduce
-            out[c] = max(float(np.mean(log_f[np.arange(m), picks] - mixture)), 0.0)
+            if groups is None:
+                conditional = log_f[np.arange(m), picks]
+            else:   # the group's weighted mixture: log sum_{s in g} w_s f(y | s) - log w(g)
+                assert mass is not None
+                same = groups[None, :] == groups[picks][:, None]
+                inside = np.where(same, np.exp(joint - top[:, None]), 0.0).sum(axis=1)
+                conditional = top + np.log(np.maximum(inside, 1e-300)) - np.log(mass)
+            out[c] = max(float(np.mean(conditional - mixture)), 0.0)
         return out
 
     def group_scores(self, groups: npt.ArrayLike) -> np.ndarray:
         """:meth:`WeightedPosterior.group_scores` over verdict and outcomes (estimated as :meth:`scores`): ``groups``
         (s,), one group per sample; scores (c,), one per candidate."""
-        if not self.table.outcomes:
-            return super().group_scores(groups)
-        return self._estimated_scores(np.asarray(groups))
+        scores = super().group_scores(groups) if not self.table.outcomes else self._estimated_scores(np.asarray(groups))
+        return scores if self.gate is None else self._with_gate(scores, np.asarray(groups))
 
     def _estimated_scores(self, groups: typing.Optional[np.ndarray]) -> np.ndarray:
         """I(y; group of theta) (c,) by nested Monte Carlo; ``groups`` None: each sample its own group (I(y; theta)):

@@ -120,7 +120,8 @@ def mass_split(args):
         results = list(map(split_launches, *columns))
     print(f"{args.designs}: {args.launches} nominal launches each under the campaign's conditions in turn (seed "
           f"{SPLIT_SEED}, {settings.physics.engine} twin, simulated), {time.perf_counter() - started:.0f} s")
-    for (label, _mesh, scale), (rows, mass_kg) in zip(jobs, results):
+    bare = (0, 0)
+    for (label, _mesh, scale), (rows, mass_kg) in zip(jobs, results):   # the bare robot first
         by_speed: typing.Dict[float, typing.Counter[str]] = collections.defaultdict(collections.Counter)
         for speed, mode in rows:
             by_speed[speed][mode] += 1
@@ -131,7 +132,12 @@ def mass_split(args):
             parts.append(f"{speed} m/s: upright {count['upright']}/{sum(count.values())} (at rest upside down "
                          f"{count['upside down']}, on a side or end {sides}, tilted {count['tilted on its wheels']}, "
                          f"invalid {count['invalid']})")
-        print(f"  {label:<5} mass x{scale:<4g} {mass_kg * 1000:>5.0f} g  " + "; ".join(parts), flush=True)
+        upright = sum(1 for _speed, mode in rows if mode == "upright")
+        if label == "bare":
+            bare = (upright, len(rows))
+        gain, low, high = newcombe_interval(upright, len(rows), *bare)
+        print(f"  {label:<5} mass x{scale:<4g} {mass_kg * 1000:>5.0f} g  all {upright}/{len(rows)}, minus bare "
+              f"{gain:+.2f} [{low:+.2f}, {high:+.2f}]; " + "; ".join(parts), flush=True)
     return 0
 
 

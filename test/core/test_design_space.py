@@ -72,3 +72,26 @@ def test_a_lighter_print_option_weighs_a_flat_top_as_the_hand_formula(option, in
     low, high = light.objective.robust.range_of("profile_mass_scale")
     assert low < 1.0 < high and low * high == pytest.approx(1.0)   # log-uniform, median the modelled print
     assert shipped.objective.robust.range_of("profile_mass_scale") == (0.15, 1.5)
+
+
+def test_the_gradual_print_option_weighs_a_flat_top_as_its_density_bands_and_under_0_4_of_the_default_print():
+    """config/gradual_print.yaml (Cura's gradual infill: 20 % under the top, halved 5 times every 1.5 mm): the flat
+    top at the bound is a box; its inside is 0.625 % infill plus slabs under the top at 20, 10, 5, 2.5 and 1.25 %."""
+    shipped, gradual = settings_of(["optimizer"]), settings_of(["optimizer", "gradual_print"])
+    spec = gradual.robot.profile_print
+    assert (spec.infill_fraction, spec.gradual_infill_steps, spec.gradual_infill_step_height_m) == (0.2, 5, 0.0015)
+    assert shipped.robot.profile_print.gradual_infill_steps == 0
+    heights = np.full(gradual.grid.n_variables, gradual.grid.height_max)
+    box = geometry.profile_mesh(heights, gradual.grid)
+    assert box is not None and geometry.check_printability(box, gradual.printer).printable
+    a, b, c = box.extents
+    wall, skin, rho = spec.wall_thickness_m, spec.skin_thickness_m, spec.material_density_kgpm3
+    area = (a - 2 * wall) * (b - 2 * wall)
+    slabs = sum(0.2 / 2 ** k - 0.2 / 32 for k in range(5)) * area * 0.0015
+    expected = rho * (a * b * c - area * (c - 2 * skin)) + rho * 0.2 / 32 * area * (c - 2 * skin) + rho * slabs
+    body = evaluation.profile_job(heights, gradual).profile
+    heavier = evaluation.profile_job(heights, shipped).profile
+    assert body is not None and heavier is not None
+    assert body.mass_kg == pytest.approx(expected, rel=1e-6)
+    assert body.mass_kg < 0.4 * heavier.mass_kg
+    assert gradual.objective.robust.range_of("profile_mass_scale") == (0.8, 1.25)

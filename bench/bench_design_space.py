@@ -22,8 +22,9 @@ intervals and its gain over the bare robot with Newcombe's 95% interval. All num
 With ``--designs`` it asks instead where a chosen design's gain comes from: the bare robot and each design (by
 label) at each ``--mass-scales`` multiplier on its printed mass (``robot.profile_mass_scale``; 0.1 is nearly the
 bare geometry, 1 the print of ``--config``'s ``robot.profile_print``), ``--launches`` nominal launches each under
-the campaign's conditions in turn (seed :data:`SPLIT_SEED`), split by launch speed, and where the failures came to
-rest (``bench_shape_ceiling.rest_mode``).
+the campaign's conditions in turn (seed :data:`SPLIT_SEED`): each row's upright total and its gain over the bare
+robot (Newcombe 95%), split by launch speed and where the failures came to rest (``bench_shape_ceiling.rest_mode``).
+``--config gradual_print`` (or another print option) with ``--mass-scales 1`` launches the designs as that print.
 """
 import argparse
 import dataclasses

@@ -4,6 +4,7 @@ widths of the twin's unknowns, on the same hidden truths. Simulated throughout.
     python bench/bench_adaptive_plan.py [--truths 10] [--unknowns 4] [--samples 20000] [--matrix-launches 400]
     nice python bench/bench_adaptive_plan.py --likelihood twin --unknowns 2 --samples 48 --sim-repetitions 4
     nice python bench/bench_adaptive_plan.py --learnt likelihood.npz [--outcomes all|none|NAME,...] --samples 500
+        [--characterisation DIR]
 
 For each hidden truth drawn from the prior (uniform on each unknown's search scale, its calibration bounds): the
 paper's matrix launches ``--matrix-launches`` times (the 80 grouped conditions of config/campaign.yaml -- the bare
@@ -18,7 +19,9 @@ with more). The same outcomes the launches' P(upright) predict at the truth, dra
 configurations x levels; each launch of a truth draws the verdict and the continuous outcomes (``--outcomes``)
 from the learnt model at the truth; both plans weigh the samples by all of it and renew them; the adaptive plan
 scores the expected information of verdict and outcomes (learnt_plan.OutcomePosterior). ``--outcomes none``: the
-verdicts alone (the exact BALD score).
+verdicts alone (the exact BALD score). ``--characterisation DIR`` (a file over bench_calibration.py's unknowns and
+designs, e.g. its ``--keep`` folder's): both plans start from each truth's bench readings (issue 44: the
+characterisation on both sides), simulated as bench_calibration.py does.
 
 ``--likelihood toy`` (default without --learnt): an analytic logistic stand-in (LogisticToyPredictor: each condition's own sensitivity
 to each unknown, seeded), cheap; it shows the machinery, not the rig. ``--likelihood twin``: the
@@ -72,8 +75,37 @@ def load() -> str:
     return f"load {os.getloadavg()[0]:.1f}"
 
 
+def characterisation_start(likelihood: typing.Any, folder: str, samples: int) -> plan_comparison.Start:
+    """``--characterisation DIR``: each truth's bench readings as bench_calibration.py simulates them (slide
+    angles, roll-outs, tip angles, weighings; the designs' STLs written to ``folder``, as there), and ``samples``
+    draws of the posterior from those readings alone (``posterior.sample_posterior`` without launches), where both
+    plans start; their term is the density the renewals keep."""
+    import numpy as np
+
+    from bench import bench_calibration as bench
+    from rollability_ros.core.campaign import posterior as sampling
+
+    parameters, unknowns, _ = bench.bench_parameters(folder)
+    if unknowns != likelihood.unknowns:
+        raise SystemExit(f"--characterisation: the likelihood's unknowns are not bench_calibration.py's "
+                         f"({', '.join(likelihood.unknowns.names)})")
+    twin = launch_twin_settings_from_parameters(bench.rollout_parameters(parameters))
+
+    def start(t: int, truth: np.ndarray) -> typing.Tuple[np.ndarray, typing.Callable[[np.ndarray], np.ndarray]]:
+        number = 100_000 + t   # the readings' seeds: none of bench_calibration's truths
+        readings = bench.bench_readings(parameters, unknowns, truth, number, bench.characterise_truth(
+            parameters, unknowns, truth, np.random.default_rng([bench.TRUTH_SEED, number])))
+        term = sampling.characterisation_term(readings, twin, unknowns)
+        drawn = sampling.sample_posterior(likelihood, [], extra=term, seed=t + 1, steps=150, walkers=16,
+                                          start_draws=300)
+        picks = np.random.default_rng([bench.TRUTH_SEED, number, 1]).choice(len(drawn.samples), samples, replace=False)
+        return drawn.samples[picks], term
+    return start
+
+
 def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed: int, outcomes: str,
-               draws: int, acquisition: str = "joint") -> typing.List[plan_comparison.MatchedWidths]:
+               draws: int, acquisition: str = "joint",
+               characterisation: typing.Optional[str] = None) -> typing.List[plan_comparison.MatchedWidths]:
     """``--learnt FILE`` (module docstring): print each truth as it finishes, then the median."""
     import numpy as np
 
@@ -89,7 +121,9 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
     print(f"learnt likelihood {os.path.basename(path)} ({likelihood.info.get('training_launches', '?')} training "
           f"launches); unknowns {', '.join(likelihood.unknowns.names)}; {len(candidates)} grouped conditions; "
           f"outcomes: verdict{''.join(', ' + n for n in table.outcomes)}; {truths} truths from the prior; {samples} "
-          f"prior samples (renewed); {acquisition} acquisition; outcomes drawn from the learnt model at each truth; simulated", flush=True)
+          f"{'samples of the characterisation posterior' if characterisation else 'prior samples'} (renewed); "
+          f"{acquisition} acquisition; outcomes drawn from the learnt model at each truth; simulated", flush=True)
+    start = characterisation_start(likelihood, characterisation, samples) if characterisation else None
     started = time.perf_counter()
 
     def say(t: int, r: plan_comparison.MatchedWidths) -> None:
@@ -98,7 +132,7 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
               + f" (ESS {r.matrix_ess:.0f}); adaptive reaches them in {needed} launches (ESS {r.adaptive_ess:.0f}) "
               f"[{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
     _, results = plan_comparison.learnt_to_match_matrix(table, truths, matrix_launches, samples, seed, draws=draws,
-                                                        acquisition=acquisition, on_truth=say)
+                                                        acquisition=acquisition, on_truth=say, start=start)
     counts = [r.adaptive_launches if r.adaptive_launches is not None else np.inf for r in results]
     median = float(np.median(counts))
     print(f"median launches to the matrix's widths: adaptive {median:g} against matrix {matrix_launches} "
@@ -120,6 +154,10 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     parser.add_argument("--learnt", metavar="FILE", help="a prepared likelihood file (module docstring)")
     parser.add_argument("--outcomes", default="all",
                         help="with --learnt: all (default), none (verdicts only) or NAME,NAME of the continuous outcomes")
+    parser.add_argument("--characterisation", metavar="DIR",
+                        help="with --learnt (a file over bench_calibration.py's unknowns and designs): both plans "
+                             "start from each truth's bench readings (slide, roll-out, tip angles, weighings), "
+                             "simulated as bench_calibration.py does; its designs' STLs are written to DIR")
     parser.add_argument("--draws", type=int, default=32,
                         help="with --learnt: Monte Carlo outcomes per candidate of the expected information")
     parser.add_argument("--acquisition", choices=plan_comparison.ACQUISITIONS, default="joint",
@@ -146,7 +184,7 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
         args.truths, args.unknowns, args.samples, args.matrix_launches = 1, 2, 200, 40
     if args.learnt:
         run_learnt(args.learnt, args.truths, args.matrix_launches, args.samples, args.seed, args.outcomes, args.draws,
-                   args.acquisition)
+                   args.acquisition, args.characterisation)
         return 0
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration.calibration_settings(parameters)

@@ -2,7 +2,8 @@
 widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise -> validate. All simulated.
 
     nice python bench/bench_calibration.py [--prepare-launches 8000] [--members 3] [--truths 50] [--steps 200]
-        [--temperature T] [--engine mujoco|pybullet] [--workers 2] [--likelihood FILE] [--keep DIR]
+        [--first-truth K] [--temperature T] [--outcomes all|none|NAMES] [--no-rollouts] [--no-tips] [--no-weighing] [--gate]
+        [--engine mujoco|pybullet] [--workers 2] [--likelihood FILE] [--keep DIR]
         [--skip-cli] [--skip-adaptive] [--skip-reoptimize] [--reoptimize-generations 15] [--smoke]
 
 0. The twin: ``--engine`` (``sim.engine``; default mujoco, whose launch run to rest costs about a fifth of
@@ -25,7 +26,9 @@ widths, the two-unknown `rollability calibrate`, and calibrate -> re-optimise ->
    design's profile (1 g noise; ``--no-weighing``), drawn afresh from the truth's seed; then,
    in a worker, the posterior of all unknowns from the verdicts, the gate's speed and the IMU's tilt, peak
    deceleration, time to rest and the rest distance, plus the characterisation. Prints each unknown's coverage of
-   the 95% sets, their widths as a fraction of the range (own scale), the SBC ranks (the truth among 99 thinned
+   the 95% sets (``--gate``: the speed gate's readings through the twin's tabulated launcher model instead of the
+   learnt gate outcome, core/campaign/likelihood_gate.py; ``--first-truth K``: truths K.. instead of 0..), their
+   widths as a fraction of the range (own scale), the SBC ranks (the truth among 99 thinned
    posterior samples: their histogram by fifths and its chi-squared p-value), the calibration time, and the
    learnt P(upright) on these fresh launches against a constant (Brier, log loss, reliability by deciles).
 4. ``rollability calibrate --likelihood`` (the CLI, a subprocess) with two unknowns (centre of mass, foam friction)
@@ -57,6 +60,7 @@ import numpy as np  # noqa: E402
 from rollability_ros.core.campaign import calibration  # noqa: E402
 from rollability_ros.core.campaign import likelihood as learnt  # noqa: E402
 from rollability_ros.core.campaign import likelihood_learning as learning  # noqa: E402
+from rollability_ros.core.campaign import likelihood_gate  # noqa: E402
 from rollability_ros.core.campaign import posterior as sampling  # noqa: E402
 from rollability_ros.core.campaign.adaptive import Unknowns  # noqa: E402
 from rollability_ros.core.config import load_parameters  # noqa: E402
@@ -248,11 +252,20 @@ def truth_data(parameters, unknowns, matrix, number, cache):
 
 
 def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, temperature, cache, walkers=16,
-                    start_draws=500, outcomes=None, rollouts=True, tips=True, weighing=True, grid_points=None):
+                    start_draws=500, outcomes=None, rollouts=True, tips=True, weighing=True, grid_points=None,
+                    gate_points=None):
     """One truth of step 3 in a worker process: its data (:func:`truth_data`), then the posterior of every
-    unknown. Returns a dict: the truth, the normalised samples, times, and the learnt P(upright) at the truth of
-    each launch."""
+    unknown. ``gate_points``: (bias, other) grid points of the speed gate's exact term
+    (:mod:`~rollability_ros.core.campaign.likelihood_gate`; None = without it). Returns a dict: the truth, the
+    normalised samples, times (the gate's table, built once per worker, apart), and the learnt P(upright) at the
+    truth of each launch."""
     truth_u, observations, readings, simulated_cpu = truth_data(parameters, unknowns, matrix, number, cache)
+    table_cpu = 0.0
+    if gate_points:
+        table_cpu = time.process_time()
+        gate = likelihood_gate.gate_term(observations, launch_twin_settings_from_parameters(parameters), unknowns,
+                                         *gate_points)
+        table_cpu = time.process_time() - table_cpu
     started, cpu = time.perf_counter(), time.process_time()
     if not rollouts:
         readings = dataclasses.replace(readings, rollouts=())
@@ -262,6 +275,11 @@ def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, tem
         readings = dataclasses.replace(readings, masses=())
     extra = sampling.characterisation_term(
         readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)), unknowns, grid_points)
+    if gate_points:
+        readings_term = extra
+
+        def extra(u):
+            return readings_term(u) + gate(u)
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=number + 1, steps=steps,
                                           temperature=temperature, walkers=walkers, start_draws=start_draws,
                                           outcomes=outcomes)
@@ -269,7 +287,8 @@ def calibrate_truth(likelihood, parameters, unknowns, matrix, number, steps, tem
     predicted = [float(likelihood.predict_upright_probability(
         truth[None, :], o.configuration, (o.height_m, o.speed_mps, o.angle_deg))[0]) for o in observations]
     return {"truth_u": truth_u, "normalised": posterior.normalised, "wall_s": time.perf_counter() - started,
-            "cpu_s": time.process_time() - cpu, "simulated_cpu_s": simulated_cpu, "launches": len(observations),
+            "cpu_s": time.process_time() - cpu, "simulated_cpu_s": simulated_cpu, "table_cpu_s": table_cpu,
+            "launches": len(observations),
             "predicted": predicted, "observed": [o.upright for o in observations], "load": os.getloadavg()[0]}
 
 
@@ -281,22 +300,24 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
     split = 0
     widths: list = [[] for _ in range(d)]
     ranks: list = [[] for _ in range(d)]
-    walls, cpus, simulated, predicted, observed = [], [], [], [], []
+    walls, cpus, simulated, tables, predicted, observed = [], [], [], [], [], []
     started = time.perf_counter()
     count = args.truths
     # the truths whose launches an earlier run kept come first (their calibrations start at once)
-    order = sorted(range(count), key=lambda n: not os.path.exists(os.path.join(args.cache, f"truth-{n}.json")))
+    order = sorted(range(args.first_truth, args.first_truth + count),
+                   key=lambda n: not os.path.exists(os.path.join(args.cache, f"truth-{n}.json")))
     jobs = pool.map(calibrate_truth, [likelihood] * count, [parameters] * count, [unknowns] * count,
                     [matrix] * count, order, [args.steps] * count, [args.temperature] * count,
                     [args.cache] * count, [args.walkers] * count, [args.start_draws] * count,
                     [args.outcome_names] * count, [not args.no_rollouts] * count, [not args.no_tips] * count,
-                    [not args.no_weighing] * count, [args.grid_points] * count)
+                    [not args.no_weighing] * count, [args.grid_points] * count, [args.gate_points] * count)
     for done, (number, result) in enumerate(zip(order, jobs)):
         truth_u = result["truth_u"]
         truth = unknowns.to_values(truth_u)
         walls.append(result["wall_s"])
         cpus.append(result["cpu_s"])
         simulated.append(result["simulated_cpu_s"])
+        tables.append(result["table_cpu_s"])
         predicted += result["predicted"]
         observed += result["observed"]
         parts = []
@@ -320,13 +341,15 @@ def coverage(likelihood, parameters, unknowns, matrix, args, pool):
     print(f"{n} truths in {time.perf_counter() - started:.0f} s wall on {args.workers} workers [{load()}]")
     readings = ", ".join(name for name, used in (("slide angles", True), ("roll-outs", not args.no_rollouts),
                                                  ("tip angles", not args.no_tips),
-                                                 ("profile weighings", not args.no_weighing)) if used)
+                                                 ("profile weighings", not args.no_weighing),
+                                                 ("the speed gate's exact term", args.gate)) if used)
     print(f"calibration of {d} unknowns from the paper's {len(matrix)} launches plus characterisation ({readings}) "
           f"(outcomes: {args.outcomes}; {likelihood.ensemble_size} members x {args.walkers} walkers x {args.steps} "
           f"sampler steps, temperature "
           f"{likelihood.temperature if args.temperature is None else args.temperature:g}): median "
           f"{np.median(walls):.1f} s wall ({np.median(cpus):.1f} CPU s), max {max(walls):.1f} s wall over {n} truths "
-          f"(target <= 180 s); simulating a truth's launches {np.median(simulated):.0f} CPU s (median)")
+          f"(target <= 180 s); simulating a truth's launches {np.median(simulated):.0f} CPU s (median)"
+          + (f"; the gate's table {max(tables):.0f} CPU s once per worker" if args.gate else ""))
     for i, name in enumerate(unknowns.names):
         print(f"coverage {name}: {int(hits[i])}/{n} = {hits[i] / n:.0%} of the 95% sets hold the truth (target >= "
               f"90%); width median {np.median(widths[i]):.0%}, max {max(widths[i]):.0%} of the range "
@@ -445,6 +468,9 @@ def main(argv=None):
     parser.add_argument("--prepare-launches", type=int, default=8000, help="twin launches of the preparation")
     parser.add_argument("--members", type=int, default=learnt.MEMBERS, help="networks of the ensemble")
     parser.add_argument("--truths", type=int, default=50, help="hidden truths of the coverage (>= 50 for the claim)")
+    parser.add_argument("--first-truth", type=int, default=0,
+                        help="number of the first hidden truth (truths K..K+N-1: e.g. a held-out set to choose a "
+                        "temperature on, apart from the truths it is then measured on)")
     parser.add_argument("--steps", type=int, default=200, help="sampler steps per calibration and ensemble member")
     parser.add_argument("--walkers", type=int, default=16, help="sampler walkers per ensemble member")
     parser.add_argument("--start-draws", type=int, default=500,
@@ -458,6 +484,9 @@ def main(argv=None):
                         help="leave the tilt-table tip angles out of the calibrations and of the CLI check")
     parser.add_argument("--no-weighing", action="store_true",
                         help="leave the profiles' weighings out of the calibrations")
+    parser.add_argument("--gate", action="store_true",
+                        help="weigh the speed gate's readings through the twin's tabulated launcher model (exact, "
+                        "never tempered; core/campaign/likelihood_gate.py) instead of the learnt gate outcome")
     parser.add_argument("--temperature", type=float, help="the launches' log-likelihood exponent (default: the "
                         "prepared file's)")
     parser.add_argument("--engine", default="mujoco", choices=("mujoco", "pybullet"),
@@ -481,12 +510,17 @@ def main(argv=None):
     if unknown:
         parser.error(f"--outcomes: unknown {sorted(unknown)} (known: {', '.join(learnt.OUTCOMES)})")
     args.grid_points = None   # the characterisation's tables: posterior.characterisation_term's default
+    args.gate_points = (likelihood_gate.BIAS_POINTS, likelihood_gate.OTHER_POINTS) if args.gate else None
     if args.smoke:   # the sampler's and the tables' smallest sizes, the pool's workers started once each
         args.prepare_launches, args.members, args.truths, args.steps = 160, 2, 2, 20
         args.walkers, args.start_draws, args.grid_points, args.workers = 8, 32, 4, 1
+        args.gate, args.gate_points = True, (2, 2)   # the gate's term, at its smallest table
         args.skip_reoptimize, args.adaptive_samples = True, 200
     else:
         args.adaptive_samples = 4000
+    if args.gate and (args.outcome_names is None or "measured_speed_mps" in args.outcome_names):
+        # the gate's reading is weighed once, by the exact term
+        args.outcome_names = tuple(n for n in (args.outcome_names or learnt.OUTCOMES) if n != "measured_speed_mps")
     from rollability_ros.core.sim import spawn_pool
 
     with tempfile.TemporaryDirectory() as scratch:

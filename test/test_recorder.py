@@ -1,4 +1,5 @@
 """recorder over real DDS, in its own process: no silent drops under load, QoS matching, clean SIGTERM close."""
+import re
 import signal
 import time
 
@@ -90,6 +91,13 @@ def test_records_project_topics_without_drops_and_closes_cleanly_on_sigterm(tmp_
         chatter.publish(String(data="not recorded"))
         if index % 40 == 39:
             time.sleep(0.01)
+        # a keep-last writer overwrites what its reader has not acknowledged once 1000 are queued: a recorder
+        # stalled for a quarter second by a loaded machine then loses messages, and says so (fresh-clone run under
+        # load: "the middleware lost 2 message(s)"; test_a_stalled_recorder_reports_what_the_middleware_lost).
+        # Bursts of 500 between acknowledgements keep the writer's history from overflowing, so what is tested
+        # here is the recorder's own path at ~4000 / s
+        if index % 500 == 499:
+            assert candidates.wait_for_all_acked(Duration(seconds=30)), recorder.log()
     assert burst_rate > 2000, f"the burst is not a load test at {burst_rate:.0f} messages/s"
     # every message reached the recorder (acknowledged by its reader); SIGTERM must not lose queued ones
     for publisher in publishers:
@@ -268,3 +276,44 @@ def test_a_restarted_recorder_continues_the_same_bag(tmp_path, ros_node, start_n
     _, note = compare_bags_with_store({o.trial_id for o in before + after}, before + after, recording_gaps(bag),
                                       missed_windows(bag))
     assert "every topic's missed window" in note and "/rig/pose " in note and "/launch_outcomes " in note
+
+def test_a_stalled_recorder_reports_what_the_middleware_lost(tmp_path, ros_node, start_node):
+    """A recorder that cannot keep up with a keep-last writer loses what the writer overwrote; it must say how
+    many, in its log and when it closes, never report "none lost". The stall is made certain: the recorder's
+    process is stopped (SIGSTOP) while the writer, history 10, publishes 300 messages."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rollability_ros.msg import CandidateResult
+    from rollability_ros.nodes import _convert
+
+    node = ros_node.node
+    shallow = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+    candidates = node.create_publisher(CandidateResult, "/candidates", shallow)
+    bag = tmp_path / "bag"
+    recorder = start_node("recorder", params={"recorder.output_dir": str(bag), "recorder.discovery_period_s": 0.2})
+    assert ros_node.wait_for(lambda: candidates.get_subscription_count() > 0, 30), recorder.log()
+    assert ros_node.wait_for(lambda: "recording /candidates" in recorder.log(), 10), recorder.log()
+    # 16 kB each, 4.8 MB in all: more than the transports buffer for a stopped reader (300 small messages all
+    # waited in the receive buffers and were recorded after SIGCONT)
+    genome = tuple(0.001 * k for k in range(2000))
+    messages = [_convert.candidate_to_msg(CandidateRecord("opt1", i // 16, i % 16, genome, 0.5, 4, 8, i, 0.25))
+                for i in range(300)]
+    recorder.signal(signal.SIGSTOP)
+    try:
+        for message in messages:
+            candidates.publish(message)
+        time.sleep(0.5)                 # the writer's heartbeats go unanswered; its history holds the last 10
+    finally:
+        recorder.signal(signal.SIGCONT)
+    # what the writer still holds reaches the recorder; the rest is gone and must be counted
+    assert ros_node.wait_for(lambda: "lost" in recorder.log(), 30), recorder.log()
+    recorder.signal(signal.SIGTERM)
+    recorder.process.wait(timeout=30)
+    log = recorder.log()
+    assert stopped_cleanly(recorder, recorder.process.returncode), log
+    recorded = {topic["name"]: topic["message_count"] for topic in bag_info(bag)["topics"]}.get("/candidates", 0)
+    assert recorded < 300, f"all 300 recorded through a stopped reader with a writer history of 10\n{log}"
+    assert "none lost" not in log and "lost by the middleware" in log, log
+    lost = int(re.search(r"(\d+) lost by the middleware", log).group(1))
+    assert recorded + lost == 300, f"{recorded} recorded + {lost} reported lost != 300 published\n{log}"
+    print(f"\nstalled recorder: {recorded} recorded, {lost} reported lost of 300")

@@ -149,8 +149,9 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     likelihood, the file's other unknowns held at their loaded values; write the outputs and print the summary."""
     import numpy as np
 
-    from rollability_ros.core.campaign import (characterisation_term, format_set, load_likelihood,
-                                               observations_from_outcomes, sample_posterior, twin_fingerprint)
+    from rollability_ros.core.campaign import (OUTCOMES, characterisation_term, format_set, gate_term,
+                                               load_likelihood, observations_from_outcomes, sample_posterior,
+                                               twin_fingerprint)
     from rollability_ros.core.results import group_conditions
 
     if args.sampler_steps < 20:
@@ -164,9 +165,15 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     fixed = {name: float(parameters[name]) for name in unknowns.names if name not in sampled}
     observations = observations_from_outcomes(outcomes)
     chosen = outcome_names(args.outcomes)
-    extra = (characterisation_term(characterisation, twin, unknowns)
-             if characterisation is not None else None)
-    posterior = sample_posterior(likelihood, observations, sampled, fixed, extra, seed=args.seed,
+    terms = [characterisation_term(characterisation, twin, unknowns)] if characterisation is not None else []
+    if args.gate:   # the gate's reading weighed once, by its exact term
+        terms.append(gate_term(observations, twin, unknowns, sampled=sampled))
+        chosen = tuple(n for n in (OUTCOMES if chosen is None else chosen) if n != "measured_speed_mps")
+
+    def extra(u: np.ndarray) -> np.ndarray:
+        """The exact terms' log-likelihood (s,): characterisation, gate."""
+        return np.sum([term(u) for term in terms], axis=0)
+    posterior = sample_posterior(likelihood, observations, sampled, fixed, extra if terms else None, seed=args.seed,
                                  steps=args.sampler_steps, temperature=args.temperature, outcomes=chosen)
     fitted = posterior.best()
     method = "highest-density set of the learnt likelihood's posterior"
@@ -223,6 +230,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("give --prepare FILE (learn a likelihood) or --likelihood FILE (calibrate with one), not both")
     if args.temperature is not None and not args.likelihood:
         raise ValueError("--temperature tempers a prepared likelihood: give it with --likelihood FILE")
+    if args.gate and not args.likelihood:
+        raise ValueError("--gate adds the speed gate's term to a prepared likelihood: give it with --likelihood FILE")
     if args.outcomes != "none" and not args.likelihood:
         raise ValueError("--outcomes chooses a prepared likelihood's continuous outcomes: give it with --likelihood "
                          "FILE")
@@ -334,4 +343,9 @@ def register(subparsers: Subparsers) -> None:
                         help="raise the launches' learnt log-likelihood to T in (0, 1] (--likelihood; default: the "
                              "file's, 1 unless set): below 1 widens the sets for an emulator less accurate than "
                              "its ensemble says (docs/calibration.md)")
+    parser.add_argument("--gate", action="store_true",
+                        help="weigh each launch's speed-gate reading through the twin's launcher model, tabulated "
+                             "(exact, never tempered) (--likelihood, with the speed bias among the fitted unknowns): "
+                             "it pins launch_twin.launcher.speed_bias_fraction; the learnt gate outcome is then not "
+                             "weighed (docs/calibration.md, \"The speed gate's term\")")
     parser.set_defaults(func=run)

@@ -313,6 +313,11 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
     assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--temperature", "1.5",
                  "--out", str(tmp_path / "out5")]) == 2
     assert "temperature must lie in (0, 1]" in capsys.readouterr().err
+    assert main(["calibrate", "--physical", str(source), "--gate", "--out", str(tmp_path / "out6")]) == 2
+    assert "--gate adds the speed gate's term to a prepared likelihood" in capsys.readouterr().err
+    assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--gate",
+                 "--out", str(tmp_path / "out7")]) == 2   # the gate's term is for the speed bias: not an unknown here
+    assert "must be a fitted unknown" in capsys.readouterr().err
 
 
 @pytest.mark.slow
@@ -398,3 +403,13 @@ def test_the_training_draws_reach_past_the_bounds():
     widened, *_ = learnt.draw_training_jobs(friction, CONFIGURATIONS, LEVELS, 256, 4,
                                             learnt.training_margins(twin, friction))
     assert widened.max() <= 1.0 and np.all(widened.min(axis=0) < 0.0)
+
+
+def test_bench_readings_alone_give_a_posterior():
+    """No launches yet (``rollability calibrate --characterisation`` alone, or the adaptive plan's start): the
+    posterior is the readings' term over the uniform prior (an empty launch list was refused by a reshape)."""
+    likelihood = model()
+    posterior = sampling.sample_posterior(likelihood, [], extra=lambda u: -0.5 * ((u[:, 0] - 0.3) / 0.05) ** 2,
+                                          steps=60, walkers=8, start_draws=100)
+    assert abs(np.median(posterior.normalised[:, 0]) - 0.3) < 0.05
+    assert np.ptp(posterior.normalised[:, 1]) > 0.8   # the other unknown keeps its prior

@@ -198,3 +198,19 @@ def test_the_plan_reads_the_ensemble_as_the_calibration_does():
     posterior.renew()
     renewed = ensemble.log_likelihood(UNKNOWNS.to_normalised(posterior.samples), observations)
     assert np.allclose(np.logaddexp.reduce(posterior.member_log_likelihood, axis=0) - np.log(2), renewed)
+
+
+def test_renewals_keep_the_density_the_samples_were_drawn_from():
+    """The adaptive plan's start from bench readings (``log_prior``, plan_comparison's ``start``): a renewal moves
+    the samples on that density times the launches' likelihood; without it they spread back over the prior."""
+    table = LearntTable(model(), CANDIDATES, ())   # verdicts only: they say nothing about b
+    readings = lambda u: -0.5 * ((u[:, 1] - 0.2) / 0.03) ** 2   # noqa: E731  (a bench reading of b)
+    start = np.column_stack([np.random.default_rng(2).uniform(size=400),
+                             0.2 + 0.03 * np.random.default_rng(3).standard_normal(400).clip(-3, 3)])
+    spreads = []
+    for log_prior in (readings, None):
+        posterior = OutcomePosterior(table, UNKNOWNS.to_values(start), np.random.default_rng(4), moves=20,
+                                     log_prior=log_prior)
+        posterior.renew()
+        spreads.append(np.std(UNKNOWNS.to_normalised(posterior.samples)[:, 1]))
+    assert spreads[0] == pytest.approx(0.03, rel=0.3) and spreads[1] > 0.06

@@ -10,6 +10,7 @@ from .characterisation import load_characterisation
 from .learnt_plan import LearntTable, OutcomePosterior
 from .likelihood import (OUTCOMES, ConditionLevels, LearntLikelihood, Observation, load_likelihood,
                          observations_from_outcomes, simulate_training_set, twin_fingerprint)
+from .likelihood_gate import gate_term
 from .likelihood_learning import learn
 from .plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
 from .posterior import Posterior, characterisation_term, credible_set, format_set, sample_posterior
@@ -25,7 +26,8 @@ __all__ = [
     "Observation", "OutcomePosterior", "Posterior", "RunnerSettings", "StoreAcknowledgements", "TerminalAsk", "TwinPredictor",
     "Unknowns", "WeightedPosterior", "adaptive_next_trial", "answer_rig", "budget_placeholders",
     "calibrate", "calibrated_parameter_document", "calibration_settings", "candidate_conditions",
-    "characterisation_term", "check_fittable", "comparison_stop_rule", "credible_set", "format_set", "learn",
+    "characterisation_term", "check_fittable", "comparison_stop_rule", "credible_set", "format_set", "gate_term",
+    "learn",
     "load_campaign_spec", "load_characterisation", "load_likelihood", "local_rig_settings",
     "local_rig_settings_from_files", "observations_from_outcomes", "paired_order", "plan_refusal", "plan_trials",
     "proposal_lines", "record_campaign_run", "report_exit_code", "resume_command", "resume_refusal",

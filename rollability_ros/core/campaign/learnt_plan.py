@@ -159,9 +159,14 @@ class OutcomePosterior(WeightedPosterior):
     members' predictions weighted by those likelihoods at each sample (the predictive given the launches seen)."""
 
     def __init__(self, table: LearntTable, samples: npt.ArrayLike, rng: typing.Optional[np.random.Generator] = None,
-                 renew: bool = True, draws: int = 32, renew_fraction: float = 0.5, moves: int = 4) -> None:
+                 renew: bool = True, draws: int = 32, renew_fraction: float = 0.5, moves: int = 4,
+                 log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = None) -> None:
         self.table = table
         self.draws = draws
+        #: log density (n,) of normalised unknowns (n, d) the samples were drawn from, beside the uniform prior
+        #: (the characterisation's readings: ``posterior.characterisation_term``); the renewal's moves target it
+        #: times the launches' likelihood
+        self.log_prior = log_prior
         self._seen: typing.List[typing.Tuple[int, bool, np.ndarray]] = []
         theta = np.asarray(samples, dtype=np.float64)
         self._member_p, self._location, self._scale = table.predict(theta)
@@ -252,22 +257,25 @@ class OutcomePosterior(WeightedPosterior):
         return total
 
     def renew(self) -> None:
-        """Resample by weight, ``moves`` Metropolis steps each on the prior times the members' mean likelihood of
-        every launch seen (verdicts and outcomes), then the new samples' predictions at every candidate."""
+        """Resample by weight, ``moves`` Metropolis steps each on the prior (times :attr:`log_prior`'s density) times
+        the members' mean likelihood of every launch seen (verdicts and outcomes), then the new samples' predictions
+        at every candidate."""
         n, d = self.samples.shape
         w = self.weights
         picks = np.minimum(np.searchsorted(np.cumsum(w), (self.rng.random() + np.arange(n)) / n), n - 1)
         u = self.unknowns.to_normalised(self.samples[picks])
         members = self.member_log_likelihood[:, picks]
+        prior = (lambda x: np.zeros(len(x))) if self.log_prior is None else self.log_prior
         log_likelihood = np.logaddexp.reduce(members, axis=0)
+        log_prior = prior(u)
         step = np.maximum(np.sqrt(np.cov(u, rowvar=False).reshape(d, d).diagonal()), 1e-3) * 2.38 / math.sqrt(d)
         for _ in range(self.moves):
             proposed = u + self.rng.normal(0.0, 1.0, u.shape) * step
             inside = np.all((proposed >= 0.0) & (proposed <= 1.0), axis=1)
             new_members = self._seen_log_likelihood(self.unknowns.to_values(np.clip(proposed, 0.0, 1.0)))
-            log_new = np.logaddexp.reduce(new_members, axis=0)
-            accept = inside & (np.log(self.rng.random(n)) < log_new - log_likelihood)
-            u[accept], log_likelihood[accept] = proposed[accept], log_new[accept]
+            log_new, prior_new = np.logaddexp.reduce(new_members, axis=0), prior(np.clip(proposed, 0.0, 1.0))
+            accept = inside & (np.log(self.rng.random(n)) < log_new + prior_new - log_likelihood - log_prior)
+            u[accept], log_likelihood[accept], log_prior[accept] = proposed[accept], log_new[accept], prior_new[accept]
             members[:, accept] = new_members[:, accept]
         theta = self.unknowns.to_values(u)
         self._member_p, self._location, self._scale = self.table.predict(theta)

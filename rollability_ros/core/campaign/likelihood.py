@@ -326,8 +326,9 @@ class LearntLikelihood:
             key = (observation.configuration, observation.height_m, observation.speed_mps, observation.angle_deg)
             groups.setdefault(key, []).append(observation)
         keys = list(groups)
-        rest = np.array([self.features(np.zeros((1, len(self.unknowns.names))), *key)[0, len(self.unknowns.names):]
-                         for key in keys]).reshape(len(keys), -1)
+        d = len(self.unknowns.names)
+        rest = np.array([self.features(np.zeros((1, d)), *key)[0, d:] for key in keys]).reshape(
+            len(keys), len(self.feature_mean) - d)   # no launches (bench readings alone): (0, f - d)
         successes = np.array([sum(o.upright for o in groups[key]) for key in keys], dtype=np.float64)
         trials = np.array([len(groups[key]) for key in keys], dtype=np.float64)
         widest = max((len(g) for g in groups.values()), default=0)

@@ -189,17 +189,25 @@ def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
     return results
 
 
+#: A hidden truth's starting samples: (truth index, truth (d,) own units) -> (samples (n, d) own units, the log
+#: density (normalised (s, d) -> (s,)) they were drawn from beside the uniform prior, e.g. its characterisation's).
+Start = typing.Callable[[int, np.ndarray], typing.Tuple[np.ndarray, typing.Callable[[np.ndarray], np.ndarray]]]
+
+
 def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: int, samples: int, seed: int = 0,
                            level: float = 0.95, budget: typing.Optional[int] = None, draws: int = 32,
                            acquisition: str = "joint",
-                           on_truth: typing.Optional[typing.Callable[[int, MatchedWidths], None]] = None
+                           on_truth: typing.Optional[typing.Callable[[int, MatchedWidths], None]] = None,
+                           start: typing.Optional[Start] = None
                            ) -> typing.Tuple[np.ndarray, typing.List[MatchedWidths]]:
     """:func:`adaptive_to_match_matrix` on a learnt likelihood's table
     (:class:`~rollability_ros.core.campaign.learnt_plan.LearntTable`): each launch of a hidden truth draws the
     verdict and the table's continuous outcomes from the learnt model at the truth, both plans weigh the samples
     by all of it (:class:`~rollability_ros.core.campaign.learnt_plan.OutcomePosterior`, renewed), and the
     adaptive plan scores the information of verdict and outcomes (``draws`` Monte Carlo outcomes). Returns the
-    truths (t, d) and the results; ``on_truth(t, result)`` after each."""
+    truths (t, d) and the results; ``on_truth(t, result)`` after each. ``start`` (:data:`Start`): each truth's
+    starting samples for both plans instead of the prior draws (the characterisation's posterior: both plans then
+    begin from the same bench readings, and renewals keep their density)."""
     from rollability_ros.core.campaign.learnt_plan import OutcomePosterior
 
     rng = np.random.default_rng(seed)
@@ -207,8 +215,13 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
     hidden = table.unknowns.draw(truths, rng)
     results = []
     for t in range(truths):
-        def make(plan: int, t: int = t) -> WeightedPosterior:
-            return OutcomePosterior(table, prior, np.random.default_rng([seed, t, 2 + plan]), draws=draws)
+        begin, log_prior = start(t, hidden[t]) if start is not None else (prior, None)
+
+        def make(plan: int, t: int = t, begin: np.ndarray = begin,
+                 log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = log_prior
+                 ) -> WeightedPosterior:
+            return OutcomePosterior(table, begin, np.random.default_rng([seed, t, 2 + plan]), draws=draws,
+                                    log_prior=log_prior)
 
         def launch(index: int, outcome_rng: np.random.Generator,
                    t: int = t) -> typing.Tuple[bool, typing.Optional[np.ndarray]]:

@@ -3,7 +3,9 @@ ensemble sampler, the 95% highest-density sets (a split set stays a union of int
 readings as a log-likelihood term over the same unknowns. docs/calibration.md, "The learnt likelihood"."""
 import contextlib
 import dataclasses
+import hashlib
 import math
+import pickle
 import typing
 
 import numpy as np
@@ -18,6 +20,9 @@ if typing.TYPE_CHECKING:
     from rollability_ros.core.sim import LaunchTwinSettings
 
 LogDensity = typing.Callable[[np.ndarray], np.ndarray]
+
+#: The characterisation's tables of predictions per process (:func:`_tabulated`).
+_TABLES: typing.Dict[str, np.ndarray] = {}
 
 
 def stretch_sampler(log_density: LogDensity, start: np.ndarray, steps: int, rng: np.random.Generator,
@@ -241,20 +246,22 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
     if characterisation.rollouts:
         keys = sorted({(r.surface, r.speed_mps) for r in characterisation.rollouts})
         terms.append(_tabulated(
-            twin, unknowns, ROLLOUT_KEYS, grid_points,
+            twin, unknowns, ROLLOUT_KEYS, grid_points, ("roll-out", tuple(keys)),
             lambda settings: [rollout_distance_m(settings, speed, surface) for surface, speed in keys],
             [r.distance_m for r in characterisation.rollouts],
             [keys.index((r.surface, r.speed_mps)) for r in characterisation.rollouts], characterisation.rollout_sigma_m))
     if characterisation.tips:
         sides = sorted({t.side for t in characterisation.tips})
         terms.append(_tabulated(
-            twin, unknowns, TIP_KEYS, grid_points, lambda settings: tip_angles_deg(settings, sides),
+            twin, unknowns, TIP_KEYS, grid_points, ("tip", tuple(sides)),
+            lambda settings: tip_angles_deg(settings, sides),
             [t.angle_deg for t in characterisation.tips], [sides.index(t.side) for t in characterisation.tips],
             characterisation.tip_sigma_deg))
     if characterisation.masses:
         weighed = sorted({m.configuration for m in characterisation.masses})
         terms.append(_tabulated(
-            twin, unknowns, MASS_KEYS, grid_points, lambda settings: [profile_mass_kg(settings, c) for c in weighed],
+            twin, unknowns, MASS_KEYS, grid_points, ("weighing", tuple(weighed)),
+            lambda settings: [profile_mass_kg(settings, c) for c in weighed],
             [m.mass_kg for m in characterisation.masses], [weighed.index(m.configuration) for m in
                                                             characterisation.masses], characterisation.mass_sigma_kg))
 
@@ -268,14 +275,16 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
 
 
 def _tabulated(twin: "LaunchTwinSettings", unknowns: Unknowns, depends_on: typing.Sequence[str],
-               grid_points: typing.Optional[int],
+               grid_points: typing.Optional[int], what: typing.Tuple[str, typing.Tuple[typing.Any, ...]],
                predict: typing.Callable[["LaunchTwinSettings"], typing.Sequence[float]],
                readings: typing.Sequence[float], which: typing.Sequence[int], sigma: float) -> LogDensity:
     """The Gaussian log-likelihood (s,) of ``readings`` (r,), reading i predicted by ``predict(twin)[which[i]]``,
     as a function of normalised unknowns (s, d): the predictions tabulated on a grid of the sampled unknowns among
     ``depends_on`` (at most two) and interpolated (cubic): the predictions are smooth in the unknowns and are what
     is interpolated; the likelihood's peak, narrower than a grid step at precise readings, is computed from them
-    (interpolating the log-likelihood itself put the peak on a grid point)."""
+    (interpolating the log-likelihood itself put the peak on a grid point). ``what`` names the predictions (kind,
+    and the conditions they are of): the table is kept per process under it, the twin, the unknowns and the grid
+    (the roll-outs' table, 243 PyBullet roll-outs, is the same for every calibration of one twin)."""
     from rollability_ros.core.sim import twin_with_values
 
     names = unknowns.names
@@ -285,8 +294,14 @@ def _tabulated(twin: "LaunchTwinSettings", unknowns: Unknowns, depends_on: typin
     points = grid_points or (17 if len(varied) <= 1 else 9)
     grids = [np.linspace(0.0, 1.0, points) for _ in varied]
     mesh = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(varied), -1).T if varied else np.zeros((1, 0))
-    table = np.array([predict(twin_with_values(
-        twin, {names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(varied)})) for point in mesh])
+    key = hashlib.sha256(pickle.dumps((twin, unknowns, what, tuple(varied), points), protocol=4)).hexdigest()
+    if key not in _TABLES:
+        _TABLES[key] = np.array([predict(twin_with_values(
+            twin, {names[j]: float(values_one(unknowns, j, point[i])) for i, j in enumerate(varied)}))
+            for point in mesh])
+        while len(_TABLES) > 16:
+            del _TABLES[next(iter(_TABLES))]
+    table = _TABLES[key]
     observed, index = np.asarray(readings, dtype=np.float64), np.asarray(which, dtype=int)
 
     def gaussian(predicted: np.ndarray) -> np.ndarray:

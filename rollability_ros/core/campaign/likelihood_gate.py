@@ -1,0 +1,190 @@
+"""The speed gate's readings as an exact term of the calibration's likelihood (docs/calibration.md, "The speed
+gate's term"): the rig's gate records every launch's speed, and that reading pins the lab's speed-setting bias
+(``launch_twin.launcher.speed_bias_fraction``) without the learnt networks, whose continuous outcomes are biased
+(measured in docs/calibration.md).
+
+The twin's model of a reading (:mod:`rollability_ros.core.sim.launch`, "Launch"): the launch speed is the set speed
+x (1 + bias) x (1 + ``speed_sigma_fraction`` z), z standard normal from the launch's seed; the stroke launcher's
+plate then pushes, the robot coasts on the launcher's base plate, and the gate reads ``run_length_m /
+travel_time_s``. That reading is not the launch speed: the coast and the cylinder's force limit make it depend on
+the configuration, the set speed, the bias (not in proportion: on the bench's chassis at 1.5 m/s a bias of -0.15
+reads 0.851 of the set speed, +0.15 reads 1.139) and on the robot (the flat top at 0.8 m/s without bias reads
+1.018 of the set speed at profile mass scale 0.2 and 1.058 at 1.4, 1.061 at a centre of mass 0.01 m lower and
+1.024 at 0.015 m higher). The ledge height, the angle, and the foam (past the edge) do not move it (under 0.001 of
+the set speed, measured on the same twin). So :func:`gate_term` tabulates the reading without scatter, G, per
+(configuration, set speed) over the bias and the sampled unknowns that act before the edge (at most
+:data:`MAX_OTHER`: the profile's mass, the centre of mass, the base plate's rolling friction, the wheels' drag),
+interpolates it (cubic), and scores each reading by the Gaussian of the delta method: mean G(b), standard deviation
+G'(b) (1 + b) ``speed_sigma_fraction`` (the scatter enters exactly as the bias does), the table's own error
+(:data:`MODEL_ERROR` of the reading) shared by the readings of each (configuration, set speed). Exact in the
+twin's sense: never tempered, like the characterisation's terms. By default only the bare robot's readings are
+weighed (:data:`BARE_ROBOT`; :func:`gate_term`'s ``configurations``): they depend on the bias alone."""
+import dataclasses
+import hashlib
+import math
+import pickle
+import typing
+
+import numpy as np
+
+from rollability_ros.core.campaign.adaptive import Unknowns
+from rollability_ros.core.campaign.likelihood import Observation, values_one
+from rollability_ros.core.optional import require
+
+if typing.TYPE_CHECKING:
+    from rollability_ros.core.sim import LaunchTwinSettings
+
+LogDensity = typing.Callable[[np.ndarray], np.ndarray]
+
+#: The unknown the term is for, and the launch speed's scatter (read from the samples when it is sampled).
+BIAS_KEY, SCATTER_KEY = "launch_twin.launcher.speed_bias_fraction", "launch_twin.speed_sigma_fraction"
+#: Unknowns that cannot move a reading: the foam lies past the edge, the gate before it.
+AFTER_THE_EDGE = ("launch_twin.foam.",)
+#: Grid points of the table: over the bias, and over each other unknown it spans (at most MAX_OTHER of them).
+BIAS_POINTS, OTHER_POINTS, MAX_OTHER = 7, 7, 2
+#: Simulated time per tabulated launch, s: the gate's reading is taken at the edge (0.4-0.6 s on the paper's
+#: speeds); the rest of the launch is not needed (the speed gate's own timeout, config/rig.yaml, is 3 s).
+GATE_CAP_S = 3.0
+#: The ledge height of the tabulated launches, m (the paper's lower ledge; the height does not move the reading).
+GATE_HEIGHT_M = 0.75
+#: The bare robot's configuration id (core/profile/designs.py) and the profile's mass multipliers, which do not act
+#: on it: the configurations whose readings the term weighs by default, and what their table need not span.
+BARE_ROBOT, PROFILE_MASS_KEYS = "baseline", ("robot.profile_mass_scale", "urdf_robot.profile_mass_scale")
+#: Readings at or below this fraction of the set speed are "not measured" (a gate that timed out reads 0).
+MIN_READING_FRACTION = 0.05
+
+#: The table's error (interpolation, and the ledge height and angle it leaves out), as a fraction of the reading:
+#: the root mean square of interpolated against simulated readings at random parameter sets (docs/calibration.md).
+MODEL_ERROR = 0.004
+
+_TABLES: typing.Dict[str, np.ndarray] = {}
+
+
+def gate_reading_mps(twin: "LaunchTwinSettings", configuration: str, speed_mps: float) -> float:
+    """The gate's reading (m/s) of a launch of ``configuration`` at the set speed ``speed_mps`` on ``twin``
+    without the speed and angle scatter (deterministic; the ledge height and the angle do not move it: module
+    docstring). ``ValueError`` when the launch never reaches the edge within :data:`GATE_CAP_S`."""
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.sim import simulate_launch
+
+    exact = dataclasses.replace(
+        twin, twin=dataclasses.replace(twin.twin, speed_sigma_fraction=0.0, angle_sigma_deg=0.0),
+        trial=dataclasses.replace(twin.trial, time_cap_s=min(twin.trial.time_cap_s, GATE_CAP_S)))
+    condition = LaunchCondition(configuration, GATE_HEIGHT_M, float(speed_mps), 0.0)
+    reading = simulate_launch(condition, exact, 0).measured_speed_mps
+    if not (math.isfinite(reading) and reading > MIN_READING_FRACTION * speed_mps):
+        raise ValueError(f"the twin's launch of {configuration} at {speed_mps} m/s does not reach the speed gate's "
+                         f"edge within {GATE_CAP_S} s: no gate reading to weigh")
+    return float(reading)
+
+
+def gate_unknowns(unknowns: Unknowns, sampled: typing.Optional[typing.Sequence[str]] = None,
+                  bare_only: bool = False) -> typing.List[int]:
+    """Indices of the unknowns the table spans besides the bias: those of ``sampled`` (default: all of
+    ``unknowns``) not past the edge (module docstring), without the profile's mass when only the bare robot's
+    readings are weighed (``bare_only``); the others are held at the twin's values. ``ValueError`` without the
+    bias among the sampled unknowns, on a log-scaled bias, or with more than :data:`MAX_OTHER` others."""
+    names = unknowns.names
+    sampled = names if sampled is None else tuple(sampled)
+    if bare_only:
+        sampled = tuple(name for name in sampled if name not in PROFILE_MASS_KEYS)
+    if BIAS_KEY not in names or BIAS_KEY not in sampled:
+        raise ValueError(f"the speed gate's term weighs the speed bias: {BIAS_KEY} must be a fitted unknown")
+    if unknowns.log_scale[names.index(BIAS_KEY)]:
+        raise ValueError(f"{BIAS_KEY} must be searched on a linear scale (it changes sign)")
+    others = [i for i, name in enumerate(names) if name in sampled
+              and name not in (BIAS_KEY, SCATTER_KEY) and not name.startswith(AFTER_THE_EDGE)]
+    if len(others) > MAX_OTHER:
+        raise ValueError(f"the speed gate's term tabulates at most {MAX_OTHER} unknowns besides the bias; "
+                         f"{', '.join(names[i] for i in others)} act before the edge: fit fewer")
+    return others
+
+
+def gate_table(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Sequence[typing.Tuple[str, float]],
+               bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS,
+               sampled: typing.Optional[typing.Sequence[str]] = None, bare_only: bool = False) -> np.ndarray:
+    """G: the gate's readings without scatter (m/s), shape (bias_points, other_points, ... , len(groups)), on
+    the normalised grid of the bias and of :func:`gate_unknowns`' others (``sampled``, ``bare_only`` as there),
+    per (configuration, set speed) of ``groups``; the unknowns not spanned at ``twin``'s values. Kept per process (the same twin, unknowns and groups
+    give the same table: every truth of a bench, every calibration of a session)."""
+    from rollability_ros.core.sim import twin_with_values
+
+    names = unknowns.names
+    spanned = [names.index(BIAS_KEY), *gate_unknowns(unknowns, sampled, bare_only)]
+    shape = [bias_points] + [other_points] * (len(spanned) - 1)
+    key = hashlib.sha256(pickle.dumps((twin, unknowns, tuple(groups), shape, spanned), protocol=4)).hexdigest()
+    if key not in _TABLES:
+        axes = [np.linspace(0.0, 1.0, n) for n in shape]
+        grid = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(shape), -1).T
+        rows = []
+        for point in grid:
+            settings = twin_with_values(twin, {names[j]: float(values_one(unknowns, j, point[i]))
+                                               for i, j in enumerate(spanned)})
+            rows.append([gate_reading_mps(settings, configuration, speed) for configuration, speed in groups])
+        _TABLES[key] = np.array(rows).reshape(*shape, len(groups))
+        while len(_TABLES) > 8:
+            del _TABLES[next(iter(_TABLES))]
+    return _TABLES[key]
+
+
+def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSettings", unknowns: Unknowns,
+              bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS,
+              sampled: typing.Optional[typing.Sequence[str]] = None, model_error: float = MODEL_ERROR,
+              configurations: typing.Optional[typing.Sequence[str]] = (BARE_ROBOT,)) -> LogDensity:
+    """The gate readings' log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
+    :func:`~rollability_ros.core.campaign.posterior.sample_posterior`'s ``extra`` (module docstring). Uses each
+    observation's ``measured_speed_mps`` (a reading absent, not finite or at most :data:`MIN_READING_FRACTION` of
+    the set speed is not measured and adds nothing). ``sampled``: the unknowns the posterior samples (default:
+    all); the others must be ``twin``'s values. ``model_error``: the table's error as a fraction of the reading
+    (:data:`MODEL_ERROR`), shared by the readings of one (configuration, set speed), so it does not average away.
+    ``configurations``: whose readings are weighed (None: every one's). Default: the bare robot's, whose reading
+    depends on the bias alone; a design's also moves with the profile's mass and the centre of mass (up to 4%
+    of the reading), and with them in the term the table's error pulled the centre of mass off its truth
+    (measured: docs/calibration.md, "The speed gate's term"). The learnt likelihood must then not weigh the same
+    reading (``outcomes`` without ``measured_speed_mps``)."""
+    names = unknowns.names
+    bare_only = configurations is not None and all(c == BARE_ROBOT for c in configurations)
+    others = gate_unknowns(unknowns, sampled, bare_only)
+    bias = names.index(BIAS_KEY)
+    readings: typing.Dict[typing.Tuple[str, float], typing.List[float]] = {}
+    for o in observations:
+        if configurations is not None and o.configuration not in configurations:
+            continue
+        value = float(o.outcomes.get("measured_speed_mps", math.nan))
+        if math.isfinite(value) and value > MIN_READING_FRACTION * o.speed_mps:
+            readings.setdefault((o.configuration, float(o.speed_mps)), []).append(value)
+    if not readings:
+        return lambda u: np.zeros(len(u))
+    groups = sorted(readings)
+    table = gate_table(twin, unknowns, groups, bias_points, other_points, sampled, bare_only)
+    grids = [np.linspace(0.0, 1.0, n) for n in table.shape[:-1]]
+    interpolate = require("scipy.interpolate", feature="the speed gate's term").RegularGridInterpolator(
+        grids, table, method="cubic" if min(table.shape[:-1]) >= 4 else "linear")
+    count = np.array([len(readings[g]) for g in groups], dtype=np.float64)
+    first = np.array([sum(readings[g]) for g in groups])
+    second = np.array([sum(v * v for v in readings[g]) for g in groups])
+    span = unknowns.upper[bias] - unknowns.lower[bias]
+    step = 0.5 / (table.shape[0] - 1)   # half a grid step, normalised: the slope's central difference
+    scatter = names.index(SCATTER_KEY) if SCATTER_KEY in (names if sampled is None else sampled) else None
+    sigma_fixed = twin.twin.speed_sigma_fraction
+
+    def term(u: np.ndarray) -> np.ndarray:
+        """The readings' Gaussian log-likelihood (s,), summed over the groups."""
+        point = np.clip(u[:, [bias, *others]], 0.0, 1.0)
+        low, high = point.copy(), point.copy()
+        low[:, 0] = np.clip(point[:, 0] - step, 0.0, 1.0)
+        high[:, 0] = np.clip(point[:, 0] + step, 0.0, 1.0)
+        mean, below, above = interpolate(point), interpolate(low), interpolate(high)
+        slope = (above - below) / ((high[:, 0] - low[:, 0]) * span)[:, None]   # dG / d bias, m/s per unit
+        b = values_one(unknowns, bias, point[:, 0])
+        sigma = values_one(unknowns, scatter, u[:, scatter]) if scatter is not None else np.full(len(u), sigma_fixed)
+        sd = np.maximum(np.abs(slope) * ((1.0 + b) * sigma)[:, None], 1e-6)
+        # readings g_i = G + shared + scatter_i: the group's mean carries the table's error (model_error x G,
+        # shared by its readings), each reading its own scatter (sd): the Gaussian with covariance sd^2 I + tau^2 1 1'
+        variance, shared = sd ** 2, (model_error * mean) ** 2
+        within = second - first ** 2 / count   # sum of squares about the group's mean
+        offset = first / count - mean
+        return -0.5 * ((count - 1.0) * np.log(variance) + np.log(variance + count * shared) + within / variance
+                       + count * offset ** 2 / (variance + count * shared)
+                       + count * math.log(2.0 * math.pi)).sum(axis=1)
+    return term

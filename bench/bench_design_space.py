@@ -22,8 +22,9 @@ intervals and its gain over the bare robot with Newcombe's 95% interval. All num
 With ``--designs`` it asks instead where a chosen design's gain comes from: the bare robot and each design (by
 label) at each ``--mass-scales`` multiplier on its printed mass (``robot.profile_mass_scale``; 0.1 is nearly the
 bare geometry, 1 the print of ``--config``'s ``robot.profile_print``), ``--launches`` nominal launches each under
-the campaign's conditions in turn (seed :data:`SPLIT_SEED`), split by launch speed, and where the failures came to
-rest (``bench_shape_ceiling.rest_mode``).
+the campaign's conditions in turn (seed :data:`SPLIT_SEED`): each row's upright total and its gain over the bare
+robot (Newcombe 95%), split by launch speed and where the failures came to rest (``bench_shape_ceiling.rest_mode``).
+``--config gradual_print`` (or another print option) with ``--mass-scales 1`` launches the designs as that print.
 """
 import argparse
 import dataclasses
@@ -120,7 +121,8 @@ def mass_split(args):
         results = list(map(split_launches, *columns))
     print(f"{args.designs}: {args.launches} nominal launches each under the campaign's conditions in turn (seed "
           f"{SPLIT_SEED}, {settings.physics.engine} twin, simulated), {time.perf_counter() - started:.0f} s")
-    for (label, _mesh, scale), (rows, mass_kg) in zip(jobs, results):
+    bare = (0, 0)
+    for (label, _mesh, scale), (rows, mass_kg) in zip(jobs, results):   # the bare robot first
         by_speed: typing.Dict[float, typing.Counter[str]] = collections.defaultdict(collections.Counter)
         for speed, mode in rows:
             by_speed[speed][mode] += 1
@@ -131,7 +133,12 @@ def mass_split(args):
             parts.append(f"{speed} m/s: upright {count['upright']}/{sum(count.values())} (at rest upside down "
                          f"{count['upside down']}, on a side or end {sides}, tilted {count['tilted on its wheels']}, "
                          f"invalid {count['invalid']})")
-        print(f"  {label:<5} mass x{scale:<4g} {mass_kg * 1000:>5.0f} g  " + "; ".join(parts), flush=True)
+        upright = sum(1 for _speed, mode in rows if mode == "upright")
+        if label == "bare":
+            bare = (upright, len(rows))
+        gain, low, high = newcombe_interval(upright, len(rows), *bare)
+        print(f"  {label:<5} mass x{scale:<4g} {mass_kg * 1000:>5.0f} g  all {upright}/{len(rows)}, minus bare "
+              f"{gain:+.2f} [{low:+.2f}, {high:+.2f}]; " + "; ".join(parts), flush=True)
     return 0
 
 

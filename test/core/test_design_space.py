@@ -38,13 +38,24 @@ def test_the_quick_study_and_the_paper_configuration_keep_the_0_09_m_bound():
         assert grid.height_max * grid.unit_m == pytest.approx(0.09), configs
 
 
-def test_the_light_print_option_weighs_a_flat_top_as_the_hand_formula_at_10_percent_infill():
-    """config/light_print.yaml: the flat top at the bound is a box; its print at 10 % infill weighs
-    rho (V_O - V_I) + rho f V_I with V_I the box shrunk by the walls (sides) and skins (top, base), and the search's
-    mass draw is centred on that print instead of the 0.15..1.5 that spans every infill."""
-    shipped, light = settings_of(["optimizer"]), settings_of(["optimizer", "light_print"])
+def box_print_mass(spec, a, b, c):
+    """The hand formula of a box printed as a shell: rho (V_O - V_I) + rho f V_I, V_I the box shrunk by the walls
+    (sides) and the skins (top, base)."""
+    wall, skin, rho = spec.wall_thickness_m, spec.skin_thickness_m, spec.material_density_kgpm3
+    inner = (a - 2 * wall) * (b - 2 * wall) * (c - 2 * skin)
+    return rho * (a * b * c - inner) + rho * spec.infill_fraction * inner
+
+
+@pytest.mark.parametrize("option, infill, skin", [("light_print", 0.1, 0.0008), ("low_infill_print", 0.05, 0.0012)])
+def test_a_lighter_print_option_weighs_a_flat_top_as_the_hand_formula(option, infill, skin):
+    """config/light_print.yaml (10 % infill) and config/low_infill_print.yaml (5 % infill under a 1.2 mm skin): the
+    flat top at the bound is a box; its print weighs the hand formula (box_print_mass) with the option's infill and
+    skin, lighter than the shipped 20 % print, and the search's mass draw is centred on that print instead of the
+    0.15..1.5 that spans every infill."""
+    shipped, light = settings_of(["optimizer"]), settings_of(["optimizer", option])
     spec = light.robot.profile_print
-    assert spec.infill_fraction == pytest.approx(0.1) and shipped.robot.profile_print.infill_fraction == 0.2
+    assert (spec.infill_fraction, spec.skin_thickness_m) == pytest.approx((infill, skin))
+    assert shipped.robot.profile_print.infill_fraction == 0.2
     grid = light.grid
     assert geometry.design_space_printability(grid, light.printer) == []
     heights = np.full(grid.n_variables, grid.height_max)
@@ -52,13 +63,35 @@ def test_the_light_print_option_weighs_a_flat_top_as_the_hand_formula_at_10_perc
     assert box is not None and geometry.check_printability(box, light.printer).printable
     a, b, c = box.extents
     assert (a, b, c) == pytest.approx((grid.length_m, grid.width_m, grid.height_max * grid.unit_m))
-    wall, skin, rho = spec.wall_thickness_m, spec.skin_thickness_m, spec.material_density_kgpm3
-    inner = (a - 2 * wall) * (b - 2 * wall) * (c - 2 * skin)
-    expected = rho * (a * b * c - inner) + rho * 0.1 * inner
     body = evaluation.profile_job(heights, light).profile
-    assert body is not None and body.mass_kg == pytest.approx(expected, rel=1e-6)
+    assert body is not None and body.mass_kg == pytest.approx(box_print_mass(spec, a, b, c), rel=1e-6)
     heavier = evaluation.profile_job(heights, shipped).profile
-    assert heavier is not None and heavier.mass_kg == pytest.approx(expected + rho * 0.1 * inner, rel=1e-6)
+    assert heavier is not None
+    assert heavier.mass_kg == pytest.approx(box_print_mass(shipped.robot.profile_print, a, b, c), rel=1e-6)
+    assert body.mass_kg < 0.7 * heavier.mass_kg
     low, high = light.objective.robust.range_of("profile_mass_scale")
     assert low < 1.0 < high and low * high == pytest.approx(1.0)   # log-uniform, median the modelled print
     assert shipped.objective.robust.range_of("profile_mass_scale") == (0.15, 1.5)
+
+
+def test_the_gradual_print_option_weighs_a_flat_top_as_its_density_bands_and_under_0_4_of_the_default_print():
+    """config/gradual_print.yaml (Cura's gradual infill: 20 % under the top, halved 5 times every 1.5 mm): the flat
+    top at the bound is a box; its inside is 0.625 % infill plus slabs under the top at 20, 10, 5, 2.5 and 1.25 %."""
+    shipped, gradual = settings_of(["optimizer"]), settings_of(["optimizer", "gradual_print"])
+    spec = gradual.robot.profile_print
+    assert (spec.infill_fraction, spec.gradual_infill_steps, spec.gradual_infill_step_height_m) == (0.2, 5, 0.0015)
+    assert shipped.robot.profile_print.gradual_infill_steps == 0
+    heights = np.full(gradual.grid.n_variables, gradual.grid.height_max)
+    box = geometry.profile_mesh(heights, gradual.grid)
+    assert box is not None and geometry.check_printability(box, gradual.printer).printable
+    a, b, c = box.extents
+    wall, skin, rho = spec.wall_thickness_m, spec.skin_thickness_m, spec.material_density_kgpm3
+    area = (a - 2 * wall) * (b - 2 * wall)
+    slabs = sum(0.2 / 2 ** k - 0.2 / 32 for k in range(5)) * area * 0.0015
+    expected = rho * (a * b * c - area * (c - 2 * skin)) + rho * 0.2 / 32 * area * (c - 2 * skin) + rho * slabs
+    body = evaluation.profile_job(heights, gradual).profile
+    heavier = evaluation.profile_job(heights, shipped).profile
+    assert body is not None and heavier is not None
+    assert body.mass_kg == pytest.approx(expected, rel=1e-6)
+    assert body.mass_kg < 0.4 * heavier.mass_kg
+    assert gradual.objective.robust.range_of("profile_mass_scale") == (0.8, 1.25)

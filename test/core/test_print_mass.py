@@ -47,6 +47,47 @@ def test_a_box_shell_weighs_and_turns_as_the_hand_formula():
     assert got.inertia_kgm2 == pytest.approx(inertia, rel=1e-9, abs=1e-15)
 
 
+def test_gradual_infill_in_a_box_is_the_sparsest_infill_plus_denser_slabs_under_the_top():
+    """Cura's gradual infill (20 % halved 3 times, 4 mm steps) in a box: the inner box at 2.5 % plus slabs of the
+    inner box's width under its top at 20 - 2.5, 10 - 2.5 and 5 - 2.5 %, each a box of its own: mass, centre of mass
+    and inertia as the hand formula."""
+    a, b, c, wall, skin, fill, step = 0.12, 0.08, 0.05, 0.002, 0.003, 0.2, 0.004
+    outer = trimesh.creation.box([a, b, c])
+    outer.apply_translation([0.0, 0.0, c / 2])
+    inner = (a - 2 * wall, b - 2 * wall, c - 2 * skin)
+    parts = [(MassProperties(a * b * c, np.array([0, 0, c / 2]), box_inertia(a * b * c, a, b, c)), PLA),
+             (MassProperties(math.prod(inner), np.array([0, 0, c / 2]), box_inertia(math.prod(inner), *inner)),
+              -PLA * (1 - fill / 8))]
+    for k in range(3):
+        slab = inner[0] * inner[1] * step
+        parts.append((MassProperties(slab, np.array([0, 0, c - skin - (k + 0.5) * step]),
+                                     box_inertia(slab, inner[0], inner[1], step)), PLA * (fill / 2 ** k - fill / 8)))
+    expected = combine(parts)
+    spec = ProfilePrintSpec(wall_thickness_m=wall, skin_thickness_m=skin, infill_fraction=fill, gradual_infill_steps=3,
+                            gradual_infill_step_height_m=step)
+    got = print_mass_properties(outer, spec)
+    assert got.mass_kg == pytest.approx(expected.mass_kg, rel=1e-9)
+    assert got.com_m == pytest.approx(expected.com_m, abs=1e-12)
+    assert got.com_m[2] > print_mass_properties(outer, shell(wall, skin, fill / 8)).com_m[2]   # the dense part is high
+    assert got.inertia_kgm2 == pytest.approx(expected.inertia_kgm2, rel=1e-9, abs=1e-15)
+
+
+def test_gradual_infill_on_a_sloped_profile_lies_between_its_sparsest_and_densest_uniform_prints():
+    """On the wedge (a sloped top), steps taller than the profile leave the whole inside at the top density (the
+    uniform print, to the column grid's resolution); shorter steps weigh between the uniform prints at the sparsest
+    and the densest density."""
+    mesh = profile_mesh(front_heavy_heights(ProfileGrid()), ProfileGrid())
+    uniform = print_mass_properties(mesh, shell(0.0008, 0.0008, 0.2))
+    one_step = print_mass_properties(mesh, ProfilePrintSpec(gradual_infill_steps=2, gradual_infill_step_height_m=0.5))
+    assert one_step.mass_kg == pytest.approx(uniform.mass_kg, rel=1e-3)
+    assert one_step.com_m == pytest.approx(uniform.com_m, abs=1e-4)
+    assert one_step.inertia_kgm2 == pytest.approx(uniform.inertia_kgm2, rel=1e-2, abs=1e-7)
+    gradual = print_mass_properties(mesh, ProfilePrintSpec(gradual_infill_steps=5))
+    sparsest = print_mass_properties(mesh, shell(0.0008, 0.0008, 0.2 / 32))
+    assert sparsest.mass_kg < gradual.mass_kg < 0.5 * uniform.mass_kg
+    assert gradual.com_m[2] > sparsest.com_m[2]
+
+
 def test_a_sloped_face_gets_the_thicker_of_the_wall_and_skin_projections():
     # a box turned 45 deg about x: its four long faces slope at 45 deg, each gets max(wall, skin) / sqrt(2) of
     # solid across it; its two end faces are vertical and get the wall
@@ -107,6 +148,8 @@ def test_degenerate_open_and_non_convex_meshes_are_refused_by_name():
     ({"model": "foam"}, "must be one of shell, solid"),
     ({"infill_fraction": 1.5}, r"infill_fraction out of range: 1.5 is not in \[0.0, 1.0\]"),
     ({"wall_thickness_m": 0.0}, r"wall_thickness_m out of range: 0.0 is not in \(0.0, 1.0\]"),
+    ({"gradual_infill_steps": 11}, r"gradual_infill_steps out of range: 11 is not in \[0, 10\]"),
+    ({"gradual_infill_step_height_m": 0.0}, r"gradual_infill_step_height_m out of range"),
 ])
 def test_inconsistent_print_settings_are_refused(fields, message):
     with pytest.raises(ValueError, match=message):

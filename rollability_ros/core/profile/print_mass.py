@@ -6,7 +6,12 @@ its inner solid ``I`` (the mesh moved inwards by the shell), material density ``
     m = rho * (V_O - V_I) + rho * f * V_I = rho * V_O - rho * (1 - f) * V_I
 
 and the centre of mass and inertia are those of ``O`` at density ``rho`` minus ``I`` at ``rho * (1 - f)``
-(parallel-axis theorem about the combined centre of mass). Infill is smeared uniformly over ``I``.
+(parallel-axis theorem about the combined centre of mass). Infill is smeared uniformly over ``I``, unless
+``gradual_infill_steps`` N > 0 (Ultimaker Cura's "gradual infill": the density is ``f`` in the ``step_height`` just
+under a top surface and halves with every further ``step_height`` down, N times, so most of ``I`` holds ``f / 2^N``).
+Then ``I`` is at ``f / 2^N`` and each band ``k < N`` below the inner solid's top (points of ``I`` whose depth under
+its top surface, straight up, is in ``[k h, (k + 1) h)``) adds ``f / 2^k - f / 2^N``; the bands' mass properties are
+integrated over vertical columns of ``I`` (:func:`top_bands`, exact for a box).
 
 The inner solid of a convex mesh is exact: the intersection of the mesh's face half-spaces, each moved inwards
 by that face's shell thickness. A slicer lays walls (perimeters) of ``wall_thickness_m`` horizontally in each layer
@@ -64,6 +69,12 @@ class ProfilePrintSpec:
     infill_fraction: float = dataclasses.field(default=0.2, metadata={
         "description": "sparse infill inside the shell as a fraction of solid (0 = hollow, 1 = solid; 0.2: Cura's "
                        "default infill_sparse_density 20 %)", "range": (0.0, 1.0)})
+    gradual_infill_steps: int = dataclasses.field(default=0, metadata={
+        "description": "times the infill density halves going down from under a top surface (Cura's "
+                       "gradual_infill_steps; 0 = uniform infill, Cura's default)", "range": (0, 10)})
+    gradual_infill_step_height_m: float = dataclasses.field(default=0.0015, metadata={
+        "description": "height of each density step of gradual infill, m (1.5 mm: Cura's default "
+                       "gradual_infill_step_height)", "range": (0.0, 1.0), "exclusive": "low"})
     solid_density_kgpm3: float = dataclasses.field(default=0.0, metadata={
         "description": "density of a solid profile (model: solid only; 0 = unset), kg/m^3, e.g. EPS foam about 20",
         "range": (0.0, 100000.0)})
@@ -155,15 +166,22 @@ def is_convex(mesh: Mesh, normals: np.ndarray, offsets: np.ndarray) -> bool:
     return bool((vertices @ normals.T - offsets).max() <= tolerance)
 
 
+def shell_limits(normals: np.ndarray, offsets: np.ndarray, wall_thickness_m: float,
+                 skin_thickness_m: float) -> np.ndarray:
+    """The offsets (p,) of the face planes moved inwards by the shell (module docstring): the inner solid is
+    ``normals @ x <= shell_limits(...)``."""
+    vertical = np.abs(normals[:, 2])
+    return offsets - np.maximum(wall_thickness_m * np.sqrt(np.clip(1 - vertical ** 2, 0.0, 1.0)),
+                                skin_thickness_m * vertical)
+
+
 def inner_solid(normals: np.ndarray, offsets: np.ndarray, wall_thickness_m: float, skin_thickness_m: float,
                 guess_m: np.ndarray) -> typing.Optional[np.ndarray]:
     """The convex solid ``normals @ x <= offsets`` moved inwards by the shell (module docstring) as outward-wound
     triangles (k, 3, 3), or None when nothing is left inside; ``guess_m`` (3,) is tried first as its interior
     point (the outer solid's centroid)."""
     scipy_spatial = require("scipy.spatial", feature="the printed profile's mass")
-    vertical = np.abs(normals[:, 2])
-    shell = np.maximum(wall_thickness_m * np.sqrt(np.clip(1 - vertical ** 2, 0.0, 1.0)), skin_thickness_m * vertical)
-    limits = offsets - shell
+    limits = shell_limits(normals, offsets, wall_thickness_m, skin_thickness_m)
     inside = np.asarray(guess_m, dtype=np.float64)
     if not (limits - normals @ inside).min() > MIN_INNER_RADIUS_M * 10:
         # Chebyshev centre: the largest ball inside every moved half-space n.x <= limit (maximise its radius r)
@@ -180,6 +198,52 @@ def inner_solid(normals: np.ndarray, offsets: np.ndarray, wall_thickness_m: floa
                         triangles[:, 0] - inside)
     triangles[outward < 0] = triangles[outward < 0][:, ::-1]
     return triangles if hull.volume > 0 else None
+
+
+#: Columns across the inner solid's footprint for the gradual-infill bands (:func:`top_bands`): about this many.
+BAND_COLUMNS = 40000
+
+
+def top_bands(normals: np.ndarray, limits: np.ndarray, corners: np.ndarray, step_m: float,
+              steps: int) -> typing.List[MassProperties]:
+    """Unit-density mass properties of the ``steps`` bands under the top of the convex solid ``normals @ x <=
+    limits`` (corners ``corners`` (k, 3)): band ``k`` holds the points whose depth under the solid's top surface,
+    straight up, is in ``[k step_m, (k + 1) step_m)``. Integrated over vertical columns on a grid of about
+    :data:`BAND_COLUMNS` cells across the footprint, exactly in z; a band that is empty gets zero mass."""
+    low, high = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
+    cell = max(float(np.sqrt(np.prod(high - low) / BAND_COLUMNS)), 1e-9)
+    counts = np.maximum(np.ceil((high - low) / cell).astype(int), 1)
+    size = (high - low) / counts
+    x, y = np.meshgrid(*(low[i] + (np.arange(counts[i]) + 0.5) * size[i] for i in range(2)), indexing="ij")
+    x, y = x.ravel(), y.ravel()
+    reach = limits[None, :] - x[:, None] * normals[None, :, 0] - y[:, None] * normals[None, :, 1]   # n_z z <= reach
+    n_z = normals[:, 2]
+    up, down, flat = n_z > 1e-9, n_z < -1e-9, np.abs(n_z) <= 1e-9
+    top = (reach[:, up] / n_z[up]).min(axis=1) if up.any() else np.full(len(x), np.inf)
+    bottom = (reach[:, down] / n_z[down]).max(axis=1) if down.any() else np.full(len(x), -np.inf)
+    inside = (reach[:, flat] >= 0).all(axis=1) & (top > bottom) & np.isfinite(top) & np.isfinite(bottom)
+    x, y, top, bottom = x[inside], y[inside], top[inside], bottom[inside]
+    area = float(size[0] * size[1])
+    bands = []
+    for k in range(steps):
+        z1 = top - k * step_m
+        z0 = np.maximum(bottom, top - (k + 1) * step_m)
+        length = np.clip(z1 - z0, 0.0, None)
+        z0 = np.minimum(z0, z1)
+        volume = area * float(length.sum())
+        if not volume > 0:
+            bands.append(MassProperties(0.0, np.zeros(3), np.zeros((3, 3))))
+            continue
+        # integrals over each column: of 1, x, y, z, x^2, y^2, z^2, xy, xz, yz (the cell's own spread in x, y added)
+        s_z, s_zz = (z1 ** 2 - z0 ** 2) / 2, (z1 ** 3 - z0 ** 3) / 3
+        com = area * np.array([(x * length).sum(), (y * length).sum(), s_z.sum()]) / volume
+        xx = area * ((x ** 2 + size[0] ** 2 / 12) * length).sum()
+        yy = area * ((y ** 2 + size[1] ** 2 / 12) * length).sum()
+        zz, xy = area * s_zz.sum(), area * (x * y * length).sum()
+        xz, yz = area * (x * s_z).sum(), area * (y * s_z).sum()
+        second = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) - volume * np.outer(com, com)   # about com
+        bands.append(MassProperties(volume, com, np.trace(second) * np.eye(3) - second))
+    return bands
 
 
 def print_mass_properties(mesh: Mesh, spec: ProfilePrintSpec, mass_scale: float = 1.0) -> MassProperties:
@@ -204,4 +268,11 @@ def print_mass_properties(mesh: Mesh, spec: ProfilePrintSpec, mass_scale: float 
     inner = inner_solid(normals, offsets, spec.wall_thickness_m, spec.skin_thickness_m, outer.com_m)
     if inner is None or spec.infill_fraction >= 1:
         return combine([(outer, rho)]).scaled(mass_scale)
-    return combine([(outer, rho), (_unit_solid(inner), -rho * (1 - spec.infill_fraction))]).scaled(mass_scale)
+    steps, fill = spec.gradual_infill_steps, spec.infill_fraction
+    lowest = fill / 2 ** steps
+    parts = [(outer, rho), (_unit_solid(inner), -rho * (1 - lowest))]
+    if steps and fill > 0:
+        limits = shell_limits(normals, offsets, spec.wall_thickness_m, spec.skin_thickness_m)
+        bands = top_bands(normals, limits, inner.reshape(-1, 3), spec.gradual_infill_step_height_m, steps)
+        parts += [(band, rho * (fill / 2 ** k - lowest)) for k, band in enumerate(bands) if band.mass_kg > 0]
+    return combine(parts).scaled(mass_scale)

@@ -165,10 +165,11 @@ def robust_row(study_dir, trials):
     return {r["configuration"]: (r["successes"], r["trials"]) for r in rows if r["factor"] == "robust"}
 
 
-def robust_launches(designs_file, launches, workers=2):
+def robust_launches(designs_file, launches, workers=2, configs=()):
     """{engine: {configuration: (upright, launches)}}: ``launches`` fresh robust launches of the bare robot and
     every design of ``designs_file`` on both engines, by the ``rollability evaluate`` command a user runs (module
-    docstring), and the command's wall time (s; 0 when its table was there already)."""
+    docstring), with the study's parameter files ``configs`` (the print the designs were chosen for: the command
+    refuses another), and the command's wall time (s; 0 when its table was there already)."""
     from rollability_ros.core.results import engine_agreement
 
     designs = os.path.dirname(os.path.abspath(designs_file))
@@ -177,7 +178,7 @@ def robust_launches(designs_file, launches, workers=2):
     if not os.path.exists(table):
         command = [sys.executable, "-m", "rollability_ros.cli", "evaluate", "--designs", designs_file,
                    "--engines", "pybullet,mujoco", "--fidelity", "launch", "--trials", str(launches), "--seed",
-                   str(ROBUST_SEED), "--workers", str(workers)]
+                   str(ROBUST_SEED), "--workers", str(workers)] + [a for c in configs for a in ("--config", c)]
         _run_logged(command, designs, "robust-launches.log", "rollability evaluate")
     elapsed = time.perf_counter() - started
     counts: typing.Dict[str, typing.Dict[str, typing.Tuple[int, int]]] = {}
@@ -194,7 +195,7 @@ def _run_logged(command, folder, log_name, what):
         raise SystemExit(f"{what} failed (exit {code}); see {os.path.join(folder, log_name)}")
 
 
-def world_check(designs_file, worlds, launches, engine="", workers=2):
+def world_check(designs_file, worlds, launches, engine="", workers=2, configs=()):
     """The plausible-world check of ``designs_file`` (module docstring) by the ``rollability sensitivity --worlds``
     command a user runs, into ``world-check-<engine>/`` beside it (read when there already): its
     ``world_summary.yaml`` as a dict, and the command's wall time (s)."""
@@ -205,7 +206,8 @@ def world_check(designs_file, worlds, launches, engine="", workers=2):
     if not os.path.exists(summary):
         command = [sys.executable, "-m", "rollability_ros.cli", "sensitivity", "--designs-file", designs_file,
                    "--worlds", str(worlds), "--launches-per-world", str(launches), "--seed", str(WORLD_SEED),
-                   "--workers", str(workers), "--out", out] + (["--engine", engine] if engine else [])
+                   "--workers", str(workers), "--out", out] + (["--engine", engine] if engine else []) + \
+            [a for c in configs for a in ("--config", c)]
         _run_logged(command, folder, os.path.basename(out) + ".log", "rollability sensitivity --worlds")
     elapsed = time.perf_counter() - started
     with open(summary, encoding="utf-8") as stream:
@@ -249,13 +251,13 @@ def designs_checks(designs_file, args):
     load = os.getloadavg()
     print(f"designs {designs_file} (load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}; 2 shared cores)")
     if args.robust_launches:
-        engines, elapsed = robust_launches(designs_file, args.robust_launches, args.workers)
+        engines, elapsed = robust_launches(designs_file, args.robust_launches, args.workers, args.check_config)
         lows = print_robust_launches(engines, args.robust_launches, elapsed)
         print(f"  A above bare with the interval above 0 on both engines: "
               f"{len(lows.get('A', [])) == 2 and min(lows['A']) > 0}")
     if args.worlds:
         share, _gain, _low = print_world_check(*world_check(designs_file, args.worlds, args.launches_per_world,
-                                                             args.world_engine, args.workers))
+                                                             args.world_engine, args.workers, args.check_config))
         print(f"  A wins at least {A_WORLD_SHARE_TARGET:.0%} of the worlds: {share >= A_WORLD_SHARE_TARGET}")
     print(f"load average at the end: {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
     return 0
@@ -283,6 +285,9 @@ def main(argv=None):
     parser.add_argument("--smoke", action="store_true", help="tiny sizes: one seed of the miniature study, each "
                         "measurement once; the numbers mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
+    # the user's parameter files, given to the checks too (the print the designs were chosen for; --smoke's study
+    # sizes below are optimizer settings, which the checks' commands refuse)
+    args.check_config = list(args.config)
     scratch = tempfile.TemporaryDirectory(prefix="bench-transfer-")   # ROS logs (and --smoke's studies)
     if args.smoke:
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -331,10 +336,10 @@ def main(argv=None):
         designs_file = os.path.join(study_dir, "optimization", "designs", "designs.yaml")
         engine_lows: typing.Dict[str, typing.List[float]] = {}
         if args.robust_launches:
-            engines, launches_s = robust_launches(designs_file, args.robust_launches, args.workers)
+            engines, launches_s = robust_launches(designs_file, args.robust_launches, args.workers, args.check_config)
             engine_lows = print_robust_launches(engines, args.robust_launches, launches_s)
         worlds = print_world_check(*world_check(designs_file, args.worlds, args.launches_per_world, args.world_engine,
-                                                args.workers)) if args.worlds else (float("nan"),) * 3
+                                                args.workers, args.check_config)) if args.worlds else (float("nan"),) * 3
         robust_gain = robust_low = float("nan")
         if args.sensitivity_trials:
             robust = robust_row(study_dir, args.sensitivity_trials)

@@ -136,12 +136,13 @@ def _compare_designs(args, settings, trials):
     summary and write it next to the designs file (``engine_agreement.csv``, read by ``rollability report``)."""
     import dataclasses
     import os
-    from rollability_ros.core.profile import DesignSources, configuration_ids, profile_mesh_for
+    from rollability_ros.core.profile import DesignSources, check_printed_with, configuration_ids, profile_mesh_for
     from rollability_ros.core.results import TABLE_FILENAME, summary_lines, table_rows, write_table
     from rollability_ros.core.sim import evaluate_mesh, make_executor
 
     engines = _engine_list(args.engines)
     sources = DesignSources(designs_file=args.designs)
+    check_printed_with(args.designs, settings.print_instructions())   # the designs' masses assume their print
     table = os.path.join(os.path.dirname(os.path.abspath(args.designs)), TABLE_FILENAME)
     if os.path.lexists(table):   # before minutes of trials: an earlier comparison is a result, never overwritten
         raise ValueError(f"{table} already holds an earlier engine comparison of these designs; move it aside to "

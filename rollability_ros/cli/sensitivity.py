@@ -132,6 +132,9 @@ def run(args: argparse.Namespace) -> int:
                                 args.config, "rollability sensitivity")
     if args.trials < 1:
         raise ValueError(f"--trials must be >= 1, got {args.trials}")
+    if args.designs_file:
+        from rollability_ros.core.profile import check_printed_with
+        check_printed_with(args.designs_file, settings.print_instructions())   # the designs' masses assume it
     profiles = _profiles(args)
     varied = _varied(args.vary)
     if varied and not args.launches:

@@ -105,3 +105,35 @@ def test_missing_and_broken_files_are_named(tmp_path):
     broken.write_text("/**:\n  ros__parameters:\n    designs:\n      labels: [A]\n      grid: {rows: 4, cols: 3}\n")
     with pytest.raises(ConfigError, match="design A has no designs.A.heights"):
         profile_mesh_for("A", DesignSources(designs_file=str(broken)))
+
+
+def test_designs_are_launched_only_under_the_print_they_were_chosen_for(tmp_path):
+    """designs.print states the print a design set's masses assume; evaluating its designs under another print
+    would weigh them differently, so it is refused naming each setting that differs (a file without the block,
+    written before it was recorded, is accepted). The commands that launch a designs file refuse it in one line
+    before any launch."""
+    from rollability_ros.cli import main
+    from rollability_ros.core.profile.designs import check_printed_with
+    from rollability_ros.core.sim import evaluation
+
+    default = evaluation.load_settings(["sim", "robot", "evaluator"]).print_instructions()
+    gradual = evaluation.load_settings(["sim", "robot", "evaluator", "gradual_print"]).print_instructions()
+    assert gradual != default
+    path = write_designs(str(tmp_path), {"A": 0.3})
+    check_printed_with(path, default)                 # no print block: nothing to compare
+    with open(path, encoding="utf-8") as stream:
+        document = yaml.safe_load(stream)
+    document["/**"]["ros__parameters"]["designs"]["print"] = dict(gradual)
+    with open(path, "w", encoding="utf-8") as stream:
+        yaml.safe_dump(document, stream)
+    check_printed_with(path, gradual)
+    with pytest.raises(ConfigError, match=r"gradual_infill_steps 5 \(designs\) vs 0 \(loaded\)") as refused:
+        check_printed_with(path, default)
+    assert "\n" not in str(refused.value) and "--config" in str(refused.value)
+    heavier = {**gradual, "profile_mass_scale": 1.25}
+    with pytest.raises(ConfigError, match="profile_mass_scale"):
+        check_printed_with(path, heavier)
+    for command in (["evaluate", "--designs", path, "--engines", "pybullet,mujoco", "--fidelity", "launch"],
+                    ["sensitivity", "--designs-file", path, "--worlds", "2", "--out", str(tmp_path / "worlds")]):
+        assert main(command) == 2
+        assert not (tmp_path / "engine_agreement.csv").exists() and not (tmp_path / "worlds").exists()

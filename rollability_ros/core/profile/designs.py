@@ -106,6 +106,32 @@ def designs_file_labels(path: str) -> typing.List[str]:
     return list(_read_designs(_file_version(path))[1])
 
 
+def check_printed_with(path: str, instructions: typing.Mapping[str, typing.Union[str, float]]) -> None:
+    """Refuse to launch the designs of ``path`` under another print than the one it tells the lab to use.
+
+    A designs file states how its designs are printed (``designs.print``: the robot's ``profile_print`` and
+    ``profile_mass_scale`` when they were chosen; :func:`~rollability_ros.core.optimization.design_set`), and a
+    design's mass, so its launches, follow from that print. ``instructions`` is the print of the robot in use
+    (``print_instructions()``). Raises :class:`ConfigError` naming each setting that differs and the parameter
+    file to give; nothing for a file that states no print (written before it was recorded)."""
+    stated = section(load_parameters([path]), "designs").get("print")
+    if stated is None:
+        return
+    if not isinstance(stated, dict):
+        raise ConfigError(f"{path}: designs.print must be a mapping of the print's settings")
+    differ = []
+    for name in sorted(set(stated) | set(instructions)):
+        want, have = stated.get(name), instructions.get(name)
+        same = (isinstance(want, (int, float)) and isinstance(have, (int, float)) and not isinstance(want, bool)
+                and abs(float(want) - float(have)) <= 1e-9 * max(1.0, abs(float(want)))) or want == have
+        if not same:
+            differ.append(f"{name} {want} (designs) vs {have} (loaded)")
+    if differ:
+        raise ConfigError(f"{path}: its designs were chosen for another print than the robot loaded here: "
+                          f"{'; '.join(differ)}; give the parameter file the designs were chosen with "
+                          "(e.g. --config gradual_print), or set robot.profile_print to match")
+
+
 def configuration_ids(sources: DesignSources) -> typing.List[str]:
     """All ids ``sources`` defines: ``baseline``, the designs file's labels, then the mesh labels.
 

@@ -130,10 +130,28 @@ def test_designs_are_launched_only_under_the_print_they_were_chosen_for(tmp_path
     with pytest.raises(ConfigError, match=r"gradual_infill_steps 5 \(designs\) vs 0 \(loaded\)") as refused:
         check_printed_with(path, default)
     assert "\n" not in str(refused.value) and "--config" in str(refused.value)
-    heavier = {**gradual, "profile_mass_scale": 1.25}
-    with pytest.raises(ConfigError, match="profile_mass_scale"):
-        check_printed_with(path, heavier)
+    check_printed_with(path, {**gradual, "profile_mass_scale": 0.9})   # the model's error, fitted: not the print
+    with pytest.raises(ConfigError, match="infill_fraction"):
+        check_printed_with(path, {**gradual, "infill_fraction": 0.1})
     for command in (["evaluate", "--designs", path, "--engines", "pybullet,mujoco", "--fidelity", "launch"],
                     ["sensitivity", "--designs-file", path, "--worlds", "2", "--out", str(tmp_path / "worlds")]):
         assert main(command) == 2
         assert not (tmp_path / "engine_agreement.csv").exists() and not (tmp_path / "worlds").exists()
+    # the rig's twin backend (the campaign on the simulated rig) refuses it at start-up, and takes the matching print
+    from rollability_ros.core.rig.launch_backend import RigSettings
+    from rollability_ros.core.rig.rig_session import SimulatedLaunch
+    from rollability_ros.core.rig.speed_gate import SpeedGateConfig
+    from rollability_ros.core.sim import load_launch_twin_settings
+
+    twin = tmp_path / "twin.yaml"
+    twin.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"launch_twin": {"designs": {"designs_file": path}}}}}),
+                    encoding="utf-8")
+    for prints, refused in (([], True), (["gradual_print"], False)):
+        twin_config = ["sim", "robot", "launch_twin", *prints, str(twin)]
+        backend = SimulatedLaunch(RigSettings(twin_config=twin_config), SpeedGateConfig(),
+                                  load_launch_twin_settings(twin_config))
+        if refused:
+            with pytest.raises(ConfigError, match="gradual_infill_steps"):
+                backend.load()
+        else:
+            backend.load()

@@ -113,14 +113,16 @@ def check_printed_with(path: str, instructions: typing.Mapping[str, typing.Union
     ``profile_mass_scale`` when they were chosen; :func:`~rollability_ros.core.optimization.design_set`), and a
     design's mass, so its launches, follow from that print. ``instructions`` is the print of the robot in use
     (``print_instructions()``). Raises :class:`ConfigError` naming each setting that differs and the parameter
-    file to give; nothing for a file that states no print (written before it was recorded)."""
+    file to give; nothing for a file that states no print (written before it was recorded). The mass multiplier
+    (``profile_mass_scale``) is not compared: it is the print model's error on the rig (measured / modelled, what
+    calibration fits), not an instruction to the lab."""
     stated = section(load_parameters([path]), "designs").get("print")
     if stated is None:
         return
     if not isinstance(stated, dict):
         raise ConfigError(f"{path}: designs.print must be a mapping of the print's settings")
     differ = []
-    for name in sorted(set(stated) | set(instructions)):
+    for name in sorted((set(stated) | set(instructions)) - {"profile_mass_scale"}):
         want, have = stated.get(name), instructions.get(name)
         same = (isinstance(want, (int, float)) and isinstance(have, (int, float)) and not isinstance(want, bool)
                 and abs(float(want) - float(have)) <= 1e-9 * max(1.0, abs(float(want)))) or want == have

@@ -348,11 +348,16 @@ class SimulatedLaunch(LaunchBackend):
         return backend
 
     def load(self) -> types.ModuleType:
-        """Import the twin and check its launcher against the robot now (a node does it at start-up to fail
-        early: ``ValueError`` naming the setting)."""
+        """Import the twin and check its launcher against the robot, and its designs file's print against the
+        robot's print, now (a node does it at start-up to fail early: ``ValueError`` naming the setting)."""
         if self._twin is None:
             twin = importlib.import_module("rollability_ros.core.sim")
             twin.check_launcher(self._twin_settings)
+            designs_file = self._twin_settings.twin.designs.designs_file
+            if designs_file and os.path.isfile(designs_file):   # a missing one: every goal names it (check)
+                from rollability_ros.core.profile import check_printed_with
+
+                check_printed_with(designs_file, self._twin_settings.print_instructions())
             self._twin = twin
         return self._twin
 

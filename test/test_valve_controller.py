@@ -164,7 +164,12 @@ def test_diagnostics_report_armed_fault_margin_and_link(ros_node, start_node, re
         assert ros_node.wait_for(lambda: latest().get("rejected_requests") == "1", 10)
         relay.cut()
         assert ros_node.wait_for(lambda: arrays[-1].status[0].level == DiagnosticStatus.ERROR, 10)
-        assert "link lost" in latest()["fault_reason"] and "lost" in latest()["device_link"]
+        # the device link reports the cut; the latched fault names it, unless a stall of this VM's valve process
+        # past the board's 250 ms keep-alive let the board drop the relay first (fresh-clone run: "board fault
+        # keepalive: relay off and disarmed by the board"), a correct trip of the board's own fault latched earlier
+        assert ros_node.wait_for(lambda: "lost" in latest().get("device_link", ""), 10), latest()
+        reason = latest()["fault_reason"]
+        assert "link lost" in reason or "board fault keepalive" in reason, reason
         relay.restore()
 
 

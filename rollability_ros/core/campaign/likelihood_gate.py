@@ -193,6 +193,8 @@ def gate_predictor(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typin
     sigma_fixed = twin.twin.speed_sigma_fraction
 
     def predict(u: np.ndarray) -> typing.Tuple[np.ndarray, np.ndarray]:
+        """The gate's reading without scatter and its spread (m/s, each (n, groups): per (configuration, set
+        speed) group of the table) at the normalised unknowns ``u`` (n, unknowns)."""
         point = np.clip(u[:, [bias, *others]], 0.0, 1.0)
         low, high = point.copy(), point.copy()
         low[:, 0] = np.clip(point[:, 0] - step, 0.0, 1.0)

@@ -232,6 +232,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
         def make(plan: int, t: int = t, begin: np.ndarray = begin,
                  log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = log_prior
                  ) -> WeightedPosterior:
+            """Plan ``plan``'s posterior at truth ``t``, from the start samples ``begin`` (n, unknowns)."""
             return OutcomePosterior(table, begin, np.random.default_rng([seed, t, 2 + plan]), draws=draws,
                                     log_prior=log_prior, gate=gate)
 

@@ -68,7 +68,8 @@ def _file_version(path):
 @file_schema("designs file")
 @functools.lru_cache(maxsize=16)
 def _read_designs(version):
-    """``(grid, {label: heights})`` of the designs file ``version`` (see :func:`_file_version`)."""
+    """``(grid, {label: heights}, print or None)`` of the designs file ``version`` (see :func:`_file_version`);
+    the print is the file's ``designs.print`` (:func:`check_printed_with`)."""
     path = version[0]
     designs = section(load_parameters([path]), "designs")
     labels = designs.get("labels")
@@ -83,12 +84,15 @@ def _read_designs(version):
         if not isinstance(entry, dict) or "heights" not in entry:
             raise ConfigError(f"{path}: design {label} has no designs.{label}.heights")
         heights[label] = tuple(entry["heights"])
-    return grid, heights
+    printed = designs.get("print")
+    if printed is not None and not isinstance(printed, dict):
+        raise ConfigError(f"{path}: designs.print must be a mapping of the print's settings")
+    return grid, heights, printed
 
 
 @functools.lru_cache(maxsize=16)
 def _designs_mesh(version, label):
-    grid, heights = _read_designs(version)
+    grid, heights, _ = _read_designs(version)
     try:
         return geometry.profile_mesh(heights[label], grid)
     except ValueError as exc:
@@ -116,11 +120,9 @@ def check_printed_with(path: str, instructions: typing.Mapping[str, typing.Union
     file to give; nothing for a file that states no print (written before it was recorded). The mass multiplier
     (``profile_mass_scale``) is not compared: it is the print model's error on the rig (measured / modelled, what
     calibration fits), not an instruction to the lab."""
-    stated = section(load_parameters([path]), "designs").get("print")
+    stated = _read_designs(_file_version(path))[2]
     if stated is None:
         return
-    if not isinstance(stated, dict):
-        raise ConfigError(f"{path}: designs.print must be a mapping of the print's settings")
     differ = []
     for name in sorted((set(stated) | set(instructions)) - {"profile_mass_scale"}):
         want, have = stated.get(name), instructions.get(name)

@@ -590,7 +590,7 @@ FAIL_SAFE = ("did not answer", "link lost", "keepalive", "NOT_ARMED", "watchdog"
 
 
 def wait_phase(spun, feedback, phase, process_logs, timeout_s=30):
-    assert spun.wait_for(lambda: feedback and feedback[-1][0] == phase, timeout_s), (feedback, process_logs())
+    assert spun.wait_for(lambda: feedback and feedback[-1][0] == phase, timeout_s), f"{feedback}\n{process_logs()}"
 
 
 def rig_cli(*args):
@@ -639,23 +639,36 @@ def test_stray_participant_never_launches_through_the_rig(ros_node, start_node, 
 
     # --- the operator's launch op/0, through the test's signed client: what a stray could capture of it --------
     condition = LaunchCondition("A", 0.75, 0.8, 0.0, 0)
-    feedback = []
     assert rig.action.wait_for_server(timeout_sec=30), logs()   # sign once the rig is there, as the tools do
-    goal = rig.goal("op/0", condition, run_id="op-run")
-    future = rig.send("op/0", condition, feedback, goal=goal)
-    wait_phase(ros_node, feedback, "waiting_for_operator", logs)
     key = valve_auth.load_session_key(valve_auth.default_key_path(""))
-    expired = valve_auth.RequestSigner(key, lambda: time.monotonic_ns() - 6_000_000_000).sign_text(
-        rig_auth.confirm_text("op/0"))
-    refused = rig.confirm(request=ConfirmRegulator.Request(trial_id="op/0", auth=auth_msg(expired)))
-    assert not refused.success and "stale request" in refused.message, refused.message
-    other = rig.confirm("op/9")                    # signed, but for another launch than the one waiting
-    assert not other.success and "waits for a regulator confirmation of 'op/0', not 'op/9'" in other.message
     unsigned = RigClient(ros_node, signed=False)
-    assert "not authenticated" in unsigned.confirm("op/0").message
-    confirmation = ConfirmRegulator.Request(trial_id="op/0", auth=rig.auth(lambda signer: signer.confirm("op/0")))
-    assert rig.confirm(request=confirmation).success
-    wait_phase(ros_node, feedback, "classifying", logs)
+    for attempt in range(3):
+        feedback = []
+        goal = rig.goal("op/0", condition, run_id="op-run")
+        future = rig.send("op/0", condition, feedback, goal=goal)
+        wait_phase(ros_node, feedback, "waiting_for_operator", logs)
+        if attempt == 0:
+            expired = valve_auth.RequestSigner(key, lambda: time.monotonic_ns() - 6_000_000_000).sign_text(
+                rig_auth.confirm_text("op/0"))
+            refused = rig.confirm(request=ConfirmRegulator.Request(trial_id="op/0", auth=auth_msg(expired)))
+            assert not refused.success and "stale request" in refused.message, refused.message
+            other = rig.confirm("op/9")                    # signed, but for another launch than the one waiting
+            assert not other.success and "waits for a regulator confirmation of 'op/0', not 'op/9'" in other.message
+            assert "not authenticated" in unsigned.confirm("op/0").message
+        confirmation = ConfirmRegulator.Request(trial_id="op/0", auth=rig.auth(lambda signer: signer.confirm("op/0")))
+        assert rig.confirm(request=confirmation).success
+        assert ros_node.wait_for(lambda: future.done() or feedback[-1][0] == "classifying", 30), (
+            f"{feedback}\n{logs()}")
+        if not future.done():
+            break
+        # a stall of this loaded machine held the valve node or the board simulator past a bound (slow tier beside
+        # another suite: the launch never reached classifying): a fail-safe abort, never a pulse; the operator
+        # acknowledges it and launches again
+        done = rig.result(future)
+        assert any(reason in done.result.message for reason in FAIL_SAFE), done.result.message + logs()
+        assert pulses() == 0, logs()
+        valve.arm(False)
+    wait_phase(ros_node, feedback, "classifying", logs)   # the loop's last attempt reached it
     assert "not authenticated" in unsigned.record(True, "op/0", note="forged").message
     answer = rig.record(False, "op/0", note="operator")
     assert answer.accepted, answer.message

@@ -19,6 +19,7 @@ reads each file once and a rewritten file is read again.
 """
 import dataclasses
 import functools
+import math
 import os
 import typing
 
@@ -114,7 +115,7 @@ def check_printed_with(path: str, instructions: typing.Mapping[str, typing.Union
     """Refuse to launch the designs of ``path`` under another print than the one it tells the lab to use.
 
     A designs file states how its designs are printed (``designs.print``: the robot's ``profile_print`` and
-    ``profile_mass_scale`` when they were chosen; :func:`~rollability_ros.core.optimization.design_set`), and a
+    ``profile_mass_scale`` when they were chosen; :mod:`~rollability_ros.core.optimization.design_set`), and a
     design's mass, so its launches, follow from that print. ``instructions`` is the print of the robot in use
     (``print_instructions()``). Raises :class:`ConfigError` naming each setting that differs and the parameter
     file to give; nothing for a file that states no print (written before it was recorded). The mass multiplier
@@ -126,9 +127,9 @@ def check_printed_with(path: str, instructions: typing.Mapping[str, typing.Union
     differ = []
     for name in sorted((set(stated) | set(instructions)) - {"profile_mass_scale"}):
         want, have = stated.get(name), instructions.get(name)
-        same = (isinstance(want, (int, float)) and isinstance(have, (int, float)) and not isinstance(want, bool)
-                and abs(float(want) - float(have)) <= 1e-9 * max(1.0, abs(float(want)))) or want == have
-        if not same:
+        close = (isinstance(want, (int, float)) and isinstance(have, (int, float))
+                 and not isinstance(want, bool) and math.isclose(want, have, rel_tol=1e-9, abs_tol=1e-12))
+        if not (want == have or close):
             differ.append(f"{name} {want} (designs) vs {have} (loaded)")
     if differ:
         raise ConfigError(f"{path}: its designs were chosen for another print than the robot loaded here: "

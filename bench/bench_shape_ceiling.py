@@ -22,7 +22,6 @@ import argparse
 import collections
 import concurrent.futures
 import dataclasses
-import itertools
 import os
 import sys
 import time
@@ -50,14 +49,9 @@ def nominal_settings(configs):
 
 
 def shapes(grid):
-    """``{name: heights}``: the bare robot and the parametric family (see the module docstring)."""
-    xy = geometry.grid_xy(grid)
-    along, across = np.abs(xy[:, 0]) / (grid.length_m / 2), np.abs(xy[:, 1]) / (grid.width_m / 2)
-    family = {"bare": np.zeros(grid.n_variables)}
-    for height, a, b in itertools.product([0.2, 0.32, 0.45], [0.0, 0.5, 1.0], [0.0, 0.5, 1.0]):
-        heights = np.clip(height * (1 - a * along) * (1 - b * across), grid.height_min, grid.height_max)
-        family[f"H {height:.2f} a {a:.1f} b {b:.1f}"] = heights
-    return family
+    """``{name: heights}``: the bare robot and the parametric family (see the module docstring;
+    ``geometry.simple_profiles``)."""
+    return {"bare": np.zeros(grid.n_variables), **geometry.simple_profiles(grid)}
 
 
 #: Rest modes by the base-frame axis nearest world up (index, sign): the robot's own x forward, y left, z up.

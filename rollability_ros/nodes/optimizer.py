@@ -345,7 +345,9 @@ class Optimizer(Node):
                 evaluate_trials=self._pool.fidelity_evaluator(""),
                 screen_profiles=profile_screen(self._typed_run_settings(settings),
                                                self._robot_settings(settings)))
-        except (ConfigError, ValueError, FileNotFoundError) as exc:
+        except PoolClosed:   # shut down while the start means were evaluated (optimizer.initial_mean_measure)
+            return None
+        except (ConfigError, ValueError, FileNotFoundError, EvaluationFailed) as exc:
             log.error(f"cannot {'resume' if resume else 'start'} run in {run_dir}: {exc}")
             return 1
         try:

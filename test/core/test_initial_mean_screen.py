@@ -107,3 +107,55 @@ def test_the_real_screen_ranks_random_means_on_the_robot_in_use():
     assert profile_screen(run_settings(parameters(0)), settings) is None
     with pytest.raises(ConfigError, match=r"^stable_poses.com_sigma_m out of range: 0.5 is not in \[0.0, 0.05\)$"):
         run_settings(parameters(4, **{"stable_poses.com_sigma_m": 0.5}))     # refused where it is parsed
+
+
+class Counting:
+    """``evaluate_batch`` that counts the profiles it evaluates."""
+
+    def __init__(self, evaluate):
+        self.evaluate, self.profiles = evaluate, 0
+
+    def __call__(self, heights_list, seed):
+        self.profiles += len(heights_list)
+        return self.evaluate(heights_list, seed)
+
+
+def test_the_start_ranked_on_the_searchs_own_measure_can_be_a_simple_profile_and_is_kept_on_resume(tmp_path):
+    """initial_mean_measure objective with initial_mean_shapes: the random means and the 27 simple profiles are each
+    evaluated once by the run's own evaluator, the one with the most successes starts (here the simple profile at the
+    evaluator's optimum), the ranking is recorded and a resumed run reads it back without evaluating them again."""
+    from rollability_ros.core.profile.geometry import simple_profiles
+
+    shapes = simple_profiles(GRID)
+    assert len(shapes) == 27 and all(GRID.height_min <= h.min() and h.max() <= GRID.height_max for h in shapes.values())
+    assert np.allclose(shapes["H 0.45 a 0.0 b 0.0"], GRID.height_max)         # the flat top at the bound
+    target = "H 0.32 a 1.0 b 0.5"
+    params = parameters(4, **{"optimizer.initial_mean_measure": "objective", "optimizer.initial_mean_shapes": True})
+    run_dir = os.path.join(tmp_path, "run")
+    evaluate = Counting(SyntheticEvaluator(shapes[target], 30, width=0.02))
+    run = OptimizationRun(run_dir, run_config(params), GRID, evaluate)
+    assert evaluate.profiles == 4 + 27
+    assert np.array_equal(run.optimizer.initial_mean, shapes[target])
+    screen = run.store.run_info(run.run_id)["info"]["initial_mean_screen"]
+    assert screen["names"][screen["chosen"]] == target and screen["measure"] == "objective"
+    assert screen["successes"][screen["chosen"]] == max(screen["successes"]) and set(screen["trials"]) == {30}
+    assert run.initial_mean_text().startswith(f"initial mean: {target}, the best of 31 candidate means")
+    run.step()
+    run.close()
+    evaluate.profiles = 0
+    resumed = OptimizationRun(run_dir, run_config(params), GRID, evaluate, resume=True)
+    assert np.array_equal(resumed.optimizer.initial_mean, shapes[target])
+    assert evaluate.profiles == 0      # read back, not launched again
+    resumed.close()
+
+
+@pytest.mark.parametrize("overrides, message", [
+    ({"optimizer.initial_mean_measure": "launches"}, "initial_mean_measure must be one of stable_poses, objective"),
+    ({"optimizer.initial_mean_shapes": True, "optimizer.initial_mean_screen": 0},
+     "initial_mean_shapes needs initial_mean_screen > 0"),
+])
+def test_an_unknown_start_measure_or_shapes_without_a_screen_are_refused(tmp_path, overrides, message):
+    with pytest.raises(ValueError, match=message):
+        OptimizationRun(os.path.join(tmp_path, "run"), run_config(parameters(4, **overrides)), GRID,
+                        SyntheticEvaluator(OPTIMUM, 30))
+    assert not os.path.exists(os.path.join(tmp_path, "run"))

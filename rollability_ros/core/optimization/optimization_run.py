@@ -48,12 +48,13 @@ from rollability_ros.core.optimization.optimizer_contract import (
     STREAM_POPULATION,
     STREAM_RACE,
     STREAM_REEVALUATION,
+    STREAM_START,
     OPTIMIZER_METHODS,
     IncumbentOptimizer,
     OptimizerResult,
     RunSettings,
     derive_seed,
-    random_initial_means,
+    initial_mean_candidates,
 )
 from rollability_ros.core.profile import PrinterSpec, ProfileGrid
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, RunProgress
@@ -212,7 +213,7 @@ class OptimizationRun:
         if not resume:  # before any simulation (the start-point screen takes tens of seconds)
             check_new_run_dir(self.run_dir)
             check_design_space_printable(self.run_settings.printer, self.grid)
-        self.initial_mean_screen = self._screen_initial_means(screen_profiles)
+        self.initial_mean_screen = self._screen_initial_means(screen_profiles, resume)
         self.optimizer = self._resume() if resume else self._start()
         self.store = Store(self.run_dir)
         described = self.store.run_info(self.run_id)  # keep what selection added on an earlier pass
@@ -230,21 +231,48 @@ class OptimizationRun:
         generations = self.store.generations(run_id=self.run_id)
         self._last_generation: typing.Optional[GenerationRecord] = generations[-1] if generations else None
 
-    def _screen_initial_means(self, screen_profiles):
-        """With ``initial_mean_screen`` > 0: screen the random initial means and return ``{"chosen": index,
-        "upright_probability": [...], "worst_barrier_m": [...]}``; else None (the paper's one random mean)."""
+    def _screen_initial_means(self, screen_profiles, resume=False):
+        """With ``initial_mean_screen`` > 0: rank the candidate start means (:func:`initial_mean_candidates`) by
+        ``initial_mean_measure`` and start from the best; return the record kept in the store's run info
+        (``{"chosen": index, "names": [...], "measure": ..., and per candidate "upright_probability" and
+        "worst_barrier_m" (stable_poses) or "successes" and "trials" (objective)}``); else None (the paper's one random
+        mean). The objective evaluates every candidate once on the search's own measure (``evaluate_batch``,
+        ``optimizer.trials`` trials on one common seed of stream ``STREAM_START``); a resumed run reads that ranking
+        back from its run info instead of launching again."""
         self._initial_mean = None
         if self.settings.initial_mean_screen == 0:
             return None
+        means, names = initial_mean_candidates(self.settings, self.grid)
+        if self.settings.initial_mean_measure == "objective":
+            screen = self._stored_start_screen(names) if resume else None
+            if screen is None:
+                seed = derive_seed(self.settings.seed, 0, STREAM_START)
+                results = self._checked(self._evaluate_batch(list(means), seed), list(range(len(means))), "start")
+                successes, trials = [int(r[0]) for r in results], [int(r[1]) for r in results]
+                chosen = max(range(len(means)), key=lambda i: (successes[i] / trials[i], -i))
+                screen = {"chosen": chosen, "measure": "objective", "names": names, "seed": seed,
+                          "successes": successes, "trials": trials}
+            self._initial_mean = means[int(screen["chosen"])]
+            return screen
         if screen_profiles is None:
             raise ValueError(f"optimizer.initial_mean_screen {self.settings.initial_mean_screen} needs the stable-pose "
                              "screen of the run's robot (screen_profiles, optimization_run.profile_screen)")
-        means = random_initial_means(self.settings, self.grid.n_variables, self.grid.height_min, self.grid.height_max)
         screens = screen_profiles(list(means))
         chosen = max(range(len(means)), key=lambda i: (screens[i].upright_probability, -screens[i].worst_barrier_m))
         self._initial_mean = means[chosen]
-        return {"chosen": chosen, "upright_probability": [round(s.upright_probability, 4) for s in screens],
+        return {"chosen": chosen, "measure": "stable_poses", "names": names,
+                "upright_probability": [round(s.upright_probability, 4) for s in screens],
                 "worst_barrier_m": [round(s.worst_barrier_m, 5) for s in screens]}
+
+    def _stored_start_screen(self, names):
+        """The objective's ranking of the start means a resumed run stored in its run info, or None (none stored,
+        or one over other candidates)."""
+        with Store(self.run_dir) as store:
+            described = store.run_info(self.run_id)
+        screen = ((described or {}).get("info") or {}).get("initial_mean_screen")
+        if not screen or screen.get("measure") != "objective" or screen.get("names") != names:
+            return None
+        return screen
 
     def initial_mean_text(self) -> str:
         """One line on where CMA-ES started, for the CLI and the node log."""
@@ -252,9 +280,15 @@ class OptimizationRun:
         if screen is None:
             return "initial mean: one random mean (optimizer.initial_mean_screen 0)"
         chosen = screen["chosen"]
-        return (f"initial mean: #{chosen} of {len(screen['upright_probability'])} random means by the stable-pose "
-                f"screen (quasi-static P(upright) {screen['upright_probability'][chosen]:.3f}, worst barrier "
-                f"{screen['worst_barrier_m'][chosen] * 1000:.1f} mm)")
+        names = screen.get("names") or []
+        count = len(names) or len(screen["upright_probability"])
+        which = (f"#{chosen} of {count} random means" if all(n.startswith("random ") for n in names)
+                 else f"{names[chosen]}, the best of {count} candidate means (random and simple profiles)")
+        if screen.get("measure") == "objective":
+            return (f"initial mean: {which} on the search's own measure ({screen['successes'][chosen]}/"
+                    f"{screen['trials'][chosen]} upright)")
+        return (f"initial mean: {which} by the stable-pose screen (quasi-static P(upright) "
+                f"{screen['upright_probability'][chosen]:.3f}, worst barrier {screen['worst_barrier_m'][chosen] * 1000:.1f} mm)")
 
     def _new_optimizer(self, state=None):
         if self._optimizer_factory is None:

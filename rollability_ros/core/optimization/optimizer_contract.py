@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rollability_ros.core import config
-from rollability_ros.core.profile import PrinterSpec, ProfileGrid
+from rollability_ros.core.profile import PrinterSpec, ProfileGrid, simple_profiles
 from rollability_ros.core.registry import Registry
 from rollability_ros.core.sim import ScreenSettings
 
@@ -27,6 +27,10 @@ STREAM_POPULATION = 0
 STREAM_REEVALUATION = 1
 STREAM_SELECTION = 2
 STREAM_RACE = 3
+STREAM_START = 4
+
+#: What ranks the candidate start means (``optimizer.initial_mean_measure``).
+INITIAL_MEAN_MEASURES = ("stable_poses", "objective")
 
 
 def derive_seed(run_seed: int, generation: int, stream: int, index: int = 0) -> int:
@@ -100,6 +104,14 @@ class OptimizerSettings:
     initial_mean_screen: int = dataclasses.field(default=0, metadata={
         "description": "random CMA-ES start means screened by the quasi-static stable-pose screen; the best is used "
                        "(count; 0 = the paper's one random mean)", "range": (0, 10000)})
+    initial_mean_measure: str = dataclasses.field(default="stable_poses", metadata={
+        "description": "what ranks the candidate start means (initial_mean_screen > 0): stable_poses (the "
+                       "quasi-static stable-pose screen) or objective (one evaluation of each on the search's own "
+                       "measure, optimizer.trials trials on one common seed; the most successes starts)"})
+    initial_mean_shapes: bool = dataclasses.field(default=False, metadata={
+        "description": "true: the 27 simple parametric profiles (flat tops, ridges, pyramids; "
+                       "geometry.simple_profiles) are candidate start means beside the random ones "
+                       "(needs initial_mean_screen > 0)"})
 
     @property
     def race_stages(self) -> typing.Optional[typing.List[int]]:
@@ -131,6 +143,12 @@ class OptimizerSettings:
                              "going on one common seed)")
         if not self.output_dir:
             raise ValueError("output_dir must be a non-empty path")
+        if self.initial_mean_measure not in INITIAL_MEAN_MEASURES:
+            raise ValueError(f"initial_mean_measure must be one of {', '.join(INITIAL_MEAN_MEASURES)}, got "
+                             f"{self.initial_mean_measure!r}")
+        if self.initial_mean_shapes and self.initial_mean_screen == 0:
+            raise ValueError("initial_mean_shapes needs initial_mean_screen > 0 (the screen that ranks the start "
+                             "means; 0 starts from the paper's one random mean)")
 
 
 @dataclasses.dataclass
@@ -226,6 +244,21 @@ def random_initial_means(settings: OptimizerSettings, n_variables: int, lower: f
     ``[lower, upper]``; row 0 is the one the paper's settings start from (``initial_mean_screen`` 0 or 1)."""
     rows = max(1, settings.initial_mean_screen)
     return np.random.default_rng(settings.seed).uniform(lower, upper, (rows, int(n_variables)))
+
+
+def initial_mean_candidates(settings: OptimizerSettings, grid: ProfileGrid
+                            ) -> typing.Tuple[npt.NDArray[np.float64], typing.List[str]]:
+    """``(means, names)``: the candidate start means ``(count, grid.n_variables)`` a screened run ranks
+    (:func:`random_initial_means`, then with ``initial_mean_shapes`` the simple parametric profiles of
+    :func:`~rollability_ros.core.profile.geometry.simple_profiles`) and a name each (``"random 3"``, ``"H 0.32 a 1.0
+    b 0.5"``)."""
+    means = random_initial_means(settings, grid.n_variables, grid.height_min, grid.height_max)
+    names = [f"random {i}" for i in range(len(means))]
+    if settings.initial_mean_shapes:
+        shapes = simple_profiles(grid)
+        means = np.vstack([means, np.array(list(shapes.values()), dtype=np.float64)])
+        names += list(shapes)
+    return means, names
 
 
 class IncumbentOptimizer(abc.ABC):

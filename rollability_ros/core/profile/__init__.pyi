@@ -5,7 +5,7 @@ from .descriptors import ProfileDescriptors, height_bound_mm, mesh_descriptors, 
 from .designs import DesignSources, check_printed_with, configuration_ids, designs_file_labels, profile_mesh_for
 from .geometry import (MESH_UNITS, Mesh, PrinterSpec, ProfileGrid, ProfileMetrics, check_heights, check_printability,
                        design_space_printability, export_mesh, is_baseline, load_profile_mesh, marker_points,
-                       mesh_metrics, profile_mesh)
+                       mesh_metrics, profile_mesh, simple_profiles)
 from .print_mass import MassProperties, ProfilePrintSpec, print_mass_properties
 
 __all__ = [
@@ -14,5 +14,5 @@ __all__ = [
     "configuration_ids",
     "design_space_printability", "designs_file_labels", "export_mesh", "height_bound_mm", "is_baseline",
     "load_profile_mesh", "marker_points", "mesh_descriptors", "mesh_metrics", "print_mass_properties",
-    "profile_descriptors", "profile_mesh", "profile_mesh_for"
+    "profile_descriptors", "profile_mesh", "profile_mesh_for", "simple_profiles"
 ]

@@ -194,6 +194,32 @@ def grid_xy(grid: ProfileGrid) -> np.ndarray:
     return np.column_stack([xx.ravel(), yy.ravel()])
 
 
+#: Peak heights of :func:`simple_profiles` as fractions of the height bound: 0.2, 0.32 and 0.45 simulation units at the
+#: paper's bound of 0.45 (bench/bench_shape_ceiling.py's family).
+SIMPLE_PROFILE_HEIGHTS = (0.2 / 0.45, 0.32 / 0.45, 1.0)
+#: Taper factors of :func:`simple_profiles` along the length (``a``) and across the width (``b``).
+SIMPLE_PROFILE_TAPERS = (0.0, 0.5, 1.0)
+
+
+def simple_profiles(grid: ProfileGrid) -> typing.Dict[str, np.ndarray]:
+    """``{name: heights (grid.n_variables,)}``: the 27 simple parametric profiles
+    ``h(x, y) = height_min + H (1 - a |x| / (L/2)) (1 - b |y| / (W/2))`` with ``H`` each of
+    :data:`SIMPLE_PROFILE_HEIGHTS` times the height range and ``a``, ``b`` each of :data:`SIMPLE_PROFILE_TAPERS`:
+    flat tops (a = b = 0), ridges across or along (one of them 0) and pyramids, named ``"H 0.32 a 1.0 b 0.5"`` by
+    ``H`` in simulation units above ``height_min``. Simulation units, within the grid's bounds."""
+    xy = grid_xy(grid)
+    along, across = np.abs(xy[:, 0]) / (grid.length_m / 2), np.abs(xy[:, 1]) / (grid.width_m / 2)
+    span = grid.height_max - grid.height_min
+    family = {}
+    for fraction in SIMPLE_PROFILE_HEIGHTS:
+        for a in SIMPLE_PROFILE_TAPERS:
+            for b in SIMPLE_PROFILE_TAPERS:
+                peak = fraction * span
+                heights = grid.height_min + peak * (1 - a * along) * (1 - b * across)
+                family[f"H {peak:.2f} a {a:.1f} b {b:.1f}"] = np.clip(heights, grid.height_min, grid.height_max)
+    return family
+
+
 def profile_vertices(heights: npt.ArrayLike, grid: ProfileGrid) -> np.ndarray:
     """Return the mirrored top-surface vertices ``(2*rows*cols, 3)`` in metres, profile frame.
 

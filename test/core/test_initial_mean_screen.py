@@ -149,13 +149,16 @@ def test_the_start_ranked_on_the_searchs_own_measure_can_be_a_simple_profile_and
     resumed.close()
 
 
-@pytest.mark.parametrize("overrides, message", [
-    ({"optimizer.initial_mean_measure": "launches"}, "initial_mean_measure must be one of stable_poses, objective"),
-    ({"optimizer.initial_mean_shapes": True, "optimizer.initial_mean_screen": 0},
-     "initial_mean_shapes needs initial_mean_screen > 0"),
-])
-def test_an_unknown_start_measure_or_shapes_without_a_screen_are_refused(tmp_path, overrides, message):
-    with pytest.raises(ValueError, match=message):
-        OptimizationRun(os.path.join(tmp_path, "run"), run_config(parameters(4, **overrides)), GRID,
-                        SyntheticEvaluator(OPTIMUM, 30))
-    assert not os.path.exists(os.path.join(tmp_path, "run"))
+def test_an_unknown_start_measure_is_refused_and_without_a_screen_the_papers_mean_starts_whatever_the_shapes(
+        tmp_path):
+    with pytest.raises(ValueError, match="initial_mean_measure must be one of stable_poses, objective"):
+        OptimizationRun(os.path.join(tmp_path, "bad"), run_config(parameters(4, **{
+            "optimizer.initial_mean_measure": "launches"})), GRID, SyntheticEvaluator(OPTIMUM, 30))
+    assert not os.path.exists(os.path.join(tmp_path, "bad"))
+    params = parameters(0, **{"optimizer.initial_mean_measure": "objective", "optimizer.initial_mean_shapes": True})
+    evaluate = Counting(SyntheticEvaluator(OPTIMUM, 30))
+    run = OptimizationRun(os.path.join(tmp_path, "run"), run_config(params), GRID, evaluate)
+    expected = random_initial_means(run_settings(params).optimizer, GRID.n_variables)[0]
+    assert np.array_equal(run.optimizer.initial_mean, expected) and evaluate.profiles == 0
+    assert run.initial_mean_screen is None
+    run.close()

@@ -105,13 +105,14 @@ class OptimizerSettings:
         "description": "random CMA-ES start means screened by the quasi-static stable-pose screen; the best is used "
                        "(count; 0 = the paper's one random mean)", "range": (0, 10000)})
     initial_mean_measure: str = dataclasses.field(default="stable_poses", metadata={
-        "description": "what ranks the candidate start means (initial_mean_screen > 0): stable_poses (the "
+        "description": "what ranks the candidate start means when initial_mean_screen > 0: stable_poses (the "
                        "quasi-static stable-pose screen) or objective (one evaluation of each on the search's own "
                        "measure, optimizer.trials trials on one common seed; the most successes starts)"})
     initial_mean_shapes: bool = dataclasses.field(default=False, metadata={
         "description": "true: the 27 simple parametric profiles (flat tops, ridges, pyramids; "
-                       "geometry.simple_profiles) are candidate start means beside the random ones "
-                       "(needs initial_mean_screen > 0)"})
+                       "geometry.simple_profiles) are candidate start means beside the random ones when the "
+                       "start means are ranked (initial_mean_screen > 0; 0 starts from the paper's one random mean "
+                       "whatever this says)"})
 
     @property
     def race_stages(self) -> typing.Optional[typing.List[int]]:
@@ -146,9 +147,6 @@ class OptimizerSettings:
         if self.initial_mean_measure not in INITIAL_MEAN_MEASURES:
             raise ValueError(f"initial_mean_measure must be one of {', '.join(INITIAL_MEAN_MEASURES)}, got "
                              f"{self.initial_mean_measure!r}")
-        if self.initial_mean_shapes and self.initial_mean_screen == 0:
-            raise ValueError("initial_mean_shapes needs initial_mean_screen > 0 (the screen that ranks the start "
-                             "means; 0 starts from the paper's one random mean)")
 
 
 @dataclasses.dataclass

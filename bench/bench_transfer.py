@@ -107,6 +107,32 @@ def search_text(study_dir):
             f"launches on {flat.get('objective.launch_engine') or engine}; campaign on {engine}")
 
 
+#: The study parameters that say how its designs are printed and weighed: what the checks must load as well, or
+#: ``rollability evaluate`` / ``sensitivity`` refuse the designs file (chosen for another print) or draw another mass.
+PRINT_KEYS = ("robot.profile_print.", "robot.profile_mass_scale", "objective.robust.profile_mass_scale_")
+
+
+def print_config(study_dir):
+    """A parameter file ``<study_dir>/checks-print.yaml`` with the study's print and its search's profile-mass draw
+    (:data:`PRINT_KEYS`, read from the parameter files the study loaded), for the checks' commands: a study on the
+    quick default prints with gradual infill (config/optimizer.yaml), which those commands do not read."""
+    from rollability_ros.core.config import load_parameters
+
+    files = sorted(os.path.join(study_dir, "config", name) for name in os.listdir(os.path.join(study_dir, "config")))
+    nested: typing.Dict[str, typing.Any] = {}
+    for key, value in sorted(load_parameters(files).items()):
+        if key.startswith(PRINT_KEYS):
+            *path, name = key.split(".")
+            node = nested
+            for part in path:
+                node = node.setdefault(part, {})
+            node[name] = value
+    target = os.path.join(study_dir, "checks-print.yaml")
+    with open(target, "w", encoding="utf-8") as stream:
+        yaml.safe_dump({"/**": {"ros__parameters": nested}}, stream)
+    return target
+
+
 def campaign_counts(study_dir, study_id):
     """{configuration: (upright valid trials, valid trials)} of the study's campaign."""
     counts: typing.Dict[str, typing.Tuple[int, int]] = {}
@@ -334,12 +360,13 @@ def main(argv=None):
             print(f"  transfer: screen vs race round 1 over {evidence[2]} elites: Spearman rho {evidence[0]:+.2f}, "
                   f"permutation p {evidence[1]:.3f}")
         designs_file = os.path.join(study_dir, "optimization", "designs", "designs.yaml")
+        checks = [*args.check_config, print_config(study_dir)]   # the print the designs were chosen for
         engine_lows: typing.Dict[str, typing.List[float]] = {}
         if args.robust_launches:
-            engines, launches_s = robust_launches(designs_file, args.robust_launches, args.workers, args.check_config)
+            engines, launches_s = robust_launches(designs_file, args.robust_launches, args.workers, checks)
             engine_lows = print_robust_launches(engines, args.robust_launches, launches_s)
         worlds = print_world_check(*world_check(designs_file, args.worlds, args.launches_per_world, args.world_engine,
-                                                args.workers, args.check_config)) if args.worlds else (float("nan"),) * 3
+                                                args.workers, checks)) if args.worlds else (float("nan"),) * 3
         robust_gain = robust_low = float("nan")
         if args.sensitivity_trials:
             robust = robust_row(study_dir, args.sensitivity_trials)

@@ -288,7 +288,8 @@ class OptimizationRun:
             return (f"initial mean: {which} on the search's own measure ({screen['successes'][chosen]}/"
                     f"{screen['trials'][chosen]} upright)")
         return (f"initial mean: {which} by the stable-pose screen (quasi-static P(upright) "
-                f"{screen['upright_probability'][chosen]:.3f}, worst barrier {screen['worst_barrier_m'][chosen] * 1000:.1f} mm)")
+                f"{screen['upright_probability'][chosen]:.3f}, worst barrier "
+                f"{screen['worst_barrier_m'][chosen] * 1000:.1f} mm)")
 
     def _new_optimizer(self, state=None):
         if self._optimizer_factory is None:

@@ -115,11 +115,13 @@ def characterisation_start(likelihood: typing.Any, folder: str, samples: int) ->
 
 
 def gate_model(likelihood: typing.Any, candidates: typing.Sequence[adaptive.LaunchCondition],
-               folder: str) -> typing.Tuple[typing.Any, typing.Any]:
+               folder: str, every: bool = False) -> typing.Tuple[typing.Any, typing.Any]:
     """``--gate``: the speed gate's exact term (likelihood_gate.GateModel, the bare robot's readings, on
     bench_calibration.py's twin: both plans weigh the readings, the adaptive plan scores them) and each truth's readings: the twin's reading without scatter at the truth's
     unknowns (its bias among them), tabulated over the launch speed's scatter z (the set speed x (1 + sigma z);
-    9 points over +-4 sigma, cubic) per set speed, then read at each launch's z; the designs' readings are not weighed, so not drawn."""
+    9 points over +-4 sigma, cubic) per set speed, then read at each launch's z; the designs' readings are not weighed, so not drawn.
+    ``every`` (``--gate-every``): every configuration's readings are drawn and weighed (the term's 7 x 7 x 7 table
+    over the bias, the centre of mass and the profile's mass, likelihood_gate.gate_term with configurations=None)."""
     import numpy as np
     from scipy.interpolate import CubicSpline
 
@@ -134,14 +136,15 @@ def gate_model(likelihood: typing.Any, candidates: typing.Sequence[adaptive.Laun
                          f"({', '.join(likelihood.unknowns.names)})")
     twin = launch_twin_settings_from_parameters(parameters)
     sigma = twin.twin.speed_sigma_fraction
-    splines: typing.Dict[typing.Tuple[int, float], typing.Any] = {}
+    splines: typing.Dict[typing.Tuple[int, str, float], typing.Any] = {}
 
-    model = likelihood_gate.GateModel(twin, unknowns, [(c.configuration, c.speed_mps) for c in candidates])
+    model = likelihood_gate.GateModel(twin, unknowns, [(c.configuration, c.speed_mps) for c in candidates],
+                                      configurations=None if every else (likelihood_gate.BARE_ROBOT,))
 
     def reading(t: int, truth: np.ndarray, condition: adaptive.LaunchCondition, rng: np.random.Generator) -> float:
-        if condition.configuration != likelihood_gate.BARE_ROBOT:
+        if not every and condition.configuration != likelihood_gate.BARE_ROBOT:
             return math.nan
-        key = (t, float(condition.speed_mps))
+        key = (t, condition.configuration, float(condition.speed_mps))
         if key not in splines:
             at_truth = twin_with_values(twin, dict(zip(unknowns.names, map(float, truth))))
             z = np.linspace(-4.0, 4.0, 9)   # the scatter as a set speed x (1 + sigma z): the same launch speed
@@ -166,7 +169,8 @@ def launched_where(candidates: typing.Sequence[adaptive.LaunchCondition], launch
 
 def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed: int, outcomes: str,
                draws: int, acquisition: str = "joint", characterisation: typing.Optional[str] = None,
-               gate: typing.Optional[str] = None, replicas: int = 0) -> typing.List[plan_comparison.MatchedWidths]:
+               gate: typing.Optional[str] = None, replicas: int = 0,
+               gate_every: bool = False) -> typing.List[plan_comparison.MatchedWidths]:
     """``--learnt FILE`` (module docstring): print each truth as it finishes, then the median."""
     import numpy as np
 
@@ -184,9 +188,10 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
           f"outcomes: verdict{''.join(', ' + n for n in table.outcomes)}; {truths} truths from the prior; {samples} "
           f"{'samples of the characterisation posterior' if characterisation else 'prior samples'} (renewed); "
           f"{acquisition} acquisition; outcomes drawn from the learnt model at each truth"
-          f"{'; the bare robot gate readings weighed by the exact term' if gate else ''}; simulated", flush=True)
+          + (f"; {'every configuration' if gate_every else 'the bare robot'}'s gate readings weighed by the exact term"
+             if gate else "") + "; simulated", flush=True)
     start = characterisation_start(likelihood, characterisation, samples) if characterisation else None
-    model, reading = gate_model(likelihood, candidates, gate) if gate else (None, None)
+    model, reading = gate_model(likelihood, candidates, gate, gate_every) if gate else (None, None)
     started = time.perf_counter()
 
     def say(t: int, r: plan_comparison.MatchedWidths) -> None:
@@ -239,6 +244,8 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
                         help="with --learnt (bench_calibration.py's unknowns): every launch of both plans also gives "
                              "its speed gate reading, the bare robot's weighed by the exact term "
                              "(core/campaign/likelihood_gate.py); the designs' STLs are written to DIR")
+    parser.add_argument("--gate-every", action="store_true",
+                        help="with --gate: every configuration's readings drawn and weighed, not the bare robot's only")
     parser.add_argument("--replicas", type=int, default=0,
                         help="with --learnt: weigh the matrix's launches again from N other sample draws (N >= 2) "
                              "to measure the Monte Carlo error of the widths, and count the adaptive launches to "
@@ -270,7 +277,7 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
         args.truths, args.unknowns, args.samples, args.matrix_launches = 1, 2, 200, 40
     if args.learnt:
         run_learnt(args.learnt, args.truths, args.matrix_launches, args.samples, args.seed, args.outcomes, args.draws,
-                   args.acquisition, args.characterisation, args.gate, args.replicas)
+                   args.acquisition, args.characterisation, args.gate, args.replicas, args.gate_every)
         return 0
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration.calibration_settings(parameters)

@@ -217,7 +217,8 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
             continue
         finite = [c if c is not None else np.inf for c in counts]
         median = float(np.median(finite))
-        print(f"median launches to the matrix's widths{label}: adaptive {median:g} against matrix {matrix_launches} "
+        shown = f">{matrix_launches}" if math.isinf(median) else f"{median:g}"
+        print(f"median launches to the matrix's widths{label}: adaptive {shown} against matrix {matrix_launches} "
               f"(ratio {median / matrix_launches:.2f}; target: at most 150 against 400); adaptive within 150 on "
               f"{sum(c <= 150 for c in finite)} of {len(finite)} truths; {time.perf_counter() - started:.0f} s, "
               f"{load()}; simulated (the learnt model of the twin)")

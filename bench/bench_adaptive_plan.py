@@ -83,7 +83,8 @@ def characterisation_start(likelihood: typing.Any, folder: str, samples: int) ->
     """``--characterisation DIR``: each truth's bench readings as bench_calibration.py simulates them (slide
     angles, roll-outs, tip angles, weighings; the designs' STLs written to ``folder``, as there), and ``samples``
     draws of the posterior from those readings alone (``posterior.sample_posterior`` without launches), where both
-    plans start; their term is the density the renewals keep."""
+    plans start; their term is the density the renewals keep. ``replica`` > 0 (the matrix posterior's replicas):
+    the same readings, another sampler seed and other draws."""
     import numpy as np
 
     from bench import bench_calibration as bench
@@ -95,24 +96,32 @@ def characterisation_start(likelihood: typing.Any, folder: str, samples: int) ->
                          f"({', '.join(likelihood.unknowns.names)})")
     twin = launch_twin_settings_from_parameters(bench.rollout_parameters(parameters))
 
-    def start(t: int, truth: np.ndarray) -> typing.Tuple[np.ndarray, typing.Callable[[np.ndarray], np.ndarray]]:
+    terms: typing.Dict[int, typing.Callable[[np.ndarray], np.ndarray]] = {}
+
+    def start(t: int, truth: np.ndarray, replica: int = 0
+              ) -> typing.Tuple[np.ndarray, typing.Callable[[np.ndarray], np.ndarray]]:
         number = 100_000 + t   # the readings' seeds: none of bench_calibration's truths
-        readings = bench.bench_readings(parameters, unknowns, truth, number, bench.characterise_truth(
-            parameters, unknowns, truth, np.random.default_rng([bench.TRUTH_SEED, number])))
-        term = sampling.characterisation_term(readings, twin, unknowns)
-        drawn = sampling.sample_posterior(likelihood, [], extra=term, seed=t + 1, steps=150, walkers=16,
-                                          start_draws=300)
-        picks = np.random.default_rng([bench.TRUTH_SEED, number, 1]).choice(len(drawn.samples), samples, replace=False)
+        if t not in terms:
+            readings = bench.bench_readings(parameters, unknowns, truth, number, bench.characterise_truth(
+                parameters, unknowns, truth, np.random.default_rng([bench.TRUTH_SEED, number])))
+            terms[t] = sampling.characterisation_term(readings, twin, unknowns)
+        term = terms[t]
+        drawn = sampling.sample_posterior(likelihood, [], extra=term, seed=t + 1 + 7919 * replica, steps=150,
+                                          walkers=16, start_draws=300)
+        picks = np.random.default_rng([bench.TRUTH_SEED, number, 1, *([replica] if replica else [])]).choice(
+            len(drawn.samples), samples, replace=False)
         return drawn.samples[picks], term
     return start
 
 
 def gate_model(likelihood: typing.Any, candidates: typing.Sequence[adaptive.LaunchCondition],
-               folder: str) -> typing.Tuple[typing.Any, typing.Any]:
+               folder: str, every: bool = False) -> typing.Tuple[typing.Any, typing.Any]:
     """``--gate``: the speed gate's exact term (likelihood_gate.GateModel, the bare robot's readings, on
     bench_calibration.py's twin: both plans weigh the readings, the adaptive plan scores them) and each truth's readings: the twin's reading without scatter at the truth's
     unknowns (its bias among them), tabulated over the launch speed's scatter z (the set speed x (1 + sigma z);
-    9 points over +-4 sigma, cubic) per set speed, then read at each launch's z; the designs' readings are not weighed, so not drawn."""
+    9 points over +-4 sigma, cubic) per set speed, then read at each launch's z; the designs' readings are not weighed, so not drawn.
+    ``every`` (``--gate-every``): every configuration's readings are drawn and weighed (the term's 7 x 7 x 7 table
+    over the bias, the centre of mass and the profile's mass, likelihood_gate.gate_term with configurations=None)."""
     import numpy as np
     from scipy.interpolate import CubicSpline
 
@@ -127,14 +136,15 @@ def gate_model(likelihood: typing.Any, candidates: typing.Sequence[adaptive.Laun
                          f"({', '.join(likelihood.unknowns.names)})")
     twin = launch_twin_settings_from_parameters(parameters)
     sigma = twin.twin.speed_sigma_fraction
-    splines: typing.Dict[typing.Tuple[int, float], typing.Any] = {}
+    splines: typing.Dict[typing.Tuple[int, str, float], typing.Any] = {}
 
-    model = likelihood_gate.GateModel(twin, unknowns, [(c.configuration, c.speed_mps) for c in candidates])
+    model = likelihood_gate.GateModel(twin, unknowns, [(c.configuration, c.speed_mps) for c in candidates],
+                                      configurations=None if every else (likelihood_gate.BARE_ROBOT,))
 
     def reading(t: int, truth: np.ndarray, condition: adaptive.LaunchCondition, rng: np.random.Generator) -> float:
-        if condition.configuration != likelihood_gate.BARE_ROBOT:
+        if not every and condition.configuration != likelihood_gate.BARE_ROBOT:
             return math.nan
-        key = (t, float(condition.speed_mps))
+        key = (t, condition.configuration, float(condition.speed_mps))
         if key not in splines:
             at_truth = twin_with_values(twin, dict(zip(unknowns.names, map(float, truth))))
             z = np.linspace(-4.0, 4.0, 9)   # the scatter as a set speed x (1 + sigma z): the same launch speed
@@ -144,9 +154,23 @@ def gate_model(likelihood: typing.Any, candidates: typing.Sequence[adaptive.Laun
     return model, reading
 
 
+def launched_where(candidates: typing.Sequence[adaptive.LaunchCondition], launched: typing.Sequence[int]) -> str:
+    """Where launches were made: counts by configuration, set speed and ledge height."""
+    picked = [candidates[i] for i in launched]
+    parts = []
+    for label, key in (("configuration", lambda c: c.configuration), ("speed", lambda c: f"{c.speed_mps:g} m/s"),
+                       ("height", lambda c: f"{c.height_m:g} m")):
+        counts: typing.Dict[str, int] = {}
+        for c in picked:
+            counts[key(c)] = counts.get(key(c), 0) + 1
+        parts.append(" ".join(f"{k} {v}" for k, v in sorted(counts.items())))
+    return "; ".join(parts)
+
+
 def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed: int, outcomes: str,
                draws: int, acquisition: str = "joint", characterisation: typing.Optional[str] = None,
-               gate: typing.Optional[str] = None) -> typing.List[plan_comparison.MatchedWidths]:
+               gate: typing.Optional[str] = None, replicas: int = 0,
+               gate_every: bool = False) -> typing.List[plan_comparison.MatchedWidths]:
     """``--learnt FILE`` (module docstring): print each truth as it finishes, then the median."""
     import numpy as np
 
@@ -164,9 +188,10 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
           f"outcomes: verdict{''.join(', ' + n for n in table.outcomes)}; {truths} truths from the prior; {samples} "
           f"{'samples of the characterisation posterior' if characterisation else 'prior samples'} (renewed); "
           f"{acquisition} acquisition; outcomes drawn from the learnt model at each truth"
-          f"{'; the bare robot gate readings weighed by the exact term' if gate else ''}; simulated", flush=True)
+          + (f"; {'every configuration' if gate_every else 'the bare robot'}'s gate readings weighed by the exact term"
+             if gate else "") + "; simulated", flush=True)
     start = characterisation_start(likelihood, characterisation, samples) if characterisation else None
-    model, reading = gate_model(likelihood, candidates, gate) if gate else (None, None)
+    model, reading = gate_model(likelihood, candidates, gate, gate_every) if gate else (None, None)
     started = time.perf_counter()
 
     def say(t: int, r: plan_comparison.MatchedWidths) -> None:
@@ -175,15 +200,28 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
               + f" (ESS {r.matrix_ess:.0f}); adaptive reaches them in {needed} launches (ESS {r.adaptive_ess:.0f}"
               + ("" if r.adaptive_launches else "; widths then " + ", ".join(f"{w:.0%}" for w in r.adaptive_widths))
               + f") [{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
+        if replicas:
+            tolerant = f"{r.tolerant_launches}" if r.tolerant_launches is not None else f">{matrix_launches}"
+            print(f"  Monte Carlo sd of one width estimate (the matrix's launches, {replicas + 1} sample draws): "
+                  + ", ".join(f"{e:.1%}" for e in r.width_error) + "; to the mean width + that sd ("
+                  + ", ".join(f"{w:.0%}" for w in r.tolerant_widths) + f"): adaptive {tolerant} launches", flush=True)
+        stop = r.adaptive_launches or len(r.adaptive_launched)
+        print(f"  the adaptive plan's first {stop} launches: "
+              + launched_where(table.candidates, r.adaptive_launched[:stop]), flush=True)
     _, results = plan_comparison.learnt_to_match_matrix(table, truths, matrix_launches, samples, seed, draws=draws,
                                                         acquisition=acquisition, on_truth=say, start=start,
-                                                        gate=model, gate_reading=reading)
-    counts = [r.adaptive_launches if r.adaptive_launches is not None else np.inf for r in results]
-    median = float(np.median(counts))
-    print(f"median launches to the matrix's widths: adaptive {median:g} against matrix {matrix_launches} "
-          f"(ratio {median / matrix_launches:.2f}; target: at most 150 against 400); adaptive within 150 on "
-          f"{sum(c <= 150 for c in counts)} of {len(counts)} truths; {time.perf_counter() - started:.0f} s, {load()}; "
-          "simulated (the learnt model of the twin)")
+                                                        gate=model, gate_reading=reading, replicas=replicas)
+    for label, counts in (("", [r.adaptive_launches for r in results]),
+                          (" + the Monte Carlo sd (tolerance-aware)", [r.tolerant_launches for r in results])):
+        if label and not replicas:
+            continue
+        finite = [c if c is not None else np.inf for c in counts]
+        median = float(np.median(finite))
+        shown = f">{matrix_launches}" if math.isinf(median) else f"{median:g}"
+        print(f"median launches to the matrix's widths{label}: adaptive {shown} against matrix {matrix_launches} "
+              f"(ratio {median / matrix_launches:.2f}; target: at most 150 against 400); adaptive within 150 on "
+              f"{sum(c <= 150 for c in finite)} of {len(finite)} truths; {time.perf_counter() - started:.0f} s, "
+              f"{load()}; simulated (the learnt model of the twin)")
     return results
 
 
@@ -207,11 +245,18 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
                         help="with --learnt (bench_calibration.py's unknowns): every launch of both plans also gives "
                              "its speed gate reading, the bare robot's weighed by the exact term "
                              "(core/campaign/likelihood_gate.py); the designs' STLs are written to DIR")
+    parser.add_argument("--gate-every", action="store_true",
+                        help="with --gate: every configuration's readings drawn and weighed, not the bare robot's only")
+    parser.add_argument("--replicas", type=int, default=0,
+                        help="with --learnt: weigh the matrix's launches again from N other sample draws (N >= 2) "
+                             "to measure the Monte Carlo error of the widths, and count the adaptive launches to "
+                             "the mean width + that error too (the strict count is kept)")
     parser.add_argument("--draws", type=int, default=32,
                         help="with --learnt: Monte Carlo outcomes per candidate of the expected information")
     parser.add_argument("--acquisition", choices=plan_comparison.ACQUISITIONS, default="joint",
                         help="the adaptive plan's score: joint = the expected information about all the unknowns "
-                             "(BALD, default); targeted = about the unknown farthest from the width to reach")
+                             "(BALD, default); targeted = about the unknown farthest from the width to reach; "
+                             "lagging = about every unknown not yet at its width, summed")
     parser.add_argument("--truths", type=int, default=10)
     parser.add_argument("--unknowns", type=int, default=4,
                         help="the first N of calibration.parameters' shipped order after the two of "
@@ -233,7 +278,7 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
         args.truths, args.unknowns, args.samples, args.matrix_launches = 1, 2, 200, 40
     if args.learnt:
         run_learnt(args.learnt, args.truths, args.matrix_launches, args.samples, args.seed, args.outcomes, args.draws,
-                   args.acquisition, args.characterisation, args.gate)
+                   args.acquisition, args.characterisation, args.gate, args.replicas, args.gate_every)
         return 0
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration.calibration_settings(parameters)

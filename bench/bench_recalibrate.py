@@ -2,20 +2,30 @@
 
     nice python bench/bench_recalibrate.py --likelihood FILE [--truth-seed 1] [--generations 15] [--popsize 8]
         [--trials 24] [--validate 96] [--optimizer-seed 3] [--workers 2] [--keep DIR]
+        [--outcomes none|all|NAMES] [--temperature 0.25] [--no-gate] [--no-tips] [--no-weighing]
+        [--engine mujoco|pybullet]
     nice python bench/bench_recalibrate.py --prepare-launches 2048 --keep DIR     # prepare the likelihood first
     python bench/bench_recalibrate.py --smoke                                    # every step once, tiny
 
 1. The twin of bench/bench_calibration.py: the bare robot and three designs (dome, flat top, low pyramid) and its
-   five unknowns (centre of mass, foam friction, foam rolling friction, launcher speed bias, profile mass scale).
+   five unknowns (centre of mass, foam friction, foam rolling friction, launcher speed bias, profile mass scale),
+   on ``--engine`` (``sim.engine``, default mujoco as bench_calibration.py's, so its prepared files serve here:
+   the truth's launches, the likelihood, both optimisations and the validation all on that engine).
    ``--likelihood FILE``: a likelihood prepared for exactly that twin (its fingerprint is checked; ``bench_calibration
    --keep DIR`` or ``--prepare-launches N --keep DIR`` here write one); without it one is prepared now from
    ``--prepare-launches`` twin launches.
 2. A hidden truth drawn from the prior (uniform over the unknowns' normalised bounds, ``--truth-seed``), printed
    beside the shipped values.
 3. The paper's 400 launches (4 configurations x 2 heights x 2 speeds x 5 angles x 5) launched on the twin at the
-   truth, every continuous outcome kept, plus five slide angles and three roll-outs (bench_calibration's noise).
-4. Calibrate: the posterior of the five unknowns from all of it (the learnt likelihood, ``--steps`` sampler steps);
-   the calibrated twin takes each unknown's posterior median (calibrated.yaml, as `rollability calibrate` writes).
+   truth, every continuous outcome kept, plus the bench readings of bench_calibration.py (its noise): five slide
+   angles, three roll-outs, five tilt-table tip angles (``--no-tips``: left out) and a weighing of each design's
+   profile (``--no-weighing``).
+4. Calibrate as bench_calibration.py measured its coverage: the posterior of the five unknowns (the learnt
+   likelihood, ``--steps`` sampler steps) from the verdicts (``--outcomes``: none by default, the learnt
+   continuous outcomes are biased; all or NAME,NAME to weigh them), the bench readings, the speed gate's readings
+   through the exact term (core/campaign/likelihood_gate.py; ``--no-gate``: left out), the launches' learnt term
+   tempered by ``--temperature`` (default 0.25, the value chosen on held-out truths: docs/calibration.md); the
+   calibrated twin takes each unknown's posterior median (calibrated.yaml, as `rollability calibrate` writes).
 5. Re-optimise: bench_objective's launch-twin CMA-ES (3 x 3 grid, ``--popsize`` x ``--generations``, ``--trials``
    launches per candidate on 0.75 m x {0.8, 1.5} m/s x {-30, +30} deg, the same optimizer seed and start screen for
    both) once on the uncalibrated (shipped) twin and once on the calibrated twin; each run's best pooled design.
@@ -73,26 +83,52 @@ def prepared(args, parameters, unknowns, configurations, levels, folder, pool):
     return likelihood
 
 
-def calibrated_values(likelihood, parameters, unknowns, truth, matrix, seed, steps, pool, rng, sizes=None):
+def calibrated_values(likelihood, parameters, unknowns, truth, matrix, seed, steps, pool, rng, sizes=None,
+                      args=None):
     """Steps 3 and 4: the truth's launches and characterisation, the posterior, each unknown's median. ``sizes``:
     the sampler's walkers and start draws and the characterisation's table points (``--smoke``'s; default:
-    :func:`posterior.sample_posterior`'s and :func:`posterior.characterisation_term`'s)."""
-    from bench.bench_calibration import characterise_truth, launch_truth, rollout_parameters
+    :func:`posterior.sample_posterior`'s and :func:`posterior.characterisation_term`'s). ``args``: the
+    command's ``outcomes``, ``temperature``, ``no_gate``, ``no_tips``, ``no_weighing`` (None: every outcome, the
+    file's temperature, no gate, tips or weighings)."""
+    import dataclasses
+
+    from bench.bench_calibration import bench_readings, characterise_truth, launch_truth, rollout_parameters
+    from rollability_ros.core.campaign import likelihood_gate
     from rollability_ros.core.campaign import posterior as sampling
 
     started = time.perf_counter()
     observations = launch_truth(parameters, unknowns, truth, matrix, seed)
     readings = characterise_truth(parameters, unknowns, truth, rng)
+    if args is not None:
+        readings = bench_readings(parameters, unknowns, truth, seed, readings)
+        readings = dataclasses.replace(readings, **({"tips": ()} if args.no_tips else {}),
+                                       **({"masses": ()} if args.no_weighing else {}))
     print(f"the truth's {len(matrix)} launches ({len(observations)} valid) and characterisation simulated in "
           f"{time.perf_counter() - started:.0f} s [{load()}]", flush=True)
     started = time.perf_counter()
     from rollability_ros.core.sim import launch_twin_settings_from_parameters
 
     sizes = sizes or {}
-    extra = sampling.characterisation_term(readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)),
+    bench = sampling.characterisation_term(readings, launch_twin_settings_from_parameters(rollout_parameters(parameters)),
                                            unknowns, sizes.get("grid_points"))
+    gate = (likelihood_gate.gate_term(observations, launch_twin_settings_from_parameters(parameters), unknowns,
+                                      *((3, 3) if "grid_points" in sizes else ()))
+            if args is not None and not args.no_gate else None)
+
+    def extra(u):
+        return bench(u) + gate(u) if gate is not None else bench(u)
+    outcomes = None if args is None or args.outcomes == "all" else () if args.outcomes == "none" else tuple(
+        args.outcomes.split(","))
+    if gate is not None and (outcomes is None or "measured_speed_mps" in outcomes):
+        raise SystemExit("the gate's exact term and the learnt measured_speed_mps would weigh the same reading: "
+                         "--no-gate, or --outcomes without measured_speed_mps")
     posterior = sampling.sample_posterior(likelihood, observations, extra=extra, seed=seed % 1000 + 1, steps=steps,
+                                          outcomes=outcomes, temperature=None if args is None else args.temperature,
                                           **{k: v for k, v in sizes.items() if k != "grid_points"})
+    print(f"readings: verdicts{'' if outcomes == () else ', learnt outcomes ' + ', '.join(outcomes or ['all'])}, "
+          f"{len(readings.slide_angles_deg)} slide angles, {len(readings.rollouts)} roll-outs, {len(readings.tips)} tip "
+          f"angles, {len(readings.masses)} weighings{', the gate readings (exact term)' if gate is not None else ''}; "
+          f"temperature {likelihood.temperature if args is None or args.temperature is None else args.temperature:g}")
     fitted = {name: posterior.median(name) for name in unknowns.names}
     print(f"calibration of {len(unknowns.names)} unknowns: {time.perf_counter() - started:.0f} s [{load()}]")
     for i, name in enumerate(unknowns.names):
@@ -112,7 +148,11 @@ def reoptimise_and_validate(args, unknowns, truth, fitted, folder):
     from rollability_ros.core.campaign import calibration
     from rollability_ros.core.sim import evaluation
 
-    files = {}
+    from rollability_ros.core.config import parameter_document
+
+    files = {"engine": os.path.join(folder, "engine.yaml")}
+    with open(files["engine"], "w", encoding="utf-8") as stream:
+        yaml.safe_dump(parameter_document({"sim.engine": args.engine}), stream)
     for label, values in (("calibrated", fitted), ("truth", dict(zip(unknowns.names, map(float, truth))))):
         files[label] = os.path.join(folder, f"{label}.yaml")
         with open(files[label], "w", encoding="utf-8") as stream:
@@ -125,8 +165,8 @@ def reoptimise_and_validate(args, unknowns, truth, fitted, folder):
     scores = {}
     with evaluation.make_executor(evaluation.EvaluatorOptions(workers=args.workers)) as executor:
         designs = {}
-        for label, twin in (("uncalibrated", calibration.TWIN_CONFIGS),
-                            ("calibrated", (*calibration.TWIN_CONFIGS, files["calibrated"]))):
+        for label, twin in (("uncalibrated", (*calibration.TWIN_CONFIGS, files["engine"])),
+                            ("calibrated", (*calibration.TWIN_CONFIGS, files["engine"], files["calibrated"]))):
             started = time.perf_counter()
             print(f"optimising on the {label} twin ({args.popsize} x {args.generations} generations x {args.trials} "
                   f"launches, optimizer seed {args.optimizer_seed})", flush=True)
@@ -134,7 +174,8 @@ def reoptimise_and_validate(args, unknowns, truth, fitted, folder):
                                                 args.optimizer_seed, executor)
             print(f"  {time.perf_counter() - started:.0f} s [{load()}]", flush=True)
         on_truth = evaluation.ObjectiveSettings(kind="launch_twin", campaign_config=[campaign_file],
-                                                twin_config=[*calibration.TWIN_CONFIGS, files["truth"]])
+                                                twin_config=[*calibration.TWIN_CONFIGS, files["engine"],
+                                                             files["truth"]])
         truth_settings = evaluation.with_objective(settings, on_truth)   # reads the truth twin's files
         designs["bare robot"] = None   # no profile: the bare chassis
         for label, heights in designs.items():
@@ -166,6 +207,17 @@ def main(argv=None) -> int:
     parser.add_argument("--optimizer-seed", type=int, default=3)
     parser.add_argument("--validate", type=int, default=96, help="launches per design on the truth")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--outcomes", default="none",
+                        help="the learnt continuous outcomes weighed beside the verdicts: none (default), all, or "
+                             "NAME,NAME")
+    parser.add_argument("--temperature", type=float, default=0.25,
+                        help="the launches' learnt log-likelihood raised to T (default 0.25: chosen on held-out "
+                             "truths, docs/calibration.md)")
+    parser.add_argument("--no-gate", action="store_true", help="leave out the speed gate's exact term")
+    parser.add_argument("--engine", default="mujoco", choices=("mujoco", "pybullet"),
+                        help="the twin's engine (sim.engine) throughout (default mujoco, as bench_calibration.py's)")
+    parser.add_argument("--no-tips", action="store_true", help="leave out the tilt-table tip angles")
+    parser.add_argument("--no-weighing", action="store_true", help="leave out the profiles' weighings")
     parser.add_argument("--smoke", action="store_true",
                         help="every step once at a tiny size (a 2-member likelihood from 64 launches, 40 truth "
                              "launches, 20 sampler steps of 8 walkers, one generation of 2 x 2 launches, 4 validation "
@@ -184,6 +236,7 @@ def main(argv=None) -> int:
         folder = args.keep or scratch
         os.makedirs(folder, exist_ok=True)
         parameters, unknowns, configurations = bench_parameters(folder)
+        parameters["sim.engine"] = args.engine
         levels, matrix = paper_matrix(configurations)
         if args.smoke:
             matrix = matrix[::10]
@@ -193,7 +246,7 @@ def main(argv=None) -> int:
         try:
             likelihood = prepared(args, parameters, unknowns, configurations, levels, folder, pool)
             fitted = calibrated_values(likelihood, parameters, unknowns, truth, matrix,
-                                       TRUTH_SEED + 7_000 + args.truth_seed, args.steps, pool, rng, sizes)
+                                       TRUTH_SEED + 7_000 + args.truth_seed, args.steps, pool, rng, sizes, args)
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
         reoptimise_and_validate(args, unknowns, truth, fitted, folder)

@@ -355,3 +355,72 @@ def test_the_targeted_score_narrows_the_unknown_that_lags_its_target_width():
     assert int(np.argmax(posterior.targeted_scores([0.5, 0.5]))) == 1
     assert np.array_equal(posterior.targeted_scores([widths[0] / 2, 1.0]), posterior.unknown_scores(0))
     assert np.array_equal(posterior.targeted_scores([1.0, 1.0]), posterior.scores())
+
+
+class _ScriptedPosterior:
+    """A stand-in posterior for plan_comparison.match_matrix_on_truth: records the launches it weighs; its widths
+    are scripted (``widths(plan, launches)``), so the strict and the tolerance-aware counts are known by hand."""
+
+    def __init__(self, plan, widths, log):
+        self.plan, self.widths, self.launches, self.candidates = plan, widths, [], MATRIX[:8]
+        self.effective_sample_size = 100.0
+        log.append(self)
+
+    def observe_launch(self, index, upright, values=None, reading=None):
+        self.launches.append((index, upright, reading))
+
+    def scores(self):
+        return np.arange(len(self.candidates), dtype=float)
+
+    def normalised_widths(self, level=0.95):
+        return self.widths(self.plan, len(self.launches))
+
+
+def test_the_matrix_widths_monte_carlo_error_is_measured_on_the_same_launches_and_both_counts_kept():
+    """Replicas of the matrix's posterior weigh the very launches the matrix made; the adaptive plan's launches are
+    counted to the matrix's own widths (strict) and to the replicas' mean plus their sd (tolerance-aware). Matrix
+    estimates (0.20, 0.10), (0.26, 0.12), (0.23, 0.08): mean (0.23, 0.10), sd (0.03, 0.02); the adaptive widths
+    are 3/n and 1.2/n after n launches: strict at n = 15 (3/15 <= 0.20, 1.2/15 <= 0.10 from 12), tolerant at
+    n = 12 (3/12 = 0.25 <= 0.26, 1.2/12 = 0.10 <= 0.12)."""
+    from rollability_ros.core.campaign.plan_comparison import match_matrix_on_truth
+
+    estimates = {0: (0.20, 0.10), 2: (0.26, 0.12), 3: (0.23, 0.08)}
+    log = []
+
+    def widths(plan, launches):
+        return np.array(estimates[plan]) if plan != 1 else np.array([3.0, 1.2]) / max(launches, 1)
+
+    def launch(index, rng):
+        return bool(rng.random() < 0.5), None, float(index)
+    result = match_matrix_on_truth(lambda plan: _ScriptedPosterior(plan, widths, log), launch, 24, (1, 2),
+                                   replicas=2)
+    matrix, *replicas = [p for p in log if p.plan != 1]
+    assert len(matrix.launches) == 24 and all(r.launches == matrix.launches for r in replicas)
+    assert sorted(i for i, _, _ in matrix.launches) == sorted(list(range(8)) * 3)   # each candidate once per round
+    assert result.width_error == pytest.approx([0.03, 0.02])
+    assert result.tolerant_widths == pytest.approx([0.26, 0.12])
+    assert (result.adaptive_launches, result.tolerant_launches) == (15, 12)
+    assert result.adaptive_launched == (7,) * 15                                        # the highest score each time
+    plain = match_matrix_on_truth(lambda plan: _ScriptedPosterior(plan, widths, []), launch, 24, (1, 2))
+    assert (plain.adaptive_launches, plain.tolerant_launches) == (15, None) and len(plain.adaptive_launched) == 15
+    with pytest.raises(ValueError, match="replicas"):
+        match_matrix_on_truth(lambda plan: _ScriptedPosterior(plan, widths, []), launch, 24, (1, 2), replicas=1)
+
+
+def test_the_lagging_score_pays_only_for_unknowns_not_yet_at_their_width():
+    """Candidate 0's verdict tells unknown 0 apart sharply, candidate 1's unknown 1 mildly: the joint score takes
+    candidate 0; once unknown 0 is at its target width only unknown 1 counts, so the lagging score takes candidate 1;
+    with both lagging it sums both (more than either alone); with none lagging it is the joint score."""
+    rng = np.random.default_rng(3)
+    u = rng.uniform(size=(2000, 2))
+    p = np.column_stack([np.where(u[:, 0] > 0.5, 0.95, 0.05), 0.35 + 0.3 * u[:, 1]])
+    posterior = WeightedPosterior(UNKNOWNS, UNKNOWNS.to_values(u), MATRIX[:2], p)
+    widths = posterior.normalised_widths()
+    joint = posterior.scores()
+    assert np.argmax(joint) == 0
+    only_1 = posterior.lagging_scores([widths[0] + 0.01, widths[1] - 0.01])
+    assert np.argmax(only_1) == 1
+    assert only_1 == pytest.approx(posterior.unknown_scores(1))
+    both = posterior.lagging_scores(widths - 0.01)
+    assert both == pytest.approx(posterior.unknown_scores(0) + posterior.unknown_scores(1))
+    assert posterior.lagging_scores(widths + 0.01) == pytest.approx(joint)

@@ -294,3 +294,23 @@ def test_the_gate_reading_enters_both_the_weights_and_the_choice_of_launch():
     assert renewed.normalised_widths()[1] < 0.25 < 0.8 < verdicts.normalised_widths()[1]
     low, high = renewed.intervals()[1]
     assert low <= UNKNOWNS.to_values([[0.7, 0.3]])[0, 1] <= high
+
+
+def test_the_matrix_replicas_start_from_their_own_samples_and_measure_a_width_error():
+    """plan_comparison.learnt_to_match_matrix with replicas: the two plans share the start samples (replica 0),
+    each replica of the matrix's posterior asks for its own (replica 1, 2), and the widths' spread over them is
+    the reported Monte Carlo error (positive: 60 samples cannot agree to the last digit)."""
+    from rollability_ros.core.campaign.plan_comparison import learnt_to_match_matrix
+
+    table = LearntTable(model(), CANDIDATES, ())
+    asked = []
+
+    def start(t, truth, replica):
+        asked.append((t, replica))
+        return table.unknowns.draw(60, np.random.default_rng([9, replica])), lambda u: np.zeros(len(u))
+    _, (result,) = learnt_to_match_matrix(table, truths=1, matrix_launches=16, samples=60, seed=3, budget=16,
+                                          start=start, replicas=2)
+    assert asked == [(0, 0), (0, 1), (0, 2)]
+    assert result.width_error.shape == (2,) and np.all(result.width_error > 0)
+    assert np.all(result.tolerant_widths > result.width_error)
+    assert 1 <= len(result.adaptive_launched) <= 16

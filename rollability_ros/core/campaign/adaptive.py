@@ -404,6 +404,19 @@ class WeightedPosterior:
             return self.scores()
         return self.unknown_scores(int(np.argmax(ratio)))
 
+    def lagging_scores(self, target_widths: npt.ArrayLike, level: float = 0.95, bins: int = 8) -> np.ndarray:
+        """The expected information about the unknowns whose width is still above its target (``target_widths``
+        (d,), normalised as :meth:`normalised_widths`), summed over them (each :meth:`unknown_scores`: which of
+        ``bins`` posterior-quantile bins holds it); once all are under their targets, :meth:`scores`. Unlike
+        :meth:`scores` it stops paying for an unknown that has reached its width (a reading that teaches one
+        unknown at every launch, the gate's speed, would otherwise keep winning); unlike :meth:`targeted_scores`
+        it counts a launch that teaches several lagging unknowns at once. (c,)"""
+        widths = self.normalised_widths(level)
+        lagging = np.flatnonzero(widths > np.asarray(target_widths, dtype=np.float64))
+        if not len(lagging):
+            return self.scores()
+        return np.sum([self.unknown_scores(int(j), bins) for j in lagging], axis=0)
+
     def _predicted(self, index):
         p = self.probabilities[:, index]
         w = self.weights

@@ -110,7 +110,11 @@ def compare_plans(unknowns: Unknowns, predictor: UprightPredictor, candidates: t
 class MatchedWidths:
     """:func:`adaptive_to_match_matrix` on one truth: the matrix's widths (d,) after its launches, the launches the
     adaptive plan needed to reach them all (None: not within the budget), the adaptive widths then, and both plans'
-    effective sample sizes at the end."""
+    effective sample sizes at the end. With replicas of the matrix's posterior (:func:`match_matrix_on_truth`):
+    ``width_error`` (d,), the Monte Carlo standard deviation of one width estimate on the same launches;
+    ``tolerant_widths`` (d,), the replicas' mean width plus that error; ``tolerant_launches``, the adaptive
+    launches to reach those (None: not within the budget; without replicas: None, and both zeros).
+    ``adaptive_launched``: the candidate index of each adaptive launch, in order."""
 
     matrix_launches: int
     matrix_widths: np.ndarray
@@ -118,6 +122,10 @@ class MatchedWidths:
     adaptive_widths: np.ndarray
     matrix_ess: float
     adaptive_ess: float
+    width_error: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    tolerant_widths: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    tolerant_launches: typing.Optional[int] = None
+    adaptive_launched: typing.Tuple[int, ...] = ()
 
 
 #: A hidden truth's launch at a candidate (index, outcome generator) -> (upright, continuous outcomes or None, the
@@ -128,40 +136,70 @@ Launcher = typing.Callable[[int, np.random.Generator],
 
 #: The adaptive plan's choice in the comparison: ``joint`` the expected information about all the unknowns
 #: (:meth:`~WeightedPosterior.scores`); ``targeted`` about the unknown farthest from the width to reach
-#: (:meth:`~WeightedPosterior.targeted_scores`, the matrix's widths as the targets).
-ACQUISITIONS = ("joint", "targeted")
+#: (:meth:`~WeightedPosterior.targeted_scores`, the matrix's widths as the targets); ``lagging`` about every unknown
+#: not yet at its width, summed (:meth:`~WeightedPosterior.lagging_scores`).
+ACQUISITIONS = ("joint", "targeted", "lagging")
 
 
 def match_matrix_on_truth(make_posterior: typing.Callable[[int], WeightedPosterior], launch: Launcher,
                           matrix_launches: int, seed: typing.Sequence[int], level: float = 0.95,
-                          budget: typing.Optional[int] = None, acquisition: str = "joint") -> MatchedWidths:
+                          budget: typing.Optional[int] = None, acquisition: str = "joint",
+                          replicas: int = 0) -> MatchedWidths:
     """One truth of :func:`adaptive_to_match_matrix`: the matrix's ``matrix_launches`` (every candidate once per
     shuffled round) on a fresh ``make_posterior(0)``, then the adaptive plan (the highest score of ``acquisition``,
     :data:`ACQUISITIONS`, each time) on a fresh ``make_posterior(1)`` until each unknown's width is at most the
-    matrix's or ``budget`` launches (default ``matrix_launches``); ``launch`` draws the truth's outcomes."""
+    matrix's or ``budget`` launches (default ``matrix_launches``); ``launch`` draws the truth's outcomes.
+
+    ``replicas``: the matrix's launches weighed again by ``make_posterior(2)``, ``make_posterior(3)``, ... (other
+    draws of the samples, other renewals: the same launches), so the Monte Carlo error of a width estimate is
+    measured (the standard deviation over the 1 + ``replicas`` estimates). Every width is such an estimate, and the
+    strict criterion compares five of them with five of the matrix's, a maximum over noisy comparisons that the
+    matrix's lucky draws decide; so the adaptive plan's launches are also counted to the replicas' mean width plus
+    that error (``tolerant_launches``), beside the strict count, which is kept."""
     if acquisition not in ACQUISITIONS:
         raise ValueError(f"acquisition must be one of {', '.join(ACQUISITIONS)}, got {acquisition!r}")
+    if replicas == 1:
+        raise ValueError("replicas: 0, or at least 2 (a standard deviation needs two estimates besides the first)")
     matrix = make_posterior(0)
     order: typing.List[int] = []
     rng = np.random.default_rng([*seed, 0])
+    seen = []
     for _ in range(matrix_launches):
         if not order:
             order = list(rng.permutation(len(matrix.candidates)))
         index = order.pop()
-        matrix.observe_launch(index, *launch(index, rng))
+        outcome = launch(index, rng)
+        matrix.observe_launch(index, *outcome)
+        seen.append((index, outcome))
     widths = matrix.normalised_widths(level)
+    estimates = [widths]
+    for replica in range(replicas):
+        again = make_posterior(2 + replica)
+        for index, outcome in seen:
+            again.observe_launch(index, *outcome)
+        estimates.append(again.normalised_widths(level))
+    error = np.std(estimates, axis=0, ddof=1) if replicas else np.zeros(len(widths))
+    tolerant_widths = np.mean(estimates, axis=0) + error if replicas else np.zeros(len(widths))
     adaptive = make_posterior(1)
     outcome_rng = np.random.default_rng([*seed, 1])
-    reached = None
+    reached = tolerant = None
+    launched: typing.List[int] = []
     for number in range(1, (budget or matrix_launches) + 1):
-        scores = adaptive.scores() if acquisition == "joint" else adaptive.targeted_scores(widths, level)
+        scores = (adaptive.scores() if acquisition == "joint" else adaptive.targeted_scores(widths, level)
+                  if acquisition == "targeted" else adaptive.lagging_scores(widths, level))
         index = int(np.argmax(scores))
         adaptive.observe_launch(index, *launch(index, outcome_rng))
-        if np.all(adaptive.normalised_widths(level) <= widths):
+        launched.append(index)
+        now = adaptive.normalised_widths(level)
+        if replicas and tolerant is None and np.all(now <= tolerant_widths):
+            tolerant = number
+        if reached is None and np.all(now <= widths):
             reached = number
+        if reached is not None and (tolerant is not None or not replicas):
             break
     return MatchedWidths(matrix_launches, widths, reached, adaptive.normalised_widths(level),
-                         matrix.effective_sample_size, adaptive.effective_sample_size)
+                         matrix.effective_sample_size, adaptive.effective_sample_size, error, tolerant_widths,
+                         tolerant, tuple(launched))
 
 
 def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
@@ -196,9 +234,11 @@ def adaptive_to_match_matrix(unknowns: Unknowns, predictor: UprightPredictor,
 #: (NaN: not read).
 GateReading = typing.Callable[[int, np.ndarray, LaunchCondition, np.random.Generator], float]
 
-#: A hidden truth's starting samples: (truth index, truth (d,) own units) -> (samples (n, d) own units, the log
-#: density (normalised (s, d) -> (s,)) they were drawn from beside the uniform prior, e.g. its characterisation's).
-Start = typing.Callable[[int, np.ndarray], typing.Tuple[np.ndarray, typing.Callable[[np.ndarray], np.ndarray]]]
+#: A hidden truth's starting samples: (truth index, truth (d,) own units, replica: 0 for the two plans, 1, 2, ...
+#: other draws for the replicas of the matrix's posterior) -> (samples (n, d) own units, the log density
+#: (normalised (s, d) -> (s,)) they were drawn from beside the uniform prior, e.g. its characterisation's).
+Start = typing.Callable[[int, np.ndarray, int],
+                        typing.Tuple[np.ndarray, typing.Callable[[np.ndarray], np.ndarray]]]
 
 
 def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: int, samples: int, seed: int = 0,
@@ -206,7 +246,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
                            acquisition: str = "joint",
                            on_truth: typing.Optional[typing.Callable[[int, MatchedWidths], None]] = None,
                            start: typing.Optional[Start] = None, gate: typing.Optional["GateModel"] = None,
-                           gate_reading: typing.Optional[GateReading] = None
+                           gate_reading: typing.Optional[GateReading] = None, replicas: int = 0
                            ) -> typing.Tuple[np.ndarray, typing.List[MatchedWidths]]:
     """:func:`adaptive_to_match_matrix` on a learnt likelihood's table
     (:class:`~rollability_ros.core.campaign.learnt_plan.LearntTable`): each launch of a hidden truth draws the
@@ -219,7 +259,9 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
     :class:`~rollability_ros.core.campaign.likelihood_gate.GateModel`: the posteriors weigh the readings, the
     adaptive plan scores their information) and ``gate_reading`` (:data:`GateReading`: the
     truth's reading of a launch): every launch of both plans also gives its gate reading, weighed by that term
-    (drawn from a generator of its own per truth and plan, so the verdicts are those drawn without it)."""
+    (drawn from a generator of its own per truth and plan, so the verdicts are those drawn without it).
+    ``replicas``: :func:`match_matrix_on_truth`'s, each from other starting samples (other prior draws, or
+    ``start(t, truth, replica)``) and other renewals."""
     from rollability_ros.core.campaign.learnt_plan import OutcomePosterior
 
     rng = np.random.default_rng(seed)
@@ -227,12 +269,17 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
     hidden = table.unknowns.draw(truths, rng)
     results = []
     for t in range(truths):
-        begin, log_prior = start(t, hidden[t]) if start is not None else (prior, None)
+        begin, log_prior = start(t, hidden[t], 0) if start is not None else (prior, None)
 
         def make(plan: int, t: int = t, begin: np.ndarray = begin,
                  log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = log_prior
                  ) -> WeightedPosterior:
-            """Plan ``plan``'s posterior at truth ``t``, from the start samples ``begin`` (n, unknowns)."""
+            """Plan ``plan``'s posterior at truth ``t`` (0 the matrix, 1 the adaptive plan, from the start samples
+            ``begin`` (n, unknowns); 2, 3, ... the matrix's replicas, from starting samples of their own)."""
+            if plan >= 2:
+                replica = plan - 1
+                begin, log_prior = (start(t, hidden[t], replica) if start is not None else
+                                    (table.unknowns.draw(samples, np.random.default_rng([seed, t, 8, replica])), None))
             return OutcomePosterior(table, begin, np.random.default_rng([seed, t, 2 + plan]), draws=draws,
                                     log_prior=log_prior, gate=gate)
 
@@ -247,7 +294,8 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
                 return upright, values, None
             reader = readers.setdefault(id(outcome_rng), np.random.default_rng([seed, t, 5, len(readers)]))
             return upright, values, gate_reading(t, hidden[t], table.candidates[index], reader)
-        results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition))
+        results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition,
+                                             replicas))
         if on_truth is not None:
             on_truth(t, results[-1])
     return hidden, results

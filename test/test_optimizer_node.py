@@ -33,6 +33,18 @@ ALL_GENERATIONS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIAB
                                  durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
+def evaluator_params():
+    """An evaluator's parameters for these runs: the 3 x 3 grid and the print config/optimizer.yaml states (the
+    robot's ``profile_print``: bringup gives every node the same files; the in-process reference weighs the profiles
+    by that print, so an evaluator on robot.yaml's 20 % print would launch heavier profiles)."""
+    from rollability_ros.core.optimization import run_directory
+
+    printed = {key: value for key, value in run_directory.load_run_parameters("optimizer").items()
+               if key.startswith("robot.profile_print.")}
+    assert printed, "config/optimizer.yaml states the quick study's print"
+    return {**GRID, **printed}
+
+
 def stored_generations(store_dir, run_id):
     """How many generations the run's store holds: what the optimizer completed (its summaries on ``/generations``
     may still be on their way to a listener)."""
@@ -79,12 +91,14 @@ def reference(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def evaluators(tmp_path_factory):
-    """Two sim_evaluator processes, /eval_a and /eval_b, one worker each, on the 3 x 3 grid."""
+    """Two sim_evaluator processes, /eval_a and /eval_b, one worker each, on the 3 x 3 grid, printing the profile as
+    config/optimizer.yaml says (the robot's ``profile_print``: what bringup gives every node, and what the in-process
+    reference weighs the profiles by)."""
     logs = tmp_path_factory.mktemp("evaluators")
     processes = {}
     for namespace in ("eval_a", "eval_b"):
         args = ["--ros-args", "-r", f"__ns:=/{namespace}", "-p", "evaluator.workers:=1"]
-        for key, value in GRID.items():
+        for key, value in evaluator_params().items():
             args += ["-p", f"{key}:={value}"]
         processes[namespace] = NodeProcess([sys.executable, "-m", "rollability_ros.nodes.sim_evaluator", *args],
                                            logs / f"{namespace}.log")
@@ -150,7 +164,7 @@ def test_with_no_evaluator_it_says_so_and_waits_then_proceeds(ros_node, start_no
                                    "selection.world_launches": 2})
     wait_for_log(ros_node, optimizer, "no evaluator available", 60)
     assert "generation 1:" not in optimizer.log() and optimizer.alive()
-    start_node("sim_evaluator", params={"evaluator.workers": 2, **GRID}, ros_args=["-r", "__ns:=/eval_late"],
+    start_node("sim_evaluator", params={"evaluator.workers": 2, **evaluator_params()}, ros_args=["-r", "__ns:=/eval_late"],
                name="eval_late")
     wait_for_log(ros_node, optimizer, "ended after 4 generation(s)")
     assert optimizer.process.wait(timeout=60) == 0, optimizer.log()   # exit_on_finish, after the selection
@@ -201,7 +215,7 @@ def test_two_evaluators_share_the_run_and_it_equals_the_in_process_run(ros_node,
 #                     equal the in-process run in the README's command
 def test_a_killed_evaluator_is_replaced_and_the_results_do_not_change(ros_node, start_node, evaluators, tmp_path,
                                                                      reference):
-    victim = start_node("sim_evaluator", params={"evaluator.workers": 1, **GRID}, ros_args=["-r", "__ns:=/eval_k"],
+    victim = start_node("sim_evaluator", params={"evaluator.workers": 1, **evaluator_params()}, ros_args=["-r", "__ns:=/eval_k"],
                         name="eval_k")
     started = {"gen": False}
     killed = []

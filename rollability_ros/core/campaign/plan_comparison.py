@@ -180,14 +180,15 @@ def match_matrix_on_truth(make_posterior: typing.Callable[[int], WeightedPosteri
         estimates.append(again.normalised_widths(level))
     error = np.std(estimates, axis=0, ddof=1) if replicas else np.zeros(len(widths))
     tolerant_widths = np.mean(estimates, axis=0) + error if replicas else np.zeros(len(widths))
+    score = {"joint": lambda posterior: posterior.scores(),
+             "targeted": lambda posterior: posterior.targeted_scores(widths, level),
+             "lagging": lambda posterior: posterior.lagging_scores(widths, level)}[acquisition]
     adaptive = make_posterior(1)
     outcome_rng = np.random.default_rng([*seed, 1])
     reached = tolerant = None
     launched: typing.List[int] = []
     for number in range(1, (budget or matrix_launches) + 1):
-        scores = (adaptive.scores() if acquisition == "joint" else adaptive.targeted_scores(widths, level)
-                  if acquisition == "targeted" else adaptive.lagging_scores(widths, level))
-        index = int(np.argmax(scores))
+        index = int(np.argmax(score(adaptive)))
         adaptive.observe_launch(index, *launch(index, outcome_rng))
         launched.append(index)
         now = adaptive.normalised_widths(level)

@@ -4,7 +4,7 @@ widths of the twin's unknowns, on the same hidden truths. Simulated throughout.
     python bench/bench_adaptive_plan.py [--truths 10] [--unknowns 4] [--samples 20000] [--matrix-launches 400]
     nice python bench/bench_adaptive_plan.py --likelihood twin --unknowns 2 --samples 48 --sim-repetitions 4
     nice python bench/bench_adaptive_plan.py --learnt likelihood.npz [--outcomes all|none|NAME,...] --samples 500
-        [--characterisation DIR] [--gate DIR]
+        [--characterisation DIR] [--gate DIR] [--precise 8000 --budget 250] [--first-truth K]
 
 For each hidden truth drawn from the prior (uniform on each unknown's search scale, its calibration bounds): the
 paper's matrix launches ``--matrix-launches`` times (the 80 grouped conditions of config/campaign.yaml -- the bare
@@ -24,7 +24,12 @@ designs, e.g. its ``--keep`` folder's): both plans start from each truth's bench
 characterisation on both sides), simulated as bench_calibration.py does. ``--gate DIR``: every launch of both plans
 also gives its speed gate reading (the truth's, from the twin), the bare robot's weighed by the exact term of
 core/campaign/likelihood_gate.py, and the adaptive plan scores verdict and reading together (with ``--outcomes``
-that leave out measured_speed_mps, so the reading is weighed once).
+that leave out measured_speed_mps, so the reading is weighed once). ``--precise DRAWS``: the adaptive plan
+launches its whole budget (``--budget``), then both plans' widths are estimated again from their recorded launches
+by importance sampling (learnt_plan.importance_widths: DRAWS draws of a kernel proposal, the same draws for both
+plans, ``--precise-sets`` independent times), and the counts to those widths are printed beside the others (the
+renewed samples' widths carry a Monte Carlo error that decides the strict count: docs/calibration.md).
+``--first-truth K``: truths K.. of the same draw (a run split over processes).
 
 ``--likelihood toy`` (default without --learnt): an analytic logistic stand-in (LogisticToyPredictor: each condition's own sensitivity
 to each unknown, seeded), cheap; it shows the machinery, not the rig. ``--likelihood twin``: the
@@ -213,7 +218,8 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
             print(f"  importance-sampled widths ({precise} draws x {len(e.launches)} sets, common to both plans): "
                   "matrix " + ", ".join(f"{w:.1%}" for w in e.matrix_widths[0])
                   + (" (sd over the sets " + ", ".join(f"{x:.2%}" for x in spread) + ")" if len(spread) else "")
-                  + f"; adaptive reaches them in {counts} launches (per set); to the mean + 1 sd: "
+                  + f"; adaptive reaches them in {counts} launches (per set; set 0's widths there or at its "
+                  "last launch " + ", ".join(f"{w:.1%}" for w in e.adaptive_widths[0]) + "); to the mean + 1 sd: "
                   + (f"{e.tolerant_launches}" if e.tolerant_launches is not None else f">{len(r.adaptive_launched)}")
                   + f"; ESS matrix {e.matrix_ess.min():.0f}-{e.matrix_ess.max():.0f}, adaptive there "
                   f"{e.adaptive_ess.min():.0f}-{e.adaptive_ess.max():.0f}", flush=True)

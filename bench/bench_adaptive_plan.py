@@ -222,7 +222,10 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
                   "last launch " + ", ".join(f"{w:.1%}" for w in e.adaptive_widths[0]) + "); to the mean + 1 sd: "
                   + (f"{e.tolerant_launches}" if e.tolerant_launches is not None else f">{len(r.adaptive_launched)}")
                   + f"; ESS matrix {e.matrix_ess.min():.0f}-{e.matrix_ess.max():.0f}, adaptive there "
-                  f"{e.adaptive_ess.min():.0f}-{e.adaptive_ess.max():.0f}", flush=True)
+                  f"{e.adaptive_ess.min():.0f}-{e.adaptive_ess.max():.0f}; to the matrix's widths + "
+                  + ", + ".join(f"{tolerance:.2%}: " + "/".join(f"{c}" if c is not None else f">{len(r.adaptive_launched)}"
+                                                                   for c in per_set) for tolerance, per_set in e.within),
+                  flush=True)
         stop = (r.precise.launches[0] if r.precise is not None else r.adaptive_launches) or len(r.adaptive_launched)
         print(f"  the adaptive plan's first {stop} launches: "
               + launched_where(table.candidates, r.adaptive_launched[:stop]), flush=True)
@@ -237,7 +240,10 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
                           (" (importance-sampled, set 0)",
                            [r.precise.launches[0] if r.precise else None for r in results]),
                           (" (importance-sampled) + their sd (tolerance-aware)",
-                           [r.precise.tolerant_launches if r.precise else None for r in results])):
+                           [r.precise.tolerant_launches if r.precise else None for r in results]),
+                          *((f" (importance-sampled, set 0) + {tolerance:.2%} of each range",
+                             [r.precise.within[i][1][0] if r.precise else None for r in results])
+                            for i, tolerance in enumerate(plan_comparison.WIDTH_TOLERANCES))):
         if ("Monte Carlo" in label and not replicas) or ("importance" in label and not precise) or (
                 "their sd" in label and precise_sets < 2):
             continue

@@ -384,5 +384,15 @@ def test_the_precise_comparison_runs_the_adaptive_plan_to_its_budget_and_counts_
     assert np.all(e.matrix_widths > 0) and np.all(e.matrix_widths < 1)
     assert all(count is None or 1 <= count <= 12 for count in e.launches)
     assert e.tolerant_launches is None or 1 <= e.tolerant_launches <= 12
+    for tolerance, per_set in e.within:   # a tolerance can only bring the count forward
+        assert all(n is None or c is None or n <= c for n, c in zip(per_set, e.launches)) and len(per_set) == 2
     whole, _ = learnt_to_match_matrix(table, truths=2, matrix_launches=1, samples=60, seed=3, budget=1)
     assert np.allclose(hidden, whole)
+
+
+def test_the_first_launch_under_the_allowed_widths():
+    from rollability_ros.core.campaign.plan_comparison import first_launch
+
+    widths = np.array([[0.3, 0.2], [0.2, 0.25], [0.1, 0.1]])
+    assert first_launch(widths, np.array([0.25, 0.25])) == 2
+    assert first_launch(widths, np.array([0.05, 0.5])) is None

@@ -4,7 +4,7 @@ widths of the twin's unknowns, on the same hidden truths. Simulated throughout.
     python bench/bench_adaptive_plan.py [--truths 10] [--unknowns 4] [--samples 20000] [--matrix-launches 400]
     nice python bench/bench_adaptive_plan.py --likelihood twin --unknowns 2 --samples 48 --sim-repetitions 4
     nice python bench/bench_adaptive_plan.py --learnt likelihood.npz [--outcomes all|none|NAME,...] --samples 500
-        [--characterisation DIR] [--gate DIR]
+        [--characterisation DIR] [--gate DIR] [--precise 8000 --budget 250] [--first-truth K]
 
 For each hidden truth drawn from the prior (uniform on each unknown's search scale, its calibration bounds): the
 paper's matrix launches ``--matrix-launches`` times (the 80 grouped conditions of config/campaign.yaml -- the bare
@@ -24,7 +24,12 @@ designs, e.g. its ``--keep`` folder's): both plans start from each truth's bench
 characterisation on both sides), simulated as bench_calibration.py does. ``--gate DIR``: every launch of both plans
 also gives its speed gate reading (the truth's, from the twin), the bare robot's weighed by the exact term of
 core/campaign/likelihood_gate.py, and the adaptive plan scores verdict and reading together (with ``--outcomes``
-that leave out measured_speed_mps, so the reading is weighed once).
+that leave out measured_speed_mps, so the reading is weighed once). ``--precise DRAWS``: the adaptive plan
+launches its whole budget (``--budget``), then both plans' widths are estimated again from their recorded launches
+by importance sampling (learnt_plan.importance_widths: DRAWS draws of a kernel proposal, the same draws for both
+plans, ``--precise-sets`` independent times), and the counts to those widths are printed beside the others (the
+renewed samples' widths carry a Monte Carlo error that decides the strict count: docs/calibration.md).
+``--first-truth K``: truths K.. of the same draw (a run split over processes).
 
 ``--likelihood toy`` (default without --learnt): an analytic logistic stand-in (LogisticToyPredictor: each condition's own sensitivity
 to each unknown, seeded), cheap; it shows the machinery, not the rig. ``--likelihood twin``: the
@@ -169,8 +174,9 @@ def launched_where(candidates: typing.Sequence[adaptive.LaunchCondition], launch
 
 def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed: int, outcomes: str,
                draws: int, acquisition: str = "joint", characterisation: typing.Optional[str] = None,
-               gate: typing.Optional[str] = None, replicas: int = 0,
-               gate_every: bool = False) -> typing.List[plan_comparison.MatchedWidths]:
+               gate: typing.Optional[str] = None, replicas: int = 0, gate_every: bool = False,
+               precise: int = 0, precise_sets: int = 3, first_truth: int = 0,
+               budget: typing.Optional[int] = None) -> typing.List[plan_comparison.MatchedWidths]:
     """``--learnt FILE`` (module docstring): print each truth as it finishes, then the median."""
     import numpy as np
 
@@ -195,29 +201,55 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
     started = time.perf_counter()
 
     def say(t: int, r: plan_comparison.MatchedWidths) -> None:
-        needed = f"{r.adaptive_launches}" if r.adaptive_launches is not None else f">{matrix_launches}"
+        needed = f"{r.adaptive_launches}" if r.adaptive_launches is not None else f">{budget or matrix_launches}"
         print(f"truth {t}: matrix {matrix_launches} launches -> widths " + ", ".join(f"{w:.0%}" for w in r.matrix_widths)
               + f" (ESS {r.matrix_ess:.0f}); adaptive reaches them in {needed} launches (ESS {r.adaptive_ess:.0f}"
               + ("" if r.adaptive_launches else "; widths then " + ", ".join(f"{w:.0%}" for w in r.adaptive_widths))
               + f") [{time.perf_counter() - started:.0f} s, {load()}]", flush=True)
         if replicas:
-            tolerant = f"{r.tolerant_launches}" if r.tolerant_launches is not None else f">{matrix_launches}"
+            tolerant = f"{r.tolerant_launches}" if r.tolerant_launches is not None else f">{budget or matrix_launches}"
             print(f"  Monte Carlo sd of one width estimate (the matrix's launches, {replicas + 1} sample draws): "
                   + ", ".join(f"{e:.1%}" for e in r.width_error) + "; to the mean width + that sd ("
                   + ", ".join(f"{w:.0%}" for w in r.tolerant_widths) + f"): adaptive {tolerant} launches", flush=True)
-        stop = r.adaptive_launches or len(r.adaptive_launched)
+        if r.precise is not None:
+            e = r.precise
+            counts = "/".join(f"{c}" if c is not None else f">{len(r.adaptive_launched)}" for c in e.launches)
+            spread = np.std(e.matrix_widths, axis=0, ddof=1) if len(e.matrix_widths) > 1 else np.zeros(0)
+            print(f"  importance-sampled widths ({precise} draws x {len(e.launches)} sets, common to both plans): "
+                  "matrix " + ", ".join(f"{w:.1%}" for w in e.matrix_widths[0])
+                  + (" (sd over the sets " + ", ".join(f"{x:.2%}" for x in spread) + ")" if len(spread) else "")
+                  + f"; adaptive reaches them in {counts} launches (per set; set 0's widths there or at its "
+                  "last launch " + ", ".join(f"{w:.1%}" for w in e.adaptive_widths[0]) + "); to the mean + 1 sd: "
+                  + (f"{e.tolerant_launches}" if e.tolerant_launches is not None else f">{len(r.adaptive_launched)}")
+                  + f"; ESS matrix {e.matrix_ess.min():.0f}-{e.matrix_ess.max():.0f}, adaptive there "
+                  f"{e.adaptive_ess.min():.0f}-{e.adaptive_ess.max():.0f}; to the matrix's widths + "
+                  + ", + ".join(f"{tolerance:.2%}: " + "/".join(f"{c}" if c is not None else f">{len(r.adaptive_launched)}"
+                                                                   for c in per_set) for tolerance, per_set in e.within),
+                  flush=True)
+        stop = (r.precise.launches[0] if r.precise is not None else r.adaptive_launches) or len(r.adaptive_launched)
         print(f"  the adaptive plan's first {stop} launches: "
               + launched_where(table.candidates, r.adaptive_launched[:stop]), flush=True)
     _, results = plan_comparison.learnt_to_match_matrix(table, truths, matrix_launches, samples, seed, draws=draws,
                                                         acquisition=acquisition, on_truth=say, start=start,
-                                                        gate=model, gate_reading=reading, replicas=replicas)
+                                                        gate=model, gate_reading=reading, replicas=replicas,
+                                                        precise=precise, precise_sets=precise_sets,
+                                                        first_truth=first_truth, budget=budget)
+    limit = budget or matrix_launches
     for label, counts in (("", [r.adaptive_launches for r in results]),
-                          (" + the Monte Carlo sd (tolerance-aware)", [r.tolerant_launches for r in results])):
-        if label and not replicas:
+                          (" + the Monte Carlo sd (tolerance-aware)", [r.tolerant_launches for r in results]),
+                          (" (importance-sampled, set 0)",
+                           [r.precise.launches[0] if r.precise else None for r in results]),
+                          (" (importance-sampled) + their sd (tolerance-aware)",
+                           [r.precise.tolerant_launches if r.precise else None for r in results]),
+                          *((f" (importance-sampled, set 0) + {tolerance:.2%} of each range",
+                             [r.precise.within[i][1][0] if r.precise else None for r in results])
+                            for i, tolerance in enumerate(plan_comparison.WIDTH_TOLERANCES))):
+        if ("Monte Carlo" in label and not replicas) or ("importance" in label and not precise) or (
+                "their sd" in label and precise_sets < 2):
             continue
         finite = [c if c is not None else np.inf for c in counts]
         median = float(np.median(finite))
-        shown = f">{matrix_launches}" if math.isinf(median) else f"{median:g}"
+        shown = f">{limit}" if math.isinf(median) else f"{median:g}"
         print(f"median launches to the matrix's widths{label}: adaptive {shown} against matrix {matrix_launches} "
               f"(ratio {median / matrix_launches:.2f}; target: at most 150 against 400); adaptive within 150 on "
               f"{sum(c <= 150 for c in finite)} of {len(finite)} truths; {time.perf_counter() - started:.0f} s, "
@@ -251,6 +283,16 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
                         help="with --learnt: weigh the matrix's launches again from N other sample draws (N >= 2) "
                              "to measure the Monte Carlo error of the widths, and count the adaptive launches to "
                              "the mean width + that error too (the strict count is kept)")
+    parser.add_argument("--precise", type=int, default=0, metavar="DRAWS",
+                        help="with --learnt: the adaptive plan launches its whole budget, then both plans' widths are "
+                             "estimated again by importance sampling with DRAWS draws (e.g. 8000), the same draws for "
+                             "both plans, --precise-sets independent times; the counts to those widths are printed "
+                             "beside the others")
+    parser.add_argument("--precise-sets", type=int, default=3, help="with --precise: independent draw sets (default 3)")
+    parser.add_argument("--first-truth", type=int, default=0,
+                        help="with --learnt: begin at this truth (the same truths as from 0: a run split in parts)")
+    parser.add_argument("--budget", type=int, default=None,
+                        help="with --learnt: the adaptive plan's launches at most (default --matrix-launches)")
     parser.add_argument("--draws", type=int, default=32,
                         help="with --learnt: Monte Carlo outcomes per candidate of the expected information")
     parser.add_argument("--acquisition", choices=plan_comparison.ACQUISITIONS, default="joint",
@@ -278,7 +320,8 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
         args.truths, args.unknowns, args.samples, args.matrix_launches = 1, 2, 200, 40
     if args.learnt:
         run_learnt(args.learnt, args.truths, args.matrix_launches, args.samples, args.seed, args.outcomes, args.draws,
-                   args.acquisition, args.characterisation, args.gate, args.replicas, args.gate_every)
+                   args.acquisition, args.characterisation, args.gate, args.replicas, args.gate_every,
+                   args.precise, args.precise_sets, args.first_truth, args.budget)
         return 0
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration.calibration_settings(parameters)

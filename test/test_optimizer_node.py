@@ -179,6 +179,21 @@ def test_with_no_evaluator_it_says_so_and_waits_then_proceeds(ros_node, start_no
     assert "recommendation (simulated world check): " in optimizer.log(), optimizer.log()
 
 
+@pytest.mark.slow   # about 30 s; test_sim_evaluator checks the rejection itself in the README's command
+def test_an_evaluator_that_prints_otherwise_gets_no_candidate(ros_node, start_node, tmp_path):
+    """The optimizer's goals carry its print (config/optimizer.yaml's gradual print): an evaluator started on
+    robot.yaml's 20 % print alone rejects them naming the difference, and no candidate is scored."""
+    wrong = start_node("sim_evaluator", params={"evaluator.workers": 1, **GRID}, ros_args=["-r", "__ns:=/eval_20"],
+                       name="eval_20")
+    optimizer = start_optimizer(start_node, tmp_path, "print", evaluator_max_attempts=2,
+                                evaluator_retry_delay_s=0.1)
+    wait_for_log(ros_node, wrong, "rejected evaluate_profile goal: the optimizer prints the profile otherwise")
+    refusal = wrong.log().split("rejected evaluate_profile goal: ")[1].splitlines()[0]
+    assert "gradual_infill_steps 5 (optimizer) vs 0 (this evaluator)" in refusal, refusal
+    wait_for_log(ros_node, optimizer, "goal rejected (that evaluator's log says why")
+    assert candidate_rows(tmp_path / "runs" / "print", "print") == []
+
+
 def test_two_evaluators_share_the_run_and_it_equals_the_in_process_run(ros_node, start_node, evaluators, tmp_path,
                                                                          reference):
     from rollability_ros.nodes._graph_observer import RosGraphObserver

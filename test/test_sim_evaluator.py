@@ -20,8 +20,9 @@ def _client(ros_node, name):
     return client
 
 
-def _send(ros_node, client, heights, trials, seed, feedback=None, fidelity=""):
-    goal = EvaluateProfile.Goal(heights=list(heights), trials=trials, seed=seed, fidelity=fidelity)
+def _send(ros_node, client, heights, trials, seed, feedback=None, fidelity="", printed_with=""):
+    goal = EvaluateProfile.Goal(heights=list(heights), trials=trials, seed=seed, fidelity=fidelity,
+                                printed_with=printed_with)
     handle = send_goal_resending(client, goal, ros_node.wait_for, 180, feedback_callback=feedback)
     assert handle is not None, "the evaluator did not answer the goal"
     return handle
@@ -138,6 +139,27 @@ def test_bad_goals_are_rejected_and_the_node_survives(ros_node, evaluator, heigh
     good = _send(ros_node, client, [], 2, 1)
     assert good.accepted and evaluator.alive()
     assert _wait(ros_node, good.get_result_async()).status == GoalStatus.STATUS_SUCCEEDED
+
+
+def test_a_goal_of_another_print_is_rejected_naming_the_difference(ros_node, evaluator):
+    """An optimizer that will tell the lab to print otherwise than this evaluator weighs the profile gets no
+    fitness from it: the goal is rejected and the log names the setting; the same print, or none stated, runs."""
+    import json
+
+    from rollability_ros.core.sim.evaluation import load_settings
+
+    mine = load_settings().print_instructions()   # the node runs on the shipped files, as load_settings reads
+    client = _client(ros_node, "/evaluate_profile")
+    for printed_with, named in ((json.dumps({**mine, "infill_fraction": 0.35}), "infill_fraction"),
+                                ("{not json", "printed_with: print instructions are not JSON")):
+        rejected = evaluator.log().count("rejected evaluate_profile goal")
+        assert not _send(ros_node, client, _ridge(), 2, 1, printed_with=printed_with).accepted
+        assert ros_node.wait_for(lambda: evaluator.log().count("rejected evaluate_profile goal") > rejected, 10)
+        assert named in evaluator.log().split("rejected evaluate_profile goal")[-1].splitlines()[0]
+    for printed_with in (json.dumps(mine), ""):
+        handle = _send(ros_node, client, _ridge(), 2, 1, printed_with=printed_with)
+        assert handle.accepted
+        assert _wait(ros_node, handle.get_result_async()).status == GoalStatus.STATUS_SUCCEEDED
 
 
 def test_cancel_is_honoured(ros_node, evaluator):

@@ -34,6 +34,8 @@ are its mount footprint's, as the evaluators' are, the marker sits on that mount
 Mesh A, B, C when the run finishes), ``frame_id``, ``evaluator_timeout_s``, ``evaluator_max_attempts``,
 ``evaluator_retry_delay_s``, ``evaluator_discovery_period_s``; ``session.id``: goals carry it, and a result from an
 evaluator of another session is refused (logged once, never scored) and that evaluator is not asked again.
+Goals also carry the robot's print (``printed_with``: its ``profile_print`` and ``profile_mass_scale``, what the
+designs file will tell the lab to print); an evaluator that weighs the profile otherwise rejects them.
 Optimizer parameters are read when a run starts.
 See docs/optimization.md.
 
@@ -45,6 +47,7 @@ continues with ``resume:=true run_id:=<id>``.
 """
 import dataclasses
 import functools
+import json
 import math
 import sys
 import threading
@@ -144,6 +147,7 @@ class Optimizer(Node):
         self._grid, self._mount = self._read_run_settings()["profile"], self._read_mount()
         self._session = SessionMembership(self)
         self._foreign: typing.Set[str] = set()   # evaluators that answered as another session's: never asked again
+        self._printed_with = ""   # the run's print as JSON (start)
 
         self._candidates = self.create_publisher(CandidateResult, "candidates", RECORD_QOS)
         self._generations = self.create_publisher(GenerationSummary, "generations", LATCHED_QOS)
@@ -200,7 +204,8 @@ class Optimizer(Node):
     def _submit(self, action_name, request, ticket):
         """Send one evaluation as an EvaluateProfile goal; report through ``ticket``; return a cancel function."""
         goal = EvaluateProfile.Goal(heights=list(request.heights), trials=request.trials, seed=request.seed,
-                                    fidelity=request.fidelity, session=self._session.id)
+                                    fidelity=request.fidelity, session=self._session.id,
+                                    printed_with=self._printed_with)
         goal_handle = {}
         cancelled = threading.Event()
 
@@ -224,7 +229,7 @@ class Optimizer(Node):
                 return
             handle = future.result()
             if not handle.accepted:
-                ticket.fail("goal rejected (that evaluator's log says why, e.g. a different profile grid)")
+                ticket.fail("goal rejected (that evaluator's log says why, e.g. a different profile grid or print)")
                 return
             goal_handle["handle"] = handle
             ticket.progress()
@@ -283,6 +288,8 @@ class Optimizer(Node):
                 self.get_logger().error(f"cannot start: {exc}")
                 return False, str(exc)
             self._grid, self._mount = settings["profile"], self._read_mount()
+            # every goal of the run names this print: an evaluator that weighs the profile otherwise refuses them
+            self._printed_with = json.dumps(self._robot_settings(settings).print_instructions(), sort_keys=True)
             self._stop_requested.clear()
             self._pool.resume()
             self._worker = threading.Thread(target=self._optimize, name="optimization",

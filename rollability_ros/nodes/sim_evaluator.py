@@ -5,7 +5,10 @@ Interfaces (relative names; run several side by side in different namespaces):
   cancel honoured between batches, result with fitness, Wilson interval and every trial's outcome. The goal's
   ``fidelity`` picks what a trial is: empty or ``screen`` = the ``objective`` parameters, ``launch`` = robust
   launches on the launch twin, ``world:<seed>`` = those launches all in the one world drawn from ``seed`` (the
-  plausible-world check) (``core/sim/objectives.py``, ``at_fidelity``); any other value is rejected.
+  plausible-world check) (``core/sim/objectives.py``, ``at_fidelity``); any other value is rejected. A goal
+  whose ``printed_with`` (the optimizer's print, JSON) differs from this node's (``robot.profile_print`` and
+  ``robot.profile_mass_scale``, or the URDF robot's) is rejected naming each difference: the fitness would be of
+  another print than the designs file states.
 
 - topic ``robot_description`` (std_msgs/String, transient local, as robot_state_publisher publishes it): the
   URDF when ``urdf_robot.mount_link`` names a mount and neither ``urdf_robot.urdf_path`` nor
@@ -34,7 +37,7 @@ from rollability_ros.action import EvaluateProfile
 from rollability_ros.core.sim import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
                                       TrialOutcome, check_fidelity, evaluate_profile, make_executor,
                                       settings_at_fidelity, with_objective)
-from rollability_ros.core.profile import check_heights
+from rollability_ros.core.profile import check_heights, print_differences, print_instructions_from_text
 from rollability_ros.msg import TrialResult
 from rollability_ros.nodes._support import (LATCHED_QOS, SessionMembership, declare_settings, guard_settings,
                                             run_node)
@@ -124,6 +127,20 @@ class SimEvaluator(Node):
                 check_heights(list(goal.heights), settings.grid)
             except ValueError as exc:
                 return str(exc)
+            if goal.printed_with:
+                return self._print_problem(goal.printed_with)
+        return None
+
+    def _print_problem(self, printed_with: str) -> typing.Optional[str]:
+        """Why a profile of a goal whose optimizer prints as ``printed_with`` (JSON) is not evaluated here, or None."""
+        try:
+            wanted = print_instructions_from_text(printed_with)
+        except ValueError as exc:
+            return f"printed_with: {exc}"
+        differ = print_differences(wanted, self._settings.print_instructions(), ("optimizer", "this evaluator"))
+        if differ:
+            return (f"the optimizer prints the profile otherwise: {'; '.join(differ)}; start the evaluators with "
+                    "the optimizer's parameter files (e.g. --config gradual_print)")
         return None
 
     def _check_goal(self, goal):

@@ -155,3 +155,40 @@ def test_designs_are_launched_only_under_the_print_they_were_chosen_for(tmp_path
                 backend.load()
         else:
             backend.load()
+
+
+@pytest.mark.parametrize("text, message", [
+    ("not json", "print instructions are not JSON"),
+    ("[0.2]", "must be a JSON object of settings, got list"),
+    ('{"infill_fraction": NaN}', "'infill_fraction' must be a string or a finite number, got nan"),
+    ('{"infill_fraction": true}', "'infill_fraction' must be a string or a finite number, got True"),
+    ('{"model": {"shell": 1}}', "'model' must be a string or a finite number"),
+])
+def test_print_instructions_from_text_refuse_what_is_not_a_print(text, message):
+    """What an EvaluateProfile goal's ``printed_with`` carries is parsed as data only, and refused in one line."""
+    from rollability_ros.core.profile.designs import print_instructions_from_text
+
+    with pytest.raises(ValueError, match=message) as refused:
+        print_instructions_from_text(text)
+    assert "\n" not in str(refused.value)
+
+
+def test_print_differences_name_each_setting_both_ways_and_skip_the_ignored():
+    import json
+
+    from rollability_ros.core.profile.designs import print_differences, print_instructions_from_text
+    from rollability_ros.core.sim import evaluation
+
+    default = evaluation.load_settings(["sim", "robot", "evaluator"]).print_instructions()
+    assert print_instructions_from_text(json.dumps(default, sort_keys=True)) == default   # the goal's round trip
+    assert print_differences(default, dict(default), ("a", "b")) == []
+    assert print_differences(default, {**default, "infill_fraction": default["infill_fraction"] * (1 + 1e-12)},
+                             ("a", "b")) == []
+    changed = {**default, "infill_fraction": 0.35, "profile_mass_scale": 2.0}
+    assert print_differences(default, changed, ("optimizer", "here")) == [
+        f"infill_fraction {default['infill_fraction']} (optimizer) vs 0.35 (here)",
+        f"profile_mass_scale {default['profile_mass_scale']} (optimizer) vs 2.0 (here)"]
+    assert print_differences(default, changed, ("a", "b"), ignore={"infill_fraction", "profile_mass_scale"}) == []
+    missing = dict(default)
+    del missing["model"]
+    assert print_differences(default, missing, ("a", "b")) == [f"model {default['model']} (a) vs None (b)"]

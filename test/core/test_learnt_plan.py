@@ -314,3 +314,85 @@ def test_the_matrix_replicas_start_from_their_own_samples_and_measure_a_width_er
     assert result.width_error.shape == (2,) and np.all(result.width_error > 0)
     assert np.all(result.tolerant_widths > result.width_error)
     assert 1 <= len(result.adaptive_launched) <= 16
+
+
+def test_the_importance_sampled_widths_correct_for_their_proposal():
+    """learnt_plan.importance_widths without launches: the target is the start density (a Gaussian in both
+    normalised unknowns, sd 0.05: its 95 % width is 0.196), the proposal a kernel mixture over samples of another,
+    wider and shifted Gaussian; the weights' division by the proposal's density brings the widths to the target's
+    (without it they would be the proposal's, about 0.3)."""
+    from rollability_ros.core.campaign.learnt_plan import KernelProposal, importance_widths
+
+    table = LearntTable(model(), CANDIDATES, ())
+    rng = np.random.default_rng(0)
+    wide = UNKNOWNS.to_values((0.52 + 0.07 * rng.standard_normal((2000, 2))).clip(0.0, 1.0))
+    proposal = KernelProposal(UNKNOWNS, [(wide, np.ones(len(wide)))], rng)
+    start = lambda u: -0.5 * (((u - 0.5) / 0.05) ** 2).sum(axis=1)   # noqa: E731
+    (widths, ess), = importance_widths(table, [[]], [[0]], proposal, rng, draws=8000, log_prior=start)
+    assert widths.shape == (1, 2) and ess[0] > 1000
+    assert widths[0] == pytest.approx([0.196, 0.196], rel=0.08)
+    (plain, _), = importance_widths(table, [[]], [[0]], proposal, rng, draws=8000)   # the proposal's own widths
+    assert np.all(plain[0] > 0.27)
+
+
+def test_the_importance_sampled_widths_weigh_launches_and_readings_as_the_plan_does():
+    """After launches (verdicts and the gate's readings), importance_widths at each checkpoint agrees with the
+    plan's own posterior on the same launches (20,000 prior draws weighed, not renewed), and checkpoint 0 is the
+    prior's 95 % width; the same draws serve two plans (the first plan's estimate is unchanged by the second)."""
+    from rollability_ros.core.campaign.learnt_plan import KernelProposal, importance_widths
+
+    table = LearntTable(model(), CANDIDATES, ())
+    gate = FakeGate(CANDIDATES)
+    rng = np.random.default_rng(7)
+    cells = [(c.configuration, c.height_m, c.speed_mps, c.angle_deg) for c in CANDIDATES[::2]]
+    launches = []
+    for o in simulate((0.6, 0.4), cells, rng):
+        index = CANDIDATES.index(LaunchCondition(o.configuration, o.height_m, o.speed_mps, o.angle_deg))
+        reading = o.outcomes["measured_speed_mps"] if o.configuration == "baseline" else None
+        launches.append((index, o.upright, None, reading))
+    reference = OutcomePosterior(table, UNKNOWNS.draw(5000, np.random.default_rng(1)), renew=False, gate=gate)
+    expected = {0: reference.normalised_widths()}
+    for n, launch in enumerate(launches, 1):
+        reference.observe_launch(*launch)
+        if n in (6, len(launches)):
+            expected[n] = reference.normalised_widths()
+    sources = [(reference.samples, reference.weights), (UNKNOWNS.draw(500, rng), np.ones(500))]
+    proposal = KernelProposal(UNKNOWNS, sources, np.random.default_rng(2))
+    stops = sorted(expected)
+    both = importance_widths(table, [launches, launches[:6]], [stops, [6]], proposal, np.random.default_rng(3),
+                             draws=8000, gate=gate)
+    (widths, ess), (again, _) = both
+    assert expected[len(launches)][1] < 0.5 * expected[0][1]   # the readings narrowed b
+    for row, n in zip(widths, stops):
+        assert row == pytest.approx(expected[n], abs=0.04)
+    assert again[0] == pytest.approx(widths[stops.index(6)])
+    assert np.all(ess > 500)
+
+
+def test_the_precise_comparison_runs_the_adaptive_plan_to_its_budget_and_counts_on_every_draw_set():
+    """plan_comparison.learnt_to_match_matrix with ``precise``: the adaptive plan launches its whole budget (the
+    widths are estimated afterwards), each draw set gives the matrix's widths and a count, the tolerance-aware
+    count uses their spread, and first_truth skips truths without changing them."""
+    from rollability_ros.core.campaign.plan_comparison import learnt_to_match_matrix
+
+    table = LearntTable(model(), CANDIDATES, ())
+    hidden, (result,) = learnt_to_match_matrix(table, truths=2, matrix_launches=16, samples=60, seed=3, budget=12,
+                                               precise=2000, precise_sets=2, first_truth=1)
+    assert len(result.adaptive_launched) == 12
+    e = result.precise
+    assert e.matrix_widths.shape == (2, 2) and len(e.launches) == 2 and e.adaptive_widths.shape == (2, 2)
+    assert np.all(e.matrix_widths > 0) and np.all(e.matrix_widths < 1)
+    assert all(count is None or 1 <= count <= 12 for count in e.launches)
+    assert e.tolerant_launches is None or 1 <= e.tolerant_launches <= 12
+    for tolerance, per_set in e.within:   # a tolerance can only bring the count forward
+        assert all(n is None or c is None or n <= c for n, c in zip(per_set, e.launches)) and len(per_set) == 2
+    whole, _ = learnt_to_match_matrix(table, truths=2, matrix_launches=1, samples=60, seed=3, budget=1)
+    assert np.allclose(hidden, whole)
+
+
+def test_the_first_launch_under_the_allowed_widths():
+    from rollability_ros.core.campaign.plan_comparison import first_launch
+
+    widths = np.array([[0.3, 0.2], [0.2, 0.25], [0.1, 0.1]])
+    assert first_launch(widths, np.array([0.25, 0.25])) == 2
+    assert first_launch(widths, np.array([0.05, 0.5])) is None

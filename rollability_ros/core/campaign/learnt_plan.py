@@ -425,3 +425,123 @@ class OutcomePosterior(WeightedPosterior):
                 conditional = np.logaddexp.reduce(weighted, axis=1) - np.log(mass)
             scores[c] = float(np.mean(conditional - mixture))
         return np.maximum(scores, 0.0)
+
+
+#: Draws of the importance-sampling width estimate (:func:`importance_widths`), and the kernel proposal's
+#: bandwidth: each source's kernel covariance is ``KERNEL_SCALE`` squared x that source's weighted covariance.
+WIDTH_DRAWS, KERNEL_SCALE = 8000, 0.5
+#: Kernel centres drawn (by weight) from each source of the proposal.
+KERNEL_CENTRES = 400
+
+#: One launch of a plan as the width estimate replays it: (candidate index, upright, transformed outcomes (k,) or
+#: None, the speed gate's reading in m/s or None).
+Launch = typing.Tuple[int, bool, typing.Optional[np.ndarray], typing.Optional[float]]
+
+
+class KernelProposal:
+    """A mixture of Gaussian kernels over normalised unknowns, equal weight per source: each source (samples (n, d)
+    own units, weights (n,)) gives :data:`KERNEL_CENTRES` centres drawn by weight and one kernel covariance,
+    ``scale`` squared x its weighted covariance (a floor of 1e-4 of the range per unknown). Its density is known
+    exactly, so self-normalised importance weights against it are unbiased in the limit."""
+
+    def __init__(self, unknowns: Unknowns, sources: typing.Sequence[typing.Tuple[np.ndarray, np.ndarray]],
+                 rng: np.random.Generator, scale: float = KERNEL_SCALE, centres: int = KERNEL_CENTRES) -> None:
+        if not sources:
+            raise ValueError("the kernel proposal needs at least one source of samples")
+        self.parts = []
+        for samples, weights in sources:
+            u = unknowns.to_normalised(np.atleast_2d(samples))
+            w = np.asarray(weights, dtype=np.float64) / np.sum(weights)
+            mean = w @ u
+            covariance = (u - mean).T @ ((u - mean) * w[:, None]) * scale ** 2
+            covariance += np.eye(u.shape[1]) * 1e-8
+            picks = np.minimum(np.searchsorted(np.cumsum(w), (rng.random() + np.arange(centres)) / centres), len(w) - 1)
+            cholesky = np.linalg.cholesky(covariance)
+            inverse = np.linalg.inv(cholesky)
+            log_norm = -np.log(np.diag(cholesky)).sum() - 0.5 * u.shape[1] * math.log(2.0 * math.pi)
+            self.parts.append((u[picks], cholesky, inverse, log_norm))
+
+    def draw(self, count: int, rng: np.random.Generator) -> np.ndarray:
+        """``count`` draws (count, d) of normalised unknowns (not clipped to the prior's bounds)."""
+        source = rng.integers(len(self.parts), size=count)
+        out = np.empty((count, self.parts[0][0].shape[1]))
+        for s, (centres, cholesky, _, _) in enumerate(self.parts):
+            mine = np.flatnonzero(source == s)
+            start = centres[rng.integers(len(centres), size=len(mine))]
+            out[mine] = start + rng.standard_normal(start.shape) @ cholesky.T
+        return out
+
+    def log_density(self, u: np.ndarray) -> np.ndarray:
+        """log q(u) (n,) of normalised unknowns ``u`` (n, d)."""
+        per_source = []
+        for centres, _, inverse, log_norm in self.parts:
+            x, c = u @ inverse.T, centres @ inverse.T
+            squared = (x * x).sum(axis=1)[:, None] + (c * c).sum(axis=1)[None, :] - 2.0 * x @ c.T
+            per_source.append(np.logaddexp.reduce(-0.5 * np.maximum(squared, 0.0), axis=1) + log_norm
+                              - math.log(len(centres)))
+        return np.logaddexp.reduce(np.array(per_source), axis=0) - math.log(len(self.parts))
+
+
+def importance_widths(table: LearntTable, plans: typing.Sequence[typing.Sequence[Launch]],
+                      checkpoints: typing.Sequence[typing.Sequence[int]], proposal: KernelProposal,
+                      rng: np.random.Generator, draws: int = WIDTH_DRAWS,
+                      log_prior: typing.Optional[LogDensity] = None, gate: typing.Optional["GateModel"] = None,
+                      level: float = 0.95) -> typing.List[typing.Tuple[np.ndarray, np.ndarray]]:
+    """The unknowns' equal-tailed ``level`` widths (fractions of each range on its search scale) after the first
+    n launches of each plan of ``plans``, for each n of its ``checkpoints``, by self-normalised importance sampling:
+    ``draws`` draws from ``proposal``, each weighed by the posterior :class:`OutcomePosterior` targets (the uniform
+    prior on the bounds, ``log_prior``'s density, the members' mean likelihood of the launches, ``gate``'s term of
+    their readings) over the proposal's density. The same draws serve every plan and checkpoint (common random
+    numbers: the comparison of two plans' widths does not carry two independent samplers' errors), and many more
+    of them than a plan's renewed samples (the Monte Carlo error of a width: docs/calibration.md). Returns, per
+    plan, the widths (m, d) and the importance weights' effective sample sizes (m,) at its m checkpoints."""
+    u = proposal.draw(draws, rng)
+    inside = np.all((u >= 0.0) & (u <= 1.0), axis=1)
+    clipped = np.clip(u, 0.0, 1.0)
+    base = np.where(inside, -proposal.log_density(u), -np.inf)
+    if log_prior is not None:
+        base = base + np.where(inside, log_prior(clipped), 0.0)
+    columns = sorted({launch[0] for plan in plans for launch in plan})
+    where = {index: i for i, index in enumerate(columns)}
+    if columns:
+        p, location, scale = table.predict(table.unknowns.to_values(clipped), columns)
+    predicted = gate.predict(clipped) if gate is not None and gate.predict is not None else None
+    order = np.argsort(u, axis=0, kind="stable")
+    tail = (1.0 - level) / 2.0
+    results = []
+    for plan, stops in zip(plans, checkpoints):
+        wanted = sorted(set(int(n) for n in stops))
+        if wanted and (wanted[0] < 0 or wanted[-1] > len(plan)):
+            raise ValueError(f"checkpoints must lie in 0..{len(plan)} launches")
+        total = np.zeros((table.members, draws))
+        observations: typing.List[learnt.Observation] = []
+        found: typing.Dict[int, typing.Tuple[np.ndarray, float]] = {}
+        for n in range(len(plan) + 1):
+            if n > 0:
+                index, upright, values, reading = plan[n - 1]
+                v = np.full(len(table.outcomes), np.nan) if values is None else np.asarray(values, dtype=np.float64)
+                total += OutcomePosterior._launch_log_likelihood(p, location, scale, where[index], bool(upright), v)
+                if reading is not None and math.isfinite(reading):
+                    c = table.candidates[index]
+                    observations.append(learnt.Observation(c.configuration, c.height_m, c.speed_mps, c.angle_deg,
+                                                           bool(upright), {"measured_speed_mps": float(reading)}))
+            if n not in wanted:
+                continue
+            log_w = base + np.logaddexp.reduce(total, axis=0)
+            if predicted is not None and observations:
+                from rollability_ros.core.campaign.likelihood_gate import groups_log_density
+
+                assert gate is not None
+                log_w = log_w + np.where(inside, groups_log_density(gate.groups, predicted, observations,
+                                                                    gate.model_error), 0.0)
+            w = np.exp(log_w - log_w.max())
+            w /= w.sum()
+            widths = np.empty(u.shape[1])
+            for j in range(u.shape[1]):
+                cumulative = np.cumsum(w[order[:, j]])
+                low, high = np.minimum(np.searchsorted(cumulative, (tail, 1.0 - tail), side="left"), draws - 1)
+                widths[j] = u[order[high, j], j] - u[order[low, j], j]
+            found[n] = widths, float(1.0 / np.sum(w * w))
+        results.append((np.array([found[int(n)][0] for n in stops]).reshape(len(stops), u.shape[1]),
+                        np.array([found[int(n)][1] for n in stops])))
+    return results

@@ -144,6 +144,20 @@ def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSetti
     reading (``outcomes`` without ``measured_speed_mps``)."""
     bare_only = configurations is not None and all(c == BARE_ROBOT for c in configurations)
     gate_unknowns(unknowns, sampled, bare_only)   # refuses unknowns the term cannot weigh, readings or not
+    readings = grouped_readings(observations, configurations)
+    if not readings:
+        return lambda u: np.zeros(len(u))
+    groups = sorted(readings)
+    predict = gate_predictor(twin, unknowns, groups, bias_points, other_points, sampled, bare_only)
+    return lambda u: readings_log_density(*predict(u), [readings[g] for g in groups], model_error)
+
+
+def grouped_readings(observations: typing.Sequence[Observation],
+                     configurations: typing.Optional[typing.Sequence[str]] = (BARE_ROBOT,)
+                     ) -> typing.Dict[typing.Tuple[str, float], typing.List[float]]:
+    """The gate readings (m/s) of ``observations`` by (configuration, set speed), of ``configurations`` only (None:
+    every one's); a reading absent, not finite or at most :data:`MIN_READING_FRACTION` of the set speed is left
+    out."""
     readings: typing.Dict[typing.Tuple[str, float], typing.List[float]] = {}
     for o in observations:
         if configurations is not None and o.configuration not in configurations:
@@ -151,26 +165,24 @@ def gate_term(observations: typing.Sequence[Observation], twin: "LaunchTwinSetti
         value = float(o.outcomes.get("measured_speed_mps", math.nan))
         if math.isfinite(value) and value > MIN_READING_FRACTION * o.speed_mps:
             readings.setdefault((o.configuration, float(o.speed_mps)), []).append(value)
-    if not readings:
-        return lambda u: np.zeros(len(u))
-    groups = sorted(readings)
-    predict = gate_predictor(twin, unknowns, groups, bias_points, other_points, sampled, bare_only)
-    count = np.array([len(readings[g]) for g in groups], dtype=np.float64)
-    first = np.array([sum(readings[g]) for g in groups])
-    second = np.array([sum(v * v for v in readings[g]) for g in groups])
+    return readings
 
-    def term(u: np.ndarray) -> np.ndarray:
-        """The readings' Gaussian log-likelihood (s,), summed over the groups."""
-        mean, sd = predict(u)
-        # readings g_i = G + shared + scatter_i: the group's mean carries the table's error (model_error x G,
-        # shared by its readings), each reading its own scatter (sd): the Gaussian with covariance sd^2 I + tau^2 1 1'
-        variance, shared = sd ** 2, (model_error * mean) ** 2
-        within = second - first ** 2 / count   # sum of squares about the group's mean
-        offset = first / count - mean
-        return -0.5 * ((count - 1.0) * np.log(variance) + np.log(variance + count * shared) + within / variance
-                       + count * offset ** 2 / (variance + count * shared)
-                       + count * math.log(2.0 * math.pi)).sum(axis=1)
-    return term
+
+def readings_log_density(mean: np.ndarray, sd: np.ndarray, readings: typing.Sequence[typing.Sequence[float]],
+                         model_error: float = MODEL_ERROR) -> np.ndarray:
+    """The readings' Gaussian log-likelihood (s,), summed over the groups: ``mean`` and ``sd`` (s, g), the model at
+    each parameter set and group (:func:`gate_predictor`), ``readings`` one list per group (each non-empty).
+    Readings g_i = G + shared + scatter_i: the group's mean carries the table's error (``model_error`` x G, shared
+    by its readings), each reading its own scatter (sd): the Gaussian with covariance sd^2 I + tau^2 1 1'."""
+    count = np.array([len(r) for r in readings], dtype=np.float64)
+    first = np.array([sum(r) for r in readings], dtype=np.float64)
+    second = np.array([sum(v * v for v in r) for r in readings], dtype=np.float64)
+    variance, shared = sd ** 2, (model_error * mean) ** 2
+    within = second - first ** 2 / count   # sum of squares about the group's mean
+    offset = first / count - mean
+    return -0.5 * ((count - 1.0) * np.log(variance) + np.log(variance + count * shared) + within / variance
+                   + count * offset ** 2 / (variance + count * shared)
+                   + count * math.log(2.0 * math.pi)).sum(axis=1)
 
 
 def gate_predictor(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Sequence[typing.Tuple[str, float]],
@@ -225,3 +237,20 @@ class GateModel:
         """:func:`gate_term` of ``observations`` on this model's twin, unknowns, error and configurations."""
         return gate_term(observations, self.twin, self.unknowns, model_error=self.model_error,
                          configurations=self.configurations)
+
+
+def groups_log_density(groups: typing.Sequence[typing.Tuple[str, float]],
+                       predicted: typing.Tuple[np.ndarray, np.ndarray], observations: typing.Sequence[Observation],
+                       model_error: float = MODEL_ERROR) -> np.ndarray:
+    """The readings of ``observations`` in ``groups`` (the weighed (configuration, set speed) pairs; the others'
+    readings are not weighed) scored by :func:`readings_log_density` against ``predicted`` = (mean, sd) (s,
+    len(groups)), the model at each parameter set and group."""
+    mean, sd = predicted
+    readings = grouped_readings(observations, None)
+    where = {g: i for i, g in enumerate(groups)}
+    present = [g for g in sorted(readings) if g in where]
+    if not present:
+        return np.zeros(len(mean))
+    columns = [where[g] for g in present]
+    return readings_log_density(mean[:, columns], sd[:, columns], [readings[g] for g in present], model_error)
+

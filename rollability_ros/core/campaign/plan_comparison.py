@@ -16,7 +16,7 @@ from rollability_ros.core.campaign.adaptive import Unknowns, UprightPredictor, W
 from rollability_ros.core.records import LaunchCondition
 
 if typing.TYPE_CHECKING:   # annotations only: the learnt table is loaded by the caller
-    from rollability_ros.core.campaign.learnt_plan import LearntTable
+    from rollability_ros.core.campaign.learnt_plan import Launch, LearntTable
     from rollability_ros.core.campaign.likelihood_gate import GateModel
 
 
@@ -126,6 +126,37 @@ class MatchedWidths:
     tolerant_widths: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     tolerant_launches: typing.Optional[int] = None
     adaptive_launched: typing.Tuple[int, ...] = ()
+    precise: typing.Optional["PreciseWidths"] = None
+
+
+@dataclasses.dataclass(frozen=True)
+class PreciseWidths:
+    """:func:`learnt_to_match_matrix` with ``precise`` draws: the same launches' widths estimated again by importance
+    sampling (:func:`~rollability_ros.core.campaign.learnt_plan.importance_widths`), once per independent draw set
+    (r of them), each set shared by both plans (common random numbers). ``matrix_widths`` (r, d) after the
+    matrix's launches; ``launches`` (r,), per set, the adaptive launches until every width is at most the matrix's
+    on that set (None: not within its launches); ``tolerant_launches``, on set 0, to the sets' mean matrix width
+    plus their standard deviation (with r >= 2); ``matrix_ess`` (r,) and ``adaptive_ess`` (r,) the importance
+    weights' effective sample sizes after the matrix's launches and where the adaptive plan reached them (or at
+    its last launch)."""
+
+    matrix_widths: np.ndarray
+    launches: typing.Tuple[typing.Optional[int], ...]
+    tolerant_launches: typing.Optional[int]
+    matrix_ess: np.ndarray
+    adaptive_ess: np.ndarray
+    adaptive_widths: np.ndarray   # (r, d): at the adaptive plan's strict stop on each set, or its last launch
+    #: per tolerance of :data:`WIDTH_TOLERANCES` (points of each range), per set: the adaptive launches until every
+    #: width is at most the matrix's plus that tolerance (None: not within its launches)
+    within: typing.Tuple[typing.Tuple[float, typing.Tuple[typing.Optional[int], ...]], ...] = ()
+
+
+#: Absolute tolerances (fractions of each unknown's range) of :attr:`PreciseWidths.within`: widths that differ by less
+#: are the same to the resolution the calibration reports (its 95 % sets are read from a 50-bin histogram, 2 % of
+#: the range per bin: "The learnt likelihood" in docs/calibration.md). An unknown that the shared start pins (the
+#: profile's mass by the weighings) has the same width under both plans, and the strict count then turns on
+#: differences far below that.
+WIDTH_TOLERANCES = (0.0025, 0.005, 0.01)
 
 
 #: A hidden truth's launch at a candidate (index, outcome generator) -> (upright, continuous outcomes or None, the
@@ -144,7 +175,7 @@ ACQUISITIONS = ("joint", "targeted", "lagging")
 def match_matrix_on_truth(make_posterior: typing.Callable[[int], WeightedPosterior], launch: Launcher,
                           matrix_launches: int, seed: typing.Sequence[int], level: float = 0.95,
                           budget: typing.Optional[int] = None, acquisition: str = "joint",
-                          replicas: int = 0) -> MatchedWidths:
+                          replicas: int = 0, full: bool = False) -> MatchedWidths:
     """One truth of :func:`adaptive_to_match_matrix`: the matrix's ``matrix_launches`` (every candidate once per
     shuffled round) on a fresh ``make_posterior(0)``, then the adaptive plan (the highest score of ``acquisition``,
     :data:`ACQUISITIONS`, each time) on a fresh ``make_posterior(1)`` until each unknown's width is at most the
@@ -155,7 +186,9 @@ def match_matrix_on_truth(make_posterior: typing.Callable[[int], WeightedPosteri
     measured (the standard deviation over the 1 + ``replicas`` estimates). Every width is such an estimate, and the
     strict criterion compares five of them with five of the matrix's, a maximum over noisy comparisons that the
     matrix's lucky draws decide; so the adaptive plan's launches are also counted to the replicas' mean width plus
-    that error (``tolerant_launches``), beside the strict count, which is kept."""
+    that error (``tolerant_launches``), beside the strict count, which is kept. ``full``: the adaptive plan
+    launches its whole budget whatever its widths (for widths estimated again afterwards: ``learnt_to_match_matrix``'s
+    ``precise``); the counts are the same first crossings."""
     if acquisition not in ACQUISITIONS:
         raise ValueError(f"acquisition must be one of {', '.join(ACQUISITIONS)}, got {acquisition!r}")
     if replicas == 1:
@@ -196,7 +229,7 @@ def match_matrix_on_truth(make_posterior: typing.Callable[[int], WeightedPosteri
             tolerant = number
         if reached is None and np.all(now <= widths):
             reached = number
-        if reached is not None and (tolerant is not None or not replicas):
+        if reached is not None and (tolerant is not None or not replicas) and not full:
             break
     return MatchedWidths(matrix_launches, widths, reached, adaptive.normalised_widths(level),
                          matrix.effective_sample_size, adaptive.effective_sample_size, error, tolerant_widths,
@@ -247,7 +280,8 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
                            acquisition: str = "joint",
                            on_truth: typing.Optional[typing.Callable[[int, MatchedWidths], None]] = None,
                            start: typing.Optional[Start] = None, gate: typing.Optional["GateModel"] = None,
-                           gate_reading: typing.Optional[GateReading] = None, replicas: int = 0
+                           gate_reading: typing.Optional[GateReading] = None, replicas: int = 0,
+                           precise: int = 0, precise_sets: int = 3, first_truth: int = 0
                            ) -> typing.Tuple[np.ndarray, typing.List[MatchedWidths]]:
     """:func:`adaptive_to_match_matrix` on a learnt likelihood's table
     (:class:`~rollability_ros.core.campaign.learnt_plan.LearntTable`): each launch of a hidden truth draws the
@@ -262,15 +296,25 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
     truth's reading of a launch): every launch of both plans also gives its gate reading, weighed by that term
     (drawn from a generator of its own per truth and plan, so the verdicts are those drawn without it).
     ``replicas``: :func:`match_matrix_on_truth`'s, each from other starting samples (other prior draws, or
-    ``start(t, truth, replica)``) and other renewals."""
+    ``start(t, truth, replica)``) and other renewals.
+
+    ``precise`` (draws, 0: off): the adaptive plan launches its whole budget, and afterwards both plans' widths are
+    estimated again from their recorded launches by importance sampling with ``precise`` draws, ``precise_sets``
+    independent draw sets each shared by both plans (:class:`PreciseWidths` in each result's ``precise``): the
+    proposal is a kernel mixture over the start samples, the matrix's final samples and the adaptive plan's samples
+    every :data:`SNAPSHOT_EVERY` launches. ``first_truth``: begin at that truth (the same truths as a run from 0;
+    the runs of a split measurement)."""
     from rollability_ros.core.campaign.learnt_plan import OutcomePosterior
 
     rng = np.random.default_rng(seed)
     prior = table.unknowns.draw(samples, rng)
     hidden = table.unknowns.draw(truths, rng)
     results = []
-    for t in range(truths):
+    for t in range(first_truth, truths):
         begin, log_prior = start(t, hidden[t], 0) if start is not None else (prior, None)
+        made: typing.Dict[int, WeightedPosterior] = {}
+        records: typing.Dict[int, typing.List["Launch"]] = {}   # by the plan's outcome generator: matrix, adaptive
+        snapshots: typing.List[typing.Tuple[np.ndarray, np.ndarray]] = []
 
         def make(plan: int, t: int = t, begin: np.ndarray = begin,
                  log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = log_prior
@@ -281,8 +325,9 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
                 replica = plan - 1
                 begin, log_prior = (start(t, hidden[t], replica) if start is not None else
                                     (table.unknowns.draw(samples, np.random.default_rng([seed, t, 8, replica])), None))
-            return OutcomePosterior(table, begin, np.random.default_rng([seed, t, 2 + plan]), draws=draws,
-                                    log_prior=log_prior, gate=gate)
+            made[plan] = OutcomePosterior(table, begin, np.random.default_rng([seed, t, 2 + plan]), draws=draws,
+                                          log_prior=log_prior, gate=gate)
+            return made[plan]
 
         readers: typing.Dict[int, np.random.Generator] = {}   # by the plan's outcome generator: matrix, adaptive
 
@@ -290,13 +335,71 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
                    ) -> typing.Tuple[bool, typing.Optional[np.ndarray], typing.Optional[float]]:
             """Candidate ``index`` launched at hidden truth ``t``: (upright, continuous outcomes (o,) or None, the
             gate's reading or None)."""
+            record = records.setdefault(id(outcome_rng), [])
+            if precise and len(records) == 2 and record and len(record) % SNAPSHOT_EVERY == 0:
+                snapshots.append((made[1].samples.copy(), made[1].weights))   # the adaptive plan's, so far
             upright, values = table.draw(hidden[t], index, outcome_rng)
-            if gate_reading is None:
-                return upright, values, None
-            reader = readers.setdefault(id(outcome_rng), np.random.default_rng([seed, t, 5, len(readers)]))
-            return upright, values, gate_reading(t, hidden[t], table.candidates[index], reader)
-        results.append(match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition,
-                                             replicas))
+            reading = None
+            if gate_reading is not None:
+                reader = readers.setdefault(id(outcome_rng), np.random.default_rng([seed, t, 5, len(readers)]))
+                reading = gate_reading(t, hidden[t], table.candidates[index], reader)
+            record.append((index, upright, values, reading))
+            return upright, values, reading
+        result = match_matrix_on_truth(make, launch, matrix_launches, (seed, t), level, budget, acquisition,
+                                       replicas, full=bool(precise))
+        if precise:   # the proposal's sources: the start, the matrix's end, the adaptive plan's path and end
+            result = dataclasses.replace(result, precise=precise_widths(table, list(records.values()), [
+                (begin, np.ones(len(begin))), (made[0].samples, made[0].weights), *snapshots,
+                (made[1].samples, made[1].weights)], precise, precise_sets, (seed, t), log_prior, gate, level))
+        results.append(result)
         if on_truth is not None:
             on_truth(t, results[-1])
     return hidden, results
+
+
+#: The adaptive plan's samples enter the precise estimate's proposal every this many launches.
+SNAPSHOT_EVERY = 50
+
+
+def precise_widths(table: "LearntTable", plans: typing.Sequence[typing.Sequence["Launch"]],
+                   sources: typing.Sequence[typing.Tuple[np.ndarray, np.ndarray]], draws: int, sets: int,
+                   seed: typing.Sequence[int], log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]],
+                   gate: typing.Optional["GateModel"], level: float = 0.95) -> PreciseWidths:
+    """:class:`PreciseWidths` of one truth's two recorded plans (``plans``: the matrix's and the adaptive plan's
+    launches in order, learnt_plan's ``Launch``): ``sets`` independent importance-sampling estimates (``draws`` draws each from the
+    kernel proposal over ``sources``, each (samples (n, d) own units, weights (n,))), each shared by the matrix's final widths and the adaptive plan's widths after
+    every one of its launches."""
+    from rollability_ros.core.campaign.learnt_plan import KernelProposal, importance_widths
+
+    matrix, adaptive = plans
+    matrix_widths, matrix_ess, counts, adaptive_ess, adaptive_widths, per_launch = [], [], [], [], [], []
+    near: typing.List[typing.List[typing.Optional[int]]] = []
+    for number in range(sets):
+        rng = np.random.default_rng([*seed, 17, number])
+        proposal = KernelProposal(table.unknowns, sources, rng)
+        (m_widths, m_ess), (a_widths, a_ess) = importance_widths(
+            table, [matrix, adaptive], [[len(matrix)], range(1, len(adaptive) + 1)], proposal, rng, draws,
+            log_prior, gate, level)
+        counts.append(first_launch(a_widths, m_widths[0]))
+        near.append([first_launch(a_widths, m_widths[0] + tolerance) for tolerance in WIDTH_TOLERANCES])
+        at = counts[-1] - 1 if counts[-1] is not None else len(adaptive) - 1
+        matrix_widths.append(m_widths[0])
+        matrix_ess.append(m_ess[0])
+        adaptive_ess.append(a_ess[at])
+        adaptive_widths.append(a_widths[at])
+        per_launch.append(a_widths)
+    tolerant = None
+    if sets >= 2:
+        allowed = np.mean(matrix_widths, axis=0) + np.std(matrix_widths, axis=0, ddof=1)
+        tolerant = first_launch(per_launch[0], allowed)
+    within = tuple((tolerance, tuple(row[i] for row in near)) for i, tolerance in enumerate(WIDTH_TOLERANCES))
+    return PreciseWidths(np.array(matrix_widths), tuple(counts), tolerant, np.array(matrix_ess),
+                         np.array(adaptive_ess), np.array(adaptive_widths), within)
+
+
+def first_launch(widths: np.ndarray, allowed: np.ndarray) -> typing.Optional[int]:
+    """The first launch (1-based) after which every width of ``widths`` (launches, d) is at most ``allowed`` (d,);
+    None when none is."""
+    below = np.flatnonzero(np.all(widths <= allowed, axis=1))
+    return int(below[0]) + 1 if len(below) else None
+

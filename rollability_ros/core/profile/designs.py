@@ -124,17 +124,47 @@ def check_printed_with(path: str, instructions: typing.Mapping[str, typing.Union
     stated = _read_designs(_file_version(path))[2]
     if stated is None:
         return
-    differ = []
-    for name in sorted((set(stated) | set(instructions)) - {"profile_mass_scale"}):
-        want, have = stated.get(name), instructions.get(name)
-        close = (isinstance(want, (int, float)) and isinstance(have, (int, float))
-                 and not isinstance(want, bool) and math.isclose(want, have, rel_tol=1e-9, abs_tol=1e-12))
-        if not (want == have or close):
-            differ.append(f"{name} {want} (designs) vs {have} (loaded)")
+    differ = print_differences(stated, instructions, ("designs", "loaded"), ignore={"profile_mass_scale"})
     if differ:
         raise ConfigError(f"{path}: its designs were chosen for another print than the robot loaded here: "
                           f"{'; '.join(differ)}; give the parameter file the designs were chosen with "
                           "(e.g. --config gradual_print), or set robot.profile_print to match")
+
+
+def print_differences(first: typing.Mapping[str, typing.Union[str, float]],
+                      second: typing.Mapping[str, typing.Union[str, float]],
+                      labels: typing.Tuple[str, str],
+                      ignore: typing.AbstractSet[str] = frozenset()) -> typing.List[str]:
+    """Each print setting (``print_instructions()`` keys) on which ``first`` and ``second`` differ, as ``"<name>
+    <first> (<labels[0]>) vs <second> (<labels[1]>)"``, by name; numbers compare to a relative 1e-9. Empty when they
+    agree on every name but ``ignore``."""
+    differ = []
+    for name in sorted((set(first) | set(second)) - set(ignore)):
+        want, have = first.get(name), second.get(name)
+        close = (isinstance(want, (int, float)) and isinstance(have, (int, float))
+                 and not isinstance(want, bool) and not isinstance(have, bool)
+                 and math.isclose(want, have, rel_tol=1e-9, abs_tol=1e-12))
+        if not (want == have or close):
+            differ.append(f"{name} {want} ({labels[0]}) vs {have} ({labels[1]})")
+    return differ
+
+
+def print_instructions_from_text(text: str) -> typing.Dict[str, typing.Union[str, float]]:
+    """The print instructions ``text`` carries (a JSON object of setting names to strings or finite numbers, as
+    ``json.dumps(print_instructions())`` writes them); ``ValueError`` naming what is wrong otherwise."""
+    import json
+
+    try:
+        value = json.loads(text)
+    except ValueError as exc:
+        raise ValueError(f"print instructions are not JSON: {exc}") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"print instructions must be a JSON object of settings, got {type(value).__name__}")
+    for name, item in value.items():
+        if isinstance(item, bool) or not isinstance(item, (str, int, float)) \
+                or (isinstance(item, float) and not math.isfinite(item)):
+            raise ValueError(f"print instruction {name!r} must be a string or a finite number, got {item!r}")
+    return value
 
 
 def configuration_ids(sources: DesignSources) -> typing.List[str]:

@@ -505,7 +505,15 @@ def importance_widths(table: LearntTable, plans: typing.Sequence[typing.Sequence
     where = {index: i for i, index in enumerate(columns)}
     if columns:
         p, location, scale = table.predict(table.unknowns.to_values(clipped), columns)
-    predicted = gate.predict(clipped) if gate is not None and gate.predict is not None else None
+    weigh_readings = None   # the gate's term of a plan's readings so far, at every draw
+    if gate is not None and gate.predict is not None:
+        from rollability_ros.core.campaign.likelihood_gate import groups_log_density
+
+        predicted, groups, model_error = gate.predict(clipped), gate.groups, gate.model_error
+
+        def weigh_readings(observations: typing.Sequence[learnt.Observation]) -> np.ndarray:
+            """The gate's log-density (draws,) of the readings of ``observations``; 0 outside the bounds."""
+            return np.where(inside, groups_log_density(groups, predicted, observations, model_error), 0.0)
     order = np.argsort(u, axis=0, kind="stable")
     tail = (1.0 - level) / 2.0
     results = []
@@ -528,12 +536,8 @@ def importance_widths(table: LearntTable, plans: typing.Sequence[typing.Sequence
             if n not in wanted:
                 continue
             log_w = base + np.logaddexp.reduce(total, axis=0)
-            if predicted is not None and observations:
-                from rollability_ros.core.campaign.likelihood_gate import groups_log_density
-
-                assert gate is not None
-                log_w = log_w + np.where(inside, groups_log_density(gate.groups, predicted, observations,
-                                                                    gate.model_error), 0.0)
+            if weigh_readings is not None and observations:
+                log_w = log_w + weigh_readings(observations)
             w = np.exp(log_w - log_w.max())
             w /= w.sum()
             widths = np.empty(u.shape[1])

@@ -213,18 +213,23 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
                   + ", ".join(f"{w:.0%}" for w in r.tolerant_widths) + f"): adaptive {tolerant} launches", flush=True)
         if r.precise is not None:
             e = r.precise
-            counts = "/".join(f"{c}" if c is not None else f">{len(r.adaptive_launched)}" for c in e.launches)
+
+            def shown(count: typing.Optional[int], launched: int = len(r.adaptive_launched)) -> str:
+                """A launch count, or ">N" where the adaptive plan's N launches did not reach the widths."""
+                return f"{count}" if count is not None else f">{launched}"
+
+            counts = "/".join(shown(c) for c in e.launches)
             spread = np.std(e.matrix_widths, axis=0, ddof=1) if len(e.matrix_widths) > 1 else np.zeros(0)
             print(f"  importance-sampled widths ({precise} draws x {len(e.launches)} sets, common to both plans): "
                   "matrix " + ", ".join(f"{w:.1%}" for w in e.matrix_widths[0])
                   + (" (sd over the sets " + ", ".join(f"{x:.2%}" for x in spread) + ")" if len(spread) else "")
                   + f"; adaptive reaches them in {counts} launches (per set; set 0's widths there or at its "
                   "last launch " + ", ".join(f"{w:.1%}" for w in e.adaptive_widths[0]) + "); to the mean + 1 sd: "
-                  + (f"{e.tolerant_launches}" if e.tolerant_launches is not None else f">{len(r.adaptive_launched)}")
+                  + shown(e.tolerant_launches)
                   + f"; ESS matrix {e.matrix_ess.min():.0f}-{e.matrix_ess.max():.0f}, adaptive there "
                   f"{e.adaptive_ess.min():.0f}-{e.adaptive_ess.max():.0f}; to the matrix's widths + "
-                  + ", + ".join(f"{tolerance:.2%}: " + "/".join(f"{c}" if c is not None else f">{len(r.adaptive_launched)}"
-                                                                   for c in per_set) for tolerance, per_set in e.within),
+                  + ", + ".join(f"{tolerance:.2%}: " + "/".join(shown(c) for c in per_set)
+                                for tolerance, per_set in e.within),
                   flush=True)
         stop = (r.precise.launches[0] if r.precise is not None else r.adaptive_launches) or len(r.adaptive_launched)
         print(f"  the adaptive plan's first {stop} launches: "

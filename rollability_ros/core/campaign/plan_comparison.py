@@ -366,9 +366,9 @@ def precise_widths(table: "LearntTable", plans: typing.Sequence[typing.Sequence[
                    seed: typing.Sequence[int], log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]],
                    gate: typing.Optional["GateModel"], level: float = 0.95) -> PreciseWidths:
     """:class:`PreciseWidths` of one truth's two recorded plans (``plans``: the matrix's and the adaptive plan's
-    launches in order, learnt_plan's ``Launch``): ``sets`` independent importance-sampling estimates (``draws`` draws each from the
-    kernel proposal over ``sources``, each (samples (n, d) own units, weights (n,))), each shared by the matrix's final widths and the adaptive plan's widths after
-    every one of its launches."""
+    launches in order, learnt_plan's ``Launch``): ``sets`` independent importance-sampling estimates, ``draws``
+    draws each from the kernel proposal over ``sources`` (each (samples (n, d) own units, weights (n,))), each set
+    shared by the matrix's final widths and the adaptive plan's widths after every one of its launches."""
     from rollability_ros.core.campaign.learnt_plan import KernelProposal, importance_widths
 
     matrix, adaptive = plans

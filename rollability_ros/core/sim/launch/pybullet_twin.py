@@ -118,34 +118,48 @@ def _place_on_plate(pybullet, client, robot, orientation, clearance_m, xy_m, pla
     position[2] += plate_z + clearance_m - float(_bounds_m(pybullet, client, robot)[0][2])
     pybullet.resetBasePositionAndOrientation(robot.body_id, position, orientation, physicsClientId=client)
 
-#: How far (m) the robot's nearest point may sit from ``start_clearance_m`` above the ledge after placing it by
-#: Bullet's link boxes before :func:`rest_on_ledge` moves it: far below any drop that matters, and above the
-#: rounding of a placement that is exact (the built-in chassis: axis-aligned boxes and cylinders, placed unmoved).
-REST_TOLERANCE_M = 1e-4
+#: How far (m) Bullet's link boxes may overstate the robot's extent (below, ahead) before the placement uses the
+#: extent Bullet's contact sees (:func:`_foremost_x`, :func:`rest_on_ledge`): the twin places to the millimetre (the
+#: plate starts 1 mm behind the robot). Boxes are loose by centimetres on a compound link on turned inertial axes (a
+#: URDF body merged from several links with products of inertia: 47 mm below and 34 mm ahead on the TurtleBot3
+#: Waffle, 58 mm ahead on the Burger) and by a convex mesh's margin (2 mm on the Husky); the built-in chassis's
+#: axis-aligned boxes and cylinders are within 0.4 mm at any angle, so it is placed as before.
+PLACE_TOLERANCE_M = 0.001
 
 def rest_on_ledge(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, ledge_id: int,
                   clearance_m: float) -> float:
     """Move ``robot`` (placed over the ledge) straight down or up so that its nearest point is ``clearance_m`` above
-    the ledge ``ledge_id`` as Bullet's contact sees it (closest points: the shapes with their collision margins);
-    return the shift (m, + = down). Bullet's link boxes, which placed it, bound a link's shapes loosely when the
-    link is a compound on turned inertial axes (a URDF body merged from several links with products of inertia:
-    47 mm on the TurtleBot3 Waffle, which then fell onto the moving plate) and a convex mesh by its margin (2 mm on
-    the Husky); a placement within :data:`REST_TOLERANCE_M` is kept as it is."""
+    the ledge ``ledge_id`` as Bullet's contact sees it (closest points: the shapes with their collision margins),
+    unless it is there within :data:`PLACE_TOLERANCE_M`; return the shift (m, + = down). A robot placed by loose
+    link boxes otherwise starts in the air and falls onto the ledge as the plate moves (the TurtleBot3 Waffle,
+    47 mm up, landed on the plate and was never launched)."""
     gaps = [point[8] for point in pybullet.getClosestPoints(robot.body_id, ledge_id, 1.0, physicsClientId=client)]
     shift_m = min(gaps) - clearance_m if gaps else 0.0
-    if abs(shift_m) <= REST_TOLERANCE_M:
+    if abs(shift_m) <= PLACE_TOLERANCE_M:
         return 0.0
     position, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
     pybullet.resetBasePositionAndOrientation(robot.body_id, [position[0], position[1], position[2] - shift_m],
                                              orientation, physicsClientId=client)
     return shift_m
 
+def _foremost_x(pybullet, client, robot, box_front_x):
+    """The largest world x of ``robot``'s collision shapes as Bullet's contact sees them (m), given the front of its
+    link boxes ``box_front_x``: from the closest points to a probe shape facing it (a shape only: no body joins the
+    world; it goes with the launch's world), or ``box_front_x`` when that is within :data:`PLACE_TOLERANCE_M`."""
+    half_m = 0.5
+    probe = pybullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=[half_m, 100.0, 100.0], physicsClientId=client)
+    face_x = box_front_x + half_m
+    points = pybullet.getClosestPoints(robot.body_id, -1, 2 * half_m, collisionShapeB=probe,
+                                       collisionShapePositionB=[face_x + half_m, 0.0, 0.0], physicsClientId=client)
+    exact_x = face_x - min(point[8] for point in points) if points else box_front_x
+    return exact_x if abs(exact_x - box_front_x) > PLACE_TOLERANCE_M else box_front_x
+
 def place_on_launcher(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, orientation: typing.Sequence[float],
                       push: npt.ArrayLike, settings: LaunchTwinSettings, height_m: float, ledge_id: int) -> float:
-    """Put the chassis at rest on the plate so that its foremost point reaches the edge after ``run_length_m``
-    along ``push`` (unit (3,)); the base origin's path passes through the edge's midpoint; its nearest point
-    ``start_clearance_m`` above the ledge ``ledge_id`` (:func:`rest_on_ledge`). Return the foremost point's offset
-    ahead of the base origin along x (m).
+    """Put the chassis at rest on the plate so that its foremost point (:func:`_foremost_x`) reaches the edge after
+    ``run_length_m`` along ``push`` (unit (3,)); the base origin's path passes through the edge's midpoint; its
+    nearest point ``start_clearance_m`` above the ledge ``ledge_id`` (:func:`rest_on_ledge`). Return the foremost
+    point's offset ahead of the base origin along x (m).
 
     Raises ``ValueError`` when the robot placed there is not wholly over the ledge (``ledge_depth_m`` behind the
     edge, ``ledge_width_m`` along it): a robot too large for the configured launcher.
@@ -154,7 +168,7 @@ def place_on_launcher(pybullet: types.ModuleType, client: int, robot: SpawnedRob
     plate_z = settings.twin.foam.thickness_m + height_m
     _place_on_plate(pybullet, client, robot, orientation, launcher.start_clearance_m, (0.0, 0.0), plate_z)
     base_x = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)[0][0]
-    lead_m = float(_bounds_m(pybullet, client, robot)[1][0]) - base_x
+    lead_m = _foremost_x(pybullet, client, robot, float(_bounds_m(pybullet, client, robot)[1][0])) - base_x
     _place_on_plate(pybullet, client, robot, orientation, launcher.start_clearance_m,
                     launcher_start_xy(lead_m, push, launcher), plate_z)
     low, high = _bounds_m(pybullet, client, robot)

@@ -137,19 +137,19 @@ def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force
                      f"{high * set_speed_mps:.2f} m/s)")
 
 
-#: A launch whose robot moved less than this fraction of the plate's stroke was not pushed through the stroke (the
-#: plate lost it: passed beneath it, or lifted it).
+#: A launch whose robot moved less than this fraction of the plate's stroke was not pushed through the stroke.
 PUSHED_FRACTION = 0.8
 
 def why_not_launched(settings: LaunchTwinSettings, drive: LaunchDrive, set_speed_mps: float) -> str:
     """Why the bare robot, launched square to the edge at the set speed ``set_speed_mps`` with ``drive`` on the sized
-    twin ``settings`` (no scatter), does not reach the edge: one clause naming the physical cause and what changes it, from the launch's poses.
+    twin ``settings`` (no scatter), does not reach the edge: one clause naming the physical cause and what changes
+    it, from the poses of one more such launch.
 
     It tips over on the launcher (its up axis turns beyond the robot's ``upright_tilt_deg``, the rig's own "not
-    upright"): a property of the robot pushed at that height, not of the pressure; the plate does not push it
-    through the stroke (it moved less than :data:`PUSHED_FRACTION` of it: the plate passed beneath it or lifted
-    it); or it coasts to rest short of the edge after the stroke (the cylinder's push is too short or too weak for
-    its rolling resistance)."""
+    upright", at most 90 deg): a property of the robot pushed at that height, not of the pressure; the plate does
+    not push it through the stroke (it moved less than :data:`PUSHED_FRACTION` of it: the plate passed beneath it,
+    slipped past or lifted it, or is too weak to move it at all); or it coasts to rest short of the edge after the
+    stroke (the cylinder's push is too short or too weak for its rolling resistance)."""
     condition = LaunchCondition("baseline", 0.75, set_speed_mps, 0.0)
     poses: typing.List[typing.Tuple[typing.Sequence[float], typing.Sequence[float]]] = []
     LAUNCH_ENGINES.get(settings.physics.engine).simulate(
@@ -167,7 +167,7 @@ def why_not_launched(settings: LaunchTwinSettings, drive: LaunchDrive, set_speed
     tilt_deg, pitch_deg = max(tilts)
     push = (f"the plate's face {plate.clearance_m:.3f}-{plate.clearance_m + plate.height_m:.3f} m up, its centre "
             f"of mass {envelope.com_height_m:.3f} m up")
-    if tilt_deg >= settings.robot_model().upright_tilt_deg:
+    if tilt_deg >= min(settings.robot_model().upright_tilt_deg, 90.0):
         way = ("nose-down" if pitch_deg > 0 else "tail-down") if abs(pitch_deg) >= tilt_deg / 2 else "sideways"
         return (f"it tips over on the launcher ({tilt_deg:.0f} deg, {way}) under the push ({push}), a property of "
                 "the robot pushed there that no pressure changes; launch it with the plate at another height "
@@ -175,8 +175,10 @@ def why_not_launched(settings: LaunchTwinSettings, drive: LaunchDrive, set_speed
     stroke_m = min(drive.stroke_m, launcher.run_length_m)
     if travel_m < PUSHED_FRACTION * stroke_m:
         return (f"the plate does not push it through the stroke: it moves {travel_m:.3f} m of the plate's "
-                f"{stroke_m} m, pitching {pitch_deg:+.0f} deg ({push}; + = nose-down): the plate passes beneath it "
-                "or lifts it; set launch_twin.plate.height_m and clearance_m to meet its rear face")
+                f"{stroke_m} m and pitches {pitch_deg:+.0f} deg (+ = nose-down; {push}): the plate meets too little "
+                f"of it (passes beneath, slips past or lifts it) or {drive.force_n:.0f} N cannot move it; set "
+                "launch_twin.plate.height_m and clearance_m to meet its rear face squarely (0 = derived), or raise "
+                "the pressure or the bore")
     return (f"it coasts to rest {max(0.0, launcher.run_length_m - travel_m):.3f} m short of the edge after the "
             f"{stroke_m} m stroke; raise the pressure or the bore, lower the rolling resistance, or set "
             "launch_twin.launcher.model: push_through")

@@ -82,13 +82,17 @@ Launch (``launcher.model``; one setting swaps the two, and a setting of the mode
     speed is solved per engine, robot, launcher and set speed (:func:`launch_drive`, cached) so that a launch of
     the bare robot square to the edge reads the set speed on the gate, within 0.2% (test_launch_twin: both
     engines, both speeds, within the gate's 15% tolerance ``speed_gate.tolerance_fraction``). A profile's mass
-    then changes the gate's reading as physics says. A cylinder too weak to reach the set speed is refused with a
-    ``ValueError`` naming the settings. ``push_through`` (the twin before issue 40): the plate's speed ramps to the
+    then changes the gate's reading as physics says. A robot the cylinder cannot get to the set speed is refused with a
+    ``ValueError`` naming the physical cause from one more launch (:func:`~.drive.why_not_launched`: it tips
+    over on the launcher, the plate does not push it through the stroke, or it coasts to rest short of the edge)
+    and the settings that change it. ``push_through`` (the twin before issue 40): the plate's speed ramps to the
     launch speed in ``plate.ramp_s`` with at most ``plate.max_force_n`` and holds it until the chassis's base
     origin goes over the edge (or the plate's face reaches it), then brakes: the chassis leaves the edge at the
     launch speed (``edge_speed_mps``, within 5% on the shipped chassis and on one with 40 times the drag: see
     test_launch_twin). Either way the speed gate reads ``run_length_m / travel_time_s`` as on the rig. The chassis
-    starts where its foremost point (largest x of its links' bounding boxes) reaches the edge line after
+    starts (its lowest point ``start_clearance_m`` above the ledge) where its foremost point (largest x of its
+    collision shapes; PyBullet: of its links' bounding boxes unless they overstate it by more than 1 mm, as on a
+    merged URDF body on turned inertial axes, ``pybullet_twin.PLACE_TOLERANCE_M``) reaches the edge line after
     ``run_length_m`` along the push, its base origin on a path through the edge's midpoint. The actual launch
     speed (the gate speed the setting gives in this launch) scatters around the condition's speed x (1 +
     ``launcher.speed_bias_fraction``, the setting's systematic error, an unknown) with a relative standard

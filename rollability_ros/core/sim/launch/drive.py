@@ -48,8 +48,8 @@ def launch_drive(settings: LaunchTwinSettings, set_speed_mps: float) -> LaunchDr
     lab's setting gives: as the lab sets the pressure until the speed gate reads the set speed over the run (paper
     2.2), the plate's speed is solved (once per engine, robot, launcher and set speed, cached) so that a launch of
     the bare robot square to the edge, without scatter, reads ``run_length_m / travel_time_s`` = the set speed
-    within :data:`SOLVE_TOLERANCE`. ``ValueError`` naming the settings when no plate speed up to
-    :data:`SOLVE_MAX_RATIO` x the set speed gets there (a cylinder too weak for the robot)."""
+    within :data:`SOLVE_TOLERANCE`. ``ValueError`` when no plate speed up to :data:`SOLVE_MAX_RATIO` x the set
+    speed gets there, naming the physical cause (:func:`why_not_launched`) and the settings."""
     plate, launcher = settings.twin.plate, settings.twin.launcher
     if launcher.model == "push_through":
         return LaunchDrive("push_through", 1.0, plate.max_force_n, math.inf, plate.ramp_s)

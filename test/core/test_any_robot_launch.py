@@ -7,7 +7,9 @@ Waffle showed"), on two generated robots unlike the chassis, the Husky and the m
   centimetres too large: placed by that box it started 42 mm above the ledge, fell onto the moving plate and was
   never launched ("the gate reads 0.000 m/s with the plate at 2.70 m/s");
 - a tall robot (0.55 m, its centre of mass 0.27 m up) pushed at its feet: it tips over backwards, which no pressure
-  changes, and the refusal says so."""
+  changes, and the refusal says so;
+- a car shaped like pybullet_data's racecar: four wheels, a frame without a collision shape, a sensor box in front:
+  a plate half its width passed between its rear wheels and under it, so the derived plate spans the robot."""
 import math
 
 import numpy as np
@@ -15,7 +17,7 @@ import pytest
 
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.sim.launch.drive import launch_drive
-from rollability_ros.core.sim.launch.placement import sized_for_robot
+from rollability_ros.core.sim.launch.placement import check_launcher, sized_for_robot
 from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
 from rollability_ros.core.sim.launch.twin import simulate_launch
 
@@ -76,6 +78,21 @@ def tall_robot_urdf():
   <link name="top_plate"/>
   {_fixed("top_joint", "top_plate", "0 0 0.25")}
   {_wheels(0.05, 0.03, 0.2, -0.05, 0.12, -0.25)}
+</robot>
+"""
+
+
+def car_urdf():
+    """The car: a frame link (mass, no collision shape), rear wheels on its axle at x = 0, front wheels 0.3 m ahead,
+    a 0.08 m sensor box over the front axle."""
+    rear = _wheels(0.05, 0.045, 0.34, 0.0, 0.12, 0.0).replace("wheel_", "wheel_rear_")
+    return f"""<?xml version="1.0"?>
+<robot name="car">
+  <link name="base_link">{_inertial(4.0, 0.01, 0.04, 0.04)}</link>
+  {rear}{_wheels(0.05, 0.045, 0.34, 0.3, 0.12, 0.0).replace("wheel_", "wheel_front_")}
+  <link name="sensor"><collision><geometry><box size="0.08 0.08 0.08"/></geometry></collision>
+    {_inertial(0.2, 0.0002, 0.0002, 0.0002)}</link>
+  {_fixed("sensor_joint", "sensor", "0.26 0 0.09")}
 </robot>
 """
 
@@ -158,3 +175,14 @@ def test_a_robot_that_tips_over_under_the_push_is_refused_naming_the_cause(tmp_p
     assert "no pressure changes" in message and "raise the pressure" not in message
     tilt_deg = float(message.split("it tips over on the launcher (")[1].split(" deg")[0])
     assert 30.0 <= tilt_deg <= 180.0 and not math.isnan(tilt_deg)
+
+
+def test_a_plate_that_would_pass_between_a_cars_rear_wheels_spans_the_car(tmp_path):
+    """Half the car's width (the chassis's rule) runs between its rear wheels and under it (it has no body low
+    down): the derived plate spans the car, meets the wheels, and the stroke launcher launches it."""
+    config = _robot_config(tmp_path, "car", car_urdf(), "sensor", (0.06, 0.06, [0.0, 0.0, 0.04]))
+    settings = load_launch_twin_settings(TWIN + (config,), overrides={"physics.engine": "pybullet"})
+    geometry = check_launcher(settings)   # refused before: "the launch twin's push plate misses the robot"
+    assert geometry.plate_width_m >= 2 * (0.12 + 0.045 / 2) and "plate_width_m" in geometry.derived
+    result = simulate_launch(LaunchCondition("baseline", 0.75, 1.5, 0.0), settings, seed=1)
+    assert result.valid, result.invalid_reason

@@ -12,6 +12,7 @@ import numpy as np
 from rollability_ros.core.profile import DesignSources
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.sim.launch.contract import LaunchDrive
+from rollability_ros.core.sim.launch.placement import check_launcher
 from rollability_ros.core.sim.launch.settings import PA_PER_PSI, FoamSpec, LauncherSpec, LaunchTwinSettings
 from rollability_ros.core.sim.engines import LAUNCH_ENGINES
 from rollability_ros.core.sim.launcher_geometry import robot_envelope
@@ -143,13 +144,17 @@ PUSHED_FRACTION = 0.8
 def why_not_launched(settings: LaunchTwinSettings, drive: LaunchDrive, set_speed_mps: float) -> str:
     """Why the bare robot, launched square to the edge at the set speed ``set_speed_mps`` with ``drive`` on the sized
     twin ``settings`` (no scatter), does not reach the edge: one clause naming the physical cause and what changes
-    it, from the poses of one more such launch.
+    it: a plate that misses it (:func:`check_launcher`), else from the poses of one more such launch.
 
     It tips over on the launcher (its up axis turns beyond the robot's ``upright_tilt_deg``, the rig's own "not
     upright", at most 90 deg): a property of the robot pushed at that height, not of the pressure; the plate does
     not push it through the stroke (it moved less than :data:`PUSHED_FRACTION` of it: the plate passed beneath it,
     slipped past or lifted it, or is too weak to move it at all); or it coasts to rest short of the edge after the
     stroke (the cylinder's push is too short or too weak for its rolling resistance)."""
+    try:   # a plate that cannot meet the robot says so first (no launch needed)
+        check_launcher(settings)
+    except ValueError as exc:
+        return str(exc)
     condition = LaunchCondition("baseline", 0.75, set_speed_mps, 0.0)
     poses: typing.List[typing.Tuple[typing.Sequence[float], typing.Sequence[float]]] = []
     LAUNCH_ENGINES.get(settings.physics.engine).simulate(

@@ -186,3 +186,25 @@ def test_a_plate_that_would_pass_between_a_cars_rear_wheels_spans_the_car(tmp_pa
     assert geometry.plate_width_m >= 2 * (0.12 + 0.045 / 2) and "plate_width_m" in geometry.derived
     result = simulate_launch(LaunchCondition("baseline", 0.75, 1.5, 0.0), settings, seed=1)
     assert result.valid, result.invalid_reason
+
+
+def test_a_plate_below_every_rear_shape_reaches_up_to_the_lowest():
+    """A robot whose rear shapes all sit above the band centred on its (low) centre of mass: the derived face
+    reaches 1 cm up the lowest of them, and the check that refused the band centred on the centre of mass passes."""
+    from rollability_ros.core.sim.launcher_geometry import (RobotEnvelope, check_launcher_geometry,
+                                                             derive_launcher_geometry, rear_shapes_met)
+
+    def box(x, y, z):
+        return np.array([[a, b, c] for a in x for b in y for c in z], dtype=np.float64)
+
+    envelope = RobotEnvelope(shapes=(("tail", box((-0.2, -0.1), (-0.1, 0.1), (0.10, 0.20))),
+                                     ("sled", box((0.0, 0.2), (-0.1, 0.1), (0.0, 0.03)))),
+                             com_m=(0.1, 0.0, 0.02), mass_kg=2.0)
+    geometry = derive_launcher_geometry(envelope, 0.34, 0.01)
+    low_z, high_z = geometry.plate_clearance_m, geometry.plate_clearance_m + geometry.plate_height_m
+    assert high_z == pytest.approx(0.11, abs=0.006) and rear_shapes_met(envelope, low_z, high_z, geometry.plate_width_m,
+                                                                        0.0)
+    check_launcher_geometry(envelope, geometry, 0.34)
+    centred = derive_launcher_geometry(envelope, 0.34, 0.01, {"plate_height_m": 0.03})   # the band on the centre of mass
+    with pytest.raises(ValueError, match="passes beneath the robot"):
+        check_launcher_geometry(envelope, centred, 0.34)

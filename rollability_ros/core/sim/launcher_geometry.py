@@ -137,11 +137,11 @@ def derive_launcher_geometry(envelope: RobotEnvelope, run_length_m: float, plate
         # half the width passes between its rear shapes (a car's rear wheels): the lab's plate spans the robot
         width = _round(2 * max(abs(float(v) - centre_y) for v in envelope.points()[:, 1]), ROUND_PLATE_M, up=True)
     rear = rear_shapes(envelope, width, centre_y)
-    if not configured.get("plate_height_m") and rear and not rear_shapes_met(envelope, clearance, clearance + height,
-                                                                              width, centre_y):
+    if not configured.get("plate_height_m") and rear and all(points[:, 2].min() >= clearance + height
+                                                             for points in rear):
         # its rear face is all above the band centred on the centre of mass: the lab's plate reaches up to it
         top = min(envelope.height_m, min(float(points[:, 2].min()) for points in rear) + ROUND_PLATE_M)
-        height = _round(top - clearance, ROUND_PLATE_M, up=True)
+        height = max(ROUND_PLATE_M, _round(top - clearance, ROUND_PLATE_M, up=True))
     diagonal = envelope.diagonal_m
     depth = _round(run_length_m + diagonal + plate_thickness_m + LEDGE_MARGIN_M, ROUND_LEDGE_M, up=True)
     angle = math.radians(LEDGE_ANGLE_DEG)

@@ -208,3 +208,66 @@ def test_a_plate_below_every_rear_shape_reaches_up_to_the_lowest():
     centred = derive_launcher_geometry(envelope, 0.34, 0.01, {"plate_height_m": 0.03})   # the band on the centre of mass
     with pytest.raises(ValueError, match="passes beneath the robot"):
         check_launcher_geometry(envelope, centred, 0.34)
+
+
+def small_car_urdf(radius_m=0.033, wheel_mass_kg=0.03):
+    """A small four-wheeled robot: a 0.2 x 0.14 x 0.04 m box body clear of the ground on four wheels of ``radius_m``
+    (a TurtleBot3's), nothing else touching the ground."""
+    front = _wheels(radius_m, 0.018, wheel_mass_kg, 0.08, 0.09, 0.0).replace("wheel_", "wheel_front_")
+    rear = _wheels(radius_m, 0.018, wheel_mass_kg, -0.08, 0.09, 0.0).replace("wheel_", "wheel_rear_")
+    return f"""<?xml version="1.0"?>
+<robot name="small_car">
+  <link name="base_link"><collision><origin xyz="0 0 0.03"/><geometry><box size="0.2 0.14 0.04"/></geometry>
+    </collision>{_inertial(1.5, 0.003, 0.005, 0.007)}</link>
+  {front}{rear}
+</robot>
+"""
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+def test_a_small_wheeled_robot_coasts_on_the_launcher_at_its_rolling_resistance_coefficient(engine):
+    """The analytic coast-down: a URDF robot rolling freely on the launcher's base plate is slowed by its wheels'
+    rolling resistance, force = launch_twin.wheel_rolling_resistance x load whatever the wheels' size (each
+    wheel's rolling friction is the coefficient x its radius), against its mass plus the wheels' spin inertia:
+    within 10% of Crr g m / (m + 4 I / r^2) on both engines. Before, the wheels kept the trials' 0.01 m: a
+    coefficient of 0.3 on these 33 mm wheels, 10 x this one."""
+    pytest.importorskip("mujoco")
+    from test_twin_engine_fidelity import _on_foam
+
+    crr, radius, wheel_mass = 0.03, 0.033, 0.03
+    robot = {"urdf_robot.robot_description": small_car_urdf(radius), "urdf_robot.mount_link": "base_link",
+             "urdf_robot.footprint_length_m": 0.1, "urdf_robot.footprint_width_m": 0.1,
+             "urdf_robot.footprint_offset_m": [0.0, 0.0, 0.05], "urdf_robot.wheel_link_regex": "wheel_.*",
+             "twin.wheel_rolling_resistance": crr}
+    mass = 1.5 + 4 * wheel_mass
+    expected = crr * 9.81 * mass / (mass + 4 * wheel_mass / 2)
+    velocity = _on_foam(engine, 0.0, (1.0, 0.0, 0.0), 0.35, on_ledge=True, **robot)
+    dt = 1.0 / 240.0
+    coasting = velocity[round(0.05 / dt):, 0]   # the wheels spun up
+    deceleration = -np.polyfit(np.arange(len(coasting)) * dt, coasting, 1)[0]
+    assert deceleration == pytest.approx(expected, rel=0.10)
+
+
+def test_a_wheel_key_of_the_model_the_twin_does_not_use_is_refused():
+    """One seam per wheel model: the robot's own wheels' rolling-resistance coefficient on the built-in chassis's
+    Mecanum wheels, and a Mecanum wheel key on a URDF robot's own wheels, are refused in one line naming the key;
+    at their defaults both load, and the chassis's wheels keep their Mecanum rolling friction."""
+    from rollability_ros.core.config import ConfigError
+    from rollability_ros.core.sim.launch.settings import twin_with_values, wheel_rolling_friction_m
+
+    chassis = load_launch_twin_settings(TWIN)
+    assert wheel_rolling_friction_m(chassis, (0.03,) * 4) == (chassis.twin.wheel_rolling_friction,) * 4
+    with pytest.raises(ConfigError, match=r"^launch_twin.wheel_rolling_resistance \(0.02\) acts on the robot's own "
+                                          r"wheels \(wheel_model robot\) only, and this twin gives the robot its "
+                                          r"Mecanum wheels"):
+        load_launch_twin_settings(TWIN, overrides={"twin.wheel_rolling_resistance": 0.02})
+    car = load_launch_twin_settings(TWIN, overrides={"urdf_robot.robot_description": small_car_urdf(),
+                                                     "urdf_robot.mount_link": "base_link",
+                                                     "urdf_robot.footprint_length_m": 0.1,
+                                                     "urdf_robot.footprint_width_m": 0.1,
+                                                     "urdf_robot.footprint_offset_m": [0.0, 0.0, 0.05],
+                                                     "urdf_robot.wheel_link_regex": "wheel_.*"})
+    assert wheel_rolling_friction_m(car, (0.033, 0.05)) == pytest.approx((0.00033, 0.0005))
+    with pytest.raises(ConfigError, match=r"^launch_twin.wheel_drag_torque_nm \(0.01\) acts on the twin's Mecanum "
+                                          r"wheels \(wheel_model mecanum\) only"):
+        twin_with_values(car, {"launch_twin.wheel_drag_torque_nm": 0.01})

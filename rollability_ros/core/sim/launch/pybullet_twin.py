@@ -19,7 +19,8 @@ from rollability_ros.core.sim.launch.drive import launch_drive
 from rollability_ros.core.sim.launch.loop import LaunchTracker, PhaseReporter, launch_result, rig_verdict, step_launch
 from rollability_ros.core.sim.launch.placement import check_fits_launcher, launch_plan, launcher_start_xy, plate_placement
 from rollability_ros.core.sim.launch.results import LaunchResult, PhaseCallback, PoseCallback
-from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, PushPlateSpec, mecanum_wheels
+from rollability_ros.core.sim.launch.settings import (LaunchTwinSettings, PushPlateSpec, mecanum_wheels,
+                                                      wheel_rolling_friction_m)
 from rollability_ros.core.sim.trials import EnergyMonitor, RestDetector, place_on_ground
 from rollability_ros.core.sim.world import connect, disconnect, reset_world, set_contact
 
@@ -58,20 +59,20 @@ def wheel_side_m(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, l
     inverse_position, inverse_orientation = pybullet.invertTransform(base_position, base_orientation)
     return pybullet.multiplyTransforms(inverse_position, inverse_orientation, link_position, (0, 0, 0, 1))[0][1]
 
-def _set_wheels(pybullet, client, robot, options, lateral_friction, mecanum):
-    """Give the wheel links the left / right friction factors (of the robot's ``lateral_friction``) and, with
-    ``mecanum``, the twin's Mecanum side friction, rolling friction and motor drag; without it the wheels keep the
-    robot's own rolling friction and joint drag (the trials')."""
-    for link in robot.wheel_links:
+def _set_wheels(pybullet, client, robot, options, lateral_friction, mecanum, rolling_m):
+    """Give the wheel links the left / right friction factors (of the robot's ``lateral_friction``), each its own
+    rolling friction ``rolling_m`` (m, one per wheel: :func:`~.settings.wheel_rolling_friction_m`) and, with
+    ``mecanum``, the twin's Mecanum side friction and motor drag; without it the wheels keep the robot's own joint
+    drag (the trials')."""
+    for link, rolling in zip(robot.wheel_links, rolling_m):
         left = wheel_side_m(pybullet, client, robot, link) >= 0.0
         side_factor = options.wheel_friction_left_factor if left else options.wheel_friction_right_factor
         pybullet.changeDynamics(robot.body_id, link, lateralFriction=lateral_friction * side_factor,
-                                physicsClientId=client)
+                                rollingFriction=rolling, physicsClientId=client)
         if mecanum:
             axis = pybullet.getJointInfo(robot.body_id, link, physicsClientId=client)[13]
             factors = [1.0 - (1.0 - options.wheel_side_friction_factor) * abs(a) for a in axis]  # a link unit axis
-            pybullet.changeDynamics(robot.body_id, link, anisotropicFriction=factors,
-                                    rollingFriction=options.wheel_rolling_friction, physicsClientId=client)
+            pybullet.changeDynamics(robot.body_id, link, anisotropicFriction=factors, physicsClientId=client)
     if not mecanum:
         return
     pybullet.setJointMotorControlArray(robot.body_id, list(robot.wheel_links), pybullet.VELOCITY_CONTROL,
@@ -80,10 +81,14 @@ def _set_wheels(pybullet, client, robot, options, lateral_friction, mecanum):
                                        physicsClientId=client)
 
 def apply_wheel_model(pybullet: types.ModuleType, client: int, robot: SpawnedRobot,
-                      settings: LaunchTwinSettings) -> None:
-    """The twin's wheel contact and drag (package docstring, "Wheels") on ``robot``'s wheel links: every PyBullet
-    model of the twin's rig (the launch, the characterisation roll-out) uses this one."""
-    _set_wheels(pybullet, client, robot, settings.twin, settings.physics.lateral_friction, mecanum_wheels(settings))
+                      settings: LaunchTwinSettings, model: typing.Optional[RobotModel] = None) -> None:
+    """The twin's wheel contact and drag (package docstring, "Wheels") on ``robot``'s wheel links (``model``: the
+    robot model that spawned it, default ``settings.robot_model()``): every PyBullet model of the twin's rig (the
+    launch, the characterisation roll-out) uses this one."""
+    mecanum = mecanum_wheels(settings)
+    radii = (0.0,) * len(robot.wheel_links) if mecanum else (model or settings.robot_model()).wheel_radii_m()
+    _set_wheels(pybullet, client, robot, settings.twin, settings.physics.lateral_friction, mecanum,
+                wheel_rolling_friction_m(settings, radii))
     # Bullet damps every multibody by default (force m v (0.04 + 0.04 |v|) on each link, the same for rotation): no
     # source on the rig (air drag on the chassis is ~1e-3 of that) and not in MuJoCo; it slowed the spinning wheels
     # (4.6 x their drag torque at 1.5 m/s) and the flight's rotation (13% in 0.4 s at 10 rad/s)
@@ -321,9 +326,9 @@ class BulletLaunch(LaunchEngine):
             foam_id, ledge_id, floor_id = build_launch_world(client, settings, condition.height_m)
             orientation = pybullet.getQuaternionFromEuler([0.0, 0.0, angle])
             robot = model.spawn(client, profile, (0.0, 0.0, 5.0), orientation,
-                                time_step_s=settings.physics.time_step_s)
+                                time_step_s=settings.physics.time_step_s, exact_cylinders=True)
             set_contact(client, robot.body_id, settings.physics.body_contact())
-            apply_wheel_model(pybullet, client, robot, settings)
+            apply_wheel_model(pybullet, client, robot, settings, model)
             lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m,
                                        ledge_id)
             plate = PushPlate(pybullet, client, robot, push, drive.plate_spec(options.plate),

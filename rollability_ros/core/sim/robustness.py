@@ -233,10 +233,8 @@ def perturb(settings: _Perturbed, drawn: Draw) -> _Perturbed:
         launcher = dataclasses.replace(twin.launcher, model=drawn.launcher_model,
                                        ledge_rolling_friction=drawn.ledge_rolling_friction_m,
                                        speed_bias_fraction=drawn.speed_bias_fraction)
-        changes["twin"] = dataclasses.replace(twin, foam=foam, launcher=launcher)
-        if not mecanum_twin(settings):   # the robot's own wheels (module docstring)
-            changes["twin"] = dataclasses.replace(changes["twin"],
-                                                  wheel_rolling_resistance=drawn.wheel_rolling_resistance)
+        own_wheels = {} if mecanum_twin(settings) else {"wheel_rolling_resistance": drawn.wheel_rolling_resistance}
+        changes["twin"] = dataclasses.replace(twin, foam=foam, launcher=launcher, **own_wheels)   # module docstring
         if represents_restitution(settings.physics.engine):   # else the configured value (module docstring)
             changes["physics"] = dataclasses.replace(settings.physics, contact_model=drawn.contact_model,
                                                      restitution=drawn.robot_restitution)

@@ -13,7 +13,8 @@ from rollability_ros.core.profile import DesignSources
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.sim.launch.contract import LaunchDrive
 from rollability_ros.core.sim.launch.placement import check_launcher
-from rollability_ros.core.sim.launch.settings import PA_PER_PSI, FoamSpec, LauncherSpec, LaunchTwinSettings
+from rollability_ros.core.sim.launch.settings import (PA_PER_PSI, FoamSpec, LauncherSpec, LaunchTwinSettings,
+                                                      mecanum_wheels)
 from rollability_ros.core.sim.engines import LAUNCH_ENGINES
 from rollability_ros.core.sim.launcher_geometry import robot_envelope
 from rollability_ros.core.sim.trials import TrialSettings
@@ -184,8 +185,11 @@ def why_not_launched(settings: LaunchTwinSettings, drive: LaunchDrive, set_speed
                 f"of it (passes beneath, slips past or lifts it) or {drive.force_n:.0f} N cannot move it; set "
                 "launch_twin.plate.height_m and clearance_m to meet its rear face squarely (0 = derived), or raise "
                 "the pressure or the bore")
+    wheels = ("launch_twin.wheel_rolling_friction, wheel_drag_torque_nm" if mecanum_wheels(settings) else
+              "launch_twin.wheel_rolling_resistance, " +
+              ("urdf_robot.joint_drag_torque_nm" if settings.urdf_robot.selected else "robot.wheel_drag_torque_nm"))
     return (f"it coasts to rest {max(0.0, launcher.run_length_m - travel_m):.3f} m short of the edge after the "
-            f"{stroke_m} m stroke; raise the pressure or the bore, lower the rolling resistance, or set "
+            f"{stroke_m} m stroke; raise the pressure or the bore, lower its wheels' resistance ({wheels}), or set "
             "launch_twin.launcher.model: push_through")
 
 def _rotation(xyzw: typing.Sequence[float]) -> np.ndarray:

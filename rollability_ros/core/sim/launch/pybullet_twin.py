@@ -47,9 +47,12 @@ def build_launch_world(client: int, settings: LaunchTwinSettings, height_m: floa
 
 def ledge_contact(settings: LaunchTwinSettings) -> typing.Dict[str, float]:
     """The launcher base plate's ``changeDynamics`` keywords: the ground contact of ``config/sim.yaml`` with
-    ``launcher.ledge_rolling_friction`` added to its own rolling friction (the coast's unknown resistance)."""
+    ``launcher.ledge_rolling_friction`` added to its own rolling friction (the coast's unknown resistance). Under a
+    robot's own wheels the ground's own rolling friction (``per_body``: ``sim.rolling_friction``) is left out: their
+    rolling resistance is ``wheel_rolling_resistance`` (:func:`~.settings.wheel_rolling_friction_m`)."""
     contact = dict(settings.physics.ground_contact())
-    contact["rollingFriction"] = contact.get("rollingFriction", 0.0) + settings.twin.launcher.ledge_rolling_friction
+    ground = contact.get("rollingFriction", 0.0) if mecanum_wheels(settings) else 0.0
+    contact["rollingFriction"] = ground + settings.twin.launcher.ledge_rolling_friction
     return contact
 
 def wheel_side_m(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, link: int) -> float:

@@ -317,14 +317,18 @@ def check_wheel_keys(settings: LaunchTwinSettings) -> None:
 
 def wheel_rolling_friction_m(settings: LaunchTwinSettings,
                              radii_m: typing.Sequence[float]) -> typing.Tuple[float, ...]:
-    """Each wheel's own rolling friction (m: Bullet's ``rollingFriction`` and MuJoCo's rolling coefficient, both a
-    torque per unit normal force), one per wheel of radius ``radii_m`` (the robot model's ``wheel_radii_m()``): the
-    Mecanum wheels' ``wheel_rolling_friction``, or the robot's own wheels' rolling-resistance coefficient x the
-    wheel's radius (a rolling wheel then resists with ``wheel_rolling_resistance`` x its load)."""
+    """Each wheel's own rolling friction (m: Bullet's ``rollingFriction``, a torque per unit normal force), one per
+    wheel of radius ``radii_m`` (the robot model's ``wheel_radii_m()``): the Mecanum wheels'
+    ``wheel_rolling_friction``, or on the robot's own wheels the value that makes the wheel-launcher contact's
+    rolling friction ``wheel_rolling_resistance`` x the wheel's radius under either ``sim.contact_model`` (a rolling
+    wheel then resists with the coefficient x its load)."""
     options = settings.twin
     if mecanum_wheels(settings):
         return tuple(options.wheel_rolling_friction for _ in radii_m)
-    return tuple(options.wheel_rolling_resistance * radius for radius in radii_m)
+    # Bullet's contact: wheel.rolling x ground.friction + ground.rolling x wheel.friction, the launcher's ground
+    # rolling 0 under a robot's own wheels (ledge_contact): the contact's rolling friction is the coefficient x radius
+    ground_lateral = settings.physics.ground_contact()["lateralFriction"]
+    return tuple(options.wheel_rolling_resistance * radius / ground_lateral for radius in radii_m)
 
 
 def mecanum_wheels(settings: LaunchTwinSettings) -> bool:

@@ -11,7 +11,9 @@ from setuptools import find_packages, setup
 EXTRAS = {
     # physics, geometry and optimization: the design side
     "sim": ["pybullet==3.2.7", "cma>=4.0", "trimesh>=4.0", "scipy>=1.10", "networkx>=3.0", "lxml>=4.9", "xacro>=2.0",
-            "ribs>=0.12,<0.13"],
+            "ribs>=0.12,<0.13",
+            # trimesh reads an upstream description's COLLADA (.dae) collision meshes with it (iRobot Create 3)
+            "pycollada>=0.8"],
     # learning the twin's likelihood once per robot and design set (rollability calibrate --prepare): its
     # networks are trained with scikit-learn (9 MB; sbi's would need torch, about 3 GB of wheels with CUDA)
     "calibration": ["scikit-learn>=1.3"],

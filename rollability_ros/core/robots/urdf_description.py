@@ -63,7 +63,7 @@ def read_urdf_source(urdf_path: str, robot_description: str,
     if robot_description and urdf_path:
         raise ValueError("give either urdf_path or robot_description, not both")
     if robot_description:
-        return expand_xacro(robot_description, None), None
+        return expand_xacro(robot_description, None, search_paths), None
     if not urdf_path:
         raise ValueError("no robot description: set urdf_path or robot_description")
     path = os.path.expanduser(os.path.expandvars(urdf_path))
@@ -75,7 +75,7 @@ def read_urdf_source(urdf_path: str, robot_description: str,
                     text = stream.read()
             except (OSError, UnicodeDecodeError) as exc:
                 raise ValueError(f"cannot read URDF file {candidate}: {exc}") from exc
-            return expand_xacro(text, candidate), os.path.dirname(os.path.abspath(candidate))
+            return expand_xacro(text, candidate, search_paths), os.path.dirname(os.path.abspath(candidate))
     raise ValueError(f"URDF file not found: {urdf_path} (looked in {', '.join(candidates)})")
 
 
@@ -88,26 +88,47 @@ def is_xacro(text: str, path: typing.Optional[str] = None) -> bool:
     return bool(path and path.endswith(".xacro")) or XACRO_NAMESPACE in text[:4096] or "<xacro:" in text
 
 
-def expand_xacro(text: str, path: typing.Optional[str] = None) -> str:
+def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typing.Sequence[str] = ()) -> str:
     """Expand xacro ``text`` (read from ``path``, for relative includes) with the ``xacro`` package; plain URDF
-    is returned unchanged. ``ValueError`` names the file and xacro's own message (an undefined property or
-    macro, a missing include, ``$(find pkg)`` for a package that is not installed)."""
+    is returned unchanged. ``$(find pkg)`` is the package's folder found as ``package://pkg`` is
+    (:func:`package_folders`: a search folder's ``pkg`` or a search folder named ``pkg``, then
+    ``<prefix>/share/pkg`` of every ``AMENT_PREFIX_PATH`` prefix), so a clone of an upstream repository expands
+    without a ROS install. ``ValueError`` names the file and the problem (an undefined property or macro, a
+    missing include, ``$(find pkg)`` of a package found nowhere, naming it and where it was looked for)."""
     if not is_xacro(text, path):
         return text
     from rollability_ros.core.optional import require
 
     xacro = require("xacro", feature="xacro robot descriptions")
+    substitution_args = importlib.import_module("xacro.substitution_args")
+    folders = [os.path.abspath(folder) for folder in search_folders(search_paths)]   # before the chdir below
     where = path or "robot_description"
     previous = os.getcwd()
+    finds = (substitution_args._eval_find, substitution_args._eval_dict["find"])
+    not_found: typing.List[str] = []
+
+    def find(package: str) -> str:
+        for candidate in package_folders(package, folders):
+            if os.path.isdir(candidate):
+                return os.path.abspath(candidate)
+        not_found.append(f"$(find {package}): package {package} not found (looked in: "
+                         f"{', '.join(package_folders(package, folders)) or 'no search folders'}); add the folder "
+                         f"holding {package}/ to urdf_robot.search_paths or put the install prefix holding "
+                         f"share/{package} on AMENT_PREFIX_PATH")
+        raise ValueError(not_found[-1])
+
     try:
+        # xacro has no hook for $(find): its module function is replaced while this document expands
+        substitution_args._eval_find = substitution_args._eval_dict["find"] = find
         if path:
             os.chdir(os.path.dirname(os.path.abspath(path)))  # xacro resolves relative includes from here
         document = xacro.parse(text, os.path.abspath(path) if path else None)
         xacro.process_doc(document)
         return document.toxml()
     except Exception as exc:  # xacro raises XacroException, NameError, KeyError, ... with a readable message
-        raise ValueError(f"cannot expand xacro {where}: {exc}") from exc
+        raise ValueError(f"cannot expand xacro {where}: {not_found[-1] if not_found else exc}") from exc
     finally:
+        substitution_args._eval_find, substitution_args._eval_dict["find"] = finds
         os.chdir(previous)
 
 
@@ -140,17 +161,24 @@ def search_folders(search_paths: typing.Iterable[str]) -> typing.List[str]:
     return folders
 
 
+def package_folders(package: str, folders: typing.Sequence[str]) -> typing.List[str]:
+    """Where package ``package`` may be, in order: ``<folder>/<package>`` of each search folder (or the folder
+    itself when it is named ``package``), then ``<prefix>/share/<package>`` of each ``AMENT_PREFIX_PATH`` prefix."""
+    tried = []
+    for folder in folders:
+        tried.append(os.path.join(folder, package))
+        if os.path.basename(os.path.normpath(folder)) == package:
+            tried.append(folder)
+    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    return tried + [os.path.join(prefix, "share", package) for prefix in prefixes]
+
+
 def resolve_mesh_path(filename: str, urdf_folder: typing.Optional[str], folders: typing.Sequence[str]) -> str:
     """Return the absolute path of mesh ``filename`` (see the module docstring) or raise ``ValueError``."""
     tried = []
     if filename.startswith("package://"):
         package, _, rest = filename[len("package://"):].partition("/")
-        prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-        for folder in folders:
-            tried.append(os.path.join(folder, package, rest))
-            if os.path.basename(os.path.normpath(folder)) == package:
-                tried.append(os.path.join(folder, rest))
-        tried += [os.path.join(prefix, "share", package, rest) for prefix in prefixes]
+        tried += [os.path.join(folder, rest) for folder in package_folders(package, folders)]
     else:
         path = filename[len("file://"):] if filename.startswith("file://") else filename
         if os.path.isabs(path):

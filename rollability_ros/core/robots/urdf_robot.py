@@ -460,6 +460,36 @@ def obj_text(mesh: Mesh) -> str:
     return vertices + faces
 
 
+#: Mesh formats MuJoCo decodes itself (its URDF import reads no other; PyBullet also reads COLLADA ``.dae``).
+MUJOCO_MESH_FORMATS = (".stl", ".obj", ".msh")
+
+
+def mujoco_mesh_assets(urdf_text: str) -> typing.Tuple[str, typing.Dict[str, bytes]]:
+    """``(urdf_text, assets)`` for MuJoCo: every mesh file in a format MuJoCo cannot decode (an upstream
+    description's COLLADA ``.dae`` collision mesh) becomes an OBJ asset of its convex hull, the shape both engines
+    collide with (MuJoCo's mesh geoms are convex hulls; PyBullet takes a URDF mesh's hull), named in the text in
+    its place; its ``scale`` attribute still applies. ``ValueError`` names a file that cannot be read."""
+    assets: typing.Dict[str, bytes] = {}
+    names: typing.Dict[str, str] = {}
+
+    def replace(match: "re.Match[str]") -> str:
+        filename = match.group(2)
+        if filename.lower().endswith(MUJOCO_MESH_FORMATS):
+            return match.group(0)
+        if filename not in names:
+            trimesh = require("trimesh", feature="URDF mesh collision shapes")
+            try:
+                hull = trimesh.load(filename, force="mesh").convex_hull
+            except Exception as exc:  # trimesh raises assorted parser errors
+                raise ValueError(f"cannot read mesh {filename}: {exc}") from exc
+            names[filename] = f"rollability_mesh_{len(names)}.obj"
+            assets[names[filename]] = obj_text(hull).encode()
+        return f"{match.group(1)}{names[filename]}{match.group(3)}"
+
+    text = re.sub(r'(<mesh\b[^>]*?\bfilename=")([^"]*)(")', replace, urdf_text)
+    return text, assets
+
+
 class UrdfRobotModel(SpecThresholds, RobotModel):
     """A robot loaded from a URDF (:class:`UrdfRobotSpec`): base = frame at the robot's centre of mass, one link
     per rigid body, the profile (if any) a link on the mount's body (fixed, or prismatic on a compliant mount)."""

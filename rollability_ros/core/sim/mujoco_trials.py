@@ -101,7 +101,9 @@ def robot_spec(robot_model: "RobotModel", profile: "typing.Optional[ProfileBody]
         _, hull = profile_inertia(profile)
         mesh_file = "profile.obj"
         assets[mesh_file] = obj_text(hull).encode()
-    spec = mujoco.MjSpec.from_string(robot_model.simulator_urdf(profile, mesh_file), assets=assets)
+    from rollability_ros.core.robots import mujoco_mesh_assets
+    urdf, mesh_assets = mujoco_mesh_assets(robot_model.simulator_urdf(profile, mesh_file))   # .dae -> OBJ hulls
+    spec = mujoco.MjSpec.from_string(urdf, assets={**assets, **mesh_assets})
     spec.option.timestep = physics.time_step_s
     spec.option.gravity = [0.0, 0.0, physics.gravity_mps2]
     for geom in spec.geoms:

@@ -1,0 +1,124 @@
+"""Shapes of upstream descriptions that broke a new user's first run (docs/other-robots.md, "Upstream descriptions
+tried"): a xacro that includes its own package's files by ``$(find <pkg>)`` (Clearpath Jackal, Husarion ROSbot,
+iRobot Create 3, AgileX Scout) used from a clone without a ROS install, and a COLLADA ``.dae`` collision mesh
+(iRobot Create 3's bumper) on the MuJoCo engines. Each robot is built here; no upstream file is copied."""
+import os
+import sys
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(__file__))
+
+from rollability_ros.core.robots.urdf_robot import UrdfRobotModel, UrdfRobotSpec  # noqa: E402
+
+pytest.importorskip("xacro")
+
+XACRO_ROBOT = """<?xml version="1.0"?>
+<robot name="clone_bot" xmlns:xacro="http://www.ros.org/wiki/xacro">
+  <xacro:include filename="$(find clone_bot_description)/urdf/wheel.urdf.xacro"/>
+  <link name="base_link">
+    <collision><origin xyz="0 0 0.05"/><geometry><box size="0.3 0.2 0.1"/></geometry></collision>
+    <inertial><origin xyz="0 0 0.05"/><mass value="2.0"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0"
+      izz="0.02"/></inertial>
+  </link>
+  <xacro:wheel side="left" y="0.13"/>
+  <xacro:wheel side="right" y="-0.13"/>
+</robot>
+"""
+XACRO_WHEEL = """<?xml version="1.0"?>
+<robot xmlns:xacro="http://www.ros.org/wiki/xacro">
+  <xacro:macro name="wheel" params="side y">
+    <link name="${side}_wheel">
+      <collision><origin rpy="1.5708 0 0"/><geometry><cylinder radius="0.04" length="0.03"/></geometry></collision>
+      <inertial><mass value="0.1"/><inertia ixx="5e-5" ixy="0" ixz="0" iyy="8e-5" iyz="0" izz="5e-5"/></inertial>
+    </link>
+    <joint name="${side}_wheel_joint" type="continuous">
+      <parent link="base_link"/><child link="${side}_wheel"/><origin xyz="0 ${y} 0.0"/><axis xyz="0 1 0"/>
+    </joint>
+  </xacro:macro>
+</robot>
+"""
+
+
+def _clone(folder):
+    """A clone of an upstream repository: <folder>/clone_bot_description/urdf/{robot,wheel}.urdf.xacro."""
+    urdf = folder / "clone_bot_description" / "urdf"
+    urdf.mkdir(parents=True)
+    (urdf / "robot.urdf.xacro").write_text(XACRO_ROBOT, encoding="utf-8")
+    (urdf / "wheel.urdf.xacro").write_text(XACRO_WHEEL, encoding="utf-8")
+    return "clone_bot_description/urdf/robot.urdf.xacro"
+
+
+def _spec(**changes):
+    values = dict(mount_link="base_link", footprint_length_m=0.2, footprint_width_m=0.15,
+                  footprint_offset_m=(0.0, 0.0, 0.1), wheel_link_regex=".*_wheel", min_wheels_in_contact=2)
+    values.update(changes)
+    return UrdfRobotSpec(**values)
+
+
+def test_find_of_the_descriptions_own_package_resolves_from_a_clone_on_the_search_path(tmp_path, monkeypatch):
+    """Without AMENT_PREFIX_PATH xacro's $(find) raised "Environment variable 'AMENT_PREFIX_PATH' is not set",
+    naming neither the package nor what to set; a relative search path must work from the working directory."""
+    path = _clone(tmp_path)
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    monkeypatch.chdir(tmp_path)
+    description = _spec(urdf_path=path, search_paths=(".",)).description()
+    assert {"left_wheel", "right_wheel"} <= set(description.robot.body_of)
+    monkeypatch.chdir(tmp_path / "clone_bot_description")    # the search folder named after the package works too
+    assert _spec(urdf_path="urdf/robot.urdf.xacro", search_paths=(".",)).description()
+
+
+def test_find_of_a_package_found_nowhere_is_refused_naming_it_and_where_it_looked(tmp_path, monkeypatch):
+    path = _clone(tmp_path)
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError) as refused:
+        _spec(urdf_path=path, search_paths=("elsewhere",)).description()
+    message = str(refused.value)
+    assert "\n" not in message and "$(find clone_bot_description): package clone_bot_description not found" in message
+    assert os.path.join(str(tmp_path), "elsewhere", "clone_bot_description") in message
+    assert "urdf_robot.search_paths" in message and "share/clone_bot_description on AMENT_PREFIX_PATH" in message
+    assert message.count("not found") == 1                    # once, not xacro's repetition of it
+    # an install prefix on AMENT_PREFIX_PATH works as before
+    share = tmp_path / "install" / "share"
+    share.mkdir(parents=True)
+    os.symlink(tmp_path / "clone_bot_description", share / "clone_bot_description")
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(tmp_path / "install"))
+    assert _spec(urdf_path=path).description()
+
+
+def dae_robot(folder):
+    """A two-wheeled box whose body's collision shape is a COLLADA mesh (0.3 x 0.2 x 0.1 m), file in ``folder``."""
+    trimesh = pytest.importorskip("trimesh")
+    pytest.importorskip("collada")
+    body = trimesh.creation.box(extents=(0.3, 0.2, 0.1))
+    body.export(str(folder / "body.dae"))
+    text = XACRO_ROBOT.replace('<xacro:include filename="$(find clone_bot_description)/urdf/wheel.urdf.xacro"/>',
+                               XACRO_WHEEL.split("<robot xmlns:xacro=\"http://www.ros.org/wiki/xacro\">")[1]
+                               .replace("</robot>", ""))
+    text = text.replace('<box size="0.3 0.2 0.1"/>', '<mesh filename="body.dae"/>')
+    (folder / "dae_bot.urdf.xacro").write_text(text, encoding="utf-8")
+    return str(folder / "dae_bot.urdf.xacro")
+
+
+def test_a_collada_collision_mesh_loads_in_mujoco_as_the_hull_pybullet_collides_with(tmp_path):
+    """MuJoCo decodes no .dae: the robot failed to compile ("no decoder found for mesh file"), a two-line error
+    from the middle of a launch. Its hull goes to MuJoCo as an OBJ asset; PyBullet reads the file as before."""
+    mujoco = pytest.importorskip("mujoco")
+    from rollability_ros.core.sim.mujoco_trials import robot_spec
+    from rollability_ros.core.sim.world import PhysicsParams
+
+    model = UrdfRobotModel(_spec(urdf_path=dae_robot(tmp_path)))
+    assert ".dae" in model.sim_urdf()    # PyBullet's URDF keeps the file
+    compiled = robot_spec(model, None, PhysicsParams())[0].compile()
+    meshes = [g for g in range(compiled.ngeom) if compiled.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH]
+    assert len(meshes) == 1
+    mesh = compiled.geom_dataid[meshes[0]]
+    start, count = compiled.mesh_vertadr[mesh], compiled.mesh_vertnum[mesh]
+    vertices = compiled.mesh_vert[start:start + count]
+    # MuJoCo moves a mesh to its principal axes: the box's extents survive the hull and the OBJ
+    np.testing.assert_allclose(sorted(np.ptp(vertices, axis=0)), (0.1, 0.2, 0.3), atol=1e-6)
+    from rollability_ros.core.robots import mujoco_mesh_assets
+    text, assets = mujoco_mesh_assets(model.sim_urdf())
+    assert ".dae" not in text and len(assets) == 1

@@ -104,7 +104,7 @@ def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typ
     folders = [os.path.abspath(folder) for folder in search_folders(search_paths)]   # before the chdir below
     where = path or "robot_description"
     previous = os.getcwd()
-    finds = (substitution_args._eval_find, substitution_args._eval_dict["find"])
+    finds = (getattr(substitution_args, "_eval_find"), substitution_args._eval_dict["find"])
     not_found: typing.List[str] = []
 
     def find(package: str) -> str:
@@ -119,7 +119,8 @@ def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typ
 
     try:
         # xacro has no hook for $(find): its module function is replaced while this document expands
-        substitution_args._eval_find = substitution_args._eval_dict["find"] = find
+        setattr(substitution_args, "_eval_find", find)
+        substitution_args._eval_dict["find"] = find
         if path:
             os.chdir(os.path.dirname(os.path.abspath(path)))  # xacro resolves relative includes from here
         document = xacro.parse(text, os.path.abspath(path) if path else None)
@@ -128,7 +129,8 @@ def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typ
     except Exception as exc:  # xacro raises XacroException, NameError, KeyError, ... with a readable message
         raise ValueError(f"cannot expand xacro {where}: {not_found[-1] if not_found else exc}") from exc
     finally:
-        substitution_args._eval_find, substitution_args._eval_dict["find"] = finds
+        setattr(substitution_args, "_eval_find", finds[0])
+        substitution_args._eval_dict["find"] = finds[1]
         os.chdir(previous)
 
 

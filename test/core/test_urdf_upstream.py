@@ -122,3 +122,36 @@ def test_a_collada_collision_mesh_loads_in_mujoco_as_the_hull_pybullet_collides_
     from rollability_ros.core.robots import mujoco_mesh_assets
     text, assets = mujoco_mesh_assets(model.sim_urdf())
     assert ".dae" not in text and len(assets) == 1
+
+
+def test_an_optimizer_batch_with_a_failing_profile_raises_and_leaves_no_evaluation_running():
+    """The AgileX Scout's optimize printed its error (the MuJoCo twin's launcher could not launch it) and then
+    never exited: the batch's other profiles kept their threads waiting on a worker pool that had been shut down,
+    and the interpreter's exit joins them. One profile's error now cancels the others."""
+    import threading
+    import time
+
+    from rollability_ros.core.optimization.batch_evaluation import fidelity_batch_evaluator
+    from rollability_ros.core.sim.evaluation import TrialExecutor, load_settings
+
+    stopped = threading.Event()
+    calls = []
+
+    class OneFails(TrialExecutor):
+        workers, in_process = 2, False
+
+        def iter_batches(self, job, batches, should_stop):
+            calls.append(job)
+            if len(calls) == 1:
+                raise ValueError("the stroke launcher cannot launch this robot")
+            deadline = time.monotonic() + 10.0     # a worker that never answers: only a stop ends the wait
+            while not should_stop() and time.monotonic() < deadline:
+                time.sleep(0.005)
+            if should_stop():
+                stopped.set()
+            return iter(())
+
+    evaluate = fidelity_batch_evaluator(load_settings(), OneFails(), "screen")
+    with pytest.raises(ValueError, match="cannot launch this robot"):
+        evaluate([np.zeros(100), np.full(100, 0.1)], 0, 4)
+    assert stopped.wait(5.0)    # was: still waiting when the process wanted to exit

@@ -6,6 +6,7 @@ evaluator_name)`` per height array; the ``optimizer`` node binds EvaluateProfile
 (:mod:`~rollability_ros.core.optimization.evaluator_pool`)."""
 import concurrent.futures
 import dataclasses
+import threading
 import typing
 
 import numpy as np
@@ -64,10 +65,14 @@ def fidelity_batch_evaluator(settings: EvaluatorSettings, executor: TrialExecuto
         whole = dataclasses.replace(settings, evaluator=dataclasses.replace(settings.evaluator, batch_trials=trials))
         chosen = whole if workers is not None and len(heights_list) >= 2 * workers else settings
         threads = concurrent.futures.ThreadPoolExecutor(max_workers=1 if in_process else max(1, len(heights_list)))
+        failed = threading.Event()   # one profile's error stops the others (their threads would outlive the pool)
         try:
-            futures = [threads.submit(evaluate_profile, heights, trials, seed, chosen, executor)
+            futures = [threads.submit(evaluate_profile, heights, trials, seed, chosen, executor, None, failed)
                        for heights in heights_list]
             results = [future.result() for future in futures]
+        except BaseException:
+            failed.set()
+            raise
         finally:
             threads.shutdown(wait=False, cancel_futures=True)
         return [(r.successes, r.trials, r.eval_time_s, name) for r in results]

@@ -134,24 +134,43 @@ def test_an_optimizer_batch_with_a_failing_profile_raises_and_leaves_no_evaluati
     from rollability_ros.core.optimization.batch_evaluation import fidelity_batch_evaluator
     from rollability_ros.core.sim.evaluation import TrialExecutor, load_settings
 
-    stopped = threading.Event()
     calls = []
+    both_waiting = threading.Event()
 
     class OneFails(TrialExecutor):
         workers, in_process = 2, False
 
         def iter_batches(self, job, batches, should_stop):
-            calls.append(job)
+            calls.append(threading.current_thread())
             if len(calls) == 1:
+                both_waiting.wait(5.0)   # the other profile's batches are out too, as on a pool of two workers
                 raise ValueError("the stroke launcher cannot launch this robot")
+            both_waiting.set()
             deadline = time.monotonic() + 10.0     # a worker that never answers: only a stop ends the wait
             while not should_stop() and time.monotonic() < deadline:
                 time.sleep(0.005)
-            if should_stop():
-                stopped.set()
             return iter(())
 
     evaluate = fidelity_batch_evaluator(load_settings(), OneFails(), "screen")
     with pytest.raises(ValueError, match="cannot launch this robot"):
         evaluate([np.zeros(100), np.full(100, 0.1)], 0, 4)
-    assert stopped.wait(5.0)    # was: still waiting when the process wanted to exit
+    assert len(calls) == 2
+    for waiting in calls[1:]:      # the other profile's thread stops
+        waiting.join(5.0)
+        assert not waiting.is_alive()   # was: still waiting when the process wanted to exit
+
+
+def test_xacro_arguments_are_passed_as_on_xacros_command_line(tmp_path, monkeypatch):
+    """AgileX's limo_four_diff.xacro reads $(arg robot_namespace), declared nowhere: xacro refuses it unless the
+    caller passes it, and a robot config had no way to (ROSbot's mecanum:=true, Create 3's gazebo:=ignition too)."""
+    _clone(tmp_path)
+    wheel = tmp_path / "clone_bot_description" / "urdf" / "wheel.urdf.xacro"
+    wheel.write_text(XACRO_WHEEL.replace('radius="0.04"', 'radius="$(arg wheel_radius)"'), encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    path = "clone_bot_description/urdf/robot.urdf.xacro"
+    with pytest.raises(ValueError, match="Undefined substitution argument wheel_radius"):
+        _spec(urdf_path=path, search_paths=(".",)).description()
+    model = UrdfRobotModel(_spec(urdf_path=path, search_paths=(".",), xacro_args=("wheel_radius:=0.05",)))
+    assert model.wheel_radii_m() == pytest.approx((0.05, 0.05))
+    with pytest.raises(ValueError, match="xacro_args entry 'wheel_radius=0.05': expected name:=value"):
+        _spec(urdf_path=path, search_paths=(".",), xacro_args=("wheel_radius=0.05",)).description()

@@ -51,8 +51,8 @@ class _BadTransform:
         self.message = message
 
 
-def read_urdf_source(urdf_path: str, robot_description: str,
-                     search_paths: typing.Sequence[str] = ()) -> typing.Tuple[str, typing.Optional[str]]:
+def read_urdf_source(urdf_path: str, robot_description: str, search_paths: typing.Sequence[str] = (),
+                     xacro_args: typing.Sequence[str] = ()) -> typing.Tuple[str, typing.Optional[str]]:
     """Return ``(xml_text, folder)`` of the description: the string if given, else the file (its folder).
 
     A relative ``urdf_path`` is tried from the working directory, then in each search folder. A xacro file
@@ -63,7 +63,7 @@ def read_urdf_source(urdf_path: str, robot_description: str,
     if robot_description and urdf_path:
         raise ValueError("give either urdf_path or robot_description, not both")
     if robot_description:
-        return expand_xacro(robot_description, None, search_paths), None
+        return expand_xacro(robot_description, None, search_paths, xacro_args), None
     if not urdf_path:
         raise ValueError("no robot description: set urdf_path or robot_description")
     path = os.path.expanduser(os.path.expandvars(urdf_path))
@@ -75,7 +75,8 @@ def read_urdf_source(urdf_path: str, robot_description: str,
                     text = stream.read()
             except (OSError, UnicodeDecodeError) as exc:
                 raise ValueError(f"cannot read URDF file {candidate}: {exc}") from exc
-            return expand_xacro(text, candidate, search_paths), os.path.dirname(os.path.abspath(candidate))
+            return (expand_xacro(text, candidate, search_paths, xacro_args),
+                    os.path.dirname(os.path.abspath(candidate)))
     raise ValueError(f"URDF file not found: {urdf_path} (looked in {', '.join(candidates)})")
 
 
@@ -88,15 +89,22 @@ def is_xacro(text: str, path: typing.Optional[str] = None) -> bool:
     return bool(path and path.endswith(".xacro")) or XACRO_NAMESPACE in text[:4096] or "<xacro:" in text
 
 
-def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typing.Sequence[str] = ()) -> str:
+def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typing.Sequence[str] = (),
+                 xacro_args: typing.Sequence[str] = ()) -> str:
     """Expand xacro ``text`` (read from ``path``, for relative includes) with the ``xacro`` package; plain URDF
-    is returned unchanged. ``$(find pkg)`` is the package's folder found as ``package://pkg`` is
+    is returned unchanged. ``xacro_args`` are ``name:=value`` as on xacro's command line (``$(arg name)``). ``$(find pkg)`` is the package's folder found as ``package://pkg`` is
     (:func:`package_folders`: a search folder's ``pkg`` or a search folder named ``pkg``, then
     ``<prefix>/share/pkg`` of every ``AMENT_PREFIX_PATH`` prefix), so a clone of an upstream repository expands
     without a ROS install. ``ValueError`` names the file and the problem (an undefined property or macro, a
     missing include, ``$(find pkg)`` of a package found nowhere, naming it and where it was looked for)."""
     if not is_xacro(text, path):
         return text
+    mappings = {}
+    for entry in xacro_args:
+        name, separator, value = entry.partition(":=")
+        if not separator or not name.strip():
+            raise ValueError(f"urdf_robot.xacro_args entry {entry!r}: expected name:=value, as on xacro's command line")
+        mappings[name.strip()] = value
     from rollability_ros.core.optional import require
 
     xacro = require("xacro", feature="xacro robot descriptions")
@@ -124,7 +132,7 @@ def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typ
         if path:
             os.chdir(os.path.dirname(os.path.abspath(path)))  # xacro resolves relative includes from here
         document = xacro.parse(text, os.path.abspath(path) if path else None)
-        xacro.process_doc(document)
+        xacro.process_doc(document, mappings=mappings)
         return document.toxml()
     except Exception as exc:  # xacro raises XacroException, NameError, KeyError, ... with a readable message
         raise ValueError(f"cannot expand xacro {where}: {not_found[-1] if not_found else exc}") from exc

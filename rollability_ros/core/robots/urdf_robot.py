@@ -84,6 +84,9 @@ class UrdfRobotSpec:
     search_paths: tuple[str, ...] = dataclasses.field(default=(), metadata={
         "description": "folders searched for the URDF, package:// and relative meshes; python:<module> = that installed"
                        " package's folder"})
+    xacro_args: tuple[str, ...] = dataclasses.field(default=(), metadata={
+        "description": "arguments of a xacro description, name:=value each as on xacro's command line "
+                       "($(arg name); unset ones take their defaults)"})
     ignore_visual_meshes: bool = dataclasses.field(default=False, metadata={
         "description": "true: drop the description's <visual> elements before checking it (the simulation never draws "
                        "them), so visual meshes missing on this machine stop nothing; exports then have no visuals"})
@@ -205,7 +208,7 @@ def footprint_corners(spec: UrdfRobotSpec) -> np.ndarray:
 
 
 def _mount(spec):
-    text, folder = read_urdf_source(spec.urdf_path, spec.robot_description, spec.search_paths)
+    text, folder = read_urdf_source(spec.urdf_path, spec.robot_description, spec.search_paths, spec.xacro_args)
     robot = describe(without_visuals(text) if spec.ignore_visual_meshes else text, folder, spec.search_paths)
     mount_in_body = robot.link_transform(spec.mount_link)
     body = robot.body_of[spec.mount_link]

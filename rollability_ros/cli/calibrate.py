@@ -151,7 +151,7 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
 
     from rollability_ros.core.campaign import (OUTCOMES, characterisation_term, format_set, gate_term,
                                                load_likelihood, observations_from_outcomes, sample_posterior,
-                                               twin_fingerprint)
+                                               shot_observations, twin_fingerprint)
     from rollability_ros.core.results import group_conditions
 
     if args.sampler_steps < 20:
@@ -165,9 +165,11 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     fixed = {name: float(parameters[name]) for name in unknowns.names if name not in sampled}
     observations = observations_from_outcomes(outcomes)
     chosen = outcome_names(args.outcomes)
-    terms = [characterisation_term(characterisation, twin, unknowns)] if characterisation is not None else []
-    if args.gate:   # the gate's reading weighed once, by its exact term
-        terms.append(gate_term(observations, twin, unknowns, sampled=sampled))
+    terms = ([characterisation_term(characterisation, twin, unknowns, gate_shots=not args.gate, sampled=sampled)]
+             if characterisation is not None else [])
+    if args.gate:   # the gate's reading weighed once, by its exact term; the launcher's shots in the same groups
+        shots = shot_observations(characterisation.gate_shots) if characterisation is not None else []
+        terms.append(gate_term([*shots, *observations], twin, unknowns, sampled=sampled))
         chosen = tuple(n for n in (OUTCOMES if chosen is None else chosen) if n != "measured_speed_mps")
 
     def extra(u: np.ndarray) -> np.ndarray:

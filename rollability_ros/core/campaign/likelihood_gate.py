@@ -18,7 +18,12 @@ interpolates it (cubic), and scores each reading by the Gaussian of the delta me
 G'(b) (1 + b) ``speed_sigma_fraction`` (the scatter enters exactly as the bias does), the table's own error
 (:data:`MODEL_ERROR` of the reading) shared by the readings of each (configuration, set speed). Exact in the
 twin's sense: never tempered, like the characterisation's terms. By default only the bare robot's readings are
-weighed (:data:`BARE_ROBOT`; :func:`gate_term`'s ``configurations``): they depend on the bias alone."""
+weighed (:data:`BARE_ROBOT`; :func:`gate_term`'s ``configurations``): they depend on the bias alone.
+
+The launcher's characterisation (a characterisation file's ``gate_shots``: the bare robot fired at a set speed on
+the bench, no campaign launch) is the same measurement, so it has the same model (:func:`shot_observations` makes
+its readings observations of the bare robot): its readings join the campaign's of the same set speed in one group,
+whose table error they share (:class:`GateModel`'s ``shots``), never a second term with an error of its own."""
 import dataclasses
 import hashlib
 import math
@@ -32,6 +37,7 @@ from rollability_ros.core.campaign.likelihood import Observation, values_one
 from rollability_ros.core.optional import require
 
 if typing.TYPE_CHECKING:
+    from rollability_ros.core.campaign.characterisation import GateShot
     from rollability_ros.core.sim import LaunchTwinSettings
 
 LogDensity = typing.Callable[[np.ndarray], np.ndarray]
@@ -76,6 +82,15 @@ def gate_reading_mps(twin: "LaunchTwinSettings", configuration: str, speed_mps: 
         raise ValueError(f"the twin's launch of {configuration} at {speed_mps} m/s does not reach the speed gate's "
                          f"edge within {GATE_CAP_S} s: no gate reading to weigh")
     return float(reading)
+
+
+def shot_observations(shots: typing.Iterable["GateShot"]) -> typing.List[Observation]:
+    """The launcher characterisation's gate shots (the bare robot fired at a set speed on the bench) as the bare
+    robot's gate readings (:data:`GATE_HEIGHT_M`, angle 0: neither moves a reading; no verdict is weighed), so they
+    enter :func:`gate_term` and :class:`GateModel` in the same group as the campaign's bare-robot readings of that
+    set speed."""
+    return [Observation(BARE_ROBOT, GATE_HEIGHT_M, float(s.speed_mps), 0.0, False,
+                        {"measured_speed_mps": float(s.measured_speed_mps)}) for s in shots]
 
 
 def gate_unknowns(unknowns: Unknowns, sampled: typing.Optional[typing.Sequence[str]] = None,
@@ -222,20 +237,33 @@ def gate_predictor(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typin
 class GateModel:
     """The speed gate's term for a plan (:class:`~rollability_ros.core.campaign.learnt_plan.OutcomePosterior`'s
     ``gate``): :meth:`term` weighs the readings so far (:func:`gate_term`), :meth:`predict` gives the model at the
-    weighed (configuration, set speed) of ``groups`` (:attr:`groups`: those of ``configurations``) for the
-    expected information of a launch's reading."""
+    weighed (configuration, set speed) of ``groups`` (:attr:`groups`: those of ``configurations``, and the shots')
+    for the expected information of a launch's reading. ``shots``: the launcher characterisation's readings
+    (:func:`shot_observations`), weighed with every plan's readings in their groups (:meth:`term` of no readings is
+    theirs alone); a plan's samples are then drawn from a density that holds them (learnt_plan.OutcomePosterior)."""
 
     def __init__(self, twin: "LaunchTwinSettings", unknowns: Unknowns,
                  groups: typing.Iterable[typing.Tuple[str, float]], model_error: float = MODEL_ERROR,
-                 configurations: typing.Optional[typing.Sequence[str]] = (BARE_ROBOT,)) -> None:
+                 configurations: typing.Optional[typing.Sequence[str]] = (BARE_ROBOT,),
+                 shots: typing.Sequence[Observation] = ()) -> None:
         self.twin, self.unknowns, self.model_error, self.configurations = twin, unknowns, model_error, configurations
-        self.groups = sorted({(c, float(v)) for c, v in groups if configurations is None or c in configurations})
+        self.shots = tuple(o for o in shots if configurations is None or o.configuration in configurations)
+        if len(self.shots) != len(shots):
+            raise ValueError("the gate shots are the bare robot's readings: its configuration must be weighed")
+        self.groups = sorted({(c, float(v)) for c, v in groups if configurations is None or c in configurations}
+                             | set(grouped_readings(self.shots, None)))
         bare_only = configurations is not None and all(c == BARE_ROBOT for c in configurations)
         self.predict = gate_predictor(twin, unknowns, self.groups, bare_only=bare_only) if self.groups else None
 
+    def with_shots(self, shots: typing.Sequence[Observation]) -> "GateModel":
+        """This model with ``shots`` as its launcher characterisation's readings instead of its own (another
+        truth's, another lab's; the table is the same, kept per process)."""
+        return GateModel(self.twin, self.unknowns, self.groups, self.model_error, self.configurations, shots)
+
     def term(self, observations: typing.Sequence[Observation]) -> LogDensity:
-        """:func:`gate_term` of ``observations`` on this model's twin, unknowns, error and configurations."""
-        return gate_term(observations, self.twin, self.unknowns, model_error=self.model_error,
+        """:func:`gate_term` of the shots and ``observations`` on this model's twin, unknowns, error and
+        configurations."""
+        return gate_term([*self.shots, *observations], self.twin, self.unknowns, model_error=self.model_error,
                          configurations=self.configurations)
 
 

@@ -17,6 +17,7 @@ from rollability_ros.core.records import LaunchCondition
 
 if typing.TYPE_CHECKING:   # annotations only: the learnt table is loaded by the caller
     from rollability_ros.core.campaign.learnt_plan import Launch, LearntTable
+    from rollability_ros.core.campaign.likelihood import Observation
     from rollability_ros.core.campaign.likelihood_gate import GateModel
 
 
@@ -281,7 +282,9 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
                            on_truth: typing.Optional[typing.Callable[[int, MatchedWidths], None]] = None,
                            start: typing.Optional[Start] = None, gate: typing.Optional["GateModel"] = None,
                            gate_reading: typing.Optional[GateReading] = None, replicas: int = 0,
-                           precise: int = 0, precise_sets: int = 3, first_truth: int = 0
+                           precise: int = 0, precise_sets: int = 3, first_truth: int = 0,
+                           shots: typing.Optional[typing.Callable[[int, np.ndarray], typing.Sequence[
+                               "Observation"]]] = None
                            ) -> typing.Tuple[np.ndarray, typing.List[MatchedWidths]]:
     """:func:`adaptive_to_match_matrix` on a learnt likelihood's table
     (:class:`~rollability_ros.core.campaign.learnt_plan.LearntTable`): each launch of a hidden truth draws the
@@ -303,7 +306,10 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
     independent draw sets each shared by both plans (:class:`PreciseWidths` in each result's ``precise``): the
     proposal is a kernel mixture over the start samples, the matrix's final samples and the adaptive plan's samples
     every :data:`SNAPSHOT_EVERY` launches. ``first_truth``: begin at that truth (the same truths as a run from 0;
-    the runs of a split measurement)."""
+    the runs of a split measurement). ``shots`` (with ``gate``): each truth's launcher characterisation, (truth
+    index, truth) -> its gate shots as the bare robot's readings (``likelihood_gate.shot_observations``), weighed
+    by both plans in the gate's groups (:meth:`GateModel.with_shots`); ``start`` must then draw from a density that
+    holds their term (OutcomePosterior's ``samples``)."""
     from rollability_ros.core.campaign.learnt_plan import OutcomePosterior
 
     rng = np.random.default_rng(seed)
@@ -312,13 +318,14 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
     results = []
     for t in range(first_truth, truths):
         begin, log_prior = start(t, hidden[t], 0) if start is not None else (prior, None)
+        truth_gate = gate.with_shots(shots(t, hidden[t])) if gate is not None and shots is not None else gate
         made: typing.Dict[int, WeightedPosterior] = {}
         records: typing.Dict[int, typing.List["Launch"]] = {}   # by the plan's outcome generator: matrix, adaptive
         snapshots: typing.List[typing.Tuple[np.ndarray, np.ndarray]] = []
 
         def make(plan: int, t: int = t, begin: np.ndarray = begin,
-                 log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = log_prior
-                 ) -> WeightedPosterior:
+                 log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = log_prior,
+                 truth_gate: typing.Optional["GateModel"] = truth_gate) -> WeightedPosterior:
             """Plan ``plan``'s posterior at truth ``t`` (0 the matrix, 1 the adaptive plan, from the start samples
             ``begin`` (n, unknowns); 2, 3, ... the matrix's replicas, from starting samples of their own)."""
             if plan >= 2:
@@ -326,7 +333,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
                 begin, log_prior = (start(t, hidden[t], replica) if start is not None else
                                     (table.unknowns.draw(samples, np.random.default_rng([seed, t, 8, replica])), None))
             made[plan] = OutcomePosterior(table, begin, np.random.default_rng([seed, t, 2 + plan]), draws=draws,
-                                          log_prior=log_prior, gate=gate)
+                                          log_prior=log_prior, gate=truth_gate)
             return made[plan]
 
         readers: typing.Dict[int, np.random.Generator] = {}   # by the plan's outcome generator: matrix, adaptive
@@ -350,7 +357,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
         if precise:   # the proposal's sources: the start, the matrix's end, the adaptive plan's path and end
             result = dataclasses.replace(result, precise=precise_widths(table, list(records.values()), [
                 (begin, np.ones(len(begin))), (made[0].samples, made[0].weights), *snapshots,
-                (made[1].samples, made[1].weights)], precise, precise_sets, (seed, t), log_prior, gate, level))
+                (made[1].samples, made[1].weights)], precise, precise_sets, (seed, t), log_prior, truth_gate, level))
         results.append(result)
         if on_truth is not None:
             on_truth(t, results[-1])

@@ -214,7 +214,9 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
 
 
 def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinSettings",
-                          unknowns: Unknowns, grid_points: typing.Optional[int] = None) -> LogDensity:
+                          unknowns: Unknowns, grid_points: typing.Optional[int] = None,
+                          gate_shots: bool = True, sampled: typing.Optional[typing.Sequence[str]] = None
+                          ) -> LogDensity:
     """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
     parameter set). Roll-outs, tip angles and profile weighings: each reading's prediction computed on a grid of
@@ -223,7 +225,10 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
     normalised coordinates) and scored by the reading's Gaussian, since a roll-out (a simulation), a tip angle (the
     robot's hull) or a profile's mass (its printed shell) per parameter set would cost as much as the launches it
     replaces. ``grid_points`` defaults to 17 for one such unknown and 9 for two (the table's predictions: 17 or 81
-    per kind of reading)."""
+    per kind of reading). Gate shots (the launcher's characterisation): the speed gate's term
+    (``likelihood_gate.gate_term`` of ``likelihood_gate.shot_observations``; ``sampled`` as there), unless
+    ``gate_shots`` is False: a caller that weighs the campaign's gate readings too must weigh the shots in the same
+    term, since they share its error per set speed."""
     from rollability_ros.core.campaign.characterisation import profile_mass_kg, tip_angles_deg
     from rollability_ros.core.sim import rollout_distance_m, twin_value
 
@@ -264,6 +269,11 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
             lambda settings: [profile_mass_kg(settings, c) for c in weighed],
             [m.mass_kg for m in characterisation.masses], [weighed.index(m.configuration) for m in
                                                             characterisation.masses], characterisation.mass_sigma_kg))
+
+    if characterisation.gate_shots and gate_shots:
+        from rollability_ros.core.campaign.likelihood_gate import gate_term, shot_observations
+
+        terms.append(gate_term(shot_observations(characterisation.gate_shots), twin, unknowns, sampled=sampled))
 
     def total(u: np.ndarray) -> np.ndarray:
         """Every reading's log-likelihood (s,), summed."""

@@ -417,7 +417,7 @@ def test_gate_shots_are_in_the_start_and_share_their_groups_with_the_plans_readi
         [GateShot(v, v * (0.9 + 0.2 * truth_b) * (1 + 0.02 * rng.standard_normal())) for v in LEVELS.speeds_mps
          for _ in range(20)])
     gate, bare = FakeGate(CANDIDATES, shots), FakeGate(CANDIDATES)
-    samples = UNKNOWNS.draw(4000, np.random.default_rng(2))
+    samples = UNKNOWNS.draw(2000, np.random.default_rng(2))
     with_shots = OutcomePosterior(table, samples, np.random.default_rng(0), renew=False, gate=gate)
     without = OutcomePosterior(table, samples, np.random.default_rng(0), renew=False, gate=bare)
     assert np.all(with_shots.log_weights == 0.0)
@@ -436,8 +436,8 @@ def test_gate_shots_are_in_the_start_and_share_their_groups_with_the_plans_readi
                 + gate.term(readings)(u) - gate.term([])(u))
     assert np.allclose(with_shots.log_weights - with_shots.log_weights.max(), expected - expected.max(), atol=1e-6)
     sources = [(samples, np.ones(len(samples)))]
-    (shot_widths, _), = importance_widths(table, [[]], [[0]], KernelProposal(UNKNOWNS, sources, rng), rng, 4000,
+    (shot_widths, _), = importance_widths(table, [[]], [[0]], KernelProposal(UNKNOWNS, sources, rng), rng, 2000,
                                           gate=gate)
-    (prior_widths, _), = importance_widths(table, [[]], [[0]], KernelProposal(UNKNOWNS, sources, rng), rng, 4000,
+    (prior_widths, _), = importance_widths(table, [[]], [[0]], KernelProposal(UNKNOWNS, sources, rng), rng, 2000,
                                            gate=bare)
     assert shot_widths[0, 1] < 0.3 * prior_widths[0, 1] and prior_widths[0, 1] > 0.8

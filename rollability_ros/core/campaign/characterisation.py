@@ -359,17 +359,18 @@ def gate_shots_log_likelihood(shots: typing.Sequence[GateShot], twin: "LaunchTwi
     (likelihood_gate's: the reading without scatter G, its spread G' (1 + b) ``speed_sigma_fraction``, G' by a
     difference of :data:`SLOPE_STEP` in the speed bias towards zero, the table's error shared per set speed), the
     direct fit's counterpart of the tabulated term the learnt likelihood uses."""
-    from rollability_ros.core.campaign import likelihood_gate as gate
+    from rollability_ros.core.campaign import gate_reading as gate
     from rollability_ros.core.sim import twin_value, twin_with_values
 
     bias = float(twin_value(twin, gate.BIAS_KEY))
-    observations = gate.shot_observations(shots)
-    groups = sorted(gate.grouped_readings(observations))
+    readings: typing.Dict[float, typing.List[float]] = {}
+    for shot in shots:
+        readings.setdefault(float(shot.speed_mps), []).append(float(shot.measured_speed_mps))
+    groups = sorted(readings)
     mean, sd = [], []
     step = SLOPE_STEP if bias >= 0.0 else -SLOPE_STEP   # towards zero: inside the bias's declared range
-    for configuration, speed in groups:
-        mean.append(gate.gate_reading_mps(twin, configuration, speed))
-        toward = gate.gate_reading_mps(twin_with_values(twin, {gate.BIAS_KEY: bias - step}), configuration, speed)
+    for speed in groups:
+        mean.append(gate.gate_reading_mps(twin, gate.BARE_ROBOT, speed))
+        toward = gate.gate_reading_mps(twin_with_values(twin, {gate.BIAS_KEY: bias - step}), gate.BARE_ROBOT, speed)
         sd.append(max(abs(mean[-1] - toward) / SLOPE_STEP * (1.0 + bias) * twin.twin.speed_sigma_fraction, 1e-6))
-    readings = gate.grouped_readings(observations)
-    return float(gate.readings_log_density(np.array([mean]), np.array([sd]), [readings[g] for g in groups])[0])
+    return float(gate.readings_log_density(np.array([mean]), np.array([sd]), [readings[v] for v in groups])[0])

@@ -24,7 +24,6 @@ The launcher's characterisation (a characterisation file's ``gate_shots``: the b
 the bench, no campaign launch) is the same measurement, so it has the same model (:func:`shot_observations` makes
 its readings observations of the bare robot): its readings join the campaign's of the same set speed in one group,
 whose table error they share (:class:`GateModel`'s ``shots``), never a second term with an error of its own."""
-import dataclasses
 import hashlib
 import math
 import pickle
@@ -33,6 +32,9 @@ import typing
 import numpy as np
 
 from rollability_ros.core.campaign.adaptive import Unknowns
+from rollability_ros.core.campaign.gate_reading import (BARE_ROBOT, BIAS_KEY, GATE_CAP_S, GATE_HEIGHT_M,
+                                                        MIN_READING_FRACTION, MODEL_ERROR, SCATTER_KEY,
+                                                        gate_reading_mps, readings_log_density)
 from rollability_ros.core.campaign.likelihood import Observation, values_one
 from rollability_ros.core.optional import require
 
@@ -42,46 +44,15 @@ if typing.TYPE_CHECKING:
 
 LogDensity = typing.Callable[[np.ndarray], np.ndarray]
 
-#: The unknown the term is for, and the launch speed's scatter (read from the samples when it is sampled).
-BIAS_KEY, SCATTER_KEY = "launch_twin.launcher.speed_bias_fraction", "launch_twin.speed_sigma_fraction"
 #: Unknowns that cannot move a reading: the foam lies past the edge, the gate before it.
 AFTER_THE_EDGE = ("launch_twin.foam.",)
 #: Grid points of the table: over the bias, and over each other unknown it spans (at most MAX_OTHER of them).
 BIAS_POINTS, OTHER_POINTS, MAX_OTHER = 7, 7, 2
-#: Simulated time per tabulated launch, s: the gate's reading is taken at the edge (0.4-0.6 s on the paper's
-#: speeds); the rest of the launch is not needed (the speed gate's own timeout, config/rig.yaml, is 3 s).
-GATE_CAP_S = 3.0
-#: The ledge height of the tabulated launches, m (the paper's lower ledge; the height does not move the reading).
-GATE_HEIGHT_M = 0.75
-#: The bare robot's configuration id (core/profile/designs.py) and the profile's mass multipliers, which do not act
-#: on it: the configurations whose readings the term weighs by default, and what their table need not span.
-BARE_ROBOT, PROFILE_MASS_KEYS = "baseline", ("robot.profile_mass_scale", "urdf_robot.profile_mass_scale")
-#: Readings at or below this fraction of the set speed are "not measured" (a gate that timed out reads 0).
-MIN_READING_FRACTION = 0.05
-
-#: The table's error (interpolation, and the ledge height and angle it leaves out), as a fraction of the reading:
-#: the root mean square of interpolated against simulated readings at random parameter sets (docs/calibration.md).
-MODEL_ERROR = 0.004
+#: The profile's mass multipliers, which do not act on the bare robot (:data:`BARE_ROBOT`): what its table need not
+#: span.
+PROFILE_MASS_KEYS = ("robot.profile_mass_scale", "urdf_robot.profile_mass_scale")
 
 _TABLES: typing.Dict[str, np.ndarray] = {}
-
-
-def gate_reading_mps(twin: "LaunchTwinSettings", configuration: str, speed_mps: float) -> float:
-    """The gate's reading (m/s) of a launch of ``configuration`` at the set speed ``speed_mps`` on ``twin``
-    without the speed and angle scatter (deterministic; the ledge height and the angle do not move it: module
-    docstring). ``ValueError`` when the launch never reaches the edge within :data:`GATE_CAP_S`."""
-    from rollability_ros.core.records import LaunchCondition
-    from rollability_ros.core.sim import simulate_launch
-
-    exact = dataclasses.replace(
-        twin, twin=dataclasses.replace(twin.twin, speed_sigma_fraction=0.0, angle_sigma_deg=0.0),
-        trial=dataclasses.replace(twin.trial, time_cap_s=min(twin.trial.time_cap_s, GATE_CAP_S)))
-    condition = LaunchCondition(configuration, GATE_HEIGHT_M, float(speed_mps), 0.0)
-    reading = simulate_launch(condition, exact, 0).measured_speed_mps
-    if not (math.isfinite(reading) and reading > MIN_READING_FRACTION * speed_mps):
-        raise ValueError(f"the twin's launch of {configuration} at {speed_mps} m/s does not reach the speed gate's "
-                         f"edge within {GATE_CAP_S} s: no gate reading to weigh")
-    return float(reading)
 
 
 def shot_observations(shots: typing.Iterable["GateShot"]) -> typing.List[Observation]:
@@ -181,23 +152,6 @@ def grouped_readings(observations: typing.Sequence[Observation],
         if math.isfinite(value) and value > MIN_READING_FRACTION * o.speed_mps:
             readings.setdefault((o.configuration, float(o.speed_mps)), []).append(value)
     return readings
-
-
-def readings_log_density(mean: np.ndarray, sd: np.ndarray, readings: typing.Sequence[typing.Sequence[float]],
-                         model_error: float = MODEL_ERROR) -> np.ndarray:
-    """The readings' Gaussian log-likelihood (s,), summed over the groups: ``mean`` and ``sd`` (s, g), the model at
-    each parameter set and group (:func:`gate_predictor`), ``readings`` one list per group (each non-empty).
-    Readings g_i = G + shared + scatter_i: the group's mean carries the table's error (``model_error`` x G, shared
-    by its readings), each reading its own scatter (sd): the Gaussian with covariance sd^2 I + tau^2 1 1'."""
-    count = np.array([len(r) for r in readings], dtype=np.float64)
-    first = np.array([sum(r) for r in readings], dtype=np.float64)
-    second = np.array([sum(v * v for v in r) for r in readings], dtype=np.float64)
-    variance, shared = sd ** 2, (model_error * mean) ** 2
-    within = second - first ** 2 / count   # sum of squares about the group's mean
-    offset = first / count - mean
-    return -0.5 * ((count - 1.0) * np.log(variance) + np.log(variance + count * shared) + within / variance
-                   + count * offset ** 2 / (variance + count * shared)
-                   + count * math.log(2.0 * math.pi)).sum(axis=1)
 
 
 def gate_predictor(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Sequence[typing.Tuple[str, float]],

@@ -276,6 +276,13 @@ Start = typing.Callable[[int, np.ndarray, int],
                         typing.Tuple[np.ndarray, typing.Callable[[np.ndarray], np.ndarray]]]
 
 
+#: Each truth's launcher characterisation: (truth index, truth (d,) own units) -> its gate shots as the bare robot's
+#: readings (``likelihood_gate.shot_observations``), weighed by both plans in the gate's groups
+#: (:meth:`GateModel.with_shots`); the start must then draw from a density that holds their term
+#: (learnt_plan.OutcomePosterior's ``samples``).
+Shots = typing.Callable[[int, np.ndarray], typing.Sequence["Observation"]]
+
+
 def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: int, samples: int, seed: int = 0,
                            level: float = 0.95, budget: typing.Optional[int] = None, draws: int = 32,
                            acquisition: str = "joint",
@@ -283,8 +290,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
                            start: typing.Optional[Start] = None, gate: typing.Optional["GateModel"] = None,
                            gate_reading: typing.Optional[GateReading] = None, replicas: int = 0,
                            precise: int = 0, precise_sets: int = 3, first_truth: int = 0,
-                           shots: typing.Optional[typing.Callable[[int, np.ndarray], typing.Sequence[
-                               "Observation"]]] = None
+                           shots: typing.Optional["Shots"] = None
                            ) -> typing.Tuple[np.ndarray, typing.List[MatchedWidths]]:
     """:func:`adaptive_to_match_matrix` on a learnt likelihood's table
     (:class:`~rollability_ros.core.campaign.learnt_plan.LearntTable`): each launch of a hidden truth draws the
@@ -306,10 +312,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
     independent draw sets each shared by both plans (:class:`PreciseWidths` in each result's ``precise``): the
     proposal is a kernel mixture over the start samples, the matrix's final samples and the adaptive plan's samples
     every :data:`SNAPSHOT_EVERY` launches. ``first_truth``: begin at that truth (the same truths as a run from 0;
-    the runs of a split measurement). ``shots`` (with ``gate``): each truth's launcher characterisation, (truth
-    index, truth) -> its gate shots as the bare robot's readings (``likelihood_gate.shot_observations``), weighed
-    by both plans in the gate's groups (:meth:`GateModel.with_shots`); ``start`` must then draw from a density that
-    holds their term (OutcomePosterior's ``samples``)."""
+    the runs of a split measurement). ``shots`` (with ``gate``): :data:`Shots`."""
     from rollability_ros.core.campaign.learnt_plan import OutcomePosterior
 
     rng = np.random.default_rng(seed)
@@ -326,8 +329,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
         def make(plan: int, t: int = t, begin: np.ndarray = begin,
                  log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = log_prior,
                  truth_gate: typing.Optional["GateModel"] = truth_gate) -> WeightedPosterior:
-            """Plan ``plan``'s posterior at truth ``t`` (0 the matrix, 1 the adaptive plan, from the start samples
-            ``begin`` (n, unknowns); 2, 3, ... the matrix's replicas, from starting samples of their own)."""
+            """Plan ``plan``'s posterior at truth ``t`` (0 matrix, 1 adaptive, 2.. replicas) from ``begin`` (n, d)."""
             if plan >= 2:
                 replica = plan - 1
                 begin, log_prior = (start(t, hidden[t], replica) if start is not None else
@@ -340,8 +342,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
 
         def launch(index: int, outcome_rng: np.random.Generator, t: int = t
                    ) -> typing.Tuple[bool, typing.Optional[np.ndarray], typing.Optional[float]]:
-            """Candidate ``index`` launched at hidden truth ``t``: (upright, continuous outcomes (o,) or None, the
-            gate's reading or None)."""
+            """Candidate ``index`` launched at truth ``t``: (upright, outcomes (o,) or None, gate reading or None)."""
             record = records.setdefault(id(outcome_rng), [])
             if precise and len(records) == 2 and record and len(record) % SNAPSHOT_EVERY == 0:
                 snapshots.append((made[1].samples.copy(), made[1].weights))   # the adaptive plan's, so far

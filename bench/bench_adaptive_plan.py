@@ -259,7 +259,7 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
                          "start from)")
     model, reading = gate_model(likelihood, candidates, gate, gate_every) if gate else (None, None)
     truth_shots = shot_model = None
-    if shots:
+    if shots and characterisation:
         from rollability_ros.core.campaign import likelihood_gate
 
         twin, unknowns, read = truth_gate_reader(likelihood, characterisation)

@@ -318,6 +318,15 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
     assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--gate",
                  "--out", str(tmp_path / "out7")]) == 2   # the gate's term is for the speed bias: not an unknown here
     assert "must be a fitted unknown" in capsys.readouterr().err
+    shots = tmp_path / "shots.yaml"   # the launcher's gate shots are the gate's model: the same refusal, with or without
+    shots.write_text("format: rollability-characterisation-1\ngate_shots:\n  readings:\n"
+                     "    - {speed_mps: 0.8, measured_speed_mps: 0.79}\n", encoding="utf-8")
+    for gate in ([], ["--gate"]):
+        assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--characterisation",
+                     str(shots), *gate, "--out", str(tmp_path / "out8")]) == 2
+        error = capsys.readouterr().err.strip()
+        assert "must be a fitted unknown" in error and len(error.splitlines()) == 1
+    assert not (tmp_path / "out8").exists()
 
 
 @pytest.mark.slow

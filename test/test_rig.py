@@ -184,7 +184,7 @@ def test_the_console_cancels_a_countdown_and_stops_the_valve(ros_node, start_nod
 
     from action_msgs.msg import GoalStatus
 
-    from rollability_ros.cli.rig import CONSOLE_READY
+    from rollability_ros.cli.rig import CONSOLE_READY, CONSOLE_RIG_FOUND
 
     valve = start_node("valve_controller", params={"valve.backend": "dry_run", "valve.watchdog_ms": WATCHDOG_MS})
     start_node("rig", params={"rig.backend": "physical", "rig.countdown_s": 8.0, "rig.operator_timeout_s": 30.0})
@@ -196,6 +196,8 @@ def test_the_console_cancels_a_countdown_and_stops_the_valve(ros_node, start_nod
     threading.Thread(target=lambda: lines.extend(iter(console.stdout.readline, "")), daemon=True).start()
     try:
         assert ros_node.wait_for(lambda: any(line.startswith(CONSOLE_READY) for line in lines), 90), lines
+        # the countdown reaches the console once its feedback subscription is matched, and it says so
+        assert ros_node.wait_for(lambda: f"{CONSOLE_RIG_FOUND}\n" in lines, 60), lines
         feedback = []
         future = rig.send("t0", LaunchCondition("A", 0.75, 0.8, 30.0, 0), feedback)
         assert ros_node.wait_for(lambda: feedback and feedback[-1][0] == "waiting_for_operator", 30), valve.log()

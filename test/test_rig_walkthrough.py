@@ -16,6 +16,8 @@ import time
 
 import pytest
 
+from rollability_ros.cli.rig import CONSOLE_RIG_FOUND
+
 REPO = pathlib.Path(__file__).resolve().parents[1]
 DOC = REPO / "docs" / "rig-walkthrough.md"
 #: What each ``$`` line of the page is, in the page's order.
@@ -120,6 +122,7 @@ def test_the_walkthrough_from_an_empty_terminal_to_a_report(tmp_path):
         console = Terminal(cmd["console"], tmp_path)
         terminals.append(console)
         console.expect("console ready: ")
+        console.expect(re.escape(CONSOLE_RIG_FOUND))
         # 5. the campaign
         campaign = Terminal(cmd["campaign"], tmp_path)
         terminals.append(campaign)

@@ -9,6 +9,9 @@ ACTIONS = ("arm", "disarm", "estop", "confirm", "outcome", "console")
 CONSOLE_KEYS = {"e": "estop", " ": "estop", "c": "cancel", "d": "disarm", "q": "quit"}
 #: The console's line once it can stop the valve (a script may wait for it).
 CONSOLE_READY = "console ready: "
+# whether the rig's launch feedback publisher is matched: the countdown reaches the console only once it is
+CONSOLE_RIG_FOUND = "rig: connected (its launch steps show here)"
+CONSOLE_RIG_MISSING = "rig: none in this namespace yet (its launch steps show here once one starts)"
 #: Longest --timeout-s, s (a day: longer is a typo).
 MAX_TIMEOUT_S = 86400.0
 
@@ -187,6 +190,7 @@ def _console(args, node):
     import select
     import sys
     import termios
+    import time
     import tty
 
     from action_msgs.srv import CancelGoal
@@ -207,15 +211,25 @@ def _console(args, node):
             print(text, flush=True)
 
     node.create_subscription(ValveState, "valve/state", lambda msg: show("valve", _valve_line(msg)), LATCHED_QOS)
-    node.create_subscription(Launch.Impl.FeedbackMessage, "launch/_action/feedback",
-                             lambda msg: show("rig", f"rig: {msg.feedback.phase}: {msg.feedback.detail}"), 10)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    spinner = ExecutorThread(executor, name="console-spin").start()
+    feedback = node.create_subscription(Launch.Impl.FeedbackMessage, "launch/_action/feedback",
+                                        lambda msg: show("rig", f"rig: {msg.feedback.phase}: {msg.feedback.detail}"),
+                                        10)
+    started = time.monotonic()
+
+    def link() -> None:   # "none" only after discovery has had its usual second or two
+        if feedback.get_publisher_count():
+            show("link", CONSOLE_RIG_FOUND)
+        elif "link" in shown or time.monotonic() - started > 3.0:
+            show("link", CONSOLE_RIG_MISSING)
+
+    node.create_timer(0.25, link)
     fd = sys.stdin.fileno()
     saved = termios.tcgetattr(fd) if os.isatty(fd) else None
     print(f"{CONSOLE_READY}e or space = E-STOP, c = cancel the running launch, d = disarm (acknowledge a stop), "
           f"q = quit (rig namespace {node.get_namespace()})", flush=True)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    spinner = ExecutorThread(executor, name="console-spin").start()
     try:
         if saved is not None:
             tty.setcbreak(fd)   # one key, no Enter

@@ -306,6 +306,9 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
                   + ", + ".join(f"{tolerance:.2%}: " + "/".join(shown(c) for c in per_set)
                                 for tolerance, per_set in e.within),
                   flush=True)
+            print("  set 0, the first launch at or under the matrix's width, per unknown: "
+                  + ", ".join(f"{name.rsplit('.', 1)[-1]} {shown(c)}"
+                              for name, c in zip(table.unknowns.names, e.per_unknown)), flush=True)
         stop = (r.precise.launches[0] if r.precise is not None else r.adaptive_launches) or len(r.adaptive_launched)
         print(f"  the adaptive plan's first {stop} launches: "
               + launched_where(table.candidates, r.adaptive_launched[:stop]), flush=True)

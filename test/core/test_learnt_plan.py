@@ -389,6 +389,8 @@ def test_the_precise_comparison_runs_the_adaptive_plan_to_its_budget_and_counts_
     assert e.tolerant_launches is None or 1 <= e.tolerant_launches <= 12
     for tolerance, per_set in e.within:   # a tolerance can only bring the count forward
         assert all(n is None or c is None or n <= c for n, c in zip(per_set, e.launches)) and len(per_set) == 2
+    assert len(e.per_unknown) == 2   # each unknown's own first crossing: none after the strict count (set 0)
+    assert e.launches[0] is None or all(n is not None and n <= e.launches[0] for n in e.per_unknown)
     whole, _ = learnt_to_match_matrix(table, truths=2, matrix_launches=1, samples=60, seed=3, budget=1)
     assert np.allclose(hidden, whole)
 

@@ -150,6 +150,9 @@ class PreciseWidths:
     #: per tolerance of :data:`WIDTH_TOLERANCES` (points of each range), per set: the adaptive launches until every
     #: width is at most the matrix's plus that tolerance (None: not within its launches)
     within: typing.Tuple[typing.Tuple[float, typing.Tuple[typing.Optional[int], ...]], ...] = ()
+    #: on set 0, per unknown: the adaptive launches until that unknown's width is first at most the matrix's (None:
+    #: not within its launches); the strict count (``launches[0]``) is at least the largest of them
+    per_unknown: typing.Tuple[typing.Optional[int], ...] = ()
 
 
 #: Absolute tolerances (fractions of each unknown's range) of :attr:`PreciseWidths.within`: widths that differ by less
@@ -401,8 +404,10 @@ def precise_widths(table: "LearntTable", plans: typing.Sequence[typing.Sequence[
         allowed = np.mean(matrix_widths, axis=0) + np.std(matrix_widths, axis=0, ddof=1)
         tolerant = first_launch(per_launch[0], allowed)
     within = tuple((tolerance, tuple(row[i] for row in near)) for i, tolerance in enumerate(WIDTH_TOLERANCES))
+    per_unknown = tuple(first_launch(per_launch[0][:, [j]], matrix_widths[0][[j]])
+                        for j in range(len(matrix_widths[0])))
     return PreciseWidths(np.array(matrix_widths), tuple(counts), tolerant, np.array(matrix_ess),
-                         np.array(adaptive_ess), np.array(adaptive_widths), within)
+                         np.array(adaptive_ess), np.array(adaptive_widths), within, per_unknown)
 
 
 def first_launch(widths: np.ndarray, allowed: np.ndarray) -> typing.Optional[int]:

@@ -28,7 +28,8 @@ EXTRAS = {
     # live Foxglove view without a ROS install
     "view": ["foxglove-sdk>=0.10"],
     # mypy pinned: a newer release may report new errors (test/core/test_mypy.py runs it over mypy.ini)
-    "test": ["pytest>=7", "pytest-timeout>=2", "pytest-rerunfailures>=14", "colcon-common-extensions>=0.3",
+    "test": ["pytest>=7", "pytest-timeout>=2", "pytest-rerunfailures>=14", "pytest-xdist>=3.5",
+             "colcon-common-extensions>=0.3",
              "mypy==2.4.1", "types-PyYAML>=6.0"],
 }
 EXTRAS["all"] = sorted({req for name, reqs in EXTRAS.items() if name != "test" for req in reqs})

@@ -82,17 +82,25 @@ def smoke_run(*args: str) -> SmokeRun:
     return _early.pop(args, None) or SmokeRun(*args)
 
 
+def _distributed(config) -> bool:
+    """True in a pytest-xdist worker: every worker collects every test, and the scheduler hands them out."""
+    return hasattr(config, "workerinput")
+
+
 def pytest_collection_modifyitems(config, items):
     """The test that waits for the early run goes last: the benches then run beside every other test (the ROS
     graph tests after test/core leave a core idle too), not only beside test/core, whose end they used to outlast
-    by about two minutes of waiting. The order of the other tests is unchanged."""
+    by about two minutes of waiting. The order of the other tests is unchanged. Under pytest-xdist (``-n``) it goes
+    first instead and starts the run itself: the first worker takes it while the others take the rest (every worker
+    collects every test, so an early start here would run the benches once per worker)."""
     early = [item for item in items if item.name == EARLY_TEST]
     if early and len(items) > 1:
-        items[:] = [item for item in items if item.name != EARLY_TEST] + early
+        rest = [item for item in items if item.name != EARLY_TEST]
+        items[:] = early + rest if _distributed(config) else rest + early
 
 
 def pytest_collection_finish(session):
-    if session.config.option.collectonly:
+    if session.config.option.collectonly or _distributed(session.config):
         return
     if len(session.items) > 1 and any(item.name == EARLY_TEST for item in session.items):
         _early[()] = SmokeRun()

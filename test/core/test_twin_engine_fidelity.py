@@ -42,7 +42,7 @@ def _on_foam(engine, roll_deg, velocity, seconds, on_ledge=False, **overrides):
         try:
             pybullet_twin.build_launch_world(client, settings, 0.75)
             robot = settings.robot_model().spawn(client, None, (1.0, 0.0, 1.0), orientation,
-                                                 time_step_s=settings.physics.time_step_s)
+                                                 time_step_s=settings.physics.time_step_s, exact_cylinders=True)
             set_contact(client, robot.body_id, settings.physics.body_contact())
             pybullet_twin.apply_wheel_model(pybullet, client, robot, settings)
             pybullet_twin._place_on_plate(pybullet, client, robot, orientation, 0.0005, (x_m, 0.0), foam_top)

@@ -68,6 +68,8 @@ ConditionResult = ConditionResult
 #: Config keys that act only on the twin's Mecanum wheels (:func:`check_fittable`).
 MECANUM_KEYS = ("launch_twin.wheel_drag_torque_nm", "launch_twin.wheel_rolling_friction",
                 "launch_twin.wheel_side_friction_factor")
+#: The config key that acts only on a robot's own wheels (:func:`check_fittable`).
+OWN_WHEEL_KEY = "launch_twin.wheel_rolling_resistance"
 
 
 @dataclasses.dataclass
@@ -177,14 +179,20 @@ def calibration_settings(parameters: typing.Mapping[str, object]) -> Calibration
 def check_fittable(twin: LaunchTwinSettings, settings: CalibrationSettings) -> None:
     """Refuse a fitted key the typed twin ``twin`` does not use (``ValueError`` naming it): the Mecanum
     wheels' ``launch_twin.wheel_drag_torque_nm`` / ``wheel_rolling_friction`` / ``wheel_side_friction_factor``
-    on a twin that gives the robot its own wheels (``launch_twin.wheel_model``)."""
+    on a twin that gives the robot its own wheels (``launch_twin.wheel_model``), and the own wheels'
+    ``launch_twin.wheel_rolling_resistance`` on a twin that gives it the Mecanum wheels."""
     from rollability_ros.core.sim import mecanum_wheels
 
     mecanum_only = [name for name in settings.parameters if name in MECANUM_KEYS]
     if mecanum_only and not mecanum_wheels(twin):
         raise ValueError(f"calibration.parameters: {mecanum_only[0]} acts on the twin's Mecanum wheels only, and "
                          f"this twin gives the robot its own wheels (launch_twin.wheel_model); fit the robot's own "
-                         f"drag (robot.wheel_drag_torque_nm or urdf_robot.joint_drag_torque_nm) instead")
+                         f"drag (robot.wheel_drag_torque_nm or urdf_robot.joint_drag_torque_nm) or "
+                         f"{OWN_WHEEL_KEY} instead")
+    if OWN_WHEEL_KEY in settings.parameters and mecanum_wheels(twin):
+        raise ValueError(f"calibration.parameters: {OWN_WHEEL_KEY} acts on a robot's own wheels only, and this twin "
+                         f"gives the robot its Mecanum wheels (launch_twin.wheel_model); fit "
+                         f"launch_twin.wheel_rolling_friction instead")
 
 
 def twin_settings_with(twin: LaunchTwinSettings, names: typing.Sequence[str],

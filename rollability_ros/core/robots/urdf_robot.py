@@ -481,9 +481,11 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
         return text + "</robot>\n"
 
     def spawn(self, client: int, profile: typing.Optional[ProfileBody], position: npt.ArrayLike,
-              orientation: typing.Sequence[float], *, time_step_s: typing.Optional[float]) -> SpawnedRobot:
+              orientation: typing.Sequence[float], *, time_step_s: typing.Optional[float],
+              exact_cylinders: bool = False) -> SpawnedRobot:
         """See :meth:`RobotModel.spawn`: the root frame at ``position`` (3,) m with ``orientation`` (x, y, z, w), turned
-        about z so its forward axis points along the orientation's x."""
+        about z so its forward axis points along the orientation's x; ``exact_cylinders``: its cylinders are
+        Bullet's round ones (``URDF_USE_IMPLICIT_CYLINDER``)."""
         pybullet = require("pybullet", feature="the simulated evaluator")
         # turn the robot about its z so its forward axis is the start orientation's x (the world's +x upright)
         facing = pybullet.getQuaternionFromEuler([0.0, 0.0, -math.radians(FORWARD_AXIS_DEG[self.spec.forward_axis])])
@@ -502,7 +504,9 @@ class UrdfRobotModel(SpecThresholds, RobotModel):
                 stream.write(self.sim_urdf(profile, mesh_filename))
             body = pybullet.loadURDF(urdf_path, np.asarray(position, dtype=np.float64).tolist(), list(orientation),
                                      useFixedBase=False,
-                                     flags=pybullet.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
+                                     flags=pybullet.URDF_USE_INERTIA_FROM_FILE | (
+                                         pybullet.URDF_USE_IMPLICIT_CYLINDER if exact_cylinders else 0),
+                                     physicsClientId=client)
         index, joints = {}, []
         for joint in range(pybullet.getNumJoints(body, physicsClientId=client)):
             info = pybullet.getJointInfo(body, joint, physicsClientId=client)

@@ -10,8 +10,12 @@ given, and :func:`check_launcher_geometry` checks either before a campaign)
     ``plate.clearance_m``   min(5 mm, a quarter of the centre of mass's height): the gap under the plate;
     ``plate.height_m``      the face runs from the clearance up to twice the centre of mass's height above it, so
                             the push's line of action passes through the centre of mass (no pitching moment);
-                            never above the robot's top; rounded to 1 cm (at least 1 cm);
+                            never above the robot's top; rounded to 1 cm (at least 1 cm); when that face meets
+                            none of the robot's rear shapes (:func:`rear_shapes`: all higher), it reaches 1 cm up
+                            the lowest of them, as a lab sets the plate to push the robot's body;
     ``plate.width_m``       half the robot's width, rounded to 1 cm (at least 2 cm): centred on the robot's path;
+                            when that passes between the robot's rear shapes (a car's rear wheels), the robot's
+                            width about the plate's centre line, rounded up to 1 cm;
     ``plate.max_force_n``   the robot's mass times :data:`PLATE_ACCELERATION_MPS2` (the paper rig's 200 N on the
                             1.1 kg chassis), rounded to 10 N: a heavier robot gets a bigger cylinder, so it reaches
                             the launch speed as early in the run as the chassis does;
@@ -114,9 +118,11 @@ def _round(value_m, step_m, up=False):
 
 
 def derive_launcher_geometry(envelope: RobotEnvelope, run_length_m: float, plate_thickness_m: float,
-                             configured: typing.Optional[typing.Mapping[str, float]] = None) -> "LauncherGeometry":
+                             configured: typing.Optional[typing.Mapping[str, float]] = None,
+                             plate_offset_m: float = 0.0) -> "LauncherGeometry":
     """The :class:`LauncherGeometry` for ``envelope`` (module docstring); ``configured`` maps field names of
-    :class:`LauncherGeometry` to config values, and a non-zero one replaces the derived value."""
+    :class:`LauncherGeometry` to config values, and a non-zero one replaces the derived value; ``plate_offset_m``
+    the plate's configured sideways offset (m, + = left of the centre of mass)."""
     configured = configured or {}
     com_z = max(envelope.com_height_m, 1e-3)
     clearance = min(PLATE_CLEARANCE_M, com_z / 4)
@@ -125,6 +131,17 @@ def derive_launcher_geometry(envelope: RobotEnvelope, run_length_m: float, plate
     top = min(2 * com_z - clearance, envelope.height_m)
     height = max(ROUND_PLATE_M, _round(top - clearance, ROUND_PLATE_M))
     width = max(2 * ROUND_PLATE_M, _round(envelope.width_m / 2, ROUND_PLATE_M))
+    centre_y = envelope.com_m[1] + plate_offset_m
+    if not configured.get("plate_width_m") and not rear_shapes_met(envelope, clearance, clearance + height, width,
+                                                                   centre_y):
+        # half the width passes between its rear shapes (a car's rear wheels): the lab's plate spans the robot
+        width = _round(2 * max(abs(float(v) - centre_y) for v in envelope.points()[:, 1]), ROUND_PLATE_M, up=True)
+    rear = rear_shapes(envelope, width, centre_y)
+    if not configured.get("plate_height_m") and rear and all(points[:, 2].min() >= clearance + height
+                                                             for points in rear):
+        # its rear face is all above the band centred on the centre of mass: the lab's plate reaches up to it
+        top = min(envelope.height_m, min(float(points[:, 2].min()) for points in rear) + ROUND_PLATE_M)
+        height = max(ROUND_PLATE_M, _round(top - clearance, ROUND_PLATE_M, up=True))
     diagonal = envelope.diagonal_m
     depth = _round(run_length_m + diagonal + plate_thickness_m + LEDGE_MARGIN_M, ROUND_LEDGE_M, up=True)
     angle = math.radians(LEDGE_ANGLE_DEG)
@@ -139,6 +156,24 @@ def derive_launcher_geometry(envelope: RobotEnvelope, run_length_m: float, plate
     derived = tuple(name for name in values if not configured.get(name))
     values.update({name: float(value) for name, value in configured.items() if value})
     return LauncherGeometry(**{name: float(value) for name, value in values.items()}, derived=derived)
+
+
+def rear_shapes(envelope: RobotEnvelope, width_m: float, centre_y_m: float) -> typing.List[np.ndarray]:
+    """The points ``(k, 3)`` of each collision shape a plate ``width_m`` wide centred at ``centre_y_m`` can reach
+    from behind: across the plate's width, its rear in the robot's rear half (a plate meeting only a front caster
+    has passed beneath the robot)."""
+    everything = envelope.points()
+    middle_x = (everything[:, 0].min() + everything[:, 0].max()) / 2
+    return [points for _, points in envelope.shapes
+            if points[:, 1].max() > centre_y_m - width_m / 2 and points[:, 1].min() < centre_y_m + width_m / 2
+            and points[:, 0].min() < middle_x]
+
+
+def rear_shapes_met(envelope: RobotEnvelope, low_z: float, high_z: float, width_m: float, centre_y_m: float) -> bool:
+    """True when a plate face from ``low_z`` to ``high_z`` above the launcher (m), ``width_m`` wide centred at
+    ``centre_y_m``, meets one of :func:`rear_shapes`."""
+    return any(points[:, 2].max() > low_z and points[:, 2].min() < high_z
+               for points in rear_shapes(envelope, width_m, centre_y_m))
 
 
 #: Where each :class:`LauncherGeometry` field is set (``launch_twin.`` parameter names).
@@ -158,12 +193,8 @@ def check_launcher_geometry(envelope: RobotEnvelope, geometry: "LauncherGeometry
     low_z = geometry.plate_clearance_m
     high_z = low_z + geometry.plate_height_m
     centre_y = envelope.com_m[1] + plate_offset_m
-    everything = envelope.points()
-    middle_x = (everything[:, 0].min() + everything[:, 0].max()) / 2
-    across = [points for _, points in envelope.shapes  # reached from behind: its rear in the robot's rear half
-              if points[:, 1].max() > centre_y - geometry.plate_width_m / 2
-              and points[:, 1].min() < centre_y + geometry.plate_width_m / 2 and points[:, 0].min() < middle_x]
-    if not any(points[:, 2].max() > low_z and points[:, 2].min() < high_z for points in across):
+    across = rear_shapes(envelope, geometry.plate_width_m, centre_y)
+    if not rear_shapes_met(envelope, low_z, high_z, geometry.plate_width_m, centre_y):
         where = "passes beneath" if across and all(points[:, 2].min() >= high_z for points in across) else "misses"
         raise ValueError(
             f"the launch twin's push plate {where} the robot: its face spans {low_z:.3f}-{high_z:.3f} m above the "

@@ -43,7 +43,11 @@ its own trial seed (so candidates evaluated with one base seed meet the same dra
   the foam's own with the foam), uniform in [``robot_restitution_min``, ``robot_restitution_max``]. An engine
   without restitution (MuJoCo, :data:`~rollability_ros.core.sim.engines.ENGINES_WITHOUT_RESTITUTION`) keeps the
   configured value, the one it accepts (its declared known difference); the draw is still taken, so the other
-  unknowns of a trial are the same on both engines.
+  unknowns of a trial are the same on both engines;
+- ``wheel_rolling_resistance``: on launch trials of a twin that gives the robot its own wheels (a URDF robot,
+  ``launch_twin.wheel_model`` robot), their rolling-resistance coefficient (``launch_twin.wheel_rolling_resistance``),
+  log-uniform in [``wheel_rolling_resistance_min``, ``wheel_rolling_resistance_max``]; the twin's Mecanum wheels
+  (the built-in chassis) keep the configured values (their own ``wheel_rolling_friction``), the draw still taken.
 
 The ranges, their sources and how far each moves the designs' gain are in docs/twin-model.md. Both launch
 engines read every drawn field (the MuJoCo twin puts them into its compiled model's contact values and joint
@@ -99,6 +103,8 @@ class RobustSettings:
     launcher_models: typing.List[str] = dataclasses.field(default_factory=lambda: ["stroke"], metadata={"description": "launches: launcher models drawn with equal probability: stroke (the paper's cylinder) and/or push_through"})
     robot_restitution_min: float = dataclasses.field(default=0.0, metadata={"description": "launches on engines with restitution (pybullet): lower end of the robot's restitution, drawn uniform (sim.restitution: its contact with the launcher's plate and ledge), coefficient", "range": (0.0, 1.0)})
     robot_restitution_max: float = dataclasses.field(default=0.5, metadata={"description": "launches on engines with restitution (pybullet): upper end of the robot's restitution, drawn uniform, coefficient", "range": (0.0, 1.0)})
+    wheel_rolling_resistance_min: float = dataclasses.field(default=0.005, metadata={"description": "launches of a robot on its own wheels: lower end of their rolling-resistance coefficient (log-uniform), dimensionless", "range": (0.0, 0.1), "exclusive": "low"})
+    wheel_rolling_resistance_max: float = dataclasses.field(default=0.03, metadata={"description": "launches of a robot on its own wheels: upper end of their rolling-resistance coefficient (log-uniform), dimensionless", "range": (0.0, 0.1)})
     world_seed: int = dataclasses.field(default=-1, metadata={"description": "-1: every trial draws its own values of the unknowns; a seed >= 0: every trial uses the one draw of this seed, one plausible world (the world check, fidelity world:<seed>)", "range": (-1, 2 ** 32 - 1)})
 
     def validate(self) -> None:
@@ -117,14 +123,14 @@ class RobustSettings:
             raise ValueError(f"need robot_restitution_min <= robot_restitution_max, got "
                              f"[{self.robot_restitution_min}, {self.robot_restitution_max}]")
         for name in ("foam_stiffness_factor", "foam_lateral_friction", "foam_rolling_friction", "wheel_drag",
-                     "profile_mass_scale"):
+                     "profile_mass_scale", "wheel_rolling_resistance"):
             low, high = self.range_of(name)
             if not low <= high:
                 raise ValueError(f"need {name}_min <= {name}_max (log-uniform), got [{low}, {high}]")
 
     def range_of(self, unknown: str) -> typing.Tuple[float, float]:
         """``(low, high)`` of a log-uniform unknown: ``foam_stiffness_factor``, ``foam_lateral_friction``,
-        ``foam_rolling_friction`` (m), ``wheel_drag`` (N m) or ``profile_mass_scale``."""
+        ``foam_rolling_friction`` (m), ``wheel_drag`` (N m), ``profile_mass_scale`` or ``wheel_rolling_resistance``."""
         unit = {"foam_rolling_friction": "_m", "wheel_drag": "_nm"}.get(unknown, "")
         return getattr(self, f"{unknown}_min{unit}"), getattr(self, f"{unknown}_max{unit}")
 
@@ -147,6 +153,7 @@ class Draw:
     speed_bias_fraction: float
     launcher_model: str
     robot_restitution: float
+    wheel_rolling_resistance: float
 
 
 class PerturbedSettings(typing.Protocol):
@@ -194,8 +201,9 @@ def draw(seed: int, robust: RobustSettings, nominal_com_offset_z_m: float, body_
     bias = float(rng.uniform(-robust.speed_bias_fraction_max, robust.speed_bias_fraction_max))
     launcher = str(robust.launcher_models[rng.integers(len(robust.launcher_models))])
     robot_restitution = float(rng.uniform(robust.robot_restitution_min, robust.robot_restitution_max))
+    rolling_resistance = log_uniform("wheel_rolling_resistance")
     return Draw(scale, roll, contact, com, stiffness, restitution, *foam_wheels, mass_scale, ledge, bias, launcher,
-                robot_restitution)
+                robot_restitution, rolling_resistance)
 
 
 def perturb(settings: _Perturbed, drawn: Draw) -> _Perturbed:
@@ -225,7 +233,8 @@ def perturb(settings: _Perturbed, drawn: Draw) -> _Perturbed:
         launcher = dataclasses.replace(twin.launcher, model=drawn.launcher_model,
                                        ledge_rolling_friction=drawn.ledge_rolling_friction_m,
                                        speed_bias_fraction=drawn.speed_bias_fraction)
-        changes["twin"] = dataclasses.replace(twin, foam=foam, launcher=launcher)
+        own_wheels = {} if mecanum_twin(settings) else {"wheel_rolling_resistance": drawn.wheel_rolling_resistance}
+        changes["twin"] = dataclasses.replace(twin, foam=foam, launcher=launcher, **own_wheels)   # module docstring
         if represents_restitution(settings.physics.engine):   # else the configured value (module docstring)
             changes["physics"] = dataclasses.replace(settings.physics, contact_model=drawn.contact_model,
                                                      restitution=drawn.robot_restitution)
@@ -237,11 +246,16 @@ def wheel_drag_field(settings: _Perturbed) -> str:
     """The dotted settings name of the wheel drag a launch twin's ``settings`` uses: the twin's Mecanum wheels'
     (``twin.wheel_drag_torque_nm``), else the robot's own (``urdf_robot.joint_drag_torque_nm`` or
     ``robot.wheel_drag_torque_nm``)."""
-    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, mecanum_wheels  # heavier; sim-internal
-
-    if isinstance(settings, LaunchTwinSettings) and mecanum_wheels(settings):
+    if mecanum_twin(settings):
         return "twin.wheel_drag_torque_nm"
     return "urdf_robot.joint_drag_torque_nm" if settings.urdf_robot.selected else "robot.wheel_drag_torque_nm"
+
+
+def mecanum_twin(settings: _Perturbed) -> bool:
+    """True for a launch twin's ``settings`` that give the robot the twin's Mecanum wheels."""
+    from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, mecanum_wheels  # heavier; sim-internal
+
+    return isinstance(settings, LaunchTwinSettings) and mecanum_wheels(settings)
 
 
 def _with_wheel_drag(settings, changes, drag_nm):
@@ -264,9 +278,10 @@ def nominal_draw(settings: _Perturbed) -> Draw:
         drag = float(getattr(getattr(settings, group), leaf))
     launcher: typing.Tuple[float, float, str] = (0.0, 0.0, "stroke") if twin is None else (
         twin.launcher.ledge_rolling_friction, twin.launcher.speed_bias_fraction, twin.launcher.model)
+    rolling_resistance = 0.01 if twin is None else float(twin.wheel_rolling_resistance)
     return Draw(1.0, settings.trial.start_roll_deg, settings.physics.contact_model, settings.robot.com_offset_z_m,
                 1.0, *foam_values, drag, profile_mass_scale(settings), *launcher,
-                robot_restitution=settings.physics.restitution)
+                robot_restitution=settings.physics.restitution, wheel_rolling_resistance=rolling_resistance)
 
 
 def profile_mass_scale(settings: _Perturbed) -> float:

@@ -58,7 +58,7 @@ def rollout_distance_m(settings: LaunchTwinSettings, speed_mps: float, surface: 
     try:
         build_launch_world(client, settings, 0.0)
         robot = model.spawn(client, None, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0, 1.0),
-                            time_step_s=settings.physics.time_step_s)
+                            time_step_s=settings.physics.time_step_s, exact_cylinders=True)   # as the launch twin
         set_contact(client, robot.body_id, settings.physics.body_contact())
         apply_wheel_model(pybullet, client, robot, settings)
         on_foam = surface == "foam"

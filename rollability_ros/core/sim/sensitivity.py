@@ -26,7 +26,7 @@ from rollability_ros.core.profile import Mesh
 from rollability_ros.core.sim.engines import represents_restitution
 from rollability_ros.core.sim.evaluation import (EvaluatorSettings, TrialExecutor, evaluate_job, evaluate_mesh, mesh_job,
                                                   settings_at_fidelity)
-from rollability_ros.core.sim.robustness import RobustSettings, nominal_draw, perturb, scaled_profile
+from rollability_ros.core.sim.robustness import RobustSettings, mecanum_twin, nominal_draw, perturb, scaled_profile
 
 if typing.TYPE_CHECKING:  # annotations only: the twin is imported when a launch runs
     from rollability_ros.core.sim.launch.settings import LaunchTwinSettings
@@ -38,7 +38,8 @@ DEFAULT_LEVELS = {"disturbance_scale": (0.5, 1.0, 2.0), "start_roll_deg": (180.0
 #: The launch twin's unknowns (the robust draws' fields varied by :func:`launch_sensitivity_rows`), in row order.
 LAUNCH_FACTORS = ("contact_model", "com_offset_z_m", "foam_stiffness_factor", "foam_restitution",
                   "foam_lateral_friction", "foam_rolling_friction_m", "wheel_drag_nm", "profile_mass_scale",
-                  "ledge_rolling_friction_m", "speed_bias_fraction", "launcher_model", "robot_restitution")
+                  "ledge_rolling_friction_m", "speed_bias_fraction", "launcher_model", "robot_restitution",
+                  "wheel_rolling_resistance")
 
 #: One row of the study (configuration, factor, level, successes, trials, fitness and its interval).
 Row = typing.Dict[str, typing.Any]
@@ -120,7 +121,8 @@ def launch_levels(robust: RobustSettings, nominal_com_offset_z_m: float
             "ledge_rolling_friction_m": (0.0, robust.ledge_rolling_friction_max_m),
             "speed_bias_fraction": (-robust.speed_bias_fraction_max, robust.speed_bias_fraction_max),
             "launcher_model": ("stroke", "push_through"),
-            "robot_restitution": (robust.robot_restitution_min, robust.robot_restitution_max)}
+            "robot_restitution": (robust.robot_restitution_min, robust.robot_restitution_max),
+            "wheel_rolling_resistance": robust.range_of("wheel_rolling_resistance")}
 
 
 def with_launch_factor(twin: "LaunchTwinSettings", factor: str, level: Level) -> "LaunchTwinSettings":
@@ -131,6 +133,10 @@ def with_launch_factor(twin: "LaunchTwinSettings", factor: str, level: Level) ->
     if factor == "robot_restitution" and not represents_restitution(twin.physics.engine):
         raise ValueError(f"the launch factor robot_restitution cannot be varied on {twin.physics.engine!r}: it "
                          f"has no restitution (docs/engines.md); run the sensitivity on pybullet")
+    if factor == "wheel_rolling_resistance" and mecanum_twin(twin):
+        raise ValueError("the launch factor wheel_rolling_resistance acts on a robot's own wheels, and this twin "
+                         "gives the robot its Mecanum wheels (launch_twin.wheel_model); vary "
+                         "twin.wheel_rolling_friction instead (--vary)")
     field: typing.Dict[str, typing.Any] = {factor: level}   # the factor's field, of the level's type
     return perturb(twin, dataclasses.replace(nominal_draw(twin), **field))
 
@@ -165,6 +171,8 @@ def launch_sensitivity_rows(profiles: typing.Mapping[str, typing.Optional[Mesh]]
         chosen = levels if levels is not None else launch_levels(robust, job.launch.twin.robot.com_offset_z_m)
         if levels is None and not represents_restitution(job.launch.twin.physics.engine):
             chosen = {f: v for f, v in chosen.items() if f != "robot_restitution"}   # no such row: none to vary
+        if levels is None and mecanum_twin(job.launch.twin):   # the Mecanum wheels have their own rolling friction
+            chosen = {f: v for f, v in chosen.items() if f != "wheel_rolling_resistance"}
         cases = [(factor, level, _factor_case(job, factor, level)) for factor, values in chosen.items()
                  for level in values]
         cases.append(("robust", "all unknowns drawn", dataclasses.replace(job, settings=drawn)))

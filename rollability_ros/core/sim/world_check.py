@@ -44,7 +44,7 @@ BASELINE = "baseline"
 #: The drawn unknowns a launch reads, as the rows name them (fields of robustness.Draw).
 WORLD_UNKNOWNS = ("foam_stiffness_factor", "foam_restitution", "foam_lateral_friction", "foam_rolling_friction_m",
                   "wheel_drag_nm", "profile_mass_scale", "ledge_rolling_friction_m", "speed_bias_fraction",
-                  "launcher_model", "contact_model", "com_offset_z_m", "robot_restitution")
+                  "launcher_model", "contact_model", "com_offset_z_m", "robot_restitution", "wheel_rolling_resistance")
 #: Columns of ``world_check.csv``: one row per (world, configuration).
 WORLD_CHECK_COLUMNS = ("world", "world_seed", "launch_seed", "configuration", "successes", "trials", *WORLD_UNKNOWNS)
 #: Short names of the unknowns in the printed worst world.
@@ -53,7 +53,7 @@ _SHORT = {"foam_stiffness_factor": "foam stiffness x", "foam_restitution": "foam
           "wheel_drag_nm": "wheel drag N m", "profile_mass_scale": "profile mass x",
           "ledge_rolling_friction_m": "ledge rolling friction m", "speed_bias_fraction": "speed bias",
           "launcher_model": "launcher", "contact_model": "contact", "com_offset_z_m": "COM offset m",
-          "robot_restitution": "robot restitution"}
+          "robot_restitution": "robot restitution", "wheel_rolling_resistance": "wheel rolling resistance"}
 
 #: ``evaluate(world_seed, launch_seed, launches) -> {configuration: (successes, trials)}``: the bare robot and every
 #: design launched ``launches`` times in the one world of ``world_seed``, all on ``launch_seed``.

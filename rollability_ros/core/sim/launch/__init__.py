@@ -50,9 +50,13 @@ Launcher sized for the robot (:mod:`~rollability_ros.core.sim.launcher_geometry`
     on, naming the setting; a robot that does not fit on the ledge at its start (a turned start beyond the
     derived +-60 deg) is refused with a ``ValueError`` naming ``ledge_depth_m`` / ``ledge_width_m``.
 Wheels (``wheel_model``: whose wheel contact and drag the twin uses)
-    ``robot`` (``auto`` on a URDF robot): the robot's own, exactly as in the disturbance trials: its joint drag
-    (``urdf_robot.joint_drag_torque_nm``) and the body contact of ``config/sim.yaml`` on every link, so a robot
-    that lands level on its wheels stays where it landed. ``mecanum`` (``auto`` on the built-in chassis): the
+    ``robot`` (``auto`` on a URDF robot): the robot's own: its joint drag (``urdf_robot.joint_drag_torque_nm``)
+    and the body contact of ``config/sim.yaml`` on every link, as in the disturbance trials, except each wheel's
+    rolling friction: ``wheel_rolling_resistance`` (a dimensionless rolling-resistance coefficient, an unknown:
+    rubber tyres on a hard floor 0.005-0.02) x that wheel's radius (its collision shapes' half width across its
+    axle, ``RobotModel.wheel_radii_m``), so a rolling wheel resists with that coefficient x its load whatever its
+    size (the trials' 0.01 m is a coefficient of 0.3 on a 33 mm wheel: the TurtleBot3s came to rest at the edge).
+    ``mecanum`` (``auto`` on the built-in chassis): the
     paper's chassis runs on Mecanum wheels, whose rollers let a wheel slide along its axle: the twin scales the
     wheels' friction along the axle by ``wheel_side_friction_factor`` (Bullet's anisotropic friction); rolling
     on the plate, a wheel resists with ``wheel_rolling_friction`` (Bullet rolling friction, a length in metres:
@@ -61,7 +65,8 @@ Wheels (``wheel_model``: whose wheel contact and drag the twin uses)
     because the trials model a generic geared wheel: with the trials' rolling friction 0.01 (a resisting force
     of a third of the load on a 0.03 m wheel) and drag 0.02 N m, the chassis stops within 0.1 m and never covers
     the paper's 0.34 m run at 0.8 m/s in 0.42 s. Either way ``wheel_friction_left_factor`` /
-    ``wheel_friction_right_factor`` scale the wheels' friction (rig asymmetry, see below).
+    ``wheel_friction_right_factor`` scale the wheels' friction (rig asymmetry, see below). A key of the wheel
+    model not chosen set away from its default is refused (``settings.check_wheel_keys``).
 Angle (the paper gives mounting holes at -60 ... +60 deg, not a definition)
     Positive angles turn counterclockwise seen from above (about world +z), as in ``config/rig.yaml``.
     ``yaw_of_push`` (default): the push plate, and the chassis placed square against it, are turned by the angle
@@ -82,13 +87,17 @@ Launch (``launcher.model``; one setting swaps the two, and a setting of the mode
     speed is solved per engine, robot, launcher and set speed (:func:`launch_drive`, cached) so that a launch of
     the bare robot square to the edge reads the set speed on the gate, within 0.2% (test_launch_twin: both
     engines, both speeds, within the gate's 15% tolerance ``speed_gate.tolerance_fraction``). A profile's mass
-    then changes the gate's reading as physics says. A cylinder too weak to reach the set speed is refused with a
-    ``ValueError`` naming the settings. ``push_through`` (the twin before issue 40): the plate's speed ramps to the
+    then changes the gate's reading as physics says. A robot the cylinder cannot get to the set speed is refused with a
+    ``ValueError`` naming the physical cause from one more launch (:func:`~.drive.why_not_launched`: it tips
+    over on the launcher, the plate does not push it through the stroke, or it coasts to rest short of the edge)
+    and the settings that change it. ``push_through`` (the twin before issue 40): the plate's speed ramps to the
     launch speed in ``plate.ramp_s`` with at most ``plate.max_force_n`` and holds it until the chassis's base
     origin goes over the edge (or the plate's face reaches it), then brakes: the chassis leaves the edge at the
     launch speed (``edge_speed_mps``, within 5% on the shipped chassis and on one with 40 times the drag: see
     test_launch_twin). Either way the speed gate reads ``run_length_m / travel_time_s`` as on the rig. The chassis
-    starts where its foremost point (largest x of its links' bounding boxes) reaches the edge line after
+    starts (its lowest point ``start_clearance_m`` above the ledge) where its foremost point (largest x of its
+    collision shapes; PyBullet: of its links' bounding boxes unless they overstate it by more than 1 mm, as on a
+    merged URDF body on turned inertial axes, ``pybullet_twin.PLACE_TOLERANCE_M``) reaches the edge line after
     ``run_length_m`` along the push, its base origin on a path through the edge's midpoint. The actual launch
     speed (the gate speed the setting gives in this launch) scatters around the condition's speed x (1 +
     ``launcher.speed_bias_fraction``, the setting's systematic error, an unknown) with a relative standard

@@ -10,8 +10,11 @@ import typing
 from rollability_ros.core.profile import DesignSources
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.sim.launch.contract import LaunchDrive
-from rollability_ros.core.sim.launch.settings import PA_PER_PSI, FoamSpec, LauncherSpec, LaunchTwinSettings
+from rollability_ros.core.sim.launch.placement import check_launcher
+from rollability_ros.core.sim.launch.settings import (PA_PER_PSI, FoamSpec, LauncherSpec, LaunchTwinSettings,
+                                                      mecanum_wheels)
 from rollability_ros.core.sim.engines import LAUNCH_ENGINES
+from rollability_ros.core.sim.launcher_geometry import robot_envelope
 from rollability_ros.core.sim.trials import TrialSettings
 
 
@@ -45,8 +48,8 @@ def launch_drive(settings: LaunchTwinSettings, set_speed_mps: float) -> LaunchDr
     lab's setting gives: as the lab sets the pressure until the speed gate reads the set speed over the run (paper
     2.2), the plate's speed is solved (once per engine, robot, launcher and set speed, cached) so that a launch of
     the bare robot square to the edge, without scatter, reads ``run_length_m / travel_time_s`` = the set speed
-    within :data:`SOLVE_TOLERANCE`. ``ValueError`` naming the settings when no plate speed up to
-    :data:`SOLVE_MAX_RATIO` x the set speed gets there (a cylinder too weak for the robot)."""
+    within :data:`SOLVE_TOLERANCE`. ``ValueError`` when no plate speed up to :data:`SOLVE_MAX_RATIO` x the set
+    speed gets there, naming the physical cause (:func:`why_not_launched`) and the settings."""
     plate, launcher = settings.twin.plate, settings.twin.launcher
     if launcher.model == "push_through":
         return LaunchDrive("push_through", 1.0, plate.max_force_n, math.inf, plate.ramp_s)
@@ -104,12 +107,12 @@ def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force
         low, low_miss = high, high_miss
         high *= 1.5
         if high > SOLVE_MAX_RATIO:
+            strongest = LaunchDrive("stroke", low, force_n, launcher.stroke_m, ramp_s)
             raise ValueError(
-                f"the stroke launcher cannot launch this robot at {set_speed_mps} m/s: the gate reads "
-                f"{set_speed_mps + low_miss:.3f} m/s with the plate at {low * set_speed_mps:.2f} m/s and {force_n:.0f} N "
-                f"(launch_twin.launcher.pressures_psi {launcher.pressure_psi(set_speed_mps):.0f} psi x bore "
-                f"{launcher.bore_m * 1000:.1f} mm) over the stroke_m {launcher.stroke_m} m; raise the pressure or "
-                "the bore, or lower the rolling resistance")
+                f"the stroke launcher cannot launch this robot at {set_speed_mps} m/s: with the plate at "
+                f"{low * set_speed_mps:.2f} m/s and {force_n:.0f} N (launch_twin.launcher.pressures_psi "
+                f"{launcher.pressure_psi(set_speed_mps):.0f} psi x bore {launcher.bore_m * 1000:.1f} mm) the gate "
+                f"reads {set_speed_mps + low_miss:.3f} m/s: {why_not_launched(exact, strongest, set_speed_mps)}")
         high_miss = miss(high)
     side = 0
     for _ in range(SOLVE_RUNS):
@@ -132,3 +135,59 @@ def _solve_speed_ratio(settings: LaunchTwinSettings, set_speed_mps: float, force
     raise ValueError(f"the stroke launcher's speed setting for {set_speed_mps} m/s did not converge in {SOLVE_RUNS} "
                      f"launches (the gate reads {set_speed_mps + high_miss:.3f} m/s at plate speed "
                      f"{high * set_speed_mps:.2f} m/s)")
+
+
+#: A launch whose robot moved less than this fraction of the plate's stroke was not pushed through the stroke.
+PUSHED_FRACTION = 0.8
+
+def why_not_launched(settings: LaunchTwinSettings, drive: LaunchDrive, set_speed_mps: float) -> str:
+    """Why the bare robot, launched square to the edge at the set speed ``set_speed_mps`` with ``drive`` on the sized
+    twin ``settings`` (no scatter), does not reach the edge: one clause naming the physical cause and what changes
+    it: a plate that misses it (:func:`check_launcher`), else from the poses of one more such launch.
+
+    It tips over on the launcher (its up axis turns beyond the robot's ``upright_tilt_deg``, the rig's own "not
+    upright", at most 90 deg): a property of the robot pushed at that height, not of the pressure; the plate does
+    not push it through the stroke (it moved less than :data:`PUSHED_FRACTION` of it: the plate passed beneath it,
+    slipped past or lifted it, or is too weak to move it at all); or it coasts to rest short of the edge after the
+    stroke (the cylinder's push is too short or too weak for its rolling resistance)."""
+    try:   # a plate that cannot meet the robot says so first (no launch needed)
+        check_launcher(settings)
+    except ValueError as exc:
+        return str(exc)
+    condition = LaunchCondition("baseline", 0.75, set_speed_mps, 0.0)
+    poses: typing.List[typing.Tuple[typing.Sequence[float], typing.Sequence[float]]] = []
+    LAUNCH_ENGINES.get(settings.physics.engine).simulate(
+        condition, settings, 0, None, on_pose=lambda _t, position, orientation: poses.append((position, orientation)),
+        drive=drive, until_edge=True)
+    envelope = robot_envelope(settings.robot_model())
+    plate, launcher = settings.twin.plate, settings.twin.launcher
+    from scipy.spatial.transform import Rotation   # scipy: the sim extra's, like the engines
+
+    start_rotation = Rotation.from_quat(poses[0][1]).as_matrix()   # (x, y, z, w), as the engines report it
+    travel_m = float(poses[-1][0][0] - poses[0][0][0])
+    tilts = []
+    for _, orientation in poses:   # the body's turn from its start, in the world: its pitch and how far up tilts
+        turn = Rotation.from_quat(orientation).as_matrix() @ start_rotation.T
+        tilts.append((math.degrees(math.acos(max(-1.0, min(1.0, turn[2, 2])))),
+                      math.degrees(math.asin(max(-1.0, min(1.0, -turn[2, 0]))))))
+    tilt_deg, pitch_deg = max(tilts)
+    push = (f"the plate's face {plate.clearance_m:.3f}-{plate.clearance_m + plate.height_m:.3f} m up, its centre "
+            f"of mass {envelope.com_height_m:.3f} m up")
+    if tilt_deg >= min(settings.robot_model().upright_tilt_deg, 90.0):
+        way = ("nose-down" if pitch_deg > 0 else "tail-down") if abs(pitch_deg) >= tilt_deg / 2 else "sideways"
+        return (f"it tips over on the launcher ({tilt_deg:.0f} deg, {way}) under the push ({push}), a property of "
+                "the robot pushed there that no pressure changes; launch it with the plate at another height "
+                "(launch_twin.plate.height_m, clearance_m) or not on this rig")
+    stroke_m = min(drive.stroke_m, launcher.run_length_m)
+    if travel_m < PUSHED_FRACTION * stroke_m:
+        return (f"the plate does not push it through the stroke: it moves {travel_m:.3f} m of the plate's "
+                f"{stroke_m} m and pitches {pitch_deg:+.0f} deg (+ = nose-down; {push}): the plate meets too little "
+                f"of it (passes beneath, slips past or lifts it) or {drive.force_n:.0f} N cannot move it; set "
+                "launch_twin.plate.height_m and clearance_m to meet its rear face squarely (0 = derived), or raise "
+                "the pressure or the bore")
+    wheels = ("launch_twin.wheel_rolling_friction, wheel_drag_torque_nm" if mecanum_wheels(settings) else
+              "launch_twin.wheel_rolling_resistance, " +
+              ("urdf_robot.joint_drag_torque_nm" if settings.urdf_robot.selected else "robot.wheel_drag_torque_nm"))
+    return (f"it coasts to rest {max(0.0, launcher.run_length_m - travel_m):.3f} m short of the edge after the "
+            f"{stroke_m} m stroke; raise the pressure or the bore, lower its wheels' resistance ({wheels}), or set "
+            "launch_twin.launcher.model: push_through")

@@ -22,16 +22,18 @@ World (metres; the frame of :mod:`~rollability_ros.core.sim.launch`)
 Contact values (MuJoCo takes the larger of two geoms' friction; ``config/sim.yaml`` and the twin's files)
     robot on the ledge and floor: the trials' mapping (:func:`~rollability_ros.core.sim.mujoco_trials.set_geom_contact`:
     the robot's geoms carry the effective robot-ground values, ledge and floor zeros); the wheels' friction is
-    times ``wheel_friction_left_factor`` / ``_right_factor`` and, when the twin gives them its Mecanum wheels
-    (:func:`~rollability_ros.core.sim.launch.settings.mecanum_wheels`: the chassis), the twin's rolling friction
-    (``wheel_rolling_friction`` x the ground's friction, Bullet's combination) and joint ``frictionloss`` =
-    ``wheel_drag_torque_nm``; otherwise (a URDF robot) they keep the robot's own, as in the trials. The launcher's
+    times ``wheel_friction_left_factor`` / ``_right_factor``, their rolling friction is each wheel's own
+    (:func:`~rollability_ros.core.sim.launch.settings.wheel_rolling_friction_m`: the Mecanum wheels'
+    ``wheel_rolling_friction``, or a URDF robot's ``wheel_rolling_resistance`` x the wheel's radius) x the ground's
+    friction (Bullet's combination), and, when the twin gives them its Mecanum wheels
+    (:func:`~rollability_ros.core.sim.launch.settings.mecanum_wheels`: the chassis), joint ``frictionloss`` =
+    ``wheel_drag_torque_nm``; otherwise (a URDF robot) the robot's own joint drag, as in the trials. The launcher's
     sizes are the PyBullet twin's (derived from the robot where configured 0: ``sized_for_robot``).
     Foam: a geom of higher priority, so its values make the contact with the body: friction = the robot's
     ``lateral_friction`` x ``foam.lateral_friction``, rolling = the robot body's rolling friction on the foam
     (Bullet's ``a.rolling b.friction + b.rolling a.friction``); each wheel meets the foam by an explicit contact
     pair carrying Bullet's combination of that wheel's own values (its friction with the left / right factor, its
-    rolling friction: the twin's Mecanum value or the robot's) with the foam's, and the foam's spring; and a
+    own rolling friction) with the foam's, and the foam's spring; and a
     direct spring-damper (``solref`` = -stiffness / m, -damping / m with m the robot's mass: Bullet's per-contact
     N/m and N s/m as an acceleration per metre of one contact carrying the whole robot), at least critically
     damped (a lighter damping left a landed chassis rocking for ever, as in the MuJoCo trials). MuJoCo steps in
@@ -69,7 +71,8 @@ from rollability_ros.core.sim.launch.drive import launch_drive
 from rollability_ros.core.sim.launch.loop import LaunchTracker, PhaseReporter, launch_result, rig_verdict, step_launch
 from rollability_ros.core.sim.launch.placement import check_fits_launcher, launch_plan, launcher_start_xy, plate_placement
 from rollability_ros.core.sim.launch.results import LaunchResult, PhaseCallback, PoseCallback
-from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, PushPlateSpec, mecanum_wheels
+from rollability_ros.core.sim.launch.settings import (LaunchTwinSettings, PushPlateSpec, mecanum_wheels,
+                                                      wheel_rolling_friction_m)
 from rollability_ros.core.sim.mujoco_trials import (MujocoEnergyMonitor, effective_contact, geom_points, pose_speeds,
                                                     robot_spec, root_tilt_deg, set_geom_contact, wheel_bodies)
 
@@ -160,6 +163,8 @@ class MujocoLaunchTwin(LaunchWorld):
         self.robot_geoms = [g for g in range(model.ngeom) if model.body_rootid[model.geom_bodyid[g]] == self.root]
         self.wheel_geoms = {body: [g for g in self.robot_geoms if model.geom_bodyid[g] == body]
                             for body in self.wheels}
+        radius_of = dict(zip(self.robot_model.wheel_link_names(), self.robot_model.wheel_radii_m()))
+        self.wheel_radius_m = {body: radius_of[model.body(body).name] for body in self.wheels}
         self._robot_geom_set = set(self.robot_geoms)
         up = np.asarray(self.robot_model.up_axis_in_root(), dtype=np.float64)
         self.up_in_root = up / np.linalg.norm(up)
@@ -244,14 +249,16 @@ class MujocoLaunchTwin(LaunchWorld):
         for geom in self.robot_geoms:   # the robot-ground values of sim.contact_model (robot_spec's, redone per draw)
             model.geom_friction[geom] = [lateral, spinning, rolling]
         mecanum = mecanum_wheels(self.settings)
+        bodies = list(self.wheel_geoms)
+        own_rolling = dict(zip(bodies, wheel_rolling_friction_m(self.settings,
+                                                                [self.wheel_radius_m[body] for body in bodies])))
         factors = {}
         for body, geoms in self.wheel_geoms.items():
             left = float((data.xpos[body] - data.xpos[self.root]) @ root_rotation[:, 1]) >= 0.0
             factor = factors[body] = options.wheel_friction_left_factor if left else options.wheel_friction_right_factor
-            for geom in geoms:
+            for geom in geoms:   # the wheel's own rolling friction x the ground's friction: Bullet's combination
                 model.geom_friction[geom][0] = lateral * factor
-                if mecanum:
-                    model.geom_friction[geom][2] = options.wheel_rolling_friction * ground_lateral
+                model.geom_friction[geom][2] = own_rolling[body] * ground_lateral
             for joint in range(model.njnt):
                 if mecanum and model.jnt_bodyid[joint] == body:
                     model.dof_frictionloss[model.jnt_dofadr[joint]] = options.wheel_drag_torque_nm
@@ -259,7 +266,7 @@ class MujocoLaunchTwin(LaunchWorld):
         # of two geoms' values, so the ledge carries the wheels' rolling friction plus Bullet's ledge.rolling x
         # wheel.lateral (0 = the trials' mapping: the ledge's zeros)
         ledge_rolling = options.launcher.ledge_rolling_friction
-        wheel_rolling = options.wheel_rolling_friction * ground_lateral if mecanum else rolling
+        wheel_rolling = max(own_rolling.values(), default=0.0) * ground_lateral   # one ledge geom: the largest wheel's
         model.geom_friction[self.ledge_geom] = [
             0.0, 0.0, wheel_rolling + ledge_rolling * physics.lateral_friction if ledge_rolling else 0.0]
         contact = physics.body_contact()
@@ -281,11 +288,11 @@ class MujocoLaunchTwin(LaunchWorld):
         model.geom_solimp[self.foam_geom] = [0.99, 0.99, 0.001, 0.5, 2.0]
         # each wheel on the foam: Bullet's combination of the wheel's own values with the foam's (friction product,
         # rolling wheel.rolling x foam.friction + foam.rolling x wheel.friction), the foam's spring
-        wheel_rolling_own = options.wheel_rolling_friction if mecanum else contact["rollingFriction"]
         for pair in range(model.npair):   # MuJoCo may store the foam first
             wheel = model.pair_geom2[pair] if model.pair_geom1[pair] == self.foam_geom else model.pair_geom1[pair]
-            wheel_lateral = physics.lateral_friction * factors[int(model.geom_bodyid[wheel])]
-            roll = wheel_rolling_own * foam.lateral_friction + foam.rolling_friction * wheel_lateral
+            body = int(model.geom_bodyid[wheel])
+            wheel_lateral = physics.lateral_friction * factors[body]
+            roll = own_rolling[body] * foam.lateral_friction + foam.rolling_friction * wheel_lateral
             model.pair_friction[pair] = [wheel_lateral * foam.lateral_friction] * 2 + [spinning, roll, roll]
             model.pair_solref[pair] = model.geom_solref[self.foam_geom]
             model.pair_solimp[pair] = model.geom_solimp[self.foam_geom]

@@ -29,7 +29,7 @@ def sized_for_robot(settings: LaunchTwinSettings
     geometry = derive_launcher_geometry(envelope, launcher.run_length_m, plate.thickness_m, {
         "plate_width_m": plate.width_m, "plate_height_m": plate.height_m, "plate_clearance_m": plate.clearance_m,
         "plate_max_force_n": plate.max_force_n, "ledge_depth_m": launcher.ledge_depth_m, "ledge_width_m": launcher.ledge_width_m,
-        "cylinder_bore_m": launcher.bore_m})
+        "cylinder_bore_m": launcher.bore_m}, plate.offset_m)
     twin = dataclasses.replace(
         settings.twin,
         launcher=dataclasses.replace(launcher, ledge_depth_m=geometry.ledge_depth_m,

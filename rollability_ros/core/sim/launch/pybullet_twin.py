@@ -19,7 +19,8 @@ from rollability_ros.core.sim.launch.drive import launch_drive
 from rollability_ros.core.sim.launch.loop import LaunchTracker, PhaseReporter, launch_result, rig_verdict, step_launch
 from rollability_ros.core.sim.launch.placement import check_fits_launcher, launch_plan, launcher_start_xy, plate_placement
 from rollability_ros.core.sim.launch.results import LaunchResult, PhaseCallback, PoseCallback
-from rollability_ros.core.sim.launch.settings import LaunchTwinSettings, PushPlateSpec, mecanum_wheels
+from rollability_ros.core.sim.launch.settings import (LaunchTwinSettings, PushPlateSpec, mecanum_wheels,
+                                                      wheel_rolling_friction_m)
 from rollability_ros.core.sim.trials import EnergyMonitor, RestDetector, place_on_ground
 from rollability_ros.core.sim.world import connect, disconnect, reset_world, set_contact
 
@@ -46,9 +47,12 @@ def build_launch_world(client: int, settings: LaunchTwinSettings, height_m: floa
 
 def ledge_contact(settings: LaunchTwinSettings) -> typing.Dict[str, float]:
     """The launcher base plate's ``changeDynamics`` keywords: the ground contact of ``config/sim.yaml`` with
-    ``launcher.ledge_rolling_friction`` added to its own rolling friction (the coast's unknown resistance)."""
+    ``launcher.ledge_rolling_friction`` added to its own rolling friction (the coast's unknown resistance). Under a
+    robot's own wheels the ground's own rolling friction (``per_body``: ``sim.rolling_friction``) is left out: their
+    rolling resistance is ``wheel_rolling_resistance`` (:func:`~.settings.wheel_rolling_friction_m`)."""
     contact = dict(settings.physics.ground_contact())
-    contact["rollingFriction"] = contact.get("rollingFriction", 0.0) + settings.twin.launcher.ledge_rolling_friction
+    ground = contact.get("rollingFriction", 0.0) if mecanum_wheels(settings) else 0.0
+    contact["rollingFriction"] = ground + settings.twin.launcher.ledge_rolling_friction
     return contact
 
 def wheel_side_m(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, link: int) -> float:
@@ -58,20 +62,20 @@ def wheel_side_m(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, l
     inverse_position, inverse_orientation = pybullet.invertTransform(base_position, base_orientation)
     return pybullet.multiplyTransforms(inverse_position, inverse_orientation, link_position, (0, 0, 0, 1))[0][1]
 
-def _set_wheels(pybullet, client, robot, options, lateral_friction, mecanum):
-    """Give the wheel links the left / right friction factors (of the robot's ``lateral_friction``) and, with
-    ``mecanum``, the twin's Mecanum side friction, rolling friction and motor drag; without it the wheels keep the
-    robot's own rolling friction and joint drag (the trials')."""
-    for link in robot.wheel_links:
+def _set_wheels(pybullet, client, robot, options, lateral_friction, mecanum, rolling_m):
+    """Give the wheel links the left / right friction factors (of the robot's ``lateral_friction``), each its own
+    rolling friction ``rolling_m`` (m, one per wheel: :func:`~.settings.wheel_rolling_friction_m`) and, with
+    ``mecanum``, the twin's Mecanum side friction and motor drag; without it the wheels keep the robot's own joint
+    drag (the trials')."""
+    for link, rolling in zip(robot.wheel_links, rolling_m):
         left = wheel_side_m(pybullet, client, robot, link) >= 0.0
         side_factor = options.wheel_friction_left_factor if left else options.wheel_friction_right_factor
         pybullet.changeDynamics(robot.body_id, link, lateralFriction=lateral_friction * side_factor,
-                                physicsClientId=client)
+                                rollingFriction=rolling, physicsClientId=client)
         if mecanum:
             axis = pybullet.getJointInfo(robot.body_id, link, physicsClientId=client)[13]
             factors = [1.0 - (1.0 - options.wheel_side_friction_factor) * abs(a) for a in axis]  # a link unit axis
-            pybullet.changeDynamics(robot.body_id, link, anisotropicFriction=factors,
-                                    rollingFriction=options.wheel_rolling_friction, physicsClientId=client)
+            pybullet.changeDynamics(robot.body_id, link, anisotropicFriction=factors, physicsClientId=client)
     if not mecanum:
         return
     pybullet.setJointMotorControlArray(robot.body_id, list(robot.wheel_links), pybullet.VELOCITY_CONTROL,
@@ -80,10 +84,14 @@ def _set_wheels(pybullet, client, robot, options, lateral_friction, mecanum):
                                        physicsClientId=client)
 
 def apply_wheel_model(pybullet: types.ModuleType, client: int, robot: SpawnedRobot,
-                      settings: LaunchTwinSettings) -> None:
-    """The twin's wheel contact and drag (package docstring, "Wheels") on ``robot``'s wheel links: every PyBullet
-    model of the twin's rig (the launch, the characterisation roll-out) uses this one."""
-    _set_wheels(pybullet, client, robot, settings.twin, settings.physics.lateral_friction, mecanum_wheels(settings))
+                      settings: LaunchTwinSettings, model: typing.Optional[RobotModel] = None) -> None:
+    """The twin's wheel contact and drag (package docstring, "Wheels") on ``robot``'s wheel links (``model``: the
+    robot model that spawned it, default ``settings.robot_model()``): every PyBullet model of the twin's rig (the
+    launch, the characterisation roll-out) uses this one."""
+    mecanum = mecanum_wheels(settings)
+    radii = (0.0,) * len(robot.wheel_links) if mecanum else (model or settings.robot_model()).wheel_radii_m()
+    _set_wheels(pybullet, client, robot, settings.twin, settings.physics.lateral_friction, mecanum,
+                wheel_rolling_friction_m(settings, radii))
     # Bullet damps every multibody by default (force m v (0.04 + 0.04 |v|) on each link, the same for rotation): no
     # source on the rig (air drag on the chassis is ~1e-3 of that) and not in MuJoCo; it slowed the spinning wheels
     # (4.6 x their drag torque at 1.5 m/s) and the flight's rotation (13% in 0.4 s at 10 rad/s)
@@ -118,10 +126,47 @@ def _place_on_plate(pybullet, client, robot, orientation, clearance_m, xy_m, pla
     position[2] += plate_z + clearance_m - float(_bounds_m(pybullet, client, robot)[0][2])
     pybullet.resetBasePositionAndOrientation(robot.body_id, position, orientation, physicsClientId=client)
 
+#: How far (m) Bullet's link boxes may overstate the robot's extent (below, ahead) before the placement uses the
+#: extent Bullet's contact sees (:func:`_foremost_x`, :func:`rest_on_ledge`): the twin places to the millimetre (the
+#: plate starts 1 mm behind the robot). Boxes are loose by centimetres on a compound link on turned inertial axes (a
+#: URDF body merged from several links with products of inertia: 47 mm below and 34 mm ahead on the TurtleBot3
+#: Waffle, 58 mm ahead on the Burger) and by a convex mesh's margin (2 mm on the Husky); the built-in chassis's
+#: boxes and cylinders are within 0.4 mm (measured at 0, 30 and 60 deg), so it is placed as before.
+PLACE_TOLERANCE_M = 0.001
+
+def rest_on_ledge(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, ledge_id: int,
+                  clearance_m: float) -> float:
+    """Move ``robot`` (placed over the ledge) straight down or up so that its nearest point is ``clearance_m`` above
+    the ledge ``ledge_id`` as Bullet's contact sees it (closest points: the shapes with their collision margins),
+    unless it is there within :data:`PLACE_TOLERANCE_M`; return the shift (m, + = down). A robot placed by loose
+    link boxes otherwise starts in the air and falls onto the ledge as the plate moves (the TurtleBot3 Waffle,
+    47 mm up, landed on the plate and was never launched)."""
+    gaps = [point[8] for point in pybullet.getClosestPoints(robot.body_id, ledge_id, 1.0, physicsClientId=client)]
+    shift_m = min(gaps) - clearance_m if gaps else 0.0
+    if abs(shift_m) <= PLACE_TOLERANCE_M:
+        return 0.0
+    position, orientation = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)
+    pybullet.resetBasePositionAndOrientation(robot.body_id, [position[0], position[1], position[2] - shift_m],
+                                             orientation, physicsClientId=client)
+    return shift_m
+
+def _foremost_x(pybullet, client, robot, box_front_x):
+    """The largest world x of ``robot``'s collision shapes as Bullet's contact sees them (m), given the front of its
+    link boxes ``box_front_x``: from the closest points to a probe shape facing it (a shape only: no body joins the
+    world; it goes with the launch's world), or ``box_front_x`` when that is within :data:`PLACE_TOLERANCE_M`."""
+    half_m = 0.5
+    probe = pybullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=[half_m, 100.0, 100.0], physicsClientId=client)
+    face_x = box_front_x + half_m
+    points = pybullet.getClosestPoints(robot.body_id, -1, 2 * half_m, collisionShapeB=probe,
+                                       collisionShapePositionB=[face_x + half_m, 0.0, 0.0], physicsClientId=client)
+    exact_x = face_x - min(point[8] for point in points) if points else box_front_x
+    return exact_x if abs(exact_x - box_front_x) > PLACE_TOLERANCE_M else box_front_x
+
 def place_on_launcher(pybullet: types.ModuleType, client: int, robot: SpawnedRobot, orientation: typing.Sequence[float],
-                      push: npt.ArrayLike, settings: LaunchTwinSettings, height_m: float) -> float:
-    """Put the chassis at rest on the plate so that its foremost point reaches the edge after ``run_length_m``
-    along ``push`` (unit (3,)); the base origin's path passes through the edge's midpoint. Return the foremost
+                      push: npt.ArrayLike, settings: LaunchTwinSettings, height_m: float, ledge_id: int) -> float:
+    """Put the chassis at rest on the plate so that its foremost point (:func:`_foremost_x`) reaches the edge after
+    ``run_length_m`` along ``push`` (unit (3,)); the base origin's path passes through the edge's midpoint; its
+    nearest point ``start_clearance_m`` above the ledge ``ledge_id`` (:func:`rest_on_ledge`). Return the foremost
     point's offset ahead of the base origin along x (m).
 
     Raises ``ValueError`` when the robot placed there is not wholly over the ledge (``ledge_depth_m`` behind the
@@ -131,11 +176,12 @@ def place_on_launcher(pybullet: types.ModuleType, client: int, robot: SpawnedRob
     plate_z = settings.twin.foam.thickness_m + height_m
     _place_on_plate(pybullet, client, robot, orientation, launcher.start_clearance_m, (0.0, 0.0), plate_z)
     base_x = pybullet.getBasePositionAndOrientation(robot.body_id, physicsClientId=client)[0][0]
-    lead_m = float(_bounds_m(pybullet, client, robot)[1][0]) - base_x
+    lead_m = _foremost_x(pybullet, client, robot, float(_bounds_m(pybullet, client, robot)[1][0])) - base_x
     _place_on_plate(pybullet, client, robot, orientation, launcher.start_clearance_m,
                     launcher_start_xy(lead_m, push, launcher), plate_z)
     low, high = _bounds_m(pybullet, client, robot)
     check_fits_launcher(low, high, launcher)
+    rest_on_ledge(pybullet, client, robot, ledge_id, launcher.start_clearance_m)
     return lead_m
 
 class PushPlate:
@@ -283,10 +329,11 @@ class BulletLaunch(LaunchEngine):
             foam_id, ledge_id, floor_id = build_launch_world(client, settings, condition.height_m)
             orientation = pybullet.getQuaternionFromEuler([0.0, 0.0, angle])
             robot = model.spawn(client, profile, (0.0, 0.0, 5.0), orientation,
-                                time_step_s=settings.physics.time_step_s)
+                                time_step_s=settings.physics.time_step_s, exact_cylinders=True)
             set_contact(client, robot.body_id, settings.physics.body_contact())
-            apply_wheel_model(pybullet, client, robot, settings)
-            lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m)
+            apply_wheel_model(pybullet, client, robot, settings, model)
+            lead_m = place_on_launcher(pybullet, client, robot, orientation, push, settings, condition.height_m,
+                                       ledge_id)
             plate = PushPlate(pybullet, client, robot, push, drive.plate_spec(options.plate),
                               options.foam.thickness_m + condition.height_m, (floor_id, foam_id, ledge_id))
             world = _BulletLaunchWorld(pybullet, client, robot, foam_id, floor_id, settings, profile)

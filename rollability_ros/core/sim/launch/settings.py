@@ -166,6 +166,10 @@ class LaunchTwinOptions:
                 "guessed so the chassis covers the 0.34 m run)", (0.0, 0.01))
     wheel_drag_torque_nm: float = _setting(
         0.0005, "UNKNOWN: back-drive drag of each unpowered wheel motor, N m (guessed)", (0.0, 0.05))
+    wheel_rolling_resistance: float = _setting(
+        0.01, "UNKNOWN: rolling-resistance coefficient of the robot's own wheels (wheel_model robot): resisting force "
+              "/ load, dimensionless; each wheel's rolling friction is this x its radius (rubber tyres on a hard "
+              "floor 0.005-0.02, typically 0.01: docs/twin-model.md)", (0.0, 0.1))
     wheel_friction_left_factor: float = _setting(1.0, "the left wheels' friction / the chassis's (sim.yaml): rig "
                                                       "asymmetry, fittable", (0.0, 5.0), "low")
     wheel_friction_right_factor: float = _setting(1.0, "the right wheels' friction / the chassis's (sim.yaml): rig "
@@ -252,8 +256,10 @@ def launch_twin_settings_from_parameters(flat: typing.Mapping[str, object],
         raise ConfigError(f"launch twin settings: unknown group(s) {', '.join(unknown)}; known: "
                           f"{', '.join(sorted(_SECTIONS))}")
     hints = typing.get_type_hints(LaunchTwinSettings)
-    return LaunchTwinSettings(**{name: from_mapping(hints[name], values, _SECTIONS[name])
-                                 for name, values in nested.items()})
+    settings = LaunchTwinSettings(**{name: from_mapping(hints[name], values, _SECTIONS[name])
+                                     for name, values in nested.items()})
+    check_wheel_keys(settings)
+    return settings
 
 @edge_parse
 def load_launch_twin_settings(config_paths: typing.Sequence[str] = ("sim", "robot", "launch_twin"),
@@ -272,7 +278,9 @@ def twin_with_values(settings: LaunchTwinSettings, values: typing.Mapping[str, o
     """Typed twin ``settings`` with parameters set by their config keys (``{"launch_twin.foam.restitution": 0.4,
     "robot.com_offset_z_m": 0.01}``), each checked as a parameter file's value is (:func:`config.with_values`):
     the twin at one point of a calibration's fitted keys, without parsing parameters again."""
-    return with_values(settings, _SECTIONS, values)
+    changed = with_values(settings, _SECTIONS, values)
+    check_wheel_keys(changed)
+    return changed
 
 
 def twin_value(settings: LaunchTwinSettings, name: str) -> float:
@@ -282,6 +290,45 @@ def twin_value(settings: LaunchTwinSettings, name: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ConfigError(wrong_type(name, float, value))
     return float(value)
+
+
+#: The twin's keys of each wheel model (package docstring, "Wheels"): a value other than the default of a key whose
+#: model the twin does not use is refused (:func:`check_wheel_keys`).
+MECANUM_WHEEL_FIELDS = ("wheel_side_friction_factor", "wheel_rolling_friction", "wheel_drag_torque_nm")
+OWN_WHEEL_FIELDS = ("wheel_rolling_resistance",)
+
+
+def check_wheel_keys(settings: LaunchTwinSettings) -> None:
+    """Refuse (:class:`ConfigError`, one line naming the key) a wheel key set away from its default that the twin's
+    wheel model (:func:`mecanum_wheels`) does not read: it would be silently ignored."""
+    mecanum = mecanum_wheels(settings)
+    unused = OWN_WHEEL_FIELDS if mecanum else MECANUM_WHEEL_FIELDS
+    used_by = "the robot's own wheels (wheel_model robot)" if mecanum else "the twin's Mecanum wheels (wheel_model " \
+                                                                            "mecanum)"
+    given = "its Mecanum wheels" if mecanum else "its own wheels"
+    defaults = LaunchTwinOptions()
+    for name in unused:
+        value, default = getattr(settings.twin, name), getattr(defaults, name)
+        if value != default:
+            raise ConfigError(f"{TWIN_NAMESPACE}.{name} ({value:g}) acts on {used_by} only, and this twin gives the "
+                              f"robot {given} ({TWIN_NAMESPACE}.wheel_model {settings.twin.wheel_model}); leave it "
+                              f"at {default:g} or set {TWIN_NAMESPACE}.wheel_model")
+
+
+def wheel_rolling_friction_m(settings: LaunchTwinSettings,
+                             radii_m: typing.Sequence[float]) -> typing.Tuple[float, ...]:
+    """Each wheel's own rolling friction (m: Bullet's ``rollingFriction``, a torque per unit normal force), one per
+    wheel of radius ``radii_m`` (the robot model's ``wheel_radii_m()``): the Mecanum wheels'
+    ``wheel_rolling_friction``, or on the robot's own wheels the value that makes the wheel-launcher contact's
+    rolling friction ``wheel_rolling_resistance`` x the wheel's radius under either ``sim.contact_model`` (a rolling
+    wheel then resists with the coefficient x its load)."""
+    options = settings.twin
+    if mecanum_wheels(settings):
+        return tuple(options.wheel_rolling_friction for _ in radii_m)
+    # Bullet's contact: wheel.rolling x ground.friction + ground.rolling x wheel.friction, the launcher's ground
+    # rolling 0 under a robot's own wheels (ledge_contact): the contact's rolling friction is the coefficient x radius
+    ground_lateral = settings.physics.ground_contact()["lateralFriction"]
+    return tuple(options.wheel_rolling_resistance * radius / ground_lateral for radius in radii_m)
 
 
 def mecanum_wheels(settings: LaunchTwinSettings) -> bool:

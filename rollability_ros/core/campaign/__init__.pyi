@@ -13,7 +13,8 @@ from .likelihood import (OUTCOMES, ConditionLevels, LearntLikelihood, Observatio
 from .likelihood_gate import gate_term, shot_observations
 from .likelihood_learning import learn
 from .plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
-from .posterior import Posterior, characterisation_term, credible_set, format_set, sample_posterior
+from .posterior import (Posterior, characterisation_term, credible_set, format_set, sample_posterior,
+                        temperature_statement)
 from .sequential import comparison_stop_rule, paired_order
 from .runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledgements, answer_rig, local_rig_settings,
                      local_rig_settings_from_files, plan_refusal, record_campaign_run, report_exit_code, resume_command,
@@ -33,5 +34,5 @@ __all__ = [
     "proposal_lines", "record_campaign_run", "report_exit_code", "resume_command", "resume_refusal",
     "rig_parameter_document", "run_campaign", "sample_posterior", "shot_observations", "simulate_training_set",
     "store_writer",
-    "trial_id_for", "twin_fingerprint", "twin_settings_with"
+    "temperature_statement", "trial_id_for", "twin_fingerprint", "twin_settings_with"
 ]

@@ -13,7 +13,8 @@ import numpy.typing as npt
 
 from rollability_ros.core.campaign.characterisation import Characterisation
 from rollability_ros.core.campaign.adaptive import Unknowns
-from rollability_ros.core.campaign.likelihood import LearntLikelihood, Observation, normalised_one, values_one
+from rollability_ros.core.campaign.likelihood import (CHOSEN_TEMPERATURE, LearntLikelihood, Observation, normalised_one,
+                                                      values_one)
 from rollability_ros.core.optional import require
 
 if typing.TYPE_CHECKING:
@@ -129,6 +130,30 @@ def credible_set(normalised_samples: npt.ArrayLike, mass: float = 0.95, bins: in
 def format_set(intervals: typing.Sequence[typing.Tuple[float, float]]) -> str:
     """A credible set as text: ``[a, b]``, or ``[a, b] U [c, d]`` when it is split (never the hull)."""
     return " U ".join(f"[{lo:.4g}, {hi:.4g}]" for lo, hi in intervals)
+
+
+#: The temperatures at which the 95% sets' coverage was measured: temperature -> the smallest coverage over the
+#: unknowns on truths 0-49 and on truths 50-99 (:data:`COVERAGE_SETTING`; docs/calibration.md, the tables of "A
+#: temperature chosen on held-out truths" and of the section after it).
+MEASURED_COVERAGE = {1.0: (0.84, 0.80), 0.5: (0.88, 0.90), 0.25: (0.90, 0.94)}
+#: What those coverages were measured with (bench/bench_calibration.py).
+COVERAGE_SETTING = ("measured with five unknowns on the paper's 400 launches of the bare robot and three designs, "
+                    "roll-outs, slide and tip angles, weighings and the gate (--gate), verdicts only: docs/"
+                    "calibration.md, \"A temperature chosen on held-out truths\" and the section after it")
+
+
+def temperature_statement(temperature: float, source: str) -> str:
+    """One line for a calibration's report: the launches' ``temperature``, where it came from (``source``) and the
+    coverage of the 95% sets measured at it (:data:`MEASURED_COVERAGE`), or that none was measured at it."""
+    head = f"launches' temperature {temperature:g} ({source}). "
+    measured = next((v for t, v in MEASURED_COVERAGE.items() if math.isclose(t, temperature)), None)
+    if measured is None:
+        return (f"{head}The coverage of the 95% sets was not measured at this temperature (only at "
+                f"{', '.join(f'{t:g}' for t in MEASURED_COVERAGE)}, {COVERAGE_SETTING}).")
+    return (f"{head}The smallest coverage of an unknown's 95% sets measured at it: {measured[0]:.0%} on truths 0-49, "
+            f"{measured[1]:.0%} on truths 50-99 ({COVERAGE_SETTING})"
+            + ("." if min(measured) >= 0.9 else f"; under the 90% target: these sets may be too narrow for their "
+               f"truths (temperature {CHOSEN_TEMPERATURE:g} was measured to cover)."))
 
 
 def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence[Observation],

@@ -4,7 +4,7 @@ widths of the twin's unknowns, on the same hidden truths. Simulated throughout.
     python bench/bench_adaptive_plan.py [--truths 10] [--unknowns 4] [--samples 20000] [--matrix-launches 400]
     nice python bench/bench_adaptive_plan.py --likelihood twin --unknowns 2 --samples 48 --sim-repetitions 4
     nice python bench/bench_adaptive_plan.py --learnt likelihood.npz [--outcomes all|none|NAME,...] --samples 500
-        [--characterisation DIR] [--gate DIR] [--precise 8000 --budget 250] [--first-truth K]
+        [--characterisation DIR [--gate-shots N]] [--gate DIR] [--precise 8000 --budget 250] [--first-truth K]
 
 For each hidden truth drawn from the prior (uniform on each unknown's search scale, its calibration bounds): the
 paper's matrix launches ``--matrix-launches`` times (the 80 grouped conditions of config/campaign.yaml -- the bare
@@ -29,7 +29,10 @@ launches its whole budget (``--budget``), then both plans' widths are estimated 
 by importance sampling (learnt_plan.importance_widths: DRAWS draws of a kernel proposal, the same draws for both
 plans, ``--precise-sets`` independent times), and the counts to those widths are printed beside the others (the
 renewed samples' widths carry a Monte Carlo error that decides the strict count: docs/calibration.md).
-``--first-truth K``: truths K.. of the same draw (a run split over processes).
+``--first-truth K``: truths K.. of the same draw (a run split over processes). ``--gate-shots N`` (with
+``--characterisation``): the launcher characterised before the first launch, N gate-only shots of the bare robot at
+each set speed among each truth's bench readings (docs/characterisation.md, (c)), so both plans start with the
+speed bias pinned; with ``--gate`` the shots and the campaign's bare-robot readings are weighed in one term.
 
 ``--likelihood toy`` (default without --learnt): an analytic logistic stand-in (LogisticToyPredictor: each condition's own sensitivity
 to each unknown, seeded), cheap; it shows the machinery, not the rig. ``--likelihood twin``: the
@@ -84,15 +87,25 @@ def load() -> str:
     return f"load {os.getloadavg()[0]:.1f}"
 
 
-def characterisation_start(likelihood: typing.Any, folder: str, samples: int) -> plan_comparison.Start:
+def characterisation_start(likelihood: typing.Any, folder: str, samples: int,
+                           shots: typing.Optional[typing.Callable[[int, typing.Any], typing.Any]] = None,
+                           shot_model: typing.Any = None, plans_weigh_shots: bool = False) -> plan_comparison.Start:
     """``--characterisation DIR``: each truth's bench readings as bench_calibration.py simulates them (slide
     angles, roll-outs, tip angles, weighings; the designs' STLs written to ``folder``, as there), and ``samples``
     draws of the posterior from those readings alone (``posterior.sample_posterior`` without launches), where both
     plans start; their term is the density the renewals keep. ``replica`` > 0 (the matrix posterior's replicas):
-    the same readings, another sampler seed and other draws."""
+    the same readings, another sampler seed and other draws. ``shots`` (``--gate-shots``): (truth index, truth) ->
+    the truth's launcher characterisation (characterisation.GateShot), weighed by ``shot_model``'s term (a
+    likelihood_gate.GateModel on the launching twin: the roll-outs' PyBullet twin is not the one that launches);
+    the start is drawn from the bench readings' term times the shots'. ``plans_weigh_shots`` (``--gate``: the
+    plans' gate term holds the shots with the campaign's readings, one term per set speed): the density returned
+    is the bench readings' alone; else it holds the shots' term too."""
+    import dataclasses
+
     import numpy as np
 
     from bench import bench_calibration as bench
+    from rollability_ros.core.campaign import likelihood_gate
     from rollability_ros.core.campaign import posterior as sampling
 
     parameters, unknowns, _ = bench.bench_parameters(folder)
@@ -101,7 +114,8 @@ def characterisation_start(likelihood: typing.Any, folder: str, samples: int) ->
                          f"({', '.join(likelihood.unknowns.names)})")
     twin = launch_twin_settings_from_parameters(bench.rollout_parameters(parameters))
 
-    terms: typing.Dict[int, typing.Callable[[np.ndarray], np.ndarray]] = {}
+    terms: typing.Dict[int, typing.Tuple[typing.Callable[[np.ndarray], np.ndarray],
+                                         typing.Callable[[np.ndarray], np.ndarray]]] = {}
 
     def start(t: int, truth: np.ndarray, replica: int = 0
               ) -> typing.Tuple[np.ndarray, typing.Callable[[np.ndarray], np.ndarray]]:
@@ -109,24 +123,30 @@ def characterisation_start(likelihood: typing.Any, folder: str, samples: int) ->
         if t not in terms:
             readings = bench.bench_readings(parameters, unknowns, truth, number, bench.characterise_truth(
                 parameters, unknowns, truth, np.random.default_rng([bench.TRUTH_SEED, number])))
-            terms[t] = sampling.characterisation_term(readings, twin, unknowns)
-        term = terms[t]
-        drawn = sampling.sample_posterior(likelihood, [], extra=term, seed=t + 1 + 7919 * replica, steps=150,
+            if shots is not None:
+                readings = dataclasses.replace(readings, gate_shots=tuple(shots(t, truth)))
+            kept = sampling.characterisation_term(readings, twin, unknowns, gate_shots=False)
+            if shot_model is not None and readings.gate_shots:
+                shot_term = shot_model.with_shots(likelihood_gate.shot_observations(readings.gate_shots)).term([])
+                both = (lambda u, kept=kept, shot_term=shot_term: kept(u) + shot_term(u))
+                terms[t] = (kept if plans_weigh_shots else both), both
+            else:
+                terms[t] = kept, kept
+        kept, drawn_from = terms[t]
+        drawn = sampling.sample_posterior(likelihood, [], extra=drawn_from, seed=t + 1 + 7919 * replica, steps=150,
                                           walkers=16, start_draws=300)
         picks = np.random.default_rng([bench.TRUTH_SEED, number, 1, *([replica] if replica else [])]).choice(
             len(drawn.samples), samples, replace=False)
-        return drawn.samples[picks], term
+        return drawn.samples[picks], kept
     return start
 
 
-def gate_model(likelihood: typing.Any, candidates: typing.Sequence[adaptive.LaunchCondition],
-               folder: str, every: bool = False) -> typing.Tuple[typing.Any, typing.Any]:
-    """``--gate``: the speed gate's exact term (likelihood_gate.GateModel, the bare robot's readings, on
-    bench_calibration.py's twin: both plans weigh the readings, the adaptive plan scores them) and each truth's readings: the twin's reading without scatter at the truth's
-    unknowns (its bias among them), tabulated over the launch speed's scatter z (the set speed x (1 + sigma z);
-    9 points over +-4 sigma, cubic) per set speed, then read at each launch's z; the designs' readings are not weighed, so not drawn.
-    ``every`` (``--gate-every``): every configuration's readings are drawn and weighed (the term's 7 x 7 x 7 table
-    over the bias, the centre of mass and the profile's mass, likelihood_gate.gate_term with configurations=None)."""
+def truth_gate_reader(likelihood: typing.Any, folder: str, every: bool = False
+                      ) -> typing.Tuple[typing.Any, typing.Any, typing.Callable[..., float]]:
+    """bench_calibration.py's twin, its unknowns, and each truth's gate reading (t, truth, condition, rng) -> m/s:
+    the twin's reading without scatter at the truth's unknowns (its bias among them), tabulated over the launch
+    speed's scatter z (the set speed x (1 + sigma z); 9 points over +-4 sigma, cubic) per set speed, then read at
+    z drawn from ``rng``; NaN for a design's launch unless ``every`` (the designs' readings are not weighed)."""
     import numpy as np
     from scipy.interpolate import CubicSpline
 
@@ -137,14 +157,11 @@ def gate_model(likelihood: typing.Any, candidates: typing.Sequence[adaptive.Laun
     os.makedirs(folder, exist_ok=True)
     parameters, unknowns, _ = bench.bench_parameters(folder)
     if unknowns != likelihood.unknowns:
-        raise SystemExit(f"--gate: the likelihood's unknowns are not bench_calibration.py's "
+        raise SystemExit(f"--gate/--gate-shots: the likelihood's unknowns are not bench_calibration.py's "
                          f"({', '.join(likelihood.unknowns.names)})")
     twin = launch_twin_settings_from_parameters(parameters)
     sigma = twin.twin.speed_sigma_fraction
     splines: typing.Dict[typing.Tuple[int, str, float], typing.Any] = {}
-
-    model = likelihood_gate.GateModel(twin, unknowns, [(c.configuration, c.speed_mps) for c in candidates],
-                                      configurations=None if every else (likelihood_gate.BARE_ROBOT,))
 
     def reading(t: int, truth: np.ndarray, condition: adaptive.LaunchCondition, rng: np.random.Generator) -> float:
         if not every and condition.configuration != likelihood_gate.BARE_ROBOT:
@@ -156,7 +173,46 @@ def gate_model(likelihood: typing.Any, candidates: typing.Sequence[adaptive.Laun
             splines[key] = CubicSpline(z, [likelihood_gate.gate_reading_mps(
                 at_truth, condition.configuration, condition.speed_mps * (1.0 + sigma * float(e))) for e in z])
         return float(splines[key](float(np.clip(rng.standard_normal(), -4.0, 4.0))))
+    return twin, unknowns, reading
+
+
+def gate_model(likelihood: typing.Any, candidates: typing.Sequence[adaptive.LaunchCondition],
+               folder: str, every: bool = False) -> typing.Tuple[typing.Any, typing.Any]:
+    """``--gate``: the speed gate's exact term (likelihood_gate.GateModel, the bare robot's readings, on
+    bench_calibration.py's twin: both plans weigh the readings, the adaptive plan scores them) and each truth's
+    readings (:func:`truth_gate_reader`). ``every`` (``--gate-every``): every configuration's readings are drawn
+    and weighed (the term's 7 x 7 x 7 table over the bias, the centre of mass and the profile's mass,
+    likelihood_gate.gate_term with configurations=None)."""
+    from rollability_ros.core.campaign import likelihood_gate
+
+    twin, unknowns, reading = truth_gate_reader(likelihood, folder, every)
+    model = likelihood_gate.GateModel(twin, unknowns, [(c.configuration, c.speed_mps) for c in candidates],
+                                      configurations=None if every else (likelihood_gate.BARE_ROBOT,))
     return model, reading
+
+
+def gate_shots(likelihood: typing.Any, per_speed: int, reading: typing.Callable[..., float]
+               ) -> typing.Callable[[int, typing.Any], typing.Tuple[typing.Any, ...]]:
+    """``--gate-shots N``: each truth's launcher characterisation, N shots of the bare robot at each set speed of
+    the likelihood's levels (characterisation.GateShot), read as the campaign's launches are (``reading``:
+    :func:`truth_gate_reader`'s) from a generator of their own per truth, the same for both plans and every
+    replica."""
+    import numpy as np
+
+    from bench import bench_calibration as bench
+    from rollability_ros.core.campaign.characterisation import GateShot
+    from rollability_ros.core.campaign.likelihood_gate import BARE_ROBOT, GATE_HEIGHT_M
+
+    made: typing.Dict[int, typing.Tuple[GateShot, ...]] = {}
+
+    def shots(t: int, truth: np.ndarray) -> typing.Tuple[GateShot, ...]:
+        if t not in made:
+            rng = np.random.default_rng([bench.TRUTH_SEED, 100_000 + t, 3])
+            made[t] = tuple(GateShot(float(v), reading(t, truth, adaptive.LaunchCondition(BARE_ROBOT, GATE_HEIGHT_M,
+                                                                                        float(v), 0.0), rng))
+                            for v in likelihood.levels.speeds_mps for _ in range(per_speed))
+        return made[t]
+    return shots
 
 
 def launched_where(candidates: typing.Sequence[adaptive.LaunchCondition], launched: typing.Sequence[int]) -> str:
@@ -176,7 +232,7 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
                draws: int, acquisition: str = "joint", characterisation: typing.Optional[str] = None,
                gate: typing.Optional[str] = None, replicas: int = 0, gate_every: bool = False,
                precise: int = 0, precise_sets: int = 3, first_truth: int = 0,
-               budget: typing.Optional[int] = None) -> typing.List[plan_comparison.MatchedWidths]:
+               budget: typing.Optional[int] = None, shots: int = 0) -> typing.List[plan_comparison.MatchedWidths]:
     """``--learnt FILE`` (module docstring): print each truth as it finishes, then the median."""
     import numpy as np
 
@@ -195,9 +251,28 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
           f"{'samples of the characterisation posterior' if characterisation else 'prior samples'} (renewed); "
           f"{acquisition} acquisition; outcomes drawn from the learnt model at each truth"
           + (f"; {'every configuration' if gate_every else 'the bare robot'}'s gate readings weighed by the exact term"
-             if gate else "") + "; simulated", flush=True)
-    start = characterisation_start(likelihood, characterisation, samples) if characterisation else None
+             if gate else "")
+          + (f"; the launcher characterised by {shots} gate shots of the bare robot per set speed in both plans' start"
+             if shots else "") + "; simulated", flush=True)
+    if shots and not characterisation:
+        raise SystemExit("--gate-shots: needs --characterisation (the shots are among the bench readings both plans "
+                         "start from)")
     model, reading = gate_model(likelihood, candidates, gate, gate_every) if gate else (None, None)
+    truth_shots = shot_model = None
+    if shots and characterisation:
+        from rollability_ros.core.campaign import likelihood_gate
+
+        twin, unknowns, read = truth_gate_reader(likelihood, characterisation)
+        truth_shots = gate_shots(likelihood, shots, reading or read)
+        shot_model = model or likelihood_gate.GateModel(twin, unknowns, ())   # the bare robot's term, the shots only
+    start = (characterisation_start(likelihood, characterisation, samples, truth_shots, shot_model, model is not None)
+             if characterisation else None)
+    shot_readings = None
+    if truth_shots is not None and model is not None:
+        from rollability_ros.core.campaign.likelihood_gate import shot_observations
+
+        def shot_readings(t: int, truth: np.ndarray) -> typing.List[typing.Any]:
+            return shot_observations(truth_shots(t, truth))
     started = time.perf_counter()
 
     def say(t: int, r: plan_comparison.MatchedWidths) -> None:
@@ -231,6 +306,9 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
                   + ", + ".join(f"{tolerance:.2%}: " + "/".join(shown(c) for c in per_set)
                                 for tolerance, per_set in e.within),
                   flush=True)
+            print("  set 0, the first launch at or under the matrix's width, per unknown: "
+                  + ", ".join(f"{name.rsplit('.', 1)[-1]} {shown(c)}"
+                              for name, c in zip(table.unknowns.names, e.per_unknown)), flush=True)
         stop = (r.precise.launches[0] if r.precise is not None else r.adaptive_launches) or len(r.adaptive_launched)
         print(f"  the adaptive plan's first {stop} launches: "
               + launched_where(table.candidates, r.adaptive_launched[:stop]), flush=True)
@@ -238,7 +316,7 @@ def run_learnt(path: str, truths: int, matrix_launches: int, samples: int, seed:
                                                         acquisition=acquisition, on_truth=say, start=start,
                                                         gate=model, gate_reading=reading, replicas=replicas,
                                                         precise=precise, precise_sets=precise_sets,
-                                                        first_truth=first_truth, budget=budget)
+                                                        first_truth=first_truth, budget=budget, shots=shot_readings)
     limit = budget or matrix_launches
     for label, counts in (("", [r.adaptive_launches for r in results]),
                           (" + the Monte Carlo sd (tolerance-aware)", [r.tolerant_launches for r in results]),
@@ -282,6 +360,11 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
                         help="with --learnt (bench_calibration.py's unknowns): every launch of both plans also gives "
                              "its speed gate reading, the bare robot's weighed by the exact term "
                              "(core/campaign/likelihood_gate.py); the designs' STLs are written to DIR")
+    parser.add_argument("--gate-shots", type=int, default=0, metavar="N",
+                        help="with --characterisation: the launcher characterised on the bench before the first "
+                             "launch, N gate-only shots of the bare robot at each set speed (the truth's readings), "
+                             "among the bench readings both plans start from (docs/characterisation.md, (c)); with "
+                             "--gate weighed in one term with the campaign's readings")
     parser.add_argument("--gate-every", action="store_true",
                         help="with --gate: every configuration's readings drawn and weighed, not the bare robot's only")
     parser.add_argument("--replicas", type=int, default=0,
@@ -326,7 +409,7 @@ def main(argv: typing.Optional[typing.Sequence[str]] = None) -> int:
     if args.learnt:
         run_learnt(args.learnt, args.truths, args.matrix_launches, args.samples, args.seed, args.outcomes, args.draws,
                    args.acquisition, args.characterisation, args.gate, args.replicas, args.gate_every,
-                   args.precise, args.precise_sets, args.first_truth, args.budget)
+                   args.precise, args.precise_sets, args.first_truth, args.budget, args.gate_shots)
         return 0
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", *args.twin_config])
     settings = calibration.calibration_settings(parameters)

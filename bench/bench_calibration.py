@@ -488,7 +488,9 @@ def main(argv=None):
                         help="weigh the speed gate's readings through the twin's tabulated launcher model (exact, "
                         "never tempered; core/campaign/likelihood_gate.py) instead of the learnt gate outcome")
     parser.add_argument("--temperature", type=float, help="the launches' log-likelihood exponent (default: the "
-                        "prepared file's)")
+                        "prepared file's: 0.25, the one chosen on held-out truths, for a file prepared now or "
+                        "before files recorded theirs; docs/calibration.md's runs at 1 passed none, before this default: pass "
+                        "--temperature 1 to repeat them)")
     parser.add_argument("--engine", default="mujoco", choices=("mujoco", "pybullet"),
                         help="the twin's engine (sim.engine) for the preparation and the truths")
     parser.add_argument("--workers", type=int, default=2)

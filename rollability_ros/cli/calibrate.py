@@ -7,7 +7,7 @@ import typing
 from rollability_ros.cli import Subparsers
 
 if typing.TYPE_CHECKING:  # annotations only: the command imports its core modules when it runs
-    from rollability_ros.core.campaign import CalibrationResult, CalibrationSettings
+    from rollability_ros.core.campaign import CalibrationResult, CalibrationSettings, LearntLikelihood
     from rollability_ros.core.sim import LaunchTwinSettings
 
 
@@ -58,15 +58,16 @@ def summary_lines(result: "CalibrationResult",
 RIG_FILE = "calibrated_rig.yaml"
 
 
-def _header(sources: typing.Sequence[str], method: str) -> str:
-    """The comment at the top of calibrated.yaml: where the values come from and where their uncertainty is."""
+def _header(sources: typing.Sequence[str], method: str, note: str = "") -> str:
+    """The comment at the top of calibrated.yaml: where the values come from and where their uncertainty is
+    (``note``: a further line, e.g. the learnt likelihood's temperature and the coverage measured at it)."""
     return (f"# Calibrated launch-twin parameters from {' and '.join(sources)} (rollability calibrate); load on top "
             f"of the\n# defaults: --config / --rig-config. Each value's 95% {method} is in parameters.csv beside "
-            f"this file.\n")
+            f"this file.\n" + (f"# {note}\n" if note else ""))
 
 
 def _write_outputs(args: argparse.Namespace, sources: typing.Sequence[str], method: str,
-                   fitted: typing.Mapping[str, float]) -> str:
+                   fitted: typing.Mapping[str, float], note: str = "") -> str:
     """Write calibrated.yaml and calibrated_rig.yaml into ``args.out``; return calibrated.yaml's path."""
     import yaml
 
@@ -76,7 +77,7 @@ def _write_outputs(args: argparse.Namespace, sources: typing.Sequence[str], meth
     os.makedirs(args.out, exist_ok=True)
     params_path = os.path.join(args.out, "calibrated.yaml")
     document = calibrated_parameter_document(fitted)
-    atomic_write_bytes(params_path, (_header(sources, method) + yaml.safe_dump(document, sort_keys=True)).encode())
+    atomic_write_bytes(params_path, (_header(sources, method, note) + yaml.safe_dump(document, sort_keys=True)).encode())
     rig_document = rig_parameter_document(os.path.abspath(params_path))
     atomic_write_bytes(os.path.join(args.out, RIG_FILE),
                        (f"# A rig node's twin on {params_path}: --params-file after config/rig.yaml\n"
@@ -122,7 +123,8 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
         pool.shutdown(wait=True, cancel_futures=True)
     likelihood.info["prepare_s"] = time.perf_counter() - started
     likelihood.save(args.prepare)
-    print(f"prepared likelihood: {args.prepare} ({likelihood.info['prepare_s']:.0f} s on {workers} workers)")
+    print(f"prepared likelihood: {args.prepare} ({likelihood.info['prepare_s']:.0f} s on {workers} workers); "
+          f"its calibrations' temperature {likelihood.temperature:g} ({likelihood.temperature_source})")
     return 0
 
 
@@ -142,6 +144,17 @@ def outcome_names(which: str) -> typing.Optional[typing.Tuple[str, ...]]:
     return names
 
 
+def _temperature(args: argparse.Namespace, likelihood: "LearntLikelihood") -> typing.Tuple[float, str]:
+    """The launches' temperature (``--temperature``, else the prepared file's) and the report's line on it: where
+    it came from and the coverage measured at it, or that none was."""
+    from rollability_ros.core.campaign import temperature_statement
+
+    if args.temperature is None:
+        return likelihood.temperature, temperature_statement(
+            likelihood.temperature, f"the file's; {likelihood.temperature_source}")
+    return args.temperature, temperature_statement(args.temperature, "given by --temperature")
+
+
 def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any], twin: "LaunchTwinSettings",
                outcomes: typing.Sequence[typing.Any], characterisation: typing.Any,
                sources: typing.Sequence[str]) -> int:
@@ -151,7 +164,7 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
 
     from rollability_ros.core.campaign import (OUTCOMES, characterisation_term, format_set, gate_term,
                                                load_likelihood, observations_from_outcomes, sample_posterior,
-                                               twin_fingerprint)
+                                               shot_observations, twin_fingerprint)
     from rollability_ros.core.results import group_conditions
 
     if args.sampler_steps < 20:
@@ -165,19 +178,22 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
     fixed = {name: float(parameters[name]) for name in unknowns.names if name not in sampled}
     observations = observations_from_outcomes(outcomes)
     chosen = outcome_names(args.outcomes)
-    terms = [characterisation_term(characterisation, twin, unknowns)] if characterisation is not None else []
-    if args.gate:   # the gate's reading weighed once, by its exact term
-        terms.append(gate_term(observations, twin, unknowns, sampled=sampled))
+    terms = ([characterisation_term(characterisation, twin, unknowns, gate_shots=not args.gate, sampled=sampled)]
+             if characterisation is not None else [])
+    if args.gate:   # the gate's reading weighed once, by its exact term; the launcher's shots in the same groups
+        shots = shot_observations(characterisation.gate_shots) if characterisation is not None else []
+        terms.append(gate_term([*shots, *observations], twin, unknowns, sampled=sampled))
         chosen = tuple(n for n in (OUTCOMES if chosen is None else chosen) if n != "measured_speed_mps")
 
     def extra(u: np.ndarray) -> np.ndarray:
         """The exact terms' log-likelihood (s,): characterisation, gate."""
         return np.sum([term(u) for term in terms], axis=0)
+    temperature, tempered = _temperature(args, likelihood)
     posterior = sample_posterior(likelihood, observations, sampled, fixed, extra if terms else None, seed=args.seed,
-                                 steps=args.sampler_steps, temperature=args.temperature, outcomes=chosen)
+                                 steps=args.sampler_steps, temperature=temperature, outcomes=chosen)
     fitted = posterior.best()
     method = "highest-density set of the learnt likelihood's posterior"
-    params_path = _write_outputs(args, sources, f"credible set ({method})", fitted)
+    params_path = _write_outputs(args, sources, f"credible set ({method})", fitted, tempered)
     rows = []
     for i, name in enumerate(posterior.names):
         j = unknowns.names.index(name)
@@ -186,7 +202,8 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
                      "median": posterior.median(name), "set": format_set(sets),
                      "set_low": sets[0][0], "set_high": sets[-1][1],
                      "set_width_fraction": posterior.set_width_fraction(name), "split": len(sets) > 1,
-                     "lower": unknowns.lower[j], "upper": unknowns.upper[j], "method": method})
+                     "lower": unknowns.lower[j], "upper": unknowns.upper[j], "method": method,
+                     "temperature": temperature})
     _write_csv(os.path.join(args.out, "parameters.csv"), rows)
     full = {**fixed, **fitted}
     before = {**fixed, **{n: float(parameters[n]) for n in sampled}}
@@ -207,6 +224,7 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
              f"{likelihood.ensemble_size} ensemble members, {posterior.wall_s:.1f} s)"
              + (f"; held at their loaded values: {', '.join(f'{n} = {v:.4g}' for n, v in fixed.items())}"
                 if fixed else ""),
+             tempered,
              f"{'parameter':<42} {'start':>10} {'fitted':>10}   95% set (a split set is a union of intervals)"]
     lines += [f"{r['parameter']:<42} {r['initial']:>10.4g} {r['fitted']:>10.4g}   {r['set']} "
               f"({r['set_width_fraction']:.0%} of the range{', split' if r['split'] else ''})" for r in rows]
@@ -323,7 +341,8 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--prepare", metavar="FILE",
                         help="learn the likelihood of the --fit unknowns (default: all declared) over the loaded "
                              "twin's configurations and the campaign's levels from simulated launches, and write it "
-                             "to FILE (.npz; never overwritten); once per robot and design set")
+                             "to FILE (.npz; never overwritten), with the temperature a calibration with it uses "
+                             "(0.25, chosen on held-out truths: --temperature); once per robot and design set")
     parser.add_argument("--prepare-launches", type=int, default=8000, metavar="N",
                         help="simulated launches of --prepare (default 8000: sized for 15 minutes on 2 quiet cores)")
     parser.add_argument("--likelihood", metavar="FILE",
@@ -341,8 +360,11 @@ def register(subparsers: Subparsers) -> None:
                              "biased, sets from them missed their truths; docs/calibration.md)")
     parser.add_argument("--temperature", type=float, metavar="T",
                         help="raise the launches' learnt log-likelihood to T in (0, 1] (--likelihood; default: the "
-                             "file's, 1 unless set): below 1 widens the sets for an emulator less accurate than "
-                             "its ensemble says (docs/calibration.md)")
+                             "file's, which --prepare records as 0.25, the temperature chosen on held-out truths; a "
+                             "file prepared earlier gets 0.25 too): below 1 widens the sets for an emulator less "
+                             "accurate than its ensemble says. The report states the temperature used and the "
+                             "coverage measured at it (at 1: 80%%, under the 90%% target), or that none was measured "
+                             "(docs/calibration.md)")
     parser.add_argument("--gate", action="store_true",
                         help="weigh each launch's speed-gate reading through the twin's launcher model, tabulated "
                              "(exact, never tempered) (--likelihood, with the speed bias among the fitted unknowns): "

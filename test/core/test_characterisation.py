@@ -51,6 +51,15 @@ def one_unknown(name, lower, upper, **changes):
      r"tip_angle.readings\[0\].side must be one of front, back, left, right"),
     (f"format: {FORMAT}\ntip_angle: {{sigma_deg: 1, readings: [{{side: left, angle_deg: 95}}]}}\n",
      r"tip_angle.readings\[0\].angle_deg must be in"),
+    (f"format: {FORMAT}\ngate_shots: {{readings: [{{speed_mps: 0.8, measured_speed_mps: 0.79}}, "
+     "{speed_mps: 0.8, measured_speed_mps: .nan}]}\n",
+     r"gate_shots.readings\[1\].measured_speed_mps must be a finite"),
+    (f"format: {FORMAT}\ngate_shots: {{readings: [{{speed_mps: 0, measured_speed_mps: 0.79}}]}}\n",
+     r"gate_shots.readings\[0\].speed_mps must be in \(0, 5\]"),
+    (f"format: {FORMAT}\ngate_shots: {{sigma: 0.1, readings: [{{speed_mps: 0.8, measured_speed_mps: 0.79}}]}}\n",
+     "gate_shots: unknown key 'sigma'"),
+    (f"format: {FORMAT}\ngate_shots: {{readings: [{{speed_mps: 0.8}}]}}\n",
+     r"gate_shots.readings\[0\]: missing key 'measured_speed_mps'"),
 ])
 def test_malformed_characterisation_files_are_refused_in_one_line_naming_the_problem(tmp_path, document, problem):
     path = tmp_path / "bench.yaml"
@@ -218,3 +227,48 @@ def test_a_weighed_profile_pins_its_mass_multiplier(tmp_path):
     document["profile_mass"]["readings"][0]["mass_kg"] = -1
     with pytest.raises(ValueError, match=r"profile_mass.readings\[0\].mass_kg must be in"):
         parse_characterisation(document, "x")
+
+
+def test_gate_shots_are_read_and_summarised(tmp_path):
+    """The launcher's characterisation (gate shots of the bare robot): each a set speed and the gate's reading."""
+    from rollability_ros.core.campaign.characterisation import GateShot
+
+    path = tmp_path / "bench.yaml"
+    path.write_text(f"format: {FORMAT}\ngate_shots:\n  readings:\n"
+                    "    - {speed_mps: 0.8, measured_speed_mps: 0.79}\n"
+                    "    - {speed_mps: 1.5, measured_speed_mps: 1.52}\n", encoding="utf-8")
+    loaded = load_characterisation(path)
+    assert loaded.gate_shots == (GateShot(0.8, 0.79), GateShot(1.5, 1.52))
+    assert "2 gate shot(s) at 0.8, 1.5 m/s" in loaded.summary()
+
+
+def test_gate_shots_enter_the_direct_fit_and_the_learnt_likelihoods_term_alike():
+    """The launcher's characterisation has one model on both calibration paths: the direct fit's
+    characterisation_log_likelihood simulates the gate's reading at each parameter set, the learnt likelihood's
+    characterisation_term tabulates it over the bias (likelihood_gate); on six simulated shots of a truth (bias
+    0.05) both peak at the truth's grid point and agree near the peak to the table's interpolation."""
+    import numpy as np
+
+    from rollability_ros.core.campaign import likelihood_gate as gate
+    from rollability_ros.core.campaign.adaptive import Unknowns
+    from rollability_ros.core.campaign.characterisation import Characterisation, GateShot
+    from rollability_ros.core.campaign.posterior import characterisation_term
+    from rollability_ros.core.sim import twin_with_values
+
+    pytest.importorskip("pybullet")
+    settings = twin()
+    truth = twin_with_values(settings, {gate.BIAS_KEY: 0.05})
+    rng = np.random.default_rng(1)
+    sigma = settings.twin.speed_sigma_fraction
+    shots = tuple(GateShot(v, gate.gate_reading_mps(truth, "baseline", v * (1 + sigma * rng.standard_normal())))
+                  for v in (0.8, 1.5) for _ in range(3))
+    readings = Characterisation("bench.yaml", gate_shots=shots)
+    biases = np.array([-0.15, 0.0, 0.025, 0.05, 0.075, 0.15])
+    tabulated = characterisation_term(readings, settings, Unknowns((gate.BIAS_KEY,), (-0.15,), (0.15,), (False,)))(
+        ((biases + 0.15) / 0.3)[:, None])
+    direct = np.array([characterisation_log_likelihood(readings, twin_with_values(settings, {gate.BIAS_KEY: b}))
+                       for b in biases])
+    assert biases[np.argmax(direct)] == pytest.approx(0.05) and np.argmax(tabulated) == np.argmax(direct)
+    near = direct > direct.max() - 5.0
+    assert near.sum() >= 3 and np.max(np.abs(direct - tabulated)[near]) < 1.0
+    assert direct.max() - direct.min() > 100   # the shots pin the bias: far from it they are implausible

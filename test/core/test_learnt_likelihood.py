@@ -46,7 +46,8 @@ def model(unknowns=UNKNOWNS, configurations=CONFIGURATIONS, levels=LEVELS, finge
                                          + learnt.LOG_CHI2_MEAN]))
     return learnt.LearntLikelihood(unknowns, configurations, levels, fingerprint, np.zeros(f), np.ones(f),
                                    linear_net(f, logit, -4.0), {"measured_speed_mps": linear_net(f + 1, location, 0.9)},
-                                   {"measured_speed_mps": scale}, {"training_launches": 0})
+                                   {"measured_speed_mps": scale}, {"training_launches": 0},
+                                   temperature=1.0, temperature_source="this test's model, as learnt")
 
 
 def simulate(truth_u, cells, rng):
@@ -222,6 +223,20 @@ def test_a_split_credible_set_stays_split():
     assert len(one) == 1 and one[0][0] < 0.42 and one[0][1] > 0.58
 
 
+def prepared_earlier(path, likelihood):
+    """``likelihood`` saved to ``path`` as a file prepared before files recorded where their temperature came from
+    (no ``temperature_source`` in the header), loaded again."""
+    import json
+
+    likelihood.save(path)
+    with np.load(path) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+    header = json.loads(str(arrays["header"]))
+    del header["temperature_source"]
+    np.savez(path, **{**arrays, "header": np.array(json.dumps(header))})
+    return learnt.load_likelihood(path)
+
+
 def test_the_file_round_trips_and_anything_else_is_refused_in_one_line(tmp_path):
     likelihood = model()
     path = tmp_path / "likelihood.npz"
@@ -250,6 +265,15 @@ def test_the_file_round_trips_and_anything_else_is_refused_in_one_line(tmp_path)
     missing = dict(arrays)
     del missing["scale.measured_speed_mps.2.w"]
     refused("missing.npz", missing, "missing the weights of scale.measured_speed_mps layer 2")
+    refused("source.npz", {**arrays, "header": np.array(str(arrays["header"]).replace(
+        '"this test\'s model, as learnt"', "3"))}, "temperature_source must be a text")
+    assert loaded.temperature == 1.0 and loaded.temperature_source == "this test's model, as learnt"
+    # a file prepared before files said where their temperature came from: its 1 was the default, never a choice,
+    # so it gets the chosen temperature, said so; another value (set in code) is kept
+    for written, expected, source in ((1.0, learnt.CHOSEN_TEMPERATURE, learnt.EARLIER_SOURCE),
+                                      (0.5, 0.5, "recorded without its source")):
+        earlier = prepared_earlier(tmp_path / f"earlier{written}.npz", dataclasses.replace(likelihood, temperature=written))
+        assert (earlier.temperature, earlier.temperature_source) == (expected, source)
     damaged = tmp_path / "damaged.npz"
     damaged.write_bytes(path.read_bytes()[: len(path.read_bytes()) // 2])
     with pytest.raises(ValueError, match="not a prepared likelihood file") as caught:
@@ -259,10 +283,9 @@ def test_the_file_round_trips_and_anything_else_is_refused_in_one_line(tmp_path)
         learnt.load_likelihood(tmp_path / "absent.npz")
 
 
-def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_twin(tmp_path, capsys):
-    import csv
-
-    from rollability_ros.cli import main
+def twin_model_and_launches(tmp_path):
+    """:func:`model` over two of the shipped twin's unknowns (the bare robot, fingerprinted for the shipped
+    parameter files) and an outcome CSV of 100 launches drawn from it at normalised (0.6, 0.4)."""
     from rollability_ros.core.campaign import calibration
     from rollability_ros.core.config import load_parameters
     from rollability_ros.core.records import LaunchCondition, LaunchOutcome
@@ -272,8 +295,6 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
     unknowns = Unknowns(names, (-0.019, 0.3), (0.015, 3.0), (False, True))
     levels = learnt.ConditionLevels((0.75, 1.3), (0.8, 1.5), (-60.0, -30.0, 0.0, 30.0, 60.0))
     parameters = load_parameters([*calibration.TWIN_CONFIGS, "calibration", "campaign"])
-    path = tmp_path / "likelihood.npz"
-    model(unknowns, ("baseline",), levels, learnt.twin_fingerprint(parameters, names)).save(path)
     rng = np.random.default_rng(5)
     cells = [("baseline", h, v, a) for h in levels.heights_m for v in levels.speeds_mps for a in levels.angles_deg]
     observations = [o for _ in range(5) for o in simulate((0.6, 0.4), cells, rng)]
@@ -282,6 +303,17 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
         LaunchOutcome("rig", f"t{i}", LaunchCondition(o.configuration, o.height_m, o.speed_mps, o.angle_deg, i),
                       "physical", o.upright, measured_speed_mps=o.outcomes["measured_speed_mps"],
                       classified_by="imu") for i, o in enumerate(observations)])
+    return model(unknowns, ("baseline",), levels, learnt.twin_fingerprint(parameters, names)), source
+
+
+def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_twin(tmp_path, capsys):
+    import csv
+
+    from rollability_ros.cli import main
+
+    likelihood, source = twin_model_and_launches(tmp_path)
+    path = tmp_path / "likelihood.npz"
+    likelihood.save(path)
     out = tmp_path / "out"
     assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--out", str(out),
                  "--fit", "robot.com_offset_z_m", "--sampler-steps", "60"]) == 0
@@ -318,9 +350,55 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
     assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--gate",
                  "--out", str(tmp_path / "out7")]) == 2   # the gate's term is for the speed bias: not an unknown here
     assert "must be a fitted unknown" in capsys.readouterr().err
+    shots = tmp_path / "shots.yaml"   # the launcher's gate shots are the gate's model: the same refusal, with or without
+    shots.write_text("format: rollability-characterisation-1\ngate_shots:\n  readings:\n"
+                     "    - {speed_mps: 0.8, measured_speed_mps: 0.79}\n", encoding="utf-8")
+    for gate in ([], ["--gate"]):
+        assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--characterisation",
+                     str(shots), *gate, "--out", str(tmp_path / "out8")]) == 2
+        error = capsys.readouterr().err.strip()
+        assert "must be a fitted unknown" in error and len(error.splitlines()) == 1
+    assert not (tmp_path / "out8").exists()
 
 
 @pytest.mark.slow
+def test_calibrate_states_its_temperature_and_the_coverage_measured_at_it(tmp_path, capsys):
+    """A file prepared before files recorded their temperature calibrates at the chosen one (0.25, measured to
+    cover), not at the 1 it holds, and the report (printed, summary.txt, calibrated.yaml, parameters.csv) says so
+    with the coverage measured at it; --temperature 1 still runs and is said to have covered under 90%; a
+    temperature never measured runs and is said to be unmeasured."""
+    import csv
+
+    from rollability_ros.cli import main
+
+    likelihood, source = twin_model_and_launches(tmp_path)
+    path = tmp_path / "earlier.npz"
+    prepared_earlier(path, likelihood)
+
+    def calibrate(name, *given):
+        out = tmp_path / name
+        assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--out", str(out),
+                     "--fit", "robot.com_offset_z_m", "--sampler-steps", "20", *given]) == 0
+        with open(out / "parameters.csv", encoding="utf-8") as stream:
+            return capsys.readouterr().out, out, list(csv.DictReader(stream))
+    printed, out, rows = calibrate("default")
+    line = next(text for text in printed.splitlines() if "temperature" in text)
+    assert "launches' temperature 0.25 (the file's; none recorded, the file being prepared earlier" in line
+    assert "90% on truths 0-49, 94% on truths 50-99" in line and "under the 90% target" not in line
+    assert line in (out / "summary.txt").read_text(encoding="utf-8")
+    assert f"# {line}\n" in (out / "calibrated.yaml").read_text(encoding="utf-8")
+    assert float(rows[0]["temperature"]) == 0.25
+    # the sampler ran at 0.25, not at the file's 1: the same seed with --temperature 0.25 gives the same sets
+    assert calibrate("given", "--temperature", "0.25")[2] == rows
+    printed, _, as_learnt = calibrate("one", "--temperature", "1")
+    assert as_learnt[0]["set"] != rows[0]["set"] and float(as_learnt[0]["temperature"]) == 1.0
+    assert "launches' temperature 1 (given by --temperature)" in printed
+    assert "84% on truths 0-49, 80% on truths 50-99" in printed and "under the 90% target" in printed
+    printed, *_ = calibrate("unmeasured", "--temperature", "0.3")
+    assert "launches' temperature 0.3 (given by --temperature). The coverage of the 95% sets was not measured" \
+        in printed
+
+
 def test_learning_recovers_the_model_from_simulated_launches(tmp_path):
     """scikit-learn learns the hand-built model from 3,000 launches drawn from it: the verdict beats a constant
     on held-out launches, the learnt P(upright) stays within 0.2 of the model's over the unknowns, configurations

@@ -222,10 +222,11 @@ class FakeGate:
 
     model_error = 0.004
 
-    def __init__(self, candidates):
+    def __init__(self, candidates, shots=()):
         self.groups = sorted({(c.configuration, float(c.speed_mps)) for c in candidates
                               if c.configuration == "baseline"})
         self.speeds = np.array([v for _, v in self.groups])
+        self.shots = tuple(shots)   # the launcher characterisation's readings, in their groups (GateModel's)
 
     def predict(self, u):
         mean = (0.9 + 0.2 * u[:, 1])[:, None] * self.speeds[None, :]
@@ -233,6 +234,8 @@ class FakeGate:
 
     def term(self, observations):
         from rollability_ros.core.campaign import likelihood_gate
+
+        observations = [*self.shots, *observations]
 
         def log_density(u):   # the exact term's Gaussian (shared error per group), through its own code path
             mean, sd = self.predict(u)
@@ -386,6 +389,8 @@ def test_the_precise_comparison_runs_the_adaptive_plan_to_its_budget_and_counts_
     assert e.tolerant_launches is None or 1 <= e.tolerant_launches <= 12
     for tolerance, per_set in e.within:   # a tolerance can only bring the count forward
         assert all(n is None or c is None or n <= c for n, c in zip(per_set, e.launches)) and len(per_set) == 2
+    assert len(e.per_unknown) == 2   # each unknown's own first crossing: none after the strict count (set 0)
+    assert e.launches[0] is None or all(n is not None and n <= e.launches[0] for n in e.per_unknown)
     whole, _ = learnt_to_match_matrix(table, truths=2, matrix_launches=1, samples=60, seed=3, budget=1)
     assert np.allclose(hidden, whole)
 
@@ -396,3 +401,45 @@ def test_the_first_launch_under_the_allowed_widths():
     widths = np.array([[0.3, 0.2], [0.2, 0.25], [0.1, 0.1]])
     assert first_launch(widths, np.array([0.25, 0.25])) == 2
     assert first_launch(widths, np.array([0.05, 0.5])) is None
+
+
+def test_gate_shots_are_in_the_start_and_share_their_groups_with_the_plans_readings():
+    """The launcher's characterisation (gate shots of the bare robot, in the gate model's ``shots``): a plan's
+    samples are drawn from a density that holds their term, so it starts with equal weights and every reading then
+    moves the weights by the term of shots and readings together less the shots' alone (never the shots twice);
+    the next reading's predictive and the importance-sampled widths hold them before any launch."""
+    from rollability_ros.core.campaign import likelihood_gate
+    from rollability_ros.core.campaign.characterisation import GateShot
+    from rollability_ros.core.campaign.learnt_plan import KernelProposal, importance_widths
+
+    table = LearntTable(model(), CANDIDATES, ())
+    rng = np.random.default_rng(21)
+    truth_b = 0.3
+    shots = likelihood_gate.shot_observations(
+        [GateShot(v, v * (0.9 + 0.2 * truth_b) * (1 + 0.02 * rng.standard_normal())) for v in LEVELS.speeds_mps
+         for _ in range(20)])
+    gate, bare = FakeGate(CANDIDATES, shots), FakeGate(CANDIDATES)
+    samples = UNKNOWNS.draw(2000, np.random.default_rng(2))
+    with_shots = OutcomePosterior(table, samples, np.random.default_rng(0), renew=False, gate=gate)
+    without = OutcomePosterior(table, samples, np.random.default_rng(0), renew=False, gate=bare)
+    assert np.all(with_shots.log_weights == 0.0)
+    assert np.all(with_shots._gate_predictive()[1] < without._gate_predictive()[1])   # the shared error learnt
+    cells = [(c.configuration, c.height_m, c.speed_mps, c.angle_deg) for c in CANDIDATES[::4]]
+    observations = simulate((0.7, truth_b), cells, rng)
+    readings = []
+    for o in observations:
+        index = with_shots.candidate_index(LaunchCondition(o.configuration, o.height_m, o.speed_mps, o.angle_deg))
+        reading = o.outcomes["measured_speed_mps"] if o.configuration == "baseline" else None
+        with_shots.observe_launch(index, o.upright, None, reading)
+        readings += [o] if reading is not None else []
+    assert readings
+    u = UNKNOWNS.to_normalised(samples)
+    expected = (model().log_likelihood(u, [dataclasses.replace(o, outcomes={}) for o in observations])
+                + gate.term(readings)(u) - gate.term([])(u))
+    assert np.allclose(with_shots.log_weights - with_shots.log_weights.max(), expected - expected.max(), atol=1e-6)
+    sources = [(samples, np.ones(len(samples)))]
+    (shot_widths, _), = importance_widths(table, [[]], [[0]], KernelProposal(UNKNOWNS, sources, rng), rng, 2000,
+                                          gate=gate)
+    (prior_widths, _), = importance_widths(table, [[]], [[0]], KernelProposal(UNKNOWNS, sources, rng), rng, 2000,
+                                           gate=bare)
+    assert shot_widths[0, 1] < 0.3 * prior_widths[0, 1] and prior_widths[0, 1] > 0.8

@@ -1,6 +1,7 @@
 """The speed gate's exact term (core/campaign/likelihood_gate.py): the readings' Gaussian around the tabulated
 reading without scatter, its spread from the twin's launch scatter, what it refuses, and the twin's stroke
 launcher reading the set speed without bias on the bare robot."""
+import dataclasses
 import math
 
 import numpy as np
@@ -132,3 +133,48 @@ def test_the_stroke_launcher_reads_the_set_speed_without_bias_and_more_with_it()
     faster = gate.gate_reading_mps(twin_with_values(settings, {BIAS: 0.1}), "baseline", 0.8)
     assert plain == pytest.approx(0.8, rel=0.005)
     assert 1.05 < faster / plain < 1.15
+
+
+def bare_table(twin, unknowns, groups, bias_points, other_points, sampled=None, bare_only=False):
+    """A gate_table stand-in for the bare robot's readings alone: G = set speed x (1 + bias), the bias only."""
+    assert bare_only
+    b = np.linspace(-0.15, 0.15, bias_points)[:, None]
+    return np.concatenate([speed * (1 + b) for _, speed in groups], axis=1)
+
+
+def test_gate_shots_pin_the_bias_and_share_their_groups_error_with_the_campaigns_readings(monkeypatch):
+    """The launcher's characterisation (characterisation.GateShot, bare robot on the bench) is the gate's model:
+    on synthetic shots its term peaks at the true bias with the launch scatter's width; in a GateModel the shots
+    join the campaign's bare-robot readings of their set speed in one group (one shared table error), which two
+    separate terms would count twice."""
+    from rollability_ros.core.campaign.characterisation import GateShot
+
+    monkeypatch.setattr(gate, "gate_table", bare_table)
+    settings = twin()
+    sigma = settings.twin.speed_sigma_fraction
+    rng = np.random.default_rng(11)
+    shots = [GateShot(v, v * (1 + 0.06) * (1 + sigma * rng.standard_normal())) for v in (0.8, 1.5) for _ in range(50)]
+    observations = gate.shot_observations(shots)
+    assert {(o.configuration, o.speed_mps) for o in observations} == {("baseline", 0.8), ("baseline", 1.5)}
+    term = gate.gate_term(observations, settings, UNKNOWNS, model_error=0.0)
+    u = np.full((3001, 3), 0.5)
+    u[:, 1] = np.linspace(0.0, 1.0, 3001)
+    bias = -0.15 + 0.3 * u[:, 1]
+    values = term(u)
+    sd = (1 + 0.06) * sigma / math.sqrt(100)
+    assert abs(bias[np.argmax(values)] - 0.06) < 3 * sd
+    near = np.abs(bias - bias[np.argmax(values)]) < 3 * sd
+    assert math.sqrt(-1 / (2 * np.polyfit(bias[near], values[near], 2)[0])) == pytest.approx(sd, rel=0.1)
+    # in a plan's model: the term of no campaign reading is the shots'; with readings, one group per set speed
+    campaign = [learnt.Observation("baseline", 1.3, 0.8, 30.0, True, {"measured_speed_mps": 0.8 * 1.06})] * 3
+    model = gate.GateModel(settings, UNKNOWNS, [("baseline", 0.8), ("A", 0.8)], shots=observations)
+    assert model.groups == [("baseline", 0.8), ("baseline", 1.5)]
+    shared = gate.gate_term(observations, settings, UNKNOWNS)(u)
+    assert np.allclose(model.term([])(u), shared)
+    together = model.term(campaign)(u)
+    assert np.allclose(together, gate.gate_term([*observations, *campaign], settings, UNKNOWNS)(u))
+    apart = shared + gate.gate_term(campaign, settings, UNKNOWNS)(u)
+    assert np.max(np.abs((together - together.max()) - (apart - apart.max()))[near]) > 0.05
+    assert np.allclose(model.with_shots([]).term(campaign)(u), gate.gate_term(campaign, settings, UNKNOWNS)(u))
+    with pytest.raises(ValueError, match="bare robot's readings"):
+        gate.GateModel(settings, UNKNOWNS, [], shots=[dataclasses.replace(observations[0], configuration="A")])

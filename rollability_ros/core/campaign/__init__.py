@@ -7,7 +7,8 @@
 - characterisation: bench readings taken before a campaign (docs/characterisation.md) and their likelihood
 - likelihood: the twin's likelihood learnt once per robot and design set, its training launches and its file
 - likelihood_learning: the likelihood's ensemble of networks learnt from the training launches (scikit-learn)
-- likelihood_gate: the speed gate's readings as an exact term of the calibration (the speed bias)
+- gate_reading: the speed gate's reading in the twin and the Gaussian of a group of readings
+- likelihood_gate: the speed gate's readings (and the launcher's gate shots) as an exact term of the calibration
 - posterior: the posterior of a learnt likelihood's unknowns and its 95% sets
 - adaptive: which launch next (BALD over weighted samples of the unknowns, behind an UprightPredictor protocol)
 - learnt_plan: which launch next from a learnt likelihood, its verdicts and continuous outcomes

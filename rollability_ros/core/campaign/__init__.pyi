@@ -10,10 +10,11 @@ from .characterisation import load_characterisation
 from .learnt_plan import LearntTable, OutcomePosterior
 from .likelihood import (OUTCOMES, ConditionLevels, LearntLikelihood, Observation, load_likelihood,
                          observations_from_outcomes, simulate_training_set, twin_fingerprint)
-from .likelihood_gate import gate_term
+from .likelihood_gate import gate_term, shot_observations
 from .likelihood_learning import learn
 from .plan import CampaignSpec, load_campaign_spec, plan_trials, trial_id_for
-from .posterior import Posterior, characterisation_term, credible_set, format_set, sample_posterior
+from .posterior import (Posterior, characterisation_term, credible_set, format_set, sample_posterior,
+                        temperature_statement)
 from .sequential import comparison_stop_rule, paired_order
 from .runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledgements, answer_rig, local_rig_settings,
                      local_rig_settings_from_files, plan_refusal, record_campaign_run, report_exit_code, resume_command,
@@ -31,6 +32,7 @@ __all__ = [
     "load_campaign_spec", "load_characterisation", "load_likelihood", "local_rig_settings",
     "local_rig_settings_from_files", "observations_from_outcomes", "paired_order", "plan_refusal", "plan_trials",
     "proposal_lines", "record_campaign_run", "report_exit_code", "resume_command", "resume_refusal",
-    "rig_parameter_document", "run_campaign", "sample_posterior", "simulate_training_set", "store_writer",
-    "trial_id_for", "twin_fingerprint", "twin_settings_with"
+    "rig_parameter_document", "run_campaign", "sample_posterior", "shot_observations", "simulate_training_set",
+    "store_writer",
+    "temperature_statement", "trial_id_for", "twin_fingerprint", "twin_settings_with"
 ]

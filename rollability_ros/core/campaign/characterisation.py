@@ -19,6 +19,9 @@ strictly: an unknown key, a missing one or a value of the wrong kind is refused 
       sigma_kg: 0.0005            # kg, standard deviation of one weighing
       readings:
         - {configuration: A, mass_kg: 0.062}
+    gate_shots:                   # the launcher fired with the bare robot, no campaign launch: the speed gate's reading
+      readings:
+        - {speed_mps: 0.8, measured_speed_mps: 0.79}   # the set speed and the gate's reading, m/s
 
 Each section is optional, but the file needs one. Each reading enters ``rollability calibrate``'s likelihood
 through a model of that measurement with Gaussian error of the stated standard deviation:
@@ -37,6 +40,12 @@ through a model of that measurement with Gaussian error of the stated standard d
   launches' verdicts leave wide.
 - ``profile_mass``: the twin's mass of the configuration's printed profile (its mesh made as ``profile_print``
   says, times ``profile_mass_scale``: :func:`profile_mass_kg`); pins the profile's mass multiplier.
+- ``gate_shots``: the launcher's characterisation (docs/characterisation.md, (c)): the bare robot fired at a set
+  speed, the speed gate's reading. Its model is the speed gate's term of the campaign's readings
+  (:mod:`~rollability_ros.core.campaign.likelihood_gate`: the twin's reading without scatter, the launch scatter
+  of ``launch_twin.speed_sigma_fraction``, the table's error shared by the readings of one set speed), so no
+  standard deviation is typed: the shot-to-shot spread is the launcher's, which the twin models. Pins the
+  launcher's speed bias (``launch_twin.launcher.speed_bias_fraction``) before the first launch.
 
 The log-likelihood of a characterisation under a set of twin parameters is
 :func:`characterisation_log_likelihood`; calibration adds it to the launch outcomes' for every parameter set it
@@ -61,8 +70,8 @@ ROLLOUT_SURFACES = ("foam", "floor")
 #: Sides a tip-angle reading tips towards, as the horizontal direction in the robot's base frame (x forward, y
 #: left, the up axis turned onto +z as the stable-pose screen turns it).
 TIP_SIDES = {"front": (1.0, 0.0), "back": (-1.0, 0.0), "left": (0.0, 1.0), "right": (0.0, -1.0)}
-_SECTIONS = {"format", "rollout", "slide_angle", "tip_angle", "profile_mass"}
-_MEASUREMENTS = ("rollout", "slide_angle", "tip_angle", "profile_mass")
+_SECTIONS = {"format", "rollout", "slide_angle", "tip_angle", "profile_mass", "gate_shots"}
+_MEASUREMENTS = ("rollout", "slide_angle", "tip_angle", "profile_mass", "gate_shots")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,6 +100,14 @@ class MassReading:
 
 
 @dataclasses.dataclass(frozen=True)
+class GateShot:
+    """One launcher shot of the bare robot: the set speed and the speed gate's reading (m/s)."""
+
+    speed_mps: float
+    measured_speed_mps: float
+
+
+@dataclasses.dataclass(frozen=True)
 class Characterisation:
     """A characterisation file's readings (module docstring); empty tuples for an absent section."""
 
@@ -103,6 +120,7 @@ class Characterisation:
     tip_sigma_deg: float = math.nan
     masses: typing.Tuple[MassReading, ...] = ()
     mass_sigma_kg: float = math.nan
+    gate_shots: typing.Tuple[GateShot, ...] = ()
 
     def summary(self) -> str:
         """One line: what the file holds."""
@@ -115,6 +133,9 @@ class Characterisation:
             parts.append(f"{len(self.tips)} tip angle(s) (sd {self.tip_sigma_deg:g} deg)")
         if self.masses:
             parts.append(f"{len(self.masses)} profile weighing(s) (sd {self.mass_sigma_kg:g} kg)")
+        if self.gate_shots:
+            speeds = sorted({s.speed_mps for s in self.gate_shots})
+            parts.append(f"{len(self.gate_shots)} gate shot(s) at " + ", ".join(f"{v:g}" for v in speeds) + " m/s")
         return f"characterisation {self.source}: " + ", ".join(parts)
 
 
@@ -170,6 +191,18 @@ def _listed(section: typing.Any, name: str, sigma_key: str, sigma_high: float, k
     return sigma, tuple(out)
 
 
+def _gate_shots(section: typing.Any) -> typing.Tuple[GateShot, ...]:
+    """The ``gate_shots`` section's readings: each a set speed in (0, 5] m/s and a gate reading in (0, 10] m/s."""
+    shots = _mapping(section, "gate_shots", {"readings"})
+    out = []
+    for i, item in enumerate(_readings(shots["readings"], "gate_shots.readings")):
+        where = f"gate_shots.readings[{i}]"
+        item = _mapping(item, where, {"speed_mps", "measured_speed_mps"})
+        out.append(GateShot(_number(item["speed_mps"], f"{where}.speed_mps", 0.0, 5.0, True),
+                            _number(item["measured_speed_mps"], f"{where}.measured_speed_mps", 0.0, 10.0, True)))
+    return tuple(out)
+
+
 def parse_characterisation(document: object, source: str) -> Characterisation:
     """The :class:`Characterisation` of a loaded YAML ``document``; ``ValueError`` naming ``source`` and the
     first problem."""
@@ -211,6 +244,8 @@ def parse_characterisation(document: object, source: str) -> Characterisation:
             fields["mass_sigma_kg"], fields["masses"] = _listed(document["profile_mass"], "profile_mass", "sigma_kg",
                                                                 10.0, ("configuration", "mass_kg"), None, 100.0,
                                                                 MassReading)
+        if "gate_shots" in document:
+            fields["gate_shots"] = _gate_shots(document["gate_shots"])
         return Characterisation(source=source, **fields)
     except ValueError as error:
         raise ValueError(f"{source}: {error}") from None
@@ -310,4 +345,32 @@ def characterisation_log_likelihood(characterisation: Characterisation, twin: "L
                      for key in {(r.surface, r.speed_mps) for r in characterisation.rollouts}}
         total += sum(_gaussian(r.distance_m, predicted[(r.surface, r.speed_mps)], characterisation.rollout_sigma_m)
                      for r in characterisation.rollouts)
+    if characterisation.gate_shots:
+        total += gate_shots_log_likelihood(characterisation.gate_shots, twin)
     return float(total)
+
+
+#: The speed bias step of :func:`gate_shots_log_likelihood`'s slope (a central difference), as a fraction of speed.
+SLOPE_STEP = 0.01
+
+
+def gate_shots_log_likelihood(shots: typing.Sequence[GateShot], twin: "LaunchTwinSettings") -> float:
+    """log P(the gate shots' readings | the typed twin ``twin``): the speed gate's model simulated at ``twin``
+    (likelihood_gate's: the reading without scatter G, its spread G' (1 + b) ``speed_sigma_fraction``, G' by a
+    difference of :data:`SLOPE_STEP` in the speed bias towards zero, the table's error shared per set speed), the
+    direct fit's counterpart of the tabulated term the learnt likelihood uses."""
+    from rollability_ros.core.campaign import gate_reading as gate
+    from rollability_ros.core.sim import twin_value, twin_with_values
+
+    bias = float(twin_value(twin, gate.BIAS_KEY))
+    readings: typing.Dict[float, typing.List[float]] = {}
+    for shot in shots:
+        readings.setdefault(float(shot.speed_mps), []).append(float(shot.measured_speed_mps))
+    groups = sorted(readings)
+    mean, sd = [], []
+    step = SLOPE_STEP if bias >= 0.0 else -SLOPE_STEP   # towards zero: inside the bias's declared range
+    for speed in groups:
+        mean.append(gate.gate_reading_mps(twin, gate.BARE_ROBOT, speed))
+        toward = gate.gate_reading_mps(twin_with_values(twin, {gate.BIAS_KEY: bias - step}), gate.BARE_ROBOT, speed)
+        sd.append(max(abs(mean[-1] - toward) / SLOPE_STEP * (1.0 + bias) * twin.twin.speed_sigma_fraction, 1e-6))
+    return float(gate.readings_log_density(np.array([mean]), np.array([sd]), [readings[v] for v in groups])[0])

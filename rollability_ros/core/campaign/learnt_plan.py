@@ -21,7 +21,9 @@ WeightedPosterior` over them:
   :mod:`~rollability_ros.core.campaign.likelihood_gate`, whose readings share the table's error per configuration
   and set speed, so the term is rebuilt from all readings rather than multiplied per launch), weigh the samples
   beside the learnt likelihood, as in the calibration's ``--gate``; the learnt table must then not weigh the same
-  reading (``outcomes`` without ``measured_speed_mps``);
+  reading (``outcomes`` without ``measured_speed_mps``). The gate's ``shots`` (the launcher's characterisation:
+  bare-robot shots on the bench) join their set speed's group; the samples are then taken to be drawn from a
+  density that holds their term (the start of both plans: bench_adaptive_plan.py's ``--gate-shots``);
 - the ensemble (``LearntLikelihood.ensemble_size`` members) enters as the calibration's does: a sample's weight is
   the members' mean likelihood of every launch seen (``log_likelihood(member=None)``; a test holds the two equal),
   and its prediction of the next launch is the members' mixture weighted by how well each member explained the
@@ -164,7 +166,8 @@ def _one_blas_thread() -> typing.ContextManager[typing.Any]:
 
 class OutcomePosterior(WeightedPosterior):
     """The adaptive plan's weighted samples over a learnt likelihood's verdicts and continuous outcomes (module
-    docstring). ``samples``: prior draws (n, d), own units, of the likelihood's unknowns; ``draws``: the Monte Carlo
+    docstring). ``samples``: prior draws (n, d), own units, of the likelihood's unknowns (times ``log_prior``'s
+    density, and the term of ``gate``'s shots where it has any); ``draws``: the Monte Carlo
     outcomes per candidate of :meth:`scores`; ``renew``: renew the samples as the posterior narrows.
 
     Per sample and ensemble member it keeps the log-likelihood of every launch seen (``member_log_likelihood``
@@ -195,6 +198,9 @@ class OutcomePosterior(WeightedPosterior):
         self._gate_log_likelihood = np.zeros(len(theta))
         super().__init__(table.unknowns, theta, table.candidates, self._member_p.mean(axis=0),
                          table if renew else None, rng, renew_fraction, moves)
+        if gate is not None and gate.shots:   # the launcher's shots: in the density the samples were drawn from
+            self._gate_term = gate.term([])
+            self._gate_log_likelihood = self._gate_term(self.unknowns.to_normalised(theta))
 
     @classmethod
     def from_prior(cls, table: LearntTable, samples: int, rng: np.random.Generator, renew: bool = True,
@@ -335,7 +341,7 @@ class OutcomePosterior(WeightedPosterior):
         mean, sd = self.gate.predict(self.unknowns.to_normalised(self.samples))
         count, total = np.zeros(len(self.gate.groups)), np.zeros(len(self.gate.groups))
         where = {g: i for i, g in enumerate(self.gate.groups)}
-        for o in self._readings:
+        for o in (*self.gate.shots, *self._readings):   # the shots share their groups' error
             i = where.get((o.configuration, float(o.speed_mps)))
             if i is not None:
                 count[i] += 1
@@ -536,8 +542,8 @@ def importance_widths(table: LearntTable, plans: typing.Sequence[typing.Sequence
             if n not in wanted:
                 continue
             log_w = base + np.logaddexp.reduce(total, axis=0)
-            if weigh_readings is not None and observations:
-                log_w = log_w + weigh_readings(observations)
+            if weigh_readings is not None and (observations or gate is not None and gate.shots):
+                log_w = log_w + weigh_readings([*(gate.shots if gate is not None else ()), *observations])
             w = np.exp(log_w - log_w.max())
             w /= w.sum()
             widths = np.empty(u.shape[1])

@@ -78,6 +78,14 @@ LOG_CHI2_MEAN = -1.2703628454614782
 PROBABILITY_FLOOR = 0.005
 #: Hidden layers of every network.
 HIDDEN = (64, 64)
+#: The launches' temperature a prepared file records (``--prepare``), and the one a file prepared before files
+#: recorded where theirs came from is calibrated at (their 1 was the default, never a choice): chosen on held-out
+#: truths, as :data:`CHOSEN_SOURCE` says.
+CHOSEN_TEMPERATURE = 0.25
+CHOSEN_SOURCE = ("chosen on held-out truths 50-99 among 1, 0.5, 0.25: docs/calibration.md, \"The rolling friction "
+                 "at the ends of its range: the cause, and the temperature chosen again\"")
+#: Where a file's temperature came from when the file does not say (prepared before files recorded it).
+EARLIER_SOURCE = "none recorded, the file being prepared earlier, so the default, " + CHOSEN_SOURCE
 #: Networks of the ensemble (verdict classifier and outcome locations, each on its own resample of the training
 #: launches with its own seed): their disagreement is the emulator's error the posterior carries
 #: (:func:`~rollability_ros.core.campaign.posterior.sample_posterior` pools one posterior per member).
@@ -257,7 +265,8 @@ class LearntLikelihood:
     accuracy (written to the file's header). ``members``: the ensemble's further members (:class:`Member`;
     :data:`MEMBERS` - 1 when learnt by :func:`learn`); the first member is ``upright`` / ``location``.
     ``temperature``: the launches' log-likelihood is multiplied by it in the posterior (1: as learnt; below 1
-    widens the sets, for an emulator whose error the ensemble does not hold; written to the file).
+    widens the sets, for an emulator whose error the ensemble does not hold; written to the file), and
+    ``temperature_source`` says where it came from (default: :data:`CHOSEN_TEMPERATURE`, :data:`CHOSEN_SOURCE`).
     """
 
     unknowns: Unknowns
@@ -271,7 +280,8 @@ class LearntLikelihood:
     scale: typing.Dict[str, Layers]
     info: typing.Dict[str, typing.Any] = dataclasses.field(default_factory=dict)
     members: typing.Tuple[Member, ...] = ()
-    temperature: float = 1.0
+    temperature: float = CHOSEN_TEMPERATURE
+    temperature_source: str = CHOSEN_SOURCE
 
     @property
     def ensemble_size(self) -> int:
@@ -398,7 +408,7 @@ class LearntLikelihood:
                 "configurations": list(self.configurations), "levels": dataclasses.asdict(self.levels),
                 "fingerprint": self.fingerprint, "hidden": list(HIDDEN), "outcomes": sorted(self.location),
                 "student_df": STUDENT_DF, "info": self.info, "members": len(self.members),
-                "temperature": self.temperature}
+                "temperature": self.temperature, "temperature_source": self.temperature_source}
 
     def save(self, path: typing.Union[str, os.PathLike]) -> None:
         """Write the ``.npz`` file (module docstring) atomically (a temporary file renamed over ``path``)."""
@@ -483,11 +493,16 @@ def _load(source: str) -> LearntLikelihood:
     if not np.all(_finite(std, "feature_std") > 0):
         raise ValueError("feature scaling has a zero spread")
     count = header.get("members", 0)
-    temperature = header.get("temperature", 1.0)
+    temperature, origin = header.get("temperature", 1.0), header.get("temperature_source")
     if not isinstance(count, int) or not 0 <= count <= 64:
         raise ValueError(f"members must be a count from 0 to 64, got {count!r}")
     if not isinstance(temperature, (int, float)) or not 0.0 < float(temperature) <= 1.0:
         raise ValueError(f"temperature must lie in (0, 1], got {temperature!r}")
+    if origin is not None and not (isinstance(origin, str) and origin.strip()):
+        raise ValueError(f"temperature_source must be a text, got {origin!r}")
+    if origin is None:   # prepared before files said where their temperature came from: its 1 was the default
+        temperature, origin = ((CHOSEN_TEMPERATURE, EARLIER_SOURCE) if float(temperature) == 1.0
+                               else (temperature, "recorded without its source"))
     members = tuple(Member(layers(f"member{k}.upright", features),
                            {n: layers(f"member{k}.location.{n}", features + 1) for n in outcomes})
                     for k in range(1, count + 1))
@@ -495,7 +510,7 @@ def _load(source: str) -> LearntLikelihood:
                             std, layers("upright", features),
                             {n: layers(f"location.{n}", features + 1) for n in outcomes},
                             {n: layers(f"scale.{n}", features + 1) for n in outcomes}, dict(header.get("info", {})),
-                            members, float(temperature))
+                            members, float(temperature), str(origin))
 
 
 def _finite(array: np.ndarray, label: str) -> np.ndarray:

@@ -18,8 +18,12 @@ interpolates it (cubic), and scores each reading by the Gaussian of the delta me
 G'(b) (1 + b) ``speed_sigma_fraction`` (the scatter enters exactly as the bias does), the table's own error
 (:data:`MODEL_ERROR` of the reading) shared by the readings of each (configuration, set speed). Exact in the
 twin's sense: never tempered, like the characterisation's terms. By default only the bare robot's readings are
-weighed (:data:`BARE_ROBOT`; :func:`gate_term`'s ``configurations``): they depend on the bias alone."""
-import dataclasses
+weighed (:data:`BARE_ROBOT`; :func:`gate_term`'s ``configurations``): they depend on the bias alone.
+
+The launcher's characterisation (a characterisation file's ``gate_shots``: the bare robot fired at a set speed on
+the bench, no campaign launch) is the same measurement, so it has the same model (:func:`shot_observations` makes
+its readings observations of the bare robot): its readings join the campaign's of the same set speed in one group,
+whose table error they share (:class:`GateModel`'s ``shots``), never a second term with an error of its own."""
 import hashlib
 import math
 import pickle
@@ -28,54 +32,36 @@ import typing
 import numpy as np
 
 from rollability_ros.core.campaign.adaptive import Unknowns
+from rollability_ros.core.campaign.gate_reading import (BARE_ROBOT, BIAS_KEY, GATE_CAP_S, GATE_HEIGHT_M,
+                                                        MIN_READING_FRACTION, MODEL_ERROR, SCATTER_KEY,
+                                                        gate_reading_mps, readings_log_density)
 from rollability_ros.core.campaign.likelihood import Observation, values_one
 from rollability_ros.core.optional import require
 
 if typing.TYPE_CHECKING:
+    from rollability_ros.core.campaign.characterisation import GateShot
     from rollability_ros.core.sim import LaunchTwinSettings
 
 LogDensity = typing.Callable[[np.ndarray], np.ndarray]
 
-#: The unknown the term is for, and the launch speed's scatter (read from the samples when it is sampled).
-BIAS_KEY, SCATTER_KEY = "launch_twin.launcher.speed_bias_fraction", "launch_twin.speed_sigma_fraction"
 #: Unknowns that cannot move a reading: the foam lies past the edge, the gate before it.
 AFTER_THE_EDGE = ("launch_twin.foam.",)
 #: Grid points of the table: over the bias, and over each other unknown it spans (at most MAX_OTHER of them).
 BIAS_POINTS, OTHER_POINTS, MAX_OTHER = 7, 7, 2
-#: Simulated time per tabulated launch, s: the gate's reading is taken at the edge (0.4-0.6 s on the paper's
-#: speeds); the rest of the launch is not needed (the speed gate's own timeout, config/rig.yaml, is 3 s).
-GATE_CAP_S = 3.0
-#: The ledge height of the tabulated launches, m (the paper's lower ledge; the height does not move the reading).
-GATE_HEIGHT_M = 0.75
-#: The bare robot's configuration id (core/profile/designs.py) and the profile's mass multipliers, which do not act
-#: on it: the configurations whose readings the term weighs by default, and what their table need not span.
-BARE_ROBOT, PROFILE_MASS_KEYS = "baseline", ("robot.profile_mass_scale", "urdf_robot.profile_mass_scale")
-#: Readings at or below this fraction of the set speed are "not measured" (a gate that timed out reads 0).
-MIN_READING_FRACTION = 0.05
-
-#: The table's error (interpolation, and the ledge height and angle it leaves out), as a fraction of the reading:
-#: the root mean square of interpolated against simulated readings at random parameter sets (docs/calibration.md).
-MODEL_ERROR = 0.004
+#: The profile's mass multipliers, which do not act on the bare robot (:data:`BARE_ROBOT`): what its table need not
+#: span.
+PROFILE_MASS_KEYS = ("robot.profile_mass_scale", "urdf_robot.profile_mass_scale")
 
 _TABLES: typing.Dict[str, np.ndarray] = {}
 
 
-def gate_reading_mps(twin: "LaunchTwinSettings", configuration: str, speed_mps: float) -> float:
-    """The gate's reading (m/s) of a launch of ``configuration`` at the set speed ``speed_mps`` on ``twin``
-    without the speed and angle scatter (deterministic; the ledge height and the angle do not move it: module
-    docstring). ``ValueError`` when the launch never reaches the edge within :data:`GATE_CAP_S`."""
-    from rollability_ros.core.records import LaunchCondition
-    from rollability_ros.core.sim import simulate_launch
-
-    exact = dataclasses.replace(
-        twin, twin=dataclasses.replace(twin.twin, speed_sigma_fraction=0.0, angle_sigma_deg=0.0),
-        trial=dataclasses.replace(twin.trial, time_cap_s=min(twin.trial.time_cap_s, GATE_CAP_S)))
-    condition = LaunchCondition(configuration, GATE_HEIGHT_M, float(speed_mps), 0.0)
-    reading = simulate_launch(condition, exact, 0).measured_speed_mps
-    if not (math.isfinite(reading) and reading > MIN_READING_FRACTION * speed_mps):
-        raise ValueError(f"the twin's launch of {configuration} at {speed_mps} m/s does not reach the speed gate's "
-                         f"edge within {GATE_CAP_S} s: no gate reading to weigh")
-    return float(reading)
+def shot_observations(shots: typing.Iterable["GateShot"]) -> typing.List[Observation]:
+    """The launcher characterisation's gate shots (the bare robot fired at a set speed on the bench) as the bare
+    robot's gate readings (:data:`GATE_HEIGHT_M`, angle 0: neither moves a reading; no verdict is weighed), so they
+    enter :func:`gate_term` and :class:`GateModel` in the same group as the campaign's bare-robot readings of that
+    set speed."""
+    return [Observation(BARE_ROBOT, GATE_HEIGHT_M, float(s.speed_mps), 0.0, False,
+                        {"measured_speed_mps": float(s.measured_speed_mps)}) for s in shots]
 
 
 def gate_unknowns(unknowns: Unknowns, sampled: typing.Optional[typing.Sequence[str]] = None,
@@ -168,23 +154,6 @@ def grouped_readings(observations: typing.Sequence[Observation],
     return readings
 
 
-def readings_log_density(mean: np.ndarray, sd: np.ndarray, readings: typing.Sequence[typing.Sequence[float]],
-                         model_error: float = MODEL_ERROR) -> np.ndarray:
-    """The readings' Gaussian log-likelihood (s,), summed over the groups: ``mean`` and ``sd`` (s, g), the model at
-    each parameter set and group (:func:`gate_predictor`), ``readings`` one list per group (each non-empty).
-    Readings g_i = G + shared + scatter_i: the group's mean carries the table's error (``model_error`` x G, shared
-    by its readings), each reading its own scatter (sd): the Gaussian with covariance sd^2 I + tau^2 1 1'."""
-    count = np.array([len(r) for r in readings], dtype=np.float64)
-    first = np.array([sum(r) for r in readings], dtype=np.float64)
-    second = np.array([sum(v * v for v in r) for r in readings], dtype=np.float64)
-    variance, shared = sd ** 2, (model_error * mean) ** 2
-    within = second - first ** 2 / count   # sum of squares about the group's mean
-    offset = first / count - mean
-    return -0.5 * ((count - 1.0) * np.log(variance) + np.log(variance + count * shared) + within / variance
-                   + count * offset ** 2 / (variance + count * shared)
-                   + count * math.log(2.0 * math.pi)).sum(axis=1)
-
-
 def gate_predictor(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typing.Sequence[typing.Tuple[str, float]],
                    bias_points: int = BIAS_POINTS, other_points: int = OTHER_POINTS,
                    sampled: typing.Optional[typing.Sequence[str]] = None, bare_only: bool = False
@@ -222,20 +191,33 @@ def gate_predictor(twin: "LaunchTwinSettings", unknowns: Unknowns, groups: typin
 class GateModel:
     """The speed gate's term for a plan (:class:`~rollability_ros.core.campaign.learnt_plan.OutcomePosterior`'s
     ``gate``): :meth:`term` weighs the readings so far (:func:`gate_term`), :meth:`predict` gives the model at the
-    weighed (configuration, set speed) of ``groups`` (:attr:`groups`: those of ``configurations``) for the
-    expected information of a launch's reading."""
+    weighed (configuration, set speed) of ``groups`` (:attr:`groups`: those of ``configurations``, and the shots')
+    for the expected information of a launch's reading. ``shots``: the launcher characterisation's readings
+    (:func:`shot_observations`), weighed with every plan's readings in their groups (:meth:`term` of no readings is
+    theirs alone); a plan's samples are then drawn from a density that holds them (learnt_plan.OutcomePosterior)."""
 
     def __init__(self, twin: "LaunchTwinSettings", unknowns: Unknowns,
                  groups: typing.Iterable[typing.Tuple[str, float]], model_error: float = MODEL_ERROR,
-                 configurations: typing.Optional[typing.Sequence[str]] = (BARE_ROBOT,)) -> None:
+                 configurations: typing.Optional[typing.Sequence[str]] = (BARE_ROBOT,),
+                 shots: typing.Sequence[Observation] = ()) -> None:
         self.twin, self.unknowns, self.model_error, self.configurations = twin, unknowns, model_error, configurations
-        self.groups = sorted({(c, float(v)) for c, v in groups if configurations is None or c in configurations})
+        self.shots = tuple(o for o in shots if configurations is None or o.configuration in configurations)
+        if len(self.shots) != len(shots):
+            raise ValueError("the gate shots are the bare robot's readings: its configuration must be weighed")
+        self.groups = sorted({(c, float(v)) for c, v in groups if configurations is None or c in configurations}
+                             | set(grouped_readings(self.shots, None)))
         bare_only = configurations is not None and all(c == BARE_ROBOT for c in configurations)
         self.predict = gate_predictor(twin, unknowns, self.groups, bare_only=bare_only) if self.groups else None
 
+    def with_shots(self, shots: typing.Sequence[Observation]) -> "GateModel":
+        """This model with ``shots`` as its launcher characterisation's readings instead of its own (another
+        truth's, another lab's; the table is the same, kept per process)."""
+        return GateModel(self.twin, self.unknowns, self.groups, self.model_error, self.configurations, shots)
+
     def term(self, observations: typing.Sequence[Observation]) -> LogDensity:
-        """:func:`gate_term` of ``observations`` on this model's twin, unknowns, error and configurations."""
-        return gate_term(observations, self.twin, self.unknowns, model_error=self.model_error,
+        """:func:`gate_term` of the shots and ``observations`` on this model's twin, unknowns, error and
+        configurations."""
+        return gate_term([*self.shots, *observations], self.twin, self.unknowns, model_error=self.model_error,
                          configurations=self.configurations)
 
 

@@ -17,6 +17,7 @@ from rollability_ros.core.records import LaunchCondition
 
 if typing.TYPE_CHECKING:   # annotations only: the learnt table is loaded by the caller
     from rollability_ros.core.campaign.learnt_plan import Launch, LearntTable
+    from rollability_ros.core.campaign.likelihood import Observation
     from rollability_ros.core.campaign.likelihood_gate import GateModel
 
 
@@ -149,6 +150,9 @@ class PreciseWidths:
     #: per tolerance of :data:`WIDTH_TOLERANCES` (points of each range), per set: the adaptive launches until every
     #: width is at most the matrix's plus that tolerance (None: not within its launches)
     within: typing.Tuple[typing.Tuple[float, typing.Tuple[typing.Optional[int], ...]], ...] = ()
+    #: on set 0, per unknown: the adaptive launches until that unknown's width is first at most the matrix's (None:
+    #: not within its launches); the strict count (``launches[0]``) is at least the largest of them
+    per_unknown: typing.Tuple[typing.Optional[int], ...] = ()
 
 
 #: Absolute tolerances (fractions of each unknown's range) of :attr:`PreciseWidths.within`: widths that differ by less
@@ -275,13 +279,21 @@ Start = typing.Callable[[int, np.ndarray, int],
                         typing.Tuple[np.ndarray, typing.Callable[[np.ndarray], np.ndarray]]]
 
 
+#: Each truth's launcher characterisation: (truth index, truth (d,) own units) -> its gate shots as the bare robot's
+#: readings (``likelihood_gate.shot_observations``), weighed by both plans in the gate's groups
+#: (:meth:`GateModel.with_shots`); the start must then draw from a density that holds their term
+#: (learnt_plan.OutcomePosterior's ``samples``).
+Shots = typing.Callable[[int, np.ndarray], typing.Sequence["Observation"]]
+
+
 def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: int, samples: int, seed: int = 0,
                            level: float = 0.95, budget: typing.Optional[int] = None, draws: int = 32,
                            acquisition: str = "joint",
                            on_truth: typing.Optional[typing.Callable[[int, MatchedWidths], None]] = None,
                            start: typing.Optional[Start] = None, gate: typing.Optional["GateModel"] = None,
                            gate_reading: typing.Optional[GateReading] = None, replicas: int = 0,
-                           precise: int = 0, precise_sets: int = 3, first_truth: int = 0
+                           precise: int = 0, precise_sets: int = 3, first_truth: int = 0,
+                           shots: typing.Optional["Shots"] = None
                            ) -> typing.Tuple[np.ndarray, typing.List[MatchedWidths]]:
     """:func:`adaptive_to_match_matrix` on a learnt likelihood's table
     (:class:`~rollability_ros.core.campaign.learnt_plan.LearntTable`): each launch of a hidden truth draws the
@@ -303,7 +315,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
     independent draw sets each shared by both plans (:class:`PreciseWidths` in each result's ``precise``): the
     proposal is a kernel mixture over the start samples, the matrix's final samples and the adaptive plan's samples
     every :data:`SNAPSHOT_EVERY` launches. ``first_truth``: begin at that truth (the same truths as a run from 0;
-    the runs of a split measurement)."""
+    the runs of a split measurement). ``shots`` (with ``gate``): :data:`Shots`."""
     from rollability_ros.core.campaign.learnt_plan import OutcomePosterior
 
     rng = np.random.default_rng(seed)
@@ -312,29 +324,28 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
     results = []
     for t in range(first_truth, truths):
         begin, log_prior = start(t, hidden[t], 0) if start is not None else (prior, None)
+        truth_gate = gate.with_shots(shots(t, hidden[t])) if gate is not None and shots is not None else gate
         made: typing.Dict[int, WeightedPosterior] = {}
         records: typing.Dict[int, typing.List["Launch"]] = {}   # by the plan's outcome generator: matrix, adaptive
         snapshots: typing.List[typing.Tuple[np.ndarray, np.ndarray]] = []
 
         def make(plan: int, t: int = t, begin: np.ndarray = begin,
-                 log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = log_prior
-                 ) -> WeightedPosterior:
-            """Plan ``plan``'s posterior at truth ``t`` (0 the matrix, 1 the adaptive plan, from the start samples
-            ``begin`` (n, unknowns); 2, 3, ... the matrix's replicas, from starting samples of their own)."""
+                 log_prior: typing.Optional[typing.Callable[[np.ndarray], np.ndarray]] = log_prior,
+                 truth_gate: typing.Optional["GateModel"] = truth_gate) -> WeightedPosterior:
+            """Plan ``plan``'s posterior at truth ``t`` (0 matrix, 1 adaptive, 2.. replicas) from ``begin`` (n, d)."""
             if plan >= 2:
                 replica = plan - 1
                 begin, log_prior = (start(t, hidden[t], replica) if start is not None else
                                     (table.unknowns.draw(samples, np.random.default_rng([seed, t, 8, replica])), None))
             made[plan] = OutcomePosterior(table, begin, np.random.default_rng([seed, t, 2 + plan]), draws=draws,
-                                          log_prior=log_prior, gate=gate)
+                                          log_prior=log_prior, gate=truth_gate)
             return made[plan]
 
         readers: typing.Dict[int, np.random.Generator] = {}   # by the plan's outcome generator: matrix, adaptive
 
         def launch(index: int, outcome_rng: np.random.Generator, t: int = t
                    ) -> typing.Tuple[bool, typing.Optional[np.ndarray], typing.Optional[float]]:
-            """Candidate ``index`` launched at hidden truth ``t``: (upright, continuous outcomes (o,) or None, the
-            gate's reading or None)."""
+            """Candidate ``index`` launched at truth ``t``: (upright, outcomes (o,) or None, gate reading or None)."""
             record = records.setdefault(id(outcome_rng), [])
             if precise and len(records) == 2 and record and len(record) % SNAPSHOT_EVERY == 0:
                 snapshots.append((made[1].samples.copy(), made[1].weights))   # the adaptive plan's, so far
@@ -350,7 +361,7 @@ def learnt_to_match_matrix(table: "LearntTable", truths: int, matrix_launches: i
         if precise:   # the proposal's sources: the start, the matrix's end, the adaptive plan's path and end
             result = dataclasses.replace(result, precise=precise_widths(table, list(records.values()), [
                 (begin, np.ones(len(begin))), (made[0].samples, made[0].weights), *snapshots,
-                (made[1].samples, made[1].weights)], precise, precise_sets, (seed, t), log_prior, gate, level))
+                (made[1].samples, made[1].weights)], precise, precise_sets, (seed, t), log_prior, truth_gate, level))
         results.append(result)
         if on_truth is not None:
             on_truth(t, results[-1])
@@ -393,8 +404,10 @@ def precise_widths(table: "LearntTable", plans: typing.Sequence[typing.Sequence[
         allowed = np.mean(matrix_widths, axis=0) + np.std(matrix_widths, axis=0, ddof=1)
         tolerant = first_launch(per_launch[0], allowed)
     within = tuple((tolerance, tuple(row[i] for row in near)) for i, tolerance in enumerate(WIDTH_TOLERANCES))
+    per_unknown = tuple(first_launch(per_launch[0][:, [j]], matrix_widths[0][[j]])
+                        for j in range(len(matrix_widths[0])))
     return PreciseWidths(np.array(matrix_widths), tuple(counts), tolerant, np.array(matrix_ess),
-                         np.array(adaptive_ess), np.array(adaptive_widths), within)
+                         np.array(adaptive_ess), np.array(adaptive_widths), within, per_unknown)
 
 
 def first_launch(widths: np.ndarray, allowed: np.ndarray) -> typing.Optional[int]:

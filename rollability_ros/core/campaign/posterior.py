@@ -13,7 +13,8 @@ import numpy.typing as npt
 
 from rollability_ros.core.campaign.characterisation import Characterisation
 from rollability_ros.core.campaign.adaptive import Unknowns
-from rollability_ros.core.campaign.likelihood import LearntLikelihood, Observation, normalised_one, values_one
+from rollability_ros.core.campaign.likelihood import (CHOSEN_TEMPERATURE, LearntLikelihood, Observation, normalised_one,
+                                                      values_one)
 from rollability_ros.core.optional import require
 
 if typing.TYPE_CHECKING:
@@ -131,6 +132,30 @@ def format_set(intervals: typing.Sequence[typing.Tuple[float, float]]) -> str:
     return " U ".join(f"[{lo:.4g}, {hi:.4g}]" for lo, hi in intervals)
 
 
+#: The temperatures at which the 95% sets' coverage was measured: temperature -> the smallest coverage over the
+#: unknowns on truths 0-49 and on truths 50-99 (:data:`COVERAGE_SETTING`; docs/calibration.md, the tables of "A
+#: temperature chosen on held-out truths" and of the section after it).
+MEASURED_COVERAGE = {1.0: (0.84, 0.80), 0.5: (0.88, 0.90), 0.25: (0.90, 0.94)}
+#: What those coverages were measured with (bench/bench_calibration.py).
+COVERAGE_SETTING = ("measured with five unknowns on the paper's 400 launches of the bare robot and three designs, "
+                    "roll-outs, slide and tip angles, weighings and the gate (--gate), verdicts only: docs/"
+                    "calibration.md, \"A temperature chosen on held-out truths\" and the section after it")
+
+
+def temperature_statement(temperature: float, source: str) -> str:
+    """One line for a calibration's report: the launches' ``temperature``, where it came from (``source``) and the
+    coverage of the 95% sets measured at it (:data:`MEASURED_COVERAGE`), or that none was measured at it."""
+    head = f"launches' temperature {temperature:g} ({source}). "
+    measured = next((v for t, v in MEASURED_COVERAGE.items() if math.isclose(t, temperature)), None)
+    if measured is None:
+        return (f"{head}The coverage of the 95% sets was not measured at this temperature (only at "
+                f"{', '.join(f'{t:g}' for t in MEASURED_COVERAGE)}, {COVERAGE_SETTING}).")
+    return (f"{head}The smallest coverage of an unknown's 95% sets measured at it: {measured[0]:.0%} on truths 0-49, "
+            f"{measured[1]:.0%} on truths 50-99 ({COVERAGE_SETTING})"
+            + ("." if min(measured) >= 0.9 else f"; under the 90% target: these sets may be too narrow for their "
+               f"truths (temperature {CHOSEN_TEMPERATURE:g} was measured to cover)."))
+
+
 def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence[Observation],
                      sample: typing.Optional[typing.Sequence[str]] = None,
                      fixed: typing.Optional[typing.Mapping[str, float]] = None,
@@ -214,7 +239,9 @@ def sample_posterior(likelihood: LearntLikelihood, observations: typing.Sequence
 
 
 def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinSettings",
-                          unknowns: Unknowns, grid_points: typing.Optional[int] = None) -> LogDensity:
+                          unknowns: Unknowns, grid_points: typing.Optional[int] = None,
+                          gate_shots: bool = True, sampled: typing.Optional[typing.Sequence[str]] = None
+                          ) -> LogDensity:
     """The characterisation's log-likelihood as a function of normalised unknowns (s, d) -> (s,), for
     :func:`sample_posterior`'s ``extra``. Slide angles: analytic (``characterisation.slide_angle_deg`` of each
     parameter set). Roll-outs, tip angles and profile weighings: each reading's prediction computed on a grid of
@@ -223,7 +250,10 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
     normalised coordinates) and scored by the reading's Gaussian, since a roll-out (a simulation), a tip angle (the
     robot's hull) or a profile's mass (its printed shell) per parameter set would cost as much as the launches it
     replaces. ``grid_points`` defaults to 17 for one such unknown and 9 for two (the table's predictions: 17 or 81
-    per kind of reading)."""
+    per kind of reading). Gate shots (the launcher's characterisation): the speed gate's term
+    (``likelihood_gate.gate_term`` of ``likelihood_gate.shot_observations``; ``sampled`` as there), unless
+    ``gate_shots`` is False: a caller that weighs the campaign's gate readings too must weigh the shots in the same
+    term, since they share its error per set speed."""
     from rollability_ros.core.campaign.characterisation import profile_mass_kg, tip_angles_deg
     from rollability_ros.core.sim import rollout_distance_m, twin_value
 
@@ -264,6 +294,11 @@ def characterisation_term(characterisation: Characterisation, twin: "LaunchTwinS
             lambda settings: [profile_mass_kg(settings, c) for c in weighed],
             [m.mass_kg for m in characterisation.masses], [weighed.index(m.configuration) for m in
                                                             characterisation.masses], characterisation.mass_sigma_kg))
+
+    if characterisation.gate_shots and gate_shots:
+        from rollability_ros.core.campaign.likelihood_gate import gate_term, shot_observations
+
+        terms.append(gate_term(shot_observations(characterisation.gate_shots), twin, unknowns, sampled=sampled))
 
     def total(u: np.ndarray) -> np.ndarray:
         """Every reading's log-likelihood (s,), summed."""

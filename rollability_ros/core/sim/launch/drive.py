@@ -7,8 +7,6 @@ import math
 import pickle
 import typing
 
-import numpy as np
-
 from rollability_ros.core.profile import DesignSources
 from rollability_ros.core.records import LaunchCondition
 from rollability_ros.core.sim.launch.contract import LaunchDrive
@@ -163,11 +161,13 @@ def why_not_launched(settings: LaunchTwinSettings, drive: LaunchDrive, set_speed
         drive=drive, until_edge=True)
     envelope = robot_envelope(settings.robot_model())
     plate, launcher = settings.twin.plate, settings.twin.launcher
-    start_rotation = _rotation(poses[0][1])
+    from scipy.spatial.transform import Rotation   # scipy: the sim extra's, like the engines
+
+    start_rotation = Rotation.from_quat(poses[0][1]).as_matrix()   # (x, y, z, w), as the engines report it
     travel_m = float(poses[-1][0][0] - poses[0][0][0])
     tilts = []
     for _, orientation in poses:   # the body's turn from its start, in the world: its pitch and how far up tilts
-        turn = _rotation(orientation) @ start_rotation.T
+        turn = Rotation.from_quat(orientation).as_matrix() @ start_rotation.T
         tilts.append((math.degrees(math.acos(max(-1.0, min(1.0, turn[2, 2])))),
                       math.degrees(math.asin(max(-1.0, min(1.0, -turn[2, 0]))))))
     tilt_deg, pitch_deg = max(tilts)
@@ -191,10 +191,3 @@ def why_not_launched(settings: LaunchTwinSettings, drive: LaunchDrive, set_speed
     return (f"it coasts to rest {max(0.0, launcher.run_length_m - travel_m):.3f} m short of the edge after the "
             f"{stroke_m} m stroke; raise the pressure or the bore, lower its wheels' resistance ({wheels}), or set "
             "launch_twin.launcher.model: push_through")
-
-def _rotation(xyzw: typing.Sequence[float]) -> np.ndarray:
-    """The rotation matrix (3, 3) of a unit quaternion (x, y, z, w)."""
-    x, y, z, w = (float(v) for v in xyzw)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])

@@ -156,8 +156,10 @@ def test_sim_rig_launches_the_twin_and_publishes_poses(ros_node, start_node, tmp
     rig_process = start_node("rig", params={"rig.backend": "sim",
                                             "rig.twin_config": ["sim", "robot", str(tmp_path / "twin.yaml")]})
     poses = []
-    ros_node.node.create_subscription(PoseStamped, "rig/pose", poses.append, STREAM_QOS)
+    subscription = ros_node.node.create_subscription(PoseStamped, "rig/pose", poses.append, STREAM_QOS)
     rig = RigClient(ros_node, signed=False)   # the sim rig needs no key: it moves no hardware
+    # the poses are a volatile stream: a subscription not yet matched when the launch starts misses its first ones
+    assert ros_node.wait_for(lambda: subscription.get_publisher_count() > 0, 30), rig_process.log()
     feedback = []
     result = rig.result(rig.send("s0", LaunchCondition("baseline", 0.75, 0.8, 0.0, 0), feedback), 60)
     outcome = result.result.outcome

@@ -69,10 +69,8 @@ def fidelity_batch_evaluator(settings: EvaluatorSettings, executor: TrialExecuto
         try:
             futures = [threads.submit(evaluate_profile, heights, trials, seed, chosen, executor, None, failed)
                        for heights in heights_list]
-            concurrent.futures.wait(futures, return_when=concurrent.futures.FIRST_EXCEPTION)
-            for future in futures:
-                if future.done() and future.exception() is not None:
-                    future.result()   # raises it (the except below stops the rest)
+            for future in concurrent.futures.as_completed(futures):
+                future.result()   # the first error raises here (the except below stops the rest)
             results = [future.result() for future in futures]
         except BaseException:
             failed.set()

@@ -20,7 +20,8 @@ Interfaces (relative names):
   pause, or retry after evaluations failed), ``stop`` (finish and checkpoint the current generation, then end
   the run; a paused run is resumed for that);
 - calls ``<any namespace>/evaluate_profile`` (rollability_ros/action/EvaluateProfile): every server of that
-  type, rediscovered every ``evaluator_discovery_period_s``; one goal in flight per server.
+  type, rediscovered every ``evaluator_discovery_period_s``; one goal in flight per server; when fewer candidates
+  are queued than servers are idle, a candidate's trials are split over them (``first_trial``) and merged.
 
 Parameters: the namespaces ``optimizer`` (config/optimizer.yaml, config/paper.yaml; ``optimizer.method`` picks
 CMA-ES or CMA-MAE), ``quality_diversity`` (the CMA-MAE archive), ``selection``, ``profile`` and ``printer`` (the
@@ -204,7 +205,8 @@ class Optimizer(Node):
     def _submit(self, action_name, request, ticket):
         """Send one evaluation as an EvaluateProfile goal; report through ``ticket``; return a cancel function."""
         goal = EvaluateProfile.Goal(heights=list(request.heights), trials=request.trials, seed=request.seed,
-                                    fidelity=request.fidelity, session=self._session.id,
+                                    first_trial=request.first_trial, fidelity=request.fidelity,
+                                    session=self._session.id,
                                     printed_with=self._printed_with)
         goal_handle = {}
         cancelled = threading.Event()
@@ -221,7 +223,8 @@ class Optimizer(Node):
                 self._foreign.add(action_name)
                 ticket.fail(refusal)
                 return
-            ticket.succeed(result.successes, result.trials, result.eval_time_s, result.evaluator or action_name)
+            ticket.succeed(result.successes, result.trials, result.eval_time_s, result.evaluator or action_name,
+                           trial_results=result.trial_results)   # a split request's parts are checked by them
 
         def on_goal_response(future: typing.Any) -> None:
             if future.exception() is not None:
@@ -349,7 +352,8 @@ class Optimizer(Node):
                 run_dir, run_config(parameters), settings["profile"],
                 self._pool.batch_evaluator(settings["optimizer"].trials),
                 resume=resume, on_candidate=self._publish_candidate,
-                evaluate_trials=self._pool.fidelity_evaluator(""),
+                # racing's stages (the only user of evaluate_trials) go whole, never split (docs/optimization.md)
+                evaluate_trials=self._pool.fidelity_evaluator("", whole=True),
                 screen_profiles=profile_screen(self._typed_run_settings(settings),
                                                self._robot_settings(settings)))
         except PoolClosed:   # shut down while the start means were evaluated (optimizer.initial_mean_measure)

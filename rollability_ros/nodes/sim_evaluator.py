@@ -2,7 +2,10 @@
 
 Interfaces (relative names; run several side by side in different namespaces):
 - action ``evaluate_profile`` (rollability_ros/action/EvaluateProfile): feedback per finished trial batch,
-  cancel honoured between batches, result with fitness, Wilson interval and every trial's outcome. The goal's
+  cancel honoured between batches, result with fitness, Wilson interval and every trial's outcome. A goal with
+  ``first_trial`` k runs trials k .. k + trials - 1 of the evaluation with its seed (a part of an evaluation the
+  optimizer split over evaluators; the trial results keep those indices); k + trials above ``evaluator.max_trials``
+  is rejected. The goal's
   ``fidelity`` picks what a trial is: empty or ``screen`` = the ``objective`` parameters, ``launch`` = robust
   launches on the launch twin, ``world:<seed>`` = those launches all in the one world drawn from ``seed`` (the
   plausible-world check) (``core/sim/objectives.py``, ``at_fidelity``); any other value is rejected. A goal
@@ -36,7 +39,7 @@ from std_msgs.msg import String
 from rollability_ros.action import EvaluateProfile
 from rollability_ros.core.sim import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
                                       TrialOutcome, check_fidelity, evaluate_profile, make_executor,
-                                      settings_at_fidelity, with_objective)
+                                      request_problem, settings_at_fidelity, with_objective)
 from rollability_ros.core.profile import check_heights, print_differences, print_instructions_from_text
 from rollability_ros.msg import TrialResult
 from rollability_ros.nodes._support import (LATCHED_QOS, SessionMembership, declare_settings, guard_settings,
@@ -118,8 +121,9 @@ class SimEvaluator(Node):
             return "no robot description yet (waiting on the robot_description topic)"
         if check_fidelity(goal.fidelity):
             return check_fidelity(goal.fidelity)
-        if not 1 <= goal.trials <= settings.evaluator.max_trials:
-            return f"trials must be in [1, {settings.evaluator.max_trials}], got {goal.trials}"
+        problem = request_problem(int(goal.trials), int(goal.first_trial), settings.evaluator.max_trials)
+        if problem:
+            return problem
         if len(goal.heights):
             if not all(math.isfinite(h) for h in goal.heights):
                 return "heights contain NaN or infinity"
@@ -168,7 +172,8 @@ class SimEvaluator(Node):
                 evaluation = evaluate_profile(list(request.heights) or None, request.trials, request.seed,
                                               settings_at_fidelity(self._settings, request.fidelity),
                                               executor=self._pool, on_trial=on_trial,
-                                              cancel_event=_CancelRequested(goal_handle, self._closing))
+                                              cancel_event=_CancelRequested(goal_handle, self._closing),
+                                              first_trial=request.first_trial)
             except EvaluationCancelled as exc:
                 if goal_handle.is_cancel_requested:
                     goal_handle.canceled()

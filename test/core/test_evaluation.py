@@ -129,6 +129,37 @@ def test_bad_requests_are_refused(heights, trials, seed, message):
         evaluate_profile(heights, trials, seed, SETTINGS)
 
 
+@pytest.mark.parametrize("first_trial, trials, message", [
+    (-1, 4, "first_trial must be an integer >= 0"),
+    (9998, 3, "first_trial \\+ trials must be at most max_trials 10000"),
+])
+def test_a_trial_range_past_max_trials_is_refused(first_trial, trials, message):
+    with pytest.raises(ValueError, match=message):
+        evaluate_profile(None, trials, 1, SETTINGS, first_trial=first_trial)
+
+
+@pytest.mark.parametrize("fidelity", ["screen", "mix", "launch", "world:3"])
+def test_a_trial_range_run_alone_is_those_trials_of_the_whole_evaluation(fidelity):
+    """What splitting an evaluation over evaluators rests on (core/optimization/evaluator_pool.py): trial i's
+    kind, launch condition and draws depend on i and trial_seed(seed, i) only, at every fidelity; so the parts
+    first_trial 0 and k of one evaluation, joined, are the whole evaluation's trials (seeds, outcomes, steps).
+    "mix" alternates disturbance trials and launches by index (objective.launch_weight 0.5)."""
+    from rollability_ros.core.sim.evaluation import settings_at_fidelity, with_objective
+
+    settings = load_settings()
+    if fidelity == "mix":
+        settings = with_objective(settings, dataclasses.replace(settings.objective, kind="mix", launch_weight=0.5))
+    settings = settings_at_fidelity(settings, "" if fidelity == "mix" else fidelity)
+    heights = ridge_heights(settings.grid)
+    trials, first = (4, 1) if fidelity != "screen" else (6, 2)
+    whole = evaluate_profile(heights, trials, 21, settings)
+    head = evaluate_profile(heights, first, 21, settings)
+    tail = evaluate_profile(heights, trials - first, 21, settings, first_trial=first)
+    assert [o.index for o in tail.trial_results] == list(range(first, trials))
+    assert head.trial_results + tail.trial_results == whole.trial_results
+    assert head.successes + tail.successes == whole.successes and tail.trials == trials - first
+
+
 def test_baseline_forms_are_equivalent():
     assert profile_job(None, SETTINGS).profile is None
     assert profile_job([], SETTINGS).profile is None

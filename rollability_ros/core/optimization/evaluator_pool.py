@@ -5,21 +5,34 @@ functions. The pool knows evaluators only by name and reaches them through one i
 
     submit(evaluator_name, request, ticket) -> cancel (callable or None)
 
-``submit`` starts evaluating ``request`` (an :class:`EvaluationRequest`) on that evaluator and returns at once;
-later, from any thread, it reports through ``ticket``: :meth:`Ticket.progress` whenever the evaluator shows it
-is alive (goal accepted, feedback), then exactly one of :meth:`Ticket.succeed` or :meth:`Ticket.fail`. The
-returned ``cancel()`` asks the evaluator to drop the request (best effort; a report after that is ignored).
-If ``submit`` raises, that attempt failed.
+``submit`` starts evaluating ``request`` (an :class:`EvaluationRequest`: trials ``first_trial`` ..
+``first_trial + trials - 1`` of the evaluation with ``seed``) on that evaluator and returns at once; later, from
+any thread, it reports through ``ticket``: :meth:`Ticket.progress` whenever the evaluator shows it is alive (goal
+accepted, feedback), then exactly one of :meth:`Ticket.succeed` or :meth:`Ticket.fail`. The returned
+``cancel()`` asks the evaluator to drop the request (best effort; a report after that is ignored). If ``submit``
+raises, that attempt failed.
 
 Rules
 -----
 - At most one request in flight per evaluator; the rest of the batch waits in a queue.
+- Splitting: when fewer requests are queued than evaluators are idle (a lone re-evaluation, the last survivors of
+  a race), the queued requests' trials are split into contiguous trial-index ranges, one per idle evaluator
+  (shares as equal as whole trials allow, at least one trial each), and the parts' results are merged back into
+  one result per request. Trial ``i`` of an evaluation always runs with ``trial_seed(seed, i)`` and, for every
+  fidelity, its kind, launch condition and draws depend on nothing but ``i`` and that seed
+  (:mod:`rollability_ros.core.sim.evaluation`), so the merged successes, trials and per-trial results are those
+  of the unsplit evaluation. A part must report its per-trial results, and their indices must be exactly its
+  range (else the attempt failed). A request marked ``whole`` (the optimizer's raced stages) is never split, nor
+  is anything with ``PoolSettings.split_trials`` off. A merged result's ``eval_time_s`` is the sum of its parts'
+  (the evaluator time it cost, as an unsplit evaluation's is; its wall span was shorter) and its ``evaluator``
+  names the parts' evaluators in trial order joined by ``+``.
 - A failed attempt (rejected, aborted, a malformed result, no sign of life for ``timeout_s``, or the evaluator
-  disappearing mid-request) is never a result: the request goes back to the front of the queue and is retried,
-  on an evaluator it has not failed on while one exists, else on any. The evaluator that failed gets no new
-  request for ``retry_delay_s``, doubled for each further failure in a row (at most 64x; a success resets it),
-  so a dead evaluator still listed in the graph costs few timeouts. After ``max_attempts`` failed attempts of
-  one request the batch raises :class:`EvaluationFailed` (0 = retry without limit).
+  disappearing mid-request) is never a result: the request (or the part) goes back to the front of the queue and
+  is retried, on an evaluator it has not failed on while one exists, else on any. The evaluator that failed gets
+  no new request for ``retry_delay_s``, doubled for each further failure in a row (at most 64x; a success resets
+  it), so a dead evaluator still listed in the graph costs few timeouts. After ``max_attempts`` failed attempts
+  of one request (a part counts the failures of the request it came from) the batch raises
+  :class:`EvaluationFailed` (0 = retry without limit).
 - With no evaluator available the batch waits (and says so through ``log`` every ``waiting_log_period_s``);
   it never guesses a result. :meth:`EvaluatorPool.pause` holds back new requests (those in flight finish).
 - :meth:`EvaluatorPool.close` makes a waiting batch raise :class:`PoolClosed` and cancels what is in flight.
@@ -56,6 +69,8 @@ class PoolSettings:
     ``retry_delay_s``: an evaluator that failed an attempt gets no new request for this long, s (doubled per
     further consecutive failure of that evaluator, at most :data:`MAX_BACKOFF` times).
     ``waiting_log_period_s``: how often a batch waiting with no evaluator says so, s.
+    ``split_trials``: split the queued requests' trials over idle evaluators when fewer requests are queued than
+    evaluators are idle (module docstring); the merged results equal the unsplit ones.
     """
 
     timeout_s: float = dataclasses.field(default=120.0, metadata={
@@ -69,27 +84,60 @@ class PoolSettings:
     waiting_log_period_s: float = dataclasses.field(default=30.0, metadata={
         "description": "s between two messages of a batch waiting with no evaluator", "range": (0.0, 86400.0),
         "exclusive": "low"})
+    split_trials: bool = dataclasses.field(default=True, metadata={
+        "description": "split a request's trials over idle evaluators when a batch has fewer requests than idle "
+                       "evaluators (the merged result equals the unsplit one)"})
 
 
 @dataclasses.dataclass(frozen=True)
 class EvaluationRequest:
     """One profile to evaluate: heights ``(n_variables,)`` in simulation units, trials, disturbance seed, and the
-    evaluation fidelity (``""``/``screen``: the evaluator's objective; ``launch``: robust twin launches)."""
+    evaluation fidelity (``""``/``screen``: the evaluator's objective; ``launch``: robust twin launches;
+    ``world:<seed>``: launches in one world).
+
+    ``first_trial``: the request runs trials ``first_trial`` .. ``first_trial + trials - 1`` of the evaluation with
+    ``seed`` (0 = from the first; the pool sets it on the parts of a split request). ``whole``: never split it.
+    """
 
     heights: tuple
     trials: int
     seed: int
     fidelity: str = ""
+    first_trial: int = 0
+    whole: bool = False
+
+    @property
+    def trial_range(self) -> range:
+        """The trial indices this request runs."""
+        return range(self.first_trial, self.first_trial + self.trials)
+
+
+class TrialReport(typing.Protocol):
+    """What the pool reads of one trial's reported outcome (a TrialOutcome, a TrialResult message)."""
+
+    @property
+    def index(self) -> int:
+        """The trial's index in its evaluation."""
+
+    @property
+    def upright(self) -> bool:
+        """True when the trial ended upright."""
 
 
 @dataclasses.dataclass(frozen=True)
 class PoolEvaluationResult:
-    """A real result: upright trials out of ``trials``, evaluation wall time (s), the evaluator's name."""
+    """A real result: upright trials out of ``trials``, evaluation time (s), the evaluator's name, and the
+    per-trial outcomes by index when the evaluator reported them (``()`` otherwise).
+
+    A result merged from the parts of a split request (module docstring) has the parts' summed times (the
+    evaluator time it cost) and their evaluators' names joined by ``+`` in trial order.
+    """
 
     successes: int
     trials: int
     eval_time_s: float
     evaluator: str
+    trial_results: tuple = ()
 
     def as_tuple(self) -> tuple[int, int, float, str]:
         """``(successes, trials, eval_time_s, evaluator)``, the ``evaluate_batch`` contract of optimization_run."""
@@ -100,13 +148,67 @@ class PoolEvaluationResult:
 BatchResults = typing.List[typing.Tuple[int, int, float, str]]
 
 
-def result_problem(request: EvaluationRequest, successes: int, trials: int) -> str | None:
-    """Why a reported result cannot be the result of ``request`` (None if it can)."""
+def result_problem(request: EvaluationRequest, successes: int, trials: int,
+                   trial_results: typing.Sequence[TrialReport] = (), part: bool = False) -> str | None:
+    """Why a reported result cannot be the result of ``request`` (None if it can): the trial count, the successes,
+    and the per-trial results when given (their indices must be exactly ``request.trial_range``, their upright ones
+    the successes); a ``part`` of a split request must give them."""
     if trials != request.trials:
         return f"returned {trials} trials for {request.trials} requested"
     if not 0 <= successes <= trials:
         return f"returned {successes} successes of {trials} trials"
+    if not trial_results:
+        return "returned no per-trial results for a part of a split request" if part else None
+    wanted = request.trial_range
+    indices = [int(trial.index) for trial in trial_results]
+    if indices != list(wanted):
+        shown = f"{indices[0]}..{indices[-1]}" if indices else "none"
+        return (f"returned trials {shown} ({len(indices)}) for trials {wanted.start}..{wanted.stop - 1} requested "
+                "(an evaluator that ignores first_trial?)")
+    upright = sum(bool(trial.upright) for trial in trial_results)
+    if upright != successes:
+        return f"returned {successes} successes but {upright} upright trials"
     return None
+
+
+def merged_result(parts: typing.Sequence[tuple[EvaluationRequest, PoolEvaluationResult]]) -> PoolEvaluationResult:
+    """One result of a split request from its parts' ``(request, result)``: summed successes, trials and times,
+    the per-trial results joined in trial order, the evaluators' names joined by ``+`` (each once, trial order)."""
+    ordered = sorted(parts, key=lambda part: part[0].first_trial)
+    if len(ordered) == 1:
+        return ordered[0][1]
+    results = [result for _, result in ordered]
+    names = list(dict.fromkeys(result.evaluator for result in results))
+    return PoolEvaluationResult(sum(r.successes for r in results), sum(r.trials for r in results),
+                                sum(r.eval_time_s for r in results), "+".join(names),
+                                tuple(trial for r in results for trial in r.trial_results))
+
+
+def split_request(request: EvaluationRequest, parts: int) -> list[EvaluationRequest]:
+    """``request`` as ``parts`` requests of contiguous trial ranges in order (sizes differ by at most one trial;
+    at most ``request.trials`` parts)."""
+    parts = max(1, min(int(parts), request.trials))
+    size, extra = divmod(request.trials, parts)
+    pieces, first = [], request.first_trial
+    for number in range(parts):
+        trials = size + (number < extra)
+        pieces.append(dataclasses.replace(request, first_trial=first, trials=trials))
+        first += trials
+    return pieces
+
+
+def split_counts(trials: typing.Sequence[int], evaluators: int) -> list[int]:
+    """How many parts each of the queued requests of ``trials`` trials (None: may not be split) is split into so
+    that the parts fill ``evaluators`` idle evaluators: one each, then one more at a time to the request whose
+    parts would stay largest (never more parts than trials)."""
+    counts = [1] * len(trials)
+    for _ in range(evaluators - len(trials)):
+        room = [i for i, n in enumerate(trials) if n is not None and counts[i] < n]
+        if not room:
+            break
+        widest = max(room, key=lambda i: (trials[i] / counts[i], -i))   # ties: the earlier request
+        counts[widest] += 1
+    return counts
 
 
 class Ticket:
@@ -129,10 +231,12 @@ class Ticket:
         """The evaluator is alive and working on it: restart the timeout."""
         self._pool._touch(self)
 
-    def succeed(self, successes: int, trials: int, eval_time_s: float, evaluator: str | None = None) -> None:
-        """Report the result (``evaluator``: the name the result is credited to; default the pool's name)."""
+    def succeed(self, successes: int, trials: int, eval_time_s: float, evaluator: str | None = None,
+                trial_results: typing.Sequence[TrialReport] = ()) -> None:
+        """Report the result (``evaluator``: the name the result is credited to; default the pool's name;
+        ``trial_results``: each trial's outcome, by index, required of a part of a split request)."""
         self._pool._finish(self, PoolEvaluationResult(int(successes), int(trials), float(eval_time_s),
-                                                  str(evaluator or self.evaluator)), None)
+                                                      str(evaluator or self.evaluator), tuple(trial_results)), None)
 
     def fail(self, reason: str) -> None:
         """Report that this attempt produced no result, and why."""
@@ -141,10 +245,17 @@ class Ticket:
 
 @dataclasses.dataclass(eq=False)
 class _Job:
-    index: int
-    request: EvaluationRequest
+    index: int                  # the batch position of the request (a part's: the request it came from)
+    request: EvaluationRequest  # what is sent: the request, or a part's trial range of it
     failures: list = dataclasses.field(default_factory=list)   # "evaluator: reason" per failed attempt
     failed_on: set = dataclasses.field(default_factory=set)
+    part: bool = False          # a part of a split request
+
+    @property
+    def name(self) -> str:
+        """How messages name it: ``candidate <index>``, with a part's trial range."""
+        trials = self.request.trial_range
+        return f"candidate {self.index}" + (f" (trials {trials.start}..{trials.stop - 1})" if self.part else "")
 
 
 @dataclasses.dataclass(eq=False)
@@ -157,9 +268,11 @@ class _Evaluator:
 
 @dataclasses.dataclass(eq=False)
 class _Batch:
-    jobs: list
-    queue: collections.deque
-    results: dict = dataclasses.field(default_factory=dict)
+    requests: list              # the batch's requests, by index
+    queue: collections.deque    # jobs waiting for an evaluator
+    jobs: list                  # every job of the batch, the parts of split requests included
+    parts: dict = dataclasses.field(default_factory=dict)     # index -> [(request, result)] of finished jobs
+    results: dict = dataclasses.field(default_factory=dict)   # index -> the request's (merged) result
     gave_up: str = ""
 
 
@@ -266,13 +379,14 @@ class EvaluatorPool:
         Raises :class:`EvaluationFailed` when a request failed ``max_attempts`` times and :class:`PoolClosed`
         when the pool is closed; requests still in flight are then cancelled.
         """
+        requests = list(requests)
         jobs = [_Job(index, request) for index, request in enumerate(requests)]
         with self._condition:
             if self._batch is not None:
                 raise RuntimeError("EvaluatorPool.evaluate() is already running a batch")
             if self._closed:
                 raise PoolClosed("the evaluator pool is closed")
-            batch = self._batch = _Batch(jobs, collections.deque(jobs))
+            batch = self._batch = _Batch(requests, collections.deque(jobs), list(jobs))
         try:
             while True:
                 cancels = []
@@ -281,8 +395,8 @@ class EvaluatorPool:
                         raise PoolClosed("the evaluator pool was closed before the batch finished")
                     if batch.gave_up:
                         raise EvaluationFailed(batch.gave_up)
-                    if len(batch.results) == len(jobs):
-                        return [batch.results[job.index] for job in jobs]
+                    if len(batch.results) == len(requests):
+                        return [batch.results[index] for index in range(len(requests))]
                     now = self._clock()
                     cancels = self._expire_locked(now)
                     assigned = self._assign_locked(batch, now)
@@ -295,7 +409,7 @@ class EvaluatorPool:
         finally:
             with self._condition:
                 in_flight = [e.ticket for e in self._evaluators.values()
-                             if e.ticket is not None and e.ticket.job in jobs]
+                             if e.ticket is not None and e.ticket.job in batch.jobs]
                 for evaluator in self._evaluators.values():
                     if evaluator.ticket in in_flight:
                         evaluator.ticket = None
@@ -314,27 +428,32 @@ class EvaluatorPool:
             return evaluate(heights_list, seed, trials)
         return evaluate_batch
 
-    def fidelity_evaluator(self, fidelity: str) -> Callable[[Iterable[Iterable[float]], int, int], BatchResults]:
+    def fidelity_evaluator(self, fidelity: str,
+                           whole: bool = False) -> Callable[[Iterable[Iterable[float]], int, int], BatchResults]:
         """``evaluate(heights_list, seed, trials)`` over this pool at evaluation ``fidelity`` (as
         :func:`batch_evaluation.fidelity_batch_evaluator`, over the graph's evaluators; each heights
-        ``(n_variables,)``, simulation units)."""
+        ``(n_variables,)``, simulation units); ``whole``: its requests are never split (module docstring)."""
         def evaluate(heights_list: Iterable[Iterable[float]], seed: int, trials: int) -> BatchResults:
-            requests = [EvaluationRequest(tuple(float(h) for h in heights), int(trials), int(seed), fidelity)
+            requests = [EvaluationRequest(tuple(float(h) for h in heights), int(trials), int(seed), fidelity,
+                                          whole=whole)
                         for heights in heights_list]
             return [result.as_tuple() for result in self.evaluate(requests)]
         return evaluate
 
     # --- internals (the ``_locked`` methods run with the condition held) ----------------------------------------
     def _assign_locked(self, batch, now):
-        """Pair idle, rested evaluators with queued jobs; return the new tickets (to send outside the lock)."""
+        """Pair idle, rested evaluators with queued jobs (split first if fewer are queued than evaluators are
+        idle); return the new tickets (to send outside the lock)."""
         if self._paused:
             return []
+        idle = [evaluator for evaluator in sorted(self._evaluators.values(), key=lambda e: e.name)
+                if evaluator.ticket is None and evaluator.resting_until_s <= now]
+        if self.settings.split_trials and 0 < len(batch.queue) < len(idle):
+            self._split_locked(batch, len(idle))
         tickets = []
-        for evaluator in sorted(self._evaluators.values(), key=lambda e: e.name):
+        for evaluator in idle:
             if not batch.queue:
                 break
-            if evaluator.ticket is not None or evaluator.resting_until_s > now:
-                continue
             job = self._job_for_locked(batch, evaluator.name)
             if job is None:
                 continue
@@ -342,6 +461,22 @@ class EvaluatorPool:
             evaluator.ticket = Ticket(self, job, evaluator.name, now)
             tickets.append(evaluator.ticket)
         return tickets
+
+    def _split_locked(self, batch, evaluators):
+        """Split the queued jobs' trial ranges so that they fill ``evaluators`` idle evaluators (module docstring);
+        a part keeps the failures of the job it came from."""
+        queued = list(batch.queue)
+        counts = split_counts([None if job.request.whole else job.request.trials for job in queued], evaluators)
+        batch.queue.clear()
+        for job, count in zip(queued, counts):
+            if count == 1:
+                batch.queue.append(job)
+                continue
+            for request in split_request(job.request, count):
+                part = _Job(job.index, request, list(job.failures), set(job.failed_on), part=True)
+                batch.jobs.append(part)
+                batch.queue.append(part)
+            batch.jobs.remove(job)
 
     def _job_for_locked(self, batch, name):
         """The first queued job ``name`` should take: one it has not failed, or one every evaluator has failed."""
@@ -373,7 +508,8 @@ class EvaluatorPool:
                 return
             batch = self._batch
             if result is not None:
-                reason = result_problem(ticket.request, result.successes, result.trials)
+                reason = result_problem(ticket.request, result.successes, result.trials, result.trial_results,
+                                        ticket.job.part)
             if reason is not None:
                 self._fail_locked(ticket, reason, self._clock())
             else:
@@ -382,8 +518,16 @@ class EvaluatorPool:
                 if evaluator is not None:
                     evaluator.failures_in_a_row = 0
                 if batch is not None and ticket.job in batch.jobs:
-                    batch.results[ticket.job.index] = result
+                    self._record_locked(batch, ticket.job, result)
             self._condition.notify_all()
+
+    @staticmethod
+    def _record_locked(batch, job, result):
+        """Keep a finished job's result; once its request's trials are all done, the request's (merged) result."""
+        parts = batch.parts.setdefault(job.index, [])
+        parts.append((job.request, result))
+        if sum(request.trials for request, _ in parts) == batch.requests[job.index].trials:
+            batch.results[job.index] = merged_result(parts)
 
     def _release_locked(self, ticket):
         evaluator = self._evaluators.get(ticket.evaluator)
@@ -406,12 +550,12 @@ class EvaluatorPool:
         limit = self.settings.max_attempts
         if limit and attempts >= limit:
             if batch is not None and not batch.gave_up:
-                batch.gave_up = (f"candidate {job.index} failed {attempts} attempt(s) (max_attempts {limit}): "
+                batch.gave_up = (f"{job.name} failed {attempts} attempt(s) (max_attempts {limit}): "
                                  + "; ".join(job.failures[-3:]))
         else:
             if batch is not None and job in batch.jobs:
                 batch.queue.appendleft(job)
-            self._log("warning", f"evaluation of candidate {job.index} on {ticket.evaluator} failed ({reason}); "
+            self._log("warning", f"evaluation of {job.name} on {ticket.evaluator} failed ({reason}); "
                                  f"attempt {attempts}{f' of {limit}' if limit else ''}, it will be retried")
         self._condition.notify_all()
         return ticket.cancel

@@ -3,8 +3,8 @@ lives. Type checkers read this stub; at run time ``lazy_loader.attach_stub`` (``
 imports and loads a name's module when the name is first used."""
 from .evaluation import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluationResult, EvaluatorSettings, TrialBatchEngine,
                          TrialExecutor, evaluate_jobs, evaluate_mesh, evaluate_profile, load_settings, make_executor,
-                         profile_job, settings_at_fidelity, settings_from_parameters, trial_seed, with_given_files,
-                         with_objective)
+                         profile_job, request_problem, settings_at_fidelity, settings_from_parameters, trial_seed,
+                         with_given_files, with_objective)
 from .launch.placement import check_launcher
 from .launch.results import LaunchResult
 from .launch.settings import (TWIN_NAMESPACE, TWIN_SECTIONS, LaunchTwinSettings, launch_twin_settings_from_parameters,
@@ -32,7 +32,7 @@ __all__ = [
     "check_fidelity", "check_launcher", "engine_names", "evaluate_jobs", "evaluate_mesh", "evaluate_profile",
     "launch_sensitivity_rows", "launch_twin_settings_from_parameters", "load_launch_twin_settings", "load_settings",
     "local_world_evaluator", "make_executor", "make_trial_world", "mecanum_wheels", "profile_body", "profile_job",
-    "profile_screener", "register_trial_engine", "resolve_launch", "robot_hull", "rollout_distance_m",
+    "profile_screener", "register_trial_engine", "request_problem", "resolve_launch", "robot_hull", "rollout_distance_m",
     "run_world_check", "screen_robot", "sensitivity_rows", "settings_at_fidelity", "settings_from_parameters",
     "simulate_launch", "simulate_valid_launch", "spawn_pool", "summarize_worlds", "trial_seed", "twin_files",
     "twin_value", "twin_with_values", "with_given_files", "with_objective", "world_check_lines", "world_draws",

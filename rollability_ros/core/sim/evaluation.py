@@ -5,8 +5,12 @@ What a trial is (a disturbance trial, a launch on the launch twin, or a mix) is 
 
 Every trial ``i`` of an evaluation with base seed ``s`` uses :func:`trial_seed` ``(s, i)``: the seed does not
 depend on the profile, so candidates evaluated with the same base seed meet the same start states and
-disturbances (common random numbers). A trial's outcome depends only on (profile, trial seed, settings) (see
-:mod:`rollability_ros.core.sim.trials`), so every executor returns the same outcomes for the same inputs.
+disturbances (common random numbers). A trial's outcome depends only on (profile, ``i``, trial seed, settings)
+(see :mod:`rollability_ros.core.sim.trials`): ``i`` picks a launch trial's kind and condition
+(:class:`~rollability_ros.core.sim.objectives.LaunchObjective`), the trial seed every draw (the robust draw too,
+or the one world's seed of a ``world:<seed>`` fidelity), never an earlier trial. So every executor returns the
+same outcomes for the same inputs, and trials ``k`` .. ``k + n - 1`` run alone (``first_trial``: a part of an
+evaluation split over evaluators) are exactly those trials of the whole evaluation.
 
 Executors split the trials into batches of ``evaluator.batch_trials`` and yield each finished batch;
 :func:`evaluate_profile` reports every trial through ``on_trial`` as batches finish and checks the cancel event
@@ -558,20 +562,36 @@ class EvaluationResult:
     trial_results: typing.List[TrialOutcome]
 
 
-def _check_request(trials, seed, options):
-    if isinstance(trials, bool) or not isinstance(trials, (int, np.integer)) or not 1 <= trials <= options.max_trials:
-        raise ValueError(f"trials must be an integer in [1, {options.max_trials}], got {trials!r}")
+def request_problem(trials: int, first_trial: int, max_trials: int) -> typing.Optional[str]:
+    """Why trials ``first_trial`` .. ``first_trial + trials - 1`` of an evaluation cannot be asked for (None if they
+    can): ``trials`` in [1, ``max_trials``] and the range ending within ``max_trials`` (a part of a split
+    evaluation may run no trial its whole evaluation could not)."""
+    if isinstance(trials, bool) or not isinstance(trials, (int, np.integer)) or not 1 <= trials <= max_trials:
+        return f"trials must be an integer in [1, {max_trials}], got {trials!r}"
+    if isinstance(first_trial, bool) or not isinstance(first_trial, (int, np.integer)) or first_trial < 0:
+        return f"first_trial must be an integer >= 0, got {first_trial!r}"
+    if first_trial + trials > max_trials:
+        return (f"first_trial + trials must be at most max_trials {max_trials} (trials {first_trial}.."
+                f"{first_trial + trials - 1}), got first_trial {first_trial}, trials {trials}")
+    return None
+
+
+def _check_request(trials, seed, options, first_trial=0):
+    problem = request_problem(trials, first_trial, options.max_trials)
+    if problem:
+        raise ValueError(problem)
     trial_seed(seed, 0)  # validates the seed
 
 
 def evaluate_job(job: TrialJob, trials: int, seed: int, executor: typing.Optional[TrialExecutor] = None,
                  on_trial: typing.Optional[typing.Callable[[TrialOutcome], None]] = None,
-                 cancel_event: typing.Optional[CancelEvent] = None) -> EvaluationResult:
-    """Run ``trials`` trials of ``job`` (a :class:`TrialJob`) with base ``seed``; see :func:`evaluate_profile`."""
+                 cancel_event: typing.Optional[CancelEvent] = None, first_trial: int = 0) -> EvaluationResult:
+    """Run ``trials`` trials of ``job`` (a :class:`TrialJob`) with base ``seed``, from trial ``first_trial``; see
+    :func:`evaluate_profile`."""
     options = job.settings.evaluator
-    _check_request(trials, seed, options)
+    _check_request(trials, seed, options, first_trial)
     executor = executor or SerialExecutor()
-    seeds = [(index, trial_seed(seed, index)) for index in range(trials)]
+    seeds = [(index, trial_seed(seed, index)) for index in range(first_trial, first_trial + trials)]
     batches = [seeds[start:start + options.batch_trials] for start in range(0, trials, options.batch_trials)]
     stopped = cancel_event.is_set if cancel_event is not None else (lambda: False)
     outcomes = []
@@ -595,7 +615,7 @@ def evaluate_job(job: TrialJob, trials: int, seed: int, executor: typing.Optiona
 def evaluate_profile(heights: typing.Optional[npt.ArrayLike], trials: int, seed: int, settings: EvaluatorSettings,
                      executor: typing.Optional[TrialExecutor] = None,
                      on_trial: typing.Optional[typing.Callable[[TrialOutcome], None]] = None,
-                     cancel_event: typing.Optional[CancelEvent] = None) -> EvaluationResult:
+                     cancel_event: typing.Optional[CancelEvent] = None, first_trial: int = 0) -> EvaluationResult:
     """Evaluate the profile of half-grid ``heights`` (None / empty / all zero = baseline) over ``trials`` trials.
 
     Parameters
@@ -613,13 +633,18 @@ def evaluate_profile(heights: typing.Optional[npt.ArrayLike], trials: int, seed:
         Called in this thread as each trial's batch completes (completion order, not index order).
     cancel_event : threading.Event-like, optional
         When set, pending batches are cancelled and :class:`EvaluationCancelled` is raised.
+    first_trial : int, optional
+        Run trials ``first_trial`` .. ``first_trial + trials - 1`` of the evaluation with ``seed`` (a part of a
+        split evaluation, :mod:`~rollability_ros.core.optimization.evaluator_pool`); their outcomes keep those
+        indices, and are those trials' outcomes in the whole evaluation. ``first_trial + trials`` is at most
+        ``settings.evaluator.max_trials``.
 
     Returns
     -------
     EvaluationResult
-        Raises ``ValueError`` for bad heights, trials or seed.
+        ``trials`` is the trials run; raises ``ValueError`` for bad heights, trials, first_trial or seed.
     """
-    return evaluate_job(profile_job(heights, settings), trials, seed, executor, on_trial, cancel_event)
+    return evaluate_job(profile_job(heights, settings), trials, seed, executor, on_trial, cancel_event, first_trial)
 
 
 def evaluate_mesh(mesh: typing.Optional[Mesh], trials: int, seed: int, settings: EvaluatorSettings,

@@ -20,9 +20,9 @@ def _client(ros_node, name):
     return client
 
 
-def _send(ros_node, client, heights, trials, seed, feedback=None, fidelity="", printed_with=""):
+def _send(ros_node, client, heights, trials, seed, feedback=None, fidelity="", printed_with="", first_trial=0):
     goal = EvaluateProfile.Goal(heights=list(heights), trials=trials, seed=seed, fidelity=fidelity,
-                                printed_with=printed_with)
+                                printed_with=printed_with, first_trial=first_trial)
     handle = send_goal_resending(client, goal, ros_node.wait_for, 180, feedback_callback=feedback)
     assert handle is not None, "the evaluator did not answer the goal"
     return handle
@@ -141,6 +141,22 @@ def test_bad_goals_are_rejected_and_the_node_survives(ros_node, evaluator, heigh
     assert _wait(ros_node, good.get_result_async()).status == GoalStatus.STATUS_SUCCEEDED
 
 
+def test_a_trial_range_past_max_trials_is_rejected_naming_it(ros_node, evaluator):
+    """first_trial + trials may not pass evaluator.max_trials (10000): a part runs no trial its whole evaluation
+    could not; the goal is rejected with the reason in one line and the node goes on serving."""
+    client = _client(ros_node, "/evaluate_profile")
+    rejected = evaluator.log().count("rejected evaluate_profile goal")
+    assert not _send(ros_node, client, [], 3, 1, first_trial=9998).accepted
+    assert ros_node.wait_for(lambda: evaluator.log().count("rejected evaluate_profile goal") > rejected, 10)
+    line = evaluator.log().split("rejected evaluate_profile goal: ")[-1].splitlines()[0]
+    assert line == ("first_trial + trials must be at most max_trials 10000 (trials 9998..10000), got first_trial "
+                    "9998, trials 3"), line
+    handle = _send(ros_node, client, [], 2, 1, first_trial=9998)   # the last two trials: accepted
+    assert handle.accepted
+    response = _wait(ros_node, handle.get_result_async())
+    assert [t.index for t in response.result.trial_results] == [9998, 9999]
+
+
 def test_a_goal_of_another_print_is_rejected_naming_the_difference(ros_node, evaluator):
     """An optimizer that will tell the lab to print otherwise than this evaluator weighs the profile gets no
     fitness from it: the goal is rejected and the log names the setting; the same print, or none stated, runs."""
@@ -174,18 +190,34 @@ def test_cancel_is_honoured(ros_node, evaluator):
     assert 0 < response.result.trials < 2000 and "cancelled" in response.result.message
 
 
-def test_two_evaluators_side_by_side(ros_node, start_node):
+def _trials(result):
+    return [(t.index, t.seed, t.upright, t.settled, t.steps, t.tilt_deg) for t in result.trial_results]
+
+
+def test_two_evaluators_side_by_side_and_an_evaluation_split_over_them_equals_the_unsplit_one(ros_node, start_node):
+    """Two evaluators give the same trials; an evaluation split as the optimizer's pool splits it (trials 0..1 on
+    one evaluator, 2..4 on the other, first_trial, sent at once) joins into the unsplit evaluation: the same
+    successes and trial results (index, seed, outcome, steps, tilt)."""
     for namespace in ("eval_a", "eval_b"):
         start_node("sim_evaluator", params={"evaluator.workers": 1}, ros_args=["-r", f"__ns:=/{namespace}"],
                    name=namespace)
+    clients = {namespace: _client(ros_node, f"/{namespace}/evaluate_profile") for namespace in ("eval_a", "eval_b")}
     results = {}
     for namespace in ("eval_a", "eval_b"):
-        client = _client(ros_node, f"/{namespace}/evaluate_profile")
-        response = _wait(ros_node, _send(ros_node, client, [], 3, 9).get_result_async())
+        response = _wait(ros_node, _send(ros_node, clients[namespace], [], 3, 9).get_result_async())
         results[namespace] = response.result
     assert results["eval_a"].evaluator == "/eval_a/sim_evaluator"
     assert results["eval_b"].evaluator == "/eval_b/sim_evaluator"
     assert [t.upright for t in results["eval_a"].trial_results] == [t.upright for t in results["eval_b"].trial_results]
+
+    unsplit = _wait(ros_node, _send(ros_node, clients["eval_a"], _ridge(), 5, 31).get_result_async()).result
+    handles = [_send(ros_node, clients["eval_a"], _ridge(), 2, 31, first_trial=0),
+               _send(ros_node, clients["eval_b"], _ridge(), 3, 31, first_trial=2)]
+    head, tail = (_wait(ros_node, handle.get_result_async()).result for handle in handles)
+    assert (head.evaluator, tail.evaluator) == ("/eval_a/sim_evaluator", "/eval_b/sim_evaluator")
+    assert (head.trials, tail.trials) == (2, 3)
+    assert head.successes + tail.successes == unsplit.successes
+    assert _trials(head) + _trials(tail) == _trials(unsplit) and [t[0] for t in _trials(tail)] == [2, 3, 4]
 
 
 def test_invalid_parameters_are_refused(start_node):

@@ -29,7 +29,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 #: docs/testing.md gives each one's measured time.
 SMOKE = ("bench_bag_writer", "bench_adaptive_plan", "bench_profile_mass", "bench_launch_twin", "verify_early_decision",
          "bench_pad_size", "bench_design_space", "bench_bare_breakdown", "bench_truth_sweep", "bench_optimizer",
-         "bench_estop_latency", "bench_evaluator", "bench_sensitivity", "bench_quality_diversity",
+         "bench_estop_latency", "bench_pool_split", "bench_evaluator", "bench_sensitivity", "bench_quality_diversity",
          "bench_initial_mean_screen", "bench_race_truth", "bench_shape_ceiling", "bench_engines", "bench_racing",
          "bench_recorder", "bench_calibration_direct", "bench_objective", "bench_optimizer_node", "bench_calibration",
          "bench_recalibrate", "bench_transfer")
@@ -47,6 +47,8 @@ HEADLINES: typing.Dict[str, typing.Tuple[str, ...]] = {
     "bench_optimizer": ("paper scale: ", "evaluation: ", "optimizer overhead per generation, real run",
                         "optimizer overhead per generation, zero-cost evaluator", "projected paper run",
                         "CRN / independent seeds", "best-so-far overestimate without / with re-evaluation"),
+    "bench_pool_split": ("measured in this run: goal overhead", "2 evaluators: generation wall",
+                         "unsplit / split = ", "results identical: True", "simulated evaluators"),
     "bench_bare_breakdown": ("bare chassis, ", "overall:", "conditions with a majority upright"),
     "bench_truth_sweep": (" (of ",),
     "bench_shape_ceiling": ("simple profiles on the ", "screen (", "fresh (", "minus bare", "came to rest"),

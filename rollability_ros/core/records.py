@@ -201,8 +201,8 @@ class CandidateRecord:
     successes: int
     trials: int
     seed: int
-    eval_time_s: float
-    evaluator: str = ""
+    eval_time_s: float                # evaluator time, s: split over evaluators, the sum of the parts' wall times
+    evaluator: str = ""               # the evaluator's name; split over evaluators, their names joined by "+"
     stamp_s: float = 0.0
     session: str = ""                 # the optimizer's session id (docs/sessions.md); "" = none, or recorded before
 

@@ -197,17 +197,17 @@ def split_request(request: EvaluationRequest, parts: int) -> list[EvaluationRequ
     return pieces
 
 
-def split_counts(trials: typing.Sequence[int], evaluators: int) -> list[int]:
+def split_counts(trials: typing.Sequence[int | None], evaluators: int) -> list[int]:
     """How many parts each of the queued requests of ``trials`` trials (None: may not be split) is split into so
     that the parts fill ``evaluators`` idle evaluators: one each, then one more at a time to the request whose
     parts would stay largest (never more parts than trials)."""
     counts = [1] * len(trials)
+    splittable = [(i, n) for i, n in enumerate(trials) if n is not None]
     for _ in range(evaluators - len(trials)):
-        room = [i for i, n in enumerate(trials) if n is not None and counts[i] < n]
+        room = [(n / counts[i], -i) for i, n in splittable if counts[i] < n]
         if not room:
             break
-        widest = max(room, key=lambda i: (trials[i] / counts[i], -i))   # ties: the earlier request
-        counts[widest] += 1
+        counts[-max(room)[1]] += 1   # the widest parts; ties: the earlier request
     return counts
 
 

@@ -135,7 +135,8 @@ def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typ
         xacro.process_doc(document, mappings=mappings)
         return document.toxml()
     except Exception as exc:  # xacro raises XacroException, NameError, KeyError, ... with a readable message
-        raise ValueError(f"cannot expand xacro {where}: {not_found[-1] if not_found else exc}") from exc
+        reason = not_found[-1] if not_found else " ".join(str(exc).split())   # xacro's own spans several lines
+        raise ValueError(f"cannot expand xacro {where}: {reason}") from exc
     finally:
         setattr(substitution_args, "_eval_find", finds[0])
         substitution_args._eval_dict["find"] = finds[1]
@@ -349,8 +350,23 @@ def _parse(xml_text):
                 raise ValueError(f"joint {name!r} refers to unknown link {end!r}")
         if child.get("link") in {_end(j, "child") for j in joints.values()}:
             raise ValueError(f"link {child.get('link')!r} is the child of more than one joint")
+        if kind in MOVING_JOINTS:
+            _check_joint_numbers(joint, name)
         joints[name] = joint
     return root, links, joints
+
+
+def _check_joint_numbers(joint: ElementTree.Element, name: str) -> None:
+    """``ValueError`` naming a moving joint whose ``<axis>``, ``<limit>`` or ``<dynamics>`` (copied into the
+    simulation's URDF) holds a value that is not a finite number, or whose axis is the zero vector: PyBullet and
+    MuJoCo take them as given and a NaN damping or a zero axis ends in NaN poses or verdicts, not an error."""
+    for tag in ("axis", "limit", "dynamics"):
+        for element in joint.findall(tag):
+            for key, value in element.attrib.items():
+                _numbers(value, 3 if tag == "axis" else 1, f"joint {name!r} {tag} {key}")
+    axis = joint.find("axis")
+    if axis is not None and not np.linalg.norm(_numbers(axis.get("xyz", "1 0 0"), 3, f"joint {name!r} axis xyz")) > 0:
+        raise ValueError(f"joint {name!r} has axis xyz {axis.get('xyz')!r}: a moving joint needs a non-zero axis")
 
 
 def _end(joint: ElementTree.Element, end: str) -> str:
@@ -395,26 +411,54 @@ def _inertial(link, name):
     return mass, frame[:3, 3], frame[:3, :3] @ matrix @ frame[:3, :3].T
 
 
+def _sizes(text, count, where):
+    """``count`` positive finite numbers of ``text`` (a box's size, a radius, a length: m); ``ValueError`` naming
+    ``where`` otherwise (MuJoCo refuses a size <= 0 in two lines from the middle of a launch; PyBullet runs it)."""
+    values = _numbers(text, count, where)
+    if min(values) <= 0:
+        raise ValueError(f"{where}: expected {count} number(s) > 0, got {text!r}")
+    return values
+
+
+def mesh_hull_vertices(mesh_path: str, where: str) -> np.ndarray:
+    """The vertices ``(k, 3)`` of the convex hull of the mesh file ``mesh_path`` (its units); ``ValueError`` in one
+    line naming ``where`` and the file when it cannot be read, holds no vertex or a vertex that is not a finite
+    number, or encloses no volume (a flat or empty file: trimesh and Qhull raise in several lines, or as an error
+    that is not a ``ValueError``). Both engines collide with a mesh's hull."""
+    from rollability_ros.core.optional import require
+
+    trimesh = require("trimesh", feature="URDF mesh collision shapes")
+    try:
+        loaded = trimesh.load(mesh_path, force="mesh")
+        vertices = np.asarray(getattr(loaded, "vertices", ()), dtype=np.float64).reshape(-1, 3)
+    except Exception as exc:  # trimesh raises assorted parser errors
+        raise ValueError(f"{where}: cannot read mesh {mesh_path}: {' '.join(str(exc).split())}") from exc
+    if not len(vertices) or not np.all(np.isfinite(vertices)):
+        raise ValueError(f"{where}: mesh {mesh_path} holds no vertices, or one that is not a finite number (an empty, "
+                         "damaged or foreign file?)")
+    try:
+        hull = loaded.convex_hull
+    except Exception as exc:  # QhullError: flat, a line or too few points
+        raise ValueError(f"{where}: mesh {mesh_path} encloses no volume (its {len(vertices)} vertices lie in a "
+                         "plane or on a line)") from exc
+    return np.asarray(hull.vertices, dtype=np.float64)
+
+
 def _geometry_points(geometry, where, mesh_path):
     """Points ``(k, 3)`` whose hull bounds a URDF geometry, in the geometry's frame (m)."""
     box, cylinder, sphere, mesh = (geometry.find(tag) for tag in ("box", "cylinder", "sphere", "mesh"))
     if box is not None:
-        half = np.array(_numbers(box.get("size"), 3, f"{where} box size")) / 2
+        half = np.array(_sizes(box.get("size"), 3, f"{where} box size")) / 2
     elif cylinder is not None:
-        radius = _numbers(cylinder.get("radius"), 1, f"{where} cylinder radius")[0]
-        half = np.array([radius, radius, _numbers(cylinder.get("length"), 1, f"{where} cylinder length")[0] / 2])
+        radius = _sizes(cylinder.get("radius"), 1, f"{where} cylinder radius")[0]
+        half = np.array([radius, radius, _sizes(cylinder.get("length"), 1, f"{where} cylinder length")[0] / 2])
     elif sphere is not None:
-        half = np.full(3, _numbers(sphere.get("radius"), 1, f"{where} sphere radius")[0])
+        half = np.full(3, _sizes(sphere.get("radius"), 1, f"{where} sphere radius")[0])
     elif mesh is not None:
-        from rollability_ros.core.optional import require
-
-        trimesh = require("trimesh", feature="URDF mesh collision shapes")
         scale = np.array(_numbers(mesh.get("scale", "1 1 1"), 3, f"{where} mesh scale"))
-        try:
-            loaded = trimesh.load(mesh_path, force="mesh")
-        except Exception as exc:  # trimesh raises assorted parser errors
-            raise ValueError(f"{where}: cannot read mesh {mesh_path}: {exc}") from exc
-        return np.asarray(loaded.convex_hull.vertices, dtype=np.float64) * scale
+        if not np.all(scale):
+            raise ValueError(f"{where}: mesh scale {mesh.get('scale')!r} has a zero: the shape would be flat")
+        return mesh_hull_vertices(mesh_path, where) * scale
     else:
         raise ValueError(f"{where}: geometry must be a box, cylinder, sphere or mesh")
     return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half

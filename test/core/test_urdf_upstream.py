@@ -209,3 +209,14 @@ def test_xacro_arguments_are_passed_as_on_xacros_command_line(tmp_path, monkeypa
     assert model.wheel_radii_m() == pytest.approx((0.05, 0.05))
     with pytest.raises(ValueError, match="xacro_args entry 'wheel_radius=0.05': expected name:=value"):
         _spec(urdf_path=path, search_paths=(".",), xacro_args=("wheel_radius=0.05",)).description()
+    # a misspelt argument, one given twice, or arguments for a plain URDF: xacro expanded without them, silently
+    # keeping the default (or the last value)
+    with pytest.raises(ValueError, match="xacro_args 'wheel_radus': .*declares no such argument .*its arguments: "
+                                         "wheel_radius"):
+        _spec(urdf_path=path, search_paths=(".",), xacro_args=("wheel_radius:=0.05", "wheel_radus:=0.06")).description()
+    with pytest.raises(ValueError, match="xacro_args sets 'wheel_radius' twice"):
+        _spec(urdf_path=path, search_paths=(".",), xacro_args=("wheel_radius:=0.05", "wheel_radius:=0.06")).description()
+    plain = tmp_path / "plain.urdf"
+    plain.write_text(model.mounted.robot.original_urdf, encoding="utf-8")
+    with pytest.raises(ValueError, match="xacro_args .* given, but .*plain.urdf is not a xacro"):
+        _spec(urdf_path=str(plain), xacro_args=("wheel_radius:=0.05",)).description()

@@ -97,20 +97,26 @@ def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typ
     ``<prefix>/share/pkg`` of every ``AMENT_PREFIX_PATH`` prefix), so a clone of an upstream repository expands
     without a ROS install. ``ValueError`` names the file and the problem (an undefined property or macro, a
     missing include, ``$(find pkg)`` of a package found nowhere, naming it and where it was looked for)."""
+    where = path or "robot_description"
     if not is_xacro(text, path):
+        if xacro_args:
+            raise ValueError(f"urdf_robot.xacro_args {list(xacro_args)} given, but {where} is not a xacro: nothing "
+                             "reads them; remove them")
         return text
-    mappings = {}
+    mappings = _XacroArgs()
     for entry in xacro_args:
         name, separator, value = entry.partition(":=")
         if not separator or not name.strip():
             raise ValueError(f"urdf_robot.xacro_args entry {entry!r}: expected name:=value, as on xacro's command line")
-        mappings[name.strip()] = value
+        if name.strip() in mappings.given:
+            raise ValueError(f"urdf_robot.xacro_args sets {name.strip()!r} twice: give each argument once")
+        mappings.given[name.strip()] = value
+    mappings.update(mappings.given)
     from rollability_ros.core.optional import require
 
     xacro = require("xacro", feature="xacro robot descriptions")
     substitution_args = importlib.import_module("xacro.substitution_args")
     folders = [os.path.abspath(folder) for folder in search_folders(search_paths)]   # before the chdir below
-    where = path or "robot_description"
     previous = os.getcwd()
     finds = (getattr(substitution_args, "_eval_find"), substitution_args._eval_dict["find"])
     not_found: typing.List[str] = []
@@ -133,7 +139,6 @@ def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typ
             os.chdir(os.path.dirname(os.path.abspath(path)))  # xacro resolves relative includes from here
         document = xacro.parse(text, os.path.abspath(path) if path else None)
         xacro.process_doc(document, mappings=mappings)
-        return document.toxml()
     except Exception as exc:  # xacro raises XacroException, NameError, KeyError, ... with a readable message
         reason = not_found[-1] if not_found else " ".join(str(exc).split())   # xacro's own spans several lines
         raise ValueError(f"cannot expand xacro {where}: {reason}") from exc
@@ -141,6 +146,29 @@ def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typ
         setattr(substitution_args, "_eval_find", finds[0])
         substitution_args._eval_dict["find"] = finds[1]
         os.chdir(previous)
+    unread = [name for name in mappings.given if name not in mappings.asked]
+    if unread:   # xacro itself expands without them, silently: a misspelt argument would leave its default in place
+        raise ValueError(f"urdf_robot.xacro_args {unread[0]!r}: {where} declares no such argument (<xacro:arg>) and "
+                         f"reads none by that name; its arguments: {', '.join(sorted(mappings.asked)) or 'none'}")
+    return document.toxml()
+
+
+class _XacroArgs(dict):
+    """xacro's table of arguments (it keeps the object it is given): the ``xacro_args`` given, and every name xacro
+    looks up in it, as a ``<xacro:arg>`` declares one (``name in``) or a ``$(arg name)`` reads one (``[name]``)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.given: typing.Dict[str, str] = {}
+        self.asked: typing.Set[str] = set()
+
+    def __contains__(self, name: object) -> bool:
+        self.asked.add(str(name))
+        return super().__contains__(name)
+
+    def __getitem__(self, name: str) -> str:
+        self.asked.add(name)
+        return super().__getitem__(name)
 
 
 def without_visuals(xml_text: str) -> str:

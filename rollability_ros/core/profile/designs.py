@@ -78,13 +78,21 @@ def _read_designs(version):
         raise ConfigError(f"{path}: designs.labels must be a list of labels")
     if BASELINE in labels:
         raise ConfigError(f"{path}: '{BASELINE}' cannot label a design")
+    twice = sorted({label for label in labels if labels.count(label) > 1})
+    if twice:
+        raise ConfigError(f"{path}: design {twice[0]} is listed twice in designs.labels")
     grid = from_mapping(geometry.ProfileGrid, designs.get("grid"), f"{path}: designs.grid")
     heights = {}
     for label in labels:
         entry = designs.get(label)
         if not isinstance(entry, dict) or "heights" not in entry:
             raise ConfigError(f"{path}: design {label} has no designs.{label}.heights")
-        heights[label] = tuple(entry["heights"])
+        values = entry["heights"]   # YAML reads true as 1 and a lone number as no list: neither is a design's heights
+        if not isinstance(values, list) or not all(isinstance(h, (int, float)) and not isinstance(h, bool)
+                                                   for h in values):
+            raise ConfigError(f"{path}: designs.{label}.heights must be a list of numbers (simulation units), got "
+                              f"{values!r:.80}")
+        heights[label] = tuple(values)
     printed = designs.get("print")
     if printed is not None and not isinstance(printed, dict):
         raise ConfigError(f"{path}: designs.print must be a mapping of the print's settings")

@@ -359,3 +359,38 @@ def test_the_command_launches_in_real_worlds_and_writes_its_tables(tmp_path, cap
     assert summary["simulated"] is True and summary["engine"] == "mujoco" and summary["designs"]["A"]["worlds"] == 2
     assert main(["sensitivity", "--designs-file", str(tmp_path / "designs.yaml"), "--worlds", "2",
                  "--out", str(out)]) == 2                                  # an earlier check is never overwritten
+
+
+def test_a_check_stopped_by_ctrl_c_keeps_the_worlds_it_ran(tmp_path, capsys, monkeypatch):
+    """world_check.csv was written once the last world was done: a check stopped after hours (28 worlds, measured)
+    left an empty --out. Each row is written as it comes; the summary only for a finished check."""
+    import numpy as np
+    import yaml
+
+    from rollability_ros.cli import main
+    from rollability_ros.core import sim
+    from rollability_ros.core.optimization.design_set import designs_document
+    from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, SelectionResult
+    from rollability_ros.core.profile.geometry import ProfileGrid
+    from rollability_ros.core.sim import evaluation
+
+    def local_world_evaluator(profiles, settings, executor):
+        def evaluate(world_seed, launch_seed, launches):
+            if world_seed != sim.world_check.world_seed_pair(4, 0)[0]:
+                raise KeyboardInterrupt   # the user's Ctrl-C during the second world
+            return {"baseline": (1, launches), "A": (2, launches)}
+        return evaluate
+
+    monkeypatch.setattr(sim, "local_world_evaluator", local_world_evaluator)
+    monkeypatch.setattr(sim, "make_executor", lambda options, workers=None: evaluation.SerialExecutor())
+    chosen = [SelectedDesign("A", PooledDesign(np.repeat(np.linspace(0.05, 0.3, 3), 3), 9, 10, 1, 1), None, None)]
+    document = designs_document(SelectionResult(chosen, 1, 1, {}), ProfileGrid(rows=3, cols=3), "run-1")
+    (tmp_path / "designs.yaml").write_text(yaml.safe_dump(document), encoding="utf-8")
+    out = tmp_path / "worlds"
+    assert main(["sensitivity", "--designs-file", str(tmp_path / "designs.yaml"), "--worlds", "1000",
+                 "--launches-per-world", "2", "--seed", "4", "--out", str(out)]) == 130
+    assert "world_check.csv keeps the rows of the worlds done" in capsys.readouterr().err
+    with open(out / "world_check.csv", newline="", encoding="utf-8") as stream:
+        rows = list(csv.DictReader(stream))
+    assert [(r["world"], r["configuration"], r["successes"]) for r in rows] == [("0", "baseline", "1"), ("0", "A", "2")]
+    assert not (out / "world_summary.yaml").exists()

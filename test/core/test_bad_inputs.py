@@ -140,6 +140,8 @@ CASES = [
     (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--config", "far_heights.yaml"],
      "height_m must be <= 10 m, got 1e+308"),                       # the same bounds as --resimulate
     (["evaluate", "--baseline", "--engines", ""], "--engines needs two different engines"),
+    # a binary file given as the heights: "'utf-8' codec can't decode byte 0x..." named neither the flag nor the file
+    (["evaluate", "--heights-file", "bag/bag_0.mcap"], "--heights-file bag/bag_0.mcap: not a text file of heights"),
     (["optimize", "--resume", "deep_checkpoint"], "is damaged or not a checkpoint"),
     (["bringup", "--config", "climbing.yaml"], "bringup.output_dir"),
     (["study", "--config", "climbing.yaml"], "has more '..' than"),

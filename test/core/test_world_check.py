@@ -39,6 +39,8 @@ def test_a_world_fidelity_fixes_one_draw_for_every_launch():
     assert draw(7, RobustSettings(), 0.0, 0.05) != draw(8, RobustSettings(), 0.0, 0.05)   # worlds differ
     for bad in ("world:", "world:-1", "world:x", "worlds:3", "world:99999999999"):
         assert check_fidelity(bad), bad
+    for bad in ("world:\u00b2", "world:\u0663", "world:" + "9" * 5000):   # int() refused / read 3 / hit its limit
+        assert "a world fidelity is world:<seed>, seed in [0, 2^32 - 1]" in (check_fidelity(bad) or ""), bad
     assert check_fidelity("world:0") is None and check_fidelity("launch") is None and check_fidelity("") is None
 
 

@@ -134,7 +134,9 @@ def world_seed_of(fidelity: str) -> int:
     if not fidelity.startswith(WORLD_FIDELITY):
         return -1
     text = fidelity[len(WORLD_FIDELITY):]
-    if not text.isdigit() or int(text) > 2 ** 32 - 1:
+    # ASCII digits only: str.isdigit also takes '²' (which int() refuses) and '٣' (which int() reads as 3); at most
+    # ten of them, as int() refuses more than 4300 with a message about its own limit
+    if not (text.isascii() and text.isdigit()) or len(text) > 10 or int(text) > 2 ** 32 - 1:
         raise ValueError(f"fidelity {fidelity!r}: a world fidelity is {WORLD_FIDELITY}<seed>, seed in [0, 2^32 - 1]")
     return int(text)
 

@@ -41,6 +41,7 @@ def test_a_world_fidelity_fixes_one_draw_for_every_launch():
         assert check_fidelity(bad), bad
     for bad in ("world:\u00b2", "world:\u0663", "world:" + "9" * 5000):   # int() refused / read 3 / hit its limit
         assert "a world fidelity is world:<seed>, seed in [0, 2^32 - 1]" in (check_fidelity(bad) or ""), bad
+    assert len(check_fidelity("world:" + "9" * 5000)) < 120   # a goal's 5000 digits were echoed whole into the log
     assert check_fidelity("world:0") is None and check_fidelity("launch") is None and check_fidelity("") is None
 
 

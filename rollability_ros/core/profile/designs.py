@@ -166,6 +166,8 @@ def print_instructions_from_text(text: str) -> typing.Dict[str, typing.Union[str
         value = json.loads(text)
     except ValueError as exc:
         raise ValueError(f"print instructions are not JSON: {exc}") from None
+    except RecursionError:   # 100,000 '[' from a goal's printed_with took the evaluator node down
+        raise ValueError("print instructions are not JSON of settings: nested too deep") from None
     if not isinstance(value, dict):
         raise ValueError(f"print instructions must be a JSON object of settings, got {type(value).__name__}")
     for name, item in value.items():

@@ -202,3 +202,8 @@ def test_print_differences_name_each_setting_both_ways_and_skip_the_ignored():
     missing = dict(default)
     del missing["model"]
     assert print_differences(default, missing, ("a", "b")) == [f"model {default['model']} (a) vs None (b)"]
+    # a goal's 5 MB value was echoed whole into the evaluator's one-line rejection
+    assert print_differences({"model": "a" * 5_000_000}, {"model": "shell"}, ("optimizer", "here")) == [
+        f"model {'a' * 40} (optimizer) vs shell (here)"]
+    with pytest.raises(ValueError, match="nested too deep"):   # was a RecursionError: the evaluator node died
+        print_instructions_from_text("[" * 100_000)

@@ -153,7 +153,8 @@ def print_differences(first: typing.Mapping[str, typing.Union[str, float]],
                  and not isinstance(want, bool) and not isinstance(have, bool)
                  and math.isclose(want, have, rel_tol=1e-9, abs_tol=1e-12))
         if not (want == have or close):
-            differ.append(f"{name} {want} ({labels[0]}) vs {have} ({labels[1]})")
+            # each at most 40 characters: a goal's 5 MB value was echoed whole into the evaluator's log line
+            differ.append(f"{name:.40} {want!s:.40} ({labels[0]}) vs {have!s:.40} ({labels[1]})")
     return differ
 
 

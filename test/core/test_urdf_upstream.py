@@ -93,7 +93,8 @@ BOX_BOT = XACRO_ROBOT.replace('<xacro:include filename="$(find clone_bot_descrip
                               .replace("</robot>", ""))
 
 
-@pytest.mark.parametrize("changes, files, problem", [
+#: Broken descriptions (their text changes from BOX_BOT, the files they name) and the refusal's words.
+BROKEN = [
     # a collision mesh that is empty or truncated: "No points given", naming neither the link nor the file
     ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.stl"/>'}, {"body.stl": b""},
      "link 'base_link' collision 0: mesh .*body.stl holds no vertices"),
@@ -109,7 +110,20 @@ BOX_BOT = XACRO_ROBOT.replace('<xacro:include filename="$(find clone_bot_descrip
      "joint 'left_wheel_joint' dynamics damping: expected 1 numbers, got 'nan'"),
     # xacro's own error spans three lines ("Use of invalid name(s) ... \nwhen evaluating expression ...")
     ({'value="2.0"': 'value="${__import__(\'os\').getpid()}"'}, {}, "cannot expand xacro .*Use of invalid name"),
-])
+]
+
+
+@pytest.mark.parametrize("entry", ["python:no_such_package_xyz", "python:no_such_package_xyz.sub", "python:..x"])
+def test_a_search_path_of_no_installed_package_is_refused_in_one_line(entry):
+    """A dotted name whose parent is not installed was a ModuleNotFoundError traceback, a relative one an
+    ImportError: find_spec raises for them where it returns None for a plain missing name."""
+    from rollability_ros.core.robots.urdf_description import search_folders
+
+    with pytest.raises(ValueError, match=f"search path entry {entry}: no installed Python package"):
+        search_folders([entry])
+
+
+@pytest.mark.parametrize("changes, files, problem", BROKEN)
 def test_a_broken_description_is_refused_in_one_line_naming_the_link_or_joint(tmp_path, changes, files, problem):
     text = BOX_BOT
     for old, new in changes.items():

@@ -190,7 +190,10 @@ def search_folders(search_paths: typing.Iterable[str]) -> typing.List[str]:
     for entry in search_paths:
         if entry.startswith("python:"):
             module = entry[len("python:"):]
-            spec = importlib.util.find_spec(module)
+            try:
+                spec = importlib.util.find_spec(module)
+            except (ImportError, ValueError):   # a dotted name whose parent is missing, a relative or empty name
+                spec = None
             if spec is None or not (spec.submodule_search_locations or spec.origin):
                 raise ValueError(f"search path entry {entry}: no installed Python package {module}")
             folders.append(list(spec.submodule_search_locations)[0] if spec.submodule_search_locations

@@ -85,6 +85,11 @@ def _write_outputs(args: argparse.Namespace, sources: typing.Sequence[str], meth
     return params_path
 
 
+#: The most launches ``--prepare`` simulates: 125 times the default 8000 (sized for 15 minutes on 2 cores). Its draws
+#: are made before the first launch: 10^11 launches asked numpy for 11 TiB at once.
+MAX_PREPARE_LAUNCHES = 1_000_000
+
+
 def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any], twin: "LaunchTwinSettings",
             settings: "CalibrationSettings") -> int:
     """``--prepare FILE``: simulate the training launches and learn the likelihood of the fitted unknowns over the
@@ -98,8 +103,8 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
 
     if os.path.exists(args.prepare):
         raise ValueError(f"--prepare {args.prepare}: the file exists; a prepared likelihood is never overwritten")
-    if args.prepare_launches < 200:
-        raise ValueError(f"--prepare-launches must be >= 200, got {args.prepare_launches}")
+    if not 200 <= args.prepare_launches <= MAX_PREPARE_LAUNCHES:   # 10^11 was an 11 TiB MemoryError traceback
+        raise ValueError(f"--prepare-launches must be in [200, {MAX_PREPARE_LAUNCHES}], got {args.prepare_launches}")
     spec = from_mapping(CampaignSpec, section(parameters, "campaign"), "campaign")
     levels = ConditionLevels(tuple(spec.heights_m), tuple(spec.speeds_mps), tuple(spec.angles_deg))
     configurations = ["baseline", *(label for label in parameters.get("launch_twin.designs.mesh_labels", []) if label)]
@@ -344,7 +349,8 @@ def register(subparsers: Subparsers) -> None:
                              "to FILE (.npz; never overwritten), with the temperature a calibration with it uses "
                              "(0.25, chosen on held-out truths: --temperature); once per robot and design set")
     parser.add_argument("--prepare-launches", type=int, default=8000, metavar="N",
-                        help="simulated launches of --prepare (default 8000: sized for 15 minutes on 2 quiet cores)")
+                        help="simulated launches of --prepare, 200 to 1000000 (default 8000: sized for 15 minutes on 2 quiet "
+                             "cores)")
     parser.add_argument("--likelihood", metavar="FILE",
                         help="calibrate with a likelihood made by --prepare (its twin and designs must be the loaded "
                              "ones): the posterior of the --fit unknowns, the file's others held at their loaded "

@@ -140,6 +140,9 @@ CASES = [
     (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--config", "far_heights.yaml"],
      "height_m must be <= 10 m, got 1e+308"),                       # the same bounds as --resimulate
     (["evaluate", "--baseline", "--engines", ""], "--engines needs two different engines"),
+    # was numpy's MemoryError traceback ("Unable to allocate 11.0 TiB"); 10^8 would have taken gigabytes and days
+    (["calibrate", "--prepare", "p.npz", "--prepare-launches", "100000000000"],
+     "--prepare-launches must be in [200, 1000000], got 100000000000"),
     # a binary file given as the heights: "'utf-8' codec can't decode byte 0x..." named neither the flag nor the file
     (["evaluate", "--heights-file", "bag/bag_0.mcap"], "--heights-file bag/bag_0.mcap: not a text file of heights"),
     (["optimize", "--resume", "deep_checkpoint"], "is damaged or not a checkpoint"),

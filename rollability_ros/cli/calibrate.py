@@ -88,6 +88,8 @@ def _write_outputs(args: argparse.Namespace, sources: typing.Sequence[str], meth
 #: The most launches ``--prepare`` simulates: 125 times the default 8000 (sized for 15 minutes on 2 cores). Its draws
 #: are made before the first launch: 10^11 launches asked numpy for 11 TiB at once.
 MAX_PREPARE_LAUNCHES = 1_000_000
+#: The most steps of ``--sampler-steps``: its chains are allocated whole (steps x walkers x unknowns per member).
+MAX_SAMPLER_STEPS = 100_000
 
 
 def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any], twin: "LaunchTwinSettings",
@@ -172,8 +174,10 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
                                                shot_observations, twin_fingerprint)
     from rollability_ros.core.results import group_conditions
 
-    if args.sampler_steps < 20:
-        raise ValueError(f"--sampler-steps must be >= 20, got {args.sampler_steps}")
+    if not 20 <= args.sampler_steps <= MAX_SAMPLER_STEPS:   # 10^11 was a 23 TiB MemoryError traceback
+        raise ValueError(f"--sampler-steps must be in [20, {MAX_SAMPLER_STEPS}], got {args.sampler_steps}")
+    if args.seed < 0:   # numpy's own refusal named neither the flag nor the value
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
     likelihood = load_likelihood(args.likelihood)
     unknowns = likelihood.unknowns
     if likelihood.fingerprint != twin_fingerprint(parameters, unknowns.names):
@@ -358,7 +362,7 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--seed", type=int, default=1, help="seed of the posterior sampler (--likelihood)")
     parser.add_argument("--sampler-steps", type=int, default=300, metavar="N",
                         help="steps of the posterior sampler per ensemble member (--likelihood; the first half is "
-                             "discarded; >= 20)")
+                             "discarded; 20 to 100000)")
     parser.add_argument("--outcomes", default="none", metavar="WHICH",
                         help="the continuous outcomes the learnt likelihood weighs beside the verdicts (--likelihood): "
                              "none (default: the verdicts only), all (every one the records carry) or NAME,NAME of "

@@ -384,6 +384,11 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
     assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--temperature", "1.5",
                  "--out", str(tmp_path / "out5")]) == 2
     assert "temperature must lie in (0, 1]" in capsys.readouterr().err
+    for flags, problem in ((["--sampler-steps", "100000000000"], "--sampler-steps must be in [20, 100000]"),  # 23 TiB
+                           (["--seed", "-5"], "--seed must be >= 0, got -5")):   # was "expected non-negative integer"
+        assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), *flags,
+                     "--out", str(tmp_path / "out5")]) == 2
+        assert problem in capsys.readouterr().err
     assert main(["calibrate", "--physical", str(source), "--gate", "--out", str(tmp_path / "out6")]) == 2
     assert "--gate adds the speed gate's term to a prepared likelihood" in capsys.readouterr().err
     assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--gate",

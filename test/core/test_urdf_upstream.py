@@ -98,6 +98,12 @@ BROKEN = [
     # a collision mesh that is empty or truncated: "No points given", naming neither the link nor the file
     ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.stl"/>'}, {"body.stl": b""},
      "link 'base_link' collision 0: mesh .*body.stl holds no vertices"),
+    # an ASCII STL: trimesh reads it, PyBullet dropped the shape with a warning ("the body has no resting pose"),
+    # MuJoCo refused it in two lines
+    ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.stl"/>'},
+     {"body.stl": b"solid body\n" + b"".join(b"facet normal 0 0 1\nouter loop\nvertex %d %d %d\nvertex 1 0 0\n"
+                                           b"vertex 0 1 0\nendloop\nendfacet\n" % (0, 0, k) for k in (0, 1))
+      + b"endsolid body\n"}, "link 'base_link' collision 0: mesh .*body.stl is an ASCII STL"),
     # a flat one: Qhull's QhullError (not a ValueError: a traceback from the CLI), in several lines
     ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="flat.obj"/>'}, {"flat.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
      "link 'base_link' collision 0: mesh .*flat.obj encloses no volume"),

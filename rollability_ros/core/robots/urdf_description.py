@@ -451,6 +451,21 @@ def _sizes(text, count, where):
     return values
 
 
+def _ascii_stl(path: str) -> bool:
+    """True for an STL file in the ASCII format: not the size a binary STL's triangle count gives (84 bytes of
+    header and count, 50 a triangle), and starting with ``solid`` (a binary header may start so too)."""
+    if not path.lower().endswith(".stl"):
+        return False
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(84)
+        size = os.path.getsize(path)
+    except OSError:
+        return False   # the read below names the file
+    binary = len(head) == 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little")
+    return not binary and head.lstrip().startswith(b"solid")
+
+
 def mesh_hull_vertices(mesh_path: str, where: str) -> np.ndarray:
     """The vertices ``(k, 3)`` of the convex hull of the mesh file ``mesh_path`` (its units); ``ValueError`` in one
     line naming ``where`` and the file when it cannot be read, holds no vertex or a vertex that is not a finite
@@ -458,6 +473,9 @@ def mesh_hull_vertices(mesh_path: str, where: str) -> np.ndarray:
     that is not a ``ValueError``). Both engines collide with a mesh's hull."""
     from rollability_ros.core.optional import require
 
+    if _ascii_stl(mesh_path):   # trimesh reads it; PyBullet drops the shape with a warning, MuJoCo refuses it
+        raise ValueError(f"{where}: mesh {mesh_path} is an ASCII STL, which PyBullet and MuJoCo cannot read (PyBullet "
+                         "would simulate the link without it): save it as a binary STL or an OBJ")
     trimesh = require("trimesh", feature="URDF mesh collision shapes")
     try:
         loaded = trimesh.load(mesh_path, force="mesh")

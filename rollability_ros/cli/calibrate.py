@@ -162,6 +162,14 @@ def _temperature(args: argparse.Namespace, likelihood: "LearntLikelihood") -> ty
     return args.temperature, temperature_statement(args.temperature, "given by --temperature")
 
 
+def _check_sampler_flags(args: argparse.Namespace) -> None:
+    """``ValueError`` naming a ``--sampler-steps`` or ``--seed`` the posterior sampler cannot take."""
+    if not 20 <= args.sampler_steps <= MAX_SAMPLER_STEPS:   # 10^11 was a 23 TiB MemoryError traceback
+        raise ValueError(f"--sampler-steps must be in [20, {MAX_SAMPLER_STEPS}], got {args.sampler_steps}")
+    if args.seed < 0:   # numpy's own refusal named neither the flag nor the value
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+
+
 def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any], twin: "LaunchTwinSettings",
                outcomes: typing.Sequence[typing.Any], characterisation: typing.Any,
                sources: typing.Sequence[str]) -> int:
@@ -174,10 +182,7 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
                                                shot_observations, twin_fingerprint)
     from rollability_ros.core.results import group_conditions
 
-    if not 20 <= args.sampler_steps <= MAX_SAMPLER_STEPS:   # 10^11 was a 23 TiB MemoryError traceback
-        raise ValueError(f"--sampler-steps must be in [20, {MAX_SAMPLER_STEPS}], got {args.sampler_steps}")
-    if args.seed < 0:   # numpy's own refusal named neither the flag nor the value
-        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    _check_sampler_flags(args)
     likelihood = load_likelihood(args.likelihood)
     unknowns = likelihood.unknowns
     if likelihood.fingerprint != twin_fingerprint(parameters, unknowns.names):

@@ -167,7 +167,8 @@ def test_a_goal_of_another_print_is_rejected_naming_the_difference(ros_node, eva
     mine = load_settings().print_instructions()   # the node runs on the shipped files, as load_settings reads
     client = _client(ros_node, "/evaluate_profile")
     for printed_with, named in ((json.dumps({**mine, "infill_fraction": 0.35}), "infill_fraction"),
-                                ("{not json", "printed_with: print instructions are not JSON")):
+                                ("{not json", "printed_with: print instructions are not JSON"),
+                                ("[" * 100_000, "nested too deep")):   # was a RecursionError: the node died
         rejected = evaluator.log().count("rejected evaluate_profile goal")
         assert not _send(ros_node, client, _ridge(), 2, 1, printed_with=printed_with).accepted
         assert ros_node.wait_for(lambda: evaluator.log().count("rejected evaluate_profile goal") > rejected, 10)

@@ -48,6 +48,9 @@ def test_description_from_the_topic(ros_node, start_node, tmp_path):
     assert ros_node.wait_for(lambda: "no robot description yet" in evaluator.log(), 10), evaluator.log()
 
     publisher = ros_node.node.create_publisher(String, "/robot_description", LATCHED_QOS)
+    publisher.publish(String(data=""))   # was a ValueError in the callback: the node died
+    assert ros_node.wait_for(lambda: "ignored robot_description: the message is empty" in evaluator.log(), 30), \
+        evaluator.log()
     publisher.publish(String(data="<robot name='broken'><link name='a'>"))
     assert ros_node.wait_for(lambda: "ignored robot_description: robot description is not valid XML"
                              in evaluator.log(), 30), evaluator.log()

@@ -85,6 +85,13 @@ def _write_outputs(args: argparse.Namespace, sources: typing.Sequence[str], meth
     return params_path
 
 
+#: The most launches ``--prepare`` simulates: 125 times the default 8000 (sized for 15 minutes on 2 cores). Its draws
+#: are made before the first launch: 10^11 launches asked numpy for 11 TiB at once.
+MAX_PREPARE_LAUNCHES = 1_000_000
+#: The most steps of ``--sampler-steps``: its chains are allocated whole (steps x walkers x unknowns per member).
+MAX_SAMPLER_STEPS = 100_000
+
+
 def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any], twin: "LaunchTwinSettings",
             settings: "CalibrationSettings") -> int:
     """``--prepare FILE``: simulate the training launches and learn the likelihood of the fitted unknowns over the
@@ -98,8 +105,8 @@ def prepare(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any
 
     if os.path.exists(args.prepare):
         raise ValueError(f"--prepare {args.prepare}: the file exists; a prepared likelihood is never overwritten")
-    if args.prepare_launches < 200:
-        raise ValueError(f"--prepare-launches must be >= 200, got {args.prepare_launches}")
+    if not 200 <= args.prepare_launches <= MAX_PREPARE_LAUNCHES:   # 10^11 was an 11 TiB MemoryError traceback
+        raise ValueError(f"--prepare-launches must be in [200, {MAX_PREPARE_LAUNCHES}], got {args.prepare_launches}")
     spec = from_mapping(CampaignSpec, section(parameters, "campaign"), "campaign")
     levels = ConditionLevels(tuple(spec.heights_m), tuple(spec.speeds_mps), tuple(spec.angles_deg))
     configurations = ["baseline", *(label for label in parameters.get("launch_twin.designs.mesh_labels", []) if label)]
@@ -155,6 +162,14 @@ def _temperature(args: argparse.Namespace, likelihood: "LearntLikelihood") -> ty
     return args.temperature, temperature_statement(args.temperature, "given by --temperature")
 
 
+def _check_sampler_flags(args: argparse.Namespace) -> None:
+    """``ValueError`` naming a ``--sampler-steps`` or ``--seed`` the posterior sampler cannot take."""
+    if not 20 <= args.sampler_steps <= MAX_SAMPLER_STEPS:   # 10^11 was a 23 TiB MemoryError traceback
+        raise ValueError(f"--sampler-steps must be in [20, {MAX_SAMPLER_STEPS}], got {args.sampler_steps}")
+    if args.seed < 0:   # numpy's own refusal named neither the flag nor the value
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+
+
 def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.Any], twin: "LaunchTwinSettings",
                outcomes: typing.Sequence[typing.Any], characterisation: typing.Any,
                sources: typing.Sequence[str]) -> int:
@@ -167,8 +182,7 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
                                                shot_observations, twin_fingerprint)
     from rollability_ros.core.results import group_conditions
 
-    if args.sampler_steps < 20:
-        raise ValueError(f"--sampler-steps must be >= 20, got {args.sampler_steps}")
+    _check_sampler_flags(args)
     likelihood = load_likelihood(args.likelihood)
     unknowns = likelihood.unknowns
     if likelihood.fingerprint != twin_fingerprint(parameters, unknowns.names):
@@ -344,7 +358,8 @@ def register(subparsers: Subparsers) -> None:
                              "to FILE (.npz; never overwritten), with the temperature a calibration with it uses "
                              "(0.25, chosen on held-out truths: --temperature); once per robot and design set")
     parser.add_argument("--prepare-launches", type=int, default=8000, metavar="N",
-                        help="simulated launches of --prepare (default 8000: sized for 15 minutes on 2 quiet cores)")
+                        help="simulated launches of --prepare, 200 to 1000000 (default 8000: sized for 15 minutes on 2 quiet "
+                             "cores)")
     parser.add_argument("--likelihood", metavar="FILE",
                         help="calibrate with a likelihood made by --prepare (its twin and designs must be the loaded "
                              "ones): the posterior of the --fit unknowns, the file's others held at their loaded "
@@ -352,7 +367,7 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--seed", type=int, default=1, help="seed of the posterior sampler (--likelihood)")
     parser.add_argument("--sampler-steps", type=int, default=300, metavar="N",
                         help="steps of the posterior sampler per ensemble member (--likelihood; the first half is "
-                             "discarded; >= 20)")
+                             "discarded; 20 to 100000)")
     parser.add_argument("--outcomes", default="none", metavar="WHICH",
                         help="the continuous outcomes the learnt likelihood weighs beside the verdicts (--likelihood): "
                              "none (default: the verdicts only), all (every one the records carry) or NAME,NAME of "

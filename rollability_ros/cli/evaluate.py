@@ -39,7 +39,11 @@ def _read_heights(args):
         return parse_heights(args.heights)
     if args.heights_file is not None:
         with open(args.heights_file, encoding="utf-8") as stream:
-            return parse_heights(stream.read(), source=f"--heights-file {args.heights_file}")
+            try:
+                text = stream.read()
+            except UnicodeDecodeError:   # its own message names neither the flag nor the file
+                raise ValueError(f"--heights-file {args.heights_file}: not a text file of heights (UTF-8)") from None
+        return parse_heights(text, source=f"--heights-file {args.heights_file}")
     return None
 
 

@@ -6,6 +6,7 @@ in each of N fixed draws of all unknowns on the same seeds."""
 import argparse
 import csv
 import os
+import sys
 import typing
 
 from rollability_ros.cli import Subparsers
@@ -73,20 +74,27 @@ def run_worlds(args: argparse.Namespace, settings: typing.Any, profiles: typing.
                                                                                launch_engine=args.engine))
     engine = settings_at_fidelity(settings, "launch").physics.engine
 
-    def show(row: typing.Mapping[str, typing.Any]) -> None:
-        print(f"world {row['world']:>3} {row['configuration']:<10} {row['successes']:>4}/{row['trials']:<4}",
-              flush=True)
-
-    with make_executor(settings.evaluator, args.workers) as executor:
-        rows = run_world_check(local_world_evaluator(profiles, settings, executor), args.worlds,
-                               args.launches_per_world, args.seed, world_draws(settings), show)
-    summaries = summarize_worlds(rows)
-    verdict = recommend(summaries, SelectionSettings().recommend_world_share)
     csv_path = os.path.join(args.out, WORLD_FILES[0])
-    with open(csv_path, "w", newline="", encoding="utf-8") as stream:
+    # each row written as it comes: a check stopped after hours keeps the worlds it ran (they were lost at Ctrl-C)
+    with open(csv_path, "w", newline="", encoding="utf-8") as stream, \
+            make_executor(settings.evaluator, args.workers) as executor:
         writer = csv.DictWriter(stream, fieldnames=list(WORLD_CHECK_COLUMNS))
         writer.writeheader()
-        writer.writerows(rows)
+
+        def show(row: typing.Mapping[str, typing.Any]) -> None:
+            writer.writerow(row)
+            stream.flush()
+            print(f"world {row['world']:>3} {row['configuration']:<10} {row['successes']:>4}/{row['trials']:<4}",
+                  flush=True)
+
+        try:
+            rows = run_world_check(local_world_evaluator(profiles, settings, executor), args.worlds,
+                                   args.launches_per_world, args.seed, world_draws(settings), show)
+        except KeyboardInterrupt:
+            print(f"{csv_path} keeps the rows of the worlds done (no summary written)", file=sys.stderr)
+            raise
+    summaries = summarize_worlds(rows)
+    verdict = recommend(summaries, SelectionSettings().recommend_world_share)
     document = {"simulated": True, "engine": engine, "worlds": args.worlds,
                 "launches_per_world": args.launches_per_world, "seed": args.seed,
                 "wins_mean": "a design wins a world when its point gain over the bare robot there is > 0",

@@ -105,6 +105,8 @@ class SimEvaluator(Node):
     def _on_description(self, msg):
         urdf_robot = dataclasses.replace(self._settings.urdf_robot, robot_description=msg.data)
         try:
+            if not msg.data.strip():   # validate() checks a description only when there is one: this took the node down
+                raise ValueError("the message is empty")
             urdf_robot.validate()
         except ValueError as exc:
             self.get_logger().error(f"ignored robot_description: {exc}")

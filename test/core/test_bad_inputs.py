@@ -140,6 +140,11 @@ CASES = [
     (["campaign", "--backend", "sim", "--store", "camp.sqlite", "--config", "far_heights.yaml"],
      "height_m must be <= 10 m, got 1e+308"),                       # the same bounds as --resimulate
     (["evaluate", "--baseline", "--engines", ""], "--engines needs two different engines"),
+    # was numpy's MemoryError traceback ("Unable to allocate 11.0 TiB"); 10^8 would have taken gigabytes and days
+    (["calibrate", "--prepare", "p.npz", "--prepare-launches", "100000000000"],
+     "--prepare-launches must be in [200, 1000000], got 100000000000"),
+    # a binary file given as the heights: "'utf-8' codec can't decode byte 0x..." named neither the flag nor the file
+    (["evaluate", "--heights-file", "bag/bag_0.mcap"], "--heights-file bag/bag_0.mcap: not a text file of heights"),
     (["optimize", "--resume", "deep_checkpoint"], "is damaged or not a checkpoint"),
     (["bringup", "--config", "climbing.yaml"], "bringup.output_dir"),
     (["study", "--config", "climbing.yaml"], "has more '..' than"),
@@ -245,3 +250,20 @@ def test_the_operators_rig_command_refuses_a_bringup_file_bringup_would(workspac
     assert result.stderr.startswith("rollability rig: error:") and reason in result.stderr, result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
     assert tree_checksums(workspace) == before
+
+
+@pytest.mark.parametrize("argv", [["evaluate", "--baseline", "--trials", "1", "--workers", "5000"],
+                                  ["calibrate", "--physical", "good.csv", "--workers", "5000", "--out", "c9"]])
+def test_a_worker_count_beyond_the_declared_range_starts_no_process(workspace, monkeypatch, capsys, argv):
+    """`--workers 5000` started 5000 interpreters (evaluator.workers is declared up to 1024; the flag was not
+    held to it): refused before any process starts."""
+    import concurrent.futures
+
+    def no_pool(*args, **kwargs):
+        raise AssertionError(f"a pool was started: {kwargs.get('max_workers')} workers")
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", no_pool)
+    monkeypatch.chdir(workspace)
+    assert main(argv) == 2
+    error = capsys.readouterr().err
+    assert "worker processes must be in [1, 1024], got 5000" in error and len(error.strip().splitlines()) == 1

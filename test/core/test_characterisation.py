@@ -60,6 +60,11 @@ def one_unknown(name, lower, upper, **changes):
      "gate_shots: unknown key 'sigma'"),
     (f"format: {FORMAT}\ngate_shots: {{readings: [{{speed_mps: 0.8}}]}}\n",
      r"gate_shots.readings\[0\]: missing key 'measured_speed_mps'"),
+    # a section written twice: YAML keeps the second's readings and drops the first's without a word
+    (f"format: {FORMAT}\ngate_shots: {{readings: [{{speed_mps: 0.8, measured_speed_mps: 0.79}}]}}\n"
+     "gate_shots: {readings: [{speed_mps: 1.5, measured_speed_mps: 1.52}]}\n", "duplicate key 'gate_shots' at line 3"),
+    (f"format: {FORMAT}\nslide_angle: {{sigma_deg: 1, sigma_deg: 9, readings_deg: [20]}}\n", "duplicate key 'sigma_deg'"),
+    (f"format: {FORMAT}\nslide_angle: " + "[" * 30000 + "\n", "nesting deeper than"),   # was a RecursionError
 ])
 def test_malformed_characterisation_files_are_refused_in_one_line_naming_the_problem(tmp_path, document, problem):
     path = tmp_path / "bench.yaml"

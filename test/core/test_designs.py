@@ -105,6 +105,16 @@ def test_missing_and_broken_files_are_named(tmp_path):
     broken.write_text("/**:\n  ros__parameters:\n    designs:\n      labels: [A]\n      grid: {rows: 4, cols: 3}\n")
     with pytest.raises(ConfigError, match="design A has no designs.A.heights"):
         profile_mesh_for("A", DesignSources(designs_file=str(broken)))
+    # a lone number was a TypeError traceback, true / false read as heights 1 and 0, a label listed twice passed
+    for name, body, problem in (("number", "labels: [A]\n      A: {heights: 3}", r"designs.A.heights must be a list of "
+                                 r"numbers \(simulation units\), got 3"),
+                                ("boolean", "labels: [A]\n      A: {heights: [false, 0.1]}", "got \\[False, 0.1\\]"),
+                                ("twice", "labels: [A, A]\n      A: {heights: [0.1]}", "design A is listed twice")):
+        (tmp_path / name).mkdir()
+        path = tmp_path / name / "designs.yaml"
+        path.write_text(f"/**:\n  ros__parameters:\n    designs:\n      {body}\n")
+        with pytest.raises(ConfigError, match=problem):
+            configuration_ids(DesignSources(designs_file=str(path)))
 
 
 def test_designs_are_launched_only_under_the_print_they_were_chosen_for(tmp_path):
@@ -192,3 +202,8 @@ def test_print_differences_name_each_setting_both_ways_and_skip_the_ignored():
     missing = dict(default)
     del missing["model"]
     assert print_differences(default, missing, ("a", "b")) == [f"model {default['model']} (a) vs None (b)"]
+    # a goal's 5 MB value was echoed whole into the evaluator's one-line rejection
+    assert print_differences({"model": "a" * 5_000_000}, {"model": "shell"}, ("optimizer", "here")) == [
+        f"model {'a' * 40} (optimizer) vs shell (here)"]
+    with pytest.raises(ValueError, match="nested too deep"):   # was a RecursionError: the evaluator node died
+        print_instructions_from_text("[" * 100_000)

@@ -283,6 +283,45 @@ def test_the_file_round_trips_and_anything_else_is_refused_in_one_line(tmp_path)
         learnt.load_likelihood(tmp_path / "absent.npz")
 
 
+def test_another_format_a_huge_archive_and_a_level_not_a_number_are_refused_in_one_line(tmp_path):
+    """A CSV given as the likelihood was called pickled data with advice to load it unsafely; an archive that
+    inflates past any prepared file's size was decompressed whole into memory (a few kB can hold gigabytes); a
+    condition level that is not a number loaded."""
+    import io
+    import json
+    import zipfile
+
+    path = tmp_path / "likelihood.npz"
+    model().save(path)
+    with np.load(path) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+
+    def refused(target, problem):
+        with pytest.raises(ValueError, match=problem) as caught:
+            learnt.load_likelihood(target)
+        assert "\n" not in str(caught.value) and str(caught.value).startswith(str(target))
+        assert "allow_pickle" not in str(caught.value)
+
+    outcomes = tmp_path / "outcomes.csv"
+    outcomes.write_text("configuration,height_m,speed_mps,angle_deg,repetition,upright\nA,0.75,0.8,-30,0,true\n")
+    refused(outcomes, r"not a prepared likelihood file \(not an .npz archive\)")
+    inflating = tmp_path / "inflating.npz"
+    with zipfile.ZipFile(inflating, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, value in arrays.items():
+            stream = io.BytesIO()
+            np.save(stream, value)
+            archive.writestr(f"{name}.npy", stream.getvalue())
+        stream = io.BytesIO()
+        np.save(stream, np.zeros(learnt.MAX_ARRAY_BYTES // 8 + 1))   # 16 MiB of zeros: 16 kB compressed
+        archive.writestr("padding.npy", stream.getvalue())
+    assert inflating.stat().st_size < 100_000
+    refused(inflating, "not a prepared likelihood file .*inflates to .* refused unread")
+    header = json.loads(str(arrays["header"]))
+    header["levels"]["speeds_mps"] = [float("nan"), 1.5]
+    np.savez(tmp_path / "nan_level.npz", **{**arrays, "header": np.array(json.dumps(header))})
+    refused(tmp_path / "nan_level.npz", "a condition level is not a finite number")
+
+
 def twin_model_and_launches(tmp_path):
     """:func:`model` over two of the shipped twin's unknowns (the bare robot, fingerprinted for the shipped
     parameter files) and an outcome CSV of 100 launches drawn from it at normalised (0.6, 0.4)."""
@@ -345,6 +384,11 @@ def test_calibrate_with_a_prepared_likelihood_writes_sets_and_refuses_another_tw
     assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--temperature", "1.5",
                  "--out", str(tmp_path / "out5")]) == 2
     assert "temperature must lie in (0, 1]" in capsys.readouterr().err
+    for flags, problem in ((["--sampler-steps", "100000000000"], "--sampler-steps must be in [20, 100000]"),  # 23 TiB
+                           (["--seed", "-5"], "--seed must be >= 0, got -5")):   # was "expected non-negative integer"
+        assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), *flags,
+                     "--out", str(tmp_path / "out5")]) == 2
+        assert problem in capsys.readouterr().err
     assert main(["calibrate", "--physical", str(source), "--gate", "--out", str(tmp_path / "out6")]) == 2
     assert "--gate adds the speed gate's term to a prepared likelihood" in capsys.readouterr().err
     assert main(["calibrate", "--physical", str(source), "--likelihood", str(path), "--gate",

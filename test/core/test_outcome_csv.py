@@ -51,6 +51,13 @@ def test_every_bad_row_is_reported_with_its_line_and_nothing_is_imported(tmp_pat
     assert "expected 8 fields, got 7" in problems[6]
     assert "trial_id must not be empty" in problems[7]
     assert "repetition must be a whole number" in problems[8]
+    typed = _write(tmp_path, "configuration,height_m,speed_mps,angle_deg,repetition,upright\n"
+                             "A,0.7_5,0.8,0,0,true\n"                      # Python's float reads 0.75
+                             "A,0.75,0.8,0,\u0663,true\n", "typed.csv")    # an Arabic-Indic 3: int reads 3
+    with pytest.raises(OutcomeCsvError) as caught:
+        read_outcome_csv(typed, run_id="r")
+    assert dict(caught.value.problems) == {2: "height_m must be a number in plain digits, got '0.7_5'",
+                                           3: "repetition must be a whole number in plain digits, got '\u0663'"}
     assert "line 3:" in str(caught.value) and "nothing imported" in str(caught.value)
 
 
@@ -164,6 +171,7 @@ def test_the_continuous_outcomes_round_trip_and_an_unmeasured_one_stays_empty(tm
     ("rest_distance_m", "nan", "rest_distance_m must be finite"),
     ("final_tilt_deg", "190", r"final_tilt_deg must be in \[0, 180\]"),
     ("peak_deceleration_mps2", "fast", "peak_deceleration_mps2 must be a number"),
+    ("rest_distance_m", "0.7_5", "rest_distance_m must be a number in plain digits"),   # float() reads 0.75
 ])
 def test_a_bad_continuous_outcome_refuses_the_file_naming_line_and_column(tmp_path, column, cell, reason):
     path = _write(tmp_path, f"configuration,height_m,speed_mps,angle_deg,repetition,upright,{column}\n"

@@ -88,6 +88,61 @@ def test_find_of_a_package_found_nowhere_is_refused_naming_it_and_where_it_looke
     assert _spec(urdf_path=path).description()
 
 
+BOX_BOT = XACRO_ROBOT.replace('<xacro:include filename="$(find clone_bot_description)/urdf/wheel.urdf.xacro"/>',
+                              XACRO_WHEEL.split('<robot xmlns:xacro="http://www.ros.org/wiki/xacro">')[1]
+                              .replace("</robot>", ""))
+
+
+#: Broken descriptions (their text changes from BOX_BOT, the files they name) and the refusal's words.
+BROKEN = [
+    # a collision mesh that is empty or truncated: "No points given", naming neither the link nor the file
+    ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.stl"/>'}, {"body.stl": b""},
+     "link 'base_link' collision 0: mesh .*body.stl holds no vertices"),
+    # an ASCII STL: trimesh reads it, PyBullet dropped the shape with a warning ("the body has no resting pose"),
+    # MuJoCo refused it in two lines
+    ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.stl"/>'},
+     {"body.stl": b"solid body\n" + b"".join(b"facet normal 0 0 1\nouter loop\nvertex %d %d %d\nvertex 1 0 0\n"
+                                           b"vertex 0 1 0\nendloop\nendfacet\n" % (0, 0, k) for k in (0, 1))
+      + b"endsolid body\n"}, "link 'base_link' collision 0: mesh .*body.stl is an ASCII STL"),
+    # a flat one: Qhull's QhullError (not a ValueError: a traceback from the CLI), in several lines
+    ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="flat.obj"/>'}, {"flat.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
+     "link 'base_link' collision 0: mesh .*flat.obj encloses no volume"),
+    # sizes <= 0: PyBullet ran them, MuJoCo refused in two lines ("Error: size 0 must be positive in geom")
+    ({'<box size="0.3 0.2 0.1"/>': '<box size="-0.3 0.2 0.1"/>'}, {}, r"collision 0 box size: expected 3 number\(s\) > 0"),
+    ({'radius="0.04"': 'radius="0"'}, {}, r"link 'left_wheel' collision 0 cylinder radius: expected 1 number\(s\) > 0"),
+    # a moving joint's zero axis or NaN damping: the trials ran to NaN poses ("Points cannot contain NaN", or a verdict)
+    ({'<axis xyz="0 1 0"/>': '<axis xyz="0 0 0"/>'}, {}, "joint 'left_wheel_joint' has axis xyz '0 0 0'"),
+    ({'<axis xyz="0 1 0"/>': '<axis xyz="0 1 0"/><dynamics damping="nan"/>'}, {},
+     "joint 'left_wheel_joint' dynamics damping: expected 1 numbers, got 'nan'"),
+    # xacro's own error spans three lines ("Use of invalid name(s) ... \nwhen evaluating expression ...")
+    ({'value="2.0"': 'value="${__import__(\'os\').getpid()}"'}, {}, "cannot expand xacro .*Use of invalid name"),
+]
+
+
+@pytest.mark.parametrize("entry", ["python:no_such_package_xyz", "python:no_such_package_xyz.sub", "python:..x"])
+def test_a_search_path_of_no_installed_package_is_refused_in_one_line(entry):
+    """A dotted name whose parent is not installed was a ModuleNotFoundError traceback, a relative one an
+    ImportError: find_spec raises for them where it returns None for a plain missing name."""
+    from rollability_ros.core.robots.urdf_description import search_folders
+
+    with pytest.raises(ValueError, match=f"search path entry {entry}: no installed Python package"):
+        search_folders([entry])
+
+
+@pytest.mark.parametrize("changes, files, problem", BROKEN)
+def test_a_broken_description_is_refused_in_one_line_naming_the_link_or_joint(tmp_path, changes, files, problem):
+    text = BOX_BOT
+    for old, new in changes.items():
+        assert old in text
+        text = text.replace(old, new)
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+    (tmp_path / "bot.urdf.xacro").write_text(text, encoding="utf-8")
+    with pytest.raises(ValueError, match=problem) as refused:
+        _spec(urdf_path=str(tmp_path / "bot.urdf.xacro")).validate()
+    assert "\n" not in str(refused.value)
+
+
 def dae_robot(folder):
     """A two-wheeled box whose body's collision shape is a COLLADA mesh (0.3 x 0.2 x 0.1 m), file in ``folder``."""
     trimesh = pytest.importorskip("trimesh")
@@ -174,3 +229,14 @@ def test_xacro_arguments_are_passed_as_on_xacros_command_line(tmp_path, monkeypa
     assert model.wheel_radii_m() == pytest.approx((0.05, 0.05))
     with pytest.raises(ValueError, match="xacro_args entry 'wheel_radius=0.05': expected name:=value"):
         _spec(urdf_path=path, search_paths=(".",), xacro_args=("wheel_radius=0.05",)).description()
+    # a misspelt argument, one given twice, or arguments for a plain URDF: xacro expanded without them, silently
+    # keeping the default (or the last value)
+    with pytest.raises(ValueError, match="xacro_args 'wheel_radus': .*declares no such argument .*its arguments: "
+                                         "wheel_radius"):
+        _spec(urdf_path=path, search_paths=(".",), xacro_args=("wheel_radius:=0.05", "wheel_radus:=0.06")).description()
+    with pytest.raises(ValueError, match="xacro_args sets 'wheel_radius' twice"):
+        _spec(urdf_path=path, search_paths=(".",), xacro_args=("wheel_radius:=0.05", "wheel_radius:=0.06")).description()
+    plain = tmp_path / "plain.urdf"
+    plain.write_text(model.mounted.robot.original_urdf, encoding="utf-8")
+    with pytest.raises(ValueError, match="xacro_args .* given, but .*plain.urdf is not a xacro"):
+        _spec(urdf_path=str(plain), xacro_args=("wheel_radius:=0.05",)).description()

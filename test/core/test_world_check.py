@@ -39,6 +39,9 @@ def test_a_world_fidelity_fixes_one_draw_for_every_launch():
     assert draw(7, RobustSettings(), 0.0, 0.05) != draw(8, RobustSettings(), 0.0, 0.05)   # worlds differ
     for bad in ("world:", "world:-1", "world:x", "worlds:3", "world:99999999999"):
         assert check_fidelity(bad), bad
+    for bad in ("world:\u00b2", "world:\u0663", "world:" + "9" * 5000):   # int() refused / read 3 / hit its limit
+        assert "a world fidelity is world:<seed>, seed in [0, 2^32 - 1]" in (check_fidelity(bad) or ""), bad
+    assert len(check_fidelity("world:" + "9" * 5000)) < 120   # a goal's 5000 digits were echoed whole into the log
     assert check_fidelity("world:0") is None and check_fidelity("launch") is None and check_fidelity("") is None
 
 
@@ -57,6 +60,34 @@ def test_every_configuration_of_a_world_launches_on_the_same_seeds():
     assert all(r["trials"] == 6 and r["wheel_drag_nm"] == r["world_seed"] % 7 for r in rows)
     assert world_check.world_seeds(11, 4) == [c[:2] for c in calls]             # reproducible from the seed
     assert world_check.world_seeds(11, 6)[:4] == world_check.world_seeds(11, 4)  # more worlds keep the first
+
+
+def test_a_huge_world_count_draws_each_worlds_seeds_as_it_comes(monkeypatch):
+    """`--worlds 100000000` listed every world's seeds before the first launch (16 s and 8 MB of list per 10^6
+    worlds, measured: 26 minutes and gigabytes before anything ran); each world's seeds are now drawn as it comes."""
+    import numpy as np
+
+    drawn = []
+    seed_sequence = np.random.SeedSequence
+
+    def counted(*args, **kwargs):
+        drawn.append(kwargs.get("spawn_key"))
+        assert len(drawn) <= 2, "seeds drawn ahead of the worlds"
+        return seed_sequence(*args, **kwargs)
+
+    class Stop(Exception):
+        """The user's Ctrl-C after the second world."""
+
+    def evaluate(world_seed, launch_seed, launches):
+        if len(drawn) == 2:
+            raise Stop
+        return {"baseline": (1, launches), "A": (1, launches)}
+
+    monkeypatch.setattr(np.random, "SeedSequence", counted)
+    with pytest.raises(Stop):
+        world_check.run_world_check(evaluate, worlds=10 ** 8, launches=1, seed=11)
+    monkeypatch.undo()
+    assert world_check.world_seeds(11, 2) == [world_check.world_seed_pair(11, w) for w in range(2)]
 
 
 def test_the_local_evaluator_launches_bare_robot_and_designs_on_one_seed_in_one_world(monkeypatch):
@@ -331,3 +362,38 @@ def test_the_command_launches_in_real_worlds_and_writes_its_tables(tmp_path, cap
     assert summary["simulated"] is True and summary["engine"] == "mujoco" and summary["designs"]["A"]["worlds"] == 2
     assert main(["sensitivity", "--designs-file", str(tmp_path / "designs.yaml"), "--worlds", "2",
                  "--out", str(out)]) == 2                                  # an earlier check is never overwritten
+
+
+def test_a_check_stopped_by_ctrl_c_keeps_the_worlds_it_ran(tmp_path, capsys, monkeypatch):
+    """world_check.csv was written once the last world was done: a check stopped after hours (28 worlds, measured)
+    left an empty --out. Each row is written as it comes; the summary only for a finished check."""
+    import numpy as np
+    import yaml
+
+    from rollability_ros.cli import main
+    from rollability_ros.core import sim
+    from rollability_ros.core.optimization.design_set import designs_document
+    from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, SelectionResult
+    from rollability_ros.core.profile.geometry import ProfileGrid
+    from rollability_ros.core.sim import evaluation
+
+    def local_world_evaluator(profiles, settings, executor):
+        def evaluate(world_seed, launch_seed, launches):
+            if world_seed != sim.world_check.world_seed_pair(4, 0)[0]:
+                raise KeyboardInterrupt   # the user's Ctrl-C during the second world
+            return {"baseline": (1, launches), "A": (2, launches)}
+        return evaluate
+
+    monkeypatch.setattr(sim, "local_world_evaluator", local_world_evaluator)
+    monkeypatch.setattr(sim, "make_executor", lambda options, workers=None: evaluation.SerialExecutor())
+    chosen = [SelectedDesign("A", PooledDesign(np.repeat(np.linspace(0.05, 0.3, 3), 3), 9, 10, 1, 1), None, None)]
+    document = designs_document(SelectionResult(chosen, 1, 1, {}), ProfileGrid(rows=3, cols=3), "run-1")
+    (tmp_path / "designs.yaml").write_text(yaml.safe_dump(document), encoding="utf-8")
+    out = tmp_path / "worlds"
+    assert main(["sensitivity", "--designs-file", str(tmp_path / "designs.yaml"), "--worlds", "1000",
+                 "--launches-per-world", "2", "--seed", "4", "--out", str(out)]) == 130
+    assert "world_check.csv keeps the rows of the worlds done" in capsys.readouterr().err
+    with open(out / "world_check.csv", newline="", encoding="utf-8") as stream:
+        rows = list(csv.DictReader(stream))
+    assert [(r["world"], r["configuration"], r["successes"]) for r in rows] == [("0", "baseline", "1"), ("0", "A", "2")]
+    assert not (out / "world_summary.yaml").exists()

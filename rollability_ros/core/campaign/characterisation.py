@@ -1,7 +1,7 @@
 """Bench characterisation before a campaign: cheap measurements that pin the twin's decisive unknowns.
 
-The protocol is docs/characterisation.md. A characterisation file (YAML, read with ``yaml.safe_load``, checked
-strictly: an unknown key, a missing one or a value of the wrong kind is refused in one line naming it) holds::
+The protocol is docs/characterisation.md. A characterisation file (YAML, read with the bounded
+:func:`~rollability_ros.core.safe_yaml.load`: no key written twice, bounded nesting and aliases; checked strictly: an unknown key, a missing one or a value of the wrong kind is refused in one line naming it) holds::
 
     format: rollability-characterisation-1
     rollout:                      # the bare robot pushed to about speed_mps, let go; distance rolled to rest
@@ -253,15 +253,21 @@ def parse_characterisation(document: object, source: str) -> Characterisation:
 
 def load_characterisation(path: typing.Union[str, os.PathLike]) -> Characterisation:
     """Read and check a characterisation file (module docstring); ``ValueError`` in one line naming the file and
-    the problem (unreadable, not YAML, or a bad entry). Loaded with ``yaml.safe_load``: nothing in it executes."""
+    the problem (unreadable, not YAML, a key written twice, or a bad entry). Loaded with
+    :func:`~rollability_ros.core.safe_yaml.load` (plain data: nothing in it executes; a section or key written
+    twice is refused, where YAML would keep the last one's readings and drop the first's silently)."""
     import yaml
+
+    from rollability_ros.core import safe_yaml
 
     source = os.fspath(path)
     try:
         with open(source, encoding="utf-8") as stream:
-            document = yaml.safe_load(stream)
+            document = safe_yaml.load(stream)
     except (OSError, UnicodeDecodeError) as error:
         raise ValueError(f"{source}: cannot read the characterisation file ({error})") from None
+    except safe_yaml.YamlLimitError as error:
+        raise ValueError(f"{source}: {error}") from None
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""

@@ -445,8 +445,26 @@ def load_likelihood(path: typing.Union[str, os.PathLike]) -> LearntLikelihood:
         raise ValueError(f"{source}: not a prepared likelihood file (damaged: {type(error).__name__})") from None
 
 
+#: The most bytes one array of a prepared file may hold uncompressed, and all of them together: an archive
+#: declaring more is refused before anything is decompressed (a prepared file's largest array is a 64 x 64 layer,
+#: 32 KiB; 64 ensemble members of every outcome's networks come to about 16 MiB), so a large archive of another
+#: tool, or a few kB that inflate to gigabytes, never fills memory.
+MAX_ARRAY_BYTES, MAX_FILE_BYTES = 16 * 2 ** 20, 256 * 2 ** 20
+#: The first bytes of a zip archive (an ``.npz``; an empty archive starts with its end record).
+ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
+
+
 def _load(source: str) -> LearntLikelihood:
+    with open(source, "rb") as stream:   # np.load takes any other file for a pickle and says so misleadingly
+        if stream.read(4) not in ZIP_MAGIC:
+            raise ValueError("not a prepared likelihood file (not an .npz archive)")
     with np.load(source, allow_pickle=False) as archive:
+        sizes = {info.filename: info.file_size for info in archive.zip.infolist()}
+        large = max(sizes, key=lambda name: sizes[name], default="")
+        if sizes and (sizes[large] > MAX_ARRAY_BYTES or sum(sizes.values()) > MAX_FILE_BYTES):
+            raise ValueError(f"not a prepared likelihood file (it inflates to {sum(sizes.values())} bytes, its "
+                             f"{large} to {sizes[large]}; a prepared file's arrays hold at most {MAX_ARRAY_BYTES} "
+                             f"bytes each, {MAX_FILE_BYTES} in all): refused unread")
         try:
             arrays = {name: archive[name] for name in archive.files}
         except ValueError as error:
@@ -466,8 +484,10 @@ def _load(source: str) -> LearntLikelihood:
     lv = header["levels"]
     levels = ConditionLevels(tuple(map(float, lv["heights_m"])), tuple(map(float, lv["speeds_mps"])),
                              tuple(map(float, lv["angles_deg"])))
-    if not configurations or not all(levels.heights_m) or not levels.speeds_mps or not levels.angles_deg:
+    if not configurations or not levels.heights_m or not levels.speeds_mps or not levels.angles_deg:
         raise ValueError("the header names no configuration or no condition levels")
+    if not all(map(math.isfinite, (*levels.heights_m, *levels.speeds_mps, *levels.angles_deg))):
+        raise ValueError(f"a condition level is not a finite number: {dataclasses.asdict(levels)}")
     if list(header["hidden"]) != list(HIDDEN) or float(header["student_df"]) != STUDENT_DF:
         raise ValueError(f"networks of another shape (hidden {header['hidden']}, this version reads {list(HIDDEN)})")
     features = len(unknowns.names) + len(configurations) + 3

@@ -78,13 +78,21 @@ def _read_designs(version):
         raise ConfigError(f"{path}: designs.labels must be a list of labels")
     if BASELINE in labels:
         raise ConfigError(f"{path}: '{BASELINE}' cannot label a design")
+    twice = sorted({label for label in labels if labels.count(label) > 1})
+    if twice:
+        raise ConfigError(f"{path}: design {twice[0]} is listed twice in designs.labels")
     grid = from_mapping(geometry.ProfileGrid, designs.get("grid"), f"{path}: designs.grid")
     heights = {}
     for label in labels:
         entry = designs.get(label)
         if not isinstance(entry, dict) or "heights" not in entry:
             raise ConfigError(f"{path}: design {label} has no designs.{label}.heights")
-        heights[label] = tuple(entry["heights"])
+        values = entry["heights"]   # YAML reads true as 1 and a lone number as no list: neither is a design's heights
+        if not isinstance(values, list) or not all(isinstance(h, (int, float)) and not isinstance(h, bool)
+                                                   for h in values):
+            raise ConfigError(f"{path}: designs.{label}.heights must be a list of numbers (simulation units), got "
+                              f"{values!r:.80}")
+        heights[label] = tuple(values)
     printed = designs.get("print")
     if printed is not None and not isinstance(printed, dict):
         raise ConfigError(f"{path}: designs.print must be a mapping of the print's settings")
@@ -145,7 +153,8 @@ def print_differences(first: typing.Mapping[str, typing.Union[str, float]],
                  and not isinstance(want, bool) and not isinstance(have, bool)
                  and math.isclose(want, have, rel_tol=1e-9, abs_tol=1e-12))
         if not (want == have or close):
-            differ.append(f"{name} {want} ({labels[0]}) vs {have} ({labels[1]})")
+            # each at most 40 characters: a goal's 5 MB value was echoed whole into the evaluator's log line
+            differ.append(f"{name:.40} {want!s:.40} ({labels[0]}) vs {have!s:.40} ({labels[1]})")
     return differ
 
 
@@ -158,6 +167,8 @@ def print_instructions_from_text(text: str) -> typing.Dict[str, typing.Union[str
         value = json.loads(text)
     except ValueError as exc:
         raise ValueError(f"print instructions are not JSON: {exc}") from None
+    except RecursionError:   # 100,000 '[' from a goal's printed_with took the evaluator node down
+        raise ValueError("print instructions are not JSON of settings: nested too deep") from None
     if not isinstance(value, dict):
         raise ValueError(f"print instructions must be a JSON object of settings, got {type(value).__name__}")
     for name, item in value.items():

@@ -46,9 +46,17 @@ def _parse_bool(text, column):
     raise ValueError(f"{column} must be one of {'/'.join(_TRUE)} or {'/'.join(_FALSE)}, got {text!r}")
 
 
+def _plain_number(text, column, kind):
+    """``ValueError`` for a cell Python's own parser would read but a person did not type as a number: a digit
+    separator (``0.7_5`` reads 0.75) or a digit outside ASCII (an Arabic-Indic three reads 3)."""
+    if "_" in text or not text.isascii():
+        raise ValueError(f"{column} must be {kind} in plain digits, got {text!r}")
+
+
 def _parse_float(text, column, allow_empty=False):
     if allow_empty and not text.strip():
         return NOT_MEASURED
+    _plain_number(text, column, "a number")
     try:
         value = float(text)
     except ValueError:
@@ -59,6 +67,7 @@ def _parse_float(text, column, allow_empty=False):
 
 
 def _parse_int(text, column):
+    _plain_number(text, column, "a whole number")
     try:
         return int(text.strip())
     except ValueError:

@@ -97,20 +97,26 @@ def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typ
     ``<prefix>/share/pkg`` of every ``AMENT_PREFIX_PATH`` prefix), so a clone of an upstream repository expands
     without a ROS install. ``ValueError`` names the file and the problem (an undefined property or macro, a
     missing include, ``$(find pkg)`` of a package found nowhere, naming it and where it was looked for)."""
+    where = path or "robot_description"
     if not is_xacro(text, path):
+        if xacro_args:
+            raise ValueError(f"urdf_robot.xacro_args {list(xacro_args)} given, but {where} is not a xacro: nothing "
+                             "reads them; remove them")
         return text
-    mappings = {}
+    mappings = _XacroArgs()
     for entry in xacro_args:
         name, separator, value = entry.partition(":=")
         if not separator or not name.strip():
             raise ValueError(f"urdf_robot.xacro_args entry {entry!r}: expected name:=value, as on xacro's command line")
-        mappings[name.strip()] = value
+        if name.strip() in mappings.given:
+            raise ValueError(f"urdf_robot.xacro_args sets {name.strip()!r} twice: give each argument once")
+        mappings.given[name.strip()] = value
+    mappings.update(mappings.given)
     from rollability_ros.core.optional import require
 
     xacro = require("xacro", feature="xacro robot descriptions")
     substitution_args = importlib.import_module("xacro.substitution_args")
     folders = [os.path.abspath(folder) for folder in search_folders(search_paths)]   # before the chdir below
-    where = path or "robot_description"
     previous = os.getcwd()
     finds = (getattr(substitution_args, "_eval_find"), substitution_args._eval_dict["find"])
     not_found: typing.List[str] = []
@@ -133,13 +139,36 @@ def expand_xacro(text: str, path: typing.Optional[str] = None, search_paths: typ
             os.chdir(os.path.dirname(os.path.abspath(path)))  # xacro resolves relative includes from here
         document = xacro.parse(text, os.path.abspath(path) if path else None)
         xacro.process_doc(document, mappings=mappings)
-        return document.toxml()
     except Exception as exc:  # xacro raises XacroException, NameError, KeyError, ... with a readable message
-        raise ValueError(f"cannot expand xacro {where}: {not_found[-1] if not_found else exc}") from exc
+        reason = not_found[-1] if not_found else " ".join(str(exc).split())   # xacro's own spans several lines
+        raise ValueError(f"cannot expand xacro {where}: {reason}") from exc
     finally:
         setattr(substitution_args, "_eval_find", finds[0])
         substitution_args._eval_dict["find"] = finds[1]
         os.chdir(previous)
+    unread = [name for name in mappings.given if name not in mappings.asked]
+    if unread:   # xacro itself expands without them, silently: a misspelt argument would leave its default in place
+        raise ValueError(f"urdf_robot.xacro_args {unread[0]!r}: {where} declares no such argument (<xacro:arg>) and "
+                         f"reads none by that name; its arguments: {', '.join(sorted(mappings.asked)) or 'none'}")
+    return document.toxml()
+
+
+class _XacroArgs(dict):
+    """xacro's table of arguments (it keeps the object it is given): the ``xacro_args`` given, and every name xacro
+    looks up in it, as a ``<xacro:arg>`` declares one (``name in``) or a ``$(arg name)`` reads one (``[name]``)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.given: typing.Dict[str, str] = {}
+        self.asked: typing.Set[str] = set()
+
+    def __contains__(self, name: object) -> bool:
+        self.asked.add(str(name))
+        return super().__contains__(name)
+
+    def __getitem__(self, name: str) -> str:
+        self.asked.add(name)
+        return super().__getitem__(name)
 
 
 def without_visuals(xml_text: str) -> str:
@@ -161,7 +190,10 @@ def search_folders(search_paths: typing.Iterable[str]) -> typing.List[str]:
     for entry in search_paths:
         if entry.startswith("python:"):
             module = entry[len("python:"):]
-            spec = importlib.util.find_spec(module)
+            try:
+                spec = importlib.util.find_spec(module)
+            except (ImportError, ValueError):   # a dotted name whose parent is missing, a relative or empty name
+                spec = None
             if spec is None or not (spec.submodule_search_locations or spec.origin):
                 raise ValueError(f"search path entry {entry}: no installed Python package {module}")
             folders.append(list(spec.submodule_search_locations)[0] if spec.submodule_search_locations
@@ -349,8 +381,23 @@ def _parse(xml_text):
                 raise ValueError(f"joint {name!r} refers to unknown link {end!r}")
         if child.get("link") in {_end(j, "child") for j in joints.values()}:
             raise ValueError(f"link {child.get('link')!r} is the child of more than one joint")
+        if kind in MOVING_JOINTS:
+            _check_joint_numbers(joint, name)
         joints[name] = joint
     return root, links, joints
+
+
+def _check_joint_numbers(joint: ElementTree.Element, name: str) -> None:
+    """``ValueError`` naming a moving joint whose ``<axis>``, ``<limit>`` or ``<dynamics>`` (copied into the
+    simulation's URDF) holds a value that is not a finite number, or whose axis is the zero vector: PyBullet and
+    MuJoCo take them as given and a NaN damping or a zero axis ends in NaN poses or verdicts, not an error."""
+    for tag in ("axis", "limit", "dynamics"):
+        for element in joint.findall(tag):
+            for key, value in element.attrib.items():
+                _numbers(value, 3 if tag == "axis" else 1, f"joint {name!r} {tag} {key}")
+    axis = joint.find("axis")
+    if axis is not None and not np.linalg.norm(_numbers(axis.get("xyz", "1 0 0"), 3, f"joint {name!r} axis xyz")) > 0:
+        raise ValueError(f"joint {name!r} has axis xyz {axis.get('xyz')!r}: a moving joint needs a non-zero axis")
 
 
 def _end(joint: ElementTree.Element, end: str) -> str:
@@ -395,26 +442,72 @@ def _inertial(link, name):
     return mass, frame[:3, 3], frame[:3, :3] @ matrix @ frame[:3, :3].T
 
 
+def _sizes(text, count, where):
+    """``count`` positive finite numbers of ``text`` (a box's size, a radius, a length: m); ``ValueError`` naming
+    ``where`` otherwise (MuJoCo refuses a size <= 0 in two lines from the middle of a launch; PyBullet runs it)."""
+    values = _numbers(text, count, where)
+    if min(values) <= 0:
+        raise ValueError(f"{where}: expected {count} number(s) > 0, got {text!r}")
+    return values
+
+
+def _ascii_stl(path: str) -> bool:
+    """True for an STL file in the ASCII format: not the size a binary STL's triangle count gives (84 bytes of
+    header and count, 50 a triangle), and starting with ``solid`` (a binary header may start so too)."""
+    if not path.lower().endswith(".stl"):
+        return False
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(84)
+        size = os.path.getsize(path)
+    except OSError:
+        return False   # the read below names the file
+    binary = len(head) == 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little")
+    return not binary and head.lstrip().startswith(b"solid")
+
+
+def mesh_hull_vertices(mesh_path: str, where: str) -> np.ndarray:
+    """The vertices ``(k, 3)`` of the convex hull of the mesh file ``mesh_path`` (its units); ``ValueError`` in one
+    line naming ``where`` and the file when it cannot be read, holds no vertex or a vertex that is not a finite
+    number, or encloses no volume (a flat or empty file: trimesh and Qhull raise in several lines, or as an error
+    that is not a ``ValueError``). Both engines collide with a mesh's hull."""
+    from rollability_ros.core.optional import require
+
+    if _ascii_stl(mesh_path):   # trimesh reads it; PyBullet drops the shape with a warning, MuJoCo refuses it
+        raise ValueError(f"{where}: mesh {mesh_path} is an ASCII STL, which PyBullet and MuJoCo cannot read (PyBullet "
+                         "would simulate the link without it): save it as a binary STL or an OBJ")
+    trimesh = require("trimesh", feature="URDF mesh collision shapes")
+    try:
+        loaded = trimesh.load(mesh_path, force="mesh")
+        vertices = np.asarray(getattr(loaded, "vertices", ()), dtype=np.float64).reshape(-1, 3)
+    except Exception as exc:  # trimesh raises assorted parser errors
+        raise ValueError(f"{where}: cannot read mesh {mesh_path}: {' '.join(str(exc).split())}") from exc
+    if not len(vertices) or not np.all(np.isfinite(vertices)):
+        raise ValueError(f"{where}: mesh {mesh_path} holds no vertices, or one that is not a finite number (an empty, "
+                         "damaged or foreign file?)")
+    try:
+        hull = loaded.convex_hull
+    except Exception as exc:  # QhullError: flat, a line or too few points
+        raise ValueError(f"{where}: mesh {mesh_path} encloses no volume (its {len(vertices)} vertices lie in a "
+                         "plane or on a line)") from exc
+    return np.asarray(hull.vertices, dtype=np.float64)
+
+
 def _geometry_points(geometry, where, mesh_path):
     """Points ``(k, 3)`` whose hull bounds a URDF geometry, in the geometry's frame (m)."""
     box, cylinder, sphere, mesh = (geometry.find(tag) for tag in ("box", "cylinder", "sphere", "mesh"))
     if box is not None:
-        half = np.array(_numbers(box.get("size"), 3, f"{where} box size")) / 2
+        half = np.array(_sizes(box.get("size"), 3, f"{where} box size")) / 2
     elif cylinder is not None:
-        radius = _numbers(cylinder.get("radius"), 1, f"{where} cylinder radius")[0]
-        half = np.array([radius, radius, _numbers(cylinder.get("length"), 1, f"{where} cylinder length")[0] / 2])
+        radius = _sizes(cylinder.get("radius"), 1, f"{where} cylinder radius")[0]
+        half = np.array([radius, radius, _sizes(cylinder.get("length"), 1, f"{where} cylinder length")[0] / 2])
     elif sphere is not None:
-        half = np.full(3, _numbers(sphere.get("radius"), 1, f"{where} sphere radius")[0])
+        half = np.full(3, _sizes(sphere.get("radius"), 1, f"{where} sphere radius")[0])
     elif mesh is not None:
-        from rollability_ros.core.optional import require
-
-        trimesh = require("trimesh", feature="URDF mesh collision shapes")
         scale = np.array(_numbers(mesh.get("scale", "1 1 1"), 3, f"{where} mesh scale"))
-        try:
-            loaded = trimesh.load(mesh_path, force="mesh")
-        except Exception as exc:  # trimesh raises assorted parser errors
-            raise ValueError(f"{where}: cannot read mesh {mesh_path}: {exc}") from exc
-        return np.asarray(loaded.convex_hull.vertices, dtype=np.float64) * scale
+        if not np.all(scale):
+            raise ValueError(f"{where}: mesh scale {mesh.get('scale')!r} has a zero: the shape would be flat")
+        return mesh_hull_vertices(mesh_path, where) * scale
     else:
         raise ValueError(f"{where}: geometry must be a box, cylinder, sphere or mesh")
     return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half

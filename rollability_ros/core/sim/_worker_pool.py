@@ -15,6 +15,9 @@ import time
 
 #: How often a worker checks that its parent is still alive (s).
 ORPHAN_CHECK_PERIOD_S = 1.0
+#: The most worker processes a pool starts: the declared top of ``evaluator.workers`` (config/evaluator.yaml), so a
+#: typed ``--workers 100000`` is refused before it starts that many interpreters.
+MAX_WORKERS = 1024
 
 
 def _exit_when_orphaned(parent_pid, period_s):
@@ -32,6 +35,9 @@ def _worker_init(period_s):
 
 
 def spawn_pool(workers: int, period_s: float = ORPHAN_CHECK_PERIOD_S) -> concurrent.futures.ProcessPoolExecutor:
-    """A ProcessPoolExecutor of ``workers`` spawned processes that ignore Ctrl-C and exit when orphaned."""
+    """A ProcessPoolExecutor of ``workers`` spawned processes that ignore Ctrl-C and exit when orphaned;
+    ``ValueError`` for a count outside [1, :data:`MAX_WORKERS`]."""
+    if not 1 <= workers <= MAX_WORKERS:
+        raise ValueError(f"worker processes must be in [1, {MAX_WORKERS}], got {workers}")
     return concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                                   initializer=_worker_init, initargs=(period_s,))

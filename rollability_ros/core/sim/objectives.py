@@ -117,7 +117,7 @@ def at_fidelity(settings: "ObjectiveSettings", fidelity: str) -> "ObjectiveSetti
         world = world_seed_of(fidelity)
         return dataclasses.replace(settings, kind="launch_twin", launch_weight=1.0,
                                    robust=dataclasses.replace(settings.robust, enabled=True, world_seed=world))
-    raise ValueError(f"unknown evaluation fidelity {fidelity!r}: use one of {', '.join(FIDELITIES)} or "
+    raise ValueError(f"unknown evaluation fidelity {fidelity!r:.40}: use one of {', '.join(FIDELITIES)} or "
                      f"{WORLD_FIDELITY}<seed>")
 
 
@@ -134,8 +134,10 @@ def world_seed_of(fidelity: str) -> int:
     if not fidelity.startswith(WORLD_FIDELITY):
         return -1
     text = fidelity[len(WORLD_FIDELITY):]
-    if not text.isdigit() or int(text) > 2 ** 32 - 1:
-        raise ValueError(f"fidelity {fidelity!r}: a world fidelity is {WORLD_FIDELITY}<seed>, seed in [0, 2^32 - 1]")
+    # ASCII digits only: str.isdigit also takes '²' (which int() refuses) and '٣' (which int() reads as 3); at most
+    # ten of them, as int() refuses more than 4300 with a message about its own limit
+    if not (text.isascii() and text.isdigit()) or len(text) > 10 or int(text) > 2 ** 32 - 1:
+        raise ValueError(f"fidelity {fidelity!r:.40}: a world fidelity is {WORLD_FIDELITY}<seed>, seed in [0, 2^32 - 1]")
     return int(text)
 
 

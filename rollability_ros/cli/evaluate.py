@@ -176,7 +176,7 @@ def register(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "evaluate", help="simulate one profile's self-righting rate (fitness) with its confidence interval",
         description="Run disturbance trials of one profile in PyBullet (paper 2.1.3) and print its fitness "
-                    "(upright trials / trials) with the Wilson 95%% interval. The profile is a list of half-grid "
+                    "(upright trials / trials) with the Wilson 95% interval. The profile is a list of half-grid "
                     "heights, a file of them, an STL/OBJ solid in metres, or the baseline (no profile).")
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--heights", metavar="H1,H2,...",

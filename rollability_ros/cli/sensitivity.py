@@ -184,12 +184,12 @@ def register(subparsers: Subparsers) -> None:
         description="Evaluate the bare chassis and the given profiles with the disturbance trial, varying one "
                     "uncertain factor at a time (disturbance scale, start pose, contact reading, centre of mass) "
                     "and all of them at once (the robust fitness), every evaluation from one seed (common "
-                    "random numbers); prints each fitness with its Wilson 95%% interval and writes "
+                    "random numbers); prints each fitness with its Wilson 95% interval and writes "
                     "sensitivity.csv and sensitivity.png. With --launches: launches on the twin under the "
                     "campaign's conditions, each of the twin's unknowns (contact reading, centre of mass, foam "
                     "stiffness, restitution, friction and rolling friction, wheel drag) at both ends of its "
                     "range (objective.robust) and all drawn at once; each design minus the bare robot with its "
-                    "Newcombe 95%% interval. With --worlds N: the plausible-world check (N fixed draws of all "
+                    "Newcombe 95% interval. With --worlds N: the plausible-world check (N fixed draws of all "
                     "unknowns; the bare robot and every design on the same seeds in each; simulated). See "
                     "docs/optimization.md and docs/twin-model.md.")
     parser.add_argument("--mesh", action="append", default=[], metavar="LABEL=FILE",

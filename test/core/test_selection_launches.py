@@ -68,6 +68,8 @@ def test_designs_are_ranked_by_the_race_on_launches_not_by_the_screen():
     assert truth.launch_calls[0][1] != truth.launch_calls[1][1]                # a fresh seed per round ...
     assert truth.launch_calls[-1] == (3 + 1, selection.derive_seed(5, selection.LAUNCH_SEED_KEY, 2), 100)
     assert "robust twin launches in the race" in result.designs[0].reason
+    assert "highest lower Wilson bound of any race survivor of 6 elites raced on 20+20 launches: " in \
+        result.designs[0].reason                                                 # not "... launchess"
     for design, gain in zip(result.designs, result.gains()):
         assert gain.source == "launches" and gain.beats and design.launches[1] == 100
         difference, low, high = gain.interval

@@ -585,7 +585,7 @@ def _pick_by_race(picker, grid, printer, settings, launch_batch, run_seed, rejec
                       f"{picker.where(index)}; {race_text(index)}")
         else:
             index = ranked.pop(0)
-            reason = f"highest lower Wilson bound among the {pool_text}s: {race_text(index)}; {picker.where(index)}"
+            reason = f"highest lower Wilson bound of any {pool_text}: {race_text(index)}; {picker.where(index)}"
         ranked = picker.take(index, meshes[index], reason, ranked, race.totals[index])
     return race, pool
 

@@ -171,10 +171,21 @@ def test_sim_rig_launches_the_twin_and_publishes_poses(ros_node, start_node, tmp
     assert ros_node.wait_for(lambda: len(feedback) >= len(phases), 10), feedback
     assert [p for p, _ in feedback] == phases
     assert ros_node.wait_for(lambda: len(poses) > 5, 10)
-    assert poses[0].header.frame_id == "world" and poses[0].pose.position.x < 0 < poses[-1].pose.position.x
+    # our side matching the rig's pose writer does not mean the writer has matched us yet (under load the first
+    # launch's first poses went by): the second launch's stream is the one checked from its start, once the first
+    # launch's poses have stopped arriving
+    counts = []
+
+    def stopped_arriving():   # no new pose over the last 0.5 s poll
+        counts.append(len(poses))
+        return len(counts) > 1 and counts[-1] == counts[-2]
+    assert ros_node.wait_for(stopped_arriving, 10, 0.5)
+    poses.clear()
     assert ros_node.wait_for(lambda: rig.outcomes, 10)
     again = rig.result(rig.send("s0", LaunchCondition("baseline", 0.75, 0.8, 0.0, 0), []), 60).result.outcome
     assert (again.upright, again.travel_time_s) == (outcome.upright, outcome.travel_time_s)   # seeded per trial
+    assert ros_node.wait_for(lambda: len(poses) > 5, 10)
+    assert poses[0].header.frame_id == "world" and poses[0].pose.position.x < 0 < poses[-1].pose.position.x
 
 
 @pytest.mark.slow

@@ -223,7 +223,9 @@ def test_a_run_over_a_flaky_pool_equals_the_run_over_the_evaluator_itself(tmp_pa
                   "optimizer.seed": 4}
     synthetic = SyntheticEvaluator(np.full(grid.n_variables, 0.2), 12)
     graph = SyntheticGraph(synthetic)
-    pool = make_pool(graph, ["flaky", "steady"])
+    # no rest after a failure: both evaluators are idle when each generation's lone re-evaluation is queued, so it
+    # is split every time (with FAST's 20 ms rest, a failure just before it left 'flaky' resting: a timing race)
+    pool = make_pool(graph, ["flaky", "steady"], dataclasses.replace(FAST, retry_delay_s=0.0))
     stored = {}
     for name, evaluate_batch in (("direct", synthetic), ("pool", pool.batch_evaluator(12))):
         run = optimization_run.OptimizationRun(tmp_path / name, optimization_run.run_config(parameters), grid, evaluate_batch)
@@ -233,7 +235,7 @@ def test_a_run_over_a_flaky_pool_equals_the_run_over_the_evaluator_itself(tmp_pa
         run.close()
     assert len(stored["pool"]) == 5 * 7 and stored["pool"] == stored["direct"]
     assert graph.count >= 3 and {name for name, _ in graph.sent} == {"flaky", "steady"}
-    assert any(r.first_trial for _, r in graph.sent), "no re-evaluation was split over the two evaluators"
+    assert sum(r.first_trial > 0 for _, r in graph.sent) >= 5, "a generation's re-evaluation was not split"
 
 
 def test_an_evaluator_that_keeps_failing_rests_longer_each_time():

@@ -253,8 +253,9 @@ def run_learnt(args: argparse.Namespace, parameters: typing.Mapping[str, typing.
 def run(args: argparse.Namespace) -> int:
     """Calibrate, write the outputs to ``--out`` and print the summary; return the exit code."""
     from rollability_ros.core.campaign import (TWIN_CONFIGS, LaunchPool, calibrate, calibration_settings,
-                                               check_fittable, load_characterisation, twin_settings_with)
-    from rollability_ros.core.config import check_given_files, check_output_dir, from_mapping, load_parameters, section
+                                               check_designs_print, check_fittable, load_characterisation,
+                                               load_twin_files, twin_settings_with)
+    from rollability_ros.core.config import check_output_dir, from_mapping, section
     from rollability_ros.core.results import load_report_data
     from rollability_ros.core.sim import TWIN_SECTIONS, ScreenSettings, launch_twin_settings_from_parameters
 
@@ -269,8 +270,9 @@ def run(args: argparse.Namespace) -> int:
                          "FILE")
     if not args.prepare:
         check_output_dir(args.out, "--out", keeps=("calibrated.yaml", RIG_FILE))   # before minutes of fitting
-    check_given_files(args.config, {*TWIN_SECTIONS, "calibration", "stable_poses", "campaign"}, "rollability calibrate")
-    parameters = load_parameters([*TWIN_CONFIGS, "calibration", "campaign", *args.config])
+    parameters, unread = load_twin_files([*TWIN_CONFIGS, "calibration", "campaign"], args.config,
+                                         {*TWIN_SECTIONS, "calibration", "stable_poses", "campaign"},
+                                         "rollability calibrate")
     settings = calibration_settings(parameters)
     if args.fit and not args.likelihood:
         settings = settings.selected(args.fit)
@@ -279,6 +281,9 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--workers must be >= 1, got {args.workers}")
         settings.workers = args.workers
     twin = launch_twin_settings_from_parameters(parameters)   # the twin parsed once; the core is handed it typed
+    check_designs_print(twin, "--config")   # every path weighs or launches the designs: under their print only
+    if unread:
+        print(unread)
     if args.prepare:
         check_fittable(twin, settings)
         return prepare(args, parameters, twin, settings)

@@ -189,10 +189,26 @@ def _check_adaptive_arguments(args, spec):
                 raise ValueError(f"{name} must be >= {low}, got {value}")
         if args.workers is not None and args.workers < 1:
             raise ValueError(f"--workers must be >= 1, got {args.workers}")
+        _twin_parameters(args, say=False)   # its files and designs' print refused before the store is opened
 
 
 #: Default prior samples of the adaptive plan on the twin's launches and on a learnt likelihood.
 TWIN_PRIOR_SAMPLES, LEARNT_PRIOR_SAMPLES = 32, 1000
+
+
+def _twin_parameters(args, say=True):
+    """The flat parameters of the twin's files and ``--twin-config`` (each key applied or refused; a print file's
+    search keys named as not read when ``say``), after refusing designs chosen for another print than the loaded
+    one."""
+    from rollability_ros.core.campaign import TWIN_CONFIGS, check_designs_print, load_twin_files
+    from rollability_ros.core.sim import TWIN_SECTIONS, launch_twin_settings_from_parameters
+
+    parameters, unread = load_twin_files([*TWIN_CONFIGS, "calibration"], args.twin_config,
+                                         {*TWIN_SECTIONS, "calibration"}, "rollability campaign --twin-config")
+    check_designs_print(launch_twin_settings_from_parameters(parameters), "--twin-config")
+    if unread and say:
+        print(unread, flush=True)
+    return parameters
 
 
 def _learnt_posterior(args, spec, outcomes):
@@ -201,14 +217,11 @@ def _learnt_posterior(args, spec, outcomes):
     other designs or other condition levels, is refused in one line naming it."""
     import numpy as np
 
-    from rollability_ros.core.campaign import (TWIN_CONFIGS, LearntTable, OutcomePosterior, candidate_conditions,
-                                               load_likelihood, twin_fingerprint)
-    from rollability_ros.core.config import check_given_files, load_parameters
-    from rollability_ros.core.sim import TWIN_SECTIONS
+    from rollability_ros.core.campaign import (LearntTable, OutcomePosterior, candidate_conditions, load_likelihood,
+                                               twin_fingerprint)
 
-    check_given_files(args.twin_config, {*TWIN_SECTIONS, "calibration"}, "rollability campaign --twin-config")
+    parameters = _twin_parameters(args)
     likelihood = load_likelihood(args.likelihood)
-    parameters = load_parameters([*TWIN_CONFIGS, "calibration", *args.twin_config])
     if likelihood.fingerprint != twin_fingerprint(parameters, likelihood.unknowns.names):
         raise ValueError(f"{args.likelihood}: prepared for another twin or design set than the loaded parameter files "
                          "(--twin-config) or the twin's code: prepare it again for these")
@@ -241,15 +254,13 @@ def _adaptive_posterior(args, spec, outcomes):
     if args.likelihood:
         return _learnt_posterior(args, spec, outcomes)
 
-    from rollability_ros.core.campaign import (DEFAULT_UNKNOWNS, TWIN_CONFIGS, LaunchPool, TwinPredictor, Unknowns,
+    from rollability_ros.core.campaign import (DEFAULT_UNKNOWNS, LaunchPool, TwinPredictor, Unknowns,
                                                WeightedPosterior, calibration_settings, candidate_conditions,
                                                check_fittable)
-    from rollability_ros.core.config import check_given_files, load_parameters
     from rollability_ros.core.profile import configuration_ids
-    from rollability_ros.core.sim import TWIN_SECTIONS, launch_twin_settings_from_parameters
+    from rollability_ros.core.sim import launch_twin_settings_from_parameters
 
-    check_given_files(args.twin_config, {*TWIN_SECTIONS, "calibration"}, "rollability campaign --twin-config")
-    parameters = load_parameters([*TWIN_CONFIGS, "calibration", *args.twin_config])
+    parameters = _twin_parameters(args)
     settings = calibration_settings(parameters).selected(args.fit or DEFAULT_UNKNOWNS)
     twin = launch_twin_settings_from_parameters(parameters)   # parsed once, handed to the core typed
     check_fittable(twin, settings)

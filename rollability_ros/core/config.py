@@ -211,19 +211,31 @@ PASS_THROUGH_NAMESPACES = frozenset({"qos_overrides"})
 
 
 def check_given_files(paths: typing.Iterable[typing.Union[str, os.PathLike]], reads: typing.Iterable[str],
-                      command: str) -> None:
+                      command: str,
+                      unread: typing.Optional[typing.Callable[[str, typing.Mapping[str, object]], bool]] = None
+                      ) -> typing.List[typing.Tuple[str, str]]:
     """Raise :class:`ConfigError` naming the file, the parameter and ``command`` for the first dotted parameter of
     the files ``paths`` (those a user gave the command, e.g. with ``--config``) whose namespace is not in ``reads``,
     the namespaces ``command`` applies: it would be dropped without a word (``launch_twin.foam.length_m`` given to
-    an evaluation that launches no twin). Inside a namespace it reads, :func:`from_mapping` refuses unknown names."""
+    an evaluation that launches no twin). Inside a namespace it reads, :func:`from_mapping` refuses unknown names.
+
+    ``unread(name, file's flat parameters)`` may take such a name that changes nothing ``command`` computes (a
+    print file's robust draws given to calibrate); the ``(file, name)`` pairs it took are returned, for the command
+    to say so and leave them out of what it loads."""
     reads = frozenset(reads) | PASS_THROUGH_NAMESPACES
+    taken: typing.List[typing.Tuple[str, str]] = []
     for path in paths:
         resolved = resolve_config_path(os.fspath(path))
-        for name in load_parameters([resolved]):
+        given = load_parameters([resolved])
+        for name in given:
             if "." in name and name.split(".", 1)[0] not in reads:
+                if unread is not None and unread(name, given):
+                    taken.append((resolved, name))
+                    continue
                 raise ConfigError(f"parameter file {resolved}: {command} does not read {name} (it reads "
                                   f"{', '.join(sorted(reads - PASS_THROUGH_NAMESPACES))}); remove it or give the "
                                   f"file to a command that reads it")
+    return taken
 
 
 def section(flat: typing.Mapping[str, object], prefix: str) -> typing.Dict[str, object]:

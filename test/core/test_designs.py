@@ -207,3 +207,67 @@ def test_print_differences_name_each_setting_both_ways_and_skip_the_ignored():
         f"model {'a' * 40} (optimizer) vs shell (here)"]
     with pytest.raises(ValueError, match="nested too deep"):   # was a RecursionError: the evaluator node died
         print_instructions_from_text("[" * 100_000)
+
+
+def test_calibrate_and_the_adaptive_plan_weigh_designs_only_under_the_print_they_were_chosen_for(tmp_path, capsys):
+    """`rollability calibrate` weighs and launches the designs of ``launch_twin.designs.designs_file``: under
+    another print than their ``designs.print`` it is refused in one line naming the setting and the file to give,
+    before anything is written (a bench fit and --prepare alike). Given the print file they were chosen with
+    (config/gradual_print.yaml, whose objective.robust keys are the search's: named as not read, kept out of the
+    loaded parameters) it weighs them as that print: a weighing of the gradual print fits the multiplier to 1, where
+    the default print's model would put it near 0.3. The adaptive plan's --twin-config is held to the same rule."""
+    from rollability_ros.cli import main
+    from rollability_ros.core.campaign.calibration import TWIN_CONFIGS
+    from rollability_ros.core.campaign.characterisation import FORMAT, profile_mass_kg
+    from rollability_ros.core.config import load_parameters
+    from rollability_ros.core.sim import TWIN_SECTIONS, evaluation, launch_twin_settings_from_parameters
+
+    gradual = evaluation.load_settings(["sim", "robot", "evaluator", "gradual_print"]).print_instructions()
+    path = write_designs(str(tmp_path), {"A": 0.3})
+    with open(path, encoding="utf-8") as stream:
+        document = yaml.safe_load(stream)
+    document["/**"]["ros__parameters"]["designs"]["print"] = dict(gradual)
+    with open(path, "w", encoding="utf-8") as stream:
+        yaml.safe_dump(document, stream)
+    twin = tmp_path / "twin.yaml"
+    twin.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"launch_twin": {"designs": {"designs_file": path}}}}}),
+                    encoding="utf-8")
+    default = load_parameters([*TWIN_CONFIGS, str(twin)])
+    gradual_robot = {k: v for k, v in load_parameters(["gradual_print"]).items() if k.startswith("robot.")}
+    weighed = profile_mass_kg(launch_twin_settings_from_parameters({**default, **gradual_robot}), "A")
+    # the wrong print would weigh the designs more than twice as heavy
+    assert weighed < 0.5 * profile_mass_kg(launch_twin_settings_from_parameters(default), "A")
+    bench = tmp_path / "bench.yaml"
+    bench.write_text(yaml.safe_dump({"format": FORMAT, "profile_mass": {
+        "sigma_kg": 0.0005, "readings": [{"configuration": "A", "mass_kg": float(weighed)}]}}), encoding="utf-8")
+    out = tmp_path / "out"
+    fit = ["calibrate", "--characterisation", str(bench), "--fit", "robot.profile_mass_scale", "--workers", "1",
+           "--out", str(out)]
+    for command in (fit, ["calibrate", "--prepare", str(tmp_path / "likelihood.npz"), "--out", str(out)],
+                    ["campaign", "--backend", "sim", "--propose-next", "--store", str(tmp_path / "store"),
+                     "--twin-config", str(twin)]):
+        assert main([*command, "--config", str(twin)] if command[0] == "calibrate" else command) == 2
+        refused = capsys.readouterr().err
+        assert "gradual_infill_steps 5 (designs) vs 0 (loaded)" in refused and refused.count("\n") == 1
+        assert ("--twin-config gradual_print" if command[0] == "campaign" else "--config gradual_print") in refused
+        assert sorted(os.listdir(tmp_path)) == ["bench.yaml", "designs.yaml", "twin.yaml"]   # nothing written
+    assert main(["campaign", "--backend", "sim", "--propose-next", "--store", str(tmp_path / "store"),
+                 "--twin-config", "gradual_print", "--twin-config", str(twin)]) == 2
+    assert "no store at" in capsys.readouterr().err   # the print passed; no store to read
+    assert main([*fit, "--config", "gradual_print", "--config", str(twin)]) == 0
+    assert "rollability calibrate: not read from gradual_print.yaml: objective.robust" in capsys.readouterr().out
+    with open(out / "calibrated.yaml", encoding="utf-8") as stream:
+        fitted = yaml.safe_load(stream)["/**"]["ros__parameters"]["robot"]["profile_mass_scale"]
+    assert fitted == pytest.approx(1.0, abs=0.05)
+    from rollability_ros.core.campaign import load_twin_files
+
+    parameters, unread = load_twin_files(TWIN_CONFIGS, ["gradual_print", str(twin)], TWIN_SECTIONS, "a command")
+    assert parameters == {**default, **gradual_robot}   # the search's keys left out: nothing calibrate computes
+    assert unread == ("a command: not read from gradual_print.yaml: objective.robust.profile_mass_scale_max, "
+                      "objective.robust.profile_mass_scale_min (the search's robust draws of the print model's "
+                      "error; calibration.lower / upper bound a fitted robot.profile_mass_scale)")
+    search_keys = tmp_path / "search.yaml"   # the same keys in a file that sets no print: refused as before
+    search_keys.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"objective": {"robust": {
+        "profile_mass_scale_min": 0.8}}}}}), encoding="utf-8")
+    with pytest.raises(ConfigError, match="a command does not read objective.robust.profile_mass_scale_min"):
+        load_twin_files(TWIN_CONFIGS, [str(search_keys)], TWIN_SECTIONS, "a command")

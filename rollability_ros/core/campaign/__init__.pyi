@@ -20,6 +20,7 @@ from .runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledg
                      local_rig_settings_from_files, plan_refusal, record_campaign_run, report_exit_code, resume_command,
                      resume_refusal, run_campaign, store_writer)
 from .terminal import AnsweredElsewhere, TerminalAsk
+from .twin_files import check_designs_print, load_twin_files
 
 __all__ = [
     "DEFAULT_UNKNOWNS", "OUTCOMES", "TWIN_CONFIGS", "AnsweredElsewhere", "CalibrationResult", "CalibrationSettings",
@@ -27,9 +28,9 @@ __all__ = [
     "Observation", "OutcomePosterior", "Posterior", "RunnerSettings", "StoreAcknowledgements", "TerminalAsk", "TwinPredictor",
     "Unknowns", "WeightedPosterior", "adaptive_next_trial", "answer_rig", "budget_placeholders",
     "calibrate", "calibrated_parameter_document", "calibration_settings", "candidate_conditions",
-    "characterisation_term", "check_fittable", "comparison_stop_rule", "credible_set", "format_set", "gate_term",
-    "learn",
-    "load_campaign_spec", "load_characterisation", "load_likelihood", "local_rig_settings",
+    "characterisation_term", "check_designs_print", "check_fittable", "comparison_stop_rule", "credible_set",
+    "format_set", "gate_term", "learn",
+    "load_campaign_spec", "load_characterisation", "load_likelihood", "load_twin_files", "local_rig_settings",
     "local_rig_settings_from_files", "observations_from_outcomes", "paired_order", "plan_refusal", "plan_trials",
     "proposal_lines", "record_campaign_run", "report_exit_code", "resume_command", "resume_refusal",
     "rig_parameter_document", "run_campaign", "sample_posterior", "shot_observations", "simulate_training_set",

@@ -119,7 +119,8 @@ def designs_file_labels(path: str) -> typing.List[str]:
     return list(_read_designs(_file_version(path))[1])
 
 
-def check_printed_with(path: str, instructions: typing.Mapping[str, typing.Union[str, float]]) -> None:
+def check_printed_with(path: str, instructions: typing.Mapping[str, typing.Union[str, float]],
+                       option: str = "--config") -> None:
     """Refuse to launch the designs of ``path`` under another print than the one it tells the lab to use.
 
     A designs file states how its designs are printed (``designs.print``: the robot's ``profile_print`` and
@@ -128,7 +129,7 @@ def check_printed_with(path: str, instructions: typing.Mapping[str, typing.Union
     (``print_instructions()``). Raises :class:`ConfigError` naming each setting that differs and the parameter
     file to give; nothing for a file that states no print (written before it was recorded). The mass multiplier
     (``profile_mass_scale``) is not compared: it is the print model's error on the rig (measured / modelled, what
-    calibration fits), not an instruction to the lab."""
+    calibration fits), not an instruction to the lab. ``option`` is the command's flag that takes a parameter file."""
     stated = _read_designs(_file_version(path))[2]
     if stated is None:
         return
@@ -136,7 +137,7 @@ def check_printed_with(path: str, instructions: typing.Mapping[str, typing.Union
     if differ:
         raise ConfigError(f"{path}: its designs were chosen for another print than the robot loaded here: "
                           f"{'; '.join(differ)}; give the parameter file the designs were chosen with "
-                          "(e.g. --config gradual_print), or set robot.profile_print to match")
+                          f"(e.g. {option} gradual_print), or set robot.profile_print to match")
 
 
 def print_differences(first: typing.Mapping[str, typing.Union[str, float]],

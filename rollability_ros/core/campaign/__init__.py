@@ -3,6 +3,7 @@
 - plan: experiment matrix, trial order, operator changes, resume, progress
 - runner: the campaign loop over an injected launch and store acknowledgement
 - terminal: the operator's prompt that another place (the rig CLI) can answer first
+- twin_record: the simulated rig's twin files recorded in a campaign run's info, and checked for a re-simulation
 - calibration: fit the launch twin's uncertain parameters to physical outcomes
 - characterisation: bench readings taken before a campaign (docs/characterisation.md) and their likelihood
 - likelihood: the twin's likelihood learnt once per robot and design set, its training launches and its file

@@ -345,8 +345,9 @@ def _recorded_twin(args):
         return None
     twin = recorded_twin(described["info"], folder, args.run_id)
     if twin is None:
-        print(f"note: run {args.run_id}'s twin files were not recorded (stored before they were): re-simulating on "
-              f"the shipped rig files (a design's launch needs the campaign's --rig-config files)", file=sys.stderr)
+        print(f"note: run {args.run_id}'s twin files were not recorded (a run stored before they were, or launched "
+              "through --graph): re-simulating on the shipped rig files (a design's launch needs the campaign's "
+              "--rig-config files)", file=sys.stderr)
     return twin
 
 

@@ -41,9 +41,11 @@ def register(subparsers: Subparsers) -> None:
                              "--session, else bringup.namespace, /rollability as shipped: where `rollability bringup` "
                              "starts them)")
     parser.add_argument("--resimulate", nargs=4, metavar=("CONFIGURATION", "HEIGHT_M", "SPEED_MPS", "ANGLE_DEG"),
-                        help="with --backend sim and --seed: run only this one launch on the launch twin of "
-                             "--rig-config and print its outcome (the report's drill-down shows this command for "
-                             "every simulated launch); stores nothing")
+                        help="with --backend sim and --seed: run only this one launch on the launch twin and "
+                             "print its outcome (the report's drill-down shows this command for every simulated "
+                             "launch); with --store and --run-id on the twin files recorded for that run (refused "
+                             "when one is missing or changed), else, or with --rig-config, on --rig-config's; "
+                             "stores nothing")
     parser.add_argument("--seed", type=int,
                         help="with --resimulate: the twin seed of the launch (the stored outcome's seed)")
     _add_adaptive_arguments(parser)
@@ -324,8 +326,48 @@ def _read_twin(twin_config):
     return load_launch_twin_settings(twin_config)
 
 
+def _recorded_twin(args):
+    """The twin recorded for run ``--run-id`` of ``--store`` (:mod:`~rollability_ros.core.campaign.twin_record`),
+    checked; None without ``--store``, with ``--rig-config`` (which overrides it, as a note says) or for a run
+    stored before twins were recorded (a note says so)."""
+    import os
+    import sys
+
+    from rollability_ros.core.campaign import recorded_twin
+    from rollability_ros.core.results import directory_store
+    from rollability_ros.core.store import Store
+
+    if args.store is None and args.run_id is None:
+        return None
+    if args.store is None or args.run_id is None:
+        raise ValueError("--resimulate reads the campaign's twin from --store and --run-id together (the stored "
+                         "outcome's store and run)")
+    path = directory_store(args.store) if os.path.isdir(args.store) else args.store
+    if not path or not os.path.isfile(path):
+        raise ValueError(f"--store {args.store}: no store there")
+    with Store(path) as store:
+        described = store.run_info(args.run_id)
+    if described is None:
+        raise ValueError(f"--run-id {args.run_id}: store {path} holds no run of that id")
+    folder = os.path.dirname(os.path.abspath(path))
+    if args.rig_config:
+        print(f"note: --rig-config given: re-simulating on its files, not on the twin files recorded for run "
+              f"{args.run_id}", file=sys.stderr)
+        return None
+    twin = recorded_twin(described["info"], folder, args.run_id)
+    if twin is None:
+        print(f"note: run {args.run_id}'s twin files were not recorded (a run stored before they were, or launched "
+              "through --graph): re-simulating on the shipped rig files (a design's launch needs the campaign's "
+              "--rig-config files)", file=sys.stderr)
+    return twin
+
+
 def _resimulate(args):
+    import dataclasses
+    import functools
+
     from rollability_ros.core.campaign import LocalRig, local_rig_settings_from_files
+    from rollability_ros.core.sim import load_launch_twin_settings
     from rollability_ros.core.records import LaunchCondition, check_twin_seed
     from rollability_ros.core.rig import LAUNCH_BACKENDS, launch_backend_class
 
@@ -342,8 +384,14 @@ def _resimulate(args):
     condition = LaunchCondition(configuration, height_m, speed_mps, angle_deg)
     condition.validate()   # the campaign's own bounds (records.HEIGHT_RANGE_M ...): no stored launch lies outside
     check_twin_seed(args.seed)
-    rig = LocalRig(local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG),
-                   read_twin=_read_twin)
+    settings = local_rig_settings_from_files(args.backend, args.rig_config, RIG_CONFIG)
+    twin = _recorded_twin(args)
+    read_twin = _read_twin
+    if twin is not None:   # the campaign's own twin: its files, and its designs file wherever the store now is
+        settings = dataclasses.replace(settings, rig=dataclasses.replace(settings.rig, twin_config=twin.twin_config))
+        overrides = {"twin.designs.designs_file": twin.designs_file} if twin.designs_file else None
+        read_twin = functools.partial(load_launch_twin_settings, overrides=overrides)
+    rig = LocalRig(settings, read_twin=read_twin)
     try:
         result = rig.backend.resimulate(condition, args.seed)
     finally:
@@ -403,7 +451,8 @@ def _run_local(args, spec, ask):
                 next_trial = adaptive_next_trial(posterior, stored, comparison=_comparison(args, args.about or ""))
                 plan = budget_placeholders(args.budget, plan[0].condition)
             rig = rig or checked_rig()
-            record_campaign_run(store, spec.run_id, args.backend, rig.backend.design_sources())
+            record_campaign_run(store, spec.run_id, args.backend, rig.backend.design_sources(),
+                                rig.backend.twin_config())
             report = run_campaign(plan, spec.run_id, stored, lambda trial: rig.launch(spec.run_id, trial),
                                   store_writer(store), ask=ask, pressure_psi_by_speed=_pressures(args),
                                   stop_rule=stop_rule, next_trial=next_trial)

@@ -429,3 +429,174 @@ def test_the_sim_rig_records_where_its_designs_come_from(tmp_path):
     backend = SimulatedLaunch(RigSettings(twin_config=twin_config), SpeedGateConfig(),
                               load_launch_twin_settings(twin_config))
     assert backend.design_sources() == {"designs_file": os.path.abspath("d/designs.yaml"), "mesh_files": {}}
+
+
+def _tiny_design_campaign(folder):
+    """Two launches (the bare robot and design A at one condition) on the sim rig in this process, through
+    `rollability campaign`; its twin file, designs file and store all in ``folder``. Returns the store path."""
+    import numpy as np
+    import yaml
+
+    from rollability_ros.core.optimization.design_set import designs_document
+    from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, SelectionResult
+    from rollability_ros.core.profile.geometry import ProfileGrid
+
+    pytest.importorskip("pybullet")
+    os.makedirs(folder)
+    grid = ProfileGrid(rows=4, cols=3)
+    chosen = [SelectedDesign("A", PooledDesign(np.repeat(np.linspace(0.05, 0.4, grid.rows), grid.cols), 9, 10, 1, 1),
+                             mesh=None, metrics=None, reason="a ramp")]
+    designs = os.path.join(folder, "designs.yaml")
+    with open(designs, "w", encoding="utf-8") as stream:
+        yaml.safe_dump(designs_document(SelectionResult(designs=chosen, requested=1, considered=1, rejected={}),
+                                        grid, "run-1"), stream)
+    twin = os.path.join(folder, "twin.yaml")
+    with open(twin, "w", encoding="utf-8") as stream:
+        yaml.safe_dump({"/**": {"ros__parameters": {"launch_twin": {"designs": {"designs_file": designs}}}}}, stream)
+    campaign = os.path.join(folder, "campaign.yaml")
+    with open(campaign, "w", encoding="utf-8") as stream:
+        yaml.safe_dump({"/**": {"ros__parameters": {"campaign": {
+            "run_id": "tiny", "configurations": ["baseline", "A"], "heights_m": [0.75], "speeds_mps": [0.8],
+            "angles_deg": [0.0], "repetitions": 1}}}}, stream)
+    store = os.path.join(folder, "outcomes.sqlite")
+    assert cli_main(["campaign", "--backend", "sim", "--config", campaign, "--rig-config", "rig", "--rig-config", twin,
+                     "--store", store]) == 0
+    return store
+
+
+def _printed_command(store, out_dir, configuration):
+    """The re-simulation command the report of ``store`` prints for the launch of ``configuration``, and that
+    launch's stored outcome."""
+    import html
+
+    assert cli_main(["report", store, "--out", str(out_dir)]) == 0
+    page = (out_dir / "report.html").read_text()
+    with Store(store) as opened:
+        target = next(o for o in opened.launch_outcomes() if o.condition.configuration == configuration)
+    row = dict(re.findall(r"<tr id='trial-[^']*'><td>([^<]*)</td>(.*?)</tr>", page))[html.escape(target.trial_id)]
+    commands = re.findall(r"<code>(rollability campaign [^<]*)</code>", row)
+    assert len(commands) == 1
+    return html.unescape(commands[0]), target
+
+
+def _resimulated(command, capsys):
+    """Run a printed command; its exit code and its printed ``name: value`` lines."""
+    import shlex
+
+    capsys.readouterr()
+    code = cli_main(shlex.split(command)[1:])
+    captured = capsys.readouterr()
+    return code, dict(line.split(": ", 1) for line in captured.out.splitlines()), captured.err
+
+
+def test_a_designs_launch_is_resimulated_as_printed_on_the_twin_files_its_campaign_recorded(tmp_path, capsys):
+    """The docs audit: the report's command for design A's launch stopped with "unknown configuration 'A'" (the
+    run recorded no twin files; only --rig-config added by hand worked). The campaign records its twin files and
+    the printed command reproduces the stored outcome exactly, also after the folder moved; a changed or missing
+    twin file is refused in one line naming it; --rig-config still overrides, and says so."""
+    store = _tiny_design_campaign(tmp_path / "run")
+    command, target = _printed_command(store, tmp_path / "report", "A")
+    code, printed, _ = _resimulated(command, capsys)
+    assert code == 0
+    assert printed["upright"] == str(target.upright).lower()
+    assert tuple(float(v) for v in printed["final_orientation (x, y, z, w)"].split()) == target.final_orientation
+    assert float(printed["travel_time_s"]) == target.travel_time_s
+    for name, value in target.continuous().items():
+        assert float(printed[name]) == pytest.approx(value, abs=1e-12, nan_ok=True), name
+
+    twin = tmp_path / "run" / "twin.yaml"
+    original = twin.read_text()
+    twin.write_text(original + "# edited\n")
+    code, _, err = _resimulated(command, capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert f"its twin file {twin} changed since the campaign" in err
+    code, again, err = _resimulated(_with_rig_config(command, ["rig", str(twin)]), capsys)
+    assert code == 0 and err.startswith("note: --rig-config given: re-simulating on its files")   # the user's win
+    twin.write_text(original)
+
+    shutil.move(tmp_path / "run", tmp_path / "moved")       # the study folder moved whole: its own files found
+    moved = command.replace(store, str(tmp_path / "moved" / "outcomes.sqlite"))
+    assert _resimulated(moved, capsys)[1] == printed
+    twin = tmp_path / "moved" / "twin.yaml"
+    twin.unlink()
+    code, _, err = _resimulated(moved, capsys)
+    assert code == 2 and f"its twin file {twin} (recorded as " in err and "is missing" in err
+    twin.write_text(original)
+    designs = tmp_path / "moved" / "designs.yaml"
+    designs.write_text(designs.read_text().replace("0.4", "0.35"))
+    code, _, err = _resimulated(moved, capsys)
+    assert code == 2 and f"its designs file {designs} changed since the campaign" in err
+
+
+def _with_rig_config(command, files):
+    """``command`` with ``--rig-config FILE`` for each of ``files``."""
+    import shlex
+
+    return command + "".join(f" --rig-config {shlex.quote(path)}" for path in files)
+
+
+def test_a_run_stored_before_twin_files_were_recorded_resimulates_as_before_with_a_note(tmp_path, capsys):
+    """A run whose info records no twin (stored before this record existed) falls back to the shipped rig files,
+    with a one-line note saying so: the bare robot's launch still reproduces; a design's needs --rig-config."""
+    store = _tiny_design_campaign(tmp_path / "run")
+    with Store(store) as opened:
+        info = dict(opened.run_info("tiny")["info"])
+        assert [entry["given"] for entry in info["twin"]["files"]][:3] == ["sim", "robot", "launch_twin"]
+        assert info["twin"]["designs_file"]["path"] == "designs.yaml"       # inside the store's folder: relative
+        del info["twin"]
+        opened.set_run_info("tiny", "campaign", info)
+    command, target = _printed_command(store, tmp_path / "report", "baseline")
+    code, printed, err = _resimulated(command, capsys)
+    assert code == 0 and printed["upright"] == str(target.upright).lower()
+    assert err.startswith("note: run tiny's twin files were not recorded") and err.count("\n") == 1
+    assert _resimulated(_printed_command(store, tmp_path / "report", "A")[0], capsys)[0] == 2
+
+
+def test_a_study_records_its_rigs_twin_files_relative_to_its_folder(tmp_path):
+    """The study's rig loads the study's copies of its parameter files and its study.yaml (naming the designs it
+    launches); the study records them, relative to its folder, so a moved study re-simulates on its own files."""
+    from rollability_ros.core.campaign import recorded_twin
+    from rollability_ros.core.graph import Study, study_config
+
+    config = tmp_path / "study.yaml"
+    config.write_text(f"/**:\n  ros__parameters:\n    bringup: {{output_dir: '{tmp_path / 'runs'}'}}\n")
+    study = Study(study_config([str(config)], "s1"), say=lambda text: None)
+    study.make_study_dir()
+    os.makedirs(os.path.dirname(study.designs_file))
+    with open(study.designs_file, "w", encoding="utf-8") as stream:
+        stream.write("/**:\n  ros__parameters:\n    designs:\n      labels: [A]\n")
+    rig = study._campaign_nodes(["A"])[0]
+    with Store(study.store_path) as store:
+        for outcome in _campaign_outcomes(run_id="s1", repetitions=1)[:4]:
+            store.add_launch_outcome(outcome)
+    study._record_campaign_designs()
+    with Store(study.store_path) as store:
+        info = store.run_info("s1")["info"]
+    recorded = [entry["path"] for entry in info["twin"]["files"]]
+    assert recorded == [os.path.relpath(path, study.study_dir) for path in rig.params["rig.twin_config"]]
+    assert recorded[-1] == "study.yaml" and all(not os.path.isabs(path) for path in recorded)
+    moved = tmp_path / "moved"
+    shutil.copytree(study.study_dir, moved)
+    twin = recorded_twin(info, str(moved), "s1")
+    assert twin.twin_config == [str(moved / path) for path in recorded]
+    assert twin.designs_file == str(moved / "optimization" / "designs" / "designs.yaml")
+
+
+def test_a_run_whose_sessions_loaded_different_twin_files_is_refused_for_resimulation(tmp_path):
+    """A campaign resumed on edited twin files: no one set re-simulates all its launches, so the record says so
+    and a re-simulation is refused in one line (not run on the later session's files)."""
+    from rollability_ros.core.campaign import record_campaign_run, recorded_twin
+
+    twin = tmp_path / "twin.yaml"
+    twin.write_text("/**:\n  ros__parameters:\n    launch_twin: {}\n", encoding="utf-8")
+    with Store(tmp_path / "o.sqlite") as store:
+        record_campaign_run(store, "camp", "sim", {}, ["sim", str(twin)])
+        first = store.run_info("camp")["info"]
+        assert recorded_twin(first, str(tmp_path), "camp").twin_config[1] == str(twin)
+        record_campaign_run(store, "camp", "sim", {}, ["sim", str(twin)])     # the same files again: kept
+        assert store.run_info("camp")["info"] == first
+        twin.write_text("/**:\n  ros__parameters:\n    launch_twin: {foam: {restitution: 0.3}}\n", encoding="utf-8")
+        record_campaign_run(store, "camp", "sim", {}, ["sim", str(twin)])
+        info = store.run_info("camp")["info"]
+    with pytest.raises(ValueError, match="^run camp was launched on different twin files in different sessions"):
+        recorded_twin(info, str(tmp_path), "camp")

@@ -4,6 +4,7 @@
 - runner: the campaign loop over an injected launch and store acknowledgement
 - terminal: the operator's prompt that another place (the rig CLI) can answer first
 - twin_files: the twin's parameter files a user gives calibrate and the adaptive plan, and their designs' print
+- twin_record: the simulated rig's twin files recorded in a campaign run's info, and checked for a re-simulation
 - calibration: fit the launch twin's uncertain parameters to physical outcomes
 - characterisation: bench readings taken before a campaign (docs/characterisation.md) and their likelihood
 - likelihood: the twin's likelihood learnt once per robot and design set, its training launches and its file

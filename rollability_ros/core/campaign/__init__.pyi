@@ -21,18 +21,20 @@ from .runner import (LocalRig, LocalRigSettings, RunnerSettings, StoreAcknowledg
                      resume_refusal, run_campaign, store_writer)
 from .terminal import AnsweredElsewhere, TerminalAsk
 from .twin_files import check_designs_print, load_twin_files
+from .twin_record import RecordedTwin, recorded_twin
 
 __all__ = [
     "DEFAULT_UNKNOWNS", "OUTCOMES", "TWIN_CONFIGS", "AnsweredElsewhere", "CalibrationResult", "CalibrationSettings",
     "CampaignSpec", "ConditionLevels", "LaunchPool", "LearntLikelihood", "LearntTable", "LocalRig", "LocalRigSettings",
-    "Observation", "OutcomePosterior", "Posterior", "RunnerSettings", "StoreAcknowledgements", "TerminalAsk", "TwinPredictor",
+    "Observation", "OutcomePosterior", "Posterior", "RecordedTwin", "RunnerSettings", "StoreAcknowledgements",
+    "TerminalAsk", "TwinPredictor",
     "Unknowns", "WeightedPosterior", "adaptive_next_trial", "answer_rig", "budget_placeholders",
     "calibrate", "calibrated_parameter_document", "calibration_settings", "candidate_conditions",
     "characterisation_term", "check_designs_print", "check_fittable", "comparison_stop_rule", "credible_set",
     "format_set", "gate_term", "learn",
     "load_campaign_spec", "load_characterisation", "load_likelihood", "load_twin_files", "local_rig_settings",
     "local_rig_settings_from_files", "observations_from_outcomes", "paired_order", "plan_refusal", "plan_trials",
-    "proposal_lines", "record_campaign_run", "report_exit_code", "resume_command", "resume_refusal",
+    "proposal_lines", "record_campaign_run", "recorded_twin", "report_exit_code", "resume_command", "resume_refusal",
     "rig_parameter_document", "run_campaign", "sample_posterior", "shot_observations", "simulate_training_set",
     "store_writer",
     "temperature_statement", "trial_id_for", "twin_fingerprint", "twin_settings_with"

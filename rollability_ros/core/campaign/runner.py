@@ -16,6 +16,7 @@ for it, so a resumed run (``remaining_trials``) launches it again, and every tri
 """
 import dataclasses
 import math
+import os
 import threading
 import time
 import typing
@@ -92,15 +93,27 @@ def store_writer(store: Store) -> typing.Callable[[LaunchOutcome], None]:
     return confirm_stored
 
 
-def record_campaign_run(store: Store, run_id: str, backend: str, design_sources: dict) -> None:
-    """Describe campaign ``run_id`` in ``store``'s run info: its backend and where its profiles come from
+def record_campaign_run(store: Store, run_id: str, backend: str, design_sources: dict,
+                        twin_config: typing.Sequence[str] = ()) -> None:
+    """Describe campaign ``run_id`` in ``store``'s run info: its backend, where its profiles come from
     (:meth:`~rollability_ros.core.rig.launch_backend.LaunchBackend.design_sources`), which is where a report
-    looks for the run's design meshes; keeps what an earlier session recorded."""
+    looks for the run's design meshes, and, for a simulated rig, its twin (``twin_config``, the files
+    ``rig.twin_config`` lists: :func:`~rollability_ros.core.campaign.twin_record.twin_record`), which a
+    re-simulation loads; keeps what an earlier session recorded, and marks a twin that differs from an earlier
+    session's."""
+    from rollability_ros.core.campaign.twin_record import TWIN_RECORD, same_twin, twin_record
+
     described = store.run_info(run_id)
     info = dict(described["info"]) if described else {}
     info["backend"] = backend
     if design_sources:
         info["designs"] = design_sources
+    twin = twin_record(twin_config, design_sources, os.path.dirname(os.path.abspath(store.path))) if twin_config else {}
+    earlier = info.get(TWIN_RECORD)
+    if twin and earlier and (earlier.get("differs_between_sessions") or not same_twin(earlier, twin)):
+        twin = {"differs_between_sessions": True}
+    if twin:
+        info[TWIN_RECORD] = twin
     store.set_run_info(run_id, described["kind"] if described else "campaign", info)
 
 

@@ -243,15 +243,19 @@ class Study:
             return os.path.join(self.study_dir, "bag")
         return os.path.join(self.study_dir, f"bag-{len(existing) + 1}")
 
+    @property
+    def campaign_twin_config(self) -> typing.List[str]:
+        """The rig's ``rig.twin_config`` in the campaign: the study's parameter files, then its ``study.yaml`` (the
+        designs file the campaign launches, :meth:`_campaign_nodes`)."""
+        return [*self.param_files, os.path.join(self.study_dir, "study.yaml")]
+
     def _campaign_nodes(self, labels):
         configurations = ["baseline", *labels]
         overrides = {"launch_twin": {"designs": {"designs_file": self.designs_file}}}
-        study_yaml = os.path.join(self.study_dir, "study.yaml")
-        with open(study_yaml, "w", encoding="utf-8") as stream:
+        with open(self.campaign_twin_config[-1], "w", encoding="utf-8") as stream:
             yaml.safe_dump({"/**": {"ros__parameters": overrides}}, stream)
-        twin_config = [*self.param_files, study_yaml]
         rig = NodeLaunch("rig", namespace=self.settings.namespace, params={"rig.backend": "sim", "rig.configurations": configurations,
-                                        "rig.twin_config": twin_config})
+                                        "rig.twin_config": self.campaign_twin_config})
         runner = NodeLaunch("campaign_runner", namespace=self.settings.namespace, restart=False, params={
             "campaign.run_id": self.study_id, "campaign.configurations": configurations,
             "runner.backend": "sim", "runner.resume": self.resuming})
@@ -315,6 +319,7 @@ class Study:
                                 os.path.join(self.study_dir, "logs"),
                                 on_event=lambda event: self.say("  " + event.text()))
         result = StudyResult(study_dir=self.study_dir, ok=False, bag_dir=bag_dir)
+        campaign_started = False
         try:
             supervisor.start()
             if self._selected_labels() is None:
@@ -337,6 +342,7 @@ class Study:
                 return result
             self.say(f"designs selected: {', '.join(labels) or 'none'}; launching the campaign on the simulated rig")
             rig, runner = self._campaign_nodes(labels)
+            campaign_started = True
             supervisor.add(rig.process_spec(self.param_files, self.study_dir))
             self._wait_for_recorder(supervisor, "launch_outcomes")
             supervisor.add(runner.process_spec(self.param_files, self.study_dir))
@@ -350,6 +356,8 @@ class Study:
         finally:
             self.say("stopping the node graph")
             supervisor.stop()
+            if campaign_started:   # a stopped campaign too: its stored launches can be re-simulated
+                self._record_campaign_designs()
         return self._report(result)
 
     def _wait_for_recorder(self, supervisor, topic):
@@ -377,20 +385,19 @@ class Study:
 
     def _record_campaign_designs(self):
         """Record in the store the designs the campaign launched (the rig's designs_file, :meth:`_campaign_nodes`),
-        so a report lists that set and not one a later ``select`` wrote beside it; the logger has stopped, so the
-        store has one writer."""
+        so a report lists that set and not one a later ``select`` wrote beside it, and the rig's twin files, which
+        ``campaign --resimulate`` loads; the logger has stopped, so the store has one writer."""
         from rollability_ros.core.campaign import record_campaign_run
 
         if os.path.isfile(self.store_path) and os.path.isfile(self.designs_file):
             with Store(self.store_path) as store:
                 if store.trial_ids(self.study_id):
                     record_campaign_run(store, self.study_id, "sim", {"designs_file": self.designs_file,
-                                                                      "mesh_files": {}})
+                                                                      "mesh_files": {}}, self.campaign_twin_config)
 
     def _report(self, result):
         from rollability_ros.core.results import build_report, load_report_data, use_geometry_csv
 
-        self._record_campaign_designs()
         data = load_report_data(self.store_path, run_id=self.study_id)
         table3 = os.path.join(self.optimization_dir, "designs", "table3.csv")
         if os.path.isfile(table3):

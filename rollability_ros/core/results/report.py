@@ -51,6 +51,7 @@ class ReportData:
     """Everything a report is made of; ``sim_fitness`` maps configuration -> simulated fitness in [0, 1]."""
 
     source: str
+    store: str = ""    # the store the outcomes came from, as given ("" for a bag or CSV): re-simulations read it
     outcomes: list = dataclasses.field(default_factory=list)
     candidates: list = dataclasses.field(default_factory=list)
     generations: list = dataclasses.field(default_factory=list)
@@ -180,6 +181,7 @@ def load_report_data(source: typing.Union[str, os.PathLike], run_id: typing.Opti
             data.tip_events = store.tip_events()
             selected = _select_run(data, run_id)
             run_info = store.run_info(selected) if selected else None
+        data.store = source
     else:
         if kind == "csv":
             data.outcomes = read_outcome_csv(source, run_id=run_id or "csv")

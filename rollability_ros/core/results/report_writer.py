@@ -265,21 +265,25 @@ def _anchor(text):
     return "".join(c if c.isalnum() else "-" for c in text).strip("-").lower()
 
 
-def resimulate_command(outcome: LaunchOutcome) -> str:
+def resimulate_command(outcome: LaunchOutcome, store: str = "") -> str:
     """The command that runs a simulated launch again from its stored condition and twin seed ("" without a seed):
-    ``rollability campaign --resimulate``, which prints the launch's outcome and final orientation."""
+    ``rollability campaign --resimulate``, which prints the launch's outcome and final orientation; with the
+    ``store`` it came from, on the twin files recorded for its run (``--store``, ``--run-id``)."""
     if outcome.seed == NO_SEED or outcome.backend != "sim":
         return ""
     c = outcome.condition
-    return (f"rollability campaign --backend sim --resimulate {shlex.quote(c.configuration)} {c.height_m!r} "
-            f"{c.speed_mps!r} {c.angle_deg!r} --seed {outcome.seed}")
+    command = (f"rollability campaign --backend sim --resimulate {shlex.quote(c.configuration)} {c.height_m!r} "
+               f"{c.speed_mps!r} {c.angle_deg!r} --seed {outcome.seed}")
+    if store:
+        command += f" --store {shlex.quote(store)} --run-id {shlex.quote(outcome.run_id)}"
+    return command
 
 
-def _seed_cell(outcome):
+def _seed_cell(outcome, store):
     """The seed of a launch and, for a simulated one, the command that simulates it again."""
     if outcome.seed == NO_SEED:
         return "none (physical launch)" if outcome.backend == "physical" else "none recorded"
-    command = resimulate_command(outcome)
+    command = resimulate_command(outcome, store)
     return f"{outcome.seed}" + (f": <code>{html.escape(command)}</code>" if command else "")
 
 
@@ -291,7 +295,7 @@ def _trial_rows(data, trace, out_dir):
         cells = [html.escape(outcome.trial_id), html.escape(c.configuration), f"{c.height_m:g}", f"{c.speed_mps:g}",
                  f"{c.angle_deg:g}", str(c.repetition), "upright" if outcome.upright else "not upright",
                  html.escape(outcome.classified_by), html.escape(outcome.backend)]
-        cells.append(_seed_cell(outcome))
+        cells.append(_seed_cell(outcome, data.store))
         if outcome.trial_id in trace:
             bag, offset_s, poses = trace[outcome.trial_id]
             link = html.escape(os.path.relpath(bag, out_dir))

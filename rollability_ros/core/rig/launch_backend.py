@@ -248,6 +248,11 @@ class LaunchBackend(abc.ABC):
         ``{}`` when it does not know (an operator mounts printed parts)."""
         return {}
 
+    def twin_config(self) -> typing.List[str]:
+        """The parameter files of the launch twin this backend simulates in (``rig.twin_config``), for the
+        campaign's run info (a re-simulation loads them); ``[]`` when it simulates nothing."""
+        return []
+
     def close(self) -> None:
         """Release what the backend opened (valve closed, heartbeat stopped); idempotent."""
 

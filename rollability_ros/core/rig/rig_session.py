@@ -386,6 +386,10 @@ class SimulatedLaunch(LaunchBackend):
         return {"designs_file": os.path.abspath(designs.designs_file) if designs.designs_file else "",
                 "mesh_files": {label: os.path.abspath(path) for label, path in designs.meshes().items()}}
 
+    def twin_config(self) -> typing.List[str]:
+        """``rig.twin_config``: the files this twin was read from."""
+        return list(self.settings.twin_config)
+
     def launch(self, run_id: str, trial_id: str, condition: LaunchCondition, on_phase: PhaseCallback = no_phase,
                *, on_pose: typing.Optional[PoseCallback] = None,
                cancelled: typing.Callable[[], bool] = not_cancelled) -> LaunchOutcome:

@@ -27,17 +27,18 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 #: ``main(argv) -> int``): all of them, cheapest first (the ROS-graph and calibration ones last; the last three
 #: prepare a learnt likelihood or run a whole study through the node graph, each at its smallest size).
 #: docs/testing.md gives each one's measured time.
-SMOKE = ("bench_bag_writer", "bench_adaptive_plan", "bench_profile_mass", "bench_launch_twin", "verify_early_decision",
-         "bench_pad_size", "bench_design_space", "bench_bare_breakdown", "bench_truth_sweep", "bench_optimizer",
-         "bench_estop_latency", "bench_pool_split", "bench_evaluator", "bench_sensitivity", "bench_quality_diversity",
-         "bench_initial_mean_screen", "bench_race_truth", "bench_shape_ceiling", "bench_engines", "bench_racing",
-         "bench_recorder", "bench_calibration_direct", "bench_objective", "bench_optimizer_node", "bench_calibration",
-         "bench_recalibrate", "bench_transfer")
+SMOKE = ("bench_bag_writer", "bench_adaptive_plan", "bench_profile_mass", "bench_launch_twin", "bench_worker_memory",
+         "verify_early_decision", "bench_pad_size", "bench_design_space", "bench_bare_breakdown", "bench_truth_sweep",
+         "bench_optimizer", "bench_estop_latency", "bench_pool_split", "bench_evaluator", "bench_sensitivity",
+         "bench_quality_diversity", "bench_initial_mean_screen", "bench_race_truth", "bench_shape_ceiling",
+         "bench_engines", "bench_racing", "bench_recorder", "bench_calibration_direct", "bench_objective",
+         "bench_optimizer_node", "bench_calibration", "bench_recalibrate", "bench_transfer")
 
 #: What each bench must print at its smoke size: one piece of each line that carries its result (its ratio, table
 #: or verdict), so a bench that stops before its report, or drops a line of it, fails.
 HEADLINES: typing.Dict[str, typing.Tuple[str, ...]] = {
     "bench_bag_writer": ("writer", "msg/s"),
+    "bench_worker_memory": ("growth per candidate", "steady state", "launch twins alive"),
     "bench_adaptive_plan": ("likelihood; unknowns",),
     "bench_profile_mass": ("robot.profile_print = ", "mass g / COM rise mm", "profile_body(dome): print"),
     "bench_launch_twin": ("wall per launch", "steps per launch", "projected", "travel time / (0.34 m",

@@ -336,12 +336,16 @@ class MujocoEnergyMonitor:
     "COM height >= h(d)" by that depth, so the barriers are lowered by it on top of ``margin_m`` (``sink_m``
     replaces it for another ground: the launch twin's foam). ``ground_z_m`` is the ground's height;
     ``radius_m`` the hull's largest distance from the centre of mass (m).
+
+    It keeps the world's model, data and root body, never the world: a world holds its monitor, and a monitor that
+    held its world made a reference cycle that only the cyclic garbage collector frees, rarely in a long search, so a
+    process kept every dropped world's compiled model and data (the launch twin compiles one per robustness draw).
     """
 
     def __init__(self, world, margin_m, sink_m=None, ground_z_m=0.0):
         from rollability_ros.core.sim.early_decision import build_basin_map
         mujoco, model = world.mujoco, world.model
-        self.mujoco, self.world = mujoco, world
+        self.mujoco, self._model, self._data, self._root = mujoco, model, world.data, world.root
         world.place((0.0, 0.0, 0.0, 1.0), 0.0)
         data = world.data
         origin, rotation = data.xpos[world.root].copy(), data.xmat[world.root].reshape(3, 3).copy()
@@ -369,14 +373,13 @@ class MujocoEnergyMonitor:
 
     def decide(self) -> typing.Optional[bool]:
         """True / False once the trial's outcome is fixed (upright / not), else None; call after ``mj_step1``."""
-        mujoco, world = self.mujoco, self.world
-        model, data = world.model, world.data
+        mujoco, model, data, root = self.mujoco, self._model, self._data, self._root
         # the caller ran mj_step1 at the current state: subtree COM and mass matrix are current
         mujoco.mj_mulM(model, data, self._momentum, data.qvel)
         kinetic = 0.5 * float(self._momentum @ data.qvel)
-        energy_height_m = self.energy_height_m = float(data.subtree_com[world.root][2]) - self.ground_z_m + \
+        energy_height_m = self.energy_height_m = float(data.subtree_com[root][2]) - self.ground_z_m + \
             kinetic / (self.mass_kg * self.gravity_mps2)
         if energy_height_m >= self.highest_barrier_m:
             return None
-        down_in_root = -data.xmat[world.root][6:9]
+        down_in_root = -data.xmat[root][6:9]
         return self.basins.decide(np.asarray(down_in_root, dtype=np.float64), energy_height_m)

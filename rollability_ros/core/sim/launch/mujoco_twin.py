@@ -493,7 +493,8 @@ class _MujocoPlate:
     ``b (v_target - v)`` with MuJoCo's joint damping ``b`` (integrated implicitly by the Euler integrator, so
     stable at any gain) and the force ``b v_target``; ``b`` is lowered so that the force stays within
     ``max_force_n`` (module docstring). Under RK4 (a compliant profile mount) damping is explicit: ``b`` is then
-    the plate's mass / step."""
+    the plate's mass / step. It keeps the twin's model, data and plate joint, never the twin (which holds its plate:
+    a cycle kept every dropped twin's compiled model and data until a rare full garbage collection)."""
 
     #: Share of the robot's mass in the servo gain ((plate mass + share x robot mass) / step). Measured on the
     #: chassis: at 1 x or 3 x the plate rams the robot's contact and throws it off up to 13% / 20% faster than
@@ -503,7 +504,8 @@ class _MujocoPlate:
     ROBOT_SHARE = 0.25
 
     def __init__(self, twin: MujocoLaunchTwin, spec: PushPlateSpec, push: npt.ArrayLike, face_x_m: float) -> None:
-        self._twin, self.spec, self.push, self.face_x_m = twin, spec, np.asarray(push), face_x_m
+        self.spec, self.push, self.face_x_m = spec, np.asarray(push), face_x_m
+        self._model, self._data, self._dof, self._qpos = twin.model, twin.data, twin.plate_dof, twin.plate_qpos
         explicit = twin.model.opt.integrator != twin.mujoco.mjtIntegrator.mjINT_EULER
         mass_kg = spec.mass_kg + (0.0 if explicit else self.ROBOT_SHARE * twin.mass_kg)
         self._gain = mass_kg / twin.model.opt.timestep   # per MuJoCo step (a twin step's substep)
@@ -514,14 +516,13 @@ class _MujocoPlate:
     @property
     def at_rest(self) -> bool:
         """True once the braked plate has stopped (its servo then holds it with the damping last set)."""
-        return not self.driving and abs(float(self._twin.data.qvel[self._twin.plate_dof])) < 1e-6
+        return not self.driving and abs(float(self._data.qvel[self._dof])) < 1e-6
 
     def force(self) -> float:
         """Set the servo's damping for the coming step and return the joint force that goes with it (N)."""
-        twin = self._twin
-        error = abs(self._target - float(twin.data.qvel[twin.plate_dof]))
+        error = abs(self._target - float(self._data.qvel[self._dof]))
         gain = self._gain if error * self._gain <= self._limit else self._limit / error
-        twin.model.dof_damping[twin.plate_dof] = gain
+        self._model.dof_damping[self._dof] = gain
         return gain * self._target
 
     def drive(self, speed_mps: float, time_s: float) -> None:
@@ -531,13 +532,11 @@ class _MujocoPlate:
 
     def reached_edge(self) -> bool:
         """True once the plate's face has reached the edge line x = 0."""
-        twin = self._twin
-        return bool(self.face_x_m + float(twin.data.qpos[twin.plate_qpos]) * self.push[0] >= 0.0)
+        return bool(self.face_x_m + float(self._data.qpos[self._qpos]) * self.push[0] >= 0.0)
 
     def travel_m(self) -> float:
         """How far the plate has moved along the push from its start (m)."""
-        twin = self._twin
-        return float(twin.data.qpos[twin.plate_qpos]) - self._start_m
+        return float(self._data.qpos[self._qpos]) - self._start_m
 
     def stop(self) -> None:
         """Brake to rest (the cylinder at the end of its push): target 0 with 10 x the force, from now on."""

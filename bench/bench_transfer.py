@@ -311,6 +311,8 @@ def main(argv=None):
     parser.add_argument("--smoke", action="store_true", help="tiny sizes: one seed of the miniature study, each "
                         "measurement once; the numbers mean nothing (bench/smoke.py)")
     args = parser.parse_args(argv)
+    # the commands below run in the studies' and designs' folders: a file named relative to here, made absolute
+    args.config = [os.path.abspath(c) if os.path.isfile(c) else c for c in args.config]
     # the user's parameter files, given to the checks too (the print the designs were chosen for; --smoke's study
     # sizes below are optimizer settings, which the checks' commands refuse)
     args.check_config = list(args.config)

@@ -4,7 +4,8 @@
   timing the plumbing without physics (bench/bench_optimizer.py);
 - :func:`synthetic_outcomes`: "physical" launch outcomes made on the launch twin with hidden parameter values, to
   test that a calibration recovers them (bench/bench_calibration_direct.py);
-- :func:`tree_checksums`: the SHA-256 of every file under a folder, to show a command changed nothing recorded.
+- :func:`tree_checksums`: the SHA-256 of every file under a folder, to show a command changed nothing recorded;
+- :func:`design_twin_files`: a designs file of one design (A, a ramp) and a launch twin parameter file naming it.
 
 Tests import them as ``from doubles import ...`` (pytest puts test/ on the path through test/conftest.py); the
 benchmarks add test/ to ``sys.path`` themselves.
@@ -75,3 +76,25 @@ def tree_checksums(root):
             with open(path, "rb") as stream:
                 sums[os.path.relpath(path, root)] = hashlib.sha256(stream.read()).hexdigest()
     return sums
+
+
+def design_twin_files(folder):
+    """A designs file (``designs.yaml``: design A, a ramp on a 4 x 3 grid, selected in run ``run-1``) and a launch
+    twin parameter file (``twin.yaml``) that launches it, both in ``folder``; returns their paths."""
+    import yaml
+
+    from rollability_ros.core.optimization.design_set import designs_document
+    from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, SelectionResult
+    from rollability_ros.core.profile.geometry import ProfileGrid
+
+    grid = ProfileGrid(rows=4, cols=3)
+    chosen = [SelectedDesign("A", PooledDesign(np.repeat(np.linspace(0.05, 0.4, grid.rows), grid.cols), 9, 10, 1, 1),
+                             mesh=None, metrics=None, reason="a ramp")]
+    designs = os.path.join(folder, "designs.yaml")
+    with open(designs, "w", encoding="utf-8") as stream:
+        yaml.safe_dump(designs_document(SelectionResult(designs=chosen, requested=1, considered=1, rejected={}),
+                                        grid, "run-1"), stream)
+    twin = os.path.join(folder, "twin.yaml")
+    with open(twin, "w", encoding="utf-8") as stream:
+        yaml.safe_dump({"/**": {"ros__parameters": {"launch_twin": {"designs": {"designs_file": designs}}}}}, stream)
+    return designs, twin

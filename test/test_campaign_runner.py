@@ -9,6 +9,7 @@ redone on resume, and the relay's own log shows the valve off at every fault.
 """
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -16,6 +17,8 @@ import threading
 import time
 
 import pytest
+from doubles import design_twin_files
+from resimulation import assert_reproduces, printed_command, resimulated
 from rig_client import wait_for_session_key
 from valve_client import ValveClient
 
@@ -306,6 +309,53 @@ def write_designs(folder):
                          "        mesh_labels: [A, B, C]\n"
                          f"        mesh_files: [{', '.join(files)}]\n")
     return twin_yaml
+
+
+TWIN_CAMPAIGN_YAML = """/**:
+  ros__parameters:
+    campaign:
+      run_id: graph-twin
+      configurations: [baseline, A]
+      heights_m: [0.75]
+      speeds_mps: [0.8]
+      angles_deg: [0.0]
+      repetitions: 1
+"""
+
+
+def test_a_graph_campaigns_design_launch_resimulates_on_the_twin_its_rig_sent(ros_node, start_node, tmp_path,
+                                                                                capsys):
+    """`campaign --graph` recorded no twin (the logger owns the store, the rig node knows its files), so the report's
+    command for a design's launch fell back to the shipped files and stopped at "unknown configuration 'A'". The
+    rig node sends its twin files with each outcome and the logger, in another working directory, records them
+    relative to its store's folder: the printed command reproduces the stored launch exactly, also after the
+    folder moved whole."""
+    pytest.importorskip("pybullet")
+    logger_dir, runner_dir = separate_directories(tmp_path)
+    _, twin = design_twin_files(logger_dir)             # the campaign's own files, beside the logger's store
+    (tmp_path / "campaign.yaml").write_text(TWIN_CAMPAIGN_YAML)
+    logger = start_node("outcome_logger", params={"store_path": "outcomes.sqlite"}, cwd=logger_dir)
+    rig = start_node("rig", params={"rig.backend": "sim", "rig.twin_config": ["sim", "robot", "launch_twin", twin]})
+    command = [sys.executable, "-m", "rollability_ros.cli", "campaign", "--backend", "sim", "--graph", "--namespace",
+               "/", "--config", str(tmp_path / "campaign.yaml")]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL,
+                          cwd=runner_dir)
+    assert done.returncode == 0, done.stdout + done.stderr + rig.log() + logger.log()
+    assert list(runner_dir.iterdir()) == []                # the runner wrote nothing: the logger holds the record
+    store = logger_dir / "outcomes.sqlite"
+    with Store(store) as stored:
+        twin_info = stored.run_info("graph-twin")["info"]["twin"]
+    assert [entry["given"] for entry in twin_info["files"]] == ["sim", "robot", "launch_twin", twin]
+    assert twin_info["files"][3]["path"] == "twin.yaml" and twin_info["designs_file"]["path"] == "designs.yaml"
+    command, target = printed_command(store, tmp_path / "report", "A")
+    code, printed, err = resimulated(command, capsys)
+    assert code == 0 and err == "", err
+    assert_reproduces(printed, target)
+    logger.stop()
+    moved = tmp_path / "moved"
+    shutil.move(logger_dir, moved)
+    code, again, err = resimulated(command.replace(str(store), str(moved / "outcomes.sqlite")), capsys)
+    assert code == 0 and again == printed, err
 
 
 SIM_CAMPAIGN_YAML = """/**:

@@ -225,3 +225,18 @@ def test_invalid_parameters_are_refused(start_node):
     node = start_node("sim_evaluator", params={"sim.time_step_s": -1.0})
     assert node.process.wait(timeout=60) == 2
     assert "time_step_s" in node.log()
+
+
+def test_more_workers_than_the_memory_holds_are_refused_at_start(start_node):
+    """evaluator.workers 1024 is in its declared range but about 290 MB x 1024 of workers: refused in one line
+    before any worker starts."""
+    from rollability_ros.core.sim import WORKER_RSS_MB, available_memory_mb
+
+    available_mb = available_memory_mb()
+    if available_mb is None or available_mb >= 1024 * WORKER_RSS_MB:
+        pytest.skip("this machine holds 1024 workers, or says nothing of its memory")
+    node = start_node("sim_evaluator", params={"evaluator.workers": 1024})
+    assert node.process.wait(timeout=60) == 2
+    errors = [line for line in node.log().splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and errors[0].startswith("error: evaluator.workers: 1024 worker processes need about "
+                                                     "296960 MB (290 MB each"), node.log()

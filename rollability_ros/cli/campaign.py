@@ -329,7 +329,7 @@ def _read_twin(twin_config):
 def _recorded_twin(args):
     """The twin recorded for run ``--run-id`` of ``--store`` (:mod:`~rollability_ros.core.campaign.twin_record`),
     checked; None without ``--store``, with ``--rig-config`` (which overrides it, as a note says) or for a run
-    stored before twins were recorded (a note says so)."""
+    stored before twins were recorded (a note says so); a run of the physical rig is refused (it has no twin)."""
     import os
     import sys
 
@@ -356,9 +356,9 @@ def _recorded_twin(args):
         return None
     twin = recorded_twin(described["info"], folder, args.run_id)
     if twin is None:
-        print(f"note: run {args.run_id}'s twin files were not recorded (a run stored before they were, or launched "
-              "through --graph): re-simulating on the shipped rig files (a design's launch needs the campaign's "
-              "--rig-config files)", file=sys.stderr)
+        print(f"note: run {args.run_id}'s twin files were not recorded (a run stored before they were, or by a rig "
+              "that could not read them): re-simulating on the shipped rig files (a design's launch needs the "
+              "campaign's --rig-config files)", file=sys.stderr)
     return twin
 
 

@@ -206,7 +206,7 @@ def message_from_record(make: MakeMessage[Message], record: Record) -> typing.Tu
             measured_speed_mps=float(record.measured_speed_mps),
             speed_out_of_tolerance=bool(record.speed_out_of_tolerance),
             final_orientation=make_quaternion(make, record.final_orientation), classified_by=record.classified_by,
-            note=record.note, seed=int(record.seed), auth=make(AUTH_TYPE, session="", counter=0, mac=""),
+            note=record.note, seed=int(record.seed), auth=make(AUTH_TYPE, session="", counter=0, mac=""), twin="",
             **{name: float(value) for name, value in record.continuous().items()})
     if isinstance(record, CandidateRecord):
         return CANDIDATE_TYPE, make(

@@ -28,6 +28,11 @@ a launch whose goal the operator's tools signed: :mod:`rollability_ros.core.rig.
 one is refused with a warning, not stored and not acknowledged. So a logger that stores physical outcomes runs on
 the rig computer, as the user of the valve_controller (sim outcomes need no key: any computer).
 
+Run info: with each new launch outcome the logger records its campaign in the store's runs table (backend, and the
+twin the rig says it launched in, ``LaunchOutcome.twin``, filed relative to the store's folder:
+:func:`~rollability_ros.core.rig.launched_twin.merge_twin`), which ``rollability campaign --resimulate`` reads; it
+never reads the rig's files.
+
 Acknowledgement: a record is acknowledged -- the INFO line ``stored <kind> <key>``, for outcomes the
 ``outcomes_stored`` message, and for outcomes and candidates the summary that counts it -- only after the store has committed (fsynced) it, so every
 acknowledged record survives ``kill -9``. A duplicate key (same run and trial id, ...) is stored once and logged
@@ -43,7 +48,7 @@ from rclpy.node import Node
 from rollability_ros.core.config import SessionSettings
 from rollability_ros.core.results import OutcomeLog, OutcomeLoggerSettings, SessionGate, StoreFailure
 from rollability_ros.core.store import unique_key
-from rollability_ros.core.rig import RecordGuard, default_key_path
+from rollability_ros.core.rig import RecordGuard, default_key_path, twin_from_text
 from rollability_ros.msg import (CandidateResult, ConfigurationSummary, GenerationSummary, LaunchOutcome,
                                  OutcomeStored, OutcomeSummary, TipEvent)
 from rollability_ros.nodes import _convert
@@ -128,7 +133,9 @@ class OutcomeLoggerNode(Node):
                     logger.warning(f"refused {record.backend} {kind} {key}: {reason}; NOT stored",
                                    throttle_duration_sec=1.0)
                     return
-            stored = self.log.add(record)
+                stored = self.log.add(record, self._twin(msg, key))
+            else:
+                stored = self.log.add(record)
         except (ValueError, TypeError) as exc:
             logger.warning(f"skipped malformed {kind}: {exc}")
             return
@@ -143,6 +150,16 @@ class OutcomeLoggerNode(Node):
         logger.info(f"stored {kind} {key}")
         if kind in ("launch outcome", "candidate"):
             self.summary_publisher.publish(summary_to_msg(self.log.summary()))
+
+    def _twin(self, msg, key):
+        """The twin the rig says it launched in (``msg.twin``); None, with a warning, when it is malformed (the
+        outcome is stored all the same: the run then records no twin, and a re-simulation says so)."""
+        try:
+            return twin_from_text(msg.twin)
+        except ValueError as exc:
+            self.get_logger().warning(f"launch outcome {key}: {exc}; its run's twin NOT recorded",
+                                      throttle_duration_sec=1.0)
+            return None
 
     def _acknowledge(self, outcome, duplicate):
         """Tell the graph the outcome is on disk (a duplicate is too: its first copy is)."""

@@ -13,7 +13,9 @@ Action server:
   aborted at once, logged once: a rig serves only its own session's campaign runner.
 Publications:
   ``launch_outcomes`` (rollability_ros/LaunchOutcome, reliable, deep queue): every outcome, for the outcome_logger;
-  a physical one carries the rig's record signature (``auth``), made only for a goal that was signed.
+  a physical one carries the rig's record signature (``auth``), made only for a goal that was signed. Each carries
+  the twin the rig launches in (``twin``: its files and their SHA-256 as read at start-up, or that the physical
+  rig has none: :mod:`rollability_ros.core.rig.launched_twin`), which the logger records in the run's info.
   ``rig/pose`` (geometry_msgs/PoseStamped): the chassis pose during a launch, when the backend reports poses (the
   launch twin does).
   ``rig/heartbeat`` (rollability_ros/ValveHeartbeat, when the backend opens the valve): every
@@ -55,7 +57,8 @@ from rollability_ros.action import Launch
 from rollability_ros.core.imu import ImuOutcomeConfig, imu_sample_from_message
 from rollability_ros.core.rig import (AuthError, ImuOutcome, LaunchAborted, OperatorOutcome, RequestSigner, RigPorts,
                                       RigSettings, SpeedGateConfig, ValveConfig, ValveStatus, default_key_path,
-                                      load_session_key, make_launch_backend, make_speed_gate, request_guard)
+                                      load_session_key, make_launch_backend, make_speed_gate, request_guard,
+                                      twin_to_text)
 from rollability_ros.msg import LaunchOutcome, ValveHeartbeat, ValveState
 from rollability_ros.nodes import _convert
 from rollability_ros.nodes._support import (LATCHED_QOS, RECORD_QOS, STREAM_QOS, ParameterError, SessionMembership,
@@ -227,6 +230,7 @@ class RigNode(Node):
                                                RosRigPorts(self, self.settings.valve_timeout_s, group))
         except (ValueError, ImportError) as exc:  # ConfigError is a ValueError, MissingDependency ImportError
             raise ParameterError(f"rig.backend {self.settings.backend}: {exc}") from exc
+        self.twin_text = twin_to_text(self.backend.launched_twin())   # the files as loaded now, for each outcome
         self.guard = request_guard(self.backend.authenticated, session_key_path(self, valve))
         self.create_service(RecordOutcome, "record_outcome", self._on_record_outcome, callback_group=group)
         self.create_service(ConfirmRegulator, "rig/confirm", self._on_confirm, callback_group=group)
@@ -325,6 +329,7 @@ class RigNode(Node):
         finally:
             self._busy.release()
         result.outcome = _convert.outcome_to_msg(outcome)
+        result.outcome.twin = self.twin_text
         # the record is signed as the logger will read it back from the message (stamps round to ns)
         result.outcome.auth = auth_msg(ticket.sign_record(_convert.outcome_from_msg(result.outcome)))
         self.outcome_publisher.publish(result.outcome)

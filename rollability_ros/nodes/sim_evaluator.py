@@ -21,7 +21,8 @@ Interfaces (relative names; run several side by side in different namespaces):
 Parameters: the namespaces of config/sim.yaml (``sim``, ``trial``), config/robot.yaml (``robot``, ``profile``,
 ``printer``), config/evaluator.yaml (``evaluator``) and a URDF robot's config (``urdf_robot``, e.g.
 config/husky.yaml), each declared with a description and validated; an invalid ``ros2 param set`` is refused.
-``evaluator.workers`` and ``evaluator.ray_address`` take effect at start. ``session.id``: an evaluator of a session
+``evaluator.workers`` and ``evaluator.ray_address`` take effect at start; a worker count whose workers the machine's
+available memory does not hold is refused there in one line (exit 2). ``session.id``: an evaluator of a session
 rejects goals of another (logged once) and names its session in every result.
 Goals are evaluated one at a time, each over the whole worker pool; bad goals are rejected with the reason logged.
 """
@@ -42,8 +43,8 @@ from rollability_ros.core.sim import (SETTINGS_SECTIONS, EvaluationCancelled, Ev
                                       request_problem, settings_at_fidelity, with_objective)
 from rollability_ros.core.profile import check_heights, print_differences, print_instructions_from_text
 from rollability_ros.msg import TrialResult
-from rollability_ros.nodes._support import (LATCHED_QOS, SessionMembership, declare_settings, guard_settings,
-                                            run_node)
+from rollability_ros.nodes._support import (LATCHED_QOS, ParameterError, SessionMembership, declare_settings,
+                                            guard_settings, run_node)
 
 
 class _CancelRequested:
@@ -82,7 +83,11 @@ class SimEvaluator(Node):
         self._topic_description = ""
         if self._settings.urdf_robot.selected and not self._settings.urdf_robot.has_source:
             self.create_subscription(String, "robot_description", self._on_description, LATCHED_QOS)
-        self._pool = make_executor(self._settings.evaluator)
+        try:
+            self._pool = make_executor(self._settings.evaluator)
+        except ValueError as exc:   # e.g. a count the memory cannot hold: refused before any worker starts
+            setting = "evaluator.ray_address" if self._settings.evaluator.ray_address else "evaluator.workers"
+            raise ParameterError(f"{setting}: {exc}") from exc
         self._busy = threading.Lock()
         self._closing = threading.Event()
         ActionServer(self, EvaluateProfile, "evaluate_profile", execute_callback=self._execute,

@@ -267,3 +267,52 @@ def test_a_worker_count_beyond_the_declared_range_starts_no_process(workspace, m
     assert main(argv) == 2
     error = capsys.readouterr().err
     assert "worker processes must be in [1, 1024], got 5000" in error and len(error.strip().splitlines()) == 1
+
+
+def _holds_1024_workers():
+    from rollability_ros.core.sim import WORKER_RSS_MB, available_memory_mb
+
+    available_mb = available_memory_mb()
+    return available_mb is None or available_mb >= 1024 * WORKER_RSS_MB
+
+
+@pytest.mark.skipif(_holds_1024_workers(), reason="this machine holds 1024 workers, or says nothing of its memory")
+@pytest.mark.parametrize("argv", [["evaluate", "--baseline", "--trials", "1", "--workers", "1024"],
+                                  ["calibrate", "--physical", "good.csv", "--workers", "1024", "--out", "c10"]])
+def test_a_worker_count_beyond_the_available_memory_starts_no_process(workspace, monkeypatch, capsys, argv):
+    """`--workers 1024` (in evaluator.workers' range) started 1024 interpreters of about 290 MB each, more than the
+    machine's memory: refused before any process starts, in one line naming the count, the per-worker figure and
+    where it comes from, and the memory available."""
+    import concurrent.futures
+
+    def no_pool(*args, **kwargs):
+        raise AssertionError(f"a pool was started: {kwargs.get('max_workers')} workers")
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", no_pool)
+    monkeypatch.chdir(workspace)
+    before = tree_checksums(workspace)
+    assert main(argv) == 2
+    error = capsys.readouterr().err
+    assert "1024 worker processes need about 296960 MB (290 MB each: a trial worker's RSS plateau, " \
+           "bench/bench_worker_memory.py), more than the " in error, error
+    assert " MB available (MemAvailable, /proc/meminfo): use at most " in error and len(error.strip().splitlines()) == 1
+    assert tree_checksums(workspace) == before
+
+
+def test_the_memory_check_reads_memavailable_and_refuses_only_what_does_not_fit(tmp_path):
+    """MemAvailable in MB from a meminfo file; none there (another system, an old kernel): nothing is refused."""
+    from rollability_ros.core.sim import available_memory_mb, spawn_pool, worker_memory_refusal
+
+    meminfo = tmp_path / "meminfo"
+    meminfo.write_text("MemTotal:        4096000 kB\nMemFree:          100000 kB\nMemAvailable:     1024000 kB\n")
+    assert available_memory_mb(str(meminfo)) == 1000.0
+    with pytest.raises(ValueError, match="^4 worker processes need about 1160 MB"):
+        spawn_pool(4, meminfo_path=str(meminfo))
+    assert available_memory_mb(str(tmp_path / "absent")) is None
+    meminfo.write_text("MemTotal:        4096000 kB\nMemFree:          100000 kB\n")
+    assert available_memory_mb(str(meminfo)) is None
+    assert worker_memory_refusal(3, 1000.0) == ""                       # 870 MB fit in 1000 MB
+    assert worker_memory_refusal(4, 1000.0).endswith("more than the 1000 MB available (MemAvailable, /proc/meminfo): "
+                                                     "use at most 3")
+    assert worker_memory_refusal(1, 200.0).endswith("free memory first")
+    assert worker_memory_refusal(1024, None) == ""                      # not known: not refused

@@ -77,7 +77,8 @@ def launch_outcome_cdr(typestore, trial_id, upright):
                                                                                             w=1.0),
         classified_by="sim", note="", seed=123_456_789, final_tilt_deg=178.5, rest_distance_m=0.42,
         time_to_rest_s=float("nan"), peak_deceleration_mps2=96.0,
-        auth=new["rollability_ros/msg/ValveAuth"](session="0123456789abcdef", counter=2**63 + 5, mac="ab" * 32))
+        auth=new["rollability_ros/msg/ValveAuth"](session="0123456789abcdef", counter=2**63 + 5, mac="ab" * 32),
+        twin='{"no_twin":"physical"}')
     missing = set(outcome_type.__dataclass_fields__) - set(values) - {"__msgtype__"}
     assert not missing, f"LaunchOutcome.msg has fields this test does not fill: {missing}"
     return typestore.serialize_cdr(outcome_type(**values), "rollability_ros/msg/LaunchOutcome")

@@ -57,6 +57,43 @@ def test_every_campaign_the_logger_stores_is_in_the_runs_table(tmp_path):
     log.close()
 
 
+def test_the_logger_files_the_twin_its_rig_launched_in_relative_to_the_store_folder(tmp_path):
+    """Through the graph the logger owns the store and the rig sends its twin with each outcome: the logger files
+    it in the run's info (a file inside the store's folder relative to it) without reading the rig's files, so
+    ``campaign --resimulate`` finds it; a later outcome of another twin marks the run, a physical outcome records
+    that its rig had no twin whatever its message claims, and a malformed claim is refused in one line."""
+    from rollability_ros.core.campaign import recorded_twin
+    from rollability_ros.core.rig import launched_twin, twin_from_text, twin_to_text
+
+    folder = tmp_path / "study"
+    folder.mkdir()
+    twin_yaml = folder / "twin.yaml"
+    twin_yaml.write_text("/**:\n  ros__parameters:\n    launch_twin: {}\n", encoding="utf-8")
+    sent = twin_from_text(twin_to_text(launched_twin("sim", ["sim", str(twin_yaml)], {})))   # as the rig sends it
+    assert sent["files"][1] == {"given": str(twin_yaml), "path": str(twin_yaml), "sha256": sent["files"][1]["sha256"]}
+    log = OutcomeLog.open(folder / "outcomes.sqlite")
+    assert log.add(outcome("t1"), sent) and log.add(outcome("t2"), sent)
+    info = log.store.run_info("run1")["info"]
+    assert info["backend"] == "sim" and info["twin"]["files"][1]["path"] == "twin.yaml"
+    assert recorded_twin(info, str(folder), "run1").twin_config == [sent["files"][0]["path"], str(twin_yaml)]
+
+    other = {**sent, "files": sent["files"][:1]}   # a rig restarted on other files, same run
+    assert log.add(outcome("t3"), other)
+    with pytest.raises(ValueError, match="^run run1 was launched on different twin files in different sessions"):
+        recorded_twin(log.store.run_info("run1")["info"], str(folder), "run1")
+
+    physical = dataclasses.replace(outcome("p1", run_id="run2"), backend="physical", classified_by="operator")
+    assert log.add(physical, sent)
+    assert log.store.run_info("run2")["info"]["twin"] == {"no_twin": "physical"}
+    with pytest.raises(ValueError, match="^run run2 was launched on the physical rig, not on a twin: no twin files"):
+        recorded_twin(log.store.run_info("run2")["info"], str(folder), "run2")
+    log.close()
+    for text, reason in (("{", "twin: not JSON"), ('{"files": []}', "twin: files must list"),
+                         ('{"no_twin": "physical", "files": []}', "twin: no_twin names a backend and nothing else")):
+        with pytest.raises(ValueError, match=f"^{reason}"):
+            twin_from_text(text)
+
+
 def test_duplicates_are_stored_once_and_summary_is_rebuilt_on_reopen(tmp_path):
     path = tmp_path / "outcomes.sqlite"
     log = OutcomeLog.open(path)

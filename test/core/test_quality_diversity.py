@@ -168,6 +168,33 @@ def test_generations_where_every_candidate_fails_keep_the_search_going():
     assert optimizer.archive.stats.num_elites >= 1
 
 
+def test_an_empty_archive_at_the_start_of_a_search_warns_nothing_and_other_warnings_pass(monkeypatch):
+    """pyribs warned on every tell that left the CMA-MAE archive empty (printed each generation of a search whose
+    candidates all score 0), which a search expects while no design has scored yet: silenced for exactly those
+    tells, not globally. Every warning is shown here (filter "always", as a fresh interpreter shows each first
+    one): none is pyribs's, and another warning raised inside the same tells still comes through."""
+    import warnings
+
+    add = ribs.archives.GridArchive.add
+
+    def add_and_warn(archive, *args, **kwargs):
+        warnings.warn("a warning of another kind", UserWarning)
+        return add(archive, *args, **kwargs)
+
+    monkeypatch.setattr(ribs.archives.GridArchive, "add", add_and_warn)
+    optimizer = QualityDiversityOptimizer(settings(), QualityDiversitySettings(emitters=3), GRID)
+    with warnings.catch_warnings(record=True) as shown:
+        warnings.simplefilter("always")
+        for fitness in (0.0, 0.0, 0.5):
+            population = optimizer.ask()
+            optimizer.tell(population, [fitness] + [0.0] * (len(population) - 1), [30] * len(population))
+            optimizer.tell_reevaluation(fitness, 30)
+    assert optimizer.archive.stats.num_elites >= 1                       # the first success filled a cell
+    messages = [str(warning.message) for warning in shown]
+    assert not [m for m in messages if "was empty before adding solutions" in m], messages
+    assert messages.count("a warning of another kind") == 2 * 3          # archive and result archive, each tell
+
+
 def test_state_round_trips_through_json_and_continues_exactly():
     qd = QualityDiversitySettings(emitters=2)
     evaluator = SyntheticEvaluator(OPTIMUM, trials=30)

@@ -8,6 +8,8 @@ import shutil
 import subprocess
 
 import pytest
+from doubles import design_twin_files
+from resimulation import assert_reproduces, printed_command, resimulated
 
 from rollability_ros.cli import main as cli_main
 from rollability_ros.core.campaign.plan import CampaignSpec, plan_trials
@@ -434,25 +436,11 @@ def test_the_sim_rig_records_where_its_designs_come_from(tmp_path):
 def _tiny_design_campaign(folder):
     """Two launches (the bare robot and design A at one condition) on the sim rig in this process, through
     `rollability campaign`; its twin file, designs file and store all in ``folder``. Returns the store path."""
-    import numpy as np
     import yaml
-
-    from rollability_ros.core.optimization.design_set import designs_document
-    from rollability_ros.core.optimization.selection import PooledDesign, SelectedDesign, SelectionResult
-    from rollability_ros.core.profile.geometry import ProfileGrid
 
     pytest.importorskip("pybullet")
     os.makedirs(folder)
-    grid = ProfileGrid(rows=4, cols=3)
-    chosen = [SelectedDesign("A", PooledDesign(np.repeat(np.linspace(0.05, 0.4, grid.rows), grid.cols), 9, 10, 1, 1),
-                             mesh=None, metrics=None, reason="a ramp")]
-    designs = os.path.join(folder, "designs.yaml")
-    with open(designs, "w", encoding="utf-8") as stream:
-        yaml.safe_dump(designs_document(SelectionResult(designs=chosen, requested=1, considered=1, rejected={}),
-                                        grid, "run-1"), stream)
-    twin = os.path.join(folder, "twin.yaml")
-    with open(twin, "w", encoding="utf-8") as stream:
-        yaml.safe_dump({"/**": {"ros__parameters": {"launch_twin": {"designs": {"designs_file": designs}}}}}, stream)
+    _, twin = design_twin_files(folder)
     campaign = os.path.join(folder, "campaign.yaml")
     with open(campaign, "w", encoding="utf-8") as stream:
         yaml.safe_dump({"/**": {"ros__parameters": {"campaign": {
@@ -464,67 +452,38 @@ def _tiny_design_campaign(folder):
     return store
 
 
-def _printed_command(store, out_dir, configuration):
-    """The re-simulation command the report of ``store`` prints for the launch of ``configuration``, and that
-    launch's stored outcome."""
-    import html
-
-    assert cli_main(["report", store, "--out", str(out_dir)]) == 0
-    page = (out_dir / "report.html").read_text()
-    with Store(store) as opened:
-        target = next(o for o in opened.launch_outcomes() if o.condition.configuration == configuration)
-    row = dict(re.findall(r"<tr id='trial-[^']*'><td>([^<]*)</td>(.*?)</tr>", page))[html.escape(target.trial_id)]
-    commands = re.findall(r"<code>(rollability campaign [^<]*)</code>", row)
-    assert len(commands) == 1
-    return html.unescape(commands[0]), target
-
-
-def _resimulated(command, capsys):
-    """Run a printed command; its exit code and its printed ``name: value`` lines."""
-    import shlex
-
-    capsys.readouterr()
-    code = cli_main(shlex.split(command)[1:])
-    captured = capsys.readouterr()
-    return code, dict(line.split(": ", 1) for line in captured.out.splitlines()), captured.err
-
-
 def test_a_designs_launch_is_resimulated_as_printed_on_the_twin_files_its_campaign_recorded(tmp_path, capsys):
     """The docs audit: the report's command for design A's launch stopped with "unknown configuration 'A'" (the
     run recorded no twin files; only --rig-config added by hand worked). The campaign records its twin files and
     the printed command reproduces the stored outcome exactly, also after the folder moved; a changed or missing
     twin file is refused in one line naming it; --rig-config still overrides, and says so."""
     store = _tiny_design_campaign(tmp_path / "run")
-    command, target = _printed_command(store, tmp_path / "report", "A")
-    code, printed, _ = _resimulated(command, capsys)
+    command, target = printed_command(store, tmp_path / "report", "A")
+    code, printed, _ = resimulated(command, capsys)
     assert code == 0
-    assert printed["upright"] == str(target.upright).lower()
-    assert tuple(float(v) for v in printed["final_orientation (x, y, z, w)"].split()) == target.final_orientation
-    assert float(printed["travel_time_s"]) == target.travel_time_s
-    for name, value in target.continuous().items():
-        assert float(printed[name]) == pytest.approx(value, abs=1e-12, nan_ok=True), name
+    assert_reproduces(printed, target)
 
     twin = tmp_path / "run" / "twin.yaml"
     original = twin.read_text()
     twin.write_text(original + "# edited\n")
-    code, _, err = _resimulated(command, capsys)
+    code, _, err = resimulated(command, capsys)
     assert code == 2 and err.count("\n") == 1
     assert f"its twin file {twin} changed since the campaign" in err
-    code, again, err = _resimulated(_with_rig_config(command, ["rig", str(twin)]), capsys)
+    code, again, err = resimulated(_with_rig_config(command, ["rig", str(twin)]), capsys)
     assert code == 0 and err.startswith("note: --rig-config given: re-simulating on its files")   # the user's win
     twin.write_text(original)
 
     shutil.move(tmp_path / "run", tmp_path / "moved")       # the study folder moved whole: its own files found
     moved = command.replace(store, str(tmp_path / "moved" / "outcomes.sqlite"))
-    assert _resimulated(moved, capsys)[1] == printed
+    assert resimulated(moved, capsys)[1] == printed
     twin = tmp_path / "moved" / "twin.yaml"
     twin.unlink()
-    code, _, err = _resimulated(moved, capsys)
+    code, _, err = resimulated(moved, capsys)
     assert code == 2 and f"its twin file {twin} (recorded as " in err and "is missing" in err
     twin.write_text(original)
     designs = tmp_path / "moved" / "designs.yaml"
     designs.write_text(designs.read_text().replace("0.4", "0.35"))
-    code, _, err = _resimulated(moved, capsys)
+    code, _, err = resimulated(moved, capsys)
     assert code == 2 and f"its designs file {designs} changed since the campaign" in err
 
 
@@ -545,11 +504,27 @@ def test_a_run_stored_before_twin_files_were_recorded_resimulates_as_before_with
         assert info["twin"]["designs_file"]["path"] == "designs.yaml"       # inside the store's folder: relative
         del info["twin"]
         opened.set_run_info("tiny", "campaign", info)
-    command, target = _printed_command(store, tmp_path / "report", "baseline")
-    code, printed, err = _resimulated(command, capsys)
+    command, target = printed_command(store, tmp_path / "report", "baseline")
+    code, printed, err = resimulated(command, capsys)
     assert code == 0 and printed["upright"] == str(target.upright).lower()
     assert err.startswith("note: run tiny's twin files were not recorded") and err.count("\n") == 1
-    assert _resimulated(_printed_command(store, tmp_path / "report", "A")[0], capsys)[0] == 2
+    assert resimulated(printed_command(store, tmp_path / "report", "A")[0], capsys)[0] == 2
+
+
+def test_a_physical_run_records_that_it_had_no_twin_and_its_resimulation_says_so(tmp_path, capsys):
+    """A physical rig launches on no twin: its campaign records that plainly, and a re-simulation of its run is
+    refused in one line saying the run was physical (not run on the shipped files as if they were its twin)."""
+    from rollability_ros.core.campaign import record_campaign_run
+
+    store = tmp_path / "o.sqlite"
+    with Store(store) as opened:
+        record_campaign_run(opened, "bench", "physical", {}, [])
+        assert opened.run_info("bench")["info"] == {"backend": "physical", "twin": {"no_twin": "physical"}}
+    capsys.readouterr()
+    assert cli_main(["campaign", "--backend", "sim", "--resimulate", "baseline", "0.75", "0.8", "0", "--seed", "1",
+                     "--store", str(store), "--run-id", "bench"]) == 2
+    err = capsys.readouterr().err
+    assert "run bench was launched on the physical rig, not on a twin" in err and err.count("\n") == 1
 
 
 def test_a_study_records_its_rigs_twin_files_relative_to_its_folder(tmp_path):

@@ -26,8 +26,8 @@ from rollability_ros.core.config import as_list, check_given_files, edge_parse, 
 from rollability_ros.core.imu import ImuOutcomeConfig
 from rollability_ros.core.rig import (ASK_OUTCOME, ASK_REGULATOR, LAUNCH_BACKENDS, ImuOutcome, LaunchAborted,
                                       LaunchBackend, RigPorts, RigSettings, SpeedGate, SpeedGateConfig, ValveConfig,
-                                      ValveController, make_controller, make_launch_backend, make_speed_gate,
-                                      parse_outcome_answer)
+                                      ValveController, launched_twin, make_controller, make_launch_backend,
+                                      make_speed_gate, merge_twin, parse_outcome_answer)
 from rollability_ros.core.records import INVALID_LAUNCH, LaunchOutcome
 from rollability_ros.core.store import Store
 
@@ -97,23 +97,16 @@ def record_campaign_run(store: Store, run_id: str, backend: str, design_sources:
                         twin_config: typing.Sequence[str] = ()) -> None:
     """Describe campaign ``run_id`` in ``store``'s run info: its backend, where its profiles come from
     (:meth:`~rollability_ros.core.rig.launch_backend.LaunchBackend.design_sources`), which is where a report
-    looks for the run's design meshes, and, for a simulated rig, its twin (``twin_config``, the files
-    ``rig.twin_config`` lists: :func:`~rollability_ros.core.campaign.twin_record.twin_record`), which a
+    looks for the run's design meshes, and its twin (``twin_config``, the files ``rig.twin_config`` lists, none
+    for a rig that simulates nothing: :func:`~rollability_ros.core.campaign.twin_record.launched_twin`), which a
     re-simulation loads; keeps what an earlier session recorded, and marks a twin that differs from an earlier
-    session's."""
-    from rollability_ros.core.campaign.twin_record import TWIN_RECORD, same_twin, twin_record
-
+    session's (:func:`~rollability_ros.core.campaign.twin_record.merge_twin`)."""
     described = store.run_info(run_id)
     info = dict(described["info"]) if described else {}
     info["backend"] = backend
     if design_sources:
         info["designs"] = design_sources
-    twin = twin_record(twin_config, design_sources, os.path.dirname(os.path.abspath(store.path))) if twin_config else {}
-    earlier = info.get(TWIN_RECORD)
-    if twin and earlier and (earlier.get("differs_between_sessions") or not same_twin(earlier, twin)):
-        twin = {"differs_between_sessions": True}
-    if twin:
-        info[TWIN_RECORD] = twin
+    merge_twin(info, launched_twin(backend, twin_config, design_sources), os.path.dirname(os.path.abspath(store.path)))
     store.set_run_info(run_id, described["kind"] if described else "campaign", info)
 
 

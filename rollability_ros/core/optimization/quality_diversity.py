@@ -38,8 +38,10 @@ Choices
 """
 import functools
 import hashlib
+import re
 import time
 import typing
+import warnings
 
 import numpy as np
 import numpy.typing as npt
@@ -54,6 +56,11 @@ from rollability_ros.core.profile import ProfileGrid, height_bound_mm, profile_d
 
 #: The archive's behaviour descriptors, in measure order, with their units.
 DESCRIPTOR_NAMES = ("max_height_mm", "sharpness_deg")
+#: The start of pyribs' warning (``Scheduler._add_to_archives``) that a tell left the CMA-MAE archive empty: expected
+#: while no design told so far scored above ``threshold_min`` (a hard objective can score whole generations 0; the
+#: emitters then restart from their start: ``_emitter_class``), so it is silenced for those tells only. The result
+#: archive's (no threshold: never left empty by a tell) still warns.
+EMPTY_ARCHIVE_WARNING = "`archive` was empty before adding solutions"
 
 
 def emitter_ceilings(emitters: int, lowest_ceiling: float) -> list[float]:
@@ -178,9 +185,12 @@ class QualityDiversityOptimizer(IncumbentOptimizer):
     def _tell(self, population, fitness, trials):
         measures = np.array([profile_descriptors(heights, self.grid).as_tuple()
                              for heights in population], dtype=np.float64)
-        self.scheduler.tell(np.asarray(fitness, dtype=np.float64), measures,
-                            trials=np.asarray(trials, dtype=np.int64), heights=np.asarray(population),
-                            generation=np.full(len(population), self.generation, dtype=np.int64))
+        with warnings.catch_warnings():
+            if self.archive.empty:   # no design scored yet: an archive still empty after this tell is expected
+                warnings.filterwarnings("ignore", message=re.escape(EMPTY_ARCHIVE_WARNING), category=UserWarning)
+            self.scheduler.tell(np.asarray(fitness, dtype=np.float64), measures,
+                                trials=np.asarray(trials, dtype=np.int64), heights=np.asarray(population),
+                                generation=np.full(len(population), self.generation, dtype=np.int64))
 
     def race_reference(self, heights: npt.ArrayLike) -> tuple[int, int] | None:
         """``(successes, trials)`` of the elite of the result-archive cell ``heights`` ``(grid.n_variables,)``

@@ -23,6 +23,7 @@ import typing
 
 from rollability_ros.core.results.analysis import ConditionResult, summarise
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, LaunchOutcome, TipEventRecord
+from rollability_ros.core.rig import NO_TWIN, launch_backend_class, merge_twin
 from rollability_ros.core.store import Store, unique_key
 
 if typing.TYPE_CHECKING:  # annotations only
@@ -238,8 +239,11 @@ class OutcomeLog:
         """Close the store (idempotent)."""
         self.store.close()
 
-    def add(self, record: typing.Union[LaunchOutcome, CandidateRecord, GenerationRecord, TipEventRecord]) -> bool:
-        """Store ``record`` durably; True if stored now, False if its key was already stored.
+    def add(self, record: typing.Union[LaunchOutcome, CandidateRecord, GenerationRecord, TipEventRecord],
+            twin: typing.Optional[dict] = None) -> bool:
+        """Store ``record`` durably; True if stored now, False if its key was already stored. ``twin``: for a launch
+        outcome, the rig's record of the twin it launched in (:func:`~rollability_ros.core.rig.launched_twin.
+        launched_twin`), filed in the run's info with the outcome (None: the rig did not say).
 
         Raises ``ValueError`` for a malformed record and :class:`StoreFailure` when the store cannot write.
         """
@@ -254,22 +258,29 @@ class OutcomeLog:
                 raise StoreFailure(f"{self.store.path}: {exc}") from exc
             if stored and isinstance(record, LaunchOutcome):
                 self._summary.add_outcome(record)
-                self._describe_campaign(record)
+                self._describe_campaign(record, twin or {})
             elif stored and isinstance(record, CandidateRecord):
                 self._summary.add_candidate(record)
         return stored
 
-    def _describe_campaign(self, outcome):
-        """Put ``outcome``'s campaign in the store's ``runs`` table (kind ``campaign``, its backend) when no one
-        described it yet: a campaign run through the graph never opens the store, so the logger records every
-        campaign it stores outcomes of. Keeps what the campaign itself recorded (designs); a run whose outcomes
-        come from two backends says ``mixed``. Lock held."""
+    def _describe_campaign(self, outcome, twin):
+        """Put ``outcome``'s campaign in the store's ``runs`` table (kind ``campaign``, its backend, the ``twin`` its
+        rig launched in, filed relative to the store's folder: :func:`~rollability_ros.core.rig.launched_twin.
+        merge_twin`) when no one described it so yet: a campaign run through the graph never opens the store, so
+        the logger records every campaign it stores outcomes of. Keeps what the campaign itself recorded (designs);
+        a run whose outcomes come from two backends says ``mixed``, from two twins ``differs_between_sessions``; a
+        backend that re-simulates nothing (the physical rig) records that it launched on no twin. Lock held."""
+        if launch_backend_class(outcome.backend).resimulate_refusal():
+            # launched on no twin, whatever the message claims (a physical record's signature does not cover it)
+            twin = {NO_TWIN: outcome.backend}
         described = self.store.run_info(outcome.run_id)
         info = dict(described["info"]) if described else {}
         backend = info.get("backend")
-        if described and backend in (outcome.backend, "mixed"):
+        changed = merge_twin(info, twin, os.path.dirname(os.path.abspath(self.store.path)))
+        if described and backend in (outcome.backend, "mixed") and not changed:
             return
-        info["backend"] = outcome.backend if backend is None else "mixed"
+        if backend not in (outcome.backend, "mixed"):
+            info["backend"] = outcome.backend if backend is None else "mixed"
         try:
             self.store.set_run_info(outcome.run_id, described["kind"] if described else "campaign", info)
         except (sqlite3.Error, OSError) as exc:

@@ -4,6 +4,8 @@
   it is written in (RigSettings, the operator channel and its answers, the LAUNCH_BACKENDS table)
 - rig_session: its two implementations (SimulatedLaunch, PhysicalLaunch), make_launch_backend; goal checks,
   phases, operator answers, speed
+- launched_twin: the twin files a rig launches in, as a run's info records them (re-simulation) and the rig node
+  sends them to the outcome_logger
 - outcome_sources: the IMU's verdict and continuous outcomes (ImuOutcome), the operator's distance rolled, the
   twin's continuous outcomes
 - valve: fail-closed valve state machine

@@ -3,6 +3,8 @@ lives. Type checkers read this stub; at run time ``lazy_loader.attach_stub`` (``
 imports and loads a name's module when the name is first used."""
 from .launch_backend import (LAUNCH_BACKENDS, LaunchAborted, LaunchBackend, OperatorOutcome, RigPorts, RigSettings,
                              describe_answer, parse_outcome_answer)
+from .launched_twin import (NO_TWIN, TWIN_RECORD, file_sha256, launched_twin, merge_twin, same_twin, stored_twin,
+                            twin_from_text, twin_to_text)
 from .rig_auth import KeyFileSigner, RecordGuard, request_guard
 from .rig_network import (DISCOVERY_RANGES, RIG_DOMAIN_ID, check_domain_id, check_namespace, exposure_warnings,
                           physical_rig_environment)
@@ -17,12 +19,14 @@ from .valve_boards import make_controller
 from .valve_contract import VALVE_BACKENDS, ValveBackend, ValveConfig, make_valve_backend, register_valve_backend
 
 __all__ = [
-    "ANSWERED", "ASK_OUTCOME", "ASK_REGULATOR", "DISCOVERY_RANGES", "LAUNCH_BACKENDS", "RIG_DOMAIN_ID", "SPEED_GATES",
-    "VALVE_BACKENDS", "AuthError", "ImuOutcome", "KeyFileSigner", "LaunchAborted", "LaunchBackend", "OperatorOutcome",
-    "PhysicalLaunch", "RecordGuard", "RequestSigner", "RequestVerifier", "RigPorts", "RigSettings", "Signature",
-    "SimulatedLaunch", "SpeedGate", "SpeedGateConfig", "ValveBackend", "ValveConfig", "ValveController", "ValveStatus",
-    "check_domain_id", "check_namespace", "check_rest_distance", "create_session_key", "default_key_path", "describe_answer",
-    "exposure_warnings", "launch_backend_class", "load_session_key", "make_controller", "make_launch_backend",
-    "make_speed_gate", "make_valve_backend", "parse_outcome_answer", "physical_rig_environment",
-    "register_valve_backend", "remove_session_key", "request_guard", "simulated_continuous_outcomes"
+    "ANSWERED", "ASK_OUTCOME", "ASK_REGULATOR", "DISCOVERY_RANGES", "LAUNCH_BACKENDS", "NO_TWIN", "RIG_DOMAIN_ID",
+    "SPEED_GATES", "TWIN_RECORD", "VALVE_BACKENDS", "AuthError", "ImuOutcome", "KeyFileSigner", "LaunchAborted",
+    "LaunchBackend", "OperatorOutcome", "PhysicalLaunch", "RecordGuard", "RequestSigner", "RequestVerifier",
+    "RigPorts", "RigSettings", "Signature", "SimulatedLaunch", "SpeedGate", "SpeedGateConfig", "ValveBackend",
+    "ValveConfig", "ValveController", "ValveStatus", "check_domain_id", "check_namespace", "check_rest_distance",
+    "create_session_key", "default_key_path", "describe_answer", "exposure_warnings", "file_sha256",
+    "launch_backend_class", "launched_twin", "load_session_key", "make_controller", "make_launch_backend",
+    "make_speed_gate", "make_valve_backend", "merge_twin", "parse_outcome_answer", "physical_rig_environment",
+    "register_valve_backend", "remove_session_key", "request_guard", "same_twin", "simulated_continuous_outcomes",
+    "stored_twin", "twin_from_text", "twin_to_text"
 ]

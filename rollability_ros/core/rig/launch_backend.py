@@ -253,6 +253,14 @@ class LaunchBackend(abc.ABC):
         campaign's run info (a re-simulation loads them); ``[]`` when it simulates nothing."""
         return []
 
+    def launched_twin(self) -> dict:
+        """This backend's record of the twin it launches in, for the campaign's run info
+        (:func:`~rollability_ros.core.rig.launched_twin.launched_twin` of :meth:`twin_config` and
+        :meth:`design_sources`; ``{NO_TWIN: name}`` when it simulates nothing)."""
+        from rollability_ros.core.rig.launched_twin import launched_twin
+
+        return launched_twin(self.name, self.twin_config(), self.design_sources())
+
     def close(self) -> None:
         """Release what the backend opened (valve closed, heartbeat stopped); idempotent."""
 

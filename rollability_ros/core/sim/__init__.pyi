@@ -22,19 +22,19 @@ from .trials import TrialSettings
 from .world import PhysicsParams
 from .world_check import (WORLD_CHECK_COLUMNS, WorldSummary, local_world_evaluator, run_world_check, summarize_worlds,
                           world_check_lines, world_draws)
-from ._worker_pool import spawn_pool
+from ._worker_pool import WORKER_RSS_MB, available_memory_mb, spawn_pool, worker_memory_refusal
 
 __all__ = [
     "FIDELITIES", "LAUNCH_ENGINES", "SETTINGS_SECTIONS", "TRIAL_ENGINES", "TWIN_NAMESPACE", "TWIN_SECTIONS",
-    "WORLD_CHECK_COLUMNS", "EvaluationCancelled", "EvaluationResult", "EvaluatorSettings", "LaunchEngine",
+    "WORKER_RSS_MB", "WORLD_CHECK_COLUMNS", "EvaluationCancelled", "EvaluationResult", "EvaluatorSettings", "LaunchEngine",
     "LaunchResult", "LaunchTwinSettings", "ObjectiveSettings", "PhysicsParams", "ResolvedLaunch", "ScreenSettings",
     "TrialBatchEngine", "TrialEngine", "TrialExecutor", "TrialOutcome", "TrialSettings", "WorldSummary",
-    "check_fidelity", "check_launcher", "engine_names", "evaluate_jobs", "evaluate_mesh", "evaluate_profile",
+    "available_memory_mb", "check_fidelity", "check_launcher", "engine_names", "evaluate_jobs", "evaluate_mesh", "evaluate_profile",
     "launch_sensitivity_rows", "launch_twin_settings_from_parameters", "load_launch_twin_settings", "load_settings",
     "local_world_evaluator", "make_executor", "make_trial_world", "mecanum_wheels", "profile_body", "profile_job",
     "profile_screener", "register_trial_engine", "request_problem", "resolve_launch", "robot_hull", "rollout_distance_m",
     "run_world_check", "screen_robot", "sensitivity_rows", "settings_at_fidelity", "settings_from_parameters",
     "simulate_launch", "simulate_valid_launch", "spawn_pool", "summarize_worlds", "trial_seed", "twin_files",
-    "twin_value", "twin_with_values", "with_given_files", "with_objective", "world_check_lines", "world_draws",
+    "twin_value", "twin_with_values", "with_given_files", "with_objective", "worker_memory_refusal", "world_check_lines", "world_draws",
     "world_fidelity"
 ]

@@ -47,7 +47,7 @@ from rollability_ros.core.stats import wilson_interval
 from rollability_ros.core.sim.engines import TRIAL_ENGINES
 from rollability_ros.core.sim.trial_engine import TrialOutcome, make_trial_world, run_trial
 from rollability_ros.core.sim.trials import TrialSettings
-from rollability_ros.core.sim._worker_pool import spawn_pool
+from rollability_ros.core.sim._worker_pool import MAX_WORKERS, WORKER_RSS_MB, spawn_pool
 
 #: Largest base seed (TrialResult.seed is uint64; trial seeds are kept below 2**63 for int64 stores).
 MAX_SEED = 2**64 - 1
@@ -75,7 +75,9 @@ class EvaluatorOptions:
         "description": "trials per task handed to one worker (count); larger batches mean less overhead, coarser cancel",
         "range": (1, 10000)})
     workers: int = dataclasses.field(default=0, metadata={
-        "description": "worker processes for the trials (count); 0 = one per CPU core", "range": (0, 1024)})
+        "description": "worker processes for the trials (count); 0 = one per CPU core; a count whose workers (about "
+                       f"{WORKER_RSS_MB} MB each) exceed the available memory is refused at start",
+        "range": (0, MAX_WORKERS)})
     ray_address: str = dataclasses.field(default="", metadata={
         "description": "host:port of an existing Ray head to hand trial batches to; empty = local process pool"})
     poll_interval_s: float = dataclasses.field(default=0.05, metadata={

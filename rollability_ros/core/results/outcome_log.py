@@ -23,7 +23,7 @@ import typing
 
 from rollability_ros.core.results.analysis import ConditionResult, summarise
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, LaunchOutcome, TipEventRecord
-from rollability_ros.core.store import Store, unique_key
+from rollability_ros.core.store import Store, StoreDamaged, unique_key
 
 if typing.TYPE_CHECKING:  # annotations only
     from rollability_ros.core.record_messages import Record
@@ -250,7 +250,7 @@ class OutcomeLog:
         with self._lock:
             try:
                 stored = writer(record)
-            except (sqlite3.Error, OSError) as exc:
+            except (sqlite3.Error, StoreDamaged, OSError) as exc:
                 raise StoreFailure(f"{self.store.path}: {exc}") from exc
             if stored and isinstance(record, LaunchOutcome):
                 self._summary.add_outcome(record)
@@ -264,15 +264,15 @@ class OutcomeLog:
         described it yet: a campaign run through the graph never opens the store, so the logger records every
         campaign it stores outcomes of. Keeps what the campaign itself recorded (designs); a run whose outcomes
         come from two backends says ``mixed``. Lock held."""
-        described = self.store.run_info(outcome.run_id)
-        info = dict(described["info"]) if described else {}
-        backend = info.get("backend")
-        if described and backend in (outcome.backend, "mixed"):
-            return
-        info["backend"] = outcome.backend if backend is None else "mixed"
         try:
+            described = self.store.run_info(outcome.run_id)
+            info = dict(described["info"]) if described else {}
+            backend = info.get("backend")
+            if described and backend in (outcome.backend, "mixed"):
+                return
+            info["backend"] = outcome.backend if backend is None else "mixed"
             self.store.set_run_info(outcome.run_id, described["kind"] if described else "campaign", info)
-        except (sqlite3.Error, OSError) as exc:
+        except (sqlite3.Error, StoreDamaged, OSError) as exc:
             raise StoreFailure(f"{self.store.path}: {exc}") from exc
 
     def summary(self, run_id: typing.Optional[str] = None) -> "LogSummary":

@@ -267,6 +267,15 @@ class Store:
                 conn.execute("ROLLBACK")
                 raise
 
+    def check_intact(self) -> None:
+        """Raise :class:`StoreDamaged` naming the file unless SQLite's ``quick_check`` finds every page and index
+        intact (it reads the whole file: a resume calls it once, before starting anything)."""
+        rows = self._read("PRAGMA quick_check(5)")
+        problems = [row[0] for row in rows if row[0] != "ok"]
+        if problems:
+            raise StoreDamaged(f"store {self.path} is damaged ({'; '.join(problems)[:300]}); nothing more is written "
+                               "to it; restore it from a copy (`sqlite3 FILE .recover` salvages the rows left)")
+
     def __enter__(self):
         return self
 

@@ -488,3 +488,27 @@ def test_a_damaged_metadata_yaml_is_named_by_every_reader_and_recover_rewrites_i
     assert report["message_count"] == 200 and report["metadata_backup"] == "metadata.yaml.before-recover"
     assert (bag / "metadata.yaml.before-recover").read_bytes() == before
     assert len(list(BagReader(str(bag)))) == 200 and bag_info(str(bag))["message_count"] == 200
+
+
+def test_recover_leaves_alone_mcap_files_that_are_not_the_bags_splits(tmp_path):
+    """Was: every *.mcap in the folder was taken as a split: a copy of a split (`copy_of_bag.mcap`) was adopted and
+    every message counted twice, and a stray `notes.mcap` that is no MCAP made recovery refuse the whole bag. Now
+    only the files metadata.yaml lists and unlisted splits of the same series are the bag's."""
+    bag = tmp_path / "bag"
+    write_string_bag(bag, 200, split_max_duration_s=0.5)
+    splits = sorted(path.name for path in bag.glob("*.mcap"))
+    assert len(splits) >= 2
+    (bag / "copy_of_bag.mcap").write_bytes((bag / splits[0]).read_bytes())
+    (bag / "notes.mcap").write_text("the operator's notes\n")
+    last = bag / splits[-1]
+    last.write_bytes(last.read_bytes()[:-200])          # a killed writer's last split
+    metadata = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    metadata["relative_file_paths"] = splits[:-1]        # ... not listed yet
+    (bag / "metadata.yaml").write_text(yaml.safe_dump({"rosbag2_bagfile_information": metadata}))
+    strays = {name: (bag / name).read_bytes() for name in ("copy_of_bag.mcap", "notes.mcap")}
+    report = recover(str(bag))
+    assert [f["path"] for f in report["files"]] == splits
+    assert read_metadata(str(bag))["relative_file_paths"] == splits
+    assert 150 <= report["message_count"] <= 200   # not 200 + the copy's
+    assert len(list(BagReader(str(bag)))) == report["message_count"]
+    assert {name: (bag / name).read_bytes() for name in strays} == strays

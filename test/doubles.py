@@ -98,3 +98,22 @@ def design_twin_files(folder):
     with open(twin, "w", encoding="utf-8") as stream:
         yaml.safe_dump({"/**": {"ros__parameters": {"launch_twin": {"designs": {"designs_file": designs}}}}}, stream)
     return designs, twin
+
+
+def damaged_store(path, run_id="camp", outcomes=300):
+    """A store of ``outcomes`` launch outcomes of ``run_id`` whose header (page 1) is intact and one of whose table
+    pages in the middle is overwritten: it opens, and reading its outcomes meets "database disk image is
+    malformed", as a disk error or a stray write leaves a store."""
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.store import Store
+
+    with Store(path) as store:
+        for i in range(outcomes):
+            store.add_launch_outcome(LaunchOutcome(
+                run_id=run_id, trial_id=f"t{i:04d}", condition=LaunchCondition("baseline", 0.75, 0.8, 0.0),
+                backend="sim", upright=i % 2 == 0, note="n" * 200))
+    size = os.path.getsize(path)
+    with open(path, "r+b") as stream:
+        stream.seek(size // 2 // 4096 * 4096 + 100)
+        stream.write(b"\xff" * 3000)
+    return path

@@ -149,6 +149,8 @@ def read_parameter_file(path: str) -> typing.Dict[str, typing.Dict[str, object]]
             document = safe_yaml.load(stream)
     except OSError as exc:
         raise ConfigError(f"cannot read parameter file {path}: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"parameter file {path} is not UTF-8 text ({exc.reason} at byte {exc.start})") from exc
     except safe_yaml.YamlLimitError as exc:
         raise ConfigError(f"parameter file {path}: {exc}") from exc
     except yaml.YAMLError as exc:

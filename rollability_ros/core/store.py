@@ -184,6 +184,18 @@ def unique_key(record: "Record") -> tuple:
     return tuple(getattr(record, name) for name in table.unique)
 
 
+class StoreDamaged(ValueError):
+    """A store that opened but whose pages cannot be read back (SQLite: "database disk image is malformed"):
+    the message names the file. A ``ValueError``, so a command says it in one line; a writer that must not
+    acknowledge what it could not store (the outcome logger) tells it from a malformed record by its type."""
+
+
+def _is_damage(exc: sqlite3.DatabaseError) -> bool:
+    """SQLite's "database disk image is malformed" or "file is not a database": the plain ``DatabaseError``, not
+    one of its kinds (locked or I/O: ``OperationalError``; a broken constraint: ``IntegrityError``, ...)."""
+    return type(exc) is sqlite3.DatabaseError
+
+
 def store_path(path: typing.Union[str, os.PathLike]) -> str:
     """Return the store file for ``path``: the path itself, or ``<dir>/store.sqlite`` for a directory."""
     path = os.fspath(path)
@@ -255,6 +267,15 @@ class Store:
                 conn.execute("ROLLBACK")
                 raise
 
+    def check_intact(self) -> None:
+        """Raise :class:`StoreDamaged` naming the file unless SQLite's ``quick_check`` finds every page and index
+        intact (it reads the whole file: a resume calls it once, before starting anything)."""
+        rows = self._read("PRAGMA quick_check(5)")
+        problems = [row[0] for row in rows if row[0] != "ok"]
+        if problems:
+            raise StoreDamaged(f"store {self.path} is damaged ({'; '.join(problems)[:300]}); nothing more is written "
+                               "to it; restore it from a copy (`sqlite3 FILE .recover` salvages the rows left)")
+
     def __enter__(self):
         return self
 
@@ -281,8 +302,11 @@ class Store:
             try:
                 changed = conn.execute(sql, params).rowcount
                 conn.execute("COMMIT")
-            except BaseException:
-                conn.execute("ROLLBACK")
+            except BaseException as exc:
+                if conn.in_transaction:
+                    conn.execute("ROLLBACK")
+                if isinstance(exc, sqlite3.DatabaseError) and _is_damage(exc):
+                    raise self._damaged(exc) from exc
                 raise
         return changed
 
@@ -294,10 +318,24 @@ class Store:
             raise ValueError(f"{table.record_cls.__name__}.{owner} must be non-empty")
         return self._write(table.insert_sql(), table.to_row(record)) == 1
 
+    def _read(self, sql: str, params: tuple = ()) -> list:
+        """All rows of one query; :class:`StoreDamaged` naming the file when SQLite finds its pages damaged (the
+        header can be intact, so opening succeeded, while a table's pages are not)."""
+        with self._lock:
+            try:
+                return self._connection().execute(sql, params).fetchall()
+            except sqlite3.DatabaseError as exc:
+                if _is_damage(exc):
+                    raise self._damaged(exc) from exc
+                raise
+
+    def _damaged(self, exc: sqlite3.DatabaseError) -> StoreDamaged:
+        return StoreDamaged(f"store {self.path} is damaged ({exc}); nothing more is written to it; restore it "
+                            "from a copy (`sqlite3 FILE .recover` salvages the rows left)")
+
     def _select(self, table, **filters):
         filters = {k: v for k, v in filters.items() if v is not None}
-        with self._lock:
-            rows = self._connection().execute(table.select_sql(filters), tuple(filters.values())).fetchall()
+        rows = self._read(table.select_sql(filters), tuple(filters.values()))
         return [table.from_row(row) for row in rows]
 
     def add_launch_outcome(self, outcome: LaunchOutcome) -> bool:
@@ -314,10 +352,7 @@ class Store:
 
     def trial_ids(self, run_id: str) -> typing.Set[str]:
         """The set of trial ids stored for ``run_id`` (what a resumed campaign skips)."""
-        with self._lock:
-            rows = self._connection().execute(
-                "SELECT trial_id FROM launch_outcomes WHERE run_id = ?", (run_id,)).fetchall()
-        return {row[0] for row in rows}
+        return {row[0] for row in self._read("SELECT trial_id FROM launch_outcomes WHERE run_id = ?", (run_id,))}
 
     def add_candidate(self, candidate: CandidateRecord) -> bool:
         """Store a candidate result; False if its (run_id, generation, index) is already stored."""
@@ -365,14 +400,17 @@ class Store:
 
     def run_info(self, run_id: str) -> typing.Optional[typing.Dict[str, typing.Any]]:
         """``{"kind": ..., "info": {...}}`` for ``run_id``, or None if it was never described."""
-        with self._lock:
-            row = self._connection().execute("SELECT kind, info FROM runs WHERE run_id = ?", (run_id,)).fetchone()
-        return None if row is None else {"kind": row[0], "info": json.loads(row[1])}
+        rows = self._read("SELECT kind, info FROM runs WHERE run_id = ?", (run_id,))
+        if not rows:
+            return None
+        try:
+            info = json.loads(rows[0][1])
+        except (TypeError, ValueError) as exc:
+            raise StoreDamaged(f"store {self.path} is damaged: the run info of {run_id} is not JSON ({exc})") from exc
+        return {"kind": rows[0][0], "info": info}
 
     def run_ids(self) -> typing.List[str]:
         """Every run id that has run info, outcomes, candidates or generations, sorted."""
         union = " UNION ".join(f"SELECT run_id FROM {t}" for t in ("runs", "launch_outcomes", "candidates",
                                                                        "generations"))
-        with self._lock:
-            rows = self._connection().execute(f"SELECT run_id FROM ({union}) ORDER BY run_id").fetchall()
-        return [row[0] for row in rows]
+        return [row[0] for row in self._read(f"SELECT run_id FROM ({union}) ORDER BY run_id")]

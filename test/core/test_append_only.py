@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from doubles import SyntheticEvaluator, tree_checksums
+from doubles import SyntheticEvaluator, damaged_store, tree_checksums
 from rollability_ros.cli import main
 from rollability_ros.core.optimization.optimization_run import OptimizationRun, run_config
 from rollability_ros.core.profile import geometry
@@ -163,3 +163,54 @@ def test_a_run_resumed_from_a_copied_folder_keeps_its_settings_but_not_its_old_l
     with pytest.raises(ConfigError, match="optimizer.trials"):
         OptimizationRun(str(tmp_path / "copy" / "optimization"), run_config({**moved, "optimizer.trials": 30}), GRID, evaluator,
                         resume=True)
+
+
+def _flip_middle(path):
+    data = bytearray(path.read_bytes())
+    for index in range(len(data) // 2, len(data) // 2 + 16):
+        data[index] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def _closed_bag(directory):
+    from test_bags import write_string_bag
+
+    write_string_bag(directory, 10)
+    return directory
+
+
+@pytest.mark.parametrize("damage, named", [
+    (lambda study: _flip_middle(study / "optimization" / "checkpoint.json"), "optimization/checkpoint.json is damaged"),
+    (lambda study: (study / "optimization" / "checkpoint.json").write_bytes(b""), "checkpoint.json is damaged"),
+    (lambda study: damaged_store(study / "optimization" / "store.sqlite", run_id="optimization"),
+     "optimization/store.sqlite is damaged"),
+    (lambda study: damaged_store(study / "outcomes.sqlite", run_id="field-week"), "outcomes.sqlite is damaged"),
+    (lambda study: (study / "outcomes.sqlite").write_bytes(b"garbage" * 1000), "outcomes.sqlite is not a usable"),
+    (lambda study: (study / "study-id.txt").write_bytes(b"\xff\xfe\x00x"), "study-id.txt must be one folder name"),
+    (lambda study: (study / "config" / "00-sim.yaml").write_bytes(b"\xff\xfe\x00"), "00-sim.yaml is not UTF-8"),
+    (lambda study: _closed_bag(study / "bag").joinpath("metadata.yaml").write_bytes(b"\xff\x00"),
+     "bag/metadata.yaml: not UTF-8 text"),
+], ids=["checkpoint-flipped", "checkpoint-empty", "run-store", "outcome-store", "outcome-store-garbage",
+        "study-id-binary", "config-binary", "closed-bag-metadata"])
+def test_a_resume_of_a_damaged_study_is_refused_before_anything_starts(tmp_path, damage, named):
+    """Was: `study --resume` started the graph on a damaged checkpoint or store; the optimizer or the outcome
+    logger failed (the logger three times) and the reason was left in a node's log; a binary study-id.txt or
+    parameter file gave "'utf-8' codec can't decode" naming no file; an earlier bag whose metadata.yaml was damaged
+    failed the study after its campaign, with no summary. Now one ValueError naming the file, before any
+    process starts, and no file changes."""
+    from rollability_ros.core.graph.study import Study, study_config
+
+    study = Study(study_config([_study_config(tmp_path)], "field-week"), say=lambda text: None)
+    study.make_study_dir()
+    run = OptimizationRun(study.optimization_dir, run_config({
+        "optimizer.max_generations": 2, "optimizer.trials": 10, "profile.rows": 3, "profile.cols": 3}), GRID,
+        SyntheticEvaluator(np.linspace(0.1, 0.4, GRID.n_variables), 10))
+    run.run()
+    run.close()
+    root = tmp_path / "runs" / "field-week"
+    Study(study_config(resume=str(root)), say=lambda text: None)   # intact: resumable
+    damage(root)
+    before = tree_checksums(root)
+    with pytest.raises(ValueError, match=named.replace(".", r"\.")):
+        study_config(resume=str(root))
+    assert tree_checksums(root) == before

@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from doubles import SyntheticEvaluator, tree_checksums
+from doubles import SyntheticEvaluator, damaged_store, tree_checksums
 from rollability_ros.cli import main
 
 REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
@@ -64,6 +64,7 @@ def workspace(tmp_path_factory):
         (root / name).write_text(text)
     shutil.copytree(root / "runs" / "ex", root / "runs" / "deep_checkpoint")
     (root / "runs" / "deep_checkpoint" / "checkpoint.json").write_text("[" * 20000)   # was a RecursionError
+    damaged_store(root / "damaged.sqlite")   # opens (page 1 intact), its outcomes unreadable
     (root / "afile.txt").write_text("the operator's notes\n")
     (root / "full").mkdir()
     (root / "full" / "x.txt").write_text("something else\n")
@@ -146,6 +147,8 @@ CASES = [
     # a binary file given as the heights: "'utf-8' codec can't decode byte 0x..." named neither the flag nor the file
     (["evaluate", "--heights-file", "bag/bag_0.mcap"], "--heights-file bag/bag_0.mcap: not a text file of heights"),
     (["optimize", "--resume", "deep_checkpoint"], "is damaged or not a checkpoint"),
+    # was a sqlite3.DatabaseError traceback: the store opened, its first read met a damaged page
+    (["report", "damaged.sqlite", "--out", "r9"], "damaged.sqlite is damaged (database disk image is malformed)"),
     (["bringup", "--config", "climbing.yaml"], "bringup.output_dir"),
     (["study", "--config", "climbing.yaml"], "has more '..' than"),
     # a key of a given file the command never applies is refused, naming the file, key and command

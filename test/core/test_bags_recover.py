@@ -8,7 +8,7 @@ import textwrap
 import pytest
 import yaml
 
-from rollability_ros.core.bags.metadata import read_metadata
+from rollability_ros.core.bags.metadata import BagError, read_metadata
 from rollability_ros.core.bags.reader import BagReader, bag_info
 from rollability_ros.core.bags.recover import recover
 from test_bags import installed_hash, string_cdr, write_string_bag
@@ -450,3 +450,65 @@ def test_the_gap_note_estimates_steady_topics_only_and_counts_stored_outcomes_in
                          upright=True, stamp_s=(start + 2 * 10**9) / 1e9)
     problem, note = compare_bags_with_store(set(), [lost], gaps, [window])
     assert not problem and "(4.0 s, 1 message(s) published then, in the store, not in the bag)" in note
+
+
+def _topics_edit(replacement):
+    def edit(text):
+        head, tail = text.split("  topics_with_message_count:\n", 1)
+        return head + "  topics_with_message_count:\n" + replacement + tail
+    return edit
+
+
+@pytest.mark.parametrize("edit, reason", [
+    (_topics_edit("  - 5\n"), r"topics_with_message_count\[0\] must be a mapping"),
+    (_topics_edit("  - message_count: 3\n"), r"topics_with_message_count\[0\] must be a mapping"),
+    (lambda text: text.replace("message_count: 100", "message_count: many", 1), "message_count must be a whole"),
+    (lambda text: text.replace("- bag_0.mcap", "- 7"), "relative_file_paths must be a list of file names"),
+    (lambda text: text.replace("depth: 5", "depth: 5\n        colour: red", 1), "unknown QoS profile keys"),
+    (lambda text: b"\xff\xfe" + text.encode(), "not UTF-8 text"),
+], ids=["entry-int", "entry-no-metadata", "count-text", "file-int", "qos-key", "binary"])
+def test_a_damaged_metadata_yaml_is_named_by_every_reader_and_recover_rewrites_it(tmp_path, edit, reason):
+    """Was: a topic entry that is not a mapping, or lacks topic_metadata or its name, raised TypeError / KeyError
+    (a traceback) in `bag info`, `report`, `play` and `bag recover`; bytes that are not UTF-8 gave "'utf-8' codec
+    can't decode" naming no file, and recover refused both. Now each reader names the file and the field, and
+    recover rewrites metadata.yaml from the storage files, keeping the damaged one as a backup."""
+    bag = tmp_path / "bag"
+    write_string_bag(bag, 200)
+    metadata = bag / "metadata.yaml"
+    text = metadata.read_text()
+    assert "message_count: 100" in text and "- bag_0.mcap" in text and "depth: 5" in text
+    damaged = edit(text)
+    metadata.write_bytes(damaged if isinstance(damaged, bytes) else damaged.encode())
+    before = metadata.read_bytes()
+    for read in (bag_info, BagReader, read_metadata):
+        with pytest.raises(BagError, match=reason) as caught:
+            read(str(bag))
+        assert "metadata.yaml" in str(caught.value)
+    report = recover(str(bag))
+    assert report["message_count"] == 200 and report["metadata_backup"] == "metadata.yaml.before-recover"
+    assert (bag / "metadata.yaml.before-recover").read_bytes() == before
+    assert len(list(BagReader(str(bag)))) == 200 and bag_info(str(bag))["message_count"] == 200
+
+
+def test_recover_leaves_alone_mcap_files_that_are_not_the_bags_splits(tmp_path):
+    """Was: every *.mcap in the folder was taken as a split: a copy of a split (`copy_of_bag.mcap`) was adopted and
+    every message counted twice, and a stray `notes.mcap` that is no MCAP made recovery refuse the whole bag. Now
+    only the files metadata.yaml lists and unlisted splits of the same series are the bag's."""
+    bag = tmp_path / "bag"
+    write_string_bag(bag, 200, split_max_duration_s=0.5)
+    splits = sorted(path.name for path in bag.glob("*.mcap"))
+    assert len(splits) >= 2
+    (bag / "copy_of_bag.mcap").write_bytes((bag / splits[0]).read_bytes())
+    (bag / "notes.mcap").write_text("the operator's notes\n")
+    last = bag / splits[-1]
+    last.write_bytes(last.read_bytes()[:-200])          # a killed writer's last split
+    metadata = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    metadata["relative_file_paths"] = splits[:-1]        # ... not listed yet
+    (bag / "metadata.yaml").write_text(yaml.safe_dump({"rosbag2_bagfile_information": metadata}))
+    strays = {name: (bag / name).read_bytes() for name in ("copy_of_bag.mcap", "notes.mcap")}
+    report = recover(str(bag))
+    assert [f["path"] for f in report["files"]] == splits
+    assert read_metadata(str(bag))["relative_file_paths"] == splits
+    assert 150 <= report["message_count"] <= 200   # not 200 + the copy's
+    assert len(list(BagReader(str(bag)))) == report["message_count"]
+    assert {name: (bag / name).read_bytes() for name in strays} == strays

@@ -324,3 +324,41 @@ def test_seed_round_trips_and_a_bad_seed_is_refused(tmp_path):
         assert store.launch_outcomes()[0].seed == 2**31 - 1
         with pytest.raises(ValueError, match="seed must be a twin seed"):
             store.add_launch_outcome(_outcome("t2", seed=-2))
+
+
+def test_a_store_damaged_past_its_header_is_refused_naming_it(tmp_path):
+    """Was: the store opened (page 1 intact) and the first read raised sqlite3.DatabaseError, a traceback in
+    `rollability report` and every other reader; now a ValueError naming the file."""
+    from doubles import damaged_store
+    from rollability_ros.core.store import StoreDamaged
+
+    path = damaged_store(tmp_path / "damaged.sqlite")
+    store = Store(path)
+    try:
+        with pytest.raises(StoreDamaged, match=r"damaged\.sqlite is damaged \(database disk image is malformed\)"):
+            store.launch_outcomes()
+        assert issubclass(StoreDamaged, ValueError)   # the CLI's one-line error
+    finally:
+        store.close()
+
+
+def test_run_info_that_is_not_json_is_damage_and_the_logger_does_not_acknowledge_past_it(tmp_path):
+    """A bit flip in the runs table's JSON was a bare JSONDecodeError; the outcome logger took it for a malformed
+    outcome. Now StoreDamaged, and the logger's StoreFailure (not stored as described, not acknowledged)."""
+    from rollability_ros.core.results.outcome_log import OutcomeLog, StoreFailure
+    from rollability_ros.core.store import StoreDamaged
+
+    path = tmp_path / "store.sqlite"
+    with Store(path) as store:
+        store.set_run_info("run1", "campaign", {"backend": "sim"})
+    with sqlite3.connect(path) as conn:
+        conn.execute("UPDATE runs SET info = ? WHERE run_id = 'run1'", ('{"backend": "si\x00',))
+    with Store(path) as store:
+        with pytest.raises(StoreDamaged, match="run info of run1 is not JSON"):
+            store.run_info("run1")
+    log = OutcomeLog.open(str(path))
+    try:
+        with pytest.raises(StoreFailure, match="run info of run1"):
+            log.add(_outcome("t1"))
+    finally:
+        log.close()

@@ -135,12 +135,24 @@ def read_metadata(directory: str) -> typing.Dict[str, typing.Any]:
                        f"{directory}`") from exc
     except OSError as exc:
         raise BagError(f"{path}: cannot read: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise BagError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); if the recorder was killed, "
+                       f"run `rollability bag recover {directory}`") from exc
     except yaml.YAMLError as exc:
         raise BagError(f"{path}: not valid YAML: {safe_yaml.one_line(exc)}") from exc
     information = document.get("rosbag2_bagfile_information") if isinstance(document, dict) else None
     required = ("version", "storage_identifier", "relative_file_paths", "topics_with_message_count")
     if not isinstance(information, dict) or any(key not in information for key in required):
         raise BagError(f"{path}: not rosbag2 metadata (needs rosbag2_bagfile_information with {', '.join(required)})")
+    listed = information["relative_file_paths"]
+    if not isinstance(listed, list) or not all(isinstance(name, str) and name for name in listed):
+        raise BagError(f"{path}: relative_file_paths must be a list of file names, got {listed!r:.120}; "
+                       f"`rollability bag recover {directory}` rewrites it from the storage files")
+    try:
+        topics_from_metadata(information)   # every reader of the bag takes its topics from here
+    except ValueError as exc:
+        raise BagError(f"{path}: {exc}; `rollability bag recover {directory}` rewrites it from the storage "
+                       "files") from exc
     return information
 
 
@@ -150,14 +162,27 @@ def topics_from_metadata(information: typing.Mapping[str, object]) -> typing.Lis
     entries = information.get("topics_with_message_count") or []
     if not isinstance(entries, list):
         raise BagError(f"metadata topics_with_message_count must be a list, got {entries!r}")
-    for entry in entries:
-        meta = entry["topic_metadata"]
+    for index, entry in enumerate(entries):
+        where = f"topics_with_message_count[{index}]"
+        meta = entry.get("topic_metadata") if isinstance(entry, dict) else None
+        if not isinstance(meta, dict) or not all(isinstance(meta.get(key), str) and meta[key]
+                                                 for key in ("name", "type")):
+            raise BagError(f"metadata {where} must be a mapping whose topic_metadata has a name and a type, "
+                           f"got {entry!r:.120}")
+        count = entry.get("message_count", 0)
+        if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+            raise BagError(f"metadata {where} ({meta['name']}): message_count must be a whole number >= 0, "
+                           f"got {count!r:.40}")
+        try:
+            qos = normalize_qos_profiles(meta.get("offered_qos_profiles"))
+        except ValueError as exc:
+            raise BagError(f"metadata {where} ({meta['name']}): {exc}") from exc
         topics.append(TopicInfo(
             name=meta["name"],
             type_name=meta["type"],
-            serialization_format=meta.get("serialization_format", "cdr"),
-            offered_qos_profiles=normalize_qos_profiles(meta.get("offered_qos_profiles")),
-            type_description_hash=meta.get("type_description_hash", ""),
-            message_count=int(entry.get("message_count", 0)),
+            serialization_format=str(meta.get("serialization_format", "cdr")),
+            offered_qos_profiles=qos,
+            type_description_hash=str(meta.get("type_description_hash", "")),
+            message_count=count,
         ))
     return topics

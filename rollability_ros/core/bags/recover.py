@@ -114,11 +114,22 @@ def _is_complete(path):
         return False
 
 
+def _split_stem(name: str) -> str:
+    """``bag`` of ``bag_3.mcap`` (a split's name without its index), ``notes`` of ``notes.mcap``."""
+    return _SPLIT_INDEX.sub("", name) if _SPLIT_INDEX.search(name) else name[:-len(".mcap")]
+
+
 def _storage_files(directory, information):
-    """Return the bag's MCAP file names: those in metadata.yaml that exist, then any others, by split index."""
+    """Return the bag's MCAP file names: those in metadata.yaml that exist, then the unlisted splits of the same
+    series or named after the folder (a killed writer's last split), by split index. When metadata.yaml lists files, an unlisted file of
+    another name (a copy, a stray ``notes.mcap``) is not the bag's and is left alone: adopting it would double
+    every message of a copied split, or refuse the recovery over a file that is no MCAP."""
     listed = [p for p in (information.get("relative_file_paths") or [])
               if os.path.isfile(os.path.join(directory, p))]
-    others = [n for n in os.listdir(directory) if n.endswith(".mcap") and n not in listed]
+    stems = {_split_stem(name) for name in listed}
+    stems |= {os.path.basename(os.path.normpath(directory))} if stems else set()   # what a writer here names them
+    others = [n for n in os.listdir(directory)
+              if n.endswith(".mcap") and n not in listed and (not stems or _split_stem(n) in stems)]
 
     def split_index(name: str) -> typing.Tuple[int, str]:
         match = _SPLIT_INDEX.search(name)

@@ -107,6 +107,7 @@ def study_config(extra_configs: typing.Sequence[str] = (), study_id: typing.Opti
         study_dir = resume_dir(resume, load_graph_settings(param_files).output_dir)
         chosen_id = recorded_study_id(study_dir)
         param_files = saved_parameter_files(study_dir)
+        check_resumable(study_dir)
     settings = load_graph_settings(param_files)
     parameters = load_parameters(param_files)
     if resume is None:
@@ -562,8 +563,9 @@ def recorded_study_id(study_dir: str) -> str:
     campaign run in its outcome store, else the folder's name (a study stopped before its campaign began)."""
     path = os.path.join(study_dir, STUDY_ID_FILE)
     if os.path.isfile(path):
-        with open(path, encoding="utf-8") as stream:
-            return check_path_component(stream.read().strip(), path)
+        with open(path, "rb") as stream:
+            recorded = stream.read(4096).decode("utf-8", errors="replace").strip()
+        return check_path_component(recorded, path)
     store_path = os.path.join(study_dir, "outcomes.sqlite")
     if os.path.isfile(store_path):
         with Store(store_path) as store:
@@ -574,6 +576,30 @@ def recorded_study_id(study_dir: str) -> str:
         if runs:
             return runs[0]
     return os.path.basename(os.path.normpath(study_dir))
+
+
+def check_resumable(study_dir: str) -> None:
+    """Raise ``ValueError`` naming the file when what a resume of ``study_dir`` reads is damaged: the outcome
+    store (its logger would fail three times and the study stop with its log to read), until designs were
+    selected the optimization's checkpoint and store (its optimizer would fail the same way), and the metadata of
+    its closed bags (the study would run its campaign and then fail to sum up). Before any process
+    starts and without writing anything (a store is opened read-only), so a refused resume leaves the study as it
+    was; the cause is repaired from a copy, or the study restarted."""
+    from rollability_ros.core.bags import is_left_open, recording_gaps
+    from rollability_ros.core.optimization import CHECKPOINT_FILENAME, load_checkpoint
+
+    for bag in glob.glob(os.path.join(study_dir, "bag*")):   # the summary reads every earlier bag at the end
+        if os.path.isdir(bag) and not is_left_open(bag):     # one left open is recovered when the resume starts
+            recording_gaps(bag)                              # BagError naming a damaged metadata.yaml
+    optimization = os.path.join(study_dir, OPTIMIZATION_DIR)
+    stores = [os.path.join(study_dir, "outcomes.sqlite")]
+    if not os.path.isfile(os.path.join(optimization, "designs", "designs.yaml")):
+        load_checkpoint(os.path.join(optimization, CHECKPOINT_FILENAME))   # ValueError naming it when damaged
+        stores.append(os.path.join(optimization, "store.sqlite"))
+    for path in stores:
+        if os.path.isfile(path):
+            with Store(path) as store:
+                store.check_intact()
 
 
 def saved_parameter_files(study_dir: str) -> typing.List[str]:

@@ -24,7 +24,7 @@ import typing
 from rollability_ros.core.results.analysis import ConditionResult, summarise
 from rollability_ros.core.records import CandidateRecord, GenerationRecord, LaunchOutcome, TipEventRecord
 from rollability_ros.core.rig import NO_TWIN, launch_backend_class, merge_twin
-from rollability_ros.core.store import Store, unique_key
+from rollability_ros.core.store import Store, StoreDamaged, unique_key
 
 if typing.TYPE_CHECKING:  # annotations only
     from rollability_ros.core.record_messages import Record
@@ -254,7 +254,7 @@ class OutcomeLog:
         with self._lock:
             try:
                 stored = writer(record)
-            except (sqlite3.Error, OSError) as exc:
+            except (sqlite3.Error, StoreDamaged, OSError) as exc:
                 raise StoreFailure(f"{self.store.path}: {exc}") from exc
             if stored and isinstance(record, LaunchOutcome):
                 self._summary.add_outcome(record)
@@ -273,17 +273,17 @@ class OutcomeLog:
         if launch_backend_class(outcome.backend).resimulate_refusal():
             # launched on no twin, whatever the message claims (a physical record's signature does not cover it)
             twin = {NO_TWIN: outcome.backend}
-        described = self.store.run_info(outcome.run_id)
-        info = dict(described["info"]) if described else {}
-        backend = info.get("backend")
-        changed = merge_twin(info, twin, os.path.dirname(os.path.abspath(self.store.path)))
-        if described and backend in (outcome.backend, "mixed") and not changed:
-            return
-        if backend not in (outcome.backend, "mixed"):
-            info["backend"] = outcome.backend if backend is None else "mixed"
         try:
+            described = self.store.run_info(outcome.run_id)
+            info = dict(described["info"]) if described else {}
+            backend = info.get("backend")
+            changed = merge_twin(info, twin, os.path.dirname(os.path.abspath(self.store.path)))
+            if described and backend in (outcome.backend, "mixed") and not changed:
+                return
+            if backend not in (outcome.backend, "mixed"):
+                info["backend"] = outcome.backend if backend is None else "mixed"
             self.store.set_run_info(outcome.run_id, described["kind"] if described else "campaign", info)
-        except (sqlite3.Error, OSError) as exc:
+        except (sqlite3.Error, StoreDamaged, OSError) as exc:
             raise StoreFailure(f"{self.store.path}: {exc}") from exc
 
     def summary(self, run_id: typing.Optional[str] = None) -> "LogSummary":

@@ -10,7 +10,9 @@ Reading
 Checking
     :func:`describe` refuses, with a message naming the link, joint or file: unparsable XML, no single root,
     unknown links in joints, unsupported joint types, meshes that do not resolve, ``<inertial>`` elements with a
-    missing, zero or negative mass or an inertia that is not positive definite, moving links without mass.
+    missing, zero or negative mass or an inertia that is not positive definite, moving links without mass. An
+    ASCII STL collision mesh is replaced by its binary STL (:mod:`~rollability_ros.core.robots.mesh_files`), or
+    refused when it is no whole mesh.
 Rigid bodies
     Links joined by ``fixed`` joints form one rigid body, named after its top link (the root, or a link on a
     moving joint). :func:`describe` merges each body's masses, inertias (parallel-axis theorem, URDF values
@@ -33,6 +35,8 @@ import xml.etree.ElementTree as ElementTree
 
 import numpy as np
 import numpy.typing as npt
+
+from rollability_ros.core.robots.mesh_files import collision_mesh_file
 
 #: Name of the frame link added as PyBullet's base (see the module docstring).
 BASE_LINK = "rollability_base"
@@ -451,21 +455,6 @@ def _sizes(text, count, where):
     return values
 
 
-def _ascii_stl(path: str) -> bool:
-    """True for an STL file in the ASCII format: not the size a binary STL's triangle count gives (84 bytes of
-    header and count, 50 a triangle), and starting with ``solid`` (a binary header may start so too)."""
-    if not path.lower().endswith(".stl"):
-        return False
-    try:
-        with open(path, "rb") as stream:
-            head = stream.read(84)
-        size = os.path.getsize(path)
-    except OSError:
-        return False   # the read below names the file
-    binary = len(head) == 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little")
-    return not binary and head.lstrip().startswith(b"solid")
-
-
 def mesh_hull_vertices(mesh_path: str, where: str) -> np.ndarray:
     """The vertices ``(k, 3)`` of the convex hull of the mesh file ``mesh_path`` (its units); ``ValueError`` in one
     line naming ``where`` and the file when it cannot be read, holds no vertex or a vertex that is not a finite
@@ -473,9 +462,6 @@ def mesh_hull_vertices(mesh_path: str, where: str) -> np.ndarray:
     that is not a ``ValueError``). Both engines collide with a mesh's hull."""
     from rollability_ros.core.optional import require
 
-    if _ascii_stl(mesh_path):   # trimesh reads it; PyBullet drops the shape with a warning, MuJoCo refuses it
-        raise ValueError(f"{where}: mesh {mesh_path} is an ASCII STL, which PyBullet and MuJoCo cannot read (PyBullet "
-                         "would simulate the link without it): save it as a binary STL or an OBJ")
     trimesh = require("trimesh", feature="URDF mesh collision shapes")
     try:
         loaded = trimesh.load(mesh_path, force="mesh")
@@ -494,7 +480,9 @@ def mesh_hull_vertices(mesh_path: str, where: str) -> np.ndarray:
 
 
 def _geometry_points(geometry, where, mesh_path):
-    """Points ``(k, 3)`` whose hull bounds a URDF geometry, in the geometry's frame (m)."""
+    """Points ``(k, 3)`` whose hull bounds a URDF geometry, in the geometry's frame (m). A mesh in ASCII STL is
+    renamed in ``geometry`` to its binary STL (:func:`~rollability_ros.core.robots.mesh_files.collision_mesh_file`),
+    the file the simulation's URDF then names."""
     box, cylinder, sphere, mesh = (geometry.find(tag) for tag in ("box", "cylinder", "sphere", "mesh"))
     if box is not None:
         half = np.array(_sizes(box.get("size"), 3, f"{where} box size")) / 2
@@ -507,6 +495,8 @@ def _geometry_points(geometry, where, mesh_path):
         scale = np.array(_numbers(mesh.get("scale", "1 1 1"), 3, f"{where} mesh scale"))
         if not np.all(scale):
             raise ValueError(f"{where}: mesh scale {mesh.get('scale')!r} has a zero: the shape would be flat")
+        mesh_path = collision_mesh_file(mesh_path, where)   # an ASCII STL: its binary STL, which the engines read
+        mesh.set("filename", mesh_path)
         return mesh_hull_vertices(mesh_path, where) * scale
     else:
         raise ValueError(f"{where}: geometry must be a box, cylinder, sphere or mesh")

@@ -129,8 +129,8 @@ def test_a_designs_file_without_its_grid_is_refused_naming_the_file_and_the_key(
     cases = (("none", "", r"designs.yaml: designs.grid is missing: the heights mean nothing without the grid they "
                           r"were chosen on \(rows, cols, length_m, width_m, height_min, height_max, unit_m; "
                           r"rollability select writes it\)"),
-             ("partial", "grid: {rows: 4, cols: 3}", r"designs.yaml: designs.grid has no length_m, width_m, height_min, "
-                                                     r"height_max, unit_m: the heights mean nothing"),
+             ("partial", "grid: {rows: 4, cols: 3}", r"designs.yaml: designs.grid has no length_m, width_m, "
+                                                     r"height_min, height_max, unit_m: the heights mean nothing"),
              ("no_unit", GRID_YAML.replace(", unit_m: 0.2", ""), "designs.yaml: designs.grid has no unit_m: "))
     for name, grid, problem in cases:
         (tmp_path / name).mkdir()

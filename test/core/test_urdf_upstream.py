@@ -128,6 +128,19 @@ BROKEN = [
     ({'<axis xyz="0 1 0"/>': '<axis xyz="0 0 0"/>'}, {}, "joint 'left_wheel_joint' has axis xyz '0 0 0'"),
     ({'<axis xyz="0 1 0"/>': '<axis xyz="0 1 0"/><dynamics damping="nan"/>'}, {},
      "joint 'left_wheel_joint' dynamics damping: expected 1 numbers, got 'nan'"),
+    # non-physical masses, inertias and sizes ran the physics with nonsense numbers: a 1e300 kg robot, one lighter
+    # than MuJoCo's twin integrates on the foam, an inertia no 2 kg body has, a 300 m box, a mesh in millimetres
+    ({'value="2.0"': 'value="1e300"'}, {}, r"robot description \(its <inertial> masses\): the robot weighs 1e\+300 kg, "
+                                          r"outside 0.2-250 kg, the masses PyBullet and MuJoCo integrate stably"),
+    ({'value="2.0"': 'value="0.05"', 'value="0.1"': 'value="0.001"'}, {}, "the robot weighs 0.052 kg, outside"),
+    ({'ixx="0.01"': 'ixx="1e300"'}, {}, r"rigid body 'base_link' \(2 kg\): its inertia's largest moment 1e\+300 "
+                                        r"kg m\^2 means a radius of gyration of 7.07107e\+149 m, over the 10 m"),
+    ({'<box size="0.3 0.2 0.1"/>': '<box size="300 200 100"/>'}, {},
+     "link 'base_link' collision 0: the shape spans 300 m, over the 10 m any part of a robot on the rig may$"),
+    ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.obj"/>'},
+     {"body.obj": b"".join(b"v %d %d %d\n" % (x, y, z) for x in (-150, 150) for y in (-100, 100) for z in (0, 100))
+      + b"f 1 2 4\nf 1 4 3\nf 5 6 8\nf 5 8 7\n"},
+     r"link 'base_link' collision 0: the shape spans 300 m, .* \(a mesh in millimetres needs scale=\"0.001 0.001 "),
     # xacro's own error spans three lines ("Use of invalid name(s) ... \nwhen evaluating expression ...")
     ({'value="2.0"': 'value="${__import__(\'os\').getpid()}"'}, {}, "cannot expand xacro .*Use of invalid name"),
 ]
@@ -365,3 +378,21 @@ def test_a_robot_with_an_ascii_stl_body_launches_as_with_the_binary_stl(tmp_path
         results[name] = simulate_launch(LaunchCondition("baseline", 0.75, 1.5, 0.0), settings, seed=1)
     assert results["ascii"].valid, results["ascii"].invalid_reason
     assert results["ascii"] == results["binary"]
+
+
+def test_a_chassis_outside_the_masses_the_engines_integrate_is_refused(tmp_path):
+    """The built-in chassis's mass (body and four wheels) from its parameter file: the same range as a URDF robot's;
+    the default 1.1 kg chassis is unchanged."""
+    from rollability_ros.core.config import ConfigError
+    from rollability_ros.core.sim.evaluation import load_settings
+
+    assert load_settings(["sim", "robot", "evaluator"]).robot.body_mass_kg == 0.9
+    for name, values, mass in (("heavy", "body_mass_kg: 500.0", "500.2"),
+                               ("light", "body_mass_kg: 0.02, wheel_mass_kg: 0.01", "0.06")):
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(f"/**:\n  ros__parameters:\n    robot: {{{values}}}\n", encoding="utf-8")
+        with pytest.raises((ConfigError, ValueError)) as refused:
+            load_settings(["sim", "robot", "evaluator", str(path)])
+        message = str(refused.value)
+        assert "\n" not in message and f"robot.body_mass_kg + 4 x robot.wheel_mass_kg: the robot weighs {mass} kg, " \
+                                      "outside 0.2-250 kg" in message

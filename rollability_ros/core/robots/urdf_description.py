@@ -12,7 +12,9 @@ Checking
     unknown links in joints, unsupported joint types, meshes that do not resolve, ``<inertial>`` elements with a
     missing, zero or negative mass or an inertia that is not positive definite, moving links without mass. An
     ASCII STL collision mesh is replaced by its binary STL (:mod:`~rollability_ros.core.robots.mesh_files`), or
-    refused when it is no whole mesh.
+    refused when it is no whole mesh. Non-physical numbers that ran as given: a robot's mass outside
+    :data:`~rollability_ros.core.robots.robot.ROBOT_MASS_RANGE_KG`, a rigid body's radius of gyration or a collision
+    shape's extent over :data:`~rollability_ros.core.robots.robot.ROBOT_SIZE_MAX_M`.
 Rigid bodies
     Links joined by ``fixed`` joints form one rigid body, named after its top link (the root, or a link on a
     moving joint). :func:`describe` merges each body's masses, inertias (parallel-axis theorem, URDF values
@@ -37,6 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rollability_ros.core.robots.mesh_files import collision_mesh_file
+from rollability_ros.core.robots.robot import ROBOT_SIZE_MAX_M, check_robot_mass
 
 #: Name of the frame link added as PyBullet's base (see the module docstring).
 BASE_LINK = "rollability_base"
@@ -455,6 +458,26 @@ def _sizes(text, count, where):
     return values
 
 
+def _check_extent(points, where, mesh):
+    """``ValueError`` naming ``where`` when the shape's points ``(k, 3)`` (m) span more than
+    :data:`ROBOT_SIZE_MAX_M`."""
+    extent = float(np.ptp(points, axis=0).max())
+    if extent > ROBOT_SIZE_MAX_M:
+        hint = " (a mesh in millimetres needs scale=\"0.001 0.001 0.001\")" if mesh is not None else ""
+        raise ValueError(f"{where}: the shape spans {extent:g} m, over the {ROBOT_SIZE_MAX_M:g} m any part of a robot "
+                         f"on the rig may{hint}")
+
+
+def _check_body_inertia(name, mass_kg, inertia):
+    """``ValueError`` naming the rigid body ``name`` whose radius of gyration (sqrt(largest moment / mass)) is over
+    :data:`ROBOT_SIZE_MAX_M`: an inertia no body of that mass and size has (1e300 kg m^2 ran as given)."""
+    radius_m = math.sqrt(float(np.linalg.eigvalsh(inertia).max()) / mass_kg)
+    if radius_m > ROBOT_SIZE_MAX_M:
+        raise ValueError(f"rigid body {name!r} ({mass_kg:g} kg): its inertia's largest moment "
+                         f"{float(np.linalg.eigvalsh(inertia).max()):g} kg m^2 means a radius of gyration of "
+                         f"{radius_m:g} m, over the {ROBOT_SIZE_MAX_M:g} m any part of a robot on the rig may")
+
+
 def mesh_hull_vertices(mesh_path: str, where: str) -> np.ndarray:
     """The vertices ``(k, 3)`` of the convex hull of the mesh file ``mesh_path`` (its units); ``ValueError`` in one
     line naming ``where`` and the file when it cannot be read, holds no vertex or a vertex that is not a finite
@@ -497,10 +520,14 @@ def _geometry_points(geometry, where, mesh_path):
             raise ValueError(f"{where}: mesh scale {mesh.get('scale')!r} has a zero: the shape would be flat")
         mesh_path = collision_mesh_file(mesh_path, where)   # an ASCII STL: its binary STL, which the engines read
         mesh.set("filename", mesh_path)
-        return mesh_hull_vertices(mesh_path, where) * scale
+        points = mesh_hull_vertices(mesh_path, where) * scale
+        _check_extent(points, where, mesh)
+        return points
     else:
         raise ValueError(f"{where}: geometry must be a box, cylinder, sphere or mesh")
-    return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+    points = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+    _check_extent(points, where, None)
+    return points
 
 
 def _resolve_meshes(root_element, urdf_folder, folders):
@@ -567,6 +594,7 @@ def _body_inertials(bodies):
         for mass, centre, part in body["parts"]:
             offset = centre - com
             inertia += part + mass * (offset @ offset * np.eye(3) - np.outer(offset, offset))
+        _check_body_inertia(name, body["mass"], inertia)
         body_inertials[name] = (body["mass"], com, inertia)
     return body_inertials
 
@@ -650,6 +678,7 @@ def describe(xml_text: str, urdf_folder: typing.Optional[str] = None,
             raise ValueError(f"{placement.message} (needed to place link {child!r})")
         body_in_root[child] = body_in_root[body_of[parent]] @ placement
     mass_kg = sum(b[0] for b in body_inertials.values())
+    check_robot_mass(mass_kg, "robot description (its <inertial> masses)")
     com_m = sum(b[0] * (body_in_root[n][:3, :3] @ b[1] + body_in_root[n][:3, 3])
                 for n, b in body_inertials.items()) / mass_kg
 

@@ -28,9 +28,10 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 #: prepare a learnt likelihood or run a whole study through the node graph, each at its smallest size).
 #: docs/testing.md gives each one's measured time.
 SMOKE = ("bench_bag_writer", "bench_adaptive_plan", "bench_profile_mass", "bench_launch_twin", "bench_worker_memory",
-         "verify_early_decision", "bench_pad_size", "bench_design_space", "bench_bare_breakdown", "bench_truth_sweep",
-         "bench_optimizer", "bench_estop_latency", "bench_pool_split", "bench_evaluator", "bench_sensitivity",
-         "bench_quality_diversity", "bench_initial_mean_screen", "bench_race_truth", "bench_shape_ceiling",
+         "verify_early_decision", "bench_pad_size", "bench_mass_range", "bench_design_space", "bench_bare_breakdown",
+         "bench_truth_sweep", "bench_optimizer", "bench_estop_latency", "bench_pool_split", "bench_evaluator",
+         "bench_sensitivity", "bench_quality_diversity", "bench_initial_mean_screen", "bench_race_truth",
+         "bench_shape_ceiling",
          "bench_engines", "bench_racing", "bench_recorder", "bench_calibration_direct", "bench_objective",
          "bench_optimizer_node", "bench_calibration", "bench_recalibrate", "bench_transfer")
 
@@ -45,6 +46,7 @@ HEADLINES: typing.Dict[str, typing.Tuple[str, ...]] = {
                           "flight time / sqrt(2 h / g)", "upright "),
     "verify_early_decision": ("engine: ", "steps full", "total: "),
     "bench_pad_size": ("upright of ", "small pad"),
+    "bench_mass_range": ("robot 1.62 kg (x 1), pybullet: 0 deg: valid ",),
     "bench_optimizer": ("paper scale: ", "evaluation: ", "optimizer overhead per generation, real run",
                         "optimizer overhead per generation, zero-cost evaluator", "projected paper run",
                         "CRN / independent seeds", "best-so-far overestimate without / with re-evaluation"),

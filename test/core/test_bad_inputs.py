@@ -233,7 +233,8 @@ def test_an_engine_comparison_never_overwrites_an_earlier_one(tmp_path, monkeypa
 
     designs = tmp_path / "designs.yaml"
     designs.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"designs": {
-        "labels": ["A"], "grid": {"rows": 3, "cols": 3}, "A": {"heights": [0.2] * 6}}}}}))
+        "labels": ["A"], "grid": {"rows": 3, "cols": 3, "length_m": 0.18, "width_m": 0.14, "height_min": 0.0,
+                                  "height_max": 0.45, "unit_m": 0.2}, "A": {"heights": [0.2] * 9}}}}}))
     (tmp_path / "engine_agreement.csv").write_text("design,engine\nA,pybullet\n")
     before = tree_checksums(tmp_path)
     monkeypatch.chdir(tmp_path)

@@ -14,6 +14,9 @@ from rollability_ros.core.optimization.selection import PooledDesign, SelectedDe
 pytest.importorskip("trimesh")
 
 GRID = geometry.ProfileGrid(rows=4, cols=3)
+#: GRID as a designs file holds it (flow style, one line).
+GRID_YAML = ("grid: {rows: 4, cols: 3, length_m: 0.18, width_m: 0.14, height_min: 0.0, height_max: 0.45, "
+             "unit_m: 0.2}")
 
 
 def ramp_heights(top):
@@ -102,7 +105,7 @@ def test_missing_and_broken_files_are_named(tmp_path):
     with pytest.raises(FileNotFoundError, match="nowhere.yaml"):
         profile_mesh_for("A", DesignSources(designs_file=str(tmp_path / "nowhere.yaml")))
     broken = tmp_path / "designs.yaml"
-    broken.write_text("/**:\n  ros__parameters:\n    designs:\n      labels: [A]\n      grid: {rows: 4, cols: 3}\n")
+    broken.write_text(f"/**:\n  ros__parameters:\n    designs:\n      labels: [A]\n      {GRID_YAML}\n")
     with pytest.raises(ConfigError, match="design A has no designs.A.heights"):
         profile_mesh_for("A", DesignSources(designs_file=str(broken)))
     # a lone number was a TypeError traceback, true / false read as heights 1 and 0, a label listed twice passed
@@ -112,9 +115,46 @@ def test_missing_and_broken_files_are_named(tmp_path):
                                 ("twice", "labels: [A, A]\n      A: {heights: [0.1]}", "design A is listed twice")):
         (tmp_path / name).mkdir()
         path = tmp_path / name / "designs.yaml"
-        path.write_text(f"/**:\n  ros__parameters:\n    designs:\n      {body}\n")
+        path.write_text(f"/**:\n  ros__parameters:\n    designs:\n      {body}\n      {GRID_YAML}\n")
         with pytest.raises(ConfigError, match=problem):
             configuration_ids(DesignSources(designs_file=str(path)))
+
+
+def test_a_designs_file_without_its_grid_is_refused_naming_the_file_and_the_key(tmp_path):
+    """Without ``designs.grid`` (or with a key of it missing) the heights were read on the default grid (10 x 10,
+    0.18 x 0.14 m, 0.2 m a unit), which the design may not have been chosen on: another solid, silently. Every
+    designs file the project writes carries the whole grid (design_set.designs_document), so a missing one is
+    refused in one line."""
+    heights = "A: {heights: [0.1, 0.2, 0.3, 0.1, 0.2, 0.3, 0.1, 0.2, 0.3, 0.1, 0.2, 0.3]}"
+    cases = (("none", "", r"designs.yaml: designs.grid is missing: the heights mean nothing without the grid they "
+                          r"were chosen on \(rows, cols, length_m, width_m, height_min, height_max, unit_m; "
+                          r"rollability select writes it\)"),
+             ("partial", "grid: {rows: 4, cols: 3}", r"designs.yaml: designs.grid has no length_m, width_m, "
+                                                     r"height_min, height_max, unit_m: the heights mean nothing"),
+             ("no_unit", GRID_YAML.replace(", unit_m: 0.2", ""), "designs.yaml: designs.grid has no unit_m: "))
+    for name, grid, problem in cases:
+        (tmp_path / name).mkdir()
+        path = tmp_path / name / "designs.yaml"
+        path.write_text(f"/**:\n  ros__parameters:\n    designs:\n      labels: [A]\n      {heights}\n      {grid}\n")
+        for read in (lambda: configuration_ids(DesignSources(designs_file=str(path))),
+                     lambda: profile_mesh_for("A", DesignSources(designs_file=str(path)))):
+            with pytest.raises(ConfigError, match=problem) as refused:
+                read()
+            assert "\n" not in str(refused.value) and str(path) in str(refused.value)
+    # the same file with the whole grid builds the design on it
+    (tmp_path / "whole").mkdir()
+    path = tmp_path / "whole" / "designs.yaml"
+    path.write_text(f"/**:\n  ros__parameters:\n    designs:\n      labels: [A]\n      {heights}\n      {GRID_YAML}\n")
+    assert profile_mesh_for("A", DesignSources(designs_file=str(path))).bounds[1][0] == pytest.approx(GRID.length_m / 2)
+
+
+def test_every_designs_file_the_project_writes_carries_the_whole_grid():
+    """The writer and the reader share DESIGN_GRID_KEYS: a selection's designs.yaml names every key of its grid."""
+    from rollability_ros.core.profile.designs import DESIGN_GRID_KEYS
+
+    document = designs_document(SelectionResult(designs=[], requested=0, considered=0, rejected={}), GRID, "run-1")
+    grid = document["/**"]["ros__parameters"]["designs"]["grid"]
+    assert tuple(grid) == DESIGN_GRID_KEYS and geometry.ProfileGrid(**grid) == GRID
 
 
 def test_designs_are_launched_only_under_the_print_they_were_chosen_for(tmp_path):

@@ -93,17 +93,31 @@ BOX_BOT = XACRO_ROBOT.replace('<xacro:include filename="$(find clone_bot_descrip
                               .replace("</robot>", ""))
 
 
+def ascii_stl_text(*triangles):
+    """An ASCII STL of ``triangles`` (each three (x, y, z) vertices, written as given)."""
+    facets = "".join("facet normal 0 0 1\nouter loop\n" + "".join(f"vertex {x} {y} {z}\n" for x, y, z in triangle)
+                     + "endloop\nendfacet\n" for triangle in triangles)
+    return f"solid body\n{facets}endsolid body\n".encode()
+
+
 #: Broken descriptions (their text changes from BOX_BOT, the files they name) and the refusal's words.
 BROKEN = [
     # a collision mesh that is empty or truncated: "No points given", naming neither the link nor the file
     ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.stl"/>'}, {"body.stl": b""},
      "link 'base_link' collision 0: mesh .*body.stl holds no vertices"),
-    # an ASCII STL: trimesh reads it, PyBullet dropped the shape with a warning ("the body has no resting pose"),
-    # MuJoCo refused it in two lines
-    ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.stl"/>'},
-     {"body.stl": b"solid body\n" + b"".join(b"facet normal 0 0 1\nouter loop\nvertex %d %d %d\nvertex 1 0 0\n"
-                                           b"vertex 0 1 0\nendloop\nendfacet\n" % (0, 0, k) for k in (0, 1))
-      + b"endsolid body\n"}, "link 'base_link' collision 0: mesh .*body.stl is an ASCII STL"),
+    # ASCII STL (converted to binary since both engines read only that) that is no whole mesh: no facet, a word
+    # where a number belongs (trimesh's parser stopped there quietly, keeping the triangles before it), a NaN
+    ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.stl"/>'}, {"body.stl": b"solid body\nendsolid body\n"},
+     r"link 'base_link' collision 0: ASCII STL .*body.stl holds 0 facet\(s\) but 0 whole triangle\(s\)"),
+    ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.stl"/>'}, {"body.stl": ascii_stl_text(((0, 0, 0), (1, 0, 0),
+                                                                    (0, 1, 0)), ((0, 0, 1), (1, 0, 0), (0, "x", 0)))},
+     "link 'base_link' collision 0: cannot read ASCII STL .*body.stl: string or file could not be read to its end"),
+    ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.stl"/>'}, {"body.stl": ascii_stl_text(((0, 0, 0), (1, 0, 0),
+                                                                    (0, 1, 0)), ((0, 0, 1), (1, 0, 0), (0, "nan", 0)))},
+     "link 'base_link' collision 0: ASCII STL .*body.stl has a vertex that is not a finite number"),
+    ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.stl"/>'}, {"body.stl": b"solid body\nfacet normal 0 0 1\n"
+                                                                               b"outer loop\nvertex 0 0 0\n"},
+     r"link 'base_link' collision 0: ASCII STL .*body.stl holds 0 facet\(s\) but 0 whole triangle\(s\)"),
     # a flat one: Qhull's QhullError (not a ValueError: a traceback from the CLI), in several lines
     ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="flat.obj"/>'}, {"flat.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
      "link 'base_link' collision 0: mesh .*flat.obj encloses no volume"),
@@ -114,6 +128,19 @@ BROKEN = [
     ({'<axis xyz="0 1 0"/>': '<axis xyz="0 0 0"/>'}, {}, "joint 'left_wheel_joint' has axis xyz '0 0 0'"),
     ({'<axis xyz="0 1 0"/>': '<axis xyz="0 1 0"/><dynamics damping="nan"/>'}, {},
      "joint 'left_wheel_joint' dynamics damping: expected 1 numbers, got 'nan'"),
+    # non-physical masses, inertias and sizes ran the physics with nonsense numbers: a 1e300 kg robot, one lighter
+    # than MuJoCo's twin integrates on the foam, an inertia no 2 kg body has, a 300 m box, a mesh in millimetres
+    ({'value="2.0"': 'value="1e300"'}, {}, r"robot description \(its <inertial> masses\): the robot weighs 1e\+300 kg, "
+                                          r"outside 0.2-250 kg, the masses PyBullet and MuJoCo integrate stably"),
+    ({'value="2.0"': 'value="0.05"', 'value="0.1"': 'value="0.001"'}, {}, "the robot weighs 0.052 kg, outside"),
+    ({'ixx="0.01"': 'ixx="1e300"'}, {}, r"rigid body 'base_link' \(2 kg\): its inertia's largest moment 1e\+300 "
+                                        r"kg m\^2 means a radius of gyration of 7.07107e\+149 m, over the 10 m"),
+    ({'<box size="0.3 0.2 0.1"/>': '<box size="300 200 100"/>'}, {},
+     "link 'base_link' collision 0: the shape spans 300 m, over the 10 m any part of a robot on the rig may$"),
+    ({'<box size="0.3 0.2 0.1"/>': '<mesh filename="body.obj"/>'},
+     {"body.obj": b"".join(b"v %d %d %d\n" % (x, y, z) for x in (-150, 150) for y in (-100, 100) for z in (0, 100))
+      + b"f 1 2 4\nf 1 4 3\nf 5 6 8\nf 5 8 7\n"},
+     r"link 'base_link' collision 0: the shape spans 300 m, .* \(a mesh in millimetres needs scale=\"0.001 0.001 "),
     # xacro's own error spans three lines ("Use of invalid name(s) ... \nwhen evaluating expression ...")
     ({'value="2.0"': 'value="${__import__(\'os\').getpid()}"'}, {}, "cannot expand xacro .*Use of invalid name"),
 ]
@@ -240,3 +267,132 @@ def test_xacro_arguments_are_passed_as_on_xacros_command_line(tmp_path, monkeypa
     plain.write_text(model.mounted.robot.original_urdf, encoding="utf-8")
     with pytest.raises(ValueError, match="xacro_args .* given, but .*plain.urdf is not a xacro"):
         _spec(urdf_path=str(plain), xacro_args=("wheel_radius:=0.05",)).description()
+
+
+def stl_robots(folder):
+    """``{format: UrdfRobotModel}``: BOX_BOT with its body a mesh in millimetres (an upstream habit:
+    ``scale="0.001 ..."``), a box turned about z with one bottom corner moved, in ASCII and in binary STL, byte for byte the same triangles."""
+    trimesh = pytest.importorskip("trimesh")
+    body = trimesh.creation.box(extents=(300.0, 200.0, 100.0))
+    body.apply_transform(trimesh.transformations.rotation_matrix(0.2, (0.0, 0.0, 1.0)))
+    assert body.vertices[0][2] < 0
+    body.vertices[0] += (7.0, -3.0, -2.0)   # a bottom corner: the top stays level for the profile
+    body.vertices = body.vertices.astype(np.float32).astype(np.float64)   # what a binary STL holds
+    files = {"ascii": (trimesh.exchange.stl.export_stl_ascii(body).encode(), "body_ascii.stl"),
+             "binary": (trimesh.exchange.stl.export_stl(body), "body_binary.stl")}
+    models = {}
+    for name, (data, filename) in files.items():
+        (folder / filename).write_bytes(data)
+        text = BOX_BOT.replace('<box size="0.3 0.2 0.1"/>', f'<mesh filename="{filename}" scale="0.001 0.001 0.001"/>')
+        (folder / f"{name}.urdf.xacro").write_text(text, encoding="utf-8")
+        models[name] = UrdfRobotModel(_spec(urdf_path=str(folder / f"{name}.urdf.xacro")))
+    return models
+
+
+def test_an_ascii_stl_collides_in_both_engines_as_the_binary_stl_of_the_same_mesh(tmp_path, monkeypatch):
+    """Many upstream descriptions ship ASCII STL, which PyBullet dropped (the link simulated without its shape) and
+    MuJoCo refused; it was then refused here. It is converted to a binary STL in the mesh cache, so both engines
+    load the same shape, scale and units, and the same mass properties, as from the binary STL of the same mesh."""
+    mujoco = pytest.importorskip("mujoco")
+    pybullet = pytest.importorskip("pybullet")
+    from rollability_ros.core.robots.mesh_files import mesh_cache_folder
+    from rollability_ros.core.sim.mujoco_trials import robot_spec
+    from rollability_ros.core.sim.world import PhysicsParams, connect, disconnect
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    models = stl_robots(tmp_path)
+    ascii_robot, binary_robot = models["ascii"].mounted.robot, models["binary"].mounted.robot
+    assert ascii_robot.collision_points == binary_robot.collision_points
+    cached = os.listdir(mesh_cache_folder())
+    assert len(cached) == 1 and cached[0] in ascii_robot.sim_urdf and "body_ascii.stl" not in ascii_robot.sim_urdf
+    assert ascii_robot.sim_urdf.replace(os.path.join(mesh_cache_folder(), cached[0]), "") == \
+        binary_robot.sim_urdf.replace(str(tmp_path / "body_binary.stl"), "")
+
+    def pybullet_body(model):
+        client = connect()
+        try:
+            body = model.spawn(client, None, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0, 1.0), time_step_s=None).body_id
+            return [(pybullet.getAABB(body, link, physicsClientId=client),
+                     pybullet.getDynamicsInfo(body, link, physicsClientId=client)[:4])
+                    for link in range(-1, pybullet.getNumJoints(body, physicsClientId=client))]
+        finally:
+            disconnect(client)
+
+    ascii_links, binary_links = pybullet_body(models["ascii"]), pybullet_body(models["binary"])
+    assert ascii_links == binary_links
+    # the body's box in metres: 0.3 x 0.2 m turned by 0.2 rad spans more than 0.3 m in x (PyBullet had no shape)
+    spans = [upper[0] - lower[0] for (lower, upper), _ in ascii_links]
+    assert 0.3 < max(spans) < 0.4
+
+    def mujoco_model(model):
+        return robot_spec(model, None, PhysicsParams())[0].compile()
+
+    ascii_model, binary_model = mujoco_model(models["ascii"]), mujoco_model(models["binary"])
+    for field in ("body_mass", "body_inertia", "body_ipos", "geom_type", "geom_size", "geom_aabb", "geom_pos",
+                  "geom_quat", "mesh_vert"):
+        np.testing.assert_array_equal(getattr(ascii_model, field), getattr(binary_model, field), err_msg=field)
+    assert sum(ascii_model.geom_type == mujoco.mjtGeom.mjGEOM_MESH) == 1
+    # the cached file is reused while the ASCII file's content is unchanged
+    assert stl_robots(tmp_path)["ascii"].mounted.robot.sim_urdf == ascii_robot.sim_urdf
+    assert os.listdir(mesh_cache_folder()) == cached
+
+
+def test_an_ascii_stl_over_the_size_converted_is_refused_in_one_line(tmp_path, monkeypatch):
+    """A huge ASCII STL would take trimesh minutes and gigabytes (98 MB: 8.4 s, 0.9 GB): refused before it is read,
+    naming the link, the file and the fix."""
+    from rollability_ros.core.robots.mesh_files import ASCII_STL_MAX_BYTES
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    with open(tmp_path / "body.stl", "wb") as stream:
+        stream.write(b"solid body\n")
+        stream.truncate(ASCII_STL_MAX_BYTES + 1)   # sparse: nothing written past the header
+    (tmp_path / "bot.urdf.xacro").write_text(BOX_BOT.replace('<box size="0.3 0.2 0.1"/>',
+                                                             '<mesh filename="body.stl"/>'), encoding="utf-8")
+    with pytest.raises(ValueError) as refused:
+        _spec(urdf_path=str(tmp_path / "bot.urdf.xacro")).validate()
+    message = str(refused.value)
+    assert "\n" not in message and message.startswith("link 'base_link' collision 0: ASCII STL ")
+    assert "body.stl is 64 MiB, over the 64 MiB converted: save it as a binary STL" in message
+    assert not (tmp_path / "cache").exists()
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+def test_a_robot_with_an_ascii_stl_body_launches_as_with_the_binary_stl(tmp_path, monkeypatch, engine):
+    """The launch twin on both engines: the robot whose body is an ASCII STL is launched, with the very result
+    of the same robot from the binary STL."""
+    if engine == "mujoco":
+        pytest.importorskip("mujoco")
+    from rollability_ros.core.records import LaunchCondition
+    from rollability_ros.core.sim.launch.settings import load_launch_twin_settings
+    from rollability_ros.core.sim.launch.twin import simulate_launch
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    stl_robots(tmp_path)
+    results = {}
+    for name in ("ascii", "binary"):
+        settings = load_launch_twin_settings(("sim", "robot", "launch_twin"), overrides={
+            "physics.engine": engine, "urdf_robot.urdf_path": str(tmp_path / f"{name}.urdf.xacro"),
+            "urdf_robot.mount_link": "base_link", "urdf_robot.footprint_length_m": 0.2,
+            "urdf_robot.footprint_width_m": 0.15, "urdf_robot.footprint_offset_m": [0.0, 0.0, 0.1],
+            "urdf_robot.wheel_link_regex": ".*_wheel", "urdf_robot.min_wheels_in_contact": 2})
+        results[name] = simulate_launch(LaunchCondition("baseline", 0.75, 1.5, 0.0), settings, seed=1)
+    assert results["ascii"].valid, results["ascii"].invalid_reason
+    assert results["ascii"] == results["binary"]
+
+
+def test_a_chassis_outside_the_masses_the_engines_integrate_is_refused(tmp_path):
+    """The built-in chassis's mass (body and four wheels) from its parameter file: the same range as a URDF robot's;
+    the default 1.1 kg chassis is unchanged."""
+    from rollability_ros.core.config import ConfigError
+    from rollability_ros.core.sim.evaluation import load_settings
+
+    assert load_settings(["sim", "robot", "evaluator"]).robot.body_mass_kg == 0.9
+    for name, values, mass in (("heavy", "body_mass_kg: 500.0", "500.2"),
+                               ("light", "body_mass_kg: 0.02, wheel_mass_kg: 0.01", "0.06")):
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(f"/**:\n  ros__parameters:\n    robot: {{{values}}}\n", encoding="utf-8")
+        with pytest.raises((ConfigError, ValueError)) as refused:
+            load_settings(["sim", "robot", "evaluator", str(path)])
+        message = str(refused.value)
+        assert "\n" not in message and f"robot.body_mass_kg + 4 x robot.wheel_mass_kg: the robot weighs {mass} kg, " \
+                                      "outside 0.2-250 kg" in message

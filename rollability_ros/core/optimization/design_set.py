@@ -24,7 +24,7 @@ import typing
 import numpy as np
 import yaml
 
-from rollability_ros.core.profile import Mesh, PrinterSpec, ProfileGrid, export_mesh, is_baseline
+from rollability_ros.core.profile import DESIGN_GRID_KEYS, Mesh, PrinterSpec, ProfileGrid, export_mesh, is_baseline
 from rollability_ros.core.optimization.checkpoint import atomic_write_bytes
 from rollability_ros.core.optimization.labelling import label_by_evidence
 from rollability_ros.core.optimization.selection import (ARCHIVE_COLUMNS, GAIN_SOURCES, BatchEvaluator,
@@ -145,8 +145,7 @@ def designs_document(result: SelectionResult, grid: ProfileGrid, run_id: str,
     comparison was made; a design that does not beat the bare robot is exported for inspection, marked so."""
     body: typing.Dict[str, typing.Any] = {
         "run_id": run_id, "labels": [d.label for d in result.designs],
-        "grid": {"rows": grid.rows, "cols": grid.cols, "length_m": grid.length_m, "width_m": grid.width_m,
-                 "height_min": grid.height_min, "height_max": grid.height_max, "unit_m": grid.unit_m}}
+        "grid": {key: getattr(grid, key) for key in DESIGN_GRID_KEYS}}
     if result.baseline_launches is not None:
         body["baseline_launches"] = {"successes": result.baseline_launches[0], "trials": result.baseline_launches[1]}
     race = result.race

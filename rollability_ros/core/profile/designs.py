@@ -66,6 +66,26 @@ def _file_version(path):
     return os.path.abspath(path), stat.st_size, stat.st_mtime_ns
 
 
+#: The ``designs.grid`` keys every designs file carries (``rollability select`` writes them all): the grid the
+#: heights were chosen on. A missing one would take the default grid's value and rebuild another solid.
+DESIGN_GRID_KEYS = ("rows", "cols", "length_m", "width_m", "height_min", "height_max", "unit_m")
+
+
+def _design_grid(designs: typing.Mapping[str, object], path: str) -> object:
+    """The file's ``designs.grid``; :class:`ConfigError` naming the file when it or one of :data:`DESIGN_GRID_KEYS`
+    is missing (a wrongly typed value is :func:`from_mapping`'s to refuse)."""
+    if "grid" not in designs:
+        raise ConfigError(f"{path}: designs.grid is missing: the heights mean nothing without the grid they were "
+                          f"chosen on ({', '.join(DESIGN_GRID_KEYS)}; rollability select writes it)")
+    grid = designs["grid"]
+    missing = [key for key in DESIGN_GRID_KEYS if isinstance(grid, dict) and key not in grid]
+    if missing:
+        raise ConfigError(f"{path}: designs.grid has no {', '.join(missing)}: the heights mean nothing without the "
+                          "grid they were chosen on (rollability select writes all of "
+                          f"{', '.join(DESIGN_GRID_KEYS)})")
+    return grid
+
+
 @file_schema("designs file")
 @functools.lru_cache(maxsize=16)
 def _read_designs(version):
@@ -81,7 +101,7 @@ def _read_designs(version):
     twice = sorted({label for label in labels if labels.count(label) > 1})
     if twice:
         raise ConfigError(f"{path}: design {twice[0]} is listed twice in designs.labels")
-    grid = from_mapping(geometry.ProfileGrid, designs.get("grid"), f"{path}: designs.grid")
+    grid = from_mapping(geometry.ProfileGrid, _design_grid(designs, path), f"{path}: designs.grid")
     heights = {}
     for label in labels:
         entry = designs.get(label)

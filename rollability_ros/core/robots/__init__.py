@@ -1,6 +1,7 @@
 """Robot models the simulation spawns: the built-in chassis, and any wheeled robot from its URDF.
 
 - robot: RobotModel interface, ChassisSpec, ProfileBody
+- mesh_files: an ASCII STL collision mesh as a binary STL in the converted-mesh cache (both engines read it)
 - urdf_description: read and check a URDF into a rigid-body description
 - urdf_robot: a URDF robot with the profile on a mount link
 

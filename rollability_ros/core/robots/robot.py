@@ -264,6 +264,30 @@ class RobotModel(abc.ABC):
         return upright, tilt
 
 
+#: The robot masses (kg) PyBullet and MuJoCo integrate stably at the default 1/240 s step on the launch twin (the
+#: 0.3 kg push plate, the 20 kN/m foam pad), measured by launching a four-wheeled 1.62 kg robot with every mass and
+#: inertia scaled (docs/other-robots.md, "Robot masses the engines integrate"). Light: MuJoCo's twin went unstable
+#: at 0.016-0.049 kg and landed off the foam at 0.081 kg, as the explicit limit sqrt(k / m) x step = 2 predicts
+#: (0.087 kg on 20 kN/m); the robust launches draw the foam up to twice as stiff (0.17 kg), hence 0.2 kg. Heavy:
+#: MuJoCo's twin went unstable at 486 kg (1,620 x the plate) and 1,620 kg, PyBullet divided by zero at 16,200 kg;
+#: the heaviest robot tried is the 82 kg Scout.
+ROBOT_MASS_RANGE_KG = (0.2, 250.0)
+#: Largest size (m) of a robot's part: a collision shape's extent, a rigid body's radius of gyration. The chassis's
+#: dimensions are bounded so in its parameter file; the robots tried are 0.2-1.0 m long and the rig's ledge 0.75 m
+#: high. A larger value is a unit error (a mesh in millimetres without scale 0.001) or a placeholder.
+ROBOT_SIZE_MAX_M = 10.0
+
+
+def check_robot_mass(mass_kg: float, what: str) -> None:
+    """``ValueError`` in one line naming ``what`` when the robot's mass ``mass_kg`` is outside
+    :data:`ROBOT_MASS_RANGE_KG` (or not a finite number)."""
+    low, high = ROBOT_MASS_RANGE_KG
+    if not low <= mass_kg <= high:
+        raise ValueError(f"{what}: the robot weighs {mass_kg:g} kg, outside {low:g}-{high:g} kg, the masses PyBullet "
+                         "and MuJoCo integrate stably on the launch twin at its 1/240 s step with the 0.3 kg push "
+                         "plate and the 20-40 kN/m foam (MuJoCo went unstable at 0.049 kg and 486 kg)")
+
+
 #: Metadata of ``profile_mass_scale`` (the chassis's and a URDF robot's): an unknown, drawn and calibrated.
 PROFILE_MASS_SCALE = {
     "description": "unknown multiplier on the profile's mass and inertia as computed from profile_print (no unit; "
@@ -327,6 +351,7 @@ class ChassisSpec:
     def validate(self) -> None:
         """Raise ``ValueError`` for a rule that spans fields (each number's range is declared in its metadata and
         checked by :func:`~rollability_ros.core.config.check_settings`)."""
+        check_robot_mass(self.body_mass_kg + 4 * self.wheel_mass_kg, "robot.body_mass_kg + 4 x robot.wheel_mass_kg")
         if abs(self.com_offset_z_m) >= self.body_height_m / 2:
             raise ValueError(f"com_offset_z_m {self.com_offset_z_m} must lie inside the body (|.| < height/2)")
         if self.track_m / 2 - self.wheel_width_m / 2 < self.body_width_m / 2 - 1e-9 and \

@@ -10,7 +10,11 @@ Reading
 Checking
     :func:`describe` refuses, with a message naming the link, joint or file: unparsable XML, no single root,
     unknown links in joints, unsupported joint types, meshes that do not resolve, ``<inertial>`` elements with a
-    missing, zero or negative mass or an inertia that is not positive definite, moving links without mass.
+    missing, zero or negative mass or an inertia that is not positive definite, moving links without mass. An
+    ASCII STL collision mesh is replaced by its binary STL (:mod:`~rollability_ros.core.robots.mesh_files`), or
+    refused when it is no whole mesh. Non-physical numbers that ran as given: a robot's mass outside
+    :data:`~rollability_ros.core.robots.robot.ROBOT_MASS_RANGE_KG`, a rigid body's radius of gyration or a collision
+    shape's extent over :data:`~rollability_ros.core.robots.robot.ROBOT_SIZE_MAX_M`.
 Rigid bodies
     Links joined by ``fixed`` joints form one rigid body, named after its top link (the root, or a link on a
     moving joint). :func:`describe` merges each body's masses, inertias (parallel-axis theorem, URDF values
@@ -33,6 +37,9 @@ import xml.etree.ElementTree as ElementTree
 
 import numpy as np
 import numpy.typing as npt
+
+from rollability_ros.core.robots.mesh_files import collision_mesh_file
+from rollability_ros.core.robots.robot import ROBOT_SIZE_MAX_M, check_robot_mass
 
 #: Name of the frame link added as PyBullet's base (see the module docstring).
 BASE_LINK = "rollability_base"
@@ -451,19 +458,24 @@ def _sizes(text, count, where):
     return values
 
 
-def _ascii_stl(path: str) -> bool:
-    """True for an STL file in the ASCII format: not the size a binary STL's triangle count gives (84 bytes of
-    header and count, 50 a triangle), and starting with ``solid`` (a binary header may start so too)."""
-    if not path.lower().endswith(".stl"):
-        return False
-    try:
-        with open(path, "rb") as stream:
-            head = stream.read(84)
-        size = os.path.getsize(path)
-    except OSError:
-        return False   # the read below names the file
-    binary = len(head) == 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little")
-    return not binary and head.lstrip().startswith(b"solid")
+def _check_extent(points, where, mesh):
+    """``ValueError`` naming ``where`` when the shape's points ``(k, 3)`` (m) span more than
+    :data:`ROBOT_SIZE_MAX_M`."""
+    extent = float(np.ptp(points, axis=0).max())
+    if extent > ROBOT_SIZE_MAX_M:
+        hint = " (a mesh in millimetres needs scale=\"0.001 0.001 0.001\")" if mesh is not None else ""
+        raise ValueError(f"{where}: the shape spans {extent:g} m, over the {ROBOT_SIZE_MAX_M:g} m any part of a robot "
+                         f"on the rig may{hint}")
+
+
+def _check_body_inertia(name, mass_kg, inertia):
+    """``ValueError`` naming the rigid body ``name`` whose radius of gyration (sqrt(largest moment / mass)) is over
+    :data:`ROBOT_SIZE_MAX_M`: an inertia no body of that mass and size has (1e300 kg m^2 ran as given)."""
+    radius_m = math.sqrt(float(np.linalg.eigvalsh(inertia).max()) / mass_kg)
+    if radius_m > ROBOT_SIZE_MAX_M:
+        raise ValueError(f"rigid body {name!r} ({mass_kg:g} kg): its inertia's largest moment "
+                         f"{float(np.linalg.eigvalsh(inertia).max()):g} kg m^2 means a radius of gyration of "
+                         f"{radius_m:g} m, over the {ROBOT_SIZE_MAX_M:g} m any part of a robot on the rig may")
 
 
 def mesh_hull_vertices(mesh_path: str, where: str) -> np.ndarray:
@@ -473,9 +485,6 @@ def mesh_hull_vertices(mesh_path: str, where: str) -> np.ndarray:
     that is not a ``ValueError``). Both engines collide with a mesh's hull."""
     from rollability_ros.core.optional import require
 
-    if _ascii_stl(mesh_path):   # trimesh reads it; PyBullet drops the shape with a warning, MuJoCo refuses it
-        raise ValueError(f"{where}: mesh {mesh_path} is an ASCII STL, which PyBullet and MuJoCo cannot read (PyBullet "
-                         "would simulate the link without it): save it as a binary STL or an OBJ")
     trimesh = require("trimesh", feature="URDF mesh collision shapes")
     try:
         loaded = trimesh.load(mesh_path, force="mesh")
@@ -494,7 +503,9 @@ def mesh_hull_vertices(mesh_path: str, where: str) -> np.ndarray:
 
 
 def _geometry_points(geometry, where, mesh_path):
-    """Points ``(k, 3)`` whose hull bounds a URDF geometry, in the geometry's frame (m)."""
+    """Points ``(k, 3)`` whose hull bounds a URDF geometry, in the geometry's frame (m). A mesh in ASCII STL is
+    renamed in ``geometry`` to its binary STL (:func:`~rollability_ros.core.robots.mesh_files.collision_mesh_file`),
+    the file the simulation's URDF then names."""
     box, cylinder, sphere, mesh = (geometry.find(tag) for tag in ("box", "cylinder", "sphere", "mesh"))
     if box is not None:
         half = np.array(_sizes(box.get("size"), 3, f"{where} box size")) / 2
@@ -507,10 +518,16 @@ def _geometry_points(geometry, where, mesh_path):
         scale = np.array(_numbers(mesh.get("scale", "1 1 1"), 3, f"{where} mesh scale"))
         if not np.all(scale):
             raise ValueError(f"{where}: mesh scale {mesh.get('scale')!r} has a zero: the shape would be flat")
-        return mesh_hull_vertices(mesh_path, where) * scale
+        mesh_path = collision_mesh_file(mesh_path, where)   # an ASCII STL: its binary STL, which the engines read
+        mesh.set("filename", mesh_path)
+        points = mesh_hull_vertices(mesh_path, where) * scale
+        _check_extent(points, where, mesh)
+        return points
     else:
         raise ValueError(f"{where}: geometry must be a box, cylinder, sphere or mesh")
-    return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+    points = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+    _check_extent(points, where, None)
+    return points
 
 
 def _resolve_meshes(root_element, urdf_folder, folders):
@@ -577,6 +594,7 @@ def _body_inertials(bodies):
         for mass, centre, part in body["parts"]:
             offset = centre - com
             inertia += part + mass * (offset @ offset * np.eye(3) - np.outer(offset, offset))
+        _check_body_inertia(name, body["mass"], inertia)
         body_inertials[name] = (body["mass"], com, inertia)
     return body_inertials
 
@@ -660,6 +678,7 @@ def describe(xml_text: str, urdf_folder: typing.Optional[str] = None,
             raise ValueError(f"{placement.message} (needed to place link {child!r})")
         body_in_root[child] = body_in_root[body_of[parent]] @ placement
     mass_kg = sum(b[0] for b in body_inertials.values())
+    check_robot_mass(mass_kg, "robot description (its <inertial> masses)")
     com_m = sum(b[0] * (body_in_root[n][:3, :3] @ b[1] + body_in_root[n][:3, 3])
                 for n, b in body_inertials.items()) / mass_kg
 

@@ -179,3 +179,33 @@ def test_a_bad_continuous_outcome_refuses_the_file_naming_line_and_column(tmp_pa
                             f"A,0.75,0.8,0,1,true,{cell}\n")
     with pytest.raises(OutcomeCsvError, match="line 3: " + reason):
         read_outcome_csv(path, run_id="r")
+
+
+def test_control_characters_are_refused_naming_the_line_and_column(tmp_path):
+    """"A\x00" was imported as a configuration of its own beside "A", and "true\x1f" read as true (str.strip takes
+    the unit separator for whitespace): a control character in any cell refuses the file; a note keeps its tabs and
+    line breaks."""
+    path = _write(tmp_path, "run_id,configuration,height_m,speed_mps,angle_deg,repetition,upright,backend,note\n"
+                            "r,A,0.75,0.8,0,0,true,physical,\"two lines,\n\ta tab\"\n"   # line 2: good
+                            "r,A\x00,0.75,0.8,0,1,true,physical,\n"                     # line 4: NUL in an id
+                            "r,A,0.75,0.8,0,2,true\x1f,physical,\n"                     # line 5: in a boolean
+                            "r,A,0.75,0.8,0,3,true,phys\tical,\n"                       # line 6: tab inside an id
+                            "r,A,0.75,0.8,0,4,true,physical,bell\x07\n"                 # line 7: in a note
+                            "r\x1b,A,0.75,0.8,0,5,true,physical,\n")                    # line 8: ESC in run_id
+    with pytest.raises(OutcomeCsvError) as caught:
+        read_outcome_csv(path)
+    assert dict(caught.value.problems) == {
+        4: "configuration must not hold control characters, got 'A\\x00'",
+        5: "upright must not hold control characters, got 'true\\x1f'",
+        6: "backend must not hold control characters, got 'phys\\tical'",
+        7: "note must not hold control characters, got 'bell\\x07'",
+        8: "run_id must not hold control characters, got 'r\\x1b'"}
+    one = _write(tmp_path, "configuration,height_m,speed_mps,angle_deg,repetition,upright\nA\x00,0.75,0.8,0,0,true\n",
+                 "one.csv")
+    with pytest.raises(OutcomeCsvError) as caught:
+        read_outcome_csv(one, run_id="r")
+    assert str(caught.value) == (f"{one}: refused, nothing imported: line 2: configuration must not hold control "
+                                 "characters, got 'A\\x00'")   # one problem: one line naming file, line and column
+    (good,) = read_outcome_csv(_write(tmp_path, "configuration,height_m,speed_mps,angle_deg,repetition,upright,note\n"
+                                                "\tA ,0.75,0.8,0,0,true,\"a\n\tb\"\n", "good.csv"), run_id="r")
+    assert good.condition.configuration == "A" and good.note == "a\n\tb"   # layout around a cell is trimmed

@@ -8,6 +8,7 @@ import csv
 import math
 import os
 import typing
+import unicodedata
 
 from rollability_ros.core.records import (CONTINUOUS_OUTCOMES, NO_SEED, NOT_MEASURED, UNKNOWN_ORIENTATION,
                                           LaunchCondition, LaunchOutcome, check_continuous_outcome, trial_id_for)
@@ -23,6 +24,9 @@ OPTIONAL_COLUMNS = ("run_id", "trial_id", "backend", "travel_time_s", "measured_
 #: Column order of exported files.
 EXPORT_COLUMNS = ("run_id", "trial_id") + REQUIRED_COLUMNS + OPTIONAL_COLUMNS[2:]
 
+#: Characters a free-text cell (``note``) may hold though they are control characters: a note's tab or line break.
+_TEXT_LAYOUT = "\t\n\r"
+
 _TRUE = ("true", "1", "yes", "y")
 _FALSE = ("false", "0", "no", "n")
 
@@ -33,8 +37,20 @@ class OutcomeCsvError(ValueError):
     def __init__(self, path, problems):
         self.path = path
         self.problems = problems
+        if len(problems) == 1:   # one problem, one line: the file, the line and the reason (which names the column)
+            super().__init__(f"{path}: refused, nothing imported: line {problems[0][0]}: {problems[0][1]}")
+            return
         listing = "\n".join(f"  line {line}: {reason}" for line, reason in problems)
         super().__init__(f"{path}: refused, {len(problems)} problem(s); nothing imported:\n{listing}")
+
+
+def _check_control(text, column):
+    """``ValueError`` for a cell holding a control character (a NUL, an escape, a unit separator): ``A\\x00`` would
+    be a configuration of its own and ``true\\x1f`` reads as true once stripped. Tab and line breaks are allowed
+    around any cell (trimmed as whitespace) and inside ``note``; anywhere else they are refused too."""
+    allowed = _TEXT_LAYOUT if column == "note" else ""
+    if any(unicodedata.category(c) == "Cc" and c not in allowed for c in text.strip(" " + _TEXT_LAYOUT)):
+        raise ValueError(f"{column} must not hold control characters, got {text!r}")
 
 
 def _parse_bool(text, column):
@@ -101,6 +117,7 @@ def _parse_row(values, run_id):
         if column not in values:
             return default
         try:
+            _check_control(values[column], column)
             return parse(values[column], column, *args)
         except ValueError as exc:
             reasons.append(str(exc))

@@ -240,3 +240,60 @@ def test_more_workers_than_the_memory_holds_are_refused_at_start(start_node):
     errors = [line for line in node.log().splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and errors[0].startswith("error: evaluator.workers: 1024 worker processes need about "
                                                      "296960 MB (290 MB each"), node.log()
+
+
+def test_a_replacement_pool_the_memory_refuses_aborts_the_goal_and_the_node_keeps_serving(ros_node, monkeypatch,
+                                                                                            tmp_path):
+    """A broken worker pool (its worker killed) is replaced through spawn_pool, which refuses a count the available
+    memory (a fake meminfo) does not hold. That refusal escaped the execute callback (the goal aborted with no
+    reason) and left the closed pool for every later goal; now the goal is aborted naming the shortfall, the next one
+    too while the memory is short, and once it is not the configured pool (1 worker, never fewer) starts again."""
+    import functools
+    import os
+    import signal
+    import threading
+
+    import rclpy
+    from rclpy.executors import MultiThreadedExecutor
+
+    from rollability_ros.core.sim import evaluation, spawn_pool
+    from rollability_ros.nodes.sim_evaluator import SimEvaluator
+
+    meminfo = tmp_path / "meminfo"
+
+    def available(mb):
+        meminfo.write_text(f"MemTotal:       16384000 kB\nMemAvailable:   {mb * 1024} kB\n")
+
+    available(8000)
+    monkeypatch.setattr(evaluation, "spawn_pool", functools.partial(spawn_pool, meminfo_path=str(meminfo)))
+    rclpy.init(args=["--ros-args", "-p", "evaluator.workers:=1", "-r", "__ns:=/memory_short"])
+    node = SimEvaluator()
+    executor = MultiThreadedExecutor()
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    try:
+        (worker,) = node._pool.warm()
+        os.kill(worker, signal.SIGKILL)   # the pool is broken
+        available(100)                    # and its replacement does not fit
+        client = _client(ros_node, "/memory_short/evaluate_profile")
+        shortfall = ("no worker pool: evaluator.workers: 1 worker processes need about 290 MB (290 MB each: a trial "
+                     "worker's RSS plateau, bench/bench_worker_memory.py), more than the 100 MB available "
+                     "(MemAvailable, /proc/meminfo): free memory first")
+        broken = _wait(ros_node, _send(ros_node, client, [], 2, 1).get_result_async())
+        assert broken.status == GoalStatus.STATUS_ABORTED
+        assert broken.result.message.startswith("evaluation failed: ") and broken.result.message.endswith(
+            "; " + shortfall) and "\n" not in broken.result.message, broken.result.message
+        short = _wait(ros_node, _send(ros_node, client, [], 2, 1).get_result_async())
+        assert short.status == GoalStatus.STATUS_ABORTED
+        assert short.result.message == "evaluation not started: " + shortfall
+        available(8000)
+        served = _wait(ros_node, _send(ros_node, client, [], 2, 1).get_result_async())
+        assert served.status == GoalStatus.STATUS_SUCCEEDED, served.result.message
+        assert served.result.trials == 2 and node._pool.workers == 1
+    finally:
+        node.close()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+        spinner.join(timeout=5)

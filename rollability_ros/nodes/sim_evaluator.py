@@ -22,7 +22,9 @@ Parameters: the namespaces of config/sim.yaml (``sim``, ``trial``), config/robot
 ``printer``), config/evaluator.yaml (``evaluator``) and a URDF robot's config (``urdf_robot``, e.g.
 config/husky.yaml), each declared with a description and validated; an invalid ``ros2 param set`` is refused.
 ``evaluator.workers`` and ``evaluator.ray_address`` take effect at start; a worker count whose workers the machine's
-available memory does not hold is refused there in one line (exit 2). ``session.id``: an evaluator of a session
+available memory does not hold is refused there in one line (exit 2); mid-run, when a broken pool's replacement is
+refused so, the goal is aborted naming the shortfall and each later goal first starts the configured pool again (or
+is aborted so): never evaluated with fewer workers. ``session.id``: an evaluator of a session
 rejects goals of another (logged once) and names its session in every result.
 Goals are evaluated one at a time, each over the whole worker pool; bad goals are rejected with the reason logged.
 """
@@ -39,7 +41,7 @@ from std_msgs.msg import String
 
 from rollability_ros.action import EvaluateProfile
 from rollability_ros.core.sim import (SETTINGS_SECTIONS, EvaluationCancelled, EvaluatorSettings,
-                                      TrialOutcome, check_fidelity, evaluate_profile, make_executor,
+                                      TrialExecutor, TrialOutcome, check_fidelity, evaluate_profile, make_executor,
                                       request_problem, settings_at_fidelity, with_objective)
 from rollability_ros.core.profile import check_heights, print_differences, print_instructions_from_text
 from rollability_ros.msg import TrialResult
@@ -83,11 +85,11 @@ class SimEvaluator(Node):
         self._topic_description = ""
         if self._settings.urdf_robot.selected and not self._settings.urdf_robot.has_source:
             self.create_subscription(String, "robot_description", self._on_description, LATCHED_QOS)
+        self._pool: typing.Optional[TrialExecutor] = None   # None: a replacement was refused (_start_pool)
         try:
             self._pool = make_executor(self._settings.evaluator)
         except ValueError as exc:   # e.g. a count the memory cannot hold: refused before any worker starts
-            setting = "evaluator.ray_address" if self._settings.evaluator.ray_address else "evaluator.workers"
-            raise ParameterError(f"{setting}: {exc}") from exc
+            raise ParameterError(f"{self._pool_setting()}: {exc}") from exc
         self._busy = threading.Lock()
         self._closing = threading.Event()
         ActionServer(self, EvaluateProfile, "evaluate_profile", execute_callback=self._execute,
@@ -175,6 +177,11 @@ class SimEvaluator(Node):
 
         result = EvaluateProfile.Result(evaluator=self.get_fully_qualified_name(), session=self._session.id)
         with self._busy:
+            problem = self._start_pool()
+            if problem:   # never evaluated on another pool (fewer workers, in-process) than configured
+                goal_handle.abort()
+                result.message = f"evaluation not started: {problem}"
+                return result
             try:
                 evaluation = evaluate_profile(list(request.heights) or None, request.trials, request.seed,
                                               settings_at_fidelity(self._settings, request.fidelity),
@@ -193,10 +200,9 @@ class SimEvaluator(Node):
                 return result
             except Exception as exc:  # a broken worker pool or physics error must not take the node down
                 self.get_logger().error(f"evaluation failed: {exc!r}")
-                if not self._closing.is_set():
-                    self._replace_broken_pool()
+                problem = "" if self._closing.is_set() else self._replace_broken_pool()
                 goal_handle.abort()
-                result.message = f"evaluation failed: {exc}"
+                result.message = f"evaluation failed: {exc}" + (f"; {problem}" if problem else "")
                 return result
         goal_handle.succeed()
         result.fitness = evaluation.fitness
@@ -208,18 +214,41 @@ class SimEvaluator(Node):
         result.trial_results = _trial_msgs(evaluation.trial_results)
         return result
 
-    def _replace_broken_pool(self):
+    def _pool_setting(self) -> str:
+        return "evaluator.ray_address" if self._settings.evaluator.ray_address else "evaluator.workers"
+
+    def _replace_broken_pool(self) -> str:
+        """Close the pool and start a new one; why none could start ("" when one did)."""
         try:
-            self._pool.close()
+            if self._pool is not None:
+                self._pool.close()
         except Exception as exc:
             self.get_logger().warning(f"closing the broken worker pool: {exc!r}")
-        self._pool = make_executor(self._settings.evaluator)
+        self._pool = None
+        return self._start_pool()
+
+    def _start_pool(self) -> str:
+        """Start the configured pool when there is none; why it cannot start ("" when there is one).
+
+        A replacement spawn_pool refuses (its workers need more memory than is available now) leaves no pool: each
+        goal is aborted naming the shortfall until one starts, never evaluated with fewer workers than configured.
+        """
+        if self._pool is not None:
+            return ""
+        try:
+            self._pool = make_executor(self._settings.evaluator)
+        except Exception as exc:   # e.g. the memory refusal (ValueError): the node keeps serving
+            problem = f"no worker pool: {self._pool_setting()}: {exc}"
+            self.get_logger().error(problem)
+            return problem
+        return ""
 
     def close(self) -> None:
         """End a running evaluation at its next batch (the goal is aborted), then stop the worker processes."""
         self._closing.set()
         with self._busy:
-            self._pool.close()
+            if self._pool is not None:
+                self._pool.close()
 
 
 def main(args: typing.Optional[typing.List[str]] = None) -> int:

@@ -273,8 +273,7 @@ class Store:
         rows = self._read("PRAGMA quick_check(5)")
         problems = [row[0] for row in rows if row[0] != "ok"]
         if problems:
-            raise StoreDamaged(f"store {self.path} is damaged ({'; '.join(problems)[:300]}); nothing more is written "
-                               "to it; restore it from a copy (`sqlite3 FILE .recover` salvages the rows left)")
+            raise self._damaged("; ".join(problems)[:300])
 
     def __enter__(self):
         return self
@@ -329,8 +328,9 @@ class Store:
                     raise self._damaged(exc) from exc
                 raise
 
-    def _damaged(self, exc: sqlite3.DatabaseError) -> StoreDamaged:
-        return StoreDamaged(f"store {self.path} is damaged ({exc}); nothing more is written to it; restore it "
+    def _damaged(self, cause: typing.Union[sqlite3.DatabaseError, str]) -> StoreDamaged:
+        """The error naming this store as damaged by ``cause`` (SQLite's error, or what ``quick_check`` found)."""
+        return StoreDamaged(f"store {self.path} is damaged ({cause}); nothing more is written to it; restore it "
                             "from a copy (`sqlite3 FILE .recover` salvages the rows left)")
 
     def _select(self, table, **filters):
